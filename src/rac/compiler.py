@@ -1,0 +1,78 @@
+"""The pipeline: text → AST → checked IR (+ diagnostics). Targets start from its result."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rac import ast, ir
+from rac.diagnostics import CheckError, Diagnostic, error
+from rac.parser import ParseFailure, decode_source, parse_source, read_source
+from rac.resolve import Resolver
+from rac.source import SourceFile
+
+
+@dataclass(frozen=True)
+class CompileResult:
+    """What checking one file produced: the IR when there are no errors, and every diagnostic."""
+
+    automaton: ir.Automaton | None
+    diagnostics: tuple[Diagnostic, ...]
+    sources: dict[str, SourceFile] = field(default_factory=dict)
+    module: ast.Module | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.automaton is not None and not any(d.is_error for d in self.diagnostics)
+
+    def raise_for_errors(self) -> ir.Automaton:
+        """The automaton, or :class:`CheckError` carrying the diagnostics."""
+        if not self.ok or self.automaton is None:
+            raise CheckError(self.diagnostics, self.sources)
+        return self.automaton
+
+
+def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult:
+    """Parse, resolve and (unless ``analyse=False``) run every static check on one source."""
+    sources = {source.name: source}
+    try:
+        module = parse_source(source)
+    except ParseFailure as failure:
+        return CompileResult(None, (failure.diagnostic,), sources)
+    diagnostics: list[Diagnostic] = []
+    for extra in module.automata[1:]:
+        diagnostics.append(error("E0107", "a file holds one automaton; this is a second one",
+                                 extra.name.span, hints=["move it to a file of its own"]))
+    resolver = Resolver(module.automata[0])
+    automaton = resolver.run()
+    diagnostics.extend(resolver.diagnostics)
+    if automaton is not None and analyse and not any(d.is_error for d in diagnostics):
+        from rac.analysis import analyse_automaton
+
+        diagnostics.extend(analyse_automaton(automaton))
+    if any(d.is_error for d in diagnostics):
+        automaton = None
+    return CompileResult(automaton, tuple(diagnostics), sources, module)
+
+
+def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:
+    """Check `.ra` source given as a string."""
+    return compile_source(SourceFile(name, text), analyse=analyse)
+
+
+def compile_bytes(data: bytes, name: str, *, analyse: bool = True) -> CompileResult:
+    """Check `.ra` source given as raw bytes (decoding problems become diagnostics)."""
+    try:
+        source = decode_source(name, data)
+    except ParseFailure as failure:
+        return CompileResult(None, (failure.diagnostic,), {})
+    return compile_source(source, analyse=analyse)
+
+
+def compile_file(path: str | Path, *, analyse: bool = True) -> CompileResult:
+    """Check one `.ra` file. ``OSError`` propagates for files that cannot be read at all."""
+    try:
+        source = read_source(path)
+    except ParseFailure as failure:
+        return CompileResult(None, (failure.diagnostic,), {})
+    return compile_source(source, analyse=analyse)

@@ -1,0 +1,236 @@
+"""The checked automaton as the targets see it: names resolved, arithmetic exact.
+
+Targets (the in-process interpreter, generated Python, UPPAAL) and the static
+analyses read this representation only. All numbers are ``Fraction``; each
+target decides how to round them (see :meth:`Linear.scaled`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Union
+
+from rac import ast
+from rac.source import Span
+
+
+@dataclass(frozen=True)
+class Linear:
+    """``const + Σ coefficient·variable`` over rewards and numeric inputs."""
+
+    const: Fraction = Fraction(0)
+    terms: tuple[tuple[str, Fraction], ...] = ()
+
+    @staticmethod
+    def constant(value: Fraction | int) -> Linear:
+        return Linear(Fraction(value))
+
+    @staticmethod
+    def variable(name: str) -> Linear:
+        return Linear(Fraction(0), ((name, Fraction(1)),))
+
+    @property
+    def is_constant(self) -> bool:
+        return not self.terms
+
+    def coefficient(self, name: str) -> Fraction:
+        return dict(self.terms).get(name, Fraction(0))
+
+    def variables(self) -> tuple[str, ...]:
+        return tuple(name for name, _ in self.terms)
+
+    def _combine(self, other: Linear, sign: int) -> Linear:
+        coefficients = dict(self.terms)
+        for name, value in other.terms:
+            coefficients[name] = coefficients.get(name, Fraction(0)) + sign * value
+        return Linear(self.const + sign * other.const,
+                      tuple((n, c) for n, c in coefficients.items() if c != 0))
+
+    def __add__(self, other: Linear) -> Linear:
+        return self._combine(other, 1)
+
+    def __sub__(self, other: Linear) -> Linear:
+        return self._combine(other, -1)
+
+    def scaled(self, factor: Fraction | int) -> Linear:
+        factor = Fraction(factor)
+        if factor == 0:
+            return Linear()
+        return Linear(self.const * factor, tuple((n, c * factor) for n, c in self.terms))
+
+    def evaluate(self, values: dict[str, Fraction]) -> Fraction:
+        return self.const + sum((c * values[n] for n, c in self.terms), Fraction(0))
+
+    def ordered(self, order: tuple[str, ...]) -> Linear:
+        """The same form with terms in a fixed variable order (targets rely on it)."""
+        rank = {name: i for i, name in enumerate(order)}
+        return Linear(self.const, tuple(sorted(self.terms, key=lambda t: rank.get(t[0], len(rank)))))
+
+
+# ---------------------------------------------------------------- guards
+@dataclass(frozen=True)
+class BConst:
+    value: bool
+
+
+@dataclass(frozen=True)
+class BInput:
+    """A boolean input's current value."""
+
+    name: str
+
+
+@dataclass(frozen=True)
+class BAtom:
+    """``input op threshold`` for a numeric input (every numeric comparison is normalised to this)."""
+
+    input: str
+    op: str  # < <= > >= == !=
+    threshold: Fraction
+
+
+@dataclass(frozen=True)
+class BNot:
+    operand: Guard
+
+
+@dataclass(frozen=True)
+class BAnd:
+    operands: tuple[Guard, ...]
+
+
+@dataclass(frozen=True)
+class BOr:
+    operands: tuple[Guard, ...]
+
+
+Guard = Union[BConst, BInput, BAtom, BNot, BAnd, BOr]
+
+TRUE = BConst(True)
+
+
+# ---------------------------------------------------------------- automaton
+@dataclass(frozen=True)
+class Input:
+    name: str
+    kind: str  # "bool", "real" or "int"
+    low: Fraction | None = None
+    high: Fraction | None = None
+    span: Span | None = field(default=None, compare=False)
+
+    @property
+    def is_bool(self) -> bool:
+        return self.kind == "bool"
+
+
+@dataclass(frozen=True)
+class Assignment:
+    """``reward = value`` with ``value`` linear in rewards and numeric inputs."""
+
+    reward: str
+    value: Linear
+    span: Span | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
+class Location:
+    name: str
+    #: One rate per reward (same order as ``Automaton.rewards``), linear in numeric inputs.
+    rates: tuple[Linear, ...]
+    span: Span | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
+class Edge:
+    source: int
+    target: int
+    guard: Guard
+    updates: tuple[Assignment, ...]
+    span: Span | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
+class EndClause:
+    guard: Guard
+    updates: tuple[Assignment, ...]
+    span: Span | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
+class Automaton:
+    """A checked reward automaton."""
+
+    name: str
+    inputs: tuple[Input, ...]
+    rewards: tuple[str, ...]
+    locations: tuple[Location, ...]
+    initial: int
+    #: Edges grouped by source location, in source order (``*`` already expanded).
+    edges: tuple[tuple[Edge, ...], ...]
+    end_clauses: tuple[EndClause, ...]
+    assume: Guard
+    objective: Linear
+    priority: tuple[str, ...]
+    strict: bool
+    period: Fraction
+    horizon: Fraction
+    constants: tuple[tuple[str, Fraction | bool], ...] = ()
+    queries: tuple[ast.QueryDecl, ...] = field(default=(), compare=False)
+    source: ast.Automaton | None = field(default=None, compare=False, repr=False)
+    spans: dict[str, Span] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def steps(self) -> int:
+        """Samples in a run of the full horizon."""
+        return int(self.horizon / self.period)
+
+    @property
+    def location_names(self) -> tuple[str, ...]:
+        return tuple(loc.name for loc in self.locations)
+
+    def input(self, name: str) -> Input:
+        for item in self.inputs:
+            if item.name == name:
+                return item
+        raise KeyError(name)
+
+    @property
+    def numeric_inputs(self) -> tuple[Input, ...]:
+        return tuple(i for i in self.inputs if not i.is_bool)
+
+    @property
+    def bool_inputs(self) -> tuple[Input, ...]:
+        return tuple(i for i in self.inputs if i.is_bool)
+
+    def all_edges(self) -> tuple[Edge, ...]:
+        return tuple(e for group in self.edges for e in group)
+
+
+def evaluate_guard(guard: Guard, values: dict[str, object]) -> bool:
+    """Exact evaluation of a guard on one input valuation (bools and Fractions/floats)."""
+    if isinstance(guard, BConst):
+        return guard.value
+    if isinstance(guard, BInput):
+        return bool(values[guard.name])
+    if isinstance(guard, BAtom):
+        return compare(values[guard.input], guard.op, guard.threshold)  # type: ignore[arg-type]
+    if isinstance(guard, BNot):
+        return not evaluate_guard(guard.operand, values)
+    if isinstance(guard, BAnd):
+        return all(evaluate_guard(g, values) for g in guard.operands)
+    return any(evaluate_guard(g, values) for g in guard.operands)
+
+
+def compare(left, op: str, right) -> bool:
+    if op == "<":
+        return left < right
+    if op == "<=":
+        return left <= right
+    if op == ">":
+        return left > right
+    if op == ">=":
+        return left >= right
+    if op == "==":
+        return left == right
+    return left != right
