@@ -20,6 +20,8 @@ class CompileResult:
     diagnostics: tuple[Diagnostic, ...]
     sources: dict[str, SourceFile] = field(default_factory=dict)
     module: ast.Module | None = None
+    #: What the analyses proved, as sentences (printed by ``rac check``).
+    facts: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -46,13 +48,14 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
     resolver = Resolver(module.automata[0])
     automaton = resolver.run()
     diagnostics.extend(resolver.diagnostics)
+    facts: list[str] = []
     if automaton is not None and analyse and not any(d.is_error for d in diagnostics):
         from rac.analysis import analyse_automaton
 
-        diagnostics.extend(analyse_automaton(automaton))
+        diagnostics.extend(analyse_automaton(automaton, facts))
     if any(d.is_error for d in diagnostics):
         automaton = None
-    return CompileResult(automaton, tuple(diagnostics), sources, module)
+    return CompileResult(automaton, tuple(diagnostics), sources, module, tuple(facts))
 
 
 def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:

@@ -22,8 +22,9 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac import ast
+from rac.parser import parse_text
 
-__all__ = ["format_expr", "format_query", "format_member", "format_module", "format_source"]
+__all__ = ["format_expr", "format_member", "format_module", "format_query", "format_source"]
 
 INDENT = "    "
 
@@ -46,7 +47,7 @@ _ATOM = 8
 
 
 def _format_number(value: Fraction) -> str:
-    """An exact decimal literal (no exponent); ``(n / d)`` when none exists."""
+    """Print an exact decimal literal (no exponent); ``(n / d)`` when none exists."""
     if value < 0:
         return "-" + _format_number(-value)
     numerator, denominator = value.numerator, value.denominator
@@ -266,7 +267,7 @@ def _comment_text(comment: ast.Comment) -> str:
 
 
 def _is_continuation(comment: ast.Comment, slot: _Slot) -> bool:
-    """An own-line comment right under the slot's trailing comment, in the same column."""
+    """Tell whether an own-line comment sits right under the slot's trailing comment, in its column."""
     last = slot.continued[-1] if slot.continued else slot.trailing[-1] if slot.trailing else None
     if last is None or last.span is None or comment.span is None:
         return False
@@ -374,7 +375,7 @@ def _format_automaton(automaton: ast.Automaton, comments: _AutomatonComments) ->
             for i in range(start, end):
                 columns[i] = max(widths) + 2
         start = end
-    for index, (code, slot) in enumerate(zip(codes, comments.members)):
+    for index, (code, slot) in enumerate(zip(codes, comments.members, strict=True)):
         if index and groups[index] != groups[index - 1]:
             lines.append("")
         lines.extend(INDENT + _comment_text(c) for c in slot.leading)
@@ -415,6 +416,4 @@ def format_source(text: str, name: str = "<string>") -> str:
 
     Raises :class:`rac.parser.ParseFailure` when ``text`` is not a valid `.ra` file.
     """
-    from rac.parser import parse_text
-
     return format_module(parse_text(text, name))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import bisect
 from dataclasses import dataclass, field
 from functools import cached_property
-from pathlib import Path
 
 #: Files larger than this are refused with a diagnostic instead of being parsed:
 #: a reward automaton is a few kilobytes; anything this big is a mistake.

@@ -6,14 +6,19 @@ from rac import ir
 from rac.diagnostics import Diagnostic
 
 
-def analyse_automaton(automaton: ir.Automaton) -> list[Diagnostic]:
-    """Run every analysis; later ones run only when earlier ones found no error."""
+def analyse_automaton(automaton: ir.Automaton, facts: list[str] | None = None) -> list[Diagnostic]:
+    """Run every analysis; later ones run only when earlier ones found no error.
+
+    What was proved is appended to ``facts`` as sentences (the CLI prints them).
+    """
     from rac.analysis.behaviour import check_behaviour
     from rac.analysis.priority import check_priorities, check_ranges
 
+    facts = facts if facts is not None else []
     diagnostics = check_behaviour(automaton)
     if any(d.is_error for d in diagnostics):
         return diagnostics
-    diagnostics += check_priorities(automaton)
-    diagnostics += check_ranges(automaton)
+    facts.append(f"deterministic: every location has at most one enabled edge for every input")
+    diagnostics += check_priorities(automaton, facts)
+    diagnostics += check_ranges(automaton, facts=facts)
     return diagnostics

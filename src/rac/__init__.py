@@ -1,0 +1,41 @@
+"""rac — the reward-automata compiler.
+
+Write a multi-objective reward as a reward automaton (``.ra``), have rac prove
+that its priority order holds, and train with it::
+
+    import rac
+    ra = rac.load("stdlib/driving.ra")   # raises rac.CheckError on errors
+    ra.reset()
+    r = ra.step({"isClose": False, "prog": True, "comf": True, "collide": False, "dgoal": 40.0})
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rac.compiler import CompileResult, compile_file, compile_text
+from rac.diagnostics import CheckError, Diagnostic
+
+if TYPE_CHECKING:
+    from rac.runtime import RewardAutomaton
+
+__version__ = "0.1.0"
+__all__ = ["CheckError", "CompileResult", "Diagnostic", "compile_file", "compile_text", "load", "loads"]
+
+
+def load(path: str | Path) -> RewardAutomaton:
+    """Check a `.ra` file and return its automaton, ready to ``reset``/``step``/``end``.
+
+    Raises :class:`CheckError` (with every diagnostic) if the file has errors.
+    """
+    from rac.runtime import RewardAutomaton
+
+    return RewardAutomaton(compile_file(path).raise_for_errors())
+
+
+def loads(text: str, name: str = "<string>") -> RewardAutomaton:
+    """Like :func:`load`, for source text."""
+    from rac.runtime import RewardAutomaton
+
+    return RewardAutomaton(compile_text(text, name).raise_for_errors())

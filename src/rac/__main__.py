@@ -1,0 +1,3 @@
+from rac.cli import entry
+
+entry()
