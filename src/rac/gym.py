@@ -108,7 +108,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper):
         ra = self.automaton
         return {"location": ra.location, "rewards": dict(ra.rewards), "objective": ra.objective}
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         """Reset the environment and the automaton."""
         obs, info = self.env.reset(seed=seed, options=options)
         self.automaton.reset()

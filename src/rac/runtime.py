@@ -205,7 +205,8 @@ def _key_error(inputs: Mapping[str, object], names: Sequence[str]) -> ValueError
 
 
 def _range_error(spec: InputSpec, value: object, where: str = "") -> ValueError:
-    if spec.kind == "int" and isinstance(value, float) and math.isfinite(value) and spec.low <= value <= spec.high:
+    in_range = isinstance(value, float) and math.isfinite(value) and spec.low <= value <= spec.high
+    if spec.kind == "int" and in_range:
         return ValueError(f"input {spec.name!r}{where} = {value!r} is not an integer")
     return ValueError(f"input {spec.name!r}{where} = {value!r} is outside [{spec.low!r}, {spec.high!r}]")
 
@@ -281,7 +282,8 @@ class RewardAutomaton:
         index = {name: i for i, name in enumerate(automaton.rewards)}
 
         def updates(items: Sequence[ir.Assignment], where: str) -> tuple[tuple[int, _LinearFn], ...]:
-            return tuple((index[a.reward], _compile_linear(float_linear(a.value, where), index)) for a in items)
+            return tuple((index[a.reward], _compile_linear(float_linear(a.value, where), index))
+                         for a in items)
 
         self._rates = tuple(
             tuple((i, _compile_linear(float_linear(rate.scaled(self._period), "rate"), {}))
@@ -307,6 +309,7 @@ class RewardAutomaton:
 
     @property
     def name(self) -> str:
+        """The automaton's name."""
         return self._ir.name
 
     @property
@@ -316,6 +319,7 @@ class RewardAutomaton:
 
     @property
     def reward_names(self) -> tuple[str, ...]:
+        """Reward names, in declaration order."""
         return self._ir.rewards
 
     @property
@@ -346,6 +350,7 @@ class RewardAutomaton:
 
     @property
     def objective(self) -> float:
+        """The objective's current value."""
         return self._objective
 
     @property
@@ -360,6 +365,7 @@ class RewardAutomaton:
 
     @property
     def ended(self) -> bool:
+        """Whether ``end`` was called since the last reset."""
         return self._ended
 
     # -------------------------------------------------------- running
@@ -568,7 +574,8 @@ class BatchRewardAutomaton:
         # ---- rates: constant tables, plus per-slot coefficient tables for input-dependent rates
         forms = [[float_linear(loc.rates[i].scaled(self._period), "rate") for loc in automaton.locations]
                  for i in range(k)]
-        self._rate_table = np.array([[f[0] for f in row] for row in forms], dtype=np.float64).reshape(k, n_loc)
+        constants = [[f[0] for f in row] for row in forms]
+        self._rate_table = np.array(constants, dtype=np.float64).reshape(k, n_loc)
         self._all_constant = all(not f[1] for row in forms for f in row)
         # Per reward: None (constant rates) or [(coefficient table over locations, input name)].
         # A location without that term has coefficient 0.0 there, which adds exactly nothing
@@ -615,12 +622,14 @@ class BatchRewardAutomaton:
                     self._direct.append((loc, [(self._guards.add(e.guard), e.target, classes[e.updates])
                                                for e in group]))
             self._assume_id = (None if automaton.assume == ir.TRUE else self._guards.add(automaton.assume))
-        self._end = [(self._guards.add(c.guard), self._compile_updates(c.updates)) for c in automaton.end_clauses]
+        self._end = [(self._guards.add(c.guard), self._compile_updates(c.updates))
+                     for c in automaton.end_clauses]
         self._end_assume = self._guards.add(automaton.assume)
 
         self._objective_form = float_linear(automaton.objective, "objective")
         zeros = np.zeros((k, 1))
-        self._initial_objective = float(_eval_np_linear(self._objective_form, lambda r: zeros[self._index[r]], 1)[0])
+        initial = _eval_np_linear(self._objective_form, lambda r: zeros[self._index[r]], 1)
+        self._initial_objective = float(initial[0])
 
         n = self._n
         self._loc = np.full(n, automaton.initial, dtype=np.intp)
@@ -636,7 +645,8 @@ class BatchRewardAutomaton:
     def _compile_updates(self, updates: Sequence[ir.Assignment]) -> list[tuple[int, FloatLinear]]:
         return [(self._index[a.reward], float_linear(a.value, "update")) for a in updates]
 
-    def _build_tables(self, atoms: dict[ir.Guard, int], classes: dict[tuple[ir.Assignment, ...], int]) -> None:
+    def _build_tables(self, atoms: dict[ir.Guard, int],
+                      classes: dict[tuple[ir.Assignment, ...], int]) -> None:
         a = len(atoms)
         self._atom_list = [(atom.name, None, 0.0) if isinstance(atom, ir.BInput)
                            else (atom.input, _NP_OPS[atom.op], to_float(atom.threshold, "threshold"))
@@ -664,6 +674,7 @@ class BatchRewardAutomaton:
     # -------------------------------------------------------- description
     @property
     def ir(self) -> ir.Automaton:
+        """The automaton these copies run."""
         return self._ir
 
     @property
@@ -676,18 +687,22 @@ class BatchRewardAutomaton:
 
     @property
     def name(self) -> str:
+        """The automaton's name."""
         return self._ir.name
 
     @property
     def inputs(self) -> tuple[str, ...]:
+        """Input names, in declaration order."""
         return self._names
 
     @property
     def reward_names(self) -> tuple[str, ...]:
+        """Reward names, in declaration order."""
         return self._ir.rewards
 
     @property
     def period(self) -> float:
+        """Seconds per sample."""
         return float(self._period)
 
     # -------------------------------------------------------- state (copies)
@@ -703,14 +718,17 @@ class BatchRewardAutomaton:
 
     @property
     def rewards(self) -> dict[str, np.ndarray]:
+        """Reward name -> copy of its values across the batch."""
         return {name: self._R[i].copy() for i, name in enumerate(self._ir.rewards)}
 
     @property
     def objective(self) -> np.ndarray:
+        """The objective's current value per automaton (a copy)."""
         return self._obj.copy()
 
     @property
     def samples(self) -> np.ndarray:
+        """Samples since each automaton's last reset (a copy)."""
         return self._samples.copy()
 
     @property
@@ -720,6 +738,7 @@ class BatchRewardAutomaton:
 
     @property
     def ended(self) -> np.ndarray:
+        """Which automata have ended their run (a copy)."""
         return self._ended.copy()
 
     # -------------------------------------------------------- running
@@ -784,7 +803,8 @@ class BatchRewardAutomaton:
         bad = np.flatnonzero(~ok)
         return ValueError(f"{_ASSUME_MESSAGE} (automata {bad[:10].tolist()}{'...' if len(bad) > 10 else ''})")
 
-    def _apply(self, updates: list[tuple[int, FloatLinear]], where: np.ndarray, x: Mapping[str, np.ndarray]) -> None:
+    def _apply(self, updates: list[tuple[int, FloatLinear]], where: np.ndarray,
+               x: Mapping[str, np.ndarray]) -> None:
         R, index = self._R, self._index
 
         def value(name: str) -> np.ndarray:
@@ -881,7 +901,8 @@ class BatchRewardAutomaton:
         self._obj = objective
         return reward
 
-    def end_batch(self, inputs: Mapping[str, object], mask: np.ndarray | Sequence[bool] | None = None) -> np.ndarray:
+    def end_batch(self, inputs: Mapping[str, object],
+                  mask: np.ndarray | Sequence[bool] | None = None) -> np.ndarray:
         """End the runs where ``mask`` is true (all when ``None``); returns their objective increase.
 
         Inputs are validated on the masked automata only; unmasked ones get reward 0.0.

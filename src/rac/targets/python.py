@@ -1,0 +1,450 @@
+"""The Python target: a standalone module (standard library only) that runs one automaton.
+
+The generated class has the API of :class:`rac.runtime.RewardAutomaton` (``reset``, ``step``,
+``end``, ``location``, ``rewards``, ``objective``, ``samples``, ``time``, ``ended``) and its exact
+float semantics; it is straight-line code: one branch per location, guards inlined, rewards in
+locals while a sample is processed.
+
+Example::
+
+    from rac.compiler import compile_file
+    from rac.targets.python import generate_python
+
+    automaton = compile_file("stdlib/driving.ra").raise_for_errors()
+    Path("driving_ra.py").write_text(generate_python(automaton, source_name="stdlib/driving.ra"))
+    # elsewhere, without rac installed:  from driving_ra import Driving; ra = Driving()
+
+Exactness of the printed arithmetic (every rewrite below is bit-for-bit the runtime's
+``((c0 + c1*v1) + c2*v2) + ...``): ``1.0 * v`` is ``v``; ``a + (-c) * v`` is ``a - c * v``; the
+first addition is commutative, so ``c0 + t1`` may print as ``t1 + c0``. No constant is ``-0.0``
+(:func:`rac.runtime.to_float` refuses underflow), so no reward is ever ``-0.0``; hence adding a
+zero rate is skipped, and ``0.0 + c * r`` prints as ``c * r`` for a reward ``r`` when ``c >= 1``
+(the product cannot be ``-0.0``). Inputs may be ``-0.0``, so that shortcut never applies to them.
+"""
+
+from __future__ import annotations
+
+import keyword
+import re
+import textwrap
+from collections.abc import Iterable, Mapping
+from fractions import Fraction
+from functools import lru_cache
+from importlib import resources
+
+import jinja2
+
+from rac import ir
+from rac.runtime import FloatLinear, check_automaton, float_linear, input_specs, to_float
+
+__all__ = ["generate_python", "print_expr"]
+
+_TEMPLATE = "python_module.py.j2"
+_LINE = 110
+_RESERVED = {"Mapping", "math", "annotations", "_key_error", "_range_error"}
+
+
+# ---------------------------------------------------------------- the printer
+def _num(value: float) -> str:
+    text = repr(float(value))
+    if text in ("inf", "-inf", "nan"):
+        raise ValueError(f"{value} cannot be printed as a Python literal")
+    return text
+
+
+def print_expr(node: FloatLinear | ir.Guard, names: Mapping[str, str],
+               never_negative_zero: Iterable[str] = (), *, precedence: int = 0) -> str:
+    """Print a linear form (in float form, see :func:`rac.runtime.float_linear`) or a guard as Python.
+
+    ``names`` maps each variable to the Python expression that holds it; ``never_negative_zero``
+    lists the variables that can never hold ``-0.0`` (rewards). Guards print with ``not``/``and``/
+    ``or``; ``precedence`` (0 none, 1 or, 2 and, 3 not) is the binding strength the context needs.
+    """
+    if isinstance(node, tuple):
+        return _linear(node, names, frozenset(never_negative_zero))
+    if isinstance(node, ir.BConst):
+        return "True" if node.value else "False"
+    if isinstance(node, ir.BInput):
+        return names[node.name]
+    if isinstance(node, ir.BAtom):
+        text = f"{names[node.input]} {node.op} {_num(to_float(node.threshold, 'threshold'))}"
+        return f"({text})" if precedence > 3 else text
+    if isinstance(node, ir.BNot):
+        if isinstance(node.operand, ir.BNot):  # every guard value is a bool: not not g == g
+            return print_expr(node.operand.operand, names, precedence=precedence)
+        text, own = "not " + print_expr(node.operand, names, precedence=3), 3
+    elif isinstance(node, ir.BAnd):
+        text, own = " and ".join(print_expr(g, names, precedence=2) for g in node.operands), 2
+    else:
+        text, own = " or ".join(print_expr(g, names, precedence=1) for g in node.operands), 1
+    return f"({text})" if own < precedence else text
+
+
+def _linear(form: FloatLinear, names: Mapping[str, str], safe: frozenset[str]) -> str:
+    const, terms = form
+    if not terms:
+        return _num(const)
+
+    def term(coef: float, name: str) -> str:
+        magnitude = abs(coef)
+        return names[name] if magnitude == 1.0 else f"{_num(magnitude)} * {names[name]}"
+
+    (coef, name), rest = terms[0], terms[1:]
+    if const == 0.0:
+        if coef >= 1.0 and name in safe:
+            text = term(coef, name)  # 0.0 + t == t: t is never -0.0
+        else:
+            text = f"0.0 {'-' if coef < 0 else '+'} {term(coef, name)}"
+    elif coef < 0:
+        text = f"{_num(const)} - {term(coef, name)}"
+    else:
+        text = f"{term(coef, name)} {'-' if const < 0 else '+'} {_num(abs(const))}"
+    for coef, name in rest:
+        text += f" {'-' if coef < 0 else '+'} {term(coef, name)}"
+    return text
+
+
+# ---------------------------------------------------------------- generation
+def _identifier(name: str) -> str:
+    if not name.isidentifier():
+        name = re.sub(r"\W", "_", name)
+        if not name or name[0].isdigit():
+            name = "_" + name
+    if keyword.iskeyword(name) or name in _RESERVED:
+        name += "_"
+    return name
+
+
+def _py(value: object) -> str:
+    """``repr``, with double-quoted strings (the house style) when that needs no escaping."""
+    text = repr(value)
+    if isinstance(value, str) and text == f"'{value}'" and '"' not in value:
+        return f'"{value}"'
+    return text
+
+
+def _pytuple(items: Iterable[object], column: int = 0) -> str:
+    """A tuple literal; wrapped one item per line when it would not fit after ``column``."""
+    parts = [_py(item) for item in items]
+    if len(parts) == 1:
+        return f"({parts[0]},)"
+    flat = "(" + ", ".join(parts) + ")"
+    if column + len(flat) <= _LINE:
+        return flat
+    return "(\n" + "".join(f"        {part},\n" for part in parts) + "    )"
+
+
+def _pydict(items: list[tuple[str, str]], column: int) -> str:
+    """A dict display of already-printed keys and values; one item per line when too long."""
+    flat = "{" + ", ".join(f"{k}: {v}" for k, v in items) + "}"
+    if column + len(flat) <= _LINE:
+        return flat
+    return "{\n" + "".join(f"            {k}: {v},\n" for k, v in items) + "        }"
+
+
+def _ra_linear(linear: ir.Linear) -> str:
+    """A linear form in `.ra` syntax, for documentation."""
+    parts = []
+    for name, coef in linear.terms:
+        magnitude = abs(coef)
+        text = name if magnitude == 1 else f"{magnitude}*{name}"
+        parts.append(("- " if coef < 0 else "+ ") + text)
+    if linear.const or not parts:
+        parts.append(("- " if linear.const < 0 else "+ ") + str(abs(linear.const)))
+    text = " ".join(parts)
+    return text[2:] if text.startswith("+ ") else "-" + text[2:]
+
+
+class _Generator:
+    def __init__(self, automaton: ir.Automaton) -> None:
+        self.a = automaton
+        self.specs = input_specs(automaton)
+        self.inputs = {s.name: f"i_{s.name}" for s in self.specs}
+        self.rewards = {r: f"r_{r}" for r in automaton.rewards}
+        self.slots = {r: f"_r_{r}" for r in automaton.rewards}
+        self.names = {**self.inputs, **self.rewards}
+        self.rates = [[float_linear(rate.scaled(automaton.period), "rate") for rate in loc.rates]
+                      for loc in automaton.locations]
+        held = {name for row in self.rates for form in row for _, name in form[1]}
+        self.held = [s.name for s in self.specs if s.name in held]
+        self.held_names = {name: f"h_{name}" for name in self.held}
+
+    def expr(self, node: FloatLinear | ir.Guard, names: Mapping[str, str] | None = None,
+             precedence: int = 0) -> str:
+        return print_expr(node, names or self.names, self.rewards.keys(), precedence=precedence)
+
+    def updates(self, updates: Iterable[ir.Assignment]) -> list[str]:
+        return [f"{self.rewards[u.reward]} = {self.expr(float_linear(u.value, 'update'))}" for u in updates]
+
+    def read(self, body: str) -> list[str]:
+        """Read and validate every input; the locals of unused booleans are not bound."""
+        check: list[str] = []
+        if self.a.assume != ir.TRUE:
+            check = [f"if {self.expr(ir.BNot(self.a.assume))}:",
+                     "    raise ValueError(\"inputs violate `assume`\")"]
+        body = "\n".join([body, *check])
+        lines = ["try:", f"    if len(inputs) != {len(self.specs)}:", "        raise KeyError"]
+        for spec in self.specs:
+            var = self.inputs[spec.name]
+            if spec.is_bool:
+                used = re.search(rf"\b{var}\b", body) is not None
+                lines.append(f"    {var + ' = ' if used else ''}bool(inputs[{_py(spec.name)}])")
+                continue
+            lines.append(f"    {var} = float(inputs[{_py(spec.name)}])")
+            low, high = _num_or_inf(spec.low), _num_or_inf(spec.high)
+            if spec.bounded:
+                bad = [f"not {low} <= {var} <= {high}"]
+            else:
+                bad = [f"not math.isfinite({var})"]
+                if spec.low != float("-inf"):
+                    bad.append(f"{var} < {low}")
+                if spec.high != float("inf"):
+                    bad.append(f"{var} > {high}")
+            if spec.kind == "int":
+                bad.append(f"not {var}.is_integer()")
+            lines += [f"    if {' or '.join(bad)}:",
+                      f"        raise _range_error({_py(spec.name)}, {var}, {low}, {high})"]
+        return lines + ["except KeyError:", "    raise _key_error(inputs, self.inputs) from None", *check]
+
+    def finish(self, body: list[str], tail: list[str]) -> list[str]:
+        """Wrap ``body`` with input reads, reward loads and stores, then ``tail``."""
+        text = "\n".join(body + tail)
+        loads = [f"{var} = self.{self.slots[r]}" for r, var in self.rewards.items()
+                 if re.search(rf"\b{var}\b", text)]
+        stores = [f"self.{self.slots[r]} = {var}" for r, var in self.rewards.items()
+                  if re.search(rf"^\s*{var} = ", "\n".join(body), re.MULTILINE)]
+        return self.read(text) + loads + body + stores + tail
+
+    def step(self) -> list[str]:
+        a = self.a
+        body: list[str] = []
+        if self.held:
+            body += ["if self._samples:"]
+            body += [f"    {h} = self._h_{name}" for name, h in self.held_names.items()]
+            body += ["else:"]
+            body += [f"    {h} = {self.inputs[name]}" for name, h in self.held_names.items()]
+        held_names = {**self.rewards, **self.held_names}
+        branches: list[tuple[int, list[str]]] = []
+        moves = False
+        for index in range(len(a.locations)):
+            lines = []
+            for reward, form in zip(a.rewards, self.rates[index]):
+                var = self.rewards[reward]
+                const, terms = form
+                if not terms:
+                    if const != 0.0:  # r + 0.0 == r: rewards are never -0.0
+                        lines.append(f"{var} = {var} {'-' if const < 0 else '+'} {_num(abs(const))}")
+                else:
+                    lines.append(f"{var} = {var} + ({self.expr(form, held_names)})")
+            for k, edge in enumerate(a.edges[index]):
+                lines.append(f"{'if' if k == 0 else 'elif'} {self.expr(edge.guard)}:")
+                inner = self.updates(edge.updates)
+                if edge.target != index:
+                    inner.append(f"loc = {edge.target}")
+                    moves = True
+                lines += ["    " + line for line in inner or ["pass"]]
+            if lines:
+                branches.append((index, lines))
+        if branches:
+            body.append("loc = self._loc")
+            for k, (index, lines) in enumerate(branches):
+                body.append(f"{'if' if k == 0 else 'elif'} loc == {index}:")
+                body += ["    " + line for line in lines]
+            if moves:
+                body.append("self._loc = loc")
+        tail = [f"self._h_{name} = {self.inputs[name]}" for name in self.held]
+        tail += ["self._samples += 1"]
+        return self.finish(body, tail + self.objective())
+
+    def end(self) -> list[str]:
+        body: list[str] = []
+        for clause in self.a.end_clauses:
+            inner = self.updates(clause.updates)
+            if not inner:
+                continue
+            if clause.guard == ir.TRUE:
+                body += inner
+            else:
+                body.append(f"if {self.expr(clause.guard)}:")
+                body += ["    " + line for line in inner]
+        return self.finish(body, ["self._ended = True"] + self.objective())
+
+    def objective(self) -> list[str]:
+        return [f"objective = {self.expr(float_linear(self.a.objective, 'objective'))}",
+                "reward = objective - self._objective",
+                "self._objective = objective",
+                "return reward"]
+
+    def docstring(self, class_name: str) -> str:
+        a = self.a
+        lines = [f"Reward automaton ``{a.name}``.", "", "Inputs (one value each per sample):"]
+        for item in a.inputs:
+            bounds = ""
+            if item.low is not None or item.high is not None:
+                low = "-inf" if item.low is None else str(item.low)
+                high = "inf" if item.high is None else str(item.high)
+                bounds = f" in [{low}, {high}]"
+            lines.append(f"    {item.name}: {item.kind}{bounds}")
+        facts = []
+        if a.assume != ir.TRUE:
+            plain = {i.name: i.name for i in a.inputs}
+            facts.append(f"Assumed of every input valuation: {print_expr(a.assume, plain)}")
+        facts += [
+            f"Rewards: {', '.join(a.rewards)} (each starts at 0)",
+            f"Objective: {_ra_linear(a.objective)}",
+            "Locations: " + ", ".join(loc.name + (" (initial)" if i == a.initial else "")
+                                      for i, loc in enumerate(a.locations)),
+            f"Sample period: {a.period} s; horizon: {a.horizon} s ({a.steps} samples).",
+        ]
+        for fact in facts:  # the docstring is indented by 4 in the class
+            lines += textwrap.wrap(fact, _LINE - 4, subsequent_indent="    ", break_on_hyphens=False)
+        lines += [
+            "",
+            "``step(inputs)`` processes one sample and returns the objective's increase, so the",
+            "rewards of a run sum to the objective's final value; ``end(inputs)`` applies the",
+            "``at end`` clauses once; ``reset()`` starts a new run.",
+        ]
+        return "\n".join(lines)
+
+
+def _num_or_inf(value: float) -> str:
+    if value == float("inf"):
+        return "math.inf"
+    if value == float("-inf"):
+        return "-math.inf"
+    return _num(value)
+
+
+def _split_top(expr: str, op: str) -> list[str]:
+    """``expr`` cut before each top-level (unparenthesised) ``op``; pieces after the first keep it."""
+    pieces, depth, start, i = [], 0, 0, 0
+    while i < len(expr):
+        if expr[i] == "(":
+            depth += 1
+        elif expr[i] == ")":
+            depth -= 1
+        elif depth == 0 and expr.startswith(op, i):
+            pieces.append(expr[start:i])
+            start = i + 1
+            i += len(op)
+            continue
+        i += 1
+    return [*pieces, expr[start:]]
+
+
+def _enclosed(text: str) -> bool:
+    """``text`` starts with ``(`` whose matching ``)`` is its last character."""
+    depth = 0
+    for i, ch in enumerate(text):
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+            if depth == 0:
+                return i == len(text) - 1
+    return False
+
+
+def _break(expr: str, indent: str) -> list[str]:
+    """``expr`` as lines starting with ``indent``, cut before top-level operators when too long.
+
+    Only line breaks inside parentheses are added, so the evaluation order does not change.
+    """
+    if len(indent) + len(expr) <= _LINE:
+        return [indent + expr]
+    prefix = re.match(r"(?:(?:and|or|\+|-) )?(?:not )?", expr).group(0)  # type: ignore[union-attr]
+    rest = expr[len(prefix):]
+    if rest.startswith("(") and _enclosed(rest):
+        return [indent + prefix + "(", *_break(rest[1:-1], indent + "    "), indent + ")"]
+    for op in (" or ", " and ", " + ", " - "):
+        pieces = _split_top(expr, op)
+        if len(pieces) > 1:
+            break
+    else:
+        return [indent + expr]
+    lines: list[str] = []
+    current = ""
+    for piece in pieces:
+        if current and len(current) + 1 + len(piece) <= _LINE:
+            current += " " + piece
+            continue
+        if current:
+            lines.append(current)
+        broken = _break(piece, indent)
+        lines += broken[:-1]
+        current = broken[-1]
+    return [*lines, current]
+
+
+def _wrap(line: str) -> list[str]:
+    """Break an over-long ``if``/``elif``/assignment line inside parentheses."""
+    indent = line[: len(line) - len(line.lstrip())]
+    match = re.fullmatch(r"(\s*(?:if|elif) )(.*)(:)|(\s*[A-Za-z_]\w* = )(.*)()", line)
+    if len(line) <= _LINE or not match:
+        return [line]
+    head, expr, tail = (match.group(1, 2, 3) if match.group(1) else match.group(4, 5, 6))
+    return [head + "(", *_break(expr, indent + "    "), indent + ")" + tail]
+
+
+def _indent(lines: list[str], width: int = 8) -> str:
+    out = []
+    for line in lines:
+        out += _wrap(" " * width + line) if line else [""]
+    return "\n".join(out)
+
+
+@lru_cache(maxsize=1)
+def _template() -> jinja2.Template:
+    text = (resources.files("rac") / "templates" / _TEMPLATE).read_text(encoding="utf-8")
+    env = jinja2.Environment(trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
+                             undefined=jinja2.StrictUndefined, autoescape=False)
+    env.filters["py"] = _py
+    env.filters["pytuple"] = _pytuple
+    return env.from_string(text)
+
+
+def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
+    """The source of a standalone Python module running ``automaton`` (deterministic text).
+
+    The module defines one class named after the automaton, with the API and the exact float
+    semantics of :class:`rac.runtime.RewardAutomaton`; it imports only the standard library.
+    """
+    check_automaton(automaton)
+    gen = _Generator(automaton)
+    class_name = _identifier(automaton.name)
+    zeros = {r: 0.0 for r in automaton.rewards}
+    const, terms = float_linear(automaton.objective, "objective")
+    initial_objective = const
+    for coef, name in terms:
+        initial_objective = initial_objective + coef * zeros[name]
+    period = Fraction(automaton.period)
+    if period.denominator == 1:
+        time_expr = f"float(self._samples * {period.numerator})"
+    elif period.numerator == 1:
+        time_expr = f"self._samples / {period.denominator}"
+    else:
+        time_expr = f"self._samples * {period.numerator} / {period.denominator}"
+    reward_slots = [gen.slots[r] for r in automaton.rewards]
+    held_slots = [f"_h_{name}" for name in gen.held]
+    source = " ".join(source_name.split()) or "<unnamed>"
+    return _template().render(
+        source_name=source,
+        name=automaton.name,
+        class_name=class_name,
+        docstring=gen.docstring(class_name),
+        slots=sorted(("_loc", *reward_slots, *held_slots, "_samples", "_ended", "_objective")),
+        inputs=tuple(i.name for i in automaton.inputs),
+        reward_names=tuple(automaton.rewards),
+        locations=automaton.location_names,
+        period=to_float(period, "period"),
+        horizon=float(automaton.horizon),
+        steps=automaton.steps,
+        initial=automaton.initial,
+        reward_slots=reward_slots,
+        held_slots=held_slots,
+        initial_objective=initial_objective,
+        step_body=_indent(gen.step()),
+        end_body=_indent(gen.end()),
+        rewards_dict=_pydict([(_py(r), f"self.{gen.slots[r]}") for r in automaton.rewards], 15),
+        time_expr=time_expr,
+    )

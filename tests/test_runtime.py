@@ -1,0 +1,382 @@
+"""The in-process interpreter and its batch form on hand-computed traces of the driving automaton.
+
+Expected values are written out as the float operations the runtime semantics prescribe (rates
+are ``float(rate * period)``, linear forms evaluate ``const`` first, then each term in order), and
+checked against the closed-form numbers they approximate.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from driving_ir import compiled_driving, driving_automaton, inputs
+
+from rac import ir
+from rac.runtime import BatchRewardAutomaton, RewardAutomaton, check_automaton
+
+COMPILED = compiled_driving()
+SOURCES = ["hand"] + (["compiled"] if COMPILED is not None else [])
+
+
+@pytest.fixture(params=SOURCES)
+def driving(request: pytest.FixtureRequest) -> ir.Automaton:
+    automaton = driving_automaton() if request.param == "hand" else COMPILED
+    assert automaton is not None
+    return automaton
+
+
+def objective(sa: float, pr: float, co: float) -> float:
+    """``10*sa + 5*pr + co`` as the runtime evaluates it: ``((0.0 + 10.0*sa) + 5.0*pr) + 1.0*co``."""
+    return 0.0 + 10.0 * sa + 5.0 * pr + 1.0 * co
+
+
+# ---------------------------------------------------------------- the compiler agrees with the hand-built IR
+@pytest.mark.skipif(COMPILED is None, reason="rac.compiler is not there yet")
+def test_hand_built_ir_equals_compiled() -> None:
+    assert driving_automaton() == COMPILED
+
+
+# ---------------------------------------------------------------- traces
+def test_normal_then_close_goes_unsafe(driving: ir.Automaton) -> None:
+    ra = RewardAutomaton(driving)
+    assert (ra.location, ra.rewards, ra.objective, ra.samples, ra.ended) == ("Normal", {"sa": 0.0, "pr": 0.0,
+                                                                              "co": 0.0}, 0.0, 0, False)
+    sa = pr = co = 0.0
+    previous = 0.0
+    for k in range(1, 4):
+        got = ra.step(inputs())
+        sa, pr, co = sa + 0.1, pr + 0.1, co + 0.1
+        assert ra.location == "Normal"  # no implicit self-loop, no edge enabled: stay
+        assert ra.rewards == {"sa": sa, "pr": pr, "co": co}
+        assert got == objective(sa, pr, co) - previous
+        assert got == pytest.approx(1.6)
+        previous = objective(sa, pr, co)
+        assert ra.objective == previous
+        assert ra.samples == k
+    assert ra.rewards["sa"] == 0.30000000000000004  # three float additions of 0.1
+    assert ra.time == 0.3  # samples * period, correctly rounded
+
+    # isClose: accrue in Normal first (held inputs), then the edge to Unsafe subtracts PENALTY
+    got = ra.step(inputs(is_close=True))
+    sa, pr, co = -100.0 + (sa + 0.1), pr + 0.1, co + 0.1
+    assert ra.location == "Unsafe"
+    assert ra.rewards == {"sa": sa, "pr": pr, "co": co}
+    assert sa == pytest.approx(-99.6) and pr == pytest.approx(0.4)
+    assert got == objective(sa, pr, co) - previous
+    assert ra.objective == objective(sa, pr, co) == pytest.approx(-993.6)
+    previous = ra.objective
+
+    # in Unsafe, a collision takes the self-loop (sa - 100) at every sample; pr and co are frozen
+    for _ in range(2):
+        got = ra.step(inputs(is_close=True, collide=True))
+        sa = -100.0 + (sa + -0.1)
+        assert ra.location == "Unsafe"
+        assert ra.rewards == {"sa": sa, "pr": pr, "co": co}
+        assert got == objective(sa, pr, co) - previous
+        previous = ra.objective
+    assert sa == pytest.approx(-299.8)
+
+    # still close, no collision: Unsafe has no enabled edge, only its rate applies
+    ra.step(inputs(is_close=True))
+    sa = sa - 0.1
+    assert (ra.location, ra.rewards["sa"]) == ("Unsafe", sa)
+
+    # leaving: progress without comfort goes to Uncomfortable (rates of Unsafe accrue first)
+    ra.step(inputs(comf=False))
+    sa = sa - 0.1
+    assert (ra.location, ra.rewards) == ("Uncomfortable", {"sa": sa, "pr": pr, "co": co})
+    ra.step(inputs(prog=False))
+    sa, pr, co = sa + 0.1, pr + 0.1, co - 0.1
+    assert (ra.location, ra.rewards) == ("Stalled", {"sa": sa, "pr": pr, "co": co})
+    ra.step(inputs())
+    sa, pr = sa + 0.1, pr - 0.1
+    assert (ra.location, ra.rewards) == ("Normal", {"sa": sa, "pr": pr, "co": co})
+    assert ra.samples == 10
+
+
+def test_end_bonus_and_return_equals_final_objective(driving: ir.Automaton) -> None:
+    ra = RewardAutomaton(driving)
+    total = sum(ra.step(inputs(dgoal=400.0 - 40 * k)) for k in range(10))
+    before = dict(ra.rewards)
+    bonus = ra.end(inputs(dgoal=1.5))
+    assert ra.ended
+    assert ra.rewards == {**before, "pr": 100.0 + before["pr"]}
+    assert bonus == ra.objective - objective(before["sa"], before["pr"], before["co"])
+    assert bonus == pytest.approx(500.0)
+    assert total + bonus == pytest.approx(ra.objective, rel=1e-12)
+    assert ra.objective == pytest.approx(10 * 1.0 + 5 * 101.0 + 1.0)
+
+
+def test_end_without_bonus_and_the_threshold_is_strict(driving: ir.Automaton) -> None:
+    ra = RewardAutomaton(driving)
+    ra.step(inputs())
+    assert ra.end(inputs(dgoal=2.0)) == 0.0
+    assert ra.rewards["pr"] == 0.1
+    ra.reset()
+    ra.step(inputs())
+    assert ra.end(inputs(dgoal=math.nextafter(2.0, 0.0))) == pytest.approx(500.0)
+
+
+def test_end_right_after_reset(driving: ir.Automaton) -> None:
+    ra = RewardAutomaton(driving)
+    assert ra.end(inputs(dgoal=0.0)) == 500.0
+    assert ra.rewards == {"sa": 0.0, "pr": 100.0, "co": 0.0}
+
+
+def test_reset_restores_the_initial_state(driving: ir.Automaton) -> None:
+    ra = RewardAutomaton(driving)
+    for _ in range(3):
+        ra.step(inputs(is_close=True))
+    ra.end(inputs())
+    ra.reset()
+    assert (ra.location, ra.rewards, ra.objective, ra.samples, ra.time, ra.ended) == (
+        "Normal", {"sa": 0.0, "pr": 0.0, "co": 0.0}, 0.0, 0, 0.0, False)
+    assert ra.step(inputs()) == pytest.approx(1.6)
+
+
+def test_description(driving: ir.Automaton) -> None:
+    ra = RewardAutomaton(driving)
+    assert ra.name == "Driving"
+    assert ra.inputs == ("isClose", "prog", "comf", "collide", "dgoal")
+    assert ra.reward_names == ("sa", "pr", "co")
+    assert ra.locations == ("Normal", "Uncomfortable", "Stalled", "Unsafe")
+    assert ra.period == 0.1 and ra.steps == 300
+
+
+# ---------------------------------------------------------------- zero-order hold and first-edge semantics
+def held_automaton() -> ir.Automaton:
+    """One location, ``d' == x`` with x in [-10, 10]; period 1/2; ``k`` an int input in [0, 3]."""
+    return ir.Automaton(
+        name="Held",
+        inputs=(ir.Input("x", "real", Fraction(-10), Fraction(10)),
+                ir.Input("k", "int", Fraction(0), Fraction(3))),
+        rewards=("d",), locations=(ir.Location("A", (ir.Linear(Fraction(0), (("x", Fraction(1)),)),)),),
+        initial=0, edges=((),), end_clauses=(), assume=ir.TRUE,
+        objective=ir.Linear(Fraction(1), (("d", Fraction(1)),)), priority=("d",), strict=False,
+        period=Fraction(1, 2), horizon=Fraction(10))
+
+
+def test_rates_use_the_inputs_held_from_the_previous_sample() -> None:
+    ra = RewardAutomaton(held_automaton())
+    assert ra.objective == 1.0  # the objective's constant counts from the start
+    assert ra.step({"x": 2, "k": 0}) == 1.0  # first sample: held = current -> 0.5 * 2
+    assert ra.step({"x": 4.0, "k": 1}) == 1.0  # held 2 again
+    assert ra.step({"x": -6.0, "k": 3}) == 2.0  # held 4
+    assert ra.rewards == {"d": 4.0} and ra.objective == 5.0
+    ra.reset()
+    assert ra.step({"x": -6.0, "k": 0}) == -3.0  # held inputs do not survive a reset
+    with pytest.raises(ValueError, match="integer"):
+        ra.step({"x": 1.0, "k": 1.5})
+    with pytest.raises(ValueError, match="'k'"):
+        ra.step({"x": 1.0, "k": 4})
+
+
+def test_first_enabled_edge_wins_and_self_loops_fire_every_sample() -> None:
+    b = ir.BInput("b")
+    add = ir.Assignment("r", ir.Linear(Fraction(1), (("r", Fraction(1)),)))
+    double = ir.Assignment("r", ir.Linear(Fraction(0), (("r", Fraction(2)),)))
+    automaton = ir.Automaton(
+        name="First", inputs=(ir.Input("b", "bool"),), rewards=("r",),
+        locations=(ir.Location("A", (ir.Linear(),)), ir.Location("B", (ir.Linear(),))), initial=0,
+        edges=((ir.Edge(0, 0, b, (add, double)), ir.Edge(0, 1, ir.TRUE, ())), ()),
+        end_clauses=(), assume=ir.TRUE, objective=ir.Linear.variable("r"), priority=("r",), strict=False,
+        period=Fraction(1), horizon=Fraction(10))
+    ra = RewardAutomaton(automaton)
+    assert ra.step({"b": 1}) == 2.0  # (0 + 1) * 2, updates left to right
+    assert ra.step({"b": True}) == 4.0  # self-loop again: (2 + 1) * 2 = 6
+    assert ra.rewards == {"r": 6.0} and ra.location == "A"
+    assert ra.step({"b": 0}) == 0.0 and ra.location == "B"
+
+
+# ---------------------------------------------------------------- validation
+@pytest.mark.parametrize(("values", "message"), [
+    ({k: v for k, v in inputs().items() if k != "prog"}, "missing input.*prog"),
+    ({**inputs(), "speed": 3.0}, "unknown input.*speed"),
+    ({k: v for k, v in {**inputs(), "spd": 1}.items() if k != "comf"}, "missing input.*comf.*unknown.*spd"),
+    (inputs(dgoal=500.5), "dgoal.*outside"),
+    (inputs(dgoal=-1e-300), "dgoal.*outside"),
+    (inputs(dgoal=math.nan), "dgoal"),
+    (inputs(dgoal=math.inf), "dgoal"),
+    (inputs(collide=True), "assume"),
+])
+def test_invalid_inputs_raise_and_leave_the_state_alone(driving: ir.Automaton, values: dict[str, object],
+                                                        message: str) -> None:
+    ra = RewardAutomaton(driving)
+    ra.step(inputs())
+    before = (ra.location, ra.rewards, ra.objective, ra.samples)
+    with pytest.raises(ValueError, match=message):
+        ra.step(values)
+    with pytest.raises(ValueError, match=message):
+        ra.end(values)
+    assert (ra.location, ra.rewards, ra.objective, ra.samples, ra.ended) == (*before, False)
+
+
+def test_inputs_are_converted(driving: ir.Automaton) -> None:
+    ra = RewardAutomaton(driving)
+    ra.step({"isClose": 0, "prog": "yes", "comf": np.bool_(True), "collide": None, "dgoal": "499.5"})
+    assert ra.location == "Normal"
+    ra.step({"isClose": 1, "prog": 1, "comf": 1, "collide": 1, "dgoal": np.float32(500)})
+    assert ra.location == "Unsafe"
+
+
+def test_step_and_end_after_end_raise(driving: ir.Automaton) -> None:
+    ra = RewardAutomaton(driving)
+    ra.end(inputs())
+    with pytest.raises(RuntimeError, match="reset"):
+        ra.step(inputs())
+    with pytest.raises(RuntimeError, match="reset"):
+        ra.end(inputs())
+    ra.reset()
+    ra.step(inputs())
+
+
+def test_malformed_ir_is_refused() -> None:
+    good = held_automaton()
+    bad_rate = ir.Location("A", (ir.Linear(Fraction(0), (("d", Fraction(1)),)),))  # a rate reading a reward
+    with pytest.raises(ValueError, match="rate"):
+        check_automaton(ir.Automaton(**{**good.__dict__, "locations": (bad_rate,)}))
+    tiny = ir.Location("A", (ir.Linear(Fraction(-1, 10**400)),))  # would round to -0.0
+    with pytest.raises(ValueError, match="too small"):
+        RewardAutomaton(ir.Automaton(**{**good.__dict__, "locations": (tiny,)}))
+    with pytest.raises(ValueError, match="not a boolean input"):
+        RewardAutomaton(ir.Automaton(**{**good.__dict__, "assume": ir.BInput("x")}))
+
+
+# ---------------------------------------------------------------- batch
+def columns(values: list[dict[str, object]]) -> dict[str, np.ndarray]:
+    return {name: np.array([v[name] for v in values]) for name in values[0]}
+
+
+@pytest.mark.parametrize("strategy", ["table", "direct"])
+def test_batch_trace_and_masked_reset(driving: ir.Automaton, strategy: str) -> None:
+    batch = BatchRewardAutomaton(driving, 3, strategy=strategy)
+    assert batch.strategy == strategy
+    out = batch.step_batch(columns([inputs(), inputs(prog=False), inputs(is_close=True)]))
+    assert out.dtype == np.float64 and out.shape == (3,)
+    assert batch.location_names() == ["Normal", "Stalled", "Unsafe"]
+    assert batch.locations.tolist() == [0, 2, 3]
+    assert out.tolist() == [objective(0.1, 0.1, 0.1)] * 2 + [objective(-100.0 + 0.1, 0.1, 0.1)]
+    batch.step_batch(columns([inputs(), inputs(), inputs(is_close=True, collide=True)]))
+    sa = batch.rewards["sa"]
+    assert sa.tolist() == [0.2, 0.2, -100.0 + (-100.0 + 0.1 + -0.1)]
+
+    batch.reset(mask=np.array([False, True, True]))
+    assert batch.location_names() == ["Normal", "Normal", "Normal"]
+    assert batch.rewards["sa"].tolist() == [0.2, 0.0, 0.0]
+    assert batch.samples.tolist() == [2, 0, 0]
+    assert batch.objective.tolist() == [objective(0.2, 0.2, 0.2), 0.0, 0.0]
+    out = batch.step_batch(columns([inputs()] * 3))
+    third = 0.2 + 0.1
+    assert out.tolist() == [objective(third, third, third) - objective(0.2, 0.2, 0.2),
+                            objective(0.1, 0.1, 0.1), objective(0.1, 0.1, 0.1)]
+    assert batch.time.tolist() == [0.3, 0.1, 0.1]
+
+
+@pytest.mark.parametrize("strategy", ["table", "direct"])
+def test_batch_end_with_mask(driving: ir.Automaton, strategy: str) -> None:
+    batch = BatchRewardAutomaton(driving, 3, strategy=strategy)
+    batch.step_batch(columns([inputs()] * 3))
+    final = columns([inputs(dgoal=1.0), inputs(dgoal=1.0), inputs(dgoal=3.0)])
+    final["dgoal"][1] = np.nan  # unmasked: not validated
+    out = batch.end_batch(final, mask=[True, False, True])
+    assert out.tolist() == [500.0, 0.0, 0.0]
+    assert batch.ended.tolist() == [True, False, True]
+    assert batch.rewards["pr"].tolist() == [100.0 + 0.1, 0.1, 0.1]
+    with pytest.raises(RuntimeError, match="reset"):
+        batch.step_batch(columns([inputs()] * 3))
+    with pytest.raises(RuntimeError, match="reset"):
+        batch.end_batch(columns([inputs()] * 3), mask=[True, False, False])
+    assert batch.end_batch(columns([inputs()] * 3), mask=[False, True, False]).tolist() == [0.0, 0.0, 0.0]
+    batch.reset(mask=[True, True, False])
+    with pytest.raises(RuntimeError, match=r"\[2\]"):
+        batch.step_batch(columns([inputs()] * 3))
+    batch.reset()
+    assert not batch.ended.any()
+    batch.step_batch(columns([inputs()] * 3))
+
+
+@pytest.mark.parametrize("strategy", ["table", "direct"])
+def test_batch_validation(driving: ir.Automaton, strategy: str) -> None:
+    batch = RewardAutomaton(driving).batch(4) if strategy == "table" else BatchRewardAutomaton(driving, 4,
+                                                                                                 strategy=strategy)
+    good = columns([inputs()] * 4)
+    batch.step_batch(good)
+    before = (batch.locations.tolist(), batch.rewards["sa"].tolist(), batch.samples.tolist())
+    with pytest.raises(ValueError, match="missing input.*dgoal"):
+        batch.step_batch({k: v for k, v in good.items() if k != "dgoal"})
+    with pytest.raises(ValueError, match="unknown input"):
+        batch.step_batch({**good, "x": np.zeros(4)})
+    with pytest.raises(ValueError, match=r"'dgoal'\[2\]"):
+        batch.step_batch({**good, "dgoal": np.array([1.0, 2.0, 600.0, np.nan])})
+    with pytest.raises(ValueError, match="assume.*3"):
+        batch.step_batch({**good, "collide": np.array([False, False, False, True])})
+    with pytest.raises(ValueError, match="shape"):
+        batch.step_batch({**good, "prog": np.ones(5, dtype=bool)})
+    after = (batch.locations.tolist(), batch.rewards["sa"].tolist(), batch.samples.tolist())
+    assert after == before
+    out = batch.step_batch({**good, "prog": False, "dgoal": 7})  # scalars broadcast
+    assert batch.location_names() == ["Stalled"] * 4 and out.shape == (4,)
+    with pytest.raises(ValueError, match="shape"):
+        batch.reset(mask=[True])
+
+
+def test_batch_matches_scalar_on_held_inputs() -> None:
+    automaton = held_automaton()
+    batch = BatchRewardAutomaton(automaton, 2)
+    assert batch.step_batch({"x": np.array([2.0, -3.0]), "k": np.array([0, 3])}).tolist() == [1.0, -1.5]
+    batch.reset(mask=[False, True])
+    assert batch.step_batch({"x": np.array([4.0, 8.0]), "k": 1}).tolist() == [1.0, 4.0]
+    assert batch.step_batch({"x": np.array([0.0, 0.0]), "k": 1}).tolist() == [2.0, 4.0]
+    with pytest.raises(ValueError, match="integer"):
+        batch.step_batch({"x": 0.0, "k": np.array([1.0, 0.5])})
+
+
+def many_atoms_automaton(n_flags: int) -> ir.Automaton:
+    """Two locations; edges guarded by conjunctions/disjunctions over ``n_flags`` booleans and ``x``."""
+    flags = tuple(f"f{k}" for k in range(n_flags))
+    x_low = ir.BAtom("x", "<", Fraction(1, 2))
+    even = ir.BAnd(tuple(ir.BInput(f) for f in flags[::2]) + (x_low,))
+    odd = ir.BOr(tuple(ir.BInput(f) for f in flags[1::2]))
+    bump = ir.Assignment("r", ir.Linear(Fraction(1, 3), (("r", Fraction(3, 2)), ("x", Fraction(-1)))))
+    return ir.Automaton(
+        name="Many",
+        inputs=(*(ir.Input(f, "bool") for f in flags), ir.Input("x", "real", Fraction(0), Fraction(1))),
+        rewards=("r",), locations=(ir.Location("A", (ir.Linear(Fraction(1)),)),
+                                   ir.Location("B", (ir.Linear(Fraction(-1), (("x", Fraction(2)),)),))),
+        initial=0, edges=((ir.Edge(0, 1, even, (bump,)), ir.Edge(0, 0, ir.BNot(even), ())),
+                          (ir.Edge(1, 0, ir.BAnd((odd, ir.BNot(x_low))), (bump,)),)),
+        end_clauses=(ir.EndClause(odd, (bump,)),),
+        assume=ir.BNot(ir.BAnd((ir.BInput(flags[1]), ir.BAtom("x", "==", Fraction(1))))),
+        objective=ir.Linear(Fraction(0), (("r", Fraction(-2)),)), priority=("r",), strict=False,
+        period=Fraction(1, 4), horizon=Fraction(10))
+
+
+@pytest.mark.parametrize(("n_flags", "auto"), [(3, "table"), (11, "table"), (20, "direct")])
+def test_batch_strategies_agree_with_scalars(n_flags: int, auto: str) -> None:
+    automaton = many_atoms_automaton(n_flags)
+    n, rng = 64, np.random.default_rng(n_flags)
+    assert BatchRewardAutomaton(automaton, n).strategy == auto
+    strategies = ("table", "direct") if n_flags < 16 else ("direct",)
+    batches = [BatchRewardAutomaton(automaton, n, strategy=s) for s in strategies]
+    scalars = [RewardAutomaton(automaton) for _ in range(n)]
+    moves = set()
+    for t in range(12):
+        values = {f"f{k}": rng.random(n) < (0.9 if k % 2 == 0 else 0.15) for k in range(n_flags)}
+        values["x"] = rng.choice([0.0, 0.25, 0.5, 1.0, rng.random()], size=n)
+        values["f1"] &= values["x"] != 1.0  # the assumption
+        rows = [{k: v[j] for k, v in values.items()} for j in range(n)]
+        if t == 11:
+            expected = [ra.end(row) for ra, row in zip(scalars, rows)]
+            outs = [b.end_batch(values) for b in batches]
+        else:
+            expected = [ra.step(row) for ra, row in zip(scalars, rows)]
+            outs = [b.step_batch(values) for b in batches]
+        moves.update(ra.location for ra in scalars)
+        for batch, out in zip(batches, outs):
+            assert out.tolist() == expected
+            assert batch.location_names() == [ra.location for ra in scalars]
+            assert batch.rewards["r"].tolist() == [ra.rewards["r"] for ra in scalars]
+    assert moves == {"A", "B"}
