@@ -77,6 +77,12 @@ def write_atomically(path: Path, text: str) -> None:
         raise
 
 
+def _unwritable(path: Path, exc: OSError) -> Diagnostic:
+    reason = exc.strerror or str(exc)
+    return error("E0009", f"cannot write `{path}`: {reason}", None,
+                 hints=["check that the folder exists and is writable; nothing was written"])
+
+
 def _check(args: argparse.Namespace) -> int:
     status = EXIT_OK
     report: list[dict[str, object]] = []
@@ -132,7 +138,11 @@ def _compile_command(args: argparse.Namespace) -> int:
     if args.output is None:
         sys.stdout.write(text)
     else:
-        write_atomically(args.output, text)
+        try:
+            write_atomically(args.output, text)
+        except OSError as exc:
+            print(render_text([_unwritable(args.output, exc)], {}), file=sys.stderr)
+            return EXIT_USAGE
         print(f"wrote {args.output}", file=sys.stderr)
     return EXIT_OK
 
@@ -162,7 +172,12 @@ def _fmt(args: argparse.Namespace) -> int:
                 print(f"{path}: would be reformatted", file=sys.stderr)
                 status = max(status, EXIT_ERRORS)
             else:
-                write_atomically(path, formatted)
+                try:
+                    write_atomically(path, formatted)
+                except OSError as exc:
+                    print(render_text([_unwritable(path, exc)], {}), file=sys.stderr)
+                    status = max(status, EXIT_USAGE)
+                    continue
                 print(f"{path}: reformatted", file=sys.stderr)
     return status
 

@@ -10,7 +10,9 @@ from __future__ import annotations
 import json
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from decimal import Context, Decimal
 from enum import Enum
+from fractions import Fraction
 
 from rac.source import SourceFile, Span
 
@@ -30,7 +32,7 @@ class Note:
 
 @dataclass(frozen=True)
 class Diagnostic:
-    """One finding: a code from :mod:`rac.codes`, where, what, and what to do."""
+    """One finding: a code (documented in docs/checks.md), where, what, and what to do."""
 
     code: str
     severity: Severity
@@ -84,6 +86,17 @@ def _make(severity: Severity, code: str, message: str, span: Span | None,
         hints=tuple(hints),
         data=dict(data or {}),
     )
+
+
+def short_number(value: Fraction, digits: int = 6) -> str:
+    """A rational as a short decimal for messages; a trailing ``…`` marks a rounded value."""
+    if value.denominator == 1:
+        return str(value.numerator)
+    if Fraction(1, 10**12) <= abs(value) <= 10**15:
+        text = f"{float(value):.{digits}g}"
+    else:  # beyond the range floats print well (or at all): decimal arithmetic never overflows
+        text = str(Context(prec=digits).divide(Decimal(value.numerator), Decimal(value.denominator)).normalize())
+    return text if Fraction(text) == value else f"{text}…"
 
 
 class CheckError(Exception):

@@ -31,6 +31,8 @@ def _lark() -> Lark:
         lexer="contextual",
         propagate_positions=True,
         maybe_placeholders=True,
+        # The parse table is cached in the temp folder: saves ~0.1 s per `rac` start.
+        cache=True,
     )
 
 
@@ -109,39 +111,81 @@ def _syntax_hints(found: str, expected: set[str]) -> list[str]:
     return hints
 
 
+def _unterminated_comment(text: str) -> int | None:
+    """Offset of the first ``/*`` that is never closed (lexed like the grammar does), if any."""
+    i = text.find("/")
+    while 0 <= i < len(text) - 1:
+        following = text[i + 1]
+        if following == "/":
+            i = text.find("\n", i)
+            if i < 0:
+                return None
+        elif following == "*":
+            close = text.find("*/", i + 2)
+            if close < 0:
+                return i
+            i = close + 2
+        else:
+            i += 1
+        i = text.find("/", i)
+    return None
+
+
+def _acceptable(exc: UnexpectedInput) -> set[str]:
+    """The terminals the parser really accepts at the error (LALR tables over-approximate)."""
+    parser = getattr(exc, "interactive_parser", None)
+    accepted: set[str] = set()
+    if parser is not None:
+        try:
+            accepted = set(parser.accepts())
+        except UnexpectedInput:
+            accepted = set()
+    return accepted or set(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or ())
+
+
+def _end_of_text(source: SourceFile) -> Span:
+    """Where "unexpected end of file" points: just after the last non-blank character."""
+    end = len(source.text.rstrip())
+    return source.span(end, end)
+
+
+_CHARACTER_HINTS = {
+    "&": "logical and is written `&&` (or `and`)",
+    "|": "logical or is written `||` (or `or`)",
+}
+
+
 def _syntax_error(exc: UnexpectedInput, source: SourceFile) -> Diagnostic:
-    pos = getattr(exc, "pos_in_stream", None)
-    if isinstance(exc, UnexpectedToken) and exc.token.type == "$END":
-        pos = None
+    at_end = isinstance(exc, UnexpectedEOF) or (isinstance(exc, UnexpectedToken) and exc.token.type == "$END")
+    if at_end:
+        where = len(source.text)
+    elif isinstance(exc, UnexpectedToken) and exc.token.start_pos is not None:
+        where = exc.token.start_pos
+    else:
+        where = getattr(exc, "pos_in_stream", None) or 0
+    comment = _unterminated_comment(source.text)
+    if comment is not None and comment <= where:
+        # Without its `*/` the lexer reads `/*` as a division and a product: say what happened.
+        return error("E0003", "unterminated block comment", source.span(comment, comment + 2),
+                     hints=["close the comment with `*/`"])
+    expected = _acceptable(exc)
+    notes = [f"expected {_describe_expected(expected)}"] if expected else []
     if isinstance(exc, UnexpectedCharacters):
         start = exc.pos_in_stream
         char = source.text[start]
-        if source.text.startswith("/*", start):
-            return error("E0003", "unterminated block comment", source.span(start, start + 2),
-                         hints=["close the comment with `*/`"])
         shown = repr(char)[1:-1] if not char.isprintable() or char == " " else char
+        hints = [_CHARACTER_HINTS[char]] if char in _CHARACTER_HINTS else []
         return error("E0002", f"unexpected character `{shown}`", source.span(start, start + 1),
-                     notes=[f"expected {_describe_expected(set(exc.allowed or ()))}"]
-                     if exc.allowed else [])
+                     notes=notes, hints=hints)
+    if at_end:
+        hints = ["check that every `{` has a matching `}`"] if "RBRACE" in expected else []
+        return error("E0001", "unexpected end of file", _end_of_text(source), notes=notes, hints=hints)
     if isinstance(exc, UnexpectedToken):
-        expected = set(exc.expected)
-        start = exc.token.start_pos
-        if start is not None and source.text.startswith("/*", start):
-            return error("E0003", "unterminated block comment", source.span(start, start + 2),
-                         hints=["close the comment with `*/`"])
-        if exc.token.type == "$END":
-            span = source.end_span
-            message = "unexpected end of file"
-        else:
-            start = exc.token.start_pos if exc.token.start_pos is not None else pos or 0
-            span = source.span(start, exc.token.end_pos or start + len(exc.token.value))
-            message = f"unexpected {_token_text(exc.token)}"
-        return error("E0001", message, span, notes=[f"expected {_describe_expected(expected)}"],
+        start = where
+        span = source.span(start, exc.token.end_pos or start + len(exc.token.value))
+        return error("E0001", f"unexpected {_token_text(exc.token)}", span, notes=notes,
                      hints=_syntax_hints(str(exc.token.value), expected))
-    if isinstance(exc, UnexpectedEOF):
-        return error("E0001", "unexpected end of file", source.end_span,
-                     notes=[f"expected {_describe_expected(set(exc.expected))}"])
-    return error("E0001", "syntax error", source.end_span)
+    return error("E0001", "syntax error", _end_of_text(source))
 
 
 def _fold(items: list, meta_span: Span | None, build) -> ast.Expr:
@@ -400,26 +444,90 @@ def read_source(path: str | Path) -> SourceFile:
     empty = SourceFile(name, "")
     if len(data) > MAX_SOURCE_BYTES:
         raise ParseFailure(error(
-            "E0005", f"file is too large ({len(data) / 1e6:.1f} MB; at most {MAX_SOURCE_BYTES // 1000} kB)",
+            "E0005", f"file is too large ({len(data):,} bytes; at most {MAX_SOURCE_BYTES:,})",
             empty.span(0, 0), hints=["a reward automaton is a few kilobytes: is this the right file?"]))
     return decode_source(name, data)
 
 
+def _looks_like_utf16(data: bytes) -> bool:
+    """A byte-order mark, or ASCII text with every other byte NUL."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return True
+    head = data[:200]
+    return len(head) >= 8 and (not any(head[1::2]) or not any(head[0::2]))
+
+
 def decode_source(name: str, data: bytes) -> SourceFile:
     """Decode bytes as a `.ra` file's text, rejecting binary content with a diagnostic."""
+    utf16 = "it looks like UTF-16: save it as UTF-8"
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         partial = SourceFile(name, data[: exc.start].decode("utf-8", "replace"))
         raise ParseFailure(error(
             "E0004", f"file is not UTF-8 text (invalid byte 0x{data[exc.start]:02x} at offset {exc.start})",
-            partial.end_span, hints=["`.ra` files are UTF-8 text; is this a binary file?"])) from None
+            partial.end_span, hints=[f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
+                                     "`.ra` files are UTF-8 text: save it as UTF-8 (it may be in Latin-1 or "
+                                     "another legacy encoding), or check that this is the right file"])) from None
     if "\x00" in text:
         offset = text.index("\x00")
         source = SourceFile(name, text)
         raise ParseFailure(error("E0004", "file contains a NUL byte: it is not a text file",
-                                 source.span(offset, offset + 1)))
+                                 source.span(offset, offset + 1),
+                                 hints=[f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
+                                        "`.ra` files are UTF-8 text; is this a binary file?"]))
     return SourceFile(name, text.removeprefix("\ufeff"))
+
+
+#: Deepest expression accepted: operators nested in one another, each link of a chain like
+#: ``a + b + c`` counting as one level (the AST nests chains to the left). Every later stage
+#: (types, analyses, formatter, targets) walks expressions recursively; this bound keeps
+#: them far from Python's recursion limit.
+MAX_NESTING = 100
+
+_FOLDED = {"or_", "and_", "sum", "product"}
+#: Expression rules that nest their operands one level deeper (atoms count as level 0).
+_NESTING = _FOLDED | {"imply", "cmp", "not_word", "not_bang", "neg", "call"}
+
+
+def _nesting_depths(tree: Tree) -> dict[int, int]:
+    """Depth of every expression node (by id), as the AST will nest it; computed without recursion."""
+    depths: dict[int, int] = {}
+    stack: list[tuple[Tree, bool]] = [(tree, False)]
+    while stack:
+        node, done = stack.pop()
+        children = [c for c in node.children if isinstance(c, Tree)]
+        if not done:
+            stack.append((node, True))
+            stack.extend((c, False) for c in children)
+            continue
+        if node.data in _FOLDED:
+            # ``x0 op x1 op x2`` becomes ((x0 op x1) op x2): x0 sits deepest.
+            operands = [depths[id(c)] if isinstance(c, Tree) else 0 for c in node.children[::2]]
+            links = len(operands) - 1
+            depth = max(d + links - max(0, i - 1) for i, d in enumerate(operands))
+        else:
+            inner = max((depths[id(c)] for c in children), default=0)
+            depth = inner + 1 if node.data in _NESTING else inner
+        depths[id(node)] = depth
+    return depths
+
+
+def _check_nesting(tree: Tree, source: SourceFile) -> None:
+    """Raise E0006 at the outermost expression nested deeper than :data:`MAX_NESTING`."""
+    depths = _nesting_depths(tree)
+    stack = [tree]
+    while stack:
+        node = stack.pop()
+        if depths[id(node)] <= MAX_NESTING:
+            continue
+        if node.data in _NESTING and not getattr(node.meta, "empty", True):
+            raise ParseFailure(error(
+                "E0006", f"expression nested too deeply ({depths[id(node)]} levels; at most {MAX_NESTING})",
+                source.span(node.meta.start_pos, node.meta.end_pos),
+                hints=["simplify the expression; in a chain such as `a && b && c` every operator "
+                       "counts as one level"]))
+        stack.extend(reversed([c for c in node.children if isinstance(c, Tree)]))
 
 
 def parse_source(source: SourceFile) -> ast.Module:
@@ -431,6 +539,7 @@ def parse_source(source: SourceFile) -> ast.Module:
         raise ParseFailure(_syntax_error(exc, source)) from None
     except RecursionError:
         raise ParseFailure(error("E0006", "expression nested too deeply", source.end_span)) from None
+    _check_nesting(tree, source)
     try:
         module = _ToAst(source).transform(tree)
     except RecursionError:

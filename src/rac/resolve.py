@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac import ast, ir
-from rac.diagnostics import Diagnostic, Note, error, warning
+from rac.diagnostics import Diagnostic, Note, error, short_number, warning
 from rac.source import Span
 
 #: Functions of the scenario model (model.md); usable in queries once a model is attached.
@@ -22,6 +22,8 @@ MODEL_FUNCTIONS = ("collide", "offroad", "goal", "mindist", "dist_goal", "prev")
 QUERY_FUNCTIONS = ("abs", "fabs", "fmin", "fmax", "sqrt", "floor", "ceil", "round", "trunc")
 #: Names that exist in every query.
 QUERY_BUILTINS = ("time", "deadlock")
+#: Most samples a run may have (horizon / period): the exact checks walk every one of them.
+MAX_SAMPLES = 1_000_000
 
 
 class _Unresolvable(Exception):
@@ -116,7 +118,12 @@ class Resolver:
 
     def _expect(self, want: str, got: str, node: ast.Expr, where: str) -> None:
         if want != got:
-            self._error("E0201", f"{where} needs {_type_word(want)}, found {_type_word(got)}", node.span)
+            hints = []
+            if want == "bool":
+                shown = node.id if isinstance(node, ast.Name) else "x"
+                hints.append(f"a number is not a condition: compare it, e.g. `{shown} < 2`")
+            self._error("E0201", f"{where} needs {_type_word(want)}, found {_type_word(got)}", node.span,
+                        hints=hints)
             raise _Unresolvable
 
     def _name(self, node: ast.Name, ctx: _Context) -> tuple[str, object]:
@@ -243,7 +250,13 @@ class Resolver:
             self._error("E0206", f"the horizon ({_num(horizon)} s) is not a whole number of sample "
                         f"periods ({_num(period)} s)", span,
                         hints=[f"use a horizon of {_num(period * int(horizon / period))} or "
-                               f"{_num(period * (int(horizon / period) + 1))}"])
+                               f"{_num(period * (int(horizon / period) + 1))}" if horizon > period
+                               else f"use a horizon of {_num(period)} (one sample) or more"])
+        elif period is not None and horizon is not None and horizon / period > MAX_SAMPLES:
+            self._error("E0206", f"the horizon has too many samples ({int(horizon / period):,}; at most "
+                        f"{MAX_SAMPLES:,})", singles[ast.HorizonDecl].span,
+                        hints=["the exact checks follow every sample of a run: shorten the horizon "
+                               "or sample less often"])
         inputs = self._inputs()
         rewards = tuple(n.name for d in node.of(ast.RewardDecl) for n in d.names)
         locations, initial = self._locations(rewards)
@@ -253,9 +266,10 @@ class Resolver:
         objective = self._objective(singles.get(ast.ObjectiveDecl), rewards)
         priority, strict = self._priority(singles.get(ast.PriorityDecl), rewards)
         self._check_queries()
-        self._unused_inputs(inputs)
         if any(d.is_error for d in self.diagnostics):
+            # Expressions with errors were not fully read: an "unused" input may be used there.
             return None
+        self._unused_inputs(inputs)
         assert period is not None and horizon is not None and objective is not None
         return ir.Automaton(
             name=node.name.name,
@@ -537,7 +551,7 @@ class Resolver:
 
 
 class QueryChecker:
-    """Names in queries: the automaton's vocabulary plus ``time``; model functions need a model."""
+    """Names and types in queries: the automaton's vocabulary plus ``time``; model functions need a model."""
 
     def __init__(self, resolver: Resolver, strategies: set[str]):
         self.r = resolver
@@ -548,22 +562,38 @@ class QueryChecker:
         if under is not None and under not in self.strategies:
             self.r._error("E0602", f"unknown strategy `{under}` after `under`", query.span,
                           hints=["define it first with `query Q: strategy NAME = control: A[] ...`"])
-        for expr in _query_exprs(query):
-            self.walk(expr)
+        for expr, want in _query_exprs(query):
+            got = self.walk(expr)
+            if want is not None and got is not None and got != want:
+                self.r._error("E0201", f"this part of the query needs {_type_word(want)}, "
+                              f"found {_type_word(got)}", expr.span)
 
-    def walk(self, node: ast.Expr) -> None:
+    def walk(self, node: ast.Expr) -> str | None:
+        """The type of a query expression ("bool", "num"), or None when unknown (already reported)."""
+        if isinstance(node, ast.Number):
+            return "num"
+        if isinstance(node, ast.BoolLit):
+            return "bool"
         if isinstance(node, ast.Name):
-            if node.id not in self.r.symbols and node.id not in QUERY_BUILTINS:
-                self.r._unknown(node.id, node.span)
-        elif isinstance(node, ast.Qualified):
+            symbol = self.r.symbols.get(node.id)
+            if symbol is not None:
+                return symbol.type
+            if node.id in QUERY_BUILTINS:
+                return "num" if node.id == "time" else "bool"
+            self.r._unknown(node.id, node.span)
+            return None
+        if isinstance(node, ast.Qualified):
             automaton = self.r.node.name.name
             symbol = self.r.symbols.get(node.id)
             if node.scope != automaton:
                 self.r._error("E0101", f"unknown process `{node.scope}`", node.span,
                               hints=[f"this automaton is `{automaton}`"])
-            elif node.id != "location" and (symbol is None or symbol.kind != "location"):
+            elif node.id == "location":
+                return "num"
+            elif symbol is None or symbol.kind != "location":
                 self.r._unknown(node.id, node.span, "location")
-        elif isinstance(node, ast.Call):
+            return "bool"
+        if isinstance(node, ast.Call):
             if node.func in MODEL_FUNCTIONS:
                 self.r._error("E0601", f"`{node.func}()` is a function of the scenario model, and this "
                               "automaton has no model", node.span,
@@ -571,29 +601,54 @@ class QueryChecker:
             elif node.func not in QUERY_FUNCTIONS:
                 self.r._unknown(node.func, node.span, "function")
             for arg in node.args:
-                self.walk(arg)
-        elif isinstance(node, ast.Unary):
-            self.walk(node.operand)
-        elif isinstance(node, ast.Binary):
-            self.walk(node.left)
-            self.walk(node.right)
+                self._expect(arg, "num")
+            return "num" if node.func in QUERY_FUNCTIONS else None
+        if isinstance(node, ast.Unary):
+            want = "num" if node.op == "-" else "bool"
+            self._expect(node.operand, want)
+            return want
+        assert isinstance(node, ast.Binary)
+        if node.op in ast.ARITHMETIC_OPS:
+            self._expect(node.left, "num")
+            self._expect(node.right, "num")
+            return "num"
+        if node.op in ast.COMPARISON_OPS:
+            left, right = self.walk(node.left), self.walk(node.right)
+            if left is not None and right is not None and left != right:
+                self.r._error("E0201", f"`{node.op}` compares {_type_word(left)} with {_type_word(right)}",
+                              node.span)
+            elif node.op not in ("==", "!=") and "bool" in (left, right):
+                self.r._error("E0201", f"`{node.op}` needs numbers, found booleans", node.span)
+            return "bool"
+        self._expect(node.left, "bool")
+        self._expect(node.right, "bool")
+        return "bool"
+
+    def _expect(self, node: ast.Expr, want: str) -> None:
+        got = self.walk(node)
+        if got is not None and got != want:
+            self.r._error("E0201", f"expected {_type_word(want)}, found {_type_word(got)}", node.span)
 
 
-def _query_exprs(query: ast.Query) -> list[ast.Expr]:
+def _query_exprs(query: ast.Query) -> list[tuple[ast.Expr, str | None]]:
+    """The expressions of a query with the type each must have (None: any)."""
     if isinstance(query, ast.PathQuery):
-        return [query.expr]
+        return [(query.expr, "bool")]
     if isinstance(query, ast.LeadsToQuery):
-        return [query.left, query.right]
+        return [(query.left, "bool"), (query.right, "bool")]
     if isinstance(query, ast.ProbabilityQuery):
-        return [query.bound.limit, query.expr] + ([query.runs] if query.runs else []) + (
-            [query.compare[1]] if query.compare else [])
+        return ([(query.bound.limit, "num"), (query.expr, "bool")]
+                + ([(query.runs, "num")] if query.runs else [])
+                + ([(query.compare[1], "num")] if query.compare else []))
     if isinstance(query, ast.ExpectationQuery):
-        return [query.bound.limit, query.runs, query.expr]
+        return [(query.bound.limit, "num"), (query.runs, "num"), (query.expr, "num")]
     if isinstance(query, ast.SimulateQuery):
-        return [query.bound.limit, *query.exprs] + ([query.runs] if query.runs else [])
+        return ([(query.bound.limit, "num")] + [(e, None) for e in query.exprs]
+                + ([(query.runs, "num")] if query.runs else []))
     if isinstance(query, ast.ControlStrategy):
-        return [query.expr]
-    return [query.objective, query.bound.limit, *query.discrete, *query.continuous, query.expr]
+        return [(query.expr, "bool")]
+    return ([(query.objective, "num"), (query.bound.limit, "num")]
+            + [(e, None) for e in (*query.discrete, *query.continuous)] + [(query.expr, "bool")])
 
 
 def _not(guard: ir.Guard) -> ir.Guard:
@@ -626,7 +681,4 @@ def _why_no_inputs(ctx: _Context) -> str:
 
 def _num(value: Fraction) -> str:
     """A rational as a short decimal for messages."""
-    if value.denominator == 1:
-        return str(value.numerator)
-    text = f"{float(value):.6g}"
-    return text if Fraction(text) == value else f"{text}…"
+    return short_number(value)

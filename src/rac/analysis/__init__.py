@@ -18,7 +18,7 @@ def analyse_automaton(automaton: ir.Automaton, facts: list[str] | None = None) -
     diagnostics = check_behaviour(automaton)
     if any(d.is_error for d in diagnostics):
         return diagnostics
-    facts.append(f"deterministic: every location has at most one enabled edge for every input")
+    facts.append("deterministic: every location has at most one enabled edge for every input")
     diagnostics += check_priorities(automaton, facts)
     diagnostics += check_ranges(automaton, facts=facts)
     return diagnostics

@@ -6,9 +6,10 @@ from collections import deque
 
 import numpy as np
 
-from rac import ir
+from rac import ast, ir
 from rac.analysis.inputs import InputSpace, TooManyClasses, guard_inputs
 from rac.diagnostics import Diagnostic, Note, error, warning
+from rac.source import Span
 
 
 def input_space(automaton: ir.Automaton) -> tuple[InputSpace | None, list[Diagnostic]]:
@@ -29,7 +30,8 @@ def check_behaviour(automaton: ir.Automaton) -> list[Diagnostic]:
         return diagnostics
     valid = space.valid
     if not valid.any():
-        return [error("E0305", "`assume` excludes every input valuation", _assume_span(automaton),
+        span, notes = _unsatisfiable_assume(automaton, space)
+        return [error("E0305", "`assume` excludes every input valuation", span, notes=notes,
                       hints=["no run is possible; weaken the assumptions"])]
     reported_dead: set[object] = set()
     reported_pairs: set[tuple[object, object]] = set()
@@ -84,15 +86,23 @@ def _reachability(automaton: ir.Automaton, space: InputSpace) -> list[Diagnostic
     return result
 
 
-def _assume_span(automaton: ir.Automaton):
-    if automaton.source is not None:
-        from rac import ast
-
-        assumes = automaton.source.of(ast.AssumeDecl)
-        if assumes:
-            return assumes[0].span
-        return automaton.source.name.span
-    return None
+def _unsatisfiable_assume(automaton: ir.Automaton, space: InputSpace) -> tuple[Span | None, list[Note]]:
+    """The first `assume` that, with the ones before it, excludes every valuation (and those)."""
+    if automaton.source is None:
+        return None, []
+    assumes = automaton.source.of(ast.AssumeDecl)
+    if not assumes:
+        return automaton.source.name.span, []
+    parts = automaton.assume.operands if isinstance(automaton.assume, ir.BAnd) else ()
+    if len(assumes) == 1 or len(parts) != len(assumes):
+        return assumes[0].span, []
+    allowed = np.ones(space.count, dtype=bool)
+    for k, part in enumerate(parts):
+        allowed = allowed & space.evaluate(part)
+        if not allowed.any():
+            earlier = [Note("together with this assumption", a.span) for a in assumes[:k]]
+            return assumes[k].span, earlier
+    return assumes[0].span, []
 
 
 def _json_valuation(space: InputSpace, cls: int) -> dict[str, object]:

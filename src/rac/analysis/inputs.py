@@ -17,6 +17,7 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
+from rac.diagnostics import short_number
 
 #: Above this many classes the exact checks refuse (reported as a diagnostic).
 MAX_CLASSES = 1 << 20
@@ -57,7 +58,7 @@ class TooManyClasses(Exception):
 
 
 def _num(value: Fraction) -> str:
-    return str(value.numerator) if value.denominator == 1 else f"{float(value):g}"
+    return short_number(value)
 
 
 def _atoms(guard: ir.Guard, out: set[ir.BAtom]) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+import math
 from fractions import Fraction
 
 from rac import ir
@@ -30,13 +32,34 @@ def _range_of(linear: ir.Linear, automaton: ir.Automaton, sign: int = 1) -> tupl
     return low, high
 
 
+#: Integer inputs in a rate pair are enumerated up to this many joint values (else relaxed to reals).
+MAX_INT_POINTS = 4096
+
+
+def _fix(linear: ir.Linear, values: dict[str, Fraction]) -> ir.Linear:
+    """Substitute the given inputs' values into a linear form."""
+    const = linear.const + sum((c * values[n] for n, c in linear.terms if n in values), ZERO)
+    return ir.Linear(const, tuple((n, c) for n, c in linear.terms if n not in values))
+
+
 def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool:
     """Is there an input point with f < 0 and g > 0 (inputs within their bounds)?
 
     ``min_x max(f, -g) < 0``; by the minimax theorem this is the max over λ ∈ [0, 1]
     of a separable minimum, which is piecewise linear in λ: check its breakpoints.
+    The theorem needs convex ranges: ``int`` inputs are enumerated first (when few).
     """
     names = sorted(set(f.variables()) | set(g.variables()))
+    ints = [n for n in names if automaton.input(n).kind == "int"]
+    if ints:
+        ranges = [range(int(automaton.input(n).low), int(automaton.input(n).high) + 1)  # type: ignore[arg-type]
+                  for n in ints]
+        if math.prod(len(r) for r in ranges) <= MAX_INT_POINTS:
+            for combo in itertools.product(*ranges):
+                values = {n: Fraction(v) for n, v in zip(ints, combo)}
+                if _exists_neg_pos(_fix(f, values), _fix(g, values), automaton):
+                    return True
+            return False
     lambdas = {Fraction(0), Fraction(1)}
     for name in names:
         a, b = f.coefficient(name), -g.coefficient(name)
@@ -97,7 +120,7 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None) ->
         return []
     diagnostics = check_rate_dominance(automaton)
     if not diagnostics:
-        facts.append(f"P1 holds: wherever a reward decreases, no lower-priority reward grows")
+        facts.append("P1 holds: wherever a reward decreases, no lower-priority reward grows")
     space, problems = input_space(automaton)
     if space is None:
         return diagnostics + problems
@@ -140,7 +163,7 @@ def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, le
              Note(f"at the violating instant ({where}): {listing}; {scope} = {_num(total)} > 0")]
     hints = []
     if weight > 0:
-        hints.append(f"penalise `{reward}` by more than {_num(worst.value / weight)} more "
+        hints.append(f"penalise `{reward}` by at least {_num(worst.value / weight)} more "
                      f"({_num(worst.value)} / weight {_num(weight)}), or shrink what lower objectives can gain")
     strict = "strict " if automaton.strict else ""
     return error(
@@ -189,8 +212,8 @@ def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
 def replay(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> tuple[list[Fraction], str]:
     """Exact reward values at the instant the worst run ends, and a phrase naming that instant."""
     where, values = START, [ZERO] * len(automaton.rewards)
-    for where, values in trace(automaton, space, worst):
-        pass
+    for instant in trace(automaton, space, worst):
+        where, values = instant
     return values, where
 
 

@@ -175,6 +175,8 @@ def _maximise_translations(automaton: ir.Automaton, outs: list[list[Outcome]], t
     steps = automaton.steps
     l0 = automaton.initial
     w = target.weights
+    if not any(outs):  # `assume` excludes every input: no sample ever happens
+        return Worst(target.constant) if target.watched[l0] else None
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
 
     def weighted(*maps: Affine) -> dict[str, Fraction] | Fraction:
@@ -201,9 +203,15 @@ def _maximise_translations(automaton: ir.Automaton, outs: list[list[Outcome]], t
     n_loc = len(automaton.locations)
     width = max(len(os) for os in outs)
     # Dense [location, outcome] tables; padding rows can never win.
-    neg_inf = -(1 << 62)
-    magnitude = max(abs(v) for v in values) * scale * (steps + 2)
-    dtype: type | str = np.int64 if magnitude < (1 << 60) else object
+    # Every reachable value lies within ±magnitude; "minus infinity" must lie well below, and
+    # padding added to it must stay below neg_inf // 2 (the "reachable" test).
+    magnitude = int(max(abs(v) for v in values) * scale * (steps + 2))
+    if magnitude < (1 << 60):
+        dtype: type | str = np.int64
+        neg_inf = -(1 << 62)
+    else:  # exact Python integers
+        dtype = object
+        neg_inf = -4 * (magnitude + 1)
     targets = np.zeros((n_loc, width), dtype=np.int64)
     stop = np.full((n_loc, width), neg_inf, dtype=dtype)
     stop_last = np.full((n_loc, width), neg_inf, dtype=dtype)

@@ -1,0 +1,222 @@
+"""The diagnostic examples: one failing input per check, its expected output, and docs/checks.md.
+
+Every ``<CODE>_<short_name>.ra`` file in this folder is a failing example; its
+``.expected`` file is the full output of ``rac check <CODE>_<short_name>.ra`` run in
+this folder (standard output, then standard error). Inputs that must not be
+committed (not UTF-8, over 1 MB, a directory, a missing file) are made by the
+functions in :data:`GENERATED` in a scratch folder under the same name.
+
+docs/checks.md shows every example: each ``<!-- case: NAME -->`` ... ``<!-- end case -->``
+region (source and output) and each ``<!-- output: NAME -->`` ... ``<!-- end output -->``
+region (output only) is generated from the files here, so the doc cannot drift from the tests.
+
+    python tests/diagnostics/make_docs.py             # rewrite the example regions of docs/checks.md
+    python tests/diagnostics/make_docs.py --expected  # also rerun rac and rewrite every .expected file
+    python tests/diagnostics/make_docs.py --check     # exit 1 if the doc or an .expected file is stale
+
+After ``--expected``, read the diff: the new output is what the tests will demand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib.util
+import io
+import re
+import sys
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+DOC = ROOT / "docs" / "checks.md"
+
+if importlib.util.find_spec("rac") is None:  # run as a script from a checkout
+    sys.path.insert(0, str(ROOT / "src"))
+
+from rac.cli import main as rac_main  # noqa: E402
+
+#: A small valid automaton that the generated inputs start from.
+SMALL = """\
+// Safety only: a minimal automaton
+automaton Driving {
+    input isClose : bool
+
+    reward sa
+    objective sa
+
+    sample every 0.1
+    horizon 30
+
+    initial location Normal { sa' == 1 }
+    location Unsafe         { sa' == -1 }
+
+    edge Normal -> Unsafe when isClose
+    edge Unsafe -> Normal when !isClose
+}
+"""
+
+#: The same automaton with German comments, as an editor set to Latin-1 saves it.
+LATIN1 = SMALL.replace("// Safety only: a minimal automaton", "// Nur Sicherheit: ein minimaler Automat") \
+    .replace("input isClose : bool", "input isClose : bool    // Hindernis näher als der Sicherheitsabstand")
+
+
+@dataclass(frozen=True)
+class Case:
+    """One failing example: committed as ``NAME.ra``, or made by ``make`` in a scratch folder."""
+
+    name: str
+    #: The text the doc shows as the example's source (None: no source to show).
+    shown: str | None
+    #: For generated inputs: a sentence saying what the file is, shown before the example.
+    note: str = ""
+    make: Callable[[Path], None] | None = None
+
+    @property
+    def code(self) -> str:
+        return self.name.split("_", 1)[0]
+
+    @property
+    def file(self) -> str:
+        return f"{self.name}.ra"
+
+    @property
+    def expected_path(self) -> Path:
+        return HERE / f"{self.name}.expected"
+
+    @property
+    def expected(self) -> str:
+        return self.expected_path.read_text(encoding="utf-8")
+
+
+def _write(name: str, data: bytes) -> Callable[[Path], None]:
+    def make(folder: Path) -> None:
+        (folder / name).write_bytes(data)
+    return make
+
+
+def _directory(name: str) -> Callable[[Path], None]:
+    def make(folder: Path) -> None:
+        (folder / name).mkdir()
+    return make
+
+
+def _nothing(folder: Path) -> None:
+    """The file is missing on purpose."""
+
+
+GENERATED: tuple[Case, ...] = (
+    Case("E0004_latin1_comment", LATIN1,
+         "The file below, saved in Latin-1 instead of UTF-8 (`ä` is the single byte 0xE4):",
+         _write("E0004_latin1_comment.ra", LATIN1.encode("latin-1"))),
+    Case("E0004_utf16_file", SMALL,
+         "The file below, saved as UTF-16 (every ASCII character is followed by a NUL byte):",
+         _write("E0004_utf16_file.ra", SMALL.encode("utf-16-le"))),
+    Case("E0005_too_large", None,
+         "A valid automaton followed by a comment of a million characters (1,000,040 bytes in all):",
+         _write("E0005_too_large.ra", (SMALL + "// " + "x" * (1_000_040 - len(SMALL) - 4) + "\n").encode())),
+    Case("E0008_directory", None,
+         "`E0008_directory.ra` is a directory:", _directory("E0008_directory.ra")),
+    Case("E0008_missing_file", None,
+         "`E0008_missing_file.ra` does not exist:", _nothing),
+)
+
+
+def committed() -> list[Case]:
+    return [Case(p.stem, p.read_text(encoding="utf-8")) for p in sorted(HERE.glob("*.ra"))]
+
+
+def cases() -> list[Case]:
+    """Every example, in code order."""
+    return sorted(committed() + list(GENERATED), key=lambda c: c.name)
+
+
+def case(name: str) -> Case:
+    for c in cases():
+        if c.name == name:
+            return c
+    raise KeyError(name)
+
+
+def expected_status(output: str) -> int:
+    """The exit status an output implies: 2 unreadable, 1 errors, 0 warnings only."""
+    if "error[E0008]" in output:
+        return 2
+    return 1 if "error[" in output else 0
+
+
+# ------------------------------------------------------------------ running rac
+def run(c: Case, *extra: str) -> tuple[int, str]:
+    """``rac check [extra] NAME.ra`` in-process, in the folder holding the input: (status, stdout + stderr)."""
+    with contextlib.ExitStack() as stack:
+        folder = HERE
+        if c.make is not None:
+            folder = Path(stack.enter_context(tempfile.TemporaryDirectory()))
+            c.make(folder)
+        out, err = io.StringIO(), io.StringIO()
+        stack.enter_context(contextlib.chdir(folder))
+        stack.enter_context(contextlib.redirect_stdout(out))
+        stack.enter_context(contextlib.redirect_stderr(err))
+        status = rac_main(["check", *extra, c.file])
+    return status, out.getvalue() + err.getvalue()
+
+
+# ------------------------------------------------------------------ the doc's example regions
+#: ``case`` regions show an example's source and output; ``output`` regions only the output.
+CASE_REGION = re.compile(r"<!-- (?P<kind>case|output): (?P<name>[A-Za-z0-9_]+) -->\n.*?<!-- end (?P=kind) -->",
+                         re.DOTALL)
+
+
+def region(c: Case, kind: str = "case") -> str:
+    """The doc's text for one example: the source (or what the file is) and rac's output."""
+    parts = [f"<!-- {kind}: {c.name} -->"]
+    if kind == "case" and c.note:
+        parts.append(c.note)
+        parts.append("")
+    if kind == "case" and c.shown is not None:
+        parts += ["```ra", c.shown.rstrip("\n"), "```", ""]
+    parts += ["```text", f"$ rac check {c.file}", c.expected.rstrip("\n"), "```", f"<!-- end {kind} -->"]
+    return "\n".join(parts)
+
+
+def render(doc: str) -> str:
+    """The doc with every example region regenerated from the files."""
+    return CASE_REGION.sub(lambda m: region(case(m.group("name")), m.group("kind")), doc)
+
+
+def documented_cases(doc: str) -> list[str]:
+    """The examples the doc shows in full (``case`` regions), in order."""
+    return [m.group("name") for m in CASE_REGION.finditer(doc) if m.group("kind") == "case"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--expected", action="store_true", help="rerun rac and rewrite every .expected file")
+    parser.add_argument("--check", action="store_true", help="only report stale files (exit 1)")
+    args = parser.parse_args(argv)
+    stale = []
+    for c in cases():
+        if not (args.expected or args.check) and c.expected_path.exists():
+            continue
+        _, output = run(c)
+        old = c.expected_path.read_text(encoding="utf-8") if c.expected_path.exists() else None
+        if output != old:
+            stale.append(c.expected_path.name)
+            if not args.check:
+                c.expected_path.write_text(output, encoding="utf-8")
+    doc = DOC.read_text(encoding="utf-8")
+    new = render(doc)
+    if new != doc:
+        stale.append(str(DOC.relative_to(ROOT)))
+        if not args.check:
+            DOC.write_text(new, encoding="utf-8")
+    for name in stale:
+        print(f"{'stale' if args.check else 'wrote'}: {name}")
+    return 1 if args.check and stale else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

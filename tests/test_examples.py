@@ -1,0 +1,205 @@
+"""The examples and the documentation do what they say.
+
+- examples/train_wrapper.py trains and prints a summary, deterministically for a seed;
+- examples/generated_module.py compiles the Python target and agrees with the interpreter;
+- examples/naive_driving.ra fails P2 (E0402) with the counterexample the docs describe, and the
+  README's excerpt of that output is still what `rac check` prints;
+- every ```ra block in docs/*.md and README.md that is a complete automaton passes `rac check`,
+  unless a preceding ``<!-- expect: CODE -->`` comment, or the ``<!-- case: CODE_name -->``
+  region of docs/checks.md it sits in, names the error it must fail with (or the warning it
+  must print);
+- every ```python block in docs/python.md runs (in a subprocess, from the repository root).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+import rac
+from rac.cli import main as rac_main
+
+REPO = Path(__file__).resolve().parents[1]
+DOC_FILES = sorted((REPO / "docs").glob("*.md")) + [REPO / "README.md"]
+
+
+def run_python(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    """``python ARGS`` from the repository root, importing the same rac as this test process."""
+    rac_parent = str(Path(rac.__file__).resolve().parent.parent)
+    paths = [rac_parent, *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(paths), "PYTHONIOENCODING": "utf-8"}
+    return subprocess.run([sys.executable, *args], cwd=REPO, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+# ---------------------------------------------------------------- markdown code blocks
+@dataclass(frozen=True)
+class Block:
+    path: Path
+    line: int  # 1-based line of the opening fence
+    language: str
+    text: str
+    #: The code of an ``<!-- expect: CODE -->`` comment just before the fence, or of the
+    #: ``<!-- case: CODE_name -->`` region the block is in.
+    expect: str | None
+
+    @property
+    def id(self) -> str:
+        return f"{self.path.relative_to(REPO)}:{self.line}"
+
+
+_FENCE = re.compile(r"^(\s*)```(\w*)\s*$")
+_EXPECT = re.compile(r"^<!--\s*expect:\s*([EW]\d{4})\s*-->$")
+#: docs/checks.md marks each diagnostic example as ``<!-- case: E0402_name -->`` ... ``<!-- end case -->``.
+_CASE = re.compile(r"^<!--\s*case:\s*(([EW]\d{4})_\w+)\s*-->$")
+_END_CASE = re.compile(r"^<!--\s*end case\s*-->$")
+#: Cases about bytes a text block cannot carry (encoding, size, unreadable files).
+BYTE_LEVEL = {"E0004", "E0005", "E0008"}
+
+
+def code_blocks(path: Path) -> list[Block]:
+    blocks: list[Block] = []
+    lines = path.read_text(encoding="utf-8").splitlines()
+    i = 0
+    while i < len(lines):
+        match = _FENCE.match(lines[i])
+        if not match or not match.group(2):
+            i += 1
+            continue
+        start, indent, language = i, len(match.group(1)), match.group(2)
+        j = i + 1
+        while j < len(lines) and lines[j].strip() != "```":
+            j += 1
+        expect = None
+        k = start - 1
+        while k >= 0 and not lines[k].strip():
+            k -= 1
+        if k >= 0 and (found := _EXPECT.match(lines[k].strip())):
+            expect = found.group(1)
+        for previous in reversed(lines[:start]):  # inside a `case` region?
+            if _END_CASE.match(previous.strip()):
+                break
+            if found := _CASE.match(previous.strip()):
+                expect = found.group(2)
+                break
+        body = lines[start + 1:j]
+        text = "\n".join(line[indent:] if line[:indent].strip() == "" else line.lstrip() for line in body)
+        blocks.append(Block(path, start + 1, language, text + "\n", expect))
+        i = j + 1
+    return blocks
+
+
+def _strip_comments(text: str) -> str:
+    return re.sub(r"//[^\n]*", "", re.sub(r"/\*.*?\*/", "", text, flags=re.S))
+
+
+def is_complete_automaton(block: Block) -> bool:
+    """A ```ra block whose first code (after comments) is ``automaton``."""
+    return block.language == "ra" and _strip_comments(block.text).lstrip().startswith("automaton")
+
+
+RA_BLOCKS = [b for path in DOC_FILES for b in code_blocks(path) if is_complete_automaton(b)]
+PYTHON_BLOCKS = [b for b in code_blocks(REPO / "docs" / "python.md") if b.language == "python"]
+
+
+def test_the_docs_have_blocks_to_check() -> None:
+    assert len([b for b in RA_BLOCKS if b.path.name == "language.md"]) >= 3
+    assert any(b.expect == "E0402" for b in RA_BLOCKS)
+    assert len(PYTHON_BLOCKS) >= 5
+
+
+@pytest.mark.parametrize("block", RA_BLOCKS, ids=lambda b: b.id)
+def test_ra_block_checks(block: Block, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    if block.expect in BYTE_LEVEL:
+        pytest.skip(f"{block.expect} is about the file's bytes, not its text (tests/test_diagnostics.py makes it)")
+    source = tmp_path / "block.ra"
+    source.write_text(block.text, encoding="utf-8")
+    status = rac_main(["check", str(source)])
+    output = capsys.readouterr()
+    report = output.out + output.err
+    if block.expect is None:
+        assert status == 0, f"{block.id} should pass `rac check`:\n{report}"
+    elif block.expect.startswith("W"):
+        assert status == 0, f"{block.id} should pass `rac check` with warning {block.expect}:\n{report}"
+        assert f"[{block.expect}]" in report, f"{block.id} should warn {block.expect}:\n{report}"
+    else:
+        assert status == 1, f"{block.id} should fail with {block.expect}:\n{report}"
+        assert f"[{block.expect}]" in report, f"{block.id} should fail with {block.expect}:\n{report}"
+
+
+@pytest.mark.parametrize("block", PYTHON_BLOCKS, ids=lambda b: b.id)
+def test_python_block_runs(block: Block) -> None:
+    result = run_python("-c", block.text)
+    assert result.returncode == 0, f"{block.id} failed:\n{result.stdout}\n{result.stderr}"
+
+
+# ---------------------------------------------------------------- examples/naive_driving.ra
+def test_naive_driving_fails_p2_with_a_counterexample() -> None:
+    result = run_python("-m", "rac", "check", "examples/naive_driving.ra")
+    assert result.returncode == 1, result.stdout + result.stderr
+    out = result.stdout
+    assert "error[E0402]: P2 no compensation fails" in out
+    assert "counterexample" in out
+    assert "stays in `Normal`, 299 samples" in out
+    assert "`Normal` -> `Unsafe`" in out
+    assert "sa = -60, pr = 130, co = 30; the objective = 80 > 0" in out
+
+
+def test_naive_driving_counterexample_as_json(capsys: pytest.CaptureFixture[str]) -> None:
+    assert rac_main(["check", "--format", "json", str(REPO / "examples" / "naive_driving.ra")]) == 1
+    (report,) = json.loads(capsys.readouterr().out)
+    (diagnostic,) = report["diagnostics"]
+    assert diagnostic["code"] == "E0402"
+    assert diagnostic["data"]["value"] == "80"
+    run = diagnostic["data"]["run"]
+    assert len(run) == 300 and run[-1]["to"] == "Unsafe"
+
+
+def test_readme_quotes_the_real_check_output() -> None:
+    readme = (REPO / "README.md").read_text(encoding="utf-8").splitlines()
+    start = next(i for i, line in enumerate(readme) if line.startswith("$ rac check examples/naive_driving.ra"))
+    quoted = []
+    for line in readme[start + 1:]:
+        if line.startswith("$ ") or line.startswith("```"):
+            break
+        quoted.append(line.strip())
+    assert quoted, "the README quotes no output"
+    output = run_python("-m", "rac", "check", "examples/naive_driving.ra").stdout
+    actual = {line.strip() for line in output.splitlines()}
+    missing = [line for line in quoted if line not in actual]
+    assert not missing, f"the README quotes lines `rac check` no longer prints: {missing}"
+
+
+# ---------------------------------------------------------------- examples/*.py
+def test_train_wrapper_runs_and_summarises(tmp_path: Path) -> None:
+    args = ("examples/train_wrapper.py", "--episodes", "60", "--report-every", "20", "--evaluate", "10",
+            "--seed", "1", "--plot", str(tmp_path / "curve.png"))
+    first = run_python(*args)
+    assert first.returncode == 0, first.stdout + first.stderr
+    lines = first.stdout.splitlines()
+    assert sum(line.startswith("episodes ") for line in lines) == 3
+    summary = [line for line in lines if line.startswith("summary:")]
+    assert len(summary) == 1 and "mean return" in summary[0] and "goal reached" in summary[0]
+    assert (tmp_path / "curve.png").exists() or "skipping the plot" in first.stdout
+
+    second = run_python(*args)  # the same seed gives the same numbers
+
+    def numbers(text: str) -> list[str]:
+        return [line for line in text.splitlines() if not line.startswith(("done in", "wrote "))]
+
+    assert numbers(second.stdout) == numbers(first.stdout)
+
+
+def test_generated_module_agrees_with_the_interpreter(tmp_path: Path) -> None:
+    result = run_python("examples/generated_module.py", "-o", str(tmp_path / "driving_ra.py"))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "agree on all 300 samples" in result.stdout
+    assert "it imports __future__, collections, math" in result.stdout
+    assert (tmp_path / "driving_ra.py").exists()

@@ -1,0 +1,400 @@
+"""P1 rate dominance, P2 no compensation (plain and strict) and the int32 range check.
+
+The numbers for the driving automaton are worked out by hand. Its worst P2 run stays in `Normal`
+(every objective grows at 1/s), enters `Unsafe` at the last sample (paying PENALTY once) and
+ends there with the `at end` bonus of 100 on `pr`:
+
+    10*(H - PENALTY) + 5*(H + 100) + H = 16*H - 10*PENALTY + 500
+
+Any other run pays the penalty at least once and gains less, so this is the supremum.
+"""
+
+from __future__ import annotations
+
+import itertools
+from fractions import Fraction
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rac import ir
+from rac.analysis.affine import outcomes
+from rac.analysis.inputs import InputSpace
+from rac.analysis.priority import (
+    _exists_neg_pos,
+    check_priorities,
+    check_ranges,
+    check_rate_dominance,
+    replay,
+)
+from rac.analysis.worst import AFTER_END, CONTINUE, Target, maximise
+from rac.compiler import CompileResult, compile_text
+from rac.diagnostics import render_text
+from rac.resources import stdlib_file
+
+DRIVING = stdlib_file("driving.ra").read_text(encoding="utf-8")
+
+
+def driving_text(penalty: int | str = 100, horizon: str = "30", period: str = "0.1", strict: bool = False,
+                 **replace: str) -> str:
+    text = DRIVING.replace("const PENALTY = 100", f"const PENALTY = {penalty}")
+    text = text.replace("horizon 30 ", f"horizon {horizon} ").replace("sample every 0.1", f"sample every {period}")
+    if strict:
+        text = text.replace("priority sa > pr > co", "priority strict sa > pr > co")
+    for old, new in replace.items():
+        assert old in text
+        text = text.replace(old, new)
+    return text
+
+
+def compiled(text: str) -> CompileResult:
+    return compile_text(text, "driving.ra")
+
+
+def errors(result: CompileResult, code: str):
+    return [d for d in result.diagnostics if d.code == code]
+
+
+def p2_worst(penalty: int, horizon: Fraction) -> Fraction:
+    return 16 * horizon - 10 * penalty + 500
+
+
+def objective_target(automaton: ir.Automaton) -> Target:
+    weights = tuple(automaton.objective.coefficient(r) for r in automaton.rewards)
+    watched = tuple(name == "Unsafe" for name in automaton.location_names)
+    return Target(weights, automaton.objective.const, watched)
+
+
+# ---------------------------------------------------------------- P2 on the driving automaton
+def test_p2_holds_at_penalty_100_with_worst_value_minus_20() -> None:
+    result = compiled(driving_text(100))
+    assert result.ok, render_text(result.diagnostics, result.sources)
+    assert not errors(result, "E0402")
+    assert any("P2 holds for `sa` (penalised in `Unsafe`): the objective stays <= -20 " in f for f in result.facts)
+    automaton = result.automaton
+    assert automaton is not None
+    facts: list[str] = []
+    assert check_priorities(automaton, facts) == []
+    space = InputSpace(automaton)
+    worst = maximise(automaton, outcomes(automaton, space), objective_target(automaton))
+    assert worst is not None and worst.value == -20 == p2_worst(100, Fraction(30))
+    values, _ = replay(automaton, space, worst)
+    assert values == [-70, 130, 30]  # 10*(-70) + 5*130 + 30 = -20
+
+
+def test_p2_fails_at_penalty_90_with_the_expected_counterexample() -> None:
+    result = compiled(driving_text(90))
+    assert not result.ok
+    (diag,) = errors(result, "E0402")
+    assert diag.data["value"] == "80"
+    assert diag.data["level"] == 0 and diag.data["reward"] == "sa"
+    assert diag.data["values"] == {"sa": "-60", "pr": "130", "co": "30"}
+    assert "the objective can reach 80" in diag.message
+    run = diag.data["run"]
+    assert len(run) == 300
+    assert all(s["from"] == s["to"] == "Normal" and s["instant"] == CONTINUE for s in run[:299])
+    assert [s["sample"] for s in run] == list(range(1, 301))
+    last = run[-1]
+    assert (last["from"], last["to"], last["instant"]) == ("Normal", "Unsafe", AFTER_END)
+    assert last["inputs"]["isClose"] is True and Fraction(last["inputs"]["dgoal"]) < 2
+
+    text = render_text(result.diagnostics, result.sources)
+    assert "error[E0402]: P2 no compensation fails: while `sa` is penalised, the objective can reach 80" in text
+    assert ("samples 1-299 (t = 0.1..29.9 s): stays in `Normal`, 299 samples; "
+            "inputs isClose=false, prog=true, comf=true") in text
+    assert "sample 300 (t = 30 s): `Normal` -> `Unsafe` (edge at line 26)" in text
+    assert "run ends at t = 30 s: `at end` (line 32)" in text
+    assert "dgoal in [0, 2)" in text or "dgoal = 0" in text
+    assert "sa = -60, pr = 130, co = 30; the objective = 80 > 0" in text
+    assert "after the `at end` updates" in text
+    assert "penalise `sa` by at least 8 more (80 / weight 10)" in text
+
+
+@pytest.mark.parametrize(("penalty", "horizon", "period"), [
+    (100, "30", "0.1"),
+    (100, "31", "0.1"),     # -4: still holds
+    (100, "31.2", "0.1"),   # -0.8
+    (100, "31.25", "0.25"),  # exactly 0: holds (P2 asks <= 0)
+    (100, "31.5", "0.25"),  # 4: fails
+    (100, "32", "0.1"),     # 12: fails
+    (90, "30", "0.1"),
+    (90, "25", "0.5"),      # 0: holds again on a shorter horizon
+    (120, "60", "1"),       # 260
+    (100, "1", "0.1"),      # a short run: 16 - 1000 + 500
+])
+def test_p2_worst_value_grows_with_the_horizon(penalty: int, horizon: str, period: str) -> None:
+    expected = p2_worst(penalty, Fraction(horizon))
+    result = compiled(driving_text(penalty, horizon, period))
+    found = errors(result, "E0402")
+    if expected <= 0:
+        assert not found
+        assert any(f"the objective stays <= {_text(expected)} over every run of {horizon} s" in f
+                   for f in result.facts), result.facts
+    else:
+        (diag,) = found
+        assert Fraction(diag.data["value"]) == expected
+        assert len(diag.data["run"]) == int(Fraction(horizon) / Fraction(period))
+
+
+def _text(value: Fraction) -> str:
+    return str(value.numerator) if value.denominator == 1 else f"{float(value):g}"
+
+
+def test_p2_huge_penalty_is_exact() -> None:
+    """Regression: values beyond ±2^62 (object arrays) were taken for 'unreachable'."""
+    penalty = 10**17
+    result = compiled(driving_text(penalty))
+    assert not errors(result, "E0402")
+    expected = p2_worst(penalty, Fraction(30))
+    assert any(f"the objective stays <= {expected} over" in f for f in result.facts), result.facts
+
+
+def test_p2_with_a_non_translation_update_uses_the_generic_engine() -> None:
+    # Entering Unsafe also resets comfort: the worst objective is 10*(30-100) + 5*130 + 0.
+    result = compiled(driving_text(100, **{"do sa = sa - PENALTY": "do sa = sa - PENALTY, co = 0"}))
+    assert result.ok
+    assert any("the objective stays <= -50 " in f for f in result.facts), result.facts
+    # 10 s: 10*(10 - 63) + 5*110 + 0 = 20.
+    result = compiled(driving_text(63, "10", **{"do sa = sa - PENALTY": "do sa = sa - PENALTY, co = 0"}))
+    (diag,) = errors(result, "E0402")
+    assert diag.data["value"] == "20"
+    assert diag.data["values"] == {"sa": "-53", "pr": "110", "co": "0"}
+    assert diag.data["run"][-1]["instant"] == AFTER_END
+
+
+# ---------------------------------------------------------------- priority strict
+def test_strict_driving_reports_the_lower_levels_only() -> None:
+    result = compiled(driving_text(100, strict=True))
+    found = {d.data["level"]: d for d in errors(result, "E0402")}
+    assert set(found) == {1, 2}  # sa holds (-20); pr and co can be compensated
+    # Level 1 (pr, penalised in Stalled): Normal 299 samples, Stalled at 300, end: 5*130 + 30.
+    assert found[1].data["reward"] == "pr" and found[1].data["value"] == "680"
+    assert "while `pr` is penalised, the weighted sum of `pr`, `co` can reach 680" in found[1].message
+    assert found[1].data["run"][-1]["to"] == "Stalled"
+    # Level 2 (co, penalised in Uncomfortable): co alone reaches 30.
+    assert found[2].data["reward"] == "co" and found[2].data["value"] == "30"
+    assert found[2].data["priority"] == "strict sa > pr > co"
+    assert any("P2 holds for `sa` (penalised in `Unsafe`): the objective stays <= -20 " in f for f in result.facts)
+
+
+def test_strict_reports_the_failing_level_when_the_top_holds() -> None:
+    # Comfort never grows: level 2 holds (co <= 0 in Uncomfortable), level 1 fails with 5*130.
+    variant = {"initial location Normal  { sa' == 1;  pr' == 1;  co' == 1 }":
+               "initial location Normal  { sa' == 1;  pr' == 1;  co' == 0 }"}
+    result = compiled(driving_text(100, strict=True, **variant))
+    (diag,) = errors(result, "E0402")
+    assert diag.data["level"] == 1 and diag.data["reward"] == "pr"
+    assert diag.data["value"] == "650"
+    assert diag.data["values"]["pr"] == "130"
+    assert "weighted sum of `pr`, `co`" in diag.message
+    text = render_text(result.diagnostics, result.sources)
+    assert "`Normal` -> `Stalled`" in text
+    # Without `strict` only the top level is checked, and it holds (10*(30-100) + 650 = -50).
+    plain = compiled(driving_text(100, **variant))
+    assert plain.ok
+    assert any("the objective stays <= -50 " in f for f in plain.facts)
+
+
+def test_strict_level_constant_only_counts_at_the_top() -> None:
+    raw = compile_text(driving_text(100, strict=True,
+                                    **{"objective 10*sa + 5*pr + co": "objective 10*sa + 5*pr + co - 1000"}),
+                       analyse=False).automaton
+    assert raw is not None
+    diagnostics = check_priorities(raw)
+    values = {d.data["level"]: d.data["value"] for d in diagnostics if d.code == "E0402"}
+    assert values == {1: "680", 2: "30"}
+
+
+# ---------------------------------------------------------------- P1 rate dominance
+P1_TEXT = """
+automaton P {
+    input a : bool
+    INPUTS
+    reward hi, lo
+    priority hi > lo
+    objective 10*hi + WEIGHT*lo
+    sample every 1
+    horizon 2
+    initial location Ok { hi' == 1; lo' == 1 }
+    location Bad { hi' == HI; lo' == LO }
+    edge Ok -> Bad when a do hi -= 100
+    edge Bad -> Ok when !a
+}
+"""
+
+
+def p1(hi: str, lo: str, weight: str = "1", inputs: str = "") -> list:
+    text = P1_TEXT.replace("HI", hi).replace("LO", lo).replace("WEIGHT", weight).replace("INPUTS", inputs)
+    result = compile_text(text, "p1.ra")
+    assert not [d for d in result.diagnostics if d.is_error and d.code != "E0401"], result.diagnostics
+    return errors(result, "E0401")
+
+
+def test_p1_violation_where_high_decreases_and_low_increases() -> None:
+    (diag,) = p1("-1", "1")
+    assert diag.data == {"location": "Bad", "decreasing": "hi", "increasing": "lo"}
+    assert "P1 rate dominance fails in `Bad`" in diag.message
+    assert diag.span is not None and diag.span.line == 11
+    # The same from the analysis entry point, on the unchecked IR.
+    text = P1_TEXT.replace("HI", "-1").replace("LO", "1").replace("WEIGHT", "1").replace("INPUTS", "")
+    automaton = compile_text(text, analyse=False).automaton
+    assert automaton is not None
+    assert [d.data for d in check_rate_dominance(automaton)] == [diag.data]
+
+
+def test_p1_lower_reward_weighted_zero_or_negative_is_fine() -> None:
+    assert p1("-1", "1", weight="0") == []
+    assert p1("-1", "1", weight="-1") == []
+    assert p1("-1", "-1", weight="-1") != []  # negative weight times a negative rate grows
+    assert p1("0", "1") == []  # hi does not decrease
+    assert p1("-1", "0") == []
+
+
+def test_p1_with_numeric_rates_is_an_exact_minimax() -> None:
+    v = "input v : real in [0, 2]"
+    # hi < 0 exactly when v < 1, lo > 0 exactly when v > 1: never both, although hi can be
+    # negative and lo positive (an interval check would complain).
+    assert p1("v - 1", "v - 1", inputs=v) == []
+    # They touch at v = 1 only, where both are 0: still fine.
+    assert p1("v - 1", "(v - 1) / 2", inputs=v) == []
+    # Overlap on v in [0, 1).
+    assert len(p1("v - 1", "3/2 - v", inputs=v)) == 1
+    assert len(p1("v - 1", "1 - v", inputs=v)) == 1
+    # Overlap only on a sliver near the bound: v in (1.9, 2].
+    assert len(p1("v - 2", "v - 19/10", inputs=v)) == 1
+    assert p1("v - 2", "v - 2", inputs=v) == []
+    # Two inputs: the signs are coupled through v - w.
+    vw = "input v : real in [0, 2]\n    input w : real in [0, 2]"
+    assert len(p1("v - w", "w - v", inputs=vw)) == 1
+    assert p1("v - w", "v - w", inputs=vw) == []
+
+
+def test_p1_two_inputs_overlap_inside_the_box() -> None:
+    vw = "input v : real in [0, 2]\n    input w : real in [0, 2]"
+    # hi < 0 iff v - w < 2 (almost everywhere); lo > 0 iff v - w > 1 (e.g. v = 2, w = 0.5).
+    assert len(p1("v - w - 2", "v - w - 1", inputs=vw)) == 1
+    # lo > 0 iff v - w > 2: impossible in the box.
+    assert p1("v - w - 2", "v - w - 2", inputs=vw) == []
+
+
+def test_p1_with_int_inputs_is_exact() -> None:
+    """Regression: the minimax relaxation over reals reported int inputs that can never overlap."""
+    n = "input n : int in [0, 2]"
+    # hi < 0 iff n < 1/2 (n = 0); lo > 0 iff n > 1/4 (n >= 1): no integer does both.
+    assert p1("2*n - 1", "4*n - 1", inputs=n) == []
+    assert len(p1("2*n - 1", "4*n + 1", inputs=n)) == 1
+
+
+class _Inputs:
+    """Just enough of an automaton for ``_exists_neg_pos``."""
+
+    def __init__(self, items: list[ir.Input]):
+        self.items = {i.name: i for i in items}
+
+    def input(self, name: str) -> ir.Input:
+        return self.items[name]
+
+
+def _min_max_reference(f: ir.Linear, g: ir.Linear, inputs: list[ir.Input]) -> bool:
+    """Exists x with f < 0 < g: min over the box of max(f, -g) is at a box vertex, or where an
+    edge of the box crosses f = -g (h = max(f, -g) is affine on both sides of that hyperplane).
+    Integer inputs are enumerated."""
+    reals = [i for i in inputs if i.kind == "real"]
+    ints = [i for i in inputs if i.kind == "int"]
+    s = f + g
+    for combo in itertools.product(*(range(int(i.low), int(i.high) + 1) for i in ints)):
+        fixed = {i.name: Fraction(v) for i, v in zip(ints, combo)}
+        points = []
+        for corner in itertools.product(*((i.low, i.high) for i in reals)):
+            points.append(dict(zip((i.name for i in reals), corner)))
+            for k, item in enumerate(reals):  # the edge along reals[k] through this corner
+                rest = {i.name: c for j, (i, c) in enumerate(zip(reals, corner)) if j != k}
+                slope = s.coefficient(item.name)
+                if slope:
+                    base = s.evaluate({**fixed, **rest, item.name: Fraction(0)})
+                    x = -base / slope
+                    if item.low <= x <= item.high:
+                        points.append({**rest, item.name: x})
+        for point in points:
+            values = {**fixed, **point}
+            if max(f.evaluate(values), -g.evaluate(values)) < 0:
+                return True
+    return False
+
+
+coefficients = st.builds(Fraction, st.integers(-3, 3), st.sampled_from([1, 2, 3]))
+
+
+@st.composite
+def rate_pairs(draw):
+    inputs = []
+    for name in ["u", "v", "w"][: draw(st.integers(1, 3))]:
+        kind = draw(st.sampled_from(["real", "real", "int"]))
+        low = draw(st.integers(-2, 1))
+        high = low + draw(st.integers(0, 3))
+        inputs.append(ir.Input(name, kind, Fraction(low), Fraction(high)))
+
+    def linear() -> ir.Linear:
+        terms = tuple((i.name, draw(coefficients)) for i in inputs)
+        return ir.Linear(draw(coefficients), tuple(t for t in terms if t[1]))
+
+    return linear(), linear(), inputs
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(rate_pairs())
+def test_p1_minimax_matches_a_vertex_enumeration(case) -> None:
+    f, g, inputs = case
+    assert _exists_neg_pos(f, g, _Inputs(inputs)) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- int32 range
+def test_int32_range_overflows_at_one_hour() -> None:
+    result = compiled(driving_text(100, horizon="3600"))
+    (diag,) = errors(result, "E0501")
+    # Into Unsafe at sample 1 (0.1 - 100), then a collision at each of the 35999 other samples
+    # while sa' = -1: -99.9 - 100.1*35999.
+    assert diag.data["reward"] == "sa"
+    assert Fraction(diag.data["value"]) == Fraction("-99.9") - Fraction("100.1") * 35999 == Fraction("-3603599.8")
+    assert (diag.data["base"], diag.data["exponent"]) == (10, 4)
+    notes = "\n".join(n.message for n in diag.notes)
+    # |sa| first exceeds 214748.3648 at sample 2146: -99.9 - 100.1*2145 = -214814.4.
+    assert "first overflow on the worst run: t = 214.6 s, in `Unsafe` right after the sample (sa = -214814.4)" in notes
+    assert "it can reach -3603599.8" in diag.message
+
+
+def test_int32_range_holds_at_thirty_seconds() -> None:
+    result = compiled(driving_text(100))
+    assert not errors(result, "E0501")
+    assert "int32 range holds at base 10, exponent 4: rewards stay within [-30029.8, 130]" in result.facts
+    automaton = result.automaton
+    assert automaton is not None
+    assert check_ranges(automaton) == []
+    # A coarser representation overflows already: 10^9 * 130 > 2^31.
+    (diag,) = check_ranges(automaton, base=10, exponent=9)
+    assert diag.code == "E0501" and diag.data["reward"] == "sa" and diag.data["value"] == "30"
+
+
+def test_int32_range_boundary_is_exact() -> None:
+    text = """
+automaton R {
+    input a : bool
+    reward r
+    objective r
+    sample every 1
+    horizon 2
+    initial location L { r' == 0 }
+    edge L -> L when a do r += GROWTH
+}
+"""
+    # trunc(r * 10^4) must stay <= 2^31 - 1; two samples of growth g reach 2g.
+    limit = Fraction(2**31 - 1, 10**4)
+    ok = compile_text(text.replace("GROWTH", str(limit / 2)), analyse=False).automaton
+    bad = compile_text(text.replace("GROWTH", str(limit / 2 + Fraction(1, 10**4) / 2)), analyse=False).automaton
+    assert ok is not None and bad is not None
+    assert check_ranges(ok) == []
+    (diag,) = check_ranges(bad)
+    assert diag.code == "E0501"
+    negative = compile_text(text.replace("GROWTH", f"-{Fraction(2**31, 10**4) / 2}"), analyse=False).automaton
+    assert negative is not None and check_ranges(negative) == []  # -2^31 itself is representable
