@@ -9,11 +9,13 @@ Semantics followed literally (language.md, and the analysis' reading of it):
 - t = 0: in the initial location, every reward 0.
 - sample 1: rewards accrue over (0, t_1] at the initial location's rates, evaluated with the
   inputs read at t_1 ("before the edge" instant); the one enabled edge (if any) is taken and its
-  updates applied left to right ("after the edge"); if the run ends here, every enabled
-  ``at end`` clause (same inputs) applies, in order ("after end"); otherwise rewards accrue over
+  updates applied left to right ("after the edge"); if the run ends here, every
+  ``at end`` clause enabled by the END's inputs applies, in order ("after end"); otherwise rewards accrue over
   (t_1, t_2] at the new location's rates with the inputs of t_1 held ("before the next sample",
   which is also the next sample's "before the edge" instant).
 - sample k >= 2: the same without the first accrual.
+- A run may also end at t = 0, before any sample. The end's inputs are its own
+  (``end(inputs)``), free over every valuation ``assume`` allows.
 
 Input valuations (built here, not with :class:`~rac.analysis.inputs.InputSpace`): both values
 of every boolean input; for a real input every guard threshold and bound, and the midpoint of
@@ -161,7 +163,6 @@ def sample(automaton: ir.Automaton, location: int, r: tuple[Fraction, ...], v: V
         r = assign(automaton, edge.updates, r, v.values)
         location = edge.target
     instants.append(("after-edge", location, r))
-    instants.append(("after-end", location, at_end(automaton, r, v)))
     after = accrue(automaton, location, r, v.values)
     return instants, (location, after)
 
@@ -181,9 +182,14 @@ def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fracti
             if best[0] is None or value > best[0]:
                 best[0] = value
 
+    def see_end(location: int, r: tuple[Fraction, ...]) -> None:
+        for end in xs:  # the end's own inputs
+            see(location, at_end(automaton, r, end))
+
     l0 = automaton.initial
     zero = tuple(ZERO for _ in automaton.rewards)
     see(l0, zero)
+    see_end(l0, zero)
     frontier = {(l0, zero)}
     for k in range(1, steps + 1):
         following = set()
@@ -192,6 +198,7 @@ def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fracti
                 instants, after = sample(automaton, location, r, v, first=k == 1)
                 for _, where, values in instants:
                     see(where, values)
+                see_end(*instants[-1][1:])
                 if k < steps:
                     see(*after)  # "just before the next sample"
                     following.add(after)
@@ -201,13 +208,19 @@ def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fracti
     return best[0]
 
 
-def simulate(automaton: ir.Automaton, run: list[Valuation], instant: str) -> tuple[int, tuple[Fraction, ...]]:
+def simulate(automaton: ir.Automaton, run: list[Valuation], instant: str,
+             end: Valuation | None = None) -> tuple[int, tuple[Fraction, ...]]:
     """Location and rewards at ``instant`` of the run's last sample (a counterexample replay).
 
-    ``instant`` is one of before-edge (first sample only), after-edge, after-end, before-next
-    (or continue, the same point).
+    ``instant`` is one of before-edge (first sample only), after-edge, after-end (with the
+    ``end`` inputs), before-next (or continue, the same point).
     """
     location, r = automaton.initial, tuple(ZERO for _ in automaton.rewards)
+    if instant == "after-end":
+        assert end is not None
+        if run:
+            location, r = simulate(automaton, run, "after-edge")
+        return location, at_end(automaton, r, end)
     if not run:
         return location, r
     for k, v in enumerate(run, start=1):

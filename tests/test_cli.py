@@ -246,12 +246,12 @@ def test_compile_json_diagnostics(capsys: pytest.CaptureFixture[str], p2_fails: 
     assert [d["code"] for d in diagnostics] == ["E0402"]
 
 
-@pytest.mark.xfail(strict=True, reason="known bug: an unwritable -o path is reported as an internal error (exit 3)")
 def test_compile_to_a_missing_folder_is_a_usage_error(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     code = main(["compile", str(DRIVING), "--target", "python", "-o", str(tmp_path / "no" / "such" / "out.py")])
     err = capsys.readouterr().err
     assert code == 2
     assert "internal error" not in err
+    assert "error[E0009]: cannot write" in err
 
 
 # ---------------------------------------------------------------- fmt

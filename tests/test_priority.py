@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rac import ir
-from rac.analysis.affine import outcomes
+from rac.analysis.affine import moves
 from rac.analysis.inputs import InputSpace
 from rac.analysis.priority import (
     _exists_neg_pos,
@@ -77,7 +77,7 @@ def test_p2_holds_at_penalty_100_with_worst_value_minus_20() -> None:
     facts: list[str] = []
     assert check_priorities(automaton, facts) == []
     space = InputSpace(automaton)
-    worst = maximise(automaton, outcomes(automaton, space), objective_target(automaton))
+    worst = maximise(automaton, moves(automaton, space), objective_target(automaton))
     assert worst is not None and worst.value == -20 == p2_worst(100, Fraction(30))
     values, _ = replay(automaton, space, worst)
     assert values == [-70, 130, 30]  # 10*(-70) + 5*130 + 30 = -20
@@ -91,13 +91,14 @@ def test_p2_fails_at_penalty_90_with_the_expected_counterexample() -> None:
     assert diag.data["level"] == 0 and diag.data["reward"] == "sa"
     assert diag.data["values"] == {"sa": "-60", "pr": "130", "co": "30"}
     assert "the objective can reach 80" in diag.message
-    run = diag.data["run"]
+    run, end = diag.data["run"], diag.data["end"]
+    assert end["clause_lines"] == [32] and Fraction(end["inputs"]["dgoal"]) < 2
     assert len(run) == 300
     assert all(s["from"] == s["to"] == "Normal" and s["instant"] == CONTINUE for s in run[:299])
     assert [s["sample"] for s in run] == list(range(1, 301))
     last = run[-1]
     assert (last["from"], last["to"], last["instant"]) == ("Normal", "Unsafe", AFTER_END)
-    assert last["inputs"]["isClose"] is True and Fraction(last["inputs"]["dgoal"]) < 2
+    assert last["inputs"]["isClose"] is True
 
     text = render_text(result.diagnostics, result.sources)
     assert "error[E0402]: P2 no compensation fails: while `sa` is penalised, the objective can reach 80" in text
@@ -160,7 +161,7 @@ def test_p2_with_a_non_translation_update_uses_the_generic_engine() -> None:
     (diag,) = errors(result, "E0402")
     assert diag.data["value"] == "20"
     assert diag.data["values"] == {"sa": "-53", "pr": "110", "co": "0"}
-    assert diag.data["run"][-1]["instant"] == AFTER_END
+    assert diag.data["run"][-1]["instant"] == AFTER_END and diag.data["end"]
 
 
 # ---------------------------------------------------------------- priority strict
@@ -398,3 +399,38 @@ automaton R {
     assert diag.code == "E0501"
     negative = compile_text(text.replace("GROWTH", f"-{Fraction(2**31, 10**4) / 2}"), analyse=False).automaton
     assert negative is not None and check_ranges(negative) == []  # -2^31 itself is representable
+
+
+def test_end_inputs_are_free_like_the_runtime_end_call() -> None:
+    """`end(inputs)` takes inputs of its own, so the check must not tie them to the last sample's.
+
+    Regression: with `at end when !isClose && dgoal < 2`, a run can enter Unsafe (isClose) at
+    the last sample and still get the end bonus from end inputs with isClose = false.
+    """
+    text = driving_text(90).replace("at end when dgoal < 2", "at end when !isClose && dgoal < 2")
+    (diag,) = errors(compiled(text), "E0402")
+    assert diag.data["value"] == "80"
+    assert diag.data["end"]["inputs"]["isClose"] is False
+    assert diag.data["run"][-1]["inputs"]["isClose"] is True
+
+
+def test_a_run_may_end_before_its_first_sample() -> None:
+    """An initial location that penalises the top reward is checked after an immediate `end`."""
+    text = """
+    automaton A {
+        input b : bool
+        reward hi, lo
+        priority hi > lo
+        objective 10*hi + lo
+        sample every 1
+        horizon 3
+        initial location Bad { hi' == -1 }
+        location Good { }
+        edge Bad -> Good when b
+        edge Good -> Bad when !b
+        at end when b do lo = lo + 5
+    }
+    """
+    (diag,) = errors(compiled(text), "E0402")
+    assert diag.data["value"] == "5"
+    assert diag.data["run"] == [] and diag.data["end"]["inputs"]["b"] is True

@@ -18,10 +18,12 @@ from hypothesis import strategies as st
 from reference import Valuation, reference_max, simulate
 
 from rac import ir
-from rac.analysis.affine import outcomes
+from rac.analysis.affine import moves
 from rac.analysis.inputs import InputSpace
 from rac.analysis.priority import replay
 from rac.analysis.worst import (
+    AFTER_EDGE,
+    AFTER_END,
     BEFORE_EDGE,
     CONTINUE,
     Target,
@@ -203,8 +205,17 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
     values, _ = replay(automaton, space, worst)
     assert functional(values) == worst.value
     l0 = automaton.initial
+    end = None
+    if worst.instant == AFTER_END:
+        assert worst.end is not None
+        guards = space.valuation(worst.end.cls)
+        end = Valuation(guards, {**guards, **worst.end_inputs})
     if not worst.steps:
-        assert target.watched[l0] and worst.value == target.constant
+        assert target.watched[l0]
+        if end is None:
+            assert worst.value == target.constant
+        else:
+            assert functional(simulate(automaton, [], AFTER_END, end)[1]) == worst.value
         return
     here = l0
     for i, step in enumerate(worst.steps, start=1):
@@ -213,13 +224,14 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
         assert (step.instant == CONTINUE) == (i < len(worst.steps))
         here = step.outcome.target
     assert len(worst.steps) <= automaton.steps
-    assert worst.instant == worst.steps[-1].instant
+    assert worst.instant == worst.steps[-1].instant or (
+        worst.instant == AFTER_END and worst.steps[-1].instant == AFTER_EDGE)
     # Replay independently: the reference simulator on the concrete inputs of each step.
     run = []
     for step in worst.steps:
         guards = space.valuation(step.outcome.cls)
         run.append(Valuation(guards, {**guards, **step.inputs}))
-    where, rewards = simulate(automaton, run, worst.instant)
+    where, rewards = simulate(automaton, run, worst.instant, end)
     assert where == (l0 if worst.instant == BEFORE_EDGE else here)
     assert target.watched[where]
     assert functional(rewards) == worst.value
@@ -229,7 +241,7 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
 def check_case(case: Case) -> None:
     automaton, target = case.automaton, case.target
     space = InputSpace(automaton)
-    outs = outcomes(automaton, space)
+    outs = moves(automaton, space)
     worst = maximise(automaton, outs, target)
     expected = reference_max(automaton, target.weights, target.constant, target.watched)
     assert value_of(worst) == expected, case.text
@@ -238,8 +250,8 @@ def check_case(case: Case) -> None:
 
 
 def is_translation_only(automaton: ir.Automaton) -> bool:
-    outs = outcomes(automaton, InputSpace(automaton))
-    return all(o.edge_map.is_translation and o.end_map.is_translation for os in outs for o in os)
+    outs = moves(automaton, InputSpace(automaton))
+    return outs.translations_only
 
 
 # ---------------------------------------------------------------- properties
@@ -261,7 +273,7 @@ def test_maximise_with_general_updates_matches_reference(case: Case) -> None:
 def test_generic_engine_agrees_with_translation_engine(case: Case) -> None:
     automaton, target = case.automaton, case.target
     space = InputSpace(automaton)
-    outs = outcomes(automaton, space)
+    outs = moves(automaton, space)
     fast = _maximise_translations(automaton, outs, target)
     slow = _maximise_generic(automaton, outs, target)
     assert value_of(fast) == value_of(slow), case.text
@@ -283,7 +295,7 @@ def test_reference_on_the_driving_automaton_by_hand() -> None:
     # Lowest comfort: into Uncomfortable at sample 1 (co = 0.1), then -0.1 per sample.
     assert reference_max(automaton, (0, 0, -1), 0, (True,) * 4) == Fraction(3, 10)
     space = InputSpace(automaton)
-    worst = maximise(automaton, outcomes(automaton, space), Target(weights, Fraction(0), unsafe))
+    worst = maximise(automaton, moves(automaton, space), Target(weights, Fraction(0), unsafe))
     assert worst is not None and worst.value == -492
 
 
@@ -318,7 +330,7 @@ def test_huge_values_are_exact(target: Target) -> None:
     """Regression: beyond ±2^62 the translation engine took real values for 'unreachable'."""
     automaton = compile_ir(HUGE)
     space = InputSpace(automaton)
-    outs = outcomes(automaton, space)
+    outs = moves(automaton, space)
     expected = reference_max(automaton, target.weights, target.constant, target.watched)
     for engine in (maximise, _maximise_translations, _maximise_generic):
         worst = engine(automaton, outs, target)
@@ -329,8 +341,8 @@ def test_huge_values_are_exact(target: Target) -> None:
 def test_assume_excluding_everything_leaves_only_the_start() -> None:
     """Regression: the translation engine crashed on locations without outcomes."""
     automaton = compile_ir(HUGE.replace("reward p", "assume a && !a\n    reward p"))
-    outs = outcomes(automaton, InputSpace(automaton))
-    assert not any(outs)
+    outs = moves(automaton, InputSpace(automaton))
+    assert not any(outs.samples)
     for engine in (maximise, _maximise_translations, _maximise_generic):
         assert engine(automaton, outs, Target((Fraction(1),), Fraction(3), (True, True))) == Worst(Fraction(3))
         assert engine(automaton, outs, Target((Fraction(1),), Fraction(3), (False, True))) is None

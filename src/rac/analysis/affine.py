@@ -80,10 +80,22 @@ class Outcome:
     cls: int  # a representative class (for witnesses)
     edge: ir.Edge | None
     target: int
-    ends: tuple[int, ...]  # indices of enabled end clauses
     box: tuple[tuple[str, Piece], ...]  # pieces of the inputs the arithmetic reads
     edge_map: Affine
-    end_map: Affine  # applied after the edge when the run ends here
+
+
+@dataclass(frozen=True)
+class EndOutcome:
+    """What one group of input classes does when a run ends (``at end`` clauses).
+
+    A run may end right after any sample (or before the first), and ``end(inputs)`` takes
+    inputs of its own, so the end's inputs range over every valuation ``assume`` allows.
+    """
+
+    cls: int
+    ends: tuple[int, ...]  # indices of enabled end clauses, applied in order
+    box: tuple[tuple[str, Piece], ...]
+    end_map: Affine
 
 
 def arithmetic_inputs(automaton: ir.Automaton) -> tuple[str, ...]:
@@ -101,10 +113,9 @@ def arithmetic_inputs(automaton: ir.Automaton) -> tuple[str, ...]:
 
 
 def outcomes(automaton: ir.Automaton, space: InputSpace) -> list[list[Outcome]]:
-    """Distinct outcomes per location, over the classes allowed by ``assume``."""
+    """Distinct outcomes of a sample per location, over the classes allowed by ``assume``."""
     relevant = arithmetic_inputs(automaton)
     rewards = automaton.rewards
-    end_enabled = [space.evaluate(c.guard) for c in automaton.end_clauses]
     valid = space.valid
     result: list[list[Outcome]] = []
     for index, edges in enumerate(automaton.edges):
@@ -112,19 +123,55 @@ def outcomes(automaton: ir.Automaton, space: InputSpace) -> list[list[Outcome]]:
         seen: dict[tuple, Outcome] = {}
         for cls in map(int, valid.nonzero()[0]):
             taken = next((e for e, mask in zip(edges, enabled) if mask[cls]), None)
-            ends = tuple(i for i, mask in enumerate(end_enabled) if mask[cls])
             box = tuple((name, space.piece(cls, name)) for name in relevant)
-            key = (id(taken), ends, box)
-            if key in seen:
+            key = (id(taken), box)
+            if key in seen and _intervals(space, seen[key].cls) >= _intervals(space, cls):
                 continue
             edge_map = from_assignments(taken.updates, rewards) if taken else identity(len(rewards))
-            end_map = identity(len(rewards))
-            for i in ends:
-                end_map = then(end_map, from_assignments(automaton.end_clauses[i].updates, rewards))
-            seen[key] = Outcome(index, cls, taken, taken.target if taken else index, ends, box,
-                                edge_map, end_map)
+            seen[key] = Outcome(index, cls, taken, taken.target if taken else index, box, edge_map)
         result.append(list(seen.values()))
     return result
+
+
+def _intervals(space: InputSpace, cls: int) -> int:
+    """How many numeric inputs a class leaves as intervals: such witnesses read better than points."""
+    return sum(not space.piece(cls, item.name).is_point for item in space.numerics)
+
+
+def end_outcomes(automaton: ir.Automaton, space: InputSpace) -> list[EndOutcome]:
+    """Distinct ways a run can end, over the classes allowed by ``assume``."""
+    relevant = arithmetic_inputs(automaton)
+    rewards = automaton.rewards
+    enabled = [space.evaluate(c.guard) for c in automaton.end_clauses]
+    seen: dict[tuple, EndOutcome] = {}
+    for cls in map(int, space.valid.nonzero()[0]):
+        ends = tuple(i for i, mask in enumerate(enabled) if mask[cls])
+        box = tuple((name, space.piece(cls, name)) for name in relevant)
+        if (ends, box) in seen and _intervals(space, seen[(ends, box)].cls) >= _intervals(space, cls):
+            continue
+        end_map = identity(len(rewards))
+        for i in ends:
+            end_map = then(end_map, from_assignments(automaton.end_clauses[i].updates, rewards))
+        seen[(ends, box)] = EndOutcome(cls, ends, box, end_map)
+    return list(seen.values())
+
+
+@dataclass(frozen=True)
+class Moves:
+    """Everything a run can do: per location the outcomes of a sample, and the ways to end."""
+
+    samples: tuple[tuple[Outcome, ...], ...]
+    ends: tuple[EndOutcome, ...]
+
+    @property
+    def translations_only(self) -> bool:
+        return (all(o.edge_map.is_translation for os in self.samples for o in os)
+                and all(e.end_map.is_translation for e in self.ends))
+
+
+def moves(automaton: ir.Automaton, space: InputSpace) -> Moves:
+    """Sample outcomes and end outcomes of an automaton over its input classes."""
+    return Moves(tuple(tuple(os) for os in outcomes(automaton, space)), tuple(end_outcomes(automaton, space)))
 
 
 def sup_linear(form: dict[str, Fraction], box: tuple[tuple[str, Piece], ...]) -> tuple[Fraction, dict[str, Fraction]]:

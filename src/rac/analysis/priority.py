@@ -7,7 +7,7 @@ import math
 from fractions import Fraction
 
 from rac import ir
-from rac.analysis.affine import Affine, Outcome, accrual, outcomes
+from rac.analysis.affine import Affine, Outcome, accrual, moves
 from rac.analysis.behaviour import input_space
 from rac.analysis.inputs import InputSpace, guard_inputs
 from rac.analysis.worst import AFTER_END, BEFORE_EDGE, BEFORE_NEXT, CONTINUE, START, Target, Worst, maximise
@@ -124,7 +124,7 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None) ->
     space, problems = input_space(automaton)
     if space is None:
         return diagnostics + problems
-    outs = outcomes(automaton, space)
+    outs = moves(automaton, space)
     levels = range(len(automaton.priority)) if automaton.strict else range(1)
     for level in levels:
         reward = automaton.priority[level]
@@ -175,16 +175,17 @@ def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, le
         data={"property": "P2", "level": level, "reward": reward, "value": str(worst.value),
               "priority": f"{strict}{' > '.join(automaton.priority)}",
               "run": run_json(automaton, space, worst),
+              "end": end_json(automaton, space, worst),
               "values": {r: str(v) for r, v in zip(automaton.rewards, values)}})
 
 
 def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
     """Exact reward values along the worst run: yields (phrase naming the instant, values)."""
     r = [ZERO] * len(automaton.rewards)
-    if not worst.steps:
-        yield "t = 0", r
-        return
+    yield "t = 0 s, before any sample", r
     l0 = automaton.initial
+    name = automaton.location_names[l0]
+    time = "0"
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
     for step in worst.steps:
         o = step.outcome
@@ -192,21 +193,22 @@ def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
         time = _num(step.sample * automaton.period)
         if step.sample == 1:
             r = apply(accruals[l0], r, x)
-            yield f"t = {time} s, in `{automaton.location_names[l0]}` before the sample's edge", r
+            yield f"t = {time} s, in `{name}` before the sample's edge", r
             if step.instant == BEFORE_EDGE:
                 return
         r = apply(o.edge_map, r, x)
         name = automaton.location_names[o.target]
         yield f"t = {time} s, in `{name}` right after the sample", r
-        if step.instant == AFTER_END:
-            yield f"t = {time} s, in `{name}` after the `at end` updates", apply(o.end_map, r, x)
-            return
         if step.instant not in (CONTINUE, BEFORE_NEXT):
-            return
+            break
         r = apply(accruals[o.target], r, x)
         yield f"t = {_num((step.sample + 1) * automaton.period)} s, in `{name}` just before the next sample", r
         if step.instant != CONTINUE:
             return
+    if worst.instant == AFTER_END and worst.end is not None:
+        x = {n: v for n, v in space.valuation(worst.end.cls).items() if not isinstance(v, bool)}
+        x.update(worst.end_inputs)
+        yield f"t = {time} s, in `{name}` after the `at end` updates", apply(worst.end.end_map, r, x)
 
 
 def replay(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> tuple[list[Fraction], str]:
@@ -232,13 +234,11 @@ def _inputs(space: InputSpace, step) -> dict[str, Fraction]:
     return values  # type: ignore[return-value]
 
 
-def _outcome_inputs(automaton: ir.Automaton, o: Outcome, ending: bool) -> set[str]:
+def _outcome_inputs(automaton: ir.Automaton, o: Outcome) -> set[str]:
+    """The inputs worth showing for a sample: those the location's guards read."""
     names: set[str] = set()
     for edge in automaton.edges[o.source]:
         names |= guard_inputs(edge.guard)
-    if ending:
-        for i in o.ends:
-            names |= guard_inputs(automaton.end_clauses[i].guard)
     return names
 
 
@@ -247,12 +247,12 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> li
     names = automaton.location_names
     period = automaton.period
     lines: list[str] = []
-    if not worst.steps:
+    if not worst.steps and worst.instant != AFTER_END:
         return [f"  t = 0 s: in `{names[automaton.initial]}` before any sample"]
     groups: list[list] = []
     for step in worst.steps:
         o = step.outcome
-        label = space.describe(o.cls, _outcome_inputs(automaton, o, False))
+        label = space.describe(o.cls, _outcome_inputs(automaton, o))
         key = (o.source, id(o.edge), label)
         if groups and groups[-1][0] == key and groups[-1][1][-1].instant == CONTINUE:
             groups[-1][1].append(step)
@@ -279,13 +279,16 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> li
             what = f"`{names[source]}` -> `{names[o.target]}` (edge at line {line})"
         count = f", {len(steps)} samples" if len(steps) > 1 else ""
         lines.append(f"  {when}: {what}{count}; inputs {label}")
-    final = worst.steps[-1]
-    if final.instant == AFTER_END:
+    if worst.instant == AFTER_END and worst.end is not None:
+        end = worst.end
         clauses = ", ".join(f"line {automaton.end_clauses[i].span.line}" if automaton.end_clauses[i].span
-                            else str(i) for i in final.outcome.ends)
-        label = space.describe(final.outcome.cls, _outcome_inputs(automaton, final.outcome, True))
-        lines.append(f"  run ends at t = {_num(final.sample * period)} s: `at end` ({clauses or 'none enabled'}); "
-                     f"inputs {label}")
+                            else str(i) for i in end.ends)
+        shown: set[str] = set()
+        for clause in automaton.end_clauses:
+            shown |= guard_inputs(clause.guard)
+        when = _num(worst.steps[-1].sample * period) if worst.steps else "0"
+        lines.append(f"  run ends at t = {when} s: `at end` ({clauses or 'no clause enabled'}); "
+                     f"inputs {space.describe(end.cls, shown)}")
     return lines
 
 
@@ -307,6 +310,20 @@ def run_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> list[d
     return result
 
 
+def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[str, object] | None:
+    """How the worst run ends (``at end`` clauses and the end's inputs), or None."""
+    if worst.instant != AFTER_END or worst.end is None:
+        return None
+    values = space.valuation(worst.end.cls)
+    values.update(worst.end_inputs)
+    return {
+        "time": str(worst.steps[-1].sample * automaton.period if worst.steps else 0),
+        "clause_lines": [automaton.end_clauses[i].span.line if automaton.end_clauses[i].span else None
+                         for i in worst.end.ends],
+        "inputs": {k: (v if isinstance(v, bool) else str(v)) for k, v in values.items()},
+    }
+
+
 def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: int = DEFAULT_EXPONENT,
                  facts: list[str] | None = None) -> list[Diagnostic]:
     """Every reward's significand trunc(v·base^exponent) stays within int32 over the horizon."""
@@ -315,7 +332,7 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
     space, problems = input_space(automaton)
     if space is None:
         return problems
-    outs = outcomes(automaton, space)
+    outs = moves(automaton, space)
     everywhere = tuple(True for _ in automaton.locations)
     factor = Fraction(base) ** exponent
     size = len(automaton.rewards)

@@ -6,11 +6,17 @@ over every run of at most ``steps`` samples, with inputs free at each sample
 *watched* location, how large can ``w·r + w0`` become?
 
 Between samples rewards change linearly, so only instants at samples matter:
-just before an edge, just after it, and just after ``at end`` updates. The
-search is a backward dynamic programme over sets of affine functionals of the
-reward vector (exact for any affine updates, rational arithmetic). When every
-update is a translation (``r = r + c``), the set collapses to one functional and
-a vectorised max-plus recurrence in scaled integers answers in one pass.
+just before an edge (the first sample's; later ones equal the previous
+"before next"), just after it, just before the next sample, and just after the
+``at end`` updates of a run that ends there. A run may end after any sample or
+before the first, with inputs of its own (``end(inputs)``), so the end's inputs
+range freely over what ``assume`` allows.
+
+The search is a backward dynamic programme over sets of affine functionals of
+the reward vector (exact for any affine updates, rational arithmetic). When
+every update is a translation (``r = r + c``) the set collapses to one
+functional and a vectorised max-plus recurrence in scaled integers answers in
+one pass over the horizon.
 """
 
 from __future__ import annotations
@@ -22,10 +28,10 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
-from rac.analysis.affine import Affine, Outcome, accrual, sup_linear
+from rac.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, sup_linear
 
 ZERO = Fraction(0)
-#: Instants of one sample, in time order.
+#: Instants of one sample, in time order; START is t = 0 before any sample.
 BEFORE_EDGE, AFTER_EDGE, AFTER_END, BEFORE_NEXT, CONTINUE, START = (
     "before-edge", "after-edge", "after-end", "before-next", "continue", "start")
 
@@ -51,9 +57,20 @@ class Step:
 
 @dataclass
 class Worst:
+    """The supremum and a run reaching it (``end`` is set when the run ends with ``at end``)."""
+
     value: Fraction
     steps: list[Step] = field(default_factory=list)
     instant: str = START
+    end: EndOutcome | None = None
+    end_inputs: dict[str, Fraction] = field(default_factory=dict)
+
+
+def maximise(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
+    """The worst run for ``target`` (None when no watched instant is reachable)."""
+    if moves.translations_only:
+        return _maximise_translations(automaton, moves, target)
+    return _maximise_generic(automaton, moves, target)
 
 
 # ---------------------------------------------------------------- generic engine
@@ -65,7 +82,7 @@ class _Puller:
 
     def __init__(self) -> None:
         self.cache: dict[tuple[tuple[Fraction, ...], int], tuple[tuple[Fraction, ...], Fraction, dict]] = {}
-        self.keep: list[Affine] = []
+        self.keep: list[Affine] = []  # keeps ids in the cache keys alive
 
     def __call__(self, func: _Func, affine: Affine) -> _Func:
         c, d, g = func
@@ -95,21 +112,27 @@ class _Puller:
         return (c2, d + d_add, g)
 
 
-def maximise(automaton: ir.Automaton, outs: list[list[Outcome]], target: Target) -> Worst | None:
-    """The worst run for ``target`` (None when no watched instant is reachable)."""
-    translations = all(o.edge_map.is_translation and o.end_map.is_translation for os in outs for o in os)
-    if translations:
-        return _maximise_translations(automaton, outs, target)
-    return _maximise_generic(automaton, outs, target)
+def _end_functionals(moves: Moves, base: _Func, pull: _Puller) -> dict[tuple[Fraction, ...], tuple]:
+    """The target after ``at end``, maximised over the end's own inputs: coefficients -> (d, end, point)."""
+    best: dict[tuple[Fraction, ...], tuple] = {}
+    for end in moves.ends:
+        c, d, g = pull(base, end.end_map)
+        bonus, point = sup_linear(g, end.box)
+        if c not in best or d + bonus > best[c][0]:
+            best[c] = (d + bonus, end, point)
+    return best
 
 
-def _maximise_generic(automaton: ir.Automaton, outs: list[list[Outcome]], target: Target) -> Worst | None:
+def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
     steps = automaton.steps
+    outs = moves.samples
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
     pull = _Puller()
     base: _Func = (target.weights, target.constant, {})
+    ends = _end_functionals(moves, base, pull)
     l0 = automaton.initial
-    # tables[k][l]: functional coefficients -> (d, outcome index, instant, next coefficients, x point)
+    # tables[k][l]: coefficients -> (d, outcome index, instant, link, x point), where link is the
+    # next sample's coefficients (CONTINUE) or (end outcome, its x point) (AFTER_END).
     tables: list[list[dict]] = [[] for _ in range(steps + 2)]
     tables[steps + 1] = [{} for _ in automaton.locations]
     for k in range(steps, 0, -1):
@@ -118,114 +141,130 @@ def _maximise_generic(automaton: ir.Automaton, outs: list[list[Outcome]], target
             best = layer[here]
             for oi, o in enumerate(outs[here]):
                 t = o.target
-                candidates: list[tuple[_Func, str, tuple | None]] = []
+                candidates: list[tuple[_Func, str, object]] = []
                 if target.watched[t]:
                     candidates.append((base, AFTER_EDGE, None))
-                    candidates.append((pull(base, o.end_map), AFTER_END, None))
+                    for c_end, (d_end, end, point) in ends.items():
+                        candidates.append(((c_end, d_end, {}), AFTER_END, (end, point)))
                     if k < steps:
                         candidates.append((pull(base, accruals[t]), BEFORE_NEXT, None))
                 if k < steps:
                     for c_next, entry in tables[k + 1][t].items():
                         candidates.append((pull((c_next, entry[0], {}), accruals[t]), CONTINUE, c_next))
-                for func, instant, c_next in candidates:
+                for func, instant, link in candidates:
                     func = pull(func, o.edge_map)
                     if k == 1:
                         func = pull(func, accruals[l0])
-                    _offer(best, func, o, oi, instant, c_next)
+                    _offer(best, func, o, oi, instant, link)
                 if k == 1 and target.watched[l0]:
                     _offer(best, pull(base, accruals[l0]), o, oi, BEFORE_EDGE, None)
         tables[k] = layer
+    start = _start(target, l0, {c: v for c, v in ends.items()})
     first = tables[1][l0]
-    start = target.constant if target.watched[l0] else None
     if not first:
-        return None if start is None else Worst(start)
+        return start
     c_best = max(first, key=lambda c: first[c][0])
-    value = first[c_best][0]
-    if start is not None and start >= value:
-        return Worst(start)
-    result = Worst(value)
+    if start is not None and start.value >= first[c_best][0]:
+        return start
+    result = Worst(first[c_best][0])
     k, here, c = 1, l0, c_best
     while True:
-        d, oi, instant, c_next, point = tables[k][here][c]
+        _, oi, instant, link, point = tables[k][here][c]
         o = outs[here][oi]
         result.steps.append(Step(k, o, point, instant))
         if instant != CONTINUE:
             result.instant = instant
+            if instant == AFTER_END:
+                result.end, result.end_inputs = link
             return result
-        k, here, c = k + 1, o.target, c_next
+        k, here, c = k + 1, o.target, link
 
 
-def _offer(best: dict, func: _Func, o: Outcome, oi: int, instant: str, c_next) -> None:
+def _start(target: Target, l0: int, ends: dict[tuple[Fraction, ...], tuple]) -> Worst | None:
+    """The best instant at t = 0: before any sample, or after ending there (r = 0)."""
+    if not target.watched[l0]:
+        return None
+    best = Worst(target.constant)
+    for d_end, end, point in ends.values():
+        if d_end > best.value:
+            best = Worst(d_end, [], AFTER_END, end, point)
+    return best
+
+
+def _offer(best: dict, func: _Func, o: Outcome, oi: int, instant: str, link: object) -> None:
     c, d, g = func
     bonus, point = sup_linear(g, o.box)
     total = d + bonus
     entry = best.get(c)
     if entry is None or total > entry[0]:
-        best[c] = (total, oi, instant, c_next, point)
+        best[c] = (total, oi, instant, link, point)
 
 
 # ---------------------------------------------------------------- fast engine
-def _maximise_translations(automaton: ir.Automaton, outs: list[list[Outcome]], target: Target) -> Worst | None:
+def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
     """Every map is a translation: the functional stays ``w``; a max-plus recurrence on scalars.
 
     V_k(l) = max over outcomes o of l of
-             max(watched(t)·(w0 + max(K_edge, K_end, K_next)), V_{k+1}(t) + K_next)
-    where K_* are the sup over the outcome's input box of the weighted offsets of one sample.
+             max(watched(t)·(w0 + K_edge + max(0, K_end, K_next)), V_{k+1}(t) + K_next)
+    where K_edge, K_next are sups over the outcome's input box of the weighted offsets of
+    one sample, and K_end the best weighted ``at end`` offset over the end's own inputs.
     """
     steps = automaton.steps
     l0 = automaton.initial
     w = target.weights
-    if not any(outs):  # `assume` excludes every input: no sample ever happens
-        return Worst(target.constant) if target.watched[l0] else None
+    outs = moves.samples
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
+    end_options = [(_sup(_weigh(w, (e.end_map,)), e.box), e) for e in moves.ends]
+    k_end, best_end = max(end_options, key=lambda item: item[0]) if end_options else (None, None)
+    start = _start(target, l0, {} if best_end is None else
+                   {(): (target.constant + k_end, best_end, _point(_weigh(w, (best_end.end_map,)), best_end.box))})
+    if not any(outs):  # `assume` excludes every input: no sample ever happens
+        return start
 
-    def weighted(*maps: Affine) -> dict[str, Fraction] | Fraction:
-        return _weigh(w, maps)
-
-    rows = []  # per (l, o): (l, t, K_edge, K_end, K_next, points)
+    rows = []  # per (l, o): (l, oi, t, K_edge, K_next)
     for here, os in enumerate(outs):
         for oi, o in enumerate(os):
             t = o.target
-            k_edge = _sup(weighted(o.edge_map), o)
-            k_end = _sup(weighted(o.edge_map, o.end_map), o)
-            k_next = _sup(weighted(o.edge_map, accruals[t]), o)
-            rows.append((here, oi, t, k_edge, k_end, k_next))
-    first_rows = []  # sample 1 from l0, with the accrual before the edge in the same x
+            rows.append((here, oi, t, _sup(_weigh(w, (o.edge_map,)), o.box),
+                         _sup(_weigh(w, (o.edge_map, accruals[t])), o.box)))
+    first_rows = []  # sample 1 from l0: the accrual before the edge uses the same inputs
     for oi, o in enumerate(outs[l0]):
         t = o.target
         first_rows.append((oi, t,
-                           _sup(weighted(accruals[l0], o.edge_map), o),
-                           _sup(weighted(accruals[l0], o.edge_map, o.end_map), o),
-                           _sup(weighted(accruals[l0], o.edge_map, accruals[t]), o),
-                           _sup(weighted(accruals[l0]), o)))
-    values = [v for r in rows for v in r[3:]] + [v for r in first_rows for v in r[2:]] + [target.constant]
+                           _sup(_weigh(w, (accruals[l0], o.edge_map)), o.box),
+                           _sup(_weigh(w, (accruals[l0], o.edge_map, accruals[t])), o.box),
+                           _sup(_weigh(w, (accruals[l0],)), o.box)))
+    values = ([v for r in rows for v in r[3:]] + [v for r in first_rows for v in r[2:]]
+              + [target.constant] + ([k_end] if k_end is not None else []))
     scale = math.lcm(*(v.denominator for v in values))
     n_loc = len(automaton.locations)
     width = max(len(os) for os in outs)
-    # Dense [location, outcome] tables; padding rows can never win.
     # Every reachable value lies within ±magnitude; "minus infinity" must lie well below, and
     # padding added to it must stay below neg_inf // 2 (the "reachable" test).
-    magnitude = int(max(abs(v) for v in values) * scale * (steps + 2))
+    magnitude = int(max(abs(v) for v in values) * scale * (steps + 3))
     if magnitude < (1 << 60):
         dtype: type | str = np.int64
         neg_inf = -(1 << 62)
     else:  # exact Python integers
         dtype = object
         neg_inf = -4 * (magnitude + 1)
+    w0 = int(target.constant * scale)
+    end_bonus = max(0, int(k_end * scale)) if k_end is not None else 0
     targets = np.zeros((n_loc, width), dtype=np.int64)
     stop = np.full((n_loc, width), neg_inf, dtype=dtype)
     stop_last = np.full((n_loc, width), neg_inf, dtype=dtype)
     k_next = np.full((n_loc, width), neg_inf, dtype=dtype)
-    w0 = int(target.constant * scale)
-    for here, oi, t, ke, kd, kn in rows:
+    for here, oi, t, ke, kn in rows:
         targets[here, oi] = t
         k_next[here, oi] = int(kn * scale)
         if target.watched[t]:
-            stop[here, oi] = w0 + int(max(ke, kd, kn) * scale)
-            stop_last[here, oi] = w0 + int(max(ke, kd) * scale)
+            edge_value = w0 + int(ke * scale)
+            stop[here, oi] = max(edge_value + end_bonus, w0 + int(kn * scale))
+            stop_last[here, oi] = edge_value + end_bonus
     value = np.full(n_loc, neg_inf, dtype=dtype)
     choice = np.zeros((steps + 1, n_loc), dtype=np.int32)
     stopped = np.zeros((steps + 1, n_loc), dtype=bool)
+    rows_idx = np.arange(n_loc)
     for k in range(steps, 1, -1):
         if k == steps:
             cont = np.full((n_loc, width), neg_inf, dtype=dtype)
@@ -235,16 +274,15 @@ def _maximise_translations(automaton: ir.Automaton, outs: list[list[Outcome]], t
             s = stop
         cand = np.maximum(s, cont)
         best = cand.argmax(axis=1)
-        rows_idx = np.arange(n_loc)
         choice[k] = best
         stopped[k] = s[rows_idx, best] >= cont[rows_idx, best]
         value = cand[rows_idx, best]
     # Sample 1, from the initial location only.
     best_value, best_choice = None, None
-    for oi, t, ke, kd, kn, kb in first_rows:
+    for oi, t, ke, kn, kb in first_rows:
         options = []
         if target.watched[t]:
-            options += [(w0 + int(ke * scale), AFTER_EDGE), (w0 + int(kd * scale), AFTER_END)]
+            options += [(w0 + int(ke * scale) + end_bonus, "stop")]
             if steps > 1:
                 options.append((w0 + int(kn * scale), BEFORE_NEXT))
         if target.watched[l0]:
@@ -254,45 +292,51 @@ def _maximise_translations(automaton: ir.Automaton, outs: list[list[Outcome]], t
         for v, instant in options:
             if best_value is None or v > best_value:
                 best_value, best_choice = v, (oi, instant)
-    start = target.constant if target.watched[l0] else None
     if best_value is None:
-        return None if start is None else Worst(start)
-    if start is not None and start * scale >= best_value:
-        return Worst(start)
+        return start
+    if start is not None and start.value * scale >= best_value:
+        return start
     result = Worst(Fraction(best_value, scale))
     oi, instant = best_choice  # type: ignore[misc]
     here, k = l0, 1
     while True:
         o = outs[here][oi]
-        if instant != CONTINUE and k > 1:
-            instant = _which_stop(target, o, w, accruals, k == steps)
-        point = _point(_weigh(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0)), o)
+        if instant == "stop":
+            instant = _which_stop(w, o, accruals, k_end, last=k == steps)
+        if instant == AFTER_END:
+            assert best_end is not None
+            result.end = best_end
+            result.end_inputs = _point(_weigh(w, (best_end.end_map,)), best_end.box)
+        point = _point(_weigh(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0)), o.box)
         result.steps.append(Step(k, o, point, instant))
         if instant != CONTINUE:
             result.instant = instant
             return result
         here, k = o.target, k + 1
         oi = int(choice[k, here])
-        instant = CONTINUE if not stopped[k, here] else "stop"
+        instant = "stop" if stopped[k, here] else CONTINUE
 
 
 def _maps_for(instant: str, o: Outcome, accruals: list[Affine], *, first: bool, l0: int) -> tuple[Affine, ...]:
+    """The maps of one sample up to ``instant`` (their weighted offsets pick the inputs)."""
     maps: tuple[Affine, ...] = (accruals[l0],) if first else ()
     if instant == BEFORE_EDGE:
         return maps
     maps += (o.edge_map,)
-    if instant == AFTER_END:
-        return maps + (o.end_map,)
     if instant in (BEFORE_NEXT, CONTINUE):
         return maps + (accruals[o.target],)
     return maps
 
 
-def _which_stop(target: Target, o: Outcome, w, accruals: list[Affine], last: bool) -> str:
-    options = [(_sup(_weigh(w, (o.edge_map,)), o), AFTER_EDGE),
-               (_sup(_weigh(w, (o.edge_map, o.end_map)), o), AFTER_END)]
+def _which_stop(w: tuple[Fraction, ...], o: Outcome, accruals: list[Affine], k_end: Fraction | None,
+                last: bool) -> str:
+    """Which instant of a sample attains the stop value found by the recurrence."""
+    edge = _sup(_weigh(w, (o.edge_map,)), o.box)
+    options = [(edge, AFTER_EDGE)]
+    if k_end is not None and k_end > 0:
+        options.append((edge + k_end, AFTER_END))
     if not last:
-        options.append((_sup(_weigh(w, (o.edge_map, accruals[o.target])), o), BEFORE_NEXT))
+        options.append((_sup(_weigh(w, (o.edge_map, accruals[o.target])), o.box), BEFORE_NEXT))
     return max(options, key=lambda item: item[0])[1]
 
 
@@ -308,12 +352,10 @@ def _weigh(w: tuple[Fraction, ...], maps: tuple[Affine, ...]) -> dict[str, Fract
     return form
 
 
-def _sup(form: dict[str, Fraction] | Fraction, o: Outcome) -> Fraction:
-    assert isinstance(form, dict)
-    linear = {k: v for k, v in form.items() if k}
-    bonus, _ = sup_linear(linear, o.box)
+def _sup(form: dict[str, Fraction], box) -> Fraction:
+    bonus, _ = sup_linear({k: v for k, v in form.items() if k}, box)
     return form[""] + bonus
 
 
-def _point(form: dict[str, Fraction], o: Outcome) -> dict[str, Fraction]:
-    return sup_linear({k: v for k, v in form.items() if k}, o.box)[1]
+def _point(form: dict[str, Fraction], box) -> dict[str, Fraction]:
+    return sup_linear({k: v for k, v in form.items() if k}, box)[1]
