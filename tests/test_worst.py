@@ -8,6 +8,8 @@ times one side of the numeric input's threshold) among its edges, and a cell lef
 
 from __future__ import annotations
 
+import os
+
 import itertools
 from dataclasses import dataclass
 from fractions import Fraction
@@ -34,7 +36,8 @@ from rac.analysis.worst import (
 )
 from rac.compiler import compile_text
 
-SETTINGS = settings(max_examples=100, deadline=None, derandomize=True,
+SETTINGS = settings(max_examples=int(os.environ.get("RAC_EXAMPLES", "100")), deadline=None,
+                    derandomize=not os.environ.get("RAC_EXAMPLES"),
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 

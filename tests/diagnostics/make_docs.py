@@ -3,8 +3,9 @@
 Every ``<CODE>_<short_name>.ra`` file in this folder is a failing example; its
 ``.expected`` file is the full output of ``rac check <CODE>_<short_name>.ra`` run in
 this folder (standard output, then standard error). Inputs that must not be
-committed (not UTF-8, over 1 MB, a directory, a missing file) are made by the
-functions in :data:`GENERATED` in a scratch folder under the same name.
+committed (not UTF-8, over 1 MB, a directory, a missing file) and examples of other
+commands (E0009: ``rac compile`` into a missing folder) are listed in :data:`GENERATED`;
+their inputs are made in a scratch folder under the same name.
 
 docs/checks.md shows every example: each ``<!-- case: NAME -->`` ... ``<!-- end case -->``
 region (source and output) and each ``<!-- output: NAME -->`` ... ``<!-- end output -->``
@@ -74,6 +75,8 @@ class Case:
     #: For generated inputs: a sentence saying what the file is, shown before the example.
     note: str = ""
     make: Callable[[Path], None] | None = None
+    #: The command line after ``rac``; ``{file}`` stands for the input.
+    argv: tuple[str, ...] = ("check", "{file}")
 
     @property
     def code(self) -> str:
@@ -82,6 +85,11 @@ class Case:
     @property
     def file(self) -> str:
         return f"{self.name}.ra"
+
+    def command(self, *extra: str) -> list[str]:
+        """The arguments of ``rac``, with ``extra`` options after the subcommand."""
+        first, *rest = (a.replace("{file}", self.file) for a in self.argv)
+        return [first, *extra, *rest]
 
     @property
     def expected_path(self) -> Path:
@@ -122,6 +130,10 @@ GENERATED: tuple[Case, ...] = (
          "`E0008_directory.ra` is a directory:", _directory("E0008_directory.ra")),
     Case("E0008_missing_file", None,
          "`E0008_missing_file.ra` does not exist:", _nothing),
+    Case("E0009_missing_folder", None,
+         "`E0009_missing_folder.ra` is a valid automaton, and the folder `build` does not exist:",
+         _write("E0009_missing_folder.ra", SMALL.encode()),
+         ("compile", "--target", "python", "{file}", "-o", "build/driving.py")),
 )
 
 
@@ -142,15 +154,15 @@ def case(name: str) -> Case:
 
 
 def expected_status(output: str) -> int:
-    """The exit status an output implies: 2 unreadable, 1 errors, 0 warnings only."""
-    if "error[E0008]" in output:
+    """The exit status an output implies: 2 unreadable or unwritable, 1 errors, 0 warnings only."""
+    if "error[E0008]" in output or "error[E0009]" in output:
         return 2
     return 1 if "error[" in output else 0
 
 
 # ------------------------------------------------------------------ running rac
 def run(c: Case, *extra: str) -> tuple[int, str]:
-    """``rac check [extra] NAME.ra`` in-process, in the folder holding the input: (status, stdout + stderr)."""
+    """``rac [command] [extra] NAME.ra`` in-process, in the folder of the input: (status, stdout + stderr)."""
     with contextlib.ExitStack() as stack:
         folder = HERE
         if c.make is not None:
@@ -160,7 +172,7 @@ def run(c: Case, *extra: str) -> tuple[int, str]:
         stack.enter_context(contextlib.chdir(folder))
         stack.enter_context(contextlib.redirect_stdout(out))
         stack.enter_context(contextlib.redirect_stderr(err))
-        status = rac_main(["check", *extra, c.file])
+        status = rac_main(c.command(*extra))
     return status, out.getvalue() + err.getvalue()
 
 
@@ -178,7 +190,7 @@ def region(c: Case, kind: str = "case") -> str:
         parts.append("")
     if kind == "case" and c.shown is not None:
         parts += ["```ra", c.shown.rstrip("\n"), "```", ""]
-    parts += ["```text", f"$ rac check {c.file}", c.expected.rstrip("\n"), "```", f"<!-- end {kind} -->"]
+    parts += ["```text", "$ rac " + " ".join(c.command()), c.expected.rstrip("\n"), "```", f"<!-- end {kind} -->"]
     return "\n".join(parts)
 
 

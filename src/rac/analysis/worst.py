@@ -123,10 +123,75 @@ def _end_functionals(moves: Moves, base: _Func, pull: _Puller) -> dict[tuple[Fra
     return best
 
 
+_Box = list[tuple[Fraction, Fraction]]
+
+
+def _image(affine: Affine, box: _Box, inputs: tuple) -> _Box:
+    """Interval image of a box of reward vectors (inputs within their pieces' closures)."""
+    pieces = dict(inputs)
+    result = []
+    for i, offset in enumerate(affine.offset):
+        lo = hi = offset.const
+        for name, coefficient in offset.terms:
+            piece = pieces.get(name)
+            a, b = (coefficient * piece.low, coefficient * piece.high) if piece else (ZERO, ZERO)
+            lo, hi = lo + min(a, b), hi + max(a, b)
+        if affine.matrix is None:
+            lo, hi = lo + box[i][0], hi + box[i][1]
+        else:
+            for j, m in enumerate(affine.matrix[i]):
+                if m:
+                    a, b = m * box[j][0], m * box[j][1]
+                    lo, hi = lo + min(a, b), hi + max(a, b)
+        result.append((lo, hi))
+    return result
+
+
+def _reachable_boxes(automaton: ir.Automaton, moves: Moves, accruals: list[Affine]) -> list[dict[int, _Box]]:
+    """boxes[k][l]: an interval hull of the rewards "before the edge" of sample k in location l.
+
+    For k = 1 it is the start (r = 0): the first accrual belongs to sample 1's functionals.
+    """
+    size = len(automaton.rewards)
+    boxes: list[dict[int, _Box]] = [{} for _ in range(automaton.steps + 2)]
+    boxes[1] = {automaton.initial: [(ZERO, ZERO)] * size}
+    for k in range(1, automaton.steps):
+        following = boxes[k + 1]
+        for here, box in boxes[k].items():
+            for o in moves.samples[here]:
+                start = _image(accruals[here], box, o.box) if k == 1 else box
+                after = _image(accruals[o.target], _image(o.edge_map, start, o.box), o.box)
+                old = following.get(o.target)
+                following[o.target] = after if old is None else [
+                    (min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(old, after)]
+    return boxes
+
+
+def _prune(table: dict, box: _Box) -> None:
+    """Drop functionals that another one beats everywhere on the box (they can never be the max)."""
+    if len(table) < 2:
+        return
+    order = sorted(table, key=lambda c: table[c][0], reverse=True)
+    kept: list[tuple[Fraction, ...]] = []
+    for c in order:
+        d = table[c][0]
+        for other in kept:
+            gap = d - table[other][0]
+            for j, (lo, hi) in enumerate(box):
+                delta = c[j] - other[j]
+                gap += delta * (hi if delta > 0 else lo)
+            if gap <= 0:
+                del table[c]
+                break
+        else:
+            kept.append(c)
+
+
 def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
     steps = automaton.steps
     outs = moves.samples
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
+    boxes = _reachable_boxes(automaton, moves, accruals)
     pull = _Puller()
     base: _Func = (target.weights, target.constant, {})
     ends = _end_functionals(moves, base, pull)
@@ -137,7 +202,7 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
     tables[steps + 1] = [{} for _ in automaton.locations]
     for k in range(steps, 0, -1):
         layer: list[dict] = [{} for _ in automaton.locations]
-        for here in (range(len(automaton.locations)) if k > 1 else [l0]):
+        for here in boxes[k]:  # only locations a run can be in at sample k
             best = layer[here]
             for oi, o in enumerate(outs[here]):
                 t = o.target
@@ -158,6 +223,7 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
                     _offer(best, func, o, oi, instant, link)
                 if k == 1 and target.watched[l0]:
                     _offer(best, pull(base, accruals[l0]), o, oi, BEFORE_EDGE, None)
+            _prune(best, boxes[k][here])
         tables[k] = layer
     start = _start(target, l0, {c: v for c, v in ends.items()})
     first = tables[1][l0]
