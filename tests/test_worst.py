@@ -8,9 +8,8 @@ times one side of the numeric input's threshold) among its edges, and a cell lef
 
 from __future__ import annotations
 
-import os
-
 import itertools
+import os
 from dataclasses import dataclass
 from fractions import Fraction
 

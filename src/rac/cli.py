@@ -17,7 +17,7 @@ from pathlib import Path
 
 from rac import __version__
 from rac.compiler import CompileResult, compile_file
-from rac.diagnostics import Diagnostic, error, render_json, render_text
+from rac.diagnostics import Diagnostic, error, render_json, render_text, sort_key
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 TARGETS = ("python",)
@@ -101,7 +101,7 @@ def _check(args: argparse.Namespace) -> int:
             status = max(status, EXIT_ERRORS)
         if args.format == "json":
             report.append({"file": str(path), "ok": errors == 0,
-                           "diagnostics": [d.to_json() for d in result.diagnostics],
+                           "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)],
                            "proved": list(result.facts)})
             continue
         if result.diagnostics:
@@ -153,6 +153,7 @@ def _fmt(args: argparse.Namespace) -> int:
 
     status = EXIT_OK
     for path in args.files:
+        source = None
         try:
             source = read_source(path)
             formatted = format_module(parse_source(source))
@@ -161,8 +162,8 @@ def _fmt(args: argparse.Namespace) -> int:
             status = max(status, EXIT_USAGE)
             continue
         except ParseFailure as failure:
-            sources = {source.name: source} if "source" in locals() else {}
-            print(render_text([failure.diagnostic], sources), file=sys.stderr)
+            shown = source or failure.source
+            print(render_text([failure.diagnostic], {shown.name: shown} if shown else {}), file=sys.stderr)
             status = max(status, EXIT_ERRORS)
             continue
         if args.stdout:

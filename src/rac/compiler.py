@@ -68,7 +68,7 @@ def compile_bytes(data: bytes, name: str, *, analyse: bool = True) -> CompileRes
     try:
         source = decode_source(name, data)
     except ParseFailure as failure:
-        return CompileResult(None, (failure.diagnostic,), {})
+        return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
     return compile_source(source, analyse=analyse)
 
 
@@ -77,5 +77,9 @@ def compile_file(path: str | Path, *, analyse: bool = True) -> CompileResult:
     try:
         source = read_source(path)
     except ParseFailure as failure:
-        return CompileResult(None, (failure.diagnostic,), {})
+        return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
     return compile_source(source, analyse=analyse)
+
+
+def _sources_of(failure: ParseFailure) -> dict[str, SourceFile]:
+    return {failure.source.name: failure.source} if failure.source is not None else {}

@@ -120,7 +120,8 @@ def _render_one(d: Diagnostic, sources: Mapping[str, SourceFile]) -> str:
     source = sources.get(d.span.file) if d.span else None
     gutter = 0
     if d.span is not None and source is not None:
-        text = source.line_text(d.span.line)
+        # Control characters would garble a terminal: show them as U+FFFD, one column each.
+        text = "".join(ch if ch.isprintable() or ch == "\t" else "\ufffd" for ch in source.line_text(d.span.line))
         gutter = len(str(d.span.line))
         pad = " " * gutter
         # The caret covers the span on its first line (at least one character).

@@ -18,9 +18,11 @@ from rac.source import MAX_SOURCE_BYTES, SourceFile, Span
 class ParseFailure(Exception):
     """Internal: carries the diagnostic of the first syntax error."""
 
-    def __init__(self, diagnostic: Diagnostic):
+    def __init__(self, diagnostic: Diagnostic, source: SourceFile | None = None):
         super().__init__(diagnostic.message)
         self.diagnostic = diagnostic
+        #: The text the diagnostic points into, when there is one to show.
+        self.source = source
 
 
 @lru_cache(maxsize=1)
@@ -468,7 +470,8 @@ def decode_source(name: str, data: bytes) -> SourceFile:
             "E0004", f"file is not UTF-8 text (invalid byte 0x{data[exc.start]:02x} at offset {exc.start})",
             partial.end_span, hints=[f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
                                      "`.ra` files are UTF-8 text: save it as UTF-8 (it may be in Latin-1 or "
-                                     "another legacy encoding), or check that this is the right file"])) from None
+                                     "another legacy encoding), or check that this is the right file"]),
+            partial) from None
     if "\x00" in text:
         offset = text.index("\x00")
         source = SourceFile(name, text)
@@ -564,13 +567,9 @@ def _collect_comments(source: SourceFile) -> list[ast.Comment]:
     terminals = {t.name: t for t in lexer_conf.terminals}
     import re
 
-    pattern = re.compile(
-        "|".join(f"(?P<{name}>{terminals[name].pattern.to_regexp()})"
-                 for name in ("LINE_COMMENT", "BLOCK_COMMENT"))
-        + r"|(?P<string>\"(?:[^\"\\\n]|\\.)*\")", re.DOTALL)
+    pattern = re.compile("|".join(f"(?P<{name}>{terminals[name].pattern.to_regexp()})"
+                                  for name in ("LINE_COMMENT", "BLOCK_COMMENT")), re.DOTALL)
     for match in pattern.finditer(source.text):
-        if match.lastgroup == "string":
-            continue
         comments.append(ast.Comment(match.group(0), source.span(match.start(), match.end())))
     return comments
 

@@ -139,9 +139,12 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None) ->
         if worst is None or worst.value <= 0:
             places = ", ".join(f"`{n}`" for n, w in zip(automaton.location_names, watched) if w)
             what = "the objective" if level == 0 else f"the weighted sum from `{reward}` down"
-            bound = f"<= {_num(worst.value)}" if worst is not None else "unreached"
-            facts.append(f"P2 holds for `{reward}` (penalised in {places}): {what} stays {bound} "
-                         f"over every run of {_num(automaton.horizon)} s")
+            if worst is None:
+                facts.append(f"P2 holds for `{reward}`: no run of {_num(automaton.horizon)} s reaches a "
+                             f"location that penalises it ({places})")
+            else:
+                facts.append(f"P2 holds for `{reward}` (penalised in {places}): {what} stays "
+                             f"<= {_num(worst.value)} over every run of {_num(automaton.horizon)} s")
             continue
         diagnostics.append(_p2_error(automaton, space, outs, worst, level, weights, constant))
     return diagnostics
@@ -351,7 +354,7 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
                 "E0501",
                 f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}: "
                 f"it can reach {_num(sign * worst.value)}",
-                automaton.source.name.span if automaton.source else None,
+                automaton.spans.get(reward) or (automaton.source.name.span if automaton.source else None),
                 notes=[f"its significand trunc({reward}·{base}^{exponent}) must stay {word} "
                        f"{sign * (limit - 1)}, i.e. {reward} within ±{_num(bound)}",
                        f"first overflow on the worst run: {first}",
