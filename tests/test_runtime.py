@@ -15,7 +15,9 @@ import pytest
 from driving_ir import compiled_driving, driving_automaton, inputs
 
 from rac import ir
-from rac.runtime import BatchRewardAutomaton, RewardAutomaton, check_automaton
+from rac.batch import BatchRewardAutomaton
+from rac.execution import check_automaton
+from rac.runtime import RewardAutomaton
 
 COMPILED = compiled_driving()
 SOURCES = ["hand"] + (["compiled"] if COMPILED is not None else [])

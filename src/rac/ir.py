@@ -207,6 +207,25 @@ class Automaton:
         return tuple(e for group in self.edges for e in group)
 
 
+def guard_leaves(guard: Guard) -> list[BInput | BAtom]:
+    """The input reads of a guard (boolean inputs and numeric atoms), first occurrence order."""
+    found: dict[BInput | BAtom, None] = {}
+
+    def walk(node: Guard) -> None:
+        if isinstance(node, (BInput, BAtom)):
+            found.setdefault(node, None)
+        elif isinstance(node, BNot):
+            walk(node.operand)
+        elif isinstance(node, (BAnd, BOr)):
+            for operand in node.operands:
+                walk(operand)
+        elif not isinstance(node, BConst):
+            raise TypeError(f"not a guard: {node!r}")
+
+    walk(guard)
+    return list(found)
+
+
 def evaluate_guard(guard: Guard, values: dict[str, object]) -> bool:
     """Exact evaluation of a guard on one input valuation (bools and Fractions/floats)."""
     if isinstance(guard, BConst):

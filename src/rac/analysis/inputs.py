@@ -61,27 +61,9 @@ def _num(value: Fraction) -> str:
     return short_number(value)
 
 
-def _atoms(guard: ir.Guard, out: set[ir.BAtom]) -> None:
-    if isinstance(guard, ir.BAtom):
-        out.add(guard)
-    elif isinstance(guard, ir.BNot):
-        _atoms(guard.operand, out)
-    elif isinstance(guard, (ir.BAnd, ir.BOr)):
-        for g in guard.operands:
-            _atoms(g, out)
-
-
 def guard_inputs(guard: ir.Guard) -> set[str]:
     """Names of the inputs a guard reads."""
-    if isinstance(guard, ir.BInput):
-        return {guard.name}
-    if isinstance(guard, ir.BAtom):
-        return {guard.input}
-    if isinstance(guard, ir.BNot):
-        return guard_inputs(guard.operand)
-    if isinstance(guard, (ir.BAnd, ir.BOr)):
-        return set().union(*(guard_inputs(g) for g in guard.operands))
-    return set()
+    return {leaf.name if isinstance(leaf, ir.BInput) else leaf.input for leaf in ir.guard_leaves(guard)}
 
 
 def all_guards(automaton: ir.Automaton) -> list[ir.Guard]:
@@ -118,9 +100,8 @@ class InputSpace:
 
     def __init__(self, automaton: ir.Automaton, extra_guards: list[ir.Guard] | None = None):
         self.automaton = automaton
-        atoms: set[ir.BAtom] = set()
-        for guard in all_guards(automaton) + (extra_guards or []):
-            _atoms(guard, atoms)
+        atoms = {leaf for guard in all_guards(automaton) + (extra_guards or [])
+                 for leaf in ir.guard_leaves(guard) if isinstance(leaf, ir.BAtom)}
         self.bools = [i.name for i in automaton.bool_inputs]
         self.numerics = list(automaton.numeric_inputs)
         self.pieces = {i.name: _pieces(i, {a.threshold for a in atoms if a.input == i.name})
