@@ -110,6 +110,73 @@ Guard = Union[BConst, BInput, BAtom, BNot, BAnd, BOr]
 TRUE = BConst(True)
 
 
+# ---------------------------------------------------------------- scenario model (model block)
+@dataclass(frozen=True)
+class Action:
+    """A controller action: values ``low, low+step, ..., high`` (UPPAAL ``select`` over significands)."""
+
+    name: str  # "jerk" or "turn"
+    low: Fraction
+    high: Fraction
+    step: Fraction
+
+    @property
+    def values(self) -> tuple[Fraction, ...]:
+        count = int((self.high - self.low) / self.step)
+        return tuple(self.low + i * self.step for i in range(count + 1))
+
+
+@dataclass(frozen=True)
+class Binding:
+    """``bind input = expr``: how the scenario model drives one automaton input.
+
+    ``expr`` is an AST expression over the model vocabulary (model.md): ``collide()``,
+    ``offroad()``, ``goal()``, ``mindist()``, ``dist_goal()``, ``prev(e)``, ``fabs(e)``, the
+    ego state ``x, y, v, acc, head, jerk, turn``, ``time`` and the model's settings by name.
+    """
+
+    input: str
+    expr: ast.Expr
+    span: Span | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """The ``model`` block: the scenario and every parameter of the vehicle model (model.md)."""
+
+    scenario: str  # as written in the file
+    scenario_path: str  # resolved against the .ra file's folder
+    base: int
+    exponent: int
+    sense_period: Fraction  # C1, equal to the automaton's `sample every`
+    decide_period: Fraction  # C2, a multiple of C1
+    granularity: Fraction  # G: sense() integrates in 1/G Euler sub-steps of C1*G
+    actions: tuple[Action, ...]  # jerk, turn
+    length: Fraction
+    width: Fraction
+    max_acceleration: Fraction  # MA
+    max_turn: Fraction  # MT
+    min_speed: Fraction
+    max_speed: Fraction
+    collision_distance: Fraction  # TD
+    comfort_acceleration: Fraction  # p1
+    comfort_turn: Fraction  # p2
+    bindings: tuple[Binding, ...]
+    span: Span | None = field(default=None, compare=False)
+
+    @property
+    def scale(self) -> int:
+        """base ** exponent: a real v is held as the significand trunc(v * scale)."""
+        return self.base ** self.exponent
+
+    @property
+    def substeps(self) -> int:
+        return int(1 / self.granularity)
+
+    def action(self, name: str) -> Action:
+        return next(a for a in self.actions if a.name == name)
+
+
 # ---------------------------------------------------------------- automaton
 @dataclass(frozen=True)
 class Input:
@@ -176,6 +243,8 @@ class Automaton:
     period: Fraction
     horizon: Fraction
     constants: tuple[tuple[str, Fraction | bool], ...] = ()
+    #: The scenario model from the `model` block, if the file has one.
+    model: ModelSpec | None = None
     queries: tuple[ast.QueryDecl, ...] = field(default=(), compare=False)
     source: ast.Automaton | None = field(default=None, compare=False, repr=False)
     spans: dict[str, Span] = field(default_factory=dict, compare=False, repr=False)
