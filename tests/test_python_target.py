@@ -97,8 +97,14 @@ def test_generated_module_runs_without_rac(tmp_path: Path) -> None:
     assert result["rewards"] == expected
     assert result["location"] == ra.location == "Stalled"
     assert result["objective"] == ra.objective.hex()
+    # Modules a bare interpreter of this environment loads at start-up (.pth hooks of installed
+    # packages, e.g. protobuf's `google` namespace) are not the generated module's doing.
+    startup = subprocess.run([sys.executable, "-I", "-c", "import sys, json; print(json.dumps(sorted("
+                              "m.split('.')[0] for m, v in sys.modules.items() if v)))"],
+                             capture_output=True, text=True, env=env, timeout=60, check=True)
+    baseline = set(json.loads(startup.stdout))
     third_party = [m for m in result["modules"] if m not in sys.stdlib_module_names and m != "driving_ra"
-                   and not m.startswith("_")]
+                   and not m.startswith("_") and m not in baseline]
     assert third_party == []
 
 
