@@ -7,7 +7,10 @@ Units: metres, seconds, radians, m/s.
 
 from __future__ import annotations
 
+import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 
 @dataclass(frozen=True)
@@ -38,6 +41,7 @@ class Obstacle:
     width: float
     waypoints: tuple[Waypoint, ...]  # one waypoint for a static obstacle
     static: bool = False
+    kind: str = ""  # the CommonRoad obstacle type, e.g. "car", "truck", "parkedVehicle"
 
 
 @dataclass(frozen=True)
@@ -47,6 +51,7 @@ class EgoStart:
     heading: float
     velocity: float
     acceleration: float = 0.0
+    time: float = 0.0  # the planning problem's initial time step, in seconds
 
 
 @dataclass(frozen=True)
@@ -57,6 +62,10 @@ class Goal:
     regions: tuple[Polygon, ...]
     time_low: float
     time_high: float
+    #: What the planning problem also asks of the ego in the goal, as closed intervals (m/s,
+    #: radians), None when it asks nothing; ``goal()`` (model.md) reads only regions and time.
+    velocity: tuple[float, float] | None = None
+    orientation: tuple[float, float] | None = None
 
     @property
     def center(self) -> tuple[float, float]:
@@ -74,3 +83,446 @@ class Scenario:
     obstacles: tuple[Obstacle, ...]
     ego: EgoStart
     goal: Goal
+    planning_problem_id: int | None = None  # the CommonRoad planning problem ego and goal come from
+
+
+# ---------------------------------------------------------------- reading CommonRoad files
+class ScenarioError(Exception):
+    """A CommonRoad file rac cannot turn into a :class:`Scenario`.
+
+    ``str(error)`` is ``"<path>: <element> <problem>"``, e.g. ``"left_turn.xml: dynamic obstacle 42
+    has no trajectory prediction"``. ``path`` is the file as given, ``element`` names the part of
+    the file at fault (``"dynamic obstacle 42"``, ``"goal of planning problem 7"``, ...) or is None
+    when the problem is the file as a whole (missing, not XML, not CommonRoad, no planning problem).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], element: str | None, problem: str) -> None:
+        self.path = os.fspath(path)
+        self.element = element
+        self.problem = problem
+        super().__init__(f"{self.path}: {element} {problem}" if element else f"{self.path}: {problem}")
+
+
+#: Vertices of the regular polygon that stands for a circular goal region.
+CIRCLE_VERTICES = 16
+
+
+def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None = None) -> Scenario:
+    """Read a CommonRoad XML file (format 2018b or 2020a) with commonroad-io's CommonRoadFileReader.
+
+    - ``road``: one polygon per lanelet (its right bound, then its left bound reversed), in lanelet
+      id order; the road is their union.
+    - ``obstacles``: static and dynamic obstacles in id order. Each is a ``length`` × ``width``
+      rectangle: a rectangle shape as it is (an ``originXShift`` moves the waypoints to the
+      rectangle's centre); a circle becomes its bounding square; a polygon, truck or semi-trailer
+      truck becomes its bounding rectangle in the obstacle's own frame (a semi-trailer at hitch
+      angle 0). A static obstacle has one waypoint (velocity 0). A dynamic obstacle needs a
+      trajectory prediction: its waypoints are the initial state followed by every trajectory
+      state, ``time = time_step * dt`` (rounded to 1e-9 s); a state without orientation or
+      velocity takes them from the move to the next state (a point-mass state from its velocity
+      components). CommonRoad regards the obstacle as gone after its last time step. Environment
+      and phantom obstacles are ignored.
+    - ``ego``: the planning problem's initial state (position, orientation, velocity,
+      acceleration, time).
+    - ``goal``: the planning problem's goal position as polygons — a rectangle (its 4 corners), a
+      polygon, a circle (approximated by the inscribed regular 16-gon, whose vertices lie on the
+      circle), a group of these (one region each) or lanelets (each lanelet's polygon) — and its
+      time-step interval in seconds; velocity and orientation intervals, if any, are kept in
+      ``Goal.velocity`` / ``Goal.orientation``. Several goal states are merged (their regions
+      concatenated) when they ask for the same time, velocity and orientation.
+
+    ``planning_problem_id`` picks the planning problem; None picks the one with the smallest id.
+    All polygons come counter-clockwise, without the first point repeated. Anything rac cannot
+    represent raises :class:`ScenarioError` naming the file and the element; so do a missing file,
+    a file that is not XML or not CommonRoad, and a file commonroad-io fails on.
+    """
+    data = _read_bytes(path)
+    root = _parse_root(path, data)
+    _check_structure(path, root)
+    import warnings
+
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # commonroad-io warns about e.g. benchmark ids it finds irregular
+        try:
+            cr_scenario, problems = CommonRoadFileReader(data).open()
+        except Exception as error:  # whatever commonroad-io raises becomes a ScenarioError
+            diagnosis = _diagnose(path, root, error)
+        else:
+            diagnosis = None
+        if diagnosis is not None:
+            raise diagnosis
+        return _convert(path, root, cr_scenario, problems, planning_problem_id)
+
+
+def _read_bytes(path: str | os.PathLike[str]) -> bytes:
+    try:
+        return Path(path).read_bytes()
+    except FileNotFoundError:
+        raise ScenarioError(path, None, "does not exist") from None
+    except IsADirectoryError:
+        raise ScenarioError(path, None, "is a directory, not a CommonRoad XML file") from None
+    except OSError as error:
+        raise ScenarioError(path, None, f"cannot be read ({error.strerror or error})") from None
+
+
+def _parse_root(path: str | os.PathLike[str], data: bytes):
+    from xml.etree import ElementTree
+
+    from commonroad import SUPPORTED_COMMONROAD_VERSIONS
+
+    try:
+        root = ElementTree.fromstring(data)
+    except ElementTree.ParseError as error:
+        line, column = error.position
+        raise ScenarioError(path, None, f"is not XML (line {line}, column {column + 1}: "
+                                        f"{str(error).split(':')[0]})") from None
+    if root.tag != "commonRoad":
+        raise ScenarioError(path, None, f"is not a CommonRoad file (its root element is <{root.tag}>, "
+                                        "not <commonRoad>)")
+    version = root.get("commonRoadVersion")
+    if version not in SUPPORTED_COMMONROAD_VERSIONS:
+        supported = " and ".join(sorted(SUPPORTED_COMMONROAD_VERSIONS))
+        found = f"version {version!r}" if version is not None else "no commonRoadVersion"
+        raise ScenarioError(path, None, f"has CommonRoad {found}; commonroad-io reads the XML formats {supported}")
+    try:
+        dt = float(root.get("timeStepSize", "nan"))
+    except ValueError:
+        dt = math.nan
+    if not dt > 0 or math.isinf(dt):
+        raise ScenarioError(path, None, f"has no valid timeStepSize (got {root.get('timeStepSize')!r})")
+    return root
+
+
+def _describe(error: BaseException) -> str:
+    text = str(error).strip()
+    if isinstance(error, AttributeError) and "NoneType" in text or isinstance(error, IndexError):
+        return "an element it needs is missing or empty"
+    if type(error) is Exception and not text:  # what commonroad-io raises for a value it cannot make out
+        return "a value is neither <exact> nor <intervalStart>/<intervalEnd>, or a position neither a point nor a shape"
+    if isinstance(error, (ValueError, TypeError)) and text:
+        return text
+    return f"{type(error).__name__}: {text}" if text else f"unexpected content ({type(error).__name__})"
+
+
+#: What each top-level element needs: commonroad-io fails without it or, worse, fills in zeros.
+_STATE = ("initialState", "initialState/position", "initialState/orientation", "initialState/time")
+_REQUIRED = {
+    "lanelet": ("leftBound", "rightBound"),
+    "staticObstacle": ("type", "shape", *_STATE),
+    "dynamicObstacle": ("type", "shape", *_STATE, "initialState/velocity"),
+    "planningProblem": (*_STATE, "initialState/velocity", "goalState"),
+}
+_LABELS = {
+    "lanelet": "lanelet",
+    "staticObstacle": "static obstacle",
+    "dynamicObstacle": "dynamic obstacle",
+    "environmentObstacle": "environment obstacle",
+    "phantomObstacle": "phantom obstacle",
+    "obstacle": "obstacle",
+    "planningProblem": "planning problem",
+}
+
+
+def _check_structure(path: str | os.PathLike[str], root) -> None:
+    for node in root:
+        for child in _REQUIRED.get(node.tag, ()):
+            if node.find(child) is None:
+                parent, _, name = child.rpartition("/")
+                where = f" in its <{parent}>" if parent else ""
+                raise ScenarioError(path, f"{_LABELS[node.tag]} {node.get('id', '(without id)')}",
+                                    f"has no <{name}>{where}")
+
+
+def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> ScenarioError:
+    """Find the element commonroad-io failed on by reading the elements one at a time."""
+    from xml.etree import ElementTree
+
+    from commonroad.common.reader import file_reader_xml as factories
+    from commonroad.scenario.lanelet import LaneletNetwork
+
+    def label(node) -> str:
+        return f"{_LABELS[node.tag]} {node.get('id', '(without id)')}"
+
+    header = [("scenario tags", lambda: factories.TagsFactory.create_from_xml_node(root)),
+              ("location", lambda: factories.LocationFactory.create_from_xml_node(root))]
+    for element, read in header if root.get("commonRoadVersion") != "2018b" else ():
+        try:
+            read()
+        except Exception as failure:
+            return ScenarioError(path, element, f"cannot be read: {_describe(failure)}")
+    lanelet_ids = {node.get("id") for node in root.iter("lanelet")}
+    for problem in root.iter("planningProblem"):
+        for position in problem.iterfind("goalState/position"):
+            shapes = [child.tag for child in position]
+            unsupported = [tag for tag in shapes if tag not in ("rectangle", "circle", "polygon", "lanelet")]
+            if unsupported or not shapes:
+                found = f"<{unsupported[0]}>" if unsupported else "an empty <position>"
+                return ScenarioError(path, f"goal of {label(problem)}", f"has an unsupported shape ({found}); "
+                                     "rac supports rectangles, polygons, circles, groups of these and lanelets")
+        for ref in problem.iterfind("goalState/position/lanelet"):
+            if ref.get("ref") not in lanelet_ids:
+                return ScenarioError(path, f"goal of {label(problem)}",
+                                     f"refers to lanelet {ref.get('ref')}, which the file does not define")
+    network = LaneletNetwork()
+    readers = {
+        "lanelet": lambda node: factories.LaneletFactory.create_from_xml_node(node),
+        "staticObstacle": lambda node: factories.StaticObstacleFactory.create_from_xml_node(node, network, False),
+        "dynamicObstacle": lambda node: factories.DynamicObstacleFactory.create_from_xml_node(node, network, False),
+        "environmentObstacle": lambda node: factories.EnvironmentObstacleFactory.create_from_xml_node(node),
+        "phantomObstacle": lambda node: factories.PhantomObstacleFactory.create_from_xml_node(node),
+    }
+    for node in root:
+        if node.tag in readers:
+            try:
+                readers[node.tag](node)
+            except Exception as failure:
+                return ScenarioError(path, label(node), f"cannot be read: {_describe(failure)}")
+    try:
+        network = factories.LaneletNetworkFactory.create_from_xml_node(ElementTree.ElementTree(root))
+    except Exception as failure:
+        return ScenarioError(path, "lanelet network", f"cannot be read: {_describe(failure)}")
+    for node in root.iter("planningProblem"):
+        try:
+            factories.PlanningProblemFactory.create_from_xml_node(node, network)
+        except Exception as failure:
+            return ScenarioError(path, label(node), f"cannot be read: {_describe(failure)}")
+    return ScenarioError(path, None, f"cannot be read by commonroad-io ({_describe(error)})")
+
+
+def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None) -> Scenario:
+    dt = float(cr_scenario.dt)
+    lanelets = sorted(cr_scenario.lanelet_network.lanelets, key=lambda lanelet: lanelet.lanelet_id)
+    if not lanelets:
+        raise ScenarioError(path, None, "has no lanelets (rac needs the road network)")
+    road = tuple(_polygon(lanelet.polygon.vertices) for lanelet in lanelets)
+
+    from commonroad.scenario.obstacle import StaticObstacle
+
+    obstacles = []
+    for obstacle in sorted([*cr_scenario.static_obstacles, *cr_scenario.dynamic_obstacles],
+                           key=lambda obstacle: obstacle.obstacle_id):
+        static = isinstance(obstacle, StaticObstacle)
+        name = f"{'static' if static else 'dynamic'} obstacle {obstacle.obstacle_id}"
+        obstacles.append(_obstacle(path, name, obstacle, static, dt))
+
+    ids = sorted(problems.planning_problem_dict)
+    if not ids:
+        raise ScenarioError(path, None, "has no planning problem (rac needs one for the ego's start and goal)")
+    if planning_problem_id is None:
+        planning_problem_id = ids[0]
+    elif planning_problem_id not in problems.planning_problem_dict:
+        raise ScenarioError(path, f"planning problem {planning_problem_id}",
+                            f"does not exist (the file has {', '.join(map(str, ids))})")
+    problem = problems.planning_problem_dict[planning_problem_id]
+    ego = _ego(path, f"planning problem {planning_problem_id}", problem.initial_state, dt)
+    goal = _goal(path, f"goal of planning problem {planning_problem_id}", problem.goal, cr_scenario.lanelet_network, dt)
+    name = root.get("benchmarkID") or Path(path).stem
+    return Scenario(name=name, path=os.fspath(path), dt=dt, road=road, obstacles=tuple(obstacles), ego=ego,
+                    goal=goal, planning_problem_id=planning_problem_id)
+
+
+def _seconds(step: float, dt: float) -> float:
+    """``step * dt`` without the float noise of the product (3 * 0.1 is 0.3, not 0.30000000000000004)."""
+    return round(step * dt, 9)
+
+
+def _polygon(points) -> Polygon:
+    """A counter-clockwise polygon without repeated points from CommonRoad vertices."""
+    result: list[tuple[float, float]] = []
+    for x, y in points:
+        point = (float(x), float(y))
+        if not result or point != result[-1]:
+            result.append(point)
+    if len(result) > 1 and result[0] == result[-1]:
+        result.pop()
+    area2 = sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(result, result[1:] + result[:1]))
+    if area2 < 0:
+        result.reverse()
+    return Polygon(tuple(result))
+
+
+def _exact_position(path, element: str, state, what: str) -> tuple[float, float]:
+    import numpy as np
+
+    position = getattr(state, "position", None)
+    if position is None:
+        raise ScenarioError(path, element, f"has no position in {what}")
+    array = np.asarray(position) if isinstance(position, (np.ndarray, list, tuple)) else None
+    if array is None or array.shape != (2,):
+        raise ScenarioError(path, element, f"has an uncertain position (a {type(position).__name__}) in {what}; "
+                                           "rac needs exact states")
+    return float(array[0]), float(array[1])
+
+
+def _exact_number(path, element: str, state, attribute: str, what: str) -> float | None:
+    value = getattr(state, attribute, None)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ScenarioError(path, element, f"has an uncertain {attribute} (an interval) in {what}; "
+                                           "rac needs exact states")
+    return float(value)
+
+
+def _time_step(path, element: str, state, what: str) -> int:
+    step = getattr(state, "time_step", None)
+    if isinstance(step, bool) or not isinstance(step, int):
+        raise ScenarioError(path, element, f"has no exact time step in {what}")
+    return step
+
+
+def _box(path, element: str, shape) -> tuple[float, float, float, float]:
+    """length, width and the offset (forward, left) of the box centre from the obstacle's position."""
+    from commonroad.geometry.obstacle_shapes.circle_obstacle_shape import CircleObstacleShape
+    from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
+
+    if isinstance(shape, RectObstacleShape):
+        return float(shape.length), float(shape.width), -float(shape.origin_x_shift), 0.0
+    if isinstance(shape, CircleObstacleShape):  # (its occupancy's shapely polygon has half the radius)
+        return 2.0 * shape.radius, 2.0 * shape.radius, 0.0, 0.0
+    import numpy as np
+    from commonroad.scenario.state import InitialState
+
+    try:
+        occupancy = shape.compute_occupancy_for_state(InitialState(time_step=0, position=np.zeros(2), orientation=0.0))
+        min_x, min_y, max_x, max_y = (float(v) for v in occupancy.shapely_object.bounds)
+    except Exception:
+        raise ScenarioError(path, element, f"has a shape rac cannot bound by a rectangle "
+                                           f"({type(shape).__name__})") from None
+    if not all(map(math.isfinite, (min_x, min_y, max_x, max_y))):
+        raise ScenarioError(path, element, f"has an empty shape ({type(shape).__name__})")
+    return max_x - min_x, max_y - min_y, (min_x + max_x) / 2, (min_y + max_y) / 2
+
+
+def _obstacle(path, element: str, obstacle, static: bool, dt: float) -> Obstacle:
+    from commonroad.prediction.prediction import SetBasedPrediction, TrajectoryPrediction
+
+    length, width, forward, left = _box(path, element, obstacle.obstacle_shape)
+    kind = getattr(obstacle.obstacle_type, "value", "") or ""
+    if static:
+        states = [obstacle.initial_state]
+    else:
+        prediction = obstacle.prediction
+        if prediction is None:
+            raise ScenarioError(path, element, "has no trajectory prediction")
+        if isinstance(prediction, SetBasedPrediction) or not isinstance(prediction, TrajectoryPrediction):
+            raise ScenarioError(path, element, "has a set-based prediction (occupancy sets), not a trajectory; "
+                                               "rac needs a trajectory")
+        states = [obstacle.initial_state, *prediction.trajectory.state_list]
+
+    steps, points, headings, speeds = [], [], [], []
+    for state in states:
+        what = f"the state at time step {getattr(state, 'time_step', '?')}"
+        step = _time_step(path, element, state, what)
+        if steps and step <= steps[-1]:
+            if step == steps[-1]:
+                continue  # a trajectory that repeats the initial state
+            raise ScenarioError(path, element, f"has time steps out of order ({steps[-1]} then {step})")
+        steps.append(step)
+        points.append(_exact_position(path, element, state, what))
+        heading = _exact_number(path, element, state, "orientation", what)
+        speed = _exact_number(path, element, state, "velocity", what)
+        lateral = _exact_number(path, element, state, "velocity_y", what)
+        if heading is None and speed is not None and lateral is not None:  # point mass: velocity components
+            heading, speed = math.atan2(lateral, speed), math.hypot(speed, lateral)
+        headings.append(heading)
+        speeds.append(0.0 if static else speed)
+
+    waypoints = []
+    for i, (step, (x, y)) in enumerate(zip(steps, points)):
+        heading, speed = headings[i], speeds[i]
+        if heading is None or speed is None:  # from the move to the next state (the last: from the previous)
+            j, k = (i, i + 1) if i + 1 < len(steps) else (i - 1, i)
+            if j < 0:
+                moved_heading, moved_speed = 0.0, 0.0
+            else:
+                (x0, y0), (x1, y1) = points[j], points[k]
+                moved_speed = math.hypot(x1 - x0, y1 - y0) / ((steps[k] - steps[j]) * dt)
+                moved_heading = math.atan2(y1 - y0, x1 - x0) if moved_speed > 0 else (headings[j] or 0.0)
+            heading = moved_heading if heading is None else heading
+            speed = moved_speed if speed is None else speed
+        cos, sin = math.cos(heading), math.sin(heading)
+        waypoints.append(Waypoint(time=_seconds(step, dt), x=x + forward * cos - left * sin,
+                                  y=y + forward * sin + left * cos, heading=heading, velocity=speed))
+    return Obstacle(id=int(obstacle.obstacle_id), length=length, width=width, waypoints=tuple(waypoints),
+                    static=static, kind=kind)
+
+
+def _ego(path, element: str, state, dt: float) -> EgoStart:
+    what = "its initial state"
+    x, y = _exact_position(path, element, state, what)
+    values = {}
+    for attribute in ("orientation", "velocity", "acceleration"):
+        value = _exact_number(path, element, state, attribute, what)
+        if value is None and attribute != "acceleration":
+            raise ScenarioError(path, element, f"has no {attribute} in {what}")
+        values[attribute] = value or 0.0
+    step = _time_step(path, element, state, what)
+    return EgoStart(x=x, y=y, heading=values["orientation"], velocity=values["velocity"],
+                    acceleration=values["acceleration"], time=_seconds(step, dt))
+
+
+def _interval(path, element: str, value, attribute: str) -> tuple[float, float] | None:
+    from commonroad.common.util import Interval
+
+    if value is None:
+        return None
+    if isinstance(value, Interval):
+        return float(value.start), float(value.end)
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value), float(value)
+    raise ScenarioError(path, element, f"has an unsupported {attribute} ({type(value).__name__})")
+
+
+def _goal(path, element: str, goal, network, dt: float) -> Goal:
+    states = list(goal.state_list)
+    if not states:
+        raise ScenarioError(path, element, "has no goal state")
+    by_lanelets = goal.lanelets_of_goal_position or {}
+    regions: list[Polygon] = []
+    constraints = set()
+    for index, state in enumerate(states):
+        if index in by_lanelets:
+            for lanelet_id in by_lanelets[index]:
+                lanelet = network.find_lanelet_by_id(lanelet_id)
+                if lanelet is None:
+                    raise ScenarioError(path, element,
+                                        f"refers to lanelet {lanelet_id}, which the file does not define")
+                regions.append(_polygon(lanelet.polygon.vertices))
+        elif getattr(state, "position", None) is None:
+            raise ScenarioError(path, element, "has no position; rac needs a goal region (a shape or lanelets)")
+        else:
+            regions.extend(_regions(path, element, state.position))
+        time = _interval(path, element, getattr(state, "time_step", None), "time")
+        if time is None:
+            raise ScenarioError(path, element, "has no time interval")
+        constraints.add((time, _interval(path, element, getattr(state, "velocity", None), "velocity"),
+                         _interval(path, element, getattr(state, "orientation", None), "orientation")))
+    if len(constraints) > 1:
+        raise ScenarioError(path, element, f"has {len(states)} goal states with different time, velocity or "
+                                           "orientation intervals; rac supports one set of intervals")
+    (low, high), velocity, orientation = constraints.pop()
+    return Goal(regions=tuple(regions), time_low=_seconds(low, dt), time_high=_seconds(high, dt), velocity=velocity,
+                orientation=orientation)
+
+
+def _regions(path, element: str, position) -> list[Polygon]:
+    import numpy as np
+    from commonroad.geometry.occupancy.circle_occupancy import CircleOccupancy
+    from commonroad.geometry.occupancy.occupancy_group import OccupancyGroup
+    from commonroad.geometry.occupancy.polygon_occupancy import PolygonOccupancy
+    from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
+
+    if isinstance(position, OccupancyGroup):
+        return [region for part in position.occupancies for region in _regions(path, element, part)]
+    if isinstance(position, (RectOccupancy, PolygonOccupancy)):
+        return [_polygon(position.vertices)]
+    if isinstance(position, CircleOccupancy):
+        x, y, r = position.circle_center.x, position.circle_center.y, position.radius
+        return [_polygon([(x + r * math.cos(2 * math.pi * i / CIRCLE_VERTICES),
+                           y + r * math.sin(2 * math.pi * i / CIRCLE_VERTICES)) for i in range(CIRCLE_VERTICES)])]
+    kind = "a point" if isinstance(position, (np.ndarray, list, tuple)) else type(position).__name__
+    raise ScenarioError(path, element, f"has an unsupported shape ({kind}); rac supports rectangles, polygons, "
+                                       "circles, groups of these and lanelets")
