@@ -1,0 +1,353 @@
+"""The scenario model's data, every number an int32 significand (the paper's Eq. (1)).
+
+A real value ``v`` is held as the integer ``trunc(v * SCALE)`` with ``SCALE = base ** exponent``
+(:attr:`rac.ir.ModelSpec.scale`); truncation is toward zero, computed exactly: a ``Fraction`` (the
+``model`` block's numbers) is used as is, a float (the scenario's numbers, parsed from CommonRoad
+XML) as the shortest decimal that reads back as it (``repr``), so ``0.57`` at scale 100 is ``57``,
+not the ``56`` that ``0.57 * 100 == 56.99999999999999`` would give.
+
+Times (obstacle waypoints, the goal interval) are counted in sense periods ``C1`` from the ego's
+start ``t0`` (the planning problem's initial time, :attr:`rac.scenario.EgoStart.time`):
+``round((t - t0) / C1)``, exactly, ties to even. Sample ``k`` is time ``t0 + k * C1``.
+
+Every significand must lie in ``[-2147483647, 2147483647]`` (int32 without ``INT32_MIN``, which has
+no literal in UPPAAL); :func:`build_model_data` raises :class:`ModelRangeError` naming the first
+one that does not, :func:`check_significands` returns it, :func:`max_significand` reports the
+largest. Example::
+
+    data = build_model_data(scenario, spec)       # ModelRangeError if the exponent is too fine
+    NativeModel(data).sense(NativeModel(data).initial_state())
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from fractions import Fraction
+
+from rac.ir import ModelSpec
+from rac.scenario import Scenario
+
+__all__ = [
+    "INT32_MAX",
+    "ActionData",
+    "ModelData",
+    "ModelRangeError",
+    "build_model_data",
+    "check_significands",
+    "exact",
+    "max_significand",
+]
+
+INT32_MAX = 2**31 - 1
+#: The most negative significand allowed (``-INT32_MAX``: ``-2147483648`` cannot be written in UPPAAL).
+INT32_LOW = -INT32_MAX
+
+Number = Fraction | int | float
+
+
+class ModelRangeError(ValueError):
+    """A value whose significand (or count of sense periods) does not fit int32 at this scale.
+
+    ``what`` names it (e.g. ``"obstacle 3 waypoint 2 x"``), ``value`` is the real value and
+    ``significand`` the integer it would need (``None`` when the value is not finite).
+    """
+
+    def __init__(self, what: str, value: Number, significand: int | None, scale: int) -> None:
+        self.what = what
+        self.value = value
+        self.significand = significand
+        self.scale = scale
+        if significand is None:
+            text = f"{what} is {value}, which has no significand"
+        else:
+            text = (f"{what} = {_show(value)} needs the significand {significand} at scale {scale}, "
+                    f"outside int32 [{INT32_LOW}, {INT32_MAX}]")
+        super().__init__(text)
+
+
+@dataclass(frozen=True)
+class ActionData:
+    """One action (``jerk``, ``turn``) in significands: ``values`` are ``trunc(value * SCALE)`` of
+    :attr:`rac.ir.Action.values` — the authoritative list (at a coarse scale ``low + i * step``
+    in significands may differ from it, and ``step`` may truncate to 0)."""
+
+    name: str
+    low: int
+    high: int
+    step: int
+    values: tuple[int, ...]
+
+    @property
+    def count(self) -> int:
+        return len(self.values)
+
+
+@dataclass(frozen=True)
+class ModelData:
+    """Everything the model's functions read, as int32 significands at ``scale`` unless noted.
+
+    Polygons are flattened: polygon ``p`` has the vertices ``xs[start[p]:start[p + 1]]`` (and the
+    same ``ys``); ``start`` has one entry more than there are polygons. Obstacle ``i`` has the
+    waypoints ``wp_*[wp_start[i]:wp_start[i + 1]]``, times in sense periods from the ego's start
+    (negative before it), not decreasing; it exists
+    at samples ``obs_from[i] <= k <= obs_until[i]``. A static obstacle has one waypoint at time 0,
+    velocity 0, and exists at every sample (``0 .. INT32_MAX``).
+    """
+
+    name: str  # the scenario's name (not a number)
+    base: int
+    exponent: int
+    scale: int
+    # ---- periods
+    unit: float  # the Euler sub-step C1 * G in seconds, the double nearest to it
+    period: float  # C1 in seconds, the double nearest to it
+    sense_period: int  # significand of C1
+    decide_period: int  # significand of C2
+    decide_every: int  # C2 / C1 (a decision every so many samples)
+    substeps: int  # 1 / G
+    # ---- road: the union of these polygons
+    road_x: tuple[int, ...]
+    road_y: tuple[int, ...]
+    road_start: tuple[int, ...]
+    # ---- obstacles
+    obs_id: tuple[int, ...]  # CommonRoad ids (not significands)
+    obs_length: tuple[int, ...]
+    obs_width: tuple[int, ...]
+    obs_from: tuple[int, ...]  # first sample at which it exists
+    obs_until: tuple[int, ...]  # last sample at which it exists
+    wp_start: tuple[int, ...]
+    wp_time: tuple[int, ...]  # sense periods
+    wp_x: tuple[int, ...]
+    wp_y: tuple[int, ...]
+    wp_head: tuple[int, ...]
+    wp_vel: tuple[int, ...]
+    # ---- ego start
+    ego_x: int
+    ego_y: int
+    ego_v: int
+    ego_acc: int
+    ego_head: int
+    # ---- goal
+    goal_x: tuple[int, ...]
+    goal_y: tuple[int, ...]
+    goal_start: tuple[int, ...]
+    goal_low: int  # sense periods
+    goal_high: int  # sense periods
+    goal_cx: int
+    goal_cy: int
+    # ---- vehicle
+    length: int
+    width: int
+    max_acc: int  # MA
+    max_turn: int  # MT
+    min_speed: int
+    max_speed: int
+    td: int  # collision distance TD
+    p1: int
+    p2: int
+    actions: tuple[ActionData, ...]
+
+    @property
+    def road_count(self) -> int:
+        return len(self.road_start) - 1
+
+    @property
+    def obstacle_count(self) -> int:
+        return len(self.obs_length)
+
+    @property
+    def goal_count(self) -> int:
+        return len(self.goal_start) - 1
+
+    def action(self, name: str) -> ActionData:
+        return next(a for a in self.actions if a.name == name)
+
+    def waypoints(self, i: int) -> range:
+        """Indices into ``wp_*`` of obstacle ``i``'s waypoints."""
+        return range(self.wp_start[i], self.wp_start[i + 1])
+
+
+# ---------------------------------------------------------------- conversion
+def exact(value: Number) -> Fraction:
+    """The exact value a number stands for: a Fraction or int as is, a float as its ``repr`` decimal."""
+    if isinstance(value, Fraction):
+        return value
+    if isinstance(value, int) and not isinstance(value, bool):
+        return Fraction(value)
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError(f"{number} is not finite")
+    return Fraction(repr(number))
+
+
+def _show(value: Number) -> str:
+    if isinstance(value, Fraction):
+        return str(value) if value.denominator == 1 else f"{float(value)!r}"
+    return repr(value)
+
+
+class _Converter:
+    """Turns reals into significands; ``strict`` raises on the first overflow, otherwise records."""
+
+    def __init__(self, spec: ModelSpec, strict: bool, origin: Fraction = Fraction(0)) -> None:
+        self.scale = spec.scale
+        self.period = spec.sense_period
+        self.origin = origin  # the time of sample 0, seconds
+        self.strict = strict
+        self.seen: list[tuple[str, int]] = []
+
+    def _fit(self, what: str, value: Number, significand: int) -> int:
+        self.seen.append((what, significand))
+        if INT32_LOW <= significand <= INT32_MAX:
+            return significand
+        if self.strict:
+            raise ModelRangeError(what, value, significand, self.scale)
+        return max(INT32_LOW, min(INT32_MAX, significand))
+
+    def _exact(self, what: str, value: Number) -> Fraction:
+        try:
+            return exact(value)
+        except ValueError:
+            raise ModelRangeError(what, value, None, self.scale) from None
+
+    def sig(self, what: str, value: Number) -> int:
+        """``trunc(value * SCALE)``."""
+        return self._fit(what, value, math.trunc(self._exact(what, value) * self.scale))
+
+    def periods(self, what: str, seconds: Number, unbounded: int = 0) -> int:
+        """``round((seconds - t0) / C1)``; with ``unbounded``, ``±inf`` (an open goal interval) becomes
+        ``±INT32_MAX``."""
+        if unbounded and isinstance(seconds, float) and math.isinf(seconds):
+            return INT32_MAX if seconds > 0 else INT32_LOW
+        return self._fit(what, seconds, round((self._exact(what, seconds) - self.origin) / self.period))
+
+
+def _converter(scenario: Scenario, spec: ModelSpec, strict: bool) -> _Converter:
+    start = _Converter(spec, strict)
+    return _Converter(spec, strict, start._exact("ego start time", scenario.ego.time))
+
+
+def _polygons(conv: Callable[[str, Number], int], name: str,
+              polygons) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
+    xs: list[int] = []
+    ys: list[int] = []
+    start = [0]
+    for p, polygon in enumerate(polygons):
+        for v, (px, py) in enumerate(polygon.points):
+            xs.append(conv(f"{name} {p} vertex {v} x", px))
+            ys.append(conv(f"{name} {p} vertex {v} y", py))
+        start.append(len(xs))
+    return tuple(xs), tuple(ys), tuple(start)
+
+
+def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
+    sig = conv.sig
+    road_x, road_y, road_start = _polygons(sig, "road polygon", scenario.road)
+
+    obs_id: list[int] = []
+    obs_length: list[int] = []
+    obs_width: list[int] = []
+    obs_from: list[int] = []
+    obs_until: list[int] = []
+    wp_start = [0]
+    wp: dict[str, list[int]] = {key: [] for key in ("time", "x", "y", "head", "vel")}
+    for obstacle in scenario.obstacles:
+        name = f"obstacle {obstacle.id}"
+        obs_id.append(obstacle.id)
+        obs_length.append(sig(f"{name} length", obstacle.length))
+        obs_width.append(sig(f"{name} width", obstacle.width))
+        waypoints = obstacle.waypoints[:1] if obstacle.static else obstacle.waypoints
+        if not waypoints:
+            raise ValueError(f"{name} has no waypoints")
+        for j, point in enumerate(waypoints):
+            where = f"{name} waypoint {j}"
+            if obstacle.static:
+                wp["time"].append(0)
+                wp["vel"].append(0)
+            else:
+                wp["time"].append(conv.periods(f"{where} time (sense periods)", point.time))
+                wp["vel"].append(sig(f"{where} velocity", point.velocity))
+            wp["x"].append(sig(f"{where} x", point.x))
+            wp["y"].append(sig(f"{where} y", point.y))
+            wp["head"].append(sig(f"{where} heading", point.heading))
+        times = wp["time"][wp_start[-1]:]
+        if any(b < a for a, b in zip(times, times[1:])):
+            raise ValueError(f"{name}: waypoint times must not decrease")
+        obs_from.append(0 if obstacle.static else times[0])
+        obs_until.append(INT32_MAX if obstacle.static else times[-1])
+        wp_start.append(len(wp["time"]))
+
+    ego = scenario.ego
+    goal = scenario.goal
+    goal_x, goal_y, goal_start = _polygons(sig, "goal polygon", goal.regions)
+    if goal.regions:
+        points = goal.regions[0].points
+        center = (sum((exact(p[0]) for p in points), Fraction(0)) / len(points),
+                  sum((exact(p[1]) for p in points), Fraction(0)) / len(points))
+    else:
+        center = (Fraction(0), Fraction(0))
+
+    actions = tuple(
+        ActionData(a.name, sig(f"action {a.name} low", a.low), sig(f"action {a.name} high", a.high),
+                   sig(f"action {a.name} step", a.step),
+                   tuple(sig(f"action {a.name} value {v}", v) for v in a.values))
+        for a in spec.actions)
+    decide_every = spec.decide_period / spec.sense_period
+    if decide_every.denominator != 1 or decide_every < 1:
+        raise ValueError(f"the decision period {spec.decide_period} is not a multiple of {spec.sense_period}")
+
+    return ModelData(
+        name=scenario.name, base=spec.base, exponent=spec.exponent, scale=spec.scale,
+        unit=float(spec.sense_period * spec.granularity), period=float(spec.sense_period),
+        sense_period=sig("sense period C1", spec.sense_period),
+        decide_period=sig("decide period C2", spec.decide_period),
+        decide_every=int(decide_every), substeps=spec.substeps,
+        road_x=road_x, road_y=road_y, road_start=road_start,
+        obs_id=tuple(obs_id), obs_length=tuple(obs_length), obs_width=tuple(obs_width),
+        obs_from=tuple(obs_from), obs_until=tuple(obs_until), wp_start=tuple(wp_start),
+        wp_time=tuple(wp["time"]), wp_x=tuple(wp["x"]), wp_y=tuple(wp["y"]),
+        wp_head=tuple(wp["head"]), wp_vel=tuple(wp["vel"]),
+        ego_x=sig("ego start x", ego.x), ego_y=sig("ego start y", ego.y),
+        ego_v=sig("ego start velocity", ego.velocity), ego_acc=sig("ego start acceleration", ego.acceleration),
+        ego_head=sig("ego start heading", ego.heading),
+        goal_x=goal_x, goal_y=goal_y, goal_start=goal_start,
+        goal_low=conv.periods("goal time low (sense periods)", goal.time_low, unbounded=1),
+        goal_high=conv.periods("goal time high (sense periods)", goal.time_high, unbounded=1),
+        goal_cx=sig("goal centre x", center[0]), goal_cy=sig("goal centre y", center[1]),
+        length=sig("vehicle length", spec.length), width=sig("vehicle width", spec.width),
+        max_acc=sig("max acceleration MA", spec.max_acceleration), max_turn=sig("max turn rate MT", spec.max_turn),
+        min_speed=sig("min speed", spec.min_speed), max_speed=sig("max speed", spec.max_speed),
+        td=sig("collision distance TD", spec.collision_distance),
+        p1=sig("comfort fraction p1", spec.comfort_acceleration), p2=sig("comfort fraction p2", spec.comfort_turn),
+        actions=actions,
+    )
+
+
+def build_model_data(scenario: Scenario, spec: ModelSpec) -> ModelData:
+    """The model's data for ``scenario`` under ``spec``; :class:`ModelRangeError` names the first
+    value whose significand overflows int32 (or that is not finite). ``ValueError`` for a scenario
+    that makes no sense (an obstacle without waypoints, C2 not a multiple of C1)."""
+    return _build(scenario, spec, _converter(scenario, spec, strict=True))
+
+
+def check_significands(scenario: Scenario, spec: ModelSpec) -> ModelRangeError | None:
+    """The first value that overflows int32 under ``spec``'s scale (as the error), or ``None``."""
+    try:
+        build_model_data(scenario, spec)
+    except ModelRangeError as error:
+        return error
+    return None
+
+
+def max_significand(scenario: Scenario, spec: ModelSpec) -> tuple[str, int]:
+    """The value with the largest significand in absolute value: ``(what, significand)``.
+
+    Counts of sense periods (waypoint and goal times) are included; an open goal interval is not.
+    """
+    conv = _converter(scenario, spec, strict=False)
+    _build(scenario, spec, conv)
+    if not conv.seen:
+        return ("nothing", 0)
+    return max(conv.seen, key=lambda item: abs(item[1]))
