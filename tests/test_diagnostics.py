@@ -221,7 +221,8 @@ WORDS = ["automaton", "Driving", "{", "}", "input", "isClose", "dgoal", ":", "bo
          ">", "objective", "sample", "every", "horizon", "initial", "location", "Normal", "Unsafe", "'", "==",
          ";", "edge", "->", "when", "do", "=", "-=", "at", "end", "query", "Q", "A[]", "E<>", "imply", "&&",
          "||", "!", "(", ")", "assume", "const", "under", "strategy", "control", "Pr[", "<=", "simulate",
-         "#<=", "-->", "not", "true", "/*", "*/", "//", "\n", "time", "collide()"]
+         "#<=", "-->", "not", "true", "/*", "*/", "//", "\n", "time", "collide()", "model", "scenario",
+         '"a.xml"', '"', "action", "jerk", "step", "bind", "exponent", "granularity", "mindist()"]
 
 
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -78,7 +78,7 @@ KEYWORDS = {
     "automaton", "input", "assume", "const", "reward", "priority", "strict", "objective", "sample", "every",
     "horizon", "initial", "location", "edge", "when", "do", "at", "end", "query", "under", "strategy",
     "control", "simulate", "maxE", "minE", "max", "min", "bool", "real", "int", "in", "true", "false",
-    "imply", "not", "and", "or",
+    "imply", "not", "and", "or", "model", "scenario", "action", "bind", "step",
 }
 
 # Plain names, names that start like keywords, and the letters of UPPAAL's quantifiers.
@@ -156,6 +156,16 @@ members = st.one_of(
     st.builds(ast.EndDecl, st.one_of(st.none(), exprs), tuples(updates, 1)),
     st.builds(ast.QueryDecl, idents, queries),
 )
+# The model block: settings under any name (the resolver, not the grammar, knows the real ones),
+# scenario paths with characters that look like comments.
+setting_names = st.sampled_from([*NAME_POOL, "base", "exponent", "sense_period", "granularity", "max_turn"])
+model_items = st.one_of(
+    st.builds(ast.ModelScenario, st.text(alphabet="ab_./*-:\\", max_size=12)),
+    st.builds(ast.ModelAction, idents, small_exprs, small_exprs, small_exprs),
+    st.builds(ast.ModelBinding, idents, exprs),
+    st.builds(ast.ModelSetting, setting_names.map(ast.Ident), exprs),
+)
+members = st.one_of(members, st.builds(ast.ModelDecl, tuples(model_items, 0, 6)))
 automata = st.builds(ast.Automaton, idents, tuples(members, 0, 14))
 modules = st.builds(ast.Module, tuples(automata, 1, 3))
 
@@ -256,6 +266,16 @@ def test_continuation_comment_stays_under_its_trailing_comment() -> None:
                     "\n"
                     "    horizon 3\n"
                     "}\n")
+
+
+def test_comment_under_a_second_trailing_comment_is_not_a_continuation() -> None:
+    """Continuations are printed under the first trailing comment, so only that column continues."""
+    header = "automaton a /* x */ {  // y"
+    second = " /* p */  /* q */"
+    source = f"{header}\n{second.ljust(header.index('//'))}/* r */ assume 0\n}}\n"
+    formatted = format_source(source)
+    assert formatted == "automaton a {  /* x */ // y\n    /* p */\n    /* q */\n    /* r */\n    assume 0\n}\n"
+    assert format_source(formatted) == formatted
 
 
 # ---------------------------------------------------------------- comment placement

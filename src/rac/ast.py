@@ -293,8 +293,61 @@ class QueryDecl:
     span: Span | None = _span()
 
 
+# ---------------------------------------------------------------- the scenario model
+@dataclass(frozen=True)
+class ModelScenario:
+    """``scenario "file.xml"``: the CommonRoad file, as written (without the quotes)."""
+
+    path: str
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ModelAction:
+    """``action jerk in [low, high] step s``."""
+
+    name: Ident
+    low: Expr
+    high: Expr
+    step: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ModelBinding:
+    """``bind input = expr``: the model expression that drives one input."""
+
+    input: Ident
+    expr: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ModelSetting:
+    """``name value``, e.g. ``exponent 4`` (the resolver knows which names exist)."""
+
+    name: Ident
+    value: Expr
+    span: Span | None = _span()
+
+
+ModelItem = Union[ModelScenario, ModelAction, ModelBinding, ModelSetting]
+
+
+@dataclass(frozen=True)
+class ModelDecl:
+    """``model { ... }``: the scenario model the automaton is checked against."""
+
+    items: tuple[ModelItem, ...]
+    span: Span | None = _span()
+
+    def of(self, kind: type) -> list:
+        """All items of one kind, in source order."""
+        return [i for i in self.items if isinstance(i, kind)]
+
+
 Member = Union[InputDecl, AssumeDecl, ConstDecl, RewardDecl, PriorityDecl, ObjectiveDecl,
-               SampleDecl, HorizonDecl, LocationDecl, EdgeDecl, EndDecl, QueryDecl]
+               SampleDecl, HorizonDecl, LocationDecl, EdgeDecl, EndDecl, QueryDecl, ModelDecl]
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from fractions import Fraction
 from functools import lru_cache
 from pathlib import Path
@@ -47,7 +48,9 @@ _TERMINAL_WORDS = {
     "MUL_OP": "`*` or `/`",
     "ASSIGN_OP": "`=`, `+=` or `-=`",
     "OR_OP": "`||`",
+    "OR_WORD": "`||`",
     "AND_OP": "`&&`",
+    "AND_WORD": "`&&`",
     "NUMERIC_TYPE": "`real` or `int`",
     "OPTIMISE": "`maxE` or `minE`",
     "MAXMIN": "`max` or `min`",
@@ -57,10 +60,11 @@ _TERMINAL_WORDS = {
     "E_DIAMOND": "`E<>`",
     "PR_OPEN": "`Pr[`",
     "E_OPEN": "`E[`",
+    "STRING": 'a file name in quotes (`"..."`)',
     "$END": "end of file",
 }
 _DECLARATION_WORDS = ("input", "assume", "const", "reward", "priority", "objective", "sample",
-                      "horizon", "initial", "location", "edge", "at", "query")
+                      "horizon", "initial", "location", "edge", "at", "query", "model")
 _EXPRESSION_START = {"a name", "a number", "`true`", "`false`", "`(`", "`-`", "`!`", "`not`"}
 
 
@@ -113,23 +117,15 @@ def _syntax_hints(found: str, expected: set[str]) -> list[str]:
     return hints
 
 
+#: Comments, strings (whose text may hold ``//`` or ``/*``) and an unclosed ``/*``, lexed like the grammar.
+_COMMENT_SCAN = re.compile(r'(?P<line>//[^\n]*)|(?P<block>/\*.*?\*/)|(?P<string>"[^"\n]*")|(?P<open>/\*)', re.DOTALL)
+
+
 def _unterminated_comment(text: str) -> int | None:
     """Offset of the first ``/*`` that is never closed (lexed like the grammar does), if any."""
-    i = text.find("/")
-    while 0 <= i < len(text) - 1:
-        following = text[i + 1]
-        if following == "/":
-            i = text.find("\n", i)
-            if i < 0:
-                return None
-        elif following == "*":
-            close = text.find("*/", i + 2)
-            if close < 0:
-                return i
-            i = close + 2
-        else:
-            i += 1
-        i = text.find("/", i)
+    for match in _COMMENT_SCAN.finditer(text):
+        if match.lastgroup == "open":
+            return match.start()
     return None
 
 
@@ -154,6 +150,7 @@ def _end_of_text(source: SourceFile) -> Span:
 _CHARACTER_HINTS = {
     "&": "logical and is written `&&` (or `and`)",
     "|": "logical or is written `||` (or `or`)",
+    '"': 'a file name is written in double quotes on one line: `scenario "left_turn.xml"`',
 }
 
 
@@ -304,6 +301,23 @@ class _ToAst(Transformer):
     def end_decl(self, meta, items):
         guard, updates = items
         return ast.EndDecl(guard, updates, self._sp(meta))
+
+    # ---- the model block
+    def model_block(self, meta, items):
+        return ast.ModelDecl(tuple(items), self._sp(meta))
+
+    def model_scenario(self, meta, items):
+        return ast.ModelScenario(str(items[0])[1:-1], self._sp(meta))
+
+    def model_action(self, meta, items):
+        name, low, high, step = items
+        return ast.ModelAction(self._ident(name), low, high, step, self._sp(meta))
+
+    def model_binding(self, meta, items):
+        return ast.ModelBinding(self._ident(items[0]), items[1], self._sp(meta))
+
+    def model_setting(self, meta, items):
+        return ast.ModelSetting(self._ident(items[0]), items[1], self._sp(meta))
 
     # ---- queries
     def query_decl(self, meta, items):
@@ -561,16 +575,17 @@ def parse_source(source: SourceFile) -> ast.Module:
 
 
 def _collect_comments(source: SourceFile) -> list[ast.Comment]:
-    """Comments with their spans, for the formatter (the parser ignores them)."""
-    comments = []
-    lexer_conf = _lark().lexer_conf
-    terminals = {t.name: t for t in lexer_conf.terminals}
-    import re
+    """Comments with their spans, for the formatter (the parser ignores them).
 
+    Strings are matched too, and skipped: ``scenario "maps//a.xml"`` holds no comment.
+    """
+    comments = []
+    terminals = {t.name: t for t in _lark().lexer_conf.terminals}
     pattern = re.compile("|".join(f"(?P<{name}>{terminals[name].pattern.to_regexp()})"
-                                  for name in ("LINE_COMMENT", "BLOCK_COMMENT")), re.DOTALL)
+                                  for name in ("LINE_COMMENT", "BLOCK_COMMENT", "STRING")), re.DOTALL)
     for match in pattern.finditer(source.text):
-        comments.append(ast.Comment(match.group(0), source.span(match.start(), match.end())))
+        if match.lastgroup != "STRING":
+            comments.append(ast.Comment(match.group(0), source.span(match.start(), match.end())))
     return comments
 
 

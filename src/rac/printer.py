@@ -7,7 +7,7 @@ Three layers:
   (right-associative), ``||``, ``&&``, comparisons (non-associative), ``+ -``,
   ``* /`` (both left-associative), unary ``-`` and ``!``);
 * :func:`format_query` and :func:`format_member` print one query or declaration
-  on one line;
+  on one line (a ``model`` block: one item per line, :func:`format_model_item`);
 * :func:`format_module` lays out whole files: four-space indentation, one member
   per line, a blank line where the kind of declaration changes, and every comment
   of the source kept, attached by position to the member it belongs to.
@@ -24,7 +24,7 @@ from fractions import Fraction
 from rac import ast
 from rac.parser import parse_text
 
-__all__ = ["format_expr", "format_member", "format_module", "format_query", "format_source"]
+__all__ = ["format_expr", "format_member", "format_model_item", "format_module", "format_query", "format_source"]
 
 INDENT = "    "
 
@@ -191,8 +191,27 @@ def _guard(guard: ast.Expr | None) -> str:
     return f" when {_expr(guard)}" if guard is not None else ""
 
 
+def format_model_item(item: ast.ModelItem) -> str:
+    """Print one item of a ``model`` block on one line, without indentation or comments."""
+    if isinstance(item, ast.ModelScenario):
+        if '"' in item.path or "\n" in item.path:
+            raise ValueError(f"a scenario path cannot hold a quote or a line break: {item.path!r}")
+        return f'scenario "{item.path}"'
+    if isinstance(item, ast.ModelAction):
+        return f"action {item.name.name} in [{_expr(item.low)}, {_expr(item.high)}] step {_expr(item.step)}"
+    if isinstance(item, ast.ModelBinding):
+        return f"bind {item.input.name} = {_expr(item.expr)}"
+    if isinstance(item, ast.ModelSetting):
+        return f"{item.name.name} {_expr(item.value)}"
+    raise TypeError(f"not a model item: {item!r}")
+
+
 def format_member(member: ast.Member) -> str:
-    """Print one declaration of an automaton on one line, without indentation or comments."""
+    """Print one declaration of an automaton, without indentation or comments.
+
+    Every declaration fits on one line except a ``model`` block, which prints one item per
+    line, indented by four spaces, between ``model {`` and ``}``.
+    """
     if isinstance(member, ast.InputDecl):
         return f"input {_names(member.names)} : {_type(member.type)}"
     if isinstance(member, ast.AssumeDecl):
@@ -220,6 +239,10 @@ def format_member(member: ast.Member) -> str:
         return f"at end{_guard(member.guard)}{_updates(member.updates)}"
     if isinstance(member, ast.QueryDecl):
         return f"query {member.name.name}: {format_query(member.query)}"
+    if isinstance(member, ast.ModelDecl):
+        if not member.items:
+            return "model { }"
+        return "\n".join(["model {", *(INDENT + format_model_item(i) for i in member.items), "}"])
     raise TypeError(f"not a declaration: {member!r}")
 
 
@@ -234,6 +257,7 @@ _GROUP = {
     ast.EdgeDecl: 6,
     ast.EndDecl: 7,
     ast.QueryDecl: 8,
+    ast.ModelDecl: 9,
 }
 
 
@@ -248,11 +272,22 @@ class _Slot:
 
 
 @dataclass
+class _BlockComments:
+    """The comments inside a ``model { ... }`` block (its member slot holds those around it)."""
+
+    header: _Slot                 # trailing: after `model {`
+    items: list[_Slot]
+    closing: list[ast.Comment]    # own lines before `}`
+
+
+@dataclass
 class _AutomatonComments:
     header: _Slot                 # leading: before `automaton`; trailing: after `automaton X {`
     members: list[_Slot]
     closing: list[ast.Comment]    # own lines before `}`
     after: list[ast.Comment]      # after `}` on its line
+    #: For each `model` member (by index): the comments inside its braces.
+    blocks: dict[int, _BlockComments] = field(default_factory=dict)
 
 
 @dataclass
@@ -267,12 +302,20 @@ def _comment_text(comment: ast.Comment) -> str:
 
 
 def _is_continuation(comment: ast.Comment, slot: _Slot) -> bool:
-    """Tell whether an own-line comment sits right under the slot's trailing comment, in its column."""
-    last = slot.continued[-1] if slot.continued else slot.trailing[-1] if slot.trailing else None
-    if last is None or last.span is None or comment.span is None:
+    """Tell whether an own-line comment sits right under the slot's trailing comment, in its column.
+
+    The column is the first trailing comment's: that is where continuations are printed, so
+    formatted text reads back the same way (with ``/* a */ // b`` trailing, a comment under
+    ``// b`` is not a continuation).
+    """
+    if not slot.trailing:
+        return False
+    anchor = slot.trailing[0]
+    last = slot.continued[-1] if slot.continued else slot.trailing[-1]
+    if anchor.span is None or last.span is None or comment.span is None:
         return False
     return (last.span.line == last.span.end_line and comment.span.line == last.span.end_line + 1
-            and comment.span.column == last.span.column)
+            and comment.span.column == anchor.span.column)
 
 
 def _place_in_automaton(comment: ast.Comment, automaton: ast.Automaton, slots: _AutomatonComments) -> None:
@@ -288,7 +331,10 @@ def _place_in_automaton(comment: ast.Comment, automaton: ast.Automaton, slots: _
         if member.span is None:
             continue
         if member.span.start <= span.start < member.span.end:
-            slots.members[index].leading.append(comment)  # inside a declaration
+            if isinstance(member, ast.ModelDecl):
+                _place_in_block(comment, member, slots.blocks[index])
+            else:
+                slots.members[index].leading.append(comment)  # inside a declaration
             return
         if member.span.end <= span.start:
             previous = index
@@ -306,6 +352,38 @@ def _place_in_automaton(comment: ast.Comment, automaton: ast.Automaton, slots: _
         slot.continued.append(comment)
     elif following is not None:
         slots.members[following].leading.append(comment)
+    else:
+        slots.closing.append(comment)
+
+
+def _place_in_block(comment: ast.Comment, block: ast.ModelDecl, slots: _BlockComments) -> None:
+    """Attach a comment inside a ``model`` block to the item it belongs to (as for members)."""
+    span = comment.span
+    assert span is not None and block.span is not None
+    previous: int | None = None
+    following: int | None = None
+    for index, item in enumerate(block.items):
+        if item.span is None:
+            continue
+        if item.span.start <= span.start < item.span.end:
+            slots.items[index].leading.append(comment)  # inside an item
+            return
+        if item.span.end <= span.start:
+            previous = index
+        elif following is None:
+            following = index
+    if previous is not None:
+        slot = slots.items[previous]
+        end_line = block.items[previous].span.end_line  # type: ignore[union-attr]
+    else:
+        slot = slots.header
+        end_line = block.span.line
+    if span.line == end_line:
+        slot.trailing.append(comment)
+    elif _is_continuation(comment, slot):
+        slot.continued.append(comment)
+    elif following is not None:
+        slots.items[following].leading.append(comment)
     else:
         slots.closing.append(comment)
 
@@ -343,8 +421,10 @@ def _place_comments(module: ast.Module) -> _Placement:
 
 
 def _empty_placement(module: ast.Module) -> _Placement:
-    return _Placement(
-        [_AutomatonComments(_Slot(), [_Slot() for _ in a.members], [], []) for a in module.automata], [])
+    return _Placement([_AutomatonComments(
+        _Slot(), [_Slot() for _ in a.members], [], [],
+        {i: _BlockComments(_Slot(), [_Slot() for _ in m.items], []) for i, m in enumerate(a.members)
+         if isinstance(m, ast.ModelDecl)}) for a in module.automata], [])
 
 
 def _emit_line(lines: list[str], code: str, slot: _Slot, column: int | None = None) -> None:
@@ -357,29 +437,58 @@ def _emit_line(lines: list[str], code: str, slot: _Slot, column: int | None = No
     lines.extend(" " * at + _comment_text(c) for c in slot.continued)
 
 
-def _format_automaton(automaton: ast.Automaton, comments: _AutomatonComments) -> list[str]:
-    lines = [_comment_text(c) for c in comments.header.leading]
-    _emit_line(lines, f"automaton {automaton.name.name} {{", comments.header)
-    codes = [INDENT + format_member(m) for m in automaton.members]
-    groups = [_GROUP[type(m)] for m in automaton.members]
-    # Trailing comments of a run of same-group declarations share one column.
+def _aligned_columns(codes: list[str], slots: list[_Slot], groups: list[int]) -> list[int | None]:
+    """The column of each line's trailing comments: shared by a run of lines of one group."""
     columns: list[int | None] = [None] * len(codes)
     start = 0
     while start < len(codes):
         end = start
         while end < len(codes) and groups[end] == groups[start]:
             end += 1
-        widths = [len(codes[i]) for i in range(start, end)
-                  if comments.members[i].trailing and len(codes[i]) <= _ALIGN_LIMIT]
+        widths = [len(codes[i]) for i in range(start, end) if slots[i].trailing and len(codes[i]) <= _ALIGN_LIMIT]
         if widths:
             for i in range(start, end):
                 columns[i] = max(widths) + 2
         start = end
+    return columns
+
+
+def _format_block(block: ast.ModelDecl, comments: _BlockComments, slot: _Slot) -> list[str]:
+    """A ``model`` block, one item per line; ``slot`` holds the comments after its ``}``."""
+    indent = INDENT * 2
+    if not block.items and not comments.header.trailing and not comments.closing:
+        lines: list[str] = []
+        _emit_line(lines, INDENT + format_member(block), slot)
+        return lines
+    lines = []
+    _emit_line(lines, INDENT + "model {", comments.header)
+    codes = [indent + format_model_item(i) for i in block.items]
+    columns = _aligned_columns(codes, comments.items, [0] * len(codes))
+    for code, item, column in zip(codes, comments.items, columns, strict=True):
+        lines.extend(indent + _comment_text(c) for c in item.leading)
+        _emit_line(lines, code, item, column if len(code) <= _ALIGN_LIMIT else None)
+    lines.extend(indent + _comment_text(c) for c in comments.closing)
+    _emit_line(lines, INDENT + "}", slot)
+    return lines
+
+
+def _format_automaton(automaton: ast.Automaton, comments: _AutomatonComments) -> list[str]:
+    lines = [_comment_text(c) for c in comments.header.leading]
+    _emit_line(lines, f"automaton {automaton.name.name} {{", comments.header)
+    # A model block spans several lines: it takes no part in the alignment of trailing comments.
+    codes = ["" if isinstance(m, ast.ModelDecl) else INDENT + format_member(m) for m in automaton.members]
+    groups = [_GROUP[type(m)] for m in automaton.members]
+    # Trailing comments of a run of same-group declarations share one column.
+    columns = _aligned_columns(codes, comments.members, groups)
     for index, (code, slot) in enumerate(zip(codes, comments.members, strict=True)):
         if index and groups[index] != groups[index - 1]:
             lines.append("")
         lines.extend(INDENT + _comment_text(c) for c in slot.leading)
-        _emit_line(lines, code, slot, columns[index] if len(code) <= _ALIGN_LIMIT else None)
+        member = automaton.members[index]
+        if isinstance(member, ast.ModelDecl):
+            lines.extend(_format_block(member, comments.blocks[index], slot))
+        else:
+            _emit_line(lines, code, slot, columns[index] if len(code) <= _ALIGN_LIMIT else None)
     lines.extend(INDENT + _comment_text(c) for c in comments.closing)
     closing = "}"
     if comments.after:

@@ -16,7 +16,8 @@ from rac import ast, ir
 from rac.diagnostics import Diagnostic, Note, error, short_number, warning
 from rac.source import Span
 
-#: Functions of the scenario model (model.md); usable in queries once a model is attached.
+#: Functions of the scenario model (model.md); usable in queries once a model is attached
+#: (their types and arities: :data:`rac.model_block.MODEL_FUNCTIONS`).
 MODEL_FUNCTIONS = ("collide", "offroad", "goal", "mindist", "dist_goal", "prev")
 #: Arithmetic functions UPPAAL offers in queries.
 QUERY_FUNCTIONS = ("abs", "fabs", "fmin", "fmax", "sqrt", "floor", "ceil", "round", "trunc")
@@ -71,6 +72,13 @@ class Resolver:
         self.diagnostics: list[Diagnostic] = []
         self.symbols: dict[str, _Symbol] = {}
         self.used = _Used()
+        #: Spans of the model block's settings the analyses point at ("model:exponent", "model:base").
+        self.model_spans: dict[str, Span] = {}
+
+    @property
+    def has_model(self) -> bool:
+        """Whether the automaton has a ``model`` block (its vocabulary is then legal in queries)."""
+        return bool(self.node.of(ast.ModelDecl))
 
     # ------------------------------------------------------------ reporting
     def _error(self, code: str, message: str, span: Span | None, **kw) -> None:
@@ -258,6 +266,9 @@ class Resolver:
                         hints=["the exact checks follow every sample of a run: shorten the horizon "
                                "or sample less often"])
         inputs = self._inputs()
+        from rac.model_block import resolve_model
+
+        model = resolve_model(self, inputs, period)
         rewards = tuple(n.name for d in node.of(ast.RewardDecl) for n in d.names)
         locations, initial = self._locations(rewards)
         edges = self._edges(locations, rewards)
@@ -287,6 +298,7 @@ class Resolver:
             horizon=horizon,
             constants=tuple((n, s.value) for n, s in self.symbols.items()
                             if s.kind == "const" and s.value is not None),
+            model=model,
             queries=tuple(node.of(ast.QueryDecl)),
             source=node,
             spans=self._spans(singles),
@@ -299,6 +311,7 @@ class Resolver:
             member = singles.get(kind)
             if member is not None and member.span is not None:
                 spans[f"decl:{key}"] = member.span
+        spans.update(self.model_spans)
         return spans
 
     def _singletons(self) -> dict[type, ast.Member]:
@@ -551,7 +564,11 @@ class Resolver:
 
 
 class QueryChecker:
-    """Names and types in queries: the automaton's vocabulary plus ``time``; model functions need a model."""
+    """Names and types in queries: the automaton's vocabulary plus ``time``.
+
+    The model's vocabulary (its functions, the ego state, the true state and the settings)
+    is legal once the automaton has a ``model`` block; its functions are E0601 without one.
+    """
 
     def __init__(self, resolver: Resolver, strategies: set[str]):
         self.r = resolver
@@ -580,6 +597,12 @@ class QueryChecker:
                 return symbol.type
             if node.id in QUERY_BUILTINS:
                 return "num" if node.id == "time" else "bool"
+            if self.r.has_model:
+                from rac.model_block import query_name_type
+
+                kind = query_name_type(node.id)
+                if kind is not None:
+                    return kind
             self.r._unknown(node.id, node.span)
             return None
         if isinstance(node, ast.Qualified):
@@ -594,6 +617,10 @@ class QueryChecker:
                 self.r._unknown(node.id, node.span, "location")
             return "bool"
         if isinstance(node, ast.Call):
+            if node.func in MODEL_FUNCTIONS and self.r.has_model:
+                from rac.model_block import model_call_type
+
+                return model_call_type(self, node)
             if node.func in MODEL_FUNCTIONS:
                 self.r._error("E0601", f"`{node.func}()` is a function of the scenario model, and this "
                               "automaton has no model", node.span,

@@ -20,5 +20,9 @@ def analyse_automaton(automaton: ir.Automaton, facts: list[str] | None = None) -
         return diagnostics
     facts.append("deterministic: every location has at most one enabled edge for every input")
     diagnostics += check_priorities(automaton, facts)
-    diagnostics += check_ranges(automaton, facts=facts)
+    model = automaton.model
+    if model is not None:
+        diagnostics += check_ranges(automaton, base=model.base, exponent=model.exponent, facts=facts)
+    else:
+        diagnostics += check_ranges(automaton, facts=facts)
     return diagnostics

@@ -350,22 +350,59 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
             bound = Fraction(limit - 1) / factor
             first = _first_overflow(automaton, space, worst, k, sign, bound)
             word = "at most" if sign > 0 else "at least"
+            declared = automaton.spans.get(reward) or (automaton.source.name.span if automaton.source else None)
+            notes: list[Note | str] = [
+                f"its significand trunc({reward}·{base}^{exponent}) must stay {word} "
+                f"{sign * (limit - 1)}, i.e. {reward} within ±{_num(bound)}",
+                f"first overflow on the worst run: {first}",
+                "run:\n" + "\n".join(describe_run(automaton, space, worst))]
+            hints = ["lower the exponent of the number representation, shorten the horizon, "
+                     "or bound the reward's growth"]
+            span = declared
+            model = automaton.model
+            if model is not None and (model.base, model.exponent) == (base, exponent):
+                # The model block chose the representation: point at the setting to change.
+                setting = automaton.spans.get("model:exponent") or automaton.spans.get("model:base")
+                if setting is not None:
+                    span = setting
+                    notes.insert(0, Note(f"`{reward}` is declared here", declared))
+                hints = [_exponent_hint(_largest_magnitude(automaton, outs), base, exponent)]
             return [error(
                 "E0501",
                 f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}: "
                 f"it can reach {_num(sign * worst.value)}",
-                automaton.spans.get(reward) or (automaton.source.name.span if automaton.source else None),
-                notes=[f"its significand trunc({reward}·{base}^{exponent}) must stay {word} "
-                       f"{sign * (limit - 1)}, i.e. {reward} within ±{_num(bound)}",
-                       f"first overflow on the worst run: {first}",
-                       "run:\n" + "\n".join(describe_run(automaton, space, worst))],
-                hints=["lower the exponent of the number representation, shorten the horizon, "
-                       "or bound the reward's growth"],
+                span,
+                notes=notes,
+                hints=hints,
                 data={"reward": reward, "value": str(sign * worst.value), "base": base, "exponent": exponent})]
     if extremes:
         facts.append(f"int32 range holds at base {base}, exponent {exponent}: rewards stay within "
                      f"[{_num(min(extremes))}, {_num(max(extremes))}]")
     return []
+
+
+def _largest_magnitude(automaton: ir.Automaton, outs) -> Fraction:
+    """The largest |value| any reward reaches over every run (both directions of every reward)."""
+    everywhere = tuple(True for _ in automaton.locations)
+    size = len(automaton.rewards)
+    largest = ZERO
+    for k in range(size):
+        for sign in (1, -1):
+            weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
+            worst = maximise(automaton, outs, Target(weights, ZERO, everywhere))
+            if worst is not None:
+                largest = max(largest, worst.value)
+    return largest
+
+
+def _exponent_hint(magnitude: Fraction, base: int, exponent: int) -> str:
+    """Which exponent of the model block keeps every reward (at most ``magnitude`` away from 0) within int32."""
+    # The positive side is the tighter one: trunc(v · scale) <= INT32_MAX.
+    fits = [e for e in range(exponent - 1, 0, -1) if magnitude * Fraction(base) ** e < INT32_MAX + 1]
+    if fits:
+        return (f"set `exponent {fits[0]}` in the `model` block (the largest that fits), shorten the horizon, "
+                "or bound the reward's growth")
+    return f"even `exponent 1` overflows at base {base}: shorten the horizon, or bound the reward's growth"
 
 
 def _first_overflow(automaton: ir.Automaton, space: InputSpace, worst: Worst, k: int, sign: int,
