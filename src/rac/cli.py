@@ -8,6 +8,7 @@ the traceback).
 from __future__ import annotations
 
 import argparse
+import errno
 import json
 import os
 import sys
@@ -20,7 +21,7 @@ from rac.compiler import CompileResult, compile_file
 from rac.diagnostics import Diagnostic, error, render_json, render_text, sort_key
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
-TARGETS = ("python",)
+TARGETS = ("python", "uppaal")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -132,6 +133,8 @@ def _compile_command(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     if not result.ok or result.automaton is None:
         return EXIT_ERRORS
+    if args.target == "uppaal":
+        return _compile_uppaal(args, result)
     from rac.targets.python import generate_python
 
     text = generate_python(result.automaton, source_name=args.file.name)
@@ -144,6 +147,73 @@ def _compile_command(args: argparse.Namespace) -> int:
             print(render_text([_unwritable(args.output, exc)], {}), file=sys.stderr)
             return EXIT_USAGE
         print(f"wrote {args.output}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
+    """Write several files so that, on error, none of them changed: every text goes to a
+    temporary file first, and the renames happen only once all of them are written. An
+    ``OSError`` carries the path it was about (``exc.rac_path``)."""
+    temporaries: list[tuple[Path, str]] = []
+    for path, _ in files:
+        if path.is_dir():  # os.replace would fail only after the earlier files were replaced
+            exc = IsADirectoryError(errno.EISDIR, "it is a directory", str(path))
+            exc.rac_path = path  # type: ignore[attr-defined]
+            raise exc
+    try:
+        for path, text in files:
+            directory = path.parent if str(path.parent) else Path(".")
+            try:
+                fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+                temporaries.append((path, temporary))
+                with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+                    handle.write(text)
+                if path.exists():
+                    os.chmod(temporary, path.stat().st_mode & 0o777)
+            except OSError as exc:
+                exc.rac_path = path  # type: ignore[attr-defined]
+                raise
+        for path, temporary in temporaries:
+            try:
+                os.replace(temporary, path)
+            except OSError as exc:
+                exc.rac_path = path  # type: ignore[attr-defined]
+                raise
+    except BaseException:
+        for _, temporary in temporaries:
+            Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
+    """``--target uppaal``: the model to ``-o FILE.xml`` and its queries to ``FILE.q`` beside it."""
+    from rac.targets.uppaal import UppaalError, generate_uppaal, queries_path
+
+    output: Path | None = args.output
+    queries = Path(queries_path(str(output))) if output is not None else None
+    if output is not None and queries == output:
+        print(f"rac: `{output}` cannot hold the model: its queries go to a file of that name; "
+              "name the model FILE.xml", file=sys.stderr)
+        return EXIT_USAGE
+    assert result.automaton is not None
+    try:
+        model = generate_uppaal(result.automaton, source_name=args.file.name,
+                                model_name=output.name if output is not None else "")
+    except UppaalError as failure:
+        if args.format == "json":
+            print(render_json([*result.diagnostics, *failure.diagnostics]))
+        else:
+            print(render_text(failure.diagnostics, result.sources), file=sys.stderr)
+        return EXIT_ERRORS
+    if output is None or queries is None:
+        sys.stdout.write(model.xml)
+        return EXIT_OK
+    try:
+        _write_all_atomically([(output, model.xml), (queries, model.queries)])
+    except OSError as exc:
+        print(render_text([_unwritable(getattr(exc, "rac_path", output), exc)], {}), file=sys.stderr)
+        return EXIT_USAGE
+    print(f"wrote {output} and {queries}", file=sys.stderr)
     return EXIT_OK
 
 

@@ -60,6 +60,17 @@ automaton Driving {
 }
 """
 
+#: The UPPAAL target's examples (`rac compile --target uppaal`): a rate whose growth per sample is
+#: not a whole number of significand units, and a symbolic query that is not linear.
+UPPAAL_RATE = SMALL.replace("// Safety only: a minimal automaton",
+                            "// A rate too small for the UPPAAL model's significands (10^-4)") \
+    .replace("initial location Normal { sa' == 1 }", "initial location Normal { sa' == 0.00001 }")
+UPPAAL_QUERY = SMALL.replace("// Safety only: a minimal automaton",
+                             "// A symbolic query that multiplies two rewards") \
+    .replace("    edge Unsafe -> Normal when !isClose\n",
+             "    edge Unsafe -> Normal when !isClose\n\n    query Qs: A[] sa * sa <= 100\n")
+_UPPAAL = ("compile", "--target", "uppaal", "{file}", "-o", "driving.xml")
+
 #: The same automaton with German comments, as an editor set to Latin-1 saves it.
 LATIN1 = SMALL.replace("// Safety only: a minimal automaton", "// Nur Sicherheit: ein minimaler Automat") \
     .replace("input isClose : bool", "input isClose : bool    // Hindernis näher als der Sicherheitsabstand")
@@ -134,6 +145,16 @@ GENERATED: tuple[Case, ...] = (
          "`E0009_missing_folder.ra` is a valid automaton, and the folder `build` does not exist:",
          _write("E0009_missing_folder.ra", SMALL.encode()),
          ("compile", "--target", "python", "{file}", "-o", "build/driving.py")),
+    # `rac check` accepts these two files (only the UPPAAL target rejects them), so the doc shows
+    # no ```ra block for them: tests/test_examples.py runs `rac check` on every such block.
+    Case("E0801_rate_not_representable", None,
+         "`E0801_rate_not_representable.ra` is the minimal automaton of the E0004 example, with the "
+         "rate `sa' == 0.00001` in `Normal`:",
+         _write("E0801_rate_not_representable.ra", UPPAAL_RATE.encode()), _UPPAAL),
+    Case("E0802_nonlinear_query", None,
+         "`E0802_nonlinear_query.ra` is the minimal automaton of the E0004 example, with the query "
+         "`query Qs: A[] sa * sa <= 100`:",
+         _write("E0802_nonlinear_query.ra", UPPAAL_QUERY.encode()), _UPPAAL),
 )
 
 
