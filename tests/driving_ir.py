@@ -76,12 +76,9 @@ def inputs(is_close: bool = False, prog: bool = True, comf: bool = True, collide
     return {"isClose": is_close, "prog": prog, "comf": comf, "collide": collide, "dgoal": dgoal}
 
 
-def compiled_driving() -> ir.Automaton | None:
-    """``stdlib/driving.ra`` through the compiler, or ``None`` while the compiler is missing."""
-    try:
-        from rac.compiler import compile_file
-    except ImportError:
-        return None
+def compiled_driving() -> ir.Automaton:
+    """``stdlib/driving.ra`` through the compiler."""
+    from rac.compiler import compile_file
     from rac.resources import stdlib_file
 
     result = compile_file(stdlib_file("driving.ra"))

@@ -8,7 +8,7 @@ from typing import Any
 
 import gymnasium
 import pytest
-from driving_ir import compiled_driving, driving_automaton, inputs
+from driving_ir import driving_automaton, inputs
 
 from rac.gym import RewardAutomatonWrapper
 from rac.runtime import RewardAutomaton
@@ -125,8 +125,6 @@ def generated_instance() -> Any:
 
 @pytest.mark.parametrize("kind", ["ir", "interpreter", "generated", "path"])
 def test_automaton_forms(kind: str) -> None:
-    if kind == "path" and compiled_driving() is None:
-        pytest.skip("rac.compiler is not there yet")
     automaton: Any = {
         "ir": driving_automaton,
         "interpreter": lambda: RewardAutomaton(driving_automaton()),
@@ -145,8 +143,6 @@ def test_bad_automata_are_refused(tmp_path: Path) -> None:
         RewardAutomatonWrapper(Scripted(TRACE), 42, from_info)  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="inputs"):
         RewardAutomatonWrapper(Scripted(TRACE), driving_automaton(), None)  # type: ignore[arg-type]
-    if compiled_driving() is None:
-        return
     from rac.diagnostics import CheckError
 
     bad = tmp_path / "bad.ra"

@@ -50,9 +50,8 @@ def test_golden_module() -> None:
     assert text == expected, f"the generated module differs from {GOLDEN}; if that is intended, {REGENERATE}"
 
 
-@pytest.mark.skipif(compiled_driving() is None, reason="rac.compiler is not there yet")
 def test_compiled_automaton_generates_the_golden_module() -> None:
-    text = generate_python(compiled_driving(), source_name=SOURCE_NAME)  # type: ignore[arg-type]
+    text = generate_python(compiled_driving(), source_name=SOURCE_NAME)
     assert text == GOLDEN.read_text(encoding="utf-8")
 
 
