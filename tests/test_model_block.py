@@ -27,6 +27,23 @@ from rac.resolve import MODEL_FUNCTIONS as QUERY_MODEL_FUNCTIONS
 
 REPO = Path(__file__).resolve().parents[1]
 DRIVING = (REPO / "stdlib" / "driving.ra").read_text(encoding="utf-8")
+LEFT_TURN = REPO / "examples" / "left_turn" / "left_turn.xml"
+
+
+@pytest.fixture(scope="module")
+def scenario_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder with `left_turn.xml` (and `dir/left_turn.xml`): `rac check` loads the scenario."""
+    folder = tmp_path_factory.mktemp("model_block")
+    (folder / "dir").mkdir()
+    for target in (folder / "left_turn.xml", folder / "dir" / "left_turn.xml"):
+        target.write_bytes(LEFT_TURN.read_bytes())
+    return folder
+
+
+@pytest.fixture(autouse=True)
+def _in_scenario_folder(scenario_folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Text without a file names its scenario relative to the working folder: run in one that has it."""
+    monkeypatch.chdir(scenario_folder)
 
 # The block of the issue (issue 3, item 3), verbatim.
 BLOCK = """\
@@ -295,13 +312,15 @@ def test_scenario_path_is_relative_to_the_file(tmp_path: Path) -> None:
     folder = tmp_path / "scenarios" / "ra"
     folder.mkdir(parents=True)
     (folder / "a.ra").write_text(small("", scenario='        scenario "../maps/left_turn.xml"\n'))
-    model = compile_file(folder / "a.ra").automaton.model  # type: ignore[union-attr]
+    # Without the analyses the scenario is not loaded (the check reports a missing one, see
+    # tests/test_model_check.py): only the path is resolved here.
+    model = compile_file(folder / "a.ra", analyse=False).automaton.model  # type: ignore[union-attr]
     assert model is not None and model.scenario == "../maps/left_turn.xml"
     assert Path(model.scenario_path) == tmp_path / "scenarios" / "maps" / "left_turn.xml"
     absolute = str(tmp_path / "elsewhere.xml")
     (folder / "b.ra").write_text(small("", scenario=f'        scenario "{absolute}"\n'))
-    assert compile_file(folder / "b.ra").automaton.model.scenario_path == absolute  # type: ignore[union-attr]
-    # Text without a file: relative to the working folder. The file need not exist.
+    assert compile_file(folder / "b.ra", analyse=False).automaton.model.scenario_path == absolute  # type: ignore[union-attr]
+    # Text without a file: relative to the working folder.
     assert check(small("")).automaton.model.scenario_path == "left_turn.xml"  # type: ignore[union-attr]
 
 
@@ -326,7 +345,9 @@ def test_model_does_not_change_the_checks_or_runtime() -> None:
 
     plain = check(DRIVING)
     modelled = check(with_model(BLOCK))
-    assert plain.facts == modelled.facts
+    # The automaton's facts are the same; the model adds the scenario's (tests/test_model_check.py).
+    assert plain.facts == modelled.facts[:-1]
+    assert modelled.facts[-1].startswith("scenario left_turn.xml: ")
     ra = rac.loads(with_model(BLOCK))
     ra.reset()
     assert ra.step({"isClose": False, "prog": True, "comf": True, "collide": False, "dgoal": 40.0}) > 0

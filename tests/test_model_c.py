@@ -4,7 +4,7 @@ The declarations from rac.targets.uppaal_functions are pasted verbatim after a s
 (the includes and ``#define fint(x) ((int32_t)(x))``) and a ``main`` that reads one state per line
 (``x y v acc head jerk turn k``) and prints ``collide() offroad() goal()``, ``mindist()`` and
 ``dist_goal()`` (as ``%.17e``, read back exactly, and as significands), every obstacle's
-``obs_present/obs_x/obs_y`` and ``sense()``'s new state. Every number must equal the native
+``obs_present/obs_x/obs_y`` and ``sense_state()``'s new state. Every number must equal the native
 model's bit for bit, on a few hundred seeded random states per scenario plus simulated runs.
 """
 
@@ -51,7 +51,7 @@ int main(void) {
         for (i = 0; i < OBS_N; i++) {
             printf(" %d %.17e %.17e", (int)obs_present(i), obs_x(i), obs_y(i));
         }
-        sense();
+        sense_state();
         printf(" %d %d %d %d %d %d %d\n", (int)x, (int)y, (int)v, (int)acc, (int)head, (int)jerk, (int)turn);
     }
     return 0;
@@ -210,7 +210,7 @@ def test_declarations_are_deterministic_and_uppaal_shaped():
     data = build_model_data(crossing_scenario(), make_spec(4))
     text = emit_declarations(data)
     assert text == emit_declarations(build_model_data(crossing_scenario(), make_spec(4)))
-    for needle in ("int32_t count = 0;", "void sense()", "double mindist()", "bool collide()", "bool offroad()",
+    for needle in ("int32_t count = 0;", "void sense_state()", "double mindist()", "bool collide()", "bool offroad()",
                    "bool goal()", "double dist_goal()", "const double SENSE_UNIT = 0.01;"):
         assert needle in text
     assert " int " not in text and "int[" not in text and "meta" not in text and "&&=" not in text
@@ -218,7 +218,8 @@ def test_declarations_are_deterministic_and_uppaal_shaped():
     names = declared_names(data)
     assert names[:2] == ("SCALE", "SCALE_D") and "JERK_VALUES" in names and "count" in names
     assert names[-5:] == ("in_road", "in_goal", "offroad", "goal", "dist_goal")
-    assert {"x", "y", "v", "acc", "head", "jerk", "turn", "sense", "mindist", "collide", "i2d", "d2i"} <= set(names)
+    assert {"x", "y", "v", "acc", "head", "jerk", "turn", "sense_state", "mindist", "collide", "i2d",
+            "d2i"} <= set(names)
     assert len(names) == len(set(names))
 
 

@@ -187,6 +187,8 @@ def _write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
 
 def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
     """``--target uppaal``: the model to ``-o FILE.xml`` and its queries to ``FILE.q`` beside it."""
+    from rac.model.data import ModelRangeError
+    from rac.scenario import ScenarioError
     from rac.targets.uppaal import UppaalError, generate_uppaal, queries_path
 
     output: Path | None = args.output
@@ -197,8 +199,19 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
         return EXIT_USAGE
     assert result.automaton is not None
     try:
-        model = generate_uppaal(result.automaton, source_name=args.file.name,
-                                model_name=output.name if output is not None else "")
+        if result.automaton.model is not None:
+            from rac.targets.uppaal_model import generate_uppaal_model
+
+            # With a `model` block: the whole model in its scenario (docs/uppaal.md).
+            model = generate_uppaal_model(result.automaton, data=getattr(result, "model_data", None),
+                                          source_name=args.file.name,
+                                          model_name=output.name if output is not None else "")
+        else:
+            model = generate_uppaal(result.automaton, source_name=args.file.name,
+                                    model_name=output.name if output is not None else "")
+    except (ScenarioError, ModelRangeError) as failure:  # the checks load the scenario first; a safety net
+        print(f"rac: {args.file}: cannot build the scenario model: {failure}", file=sys.stderr)
+        return EXIT_ERRORS
     except UppaalError as failure:
         if args.format == "json":
             print(render_json([*result.diagnostics, *failure.diagnostics]))

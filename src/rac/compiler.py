@@ -4,12 +4,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rac import ast, ir
 from rac.diagnostics import CheckError, Diagnostic, error
 from rac.parser import ParseFailure, decode_source, parse_source, read_source
 from rac.resolve import Resolver
 from rac.source import SourceFile
+
+if TYPE_CHECKING:
+    from rac.model.data import ModelData
+    from rac.scenario import Scenario
 
 
 @dataclass(frozen=True)
@@ -22,6 +27,11 @@ class CompileResult:
     module: ast.Module | None = None
     #: What the analyses proved, as sentences (printed by ``rac check``).
     facts: tuple[str, ...] = ()
+    #: With a `model` block: the scenario it names, loaded once by the checks
+    #: (a :class:`rac.scenario.Scenario`), and the model's data built from it at the block's
+    #: base and exponent (a :class:`rac.model.data.ModelData`); None when not loaded.
+    scenario: Scenario | None = None
+    model_data: ModelData | None = None
 
     @property
     def ok(self) -> bool:
@@ -49,13 +59,23 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
     automaton = resolver.run()
     diagnostics.extend(resolver.diagnostics)
     facts: list[str] = []
+    scenario: Scenario | None = None
+    model_data: ModelData | None = None
     if automaton is not None and analyse and not any(d.is_error for d in diagnostics):
         from rac.analysis import analyse_automaton
 
         diagnostics.extend(analyse_automaton(automaton, facts))
+        if automaton.model is not None and not any(d.is_error for d in diagnostics):
+            # The scenario comes last: it checks the model's numbers, once the automaton is sound.
+            from rac.analysis.scenario import check_scenario
+
+            checked = check_scenario(automaton)
+            diagnostics.extend(checked.diagnostics)
+            facts.extend(checked.facts)
+            scenario, model_data = checked.scenario, checked.data
     if any(d.is_error for d in diagnostics):
         automaton = None
-    return CompileResult(automaton, tuple(diagnostics), sources, module, tuple(facts))
+    return CompileResult(automaton, tuple(diagnostics), sources, module, tuple(facts), scenario, model_data)
 
 
 def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:

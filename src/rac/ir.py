@@ -162,6 +162,7 @@ class ModelSpec:
     comfort_acceleration: Fraction  # p1
     comfort_turn: Fraction  # p2
     bindings: tuple[Binding, ...]
+    sensor_error: Fraction = Fraction(1, 2)  # THD: the threshold of the sensor-error query Qa (m)
     span: Span | None = field(default=None, compare=False)
 
     @property

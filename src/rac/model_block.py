@@ -100,6 +100,7 @@ SETTINGS: dict[str, Setting] = {s.name: s for s in (
             exclusive=True, maximum=_f("1")),
     Setting("comfort_turn", _f("0.8"), "", "p2, the comfortable fraction of MT", _f("0"), exclusive=True,
             maximum=_f("1")),
+    Setting("sensor_error", _f("0.5"), "m", "THD: the sensor-error threshold of query Qa", _f("0"), exclusive=True),
 )}
 
 #: The controller's actions and their defaults: (low, high, step, unit).
@@ -191,6 +192,7 @@ class _ModelResolver:
             comfort_acceleration=v["comfort_acceleration"],
             comfort_turn=v["comfort_turn"],
             bindings=bindings,
+            sensor_error=v["sensor_error"],
             span=self.block.span,
         )
 
@@ -444,8 +446,11 @@ def resolve_model(r: Resolver, inputs: tuple[ir.Input, ...], period: Fraction | 
     resolver = _ModelResolver(r, blocks[0], inputs, period)
     spec = resolver.run()
     for item in blocks[0].of(ast.ModelSetting):
-        if item.name.name in ("base", "exponent") and item.span is not None:
+        if item.name.name in ("base", "exponent", "sense_period") and item.span is not None:
             r.model_spans.setdefault(f"model:{item.name.name}", item.span)
+    for scenario in blocks[0].of(ast.ModelScenario)[:1]:
+        if scenario.span is not None:
+            r.model_spans["model:scenario"] = scenario.span
     return spec if resolver.ok else None
 
 

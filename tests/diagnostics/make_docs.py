@@ -76,6 +76,31 @@ LATIN1 = SMALL.replace("// Safety only: a minimal automaton", "// Nur Sicherheit
     .replace("input isClose : bool", "input isClose : bool    // Hindernis näher als der Sicherheitsabstand")
 
 
+#: The automaton of the E0712 example (which names a `left_turn.xml` that is missing), with the
+#: representation written out: the E0713 example puts a scenario next to it.
+SCENARIO_EXPONENT = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
+    .replace("// A model whose scenario file is not next to this one",
+             "// A model whose scenario lies in UTM coordinates, hundreds of kilometres from the origin") \
+    .replace("        bind isClose", "        exponent 4                        // significand = trunc(v * 10^4)\n"
+             "        bind isClose", 1)
+#: examples/left_turn/left_turn.xml moved by (500 km, 5400 km), as a map in UTM coordinates places it.
+UTM_SHIFT = (500_000, 5_400_000)
+
+
+def shifted_scenario(dx: float, dy: float) -> bytes:
+    """examples/left_turn/left_turn.xml with every ``<x>`` and ``<y>`` moved by ``(dx, dy)``."""
+    text = (ROOT / "examples" / "left_turn" / "left_turn.xml").read_text(encoding="utf-8")
+    for tag, delta in (("x", dx), ("y", dy)):
+        text = re.sub(rf"<{tag}>([^<]+)</{tag}>", lambda m, t=tag, d=delta: f"<{t}>{float(m.group(1)) + d!r}</{t}>",
+                      text)
+    return text.encode("utf-8")
+
+
+def _scenario_exponent(folder: Path) -> None:
+    (folder / "E0713_scenario_exponent.ra").write_text(SCENARIO_EXPONENT, encoding="utf-8")
+    (folder / "left_turn.xml").write_bytes(shifted_scenario(*UTM_SHIFT))
+
+
 @dataclass(frozen=True)
 class Case:
     """One failing example: committed as ``NAME.ra``, or made by ``make`` in a scratch folder."""
@@ -155,6 +180,14 @@ GENERATED: tuple[Case, ...] = (
          "`E0802_nonlinear_query.ra` is the minimal automaton of the E0004 example, with the query "
          "`query Qs: A[] sa * sa <= 100`:",
          _write("E0802_nonlinear_query.ra", UPPAAL_QUERY.encode()), _UPPAAL),
+    # The scenario must sit next to the file: the doc shows no ```ra block (tests/test_examples.py
+    # would check it without the scenario, which is E0712).
+    Case("E0713_scenario_exponent", None,
+         "`E0713_scenario_exponent.ra` is the automaton of the E0712 example with `exponent 4` written "
+         "in its `model` block (line 23), next to a `left_turn.xml` that is the left-turn scenario "
+         "(examples/left_turn) moved 500 km east and 5,400 km north, as a map in UTM coordinates "
+         "places it:",
+         _scenario_exponent),
 )
 
 

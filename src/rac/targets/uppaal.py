@@ -1,8 +1,10 @@
 """The UPPAAL target: a closed UPPAAL 5 model of one reward automaton, and its queries.
 
 ``rac compile --target uppaal FILE.ra -o out.xml`` writes ``out.xml`` (the model, with the
-file's queries embedded) and ``out.q`` (the same queries, one per line). The model has three
-processes:
+file's queries embedded) and ``out.q`` (the same queries, one per line). For a file with a
+``model`` block it writes the whole model in the block's scenario instead
+(:mod:`rac.targets.uppaal_model`, which reuses this module's generator). The automaton-alone
+model has three processes:
 
 - ``Timer`` — every sample period it broadcasts ``accrue``, waits for the Environment's
   ``read``, then broadcasts ``sense``; after the horizon's last sample it broadcasts ``finish``
@@ -117,20 +119,22 @@ class _Names:
     """UPPAAL identifiers: the ``.ra`` names (renamed only when UPPAAL reserves them) and fresh
     names for everything the target adds, never equal to a ``.ra`` name."""
 
-    def __init__(self, user: Iterable[str]):
+    def __init__(self, user: Iterable[str], reserved: Iterable[str] = ()):
         self.raw = set(user)
+        self.reserved = RESERVED | frozenset(reserved)
         self.taken: set[str] = set()
         self.user: dict[str, str] = {}
         for name in sorted(self.raw):
             candidate = name
-            while candidate in RESERVED or (candidate != name and candidate in self.raw) or candidate in self.taken:
+            while (candidate in self.reserved or (candidate != name and candidate in self.raw)
+                   or candidate in self.taken):
                 candidate += "_"
             self.user[name] = candidate
             self.taken.add(candidate)
 
     def fresh(self, base: str) -> str:
         candidate = base
-        while candidate in RESERVED or candidate in self.raw or candidate in self.taken:
+        while candidate in self.reserved or candidate in self.raw or candidate in self.taken:
             candidate += "_"
         self.taken.add(candidate)
         return candidate
@@ -177,6 +181,7 @@ class _Transition:
     target: str
     labels: list[_Label] = field(default_factory=list)
     nails: list[tuple[int, int]] = field(default_factory=list)
+    controllable: bool = False
 
 
 @dataclass
@@ -188,6 +193,7 @@ class _Template:
     declaration: str = ""
     name_x: int = 0
     name_y: int = 0
+    parameter: str = ""
 
 
 class _Ids:
@@ -201,7 +207,7 @@ class _Ids:
 
 def _edge(ids: _Ids, source: _Location, target: _Location, *, select: str = "", guard: str = "", sync: str = "",
           assignment: str = "", nails: list[tuple[int, int]] | None = None,
-          anchor: tuple[int, int] | None = None) -> _Transition:
+          anchor: tuple[int, int] | None = None, controllable: bool = False) -> _Transition:
     """A transition with its labels stacked at ``anchor`` (default: the midpoint or first nail)."""
     nails = nails or []
     if anchor is None:
@@ -215,7 +221,7 @@ def _edge(ids: _Ids, source: _Location, target: _Location, *, select: str = "", 
         if text:
             labels.append(_Label(kind, text, x, y))
             y += 17
-    return _Transition(ids(), source.id, target.id, labels, nails)
+    return _Transition(ids(), source.id, target.id, labels, nails, controllable)
 
 
 # ---------------------------------------------------------------- the generator
@@ -266,11 +272,15 @@ class _Generator:
             data={"base": self.base, "exponent": self.exponent}))
 
     # ------------------------------------------------------------ names
+    def reserved_names(self) -> Iterable[str]:
+        """Names the rest of the model declares (none here; the whole model's scenario declarations)."""
+        return ()
+
     def _names(self) -> None:
         a = self.a
         user = [a.name, *(i.name for i in a.inputs), *a.rewards, *a.location_names, *(n for n, _ in a.constants)]
         strategies = [q.query.name for q in a.queries if isinstance(q.query, (ast.ControlStrategy, ast.LearnStrategy))]
-        names = _Names([*user, *strategies])
+        names = _Names([*user, *strategies], self.reserved_names())
         self.n = names
         self.process = names[a.name]
         self.mirror = {r: names.fresh(_mirror_name(r)) for r in a.rewards}
@@ -514,9 +524,8 @@ class _Generator:
         templates = [self._timer(ids), self._automaton(ids, unit, accruals), self._environment(ids, inputs)]
         if self.diagnostics:
             raise UppaalError(self.diagnostics)
-        env = _environment()
         g = self.g
-        declaration = env.get_template("declaration.j2").render(
+        declaration = _environment().get_template("declaration.j2").render(
             source_name=self.source_name, automaton=a.name, unit_text=_seconds(unit),
             period_text=_seconds(Fraction(a.period)), period_units=period_units, steps=a.steps,
             end_units=a.steps * period_units, end_text=_seconds(a.steps * Fraction(a.period)),
@@ -527,12 +536,18 @@ class _Generator:
             numeric_inputs=inputs, hybrids=[self.n[r] for r in a.rewards],
             mirrors=[self.mirror[r] for r in a.rewards], truncating=self.truncating,
             constants=[self._constant(name, value) for name, value in a.constants])
-        system = env.get_template("system.j2").render(
+        system = _environment().get_template("system.j2").render(
             channels=self.channels, processes=[g["timer"], self.process, g["environment"]])
+        return self._files(declaration, templates, system, queries)
+
+    def _files(self, declaration: str, templates: list[_Template], system: str,
+               queries: list[dict[str, str]]) -> UppaalModel:
+        """The ``.xml`` (declarations, templates, system line, queries) and the ``.q`` text."""
+        env = _environment()
         xml = env.get_template("model.xml.j2").render(
             declaration=declaration.rstrip("\n"), templates=templates, system=system.rstrip("\n"), queries=queries)
         q = env.get_template("queries.q.j2").render(
-            automaton=a.name, source_name=self.source_name, model_name=self.model_name, queries=queries,
+            automaton=self.a.name, source_name=self.source_name, model_name=self.model_name, queries=queries,
             queries_name=queries_path(self.model_name) if self.model_name else "")
         return UppaalModel(xml, q)
 

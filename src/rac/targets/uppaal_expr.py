@@ -437,6 +437,8 @@ class QueryPrinter:
                 return self._comparison(expr, mode)
         if isinstance(expr, ast.Call):
             self._check_call(expr)
+            if expr.func in ("collide", "offroad", "goal") and not expr.args:
+                return f"{expr.func}()", _ATOM  # the whole model declares them (functions of integers)
         raise QueryError("this part of the query is not a condition")
 
     def _is_bool(self, expr: ast.Expr) -> bool:
@@ -452,6 +454,8 @@ class QueryPrinter:
             return expr.op == "!"
         if isinstance(expr, ast.Binary):
             return expr.op in ast.LOGICAL_OPS or expr.op in ast.COMPARISON_OPS
+        if isinstance(expr, ast.Call):
+            return expr.func in ("collide", "offroad", "goal")
         return False
 
     def _comparison(self, expr: ast.Binary, mode: str) -> tuple[str, int]:

@@ -1,7 +1,7 @@
 """UPPAAL global declarations of the scenario model: its data and its functions.
 
 :func:`emit_declarations` prints :class:`rac.model.ModelData` as ``const`` scalars and arrays, the
-controller's state variables and the functions ``sense()``, ``mindist()``, ``collide()``,
+controller's state variables and the functions ``sense_state()``, ``mindist()``, ``collide()``,
 ``offroad()``, ``goal()``, ``dist_goal()`` (with helpers ``i2d``, ``d2i``, ``obs_wp``,
 ``obs_present``, ``obs_x``, ``obs_y``, ``obs_head``, ``in_road``, ``in_goal``).
 :func:`declared_names` lists every global name the text declares, so that the rest of the UPPAAL
@@ -22,9 +22,9 @@ it with a four-line prelude and checks it against :mod:`rac.model.native` bit fo
 - names avoid UPPAAL keywords and C library names (``y0``, ``j1``, ``time`` ...).
 
 The global ``int32_t count`` is the sample index ``k``: the Timer's ``sense`` edge must increment it
-(``count++``) — UPPAAL runs the sender's update before the receivers', so ``sense()`` (which does not
-read it) and every later reader see the new sample. A channel cannot share a function's name: call
-the broadcast channel something other than ``sense``.
+(``count++``) — UPPAAL runs the sender's update before the receivers', so ``sense_state()`` (which does not
+read it) and every later reader see the new sample. A channel cannot share a function's name, so
+the function is ``sense_state()`` and the target's broadcast channel can be ``sense``.
 
 Example::
 
@@ -146,8 +146,8 @@ int32_t d2i(double d) {
     return fint(d * SCALE_D);
 }
 
-// ---- sense(): Algorithm 1, SUBSTEPS Euler sub-steps of SENSE_UNIT = C1 * G seconds
-void sense() {
+// ---- sense_state(): Algorithm 1, SUBSTEPS Euler sub-steps of SENSE_UNIT = C1 * G seconds
+void sense_state() {
     int32_t i;
     double fx;
     double fy;
