@@ -160,6 +160,10 @@ def test_the_papers_queries(model) -> None:
         "E<> !collide() && !offroad() && goal()",
         "strategy safe = control: A[] !collide() && !offroad()",
         "simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D}",
+        "simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D} under safe",
+        "Pr[<=MAXT](<> mindist() <= 3*TD / SCALE_D) under safe",
+        "strategy reachSafe = maxE(sa + pr + co)[<=MAXT]{Driving.location}->{x, y, v, head}: <> goal() under safe",
+        "simulate[<=MAXT;1]{x, y, v, head} under reachSafe",
         "strategy reach = maxE(sa + pr + co)[<=MAXT]{Driving.location}->{x, y, v, head}: <> time >= MAXT under safe",
         "A[] !collide() && !offroad() under reach",
         "A<> goal() under reach",
@@ -317,7 +321,7 @@ def test_shared_scenarios_compile(name: str, tmp_path: Path) -> None:
     assert time.perf_counter() - started < 2.0
     parsed = Parsed(out.read_text(encoding="utf-8"))
     assert parsed.processes[:4] == ["Timer", "Controller", "Action", "Dynamics"] and parsed.processes[-1] == "Driving"
-    assert len(parsed.queries) == 10
+    assert len(parsed.queries) == 14
 
 
 def test_automaton_without_model_block_is_emitted_alone(tmp_path: Path) -> None:

@@ -20,8 +20,20 @@ E<> !collide() && !offroad() && goal()
 // Qd: the safety shield (most permissive safe strategy)
 strategy safe = control: A[] !collide() && !offroad()
 
-// Fig. 7: the distance to the nearest obstacle against 3*TD
+// Fig. 7: the distance to the nearest obstacle against 3*TD, unshielded
 simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D}
+
+// Fig. 7 under the shield: the distance against 3*TD
+simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D} under safe
+
+// unsafe distance under the shield: Pr of coming closer than 3*TD
+Pr[<=MAXT](<> mindist() <= 3*TD / SCALE_D) under safe
+
+// reachSafe: learning to reach the goal under the shield
+strategy reachSafe = maxE(sa + pr + co)[<=MAXT]{Driving.location}->{x, y, v, head}: <> goal() under safe
+
+// a run under reachSafe (the learned trajectory)
+simulate[<=MAXT;1]{x, y, v, head} under reachSafe
 
 // learning: the rewards' sum, maximised under the shield
 strategy reach = maxE(sa + pr + co)[<=MAXT]{Driving.location}->{x, y, v, head}: <> time >= MAXT under safe

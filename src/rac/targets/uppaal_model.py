@@ -21,8 +21,9 @@ automaton alone (:mod:`rac.targets.uppaal`). Its processes, in the order of the 
   ``accrue?`` (so they are exact at samples, and the rates change when a waypoint is reached);
 - the reward automaton, exactly as in the automaton-alone model.
 
-The queries are the file's own, then the paper's standard set (Qa-Qd, Fig. 7's simulation, the
-learning query and its checks), each named in its comment.
+The queries are the file's own, then the paper's standard set (Qa-Qd, Fig. 7's simulations with
+and without the shield, the unsafe-distance probability under the shield, reachSafe and a run
+under it, the learning query reach and its checks), each named in its comment.
 
 Example::
 
@@ -153,7 +154,8 @@ class _ModelGenerator(_Generator):
         for key, base in (("controller", "Controller"), ("action", "Action"), ("dynamics", "Dynamics"),
                           ("obstacle", "Obstacle"), ("start", "Start"), ("deciding", "Deciding"),
                           ("sensing", "Sensing"), ("init", "Init"), ("driving", "Running"), ("moving", "Moving"),
-                          ("safe", "safe"), ("reach", "reach"), ("read_inputs", "read_inputs"),
+                          ("safe", "safe"), ("reach", "reach"), ("reach_safe", "reachSafe"),
+                          ("read_inputs", "read_inputs"),
                           ("init_prevs", "init_prevs")):
             g[key] = n.fresh(base)
 
@@ -313,8 +315,17 @@ class _ModelGenerator(_Generator):
             {"name": "Qc: a safe run reaches the goal", "formula": f"E<> {safety} && goal()"},
             {"name": "Qd: the safety shield (most permissive safe strategy)",
              "formula": f"strategy {g['safe']} = control: A[] {safety}"},
-            {"name": "Fig. 7: the distance to the nearest obstacle against 3*TD",
+            {"name": "Fig. 7: the distance to the nearest obstacle against 3*TD, unshielded",
              "formula": "simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D}"},
+            {"name": "Fig. 7 under the shield: the distance against 3*TD",
+             "formula": f"simulate[<=MAXT;100]{{mindist(), 3*TD / SCALE_D}} under {g['safe']}"},
+            {"name": "unsafe distance under the shield: Pr of coming closer than 3*TD",
+             "formula": f"Pr[<=MAXT](<> mindist() <= 3*TD / SCALE_D) under {g['safe']}"},
+            {"name": "reachSafe: learning to reach the goal under the shield",
+             "formula": (f"strategy {g['reach_safe']} = maxE({objective})[<=MAXT]{{{self.process}.location}}"
+                         f"->{{x, y, v, head}}: <> goal() under {g['safe']}")},
+            {"name": "a run under reachSafe (the learned trajectory)",
+             "formula": f"simulate[<=MAXT;1]{{x, y, v, head}} under {g['reach_safe']}"},
             {"name": "learning: the rewards' sum, maximised under the shield",
              "formula": (f"strategy {g['reach']} = maxE({objective})[<=MAXT]{{{self.process}.location}}"
                          f"->{{x, y, v, head}}: <> {g['time']} >= MAXT under {g['safe']}")},
