@@ -1,0 +1,1 @@
+"""rac's own verification engine: explore the model's state space, decide queries with Storm."""

@@ -1,0 +1,61 @@
+"""The explored state graph: what exploration produces and what Storm decides on.
+
+Transitions are deterministic given a choice (obstacles are functions of time and the
+ego follows the chosen action), so a choice is a single successor. States whose sample is
+not a decision sample have exactly one choice (action -1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ExploredGraph:
+    """A finite MDP with deterministic choices, as numpy arrays.
+
+    ``states[i]`` is state i's integer vector (column meaning in ``columns``); the choices of
+    state i are ``choice_offsets[i] : choice_offsets[i + 1]`` in ``choice_action`` (the
+    action index, -1 when no decision is taken) and ``choice_target`` (the successor's index).
+    A state with no choices is terminal (the horizon is reached).
+    """
+
+    states: np.ndarray  # (n, d) int64
+    columns: tuple[str, ...]
+    choice_offsets: np.ndarray  # (n + 1,) int64
+    choice_action: np.ndarray  # (m,) int64
+    choice_target: np.ndarray  # (m,) int64
+    initial: int = 0
+    labels: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (n,) bool
+
+    @property
+    def n_states(self) -> int:
+        return int(self.states.shape[0])
+
+    @property
+    def n_choices(self) -> int:
+        return int(self.choice_target.shape[0])
+
+    def choices(self, state: int) -> range:
+        return range(int(self.choice_offsets[state]), int(self.choice_offsets[state + 1]))
+
+    def terminal(self) -> np.ndarray:
+        """(n,) bool: states without choices."""
+        return np.diff(self.choice_offsets) == 0
+
+    def validate(self) -> None:
+        """Raise ValueError when the arrays do not describe a graph (cheap; call in tests)."""
+        n = self.n_states
+        if self.choice_offsets.shape != (n + 1,) or self.choice_offsets[0] != 0:
+            raise ValueError("choice_offsets must have n + 1 entries starting at 0")
+        if np.any(np.diff(self.choice_offsets) < 0) or self.choice_offsets[-1] != self.n_choices:
+            raise ValueError("choice_offsets must be non-decreasing and end at the number of choices")
+        if self.choice_action.shape != self.choice_target.shape:
+            raise ValueError("choice_action and choice_target differ in length")
+        if self.n_choices and (self.choice_target.min() < 0 or self.choice_target.max() >= n):
+            raise ValueError("a choice targets a state that does not exist")
+        for name, mask in self.labels.items():
+            if mask.shape != (n,) or mask.dtype != bool:
+                raise ValueError(f"label {name!r} must be a bool array of shape (n,)")
