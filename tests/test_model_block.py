@@ -23,7 +23,7 @@ from rac.compiler import compile_file, compile_text
 from rac.model_block import ACTIONS, MATH_FUNCTIONS, MODEL_FUNCTIONS, SETTINGS
 from rac.parser import ParseFailure, parse_text
 from rac.printer import format_module, format_source
-from rac.resolve import MODEL_FUNCTIONS as QUERY_MODEL_FUNCTIONS
+from rac.query_check import MODEL_FUNCTIONS as QUERY_MODEL_FUNCTIONS
 
 REPO = Path(__file__).resolve().parents[1]
 DRIVING = (REPO / "stdlib" / "driving.ra").read_text(encoding="utf-8")

@@ -29,7 +29,8 @@ from typing import TYPE_CHECKING
 
 from rac import ast, ir
 from rac.diagnostics import Note, short_number
-from rac.resolve import QueryChecker, _Unresolvable
+from rac.query_check import QueryChecker, type_word
+from rac.resolve import _Unresolvable
 from rac.source import Span
 
 if TYPE_CHECKING:
@@ -416,8 +417,8 @@ class _ModelResolver:
             if got is not None and got != symbol.type:
                 declared = next((i for i in self.inputs if i.name == name), None)
                 kind = f" ({declared.kind})" if declared is not None and not declared.is_bool else ""
-                self.error("E0710", f"input `{name}` is {_type_word(symbol.type)}{kind}, but its binding is "
-                           f"{_type_word(got)}", item.expr.span,
+                self.error("E0710", f"input `{name}` is {type_word(symbol.type)}{kind}, but its binding is "
+                           f"{type_word(got)}", item.expr.span,
                            notes=[Note(f"`{name}` is declared here", symbol.span)],
                            hints=["compare the value to get a condition, e.g. `mindist() < 3 * collision_distance`"
                                   if symbol.type == "bool" else
@@ -594,6 +595,3 @@ def _arguments(count: int) -> str:
 def _kind(kind: str) -> str:
     return {"input": "an input", "const": "a constant", "reward": "a reward", "location": "a location"}[kind]
 
-
-def _type_word(kind: str) -> str:
-    return "a boolean" if kind == "bool" else "a number"
