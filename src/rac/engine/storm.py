@@ -1,0 +1,206 @@
+"""Handing an explored graph to Storm: verdicts for E<>, E[], A[], A<> and the permissive safety shield.
+
+The graph (``ExploredGraph``) becomes a Storm MDP with one row group per state and one row per
+choice (probability 1 to its single successor). Terminal states (the horizon) get one self-loop
+row, since Storm needs every state to have a choice; they carry the label ``"terminal"``. Runs
+are the maximal paths of the graph, so a run ending in a terminal state is, for Storm, that path
+followed by the terminal state forever: ``G p`` over the self-loop holds exactly when the
+terminal state satisfies p itself.
+
+Choices are deterministic, so every probability Storm computes here is 0 or 1: ``Pmax F p`` is
+1 exactly where some path reaches p, ``Pmax G p`` is 1 exactly where some run keeps p forever.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import stormpy
+from stormpy import datastructures as sd
+from stormpy import models as sm
+
+from rac.engine.graph import ExploredGraph
+
+#: Labels ``to_mdp`` adds itself; the graph's own labels must not use them.
+RESERVED_LABELS = ("init", "terminal")
+KINDS = ("E<>", "E[]", "A[]", "A<>")
+
+
+def _row_layout(graph: ExploredGraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Storm's row layout: (row group starts (n,), row of each graph choice (m,), terminal mask (n,))."""
+    terminal = graph.terminal()
+    extra_before = np.cumsum(terminal) - terminal  # self-loop rows inserted before each state
+    group_starts = graph.choice_offsets[:-1] + extra_before
+    counts = np.diff(graph.choice_offsets)
+    choice_rows = np.arange(graph.n_choices, dtype=np.int64) + np.repeat(extra_before, counts)
+    return group_starts.astype(np.int64), choice_rows, terminal
+
+
+def to_mdp(graph: ExploredGraph) -> sm.SparseMdp:
+    """The graph as a Storm ``SparseMdp[float]``, built from numpy arrays in one builder call.
+
+    Labels: every ``graph.labels`` entry, ``"init"`` (the initial state) and ``"terminal"``.
+    Row ``choice_rows[c]`` of the matrix is graph choice ``c`` (see ``_row_layout``).
+    """
+    for name in RESERVED_LABELS:
+        if name in graph.labels:
+            raise ValueError(f"label {name!r} is reserved")
+    n = graph.n_states
+    group_starts, choice_rows, terminal = _row_layout(graph)
+    n_rows = graph.n_choices + int(terminal.sum())
+    cols = np.empty(n_rows, dtype=np.int64)
+    cols[choice_rows] = graph.choice_target
+    terminal_states = np.flatnonzero(terminal)
+    cols[group_starts[terminal_states]] = terminal_states
+    builder = sd.SparseMatrixBuilder[float](rows=n_rows, columns=n, entries=n_rows, force_dimensions=True,
+                                             has_custom_row_grouping=True, row_groups=n)
+    # One entry per row, rows in order: no duplicate (row, col) pairs, and no empty trailing group.
+    builder.add_next_values(np.arange(n_rows, dtype=np.int64), cols, np.ones(n_rows), group_starts)
+    matrix = builder.build()
+
+    labeling = sm.StateLabeling(n)
+    masks = {**graph.labels, "init": np.arange(n) == graph.initial, "terminal": terminal}
+    for name, mask in masks.items():
+        labeling.add_label(name)
+        labeling.set_states(name, sd.BitVector(n, np.flatnonzero(mask).tolist()))
+    components = sm.SparseModelComponents(transition_matrix=matrix, state_labeling=labeling)
+    return sm.SparseMdp[float](components)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """A query's answer. ``trace`` (state indices from the initial state) is, when present:
+    E<> p holds: a path to a p-state; A[] p fails: a path to a !p-state; E[] p holds: a path
+    staying in p to a terminal state; A<> p fails: a path staying in !p to a terminal state.
+    On a graph with cycles an E[]-trace may instead end by revisiting one of its states (a lasso)."""
+
+    query: str
+    holds: bool
+    n_states: int
+    n_choices: int
+    seconds: float
+    trace: list[int] | None = None
+
+
+def _check(mdp: sm.SparseMdp, formula: str) -> tuple[np.ndarray, object]:
+    """Storm's value vector (all states) and scheduler for ``formula``."""
+    prop = stormpy.parse_properties(formula)[0]
+    result = stormpy.model_checking(mdp, prop, only_initial_states=False, extract_scheduler=True)
+    return np.asarray(result.get_value_vector(), dtype=float), result.get_scheduler()
+
+
+def _scheduler_trace(graph: ExploredGraph, scheduler: object, good: np.ndarray, stop: np.ndarray) -> list[int] | None:
+    """Follow Storm's scheduler from the initial state while in ``good``, until a ``stop`` state
+    (included), a terminal state or a repeated state; None when the path leaves ``good``."""
+    state, path, seen = graph.initial, [], set()
+    while True:
+        if not good[state]:
+            return None
+        path.append(state)
+        if stop[state] or state in seen or graph.choice_offsets[state] == graph.choice_offsets[state + 1]:
+            return path
+        seen.add(state)
+        local = scheduler.get_choice(state).get_deterministic_choice()
+        state = int(graph.choice_target[graph.choice_offsets[state] + local])
+
+
+def _bfs_trace(graph: ExploredGraph, allowed: np.ndarray, goal: np.ndarray) -> list[int] | None:
+    """A shortest path from the initial state to a ``goal`` state through ``allowed`` states."""
+    start = graph.initial
+    if not allowed[start]:
+        return None
+    parent = {start: -1}
+    queue = deque([start])
+    while queue:
+        state = queue.popleft()
+        if goal[state]:
+            path = [state]
+            while parent[path[-1]] >= 0:
+                path.append(parent[path[-1]])
+            return path[::-1]
+        for c in graph.choices(state):
+            nxt = int(graph.choice_target[c])
+            if allowed[nxt] and nxt not in parent:
+                parent[nxt] = state
+                queue.append(nxt)
+    return None
+
+
+def decide(graph: ExploredGraph, kind: str, prop_label: str) -> Verdict:
+    """Decide ``kind prop_label`` (kind one of E<>, E[], A[], A<>) at the initial state with Storm.
+
+    E<> p = Pmax F p > 0; A[] p = not E<> !p; E[] p = Pmax G p > 0 (runs end at terminal states,
+    which self-loop); A<> p = not E[] !p. Values are 0 or 1 (deterministic choices).
+    """
+    if kind not in KINDS:
+        raise ValueError(f"unknown query kind {kind!r}; expected one of {KINDS}")
+    if prop_label not in graph.labels:
+        raise KeyError(f"no state label {prop_label!r}")
+    t0 = time.perf_counter()
+    mdp = to_mdp(graph)
+    p = graph.labels[prop_label]
+    negate = kind in ("A[]", "A<>")
+    target = ~p if negate else p
+    atom = f'!"{prop_label}"' if negate else f'"{prop_label}"'
+    if kind in ("E<>", "A[]"):
+        values, scheduler = _check(mdp, f"Pmax=? [F {atom}]")
+        reachable = values > 0.5
+        exists = bool(reachable[graph.initial])
+        trace = None
+        if exists:
+            trace = _scheduler_trace(graph, scheduler, reachable, target)
+            if trace is None or not target[trace[-1]]:
+                trace = _bfs_trace(graph, reachable, target)
+    else:
+        values, scheduler = _check(mdp, f"Pmax=? [G {atom}]")
+        winning = values > 0.5
+        exists = bool(winning[graph.initial])
+        trace = None
+        if exists:
+            trace = _scheduler_trace(graph, scheduler, winning, np.zeros(graph.n_states, dtype=bool))
+            if trace is None:
+                trace = _bfs_trace(graph, winning, graph.terminal())
+    holds = not exists if negate else exists
+    return Verdict(f"{kind} {prop_label}", holds, graph.n_states, graph.n_choices, time.perf_counter() - t0, trace)
+
+
+@dataclass(frozen=True)
+class Shield:
+    """The most permissive strategy for ``control: A[] safe``.
+
+    ``winning`` (n,) marks the states from which some run stays safe to the horizon;
+    ``allowed_choices`` (m,) marks, in winning states, the choices whose successor is winning."""
+
+    graph: ExploredGraph
+    winning: np.ndarray
+    allowed_choices: np.ndarray
+    seconds: float
+
+    @property
+    def shield_exists(self) -> bool:
+        """The initial state is winning: the strategy exists."""
+        return bool(self.winning[self.graph.initial])
+
+    def allowed(self, state: int) -> np.ndarray:
+        """The action indices (``choice_action``) allowed in ``state``; empty in losing or terminal states."""
+        choices = slice(int(self.graph.choice_offsets[state]), int(self.graph.choice_offsets[state + 1]))
+        return self.graph.choice_action[choices][self.allowed_choices[choices]]
+
+
+def safety_shield(graph: ExploredGraph, safe_label: str) -> Shield:
+    """The permissive safety shield read from Storm's ``Pmax=? [G "safe"]`` value vector.
+
+    A state is winning when its value is 1; a choice is allowed when its state and its (only)
+    successor are winning — one vectorised pass over the choice arrays.
+    """
+    if safe_label not in graph.labels:
+        raise KeyError(f"no state label {safe_label!r}")
+    t0 = time.perf_counter()
+    values, _ = _check(to_mdp(graph), f'Pmax=? [G "{safe_label}"]')
+    winning = values > 1.0 - 1e-9
+    source = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
+    allowed = winning[source] & winning[graph.choice_target]
+    return Shield(graph, winning, allowed, time.perf_counter() - t0)
