@@ -22,7 +22,7 @@ class ExploredGraph:
     A state with no choices is terminal (the horizon is reached).
     """
 
-    states: np.ndarray  # (n, d) int64
+    states: np.ndarray  # (n, d) int32 (significands and the sample index)
     columns: tuple[str, ...]
     choice_offsets: np.ndarray  # (n + 1,) int64
     choice_action: np.ndarray  # (m,) int64
