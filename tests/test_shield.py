@@ -1,0 +1,64 @@
+"""Shields saved to a file and loaded back: same allowed actions, documented unseen states."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rac import shield as shields
+from rac.engine.graph import ExploredGraph
+from rac.engine.storm import safety_shield
+
+
+def layered_graph() -> ExploredGraph:
+    """k=0: one decision state with 3 actions; action 2 leads to an unsafe state.
+
+    state 0 (k=0) --a0--> 1, --a1--> 2, --a2--> 3 (unsafe)
+    states 1, 2 (k=1) decide again: from 1, a0 -> 4 (safe), a1 -> 5 (unsafe); from 2 only a0 -> 4.
+    """
+    states = np.array([[0, 0], [1, 10], [1, 20], [1, 30], [2, 40], [2, 50]], dtype=np.int32)
+    offsets = np.array([0, 3, 5, 6, 6, 6, 6], dtype=np.int64)
+    action = np.array([0, 1, 2, 0, 1, 0], dtype=np.int64)
+    target = np.array([1, 2, 3, 4, 5, 4], dtype=np.int64)
+    safe = np.array([True, True, True, False, True, False])
+    return ExploredGraph(states, ("k", "x"), offsets, action, target, 0, {"safe": safe})
+
+
+def test_saved_shield_allows_what_the_shield_allows(tmp_path: Path) -> None:
+    graph = layered_graph()
+    shield = safety_shield(graph, "safe")
+    path = shields.save(shield, tmp_path / "safe.shield.npz")
+    table = shields.load(path)
+    assert table.columns == ("k", "x") and table.n_actions == 3
+    for state in range(graph.n_states):
+        if graph.choice_action[graph.choices(state)].size and (graph.choice_action[graph.choices(state)] >= 0).all():
+            assert list(table.allowed(graph.states[state])) == sorted(shield.allowed(state).tolist())
+    assert list(table.allowed([0, 0])) == [0, 1]
+    assert list(table.mask([1, 10])) == [True, False, False]
+    assert list(table.allowed([1, 20])) == [0]
+
+
+def test_unseen_states_follow_the_chosen_policy(tmp_path: Path) -> None:
+    path = shields.save(safety_shield(layered_graph(), "safe"), tmp_path / "s.npz")
+    assert not shields.load(path).mask([7, 7]).any()
+    assert shields.load(path, unseen="all").mask([7, 7]).all()
+    with pytest.raises(shields.UnseenState):
+        shields.load(path, unseen="error").allowed([7, 7])
+    with pytest.raises(ValueError, match="unseen"):
+        shields.load(path, unseen="maybe")
+    assert not shields.load(path).knows([1, 30])  # unsafe, terminal: no decision there
+
+
+def test_a_file_that_is_not_a_shield_is_refused(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a shield")
+    with pytest.raises(ValueError, match="bad.npz"):
+        shields.load(bad)
+    other = tmp_path / "other.npz"
+    np.savez(other, format=np.array("something else"))
+    with pytest.raises(ValueError, match="not a rac shield"):
+        shields.load(other)
+    with pytest.raises(FileNotFoundError):
+        shields.load(tmp_path / "missing.npz")
