@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import os
 import random
 import re
 from fractions import Fraction
@@ -24,6 +23,7 @@ from pathlib import Path
 
 import pytest
 from conftest import run_rac
+from golden_files import assert_golden
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from lxml import etree
@@ -138,12 +138,7 @@ ALL = {"driving": driving, "edge_cases": lambda: automaton_of(EDGE_CASES), "no_i
 def test_golden_files() -> None:
     model = generate_uppaal(driving(), source_name="stdlib/driving.ra", model_name="driving.xml")
     files = {GOLDEN / "driving.xml": model.xml, GOLDEN / "driving.q": model.queries}
-    if os.environ.get("RAC_UPDATE_GOLDEN"):
-        for path, text in files.items():
-            path.write_text(text, encoding="utf-8")
-    for path, text in files.items():
-        assert path.exists(), f"{path} is missing; {REGENERATE}"
-        assert text == path.read_text(encoding="utf-8"), f"the output differs from {path}; if intended, {REGENERATE}"
+    assert_golden(files, REGENERATE)
 
 
 def test_generation_is_deterministic() -> None:

@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import subprocess
@@ -22,6 +21,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
+from golden_files import assert_golden
 from test_uppaal import QUERY_WORDS, Parsed, identifiers, is_symbolic
 
 from rac.cli import main
@@ -77,12 +77,7 @@ def instance_template(parsed: Parsed, process: str) -> str:
 # ---------------------------------------------------------------- golden
 def test_golden_files(model) -> None:
     files = {GOLDEN / "left_turn_model.xml": model.xml, GOLDEN / "left_turn_model.q": model.queries}
-    if os.environ.get("RAC_UPDATE_GOLDEN"):
-        for path, text in files.items():
-            path.write_text(text, encoding="utf-8")
-    for path, text in files.items():
-        assert path.exists(), f"{path} is missing; {REGENERATE}"
-        assert text == path.read_text(encoding="utf-8"), f"the output differs from {path}; if intended, {REGENERATE}"
+    assert_golden(files, REGENERATE)
 
 
 def test_generation_is_deterministic(model) -> None:

@@ -512,13 +512,7 @@ class _Generator:
 
     # ------------------------------------------------------------ templates
     def run(self) -> UppaalModel:
-        a = self.a
-        inputs = self._inputs()
-        self.input_names = {i.name: self.n[i.name] for i in a.inputs}
-        unit = self._time_unit()
-        period_units = int(Fraction(a.period) / unit)
-        accruals = self._accruals(inputs)
-        self._check_range()
+        inputs, unit, period_units, accruals = self._prepare()
         queries = self._queries(unit)
         ids = _Ids()
         templates = [self._timer(ids), self._automaton(ids, unit, accruals), self._environment(ids, inputs)]
@@ -526,19 +520,34 @@ class _Generator:
             raise UppaalError(self.diagnostics)
         g = self.g
         declaration = _environment().get_template("declaration.j2").render(
+            **self._declaration_args(inputs, unit, period_units),
+            names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time")})
+        system = _environment().get_template("system.j2").render(
+            channels=self.channels, processes=[g["timer"], self.process, g["environment"]])
+        return self._files(declaration, templates, system, queries)
+
+    def _prepare(self) -> tuple[list, Fraction, int, object]:
+        """What both targets compute first: inputs, time unit, sample length in units, accruals."""
+        inputs = self._inputs()
+        self.input_names = {i.name: self.n[i.name] for i in self.a.inputs}
+        unit = self._time_unit()
+        period_units = int(Fraction(self.a.period) / unit)
+        accruals = self._accruals(inputs)
+        self._check_range()
+        return inputs, unit, period_units, accruals
+
+    def _declaration_args(self, inputs: list, unit: Fraction, period_units: int) -> dict[str, object]:
+        """The declaration template's arguments shared by the automaton-alone and whole-model targets."""
+        a = self.a
+        return dict(
             source_name=self.source_name, automaton=a.name, unit_text=_seconds(unit),
             period_text=_seconds(Fraction(a.period)), period_units=period_units, steps=a.steps,
             end_units=a.steps * period_units, end_text=_seconds(a.steps * Fraction(a.period)),
-            base=self.base, exponent=self.exponent, scale=self.scale,
-            names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time")},
-            channels=self.channels,
+            base=self.base, exponent=self.exponent, scale=self.scale, channels=self.channels,
             bool_inputs=[{"name": self.n[i.name]} for i in a.bool_inputs],
             numeric_inputs=inputs, hybrids=[self.n[r] for r in a.rewards],
             mirrors=[self.mirror[r] for r in a.rewards], truncating=self.truncating,
             constants=[self._constant(name, value) for name, value in a.constants])
-        system = _environment().get_template("system.j2").render(
-            channels=self.channels, processes=[g["timer"], self.process, g["environment"]])
-        return self._files(declaration, templates, system, queries)
 
     def _files(self, declaration: str, templates: list[_Template], system: str,
                queries: list[dict[str, str]]) -> UppaalModel:

@@ -47,7 +47,6 @@ from rac.targets.uppaal import (
     _Generator,
     _Ids,
     _Location,
-    _seconds,
     _Template,
 )
 from rac.targets.uppaal_expr import NotRepresentable, double_literal
@@ -341,12 +340,7 @@ class _ModelGenerator(_Generator):
         a, g, data = self.a, self.g, self.data
         spec = a.model
         assert spec is not None
-        inputs = self._inputs()
-        self.input_names = {i.name: self.n[i.name] for i in a.inputs}
-        unit = self._time_unit()
-        period_units = int(Fraction(a.period) / unit)
-        accruals = self._accruals(inputs)
-        self._check_range()
+        inputs, unit, period_units, accruals = self._prepare()
         queries = self._queries(unit) + self._standard_queries()
         ids = _Ids()
         templates = [self._timer(ids), self._controller(ids), self._action(ids), self._dynamics(ids)]
@@ -363,20 +357,13 @@ class _ModelGenerator(_Generator):
             ("MT", data.max_turn, "max_turn (significand)"),
         ]
         declaration = env.get_template("model_declaration.j2").render(
-            source_name=self.source_name, automaton=a.name, scenario=spec.scenario, process=self.process,
-            unit_text=_seconds(unit), unit_double=double_literal(unit),
-            period_text=_seconds(Fraction(a.period)), period_units=period_units, steps=a.steps,
-            end_units=a.steps * period_units, end_text=_seconds(a.steps * Fraction(a.period)),
-            base=self.base, exponent=self.exponent, scale=self.scale,
+            **self._declaration_args(inputs, unit, period_units),
+            scenario=spec.scenario, process=self.process, unit_double=double_literal(unit),
             names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time", "controller", "action",
                                      "dynamics", "obstacle")},
-            channels=self.channels, scenario_declarations=emit_declarations(data), settings=settings,
+            scenario_declarations=emit_declarations(data), settings=settings,
             writer=g["controller"], value_arrays=False,
             thd=double_literal(spec.sensor_error), maxt=a.steps * period_units,
-            bool_inputs=[{"name": self.n[i.name]} for i in a.bool_inputs],
-            numeric_inputs=inputs, hybrids=[self.n[r] for r in a.rewards],
-            mirrors=[self.mirror[r] for r in a.rewards], truncating=self.truncating,
-            constants=[self._constant(name, value) for name, value in a.constants],
             prevs=[(var, "bool" if is_bool else "double", text) for text, (var, is_bool) in self.prevs.items()])
         obstacles = [f"{g['obstacle']}{i}" for i in range(data.obstacle_count)]
         system = env.get_template("model_system.j2").render(
