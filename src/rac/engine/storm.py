@@ -204,3 +204,38 @@ def safety_shield(graph: ExploredGraph, safe_label: str) -> Shield:
     source = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
     allowed = winning[source] & winning[graph.choice_target]
     return Shield(graph, winning, allowed, time.perf_counter() - t0)
+
+
+def uniform_reach_probability(graph: ExploredGraph, label: str) -> float:
+    """The probability, from the initial state, of eventually reaching a ``label`` state when each
+    state takes each of its choices with equal probability — what SMC estimates with actions drawn
+    uniformly (:func:`rac.engine.simulate.simulate`).
+
+    The graph becomes a Storm DTMC: state ``i`` with ``c`` choices moves to each choice's target
+    with probability ``1/c`` (choices sharing a target are summed into one entry); a terminal
+    state loops on itself. Storm then checks ``P=? [F "label"]``.
+    """
+    if label not in graph.labels:
+        raise KeyError(f"no state label {label!r}")
+    if label in RESERVED_LABELS:
+        raise ValueError(f"label {label!r} is reserved")
+    n = graph.n_states
+    counts = np.diff(graph.choice_offsets)
+    sources = np.repeat(np.arange(n, dtype=np.int64), counts)
+    probabilities = 1.0 / np.repeat(counts, counts)
+    terminal = np.flatnonzero(counts == 0)
+    rows = np.concatenate([sources, terminal])
+    cols = np.concatenate([graph.choice_target, terminal])
+    # merge duplicate (row, col) entries: Storm's builder rejects them; keys sort row-major
+    keys, inverse = np.unique(rows * n + cols, return_inverse=True)
+    values = np.bincount(inverse.reshape(-1), weights=np.concatenate([probabilities, np.ones(terminal.size)]))
+    builder = sd.SparseMatrixBuilder[float](rows=n, columns=n, entries=keys.size, force_dimensions=True)
+    builder.add_next_values(keys // n, keys % n, values)
+    labeling = sm.StateLabeling(n)
+    for name, mask in ((label, graph.labels[label]), ("init", np.arange(n) == graph.initial)):
+        labeling.add_label(name)
+        labeling.set_states(name, sd.BitVector(n, np.flatnonzero(mask).tolist()))
+    dtmc = sm.SparseDtmc[float](sm.SparseModelComponents(transition_matrix=builder.build(), state_labeling=labeling))
+    prop = stormpy.parse_properties(f'P=? [F "{label}"]')[0]
+    result = stormpy.model_checking(dtmc, prop, only_initial_states=True)
+    return float(result.get_value(graph.initial))

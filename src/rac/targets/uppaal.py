@@ -66,7 +66,7 @@ from rac.targets.uppaal_expr import (
 )
 
 __all__ = ["DEFAULT_BASE", "DEFAULT_EXPONENT", "MODEL_FUNCTIONS", "RESERVED", "UppaalError", "UppaalModel",
-           "generate_uppaal", "queries_path", "vocabulary"]
+           "first_sample_reads", "generate_uppaal", "mirror_accrual", "mirror_update", "queries_path", "vocabulary"]
 
 DEFAULT_BASE = 10
 DEFAULT_EXPONENT = 4
@@ -145,6 +145,31 @@ class _Names:
 
 def _mirror_name(reward: str) -> str:
     return "i" + reward[:1].upper() + reward[1:]
+
+
+# ---------------------------------------------------------------- mirror arithmetic (shared with rac.engine.product)
+def mirror_accrual(rate: ir.Linear, period: Fraction, scale: int) -> tuple[Fraction, list[tuple[Fraction, str]]]:
+    """What a reward's integer mirror gains in one sample at ``rate``: ``(constant, [(coefficient, input)])``.
+
+    The emitted ``accrue?`` edge adds ``constant`` (``rate.const * period * scale``, a whole number
+    when representable) and, per numeric input, ``coefficient * significand`` written as
+    ``p*input / q``: integer arithmetic, so each such term is truncated towards zero on its own.
+    """
+    return rate.const * period * scale, [(coef * period, name) for name, coef in rate.terms]
+
+
+def mirror_update(value: ir.Linear, scale: int) -> tuple[Fraction, list[tuple[Fraction, str]]]:
+    """A mirror's new value for the update ``reward = value``: ``(constant, [(coefficient, name)])``
+    over the mirrors of rewards and the significands of numeric inputs (both hold ``v * scale``, so
+    the coefficients are the update's own), printed by :func:`print_int_linear`: exact with whole
+    coefficients, else the exact value truncated towards zero once."""
+    return value.const * scale, [(coef, name) for name, coef in value.terms]
+
+
+def first_sample_reads(automaton: ir.Automaton) -> bool:
+    """Whether some rate reads an input: then the first sample's accrual, which has no held inputs
+    yet, happens on ``read?`` with that sample's inputs instead of on ``accrue?``."""
+    return any(rate.terms for location in automaton.locations for rate in location.rates)
 
 
 # ---------------------------------------------------------------- layout data
@@ -374,8 +399,7 @@ class _Generator:
         for location in self.a.locations:
             row = []
             for reward, rate in zip(self.a.rewards, location.rates):
-                const = rate.const * period * self.scale
-                terms = [(coef * period, name) for name, coef in rate.terms]
+                const, terms = mirror_accrual(rate, period, self.scale)
                 bad = const.denominator != 1 or any(
                     (coef * v).denominator != 1 for coef, name in terms for v in values.get(name, []))
                 if not bad and abs(const) > INT32_MAX:
@@ -417,15 +441,15 @@ class _Generator:
     def _update(self, assignment: ir.Assignment) -> list[str]:
         """The hybrid clock's and the mirror's assignment for one ``.ra`` update."""
         value = assignment.value
+        const, terms = mirror_update(value, self.scale)
         hybrid_terms, mirror_terms = [], []
-        for name, coef in value.terms:
+        for coef, name in terms:
             if name in self.mirror:
                 hybrid_terms.append((coef, self.n[name], 1))
                 mirror_terms.append((coef, self.mirror[name]))
             else:
                 hybrid_terms.append((coef, self.n[name], self.scale))
                 mirror_terms.append((coef, self.n[name]))
-        const = value.const * self.scale
         if const.denominator != 1 or any(c.denominator != 1 for c, _ in mirror_terms):
             self.truncating = True
         reward = assignment.reward
@@ -638,7 +662,7 @@ class _Generator:
             locations.append(_Location(ids(), self.n[location.name], x, y, self._ode(location, unit)))
         # Rates that read inputs: the first sample's accrual uses that sample's inputs (nothing is held yet),
         # so it happens on read? at the first sample instead of on accrue?.
-        first_reads = any(rate.terms for location in a.locations for rate in location.rates)
+        first_reads = first_sample_reads(a)
         loops: list[list[dict]] = [[] for _ in a.locations]
         edges: list[tuple[int, int, dict]] = []
         for i, row in enumerate(accruals):

@@ -1,0 +1,698 @@
+"""The product of the scenario model and the reward automaton: Qe–Qh on runs the model can produce (issue 4).
+
+:func:`explore_product` explores, breadth-first and vectorised like :func:`rac.engine.explore.explore`,
+the discrete states of the whole UPPAAL model that ``rac compile --target uppaal`` emits for a file
+with a ``model`` block (:mod:`rac.targets.uppaal_model`): the ego, the automaton's location, its
+inputs and the integer *mirrors* of its rewards, in exactly the emitted integer arithmetic.
+:func:`decide_in_model` then decides a path query (``A[] isClose imply Unsafe``) on that graph with
+Storm, so the query is answered on runs the scenario can produce, not on every input sequence
+(``rac check``'s P2 lets the inputs range freely: a counterexample may need inputs no run has).
+
+**One sample** ``k`` (1-based), in the order of the emitted Timer (``count`` becomes ``k``):
+
+1. ``accrue!`` — the Controller runs ``sense_state()``: the ego moves over the last period with the
+   current jerk and turn; every mirror grows by its location's rate times the period, read on the
+   inputs held from sample ``k - 1`` (``mirror += c + p*input / q``, integer division per term). At
+   the first sample, when some rate reads an input, nothing accrues here (nothing is held yet);
+2. ``read!`` — the Controller assigns every input from its binding, evaluated on sample ``k``
+   (numbers as the significand ``d2i(e)``, truncated towards zero; ``prev(e)`` is ``e`` at sample
+   ``k - 1``, at the first sample ``e`` in the initial state), then ``prev(e) := e``. At the first
+   sample, when some rate reads an input, the mirrors accrue here with these inputs;
+3. ``sense!`` — the automaton takes its enabled edge, if any: updates left to right, each
+   ``mirror = (Σ a*v + b) / q`` in integers (exact with whole coefficients, else truncated once);
+4. ``decide!`` when ``k % decide_every == 0`` and ``k`` is before the horizon: a choice per
+   (jerk, turn) pair (action index as in :func:`rac.engine.explore.action_pairs`; at time 0 too).
+
+After the horizon's last sample ``finish!`` applies the ``at end`` clauses in order, on the inputs of
+that sample. ``horizon_samples`` stands for the automaton's ``horizon`` (the emitted model of a copy
+with ``horizon = horizon_samples * period``, as docs/uppaal.md suggests for Qe–Qh; the default, the
+automaton's own horizon, is the emitted model itself).
+
+**States** are the instants at which a query can see something new (:data:`PHASES`): ``sampled``
+(after the edge; the start, at ``k = 0``, is one), ``accrued`` (after ``accrue!``: the new ego and
+rewards, still the last sample's location and inputs — the instant before the edge, at which a
+reward peaks), ``read`` (after ``read!``; only at the first sample, when a rate reads an input, since
+only then does it show other rewards than ``accrued``) and ``ended`` (after ``finish!``; only when
+the automaton has ``at end`` clauses). The columns of :attr:`ProductGraph.states` are ``k, phase``,
+the ego, ``location``, the inputs (booleans 0/1, numbers as significands: the emitted model's input
+globals, 0 before the first reading) and the mirrors; states also differ by the values of the
+bindings' ``prev(e)`` variables (:attr:`ProductGraph.prev_values`), as they do in UPPAAL. Each
+layer (one sample, one phase) is merged with ``np.unique``. Not states, as in ``explore()``: the
+period after a decision, in which the emitted model already shows the new jerk and turn beside
+the sample's other values (here they show from the next sample on), and the delays between
+samples (``time`` is read at sample instants only).
+
+Every input needs a binding (a checked file with a ``model`` block has one for each, E0709):
+:class:`ValueError` otherwise. As in the emitted model, ``assume`` and the inputs' declared bounds
+are not enforced on the values the bindings give. A mirror leaving int32 (UPPAAL aborts there)
+raises :class:`rac.model.ModelRangeError`.
+
+Rewards rarely merge, so product state spaces grow fast: pass ``max_states`` for a clean
+:class:`MemoryError` instead of running out of memory.
+
+Example (81 action pairs every 0.2 s: 4 samples are 33,000 states, 6 samples 2.7 million)::
+
+    result = compile_file("examples/left_turn/model.ra")
+    verdict = decide_in_model(result, None, "Qh", horizon_samples=4, max_states=1_000_000)
+    verdict.holds, verdict.trace
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from rac import ast, ir
+from rac.engine.explore import EGO_COLUMNS, action_pairs
+from rac.engine.expr import EvaluationError, Evaluator, Frame, reads
+from rac.engine.graph import ExploredGraph
+from rac.engine.storm import Verdict, decide
+from rac.model.data import INT32_LOW, INT32_MAX, ModelData, ModelRangeError, build_model_data
+from rac.printer import format_expr
+from rac.scenario import load_scenario
+from rac.targets.uppaal import first_sample_reads, mirror_accrual, mirror_update
+from rac.targets.uppaal_expr import _integer_bound
+
+__all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
+           "explore_product"]
+
+#: The ``phase`` column: which instant of its sample a state is (see the module docstring).
+PHASES: tuple[str, ...] = ("accrued", "read", "sampled", "ended")
+ACCRUED, READ, SAMPLED, ENDED = range(4)
+
+Progress = Callable[[int, int, int], None]
+_LABELS = ("collide", "offroad", "goal", "safe")
+_CALLS = {name: ast.Call(name, ()) for name in ("mindist", "offroad", "goal")}
+_SAFE_INT64 = 2**62
+
+
+# ---------------------------------------------------------------- integer arithmetic as UPPAAL's
+def _tdiv(a: np.ndarray, q: int) -> np.ndarray:
+    """C's (and UPPAAL's) integer division by ``q > 0``: truncated towards zero."""
+    return a if q == 1 else np.where(a < 0, -((-a) // q), a // q)
+
+
+def _int_sum(const: int, terms: Sequence[tuple[int, np.ndarray]], n: int) -> np.ndarray:
+    """``const + Σ c * column`` exactly: int64 when no intermediate can overflow it, else Python ints."""
+    exact = abs(const) + sum(abs(c) for c, _ in terms) * 2**31 < _SAFE_INT64
+    dtype = np.int64 if exact else object
+    total = np.full(n, const, dtype=dtype)
+    for c, column in terms:
+        total = total + c * column.astype(dtype)
+    return total
+
+
+def _int32(values: np.ndarray, what: str, scale: int) -> np.ndarray:
+    """``values`` as int64 after checking that each fits the emitted ``int32_t``."""
+    bad = (values < INT32_LOW) | (values > INT32_MAX)
+    if np.any(bad):
+        value = int(values[np.flatnonzero(bad)[0]])
+        raise ModelRangeError(what, Fraction(value, scale), value, scale)
+    return values.astype(np.int64)
+
+
+class _Arithmetic:
+    """The automaton's integer side exactly as emitted: mirror accruals, guards, edges, ``at end``."""
+
+    def __init__(self, automaton: ir.Automaton, scale: int) -> None:
+        self.a = automaton
+        self.scale = scale
+        self.reward = {r: i for i, r in enumerate(automaton.rewards)}
+        self.input = {item.name: i for i, item in enumerate(automaton.inputs)}
+        period = Fraction(automaton.period)
+        self.accruals = []  # per location, per reward: (constant, [(sign, p, q, input column)])
+        for location in automaton.locations:
+            row = []
+            for reward, rate in zip(automaton.rewards, location.rates):
+                const, terms = mirror_accrual(rate, period, scale)
+                if const.denominator != 1:  # the emitted model does not exist (E0801)
+                    raise ValueError(f"the rate of `{reward}` in `{location.name}` adds {const} significand "
+                                     "units per sample, not a whole number (E0801)")
+                row.append((int(const), [(1 if c > 0 else -1, abs(c.numerator), c.denominator, self.input[name])
+                                         for c, name in terms if c != 0]))
+            self.accruals.append(row)
+
+    # ------------------------------------------------------------ the pieces of one sample
+    def accrue(self, loc: np.ndarray, inputs: np.ndarray, mirrors: np.ndarray) -> np.ndarray:
+        """The mirrors after one sample's accrual in ``loc`` with ``inputs`` (the ``accrue?`` loop)."""
+        out = mirrors.copy()
+        for location, row in enumerate(self.accruals):
+            rows = np.flatnonzero(loc == location)
+            if rows.size == 0:
+                continue
+            for r, (const, terms) in enumerate(row):
+                if const == 0 and not terms:
+                    continue
+                gain = _int_sum(const, [(sign, _tdiv(_int_sum(0, [(p, inputs[rows, i])], rows.size), q))
+                                        for sign, p, q, i in terms], rows.size)
+                out[rows, r] = _int32(out[rows, r] + gain, f"the mirror of `{self.a.rewards[r]}`", self.scale)
+        return out
+
+    def guard(self, guard: ir.Guard, inputs: np.ndarray) -> np.ndarray:
+        """A guard on the input globals (numbers as significands, thresholds compared exactly)."""
+        n = inputs.shape[0]
+        if isinstance(guard, ir.BConst):
+            return np.full(n, guard.value)
+        if isinstance(guard, ir.BInput):
+            return inputs[:, self.input[guard.name]] != 0
+        if isinstance(guard, ir.BAtom):
+            bound = _integer_bound(guard.op, guard.threshold * self.scale)
+            if isinstance(bound, bool):
+                return np.full(n, bound)
+            op, value = bound
+            return _compare(inputs[:, self.input[guard.input]], op, value)
+        if isinstance(guard, ir.BNot):
+            return ~self.guard(guard.operand, inputs)
+        parts = [self.guard(g, inputs) for g in guard.operands]
+        combine = np.logical_and if isinstance(guard, ir.BAnd) else np.logical_or
+        return combine.reduce(parts) if parts else np.full(n, isinstance(guard, ir.BAnd))
+
+    def update(self, updates: Sequence[ir.Assignment], inputs: np.ndarray, mirrors: np.ndarray) -> None:
+        """Apply ``updates`` left to right to ``mirrors`` in place (each reads the ones before it)."""
+        n = mirrors.shape[0]
+        for assignment in updates:
+            const, terms = mirror_update(assignment.value, self.scale)
+            terms = [(c, name) for c, name in terms if c != 0]
+            if not terms:
+                value = np.full(n, math.trunc(const), dtype=np.int64)
+            else:  # print_int_linear: everything over the common denominator q, one truncating division
+                q = math.lcm(const.denominator, *(c.denominator for c, _ in terms))
+                columns = [(int(c * q), mirrors[:, self.reward[name]] if name in self.reward
+                            else inputs[:, self.input[name]]) for c, name in terms]
+                value = _tdiv(_int_sum(int(const * q), columns, n), q)
+            mirrors[:, self.reward[assignment.reward]] = _int32(
+                value, f"the mirror of `{assignment.reward}`", self.scale)
+
+    def edges(self, loc: np.ndarray, inputs: np.ndarray, mirrors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Location and mirrors after ``sense!``: the first enabled edge of each state's location
+        (checked automata are deterministic, so it is the only one), or none."""
+        loc, mirrors = loc.copy(), mirrors.copy()
+        for source, group in enumerate(self.a.edges):
+            pending = np.flatnonzero(loc == source)
+            for edge in group:
+                if pending.size == 0:
+                    break
+                enabled = self.guard(edge.guard, inputs[pending])
+                taken = pending[enabled]
+                if taken.size:
+                    block = mirrors[taken]
+                    self.update(edge.updates, inputs[taken], block)
+                    mirrors[taken] = block
+                    loc[taken] = edge.target
+                pending = pending[~enabled]
+        return loc, mirrors
+
+    def end(self, inputs: np.ndarray, mirrors: np.ndarray) -> np.ndarray:
+        """The mirrors after ``finish!``: every ``at end`` clause whose guard holds, in order."""
+        mirrors = mirrors.copy()
+        for clause in self.a.end_clauses:
+            rows = np.flatnonzero(self.guard(clause.guard, inputs))
+            if rows.size:
+                block = mirrors[rows]
+                self.update(clause.updates, inputs[rows], block)
+                mirrors[rows] = block
+        return mirrors
+
+
+def _compare(values: np.ndarray, op: str, bound: int | np.ndarray) -> np.ndarray:
+    return {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
+            "==": np.equal, "!=": np.not_equal}[op](values, bound)
+
+
+# ---------------------------------------------------------------- bindings
+def _prev_args(expr: ast.Expr, found: list[ast.Expr]) -> None:
+    if isinstance(expr, ast.Call):
+        if expr.func == "prev" and expr.args[0] not in found:
+            found.append(expr.args[0])
+        for arg in expr.args:
+            _prev_args(arg, found)
+    elif isinstance(expr, ast.Unary):
+        _prev_args(expr.operand, found)
+    elif isinstance(expr, ast.Binary):
+        _prev_args(expr.left, found)
+        _prev_args(expr.right, found)
+
+
+class _Bindings:
+    """The Controller's ``read_inputs()``: every input from its binding, and the ``prev(e)`` values."""
+
+    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton) -> None:
+        self.evaluator = evaluator
+        spec = automaton.model
+        bound = {b.input: b.expr for b in spec.bindings} if spec is not None else {}
+        missing = [item.name for item in automaton.inputs if item.name not in bound]
+        if missing:
+            names = ", ".join(f"`{name}`" for name in missing)
+            raise ValueError(f"input {names} has no binding: the product reads every input from the model, "
+                             f"as the emitted model does (add `bind {missing[0]} = ...` to the `model` block)")
+        self.items = [(item.name, item.is_bool, bound[item.name]) for item in automaton.inputs]
+        self.prev_args: list[ast.Expr] = []
+        for _, _, expr in self.items:
+            _prev_args(expr, self.prev_args)
+
+    def read(self, frame: Frame) -> np.ndarray:
+        """``(n, inputs)`` int64: booleans 0/1, numbers ``d2i(e) = trunc(e * SCALE_D)``."""
+        out = np.zeros((frame.n, len(self.items)), dtype=np.int64)
+        scale = self.evaluator.scale_d
+        for column, (name, is_bool, expr) in enumerate(self.items):
+            if is_bool:
+                out[:, column] = self.evaluator.evaluate_bool(expr, frame)
+                continue
+            value = np.asarray(self.evaluator.evaluate(expr, frame), dtype=np.float64)
+            scaled = value * scale
+            bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0])
+                significand = int(scaled[row]) if math.isfinite(scaled[row]) else None
+                raise ModelRangeError(f"the binding of `{name}`", float(value[row]), significand,
+                                      self.evaluator.data.scale)
+            out[:, column] = scaled.astype(np.int64)  # truncation towards zero, like fint()
+        return out
+
+    def prevs(self, frame: Frame) -> np.ndarray:
+        """``(n, prevs)`` float64: the value of every ``prev(e)``'s ``e`` (booleans as 0/1)."""
+        out = np.zeros((frame.n, len(self.prev_args)), dtype=np.float64)
+        for column, expr in enumerate(self.prev_args):
+            out[:, column] = self.evaluator.evaluate(expr, frame)
+        return out
+
+
+# ---------------------------------------------------------------- layers
+@dataclass
+class _Layer:
+    """The states of one sample and phase (or the rows that become them, before merging)."""
+
+    k: int
+    phase: int
+    ego: np.ndarray  # (n, 7) int64
+    loc: np.ndarray  # (n,) int64
+    inputs: np.ndarray  # (n, inputs) int64
+    mirrors: np.ndarray  # (n, rewards) int64
+    prevs: np.ndarray  # (n, prevs) float64
+    labels: dict[str, np.ndarray]
+
+    @property
+    def n(self) -> int:
+        return int(self.loc.shape[0])
+
+    def take(self, index: np.ndarray) -> _Layer:
+        return _Layer(self.k, self.phase, self.ego[index], self.loc[index], self.inputs[index], self.mirrors[index],
+                      self.prevs[index], {name: mask[index] for name, mask in self.labels.items()})
+
+    def merged(self) -> tuple[_Layer, np.ndarray, np.ndarray]:
+        """The distinct states (sorted), the row of each one's first occurrence, and each row's state."""
+        if self.n == 0:
+            empty = np.zeros(0, dtype=np.int64)
+            return self, empty, empty
+        key = np.hstack([self.ego, self.loc[:, None], self.inputs, self.mirrors,
+                         np.ascontiguousarray(self.prevs).view(np.int64)])
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        return self.take(first), first, inverse.reshape(-1)
+
+
+class _Builder:
+    """Layers in state order and the choices from each layer into the next one."""
+
+    def __init__(self, max_states: int | None) -> None:
+        self.max_states = max_states
+        self.layers: list[_Layer] = []
+        self.links: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # counts, actions, local targets
+        self.total = 0
+
+    def add(self, layer: _Layer) -> None:
+        self.layers.append(layer)
+        self.total += layer.n
+        if self.max_states is not None and self.total > self.max_states:
+            raise MemoryError(f"explore_product(): more than {self.max_states} states by sample {layer.k} "
+                              f"({PHASES[layer.phase]})")
+
+    def link(self, counts: np.ndarray, actions: np.ndarray, targets: np.ndarray) -> None:
+        self.links.append((counts.astype(np.int64), actions.astype(np.int64), targets.astype(np.int64)))
+
+    def single(self, targets: np.ndarray) -> None:
+        """One choice (action -1) per state of the last layer."""
+        self.link(np.ones(targets.shape[0]), np.full(targets.shape[0], -1), targets)
+
+
+# ---------------------------------------------------------------- the graph
+@dataclass(frozen=True)
+class ProductGraph(ExploredGraph):
+    """An :class:`ExploredGraph` of the product (columns: :meth:`columns_of`), with its automaton.
+
+    ``prev_values`` (n, len(prev_exprs)) holds the emitted model's ``prev(e)`` variables of every
+    state (``prev_exprs`` are the bindings' ``e``). Labels: ``collide``, ``offroad``, ``goal``,
+    ``safe`` as in :func:`rac.engine.explore.explore`.
+    """
+
+    automaton: ir.Automaton | None = None
+    data: ModelData | None = None
+    horizon: int = 0
+    prev_exprs: tuple[ast.Expr, ...] = ()
+    prev_values: np.ndarray | None = None
+    evaluator: Evaluator | None = field(default=None, compare=False, repr=False)
+
+    @staticmethod
+    def columns_of(automaton: ir.Automaton) -> tuple[str, ...]:
+        """``k, phase, x..turn, location``, the inputs, then ``mirror:REWARD`` per reward."""
+        return ("k", "phase", *EGO_COLUMNS, "location", *(i.name for i in automaton.inputs),
+                *(f"mirror:{r}" for r in automaton.rewards))
+
+    # ------------------------------------------------------------ columns
+    @property
+    def k(self) -> np.ndarray:
+        return self.states[:, 0]
+
+    @property
+    def phase(self) -> np.ndarray:
+        return self.states[:, 1]
+
+    @property
+    def ego(self) -> np.ndarray:
+        return self.states[:, 2:9]
+
+    @property
+    def location(self) -> np.ndarray:
+        return self.states[:, 9]
+
+    @property
+    def inputs(self) -> dict[str, np.ndarray]:
+        """Input name -> the emitted global per state (booleans 0/1, numbers as significands)."""
+        assert self.automaton is not None
+        return {item.name: self.states[:, 10 + i] for i, item in enumerate(self.automaton.inputs)}
+
+    @property
+    def mirrors(self) -> dict[str, np.ndarray]:
+        """Reward name -> its integer mirror per state (the reward times the scale)."""
+        assert self.automaton is not None
+        first = 10 + len(self.automaton.inputs)
+        return {r: self.states[:, first + i] for i, r in enumerate(self.automaton.rewards)}
+
+    @property
+    def settled(self) -> np.ndarray:
+        """The emitted model's ``settled``: false while the inputs are not those the location reacted
+        to — at the start, between ``accrue!`` and ``sense!`` of the first sample, and after ``read!``."""
+        k, phase = self.k, self.phase
+        return ~((k == 0) | (phase == READ) | ((phase == ACCRUED) & (k == 1)))
+
+    # ------------------------------------------------------------ queries
+    def frame(self, indices: np.ndarray | None = None) -> Frame:
+        """What a query reads in the states ``indices`` (all by default): rewards as ``mirror / scale``,
+        inputs as booleans or ``significand / scale``. No ``prev`` frame."""
+        assert self.automaton is not None and self.data is not None
+        rows = self.states if indices is None else self.states[np.asarray(indices)]
+        scale = float(self.data.scale)
+        inputs = {}
+        for i, item in enumerate(self.automaton.inputs):
+            column = rows[:, 10 + i]
+            inputs[item.name] = column != 0 if item.is_bool else column / scale
+        first = 10 + len(self.automaton.inputs)
+        rewards = {r: rows[:, first + i] / scale for i, r in enumerate(self.automaton.rewards)}
+        return Frame(k=rows[:, 0].astype(np.int64), ego=rows[:, 2:9], location=rows[:, 9].astype(np.int64),
+                     rewards=rewards, inputs=inputs)
+
+    def evaluate(self, expr: ast.Expr, indices: np.ndarray | None = None) -> np.ndarray:
+        """A state formula per state, as the emitted symbolic query computes it: a comparison of
+        linear forms over rewards, numeric inputs, the ego and ``time`` exactly on the integers
+        (mirrors, significands, ``k``); anything else with :class:`Evaluator` on :meth:`frame`."""
+        if "prev" in reads(expr):
+            raise EvaluationError("`prev()` cannot be read by a query on the product: a state keeps no "
+                                  "previous sample", expr.span)
+        rows = self.states if indices is None else self.states[np.asarray(indices)]
+        return _Formula(self, rows, self.frame(indices)).bool(expr)
+
+    def label(self, expr: ast.Expr, *, box: bool) -> np.ndarray:
+        """The label the emitted query checks: a formula that reads an input only counts in settled
+        states (``settled imply p`` under ``[]``, else ``settled && p``), as rac's UPPAAL target writes it."""
+        assert self.automaton is not None
+        value = self.evaluate(expr)
+        if not reads(expr) & {item.name for item in self.automaton.inputs}:
+            return value
+        return (value | ~self.settled) if box else (value & self.settled)
+
+
+class _Formula:
+    """Exact evaluation of a state formula over product rows (see :meth:`ProductGraph.evaluate`)."""
+
+    def __init__(self, graph: ProductGraph, rows: np.ndarray, frame: Frame) -> None:
+        assert graph.automaton is not None and graph.data is not None and graph.evaluator is not None
+        self.g, self.rows, self.frame = graph, rows, frame
+        a = graph.automaton
+        self.numeric = {item.name: 10 + i for i, item in enumerate(a.inputs) if not item.is_bool}
+        self.bools = {item.name for item in a.bool_inputs}
+        self.rewards = {r: 10 + len(a.inputs) + i for i, r in enumerate(a.rewards)}
+        self.constants = dict(a.constants)
+        self.scale = graph.data.scale
+        self.period = Fraction(a.period)
+
+    def bool(self, expr: ast.Expr) -> np.ndarray:
+        if isinstance(expr, ast.Unary) and expr.op == "!":
+            return ~self.bool(expr.operand)
+        if isinstance(expr, ast.Binary) and expr.op in ast.LOGICAL_OPS:
+            left, right = self.bool(expr.left), self.bool(expr.right)
+            return {"&&": left & right, "||": left | right, "imply": ~left | right}[expr.op]
+        if isinstance(expr, ast.Binary) and expr.op in ast.COMPARISON_OPS:
+            left, right = self.linear(expr.left), self.linear(expr.right)
+            if left is not None and right is not None:
+                return self.compare(left, right, expr.op)
+        assert self.g.evaluator is not None
+        return np.asarray(self.g.evaluator.evaluate_bool(expr, self.frame), dtype=bool)
+
+    def linear(self, expr: ast.Expr) -> tuple[Fraction, dict[int, Fraction]] | None:
+        """``(constant, {column: coefficient})`` with each column's value in its own unit, or None."""
+        if isinstance(expr, ast.Number):
+            return Fraction(expr.value), {}
+        if isinstance(expr, ast.Name):
+            name = expr.id
+            if name in self.bools:
+                return None
+            for table in (self.numeric, self.rewards):
+                if name in table:
+                    return Fraction(0), {table[name]: Fraction(1, self.scale)}
+            if name in self.constants:
+                value = self.constants[name]
+                return None if isinstance(value, bool) else (Fraction(value), {})
+            if name in EGO_COLUMNS:
+                return Fraction(0), {2 + EGO_COLUMNS.index(name): Fraction(1, self.scale)}
+            if name == "time":
+                return Fraction(0), {0: self.period}
+            return None
+        if isinstance(expr, ast.Unary) and expr.op == "-":
+            inner = self.linear(expr.operand)
+            return None if inner is None else _scaled(inner, Fraction(-1))
+        if isinstance(expr, ast.Binary) and expr.op in ast.ARITHMETIC_OPS:
+            left, right = self.linear(expr.left), self.linear(expr.right)
+            if left is None or right is None:
+                return None
+            if expr.op in ("+", "-"):
+                return _added(left, right, 1 if expr.op == "+" else -1)
+            if expr.op == "*":
+                if not left[1]:
+                    return _scaled(right, left[0])
+                return _scaled(left, right[0]) if not right[1] else None
+            return _scaled(left, 1 / right[0]) if not right[1] and right[0] != 0 else None
+        return None
+
+    def compare(self, left, right, op: str) -> np.ndarray:
+        const, coefs = _added(left, right, -1)
+        coefs = {c: v for c, v in coefs.items() if v != 0}
+        multiple = math.lcm(const.denominator, *(v.denominator for v in coefs.values()))
+        terms = [(int(v * multiple), self.rows[:, column].astype(np.int64)) for column, v in coefs.items()]
+        total = _int_sum(int(const * multiple), terms, self.rows.shape[0])
+        return np.asarray(_compare(total, op, 0), dtype=bool)
+
+
+def _scaled(lin: tuple[Fraction, dict[int, Fraction]], factor: Fraction) -> tuple[Fraction, dict[int, Fraction]]:
+    return lin[0] * factor, {c: v * factor for c, v in lin[1].items()}
+
+
+def _added(a, b, sign: int) -> tuple[Fraction, dict[int, Fraction]]:
+    coefs = dict(a[1])
+    for column, value in b[1].items():
+        coefs[column] = coefs.get(column, Fraction(0)) + sign * value
+    return a[0] + sign * b[0], coefs
+
+
+# ---------------------------------------------------------------- exploration
+def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples: int | None = None,
+                    prune_unsafe: bool = False, progress: Progress | None = None,
+                    max_states: int | None = None) -> ProductGraph:
+    """Explore the product of the model and ``automaton`` breadth-first, one phase of a sample per layer.
+
+    State 0 is the start (sample 0, ``sampled``, the ego's start with jerk and turn 0, the initial
+    location, inputs and mirrors 0). ``horizon_samples`` defaults to the automaton's horizon in
+    samples; the ``at end`` clauses apply after its last sample (see the module docstring for the
+    order of one sample and the phases). With ``prune_unsafe=True``, ``sampled`` states that collide
+    or are off-road are terminal (the automaton has reacted to the sample; nothing follows).
+    ``progress(sample, sampled_states, total_states)`` is called once per sample. ``max_states``:
+    :class:`MemoryError` as soon as more states than that have been found — product state spaces
+    grow fast, since rewards rarely merge. :class:`ValueError` for an input without a binding.
+    """
+    horizon = automaton.steps if horizon_samples is None else horizon_samples
+    if horizon < 0:
+        raise ValueError(f"horizon_samples must be >= 0, not {horizon}")
+    evaluator = Evaluator(data, automaton)
+    model = evaluator.model
+    arithmetic = _Arithmetic(automaton, data.scale)
+    bindings = _Bindings(evaluator, automaton)
+    first_reads = first_sample_reads(automaton)
+    pairs = action_pairs(data).astype(np.int64)
+    n_inputs, n_rewards = len(automaton.inputs), len(automaton.rewards)
+
+    def labels(frame: Frame) -> dict[str, np.ndarray]:
+        # through the evaluator, so that the bindings' mindist() etc. on this frame are reused
+        collide = evaluator.evaluate(_CALLS["mindist"], frame) < model.native.td_d
+        offroad = np.asarray(evaluator.evaluate(_CALLS["offroad"], frame), dtype=bool)
+        goal = np.asarray(evaluator.evaluate(_CALLS["goal"], frame), dtype=bool)
+        return {"collide": collide, "offroad": offroad, "goal": goal, "safe": ~collide & ~offroad}
+
+    ego0 = np.asarray([model.native.initial_state()], dtype=np.int64)
+    start = Frame(np.zeros(1, dtype=np.int64), ego0)
+    sampled = _Layer(0, SAMPLED, ego0, np.full(1, automaton.initial, dtype=np.int64),
+                     np.zeros((1, n_inputs), dtype=np.int64), np.zeros((1, n_rewards), dtype=np.int64),
+                     bindings.prevs(start), labels(start))
+    built = _Builder(max_states)
+    built.add(sampled)
+    if progress is not None:
+        progress(0, 1, built.total)
+    for k in range(horizon):
+        # ---- the choices: as explore(), one per action pair at decision samples
+        expand = sampled.labels["safe"] if prune_unsafe else np.ones(sampled.n, dtype=bool)
+        sources = np.flatnonzero(expand)
+        if sources.size == 0:  # every state pruned: the last layer is terminal
+            break
+        if k % data.decide_every == 0:
+            per = len(pairs)
+            src = np.repeat(sources, per)
+            action = np.tile(np.arange(per, dtype=np.int64), sources.size)
+            chosen = pairs[action]
+        else:
+            per = 1
+            src, action = sources, np.full(sources.size, -1, dtype=np.int64)
+            chosen = sampled.ego[src, 5:7]
+        counts = np.where(expand, per, 0)
+        # ---- sense_state() and read_inputs() once per distinct (ego, actions): they read nothing else
+        # (prev(e) reads the ego of sample k), so the product costs no more model calls than explore()
+        _, first_u, inv_u = np.unique(np.hstack([sampled.ego[src], chosen]), axis=0, return_index=True,
+                                      return_inverse=True)
+        inv_u = inv_u.reshape(-1)
+        before = sampled.ego[src[first_u]]
+        moved = before.copy()
+        moved[:, 5:7] = chosen[first_u]
+        after = model.sense(moved).astype(np.int64)
+        now = Frame(np.full(after.shape[0], k + 1, dtype=np.int64), after,
+                    prev=Frame(np.full(after.shape[0], k, dtype=np.int64), before))
+        read = bindings.read(now)
+        prevs = bindings.prevs(now)
+        sample_labels = labels(now)
+        # ---- accrue!: the new ego, the mirrors grow with the held inputs (not at a first sample that reads them)
+        mirrors = sampled.mirrors[src]
+        if k > 0 or not first_reads:
+            mirrors = arithmetic.accrue(sampled.loc[src], sampled.inputs[src], mirrors)
+        rows = _Layer(k + 1, ACCRUED, after[inv_u], sampled.loc[src], sampled.inputs[src], mirrors,
+                      sampled.prevs[src], {name: mask[inv_u] for name, mask in sample_labels.items()})
+        accrued, first_a, to_accrued = rows.merged()
+        built.link(counts, action, to_accrued)
+        built.add(accrued)
+        pending = inv_u[first_a]  # each accrued state's (ego, actions) entry: its new inputs and prevs
+        current, inputs, prevs_now = accrued, read[pending], prevs[pending]
+        if k == 0 and first_reads:  # read!: the first sample's accrual, with the inputs just read
+            rows = dataclasses.replace(current, phase=READ, inputs=inputs, prevs=prevs_now,
+                                       mirrors=arithmetic.accrue(current.loc, inputs, current.mirrors))
+            current, _, to_read = rows.merged()
+            built.single(to_read)
+            built.add(current)
+            inputs, prevs_now = current.inputs, current.prevs
+        # ---- sense!: the edge
+        loc, mirrors = arithmetic.edges(current.loc, inputs, current.mirrors)
+        rows = dataclasses.replace(current, phase=SAMPLED, loc=loc, inputs=inputs, mirrors=mirrors, prevs=prevs_now)
+        sampled, _, to_sampled = rows.merged()
+        built.single(to_sampled)
+        built.add(sampled)
+        if progress is not None:
+            progress(k + 1, sampled.n, built.total)
+        if sampled.n == 0:
+            break
+    if automaton.end_clauses and horizon > 0 and sampled.k == horizon and sampled.n:
+        expand = sampled.labels["safe"] if prune_unsafe else np.ones(sampled.n, dtype=bool)
+        ending = np.flatnonzero(expand)
+        rows = sampled.take(ending)
+        rows = dataclasses.replace(rows, phase=ENDED, mirrors=arithmetic.end(rows.inputs, rows.mirrors))
+        ended, _, to_ended = rows.merged()
+        built.link(expand.astype(np.int64), np.full(ending.size, -1), to_ended)
+        built.add(ended)
+    built.link(np.zeros(built.layers[-1].n), np.zeros(0), np.zeros(0))
+    return _assemble(built, automaton, data, horizon, bindings, evaluator)
+
+
+def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon: int, bindings: _Bindings,
+              evaluator: Evaluator) -> ProductGraph:
+    layers = built.layers
+    sizes = np.array([layer.n for layer in layers], dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    states = np.concatenate([
+        np.column_stack([np.full(layer.n, layer.k), np.full(layer.n, layer.phase), layer.ego, layer.loc,
+                         layer.inputs, layer.mirrors]).astype(np.int64) for layer in layers]).astype(np.int32)
+    counts = np.concatenate([link[0] for link in built.links])
+    offsets = np.zeros(states.shape[0] + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    targets = np.concatenate([starts[i + 1] + link[2] for i, link in enumerate(built.links)])
+    return ProductGraph(
+        states=states, columns=ProductGraph.columns_of(automaton), choice_offsets=offsets,
+        choice_action=np.concatenate([link[1] for link in built.links]), choice_target=targets.astype(np.int64),
+        initial=0, labels={name: np.concatenate([layer.labels[name] for layer in layers]) for name in _LABELS},
+        automaton=automaton, data=data, horizon=horizon, prev_exprs=tuple(bindings.prev_args),
+        prev_values=np.concatenate([layer.prevs for layer in layers]), evaluator=evaluator)
+
+
+# ---------------------------------------------------------------- deciding
+def decide_product(graph: ProductGraph, query: ast.PathQuery) -> Verdict:
+    """Decide ``query`` (``A[]``, ``E<>``, ``E[]``, ``A<>``) on an explored product with Storm.
+
+    The state formula becomes the label :meth:`ProductGraph.label` (exact on mirrors and
+    significands; ``settled`` for formulas that read inputs); the trace, when there is one, is a
+    list of indices into ``graph.states``.
+    """
+    if query.under is not None:
+        raise ValueError(f"`under {query.under}`: strategies are not supported on the product")
+    mask = graph.label(query.expr, box=query.quantifier in ("A[]", "E[]"))
+    labelled = dataclasses.replace(graph, labels={**graph.labels, "query": mask})
+    verdict = decide(labelled, query.quantifier, "query")
+    return dataclasses.replace(verdict, query=f"{query.quantifier} {format_expr(query.expr)}")
+
+
+def decide_in_model(source: object, data: ModelData | None, query: ast.PathQuery | ast.QueryDecl | str, *,
+                    horizon_samples: int | None = None, prune_unsafe: bool = False,
+                    max_states: int | None = None, progress: Progress | None = None) -> Verdict:
+    """Decide a path query of an automaton on its product with the scenario model.
+
+    ``source`` is an :class:`rac.ir.Automaton` or a :class:`rac.compiler.CompileResult`; ``data``
+    the model's data (default: the result's, else built from the ``model`` block's scenario);
+    ``query`` a :class:`rac.ast.PathQuery`, a query declaration or the name of one of the
+    automaton's queries. The other arguments are :func:`explore_product`'s.
+    """
+    automaton = source if isinstance(source, ir.Automaton) else getattr(source, "automaton", None)
+    if automaton is None:
+        raise ValueError("no automaton: the file has errors (compile it with analyse=False to skip the checks)")
+    if data is None:
+        data = getattr(source, "model_data", None)
+    if data is None:
+        if automaton.model is None:
+            raise ValueError("the automaton has no `model` block: pass the model's data")
+        data = build_model_data(load_scenario(automaton.model.scenario_path), automaton.model)
+    if isinstance(query, str):
+        found = [decl for decl in automaton.queries if decl.name.name == query]
+        if not found:
+            raise KeyError(f"no query named {query!r}")
+        query = found[0]
+    if isinstance(query, ast.QueryDecl):
+        query = query.query
+    if not isinstance(query, ast.PathQuery):
+        raise ValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
+    graph = explore_product(data, automaton, horizon_samples=horizon_samples, prune_unsafe=prune_unsafe,
+                            progress=progress, max_states=max_states)
+    return decide_product(graph, query)

@@ -1,0 +1,253 @@
+"""Monte Carlo simulation of the model: UPPAAL's statistical (SMC) semantics, natively (issue 4).
+
+:func:`simulate` runs ``N`` runs of the model together as one numpy batch, one sense period per
+loop iteration:
+
+- **Controller (sensed state).** The integer state ``(x, y, v, acc, head, jerk, turn)`` advances by
+  :meth:`rac.engine.explore.BatchModel.sense`, bit for bit :meth:`rac.model.native.NativeModel.sense`,
+  with the same ``sample_k`` convention as :func:`rac.engine.explore.explore`: the state at sample
+  ``k + 1`` is ``sense()`` of the state at ``k`` with the jerk and turn chosen at ``k``.
+- **Choices.** At a decision sample (``k % decide_every == 0``) every run picks one (jerk, turn)
+  pair of :func:`rac.engine.explore.action_pairs` *uniformly at random* among the allowed ones —
+  UPPAAL resolves non-determinism uniformly in its SMC queries. Between decisions jerk and turn
+  are kept. A ``policy`` (a shield or a strategy) restricts the allowed pairs.
+- **Ground truth (Dynamics).** The emitted UPPAAL model's ``Dynamics`` process (see
+  :mod:`rac.targets.uppaal_model`) integrates, from the ego's start ``i2d(EGO_X0) ...``::
+
+      true_x' = true_v * cos(true_head)    true_y' = true_v * sin(true_head)
+      true_v' = true_acc                   true_acc' = jerk     true_head' = turn
+
+  with ``jerk``, ``turn`` the chosen actions as reals. Like the emitted model it does **not**
+  clamp: the true speed may leave ``[VMIN, VMAX]`` and the true acceleration may exceed ``MA``
+  where the sensed state is clamped. Natively it is integrated with the classic fourth-order
+  Runge-Kutta method, ``truth_substeps`` equal steps per sense period ``C1`` (the inputs are
+  constant within a period, so the right-hand side is smooth on each step and RK4's error is
+  ``O(h^4)``; at 100 steps per 0.1 s it is far below a micrometre).
+
+Example::
+
+    runs = simulate(data, runs=1000, horizon_samples=50, seed=1)
+    drift = np.abs(runs.truth[:, :, 0] - runs.sensed_real()[:, :, 0])   # Qa's |true_x - x|
+    hit = label_runs(data, runs, "collide").any(axis=1)                  # <> collide(), per run
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from rac.engine.explore import EGO_COLUMNS, BatchModel, action_pairs
+from rac.model.data import INT32_MAX, ModelData
+
+__all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "event_sampler", "label_runs", "simulate"]
+
+#: The columns of :attr:`Runs.truth` (metres, metres per second, ..., radians).
+TRUTH_COLUMNS: tuple[str, ...] = ("true_x", "true_y", "true_v", "true_acc", "true_head")
+#: The labels :func:`label_runs` evaluates (the same as :func:`rac.engine.explore.explore`'s).
+LABELS: tuple[str, ...] = ("collide", "offroad", "goal", "safe")
+
+#: ``policy(k, states) -> allowed``: ``states`` is ``(n, 7)`` int32 (the runs' sensed states at
+#: decision sample ``k``), ``allowed`` an ``(n, P)`` bool mask over :func:`action_pairs`.
+Policy = Callable[[int, np.ndarray], np.ndarray]
+#: ``progress(sample, horizon)``: called after every simulated sample (``sample`` = 1 .. horizon).
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True, eq=False)
+class Runs:
+    """``N`` simulated runs of ``T`` sense periods (``T + 1`` samples, sample 0 the start).
+
+    - ``states (N, T+1, 7) int32``: the sensed significands ``x, y, v, acc, head, jerk, turn``
+      per sample. ``jerk`` and ``turn`` at sample ``k`` are those in force when sample ``k`` was
+      sensed (0 at sample 0); the pair chosen at ``k`` first shows at ``k + 1``.
+    - ``truth (N, T+1, 5) float64``: the ground truth (:data:`TRUTH_COLUMNS`) at each sample.
+    - ``actions (N, T) int64``: the action index (row of :func:`action_pairs`) chosen at sample
+      ``k``, ``-1`` at samples that are not decisions.
+    - ``left_policy (N,) bool``: the run met a decision at which the policy allowed no action;
+      it then chose uniformly among *all* actions there (UPPAAL would stop such a run as a
+      deadlock under a strategy; continuing keeps every run ``T`` periods long, and the flag
+      lets the caller discard or count them).
+    - ``seed``: the seed that reproduces the runs; ``period``: ``C1`` in seconds; ``scale``: the
+      significands' scale.
+
+    The arrays are read-only.
+    """
+
+    states: np.ndarray
+    truth: np.ndarray
+    actions: np.ndarray
+    left_policy: np.ndarray
+    seed: int
+    period: float
+    scale: int
+
+    @property
+    def n_runs(self) -> int:
+        return int(self.states.shape[0])
+
+    @property
+    def horizon(self) -> int:
+        """``T``: the number of sense periods simulated."""
+        return int(self.actions.shape[1])
+
+    @property
+    def times(self) -> np.ndarray:
+        """``(T+1,)`` float64: each sample's time in seconds since the ego's start (``k * C1``)."""
+        return np.arange(self.horizon + 1, dtype=np.float64) * self.period
+
+    def sensed_real(self) -> np.ndarray:
+        """``(N, T+1, 7)`` float64: the sensed state as reals, ``significand / SCALE_D`` (UPPAAL's ``i2d``)."""
+        return self.states / float(self.scale)
+
+
+def _check_policy(allowed: np.ndarray, n: int, n_pairs: int) -> np.ndarray:
+    allowed = np.asarray(allowed)
+    if allowed.shape != (n, n_pairs) or allowed.dtype != np.bool_:
+        raise ValueError(f"policy must return a bool array of shape ({n}, {n_pairs}), "
+                         f"not {allowed.dtype} {allowed.shape}")
+    return allowed
+
+
+def _choose(rng: np.random.Generator, allowed: np.ndarray) -> np.ndarray:
+    """One index per row, uniform among the row's True entries (every row has one)."""
+    counts = allowed.sum(axis=1)
+    pick = rng.integers(0, counts)  # the pick-th allowed entry of each row
+    return np.argmax(np.cumsum(allowed, axis=1) > pick[:, None], axis=1).astype(np.int64)
+
+
+def _derivative(state: np.ndarray, jerk: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    """The Dynamics ODE's right-hand side for ``state`` = (x, y, v, acc, head) rows (5, n)."""
+    _, _, v, acc, head = state
+    return np.stack([v * np.cos(head), v * np.sin(head), acc, jerk, turn])
+
+
+def _truth_period(truth: np.ndarray, jerk: np.ndarray, turn: np.ndarray, period: float,
+                  substeps: int) -> np.ndarray:
+    """Classic RK4 over one sense period in ``substeps`` equal steps; ``truth`` is (5, n)."""
+    h = period / substeps
+    for _ in range(substeps):
+        k1 = _derivative(truth, jerk, turn)
+        k2 = _derivative(truth + (h / 2) * k1, jerk, turn)
+        k3 = _derivative(truth + (h / 2) * k2, jerk, turn)
+        k4 = _derivative(truth + h * k3, jerk, turn)
+        truth = truth + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4)
+    return truth
+
+
+def _horizon(data: ModelData, horizon_samples: int | None) -> int:
+    if horizon_samples is None:
+        if data.goal_high >= INT32_MAX:
+            raise ValueError("simulate() needs horizon_samples: the goal's time interval is unbounded")
+        return data.goal_high
+    if horizon_samples < 0:
+        raise ValueError(f"horizon_samples must be >= 0, not {horizon_samples}")
+    return horizon_samples
+
+
+def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, seed: int | None = None,
+             policy: Policy | None = None, truth_substeps: int = 100, progress: Progress | None = None) -> Runs:
+    """Simulate ``runs`` runs of ``horizon_samples`` sense periods with uniformly drawn actions.
+
+    See the module docstring for the semantics. ``horizon_samples`` defaults to the goal
+    interval's last sample, like :func:`rac.engine.explore.explore` (``ValueError`` when that is
+    unbounded). ``seed`` seeds ``numpy.random.default_rng``; the same seed gives identical runs
+    (the random draws are the action choices only, so ``truth_substeps`` does not change them).
+    Without a seed a fresh one is drawn and recorded in :attr:`Runs.seed`.
+
+    ``policy(k, states)`` (None: every action allowed) returns the ``(n, P)`` bool mask of the
+    actions allowed to each run at decision sample ``k``; a run whose row allows nothing chooses
+    among all actions there and is flagged in :attr:`Runs.left_policy`.
+
+    :class:`rac.model.data.ModelRangeError` when a sensed value overflows int32 (as explore()).
+    """
+    if isinstance(runs, bool) or not isinstance(runs, int | np.integer) or runs < 1:
+        raise ValueError(f"runs must be a positive integer, not {runs!r}")
+    if isinstance(truth_substeps, bool) or not isinstance(truth_substeps, int | np.integer) or truth_substeps < 1:
+        raise ValueError(f"truth_substeps must be a positive integer, not {truth_substeps!r}")
+    horizon = _horizon(data, horizon_samples)
+    if seed is None:
+        seed = int(np.random.SeedSequence().entropy)
+    rng = np.random.default_rng(seed)
+    model = BatchModel(data)
+    pairs = action_pairs(data)
+    n_pairs = len(pairs)
+    scale = float(data.scale)
+    period = data.period
+
+    states = np.empty((runs, horizon + 1, len(EGO_COLUMNS)), dtype=np.int32)
+    truth = np.empty((runs, horizon + 1, len(TRUTH_COLUMNS)), dtype=np.float64)
+    actions = np.full((runs, horizon), -1, dtype=np.int64)
+    left_policy = np.zeros(runs, dtype=bool)
+
+    current = np.tile(np.asarray(model.native.initial_state(), dtype=np.int32), (runs, 1))
+    start = np.array([data.ego_x, data.ego_y, data.ego_v, data.ego_acc, data.ego_head]) / scale
+    true_now = np.repeat(start[:, None], runs, axis=1)  # (5, n): rows are the ODE's variables
+    states[:, 0] = current
+    truth[:, 0] = true_now.T
+    everything = np.ones((runs, n_pairs), dtype=bool)
+    for k in range(horizon):
+        if k % data.decide_every == 0:
+            allowed = everything if policy is None else _check_policy(policy(k, current.copy()), runs, n_pairs)
+            empty = ~allowed.any(axis=1)
+            if empty.any():
+                left_policy |= empty
+                allowed = allowed | empty[:, None]
+            chosen = _choose(rng, allowed)
+            actions[:, k] = chosen
+            current = current.copy()
+            current[:, 5:7] = pairs[chosen]
+        # the truth uses the same reals as the emitted ODE: jerk / SCALE_D, turn / SCALE_D
+        true_now = _truth_period(true_now, current[:, 5] / scale, current[:, 6] / scale, period, truth_substeps)
+        current = model.sense(current)
+        states[:, k + 1] = current
+        truth[:, k + 1] = true_now.T
+        if progress is not None:
+            progress(k + 1, horizon)
+    for array in (states, truth, actions, left_policy):
+        array.setflags(write=False)
+    return Runs(states=states, truth=truth, actions=actions, left_policy=left_policy, seed=int(seed),
+                period=period, scale=int(data.scale))
+
+
+def label_runs(data: ModelData, runs: Runs, label: str) -> np.ndarray:
+    """``(N, T+1)`` bool: ``label`` (one of :data:`LABELS`) at every sample of every run.
+
+    The labels are those of :func:`rac.engine.explore.explore` (``safe`` is ``!collide && !offroad``),
+    evaluated on the sensed states with the sample index, so ``label_runs(...).any(axis=1)`` is
+    UPPAAL's ``<> label`` per run over ``[0, T]``.
+    """
+    if label not in LABELS:
+        raise ValueError(f"unknown label {label!r}; expected one of {LABELS}")
+    model = BatchModel(data)
+    n, samples, _ = runs.states.shape
+    flat = runs.states.reshape(n * samples, -1)
+    k = np.tile(np.arange(samples, dtype=np.int64), n)
+    if label == "goal":
+        value = model.goal(flat, k)
+    elif label == "collide":
+        value = model.collide(flat, k)
+    elif label == "offroad":
+        value = model.offroad(flat)
+    else:
+        value = ~model.collide(flat, k) & ~model.offroad(flat)
+    return value.reshape(n, samples)
+
+
+def event_sampler(data: ModelData, event: Callable[[Runs], np.ndarray], *, horizon_samples: int | None = None,
+                  seed: int | None = None, policy: Policy | None = None,
+                  truth_substeps: int = 100) -> Callable[[int], np.ndarray]:
+    """A sampler for :mod:`rac.engine.stats`: ``sample(n)`` simulates ``n`` fresh runs and returns
+    ``event(runs)``, an ``(n,)`` bool array (e.g. ``lambda r: label_runs(data, r, "collide").any(axis=1)``).
+
+    Each call draws its runs' seed from one generator seeded with ``seed``, so successive batches
+    are independent and the whole sequence is reproducible."""
+    seeds = np.random.default_rng(seed)
+
+    def sample(n: int) -> np.ndarray:
+        runs = simulate(data, runs=n, horizon_samples=horizon_samples, seed=int(seeds.integers(2**63)),
+                        policy=policy, truth_substeps=truth_substeps)
+        return event(runs)
+
+    return sample
