@@ -1,4 +1,5 @@
-"""The ``rac`` command: check, compile and format `.ra` files.
+"""The ``rac`` command: check, compile and format `.ra` files; verify, simulate, render and
+pre-analyse them with the native engine (:mod:`rac.cli_engine`).
 
 Exit codes: 0 clean (warnings allowed), 1 errors in the input, 2 bad usage or a
 file that cannot be read, 3 an internal error (a bug in rac; set RAC_DEBUG=1 for
@@ -26,7 +27,8 @@ TARGETS = ("python", "uppaal")
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="rac", description="The reward-automata compiler: check, compile and format .ra files.")
+        prog="rac", description="The reward-automata compiler: check, compile and format .ra files; verify "
+                    "their queries, simulate and pre-analyse them on a CommonRoad scenario.")
     parser.add_argument("--version", action="version", version=f"rac {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -45,6 +47,10 @@ def _parser() -> argparse.ArgumentParser:
     fmt.add_argument("files", nargs="+", type=Path, metavar="FILE")
     fmt.add_argument("--check", action="store_true", help="only report files that would change (exit 1)")
     fmt.add_argument("--stdout", action="store_true", help="print the result instead of rewriting")
+
+    from rac.cli_engine import add_parsers
+
+    add_parsers(commands)
     return parser
 
 
@@ -273,7 +279,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse exits 2 on bad usage, 0 on --help
         return int(exc.code or 0)
-    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt}
+    from rac.cli_engine import HANDLERS
+
+    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, **HANDLERS}
     try:
         return handlers[args.command](args)
     except BrokenPipeError:  # e.g. `rac check ... | head`: the reader left; not an error of ours

@@ -23,6 +23,7 @@ is *unseen*. What to do then is the caller's choice, made once when loading:
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,9 +79,24 @@ class ShieldTable:
         """Whether ``state`` is one of the shield's decision states."""
         return self._row(state) is not None
 
+    def masks_for(self, states: np.ndarray) -> np.ndarray:
+        """``(n, n_actions)`` bool: :meth:`mask` of every row of ``states`` (``(n, d)``), in one call.
 
-def save(shield: Shield, path: str | Path, *, n_actions: int | None = None) -> Path:
-    """Write a shield's decision states and their allowed actions to ``path`` (compressed .npz)."""
+        Unseen rows follow the table's ``unseen`` policy (``"error"`` raises for the first one)."""
+        rows = np.ascontiguousarray(np.asarray(states, dtype=np.int32))
+        found = np.array([self._index.get(row.tobytes(), -1) for row in rows], dtype=np.int64)  # type: ignore[attr-defined]
+        out = np.empty((rows.shape[0], self.n_actions), dtype=bool)
+        seen = found >= 0
+        out[seen] = self.masks[found[seen]]
+        if not seen.all():
+            if self.unseen == "error":
+                raise UnseenState(f"the shield has no entry for state {rows[~seen][0].tolist()}")
+            out[~seen] = self.unseen == "all"
+        return out
+
+
+def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none") -> ShieldTable:
+    """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads)."""
     graph = shield.graph
     actions = graph.choice_action
     decision = actions >= 0
@@ -92,10 +108,24 @@ def save(shield: Shield, path: str | Path, *, n_actions: int | None = None) -> P
     masks = np.zeros((states_with_decisions.size, n_actions), dtype=bool)
     picked = decision & shield.allowed_choices
     masks[row_of[owner[picked]], actions[picked]] = True
+    return ShieldTable(tuple(graph.columns), graph.states[states_with_decisions].astype(np.int32), masks, unseen)
+
+
+def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | None = None) -> Path:
+    """Write a shield's decision states and their allowed actions to ``path`` (compressed .npz).
+
+    The file is written to a temporary name beside ``path`` and renamed, so an interrupted
+    write never leaves a half shield behind."""
+    shield_table = shield if isinstance(shield, ShieldTable) else table(shield, n_actions=n_actions)
     path = Path(path)
-    with path.open("wb") as handle:
-        np.savez_compressed(handle, format=np.array(FORMAT), columns=np.array(graph.columns),
-                            states=graph.states[states_with_decisions].astype(np.int32), masks=masks)
+    partial = path.with_name(path.name + ".partial")
+    try:
+        with partial.open("wb") as handle:
+            np.savez_compressed(handle, format=np.array(FORMAT), columns=np.array(shield_table.columns),
+                                states=shield_table.states.astype(np.int32), masks=shield_table.masks)
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
     return path
 
 
