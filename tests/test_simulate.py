@@ -176,18 +176,26 @@ def test_truth_is_exactly_linear_at_constant_speed_and_heading() -> None:
         assert np.array_equal(truth[:, 2:], np.tile([v0, 0.0, h0], (31, 1)))
 
 
-def test_truth_follows_the_unclamped_odes() -> None:
-    """Braking hard for 5 s: the sensed acceleration stops at -MA and the sensed speed at VMIN = 0;
-    the emitted Dynamics has no clamp, so the truth is the polynomial solution."""
+def test_truth_saturates_like_the_sensed_state() -> None:
+    """Braking hard for 5 s from 10 m/s: the acceleration falls as -2t until it reaches -MA = -3
+    (t = 1.5 s), the speed then falls linearly to VMIN = 0 (t = 1.5 + 7.75 / 3 s) and stays there:
+    the truth stops instead of reversing (the emitted Dynamics saturates its rates the same way)."""
     data = straight_data()
     runs = simulate(data, runs=1, horizon_samples=50, seed=1, policy=only(data, -2, 0))
     t = runs.times
     truth, sensed = runs.truth[0], runs.sensed_real()[0]
-    assert truth[:, 3] == pytest.approx(-2 * t, abs=1e-9)
-    assert truth[:, 2] == pytest.approx(10 - t**2, abs=1e-9)
-    assert truth[:, 0] == pytest.approx(10 + 10 * t - t**3 / 3, abs=1e-9)
+    t_stop = 1.5 + 7.75 / 3
+    acc = np.where(t < 1.5, -2 * t, np.where(t < t_stop, -3.0, -3.0))
+    v = np.where(t < 1.5, 10 - t**2, np.maximum(7.75 - 3 * (t - 1.5), 0.0))
+    x_at_1_5 = 10 + 10 * 1.5 - 1.5**3 / 3
+    x_stop = x_at_1_5 + 7.75**2 / 6
+    x = np.where(t < 1.5, 10 + 10 * t - t**3 / 3,
+                 np.where(t < t_stop, x_at_1_5 + 7.75 * (t - 1.5) - 1.5 * (t - 1.5) ** 2, x_stop))
+    assert truth[:, 3] == pytest.approx(acc, abs=1e-6)
+    assert truth[:, 2] == pytest.approx(v, abs=1e-5)
+    assert truth[:, 0] == pytest.approx(x, abs=1e-5)
     assert sensed[-1, 3] == -3.0 and sensed[-1, 2] == 0.0
-    assert truth[-1, 2] == pytest.approx(-15.0)
+    assert truth[-1, 2] == 0.0 and truth[-1, 3] == -3.0
 
 
 def test_truth_converges_with_finer_substeps() -> None:
@@ -196,8 +204,10 @@ def test_truth_converges_with_finer_substeps() -> None:
     finer = simulate(data, runs=50, horizon_samples=40, seed=4, truth_substeps=400)
     coarse = simulate(data, runs=50, horizon_samples=40, seed=4, truth_substeps=1)
     assert np.array_equal(runs.states, finer.states)  # the draws do not depend on the integrator
-    assert np.abs(runs.truth - finer.truth).max() < 1e-9
-    assert np.abs(coarse.truth - finer.truth).max() > 1e-8  # the comparison can tell a coarse step apart
+    # RK4 is O(h^4) between saturation switches; a switch inside a step costs O(h^2) once, so the
+    # agreement is sub-millimetre rather than machine precision.
+    assert np.abs(runs.truth - finer.truth).max() < 5e-4
+    assert np.abs(coarse.truth - finer.truth).max() > 5e-3  # the comparison can tell a coarse step apart
     assert (runs.truth[:, :, 4] != runs.truth[:, :1, 4]).any()  # the runs do turn
 
 

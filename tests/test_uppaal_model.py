@@ -247,8 +247,10 @@ def test_dynamics_ode(parsed: Parsed) -> None:
     invariants = [label.text for label in parsed.templates["Dynamics"].iter("label")
                   if label.get("kind") == "invariant"]
     assert invariants == ["true_x' == UNIT_S * true_v * cos(true_head) && true_y' == UNIT_S * true_v * sin(true_head)"
-                          " && true_v' == UNIT_S * true_acc && true_acc' == UNIT_S * jerk / SCALE_D && "
-                          "true_head' == UNIT_S * turn / SCALE_D"]
+                          " && true_v' == ((true_v >= i2d(MAX_SPEED) && true_acc > 0.0) || (true_v <= i2d(MIN_SPEED)"
+                          " && true_acc < 0.0) ? 0.0 : UNIT_S * true_acc) && true_acc' == ((true_acc >= i2d(MAX_ACC)"
+                          " && jerk > 0) || (true_acc <= -i2d(MAX_ACC) && jerk < 0) ? 0.0 : UNIT_S * jerk / SCALE_D)"
+                          " && true_head' == UNIT_S * turn / SCALE_D"]
 
 
 def test_file_queries_may_use_the_models_conditions(tmp_path: Path) -> None:

@@ -255,8 +255,13 @@ class _ModelGenerator(_Generator):
 
     def _dynamics(self, ids: _Ids) -> _Template:
         g = self.g
+        # Saturated like sense_state(): the acceleration stops at +-MA and the speed at VMIN/VMAX
+        # (the truth brakes to a stop instead of reversing), as rac's native integrator does.
         ode = ("true_x' == UNIT_S * true_v * cos(true_head) && true_y' == UNIT_S * true_v * sin(true_head) && "
-               "true_v' == UNIT_S * true_acc && true_acc' == UNIT_S * jerk / SCALE_D && "
+               "true_v' == ((true_v >= i2d(MAX_SPEED) && true_acc > 0.0) || (true_v <= i2d(MIN_SPEED) && "
+               "true_acc < 0.0) ? 0.0 : UNIT_S * true_acc) && "
+               "true_acc' == ((true_acc >= i2d(MAX_ACC) && jerk > 0) || (true_acc <= -i2d(MAX_ACC) && jerk < 0) ? "
+               "0.0 : UNIT_S * jerk / SCALE_D) && "
                "true_head' == UNIT_S * turn / SCALE_D")
         init = _Location(ids(), g["init"], -272, 0, committed=True)
         driving = _Location(ids(), g["driving"], 0, 0, ode)
