@@ -6,9 +6,12 @@ A real value ``v`` is held as the integer ``trunc(v * SCALE)`` with ``SCALE = ba
 XML) as the shortest decimal that reads back as it (``repr``), so ``0.57`` at scale 100 is ``57``,
 not the ``56`` that ``0.57 * 100 == 56.99999999999999`` would give.
 
-Times (obstacle waypoints, the goal interval) are counted in sense periods ``C1`` from the ego's
-start ``t0`` (the planning problem's initial time, :attr:`rac.scenario.EgoStart.time`):
-``round((t - t0) / C1)``, exactly, ties to even. Sample ``k`` is time ``t0 + k * C1``.
+Times are counted in sense periods ``C1`` from the ego's start ``t0`` (the planning problem's
+initial time, :attr:`rac.scenario.EgoStart.time`): sample ``k`` is the time ``t0 + k * C1``. A dynamic
+obstacle is resampled at these times (:func:`_resample`): its waypoints lie on whole samples and
+each is the obstacle's state at that sample's time, so the model's projection from a waypoint is
+exact however the CommonRoad time step relates to ``C1``. The goal interval is
+``round((t - t0) / C1)``, exactly, ties to even.
 
 Every significand must lie in ``[-2147483647, 2147483647]`` (int32 without ``INT32_MIN``, which has
 no literal in UPPAAL); :func:`build_model_data` raises :class:`ModelRangeError` naming the first
@@ -41,6 +44,10 @@ __all__ = [
 ]
 
 INT32_MAX = 2**31 - 1
+#: The resolution of scenario times (s). load_scenario reads a time as ``round(step * dt, 9)``, so
+#: anything finer is the float noise of a product like ``0.1 * 30`` in a hand-built scenario, and
+#: would otherwise push a waypoint that lies on a sample just past it.
+NANOSECOND = Fraction(1, 10**9)
 #: The most negative significand allowed (``-INT32_MAX``: ``-2147483648`` cannot be written in UPPAAL).
 INT32_LOW = -INT32_MAX
 
@@ -91,9 +98,10 @@ class ModelData:
     Polygons are flattened: polygon ``p`` has the vertices ``xs[start[p]:start[p + 1]]`` (and the
     same ``ys``); ``start`` has one entry more than there are polygons. Obstacle ``i`` has the
     waypoints ``wp_*[wp_start[i]:wp_start[i + 1]]``, times in sense periods from the ego's start
-    (negative before it), not decreasing; it exists
-    at samples ``obs_from[i] <= k <= obs_until[i]``. A static obstacle has one waypoint at time 0,
-    velocity 0, and exists at every sample (``0 .. INT32_MAX``).
+    (negative before it), increasing, each the obstacle's state at that sample (resampled from the
+    scenario, :func:`_resample`); it exists at samples ``obs_from[i] <= k <= obs_until[i]``, those
+    within its CommonRoad lifetime (``obs_from[i] == obs_until[i] + 1`` if none is). A static
+    obstacle has one waypoint at time 0, velocity 0, and exists at every sample (``0 .. INT32_MAX``).
     """
 
     name: str  # the scenario's name (not a number)
@@ -216,6 +224,14 @@ class _Converter:
         """``trunc(value * SCALE)``."""
         return self._fit(what, value, math.trunc(self._exact(what, value) * self.scale))
 
+    def seconds(self, what: str, value: Number) -> Fraction:
+        """A time in seconds, exactly, to the nanosecond (:data:`NANOSECOND`; ties to even)."""
+        return round(self._exact(what, value) / NANOSECOND) * NANOSECOND
+
+    def clamp(self, what: str, value: Number, count: int) -> int:
+        """A count of sense periods, checked (and recorded) like a significand."""
+        return self._fit(what, value, count)
+
     def periods(self, what: str, seconds: Number, unbounded: int = 0) -> int:
         """``round((seconds - t0) / C1)``; with ``unbounded``, ``±inf`` (an open goal interval) becomes
         ``±INT32_MAX``."""
@@ -226,7 +242,7 @@ class _Converter:
 
 def _converter(scenario: Scenario, spec: ModelSpec, strict: bool) -> _Converter:
     start = _Converter(spec, strict)
-    return _Converter(spec, strict, start._exact("ego start time", scenario.ego.time))
+    return _Converter(spec, strict, start.seconds("ego start time", scenario.ego.time))
 
 
 def _polygons(conv: Callable[[str, Number], int], name: str,
@@ -240,6 +256,44 @@ def _polygons(conv: Callable[[str, Number], int], name: str,
             ys.append(conv(f"{name} {p} vertex {v} y", py))
         start.append(len(xs))
     return tuple(xs), tuple(ys), tuple(start)
+
+
+@dataclass(frozen=True)
+class _Resampled:
+    """A dynamic obstacle on the sample grid: it exists at samples ``first .. last``; ``in_force``
+    maps each sample that gets a waypoint to the CommonRoad waypoint in force there (the last one
+    at or before the sample's time), in increasing order of samples."""
+
+    first: int
+    last: int
+    in_force: dict[int, int]
+
+
+def _resample(conv: _Converter, times: list[Fraction]) -> _Resampled:
+    """Where a dynamic obstacle with waypoints at ``times`` (seconds, not decreasing) gets its
+    model waypoints.
+
+    It exists from its first waypoint's time to its last's, as in CommonRoad: at the samples ``k``
+    with ``times[0] <= t0 + k*C1 <= times[-1]``. A waypoint is emitted at the first of them and at
+    every later one at which a new CommonRoad waypoint has come into force since the sample before.
+    Between those samples the waypoint in force does not change, and it moves in a straight line
+    (:class:`rac.scenario.Waypoint`), so the model's projection from the sample's waypoint is the
+    obstacle's own motion and another waypoint would add nothing. So a trajectory with a state
+    every ``dt`` gets a waypoint at every sample of its lifetime when ``C1 >= dt``, at most one per
+    state when ``C1 <= dt`` (the scenario's own waypoints, unchanged, when each lies on a sample),
+    and never more waypoints than it has states.
+    """
+    # the sample at or after each waypoint: the first at which it is in force
+    samples = [math.ceil((t - conv.origin) / conv.period) for t in times]
+    first = samples[0]
+    last = math.floor((times[-1] - conv.origin) / conv.period)
+    in_force: dict[int, int] = {}
+    for j, k in enumerate(samples):
+        # ``k == first`` keeps one waypoint for an obstacle that lives between two samples
+        # (first == last + 1, absent at every sample): the arrays want at least one per obstacle.
+        if k <= last or k == first:
+            in_force[k] = j  # samples do not decrease, so the last waypoint at or before k wins
+    return _Resampled(first, last, in_force)
 
 
 def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
@@ -258,25 +312,45 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
         obs_id.append(obstacle.id)
         obs_length.append(sig(f"{name} length", obstacle.length))
         obs_width.append(sig(f"{name} width", obstacle.width))
-        waypoints = obstacle.waypoints[:1] if obstacle.static else obstacle.waypoints
+        waypoints = obstacle.waypoints
         if not waypoints:
             raise ValueError(f"{name} has no waypoints")
-        for j, point in enumerate(waypoints):
-            where = f"{name} waypoint {j}"
-            if obstacle.static:
-                wp["time"].append(0)
-                wp["vel"].append(0)
-            else:
-                wp["time"].append(conv.periods(f"{where} time (sense periods)", point.time))
-                wp["vel"].append(sig(f"{where} velocity", point.velocity))
+        if obstacle.static:
+            point = waypoints[0]
+            where = f"{name} waypoint 0"
+            wp["time"].append(0)
+            wp["vel"].append(0)
             wp["x"].append(sig(f"{where} x", point.x))
             wp["y"].append(sig(f"{where} y", point.y))
             wp["head"].append(sig(f"{where} heading", point.heading))
-        times = wp["time"][wp_start[-1]:]
+            obs_from.append(0)
+            obs_until.append(INT32_MAX)
+            wp_start.append(len(wp["time"]))
+            continue
+        times = [conv.seconds(f"{name} waypoint {j} time", point.time) for j, point in enumerate(waypoints)]
         if any(b < a for a, b in zip(times, times[1:])):
             raise ValueError(f"{name}: waypoint times must not decrease")
-        obs_from.append(0 if obstacle.static else times[0])
-        obs_until.append(INT32_MAX if obstacle.static else times[-1])
+        grid = _resample(conv, times)
+        # Every waypoint's sample lies in first .. max(first, last): checking those two checks them all.
+        obs_from.append(conv.clamp(f"{name} waypoint 0 time (sense periods)", waypoints[0].time, grid.first))
+        obs_until.append(conv.clamp(f"{name} waypoint {len(waypoints) - 1} time (sense periods)",
+                                    waypoints[-1].time, grid.last))
+        for k, j in grid.in_force.items():
+            point = waypoints[j]
+            elapsed = conv.origin + k * conv.period - times[j]  # seconds since waypoint j, >= 0
+            where = f"{name} waypoint {j}" if elapsed == 0 else f"{name} waypoint {j} moved on to sample {k}"
+            wp["time"].append(max(INT32_LOW, min(INT32_MAX, k)))
+            wp["vel"].append(sig(f"{where} velocity", point.velocity))
+            if elapsed == 0:  # the state itself: its decimals as they are
+                x, y = point.x, point.y
+            else:  # straight on from it, exactly but for the double cos and sin of its heading
+                speed = conv._exact(f"{where} velocity", point.velocity)
+                heading = float(conv._exact(f"{where} heading", point.heading))
+                x = conv._exact(f"{where} x", point.x) + speed * Fraction(math.cos(heading)) * elapsed
+                y = conv._exact(f"{where} y", point.y) + speed * Fraction(math.sin(heading)) * elapsed
+            wp["x"].append(sig(f"{where} x", x))
+            wp["y"].append(sig(f"{where} y", y))
+            wp["head"].append(sig(f"{where} heading", point.heading))
         wp_start.append(len(wp["time"]))
 
     ego = scenario.ego
