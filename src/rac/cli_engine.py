@@ -124,6 +124,16 @@ def _load(path: Path) -> tuple[CompileResult | None, int]:
     return result, EXIT_OK
 
 
+def _horizon_ok(result: CompileResult, args: argparse.Namespace) -> bool:
+    """False (after saying why) when ``--horizon`` is not a whole number of samples."""
+    try:
+        _horizon_samples(result, args.horizon)
+    except ValueError as exc:
+        print(f"rac {args.command}: {exc}", file=sys.stderr)
+        return False
+    return True
+
+
 def _explore_bar(quiet: bool):
     """A progress bar and an exploration callback for it; several explorations add up."""
     from rac.progress import Progress
@@ -142,11 +152,13 @@ def _explore_bar(quiet: bool):
 
 
 def verify_command(args: argparse.Namespace) -> int:
-    from rac.verify import VerifyOptions, render_json, render_text, verify
+    from rac.verify import UnknownQuery, VerifyOptions, render_json, render_text, verify
 
     result, status = _load(args.file)
     if result is None:
         return status
+    if args.command != "preanalyse" and not _horizon_ok(result, args):
+        return EXIT_USAGE
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".out")
     quiet = args.quiet or args.format == "json"
     bar, callback = _explore_bar(quiet)
@@ -162,7 +174,7 @@ def verify_command(args: argparse.Namespace) -> int:
     try:
         with bar:
             results = verify(result, options)
-    except KeyError as exc:
+    except UnknownQuery as exc:
         print(f"rac verify: no query named {exc.args[0]} in {args.file} (names: "
               f"{', '.join(d.name.name for d in result.automaton.queries) or 'none'}; "  # type: ignore[union-attr]
               "--standard adds Qa, Qb, Qc, Qd, Fig7, Fig7_safe, Unsafe_safe)", file=sys.stderr)
@@ -209,22 +221,37 @@ def _shield_policy(result: CompileResult, horizon_samples: int, max_states: int,
 
 
 def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
+    """The horizon in samples; :class:`ValueError` when it is not a whole number of them."""
     automaton = result.automaton
     assert automaton is not None
     seconds = horizon if horizon is not None else Fraction(automaton.horizon)
-    return int(seconds / Fraction(automaton.period))
+    samples = seconds / Fraction(automaton.period)
+    if samples.denominator != 1:
+        raise ValueError(f"--horizon {float(seconds):g} is not a whole number of samples of "
+                         f"{float(automaton.period):g} s")
+    return int(samples)
 
 
 def _parse_exprs(texts: list[str]):
+    """Each ``--expr`` as one expression of the query language, or an error message naming it."""
     from rac.parser import ParseFailure, parse_source
     from rac.source import SourceFile
 
-    body = "\n".join(f"query E{i}: simulate[<=1;1]{{{text}}}" for i, text in enumerate(texts))
-    try:
-        module = parse_source(SourceFile("<--expr>", f"automaton X {{\n{body}\n}}"))
-    except ParseFailure as failure:
-        return None, failure.diagnostic.message
-    return [m.query.exprs[0] for m in module.automata[0].members], None
+    prefix = "automaton X {\nquery E: simulate[<=1;1]{"
+    exprs = []
+    for text in texts:
+        try:
+            module = parse_source(SourceFile("<--expr>", f"{prefix}{text}\n}}\n}}"))
+        except ParseFailure as failure:
+            span = failure.diagnostic.span
+            if span is not None and span.start >= len(prefix) + len(text.rstrip()):
+                return None, f"`{text}`: the expression is incomplete"  # not "unexpected `}`" of the wrapper
+            return None, f"`{text}`: {failure.diagnostic.message}"
+        found = module.automata[0].members[0].query.exprs  # type: ignore[union-attr]
+        if len(found) != 1:
+            return None, f"`{text}`: one expression per --expr (repeat --expr for more)"
+        exprs.append(found[0])
+    return exprs, None
 
 
 def simulate_command(args: argparse.Namespace) -> int:
@@ -237,6 +264,8 @@ def simulate_command(args: argparse.Namespace) -> int:
     result, status = _load(args.file)
     if result is None:
         return status
+    if args.command != "preanalyse" and not _horizon_ok(result, args):
+        return EXIT_USAGE
     texts = args.expr or ["mindist()", "3 * collision_distance"]
     exprs, problem = _parse_exprs(texts)
     if exprs is None:
@@ -286,6 +315,8 @@ def render_command(args: argparse.Namespace) -> int:
     result, status = _load(args.file)
     if result is None:
         return status
+    if args.command != "preanalyse" and not _horizon_ok(result, args):
+        return EXIT_USAGE
     samples = _horizon_samples(result, args.horizon)
     policy = None
     if args.shield:
@@ -302,6 +333,7 @@ def render_command(args: argparse.Namespace) -> int:
     try:
         written = render_trajectory(spec.scenario_path, trajectory, png, gif_path=args.gif,  # type: ignore[union-attr]
                                     sample_period=float(result.automaton.period),  # type: ignore[union-attr]
+                                    length=float(spec.length), width=float(spec.width),  # type: ignore[union-attr]
                                     title=f"{args.file.name}: one run{' under the shield' if args.shield else ''} "
                                           f"(seed {seed})")
     except RenderError as exc:
@@ -323,6 +355,8 @@ def preanalyse_command(args: argparse.Namespace) -> int:
     result, status = _load(args.file)
     if result is None:
         return status
+    if args.command != "preanalyse" and not _horizon_ok(result, args):
+        return EXIT_USAGE
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".preanalysis")
     try:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,

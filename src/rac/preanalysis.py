@@ -11,7 +11,8 @@ period C2 the sweep answers, on the model built at that setting:
   explored and the time;
 - Fig. 7 — N runs under the shield; per run the smallest distance to an obstacle, *sensed*
   (``mindist()`` on the model's significands, what the shield sees) and *true* (the same
-  distance for the ground truth, integrated finely and measured at exponent 4).
+  distance for the ground truth, integrated finely and measured at exponent 4 at every CommonRoad
+  time step, also between samples).
 
 The coarse settings' point: the shield keeps the *sensed* distance safe, but a coarse
 representation or a long period lets the *true* distance drop below the threshold.
@@ -32,7 +33,7 @@ from rac import ir
 from rac.compiler import CompileResult
 from rac.engine import storm
 from rac.engine.explore import BatchModel, action_pairs, explore
-from rac.engine.simulate import simulate
+from rac.engine.simulate import Limits, _truth_period, simulate
 from rac.engine.stats import clopper_pearson
 from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.shield import table as shield_table
@@ -62,17 +63,37 @@ def _values(text: str | None, default: Fraction, what: str, whole: bool = False)
     return out
 
 
-def _true_distances(fine: ModelData, runs, data: ModelData) -> np.ndarray:
-    """``(N, T+1)`` distances of the ground truth to the nearest obstacle, at the fine exponent."""
+def _substeps_per_sample(spec: ir.ModelSpec, dt: float) -> int:
+    """How many CommonRoad time steps one sensing period spans (1 when it is not a whole number)."""
+    ratio = Fraction(spec.sense_period) / Fraction(dt).limit_denominator(10**6)
+    return ratio.numerator if ratio.denominator == 1 and ratio >= 1 else 1
+
+
+def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: ModelData) -> np.ndarray:
+    """``(N, T*m+1)`` distances of the ground truth to the nearest obstacle at every CommonRoad
+    time step (``m`` per sensing period), measured on a model at exponent :data:`TRUTH_EXPONENT`
+    whose sensing period is one time step — so a long period cannot hide a close encounter."""
+    m = _substeps_per_sample(spec, result.scenario.dt)  # type: ignore[union-attr]
+    fine = build_model_data(result.scenario, dataclasses.replace(  # type: ignore[arg-type]
+        spec, exponent=TRUTH_EXPONENT, sense_period=spec.sense_period / m, decide_period=spec.sense_period / m))
     model = BatchModel(fine)
     scale = float(fine.scale)
+    limits = Limits.of(data)
     n, samples = runs.truth.shape[0], runs.truth.shape[1]
-    out = np.empty((n, samples))
-    for k in range(samples):
-        truth = runs.truth[:, k]
+    out = np.empty((n, (samples - 1) * m + 1))
+
+    def distance(truth: np.ndarray, index: int) -> np.ndarray:
         ego = np.zeros((n, 7), dtype=np.int32)
-        ego[:, :5] = np.trunc(np.clip(truth * scale, -2.1e9, 2.1e9)).astype(np.int64)
-        out[:, k] = model.mindist(ego, k)
+        ego[:, :5] = np.trunc(np.clip(truth.T * scale, -2.1e9, 2.1e9)).astype(np.int64)
+        return model.mindist(ego, index)
+
+    truth = runs.truth[:, 0].T.copy()  # (5, n), as the integrator holds it
+    out[:, 0] = distance(truth, 0)
+    for k in range(samples - 1):
+        jerk, turn = runs.states[:, k + 1, 5] / data.scale, runs.states[:, k + 1, 6] / data.scale
+        for j in range(1, m + 1):
+            truth = _truth_period(truth, jerk, turn, data.period / m, max(1, 100 // m), limits)
+            out[:, k * m + j] = distance(truth, k * m + j)
     return out
 
 
@@ -82,7 +103,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
                               "decide": float(spec.decide_period)}
     try:
         data = build_model_data(result.scenario, spec)  # type: ignore[arg-type]
-        fine = build_model_data(result.scenario, dataclasses.replace(spec, exponent=TRUTH_EXPONENT))  # type: ignore[arg-type]
+        build_model_data(result.scenario, dataclasses.replace(spec, exponent=TRUTH_EXPONENT))  # type: ignore[arg-type]
     except ModelRangeError as exc:
         row["error"] = f"the scenario does not fit int32 at this exponent: {exc}"
         return row
@@ -123,7 +144,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=policy)
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
-    true = _true_distances(fine, shielded, data)
+    true = _true_distances(result, spec, shielded, data)
     row["sensed_min"] = sensed.min(axis=1)
     row["true_min"] = true.min(axis=1)
     below = int((row["true_min"] < threshold).sum())  # type: ignore[operator]
@@ -135,7 +156,8 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
 
         out_dir.mkdir(parents=True, exist_ok=True)
         name = f"fig7_e{spec.exponent}_c1_{float(spec.sense_period):g}_c2_{float(spec.decide_period):g}.png"
-        row["plot"] = str(plot_runs(shielded.times, true, out_dir / name, threshold=threshold,
+        times = np.arange(true.shape[1]) * (data.period / (true.shape[1] - 1) * samples) if samples else np.zeros(1)
+        row["plot"] = str(plot_runs(times, true, out_dir / name, threshold=threshold,
                                     threshold_label=_td(threshold_factor), ylabel="true distance (m)",
                                     title=f"exponent {spec.exponent}, C1 {float(spec.sense_period):g} s, "
                                           f"C2 {float(spec.decide_period):g} s: {runs} runs under the shield"))

@@ -47,7 +47,8 @@ from rac.parser import parse_source
 from rac.printer import format_query
 from rac.source import SourceFile, Span
 
-__all__ = ["QueryResult", "VerifyOptions", "render_json", "render_text", "standard_queries", "verify"]
+__all__ = ["QueryResult", "UnknownQuery", "VerifyOptions", "render_json", "render_text", "standard_queries",
+           "verify"]
 
 #: The paper's pre-analysis queries (Table 1), over the model vocabulary; ``MAXT`` is replaced
 #: by the automaton's horizon in seconds.
@@ -133,7 +134,8 @@ class QueryResult:
 
     def to_json(self) -> dict[str, object]:
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "span"}
-        out["interval"] = list(self.interval) if self.interval else None
+        out["interval"] = [_finite(v) for v in self.interval] if self.interval else None
+        out["estimate"] = _finite(self.estimate)
         out["trace"] = list(self.trace) if self.trace else None
         out["files"] = list(self.files)
         if self.span is not None:
@@ -152,6 +154,11 @@ def _decimal(value: Fraction) -> str:
     return str(value.numerator) if value.denominator == 1 else repr(float(value))
 
 
+class UnknownQuery(KeyError):
+    """``VerifyOptions.only`` names a query the file (and ``--standard``) does not have; ``args[0]``
+    lists the missing names."""
+
+
 class _Unknown(Exception):
     """A query that cannot be decided within the options (message for the user)."""
 
@@ -167,6 +174,9 @@ class _Verifier:
         self.evaluator = Evaluator(self.data, automaton)
         self.period = Fraction(automaton.period)
         horizon = options.horizon if options.horizon is not None else Fraction(automaton.horizon)
+        if (horizon / self.period).denominator != 1:
+            raise ValueError(f"the horizon {_decimal(horizon)} s is not a whole number of samples of "
+                             f"{_decimal(self.period)} s")
         self.horizon_samples = int(horizon / self.period)
         self.graphs: dict[bool, ExploredGraph] = {}
         self.strategies: dict[str, tuple[storm.Shield, shield.ShieldTable]] = {}
@@ -212,6 +222,9 @@ class _Verifier:
         if name not in self.strategies:
             raise _Unknown(f"the strategy `{name}` has not been computed (it is defined by a query that was "
                            "skipped or failed; run it first)")
+        if not self.strategies[name][0].shield_exists:
+            # As in UPPAAL: a control query that is not satisfied yields no strategy to use.
+            raise _Unknown(f"the strategy `{name}` does not exist: no safe strategy exists from the start")
         return self.strategies[name]
 
     def bound_samples(self, bound: ast.Bound) -> int:
@@ -261,6 +274,13 @@ class _Verifier:
                 row[name] = int(state[columns.index(name)]) / scale
             if "location" in columns and self.automaton.location_names:
                 row["location"] = self.automaton.location_names[int(state[columns.index("location")])]
+            if "phase" in columns:  # a product state: which instant of its sample, and the rewards
+                from rac.engine.product import PHASES
+
+                row["phase"] = PHASES[int(state[columns.index("phase")])]
+                for reward in self.automaton.rewards:
+                    if reward not in row:  # a reward named like an ego column would hide it
+                        row[reward] = int(state[columns.index(f"mirror:{reward}")]) / scale
             for label in ("collide", "offroad", "goal"):
                 if label in graph.labels:
                     row[label] = bool(graph.labels[label][index])
@@ -368,7 +388,7 @@ class _Verifier:
         table = shield.table(computed, n_actions=len(self.pairs))
         self.strategies[query.name] = (computed, table)
         files: tuple[str, ...] = ()
-        if self.out_dir is not None:
+        if self.out_dir is not None and computed.shield_exists:  # UPPAAL defines no strategy either
             files = (str(shield.save(table, self.out(f"{query.name}.shield.npz"))),)
         allowed = int(computed.allowed_choices.sum())
         message = (f"{int(computed.winning.sum()):,} winning states, {allowed:,} allowed choices"
@@ -494,7 +514,7 @@ class _Verifier:
 def verify(result: CompileResult, options: VerifyOptions | None = None) -> list[QueryResult]:
     """Answer the queries of a checked file (and, with ``options.standard``, the paper's standard
     queries first). :class:`rac.diagnostics.CheckError` when the file has errors; ``ValueError``
-    when it has no ``model`` block."""
+    when it has no ``model`` block; :class:`UnknownQuery` when ``options.only`` names a missing query."""
     options = options or VerifyOptions()
     verifier = _Verifier(result, options)
     decls: list[tuple[ast.QueryDecl, str | None]] = []
@@ -506,7 +526,7 @@ def verify(result: CompileResult, options: VerifyOptions | None = None) -> list[
         known = {d.name.name for d, _ in decls}
         missing = [name for name in options.only if name not in known]
         if missing:
-            raise KeyError(", ".join(missing))
+            raise UnknownQuery(", ".join(missing))
         # A query `under S` needs S: keep the strategies it names, in order.
         wanted = set(options.only)
         for decl, _ in decls:
@@ -612,7 +632,7 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
             lines.append(f" -- {r.message}")
         details = []
         if r.states is not None:
-            details.append(f"{r.states:,} states")
+            details.append(_count(r.states, "state"))
         if r.horizon_samples is not None:
             details.append(f"horizon {r.horizon_samples} samples")
         details.append(f"{r.seconds:.2f} s")
@@ -626,10 +646,14 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
         if r.trace:
             shown = r.trace if traces else (r.trace[:3] + r.trace[-3:] if len(r.trace) > 6 else r.trace)
             note = "" if traces or len(r.trace) <= 6 else ", first and last 3; --trace shows all"
-            lines.append(f"    trace ({len(r.trace)} states{note}):")
+            lines.append(f"    trace ({_count(len(r.trace), 'state')}{note}):")
             for row in shown:
                 lines.append("      " + _trace_row(row))
     return "\n".join(lines)
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
 
 
 def _confidence(result: QueryResult) -> str:
@@ -642,10 +666,19 @@ def _trace_row(row: dict) -> str:
         parts.append(f"{name}={row[name]:g}")
     if "location" in row:
         parts.append(str(row["location"]))
+    if row.get("phase", "sampled") != "sampled":  # product states before the edge, after `at end`
+        parts.append(f"({row['phase']})")
+    known = {"time", "x", "y", "v", "acc", "head", "jerk", "turn", "location", "phase", "collide", "offroad", "goal"}
+    parts.extend(f"{name}={value:g}" for name, value in row.items() if name not in known)
     flags = [name for name in ("collide", "offroad", "goal") if row.get(name)]
     if flags:
         parts.append("[" + ",".join(flags) + "]")
     return " ".join(parts)
+
+
+def _finite(value: float | None) -> float | None:
+    """``value``, or None when it is not finite (JSON has no infinities)."""
+    return value if value is None or math.isfinite(value) else None
 
 
 def render_json(results: list[QueryResult]) -> list[dict[str, object]]:
