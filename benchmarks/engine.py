@@ -1,0 +1,368 @@
+"""The engine's benchmark (issue 4): ``python benchmarks/engine.py [--quick] [--horizons 10,15] [--output FILE]``.
+
+Explores the discrete state space (``rac.engine.explore.explore``) and computes the most permissive
+safety shield with Storm (``rac.engine.storm.safety_shield(graph, "safe")``) at horizons of 10, 15,
+20, 25 and 30 time steps, and prints one markdown table: states, time (explore, shield, total),
+exploration throughput in states/s, peak memory, and the speed-up over the published CommonUppRoad
+run of UPPAAL on ZAM_Ramp. The same table goes to ``benchmarks/results/engine.md`` (or ``--output``).
+``docs/benchmarks.md`` explains the settings and the columns.
+
+Cases (each horizon of each case runs in a child process of its own, so that its peak memory is
+its own; ``ru_maxrss`` of the child):
+
+  left turn        examples/left_turn/model.ra at the benchmark's settings, ``prune_unsafe=True``.
+  ZAM_Ramp         ../shared/scenarios/ZAM_Ramp-1_1-T-1.xml (``--ramp``), ``prune_unsafe=False``:
+                   its ego starts partly off the road, so with pruning the graph is the initial
+                   state alone and no shield exists (checked and reported in a note).
+  ZAM_Ramp +2.5 m  the same scenario with the ego's start moved 2.5 m forward, onto the road
+                   (a copy of the XML in a temporary folder), ``prune_unsafe=True``.
+  left turn, model.ra's settings   examples/left_turn/model.ra as written (exponent 4, a decision
+                   every 0.2 s among 81 (jerk, turn) pairs) at horizon 6, pruned: almost no states
+                   merge there (81 ** 3 leaves), so the horizons above are out of reach.
+
+The ZAM_Ramp cases are skipped, with a message, when the shared scenario is absent (a fresh clone
+has no ../shared). The ``.ra`` models are generated into a temporary folder from
+examples/left_turn/model.ra (the driving automaton and its bindings), with the benchmark's settings
+in the ``model`` block and the scenario given by its absolute path.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import gc
+import json
+import os
+import platform
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+REPOSITORY = HERE.parent
+DEFAULT_OUTPUT = HERE / "results" / "engine.md"
+LEFT_TURN = REPOSITORY / "examples" / "left_turn" / "model.ra"
+DEFAULT_RAMP = REPOSITORY.parent / "shared" / "scenarios" / "ZAM_Ramp-1_1-T-1.xml"
+
+try:  # benchmark the installed rac; in a checkout without it, the checkout's src/
+    import rac
+except ImportError:
+    sys.path.insert(0, str(REPOSITORY / "src"))
+    import rac
+
+HORIZONS = (10, 15, 20, 25, 30)
+QUICK_HORIZONS = (10, 15, 20)
+#: The published CommonUppRoad run of UPPAAL on ZAM_Ramp-1_1-T-1: horizon (time steps) -> (states, seconds).
+REFERENCE: dict[int, tuple[int, float]] = {
+    10: (7_692, 3.1), 15: (42_772, 13.1), 20: (147_280, 52.5), 25: (380_679, 136.7), 30: (796_534, 290.2),
+}
+GOAL_SPEEDUP = 100.0
+#: The benchmark's model settings: written into the generated `model` blocks (see docs/benchmarks.md).
+SETTINGS = (
+    "exponent 2",
+    "decide_period 0.5",
+    "action jerk in [-2, 2] step 2",
+    "action turn in [-0.4, 0.4] step 0.4",
+)
+#: How far the ``ZAM_Ramp +2.5 m`` case moves the ego's start forward (m), onto the road.
+RAMP_SHIFT = 2.5
+AS_WRITTEN_HORIZON = 6
+MAX_STATES = 30_000_000  # a child gives up (MemoryError) beyond this many states
+CHILD_TIMEOUT = 900  # seconds
+
+
+# ---------------------------------------------------------------- the models
+def ra_text(scenario: Path, settings: Sequence[str]) -> str:
+    """examples/left_turn/model.ra with ``scenario`` (absolute) and ``settings`` in its model block."""
+    text = LEFT_TURN.read_text(encoding="utf-8")
+    path = str(scenario.resolve())
+    if '"' in path or "\\" in path:
+        raise SystemExit(f"benchmarks/engine.py: cannot write the path {path!r} as a .ra string")
+    lines = "".join(f"\n        {setting}" for setting in settings)
+    changed, count = re.subn(r'(?m)^(\s*)scenario\s+"[^"]*"', lambda m: f'{m.group(1)}scenario "{path}"{lines}', text)
+    if count != 1:
+        raise SystemExit("benchmarks/engine.py: cannot find the `scenario` line in examples/left_turn/model.ra")
+    return changed
+
+
+def moved_ramp(source: Path, target: Path, shift: float) -> None:
+    """A copy of the ZAM_Ramp XML whose planning problem starts ``shift`` m further along x."""
+    text = source.read_text(encoding="utf-8")
+    pattern = r"(<planningProblem\b.*?<initialState>\s*<position>\s*<point>\s*<x>)([-0-9.eE+]+)(</x>)"
+    changed, count = re.subn(pattern, lambda m: f"{m.group(1)}{float(m.group(2)) + shift!r}{m.group(3)}", text,
+                             count=1, flags=re.S)
+    if count != 1:
+        raise SystemExit(f"benchmarks/engine.py: cannot find the ego's initial x in {source}")
+    target.write_text(changed, encoding="utf-8")
+
+
+@dataclass(frozen=True)
+class Case:
+    """One row group of the table: a model, whether unsafe states are pruned, and its horizons."""
+
+    name: str
+    model: Path
+    prune: bool
+    horizons: tuple[int, ...]
+    reference: bool  # compare with the UPPAAL ZAM_Ramp run
+
+
+# ---------------------------------------------------------------- one measurement (child process)
+def peak_rss_mb() -> float:
+    """This process's peak resident set size in MB (``ru_maxrss``: KiB on Linux, bytes on macOS)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10
+
+
+def measure(model: str, horizon: int, prune: bool, repeat: int) -> dict[str, Any]:
+    """Explore and shield ``model`` ``repeat`` times; the repeat with the best total time."""
+    from rac.compiler import compile_file
+    from rac.engine.explore import explore
+    from rac.engine.storm import safety_shield
+
+    result = compile_file(model)
+    if result.model_data is None:
+        messages = "; ".join(d.message for d in result.diagnostics if d.is_error)
+        return {"error": f"{model} does not check: {messages}"}
+    data = result.model_data
+    gc.collect()
+    before = peak_rss_mb()
+    best: dict[str, Any] | None = None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        try:
+            graph = explore(data, horizon_samples=horizon, prune_unsafe=prune, max_states=MAX_STATES)
+        except MemoryError:
+            return {"error": f"more than {MAX_STATES:,} states"}
+        explored = time.perf_counter()
+        shield = safety_shield(graph, "safe")
+        done = time.perf_counter()
+        row = {
+            "states": graph.n_states, "choices": graph.n_choices,
+            "explore": explored - start, "shield": done - explored, "total": done - start,
+            "winning_start": shield.shield_exists, "winning": int(shield.winning.sum()),
+            "start_offroad": bool(graph.labels["offroad"][graph.initial]),
+            "start_collide": bool(graph.labels["collide"][graph.initial]),
+        }
+        if best is None or row["total"] < best["total"]:
+            best = row
+        del graph, shield
+        gc.collect()
+    assert best is not None
+    best.update(rss_before=before, rss_peak=peak_rss_mb())
+    return best
+
+
+def child_main(spec: str) -> int:
+    """The child's side of :func:`run_child`: one JSON line with :func:`measure`'s result."""
+    args = json.loads(spec)
+    print(json.dumps(measure(args["model"], args["horizon"], args["prune"], args["repeat"])))
+    return 0
+
+
+def run_child(model: Path, horizon: int, prune: bool, repeat: int) -> dict[str, Any]:
+    """:func:`measure` in a fresh Python process (the same rac), so that ``ru_maxrss`` is this case's."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(Path(rac.__file__).resolve().parent.parent), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    spec = json.dumps({"model": str(model), "horizon": horizon, "prune": prune, "repeat": repeat})
+    try:
+        done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", spec], env=env,
+                              capture_output=True, text=True, timeout=CHILD_TIMEOUT, check=False)
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {CHILD_TIMEOUT} s"}
+    if done.returncode != 0:
+        tail = (done.stderr.strip().splitlines() or ["(no message)"])[-1]
+        return {"error": f"child exited with {done.returncode}: {tail}"}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+# ---------------------------------------------------------------- the table
+def seconds(value: float) -> str:
+    """A duration with three significant digits or so: ``290.2 s``, ``1.21 s``, ``465 ms``, ``5.3 ms``."""
+    if value >= 10:
+        return f"{value:.1f} s"
+    if value >= 1:
+        return f"{value:.2f} s"
+    return f"{value * 1e3:.0f} ms" if value >= 0.01 else f"{value * 1e3:.1f} ms"
+
+
+def rate(value: float) -> str:
+    """States per second: ``2.41 M/s`` or ``304 k/s``."""
+    return f"{value / 1e6:.2f} M/s" if value >= 1e6 else f"{value / 1e3:.0f} k/s"
+
+
+COLUMNS = ("case", "pruned", "horizon", "states", "choices", "explore", "shield", "total", "explore rate",
+           "peak RSS (+growth)", "start winning", "UPPAAL states", "UPPAAL time", "speed-up")
+
+
+def table_row(case: Case, horizon: int, m: dict[str, Any]) -> list[str]:
+    """The cells of one row (:data:`COLUMNS`) for a measurement ``m`` of :func:`measure`."""
+    reference = REFERENCE.get(horizon) if case.reference else None
+    head = [case.name, "yes" if case.prune else "no", str(horizon)]
+    uppaal = [f"{reference[0]:,}", f"{reference[1]:.1f} s"] if reference else ["—", "—"]
+    if "error" in m:
+        return head + [m["error"]] + ["—"] * (len(COLUMNS) - len(head) - 4) + uppaal + ["—"]
+    start = "yes" if m["winning_start"] else ("no (off-road)" if m["start_offroad"] else "no")
+    speedup = f"{reference[1] / m['total']:,.0f}x" if reference else "—"
+    return head + [
+        f"{m['states']:,}", f"{m['choices']:,}", seconds(m["explore"]), seconds(m["shield"]), seconds(m["total"]),
+        rate(m["states"] / m["explore"]), f"{m['rss_peak']:.0f} MB (+{m['rss_peak'] - m['rss_before']:.0f})",
+        start, *uppaal, speedup,
+    ]
+
+
+def markdown(rows: list[list[str]]) -> str:
+    """The table in markdown, numbers right-aligned."""
+    numeric = {"horizon", "states", "choices", "explore", "shield", "total", "explore rate", "peak RSS (+growth)",
+               "UPPAAL states", "UPPAAL time", "speed-up"}
+    lines = ["| " + " | ".join(COLUMNS) + " |",
+             "|" + "|".join("---:" if c in numeric else "---" for c in COLUMNS) + "|"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def environment(quick: bool, repeat: int) -> list[str]:
+    """The header lines: date, mode, machine, versions, settings and how memory is measured."""
+    cpu = platform.processor() or platform.machine()
+    memory = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemTotal"):
+                memory = f", {int(line.split()[1]) / 2**20:.0f} GB RAM"
+                break
+    except OSError:
+        pass
+    try:
+        import stormpy
+
+        storm = f", stormpy {stormpy.__version__}"
+    except Exception:  # noqa: BLE001 - only for the header
+        storm = ""
+    return [
+        f"date: {datetime.datetime.now().astimezone().isoformat(timespec='seconds')}",
+        f"mode: {'--quick' if quick else 'full'}; best of {repeat} per case (total time), each case in a child process",
+        f"machine: {platform.system()} {platform.release()}, {cpu}, {os.cpu_count()} CPUs{memory}",
+        f"python {platform.python_version()} ({platform.python_implementation()}), numpy {np.__version__}{storm}",
+        f"rac {rac.__version__} from {Path(rac.__file__).resolve().parent}",
+        "settings (model block): " + "; ".join(SETTINGS) + " — sense_period 0.1 s (one CommonRoad time step), "
+        "granularity 0.25, the rest model.ra's; 3 x 3 = 9 (jerk, turn) pairs per decision",
+        "memory: peak RSS = ru_maxrss of the child (Python, numpy, stormpy, the compiled model, the graph and "
+        "Storm's MDP); (+growth) = its growth over the peak before the first exploration",
+    ]
+
+
+# ---------------------------------------------------------------- main
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run every case, print the table and notes, write them to ``--output``; 1 if a case failed."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help=f"horizons {QUICK_HORIZONS}, one run each (a smoke run)")
+    parser.add_argument("--horizons", help="comma-separated horizons in time steps (default: 10,15,20,25,30)")
+    parser.add_argument("--repeat", type=int, help="runs per case, the best total kept (default 3; --quick: 1)")
+    parser.add_argument("--ramp", type=Path, default=DEFAULT_RAMP, help="the ZAM_Ramp-1_1-T-1 CommonRoad file")
+    parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT,
+                        help=f"markdown file to write (default: {DEFAULT_OUTPUT.relative_to(REPOSITORY)})")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child:
+        return child_main(args.child)
+
+    if args.horizons:
+        try:
+            horizons = tuple(int(h) for h in args.horizons.split(",") if h.strip())
+        except ValueError:
+            parser.error(f"--horizons: expected whole numbers separated by commas, not {args.horizons!r}")
+        if not horizons or min(horizons) < 0:
+            parser.error("--horizons: give at least one horizon >= 0")
+    else:
+        horizons = QUICK_HORIZONS if args.quick else HORIZONS
+    repeat = args.repeat or (1 if args.quick else 3)
+
+    notes: list[str] = []
+    rows: list[list[str]] = []
+    results: dict[tuple[str, int], dict[str, Any]] = {}
+    with tempfile.TemporaryDirectory(prefix="rac-engine-bench-") as folder:
+        tmp = Path(folder)
+        left_turn = tmp / "left_turn.ra"
+        left_turn.write_text(ra_text(LEFT_TURN.parent / "left_turn.xml", SETTINGS), encoding="utf-8")
+        cases = [Case("left turn", left_turn, True, horizons, False)]
+        ramp = args.ramp
+        if ramp.is_file():
+            ramp_model = tmp / "zam_ramp.ra"
+            ramp_model.write_text(ra_text(ramp, SETTINGS), encoding="utf-8")
+            moved_xml = tmp / "ZAM_Ramp-1_1-T-1_moved.xml"
+            moved_ramp(ramp, moved_xml, RAMP_SHIFT)
+            moved_model = tmp / "zam_ramp_moved.ra"
+            moved_model.write_text(ra_text(moved_xml, SETTINGS), encoding="utf-8")
+            cases += [Case("ZAM_Ramp", ramp_model, False, horizons, True),
+                      Case(f"ZAM_Ramp +{RAMP_SHIFT} m", moved_model, True, horizons, True)]
+        else:
+            message = f"skipped the ZAM_Ramp cases: {ramp} not found (a fresh clone has no ../shared; see --ramp)"
+            print(message, file=sys.stderr)
+            notes.append(message)
+        if not args.quick:
+            cases.append(Case("left turn, model.ra's settings (exponent 4, 81 pairs every 0.2 s)", LEFT_TURN, True,
+                              (AS_WRITTEN_HORIZON,), False))
+
+        for case in cases:
+            for horizon in case.horizons:
+                print(f"... {case.name}, horizon {horizon}", file=sys.stderr, flush=True)
+                measured = run_child(case.model, horizon, case.prune, repeat)
+                results[case.name, horizon] = measured
+                rows.append(table_row(case, horizon, measured))
+        if ramp.is_file():  # what pruning does to ZAM_Ramp as given
+            pruned = run_child(tmp / "zam_ramp.ra", horizons[0], True, 1)
+            if "error" in pruned:
+                notes.append(f"ZAM_Ramp with prune_unsafe=True: {pruned['error']}")
+            else:
+                notes.append(
+                    f"ZAM_Ramp with prune_unsafe=True (horizon {horizons[0]}): {pruned['states']:,} state(s); the "
+                    f"initial state is {'off-road' if pruned['start_offroad'] else 'on the road'}"
+                    f"{' and colliding' if pruned['start_collide'] else ''}, so it is "
+                    f"{'winning' if pruned['winning_start'] else 'losing: no safety shield exists'}. The ego "
+                    "starts at x = 0 with velocity 0, half its length before the road's start; hence the unpruned "
+                    f"rows, and the +{RAMP_SHIFT} m case with the start moved onto the road.")
+
+    speedups = [(REFERENCE[h][1] / m["total"], name, h) for (name, h), m in results.items()
+                if name.startswith("ZAM_Ramp") and h in REFERENCE and "error" not in m]
+    if speedups:
+        worst = min(speedups)
+        verdict = "ok" if worst[0] >= GOAL_SPEEDUP else "MISS"
+        notes.insert(0, f"goal: >= {GOAL_SPEEDUP:.0f}x faster than UPPAAL on ZAM_Ramp at every horizon: {verdict} "
+                        f"(lowest {worst[0]:,.0f}x: {worst[1]}, horizon {worst[2]})")
+    largest = max((m for m in results.values() if "error" not in m), key=lambda m: m["states"], default=None)
+    if largest is not None:
+        notes.append(f"exploration throughput, largest case: {largest['states']:,} states in "
+                     f"{seconds(largest['explore'])} = {rate(largest['states'] / largest['explore'])}")
+
+    env = environment(args.quick, repeat)
+    table = markdown(rows)
+    print("\n".join(env))
+    print()
+    print(table)
+    print()
+    for note in notes:
+        print(f"note: {note}")
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text("# rac engine benchmark\n\n" + "\n".join(f"- {item}" for item in env) + "\n\n" + table
+                           + "\n\n" + "\n".join(f"- {note}" for note in notes) + "\n", encoding="utf-8")
+    print(f"\nwrote {args.output}")
+    failed = [name for (name, _), m in results.items() if "error" in m]
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
