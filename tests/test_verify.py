@@ -393,3 +393,17 @@ def test_render_json_is_strict_json(compiled: Callable[[str], Compiled], tmp_pat
     expected = {"name", "formula", "kind", "status", "title", "interval", "estimate", "runs", "states", "seconds",
                 "horizon_samples", "trace", "files", "message", "seed", "confidence", "location"}
     assert set(one) == expected
+
+
+# ---------------------------------------------------------------- Pr: the interval covers Storm's exact value
+@pytest.mark.parametrize("event", ["v > 8", "x > 20", "mindist() < 2"])
+def test_probability_interval_covers_the_exact_value(tmp_path: Path, event: str) -> None:
+    """SMC draws actions uniformly; Storm computes the same probability exactly on the explored
+    model (a DTMC with uniform choices). The interval must cover it (fixed seed: not flaky)."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"P": f"Pr[<=4](<> {event})"})
+    result = compile_file(path)
+    (answer,) = verify(result, VerifyOptions(seed=3, only=("P",), out_dir=tmp_path / "out"))
+    assert answer.exact is not None and 0.0 < answer.exact <= 1.0
+    assert answer.interval is not None
+    assert answer.interval[0] <= answer.exact <= answer.interval[1]
+    assert "exact (Storm" in render_text([answer])

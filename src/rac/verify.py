@@ -43,6 +43,7 @@ from rac.engine.explore import EGO_COLUMNS, action_pairs, explore
 from rac.engine.expr import EvaluationError, Evaluator, Frame, reads
 from rac.engine.graph import ExploredGraph
 from rac.model.data import ModelData, ModelRangeError
+from rac.model_block import TRUE_STATE
 from rac.parser import parse_source
 from rac.printer import format_query
 from rac.source import SourceFile, Span
@@ -130,6 +131,9 @@ class QueryResult:
     message: str | None = None
     seed: int | None = None
     confidence: float | None = None
+    #: ``Pr`` without ``under``: the exact probability under uniform choices, computed by Storm
+    #: on the explored model (what the interval estimates); None when the model is too large.
+    exact: float | None = None
     span: Span | None = field(default=None, compare=False)
 
     def to_json(self) -> dict[str, object]:
@@ -460,7 +464,24 @@ class _Verifier:
                                                   confidence=self.options.confidence)
         return dataclasses.replace(base, status="value", interval=(estimate.lo, estimate.hi),
                                    estimate=estimate.estimate, runs=estimate.runs, horizon_samples=samples,
-                                   seed=seed, confidence=self.options.confidence)
+                                   seed=seed, confidence=self.options.confidence,
+                                   exact=self.exact_probability(query, samples))
+
+    def exact_probability(self, query: ast.ProbabilityQuery, samples: int) -> float | None:
+        """``Pr[<=T](<> p)`` (or ``[] p``) under uniform choices, exactly, by Storm on the explored
+        model — when ``p`` reads only the sensed model and the model up to ``T`` is small enough."""
+        names = reads(query.expr)
+        if query.under is not None or "prev" in names or names & set(TRUE_STATE):
+            return None
+        try:
+            graph = explore(self.data, horizon_samples=samples, max_states=min(self.options.max_states, 2_000_000))
+        except (MemoryError, ModelRangeError):
+            return None
+        p = self.label(graph, query.expr)
+        every = query.path == "[]"
+        reached = storm.uniform_reach_probability(dataclasses.replace(graph, labels={"event": ~p if every else p}),
+                                                  "event")
+        return 1.0 - reached if every else reached
 
     def expectation(self, query: ast.ExpectationQuery, base: QueryResult) -> QueryResult:
         from rac.engine import stats
@@ -623,6 +644,8 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
         if r.kind == "probability" and r.interval is not None:
             lines.append(f" -- Pr in [{r.interval[0]:.4f}, {r.interval[1]:.4f}] ({r.runs} runs, "
                          f"{_confidence(r)} CI)")
+            if r.exact is not None:
+                lines.append(f" -- exact (Storm, actions drawn uniformly): {r.exact:.4f}")
         elif r.kind == "probability" and r.runs is not None:
             lines.append(f" -- {r.runs} runs, {int(round((r.estimate or 0) * r.runs))} satisfied the formula")
         elif r.kind == "expectation" and r.estimate is not None and r.interval is not None:
