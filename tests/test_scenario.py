@@ -400,3 +400,20 @@ def test_shared_scenarios_load_quickly(name: str) -> None:
         times = [waypoint.time for waypoint in obstacle.waypoints]
         assert times == sorted(set(times))
     assert all(signed_area(polygon) > 0 for polygon in scenario.road + scenario.goal.regions)
+
+
+def test_the_paper_example_is_the_left_turn_with_15_s_of_traffic(tmp_path: Path, example: Scenario) -> None:
+    """examples/paper/left_turn_15s.xml: the same road, cars and ego; trajectories and goal window 15 s."""
+    committed = Path(__file__).resolve().parent.parent / "examples" / "paper" / "left_turn_15s.xml"
+    fresh = write_left_turn(tmp_path / "left_turn_15s.xml", steps=150)
+    assert committed.read_bytes() == fresh.read_bytes(), (
+        "examples/paper/left_turn_15s.xml is stale: python -m rac.scenarios.intersection "
+        "examples/paper/left_turn_15s.xml --steps 150")
+    longer = load_scenario(fresh)
+    assert longer.road == example.road and longer.ego == example.ego
+    assert longer.goal.time_high == 15.0 and example.goal.time_high == 10.0
+    for moved, original in zip(longer.obstacles, example.obstacles):
+        assert moved.waypoints[0] == original.waypoints[0]
+        assert moved.waypoints[-1].time == 15.0
+    with pytest.raises(ValueError, match="steps"):
+        write_left_turn(tmp_path / "none.xml", steps=0)
