@@ -20,20 +20,35 @@ and returns the objective's increase as the reward; when the episode terminates 
 truncated, the ``at end`` clauses are applied with the same inputs and their increase is added.
 An episode's return is thus the objective's final value. The automaton's own ``sample every`` is
 not enforced: one environment step is one sample.
+
+:class:`ScenarioEnv` is an environment of its own: the scenario model of a ``.ra`` file's ``model``
+block, one step per decision period, with the automaton's reward (:class:`rac.engine.episodes.EpisodeBatch`
+with one episode) and, optionally, a safety shield's action masks::
+
+    env = ScenarioEnv("examples/left_turn/model.ra", shield="safe.shield.npz", horizon=3)
+    obs, info = env.reset(seed=0)
+    mask = env.action_masks()                       # (P,) bool: the actions the shield allows
+    obs, reward, terminated, truncated, info = env.step(int(np.flatnonzero(mask)[0]))
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol, SupportsFloat, runtime_checkable
+from fractions import Fraction
+from typing import TYPE_CHECKING, Any, Protocol, SupportsFloat, runtime_checkable
 
 import gymnasium
+import numpy as np
 
-from rac import ir
+from rac import ast, ir
 from rac.runtime import RewardAutomaton
 
-__all__ = ["AutomatonLike", "RewardAutomatonWrapper"]
+if TYPE_CHECKING:
+    from rac.compiler import CompileResult
+    from rac.shield import ShieldTable
+
+__all__ = ["AutomatonLike", "RewardAutomatonWrapper", "ScenarioEnv"]
 
 InputFn = Callable[[Any, dict[str, Any]], Mapping[str, object]]
 
@@ -127,3 +142,171 @@ class RewardAutomatonWrapper(gymnasium.Wrapper):
             reward += self.automaton.end(values)
         info["rac"] = {**self._snapshot(), "env_reward": env_reward}
         return obs, reward, terminated, truncated, info
+
+
+# ---------------------------------------------------------------- the scenario as an environment
+def _compile(model: str | os.PathLike[str] | CompileResult) -> CompileResult:
+    from rac.compiler import CompileResult, compile_file
+    from rac.diagnostics import CheckError
+
+    result = compile_file(model) if isinstance(model, (str, os.PathLike)) else model
+    if not isinstance(result, CompileResult):
+        raise TypeError(f"model must be a .ra path or a CompileResult, not {type(model).__name__}")
+    if not result.ok or result.automaton is None:
+        raise CheckError(result.diagnostics, result.sources)
+    return result
+
+
+def _shield(shield: str | os.PathLike[str] | ShieldTable | None, columns: tuple[str, ...],
+            n_actions: int) -> ShieldTable | None:
+    from rac import shield as shield_file
+
+    if shield is None:
+        return None
+    table = shield_file.load(shield) if isinstance(shield, (str, os.PathLike)) else shield
+    if not isinstance(table, shield_file.ShieldTable):
+        raise TypeError(f"shield must be a shield file or a ShieldTable, not {type(shield).__name__}")
+    if tuple(table.columns) != columns or table.n_actions != n_actions:
+        raise ValueError(f"the shield is for states {tuple(table.columns)} and {table.n_actions} actions; this "
+                         f"model has states {columns} and {n_actions} actions")
+    return table
+
+
+class ScenarioEnv(gymnasium.Env):
+    """The scenario model of a ``.ra`` file's ``model`` block as a gymnasium environment.
+
+    One :meth:`step` is one decision period of :class:`rac.engine.episodes.EpisodeBatch` (one
+    episode): the action (``Discrete(P)``, an index into ``action_pairs``: jerk-major over the
+    ``model`` block's action grid) is held for ``decide_every`` samples.
+
+    Args:
+        model: a ``.ra`` file with a ``model`` block (compiled; errors raise
+            :class:`rac.diagnostics.CheckError`) or a :class:`rac.compiler.CompileResult`.
+        shield: a shield file (:func:`rac.shield.load`, ``unseen="none"``) or a
+            :class:`rac.shield.ShieldTable` for :meth:`action_masks`; None: every action allowed.
+        reward: ``"automaton"`` (the objective's increase, plus the ``at end`` bonus on the last
+            step) or a reward expression (an :class:`rac.ast.Expr` or its text), as ``EpisodeBatch``.
+        horizon: the episode's length in seconds (default the automaton's ``horizon``); a whole
+            number of sense periods.
+        render_mode: None or ``"ansi"`` (:meth:`render` returns one line of text).
+
+    Observation: ``float32`` ``(8,)``: the sensed ``x, y, v, acc, head, jerk, turn`` (metres,
+    seconds, radians: significand / scale) and the time in seconds. ``terminated`` when the
+    goal is reached, ``truncated`` at the horizon; a collision does not end the episode.
+    ``info``: ``location``, ``rewards``, ``objective``, ``inputs`` (the bindings' values at the
+    current sample), ``collided``/``offroad`` (at some sample of the step; after :meth:`reset`:
+    at the start), ``goal`` (the episode reached the goal; after reset: False) and ``time``.
+
+    The model is deterministic: ``reset(seed=...)`` only seeds :attr:`np_random` (for wrappers
+    and agents that draw from it); every episode starts from the same state.
+    """
+
+    metadata = {"render_modes": ["ansi"]}
+
+    def __init__(self, model: str | os.PathLike[str] | CompileResult, *,
+                 shield: str | os.PathLike[str] | ShieldTable | None = None,
+                 reward: str | ast.Expr = "automaton", horizon: float | Fraction | None = None,
+                 render_mode: str | None = None) -> None:
+        from rac.engine.episodes import EpisodeBatch
+        from rac.engine.explore import COLUMNS
+        from rac.model.data import INT32_MAX
+
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, not {render_mode!r}")
+        result = _compile(model)
+        automaton = result.automaton
+        assert automaton is not None
+        samples = None
+        if horizon is not None:
+            # a float through its shortest repr: 0.3 is 3/10, as written in a .ra file
+            seconds = Fraction(str(horizon)) if isinstance(horizon, float) else Fraction(horizon)
+            exact = seconds / Fraction(automaton.period)
+            if exact.denominator != 1 or exact < 1:
+                raise ValueError(f"horizon {horizon} s is not a positive whole number of samples of "
+                                 f"{float(automaton.period):g} s")
+            samples = int(exact)
+        self.episodes = EpisodeBatch(result, reward=reward, horizon_samples=samples)
+        self.shield = _shield(shield, COLUMNS, self.episodes.n_actions)
+        self.render_mode = render_mode
+        data = self.episodes.data
+        # one frame per step: a decision period
+        self.metadata = {**self.metadata, "render_fps": 1.0 / (data.period * self.episodes.decide_every)}
+        self._scale = float(data.scale)
+        self._period = float(data.period)
+        self._names = automaton.location_names
+        bound = np.float32(INT32_MAX / self._scale)  # every sensed value is an int32 significand
+        end = np.float32(self.episodes.horizon_samples * self._period)
+        self.observation_space = gymnasium.spaces.Box(
+            low=np.array([-bound] * 7 + [0.0], dtype=np.float32), high=np.array([bound] * 7 + [end], dtype=np.float32),
+            dtype=np.float32)
+        self.action_space = gymnasium.spaces.Discrete(self.episodes.n_actions)
+        self._last: dict[str, bool] = {}
+
+    @property
+    def action_pairs(self) -> np.ndarray:
+        """``(P, 2)`` int32: action ``a`` is the (jerk, turn) significand pair ``action_pairs[a]``."""
+        return self.episodes.action_pairs
+
+    def _obs(self) -> np.ndarray:
+        episodes = self.episodes
+        time = episodes.k[0] * self._period
+        return np.append(episodes.ego[0] / self._scale, time).astype(np.float32)
+
+    def _info(self) -> dict[str, Any]:
+        episodes = self.episodes
+        inputs = {name: bool(values[0]) if values.dtype == bool else float(values[0])
+                  for name, values in episodes.inputs.items()}
+        return {"location": self._names[int(episodes.location[0])],
+                "rewards": {name: float(values[0]) for name, values in episodes.rewards.items()},
+                "objective": float(episodes.objective[0]), "inputs": inputs, **self._last,
+                "time": float(episodes.k[0] * self._period)}
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode at the ego's start (the seed only seeds ``np_random``: the model is deterministic)."""
+        super().reset(seed=seed)
+        episodes = self.episodes
+        episodes.reset(1)
+        collided, offroad = episodes.observe([ast.Call("collide", ()), ast.Call("offroad", ())])[0] != 0
+        # "goal" is False at the start: an episode ends at the goal only after a step
+        self._last = {"collided": bool(collided), "offroad": bool(offroad), "goal": False}
+        return self._obs(), self._info()
+
+    def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
+        """One decision period with action ``action`` (an index into :attr:`action_pairs`)."""
+        if self.episodes.n != 1:
+            raise RuntimeError("call reset() before step()")
+        if self.episodes.done[0]:
+            raise RuntimeError("the episode has ended; call reset() first")
+        if not self.action_space.contains(action):
+            raise ValueError(f"action must be an integer in [0, {self.action_space.n}), not {action!r}")
+        out = self.episodes.step(np.array([int(action)]))
+        terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])
+        self._last = {"collided": bool(out.collided[0]), "offroad": bool(out.offroad[0]), "goal": terminated}
+        return self._obs(), float(out.reward[0]), terminated, truncated, self._info()
+
+    def action_masks(self) -> np.ndarray:
+        """``(P,)`` bool: the actions the shield allows in the current state (all without a shield).
+
+        A state the shield has not seen follows the table's ``unseen`` policy (``"none"``: nothing
+        allowed, ``"all"``: everything, ``"error"``: :class:`rac.shield.UnseenState`); states after the
+        shield's horizon are unseen. The mask is returned as it is even when it allows nothing (the
+        shield knows no safe action, or the state is unseen under ``"none"``): the environment still
+        takes any action, but a masked learner (e.g. MaskablePPO) cannot sample from an all-False
+        mask, so load the shield with ``unseen="all"`` or fall back to an action of your own."""
+        if self.episodes.n != 1:
+            raise RuntimeError("call reset() before action_masks()")
+        if self.shield is None:
+            return np.ones(self.episodes.n_actions, dtype=bool)
+        return self.shield.masks_for(self.episodes.state_keys())[0]
+
+    def render(self) -> str | None:
+        """``"ansi"``: one line with the time, the sensed state and the automaton's location and objective."""
+        if self.render_mode != "ansi":
+            return None
+        if self.episodes.n != 1:
+            return "(not reset)"
+        x, y, v, acc, head, jerk, turn, time = self._obs().tolist()
+        info = self._info()
+        return (f"t={time:.2f}s x={x:.2f} y={y:.2f} v={v:.2f} acc={acc:.2f} head={head:.3f} jerk={jerk:g} "
+                f"turn={turn:g} {info['location']} objective={info['objective']:.3f}")

@@ -1,0 +1,458 @@
+"""Episodes of the scenario model with a reward automaton's reward, stepped together (issue 5).
+
+:class:`EpisodeBatch` runs ``n`` episodes of the vehicle model of a ``.ra`` file's ``model`` block
+at once with numpy, one *step* per decision period (``decide_every`` samples), for learning
+(:mod:`rac.engine.learn`, :class:`rac.gym.ScenarioEnv`). An episode starts at the ego's start
+(sample 0, jerk and turn 0, the automaton in its initial location, every reward 0).
+
+**One step** applies each episode's chosen (jerk, turn) pair (a row of :attr:`EpisodeBatch.action_pairs`)
+and takes up to ``decide_every`` samples. **One sample** ``k -> k + 1`` is the product semantics of
+:mod:`rac.engine.product`, on floats as :mod:`rac.runtime` computes them:
+
+1. the ego moves: the state at ``k + 1`` is ``sense()`` of the state at ``k`` with the chosen pair
+   (:meth:`rac.engine.explore.BatchModel.sense`, as :mod:`rac.engine.simulate` advances runs);
+2. every input is read from its binding on sample ``k + 1`` with :class:`rac.engine.expr.Evaluator`:
+   booleans as they are, numbers as the emitted model's significand ``d2i(e)`` (truncated towards
+   zero) over the scale; ``prev(e)`` is ``e`` at sample ``k`` (at the first sample, ``e`` in the
+   initial state). A number outside the input's declared bounds is *clipped* to them (the runtime
+   would raise), an ``int`` input's value truncated to a whole number; every value changed so is
+   counted in :attr:`EpisodeBatch.clipped` (per input in :attr:`EpisodeBatch.clipped_inputs`);
+3. the automaton takes the sample with those inputs (:class:`rac.batch.BatchRewardAutomaton`:
+   accrue with the held inputs, then the edge), which gives the sample's reward: the objective's
+   increase (``reward="automaton"``), or the value of a plain reward expression over the model's
+   vocabulary and the inputs on the sample (``reward=<ast.Expr>``; booleans count 0/1), e.g. the
+   paper's Eq. 9 ``10*!isClose + (5 + 100*goal())*prog + comf``;
+4. the episode *terminates* when the ``goal`` expression (default ``goal()``) holds on the sample
+   (after the edge, so it may read the location and rewards), and is *truncated* when the sample
+   is the horizon's last one without the goal. Either way the automaton's ``at end`` clauses apply
+   with the sample's inputs, and in automaton mode their increase is added to the reward. The goal
+   is checked from sample 1 on: an episode never ends before its first step.
+
+A step's reward is the sum of its samples' rewards (in sample order). A collision or leaving the
+road does *not* end an episode (UPPAAL's semantics: the run goes on); :class:`StepResult` flags it
+for the learner to count. Episodes that are done stay frozen (their state is kept, their reward is
+0) until the next :meth:`EpisodeBatch.reset`, which restarts all ``n``.
+
+The inputs must satisfy the automaton's ``assume`` (the runtime refuses other valuations):
+:class:`ValueError` when the bindings' values break it. :class:`rac.model.ModelRangeError` when a
+sensed value or a numeric binding's significand leaves int32 (the emitted model aborts there).
+
+Example::
+
+    result = compile_file("examples/left_turn/model.ra")
+    episodes = EpisodeBatch(result, horizon_samples=30)
+    episodes.reset(64)
+    while not episodes.done.all():
+        out = episodes.step(rng.integers(episodes.n_actions, size=episodes.n))
+        returns += out.reward
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from rac import ast, ir
+from rac.batch import BatchRewardAutomaton
+from rac.compiler import CompileResult
+from rac.engine.explore import action_pairs
+from rac.engine.expr import Evaluator, Frame
+from rac.execution import InputSpec, input_specs
+from rac.model.data import ModelData, ModelRangeError
+
+__all__ = ["GOAL", "EpisodeBatch", "StepResult", "parse_expr"]
+
+#: The default goal: the model's ``goal()`` (the planning problem's goal region and time interval).
+GOAL: ast.Expr = ast.Call("goal", ())
+_MINDIST = ast.Call("mindist", ())
+_OFFROAD = ast.Call("offroad", ())
+
+
+def parse_expr(text: str) -> ast.Expr:
+    """One expression of the query language (e.g. ``"10*!isClose + comf"``), parsed, not checked.
+
+    Names are resolved when the expression is evaluated (:class:`rac.engine.expr.EvaluationError`
+    for one the engine cannot read); :class:`ValueError` when the text is not one expression."""
+    from rac.parser import ParseFailure, parse_source
+    from rac.source import SourceFile
+
+    # A `simulate` query holds a list of expressions: the parser's way in for a bare one.
+    prefix = "automaton X {\nquery E: simulate[<=1;1]{"
+    try:
+        module = parse_source(SourceFile("<expr>", f"{prefix}{text}\n}}\n}}\n"))
+    except ParseFailure as failure:
+        raise ValueError(f"`{text}`: {failure.diagnostic.message}") from None
+    exprs = module.automata[0].members[0].query.exprs  # type: ignore[union-attr]
+    if len(exprs) != 1:
+        raise ValueError(f"`{text}`: expected one expression, not {len(exprs)}")
+    return exprs[0]
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """What one :meth:`EpisodeBatch.step` did, per episode (arrays of shape ``(n,)``)."""
+
+    #: float64: the step's reward (0 for episodes already done before this step).
+    reward: np.ndarray
+    #: bool: the goal was reached in this step.
+    terminated: np.ndarray
+    #: bool: the horizon was reached in this step without the goal.
+    truncated: np.ndarray
+    #: bool: ``collide()`` held at some sample of this step.
+    collided: np.ndarray
+    #: bool: ``offroad()`` held at some sample of this step.
+    offroad: np.ndarray
+
+
+class _Automata(BatchRewardAutomaton):
+    """A :class:`BatchRewardAutomaton` that steps some of its copies and leaves the others as they are.
+
+    ``step_batch`` steps every copy and refuses ended ones; episodes end at different samples, so
+    the copies of frozen episodes are saved around the step and put back. This reads the batch's
+    private state (the one place that does; a ``mask`` on ``step_batch`` would make it unnecessary).
+    """
+
+    def step_rows(self, inputs: Mapping[str, np.ndarray], active: np.ndarray) -> np.ndarray:
+        """One sample for the copies where ``active``; the others keep their state and get 0.0.
+        Every copy's inputs must be valid (pass a frozen copy's last inputs)."""
+        keep = np.flatnonzero(~active)
+        if keep.size == 0 and not self._n_ended:
+            return self.step_batch(inputs)
+        saved = (self._loc[keep].copy(), self._R[:, keep].copy(), self._obj[keep].copy(),
+                 self._samples[keep].copy(), self._first[keep].copy(),
+                 {name: values[keep].copy() for name, values in self._held.items()})
+        ended = self._ended.copy()
+        self._ended[:] = False
+        self._n_ended = 0
+        try:
+            gain = self.step_batch(inputs)
+        finally:
+            loc, rewards, objective, samples, first, held = saved
+            self._loc = self._loc.copy()
+            self._loc[keep] = loc
+            self._R[:, keep] = rewards
+            self._obj = self._obj.copy()
+            self._obj[keep] = objective
+            self._samples[keep] = samples
+            self._first[keep] = first
+            self._any_first = bool(self._first.any())
+            for name, values in held.items():
+                self._held[name] = self._held[name].copy()
+                self._held[name][keep] = values
+            self._ended = ended
+            self._n_ended = int(ended.sum())
+        return np.where(active, gain, 0.0)
+
+
+class _Bindings:
+    """Every input's value from its binding on a frame (see step 2 of the module docstring)."""
+
+    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton) -> None:
+        self.evaluator = evaluator
+        bound = {b.input: b.expr for b in automaton.model.bindings} if automaton.model is not None else {}
+        missing = [item.name for item in automaton.inputs if item.name not in bound]
+        if missing:
+            raise ValueError(f"input `{missing[0]}` has no binding: episodes read every input from the model "
+                             f"(add `bind {missing[0]} = ...` to the `model` block)")
+        self.items: list[tuple[InputSpec, ast.Expr, float, float]] = []
+        for spec in input_specs(automaton):
+            low, high = spec.low, spec.high
+            if spec.kind == "int":  # the whole numbers within the bounds
+                low, high = float(np.ceil(low)), float(np.floor(high))
+            self.items.append((spec, bound[spec.name], low, high))
+
+    def read(self, frame: Frame, clipped: dict[str, int] | None = None) -> dict[str, np.ndarray]:
+        """Input name -> ``(n,)`` values (bool, or float64 reals); counts clipped values into ``clipped``."""
+        evaluator = self.evaluator
+        scale = evaluator.scale_d
+        out: dict[str, np.ndarray] = {}
+        for spec, expr, low, high in self.items:
+            if spec.is_bool:
+                out[spec.name] = np.array(evaluator.evaluate_bool(expr, frame), dtype=bool)
+                continue
+            value = np.asarray(evaluator.evaluate(expr, frame), dtype=np.float64)
+            scaled = value * scale
+            bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0])
+                significand = int(scaled[row]) if np.isfinite(scaled[row]) else None
+                raise ModelRangeError(f"the binding of `{spec.name}`", float(value[row]), significand,
+                                      evaluator.data.scale)
+            real = scaled.astype(np.int64) / scale  # d2i() truncates towards zero, as the emitted model
+            changed = np.zeros(real.shape, dtype=bool)
+            if spec.kind == "int":
+                whole = np.trunc(real)
+                changed |= whole != real
+                real = whole
+            outside = (real < low) | (real > high)
+            if outside.any():
+                changed |= outside
+                real = np.clip(real, low, high)
+            if clipped is not None:
+                clipped[spec.name] += int(changed.sum())
+            out[spec.name] = real
+        return out
+
+
+@dataclass
+class _State:
+    """What a frame reads of every episode at one sample (full ``(n,)`` / ``(n, 7)`` arrays)."""
+
+    k: np.ndarray
+    ego: np.ndarray
+    location: np.ndarray
+    rewards: dict[str, np.ndarray]
+    inputs: dict[str, np.ndarray]
+
+    def frame(self, rows: np.ndarray | slice, prev: Frame | None = None) -> Frame:
+        return Frame(k=self.k[rows], ego=self.ego[rows], location=self.location[rows],
+                     rewards={name: values[rows] for name, values in self.rewards.items()},
+                     inputs={name: values[rows] for name, values in self.inputs.items()}, prev=prev)
+
+    def copy(self) -> _State:
+        return _State(self.k.copy(), self.ego.copy(), self.location.copy(),
+                      {name: values.copy() for name, values in self.rewards.items()},
+                      {name: values.copy() for name, values in self.inputs.items()})
+
+    def put(self, rows: np.ndarray, other: _State) -> None:
+        """Copy ``other``'s rows ``rows`` into this state."""
+        self.k[rows] = other.k[rows]
+        self.ego[rows] = other.ego[rows]
+        self.location[rows] = other.location[rows]
+        for name, values in self.rewards.items():
+            values[rows] = other.rewards[name][rows]
+        for name, values in self.inputs.items():
+            values[rows] = other.inputs[name][rows]
+
+
+class EpisodeBatch:
+    """``n`` episodes of the scenario model with the automaton's reward, stepped together (one step =
+    one decision period). See the module docstring for the semantics.
+
+    Args:
+        result: a checked file with a ``model`` block (:func:`rac.compiler.compile_file`).
+        reward: ``"automaton"`` (the objective's increase, plus the ``at end`` bonus when the
+            episode ends), or a reward expression evaluated on every sample (an :class:`rac.ast.Expr`,
+            or its text, parsed with :func:`parse_expr`).
+        goal: the episode terminates at the first sample where this holds (default ``goal()``);
+            None: episodes end at the horizon only.
+        horizon_samples: the episode's length in samples (default the automaton's ``horizon``
+            over its period).
+        data: a variant of the model's data (default ``result.model_data``).
+
+    Attributes: ``n_actions``, ``action_pairs`` ``(P, 2)`` (jerk, turn significands; action ``a``
+    is row ``a``), ``decide_every``, ``horizon_samples``, ``max_steps`` (steps in an episode that
+    reaches the horizon); after :meth:`reset`: ``n``, ``k`` ``(n,)`` the current sample, ``ego``
+    ``(n, 7)`` int32 the sensed significands, ``done`` ``(n,)`` terminated or truncated. ``clipped``:
+    the number of binding values clipped to their input's bounds (or truncated to whole numbers for
+    ``int`` inputs) since construction, over all episodes; ``clipped_inputs`` the same per input.
+    """
+
+    def __init__(self, result: CompileResult, *, reward: str | ast.Expr = "automaton",
+                 goal: ast.Expr | None = GOAL, horizon_samples: int | None = None,
+                 data: ModelData | None = None) -> None:
+        automaton = result.automaton
+        if automaton is None:
+            raise ValueError("the file has errors: there is no automaton to run")
+        if automaton.model is None:
+            raise ValueError(f"`{automaton.name}` has no `model` block: episodes need the scenario model")
+        data = data if data is not None else result.model_data
+        if data is None:
+            raise ValueError("the model's data was not built (the scenario did not load): pass data=")
+        self.result = result
+        self.automaton = automaton
+        self.data = data
+        self.evaluator = Evaluator(data, automaton)
+        self._bindings = _Bindings(self.evaluator, automaton)
+        if isinstance(reward, str):
+            self.reward_expr: ast.Expr | None = None if reward == "automaton" else parse_expr(reward)
+        else:
+            self.reward_expr = reward
+        self.goal = goal
+        horizon = automaton.steps if horizon_samples is None else int(horizon_samples)
+        if horizon < 1:
+            raise ValueError(f"horizon_samples must be at least 1, not {horizon}")
+        self.horizon_samples = horizon
+        self.decide_every = int(data.decide_every)
+        self.max_steps = -(-horizon // self.decide_every)
+        pairs = action_pairs(data)
+        pairs.setflags(write=False)
+        self.action_pairs = pairs
+        self.n_actions = int(pairs.shape[0])
+        self.clipped = 0
+        self.clipped_inputs = {item.name: 0 for item in automaton.numeric_inputs}
+        self._td = self.evaluator.model.native.td_d
+        self._start = np.asarray(self.evaluator.model.native.initial_state(), dtype=np.int32)
+        self._automata: _Automata | None = None
+        self.n = 0
+        self.k = np.zeros(0, dtype=np.int64)
+        self.ego = np.zeros((0, 7), dtype=np.int32)
+        self.done = np.zeros(0, dtype=bool)
+        self._now: _State | None = None
+        self._prev: _State | None = None
+        # Evaluate the expressions once on the start, so that a name the engine cannot read fails here.
+        start = self._start_state(1)
+        for expr in (self.reward_expr, goal):
+            if expr is not None:
+                self.evaluator.evaluate(expr, start.frame(slice(None)))
+
+    # ------------------------------------------------------------ state
+    def _start_state(self, n: int) -> _State:
+        k = np.zeros(n, dtype=np.int64)
+        ego = np.tile(self._start, (n, 1))
+        # The inputs shown at sample 0 (observe(), ScenarioEnv's info): the bindings on the start,
+        # never fed to the automaton (it takes its first sample at k = 1) nor counted as clipped.
+        inputs = self._bindings.read(Frame(k, ego))
+        location = np.full(n, self.automaton.initial, dtype=np.int64)
+        rewards = {name: np.zeros(n) for name in self.automaton.rewards}
+        return _State(k, ego, location, rewards, inputs)
+
+    def reset(self, n: int) -> None:
+        """Start ``n`` episodes at the ego's start (sample 0)."""
+        if isinstance(n, bool) or int(n) != n or n < 1:
+            raise ValueError(f"n must be a positive integer, not {n!r}")
+        n = int(n)
+        if self._automata is None or self._automata.n != n:
+            self._automata = _Automata(self.automaton, n)
+        else:
+            self._automata.reset()
+        self.n = n
+        self._now = self._start_state(n)
+        self._prev = self._now.copy()  # prev(e) at the start is e itself
+        self.k = self._now.k
+        self.ego = self._now.ego
+        self.done = np.zeros(n, dtype=bool)
+
+    def _require(self) -> tuple[_State, _State, _Automata]:
+        if self._now is None or self._prev is None or self._automata is None:
+            raise RuntimeError("no episodes yet: call reset(n) first")
+        return self._now, self._prev, self._automata
+
+    def state_keys(self) -> np.ndarray:
+        """``(n, 8)`` int32 rows ``k, x, y, v, acc, head, jerk, turn``: the shield's state rows
+        (:meth:`rac.shield.ShieldTable.masks_for`)."""
+        now, _, _ = self._require()
+        return np.column_stack([now.k, now.ego]).astype(np.int32)
+
+    @property
+    def location(self) -> np.ndarray:
+        """``(n,)`` the automaton's location index per episode (into ``automaton.location_names``)."""
+        return self._require()[0].location.copy()
+
+    @property
+    def rewards(self) -> dict[str, np.ndarray]:
+        """Reward name -> ``(n,)`` its value per episode (after ``at end`` for ended episodes)."""
+        return {name: values.copy() for name, values in self._require()[0].rewards.items()}
+
+    @property
+    def inputs(self) -> dict[str, np.ndarray]:
+        """Input name -> ``(n,)`` the value read at the current sample (at sample 0: the bindings on the start)."""
+        return {name: values.copy() for name, values in self._require()[0].inputs.items()}
+
+    @property
+    def objective(self) -> np.ndarray:
+        """``(n,)`` the objective's value per episode."""
+        return self._require()[2].objective
+
+    def observe(self, exprs: Sequence[ast.Expr]) -> np.ndarray:
+        """``(n, len(exprs))`` float64: each expression in every episode's current frame (booleans
+        0/1). An expression may read the model's vocabulary (ego names, ``time``, ``mindist()`` ...),
+        the inputs, rewards and locations (``Driving.location``, ``Unsafe``) and ``prev(e)``."""
+        now, prev, _ = self._require()
+        frame = now.frame(slice(None), prev=prev.frame(slice(None)))
+        out = np.empty((self.n, len(exprs)), dtype=np.float64)
+        for column, expr in enumerate(exprs):
+            out[:, column] = self.evaluator.evaluate(expr, frame)
+        return out
+
+    # ------------------------------------------------------------ stepping
+    def step(self, actions: np.ndarray) -> StepResult:
+        """One decision period for every episode not done: ``actions`` ``(n,)`` are indices into
+        :attr:`action_pairs` (those of done episodes are ignored)."""
+        now, _, _ = self._require()
+        actions = np.asarray(actions)
+        if actions.shape != (self.n,) or not np.issubdtype(actions.dtype, np.integer):
+            raise ValueError(f"actions must be an integer array of shape ({self.n},), not {actions.dtype} "
+                             f"{actions.shape}")
+        n = self.n
+        reward = np.zeros(n)
+        flags = {name: np.zeros(n, dtype=bool) for name in ("terminated", "truncated", "collided", "offroad")}
+        live = ~self.done
+        chosen = actions[live]
+        if chosen.size and (chosen.min() < 0 or chosen.max() >= self.n_actions):
+            raise ValueError(f"actions must be in [0, {self.n_actions}), got {chosen.min()}..{chosen.max()}")
+        pairs = np.zeros((n, 2), dtype=np.int32)
+        pairs[live] = self.action_pairs[chosen]
+        for _ in range(self.decide_every):
+            rows = np.flatnonzero(~self.done)
+            if rows.size == 0:
+                break
+            self._sample(rows, pairs, reward, flags)
+        return StepResult(reward=reward, **flags)
+
+    def _sample(self, rows: np.ndarray, pairs: np.ndarray, reward: np.ndarray, flags: dict[str, np.ndarray]) -> None:
+        """One sample ``k -> k + 1`` of the episodes ``rows`` (all at the same ``k``)."""
+        now, prev, automata = self._require()
+        evaluator = self.evaluator
+        before = now.frame(rows)  # the state at k, before the choice: what prev(e) reads
+        moved = now.ego[rows].copy()
+        moved[:, 5:7] = pairs[rows]
+        after = evaluator.model.sense(moved)
+        frame = Frame(k=before.k + 1, ego=after, prev=before)
+        counts = dict.fromkeys(self.clipped_inputs, 0)
+        values = self._bindings.read(frame, counts)
+        active = np.zeros(self.n, dtype=bool)
+        active[rows] = True
+        fed = {name: held.copy() for name, held in now.inputs.items()}  # frozen episodes: their last inputs
+        for name, column in values.items():
+            fed[name][rows] = column
+        try:
+            gain = automata.step_rows(fed, active)
+        except ValueError as exc:
+            raise ValueError(f"sample {int(before.k[0]) + 1}: the bindings' values are not valid inputs of "
+                             f"`{self.automaton.name}`: {exc}") from None
+        self.clipped += sum(counts.values())
+        for name, count in counts.items():
+            self.clipped_inputs[name] += count
+        # the new sample becomes the current state; the old one prev(e)'s
+        prev.put(rows, now)
+        now.k[rows] += 1
+        now.ego[rows] = after
+        now.inputs = fed
+        self._sync(now, automata)
+        sampled = dataclasses.replace(frame, location=now.location[rows],
+                                      rewards={name: values[rows] for name, values in now.rewards.items()},
+                                      inputs=values)
+        flags["collided"][rows] |= evaluator.evaluate(_MINDIST, sampled) < self._td
+        flags["offroad"][rows] |= np.asarray(evaluator.evaluate(_OFFROAD, sampled), dtype=bool)
+        if self.reward_expr is None:
+            reward[rows] += gain[rows]
+        else:
+            reward[rows] += np.asarray(evaluator.evaluate(self.reward_expr, sampled), dtype=np.float64)
+        reached = (np.asarray(evaluator.evaluate_bool(self.goal, sampled), dtype=bool) if self.goal is not None
+                   else np.zeros(rows.size, dtype=bool))
+        last = now.k[rows] >= self.horizon_samples
+        ending = reached | last
+        if ending.any():
+            flags["terminated"][rows[reached]] = True
+            flags["truncated"][rows[last & ~reached]] = True
+            mask = np.zeros(self.n, dtype=bool)
+            mask[rows[ending]] = True
+            bonus = automata.end_batch(fed, mask=mask)
+            if self.reward_expr is None:
+                reward[mask] += bonus[mask]
+            self._sync(now, automata)
+            self.done[mask] = True
+
+    @staticmethod
+    def _sync(now: _State, automata: _Automata) -> None:
+        """The automaton's location and rewards into the current state (copies; frozen ones unchanged)."""
+        now.location = automata.locations.astype(np.int64)
+        now.rewards = automata.rewards
+
+    def __repr__(self) -> str:
+        return (f"<EpisodeBatch {self.automaton.name} n={self.n} horizon={self.horizon_samples} samples, "
+                f"{self.n_actions} actions every {self.decide_every}>")

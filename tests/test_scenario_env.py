@@ -1,0 +1,218 @@
+"""ScenarioEnv (rac.gym): the scenario model as a gymnasium environment, with a shield's action masks.
+
+gymnasium's env_checker passes; the observation, reward and info are those of EpisodeBatch with
+one episode; a random walk under a safety shield (rac.engine.explore + rac.engine.storm.safety_shield
++ rac.shield.table) never collides nor leaves the road on a tiny scenario, while unshielded ones do;
+unseen states follow the shield's policy; horizon, seeding and errors.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import gymnasium
+import numpy as np
+import pytest
+from engine_files import write_engine_file
+from gymnasium.utils.env_checker import check_env
+
+from rac import shield as shield_file
+from rac.compiler import CompileResult, compile_file, compile_text
+from rac.diagnostics import CheckError
+from rac.engine.episodes import EpisodeBatch
+from rac.engine.explore import COLUMNS, explore
+from rac.engine.storm import safety_shield
+from rac.gym import ScenarioEnv
+from rac.shield import ShieldTable, UnseenState
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> CompileResult:
+    """The engine test file (one input `near`, reward `sa`) on avoidable_obstacle: a van 15 m ahead."""
+    path = write_engine_file(tmp_path_factory.mktemp("env"), "avoidable_obstacle", queries={})
+    result = compile_file(path)
+    assert result.ok, [d.message for d in result.diagnostics]
+    return result
+
+
+def shield_table(result: CompileResult, horizon: int, unseen: str) -> ShieldTable:
+    data = result.model_data
+    assert data is not None
+    graph = explore(data, horizon_samples=horizon, prune_unsafe=True)
+    shield = safety_shield(graph, "safe")
+    assert shield.shield_exists
+    return shield_file.table(shield, n_actions=EpisodeBatch(result).n_actions, unseen=unseen)
+
+
+@pytest.fixture(scope="module")
+def table(tiny: CompileResult) -> ShieldTable:
+    return shield_table(tiny, 8, "error")  # the whole 4 s horizon: an unseen state would raise
+
+
+def checked(env: gymnasium.Env) -> list[str]:
+    """check_env's warnings, except the one that only says the env was not made with gymnasium.make."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env)
+    return [str(w.message) for w in caught if "spec" not in str(w.message)]
+
+
+# ---------------------------------------------------------------- the gymnasium API
+@pytest.mark.parametrize("render_mode", [None, "ansi"])
+def test_check_env(tiny: CompileResult, table: ShieldTable, render_mode: str | None) -> None:
+    assert checked(ScenarioEnv(tiny, shield=table, render_mode=render_mode)) == []
+
+
+def test_check_env_left_turn() -> None:
+    env = ScenarioEnv(REPO / "examples" / "left_turn" / "model.ra", horizon=1.0, render_mode="ansi")
+    assert checked(env) == []
+    assert env.action_space.n == 81 and env.episodes.horizon_samples == 10 and env.episodes.max_steps == 5
+    obs, _ = env.reset()
+    assert "Normal" in env.render() and obs.shape == (8,)
+
+
+def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny)
+    batch = EpisodeBatch(tiny)
+    obs, info = env.reset(seed=3)
+    batch.reset(1)
+    scale, period = batch.data.scale, batch.data.period
+    assert obs.dtype == np.float32 and env.observation_space.contains(obs)
+    assert obs.tolist() == np.append(batch.ego[0] / scale, 0.0).astype(np.float32).tolist()
+    assert info == {"location": "Normal", "rewards": {"sa": 0.0}, "objective": 0.0, "inputs": {"near": False},
+                    "collided": False, "offroad": False, "goal": False, "time": 0.0}
+    rng = np.random.default_rng(1)
+    total, done = 0.0, False
+    while not done:
+        action = int(rng.integers(env.action_space.n))
+        obs, reward, terminated, truncated, info = env.step(action)
+        out = batch.step(np.array([action]))
+        assert reward == out.reward[0] and terminated == out.terminated[0] and truncated == out.truncated[0]
+        assert info["collided"] == out.collided[0] and info["offroad"] == out.offroad[0]
+        assert info["goal"] == terminated
+        assert obs.tolist() == np.append(batch.ego[0] / scale, batch.k[0] * period).astype(np.float32).tolist()
+        assert info["time"] == batch.k[0] * period
+        assert info["location"] == tiny.automaton.location_names[batch.location[0]]  # type: ignore[union-attr]
+        assert info["rewards"] == {"sa": batch.rewards["sa"][0]} and info["objective"] == batch.objective[0]
+        assert info["inputs"] == {"near": bool(batch.inputs["near"][0])}
+        assert env.observation_space.contains(obs)
+        total += reward
+        done = terminated or truncated
+    assert truncated and info["time"] == pytest.approx(4.0)
+    assert total == pytest.approx(info["objective"])  # automaton mode: the return is the final objective
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(0)
+
+
+def test_reward_expression(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny, reward="10 * !near + v")
+    env.reset()
+    _, reward, *_ = env.step(4)  # (jerk 0, turn 0): 5 m/s kept for two samples, nothing near
+    assert reward == pytest.approx(2 * (10 + 5))
+
+
+def test_seed_only_seeds_np_random(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny)
+    first, _ = env.reset(seed=1)
+    draw = env.np_random.integers(1000, size=4)
+    again, _ = env.reset(seed=1)
+    other, _ = env.reset(seed=2)
+    assert first.tolist() == again.tolist() == other.tolist()  # the model is deterministic
+    env.reset(seed=1)
+    assert env.np_random.integers(1000, size=4).tolist() == draw.tolist()
+
+
+def test_horizon_in_seconds(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny, horizon=1.5)
+    assert env.episodes.horizon_samples == 3 and env.episodes.max_steps == 2
+    assert env.observation_space.high[-1] == np.float32(1.5)
+    env.reset()
+    assert not env.step(4)[3] and env.step(4)[3]  # truncated on the second step, after 3 samples
+    for bad in (0.7, 0, -1):
+        with pytest.raises(ValueError, match="whole number"):
+            ScenarioEnv(tiny, horizon=bad)
+
+
+# ---------------------------------------------------------------- shield masks
+def test_shielded_random_walks_never_collide(tiny: CompileResult, table: ShieldTable) -> None:
+    env = ScenarioEnv(tiny, shield=table)
+    rng = np.random.default_rng(0)
+    for seed in range(15):
+        env.reset(seed=seed)
+        done = False
+        while not done:
+            mask = env.action_masks()
+            assert mask.dtype == bool and mask.shape == (env.action_space.n,) and mask.any()
+            _, _, terminated, truncated, info = env.step(int(rng.choice(np.flatnonzero(mask))))
+            assert not info["collided"] and not info["offroad"]
+            done = terminated or truncated
+    # the shield is what keeps them safe: at the start it allows only braking straight on
+    env.reset()
+    assert env.action_masks().sum() == 1
+    unshielded = ScenarioEnv(tiny)
+    hits = 0
+    for _ in range(15):
+        unshielded.reset()
+        assert unshielded.action_masks().all()
+        done = False
+        while not done:
+            _, _, terminated, truncated, info = unshielded.step(int(rng.integers(unshielded.action_space.n)))
+            hits += info["collided"] or info["offroad"]
+            done = terminated or truncated
+    assert hits > 0
+
+
+def test_shield_from_a_file(tiny: CompileResult, table: ShieldTable, tmp_path: Path) -> None:
+    path = shield_file.save(table, tmp_path / "safe.npz")
+    env = ScenarioEnv(tiny, shield=path)
+    env.reset()
+    assert env.shield is not None and env.shield.unseen == "none"
+    assert env.action_masks().tolist() == table.mask(env.episodes.state_keys()[0]).tolist()
+
+
+@pytest.mark.parametrize("unseen", ["none", "all", "error"])
+def test_unseen_states_follow_the_shields_policy(tiny: CompileResult, unseen: str) -> None:
+    short = shield_table(tiny, 2, unseen)  # a shield for the first second only: later states are unseen
+    env = ScenarioEnv(tiny, shield=short)
+    env.reset()
+    first = env.action_masks()
+    assert 0 < first.sum() < first.size
+    env.step(int(np.flatnonzero(first)[0]))  # now at sample 2: a state the shield never decided in
+    if unseen == "error":
+        with pytest.raises(UnseenState):
+            env.action_masks()
+        return
+    mask = env.action_masks()
+    assert mask.all() if unseen == "all" else not mask.any()
+    env.step(0)  # an all-False mask does not stop the environment: it takes any action
+    assert env.episodes.k[0] == 4
+
+
+def test_shield_for_another_model(tiny: CompileResult, table: ShieldTable) -> None:
+    other = ShieldTable(COLUMNS, table.states, table.masks[:, :4])
+    with pytest.raises(ValueError, match="actions"):
+        ScenarioEnv(tiny, shield=other)
+    with pytest.raises(TypeError):
+        ScenarioEnv(tiny, shield=42)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- errors
+def test_errors(tiny: CompileResult) -> None:
+    with pytest.raises(CheckError):
+        ScenarioEnv(REPO / "examples" / "naive_driving.ra")
+    plain = compile_text("automaton A { input b : bool\n reward r\n objective r\n sample every 1\n horizon 2\n"
+                         " initial location L { r' == 1 } }")
+    with pytest.raises(ValueError, match="model"):
+        ScenarioEnv(plain)
+    with pytest.raises(ValueError, match="render_mode"):
+        ScenarioEnv(tiny, render_mode="human")
+    env = ScenarioEnv(tiny)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(0)
+    env.reset()
+    with pytest.raises(ValueError, match="action"):
+        env.step(9)
+    assert env.render() is None
