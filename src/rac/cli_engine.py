@@ -101,6 +101,20 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     pre.add_argument("--out", type=Path, metavar="DIR", help="where the plots go (default: FILE's name + .preanalysis)")
     pre.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
+    exp = commands.add_parser("experiment", help="the paper's Table 2: learning with/without shield, automaton "
+                                                 "or reward function, over seeds")
+    _common(exp)
+    exp.add_argument("--seeds", default="1,2,3,4,5", metavar="LIST", help="seeds, e.g. 1,2,3 (default 1..5)")
+    exp.add_argument("--episodes", type=_positive_int, default=500, help="episode budget per run (default 500)")
+    exp.add_argument("--runs", type=_positive_int, default=100, help="evaluation runs per strategy (default 100)")
+    exp.add_argument("--reward-function", metavar="EXPR",
+                     help="per-sample reward of the RF combinations (default: the paper's Eq. 9)")
+    exp.add_argument("--combination", action="append", choices=("SS&RA", "SS&RF", "RA", "RF"),
+                     help="only this combination (repeatable)")
+    exp.add_argument("--out", type=Path, metavar="DIR",
+                     help="table, JSON and plots (default: FILE's name + .experiment)")
+    exp.add_argument("--format", choices=("text", "json"), default="text", help="output format")
+
 
 def _load(path: Path) -> tuple[CompileResult | None, int]:
     from rac.cli import _compile
@@ -374,5 +388,48 @@ def preanalyse_command(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-HANDLERS = {"verify": verify_command, "simulate": simulate_command, "render": render_command,
+def experiment_command(args: argparse.Namespace) -> int:
+    from rac.experiment import ExperimentError, render_markdown, run_experiment, write_outputs
+
+    result, status = _load(args.file)
+    if result is None:
+        return status
+    if not _horizon_ok(result, args):
+        return EXIT_USAGE
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")]
+    except ValueError:
+        print(f"rac experiment: --seeds: not a list of whole numbers: {args.seeds!r}", file=sys.stderr)
+        return EXIT_USAGE
+    out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".experiment")
+    quiet = args.quiet or args.format == "json"
+
+    def announce(message: str) -> None:
+        if not quiet and sys.stderr.isatty():
+            print(f"… {message}", file=sys.stderr)
+
+    try:
+        report = run_experiment(result, seeds=seeds, episodes=args.episodes, evaluation_runs=args.runs,
+                                reward_function=args.reward_function,
+                                horizon_samples=_horizon_samples(result, args.horizon) if args.horizon else None,
+                                max_states=args.max_states, combinations=args.combination, progress=announce)
+        files = write_outputs(report, out_dir)
+    except ExperimentError as exc:
+        print(f"rac experiment: {exc}", file=sys.stderr)
+        return EXIT_ERRORS
+    except OSError as exc:
+        print(f"rac experiment: cannot write to {out_dir}: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.format == "json":
+        print((out_dir / "results.json").read_text(encoding="utf-8"))
+    else:
+        print(render_markdown(report))
+        print()
+        for path in files:
+            print(f"wrote {path}")
+    return EXIT_OK
+
+
+HANDLERS = {"experiment": experiment_command, "verify": verify_command, "simulate": simulate_command,
+            "render": render_command,
             "preanalyse": preanalyse_command}

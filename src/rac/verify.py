@@ -12,7 +12,10 @@ Every query form of the language is routed to the engine part that can answer it
   ``E[<=T;N](max: e)`` and ``simulate[<=T;N]{e...}`` — statistical: runs simulated with
   actions drawn uniformly (restricted to a shield ``under S``) and the ground truth integrated
   finely (:mod:`rac.engine.simulate`); ``simulate`` writes ``OUT/NAME.csv`` and a plot;
-- learning strategies (``maxE``/``minE``) are reported as not supported yet.
+- ``strategy S = maxE(e)[<=T]{d...}->{c...}: <> p under S0`` — learned by tabular Q-learning on
+  episodes of the model (:func:`rac.engine.learn.learn`), saved to ``OUT/S.strategy.npz`` (load it
+  with :meth:`rac.engine.learn.LearnedStrategy.load`); ``A[] p``, ``E<> p``, ``E[] p``, ``A<> p``
+  ``under S`` are answered on the strategy's one run (model and strategy are deterministic).
 
 Exhaustive queries are answered within a horizon (default: the automaton's ``horizon``) and a
 state budget: a model that grows beyond it gets the verdict *unknown* with the sample it reached,
@@ -33,6 +36,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -47,6 +51,10 @@ from rac.model_block import TRUE_STATE
 from rac.parser import parse_source
 from rac.printer import format_query
 from rac.source import SourceFile, Span
+
+if TYPE_CHECKING:
+    from rac.engine.episodes import EpisodeBatch
+    from rac.engine.learn import LearnedStrategy, LearningResult
 
 __all__ = ["QueryResult", "UnknownQuery", "VerifyOptions", "render_json", "render_text", "standard_queries",
            "verify"]
@@ -105,6 +113,12 @@ class VerifyOptions:
     progress: Callable[[str], None] | None = None
     #: Exploration callback ``(layer, frontier, total)`` (the CLI's progress bar).
     explore_progress: Callable[[int, int, int], None] | None = None
+    #: Learning queries (``maxE``/``minE``, :func:`rac.engine.learn.learn`): the episode budget,
+    #: the episodes stepped together, and the early stop after this many greedy evaluations
+    #: without improvement once the greedy run succeeded.
+    learn_episodes: int = 1000
+    learn_parallel: int = 32
+    learn_stop_after: int = 10
 
 
 @dataclass(frozen=True)
@@ -184,6 +198,9 @@ class _Verifier:
         self.horizon_samples = int(horizon / self.period)
         self.graphs: dict[bool, ExploredGraph] = {}
         self.strategies: dict[str, tuple[storm.Shield, shield.ShieldTable]] = {}
+        #: Learned strategies (``strategy S = maxE(...)``) by name, for later queries ``under S``.
+        self.learned: dict[str, _Learned] = {}
+        self.result = result
         self.pairs = action_pairs(self.data)
         self.out_dir = options.out_dir
         self.seed_source = np.random.SeedSequence(options.seed)
@@ -212,7 +229,7 @@ class _Verifier:
 
     def label(self, graph: ExploredGraph, expr: ast.Expr) -> np.ndarray:
         """A state formula on every state of a plain explored graph."""
-        if "prev" in reads(expr):
+        if "prev()" in reads(expr):
             raise _Unknown("`prev(...)` in an exhaustive query is not supported")
         frame = Frame(k=graph.states[:, 0].astype(np.int64), ego=graph.states[:, 1:8])
         return np.ascontiguousarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
@@ -317,11 +334,14 @@ class _Verifier:
             return self.expectation(query, base)
         if isinstance(query, ast.SimulateQuery):
             return self.simulate(query, base)
-        return dataclasses.replace(base, status="unsupported",
-                                   message="learning strategies (maxE/minE) are not answered by rac verify yet")
+        if isinstance(query, ast.LearnStrategy):
+            return self.learn(query, base)
+        return dataclasses.replace(base, status="unsupported", message=f"{type(query).__name__} is not answered")
 
     # ------------------------------------------------------------ exhaustive
     def path(self, query: ast.PathQuery, base: QueryResult) -> QueryResult:
+        if query.under is not None and query.under in self.learned:
+            return self.path_under_learned(query, base)
         if self.needs_product(query.expr):
             return self.path_in_product(query, base)
         # Pruning unsafe states is sound for A[]/E[] of a formula that unsafe states violate
@@ -401,6 +421,124 @@ class _Verifier:
                                    states=graph.n_states, horizon_samples=self.horizon_samples, files=files,
                                    message=message)
 
+    # ------------------------------------------------------------ learning
+    def episodes(self, reward: str | ast.Expr, goal: ast.Expr | None, samples: int) -> EpisodeBatch:
+        """Episodes of the model with the automaton (:class:`rac.engine.episodes.EpisodeBatch`)."""
+        from rac.engine.episodes import EpisodeBatch
+
+        try:
+            return EpisodeBatch(self.result, reward=reward, goal=goal, horizon_samples=samples, data=self.data)
+        except EvaluationError:
+            raise  # an expression the engine cannot read: "unsupported"
+        except ValueError as exc:
+            raise _Unknown(str(exc)) from None
+
+    def learn(self, query: ast.LearnStrategy, base: QueryResult) -> QueryResult:
+        """Q-learning (:func:`rac.engine.learn.learn`) on episodes ending at the first sample where
+        ``p`` holds or at the bound. An objective that reads the automaton's rewards is maximised as
+        its increase per step (the query's weights, not necessarily the automaton's ``objective``);
+        any other objective is a reward function summed over the samples (the paper's Eq. 9)."""
+        from rac.engine import learn as learning
+
+        if query.path != "<>":
+            raise _Unknown("only reachability goals (`: <> p`) are learned")
+        table = None
+        if query.under is not None:
+            if query.under in self.learned:
+                raise _Unknown(f"learning under the learned strategy `{query.under}` is not supported "
+                               "(only under a shield: `strategy S = control: A[] ...`)")
+            _, table = self.strategy(query.under)
+        samples = self.bound_samples(query.bound)
+        if samples < 1:
+            raise _Unknown("the time bound is shorter than one sample")
+        increase = bool(reads(query.objective) & set(self.automaton.rewards))
+        batch = self.episodes("automaton" if increase else query.objective, query.expr, samples)
+        seed = self.next_seed()
+        meta = {"query": base.formula, "objective": _expr_text(query.objective), "goal": _expr_text(query.expr),
+                "under": query.under, "horizon_samples": samples,
+                "reward": "increase of the objective per step" if increase else "objective summed per sample"}
+        try:
+            outcome = learning.learn(learning.ObjectiveIncrease(batch, query.objective) if increase else batch,
+                                     discrete=query.discrete, continuous=query.continuous,
+                                     optimise="max" if query.optimise == "maxE" else "min", shield=table,
+                                     episodes=self.options.learn_episodes, parallel=self.options.learn_parallel,
+                                     seed=seed, stop_after=self.options.learn_stop_after, meta=meta)
+        except EvaluationError:
+            raise
+        except ValueError as exc:  # a sensed value out of range, bindings breaking `assume`
+            raise _Unknown(str(exc)) from None
+        self.strategies.pop(query.name, None)  # the name now means the learned strategy
+        self.learned[query.name] = _Learned(outcome.strategy, table, (*query.discrete, *query.continuous))
+        files: tuple[str, ...] = ()
+        if self.out_dir is not None:
+            files = (str(outcome.strategy.save(self.out(f"{query.name}.strategy.npz"))),)
+        return dataclasses.replace(base, status="value", estimate=float(outcome.greedy.returns[0]),
+                                   runs=outcome.episodes, horizon_samples=samples, seed=seed, files=files,
+                                   message=self._learning_message(outcome, query))
+
+    def _learning_message(self, outcome: LearningResult, query: ast.LearnStrategy) -> str:
+        greedy = outcome.greedy
+        at = f"{int(greedy.samples_taken[0]) * float(self.period):g} s"
+        if greedy.success[0]:
+            run = f"reaches {_expr_text(query.expr)} safely at {at}"
+        elif greedy.reached[0]:
+            unsafe = "collides" if greedy.collided[0] else "leaves the road"
+            run = f"reaches {_expr_text(query.expr)} at {at} but {unsafe}"
+        else:
+            run = f"does not reach {_expr_text(query.expr)}"
+        first = (f"first after {outcome.first_success_episode} episodes" if outcome.first_success_episode is not None
+                 else "never")
+        stop = ", stopped early" if outcome.stopped_early else ""
+        lines = [f"learned in {outcome.episodes} episodes{stop}: the greedy run {run}, return "
+                 f"{_number(float(greedy.returns[0]))}",
+                 f"safe greedy run to the goal: {first}; learning episodes that collided: "
+                 f"{outcome.collisions_during_learning}, left the road: {outcome.offroad_during_learning}; "
+                 f"{outcome.strategy.n_states:,} observations"]
+        if outcome.fallbacks:
+            lines.append(f"{outcome.fallbacks} decisions where `{query.under}` allowed no action chose among all")
+        return "\n".join(lines)
+
+    def path_under_learned(self, query: ast.PathQuery, base: QueryResult) -> QueryResult:
+        """``A[] p``, ``E[] p``, ``A<> p``, ``E<> p`` under a learned strategy: the model and the
+        greedy strategy are deterministic, so there is one run, followed to the horizon (it does not
+        stop at the learning goal) and replayed sample by sample (:meth:`StrategyRun.samples`):
+        ``[]`` holds iff ``p`` holds at every sample of it, ``<>`` iff at some sample."""
+        from rac.engine.learn import run_strategy
+        from rac.engine.simulate import label_runs
+
+        # p is evaluated on the replayed samples, which hold the model and the ground truth: the
+        # evaluator reports a name of the automaton (a location, a reward, an input) as unsupported.
+        entry = self.learned[query.under]  # type: ignore[index]
+        batch = self.episodes("automaton", None, self.horizon_samples)
+        try:
+            run = run_strategy(batch, entry.strategy, exprs=entry.exprs, shield=entry.shield)
+            runs = run.samples(self.data)
+        except EvaluationError:
+            raise
+        except ValueError as exc:
+            raise _Unknown(str(exc)) from None
+        holds = np.array([bool(self.evaluator.evaluate_bool(query.expr, frame)[0]) for frame in self.frames(runs)])
+        always = query.quantifier in ("A[]", "E[]")
+        verdict = bool(holds.all()) if always else bool(holds.any())
+        decisive = np.flatnonzero(~holds if always else holds)
+        end = int(decisive[0]) if decisive.size else holds.size - 1
+        scale = float(self.data.scale)
+        labels = {name: label_runs(self.data, runs, name)[0] for name in ("collide", "offroad", "goal")}
+        rows = []
+        for k in range(end + 1):
+            row: dict[str, float | int | str] = {"time": round(k * float(self.period), 9)}
+            row.update({name: int(runs.states[0, k, i]) / scale for i, name in enumerate(EGO_COLUMNS)})
+            row.update({name: bool(values[k]) for name, values in labels.items()})
+            rows.append(row)
+        where = f"at {end * float(self.period):g} s" if decisive.size else "at no sample"
+        word = "fails" if always else "holds"
+        message = f"the one run under `{query.under}` (deterministic model and strategy): {_expr_text(query.expr)} " \
+                  f"{word} {where}"
+        if run.fallbacks[0]:
+            message += f"; at {int(run.fallbacks[0])} decisions the shield allowed no action"
+        return dataclasses.replace(base, status="satisfied" if verdict else "not satisfied", states=holds.size,
+                                   horizon_samples=self.horizon_samples, trace=tuple(rows), message=message)
+
     # ------------------------------------------------------------ statistical
     def _runs(self, n: int, samples: int, under: str | None, seed: int):
         from rac.engine.simulate import simulate
@@ -471,7 +609,7 @@ class _Verifier:
         """``Pr[<=T](<> p)`` (or ``[] p``) under uniform choices, exactly, by Storm on the explored
         model — when ``p`` reads only the sensed model and the model up to ``T`` is small enough."""
         names = reads(query.expr)
-        if query.under is not None or "prev" in names or names & set(TRUE_STATE):
+        if query.under is not None or "prev()" in names or names & set(TRUE_STATE):
             return None
         try:
             graph = explore(self.data, horizon_samples=samples, max_states=min(self.options.max_states, 2_000_000))
@@ -548,9 +686,10 @@ def verify(result: CompileResult, options: VerifyOptions | None = None) -> list[
         missing = [name for name in options.only if name not in known]
         if missing:
             raise UnknownQuery(", ".join(missing))
-        # A query `under S` needs S: keep the strategies it names, in order.
+        # A query `under S` needs S: keep the strategies it names, in order. Backwards, so that a
+        # strategy learned `under` a shield brings the shield too (a strategy precedes its uses).
         wanted = set(options.only)
-        for decl, _ in decls:
+        for decl, _ in reversed(decls):
             if decl.name.name in wanted and getattr(decl.query, "under", None):
                 wanted |= {d.name.name for d, _ in decls if getattr(d.query, "name", None) == decl.query.under}
         decls = [(d, t) for d, t in decls if d.name.name in wanted]
@@ -578,6 +717,15 @@ def _implies_safe(expr: ast.Expr) -> bool:
 
     walk(expr)
     return {"collide", "offroad"} <= found
+
+
+@dataclass(frozen=True)
+class _Learned:
+    """A learned strategy, the shield it was learned (and is run) under, and its observed expressions."""
+
+    strategy: LearnedStrategy
+    shield: shield.ShieldTable | None
+    exprs: tuple[ast.Expr, ...]
 
 
 def _restricted(computed: storm.Shield) -> ExploredGraph:
@@ -653,6 +801,10 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
             lines.append(f" -- ({r.runs} runs) E = {_number(r.estimate)} ± {_number(half)} ({_confidence(r)} CI)")
         elif r.kind == "simulate" and r.message:
             lines.append(f" -- {r.message}")
+        elif r.kind == "learning" and r.status == "value" and r.message:
+            first, *more = r.message.split("\n")
+            lines.append(f" -- {first}")
+            lines.extend(f"    {line}" for line in more)
         details = []
         if r.states is not None:
             details.append(_count(r.states, "state"))

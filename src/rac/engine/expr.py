@@ -217,7 +217,8 @@ class Evaluator:
 
 
 def reads(expr: ast.Expr) -> set[str]:
-    """The names and model functions an expression reads (``"prev"`` when it uses ``prev``).
+    """The names an expression reads, and its calls as ``"name()"`` (``"prev()"`` when it uses
+    ``prev``), so the model's ``collide()`` is not mistaken for an input named ``collide``.
 
     The engine uses it to choose how to answer a query: one that reads ``true_*`` needs the
     ground truth (statistical), one that reads inputs, rewards or locations needs the product.
@@ -230,7 +231,7 @@ def reads(expr: ast.Expr) -> set[str]:
         elif isinstance(node, ast.Qualified):
             found.add("location")
         elif isinstance(node, ast.Call):
-            found.add(node.func)
+            found.add(f"{node.func}()")
             for arg in node.args:
                 walk(arg)
         elif isinstance(node, ast.Unary):

@@ -419,7 +419,7 @@ class ProductGraph(ExploredGraph):
         """A state formula per state, as the emitted symbolic query computes it: a comparison of
         linear forms over rewards, numeric inputs, the ego and ``time`` exactly on the integers
         (mirrors, significands, ``k``); anything else with :class:`Evaluator` on :meth:`frame`."""
-        if "prev" in reads(expr):
+        if "prev()" in reads(expr):
             raise EvaluationError("`prev()` cannot be read by a query on the product: a state keeps no "
                                   "previous sample", expr.span)
         rows = self.states if indices is None else self.states[np.asarray(indices)]

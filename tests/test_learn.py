@@ -1,0 +1,254 @@
+"""``rac.engine.learn``: tabular Q-learning of strategies on the scenario model, and ``rac verify``'s
+learning queries (``strategy S = maxE(...)``) and path queries ``under S``.
+
+On the tiny scenarios of :mod:`rac.scenarios.tiny` (known plans): on :func:`goal_ahead` speeding up
+reaches the goal, and learning under the safety shield finds a strategy whose one run does so
+safely, without a single unsafe learning episode; on :func:`avoidable_obstacle` only braking at
+once avoids the van, so unshielded learning collides while shielded learning never does. Also:
+observation keys and bins, greedy ties, unseen keys, save/load, seeds, fallbacks of a shield that
+does not know a state, the objective's increase as the reward, and the replayed samples of a run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from engine_files import QUERIES, write_engine_file
+
+from rac import shield
+from rac.compiler import CompileResult, compile_file
+from rac.engine.episodes import EpisodeBatch, parse_expr
+from rac.engine.learn import (
+    LearnedStrategy,
+    ObjectiveIncrease,
+    default_bin,
+    evaluate,
+    learn,
+    observation_keys,
+    run_strategy,
+)
+from rac.verify import VerifyOptions, render_text, verify
+
+X, V, LOCATION = parse_expr("x"), parse_expr("v"), parse_expr("Tiny.location")
+SURVIVE = parse_expr("time >= 4")  # the goal of "stay safe for the whole 4 s horizon"
+HORIZON = 8  # samples: the tiny scenarios' 4 s at 0.5 s
+
+
+@dataclasses.dataclass(frozen=True)
+class Scenario:
+    """A tiny scenario's engine file, compiled, with its safety shield (at the 4 s horizon)."""
+
+    result: CompileResult
+    table: shield.ShieldTable
+    folder: Path
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Scenario]:
+    cache: dict[str, Scenario] = {}
+
+    def get(name: str) -> Scenario:
+        if name not in cache:
+            folder = tmp_path_factory.mktemp(name)
+            result = compile_file(write_engine_file(folder, name, {"safe": QUERIES["safe"]}))
+            (safe,) = verify(result, VerifyOptions(out_dir=folder / "out", plots=False))
+            assert safe.status == "satisfied"
+            cache[name] = Scenario(result, shield.load(folder / "out" / "safe.shield.npz"), folder)
+        return cache[name]
+
+    return get
+
+
+# ---------------------------------------------------------------- observations and the table
+def test_default_bins_and_keys() -> None:
+    assert [default_bin(parse_expr(t)) for t in ("x", "true_y", "v", "head", "fabs(turn)", "-acc", "mindist()",
+                                                 "time", "x + y", "Tiny.location")] == \
+        [1.0, 1.0, 0.5, 0.1, 0.05, 0.5, 1.0, 0.1, 1.0, 1.0]
+    keys = observation_keys(np.array([[1.0, 0.3, -0.0], [2.0, 0.29, 0.74]]), 1, [0.1, 0.5])
+    # discrete as it is; 0.3 / 0.1 stays in bin 3 despite float noise; -0.0 and 0.0 are one key
+    assert keys.tolist() == [[1.0, 3.0, 0.0], [2.0, 2.0, 1.0]]
+    assert observation_keys(np.array([[-0.0]]), 1, []).tobytes() == np.array([[0.0]]).tobytes()
+    with pytest.raises(ValueError, match="expected 1 discrete"):
+        observation_keys(np.zeros((1, 3)), 1, [1.0])
+
+
+def test_greedy_ties_masks_and_unseen_keys(tmp_path: Path) -> None:
+    values = np.array([[1.0, 5.0, 5.0, 0.0], [-1.0, -2.0, -3.0, -1.0]])
+    strategy = LearnedStrategy(("d",), ("c",), (1.0,), "max", np.array([[0.0, 0.0], [0.0, 1.0]]), values)
+    keys = np.array([[0.0, 0.0], [0.0, 1.0], [7.0, 7.0], [0.0, 0.0]])
+    masks = np.array([[1, 1, 1, 1], [1, 1, 1, 1], [0, 0, 1, 1], [1, 0, 0, 0]], dtype=bool)
+    # the first maximum (ties go to the lowest index), the best allowed one, unseen: lowest allowed
+    assert strategy.action(keys, masks).tolist() == [1, 0, 2, 0]
+    assert strategy.action(keys[:1], np.zeros((1, 4), dtype=bool)).tolist() == [1]  # nothing allowed: all
+    cost = dataclasses.replace(strategy, optimise="min")
+    assert cost.action(keys[:2]).tolist() == [3, 2]  # minE: the lowest cost, ties to the lowest index
+    loaded = LearnedStrategy.load(strategy.save(tmp_path / "s.strategy.npz"))
+    assert loaded.action(keys, masks).tolist() == [1, 0, 2, 0] and loaded.optimise == "max"
+    assert not list(tmp_path.glob("*.partial"))
+    (tmp_path / "bad.npz").write_bytes(b"not a strategy")
+    with pytest.raises(ValueError, match="cannot read the strategy"):
+        LearnedStrategy.load(tmp_path / "bad.npz")
+
+
+def test_learn_rejects_bad_arguments(scenario: Callable[[str], Scenario]) -> None:
+    batch = EpisodeBatch(scenario("goal_ahead").result, horizon_samples=HORIZON)
+    with pytest.raises(ValueError, match="optimise"):
+        learn(batch, discrete=[], continuous=[X], optimise="best")
+    with pytest.raises(ValueError, match="bins"):
+        learn(batch, discrete=[], continuous=[X], bins=[1.0, 2.0])
+    with pytest.raises(ValueError, match="episodes"):
+        learn(batch, discrete=[], continuous=[X], episodes=0)
+
+
+# ---------------------------------------------------------------- learning on the tiny scenarios
+def test_learning_under_the_shield_reaches_the_goal_safely(scenario: Callable[[str], Scenario],
+                                                            tmp_path: Path) -> None:
+    item = scenario("goal_ahead")
+    batch = EpisodeBatch(item.result, reward=V, horizon_samples=HORIZON)  # reward: the speed, per sample
+    outcome = learn(batch, discrete=[LOCATION], continuous=[X, V], shield=item.table, episodes=600, seed=3)
+    assert outcome.collisions_during_learning == 0 and outcome.offroad_during_learning == 0
+    assert outcome.fallbacks == 0  # the shield knows every state reachable under it
+    assert outcome.first_success_episode is not None and outcome.first_success_episode <= outcome.episodes
+    assert outcome.history.returns.shape == (outcome.episodes,) and not outcome.history.collided.any()
+    greedy = outcome.greedy
+    assert greedy.success.tolist() == [True] and greedy.samples_taken.tolist() == [HORIZON]
+    # the known plan speeds up first: keeping 8 m/s would reach only x = 42 < 44 at 4 s
+    assert tuple(batch.action_pairs[greedy.actions[0, 0]]) == (200, 0)
+    # the returned strategy's one run is the greedy run it was chosen by
+    run = run_strategy(batch, outcome.strategy, shield=item.table, runs=3)
+    assert (run.actions == greedy.actions).all() and (run.returns == greedy.returns[0]).all()
+    assert run.success.all()
+    # saved and loaded: the same actions, the same run
+    path = outcome.strategy.save(tmp_path / "reach.strategy.npz")
+    loaded = LearnedStrategy.load(path)
+    assert loaded.expressions() == (LOCATION, X, V) and loaded.meta["seed"] == 3
+    assert np.array_equal(loaded.values, outcome.strategy.values) and np.array_equal(loaded.keys,
+                                                                                     outcome.strategy.keys)
+    observed = run.observations.reshape(-1, 3)
+    assert (loaded.act(observed) == outcome.strategy.act(observed)).all()
+    assert (run_strategy(batch, loaded, shield=item.table).actions == greedy.actions).all()
+    # the deterministic run counted once per run; with action noise still safe under the shield
+    assert evaluate(batch, loaded, shield=item.table, runs=20).success_rate == 1.0
+    noisy = evaluate(batch, loaded, shield=item.table, runs=50, epsilon=0.3, seed=1)
+    assert noisy.collided == 0 and noisy.offroad == 0 and noisy.interval[1] <= 1.0
+
+
+def test_learning_is_reproducible_with_a_seed(scenario: Callable[[str], Scenario]) -> None:
+    batch = EpisodeBatch(scenario("goal_ahead").result, reward=V, horizon_samples=HORIZON)
+
+    calls: list[tuple[int, int]] = []
+
+    def once(seed: int):
+        return learn(batch, discrete=[], continuous=[X, V], episodes=96, parallel=16, seed=seed, stop_after=50,
+                     progress=lambda done, budget: calls.append((done, budget)))
+
+    first, again, other = once(5), once(5), once(6)
+    assert calls[:6] == [(16 * i, 96) for i in range(1, 7)] and first.episodes == 96 and not first.stopped_early
+    assert np.array_equal(first.strategy.values, again.strategy.values)
+    assert np.array_equal(first.history.returns, again.history.returns)
+    assert first.first_success_episode == again.first_success_episode
+    assert not np.array_equal(first.history.returns, other.history.returns)
+
+
+def test_the_obstacle_collides_only_without_the_shield(scenario: Callable[[str], Scenario]) -> None:
+    item = scenario("avoidable_obstacle")
+    batch = EpisodeBatch(item.result, reward=parse_expr("x - 100 * collide()"), goal=SURVIVE,
+                         horizon_samples=HORIZON)
+    free = learn(batch, discrete=[], continuous=[X, V], episodes=128, seed=1)
+    assert free.collisions_during_learning > 0 and free.history.collided.sum() == free.collisions_during_learning
+    shielded = learn(batch, discrete=[], continuous=[X, V], shield=item.table, episodes=128, seed=1)
+    assert shielded.collisions_during_learning == 0 and shielded.offroad_during_learning == 0
+    # the shield allows only braking straight on at the start (the scenario's known answer)
+    assert shielded.greedy.success.tolist() == [True]
+    assert tuple(batch.action_pairs[shielded.greedy.actions[0, 0]]) == (-200, 0)
+
+
+def test_a_shield_that_does_not_know_a_state_falls_back_and_counts(scenario: Callable[[str], Scenario],
+                                                                   tmp_path: Path) -> None:
+    item = scenario("goal_ahead")
+    (short,) = verify(item.result, VerifyOptions(out_dir=tmp_path, horizon=Fraction(2), plots=False))
+    table = shield.load(tmp_path / "safe.shield.npz")  # decision states up to 2 s only
+    batch = EpisodeBatch(item.result, reward=V, horizon_samples=HORIZON)
+    outcome = learn(batch, discrete=[], continuous=[X, V], shield=table, episodes=32, seed=1)
+    # decisions at 2 s and 3 s are unknown to it: every episode falls back twice
+    assert outcome.fallbacks == 2 * 32 and (outcome.history.fallbacks == 2).all()
+
+
+def test_the_objective_increase_is_the_automatons_reward(scenario: Callable[[str], Scenario]) -> None:
+    result = scenario("avoidable_obstacle").result
+    plain = EpisodeBatch(result, horizon_samples=HORIZON)
+    doubled = ObjectiveIncrease(EpisodeBatch(result, horizon_samples=HORIZON), parse_expr("2 * sa"))
+    rng = np.random.default_rng(0)
+    plain.reset(8)
+    doubled.reset(8)
+    while not plain.done.all():
+        actions = rng.integers(plain.n_actions, size=8)
+        a, b = plain.step(actions), doubled.step(actions)
+        assert np.allclose(2 * a.reward, b.reward) and (a.collided == b.collided).all()
+    assert doubled.done.all() and doubled.n == 8  # the rest is the batch's
+
+
+def test_the_replayed_samples_are_the_run(scenario: Callable[[str], Scenario]) -> None:
+    item = scenario("goal_ahead")
+    batch = EpisodeBatch(item.result, reward=V, goal=None, horizon_samples=HORIZON)
+    outcome = learn(batch, discrete=[], continuous=[X, V], shield=item.table, episodes=64, seed=2)
+    run = run_strategy(batch, outcome.strategy, shield=item.table)
+    runs = run.samples(item.result.model_data)
+    assert runs.states.shape == (1, HORIZON + 1, 7) and runs.truth.shape == (1, HORIZON + 1, 5)
+    decisions = run.states[0, :, 0]
+    assert (runs.states[0, decisions] == run.states[0, :, 1:]).all()
+    assert runs.actions[0, ::batch.decide_every].tolist() == run.actions[0].tolist()
+
+
+# ---------------------------------------------------------------- rac verify
+VERIFY_QUERIES = {
+    "safe": QUERIES["safe"],
+    "reach": "strategy reach = maxE(v)[<=4]{Tiny.location}->{x, v}: <> goal() under safe",
+    "SafeUnderReach": "A[] !collide() && !offroad() under reach",
+    "GoalUnderReach": "A<> goal() under reach",
+    "SlowUnderReach": "E<> v < 8 under reach",
+    "RewardUnderReach": "A[] sa >= 0 under reach",  # the automaton's names: not on the replayed run
+    "rush": "strategy rush = maxE(sa + x)[<=4]{}->{x, v}: <> goal()",
+    "SafeUnderRush": "A[] !collide() && !offroad() under rush",
+}
+
+
+def test_verify_learns_and_checks_under_the_strategy(tmp_path: Path) -> None:
+    results = {r.name: r for r in verify(compile_file(write_engine_file(tmp_path, "goal_ahead", VERIFY_QUERIES)),
+                                         VerifyOptions(seed=1, out_dir=tmp_path / "out", plots=False,
+                                                       only=("SafeUnderReach", "GoalUnderReach",
+                                                             "SlowUnderReach", "RewardUnderReach")))}
+    assert list(results)[:2] == ["safe", "reach"]  # `under reach` brings reach, and reach `under safe` safe
+    reach = results["reach"]
+    assert reach.kind == "learning" and reach.status == "value" and reach.files == (
+        str(tmp_path / "out" / "reach.strategy.npz"),)
+    assert "reaches goal() safely" in (reach.message or "") and "collided: 0" in (reach.message or "")
+    assert reach.runs is not None and 0 < reach.runs <= 1000 and reach.seed is not None
+    assert LearnedStrategy.load(reach.files[0]).meta["under"] == "safe"
+    assert results["SafeUnderReach"].status == "satisfied"
+    goal = results["GoalUnderReach"]
+    assert goal.status == "satisfied" and goal.trace is not None and goal.trace[-1]["goal"]
+    assert [row["time"] for row in goal.trace] == [k * 0.5 for k in range(HORIZON + 1)]
+    assert results["SlowUnderReach"].status == "not satisfied"  # the one run speeds up from 8 m/s
+    assert results["RewardUnderReach"].status == "unsupported" and "sa" in (results["RewardUnderReach"].message or "")
+    text = render_text(list(results.values()))
+    assert " -- learned in " in text and "wrote " + str(tmp_path / "out" / "reach.strategy.npz") in text
+
+
+def test_verify_an_unshielded_strategy_into_the_van(tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "avoidable_obstacle", VERIFY_QUERIES)
+    options = VerifyOptions(seed=2, out_dir=tmp_path / "out", plots=False, only=("SafeUnderRush",))
+    results = {r.name: r for r in verify(compile_file(path), options)}
+    assert list(results) == ["rush", "SafeUnderRush"]  # `under rush` pulls in the learning query
+    assert "learning episodes that collided: 0" not in (results["rush"].message or "")
+    unsafe = results["SafeUnderRush"]  # maximising the distance driven runs into the van
+    assert unsafe.status == "not satisfied" and unsafe.trace is not None
+    assert unsafe.trace[-1]["collide"] or unsafe.trace[-1]["offroad"]
+    assert not any(row["collide"] or row["offroad"] for row in unsafe.trace[:-1])
+    again = {r.name: r for r in verify(compile_file(path), options)}
+    assert again["rush"].estimate == results["rush"].estimate and again["rush"].runs == results["rush"].runs
