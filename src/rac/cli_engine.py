@@ -109,6 +109,8 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     exp.add_argument("--runs", type=_positive_int, default=100, help="evaluation runs per strategy (default 100)")
     exp.add_argument("--reward-function", metavar="EXPR",
                      help="per-sample reward of the RF combinations (default: the paper's Eq. 9)")
+    exp.add_argument("--bins", metavar="LIST",
+                     help="widths of the continuous observations, e.g. 4,4,2,0.4 (default: 1 m, 0.5 m/s, 0.1 rad ...)")
     exp.add_argument("--combination", action="append", choices=("SS&RA", "SS&RF", "RA", "RF"),
                      help="only this combination (repeatable)")
     exp.add_argument("--out", type=Path, metavar="DIR",
@@ -401,6 +403,13 @@ def experiment_command(args: argparse.Namespace) -> int:
     except ValueError:
         print(f"rac experiment: --seeds: not a list of whole numbers: {args.seeds!r}", file=sys.stderr)
         return EXIT_USAGE
+    bins = None
+    if args.bins:
+        try:
+            bins = [float(b) for b in args.bins.split(",")]
+        except ValueError:
+            print(f"rac experiment: --bins: not a list of numbers: {args.bins!r}", file=sys.stderr)
+            return EXIT_USAGE
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".experiment")
     quiet = args.quiet or args.format == "json"
 
@@ -412,7 +421,8 @@ def experiment_command(args: argparse.Namespace) -> int:
         report = run_experiment(result, seeds=seeds, episodes=args.episodes, evaluation_runs=args.runs,
                                 reward_function=args.reward_function,
                                 horizon_samples=_horizon_samples(result, args.horizon) if args.horizon else None,
-                                max_states=args.max_states, combinations=args.combination, progress=announce)
+                                max_states=args.max_states, combinations=args.combination, bins=bins,
+                                progress=announce)
         files = write_outputs(report, out_dir)
     except ExperimentError as exc:
         print(f"rac experiment: {exc}", file=sys.stderr)

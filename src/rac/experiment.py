@@ -5,9 +5,14 @@ Four combinations, as in the paper (Section 6):
 
 - **SS&RA** — safety shield + reward automaton: the reward is the automaton's objective increase
   per sample (plus its ``at end`` bonus), actions are restricted to the shield's;
-- **SS&RF** — safety shield + reward function: a plain per-sample reward over the inputs and the
-  model (default: the paper's Eq. 9, ``10*!isClose + (5 + 100*goal())*prog + comf``);
+- **SS&RF** — safety shield + reward function: a plain function of the current inputs and model
+  (default: the paper's Eq. 9, ``10*!isClose + (5 + 100*goal())*prog + comf``);
 - **RA** — the automaton alone; **RF** — the reward function alone.
+
+As UPPAAL's ``maxE(e)``, learning maximises the value of ``e`` when an episode ends (the goal is
+reached, or the horizon): each step is rewarded with the increase of ``e``. With the automaton,
+``e`` is its objective over accumulating rewards, so every sample carries a signal; with the
+reward function only the last state's value counts. That is the difference the paper measures.
 
 Each combination learns by tabular Q-learning (:func:`rac.engine.learn.learn`) over the same
 observation (the file's first learning query's lists, or the automaton's location and
@@ -102,10 +107,12 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int):
 def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4, 5), episodes: int = 500,
                    evaluation_runs: int = 100, reward_function: str | None = None, horizon_samples: int | None = None,
                    parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
+                   bins: Sequence[float] | None = None,
                    progress: Callable[[str], None] | None = None) -> dict[str, object]:
-    """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`)."""
+    """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
+    ``bins``: the widths of the continuous observations (default :func:`rac.engine.learn.default_bin`)."""
     from rac.engine.episodes import EpisodeBatch, parse_expr
-    from rac.engine.learn import evaluate, learn
+    from rac.engine.learn import ObjectiveIncrease, evaluate, learn
 
     automaton = result.raise_for_errors()
     if automaton.model is None or result.model_data is None:
@@ -133,10 +140,11 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         for seed in seeds:
             if progress:
                 progress(f"{label}, seed {seed}")
-            batch = EpisodeBatch(result, reward="automaton" if kind == "automaton" else rf, horizon_samples=horizon)
+            batch = EpisodeBatch(result, reward="automaton", horizon_samples=horizon)
             table = shield_table if shielded else None
-            outcome = learn(batch, discrete=discrete, continuous=continuous, shield=table, episodes=episodes,
-                            parallel=parallel, seed=seed)
+            rewarded = batch if kind == "automaton" else ObjectiveIncrease(batch, rf)
+            outcome = learn(rewarded, discrete=discrete, continuous=continuous, shield=table, episodes=episodes,  # type: ignore[arg-type]
+                            parallel=parallel, seed=seed, bins=bins)
             evaluation = evaluate(batch, outcome.strategy, runs=evaluation_runs, shield=table, seed=seed,
                                   epsilon=EVALUATION_NOISE)
             history = outcome.history
@@ -147,7 +155,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                                      np.asarray(history.returns, dtype=float), succeeded))
     return {"file": automaton.model.scenario_path, "horizon_samples": horizon, "episodes": episodes,
             "seeds": list(seeds), "reward_function": text, "shield_seconds": shield_seconds,
-            "shield_states": shield_states, "records": records,
+            "shield_states": shield_states, "records": records, "bins": list(bins) if bins else None,
             "observation": {"discrete": [_text(e) for e in discrete], "continuous": [_text(e) for e in continuous]}}
 
 
@@ -158,11 +166,16 @@ def _text(expr: ast.Expr) -> str:
 
 
 def _mean_sd(values: Sequence[float]) -> str:
+    """``mean ± sd`` over the seeds (whole numbers for counts; one seed: its value alone)."""
     if not values:
         return "—"
     mean = float(np.mean(values))
-    sd = float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
-    return f"{mean:.3g} ± {sd:.2g}"
+    whole = all(float(v).is_integer() for v in values)
+    shown = f"{mean:.0f}" if whole or abs(mean) >= 100 else f"{mean:.3g}"
+    if len(values) == 1:
+        return shown
+    sd = float(np.std(values, ddof=1))
+    return f"{shown} ± {sd:.0f}" if whole or sd >= 100 else f"{shown} ± {sd:.2g}"
 
 
 def summary(report: dict[str, object]) -> list[dict[str, object]]:

@@ -435,9 +435,11 @@ class _Verifier:
 
     def learn(self, query: ast.LearnStrategy, base: QueryResult) -> QueryResult:
         """Q-learning (:func:`rac.engine.learn.learn`) on episodes ending at the first sample where
-        ``p`` holds or at the bound. An objective that reads the automaton's rewards is maximised as
-        its increase per step (the query's weights, not necessarily the automaton's ``objective``);
-        any other objective is a reward function summed over the samples (the paper's Eq. 9)."""
+        ``p`` holds or at the bound. As in UPPAAL, ``maxE(e)`` maximises the value of ``e`` when the
+        episode ends; the reward of a step is the increase of ``e`` over it, so the returns add up
+        to that value. For ``e`` over the automaton's accumulating rewards (``10*sa + 5*pr + co``)
+        the signal is dense; for a reward function of the current state (the paper's Eq. 9) only
+        its value in the last state counts."""
         from rac.engine import learn as learning
 
         if query.path != "<>":
@@ -451,14 +453,13 @@ class _Verifier:
         samples = self.bound_samples(query.bound)
         if samples < 1:
             raise _Unknown("the time bound is shorter than one sample")
-        increase = bool(reads(query.objective) & set(self.automaton.rewards))
-        batch = self.episodes("automaton" if increase else query.objective, query.expr, samples)
+        batch = self.episodes("automaton", query.expr, samples)
         seed = self.next_seed()
         meta = {"query": base.formula, "objective": _expr_text(query.objective), "goal": _expr_text(query.expr),
                 "under": query.under, "horizon_samples": samples,
-                "reward": "increase of the objective per step" if increase else "objective summed per sample"}
+                "reward": "the objective's increase per step (its value at the episode's end)"}
         try:
-            outcome = learning.learn(learning.ObjectiveIncrease(batch, query.objective) if increase else batch,
+            outcome = learning.learn(learning.ObjectiveIncrease(batch, query.objective),
                                      discrete=query.discrete, continuous=query.continuous,
                                      optimise="max" if query.optimise == "maxE" else "min", shield=table,
                                      episodes=self.options.learn_episodes, parallel=self.options.learn_parallel,

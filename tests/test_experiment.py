@@ -1,0 +1,85 @@
+"""``rac experiment``: the paper's four combinations on a tiny scenario (rac.experiment, rac.cli)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from engine_files import write_engine_file
+from PIL import Image
+
+from rac.cli import main
+from rac.compiler import compile_file
+from rac.experiment import COMBINATIONS, ExperimentError, render_markdown, run_experiment, summary
+
+#: Episodes reach the goal region of `goal_ahead` by speeding up; the learning query's goal.
+LEARN = {"safe": "strategy safe = control: A[] !collide() && !offroad()",
+         "reach": "strategy reach = maxE(sa)[<=4]{Tiny.location}->{x, v}: <> goal() under safe"}
+REWARD_FUNCTION = "10 * !near + 100 * goal()"
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    folder = tmp_path_factory.mktemp("experiment")
+    path = write_engine_file(folder, "avoidable_obstacle", LEARN)
+    return run_experiment(compile_file(path), seeds=(1, 2), episodes=64, evaluation_runs=20,
+                          reward_function=REWARD_FUNCTION, parallel=8)
+
+
+def test_every_combination_runs_for_every_seed(report: dict[str, object]) -> None:
+    records = report["records"]
+    assert [(r.combination, r.seed) for r in records] == [(c, s) for c, _, _ in COMBINATIONS for s in (1, 2)]
+    assert report["observation"] == {"discrete": ["Tiny.location"], "continuous": ["x", "v"]}
+    assert report["shield_states"] > 0
+
+
+def test_the_shield_keeps_learning_free_of_collisions(report: dict[str, object]) -> None:
+    records = report["records"]
+    for r in records:
+        shielded = r.combination.startswith("SS&")
+        if shielded:
+            assert r.collisions_during_learning == 0 and r.offroad_during_learning == 0
+        assert 1 <= r.episodes <= 64 and r.seconds > 0
+        assert len(r.returns) == r.episodes == len(r.succeeded)
+        assert 0 <= r.evaluation_successes <= r.evaluation_runs == 20
+    unshielded = [r for r in records if not r.combination.startswith("SS&")]
+    assert sum(r.collisions_during_learning + r.offroad_during_learning for r in unshielded) > 0
+
+
+def test_the_table_reports_mean_and_spread(report: dict[str, object]) -> None:
+    table = render_markdown(report)
+    lines = table.splitlines()
+    assert lines[0].startswith("| combination | learning time (s) |")
+    assert [line.split(" | ")[0] for line in lines[2:6]] == ["| SS&RA", "| SS&RF", "| RA", "| RF"]
+    assert "±" in lines[2]
+    assert f"reward function `{REWARD_FUNCTION}`" in table
+    rows = summary(report)
+    assert [row["seeds"] for row in rows] == [2, 2, 2, 2]
+
+
+def test_cli_writes_table_json_and_curves(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "out"
+    code = main(["experiment", str(path), "--seeds", "1", "--episodes", "16", "--runs", "5", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "SS&RA", "--combination", "RF", "--out", str(out), "-q"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "| SS&RA |" in printed and "| RF |" in printed and "| RA |" not in printed
+    data = json.loads((out / "results.json").read_text())
+    assert [run["combination"] for run in data["runs"]] == ["SS&RA", "RF"]
+    assert (out / "experiment.md").read_text().startswith("| combination |")
+    for name in ("returns.png", "success.png"):
+        with Image.open(out / name) as image:
+            assert image.format == "PNG" and image.size[0] > 300
+
+
+def test_the_default_reward_function_needs_the_papers_inputs(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    with pytest.raises(ExperimentError, match="isClose, prog and comf"):
+        run_experiment(compile_file(path), seeds=(1,), episodes=4)
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--out", str(tmp_path / "o")]) == 1
+    assert "--reward-function" in capsys.readouterr().err
+    assert main(["experiment", str(path), "--seeds", "x"]) == 2
+    assert main(["experiment", str(path), "--reward-function", "10 *", "--out", str(tmp_path / "o")]) == 1
