@@ -72,6 +72,8 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
                         help="where strategies, CSV files and plots go (default: FILE's name + .out)")
     verify.add_argument("--no-plots", action="store_true", help="no PNG plots for simulate queries")
     verify.add_argument("--trace", action="store_true", help="print whole traces")
+    verify.add_argument("--learn-episodes", type=_positive_int, default=1000, metavar="N",
+                        help="episode budget of learning queries (maxE/minE; default 1000)")
     verify.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
     simulate = commands.add_parser("simulate", help="simulate runs; write CSV and the paper's Fig. 7 plot")
@@ -186,7 +188,7 @@ def verify_command(args: argparse.Namespace) -> int:
     options = VerifyOptions(horizon=args.horizon, max_states=args.max_states, seed=args.seed, epsilon=args.epsilon,
                             confidence=args.confidence, out_dir=out_dir, standard=args.standard,
                             only=tuple(args.query) if args.query else None, plots=not args.no_plots,
-                            progress=announce, explore_progress=callback)
+                            progress=announce, explore_progress=callback, learn_episodes=args.learn_episodes)
     try:
         with bar:
             results = verify(result, options)

@@ -531,10 +531,12 @@ class _Verifier:
             row.update({name: int(runs.states[0, k, i]) / scale for i, name in enumerate(EGO_COLUMNS)})
             row.update({name: bool(values[k]) for name, values in labels.items()})
             rows.append(row)
-        where = f"at {end * float(self.period):g} s" if decisive.size else "at no sample"
-        word = "fails" if always else "holds"
+        if decisive.size:
+            outcome = f"{'fails' if always else 'holds'} at {end * float(self.period):g} s"
+        else:
+            outcome = "holds at every sample" if always else "holds at no sample"
         message = f"the one run under `{query.under}` (deterministic model and strategy): {_expr_text(query.expr)} " \
-                  f"{word} {where}"
+                  f"{outcome}"
         if run.fallbacks[0]:
             message += f"; at {int(run.fallbacks[0])} decisions the shield allowed no action"
         return dataclasses.replace(base, status="satisfied" if verdict else "not satisfied", states=holds.size,
