@@ -203,3 +203,25 @@ def test_generated_module_agrees_with_the_interpreter(tmp_path: Path) -> None:
     assert "agree on all 300 samples" in result.stdout
     assert "it imports __future__, collections, math" in result.stdout
     assert (tmp_path / "driving_ra.py").exists()
+
+
+# ---------------------------------------------------------------- the engine docs' Python blocks
+def _engine_block(doc: str) -> Block:
+    (block,) = [b for b in code_blocks(REPO / "docs" / doc) if b.language == "python"]
+    return block
+
+
+@pytest.mark.parametrize(("doc", "example", "queries", "folder"), [
+    ("verify.md", "examples/left_turn/preanalysis.ra", ["Qd"], "examples/left_turn/preanalysis.out"),
+    ("learning.md", "examples/paper/model.ra", ["reachSafe"], "examples/paper/model.out"),
+])
+def test_engine_doc_blocks_run(doc: str, example: str, queries: list[str], folder: str, tmp_path: Path) -> None:
+    """The files the block reads are made by `rac verify` (into tmp_path instead of beside the example)."""
+    made = run_python("-m", "rac", "verify", example, "--seed", "1", "--out", str(tmp_path), "-q",
+                      *(arg for q in queries for arg in ("--query", q)))
+    assert made.returncode == 0, made.stdout + made.stderr
+    block = _engine_block(doc)
+    assert folder in block.text
+    result = run_python("-c", block.text.replace(folder, str(tmp_path)))
+    assert result.returncode == 0, f"{block.id} failed:\n{result.stdout}\n{result.stderr}"
+    assert result.stdout.strip()
