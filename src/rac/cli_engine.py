@@ -142,6 +142,31 @@ def _load(path: Path) -> tuple[CompileResult | None, int]:
     return result, EXIT_OK
 
 
+def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
+    """The checked file with a model (or None and the exit code, after saying why); ``--horizon``
+    must be a whole number of samples (the sweep checks its own periods)."""
+    result, status = _load(args.file)
+    if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
+        return None, EXIT_USAGE
+    return result, status
+
+
+def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int, n: int):
+    """``n`` simulated runs (under the safety shield with ``--shield``) and their seed, or None and
+    the reason when no shield can be used."""
+    import numpy as np
+
+    from rac.engine.simulate import simulate
+
+    policy = None
+    if args.shield:
+        policy, problem = _shield_policy(result, samples, args.max_states, args.quiet)
+        if policy is None:
+            return None, problem
+    seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
+    return simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy), seed  # type: ignore[arg-type]
+
+
 def _horizon_ok(result: CompileResult, args: argparse.Namespace) -> bool:
     """False (after saying why) when ``--horizon`` is not a whole number of samples."""
     try:
@@ -172,11 +197,9 @@ def _explore_bar(quiet: bool):
 def verify_command(args: argparse.Namespace) -> int:
     from rac.verify import UnknownQuery, VerifyOptions, render_json, render_text, verify
 
-    result, status = _load(args.file)
+    result, status = _prepare(args)
     if result is None:
         return status
-    if args.command != "preanalyse" and not _horizon_ok(result, args):
-        return EXIT_USAGE
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".out")
     quiet = args.quiet or args.format == "json"
     bar, callback = _explore_bar(quiet)
@@ -276,29 +299,22 @@ def simulate_command(args: argparse.Namespace) -> int:
     import numpy as np
 
     from rac.engine.expr import EvaluationError
-    from rac.engine.simulate import simulate
     from rac.verify import VerifyOptions, _plot, _Verifier, _write_csv
 
-    result, status = _load(args.file)
+    result, status = _prepare(args)
     if result is None:
         return status
-    if args.command != "preanalyse" and not _horizon_ok(result, args):
-        return EXIT_USAGE
     texts = args.expr or ["mindist()", "3 * collision_distance"]
     exprs, problem = _parse_exprs(texts)
     if exprs is None:
         print(f"rac simulate: --expr: {problem}", file=sys.stderr)
         return EXIT_USAGE
     samples = _horizon_samples(result, args.horizon)
-    policy = None
-    if args.shield:
-        policy, problem = _shield_policy(result, samples, args.max_states, args.quiet)
-        if policy is None:
-            print(f"rac simulate: {problem}", file=sys.stderr)
-            return EXIT_ERRORS
+    runs, seed = _shielded_runs(result, args, samples, args.runs)
+    if runs is None:
+        print(f"rac simulate: {seed}", file=sys.stderr)
+        return EXIT_ERRORS
     verifier = _Verifier(result, VerifyOptions(seed=args.seed))
-    seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
-    runs = simulate(result.model_data, runs=args.runs, horizon_samples=samples, seed=seed, policy=policy)  # type: ignore[arg-type]
     try:
         values = verifier.values(runs, tuple(exprs))
     except EvaluationError as exc:
@@ -325,25 +341,17 @@ def simulate_command(args: argparse.Namespace) -> int:
 
 
 def render_command(args: argparse.Namespace) -> int:
-    import numpy as np
 
-    from rac.engine.simulate import simulate
     from rac.render import RenderError, render_trajectory
 
-    result, status = _load(args.file)
+    result, status = _prepare(args)
     if result is None:
         return status
-    if args.command != "preanalyse" and not _horizon_ok(result, args):
-        return EXIT_USAGE
     samples = _horizon_samples(result, args.horizon)
-    policy = None
-    if args.shield:
-        policy, problem = _shield_policy(result, samples, args.max_states, args.quiet)
-        if policy is None:
-            print(f"rac render: {problem}", file=sys.stderr)
-            return EXIT_ERRORS
-    seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
-    runs = simulate(result.model_data, runs=1, horizon_samples=samples, seed=seed, policy=policy)  # type: ignore[arg-type]
+    runs, seed = _shielded_runs(result, args, samples, 1)
+    if runs is None:
+        print(f"rac render: {seed}", file=sys.stderr)
+        return EXIT_ERRORS
     real = runs.sensed_real()[0]
     trajectory = real[:, [0, 1, 4]]
     png = args.output if args.output is not None else args.file.with_name(args.file.stem + ".png")
@@ -370,11 +378,9 @@ def render_command(args: argparse.Namespace) -> int:
 def preanalyse_command(args: argparse.Namespace) -> int:
     from rac.preanalysis import SweepError, render_table, sweep
 
-    result, status = _load(args.file)
+    result, status = _prepare(args)
     if result is None:
         return status
-    if args.command != "preanalyse" and not _horizon_ok(result, args):
-        return EXIT_USAGE
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".preanalysis")
     try:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
@@ -395,11 +401,9 @@ def preanalyse_command(args: argparse.Namespace) -> int:
 def experiment_command(args: argparse.Namespace) -> int:
     from rac.experiment import ExperimentError, render_markdown, run_experiment, write_outputs
 
-    result, status = _load(args.file)
+    result, status = _prepare(args)
     if result is None:
         return status
-    if not _horizon_ok(result, args):
-        return EXIT_USAGE
     try:
         seeds = [int(s) for s in args.seeds.split(",")]
     except ValueError:
