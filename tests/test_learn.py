@@ -145,7 +145,7 @@ def test_learning_is_reproducible_with_a_seed(scenario: Callable[[str], Scenario
 
     def once(seed: int):
         return learn(batch, discrete=[], continuous=[X, V], episodes=96, parallel=16, seed=seed, stop_after=50,
-                     progress=lambda done, budget: calls.append((done, budget)))
+                     progress=lambda done, budget, mean_return: calls.append((done, budget)))
 
     first, again, other = once(5), once(5), once(6)
     assert calls[:6] == [(16 * i, 96) for i in range(1, 7)] and first.episodes == 96 and not first.stopped_early

@@ -211,7 +211,8 @@ def verify_command(args: argparse.Namespace) -> int:
     options = VerifyOptions(horizon=args.horizon, max_states=args.max_states, seed=args.seed, epsilon=args.epsilon,
                             confidence=args.confidence, out_dir=out_dir, standard=args.standard,
                             only=tuple(args.query) if args.query else None, plots=not args.no_plots,
-                            progress=announce, explore_progress=callback, learn_episodes=args.learn_episodes)
+                            progress=announce, explore_progress=callback, learn_episodes=args.learn_episodes,
+                            bars=not quiet)
     try:
         with bar:
             results = verify(result, options)

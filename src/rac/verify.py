@@ -119,6 +119,8 @@ class VerifyOptions:
     learn_episodes: int = 1000
     learn_parallel: int = 32
     learn_stop_after: int = 10
+    #: Show a progress bar (on a terminal) while learning, with the running mean return.
+    bars: bool = False
 
 
 @dataclass(frozen=True)
@@ -458,12 +460,22 @@ class _Verifier:
         meta = {"query": base.formula, "objective": _expr_text(query.objective), "goal": _expr_text(query.expr),
                 "under": query.under, "horizon_samples": samples,
                 "reward": "the objective's increase per step (its value at the episode's end)"}
+        from rac.progress import Progress
+
+        bar = Progress(total=self.options.learn_episodes, desc=f"learning {query.name}", unit="episodes",
+                       enabled=None if self.options.bars else False)
+
+        def report(done: int, budget: int, mean_return: float) -> None:
+            bar.set_postfix(mean_return=f"{mean_return:.1f}")
+            bar.update(done - bar.n)
+
         try:
-            outcome = learning.learn(learning.ObjectiveIncrease(batch, query.objective),
-                                     discrete=query.discrete, continuous=query.continuous,
-                                     optimise="max" if query.optimise == "maxE" else "min", shield=table,
-                                     episodes=self.options.learn_episodes, parallel=self.options.learn_parallel,
-                                     seed=seed, stop_after=self.options.learn_stop_after, meta=meta)
+            with bar:
+                outcome = learning.learn(learning.ObjectiveIncrease(batch, query.objective), progress=report,
+                                         discrete=query.discrete, continuous=query.continuous,
+                                         optimise="max" if query.optimise == "maxE" else "min", shield=table,
+                                         episodes=self.options.learn_episodes, parallel=self.options.learn_parallel,
+                                         seed=seed, stop_after=self.options.learn_stop_after, meta=meta)
         except EvaluationError:
             raise
         except ValueError as exc:  # a sensed value out of range, bindings breaking `assume`

@@ -89,7 +89,8 @@ DEFAULT_BIN = 1.0
 #: bin's edge into the bin below.
 BIN_TOLERANCE = 1e-9
 
-Progress = Callable[[int, int], None]
+#: ``progress(episodes_done, budget, mean_return)``: after every batch, with the batch's mean return.
+Progress = Callable[[int, int, float], None]
 
 
 class StepOutcome(Protocol):
@@ -581,7 +582,7 @@ def learn(batch: Episodes, *, discrete: Sequence[ast.Expr], continuous: Sequence
     observation, the algorithm and the stopping rule). ``optimise``: ``"max"`` (``maxE``) or
     ``"min"`` (``minE``) of the episodes' rewards; ``shield``: the allowed actions at each state
     key; ``episodes``: the budget; ``parallel`` episodes per batch; ``bins``: one width per
-    continuous expression (default :func:`default_bin`); ``progress(episodes_done, budget)`` after
+    continuous expression (default :func:`default_bin`); ``progress(episodes_done, budget, mean_return)`` after
     every batch; ``meta``: stored with the strategy; ``replay``: backward replays of each finished
     batch (0: plain online Q-learning). The same ``seed`` gives the same result."""
     if optimise not in ("max", "min"):
@@ -685,7 +686,7 @@ def learn(batch: Episodes, *, discrete: Sequence[ast.Expr], continuous: Sequence
         else:
             stale += 1
         if progress is not None:
-            progress(learned, episodes)
+            progress(learned, episodes, float(returns.mean()))
         if best[0] and stale >= stop_after and learned < episodes:
             stopped_early = True
             break
