@@ -69,7 +69,7 @@ def test_cli_writes_table_json_and_curves(tmp_path: Path, capsys: pytest.Capture
     data = json.loads((out / "results.json").read_text())
     assert [run["combination"] for run in data["runs"]] == ["SS&RA", "RF"]
     assert (out / "experiment.md").read_text().startswith("| combination |")
-    for name in ("returns.png", "success.png"):
+    for name in ("returns.png", "first_success.png"):
         with Image.open(out / name) as image:
             assert image.format == "PNG" and image.size[0] > 300
 

@@ -235,8 +235,8 @@ def _evaluation_runs(report: dict[str, object]) -> int:
 
 
 def write_outputs(report: dict[str, object], out_dir: Path) -> list[Path]:
-    """``experiment.md``, ``results.json``, ``returns.png`` and ``success.png`` in ``out_dir``."""
-    from rac.plots import plot_learning_curves
+    """``experiment.md``, ``results.json``, ``returns.png`` and ``first_success.png`` in ``out_dir``."""
+    from rac.plots import plot_first_success, plot_learning_curves
 
     out_dir.mkdir(parents=True, exist_ok=True)
     records: list[RunRecord] = report["records"]  # type: ignore[assignment]
@@ -265,9 +265,10 @@ def write_outputs(report: dict[str, object], out_dir: Path) -> list[Path]:
 
     written.append(plot_learning_curves(curves("returns"), out_dir / "returns.png", ylabel="episode return",
                                         title="learning curves (mean ± sd over seeds)", smooth=10))
-    written.append(plot_learning_curves(curves("succeeded"), out_dir / "success.png",
-                                        ylabel="episodes reaching the goal safely (moving average of 20)",
-                                        title="safe goal reached during learning", smooth=20))
+    firsts: dict[str, list[int | None]] = {}
+    for r in records:
+        firsts.setdefault(r.combination, []).append(r.first_success_episode)
+    written.append(plot_first_success(firsts, int(report["episodes"]), out_dir / "first_success.png"))  # type: ignore[call-overload]
     return written
 
 

@@ -323,3 +323,35 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
     ax.set_title(f"{title} ({spread_name})" if title else spread_name)
     ax.legend(loc="best", framealpha=0.9)
     return save_figure(figure, path)
+
+
+# ---------------------------------------------------------------- learning: time to the first success
+def plot_first_success(first: Mapping[str, Sequence[int | None]], budget: int, path: str | os.PathLike[str], *,
+                       title: str = "learning until the greedy strategy first reaches the goal safely") -> Path:
+    """For each label, the fraction of seeds whose greedy strategy has reached the goal safely
+    after ``e`` episodes (a step curve over ``e``; None: the seed never did within ``budget``).
+
+    Example::
+
+        plot_first_success({"SS&RA": [96, 128, None], "RA": [None, 1500, None]}, 2000, "first.png")
+    """
+    if not first:
+        raise ValueError("plot_first_success: nothing to plot")
+    figure = new_figure(7.5, 4.2)
+    axes = figure.add_subplot()
+    styles = ("-", "--", "-.", ":")  # curves often coincide: the line style tells them apart
+    for index, (label, episodes) in enumerate(first.items()):
+        seeds = len(episodes)
+        reached = sorted(e for e in episodes if e is not None)
+        xs = [0, *reached, budget]
+        ys = [0, *(i / seeds for i in range(1, len(reached) + 1)), len(reached) / seeds]
+        axes.step(xs, ys, where="post", linewidth=2, linestyle=styles[index % len(styles)],
+                  label=f"{label} ({len(reached)} of {seeds} seeds)")
+    axes.set_xlim(0, budget)
+    axes.set_ylim(-0.02, 1.05)
+    axes.set_xlabel("episodes learned")
+    axes.set_ylabel("fraction of seeds")
+    axes.set_title(title)
+    axes.grid(alpha=0.3)
+    axes.legend(loc="lower right")
+    return save_figure(figure, path)
