@@ -300,7 +300,8 @@ def simulate_command(args: argparse.Namespace) -> int:
     import numpy as np
 
     from rac.engine.expr import EvaluationError
-    from rac.verify import VerifyOptions, _plot, _Verifier, _write_csv
+    from rac.verify import VerifyOptions, _Verifier
+    from rac.verify_report import _plot, _write_csv
 
     result, status = _prepare(args)
     if result is None:

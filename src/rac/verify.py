@@ -27,16 +27,13 @@ never a crash. Example::
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
-import os
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -47,14 +44,12 @@ from rac.engine.explore import EGO_COLUMNS, action_pairs, explore
 from rac.engine.expr import EvaluationError, Evaluator, Frame, reads
 from rac.engine.graph import ExploredGraph
 from rac.model.data import ModelData, ModelRangeError
-from rac.model_block import TRUE_STATE
 from rac.parser import parse_source
 from rac.printer import format_query
-from rac.source import SourceFile, Span
-
-if TYPE_CHECKING:
-    from rac.engine.episodes import EpisodeBatch
-    from rac.engine.learn import LearnedStrategy, LearningResult
+from rac.source import SourceFile
+from rac.verify_learning import LearningQueries, _Learned
+from rac.verify_report import QueryResult, _Unknown, render_json, render_text
+from rac.verify_statistical import StatisticalQueries
 
 __all__ = ["QueryResult", "UnknownQuery", "VerifyOptions", "render_json", "render_text", "standard_queries",
            "verify"]
@@ -123,46 +118,6 @@ class VerifyOptions:
     bars: bool = False
 
 
-@dataclass(frozen=True)
-class QueryResult:
-    """One query's answer, in the shape ``rac verify`` prints and ``--format json`` writes.
-
-    ``status`` is ``"satisfied"``, ``"not satisfied"``, ``"value"`` (a probability, an
-    expectation or simulated runs), ``"unknown"`` (budget or horizon exceeded) or
-    ``"unsupported"``; ``message`` says why for the last two."""
-
-    name: str
-    formula: str
-    kind: str
-    status: str
-    title: str | None = None
-    interval: tuple[float, float] | None = None
-    estimate: float | None = None
-    runs: int | None = None
-    states: int | None = None
-    seconds: float = 0.0
-    horizon_samples: int | None = None
-    trace: tuple[dict[str, float | int | str], ...] | None = None
-    files: tuple[str, ...] = ()
-    message: str | None = None
-    seed: int | None = None
-    confidence: float | None = None
-    #: ``Pr`` without ``under``: the exact probability under uniform choices, computed by Storm
-    #: on the explored model (what the interval estimates); None when the model is too large.
-    exact: float | None = None
-    span: Span | None = field(default=None, compare=False)
-
-    def to_json(self) -> dict[str, object]:
-        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "span"}
-        out["interval"] = [_finite(v) for v in self.interval] if self.interval else None
-        out["estimate"] = _finite(self.estimate)
-        out["trace"] = list(self.trace) if self.trace else None
-        out["files"] = list(self.files)
-        if self.span is not None:
-            out["location"] = {"file": self.span.file, "line": self.span.line, "column": self.span.column}
-        return out
-
-
 def standard_queries(horizon_seconds: Fraction) -> tuple[ast.QueryDecl, ...]:
     """The paper's pre-analysis queries (:data:`STANDARD_QUERIES`) as query declarations."""
     text = STANDARD_QUERIES.replace("MAXT", _decimal(horizon_seconds))
@@ -179,11 +134,11 @@ class UnknownQuery(KeyError):
     lists the missing names."""
 
 
-class _Unknown(Exception):
-    """A query that cannot be decided within the options (message for the user)."""
+class _Verifier(LearningQueries, StatisticalQueries):
+    """Answers one file's queries in order, keeping the explored graphs and the strategies that
+    later queries use (``under S``). Exhaustive and strategy queries are here; the statistical
+    and learning ones in :mod:`rac.verify_statistical` and :mod:`rac.verify_learning`."""
 
-
-class _Verifier:
     def __init__(self, result: CompileResult, options: VerifyOptions) -> None:
         automaton = result.raise_for_errors()
         if automaton.model is None or result.model_data is None:
@@ -423,258 +378,6 @@ class _Verifier:
                                    states=graph.n_states, horizon_samples=self.horizon_samples, files=files,
                                    message=message)
 
-    # ------------------------------------------------------------ learning
-    def episodes(self, reward: str | ast.Expr, goal: ast.Expr | None, samples: int) -> EpisodeBatch:
-        """Episodes of the model with the automaton (:class:`rac.engine.episodes.EpisodeBatch`)."""
-        from rac.engine.episodes import EpisodeBatch
-
-        try:
-            return EpisodeBatch(self.result, reward=reward, goal=goal, horizon_samples=samples, data=self.data)
-        except EvaluationError:
-            raise  # an expression the engine cannot read: "unsupported"
-        except ValueError as exc:
-            raise _Unknown(str(exc)) from None
-
-    def learn(self, query: ast.LearnStrategy, base: QueryResult) -> QueryResult:
-        """Q-learning (:func:`rac.engine.learn.learn`) on episodes ending at the first sample where
-        ``p`` holds or at the bound. As in UPPAAL, ``maxE(e)`` maximises the value of ``e`` when the
-        episode ends; the reward of a step is the increase of ``e`` over it, so the returns add up
-        to that value. For ``e`` over the automaton's accumulating rewards (``10*sa + 5*pr + co``)
-        the signal is dense; for a reward function of the current state (the paper's Eq. 9) only
-        its value in the last state counts."""
-        from rac.engine import learn as learning
-
-        if query.path != "<>":
-            raise _Unknown("only reachability goals (`: <> p`) are learned")
-        table = None
-        if query.under is not None:
-            if query.under in self.learned:
-                raise _Unknown(f"learning under the learned strategy `{query.under}` is not supported "
-                               "(only under a shield: `strategy S = control: A[] ...`)")
-            _, table = self.strategy(query.under)
-        samples = self.bound_samples(query.bound)
-        if samples < 1:
-            raise _Unknown("the time bound is shorter than one sample")
-        batch = self.episodes("automaton", query.expr, samples)
-        seed = self.next_seed()
-        meta = {"query": base.formula, "objective": _expr_text(query.objective), "goal": _expr_text(query.expr),
-                "under": query.under, "horizon_samples": samples,
-                "reward": "the objective's increase per step (its value at the episode's end)"}
-        from rac.progress import Progress
-
-        bar = Progress(total=self.options.learn_episodes, desc=f"learning {query.name}", unit="episodes",
-                       enabled=None if self.options.bars else False)
-
-        def report(done: int, budget: int, mean_return: float) -> None:
-            bar.set_postfix(mean_return=f"{mean_return:.1f}")
-            bar.update(done - bar.n)
-
-        try:
-            with bar:
-                outcome = learning.learn(learning.ObjectiveIncrease(batch, query.objective), progress=report,
-                                         discrete=query.discrete, continuous=query.continuous,
-                                         optimise="max" if query.optimise == "maxE" else "min", shield=table,
-                                         episodes=self.options.learn_episodes, parallel=self.options.learn_parallel,
-                                         seed=seed, stop_after=self.options.learn_stop_after, meta=meta)
-        except EvaluationError:
-            raise
-        except ValueError as exc:  # a sensed value out of range, bindings breaking `assume`
-            raise _Unknown(str(exc)) from None
-        self.strategies.pop(query.name, None)  # the name now means the learned strategy
-        self.learned[query.name] = _Learned(outcome.strategy, table, (*query.discrete, *query.continuous))
-        files: tuple[str, ...] = ()
-        if self.out_dir is not None:
-            files = (str(outcome.strategy.save(self.out(f"{query.name}.strategy.npz"))),)
-        return dataclasses.replace(base, status="value", estimate=float(outcome.greedy.returns[0]),
-                                   runs=outcome.episodes, horizon_samples=samples, seed=seed, files=files,
-                                   message=self._learning_message(outcome, query))
-
-    def _learning_message(self, outcome: LearningResult, query: ast.LearnStrategy) -> str:
-        greedy = outcome.greedy
-        at = f"{int(greedy.samples_taken[0]) * float(self.period):g} s"
-        if greedy.success[0]:
-            run = f"reaches {_expr_text(query.expr)} safely at {at}"
-        elif greedy.reached[0]:
-            unsafe = "collides" if greedy.collided[0] else "leaves the road"
-            run = f"reaches {_expr_text(query.expr)} at {at} but {unsafe}"
-        else:
-            run = f"does not reach {_expr_text(query.expr)}"
-        first = (f"first after {outcome.first_success_episode} episodes" if outcome.first_success_episode is not None
-                 else "never")
-        stop = ", stopped early" if outcome.stopped_early else ""
-        lines = [f"learned in {outcome.episodes} episodes{stop}: the greedy run {run}, return "
-                 f"{_number(float(greedy.returns[0]))}",
-                 f"safe greedy run to the goal: {first}; learning episodes that collided: "
-                 f"{outcome.collisions_during_learning}, left the road: {outcome.offroad_during_learning}; "
-                 f"{outcome.strategy.n_states:,} observations"]
-        if outcome.fallbacks:
-            lines.append(f"{outcome.fallbacks} decisions where `{query.under}` allowed no action chose among all")
-        return "\n".join(lines)
-
-    def path_under_learned(self, query: ast.PathQuery, base: QueryResult) -> QueryResult:
-        """``A[] p``, ``E[] p``, ``A<> p``, ``E<> p`` under a learned strategy: the model and the
-        greedy strategy are deterministic, so there is one run, followed to the horizon (it does not
-        stop at the learning goal) and replayed sample by sample (:meth:`StrategyRun.samples`):
-        ``[]`` holds iff ``p`` holds at every sample of it, ``<>`` iff at some sample."""
-        from rac.engine.learn import run_strategy
-        from rac.engine.simulate import label_runs
-
-        # p is evaluated on the replayed samples, which hold the model and the ground truth: the
-        # evaluator reports a name of the automaton (a location, a reward, an input) as unsupported.
-        entry = self.learned[query.under]  # type: ignore[index]
-        batch = self.episodes("automaton", None, self.horizon_samples)
-        try:
-            run = run_strategy(batch, entry.strategy, exprs=entry.exprs, shield=entry.shield)
-            runs = run.samples(self.data)
-        except EvaluationError:
-            raise
-        except ValueError as exc:
-            raise _Unknown(str(exc)) from None
-        holds = np.array([bool(self.evaluator.evaluate_bool(query.expr, frame)[0]) for frame in self.frames(runs)])
-        always = query.quantifier in ("A[]", "E[]")
-        verdict = bool(holds.all()) if always else bool(holds.any())
-        decisive = np.flatnonzero(~holds if always else holds)
-        end = int(decisive[0]) if decisive.size else holds.size - 1
-        scale = float(self.data.scale)
-        labels = {name: label_runs(self.data, runs, name)[0] for name in ("collide", "offroad", "goal")}
-        rows = []
-        for k in range(end + 1):
-            row: dict[str, float | int | str] = {"time": round(k * float(self.period), 9)}
-            row.update({name: int(runs.states[0, k, i]) / scale for i, name in enumerate(EGO_COLUMNS)})
-            row.update({name: bool(values[k]) for name, values in labels.items()})
-            rows.append(row)
-        if decisive.size:
-            outcome = f"{'fails' if always else 'holds'} at {end * float(self.period):g} s"
-        else:
-            outcome = "holds at every sample" if always else "holds at no sample"
-        message = f"the one run under `{query.under}` (deterministic model and strategy): {_expr_text(query.expr)} " \
-                  f"{outcome}"
-        if run.fallbacks[0]:
-            message += f"; at {int(run.fallbacks[0])} decisions the shield allowed no action"
-        return dataclasses.replace(base, status="satisfied" if verdict else "not satisfied", states=holds.size,
-                                   horizon_samples=self.horizon_samples, trace=tuple(rows), message=message)
-
-    # ------------------------------------------------------------ statistical
-    def _runs(self, n: int, samples: int, under: str | None, seed: int):
-        from rac.engine.simulate import simulate
-
-        return simulate(self.data, runs=n, horizon_samples=samples, seed=seed, policy=self.policy(under))
-
-    def frames(self, runs) -> Iterable[Frame]:
-        """One frame per sample of the runs (``prev`` is the previous sample's frame)."""
-        previous = None
-        n = runs.n_runs
-        for k in range(runs.horizon + 1):
-            frame = Frame(k=np.full(n, k, dtype=np.int64), ego=np.ascontiguousarray(runs.states[:, k]),
-                          truth=np.ascontiguousarray(runs.truth[:, k]), prev=previous)
-            yield frame
-            previous = dataclasses.replace(frame, prev=None)
-
-    def values(self, runs, exprs: tuple[ast.Expr, ...]) -> list[np.ndarray]:
-        """Each expression per run and sample: ``(N, T+1)`` arrays."""
-        columns: list[list[np.ndarray]] = [[] for _ in exprs]
-        for frame in self.frames(runs):
-            for column, expr in zip(columns, exprs):
-                column.append(np.asarray(self.evaluator.evaluate(expr, frame), dtype=np.float64))
-        return [np.stack(column, axis=1) for column in columns]
-
-    def _statistical_check(self, exprs: Iterable[ast.Expr]) -> None:
-        for expr in exprs:
-            if self.needs_product(expr):
-                raise _Unknown("statistical queries over the automaton's names are not supported yet "
-                               "(the model's vocabulary is)")
-
-    def probability(self, query: ast.ProbabilityQuery, base: QueryResult) -> QueryResult:
-        from rac.engine import stats
-
-        self._statistical_check([query.expr])
-        samples = self.bound_samples(query.bound)
-        seed = self.next_seed()
-        batch_seeds = np.random.SeedSequence(seed)
-        every = query.path == "[]"
-
-        def sample(n: int) -> np.ndarray:
-            runs = self._runs(n, samples, query.under, int(batch_seeds.spawn(1)[0].generate_state(1)[0]))
-            holds = self.values(runs, (query.expr,))[0] != 0
-            return holds.all(axis=1) if every else holds.any(axis=1)
-
-        if query.compare is not None:
-            op, theta_expr = query.compare
-            theta = float(self.evaluator.evaluate(theta_expr, Frame(k=np.zeros(1, dtype=np.int64),
-                                                                     ego=np.zeros((1, 7), dtype=np.int32)))[0])
-            test = stats.sequential_test(sample, theta, alpha=self.options.alpha, beta=self.options.beta,
-                                         delta=self.options.delta)
-            accepted = test.accepted if op in (">=", ">") else not test.accepted
-            message = None if test.decided else "the run budget ran out before the test decided"
-            return dataclasses.replace(base, status="satisfied" if accepted else "not satisfied", runs=test.runs,
-                                       estimate=test.successes / test.runs if test.runs else None,
-                                       horizon_samples=samples, seed=seed, message=message)
-        if query.runs is not None:
-            estimate = stats.estimate_probability_fixed(sample, self.runs_of(query.runs, 1),
-                                                        confidence=self.options.confidence)
-        else:
-            estimate = stats.estimate_probability(sample, epsilon=self.options.epsilon,
-                                                  confidence=self.options.confidence)
-        return dataclasses.replace(base, status="value", interval=(estimate.lo, estimate.hi),
-                                   estimate=estimate.estimate, runs=estimate.runs, horizon_samples=samples,
-                                   seed=seed, confidence=self.options.confidence,
-                                   exact=self.exact_probability(query, samples))
-
-    def exact_probability(self, query: ast.ProbabilityQuery, samples: int) -> float | None:
-        """``Pr[<=T](<> p)`` (or ``[] p``) under uniform choices, exactly, by Storm on the explored
-        model — when ``p`` reads only the sensed model and the model up to ``T`` is small enough."""
-        names = reads(query.expr)
-        if query.under is not None or "prev()" in names or names & set(TRUE_STATE):
-            return None
-        try:
-            graph = explore(self.data, horizon_samples=samples, max_states=min(self.options.max_states, 2_000_000))
-        except (MemoryError, ModelRangeError):
-            return None
-        p = self.label(graph, query.expr)
-        every = query.path == "[]"
-        reached = storm.uniform_reach_probability(dataclasses.replace(graph, labels={"event": ~p if every else p}),
-                                                  "event")
-        return 1.0 - reached if every else reached
-
-    def expectation(self, query: ast.ExpectationQuery, base: QueryResult) -> QueryResult:
-        from rac.engine import stats
-
-        self._statistical_check([query.expr])
-        samples = self.bound_samples(query.bound)
-        n = self.runs_of(query.runs, 1)
-        seed = self.next_seed()
-        values = self.values(self._runs(n, samples, query.under, seed), (query.expr,))[0]
-        per_run = values.max(axis=1) if query.aggregate == "max" else values.min(axis=1)
-        if n >= 2:
-            mean, half = stats.mean_interval(per_run, self.options.confidence)
-        else:
-            mean, half = float(per_run[0]), math.inf
-        return dataclasses.replace(base, status="value", estimate=mean, interval=(mean - half, mean + half), runs=n,
-                                   horizon_samples=samples, seed=seed, confidence=self.options.confidence)
-
-    def simulate(self, query: ast.SimulateQuery, base: QueryResult) -> QueryResult:
-        self._statistical_check(query.exprs)
-        samples = self.bound_samples(query.bound)
-        n = self.runs_of(query.runs, 1)
-        seed = self.next_seed()
-        runs = self._runs(n, samples, query.under, seed)
-        values = self.values(runs, query.exprs)
-        files: list[str] = []
-        names = [_expr_text(e) for e in query.exprs]
-        if self.out_dir is not None:
-            files.append(str(_write_csv(self.out(f"{base.name}.csv"), runs.times, names, values)))
-            if self.options.plots:
-                png = _plot(self.out(f"{base.name}.png"), runs.times, names, values, base.formula)
-                if png is not None:
-                    files.append(str(png))
-        message = f"{n} runs of {samples} samples"
-        if len(values) == 2 and np.ptp(values[1]) == 0:
-            below = int(np.any(values[0] < values[1], axis=1).sum())
-            message += f"; {below} of {n} runs go below {names[1]} = {float(values[1].flat[0]):g}"
-        return dataclasses.replace(base, status="value", runs=n, horizon_samples=samples, seed=seed,
-                                   files=tuple(files), message=message,
-                                   estimate=float(np.min(values[0])) if values else None)
-
     # ------------------------------------------------------------ all
     def run(self, decls: Iterable[tuple[ast.QueryDecl, str | None]]) -> list[QueryResult]:
         results = []
@@ -734,15 +437,6 @@ def _implies_safe(expr: ast.Expr) -> bool:
     return {"collide", "offroad"} <= found
 
 
-@dataclass(frozen=True)
-class _Learned:
-    """A learned strategy, the shield it was learned (and is run) under, and its observed expressions."""
-
-    strategy: LearnedStrategy
-    shield: shield.ShieldTable | None
-    exprs: tuple[ast.Expr, ...]
-
-
 def _restricted(computed: storm.Shield) -> ExploredGraph:
     """The shield's graph with only the allowed choices (states without one become terminal)."""
     graph = computed.graph
@@ -755,122 +449,3 @@ def _restricted(computed: storm.Shield) -> ExploredGraph:
                                choice_target=graph.choice_target[keep])
 
 
-def _expr_text(expr: ast.Expr) -> str:
-    from rac.printer import format_expr
-
-    return format_expr(expr)
-
-
-def _write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray]) -> Path:
-    """``run,time,expr...`` rows, written to a temporary file and renamed (never half a file)."""
-    partial = path.with_name(path.name + ".partial")
-    with partial.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["run", "time", *names])
-        for run in range(values[0].shape[0] if values else 0):
-            for k, t in enumerate(times):
-                writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
-    os.replace(partial, path)
-    return path
-
-
-def _plot(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray], title: str) -> Path | None:
-    """The paper's Fig. 7 for ``simulate{distance, threshold}``; one line per run otherwise."""
-    try:
-        from rac.plots import plot_runs
-    except ImportError:  # plotting is optional for verification
-        return None
-    threshold = float(values[1].flat[0]) if len(values) == 2 and np.ptp(values[1]) == 0 else None
-    return Path(plot_runs(times, values[0], path, threshold=threshold, threshold_label=names[1] if threshold else None,
-                          ylabel=names[0], title=title))
-
-
-# ---------------------------------------------------------------- rendering
-def _number(value: float) -> str:
-    return f"{value:.4g}" if math.isfinite(value) else str(value)
-
-
-def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
-    """The results in the layout of UPPAAL's verifyta: ``Verifying`` then `` -- Formula is ...``."""
-    lines: list[str] = []
-    for r in results:
-        where = f"  ({r.span.file}:{r.span.line})" if r.span is not None and not r.span.file.startswith("<") else ""
-        lines.append(f"Verifying {r.name}: {r.formula}{where}")
-        if r.title:
-            lines.append(f"    ({r.title})")
-        if r.status in ("satisfied", "not satisfied"):
-            lines.append(f" -- Formula is {'satisfied' if r.status == 'satisfied' else 'NOT satisfied'}.")
-        elif r.status == "unknown":
-            lines.append(f" -- Formula is UNKNOWN: {r.message}")
-        elif r.status == "unsupported":
-            lines.append(f" -- Not answered: {r.message}")
-        if r.kind == "probability" and r.interval is not None:
-            lines.append(f" -- Pr in [{r.interval[0]:.4f}, {r.interval[1]:.4f}] ({r.runs} runs, "
-                         f"{_confidence(r)} CI)")
-            if r.exact is not None:
-                lines.append(f" -- exact (Storm, actions drawn uniformly): {r.exact:.4f}")
-        elif r.kind == "probability" and r.runs is not None:
-            lines.append(f" -- {r.runs} runs, {int(round((r.estimate or 0) * r.runs))} satisfied the formula")
-        elif r.kind == "expectation" and r.estimate is not None and r.interval is not None:
-            half = (r.interval[1] - r.interval[0]) / 2
-            lines.append(f" -- ({r.runs} runs) E = {_number(r.estimate)} ± {_number(half)} ({_confidence(r)} CI)")
-        elif r.kind == "simulate" and r.message:
-            lines.append(f" -- {r.message}")
-        elif r.kind == "learning" and r.status == "value" and r.message:
-            first, *more = r.message.split("\n")
-            lines.append(f" -- {first}")
-            lines.extend(f"    {line}" for line in more)
-        details = []
-        if r.states is not None:
-            details.append(_count(r.states, "state"))
-        if r.horizon_samples is not None:
-            details.append(f"horizon {r.horizon_samples} samples")
-        details.append(f"{r.seconds:.2f} s")
-        if r.seed is not None:
-            details.append(f"seed {r.seed}")
-        lines.append("    " + ", ".join(details))
-        if r.kind in ("strategy", "symbolic") and r.message and r.status != "unknown":
-            lines.append(f"    {r.message}")
-        for file in r.files:
-            lines.append(f"    wrote {file}")
-        if r.trace:
-            shown = r.trace if traces else (r.trace[:3] + r.trace[-3:] if len(r.trace) > 6 else r.trace)
-            note = "" if traces or len(r.trace) <= 6 else ", first and last 3; --trace shows all"
-            lines.append(f"    trace ({_count(len(r.trace), 'state')}{note}):")
-            for row in shown:
-                lines.append("      " + _trace_row(row))
-    return "\n".join(lines)
-
-
-def _count(n: int, noun: str) -> str:
-    return f"{n:,} {noun}{'' if n == 1 else 's'}"
-
-
-def _confidence(result: QueryResult) -> str:
-    return f"{(result.confidence or 0.95) * 100:g}%"
-
-
-def _trace_row(row: dict) -> str:
-    parts = [f"t={row['time']:g}s"]
-    for name in ("x", "y", "v", "acc", "head", "jerk", "turn"):
-        parts.append(f"{name}={row[name]:g}")
-    if "location" in row:
-        parts.append(str(row["location"]))
-    if row.get("phase", "sampled") != "sampled":  # product states before the edge, after `at end`
-        parts.append(f"({row['phase']})")
-    known = {"time", "x", "y", "v", "acc", "head", "jerk", "turn", "location", "phase", "collide", "offroad", "goal"}
-    parts.extend(f"{name}={value:g}" for name, value in row.items() if name not in known)
-    flags = [name for name in ("collide", "offroad", "goal") if row.get(name)]
-    if flags:
-        parts.append("[" + ",".join(flags) + "]")
-    return " ".join(parts)
-
-
-def _finite(value: float | None) -> float | None:
-    """``value``, or None when it is not finite (JSON has no infinities)."""
-    return value if value is None or math.isfinite(value) else None
-
-
-def render_json(results: list[QueryResult]) -> list[dict[str, object]]:
-    """The results as JSON-ready dicts (``rac verify --format json``)."""
-    return [r.to_json() for r in results]
