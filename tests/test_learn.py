@@ -252,3 +252,35 @@ def test_verify_an_unshielded_strategy_into_the_van(tmp_path: Path) -> None:
     assert not any(row["collide"] or row["offroad"] for row in unsafe.trace[:-1])
     again = {r.name: r for r in verify(compile_file(path), options)}
     assert again["rush"].estimate == results["rush"].estimate and again["rush"].runs == results["rush"].runs
+
+
+def test_statistical_queries_under_a_learned_strategy_use_its_one_run(tmp_path: Path) -> None:
+    queries = {**VERIFY_QUERIES, "Trace": "simulate[<=4;3]{x, v} under reach",
+               "PrGoal": "Pr[<=4](<> goal()) under reach", "MaxSpeed": "E[<=4;5](max: v) under reach"}
+    path = write_engine_file(tmp_path, "goal_ahead", queries)
+    results = {r.name: r for r in verify(compile_file(path), VerifyOptions(
+        seed=1, out_dir=tmp_path / "out", plots=False, only=("Trace", "PrGoal", "MaxSpeed", "GoalUnderReach")))}
+    assert results["GoalUnderReach"].status == "satisfied"
+    rows = (tmp_path / "out" / "Trace.csv").read_text().splitlines()
+    by_run = [[line.split(",", 1)[1] for line in rows[1:] if line.startswith(f"{run},")] for run in range(3)]
+    assert len(by_run[0]) == HORIZON + 1 and by_run[0] == by_run[1] == by_run[2]  # deterministic: one run
+    goal = results["PrGoal"]
+    assert goal.interval is not None and goal.interval[0] > 0.9 and goal.estimate == 1.0
+    speed = results["MaxSpeed"]
+    assert speed.interval is not None and speed.interval[0] == speed.interval[1] == speed.estimate
+
+
+def test_render_draws_the_learned_strategys_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from PIL import Image
+
+    from rac.cli import main
+
+    path = write_engine_file(tmp_path, "goal_ahead", VERIFY_QUERIES)
+    png = tmp_path / "run.png"
+    assert main(["render", str(path), "--strategy", "reach", "--seed", "1", "-o", str(png), "-q"]) == 0
+    assert "the run under the learned strategy reach" in capsys.readouterr().out
+    with Image.open(png) as image:
+        assert image.format == "PNG"
+    assert main(["render", str(path), "--strategy", "nope", "-o", str(png)]) == 2
+    assert "learning queries: reach, rush" in capsys.readouterr().err
+    assert main(["render", str(path), "--strategy", "reach", "--shield", "-o", str(png)]) == 2  # one or the other

@@ -88,7 +88,10 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
 
     render = commands.add_parser("render", help="draw the scenario with a simulated trajectory (PNG, GIF)")
     _common(render)
-    render.add_argument("--shield", action="store_true", help="drive under the safety shield")
+    how = render.add_mutually_exclusive_group()
+    how.add_argument("--shield", action="store_true", help="drive under the safety shield (random allowed actions)")
+    how.add_argument("--strategy", metavar="NAME",
+                     help="drive the file's learned strategy NAME (learned first, like rac verify does)")
     render.add_argument("-o", "--output", type=Path, metavar="PNG", help="PNG file (default: FILE's name + .png)")
     render.add_argument("--gif", type=Path, metavar="GIF", help="also write an animated GIF")
 
@@ -165,6 +168,41 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
             return None, problem
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
     return simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy), seed  # type: ignore[arg-type]
+
+
+def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
+    """The one run of the file's learned strategy ``args.strategy`` (learned now, with the shield it
+    is learned under), and the seed; or None and why (None and "" after printing a usage error)."""
+    from rac import ast
+    from rac.verify import VerifyOptions, run_queries
+
+    assert result.automaton is not None
+    learned = {d.query.name: d for d in result.automaton.queries if isinstance(d.query, ast.LearnStrategy)}
+    if args.strategy not in learned:
+        print(f"rac render: no learned strategy `{args.strategy}` in {args.file} (learning queries: "
+              f"{', '.join(learned) or 'none'})", file=sys.stderr)
+        return None, ""
+    options = VerifyOptions(seed=args.seed, max_states=args.max_states, only=(learned[args.strategy].name.name,),
+                            bars=not args.quiet)
+    verifier, results = run_queries(result, options)
+    if args.strategy not in verifier.learned:
+        reasons = "; ".join(f"{r.name}: {r.message}" for r in results if r.message)
+        return None, f"the strategy `{args.strategy}` could not be learned ({reasons})"
+    _, runs = verifier.learned_run(args.strategy, samples)
+    return runs, results[-1].seed
+
+
+def _how(args: argparse.Namespace) -> str:
+    if args.strategy:
+        return f"the run under the learned strategy {args.strategy}"
+    return "one run under the shield" if args.shield else "one run"
+
+
+def _short(args: argparse.Namespace) -> str:
+    """:func:`_how` in a few words, for a plot's title."""
+    if args.strategy:
+        return f"strategy {args.strategy}"
+    return "shielded" if args.shield else "random actions"
 
 
 def _horizon_ok(result: CompileResult, args: argparse.Namespace) -> bool:
@@ -350,10 +388,13 @@ def render_command(args: argparse.Namespace) -> int:
     if result is None:
         return status
     samples = _horizon_samples(result, args.horizon)
-    runs, seed = _shielded_runs(result, args, samples, 1)
+    if args.strategy:
+        runs, seed = _strategy_run(result, args, samples)
+    else:
+        runs, seed = _shielded_runs(result, args, samples, 1)
     if runs is None:
         print(f"rac render: {seed}", file=sys.stderr)
-        return EXIT_ERRORS
+        return EXIT_ERRORS if seed else EXIT_USAGE
     real = runs.sensed_real()[0]
     trajectory = real[:, [0, 1, 4]]
     png = args.output if args.output is not None else args.file.with_name(args.file.stem + ".png")
@@ -362,15 +403,14 @@ def render_command(args: argparse.Namespace) -> int:
         written = render_trajectory(spec.scenario_path, trajectory, png, gif_path=args.gif,  # type: ignore[union-attr]
                                     sample_period=float(result.automaton.period),  # type: ignore[union-attr]
                                     length=float(spec.length), width=float(spec.width),  # type: ignore[union-attr]
-                                    title=f"{args.file.name}: one run{' under the shield' if args.shield else ''} "
-                                          f"(seed {seed})")
+                                    title=f"{args.file.name}, {_short(args)}, seed {seed}")
     except RenderError as exc:
         print(f"rac render: {exc}", file=sys.stderr)
         return EXIT_ERRORS
     except OSError as exc:
         print(f"rac render: cannot write: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    print(f"rendered one run of {samples} samples (seed {seed})")
+    print(f"rendered {_how(args)}: {samples} samples (seed {seed})")
     print(f"wrote {written}")
     if args.gif is not None:
         print(f"wrote {args.gif}")

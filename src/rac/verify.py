@@ -392,6 +392,12 @@ def verify(result: CompileResult, options: VerifyOptions | None = None) -> list[
     """Answer the queries of a checked file (and, with ``options.standard``, the paper's standard
     queries first). :class:`rac.diagnostics.CheckError` when the file has errors; ``ValueError``
     when it has no ``model`` block; :class:`UnknownQuery` when ``options.only`` names a missing query."""
+    return run_queries(result, options)[1]
+
+
+def run_queries(result: CompileResult, options: VerifyOptions | None = None) -> tuple[_Verifier, list[QueryResult]]:
+    """:func:`verify`, also returning the verifier, which keeps the strategies it computed
+    (``.strategies`` for shields, ``.learned`` and :meth:`learned_run` for learned ones)."""
     options = options or VerifyOptions()
     verifier = _Verifier(result, options)
     decls: list[tuple[ast.QueryDecl, str | None]] = []
@@ -411,7 +417,7 @@ def verify(result: CompileResult, options: VerifyOptions | None = None) -> list[
             if decl.name.name in wanted and getattr(decl.query, "under", None):
                 wanted |= {d.name.name for d, _ in decls if getattr(d.query, "name", None) == decl.query.under}
         decls = [(d, t) for d, t in decls if d.name.name in wanted]
-    return verifier.run(decls)
+    return verifier, verifier.run(decls)
 
 
 # ---------------------------------------------------------------- helpers

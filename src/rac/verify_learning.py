@@ -120,25 +120,32 @@ class LearningQueries:
             lines.append(f"{outcome.fallbacks} decisions where `{query.under}` allowed no action chose among all")
         return "\n".join(lines)
 
+    def learned_run(self, name: str, samples: int):
+        """The one run of the learned strategy ``name`` over ``samples`` samples (it does not stop at
+        the learning goal): the :class:`rac.engine.learn.StrategyRun` and its samples replayed as
+        :class:`rac.engine.simulate.Runs` (one run, with the ground truth)."""
+        from rac.engine.learn import run_strategy
+
+        entry = self.learned[name]
+        batch = self.episodes("automaton", None, samples)
+        try:
+            run = run_strategy(batch, entry.strategy, exprs=entry.exprs, shield=entry.shield)
+            return run, run.samples(self.data)
+        except EvaluationError:
+            raise
+        except ValueError as exc:
+            raise _Unknown(str(exc)) from None
+
     def path_under_learned(self, query: ast.PathQuery, base: QueryResult) -> QueryResult:
         """``A[] p``, ``E[] p``, ``A<> p``, ``E<> p`` under a learned strategy: the model and the
         greedy strategy are deterministic, so there is one run, followed to the horizon (it does not
         stop at the learning goal) and replayed sample by sample (:meth:`StrategyRun.samples`):
         ``[]`` holds iff ``p`` holds at every sample of it, ``<>`` iff at some sample."""
-        from rac.engine.learn import run_strategy
         from rac.engine.simulate import label_runs
 
         # p is evaluated on the replayed samples, which hold the model and the ground truth: the
         # evaluator reports a name of the automaton (a location, a reward, an input) as unsupported.
-        entry = self.learned[query.under]  # type: ignore[index]
-        batch = self.episodes("automaton", None, self.horizon_samples)
-        try:
-            run = run_strategy(batch, entry.strategy, exprs=entry.exprs, shield=entry.shield)
-            runs = run.samples(self.data)
-        except EvaluationError:
-            raise
-        except ValueError as exc:
-            raise _Unknown(str(exc)) from None
+        run, runs = self.learned_run(query.under, self.horizon_samples)  # type: ignore[arg-type]
         holds = np.array([bool(self.evaluator.evaluate_bool(query.expr, frame)[0]) for frame in self.frames(runs)])
         always = query.quantifier in ("A[]", "E[]")
         verdict = bool(holds.all()) if always else bool(holds.any())

@@ -16,7 +16,7 @@ from rac.engine.explore import explore
 from rac.engine.expr import Frame, reads
 from rac.model.data import ModelRangeError
 from rac.model_block import TRUE_STATE
-from rac.verify_report import QueryResult, _expr_text, _plot, _Unknown, _write_csv
+from rac.verify_report import QueryResult, _count, _expr_text, _plot, _Unknown, _write_csv
 
 if TYPE_CHECKING:
     pass
@@ -28,8 +28,14 @@ class StatisticalQueries:
     """Simulation-based answers (UPPAAL's SMC semantics, :mod:`rac.engine.simulate`)."""
 
     def _runs(self, n: int, samples: int, under: str | None, seed: int):
+        """``n`` runs of ``samples`` samples: actions drawn uniformly (among a shield's with
+        ``under``), or, under a learned strategy, its one deterministic run ``n`` times."""
         from rac.engine.simulate import simulate
 
+        if under is not None and under in self.learned:
+            _, one = self.learned_run(under, samples)
+            return dataclasses.replace(one, **{name: np.repeat(getattr(one, name), n, axis=0)
+                                               for name in ("states", "truth", "actions", "left_policy")})
         return simulate(self.data, runs=n, horizon_samples=samples, seed=seed, policy=self.policy(under))
 
     def frames(self, runs) -> Iterable[Frame]:
@@ -139,7 +145,7 @@ class StatisticalQueries:
                 png = _plot(self.out(f"{base.name}.png"), runs.times, names, values, base.formula)
                 if png is not None:
                     files.append(str(png))
-        message = f"{n} runs of {samples} samples"
+        message = f"{_count(n, 'run')} of {samples} samples"
         if len(values) == 2 and np.ptp(values[1]) == 0:
             below = int(np.any(values[0] < values[1], axis=1).sum())
             message += f"; {below} of {n} runs go below {names[1]} = {float(values[1].flat[0]):g}"
