@@ -303,7 +303,7 @@ def test_render_writes_png_and_gif(capsys: pytest.CaptureFixture[str], tmp_path:
     path = write_engine_file(tmp_path, "goal_behind_wall", {})
     png, gif = tmp_path / "run.png", tmp_path / "run.gif"
     assert main(["render", str(path), "--horizon", "1", "--seed", "4", "-o", str(png), "--gif", str(gif)]) == 0
-    assert capsys.readouterr().out == f"rendered one run of 2 samples (seed 4)\nwrote {png}\nwrote {gif}\n"
+    assert capsys.readouterr().out == f"rendered one run: 2 samples (seed 4)\nwrote {png}\nwrote {gif}\n"
     image_size(png)
     with Image.open(gif) as image:
         assert image.format == "GIF" and image.n_frames == 3  # one frame per sample: t = 0, 0.5, 1
