@@ -313,7 +313,7 @@ def test_render_default_path_and_shield(capsys: pytest.CaptureFixture[str], tmp_
     path = write_engine_file(tmp_path, "avoidable_obstacle", {})
     assert main(["render", str(path), "--horizon", "1", "--shield"]) == 0
     out = capsys.readouterr().out
-    assert re.fullmatch(r"rendered one run of 2 samples \(seed \d+\)\nwrote .*\n", out)
+    assert re.fullmatch(r"rendered one run under the shield: 2 samples \(seed \d+\)\nwrote .*\n", out)
     image_size(tmp_path / "avoidable_obstacle.png")
     narrow = write_engine_file(tmp_path, "narrow_road", {})
     assert main(["render", str(narrow), "--horizon", "1", "--shield"]) == 1
