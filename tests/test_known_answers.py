@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
+from test_storm import check_trace, successors
 
 from rac import shield as shield_file
 from rac.engine.explore import action_pairs, explore
@@ -96,10 +97,6 @@ def allowed_pairs(data: ModelData, shield: Shield, state: int) -> set[tuple[int,
     """The (jerk, turn) significands the shield allows in ``state``."""
     pairs = action_pairs(data).tolist()
     return {tuple(pairs[a]) for a in shield.allowed(state).tolist()}
-
-
-def successors(graph: ExploredGraph, state: int) -> list[int]:
-    return [int(graph.choice_target[c]) for c in graph.choices(state)]
 
 
 def replay(data: ModelData, graph: ExploredGraph, trace: Sequence[int]) -> None:
@@ -200,21 +197,6 @@ def ref_verdict(graph: ExploredGraph, kind: str, p: np.ndarray) -> bool:
     if kind == "E[]":
         return bool(ref_stay(graph, p)[i])
     return not ref_stay(graph, ~p)[i]
-
-
-def check_trace(graph: ExploredGraph, kind: str, p: np.ndarray, trace: list[int]) -> None:
-    """The trace is a path from the initial state with the property its kind claims."""
-    assert trace and trace[0] == graph.initial
-    for a, b in zip(trace, trace[1:]):
-        assert b in successors(graph, a), f"{a} -> {b} is not a transition"
-    if kind == "E<>":
-        assert p[trace[-1]]
-    elif kind == "A[]":
-        assert not p[trace[-1]]
-    else:
-        inside = p if kind == "E[]" else ~p
-        assert all(inside[s] for s in trace)
-        assert graph.terminal()[trace[-1]]
 
 
 # ---------------------------------------------------------------- the files

@@ -273,31 +273,19 @@ def verify_command(args: argparse.Namespace) -> int:
 
 def _shield_policy(result: CompileResult, horizon_samples: int, max_states: int, quiet: bool):
     """The safety shield (Qd) at this horizon as a simulation policy, or an error message."""
-    import numpy as np
-
     from rac import shield as shields
-    from rac.engine import storm
-    from rac.engine.explore import action_pairs, explore
 
-    data = result.model_data
-    assert data is not None
+    assert result.model_data is not None
     bar, callback = _explore_bar(quiet)
     try:
         with bar:
-            graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=True, progress=callback,
-                            max_states=max_states)
+            computed, table = shields.synthesise(result.model_data, horizon_samples, max_states=max_states,
+                                                 progress=callback)
     except MemoryError as exc:
         return None, f"cannot compute the shield: {exc}; shorten --horizon or coarsen the model"
-    computed = storm.safety_shield(graph, "safe")
     if not computed.shield_exists:
         return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)"
-    table = shields.table(computed, n_actions=len(action_pairs(data)))
-
-    def policy(k: int, states: np.ndarray) -> np.ndarray:
-        keys = np.column_stack([np.full(states.shape[0], k, dtype=np.int32), states]).astype(np.int32)
-        return table.masks_for(keys)
-
-    return policy, None
+    return table.masks_at, None
 
 
 def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
@@ -314,23 +302,16 @@ def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
 
 def _parse_exprs(texts: list[str]):
     """Each ``--expr`` as one expression of the query language, or an error message naming it."""
-    from rac.parser import ParseFailure, parse_source
-    from rac.source import SourceFile
+    from rac.parser import ExpressionError, parse_expression
 
-    prefix = "automaton X {\nquery E: simulate[<=1;1]{"
     exprs = []
     for text in texts:
         try:
-            module = parse_source(SourceFile("<--expr>", f"{prefix}{text}\n}}\n}}"))
-        except ParseFailure as failure:
-            span = failure.diagnostic.span
-            if span is not None and span.start >= len(prefix) + len(text.rstrip()):
-                return None, f"`{text}`: the expression is incomplete"  # not "unexpected `}`" of the wrapper
-            return None, f"`{text}`: {failure.diagnostic.message}"
-        found = module.automata[0].members[0].query.exprs  # type: ignore[union-attr]
-        if len(found) != 1:
-            return None, f"`{text}`: one expression per --expr (repeat --expr for more)"
-        exprs.append(found[0])
+            exprs.append(parse_expression(text, "<--expr>"))
+        except ExpressionError as exc:
+            if exc.count != 1:
+                return None, f"`{text}`: one expression per --expr (repeat --expr for more)"
+            return None, str(exc)
     return exprs, None
 
 
@@ -381,7 +362,6 @@ def simulate_command(args: argparse.Namespace) -> int:
 
 
 def render_command(args: argparse.Namespace) -> int:
-
     from rac.render import RenderError, render_trajectory
 
     result, status = _prepare(args)

@@ -28,7 +28,6 @@ the paper's table).
 from __future__ import annotations
 
 import json
-import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -85,23 +84,19 @@ def _learning_spec(result: CompileResult) -> tuple[list[ast.Expr], list[ast.Expr
 
 
 def _shield(result: CompileResult, horizon_samples: int, max_states: int):
+    """The safety shield's table, the seconds it took and its states; ExperimentError without one."""
     from rac import shield as shields
-    from rac.engine import storm
-    from rac.engine.explore import action_pairs, explore
 
-    data = result.model_data
-    assert data is not None
+    assert result.model_data is not None
     t0 = time.perf_counter()
     try:
-        graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=True, max_states=max_states)
+        computed, table = shields.synthesise(result.model_data, horizon_samples, max_states=max_states)
     except MemoryError as exc:
         raise ExperimentError(f"the safety shield cannot be computed: {exc}; coarsen the model (actions, "
                               "decide_period) or shorten the horizon") from None
-    computed = storm.safety_shield(graph, "safe")
     if not computed.shield_exists:
         raise ExperimentError("no safe strategy exists from the start: the shielded combinations cannot run")
-    table = shields.table(computed, n_actions=len(action_pairs(data)))
-    return table, time.perf_counter() - t0, graph.n_states
+    return table, time.perf_counter() - t0, computed.graph.n_states
 
 
 def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4, 5), episodes: int = 500,
@@ -250,7 +245,8 @@ def write_outputs(report: dict[str, object], out_dir: Path) -> list[Path]:
                      "collisions_during_learning": r.collisions_during_learning,
                      "offroad_during_learning": r.offroad_during_learning, "greedy_success": r.greedy_success,
                      "evaluation_successes": r.evaluation_successes, "evaluation_runs": r.evaluation_runs,
-                     "returns": [round(float(v), 4) for v in r.returns]} for r in records]
+                     "returns": [round(float(v), 4) for v in r.returns],
+                     "succeeded": [bool(v) for v in r.succeeded]} for r in records]
     results = out_dir / "results.json"
     _write_text(results, json.dumps(data, indent=1) + "\n")
     written.append(results)
@@ -277,6 +273,3 @@ def _write_text(path: Path, text: str) -> None:
     partial.write_text(text, encoding="utf-8")
     os.replace(partial, path)
 
-
-def finite(value: float) -> float | None:
-    return value if math.isfinite(value) else None

@@ -597,3 +597,33 @@ def parse_text(text: str, name: str = "<string>") -> ast.Module:
 def parse_tree(text: str) -> Tree:
     """The raw lark tree (for debugging the grammar)."""
     return _lark().parse(text)
+
+
+class ExpressionError(ValueError):
+    """:func:`parse_expression`'s error; ``incomplete`` when the text stops mid-expression and
+    ``count`` (how many expressions) when it holds a comma-separated list instead of one."""
+
+    def __init__(self, message: str, *, incomplete: bool = False, count: int = 1) -> None:
+        super().__init__(message)
+        self.incomplete = incomplete
+        self.count = count
+
+
+def parse_expression(text: str, name: str = "<expr>") -> ast.Expr:
+    """One expression of the query language (e.g. ``"10*!isClose + comf"``), parsed, not checked:
+    names are resolved when the expression is evaluated. :class:`ExpressionError` (a
+    ``ValueError``) when the text is not one expression; its message starts with the text."""
+    # A `simulate` query holds a list of expressions: the grammar's way in for a bare one.
+    prefix = "automaton X {\nquery E: simulate[<=1;1]{"
+    try:
+        module = parse_source(SourceFile(name, f"{prefix}{text}\n}}\n}}\n"))
+    except ParseFailure as failure:
+        span = failure.diagnostic.span
+        if span is not None and span.start >= len(prefix) + len(text.rstrip()):
+            # the error is at the wrapper's `}`, after the text: say so, not "unexpected `}`"
+            raise ExpressionError(f"`{text}`: the expression is incomplete", incomplete=True) from None
+        raise ExpressionError(f"`{text}`: {failure.diagnostic.message}") from None
+    exprs = module.automata[0].members[0].query.exprs  # type: ignore[union-attr]
+    if len(exprs) != 1:
+        raise ExpressionError(f"`{text}`: expected one expression, not {len(exprs)}", count=len(exprs))
+    return exprs[0]

@@ -32,11 +32,11 @@ import numpy as np
 from rac import ir
 from rac.compiler import CompileResult
 from rac.engine import storm
-from rac.engine.explore import BatchModel, action_pairs, explore
+from rac.engine.explore import BatchModel
 from rac.engine.simulate import Limits, _truth_period, simulate
 from rac.engine.stats import clopper_pearson
 from rac.model.data import ModelData, ModelRangeError, build_model_data
-from rac.shield import table as shield_table
+from rac.shield import synthesise
 
 __all__ = ["SweepError", "render_table", "sweep"]
 
@@ -98,7 +98,7 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
 
 
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
-         max_states: int, threshold_factor: int, out_dir: Path | None, progress) -> dict[str, object]:
+         max_states: int, threshold_factor: int, out_dir: Path | None) -> dict[str, object]:
     row: dict[str, object] = {"exponent": spec.exponent, "sense": float(spec.sense_period),
                               "decide": float(spec.decide_period)}
     try:
@@ -116,32 +116,26 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, 0] / data.scale) >= float(spec.sensor_error)
     hits = int(drift.any(axis=1).sum())
     row["qa"] = clopper_pearson(hits, runs)
-    # Qb-Qd on the explored model (unsafe states end a run).
+    # Qb-Qd on the explored model (unsafe states end a run): the shield's own graph.
     t0 = time.perf_counter()
     try:
-        graph = explore(data, horizon_samples=samples, prune_unsafe=True, max_states=max_states, progress=progress)
+        shield, masks = synthesise(data, samples, max_states=max_states)
     except MemoryError as exc:
         row["error"] = f"{exc}"
         row["seconds"] = time.perf_counter() - t0
         return row
+    graph = shield.graph
     safe = graph.labels["safe"]
     row["qb"] = storm.decide(graph, "E[]", "safe").holds
     labelled = dataclasses.replace(graph, labels={**graph.labels, "safe_goal": safe & graph.labels["goal"]})
     row["qc"] = storm.decide(labelled, "E<>", "safe_goal").holds
-    shield = storm.safety_shield(graph, "safe")
     row["qd"] = shield.shield_exists
     row["states"] = graph.n_states
     row["seconds"] = time.perf_counter() - t0
     if not shield.shield_exists:
         return row
     # Fig. 7 under the shield: sensed and true distances.
-    masks = shield_table(shield, n_actions=len(action_pairs(data)))
-
-    def policy(k: int, states: np.ndarray) -> np.ndarray:
-        keys = np.column_stack([np.full(states.shape[0], k, dtype=np.int32), states]).astype(np.int32)
-        return masks.masks_for(keys)
-
-    shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=policy)
+    shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at)
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
     true = _true_distances(result, spec, shielded, data)
@@ -196,7 +190,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                              "error": "the exponent must lie in 1..6"})
             else:
                 rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
-                                 threshold_factor=threshold_factor, out_dir=out_dir, progress=None))
+                                 threshold_factor=threshold_factor, out_dir=out_dir))
                 rows[-1]["seed"] = seed
             bar.update()
     if out_dir is not None:

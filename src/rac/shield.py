@@ -24,12 +24,17 @@ is *unseen*. What to do then is the caller's choice, made once when loading:
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rac.engine.storm import Shield
+
+if TYPE_CHECKING:
+    from rac.model.data import ModelData
 
 FORMAT = "rac-shield-1"
 UNSEEN_POLICIES = ("none", "all", "error")
@@ -79,6 +84,12 @@ class ShieldTable:
         """Whether ``state`` is one of the shield's decision states."""
         return self._row(state) is not None
 
+    def masks_at(self, k: int, states: np.ndarray) -> np.ndarray:
+        """:meth:`masks_for` of the ego rows ``states`` ``(n, 7)`` at sample ``k``: the
+        ``policy(k, states)`` that :func:`rac.engine.simulate.simulate` takes."""
+        states = np.asarray(states, dtype=np.int32)
+        return self.masks_for(np.column_stack([np.full(states.shape[0], k, dtype=np.int32), states]))
+
     def masks_for(self, states: np.ndarray) -> np.ndarray:
         """``(n, n_actions)`` bool: :meth:`mask` of every row of ``states`` (``(n, d)``), in one call.
 
@@ -93,6 +104,20 @@ class ShieldTable:
                 raise UnseenState(f"the shield has no entry for state {rows[~seen][0].tolist()}")
             out[~seen] = self.unseen == "all"
         return out
+
+
+def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None = None,
+               progress: Callable[[int, int, int], None] | None = None) -> tuple[Shield, ShieldTable]:
+    """The safety shield of ``control: A[] !collide() && !offroad()`` up to the horizon: the model
+    explored with unsafe states not expanded, Storm's most permissive strategy, and its table over
+    the model's whole action grid. ``MemoryError`` beyond ``max_states`` (from the exploration)."""
+    from rac.engine.explore import action_pairs, explore
+    from rac.engine.storm import safety_shield
+
+    graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=True, max_states=max_states,
+                    progress=progress)
+    computed = safety_shield(graph, "safe")
+    return computed, table(computed, n_actions=len(action_pairs(data)))
 
 
 def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none") -> ShieldTable:

@@ -229,15 +229,8 @@ class _Verifier(LearningQueries, StatisticalQueries):
         return int(self.seed_source.spawn(1)[0].generate_state(1)[0])
 
     def policy(self, under: str | None):
-        if under is None:
-            return None
-        _, table = self.strategy(under)
-
-        def allowed(k: int, states: np.ndarray) -> np.ndarray:
-            keys = np.column_stack([np.full(states.shape[0], k, dtype=np.int32), states]).astype(np.int32)
-            return table.masks_for(keys)
-
-        return allowed
+        """The simulation policy of the shield ``under`` (None: every action)."""
+        return None if under is None else self.strategy(under)[1].masks_at
 
     def trace_rows(self, graph: ExploredGraph, trace: list[int] | None) -> tuple[dict, ...] | None:
         if not trace:

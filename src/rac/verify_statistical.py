@@ -104,10 +104,14 @@ class StatisticalQueries:
         names = reads(query.expr)
         if query.under is not None or "prev()" in names or names & set(TRUE_STATE):
             return None
-        try:
-            graph = explore(self.data, horizon_samples=samples, max_states=min(self.options.max_states, 2_000_000))
-        except (MemoryError, ModelRangeError):
-            return None
+        if samples == self.horizon_samples and False in self.graphs:
+            graph = self.graphs[False]  # the exhaustive queries' graph: the same model, the same horizon
+        else:
+            try:
+                graph = explore(self.data, horizon_samples=samples,
+                                max_states=min(self.options.max_states, 2_000_000))
+            except (MemoryError, ModelRangeError):
+                return None
         p = self.label(graph, query.expr)
         every = query.path == "[]"
         reached = storm.uniform_reach_probability(dataclasses.replace(graph, labels={"event": ~p if every else p}),
@@ -142,9 +146,7 @@ class StatisticalQueries:
         if self.out_dir is not None:
             files.append(str(_write_csv(self.out(f"{base.name}.csv"), runs.times, names, values)))
             if self.options.plots:
-                png = _plot(self.out(f"{base.name}.png"), runs.times, names, values, base.formula)
-                if png is not None:
-                    files.append(str(png))
+                files.append(str(_plot(self.out(f"{base.name}.png"), runs.times, names, values, base.formula)))
         message = f"{_count(n, 'run')} of {samples} samples"
         if len(values) == 2 and np.ptp(values[1]) == 0:
             below = int(np.any(values[0] < values[1], axis=1).sum())

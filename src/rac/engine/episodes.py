@@ -62,6 +62,7 @@ from rac.engine.explore import action_pairs
 from rac.engine.expr import Evaluator, Frame
 from rac.execution import InputSpec, input_specs
 from rac.model.data import ModelData, ModelRangeError
+from rac.parser import parse_expression
 
 __all__ = ["GOAL", "EpisodeBatch", "StepResult", "parse_expr"]
 
@@ -72,23 +73,11 @@ _OFFROAD = ast.Call("offroad", ())
 
 
 def parse_expr(text: str) -> ast.Expr:
-    """One expression of the query language (e.g. ``"10*!isClose + comf"``), parsed, not checked.
+    """One expression of the query language, parsed, not checked (:func:`rac.parser.parse_expression`).
 
     Names are resolved when the expression is evaluated (:class:`rac.engine.expr.EvaluationError`
     for one the engine cannot read); :class:`ValueError` when the text is not one expression."""
-    from rac.parser import ParseFailure, parse_source
-    from rac.source import SourceFile
-
-    # A `simulate` query holds a list of expressions: the parser's way in for a bare one.
-    prefix = "automaton X {\nquery E: simulate[<=1;1]{"
-    try:
-        module = parse_source(SourceFile("<expr>", f"{prefix}{text}\n}}\n}}\n"))
-    except ParseFailure as failure:
-        raise ValueError(f"`{text}`: {failure.diagnostic.message}") from None
-    exprs = module.automata[0].members[0].query.exprs  # type: ignore[union-attr]
-    if len(exprs) != 1:
-        raise ValueError(f"`{text}`: expected one expression, not {len(exprs)}")
-    return exprs[0]
+    return parse_expression(text)
 
 
 @dataclass(frozen=True)
