@@ -275,6 +275,30 @@ def test_batch_trace_and_masked_reset(driving: ir.Automaton, strategy: str) -> N
 
 
 @pytest.mark.parametrize("strategy", ["table", "direct"])
+def test_batch_step_with_mask(driving: ir.Automaton, strategy: str) -> None:
+    """A masked step moves only the masked copies (as if the others were not there); unmasked
+    copies may have ended, and their inputs are not read."""
+    batch = BatchRewardAutomaton(driving, 3, strategy=strategy)
+    alone = BatchRewardAutomaton(driving, 2, strategy=strategy)
+    batch.step_batch(columns([inputs()] * 3))
+    alone.step_batch(columns([inputs()] * 2))
+    batch.end_batch(columns([inputs()] * 3), mask=np.array([False, False, True]))
+    before = (batch.locations.tolist(), batch.rewards["sa"].tolist(), batch.objective.tolist())
+    step = [inputs(prog=False), inputs(is_close=True)]
+    garbage = {**inputs(), "dgoal": -1.0}  # out of range: must not be read for an unmasked copy
+    out = batch.step_batch(columns([*step, garbage]), mask=np.array([True, True, False]))
+    expected = alone.step_batch(columns(step))
+    assert out.tolist() == [*expected.tolist(), 0.0]
+    assert batch.locations.tolist()[:2] == alone.locations.tolist()
+    assert batch.rewards["sa"].tolist()[:2] == alone.rewards["sa"].tolist()
+    assert batch.samples.tolist() == [2, 2, 1]
+    assert (batch.locations.tolist()[2], batch.rewards["sa"].tolist()[2], batch.objective.tolist()[2]) == (
+        before[0][2], before[1][2], before[2][2])
+    with pytest.raises(RuntimeError):  # an ended copy cannot be stepped
+        batch.step_batch(columns([inputs()] * 3), mask=np.array([False, False, True]))
+
+
+@pytest.mark.parametrize("strategy", ["table", "direct"])
 def test_batch_end_with_mask(driving: ir.Automaton, strategy: str) -> None:
     batch = BatchRewardAutomaton(driving, 3, strategy=strategy)
     batch.step_batch(columns([inputs()] * 3))

@@ -372,12 +372,18 @@ class BatchRewardAutomaton(AutomatonDescription):
         R, index = self._R, self._index
         return _eval_np_linear(self._objective_form, lambda name: R[index[name]], self._n)
 
-    def step_batch(self, inputs: Mapping[str, object]) -> np.ndarray:
-        """One sample for every automaton; returns each one's objective increase (float64, (n,))."""
-        if self._n_ended:
-            ended = np.flatnonzero(self._ended)[:10].tolist()
-            raise RuntimeError(f"{ENDED_MESSAGE} (automata {ended} have ended)")
-        x = self._read(inputs, None)
+    def step_batch(self, inputs: Mapping[str, object],
+                   mask: np.ndarray | Sequence[bool] | None = None) -> np.ndarray:
+        """One sample for every automaton, or for those where ``mask`` is true; returns each one's
+        objective increase (float64, (n,); 0.0 where unmasked).
+
+        As in :meth:`end_batch`, inputs are validated on the masked automata only, and the
+        unmasked ones keep their state (they may have ended)."""
+        only = None if mask is None else self._mask(mask)
+        ended = self._ended if only is None else self._ended & only
+        if self._n_ended and ended.any():
+            raise RuntimeError(f"{ENDED_MESSAGE} (automata {np.flatnonzero(ended)[:10].tolist()} have ended)")
+        x = self._read(inputs, only)
         loc = self._loc
         with np.errstate(all="ignore"):
             # ---- choose edges (before anything changes: an assume violation leaves the state alone)
@@ -395,7 +401,7 @@ class BatchRewardAutomaton(AutomatonDescription):
                 if code is None:
                     code = np.zeros(self._n, dtype=self._code_dtype)
                 if self._assume_table is not None:
-                    ok = self._assume_table[code]
+                    ok = self._assume_table[code] if only is None else self._assume_table[code] | ~only
                     if not ok.all():
                         raise self._assume_failed(ok)
                 idx = (loc << self._atom_bits) | code
@@ -408,8 +414,10 @@ class BatchRewardAutomaton(AutomatonDescription):
                             fired.append((c, m))
             else:
                 g = self._guards.evaluate(x)
-                if self._assume_id is not None and not g[self._assume_id].all():
-                    raise self._assume_failed(g[self._assume_id])
+                if self._assume_id is not None:
+                    ok = g[self._assume_id] if only is None else g[self._assume_id] | ~only
+                    if not ok.all():
+                        raise self._assume_failed(ok)
                 nxt = loc.copy()
                 masks: dict[int, np.ndarray] = {}
                 for source, edges in self._direct:
@@ -429,29 +437,38 @@ class BatchRewardAutomaton(AutomatonDescription):
             if self._held_names:
                 held = self._held
                 if self._any_first:
+                    first = self._first if only is None else self._first & only
                     for name in self._held_names:
-                        held[name] = np.where(self._first, x[name], held[name])
-                    self._first[:] = False
-                    self._any_first = False
+                        held[name] = np.where(first, x[name], held[name])
+                    self._first &= ~first
+                    self._any_first = bool(self._first.any())
             if self._all_constant:
-                self._R += self._rate_table[:, loc]
+                gain = self._rate_table[:, loc]
+                self._R += gain if only is None else gain * only
             else:
                 for i, terms in enumerate(self._rate_terms):
                     rate = self._rate_table[i][loc]
                     if terms is not None:
                         for table, name in terms:
                             rate = rate + table[loc] * held[name]
-                    self._R[i] += rate
+                    if only is None:
+                        self._R[i] += rate
+                    else:
+                        np.add(self._R[i], rate, out=self._R[i], where=only)
             for name in self._held_names:
-                held[name] = np.array(x[name], dtype=np.float64)
+                value = np.array(x[name], dtype=np.float64)
+                held[name] = value if only is None else np.where(only, value, held[name])
 
             # ---- edges
-            for c, m in fired:
-                self._apply(self._classes[c], m, x)
-            self._loc = nxt
-            self._samples += 1
+            for c, f in fired:
+                self._apply(self._classes[c], f if only is None else f & only, x)
+            self._loc = nxt if only is None else np.where(only, nxt, loc)
+            self._samples += 1 if only is None else only
             objective = self._objective_now()
             reward = objective - self._obj
+            if only is not None:
+                reward = np.where(only, reward, 0.0)
+                objective = np.where(only, objective, self._obj)
         self._obj = objective
         return reward
 

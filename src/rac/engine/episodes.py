@@ -50,7 +50,7 @@ Example::
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,46 +94,6 @@ class StepResult:
     collided: np.ndarray
     #: bool: ``offroad()`` held at some sample of this step.
     offroad: np.ndarray
-
-
-class _Automata(BatchRewardAutomaton):
-    """A :class:`BatchRewardAutomaton` that steps some of its copies and leaves the others as they are.
-
-    ``step_batch`` steps every copy and refuses ended ones; episodes end at different samples, so
-    the copies of frozen episodes are saved around the step and put back. This reads the batch's
-    private state (the one place that does; a ``mask`` on ``step_batch`` would make it unnecessary).
-    """
-
-    def step_rows(self, inputs: Mapping[str, np.ndarray], active: np.ndarray) -> np.ndarray:
-        """One sample for the copies where ``active``; the others keep their state and get 0.0.
-        Every copy's inputs must be valid (pass a frozen copy's last inputs)."""
-        keep = np.flatnonzero(~active)
-        if keep.size == 0 and not self._n_ended:
-            return self.step_batch(inputs)
-        saved = (self._loc[keep].copy(), self._R[:, keep].copy(), self._obj[keep].copy(),
-                 self._samples[keep].copy(), self._first[keep].copy(),
-                 {name: values[keep].copy() for name, values in self._held.items()})
-        ended = self._ended.copy()
-        self._ended[:] = False
-        self._n_ended = 0
-        try:
-            gain = self.step_batch(inputs)
-        finally:
-            loc, rewards, objective, samples, first, held = saved
-            self._loc = self._loc.copy()
-            self._loc[keep] = loc
-            self._R[:, keep] = rewards
-            self._obj = self._obj.copy()
-            self._obj[keep] = objective
-            self._samples[keep] = samples
-            self._first[keep] = first
-            self._any_first = bool(self._first.any())
-            for name, values in held.items():
-                self._held[name] = self._held[name].copy()
-                self._held[name][keep] = values
-            self._ended = ended
-            self._n_ended = int(ended.sum())
-        return np.where(active, gain, 0.0)
 
 
 class _Bindings:
@@ -275,7 +235,7 @@ class EpisodeBatch:
         self.clipped_inputs = {item.name: 0 for item in automaton.numeric_inputs}
         self._td = self.evaluator.model.native.td_d
         self._start = np.asarray(self.evaluator.model.native.initial_state(), dtype=np.int32)
-        self._automata: _Automata | None = None
+        self._automata: BatchRewardAutomaton | None = None
         self.n = 0
         self.k = np.zeros(0, dtype=np.int64)
         self.ego = np.zeros((0, 7), dtype=np.int32)
@@ -305,7 +265,7 @@ class EpisodeBatch:
             raise ValueError(f"n must be a positive integer, not {n!r}")
         n = int(n)
         if self._automata is None or self._automata.n != n:
-            self._automata = _Automata(self.automaton, n)
+            self._automata = BatchRewardAutomaton(self.automaton, n)
         else:
             self._automata.reset()
         self.n = n
@@ -315,7 +275,7 @@ class EpisodeBatch:
         self.ego = self._now.ego
         self.done = np.zeros(n, dtype=bool)
 
-    def _require(self) -> tuple[_State, _State, _Automata]:
+    def _require(self) -> tuple[_State, _State, BatchRewardAutomaton]:
         if self._now is None or self._prev is None or self._automata is None:
             raise RuntimeError("no episodes yet: call reset(n) first")
         return self._now, self._prev, self._automata
@@ -399,7 +359,7 @@ class EpisodeBatch:
         for name, column in values.items():
             fed[name][rows] = column
         try:
-            gain = automata.step_rows(fed, active)
+            gain = automata.step_batch(fed, mask=active)
         except ValueError as exc:
             raise ValueError(f"sample {int(before.k[0]) + 1}: the bindings' values are not valid inputs of "
                              f"`{self.automaton.name}`: {exc}") from None
@@ -437,7 +397,7 @@ class EpisodeBatch:
             self.done[mask] = True
 
     @staticmethod
-    def _sync(now: _State, automata: _Automata) -> None:
+    def _sync(now: _State, automata: BatchRewardAutomaton) -> None:
         """The automaton's location and rewards into the current state (copies; frozen ones unchanged)."""
         now.location = automata.locations.astype(np.int64)
         now.rewards = automata.rewards
