@@ -3,8 +3,8 @@
 The global declarations of the model that ``rac compile --target uppaal`` writes for a file with a
 ``model`` block are in the subset that is valid both in UPPAAL and in C (tests/test_model_c.py checks
 the scenario part against :mod:`rac.model.native`). This test compiles the whole declaration
-section (clocks and channels, which C has no use for, left out) and the Controller's functions,
-sets the ego state and the sample index, runs the Controller's reading of the inputs, and
+section (channels, which C has no use for, left out; clocks as doubles), plays the Controller —
+``keep_sample()`` on the previous sample's state, then ``read_inputs()`` on the current one — and
 compares every input with the value the engine's product (:mod:`rac.engine.product`) gives.
 """
 
@@ -22,7 +22,7 @@ import pytest
 from rac.compiler import compile_text
 from rac.engine.expr import Evaluator, Frame
 from rac.engine.product import _Bindings
-from rac.scenarios.tiny import goal_ahead
+from rac.scenarios.tiny import avoidable_obstacle
 from rac.targets.uppaal_functions import C_PRELUDE
 from rac.targets.uppaal_model import generate_uppaal_model
 
@@ -73,7 +73,7 @@ int main(void) {
                  &in[8], &in[9], &in[10], &in[11], &in[12], &in[13], &in[14], &in[15]) == 16) {
         x = (int32_t)in[0]; y = (int32_t)in[1]; v = (int32_t)in[2]; acc = (int32_t)in[3];
         head = (int32_t)in[4]; jerk = (int32_t)in[5]; turn = (int32_t)in[6]; count = (int32_t)in[7];
-        INIT_PREVS();
+        KEEP_SAMPLE
         x = (int32_t)in[8]; y = (int32_t)in[9]; v = (int32_t)in[10]; acc = (int32_t)in[11];
         head = (int32_t)in[12]; jerk = (int32_t)in[13]; turn = (int32_t)in[14]; count = (int32_t)in[15];
         READ_INPUTS();
@@ -84,12 +84,9 @@ int main(void) {
 """
 
 
-def _declarations(xml: str) -> tuple[str, str]:
-    """The global declaration section and the Controller's, as text."""
-    sections = [html.unescape(m) for m in re.findall(r"<declaration>(.*?)</declaration>", xml, re.DOTALL)]
-    names = re.findall(r"<template>\s*<name[^>]*>(\w+)</name>", xml)
-    controller = sections[1 + names.index("Controller")] if "Controller" in names else ""
-    return sections[0], controller
+def _declaration(xml: str) -> str:
+    """The global declaration section, as text."""
+    return html.unescape(re.search(r"<declaration>(.*?)</declaration>", xml, re.DOTALL).group(1))
 
 
 def _as_c(declaration: str) -> str:
@@ -105,16 +102,16 @@ def _as_c(declaration: str) -> str:
 
 def compile_reader(xml: str, automaton, folder: Path) -> Path:
     """A C program: per line, a previous and a current state; it prints every input after reading."""
-    declaration, controller = _declarations(xml)
+    declaration = _declaration(xml)
     inputs = [item.name for item in automaton.inputs]
-    functions = re.findall(r"void (\w+)\(\)", controller)
+    functions = re.findall(r"^void (\w+)\(\)", declaration, re.MULTILINE)
+    keep = [f"{f}();" for f in functions if f.startswith("keep_sample")]
     read = next(f for f in functions if f.startswith("read_inputs"))
-    init = next(f for f in functions if f.startswith("init_prevs"))
     prints = " ".join(f'printf("%lld ", (long long){name});' for name in inputs) + ' printf("\\n");'
-    main = (MAIN.replace("INIT_PREVS", init).replace("READ_INPUTS", read)
+    main = (MAIN.replace("KEEP_SAMPLE", " ".join(keep)).replace("READ_INPUTS", read)
             .replace("PRINT_INPUTS();", prints))
     source = folder / "reader.c"
-    source.write_text(C_PRELUDE + _as_c(declaration) + "\n" + controller + "\n" + main, encoding="utf-8")
+    source.write_text(C_PRELUDE + _as_c(declaration) + "\n" + main, encoding="utf-8")
     binary = folder / "reader"
     result = subprocess.run([COMPILER, "-O2", "-ffp-contract=off", "-fno-builtin", "-std=c99", "-o", str(binary),
                              str(source), "-lm"], capture_output=True, text=True, check=False)
@@ -146,7 +143,7 @@ def random_pairs(data, rng: np.random.Generator, n: int) -> tuple[np.ndarray, np
 
 @needs_cc
 def test_bindings_of_the_emitted_model_are_the_engines(tmp_path: Path) -> None:
-    tiny = goal_ahead()
+    tiny = avoidable_obstacle()
     scenario = tiny.write(tmp_path)
     result = compile_text(SETTINGS_AUTOMATON.format(scenario=scenario.name), str(tmp_path / "reader.ra"))
     automaton = result.raise_for_errors()

@@ -285,7 +285,7 @@ def test_simulate_shield_without_safe_strategy_exits_1(capsys: pytest.CaptureFix
     ("3 *", "`3 *`: the expression is incomplete"),
     ("a b", "`a b`: unexpected `b`"),
     ("x, y", "`x, y`: one expression per --expr (repeat --expr for more)"),
-    ("foo()", "`foo()` cannot be evaluated by the engine"),
+    ("foo()", "`foo()`: unknown function `foo`"),
     ("near", "the input `near` is not known here: it needs the product of the model and the automaton"),
 ])
 def test_simulate_bad_expression_exits_2(capsys: pytest.CaptureFixture[str], tmp_path: Path, expr: str,

@@ -21,11 +21,13 @@ from hypothesis import strategies as st
 
 from rac import ast
 from rac.compiler import CompileResult, compile_file, compile_text
+from rac.diagnostics import CheckError
 from rac.engine.episodes import EpisodeBatch, StepResult, parse_expr
 from rac.engine.explore import action_pairs, explore
-from rac.engine.expr import EvaluationError, Evaluator, Frame
+from rac.engine.expr import Evaluator, Frame
 from rac.execution import input_specs
 from rac.model import NativeModel, State
+from rac.query_check import lower_expression
 from rac.runtime import RewardAutomaton
 from rac.scenarios.tiny import goal_ahead
 
@@ -120,6 +122,7 @@ def reference(result: CompileResult, actions: list[int], horizon: int, *, goal: 
     data, automaton = result.model_data, result.automaton
     assert data is not None and automaton is not None and automaton.model is not None
     native, evaluator, ra = NativeModel(data), Evaluator(data, automaton), RewardAutomaton(automaton)
+    checked = None if reward is None else lower_expression(automaton, reward, bool_numbers=True)
     pairs = action_pairs(data).tolist()
     specs = {spec.name: spec for spec in input_specs(automaton)}
     bindings = [(b.input, b.expr) for b in automaton.model.bindings]
@@ -158,7 +161,7 @@ def reference(result: CompileResult, actions: list[int], horizon: int, *, goal: 
             if reward is None:
                 total += gain
             else:
-                total += float(evaluator.evaluate(reward, one_frame(k, state, ra, inputs, prev=before))[0])
+                total += float(evaluator.evaluate(checked, one_frame(k, state, ra, inputs, prev=before))[0])
             reached = goal and native.goal(state, k)
             if reached or k == horizon:
                 bonus = ra.end(values)
@@ -368,7 +371,7 @@ def test_errors(probe: CompileResult) -> None:
         batch.reset(0)
     with pytest.raises(ValueError, match="at least 1"):
         EpisodeBatch(probe, horizon_samples=0)
-    with pytest.raises(EvaluationError):
+    with pytest.raises(CheckError, match="unknown name `nonsense`"):
         EpisodeBatch(probe, reward="nonsense + 1")
     with pytest.raises(ValueError):
         parse_expr("1 +")

@@ -20,6 +20,7 @@ import pytest
 
 from rac import ast, ir
 from rac.compiler import compile_file, compile_text
+from rac.ir import expr as ie
 from rac.model_block import ACTIONS, MATH_FUNCTIONS, MODEL_FUNCTIONS, SETTINGS
 from rac.parser import ParseFailure, parse_text
 from rac.printer import format_module, format_source
@@ -254,7 +255,7 @@ def test_the_issue_block_resolves() -> None:
                              ir.Action("turn", Fraction(-2, 5), Fraction(2, 5), Fraction(1, 10)))
     assert len(model.action("jerk").values) == 9 and len(model.action("turn").values) == 9
     assert [b.input for b in model.bindings] == ["isClose", "prog", "comf", "collide", "dgoal"]
-    assert model.bindings[3].expr == ast.Call("collide", ())
+    assert model.bindings[3].expr == ie.call("collide")
 
 
 def test_defaults() -> None:
@@ -295,17 +296,18 @@ def test_constants_in_settings_and_bindings() -> None:
     model = check(text).automaton.model  # type: ignore[union-attr]
     assert model is not None
     assert model.max_turn == Fraction(3, 10) and model.decide_period == Fraction(3, 10)
-    # Constants become their values; the model's own names stay names.
-    assert model.bindings[0].expr == ast.Binary("<", ast.Call("mindist", ()),
-                                                ast.Binary("*", ast.Number(Fraction(3)),
-                                                           ast.Name("collision_distance")))
+    # Constants become their values; the model's own names stay names (a setting with its value).
+    assert model.bindings[0].expr == ie.Compare("<", ie.call("mindist"),
+                                                ie.Binary("*", ie.Const(Fraction(3)),
+                                                          ie.model_ref("collision_distance", Fraction(1, 2))))
 
 
 def test_model_names_hide_constants_in_bindings() -> None:
     text = small("", "        bind isClose = x > 2\n        bind prog = goal()\n",
                  extra="    const x = 1\n")
     model = check(text).automaton.model  # type: ignore[union-attr]
-    assert model is not None and model.bindings[0].expr == ast.Binary(">", ast.Name("x"), ast.Number(Fraction(2)))
+    x, two = ie.model_ref("x"), ie.Const(Fraction(2))
+    assert model is not None and model.bindings[0].expr == ie.Compare(">", x, two, ie.difference(x, two))
 
 
 def test_scenario_path_is_relative_to_the_file(tmp_path: Path) -> None:

@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import replace
 from fractions import Fraction as F
@@ -21,7 +22,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rac import ast, ir
+from rac import ir
 from rac.analysis.priority import check_priorities
 from rac.compiler import compile_file
 from rac.engine.explore import action_pairs, explore
@@ -38,7 +39,9 @@ from rac.engine.product import (
     explore_product,
 )
 from rac.ir import Action
+from rac.ir import query as iq
 from rac.model import ModelData, NativeModel, build_model_data
+from rac.query_check import lower_expression
 from rac.runtime import RewardAutomaton
 from rac.scenario import load_scenario
 
@@ -132,8 +135,8 @@ def without_obstacles() -> bytes:
     return re.sub(r"\s*<dynamicObstacle .*?</dynamicObstacle>", "", text, flags=re.S).encode("utf-8")
 
 
-def queries(automaton: ir.Automaton) -> dict[str, ast.PathQuery]:
-    return {decl.name.name: decl.query for decl in automaton.queries if isinstance(decl.query, ast.PathQuery)}
+def queries(automaton: ir.Automaton) -> dict[str, iq.QueryDecl]:
+    return {decl.name: decl for decl in automaton.queries if isinstance(decl.query, iq.PathQuery)}
 
 
 @pytest.fixture(scope="module")
@@ -311,21 +314,22 @@ def test_query_comparisons_are_exact_on_the_integers(driving) -> None:
     query = queries(automaton)["Sum"]  # E<> sa + pr + co == 0.6
     mirrors = [graph.mirrors[r].tolist() for r in ("sa", "pr", "co")]
     exact = [F(a + b + c, 10_000) == F(6, 10) for a, b, c in zip(*mirrors)]
-    assert graph.evaluate(query.expr).tolist() == exact and any(exact)
+    assert graph.evaluate(query.query.expr).tolist() == exact and any(exact)
     # in doubles 0.2 + 0.2 + 0.2 is not 0.6: the emitted query compares iSa + iPr + iCo == 6000
     assert graph.evaluator is not None
-    assert graph.evaluator.evaluate_bool(query.expr, graph.frame()).tolist() != exact
+    frame = dataclasses.replace(graph.frame(), mirrors=None)  # rewards as doubles only
+    assert graph.evaluator.evaluate_bool(query.query.expr, frame).tolist() != exact
     verdict = decide_product(graph, query)
     assert verdict.holds and verdict.trace is not None and exact[verdict.trace[-1]]
 
 
 def test_a_formula_that_reads_inputs_counts_in_settled_states_only(driving) -> None:
-    _, _, graph = driving
-    not_prog = ast.Unary("!", ast.Name("prog"))
+    automaton, _, graph = driving
+    not_prog, prog = lower_expression(automaton, "!prog"), lower_expression(automaton, "prog")
     assert graph.evaluate(not_prog)[0]  # before the first reading every boolean input is false...
-    assert not graph.label(not_prog, box=False)[0] and graph.label(ast.Name("prog"), box=True)[0]  # ...unsettled
+    assert not graph.label(not_prog, box=False)[0] and graph.label(prog, box=True)[0]  # ...unsettled
     with pytest.raises(EvaluationError, match="prev"):
-        graph.evaluate(ast.Call("prev", (ast.Name("sa"),)))
+        graph.evaluate(lower_expression(automaton, "prev(sa) > 0"))
 
 
 # ---------------------------------------------------------------- queries
@@ -342,7 +346,7 @@ def test_qe_and_qh_on_the_left_turn(driving) -> None:
     assert trace[0] == graph.initial and automaton.location_names[graph.location[trace[-1]]] == "Uncomfortable"
     assert all(int(b) in [int(graph.choice_target[c]) for c in graph.choices(a)] for a, b in zip(trace, trace[1:]))
     peak = decide_product(graph, found["Peak"])
-    assert not peak.holds and peak.trace is not None and not graph.evaluate(found["Peak"].expr)[peak.trace[-1]]
+    assert not peak.holds and peak.trace is not None and not graph.evaluate(found["Peak"].query.expr)[peak.trace[-1]]
     # after one sample the objective is 1.6 at most (before the edge, in Normal, and after it)
     assert decide_in_model(automaton, data, found["Peak"], horizon_samples=1).holds
 

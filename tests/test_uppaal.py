@@ -28,9 +28,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from lxml import etree
 
-from rac import ast, ir
+from rac import ir
 from rac.cli import main
 from rac.compiler import compile_file, compile_text
+from rac.ir import expr as ie
+from rac.ir import query as iq
 from rac.resources import stdlib_file
 from rac.runtime import RewardAutomaton
 from rac.targets.uppaal import UppaalError, generate_uppaal, vocabulary
@@ -289,12 +291,12 @@ def test_the_edge_cases_translate_as_documented() -> None:
     assert queries["Q2"] == "A[] Sum.Bad imply 2*iSa + iPr <= 15000"
     assert queries["Q3"] == "E<> settled && (time >= 15 && sum_ > 20000)"  # time unit 0.1 s (gcd of 0.2, 2, 1.5, 1.9)
     assert queries["Q4"] == "Pr[<=20](<> Sum.Bad && sa < -0.5) >= 0.5"
-    assert queries["Q5"] == "E[<=20;100](max: 2*sa + pr)"
+    assert queries["Q5"] == "E[<=20;100](max: 2.0 * sa + pr)"  # doubles as the engine computes them
     assert queries["Q6"] == "simulate[<=20;5]{sa, pr, Sum.Bad, sum_ / 10000.0}"
     assert queries["Q7"] == "strategy S = control: A[] !Sum.Bad"
-    assert queries["Q8"] == ("strategy L = maxE(2*sa + pr)[<=20]{Sum.location, lane}->{sum_ / 10000.0, sa}: "
+    assert queries["Q8"] == ("strategy L = maxE(2.0 * sa + pr)[<=20]{Sum.location, lane}->{sum_ / 10000.0, sa}: "
                              "<> time >= 20 under S")
-    assert queries["Q9"] == "Pr[<=19](<> sa * pr > 1)"
+    assert queries["Q9"] == "Pr[<=19](<> sa * pr > 1.0)"
     assert queries["Q10"] == "E<> iSa - iPr == 2500 && true"
     assert queries["Q11"] == "settled && E_ --> Sum.Bad"
 
@@ -366,17 +368,24 @@ def test_threshold_and_interval_not_representable() -> None:
 
 def test_query_not_expressible() -> None:
     text = NO_INPUTS[:-2] + ("    query Q1: A[] up * up < 4\n    query Q2: Pr[<=5](<> up > 1) > 0.5\n"
-                             "    query Q3: A[] up < 1000000\n}\n")
+                             "    query Q3: A[] up < 1000000\n    query Q4: Pr[<=5; 100](<> up > 1) >= 0.5\n"
+                             "    query Q5: A[] time * up < 4\n}\n")
     found = codes(automaton_of(text))
-    assert [c for c, _ in found] == ["E0802", "E0802", "E0801"]
-    assert "a symbolic query can compare only linear expressions" in found[0][1]
-    assert "`>=` or `<=` only" in found[1][1]
-    assert "10000000000 is beyond the 32-bit integer range" in found[2][1]
+    assert [c for c, _ in found] == ["E0802", "E0801", "E0802", "E0802"]
+    assert "`>=` or `<=` only" in found[0][1]
+    assert "10000000000 is beyond the 32-bit integer range" in found[1][1]
+    assert "drop `;N`" in found[2][1]
+    assert "`time`" in found[3][1]
+    # a symbolic query that computes with doubles calls a condition of the declarations
+    text = NO_INPUTS[:-2] + "    query Q1: A[] up * up < 4\n}\n"
+    parsed = Parsed(emitted(automaton_of(text)).xml)
+    assert dict(parsed.queries)["Q1"] == "A[] cond0()"
+    assert "bool cond0() {\n    return iUp / 10000.0 * (iUp / 10000.0) < 4.0;\n}" in parsed.declaration
 
 
 def test_model_functions_need_the_full_model() -> None:
     automaton = dataclasses.replace(driving(), model=_model_spec(10, 4))
-    collide = ast.QueryDecl(ast.Ident("Qc"), ast.PathQuery("E<>", ast.Call("collide", ())))
+    collide = iq.QueryDecl("Qc", iq.PathQuery("E<>", ie.call("collide")), "E<> collide()")
     (code, message), = codes(dataclasses.replace(automaton, queries=(*automaton.queries, collide)))
     assert code == "E0802" and "`collide()` is a function of the scenario model" in message
     # Without such a query, an automaton with a model block is emitted alone.

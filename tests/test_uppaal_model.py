@@ -150,16 +150,18 @@ def test_the_papers_queries(model) -> None:
     assert queries == [
         "A[] settled imply (isClose imply Driving.Unsafe)",
         "A[] Driving.Unsafe imply 10*iSa + 5*iPr + iCo <= 0",
-        "Pr[<=MAXT](<> fabs(Dynamics.true_x - x / SCALE_D) >= THD)",
+        "Pr[<=MAXT](<> fabs(Dynamics.true_x - i2d(x)) >= THD)",
         "E[] !collide() && !offroad()",
         "E<> !collide() && !offroad() && goal()",
         "strategy safe = control: A[] !collide() && !offroad()",
-        "simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D}",
-        "simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D} under safe",
-        "Pr[<=MAXT](<> mindist() <= 3*TD / SCALE_D) under safe",
-        "strategy reachSafe = maxE(sa + pr + co)[<=MAXT]{Driving.location}->{x, y, v, head}: <> goal() under safe",
-        "simulate[<=MAXT;1]{x, y, v, head} under reachSafe",
-        "strategy reach = maxE(sa + pr + co)[<=MAXT]{Driving.location}->{x, y, v, head}: <> time >= MAXT under safe",
+        "simulate[<=MAXT;100]{mindist(), 3.0 * i2d(TD)}",
+        "simulate[<=MAXT;100]{mindist(), 3.0 * i2d(TD)} under safe",
+        "Pr[<=MAXT](<> mindist() <= 3.0 * i2d(TD)) under safe",
+        "strategy reachSafe = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), "
+        "i2d(head)}: <> goal() under safe",
+        "simulate[<=MAXT;1]{i2d(x), i2d(y), i2d(v), i2d(head)} under reachSafe",
+        "strategy reach = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), "
+        "i2d(head)}: <> time >= MAXT under safe",
         "A[] !collide() && !offroad() under reach",
         "A<> goal() under reach",
     ]
@@ -208,21 +210,28 @@ def test_every_name_is_declared(parsed: Parsed) -> None:
 
 
 def test_bindings_and_prev(parsed: Parsed) -> None:
+    """The bindings are functions of the declarations (valid C: tests/test_emitted_c.py runs them);
+    prev(e) is e evaluated on the previous sample's state, kept in integers, not a double variable."""
     edges = parsed.templates["Controller"].findall("transition")
     labels = [{label.get("kind"): label.text for label in t.findall("label")} for t in edges]
-    assert labels == [{"assignment": "init_prevs()"}, {"synchronisation": "accrue?", "assignment": "sense_state()"},
+    assert labels == [{"assignment": "keep_sample()"}, {"synchronisation": "accrue?", "assignment": "sense_state()"},
                       {"synchronisation": "read!", "assignment": "read_inputs()"}]
-    declaration = parsed.templates["Controller"].findtext("declaration")
-    assert ("void read_inputs() {\n"
+    assert parsed.templates["Controller"].findtext("declaration") is None
+    declaration = parsed.declaration
+    assert "int32_t prev_x, prev_y, prev_v, prev_acc, prev_head;" in declaration
+    assert ("void keep_sample() {\n    prev_x = x;\n    prev_y = y;\n    prev_v = v;\n    prev_acc = acc;\n"
+            "    prev_head = head;\n}") in declaration
+    assert ("    count = count - 1;\n"
+            "    prev0 = dist_goal();\n") in declaration
+    assert ("    count = count + 1;\n"
             "    isClose = mindist() < 3.0 * i2d(TD);\n"
             "    prog = dist_goal() < prev0;\n"
-            "    comf = fabs(i2d(acc)) < i2d(P1) * i2d(MA) && fabs(i2d(turn)) < i2d(P2) * i2d(MT);\n"
+            "    comf = fabs(i2d(acc)) < i2d(P1) * i2d(MAX_ACC) && fabs(i2d(turn)) < i2d(P2) * i2d(MAX_TURN);\n"
             "    collide_ = collide();\n"
             "    dgoal = d2i(dist_goal());\n"
-            "    prev0 = dist_goal();\n"
-            "}\n") in declaration
-    assert "void init_prevs() {\n    prev0 = dist_goal();\n}" in declaration
-    assert "double prev0;  // prev(dist_goal())" in parsed.declaration
+            "    keep_sample();\n"
+            "}") in declaration
+    assert not re.search(r"^double ", declaration[declaration.index("// ---- end scenario model"):], re.MULTILINE)
 
 
 def test_edges_compare_and_assign_no_double(parsed: Parsed) -> None:
@@ -247,10 +256,9 @@ def test_dynamics_ode(parsed: Parsed) -> None:
     invariants = [label.text for label in parsed.templates["Dynamics"].iter("label")
                   if label.get("kind") == "invariant"]
     assert invariants == ["true_x' == UNIT_S * true_v * cos(true_head) && true_y' == UNIT_S * true_v * sin(true_head)"
-                          " && true_v' == ((true_v >= i2d(MAX_SPEED) && true_acc > 0.0) || (true_v <= i2d(MIN_SPEED)"
-                          " && true_acc < 0.0) ? 0.0 : UNIT_S * true_acc) && true_acc' == ((true_acc >= i2d(MAX_ACC)"
-                          " && jerk > 0) || (true_acc <= -i2d(MAX_ACC) && jerk < 0) ? 0.0 : UNIT_S * jerk / SCALE_D)"
-                          " && true_head' == UNIT_S * turn / SCALE_D"]
+                          " && true_v' == UNIT_S * saturated(true_v, true_acc, i2d(MIN_SPEED), i2d(MAX_SPEED))"
+                          " && true_acc' == UNIT_S * saturated(true_acc, i2d(jerk), -i2d(MAX_ACC), i2d(MAX_ACC))"
+                          " && true_head' == UNIT_S * i2d(turn)"]
 
 
 def test_file_queries_may_use_the_models_conditions(tmp_path: Path) -> None:
@@ -278,16 +286,15 @@ def test_scenario_declarations_are_emitted_verbatim(parsed: Parsed) -> None:
 
 @pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")
 def test_declarations_compile_as_c(parsed: Parsed, tmp_path: Path) -> None:
-    """The scenario declarations, the inputs and prev variables, and the functions of the
-    Controller and Obstacle templates, as one C file."""
-    rest = parsed.declaration[parsed.declaration.index("// ---- end scenario model"):]
-    globals_ = [line for line in rest.splitlines() if re.match(r"(?:const )?(?:bool|int32_t|double) ", line)]
-    controller = parsed.templates["Controller"].findtext("declaration")
+    """The whole declaration section (channels left out, clocks as doubles: C has neither) and
+    the Obstacle template's functions, as one C file."""
+    lines = [re.sub(r"^(hybrid )?clock ", "double ", line) for line in parsed.declaration.splitlines()
+             if not re.match(r"broadcast chan ", line)]
     obstacle = parsed.templates["Obstacle"].findtext("declaration")
     obstacle = obstacle.replace("hybrid clock ox, oy;", "const int32_t i = 0;\ndouble ox;\ndouble oy;")
     source = tmp_path / "model.c"
-    source.write_text(C_PRELUDE + c_declarations(parsed) + "\n".join(globals_) + "\n" + controller + "\n" + obstacle
-                      + "\n\nint main(void) {\n    init_prevs();\n    sense_state();\n    read_inputs();\n"
+    source.write_text(C_PRELUDE + "\n".join(lines) + "\n" + obstacle
+                      + "\n\nint main(void) {\n    keep_sample();\n    sense_state();\n    read_inputs();\n"
                       "    follow();\n    return speed() > 0.0 ? 1 : 0;\n}\n", encoding="utf-8")
     result = subprocess.run([COMPILER, "-O2", "-std=c99", "-Wall", "-Werror", "-o", str(tmp_path / "model"),
                              str(source), "-lm"], capture_output=True, text=True, check=False)

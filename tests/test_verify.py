@@ -27,7 +27,6 @@ from rac.compiler import CompileResult, compile_file
 from rac.diagnostics import CheckError
 from rac.engine.explore import action_pairs
 from rac.model import NativeModel
-from rac.printer import format_query
 from rac.scenarios.tiny import TINY_SCENARIOS, TinyScenario
 from rac.verify import (
     QueryResult,
@@ -330,15 +329,18 @@ def test_a_file_without_a_model_block_or_with_errors(tmp_path: Path) -> None:
 
 
 def test_standard_queries(compiled: Callable[[str], Compiled], tmp_path: Path) -> None:
-    decls = standard_queries(Fraction(4))
-    assert [d.name.name for d in decls] == ["Qa", "Qb", "Qc", "Qd", "Fig7", "Fig7_safe", "Unsafe_safe"]
-    results = run(compiled("goal_behind_wall"), "Qb", "Qc", "Qd", standard=True, out=tmp_path)
+    item = compiled("goal_behind_wall")
+    decls = standard_queries(item.result)
+    assert [d.name for d in decls] == ["Qa", "Qb", "Qc", "Qd", "Fig7", "Fig7_safe", "Unsafe_safe"]
+    results = run(item, "Qb", "Qc", "Qd", standard=True, out=tmp_path)
     assert [r.name for r in results.values()] == ["Qb", "Qc", "Qd"]
     assert results["Qb"].status == "satisfied" and results["Qd"].status == "satisfied"
     assert results["Qb"].title == "a run that is never unsafe exists"
     assert "NO run that stays safe reaches it" in (results["Qc"].message or "")
-    assert (tmp_path / "safe.shield.npz").is_file()
-    assert format_query(standard_queries(Fraction(3, 2))[0].query).startswith("Pr[<=1.5](<> ")
+    # the file defines a strategy `safe` of its own: the standard one is `safe_` (nothing is overwritten)
+    assert decls[3].text == "strategy safe_ = control: A[] !collide() && !offroad()"
+    assert (tmp_path / "safe_.shield.npz").is_file() and not (tmp_path / "safe.shield.npz").exists()
+    assert standard_queries(item.result, Fraction(3, 2))[0].text.startswith("Pr[<=1.5](<> ")
 
 
 # ---------------------------------------------------------------- rendering

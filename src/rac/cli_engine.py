@@ -173,16 +173,16 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
     """The one run of the file's learned strategy ``args.strategy`` (learned now, with the shield it
     is learned under), and the seed; or None and why (None and "" after printing a usage error)."""
-    from rac import ast
+    from rac.ir import query as iq
     from rac.verify import VerifyOptions, run_queries
 
     assert result.automaton is not None
-    learned = {d.query.name: d for d in result.automaton.queries if isinstance(d.query, ast.LearnStrategy)}
+    learned = {d.query.name: d for d in result.automaton.queries if isinstance(d.query, iq.LearnStrategy)}
     if args.strategy not in learned:
         print(f"rac render: no learned strategy `{args.strategy}` in {args.file} (learning queries: "
               f"{', '.join(learned) or 'none'})", file=sys.stderr)
         return None, ""
-    options = VerifyOptions(seed=args.seed, max_states=args.max_states, only=(learned[args.strategy].name.name,),
+    options = VerifyOptions(seed=args.seed, max_states=args.max_states, only=(learned[args.strategy].name,),
                             bars=not args.quiet)
     verifier, results = run_queries(result, options)
     if args.strategy not in verifier.learned:
@@ -256,7 +256,7 @@ def verify_command(args: argparse.Namespace) -> int:
             results = verify(result, options)
     except UnknownQuery as exc:
         print(f"rac verify: no query named {exc.args[0]} in {args.file} (names: "
-              f"{', '.join(d.name.name for d in result.automaton.queries) or 'none'}; "  # type: ignore[union-attr]
+              f"{', '.join(d.name for d in result.automaton.queries) or 'none'}; "  # type: ignore[union-attr]
               "--standard adds Qa, Qb, Qc, Qd, Fig7, Fig7_safe, Unsafe_safe)", file=sys.stderr)
         return EXIT_USAGE
     except OSError as exc:
@@ -300,18 +300,25 @@ def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
     return int(samples)
 
 
-def _parse_exprs(texts: list[str]):
-    """Each ``--expr`` as one expression of the query language, or an error message naming it."""
-    from rac.parser import ExpressionError, parse_expression
+def _parse_exprs(texts: list[str], automaton):
+    """Each ``--expr`` as one checked expression of the query language over the file's automaton,
+    or an error message naming it."""
+    from rac.diagnostics import CheckError
+    from rac.parser import ExpressionError
+    from rac.query_check import lower_expression
 
     exprs = []
     for text in texts:
         try:
-            exprs.append(parse_expression(text, "<--expr>"))
+            exprs.append(lower_expression(automaton, text, name="<--expr>"))
         except ExpressionError as exc:
             if exc.count != 1:
                 return None, f"`{text}`: one expression per --expr (repeat --expr for more)"
             return None, str(exc)
+        except CheckError as exc:
+            first = exc.diagnostics[0]
+            hint = f" ({first.hints[0]})" if first.hints else ""
+            return None, f"`{text}`: {first.message}{hint}"
     return exprs, None
 
 
@@ -326,7 +333,7 @@ def simulate_command(args: argparse.Namespace) -> int:
     if result is None:
         return status
     texts = args.expr or ["mindist()", "3 * collision_distance"]
-    exprs, problem = _parse_exprs(texts)
+    exprs, problem = _parse_exprs(texts, result.automaton)
     if exprs is None:
         print(f"rac simulate: --expr: {problem}", file=sys.stderr)
         return EXIT_USAGE

@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rac import ast
 from rac.compiler import CompileResult
+from rac.ir import query as iq
 
 __all__ = ["COMBINATIONS", "PAPER_REWARD_FUNCTION", "ExperimentError", "render_markdown", "run_experiment"]
 
@@ -72,15 +72,15 @@ class RunRecord:
     succeeded: np.ndarray  # per learning episode: goal reached safely
 
 
-def _learning_spec(result: CompileResult) -> tuple[list[ast.Expr], list[ast.Expr]]:
-    """The observation lists of the file's first learning query, or the paper's defaults."""
+def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
+    """The observation lists (as text) of the file's first learning query, or the paper's defaults."""
     automaton = result.automaton
     assert automaton is not None
     for decl in automaton.queries:
-        if isinstance(decl.query, ast.LearnStrategy):
-            return list(decl.query.discrete), list(decl.query.continuous)
-    return ([ast.Qualified(automaton.name, "location")],
-            [ast.Name("x"), ast.Name("y"), ast.Name("v"), ast.Name("head")])
+        if isinstance(decl.query, iq.LearnStrategy):
+            count = len(decl.query.discrete)
+            return list(decl.query.labels[:count]), list(decl.query.labels[count:])
+    return [f"{automaton.name}.location"], ["x", "y", "v", "head"]
 
 
 def _shield(result: CompileResult, horizon_samples: int, max_states: int):
@@ -151,13 +151,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     return {"file": automaton.model.scenario_path, "horizon_samples": horizon, "episodes": episodes,
             "seeds": list(seeds), "reward_function": text, "shield_seconds": shield_seconds,
             "shield_states": shield_states, "records": records, "bins": list(bins) if bins else None,
-            "observation": {"discrete": [_text(e) for e in discrete], "continuous": [_text(e) for e in continuous]}}
-
-
-def _text(expr: ast.Expr) -> str:
-    from rac.printer import format_expr
-
-    return format_expr(expr)
+            "observation": {"discrete": discrete, "continuous": continuous}}
 
 
 def _mean_sd(values: Sequence[float]) -> str:

@@ -42,6 +42,7 @@ import gymnasium
 import numpy as np
 
 from rac import ast, ir
+from rac.ir import expr as ie
 from rac.runtime import RewardAutomaton
 
 if TYPE_CHECKING:
@@ -185,7 +186,7 @@ class ScenarioEnv(gymnasium.Env):
         shield: a shield file (:func:`rac.shield.load`, ``unseen="none"``) or a
             :class:`rac.shield.ShieldTable` for :meth:`action_masks`; None: every action allowed.
         reward: ``"automaton"`` (the objective's increase, plus the ``at end`` bonus on the last
-            step) or a reward expression (an :class:`rac.ast.Expr` or its text), as ``EpisodeBatch``.
+            step) or a reward expression (its text, or a parsed or checked expression), as ``EpisodeBatch``.
         horizon: the episode's length in seconds (default the automaton's ``horizon``); a whole
             number of sense periods.
         render_mode: None or ``"ansi"`` (:meth:`render` returns one line of text).
@@ -205,7 +206,7 @@ class ScenarioEnv(gymnasium.Env):
 
     def __init__(self, model: str | os.PathLike[str] | CompileResult, *,
                  shield: str | os.PathLike[str] | ShieldTable | None = None,
-                 reward: str | ast.Expr = "automaton", horizon: float | Fraction | None = None,
+                 reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
                  render_mode: str | None = None) -> None:
         from rac.engine.episodes import EpisodeBatch
         from rac.engine.explore import COLUMNS
@@ -267,7 +268,7 @@ class ScenarioEnv(gymnasium.Env):
         super().reset(seed=seed)
         episodes = self.episodes
         episodes.reset(1)
-        collided, offroad = episodes.observe([ast.Call("collide", ()), ast.Call("offroad", ())])[0] != 0
+        collided, offroad = episodes.observe([ie.call("collide"), ie.call("offroad")])[0] != 0
         # "goal" is False at the start: an episode ends at the goal only after a step
         self._last = {"collided": bool(collided), "offroad": bool(offroad), "goal": False}
         return self._obs(), self._info()

@@ -23,116 +23,38 @@ from __future__ import annotations
 
 import difflib
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from fractions import Fraction
 from typing import TYPE_CHECKING
 
 from rac import ast, ir
 from rac.diagnostics import Note, short_number
-from rac.query_check import QueryChecker, type_word
+from rac.ir.vocabulary import ACTIONS, BINDING_MATH, EGO_STATE, MODEL_FUNCTIONS, SETTINGS, TRUE_STATE, Setting
+from rac.query_check import FUNCTIONS_HINT, VOCABULARY_HINT, Lowering, model_settings_of, type_word
 from rac.resolve import _Unresolvable
 from rac.source import Span
 
 if TYPE_CHECKING:
     from rac.resolve import Resolver
 
+__all__ = ["ACTIONS", "EGO_STATE", "FUNCTIONS_HINT", "MATH_FUNCTIONS", "MODEL_FUNCTIONS", "SETTINGS", "TRUE_STATE",
+           "VOCABULARY_HINT", "allowed", "resolve_model"]
 
-@dataclass(frozen=True)
-class Setting:
-    """One setting of the ``model`` block: ``name value``."""
-
-    name: str
-    #: The value when the setting is not written; None: derived (see :attr:`derived`).
-    default: Fraction | None
-    unit: str
-    description: str
-    minimum: Fraction | None = None
-    #: The value must exceed ``minimum`` (else: be at least ``minimum``).
-    exclusive: bool = False
-    maximum: Fraction | None = None
-    whole: bool = False
-    #: How the default is derived when ``default`` is None.
-    derived: str = ""
-
-    def allowed(self) -> str:
-        """The allowed values in words, e.g. "a whole number from 1 to 6"."""
-        kind = "a whole number" if self.whole else "a number"
-        low, high = self.minimum, self.maximum
-        if low is not None and high is not None:
-            if self.exclusive:
-                return f"{kind} in ({_num(low)}, {_num(high)}]"
-            return f"{kind} from {_num(low)} to {_num(high)}"
-        if low is not None:
-            return f"{kind} {'>' if self.exclusive else '>='} {_num(low)}"
-        return kind
-
-    def accepts(self, value: Fraction) -> bool:
-        if self.whole and value.denominator != 1:
-            return False
-        if self.minimum is not None and (value <= self.minimum if self.exclusive else value < self.minimum):
-            return False
-        return self.maximum is None or value <= self.maximum
+#: The arithmetic functions bindings may call (the table: :data:`rac.ir.vocabulary.MATH_FUNCTIONS`).
+MATH_FUNCTIONS = BINDING_MATH
 
 
-def _f(text: str) -> Fraction:
-    return Fraction(text)
-
-
-#: Every setting, in the order of :class:`rac.ir.ModelSpec` (docs/language.md shows this table).
-SETTINGS: dict[str, Setting] = {s.name: s for s in (
-    Setting("base", _f("10"), "", "base of the number representation", _f("2"), whole=True),
-    Setting("exponent", _f("4"), "", "a real v is held as the integer significand trunc(v · base^exponent)",
-            _f("1"), maximum=_f("6"), whole=True),
-    Setting("sense_period", None, "s", "C1, the sensing period", _f("0"), exclusive=True,
-            derived="the automaton's `sample every`"),
-    Setting("decide_period", None, "s", "C2, the decision period: a whole multiple of C1", _f("0"),
-            exclusive=True, derived="2 × `sense_period`"),
-    Setting("granularity", _f("0.25"), "", "G: `sense()` integrates in 1/G Euler sub-steps of C1 · G",
-            _f("0.001"), maximum=_f("1")),
-    Setting("length", _f("4.5"), "m", "length of the ego vehicle", _f("0"), exclusive=True),
-    Setting("width", _f("1.8"), "m", "width of the ego vehicle", _f("0"), exclusive=True),
-    Setting("max_acceleration", _f("3"), "m/s²", "MA, the largest acceleration", _f("0"), exclusive=True),
-    Setting("max_turn", _f("0.4"), "rad/s", "MT, the largest turning rate", _f("0"), exclusive=True),
-    Setting("min_speed", _f("0"), "m/s", "the lowest speed", _f("0")),
-    Setting("max_speed", _f("20"), "m/s", "the highest speed (more than `min_speed`)", _f("0"), exclusive=True),
-    Setting("collision_distance", _f("0.5"), "m", "TD: `collide()` holds below this distance", _f("0"),
-            exclusive=True),
-    Setting("comfort_acceleration", _f("0.8"), "", "p1, the comfortable fraction of MA", _f("0"),
-            exclusive=True, maximum=_f("1")),
-    Setting("comfort_turn", _f("0.8"), "", "p2, the comfortable fraction of MT", _f("0"), exclusive=True,
-            maximum=_f("1")),
-    Setting("sensor_error", _f("0.5"), "m", "THD: the sensor-error threshold of query Qa", _f("0"), exclusive=True),
-)}
-
-#: The controller's actions and their defaults: (low, high, step, unit).
-ACTIONS: dict[str, tuple[Fraction, Fraction, Fraction, str]] = {
-    "jerk": (_f("-2"), _f("2"), _f("0.5"), "m/s³"),
-    "turn": (_f("-0.4"), _f("0.4"), _f("0.1"), "rad/s"),
-}
-
-#: The ego vehicle's sensed state (numbers), readable in bindings and queries.
-EGO_STATE = ("x", "y", "v", "acc", "head", "jerk", "turn")
-#: The ego vehicle's true state (the continuous dynamics): queries only.
-TRUE_STATE = ("true_x", "true_y", "true_v", "true_acc", "true_head")
-#: Functions of the scenario model: name -> (number of arguments, result type). ``prev(e)``
-#: has the type of ``e`` (None here).
-MODEL_FUNCTIONS: dict[str, tuple[int, str | None]] = {
-    "collide": (0, "bool"), "offroad": (0, "bool"), "goal": (0, "bool"),
-    "mindist": (0, "num"), "dist_goal": (0, "num"), "prev": (1, None),
-}
-#: Arithmetic functions bindings may use: name -> number of (numeric) arguments.
-MATH_FUNCTIONS: dict[str, int] = {"fabs": 1, "abs": 1, "sqrt": 1, "fmin": 2, "fmax": 2}
-
-_SIGNATURES = ("collide()", "offroad()", "goal()", "mindist()", "dist_goal()", "prev(e)", "fabs(e)", "abs(e)",
-               "sqrt(e)", "fmin(a, b)", "fmax(a, b)")
-FUNCTIONS_HINT = "the model's functions are " + ", ".join(f"`{s}`" for s in _SIGNATURES)
-VOCABULARY_HINT = ("a binding reads the scenario model: its functions, the ego state (`x`, `y`, `v`, `acc`, "
-                   "`head`, `jerk`, `turn`), `time`, the model's settings and constants")
-
-
-def query_name_type(name: str) -> str | None:
-    """The type of a model name in a query (the ego state, true state, settings), or None."""
-    return "num" if name in EGO_STATE or name in TRUE_STATE or name in SETTINGS else None
+def allowed(setting: Setting) -> str:
+    """A setting's allowed values in words, e.g. "a whole number from 1 to 6"."""
+    kind = "a whole number" if setting.whole else "a number"
+    low, high = setting.minimum, setting.maximum
+    if low is not None and high is not None:
+        if setting.exclusive:
+            return f"{kind} in ({_num(low)}, {_num(high)}]"
+        return f"{kind} from {_num(low)} to {_num(high)}"
+    if low is not None:
+        return f"{kind} {'>' if setting.exclusive else '>='} {_num(low)}"
+    return kind
 
 
 # ---------------------------------------------------------------- the model block
@@ -169,7 +91,7 @@ class _ModelResolver:
         scenario = self._scenario()
         values = self._settings()
         actions = self._actions(values)
-        bindings = self._bindings()
+        bindings = self._bindings(values)
         if not self.ok or scenario is None:
             return None
         folder = os.path.dirname(scenario.span.file) if scenario.span is not None else ""
@@ -237,7 +159,7 @@ class _ModelResolver:
             if not setting.accepts(value):
                 self.rejected.add(name)
                 unit = f" {setting.unit}" if setting.unit else ""
-                self.error("E0702", f"`{name}` must be {setting.allowed()} (found {_num(value)}{unit})",
+                self.error("E0702", f"`{name}` must be {allowed(setting)} (found {_num(value)}{unit})",
                            item.value.span, notes=[f"`{name}`: {setting.description}"],
                            hints=[_range_hint(setting)])
                 continue
@@ -389,15 +311,18 @@ class _ModelResolver:
                               f"{_fraction_text(1 / scale)}, or raise the exponent"])
 
     # ------------------------------------------------------------ bindings
-    def _bindings(self) -> tuple[ir.Binding, ...]:
+    def _bindings(self, values: dict[str, _Value]) -> tuple[ir.Binding, ...]:
         bound: dict[str, ast.ModelBinding] = {}
+        lowered: dict[str, ir.Binding] = {}
         suggested: set[str] = set()  # inputs a misspelt binding probably meant: not reported unbound
+        scale = int(values["base"].value) ** int(values["exponent"].value)
+        self.r.scope.settings = model_settings_of({n: v.value for n, v in values.items()}, scale)
         for item in self.block.of(ast.ModelBinding):
             name = item.input.name
             symbol = self.r.symbols.get(name)
-            checker = BindingChecker(self.r)
-            got = checker.walk(item.expr)
-            if checker.failed:
+            lowering = Lowering(self.r.scope, binding=True)
+            got, expr = lowering.typed(item.expr)
+            if lowering.failed:
                 self.ok = False
             if symbol is None or symbol.kind != "input":
                 inputs = [i.name for i in self.inputs]
@@ -423,6 +348,8 @@ class _ModelResolver:
                            hints=["compare the value to get a condition, e.g. `mindist() < 3 * collision_distance`"
                                   if symbol.type == "bool" else
                                   "a numeric input needs a number, e.g. `dist_goal()`"])
+            elif expr is not None:
+                lowered[name] = ir.Binding(name, expr, item.span)
         for item in self.inputs:
             if item.name not in bound and item.name not in suggested:
                 example = "mindist() < 3 * collision_distance" if item.is_bool else "dist_goal()"
@@ -430,9 +357,7 @@ class _ModelResolver:
                            notes=[Note("the `model` block", self.block.span)],
                            hints=["with a model, every input is computed from it: add "
                                   f"`bind {item.name} = ...` to the block, e.g. `bind {item.name} = {example}`"])
-        constants = {n: s.value for n, s in self.r.symbols.items() if s.kind == "const" and s.value is not None}
-        return tuple(ir.Binding(i.name, _inline(bound[i.name].expr, constants), bound[i.name].span)
-                     for i in self.inputs if i.name in bound)
+        return tuple(lowered[i.name] for i in self.inputs if i.name in lowered)
 
 
 def resolve_model(r: Resolver, inputs: tuple[ir.Input, ...], period: Fraction | None) -> ir.ModelSpec | None:
@@ -455,122 +380,6 @@ def resolve_model(r: Resolver, inputs: tuple[ir.Input, ...], period: Fraction | 
     return spec if resolver.ok else None
 
 
-# ---------------------------------------------------------------- binding expressions
-class BindingChecker(QueryChecker):
-    """Names and types in a binding: the model's vocabulary and constants (not the automaton's state)."""
-
-    def __init__(self, resolver: Resolver):
-        super().__init__(resolver, set())
-        self.failed = False
-        self._in_prev = False
-
-    def _report(self, code: str, message: str, span: Span | None, **kw) -> None:
-        self.failed = True
-        self.r._error(code, message, span, **kw)
-
-    def walk(self, node: ast.Expr) -> str | None:
-        before = len(self.r.diagnostics)
-        result = self._walk(node)
-        if len(self.r.diagnostics) > before:
-            self.failed = True
-        return result
-
-    def _walk(self, node: ast.Expr) -> str | None:
-        if isinstance(node, ast.Name):
-            return self._name(node)
-        if isinstance(node, ast.Qualified):
-            self._report("E0103", f"`{node.scope}.{node.id}` is not available in a binding", node.span,
-                         hints=[VOCABULARY_HINT])
-            return None
-        if isinstance(node, ast.Call):
-            return self._call(node)
-        return super().walk(node)
-
-    def _name(self, node: ast.Name) -> str | None:
-        name = node.id
-        if name in EGO_STATE or name in SETTINGS or name == "time":
-            return "num"
-        symbol = self.r.symbols.get(name)
-        if symbol is not None and symbol.kind == "const":
-            return None if symbol.value is None else symbol.type
-        if symbol is not None:
-            self._report("E0103", f"{symbol.kind} `{name}` cannot appear in a binding", node.span,
-                         hints=[VOCABULARY_HINT])
-            return None
-        if name in TRUE_STATE:
-            self._report("E0103", f"`{name}` (the true state) cannot appear in a binding", node.span,
-                         hints=[f"bindings read what the vehicle senses: `{name.removeprefix('true_')}`; "
-                                "the true state is for queries"])
-            return None
-        known = [*EGO_STATE, "time", *SETTINGS,
-                 *(n for n, s in self.r.symbols.items() if s.kind == "const")]
-        close = difflib.get_close_matches(name, known, n=1)
-        self._report("E0101", f"unknown name `{name}`", node.span,
-                     hints=[f"did you mean `{close[0]}`?" if close else VOCABULARY_HINT])
-        return None
-
-    def _call(self, node: ast.Call) -> str | None:
-        func = node.func
-        if func in MODEL_FUNCTIONS:
-            arity, result = MODEL_FUNCTIONS[func]
-        elif func in MATH_FUNCTIONS:
-            arity, result = MATH_FUNCTIONS[func], "num"
-        else:
-            close = difflib.get_close_matches(func, [*MODEL_FUNCTIONS, *MATH_FUNCTIONS], n=1)
-            self._report("E0711", f"unknown function `{func}()` in a binding", node.span,
-                         hints=([f"did you mean `{close[0]}()`?"] if close else []) + [FUNCTIONS_HINT])
-            for arg in node.args:
-                self.walk(arg)
-            return None
-        if len(node.args) != arity:
-            self._report("E0711", f"`{func}()` takes {_arguments(arity)}, found {len(node.args)}", node.span,
-                         hints=[FUNCTIONS_HINT])
-            return None
-        if func == "prev":
-            if self._in_prev:
-                self._report("E0711", "`prev()` cannot be nested", node.span,
-                             hints=["`prev(e)` is the value of `e` at the previous sample; the model keeps "
-                                    "one sample of history"])
-                return None
-            self._in_prev = True
-            try:
-                return self.walk(node.args[0])
-            finally:
-                self._in_prev = False
-        for arg in node.args:
-            self._expect(arg, "num")
-        return result
-
-
-def model_call_type(checker: QueryChecker, node: ast.Call) -> str | None:
-    """The type of a model function called in a query (a model is attached); wrong arity: E0711."""
-    arity, result = MODEL_FUNCTIONS[node.func]
-    if len(node.args) != arity:
-        checker.r._error("E0711", f"`{node.func}()` takes {_arguments(arity)}, found {len(node.args)}",
-                         node.span, hints=[FUNCTIONS_HINT])
-        return None
-    types = [checker.walk(arg) for arg in node.args]
-    return types[0] if result is None else result
-
-
-def _inline(expr: ast.Expr, constants: dict[str, Fraction | bool]) -> ast.Expr:
-    """``expr`` with the automaton's constants replaced by their values (model names come first)."""
-    if isinstance(expr, ast.Name):
-        if expr.id in EGO_STATE or expr.id in SETTINGS or expr.id == "time" or expr.id not in constants:
-            return expr
-        value = constants[expr.id]
-        if isinstance(value, bool):
-            return ast.BoolLit(value, expr.span)
-        return ast.Number(value, expr.span)
-    if isinstance(expr, ast.Call):
-        return replace(expr, args=tuple(_inline(a, constants) for a in expr.args))
-    if isinstance(expr, ast.Unary):
-        return replace(expr, operand=_inline(expr.operand, constants))
-    if isinstance(expr, ast.Binary):
-        return replace(expr, left=_inline(expr.left, constants), right=_inline(expr.right, constants))
-    return expr
-
-
 # ---------------------------------------------------------------- words
 def _num(value: Fraction) -> str:
     return short_number(value)
@@ -584,8 +393,8 @@ def _fraction_text(value: Fraction) -> str:
 
 def _range_hint(setting: Setting) -> str:
     if setting.default is not None:
-        return f"use {setting.allowed()}; the default is `{setting.name} {_num(setting.default)}`"
-    return f"use {setting.allowed()}; without it, `{setting.name}` is {setting.derived}"
+        return f"use {allowed(setting)}; the default is `{setting.name} {_num(setting.default)}`"
+    return f"use {allowed(setting)}; without it, `{setting.name}` is {setting.derived}"
 
 
 def _arguments(count: int) -> str:

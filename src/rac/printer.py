@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac import ast
+from rac.ir import expr as ie
 from rac.parser import parse_text
 
 __all__ = ["format_expr", "format_member", "format_model_item", "format_module", "format_query", "format_source"]
@@ -121,6 +122,26 @@ def format_expr(expr: ast.Expr) -> str:
     are printed in their canonical forms ``&&``/``||``/``!``.
     """
     return _expr(expr)
+
+
+def format_checked(expr: ie.Expr) -> str:
+    """A checked expression (:mod:`rac.ir.expr`) in ``.ra`` syntax, for messages and reports: names
+    as written, the automaton's constants as their values (the checker inlined them)."""
+    return _expr(_to_ast(expr))
+
+
+def _to_ast(expr: ie.Expr) -> ast.Expr:
+    if isinstance(expr, ie.Const):
+        return ast.BoolLit(expr.value) if isinstance(expr.value, bool) else ast.Number(expr.value)
+    if isinstance(expr, ie.Ref):
+        return ast.Name(expr.name)
+    if isinstance(expr, ie.Call):
+        return ast.Call(expr.name, tuple(_to_ast(a) for a in expr.args))
+    if isinstance(expr, ie.Prev):
+        return ast.Call("prev", (_to_ast(expr.operand),))
+    if isinstance(expr, ie.Unary):
+        return ast.Unary(expr.op, _to_ast(expr.operand))
+    return ast.Binary(expr.op, _to_ast(expr.left), _to_ast(expr.right))
 
 
 # ---------------------------------------------------------------- queries

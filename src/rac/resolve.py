@@ -8,13 +8,15 @@ declarations). Behavioural checks (determinism, priorities) run on the IR in
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac import ast, ir
-from rac.diagnostics import Diagnostic, Note, error, short_number, warning
-from rac.query_check import QueryChecker, type_word
+from rac.diagnostics import Diagnostic, Note, short_number, warning
+from rac.ir import query as iq
+from rac.query_check import Lowering, Scope, Symbol, model_settings, type_word
 from rac.source import Span
 
 #: Most samples a run may have (horizon / period): the exact checks walk every one of them.
@@ -23,14 +25,6 @@ MAX_SAMPLES = 1_000_000
 
 class _Unresolvable(Exception):
     """Internal: an expression could not be typed; its diagnostic is already recorded."""
-
-
-@dataclass
-class _Symbol:
-    kind: str  # input | const | reward | location
-    type: str  # bool | num
-    span: Span | None
-    value: Fraction | bool | None = None
 
 
 @dataclass(frozen=True)
@@ -64,7 +58,10 @@ class Resolver:
     def __init__(self, automaton: ast.Automaton):
         self.node = automaton
         self.diagnostics: list[Diagnostic] = []
-        self.symbols: dict[str, _Symbol] = {}
+        self.symbols: dict[str, Symbol] = {}
+        #: What queries and bindings may name; shares the symbols and the diagnostics.
+        self.scope = Scope(automaton.name.name, self.symbols, self.has_model, automaton.name.span,
+                           diagnostics=self.diagnostics)
         self.used = _Used()
         #: Spans of the model block's settings the analyses point at ("model:exponent", "model:base").
         self.model_spans: dict[str, Span] = {}
@@ -76,9 +73,9 @@ class Resolver:
 
     # ------------------------------------------------------------ reporting
     def _error(self, code: str, message: str, span: Span | None, **kw) -> None:
-        self.diagnostics.append(error(code, message, span or self.node.name.span, **kw))
+        self.scope.error(code, message, span, **kw)
 
-    def _declare(self, ident: ast.Ident, symbol: _Symbol) -> bool:
+    def _declare(self, ident: ast.Ident, symbol: Symbol) -> bool:
         previous = self.symbols.get(ident.name)
         if previous is not None:
             self._error("E0102", f"`{ident.name}` is already declared (as {_kind_word(previous.kind)})",
@@ -88,9 +85,7 @@ class Resolver:
         return True
 
     def _unknown(self, name: str, span: Span | None, what: str = "name") -> None:
-        candidates = difflib.get_close_matches(name, list(self.symbols), n=1)
-        hints = [f"did you mean `{candidates[0]}`?"] if candidates else []
-        self._error("E0101", f"unknown {what} `{name}`", span, hints=hints)
+        self.scope.unknown(name, span, what)
 
     # ------------------------------------------------------------ expressions
     def expr(self, node: ast.Expr, ctx: _Context) -> tuple[str, object]:
@@ -260,23 +255,25 @@ class Resolver:
                         hints=["the exact checks follow every sample of a run: shorten the horizon "
                                "or sample less often"])
         inputs = self._inputs()
+        rewards = tuple(n.name for d in node.of(ast.RewardDecl) for n in d.names)
+        self._index(inputs, rewards)
         from rac.model_block import resolve_model
 
         model = resolve_model(self, inputs, period)
-        rewards = tuple(n.name for d in node.of(ast.RewardDecl) for n in d.names)
+        self.scope.settings = model_settings(model) if model is not None else None
         locations, initial = self._locations(rewards)
         edges = self._edges(locations, rewards)
         ends = tuple(self._end(d, rewards) for d in node.of(ast.EndDecl))
         assume = self._assume()
         objective = self._objective(singles.get(ast.ObjectiveDecl), rewards)
         priority, strict = self._priority(singles.get(ast.PriorityDecl), rewards)
-        self._check_queries()
+        queries = self._check_queries()
         if any(d.is_error for d in self.diagnostics):
             # Expressions with errors were not fully read: an "unused" input may be used there.
             return None
         self._unused_inputs(inputs)
         assert period is not None and horizon is not None and objective is not None
-        return ir.Automaton(
+        automaton = ir.Automaton(
             name=node.name.name,
             inputs=inputs,
             rewards=rewards,
@@ -293,10 +290,27 @@ class Resolver:
             constants=tuple((n, s.value) for n, s in self.symbols.items()
                             if s.kind == "const" and s.value is not None),
             model=model,
-            queries=tuple(node.of(ast.QueryDecl)),
+            queries=queries,
             source=node,
             spans=self._spans(singles),
         )
+        if model is None:
+            return automaton
+        from rac.standard_queries import standard_queries
+
+        return dataclasses.replace(automaton, standard_queries=standard_queries(automaton))
+
+    def _index(self, inputs: tuple[ir.Input, ...], rewards: tuple[str, ...]) -> None:
+        """Each input's, reward's and location's position, for the names queries resolve to."""
+        for i, item in enumerate(inputs):
+            self.symbols[item.name].index = i
+        for i, reward in enumerate(rewards):
+            if self.symbols.get(reward) is not None and self.symbols[reward].kind == "reward":
+                self.symbols[reward].index = i
+        for i, decl in enumerate(self.node.of(ast.LocationDecl)):
+            symbol = self.symbols.get(decl.name.name)
+            if symbol is not None and symbol.kind == "location" and symbol.span == decl.name.span:
+                symbol.index = i
 
     def _spans(self, singles: dict[type, ast.Member]) -> dict[str, Span]:
         spans = {name: s.span for name, s in self.symbols.items() if s.span is not None}
@@ -331,15 +345,15 @@ class Resolver:
             if isinstance(member, ast.InputDecl):
                 kind = "bool" if isinstance(member.type, ast.BoolType) else "num"
                 for ident in member.names:
-                    self._declare(ident, _Symbol("input", kind, ident.span))
+                    self._declare(ident, Symbol("input", kind, ident.span))
             elif isinstance(member, ast.RewardDecl):
                 for ident in member.names:
-                    self._declare(ident, _Symbol("reward", "num", ident.span))
+                    self._declare(ident, Symbol("reward", "num", ident.span))
             elif isinstance(member, ast.LocationDecl):
-                self._declare(member.name, _Symbol("location", "bool", member.name.span))
+                self._declare(member.name, Symbol("location", "bool", member.name.span))
             elif isinstance(member, ast.ConstDecl):
                 # Constants are evaluated in order: a later constant may use an earlier one.
-                symbol = _Symbol("const", "num", member.name.span)
+                symbol = Symbol("const", "num", member.name.span)
                 try:
                     kind, value = self.expr(member.expr, CONSTANT)
                     if kind == "bool":
@@ -544,17 +558,21 @@ class Resolver:
                     hints=["remove it, or use it in a guard, a rate or an update"]))
 
     # ------------------------------------------------------------ queries
-    def _check_queries(self) -> None:
+    def _check_queries(self) -> tuple[iq.QueryDecl, ...]:
         strategies: set[str] = set()
         names: dict[str, Span | None] = {}
+        lowered = []
         for decl in self.node.of(ast.QueryDecl):
             if decl.name.name in names:
                 self._error("E0102", f"query `{decl.name.name}` is declared twice", decl.name.span,
                             notes=[Note("first declared here", names[decl.name.name])])
             names[decl.name.name] = decl.name.span
-            QueryChecker(self, strategies).check(decl.query)
+            query = Lowering(self.scope).query(decl, strategies)
+            if query is not None:
+                lowered.append(query)
             if isinstance(decl.query, (ast.ControlStrategy, ast.LearnStrategy)):
                 strategies.add(decl.query.name)
+        return tuple(lowered)
 
 
 def _not(guard: ir.Guard) -> ir.Guard:

@@ -37,16 +37,17 @@ from pathlib import Path
 
 import numpy as np
 
-from rac import ast, shield
+from rac import shield
 from rac.compiler import CompileResult
 from rac.engine import storm
 from rac.engine.explore import EGO_COLUMNS, action_pairs, explore
-from rac.engine.expr import EvaluationError, Evaluator, Frame, reads
+from rac.engine.expr import EvaluationError, Evaluator, Frame
 from rac.engine.graph import ExploredGraph
+from rac.ir import expr as ie
+from rac.ir import query as iq
 from rac.model.data import ModelData, ModelRangeError
-from rac.parser import parse_source
-from rac.printer import format_query
-from rac.source import SourceFile
+from rac.standard_queries import STANDARD
+from rac.standard_queries import standard_queries as checked_standard_queries
 from rac.verify_learning import LearningQueries, _Learned
 from rac.verify_report import QueryResult, _Unknown, render_json, render_text
 from rac.verify_statistical import StatisticalQueries
@@ -54,28 +55,9 @@ from rac.verify_statistical import StatisticalQueries
 __all__ = ["QueryResult", "UnknownQuery", "VerifyOptions", "render_json", "render_text", "standard_queries",
            "verify"]
 
-#: The paper's pre-analysis queries (Table 1), over the model vocabulary; ``MAXT`` is replaced
-#: by the automaton's horizon in seconds.
-STANDARD_QUERIES = """
-query Qa: Pr[<=MAXT](<> fabs(true_x - x) >= sensor_error)
-query Qb: E[] !collide() && !offroad()
-query Qc: E<> !collide() && !offroad() && goal()
-query Qd: strategy safe = control: A[] !collide() && !offroad()
-query Fig7: simulate[<=MAXT;100]{mindist(), 3 * collision_distance}
-query Fig7_safe: simulate[<=MAXT;100]{mindist(), 3 * collision_distance} under safe
-query Unsafe_safe: Pr[<=MAXT](<> mindist() <= 3 * collision_distance) under safe
-"""
-#: What each standard query asks, in words (printed under its name).
-STANDARD_TITLES = {
-    "Qa": "sensor error: Pr of the sensed x drifting sensor_error from the true x",
-    "Qb": "a run that is never unsafe exists",
-    "Qc": "a safe state in the goal is reachable",
-    "Qd": "the safety shield (the most permissive safe strategy)",
-    "Fig7": "the distance to the nearest obstacle against 3*TD, unshielded (the paper's Fig. 7)",
-    "Fig7_safe": "the same under the shield",
-    "Unsafe_safe": "Pr of coming closer than 3*TD under the shield",
-}
-_AUTOMATON_NAMES = ("location",)
+#: What each standard query asks, in words (printed under its name); the queries themselves:
+#: :data:`rac.standard_queries.STANDARD`.
+STANDARD_TITLES = {q.name: q.title for q in STANDARD if q.verify}
 
 
 @dataclass(frozen=True)
@@ -118,11 +100,13 @@ class VerifyOptions:
     bars: bool = False
 
 
-def standard_queries(horizon_seconds: Fraction) -> tuple[ast.QueryDecl, ...]:
-    """The paper's pre-analysis queries (:data:`STANDARD_QUERIES`) as query declarations."""
-    text = STANDARD_QUERIES.replace("MAXT", _decimal(horizon_seconds))
-    module = parse_source(SourceFile("<standard queries>", f"automaton Standard {{{text}}}"))
-    return tuple(m for m in module.automata[0].members if isinstance(m, ast.QueryDecl))
+def standard_queries(result: CompileResult, horizon_seconds: Fraction | None = None) -> tuple[iq.QueryDecl, ...]:
+    """The paper's standard queries that ``rac verify --standard`` answers, checked against the file's
+    automaton, with ``MAXT`` the horizon (default: the automaton's)."""
+    automaton = result.raise_for_errors()
+    if horizon_seconds is None or horizon_seconds == automaton.horizon:
+        return tuple(d for d in automaton.standard_queries if d.name in STANDARD_TITLES)
+    return checked_standard_queries(automaton, horizon_seconds, verify_only=True)
 
 
 def _decimal(value: Fraction) -> str:
@@ -184,17 +168,17 @@ class _Verifier(LearningQueries, StatisticalQueries):
                 raise _Unknown(f"a sensed value left the int32 range: {exc}") from None
         return self.graphs[prune]
 
-    def label(self, graph: ExploredGraph, expr: ast.Expr) -> np.ndarray:
+    def label(self, graph: ExploredGraph, expr: ie.Expr) -> np.ndarray:
         """A state formula on every state of a plain explored graph."""
-        if "prev()" in reads(expr):
+        if ie.uses_prev(expr):
             raise _Unknown("`prev(...)` in an exhaustive query is not supported")
         frame = Frame(k=graph.states[:, 0].astype(np.int64), ego=graph.states[:, 1:8])
         return np.ascontiguousarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
 
-    def needs_product(self, expr: ast.Expr) -> bool:
-        a = self.automaton
-        names = reads(expr)
-        return bool(names & {*(i.name for i in a.inputs), *a.rewards, *a.location_names, *_AUTOMATON_NAMES})
+    @staticmethod
+    def needs_product(expr: ie.Expr) -> bool:
+        """Whether ``expr`` reads the automaton's state (inputs, rewards, locations)."""
+        return ie.reads_automaton(expr)
 
     def strategy(self, name: str) -> tuple[storm.Shield, shield.ShieldTable]:
         if name not in self.strategies:
@@ -205,24 +189,15 @@ class _Verifier(LearningQueries, StatisticalQueries):
             raise _Unknown(f"the strategy `{name}` does not exist: no safe strategy exists from the start")
         return self.strategies[name]
 
-    def bound_samples(self, bound: ast.Bound) -> int:
-        limit = self.evaluator.evaluate(bound.limit, Frame(k=np.zeros(1, dtype=np.int64),
-                                                           ego=np.zeros((1, 7), dtype=np.int32)))
-        value = float(limit[0])
-        samples = int(math.floor(value + 1e-9)) if bound.kind == "steps" else int(math.floor(value / float(self.period)
-                                                                                          + 1e-9))
-        if samples < 0:
-            raise _Unknown(f"the time bound {value} is negative")
-        return samples
+    def bound_samples(self, bound: iq.Bound) -> int:
+        """The samples within a query's bound (``[<=T]``: whole samples up to T s; ``[#<=K]``: K)."""
+        if bound.kind == "steps":
+            return int(bound.limit)
+        return math.floor(bound.limit / self.period)
 
-    def runs_of(self, expr: ast.Expr | None, default: int) -> int:
-        if expr is None:
-            return default
-        value = float(self.evaluator.evaluate(expr, Frame(k=np.zeros(1, dtype=np.int64),
-                                                          ego=np.zeros((1, 7), dtype=np.int32)))[0])
-        if value < 1 or value != int(value):
-            raise _Unknown(f"the number of runs must be a positive whole number, not {value}")
-        return int(value)
+    @staticmethod
+    def runs_of(runs: int | None, default: int) -> int:
+        return default if runs is None else runs
 
     def next_seed(self) -> int:
         """A fresh seed per query, all derived from the options' seed (reproducible as a whole)."""
@@ -259,9 +234,9 @@ class _Verifier(LearningQueries, StatisticalQueries):
         return tuple(rows)
 
     # ------------------------------------------------------------ one query
-    def answer(self, decl: ast.QueryDecl, title: str | None) -> QueryResult:
+    def answer(self, decl: iq.QueryDecl, title: str | None) -> QueryResult:
         query = decl.query
-        base = QueryResult(decl.name.name, format_query(query), _kind(query), "unknown", title=title, span=decl.span)
+        base = QueryResult(decl.name, decl.text, _kind(query), "unknown", title=title, span=decl.span)
         t0 = time.perf_counter()
         try:
             result = self._answer(query, base)
@@ -271,25 +246,25 @@ class _Verifier(LearningQueries, StatisticalQueries):
             result = dataclasses.replace(base, status="unsupported", message=str(exc))
         return dataclasses.replace(result, seconds=time.perf_counter() - t0)
 
-    def _answer(self, query: ast.Query, base: QueryResult) -> QueryResult:
-        if isinstance(query, ast.PathQuery):
+    def _answer(self, query: iq.Query, base: QueryResult) -> QueryResult:
+        if isinstance(query, iq.PathQuery):
             return self.path(query, base)
-        if isinstance(query, ast.LeadsToQuery):
+        if isinstance(query, iq.LeadsToQuery):
             return self.leads_to(query, base)
-        if isinstance(query, ast.ControlStrategy):
+        if isinstance(query, iq.ControlStrategy):
             return self.control(query, base)
-        if isinstance(query, ast.ProbabilityQuery):
+        if isinstance(query, iq.ProbabilityQuery):
             return self.probability(query, base)
-        if isinstance(query, ast.ExpectationQuery):
+        if isinstance(query, iq.ExpectationQuery):
             return self.expectation(query, base)
-        if isinstance(query, ast.SimulateQuery):
+        if isinstance(query, iq.SimulateQuery):
             return self.simulate(query, base)
-        if isinstance(query, ast.LearnStrategy):
+        if isinstance(query, iq.LearnStrategy):
             return self.learn(query, base)
         return dataclasses.replace(base, status="unsupported", message=f"{type(query).__name__} is not answered")
 
     # ------------------------------------------------------------ exhaustive
-    def path(self, query: ast.PathQuery, base: QueryResult) -> QueryResult:
+    def path(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
         if query.under is not None and query.under in self.learned:
             return self.path_under_learned(query, base)
         if self.needs_product(query.expr):
@@ -319,7 +294,7 @@ class _Verifier(LearningQueries, StatisticalQueries):
                                    states=graph.n_states, horizon_samples=self.horizon_samples,
                                    trace=self.trace_rows(graph, verdict.trace), message=message)
 
-    def path_in_product(self, query: ast.PathQuery, base: QueryResult) -> QueryResult:
+    def path_in_product(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
         from rac.engine.product import decide_product, explore_product
 
         if query.under is not None:
@@ -330,12 +305,12 @@ class _Verifier(LearningQueries, StatisticalQueries):
         except MemoryError as exc:
             raise _Unknown(f"{exc}: the product of model and automaton grows quickly; shorten the horizon "
                            "(--horizon) or coarsen the model") from None
-        verdict = decide_product(graph, query)
+        verdict = decide_product(graph, query, base.formula)
         return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
                                    states=graph.n_states, horizon_samples=self.horizon_samples,
                                    trace=self.trace_rows(graph, verdict.trace))
 
-    def leads_to(self, query: ast.LeadsToQuery, base: QueryResult) -> QueryResult:
+    def leads_to(self, query: iq.LeadsToQuery, base: QueryResult) -> QueryResult:
         if self.needs_product(query.left) or self.needs_product(query.right):
             raise _Unknown("`-->` over the automaton's names is not supported yet")
         graph = self.graph(False)
@@ -346,7 +321,7 @@ class _Verifier(LearningQueries, StatisticalQueries):
         return dataclasses.replace(base, status="satisfied" if holds else "not satisfied", states=graph.n_states,
                                    horizon_samples=self.horizon_samples)
 
-    def control(self, query: ast.ControlStrategy, base: QueryResult) -> QueryResult:
+    def control(self, query: iq.ControlStrategy, base: QueryResult) -> QueryResult:
         if self.needs_product(query.expr):
             raise _Unknown("strategies over the automaton's names are not supported yet")
         if query.goal != "A[]":
@@ -372,11 +347,11 @@ class _Verifier(LearningQueries, StatisticalQueries):
                                    message=message)
 
     # ------------------------------------------------------------ all
-    def run(self, decls: Iterable[tuple[ast.QueryDecl, str | None]]) -> list[QueryResult]:
+    def run(self, decls: Iterable[tuple[iq.QueryDecl, str | None]]) -> list[QueryResult]:
         results = []
         for decl, title in decls:
             if self.options.progress is not None:
-                self.options.progress(f"{decl.name.name}: {format_query(decl.query)}")
+                self.options.progress(f"{decl.name}: {decl.text}")
             results.append(self.answer(decl, title))
         return results
 
@@ -393,13 +368,12 @@ def run_queries(result: CompileResult, options: VerifyOptions | None = None) -> 
     (``.strategies`` for shields, ``.learned`` and :meth:`learned_run` for learned ones)."""
     options = options or VerifyOptions()
     verifier = _Verifier(result, options)
-    decls: list[tuple[ast.QueryDecl, str | None]] = []
+    decls: list[tuple[iq.QueryDecl, str | None]] = []
     if options.standard:
-        horizon = options.horizon if options.horizon is not None else Fraction(verifier.automaton.horizon)
-        decls += [(d, STANDARD_TITLES.get(d.name.name)) for d in standard_queries(horizon)]
+        decls += [(d, d.title or None) for d in standard_queries(result, options.horizon)]
     decls += [(d, None) for d in verifier.automaton.queries]
     if options.only is not None:
-        known = {d.name.name for d, _ in decls}
+        known = {d.name for d, _ in decls}
         missing = [name for name in options.only if name not in known]
         if missing:
             raise UnknownQuery(", ".join(missing))
@@ -407,30 +381,30 @@ def run_queries(result: CompileResult, options: VerifyOptions | None = None) -> 
         # strategy learned `under` a shield brings the shield too (a strategy precedes its uses).
         wanted = set(options.only)
         for decl, _ in reversed(decls):
-            if decl.name.name in wanted and getattr(decl.query, "under", None):
-                wanted |= {d.name.name for d, _ in decls if getattr(d.query, "name", None) == decl.query.under}
-        decls = [(d, t) for d, t in decls if d.name.name in wanted]
+            if decl.name in wanted and getattr(decl.query, "under", None):
+                wanted |= {d.name for d, _ in decls if getattr(d.query, "name", None) == decl.query.under}
+        decls = [(d, t) for d, t in decls if d.name in wanted]
     return verifier, verifier.run(decls)
 
 
 # ---------------------------------------------------------------- helpers
-def _kind(query: ast.Query) -> str:
-    return {ast.PathQuery: "symbolic", ast.LeadsToQuery: "symbolic", ast.ControlStrategy: "strategy",
-            ast.ProbabilityQuery: "probability", ast.ExpectationQuery: "expectation",
-            ast.SimulateQuery: "simulate"}.get(type(query), "learning")
+def _kind(query: iq.Query) -> str:
+    return {iq.PathQuery: "symbolic", iq.LeadsToQuery: "symbolic", iq.ControlStrategy: "strategy",
+            iq.ProbabilityQuery: "probability", iq.ExpectationQuery: "expectation",
+            iq.SimulateQuery: "simulate"}.get(type(query), "learning")
 
 
-def _implies_safe(expr: ast.Expr) -> bool:
+def _implies_safe(expr: ie.Expr) -> bool:
     """``expr`` is a conjunction containing ``!collide()`` and ``!offroad()`` (so unsafe states violate it)."""
     found: set[str] = set()
 
-    def walk(node: ast.Expr) -> None:
-        if isinstance(node, ast.Binary) and node.op == "&&":
+    def walk(node: ie.Expr) -> None:
+        if isinstance(node, ie.Binary) and node.op == "&&":
             walk(node.left)
             walk(node.right)
-        elif (isinstance(node, ast.Unary) and node.op == "!" and isinstance(node.operand, ast.Call)
-              and not node.operand.args):
-            found.add(node.operand.func)
+        elif (isinstance(node, ie.Unary) and node.op == "!" and isinstance(node.operand, ie.Call)
+              and node.operand.function.kind == "model"):
+            found.add(node.operand.name)
 
     walk(expr)
     return {"collide", "offroad"} <= found

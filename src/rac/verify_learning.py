@@ -9,9 +9,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rac import ast, shield
+from rac import shield
 from rac.engine.explore import EGO_COLUMNS
 from rac.engine.expr import EvaluationError
+from rac.ir import expr as ie
+from rac.ir import query as iq
 from rac.verify_report import QueryResult, _expr_text, _number, _Unknown
 
 if TYPE_CHECKING:
@@ -27,13 +29,13 @@ class _Learned:
 
     strategy: LearnedStrategy
     shield: shield.ShieldTable | None
-    exprs: tuple[ast.Expr, ...]
+    exprs: tuple[ie.Expr, ...]
 
 
 class LearningQueries:
     """Q-learning of strategies (:mod:`rac.engine.learn`) and their verification."""
 
-    def episodes(self, reward: str | ast.Expr, goal: ast.Expr | None, samples: int) -> EpisodeBatch:
+    def episodes(self, reward: str | ie.Expr, goal: ie.Expr | None, samples: int) -> EpisodeBatch:
         """Episodes of the model with the automaton (:class:`rac.engine.episodes.EpisodeBatch`)."""
         from rac.engine.episodes import EpisodeBatch
 
@@ -44,7 +46,7 @@ class LearningQueries:
         except ValueError as exc:
             raise _Unknown(str(exc)) from None
 
-    def learn(self, query: ast.LearnStrategy, base: QueryResult) -> QueryResult:
+    def learn(self, query: iq.LearnStrategy, base: QueryResult) -> QueryResult:
         """Q-learning (:func:`rac.engine.learn.learn`) on episodes ending at the first sample where
         ``p`` holds or at the bound. As in UPPAAL, ``maxE(e)`` maximises the value of ``e`` when the
         episode ends; the reward of a step is the increase of ``e`` over it, so the returns add up
@@ -84,7 +86,8 @@ class LearningQueries:
                                          discrete=query.discrete, continuous=query.continuous,
                                          optimise="max" if query.optimise == "maxE" else "min", shield=table,
                                          episodes=self.options.learn_episodes, parallel=self.options.learn_parallel,
-                                         seed=seed, stop_after=self.options.learn_stop_after, meta=meta)
+                                         seed=seed, stop_after=self.options.learn_stop_after, meta=meta,
+                                         labels=query.labels)
         except EvaluationError:
             raise
         except ValueError as exc:  # a sensed value out of range, bindings breaking `assume`
@@ -98,7 +101,7 @@ class LearningQueries:
                                    runs=outcome.episodes, horizon_samples=samples, seed=seed, files=files,
                                    message=self._learning_message(outcome, query))
 
-    def _learning_message(self, outcome: LearningResult, query: ast.LearnStrategy) -> str:
+    def _learning_message(self, outcome: LearningResult, query: iq.LearnStrategy) -> str:
         greedy = outcome.greedy
         at = f"{int(greedy.samples_taken[0]) * float(self.period):g} s"
         if greedy.success[0]:
@@ -136,7 +139,7 @@ class LearningQueries:
         except ValueError as exc:
             raise _Unknown(str(exc)) from None
 
-    def path_under_learned(self, query: ast.PathQuery, base: QueryResult) -> QueryResult:
+    def path_under_learned(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
         """``A[] p``, ``E[] p``, ``A<> p``, ``E<> p`` under a learned strategy: the model and the
         greedy strategy are deterministic, so there is one run, followed to the horizon (it does not
         stop at the learning goal) and replayed sample by sample (:meth:`StrategyRun.samples`):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rac import ast
+from rac.ir import expr as ie
 from rac.source import Span
 
 __all__ = ["QueryResult", "render_json", "render_text"]
@@ -63,10 +63,10 @@ class QueryResult:
 
 
 
-def _expr_text(expr: ast.Expr) -> str:
-    from rac.printer import format_expr
+def _expr_text(expr: ie.Expr) -> str:
+    from rac.printer import format_checked
 
-    return format_expr(expr)
+    return format_checked(expr)
 
 
 def _write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray]) -> Path:

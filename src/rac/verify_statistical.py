@@ -6,20 +6,16 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rac import ast
 from rac.engine import storm
 from rac.engine.explore import explore
-from rac.engine.expr import Frame, reads
+from rac.engine.expr import Frame
+from rac.ir import expr as ie
+from rac.ir import query as iq
 from rac.model.data import ModelRangeError
-from rac.model_block import TRUE_STATE
-from rac.verify_report import QueryResult, _count, _expr_text, _plot, _Unknown, _write_csv
-
-if TYPE_CHECKING:
-    pass
+from rac.verify_report import QueryResult, _count, _plot, _Unknown, _write_csv
 
 __all__ = ["StatisticalQueries"]
 
@@ -48,7 +44,7 @@ class StatisticalQueries:
             yield frame
             previous = dataclasses.replace(frame, prev=None)
 
-    def values(self, runs, exprs: tuple[ast.Expr, ...]) -> list[np.ndarray]:
+    def values(self, runs, exprs: tuple[ie.Expr, ...]) -> list[np.ndarray]:
         """Each expression per run and sample: ``(N, T+1)`` arrays."""
         columns: list[list[np.ndarray]] = [[] for _ in exprs]
         for frame in self.frames(runs):
@@ -56,13 +52,13 @@ class StatisticalQueries:
                 column.append(np.asarray(self.evaluator.evaluate(expr, frame), dtype=np.float64))
         return [np.stack(column, axis=1) for column in columns]
 
-    def _statistical_check(self, exprs: Iterable[ast.Expr]) -> None:
+    def _statistical_check(self, exprs: Iterable[ie.Expr]) -> None:
         for expr in exprs:
             if self.needs_product(expr):
                 raise _Unknown("statistical queries over the automaton's names are not supported yet "
                                "(the model's vocabulary is)")
 
-    def probability(self, query: ast.ProbabilityQuery, base: QueryResult) -> QueryResult:
+    def probability(self, query: iq.ProbabilityQuery, base: QueryResult) -> QueryResult:
         from rac.engine import stats
 
         self._statistical_check([query.expr])
@@ -77,9 +73,8 @@ class StatisticalQueries:
             return holds.all(axis=1) if every else holds.any(axis=1)
 
         if query.compare is not None:
-            op, theta_expr = query.compare
-            theta = float(self.evaluator.evaluate(theta_expr, Frame(k=np.zeros(1, dtype=np.int64),
-                                                                     ego=np.zeros((1, 7), dtype=np.int32)))[0])
+            op, threshold = query.compare
+            theta = float(threshold)
             test = stats.sequential_test(sample, theta, alpha=self.options.alpha, beta=self.options.beta,
                                          delta=self.options.delta)
             accepted = test.accepted if op in (">=", ">") else not test.accepted
@@ -98,11 +93,10 @@ class StatisticalQueries:
                                    seed=seed, confidence=self.options.confidence,
                                    exact=self.exact_probability(query, samples))
 
-    def exact_probability(self, query: ast.ProbabilityQuery, samples: int) -> float | None:
+    def exact_probability(self, query: iq.ProbabilityQuery, samples: int) -> float | None:
         """``Pr[<=T](<> p)`` (or ``[] p``) under uniform choices, exactly, by Storm on the explored
         model — when ``p`` reads only the sensed model and the model up to ``T`` is small enough."""
-        names = reads(query.expr)
-        if query.under is not None or "prev()" in names or names & set(TRUE_STATE):
+        if query.under is not None or ie.uses_prev(query.expr) or ie.reads_truth(query.expr):
             return None
         if samples == self.horizon_samples and False in self.graphs:
             graph = self.graphs[False]  # the exhaustive queries' graph: the same model, the same horizon
@@ -118,7 +112,7 @@ class StatisticalQueries:
                                                   "event")
         return 1.0 - reached if every else reached
 
-    def expectation(self, query: ast.ExpectationQuery, base: QueryResult) -> QueryResult:
+    def expectation(self, query: iq.ExpectationQuery, base: QueryResult) -> QueryResult:
         from rac.engine import stats
 
         self._statistical_check([query.expr])
@@ -134,7 +128,7 @@ class StatisticalQueries:
         return dataclasses.replace(base, status="value", estimate=mean, interval=(mean - half, mean + half), runs=n,
                                    horizon_samples=samples, seed=seed, confidence=self.options.confidence)
 
-    def simulate(self, query: ast.SimulateQuery, base: QueryResult) -> QueryResult:
+    def simulate(self, query: iq.SimulateQuery, base: QueryResult) -> QueryResult:
         self._statistical_check(query.exprs)
         samples = self.bound_samples(query.bound)
         n = self.runs_of(query.runs, 1)
@@ -142,7 +136,7 @@ class StatisticalQueries:
         runs = self._runs(n, samples, query.under, seed)
         values = self.values(runs, query.exprs)
         files: list[str] = []
-        names = [_expr_text(e) for e in query.exprs]
+        names = list(query.labels)
         if self.out_dir is not None:
             files.append(str(_write_csv(self.out(f"{base.name}.csv"), runs.times, names, values)))
             if self.options.plots:

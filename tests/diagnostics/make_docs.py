@@ -66,9 +66,9 @@ UPPAAL_RATE = SMALL.replace("// Safety only: a minimal automaton",
                             "// A rate too small for the UPPAAL model's significands (10^-4)") \
     .replace("initial location Normal { sa' == 1 }", "initial location Normal { sa' == 0.00001 }")
 UPPAAL_QUERY = SMALL.replace("// Safety only: a minimal automaton",
-                             "// A symbolic query that multiplies two rewards") \
+                             "// A probability compared with `>`, which UPPAAL's query language has not") \
     .replace("    edge Unsafe -> Normal when !isClose\n",
-             "    edge Unsafe -> Normal when !isClose\n\n    query Qs: A[] sa * sa <= 100\n")
+             "    edge Unsafe -> Normal when !isClose\n\n    query Qp: Pr[<=10](<> Unsafe) > 0.5\n")
 _UPPAAL = ("compile", "--target", "uppaal", "{file}", "-o", "driving.xml")
 
 #: The same automaton with German comments, as an editor set to Latin-1 saves it.
@@ -176,10 +176,10 @@ GENERATED: tuple[Case, ...] = (
          "`E0801_rate_not_representable.ra` is the minimal automaton of the E0004 example, with the "
          "rate `sa' == 0.00001` in `Normal`:",
          _write("E0801_rate_not_representable.ra", UPPAAL_RATE.encode()), _UPPAAL),
-    Case("E0802_nonlinear_query", None,
-         "`E0802_nonlinear_query.ra` is the minimal automaton of the E0004 example, with the query "
-         "`query Qs: A[] sa * sa <= 100`:",
-         _write("E0802_nonlinear_query.ra", UPPAAL_QUERY.encode()), _UPPAAL),
+    Case("E0802_probability_comparison", None,
+         "`E0802_probability_comparison.ra` is the minimal automaton of the E0004 example, with the query "
+         "`query Qp: Pr[<=10](<> Unsafe) > 0.5`:",
+         _write("E0802_probability_comparison.ra", UPPAAL_QUERY.encode()), _UPPAAL),
     # The scenario must sit next to the file: the doc shows no ```ra block (tests/test_examples.py
     # would check it without the scenario, which is E0712).
     Case("E0713_scenario_exponent", None,

@@ -8,38 +8,38 @@ A[] settled imply (isClose imply Driving.Unsafe)
 // Qh
 A[] Driving.Unsafe imply 10*iSa + 5*iPr + iCo <= 0
 
-// Qa: sensor error (Pr of the sensed x drifting THD from the true x)
-Pr[<=MAXT](<> fabs(Dynamics.true_x - x / SCALE_D) >= THD)
+// Qa: sensor error: Pr of the sensed x drifting sensor_error from the true x
+Pr[<=MAXT](<> fabs(Dynamics.true_x - i2d(x)) >= THD)
 
-// Qb: a safe run exists
+// Qb: a run that is never unsafe exists
 E[] !collide() && !offroad()
 
-// Qc: a safe run reaches the goal
+// Qc: a safe state in the goal is reachable
 E<> !collide() && !offroad() && goal()
 
-// Qd: the safety shield (most permissive safe strategy)
+// Qd: the safety shield (the most permissive safe strategy)
 strategy safe = control: A[] !collide() && !offroad()
 
-// Fig. 7: the distance to the nearest obstacle against 3*TD, unshielded
-simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D}
+// Fig7: the distance to the nearest obstacle against 3*TD, unshielded (the paper's Fig. 7)
+simulate[<=MAXT;100]{mindist(), 3.0 * i2d(TD)}
 
-// Fig. 7 under the shield: the distance against 3*TD
-simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D} under safe
+// Fig7_safe: the same under the shield
+simulate[<=MAXT;100]{mindist(), 3.0 * i2d(TD)} under safe
 
-// unsafe distance under the shield: Pr of coming closer than 3*TD
-Pr[<=MAXT](<> mindist() <= 3*TD / SCALE_D) under safe
+// Unsafe_safe: Pr of coming closer than 3*TD under the shield
+Pr[<=MAXT](<> mindist() <= 3.0 * i2d(TD)) under safe
 
 // reachSafe: learning to reach the goal under the shield
-strategy reachSafe = maxE(sa + pr + co)[<=MAXT]{Driving.location}->{x, y, v, head}: <> goal() under safe
+strategy reachSafe = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), i2d(head)}: <> goal() under safe
 
-// a run under reachSafe (the learned trajectory)
-simulate[<=MAXT;1]{x, y, v, head} under reachSafe
+// reachSafe_run: a run under reachSafe (the learned trajectory)
+simulate[<=MAXT;1]{i2d(x), i2d(y), i2d(v), i2d(head)} under reachSafe
 
-// learning: the rewards' sum, maximised under the shield
-strategy reach = maxE(sa + pr + co)[<=MAXT]{Driving.location}->{x, y, v, head}: <> time >= MAXT under safe
+// reach: learning: the objective, maximised under the shield
+strategy reach = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), i2d(head)}: <> time >= MAXT under safe
 
-// learned strategy is safe
+// reach_safe: the learned strategy is safe
 A[] !collide() && !offroad() under reach
 
-// learned strategy reaches the goal
+// reach_goal: the learned strategy reaches the goal
 A<> goal() under reach

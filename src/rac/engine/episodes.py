@@ -20,7 +20,7 @@ and takes up to ``decide_every`` samples. **One sample** ``k -> k + 1`` is the p
 3. the automaton takes the sample with those inputs (:class:`rac.batch.BatchRewardAutomaton`:
    accrue with the held inputs, then the edge), which gives the sample's reward: the objective's
    increase (``reward="automaton"``), or the value of a plain reward expression over the model's
-   vocabulary and the inputs on the sample (``reward=<ast.Expr>``; booleans count 0/1), e.g. the
+   vocabulary and the inputs on the sample (its text, or a checked expression; booleans count 0/1), e.g. the
    paper's Eq. 9 ``10*!isClose + (5 + 100*goal())*prog + comf``;
 4. the episode *terminates* when the ``goal`` expression (default ``goal()``) holds on the sample
    (after the edge, so it may read the location and rewards), and is *truncated* when the sample
@@ -61,22 +61,27 @@ from rac.compiler import CompileResult
 from rac.engine.explore import action_pairs
 from rac.engine.expr import Evaluator, Frame
 from rac.execution import InputSpec, input_specs
+from rac.ir import expr as ie
 from rac.model.data import ModelData, ModelRangeError
 from rac.parser import parse_expression
+from rac.query_check import lower_expression
 
-__all__ = ["GOAL", "EpisodeBatch", "StepResult", "parse_expr"]
+__all__ = ["GOAL", "EpisodeBatch", "Expression", "StepResult", "parse_expr"]
 
 #: The default goal: the model's ``goal()`` (the planning problem's goal region and time interval).
-GOAL: ast.Expr = ast.Call("goal", ())
-_MINDIST = ast.Call("mindist", ())
-_OFFROAD = ast.Call("offroad", ())
+GOAL: ie.Expr = ie.call("goal")
+_MINDIST = ie.call("mindist")
+_OFFROAD = ie.call("offroad")
+
+#: An expression as the engine's entry points take it: text, a parsed node (both checked against
+#: the batch's automaton, :func:`rac.query_check.lower_expression`) or a checked expression.
+Expression = str | ast.Expr | ie.Expr
 
 
 def parse_expr(text: str) -> ast.Expr:
-    """One expression of the query language, parsed, not checked (:func:`rac.parser.parse_expression`).
-
-    Names are resolved when the expression is evaluated (:class:`rac.engine.expr.EvaluationError`
-    for one the engine cannot read); :class:`ValueError` when the text is not one expression."""
+    """One expression of the query language, parsed, not checked (:func:`rac.parser.parse_expression`);
+    :class:`ValueError` when the text is not one expression. The engine checks it against the
+    automaton when it is handed to it (:meth:`EpisodeBatch.expression`)."""
     return parse_expression(text)
 
 
@@ -106,7 +111,7 @@ class _Bindings:
         if missing:
             raise ValueError(f"input `{missing[0]}` has no binding: episodes read every input from the model "
                              f"(add `bind {missing[0]} = ...` to the `model` block)")
-        self.items: list[tuple[InputSpec, ast.Expr, float, float]] = []
+        self.items: list[tuple[InputSpec, ie.Expr, float, float]] = []
         for spec in input_specs(automaton):
             low, high = spec.low, spec.high
             if spec.kind == "int":  # the whole numbers within the bounds
@@ -200,8 +205,8 @@ class EpisodeBatch:
     ``int`` inputs) since construction, over all episodes; ``clipped_inputs`` the same per input.
     """
 
-    def __init__(self, result: CompileResult, *, reward: str | ast.Expr = "automaton",
-                 goal: ast.Expr | None = GOAL, horizon_samples: int | None = None,
+    def __init__(self, result: CompileResult, *, reward: Expression = "automaton",
+                 goal: Expression | None = GOAL, horizon_samples: int | None = None,
                  data: ModelData | None = None) -> None:
         automaton = result.automaton
         if automaton is None:
@@ -216,11 +221,8 @@ class EpisodeBatch:
         self.data = data
         self.evaluator = Evaluator(data, automaton)
         self._bindings = _Bindings(self.evaluator, automaton)
-        if isinstance(reward, str):
-            self.reward_expr: ast.Expr | None = None if reward == "automaton" else parse_expr(reward)
-        else:
-            self.reward_expr = reward
-        self.goal = goal
+        self.reward_expr: ie.Expr | None = None if reward == "automaton" else self.expression(reward)
+        self.goal = None if goal is None else self.expression(goal)
         horizon = automaton.steps if horizon_samples is None else int(horizon_samples)
         if horizon < 1:
             raise ValueError(f"horizon_samples must be at least 1, not {horizon}")
@@ -244,7 +246,7 @@ class EpisodeBatch:
         self._prev: _State | None = None
         # Evaluate the expressions once on the start, so that a name the engine cannot read fails here.
         start = self._start_state(1)
-        for expr in (self.reward_expr, goal):
+        for expr in (self.reward_expr, self.goal):
             if expr is not None:
                 self.evaluator.evaluate(expr, start.frame(slice(None)))
 
@@ -306,7 +308,16 @@ class EpisodeBatch:
         """``(n,)`` the objective's value per episode."""
         return self._require()[2].objective
 
-    def observe(self, exprs: Sequence[ast.Expr]) -> np.ndarray:
+    def expression(self, expr: Expression) -> ie.Expr:
+        """``expr`` checked against the automaton (text or a parsed node; a boolean counts as 0 or 1 in
+        arithmetic), or as it is when checked: :class:`rac.diagnostics.CheckError` for an unknown
+        name or a type error, :class:`ValueError` when the text is not one expression."""
+        if isinstance(expr, str | ast.Number | ast.BoolLit | ast.Name | ast.Qualified | ast.Call | ast.Unary
+                      | ast.Binary):
+            return lower_expression(self.automaton, expr, bool_numbers=True)
+        return expr
+
+    def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
         """``(n, len(exprs))`` float64: each expression in every episode's current frame (booleans
         0/1). An expression may read the model's vocabulary (ego names, ``time``, ``mindist()`` ...),
         the inputs, rewards and locations (``Driving.location``, ``Unsafe``) and ``prev(e)``."""
@@ -314,7 +325,7 @@ class EpisodeBatch:
         frame = now.frame(slice(None), prev=prev.frame(slice(None)))
         out = np.empty((self.n, len(exprs)), dtype=np.float64)
         for column, expr in enumerate(exprs):
-            out[:, column] = self.evaluator.evaluate(expr, frame)
+            out[:, column] = self.evaluator.evaluate(self.expression(expr), frame)
         return out
 
     # ------------------------------------------------------------ stepping

@@ -70,6 +70,8 @@ from typing import Protocol
 import numpy as np
 
 from rac import ast
+from rac.engine.episodes import Expression
+from rac.ir import expr as ie
 from rac.shield import ShieldTable
 
 __all__ = ["DEFAULT_BINS", "Episodes", "LearnedStrategy", "LearningResult", "ObjectiveIncrease", "StrategyEvaluation",
@@ -117,20 +119,45 @@ class Episodes(Protocol):
 
     def state_keys(self) -> np.ndarray: ...
 
-    def observe(self, exprs: Sequence[ast.Expr]) -> np.ndarray: ...
+    def observe(self, exprs: Sequence[Expression]) -> np.ndarray: ...
+
+    def expression(self, expr: Expression) -> ie.Expr: ...
 
     def step(self, actions: np.ndarray) -> StepOutcome: ...
 
 
 # ---------------------------------------------------------------- observations
-def default_bin(expr: ast.Expr) -> float:
-    """The default bin width of a continuous observation (:data:`DEFAULT_BINS`)."""
-    if isinstance(expr, ast.Unary) and expr.op == "-":
+def default_bin(expr: ie.Expr | ast.Expr) -> float:
+    """The default bin width of a continuous observation (:data:`DEFAULT_BINS`), checked or parsed:
+    by the name it observes (``v``, ``fabs(turn)``, ``-acc``)."""
+    if isinstance(expr, ie.Unary | ast.Unary) and expr.op == "-":
         return default_bin(expr.operand)
+    if isinstance(expr, ie.Call) and expr.name in ("fabs", "abs") and len(expr.args) == 1:
+        return default_bin(expr.args[0])
     if isinstance(expr, ast.Call) and expr.func in ("fabs", "abs") and len(expr.args) == 1:
         return default_bin(expr.args[0])
-    name = expr.id if isinstance(expr, ast.Name) else expr.func if isinstance(expr, ast.Call) else None
+    name = (expr.name if isinstance(expr, ie.Ref | ie.Call) else expr.id if isinstance(expr, ast.Name)
+            else expr.func if isinstance(expr, ast.Call) else None)
     return DEFAULT_BINS.get(name, DEFAULT_BIN) if name is not None else DEFAULT_BIN
+
+
+def _texts(exprs: Sequence[Expression], labels: Sequence[str] | None) -> tuple[str, ...]:
+    """The observations as text: ``labels``, else each as written (text, or a parsed node printed)."""
+    from rac.printer import format_expr
+
+    if labels is not None:
+        if len(labels) != len(exprs):
+            raise ValueError(f"labels must name the {len(exprs)} observations, not {len(labels)}")
+        return tuple(labels)
+    texts = []
+    for expr in exprs:
+        if isinstance(expr, str):
+            texts.append(expr)
+        elif isinstance(expr, ast.Number | ast.BoolLit | ast.Name | ast.Qualified | ast.Call | ast.Unary | ast.Binary):
+            texts.append(format_expr(expr))
+        else:
+            raise ValueError("checked observations need their texts: pass labels=")
+    return tuple(texts)
 
 
 def observation_keys(values: np.ndarray, n_discrete: int, bins: Sequence[float] | np.ndarray) -> np.ndarray:
@@ -220,9 +247,9 @@ class ObjectiveIncrease:
     objective weighs them differently. The increase after the last step includes the ``at end``
     clauses (the episodes' rewards hold them once an episode ended). Everything else is ``batch``'s."""
 
-    def __init__(self, batch: Episodes, expr: ast.Expr) -> None:
+    def __init__(self, batch: Episodes, expr: Expression) -> None:
         self.batch = batch
-        self.expr = expr
+        self.expr = batch.expression(expr)
 
     def __getattr__(self, name: str) -> object:
         return getattr(self.batch, name)
@@ -271,7 +298,8 @@ class LearnedStrategy:
         return observation_keys(observations, len(self.discrete), self.bins)
 
     def expressions(self) -> tuple[ast.Expr, ...]:
-        """The observed expressions, parsed back from their text (discrete first)."""
+        """The observed expressions, parsed back from their text (discrete first; the episodes check
+        them against their automaton when observing)."""
         from rac.parser import parse_text
 
         texts = (*self.discrete, *self.continuous)
@@ -410,7 +438,7 @@ class StrategyRun:
         return runs
 
 
-def _rollout(batch: Episodes, exprs: Sequence[ast.Expr], n: int, shield: ShieldTable | None,
+def _rollout(batch: Episodes, exprs: Sequence[Expression], n: int, shield: ShieldTable | None,
              choose: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> StrategyRun:
     """``n`` episodes to their end; ``choose(observations, masks) -> actions`` at each decision."""
     batch.reset(n)
@@ -450,7 +478,7 @@ def _strategy_chooser(strategy: LearnedStrategy) -> Callable[[np.ndarray, np.nda
     return lambda observed, masks: strategy.act(observed, masks)
 
 
-def run_strategy(batch: Episodes, strategy: LearnedStrategy, *, exprs: Sequence[ast.Expr] | None = None,
+def run_strategy(batch: Episodes, strategy: LearnedStrategy, *, exprs: Sequence[Expression] | None = None,
                  shield: ShieldTable | None = None, runs: int = 1) -> StrategyRun:
     """The run(s) of the episodes under ``strategy`` (greedy among the actions ``shield`` allows):
     with the deterministic model and strategy all ``runs`` are the same run. ``exprs``: the
@@ -483,7 +511,7 @@ class StrategyEvaluation:
 
 
 def evaluate(batch: Episodes, strategy: LearnedStrategy, *, runs: int = 100, shield: ShieldTable | None = None,
-             seed: int | None = None, epsilon: float = 0.0, exprs: Sequence[ast.Expr] | None = None
+             seed: int | None = None, epsilon: float = 0.0, exprs: Sequence[Expression] | None = None
              ) -> StrategyEvaluation:
     """The success rate of ``strategy`` over ``runs`` runs (success: the goal reached, never a
     collision nor off the road).
@@ -573,11 +601,12 @@ def _epsilon_schedule(epsilon: float | tuple[float, float], episodes: int) -> Ca
     return lambda index: start + (end - start) * np.minimum(1.0, index / max(1, episodes - 1))
 
 
-def learn(batch: Episodes, *, discrete: Sequence[ast.Expr], continuous: Sequence[ast.Expr], optimise: str = "max",
+def learn(batch: Episodes, *, discrete: Sequence[Expression], continuous: Sequence[Expression], optimise: str = "max",
           shield: ShieldTable | None = None, episodes: int = 1000, parallel: int = 32, seed: int | None = None,
           alpha: float = 0.3, gamma: float = 1.0, epsilon: float | tuple[float, float] = (1.0, 0.05),
           bins: Sequence[float] | None = None, stop_after: int = 10, progress: Progress | None = None,
-          meta: Mapping[str, object] | None = None, replay: int = 1) -> LearningResult:
+          meta: Mapping[str, object] | None = None, replay: int = 1,
+          labels: Sequence[str] | None = None) -> LearningResult:
     """Learn a strategy by tabular Q-learning on ``batch`` (see the module docstring for the
     observation, the algorithm and the stopping rule). ``optimise``: ``"max"`` (``maxE``) or
     ``"min"`` (``minE``) of the episodes' rewards; ``shield``: the allowed actions at each state
@@ -595,8 +624,9 @@ def learn(batch: Episodes, *, discrete: Sequence[ast.Expr], continuous: Sequence
     if not (0.0 < alpha <= 1.0 and 0.0 <= gamma <= 1.0):
         raise ValueError(f"alpha must lie in (0, 1] and gamma in [0, 1], not {alpha}, {gamma}")
     _check_shield(batch, shield)
-    from rac.printer import format_expr
-
+    texts = _texts((*discrete, *continuous), labels)
+    discrete = [batch.expression(e) for e in discrete]
+    continuous = [batch.expression(e) for e in continuous]
     exprs = (*discrete, *continuous)
     widths = tuple(float(b) for b in (bins if bins is not None else [default_bin(e) for e in continuous]))
     if len(widths) != len(continuous) or not all(w > 0 and math.isfinite(w) for w in widths):
@@ -607,14 +637,13 @@ def learn(batch: Episodes, *, discrete: Sequence[ast.Expr], continuous: Sequence
     n_discrete = len(discrete)
     table = _QTable(len(exprs), batch.n_actions)
     schedule = _epsilon_schedule(epsilon, episodes)
-    texts = (tuple(format_expr(e) for e in discrete), tuple(format_expr(e) for e in continuous))
     pairs = getattr(batch, "action_pairs", None)
 
     def keys_now() -> np.ndarray:
         return observation_keys(batch.observe(exprs) if exprs else np.zeros((batch.n, 0)), n_discrete, widths)
 
     def snapshot() -> LearnedStrategy:
-        return LearnedStrategy(*texts, widths, optimise, table.keys[:table.size].copy(),
+        return LearnedStrategy(texts[:n_discrete], texts[n_discrete:], widths, optimise, table.keys[:table.size].copy(),
                                sign * table.values[:table.size], None if pairs is None else np.array(pairs),
                                dict(meta or {}, seed=seed))
 

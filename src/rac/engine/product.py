@@ -67,16 +67,16 @@ from fractions import Fraction
 
 import numpy as np
 
-from rac import ast, ir
+from rac import ir
 from rac.engine.explore import EGO_COLUMNS, action_pairs
-from rac.engine.expr import EvaluationError, Evaluator, Frame, reads
+from rac.engine.expr import EvaluationError, Evaluator, Frame, int_sum
 from rac.engine.graph import ExploredGraph
 from rac.engine.storm import Verdict, decide
+from rac.ir import expr as ie
+from rac.ir import query as iq
 from rac.model.data import INT32_LOW, INT32_MAX, ModelData, ModelRangeError, build_model_data
-from rac.printer import format_expr
 from rac.scenario import load_scenario
 from rac.targets.uppaal import first_sample_reads, mirror_accrual, mirror_update
-from rac.targets.uppaal_expr import _integer_bound
 
 __all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
            "explore_product"]
@@ -87,24 +87,13 @@ ACCRUED, READ, SAMPLED, ENDED = range(4)
 
 Progress = Callable[[int, int, int], None]
 _LABELS = ("collide", "offroad", "goal", "safe")
-_CALLS = {name: ast.Call(name, ()) for name in ("mindist", "offroad", "goal")}
-_SAFE_INT64 = 2**62
+_CALLS = {name: ie.call(name) for name in ("mindist", "offroad", "goal")}
 
 
 # ---------------------------------------------------------------- integer arithmetic as UPPAAL's
 def _tdiv(a: np.ndarray, q: int) -> np.ndarray:
     """C's (and UPPAAL's) integer division by ``q > 0``: truncated towards zero."""
     return a if q == 1 else np.where(a < 0, -((-a) // q), a // q)
-
-
-def _int_sum(const: int, terms: Sequence[tuple[int, np.ndarray]], n: int) -> np.ndarray:
-    """``const + Σ c * column`` exactly: int64 when no intermediate can overflow it, else Python ints."""
-    exact = abs(const) + sum(abs(c) for c, _ in terms) * 2**31 < _SAFE_INT64
-    dtype = np.int64 if exact else object
-    total = np.full(n, const, dtype=dtype)
-    for c, column in terms:
-        total = total + c * column.astype(dtype)
-    return total
 
 
 def _int32(values: np.ndarray, what: str, scale: int) -> np.ndarray:
@@ -148,7 +137,7 @@ class _Arithmetic:
             for r, (const, terms) in enumerate(row):
                 if const == 0 and not terms:
                     continue
-                gain = _int_sum(const, [(sign, _tdiv(_int_sum(0, [(p, inputs[rows, i])], rows.size), q))
+                gain = int_sum(const, [(sign, _tdiv(int_sum(0, [(p, inputs[rows, i])], rows.size), q))
                                         for sign, p, q, i in terms], rows.size)
                 out[rows, r] = _int32(out[rows, r] + gain, f"the mirror of `{self.a.rewards[r]}`", self.scale)
         return out
@@ -161,7 +150,7 @@ class _Arithmetic:
         if isinstance(guard, ir.BInput):
             return inputs[:, self.input[guard.name]] != 0
         if isinstance(guard, ir.BAtom):
-            bound = _integer_bound(guard.op, guard.threshold * self.scale)
+            bound = ie.integer_bound(guard.op, guard.threshold * self.scale)
             if isinstance(bound, bool):
                 return np.full(n, bound)
             op, value = bound
@@ -184,7 +173,7 @@ class _Arithmetic:
                 q = math.lcm(const.denominator, *(c.denominator for c, _ in terms))
                 columns = [(int(c * q), mirrors[:, self.reward[name]] if name in self.reward
                             else inputs[:, self.input[name]]) for c, name in terms]
-                value = _tdiv(_int_sum(int(const * q), columns, n), q)
+                value = _tdiv(int_sum(int(const * q), columns, n), q)
             mirrors[:, self.reward[assignment.reward]] = _int32(
                 value, f"the mirror of `{assignment.reward}`", self.scale)
 
@@ -225,19 +214,6 @@ def _compare(values: np.ndarray, op: str, bound: int | np.ndarray) -> np.ndarray
 
 
 # ---------------------------------------------------------------- bindings
-def _prev_args(expr: ast.Expr, found: list[ast.Expr]) -> None:
-    if isinstance(expr, ast.Call):
-        if expr.func == "prev" and expr.args[0] not in found:
-            found.append(expr.args[0])
-        for arg in expr.args:
-            _prev_args(arg, found)
-    elif isinstance(expr, ast.Unary):
-        _prev_args(expr.operand, found)
-    elif isinstance(expr, ast.Binary):
-        _prev_args(expr.left, found)
-        _prev_args(expr.right, found)
-
-
 class _Bindings:
     """The Controller's ``read_inputs()``: every input from its binding, and the ``prev(e)`` values."""
 
@@ -251,9 +227,7 @@ class _Bindings:
             raise ValueError(f"input {names} has no binding: the product reads every input from the model, "
                              f"as the emitted model does (add `bind {missing[0]} = ...` to the `model` block)")
         self.items = [(item.name, item.is_bool, bound[item.name]) for item in automaton.inputs]
-        self.prev_args: list[ast.Expr] = []
-        for _, _, expr in self.items:
-            _prev_args(expr, self.prev_args)
+        self.prev_args: list[ie.Expr] = ie.prev_operands([expr for _, _, expr in self.items])
 
     def read(self, frame: Frame) -> np.ndarray:
         """``(n, inputs)`` int64: booleans 0/1, numbers ``d2i(e) = trunc(e * SCALE_D)``."""
@@ -352,7 +326,7 @@ class ProductGraph(ExploredGraph):
     automaton: ir.Automaton | None = None
     data: ModelData | None = None
     horizon: int = 0
-    prev_exprs: tuple[ast.Expr, ...] = ()
+    prev_exprs: tuple[ie.Expr, ...] = ()
     prev_values: np.ndarray | None = None
     evaluator: Evaluator | None = field(default=None, compare=False, repr=False)
 
@@ -406,115 +380,35 @@ class ProductGraph(ExploredGraph):
         assert self.automaton is not None and self.data is not None
         rows = self.states if indices is None else self.states[np.asarray(indices)]
         scale = float(self.data.scale)
-        inputs = {}
+        inputs, significands = {}, {}
         for i, item in enumerate(self.automaton.inputs):
             column = rows[:, 10 + i]
             inputs[item.name] = column != 0 if item.is_bool else column / scale
+            if not item.is_bool:
+                significands[item.name] = column
         first = 10 + len(self.automaton.inputs)
-        rewards = {r: rows[:, first + i] / scale for i, r in enumerate(self.automaton.rewards)}
+        mirrors = {r: rows[:, first + i] for i, r in enumerate(self.automaton.rewards)}
+        rewards = {r: column / scale for r, column in mirrors.items()}
         return Frame(k=rows[:, 0].astype(np.int64), ego=rows[:, 2:9], location=rows[:, 9].astype(np.int64),
-                     rewards=rewards, inputs=inputs)
+                     rewards=rewards, inputs=inputs, mirrors=mirrors, significands=significands)
 
-    def evaluate(self, expr: ast.Expr, indices: np.ndarray | None = None) -> np.ndarray:
-        """A state formula per state, as the emitted symbolic query computes it: a comparison of
-        linear forms over rewards, numeric inputs, the ego and ``time`` exactly on the integers
-        (mirrors, significands, ``k``); anything else with :class:`Evaluator` on :meth:`frame`."""
-        if "prev()" in reads(expr):
+    def evaluate(self, expr: ie.Expr, indices: np.ndarray | None = None) -> np.ndarray:
+        """A state formula per state, as the emitted symbolic query computes it: comparisons of linear
+        forms over rewards, numeric inputs, the ego and ``time`` exactly on the integers (mirrors,
+        significands, ``k``); anything else in doubles (:class:`rac.engine.expr.Evaluator`)."""
+        if ie.uses_prev(expr):
             raise EvaluationError("`prev()` cannot be read by a query on the product: a state keeps no "
                                   "previous sample", expr.span)
-        rows = self.states if indices is None else self.states[np.asarray(indices)]
-        return _Formula(self, rows, self.frame(indices)).bool(expr)
+        assert self.evaluator is not None
+        return np.asarray(self.evaluator.evaluate_bool(expr, self.frame(indices)), dtype=bool)
 
-    def label(self, expr: ast.Expr, *, box: bool) -> np.ndarray:
+    def label(self, expr: ie.Expr, *, box: bool) -> np.ndarray:
         """The label the emitted query checks: a formula that reads an input only counts in settled
         states (``settled imply p`` under ``[]``, else ``settled && p``), as rac's UPPAAL target writes it."""
-        assert self.automaton is not None
         value = self.evaluate(expr)
-        if not reads(expr) & {item.name for item in self.automaton.inputs}:
+        if not any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr)):
             return value
         return (value | ~self.settled) if box else (value & self.settled)
-
-
-class _Formula:
-    """Exact evaluation of a state formula over product rows (see :meth:`ProductGraph.evaluate`)."""
-
-    def __init__(self, graph: ProductGraph, rows: np.ndarray, frame: Frame) -> None:
-        assert graph.automaton is not None and graph.data is not None and graph.evaluator is not None
-        self.g, self.rows, self.frame = graph, rows, frame
-        a = graph.automaton
-        self.numeric = {item.name: 10 + i for i, item in enumerate(a.inputs) if not item.is_bool}
-        self.bools = {item.name for item in a.bool_inputs}
-        self.rewards = {r: 10 + len(a.inputs) + i for i, r in enumerate(a.rewards)}
-        self.constants = dict(a.constants)
-        self.scale = graph.data.scale
-        self.period = Fraction(a.period)
-
-    def bool(self, expr: ast.Expr) -> np.ndarray:
-        if isinstance(expr, ast.Unary) and expr.op == "!":
-            return ~self.bool(expr.operand)
-        if isinstance(expr, ast.Binary) and expr.op in ast.LOGICAL_OPS:
-            left, right = self.bool(expr.left), self.bool(expr.right)
-            return {"&&": left & right, "||": left | right, "imply": ~left | right}[expr.op]
-        if isinstance(expr, ast.Binary) and expr.op in ast.COMPARISON_OPS:
-            left, right = self.linear(expr.left), self.linear(expr.right)
-            if left is not None and right is not None:
-                return self.compare(left, right, expr.op)
-        assert self.g.evaluator is not None
-        return np.asarray(self.g.evaluator.evaluate_bool(expr, self.frame), dtype=bool)
-
-    def linear(self, expr: ast.Expr) -> tuple[Fraction, dict[int, Fraction]] | None:
-        """``(constant, {column: coefficient})`` with each column's value in its own unit, or None."""
-        if isinstance(expr, ast.Number):
-            return Fraction(expr.value), {}
-        if isinstance(expr, ast.Name):
-            name = expr.id
-            if name in self.bools:
-                return None
-            for table in (self.numeric, self.rewards):
-                if name in table:
-                    return Fraction(0), {table[name]: Fraction(1, self.scale)}
-            if name in self.constants:
-                value = self.constants[name]
-                return None if isinstance(value, bool) else (Fraction(value), {})
-            if name in EGO_COLUMNS:
-                return Fraction(0), {2 + EGO_COLUMNS.index(name): Fraction(1, self.scale)}
-            if name == "time":
-                return Fraction(0), {0: self.period}
-            return None
-        if isinstance(expr, ast.Unary) and expr.op == "-":
-            inner = self.linear(expr.operand)
-            return None if inner is None else _scaled(inner, Fraction(-1))
-        if isinstance(expr, ast.Binary) and expr.op in ast.ARITHMETIC_OPS:
-            left, right = self.linear(expr.left), self.linear(expr.right)
-            if left is None or right is None:
-                return None
-            if expr.op in ("+", "-"):
-                return _added(left, right, 1 if expr.op == "+" else -1)
-            if expr.op == "*":
-                if not left[1]:
-                    return _scaled(right, left[0])
-                return _scaled(left, right[0]) if not right[1] else None
-            return _scaled(left, 1 / right[0]) if not right[1] and right[0] != 0 else None
-        return None
-
-    def compare(self, left, right, op: str) -> np.ndarray:
-        const, coefs = _added(left, right, -1)
-        coefs = {c: v for c, v in coefs.items() if v != 0}
-        multiple = math.lcm(const.denominator, *(v.denominator for v in coefs.values()))
-        terms = [(int(v * multiple), self.rows[:, column].astype(np.int64)) for column, v in coefs.items()]
-        total = _int_sum(int(const * multiple), terms, self.rows.shape[0])
-        return np.asarray(_compare(total, op, 0), dtype=bool)
-
-
-def _scaled(lin: tuple[Fraction, dict[int, Fraction]], factor: Fraction) -> tuple[Fraction, dict[int, Fraction]]:
-    return lin[0] * factor, {c: v * factor for c, v in lin[1].items()}
-
-
-def _added(a, b, sign: int) -> tuple[Fraction, dict[int, Fraction]]:
-    coefs = dict(a[1])
-    for column, value in b[1].items():
-        coefs[column] = coefs.get(column, Fraction(0)) + sign * value
-    return a[0] + sign * b[0], coefs
 
 
 # ---------------------------------------------------------------- exploration
@@ -650,30 +544,36 @@ def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon
 
 
 # ---------------------------------------------------------------- deciding
-def decide_product(graph: ProductGraph, query: ast.PathQuery) -> Verdict:
-    """Decide ``query`` (``A[]``, ``E<>``, ``E[]``, ``A<>``) on an explored product with Storm.
+def decide_product(graph: ProductGraph, query: iq.PathQuery | iq.QueryDecl, text: str = "") -> Verdict:
+    """Decide ``query`` (``A[]``, ``E<>``, ``E[]``, ``A<>``, or a declaration of one) on an explored
+    product with Storm.
 
     The state formula becomes the label :meth:`ProductGraph.label` (exact on mirrors and
     significands; ``settled`` for formulas that read inputs); the trace, when there is one, is a
-    list of indices into ``graph.states``.
+    list of indices into ``graph.states``. The verdict names the query by its ``.ra`` text
+    (``text``, or the declaration's).
     """
+    if isinstance(query, iq.QueryDecl):
+        query, text = query.query, text or query.text
+    if not isinstance(query, iq.PathQuery):
+        raise ValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
     if query.under is not None:
         raise ValueError(f"`under {query.under}`: strategies are not supported on the product")
     mask = graph.label(query.expr, box=query.quantifier in ("A[]", "E[]"))
     labelled = dataclasses.replace(graph, labels={**graph.labels, "query": mask})
     verdict = decide(labelled, query.quantifier, "query")
-    return dataclasses.replace(verdict, query=f"{query.quantifier} {format_expr(query.expr)}")
+    return dataclasses.replace(verdict, query=text or f"{query.quantifier} ...")
 
 
-def decide_in_model(source: object, data: ModelData | None, query: ast.PathQuery | ast.QueryDecl | str, *,
+def decide_in_model(source: object, data: ModelData | None, query: iq.PathQuery | iq.QueryDecl | str, *,
                     horizon_samples: int | None = None, prune_unsafe: bool = False,
                     max_states: int | None = None, progress: Progress | None = None) -> Verdict:
     """Decide a path query of an automaton on its product with the scenario model.
 
     ``source`` is an :class:`rac.ir.Automaton` or a :class:`rac.compiler.CompileResult`; ``data``
     the model's data (default: the result's, else built from the ``model`` block's scenario);
-    ``query`` a :class:`rac.ast.PathQuery`, a query declaration or the name of one of the
-    automaton's queries. The other arguments are :func:`explore_product`'s.
+    ``query`` a checked :class:`rac.ir.query.PathQuery`, a query declaration or the name of one of
+    the automaton's queries. The other arguments are :func:`explore_product`'s.
     """
     automaton = source if isinstance(source, ir.Automaton) else getattr(source, "automaton", None)
     if automaton is None:
@@ -685,13 +585,12 @@ def decide_in_model(source: object, data: ModelData | None, query: ast.PathQuery
             raise ValueError("the automaton has no `model` block: pass the model's data")
         data = build_model_data(load_scenario(automaton.model.scenario_path), automaton.model)
     if isinstance(query, str):
-        found = [decl for decl in automaton.queries if decl.name.name == query]
+        found = [decl for decl in automaton.queries if decl.name == query]
         if not found:
             raise KeyError(f"no query named {query!r}")
         query = found[0]
-    if isinstance(query, ast.QueryDecl):
-        query = query.query
-    if not isinstance(query, ast.PathQuery):
+    if not isinstance(query, iq.PathQuery | iq.QueryDecl) or not isinstance(getattr(query, "query", query),
+                                                                           iq.PathQuery):
         raise ValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
     graph = explore_product(data, automaton, horizon_samples=horizon_samples, prune_unsafe=prune_unsafe,
                             progress=progress, max_states=max_states)

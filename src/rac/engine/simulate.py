@@ -132,11 +132,17 @@ class Limits:
         return Limits(data.max_acc / scale, data.min_speed / scale, data.max_speed / scale)
 
 
+def saturated(value: np.ndarray, rate: np.ndarray, low: float, high: float) -> np.ndarray:
+    """The rate of a value kept in ``[low, high]``: ``rate``, or 0 where the value is at a bound and
+    the rate points outward — the emitted declarations' ``saturated()``, which the Dynamics uses."""
+    return np.where(((value >= high) & (rate > 0)) | ((value <= low) & (rate < 0)), 0.0, rate)
+
+
 def _derivative(state: np.ndarray, jerk: np.ndarray, turn: np.ndarray, limits: Limits) -> np.ndarray:
     """The Dynamics ODE's right-hand side for ``state`` = (x, y, v, acc, head) rows (5, n)."""
     _, _, v, acc, head = state
-    dacc = np.where(((acc >= limits.max_acc) & (jerk > 0)) | ((acc <= -limits.max_acc) & (jerk < 0)), 0.0, jerk)
-    dv = np.where(((v >= limits.max_speed) & (acc > 0)) | ((v <= limits.min_speed) & (acc < 0)), 0.0, acc)
+    dacc = saturated(acc, jerk, -limits.max_acc, limits.max_acc)
+    dv = saturated(v, acc, limits.min_speed, limits.max_speed)
     return np.stack([v * np.cos(head), v * np.sin(head), dv, dacc, turn])
 
 

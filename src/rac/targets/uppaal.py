@@ -48,24 +48,23 @@ from pathlib import PurePath
 
 import jinja2
 
-from rac import ast, ir
+from rac import ir
 from rac.diagnostics import Diagnostic, error, short_number
+from rac.ir import query as iq
 from rac.targets.uppaal_expr import (
     INT32_MAX,
     NotRepresentable,
     QueryError,
-    QueryPrinter,
-    Vocabulary,
     double_literal,
     int_literal,
     print_exact_sum,
     print_guard,
     print_int_linear,
     print_real_linear,
-    time_constants,
 )
+from rac.targets.uppaal_query import UppaalPrinter, Vocabulary, time_constants
 
-__all__ = ["DEFAULT_BASE", "DEFAULT_EXPONENT", "MODEL_FUNCTIONS", "RESERVED", "UppaalError", "UppaalModel",
+__all__ = ["DEFAULT_BASE", "DEFAULT_EXPONENT", "RESERVED", "UppaalError", "UppaalModel",
            "first_sample_reads", "generate_uppaal", "mirror_accrual", "mirror_update", "queries_path", "vocabulary"]
 
 DEFAULT_BASE = 10
@@ -90,9 +89,6 @@ RESERVED = frozenset("""
     int16_t uint16_t int32_t FLT_MIN FLT_MAX DBL_MIN DBL_MAX M_PI M_PI_2 M_PI_4 M_E M_LOG2E M_LOG10E
     M_LN2 M_LN10 M_1_PI M_2_PI M_2_SQRTPI M_SQRT2 M_SQRT1_2
 """.split())
-
-#: Functions of the scenario model (model.md): not available in the automaton-alone model.
-MODEL_FUNCTIONS = ("collide", "offroad", "goal", "mindist", "dist_goal", "prev")
 
 _HINT_REPRESENTATION = ("add a `model` block with a larger `exponent`, or change the number so that it "
                         "is a whole multiple of 1/{scale}")
@@ -304,7 +300,7 @@ class _Generator:
     def _names(self) -> None:
         a = self.a
         user = [a.name, *(i.name for i in a.inputs), *a.rewards, *a.location_names, *(n for n, _ in a.constants)]
-        strategies = [q.query.name for q in a.queries if isinstance(q.query, (ast.ControlStrategy, ast.LearnStrategy))]
+        strategies = [q.query.name for q in self.queries() if isinstance(q.query, iq.STRATEGY_QUERIES)]
         names = _Names([*user, *strategies], self.reserved_names())
         self.n = names
         self.process = names[a.name]
@@ -324,12 +320,15 @@ class _Generator:
                 self.select[item.name] = names.fresh(f"{item.name}_i")
                 self.array[item.name] = names.fresh(f"{item.name}_values")
 
+    def queries(self) -> tuple[iq.QueryDecl, ...]:
+        """The queries the model holds: the file's (the whole model adds the standard ones)."""
+        return self.a.queries
+
     # ------------------------------------------------------------ time
     def _time_unit(self) -> Fraction:
         durations = [Fraction(self.a.period), Fraction(self.a.horizon)]
-        probe = QueryPrinter(self._vocabulary(Fraction(1)))
-        for decl in self.a.queries:
-            durations += [d for d in time_constants(decl.query, probe._linear) if d > 0]
+        for decl in self.queries():
+            durations += [d for d in time_constants(decl.query) if d > 0]
         unit = durations[0]
         for d in durations[1:]:
             unit = Fraction(math.gcd(unit.numerator * d.denominator, d.numerator * unit.denominator),
@@ -500,44 +499,58 @@ class _Generator:
     # ------------------------------------------------------------ vocabulary and queries
     def _vocabulary(self, unit: Fraction) -> Vocabulary:
         a = self.a
-        strategies = {q.query.name: self.n[q.query.name] for q in a.queries
-                      if isinstance(q.query, (ast.ControlStrategy, ast.LearnStrategy))}
+        strategies = {q.query.name: self.n[q.query.name] for q in self.queries()
+                      if isinstance(q.query, iq.STRATEGY_QUERIES)}
+        no_model = ("the automaton-alone UPPAAL model has no scenario-model names; `rac compile` emits the whole "
+                    "model for a file with a `model` block" if a.model is not None else
+                    "the automaton-alone UPPAAL model has no scenario-model names")
         return Vocabulary(
             automaton=a.name, process=self.process,
             locations={name: self.n[name] for name in a.location_names},
             bools={i.name: self.n[i.name] for i in a.bool_inputs},
             significands={i.name: self.n[i.name] for i in a.numeric_inputs},
             mirrors=dict(self.mirror), hybrids={r: self.n[r] for r in a.rewards},
-            constants=dict(a.constants), strategies=strategies, scale=self.scale, unit=unit,
-            time=self.g["time"], settled=self.g["settled"], model_functions=MODEL_FUNCTIONS)
+            strategies=strategies, scale=self.scale, unit=unit, time=self.g["time"], settled=self.g["settled"],
+            horizon=Fraction(a.horizon), no_model=no_model)
 
-    def _queries(self, unit: Fraction) -> list[dict[str, str]]:
-        printer = QueryPrinter(self._vocabulary(unit))
+    def _printer(self, unit: Fraction) -> UppaalPrinter:
+        """The printer of this model's queries; conditions get fresh function names."""
+        printer = UppaalPrinter(self._vocabulary(unit))
+        printer.fresh = lambda base: self.n.fresh(f"{base}{len(printer.conditions)}")
+        return printer
+
+    def _queries(self, printer: UppaalPrinter) -> list[dict[str, str]]:
         result = []
-        for decl in self.a.queries:
+        for decl in self.queries():
             try:
                 formula = printer.formula(decl.query)
             except QueryError as exc:
                 self.diagnostics.append(error(
-                    "E0802", f"query `{decl.name.name}` cannot be written over the UPPAAL model: {exc}",
-                    self._span(decl.span),
-                    hints=_query_hints(str(exc))))
+                    "E0802", f"query `{decl.name}` cannot be written over the UPPAAL model: {exc}",
+                    self._span(decl.span), hints=_query_hints(str(exc))))
                 continue
             except NotRepresentable as exc:
                 self.diagnostics.append(error(
-                    "E0801", f"query `{decl.name.name}` has a number that is not representable at base "
+                    "E0801", f"query `{decl.name}` has a number that is not representable at base "
                     f"{self.base}, exponent {self.exponent}: {exc}", self._span(decl.span),
                     hints=[f"symbolic queries compare significands (value * {self.scale}); keep their constants "
                            f"within ±{short_number(Fraction(2**31 - 1, self.scale), 12)}"]))
                 continue
             assert "\n" not in formula
-            result.append({"name": decl.name.name, "formula": formula})
+            name = f"{decl.name}: {decl.title}" if decl.title else decl.name
+            result.append({"name": name, "formula": formula})
         return result
+
+    @staticmethod
+    def _conditions(printer: UppaalPrinter) -> list[dict[str, str]]:
+        """The conditions the symbolic queries call (functions returning bool), in order of appearance."""
+        return [{"name": name, "body": body} for body, name in printer.conditions.items()]
 
     # ------------------------------------------------------------ templates
     def run(self) -> UppaalModel:
         inputs, unit, period_units, accruals = self._prepare()
-        queries = self._queries(unit)
+        printer = self._printer(unit)
+        queries = self._queries(printer)
         ids = _Ids()
         templates = [self._timer(ids), self._automaton(ids, unit, accruals), self._environment(ids, inputs)]
         if self.diagnostics:
@@ -545,7 +558,8 @@ class _Generator:
         g = self.g
         declaration = _environment().get_template("declaration.j2").render(
             **self._declaration_args(inputs, unit, period_units),
-            names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time")})
+            names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time")},
+            conditions=self._conditions(printer))
         system = _environment().get_template("system.j2").render(
             channels=self.channels, processes=[g["timer"], self.process, g["environment"]])
         return self._files(declaration, templates, system, queries)
@@ -765,6 +779,16 @@ def _seconds(value: Fraction) -> str:
 
 
 def _query_hints(message: str) -> list[str]:
+    if "compares a probability" in message:
+        return ["write `>=` or `<=`, or ask for the probability's value and compare it yourself"]
+    if "`rac compile` emits the whole model" in message:
+        return ["`generate_uppaal` emits the automaton alone; `generate_uppaal_model` (and `rac compile`) the "
+                "whole model of the automaton in its scenario"]
+    if "prev(" in message:
+        return ["`rac verify` answers statistical queries that read `prev(...)`; bind the value to an input "
+                "to read it in UPPAAL"]
+    if "ground truth" in message:
+        return ["the true state is continuous: read it in Pr, E[..](max: ..) or simulate"]
     if "scenario model" in message:
         return ["`--target uppaal` emits the automaton alone, without its scenario model: leave the query out, "
                 "or bind the condition to an input of the automaton"]

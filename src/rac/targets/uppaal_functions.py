@@ -146,6 +146,17 @@ int32_t d2i(double d) {
     return fint(d * SCALE_D);
 }
 
+// ---- the ground truth's saturation (template Dynamics): the rate of a value kept in [low, high],
+// 0 where the value is at a bound and the rate points outward
+double saturated(double value, double rate, double low, double high) {
+    double r;
+    r = rate;
+    if ((value >= high && rate > 0.0) || (value <= low && rate < 0.0)) {
+        r = 0.0;
+    }
+    return r;
+}
+
 // ---- sense_state(): Algorithm 1, SUBSTEPS Euler sub-steps of SENSE_UNIT = C1 * G seconds
 void sense_state() {
     int32_t i;

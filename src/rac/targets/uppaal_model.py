@@ -33,12 +33,12 @@ Example::
 
 from __future__ import annotations
 
-import dataclasses
 from fractions import Fraction
 
-from rac import ast, ir
+from rac import ir
+from rac.ir import expr as ie
+from rac.ir import query as iq
 from rac.model.data import ModelData, build_model_data
-from rac.model_block import SETTINGS
 from rac.scenario import load_scenario
 from rac.targets.uppaal import (
     UppaalModel,
@@ -49,91 +49,15 @@ from rac.targets.uppaal import (
     _Location,
     _Template,
 )
-from rac.targets.uppaal_expr import NotRepresentable, double_literal
+from rac.targets.uppaal_expr import NotRepresentable, QueryError, double_literal
 from rac.targets.uppaal_functions import _action_name, declared_names, emit_declarations
+from rac.targets.uppaal_query import ModelNames, UppaalPrinter, Vocabulary
 
 __all__ = ["generate_uppaal_model"]
 
-#: Settings with a name in the paper (significands in the declarations): ``i2d(NAME)`` is the value.
-PAPER_NAMES = {"collision_distance": "TD", "max_acceleration": "MA", "max_turn": "MT",
-               "comfort_acceleration": "P1", "comfort_turn": "P2"}
-_EGO = ("x", "y", "v", "acc", "head", "jerk", "turn")
-_BOOL_FUNCTIONS = ("collide", "offroad", "goal")
-_NUM_FUNCTIONS = ("mindist", "dist_goal")
-_MATH = {"fabs": "fabs", "abs": "fabs", "sqrt": "sqrt", "fmin": "fmin", "fmax": "fmax"}
-
-# precedence levels of the binding printer
-_OR, _AND, _CMP, _ADD, _MUL, _UNARY, _ATOM = range(1, 8)
-_LEVEL = {"||": _OR, "&&": _AND, "+": _ADD, "-": _ADD, "*": _MUL, "/": _MUL,
-          **{op: _CMP for op in ast.COMPARISON_OPS}}
-
-
-class _BindingPrinter:
-    """A binding's expression in UPPAAL (and C) syntax; ``prev(e)`` reads a variable per ``e``."""
-
-    def __init__(self, spec: ir.ModelSpec, period_seconds: str):
-        self.spec = spec
-        self.period_seconds = period_seconds
-        self.prevs: dict[str, tuple[str, bool]] = {}  # printed argument -> (variable, is bool)
-
-    def is_bool(self, expr: ast.Expr) -> bool:
-        if isinstance(expr, ast.BoolLit):
-            return True
-        if isinstance(expr, ast.Unary):
-            return expr.op == "!"
-        if isinstance(expr, ast.Binary):
-            return expr.op in ast.COMPARISON_OPS or expr.op in ast.LOGICAL_OPS
-        if isinstance(expr, ast.Call):
-            if expr.func == "prev":
-                return self.is_bool(expr.args[0])
-            return expr.func in _BOOL_FUNCTIONS
-        return False
-
-    def print(self, expr: ast.Expr) -> str:
-        return self._expr(expr)[0]
-
-    def _expr(self, expr: ast.Expr) -> tuple[str, int]:
-        if isinstance(expr, ast.Number):
-            return double_literal(expr.value), _ATOM
-        if isinstance(expr, ast.BoolLit):
-            return ("true" if expr.value else "false"), _ATOM
-        if isinstance(expr, ast.Name):
-            if expr.id in _EGO:
-                return f"i2d({expr.id})", _ATOM
-            if expr.id == "time":
-                return f"count * {self.period_seconds}", _MUL
-            if expr.id in PAPER_NAMES:
-                return f"i2d({PAPER_NAMES[expr.id]})", _ATOM
-            if expr.id == "sensor_error":
-                return "THD", _ATOM
-            if expr.id in SETTINGS:
-                return double_literal(Fraction(getattr(self.spec, expr.id))), _ATOM
-            raise NotRepresentable(f"`{expr.id}` cannot be read by a binding")
-        if isinstance(expr, ast.Call):
-            if expr.func == "prev":
-                argument = self.print(expr.args[0])
-                if argument not in self.prevs:
-                    self.prevs[argument] = (f"prev{len(self.prevs)}", self.is_bool(expr.args[0]))
-                return self.prevs[argument][0], _ATOM
-            if expr.func in _BOOL_FUNCTIONS or expr.func in _NUM_FUNCTIONS:
-                return f"{expr.func}()", _ATOM
-            if expr.func in _MATH:
-                return f"{_MATH[expr.func]}({', '.join(self.print(a) for a in expr.args)})", _ATOM
-            raise NotRepresentable(f"`{expr.func}()` cannot be read by a binding")
-        if isinstance(expr, ast.Unary):
-            text, level = self._expr(expr.operand)
-            return expr.op + (f"({text})" if level < _UNARY else text), _UNARY
-        if isinstance(expr, ast.Binary):
-            if expr.op == "imply":
-                left, right = self._expr(expr.left), self._expr(expr.right)
-                negated = "!" + (f"({left[0]})" if left[1] < _UNARY else left[0])
-                return f"{negated} || {right[0] if right[1] > _OR else f'({right[0]})'}", _OR
-            level = _LEVEL[expr.op]
-            left, right = self._expr(expr.left), self._expr(expr.right)
-            left_text = f"({left[0]})" if left[1] < level else left[0]
-            right_text = f"({right[0]})" if right[1] <= level else right[0]
-            return f"{left_text} {expr.op} {right_text}", level
-        raise NotRepresentable("this part of a binding is not an expression")
+#: The ego state's components that prev(e) may need from the previous sample (all but the actions
+#: are always kept: they equal the current ones between samples, so they split no state).
+_KEPT = ("x", "y", "v", "acc", "head")
 
 
 class _ModelGenerator(_Generator):
@@ -153,9 +77,7 @@ class _ModelGenerator(_Generator):
         for key, base in (("controller", "Controller"), ("action", "Action"), ("dynamics", "Dynamics"),
                           ("obstacle", "Obstacle"), ("start", "Start"), ("deciding", "Deciding"),
                           ("sensing", "Sensing"), ("init", "Init"), ("driving", "Running"), ("moving", "Moving"),
-                          ("safe", "safe"), ("reach", "reach"), ("reach_safe", "reachSafe"),
-                          ("read_inputs", "read_inputs"),
-                          ("init_prevs", "init_prevs")):
+                          ("read_inputs", "read_inputs"), ("keep_sample", "keep_sample")):
             g[key] = n.fresh(base)
 
     # ------------------------------------------------------------ processes
@@ -190,52 +112,80 @@ class _ModelGenerator(_Generator):
         return _Template(g["timer"], start.id, [start, wait, accrued, reading, deciding, ending, done], transitions,
                          declaration=f"clock {g['t']};", name_x=-300, name_y=-100)
 
-    def _bindings(self) -> tuple[list[str], list[str]]:
-        """The read! edge's input assignments and the prev(...) updates (also the initial values)."""
-        spec = self.a.model
+    def queries(self) -> tuple[iq.QueryDecl, ...]:
+        """The file's queries, then the paper's standard ones (:mod:`rac.standard_queries`)."""
+        return self.a.queries + self.a.standard_queries
+
+    def _vocabulary(self, unit: Fraction) -> Vocabulary:
+        vocabulary = super()._vocabulary(unit)
+        g = self.g
+        model = ModelNames(dynamics=g["dynamics"], count=g["count"], period=Fraction(self.a.period), maxt="MAXT")
+        return Vocabulary(**{**vocabulary.__dict__, "model": model})
+
+    def _bindings(self, printer: UppaalPrinter) -> str:
+        """The declarations' bindings: ``read_inputs()`` assigns every input from its binding (a
+        numeric input gets the significand ``d2i(e)``); ``prev(e)`` is ``e`` evaluated on the previous
+        sample's state, which ``keep_sample()`` keeps in integers (the symbolic engine reads no double)."""
+        spec, g, n = self.a.model, self.g, self.n
         assert spec is not None
-        printer = _BindingPrinter(spec, double_literal(Fraction(self.a.period)))
+        operands = ie.prev_operands([b.expr for b in spec.bindings])
+        read = {r.name for e in operands for r in ie.refs(e) if r.is_model}
+        kept = [c for c in (*_KEPT, "jerk", "turn") if c in _KEPT or c in read] if operands else []
+        previous = {c: n.fresh(f"prev_{c}") for c in kept}
+        now = {c: n.fresh(f"now_{c}") for c in kept}
+        values = {operand: n.fresh(f"prev{i}") for i, operand in enumerate(operands)}
+        printer.prevs = dict(values)
         numeric = {i.name for i in self.a.numeric_inputs}
-        assigns = []
+        statements, locals_ = [], []
+        if operands:
+            locals_ += [f"int32_t {now[c]};" for c in kept]
+            locals_ += [f"{'bool' if e.type == ie.BOOL else 'double'} {name};" for e, name in values.items()]
+            statements += [f"{now[c]} = {c};" for c in kept] + [f"{c} = {previous[c]};" for c in kept]
+            statements.append(f"{g['count']} = {g['count']} - 1;")
+            statements += [self._bound(f"{name} = {{}};", e, printer, "prev(...) in a binding") for e, name in
+                           values.items()]
+            statements += [f"{c} = {now[c]};" for c in kept] + [f"{g['count']} = {g['count']} + 1;"]
         for binding in spec.bindings:
-            try:
-                text = printer.print(binding.expr)
-            except NotRepresentable as exc:
-                self._unrepresentable(f"the binding of `{binding.input}` cannot be written in UPPAAL: {exc}",
-                                      binding.span, hints=[])
-                continue
-            name = self.n[binding.input]
-            assigns.append(f"{name} = d2i({text})" if binding.input in numeric else f"{name} = {text}")
-        self.prevs = printer.prevs
-        return assigns, [f"{var} = {text}" for text, (var, _) in printer.prevs.items()]
+            target = self.n[binding.input]
+            template = f"{target} = d2i({{}});" if binding.input in numeric else f"{target} = {{}};"
+            statements.append(self._bound(template, binding.expr, printer, f"the binding of `{binding.input}`",
+                                          binding.span))
+        if operands:
+            statements.append(f"{g['keep_sample']}();")
+        lines = ["// ---- the bindings of the model block: the Controller calls "
+                 f"{g['read_inputs']}() at every sample, after sense_state()"]
+        if operands:
+            lines += ["// prev(e) is e on the previous sample's state, which "
+                      f"{g['keep_sample']}() keeps in integers (the symbolic engine reads no double)",
+                      f"int32_t {', '.join(previous.values())};",
+                      "",
+                      f"void {g['keep_sample']}() {{", *(f"    {previous[c]} = {c};" for c in kept), "}", ""]
+        lines += [f"void {g['read_inputs']}() {{", *(f"    {line}" for line in locals_ + statements), "}"]
+        return "\n".join(lines)
 
-    def _controller(self, ids: _Ids) -> _Template:
-        """The bindings are evaluated in functions (as the paper's ``sense()``): an edge that compares
-        or assigns doubles itself would exclude the model from symbolic analysis (reference §2)."""
+    def _bound(self, template: str, expr: ie.Expr, printer: UppaalPrinter, what: str, span=None) -> str:
+        try:
+            return template.format(printer.binding(expr))
+        except (QueryError, NotRepresentable) as exc:
+            self._unrepresentable(f"{what} cannot be written in UPPAAL: {exc}", span, hints=[])
+            return "// (not representable)"
+
+    def _controller(self, ids: _Ids, keeps: bool) -> _Template:
+        """Senses on ``accrue?`` (``sense_state()``) and reads the inputs from the bindings on ``read!``
+        (``read_inputs()``, in the declarations, as the paper's ``sense()``: an edge that compares or
+        assigns doubles itself would exclude the model from symbolic analysis, reference §2)."""
         g, ch = self.g, self.channels
-        assigns, prevs = self._bindings()
-
-        def function(name: str, comment: str, statements: list[str]) -> list[str]:
-            return [f"// {comment}", f"void {name}() {{", *(f"    {s};" for s in statements), "}"]
-
-        declaration = "\n".join([
-            *function(g["read_inputs"], "The bindings of the model block, at every sample (after sense_state()); "
-                      "then prev(e) := e.", assigns + prevs),
-            "",
-            *function(g["init_prevs"], "prev(e) at the start: e in the initial state.", prevs),
-        ])
         init = _Location(ids(), g["init"], -272, 0, committed=True)
         idle = _Location(ids(), g["idle"], 0, 0)
         sensing = _Location(ids(), g["sensing"], 340, 0, committed=True)
         transitions = [
-            _edge(ids, init, idle, assignment=f"{g['init_prevs']}()", anchor=(-250, -30)),
+            _edge(ids, init, idle, assignment=f"{g['keep_sample']}()" if keeps else "", anchor=(-250, -30)),
             _edge(ids, idle, sensing, sync=f"{ch['accrue']}?", assignment="sense_state()", nails=[(170, -50)],
                   anchor=(140, -80)),
             _edge(ids, sensing, idle, sync=f"{ch['read']}!", assignment=f"{g['read_inputs']}()",
                   nails=[(170, 60)], anchor=(20, 80)),
         ]
-        return _Template(g["controller"], init.id, [init, idle, sensing], transitions, declaration=declaration,
-                         name_x=-300, name_y=-100)
+        return _Template(g["controller"], init.id, [init, idle, sensing], transitions, name_x=-300, name_y=-100)
 
     def _action(self, ids: _Ids) -> _Template:
         g, ch = self.g, self.channels
@@ -256,13 +206,13 @@ class _ModelGenerator(_Generator):
     def _dynamics(self, ids: _Ids) -> _Template:
         g = self.g
         # Saturated like sense_state(): the acceleration stops at +-MA and the speed at VMIN/VMAX
-        # (the truth brakes to a stop instead of reversing), as rac's native integrator does.
+        # (the truth brakes to a stop instead of reversing), as rac's native integrator does. The
+        # saturation is the declarations' function saturated(): a conditional rate would need a
+        # comparison of hybrid clocks as its condition, which UPPAAL's parser refuses.
         ode = ("true_x' == UNIT_S * true_v * cos(true_head) && true_y' == UNIT_S * true_v * sin(true_head) && "
-               "true_v' == ((true_v >= i2d(MAX_SPEED) && true_acc > 0.0) || (true_v <= i2d(MIN_SPEED) && "
-               "true_acc < 0.0) ? 0.0 : UNIT_S * true_acc) && "
-               "true_acc' == ((true_acc >= i2d(MAX_ACC) && jerk > 0) || (true_acc <= -i2d(MAX_ACC) && jerk < 0) ? "
-               "0.0 : UNIT_S * jerk / SCALE_D) && "
-               "true_head' == UNIT_S * turn / SCALE_D")
+               "true_v' == UNIT_S * saturated(true_v, true_acc, i2d(MIN_SPEED), i2d(MAX_SPEED)) && "
+               "true_acc' == UNIT_S * saturated(true_acc, i2d(jerk), -i2d(MAX_ACC), i2d(MAX_ACC)) && "
+               "true_head' == UNIT_S * i2d(turn)")
         init = _Location(ids(), g["init"], -272, 0, committed=True)
         driving = _Location(ids(), g["driving"], 0, 0, ode)
         start = ("true_x = i2d(EGO_X0), true_y = i2d(EGO_Y0), true_v = i2d(EGO_V0), true_acc = i2d(EGO_ACC0), "
@@ -306,49 +256,18 @@ class _ModelGenerator(_Generator):
         return _Template(g["obstacle"], init.id, [init, moving], transitions, declaration=declaration,
                          name_x=-300, name_y=-100, parameter="const int32_t i")
 
-    # ------------------------------------------------------------ queries
-    def _standard_queries(self) -> list[dict[str, str]]:
-        g, a = self.g, self.a
-        safety = "!collide() && !offroad()"
-        objective = " + ".join(self.n[r] for r in a.rewards)
-        dyn = g["dynamics"]
-        return [
-            {"name": "Qa: sensor error (Pr of the sensed x drifting THD from the true x)",
-             "formula": f"Pr[<=MAXT](<> fabs({dyn}.true_x - x / SCALE_D) >= THD)"},
-            {"name": "Qb: a safe run exists", "formula": f"E[] {safety}"},
-            {"name": "Qc: a safe run reaches the goal", "formula": f"E<> {safety} && goal()"},
-            {"name": "Qd: the safety shield (most permissive safe strategy)",
-             "formula": f"strategy {g['safe']} = control: A[] {safety}"},
-            {"name": "Fig. 7: the distance to the nearest obstacle against 3*TD, unshielded",
-             "formula": "simulate[<=MAXT;100]{mindist(), 3*TD / SCALE_D}"},
-            {"name": "Fig. 7 under the shield: the distance against 3*TD",
-             "formula": f"simulate[<=MAXT;100]{{mindist(), 3*TD / SCALE_D}} under {g['safe']}"},
-            {"name": "unsafe distance under the shield: Pr of coming closer than 3*TD",
-             "formula": f"Pr[<=MAXT](<> mindist() <= 3*TD / SCALE_D) under {g['safe']}"},
-            {"name": "reachSafe: learning to reach the goal under the shield",
-             "formula": (f"strategy {g['reach_safe']} = maxE({objective})[<=MAXT]{{{self.process}.location}}"
-                         f"->{{x, y, v, head}}: <> goal() under {g['safe']}")},
-            {"name": "a run under reachSafe (the learned trajectory)",
-             "formula": f"simulate[<=MAXT;1]{{x, y, v, head}} under {g['reach_safe']}"},
-            {"name": "learning: the rewards' sum, maximised under the shield",
-             "formula": (f"strategy {g['reach']} = maxE({objective})[<=MAXT]{{{self.process}.location}}"
-                         f"->{{x, y, v, head}}: <> {g['time']} >= MAXT under {g['safe']}")},
-            {"name": "learned strategy is safe", "formula": f"A[] {safety} under {g['reach']}"},
-            {"name": "learned strategy reaches the goal", "formula": f"A<> goal() under {g['reach']}"},
-        ]
-
-    def _vocabulary(self, unit: Fraction):
-        return dataclasses.replace(super()._vocabulary(unit), model_functions=())
-
     # ------------------------------------------------------------ the whole model
     def run(self) -> UppaalModel:
         a, g, data = self.a, self.g, self.data
         spec = a.model
         assert spec is not None
         inputs, unit, period_units, accruals = self._prepare()
-        queries = self._queries(unit) + self._standard_queries()
+        printer = self._printer(unit)
+        bindings = self._bindings(printer)
+        queries = self._queries(printer)
         ids = _Ids()
-        templates = [self._timer(ids), self._controller(ids), self._action(ids), self._dynamics(ids)]
+        templates = [self._timer(ids), self._controller(ids, bool(printer.prevs)), self._action(ids),
+                     self._dynamics(ids)]
         if data.obstacle_count:
             templates.append(self._obstacle(ids))
         templates.append(self._automaton(ids, unit, accruals))
@@ -369,7 +288,7 @@ class _ModelGenerator(_Generator):
             scenario_declarations=emit_declarations(data), settings=settings,
             writer=g["controller"], value_arrays=False,
             thd=double_literal(spec.sensor_error), maxt=a.steps * period_units,
-            prevs=[(var, "bool" if is_bool else "double", text) for text, (var, is_bool) in self.prevs.items()])
+            bindings=bindings, conditions=self._conditions(printer))
         obstacles = [f"{g['obstacle']}{i}" for i in range(data.obstacle_count)]
         system = env.get_template("model_system.j2").render(
             channels=self.channels, names=g, obstacles=obstacles,

@@ -12,6 +12,8 @@ from fractions import Fraction
 from typing import Union
 
 from rac import ast
+from rac.ir.expr import Expr
+from rac.ir.query import QueryDecl
 from rac.source import Span
 
 
@@ -130,13 +132,14 @@ class Action:
 class Binding:
     """``bind input = expr``: how the scenario model drives one automaton input.
 
-    ``expr`` is an AST expression over the model vocabulary (model.md): ``collide()``,
-    ``offroad()``, ``goal()``, ``mindist()``, ``dist_goal()``, ``prev(e)``, ``fabs(e)``, the
-    ego state ``x, y, v, acc, head, jerk, turn``, ``time`` and the model's settings by name.
+    ``expr`` is a resolved expression (:mod:`rac.ir.expr`) over the model's vocabulary
+    (:mod:`rac.ir.vocabulary`): ``collide()``, ``offroad()``, ``goal()``, ``mindist()``,
+    ``dist_goal()``, ``prev(e)``, ``fabs(e)``, the ego state ``x, y, v, acc, head, jerk, turn``,
+    ``time`` and the model's settings, the automaton's constants inlined.
     """
 
     input: str
-    expr: ast.Expr
+    expr: Expr
     span: Span | None = field(default=None, compare=False)
 
 
@@ -246,7 +249,11 @@ class Automaton:
     constants: tuple[tuple[str, Fraction | bool], ...] = ()
     #: The scenario model from the `model` block, if the file has one.
     model: ModelSpec | None = None
-    queries: tuple[ast.QueryDecl, ...] = field(default=(), compare=False)
+    #: The file's queries, checked (:mod:`rac.ir.query`).
+    queries: tuple[QueryDecl, ...] = field(default=(), compare=False)
+    #: With a `model` block: the paper's standard queries over it (Qa-Qd, Fig. 7's simulations,
+    #: the learning queries), checked like the file's (:mod:`rac.standard_queries`).
+    standard_queries: tuple[QueryDecl, ...] = field(default=(), compare=False)
     source: ast.Automaton | None = field(default=None, compare=False, repr=False)
     spans: dict[str, Span] = field(default_factory=dict, compare=False, repr=False)
 

@@ -1,0 +1,110 @@
+"""The paper's standard queries over a file's scenario model, in ``.ra`` syntax, checked like the file's.
+
+For a file with a ``model`` block, ``rac verify --standard`` answers the pre-analysis queries
+(Table 1: Qa-Qd) and Fig. 7's simulations, and ``rac compile --target uppaal`` writes them into the
+emitted model together with the learning queries (Table 2). Both read the one list below, lowered
+by the checker (:func:`rac.query_check.lower_queries`) against the automaton, so that the engine
+answers exactly the queries the emitted model holds. ``MAXT`` stands for the horizon in seconds,
+``OBJECTIVE`` for the automaton's objective and ``PROCESS`` for its name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+
+from rac import ast, ir
+from rac.ir import query as iq
+from rac.parser import parse_source
+from rac.printer import format_expr
+from rac.query_check import lower_queries
+from rac.source import SourceFile
+
+__all__ = ["STANDARD", "StandardQuery", "standard_queries"]
+
+
+@dataclass(frozen=True)
+class StandardQuery:
+    name: str
+    text: str
+    #: What the query asks, in words.
+    title: str
+    #: Answered by ``rac verify --standard`` (the learning queries are in the emitted model only:
+    #: ``rac experiment`` runs the paper's learning experiment).
+    verify: bool = True
+
+
+#: Every standard query, in order (a strategy is defined before the queries that use it).
+STANDARD: tuple[StandardQuery, ...] = (
+    StandardQuery("Qa", "Pr[<=MAXT](<> fabs(true_x - x) >= sensor_error)",
+                  "sensor error: Pr of the sensed x drifting sensor_error from the true x"),
+    StandardQuery("Qb", "E[] !collide() && !offroad()", "a run that is never unsafe exists"),
+    StandardQuery("Qc", "E<> !collide() && !offroad() && goal()", "a safe state in the goal is reachable"),
+    StandardQuery("Qd", "strategy safe = control: A[] !collide() && !offroad()",
+                  "the safety shield (the most permissive safe strategy)"),
+    StandardQuery("Fig7", "simulate[<=MAXT;100]{mindist(), 3 * collision_distance}",
+                  "the distance to the nearest obstacle against 3*TD, unshielded (the paper's Fig. 7)"),
+    StandardQuery("Fig7_safe", "simulate[<=MAXT;100]{mindist(), 3 * collision_distance} under safe",
+                  "the same under the shield"),
+    StandardQuery("Unsafe_safe", "Pr[<=MAXT](<> mindist() <= 3 * collision_distance) under safe",
+                  "Pr of coming closer than 3*TD under the shield"),
+    StandardQuery("reachSafe", "strategy reachSafe = maxE(OBJECTIVE)[<=MAXT]{PROCESS.location}->{x, y, v, head}: "
+                  "<> goal() under safe", "learning to reach the goal under the shield", verify=False),
+    StandardQuery("reachSafe_run", "simulate[<=MAXT;1]{x, y, v, head} under reachSafe",
+                  "a run under reachSafe (the learned trajectory)", verify=False),
+    StandardQuery("reach", "strategy reach = maxE(OBJECTIVE)[<=MAXT]{PROCESS.location}->{x, y, v, head}: "
+                  "<> time >= MAXT under safe", "learning: the objective, maximised under the shield", verify=False),
+    StandardQuery("reach_safe", "A[] !collide() && !offroad() under reach", "the learned strategy is safe",
+                  verify=False),
+    StandardQuery("reach_goal", "A<> goal() under reach", "the learned strategy reaches the goal", verify=False),
+)
+_STRATEGIES = ("safe", "reachSafe", "reach")
+
+
+def standard_queries(automaton: ir.Automaton, horizon: Fraction | None = None, *,
+                     verify_only: bool = False) -> tuple[iq.QueryDecl, ...]:
+    """The standard queries of ``automaton`` (it has a ``model`` block), checked and lowered.
+
+    ``horizon`` is ``MAXT`` in seconds (default: the automaton's). A strategy of the file's own
+    queries with the name of a standard one (``safe``) leaves the standard one renamed (``safe_``).
+    With ``verify_only``, the queries ``rac verify --standard`` answers.
+    """
+    taken = {d.query.name for d in automaton.queries if isinstance(d.query, iq.STRATEGY_QUERIES)}
+    rename = {}
+    for name in _STRATEGIES:
+        fresh = name
+        while fresh in taken:
+            fresh += "_"
+        rename[name] = fresh
+    maxt = _decimal(horizon if horizon is not None else Fraction(automaton.horizon))
+    objective = _objective_text(automaton)
+    lines = []
+    chosen = [q for q in STANDARD if q.verify or not verify_only]
+    for query in chosen:
+        text = query.text.replace("MAXT", maxt).replace("OBJECTIVE", objective).replace("PROCESS", automaton.name)
+        for name in _STRATEGIES:
+            text = _rename(text, name, rename[name])
+        lines.append(f"query {query.name}: {text}")
+    source = SourceFile("<standard queries>", "automaton Standard {\n" + "\n".join(lines) + "\n}\n")
+    decls = [m for m in parse_source(source).automata[0].members if isinstance(m, ast.QueryDecl)]
+    return lower_queries(automaton, decls, titles={q.name: q.title for q in chosen},
+                         sources={source.name: source})
+
+
+def _rename(text: str, old: str, new: str) -> str:
+    import re
+
+    return re.sub(rf"(?<![\w.]){old}(?!\w)", new, text) if old != new else text
+
+
+def _objective_text(automaton: ir.Automaton) -> str:
+    """The objective as written (``10*sa + 5*pr + co``)."""
+    if automaton.source is not None:
+        found = automaton.source.of(ast.ObjectiveDecl)
+        if found:
+            return format_expr(found[0].expr)
+    return " + ".join(automaton.rewards)
+
+
+def _decimal(value: Fraction) -> str:
+    return str(value.numerator) if value.denominator == 1 else repr(float(value))
