@@ -1,4 +1,6 @@
-"""Shared helpers for the tests that run rac as a command (tests/test_cli.py, tests/test_install.py)."""
+"""Shared helpers for the tests that run rac as a command (tests/test_cli.py, tests/test_install.py), and
+the ``utap`` fixture: UPPAAL's own parser (tests/utap.py), with a count of its validations printed at
+the end of the session."""
 
 from __future__ import annotations
 
@@ -6,6 +8,9 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
+import utap as utap_module
 
 import rac
 
@@ -25,3 +30,32 @@ def run_rac(*args: str | Path, cwd: Path | None = None, timeout: float = 120) ->
     return subprocess.run([sys.executable, "-m", "rac", *map(str, args)], cwd=cwd, env=rac_env(),
                           capture_output=True, text=True, timeout=timeout, check=False)
 
+
+# ---------------------------------------------------------------- UPPAAL's parser (tests/utap.py)
+@pytest.fixture(scope="session")
+def utap(tmp_path_factory: pytest.TempPathFactory) -> utap_module.Utap:
+    """``utap.validate(xml, queries, name)`` asserts that UPPAAL's parser accepts the model and its
+    queries. Skips when the validator is unavailable (fails instead under ``RAC_REQUIRE_UTAP=1``)."""
+    try:
+        located = utap_module.locate()
+    except RuntimeError as exc:  # RAC_UTAP_VALIDATE names no executable
+        located = utap_module.Located(None, str(exc))
+        misconfigured = True
+    else:
+        misconfigured = False
+    if misconfigured:
+        pytest.fail(located.reason, pytrace=False)
+    if located.path is None:
+        utap_module.unavailable(located.reason)
+    return utap_module.Utap(located.path, tmp_path_factory.mktemp("utap"))
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """One line: how many models and query files UPPAAL's parser accepted (also under ``-q``)."""
+    def unavailable(kind: str) -> int:
+        return sum(1 for report in terminalreporter.stats.get(kind, ())
+                   if utap_module.UNAVAILABLE in str(getattr(report, "longrepr", "")))
+
+    line = utap_module.summary_line(unavailable("skipped"), unavailable("error") + unavailable("failed"))
+    if line:
+        terminalreporter.write_line(line)
