@@ -53,7 +53,7 @@ from rac.targets.uppaal_expr import NotRepresentable, QueryError, double_literal
 from rac.targets.uppaal_functions import _action_name, declared_names, emit_declarations
 from rac.targets.uppaal_query import ModelNames, UppaalPrinter, Vocabulary
 
-__all__ = ["generate_uppaal_model"]
+__all__ = ["generate_uppaal_model", "model_vocabulary"]
 
 #: The ego state's components that prev(e) may need from the previous sample (all but the actions
 #: are always kept: they equal the current ones between samples, so they split no state).
@@ -311,3 +311,16 @@ def generate_uppaal_model(automaton: ir.Automaton, *, data: ModelData | None = N
     if data is None:
         data = build_model_data(load_scenario(spec.scenario_path), spec)
     return _ModelGenerator(automaton, data, source_name, model_name).run()
+
+
+def model_vocabulary(automaton: ir.Automaton, *, data: ModelData | None = None) -> Vocabulary:
+    """The UPPAAL names of everything a query or binding reads in the whole model of ``automaton``
+    (as :func:`generate_uppaal_model` names them): for printing more expressions over it."""
+    spec = automaton.model
+    if spec is None:
+        raise ValueError("the automaton has no `model` block")
+    if data is None:
+        data = build_model_data(load_scenario(spec.scenario_path), spec)
+    generator = _ModelGenerator(automaton, data, "", "")
+    generator._inputs()
+    return generator._vocabulary(generator._time_unit())

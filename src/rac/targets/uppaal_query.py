@@ -130,6 +130,9 @@ class UppaalPrinter:
     conditions: dict[str, str] = field(default_factory=dict)  # body -> name
     #: In the bindings' function: the local variable holding each ``prev(e)``'s value, by ``e``.
     prevs: dict[ie.Expr, str] = field(default_factory=dict)
+    #: Write ``a imply b`` as ``!a || b`` in every dialect (C has no ``imply``; the tests compile
+    #: query expressions printed so against the engine's values).
+    c_syntax: bool = False
 
     # ------------------------------------------------------------ whole queries
     def formula(self, query: iq.Query) -> str:
@@ -199,6 +202,8 @@ class UppaalPrinter:
         if not any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr)):
             return text
         settled = (self.v.settled, _ATOM)
+        if box and self.c_syntax:
+            return _join([_not(settled), text], "||")
         if box:
             return f"{settled[0]} imply {_paren(text[0], text[1], _AND)}", _OR
         return _join([settled, text], "&&")
@@ -214,7 +219,7 @@ class UppaalPrinter:
         if isinstance(expr, ie.Binary):
             left, right = self.condition(expr.left, dialect), self.condition(expr.right, dialect)
             if expr.op == "imply":
-                if dialect == FUNCTION:
+                if dialect == FUNCTION or self.c_syntax:
                     return _join([_not(left), right], "||")
                 return f"{_paren(left[0], left[1], _AND)} imply {_paren(right[0], right[1], _AND)}", _OR
             return _join([left, right], expr.op)
