@@ -169,6 +169,22 @@ def test_a_query_under_a_strategy_is_answered_on_the_shielded_graph(compiled: Ca
     assert stuck.trace is not None and stuck.trace[-1]["v"] == 0
 
 
+def test_leads_to_and_control_under_a_shield(compiled: Callable[[str], Compiled]) -> None:
+    """`-->` and `control:` under a shield are answered on the graph the shield allows (not ignored):
+    unshielded, the ego can hit the van and stay on the road; under the shield it never collides, so
+    `collide() --> offroad()` holds vacuously, and the strategy within the shield is the shield."""
+    item = compiled("avoidable_obstacle")
+    path = item.folder / "under_more.ra"
+    path.write_text(engine_source(item.tiny, {"safe": QUERIES["safe"], "Hit": "collide() --> offroad()",
+                                              "HitUnder": "collide() --> offroad() under safe",
+                                              "inner": "strategy inner = control: A[] !collide() under safe"},
+                                  scenario_file="avoidable_obstacle.xml"))
+    results = {r.name: r for r in verify(compile_file(path), VerifyOptions(seed=1, plots=False))}
+    assert results["Hit"].status == "not satisfied" and results["HitUnder"].status == "satisfied"
+    assert results["inner"].status == "satisfied"
+    assert results["inner"].states is not None and results["inner"].states < results["Hit"].states  # type: ignore
+
+
 def test_a_strategy_without_an_output_folder_is_still_usable(compiled: Callable[[str], Compiled]) -> None:
     results = run(compiled("goal_ahead"), "safe", "Shielded", out=None)
     assert results["safe"].files == () and results["Shielded"].status == "satisfied"

@@ -189,6 +189,15 @@ class _Verifier(LearningQueries, StatisticalQueries):
             raise _Unknown(f"the strategy `{name}` does not exist: no safe strategy exists from the start")
         return self.strategies[name]
 
+    def under_shield(self, name: str, what: str) -> ExploredGraph:
+        """The explored model restricted to the choices the shield ``name`` allows; a learned
+        strategy is refused (its one run is answered for path queries only)."""
+        if name in self.learned:
+            raise EvaluationError(f"{what} under the learned strategy `{name}` is not supported (under a shield "
+                                  "it is; path queries under a learned strategy are answered on its one run)")
+        shield_, _ = self.strategy(name)
+        return _restricted(shield_)
+
     def bound_samples(self, bound: iq.Bound) -> int:
         """The samples within a query's bound (``[<=T]``: whole samples up to T s; ``[#<=K]``: K)."""
         if bound.kind == "steps":
@@ -313,25 +322,26 @@ class _Verifier(LearningQueries, StatisticalQueries):
     def leads_to(self, query: iq.LeadsToQuery, base: QueryResult) -> QueryResult:
         if self.needs_product(query.left) or self.needs_product(query.right):
             raise _Unknown("`-->` over the automaton's names is not supported yet")
-        graph = self.graph(False)
+        graph = self.under_shield(query.under, "`-->`") if query.under is not None else self.graph(False)
         p, q = self.label(graph, query.left), self.label(graph, query.right)
         # p --> q fails exactly when a reachable p-state has a run avoiding q forever (E[] !q there).
         values, _ = storm._check(storm.to_mdp(dataclasses.replace(graph, labels={"notq": ~q})), 'Pmax=? [G "notq"]')
-        holds = not bool(np.any(p & (values > 0.5)))
+        holds = not bool(np.any(p & (values > 0.5) & _reachable(graph)))
         return dataclasses.replace(base, status="satisfied" if holds else "not satisfied", states=graph.n_states,
                                    horizon_samples=self.horizon_samples)
 
     def control(self, query: iq.ControlStrategy, base: QueryResult) -> QueryResult:
         if self.needs_product(query.expr):
             raise _Unknown("strategies over the automaton's names are not supported yet")
+        within = self.under_shield(query.under, "a strategy") if query.under is not None else None
         if query.goal != "A[]":
-            graph = self.graph(False)
+            graph = within if within is not None else self.graph(False)
             labelled = dataclasses.replace(graph, labels={**graph.labels, "query": self.label(graph, query.expr)})
             verdict = storm.decide(labelled, "E<>", "query")
             return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
                                        states=graph.n_states, horizon_samples=self.horizon_samples,
                                        message="reachability strategies are decided but not saved")
-        graph = self.graph(_implies_safe(query.expr))
+        graph = within if within is not None else self.graph(_implies_safe(query.expr))
         labelled = dataclasses.replace(graph, labels={**graph.labels, "query": self.label(graph, query.expr)})
         computed = storm.safety_shield(labelled, "query")
         table = shield.table(computed, n_actions=len(self.pairs))
@@ -408,6 +418,22 @@ def _implies_safe(expr: ie.Expr) -> bool:
 
     walk(expr)
     return {"collide", "offroad"} <= found
+
+
+def _reachable(graph: ExploredGraph) -> np.ndarray:
+    """The states reachable from the initial one through the graph's choices (a restricted graph
+    keeps every explored state, also those its choices no longer reach)."""
+    seen = np.zeros(graph.n_states, dtype=bool)
+    frontier = np.array([graph.initial], dtype=np.int64)
+    seen[frontier] = True
+    while frontier.size:
+        starts, ends = graph.choice_offsets[frontier], graph.choice_offsets[frontier + 1]
+        counts = ends - starts
+        index = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
+        targets = np.unique(graph.choice_target[index])
+        frontier = targets[~seen[targets]]
+        seen[frontier] = True
+    return seen
 
 
 def _restricted(computed: storm.Shield) -> ExploredGraph:

@@ -35,8 +35,8 @@ strategy reachSafe = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->
 // reachSafe_run: a run under reachSafe (the learned trajectory)
 simulate[<=MAXT;1]{i2d(x), i2d(y), i2d(v), i2d(head)} under reachSafe
 
-// reach: learning: the objective, maximised under the shield
-strategy reach = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), i2d(head)}: <> time >= MAXT under safe
+// reach: learning without the shield: the objective, maximised
+strategy reach = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), i2d(head)}: <> time >= MAXT
 
 // reach_safe: the learned strategy is safe
 A[] !collide() && !offroad() under reach
