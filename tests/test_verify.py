@@ -185,6 +185,23 @@ def test_leads_to_and_control_under_a_shield(compiled: Callable[[str], Compiled]
     assert results["inner"].states is not None and results["inner"].states < results["Hit"].states  # type: ignore
 
 
+def test_forms_uppaal_reads_otherwise_are_not_answered(compiled: Callable[[str], Compiled]) -> None:
+    """What UPPAAL would answer differently (a step bound counts its transitions) or not at all is
+    "unsupported", with the reason, never answered with another meaning."""
+    item = compiled("goal_ahead")
+    path = item.folder / "forms.ra"
+    queries = {"Steps": "Pr[#<=8](<> goal())", "Fixed": "Pr[<=2; 30](<> goal()) >= 0.5",
+               "Always": "strategy calm = maxE(sa)[<=2]{Tiny.location}->{x}: [] !collide()",
+               "Timed": "Pr[<=2](<> goal())"}
+    path.write_text(engine_source(item.tiny, queries, scenario_file="goal_ahead.xml"))
+    results = {r.name: r for r in verify(compile_file(path), VerifyOptions(seed=1, plots=False))}
+    assert {name: r.status for name, r in results.items()} == {
+        "Steps": "unsupported", "Fixed": "unsupported", "Always": "unsupported", "Timed": "value"}
+    assert "counts UPPAAL's transitions" in (results["Steps"].message or "")
+    assert "drop `;N`" in (results["Fixed"].message or "")
+    assert "only reachability goals" in (results["Always"].message or "")
+
+
 def test_a_strategy_without_an_output_folder_is_still_usable(compiled: Callable[[str], Compiled]) -> None:
     results = run(compiled("goal_ahead"), "safe", "Shielded", out=None)
     assert results["safe"].files == () and results["Shielded"].status == "satisfied"

@@ -199,9 +199,12 @@ class _Verifier(LearningQueries, StatisticalQueries):
         return _restricted(shield_)
 
     def bound_samples(self, bound: iq.Bound) -> int:
-        """The samples within a query's bound (``[<=T]``: whole samples up to T s; ``[#<=K]``: K)."""
+        """The samples within a query's time bound ``[<=T]`` (whole samples up to T s). A step bound
+        ``[#<=K]`` is refused: UPPAAL counts transitions with it, and a sample of the model takes
+        three or more (``accrue``, ``read``, ``sense``, at decisions ``decide`` and the choice)."""
         if bound.kind == "steps":
-            return int(bound.limit)
+            raise EvaluationError("`[#<=K]` counts UPPAAL's transitions, not samples (a sample takes three or "
+                                  "more): rac verify answers time bounds `[<=T]`")
         return math.floor(bound.limit / self.period)
 
     @staticmethod

@@ -56,7 +56,7 @@ class LearningQueries:
         from rac.engine import learn as learning
 
         if query.path != "<>":
-            raise _Unknown("only reachability goals (`: <> p`) are learned")
+            raise EvaluationError("only reachability goals (`: <> p`) are learned, as in UPPAAL")
         table = None
         if query.under is not None:
             if query.under in self.learned:

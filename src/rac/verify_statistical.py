@@ -11,7 +11,7 @@ import numpy as np
 
 from rac.engine import storm
 from rac.engine.explore import explore
-from rac.engine.expr import Frame
+from rac.engine.expr import EvaluationError, Frame
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.model.data import ModelRangeError
@@ -75,6 +75,9 @@ class StatisticalQueries:
         if query.compare is not None:
             op, threshold = query.compare
             theta = float(threshold)
+            if query.runs is not None:
+                raise EvaluationError("a probability compared with a threshold is tested sequentially, which "
+                                      "chooses the number of runs (as UPPAAL does): drop `;N` from the bound")
             test = stats.sequential_test(sample, theta, alpha=self.options.alpha, beta=self.options.beta,
                                          delta=self.options.delta)
             accepted = test.accepted if op in (">=", ">") else not test.accepted
