@@ -171,7 +171,8 @@ class _Verifier(LearningQueries, StatisticalQueries):
     def label(self, graph: ExploredGraph, expr: ie.Expr) -> np.ndarray:
         """A state formula on every state of a plain explored graph."""
         if ie.uses_prev(expr):
-            raise _Unknown("`prev(...)` in an exhaustive query is not supported")
+            raise EvaluationError("`prev(...)` in an exhaustive query is not supported: a merged state has no "
+                                  "single previous sample")
         frame = Frame(k=graph.states[:, 0].astype(np.int64), ego=graph.states[:, 1:8])
         return np.ascontiguousarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
 

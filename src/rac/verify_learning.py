@@ -60,8 +60,8 @@ class LearningQueries:
         table = None
         if query.under is not None:
             if query.under in self.learned:
-                raise _Unknown(f"learning under the learned strategy `{query.under}` is not supported "
-                               "(only under a shield: `strategy S = control: A[] ...`)")
+                raise EvaluationError(f"learning under the learned strategy `{query.under}` is not supported "
+                                      "(only under a shield: `strategy S = control: A[] ...`)")
             _, table = self.strategy(query.under)
         samples = self.bound_samples(query.bound)
         if samples < 1:
