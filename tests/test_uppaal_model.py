@@ -26,6 +26,7 @@ from test_uppaal import QUERY_WORDS, Parsed, identifiers, is_symbolic
 
 from rac.cli import main
 from rac.compiler import compile_file, compile_text
+from rac.ir import expr as ie
 from rac.model import build_model_data
 from rac.scenario import load_scenario
 from rac.targets.uppaal_functions import C_PRELUDE, emit_declarations
@@ -334,6 +335,31 @@ def test_automaton_without_model_block_is_emitted_alone(tmp_path: Path) -> None:
     automaton_alone = compile_text(alone, "alone.ra").raise_for_errors()
     with pytest.raises(ValueError):
         generate_uppaal_model(automaton_alone)
+
+
+def test_standard_queries_read_the_models_names(tmp_path: Path) -> None:
+    """An automaton whose names clash with the model's (an input `x`, a reward `v`) keeps the standard
+    queries about the model: they read the ego's x, the objective reads the reward v."""
+    source = MODEL_RA.read_text(encoding="utf-8").replace(
+        "reward sa, pr, co", "reward sa, pr, co, v").replace(
+        "input dgoal   : real in [0, 500]", "input dgoal   : real in [0, 500]\n    input x : real in [0, 10]").replace(
+        "objective 10*sa + 5*pr + co", "objective 10*sa + 5*pr + co + v").replace(
+        "priority sa > pr > co ", "priority sa > pr > co > v ").replace(
+        "bind dgoal   = dist_goal()", "bind dgoal   = dist_goal()\n        bind x = fmin(v, 10)").replace(
+        '"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"')
+    source = re.sub(r"location (\w+) *\{ sa' == (-?1); *pr' == (-?\d); *co' == (-?\d) \}",
+                    r"location \1 { sa' == \2; pr' == \3; co' == \4; v' == 0 }", source)
+    ra = tmp_path / "clash.ra"
+    ra.write_text(source, encoding="utf-8")
+    result = compile_file(ra, analyse=False)
+    automaton = result.raise_for_errors()
+    found = {d.name: d for d in automaton.standard_queries}
+    reach = found["reachSafe"].query
+    assert reach.continuous[0] == ie.model_ref("x")  # the ego's x, not the input
+    assert found["reachSafe"].text.startswith("strategy reachSafe = maxE(10 * sa + 5 * pr + co + v)")
+    assert ie.Ref(ie.RefKind.REWARD, "v", "num", 3) in ie.refs(reach.objective)
+    queries = generate_uppaal_model(automaton).queries
+    assert "maxE(10.0 * sa + 5.0 * pr + co + v_)" in queries and "->{i2d(x_), " not in queries
 
 
 def test_sensor_error_sets_thd(tmp_path: Path) -> None:

@@ -103,9 +103,12 @@ class Lowering:
     constants; the automaton's state cannot appear in a binding.
     """
 
-    def __init__(self, scope: Scope, *, binding: bool = False, bool_numbers: bool = False) -> None:
+    def __init__(self, scope: Scope, *, binding: bool = False, bool_numbers: bool = False,
+                 model_first: bool = False) -> None:
         self.s = scope
         self.binding = binding
+        #: The scenario model's names hide the automaton's (the standard queries, written over the model).
+        self.model_first = model_first
         #: A boolean counts as the number 0 or 1 where a number is expected (reward expressions, as in C).
         self.bool_numbers = bool_numbers
         self.failed = False
@@ -193,6 +196,8 @@ class Lowering:
         return "num", ie.Ref(ref.kind, ref.name, ref.type, ref.index, ref.value, span)
 
     def _query_name(self, node: ast.Name) -> Lowered:
+        if self.model_first and self.s.has_model and node.id in MODEL_NAMES:
+            return self._model_name(node.id, node.span)
         symbol = self.s.symbols.get(node.id)
         if symbol is not None:
             return self._symbol(node.id, symbol, node.span)
@@ -480,15 +485,16 @@ def lower_expression(automaton: ir.Automaton, source: str | ast.Expr, *, name: s
 
 def lower_queries(automaton: ir.Automaton, decls: tuple[ast.QueryDecl, ...] | list[ast.QueryDecl], *,
                   strategies: set[str] | None = None, titles: dict[str, str] | None = None,
-                  sources: dict[str, SourceFile] | None = None) -> tuple[iq.QueryDecl, ...]:
+                  sources: dict[str, SourceFile] | None = None, model_first: bool = False) -> tuple[iq.QueryDecl, ...]:
     """Queries parsed elsewhere (the standard queries), checked and lowered against ``automaton``;
-    ``strategies`` are those they may use ``under`` besides their own. Raises
-    :class:`rac.diagnostics.CheckError` when one has errors."""
+    ``strategies`` are those they may use ``under`` besides their own; with ``model_first`` the
+    scenario model's names hide the automaton's. Raises :class:`rac.diagnostics.CheckError` when
+    one has errors."""
     scope = scope_of(automaton)
     known = set(strategies or ())
     result = []
     for decl in decls:
-        lowered = Lowering(scope).query(decl, known, (titles or {}).get(decl.name.name, ""))
+        lowered = Lowering(scope, model_first=model_first).query(decl, known, (titles or {}).get(decl.name.name, ""))
         if lowered is not None:
             result.append(lowered)
             if isinstance(lowered.query, iq.STRATEGY_QUERIES):

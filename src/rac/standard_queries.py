@@ -5,22 +5,26 @@ For a file with a ``model`` block, ``rac verify --standard`` answers the pre-ana
 emitted model together with the learning queries (Table 2). Both read the one list below, lowered
 by the checker (:func:`rac.query_check.lower_queries`) against the automaton, so that the engine
 answers exactly the queries the emitted model holds. ``MAXT`` stands for the horizon in seconds,
-``OBJECTIVE`` for the automaton's objective and ``PROCESS`` for its name.
+``OBJECTIVE`` for the automaton's objective and ``PROCESS`` for its name. The names in them are the
+scenario model's, also where the automaton declares one of the same name (an input ``x``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import re
 from dataclasses import dataclass
 from fractions import Fraction
 
 from rac import ast, ir
+from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.parser import parse_source
-from rac.printer import format_expr
+from rac.printer import format_checked
 from rac.query_check import lower_queries
 from rac.source import SourceFile
 
-__all__ = ["STANDARD", "StandardQuery", "standard_queries"]
+__all__ = ["STANDARD", "StandardQuery", "objective_expression", "standard_queries"]
 
 
 @dataclass(frozen=True)
@@ -77,33 +81,46 @@ def standard_queries(automaton: ir.Automaton, horizon: Fraction | None = None, *
             fresh += "_"
         rename[name] = fresh
     maxt = _decimal(horizon if horizon is not None else Fraction(automaton.horizon))
-    objective = _objective_text(automaton)
     lines = []
     chosen = [q for q in STANDARD if q.verify or not verify_only]
     for query in chosen:
-        text = query.text.replace("MAXT", maxt).replace("OBJECTIVE", objective).replace("PROCESS", automaton.name)
+        # the objective is put in after checking: its rewards may be named like the model's names
+        text = query.text.replace("MAXT", maxt).replace("OBJECTIVE", "0").replace("PROCESS", automaton.name)
         for name in _STRATEGIES:
             text = _rename(text, name, rename[name])
         lines.append(f"query {query.name}: {text}")
     source = SourceFile("<standard queries>", "automaton Standard {\n" + "\n".join(lines) + "\n}\n")
     decls = [m for m in parse_source(source).automata[0].members if isinstance(m, ast.QueryDecl)]
-    return lower_queries(automaton, decls, titles={q.name: q.title for q in chosen},
-                         sources={source.name: source})
+    lowered = lower_queries(automaton, decls, titles={q.name: q.title for q in chosen},
+                            sources={source.name: source}, model_first=True)
+    objective = objective_expression(automaton)
+    return tuple(_with_objective(decl, objective) for decl in lowered)
+
+
+def objective_expression(automaton: ir.Automaton) -> ie.Expr:
+    """The automaton's objective as a checked expression over its rewards (``10*sa + 5*pr + co``)."""
+    terms: list[ie.Expr] = []
+    for name, coefficient in automaton.objective.terms:
+        ref = ie.Ref(ie.RefKind.REWARD, name, ie.NUM, automaton.rewards.index(name))
+        terms.append(ref if coefficient == 1 else ie.Binary("*", ie.Const(coefficient), ref))
+    if automaton.objective.const or not terms:
+        terms.append(ie.Const(automaton.objective.const))
+    total = terms[0]
+    for term in terms[1:]:
+        total = ie.Binary("+", total, term)
+    return total
+
+
+def _with_objective(decl: iq.QueryDecl, objective: ie.Expr) -> iq.QueryDecl:
+    if not isinstance(decl.query, iq.LearnStrategy):
+        return decl
+    query = dataclasses.replace(decl.query, objective=objective)
+    text = decl.text.replace("maxE(0)", f"maxE({format_checked(objective)})")
+    return dataclasses.replace(decl, query=query, text=text)
 
 
 def _rename(text: str, old: str, new: str) -> str:
-    import re
-
     return re.sub(rf"(?<![\w.]){old}(?!\w)", new, text) if old != new else text
-
-
-def _objective_text(automaton: ir.Automaton) -> str:
-    """The objective as written (``10*sa + 5*pr + co``)."""
-    if automaton.source is not None:
-        found = automaton.source.of(ast.ObjectiveDecl)
-        if found:
-            return format_expr(found[0].expr)
-    return " + ".join(automaton.rewards)
 
 
 def _decimal(value: Fraction) -> str:
