@@ -309,6 +309,18 @@ def test_mirror_arithmetic_truncates_towards_zero_like_c() -> None:
     assert expected[0] == -2002 and expected[2] == 2495  # -2002.33 and 2495.17: truncated towards zero
 
 
+def test_one_edge_per_sample() -> None:
+    """A state that moves Normal -> Unsafe takes no second edge (Unsafe -> Unsafe when collide) in the
+    same sample: the penalty is subtracted once, as in the emitted model and rac.runtime."""
+    automaton = compile_file(REPO / "stdlib" / "driving.ra").raise_for_errors()
+    inputs = np.array([[1, 1, 0, 1, 0]], dtype=np.int64)  # isClose prog comf collide dgoal
+    loc, mirrors = _Arithmetic(automaton, 10_000).edges(np.array([0]), inputs, np.zeros((1, 3), dtype=np.int64))
+    assert automaton.location_names[int(loc[0])] == "Unsafe" and mirrors[0].tolist() == [-1_000_000, 0, 0]
+    runtime = RewardAutomaton(automaton)
+    runtime.step({"isClose": True, "prog": True, "comf": False, "collide": True, "dgoal": 0.0})
+    assert runtime.location == "Unsafe" and runtime.rewards["sa"] == pytest.approx(-100 + 0.1)
+
+
 def test_query_comparisons_are_exact_on_the_integers(driving) -> None:
     automaton, _, graph = driving
     query = queries(automaton)["Sum"]  # E<> sa + pr + co == 0.6
