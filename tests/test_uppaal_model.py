@@ -215,8 +215,12 @@ def test_bindings_and_prev(parsed: Parsed) -> None:
     prev(e) is e evaluated on the previous sample's state, kept in integers, not a double variable."""
     edges = parsed.templates["Controller"].findall("transition")
     labels = [{label.get("kind"): label.text for label in t.findall("label")} for t in edges]
-    assert labels == [{"assignment": "keep_sample()"}, {"synchronisation": "accrue?", "assignment": "sense_state()"},
+    assert labels == [{}, {"synchronisation": "accrue?", "assignment": "sense_state()"},
                       {"synchronisation": "read!", "assignment": "read_inputs()"}]
+    # the Timer keeps the start's sample as the sender of the first decide!, before any action is chosen
+    start = parsed.templates["Timer"].findall("transition")[0]
+    assert {label.get("kind"): label.text for label in start.findall("label")} == {
+        "synchronisation": "decide!", "assignment": "keep_sample()"}
     assert parsed.templates["Controller"].findtext("declaration") is None
     declaration = parsed.declaration
     assert "int32_t prev_x, prev_y, prev_v, prev_acc, prev_head;" in declaration

@@ -180,9 +180,10 @@ class _Arithmetic:
     def edges(self, loc: np.ndarray, inputs: np.ndarray, mirrors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Location and mirrors after ``sense!``: the first enabled edge of each state's location
         (checked automata are deterministic, so it is the only one), or none."""
-        loc, mirrors = loc.copy(), mirrors.copy()
+        before, loc, mirrors = loc, loc.copy(), mirrors.copy()
         for source, group in enumerate(self.a.edges):
-            pending = np.flatnonzero(loc == source)
+            # by the location before the sample: a state that enters `source` now takes no second edge
+            pending = np.flatnonzero(before == source)
             for edge in group:
                 if pending.size == 0:
                     break

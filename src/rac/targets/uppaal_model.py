@@ -81,7 +81,9 @@ class _ModelGenerator(_Generator):
             g[key] = n.fresh(base)
 
     # ------------------------------------------------------------ processes
-    def _timer(self, ids: _Ids) -> _Template:
+    def _timer(self, ids: _Ids, keeps: bool) -> _Template:
+        """``keeps``: the start edge calls ``keep_sample()`` — as the sender of the first ``decide!``,
+        before the Action chooses, so ``prev(jerk)`` at the first sample reads the start's 0."""
         g, ch = self.g, self.channels
         start = _Location(ids(), g["start"], -272, 0, committed=True)
         wait = _Location(ids(), g["wait"], 0, 0, f"{g['t']} <= {g['period']}")
@@ -93,7 +95,8 @@ class _ModelGenerator(_Generator):
         more, decide = f"{g['count']} < {g['steps']}", f"{g['count']} % DECIDE_EVERY == 0"
         settle = f"{g['settled']} = true"
         transitions = [
-            _edge(ids, start, wait, sync=f"{ch['decide']}!", anchor=(-250, -30)),
+            _edge(ids, start, wait, sync=f"{ch['decide']}!", assignment=f"{g['keep_sample']}()" if keeps else "",
+                  anchor=(-250, -30)),
             _edge(ids, wait, accrued, guard=f"{g['t']} >= {g['period']} && {more}",
                   sync=f"{ch['accrue']}!", assignment=f"{g['t']} = 0, {g['count']}++", anchor=(40, -60)),
             _edge(ids, accrued, reading, sync=f"{ch['read']}?", assignment=f"{g['settled']} = false",
@@ -170,7 +173,7 @@ class _ModelGenerator(_Generator):
             self._unrepresentable(f"{what} cannot be written in UPPAAL: {exc}", span, hints=[])
             return "// (not representable)"
 
-    def _controller(self, ids: _Ids, keeps: bool) -> _Template:
+    def _controller(self, ids: _Ids) -> _Template:
         """Senses on ``accrue?`` (``sense_state()``) and reads the inputs from the bindings on ``read!``
         (``read_inputs()``, in the declarations, as the paper's ``sense()``: an edge that compares or
         assigns doubles itself would exclude the model from symbolic analysis, reference §2)."""
@@ -179,7 +182,7 @@ class _ModelGenerator(_Generator):
         idle = _Location(ids(), g["idle"], 0, 0)
         sensing = _Location(ids(), g["sensing"], 340, 0, committed=True)
         transitions = [
-            _edge(ids, init, idle, assignment=f"{g['keep_sample']}()" if keeps else "", anchor=(-250, -30)),
+            _edge(ids, init, idle, anchor=(-250, -30)),
             _edge(ids, idle, sensing, sync=f"{ch['accrue']}?", assignment="sense_state()", nails=[(170, -50)],
                   anchor=(140, -80)),
             _edge(ids, sensing, idle, sync=f"{ch['read']}!", assignment=f"{g['read_inputs']}()",
@@ -266,7 +269,7 @@ class _ModelGenerator(_Generator):
         bindings = self._bindings(printer)
         queries = self._queries(printer)
         ids = _Ids()
-        templates = [self._timer(ids), self._controller(ids, bool(printer.prevs)), self._action(ids),
+        templates = [self._timer(ids, bool(printer.prevs)), self._controller(ids), self._action(ids),
                      self._dynamics(ids)]
         if data.obstacle_count:
             templates.append(self._obstacle(ids))
