@@ -148,8 +148,12 @@ def test_generation_is_deterministic() -> None:
 
 
 def test_the_papers_qh_reads_integer_mirrors() -> None:
-    queries = dict(re.findall(r"// (\w+)\n(.*)", emitted(driving()).queries))
-    assert queries["Qh"] == "A[] Driving.Unsafe imply 10*iSa + 5*iPr + iCo <= 0"
+    """Qh sums weighted mirrors: 10*iSa leaves int32 when sa reaches -30029.8 (rac check's worst case),
+    so the sum is computed in doubles, exactly (integers below 2**53), in a condition of the model."""
+    model = emitted(driving())
+    queries = dict(re.findall(r"// (\w+)\n(.*)", model.queries))
+    assert queries["Qh"] == "A[] Driving.Unsafe imply cond0()"
+    assert "bool cond0() {\n    return 10.0 * iSa + 5.0 * iPr + iCo &lt;= 0.0;\n}" in model.xml
     assert queries["Qe"] == "A[] settled imply (isClose imply Driving.Unsafe)"
 
 
@@ -288,7 +292,7 @@ def test_every_query_name_is_declared(parsed: Parsed) -> None:
 def test_the_edge_cases_translate_as_documented() -> None:
     queries = dict(Parsed(emitted(automaton_of(EDGE_CASES)).xml).queries)
     assert queries["Q1"] == "A[] settled imply (E_ imply Sum.Bad)"
-    assert queries["Q2"] == "A[] Sum.Bad imply 2*iSa + iPr <= 15000"
+    assert queries["Q2"] == "A[] Sum.Bad imply cond0()"  # 2.0 * iSa + iPr <= 15000.0: 2*iSa may leave int32
     assert queries["Q3"] == "E<> settled && (time >= 15 && sum_ > 20000)"  # time unit 0.1 s (gcd of 0.2, 2, 1.5, 1.9)
     assert queries["Q4"] == "Pr[<=20](<> Sum.Bad && sa < -0.5) >= 0.5"
     assert queries["Q5"] == "E[<=20;100](max: 2.0 * sa + pr)"  # doubles as the engine computes them
@@ -297,7 +301,7 @@ def test_the_edge_cases_translate_as_documented() -> None:
     assert queries["Q8"] == ("strategy L = maxE(2.0 * sa + pr)[<=20]{Sum.location, lane}->{sum_ / 10000.0, sa}: "
                              "<> time >= 20 under S")
     assert queries["Q9"] == "Pr[<=19](<> sa * pr > 1.0)"
-    assert queries["Q10"] == "E<> iSa - iPr == 2500 && true"
+    assert queries["Q10"] == "E<> cond1() && true"  # iSa - iPr == 2500 in doubles: the difference may leave int32
     assert queries["Q11"] == "settled && E_ --> Sum.Bad"
 
 
@@ -305,8 +309,8 @@ def test_query_constants_round_exactly_on_integers() -> None:
     text = NO_INPUTS[:-2] + ("    query Q1: A[] up <= 0.00015\n    query Q2: E<> up < 0.00015\n"
                              "    query Q3: E<> up == 0.00015\n    query Q4: A[] up / 2 + flat >= 0.5\n}\n")
     queries = dict(Parsed(emitted(automaton_of(text)).xml).queries)
-    assert queries == {"Q1": "A[] iUp <= 1", "Q2": "E<> iUp < 2", "Q3": "E<> false",
-                       "Q4": "A[] iUp + 2*iFlat >= 10000"}
+    assert queries == {"Q1": "A[] iUp <= 1", "Q2": "E<> iUp < 2", "Q3": "E<> false", "Q4": "A[] cond0()"}
+    assert "return 1.0 * iUp + 2.0 * iFlat &gt;= 10000.0;" in emitted(automaton_of(text)).xml
 
 
 def test_reserved_names_are_renamed() -> None:
@@ -332,7 +336,7 @@ def test_model_block_sets_the_representation() -> None:
     xml = emitted(automaton).xml
     assert "const int32_t SCALE = 100;" in xml and "(base 10, exponent 2)" in xml
     assert "iSa = iSa - 10000" in xml and "dgoal &lt; 200" in xml
-    assert "A[] Driving.Unsafe imply 10*iSa + 5*iPr + iCo &lt;= 0" in xml
+    assert "A[] Driving.Unsafe imply cond0()" in xml and "return 10.0 * iSa + 5.0 * iPr + iCo &lt;= 0.0;" in xml
 
 
 def _model_spec(base: int, exponent: int) -> ir.ModelSpec:

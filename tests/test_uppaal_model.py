@@ -150,7 +150,7 @@ def test_the_papers_queries(model) -> None:
     queries = re.findall(r"// [^\n]*\n([^\n]*)", model.queries.split("\n", 3)[3])
     assert queries == [
         "A[] settled imply (isClose imply Driving.Unsafe)",
-        "A[] Driving.Unsafe imply 10*iSa + 5*iPr + iCo <= 0",
+        "A[] Driving.Unsafe imply cond0()",  # 10.0 * iSa + 5.0 * iPr + iCo <= 0.0: 10*iSa may leave int32
         "Pr[<=MAXT](<> fabs(Dynamics.true_x - i2d(x)) >= THD)",
         "E[] !collide() && !offroad()",
         "E<> !collide() && !offroad() && goal()",

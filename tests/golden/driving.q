@@ -6,4 +6,4 @@
 A[] settled imply (isClose imply Driving.Unsafe)
 
 // Qh
-A[] Driving.Unsafe imply 10*iSa + 5*iPr + iCo <= 0
+A[] Driving.Unsafe imply cond0()

@@ -6,7 +6,7 @@
 A[] settled imply (isClose imply Driving.Unsafe)
 
 // Qh
-A[] Driving.Unsafe imply 10*iSa + 5*iPr + iCo <= 0
+A[] Driving.Unsafe imply cond0()
 
 // Qa: sensor error: Pr of the sensed x drifting sensor_error from the true x
 Pr[<=MAXT](<> fabs(Dynamics.true_x - i2d(x)) >= THD)

@@ -511,7 +511,7 @@ class _Generator:
             significands={i.name: self.n[i.name] for i in a.numeric_inputs},
             mirrors=dict(self.mirror), hybrids={r: self.n[r] for r in a.rewards},
             strategies=strategies, scale=self.scale, unit=unit, time=self.g["time"], settled=self.g["settled"],
-            horizon=Fraction(a.horizon), no_model=no_model)
+            horizon=Fraction(a.horizon), period=Fraction(a.period), period_name=self.g["period"], no_model=no_model)
 
     def _printer(self, unit: Fraction) -> UppaalPrinter:
         """The printer of this model's queries; conditions get fresh function names."""

@@ -122,7 +122,7 @@ class _ModelGenerator(_Generator):
     def _vocabulary(self, unit: Fraction) -> Vocabulary:
         vocabulary = super()._vocabulary(unit)
         g = self.g
-        model = ModelNames(dynamics=g["dynamics"], count=g["count"], period=Fraction(self.a.period), maxt="MAXT")
+        model = ModelNames(dynamics=g["dynamics"], count=g["count"], maxt="MAXT")
         return Vocabulary(**{**vocabulary.__dict__, "model": model})
 
     def _bindings(self, printer: UppaalPrinter) -> str:

@@ -34,6 +34,8 @@ from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.vocabulary import Holding
 from rac.targets.uppaal_expr import (
+    INT32_MAX,
+    NotRepresentable,
     QueryError,
     double_literal,
     int_literal,
@@ -79,10 +81,8 @@ class ModelNames:
 
     #: The process holding the true state's hybrid clocks (``Dynamics``).
     dynamics: str
-    #: The sample counter.
+    #: The sample counter (``time`` in functions is ``count * C1``).
     count: str
-    #: The sensing period C1 in seconds (``time`` in functions is ``count * C1``).
-    period: Fraction
     #: The constant holding the horizon in time units (``MAXT``).
     maxt: str
 
@@ -111,6 +111,9 @@ class Vocabulary:
     time: str
     settled: str
     horizon: Fraction
+    #: The sample period C1 in seconds, and the constant holding it in time units (``PERIOD``).
+    period: Fraction = Fraction(1)
+    period_name: str = "PERIOD"
     model: ModelNames | None = None
     #: Why the scenario model's names are missing (the message of :class:`QueryError`).
     no_model: str = "the automaton-alone UPPAAL model has no scenario-model names"
@@ -274,12 +277,30 @@ class UppaalPrinter:
         if coefficients[0][0] < 0:
             coefficients = [(-c, n) for c, n in coefficients]
             bound, op = -bound, _FLIP[op]
-        lhs = _terms(coefficients)
         result = ie.integer_bound(op, bound)
         if isinstance(result, bool):
             return ("true" if result else "false"), _ATOM
         op, whole = result
-        return f"{lhs} {op} {int_literal(whole)}", _CMP
+        largest = sum(abs(c) * (self._count_locations() if name.endswith(".location") else INT32_MAX)
+                      for c, name in coefficients)
+        if largest <= INT32_MAX:
+            return f"{_terms(coefficients)} {op} {int_literal(whole)}", _CMP
+        # a sum of int32 values may leave int32 (10*iSa with iSa = -3e8): compute it in doubles, exact
+        # for integers below 2**53, in a condition of the declarations when the query is symbolic
+        if largest + abs(whole) >= 2**53:
+            raise NotRepresentable(f"the comparison's coefficients are too large to be computed exactly "
+                                   f"({largest + abs(whole)} >= 2**53)")
+        if dialect == SYMBOLIC:
+            return self._hoisted(expr), _ATOM
+        first, *rest = coefficients
+        text = f"{double_literal(first[0])} * {first[1]}"
+        for c, name in rest:
+            term = name if abs(c) == 1 else f"{double_literal(abs(c))} * {name}"
+            text += f" {'-' if c < 0 else '+'} {term}"
+        return f"{text} {op} {double_literal(whole)}", _CMP
+
+    def _count_locations(self) -> int:
+        return max(1, len(self.v.locations))
 
     def _clock(self, terms: list[tuple[str, Fraction]], const: Fraction, op: str, dialect: str) -> Text | None:
         """``c * time + const op 0`` as UPPAAL's clock constraint ``time op' k`` (``k`` whole time units)."""
@@ -317,8 +338,7 @@ class UppaalPrinter:
             return entry.uppaal, Fraction(1, v.scale)
         if entry.holding is Holding.TIME:
             if dialect == FUNCTION:
-                model = self._model(ref.name)
-                return model.count, model.period
+                return self._model(ref.name).count, v.period
             return v.time, v.unit
         return None
 
@@ -360,7 +380,7 @@ class UppaalPrinter:
         if ref.kind is not ie.RefKind.MODEL:
             raise QueryError(f"`{ref.name}` is not a number")
         entry = ref.model
-        model = self._model(ref.name)
+        model = self._model(ref.name) if entry.holding is not Holding.TIME or dialect == FUNCTION else None
         if entry.holding is Holding.SIGNIFICAND:
             return f"i2d({entry.uppaal})", _NUM
         if entry.holding is Holding.EXACT:
@@ -368,11 +388,15 @@ class UppaalPrinter:
             return (entry.uppaal, _NUM) if entry.uppaal else (double_literal(ref.value), _NUM)
         if entry.holding is Holding.TIME:
             if dialect == FUNCTION:
-                return f"{model.count} * {double_literal(model.period)}", _MUL
-            return f"{v.time} * {double_literal(v.unit)}", _MUL
+                return f"{model.count} * {double_literal(v.period)}", _MUL
+            # k * C1 at sample k, as the engine computes it: the clock counts PERIOD time units a sample
+            if v.period == v.unit:
+                return f"{v.time} * {double_literal(v.period)}", _MUL
+            return f"{v.time} / {v.period_name} * {double_literal(v.period)}", _MUL
         if dialect != STATISTICAL:
             raise QueryError(f"`{ref.name}` is the ground truth, which only statistical queries (Pr, E, simulate) "
                              "follow")
+        assert model is not None
         return f"{model.dynamics}.{entry.uppaal}", _NUM
 
     def _model(self, name: str = "") -> ModelNames:
