@@ -35,14 +35,12 @@ from rac.ir.vocabulary import (
 from rac.printer import format_expr, format_query
 from rac.source import SourceFile, Span
 
-__all__ = ["FUNCTIONS_HINT", "QUERY_BUILTINS", "QUERY_FUNCTIONS", "VOCABULARY_HINT", "Lowering", "Scope", "Symbol",
+__all__ = ["FUNCTIONS_HINT", "QUERY_FUNCTIONS", "VOCABULARY_HINT", "Lowering", "Scope", "Symbol",
            "lower_expression", "lower_queries", "model_settings", "model_settings_of", "scope_of", "strategy_names",
            "type_word"]
 
 #: Arithmetic functions UPPAAL offers in queries (all of :data:`rac.ir.vocabulary.MATH_FUNCTIONS`).
 QUERY_FUNCTIONS = tuple(MATH_FUNCTIONS)
-#: Names that exist in every query.
-QUERY_BUILTINS = ("time", "deadlock")
 
 _SIGNATURES = tuple(f.signature for f in MODEL_FUNCTIONS.values()) + tuple(
     MATH_FUNCTIONS[n].signature for n in BINDING_MATH)

@@ -29,7 +29,7 @@ from enum import Enum
 from fractions import Fraction
 from typing import Union
 
-from rac.ir.vocabulary import FUNCTIONS, MODEL_NAMES, Function, Holding, ModelName
+from rac.ir.vocabulary import EGO_STATE, FUNCTIONS, MODEL_NAMES, TRUE_STATE, Function, Holding, ModelName
 from rac.source import Span
 
 __all__ = [
@@ -207,8 +207,6 @@ Expr = Union[Const, Ref, Call, Prev, Unary, Binary, Compare]
 # ---------------------------------------------------------------- constructors
 def model_ref(name: str, value: Fraction | None = None) -> Ref:
     """The :class:`Ref` of a name of the scenario model (``value``: a setting's, as the model holds it)."""
-    from rac.ir.vocabulary import EGO_STATE, TRUE_STATE
-
     entry = MODEL_NAMES[name]
     index = EGO_STATE.index(name) if entry.kind == "ego" else TRUE_STATE.index(name) if entry.kind == "truth" else -1
     return Ref(RefKind.MODEL, name, NUM, index, value)

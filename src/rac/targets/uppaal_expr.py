@@ -30,17 +30,31 @@ from rac import ir
 from rac.ir.expr import integer_bound
 
 __all__ = [
+    "ADD",
+    "AND",
+    "ATOM",
+    "CMP",
     "INT32_MAX",
+    "MUL",
+    "NEG",
+    "NUM",
+    "OR",
     "NotRepresentable",
+    "Text",
     "QueryError",
     "compare_significand",
     "double_literal",
+    "imply",
     "int_literal",
+    "join",
+    "negate",
     "number_literal",
+    "paren",
     "print_guard",
     "print_exact_sum",
     "print_int_linear",
     "print_real_linear",
+    "terms_text",
 ]
 
 INT32_MAX = 2_147_483_647
@@ -93,31 +107,37 @@ def number_literal(value: Fraction) -> str:
 # ---------------------------------------------------------------- precedence
 # 0: top level; 1: `||` and `imply` (one level in UPPAAL, left-associative); 2: `&&`;
 # 3: comparisons; 4: `!` and atoms. Arithmetic: 5 `+ -`, 6 `* /`, 7 unary minus, 8 atoms.
-_OR, _AND, _CMP, _ATOM = 1, 2, 3, 4
-_ADD, _MUL, _NEG, _NUM = 5, 6, 7, 8
+OR, AND, CMP, ATOM = 1, 2, 3, 4
+ADD, MUL, NEG, NUM = 5, 6, 7, 8
+
+#: A printed expression and its precedence level.
+Text = tuple[str, int]
 
 
-def _paren(text: str, level: int, need: int) -> str:
+def paren(text: str, level: int, need: int) -> str:
+    """``text`` in parentheses when its level is below ``need``."""
     return f"({text})" if level < need else text
 
 
-def _join(parts: Sequence[tuple[str, int]], op: str) -> tuple[str, int]:
+def join(parts: Sequence[Text], op: str) -> Text:
     """``a && b && c`` or ``a || b || c`` (left-associative, so equal levels need no parentheses)."""
-    level = _AND if op == "&&" else _OR
+    level = AND if op == "&&" else OR
     texts = []
     for i, (text, own) in enumerate(parts):
         # `a || b` may stand left of `||`; anything of `imply`'s level stands in parentheses elsewhere.
         need = level + 1 if (own == level and (i > 0 or "imply" in text.split())) else level
-        texts.append(_paren(text, own, need))
+        texts.append(paren(text, own, need))
     return f" {op} ".join(texts), level
 
 
-def _imply(left: tuple[str, int], right: tuple[str, int]) -> tuple[str, int]:
-    return f"{_paren(left[0], left[1], _AND)} imply {_paren(right[0], right[1], _AND)}", _OR
+def imply(left: Text, right: Text) -> Text:
+    """``a imply b`` (UPPAAL's ``imply``: the level of ``||``, left-associative)."""
+    return f"{paren(left[0], left[1], AND)} imply {paren(right[0], right[1], AND)}", OR
 
 
-def _not(operand: tuple[str, int]) -> tuple[str, int]:
-    return "!" + _paren(operand[0], operand[1], _ATOM), _ATOM
+def negate(operand: Text) -> Text:
+    """``!a``."""
+    return "!" + paren(operand[0], operand[1], ATOM), ATOM
 
 
 # ---------------------------------------------------------------- significand comparisons
@@ -125,9 +145,9 @@ def compare_significand(significand: str, op: str, threshold: Fraction, scale: i
     """``x op threshold`` for an input held as the integer significand ``x * scale``, exactly."""
     result = integer_bound(op, threshold * scale)
     if isinstance(result, bool):
-        return ("true" if result else "false"), _ATOM
+        return ("true" if result else "false"), ATOM
     new_op, bound = result
-    return f"{significand} {new_op} {int_literal(bound)}", _CMP
+    return f"{significand} {new_op} {int_literal(bound)}", CMP
 
 
 # ---------------------------------------------------------------- guards of the automaton
@@ -139,19 +159,19 @@ def print_guard(guard: ir.Guard, names: Mapping[str, str], scale: int) -> str:
 
 def _guard(guard: ir.Guard, names: Mapping[str, str], scale: int) -> tuple[str, int]:
     if isinstance(guard, ir.BConst):
-        return ("true" if guard.value else "false"), _ATOM
+        return ("true" if guard.value else "false"), ATOM
     if isinstance(guard, ir.BInput):
-        return names[guard.name], _ATOM
+        return names[guard.name], ATOM
     if isinstance(guard, ir.BAtom):
         return compare_significand(names[guard.input], guard.op, guard.threshold, scale)
     if isinstance(guard, ir.BNot):
-        return _not(_guard(guard.operand, names, scale))
+        return negate(_guard(guard.operand, names, scale))
     op = "&&" if isinstance(guard, ir.BAnd) else "||"
-    return _join([_guard(g, names, scale) for g in guard.operands], op)  # type: ignore[union-attr]
+    return join([_guard(g, names, scale) for g in guard.operands], op)  # type: ignore[union-attr]
 
 
 # ---------------------------------------------------------------- linear forms
-def _terms_text(terms: Sequence[tuple[int, str]]) -> str:
+def terms_text(terms: Sequence[tuple[int, str]]) -> str:
     """``10*iSa + 5*iPr - iCo`` from integer coefficients (none zero)."""
     text = ""
     for i, (coef, name) in enumerate(terms):
@@ -177,7 +197,7 @@ def print_int_linear(const: Fraction, terms: Sequence[tuple[Fraction, str]]) -> 
     k = int(const * q)
     if not ints:
         return int_literal(math.trunc(const))
-    text = _terms_text(ints)
+    text = terms_text(ints)
     if k:
         text += f" {'-' if k < 0 else '+'} {int_literal(abs(k))}"
     if q == 1:

@@ -30,49 +30,36 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 
+from rac.ir import compare
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.vocabulary import Holding
 from rac.targets.uppaal_expr import (
+    ADD,
+    ATOM,
+    CMP,
     INT32_MAX,
+    MUL,
+    NEG,
+    NUM,
     NotRepresentable,
     QueryError,
+    Text,
     double_literal,
+    imply,
     int_literal,
+    join,
+    negate,
+    paren,
+    terms_text,
 )
 
 __all__ = ["FUNCTION", "STATISTICAL", "SYMBOLIC", "ModelNames", "UppaalPrinter", "Vocabulary", "time_constants"]
 
 SYMBOLIC, STATISTICAL, FUNCTION = "symbolic", "statistical", "function"
 
-# Precedence (UPPAAL and C agree on these): 1 `||` and `imply` (one level in UPPAAL,
-# left-associative), 2 `&&`, 3 comparisons, 4 `!` and atoms; arithmetic 5 `+ -`, 6 `* /`,
-# 7 unary minus, 8 atoms.
-_OR, _AND, _CMP, _ATOM = 1, 2, 3, 4
-_ADD, _MUL, _NEG, _NUM = 5, 6, 7, 8
-_ARITH_LEVEL = {"+": _ADD, "-": _ADD, "*": _MUL, "/": _MUL}
+_ARITH_LEVEL = {"+": ADD, "-": ADD, "*": MUL, "/": MUL}
 _FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
-
-Text = tuple[str, int]
-
-
-def _paren(text: str, level: int, need: int) -> str:
-    return f"({text})" if level < need else text
-
-
-def _join(parts: list[Text], op: str) -> Text:
-    """``a && b && c`` or ``a || b || c`` (left-associative: equal levels need no parentheses)."""
-    level = _AND if op == "&&" else _OR
-    texts = []
-    for i, (text, own) in enumerate(parts):
-        # `a || b` may stand left of `||`; anything of `imply`'s level stands in parentheses elsewhere.
-        need = level + 1 if (own == level and (i > 0 or "imply" in text.split())) else level
-        texts.append(_paren(text, own, need))
-    return f" {op} ".join(texts), level
-
-
-def _not(operand: Text) -> Text:
-    return "!" + _paren(operand[0], operand[1], _ATOM), _ATOM
 
 
 @dataclass(frozen=True)
@@ -204,44 +191,44 @@ class UppaalPrinter:
         text = self.condition(expr, dialect)
         if not any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr)):
             return text
-        settled = (self.v.settled, _ATOM)
+        settled = (self.v.settled, ATOM)
         if box and self.c_syntax:
-            return _join([_not(settled), text], "||")
+            return join([negate(settled), text], "||")
         if box:
-            return f"{settled[0]} imply {_paren(text[0], text[1], _AND)}", _OR
-        return _join([settled, text], "&&")
+            return imply(settled, text)
+        return join([settled, text], "&&")
 
     def condition(self, expr: ie.Expr, dialect: str) -> Text:
         """A boolean expression."""
         if isinstance(expr, ie.Const):
-            return ("true" if expr.value else "false"), _ATOM
+            return ("true" if expr.value else "false"), ATOM
         if isinstance(expr, ie.Ref):
-            return self._name(expr, dialect), _ATOM
+            return self._name(expr, dialect), ATOM
         if isinstance(expr, ie.Unary):
-            return _not(self.condition(expr.operand, dialect))
+            return negate(self.condition(expr.operand, dialect))
         if isinstance(expr, ie.Binary):
             left, right = self.condition(expr.left, dialect), self.condition(expr.right, dialect)
             if expr.op == "imply":
                 if dialect == FUNCTION or self.c_syntax:
-                    return _join([_not(left), right], "||")
-                return f"{_paren(left[0], left[1], _AND)} imply {_paren(right[0], right[1], _AND)}", _OR
-            return _join([left, right], expr.op)
+                    return join([negate(left), right], "||")
+                return imply(left, right)
+            return join([left, right], expr.op)
         if isinstance(expr, ie.Call):
-            return self._call(expr, dialect), _ATOM
+            return self._call(expr, dialect), ATOM
         if isinstance(expr, ie.Prev):
-            return self._prev(expr, dialect), _ATOM
+            return self._prev(expr, dialect), ATOM
         assert isinstance(expr, ie.Compare)
         if expr.left.type == ie.BOOL:
-            left = _paren(*self.condition(expr.left, dialect), _ATOM)
-            right = _paren(*self.condition(expr.right, dialect), _ATOM)
-            return f"{left} {expr.op} {right}", _CMP
+            left = paren(*self.condition(expr.left, dialect), ATOM)
+            right = paren(*self.condition(expr.right, dialect), ATOM)
+            return f"{left} {expr.op} {right}", CMP
         exact = self._exact(expr, dialect)
         if exact is not None:
             return exact
         if dialect == SYMBOLIC:
-            return self._hoisted(expr), _ATOM
+            return self._hoisted(expr), ATOM
         left, right = self.number(expr.left, dialect), self.number(expr.right, dialect)
-        return f"{_paren(left[0], left[1], _ADD)} {expr.op} {_paren(right[0], right[1], _ADD)}", _CMP
+        return f"{paren(left[0], left[1], ADD)} {expr.op} {paren(right[0], right[1], ADD)}", CMP
 
     def _hoisted(self, expr: ie.Compare) -> str:
         """A condition of a symbolic query that computes with doubles, as a call of a function."""
@@ -260,7 +247,7 @@ class UppaalPrinter:
         if form is None:
             return None
         if form.is_constant:
-            return ("true" if _holds(form.const, expr.op) else "false"), _ATOM
+            return ("true" if compare(form.const, expr.op, 0) else "false"), ATOM
         terms = []
         for ref, coefficient in form.terms:
             held = self._integer(ref, dialect)
@@ -279,25 +266,25 @@ class UppaalPrinter:
             bound, op = -bound, _FLIP[op]
         result = ie.integer_bound(op, bound)
         if isinstance(result, bool):
-            return ("true" if result else "false"), _ATOM
+            return ("true" if result else "false"), ATOM
         op, whole = result
         largest = sum(abs(c) * (self._count_locations() if name.endswith(".location") else INT32_MAX)
                       for c, name in coefficients)
         if largest <= INT32_MAX:
-            return f"{_terms(coefficients)} {op} {int_literal(whole)}", _CMP
+            return f"{terms_text(coefficients)} {op} {int_literal(whole)}", CMP
         # a sum of int32 values may leave int32 (10*iSa with iSa = -3e8): compute it in doubles, exact
         # for integers below 2**53, in a condition of the declarations when the query is symbolic
         if largest + abs(whole) >= 2**53:
             raise NotRepresentable(f"the comparison's coefficients are too large to be computed exactly "
                                    f"({largest + abs(whole)} >= 2**53)")
         if dialect == SYMBOLIC:
-            return self._hoisted(expr), _ATOM
+            return self._hoisted(expr), ATOM
         first, *rest = coefficients
         text = f"{double_literal(first[0])} * {first[1]}"
         for c, name in rest:
             term = name if abs(c) == 1 else f"{double_literal(abs(c))} * {name}"
             text += f" {'-' if c < 0 else '+'} {term}"
-        return f"{text} {op} {double_literal(whole)}", _CMP
+        return f"{text} {op} {double_literal(whole)}", CMP
 
     def _count_locations(self) -> int:
         return max(1, len(self.v.locations))
@@ -317,11 +304,11 @@ class UppaalPrinter:
             if dialect == SYMBOLIC:
                 raise QueryError(f"`time` is compared with {_short(bound * self.v.unit)} s, which is not a whole "
                                  f"number of time units ({_short(self.v.unit)} s)")
-            return f"{name} {op} {double_literal(bound)}", _CMP
+            return f"{name} {op} {double_literal(bound)}", CMP
         model = self.v.model
         if model is not None and bound * self.v.unit == self.v.horizon:
-            return f"{name} {op} {model.maxt}", _CMP
-        return f"{name} {op} {int_literal(bound)}", _CMP
+            return f"{name} {op} {model.maxt}", CMP
+        return f"{name} {op} {int_literal(bound)}", CMP
 
     def _integer(self, ref: ie.Ref, dialect: str) -> tuple[str, Fraction] | None:
         """The integer that holds ``ref`` in this dialect and the value of one of its units, or None."""
@@ -346,58 +333,58 @@ class UppaalPrinter:
     def number(self, expr: ie.Expr, dialect: str) -> Text:
         """A numeric expression as a double, printed as its tree (the engine computes the same)."""
         if expr.type == ie.BOOL:  # a condition counting 0 or 1 (reward expressions)
-            return _paren(*self.condition(expr, dialect), _NUM), _NUM
+            return paren(*self.condition(expr, dialect), NUM), NUM
         if isinstance(expr, ie.Const):
             text = double_literal(expr.value)  # type: ignore[arg-type]
-            return text, _NEG if text.startswith("-") else _NUM
+            return text, NEG if text.startswith("-") else NUM
         if isinstance(expr, ie.Ref):
             return self._number_name(expr, dialect)
         if isinstance(expr, ie.Call):
-            return self._call(expr, dialect), _NUM
+            return self._call(expr, dialect), NUM
         if isinstance(expr, ie.Prev):
-            return self._prev(expr, dialect), _NUM
+            return self._prev(expr, dialect), NUM
         if isinstance(expr, ie.Unary):
             inner = self.number(expr.operand, dialect)
-            return "-" + _paren(inner[0], inner[1], _NUM), _NEG
+            return "-" + paren(inner[0], inner[1], NUM), NEG
         assert isinstance(expr, ie.Binary)
         level = _ARITH_LEVEL[expr.op]
         left, right = self.number(expr.left, dialect), self.number(expr.right, dialect)
-        return f"{_paren(left[0], left[1], level)} {expr.op} {_paren(right[0], right[1], level + 1)}", level
+        return f"{paren(left[0], left[1], level)} {expr.op} {paren(right[0], right[1], level + 1)}", level
 
     def _number_name(self, ref: ie.Ref, dialect: str) -> Text:
         v = self.v
         scale = double_literal(v.scale)
         if ref.kind is ie.RefKind.INPUT:
-            return f"{v.significands[ref.name]} / {scale}", _MUL
+            return f"{v.significands[ref.name]} / {scale}", MUL
         if ref.kind is ie.RefKind.REWARD:
             if dialect == STATISTICAL:
-                return v.hybrids[ref.name], _NUM
-            return f"{v.mirrors[ref.name]} / {scale}", _MUL
+                return v.hybrids[ref.name], NUM
+            return f"{v.mirrors[ref.name]} / {scale}", MUL
         if ref.kind is ie.RefKind.LOCATION_INDEX:
             if dialect == FUNCTION:
                 raise QueryError("a location cannot be read in a condition computed with doubles")
-            return f"{v.process}.location", _NUM
+            return f"{v.process}.location", NUM
         if ref.kind is not ie.RefKind.MODEL:
             raise QueryError(f"`{ref.name}` is not a number")
         entry = ref.model
         model = self._model(ref.name) if entry.holding is not Holding.TIME or dialect == FUNCTION else None
         if entry.holding is Holding.SIGNIFICAND:
-            return f"i2d({entry.uppaal})", _NUM
+            return f"i2d({entry.uppaal})", NUM
         if entry.holding is Holding.EXACT:
             assert ref.value is not None
-            return (entry.uppaal, _NUM) if entry.uppaal else (double_literal(ref.value), _NUM)
+            return (entry.uppaal, NUM) if entry.uppaal else (double_literal(ref.value), NUM)
         if entry.holding is Holding.TIME:
             if dialect == FUNCTION:
-                return f"{model.count} * {double_literal(v.period)}", _MUL
+                return f"{model.count} * {double_literal(v.period)}", MUL
             # k * C1 at sample k, as the engine computes it: the clock counts PERIOD time units a sample
             if v.period == v.unit:
-                return f"{v.time} * {double_literal(v.period)}", _MUL
-            return f"{v.time} / {v.period_name} * {double_literal(v.period)}", _MUL
+                return f"{v.time} * {double_literal(v.period)}", MUL
+            return f"{v.time} / {v.period_name} * {double_literal(v.period)}", MUL
         if dialect != STATISTICAL:
             raise QueryError(f"`{ref.name}` is the ground truth, which only statistical queries (Pr, E, simulate) "
                              "follow")
         assert model is not None
-        return f"{model.dynamics}.{entry.uppaal}", _NUM
+        return f"{model.dynamics}.{entry.uppaal}", NUM
 
     def _model(self, name: str = "") -> ModelNames:
         if self.v.model is None:
@@ -463,7 +450,7 @@ class UppaalPrinter:
         constant = int(form.const * multiplier)
         if not whole:
             return int_literal(constant)
-        text = _terms(whole)
+        text = terms_text(whole)
         return f"{text} {'-' if constant < 0 else '+'} {int_literal(abs(constant))}" if constant else text
 
     # ------------------------------------------------------------ bindings
@@ -476,24 +463,6 @@ class UppaalPrinter:
 
 _PREV = ("`prev(...)` cannot be read by a query over the emitted model: the model keeps the previous sample "
          "only while it reads the inputs")
-
-
-def _holds(value: Fraction, op: str) -> bool:
-    return {"<": value < 0, "<=": value <= 0, ">": value > 0, ">=": value >= 0, "==": value == 0,
-            "!=": value != 0}[op]
-
-
-def _terms(terms: list[tuple[int, str]]) -> str:
-    """``10*iSa + 5*iPr - iCo`` from integer coefficients (none zero)."""
-    text = ""
-    for i, (coefficient, name) in enumerate(terms):
-        magnitude = abs(coefficient)
-        term = name if magnitude == 1 else f"{int_literal(magnitude)}*{name}"
-        if i == 0:
-            text = ("-" if coefficient < 0 else "") + term
-        else:
-            text += f" {'-' if coefficient < 0 else '+'} {term}"
-    return text
 
 
 def _short(value: Fraction) -> str:
