@@ -2,7 +2,7 @@
 
 This is what a Python programmer would write without rac, the idiomatic way (named constants,
 a rate table, one validation helper shared by ``step`` and ``end``), with the same semantics and
-the same input validation as :class:`rac.runtime.RewardAutomaton`:
+the same input validation as :class:`rac.runtime.interpreter.RewardAutomaton`:
 
 * every declared input must be present and nothing else (``ValueError`` naming the missing and
   unknown ones); booleans are read with ``bool(v)``, ``dgoal`` with ``float(v)`` and must lie in

@@ -4,11 +4,11 @@ Simulated learning episodes per minute on the left-turn intersection (examples/l
 the paper's driving automaton as the reward), for an episode of 30 time steps (3 s). Target: at
 least 1,000 episodes per minute. Rows:
 
-  episodes, random actions   rac.engine.episodes.EpisodeBatch, 64 episodes stepped together
-  Q-learning                 rac.engine.learn.learn (episodes, Q-table updates and the greedy
+  episodes, random actions   rac.learning.episodes.EpisodeBatch, 64 episodes stepped together
+  Q-learning                 rac.learning.qlearning.learn (episodes, Q-table updates and the greedy
                              evaluation after every batch), 32 episodes per batch
   Q-learning under a shield  the same on examples/paper/model.ra (14 s episodes) under its shield
-  ScenarioEnv                rac.gym.ScenarioEnv, one episode at a time (a gymnasium agent's view)
+  ScenarioEnv                rac.learning.gym.ScenarioEnv, one episode at a time (a gymnasium agent's view)
 
 Each row is the best of ``--repeat`` runs (default 3).
 """
@@ -54,10 +54,10 @@ def main(argv: list[str] | None = None) -> int:
     scale = 1 if args.quick else 4
 
     from rac.compiler import compile_file
-    from rac.engine.episodes import EpisodeBatch
-    from rac.engine.learn import learn
-    from rac.experiment import _learning_spec, _shield
-    from rac.gym import ScenarioEnv
+    from rac.learning.episodes import EpisodeBatch
+    from rac.learning.gym import ScenarioEnv
+    from rac.learning.qlearning import learn
+    from rac.studies.experiment import _learning_spec, _shield
 
     left = compile_file(LEFT_TURN)
     paper = compile_file(PAPER)

@@ -53,10 +53,10 @@ sys.path.insert(0, str(HERE))
 from handwritten_driving import HandwrittenDriving  # noqa: E402
 
 from rac.compiler import compile_file, compile_text  # noqa: E402
-from rac.parser import parse_source  # noqa: E402
-from rac.resources import stdlib_file  # noqa: E402
-from rac.runtime import RewardAutomaton  # noqa: E402
-from rac.source import MAX_SOURCE_BYTES, SourceFile  # noqa: E402
+from rac.core.source import MAX_SOURCE_BYTES, SourceFile  # noqa: E402
+from rac.lang.parser import parse_source  # noqa: E402
+from rac.lang.resources import stdlib_file  # noqa: E402
+from rac.runtime.interpreter import RewardAutomaton  # noqa: E402
 from rac.targets.python import generate_python  # noqa: E402
 
 HORIZONS = (30, 60, 120, 300, 600, 1200, 3600)

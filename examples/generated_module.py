@@ -27,7 +27,7 @@ import tempfile
 from pathlib import Path
 
 import rac
-from rac.resources import stdlib_file
+from rac.lang.resources import stdlib_file
 
 
 def scripted_run(steps: int) -> list[dict[str, bool | float]]:

@@ -9,7 +9,7 @@ the automaton (0.1 s), and an episode lasts the automaton's horizon (300 samples
 unless the ego hits the obstacle.
 
 The environment's own reward is the paper's hand-written weighted sum (Gu, FMAS 2024, Eq. 9).
-:class:`rac.gym.RewardAutomatonWrapper` replaces it with the automaton's reward: the increase
+:class:`rac.learning.gym.RewardAutomatonWrapper` replaces it with the automaton's reward: the increase
 of ``10*sa + 5*pr + co`` at each sample, so an episode's return is the objective's final
 value (at most 980: 30 s in `Normal` and the goal bonus).
 
@@ -31,8 +31,8 @@ import gymnasium
 import numpy as np
 
 import rac
-from rac.gym import RewardAutomatonWrapper
-from rac.resources import stdlib_file
+from rac.lang.resources import stdlib_file
+from rac.learning.gym import RewardAutomatonWrapper
 
 # ---------------------------------------------------------------- the environment
 GOAL_X = 80.0  # m: where the goal area starts

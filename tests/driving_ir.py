@@ -79,7 +79,7 @@ def inputs(is_close: bool = False, prog: bool = True, comf: bool = True, collide
 def compiled_driving() -> ir.Automaton:
     """``stdlib/driving.ra`` through the compiler."""
     from rac.compiler import compile_file
-    from rac.resources import stdlib_file
+    from rac.lang.resources import stdlib_file
 
     result = compile_file(stdlib_file("driving.ra"))
     assert result.ok, result.diagnostics

@@ -1,5 +1,5 @@
 """Shared helper for the engine tests (tests/test_verify.py, tests/test_engine_cli.py): a ``.ra`` file with a
-``model`` block for one of the tiny scenarios of :mod:`rac.scenarios.tiny`, written into a test's folder.
+``model`` block for one of the tiny scenarios of :mod:`tiny_scenarios`, written into a test's folder.
 
 The automaton reads one input, ``near``, bound to ``mindist() < 3 * collision_distance``, keeps one
 reward ``sa`` and asks queries of every form (:data:`QUERIES`)::
@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from rac.scenarios.tiny import TINY_SCENARIOS, TinyScenario
+from tiny_scenarios import TINY_SCENARIOS, TinyScenario
 
 #: The queries of the engine test file, by name, in the order written (every form of the language).
 QUERIES: dict[str, str] = {

@@ -1,4 +1,4 @@
-"""A brute-force reference for :func:`rac.analysis.worst.maximise`, for tiny automata only.
+"""A brute-force reference for :func:`rac.check.analysis.worst.maximise`, for tiny automata only.
 
 It is written from the semantics, not from ``worst.py``: enumerate every run of every length
 1..steps over concrete input valuations, simulate it forward with exact ``Fraction`` arithmetic,
@@ -17,7 +17,7 @@ Semantics followed literally (language.md, and the analysis' reading of it):
 - A run may also end at t = 0, before any sample. The end's inputs are its own
   (``end(inputs)``), free over every valuation ``assume`` allows.
 
-Input valuations (built here, not with :class:`~rac.analysis.inputs.InputSpace`): both values
+Input valuations (built here, not with :class:`~rac.ir.inputs.InputSpace`): both values
 of every boolean input; for a real input every guard threshold and bound, and the midpoint of
 each open interval between them; every value of an int input. Those decide the guards. Numeric
 inputs that rates or updates read also feed the arithmetic with the interval's two ends: the

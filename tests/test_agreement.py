@@ -22,8 +22,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rac import ir
-from rac.batch import BatchRewardAutomaton
-from rac.runtime import RewardAutomaton
+from rac.runtime.batch import BatchRewardAutomaton
+from rac.runtime.interpreter import RewardAutomaton
 from rac.targets.python import generate_python
 
 Values = dict[str, object]

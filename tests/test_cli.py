@@ -15,9 +15,9 @@ import pytest
 from conftest import REPOSITORY, rac_env, run_rac
 
 from rac import __version__
-from rac.cli import main
+from rac.cli.main import main
 from rac.compiler import compile_file
-from rac.resources import stdlib_file
+from rac.lang.resources import stdlib_file
 from rac.targets.python import generate_python
 
 DRIVING = stdlib_file("driving.ra")

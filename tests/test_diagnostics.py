@@ -21,7 +21,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rac.cli import main
+from rac.cli.main import main
 
 HERE = Path(__file__).resolve().parent
 EXAMPLES = HERE / "diagnostics"

@@ -21,13 +21,13 @@ test files of the tiny scenarios (tests/engine_files.py) and three files of this
   formulas of ``A[]``/``E<>``/``E[]``/``A<>``/``-->``/``control:`` (symbolic, with their ``settled``
   guard), formulas of ``Pr`` and of learning goals, numbers of ``E``, learning objectives,
   ``simulate`` and continuous observations (statistical), discrete observations (integers) — is
-  printed over the emitted model's names (:func:`rac.targets.uppaal_model.model_vocabulary`) by
-  :class:`rac.targets.uppaal_query.UppaalPrinter` with ``c_syntax=True`` and compiled as one C
+  printed over the emitted model's names (:func:`rac.targets.uppaal.model.model_vocabulary`) by
+  :class:`rac.targets.uppaal.query.UppaalPrinter` with ``c_syntax=True`` and compiled as one C
   function, beside the conditions the printer hoisted into functions and shims for the
   process-qualified names (``Driving.Unsafe``, ``Driving.location``, ``Dynamics.true_x``). Random
   states set every global (sample, ego, location, inputs, mirrors, hybrid clocks, true state,
   ``time`` in time units, ``settled``), with the integer comparisons' operands put next to their
-  thresholds, and each value is compared bit for bit with :class:`rac.engine.expr.Evaluator` on the
+  thresholds, and each value is compared bit for bit with :class:`rac.engine.evaluate.Evaluator` on the
   same state: symbolic expressions over the integer mirrors and significands, statistical ones
   over the rewards as doubles (the hybrid clocks, set to mirror / SCALE). Every condition must take
   both values over the states, unless it reads ``deadlock`` or a model function the scenario pins
@@ -62,24 +62,25 @@ import numpy as np
 import pytest
 from engine_files import write_engine_file
 from test_model_c import random_states, simulated_states
+from tiny_scenarios import TINY_SCENARIOS, avoidable_obstacle
 
-from rac import ast, ir
+from rac import ir
 from rac.compiler import compile_file, compile_text
+from rac.engine.evaluate import Evaluator, Frame
 from rac.engine.explore import action_pairs
-from rac.engine.expr import Evaluator, Frame
 from rac.engine.product import _Bindings
 from rac.engine.simulate import simulate
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.vocabulary import MODEL_NAMES, TRUE_STATE
+from rac.lang import ast
+from rac.lang.parser import parse_source, read_source
 from rac.model import NativeModel, State
 from rac.model.data import ModelData
-from rac.parser import parse_source, read_source
-from rac.scenarios.tiny import TINY_SCENARIOS, avoidable_obstacle
-from rac.targets.uppaal_expr import QueryError
-from rac.targets.uppaal_functions import C_PRELUDE
-from rac.targets.uppaal_model import generate_uppaal_model, model_vocabulary
-from rac.targets.uppaal_query import STATISTICAL, SYMBOLIC, UppaalPrinter, Vocabulary, query_exprs
+from rac.targets.uppaal.declarations import C_PRELUDE
+from rac.targets.uppaal.expr import QueryError
+from rac.targets.uppaal.model import generate_uppaal_model, model_vocabulary
+from rac.targets.uppaal.query import STATISTICAL, SYMBOLIC, UppaalPrinter, Vocabulary, query_exprs
 
 COMPILER = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")

@@ -56,16 +56,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 from lxml import etree
+from tiny_scenarios import TINY_SCENARIOS
 
 from rac import ir
 from rac.compiler import compile_file
 from rac.engine.explore import action_pairs
 from rac.engine.product import ACCRUED, ENDED, READ, SAMPLED, ProductGraph, _Arithmetic, explore_product
 from rac.model import ModelData, NativeModel
-from rac.scenarios.tiny import TINY_SCENARIOS
-from rac.targets.uppaal import mirror_accrual, mirror_update
-from rac.targets.uppaal_functions import C_PRELUDE
-from rac.targets.uppaal_model import generate_uppaal_model, model_vocabulary
+from rac.runtime.semantics import mirror_accrual, mirror_update
+from rac.targets.uppaal.declarations import C_PRELUDE
+from rac.targets.uppaal.model import generate_uppaal_model, model_vocabulary
 
 COMPILER = shutil.which("cc") or shutil.which("gcc")
 pytestmark = pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")

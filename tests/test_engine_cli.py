@@ -1,5 +1,5 @@
 """End to end: ``rac verify``, ``rac simulate``, ``rac render`` and ``rac preanalyse`` through
-:func:`rac.cli.main`, on the tiny scenarios of :mod:`rac.scenarios.tiny` (tests/engine_files.py).
+:func:`rac.cli.main`, on the tiny scenarios of :mod:`tiny_scenarios` (tests/engine_files.py).
 
 Exit codes: 0 when everything asked holds (an *unknown* verdict included), 1 when a query is not
 satisfied or the file has errors or no ``model`` block, 2 for bad usage and unreadable files.
@@ -16,8 +16,8 @@ import pytest
 from engine_files import QUERIES, write_engine_file
 from PIL import Image
 
-from rac import shield
-from rac.cli import main
+from rac.cli.main import main
+from rac.engine import shield
 
 #: The engine's timings vary: ``0.03 s`` becomes ``T s`` before texts are compared.
 SECONDS = re.compile(r"\b\d+\.\d\d s\b")
@@ -322,7 +322,7 @@ def test_render_default_path_and_shield(capsys: pytest.CaptureFixture[str], tmp_
 
 def test_render_draws_the_model_blocks_vehicle(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
                                                tmp_path: Path) -> None:
-    import rac.render
+    import rac.output.render
 
     seen: dict[str, object] = {}
 
@@ -330,7 +330,7 @@ def test_render_draws_the_model_blocks_vehicle(monkeypatch: pytest.MonkeyPatch, 
         seen.update(options, trajectory=trajectory)
         return Path(png_path)
 
-    monkeypatch.setattr(rac.render, "render_trajectory", fake)
+    monkeypatch.setattr(rac.output.render, "render_trajectory", fake)
     path = write_engine_file(tmp_path, "goal_ahead", {})
     path.write_text(path.read_text().replace("length 4.5", "length 4").replace("width 1.8", "width 1.6"))
     assert main(["render", str(path), "--horizon", "1", "--seed", "1"]) == 0

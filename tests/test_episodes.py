@@ -1,7 +1,7 @@
-"""EpisodeBatch (rac.engine.episodes): n episodes of the scenario model with the automaton's reward.
+"""EpisodeBatch (rac.learning.episodes): n episodes of the scenario model with the automaton's reward.
 
 Every episode of the batch equals a scalar reference — NativeModel moving the ego, the bindings
-evaluated with Evaluator on one-row frames, rac.runtime.RewardAutomaton taking the samples —
+evaluated with Evaluator on one-row frames, rac.runtime.interpreter.RewardAutomaton taking the samples —
 along random action sequences (hypothesis), on a tiny scenario with a probe automaton (numeric
 inputs that get clipped, a rate and an update that read inputs, ``prev``, an ``at end`` clause,
 a goal the ego can reach) and on examples/left_turn/model.ra. Also: the reward-expression mode,
@@ -18,18 +18,18 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from tiny_scenarios import goal_ahead
 
-from rac import ast
+from rac.check.queries import lower_expression
 from rac.compiler import CompileResult, compile_file, compile_text
-from rac.diagnostics import CheckError
-from rac.engine.episodes import EpisodeBatch, StepResult, parse_expr
+from rac.core.diagnostics import CheckError
+from rac.engine.evaluate import Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
-from rac.engine.expr import Evaluator, Frame
-from rac.execution import input_specs
+from rac.lang import ast
+from rac.learning.episodes import EpisodeBatch, StepResult, parse_expr
 from rac.model import NativeModel, State
-from rac.query_check import lower_expression
-from rac.runtime import RewardAutomaton
-from rac.scenarios.tiny import goal_ahead
+from rac.runtime.interpreter import RewardAutomaton
+from rac.runtime.semantics import input_specs
 
 REPO = Path(__file__).resolve().parents[1]
 LEFT_TURN = REPO / "examples" / "left_turn" / "model.ra"

@@ -24,7 +24,7 @@ from pathlib import Path
 import pytest
 
 import rac
-from rac.cli import main as rac_main
+from rac.cli.main import main as rac_main
 
 REPO = Path(__file__).resolve().parents[1]
 DOC_FILES = sorted((REPO / "docs").glob("*.md")) + [REPO / "README.md"]

@@ -1,4 +1,4 @@
-"""``rac experiment``: the paper's four combinations on a tiny scenario (rac.experiment, rac.cli)."""
+"""``rac experiment``: the paper's four combinations on a tiny scenario (rac.studies.experiment, rac.cli.main)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import pytest
 from engine_files import write_engine_file
 from PIL import Image
 
-from rac.cli import main
+from rac.cli.main import main
 from rac.compiler import compile_file
-from rac.experiment import COMBINATIONS, ExperimentError, render_markdown, run_experiment, summary
+from rac.studies.experiment import COMBINATIONS, ExperimentError, render_markdown, run_experiment, summary
 
 #: Episodes reach the goal region of `goal_ahead` by speeding up; the learning query's goal.
 LEARN = {"safe": "strategy safe = control: A[] !collide() && !offroad()",

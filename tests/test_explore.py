@@ -15,19 +15,10 @@ import numpy as np
 import pytest
 from test_model_native import crossing_scenario, goal_scenario, make_spec, straight_scenario
 
-from rac.engine.explore import (
-    COLUMNS,
-    action_pairs,
-    collide_many,
-    dist_goal_many,
-    explore,
-    goal_many,
-    mindist_many,
-    offroad_many,
-    sense_many,
-)
+from rac.engine.explore import COLUMNS, action_pairs, explore
 from rac.ir import Action
 from rac.model import ModelData, ModelRangeError, NativeModel, State, build_model_data
+from rac.model.batch import collide_many, dist_goal_many, goal_many, mindist_many, offroad_many, sense_many
 
 LEFT_TURN = Path(__file__).resolve().parent.parent / "examples" / "left_turn" / "model.ra"
 
@@ -221,7 +212,7 @@ def test_explore_horizon_defaults_to_the_goal_interval() -> None:
 def test_point_in_polygons_on_vertices_and_edges() -> None:
     """The bounding-box shortcut of the vectorised crossing test changes no answer, also on
     vertices, on edges and just beside them."""
-    from rac.engine.explore import _inside
+    from rac.model.batch import _inside
     from rac.model.native import point_in_polygons
 
     data = left_turn_data()

@@ -10,8 +10,8 @@ import gymnasium
 import pytest
 from driving_ir import driving_automaton, inputs
 
-from rac.gym import RewardAutomatonWrapper
-from rac.runtime import RewardAutomaton
+from rac.learning.gym import RewardAutomatonWrapper
+from rac.runtime.interpreter import RewardAutomaton
 from rac.targets.python import generate_python
 
 TRACE = [inputs(dgoal=50.0), inputs(comf=False, dgoal=40.0), inputs(is_close=True, dgoal=30.0),
@@ -143,7 +143,7 @@ def test_bad_automata_are_refused(tmp_path: Path) -> None:
         RewardAutomatonWrapper(Scripted(TRACE), 42, from_info)  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="inputs"):
         RewardAutomatonWrapper(Scripted(TRACE), driving_automaton(), None)  # type: ignore[arg-type]
-    from rac.diagnostics import CheckError
+    from rac.core.diagnostics import CheckError
 
     bad = tmp_path / "bad.ra"
     bad.write_text("automaton Bad {\n    reward r\n    objective r + nope\n}\n", encoding="utf-8")

@@ -64,8 +64,8 @@ def test_install_from_wheel(tmp_path: Path) -> None:
                for dep in DEPENDENCIES}
     (purelib / "rac_test_dependencies.pth").write_text("\n".join(sorted(folders)) + "\n", encoding="utf-8")
 
-    located = run(python, "-c", "import rac, rac.resources; print(rac.__file__); "
-                  "print(rac.resources.stdlib_file('driving.ra'))", cwd=tmp_path).stdout.splitlines()
+    located = run(python, "-c", "import rac, rac.lang.resources; print(rac.__file__); "
+                  "print(rac.lang.resources.stdlib_file('driving.ra'))", cwd=tmp_path).stdout.splitlines()
     package, driving = (Path(line).resolve() for line in located)
     assert package.is_relative_to(purelib), f"rac was imported from {package}, not from the wheel"
     assert not package.is_relative_to(REPOSITORY)

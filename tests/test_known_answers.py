@@ -1,6 +1,6 @@
 """What must be shown (issue 4): tiny scenarios whose answers are known by construction.
 
-- Known answers (rac.scenarios.tiny): Qb ``E[] !collide() && !offroad()`` and Qc
+- Known answers (tiny_scenarios): Qb ``E[] !collide() && !offroad()`` and Qc
   ``E<> !collide() && !offroad() && goal()`` on the four named scenarios, the actions the safety
   shield allows at the start, witness traces that are paths of the graph and replay on
   :class:`rac.model.native.NativeModel`, and shielded runs that never collide.
@@ -29,14 +29,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from test_storm import check_trace, successors
-
-from rac import shield as shield_file
-from rac.engine.explore import action_pairs, explore
-from rac.engine.graph import ExploredGraph
-from rac.engine.storm import KINDS, Shield, decide, safety_shield
-from rac.model import ModelData, NativeModel, State
-from rac.scenario import EgoStart, Obstacle, Polygon, Waypoint, load_scenario
-from rac.scenarios.tiny import (
+from tiny_scenarios import (
     LANE_WIDTH,
     TINY_SCENARIOS,
     Block,
@@ -49,6 +42,13 @@ from rac.scenarios.tiny import (
     narrow_road,
     straight_road,
 )
+
+from rac.engine import shield as shield_file
+from rac.engine.explore import action_pairs, explore
+from rac.engine.graph import ExploredGraph
+from rac.engine.storm import KINDS, Shield, decide, safety_shield
+from rac.model import ModelData, NativeModel, State
+from rac.model.commonroad import EgoStart, Obstacle, Polygon, Waypoint, load_scenario
 
 NAMES = tuple(TINY_SCENARIOS)
 #: The label the tests add for Qc's proposition ``!collide() && !offroad() && goal()``.

@@ -1,7 +1,7 @@
-"""``rac.engine.learn``: tabular Q-learning of strategies on the scenario model, and ``rac verify``'s
+"""``rac.learning.qlearning``: tabular Q-learning of strategies on the scenario model, and ``rac verify``'s
 learning queries (``strategy S = maxE(...)``) and path queries ``under S``.
 
-On the tiny scenarios of :mod:`rac.scenarios.tiny` (known plans): on :func:`goal_ahead` speeding up
+On the tiny scenarios of :mod:`tiny_scenarios` (known plans): on :func:`goal_ahead` speeding up
 reaches the goal, and learning under the safety shield finds a strategy whose one run does so
 safely, without a single unsafe learning episode; on :func:`avoidable_obstacle` only braking at
 once avoids the van, so unshielded learning collides while shielded learning never does. Also:
@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 from engine_files import QUERIES, write_engine_file
 
-from rac import shield
 from rac.compiler import CompileResult, compile_file
-from rac.engine.episodes import EpisodeBatch, parse_expr
-from rac.engine.learn import (
+from rac.engine import shield
+from rac.learning.episodes import EpisodeBatch, parse_expr
+from rac.learning.qlearning import (
     LearnedStrategy,
     ObjectiveIncrease,
     default_bin,
@@ -32,7 +32,7 @@ from rac.engine.learn import (
     observation_keys,
     run_strategy,
 )
-from rac.verify import VerifyOptions, render_text, verify
+from rac.verify.runner import VerifyOptions, render_text, verify
 
 X, V, LOCATION = parse_expr("x"), parse_expr("v"), parse_expr("Tiny.location")
 SURVIVE = parse_expr("time >= 4")  # the goal of "stay safe for the whole 4 s horizon"
@@ -273,7 +273,7 @@ def test_statistical_queries_under_a_learned_strategy_use_its_one_run(tmp_path: 
 def test_render_draws_the_learned_strategys_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from PIL import Image
 
-    from rac.cli import main
+    from rac.cli.main import main
 
     path = write_engine_file(tmp_path, "goal_ahead", VERIFY_QUERIES)
     png = tmp_path / "run.png"

@@ -2,7 +2,7 @@
 
 - the block of the issue parses to the expected items, formats canonically, keeps its comments;
 - `scenario`, `action`, `bind` and `step` stay ordinary names outside the block;
-- omitted settings and actions take the defaults of ``rac.model_block``; the scenario path is
+- omitted settings and actions take the defaults of ``rac.check.model_block``; the scenario path is
   resolved against the `.ra` file's folder; constants in bindings are replaced by their values;
 - every new code (E0701-E0711) and the generic ones the block reuses (E0101-E0106, E0201);
 - with a model, queries may use the model's vocabulary (E0601 without one);
@@ -18,13 +18,14 @@ from pathlib import Path
 
 import pytest
 
-from rac import ast, ir
+from rac import ir
+from rac.check.model_block import ACTIONS, MATH_FUNCTIONS, MODEL_FUNCTIONS, SETTINGS
+from rac.check.queries import MODEL_FUNCTIONS as QUERY_MODEL_FUNCTIONS
 from rac.compiler import compile_file, compile_text
 from rac.ir import expr as ie
-from rac.model_block import ACTIONS, MATH_FUNCTIONS, MODEL_FUNCTIONS, SETTINGS
-from rac.parser import ParseFailure, parse_text
-from rac.printer import format_module, format_source
-from rac.query_check import MODEL_FUNCTIONS as QUERY_MODEL_FUNCTIONS
+from rac.lang import ast
+from rac.lang.format import format_module, format_source
+from rac.lang.parser import ParseFailure, parse_text
 
 REPO = Path(__file__).resolve().parents[1]
 DRIVING = (REPO / "stdlib" / "driving.ra").read_text(encoding="utf-8")

@@ -1,6 +1,6 @@
 """Differential test: the emitted UPPAAL declarations, compiled as C, against rac.model.native.
 
-The declarations from rac.targets.uppaal_functions are pasted verbatim after a small C prelude
+The declarations from rac.targets.uppaal.declarations are pasted verbatim after a small C prelude
 (the includes and ``#define fint(x) ((int32_t)(x))``) and a ``main`` that reads one state per line
 (``x y v acc head jerk turn k``) and prints ``collide() offroad() goal()``, ``mindist()`` and
 ``dist_goal()`` (as ``%.17e``, read back exactly, and as significands), every obstacle's
@@ -21,7 +21,7 @@ import pytest
 from test_model_native import crossing_scenario, goal_scenario, make_spec, straight_scenario
 
 from rac.model import ModelData, NativeModel, State, build_model_data
-from rac.targets.uppaal_functions import C_PRELUDE, declared_names, double_literal, emit_declarations
+from rac.targets.uppaal.declarations import C_PRELUDE, declared_names, double_literal, emit_declarations
 
 COMPILER = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")
@@ -175,9 +175,9 @@ EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "left_turn" / "l
 @needs_cc
 @pytest.mark.skipif(not EXAMPLE.exists(), reason=f"{EXAMPLE} is not in this checkout")
 def test_c_agrees_with_native_on_a_commonroad_scenario(tmp_path):
-    load_scenario = pytest.importorskip("rac.scenario").__dict__.get("load_scenario")
+    load_scenario = pytest.importorskip("rac.model.commonroad").__dict__.get("load_scenario")
     if load_scenario is None:
-        pytest.skip("rac.scenario.load_scenario is not available")
+        pytest.skip("rac.model.commonroad.load_scenario is not available")
     data = build_model_data(load_scenario(EXAMPLE), make_spec(3, max_speed=F(15)))
     model = NativeModel(data)
     binary = compile_model(data, tmp_path)

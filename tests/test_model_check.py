@@ -15,11 +15,11 @@ from pathlib import Path
 
 import pytest
 
-from rac.analysis import scenario as scenario_check
-from rac.cli import main
+from rac.cli.main import main
 from rac.compiler import compile_file
+from rac.model import checks as scenario_check
+from rac.model.commonroad import Scenario
 from rac.model.data import ModelData, build_model_data
-from rac.scenario import Scenario
 
 REPO = Path(__file__).resolve().parents[1]
 LEFT_TURN = REPO / "examples" / "left_turn" / "left_turn.xml"

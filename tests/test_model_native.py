@@ -21,7 +21,7 @@ from rac.model import (
     check_significands,
     max_significand,
 )
-from rac.scenario import EgoStart, Goal, Obstacle, Polygon, Scenario, Waypoint
+from rac.model.commonroad import EgoStart, Goal, Obstacle, Polygon, Scenario, Waypoint
 
 
 # ---------------------------------------------------------------- builders (shared with test_model_c)

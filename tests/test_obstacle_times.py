@@ -19,11 +19,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_model_native import make_spec, rectangle
+from tiny_scenarios import Block, GoalBox, StraightRoad, straight_road
 
 from rac.model import NativeModel, build_model_data
+from rac.model.commonroad import EgoStart, Goal, Obstacle, Scenario, Waypoint
 from rac.model.data import exact
-from rac.scenario import EgoStart, Goal, Obstacle, Scenario, Waypoint
-from rac.scenarios.tiny import Block, GoalBox, StraightRoad, straight_road
 
 #: The CommonRoad time step of the hand-built trajectories (s).
 DT = 0.1
@@ -52,7 +52,7 @@ def spec(c1: F, exponent: int = 3):
 def trajectory(steps: int, first_step: int = 0) -> tuple[Waypoint, ...]:
     """A car that speeds up, then slows down, while it weaves: its velocity and heading change at
     every CommonRoad time step. It moves in a straight line between states, as
-    :class:`rac.scenario.Waypoint` defines. Times are ``round(step*dt, 9)`` and coordinates have 6
+    :class:`rac.model.commonroad.Waypoint` defines. Times are ``round(step*dt, 9)`` and coordinates have 6
     decimals, as load_scenario reads them from a file."""
     points = []
     x, y = 20.0, 1.75

@@ -9,16 +9,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from rac.plots import (
-    atomic_write,
-    below_summary,
-    plot_learning_curves,
-    plot_runs,
-    plot_sweep,
-    runs_below,
-)
-from rac.progress import Progress, explore_callback
-from rac.render import RenderError, render_trajectory
+from rac.output.plots import atomic_write, below_summary, plot_learning_curves, plot_runs, plot_sweep, runs_below
+from rac.output.progress import Progress, explore_callback
+from rac.output.render import RenderError, render_trajectory
 
 LEFT_TURN = Path(__file__).resolve().parent.parent / "examples" / "left_turn" / "left_turn.xml"
 

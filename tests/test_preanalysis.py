@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from rac.compiler import compile_file
-from rac.preanalysis import render_table, sweep
+from rac.studies.preanalysis import render_table, sweep
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "left_turn" / "preanalysis.ra"
 

@@ -19,19 +19,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rac import ir
-from rac.analysis.affine import moves
-from rac.analysis.inputs import InputSpace
-from rac.analysis.priority import (
-    _exists_neg_pos,
-    check_priorities,
-    check_ranges,
-    check_rate_dominance,
-    replay,
-)
-from rac.analysis.worst import AFTER_END, CONTINUE, Target, maximise
+from rac.check.analysis.affine import moves
+from rac.check.analysis.priority import _exists_neg_pos, check_priorities, check_ranges, check_rate_dominance, replay
+from rac.check.analysis.worst import AFTER_END, CONTINUE, Target, maximise
 from rac.compiler import CompileResult, compile_text
-from rac.diagnostics import render_text
-from rac.resources import stdlib_file
+from rac.core.diagnostics import render_text
+from rac.ir.inputs import InputSpace
+from rac.lang.resources import stdlib_file
 
 DRIVING = stdlib_file("driving.ra").read_text(encoding="utf-8")
 

@@ -2,7 +2,7 @@
 
 - the product's sampled states are exactly explore()'s states, with the same labels;
 - along any path of choices, a scalar simulation (NativeModel + the bindings on one-state frames +
-  rac.runtime.RewardAutomaton) reaches the product's location, inputs and rewards at every sample,
+  rac.runtime.interpreter.RewardAutomaton) reaches the product's location, inputs and rewards at every sample,
   the state before each edge, and the state after `at end`;
 - the mirrors' integer arithmetic truncates like C; query comparisons are exact on the integers;
 - Qe and Qh on examples/left_turn/model.ra, a false verdict with a trace, and an automaton whose
@@ -23,10 +23,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rac import ir
-from rac.analysis.priority import check_priorities
+from rac.check.analysis.priority import check_priorities
+from rac.check.queries import lower_expression
 from rac.compiler import compile_file
+from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
-from rac.engine.expr import EvaluationError, Evaluator, Frame
 from rac.engine.product import (
     ACCRUED,
     ENDED,
@@ -41,9 +42,8 @@ from rac.engine.product import (
 from rac.ir import Action
 from rac.ir import query as iq
 from rac.model import ModelData, NativeModel, build_model_data
-from rac.query_check import lower_expression
-from rac.runtime import RewardAutomaton
-from rac.scenario import load_scenario
+from rac.model.commonroad import load_scenario
+from rac.runtime.interpreter import RewardAutomaton
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "examples" / "left_turn" / "model.ra"
@@ -311,7 +311,7 @@ def test_mirror_arithmetic_truncates_towards_zero_like_c() -> None:
 
 def test_one_edge_per_sample() -> None:
     """A state that moves Normal -> Unsafe takes no second edge (Unsafe -> Unsafe when collide) in the
-    same sample: the penalty is subtracted once, as in the emitted model and rac.runtime."""
+    same sample: the penalty is subtracted once, as in the emitted model and rac.runtime.interpreter."""
     automaton = compile_file(REPO / "stdlib" / "driving.ra").raise_for_errors()
     inputs = np.array([[1, 1, 0, 1, 0]], dtype=np.int64)  # isClose prog comf collide dgoal
     loc, mirrors = _Arithmetic(automaton, 10_000).edges(np.array([0]), inputs, np.zeros((1, 3), dtype=np.int64))

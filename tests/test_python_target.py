@@ -17,8 +17,8 @@ import pytest
 from driving_ir import compiled_driving, driving_automaton, inputs
 
 from rac import ir
-from rac.execution import float_linear
-from rac.runtime import RewardAutomaton
+from rac.runtime.interpreter import RewardAutomaton
+from rac.runtime.semantics import float_linear
 from rac.targets.python import generate_python, print_expr
 
 GOLDEN = Path(__file__).parent / "golden" / "driving.py"

@@ -17,9 +17,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rac import ast
-from rac.parser import parse_text
-from rac.printer import format_expr, format_module, format_query, format_source
+from rac.lang import ast
+from rac.lang.format import format_expr, format_module, format_query, format_source
+from rac.lang.parser import parse_text
 
 GOLDEN = Path(__file__).parent / "golden" / "driving.fmt.ra"
 

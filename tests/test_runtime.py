@@ -15,9 +15,9 @@ import pytest
 from driving_ir import compiled_driving, driving_automaton, inputs
 
 from rac import ir
-from rac.batch import BatchRewardAutomaton
-from rac.execution import check_automaton
-from rac.runtime import RewardAutomaton
+from rac.runtime.batch import BatchRewardAutomaton
+from rac.runtime.interpreter import RewardAutomaton
+from rac.runtime.semantics import check_automaton
 
 COMPILED = compiled_driving()
 SOURCES = ["hand", "compiled"]

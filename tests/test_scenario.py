@@ -1,4 +1,4 @@
-"""rac.scenario.load_scenario and the left-turn example (rac.scenarios.intersection).
+"""rac.model.commonroad.load_scenario and the left-turn example (rac.model.intersection).
 
 - the example is built in a temporary folder, read back and compared with the numbers it was built
   from; the committed examples/left_turn/left_turn.xml is the same file;
@@ -24,9 +24,9 @@ pytest.importorskip("commonroad")
 
 from conftest import REPOSITORY, rac_env  # noqa: E402
 
-from rac.scenario import CIRCLE_VERTICES, Polygon, Scenario, ScenarioError, load_scenario  # noqa: E402
-from rac.scenarios import intersection  # noqa: E402
-from rac.scenarios.intersection import (  # noqa: E402
+from rac.model import intersection  # noqa: E402
+from rac.model.commonroad import CIRCLE_VERTICES, Polygon, Scenario, ScenarioError, load_scenario  # noqa: E402
+from rac.model.intersection import (  # noqa: E402
     DT,
     EGO_START,
     GOAL_CENTER,
@@ -137,9 +137,9 @@ def test_the_committed_example_is_a_fresh_build(example_xml: Path) -> None:
     def stable(data: bytes) -> bytes:  # the date is pinned already; ignore it anyway
         return re.sub(rb'\sdate="[^"]*"', b"", data, count=1)
 
-    assert COMMITTED.exists(), "run: python -m rac.scenarios.intersection examples/left_turn/left_turn.xml"
+    assert COMMITTED.exists(), "run: python -m rac.model.intersection examples/left_turn/left_turn.xml"
     assert stable(COMMITTED.read_bytes()) == stable(example_xml.read_bytes()), (
-        "examples/left_turn/left_turn.xml is stale: python -m rac.scenarios.intersection "
+        "examples/left_turn/left_turn.xml is stale: python -m rac.model.intersection "
         "examples/left_turn/left_turn.xml --png examples/left_turn/left_turn.png")
     assert load_scenario(COMMITTED) == dataclasses.replace(load_scenario(example_xml), path=str(COMMITTED))
 
@@ -164,7 +164,7 @@ def test_builds_are_reproducible_and_seeds_move_the_cars(tmp_path: Path, example
 
 def test_the_command_writes_the_example_and_a_picture(tmp_path: Path, example_xml: Path) -> None:
     out, png = tmp_path / "out.xml", tmp_path / "out.png"
-    result = subprocess.run([sys.executable, "-m", "rac.scenarios.intersection", str(out), "--png", str(png)],
+    result = subprocess.run([sys.executable, "-m", "rac.model.intersection", str(out), "--png", str(png)],
                             env=rac_env(), capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0, result.stdout + result.stderr
     assert f"wrote {out}" in result.stdout and f"wrote {png}" in result.stdout
@@ -407,7 +407,7 @@ def test_the_paper_example_is_the_left_turn_with_15_s_of_traffic(tmp_path: Path,
     committed = Path(__file__).resolve().parent.parent / "examples" / "paper" / "left_turn_15s.xml"
     fresh = write_left_turn(tmp_path / "left_turn_15s.xml", steps=150)
     assert committed.read_bytes() == fresh.read_bytes(), (
-        "examples/paper/left_turn_15s.xml is stale: python -m rac.scenarios.intersection "
+        "examples/paper/left_turn_15s.xml is stale: python -m rac.model.intersection "
         "examples/paper/left_turn_15s.xml --steps 150")
     longer = load_scenario(fresh)
     assert longer.road == example.road and longer.ego == example.ego

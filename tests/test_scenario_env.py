@@ -1,8 +1,8 @@
-"""ScenarioEnv (rac.gym): the scenario model as a gymnasium environment, with a shield's action masks.
+"""ScenarioEnv (rac.learning.gym): the scenario model as a gymnasium environment, with a shield's action masks.
 
 gymnasium's env_checker passes; the observation, reward and info are those of EpisodeBatch with
 one episode; a random walk under a safety shield (rac.engine.explore + rac.engine.storm.safety_shield
-+ rac.shield.table) never collides nor leaves the road on a tiny scenario, while unshielded ones do;
++ rac.engine.shield.table) never collides nor leaves the road on a tiny scenario, while unshielded ones do;
 unseen states follow the shield's policy; horizon, seeding and errors.
 """
 
@@ -17,14 +17,14 @@ import pytest
 from engine_files import write_engine_file
 from gymnasium.utils.env_checker import check_env
 
-from rac import shield as shield_file
 from rac.compiler import CompileResult, compile_file, compile_text
-from rac.diagnostics import CheckError
-from rac.engine.episodes import EpisodeBatch
+from rac.core.diagnostics import CheckError
+from rac.engine import shield as shield_file
 from rac.engine.explore import COLUMNS, explore
+from rac.engine.shield import ShieldTable, UnseenState
 from rac.engine.storm import safety_shield
-from rac.gym import ScenarioEnv
-from rac.shield import ShieldTable, UnseenState
+from rac.learning.episodes import EpisodeBatch
+from rac.learning.gym import ScenarioEnv
 
 REPO = Path(__file__).resolve().parents[1]
 

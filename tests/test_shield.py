@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rac import shield as shields
+from rac.engine import shield as shields
 from rac.engine.graph import ExploredGraph
 from rac.engine.storm import safety_shield
 

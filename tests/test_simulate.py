@@ -20,14 +20,14 @@ from hypothesis import strategies as st
 from test_explore import tiny_data
 from test_model_native import crossing_scenario, make_spec, straight_scenario
 
-from rac import shield as shield_file
+from rac.engine import shield as shield_file
 from rac.engine.explore import action_pairs, explore
 from rac.engine.graph import ExploredGraph
 from rac.engine.simulate import Runs, event_sampler, label_runs, simulate
 from rac.engine.stats import estimate_probability, estimate_probability_fixed
 from rac.engine.storm import safety_shield, uniform_reach_probability
 from rac.model import ModelData, NativeModel, State, build_model_data
-from rac.scenario import EgoStart
+from rac.model.commonroad import EgoStart
 
 
 def crossing_data() -> ModelData:

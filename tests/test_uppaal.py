@@ -8,7 +8,7 @@
 * ``rac compile --target uppaal`` writes the model and its ``.q`` file, both or neither;
 * a small interpreter of the emitted network (broadcast synchronisation, committed locations,
   the Timer's period) runs random input sequences; the automaton's integer mirrors then equal
-  ``rac.runtime``'s rewards times the scale, its hybrid clocks the rewards, its location the
+  ``rac.runtime.interpreter``'s rewards times the scale, its hybrid clocks the rewards, its location the
   runtime's location, sample after sample.
 """
 
@@ -29,14 +29,14 @@ from hypothesis import strategies as st
 from lxml import etree
 
 from rac import ir
-from rac.cli import main
+from rac.cli.main import main
 from rac.compiler import compile_file, compile_text
 from rac.ir import expr as ie
 from rac.ir import query as iq
-from rac.resources import stdlib_file
-from rac.runtime import RewardAutomaton
-from rac.targets.uppaal import UppaalError, generate_uppaal, vocabulary
-from rac.targets.uppaal_expr import (
+from rac.lang.resources import stdlib_file
+from rac.runtime.interpreter import RewardAutomaton
+from rac.targets.uppaal.automaton import UppaalError, generate_uppaal, vocabulary
+from rac.targets.uppaal.expr import (
     INT32_MAX,
     NotRepresentable,
     compare_significand,

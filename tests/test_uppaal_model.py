@@ -24,13 +24,13 @@ import pytest
 from golden_files import assert_golden
 from test_uppaal import QUERY_WORDS, Parsed, identifiers, is_symbolic
 
-from rac.cli import main
+from rac.cli.main import main
 from rac.compiler import compile_file, compile_text
 from rac.ir import expr as ie
 from rac.model import build_model_data
-from rac.scenario import load_scenario
-from rac.targets.uppaal_functions import C_PRELUDE, emit_declarations
-from rac.targets.uppaal_model import generate_uppaal_model
+from rac.model.commonroad import load_scenario
+from rac.targets.uppaal.declarations import C_PRELUDE, emit_declarations
+from rac.targets.uppaal.model import generate_uppaal_model
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).parent / "golden"

@@ -11,7 +11,7 @@ the model, the queries in its ``<queries>`` section and every line of the ``.q``
   ``rac compile --target uppaal FILE -o OUT.xml`` does (OUT.xml with OUT.q): the automaton alone,
   or the whole vehicle-and-scenario model for a file with a ``model`` block.
   ``examples/naive_driving.ra`` fails ``rac check`` on purpose (E0402), so rac compile writes
-  nothing for it; the model :func:`rac.targets.uppaal.generate_uppaal` emits for it is validated;
+  nothing for it; the model :func:`rac.targets.uppaal.automaton.generate_uppaal` emits for it is validated;
 * every query form of the language (docs/language.md, "Queries"), one test each, as queries of
   stdlib/driving.ra's automaton alone compiled by ``rac compile``: ``A[]``, ``E<>``, ``E[]``,
   ``A<>``, ``-->``, ``Pr`` (time and step bounds, runs, ``<>`` and ``[]``, ``>= θ``), ``E[..](max:
@@ -21,7 +21,7 @@ the model, the queries in its ``<queries>`` section and every line of the ``.q``
   forms UPPAAL has no counterpart for (``Pr[<=T; N](..) >= θ``, learning over ``[]``) are refused
   by rac with E0802 on the query, and nothing is written; ``control: E<> p`` is written as UPPAAL
   5's ``control: A<> p``;
-* the whole model of each tiny scenario (``rac.scenarios.tiny``: narrow_road, avoidable_obstacle,
+* the whole model of each tiny scenario (``tiny_scenarios``: narrow_road, avoidable_obstacle,
   goal_behind_wall, goal_ahead) with stdlib/driving.ra's automaton, bound as in
   examples/left_turn/model.ra, once with queries of every form over the automaton's names and
   the model's functions ``collide()``, ``offroad()``, ``goal()``, ``dist_goal()``, and once with
@@ -46,13 +46,13 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from test_agreement import automata
+from tiny_scenarios import TINY_SCENARIOS
 from utap import Utap
 
 from rac import ir
-from rac.cli import main
+from rac.cli.main import main
 from rac.compiler import compile_file, compile_text
-from rac.scenarios.tiny import TINY_SCENARIOS
-from rac.targets.uppaal import UppaalError, generate_uppaal
+from rac.targets.uppaal.automaton import UppaalError, generate_uppaal
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).parent / "golden"

@@ -1,8 +1,8 @@
-"""``rac.verify``: the driver that answers a file's queries with the native engine.
+"""``rac.verify.runner``: the driver that answers a file's queries with the native engine.
 
-On the tiny scenarios of :mod:`rac.scenarios.tiny` (known answers by construction): Qb, Qc and the
+On the tiny scenarios of :mod:`tiny_scenarios` (known answers by construction): Qb, Qc and the
 safety shield (Qd) equal the known answers, witness traces start at the ego's start and advance
-one period per row, the saved shield reads back with :func:`rac.shield.load` and allows exactly
+one period per row, the saved shield reads back with :func:`rac.engine.shield.load` and allows exactly
 the known actions at the start, queries ``under`` it, product queries over the automaton's
 location and reward, the statistical queries (intervals, run counts, sequential tests, means,
 simulated CSV files), seeds, the state budget, query selection and the renderers.
@@ -21,14 +21,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from engine_files import QUERIES, engine_source, write_engine_file
+from tiny_scenarios import TINY_SCENARIOS, TinyScenario
 
-from rac import shield
 from rac.compiler import CompileResult, compile_file
-from rac.diagnostics import CheckError
+from rac.core.diagnostics import CheckError
+from rac.engine import shield
 from rac.engine.explore import action_pairs
 from rac.model import NativeModel
-from rac.scenarios.tiny import TINY_SCENARIOS, TinyScenario
-from rac.verify import (
+from rac.verify.runner import (
     QueryResult,
     UnknownQuery,
     VerifyOptions,
@@ -336,7 +336,7 @@ def test_only_names_that_exist(compiled: Callable[[str], Compiled]) -> None:
 def test_learning_strategies_are_learned(compiled: Callable[[str], Compiled]) -> None:
     learn = run(compiled("goal_ahead"), "Learn")
     assert list(learn) == ["safe", "Learn"]  # `under safe` pulls in the strategy
-    result = learn["Learn"]  # rac.engine.learn (tests/test_learn.py has the details)
+    result = learn["Learn"]  # rac.learning.qlearning (tests/test_learn.py has the details)
     assert result.kind == "learning" and result.status == "value" and result.runs is not None and result.runs > 0
     assert "learned in" in (result.message or "") and "collided: 0" in (result.message or "")
 

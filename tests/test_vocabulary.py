@@ -19,14 +19,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rac.check.queries import lower_expression
 from rac.compiler import compile_file
-from rac.engine.expr import Evaluator, Frame
+from rac.engine.evaluate import Evaluator, Frame
 from rac.ir import expr as ie
 from rac.ir.vocabulary import MODEL_NAMES, SETTINGS, Holding, ModelName
 from rac.model.data import ModelData
-from rac.query_check import lower_expression
-from rac.targets.uppaal_functions import declared_names
-from rac.targets.uppaal_model import generate_uppaal_model
+from rac.targets.uppaal.declarations import declared_names
+from rac.targets.uppaal.model import generate_uppaal_model
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "model.md"

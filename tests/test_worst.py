@@ -19,10 +19,9 @@ from hypothesis import strategies as st
 from reference import Valuation, reference_max, simulate
 
 from rac import ir
-from rac.analysis.affine import moves
-from rac.analysis.inputs import InputSpace
-from rac.analysis.priority import replay
-from rac.analysis.worst import (
+from rac.check.analysis.affine import moves
+from rac.check.analysis.priority import replay
+from rac.check.analysis.worst import (
     AFTER_EDGE,
     AFTER_END,
     BEFORE_EDGE,
@@ -34,6 +33,7 @@ from rac.analysis.worst import (
     maximise,
 )
 from rac.compiler import compile_text
+from rac.ir.inputs import InputSpace
 
 SETTINGS = settings(max_examples=int(os.environ.get("RAC_EXAMPLES", "100")), deadline=None,
                     derandomize=not os.environ.get("RAC_EXAMPLES"),
@@ -287,7 +287,7 @@ def test_generic_engine_agrees_with_translation_engine(case: Case) -> None:
 def test_reference_on_the_driving_automaton_by_hand() -> None:
     """The reference itself, on a case worked out by hand (see test_priority.py):
     Normal for 4 samples, Unsafe at the 5th, then the end bonus: 16*0.5 - 10*100 + 500."""
-    from rac.resources import stdlib_file
+    from rac.lang.resources import stdlib_file
 
     text = stdlib_file("driving.ra").read_text(encoding="utf-8").replace("horizon 30 ", "horizon 0.5 ")
     automaton = compile_ir(text)

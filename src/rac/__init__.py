@@ -15,10 +15,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rac.compiler import CompileResult, compile_file, compile_text
-from rac.diagnostics import CheckError, Diagnostic
+from rac.core.diagnostics import CheckError, Diagnostic
 
 if TYPE_CHECKING:
-    from rac.runtime import RewardAutomaton
+    from rac.runtime.interpreter import RewardAutomaton
 
 __version__ = "0.1.0"
 __all__ = ["CheckError", "CompileResult", "Diagnostic", "compile_file", "compile_text", "load", "loads"]
@@ -29,13 +29,13 @@ def load(path: str | Path) -> RewardAutomaton:
 
     Raises :class:`CheckError` (with every diagnostic) if the file has errors.
     """
-    from rac.runtime import RewardAutomaton
+    from rac.runtime.interpreter import RewardAutomaton
 
     return RewardAutomaton(compile_file(path).raise_for_errors())
 
 
 def loads(text: str, name: str = "<string>") -> RewardAutomaton:
     """Like :func:`load`, for source text."""
-    from rac.runtime import RewardAutomaton
+    from rac.runtime.interpreter import RewardAutomaton
 
     return RewardAutomaton(compile_text(text, name).raise_for_errors())

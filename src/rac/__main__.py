@@ -1,3 +1,3 @@
-from rac.cli import entry
+from rac.cli.main import entry
 
 entry()

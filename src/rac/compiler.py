@@ -6,15 +6,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rac import ast, ir
-from rac.diagnostics import CheckError, Diagnostic, error
-from rac.parser import ParseFailure, decode_source, parse_source, read_source
-from rac.resolve import Resolver
-from rac.source import SourceFile
+from rac import ir
+from rac.check.resolve import Resolver
+from rac.core.diagnostics import CheckError, Diagnostic, error
+from rac.core.source import SourceFile
+from rac.lang import ast
+from rac.lang.parser import ParseFailure, decode_source, parse_source, read_source
 
 if TYPE_CHECKING:
+    from rac.model.commonroad import Scenario
     from rac.model.data import ModelData
-    from rac.scenario import Scenario
 
 
 @dataclass(frozen=True)
@@ -28,7 +29,7 @@ class CompileResult:
     #: What the analyses proved, as sentences (printed by ``rac check``).
     facts: tuple[str, ...] = ()
     #: With a `model` block: the scenario it names, loaded once by the checks
-    #: (a :class:`rac.scenario.Scenario`), and the model's data built from it at the block's
+    #: (a :class:`rac.model.commonroad.Scenario`), and the model's data built from it at the block's
     #: base and exponent (a :class:`rac.model.data.ModelData`); None when not loaded.
     scenario: Scenario | None = None
     model_data: ModelData | None = None
@@ -62,12 +63,12 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
     scenario: Scenario | None = None
     model_data: ModelData | None = None
     if automaton is not None and analyse and not any(d.is_error for d in diagnostics):
-        from rac.analysis import analyse_automaton
+        from rac.check.analysis import analyse_automaton
 
         diagnostics.extend(analyse_automaton(automaton, facts))
         if automaton.model is not None and not any(d.is_error for d in diagnostics):
             # The scenario comes last: it checks the model's numbers, once the automaton is sound.
-            from rac.analysis.scenario import check_scenario
+            from rac.model.checks import check_scenario
 
             checked = check_scenario(automaton)
             diagnostics.extend(checked.diagnostics)

@@ -38,7 +38,7 @@ DOC = ROOT / "docs" / "checks.md"
 if importlib.util.find_spec("rac") is None:  # run as a script from a checkout
     sys.path.insert(0, str(ROOT / "src"))
 
-from rac.cli import main as rac_main  # noqa: E402
+from rac.cli.main import main as rac_main  # noqa: E402
 
 #: A small valid automaton that the generated inputs start from.
 SMALL = """\

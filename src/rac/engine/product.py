@@ -2,7 +2,7 @@
 
 :func:`explore_product` explores, breadth-first and vectorised like :func:`rac.engine.explore.explore`,
 the discrete states of the whole UPPAAL model that ``rac compile --target uppaal`` emits for a file
-with a ``model`` block (:mod:`rac.targets.uppaal_model`): the ego, the automaton's location, its
+with a ``model`` block (:mod:`rac.targets.uppaal.model`): the ego, the automaton's location, its
 inputs and the integer *mirrors* of its rewards, in exactly the emitted integer arithmetic.
 :func:`decide_in_model` then decides a path query (``A[] isClose imply Unsafe``) on that graph with
 Storm, so the query is answered on runs the scenario can produce, not on every input sequence
@@ -68,15 +68,16 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
-from rac.engine.explore import EGO_COLUMNS, action_pairs
-from rac.engine.expr import EvaluationError, Evaluator, Frame, int_sum
+from rac.engine.evaluate import EvaluationError, Evaluator, Frame, int_sum
+from rac.engine.explore import action_pairs
 from rac.engine.graph import ExploredGraph
 from rac.engine.storm import Verdict, decide
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.ir.vocabulary import EGO_STATE
+from rac.model.commonroad import load_scenario
 from rac.model.data import INT32_LOW, INT32_MAX, ModelData, ModelRangeError, build_model_data
-from rac.scenario import load_scenario
-from rac.targets.uppaal import first_sample_reads, mirror_accrual, mirror_update
+from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
 
 __all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
            "explore_product"]
@@ -334,7 +335,7 @@ class ProductGraph(ExploredGraph):
     @staticmethod
     def columns_of(automaton: ir.Automaton) -> tuple[str, ...]:
         """``k, phase, x..turn, location``, the inputs, then ``mirror:REWARD`` per reward."""
-        return ("k", "phase", *EGO_COLUMNS, "location", *(i.name for i in automaton.inputs),
+        return ("k", "phase", *EGO_STATE, "location", *(i.name for i in automaton.inputs),
                 *(f"mirror:{r}" for r in automaton.rewards))
 
     # ------------------------------------------------------------ columns
@@ -396,7 +397,7 @@ class ProductGraph(ExploredGraph):
     def evaluate(self, expr: ie.Expr, indices: np.ndarray | None = None) -> np.ndarray:
         """A state formula per state, as the emitted symbolic query computes it: comparisons of linear
         forms over rewards, numeric inputs, the ego and ``time`` exactly on the integers (mirrors,
-        significands, ``k``); anything else in doubles (:class:`rac.engine.expr.Evaluator`)."""
+        significands, ``k``); anything else in doubles (:class:`rac.engine.evaluate.Evaluator`)."""
         if ie.uses_prev(expr):
             raise EvaluationError("`prev()` cannot be read by a query on the product: a state keeps no "
                                   "previous sample", expr.span)

@@ -12,7 +12,7 @@ loop iteration:
   UPPAAL resolves non-determinism uniformly in its SMC queries. Between decisions jerk and turn
   are kept. A ``policy`` (a shield or a strategy) restricts the allowed pairs.
 - **Ground truth (Dynamics).** The emitted UPPAAL model's ``Dynamics`` process (see
-  :mod:`rac.targets.uppaal_model`) integrates, from the ego's start ``i2d(EGO_X0) ...``::
+  :mod:`rac.targets.uppaal.model`) integrates, from the ego's start ``i2d(EGO_X0) ...``::
 
       true_x' = true_v * cos(true_head)    true_y' = true_v * sin(true_head)
       true_v' = true_acc                   true_acc' = jerk     true_head' = turn
@@ -39,7 +39,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rac.engine.explore import EGO_COLUMNS, BatchModel, action_pairs
+from rac.engine.explore import action_pairs
+from rac.ir.vocabulary import EGO_STATE
+from rac.model.batch import BatchModel
 from rac.model.data import INT32_MAX, ModelData
 
 __all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "event_sampler", "label_runs", "simulate"]
@@ -203,7 +205,7 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     scale = float(data.scale)
     period = data.period
 
-    states = np.empty((runs, horizon + 1, len(EGO_COLUMNS)), dtype=np.int32)
+    states = np.empty((runs, horizon + 1, len(EGO_STATE)), dtype=np.int32)
     truth = np.empty((runs, horizon + 1, len(TRUTH_COLUMNS)), dtype=np.float64)
     actions = np.full((runs, horizon), -1, dtype=np.int64)
     left_policy = np.zeros(runs, dtype=bool)

@@ -11,10 +11,10 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Union
 
-from rac import ast
+from rac.core.source import Span
 from rac.ir.expr import Expr
 from rac.ir.query import QueryDecl
-from rac.source import Span
+from rac.lang import ast
 
 
 @dataclass(frozen=True)
@@ -252,7 +252,7 @@ class Automaton:
     #: The file's queries, checked (:mod:`rac.ir.query`).
     queries: tuple[QueryDecl, ...] = field(default=(), compare=False)
     #: With a `model` block: the paper's standard queries over it (Qa-Qd, Fig. 7's simulations,
-    #: the learning queries), checked like the file's (:mod:`rac.standard_queries`).
+    #: the learning queries), checked like the file's (:mod:`rac.check.standard`).
     standard_queries: tuple[QueryDecl, ...] = field(default=(), compare=False)
     source: ast.Automaton | None = field(default=None, compare=False, repr=False)
     spans: dict[str, Span] = field(default_factory=dict, compare=False, repr=False)

@@ -1,10 +1,10 @@
 """Typed, resolved expressions: what bindings and queries read, decided once by the checker.
 
-The checker (:mod:`rac.query_check`) lowers every binding and query expression of a file into
+The checker (:mod:`rac.check.queries`) lowers every binding and query expression of a file into
 these nodes. Each name is resolved there — to an input, a reward, a location, a name of the
 scenario model (:data:`rac.ir.vocabulary.MODEL_NAMES`) or a constant, whose value is inlined — and
 each node carries its type (``"bool"`` or ``"num"``). The engine's evaluator
-(:mod:`rac.engine.expr`), the product with the automaton and the UPPAAL printers read these nodes
+(:mod:`rac.engine.evaluate`), the product with the automaton and the UPPAAL printers read these nodes
 only; none of them looks a name up again.
 
 A comparison carries, besides its two sides, the linear form of ``left - right`` when both sides
@@ -29,8 +29,8 @@ from enum import Enum
 from fractions import Fraction
 from typing import Union
 
+from rac.core.source import Span
 from rac.ir.vocabulary import EGO_STATE, FUNCTIONS, MODEL_NAMES, TRUE_STATE, Function, Holding, ModelName
-from rac.source import Span
 
 __all__ = [
     "BOOL",

@@ -3,7 +3,7 @@
 The checker lowers every ``query NAME: ...`` of a file (and the paper's standard queries) into
 these nodes: expressions resolved and typed, time bounds and run counts evaluated to numbers,
 ``under S`` checked to name a strategy defined by an earlier query. The engine
-(:mod:`rac.verify`) and the UPPAAL targets answer and print them; :attr:`QueryDecl.text` is the
+(:mod:`rac.verify.runner`) and the UPPAAL targets answer and print them; :attr:`QueryDecl.text` is the
 query as the user wrote it (canonical ``.ra`` syntax), for reports.
 """
 
@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Union
 
+from rac.core.source import Span
 from rac.ir.expr import Expr
-from rac.source import Span
 
 __all__ = ["Bound", "ControlStrategy", "ExpectationQuery", "LeadsToQuery", "LearnStrategy", "PathQuery",
            "ProbabilityQuery", "Query", "QueryDecl", "SimulateQuery", "STRATEGY_QUERIES"]

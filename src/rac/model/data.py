@@ -7,7 +7,7 @@ XML) as the shortest decimal that reads back as it (``repr``), so ``0.57`` at sc
 not the ``56`` that ``0.57 * 100 == 56.99999999999999`` would give.
 
 Times are counted in sense periods ``C1`` from the ego's start ``t0`` (the planning problem's
-initial time, :attr:`rac.scenario.EgoStart.time`): sample ``k`` is the time ``t0 + k * C1``. A dynamic
+initial time, :attr:`rac.model.commonroad.EgoStart.time`): sample ``k`` is the time ``t0 + k * C1``. A dynamic
 obstacle is resampled at these times (:func:`_resample`): its waypoints lie on whole samples and
 each is the obstacle's state at that sample's time, so the model's projection from a waypoint is
 exact however the CommonRoad time step relates to ``C1``. The goal interval is
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from rac.ir import ModelSpec
-from rac.scenario import Scenario
+from rac.model.commonroad import Scenario
 
 __all__ = [
     "INT32_MAX",
@@ -277,7 +277,7 @@ def _resample(conv: _Converter, times: list[Fraction]) -> _Resampled:
     with ``times[0] <= t0 + k*C1 <= times[-1]``. A waypoint is emitted at the first of them and at
     every later one at which a new CommonRoad waypoint has come into force since the sample before.
     Between those samples the waypoint in force does not change, and it moves in a straight line
-    (:class:`rac.scenario.Waypoint`), so the model's projection from the sample's waypoint is the
+    (:class:`rac.model.commonroad.Waypoint`), so the model's projection from the sample's waypoint is the
     obstacle's own motion and another waypoint would add nothing. So a trajectory with a state
     every ``dt`` gets a waypoint at every sample of its lifetime when ``C1 >= dt``, at most one per
     state when ``C1 <= dt`` (the scenario's own waypoints, unchanged, when each lies on a sample),

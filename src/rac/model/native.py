@@ -6,7 +6,7 @@ is time ``k * C1``). Every function converts significands to doubles, computes o
 :meth:`NativeModel.sense`) converts back with truncation toward zero — the paper's Eq. (1).
 
 Exactness rules (docs/model.md, "Agreement with C"): the functions below are written in the
-operation order of :mod:`rac.targets.uppaal_functions`, so Python and C round identically:
+operation order of :mod:`rac.targets.uppaal.declarations`, so Python and C round identically:
 
 - ``s / SCALE_D``: a significand to a double (``SCALE_D`` is ``float(scale)``; one IEEE division);
 - ``int(d * SCALE_D)``: a double to a significand (the C cast / UPPAAL ``fint`` truncate too);

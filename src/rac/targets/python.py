@@ -1,6 +1,6 @@
 """The Python target: a standalone module (standard library only) that runs one automaton.
 
-The generated class has the API of :class:`rac.runtime.RewardAutomaton` (``reset``, ``step``,
+The generated class has the API of :class:`rac.runtime.interpreter.RewardAutomaton` (``reset``, ``step``,
 ``end``, ``location``, ``rewards``, ``objective``, ``samples``, ``time``, ``ended``) and its exact
 float semantics; it is straight-line code: one branch per location, guards inlined, rewards in
 locals while a sample is processed.
@@ -17,7 +17,7 @@ Example::
 Exactness of the printed arithmetic (every rewrite below is bit-for-bit the runtime's
 ``((c0 + c1*v1) + c2*v2) + ...``): ``1.0 * v`` is ``v``; ``a + (-c) * v`` is ``a - c * v``; the
 first addition is commutative, so ``c0 + t1`` may print as ``t1 + c0``. No constant is ``-0.0``
-(:func:`rac.execution.to_float` refuses underflow), so no reward is ever ``-0.0``; hence adding a
+(:func:`rac.runtime.semantics.to_float` refuses underflow), so no reward is ever ``-0.0``; hence adding a
 zero rate is skipped, and ``0.0 + c * r`` prints as ``c * r`` for a reward ``r`` when ``c >= 1``
 (the product cannot be ``-0.0``). Inputs may be ``-0.0``, so that shortcut never applies to them.
 """
@@ -35,7 +35,7 @@ from importlib import resources
 import jinja2
 
 from rac import ir
-from rac.execution import FloatLinear, check_automaton, float_linear, input_specs, to_float
+from rac.runtime.semantics import FloatLinear, check_automaton, float_linear, input_specs, to_float
 
 __all__ = ["generate_python", "print_expr"]
 
@@ -54,7 +54,7 @@ def _num(value: float) -> str:
 
 def print_expr(node: FloatLinear | ir.Guard, names: Mapping[str, str],
                never_negative_zero: Iterable[str] = (), *, precedence: int = 0) -> str:
-    """Print a linear form (in float form, see :func:`rac.execution.float_linear`) or a guard as Python.
+    """Print a linear form (in float form, see :func:`rac.runtime.semantics.float_linear`) or a guard as Python.
 
     ``names`` maps each variable to the Python expression that holds it; ``never_negative_zero``
     lists the variables that can never hold ``-0.0`` (rewards). Guards print with ``not``/``and``/
@@ -407,7 +407,7 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
     """The source of a standalone Python module running ``automaton`` (deterministic text).
 
     The module defines one class named after the automaton, with the API and the exact float
-    semantics of :class:`rac.runtime.RewardAutomaton`; it imports only the standard library.
+    semantics of :class:`rac.runtime.interpreter.RewardAutomaton`; it imports only the standard library.
     """
     check_automaton(automaton)
     gen = _Generator(automaton)

@@ -1,0 +1,113 @@
+"""Determinism (with a witness valuation), dead edges and unreachable locations."""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from rac import ir
+from rac.core.diagnostics import Diagnostic, Note, error, warning
+from rac.core.source import Span
+from rac.ir.inputs import InputSpace, TooManyClasses, guard_inputs
+from rac.lang import ast
+
+
+def input_space(automaton: ir.Automaton) -> tuple[InputSpace | None, list[Diagnostic]]:
+    """The input classes, or a diagnostic explaining why the exact checks cannot run."""
+    try:
+        return InputSpace(automaton), []
+    except TooManyClasses as exc:
+        return None, [error(
+            "E0306", f"too many input combinations for the exact checks ({exc.count:,} classes)",
+            automaton.source.name.span if automaton.source else None,
+            hints=["use fewer inputs, or fewer distinct thresholds on numeric inputs"])]
+
+
+def check_behaviour(automaton: ir.Automaton) -> list[Diagnostic]:
+    """Assume satisfiable, determinism, edges that never fire, reachability within the horizon."""
+    space, diagnostics = input_space(automaton)
+    if space is None:
+        return diagnostics
+    valid = space.valid
+    if not valid.any():
+        span, notes = _unsatisfiable_assume(automaton, space)
+        return [error("E0305", "`assume` excludes every input valuation", span, notes=notes,
+                      hints=["no run is possible; weaken the assumptions"])]
+    reported_dead: set[object] = set()
+    reported_pairs: set[tuple[object, object]] = set()
+    for location, edges in zip(automaton.locations, automaton.edges):
+        enabled = [space.evaluate(e.guard) & valid for e in edges]
+        for edge, mask in zip(edges, enabled):
+            if not mask.any() and edge.span not in reported_dead:
+                reported_dead.add(edge.span)
+                diagnostics.append(warning(
+                    "W0304", "this edge can never fire: its guard is false for every input allowed by "
+                    "`assume`", edge.span, hints=["remove the edge or correct its guard"]))
+        for i in range(len(edges)):
+            for j in range(i + 1, len(edges)):
+                both = enabled[i] & enabled[j]
+                key = (edges[i].span, edges[j].span)
+                if not both.any() or key in reported_pairs:
+                    continue
+                reported_pairs.add(key)
+                cls = int(np.argmax(both))
+                names = automaton.location_names
+                diagnostics.append(error(
+                    "E0301",
+                    f"nondeterminism: two edges leave `{location.name}` on the same inputs",
+                    edges[j].span,
+                    notes=[Note(f"the other edge (to `{names[edges[i].target]}`)", edges[i].span),
+                           "witness: " + space.describe(
+                               cls, guard_inputs(edges[i].guard) | guard_inputs(edges[j].guard))],
+                    hints=["make the guards exclusive, e.g. add `&& !(...)` of the other guard"],
+                    data={"location": location.name, "witness": _json_valuation(space, cls)}))
+    diagnostics += _reachability(automaton, space)
+    return diagnostics
+
+
+def _reachability(automaton: ir.Automaton, space: InputSpace) -> list[Diagnostic]:
+    distance = {automaton.initial: 0}
+    queue = deque([automaton.initial])
+    while queue:
+        here = queue.popleft()
+        for edge in automaton.edges[here]:
+            if edge.target not in distance and (space.evaluate(edge.guard) & space.valid).any():
+                distance[edge.target] = distance[here] + 1
+                queue.append(edge.target)
+    result = []
+    for index, location in enumerate(automaton.locations):
+        if index not in distance:
+            result.append(warning("W0302", f"location `{location.name}` is unreachable", location.span,
+                                  hints=["no sequence of edges from the initial location leads here"]))
+        elif distance[index] > automaton.steps:
+            result.append(warning(
+                "W0302", f"location `{location.name}` cannot be reached within the horizon",
+                location.span, notes=[f"it needs {distance[index]} samples; the horizon has {automaton.steps}"]))
+    return result
+
+
+def _unsatisfiable_assume(automaton: ir.Automaton, space: InputSpace) -> tuple[Span | None, list[Note]]:
+    """The first `assume` that, with the ones before it, excludes every valuation (and those)."""
+    if automaton.source is None:
+        return None, []
+    assumes = automaton.source.of(ast.AssumeDecl)
+    if not assumes:
+        return automaton.source.name.span, []
+    parts = automaton.assume.operands if isinstance(automaton.assume, ir.BAnd) else ()
+    if len(assumes) == 1 or len(parts) != len(assumes):
+        return assumes[0].span, []
+    allowed = np.ones(space.count, dtype=bool)
+    for k, part in enumerate(parts):
+        allowed = allowed & space.evaluate(part)
+        if not allowed.any():
+            earlier = [Note("together with this assumption", a.span) for a in assumes[:k]]
+            return assumes[k].span, earlier
+    return assumes[0].span, []
+
+
+def _json_valuation(space: InputSpace, cls: int) -> dict[str, object]:
+    values: dict[str, object] = {}
+    for name, value in space.valuation(cls).items():
+        values[name] = value if isinstance(value, bool) else float(value)
+    return values

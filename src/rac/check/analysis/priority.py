@@ -1,0 +1,428 @@
+"""Priority soundness (P1 rate dominance, P2 no compensation) and the int32 range check."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from fractions import Fraction
+
+from rac import ir
+from rac.check.analysis.affine import Affine, Outcome, accrual, moves
+from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.worst import AFTER_END, BEFORE_EDGE, BEFORE_NEXT, CONTINUE, START, Target, Worst, maximise
+from rac.core.diagnostics import Diagnostic, Note, error
+from rac.ir.inputs import InputSpace, guard_inputs
+
+ZERO = Fraction(0)
+#: Default number representation (model.md): significand = trunc(v · base^exponent).
+DEFAULT_BASE = 10
+DEFAULT_EXPONENT = 4
+INT32_MAX = 2**31 - 1
+INT32_MIN = -(2**31)
+
+
+def _range_of(linear: ir.Linear, automaton: ir.Automaton, sign: int = 1) -> tuple[Fraction, Fraction]:
+    """[min, max] of a linear form over the declared input bounds."""
+    low = high = linear.const
+    for name, coefficient in linear.terms:
+        item = automaton.input(name)
+        a, b = coefficient * item.low, coefficient * item.high  # type: ignore[operator]
+        low += min(a, b)
+        high += max(a, b)
+    return low, high
+
+
+#: Integer inputs in a rate pair are enumerated up to this many joint values (else relaxed to reals).
+MAX_INT_POINTS = 4096
+
+
+def _fix(linear: ir.Linear, values: dict[str, Fraction]) -> ir.Linear:
+    """Substitute the given inputs' values into a linear form."""
+    const = linear.const + sum((c * values[n] for n, c in linear.terms if n in values), ZERO)
+    return ir.Linear(const, tuple((n, c) for n, c in linear.terms if n not in values))
+
+
+def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool:
+    """Is there an input point with f < 0 and g > 0 (inputs within their bounds)?
+
+    ``min_x max(f, -g) < 0``; by the minimax theorem this is the max over λ ∈ [0, 1]
+    of a separable minimum, which is piecewise linear in λ: check its breakpoints.
+    The theorem needs convex ranges: ``int`` inputs are enumerated first (when few).
+    """
+    names = sorted(set(f.variables()) | set(g.variables()))
+    ints = [n for n in names if automaton.input(n).kind == "int"]
+    if ints:
+        ranges = [range(int(automaton.input(n).low), int(automaton.input(n).high) + 1)  # type: ignore[arg-type]
+                  for n in ints]
+        if math.prod(len(r) for r in ranges) <= MAX_INT_POINTS:
+            for combo in itertools.product(*ranges):
+                values = {n: Fraction(v) for n, v in zip(ints, combo)}
+                if _exists_neg_pos(_fix(f, values), _fix(g, values), automaton):
+                    return True
+            return False
+    lambdas = {Fraction(0), Fraction(1)}
+    for name in names:
+        a, b = f.coefficient(name), -g.coefficient(name)
+        if a != b and 0 <= -b / (a - b) <= 1:
+            lambdas.add(-b / (a - b))
+    best = None
+    for lam in lambdas:
+        mix = f.scaled(lam) + g.scaled(-(1 - lam))
+        low, _ = _range_of(mix, automaton)
+        best = low if best is None else max(best, low)
+    return best is not None and best < 0
+
+
+def check_rate_dominance(automaton: ir.Automaton) -> list[Diagnostic]:
+    """P1: wherever a reward decreases, no lower-priority reward has a positive weighted rate."""
+    result = []
+    index = {r: i for i, r in enumerate(automaton.rewards)}
+    order = automaton.priority
+    for location in automaton.locations:
+        for a, high in enumerate(order):
+            rate_high = location.rates[index[high]]
+            for low in order[a + 1:]:
+                weight = automaton.objective.coefficient(low)
+                rate_low = location.rates[index[low]].scaled(weight)
+                if _exists_neg_pos(rate_high, rate_low, automaton):
+                    result.append(error(
+                        "E0401",
+                        f"P1 rate dominance fails in `{location.name}`: `{high}` decreases while "
+                        f"lower-priority `{low}` increases",
+                        location.span,
+                        notes=[f"priority {' > '.join(order)}; in `{location.name}` `{high}'` = "
+                               f"{_linear_text(rate_high)} and the weighted rate of `{low}` is "
+                               f"{_linear_text(rate_low)}"],
+                        hints=[f"give `{low}` a rate <= 0 in `{location.name}`, or reorder the priorities"],
+                        data={"location": location.name, "decreasing": high, "increasing": low}))
+    return result
+
+
+def _penalised(automaton: ir.Automaton, reward: str) -> tuple[bool, ...]:
+    """Locations that penalise a reward: a negative rate there, or an edge into it that lowers it."""
+    k = automaton.rewards.index(reward)
+    marks = [(_range_of(loc.rates[k], automaton)[0] < 0) for loc in automaton.locations]
+    for edge in automaton.all_edges():
+        for update in edge.updates:
+            if update.reward != reward:
+                continue
+            delta = update.value - ir.Linear.variable(reward)
+            if any(n in automaton.rewards for n in delta.variables()) or _range_of(delta, automaton)[0] < 0:
+                marks[edge.target] = True
+    return tuple(marks)
+
+
+def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None) -> list[Diagnostic]:
+    """P1 and P2 (every level when ``priority strict``); proofs are appended to ``facts``."""
+    facts = facts if facts is not None else []
+    if not automaton.priority:
+        facts.append("no `priority` declared: P1 and P2 not checked")
+        return []
+    diagnostics = check_rate_dominance(automaton)
+    if not diagnostics:
+        facts.append("P1 holds: wherever a reward decreases, no lower-priority reward grows")
+    space, problems = input_space(automaton)
+    if space is None:
+        return diagnostics + problems
+    outs = moves(automaton, space)
+    levels = range(len(automaton.priority)) if automaton.strict else range(1)
+    for level in levels:
+        reward = automaton.priority[level]
+        ranked = set(automaton.priority[level:])
+        weights = tuple(automaton.objective.coefficient(r) if r in ranked else ZERO for r in automaton.rewards)
+        constant = automaton.objective.const if level == 0 else ZERO
+        watched = _penalised(automaton, reward)
+        if not any(watched):
+            facts.append(f"P2 holds trivially for `{reward}`: no location penalises it")
+            continue
+        worst = maximise(automaton, outs, Target(weights, constant, watched))
+        if worst is None or worst.value <= 0:
+            places = ", ".join(f"`{n}`" for n, w in zip(automaton.location_names, watched) if w)
+            what = "the objective" if level == 0 else f"the weighted sum from `{reward}` down"
+            if worst is None:
+                facts.append(f"P2 holds for `{reward}`: no run of {_num(automaton.horizon)} s reaches a "
+                             f"location that penalises it ({places})")
+            else:
+                facts.append(f"P2 holds for `{reward}` (penalised in {places}): {what} stays "
+                             f"<= {_num(worst.value)} over every run of {_num(automaton.horizon)} s")
+            continue
+        diagnostics.append(_p2_error(automaton, space, outs, worst, level, weights, constant))
+    return diagnostics
+
+
+def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, level: int,
+              weights: tuple[Fraction, ...], constant: Fraction) -> Diagnostic:
+    reward = automaton.priority[level]
+    values, where = replay(automaton, space, worst)
+    ranked = automaton.priority[level:]
+    scope = "the objective" if level == 0 else "the weighted sum of " + ", ".join(f"`{r}`" for r in ranked)
+    weight = automaton.objective.coefficient(reward)
+    span = automaton.spans.get("decl:priority")
+    run = describe_run(automaton, space, worst)
+    listing = ", ".join(f"{r} = {_num(v)}" for r, v in zip(automaton.rewards, values))
+    total = sum((w * v for w, v in zip(weights, values)), constant)
+    notes = [Note("counterexample (" + f"sample every {_num(automaton.period)} s, horizon "
+                  f"{_num(automaton.horizon)} s):\n" + "\n".join(run)),
+             Note(f"at the violating instant ({where}): {listing}; {scope} = {_num(total)} > 0")]
+    hints = []
+    if weight > 0:
+        hints.append(f"penalise `{reward}` by at least {_num(worst.value / weight)} more "
+                     f"({_num(worst.value)} / weight {_num(weight)}), or shrink what lower objectives can gain")
+    strict = "strict " if automaton.strict else ""
+    return error(
+        "E0402",
+        f"P2 no compensation fails: while `{reward}` is penalised, {scope} can reach {_num(worst.value)}",
+        span,
+        notes=notes,
+        hints=hints,
+        data={"property": "P2", "level": level, "reward": reward, "value": str(worst.value),
+              "priority": f"{strict}{' > '.join(automaton.priority)}",
+              "run": run_json(automaton, space, worst),
+              "end": end_json(automaton, space, worst),
+              "values": {r: str(v) for r, v in zip(automaton.rewards, values)}})
+
+
+def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
+    """Exact reward values along the worst run: yields (phrase naming the instant, values)."""
+    r = [ZERO] * len(automaton.rewards)
+    yield "t = 0 s, before any sample", r
+    l0 = automaton.initial
+    name = automaton.location_names[l0]
+    time = "0"
+    accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
+    for step in worst.steps:
+        o = step.outcome
+        x = _inputs(space, step)
+        time = _num(step.sample * automaton.period)
+        if step.sample == 1:
+            r = apply(accruals[l0], r, x)
+            yield f"t = {time} s, in `{name}` before the sample's edge", r
+            if step.instant == BEFORE_EDGE:
+                return
+        r = apply(o.edge_map, r, x)
+        name = automaton.location_names[o.target]
+        yield f"t = {time} s, in `{name}` right after the sample", r
+        if step.instant not in (CONTINUE, BEFORE_NEXT):
+            break
+        r = apply(accruals[o.target], r, x)
+        yield f"t = {_num((step.sample + 1) * automaton.period)} s, in `{name}` just before the next sample", r
+        if step.instant != CONTINUE:
+            return
+    if worst.instant == AFTER_END and worst.end is not None:
+        x = {n: v for n, v in space.valuation(worst.end.cls).items() if not isinstance(v, bool)}
+        x.update(worst.end_inputs)
+        yield f"t = {time} s, in `{name}` after the `at end` updates", apply(worst.end.end_map, r, x)
+
+
+def replay(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> tuple[list[Fraction], str]:
+    """Exact reward values at the instant the worst run ends, and a phrase naming that instant."""
+    where, values = START, [ZERO] * len(automaton.rewards)
+    for instant in trace(automaton, space, worst):
+        where, values = instant
+    return values, where
+
+
+def apply(affine: Affine, r: list[Fraction], x: dict[str, Fraction]) -> list[Fraction]:
+    size = len(r)
+    if affine.matrix is None:
+        base = list(r)
+    else:
+        base = [sum((affine.matrix[k][j] * r[j] for j in range(size)), ZERO) for k in range(size)]
+    return [base[k] + affine.offset[k].evaluate(x) for k in range(size)]
+
+
+def _inputs(space: InputSpace, step) -> dict[str, Fraction]:
+    values = {n: v for n, v in space.valuation(step.outcome.cls).items() if not isinstance(v, bool)}
+    values.update(step.inputs)
+    return values  # type: ignore[return-value]
+
+
+def _outcome_inputs(automaton: ir.Automaton, o: Outcome) -> set[str]:
+    """The inputs worth showing for a sample: those the location's guards read."""
+    names: set[str] = set()
+    for edge in automaton.edges[o.source]:
+        names |= guard_inputs(edge.guard)
+    return names
+
+
+def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> list[str]:
+    """The worst run as readable lines: (location, samples spent), inputs, edges, end."""
+    names = automaton.location_names
+    period = automaton.period
+    lines: list[str] = []
+    if not worst.steps and worst.instant != AFTER_END:
+        return [f"  t = 0 s: in `{names[automaton.initial]}` before any sample"]
+    groups: list[list] = []
+    for step in worst.steps:
+        o = step.outcome
+        label = space.describe(o.cls, _outcome_inputs(automaton, o))
+        key = (o.source, id(o.edge), label)
+        if groups and groups[-1][0] == key and groups[-1][1][-1].instant == CONTINUE:
+            groups[-1][1].append(step)
+        else:
+            groups.append([key, [step]])
+    if len(groups) > 12:
+        # Long alternating runs: the beginning and the end tell the story.
+        hidden = len(groups) - 10
+        groups = groups[:5] + [[None, hidden]] + groups[-5:]
+    for key, steps in groups:
+        if key is None:
+            lines.append(f"  ... {steps} more segments ...")
+            continue
+        source, _, label = key
+        no_edge = steps[-1].outcome.edge is None
+        first, last = steps[0].sample, steps[-1].sample
+        when = (f"samples {first}-{last} (t = {_num(first * period)}..{_num(last * period)} s)"
+                if first != last else f"sample {first} (t = {_num(first * period)} s)")
+        o = steps[-1].outcome
+        if no_edge:
+            what = f"stays in `{names[source]}`"
+        else:
+            line = o.edge.span.line if o.edge and o.edge.span else "?"
+            what = f"`{names[source]}` -> `{names[o.target]}` (edge at line {line})"
+        count = f", {len(steps)} samples" if len(steps) > 1 else ""
+        lines.append(f"  {when}: {what}{count}; inputs {label}")
+    if worst.instant == AFTER_END and worst.end is not None:
+        end = worst.end
+        clauses = ", ".join(f"line {automaton.end_clauses[i].span.line}" if automaton.end_clauses[i].span
+                            else str(i) for i in end.ends)
+        shown: set[str] = set()
+        for clause in automaton.end_clauses:
+            shown |= guard_inputs(clause.guard)
+        when = _num(worst.steps[-1].sample * period) if worst.steps else "0"
+        lines.append(f"  run ends at t = {when} s: `at end` ({clauses or 'no clause enabled'}); "
+                     f"inputs {space.describe(end.cls, shown)}")
+    return lines
+
+
+def run_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> list[dict[str, object]]:
+    result = []
+    for step in worst.steps:
+        o = step.outcome
+        values = space.valuation(o.cls)
+        values.update(step.inputs)
+        result.append({
+            "sample": step.sample,
+            "time": str(step.sample * automaton.period),
+            "from": automaton.location_names[o.source],
+            "to": automaton.location_names[o.target],
+            "edge_line": o.edge.span.line if o.edge and o.edge.span else None,
+            "inputs": {k: (v if isinstance(v, bool) else str(v)) for k, v in values.items()},
+            "instant": step.instant,
+        })
+    return result
+
+
+def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[str, object] | None:
+    """How the worst run ends (``at end`` clauses and the end's inputs), or None."""
+    if worst.instant != AFTER_END or worst.end is None:
+        return None
+    values = space.valuation(worst.end.cls)
+    values.update(worst.end_inputs)
+    return {
+        "time": str(worst.steps[-1].sample * automaton.period if worst.steps else 0),
+        "clause_lines": [automaton.end_clauses[i].span.line if automaton.end_clauses[i].span else None
+                         for i in worst.end.ends],
+        "inputs": {k: (v if isinstance(v, bool) else str(v)) for k, v in values.items()},
+    }
+
+
+def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: int = DEFAULT_EXPONENT,
+                 facts: list[str] | None = None) -> list[Diagnostic]:
+    """Every reward's significand trunc(v·base^exponent) stays within int32 over the horizon."""
+    facts = facts if facts is not None else []
+    extremes = []
+    space, problems = input_space(automaton)
+    if space is None:
+        return problems
+    outs = moves(automaton, space)
+    everywhere = tuple(True for _ in automaton.locations)
+    factor = Fraction(base) ** exponent
+    size = len(automaton.rewards)
+    for k, reward in enumerate(automaton.rewards):
+        for sign, limit in ((1, INT32_MAX + 1), (-1, -INT32_MIN + 1)):
+            weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
+            worst = maximise(automaton, outs, Target(weights, ZERO, everywhere))
+            if worst is None or worst.value * factor < limit:
+                if worst is not None:
+                    extremes.append(sign * worst.value)
+                continue
+            bound = Fraction(limit - 1) / factor
+            first = _first_overflow(automaton, space, worst, k, sign, bound)
+            word = "at most" if sign > 0 else "at least"
+            declared = automaton.spans.get(reward) or (automaton.source.name.span if automaton.source else None)
+            notes: list[Note | str] = [
+                f"its significand trunc({reward}·{base}^{exponent}) must stay {word} "
+                f"{sign * (limit - 1)}, i.e. {reward} within ±{_num(bound)}",
+                f"first overflow on the worst run: {first}",
+                "run:\n" + "\n".join(describe_run(automaton, space, worst))]
+            hints = ["lower the exponent of the number representation, shorten the horizon, "
+                     "or bound the reward's growth"]
+            span = declared
+            model = automaton.model
+            if model is not None and (model.base, model.exponent) == (base, exponent):
+                # The model block chose the representation: point at the setting to change.
+                setting = automaton.spans.get("model:exponent") or automaton.spans.get("model:base")
+                if setting is not None:
+                    span = setting
+                    notes.insert(0, Note(f"`{reward}` is declared here", declared))
+                hints = [_exponent_hint(_largest_magnitude(automaton, outs), base, exponent)]
+            return [error(
+                "E0501",
+                f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}: "
+                f"it can reach {_num(sign * worst.value)}",
+                span,
+                notes=notes,
+                hints=hints,
+                data={"reward": reward, "value": str(sign * worst.value), "base": base, "exponent": exponent})]
+    if extremes:
+        facts.append(f"int32 range holds at base {base}, exponent {exponent}: rewards stay within "
+                     f"[{_num(min(extremes))}, {_num(max(extremes))}]")
+    return []
+
+
+def _largest_magnitude(automaton: ir.Automaton, outs) -> Fraction:
+    """The largest |value| any reward reaches over every run (both directions of every reward)."""
+    everywhere = tuple(True for _ in automaton.locations)
+    size = len(automaton.rewards)
+    largest = ZERO
+    for k in range(size):
+        for sign in (1, -1):
+            weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
+            worst = maximise(automaton, outs, Target(weights, ZERO, everywhere))
+            if worst is not None:
+                largest = max(largest, worst.value)
+    return largest
+
+
+def _exponent_hint(magnitude: Fraction, base: int, exponent: int) -> str:
+    """Which exponent of the model block keeps every reward (at most ``magnitude`` away from 0) within int32."""
+    # The positive side is the tighter one: trunc(v · scale) <= INT32_MAX.
+    fits = [e for e in range(exponent - 1, 0, -1) if magnitude * Fraction(base) ** e < INT32_MAX + 1]
+    if fits:
+        return (f"set `exponent {fits[0]}` in the `model` block (the largest that fits), shorten the horizon, "
+                "or bound the reward's growth")
+    return f"even `exponent 1` overflows at base {base}: shorten the horizon, or bound the reward's growth"
+
+
+def _first_overflow(automaton: ir.Automaton, space: InputSpace, worst: Worst, k: int, sign: int,
+                    bound: Fraction) -> str:
+    """The first instant of the worst run at which the reward leaves the int32 range."""
+    for where, values in trace(automaton, space, worst):
+        if sign * values[k] > bound:
+            return f"{where} ({automaton.rewards[k]} = {_num(values[k])})"
+    return f"at the end of the run ({automaton.rewards[k]} = {_num(sign * worst.value)})"
+
+
+def _linear_text(linear: ir.Linear) -> str:
+    parts = [_num(linear.const)] if linear.const or not linear.terms else []
+    for name, coefficient in linear.terms:
+        parts.append(f"{_num(coefficient)}*{name}")
+    return " + ".join(parts)
+
+
+def _num(value: Fraction) -> str:
+    if value.denominator == 1:
+        return str(value.numerator)
+    text = f"{float(value):.10g}"
+    return text if Fraction(text) == value else f"{value.numerator}/{value.denominator}"

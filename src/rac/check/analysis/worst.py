@@ -1,0 +1,427 @@
+"""The worst run: the supremum of a linear functional of the rewards over a bounded horizon.
+
+Both P2 (priority soundness) and the int32 range check ask the same question:
+over every run of at most ``steps`` samples, with inputs free at each sample
+(subject to ``assume``), and every instant at which the automaton is in a
+*watched* location, how large can ``w·r + w0`` become?
+
+Between samples rewards change linearly, so only instants at samples matter:
+just before an edge (the first sample's; later ones equal the previous
+"before next"), just after it, just before the next sample, and just after the
+``at end`` updates of a run that ends there. A run may end after any sample or
+before the first, with inputs of its own (``end(inputs)``), so the end's inputs
+range freely over what ``assume`` allows.
+
+The search is a backward dynamic programme over sets of affine functionals of
+the reward vector (exact for any affine updates, rational arithmetic). When
+every update is a translation (``r = r + c``) the set collapses to one
+functional and a vectorised max-plus recurrence in scaled integers answers in
+one pass over the horizon.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from rac import ir
+from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, sup_linear
+
+ZERO = Fraction(0)
+#: Instants of one sample, in time order; START is t = 0 before any sample.
+BEFORE_EDGE, AFTER_EDGE, AFTER_END, BEFORE_NEXT, CONTINUE, START = (
+    "before-edge", "after-edge", "after-end", "before-next", "continue", "start")
+
+
+@dataclass(frozen=True)
+class Target:
+    """Maximise ``weights·r + constant`` over instants spent in ``watched`` locations."""
+
+    weights: tuple[Fraction, ...]
+    constant: Fraction
+    watched: tuple[bool, ...]
+
+
+@dataclass(frozen=True)
+class Step:
+    """One sample of the worst run: where it was, what the inputs did, and which instant ends it."""
+
+    sample: int  # 1-based
+    outcome: Outcome
+    inputs: dict[str, Fraction]  # values of the numeric inputs the arithmetic reads
+    instant: str  # CONTINUE, or the instant at which the run reaches the supremum
+
+
+@dataclass
+class Worst:
+    """The supremum and a run reaching it (``end`` is set when the run ends with ``at end``)."""
+
+    value: Fraction
+    steps: list[Step] = field(default_factory=list)
+    instant: str = START
+    end: EndOutcome | None = None
+    end_inputs: dict[str, Fraction] = field(default_factory=dict)
+
+
+def maximise(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
+    """The worst run for ``target`` (None when no watched instant is reachable)."""
+    if moves.translations_only:
+        return _maximise_translations(automaton, moves, target)
+    return _maximise_generic(automaton, moves, target)
+
+
+# ---------------------------------------------------------------- generic engine
+_Func = tuple[tuple[Fraction, ...], Fraction, dict[str, Fraction]]
+
+
+class _Puller:
+    """Pull functionals back through affine maps, memoised (runs repeat the same maps)."""
+
+    def __init__(self) -> None:
+        self.cache: dict[tuple[tuple[Fraction, ...], int], tuple[tuple[Fraction, ...], Fraction, dict]] = {}
+        self.keep: list[Affine] = []  # keeps ids in the cache keys alive
+
+    def __call__(self, func: _Func, affine: Affine) -> _Func:
+        c, d, g = func
+        key = (c, id(affine))
+        hit = self.cache.get(key)
+        if hit is None:
+            self.keep.append(affine)
+            size = len(c)
+            if affine.matrix is None:
+                c2 = c
+            else:
+                m = affine.matrix
+                c2 = tuple(sum((c[k] * m[k][j] for k in range(size)), ZERO) for j in range(size))
+            d_add = sum((c[k] * affine.offset[k].const for k in range(size) if c[k]), ZERO)
+            g_add: dict[str, Fraction] = {}
+            for k in range(size):
+                if c[k]:
+                    for name, coefficient in affine.offset[k].terms:
+                        g_add[name] = g_add.get(name, ZERO) + c[k] * coefficient
+            hit = (c2, d_add, g_add)
+            self.cache[key] = hit
+        c2, d_add, g_add = hit
+        if g_add:
+            g = dict(g)
+            for name, value in g_add.items():
+                g[name] = g.get(name, ZERO) + value
+        return (c2, d + d_add, g)
+
+
+def _end_functionals(moves: Moves, base: _Func, pull: _Puller) -> dict[tuple[Fraction, ...], tuple]:
+    """The target after ``at end``, maximised over the end's own inputs: coefficients -> (d, end, point)."""
+    best: dict[tuple[Fraction, ...], tuple] = {}
+    for end in moves.ends:
+        c, d, g = pull(base, end.end_map)
+        bonus, point = sup_linear(g, end.box)
+        if c not in best or d + bonus > best[c][0]:
+            best[c] = (d + bonus, end, point)
+    return best
+
+
+_Box = list[tuple[Fraction, Fraction]]
+
+
+def _image(affine: Affine, box: _Box, inputs: tuple) -> _Box:
+    """Interval image of a box of reward vectors (inputs within their pieces' closures)."""
+    pieces = dict(inputs)
+    result = []
+    for i, offset in enumerate(affine.offset):
+        lo = hi = offset.const
+        for name, coefficient in offset.terms:
+            piece = pieces.get(name)
+            a, b = (coefficient * piece.low, coefficient * piece.high) if piece else (ZERO, ZERO)
+            lo, hi = lo + min(a, b), hi + max(a, b)
+        if affine.matrix is None:
+            lo, hi = lo + box[i][0], hi + box[i][1]
+        else:
+            for j, m in enumerate(affine.matrix[i]):
+                if m:
+                    a, b = m * box[j][0], m * box[j][1]
+                    lo, hi = lo + min(a, b), hi + max(a, b)
+        result.append((lo, hi))
+    return result
+
+
+def _reachable_boxes(automaton: ir.Automaton, moves: Moves, accruals: list[Affine]) -> list[dict[int, _Box]]:
+    """boxes[k][l]: an interval hull of the rewards "before the edge" of sample k in location l.
+
+    For k = 1 it is the start (r = 0): the first accrual belongs to sample 1's functionals.
+    """
+    size = len(automaton.rewards)
+    boxes: list[dict[int, _Box]] = [{} for _ in range(automaton.steps + 2)]
+    boxes[1] = {automaton.initial: [(ZERO, ZERO)] * size}
+    for k in range(1, automaton.steps):
+        following = boxes[k + 1]
+        for here, box in boxes[k].items():
+            for o in moves.samples[here]:
+                start = _image(accruals[here], box, o.box) if k == 1 else box
+                after = _image(accruals[o.target], _image(o.edge_map, start, o.box), o.box)
+                old = following.get(o.target)
+                following[o.target] = after if old is None else [
+                    (min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(old, after)]
+    return boxes
+
+
+def _prune(table: dict, box: _Box) -> None:
+    """Drop functionals that another one beats everywhere on the box (they can never be the max)."""
+    if len(table) < 2:
+        return
+    order = sorted(table, key=lambda c: table[c][0], reverse=True)
+    kept: list[tuple[Fraction, ...]] = []
+    for c in order:
+        d = table[c][0]
+        for other in kept:
+            gap = d - table[other][0]
+            for j, (lo, hi) in enumerate(box):
+                delta = c[j] - other[j]
+                gap += delta * (hi if delta > 0 else lo)
+            if gap <= 0:
+                del table[c]
+                break
+        else:
+            kept.append(c)
+
+
+def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
+    steps = automaton.steps
+    outs = moves.samples
+    accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
+    boxes = _reachable_boxes(automaton, moves, accruals)
+    pull = _Puller()
+    base: _Func = (target.weights, target.constant, {})
+    ends = _end_functionals(moves, base, pull)
+    l0 = automaton.initial
+    # tables[k][l]: coefficients -> (d, outcome index, instant, link, x point), where link is the
+    # next sample's coefficients (CONTINUE) or (end outcome, its x point) (AFTER_END).
+    tables: list[list[dict]] = [[] for _ in range(steps + 2)]
+    tables[steps + 1] = [{} for _ in automaton.locations]
+    for k in range(steps, 0, -1):
+        layer: list[dict] = [{} for _ in automaton.locations]
+        for here in boxes[k]:  # only locations a run can be in at sample k
+            best = layer[here]
+            for oi, o in enumerate(outs[here]):
+                t = o.target
+                candidates: list[tuple[_Func, str, object]] = []
+                if target.watched[t]:
+                    candidates.append((base, AFTER_EDGE, None))
+                    for c_end, (d_end, end, point) in ends.items():
+                        candidates.append(((c_end, d_end, {}), AFTER_END, (end, point)))
+                    if k < steps:
+                        candidates.append((pull(base, accruals[t]), BEFORE_NEXT, None))
+                if k < steps:
+                    for c_next, entry in tables[k + 1][t].items():
+                        candidates.append((pull((c_next, entry[0], {}), accruals[t]), CONTINUE, c_next))
+                for func, instant, link in candidates:
+                    func = pull(func, o.edge_map)
+                    if k == 1:
+                        func = pull(func, accruals[l0])
+                    _offer(best, func, o, oi, instant, link)
+                if k == 1 and target.watched[l0]:
+                    _offer(best, pull(base, accruals[l0]), o, oi, BEFORE_EDGE, None)
+            _prune(best, boxes[k][here])
+        tables[k] = layer
+    start = _start(target, l0, {c: v for c, v in ends.items()})
+    first = tables[1][l0]
+    if not first:
+        return start
+    c_best = max(first, key=lambda c: first[c][0])
+    if start is not None and start.value >= first[c_best][0]:
+        return start
+    result = Worst(first[c_best][0])
+    k, here, c = 1, l0, c_best
+    while True:
+        _, oi, instant, link, point = tables[k][here][c]
+        o = outs[here][oi]
+        result.steps.append(Step(k, o, point, instant))
+        if instant != CONTINUE:
+            result.instant = instant
+            if instant == AFTER_END:
+                result.end, result.end_inputs = link
+            return result
+        k, here, c = k + 1, o.target, link
+
+
+def _start(target: Target, l0: int, ends: dict[tuple[Fraction, ...], tuple]) -> Worst | None:
+    """The best instant at t = 0: before any sample, or after ending there (r = 0)."""
+    if not target.watched[l0]:
+        return None
+    best = Worst(target.constant)
+    for d_end, end, point in ends.values():
+        if d_end > best.value:
+            best = Worst(d_end, [], AFTER_END, end, point)
+    return best
+
+
+def _offer(best: dict, func: _Func, o: Outcome, oi: int, instant: str, link: object) -> None:
+    c, d, g = func
+    bonus, point = sup_linear(g, o.box)
+    total = d + bonus
+    entry = best.get(c)
+    if entry is None or total > entry[0]:
+        best[c] = (total, oi, instant, link, point)
+
+
+# ---------------------------------------------------------------- fast engine
+def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
+    """Every map is a translation: the functional stays ``w``; a max-plus recurrence on scalars.
+
+    V_k(l) = max over outcomes o of l of
+             max(watched(t)·(w0 + K_edge + max(0, K_end, K_next)), V_{k+1}(t) + K_next)
+    where K_edge, K_next are sups over the outcome's input box of the weighted offsets of
+    one sample, and K_end the best weighted ``at end`` offset over the end's own inputs.
+    """
+    steps = automaton.steps
+    l0 = automaton.initial
+    w = target.weights
+    outs = moves.samples
+    accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
+    end_options = [(_sup(_weigh(w, (e.end_map,)), e.box), e) for e in moves.ends]
+    k_end, best_end = max(end_options, key=lambda item: item[0]) if end_options else (None, None)
+    start = _start(target, l0, {} if best_end is None else
+                   {(): (target.constant + k_end, best_end, _point(_weigh(w, (best_end.end_map,)), best_end.box))})
+    if not any(outs):  # `assume` excludes every input: no sample ever happens
+        return start
+
+    rows = []  # per (l, o): (l, oi, t, K_edge, K_next)
+    for here, os in enumerate(outs):
+        for oi, o in enumerate(os):
+            t = o.target
+            rows.append((here, oi, t, _sup(_weigh(w, (o.edge_map,)), o.box),
+                         _sup(_weigh(w, (o.edge_map, accruals[t])), o.box)))
+    first_rows = []  # sample 1 from l0: the accrual before the edge uses the same inputs
+    for oi, o in enumerate(outs[l0]):
+        t = o.target
+        first_rows.append((oi, t,
+                           _sup(_weigh(w, (accruals[l0], o.edge_map)), o.box),
+                           _sup(_weigh(w, (accruals[l0], o.edge_map, accruals[t])), o.box),
+                           _sup(_weigh(w, (accruals[l0],)), o.box)))
+    values = ([v for r in rows for v in r[3:]] + [v for r in first_rows for v in r[2:]]
+              + [target.constant] + ([k_end] if k_end is not None else []))
+    scale = math.lcm(*(v.denominator for v in values))
+    n_loc = len(automaton.locations)
+    width = max(len(os) for os in outs)
+    # Every reachable value lies within ±magnitude; "minus infinity" must lie well below, and
+    # padding added to it must stay below neg_inf // 2 (the "reachable" test).
+    magnitude = int(max(abs(v) for v in values) * scale * (steps + 3))
+    if magnitude < (1 << 60):
+        dtype: type | str = np.int64
+        neg_inf = -(1 << 62)
+    else:  # exact Python integers
+        dtype = object
+        neg_inf = -4 * (magnitude + 1)
+    w0 = int(target.constant * scale)
+    end_bonus = max(0, int(k_end * scale)) if k_end is not None else 0
+    targets = np.zeros((n_loc, width), dtype=np.int64)
+    stop = np.full((n_loc, width), neg_inf, dtype=dtype)
+    stop_last = np.full((n_loc, width), neg_inf, dtype=dtype)
+    k_next = np.full((n_loc, width), neg_inf, dtype=dtype)
+    for here, oi, t, ke, kn in rows:
+        targets[here, oi] = t
+        k_next[here, oi] = int(kn * scale)
+        if target.watched[t]:
+            edge_value = w0 + int(ke * scale)
+            stop[here, oi] = max(edge_value + end_bonus, w0 + int(kn * scale))
+            stop_last[here, oi] = edge_value + end_bonus
+    value = np.full(n_loc, neg_inf, dtype=dtype)
+    choice = np.zeros((steps + 1, n_loc), dtype=np.int32)
+    stopped = np.zeros((steps + 1, n_loc), dtype=bool)
+    rows_idx = np.arange(n_loc)
+    for k in range(steps, 1, -1):
+        if k == steps:
+            cont = np.full((n_loc, width), neg_inf, dtype=dtype)
+            s = stop_last
+        else:
+            cont = np.where(value[targets] > neg_inf // 2, value[targets] + k_next, neg_inf)
+            s = stop
+        cand = np.maximum(s, cont)
+        best = cand.argmax(axis=1)
+        choice[k] = best
+        stopped[k] = s[rows_idx, best] >= cont[rows_idx, best]
+        value = cand[rows_idx, best]
+    # Sample 1, from the initial location only.
+    best_value, best_choice = None, None
+    for oi, t, ke, kn, kb in first_rows:
+        options = []
+        if target.watched[t]:
+            options += [(w0 + int(ke * scale) + end_bonus, "stop")]
+            if steps > 1:
+                options.append((w0 + int(kn * scale), BEFORE_NEXT))
+        if target.watched[l0]:
+            options.append((w0 + int(kb * scale), BEFORE_EDGE))
+        if steps > 1 and value[t] > neg_inf // 2:
+            options.append((int(value[t]) + int(kn * scale), CONTINUE))
+        for v, instant in options:
+            if best_value is None or v > best_value:
+                best_value, best_choice = v, (oi, instant)
+    if best_value is None:
+        return start
+    if start is not None and start.value * scale >= best_value:
+        return start
+    result = Worst(Fraction(best_value, scale))
+    oi, instant = best_choice  # type: ignore[misc]
+    here, k = l0, 1
+    while True:
+        o = outs[here][oi]
+        if instant == "stop":
+            instant = _which_stop(w, o, accruals, k_end, last=k == steps)
+        if instant == AFTER_END:
+            assert best_end is not None
+            result.end = best_end
+            result.end_inputs = _point(_weigh(w, (best_end.end_map,)), best_end.box)
+        point = _point(_weigh(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0)), o.box)
+        result.steps.append(Step(k, o, point, instant))
+        if instant != CONTINUE:
+            result.instant = instant
+            return result
+        here, k = o.target, k + 1
+        oi = int(choice[k, here])
+        instant = "stop" if stopped[k, here] else CONTINUE
+
+
+def _maps_for(instant: str, o: Outcome, accruals: list[Affine], *, first: bool, l0: int) -> tuple[Affine, ...]:
+    """The maps of one sample up to ``instant`` (their weighted offsets pick the inputs)."""
+    maps: tuple[Affine, ...] = (accruals[l0],) if first else ()
+    if instant == BEFORE_EDGE:
+        return maps
+    maps += (o.edge_map,)
+    if instant in (BEFORE_NEXT, CONTINUE):
+        return maps + (accruals[o.target],)
+    return maps
+
+
+def _which_stop(w: tuple[Fraction, ...], o: Outcome, accruals: list[Affine], k_end: Fraction | None,
+                last: bool) -> str:
+    """Which instant of a sample attains the stop value found by the recurrence."""
+    edge = _sup(_weigh(w, (o.edge_map,)), o.box)
+    options = [(edge, AFTER_EDGE)]
+    if k_end is not None and k_end > 0:
+        options.append((edge + k_end, AFTER_END))
+    if not last:
+        options.append((_sup(_weigh(w, (o.edge_map, accruals[o.target])), o.box), BEFORE_NEXT))
+    return max(options, key=lambda item: item[0])[1]
+
+
+def _weigh(w: tuple[Fraction, ...], maps: tuple[Affine, ...]) -> dict[str, Fraction]:
+    """``w·(sum of the maps' offsets)`` as {"": constant, input: coefficient} (translations only)."""
+    form: dict[str, Fraction] = {"": ZERO}
+    for affine in maps:
+        for k, offset in enumerate(affine.offset):
+            if w[k]:
+                form[""] += w[k] * offset.const
+                for name, coefficient in offset.terms:
+                    form[name] = form.get(name, ZERO) + w[k] * coefficient
+    return form
+
+
+def _sup(form: dict[str, Fraction], box) -> Fraction:
+    bonus, _ = sup_linear({k: v for k, v in form.items() if k}, box)
+    return form[""] + bonus
+
+
+def _point(form: dict[str, Fraction], box) -> dict[str, Fraction]:
+    return sup_linear({k: v for k, v in form.items() if k}, box)[1]

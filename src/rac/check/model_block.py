@@ -1,0 +1,407 @@
+"""The ``model`` block: its settings table, their defaults and checks, and the bindings.
+
+:func:`resolve_model` reads the block of one automaton into an :class:`rac.ir.ModelSpec`
+(called by :meth:`rac.check.resolve.Resolver.run`). Settings not written take the defaults of
+:data:`SETTINGS` and :data:`ACTIONS` (the paper's values); every problem becomes a
+diagnostic with a span:
+
+* E0701 unknown setting, E0702 a value out of range, E0703 ``decide_period`` not a whole
+  multiple of ``sense_period``, E0704 ``sense_period`` differs from ``sample every``, E0705
+  ``1/granularity`` not a whole number;
+* E0706 an action's range (empty, not a whole number of steps, values that are not whole
+  significands), E0707 an action other than ``jerk`` and ``turn``;
+* E0708 a binding for something that is not an input, E0709 an input without a binding,
+  E0710 a binding whose type differs from its input's, E0711 an unknown model function (or a
+  known one with the wrong arguments);
+* the generic codes where they fit: E0102 an item written twice, E0105 no ``scenario``, E0106
+  a second ``model`` block, E0101/E0103/E0201 for names and types inside bindings.
+
+The vocabulary of bindings (and, once a model is attached, of queries) is defined here too.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import TYPE_CHECKING
+
+from rac import ir
+from rac.check.queries import FUNCTIONS_HINT, VOCABULARY_HINT, Lowering, model_settings_of, type_word
+from rac.check.resolve import _Unresolvable
+from rac.core.diagnostics import Note, short_number
+from rac.core.source import Span
+from rac.ir.vocabulary import ACTIONS, BINDING_MATH, EGO_STATE, MODEL_FUNCTIONS, SETTINGS, TRUE_STATE, Setting
+from rac.lang import ast
+
+if TYPE_CHECKING:
+    from rac.check.resolve import Resolver
+
+__all__ = ["ACTIONS", "EGO_STATE", "FUNCTIONS_HINT", "MATH_FUNCTIONS", "MODEL_FUNCTIONS", "SETTINGS", "TRUE_STATE",
+           "VOCABULARY_HINT", "allowed", "resolve_model"]
+
+#: The arithmetic functions bindings may call (the table: :data:`rac.ir.vocabulary.MATH_FUNCTIONS`).
+MATH_FUNCTIONS = BINDING_MATH
+
+
+def allowed(setting: Setting) -> str:
+    """A setting's allowed values in words, e.g. "a whole number from 1 to 6"."""
+    kind = "a whole number" if setting.whole else "a number"
+    low, high = setting.minimum, setting.maximum
+    if low is not None and high is not None:
+        if setting.exclusive:
+            return f"{kind} in ({_num(low)}, {_num(high)}]"
+        return f"{kind} from {_num(low)} to {_num(high)}"
+    if low is not None:
+        return f"{kind} {'>' if setting.exclusive else '>='} {_num(low)}"
+    return kind
+
+
+# ---------------------------------------------------------------- the model block
+@dataclass
+class _Value:
+    value: Fraction
+    span: Span | None  # the item that set it; None: the default
+
+
+class _ModelResolver:
+    def __init__(self, r: Resolver, block: ast.ModelDecl, inputs: tuple[ir.Input, ...],
+                 period: Fraction | None):
+        self.r = r
+        self.block = block
+        self.inputs = inputs
+        self.period = period
+        self.ok = True
+        #: Settings whose written value was rejected: checks that compare them are skipped.
+        self.rejected: set[str] = set()
+
+    def error(self, code: str, message: str, span: Span | None, **kw) -> None:
+        self.ok = False
+        self.r._error(code, message, span or self.block.span, **kw)
+
+    def constant(self, expr: ast.Expr, what: str) -> Fraction | None:
+        try:
+            return self.r.constant(expr, what)
+        except _Unresolvable:
+            self.ok = False
+            return None
+
+    # ------------------------------------------------------------ the whole block
+    def run(self) -> ir.ModelSpec | None:
+        scenario = self._scenario()
+        values = self._settings()
+        actions = self._actions(values)
+        bindings = self._bindings(values)
+        if not self.ok or scenario is None:
+            return None
+        folder = os.path.dirname(scenario.span.file) if scenario.span is not None else ""
+        v = {name: item.value for name, item in values.items()}
+        return ir.ModelSpec(
+            scenario=scenario.path,
+            scenario_path=os.path.normpath(os.path.join(folder, scenario.path)),
+            base=int(v["base"]),
+            exponent=int(v["exponent"]),
+            sense_period=v["sense_period"],
+            decide_period=v["decide_period"],
+            granularity=v["granularity"],
+            actions=actions,
+            length=v["length"],
+            width=v["width"],
+            max_acceleration=v["max_acceleration"],
+            max_turn=v["max_turn"],
+            min_speed=v["min_speed"],
+            max_speed=v["max_speed"],
+            collision_distance=v["collision_distance"],
+            comfort_acceleration=v["comfort_acceleration"],
+            comfort_turn=v["comfort_turn"],
+            bindings=bindings,
+            sensor_error=v["sensor_error"],
+            span=self.block.span,
+        )
+
+    def _twice(self, what: str, span: Span | None, first: Span | None, verb: str = "set") -> None:
+        self.error("E0102", f"{what} is {verb} twice in the `model` block", span,
+                   notes=[Note(f"first {verb} here", first)])
+
+    def _scenario(self) -> ast.ModelScenario | None:
+        items = self.block.of(ast.ModelScenario)
+        for extra in items[1:]:
+            self._twice("`scenario`", extra.span, items[0].span)
+        if not items:
+            self.error("E0105", "the `model` block has no `scenario`", self.block.span,
+                       hints=['name the CommonRoad file, relative to this file\'s folder: '
+                              '`scenario "left_turn.xml"`'])
+            return None
+        if not items[0].path.strip():
+            self.error("E0702", "the `scenario` file name is empty", items[0].span,
+                       hints=['name the CommonRoad file, e.g. `scenario "left_turn.xml"`'])
+            return None
+        return items[0]
+
+    # ------------------------------------------------------------ settings
+    def _settings(self) -> dict[str, _Value]:
+        written: dict[str, ast.ModelSetting] = {}
+        values: dict[str, _Value] = {}
+        for item in self.block.of(ast.ModelSetting):
+            name = item.name.name
+            setting = SETTINGS.get(name)
+            if setting is None:
+                self._unknown_setting(item)
+                continue
+            if name in written:
+                self._twice(f"`{name}`", item.name.span, written[name].name.span)
+                continue
+            written[name] = item
+            value = self.constant(item.value, f"the value of `{name}`")
+            if value is None:
+                self.rejected.add(name)
+                continue
+            if not setting.accepts(value):
+                self.rejected.add(name)
+                unit = f" {setting.unit}" if setting.unit else ""
+                self.error("E0702", f"`{name}` must be {allowed(setting)} (found {_num(value)}{unit})",
+                           item.value.span, notes=[f"`{name}`: {setting.description}"],
+                           hints=[_range_hint(setting)])
+                continue
+            values[name] = _Value(value, item.span)
+        values = self._defaults(values)
+        # These checks compare values with each other: they skip values already reported.
+        if not self.rejected & {"sense_period", "decide_period", "granularity"}:
+            self._check_timing(values)
+        if not self.rejected & {"min_speed", "max_speed"}:
+            self._check_speeds(values)
+        return values
+
+    def _unknown_setting(self, item: ast.ModelSetting) -> None:
+        name = item.name.name
+        hints = []
+        close = difflib.get_close_matches(name, list(SETTINGS), n=1)
+        if name in ACTIONS:
+            low, high, step, _ = ACTIONS[name]
+            hints.append(f"an action is declared with its range: `action {name} in [{_num(low)}, {_num(high)}] "
+                         f"step {_num(step)}`")
+        elif name in self.r.symbols and self.r.symbols[name].kind == "input":
+            hints.append(f"an input is bound with `bind`: `bind {name} = ...`")
+        elif close:
+            hints.append(f"did you mean `{close[0]}`?")
+        else:
+            hints.append("the settings are " + ", ".join(f"`{s}`" for s in SETTINGS))
+        self.error("E0701", f"unknown setting `{name}` in the `model` block", item.name.span, hints=hints)
+
+    def _defaults(self, values: dict[str, _Value]) -> dict[str, _Value]:
+        """Every setting: the written ones, else their defaults (derived ones from the timing)."""
+        result = dict(values)
+        for name, setting in SETTINGS.items():
+            if name in result:
+                continue
+            if setting.default is not None:
+                result[name] = _Value(setting.default, None)
+            elif name == "sense_period":
+                result[name] = _Value(self.period if self.period is not None else Fraction(1, 10), None)
+            else:  # decide_period
+                result[name] = _Value(2 * result["sense_period"].value, None)
+        return result
+
+    def _check_timing(self, values: dict[str, _Value]) -> None:
+        sense, decide, granularity = values["sense_period"], values["decide_period"], values["granularity"]
+        if sense.span is not None and self.period is not None and sense.value != self.period:
+            sample = self.r.node.of(ast.SampleDecl)
+            self.error("E0704", f"`sense_period` ({_num(sense.value)} s) differs from `sample every` "
+                       f"({_num(self.period)} s)", sense.span,
+                       notes=[Note("the automaton samples here", sample[0].span if sample else None)],
+                       hints=["the automaton reads its inputs at every sensing instant: remove "
+                              "`sense_period` (it defaults to `sample every`), or change `sample every`"])
+        ratio = decide.value / sense.value
+        if ratio.denominator != 1 and (sense.span is not None or self.period is not None):
+            below = int(ratio) * sense.value
+            choices = [f"`decide_period {_num(c)}`" for c in (below, below + sense.value) if c > 0]
+            self.error("E0703", f"`decide_period` ({_num(decide.value)} s) is not a whole multiple of "
+                       f"`sense_period` ({_num(sense.value)} s)",
+                       decide.span or sense.span,
+                       notes=[] if decide.span else [f"`decide_period` defaults to 2 × `sense_period` = "
+                                                     f"{_num(decide.value)} s"],
+                       hints=["the controller decides at sensing instants only: use " + " or ".join(choices)])
+        substeps = 1 / granularity.value
+        if substeps.denominator != 1:
+            n = int(substeps)
+            choices = [f"`granularity {_fraction_text(Fraction(1, k))}`" for k in (n, n + 1) if k >= 1]
+            self.error("E0705", f"`granularity` {_num(granularity.value)} does not divide the sensing period "
+                       f"into whole sub-steps (1/G = {_num(substeps)})", granularity.span,
+                       hints=["`sense()` takes 1/G Euler sub-steps: use " + " or ".join(choices)])
+
+    def _check_speeds(self, values: dict[str, _Value]) -> None:
+        low, high = values["min_speed"], values["max_speed"]
+        if low.value >= high.value:
+            span = high.span or low.span
+            self.error("E0702", f"`max_speed` ({_num(high.value)} m/s) must be more than `min_speed` "
+                       f"({_num(low.value)} m/s)", span,
+                       notes=[f"`{n}` defaults to {_num(SETTINGS[n].default or 0)} m/s"
+                              for n, v in (("min_speed", low), ("max_speed", high)) if v.span is None],
+                       hints=["the speed range is [`min_speed`, `max_speed`]"])
+
+    # ------------------------------------------------------------ actions
+    def _actions(self, values: dict[str, _Value]) -> tuple[ir.Action, ...]:
+        written: dict[str, ast.ModelAction] = {}
+        result: dict[str, ir.Action] = {}
+        for item in self.block.of(ast.ModelAction):
+            name = item.name.name
+            if name not in ACTIONS:
+                close = difflib.get_close_matches(name, list(ACTIONS), n=1)
+                self.error("E0707", f"unknown action `{name}`", item.name.span,
+                           hints=[f"did you mean `{close[0]}`?" if close else
+                                  "the vehicle has two actions, `jerk` (m/s³) and `turn` (rad/s)"])
+                continue
+            if name in written:
+                self._twice(f"action `{name}`", item.name.span, written[name].name.span, "declared")
+                continue
+            written[name] = item
+            low = self.constant(item.low, f"the range of action `{name}`")
+            high = self.constant(item.high, f"the range of action `{name}`")
+            step = self.constant(item.step, f"the step of action `{name}`")
+            if low is None or high is None or step is None:
+                continue
+            action = self._check_action(item, ir.Action(name, low, high, step))
+            if action is not None:
+                result[name] = action
+        for name, (low, high, step, _) in ACTIONS.items():
+            if name not in written:
+                result[name] = ir.Action(name, low, high, step)
+        if not self.rejected & {"base", "exponent"} and len(result) == len(ACTIONS):
+            self._check_significands(result, written, values)
+        return tuple(result[name] for name in ACTIONS if name in result)
+
+    def _check_action(self, item: ast.ModelAction, action: ir.Action) -> ir.Action | None:
+        name, low, high, step = action.name, action.low, action.high, action.step
+        shown = f"[{_num(low)}, {_num(high)}]"
+        if low > high:
+            self.error("E0706", f"empty range {shown} for action `{name}`", item.span,
+                       hints=["write the lower bound first"])
+        elif step <= 0:
+            self.error("E0706", f"the step of action `{name}` must be positive (found {_num(step)})",
+                       item.step.span)
+        elif ((high - low) / step).denominator != 1:
+            count = int((high - low) / step)
+            self.error("E0706", f"the range {shown} of action `{name}` is not a whole number of steps of "
+                       f"{_num(step)}", item.span,
+                       notes=[f"{_num(high - low)} / {_num(step)} = {_num((high - low) / step)}"],
+                       hints=[f"end the range at {_num(low + count * step)} or {_num(low + (count + 1) * step)}, "
+                              "or choose a step that divides its width"])
+        else:
+            return action
+        return None
+
+    def _check_significands(self, actions: dict[str, ir.Action], written: dict[str, ast.ModelAction],
+                            values: dict[str, _Value]) -> None:
+        """Every action value must be a whole significand: the controller chooses among significands."""
+        base, exponent = int(values["base"].value), int(values["exponent"].value)
+        scale = Fraction(base) ** exponent
+        for name, action in actions.items():
+            bad = next((v for v in (action.low, action.step) if (v * scale).denominator != 1), None)
+            if bad is None:
+                continue
+            item = written.get(name)
+            span = item.span if item is not None else values["exponent"].span or values["base"].span
+            which = "" if item is not None else "the default "
+            self.error("E0706", f"{which}action `{name}` in [{_num(action.low)}, {_num(action.high)}] step "
+                       f"{_num(action.step)} does not fall on whole significands at base {base}, exponent "
+                       f"{exponent}", span,
+                       notes=[f"{_num(bad)} · {base}^{exponent} = {_num(bad * scale)} is not a whole number: "
+                              "the controller chooses among significands"],
+                       hints=["use a range and step that are multiples of "
+                              f"{_fraction_text(1 / scale)}, or raise the exponent"])
+
+    # ------------------------------------------------------------ bindings
+    def _bindings(self, values: dict[str, _Value]) -> tuple[ir.Binding, ...]:
+        bound: dict[str, ast.ModelBinding] = {}
+        lowered: dict[str, ir.Binding] = {}
+        suggested: set[str] = set()  # inputs a misspelt binding probably meant: not reported unbound
+        scale = int(values["base"].value) ** int(values["exponent"].value)
+        self.r.scope.settings = model_settings_of({n: v.value for n, v in values.items()}, scale)
+        for item in self.block.of(ast.ModelBinding):
+            name = item.input.name
+            symbol = self.r.symbols.get(name)
+            lowering = Lowering(self.r.scope, binding=True)
+            got, expr = lowering.typed(item.expr)
+            if lowering.failed:
+                self.ok = False
+            if symbol is None or symbol.kind != "input":
+                inputs = [i.name for i in self.inputs]
+                close = difflib.get_close_matches(name, inputs, n=1)
+                suggested.update(close)
+                what = f"unknown input `{name}`" if symbol is None else \
+                    f"`{name}`, which is {_kind(symbol.kind)}, not an input"
+                self.error("E0708", f"`bind` names {what}", item.input.span,
+                           hints=[f"did you mean `{close[0]}`?" if close else
+                                  "bindings drive the automaton's inputs: "
+                                  + (", ".join(f"`{i}`" for i in inputs) or "it declares none")])
+                continue
+            if name in bound:
+                self._twice(f"input `{name}`", item.input.span, bound[name].input.span, "bound")
+                continue
+            bound[name] = item
+            if got is not None and got != symbol.type:
+                declared = next((i for i in self.inputs if i.name == name), None)
+                kind = f" ({declared.kind})" if declared is not None and not declared.is_bool else ""
+                self.error("E0710", f"input `{name}` is {type_word(symbol.type)}{kind}, but its binding is "
+                           f"{type_word(got)}", item.expr.span,
+                           notes=[Note(f"`{name}` is declared here", symbol.span)],
+                           hints=["compare the value to get a condition, e.g. `mindist() < 3 * collision_distance`"
+                                  if symbol.type == "bool" else
+                                  "a numeric input needs a number, e.g. `dist_goal()`"])
+            elif expr is not None:
+                lowered[name] = ir.Binding(name, expr, item.span)
+        for item in self.inputs:
+            if item.name not in bound and item.name not in suggested:
+                example = "mindist() < 3 * collision_distance" if item.is_bool else "dist_goal()"
+                self.error("E0709", f"input `{item.name}` has no binding in the `model` block", item.span,
+                           notes=[Note("the `model` block", self.block.span)],
+                           hints=["with a model, every input is computed from it: add "
+                                  f"`bind {item.name} = ...` to the block, e.g. `bind {item.name} = {example}`"])
+        return tuple(lowered[i.name] for i in self.inputs if i.name in lowered)
+
+
+def resolve_model(r: Resolver, inputs: tuple[ir.Input, ...], period: Fraction | None) -> ir.ModelSpec | None:
+    """The automaton's ``model`` block as a :class:`ModelSpec`; None without one or on errors."""
+    blocks = r.node.of(ast.ModelDecl)
+    if not blocks:
+        return None
+    for extra in blocks[1:]:
+        r._error("E0106", "`model` is declared more than once", extra.span,
+                 notes=[Note("first declared here", blocks[0].span)],
+                 hints=["an automaton has one model: merge the blocks"])
+    resolver = _ModelResolver(r, blocks[0], inputs, period)
+    spec = resolver.run()
+    for item in blocks[0].of(ast.ModelSetting):
+        if item.name.name in ("base", "exponent", "sense_period") and item.span is not None:
+            r.model_spans.setdefault(f"model:{item.name.name}", item.span)
+    for scenario in blocks[0].of(ast.ModelScenario)[:1]:
+        if scenario.span is not None:
+            r.model_spans["model:scenario"] = scenario.span
+    return spec if resolver.ok else None
+
+
+# ---------------------------------------------------------------- words
+def _num(value: Fraction) -> str:
+    return short_number(value)
+
+
+def _fraction_text(value: Fraction) -> str:
+    """A value as the user would write it: a decimal when exact, else ``1/3``."""
+    text = short_number(value)
+    return text if not text.endswith("…") else f"{value.numerator}/{value.denominator}"
+
+
+def _range_hint(setting: Setting) -> str:
+    if setting.default is not None:
+        return f"use {allowed(setting)}; the default is `{setting.name} {_num(setting.default)}`"
+    return f"use {allowed(setting)}; without it, `{setting.name}` is {setting.derived}"
+
+
+def _arguments(count: int) -> str:
+    return "no arguments" if count == 0 else "1 argument" if count == 1 else f"{count} arguments"
+
+
+def _kind(kind: str) -> str:
+    return {"input": "an input", "const": "a constant", "reward": "a reward", "location": "a location"}[kind]
+

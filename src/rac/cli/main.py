@@ -1,0 +1,306 @@
+"""The ``rac`` command: check, compile and format `.ra` files; verify, simulate, render and
+pre-analyse them with the native engine (:mod:`rac.cli.engine`).
+
+Exit codes: 0 clean (warnings allowed), 1 errors in the input, 2 bad usage or a
+file that cannot be read, 3 an internal error (a bug in rac; set RAC_DEBUG=1 for
+the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+from rac import __version__
+from rac.compiler import CompileResult, compile_file
+from rac.core.diagnostics import Diagnostic, error, render_json, render_text, sort_key
+
+EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+TARGETS = ("python", "uppaal")
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rac", description="The reward-automata compiler: check, compile and format .ra files; verify "
+                    "their queries, simulate and pre-analyse them on a CommonRoad scenario.")
+    parser.add_argument("--version", action="version", version=f"rac {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    check = commands.add_parser("check", help="type-check files and prove or refute their priority order")
+    check.add_argument("files", nargs="+", type=Path, metavar="FILE")
+    check.add_argument("--format", choices=("text", "json"), default="text", help="output format")
+    check.add_argument("-q", "--quiet", action="store_true", help="print diagnostics only, not what was proved")
+
+    compile_ = commands.add_parser("compile", help="generate code for a target")
+    compile_.add_argument("file", type=Path, metavar="FILE")
+    compile_.add_argument("--target", choices=TARGETS, required=True)
+    compile_.add_argument("-o", "--output", type=Path, help="output file (default: standard output)")
+    compile_.add_argument("--format", choices=("text", "json"), default="text", help="diagnostics format")
+
+    fmt = commands.add_parser("fmt", help="rewrite files in canonical layout (comments are kept)")
+    fmt.add_argument("files", nargs="+", type=Path, metavar="FILE")
+    fmt.add_argument("--check", action="store_true", help="only report files that would change (exit 1)")
+    fmt.add_argument("--stdout", action="store_true", help="print the result instead of rewriting")
+
+    from rac.cli.engine import add_parsers
+
+    add_parsers(commands)
+    return parser
+
+
+def _unreadable(path: Path, exc: OSError) -> Diagnostic:
+    reason = exc.strerror or str(exc)
+    if isinstance(exc, IsADirectoryError):
+        reason = "it is a directory"
+    return error("E0008", f"cannot read `{path}`: {reason}", None,
+                 hints=["pass the path of a .ra file"])
+
+
+def _compile(path: Path) -> tuple[CompileResult | None, Diagnostic | None]:
+    try:
+        return compile_file(path), None
+    except OSError as exc:
+        return None, _unreadable(path, exc)
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Write via a temporary file in the same folder and a rename: never a half-written file."""
+    directory = path.parent if str(path.parent) else Path(".")
+    fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+            handle.write(text)
+        if path.exists():
+            os.chmod(temporary, path.stat().st_mode & 0o777)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def _unwritable(path: Path, exc: OSError) -> Diagnostic:
+    reason = exc.strerror or str(exc)
+    return error("E0009", f"cannot write `{path}`: {reason}", None,
+                 hints=["check that the folder exists and is writable; nothing was written"])
+
+
+def _check(args: argparse.Namespace) -> int:
+    status = EXIT_OK
+    report: list[dict[str, object]] = []
+    for path in args.files:
+        result, unreadable = _compile(path)
+        if result is None:
+            assert unreadable is not None
+            status = max(status, EXIT_USAGE)
+            report.append({"file": str(path), "ok": False, "diagnostics": [unreadable.to_json()], "proved": []})
+            if args.format == "text":
+                print(render_text([unreadable], {}), file=sys.stderr)
+            continue
+        errors = sum(d.is_error for d in result.diagnostics)
+        warnings = len(result.diagnostics) - errors
+        if errors:
+            status = max(status, EXIT_ERRORS)
+        if args.format == "json":
+            report.append({"file": str(path), "ok": errors == 0,
+                           "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)],
+                           "proved": list(result.facts)})
+            continue
+        if result.diagnostics:
+            print(render_text(result.diagnostics, result.sources))
+            print()
+        summary = "ok" if not errors else f"{errors} error{'s' * (errors != 1)}"
+        if warnings:
+            summary += f", {warnings} warning{'s' * (warnings != 1)}"
+        print(f"{path}: {summary}")
+        if not args.quiet:
+            for fact in result.facts:
+                print(f"  proved: {fact}")
+    if args.format == "json":
+        print(json.dumps(report, indent=2))
+    return status
+
+
+def _compile_command(args: argparse.Namespace) -> int:
+    result, unreadable = _compile(args.file)
+    diagnostics = [unreadable] if unreadable else list(result.diagnostics if result else [])
+    failed = result is None or not result.ok
+    if diagnostics and (failed or args.format == "text"):
+        if args.format == "json":
+            print(render_json(diagnostics))
+        else:
+            print(render_text(diagnostics, result.sources if result else {}), file=sys.stderr)
+    if result is None:
+        return EXIT_USAGE
+    if not result.ok or result.automaton is None:
+        return EXIT_ERRORS
+    if args.target == "uppaal":
+        return _compile_uppaal(args, result)
+    from rac.targets.python import generate_python
+
+    text = generate_python(result.automaton, source_name=args.file.name)
+    if args.output is None:
+        sys.stdout.write(text)
+    else:
+        try:
+            write_atomically(args.output, text)
+        except OSError as exc:
+            print(render_text([_unwritable(args.output, exc)], {}), file=sys.stderr)
+            return EXIT_USAGE
+        print(f"wrote {args.output}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
+    """Write several files so that, on error, none of them changed: every text goes to a
+    temporary file first, and the renames happen only once all of them are written. An
+    ``OSError`` carries the path it was about (``exc.rac_path``)."""
+    temporaries: list[tuple[Path, str]] = []
+    for path, _ in files:
+        if path.is_dir():  # os.replace would fail only after the earlier files were replaced
+            exc = IsADirectoryError(errno.EISDIR, "it is a directory", str(path))
+            exc.rac_path = path  # type: ignore[attr-defined]
+            raise exc
+    try:
+        for path, text in files:
+            directory = path.parent if str(path.parent) else Path(".")
+            try:
+                fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+                temporaries.append((path, temporary))
+                with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+                    handle.write(text)
+                if path.exists():
+                    os.chmod(temporary, path.stat().st_mode & 0o777)
+            except OSError as exc:
+                exc.rac_path = path  # type: ignore[attr-defined]
+                raise
+        for path, temporary in temporaries:
+            try:
+                os.replace(temporary, path)
+            except OSError as exc:
+                exc.rac_path = path  # type: ignore[attr-defined]
+                raise
+    except BaseException:
+        for _, temporary in temporaries:
+            Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
+    """``--target uppaal``: the model to ``-o FILE.xml`` and its queries to ``FILE.q`` beside it."""
+    from rac.model.commonroad import ScenarioError
+    from rac.model.data import ModelRangeError
+    from rac.targets.uppaal.automaton import UppaalError, generate_uppaal, queries_path
+
+    output: Path | None = args.output
+    queries = Path(queries_path(str(output))) if output is not None else None
+    if output is not None and queries == output:
+        print(f"rac: `{output}` cannot hold the model: its queries go to a file of that name; "
+              "name the model FILE.xml", file=sys.stderr)
+        return EXIT_USAGE
+    assert result.automaton is not None
+    try:
+        if result.automaton.model is not None:
+            from rac.targets.uppaal.model import generate_uppaal_model
+
+            # With a `model` block: the whole model in its scenario (docs/uppaal.md).
+            model = generate_uppaal_model(result.automaton, data=getattr(result, "model_data", None),
+                                          source_name=args.file.name,
+                                          model_name=output.name if output is not None else "")
+        else:
+            model = generate_uppaal(result.automaton, source_name=args.file.name,
+                                    model_name=output.name if output is not None else "")
+    except (ScenarioError, ModelRangeError) as failure:  # the checks load the scenario first; a safety net
+        print(f"rac: {args.file}: cannot build the scenario model: {failure}", file=sys.stderr)
+        return EXIT_ERRORS
+    except UppaalError as failure:
+        if args.format == "json":
+            print(render_json([*result.diagnostics, *failure.diagnostics]))
+        else:
+            print(render_text(failure.diagnostics, result.sources), file=sys.stderr)
+        return EXIT_ERRORS
+    if output is None or queries is None:
+        sys.stdout.write(model.xml)
+        return EXIT_OK
+    try:
+        _write_all_atomically([(output, model.xml), (queries, model.queries)])
+    except OSError as exc:
+        print(render_text([_unwritable(getattr(exc, "rac_path", output), exc)], {}), file=sys.stderr)
+        return EXIT_USAGE
+    print(f"wrote {output} and {queries}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _fmt(args: argparse.Namespace) -> int:
+    from rac.lang.format import format_module
+    from rac.lang.parser import ParseFailure, parse_source, read_source
+
+    status = EXIT_OK
+    for path in args.files:
+        source = None
+        try:
+            source = read_source(path)
+            formatted = format_module(parse_source(source))
+        except OSError as exc:
+            print(render_text([_unreadable(path, exc)], {}), file=sys.stderr)
+            status = max(status, EXIT_USAGE)
+            continue
+        except ParseFailure as failure:
+            shown = source or failure.source
+            print(render_text([failure.diagnostic], {shown.name: shown} if shown else {}), file=sys.stderr)
+            status = max(status, EXIT_ERRORS)
+            continue
+        if args.stdout:
+            sys.stdout.write(formatted)
+        elif formatted != source.text:
+            if args.check:
+                print(f"{path}: would be reformatted", file=sys.stderr)
+                status = max(status, EXIT_ERRORS)
+            else:
+                try:
+                    write_atomically(path, formatted)
+                except OSError as exc:
+                    print(render_text([_unwritable(path, exc)], {}), file=sys.stderr)
+                    status = max(status, EXIT_USAGE)
+                    continue
+                print(f"{path}: reformatted", file=sys.stderr)
+    return status
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``rac`` command; returns the exit code."""
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse exits 2 on bad usage, 0 on --help
+        return int(exc.code or 0)
+    from rac.cli.engine import HANDLERS
+
+    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, **HANDLERS}
+    try:
+        return handlers[args.command](args)
+    except BrokenPipeError:  # e.g. `rac check ... | head`: the reader left; not an error of ours
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
+        return EXIT_OK
+    except KeyboardInterrupt:
+        print("rac: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug in rac: say so plainly instead of a traceback
+        if os.environ.get("RAC_DEBUG"):
+            raise
+        print(f"rac: internal error: {type(exc).__name__}: {exc}\n"
+              "This is a bug in rac; rerun with RAC_DEBUG=1 for the traceback and report it.", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+def entry() -> None:
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    entry()

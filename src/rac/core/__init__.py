@@ -1,0 +1,1 @@
+"""Shared by every stage: source locations, diagnostics, numbers and the expression printer base."""

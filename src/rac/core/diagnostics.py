@@ -1,0 +1,153 @@
+"""Diagnostics as data, and the one renderer that prints them.
+
+Every stage reports problems as :class:`Diagnostic` values; nothing prints on
+its own. The CLI renders them as text (``file:line:col: error[code]: ...`` with
+the source line and a caret) or as JSON with the same fields.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from decimal import Context, Decimal
+from enum import Enum
+from fractions import Fraction
+
+from rac.core.source import SourceFile, Span
+
+
+class Severity(str, Enum):
+    ERROR = "error"
+    WARNING = "warning"
+
+
+@dataclass(frozen=True)
+class Note:
+    """A secondary message, optionally pointing at another place."""
+
+    message: str
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One finding: a code (documented in docs/checks.md), where, what, and what to do."""
+
+    code: str
+    severity: Severity
+    message: str
+    span: Span | None
+    notes: tuple[Note, ...] = ()
+    hints: tuple[str, ...] = ()
+    #: Structured extra data (witness valuations, counterexample runs) for --format json.
+    data: Mapping[str, object] = field(default_factory=dict, compare=False)
+
+    @property
+    def is_error(self) -> bool:
+        return self.severity is Severity.ERROR
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "code": self.code,
+            "severity": self.severity.value,
+            "message": self.message,
+            "span": self.span.to_json() if self.span else None,
+            "notes": [
+                {"message": n.message, "span": n.span.to_json() if n.span else None}
+                for n in self.notes
+            ],
+            "hints": list(self.hints),
+            "data": dict(self.data),
+        }
+
+
+def error(code: str, message: str, span: Span | None, *, notes: Iterable[Note | str] = (),
+          hints: Iterable[str] = (), data: Mapping[str, object] | None = None) -> Diagnostic:
+    """Build an error diagnostic; plain strings in ``notes`` become span-less notes."""
+    return _make(Severity.ERROR, code, message, span, notes, hints, data)
+
+
+def warning(code: str, message: str, span: Span | None, *, notes: Iterable[Note | str] = (),
+            hints: Iterable[str] = (), data: Mapping[str, object] | None = None) -> Diagnostic:
+    """Build a warning diagnostic."""
+    return _make(Severity.WARNING, code, message, span, notes, hints, data)
+
+
+def _make(severity: Severity, code: str, message: str, span: Span | None,
+          notes: Iterable[Note | str], hints: Iterable[str],
+          data: Mapping[str, object] | None) -> Diagnostic:
+    return Diagnostic(
+        code=code,
+        severity=severity,
+        message=message,
+        span=span,
+        notes=tuple(n if isinstance(n, Note) else Note(n) for n in notes),
+        hints=tuple(hints),
+        data=dict(data or {}),
+    )
+
+
+def short_number(value: Fraction, digits: int = 6) -> str:
+    """A rational as a short decimal for messages; a trailing ``…`` marks a rounded value."""
+    if value.denominator == 1:
+        return str(value.numerator)
+    if Fraction(1, 10**12) <= abs(value) <= 10**15:
+        text = f"{float(value):.{digits}g}"
+    else:  # beyond the range floats print well (or at all): decimal arithmetic never overflows
+        text = str(Context(prec=digits).divide(Decimal(value.numerator), Decimal(value.denominator)).normalize())
+    return text if Fraction(text) == value else f"{text}…"
+
+
+class CheckError(Exception):
+    """Raised by :func:`rac.load` when a file has errors; carries every diagnostic."""
+
+    def __init__(self, diagnostics: Iterable[Diagnostic], sources: Mapping[str, SourceFile] | None = None):
+        self.diagnostics = tuple(diagnostics)
+        self.sources = dict(sources or {})
+        super().__init__(render_text(self.diagnostics, self.sources))
+
+
+def sort_key(d: Diagnostic) -> tuple[str, int, int, str]:
+    if d.span is None:
+        return ("", 0, 0, d.code)
+    return (d.span.file, d.span.line, d.span.column, d.code)
+
+
+def _render_one(d: Diagnostic, sources: Mapping[str, SourceFile]) -> str:
+    where = f"{d.span}: " if d.span else ""
+    lines = [f"{where}{d.severity.value}[{d.code}]: {d.message}"]
+    source = sources.get(d.span.file) if d.span else None
+    gutter = 0
+    if d.span is not None and source is not None:
+        # Control characters would garble a terminal: show them as U+FFFD, one column each.
+        text = "".join(ch if ch.isprintable() or ch == "\t" else "\ufffd" for ch in source.line_text(d.span.line))
+        gutter = len(str(d.span.line))
+        pad = " " * gutter
+        # The caret covers the span on its first line (at least one character).
+        last = d.span.end_column if d.span.end_line == d.span.line else len(text) + 1
+        width = max(1, last - d.span.column)
+        prefix = "".join(ch if ch == "\t" else " " for ch in text[: d.span.column - 1])
+        lines += [
+            f"{pad} |",
+            f"{d.span.line} | {text}",
+            f"{pad} | {prefix}{'^' * width}",
+        ]
+    pad = " " * gutter
+    for note in d.notes:
+        body = note.message.replace("\n", "\n" + pad + "         ")
+        where = f" (at {note.span})" if note.span else ""
+        lines.append(f"{pad} = note: {body}{where}")
+    for hint in d.hints:
+        lines.append(f"{pad} = hint: " + hint.replace("\n", "\n" + pad + "         "))
+    return "\n".join(lines)
+
+
+def render_text(diagnostics: Iterable[Diagnostic], sources: Mapping[str, SourceFile]) -> str:
+    """Render diagnostics as the human-readable text the CLI prints."""
+    return "\n\n".join(_render_one(d, sources) for d in sorted(diagnostics, key=sort_key))
+
+
+def render_json(diagnostics: Iterable[Diagnostic]) -> str:
+    """Render diagnostics as a JSON array with the same data as :func:`render_text`."""
+    return json.dumps([d.to_json() for d in sorted(diagnostics, key=sort_key)], indent=2)

@@ -1,0 +1,254 @@
+"""Query and binding expressions over arrays of model states (issue 4), read from the checked IR.
+
+The engine evaluates a checked expression (:mod:`rac.ir.expr`: every name already resolved and
+typed by the checker) for ``n`` states at once: one :class:`Frame` holds what the expression may
+read at one sample — the sample index, the sensed ego significands, optionally the ground truth,
+the automaton's location, rewards and inputs, and the frame of the previous sample for ``prev(e)``.
+
+Numbers follow the emitted UPPAAL/C code (:mod:`rac.targets.uppaal.query` prints the same tree),
+so a binding evaluated here gives the double the emitted ``read_inputs()`` computes: every name is
+read as :mod:`rac.ir.vocabulary` says the model holds it — an ego name is ``significand / SCALE_D``,
+``time`` is ``k * C1``, a setting the model holds as a significand (``collision_distance``,
+``length``, ...) is that significand over ``SCALE_D``, any other setting or literal the nearest
+double. A comparison whose sides are linear in values held as integers here (ego significands,
+``time``, the location index, and — when the frame holds them — input significands and reward
+mirrors) is decided exactly on those integers, as the emitted model compares them. Booleans are
+numpy ``bool`` arrays, numbers ``float64`` arrays.
+
+Example::
+
+    evaluator = Evaluator(data, automaton)
+    frame = Frame(k=np.full(n, 3), ego=states)
+    unsafe = evaluator.evaluate(lower_expression(automaton, "mindist() < 3 * collision_distance"), frame)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from rac import ir
+from rac.core.source import Span
+from rac.ir import expr as ie
+from rac.ir.vocabulary import Holding
+from rac.model.batch import BatchModel
+from rac.model.data import ModelData
+
+__all__ = ["EvaluationError", "Evaluator", "Frame", "int_sum"]
+
+_MATH_1 = {"abs": np.abs, "fabs": np.abs, "sqrt": np.sqrt, "floor": np.floor, "ceil": np.ceil, "trunc": np.trunc}
+_COMPARE = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal, "==": np.equal,
+            "!=": np.not_equal}
+_SAFE_INT64 = 2**62
+
+
+class EvaluationError(ValueError):
+    """An expression reads something the frame does not hold (e.g. ``true_x`` in an exhaustive query)."""
+
+    def __init__(self, message: str, span: Span | None = None) -> None:
+        super().__init__(message)
+        self.span = span
+
+
+@dataclass(frozen=True)
+class Frame:
+    """What an expression reads at one sample, for ``n`` states.
+
+    ``k`` (n,) sample indices; ``ego`` (n, 7) sensed significands (:data:`rac.ir.vocabulary.EGO_STATE`
+    order); ``truth`` (n, 5) true ``x, y, v, acc, head`` (metres, seconds) or None; ``location`` (n,)
+    automaton location indices; ``rewards`` name -> (n,) float64 values; ``inputs`` name -> (n,)
+    values (bool, or float64 reals); ``prev`` the frame of the previous sample (``prev(e)`` at the
+    first sample is ``e`` itself, as in the emitted model). ``mirrors`` (reward -> int mirrors) and
+    ``significands`` (numeric input -> int significands), when given, are what comparisons over
+    rewards and inputs are decided on, exactly (the product of model and automaton holds them).
+    """
+
+    k: np.ndarray
+    ego: np.ndarray
+    truth: np.ndarray | None = None
+    location: np.ndarray | None = None
+    rewards: Mapping[str, np.ndarray] | None = None
+    inputs: Mapping[str, np.ndarray] | None = None
+    prev: Frame | None = None
+    mirrors: Mapping[str, np.ndarray] | None = None
+    significands: Mapping[str, np.ndarray] | None = None
+    _cache: dict = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def n(self) -> int:
+        return int(self.ego.shape[0])
+
+
+def int_sum(const: int, terms: Sequence[tuple[int, np.ndarray]], n: int) -> np.ndarray:
+    """``const + Σ c * column`` exactly: int64 when no intermediate can overflow it, else Python ints."""
+    exact = abs(const) + sum(abs(c) for c, _ in terms) * 2**31 < _SAFE_INT64
+    dtype = np.int64 if exact else object
+    total = np.full(n, const, dtype=dtype)
+    for c, column in terms:
+        total = total + c * column.astype(dtype)
+    return total
+
+
+class Evaluator:
+    """Evaluates checked expressions of one automaton (and its model) over :class:`Frame` s."""
+
+    def __init__(self, data: ModelData, automaton: ir.Automaton | None = None) -> None:
+        self.data = data
+        self.automaton = automaton
+        self.model = BatchModel(data)
+        self.scale_d = float(data.scale)
+        self.period_d = float(data.period)
+        self.period = Fraction(automaton.period) if automaton is not None else Fraction(data.sense_period, data.scale)
+
+    # ------------------------------------------------------------ public
+    def evaluate(self, expr: ie.Expr, frame: Frame) -> np.ndarray:
+        """The value of ``expr`` in every state of ``frame``: a ``(n,)`` bool or float64 array."""
+        value = self._eval(expr, frame)
+        return np.broadcast_to(value, (frame.n,)) if np.ndim(value) == 0 else value
+
+    def evaluate_bool(self, expr: ie.Expr, frame: Frame) -> np.ndarray:
+        """:meth:`evaluate` for a boolean expression (numbers compare with 0, as in C)."""
+        value = self.evaluate(expr, frame)
+        return value if value.dtype == bool else value != 0
+
+    # ------------------------------------------------------------ the walk
+    def _eval(self, expr: ie.Expr, frame: Frame):
+        if isinstance(expr, ie.Const):
+            return np.bool_(expr.value) if isinstance(expr.value, bool) else np.float64(float(expr.value))
+        if isinstance(expr, ie.Ref):
+            return self._ref(expr, frame)
+        if isinstance(expr, ie.Call):
+            return self._call(expr, frame)
+        if isinstance(expr, ie.Prev):
+            return self._eval(expr.operand, frame.prev if frame.prev is not None else frame)
+        if isinstance(expr, ie.Unary):
+            operand = self._eval(expr.operand, frame)
+            return np.logical_not(operand) if expr.op == "!" else -operand
+        if isinstance(expr, ie.Compare):
+            exact = self._exact(expr, frame)
+            if exact is not None:
+                return exact
+            return _COMPARE[expr.op](self._eval(expr.left, frame), self._eval(expr.right, frame))
+        return self._binary(expr, frame)
+
+    def _ref(self, ref: ie.Ref, frame: Frame):
+        kind = ref.kind
+        if kind is ie.RefKind.INPUT:
+            if frame.inputs is None or ref.name not in frame.inputs:
+                raise EvaluationError(f"the input `{ref.name}` is not known here: it needs the product of the "
+                                      "model and the automaton", ref.span)
+            return frame.inputs[ref.name]
+        if kind is ie.RefKind.REWARD:
+            if frame.rewards is None:
+                raise EvaluationError(f"the reward `{ref.name}` is not known here: it needs the product of the "
+                                      "model and the automaton", ref.span)
+            return frame.rewards[ref.name]
+        if kind in (ie.RefKind.LOCATION, ie.RefKind.LOCATION_INDEX):
+            if frame.location is None:
+                what = f"the location `{ref.name}`" if kind is ie.RefKind.LOCATION else "`location`"
+                raise EvaluationError(f"{what} is not known here: it needs the product of the model and the "
+                                      "automaton", ref.span)
+            if kind is ie.RefKind.LOCATION_INDEX:
+                return frame.location.astype(np.float64)
+            return frame.location == ref.index
+        if kind is ie.RefKind.DEADLOCK:
+            return np.bool_(False)  # the model never deadlocks: every state has a choice until the horizon
+        entry = ref.model
+        if entry.kind == "ego":
+            return frame.ego[:, ref.index] / self.scale_d
+        if entry.holding is Holding.TIME:
+            return frame.k * self.period_d
+        if entry.holding is Holding.TRUTH:
+            if frame.truth is None:
+                raise EvaluationError(f"`{ref.name}` is the ground truth, which only statistical queries "
+                                      "(Pr, E, simulate) follow", ref.span)
+            return frame.truth[:, ref.index]
+        assert ref.value is not None, ref
+        return np.float64(float(ref.value))  # a setting, as the model holds it
+
+    def _call(self, call: ie.Call, frame: Frame):
+        name = call.name
+        if call.function.kind == "model":
+            if name not in frame._cache:  # one model call per frame, however often a query reads it
+                model = self.model
+                frame._cache[name] = {
+                    "collide": lambda: model.collide(frame.ego, frame.k),
+                    "offroad": lambda: model.offroad(frame.ego),
+                    "goal": lambda: model.goal(frame.ego, frame.k),
+                    "mindist": lambda: model.mindist(frame.ego, frame.k),
+                    "dist_goal": lambda: model.dist_goal(frame.ego),
+                }[name]()
+            return frame._cache[name]
+        args = [np.asarray(self._eval(a, frame), dtype=np.float64) for a in call.args]
+        if name in _MATH_1:
+            with np.errstate(invalid="ignore"):
+                return _MATH_1[name](args[0])
+        if name == "round":  # C's round: half away from zero (numpy rounds half to even)
+            return np.sign(args[0]) * np.floor(np.abs(args[0]) + 0.5)
+        if name == "fmin":
+            return np.fmin(args[0], args[1])
+        if name == "fmax":
+            return np.fmax(args[0], args[1])
+        raise EvaluationError(f"`{name}()` cannot be evaluated by the engine", call.span)
+
+    def _binary(self, expr: ie.Binary, frame: Frame):
+        op = expr.op
+        left = self._eval(expr.left, frame)
+        right = self._eval(expr.right, frame)
+        if op == "&&":
+            return np.logical_and(left, right)
+        if op == "||":
+            return np.logical_or(left, right)
+        if op == "imply":
+            return np.logical_or(np.logical_not(left), right)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if op == "+":
+                return np.add(left, right, dtype=np.float64)
+            if op == "-":
+                return np.subtract(left, right, dtype=np.float64)
+            if op == "*":
+                return np.multiply(left, right, dtype=np.float64)
+            return np.divide(left, right, dtype=np.float64)
+
+    # ------------------------------------------------------------ exact comparisons
+    def _exact(self, expr: ie.Compare, frame: Frame) -> np.ndarray | None:
+        """``left op right`` decided on integers, when its linear form's terms are all held as integers
+        in this frame (ego significands, ``k``, the location, and mirrors and input significands when
+        the frame holds them); None otherwise."""
+        form = expr.linear
+        if form is None:
+            return None
+        columns: list[tuple[Fraction, np.ndarray]] = []
+        for ref, coefficient in form.terms:
+            held = self._integer(ref, frame)
+            if held is None:
+                return None
+            column, unit = held
+            columns.append((coefficient * unit, column))
+        multiple = math.lcm(form.const.denominator, *(c.denominator for c, _ in columns))
+        total = int_sum(int(form.const * multiple), [(int(c * multiple), col.astype(np.int64)) for c, col in columns],
+                        frame.n)
+        return np.asarray(_COMPARE[expr.op](total, 0), dtype=bool)
+
+    def _integer(self, ref: ie.Ref, frame: Frame) -> tuple[np.ndarray, Fraction] | None:
+        """The integers holding ``ref`` in ``frame`` and the value of one unit, or None."""
+        if ref.kind is ie.RefKind.INPUT:
+            if frame.significands is None or ref.name not in frame.significands:
+                return None
+            return frame.significands[ref.name], Fraction(1, self.data.scale)
+        if ref.kind is ie.RefKind.REWARD:
+            if frame.mirrors is None:
+                return None
+            return frame.mirrors[ref.name], Fraction(1, self.data.scale)
+        if ref.kind is ie.RefKind.LOCATION_INDEX:
+            return (frame.location, Fraction(1)) if frame.location is not None else None
+        entry = ref.model
+        if entry.kind == "ego":
+            return frame.ego[:, ref.index], Fraction(1, self.data.scale)
+        if entry.holding is Holding.TIME:
+            return frame.k, self.period
+        return None

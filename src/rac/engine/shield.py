@@ -1,0 +1,169 @@
+"""Safety shields saved to a file and used from a training loop.
+
+``rac.engine.shield.save(shield, path)`` writes the most permissive safe strategy computed by
+:func:`rac.engine.storm.safety_shield` (``strategy safe = control: A[] ...``);
+``rac.engine.shield.load(path)`` reads it back as a :class:`ShieldTable`::
+
+    table = rac.engine.shield.load("safe.shield.npz")
+    mask = table.mask(state)          # (n_actions,) bool: the actions allowed in `state`
+    ok = table.allowed(state)         # the allowed action indices
+
+A state is the integer vector of the explored model (``table.columns``, e.g.
+``k, x, y, v, acc, head, jerk, turn``). Only decision states are stored.
+
+**States the shield has never seen.** The shield was computed on the states the model can
+reach; a state outside them (a different start, a sensor reading the model cannot produce)
+is *unseen*. What to do then is the caller's choice, made once when loading:
+
+- ``unseen="none"`` (default): nothing is known to be safe, so no action is allowed (an empty
+  mask). A masked learner must then fall back to a safe manoeuvre of its own;
+- ``unseen="all"``: every action is allowed (the shield does not restrict unseen states);
+- ``unseen="error"``: raise :class:`UnseenState`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rac.engine.storm import Shield
+
+if TYPE_CHECKING:
+    from rac.model.data import ModelData
+
+FORMAT = "rac-shield-1"
+UNSEEN_POLICIES = ("none", "all", "error")
+
+
+class UnseenState(KeyError):
+    """The shield has no entry for this state (``unseen="error"``)."""
+
+
+@dataclass(frozen=True)
+class ShieldTable:
+    """A loaded shield: per decision state, a mask over the action indices."""
+
+    columns: tuple[str, ...]
+    states: np.ndarray  # (s, d) int32, decision states
+    masks: np.ndarray  # (s, n_actions) bool
+    unseen: str = "none"
+
+    def __post_init__(self) -> None:
+        if self.unseen not in UNSEEN_POLICIES:
+            raise ValueError(f"unseen must be one of {UNSEEN_POLICIES}, not {self.unseen!r}")
+        index = {row.tobytes(): i for i, row in enumerate(np.ascontiguousarray(self.states, dtype=np.int32))}
+        object.__setattr__(self, "_index", index)
+
+    @property
+    def n_actions(self) -> int:
+        return int(self.masks.shape[1])
+
+    def _row(self, state: object) -> int | None:
+        key = np.ascontiguousarray(np.asarray(state, dtype=np.int32)).tobytes()
+        return self._index.get(key)  # type: ignore[attr-defined]
+
+    def mask(self, state: object) -> np.ndarray:
+        """``(n_actions,)`` bool: the actions allowed in ``state`` (the MaskablePPO convention)."""
+        row = self._row(state)
+        if row is not None:
+            return self.masks[row].copy()
+        if self.unseen == "error":
+            raise UnseenState(f"the shield has no entry for state {list(np.asarray(state).tolist())}")
+        return np.full(self.n_actions, self.unseen == "all")
+
+    def allowed(self, state: object) -> np.ndarray:
+        """The allowed action indices in ``state`` (see the module docstring for unseen states)."""
+        return np.flatnonzero(self.mask(state))
+
+    def knows(self, state: object) -> bool:
+        """Whether ``state`` is one of the shield's decision states."""
+        return self._row(state) is not None
+
+    def masks_at(self, k: int, states: np.ndarray) -> np.ndarray:
+        """:meth:`masks_for` of the ego rows ``states`` ``(n, 7)`` at sample ``k``: the
+        ``policy(k, states)`` that :func:`rac.engine.simulate.simulate` takes."""
+        states = np.asarray(states, dtype=np.int32)
+        return self.masks_for(np.column_stack([np.full(states.shape[0], k, dtype=np.int32), states]))
+
+    def masks_for(self, states: np.ndarray) -> np.ndarray:
+        """``(n, n_actions)`` bool: :meth:`mask` of every row of ``states`` (``(n, d)``), in one call.
+
+        Unseen rows follow the table's ``unseen`` policy (``"error"`` raises for the first one)."""
+        rows = np.ascontiguousarray(np.asarray(states, dtype=np.int32))
+        found = np.array([self._index.get(row.tobytes(), -1) for row in rows], dtype=np.int64)  # type: ignore[attr-defined]
+        out = np.empty((rows.shape[0], self.n_actions), dtype=bool)
+        seen = found >= 0
+        out[seen] = self.masks[found[seen]]
+        if not seen.all():
+            if self.unseen == "error":
+                raise UnseenState(f"the shield has no entry for state {rows[~seen][0].tolist()}")
+            out[~seen] = self.unseen == "all"
+        return out
+
+
+def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None = None,
+               progress: Callable[[int, int, int], None] | None = None) -> tuple[Shield, ShieldTable]:
+    """The safety shield of ``control: A[] !collide() && !offroad()`` up to the horizon: the model
+    explored with unsafe states not expanded, Storm's most permissive strategy, and its table over
+    the model's whole action grid. ``MemoryError`` beyond ``max_states`` (from the exploration)."""
+    from rac.engine.explore import action_pairs, explore
+    from rac.engine.storm import safety_shield
+
+    graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=True, max_states=max_states,
+                    progress=progress)
+    computed = safety_shield(graph, "safe")
+    return computed, table(computed, n_actions=len(action_pairs(data)))
+
+
+def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none") -> ShieldTable:
+    """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads)."""
+    graph = shield.graph
+    actions = graph.choice_action
+    decision = actions >= 0
+    n_actions = n_actions if n_actions is not None else (int(actions.max()) + 1 if decision.any() else 0)
+    owner = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
+    states_with_decisions = np.unique(owner[decision])
+    row_of = np.full(graph.n_states, -1, dtype=np.int64)
+    row_of[states_with_decisions] = np.arange(states_with_decisions.size)
+    masks = np.zeros((states_with_decisions.size, n_actions), dtype=bool)
+    picked = decision & shield.allowed_choices
+    masks[row_of[owner[picked]], actions[picked]] = True
+    return ShieldTable(tuple(graph.columns), graph.states[states_with_decisions].astype(np.int32), masks, unseen)
+
+
+def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | None = None) -> Path:
+    """Write a shield's decision states and their allowed actions to ``path`` (compressed .npz).
+
+    The file is written to a temporary name beside ``path`` and renamed, so an interrupted
+    write never leaves a half shield behind."""
+    shield_table = shield if isinstance(shield, ShieldTable) else table(shield, n_actions=n_actions)
+    path = Path(path)
+    partial = path.with_name(path.name + ".partial")
+    try:
+        with partial.open("wb") as handle:
+            np.savez_compressed(handle, format=np.array(FORMAT), columns=np.array(shield_table.columns),
+                                states=shield_table.states.astype(np.int32), masks=shield_table.masks)
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
+    return path
+
+
+def load(path: str | Path, *, unseen: str = "none") -> ShieldTable:
+    """Read a shield written by :func:`save`; ``unseen`` says what unknown states get."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["format"]) != FORMAT:
+                raise ValueError(f"{path}: not a rac shield (format {str(data['format'])!r})")
+            return ShieldTable(tuple(str(c) for c in data["columns"]), data["states"].astype(np.int32),
+                               data["masks"].astype(bool), unseen)
+    except (OSError, KeyError, ValueError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise ValueError(f"{path}: cannot read the shield: {exc}") from None

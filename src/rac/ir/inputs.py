@@ -1,0 +1,171 @@
+"""The finite alphabet of input valuations that the exact checks range over.
+
+Guards compare each numeric input with constants only, so the truth of every
+guard is constant on each *piece* of a numeric input's range: the thresholds
+themselves and the open intervals between them. A *class* is one valuation of
+the boolean inputs plus one piece per numeric input; enumerating the classes
+that satisfy ``assume`` covers every input valuation exactly.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from rac import ir
+from rac.core.diagnostics import short_number
+
+#: Above this many classes the exact checks refuse (reported as a diagnostic).
+MAX_CLASSES = 1 << 20
+
+
+@dataclass(frozen=True)
+class Piece:
+    """A point or an interval of one numeric input's range, with its closure."""
+
+    low: Fraction
+    high: Fraction
+    low_closed: bool
+    high_closed: bool
+
+    @property
+    def is_point(self) -> bool:
+        return self.low == self.high
+
+    def representative(self, integral: bool) -> Fraction:
+        if self.is_point:
+            return self.low
+        if integral:
+            return Fraction(math.floor(self.low) + 1) if not self.low_closed else self.low
+        return (self.low + self.high) / 2
+
+    def describe(self, name: str) -> str:
+        if self.is_point:
+            return f"{name} = {_num(self.low)}"
+        left = "[" if self.low_closed else "("
+        right = "]" if self.high_closed else ")"
+        return f"{name} in {left}{_num(self.low)}, {_num(self.high)}{right}"
+
+
+class TooManyClasses(Exception):
+    def __init__(self, count: int):
+        super().__init__(f"{count} input classes")
+        self.count = count
+
+
+def _num(value: Fraction) -> str:
+    return short_number(value)
+
+
+def guard_inputs(guard: ir.Guard) -> set[str]:
+    """Names of the inputs a guard reads."""
+    return {leaf.name if isinstance(leaf, ir.BInput) else leaf.input for leaf in ir.guard_leaves(guard)}
+
+
+def all_guards(automaton: ir.Automaton) -> list[ir.Guard]:
+    return [automaton.assume, *(e.guard for e in automaton.all_edges()),
+            *(c.guard for c in automaton.end_clauses)]
+
+
+def _pieces(item: ir.Input, thresholds: set[Fraction]) -> list[Piece]:
+    assert item.low is not None and item.high is not None
+    points = sorted({item.low, item.high} | {t for t in thresholds if item.low < t < item.high})
+    if item.kind == "int":
+        # Integer inputs: keep thresholds that are integers as points, and the integer runs between.
+        pieces: list[Piece] = []
+        cuts = sorted({item.low, item.high} | {t for t in thresholds if item.low <= t <= item.high})
+        for i, point in enumerate(cuts):
+            if point.denominator == 1:
+                pieces.append(Piece(point, point, True, True))
+            if i + 1 < len(cuts):
+                lo = Fraction(math.floor(point) + 1)
+                hi = Fraction(math.ceil(cuts[i + 1]) - 1)
+                if lo <= hi:
+                    pieces.append(Piece(lo, hi, True, True))
+        return pieces
+    pieces = []
+    for i, point in enumerate(points):
+        pieces.append(Piece(point, point, True, True))
+        if i + 1 < len(points):
+            pieces.append(Piece(point, points[i + 1], False, False))
+    return pieces
+
+
+class InputSpace:
+    """All input classes of an automaton, as numpy columns, with guard evaluation."""
+
+    def __init__(self, automaton: ir.Automaton, extra_guards: list[ir.Guard] | None = None):
+        self.automaton = automaton
+        atoms = {leaf for guard in all_guards(automaton) + (extra_guards or [])
+                 for leaf in ir.guard_leaves(guard) if isinstance(leaf, ir.BAtom)}
+        self.bools = [i.name for i in automaton.bool_inputs]
+        self.numerics = list(automaton.numeric_inputs)
+        self.pieces = {i.name: _pieces(i, {a.threshold for a in atoms if a.input == i.name})
+                       for i in self.numerics}
+        sizes = [2] * len(self.bools) + [len(self.pieces[i.name]) for i in self.numerics]
+        count = math.prod(sizes)
+        if count > MAX_CLASSES:
+            raise TooManyClasses(count)
+        grid = np.array(list(itertools.product(*(range(s) for s in sizes))), dtype=np.int32)
+        grid = grid.reshape(count, len(sizes))
+        self.count = count
+        # Column per input: bool value, or piece index for numeric inputs.
+        self.columns: dict[str, np.ndarray] = {}
+        for k, name in enumerate(self.bools):
+            # False before True, so witnesses prefer "false" valuations.
+            self.columns[name] = grid[:, k].astype(bool)
+        for k, item in enumerate(self.numerics):
+            self.columns[item.name] = grid[:, len(self.bools) + k]
+        self._cache: dict[ir.Guard, np.ndarray] = {}
+        self.valid = self.evaluate(automaton.assume)
+
+    def _atom_table(self, atom: ir.BAtom) -> np.ndarray:
+        item = self.automaton.input(atom.input)
+        pieces = self.pieces[atom.input]
+        return np.array([ir.compare(p.representative(item.kind == "int"), atom.op, atom.threshold)
+                         for p in pieces], dtype=bool)
+
+    def evaluate(self, guard: ir.Guard) -> np.ndarray:
+        """Truth of a guard in every class (ignoring ``assume``)."""
+        cached = self._cache.get(guard)
+        if cached is not None:
+            return cached
+        if isinstance(guard, ir.BConst):
+            result = np.full(self.count, guard.value, dtype=bool)
+        elif isinstance(guard, ir.BInput):
+            result = self.columns[guard.name]
+        elif isinstance(guard, ir.BAtom):
+            result = self._atom_table(guard)[self.columns[guard.input]]
+        elif isinstance(guard, ir.BNot):
+            result = ~self.evaluate(guard.operand)
+        elif isinstance(guard, ir.BAnd):
+            result = np.logical_and.reduce([self.evaluate(g) for g in guard.operands])
+        else:
+            result = np.logical_or.reduce([self.evaluate(g) for g in guard.operands])
+        self._cache[guard] = result
+        return result
+
+    def piece(self, cls: int, name: str) -> Piece:
+        return self.pieces[name][int(self.columns[name][cls])]
+
+    def valuation(self, cls: int) -> dict[str, bool | Fraction]:
+        """A concrete input valuation inside a class."""
+        values: dict[str, bool | Fraction] = {n: bool(self.columns[n][cls]) for n in self.bools}
+        for item in self.numerics:
+            values[item.name] = self.piece(cls, item.name).representative(item.kind == "int")
+        return values
+
+    def describe(self, cls: int, only: set[str] | None = None) -> str:
+        """``isClose=true, prog=false, dgoal in [0, 2)`` for messages."""
+        parts = []
+        for name in self.bools:
+            if only is None or name in only:
+                parts.append(f"{name}={'true' if self.columns[name][cls] else 'false'}")
+        for item in self.numerics:
+            if only is None or item.name in only:
+                parts.append(self.piece(cls, item.name).describe(item.name))
+        return ", ".join(parts) if parts else "(no inputs)"

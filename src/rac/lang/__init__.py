@@ -1,0 +1,1 @@
+"""The `.ra` language: the syntax tree, the parser (lark) and the formatter (`rac fmt`)."""

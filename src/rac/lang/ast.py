@@ -1,0 +1,376 @@
+"""The typed syntax tree of a `.ra` file: frozen dataclasses carrying spans.
+
+Spans never take part in equality, so a tree parsed from pretty-printed text
+compares equal to the original (the round-trip property the tests check).
+Surface variants are normalised here: ``and``/``or``/``not`` become
+``&&``/``||``/``!``; the printer emits the canonical form.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Union
+
+from rac.core.source import Span
+
+
+def _span() -> Span | None:
+    return field(default=None, compare=False, repr=False)  # type: ignore[return-value]
+
+
+# ---------------------------------------------------------------- expressions
+@dataclass(frozen=True)
+class Number:
+    value: Fraction
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class BoolLit:
+    value: bool
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class Name:
+    id: str
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class Qualified:
+    """``Process.member`` — e.g. ``Driving.Unsafe`` in a query."""
+
+    scope: str
+    id: str
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class Call:
+    func: str
+    args: tuple[Expr, ...]
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class Unary:
+    op: str  # "-" or "!"
+    operand: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class Binary:
+    op: str  # + - * /  < <= > >= == !=  && ||  imply
+    left: Expr
+    right: Expr
+    span: Span | None = _span()
+
+
+Expr = Union[Number, BoolLit, Name, Qualified, Call, Unary, Binary]
+
+ARITHMETIC_OPS = ("+", "-", "*", "/")
+COMPARISON_OPS = ("<", "<=", ">", ">=", "==", "!=")
+LOGICAL_OPS = ("&&", "||", "imply")
+
+
+# ---------------------------------------------------------------- declarations
+@dataclass(frozen=True)
+class BoolType:
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class NumericType:
+    kind: str  # "real" or "int"
+    low: Expr | None
+    high: Expr | None
+    span: Span | None = _span()
+
+
+InputType = Union[BoolType, NumericType]
+
+
+@dataclass(frozen=True)
+class Ident:
+    """A declared or referenced name with its own span."""
+
+    name: str
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class InputDecl:
+    names: tuple[Ident, ...]
+    type: InputType
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class AssumeDecl:
+    expr: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ConstDecl:
+    name: Ident
+    expr: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class RewardDecl:
+    names: tuple[Ident, ...]
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class PriorityDecl:
+    strict: bool
+    names: tuple[Ident, ...]
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ObjectiveDecl:
+    expr: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class SampleDecl:
+    period: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class HorizonDecl:
+    length: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class Flow:
+    """``reward' == rate`` inside a location."""
+
+    reward: Ident
+    rate: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class LocationDecl:
+    name: Ident
+    initial: bool
+    flows: tuple[Flow, ...]
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class Update:
+    target: Ident
+    op: str  # "=", "+=", "-="
+    expr: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class EdgeDecl:
+    source: Ident | None  # None is ``*``: every location except the target
+    target: Ident
+    guard: Expr | None
+    updates: tuple[Update, ...]
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class EndDecl:
+    """``at end when g do u``: applied once when a run ends."""
+
+    guard: Expr | None
+    updates: tuple[Update, ...]
+    span: Span | None = _span()
+
+
+# ---------------------------------------------------------------- queries
+@dataclass(frozen=True)
+class Bound:
+    kind: str  # "time" (``<=T``) or "steps" (``#<=K``)
+    limit: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class PathQuery:
+    """``A[] p``, ``E<> p``, ``E[] p``, ``A<> p``."""
+
+    quantifier: str
+    expr: Expr
+    under: str | None = None
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class LeadsToQuery:
+    left: Expr
+    right: Expr
+    under: str | None = None
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ProbabilityQuery:
+    """``Pr[<=T;N](<> p) >= θ``."""
+
+    bound: Bound
+    runs: Expr | None
+    path: str  # "<>" or "[]"
+    expr: Expr
+    compare: tuple[str, Expr] | None = None
+    under: str | None = None
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ExpectationQuery:
+    """``E[<=T;N](max: e)``."""
+
+    bound: Bound
+    runs: Expr
+    aggregate: str  # "max" or "min"
+    expr: Expr
+    under: str | None = None
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class SimulateQuery:
+    bound: Bound
+    runs: Expr | None
+    exprs: tuple[Expr, ...]
+    under: str | None = None
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ControlStrategy:
+    """``strategy S = control: A[] p``."""
+
+    name: str
+    goal: str  # "A[]" or "E<>"
+    expr: Expr
+    under: str | None = None
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class LearnStrategy:
+    """``strategy S = maxE(e)[<=T]{d...}->{c...}: <> p under S0``."""
+
+    name: str
+    optimise: str  # "maxE" or "minE"
+    objective: Expr
+    bound: Bound
+    discrete: tuple[Expr, ...]
+    continuous: tuple[Expr, ...]
+    path: str
+    expr: Expr
+    under: str | None = None
+    span: Span | None = _span()
+
+
+Query = Union[PathQuery, LeadsToQuery, ProbabilityQuery, ExpectationQuery, SimulateQuery,
+              ControlStrategy, LearnStrategy]
+
+
+@dataclass(frozen=True)
+class QueryDecl:
+    name: Ident
+    query: Query
+    span: Span | None = _span()
+
+
+# ---------------------------------------------------------------- the scenario model
+@dataclass(frozen=True)
+class ModelScenario:
+    """``scenario "file.xml"``: the CommonRoad file, as written (without the quotes)."""
+
+    path: str
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ModelAction:
+    """``action jerk in [low, high] step s``."""
+
+    name: Ident
+    low: Expr
+    high: Expr
+    step: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ModelBinding:
+    """``bind input = expr``: the model expression that drives one input."""
+
+    input: Ident
+    expr: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class ModelSetting:
+    """``name value``, e.g. ``exponent 4`` (the resolver knows which names exist)."""
+
+    name: Ident
+    value: Expr
+    span: Span | None = _span()
+
+
+ModelItem = Union[ModelScenario, ModelAction, ModelBinding, ModelSetting]
+
+
+@dataclass(frozen=True)
+class ModelDecl:
+    """``model { ... }``: the scenario model the automaton is checked against."""
+
+    items: tuple[ModelItem, ...]
+    span: Span | None = _span()
+
+    def of(self, kind: type) -> list:
+        """All items of one kind, in source order."""
+        return [i for i in self.items if isinstance(i, kind)]
+
+
+Member = Union[InputDecl, AssumeDecl, ConstDecl, RewardDecl, PriorityDecl, ObjectiveDecl,
+               SampleDecl, HorizonDecl, LocationDecl, EdgeDecl, EndDecl, QueryDecl, ModelDecl]
+
+
+@dataclass(frozen=True)
+class Automaton:
+    name: Ident
+    members: tuple[Member, ...]
+    span: Span | None = _span()
+
+    def of(self, kind: type) -> list:
+        """All members of one declaration kind, in source order."""
+        return [m for m in self.members if isinstance(m, kind)]
+
+
+@dataclass(frozen=True)
+class Comment:
+    text: str
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class Module:
+    """One parsed file: its automata and (for the formatter) its comments."""
+
+    automata: tuple[Automaton, ...]
+    comments: tuple[Comment, ...] = field(default=(), compare=False)
+    span: Span | None = _span()

@@ -1,0 +1,528 @@
+"""The canonical pretty-printer of `.ra` files, used by ``rac fmt`` and the round-trip tests.
+
+Three layers:
+
+* :func:`format_expr` prints an expression with the fewest parentheses the grammar
+  needs to read it back as the same tree (precedence, lowest first: ``imply``
+  (right-associative), ``||``, ``&&``, comparisons (non-associative), ``+ -``,
+  ``* /`` (both left-associative), unary ``-`` and ``!``);
+* :func:`format_query` and :func:`format_member` print one query or declaration
+  on one line (a ``model`` block: one item per line, :func:`format_model_item`);
+* :func:`format_module` lays out whole files: four-space indentation, one member
+  per line, a blank line where the kind of declaration changes, and every comment
+  of the source kept, attached by position to the member it belongs to.
+
+The property the tests check: ``parse_text(format_module(m)) == m`` for every tree
+``m`` the parser can produce, and formatting formatted text changes nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+from rac.lang import ast
+from rac.lang.parser import parse_text
+
+__all__ = ["format_expr", "format_member", "format_model_item", "format_module", "format_query", "format_source"]
+
+INDENT = "    "
+
+#: Trailing comments of consecutive declarations of one kind are aligned in one
+#: column, unless a declaration is longer than this (its comment then follows two spaces).
+_ALIGN_LIMIT = 72
+
+# ---------------------------------------------------------------- expressions
+_BINARY_PRECEDENCE = {
+    "imply": 1,
+    "||": 2,
+    "&&": 3,
+    "<": 4, "<=": 4, ">": 4, ">=": 4, "==": 4, "!=": 4,
+    "+": 5, "-": 5,
+    "*": 6, "/": 6,
+}
+_COMPARISON = 4
+_UNARY = 7
+_ATOM = 8
+
+
+def _format_number(value: Fraction) -> str:
+    """Print an exact decimal literal (no exponent); ``(n / d)`` when none exists."""
+    if value < 0:
+        return "-" + _format_number(-value)
+    numerator, denominator = value.numerator, value.denominator
+    if denominator == 1:
+        return str(numerator)
+    rest, twos, fives = denominator, 0, 0
+    while rest % 2 == 0:
+        rest, twos = rest // 2, twos + 1
+    while rest % 5 == 0:
+        rest, fives = rest // 5, fives + 1
+    if rest != 1:
+        # Not a finite decimal: never produced by the parser; print an equal value.
+        return f"({numerator} / {denominator})"
+    places = max(twos, fives)
+    digits = str(numerator * (10**places // denominator)).rjust(places + 1, "0")
+    return f"{digits[:-places]}.{digits[-places:]}"
+
+
+def _precedence(expr: ast.Expr) -> int:
+    if isinstance(expr, ast.Binary):
+        try:
+            return _BINARY_PRECEDENCE[expr.op]
+        except KeyError:
+            raise ValueError(f"unknown binary operator {expr.op!r}") from None
+    if isinstance(expr, ast.Unary):
+        return _UNARY
+    if isinstance(expr, ast.Number) and expr.value < 0:
+        return _UNARY
+    return _ATOM
+
+
+def _operand(expr: ast.Expr, minimum: int) -> str:
+    text = _expr(expr)
+    return f"({text})" if _precedence(expr) < minimum else text
+
+
+def _expr(expr: ast.Expr) -> str:
+    if isinstance(expr, ast.Number):
+        return _format_number(expr.value)
+    if isinstance(expr, ast.BoolLit):
+        return "true" if expr.value else "false"
+    if isinstance(expr, ast.Name):
+        return expr.id
+    if isinstance(expr, ast.Qualified):
+        return f"{expr.scope}.{expr.id}"
+    if isinstance(expr, ast.Call):
+        return f"{expr.func}({', '.join(_expr(a) for a in expr.args)})"
+    if isinstance(expr, ast.Unary):
+        if expr.op not in ("-", "!"):
+            raise ValueError(f"unknown unary operator {expr.op!r}")
+        operand = _operand(expr.operand, _UNARY)
+        if expr.op == "-" and operand.startswith("-"):
+            operand = f"({operand})"  # `--x` would be hard to read
+        return expr.op + operand
+    if isinstance(expr, ast.Binary):
+        level = _precedence(expr)
+        if expr.op == "imply":  # right-associative
+            left, right = level + 1, level
+        elif level == _COMPARISON:  # non-associative
+            left, right = level + 1, level + 1
+        else:  # left-associative
+            left, right = level, level + 1
+        return f"{_operand(expr.left, left)} {expr.op} {_operand(expr.right, right)}"
+    raise TypeError(f"not an expression: {expr!r}")
+
+
+def format_expr(expr: ast.Expr) -> str:
+    """Print an expression with minimal parentheses; parsing the result gives back ``expr``.
+
+    Numbers print as integers or exact decimals (``0.1``, ``2.25``); ``and``/``or``/``not``
+    are printed in their canonical forms ``&&``/``||``/``!``.
+    """
+    return _expr(expr)
+
+
+# ---------------------------------------------------------------- queries
+def _bound(bound: ast.Bound, runs: ast.Expr | None = None) -> str:
+    prefix = {"time": "<=", "steps": "#<="}.get(bound.kind)
+    if prefix is None:
+        raise ValueError(f"unknown bound kind {bound.kind!r}")
+    text = prefix + _expr(bound.limit)
+    if runs is not None:
+        text += f";{_expr(runs)}"
+    return text
+
+
+def _under(query: ast.Query) -> str:
+    return f" under {query.under}" if query.under is not None else ""
+
+
+def _exprs(exprs: tuple[ast.Expr, ...]) -> str:
+    return ", ".join(_expr(e) for e in exprs)
+
+
+def format_query(query: ast.Query) -> str:
+    """Print one query formula (the part after ``query NAME:``), UPPAAL style."""
+    if isinstance(query, ast.PathQuery):
+        text = f"{query.quantifier} {_expr(query.expr)}"
+    elif isinstance(query, ast.LeadsToQuery):
+        text = f"{_expr(query.left)} --> {_expr(query.right)}"
+    elif isinstance(query, ast.ProbabilityQuery):
+        text = f"Pr[{_bound(query.bound, query.runs)}]({query.path} {_expr(query.expr)})"
+        if query.compare is not None:
+            op, threshold = query.compare
+            text += f" {op} {_expr(threshold)}"
+    elif isinstance(query, ast.ExpectationQuery):
+        text = f"E[{_bound(query.bound, query.runs)}]({query.aggregate}: {_expr(query.expr)})"
+    elif isinstance(query, ast.SimulateQuery):
+        text = f"simulate[{_bound(query.bound, query.runs)}]{{{_exprs(query.exprs)}}}"
+    elif isinstance(query, ast.ControlStrategy):
+        text = f"strategy {query.name} = control: {query.goal} {_expr(query.expr)}"
+    elif isinstance(query, ast.LearnStrategy):
+        text = (f"strategy {query.name} = {query.optimise}({_expr(query.objective)})[{_bound(query.bound)}]"
+                f"{{{_exprs(query.discrete)}}}->{{{_exprs(query.continuous)}}}: "
+                f"{query.path} {_expr(query.expr)}")
+    else:
+        raise TypeError(f"not a query: {query!r}")
+    return text + _under(query)
+
+
+# ---------------------------------------------------------------- declarations
+def _names(idents: tuple[ast.Ident, ...], separator: str = ", ") -> str:
+    return separator.join(i.name for i in idents)
+
+
+def _type(kind: ast.InputType) -> str:
+    if isinstance(kind, ast.BoolType):
+        return "bool"
+    if (kind.low is None) != (kind.high is None):
+        raise ValueError("a numeric input has both bounds or neither")
+    if kind.low is None or kind.high is None:
+        return kind.kind
+    return f"{kind.kind} in [{_expr(kind.low)}, {_expr(kind.high)}]"
+
+
+def _updates(updates: tuple[ast.Update, ...]) -> str:
+    return " do " + ", ".join(f"{u.target.name} {u.op} {_expr(u.expr)}" for u in updates) if updates else ""
+
+
+def _guard(guard: ast.Expr | None) -> str:
+    return f" when {_expr(guard)}" if guard is not None else ""
+
+
+def format_model_item(item: ast.ModelItem) -> str:
+    """Print one item of a ``model`` block on one line, without indentation or comments."""
+    if isinstance(item, ast.ModelScenario):
+        if '"' in item.path or "\n" in item.path:
+            raise ValueError(f"a scenario path cannot hold a quote or a line break: {item.path!r}")
+        return f'scenario "{item.path}"'
+    if isinstance(item, ast.ModelAction):
+        return f"action {item.name.name} in [{_expr(item.low)}, {_expr(item.high)}] step {_expr(item.step)}"
+    if isinstance(item, ast.ModelBinding):
+        return f"bind {item.input.name} = {_expr(item.expr)}"
+    if isinstance(item, ast.ModelSetting):
+        return f"{item.name.name} {_expr(item.value)}"
+    raise TypeError(f"not a model item: {item!r}")
+
+
+def format_member(member: ast.Member) -> str:
+    """Print one declaration of an automaton, without indentation or comments.
+
+    Every declaration fits on one line except a ``model`` block, which prints one item per
+    line, indented by four spaces, between ``model {`` and ``}``.
+    """
+    if isinstance(member, ast.InputDecl):
+        return f"input {_names(member.names)} : {_type(member.type)}"
+    if isinstance(member, ast.AssumeDecl):
+        return f"assume {_expr(member.expr)}"
+    if isinstance(member, ast.ConstDecl):
+        return f"const {member.name.name} = {_expr(member.expr)}"
+    if isinstance(member, ast.RewardDecl):
+        return f"reward {_names(member.names)}"
+    if isinstance(member, ast.PriorityDecl):
+        return f"priority {'strict ' if member.strict else ''}{_names(member.names, ' > ')}"
+    if isinstance(member, ast.ObjectiveDecl):
+        return f"objective {_expr(member.expr)}"
+    if isinstance(member, ast.SampleDecl):
+        return f"sample every {_expr(member.period)}"
+    if isinstance(member, ast.HorizonDecl):
+        return f"horizon {_expr(member.length)}"
+    if isinstance(member, ast.LocationDecl):
+        flows = "; ".join(f"{f.reward.name}' == {_expr(f.rate)}" for f in member.flows)
+        body = f"{{ {flows} }}" if flows else "{ }"
+        return f"{'initial ' if member.initial else ''}location {member.name.name} {body}"
+    if isinstance(member, ast.EdgeDecl):
+        source = member.source.name if member.source is not None else "*"
+        return f"edge {source} -> {member.target.name}{_guard(member.guard)}{_updates(member.updates)}"
+    if isinstance(member, ast.EndDecl):
+        return f"at end{_guard(member.guard)}{_updates(member.updates)}"
+    if isinstance(member, ast.QueryDecl):
+        return f"query {member.name.name}: {format_query(member.query)}"
+    if isinstance(member, ast.ModelDecl):
+        if not member.items:
+            return "model { }"
+        return "\n".join(["model {", *(INDENT + format_model_item(i) for i in member.items), "}"])
+    raise TypeError(f"not a declaration: {member!r}")
+
+
+#: Declarations of one group are printed without blank lines between them.
+_GROUP = {
+    ast.InputDecl: 0,
+    ast.AssumeDecl: 1,
+    ast.ConstDecl: 2,
+    ast.RewardDecl: 3, ast.PriorityDecl: 3, ast.ObjectiveDecl: 3,
+    ast.SampleDecl: 4, ast.HorizonDecl: 4,
+    ast.LocationDecl: 5,
+    ast.EdgeDecl: 6,
+    ast.EndDecl: 7,
+    ast.QueryDecl: 8,
+    ast.ModelDecl: 9,
+}
+
+
+# ---------------------------------------------------------------- comments
+@dataclass
+class _Slot:
+    """The comments attached to one printed line (a member, a header, a closing brace)."""
+
+    leading: list[ast.Comment] = field(default_factory=list)   # own lines before it
+    trailing: list[ast.Comment] = field(default_factory=list)  # after it, on its line
+    continued: list[ast.Comment] = field(default_factory=list)  # own lines aligned under `trailing`
+
+
+@dataclass
+class _BlockComments:
+    """The comments inside a ``model { ... }`` block (its member slot holds those around it)."""
+
+    header: _Slot                 # trailing: after `model {`
+    items: list[_Slot]
+    closing: list[ast.Comment]    # own lines before `}`
+
+
+@dataclass
+class _AutomatonComments:
+    header: _Slot                 # leading: before `automaton`; trailing: after `automaton X {`
+    members: list[_Slot]
+    closing: list[ast.Comment]    # own lines before `}`
+    after: list[ast.Comment]      # after `}` on its line
+    #: For each `model` member (by index): the comments inside its braces.
+    blocks: dict[int, _BlockComments] = field(default_factory=dict)
+
+
+@dataclass
+class _Placement:
+    automata: list[_AutomatonComments]
+    trailer: list[ast.Comment]    # after the last automaton
+
+
+def _comment_text(comment: ast.Comment) -> str:
+    text = comment.text.replace("\r\n", "\n")
+    return text.rstrip() if text.startswith("//") else text
+
+
+def _is_continuation(comment: ast.Comment, slot: _Slot) -> bool:
+    """Tell whether an own-line comment sits right under the slot's trailing comment, in its column.
+
+    The column is the first trailing comment's: that is where continuations are printed, so
+    formatted text reads back the same way (with ``/* a */ // b`` trailing, a comment under
+    ``// b`` is not a continuation).
+    """
+    if not slot.trailing:
+        return False
+    anchor = slot.trailing[0]
+    last = slot.continued[-1] if slot.continued else slot.trailing[-1]
+    if anchor.span is None or last.span is None or comment.span is None:
+        return False
+    return (last.span.line == last.span.end_line and comment.span.line == last.span.end_line + 1
+            and comment.span.column == anchor.span.column)
+
+
+def _place_in_automaton(comment: ast.Comment, automaton: ast.Automaton, slots: _AutomatonComments) -> None:
+    span = comment.span
+    assert span is not None
+    name = automaton.name.span
+    if name is not None and span.start < name.end:
+        slots.header.leading.append(comment)
+        return
+    previous: int | None = None
+    following: int | None = None
+    for index, member in enumerate(automaton.members):
+        if member.span is None:
+            continue
+        if member.span.start <= span.start < member.span.end:
+            if isinstance(member, ast.ModelDecl):
+                _place_in_block(comment, member, slots.blocks[index])
+            else:
+                slots.members[index].leading.append(comment)  # inside a declaration
+            return
+        if member.span.end <= span.start:
+            previous = index
+        elif following is None:
+            following = index
+    if previous is not None:
+        slot = slots.members[previous]
+        end_line = automaton.members[previous].span.end_line  # type: ignore[union-attr]
+    else:
+        slot = slots.header
+        end_line = name.end_line if name is not None else -1
+    if span.line == end_line:
+        slot.trailing.append(comment)
+    elif _is_continuation(comment, slot):
+        slot.continued.append(comment)
+    elif following is not None:
+        slots.members[following].leading.append(comment)
+    else:
+        slots.closing.append(comment)
+
+
+def _place_in_block(comment: ast.Comment, block: ast.ModelDecl, slots: _BlockComments) -> None:
+    """Attach a comment inside a ``model`` block to the item it belongs to (as for members)."""
+    span = comment.span
+    assert span is not None and block.span is not None
+    previous: int | None = None
+    following: int | None = None
+    for index, item in enumerate(block.items):
+        if item.span is None:
+            continue
+        if item.span.start <= span.start < item.span.end:
+            slots.items[index].leading.append(comment)  # inside an item
+            return
+        if item.span.end <= span.start:
+            previous = index
+        elif following is None:
+            following = index
+    if previous is not None:
+        slot = slots.items[previous]
+        end_line = block.items[previous].span.end_line  # type: ignore[union-attr]
+    else:
+        slot = slots.header
+        end_line = block.span.line
+    if span.line == end_line:
+        slot.trailing.append(comment)
+    elif _is_continuation(comment, slot):
+        slot.continued.append(comment)
+    elif following is not None:
+        slots.items[following].leading.append(comment)
+    else:
+        slots.closing.append(comment)
+
+
+def _place_comments(module: ast.Module) -> _Placement:
+    """Attach every comment of ``module`` to the line it belongs to, by source position."""
+    placement = _empty_placement(module)
+    automata = [(i, a) for i, a in enumerate(module.automata) if a.span is not None]
+    for comment in sorted(module.comments, key=lambda c: c.span.start if c.span is not None else -1):
+        span = comment.span
+        if span is None or not automata:
+            target = placement.automata[0].header.leading if placement.automata else placement.trailer
+            target.append(comment)
+            continue
+        previous: int | None = None
+        following: int | None = None
+        for index, automaton in automata:
+            assert automaton.span is not None
+            if automaton.span.start <= span.start < automaton.span.end:
+                _place_in_automaton(comment, automaton, placement.automata[index])
+                break
+            if automaton.span.end <= span.start:
+                previous = index
+            elif following is None:
+                following = index
+        else:
+            before = module.automata[previous].span if previous is not None else None
+            if previous is not None and before is not None and span.line == before.end_line:
+                placement.automata[previous].after.append(comment)
+            elif following is not None:
+                placement.automata[following].header.leading.append(comment)
+            else:
+                placement.trailer.append(comment)
+    return placement
+
+
+def _empty_placement(module: ast.Module) -> _Placement:
+    return _Placement([_AutomatonComments(
+        _Slot(), [_Slot() for _ in a.members], [], [],
+        {i: _BlockComments(_Slot(), [_Slot() for _ in m.items], []) for i, m in enumerate(a.members)
+         if isinstance(m, ast.ModelDecl)}) for a in module.automata], [])
+
+
+def _emit_line(lines: list[str], code: str, slot: _Slot, column: int | None = None) -> None:
+    """Append ``code`` with its trailing comments (at ``column`` if given) and their continuations."""
+    if not slot.trailing:
+        lines.append(code)
+        return
+    at = max(column if column is not None else 0, len(code) + 2)
+    lines.append(code.ljust(at) + " ".join(_comment_text(c) for c in slot.trailing))
+    lines.extend(" " * at + _comment_text(c) for c in slot.continued)
+
+
+def _aligned_columns(codes: list[str], slots: list[_Slot], groups: list[int]) -> list[int | None]:
+    """The column of each line's trailing comments: shared by a run of lines of one group."""
+    columns: list[int | None] = [None] * len(codes)
+    start = 0
+    while start < len(codes):
+        end = start
+        while end < len(codes) and groups[end] == groups[start]:
+            end += 1
+        widths = [len(codes[i]) for i in range(start, end) if slots[i].trailing and len(codes[i]) <= _ALIGN_LIMIT]
+        if widths:
+            for i in range(start, end):
+                columns[i] = max(widths) + 2
+        start = end
+    return columns
+
+
+def _format_block(block: ast.ModelDecl, comments: _BlockComments, slot: _Slot) -> list[str]:
+    """A ``model`` block, one item per line; ``slot`` holds the comments after its ``}``."""
+    indent = INDENT * 2
+    if not block.items and not comments.header.trailing and not comments.closing:
+        lines: list[str] = []
+        _emit_line(lines, INDENT + format_member(block), slot)
+        return lines
+    lines = []
+    _emit_line(lines, INDENT + "model {", comments.header)
+    codes = [indent + format_model_item(i) for i in block.items]
+    columns = _aligned_columns(codes, comments.items, [0] * len(codes))
+    for code, item, column in zip(codes, comments.items, columns, strict=True):
+        lines.extend(indent + _comment_text(c) for c in item.leading)
+        _emit_line(lines, code, item, column if len(code) <= _ALIGN_LIMIT else None)
+    lines.extend(indent + _comment_text(c) for c in comments.closing)
+    _emit_line(lines, INDENT + "}", slot)
+    return lines
+
+
+def _format_automaton(automaton: ast.Automaton, comments: _AutomatonComments) -> list[str]:
+    lines = [_comment_text(c) for c in comments.header.leading]
+    _emit_line(lines, f"automaton {automaton.name.name} {{", comments.header)
+    # A model block spans several lines: it takes no part in the alignment of trailing comments.
+    codes = ["" if isinstance(m, ast.ModelDecl) else INDENT + format_member(m) for m in automaton.members]
+    groups = [_GROUP[type(m)] for m in automaton.members]
+    # Trailing comments of a run of same-group declarations share one column.
+    columns = _aligned_columns(codes, comments.members, groups)
+    for index, (code, slot) in enumerate(zip(codes, comments.members, strict=True)):
+        if index and groups[index] != groups[index - 1]:
+            lines.append("")
+        lines.extend(INDENT + _comment_text(c) for c in slot.leading)
+        member = automaton.members[index]
+        if isinstance(member, ast.ModelDecl):
+            lines.extend(_format_block(member, comments.blocks[index], slot))
+        else:
+            _emit_line(lines, code, slot, columns[index] if len(code) <= _ALIGN_LIMIT else None)
+    lines.extend(INDENT + _comment_text(c) for c in comments.closing)
+    closing = "}"
+    if comments.after:
+        closing += "  " + " ".join(_comment_text(c) for c in comments.after)
+    lines.append(closing)
+    return lines
+
+
+def format_module(module: ast.Module, *, comments: bool = True) -> str:
+    """Print a whole file in the canonical layout; the result ends with a single newline.
+
+    With ``comments`` (the default), every comment of ``module.comments`` is printed exactly
+    once, next to the declaration it was written at: after it on its line (trailing), on
+    its own lines before it (leading; comments written inside a declaration move there
+    too), before the closing ``}``, or at the top or bottom of the file. Own-line comments
+    aligned under a trailing comment stay aligned under it. Line comments lose trailing
+    whitespace.
+    """
+    placement = _place_comments(module) if comments and module.comments else _empty_placement(module)
+    lines: list[str] = []
+    for index, automaton in enumerate(module.automata):
+        if index:
+            lines.append("")
+        lines.extend(_format_automaton(automaton, placement.automata[index]))
+    if placement.trailer:
+        if lines:
+            lines.append("")
+        lines.extend(_comment_text(c) for c in placement.trailer)
+    return "\n".join(lines) + "\n" if lines else ""
+
+
+def format_source(text: str, name: str = "<string>") -> str:
+    """Parse ``text`` and print it in the canonical layout, comments included.
+
+    Raises :class:`rac.lang.parser.ParseFailure` when ``text`` is not a valid `.ra` file.
+    """
+    return format_module(parse_text(text, name))

@@ -1,0 +1,419 @@
+"""Episodes of the scenario model with a reward automaton's reward, stepped together (issue 5).
+
+:class:`EpisodeBatch` runs ``n`` episodes of the vehicle model of a ``.ra`` file's ``model`` block
+at once with numpy, one *step* per decision period (``decide_every`` samples), for learning
+(:mod:`rac.learning.qlearning`, :class:`rac.learning.gym.ScenarioEnv`). An episode starts at the ego's start
+(sample 0, jerk and turn 0, the automaton in its initial location, every reward 0).
+
+**One step** applies each episode's chosen (jerk, turn) pair (a row of :attr:`EpisodeBatch.action_pairs`)
+and takes up to ``decide_every`` samples. **One sample** ``k -> k + 1`` is the product semantics of
+:mod:`rac.engine.product`, on floats as :mod:`rac.runtime.interpreter` computes them:
+
+1. the ego moves: the state at ``k + 1`` is ``sense()`` of the state at ``k`` with the chosen pair
+   (:meth:`rac.engine.explore.BatchModel.sense`, as :mod:`rac.engine.simulate` advances runs);
+2. every input is read from its binding on sample ``k + 1`` with :class:`rac.engine.evaluate.Evaluator`:
+   booleans as they are, numbers as the emitted model's significand ``d2i(e)`` (truncated towards
+   zero) over the scale; ``prev(e)`` is ``e`` at sample ``k`` (at the first sample, ``e`` in the
+   initial state). A number outside the input's declared bounds is *clipped* to them (the runtime
+   would raise), an ``int`` input's value truncated to a whole number; every value changed so is
+   counted in :attr:`EpisodeBatch.clipped` (per input in :attr:`EpisodeBatch.clipped_inputs`);
+3. the automaton takes the sample with those inputs (:class:`rac.runtime.batch.BatchRewardAutomaton`:
+   accrue with the held inputs, then the edge), which gives the sample's reward: the objective's
+   increase (``reward="automaton"``), or the value of a plain reward expression over the model's
+   vocabulary and the inputs on the sample (its text, or a checked expression; booleans count 0/1), e.g. the
+   paper's Eq. 9 ``10*!isClose + (5 + 100*goal())*prog + comf``;
+4. the episode *terminates* when the ``goal`` expression (default ``goal()``) holds on the sample
+   (after the edge, so it may read the location and rewards), and is *truncated* when the sample
+   is the horizon's last one without the goal. Either way the automaton's ``at end`` clauses apply
+   with the sample's inputs, and in automaton mode their increase is added to the reward. The goal
+   is checked from sample 1 on: an episode never ends before its first step.
+
+A step's reward is the sum of its samples' rewards (in sample order). A collision or leaving the
+road does *not* end an episode (UPPAAL's semantics: the run goes on); :class:`StepResult` flags it
+for the learner to count. Episodes that are done stay frozen (their state is kept, their reward is
+0) until the next :meth:`EpisodeBatch.reset`, which restarts all ``n``.
+
+The inputs must satisfy the automaton's ``assume`` (the runtime refuses other valuations):
+:class:`ValueError` when the bindings' values break it. :class:`rac.model.ModelRangeError` when a
+sensed value or a numeric binding's significand leaves int32 (the emitted model aborts there).
+
+Example::
+
+    result = compile_file("examples/left_turn/model.ra")
+    episodes = EpisodeBatch(result, horizon_samples=30)
+    episodes.reset(64)
+    while not episodes.done.all():
+        out = episodes.step(rng.integers(episodes.n_actions, size=episodes.n))
+        returns += out.reward
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from rac import ir
+from rac.check.queries import lower_expression
+from rac.compiler import CompileResult
+from rac.engine.evaluate import Evaluator, Frame
+from rac.engine.explore import action_pairs
+from rac.ir import expr as ie
+from rac.lang import ast
+from rac.lang.parser import parse_expression
+from rac.model.data import ModelData, ModelRangeError
+from rac.runtime.batch import BatchRewardAutomaton
+from rac.runtime.semantics import InputSpec, input_specs
+
+__all__ = ["GOAL", "EpisodeBatch", "Expression", "StepResult", "parse_expr"]
+
+#: The default goal: the model's ``goal()`` (the planning problem's goal region and time interval).
+GOAL: ie.Expr = ie.call("goal")
+_MINDIST = ie.call("mindist")
+_OFFROAD = ie.call("offroad")
+
+#: An expression as the engine's entry points take it: text, a parsed node (both checked against
+#: the batch's automaton, :func:`rac.check.queries.lower_expression`) or a checked expression.
+Expression = str | ast.Expr | ie.Expr
+
+
+def parse_expr(text: str) -> ast.Expr:
+    """One expression of the query language, parsed, not checked (:func:`rac.lang.parser.parse_expression`);
+    :class:`ValueError` when the text is not one expression. The engine checks it against the
+    automaton when it is handed to it (:meth:`EpisodeBatch.expression`)."""
+    return parse_expression(text)
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """What one :meth:`EpisodeBatch.step` did, per episode (arrays of shape ``(n,)``)."""
+
+    #: float64: the step's reward (0 for episodes already done before this step).
+    reward: np.ndarray
+    #: bool: the goal was reached in this step.
+    terminated: np.ndarray
+    #: bool: the horizon was reached in this step without the goal.
+    truncated: np.ndarray
+    #: bool: ``collide()`` held at some sample of this step.
+    collided: np.ndarray
+    #: bool: ``offroad()`` held at some sample of this step.
+    offroad: np.ndarray
+
+
+class _Bindings:
+    """Every input's value from its binding on a frame (see step 2 of the module docstring)."""
+
+    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton) -> None:
+        self.evaluator = evaluator
+        bound = {b.input: b.expr for b in automaton.model.bindings} if automaton.model is not None else {}
+        missing = [item.name for item in automaton.inputs if item.name not in bound]
+        if missing:
+            raise ValueError(f"input `{missing[0]}` has no binding: episodes read every input from the model "
+                             f"(add `bind {missing[0]} = ...` to the `model` block)")
+        self.items: list[tuple[InputSpec, ie.Expr, float, float]] = []
+        for spec in input_specs(automaton):
+            low, high = spec.low, spec.high
+            if spec.kind == "int":  # the whole numbers within the bounds
+                low, high = float(np.ceil(low)), float(np.floor(high))
+            self.items.append((spec, bound[spec.name], low, high))
+
+    def read(self, frame: Frame, clipped: dict[str, int] | None = None) -> dict[str, np.ndarray]:
+        """Input name -> ``(n,)`` values (bool, or float64 reals); counts clipped values into ``clipped``."""
+        evaluator = self.evaluator
+        scale = evaluator.scale_d
+        out: dict[str, np.ndarray] = {}
+        for spec, expr, low, high in self.items:
+            if spec.is_bool:
+                out[spec.name] = np.array(evaluator.evaluate_bool(expr, frame), dtype=bool)
+                continue
+            value = np.asarray(evaluator.evaluate(expr, frame), dtype=np.float64)
+            scaled = value * scale
+            bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0])
+                significand = int(scaled[row]) if np.isfinite(scaled[row]) else None
+                raise ModelRangeError(f"the binding of `{spec.name}`", float(value[row]), significand,
+                                      evaluator.data.scale)
+            real = scaled.astype(np.int64) / scale  # d2i() truncates towards zero, as the emitted model
+            changed = np.zeros(real.shape, dtype=bool)
+            if spec.kind == "int":
+                whole = np.trunc(real)
+                changed |= whole != real
+                real = whole
+            outside = (real < low) | (real > high)
+            if outside.any():
+                changed |= outside
+                real = np.clip(real, low, high)
+            if clipped is not None:
+                clipped[spec.name] += int(changed.sum())
+            out[spec.name] = real
+        return out
+
+
+@dataclass
+class _State:
+    """What a frame reads of every episode at one sample (full ``(n,)`` / ``(n, 7)`` arrays)."""
+
+    k: np.ndarray
+    ego: np.ndarray
+    location: np.ndarray
+    rewards: dict[str, np.ndarray]
+    inputs: dict[str, np.ndarray]
+
+    def frame(self, rows: np.ndarray | slice, prev: Frame | None = None) -> Frame:
+        return Frame(k=self.k[rows], ego=self.ego[rows], location=self.location[rows],
+                     rewards={name: values[rows] for name, values in self.rewards.items()},
+                     inputs={name: values[rows] for name, values in self.inputs.items()}, prev=prev)
+
+    def copy(self) -> _State:
+        return _State(self.k.copy(), self.ego.copy(), self.location.copy(),
+                      {name: values.copy() for name, values in self.rewards.items()},
+                      {name: values.copy() for name, values in self.inputs.items()})
+
+    def put(self, rows: np.ndarray, other: _State) -> None:
+        """Copy ``other``'s rows ``rows`` into this state."""
+        self.k[rows] = other.k[rows]
+        self.ego[rows] = other.ego[rows]
+        self.location[rows] = other.location[rows]
+        for name, values in self.rewards.items():
+            values[rows] = other.rewards[name][rows]
+        for name, values in self.inputs.items():
+            values[rows] = other.inputs[name][rows]
+
+
+class EpisodeBatch:
+    """``n`` episodes of the scenario model with the automaton's reward, stepped together (one step =
+    one decision period). See the module docstring for the semantics.
+
+    Args:
+        result: a checked file with a ``model`` block (:func:`rac.compiler.compile_file`).
+        reward: ``"automaton"`` (the objective's increase, plus the ``at end`` bonus when the
+            episode ends), or a reward expression evaluated on every sample (an :class:`rac.lang.ast.Expr`,
+            or its text, parsed with :func:`parse_expr`).
+        goal: the episode terminates at the first sample where this holds (default ``goal()``);
+            None: episodes end at the horizon only.
+        horizon_samples: the episode's length in samples (default the automaton's ``horizon``
+            over its period).
+        data: a variant of the model's data (default ``result.model_data``).
+
+    Attributes: ``n_actions``, ``action_pairs`` ``(P, 2)`` (jerk, turn significands; action ``a``
+    is row ``a``), ``decide_every``, ``horizon_samples``, ``max_steps`` (steps in an episode that
+    reaches the horizon); after :meth:`reset`: ``n``, ``k`` ``(n,)`` the current sample, ``ego``
+    ``(n, 7)`` int32 the sensed significands, ``done`` ``(n,)`` terminated or truncated. ``clipped``:
+    the number of binding values clipped to their input's bounds (or truncated to whole numbers for
+    ``int`` inputs) since construction, over all episodes; ``clipped_inputs`` the same per input.
+    """
+
+    def __init__(self, result: CompileResult, *, reward: Expression = "automaton",
+                 goal: Expression | None = GOAL, horizon_samples: int | None = None,
+                 data: ModelData | None = None) -> None:
+        automaton = result.automaton
+        if automaton is None:
+            raise ValueError("the file has errors: there is no automaton to run")
+        if automaton.model is None:
+            raise ValueError(f"`{automaton.name}` has no `model` block: episodes need the scenario model")
+        data = data if data is not None else result.model_data
+        if data is None:
+            raise ValueError("the model's data was not built (the scenario did not load): pass data=")
+        self.result = result
+        self.automaton = automaton
+        self.data = data
+        self.evaluator = Evaluator(data, automaton)
+        self._bindings = _Bindings(self.evaluator, automaton)
+        self.reward_expr: ie.Expr | None = None if reward == "automaton" else self.expression(reward)
+        self.goal = None if goal is None else self.expression(goal)
+        horizon = automaton.steps if horizon_samples is None else int(horizon_samples)
+        if horizon < 1:
+            raise ValueError(f"horizon_samples must be at least 1, not {horizon}")
+        self.horizon_samples = horizon
+        self.decide_every = int(data.decide_every)
+        self.max_steps = -(-horizon // self.decide_every)
+        pairs = action_pairs(data)
+        pairs.setflags(write=False)
+        self.action_pairs = pairs
+        self.n_actions = int(pairs.shape[0])
+        self.clipped = 0
+        self.clipped_inputs = {item.name: 0 for item in automaton.numeric_inputs}
+        self._td = self.evaluator.model.native.td_d
+        self._start = np.asarray(self.evaluator.model.native.initial_state(), dtype=np.int32)
+        self._automata: BatchRewardAutomaton | None = None
+        self.n = 0
+        self.k = np.zeros(0, dtype=np.int64)
+        self.ego = np.zeros((0, 7), dtype=np.int32)
+        self.done = np.zeros(0, dtype=bool)
+        self._now: _State | None = None
+        self._prev: _State | None = None
+        # Evaluate the expressions once on the start, so that a name the engine cannot read fails here.
+        start = self._start_state(1)
+        for expr in (self.reward_expr, self.goal):
+            if expr is not None:
+                self.evaluator.evaluate(expr, start.frame(slice(None)))
+
+    # ------------------------------------------------------------ state
+    def _start_state(self, n: int) -> _State:
+        k = np.zeros(n, dtype=np.int64)
+        ego = np.tile(self._start, (n, 1))
+        # The inputs shown at sample 0 (observe(), ScenarioEnv's info): the bindings on the start,
+        # never fed to the automaton (it takes its first sample at k = 1) nor counted as clipped.
+        inputs = self._bindings.read(Frame(k, ego))
+        location = np.full(n, self.automaton.initial, dtype=np.int64)
+        rewards = {name: np.zeros(n) for name in self.automaton.rewards}
+        return _State(k, ego, location, rewards, inputs)
+
+    def reset(self, n: int) -> None:
+        """Start ``n`` episodes at the ego's start (sample 0)."""
+        if isinstance(n, bool) or int(n) != n or n < 1:
+            raise ValueError(f"n must be a positive integer, not {n!r}")
+        n = int(n)
+        if self._automata is None or self._automata.n != n:
+            self._automata = BatchRewardAutomaton(self.automaton, n)
+        else:
+            self._automata.reset()
+        self.n = n
+        self._now = self._start_state(n)
+        self._prev = self._now.copy()  # prev(e) at the start is e itself
+        self.k = self._now.k
+        self.ego = self._now.ego
+        self.done = np.zeros(n, dtype=bool)
+
+    def _require(self) -> tuple[_State, _State, BatchRewardAutomaton]:
+        if self._now is None or self._prev is None or self._automata is None:
+            raise RuntimeError("no episodes yet: call reset(n) first")
+        return self._now, self._prev, self._automata
+
+    def state_keys(self) -> np.ndarray:
+        """``(n, 8)`` int32 rows ``k, x, y, v, acc, head, jerk, turn``: the shield's state rows
+        (:meth:`rac.engine.shield.ShieldTable.masks_for`)."""
+        now, _, _ = self._require()
+        return np.column_stack([now.k, now.ego]).astype(np.int32)
+
+    @property
+    def location(self) -> np.ndarray:
+        """``(n,)`` the automaton's location index per episode (into ``automaton.location_names``)."""
+        return self._require()[0].location.copy()
+
+    @property
+    def rewards(self) -> dict[str, np.ndarray]:
+        """Reward name -> ``(n,)`` its value per episode (after ``at end`` for ended episodes)."""
+        return {name: values.copy() for name, values in self._require()[0].rewards.items()}
+
+    @property
+    def inputs(self) -> dict[str, np.ndarray]:
+        """Input name -> ``(n,)`` the value read at the current sample (at sample 0: the bindings on the start)."""
+        return {name: values.copy() for name, values in self._require()[0].inputs.items()}
+
+    @property
+    def objective(self) -> np.ndarray:
+        """``(n,)`` the objective's value per episode."""
+        return self._require()[2].objective
+
+    def expression(self, expr: Expression) -> ie.Expr:
+        """``expr`` checked against the automaton (text or a parsed node; a boolean counts as 0 or 1 in
+        arithmetic), or as it is when checked: :class:`rac.core.diagnostics.CheckError` for an unknown
+        name or a type error, :class:`ValueError` when the text is not one expression."""
+        if isinstance(expr, str | ast.Number | ast.BoolLit | ast.Name | ast.Qualified | ast.Call | ast.Unary
+                      | ast.Binary):
+            return lower_expression(self.automaton, expr, bool_numbers=True)
+        return expr
+
+    def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
+        """``(n, len(exprs))`` float64: each expression in every episode's current frame (booleans
+        0/1). An expression may read the model's vocabulary (ego names, ``time``, ``mindist()`` ...),
+        the inputs, rewards and locations (``Driving.location``, ``Unsafe``) and ``prev(e)``."""
+        now, prev, _ = self._require()
+        frame = now.frame(slice(None), prev=prev.frame(slice(None)))
+        out = np.empty((self.n, len(exprs)), dtype=np.float64)
+        for column, expr in enumerate(exprs):
+            out[:, column] = self.evaluator.evaluate(self.expression(expr), frame)
+        return out
+
+    # ------------------------------------------------------------ stepping
+    def step(self, actions: np.ndarray) -> StepResult:
+        """One decision period for every episode not done: ``actions`` ``(n,)`` are indices into
+        :attr:`action_pairs` (those of done episodes are ignored)."""
+        now, _, _ = self._require()
+        actions = np.asarray(actions)
+        if actions.shape != (self.n,) or not np.issubdtype(actions.dtype, np.integer):
+            raise ValueError(f"actions must be an integer array of shape ({self.n},), not {actions.dtype} "
+                             f"{actions.shape}")
+        n = self.n
+        reward = np.zeros(n)
+        flags = {name: np.zeros(n, dtype=bool) for name in ("terminated", "truncated", "collided", "offroad")}
+        live = ~self.done
+        chosen = actions[live]
+        if chosen.size and (chosen.min() < 0 or chosen.max() >= self.n_actions):
+            raise ValueError(f"actions must be in [0, {self.n_actions}), got {chosen.min()}..{chosen.max()}")
+        pairs = np.zeros((n, 2), dtype=np.int32)
+        pairs[live] = self.action_pairs[chosen]
+        for _ in range(self.decide_every):
+            rows = np.flatnonzero(~self.done)
+            if rows.size == 0:
+                break
+            self._sample(rows, pairs, reward, flags)
+        return StepResult(reward=reward, **flags)
+
+    def _sample(self, rows: np.ndarray, pairs: np.ndarray, reward: np.ndarray, flags: dict[str, np.ndarray]) -> None:
+        """One sample ``k -> k + 1`` of the episodes ``rows`` (all at the same ``k``)."""
+        now, prev, automata = self._require()
+        evaluator = self.evaluator
+        before = now.frame(rows)  # the state at k, before the choice: what prev(e) reads
+        moved = now.ego[rows].copy()
+        moved[:, 5:7] = pairs[rows]
+        after = evaluator.model.sense(moved)
+        frame = Frame(k=before.k + 1, ego=after, prev=before)
+        counts = dict.fromkeys(self.clipped_inputs, 0)
+        values = self._bindings.read(frame, counts)
+        active = np.zeros(self.n, dtype=bool)
+        active[rows] = True
+        fed = {name: held.copy() for name, held in now.inputs.items()}  # frozen episodes: their last inputs
+        for name, column in values.items():
+            fed[name][rows] = column
+        try:
+            gain = automata.step_batch(fed, mask=active)
+        except ValueError as exc:
+            raise ValueError(f"sample {int(before.k[0]) + 1}: the bindings' values are not valid inputs of "
+                             f"`{self.automaton.name}`: {exc}") from None
+        self.clipped += sum(counts.values())
+        for name, count in counts.items():
+            self.clipped_inputs[name] += count
+        # the new sample becomes the current state; the old one prev(e)'s
+        prev.put(rows, now)
+        now.k[rows] += 1
+        now.ego[rows] = after
+        now.inputs = fed
+        self._sync(now, automata)
+        sampled = dataclasses.replace(frame, location=now.location[rows],
+                                      rewards={name: values[rows] for name, values in now.rewards.items()},
+                                      inputs=values)
+        flags["collided"][rows] |= evaluator.evaluate(_MINDIST, sampled) < self._td
+        flags["offroad"][rows] |= np.asarray(evaluator.evaluate(_OFFROAD, sampled), dtype=bool)
+        if self.reward_expr is None:
+            reward[rows] += gain[rows]
+        else:
+            reward[rows] += np.asarray(evaluator.evaluate(self.reward_expr, sampled), dtype=np.float64)
+        reached = (np.asarray(evaluator.evaluate_bool(self.goal, sampled), dtype=bool) if self.goal is not None
+                   else np.zeros(rows.size, dtype=bool))
+        last = now.k[rows] >= self.horizon_samples
+        ending = reached | last
+        if ending.any():
+            flags["terminated"][rows[reached]] = True
+            flags["truncated"][rows[last & ~reached]] = True
+            mask = np.zeros(self.n, dtype=bool)
+            mask[rows[ending]] = True
+            bonus = automata.end_batch(fed, mask=mask)
+            if self.reward_expr is None:
+                reward[mask] += bonus[mask]
+            self._sync(now, automata)
+            self.done[mask] = True
+
+    @staticmethod
+    def _sync(now: _State, automata: BatchRewardAutomaton) -> None:
+        """The automaton's location and rewards into the current state (copies; frozen ones unchanged)."""
+        now.location = automata.locations.astype(np.int64)
+        now.rewards = automata.rewards
+
+    def __repr__(self) -> str:
+        return (f"<EpisodeBatch {self.automaton.name} n={self.n} horizon={self.horizon_samples} samples, "
+                f"{self.n_actions} actions every {self.decide_every}>")

@@ -1,0 +1,1 @@
+"""What rac shows: plots, rendered scenarios and progress bars."""

@@ -1,0 +1,357 @@
+"""Figures of simulated runs, of the pre-analysis sweep and of learning curves, written as PNG files.
+
+Every function draws on a standalone :class:`matplotlib.figure.Figure` rendered by the Agg canvas:
+pyplot is never imported here, so no GUI window can open and the caller's matplotlib backend is
+left alone. Files are written atomically (a temporary file in the same folder, then
+:func:`os.replace`), so a reader never sees half a PNG, and each function returns the path.
+
+Example::
+
+    import numpy as np
+    from rac.output.plots import plot_runs, runs_below
+
+    times = np.arange(0, 30, 0.1)
+    values = np.random.default_rng(0).uniform(0.5, 20, (100, times.size))  # e.g. mindist() per sample
+    plot_runs(times, values, "fig7.png", threshold=1.5, threshold_label="3·TD")
+    print(runs_below(values, 1.5).sum(), "runs go below 3·TD")
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import IO, Any, Literal
+
+import matplotlib
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.transforms import blended_transform_factory
+
+__all__ = [
+    "ABOVE_COLOUR", "BELOW_COLOUR", "THRESHOLD_COLOUR", "atomic_write", "below_summary", "new_figure",
+    "plot_learning_curves", "plot_runs", "plot_sweep", "runs_below", "save_figure",
+]
+
+ABOVE_COLOUR = "#4c72b0"  #: runs / settings that stay at or above the threshold
+BELOW_COLOUR = "#c62828"  #: runs / settings that go below it
+THRESHOLD_COLOUR = "#212121"
+#: boxplot's keyword for horizontal boxes: ``vert`` is deprecated from matplotlib 3.11, ``orientation`` new in 3.10
+_HORIZONTAL: dict[str, Any] = (
+    {"orientation": "horizontal"} if tuple(int(p) for p in matplotlib.__version__.split(".")[:2]) >= (3, 10)
+    else {"vert": False})
+_CYCLE = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860", "#da8bc3", "#8c8c8c", "#ccb974",
+          "#64b5cd")
+
+
+# ---------------------------------------------------------------- files
+def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], None]) -> Path:
+    """Call ``write(file)`` on a new temporary file next to ``path``, then move it onto ``path``.
+
+    On any error the temporary file is removed and ``path`` is left as it was. Used for every
+    PNG and GIF rac writes.
+
+    Example::
+
+        atomic_write("out.png", lambda f: figure.savefig(f, format="png"))
+    """
+    target = Path(path)
+    # open(..., "xb") rather than tempfile.mkstemp: mkstemp creates the file 0600, and os.replace
+    # would carry that mode over to the picture; "xb" honours the umask like any ordinary file
+    temporary = target.with_name(f".{target.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    try:
+        with open(temporary, "xb") as file:
+            write(file)
+        os.replace(temporary, target)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
+    return target
+
+
+def new_figure(width: float, height: float) -> Figure:
+    """A figure of ``width`` × ``height`` inches on an Agg canvas, independent of pyplot."""
+    figure = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+def save_figure(figure: Figure, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
+    """Write ``figure`` as a PNG to ``path`` atomically and return the path."""
+    return atomic_write(path, lambda file: figure.savefig(file, format="png", dpi=dpi))
+
+
+# ---------------------------------------------------------------- Fig. 7: runs against a threshold
+def runs_below(values: np.ndarray, threshold: float) -> np.ndarray:
+    """Which runs go strictly below ``threshold`` at some sample: a bool array, one per run.
+
+    ``values`` has shape (N, T) (or (T,) for one run); NaN samples (runs that ended early) never
+    count, matching a guard like ``mindist() < 3 * TD``.
+
+    Example::
+
+        >>> runs_below(np.array([[5.0, 1.0, 4.0], [5.0, 3.0, np.nan]]), 2.0)
+        array([ True, False])
+    """
+    values = np.atleast_2d(np.asarray(values, dtype=float))
+    with np.errstate(invalid="ignore"):
+        return np.any(values < threshold, axis=1)
+
+
+def below_summary(values: np.ndarray, threshold: float, threshold_label: str = "threshold") -> str:
+    """The count :func:`plot_runs` puts in its title, e.g. ``"12 of 100 runs below 3·TD"``.
+
+    Example::
+
+        >>> below_summary(np.array([[5.0, 1.0], [5.0, 3.0]]), 2.0, "3·TD")
+        '1 of 2 runs below 3·TD'
+    """
+    below = runs_below(values, threshold)
+    return f"{int(below.sum())} of {below.size} run{'s' * (below.size != 1)} below {threshold_label}"
+
+
+def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str], *,
+              threshold: float | None = None, threshold_label: str = "threshold", ylabel: str = "distance (m)",
+              xlabel: str = "time (s)", title: str | None = None, highlight_below: bool = True) -> Path:
+    """The paper's Fig. 7: N simulated runs of a quantity (e.g. ``mindist()``) over time, against a
+    horizontal threshold line; write the PNG to ``path`` and return it.
+
+    ``values`` has shape (N, T), one row per run; ``times`` shape (T,) shared by every run or (N, T).
+    NaN samples leave gaps (a run that ended early). With ``threshold`` the runs that go below it
+    (:func:`runs_below`) are drawn in red on top of the others, their lowest point marked, and
+    counted in the legend and the title: "12 of 100 runs below 3·TD".
+
+    Example::
+
+        plot_runs(np.arange(300) * 0.1, mindist, "fig7.png", threshold=3 * 0.5, threshold_label="3·TD",
+                  title="left turn, exponent 2")
+    """
+    values = np.atleast_2d(np.asarray(values, dtype=float))
+    n_runs, n_samples = values.shape
+    times = np.asarray(times, dtype=float)
+    if times.shape == (n_samples,):
+        times = np.broadcast_to(times, values.shape)
+    elif times.shape != values.shape:
+        raise ValueError(f"plot_runs: times has shape {times.shape}; expected ({n_samples},) or {values.shape}")
+
+    below = runs_below(values, threshold) if threshold is not None else np.zeros(n_runs, dtype=bool)
+    n_below = int(below.sum())
+    emphasise = highlight_below and threshold is not None
+    figure = new_figure(8.0, 4.6)
+    ax = figure.add_subplot()
+    # one collection per colour instead of N Line2D artists: thousands of runs stay fast to draw
+    segments = np.stack([times, values], axis=-1)
+    alpha = float(np.clip(8.0 / max(n_runs, 1), 0.15, 0.9))  # many runs: lighter, so density shows
+    others = ~below if emphasise else np.ones(n_runs, dtype=bool)
+    ax.add_collection(LineCollection(segments[others], colors=ABOVE_COLOUR, linewidths=0.9, alpha=alpha, zorder=2))
+    handles: list[Any] = []
+    if emphasise:
+        handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5, label=f"{n_runs - n_below} runs staying above"))
+        if n_below:
+            ax.add_collection(LineCollection(segments[below], colors=BELOW_COLOUR, linewidths=1.1,
+                                             alpha=max(alpha, 0.6), zorder=3))
+            lowest = np.nanargmin(values[below], axis=1)
+            rows = np.flatnonzero(below)
+            ax.scatter(times[rows, lowest], values[rows, lowest], s=14, color=BELOW_COLOUR, zorder=4,
+                       edgecolors="white", linewidths=0.5)
+        handles.append(Line2D([], [], color=BELOW_COLOUR, lw=1.5, marker="o", markersize=4,
+                              label=f"{n_below} runs below {threshold_label}"))
+    else:
+        handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5, label=f"{n_runs} runs"))
+    if threshold is not None:
+        ax.axhline(threshold, color=THRESHOLD_COLOUR, linestyle="--", linewidth=1.4, zorder=5)
+        handles.append(Line2D([], [], color=THRESHOLD_COLOUR, linestyle="--", lw=1.4,
+                              label=f"{threshold_label} = {threshold:g}"))
+
+    finite = np.isfinite(values)
+    if finite.any():
+        low, high = float(values[finite].min()), float(values[finite].max())
+        if threshold is not None:
+            low, high = min(low, threshold), max(high, threshold)
+        pad = 0.05 * (high - low) or 1.0
+        ax.set_ylim(min(0.0, low) if low >= 0 else low - pad, high + pad)  # distances: keep 0 in view
+        start, end = float(np.nanmin(times)), float(np.nanmax(times))
+        ax.set_xlim(start, end if end > start else start + 1.0)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, color="#e0e0e0", linewidth=0.6, zorder=0)
+    count = below_summary(values, threshold, threshold_label) if threshold is not None else f"{n_runs} runs"
+    ax.set_title(f"{title}: {count}" if title else count)
+    ax.legend(handles=handles, loc="upper right", framealpha=0.9)
+    return save_figure(figure, path)
+
+
+# ---------------------------------------------------------------- pre-analysis sweep
+def _setting_label(row: Mapping[str, Any]) -> str:
+    return f"e={row['exponent']}  C1={row['sense']:g} s  C2={row['decide']:g} s"
+
+
+def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str], *,
+               xlabel: str = "minimum distance of a run (m)", threshold_label: str = "threshold",
+               title: str = "pre-analysis sweep") -> Path:
+    """One line per setting of the pre-analysis sweep: each run's minimum distance as a dot, a box
+    of their quartiles, the threshold as a dashed line, and on the right how many runs went below
+    it and the probability interval. Settings with a run below the threshold are drawn in red
+    (label, box, the dots below), the others in blue, so the unsafe settings stand out.
+
+    Each row is a mapping with the keys ``exponent`` (int), ``sense`` and ``decide`` (the periods
+    C1 and C2 in seconds), ``min_distances`` (the minimum distance reached in each run, sequence
+    of floats; non-finite values are ignored), ``threshold`` (float) and optionally
+    ``probability`` (the (low, high) interval of the probability of going below). Rows are drawn
+    top to bottom in the given order.
+
+    Example::
+
+        plot_sweep([{"exponent": 2, "sense": 0.1, "decide": 0.2, "min_distances": [2.1, 0.9, 3.4],
+                     "threshold": 1.5, "probability": (0.05, 0.61)}], "sweep.png")
+    """
+    if not rows:
+        raise ValueError("plot_sweep: no rows to plot")
+    figure = new_figure(8.5, 1.6 + 0.42 * len(rows))
+    ax = figure.add_subplot()
+    rng = np.random.default_rng(0)  # fixed jitter: the same data gives the same picture
+    thresholds = [float(row["threshold"]) for row in rows]
+    right = blended_transform_factory(ax.transAxes, ax.transData)
+    labels = []
+    reds = []
+    for i, row in enumerate(rows):
+        y = -i  # first row on top
+        distances = np.asarray(row["min_distances"], dtype=float)
+        distances = distances[np.isfinite(distances)]
+        threshold = thresholds[i]
+        below = distances < threshold
+        colour = BELOW_COLOUR if below.any() else ABOVE_COLOUR
+        reds.append(bool(below.any()))
+        labels.append(_setting_label(row))
+        if distances.size:
+            box = ax.boxplot(distances, positions=[y], **_HORIZONTAL, widths=0.55, showfliers=False,
+                             patch_artist=True, manage_ticks=False, zorder=2)
+            for patch in box["boxes"]:
+                patch.set(facecolor=colour, alpha=0.18, edgecolor=colour)
+            for part in ("whiskers", "caps", "medians"):
+                for line in box[part]:
+                    line.set(color=colour, linewidth=1.0)
+            jitter = rng.uniform(-0.18, 0.18, distances.size)
+            ax.scatter(distances[~below], y + jitter[~below], s=9, color=ABOVE_COLOUR, alpha=0.55, zorder=3,
+                       linewidths=0)
+            ax.scatter(distances[below], y + jitter[below], s=12, color=BELOW_COLOUR, alpha=0.85, zorder=4,
+                       linewidths=0)
+        # one short threshold segment per row: settings may differ in their threshold (e.g. TD)
+        ax.plot([threshold, threshold], [y - 0.4, y + 0.4], color=THRESHOLD_COLOUR, linestyle="--", linewidth=1.3,
+                zorder=5)
+        note = f"{int(below.sum())}/{distances.size} below"
+        probability = row.get("probability")
+        if probability is not None:
+            low, high = probability
+            note += f"   P ∈ [{low:.3f}, {high:.3f}]"
+        ax.text(1.01, y, note, transform=right, va="center", ha="left", fontsize=9, color=colour,
+                fontweight="bold" if below.any() else "normal")
+
+    ax.set_yticks([-i for i in range(len(rows))], labels, fontsize=9)
+    for tick, red in zip(ax.get_yticklabels(), reds):
+        tick.set_color(BELOW_COLOUR if red else "#212121")
+    ax.set_ylim(-len(rows) + 0.4, 0.6)
+    ax.set_xlabel(xlabel)
+    ax.grid(True, axis="x", color="#e0e0e0", linewidth=0.6, zorder=0)
+    same = len(set(thresholds)) == 1
+    handles = [
+        Line2D([], [], color=THRESHOLD_COLOUR, linestyle="--", lw=1.3,
+               label=f"{threshold_label} = {thresholds[0]:g}" if same else threshold_label),
+        Line2D([], [], color=BELOW_COLOUR, marker="o", linestyle="", markersize=5, label="run below"),
+        Line2D([], [], color=ABOVE_COLOUR, marker="o", linestyle="", markersize=5, label="run above"),
+    ]
+    ax.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncols=3, frameon=False, fontsize=9)
+    ax.set_title(f"{title}: {sum(reds)} of {len(rows)} settings go below {threshold_label}", pad=24)
+    return save_figure(figure, path)
+
+
+# ---------------------------------------------------------------- learning curves
+def _moving_average(values: np.ndarray, window: int) -> np.ndarray:
+    if window <= 1:
+        return values
+    kernel = np.ones(window) / window
+    # "valid" would shorten the curve; a trailing average keeps one value per episode
+    padded = np.concatenate([np.repeat(values[:, :1], window - 1, axis=1), values], axis=1)
+    return np.apply_along_axis(lambda row: np.convolve(row, kernel, mode="valid"), 1, padded)
+
+
+def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLike[str], *, ylabel: str = "return",
+                         xlabel: str = "episode", title: str | None = None, band: Literal["std", "minmax"] = "std",
+                         smooth: int = 1) -> Path:
+    """Learning curves: for each label an array (seeds, episodes), drawn as the mean over seeds with
+    a shaded band (mean ± standard deviation, or min to max with ``band="minmax"``).
+
+    A 1-D array is one seed. ``smooth`` > 1 first takes a trailing moving average over that many
+    episodes of each seed. NaN entries (a seed with fewer episodes) are left out of the statistics.
+
+    Example::
+
+        plot_learning_curves({"shielded": returns_a, "unshielded": returns_b}, "learning.png", smooth=10)
+    """
+    if not curves:
+        raise ValueError("plot_learning_curves: no curves to plot")
+    if band not in ("std", "minmax"):
+        raise ValueError(f"plot_learning_curves: band must be 'std' or 'minmax', not {band!r}")
+    figure = new_figure(7.5, 4.4)
+    ax: Axes = figure.add_subplot()
+    for i, (label, data) in enumerate(curves.items()):
+        runs = _moving_average(np.atleast_2d(np.asarray(data, dtype=float)), smooth)
+        episodes = np.arange(1, runs.shape[1] + 1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN episode: NaN is what we want drawn
+            mean = np.nanmean(runs, axis=0)
+            if band == "std":
+                spread = np.nanstd(runs, axis=0)
+                low, high = mean - spread, mean + spread
+            else:
+                low, high = np.nanmin(runs, axis=0), np.nanmax(runs, axis=0)
+        colour = _CYCLE[i % len(_CYCLE)]
+        seeds = runs.shape[0]
+        ax.plot(episodes, mean, color=colour, linewidth=1.6, label=f"{label} ({seeds} seed{'s' * (seeds != 1)})")
+        if seeds > 1:
+            ax.fill_between(episodes, low, high, color=colour, alpha=0.2, linewidth=0)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, color="#e0e0e0", linewidth=0.6)
+    spread_name = "mean ± std over seeds" if band == "std" else "mean, min–max over seeds"
+    ax.set_title(f"{title} ({spread_name})" if title else spread_name)
+    ax.legend(loc="best", framealpha=0.9)
+    return save_figure(figure, path)
+
+
+# ---------------------------------------------------------------- learning: time to the first success
+def plot_first_success(first: Mapping[str, Sequence[int | None]], budget: int, path: str | os.PathLike[str], *,
+                       title: str = "learning until the greedy strategy first reaches the goal safely") -> Path:
+    """For each label, the fraction of seeds whose greedy strategy has reached the goal safely
+    after ``e`` episodes (a step curve over ``e``; None: the seed never did within ``budget``).
+
+    Example::
+
+        plot_first_success({"SS&RA": [96, 128, None], "RA": [None, 1500, None]}, 2000, "first.png")
+    """
+    if not first:
+        raise ValueError("plot_first_success: nothing to plot")
+    figure = new_figure(7.5, 4.2)
+    axes = figure.add_subplot()
+    styles = ("-", "--", "-.", ":")  # curves often coincide: the line style tells them apart
+    for index, (label, episodes) in enumerate(first.items()):
+        seeds = len(episodes)
+        reached = sorted(e for e in episodes if e is not None)
+        xs = [0, *reached, budget]
+        ys = [0, *(i / seeds for i in range(1, len(reached) + 1)), len(reached) / seeds]
+        axes.step(xs, ys, where="post", linewidth=2, linestyle=styles[index % len(styles)],
+                  label=f"{label} ({len(reached)} of {seeds} seeds)")
+    axes.set_xlim(0, budget)
+    axes.set_ylim(-0.02, 1.05)
+    axes.set_xlabel("episodes learned")
+    axes.set_ylabel("fraction of seeds")
+    axes.set_title(title)
+    axes.grid(alpha=0.3)
+    axes.legend(loc="lower right")
+    return save_figure(figure, path)

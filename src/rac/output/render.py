@@ -1,0 +1,266 @@
+"""Draw an ego trajectory into its CommonRoad scenario: a PNG of one instant, optionally an animated GIF.
+
+The road, the obstacles and the planning problem are drawn by commonroad-io's ``MPRenderer`` on a
+standalone Agg figure (no pyplot window, the caller's backend untouched, see :mod:`rac.output.plots`); the
+ego is drawn on top as its path and a rectangle. Files are written atomically.
+
+Example::
+
+    import numpy as np
+    from rac.output.render import render_trajectory
+
+    t = np.arange(50) * 0.1
+    trajectory = np.column_stack([np.full(50, 1.75), -18 + 6 * t, np.full(50, np.pi / 2)])  # x, y, head
+    render_trajectory("examples/left_turn/left_turn.xml", trajectory, "run.png", gif_path="run.gif")
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.lines import Line2D
+from matplotlib.patches import Polygon
+from PIL import Image
+
+from rac.output.plots import atomic_write, new_figure, save_figure
+
+__all__ = ["EGO_COLOUR", "RenderError", "render_trajectory"]
+
+EGO_COLOUR = "#2e7d32"
+#: Metres of scenery kept around the ego's path (and the goal) when no ``plot_limits`` are given.
+MARGIN = 15.0
+#: The last GIF frame stays this long (ms), so a looping animation visibly ends before restarting.
+LAST_FRAME_MS = 1200
+
+
+class RenderError(Exception):
+    """A scenario file that cannot be drawn; ``str(error)`` is ``"<path>: <problem>"``."""
+
+    def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
+        self.path = os.fspath(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+def _read(path: Path) -> tuple[Any, Any]:
+    """The commonroad-io scenario and planning problem set in ``path``, or :class:`RenderError`."""
+    try:
+        data = path.read_bytes()
+    except OSError as error:
+        raise RenderError(path, f"cannot be read ({error.strerror or error})") from None
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # commonroad-io warns about e.g. benchmark ids it finds irregular
+        try:
+            return CommonRoadFileReader(data).open()
+        except Exception as error:  # commonroad-io raises anything from lxml errors to KeyError
+            problem = f"is not a CommonRoad scenario commonroad-io can read ({type(error).__name__}: {error})"
+    # rac's loader explains broken files far better (which element, which line); use its words if it fails too
+    from rac.model.commonroad import ScenarioError, load_scenario
+
+    try:
+        load_scenario(path)
+    except ScenarioError as diagnosis:
+        problem = f"{diagnosis.element} {diagnosis.problem}" if diagnosis.element else diagnosis.problem
+    except Exception:  # noqa: BLE001 - only a better message was sought; keep commonroad-io's
+        pass
+    raise RenderError(path, problem)
+
+
+def _corners(x: float, y: float, head: float, length: float, width: float) -> np.ndarray:
+    """The ego rectangle centred on (x, y), its length along ``head`` (as CommonRoad places shapes)."""
+    c, s = math.cos(head), math.sin(head)
+    local = np.array([[1, 1], [1, -1], [-1, -1], [-1, 1]]) * [length / 2, width / 2]
+    return local @ np.array([[c, s], [-s, c]]) + [x, y]
+
+
+def _limits(trajectory: np.ndarray, goal: tuple[float, float] | None) -> tuple[float, float, float, float]:
+    points = trajectory[:, :2] if goal is None else np.vstack([trajectory[:, :2], goal])
+    (x0, y0), (x1, y1) = points.min(axis=0) - MARGIN, points.max(axis=0) + MARGIN
+    return float(x0), float(x1), float(y0), float(y1)
+
+
+def _goal_center(problems: Any) -> tuple[float, float] | None:
+    """Centre of the first goal region that has a shape position (for the default view), if any."""
+    for problem in problems.planning_problem_dict.values():
+        for state in problem.goal.state_list:
+            position = getattr(state, "position", None)
+            center = getattr(position, "center", None)
+            if center is not None:
+                point = np.asarray(getattr(center, "coords", [center])[0], dtype=float)
+                return float(point[0]), float(point[1])
+    return None
+
+
+def _initial_step(problems: Any) -> int:
+    steps = [problem.initial_state.time_step for problem in problems.planning_problem_dict.values()]
+    return int(min(steps)) if steps else 0
+
+
+class _Scene:
+    """The scenario drawn once (road, planning problem) plus the parts that change per instant."""
+
+    def __init__(self, scenario: Any, problems: Any, ax: Axes, limits: Sequence[float]) -> None:
+        from commonroad.visualization.mp_renderer import MPRenderer
+
+        self.scenario = scenario
+        self.ax = ax
+        self.renderer = MPRenderer(ax=ax, plot_limits=list(limits))
+        params = self.renderer.draw_params
+        params.dynamic_obstacle.draw_icon = False
+        params.dynamic_obstacle.show_label = False
+        scenario.lanelet_network.draw(self.renderer)
+        problems.draw(self.renderer)
+        self.renderer.render_static()
+        self.renderer.render_dynamic()  # the goal region lands among the "dynamic" patches...
+        self.renderer.dynamic_artists = []  # ...but must survive remove_dynamic() of every later instant
+        self.renderer.clear()
+
+    def show_obstacles(self, time_step: int) -> None:
+        """Replace the obstacles by those at ``time_step`` (gone ones vanish, as commonroad-io draws them)."""
+        renderer = self.renderer
+        renderer.remove_dynamic()
+        renderer.clear()
+        renderer.draw_params.time_begin = time_step  # propagates to every nested parameter set
+        renderer.draw_params.time_end = max(time_step, renderer.draw_params.time_end)
+        for obstacle in self.scenario.obstacles:
+            obstacle.draw(renderer)
+        renderer.render_dynamic()
+
+
+def _validated(trajectory: np.ndarray) -> np.ndarray:
+    array = np.asarray(trajectory, dtype=float)
+    if array.ndim != 2 or array.shape[0] < 1 or array.shape[1] < 3:
+        raise ValueError(f"render_trajectory: trajectory must have shape (T, >=3) of x, y, head; got {array.shape}")
+    if not np.isfinite(array[:, :3]).all():
+        raise ValueError("render_trajectory: trajectory has non-finite x, y or head values")
+    return array[:, :3]
+
+
+def _frame_samples(n_samples: int, max_frames: int) -> np.ndarray:
+    """Every k-th sample with k as small as keeps at most ``max_frames`` frames; always the last one."""
+    if n_samples <= max_frames:
+        return np.arange(n_samples)
+    stride = math.ceil((n_samples - 1) / (max_frames - 1))
+    samples = np.arange(0, n_samples, stride)
+    return samples if samples[-1] == n_samples - 1 else np.append(samples, n_samples - 1)
+
+
+def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndarray, png_path: str | os.PathLike[str],
+                      *, gif_path: str | os.PathLike[str] | None = None, time_step: int | None = None,
+                      title: str | None = None, sample_period: float | None = None, length: float = 4.5,
+                      width: float = 1.8, max_frames: int = 100, plot_limits: Sequence[float] | None = None,
+                      figsize: tuple[float, float] | None = None, dpi: int = 100) -> Path:
+    """Draw the CommonRoad scenario in ``scenario_path`` with the ego's trajectory; write the PNG
+    (and with ``gif_path`` an animated GIF) and return the PNG's path.
+
+    ``trajectory``: array (T, >=3) of x, y, head (metres, radians) per sample, further columns
+    ignored (the engine's ego columns are x, y, v, acc, head: pass ``states[:, [0, 1, 4]]``).
+    Sample i is at CommonRoad time step ``t0 + i * sample_period / dt``, where t0 is the planning
+    problem's initial time step and ``sample_period`` (seconds) defaults to the scenario's dt.
+
+    The PNG shows the road, the goal, the obstacles at ``time_step`` (default: the last sample's)
+    with their remaining trajectories, the ego's path as a line and the ego as a ``length`` ×
+    ``width`` rectangle at the sample nearest ``time_step``. The GIF has one frame per sample,
+    or per k-th sample to keep at most ``max_frames`` frames (the last sample always included),
+    played in real time, with obstacles and ego moving. ``plot_limits`` (xmin, xmax, ymin, ymax)
+    defaults to the path and the goal with a 15 m margin; ``figsize`` (inches) to 8 wide and as
+    high as that view needs. ``length`` and ``width`` default to rac's vehicle (model.md).
+
+    Raises :class:`RenderError` naming the file when it is missing or not a readable CommonRoad
+    scenario, ``ValueError`` for a malformed trajectory.
+
+    Example::
+
+        render_trajectory("left_turn.xml", states[:, [0, 1, 4]], "run.png", gif_path="run.gif",
+                          sample_period=0.1, title="witness of E<> goal()")
+    """
+    path = Path(scenario_path)
+    ego = _validated(trajectory)
+    if max_frames < 2:
+        raise ValueError(f"render_trajectory: max_frames must be at least 2, not {max_frames}")
+    scenario, problems = _read(path)
+    dt = float(scenario.dt)
+    period = dt if sample_period is None else float(sample_period)
+    if period <= 0:
+        raise ValueError(f"render_trajectory: sample_period must be positive, not {period}")
+    start = _initial_step(problems)
+    n_samples = ego.shape[0]
+
+    def step_of(sample: int) -> int:
+        return start + round(sample * period / dt)
+
+    limits = tuple(plot_limits) if plot_limits is not None else _limits(ego, _goal_center(problems))
+    name = title or str(scenario.scenario_id)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # commonroad-io's drawing code warns about deprecated matplotlib use
+        if figsize is None:  # fit the view's aspect, so little of the picture is blank margin
+            ratio = (limits[3] - limits[2]) / max(limits[1] - limits[0], 1e-9)
+            figsize = (8.0, min(max(7.2 * ratio + 1.0, 3.5), 11.0))
+        figure = new_figure(*figsize)
+        figure.set_dpi(dpi)
+        ax = figure.add_subplot()
+        scene = _Scene(scenario, problems, ax, limits)
+        ax.set_xlim(limits[0], limits[1])
+        ax.set_ylim(limits[2], limits[3])
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        # the whole path faintly, the part driven so far solid: in the GIF one sees where the ego is going
+        ax.plot(ego[:, 0], ego[:, 1], color=EGO_COLOUR, linewidth=1.2, linestyle="--", alpha=0.6, zorder=28)
+        (driven,) = ax.plot([], [], color=EGO_COLOUR, linewidth=1.8, zorder=29)
+        body = Polygon(_corners(*ego[0], length, width), closed=True, facecolor=EGO_COLOUR, edgecolor="black",
+                       linewidth=0.8, alpha=0.9, zorder=30)
+        ax.add_patch(body)
+        ax.legend(handles=[Line2D([], [], color=EGO_COLOUR, linewidth=1.8, label="ego path"),
+                           Polygon([[0, 0]], facecolor=EGO_COLOUR, edgecolor="black",
+                                   label=f"ego ({length:g} m × {width:g} m)")],
+                  loc="upper right", fontsize=8, framealpha=0.9)
+
+        def show(sample: int, step: int) -> None:
+            scene.show_obstacles(step)
+            driven.set_data(ego[: sample + 1, 0], ego[: sample + 1, 1])
+            body.set_xy(_corners(*ego[sample], length, width))
+            ax.set_title(f"{name}: t = {step * dt:.1f} s (step {step}, sample {sample + 1} of {n_samples})",
+                         fontsize=10)
+
+        if time_step is None:
+            shown_sample, shown_step = n_samples - 1, step_of(n_samples - 1)
+        else:
+            shown_step = int(time_step)
+            shown_sample = min(max(round((shown_step - start) * dt / period), 0), n_samples - 1)
+        show(shown_sample, shown_step)
+        png = save_figure(figure, png_path, dpi=dpi)
+
+        if gif_path is not None:
+            # the layout is settled by the PNG; re-solving it per frame would take half the frame time
+            figure.set_layout_engine("none")
+            samples = _frame_samples(n_samples, max_frames)
+            frames: list[Image.Image] = []
+            for sample in samples:
+                show(int(sample), step_of(int(sample)))
+                figure.canvas.draw()
+                frames.append(Image.fromarray(np.asarray(figure.canvas.buffer_rgba())).convert("RGB"))
+            _write_gif(frames, gif_path, frame_ms=period * 1000 * (samples[1] - samples[0] if len(samples) > 1 else 1))
+    return png
+
+
+def _write_gif(frames: list[Image.Image], path: str | os.PathLike[str], frame_ms: float) -> Path:
+    # one palette for all frames (taken from the first, which already shows road, goal, cars and ego):
+    # per-frame palettes make flat areas flicker between slightly different colours
+    first = frames[0].quantize(colors=255, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    rest = [frame.quantize(palette=first, dither=Image.Dither.NONE) for frame in frames[1:]]
+    # GIF delays are centiseconds and viewers slow anything under 20 ms down to 100 ms
+    delay = max(20, round(frame_ms / 10) * 10)
+    durations = [delay] * (len(frames) - 1) + [max(delay, LAST_FRAME_MS)]
+    return atomic_write(path, lambda file: first.save(file, format="GIF", save_all=True, append_images=rest,
+                                                      duration=durations, loop=0))

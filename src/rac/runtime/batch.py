@@ -1,0 +1,502 @@
+"""Step thousands of copies of one reward automaton at once with numpy.
+
+Each column follows :class:`rac.runtime.interpreter.RewardAutomaton` to the bit: the same float
+operations in the same order, elementwise (see :mod:`rac.runtime.interpreter` for the semantics).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from rac import ir
+from rac.runtime.semantics import (
+    ASSUME_MESSAGE,
+    ENDED_MESSAGE,
+    AutomatonDescription,
+    FloatLinear,
+    check_automaton,
+    float_linear,
+    input_specs,
+    key_error,
+    range_error,
+    to_float,
+)
+
+__all__ = ["BatchRewardAutomaton"]
+
+_NP_OPS: dict[str, Callable[[np.ndarray, float], np.ndarray]] = {
+    "<": np.less,
+    "<=": np.less_equal,
+    ">": np.greater,
+    ">=": np.greater_equal,
+    "==": np.equal,
+    "!=": np.not_equal,
+}
+
+#: Table mode: locations × 2**atoms entries at most.
+_TABLE_LIMIT = 1 << 16
+
+
+def _eval_np_linear(form: FloatLinear, values: Callable[[str], np.ndarray], n: int) -> np.ndarray:
+    const, terms = form
+    if not terms:
+        return np.full(n, const)
+    acc: Any = const
+    for coef, name in terms:
+        acc = acc + coef * values(name)
+    return acc
+
+
+class _Guards:
+    """Every distinct guard sub-expression of an automaton, evaluated once per call over all n."""
+
+    def __init__(self, n: int) -> None:
+        self._n = n
+        self._ids: dict[ir.Guard, int] = {}
+        self.program: list[tuple[str, Any]] = []
+
+    def add(self, guard: ir.Guard) -> int:
+        found = self._ids.get(guard)
+        if found is not None:
+            return found
+        if isinstance(guard, ir.BConst):
+            node: tuple[str, Any] = ("const", np.full(self._n, bool(guard.value)))
+        elif isinstance(guard, ir.BInput):
+            node = ("input", guard.name)
+        elif isinstance(guard, ir.BAtom):
+            node = ("atom", (guard.input, _NP_OPS[guard.op], to_float(guard.threshold, "threshold")))
+        elif isinstance(guard, ir.BNot):
+            node = ("not", self.add(guard.operand))
+        else:
+            node = ("and" if isinstance(guard, ir.BAnd) else "or", tuple(self.add(g) for g in guard.operands))
+        self.program.append(node)
+        self._ids[guard] = len(self.program) - 1
+        return len(self.program) - 1
+
+    def evaluate(self, x: Mapping[str, np.ndarray]) -> list[np.ndarray]:
+        out: list[np.ndarray] = []
+        for kind, arg in self.program:
+            if kind == "input":
+                out.append(x[arg])
+            elif kind == "atom":
+                name, op, threshold = arg
+                out.append(op(x[name], threshold))
+            elif kind == "not":
+                out.append(~out[arg])
+            elif kind == "const":
+                out.append(arg)
+            else:
+                value = out[arg[0]]
+                combine = np.logical_and if kind == "and" else np.logical_or
+                for other in arg[1:]:
+                    value = combine(value, out[other])
+                out.append(value)
+        return out
+
+
+def _atoms(guard: ir.Guard, out: dict[ir.Guard, int]) -> None:
+    for atom in ir.guard_leaves(guard):
+        out.setdefault(atom, len(out))
+
+
+def _eval_atoms(guard: ir.Guard, bits: Mapping[ir.Guard, bool]) -> bool:
+    if isinstance(guard, ir.BConst):
+        return bool(guard.value)
+    if isinstance(guard, (ir.BInput, ir.BAtom)):
+        return bits[guard]
+    if isinstance(guard, ir.BNot):
+        return not _eval_atoms(guard.operand, bits)
+    if isinstance(guard, ir.BAnd):
+        return all(_eval_atoms(g, bits) for g in guard.operands)
+    return any(_eval_atoms(g, bits) for g in guard.operands)
+
+
+class BatchRewardAutomaton(AutomatonDescription):
+    """``n`` independent copies of one reward automaton, stepped together with numpy.
+
+    Each column follows exactly the semantics of :class:`RewardAutomaton` (the same float
+    operations in the same order, elementwise), so the results are bit-identical to ``n``
+    scalar interpreters. Inputs are arrays of shape ``(n,)`` (scalars broadcast).
+
+    Edge selection is a table lookup over (location, truth values of the guard atoms) when
+    that table is small (``strategy="table"``), else every distinct guard sub-expression is
+    evaluated once per call over all ``n`` (``strategy="direct"``); ``"auto"`` picks.
+
+    Example (a vectorised environment that ends and resets finished runs)::
+
+        ra = RewardAutomaton(automaton).batch(4096)
+        rewards = ra.step_batch(inputs)          # inputs: name -> array of shape (4096,)
+        if done.any():
+            rewards += ra.end_batch(inputs, mask=done)
+            ra.reset(mask=done)
+    """
+
+    def __init__(self, automaton: ir.Automaton, n: int, *, strategy: str = "auto") -> None:
+        check_automaton(automaton)
+        if n < 1:
+            raise ValueError("a batch holds at least one automaton")
+        if strategy not in ("auto", "table", "direct"):
+            raise ValueError(f"unknown strategy {strategy!r}")
+        self._ir = automaton
+        self._n = int(n)
+        self._specs = input_specs(automaton)
+        self._names = tuple(s.name for s in self._specs)
+        self._period = Fraction(automaton.period)
+        self._index = {name: i for i, name in enumerate(automaton.rewards)}
+        k, n_loc = len(automaton.rewards), len(automaton.locations)
+        self._guards = _Guards(self._n)
+
+        # ---- rates: constant tables, plus per-slot coefficient tables for input-dependent rates
+        forms = [[float_linear(loc.rates[i].scaled(self._period), "rate") for loc in automaton.locations]
+                 for i in range(k)]
+        constants = [[f[0] for f in row] for row in forms]
+        self._rate_table = np.array(constants, dtype=np.float64).reshape(k, n_loc)
+        self._all_constant = all(not f[1] for row in forms for f in row)
+        # Per reward: None (constant rates) or [(coefficient table over locations, input name)].
+        # A location without that term has coefficient 0.0 there, which adds exactly nothing
+        # (inputs are finite and a partial sum is never -0.0, since no constant is -0.0).
+        self._rate_terms: list[list[tuple[np.ndarray, str]] | None] = []
+        held: set[str] = set()
+        for row in forms:
+            width = max(len(f[1]) for f in row)
+            if width == 0:
+                self._rate_terms.append(None)
+                continue
+            slots: list[tuple[np.ndarray, str]] = []
+            for slot in range(width):
+                names = dict.fromkeys(f[1][slot][1] for f in row if len(f[1]) > slot)
+                for name in names:
+                    table = np.array([f[1][slot][0] if len(f[1]) > slot and f[1][slot][1] == name else 0.0
+                                      for f in row])
+                    slots.append((table, name))
+                    held.add(name)
+            self._rate_terms.append(slots)
+        self._held_names = tuple(name for name in self._names if name in held)
+
+        # ---- updates, grouped in classes of identical update lists (class 0: no updates)
+        classes: dict[tuple[ir.Assignment, ...], int] = {(): 0}
+        for edge in automaton.all_edges():
+            classes.setdefault(edge.updates, len(classes))
+        self._classes = [self._compile_updates(updates) for updates in classes]
+
+        # ---- edge selection
+        atoms: dict[ir.Guard, int] = {}
+        for edge in automaton.all_edges():
+            _atoms(edge.guard, atoms)
+        _atoms(automaton.assume, atoms)
+        table_size = n_loc << len(atoms)
+        if strategy == "auto":
+            strategy = "table" if len(atoms) <= 16 and table_size <= _TABLE_LIMIT else "direct"
+        self.strategy = strategy
+        if strategy == "table":
+            self._build_tables(atoms, classes)
+        else:
+            self._direct = []
+            for loc, group in enumerate(automaton.edges):
+                if group:
+                    self._direct.append((loc, [(self._guards.add(e.guard), e.target, classes[e.updates])
+                                               for e in group]))
+            self._assume_id = (None if automaton.assume == ir.TRUE else self._guards.add(automaton.assume))
+        self._end = [(self._guards.add(c.guard), self._compile_updates(c.updates))
+                     for c in automaton.end_clauses]
+        self._end_assume = self._guards.add(automaton.assume)
+
+        self._objective_form = float_linear(automaton.objective, "objective")
+        zeros = np.zeros((k, 1))
+        initial = _eval_np_linear(self._objective_form, lambda r: zeros[self._index[r]], 1)
+        self._initial_objective = float(initial[0])
+
+        n = self._n
+        self._loc = np.full(n, automaton.initial, dtype=np.intp)
+        self._R = np.zeros((k, n), dtype=np.float64)
+        self._samples = np.zeros(n, dtype=np.int64)
+        self._ended = np.zeros(n, dtype=bool)
+        self._n_ended = 0
+        self._obj = np.full(n, self._initial_objective)
+        self._held: dict[str, np.ndarray] = {name: np.zeros(n) for name in self._held_names}
+        self._first = np.ones(n, dtype=bool)
+        self._any_first = True
+
+    def _compile_updates(self, updates: Sequence[ir.Assignment]) -> list[tuple[int, FloatLinear]]:
+        return [(self._index[a.reward], float_linear(a.value, "update")) for a in updates]
+
+    def _build_tables(self, atoms: dict[ir.Guard, int],
+                      classes: dict[tuple[ir.Assignment, ...], int]) -> None:
+        a = len(atoms)
+        self._atom_list = [(atom.name, None, 0.0) if isinstance(atom, ir.BInput)
+                           else (atom.input, _NP_OPS[atom.op], to_float(atom.threshold, "threshold"))
+                           for atom in atoms]  # type: ignore[union-attr]
+        self._atom_bits = a
+        self._code_dtype = np.uint8 if a <= 8 else np.uint16
+        combos = [{atom: bool(code >> bit & 1) for atom, bit in atoms.items()} for code in range(1 << a)]
+        assume = self._ir.assume
+        self._assume_table = (None if assume == ir.TRUE
+                              else np.array([_eval_atoms(assume, bits) for bits in combos], dtype=bool))
+        n_loc = len(self._ir.locations)
+        nxt = np.empty(n_loc << a, dtype=np.intp)
+        cls = np.zeros(n_loc << a, dtype=np.intp)
+        for loc, group in enumerate(self._ir.edges):
+            for code, bits in enumerate(combos):
+                nxt[loc << a | code] = loc
+                for edge in group:
+                    if _eval_atoms(edge.guard, bits):
+                        nxt[loc << a | code] = edge.target
+                        cls[loc << a | code] = classes[edge.updates]
+                        break
+        self._next_table = nxt
+        self._class_table = cls
+
+    # -------------------------------------------------------- description
+    @property
+    def n(self) -> int:
+        """Number of automata in the batch."""
+        return self._n
+
+    def __len__(self) -> int:
+        return self._n
+
+    # -------------------------------------------------------- state (copies)
+    @property
+    def locations(self) -> np.ndarray:
+        """Current location index of each automaton (into ``ir.location_names``)."""
+        return self._loc.copy()
+
+    def location_names(self) -> list[str]:
+        """Current location name of each automaton."""
+        names = self._ir.location_names
+        return [names[i] for i in self._loc.tolist()]
+
+    @property
+    def rewards(self) -> dict[str, np.ndarray]:
+        """Reward name -> copy of its values across the batch."""
+        return {name: self._R[i].copy() for i, name in enumerate(self._ir.rewards)}
+
+    @property
+    def objective(self) -> np.ndarray:
+        """The objective's current value per automaton (a copy)."""
+        return self._obj.copy()
+
+    @property
+    def samples(self) -> np.ndarray:
+        """Samples since each automaton's last reset (a copy)."""
+        return self._samples.copy()
+
+    @property
+    def time(self) -> np.ndarray:
+        """``samples * period`` per automaton, in seconds (correctly rounded)."""
+        return self._samples * self._period.numerator / self._period.denominator
+
+    @property
+    def ended(self) -> np.ndarray:
+        """Which automata have ended their run (a copy)."""
+        return self._ended.copy()
+
+    # -------------------------------------------------------- running
+    def _mask(self, mask: object) -> np.ndarray:
+        m = np.asarray(mask, dtype=bool)
+        if m.shape != (self._n,):
+            raise ValueError(f"mask must have shape ({self._n},), not {m.shape}")
+        return m
+
+    def reset(self, mask: np.ndarray | Sequence[bool] | None = None) -> None:
+        """Reset every automaton, or those where ``mask`` is true."""
+        if mask is None:
+            self._loc = np.full(self._n, self._ir.initial, dtype=np.intp)
+            self._R[:] = 0.0
+            self._samples[:] = 0
+            self._ended[:] = False
+            self._obj[:] = self._initial_objective
+            self._first[:] = True
+        else:
+            m = self._mask(mask)
+            self._loc = self._loc.copy()
+            self._loc[m] = self._ir.initial
+            self._R[:, m] = 0.0
+            self._samples[m] = 0
+            self._ended[m] = False
+            self._obj[m] = self._initial_objective
+            self._first[m] = True
+        self._n_ended = int(self._ended.sum())
+        self._any_first = bool(self._first.any())
+
+    def _read(self, inputs: Mapping[str, object], rows: np.ndarray | None) -> dict[str, np.ndarray]:
+        """Validated inputs as arrays (bool / float64); only ``rows`` are checked when given."""
+        n = self._n
+        if len(inputs) != len(self._names) or any(name not in inputs for name in self._names):
+            raise key_error(inputs, self._names)
+        out: dict[str, np.ndarray] = {}
+        for spec in self._specs:
+            raw = np.asarray(inputs[spec.name])
+            if raw.shape != (n,):
+                if raw.ndim != 0:
+                    raise ValueError(f"input {spec.name!r} must have shape ({n},), not {raw.shape}")
+                raw = np.broadcast_to(raw, (n,))
+            if spec.is_bool:
+                out[spec.name] = raw.astype(bool, copy=False)
+                continue
+            value = raw.astype(np.float64, copy=False)
+            if spec.bounded:
+                ok = (value >= spec.low) & (value <= spec.high)
+            else:
+                ok = np.isfinite(value) & (value >= spec.low) & (value <= spec.high)
+            if spec.kind == "int":
+                ok &= np.floor(value) == value
+            if rows is not None:
+                ok |= ~rows
+            if not ok.all():
+                bad = int(np.flatnonzero(~ok)[0])
+                raise range_error(spec, float(value[bad]), f"[{bad}]")
+            out[spec.name] = value
+        return out
+
+    def _assume_failed(self, ok: np.ndarray) -> ValueError:
+        bad = np.flatnonzero(~ok)
+        return ValueError(f"{ASSUME_MESSAGE} (automata {bad[:10].tolist()}{'...' if len(bad) > 10 else ''})")
+
+    def _apply(self, updates: list[tuple[int, FloatLinear]], where: np.ndarray,
+               x: Mapping[str, np.ndarray]) -> None:
+        R, index = self._R, self._index
+
+        def value(name: str) -> np.ndarray:
+            i = index.get(name)
+            return R[i] if i is not None else x[name]
+
+        for i, form in updates:
+            np.copyto(R[i], _eval_np_linear(form, value, self._n), where=where)
+
+    def _objective_now(self) -> np.ndarray:
+        R, index = self._R, self._index
+        return _eval_np_linear(self._objective_form, lambda name: R[index[name]], self._n)
+
+    def step_batch(self, inputs: Mapping[str, object],
+                   mask: np.ndarray | Sequence[bool] | None = None) -> np.ndarray:
+        """One sample for every automaton, or for those where ``mask`` is true; returns each one's
+        objective increase (float64, (n,); 0.0 where unmasked).
+
+        As in :meth:`end_batch`, inputs are validated on the masked automata only, and the
+        unmasked ones keep their state (they may have ended)."""
+        only = None if mask is None else self._mask(mask)
+        ended = self._ended if only is None else self._ended & only
+        if self._n_ended and ended.any():
+            raise RuntimeError(f"{ENDED_MESSAGE} (automata {np.flatnonzero(ended)[:10].tolist()} have ended)")
+        x = self._read(inputs, only)
+        loc = self._loc
+        with np.errstate(all="ignore"):
+            # ---- choose edges (before anything changes: an assume violation leaves the state alone)
+            fired: list[tuple[int, np.ndarray]] = []
+            if self.strategy == "table":
+                code: Any = None
+                for bit, (name, op, threshold) in enumerate(self._atom_list):
+                    truth = x[name] if op is None else op(x[name], threshold)
+                    term = truth.astype(self._code_dtype)
+                    if bit:
+                        term <<= bit
+                        code |= term
+                    else:
+                        code = term
+                if code is None:
+                    code = np.zeros(self._n, dtype=self._code_dtype)
+                if self._assume_table is not None:
+                    ok = self._assume_table[code] if only is None else self._assume_table[code] | ~only
+                    if not ok.all():
+                        raise self._assume_failed(ok)
+                idx = (loc << self._atom_bits) | code
+                nxt = self._next_table[idx]
+                if len(self._classes) > 1:
+                    cls = self._class_table[idx]
+                    for c in range(1, len(self._classes)):
+                        m = cls == c
+                        if m.any():
+                            fired.append((c, m))
+            else:
+                g = self._guards.evaluate(x)
+                if self._assume_id is not None:
+                    ok = g[self._assume_id] if only is None else g[self._assume_id] | ~only
+                    if not ok.all():
+                        raise self._assume_failed(ok)
+                nxt = loc.copy()
+                masks: dict[int, np.ndarray] = {}
+                for source, edges in self._direct:
+                    rest = loc == source
+                    last = len(edges) - 1
+                    for j, (gid, target, c) in enumerate(edges):
+                        f = rest & g[gid]
+                        if j < last:
+                            rest &= ~g[gid]
+                        if target != source:
+                            np.copyto(nxt, target, where=f)
+                        if c:
+                            masks[c] = masks[c] | f if c in masks else f
+                fired = [(c, m) for c, m in sorted(masks.items()) if m.any()]
+
+            # ---- accrual with the held inputs
+            if self._held_names:
+                held = self._held
+                if self._any_first:
+                    first = self._first if only is None else self._first & only
+                    for name in self._held_names:
+                        held[name] = np.where(first, x[name], held[name])
+                    self._first &= ~first
+                    self._any_first = bool(self._first.any())
+            if self._all_constant:
+                gain = self._rate_table[:, loc]
+                self._R += gain if only is None else gain * only
+            else:
+                for i, terms in enumerate(self._rate_terms):
+                    rate = self._rate_table[i][loc]
+                    if terms is not None:
+                        for table, name in terms:
+                            rate = rate + table[loc] * held[name]
+                    if only is None:
+                        self._R[i] += rate
+                    else:
+                        np.add(self._R[i], rate, out=self._R[i], where=only)
+            for name in self._held_names:
+                value = np.array(x[name], dtype=np.float64)
+                held[name] = value if only is None else np.where(only, value, held[name])
+
+            # ---- edges
+            for c, f in fired:
+                self._apply(self._classes[c], f if only is None else f & only, x)
+            self._loc = nxt if only is None else np.where(only, nxt, loc)
+            self._samples += 1 if only is None else only
+            objective = self._objective_now()
+            reward = objective - self._obj
+            if only is not None:
+                reward = np.where(only, reward, 0.0)
+                objective = np.where(only, objective, self._obj)
+        self._obj = objective
+        return reward
+
+    def end_batch(self, inputs: Mapping[str, object],
+                  mask: np.ndarray | Sequence[bool] | None = None) -> np.ndarray:
+        """End the runs where ``mask`` is true (all when ``None``); returns their objective increase.
+
+        Inputs are validated on the masked automata only; unmasked ones get reward 0.0.
+        """
+        m = np.ones(self._n, dtype=bool) if mask is None else self._mask(mask)
+        if (self._ended & m).any():
+            raise RuntimeError(f"{ENDED_MESSAGE} (automata {np.flatnonzero(self._ended & m)[:10].tolist()})")
+        x = self._read(inputs, m)
+        with np.errstate(all="ignore"):
+            g = self._guards.evaluate(x)
+            ok = g[self._end_assume] | ~m
+            if not ok.all():
+                raise self._assume_failed(ok)
+            for gid, updates in self._end:
+                f = m & g[gid]
+                if f.any():
+                    self._apply(updates, f, x)
+            objective = self._objective_now()
+            reward = np.where(m, objective - self._obj, 0.0)
+        np.copyto(self._obj, objective, where=m)
+        self._ended |= m
+        self._n_ended = int(self._ended.sum())
+        return reward
+
+    def __repr__(self) -> str:
+        return f"<BatchRewardAutomaton {self.name} n={self._n} strategy={self.strategy}>"

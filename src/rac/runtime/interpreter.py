@@ -1,0 +1,263 @@
+"""Run a checked reward automaton in process: one at a time, or thousands at once with numpy.
+
+:class:`RewardAutomaton` interprets an :class:`rac.ir.Automaton` sample by sample;
+:class:`rac.runtime.batch.BatchRewardAutomaton` (``RewardAutomaton.batch(n)``) steps ``n`` independent copies
+at once. Both follow the runtime semantics below to the bit, and so does the standalone
+module of :mod:`rac.targets.python`; the agreement tests hold all three to it.
+
+One ``step(inputs)`` (one sample):
+
+1. the inputs are validated: every declared input present, nothing else; booleans via
+   ``bool(v)``; numbers via ``float(v)``, finite and within their bounds (compared with the
+   bounds as floats); ``int`` inputs integral. Then the ``assume`` guard must hold on them.
+   A violation raises :class:`ValueError` and leaves the automaton untouched.
+2. every reward grows by its rate in the current location times the period
+   (``rate.scaled(period)`` rounded to floats), evaluated on the inputs held from the previous
+   sample (the current ones at the first sample after a reset);
+3. the first edge of the current location whose guard holds on the new inputs is taken: its
+   updates are applied left to right, then the location changes. No enabled edge: stay;
+4. the sample counter advances and the reward handed out is ``objective - previous objective``.
+
+A linear form ``c0 + c1*v1 + ... + ck*vk`` is always evaluated as
+``((float(c0) + float(c1)*v1) + ...) + float(ck)*vk``; guard atoms compare the input with
+``float(threshold)``. ``end(inputs)`` validates, checks ``assume``, applies every end clause
+whose guard holds (in order), ends the run and returns the objective's increase; ``step`` and
+``end`` then raise :class:`RuntimeError` until :meth:`~RewardAutomaton.reset`.
+"""
+from __future__ import annotations
+
+import math
+import operator
+from collections.abc import Callable, Mapping, Sequence
+from fractions import Fraction
+from typing import TYPE_CHECKING, Any
+
+from rac import ir
+from rac.runtime.semantics import (
+    ASSUME_MESSAGE,
+    ENDED_MESSAGE,
+    AutomatonDescription,
+    FloatLinear,
+    check_automaton,
+    float_linear,
+    input_specs,
+    key_error,
+    range_error,
+    to_float,
+)
+
+if TYPE_CHECKING:
+    from rac.runtime.batch import BatchRewardAutomaton
+
+__all__ = ["RewardAutomaton"]
+
+_OPS: dict[str, Callable[[Any, Any], Any]] = {
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+    "==": operator.eq,
+    "!=": operator.ne,
+}
+
+
+_Values = dict[str, Any]
+_LinearFn = Callable[[list[float], _Values], float]
+_GuardFn = Callable[[_Values], bool]
+
+
+def _compile_linear(form: FloatLinear, reward_index: Mapping[str, int]) -> _LinearFn:
+    const, terms = form
+    compiled = tuple((coef, reward_index.get(name, -1), name) for coef, name in terms)
+
+    def evaluate(r: list[float], x: _Values) -> float:
+        acc = const
+        for coef, index, name in compiled:
+            acc = acc + coef * (r[index] if index >= 0 else x[name])
+        return acc
+
+    return evaluate
+
+
+def _compile_guard(guard: ir.Guard) -> _GuardFn:
+    if isinstance(guard, ir.BConst):
+        value = bool(guard.value)
+        return lambda x: value
+    if isinstance(guard, ir.BInput):
+        name = guard.name
+        return lambda x: x[name]
+    if isinstance(guard, ir.BAtom):
+        op, name, threshold = _OPS[guard.op], guard.input, to_float(guard.threshold, "threshold")
+        return lambda x: op(x[name], threshold)
+    if isinstance(guard, ir.BNot):
+        inner = _compile_guard(guard.operand)
+        return lambda x: not inner(x)
+    parts = tuple(_compile_guard(g) for g in guard.operands)
+    if isinstance(guard, ir.BAnd):
+        if len(parts) == 2:
+            a, b = parts
+            return lambda x: a(x) and b(x)
+        return lambda x: all(p(x) for p in parts)
+    if len(parts) == 2:
+        a, b = parts
+        return lambda x: a(x) or b(x)
+    return lambda x: any(p(x) for p in parts)
+
+
+class RewardAutomaton(AutomatonDescription):
+    """The in-process interpreter of one reward automaton.
+
+    Example::
+
+        from rac.compiler import compile_file
+        from rac.runtime.interpreter import RewardAutomaton
+
+        ra = RewardAutomaton(compile_file("stdlib/driving.ra").raise_for_errors())
+        r = ra.step({"isClose": False, "prog": True, "comf": True, "collide": False, "dgoal": 40.0})
+        r += ra.end({"isClose": False, "prog": True, "comf": True, "collide": False, "dgoal": 1.0})
+        assert ra.ended and ra.location == "Normal"
+    """
+
+    def __init__(self, automaton: ir.Automaton) -> None:
+        check_automaton(automaton)
+        self._ir = automaton
+        self._specs = input_specs(automaton)
+        self._names = tuple(s.name for s in self._specs)
+        self._period = Fraction(automaton.period)
+        index = {name: i for i, name in enumerate(automaton.rewards)}
+
+        def updates(items: Sequence[ir.Assignment], where: str) -> tuple[tuple[int, _LinearFn], ...]:
+            return tuple((index[a.reward], _compile_linear(float_linear(a.value, where), index))
+                         for a in items)
+
+        self._rates = tuple(
+            tuple((i, _compile_linear(float_linear(rate.scaled(self._period), "rate"), {}))
+                  for i, rate in enumerate(location.rates))
+            for location in automaton.locations
+        )
+        self._edges = tuple(
+            tuple((_compile_guard(e.guard), updates(e.updates, "update"), e.target) for e in group)
+            for group in automaton.edges
+        )
+        self._end_clauses = tuple((_compile_guard(c.guard), updates(c.updates, "end update"))
+                                  for c in automaton.end_clauses)
+        self._assume = _compile_guard(automaton.assume)
+        self._objective_fn = _compile_linear(float_linear(automaton.objective, "objective"), index)
+        self._initial_objective = self._objective_fn([0.0] * len(automaton.rewards), {})
+        self.reset()
+
+    # -------------------------------------------------------- description
+    @property
+    def locations(self) -> tuple[str, ...]:
+        """Location names, in declaration order."""
+        return self._ir.location_names
+
+    # -------------------------------------------------------- state
+    @property
+    def location(self) -> str:
+        """The current location's name."""
+        return self._ir.locations[self._loc].name
+
+    @property
+    def rewards(self) -> dict[str, float]:
+        """A copy of the reward values."""
+        return dict(zip(self._ir.rewards, self._r))
+
+    @property
+    def objective(self) -> float:
+        """The objective's current value."""
+        return self._objective
+
+    @property
+    def samples(self) -> int:
+        """Samples taken since the last reset."""
+        return self._samples
+
+    @property
+    def time(self) -> float:
+        """``samples * period`` in seconds (correctly rounded)."""
+        return self._samples * self._period.numerator / self._period.denominator
+
+    @property
+    def ended(self) -> bool:
+        """Whether ``end`` was called since the last reset."""
+        return self._ended
+
+    # -------------------------------------------------------- running
+    def reset(self) -> None:
+        """Start a new run: initial location, rewards 0, no held inputs."""
+        self._loc = self._ir.initial
+        self._r = [0.0] * len(self._ir.rewards)
+        self._held: _Values | None = None
+        self._samples = 0
+        self._ended = False
+        self._objective = self._initial_objective
+
+    def batch(self, n: int) -> BatchRewardAutomaton:
+        """``n`` independent copies of this automaton, stepped together with numpy."""
+        from rac.runtime.batch import BatchRewardAutomaton
+
+        return BatchRewardAutomaton(self._ir, n)
+
+    def _read(self, inputs: Mapping[str, object]) -> _Values:
+        values: _Values = {}
+        try:
+            if len(inputs) != len(self._specs):
+                raise KeyError
+            for spec in self._specs:
+                raw = inputs[spec.name]
+                if spec.kind == "bool":
+                    values[spec.name] = bool(raw)
+                    continue
+                value = float(raw)  # type: ignore[arg-type]
+                if not spec.low <= value <= spec.high or not math.isfinite(value) or (
+                        spec.kind == "int" and not value.is_integer()):
+                    raise range_error(spec, value)
+                values[spec.name] = value
+        except KeyError:
+            raise key_error(inputs, self._names) from None
+        if not self._assume(values):
+            raise ValueError(ASSUME_MESSAGE)
+        return values
+
+    def _increase(self, x: _Values) -> float:
+        objective = self._objective_fn(self._r, x)
+        reward = objective - self._objective
+        self._objective = objective
+        return reward
+
+    def step(self, inputs: Mapping[str, object]) -> float:
+        """Take one sample with ``inputs``; return the objective's increase."""
+        if self._ended:
+            raise RuntimeError(ENDED_MESSAGE)
+        x = self._read(inputs)
+        held = x if self._held is None else self._held
+        r = self._r
+        for i, rate in self._rates[self._loc]:
+            r[i] = r[i] + rate(r, held)
+        for guard, updates, target in self._edges[self._loc]:
+            if guard(x):
+                for i, value in updates:
+                    r[i] = value(r, x)
+                self._loc = target
+                break
+        self._held = x
+        self._samples += 1
+        return self._increase(x)
+
+    def end(self, inputs: Mapping[str, object]) -> float:
+        """End the run with the final ``inputs`` (applies ``at end`` clauses); return the increase."""
+        if self._ended:
+            raise RuntimeError(ENDED_MESSAGE)
+        x = self._read(inputs)
+        r = self._r
+        for guard, updates in self._end_clauses:
+            if guard(x):
+                for i, value in updates:
+                    r[i] = value(r, x)
+        self._ended = True
+        return self._increase(x)
+
+    def __repr__(self) -> str:
+        return (f"<RewardAutomaton {self.name} at {self.location}, samples={self._samples}, "
+                f"objective={self._objective!r}{', ended' if self._ended else ''}>")

@@ -1,0 +1,221 @@
+"""What every Python runtime of rac shares: the IR in floats, and input validation.
+
+The interpreter (:mod:`rac.runtime.interpreter`), batch stepping (:mod:`rac.runtime.batch`) and the generated
+module (:mod:`rac.targets.python`) must agree to the bit, so they take their numbers from
+here: :func:`float_linear` rounds each rational once, and :func:`check_automaton` refuses
+what cannot be represented faithfully.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+from rac import ir
+
+#: ``(float(const), ((float(coefficient), name), ...))`` — a Linear as every target evaluates it.
+FloatLinear = tuple[float, tuple[tuple[float, str], ...]]
+
+ASSUME_MESSAGE = "inputs violate `assume`"
+ENDED_MESSAGE = "the run has ended; call reset() first"
+
+def to_float(value: Fraction | int, what: str) -> float:
+    """``float(value)``, refusing values a float cannot carry (overflow, or a non-zero that rounds to 0).
+
+    Refusing underflow keeps ``-0.0`` out of every constant, which the targets rely on.
+    """
+    try:
+        result = float(value)
+    except OverflowError:
+        raise ValueError(f"{what}: {value} is too large for a float") from None
+    if result == 0.0 and value != 0:
+        raise ValueError(f"{what}: {value} is too small for a float (it would round to 0)")
+    return result
+
+
+def float_linear(linear: ir.Linear, what: str) -> FloatLinear:
+    """The float form of ``linear``: constant and coefficients rounded, term order kept."""
+    return (to_float(linear.const, what),
+            tuple((to_float(c, f"{what} (coefficient of {n})"), n) for n, c in linear.terms))
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """One declared input as the runtimes validate it (bounds as floats, ±inf when absent)."""
+
+    name: str
+    kind: str
+    low: float
+    high: float
+
+    @property
+    def is_bool(self) -> bool:
+        return self.kind == "bool"
+
+    @property
+    def bounded(self) -> bool:
+        return math.isfinite(self.low) and math.isfinite(self.high)
+
+
+def input_specs(automaton: ir.Automaton) -> tuple[InputSpec, ...]:
+    """The validation data of every input, in declaration order."""
+    specs = []
+    for item in automaton.inputs:
+        low = -math.inf if item.low is None else to_float(item.low, f"lower bound of {item.name}")
+        high = math.inf if item.high is None else to_float(item.high, f"upper bound of {item.name}")
+        specs.append(InputSpec(item.name, item.kind, low, high))
+    return tuple(specs)
+
+
+def check_automaton(automaton: ir.Automaton) -> None:
+    """Check what the runtimes rely on (the compiler guarantees it; hand-built IR may not).
+
+    Names resolve with the right kinds, rates read numeric inputs only, updates read rewards
+    and numeric inputs, the objective reads rewards only, and every number fits a float.
+    Raises :class:`ValueError` naming the first problem.
+    """
+    rewards = set(automaton.rewards)
+    kinds = {i.name: i.kind for i in automaton.inputs}
+    if len(rewards) != len(automaton.rewards) or len(kinds) != len(automaton.inputs):
+        raise ValueError("duplicate reward or input names")
+    if rewards & kinds.keys():
+        raise ValueError(f"names used both as rewards and inputs: {sorted(rewards & kinds.keys())}")
+    numeric = {name for name, kind in kinds.items() if kind != "bool"}
+    n_loc = len(automaton.locations)
+    if not automaton.locations or not 0 <= automaton.initial < n_loc:
+        raise ValueError("the automaton needs locations and an initial location among them")
+    if len(automaton.edges) != n_loc:
+        raise ValueError("edges must be grouped by source location (one group per location)")
+    if automaton.period <= 0:
+        raise ValueError("the sample period must be positive")
+    input_specs(automaton)
+
+    def check_guard(guard: ir.Guard, where: str) -> None:
+        for atom in ir.guard_leaves(guard):
+            if isinstance(atom, ir.BInput):
+                if kinds.get(atom.name) != "bool":
+                    raise ValueError(f"{where}: {atom.name!r} is not a boolean input")
+            else:
+                assert isinstance(atom, ir.BAtom)
+                if atom.input not in numeric:
+                    raise ValueError(f"{where}: {atom.input!r} is not a numeric input")
+                if atom.op not in ("<", "<=", ">", ">=", "==", "!="):
+                    raise ValueError(f"{where}: unknown comparison {atom.op!r}")
+                to_float(atom.threshold, f"{where}: threshold of {atom.input}")
+
+    def check_linear(linear: ir.Linear, allowed: set[str], where: str) -> None:
+        for name, _ in linear.terms:
+            if name not in allowed:
+                raise ValueError(f"{where}: {name!r} cannot appear here")
+        float_linear(linear, where)
+
+    def check_updates(updates: Sequence[ir.Assignment], where: str) -> None:
+        for update in updates:
+            if update.reward not in rewards:
+                raise ValueError(f"{where}: {update.reward!r} is not a reward")
+            check_linear(update.value, rewards | numeric, f"{where}: value of {update.reward}")
+
+    for location in automaton.locations:
+        if len(location.rates) != len(automaton.rewards):
+            raise ValueError(f"location {location.name}: one rate per reward expected")
+        for reward, rate in zip(automaton.rewards, location.rates):
+            check_linear(rate.scaled(automaton.period), numeric, f"rate of {reward} in {location.name}")
+    for index, group in enumerate(automaton.edges):
+        for edge in group:
+            where = f"edge {automaton.locations[index].name} -> {edge.target}"
+            if edge.source != index or not 0 <= edge.target < n_loc:
+                raise ValueError(f"{where}: source or target out of place")
+            check_guard(edge.guard, where)
+            check_updates(edge.updates, where)
+    for clause in automaton.end_clauses:
+        check_guard(clause.guard, "at end")
+        check_updates(clause.updates, "at end")
+    check_guard(automaton.assume, "assume")
+    check_linear(automaton.objective, rewards, "objective")
+
+
+def key_error(inputs: Mapping[str, object], names: Sequence[str]) -> ValueError:
+    missing = [name for name in names if name not in inputs]
+    known = set(names)
+    unknown = sorted(repr(key) for key in inputs if key not in known)
+    parts = []
+    if missing:
+        parts.append("missing input(s): " + ", ".join(missing))
+    if unknown:
+        parts.append("unknown input(s): " + ", ".join(unknown))
+    return ValueError("; ".join(parts) or "the inputs do not match the declared inputs")
+
+
+def range_error(spec: InputSpec, value: object, where: str = "") -> ValueError:
+    in_range = isinstance(value, float) and math.isfinite(value) and spec.low <= value <= spec.high
+    if spec.kind == "int" and in_range:
+        return ValueError(f"input {spec.name!r}{where} = {value!r} is not an integer")
+    return ValueError(f"input {spec.name!r}{where} = {value!r} is outside [{spec.low!r}, {spec.high!r}]")
+
+
+ENDED_MESSAGE = "the run has ended; call reset() first"
+
+
+class AutomatonDescription:
+    """Read-only facts about the automaton a runtime runs (shared by scalar and batch runtimes)."""
+
+    _ir: ir.Automaton
+    _names: tuple[str, ...]
+
+    @property
+    def ir(self) -> ir.Automaton:
+        """The checked automaton being run."""
+        return self._ir
+
+    @property
+    def name(self) -> str:
+        """The automaton's name."""
+        return self._ir.name
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """Input names, in declaration order."""
+        return self._names
+
+    @property
+    def reward_names(self) -> tuple[str, ...]:
+        """Reward names, in declaration order."""
+        return self._ir.rewards
+
+    @property
+    def period(self) -> float:
+        """Seconds per sample."""
+        return float(self._ir.period)
+
+    @property
+    def steps(self) -> int:
+        """Samples in a run of the full horizon (not enforced: the caller ends runs)."""
+        return self._ir.steps
+
+
+# ---------------------------------------------------------------- the integer mirrors of the rewards
+# (the UPPAAL target emits them, the engine's product of model and automaton computes them)
+def mirror_accrual(rate: ir.Linear, period: Fraction, scale: int) -> tuple[Fraction, list[tuple[Fraction, str]]]:
+    """What a reward's integer mirror gains in one sample at ``rate``: ``(constant, [(coefficient, input)])``.
+
+    The emitted ``accrue?`` edge adds ``constant`` (``rate.const * period * scale``, a whole number
+    when representable) and, per numeric input, ``coefficient * significand`` written as
+    ``p*input / q``: integer arithmetic, so each such term is truncated towards zero on its own.
+    """
+    return rate.const * period * scale, [(coef * period, name) for name, coef in rate.terms]
+
+
+def mirror_update(value: ir.Linear, scale: int) -> tuple[Fraction, list[tuple[Fraction, str]]]:
+    """A mirror's new value for the update ``reward = value``: ``(constant, [(coefficient, name)])``
+    over the mirrors of rewards and the significands of numeric inputs (both hold ``v * scale``, so
+    the coefficients are the update's own), printed by :func:`rac.targets.uppaal.expr.print_int_linear`:
+    exact with whole coefficients, else the exact value truncated towards zero once."""
+    return value.const * scale, [(coef, name) for name, coef in value.terms]
+
+
+def first_sample_reads(automaton: ir.Automaton) -> bool:
+    """Whether some rate reads an input: then the first sample's accrual, which has no held inputs
+    yet, happens on ``read?`` with that sample's inputs instead of on ``accrue?``."""
+    return any(rate.terms for location in automaton.locations for rate in location.rates)

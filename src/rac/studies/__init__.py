@@ -1,0 +1,1 @@
+"""The paper's studies: the pre-analysis sweep and the learning experiment."""

@@ -1,0 +1,269 @@
+"""``rac experiment``: the paper's Table 2 — learning with and without a shield, with a reward
+automaton or a reward function — on the user's own scenario, repeated over seeds.
+
+Four combinations, as in the paper (Section 6):
+
+- **SS&RA** — safety shield + reward automaton: the reward is the automaton's objective increase
+  per sample (plus its ``at end`` bonus), actions are restricted to the shield's;
+- **SS&RF** — safety shield + reward function: a plain function of the current inputs and model
+  (default: the paper's Eq. 9, ``10*!isClose + (5 + 100*goal())*prog + comf``);
+- **RA** — the automaton alone; **RF** — the reward function alone.
+
+As UPPAAL's ``maxE(e)``, learning maximises the value of ``e`` when an episode ends (the goal is
+reached, or the horizon): each step is rewarded with the increase of ``e``. With the automaton,
+``e`` is its objective over accumulating rewards, so every sample carries a signal; with the
+reward function only the last state's value counts. That is the difference the paper measures.
+
+Each combination learns by tabular Q-learning (:func:`rac.learning.qlearning.learn`) over the same
+observation (the file's first learning query's lists, or the automaton's location and
+``x, y, v, head``) for every seed. Measured per run: the learning time, the episodes until the
+greedy strategy first reaches the goal without a collision or leaving the road, the collisions
+during learning (episodes with at least one), and the final strategy's success — its greedy run
+(the model is deterministic: one run), and 100 evaluation runs in which each decision is random
+with probability 0.1 (how well the strategy recovers from deviations; under the shield the
+random actions are the shield's). The shield is computed once (its time is reported apart, as in
+the paper's table).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rac.compiler import CompileResult
+from rac.ir import query as iq
+
+__all__ = ["COMBINATIONS", "PAPER_REWARD_FUNCTION", "ExperimentError", "render_markdown", "run_experiment"]
+
+#: The paper's Eq. 9 with its ``safe`` written as ``!isClose``.
+PAPER_REWARD_FUNCTION = "10 * !isClose + (5 + 100 * goal()) * prog + comf"
+#: (label, shielded, reward kind) in the paper's order.
+COMBINATIONS: tuple[tuple[str, bool, str], ...] = (
+    ("SS&RA", True, "automaton"), ("SS&RF", True, "function"), ("RA", False, "automaton"), ("RF", False, "function"))
+#: Probability of a random action in the evaluation runs.
+EVALUATION_NOISE = 0.1
+
+
+class ExperimentError(ValueError):
+    """The experiment cannot run on this file (no model, no goal, an unusable reward function)."""
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One combination and seed."""
+
+    combination: str
+    seed: int
+    seconds: float
+    episodes: int
+    first_success_episode: int | None
+    collisions_during_learning: int
+    offroad_during_learning: int
+    greedy_success: bool
+    evaluation_successes: int
+    evaluation_runs: int
+    returns: np.ndarray
+    succeeded: np.ndarray  # per learning episode: goal reached safely
+
+
+def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
+    """The observation lists (as text) of the file's first learning query, or the paper's defaults."""
+    automaton = result.automaton
+    assert automaton is not None
+    for decl in automaton.queries:
+        if isinstance(decl.query, iq.LearnStrategy):
+            count = len(decl.query.discrete)
+            return list(decl.query.labels[:count]), list(decl.query.labels[count:])
+    return [f"{automaton.name}.location"], ["x", "y", "v", "head"]
+
+
+def _shield(result: CompileResult, horizon_samples: int, max_states: int):
+    """The safety shield's table, the seconds it took and its states; ExperimentError without one."""
+    from rac.engine import shield as shields
+
+    assert result.model_data is not None
+    t0 = time.perf_counter()
+    try:
+        computed, table = shields.synthesise(result.model_data, horizon_samples, max_states=max_states)
+    except MemoryError as exc:
+        raise ExperimentError(f"the safety shield cannot be computed: {exc}; coarsen the model (actions, "
+                              "decide_period) or shorten the horizon") from None
+    if not computed.shield_exists:
+        raise ExperimentError("no safe strategy exists from the start: the shielded combinations cannot run")
+    return table, time.perf_counter() - t0, computed.graph.n_states
+
+
+def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4, 5), episodes: int = 500,
+                   evaluation_runs: int = 100, reward_function: str | None = None, horizon_samples: int | None = None,
+                   parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
+                   bins: Sequence[float] | None = None,
+                   progress: Callable[[str], None] | None = None) -> dict[str, object]:
+    """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
+    ``bins``: the widths of the continuous observations (default :func:`rac.learning.qlearning.default_bin`)."""
+    from rac.learning.episodes import EpisodeBatch, parse_expr
+    from rac.learning.qlearning import ObjectiveIncrease, evaluate, learn
+
+    automaton = result.raise_for_errors()
+    if automaton.model is None or result.model_data is None:
+        raise ExperimentError("the file has no `model` block: learning needs the scenario model")
+    horizon = horizon_samples if horizon_samples is not None else automaton.steps
+    text = reward_function if reward_function is not None else PAPER_REWARD_FUNCTION
+    if reward_function is None:
+        names = {i.name for i in automaton.inputs}
+        if not {"isClose", "prog", "comf"} <= names:
+            raise ExperimentError("the default reward function (the paper's Eq. 9) reads the inputs isClose, prog "
+                                  "and comf; pass --reward-function EXPR for this automaton")
+    try:
+        rf = parse_expr(text)
+    except ValueError as exc:
+        raise ExperimentError(f"--reward-function: {exc}") from None
+    wanted = [c for c in COMBINATIONS if combinations is None or c[0] in combinations]
+    discrete, continuous = _learning_spec(result)
+    shield_table, shield_seconds, shield_states = (None, 0.0, 0)
+    if any(shielded for _, shielded, _ in wanted):
+        if progress:
+            progress("computing the safety shield")
+        shield_table, shield_seconds, shield_states = _shield(result, horizon, max_states)
+    records: list[RunRecord] = []
+    for label, shielded, kind in wanted:
+        for seed in seeds:
+            if progress:
+                progress(f"{label}, seed {seed}")
+            batch = EpisodeBatch(result, reward="automaton", horizon_samples=horizon)
+            table = shield_table if shielded else None
+            rewarded = batch if kind == "automaton" else ObjectiveIncrease(batch, rf)
+            outcome = learn(rewarded, discrete=discrete, continuous=continuous, shield=table, episodes=episodes,  # type: ignore[arg-type]
+                            parallel=parallel, seed=seed, bins=bins)
+            evaluation = evaluate(batch, outcome.strategy, runs=evaluation_runs, shield=table, seed=seed,
+                                  epsilon=EVALUATION_NOISE)
+            history = outcome.history
+            succeeded = np.asarray(history.reached) & ~np.asarray(history.collided) & ~np.asarray(history.offroad)
+            records.append(RunRecord(label, seed, outcome.seconds, outcome.episodes, outcome.first_success_episode,
+                                     outcome.collisions_during_learning, outcome.offroad_during_learning,
+                                     bool(outcome.greedy.success[0]), evaluation.successes, evaluation.runs,
+                                     np.asarray(history.returns, dtype=float), succeeded))
+    return {"file": automaton.model.scenario_path, "horizon_samples": horizon, "episodes": episodes,
+            "seeds": list(seeds), "reward_function": text, "shield_seconds": shield_seconds,
+            "shield_states": shield_states, "records": records, "bins": list(bins) if bins else None,
+            "observation": {"discrete": discrete, "continuous": continuous}}
+
+
+def _mean_sd(values: Sequence[float]) -> str:
+    """``mean ± sd`` over the seeds (whole numbers for counts; one seed: its value alone)."""
+    if not values:
+        return "—"
+    mean = float(np.mean(values))
+    whole = all(float(v).is_integer() for v in values)
+    shown = f"{mean:.0f}" if whole or abs(mean) >= 100 else f"{mean:.3g}"
+    if len(values) == 1:
+        return shown
+    sd = float(np.std(values, ddof=1))
+    return f"{shown} ± {sd:.0f}" if whole or sd >= 100 else f"{shown} ± {sd:.2g}"
+
+
+def summary(report: dict[str, object]) -> list[dict[str, object]]:
+    """Per combination: mean and spread over the seeds."""
+    records: list[RunRecord] = report["records"]  # type: ignore[assignment]
+    rows = []
+    for label in dict.fromkeys(r.combination for r in records):
+        runs = [r for r in records if r.combination == label]
+        first = [r.first_success_episode for r in runs if r.first_success_episode is not None]
+        rows.append({
+            "combination": label, "seeds": len(runs),
+            "seconds": [r.seconds for r in runs],
+            "first_success": first, "never_succeeded": sum(r.first_success_episode is None for r in runs),
+            "collisions": [r.collisions_during_learning for r in runs],
+            "offroad": [r.offroad_during_learning for r in runs],
+            "greedy_success": sum(r.greedy_success for r in runs),
+            "evaluation": [r.evaluation_successes / r.evaluation_runs for r in runs],
+            "episodes": [r.episodes for r in runs],
+        })
+    return rows
+
+
+def render_markdown(report: dict[str, object]) -> str:
+    """The experiment as a markdown table (mean ± standard deviation over the seeds)."""
+    rows = summary(report)
+    lines = [
+        "| combination | learning time (s) | episodes until the first safe goal | episodes learned | "
+        "collisions during learning (episodes) | greedy strategy safe at the goal | "
+        f"success over {_evaluation_runs(report)} runs with {EVALUATION_NOISE:g} random actions |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for row in rows:
+        n = row["seeds"]
+        first = _mean_sd(row["first_success"])  # type: ignore[arg-type]
+        if row["never_succeeded"]:
+            first += f" ({row['never_succeeded']} of {n} seeds never)"
+        lines.append(
+            f"| {row['combination']} | {_mean_sd(row['seconds'])} | {first} | {_mean_sd(row['episodes'])} | "  # type: ignore[arg-type]
+            f"{_mean_sd(row['collisions'])} | {row['greedy_success']} of {n} seeds | "  # type: ignore[arg-type]
+            f"{_mean_sd([100 * v for v in row['evaluation']])} % |")  # type: ignore[union-attr]
+    notes = [
+        "",
+        f"Safety shield: {report['shield_states']:,} states, {report['shield_seconds']:.2f} s (computed once, "
+        "used by SS&RA and SS&RF).",
+        f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} episodes per run; horizon "  # type: ignore[call-overload]
+        f"{report['horizon_samples']} samples; reward function `{report['reward_function']}`; observation "
+        f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}}.",  # type: ignore[index]
+        "Values are mean ± standard deviation over the seeds; 'episodes until the first safe goal' counts only "
+        "the seeds that got there.",
+    ]
+    return "\n".join(lines + notes)
+
+
+def _evaluation_runs(report: dict[str, object]) -> int:
+    records: list[RunRecord] = report["records"]  # type: ignore[assignment]
+    return records[0].evaluation_runs if records else 0
+
+
+def write_outputs(report: dict[str, object], out_dir: Path) -> list[Path]:
+    """``experiment.md``, ``results.json``, ``returns.png`` and ``first_success.png`` in ``out_dir``."""
+    from rac.output.plots import plot_first_success, plot_learning_curves
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    records: list[RunRecord] = report["records"]  # type: ignore[assignment]
+    written = []
+    markdown = out_dir / "experiment.md"
+    _write_text(markdown, render_markdown(report) + "\n")
+    written.append(markdown)
+    data = {key: value for key, value in report.items() if key != "records"}
+    data["runs"] = [{"combination": r.combination, "seed": r.seed, "seconds": r.seconds, "episodes": r.episodes,
+                     "first_success_episode": r.first_success_episode,
+                     "collisions_during_learning": r.collisions_during_learning,
+                     "offroad_during_learning": r.offroad_during_learning, "greedy_success": r.greedy_success,
+                     "evaluation_successes": r.evaluation_successes, "evaluation_runs": r.evaluation_runs,
+                     "returns": [round(float(v), 4) for v in r.returns],
+                     "succeeded": [bool(v) for v in r.succeeded]} for r in records]
+    results = out_dir / "results.json"
+    _write_text(results, json.dumps(data, indent=1) + "\n")
+    written.append(results)
+
+    def curves(field: str) -> dict[str, np.ndarray]:
+        out = {}
+        for label in dict.fromkeys(r.combination for r in records):
+            rows = [getattr(r, field).astype(float) for r in records if r.combination == label]
+            width = max(len(row) for row in rows)
+            out[label] = np.array([np.pad(row, (0, width - len(row)), constant_values=np.nan) for row in rows])
+        return out
+
+    written.append(plot_learning_curves(curves("returns"), out_dir / "returns.png", ylabel="episode return",
+                                        title="learning curves (mean ± sd over seeds)", smooth=10))
+    firsts: dict[str, list[int | None]] = {}
+    for r in records:
+        firsts.setdefault(r.combination, []).append(r.first_success_episode)
+    written.append(plot_first_success(firsts, int(report["episodes"]), out_dir / "first_success.png"))  # type: ignore[call-overload]
+    return written
+
+
+def _write_text(path: Path, text: str) -> None:
+    partial = path.with_name(path.name + ".partial")
+    partial.write_text(text, encoding="utf-8")
+    os.replace(partial, path)
+

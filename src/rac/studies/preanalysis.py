@@ -1,0 +1,258 @@
+"""``rac preanalyse``: the paper's pre-analysis over a grid of model settings (Section 5, Table 1).
+
+For every combination of exponent (number representation), sensing period C1 and decision
+period C2 the sweep answers, on the model built at that setting:
+
+- Qa — ``Pr[<=T](<> fabs(true_x - x) >= sensor_error)``: how often the sensed position drifts
+  from the ground truth (N simulated runs, Clopper–Pearson interval);
+- Qb — a run that is never unsafe exists (``E[] !collide() && !offroad()``);
+- Qc — a run that stays safe reaches the goal (``E<>`` on the graph whose unsafe states end a run);
+- Qd — the safety shield exists (``control: A[] !collide() && !offroad()``), with the states
+  explored and the time;
+- Fig. 7 — N runs under the shield; per run the smallest distance to an obstacle, *sensed*
+  (``mindist()`` on the model's significands, what the shield sees) and *true* (the same
+  distance for the ground truth, integrated finely and measured at exponent 4 at every CommonRoad
+  time step, also between samples).
+
+The coarse settings' point: the shield keeps the *sensed* distance safe, but a coarse
+representation or a long period lets the *true* distance drop below the threshold.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import time
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+from rac import ir
+from rac.compiler import CompileResult
+from rac.engine import storm
+from rac.engine.shield import synthesise
+from rac.engine.simulate import Limits, _truth_period, simulate
+from rac.engine.stats import clopper_pearson
+from rac.model.batch import BatchModel
+from rac.model.data import ModelData, ModelRangeError, build_model_data
+
+__all__ = ["SweepError", "render_table", "sweep"]
+
+#: The exponent at which true distances are measured (0.1 mm at base 10).
+TRUTH_EXPONENT = 4
+
+
+class SweepError(ValueError):
+    """Bad sweep arguments (a list that does not parse, a period that is not a multiple)."""
+
+
+def _values(text: str | None, default: Fraction, what: str, whole: bool = False) -> list[Fraction]:
+    if text is None:
+        return [default]
+    out = []
+    for item in text.split(","):
+        try:
+            value = Fraction(item.strip())
+        except (ValueError, ZeroDivisionError):
+            raise SweepError(f"{what}: {item.strip()!r} is not a number") from None
+        if value <= 0 or (whole and value.denominator != 1):
+            raise SweepError(f"{what}: {item.strip()!r} must be a positive {'whole ' if whole else ''}number")
+        out.append(value)
+    return out
+
+
+def _substeps_per_sample(spec: ir.ModelSpec, dt: float) -> int:
+    """How many CommonRoad time steps one sensing period spans (1 when it is not a whole number)."""
+    ratio = Fraction(spec.sense_period) / Fraction(dt).limit_denominator(10**6)
+    return ratio.numerator if ratio.denominator == 1 and ratio >= 1 else 1
+
+
+def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: ModelData) -> np.ndarray:
+    """``(N, T*m+1)`` distances of the ground truth to the nearest obstacle at every CommonRoad
+    time step (``m`` per sensing period), measured on a model at exponent :data:`TRUTH_EXPONENT`
+    whose sensing period is one time step — so a long period cannot hide a close encounter."""
+    m = _substeps_per_sample(spec, result.scenario.dt)  # type: ignore[union-attr]
+    fine = build_model_data(result.scenario, dataclasses.replace(  # type: ignore[arg-type]
+        spec, exponent=TRUTH_EXPONENT, sense_period=spec.sense_period / m, decide_period=spec.sense_period / m))
+    model = BatchModel(fine)
+    scale = float(fine.scale)
+    limits = Limits.of(data)
+    n, samples = runs.truth.shape[0], runs.truth.shape[1]
+    out = np.empty((n, (samples - 1) * m + 1))
+
+    def distance(truth: np.ndarray, index: int) -> np.ndarray:
+        ego = np.zeros((n, 7), dtype=np.int32)
+        ego[:, :5] = np.trunc(np.clip(truth.T * scale, -2.1e9, 2.1e9)).astype(np.int64)
+        return model.mindist(ego, index)
+
+    truth = runs.truth[:, 0].T.copy()  # (5, n), as the integrator holds it
+    out[:, 0] = distance(truth, 0)
+    for k in range(samples - 1):
+        jerk, turn = runs.states[:, k + 1, 5] / data.scale, runs.states[:, k + 1, 6] / data.scale
+        for j in range(1, m + 1):
+            truth = _truth_period(truth, jerk, turn, data.period / m, max(1, 100 // m), limits)
+            out[:, k * m + j] = distance(truth, k * m + j)
+    return out
+
+
+def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
+         max_states: int, threshold_factor: int, out_dir: Path | None) -> dict[str, object]:
+    row: dict[str, object] = {"exponent": spec.exponent, "sense": float(spec.sense_period),
+                              "decide": float(spec.decide_period)}
+    try:
+        data = build_model_data(result.scenario, spec)  # type: ignore[arg-type]
+        build_model_data(result.scenario, dataclasses.replace(spec, exponent=TRUTH_EXPONENT))  # type: ignore[arg-type]
+    except ModelRangeError as exc:
+        row["error"] = f"the scenario does not fit int32 at this exponent: {exc}"
+        return row
+    samples = int(horizon / spec.sense_period)
+    row["samples"] = samples
+    threshold = threshold_factor * data.td / data.scale
+    row["threshold"] = threshold
+    # Qa: sensor error, unshielded runs (UPPAAL's SMC semantics: uniform actions).
+    plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed)
+    drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, 0] / data.scale) >= float(spec.sensor_error)
+    hits = int(drift.any(axis=1).sum())
+    row["qa"] = clopper_pearson(hits, runs)
+    # Qb-Qd on the explored model (unsafe states end a run): the shield's own graph.
+    t0 = time.perf_counter()
+    try:
+        shield, masks = synthesise(data, samples, max_states=max_states)
+    except MemoryError as exc:
+        row["error"] = f"{exc}"
+        row["seconds"] = time.perf_counter() - t0
+        return row
+    graph = shield.graph
+    safe = graph.labels["safe"]
+    row["qb"] = storm.decide(graph, "E[]", "safe").holds
+    labelled = dataclasses.replace(graph, labels={**graph.labels, "safe_goal": safe & graph.labels["goal"]})
+    row["qc"] = storm.decide(labelled, "E<>", "safe_goal").holds
+    row["qd"] = shield.shield_exists
+    row["states"] = graph.n_states
+    row["seconds"] = time.perf_counter() - t0
+    if not shield.shield_exists:
+        return row
+    # Fig. 7 under the shield: sensed and true distances.
+    shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at)
+    model = BatchModel(data)
+    sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
+    true = _true_distances(result, spec, shielded, data)
+    row["sensed_min"] = sensed.min(axis=1)
+    row["true_min"] = true.min(axis=1)
+    below = int((row["true_min"] < threshold).sum())  # type: ignore[operator]
+    row["below"] = below
+    row["below_interval"] = clopper_pearson(below, runs)
+    row["left_shield"] = int(shielded.left_policy.sum())
+    if out_dir is not None:
+        from rac.output.plots import plot_runs
+
+        out_dir.mkdir(parents=True, exist_ok=True)
+        name = f"fig7_e{spec.exponent}_c1_{float(spec.sense_period):g}_c2_{float(spec.decide_period):g}.png"
+        times = np.arange(true.shape[1]) * (data.period / (true.shape[1] - 1) * samples) if samples else np.zeros(1)
+        row["plot"] = str(plot_runs(times, true, out_dir / name, threshold=threshold,
+                                    threshold_label=_td(threshold_factor), ylabel="true distance (m)",
+                                    title=f"exponent {spec.exponent}, C1 {float(spec.sense_period):g} s, "
+                                          f"C2 {float(spec.decide_period):g} s: {runs} runs under the shield"))
+    return row
+
+
+def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | None = None,
+          decides: str | None = None, runs: int = 100, horizon: Fraction | None = None, seed: int | None = None,
+          max_states: int = 5_000_000, out_dir: Path | None = None, quiet: bool = True,
+          threshold_factor: int = 1) -> list[dict[str, object]]:
+    """Answer Qa–Qd and the shielded Fig. 7 runs for every setting of the grid; one dict per setting.
+
+    ``exponents``, ``senses``, ``decides``: comma-separated lists (None: the file's own value).
+    A decision period that is not a whole multiple of the sensing period is skipped with an
+    ``error`` entry. ``out_dir`` receives one Fig. 7 plot per setting and ``sweep.png``."""
+    automaton = result.raise_for_errors()
+    spec = automaton.model
+    if spec is None or result.scenario is None:
+        raise SweepError("the file has no `model` block")
+    horizon = horizon if horizon is not None else Fraction(automaton.horizon)
+    seed = seed if seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
+    grid = list(itertools.product(_values(exponents, Fraction(spec.exponent), "--exponent", whole=True),
+                                  _values(senses, spec.sense_period, "--sense"),
+                                  _values(decides, spec.decide_period, "--decide")))
+    rows = []
+    from rac.output.progress import Progress
+
+    with Progress(total=len(grid), desc="settings", unit="settings", enabled=False if quiet else None) as bar:
+        for exponent, sense, decide in grid:
+            variant = dataclasses.replace(spec, exponent=int(exponent), sense_period=sense, decide_period=decide)
+            if (decide / sense).denominator != 1:
+                rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
+                             "error": "the decision period is not a whole multiple of the sensing period"})
+            elif not 1 <= exponent <= 6:
+                rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
+                             "error": "the exponent must lie in 1..6"})
+            else:
+                rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
+                                 threshold_factor=threshold_factor, out_dir=out_dir))
+                rows[-1]["seed"] = seed
+            bar.update()
+    if out_dir is not None:
+        plotted = [r for r in rows if "true_min" in r]
+        if plotted:
+            from rac.output.plots import plot_sweep
+
+            out_dir.mkdir(parents=True, exist_ok=True)
+            sweep_rows = [{"exponent": r["exponent"], "sense": r["sense"], "decide": r["decide"],
+                           "min_distances": list(r["true_min"]), "threshold": r["threshold"],  # type: ignore[call-overload]
+                           "probability": r["below_interval"]} for r in plotted]
+            path = plot_sweep(sweep_rows, out_dir / "sweep.png", xlabel="smallest true distance of a run (m)",
+                              threshold_label=_td(threshold_factor),
+                              title="pre-analysis: runs under the shield")
+            rows.append({"sweep_plot": str(path)})
+    return [_jsonable(r) for r in rows]
+
+
+def _td(factor: int) -> str:
+    return "TD (collision)" if factor == 1 else f"{factor}·TD"
+
+
+def _jsonable(row: dict[str, object]) -> dict[str, object]:
+    out: dict[str, object] = {}
+    for key, value in row.items():
+        if isinstance(value, np.ndarray):
+            out[key] = [round(float(v), 4) for v in value]
+        elif isinstance(value, tuple):
+            out[key] = [round(float(v), 4) for v in value]
+        elif isinstance(value, float):
+            out[key] = value if math.isfinite(value) else None
+        else:
+            out[key] = value
+    return out
+
+
+def _yes(value: object) -> str:
+    return "—" if value is None else ("true" if value else "false")
+
+
+def render_table(rows: list[dict[str, object]]) -> str:
+    """The sweep as a markdown table (what ``rac preanalyse`` prints)."""
+    lines = ["| exponent | C1 (s) | C2 (s) | Qa: Pr sensor error | Qb | Qc | Qd | states | time (s) | "
+             "runs below threshold under the shield (true distance) |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    notes = []
+    for row in rows:
+        if "exponent" not in row:
+            if "sweep_plot" in row:
+                notes.append(f"sweep plot: {row['sweep_plot']}")
+            continue
+        head = f"| {row['exponent']} | {row['sense']:g} | {row['decide']:g} |"
+        if "error" in row and "qb" not in row:
+            lines.append(f"{head} {row['error']} | | | | | | |")
+            continue
+        qa = row.get("qa")
+        qa_text = f"[{qa[0]:.3f}, {qa[1]:.3f}]" if qa else "—"  # type: ignore[index]
+        below = "—"
+        if "below" in row:
+            interval = row["below_interval"]
+            below = (f"{row['below']} of {len(row['true_min'])} (Pr in [{interval[0]:.3f}, {interval[1]:.3f}]); "  # type: ignore[arg-type, index]
+                     f"min {min(row['true_min']):.2f} m vs {row['threshold']:g} m")  # type: ignore[arg-type, type-var]
+        lines.append(f"{head} {qa_text} | {_yes(row.get('qb'))} | {_yes(row.get('qc'))} | {_yes(row.get('qd'))} | "
+                     f"{row.get('states', 0):,} | {row.get('seconds', 0):.2f} | {below} |")
+    return "\n".join(lines + ([""] + notes if notes else []))

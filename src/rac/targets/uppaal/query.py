@@ -1,0 +1,500 @@
+"""Queries and bindings in UPPAAL syntax, printed from the checked IR (:mod:`rac.ir.expr`, :mod:`rac.ir.query`).
+
+One printer serves both UPPAAL targets and three dialects, which differ only in how a few names
+and operators are written (the tables below):
+
+- ``SYMBOLIC`` (``A[]``, ``E<>``, ``E[]``, ``A<>``, ``-->``, ``control:``, discrete observations):
+  UPPAAL's symbolic engine reads no double in a query, so rewards are their integer mirrors,
+  numbers their significands and ``time`` the global clock. A comparison whose sides are linear in
+  such integers is printed as one exact comparison of integers (``v > 30`` is ``v > 300000``). Any
+  other condition — one that computes with doubles, like ``mindist() < 3 * collision_distance`` —
+  becomes a function of the declarations that returns a ``bool`` (:attr:`UppaalPrinter.conditions`):
+  the query calls it, as it calls ``collide()``;
+- ``STATISTICAL`` (``Pr``, ``E``, ``simulate``, learning): doubles are allowed; rewards are their
+  hybrid clocks, the true state the ``Dynamics`` process's clocks;
+- ``FUNCTION`` (the body of such a condition, and the bindings, which the emitted model evaluates in
+  functions): the subset of expressions valid in UPPAAL's functions and in C, so that the tests
+  compile it with the system C compiler and compare it with the engine. ``time`` is the sample
+  counter times the period there, and ``a imply b`` is ``!a || b``.
+
+Numbers are printed the way the engine computes them: a double expression is printed as its tree
+(no reordering), constants as double literals, a significand as ``i2d(s)`` (``s / SCALE_D``); an
+exact comparison as integers. :class:`QueryError` says why a query cannot be written over the
+emitted model (e.g. a symbolic query that reads the true state).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+from rac.ir import compare
+from rac.ir import expr as ie
+from rac.ir import query as iq
+from rac.ir.vocabulary import Holding
+from rac.targets.uppaal.expr import (
+    ADD,
+    ATOM,
+    CMP,
+    INT32_MAX,
+    MUL,
+    NEG,
+    NUM,
+    NotRepresentable,
+    QueryError,
+    Text,
+    double_literal,
+    imply,
+    int_literal,
+    join,
+    negate,
+    paren,
+    terms_text,
+)
+
+__all__ = ["FUNCTION", "STATISTICAL", "SYMBOLIC", "ModelNames", "UppaalPrinter", "Vocabulary", "time_constants"]
+
+SYMBOLIC, STATISTICAL, FUNCTION = "symbolic", "statistical", "function"
+
+_ARITH_LEVEL = {"+": ADD, "-": ADD, "*": MUL, "/": MUL}
+_FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
+
+
+@dataclass(frozen=True)
+class ModelNames:
+    """How the whole model names the scenario model's vocabulary (absent in the automaton-alone model)."""
+
+    #: The process holding the true state's hybrid clocks (``Dynamics``).
+    dynamics: str
+    #: The sample counter (``time`` in functions is ``count * C1``).
+    count: str
+    #: The constant holding the horizon in time units (``MAXT``).
+    maxt: str
+
+
+@dataclass(frozen=True)
+class Vocabulary:
+    """The UPPAAL names of everything a query or a binding reads in one emitted model.
+
+    ``mirrors`` and ``hybrids`` map each reward to its integer mirror and its hybrid clock;
+    ``significands`` each numeric input to its ``int32_t`` global; ``bools`` each boolean input;
+    ``locations`` each location to its UPPAAL name inside ``process``. ``time`` is the global
+    clock (in time units of ``unit`` seconds); ``settled`` a global that is false exactly while the
+    inputs are newer than the location. ``model`` is None in the automaton-alone model.
+    """
+
+    automaton: str
+    process: str
+    locations: Mapping[str, str]
+    bools: Mapping[str, str]
+    significands: Mapping[str, str]
+    mirrors: Mapping[str, str]
+    hybrids: Mapping[str, str]
+    strategies: Mapping[str, str]
+    scale: int
+    unit: Fraction
+    time: str
+    settled: str
+    horizon: Fraction
+    #: The sample period C1 in seconds, and the constant holding it in time units (``PERIOD``).
+    period: Fraction = Fraction(1)
+    period_name: str = "PERIOD"
+    model: ModelNames | None = None
+    #: Why the scenario model's names are missing (the message of :class:`QueryError`).
+    no_model: str = "the automaton-alone UPPAAL model has no scenario-model names"
+
+
+@dataclass
+class UppaalPrinter:
+    """Print checked queries and bindings over one emitted model.
+
+    ``fresh(base)`` names a new function of the declarations; :attr:`conditions` collects the
+    conditions of symbolic queries that compute with doubles: ``(name, body)``, each to be
+    declared as ``bool name() { return body; }`` (identical bodies share one function).
+    """
+
+    v: Vocabulary
+    fresh: Callable[[str], str] = str
+    conditions: dict[str, str] = field(default_factory=dict)  # body -> name
+    #: In the bindings' function: the local variable holding each ``prev(e)``'s value, by ``e``.
+    prevs: dict[ie.Expr, str] = field(default_factory=dict)
+    #: Write ``a imply b`` as ``!a || b`` in every dialect (C has no ``imply``; the tests compile
+    #: query expressions printed so against the engine's values).
+    c_syntax: bool = False
+
+    # ------------------------------------------------------------ whole queries
+    def formula(self, query: iq.Query) -> str:
+        """The query as one line of UPPAAL property syntax (:class:`QueryError` when it cannot be written)."""
+        if isinstance(query, iq.PathQuery):
+            text = f"{query.quantifier} {self.state(query.expr, SYMBOLIC, query.quantifier in ('A[]', 'E[]'))[0]}"
+        elif isinstance(query, iq.LeadsToQuery):
+            text = f"{self.state(query.left, SYMBOLIC, False)[0]} --> {self.state(query.right, SYMBOLIC, False)[0]}"
+        elif isinstance(query, iq.ControlStrategy):
+            body = self.state(query.expr, SYMBOLIC, query.goal == "A[]")[0]
+            # UPPAAL 5 states a reachability objective as `control: A<> p` (the strategy forces p)
+            goal = "A<>" if query.goal == "E<>" else query.goal
+            text = f"strategy {self._strategy(query.name)} = control: {goal} {body}"
+        elif isinstance(query, iq.ProbabilityQuery):
+            body = self.state(query.expr, STATISTICAL, query.path == "[]")[0]
+            if query.compare is not None and query.runs is not None:
+                raise QueryError("UPPAAL tests a probability against a threshold sequentially, choosing the "
+                                 "number of runs itself: drop `;N` from the bound")
+            text = f"Pr[{self._bound(query.bound, query.runs)}]({query.path} {body})"
+            if query.compare is not None:
+                op, threshold = query.compare
+                if op not in (">=", "<="):
+                    raise QueryError(f"UPPAAL compares a probability with `>=` or `<=` only, not `{op}`")
+                text += f" {op} {double_literal(threshold)}"
+        elif isinstance(query, iq.ExpectationQuery):
+            text = (f"E[{self._bound(query.bound, query.runs)}]"
+                    f"({query.aggregate}: {self.number(query.expr, STATISTICAL)[0]})")
+        elif isinstance(query, iq.SimulateQuery):
+            exprs = ", ".join(self.any(e) for e in query.exprs)
+            text = f"simulate[{self._bound(query.bound, query.runs)}]{{{exprs}}}"
+        elif isinstance(query, iq.LearnStrategy):
+            if query.path != "<>":
+                raise QueryError("UPPAAL learns reachability goals only (`: <> p`)")
+            discrete = ", ".join(self.discrete(e) for e in query.discrete)
+            continuous = ", ".join(self.any(e) for e in query.continuous)
+            body = self.state(query.expr, STATISTICAL, query.path == "[]")[0]
+            text = (f"strategy {self._strategy(query.name)} = {query.optimise}("
+                    f"{self.number(query.objective, STATISTICAL)[0]})[{self._bound(query.bound, None)}]"
+                    f"{{{discrete}}}->{{{continuous}}}: {query.path} {body}")
+        else:
+            raise TypeError(f"not a query: {query!r}")
+        under = getattr(query, "under", None)
+        if under is not None:
+            text += f" under {self._strategy(under)}"
+        return text
+
+    def _strategy(self, name: str) -> str:
+        return self.v.strategies.get(name, name)
+
+    def _bound(self, bound: iq.Bound, runs: int | None) -> str:
+        if bound.kind == "time":
+            units = bound.limit / self.v.unit
+            if units.denominator != 1:
+                raise QueryError(f"the time bound {_short(bound.limit)} s is not a whole number of time units "
+                                 f"({_short(self.v.unit)} s)")
+            text = "<=" + (self.v.model.maxt if self.v.model is not None and bound.limit == self.v.horizon
+                           else int_literal(units))
+        else:
+            text = "#<=" + int_literal(bound.limit)
+        return text if runs is None else f"{text};{int_literal(runs)}"
+
+    # ------------------------------------------------------------ conditions
+    def state(self, expr: ie.Expr, dialect: str, box: bool) -> Text:
+        """A state formula; when it reads an input, states where the inputs are newer than the
+        location (``settled`` false) are left out: ``settled imply p`` under ``[]``, else ``settled && p``."""
+        text = self.condition(expr, dialect)
+        if not any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr)):
+            return text
+        settled = (self.v.settled, ATOM)
+        if box and self.c_syntax:
+            return join([negate(settled), text], "||")
+        if box:
+            return imply(settled, text)
+        return join([settled, text], "&&")
+
+    def condition(self, expr: ie.Expr, dialect: str) -> Text:
+        """A boolean expression."""
+        if isinstance(expr, ie.Const):
+            return ("true" if expr.value else "false"), ATOM
+        if isinstance(expr, ie.Ref):
+            return self._name(expr, dialect), ATOM
+        if isinstance(expr, ie.Unary):
+            return negate(self.condition(expr.operand, dialect))
+        if isinstance(expr, ie.Binary):
+            left, right = self.condition(expr.left, dialect), self.condition(expr.right, dialect)
+            if expr.op == "imply":
+                if dialect == FUNCTION or self.c_syntax:
+                    return join([negate(left), right], "||")
+                return imply(left, right)
+            return join([left, right], expr.op)
+        if isinstance(expr, ie.Call):
+            return self._call(expr, dialect), ATOM
+        if isinstance(expr, ie.Prev):
+            return self._prev(expr, dialect), ATOM
+        assert isinstance(expr, ie.Compare)
+        if expr.left.type == ie.BOOL:
+            left = paren(*self.condition(expr.left, dialect), ATOM)
+            right = paren(*self.condition(expr.right, dialect), ATOM)
+            return f"{left} {expr.op} {right}", CMP
+        exact = self._exact(expr, dialect)
+        if exact is not None:
+            return exact
+        if dialect == SYMBOLIC:
+            return self._hoisted(expr), ATOM
+        left, right = self.number(expr.left, dialect), self.number(expr.right, dialect)
+        return f"{paren(left[0], left[1], ADD)} {expr.op} {paren(right[0], right[1], ADD)}", CMP
+
+    def _hoisted(self, expr: ie.Compare) -> str:
+        """A condition of a symbolic query that computes with doubles, as a call of a function."""
+        try:
+            body = self.condition(expr, FUNCTION)[0]
+        except QueryError as exc:
+            raise QueryError(f"a symbolic query cannot compute this comparison: {exc}") from None
+        if body not in self.conditions:
+            self.conditions[body] = self.fresh("cond")
+        return f"{self.conditions[body]}()"
+
+    def _exact(self, expr: ie.Compare, dialect: str) -> Text | None:
+        """``left op right`` as an exact comparison of integers, when both sides are linear in values
+        held as integers in this dialect; None otherwise."""
+        form = expr.linear
+        if form is None:
+            return None
+        if form.is_constant:
+            return ("true" if compare(form.const, expr.op, 0) else "false"), ATOM
+        terms = []
+        for ref, coefficient in form.terms:
+            held = self._integer(ref, dialect)
+            if held is None:
+                return None
+            name, unit = held
+            terms.append((name, coefficient * unit))
+        if any(name == self.v.time for name, _ in terms):
+            return self._clock(terms, form.const, expr.op, dialect)
+        multiplier = math.lcm(*(c.denominator for _, c in terms))
+        coefficients = [(int(c * multiplier), name) for name, c in terms]
+        bound = -form.const * multiplier
+        op = expr.op
+        if coefficients[0][0] < 0:
+            coefficients = [(-c, n) for c, n in coefficients]
+            bound, op = -bound, _FLIP[op]
+        result = ie.integer_bound(op, bound)
+        if isinstance(result, bool):
+            return ("true" if result else "false"), ATOM
+        op, whole = result
+        largest = sum(abs(c) * (self._count_locations() if name.endswith(".location") else INT32_MAX)
+                      for c, name in coefficients)
+        if largest <= INT32_MAX:
+            return f"{terms_text(coefficients)} {op} {int_literal(whole)}", CMP
+        # a sum of int32 values may leave int32 (10*iSa with iSa = -3e8): compute it in doubles, exact
+        # for integers below 2**53, in a condition of the declarations when the query is symbolic
+        if largest + abs(whole) >= 2**53:
+            raise NotRepresentable(f"the comparison's coefficients are too large to be computed exactly "
+                                   f"({largest + abs(whole)} >= 2**53)")
+        if dialect == SYMBOLIC:
+            return self._hoisted(expr), ATOM
+        first, *rest = coefficients
+        text = f"{double_literal(first[0])} * {first[1]}"
+        for c, name in rest:
+            term = name if abs(c) == 1 else f"{double_literal(abs(c))} * {name}"
+            text += f" {'-' if c < 0 else '+'} {term}"
+        return f"{text} {op} {double_literal(whole)}", CMP
+
+    def _count_locations(self) -> int:
+        return max(1, len(self.v.locations))
+
+    def _clock(self, terms: list[tuple[str, Fraction]], const: Fraction, op: str, dialect: str) -> Text | None:
+        """``c * time + const op 0`` as UPPAAL's clock constraint ``time op' k`` (``k`` whole time units)."""
+        if len(terms) > 1:
+            if dialect == SYMBOLIC:
+                raise QueryError("a symbolic query cannot compare `time` with rewards, inputs or the ego state "
+                                 "(UPPAAL's clock cannot be mixed with integers)")
+            return None
+        (name, coefficient), = terms
+        bound = -const / coefficient
+        if coefficient < 0:
+            op = _FLIP[op]
+        if bound.denominator != 1:
+            if dialect == SYMBOLIC:
+                raise QueryError(f"`time` is compared with {_short(bound * self.v.unit)} s, which is not a whole "
+                                 f"number of time units ({_short(self.v.unit)} s)")
+            return f"{name} {op} {double_literal(bound)}", CMP
+        model = self.v.model
+        if model is not None and bound * self.v.unit == self.v.horizon:
+            return f"{name} {op} {model.maxt}", CMP
+        return f"{name} {op} {int_literal(bound)}", CMP
+
+    def _integer(self, ref: ie.Ref, dialect: str) -> tuple[str, Fraction] | None:
+        """The integer that holds ``ref`` in this dialect and the value of one of its units, or None."""
+        v = self.v
+        if ref.kind is ie.RefKind.INPUT:
+            return v.significands[ref.name], Fraction(1, v.scale)
+        if ref.kind is ie.RefKind.REWARD:
+            return (v.mirrors[ref.name], Fraction(1, v.scale)) if dialect != STATISTICAL else None
+        if ref.kind is ie.RefKind.LOCATION_INDEX:
+            return (f"{v.process}.location", Fraction(1)) if dialect != FUNCTION else None
+        entry = ref.model
+        if entry.holding is Holding.SIGNIFICAND and entry.kind == "ego":
+            self._model(ref.name)
+            return entry.uppaal, Fraction(1, v.scale)
+        if entry.holding is Holding.TIME:
+            if dialect == FUNCTION:
+                return self._model(ref.name).count, v.period
+            return v.time, v.unit
+        return None
+
+    # ------------------------------------------------------------ numbers (doubles)
+    def number(self, expr: ie.Expr, dialect: str) -> Text:
+        """A numeric expression as a double, printed as its tree (the engine computes the same)."""
+        if expr.type == ie.BOOL:  # a condition counting 0 or 1 (reward expressions)
+            return paren(*self.condition(expr, dialect), NUM), NUM
+        if isinstance(expr, ie.Const):
+            text = double_literal(expr.value)  # type: ignore[arg-type]
+            return text, NEG if text.startswith("-") else NUM
+        if isinstance(expr, ie.Ref):
+            return self._number_name(expr, dialect)
+        if isinstance(expr, ie.Call):
+            return self._call(expr, dialect), NUM
+        if isinstance(expr, ie.Prev):
+            return self._prev(expr, dialect), NUM
+        if isinstance(expr, ie.Unary):
+            inner = self.number(expr.operand, dialect)
+            return "-" + paren(inner[0], inner[1], NUM), NEG
+        assert isinstance(expr, ie.Binary)
+        level = _ARITH_LEVEL[expr.op]
+        left, right = self.number(expr.left, dialect), self.number(expr.right, dialect)
+        return f"{paren(left[0], left[1], level)} {expr.op} {paren(right[0], right[1], level + 1)}", level
+
+    def _number_name(self, ref: ie.Ref, dialect: str) -> Text:
+        v = self.v
+        scale = double_literal(v.scale)
+        if ref.kind is ie.RefKind.INPUT:
+            return f"{v.significands[ref.name]} / {scale}", MUL
+        if ref.kind is ie.RefKind.REWARD:
+            if dialect == STATISTICAL:
+                return v.hybrids[ref.name], NUM
+            return f"{v.mirrors[ref.name]} / {scale}", MUL
+        if ref.kind is ie.RefKind.LOCATION_INDEX:
+            if dialect == FUNCTION:
+                raise QueryError("a location cannot be read in a condition computed with doubles")
+            return f"{v.process}.location", NUM
+        if ref.kind is not ie.RefKind.MODEL:
+            raise QueryError(f"`{ref.name}` is not a number")
+        entry = ref.model
+        model = self._model(ref.name) if entry.holding is not Holding.TIME or dialect == FUNCTION else None
+        if entry.holding is Holding.SIGNIFICAND:
+            return f"i2d({entry.uppaal})", NUM
+        if entry.holding is Holding.EXACT:
+            assert ref.value is not None
+            return (entry.uppaal, NUM) if entry.uppaal else (double_literal(ref.value), NUM)
+        if entry.holding is Holding.TIME:
+            if dialect == FUNCTION:
+                return f"{model.count} * {double_literal(v.period)}", MUL
+            # k * C1 at sample k, as the engine computes it: the clock counts PERIOD time units a sample
+            if v.period == v.unit:
+                return f"{v.time} * {double_literal(v.period)}", MUL
+            return f"{v.time} / {v.period_name} * {double_literal(v.period)}", MUL
+        if dialect != STATISTICAL:
+            raise QueryError(f"`{ref.name}` is the ground truth, which only statistical queries (Pr, E, simulate) "
+                             "follow")
+        assert model is not None
+        return f"{model.dynamics}.{entry.uppaal}", NUM
+
+    def _model(self, name: str = "") -> ModelNames:
+        if self.v.model is None:
+            raise QueryError(f"`{name}` is not a name of the automaton `{self.v.automaton}` ({self.v.no_model})"
+                             if name else self.v.no_model)
+        return self.v.model
+
+    def _prev(self, expr: ie.Prev, dialect: str) -> str:
+        if dialect == FUNCTION and expr.operand in self.prevs:
+            return self.prevs[expr.operand]
+        raise QueryError(_PREV)
+
+    # ------------------------------------------------------------ names and calls
+    def _name(self, ref: ie.Ref, dialect: str) -> str:
+        v = self.v
+        if ref.kind is ie.RefKind.INPUT:
+            return v.bools[ref.name]
+        if ref.kind is ie.RefKind.LOCATION:
+            if dialect == FUNCTION:
+                raise QueryError("a location cannot be read in a condition computed with doubles")
+            return f"{v.process}.{v.locations[ref.name]}"
+        if ref.kind is ie.RefKind.DEADLOCK:
+            if dialect == FUNCTION:
+                raise QueryError("`deadlock` cannot be read in a condition computed with doubles")
+            return "deadlock"
+        raise QueryError(f"`{ref.name}` is not a condition")
+
+    def _call(self, call: ie.Call, dialect: str) -> str:
+        function = call.function
+        if function.kind == "model":
+            if self.v.model is None:
+                raise QueryError(f"`{function.name}()` is a function of the scenario model, which the "
+                                 f"automaton-alone UPPAAL model does not contain")
+            return f"{function.uppaal}()"
+        args = ", ".join(self.number(a, dialect)[0] for a in call.args)
+        return f"{function.uppaal}({args})"
+
+    # ------------------------------------------------------------ observations
+    def any(self, expr: ie.Expr) -> str:
+        """A simulated or continuously observed expression: a condition or a (double) number."""
+        if expr.type == ie.BOOL:
+            return self.condition(expr, STATISTICAL)[0]
+        return self.number(expr, STATISTICAL)[0]
+
+    def discrete(self, expr: ie.Expr) -> str:
+        """A discrete observation of a learning query: an integer expression (mirrors, significands)."""
+        if expr.type == ie.BOOL:
+            return self.condition(expr, SYMBOLIC)[0]
+        form = ie.linear_form(expr)
+        terms = []
+        for ref, coefficient in form.terms if form is not None else ():
+            held = self._integer(ref, SYMBOLIC)
+            if held is None or held[0] == self.v.time:
+                form = None
+                break
+            terms.append((held[0], coefficient * held[1]))
+        if form is None:
+            raise QueryError("a discrete observation must be linear in rewards, inputs, the ego state and "
+                             "`Automaton.location` (it is observed as integers: mirrors and significands)")
+        # observed as the smallest whole multiple: `x` is the significand, `sa + pr` the mirrors' sum
+        multiplier = math.lcm(*(c.denominator for _, c in terms), form.const.denominator)
+        whole = [(int(c * multiplier), name) for name, c in terms]
+        constant = int(form.const * multiplier)
+        if not whole:
+            return int_literal(constant)
+        text = terms_text(whole)
+        return f"{text} {'-' if constant < 0 else '+'} {int_literal(abs(constant))}" if constant else text
+
+    # ------------------------------------------------------------ bindings
+    def binding(self, expr: ie.Expr) -> str:
+        """A binding's expression in the function dialect (numbers as doubles, conditions as bools)."""
+        if expr.type == ie.BOOL:
+            return self.condition(expr, FUNCTION)[0]
+        return self.number(expr, FUNCTION)[0]
+
+
+_PREV = ("`prev(...)` cannot be read by a query over the emitted model: the model keeps the previous sample "
+         "only while it reads the inputs")
+
+
+def _short(value: Fraction) -> str:
+    if value.denominator == 1:
+        return str(value.numerator)
+    text = f"{float(value):.6g}"
+    return text if Fraction(text) == value else f"{value.numerator}/{value.denominator}"
+
+
+def time_constants(query: iq.Query) -> list[Fraction]:
+    """Durations in seconds a query needs as whole time units: its time bound, and the constant of
+    every comparison of ``time`` alone (``time >= 30`` needs 30 s)."""
+    found: list[Fraction] = []
+    bound = getattr(query, "bound", None)
+    if bound is not None and bound.kind == "time":
+        found.append(bound.limit)
+    for expr in query_exprs(query):
+        for node in ie.walk(expr):
+            if isinstance(node, ie.Compare) and node.linear is not None and len(node.linear.terms) == 1:
+                ref, coefficient = node.linear.terms[0]
+                if ref.is_model and ref.model.holding is Holding.TIME:
+                    found.append(-node.linear.const / coefficient)
+    return found
+
+
+def query_exprs(query: iq.Query) -> list[ie.Expr]:
+    """Every expression of a query."""
+    found: list[ie.Expr] = []
+    for name in ("expr", "left", "right", "objective"):
+        value = getattr(query, name, None)
+        if value is not None:
+            found.append(value)
+    for name in ("exprs", "discrete", "continuous"):
+        found.extend(getattr(query, name, ()))
+    return found

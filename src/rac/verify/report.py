@@ -1,0 +1,182 @@
+"""What ``rac verify`` answers, and how it is shown: :class:`QueryResult`, the verifyta-like text
+(:func:`render_text`), JSON (:func:`render_json`), and the CSV files and plots of ``simulate``."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rac.core.source import Span
+from rac.ir import expr as ie
+
+__all__ = ["QueryResult", "render_json", "render_text"]
+
+
+class _Unknown(Exception):
+    """A query that cannot be decided within the options (message for the user)."""
+
+
+@dataclass(frozen=True)
+class QueryResult:
+    """One query's answer, in the shape ``rac verify`` prints and ``--format json`` writes.
+
+    ``status`` is ``"satisfied"``, ``"not satisfied"``, ``"value"`` (a probability, an
+    expectation or simulated runs), ``"unknown"`` (budget or horizon exceeded) or
+    ``"unsupported"``; ``message`` says why for the last two."""
+
+    name: str
+    formula: str
+    kind: str
+    status: str
+    title: str | None = None
+    interval: tuple[float, float] | None = None
+    estimate: float | None = None
+    runs: int | None = None
+    states: int | None = None
+    seconds: float = 0.0
+    horizon_samples: int | None = None
+    trace: tuple[dict[str, float | int | str], ...] | None = None
+    files: tuple[str, ...] = ()
+    message: str | None = None
+    seed: int | None = None
+    confidence: float | None = None
+    #: ``Pr`` without ``under``: the exact probability under uniform choices, computed by Storm
+    #: on the explored model (what the interval estimates); None when the model is too large.
+    exact: float | None = None
+    span: Span | None = field(default=None, compare=False)
+
+    def to_json(self) -> dict[str, object]:
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "span"}
+        out["interval"] = [_finite(v) for v in self.interval] if self.interval else None
+        out["estimate"] = _finite(self.estimate)
+        out["trace"] = list(self.trace) if self.trace else None
+        out["files"] = list(self.files)
+        if self.span is not None:
+            out["location"] = {"file": self.span.file, "line": self.span.line, "column": self.span.column}
+        return out
+
+
+
+def _expr_text(expr: ie.Expr) -> str:
+    from rac.ir.text import format_checked
+
+    return format_checked(expr)
+
+
+def _write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray]) -> Path:
+    """``run,time,expr...`` rows, written to a temporary file and renamed (never half a file)."""
+    partial = path.with_name(path.name + ".partial")
+    with partial.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["run", "time", *names])
+        for run in range(values[0].shape[0] if values else 0):
+            for k, t in enumerate(times):
+                writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
+    os.replace(partial, path)
+    return path
+
+
+def _plot(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray], title: str) -> Path:
+    """The paper's Fig. 7 for ``simulate{distance, threshold}``; one line per run otherwise."""
+    from rac.output.plots import plot_runs
+
+    threshold = float(values[1].flat[0]) if len(values) == 2 and np.ptp(values[1]) == 0 else None
+    return Path(plot_runs(times, values[0], path, threshold=threshold, threshold_label=names[1] if threshold else None,
+                          ylabel=names[0], title=title))
+
+
+# ---------------------------------------------------------------- rendering
+def _number(value: float) -> str:
+    return f"{value:.4g}" if math.isfinite(value) else str(value)
+
+
+def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
+    """The results in the layout of UPPAAL's verifyta: ``Verifying`` then `` -- Formula is ...``."""
+    lines: list[str] = []
+    for r in results:
+        where = f"  ({r.span.file}:{r.span.line})" if r.span is not None and not r.span.file.startswith("<") else ""
+        lines.append(f"Verifying {r.name}: {r.formula}{where}")
+        if r.title:
+            lines.append(f"    ({r.title})")
+        if r.status in ("satisfied", "not satisfied"):
+            lines.append(f" -- Formula is {'satisfied' if r.status == 'satisfied' else 'NOT satisfied'}.")
+        elif r.status == "unknown":
+            lines.append(f" -- Formula is UNKNOWN: {r.message}")
+        elif r.status == "unsupported":
+            lines.append(f" -- Not answered: {r.message}")
+        if r.kind == "probability" and r.interval is not None:
+            lines.append(f" -- Pr in [{r.interval[0]:.4f}, {r.interval[1]:.4f}] ({r.runs} runs, "
+                         f"{_confidence(r)} CI)")
+            if r.exact is not None:
+                lines.append(f" -- exact (Storm, actions drawn uniformly): {r.exact:.4f}")
+        elif r.kind == "probability" and r.runs is not None:
+            lines.append(f" -- {r.runs} runs, {int(round((r.estimate or 0) * r.runs))} satisfied the formula")
+        elif r.kind == "expectation" and r.estimate is not None and r.interval is not None:
+            half = (r.interval[1] - r.interval[0]) / 2
+            lines.append(f" -- ({r.runs} runs) E = {_number(r.estimate)} ± {_number(half)} ({_confidence(r)} CI)")
+        elif r.kind == "simulate" and r.message:
+            lines.append(f" -- {r.message}")
+        elif r.kind == "learning" and r.status == "value" and r.message:
+            first, *more = r.message.split("\n")
+            lines.append(f" -- {first}")
+            lines.extend(f"    {line}" for line in more)
+        details = []
+        if r.states is not None:
+            details.append(_count(r.states, "state"))
+        if r.horizon_samples is not None:
+            details.append(f"horizon {r.horizon_samples} samples")
+        details.append(f"{r.seconds:.2f} s")
+        if r.seed is not None:
+            details.append(f"seed {r.seed}")
+        lines.append("    " + ", ".join(details))
+        if r.kind in ("strategy", "symbolic") and r.message and r.status != "unknown":
+            lines.append(f"    {r.message}")
+        for file in r.files:
+            lines.append(f"    wrote {file}")
+        if r.trace:
+            shown = r.trace if traces else (r.trace[:3] + r.trace[-3:] if len(r.trace) > 6 else r.trace)
+            note = "" if traces or len(r.trace) <= 6 else ", first and last 3; --trace shows all"
+            lines.append(f"    trace ({_count(len(r.trace), 'state')}{note}):")
+            for row in shown:
+                lines.append("      " + _trace_row(row))
+    return "\n".join(lines)
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
+
+
+def _confidence(result: QueryResult) -> str:
+    return f"{(result.confidence or 0.95) * 100:g}%"
+
+
+def _trace_row(row: dict) -> str:
+    parts = [f"t={row['time']:g}s"]
+    for name in ("x", "y", "v", "acc", "head", "jerk", "turn"):
+        parts.append(f"{name}={row[name]:g}")
+    if "location" in row:
+        parts.append(str(row["location"]))
+    if row.get("phase", "sampled") != "sampled":  # product states before the edge, after `at end`
+        parts.append(f"({row['phase']})")
+    known = {"time", "x", "y", "v", "acc", "head", "jerk", "turn", "location", "phase", "collide", "offroad", "goal"}
+    parts.extend(f"{name}={value:g}" for name, value in row.items() if name not in known)
+    flags = [name for name in ("collide", "offroad", "goal") if row.get(name)]
+    if flags:
+        parts.append("[" + ",".join(flags) + "]")
+    return " ".join(parts)
+
+
+def _finite(value: float | None) -> float | None:
+    """``value``, or None when it is not finite (JSON has no infinities)."""
+    return value if value is None or math.isfinite(value) else None
+
+
+def render_json(results: list[QueryResult]) -> list[dict[str, object]]:
+    """The results as JSON-ready dicts (``rac verify --format json``)."""
+    return [r.to_json() for r in results]
