@@ -66,9 +66,9 @@ from tiny_scenarios import TINY_SCENARIOS, avoidable_obstacle
 
 from rac import ir
 from rac.compiler import compile_file, compile_text
+from rac.engine.bindings import Bindings
 from rac.engine.evaluate import Evaluator, Frame
 from rac.engine.explore import action_pairs
-from rac.engine.product import _Bindings
 from rac.engine.simulate import simulate
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -426,7 +426,7 @@ def check_bindings(automaton, data: ModelData, xml: str, folder: Path, before: n
     lines = "".join(" ".join(map(str, [*b, kk - 1, *c, kk])) + "\n" for b, c, kk in zip(before, now, k))
     emitted = np.asarray([[int(v) for v in line.split()] for line in _run(binary, lines)], dtype=np.int64)
     frame = Frame(k=k, ego=now, prev=Frame(k=k - 1, ego=before))
-    engine = _Bindings(Evaluator(data, automaton), automaton).read(frame)
+    engine = Bindings(Evaluator(data, automaton), automaton, "the test").read(frame)
     assert emitted.shape == engine.shape
     bindings = {b.input: b.expr for b in automaton.model.bindings}
     for column, item in enumerate(automaton.inputs):

@@ -19,7 +19,8 @@ import pytest
 from conftest import REPOSITORY
 
 DEPENDENCIES = ("lark", "numpy", "jinja2", "markupsafe")
-IN_WHEEL = ("rac/__init__.py", "rac/grammar/rac.lark", "rac/stdlib/driving.ra", "rac/templates/python_module.py.j2")
+IN_WHEEL = ("rac/__init__.py", "rac/grammar/rac.lark", "rac/stdlib/driving.ra",
+            "rac/targets/templates/python_module.py.j2", "rac/targets/uppaal/templates/model.xml.j2")
 
 
 def child_env() -> dict[str, str]:

@@ -1,1 +1,6 @@
-"""The checker: names, types and the model block resolved into the IR, and the static analyses."""
+"""The checker: a parsed module -> the IR. Scopes and symbols, name and type resolution, the
+``model`` block, the queries (lowered to typed IR expressions), the paper's standard queries, and
+the static analyses (determinism, reachability, priorities, worst cases).
+
+May import: core, lang, ir.
+"""

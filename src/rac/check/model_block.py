@@ -1,7 +1,8 @@
 """The ``model`` block: its settings table, their defaults and checks, and the bindings.
 
 :func:`resolve_model` reads the block of one automaton into an :class:`rac.ir.ModelSpec`
-(called by :meth:`rac.check.resolve.Resolver.run`). Settings not written take the defaults of
+(called by :meth:`rac.check.resolve.Resolver.run` with a :class:`rac.check.symbols.ModelContext`).
+Settings not written take the defaults of
 :data:`SETTINGS` and :data:`ACTIONS` (the paper's values); every problem becomes a
 diagnostic with a span:
 
@@ -25,18 +26,14 @@ import difflib
 import os
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.check.queries import FUNCTIONS_HINT, VOCABULARY_HINT, Lowering, model_settings_of, type_word
-from rac.check.resolve import _Unresolvable
+from rac.check.symbols import ModelContext, Unresolvable
 from rac.core.diagnostics import Note, short_number
 from rac.core.source import Span
 from rac.ir.vocabulary import ACTIONS, BINDING_MATH, EGO_STATE, MODEL_FUNCTIONS, SETTINGS, TRUE_STATE, Setting
 from rac.lang import ast
-
-if TYPE_CHECKING:
-    from rac.check.resolve import Resolver
 
 __all__ = ["ACTIONS", "EGO_STATE", "FUNCTIONS_HINT", "MATH_FUNCTIONS", "MODEL_FUNCTIONS", "SETTINGS", "TRUE_STATE",
            "VOCABULARY_HINT", "allowed", "resolve_model"]
@@ -66,7 +63,7 @@ class _Value:
 
 
 class _ModelResolver:
-    def __init__(self, r: Resolver, block: ast.ModelDecl, inputs: tuple[ir.Input, ...],
+    def __init__(self, r: ModelContext, block: ast.ModelDecl, inputs: tuple[ir.Input, ...],
                  period: Fraction | None):
         self.r = r
         self.block = block
@@ -78,12 +75,12 @@ class _ModelResolver:
 
     def error(self, code: str, message: str, span: Span | None, **kw) -> None:
         self.ok = False
-        self.r._error(code, message, span or self.block.span, **kw)
+        self.r.scope.error(code, message, span or self.block.span, **kw)
 
     def constant(self, expr: ast.Expr, what: str) -> Fraction | None:
         try:
             return self.r.constant(expr, what)
-        except _Unresolvable:
+        except Unresolvable:
             self.ok = False
             return None
 
@@ -181,7 +178,7 @@ class _ModelResolver:
             low, high, step, _ = ACTIONS[name]
             hints.append(f"an action is declared with its range: `action {name} in [{_num(low)}, {_num(high)}] "
                          f"step {_num(step)}`")
-        elif name in self.r.symbols and self.r.symbols[name].kind == "input":
+        elif name in self.r.scope.symbols and self.r.scope.symbols[name].kind == "input":
             hints.append(f"an input is bound with `bind`: `bind {name} = ...`")
         elif close:
             hints.append(f"did you mean `{close[0]}`?")
@@ -206,7 +203,7 @@ class _ModelResolver:
     def _check_timing(self, values: dict[str, _Value]) -> None:
         sense, decide, granularity = values["sense_period"], values["decide_period"], values["granularity"]
         if sense.span is not None and self.period is not None and sense.value != self.period:
-            sample = self.r.node.of(ast.SampleDecl)
+            sample = self.r.automaton.of(ast.SampleDecl)
             self.error("E0704", f"`sense_period` ({_num(sense.value)} s) differs from `sample every` "
                        f"({_num(self.period)} s)", sense.span,
                        notes=[Note("the automaton samples here", sample[0].span if sample else None)],
@@ -320,7 +317,7 @@ class _ModelResolver:
         self.r.scope.settings = model_settings_of({n: v.value for n, v in values.items()}, scale)
         for item in self.block.of(ast.ModelBinding):
             name = item.input.name
-            symbol = self.r.symbols.get(name)
+            symbol = self.r.scope.symbols.get(name)
             lowering = Lowering(self.r.scope, binding=True)
             got, expr = lowering.typed(item.expr)
             if lowering.failed:
@@ -361,23 +358,23 @@ class _ModelResolver:
         return tuple(lowered[i.name] for i in self.inputs if i.name in lowered)
 
 
-def resolve_model(r: Resolver, inputs: tuple[ir.Input, ...], period: Fraction | None) -> ir.ModelSpec | None:
+def resolve_model(r: ModelContext, inputs: tuple[ir.Input, ...], period: Fraction | None) -> ir.ModelSpec | None:
     """The automaton's ``model`` block as a :class:`ModelSpec`; None without one or on errors."""
-    blocks = r.node.of(ast.ModelDecl)
+    blocks = r.automaton.of(ast.ModelDecl)
     if not blocks:
         return None
     for extra in blocks[1:]:
-        r._error("E0106", "`model` is declared more than once", extra.span,
+        r.scope.error("E0106", "`model` is declared more than once", extra.span,
                  notes=[Note("first declared here", blocks[0].span)],
                  hints=["an automaton has one model: merge the blocks"])
     resolver = _ModelResolver(r, blocks[0], inputs, period)
     spec = resolver.run()
     for item in blocks[0].of(ast.ModelSetting):
         if item.name.name in ("base", "exponent", "sense_period") and item.span is not None:
-            r.model_spans.setdefault(f"model:{item.name.name}", item.span)
+            r.spans.setdefault(f"model:{item.name.name}", item.span)
     for scenario in blocks[0].of(ast.ModelScenario)[:1]:
         if scenario.span is not None:
-            r.model_spans["model:scenario"] = scenario.span
+            r.spans["model:scenario"] = scenario.span
     return spec if resolver.ok else None
 
 

@@ -14,11 +14,11 @@ later (the command line's ``--expr``, the paper's standard queries), against a c
 from __future__ import annotations
 
 import difflib
-from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac import ir
-from rac.core.diagnostics import CheckError, Diagnostic, error
+from rac.check.symbols import Scope, Symbol
+from rac.core.diagnostics import CheckError
 from rac.core.source import SourceFile, Span
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -52,42 +52,6 @@ VOCABULARY_HINT = ("a binding reads the scenario model: its functions, the ego s
 
 def type_word(kind: str) -> str:
     return "a boolean" if kind == "bool" else "a number"
-
-
-@dataclass
-class Symbol:
-    """A name the automaton declares."""
-
-    kind: str  # input | const | reward | location
-    type: str  # bool | num
-    span: Span | None
-    value: Fraction | bool | None = None
-    index: int = -1  # the input's, reward's or location's position (-1: not known yet)
-
-
-@dataclass
-class Scope:
-    """What an expression may name, and where its problems go.
-
-    ``symbols`` are the automaton's names; ``settings`` the model block's settings as the model
-    holds them (None: no model block, or a model block whose settings did not check); ``has_model``
-    whether the automaton has a model block (its vocabulary is then legal in queries).
-    """
-
-    automaton: str
-    symbols: dict[str, Symbol]
-    has_model: bool
-    default_span: Span | None
-    settings: dict[str, Fraction] | None = None
-    diagnostics: list[Diagnostic] = field(default_factory=list)
-
-    def error(self, code: str, message: str, span: Span | None, **kw) -> None:
-        self.diagnostics.append(error(code, message, span or self.default_span, **kw))
-
-    def unknown(self, name: str, span: Span | None, what: str = "name") -> None:
-        candidates = difflib.get_close_matches(name, list(self.symbols), n=1)
-        hints = [f"did you mean `{candidates[0]}`?"] if candidates else []
-        self.error("E0101", f"unknown {what} `{name}`", span, hints=hints)
 
 
 #: A lowered expression: its type ("bool", "num", None when unknown) and its node (None on errors).

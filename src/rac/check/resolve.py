@@ -14,7 +14,10 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac import ir
-from rac.check.queries import Lowering, Scope, Symbol, model_settings, type_word
+from rac.check.model_block import resolve_model
+from rac.check.queries import Lowering, model_settings, type_word
+from rac.check.standard import standard_queries
+from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable
 from rac.core.diagnostics import Diagnostic, Note, short_number, warning
 from rac.core.source import Span
 from rac.ir import query as iq
@@ -22,10 +25,6 @@ from rac.lang import ast
 
 #: Most samples a run may have (horizon / period): the exact checks walk every one of them.
 MAX_SAMPLES = 1_000_000
-
-
-class _Unresolvable(Exception):
-    """Internal: an expression could not be typed; its diagnostic is already recorded."""
 
 
 @dataclass(frozen=True)
@@ -109,10 +108,10 @@ class Resolver:
         if isinstance(node, ast.Call):
             self._error("E0103", f"`{node.func}(...)` is not available in {ctx.what}", node.span,
                         hints=["function calls are allowed in queries only"])
-            raise _Unresolvable
+            raise Unresolvable
         self._error("E0103", f"`{node.scope}.{node.id}` is not available in {ctx.what}", node.span,  # type: ignore[union-attr]
                     hints=["qualified names are allowed in queries only"])
-        raise _Unresolvable
+        raise Unresolvable
 
     def _expect(self, want: str, got: str, node: ast.Expr, where: str) -> None:
         if want != got:
@@ -122,16 +121,16 @@ class Resolver:
                 hints.append(f"a number is not a condition: compare it, e.g. `{shown} < 2`")
             self._error("E0201", f"{where} needs {type_word(want)}, found {type_word(got)}", node.span,
                         hints=hints)
-            raise _Unresolvable
+            raise Unresolvable
 
     def _name(self, node: ast.Name, ctx: _Context) -> tuple[str, object]:
         symbol = self.symbols.get(node.id)
         if symbol is None:
             self._unknown(node.id, node.span)
-            raise _Unresolvable
+            raise Unresolvable
         if symbol.kind == "const":
             if symbol.value is None:
-                raise _Unresolvable
+                raise Unresolvable
             if isinstance(symbol.value, bool):
                 return _typed("bool", ir.BConst(symbol.value))
             return _typed("num", ir.Linear.constant(symbol.value))
@@ -139,7 +138,7 @@ class Resolver:
             if not ctx.inputs:
                 self._error("E0103", f"input `{node.id}` cannot appear in {ctx.what}", node.span,
                             hints=[_why_no_inputs(ctx)])
-                raise _Unresolvable
+                raise Unresolvable
             self.used.inputs.add(node.id)
             if symbol.type == "bool":
                 return _typed("bool", ir.BInput(node.id))
@@ -149,11 +148,11 @@ class Resolver:
                 code = "E0202" if ctx is GUARD or ctx.what == "`assume`" else "E0203"
                 self._error(code, f"reward `{node.id}` cannot appear in {ctx.what}", node.span,
                             hints=[_why_no_rewards(ctx)])
-                raise _Unresolvable
+                raise Unresolvable
             return _typed("num", ir.Linear.variable(node.id))
         self._error("E0103", f"location `{node.id}` cannot appear in {ctx.what}", node.span,
                     hints=["location names are boolean only in queries (e.g. `A[] Unsafe imply ...`)"])
-        raise _Unresolvable
+        raise Unresolvable
 
     def _binary(self, node: ast.Binary, ctx: _Context) -> tuple[str, object]:
         lk, lv = self.expr(node.left, ctx)
@@ -175,14 +174,14 @@ class Resolver:
                     return _typed("num", left.scaled(right.const))
                 self._error("E0203", f"{ctx.what} must be linear: both sides of `*` vary", node.span,
                             hints=["multiply by constants only (rewards and inputs evolve linearly)"])
-                raise _Unresolvable
+                raise Unresolvable
             if not right.is_constant:
                 self._error("E0203", f"{ctx.what} must be linear: division by a varying value", node.span,
                             hints=["divide by constants only"])
-                raise _Unresolvable
+                raise Unresolvable
             if right.const == 0:
                 self._error("E0207", "division by zero", node.right.span)
-                raise _Unresolvable
+                raise Unresolvable
             return _typed("num", left.scaled(1 / right.const))
         if op in ast.COMPARISON_OPS:
             if lk == "bool" and rk == "bool" and op in ("==", "!="):
@@ -207,13 +206,13 @@ class Resolver:
         if rewards:
             self._error("E0202", f"reward `{rewards[0]}` cannot be compared", node.span,
                         hints=["rewards only flow and are updated; guards read inputs"])
-            raise _Unresolvable
+            raise Unresolvable
         if len(difference.terms) > 1:
             names = ", ".join(f"`{n}`" for n in difference.variables())
             self._error("E0208", f"comparison mixes several numeric inputs ({names})", node.span,
                         hints=["compare each numeric input with a constant; "
                                "combine such conditions with `&&`/`||`, or add a bool input for it"])
-            raise _Unresolvable
+            raise Unresolvable
         (name, coefficient), = difference.terms
         threshold = -difference.const / coefficient
         if coefficient < 0:
@@ -258,9 +257,8 @@ class Resolver:
         inputs = self._inputs()
         rewards = tuple(n.name for d in node.of(ast.RewardDecl) for n in d.names)
         self._index(inputs, rewards)
-        from rac.check.model_block import resolve_model
-
-        model = resolve_model(self, inputs, period)
+        context = ModelContext(self.scope, self.node, self.constant, self.model_spans)
+        model = resolve_model(context, inputs, period)
         self.scope.settings = model_settings(model) if model is not None else None
         locations, initial = self._locations(rewards)
         edges = self._edges(locations, rewards)
@@ -297,8 +295,6 @@ class Resolver:
         )
         if model is None:
             return automaton
-        from rac.check.standard import standard_queries
-
         return dataclasses.replace(automaton, standard_queries=standard_queries(automaton))
 
     def _index(self, inputs: tuple[ir.Input, ...], rewards: tuple[str, ...]) -> None:
@@ -359,11 +355,11 @@ class Resolver:
                     kind, value = self.expr(member.expr, CONSTANT)
                     if kind == "bool":
                         if not isinstance(value, ir.BConst):
-                            raise _Unresolvable
+                            raise Unresolvable
                         symbol.type, symbol.value = "bool", value.value
                     else:
                         symbol.value = value.const  # type: ignore[union-attr]
-                except _Unresolvable:
+                except Unresolvable:
                     pass
                 self._declare(member.name, symbol)
 
@@ -373,7 +369,7 @@ class Resolver:
         expr = member.period if isinstance(member, ast.SampleDecl) else member.length  # type: ignore[union-attr]
         try:
             value = self.constant(expr, f"the {what} of `{word}`")
-        except _Unresolvable:
+        except Unresolvable:
             return None
         if value <= 0:
             self._error("E0206", f"`{word}` must be positive (found {_num(value)})", expr.span)
@@ -395,7 +391,7 @@ class Resolver:
                 try:
                     low = self.constant(numeric.low, "an input bound")
                     high = self.constant(numeric.high, "an input bound")
-                except _Unresolvable:
+                except Unresolvable:
                     continue
                 if low > high:
                     self._error("E0205", f"empty range [{_num(low)}, {_num(high)}] for `{ident.name}`",
@@ -430,7 +426,7 @@ class Resolver:
                 try:
                     rates[name] = self.linear(flow.rate, RATE)
                     spans[name] = flow.span
-                except _Unresolvable:
+                except Unresolvable:
                     rates[name] = ir.Linear()
                     spans[name] = flow.span
             locations.append(ir.Location(decl.name.name, tuple(rates.get(r, ir.Linear()) for r in rewards),
@@ -474,7 +470,7 @@ class Resolver:
                 continue
             try:
                 value = self.linear(update.expr, UPDATE)
-            except _Unresolvable:
+            except Unresolvable:
                 continue
             if update.op == "+=":
                 value = ir.Linear.variable(name) + value
@@ -492,7 +488,7 @@ class Resolver:
                 continue
             try:
                 guard = self.guard(decl.guard)
-            except _Unresolvable:
+            except Unresolvable:
                 continue
             updates = self._updates(decl.updates, rewards)
             sources = [source] if source is not None else [i for i in range(len(locations)) if i != target]
@@ -503,7 +499,7 @@ class Resolver:
     def _end(self, decl: ast.EndDecl, rewards: tuple[str, ...]) -> ir.EndClause:
         try:
             guard = self.guard(decl.guard)
-        except _Unresolvable:
+        except Unresolvable:
             guard = ir.TRUE
         return ir.EndClause(guard, self._updates(decl.updates, rewards), decl.span)
 
@@ -512,7 +508,7 @@ class Resolver:
         for decl in self.node.of(ast.AssumeDecl):
             try:
                 parts.append(self.guard(decl.expr, _Context("`assume`")))
-            except _Unresolvable:
+            except Unresolvable:
                 pass
         if not parts:
             return ir.TRUE
@@ -523,7 +519,7 @@ class Resolver:
             return None
         try:
             return self.linear(member.expr, OBJECTIVE).ordered(rewards)  # type: ignore[union-attr]
-        except _Unresolvable:
+        except Unresolvable:
             return None
 
     def _priority(self, member: ast.Member | None, rewards: tuple[str, ...]) -> tuple[tuple[str, ...], bool]:

@@ -1,6 +1,6 @@
 """The engine commands of ``rac``: ``verify``, ``simulate``, ``render`` and ``preanalyse``.
 
-They share :mod:`rac.cli.main`'s conventions: exit 0 when everything asked holds, 1 when a query is
+They share the conventions of :mod:`rac.cli.common`: exit 0 when everything asked holds, 1 when a query is
 not satisfied or the file has errors, 2 for bad usage or unreadable/unwritable files.
 """
 
@@ -12,10 +12,9 @@ import sys
 from fractions import Fraction
 from pathlib import Path
 
+from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, read_and_check
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_text as render_diagnostics
-
-EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
 
 
 def _fraction(text: str) -> Fraction:
@@ -124,12 +123,10 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
 
 
 def _load(path: Path) -> tuple[CompileResult | None, int]:
-    from rac.cli.main import _compile
-
-    result, unreadable = _compile(path)
+    result, problem = read_and_check(path)
     if result is None:
-        assert unreadable is not None
-        print(render_diagnostics([unreadable], {}), file=sys.stderr)
+        assert problem is not None
+        print(render_diagnostics([problem], {}), file=sys.stderr)
         return None, EXIT_USAGE
     errors = [d for d in result.diagnostics if d.is_error]
     if errors:

@@ -9,19 +9,28 @@ the traceback).
 from __future__ import annotations
 
 import argparse
-import errno
 import json
 import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 from rac import __version__
-from rac.compiler import CompileResult, compile_file
-from rac.core.diagnostics import Diagnostic, error, render_json, render_text, sort_key
+from rac.cli.common import (
+    EXIT_ERRORS,
+    EXIT_INTERNAL,
+    EXIT_OK,
+    EXIT_USAGE,
+    FileWriteError,
+    read_and_check,
+    unreadable,
+    unwritable,
+    write_all_atomically,
+    write_atomically,
+)
+from rac.compiler import CompileResult
+from rac.core.diagnostics import render_json, render_text, sort_key
 
-EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 TARGETS = ("python", "uppaal")
 
 
@@ -54,53 +63,17 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _unreadable(path: Path, exc: OSError) -> Diagnostic:
-    reason = exc.strerror or str(exc)
-    if isinstance(exc, IsADirectoryError):
-        reason = "it is a directory"
-    return error("E0008", f"cannot read `{path}`: {reason}", None,
-                 hints=["pass the path of a .ra file"])
-
-
-def _compile(path: Path) -> tuple[CompileResult | None, Diagnostic | None]:
-    try:
-        return compile_file(path), None
-    except OSError as exc:
-        return None, _unreadable(path, exc)
-
-
-def write_atomically(path: Path, text: str) -> None:
-    """Write via a temporary file in the same folder and a rename: never a half-written file."""
-    directory = path.parent if str(path.parent) else Path(".")
-    fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
-            handle.write(text)
-        if path.exists():
-            os.chmod(temporary, path.stat().st_mode & 0o777)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-
-
-def _unwritable(path: Path, exc: OSError) -> Diagnostic:
-    reason = exc.strerror or str(exc)
-    return error("E0009", f"cannot write `{path}`: {reason}", None,
-                 hints=["check that the folder exists and is writable; nothing was written"])
-
-
 def _check(args: argparse.Namespace) -> int:
     status = EXIT_OK
     report: list[dict[str, object]] = []
     for path in args.files:
-        result, unreadable = _compile(path)
+        result, failure = read_and_check(path)
         if result is None:
-            assert unreadable is not None
+            assert failure is not None
             status = max(status, EXIT_USAGE)
-            report.append({"file": str(path), "ok": False, "diagnostics": [unreadable.to_json()], "proved": []})
+            report.append({"file": str(path), "ok": False, "diagnostics": [failure.to_json()], "proved": []})
             if args.format == "text":
-                print(render_text([unreadable], {}), file=sys.stderr)
+                print(render_text([failure], {}), file=sys.stderr)
             continue
         errors = sum(d.is_error for d in result.diagnostics)
         warnings = len(result.diagnostics) - errors
@@ -127,8 +100,8 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _compile_command(args: argparse.Namespace) -> int:
-    result, unreadable = _compile(args.file)
-    diagnostics = [unreadable] if unreadable else list(result.diagnostics if result else [])
+    result, failure = read_and_check(args.file)
+    diagnostics = [failure] if failure else list(result.diagnostics if result else [])
     failed = result is None or not result.ok
     if diagnostics and (failed or args.format == "text"):
         if args.format == "json":
@@ -150,45 +123,10 @@ def _compile_command(args: argparse.Namespace) -> int:
         try:
             write_atomically(args.output, text)
         except OSError as exc:
-            print(render_text([_unwritable(args.output, exc)], {}), file=sys.stderr)
+            print(render_text([unwritable(args.output, exc)], {}), file=sys.stderr)
             return EXIT_USAGE
         print(f"wrote {args.output}", file=sys.stderr)
     return EXIT_OK
-
-
-def _write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
-    """Write several files so that, on error, none of them changed: every text goes to a
-    temporary file first, and the renames happen only once all of them are written. An
-    ``OSError`` carries the path it was about (``exc.rac_path``)."""
-    temporaries: list[tuple[Path, str]] = []
-    for path, _ in files:
-        if path.is_dir():  # os.replace would fail only after the earlier files were replaced
-            exc = IsADirectoryError(errno.EISDIR, "it is a directory", str(path))
-            exc.rac_path = path  # type: ignore[attr-defined]
-            raise exc
-    try:
-        for path, text in files:
-            directory = path.parent if str(path.parent) else Path(".")
-            try:
-                fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-                temporaries.append((path, temporary))
-                with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
-                    handle.write(text)
-                if path.exists():
-                    os.chmod(temporary, path.stat().st_mode & 0o777)
-            except OSError as exc:
-                exc.rac_path = path  # type: ignore[attr-defined]
-                raise
-        for path, temporary in temporaries:
-            try:
-                os.replace(temporary, path)
-            except OSError as exc:
-                exc.rac_path = path  # type: ignore[attr-defined]
-                raise
-    except BaseException:
-        for _, temporary in temporaries:
-            Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
@@ -228,9 +166,9 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
         sys.stdout.write(model.xml)
         return EXIT_OK
     try:
-        _write_all_atomically([(output, model.xml), (queries, model.queries)])
-    except OSError as exc:
-        print(render_text([_unwritable(getattr(exc, "rac_path", output), exc)], {}), file=sys.stderr)
+        write_all_atomically([(output, model.xml), (queries, model.queries)])
+    except FileWriteError as exc:
+        print(render_text([unwritable(exc.path, exc.cause)], {}), file=sys.stderr)
         return EXIT_USAGE
     print(f"wrote {output} and {queries}", file=sys.stderr)
     return EXIT_OK
@@ -247,7 +185,7 @@ def _fmt(args: argparse.Namespace) -> int:
             source = read_source(path)
             formatted = format_module(parse_source(source))
         except OSError as exc:
-            print(render_text([_unreadable(path, exc)], {}), file=sys.stderr)
+            print(render_text([unreadable(path, exc)], {}), file=sys.stderr)
             status = max(status, EXIT_USAGE)
             continue
         except ParseFailure as failure:
@@ -265,7 +203,7 @@ def _fmt(args: argparse.Namespace) -> int:
                 try:
                     write_atomically(path, formatted)
                 except OSError as exc:
-                    print(render_text([_unwritable(path, exc)], {}), file=sys.stderr)
+                    print(render_text([unwritable(path, exc)], {}), file=sys.stderr)
                     status = max(status, EXIT_USAGE)
                     continue
                 print(f"{path}: reformatted", file=sys.stderr)

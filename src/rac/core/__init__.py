@@ -1,1 +1,6 @@
-"""Shared by every stage: source locations, diagnostics, numbers and the expression printer base."""
+"""Shared by every stage: source text and spans, diagnostics and their one renderer.
+
+Nothing here knows the `.ra` language; every other package may use it.
+
+May import: nothing of rac.
+"""

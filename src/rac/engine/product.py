@@ -68,6 +68,7 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
+from rac.engine.bindings import Bindings
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame, int_sum
 from rac.engine.explore import action_pairs
 from rac.engine.graph import ExploredGraph
@@ -216,48 +217,6 @@ def _compare(values: np.ndarray, op: str, bound: int | np.ndarray) -> np.ndarray
 
 
 # ---------------------------------------------------------------- bindings
-class _Bindings:
-    """The Controller's ``read_inputs()``: every input from its binding, and the ``prev(e)`` values."""
-
-    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton) -> None:
-        self.evaluator = evaluator
-        spec = automaton.model
-        bound = {b.input: b.expr for b in spec.bindings} if spec is not None else {}
-        missing = [item.name for item in automaton.inputs if item.name not in bound]
-        if missing:
-            names = ", ".join(f"`{name}`" for name in missing)
-            raise ValueError(f"input {names} has no binding: the product reads every input from the model, "
-                             f"as the emitted model does (add `bind {missing[0]} = ...` to the `model` block)")
-        self.items = [(item.name, item.is_bool, bound[item.name]) for item in automaton.inputs]
-        self.prev_args: list[ie.Expr] = ie.prev_operands([expr for _, _, expr in self.items])
-
-    def read(self, frame: Frame) -> np.ndarray:
-        """``(n, inputs)`` int64: booleans 0/1, numbers ``d2i(e) = trunc(e * SCALE_D)``."""
-        out = np.zeros((frame.n, len(self.items)), dtype=np.int64)
-        scale = self.evaluator.scale_d
-        for column, (name, is_bool, expr) in enumerate(self.items):
-            if is_bool:
-                out[:, column] = self.evaluator.evaluate_bool(expr, frame)
-                continue
-            value = np.asarray(self.evaluator.evaluate(expr, frame), dtype=np.float64)
-            scaled = value * scale
-            bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
-            if bad.any():
-                row = int(np.flatnonzero(bad)[0])
-                significand = int(scaled[row]) if math.isfinite(scaled[row]) else None
-                raise ModelRangeError(f"the binding of `{name}`", float(value[row]), significand,
-                                      self.evaluator.data.scale)
-            out[:, column] = scaled.astype(np.int64)  # truncation towards zero, like fint()
-        return out
-
-    def prevs(self, frame: Frame) -> np.ndarray:
-        """``(n, prevs)`` float64: the value of every ``prev(e)``'s ``e`` (booleans as 0/1)."""
-        out = np.zeros((frame.n, len(self.prev_args)), dtype=np.float64)
-        for column, expr in enumerate(self.prev_args):
-            out[:, column] = self.evaluator.evaluate(expr, frame)
-        return out
-
-
 # ---------------------------------------------------------------- layers
 @dataclass
 class _Layer:
@@ -434,7 +393,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     evaluator = Evaluator(data, automaton)
     model = evaluator.model
     arithmetic = _Arithmetic(automaton, data.scale)
-    bindings = _Bindings(evaluator, automaton)
+    bindings = Bindings(evaluator, automaton, "the product")
     first_reads = first_sample_reads(automaton)
     pairs = action_pairs(data).astype(np.int64)
     n_inputs, n_rewards = len(automaton.inputs), len(automaton.rewards)
@@ -525,7 +484,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     return _assemble(built, automaton, data, horizon, bindings, evaluator)
 
 
-def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon: int, bindings: _Bindings,
+def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon: int, bindings: Bindings,
               evaluator: Evaluator) -> ProductGraph:
     layers = built.layers
     sizes = np.array([layer.n for layer in layers], dtype=np.int64)

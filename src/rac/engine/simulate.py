@@ -44,7 +44,7 @@ from rac.ir.vocabulary import EGO_STATE
 from rac.model.batch import BatchModel
 from rac.model.data import INT32_MAX, ModelData
 
-__all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "event_sampler", "label_runs", "simulate"]
+__all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "event_sampler", "integrate_truth", "label_runs", "simulate"]
 
 #: The columns of :attr:`Runs.truth` (metres, metres per second, ..., radians).
 TRUTH_COLUMNS: tuple[str, ...] = ("true_x", "true_y", "true_v", "true_acc", "true_head")
@@ -148,8 +148,8 @@ def _derivative(state: np.ndarray, jerk: np.ndarray, turn: np.ndarray, limits: L
     return np.stack([v * np.cos(head), v * np.sin(head), dv, dacc, turn])
 
 
-def _truth_period(truth: np.ndarray, jerk: np.ndarray, turn: np.ndarray, period: float,
-                  substeps: int, limits: Limits) -> np.ndarray:
+def integrate_truth(truth: np.ndarray, jerk: np.ndarray, turn: np.ndarray, period: float,
+                    substeps: int, limits: Limits) -> np.ndarray:
     """Classic RK4 over one sense period in ``substeps`` equal steps; ``truth`` is (5, n).
     After each step speed and acceleration are clipped to their ranges (a step may overshoot
     the switch of the saturated right-hand side)."""
@@ -229,7 +229,7 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
             current = current.copy()
             current[:, 5:7] = pairs[chosen]
         # the truth uses the same reals as the emitted ODE: jerk / SCALE_D, turn / SCALE_D
-        true_now = _truth_period(true_now, current[:, 5] / scale, current[:, 6] / scale, period, truth_substeps,
+        true_now = integrate_truth(true_now, current[:, 5] / scale, current[:, 6] / scale, period, truth_substeps,
                                  limits)
         current = model.sense(current)
         states[:, k + 1] = current

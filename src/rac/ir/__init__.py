@@ -3,6 +3,8 @@
 Targets (the in-process interpreter, generated Python, UPPAAL) and the static
 analyses read this representation only. All numbers are ``Fraction``; each
 target decides how to round them (see :meth:`Linear.scaled`).
+
+May import: core, lang.
 """
 
 from __future__ import annotations

@@ -58,12 +58,13 @@ import numpy as np
 from rac import ir
 from rac.check.queries import lower_expression
 from rac.compiler import CompileResult
+from rac.engine.bindings import Bindings
 from rac.engine.evaluate import Evaluator, Frame
 from rac.engine.explore import action_pairs
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.lang.parser import parse_expression
-from rac.model.data import ModelData, ModelRangeError
+from rac.model.data import ModelData
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.semantics import InputSpec, input_specs
 
@@ -102,41 +103,29 @@ class StepResult:
     offroad: np.ndarray
 
 
-class _Bindings:
-    """Every input's value from its binding on a frame (see step 2 of the module docstring)."""
+class _Inputs:
+    """Every input's value from its binding on a frame (see step 2 of the module docstring): the
+    emitted model's reading (:class:`rac.engine.bindings.Bindings`), numbers clipped to their bounds."""
 
     def __init__(self, evaluator: Evaluator, automaton: ir.Automaton) -> None:
-        self.evaluator = evaluator
-        bound = {b.input: b.expr for b in automaton.model.bindings} if automaton.model is not None else {}
-        missing = [item.name for item in automaton.inputs if item.name not in bound]
-        if missing:
-            raise ValueError(f"input `{missing[0]}` has no binding: episodes read every input from the model "
-                             f"(add `bind {missing[0]} = ...` to the `model` block)")
-        self.items: list[tuple[InputSpec, ie.Expr, float, float]] = []
+        self.scale = evaluator.scale_d
+        self.bindings = Bindings(evaluator, automaton, "an episode")
+        self.items: list[tuple[InputSpec, float, float]] = []
         for spec in input_specs(automaton):
             low, high = spec.low, spec.high
             if spec.kind == "int":  # the whole numbers within the bounds
                 low, high = float(np.ceil(low)), float(np.floor(high))
-            self.items.append((spec, bound[spec.name], low, high))
+            self.items.append((spec, low, high))
 
     def read(self, frame: Frame, clipped: dict[str, int] | None = None) -> dict[str, np.ndarray]:
         """Input name -> ``(n,)`` values (bool, or float64 reals); counts clipped values into ``clipped``."""
-        evaluator = self.evaluator
-        scale = evaluator.scale_d
         out: dict[str, np.ndarray] = {}
-        for spec, expr, low, high in self.items:
+        for index, (spec, low, high) in enumerate(self.items):
+            column = self.bindings.column(index, frame)
             if spec.is_bool:
-                out[spec.name] = np.array(evaluator.evaluate_bool(expr, frame), dtype=bool)
+                out[spec.name] = column
                 continue
-            value = np.asarray(evaluator.evaluate(expr, frame), dtype=np.float64)
-            scaled = value * scale
-            bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
-            if bad.any():
-                row = int(np.flatnonzero(bad)[0])
-                significand = int(scaled[row]) if np.isfinite(scaled[row]) else None
-                raise ModelRangeError(f"the binding of `{spec.name}`", float(value[row]), significand,
-                                      evaluator.data.scale)
-            real = scaled.astype(np.int64) / scale  # d2i() truncates towards zero, as the emitted model
+            real = column / self.scale  # d2i() truncates towards zero, as the emitted model
             changed = np.zeros(real.shape, dtype=bool)
             if spec.kind == "int":
                 whole = np.trunc(real)
@@ -221,7 +210,7 @@ class EpisodeBatch:
         self.automaton = automaton
         self.data = data
         self.evaluator = Evaluator(data, automaton)
-        self._bindings = _Bindings(self.evaluator, automaton)
+        self._bindings = _Inputs(self.evaluator, automaton)
         self.reward_expr: ie.Expr | None = None if reward == "automaton" else self.expression(reward)
         self.goal = None if goal is None else self.expression(goal)
         horizon = automaton.steps if horizon_samples is None else int(horizon_samples)

@@ -5,6 +5,8 @@
 - :mod:`rac.model.native`: :class:`NativeModel`, the model's functions (``sense``, ``mindist``,
   ``collide``, ``offroad``, ``goal``, ``dist_goal``) in Python, bit for bit what the UPPAAL
   declarations from :mod:`rac.targets.uppaal.declarations` compute.
+
+May import: core, ir.
 """
 
 from rac.model.data import ActionData, ModelData, ModelRangeError, build_model_data, check_significands, max_significand

@@ -1,1 +1,4 @@
-"""What rac shows: plots, rendered scenarios and progress bars."""
+"""What rac shows: plots, rendered scenarios and progress bars.
+
+May import: core, ir, model.
+"""

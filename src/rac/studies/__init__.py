@@ -1,1 +1,4 @@
-"""The paper's studies: the pre-analysis sweep and the learning experiment."""
+"""The paper's studies: the pre-analysis sweep and the learning experiment.
+
+May import: rac.compiler, core, lang, ir, check, model, runtime, engine, output, learning, verify.
+"""

@@ -33,7 +33,7 @@ from rac import ir
 from rac.compiler import CompileResult
 from rac.engine import storm
 from rac.engine.shield import synthesise
-from rac.engine.simulate import Limits, _truth_period, simulate
+from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
 from rac.model.batch import BatchModel
 from rac.model.data import ModelData, ModelRangeError, build_model_data
@@ -92,7 +92,7 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
     for k in range(samples - 1):
         jerk, turn = runs.states[:, k + 1, 5] / data.scale, runs.states[:, k + 1, 6] / data.scale
         for j in range(1, m + 1):
-            truth = _truth_period(truth, jerk, turn, data.period / m, max(1, 100 // m), limits)
+            truth = integrate_truth(truth, jerk, turn, data.period / m, max(1, 100 // m), limits)
             out[:, k * m + j] = distance(truth, k * m + j)
     return out
 

@@ -395,7 +395,7 @@ def _indent(lines: list[str], width: int = 8) -> str:
 
 @lru_cache(maxsize=1)
 def _template() -> jinja2.Template:
-    text = (resources.files("rac") / "templates" / _TEMPLATE).read_text(encoding="utf-8")
+    text = (resources.files("rac.targets") / "templates" / _TEMPLATE).read_text(encoding="utf-8")
     env = jinja2.Environment(trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
                              undefined=jinja2.StrictUndefined, autoescape=False)
     env.filters["py"] = _py

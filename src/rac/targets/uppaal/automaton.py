@@ -40,13 +40,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from fractions import Fraction
-from functools import lru_cache
-from importlib import resources
 from pathlib import PurePath
-
-import jinja2
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic, error, short_number
@@ -63,33 +59,15 @@ from rac.targets.uppaal.expr import (
     print_int_linear,
     print_real_linear,
 )
+from rac.targets.uppaal.layout import Ids, Location, Template, Transition, edge, environment
+from rac.targets.uppaal.names import Names, mirror_name
 from rac.targets.uppaal.query import UppaalPrinter, Vocabulary, time_constants
 
-__all__ = ["DEFAULT_BASE", "DEFAULT_EXPONENT", "RESERVED", "UppaalError", "UppaalModel", "generate_uppaal",
+__all__ = ["DEFAULT_BASE", "DEFAULT_EXPONENT", "AutomatonGenerator", "UppaalError", "UppaalModel", "generate_uppaal",
            "queries_path", "vocabulary"]
 
 DEFAULT_BASE = 10
 DEFAULT_EXPONENT = 4
-
-#: Words UPPAAL's lexer or parser reserves (utap keywords.cpp, lexer.l, parser.y's NonTypeId and
-#: built-in declarations): a ``.ra`` name equal to one of them is renamed with a trailing ``_``.
-RESERVED = frozenset("""
-    const select guard sync assign probability process state branchpoint init trans urgent commit
-    broadcast system true false and or xor not imply for while do if else default return typedef
-    struct import meta before_update after_update progress gantt assert IO forall exists sum deadlock
-    priority bool int double string chan clock void scalar control control_t simulation minE
-    loadStrategy saveStrategy maxE minPr maxPr under imitate strategy simulate sat inf sup bounds Pmax
-    Pr X abs fabs fmod fma fmax fmin fdim exp exp2 expm1 ln log log10 log2 log1p pow sqrt cbrt hypot
-    sin cos tan asin acos atan atan2 sinh cosh tanh asinh acosh atanh erf erfc tgamma lgamma ceil
-    floor trunc round fint ldexp ilogb logb nextafter nexttoward copysign fpclassify isfinite isinf
-    isnan isnormal signbit isunordered random random_arcsine random_beta random_gamma random_normal
-    random_poisson random_tri random_weibull hybrid dynamic spawn exit numOf foreach query location
-    break continue switch case chan_priority quit
-    A E U W R M
-    INT8_MIN INT8_MAX UINT8_MAX INT16_MIN INT16_MAX UINT16_MAX INT32_MIN INT32_MAX int8_t uint8_t
-    int16_t uint16_t int32_t FLT_MIN FLT_MAX DBL_MIN DBL_MAX M_PI M_PI_2 M_PI_4 M_E M_LOG2E M_LOG10E
-    M_LN2 M_LN10 M_1_PI M_2_PI M_2_SQRTPI M_SQRT2 M_SQRT1_2
-""".split())
 
 _HINT_REPRESENTATION = ("add a `model` block with a larger `exponent`, or change the number so that it "
                         "is a whole multiple of 1/{scale}")
@@ -109,116 +87,6 @@ class UppaalModel:
 
     xml: str
     queries: str
-
-
-# ---------------------------------------------------------------- names
-class _Names:
-    """UPPAAL identifiers: the ``.ra`` names (renamed only when UPPAAL reserves them) and fresh
-    names for everything the target adds, never equal to a ``.ra`` name."""
-
-    def __init__(self, user: Iterable[str], reserved: Iterable[str] = ()):
-        self.raw = set(user)
-        self.reserved = RESERVED | frozenset(reserved)
-        self.taken: set[str] = set()
-        self.user: dict[str, str] = {}
-        for name in sorted(self.raw):
-            candidate = name
-            while (candidate in self.reserved or (candidate != name and candidate in self.raw)
-                   or candidate in self.taken):
-                candidate += "_"
-            self.user[name] = candidate
-            self.taken.add(candidate)
-
-    def fresh(self, base: str) -> str:
-        candidate = base
-        while candidate in self.reserved or candidate in self.raw or candidate in self.taken:
-            candidate += "_"
-        self.taken.add(candidate)
-        return candidate
-
-    def __getitem__(self, name: str) -> str:
-        return self.user[name]
-
-
-def _mirror_name(reward: str) -> str:
-    return "i" + reward[:1].upper() + reward[1:]
-
-
-# ---------------------------------------------------------------- layout data
-@dataclass
-class _Location:
-    id: str
-    name: str
-    x: int
-    y: int
-    invariant: str = ""
-    committed: bool = False
-
-    @property
-    def label_x(self) -> int:
-        return self.x - 10
-
-    @property
-    def label_y(self) -> int:
-        return self.y + 17
-
-
-@dataclass
-class _Label:
-    kind: str
-    text: str
-    x: int
-    y: int
-
-
-@dataclass
-class _Transition:
-    id: str
-    source: str
-    target: str
-    labels: list[_Label] = field(default_factory=list)
-    nails: list[tuple[int, int]] = field(default_factory=list)
-    controllable: bool = False
-
-
-@dataclass
-class _Template:
-    name: str
-    init: str
-    locations: list[_Location]
-    transitions: list[_Transition]
-    declaration: str = ""
-    name_x: int = 0
-    name_y: int = 0
-    parameter: str = ""
-
-
-class _Ids:
-    def __init__(self) -> None:
-        self.count = 0
-
-    def __call__(self) -> str:
-        self.count += 1
-        return f"id{self.count - 1}"
-
-
-def _edge(ids: _Ids, source: _Location, target: _Location, *, select: str = "", guard: str = "", sync: str = "",
-          assignment: str = "", nails: list[tuple[int, int]] | None = None,
-          anchor: tuple[int, int] | None = None, controllable: bool = False) -> _Transition:
-    """A transition with its labels stacked at ``anchor`` (default: the midpoint or first nail)."""
-    nails = nails or []
-    if anchor is None:
-        if nails:
-            anchor = nails[len(nails) // 2]
-        else:
-            anchor = ((source.x + target.x) // 2, (source.y + target.y) // 2)
-    x, y = anchor[0] + 6, anchor[1] - 8
-    labels = []
-    for kind, text in (("select", select), ("guard", guard), ("synchronisation", sync), ("assignment", assignment)):
-        if text:
-            labels.append(_Label(kind, text, x, y))
-            y += 17
-    return _Transition(ids(), source.id, target.id, labels, nails, controllable)
 
 
 # ---------------------------------------------------------------- the generator
@@ -242,7 +110,7 @@ class _Input:
         return "{" + ", ".join(int_literal(v) for v in self.values) + "}"
 
 
-class _Generator:
+class AutomatonGenerator:
     def __init__(self, automaton: ir.Automaton, source_name: str, model_name: str):
         self.a = automaton
         self.source_name = " ".join(source_name.split()) or "<unnamed>"
@@ -277,10 +145,10 @@ class _Generator:
         a = self.a
         user = [a.name, *(i.name for i in a.inputs), *a.rewards, *a.location_names, *(n for n, _ in a.constants)]
         strategies = [q.query.name for q in self.queries() if isinstance(q.query, iq.STRATEGY_QUERIES)]
-        names = _Names([*user, *strategies], self.reserved_names())
+        names = Names([*user, *strategies], self.reserved_names())
         self.n = names
         self.process = names[a.name]
-        self.mirror = {r: names.fresh(_mirror_name(r)) for r in a.rewards}
+        self.mirror = {r: names.fresh(mirror_name(r)) for r in a.rewards}
         self.channels = {key: names.fresh(key) for key in ("accrue", "read", "sense", "finish")}
         self.g = {key: names.fresh(base) for key, base in (
             ("period", "PERIOD"), ("steps", "STEPS"), ("scale", "SCALE"), ("count", "count"),
@@ -527,16 +395,16 @@ class _Generator:
         inputs, unit, period_units, accruals = self._prepare()
         printer = self._printer(unit)
         queries = self._queries(printer)
-        ids = _Ids()
+        ids = Ids()
         templates = [self._timer(ids), self._automaton(ids, unit, accruals), self._environment(ids, inputs)]
         if self.diagnostics:
             raise UppaalError(self.diagnostics)
         g = self.g
-        declaration = _environment().get_template("declaration.j2").render(
+        declaration = environment().get_template("declaration.j2").render(
             **self._declaration_args(inputs, unit, period_units),
             names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time")},
             conditions=self._conditions(printer))
-        system = _environment().get_template("system.j2").render(
+        system = environment().get_template("system.j2").render(
             channels=self.channels, processes=[g["timer"], self.process, g["environment"]])
         return self._files(declaration, templates, system, queries)
 
@@ -547,7 +415,6 @@ class _Generator:
         unit = self._time_unit()
         period_units = int(Fraction(self.a.period) / unit)
         accruals = self._accruals(inputs)
-        self._check_range()
         return inputs, unit, period_units, accruals
 
     def _declaration_args(self, inputs: list, unit: Fraction, period_units: int) -> dict[str, object]:
@@ -563,10 +430,10 @@ class _Generator:
             mirrors=[self.mirror[r] for r in a.rewards], truncating=self.truncating,
             constants=[self._constant(name, value) for name, value in a.constants])
 
-    def _files(self, declaration: str, templates: list[_Template], system: str,
+    def _files(self, declaration: str, templates: list[Template], system: str,
                queries: list[dict[str, str]]) -> UppaalModel:
         """The ``.xml`` (declarations, templates, system line, queries) and the ``.q`` text."""
-        env = _environment()
+        env = environment()
         xml = env.get_template("model.xml.j2").render(
             declaration=declaration.rstrip("\n"), templates=templates, system=system.rstrip("\n"), queries=queries)
         q = env.get_template("queries.q.j2").render(
@@ -584,41 +451,33 @@ class _Generator:
         except NotRepresentable:
             return f"// {self.n[name]} = {short_number(value)} (no UPPAAL literal)"
 
-    def _check_range(self) -> None:
-        """The int32 range of the mirrors, when the representation is not the default one ``rac check`` proves."""
-        if (self.base, self.exponent) == (DEFAULT_BASE, DEFAULT_EXPONENT):
-            return
-        from rac.check.analysis.priority import check_ranges
-
-        self.diagnostics += check_ranges(self.a, self.base, self.exponent)
-
-    def _timer(self, ids: _Ids) -> _Template:
+    def _timer(self, ids: Ids) -> Template:
         g, ch = self.g, self.channels
-        wait = _Location(ids(), g["wait"], 0, 0, f"{g['t']} <= {g['period']}")
-        accrued = _Location(ids(), g["accrued"], 272, 0, committed=True)
-        reading = _Location(ids(), g["reading"], 272, 170, committed=True)
-        ending = _Location(ids(), g["ending"], 544, 170, committed=True)
-        done = _Location(ids(), g["done"], 816, 170, f"{g['t']} <= {g['period']}")
+        wait = Location(ids(), g["wait"], 0, 0, f"{g['t']} <= {g['period']}")
+        accrued = Location(ids(), g["accrued"], 272, 0, committed=True)
+        reading = Location(ids(), g["reading"], 272, 170, committed=True)
+        ending = Location(ids(), g["ending"], 544, 170, committed=True)
+        done = Location(ids(), g["done"], 816, 170, f"{g['t']} <= {g['period']}")
         transitions = [
-            _edge(ids, wait, accrued, guard=f"{g['t']} >= {g['period']} && {g['count']} < {g['steps']}",
+            edge(ids, wait, accrued, guard=f"{g['t']} >= {g['period']} && {g['count']} < {g['steps']}",
                   sync=f"{ch['accrue']}!", assignment=f"{g['t']} = 0, {g['count']}++", anchor=(40, -60)),
-            _edge(ids, accrued, reading, sync=f"{ch['read']}?", assignment=f"{g['settled']} = false",
+            edge(ids, accrued, reading, sync=f"{ch['read']}?", assignment=f"{g['settled']} = false",
                   anchor=(282, 70)),
-            _edge(ids, reading, wait, guard=f"{g['count']} < {g['steps']}", sync=f"{ch['sense']}!",
+            edge(ids, reading, wait, guard=f"{g['count']} < {g['steps']}", sync=f"{ch['sense']}!",
                   assignment=f"{g['settled']} = true", nails=[(0, 170)], anchor=(40, 180)),
-            _edge(ids, reading, ending, guard=f"{g['count']} == {g['steps']}", sync=f"{ch['sense']}!",
+            edge(ids, reading, ending, guard=f"{g['count']} == {g['steps']}", sync=f"{ch['sense']}!",
                   assignment=f"{g['settled']} = true", anchor=(330, 180)),
-            _edge(ids, ending, done, sync=f"{ch['finish']}!", anchor=(620, 180)),
-            _edge(ids, done, done, guard=f"{g['t']} >= {g['period']}", assignment=f"{g['t']} = 0",
+            edge(ids, ending, done, sync=f"{ch['finish']}!", anchor=(620, 180)),
+            edge(ids, done, done, guard=f"{g['t']} >= {g['period']}", assignment=f"{g['t']} = 0",
                   nails=[(790, 240), (842, 240)], anchor=(780, 250)),
         ]
-        return _Template(g["timer"], wait.id, [wait, accrued, reading, ending, done], transitions,
+        return Template(g["timer"], wait.id, [wait, accrued, reading, ending, done], transitions,
                          declaration=f"clock {g['t']};", name_x=-40, name_y=-100)
 
-    def _environment(self, ids: _Ids, inputs: list[_Input]) -> _Template:
+    def _environment(self, ids: Ids, inputs: list[_Input]) -> Template:
         g, ch, a = self.g, self.channels, self.a
-        idle = _Location(ids(), g["idle"], 0, 0)
-        choosing = _Location(ids(), g["choosing"], 340, 0, committed=True)
+        idle = Location(ids(), g["idle"], 0, 0)
+        choosing = Location(ids(), g["choosing"], 340, 0, committed=True)
         selects, assigns, names = [], [], {}
         numeric = {i.source: i for i in inputs}
         for item in a.inputs:
@@ -633,13 +492,13 @@ class _Generator:
                 assigns.append(f"{self.n[item.name]} = {data.array}[{var}]")
                 names[item.name] = f"{data.array}[{var}]"
         transitions = [
-            _edge(ids, idle, choosing, sync=f"{ch['accrue']}?", nails=[(170, -50)], anchor=(140, -80)),
-            _edge(ids, choosing, idle, select=", ".join(selects), guard=self._guard(a.assume, names),
+            edge(ids, idle, choosing, sync=f"{ch['accrue']}?", nails=[(170, -50)], anchor=(140, -80)),
+            edge(ids, choosing, idle, select=", ".join(selects), guard=self._guard(a.assume, names),
                   sync=f"{ch['read']}!", assignment=", ".join(assigns), nails=[(170, 60)], anchor=(20, 80)),
         ]
-        return _Template(g["environment"], idle.id, [idle, choosing], transitions, name_x=-40, name_y=-100)
+        return Template(g["environment"], idle.id, [idle, choosing], transitions, name_x=-40, name_y=-100)
 
-    def _automaton(self, ids: _Ids, unit: Fraction, accruals) -> _Template:
+    def _automaton(self, ids: Ids, unit: Fraction, accruals) -> Template:
         a, g, ch = self.a, self.g, self.channels
         count = len(a.locations)
         radius = max(200, 70 * count)
@@ -649,7 +508,7 @@ class _Generator:
             x, y = round(radius * math.cos(angle)), round(radius * math.sin(angle))
             if count == 1:
                 x, y = 0, 0
-            locations.append(_Location(ids(), self.n[location.name], x, y, self._ode(location, unit)))
+            locations.append(Location(ids(), self.n[location.name], x, y, self._ode(location, unit)))
         # Rates that read inputs: the first sample's accrual uses that sample's inputs (nothing is held yet),
         # so it happens on read? at the first sample instead of on accrue?.
         first_reads = first_sample_reads(a)
@@ -677,13 +536,13 @@ class _Generator:
                                            f"{print_real_linear(Fraction(0), terms)}")
                 loops[i].append({"guard": f"{g['count']} == 1", "sync": f"{ch['read']}?",
                                  "assignment": ", ".join(parts + corrections)})
-        for edge in a.all_edges():
-            label = {"guard": self._guard(edge.guard, span=edge.span), "sync": f"{ch['sense']}?",
-                     "assignment": self._updates(edge.updates, edge.span)}
-            if edge.source == edge.target:
-                loops[edge.source].append(label)
+        for ra_edge in a.all_edges():
+            label = {"guard": self._guard(ra_edge.guard, span=ra_edge.span), "sync": f"{ch['sense']}?",
+                     "assignment": self._updates(ra_edge.updates, ra_edge.span)}
+            if ra_edge.source == ra_edge.target:
+                loops[ra_edge.source].append(label)
             else:
-                edges.append((edge.source, edge.target, label))
+                edges.append((ra_edge.source, ra_edge.target, label))
         if a.end_clauses:
             guard, assignment = self._end_updates()
             for i in range(count):
@@ -695,21 +554,21 @@ class _Generator:
             transitions += self._loops(ids, locations[i], labels, count)
         by_id = {t.id: t for t in transitions}
         ordered = sorted(by_id, key=lambda k: int(k[2:]))
-        return _Template(self.process, locations[a.initial].id, locations, [by_id[k] for k in ordered],
+        return Template(self.process, locations[a.initial].id, locations, [by_id[k] for k in ordered],
                          name_x=-radius - 100, name_y=-radius - 100)
 
     @staticmethod
-    def _straight(ids: _Ids, source: _Location, target: _Location, label: dict) -> _Transition:
+    def _straight(ids: Ids, source: Location, target: Location, label: dict) -> Transition:
         """An edge between two locations, bent a little to its right so that A→B and B→A stay apart."""
         dx, dy = target.x - source.x, target.y - source.y
         length = math.hypot(dx, dy) or 1.0
         nx, ny = dy / length, -dx / length
         bend = 40
         nail = (round((source.x + target.x) / 2 + nx * bend), round((source.y + target.y) / 2 + ny * bend))
-        return _edge(ids, source, target, nails=[nail], anchor=nail, **label)
+        return edge(ids, source, target, nails=[nail], anchor=nail, **label)
 
     @staticmethod
-    def _loops(ids: _Ids, location: _Location, labels: list[dict], count: int) -> list[_Transition]:
+    def _loops(ids: Ids, location: Location, labels: list[dict], count: int) -> list[Transition]:
         """Self-loops fanned out away from the centre of the circle of locations."""
         direction = math.atan2(location.y, location.x) if (location.x or location.y) and count > 1 else -math.pi / 2
         spread = math.radians(50)
@@ -723,7 +582,7 @@ class _Generator:
             anchor = (round(location.x + 95 * math.cos(angle)), round(location.y + 95 * math.sin(angle)))
             if math.cos(angle) < -0.3:
                 anchor = (anchor[0] - 170, anchor[1])
-            result.append(_edge(ids, location, location, nails=nails, anchor=anchor, **label))
+            result.append(edge(ids, location, location, nails=nails, anchor=anchor, **label))
         return result
 
 
@@ -774,22 +633,10 @@ def _query_hints(message: str) -> list[str]:
     return []
 
 
-@lru_cache(maxsize=1)
-def _environment() -> jinja2.Environment:
-    folder = resources.files("rac.targets.uppaal") / "templates"
-
-    def load(name: str) -> str:
-        return (folder / name).read_text(encoding="utf-8")
-
-    return jinja2.Environment(
-        loader=jinja2.FunctionLoader(load), autoescape=lambda name: bool(name and name.endswith(".xml.j2")),
-        trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True, undefined=jinja2.StrictUndefined)
-
-
 def vocabulary(automaton: ir.Automaton) -> Vocabulary:
     """The UPPAAL names of the automaton's vocabulary in the emitted model (process, locations,
     inputs, hybrid clocks, mirrors) and its time unit: what to look for in verifyta's output."""
-    generator = _Generator(automaton, "", "")
+    generator = AutomatonGenerator(automaton, "", "")
     generator._inputs()
     return generator._vocabulary(generator._time_unit())
 
@@ -806,5 +653,5 @@ def generate_uppaal(automaton: ir.Automaton, *, source_name: str = "", model_nam
     shown in the ``.q`` file) only appear in comments. Raises :class:`UppaalError` (E0801: a number
     is not representable as a significand; E0802: a query cannot be written over the model).
     """
-    return _Generator(automaton, source_name, model_name).run()
+    return AutomatonGenerator(automaton, source_name, model_name).run()
 

@@ -96,7 +96,7 @@ def _comment_text(text: str) -> str:
     return re.sub(r"[^\x20-\x7e]", "?", text).replace("*/", "* /")
 
 
-def _action_name(name: str) -> str:
+def action_name(name: str) -> str:
     cleaned = re.sub(r"[^A-Za-z0-9_]", "_", name).upper()
     return cleaned if cleaned[:1].isalpha() else "A_" + cleaned
 
@@ -424,7 +424,7 @@ def emit_declarations(data: ModelData) -> str:
         "// ---- actions: the value with index i is NAME_VALUES[i], 0 <= i < NAME_COUNT",
     ]
     for action in data.actions:
-        name = _action_name(action.name)
+        name = action_name(action.name)
         out += [
             _scalar(f"{name}_LOW", action.low),
             _scalar(f"{name}_HIGH", action.high),

@@ -40,17 +40,10 @@ from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.model.commonroad import load_scenario
 from rac.model.data import ModelData, build_model_data
-from rac.targets.uppaal.automaton import (
-    UppaalModel,
-    _edge,
-    _environment,
-    _Generator,
-    _Ids,
-    _Location,
-    _Template,
-)
-from rac.targets.uppaal.declarations import _action_name, declared_names, emit_declarations
+from rac.targets.uppaal.automaton import AutomatonGenerator, UppaalError, UppaalModel
+from rac.targets.uppaal.declarations import action_name, declared_names, emit_declarations
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, double_literal
+from rac.targets.uppaal.layout import Ids, Location, Template, edge, environment
 from rac.targets.uppaal.query import ModelNames, UppaalPrinter, Vocabulary
 
 __all__ = ["generate_uppaal_model", "model_vocabulary"]
@@ -60,7 +53,7 @@ __all__ = ["generate_uppaal_model", "model_vocabulary"]
 _KEPT = ("x", "y", "v", "acc", "head")
 
 
-class _ModelGenerator(_Generator):
+class _ModelGenerator(AutomatonGenerator):
     def __init__(self, automaton: ir.Automaton, data: ModelData, source_name: str, model_name: str):
         self.data = data
         super().__init__(automaton, source_name, model_name)
@@ -81,38 +74,38 @@ class _ModelGenerator(_Generator):
             g[key] = n.fresh(base)
 
     # ------------------------------------------------------------ processes
-    def _timer(self, ids: _Ids, keeps: bool) -> _Template:
+    def _timer(self, ids: Ids, keeps: bool) -> Template:
         """``keeps``: the start edge calls ``keep_sample()`` — as the sender of the first ``decide!``,
         before the Action chooses, so ``prev(jerk)`` at the first sample reads the start's 0."""
         g, ch = self.g, self.channels
-        start = _Location(ids(), g["start"], -272, 0, committed=True)
-        wait = _Location(ids(), g["wait"], 0, 0, f"{g['t']} <= {g['period']}")
-        accrued = _Location(ids(), g["accrued"], 272, 0, committed=True)
-        reading = _Location(ids(), g["reading"], 272, 170, committed=True)
-        deciding = _Location(ids(), g["deciding"], 0, 340, committed=True)
-        ending = _Location(ids(), g["ending"], 544, 170, committed=True)
-        done = _Location(ids(), g["done"], 816, 170, f"{g['t']} <= {g['period']}")
+        start = Location(ids(), g["start"], -272, 0, committed=True)
+        wait = Location(ids(), g["wait"], 0, 0, f"{g['t']} <= {g['period']}")
+        accrued = Location(ids(), g["accrued"], 272, 0, committed=True)
+        reading = Location(ids(), g["reading"], 272, 170, committed=True)
+        deciding = Location(ids(), g["deciding"], 0, 340, committed=True)
+        ending = Location(ids(), g["ending"], 544, 170, committed=True)
+        done = Location(ids(), g["done"], 816, 170, f"{g['t']} <= {g['period']}")
         more, decide = f"{g['count']} < {g['steps']}", f"{g['count']} % DECIDE_EVERY == 0"
         settle = f"{g['settled']} = true"
         transitions = [
-            _edge(ids, start, wait, sync=f"{ch['decide']}!", assignment=f"{g['keep_sample']}()" if keeps else "",
+            edge(ids, start, wait, sync=f"{ch['decide']}!", assignment=f"{g['keep_sample']}()" if keeps else "",
                   anchor=(-250, -30)),
-            _edge(ids, wait, accrued, guard=f"{g['t']} >= {g['period']} && {more}",
+            edge(ids, wait, accrued, guard=f"{g['t']} >= {g['period']} && {more}",
                   sync=f"{ch['accrue']}!", assignment=f"{g['t']} = 0, {g['count']}++", anchor=(40, -60)),
-            _edge(ids, accrued, reading, sync=f"{ch['read']}?", assignment=f"{g['settled']} = false",
+            edge(ids, accrued, reading, sync=f"{ch['read']}?", assignment=f"{g['settled']} = false",
                   anchor=(282, 70)),
-            _edge(ids, reading, wait, guard=f"{more} && {g['count']} % DECIDE_EVERY != 0", sync=f"{ch['sense']}!",
+            edge(ids, reading, wait, guard=f"{more} && {g['count']} % DECIDE_EVERY != 0", sync=f"{ch['sense']}!",
                   assignment=settle, anchor=(60, 110)),
-            _edge(ids, reading, deciding, guard=f"{more} && {decide}", sync=f"{ch['sense']}!",
+            edge(ids, reading, deciding, guard=f"{more} && {decide}", sync=f"{ch['sense']}!",
                   assignment=settle, anchor=(150, 280)),
-            _edge(ids, deciding, wait, sync=f"{ch['decide']}!", anchor=(-100, 170)),
-            _edge(ids, reading, ending, guard=f"{g['count']} == {g['steps']}", sync=f"{ch['sense']}!",
+            edge(ids, deciding, wait, sync=f"{ch['decide']}!", anchor=(-100, 170)),
+            edge(ids, reading, ending, guard=f"{g['count']} == {g['steps']}", sync=f"{ch['sense']}!",
                   assignment=settle, anchor=(330, 180)),
-            _edge(ids, ending, done, sync=f"{ch['finish']}!", anchor=(620, 180)),
-            _edge(ids, done, done, guard=f"{g['t']} >= {g['period']}", assignment=f"{g['t']} = 0",
+            edge(ids, ending, done, sync=f"{ch['finish']}!", anchor=(620, 180)),
+            edge(ids, done, done, guard=f"{g['t']} >= {g['period']}", assignment=f"{g['t']} = 0",
                   nails=[(790, 240), (842, 240)], anchor=(780, 250)),
         ]
-        return _Template(g["timer"], start.id, [start, wait, accrued, reading, deciding, ending, done], transitions,
+        return Template(g["timer"], start.id, [start, wait, accrued, reading, deciding, ending, done], transitions,
                          declaration=f"clock {g['t']};", name_x=-300, name_y=-100)
 
     def queries(self) -> tuple[iq.QueryDecl, ...]:
@@ -173,40 +166,40 @@ class _ModelGenerator(_Generator):
             self._unrepresentable(f"{what} cannot be written in UPPAAL: {exc}", span, hints=[])
             return "// (not representable)"
 
-    def _controller(self, ids: _Ids) -> _Template:
+    def _controller(self, ids: Ids) -> Template:
         """Senses on ``accrue?`` (``sense_state()``) and reads the inputs from the bindings on ``read!``
         (``read_inputs()``, in the declarations, as the paper's ``sense()``: an edge that compares or
         assigns doubles itself would exclude the model from symbolic analysis, reference §2)."""
         g, ch = self.g, self.channels
-        init = _Location(ids(), g["init"], -272, 0, committed=True)
-        idle = _Location(ids(), g["idle"], 0, 0)
-        sensing = _Location(ids(), g["sensing"], 340, 0, committed=True)
+        init = Location(ids(), g["init"], -272, 0, committed=True)
+        idle = Location(ids(), g["idle"], 0, 0)
+        sensing = Location(ids(), g["sensing"], 340, 0, committed=True)
         transitions = [
-            _edge(ids, init, idle, anchor=(-250, -30)),
-            _edge(ids, idle, sensing, sync=f"{ch['accrue']}?", assignment="sense_state()", nails=[(170, -50)],
+            edge(ids, init, idle, anchor=(-250, -30)),
+            edge(ids, idle, sensing, sync=f"{ch['accrue']}?", assignment="sense_state()", nails=[(170, -50)],
                   anchor=(140, -80)),
-            _edge(ids, sensing, idle, sync=f"{ch['read']}!", assignment=f"{g['read_inputs']}()",
+            edge(ids, sensing, idle, sync=f"{ch['read']}!", assignment=f"{g['read_inputs']}()",
                   nails=[(170, 60)], anchor=(20, 80)),
         ]
-        return _Template(g["controller"], init.id, [init, idle, sensing], transitions, name_x=-300, name_y=-100)
+        return Template(g["controller"], init.id, [init, idle, sensing], transitions, name_x=-300, name_y=-100)
 
-    def _action(self, ids: _Ids) -> _Template:
+    def _action(self, ids: Ids) -> Template:
         g, ch = self.g, self.channels
-        idle = _Location(ids(), g["idle"], 0, 0)
-        choosing = _Location(ids(), g["choosing"], 340, 0, committed=True)
+        idle = Location(ids(), g["idle"], 0, 0)
+        choosing = Location(ids(), g["choosing"], 340, 0, committed=True)
         selects, assigns = [], []
         for action, var in zip(self.data.actions, ("j", "u")):
-            name = _action_name(action.name)
+            name = action_name(action.name)
             selects.append(f"{var} : int[0,{name}_COUNT-1]")
             assigns.append(f"{action.name} = {name}_VALUES[{var}]")
         transitions = [
-            _edge(ids, idle, choosing, sync=f"{ch['decide']}?", nails=[(170, -50)], anchor=(140, -80)),
-            _edge(ids, choosing, idle, select=", ".join(selects), assignment=", ".join(assigns), nails=[(170, 60)],
+            edge(ids, idle, choosing, sync=f"{ch['decide']}?", nails=[(170, -50)], anchor=(140, -80)),
+            edge(ids, choosing, idle, select=", ".join(selects), assignment=", ".join(assigns), nails=[(170, 60)],
                   anchor=(20, 80), controllable=True),
         ]
-        return _Template(g["action"], idle.id, [idle, choosing], transitions, name_x=-40, name_y=-100)
+        return Template(g["action"], idle.id, [idle, choosing], transitions, name_x=-40, name_y=-100)
 
-    def _dynamics(self, ids: _Ids) -> _Template:
+    def _dynamics(self, ids: Ids) -> Template:
         g = self.g
         # Saturated like sense_state(): the acceleration stops at +-MA and the speed at VMIN/VMAX
         # (the truth brakes to a stop instead of reversing), as rac's native integrator does. The
@@ -216,16 +209,16 @@ class _ModelGenerator(_Generator):
                "true_v' == UNIT_S * saturated(true_v, true_acc, i2d(MIN_SPEED), i2d(MAX_SPEED)) && "
                "true_acc' == UNIT_S * saturated(true_acc, i2d(jerk), -i2d(MAX_ACC), i2d(MAX_ACC)) && "
                "true_head' == UNIT_S * i2d(turn)")
-        init = _Location(ids(), g["init"], -272, 0, committed=True)
-        driving = _Location(ids(), g["driving"], 0, 0, ode)
+        init = Location(ids(), g["init"], -272, 0, committed=True)
+        driving = Location(ids(), g["driving"], 0, 0, ode)
         start = ("true_x = i2d(EGO_X0), true_y = i2d(EGO_Y0), true_v = i2d(EGO_V0), true_acc = i2d(EGO_ACC0), "
                  "true_head = i2d(EGO_HEAD0)")
-        transitions = [_edge(ids, init, driving, assignment=start, anchor=(-250, -60))]
-        return _Template(g["dynamics"], init.id, [init, driving], transitions,
+        transitions = [edge(ids, init, driving, assignment=start, anchor=(-250, -60))]
+        return Template(g["dynamics"], init.id, [init, driving], transitions,
                          declaration="hybrid clock true_x, true_y, true_v, true_acc, true_head;",
                          name_x=-300, name_y=-100)
 
-    def _obstacle(self, ids: _Ids) -> _Template:
+    def _obstacle(self, ids: Ids) -> Template:
         g, ch = self.g, self.channels
         declaration = "\n".join([
             "// The obstacle's position (m): exact at every sample, straight motion in between.",
@@ -248,15 +241,15 @@ class _ModelGenerator(_Generator):
             "    oy = obs_y(i);",
             "}",
         ])
-        init = _Location(ids(), g["init"], -272, 0, committed=True)
-        moving = _Location(ids(), g["moving"], 0, 0,
+        init = Location(ids(), g["init"], -272, 0, committed=True)
+        moving = Location(ids(), g["moving"], 0, 0,
                            "ox' == UNIT_S * speed() * cos(obs_head(i)) && oy' == UNIT_S * speed() * sin(obs_head(i))")
         transitions = [
-            _edge(ids, init, moving, assignment="follow()", anchor=(-200, -30)),
-            _edge(ids, moving, moving, sync=f"{ch['accrue']}?", assignment="follow()",
+            edge(ids, init, moving, assignment="follow()", anchor=(-200, -30)),
+            edge(ids, moving, moving, sync=f"{ch['accrue']}?", assignment="follow()",
                   nails=[(-30, -80), (30, -80)], anchor=(-20, -120)),
         ]
-        return _Template(g["obstacle"], init.id, [init, moving], transitions, declaration=declaration,
+        return Template(g["obstacle"], init.id, [init, moving], transitions, declaration=declaration,
                          name_x=-300, name_y=-100, parameter="const int32_t i")
 
     # ------------------------------------------------------------ the whole model
@@ -268,17 +261,15 @@ class _ModelGenerator(_Generator):
         printer = self._printer(unit)
         bindings = self._bindings(printer)
         queries = self._queries(printer)
-        ids = _Ids()
+        ids = Ids()
         templates = [self._timer(ids, bool(printer.prevs)), self._controller(ids), self._action(ids),
                      self._dynamics(ids)]
         if data.obstacle_count:
             templates.append(self._obstacle(ids))
         templates.append(self._automaton(ids, unit, accruals))
         if self.diagnostics:
-            from rac.targets.uppaal.automaton import UppaalError
-
             raise UppaalError(self.diagnostics)
-        env = _environment()
+        env = environment()
         settings = [
             ("MA", data.max_acc, "max_acceleration (significand)"),
             ("MT", data.max_turn, "max_turn (significand)"),

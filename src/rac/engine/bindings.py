@@ -1,0 +1,68 @@
+"""The model block's bindings, read as the emitted model's ``read_inputs()`` reads them.
+
+Both the product of model and automaton (:mod:`rac.engine.product`) and the training-side
+episodes (:mod:`rac.learning.episodes`) compute every input from its binding on a frame: a
+condition as a ``bool``, a number as its significand ``d2i(e) = trunc(e * SCALE_D)`` (a value
+beyond int32 is :class:`rac.model.data.ModelRangeError`, as the emitted model would abort).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rac import ir
+from rac.engine.evaluate import Evaluator, Frame
+from rac.ir import expr as ie
+from rac.model.data import ModelRangeError
+
+__all__ = ["Bindings"]
+
+
+class Bindings:
+    """Every input of ``automaton`` from its binding (``reader`` names who reads them in the error
+    for an input without one, e.g. ``"the product"``), and the bindings' ``prev(e)`` operands."""
+
+    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton, reader: str) -> None:
+        self.evaluator = evaluator
+        spec = automaton.model
+        bound = {b.input: b.expr for b in spec.bindings} if spec is not None else {}
+        missing = [item.name for item in automaton.inputs if item.name not in bound]
+        if missing:
+            names = ", ".join(f"`{name}`" for name in missing)
+            raise ValueError(f"input {names} has no binding: {reader} reads every input from the model, "
+                             f"as the emitted model does (add `bind {missing[0]} = ...` to the `model` block)")
+        #: (input, is a condition, its binding), in the automaton's input order.
+        self.items: list[tuple[str, bool, ie.Expr]] = [(item.name, item.is_bool, bound[item.name])
+                                                       for item in automaton.inputs]
+        self.prev_args: list[ie.Expr] = ie.prev_operands([expr for _, _, expr in self.items])
+
+    def column(self, index: int, frame: Frame) -> np.ndarray:
+        """Input ``index`` on every state of ``frame``: bool, or int64 significands."""
+        name, is_bool, expr = self.items[index]
+        if is_bool:
+            return np.asarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
+        value = np.asarray(self.evaluator.evaluate(expr, frame), dtype=np.float64)
+        scaled = value * self.evaluator.scale_d
+        bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            significand = int(scaled[row]) if math.isfinite(scaled[row]) else None
+            raise ModelRangeError(f"the binding of `{name}`", float(value[row]), significand,
+                                  self.evaluator.data.scale)
+        return scaled.astype(np.int64)  # truncation towards zero, like fint()
+
+    def read(self, frame: Frame) -> np.ndarray:
+        """``(n, inputs)`` int64: booleans 0/1, numbers as significands."""
+        out = np.zeros((frame.n, len(self.items)), dtype=np.int64)
+        for index in range(len(self.items)):
+            out[:, index] = self.column(index, frame)
+        return out
+
+    def prevs(self, frame: Frame) -> np.ndarray:
+        """``(n, prevs)`` float64: the value of every ``prev(e)``'s ``e`` (booleans as 0/1)."""
+        out = np.zeros((frame.n, len(self.prev_args)), dtype=np.float64)
+        for column, expr in enumerate(self.prev_args):
+            out[:, column] = self.evaluator.evaluate(expr, frame)
+        return out
