@@ -19,10 +19,10 @@ from pathlib import Path
 import pytest
 
 from rac import ir
-from rac.check.model_block import ACTIONS, MATH_FUNCTIONS, MODEL_FUNCTIONS, SETTINGS
 from rac.check.queries import MODEL_FUNCTIONS as QUERY_MODEL_FUNCTIONS
 from rac.compiler import compile_file, compile_text
 from rac.ir import expr as ie
+from rac.ir.vocabulary import ACTIONS, BINDING_MATH, MODEL_FUNCTIONS, SETTINGS
 from rac.lang import ast
 from rac.lang.format import format_module, format_source
 from rac.lang.parser import ParseFailure, parse_text
@@ -281,7 +281,7 @@ def test_settings_table_matches_the_contract() -> None:
     assert set(SETTINGS) <= fields
     assert fields - set(SETTINGS) == {"scenario", "scenario_path", "actions", "bindings", "span"}
     assert set(QUERY_MODEL_FUNCTIONS) == set(MODEL_FUNCTIONS)
-    assert not set(MODEL_FUNCTIONS) & set(MATH_FUNCTIONS)
+    assert not set(MODEL_FUNCTIONS) & set(BINDING_MATH)
 
 
 def test_an_omitted_action_keeps_its_default() -> None:

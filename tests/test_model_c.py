@@ -21,7 +21,8 @@ import pytest
 from test_model_native import crossing_scenario, goal_scenario, make_spec, straight_scenario
 
 from rac.model import ModelData, NativeModel, State, build_model_data
-from rac.targets.uppaal.declarations import C_PRELUDE, declared_names, double_literal, emit_declarations
+from rac.targets.uppaal.declarations import C_PRELUDE, declared_names, emit_declarations
+from rac.targets.uppaal.expr import double_literal
 
 COMPILER = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")
@@ -225,8 +226,8 @@ def test_declarations_are_deterministic_and_uppaal_shaped():
 
 def test_double_literals():
     assert double_literal(0.1) == "0.1"
-    assert double_literal(1e-05) == "1.0e-05"
-    assert double_literal(1e20) == "1.0e+20"
+    assert double_literal(1e-05) == "1.0e-5"  # one double_literal for the whole UPPAAL target
+    assert double_literal(1e20) == "1.0e20"
     assert double_literal(2.0) == "2.0"
     assert double_literal(-0.5) == "-0.5"
     with pytest.raises(ValueError):

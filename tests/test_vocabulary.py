@@ -22,9 +22,11 @@ import pytest
 from rac.check.queries import lower_expression
 from rac.compiler import compile_file
 from rac.engine.evaluate import Evaluator, Frame
+from rac.engine.simulate import TRUTH_COLUMNS
 from rac.ir import expr as ie
-from rac.ir.vocabulary import MODEL_NAMES, SETTINGS, Holding, ModelName
+from rac.ir.vocabulary import EGO_STATE, MODEL_NAMES, SETTINGS, TRUE_STATE, Holding, ModelName
 from rac.model.data import ModelData
+from rac.model.native import State
 from rac.targets.uppaal.declarations import declared_names
 from rac.targets.uppaal.model import generate_uppaal_model
 
@@ -114,3 +116,9 @@ def test_settings_read_as_the_model_holds_them(left_turn, tmp_path: Path) -> Non
     assert data.length == 45555 and "const int32_t LENGTH = 45555;" in generate_uppaal_model(automaton, data=data).xml
     # an exact setting keeps its value
     assert lower_expression(automaton, "sensor_error").value == Fraction(1, 2)
+
+
+def test_the_native_state_is_the_ego_state() -> None:
+    """rac.model.native.State names its fields statically; they must be the vocabulary's."""
+    assert State._fields == EGO_STATE
+    assert TRUTH_COLUMNS == TRUE_STATE

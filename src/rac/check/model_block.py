@@ -28,18 +28,14 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from rac import ir
-from rac.check.queries import FUNCTIONS_HINT, VOCABULARY_HINT, Lowering, model_settings_of, type_word
+from rac.check.queries import Lowering, model_settings_of, type_word
 from rac.check.symbols import ModelContext, Unresolvable
 from rac.core.diagnostics import Note, short_number
 from rac.core.source import Span
-from rac.ir.vocabulary import ACTIONS, BINDING_MATH, EGO_STATE, MODEL_FUNCTIONS, SETTINGS, TRUE_STATE, Setting
+from rac.ir.vocabulary import ACTIONS, SETTINGS, Setting
 from rac.lang import ast
 
-__all__ = ["ACTIONS", "EGO_STATE", "FUNCTIONS_HINT", "MATH_FUNCTIONS", "MODEL_FUNCTIONS", "SETTINGS", "TRUE_STATE",
-           "VOCABULARY_HINT", "allowed", "resolve_model"]
-
-#: The arithmetic functions bindings may call (the table: :data:`rac.ir.vocabulary.MATH_FUNCTIONS`).
-MATH_FUNCTIONS = BINDING_MATH
+__all__ = ["allowed", "resolve_model"]
 
 
 def allowed(setting: Setting) -> str:

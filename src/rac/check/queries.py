@@ -46,8 +46,8 @@ QUERY_FUNCTIONS = tuple(MATH_FUNCTIONS)
 _SIGNATURES = tuple(f.signature for f in MODEL_FUNCTIONS.values()) + tuple(
     MATH_FUNCTIONS[n].signature for n in BINDING_MATH)
 FUNCTIONS_HINT = "the model's functions are " + ", ".join(f"`{s}`" for s in _SIGNATURES)
-VOCABULARY_HINT = ("a binding reads the scenario model: its functions, the ego state (`x`, `y`, `v`, `acc`, "
-                   "`head`, `jerk`, `turn`), `time`, the model's settings and constants")
+VOCABULARY_HINT = ("a binding reads the scenario model: its functions, the ego state ("
+                   + ", ".join(f"`{name}`" for name in EGO_STATE) + "), `time`, the model's settings and constants")
 
 
 def type_word(kind: str) -> str:

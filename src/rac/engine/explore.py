@@ -17,10 +17,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from rac.engine.graph import ExploredGraph
+from rac.core.numbers import INT32_MAX
+from rac.engine.graph import LABELS, ExploredGraph
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.batch import batch_model, distinct_values
-from rac.model.data import INT32_MAX, ModelData
+from rac.model.data import ModelData
 
 __all__ = ["COLUMNS", "action_pairs", "explore"]
 
@@ -113,7 +114,7 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     counts: list[np.ndarray] = []  # choices per state
     actions: list[np.ndarray] = []
     targets: list[np.ndarray] = []
-    labels: dict[str, list[np.ndarray]] = {"collide": [], "offroad": [], "goal": [], "safe": []}
+    labels: dict[str, list[np.ndarray]] = {name: [] for name in LABELS}
     total = 0
     for k in range(horizon_samples + 1):
         size = frontier.shape[0]

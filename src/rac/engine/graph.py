@@ -11,6 +11,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+__all__ = ["LABELS", "ExploredGraph"]
+
+#: The state labels every explored graph carries (the model's predicates a query may name).
+LABELS: tuple[str, ...] = ("collide", "offroad", "goal", "safe")
+
 
 @dataclass(frozen=True)
 class ExploredGraph:

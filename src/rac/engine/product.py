@@ -68,16 +68,17 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
+from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.engine.bindings import Bindings
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame, int_sum
 from rac.engine.explore import action_pairs
-from rac.engine.graph import ExploredGraph
+from rac.engine.graph import LABELS, ExploredGraph
 from rac.engine.storm import Verdict, decide
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.commonroad import load_scenario
-from rac.model.data import INT32_LOW, INT32_MAX, ModelData, ModelRangeError, build_model_data
+from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
 
 __all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
@@ -88,7 +89,6 @@ PHASES: tuple[str, ...] = ("accrued", "read", "sampled", "ended")
 ACCRUED, READ, SAMPLED, ENDED = range(4)
 
 Progress = Callable[[int, int, int], None]
-_LABELS = ("collide", "offroad", "goal", "safe")
 _CALLS = {name: ie.call(name) for name in ("mindist", "offroad", "goal")}
 
 
@@ -499,7 +499,7 @@ def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon
     return ProductGraph(
         states=states, columns=ProductGraph.columns_of(automaton), choice_offsets=offsets,
         choice_action=np.concatenate([link[1] for link in built.links]), choice_target=targets.astype(np.int64),
-        initial=0, labels={name: np.concatenate([layer.labels[name] for layer in layers]) for name in _LABELS},
+        initial=0, labels={name: np.concatenate([layer.labels[name] for layer in layers]) for name in LABELS},
         automaton=automaton, data=data, horizon=horizon, prev_exprs=tuple(bindings.prev_args),
         prev_values=np.concatenate([layer.prevs for layer in layers]), evaluator=evaluator)
 

@@ -39,17 +39,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rac.core.numbers import INT32_MAX
 from rac.engine.explore import action_pairs
-from rac.ir.vocabulary import EGO_STATE
+from rac.engine.graph import LABELS
+from rac.ir.vocabulary import EGO_STATE, TRUE_STATE
 from rac.model.batch import BatchModel
-from rac.model.data import INT32_MAX, ModelData
+from rac.model.data import ModelData
 
 __all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "event_sampler", "integrate_truth", "label_runs", "simulate"]
 
 #: The columns of :attr:`Runs.truth` (metres, metres per second, ..., radians).
-TRUTH_COLUMNS: tuple[str, ...] = ("true_x", "true_y", "true_v", "true_acc", "true_head")
-#: The labels :func:`label_runs` evaluates (the same as :func:`rac.engine.explore.explore`'s).
-LABELS: tuple[str, ...] = ("collide", "offroad", "goal", "safe")
+TRUTH_COLUMNS: tuple[str, ...] = TRUE_STATE
 
 #: ``policy(k, states) -> allowed``: ``states`` is ``(n, 7)`` int32 (the runs' sensed states at
 #: decision sample ``k``), ``allowed`` an ``(n, P)`` bool mask over :func:`action_pairs`.

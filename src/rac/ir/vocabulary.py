@@ -28,6 +28,8 @@ from enum import Enum
 from fractions import Fraction
 
 __all__ = [
+    "DEFAULT_BASE",
+    "DEFAULT_EXPONENT",
     "ACTIONS",
     "BINDING_MATH",
     "EGO_STATE",
@@ -100,6 +102,9 @@ SETTINGS: dict[str, Setting] = {s.name: s for s in (
             maximum=_f("1")),
     Setting("sensor_error", _f("0.5"), "m", "THD: the sensor-error threshold of query Qa", _f("0"), exclusive=True),
 )}
+#: The number representation of a model that does not set ``base`` and ``exponent``.
+DEFAULT_BASE = int(SETTINGS["base"].default or 10)
+DEFAULT_EXPONENT = int(SETTINGS["exponent"].default or 4)
 
 #: The controller's actions and their defaults: (low, high, step, unit).
 ACTIONS: dict[str, tuple[Fraction, Fraction, Fraction, str]] = {

@@ -209,9 +209,9 @@ class ScenarioEnv(gymnasium.Env):
                  shield: str | os.PathLike[str] | ShieldTable | None = None,
                  reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
                  render_mode: str | None = None) -> None:
+        from rac.core.numbers import INT32_MAX
         from rac.engine.explore import COLUMNS
         from rac.learning.episodes import EpisodeBatch
-        from rac.model.data import INT32_MAX
 
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, not {render_mode!r}")

@@ -167,7 +167,7 @@ def _fits(scenario, spec: ir.ModelSpec, exponent: int) -> bool:
 
 def _overflow(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, failure) -> Diagnostic:
     """E0713 for a significand that overflows int32, with the largest exponent that fits."""
-    from rac.model.data import INT32_MAX
+    from rac.core.numbers import INT32_MAX
 
     base, exponent = spec.base, spec.exponent
     spans = automaton.spans

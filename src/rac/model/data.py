@@ -29,11 +29,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 
+from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.ir import ModelSpec
 from rac.model.commonroad import Scenario
 
 __all__ = [
-    "INT32_MAX",
     "ActionData",
     "ModelData",
     "ModelRangeError",
@@ -43,13 +43,10 @@ __all__ = [
     "max_significand",
 ]
 
-INT32_MAX = 2**31 - 1
 #: The resolution of scenario times (s). load_scenario reads a time as ``round(step * dt, 9)``, so
 #: anything finer is the float noise of a product like ``0.1 * 30`` in a hand-built scenario, and
 #: would otherwise push a waypoint that lies on a sample just past it.
 NANOSECOND = Fraction(1, 10**9)
-#: The most negative significand allowed (``-INT32_MAX``: ``-2147483648`` cannot be written in UPPAAL).
-INT32_LOW = -INT32_MAX
 
 Number = Fraction | int | float
 

@@ -37,7 +37,8 @@ CORNERS = ((1, 1), (1, -1), (-1, -1), (-1, 1))
 
 
 class State(NamedTuple):
-    """The controller's state: significands at the model's scale."""
+    """The controller's state: significands at the model's scale; the fields are
+    :data:`rac.ir.vocabulary.EGO_STATE` in order (tests/test_vocabulary.py checks)."""
 
     x: int
     y: int

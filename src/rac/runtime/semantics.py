@@ -21,6 +21,7 @@ FloatLinear = tuple[float, tuple[tuple[float, str], ...]]
 ASSUME_MESSAGE = "inputs violate `assume`"
 ENDED_MESSAGE = "the run has ended; call reset() first"
 
+
 def to_float(value: Fraction | int, what: str) -> float:
     """``float(value)``, refusing values a float cannot carry (overflow, or a non-zero that rounds to 0).
 
@@ -153,9 +154,6 @@ def range_error(spec: InputSpec, value: object, where: str = "") -> ValueError:
     if spec.kind == "int" and in_range:
         return ValueError(f"input {spec.name!r}{where} = {value!r} is not an integer")
     return ValueError(f"input {spec.name!r}{where} = {value!r} is outside [{spec.low!r}, {spec.high!r}]")
-
-
-ENDED_MESSAGE = "the run has ended; call reset() first"
 
 
 class AutomatonDescription:

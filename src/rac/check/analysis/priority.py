@@ -11,14 +11,12 @@ from rac.check.analysis.affine import Affine, Outcome, accrual, moves
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.worst import AFTER_END, BEFORE_EDGE, BEFORE_NEXT, CONTINUE, START, Target, Worst, maximise
 from rac.core.diagnostics import Diagnostic, Note, error
+from rac.core.numbers import INT32_MAX, INT32_MIN
 from rac.ir.inputs import InputSpace, guard_inputs
+from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 
 ZERO = Fraction(0)
 #: Default number representation (model.md): significand = trunc(v · base^exponent).
-DEFAULT_BASE = 10
-DEFAULT_EXPONENT = 4
-INT32_MAX = 2**31 - 1
-INT32_MIN = -(2**31)
 
 
 def _range_of(linear: ir.Linear, automaton: ir.Automaton, sign: int = 1) -> tuple[Fraction, Fraction]:

@@ -46,10 +46,11 @@ from pathlib import PurePath
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic, error, short_number
+from rac.core.numbers import INT32_MAX
 from rac.ir import query as iq
+from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
 from rac.targets.uppaal.expr import (
-    INT32_MAX,
     NotRepresentable,
     QueryError,
     double_literal,
@@ -63,11 +64,9 @@ from rac.targets.uppaal.layout import Ids, Location, Template, Transition, edge,
 from rac.targets.uppaal.names import Names, mirror_name
 from rac.targets.uppaal.query import UppaalPrinter, Vocabulary, time_constants
 
-__all__ = ["DEFAULT_BASE", "DEFAULT_EXPONENT", "AutomatonGenerator", "UppaalError", "UppaalModel", "generate_uppaal",
+__all__ = ["AutomatonGenerator", "UppaalError", "UppaalModel", "generate_uppaal",
            "queries_path", "vocabulary"]
 
-DEFAULT_BASE = 10
-DEFAULT_EXPONENT = 4
 
 _HINT_REPRESENTATION = ("add a `model` block with a larger `exponent`, or change the number so that it "
                         "is a whole multiple of 1/{scale}")
@@ -378,7 +377,7 @@ class AutomatonGenerator:
                     "E0801", f"query `{decl.name}` has a number that is not representable at base "
                     f"{self.base}, exponent {self.exponent}: {exc}", self._span(decl.span),
                     hints=[f"symbolic queries compare significands (value * {self.scale}); keep their constants "
-                           f"within ±{short_number(Fraction(2**31 - 1, self.scale), 12)}"]))
+                           f"within ±{short_number(Fraction(INT32_MAX, self.scale), 12)}"]))
                 continue
             assert "\n" not in formula
             name = f"{decl.name}: {decl.title}" if decl.title else decl.name
@@ -444,7 +443,7 @@ class AutomatonGenerator:
     def _constant(self, name: str, value: Fraction | bool) -> str:
         if isinstance(value, bool):
             return f"const bool {self.n[name]} = {'true' if value else 'false'};"
-        if value.denominator == 1 and abs(value) <= 2**31 - 1:
+        if value.denominator == 1 and abs(value) <= INT32_MAX:
             return f"const int32_t {self.n[name]} = {value.numerator};"
         try:
             return f"const double {self.n[name]} = {double_literal(value)};"

@@ -33,13 +33,14 @@ Example::
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Sequence
 
+from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.model.data import ModelData
+from rac.targets.uppaal.expr import double_literal
 
-__all__ = ["C_PRELUDE", "declared_names", "double_literal", "emit_declarations"]
+__all__ = ["C_PRELUDE", "declared_names", "emit_declarations"]
 
 #: What a C compiler needs before the declarations (UPPAAL predeclares all of it).
 C_PRELUDE = """\
@@ -52,21 +53,8 @@ C_PRELUDE = """\
 _WIDTH = 100
 
 
-def double_literal(value: float) -> str:
-    """``value`` as a literal that UPPAAL's lexer and C both read back as exactly this double:
-    the shortest round-trip decimal (``repr``) with a digit on each side of the point
-    (``1e-05`` becomes ``1.0e-05``)."""
-    number = float(value)
-    if not math.isfinite(number):
-        raise ValueError(f"{number} has no literal")
-    mantissa, mark, exponent = repr(number).partition("e")
-    if "." not in mantissa:
-        mantissa += ".0"
-    return mantissa + (mark + exponent if mark else "")
-
-
 def _int(value: int) -> str:
-    if not -2147483647 <= value <= 2147483647:
+    if not INT32_LOW <= value <= INT32_MAX:
         raise ValueError(f"{value} does not fit int32")
     return str(value)
 

@@ -27,6 +27,7 @@ from collections.abc import Mapping, Sequence
 from fractions import Fraction
 
 from rac import ir
+from rac.core.numbers import INT32_MAX
 from rac.ir.expr import integer_bound
 
 __all__ = [
@@ -34,7 +35,6 @@ __all__ = [
     "AND",
     "ATOM",
     "CMP",
-    "INT32_MAX",
     "MUL",
     "NEG",
     "NUM",
@@ -56,9 +56,6 @@ __all__ = [
     "print_real_linear",
     "terms_text",
 ]
-
-INT32_MAX = 2_147_483_647
-
 
 class NotRepresentable(ValueError):
     """A number has no UPPAAL literal (an integer beyond int32, an infinite double)."""

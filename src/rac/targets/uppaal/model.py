@@ -38,6 +38,7 @@ from fractions import Fraction
 from rac import ir
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.ir.vocabulary import ACTIONS, EGO_STATE
 from rac.model.commonroad import load_scenario
 from rac.model.data import ModelData, build_model_data
 from rac.targets.uppaal.automaton import AutomatonGenerator, UppaalError, UppaalModel
@@ -50,7 +51,7 @@ __all__ = ["generate_uppaal_model", "model_vocabulary"]
 
 #: The ego state's components that prev(e) may need from the previous sample (all but the actions
 #: are always kept: they equal the current ones between samples, so they split no state).
-_KEPT = ("x", "y", "v", "acc", "head")
+_KEPT = tuple(name for name in EGO_STATE if name not in ACTIONS)
 
 
 class _ModelGenerator(AutomatonGenerator):

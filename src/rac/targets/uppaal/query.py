@@ -30,6 +30,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 
+from rac.core.numbers import INT32_MAX
 from rac.ir import compare
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -38,7 +39,6 @@ from rac.targets.uppaal.expr import (
     ADD,
     ATOM,
     CMP,
-    INT32_MAX,
     MUL,
     NEG,
     NUM,
