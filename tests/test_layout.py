@@ -118,8 +118,32 @@ def layer(module: str) -> str:
     return module if module in TOP else parts[1]
 
 
+def private_attributes() -> Iterator[str]:
+    """``module._name`` where ``module`` is an imported rac module (``from rac.engine import storm``,
+    then ``storm._check(...)``): a private name reached through the module instead of imported."""
+    for module, path in MODULES.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        aliases = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module and not node.level:
+                for alias in node.names:
+                    if f"{node.module}.{alias.name}" in MODULES:
+                        aliases[alias.asname or alias.name] = f"{node.module}.{alias.name}"
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.asname and alias.name in MODULES:
+                        aliases[alias.asname] = alias.name
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases
+                    and node.attr.startswith("_") and not node.attr.startswith("__")
+                    and aliases[node.value.id] != module):
+                yield (f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {module} uses "
+                       f"{aliases[node.value.id]}.{node.attr}")
+
+
 def test_no_private_names_cross_modules() -> None:
     private = [str(i) for i in IMPORTS if i.name.startswith("_") and not i.name.startswith("__")]
+    private += private_attributes()
     assert not private, "private names imported from another module (make them public):\n" + "\n".join(private)
 
 

@@ -11,7 +11,7 @@ from rac.check.resolve import Resolver
 from rac.core.diagnostics import CheckError, Diagnostic, error
 from rac.core.source import SourceFile
 from rac.lang import ast
-from rac.lang.parser import ParseFailure, decode_source, parse_source, read_source
+from rac.lang.parser import ParseFailure, parse_source, read_source
 
 if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
@@ -82,15 +82,6 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
 def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:
     """Check `.ra` source given as a string."""
     return compile_source(SourceFile(name, text), analyse=analyse)
-
-
-def compile_bytes(data: bytes, name: str, *, analyse: bool = True) -> CompileResult:
-    """Check `.ra` source given as raw bytes (decoding problems become diagnostics)."""
-    try:
-        source = decode_source(name, data)
-    except ParseFailure as failure:
-        return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
-    return compile_source(source, analyse=analyse)
 
 
 def compile_file(path: str | Path, *, analyse: bool = True) -> CompileResult:

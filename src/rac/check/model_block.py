@@ -229,7 +229,7 @@ class _ModelResolver:
             span = high.span or low.span
             self.error("E0702", f"`max_speed` ({_num(high.value)} m/s) must be more than `min_speed` "
                        f"({_num(low.value)} m/s)", span,
-                       notes=[f"`{n}` defaults to {_num(SETTINGS[n].default or 0)} m/s"
+                       notes=[f"`{n}` defaults to {_num(Fraction(SETTINGS[n].default or 0))} m/s"
                               for n, v in (("min_speed", low), ("max_speed", high)) if v.span is None],
                        hints=["the speed range is [`min_speed`, `max_speed`]"])
 

@@ -14,6 +14,7 @@ later (the command line's ``--expr``, the paper's standard queries), against a c
 from __future__ import annotations
 
 import difflib
+from collections.abc import Iterator
 from fractions import Fraction
 
 from rac import ir
@@ -230,9 +231,10 @@ class Lowering:
             self.s.error("E0711", f"`{node.func}()` takes {_arguments(function.arity)}, found {len(node.args)}",
                          node.span)
             return "num", None
-        if any(a is None for a in args):
+        present = tuple(a for a in args if a is not None)
+        if len(present) != len(args):
             return "num", None
-        return "num", ie.Call(function, tuple(args), node.span)  # type: ignore[arg-type]
+        return "num", ie.Call(function, present, node.span)
 
     def _model_call(self, node: ast.Call) -> Lowered:
         """A model function called in a query (a model is attached); wrong arity: E0711."""
@@ -275,9 +277,10 @@ class Lowering:
         if func == "prev":
             return self._prev(node)
         args = [self._expect(arg, "num") for arg in node.args]
-        if any(a is None for a in args):
+        present = tuple(a for a in args if a is not None)
+        if len(present) != len(args):
             return function.result, None
-        return function.result, ie.Call(function, tuple(args), node.span)  # type: ignore[arg-type]
+        return function.result, ie.Call(function, present, node.span)
 
     # ------------------------------------------------------------ queries
     def query(self, decl: ast.QueryDecl, strategies: set[str], title: str = "") -> iq.QueryDecl | None:
@@ -288,14 +291,18 @@ class Lowering:
         if under is not None and under not in strategies:
             self.s.error("E0602", f"unknown strategy `{under}` after `under`", query.span,
                          hints=["define it first with `query Q: strategy NAME = control: A[] ...`"])
-        lowered = {}
+        lowered: dict[str, ie.Expr] = {}
+        complete = True
         for name, node, want in _query_parts(query):
             got, value = self.walk(node)
             if want is not None and got is not None and got != want:
                 self.s.error("E0201", f"this part of the query needs {type_word(want)}, "
                              f"found {type_word(got)}", node.span)
-            lowered[name] = value
-        if len(self.s.diagnostics) > before or any(v is None for v in lowered.values()):
+            if value is None:
+                complete = False
+            else:
+                lowered[name] = value
+        if len(self.s.diagnostics) > before or not complete:
             return None
         built = self._build(query, lowered)
         if built is None:
@@ -328,16 +335,16 @@ class Lowering:
         count = self._constant(node, value, "the number of runs", whole=True, positive=True)
         return None if count is None else int(count)
 
-    def _build(self, query: ast.Query, parts: dict[str, ie.Expr | None]) -> iq.Query | None:
+    def _build(self, query: ast.Query, parts: dict[str, ie.Expr]) -> iq.Query | None:
         before = len(self.s.diagnostics)
         p = parts
         result: iq.Query | None = None
         if isinstance(query, ast.PathQuery):
-            result = iq.PathQuery(query.quantifier, p["expr"], query.under)  # type: ignore[arg-type]
+            result = iq.PathQuery(query.quantifier, p["expr"], query.under)
         elif isinstance(query, ast.LeadsToQuery):
-            result = iq.LeadsToQuery(p["left"], p["right"], query.under)  # type: ignore[arg-type]
+            result = iq.LeadsToQuery(p["left"], p["right"], query.under)
         elif isinstance(query, ast.ControlStrategy):
-            result = iq.ControlStrategy(query.name, query.goal, p["expr"], query.under)  # type: ignore[arg-type]
+            result = iq.ControlStrategy(query.name, query.goal, p["expr"], query.under)
         elif isinstance(query, ast.ProbabilityQuery):
             bound, runs = self._bound(query.bound, p["bound"]), self._runs(query.runs, p.get("runs"))
             compare = None
@@ -346,18 +353,18 @@ class Lowering:
                 if theta is not None and theta > 1:
                     self.s.error("E0603", f"the probability threshold must be at most 1 (found {_fraction(theta)})",
                                  query.compare[1].span)
-                compare = (query.compare[0], theta)
+                compare = None if theta is None else (query.compare[0], theta)
             if bound is not None:
-                result = iq.ProbabilityQuery(bound, runs, query.path, p["expr"], compare, query.under)  # type: ignore
+                result = iq.ProbabilityQuery(bound, runs, query.path, p["expr"], compare, query.under)
         elif isinstance(query, ast.ExpectationQuery):
             bound, runs = self._bound(query.bound, p["bound"]), self._runs(query.runs, p["runs"])
             if bound is not None and runs is not None:
-                result = iq.ExpectationQuery(bound, runs, query.aggregate, p["expr"], query.under)  # type: ignore
+                result = iq.ExpectationQuery(bound, runs, query.aggregate, p["expr"], query.under)
         elif isinstance(query, ast.SimulateQuery):
             bound, runs = self._bound(query.bound, p["bound"]), self._runs(query.runs, p.get("runs"))
             exprs = tuple(p[f"expr{i}"] for i in range(len(query.exprs)))
             if bound is not None:
-                result = iq.SimulateQuery(bound, runs, exprs, tuple(format_expr(e) for e in query.exprs),  # type: ignore
+                result = iq.SimulateQuery(bound, runs, exprs, tuple(format_expr(e) for e in query.exprs),
                                           query.under)
         else:
             bound = self._bound(query.bound, p["bound"])
@@ -365,31 +372,43 @@ class Lowering:
             continuous = tuple(p[f"continuous{i}"] for i in range(len(query.continuous)))
             labels = tuple(format_expr(e) for e in (*query.discrete, *query.continuous))
             if bound is not None:
-                result = iq.LearnStrategy(query.name, query.optimise, p["objective"], bound, discrete,  # type: ignore
-                                          continuous, query.path, p["expr"], query.under, labels)  # type: ignore
+                result = iq.LearnStrategy(query.name, query.optimise, p["objective"], bound, discrete,
+                                          continuous, query.path, p["expr"], query.under, labels)
         return result if len(self.s.diagnostics) == before else None
 
 
-def _query_parts(query: ast.Query) -> list[tuple[str, ast.Expr, str | None]]:
+def _query_parts(query: ast.Query) -> Iterator[tuple[str, ast.Expr, str | None]]:
     """The expressions of a query, each with its key and the type it must have (None: any)."""
-    if isinstance(query, ast.PathQuery):
-        return [("expr", query.expr, "bool")]
-    if isinstance(query, ast.LeadsToQuery):
-        return [("left", query.left, "bool"), ("right", query.right, "bool")]
-    if isinstance(query, ast.ProbabilityQuery):
-        return ([("bound", query.bound.limit, "num"), ("expr", query.expr, "bool")]
-                + ([("runs", query.runs, "num")] if query.runs else [])
-                + ([("compare", query.compare[1], "num")] if query.compare else []))
-    if isinstance(query, ast.ExpectationQuery):
-        return [("bound", query.bound.limit, "num"), ("runs", query.runs, "num"), ("expr", query.expr, "num")]
-    if isinstance(query, ast.SimulateQuery):
-        return ([("bound", query.bound.limit, "num")] + [(f"expr{i}", e, None) for i, e in enumerate(query.exprs)]
-                + ([("runs", query.runs, "num")] if query.runs else []))
-    if isinstance(query, ast.ControlStrategy):
-        return [("expr", query.expr, "bool")]
-    return ([("objective", query.objective, "num"), ("bound", query.bound.limit, "num")]
-            + [(f"discrete{i}", e, None) for i, e in enumerate(query.discrete)]
-            + [(f"continuous{i}", e, None) for i, e in enumerate(query.continuous)] + [("expr", query.expr, "bool")])
+    if isinstance(query, ast.PathQuery | ast.ControlStrategy):
+        yield "expr", query.expr, "bool"
+    elif isinstance(query, ast.LeadsToQuery):
+        yield "left", query.left, "bool"
+        yield "right", query.right, "bool"
+    elif isinstance(query, ast.ProbabilityQuery):
+        yield "bound", query.bound.limit, "num"
+        yield "expr", query.expr, "bool"
+        if query.runs:
+            yield "runs", query.runs, "num"
+        if query.compare:
+            yield "compare", query.compare[1], "num"
+    elif isinstance(query, ast.ExpectationQuery):
+        yield "bound", query.bound.limit, "num"
+        yield "runs", query.runs, "num"
+        yield "expr", query.expr, "num"
+    elif isinstance(query, ast.SimulateQuery):
+        yield "bound", query.bound.limit, "num"
+        for i, expr in enumerate(query.exprs):
+            yield f"expr{i}", expr, None
+        if query.runs:
+            yield "runs", query.runs, "num"
+    else:
+        yield "objective", query.objective, "num"
+        yield "bound", query.bound.limit, "num"
+        for i, expr in enumerate(query.discrete):
+            yield f"discrete{i}", expr, None
+        for i, expr in enumerate(query.continuous):
+            yield f"continuous{i}", expr, None
+        yield "expr", query.expr, "bool"
 
 
 def _arguments(count: int) -> str:

@@ -2,20 +2,22 @@
 
 This stage turns one parsed automaton into an :class:`rac.ir.Automaton`, or
 reports why it cannot (unknown names, type errors, nonlinear rates, missing
-declarations). Behavioural checks (determinism, priorities) run on the IR in
-:mod:`rac.check.analysis`.
+declarations). Its expressions are typed by :mod:`rac.check.linear`, its queries
+lowered by :mod:`rac.check.queries`. Behavioural checks (determinism, priorities)
+run on the IR in :mod:`rac.check.analysis`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import difflib
-from dataclasses import dataclass, field
 from fractions import Fraction
+from typing import TypeVar
 
 from rac import ir
+from rac.check.linear import CONSTANT, OBJECTIVE, RATE, UPDATE, Bool, Context, ExpressionTyper
 from rac.check.model_block import resolve_model
-from rac.check.queries import Lowering, model_settings, type_word
+from rac.check.queries import Lowering, model_settings
 from rac.check.standard import standard_queries
 from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable
 from rac.core.diagnostics import Diagnostic, Note, short_number, warning
@@ -23,33 +25,10 @@ from rac.core.source import Span
 from rac.ir import query as iq
 from rac.lang import ast
 
+_M = TypeVar("_M")
+
 #: Most samples a run may have (horizon / period): the exact checks walk every one of them.
 MAX_SAMPLES = 1_000_000
-
-
-@dataclass(frozen=True)
-class _Context:
-    """What an expression may mention, and how to call it in messages."""
-
-    what: str
-    rewards: bool = False
-    inputs: bool = True
-
-
-GUARD = _Context("a guard")
-RATE = _Context("a rate")
-UPDATE = _Context("an update", rewards=True)
-OBJECTIVE = _Context("the objective", rewards=True, inputs=False)
-CONSTANT = _Context("a constant expression", inputs=False)
-
-
-@dataclass
-class _Used:
-    inputs: set[str] = field(default_factory=set)
-
-
-def _typed(kind: str, value: object) -> tuple[str, object]:
-    return (kind, value)
 
 
 class Resolver:
@@ -62,7 +41,7 @@ class Resolver:
         #: What queries and bindings may name; shares the symbols and the diagnostics.
         self.scope = Scope(automaton.name.name, self.symbols, self.has_model, automaton.name.span,
                            diagnostics=self.diagnostics)
-        self.used = _Used()
+        self.typer = ExpressionTyper(self.scope)
         #: Spans of the model block's settings the analyses point at ("model:exponent", "model:base").
         self.model_spans: dict[str, Span] = {}
 
@@ -87,161 +66,13 @@ class Resolver:
     def _unknown(self, name: str, span: Span | None, what: str = "name") -> None:
         self.scope.unknown(name, span, what)
 
-    # ------------------------------------------------------------ expressions
-    def expr(self, node: ast.Expr, ctx: _Context) -> tuple[str, object]:
-        """Type an expression: ("num", Linear) or ("bool", Guard)."""
-        if isinstance(node, ast.Number):
-            return _typed("num", ir.Linear.constant(node.value))
-        if isinstance(node, ast.BoolLit):
-            return _typed("bool", ir.BConst(node.value))
-        if isinstance(node, ast.Name):
-            return self._name(node, ctx)
-        if isinstance(node, ast.Unary):
-            kind, value = self.expr(node.operand, ctx)
-            if node.op == "-":
-                self._expect("num", kind, node.operand, "`-`")
-                return _typed("num", value.scaled(-1))  # type: ignore[union-attr]
-            self._expect("bool", kind, node.operand, "`!`")
-            return _typed("bool", _not(value))  # type: ignore[arg-type]
-        if isinstance(node, ast.Binary):
-            return self._binary(node, ctx)
-        if isinstance(node, ast.Call):
-            self._error("E0103", f"`{node.func}(...)` is not available in {ctx.what}", node.span,
-                        hints=["function calls are allowed in queries only"])
-            raise Unresolvable
-        self._error("E0103", f"`{node.scope}.{node.id}` is not available in {ctx.what}", node.span,  # type: ignore[union-attr]
-                    hints=["qualified names are allowed in queries only"])
-        raise Unresolvable
-
-    def _expect(self, want: str, got: str, node: ast.Expr, where: str) -> None:
-        if want != got:
-            hints = []
-            if want == "bool":
-                shown = node.id if isinstance(node, ast.Name) else "x"
-                hints.append(f"a number is not a condition: compare it, e.g. `{shown} < 2`")
-            self._error("E0201", f"{where} needs {type_word(want)}, found {type_word(got)}", node.span,
-                        hints=hints)
-            raise Unresolvable
-
-    def _name(self, node: ast.Name, ctx: _Context) -> tuple[str, object]:
-        symbol = self.symbols.get(node.id)
-        if symbol is None:
-            self._unknown(node.id, node.span)
-            raise Unresolvable
-        if symbol.kind == "const":
-            if symbol.value is None:
-                raise Unresolvable
-            if isinstance(symbol.value, bool):
-                return _typed("bool", ir.BConst(symbol.value))
-            return _typed("num", ir.Linear.constant(symbol.value))
-        if symbol.kind == "input":
-            if not ctx.inputs:
-                self._error("E0103", f"input `{node.id}` cannot appear in {ctx.what}", node.span,
-                            hints=[_why_no_inputs(ctx)])
-                raise Unresolvable
-            self.used.inputs.add(node.id)
-            if symbol.type == "bool":
-                return _typed("bool", ir.BInput(node.id))
-            return _typed("num", ir.Linear.variable(node.id))
-        if symbol.kind == "reward":
-            if not ctx.rewards:
-                code = "E0202" if ctx is GUARD or ctx.what == "`assume`" else "E0203"
-                self._error(code, f"reward `{node.id}` cannot appear in {ctx.what}", node.span,
-                            hints=[_why_no_rewards(ctx)])
-                raise Unresolvable
-            return _typed("num", ir.Linear.variable(node.id))
-        self._error("E0103", f"location `{node.id}` cannot appear in {ctx.what}", node.span,
-                    hints=["location names are boolean only in queries (e.g. `A[] Unsafe imply ...`)"])
-        raise Unresolvable
-
-    def _binary(self, node: ast.Binary, ctx: _Context) -> tuple[str, object]:
-        lk, lv = self.expr(node.left, ctx)
-        rk, rv = self.expr(node.right, ctx)
-        op = node.op
-        if op in ast.ARITHMETIC_OPS:
-            self._expect("num", lk, node.left, f"`{op}`")
-            self._expect("num", rk, node.right, f"`{op}`")
-            left, right = lv, rv
-            assert isinstance(left, ir.Linear) and isinstance(right, ir.Linear)
-            if op == "+":
-                return _typed("num", left + right)
-            if op == "-":
-                return _typed("num", left - right)
-            if op == "*":
-                if left.is_constant:
-                    return _typed("num", right.scaled(left.const))
-                if right.is_constant:
-                    return _typed("num", left.scaled(right.const))
-                self._error("E0203", f"{ctx.what} must be linear: both sides of `*` vary", node.span,
-                            hints=["multiply by constants only (rewards and inputs evolve linearly)"])
-                raise Unresolvable
-            if not right.is_constant:
-                self._error("E0203", f"{ctx.what} must be linear: division by a varying value", node.span,
-                            hints=["divide by constants only"])
-                raise Unresolvable
-            if right.const == 0:
-                self._error("E0207", "division by zero", node.right.span)
-                raise Unresolvable
-            return _typed("num", left.scaled(1 / right.const))
-        if op in ast.COMPARISON_OPS:
-            if lk == "bool" and rk == "bool" and op in ("==", "!="):
-                same = ir.BOr((ir.BAnd((lv, rv)), ir.BAnd((_not(lv), _not(rv)))))  # type: ignore[arg-type]
-                return _typed("bool", same if op == "==" else _not(same))
-            self._expect("num", lk, node.left, f"`{op}`")
-            self._expect("num", rk, node.right, f"`{op}`")
-            return _typed("bool", self._atom(node, lv - rv, op))  # type: ignore[operator]
-        self._expect("bool", lk, node.left, f"`{op}`")
-        self._expect("bool", rk, node.right, f"`{op}`")
-        if op == "&&":
-            return _typed("bool", ir.BAnd((lv, rv)))  # type: ignore[arg-type]
-        if op == "||":
-            return _typed("bool", ir.BOr((lv, rv)))  # type: ignore[arg-type]
-        return _typed("bool", ir.BOr((_not(lv), rv)))  # type: ignore[arg-type]
-
-    def _atom(self, node: ast.Binary, difference: ir.Linear, op: str) -> ir.Guard:
-        """Normalise ``left op right`` (as ``left - right op 0``) to ``input op' threshold``."""
-        if difference.is_constant:
-            return ir.BConst(ir.compare(difference.const, op, 0))
-        rewards = [n for n in difference.variables() if self.symbols[n].kind == "reward"]
-        if rewards:
-            self._error("E0202", f"reward `{rewards[0]}` cannot be compared", node.span,
-                        hints=["rewards only flow and are updated; guards read inputs"])
-            raise Unresolvable
-        if len(difference.terms) > 1:
-            names = ", ".join(f"`{n}`" for n in difference.variables())
-            self._error("E0208", f"comparison mixes several numeric inputs ({names})", node.span,
-                        hints=["compare each numeric input with a constant; "
-                               "combine such conditions with `&&`/`||`, or add a bool input for it"])
-            raise Unresolvable
-        (name, coefficient), = difference.terms
-        threshold = -difference.const / coefficient
-        if coefficient < 0:
-            op = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
-        return ir.BAtom(name, op, threshold)
-
-    def guard(self, node: ast.Expr | None, ctx: _Context = GUARD) -> ir.Guard:
-        if node is None:
-            return ir.TRUE
-        kind, value = self.expr(node, ctx)
-        self._expect("bool", kind, node, ctx.what)
-        return value  # type: ignore[return-value]
-
-    def linear(self, node: ast.Expr, ctx: _Context) -> ir.Linear:
-        kind, value = self.expr(node, ctx)
-        self._expect("num", kind, node, ctx.what)
-        return value  # type: ignore[return-value]
-
-    def constant(self, node: ast.Expr, what: str) -> Fraction:
-        value = self.linear(node, _Context(what, inputs=False))
-        return value.const
-
     # ------------------------------------------------------------ declarations
     def run(self) -> ir.Automaton | None:
         node = self.node
         singles = self._singletons()
         self._declare_all()
-        period = self._time_value(singles.get(ast.SampleDecl), "sample every", "period")
-        horizon = self._time_value(singles.get(ast.HorizonDecl), "horizon", "length")
+        period = self._time_value(_single(singles, ast.SampleDecl), "sample every", "period")
+        horizon = self._time_value(_single(singles, ast.HorizonDecl), "horizon", "length")
         if period is not None and horizon is not None and (horizon / period).denominator != 1:
             span = singles[ast.HorizonDecl].span
             self._error("E0206", f"the horizon ({_num(horizon)} s) is not a whole number of sample "
@@ -257,15 +88,15 @@ class Resolver:
         inputs = self._inputs()
         rewards = tuple(n.name for d in node.of(ast.RewardDecl) for n in d.names)
         self._index(inputs, rewards)
-        context = ModelContext(self.scope, self.node, self.constant, self.model_spans)
+        context = ModelContext(self.scope, self.node, self.typer.constant, self.model_spans)
         model = resolve_model(context, inputs, period)
         self.scope.settings = model_settings(model) if model is not None else None
         locations, initial = self._locations(rewards)
         edges = self._edges(locations, rewards)
         ends = tuple(self._end(d, rewards) for d in node.of(ast.EndDecl))
         assume = self._assume()
-        objective = self._objective(singles.get(ast.ObjectiveDecl), rewards)
-        priority, strict = self._priority(singles.get(ast.PriorityDecl), rewards)
+        objective = self._objective(_single(singles, ast.ObjectiveDecl), rewards)
+        priority, strict = self._priority(_single(singles, ast.PriorityDecl), rewards)
         queries = self._check_queries()
         if any(d.is_error for d in self.diagnostics):
             # Expressions with errors were not fully read: an "unused" input may be used there.
@@ -352,23 +183,23 @@ class Resolver:
                 # Constants are evaluated in order: a later constant may use an earlier one.
                 symbol = Symbol("const", "num", member.name.span)
                 try:
-                    kind, value = self.expr(member.expr, CONSTANT)
-                    if kind == "bool":
-                        if not isinstance(value, ir.BConst):
+                    typed = self.typer.expr(member.expr, CONSTANT)
+                    if isinstance(typed, Bool):
+                        if not isinstance(typed.value, ir.BConst):
                             raise Unresolvable
-                        symbol.type, symbol.value = "bool", value.value
+                        symbol.type, symbol.value = "bool", typed.value.value
                     else:
-                        symbol.value = value.const  # type: ignore[union-attr]
+                        symbol.value = typed.value.const
                 except Unresolvable:
                     pass
                 self._declare(member.name, symbol)
 
-    def _time_value(self, member: ast.Member | None, word: str, what: str) -> Fraction | None:
+    def _time_value(self, member: ast.SampleDecl | ast.HorizonDecl | None, word: str, what: str) -> Fraction | None:
         if member is None:
             return None
-        expr = member.period if isinstance(member, ast.SampleDecl) else member.length  # type: ignore[union-attr]
+        expr = member.period if isinstance(member, ast.SampleDecl) else member.length
         try:
-            value = self.constant(expr, f"the {what} of `{word}`")
+            value = self.typer.constant(expr, f"the {what} of `{word}`")
         except Unresolvable:
             return None
         if value <= 0:
@@ -389,8 +220,8 @@ class Resolver:
                                 hints=[f"declare its range, e.g. `input {ident.name} : {numeric.kind} in [0, 100]`"])
                     continue
                 try:
-                    low = self.constant(numeric.low, "an input bound")
-                    high = self.constant(numeric.high, "an input bound")
+                    low = self.typer.constant(numeric.low, "an input bound")
+                    high = self.typer.constant(numeric.high, "an input bound")
                 except Unresolvable:
                     continue
                 if low > high:
@@ -424,7 +255,7 @@ class Resolver:
                                 notes=[Note("first rate here", spans[name])])
                     continue
                 try:
-                    rates[name] = self.linear(flow.rate, RATE)
+                    rates[name] = self.typer.linear(flow.rate, RATE)
                     spans[name] = flow.span
                 except Unresolvable:
                     rates[name] = ir.Linear()
@@ -469,7 +300,7 @@ class Resolver:
                             hints=["updates change rewards only"])
                 continue
             try:
-                value = self.linear(update.expr, UPDATE)
+                value = self.typer.linear(update.expr, UPDATE)
             except Unresolvable:
                 continue
             if update.op == "+=":
@@ -487,18 +318,18 @@ class Resolver:
             if target is None or (decl.source is not None and source is None):
                 continue
             try:
-                guard = self.guard(decl.guard)
+                guard = self.typer.guard(decl.guard)
             except Unresolvable:
                 continue
             updates = self._updates(decl.updates, rewards)
             sources = [source] if source is not None else [i for i in range(len(locations)) if i != target]
             for s in sources:
-                grouped[s].append(ir.Edge(s, target, guard, updates, decl.span))  # type: ignore[arg-type]
+                grouped[s].append(ir.Edge(s, target, guard, updates, decl.span))
         return tuple(tuple(g) for g in grouped)
 
     def _end(self, decl: ast.EndDecl, rewards: tuple[str, ...]) -> ir.EndClause:
         try:
-            guard = self.guard(decl.guard)
+            guard = self.typer.guard(decl.guard)
         except Unresolvable:
             guard = ir.TRUE
         return ir.EndClause(guard, self._updates(decl.updates, rewards), decl.span)
@@ -507,25 +338,24 @@ class Resolver:
         parts = []
         for decl in self.node.of(ast.AssumeDecl):
             try:
-                parts.append(self.guard(decl.expr, _Context("`assume`")))
+                parts.append(self.typer.guard(decl.expr, Context("`assume`")))
             except Unresolvable:
                 pass
         if not parts:
             return ir.TRUE
         return parts[0] if len(parts) == 1 else ir.BAnd(tuple(parts))
 
-    def _objective(self, member: ast.Member | None, rewards: tuple[str, ...]) -> ir.Linear | None:
+    def _objective(self, member: ast.ObjectiveDecl | None, rewards: tuple[str, ...]) -> ir.Linear | None:
         if member is None:
             return None
         try:
-            return self.linear(member.expr, OBJECTIVE).ordered(rewards)  # type: ignore[union-attr]
+            return self.typer.linear(member.expr, OBJECTIVE).ordered(rewards)
         except Unresolvable:
             return None
 
-    def _priority(self, member: ast.Member | None, rewards: tuple[str, ...]) -> tuple[tuple[str, ...], bool]:
+    def _priority(self, member: ast.PriorityDecl | None, rewards: tuple[str, ...]) -> tuple[tuple[str, ...], bool]:
         if member is None:
             return (), False
-        assert isinstance(member, ast.PriorityDecl)
         seen: dict[str, Span | None] = {}
         for ident in member.names:
             symbol = self.symbols.get(ident.name)
@@ -549,7 +379,7 @@ class Resolver:
 
     def _unused_inputs(self, inputs: tuple[ir.Input, ...]) -> None:
         for item in inputs:
-            if item.name not in self.used.inputs:
+            if item.name not in self.typer.used_inputs:
                 self.diagnostics.append(warning(
                     "W0303", f"input `{item.name}` is never used", item.span,
                     hints=["remove it, or use it in a guard, a rate or an update"]))
@@ -572,28 +402,14 @@ class Resolver:
         return tuple(lowered)
 
 
-def _not(guard: ir.Guard) -> ir.Guard:
-    if isinstance(guard, ir.BConst):
-        return ir.BConst(not guard.value)
-    if isinstance(guard, ir.BNot):
-        return guard.operand
-    return ir.BNot(guard)
+def _single(singles: dict[type, ast.Member], kind: type[_M]) -> _M | None:
+    """The declaration of ``kind`` among :meth:`Resolver._singletons`, if the automaton has one."""
+    member = singles.get(kind)
+    return member if isinstance(member, kind) else None
 
 
 def _kind_word(kind: str) -> str:
     return {"input": "an input", "const": "a constant", "reward": "a reward", "location": "a location"}[kind]
-
-
-def _why_no_rewards(ctx: _Context) -> str:
-    if ctx.what == "a rate":
-        return "rates are constants or linear in numeric inputs; rewards grow linearly between samples"
-    return "rewards behave like UPPAAL hybrid clocks: they cannot steer the automaton"
-
-
-def _why_no_inputs(ctx: _Context) -> str:
-    if ctx.what == "the objective":
-        return "the objective weighs rewards; let inputs act through guards, rates and updates"
-    return "only constants are allowed here"
 
 
 def _num(value: Fraction) -> str:

@@ -22,8 +22,7 @@ from rac.core.source import SourceFile
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.text import format_checked
-from rac.lang import ast
-from rac.lang.parser import parse_source
+from rac.lang.parser import parse_queries
 
 __all__ = ["STANDARD", "StandardQuery", "objective_expression", "standard_queries"]
 
@@ -90,8 +89,9 @@ def standard_queries(automaton: ir.Automaton, horizon: Fraction | None = None, *
         for name in _STRATEGIES:
             text = _rename(text, name, rename[name])
         lines.append(f"query {query.name}: {text}")
-    source = SourceFile("<standard queries>", "automaton Standard {\n" + "\n".join(lines) + "\n}\n")
-    decls = [m for m in parse_source(source).automata[0].members if isinstance(m, ast.QueryDecl)]
+    # The header line keeps each query on the line reports have always given it (the JSON `location`).
+    source = SourceFile("<standard queries>", "// the standard queries\n" + "\n".join(lines) + "\n")
+    decls = parse_queries(source)
     lowered = lower_queries(automaton, decls, titles={q.name: q.title for q in chosen},
                             sources={source.name: source}, model_first=True)
     objective = objective_expression(automaton)

@@ -7,44 +7,42 @@ not satisfied or the file has errors, 2 for bad usage or unreadable/unwritable f
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
+from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
+from typing import TypeVar
 
 from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, read_and_check
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_text as render_diagnostics
 
-
-def _fraction(text: str) -> Fraction:
-    try:
-        value = Fraction(text)
-    except (ValueError, ZeroDivisionError):
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive: {text!r}")
-    return value
+#: A sub-command: its parsed arguments -> the exit code.
+Command = Callable[[argparse.Namespace], int]
+T = TypeVar("T")
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1: {text!r}")
-    return value
+def _argument(convert: Callable[[str], T], kind: str, accepts: Callable[[T], bool], need: str) -> Callable[[str], T]:
+    """An argparse ``type``: ``convert(text)``, refused with "not KIND" when it cannot convert and
+    with ``need`` when the value is not ``accepts``-ed."""
+
+    def parse(text: str) -> T:
+        try:
+            value = convert(text)
+        except (ValueError, ZeroDivisionError):  # Fraction("1/0") divides by zero
+            raise argparse.ArgumentTypeError(f"not {kind}: {text!r}") from None
+        if not accepts(value):
+            raise argparse.ArgumentTypeError(f"{need}: {text!r}")
+        return value
+
+    return parse
 
 
-def _probability(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0 < value < 1:
-        raise argparse.ArgumentTypeError(f"must lie strictly between 0 and 1: {text!r}")
-    return value
+_fraction = _argument(Fraction, "a number", lambda value: value > 0, "must be positive")
+_positive_int = _argument(int, "a whole number", lambda value: value >= 1, "must be at least 1")
+_probability = _argument(float, "a number", lambda value: 0 < value < 1, "must lie strictly between 0 and 1")
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
@@ -151,6 +149,18 @@ def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     return result, status
 
 
+def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]) -> Command:
+    """A command run as ``command(args, result)`` on ``args.file`` checked, with a model (:func:`_prepare`);
+    when the file cannot be used, :func:`_prepare` said why and its exit code is the command's."""
+
+    @functools.wraps(command)
+    def run(args: argparse.Namespace) -> int:
+        result, status = _prepare(args)
+        return status if result is None else command(args, result)
+
+    return run
+
+
 def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int, n: int):
     """``n`` simulated runs (under the safety shield with ``--shield``) and their seed, or None and
     the reason when no shield can be used."""
@@ -164,7 +174,8 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
         if policy is None:
             return None, problem
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
-    return simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy), seed  # type: ignore[arg-type]
+    assert result.model_data is not None  # _load refused a file without one
+    return simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy), seed
 
 
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
@@ -181,11 +192,11 @@ def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int)
         return None, ""
     options = VerifyOptions(seed=args.seed, max_states=args.max_states, only=(learned[args.strategy].name,),
                             bars=not args.quiet)
-    verifier, results = run_queries(result, options)
-    if args.strategy not in verifier.learned:
+    context, results = run_queries(result, options)
+    if args.strategy not in context.learned:
         reasons = "; ".join(f"{r.name}: {r.message}" for r in results if r.message)
         return None, f"the strategy `{args.strategy}` could not be learned ({reasons})"
-    _, runs = verifier.learned_run(args.strategy, samples)
+    _, runs = context.learned_run(args.strategy, samples)
     return runs, results[-1].seed
 
 
@@ -229,12 +240,10 @@ def _explore_bar(quiet: bool):
     return bar, callback
 
 
-def verify_command(args: argparse.Namespace) -> int:
+@_on_checked_file
+def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.verify.runner import UnknownQuery, VerifyOptions, render_json, render_text, verify
 
-    result, status = _prepare(args)
-    if result is None:
-        return status
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".out")
     quiet = args.quiet or args.format == "json"
     bar, callback = _explore_bar(quiet)
@@ -252,8 +261,9 @@ def verify_command(args: argparse.Namespace) -> int:
         with bar:
             results = verify(result, options)
     except UnknownQuery as exc:
-        print(f"rac verify: no query named {exc.args[0]} in {args.file} (names: "
-              f"{', '.join(d.name for d in result.automaton.queries) or 'none'}; "  # type: ignore[union-attr]
+        assert result.automaton is not None  # _load refused a file without one
+        names = ", ".join(d.name for d in result.automaton.queries)
+        print(f"rac verify: no query named {exc.args[0]} in {args.file} (names: {names or 'none'}; "
               "--standard adds Qa, Qb, Qc, Qd, Fig7, Fig7_safe, Unsafe_safe)", file=sys.stderr)
         return EXIT_USAGE
     except OSError as exc:
@@ -319,16 +329,14 @@ def _parse_exprs(texts: list[str], automaton):
     return exprs, None
 
 
-def simulate_command(args: argparse.Namespace) -> int:
+@_on_checked_file
+def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     import numpy as np
 
     from rac.engine.evaluate import EvaluationError
-    from rac.verify.report import _plot, _write_csv
-    from rac.verify.runner import VerifyOptions, _Verifier
+    from rac.verify.context import Context, VerifyOptions
+    from rac.verify.report import plot_series, write_csv
 
-    result, status = _prepare(args)
-    if result is None:
-        return status
     texts = args.expr or ["mindist()", "3 * collision_distance"]
     exprs, problem = _parse_exprs(texts, result.automaton)
     if exprs is None:
@@ -339,18 +347,18 @@ def simulate_command(args: argparse.Namespace) -> int:
     if runs is None:
         print(f"rac simulate: {seed}", file=sys.stderr)
         return EXIT_ERRORS
-    verifier = _Verifier(result, VerifyOptions(seed=args.seed))
+    context = Context(result, VerifyOptions(seed=args.seed))
     try:
-        values = verifier.values(runs, tuple(exprs))
+        values = context.values(runs, tuple(exprs))
     except EvaluationError as exc:
         print(f"rac simulate: --expr: {exc}", file=sys.stderr)
         return EXIT_USAGE
     csv_path = args.output if args.output is not None else args.file.with_name(args.file.stem + ".csv")
     png_path = args.plot if args.plot is not None else csv_path.with_suffix(".png")
     try:
-        _write_csv(csv_path, runs.times, texts, values)
+        write_csv(csv_path, runs.times, texts, values)
         title = f"{args.file.name}: {args.runs} runs{' under the shield' if args.shield else ''} (seed {seed})"
-        _plot(png_path, runs.times, texts, values, title)
+        plot_series(png_path, runs.times, texts, values, title)
     except OSError as exc:
         print(f"rac simulate: cannot write: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -365,12 +373,10 @@ def simulate_command(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def render_command(args: argparse.Namespace) -> int:
+@_on_checked_file
+def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.output.render import RenderError, render_trajectory
 
-    result, status = _prepare(args)
-    if result is None:
-        return status
     samples = _horizon_samples(result, args.horizon)
     if args.strategy:
         runs, seed = _strategy_run(result, args, samples)
@@ -382,11 +388,13 @@ def render_command(args: argparse.Namespace) -> int:
     real = runs.sensed_real()[0]
     trajectory = real[:, [0, 1, 4]]
     png = args.output if args.output is not None else args.file.with_name(args.file.stem + ".png")
-    spec = result.automaton.model  # type: ignore[union-attr]
+    automaton = result.automaton
+    assert automaton is not None and automaton.model is not None  # _load refused a file without them
+    spec = automaton.model
     try:
-        written = render_trajectory(spec.scenario_path, trajectory, png, gif_path=args.gif,  # type: ignore[union-attr]
-                                    sample_period=float(result.automaton.period),  # type: ignore[union-attr]
-                                    length=float(spec.length), width=float(spec.width),  # type: ignore[union-attr]
+        written = render_trajectory(spec.scenario_path, trajectory, png, gif_path=args.gif,
+                                    sample_period=float(automaton.period),
+                                    length=float(spec.length), width=float(spec.width),
                                     title=f"{args.file.name}, {_short(args)}, seed {seed}")
     except RenderError as exc:
         print(f"rac render: {exc}", file=sys.stderr)
@@ -401,12 +409,10 @@ def render_command(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def preanalyse_command(args: argparse.Namespace) -> int:
+@_on_checked_file
+def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.studies.preanalysis import SweepError, render_table, sweep
 
-    result, status = _prepare(args)
-    if result is None:
-        return status
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".preanalysis")
     try:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
@@ -424,12 +430,10 @@ def preanalyse_command(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def experiment_command(args: argparse.Namespace) -> int:
+@_on_checked_file
+def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.studies.experiment import ExperimentError, render_markdown, run_experiment, write_outputs
 
-    result, status = _prepare(args)
-    if result is None:
-        return status
     try:
         seeds = [int(s) for s in args.seeds.split(",")]
     except ValueError:
@@ -472,6 +476,6 @@ def experiment_command(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-HANDLERS = {"experiment": experiment_command, "verify": verify_command, "simulate": simulate_command,
-            "render": render_command,
-            "preanalyse": preanalyse_command}
+HANDLERS: dict[str, Command] = {"experiment": experiment_command, "verify": verify_command,
+                                "simulate": simulate_command, "render": render_command,
+                                "preanalyse": preanalyse_command}

@@ -515,9 +515,11 @@ def decide_product(graph: ProductGraph, query: iq.PathQuery | iq.QueryDecl, text
     (``text``, or the declaration's).
     """
     if isinstance(query, iq.QueryDecl):
-        query, text = query.query, text or query.text
-    if not isinstance(query, iq.PathQuery):
+        text = text or query.text
+    path = query.query if isinstance(query, iq.QueryDecl) else query
+    if not isinstance(path, iq.PathQuery):
         raise ValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
+    query = path
     if query.under is not None:
         raise ValueError(f"`under {query.under}`: strategies are not supported on the product")
     mask = graph.label(query.expr, box=query.quantifier in ("A[]", "E[]"))

@@ -197,7 +197,9 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
         raise ValueError(f"truth_substeps must be a positive integer, not {truth_substeps!r}")
     horizon = _horizon(data, horizon_samples)
     if seed is None:
-        seed = int(np.random.SeedSequence().entropy)
+        entropy = np.random.SeedSequence().entropy
+        assert isinstance(entropy, int)  # a fresh SeedSequence draws one int from the OS
+        seed = entropy
     rng = np.random.default_rng(seed)
     model = BatchModel(data)
     pairs = action_pairs(data)
@@ -220,7 +222,7 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     for k in range(horizon):
         if k % data.decide_every == 0:
             allowed = everything if policy is None else _check_policy(policy(k, current.copy()), runs, n_pairs)
-            empty = ~allowed.any(axis=1)
+            empty = ~np.any(allowed, axis=1)
             if empty.any():
                 left_policy |= empty
                 allowed = allowed | empty[:, None]

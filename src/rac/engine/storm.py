@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import stormpy
@@ -85,14 +86,14 @@ class Verdict:
     trace: list[int] | None = None
 
 
-def _check(mdp: sm.SparseMdp, formula: str) -> tuple[np.ndarray, object]:
-    """Storm's value vector (all states) and scheduler for ``formula``."""
+def check_formula(mdp: sm.SparseMdp, formula: str) -> tuple[np.ndarray, object]:
+    """Storm's value vector (all states) and scheduler for ``formula`` (a PRISM-syntax property)."""
     prop = stormpy.parse_properties(formula)[0]
     result = stormpy.model_checking(mdp, prop, only_initial_states=False, extract_scheduler=True)
     return np.asarray(result.get_value_vector(), dtype=float), result.get_scheduler()
 
 
-def _scheduler_trace(graph: ExploredGraph, scheduler: object, good: np.ndarray, stop: np.ndarray) -> list[int] | None:
+def _scheduler_trace(graph: ExploredGraph, scheduler: Any, good: np.ndarray, stop: np.ndarray) -> list[int] | None:
     """Follow Storm's scheduler from the initial state while in ``good``, until a ``stop`` state
     (included), a terminal state or a repeated state; None when the path leaves ``good``."""
     state, path, seen = graph.initial, [], set()
@@ -146,7 +147,7 @@ def decide(graph: ExploredGraph, kind: str, prop_label: str) -> Verdict:
     target = ~p if negate else p
     atom = f'!"{prop_label}"' if negate else f'"{prop_label}"'
     if kind in ("E<>", "A[]"):
-        values, scheduler = _check(mdp, f"Pmax=? [F {atom}]")
+        values, scheduler = check_formula(mdp, f"Pmax=? [F {atom}]")
         reachable = values > 0.5
         exists = bool(reachable[graph.initial])
         trace = None
@@ -155,7 +156,7 @@ def decide(graph: ExploredGraph, kind: str, prop_label: str) -> Verdict:
             if trace is None or not target[trace[-1]]:
                 trace = _bfs_trace(graph, reachable, target)
     else:
-        values, scheduler = _check(mdp, f"Pmax=? [G {atom}]")
+        values, scheduler = check_formula(mdp, f"Pmax=? [G {atom}]")
         winning = values > 0.5
         exists = bool(winning[graph.initial])
         trace = None
@@ -199,7 +200,7 @@ def safety_shield(graph: ExploredGraph, safe_label: str) -> Shield:
     if safe_label not in graph.labels:
         raise KeyError(f"no state label {safe_label!r}")
     t0 = time.perf_counter()
-    values, _ = _check(to_mdp(graph), f'Pmax=? [G "{safe_label}"]')
+    values, _ = check_formula(to_mdp(graph), f'Pmax=? [G "{safe_label}"]')
     winning = values > 1.0 - 1e-9
     source = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
     allowed = winning[source] & winning[graph.choice_target]

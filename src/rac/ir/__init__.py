@@ -312,7 +312,7 @@ def evaluate_guard(guard: Guard, values: dict[str, object]) -> bool:
     if isinstance(guard, BInput):
         return bool(values[guard.name])
     if isinstance(guard, BAtom):
-        return compare(values[guard.input], guard.op, guard.threshold)  # type: ignore[arg-type]
+        return compare(values[guard.input], guard.op, guard.threshold)
     if isinstance(guard, BNot):
         return not evaluate_guard(guard.operand, values)
     if isinstance(guard, BAnd):

@@ -62,7 +62,7 @@ BOOL, NUM = "bool", "num"
 
 
 def _span() -> Span | None:
-    return field(default=None, compare=False, repr=False)  # type: ignore[return-value]
+    return field(default=None, compare=False, repr=False)
 
 
 class RefKind(Enum):

@@ -1,16 +1,22 @@
-"""Checked expressions back in ``.ra`` syntax, for messages and reports.
+"""The IR as text: checked expressions back in ``.ra`` syntax, and the walk over guards the targets share.
 
 The checker inlines constants and resolves names; :func:`format_checked` prints the result with the
 formatter of the language (:func:`rac.lang.format.format_expr`), names as written.
+:class:`GuardPrinter` prints the automaton's guards (:data:`rac.ir.Guard`) in a target's syntax: the
+target gives the operator table and prints the comparisons of numeric inputs.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
+from rac import ir
+from rac.core.printing import Level, Printed, Printer
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.lang.format import format_expr
 
-__all__ = ["format_checked"]
+__all__ = ["GuardPrinter", "format_checked"]
 
 
 def format_checked(expr: ie.Expr) -> str:
@@ -31,3 +37,29 @@ def _to_ast(expr: ie.Expr) -> ast.Expr:
     if isinstance(expr, ie.Unary):
         return ast.Unary(expr.op, _to_ast(expr.operand))
     return ast.Binary(expr.op, _to_ast(expr.left), _to_ast(expr.right))
+
+
+class GuardPrinter(Printer):
+    """Prints guards with the table of a subclass (keys ``"!"``, ``"&&"``, ``"||"``); ``names`` maps
+    each input to the target's expression holding it. A subclass prints :class:`rac.ir.BAtom`."""
+
+    def __init__(self, names: Mapping[str, str]) -> None:
+        self.names = names
+
+    def print_BConst(self, guard: ir.BConst) -> Printed:
+        return self.literal(guard.value)
+
+    def print_BInput(self, guard: ir.BInput) -> Printed:
+        return Printed(self.names[guard.name], Level.ATOM)
+
+    def print_BAtom(self, guard: ir.BAtom) -> Printed:
+        raise NotImplementedError("a target prints the comparisons of its numeric inputs")
+
+    def print_BNot(self, guard: ir.BNot) -> Printed:
+        return self.prefix("!", self.print(guard.operand))
+
+    def print_BAnd(self, guard: ir.BAnd) -> Printed:
+        return self.infix("&&", *(self.print(g) for g in guard.operands))
+
+    def print_BOr(self, guard: ir.BOr) -> Printed:
+        return self.infix("||", *(self.print(g) for g in guard.operands))

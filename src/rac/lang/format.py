@@ -5,7 +5,8 @@ Three layers:
 * :func:`format_expr` prints an expression with the fewest parentheses the grammar
   needs to read it back as the same tree (precedence, lowest first: ``imply``
   (right-associative), ``||``, ``&&``, comparisons (non-associative), ``+ -``,
-  ``* /`` (both left-associative), unary ``-`` and ``!``);
+  ``* /`` (both left-associative), unary ``-`` and ``!``: the table :data:`RA` of
+  :class:`RaPrinter`, a :class:`rac.core.printing.Printer`);
 * :func:`format_query` and :func:`format_member` print one query or declaration
   on one line (a ``model`` block: one item per line, :func:`format_model_item`);
 * :func:`format_module` lays out whole files: four-space indentation, one member
@@ -21,10 +22,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from fractions import Fraction
 
+from rac.core.printing import C_BINARY, Associativity, Level, Operator, OperatorTable, Printed, Printer, number
 from rac.lang import ast
 from rac.lang.parser import parse_text
 
-__all__ = ["format_expr", "format_member", "format_model_item", "format_module", "format_query", "format_source"]
+__all__ = ["RA", "RaPrinter", "format_expr", "format_member", "format_model_item", "format_module", "format_query",
+           "format_source"]
 
 INDENT = "    "
 
@@ -33,17 +36,13 @@ INDENT = "    "
 _ALIGN_LIMIT = 72
 
 # ---------------------------------------------------------------- expressions
-_BINARY_PRECEDENCE = {
-    "imply": 1,
-    "||": 2,
-    "&&": 3,
-    "<": 4, "<=": 4, ">": 4, ">=": 4, "==": 4, "!=": 4,
-    "+": 5, "-": 5,
-    "*": 6, "/": 6,
-}
-_COMPARISON = 4
-_UNARY = 7
-_ATOM = 8
+#: The `.ra` operators as grammar/rac.lark parses them: C's, and ``imply``, the loosest, which
+#: associates to the right.
+RA = OperatorTable(
+    binary={**C_BINARY, "imply": Operator(" imply ", Level.IMPLY, Associativity.RIGHT)},
+    # `!!a` needs no parentheses; `-(-a)` keeps them, for the reader (RaPrinter.print_Unary)
+    prefix={op: Operator(op, Level.PREFIX, Associativity.RIGHT) for op in ("-", "!")},
+)
 
 
 def _format_number(value: Fraction) -> str:
@@ -66,52 +65,44 @@ def _format_number(value: Fraction) -> str:
     return f"{digits[:-places]}.{digits[-places:]}"
 
 
-def _precedence(expr: ast.Expr) -> int:
-    if isinstance(expr, ast.Binary):
-        try:
-            return _BINARY_PRECEDENCE[expr.op]
-        except KeyError:
-            raise ValueError(f"unknown binary operator {expr.op!r}") from None
-    if isinstance(expr, ast.Unary):
-        return _UNARY
-    if isinstance(expr, ast.Number) and expr.value < 0:
-        return _UNARY
-    return _ATOM
+class RaPrinter(Printer):
+    """Prints `.ra` syntax trees (:mod:`rac.lang.ast`) with the fewest parentheses that read back
+    as the same tree."""
+
+    table = RA
+
+    def print_Number(self, node: ast.Number) -> Printed:
+        return number(_format_number(node.value))
+
+    def print_BoolLit(self, node: ast.BoolLit) -> Printed:
+        return self.literal(node.value)
+
+    def print_Name(self, node: ast.Name) -> Printed:
+        return Printed(node.id, Level.ATOM)
+
+    def print_Qualified(self, node: ast.Qualified) -> Printed:
+        return Printed(f"{node.scope}.{node.id}", Level.ATOM)
+
+    def print_Call(self, node: ast.Call) -> Printed:
+        return Printed(f"{node.func}({', '.join(self.print(a).text for a in node.args)})", Level.ATOM)
+
+    def print_Unary(self, node: ast.Unary) -> Printed:
+        self.unary(node.op)  # an unknown operator is reported before its operand
+        operand = self.print(node.operand)
+        if node.op == "-" and operand.text.startswith("-"):
+            operand = Printed(f"({operand.text})", Level.ATOM)  # `--x` would be hard to read
+        return self.prefix(node.op, operand)
+
+    def print_Binary(self, node: ast.Binary) -> Printed:
+        self.binary(node.op)  # an unknown operator is reported before its operands
+        return self.infix(node.op, self.print(node.left), self.print(node.right))
 
 
-def _operand(expr: ast.Expr, minimum: int) -> str:
-    text = _expr(expr)
-    return f"({text})" if _precedence(expr) < minimum else text
+_PRINTER = RaPrinter()
 
 
 def _expr(expr: ast.Expr) -> str:
-    if isinstance(expr, ast.Number):
-        return _format_number(expr.value)
-    if isinstance(expr, ast.BoolLit):
-        return "true" if expr.value else "false"
-    if isinstance(expr, ast.Name):
-        return expr.id
-    if isinstance(expr, ast.Qualified):
-        return f"{expr.scope}.{expr.id}"
-    if isinstance(expr, ast.Call):
-        return f"{expr.func}({', '.join(_expr(a) for a in expr.args)})"
-    if isinstance(expr, ast.Unary):
-        if expr.op not in ("-", "!"):
-            raise ValueError(f"unknown unary operator {expr.op!r}")
-        operand = _operand(expr.operand, _UNARY)
-        if expr.op == "-" and operand.startswith("-"):
-            operand = f"({operand})"  # `--x` would be hard to read
-        return expr.op + operand
-    if isinstance(expr, ast.Binary):
-        level = _precedence(expr)
-        if expr.op == "imply":  # right-associative
-            left, right = level + 1, level
-        elif level == _COMPARISON:  # non-associative
-            left, right = level + 1, level + 1
-        else:  # left-associative
-            left, right = level, level + 1
-        return f"{_operand(expr.left, left)} {expr.op} {_operand(expr.right, right)}"
-    raise TypeError(f"not an expression: {expr!r}")
+    return _PRINTER.print(expr).text
 
 
 def format_expr(expr: ast.Expr) -> str:

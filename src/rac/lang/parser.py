@@ -1,19 +1,26 @@
-"""Text → AST: the lark parser, an explicit Transformer, and syntax errors in user terms."""
+"""Text → AST: the lark parser's tree turned into :mod:`rac.lang.ast` nodes by an explicit Transformer.
+
+Three ways in, one per start rule of the grammar (:mod:`rac.lang.grammar`): a file
+(:func:`parse_source`), expressions (:func:`parse_expression`, :func:`parse_expressions`) and
+query declarations (:func:`parse_queries`). Syntax errors are put in user terms by
+:mod:`rac.lang.syntax_errors`.
+"""
 
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from fractions import Fraction
-from functools import lru_cache
 from pathlib import Path
 
-from lark import Lark, Token, Transformer, Tree, v_args
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
+from lark import Token, Transformer, Tree, v_args
+from lark.exceptions import UnexpectedInput, VisitError
 
 from rac.core.diagnostics import Diagnostic, error
 from rac.core.source import MAX_SOURCE_BYTES, SourceFile, Span
 from rac.lang import ast
-from rac.lang.resources import grammar_path
+from rac.lang.grammar import EXPRESSIONS, MODULE, QUERIES, lark_parser, terminal_regexp
+from rac.lang.syntax_errors import syntax_error
 
 
 class ParseFailure(Exception):
@@ -24,167 +31,6 @@ class ParseFailure(Exception):
         self.diagnostic = diagnostic
         #: The text the diagnostic points into, when there is one to show.
         self.source = source
-
-
-@lru_cache(maxsize=1)
-def _lark() -> Lark:
-    return Lark(
-        grammar_path().read_text(encoding="utf-8"),
-        parser="lalr",
-        lexer="contextual",
-        propagate_positions=True,
-        maybe_placeholders=True,
-        # The parse table is cached in the temp folder: saves ~0.1 s per `rac` start.
-        cache=True,
-    )
-
-
-# How terminals are named in messages. Literal terminals are shown as their text.
-_TERMINAL_WORDS = {
-    "NAME": "a name",
-    "NUMBER": "a number",
-    "CMP_OP": "a comparison (`<`, `<=`, `==`, ...)",
-    "ADD_OP": "`+` or `-`",
-    "MUL_OP": "`*` or `/`",
-    "ASSIGN_OP": "`=`, `+=` or `-=`",
-    "OR_OP": "`||`",
-    "OR_WORD": "`||`",
-    "AND_OP": "`&&`",
-    "AND_WORD": "`&&`",
-    "NUMERIC_TYPE": "`real` or `int`",
-    "OPTIMISE": "`maxE` or `minE`",
-    "MAXMIN": "`max` or `min`",
-    "A_BOX": "`A[]`",
-    "E_BOX": "`E[]`",
-    "A_DIAMOND": "`A<>`",
-    "E_DIAMOND": "`E<>`",
-    "PR_OPEN": "`Pr[`",
-    "E_OPEN": "`E[`",
-    "STRING": 'a file name in quotes (`"..."`)',
-    "$END": "end of file",
-}
-_DECLARATION_WORDS = ("input", "assume", "const", "reward", "priority", "objective", "sample",
-                      "horizon", "initial", "location", "edge", "at", "query", "model")
-_EXPRESSION_START = {"a name", "a number", "`true`", "`false`", "`(`", "`-`", "`!`", "`not`"}
-
-
-def _describe_terminal(name: str) -> str:
-    if name in _TERMINAL_WORDS:
-        return _TERMINAL_WORDS[name]
-    for terminal in _lark().terminals:
-        if terminal.name == name and terminal.pattern.type == "str":
-            return f"`{terminal.pattern.value}`"
-    return name.lower()
-
-
-def _describe_expected(expected: set[str]) -> str:
-    words = {_describe_terminal(t) for t in expected}
-    declaration_words = {f"`{w}`" for w in _DECLARATION_WORDS}
-    parts: list[str] = []
-    if len(words & declaration_words) >= 5:
-        words -= declaration_words
-        parts.append("a declaration (`input`, `reward`, `location`, `edge`, `query`, ...)")
-    if len(words & _EXPRESSION_START) >= 4:
-        words -= _EXPRESSION_START
-        parts.append("an expression")
-    operators = {w for w in words if w.startswith("`") and any(c in w for c in "+-*/<>=&|")}
-    if len(operators) >= 4:
-        words -= operators
-        parts.append("an operator")
-    parts.extend(sorted(words))
-    if len(parts) == 1:
-        return parts[0]
-    return ", ".join(parts[:-1]) + " or " + parts[-1]
-
-
-def _token_text(token: Token) -> str:
-    if token.type == "$END":
-        return "end of file"
-    return f"`{token.value}`"
-
-
-def _syntax_hints(found: str, expected: set[str]) -> list[str]:
-    hints = []
-    words = {_describe_terminal(t) for t in expected}
-    if found == "=" and "`==`" in words:
-        hints.append("a flow is written `reward' == rate`, with `==`")
-    if found == ":=":
-        hints.append("assignments are written `reward = expr` (UPPAAL's `:=` is old syntax)")
-    if found in ("{", "}") and "RBRACE" in expected:
-        hints.append("check that every `{` has a matching `}`")
-    if found == ";" and "RBRACE" not in expected:
-        hints.append("`;` only separates flows inside a location; declarations need no terminator")
-    return hints
-
-
-#: Comments, strings (whose text may hold ``//`` or ``/*``) and an unclosed ``/*``, lexed like the grammar.
-_COMMENT_SCAN = re.compile(r'(?P<line>//[^\n]*)|(?P<block>/\*.*?\*/)|(?P<string>"[^"\n]*")|(?P<open>/\*)', re.DOTALL)
-
-
-def _unterminated_comment(text: str) -> int | None:
-    """Offset of the first ``/*`` that is never closed (lexed like the grammar does), if any."""
-    for match in _COMMENT_SCAN.finditer(text):
-        if match.lastgroup == "open":
-            return match.start()
-    return None
-
-
-def _acceptable(exc: UnexpectedInput) -> set[str]:
-    """The terminals the parser really accepts at the error (LALR tables over-approximate)."""
-    parser = getattr(exc, "interactive_parser", None)
-    accepted: set[str] = set()
-    if parser is not None:
-        try:
-            accepted = set(parser.accepts())
-        except UnexpectedInput:
-            accepted = set()
-    return accepted or set(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or ())
-
-
-def _end_of_text(source: SourceFile) -> Span:
-    """Where "unexpected end of file" points: just after the last non-blank character."""
-    end = len(source.text.rstrip())
-    return source.span(end, end)
-
-
-_CHARACTER_HINTS = {
-    "&": "logical and is written `&&` (or `and`)",
-    "|": "logical or is written `||` (or `or`)",
-    '"': 'a file name is written in double quotes on one line: `scenario "left_turn.xml"`',
-}
-
-
-def _syntax_error(exc: UnexpectedInput, source: SourceFile) -> Diagnostic:
-    at_end = isinstance(exc, UnexpectedEOF) or (isinstance(exc, UnexpectedToken) and exc.token.type == "$END")
-    if at_end:
-        where = len(source.text)
-    elif isinstance(exc, UnexpectedToken) and exc.token.start_pos is not None:
-        where = exc.token.start_pos
-    else:
-        where = getattr(exc, "pos_in_stream", None) or 0
-    comment = _unterminated_comment(source.text)
-    if comment is not None and comment <= where:
-        # Without its `*/` the lexer reads `/*` as a division and a product: say what happened.
-        return error("E0003", "unterminated block comment", source.span(comment, comment + 2),
-                     hints=["close the comment with `*/`"])
-    expected = _acceptable(exc)
-    notes = [f"expected {_describe_expected(expected)}"] if expected else []
-    if isinstance(exc, UnexpectedCharacters):
-        start = exc.pos_in_stream
-        char = source.text[start]
-        shown = repr(char)[1:-1] if not char.isprintable() or char == " " else char
-        hints = [_CHARACTER_HINTS[char]] if char in _CHARACTER_HINTS else []
-        return error("E0002", f"unexpected character `{shown}`", source.span(start, start + 1),
-                     notes=notes, hints=hints)
-    if at_end:
-        hints = ["check that every `{` has a matching `}`"] if "RBRACE" in expected else []
-        return error("E0001", "unexpected end of file", _end_of_text(source), notes=notes, hints=hints)
-    if isinstance(exc, UnexpectedToken):
-        start = where
-        span = source.span(start, exc.token.end_pos or start + len(exc.token.value))
-        return error("E0001", f"unexpected {_token_text(exc.token)}", span, notes=notes,
-                     hints=_syntax_hints(str(exc.token.value), expected))
-    return error("E0001", "syntax error", _end_of_text(source))
 
 
 def _fold(items: list, meta_span: Span | None, build) -> ast.Expr:
@@ -230,6 +76,12 @@ class _ToAst(Transformer):
     # ---- file structure
     def start(self, meta, automata):
         return ast.Module(tuple(automata), span=self._sp(meta))
+
+    def expr_list(self, meta, exprs):
+        return tuple(exprs)
+
+    def query_list(self, meta, decls):
+        return tuple(decls)
 
     def automaton(self, meta, items):
         name, *members = items
@@ -325,8 +177,6 @@ class _ToAst(Transformer):
 
     def plain_query(self, meta, items):
         query, under = items
-        from dataclasses import replace
-
         return replace(query, under=under, span=self._sp(meta))
 
     def under(self, meta, items):
@@ -364,8 +214,6 @@ class _ToAst(Transformer):
 
     def strategy_query(self, meta, items):
         name, body, under = items
-        from dataclasses import replace
-
         return replace(body, name=str(name), under=under, span=self._sp(meta))
 
     def s_control(self, meta, items):
@@ -547,31 +395,34 @@ def _check_nesting(tree: Tree, source: SourceFile) -> None:
         stack.extend(reversed([c for c in node.children if isinstance(c, Tree)]))
 
 
-def parse_source(source: SourceFile) -> ast.Module:
-    """Parse text into an AST; raise :class:`ParseFailure` on the first syntax error."""
-    comments: list[ast.Comment] = []
+def _parse(source: SourceFile, start: str) -> object:
+    """``source`` parsed from the start rule ``start`` and transformed into AST nodes;
+    :class:`ParseFailure` on the first syntax error or on nesting beyond :data:`MAX_NESTING`."""
     try:
-        tree = _lark().parse(source.text)
+        tree = lark_parser().parse(source.text, start=start)
     except UnexpectedInput as exc:
-        raise ParseFailure(_syntax_error(exc, source)) from None
+        raise ParseFailure(syntax_error(exc, source, start)) from None
     except RecursionError:
         raise ParseFailure(error("E0006", "expression nested too deeply", source.end_span)) from None
     _check_nesting(tree, source)
     try:
-        module = _ToAst(source).transform(tree)
+        return _ToAst(source).transform(tree)
     except RecursionError:
         raise ParseFailure(error("E0006", "expression nested too deeply", source.end_span)) from None
     except VisitError as exc:
         if isinstance(exc.orig_exc, RecursionError):
             raise ParseFailure(error("E0006", "expression nested too deeply", source.end_span)) from None
         raise exc.orig_exc from None
-    comments = _collect_comments(source)
+
+
+def parse_source(source: SourceFile) -> ast.Module:
+    """Parse text into an AST; raise :class:`ParseFailure` on the first syntax error."""
+    module = _parse(source, MODULE)
+    assert isinstance(module, ast.Module)
     if not module.automata:
         raise ParseFailure(error("E0007", "the file declares no automaton", source.span(0, 0),
                                  hints=["start with `automaton Name { ... }`"]))
-    from dataclasses import replace
-
-    return replace(module, comments=tuple(comments))
+    return replace(module, comments=tuple(_collect_comments(source)))
 
 
 def _collect_comments(source: SourceFile) -> list[ast.Comment]:
@@ -580,8 +431,7 @@ def _collect_comments(source: SourceFile) -> list[ast.Comment]:
     Strings are matched too, and skipped: ``scenario "maps//a.xml"`` holds no comment.
     """
     comments = []
-    terminals = {t.name: t for t in _lark().lexer_conf.terminals}
-    pattern = re.compile("|".join(f"(?P<{name}>{terminals[name].pattern.to_regexp()})"
+    pattern = re.compile("|".join(f"(?P<{name}>{terminal_regexp(name)})"
                                   for name in ("LINE_COMMENT", "BLOCK_COMMENT", "STRING")), re.DOTALL)
     for match in pattern.finditer(source.text):
         if match.lastgroup != "STRING":
@@ -594,9 +444,20 @@ def parse_text(text: str, name: str = "<string>") -> ast.Module:
     return parse_source(SourceFile(name, text))
 
 
-def parse_tree(text: str) -> Tree:
-    """The raw lark tree (for debugging the grammar)."""
-    return _lark().parse(text)
+def parse_expressions(source: SourceFile) -> tuple[ast.Expr, ...]:
+    """Expressions separated by commas (``mindist(), 3 * collision_distance``), parsed, not checked;
+    :class:`ParseFailure` when the text is not such a list."""
+    exprs = _parse(source, EXPRESSIONS)
+    assert isinstance(exprs, tuple)
+    return exprs
+
+
+def parse_queries(source: SourceFile) -> tuple[ast.QueryDecl, ...]:
+    """Query declarations one after another (``query Qb: E[] !collide()``), as inside an
+    automaton, parsed, not checked; :class:`ParseFailure` on a syntax error."""
+    decls = _parse(source, QUERIES)
+    assert isinstance(decls, tuple)
+    return decls
 
 
 class ExpressionError(ValueError):
@@ -613,17 +474,14 @@ def parse_expression(text: str, name: str = "<expr>") -> ast.Expr:
     """One expression of the query language (e.g. ``"10*!isClose + comf"``), parsed, not checked:
     names are resolved when the expression is evaluated. :class:`ExpressionError` (a
     ``ValueError``) when the text is not one expression; its message starts with the text."""
-    # A `simulate` query holds a list of expressions: the grammar's way in for a bare one.
-    prefix = "automaton X {\nquery E: simulate[<=1;1]{"
     try:
-        module = parse_source(SourceFile(name, f"{prefix}{text}\n}}\n}}\n"))
+        exprs = parse_expressions(SourceFile(name, text))
     except ParseFailure as failure:
         span = failure.diagnostic.span
-        if span is not None and span.start >= len(prefix) + len(text.rstrip()):
-            # the error is at the wrapper's `}`, after the text: say so, not "unexpected `}`"
+        if span is not None and span.start >= len(text.rstrip()):
+            # the text ends where more was expected: say so, not "unexpected end of file"
             raise ExpressionError(f"`{text}`: the expression is incomplete", incomplete=True) from None
         raise ExpressionError(f"`{text}`: {failure.diagnostic.message}") from None
-    exprs = module.automata[0].members[0].query.exprs  # type: ignore[union-attr]
     if len(exprs) != 1:
         raise ExpressionError(f"`{text}`: expected one expression, not {len(exprs)}", count=len(exprs))
     return exprs[0]

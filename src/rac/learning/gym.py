@@ -36,6 +36,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 from fractions import Fraction
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, SupportsFloat, runtime_checkable
 
 import gymnasium
@@ -80,7 +81,7 @@ def _load(automaton: str | os.PathLike[str] | ir.Automaton | AutomatonLike) -> A
         from rac.compiler import compile_file
         from rac.core.diagnostics import CheckError
 
-        result = compile_file(automaton)
+        result = compile_file(Path(automaton))
         if not result.ok or result.automaton is None:
             raise CheckError(result.diagnostics, getattr(result, "sources", None))
         return RewardAutomaton(result.automaton)
@@ -151,7 +152,7 @@ def _compile(model: str | os.PathLike[str] | CompileResult) -> CompileResult:
     from rac.compiler import CompileResult, compile_file
     from rac.core.diagnostics import CheckError
 
-    result = compile_file(model) if isinstance(model, (str, os.PathLike)) else model
+    result = compile_file(Path(model)) if isinstance(model, (str, os.PathLike)) else model
     if not isinstance(result, CompileResult):
         raise TypeError(f"model must be a .ra path or a CompileResult, not {type(model).__name__}")
     if not result.ok or result.automaton is None:
@@ -165,7 +166,7 @@ def _shield(shield: str | os.PathLike[str] | ShieldTable | None, columns: tuple[
 
     if shield is None:
         return None
-    table = shield_file.load(shield) if isinstance(shield, (str, os.PathLike)) else shield
+    table = shield_file.load(Path(shield)) if isinstance(shield, (str, os.PathLike)) else shield
     if not isinstance(table, shield_file.ShieldTable):
         raise TypeError(f"shield must be a shield file or a ShieldTable, not {type(shield).__name__}")
     if tuple(table.columns) != columns or table.n_actions != n_actions:
@@ -241,7 +242,7 @@ class ScenarioEnv(gymnasium.Env):
         self.observation_space = gymnasium.spaces.Box(
             low=np.array([-bound] * 7 + [0.0], dtype=np.float32), high=np.array([bound] * 7 + [end], dtype=np.float32),
             dtype=np.float32)
-        self.action_space = gymnasium.spaces.Discrete(self.episodes.n_actions)
+        self.action_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(self.episodes.n_actions)
         self._last: dict[str, bool] = {}
 
     @property

@@ -238,7 +238,7 @@ class BatchModel:
             bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
             if bad.any():
                 row = int(np.flatnonzero(bad)[0])
-                native._sig(what, float(value[row]))  # raises the same error as native
+                native.significand(what, float(value[row]))  # raises the same error as native
                 raise ModelRangeError(f"sense(): {what}", float(value[row]), None, self.data.scale)
             out[:, column] = scaled.astype(np.int64)  # truncation toward zero, like int()
         out[:, 5] = states[:, 5]
@@ -324,7 +324,7 @@ class BatchModel:
         px = np.concatenate([ex + ca * hl * c - cb * hw * s for ca, cb in CORNERS])
         py = np.concatenate([ey + ca * hl * s + cb * hw * c for ca, cb in CORNERS])
         inside = self._road.inside(px, py)
-        return ~inside.reshape(len(CORNERS), states.shape[0]).all(axis=0)
+        return ~np.all(inside.reshape(len(CORNERS), states.shape[0]), axis=0)
 
     def goal(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         """:meth:`NativeModel.goal` per row: in the goal interval and the centre in a goal polygon."""

@@ -148,7 +148,7 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
         try:
             cr_scenario, problems = CommonRoadFileReader(data).open()
         except Exception as error:  # whatever commonroad-io raises becomes a ScenarioError
-            diagnosis = _diagnose(path, root, error)
+            diagnosis: ScenarioError | None = _diagnose(path, root, error)
         else:
             diagnosis = None
         if diagnosis is not None:
@@ -412,7 +412,10 @@ def _obstacle(path, element: str, obstacle, static: bool, dt: float) -> Obstacle
                                                "rac needs a trajectory")
         states = [obstacle.initial_state, *prediction.trajectory.state_list]
 
-    steps, points, headings, speeds = [], [], [], []
+    steps: list[int] = []
+    points: list[tuple[float, float]] = []
+    headings: list[float | None] = []  # None: not given, derived from the motion below
+    speeds: list[float | None] = []
     for state in states:
         what = f"the state at time step {getattr(state, 'time_step', '?')}"
         step = _time_step(path, element, state, what)

@@ -338,6 +338,8 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
             where = f"{name} waypoint {j}" if elapsed == 0 else f"{name} waypoint {j} moved on to sample {k}"
             wp["time"].append(max(INT32_LOW, min(INT32_MAX, k)))
             wp["vel"].append(sig(f"{where} velocity", point.velocity))
+            x: Number
+            y: Number
             if elapsed == 0:  # the state itself: its decimals as they are
                 x, y = point.x, point.y
             else:  # straight on from it, exactly but for the double cos and sin of its heading

@@ -288,7 +288,8 @@ def _check_schema(data: bytes) -> None:
     xsd = Path(commonroad.__file__).parent / "common" / "xml_definition_files" / "XML_commonRoad_XSD.xsd"
     schema = etree.XMLSchema(etree.parse(str(xsd)))
     if not schema.validate(etree.fromstring(data)):
-        raise RuntimeError(f"the generated scenario does not match {xsd.name}: {schema.error_log.last_error}")
+        last = schema.error_log.last_error  # type: ignore[attr-defined]  # lxml has it; lxml-stubs 0.5 does not
+        raise RuntimeError(f"the generated scenario does not match {xsd.name}: {last}")
 
 
 #: Elements the writer emits from Python sets, one element per member.

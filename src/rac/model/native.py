@@ -106,7 +106,8 @@ class NativeModel:
     def _d(self, significand: int) -> float:
         return significand / self.scale_d
 
-    def _sig(self, what: str, value: float) -> int:
+    def significand(self, what: str, value: float) -> int:
+        """``trunc(value · scale)``, or :class:`ModelRangeError` naming ``what`` when it leaves int32."""
         scaled = value * self.scale_d
         if not -2147483648.0 < scaled < 2147483648.0:  # also rejects NaN
             significand = int(scaled) if math.isfinite(scaled) else None
@@ -160,7 +161,7 @@ class NativeModel:
                 v = vmin
             x = x + v * math.cos(head) * u
             y = y + v * math.sin(head) * u
-        sig = self._sig
+        sig = self.significand
         return State(sig("x", x), sig("y", y), sig("v", v), sig("acc", acc), sig("head", head),
                      state.jerk, state.turn)
 

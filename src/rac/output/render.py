@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon
 from PIL import Image
@@ -218,7 +219,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
         # the whole path faintly, the part driven so far solid: in the GIF one sees where the ego is going
         ax.plot(ego[:, 0], ego[:, 1], color=EGO_COLOUR, linewidth=1.2, linestyle="--", alpha=0.6, zorder=28)
         (driven,) = ax.plot([], [], color=EGO_COLOUR, linewidth=1.8, zorder=29)
-        body = Polygon(_corners(*ego[0], length, width), closed=True, facecolor=EGO_COLOUR, edgecolor="black",
+        x0, y0, head0 = ego[0]
+        body = Polygon(_corners(x0, y0, head0, length, width), closed=True, facecolor=EGO_COLOUR, edgecolor="black",
                        linewidth=0.8, alpha=0.9, zorder=30)
         ax.add_patch(body)
         ax.legend(handles=[Line2D([], [], color=EGO_COLOUR, linewidth=1.8, label="ego path"),
@@ -229,7 +231,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
         def show(sample: int, step: int) -> None:
             scene.show_obstacles(step)
             driven.set_data(ego[: sample + 1, 0], ego[: sample + 1, 1])
-            body.set_xy(_corners(*ego[sample], length, width))
+            x, y, head = ego[sample]
+            body.set_xy(_corners(x, y, head, length, width))
             ax.set_title(f"{name}: t = {step * dt:.1f} s (step {step}, sample {sample + 1} of {n_samples})",
                          fontsize=10)
 
@@ -249,7 +252,9 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
             for sample in samples:
                 show(int(sample), step_of(int(sample)))
                 figure.canvas.draw()
-                frames.append(Image.fromarray(np.asarray(figure.canvas.buffer_rgba())).convert("RGB"))
+                canvas = figure.canvas
+                assert isinstance(canvas, FigureCanvasAgg)  # new_figure's
+                frames.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
             _write_gif(frames, gif_path, frame_ms=period * 1000 * (samples[1] - samples[0] if len(samples) > 1 else 1))
     return png
 

@@ -227,9 +227,13 @@ class BatchRewardAutomaton(AutomatonDescription):
     def _build_tables(self, atoms: dict[ir.Guard, int],
                       classes: dict[tuple[ir.Assignment, ...], int]) -> None:
         a = len(atoms)
-        self._atom_list = [(atom.name, None, 0.0) if isinstance(atom, ir.BInput)
-                           else (atom.input, _NP_OPS[atom.op], to_float(atom.threshold, "threshold"))
-                           for atom in atoms]  # type: ignore[union-attr]
+        self._atom_list: list[tuple[str, Any, float]] = []
+        for atom in atoms:  # an atom is an input or a comparison (ir.atoms_of)
+            if isinstance(atom, ir.BInput):
+                self._atom_list.append((atom.name, None, 0.0))
+            else:
+                assert isinstance(atom, ir.BAtom)
+                self._atom_list.append((atom.input, _NP_OPS[atom.op], to_float(atom.threshold, "threshold")))
         self._atom_bits = a
         self._code_dtype = np.uint8 if a <= 8 else np.uint16
         combos = [{atom: bool(code >> bit & 1) for atom, bit in atoms.items()} for code in range(1 << a)]
@@ -394,7 +398,7 @@ class BatchRewardAutomaton(AutomatonDescription):
                     truth = x[name] if op is None else op(x[name], threshold)
                     term = truth.astype(self._code_dtype)
                     if bit:
-                        term <<= bit
+                        np.left_shift(term, bit, out=term)
                         code |= term
                     else:
                         code = term

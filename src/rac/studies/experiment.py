@@ -33,13 +33,17 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from rac.compiler import CompileResult
 from rac.ir import query as iq
 
-__all__ = ["COMBINATIONS", "PAPER_REWARD_FUNCTION", "ExperimentError", "render_markdown", "run_experiment"]
+__all__ = ["COMBINATIONS", "PAPER_REWARD_FUNCTION", "ExperimentError", "Report", "render_markdown", "run_experiment"]
+
+#: The experiment's report and its summary rows (JSON-shaped: written as JSON and as Markdown).
+Report = dict[str, Any]
 
 #: The paper's Eq. 9 with its ``safe`` written as ``!isClose``.
 PAPER_REWARD_FUNCTION = "10 * !isClose + (5 + 100 * goal()) * prog + comf"
@@ -103,7 +107,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                    evaluation_runs: int = 100, reward_function: str | None = None, horizon_samples: int | None = None,
                    parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
                    bins: Sequence[float] | None = None,
-                   progress: Callable[[str], None] | None = None) -> dict[str, object]:
+                   progress: Callable[[str], None] | None = None) -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
     ``bins``: the widths of the continuous observations (default :func:`rac.learning.qlearning.default_bin`)."""
     from rac.learning.episodes import EpisodeBatch, parse_expr
@@ -138,7 +142,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
             batch = EpisodeBatch(result, reward="automaton", horizon_samples=horizon)
             table = shield_table if shielded else None
             rewarded = batch if kind == "automaton" else ObjectiveIncrease(batch, rf)
-            outcome = learn(rewarded, discrete=discrete, continuous=continuous, shield=table, episodes=episodes,  # type: ignore[arg-type]
+            outcome = learn(rewarded, discrete=discrete, continuous=continuous, shield=table, episodes=episodes,
                             parallel=parallel, seed=seed, bins=bins)
             evaluation = evaluate(batch, outcome.strategy, runs=evaluation_runs, shield=table, seed=seed,
                                   epsilon=EVALUATION_NOISE)
@@ -167,9 +171,9 @@ def _mean_sd(values: Sequence[float]) -> str:
     return f"{shown} ± {sd:.0f}" if whole or sd >= 100 else f"{shown} ± {sd:.2g}"
 
 
-def summary(report: dict[str, object]) -> list[dict[str, object]]:
+def summary(report: Report) -> list[Report]:
     """Per combination: mean and spread over the seeds."""
-    records: list[RunRecord] = report["records"]  # type: ignore[assignment]
+    records: list[RunRecord] = report["records"]
     rows = []
     for label in dict.fromkeys(r.combination for r in records):
         runs = [r for r in records if r.combination == label]
@@ -187,7 +191,7 @@ def summary(report: dict[str, object]) -> list[dict[str, object]]:
     return rows
 
 
-def render_markdown(report: dict[str, object]) -> str:
+def render_markdown(report: Report) -> str:
     """The experiment as a markdown table (mean ± standard deviation over the seeds)."""
     rows = summary(report)
     lines = [
@@ -198,37 +202,37 @@ def render_markdown(report: dict[str, object]) -> str:
     ]
     for row in rows:
         n = row["seeds"]
-        first = _mean_sd(row["first_success"])  # type: ignore[arg-type]
+        first = _mean_sd(row["first_success"])
         if row["never_succeeded"]:
             first += f" ({row['never_succeeded']} of {n} seeds never)"
         lines.append(
-            f"| {row['combination']} | {_mean_sd(row['seconds'])} | {first} | {_mean_sd(row['episodes'])} | "  # type: ignore[arg-type]
-            f"{_mean_sd(row['collisions'])} | {row['greedy_success']} of {n} seeds | "  # type: ignore[arg-type]
-            f"{_mean_sd([100 * v for v in row['evaluation']])} % |")  # type: ignore[union-attr]
+            f"| {row['combination']} | {_mean_sd(row['seconds'])} | {first} | {_mean_sd(row['episodes'])} | "
+            f"{_mean_sd(row['collisions'])} | {row['greedy_success']} of {n} seeds | "
+            f"{_mean_sd([100 * v for v in row['evaluation']])} % |")
     notes = [
         "",
         f"Safety shield: {report['shield_states']:,} states, {report['shield_seconds']:.2f} s (computed once, "
         "used by SS&RA and SS&RF).",
-        f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} episodes per run; horizon "  # type: ignore[call-overload]
+        f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} episodes per run; horizon "
         f"{report['horizon_samples']} samples; reward function `{report['reward_function']}`; observation "
-        f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}}.",  # type: ignore[index]
+        f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}}.",
         "Values are mean ± standard deviation over the seeds; 'episodes until the first safe goal' counts only "
         "the seeds that got there.",
     ]
     return "\n".join(lines + notes)
 
 
-def _evaluation_runs(report: dict[str, object]) -> int:
-    records: list[RunRecord] = report["records"]  # type: ignore[assignment]
+def _evaluation_runs(report: Report) -> int:
+    records: list[RunRecord] = report["records"]
     return records[0].evaluation_runs if records else 0
 
 
-def write_outputs(report: dict[str, object], out_dir: Path) -> list[Path]:
+def write_outputs(report: Report, out_dir: Path) -> list[Path]:
     """``experiment.md``, ``results.json``, ``returns.png`` and ``first_success.png`` in ``out_dir``."""
     from rac.output.plots import plot_first_success, plot_learning_curves
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    records: list[RunRecord] = report["records"]  # type: ignore[assignment]
+    records: list[RunRecord] = report["records"]
     written = []
     markdown = out_dir / "experiment.md"
     _write_text(markdown, render_markdown(report) + "\n")
@@ -258,7 +262,7 @@ def write_outputs(report: dict[str, object], out_dir: Path) -> list[Path]:
     firsts: dict[str, list[int | None]] = {}
     for r in records:
         firsts.setdefault(r.combination, []).append(r.first_success_episode)
-    written.append(plot_first_success(firsts, int(report["episodes"]), out_dir / "first_success.png"))  # type: ignore[call-overload]
+    written.append(plot_first_success(firsts, int(report["episodes"]), out_dir / "first_success.png"))
     return written
 
 

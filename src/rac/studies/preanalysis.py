@@ -26,6 +26,7 @@ import math
 import time
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,7 +39,10 @@ from rac.engine.stats import clopper_pearson
 from rac.model.batch import BatchModel
 from rac.model.data import ModelData, ModelRangeError, build_model_data
 
-__all__ = ["SweepError", "render_table", "sweep"]
+__all__ = ["Row", "SweepError", "render_table", "sweep"]
+
+#: One row of the sweep (JSON-shaped: the CLI prints it as JSON and as a table).
+Row = dict[str, Any]
 
 #: The exponent at which true distances are measured (0.1 mm at base 10).
 TRUTH_EXPONENT = 4
@@ -73,8 +77,10 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
     """``(N, T*m+1)`` distances of the ground truth to the nearest obstacle at every CommonRoad
     time step (``m`` per sensing period), measured on a model at exponent :data:`TRUTH_EXPONENT`
     whose sensing period is one time step — so a long period cannot hide a close encounter."""
-    m = _substeps_per_sample(spec, result.scenario.dt)  # type: ignore[union-attr]
-    fine = build_model_data(result.scenario, dataclasses.replace(  # type: ignore[arg-type]
+    scenario = result.scenario
+    assert scenario is not None  # sweep() refuses a model without one
+    m = _substeps_per_sample(spec, scenario.dt)
+    fine = build_model_data(scenario, dataclasses.replace(
         spec, exponent=TRUTH_EXPONENT, sense_period=spec.sense_period / m, decide_period=spec.sense_period / m))
     model = BatchModel(fine)
     scale = float(fine.scale)
@@ -98,12 +104,14 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
 
 
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
-         max_states: int, threshold_factor: int, out_dir: Path | None) -> dict[str, object]:
-    row: dict[str, object] = {"exponent": spec.exponent, "sense": float(spec.sense_period),
+         max_states: int, threshold_factor: int, out_dir: Path | None) -> Row:
+    row: Row = {"exponent": spec.exponent, "sense": float(spec.sense_period),
                               "decide": float(spec.decide_period)}
+    scenario = result.scenario
+    assert scenario is not None  # sweep() refuses a model without one
     try:
-        data = build_model_data(result.scenario, spec)  # type: ignore[arg-type]
-        build_model_data(result.scenario, dataclasses.replace(spec, exponent=TRUTH_EXPONENT))  # type: ignore[arg-type]
+        data = build_model_data(scenario, spec)
+        build_model_data(scenario, dataclasses.replace(spec, exponent=TRUTH_EXPONENT))
     except ModelRangeError as exc:
         row["error"] = f"the scenario does not fit int32 at this exponent: {exc}"
         return row
@@ -141,7 +149,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     true = _true_distances(result, spec, shielded, data)
     row["sensed_min"] = sensed.min(axis=1)
     row["true_min"] = true.min(axis=1)
-    below = int((row["true_min"] < threshold).sum())  # type: ignore[operator]
+    below = int((row["true_min"] < threshold).sum())
     row["below"] = below
     row["below_interval"] = clopper_pearson(below, runs)
     row["left_shield"] = int(shielded.left_policy.sum())
@@ -161,7 +169,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
 def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | None = None,
           decides: str | None = None, runs: int = 100, horizon: Fraction | None = None, seed: int | None = None,
           max_states: int = 5_000_000, out_dir: Path | None = None, quiet: bool = True,
-          threshold_factor: int = 1) -> list[dict[str, object]]:
+          threshold_factor: int = 1) -> list[Row]:
     """Answer Qa–Qd and the shielded Fig. 7 runs for every setting of the grid; one dict per setting.
 
     ``exponents``, ``senses``, ``decides``: comma-separated lists (None: the file's own value).
@@ -176,7 +184,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
     grid = list(itertools.product(_values(exponents, Fraction(spec.exponent), "--exponent", whole=True),
                                   _values(senses, spec.sense_period, "--sense"),
                                   _values(decides, spec.decide_period, "--decide")))
-    rows = []
+    rows: list[Row] = []
     from rac.output.progress import Progress
 
     with Progress(total=len(grid), desc="settings", unit="settings", enabled=False if quiet else None) as bar:
@@ -200,7 +208,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
 
             out_dir.mkdir(parents=True, exist_ok=True)
             sweep_rows = [{"exponent": r["exponent"], "sense": r["sense"], "decide": r["decide"],
-                           "min_distances": list(r["true_min"]), "threshold": r["threshold"],  # type: ignore[call-overload]
+                           "min_distances": list(r["true_min"]), "threshold": r["threshold"],
                            "probability": r["below_interval"]} for r in plotted]
             path = plot_sweep(sweep_rows, out_dir / "sweep.png", xlabel="smallest true distance of a run (m)",
                               threshold_label=_td(threshold_factor),
@@ -213,8 +221,8 @@ def _td(factor: int) -> str:
     return "TD (collision)" if factor == 1 else f"{factor}·TD"
 
 
-def _jsonable(row: dict[str, object]) -> dict[str, object]:
-    out: dict[str, object] = {}
+def _jsonable(row: Row) -> Row:
+    out: Row = {}
     for key, value in row.items():
         if isinstance(value, np.ndarray):
             out[key] = [round(float(v), 4) for v in value]
@@ -231,7 +239,7 @@ def _yes(value: object) -> str:
     return "—" if value is None else ("true" if value else "false")
 
 
-def render_table(rows: list[dict[str, object]]) -> str:
+def render_table(rows: list[Row]) -> str:
     """The sweep as a markdown table (what ``rac preanalyse`` prints)."""
     lines = ["| exponent | C1 (s) | C2 (s) | Qa: Pr sensor error | Qb | Qc | Qd | states | time (s) | "
              "runs below threshold under the shield (true distance) |",
@@ -247,12 +255,12 @@ def render_table(rows: list[dict[str, object]]) -> str:
             lines.append(f"{head} {row['error']} | | | | | | |")
             continue
         qa = row.get("qa")
-        qa_text = f"[{qa[0]:.3f}, {qa[1]:.3f}]" if qa else "—"  # type: ignore[index]
+        qa_text = f"[{qa[0]:.3f}, {qa[1]:.3f}]" if qa else "—"
         below = "—"
         if "below" in row:
             interval = row["below_interval"]
-            below = (f"{row['below']} of {len(row['true_min'])} (Pr in [{interval[0]:.3f}, {interval[1]:.3f}]); "  # type: ignore[arg-type, index]
-                     f"min {min(row['true_min']):.2f} m vs {row['threshold']:g} m")  # type: ignore[arg-type, type-var]
+            below = (f"{row['below']} of {len(row['true_min'])} (Pr in [{interval[0]:.3f}, {interval[1]:.3f}]); "
+                     f"min {min(row['true_min']):.2f} m vs {row['threshold']:g} m")
         lines.append(f"{head} {qa_text} | {_yes(row.get('qb'))} | {_yes(row.get('qc'))} | {_yes(row.get('qd'))} | "
                      f"{row.get('states', 0):,} | {row.get('seconds', 0):.2f} | {below} |")
     return "\n".join(lines + ([""] + notes if notes else []))

@@ -35,9 +35,11 @@ from importlib import resources
 import jinja2
 
 from rac import ir
+from rac.core.printing import COMPARISONS, Associativity, Level, Operator, OperatorTable, Printed, number, signed_sum
+from rac.ir.text import GuardPrinter
 from rac.runtime.semantics import FloatLinear, check_automaton, float_linear, input_specs, to_float
 
-__all__ = ["generate_python", "print_expr"]
+__all__ = ["PYTHON", "PythonGuards", "generate_python", "print_expr"]
 
 _TEMPLATE = "python_module.py.j2"
 _LINE = 110
@@ -45,6 +47,20 @@ _RESERVED = {"Mapping", "math", "annotations", "_key_error", "_range_error"}
 
 
 # ---------------------------------------------------------------- the printer
+#: Python's operators for guards: ``not`` binds looser than comparisons, and ``and``/``or`` are
+#: associative (every guard value is a bool), so their chains need no parentheses.
+PYTHON = OperatorTable(
+    binary={
+        "||": Operator(" or ", Level.OR, Associativity.ASSOCIATIVE),
+        "&&": Operator(" and ", Level.AND, Associativity.ASSOCIATIVE),
+        **COMPARISONS,
+    },
+    prefix={"!": Operator("not ", Level.NOT, Associativity.RIGHT)},
+    true="True",
+    false="False",
+)
+
+
 def _num(value: float) -> str:
     text = repr(float(value))
     if text in ("inf", "-inf", "nan"):
@@ -52,32 +68,34 @@ def _num(value: float) -> str:
     return text
 
 
+class PythonGuards(GuardPrinter):
+    """Prints guards as Python (:data:`PYTHON`); a numeric input is compared with its threshold as a float."""
+
+    table = PYTHON
+
+    def print_BAtom(self, guard: ir.BAtom) -> Printed:
+        threshold = number(_num(to_float(guard.threshold, "threshold")))
+        return self.infix(guard.op, Printed(self.names[guard.input], Level.ATOM), threshold)
+
+    def print_BNot(self, guard: ir.BNot) -> Printed:
+        if isinstance(guard.operand, ir.BNot):  # every guard value is a bool: not not g == g
+            return self.print(guard.operand.operand)
+        return super().print_BNot(guard)
+
+
 def print_expr(node: FloatLinear | ir.Guard, names: Mapping[str, str],
-               never_negative_zero: Iterable[str] = (), *, precedence: int = 0) -> str:
+               never_negative_zero: Iterable[str] = (), *, precedence: int = Level.TOP) -> str:
     """Print a linear form (in float form, see :func:`rac.runtime.semantics.float_linear`) or a guard as Python.
 
     ``names`` maps each variable to the Python expression that holds it; ``never_negative_zero``
     lists the variables that can never hold ``-0.0`` (rewards). Guards print with ``not``/``and``/
-    ``or``; ``precedence`` (0 none, 1 or, 2 and, 3 not) is the binding strength the context needs.
+    ``or``; ``precedence`` (a :class:`rac.core.printing.Level`: 0 none, 1 or, 2 and, 3 not) is the
+    binding strength the context needs.
     """
     if isinstance(node, tuple):
         return _linear(node, names, frozenset(never_negative_zero))
-    if isinstance(node, ir.BConst):
-        return "True" if node.value else "False"
-    if isinstance(node, ir.BInput):
-        return names[node.name]
-    if isinstance(node, ir.BAtom):
-        text = f"{names[node.input]} {node.op} {_num(to_float(node.threshold, 'threshold'))}"
-        return f"({text})" if precedence > 3 else text
-    if isinstance(node, ir.BNot):
-        if isinstance(node.operand, ir.BNot):  # every guard value is a bool: not not g == g
-            return print_expr(node.operand.operand, names, precedence=precedence)
-        text, own = "not " + print_expr(node.operand, names, precedence=3), 3
-    elif isinstance(node, ir.BAnd):
-        text, own = " and ".join(print_expr(g, names, precedence=2) for g in node.operands), 2
-    else:
-        text, own = " or ".join(print_expr(g, names, precedence=1) for g in node.operands), 1
-    return f"({text})" if own < precedence else text
+    printer = PythonGuards(names)
+    return printer.operand(printer.print(node), precedence)
 
 
 def _linear(form: FloatLinear, names: Mapping[str, str], safe: frozenset[str]) -> str:
@@ -85,23 +103,22 @@ def _linear(form: FloatLinear, names: Mapping[str, str], safe: frozenset[str]) -
     if not terms:
         return _num(const)
 
-    def term(coef: float, name: str) -> str:
+    def term(coef: float, name: str) -> tuple[bool, str]:
         magnitude = abs(coef)
-        return names[name] if magnitude == 1.0 else f"{_num(magnitude)} * {names[name]}"
+        return coef < 0, names[name] if magnitude == 1.0 else f"{_num(magnitude)} * {names[name]}"
 
     (coef, name), rest = terms[0], terms[1:]
+    first: list[tuple[bool, str]]
     if const == 0.0:
         if coef >= 1.0 and name in safe:
-            text = term(coef, name)  # 0.0 + t == t: t is never -0.0
+            first = [term(coef, name)]  # 0.0 + t == t: t is never -0.0
         else:
-            text = f"0.0 {'-' if coef < 0 else '+'} {term(coef, name)}"
+            first = [(False, "0.0"), term(coef, name)]
     elif coef < 0:
-        text = f"{_num(const)} - {term(coef, name)}"
+        first = [(False, _num(const)), term(coef, name)]
     else:
-        text = f"{term(coef, name)} {'-' if const < 0 else '+'} {_num(abs(const))}"
-    for coef, name in rest:
-        text += f" {'-' if coef < 0 else '+'} {term(coef, name)}"
-    return text
+        first = [term(coef, name), (const < 0, _num(abs(const)))]
+    return signed_sum([*first, *(term(coef, name) for coef, name in rest)])
 
 
 # ---------------------------------------------------------------- generation
@@ -144,15 +161,10 @@ def _pydict(items: list[tuple[str, str]], column: int) -> str:
 
 def _ra_linear(linear: ir.Linear) -> str:
     """A linear form in `.ra` syntax, for documentation."""
-    parts = []
-    for name, coef in linear.terms:
-        magnitude = abs(coef)
-        text = name if magnitude == 1 else f"{magnitude}*{name}"
-        parts.append(("- " if coef < 0 else "+ ") + text)
+    parts = [(coef < 0, name if abs(coef) == 1 else f"{abs(coef)}*{name}") for name, coef in linear.terms]
     if linear.const or not parts:
-        parts.append(("- " if linear.const < 0 else "+ ") + str(abs(linear.const)))
-    text = " ".join(parts)
-    return text[2:] if text.startswith("+ ") else "-" + text[2:]
+        parts.append((linear.const < 0, str(abs(linear.const))))
+    return signed_sum(parts)
 
 
 class _Generator:
@@ -169,9 +181,8 @@ class _Generator:
         self.held = [s.name for s in self.specs if s.name in held]
         self.held_names = {name: f"h_{name}" for name in self.held}
 
-    def expr(self, node: FloatLinear | ir.Guard, names: Mapping[str, str] | None = None,
-             precedence: int = 0) -> str:
-        return print_expr(node, names or self.names, self.rewards.keys(), precedence=precedence)
+    def expr(self, node: FloatLinear | ir.Guard, names: Mapping[str, str] | None = None) -> str:
+        return print_expr(node, names or self.names, self.rewards.keys())
 
     def updates(self, updates: Iterable[ir.Assignment]) -> list[str]:
         return [f"{self.rewards[u.reward]} = {self.expr(float_linear(u.value, 'update'))}" for u in updates]

@@ -1,5 +1,6 @@
 """What ``rac verify`` answers, and how it is shown: :class:`QueryResult`, the verifyta-like text
-(:func:`render_text`), JSON (:func:`render_json`), and the CSV files and plots of ``simulate``."""
+(:func:`render_text`), JSON (:func:`render_json`), and the CSV files and plots of ``simulate``
+(:func:`write_csv`, :func:`plot_series`; ``rac simulate`` writes the same)."""
 
 from __future__ import annotations
 
@@ -13,13 +14,18 @@ from pathlib import Path
 import numpy as np
 
 from rac.core.source import Span
-from rac.ir import expr as ie
+from rac.engine.graph import LABELS
+from rac.ir.vocabulary import EGO_STATE
 
-__all__ = ["QueryResult", "render_json", "render_text"]
+__all__ = ["TRACE_FLAGS", "QueryResult", "TraceRow", "count_noun", "format_number", "plot_series", "render_json",
+           "render_text", "write_csv"]
 
-
-class _Unknown(Exception):
-    """A query that cannot be decided within the options (message for the user)."""
+#: One state of a witness trace: ``time`` (s) and the sensed ego state (:data:`EGO_STATE`, reals); where
+#: known the automaton's ``location``, a product state's ``phase`` and rewards, and the :data:`TRACE_FLAGS`.
+TraceRow = dict[str, float | int | str]
+#: The state labels a trace row carries (as bools): :data:`rac.engine.graph.LABELS` but ``safe``
+#: (``!collide && !offroad``: a row flagged with neither is safe).
+TRACE_FLAGS: tuple[str, ...] = tuple(label for label in LABELS if label != "safe")
 
 
 @dataclass(frozen=True)
@@ -41,7 +47,7 @@ class QueryResult:
     states: int | None = None
     seconds: float = 0.0
     horizon_samples: int | None = None
-    trace: tuple[dict[str, float | int | str], ...] | None = None
+    trace: tuple[TraceRow, ...] | None = None
     files: tuple[str, ...] = ()
     message: str | None = None
     seed: int | None = None
@@ -62,15 +68,9 @@ class QueryResult:
         return out
 
 
-
-def _expr_text(expr: ie.Expr) -> str:
-    from rac.ir.text import format_checked
-
-    return format_checked(expr)
-
-
-def _write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray]) -> Path:
-    """``run,time,expr...`` rows, written to a temporary file and renamed (never half a file)."""
+def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray]) -> Path:
+    """``run,time,expr...`` rows of simulated runs (``values``: one ``(N, T+1)`` array per name),
+    written to a temporary file and renamed (never half a file); returns ``path``."""
     partial = path.with_name(path.name + ".partial")
     with partial.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
@@ -82,18 +82,29 @@ def _write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.
     return path
 
 
-def _plot(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray], title: str) -> Path:
-    """The paper's Fig. 7 for ``simulate{distance, threshold}``; one line per run otherwise."""
+def plot_series(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray], title: str) -> Path:
+    """The plot of simulated runs (``values`` as for :func:`write_csv`): the paper's Fig. 7 for
+    ``simulate{distance, threshold}`` (a constant second series is the threshold line); one line
+    per run of the first series otherwise."""
     from rac.output.plots import plot_runs
 
     threshold = float(values[1].flat[0]) if len(values) == 2 and np.ptp(values[1]) == 0 else None
-    return Path(plot_runs(times, values[0], path, threshold=threshold, threshold_label=names[1] if threshold else None,
-                          ylabel=names[0], title=title))
+    # A threshold of exactly 0 is labelled "None" (the label was chosen by the threshold's truth,
+    # not its presence); kept while the verifier is reorganised, so that every plot stays the same.
+    label = names[1] if threshold else "None"
+    return Path(plot_runs(times, values[0], path, threshold=threshold, threshold_label=label, ylabel=names[0],
+                          title=title))
 
 
 # ---------------------------------------------------------------- rendering
-def _number(value: float) -> str:
+def format_number(value: float) -> str:
+    """A value in a verdict's line: four significant digits (``inf`` and ``nan`` as Python writes them)."""
     return f"{value:.4g}" if math.isfinite(value) else str(value)
+
+
+def count_noun(n: int, noun: str) -> str:
+    """``n`` with thousands separators and ``noun``, plural unless ``n`` is 1: ``1,024 states``."""
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
 
 
 def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
@@ -119,7 +130,8 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
             lines.append(f" -- {r.runs} runs, {int(round((r.estimate or 0) * r.runs))} satisfied the formula")
         elif r.kind == "expectation" and r.estimate is not None and r.interval is not None:
             half = (r.interval[1] - r.interval[0]) / 2
-            lines.append(f" -- ({r.runs} runs) E = {_number(r.estimate)} ± {_number(half)} ({_confidence(r)} CI)")
+            lines.append(f" -- ({r.runs} runs) E = {format_number(r.estimate)} ± {format_number(half)} "
+                         f"({_confidence(r)} CI)")
         elif r.kind == "simulate" and r.message:
             lines.append(f" -- {r.message}")
         elif r.kind == "learning" and r.status == "value" and r.message:
@@ -128,7 +140,7 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
             lines.extend(f"    {line}" for line in more)
         details = []
         if r.states is not None:
-            details.append(_count(r.states, "state"))
+            details.append(count_noun(r.states, "state"))
         if r.horizon_samples is not None:
             details.append(f"horizon {r.horizon_samples} samples")
         details.append(f"{r.seconds:.2f} s")
@@ -142,31 +154,28 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
         if r.trace:
             shown = r.trace if traces else (r.trace[:3] + r.trace[-3:] if len(r.trace) > 6 else r.trace)
             note = "" if traces or len(r.trace) <= 6 else ", first and last 3; --trace shows all"
-            lines.append(f"    trace ({_count(len(r.trace), 'state')}{note}):")
+            lines.append(f"    trace ({count_noun(len(r.trace), 'state')}{note}):")
             for row in shown:
                 lines.append("      " + _trace_row(row))
     return "\n".join(lines)
-
-
-def _count(n: int, noun: str) -> str:
-    return f"{n:,} {noun}{'' if n == 1 else 's'}"
 
 
 def _confidence(result: QueryResult) -> str:
     return f"{(result.confidence or 0.95) * 100:g}%"
 
 
-def _trace_row(row: dict) -> str:
+def _trace_row(row: TraceRow) -> str:
     parts = [f"t={row['time']:g}s"]
-    for name in ("x", "y", "v", "acc", "head", "jerk", "turn"):
+    for name in EGO_STATE:
         parts.append(f"{name}={row[name]:g}")
     if "location" in row:
         parts.append(str(row["location"]))
     if row.get("phase", "sampled") != "sampled":  # product states before the edge, after `at end`
         parts.append(f"({row['phase']})")
-    known = {"time", "x", "y", "v", "acc", "head", "jerk", "turn", "location", "phase", "collide", "offroad", "goal"}
+    # What is left are the product's rewards.
+    known = {"time", *EGO_STATE, "location", "phase", *TRACE_FLAGS}
     parts.extend(f"{name}={value:g}" for name, value in row.items() if name not in known)
-    flags = [name for name in ("collide", "offroad", "goal") if row.get(name)]
+    flags = [name for name in TRACE_FLAGS if row.get(name)]
     if flags:
         parts.append("[" + ",".join(flags) + "]")
     return " ".join(parts)

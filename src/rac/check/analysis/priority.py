@@ -19,12 +19,18 @@ ZERO = Fraction(0)
 #: Default number representation (model.md): significand = trunc(v · base^exponent).
 
 
+def _bounds(item: ir.Input) -> tuple[Fraction, Fraction]:
+    """A numeric input's declared bounds (the resolver rejects a numeric input without them)."""
+    assert item.low is not None and item.high is not None, item.name
+    return item.low, item.high
+
+
 def _range_of(linear: ir.Linear, automaton: ir.Automaton, sign: int = 1) -> tuple[Fraction, Fraction]:
     """[min, max] of a linear form over the declared input bounds."""
     low = high = linear.const
     for name, coefficient in linear.terms:
-        item = automaton.input(name)
-        a, b = coefficient * item.low, coefficient * item.high  # type: ignore[operator]
+        item_low, item_high = _bounds(automaton.input(name))
+        a, b = coefficient * item_low, coefficient * item_high
         low += min(a, b)
         high += max(a, b)
     return low, high
@@ -50,8 +56,7 @@ def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool
     names = sorted(set(f.variables()) | set(g.variables()))
     ints = [n for n in names if automaton.input(n).kind == "int"]
     if ints:
-        ranges = [range(int(automaton.input(n).low), int(automaton.input(n).high) + 1)  # type: ignore[arg-type]
-                  for n in ints]
+        ranges = [range(int(low), int(high) + 1) for low, high in (_bounds(automaton.input(n)) for n in ints)]
         if math.prod(len(r) for r in ranges) <= MAX_INT_POINTS:
             for combo in itertools.product(*ranges):
                 values = {n: Fraction(v) for n, v in zip(ints, combo)}
@@ -232,7 +237,7 @@ def apply(affine: Affine, r: list[Fraction], x: dict[str, Fraction]) -> list[Fra
 def _inputs(space: InputSpace, step) -> dict[str, Fraction]:
     values = {n: v for n, v in space.valuation(step.outcome.cls).items() if not isinstance(v, bool)}
     values.update(step.inputs)
-    return values  # type: ignore[return-value]
+    return values
 
 
 def _outcome_inputs(automaton: ir.Automaton, o: Outcome) -> set[str]:
@@ -282,8 +287,8 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> li
         lines.append(f"  {when}: {what}{count}; inputs {label}")
     if worst.instant == AFTER_END and worst.end is not None:
         end = worst.end
-        clauses = ", ".join(f"line {automaton.end_clauses[i].span.line}" if automaton.end_clauses[i].span
-                            else str(i) for i in end.ends)
+        spans = [(i, automaton.end_clauses[i].span) for i in end.ends]
+        clauses = ", ".join(f"line {span.line}" if span else str(i) for i, span in spans)
         shown: set[str] = set()
         for clause in automaton.end_clauses:
             shown |= guard_inputs(clause.guard)
@@ -319,8 +324,8 @@ def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[s
     values.update(worst.end_inputs)
     return {
         "time": str(worst.steps[-1].sample * automaton.period if worst.steps else 0),
-        "clause_lines": [automaton.end_clauses[i].span.line if automaton.end_clauses[i].span else None
-                         for i in worst.end.ends],
+        "clause_lines": [span.line if span else None
+                         for span in (automaton.end_clauses[i].span for i in worst.end.ends)],
         "inputs": {k: (v if isinstance(v, bool) else str(v)) for k, v in values.items()},
     }
 

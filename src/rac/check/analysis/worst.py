@@ -282,7 +282,7 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
     end_options = [(_sup(_weigh(w, (e.end_map,)), e.box), e) for e in moves.ends]
     k_end, best_end = max(end_options, key=lambda item: item[0]) if end_options else (None, None)
-    start = _start(target, l0, {} if best_end is None else
+    start = _start(target, l0, {} if k_end is None or best_end is None else
                    {(): (target.constant + k_end, best_end, _point(_weigh(w, (best_end.end_map,)), best_end.box))})
     if not any(outs):  # `assume` excludes every input: no sample ever happens
         return start
@@ -363,7 +363,8 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     if start is not None and start.value * scale >= best_value:
         return start
     result = Worst(Fraction(best_value, scale))
-    oi, instant = best_choice  # type: ignore[misc]
+    assert best_choice is not None  # set together with best_value
+    oi, instant = best_choice
     here, k = l0, 1
     while True:
         o = outs[here][oi]

@@ -193,12 +193,12 @@ class AutomatonGenerator:
                 values.append(value)
             for bound in (item.low, item.high):
                 try:
-                    int_literal(bound * self.scale)  # type: ignore[operator]
+                    int_literal(bound * self.scale)
                 except NotRepresentable:
                     self._unrepresentable(
                         f"the bound {_decimal(bound)} of input `{item.name}` is not representable as a 32-bit "  # type: ignore[arg-type]
                         f"significand at base {self.base}, exponent {self.exponent}", item.span,
-                        notes=[f"its significand {_decimal(bound * self.scale)} is not a 32-bit integer"],  # type: ignore[operator]
+                        notes=[f"its significand {_decimal(bound * self.scale)} is not a 32-bit integer"],
                         hints=["narrow the input's bounds, or lower the exponent of the number representation"])
                     break
             result.append(_Input(
@@ -237,9 +237,10 @@ class AutomatonGenerator:
         """Per location and reward: (constant, [(coefficient, significand)]) that the mirror gains per sample."""
         period = Fraction(self.a.period)
         values = {i.source: i.values for i in inputs}
-        result = []
+        Accrual = tuple[Fraction, list[tuple[Fraction, str]]]
+        result: list[list[Accrual | None]] = []
         for location in self.a.locations:
-            row = []
+            row: list[Accrual | None] = []
             for reward, rate in zip(self.a.rewards, location.rates):
                 const, terms = mirror_accrual(rate, period, self.scale)
                 bad = const.denominator != 1 or any(
@@ -340,6 +341,11 @@ class AutomatonGenerator:
         return "", ", ".join(parts)
 
     # ------------------------------------------------------------ vocabulary and queries
+    def vocabulary(self) -> Vocabulary:
+        """The emitted names of the automaton's vocabulary (:func:`vocabulary`), without generating the model."""
+        self._inputs()
+        return self._vocabulary(self._time_unit())
+
     def _vocabulary(self, unit: Fraction) -> Vocabulary:
         a = self.a
         strategies = {q.query.name: self.n[q.query.name] for q in self.queries()
@@ -635,9 +641,7 @@ def _query_hints(message: str) -> list[str]:
 def vocabulary(automaton: ir.Automaton) -> Vocabulary:
     """The UPPAAL names of the automaton's vocabulary in the emitted model (process, locations,
     inputs, hybrid clocks, mirrors) and its time unit: what to look for in verifyta's output."""
-    generator = AutomatonGenerator(automaton, "", "")
-    generator._inputs()
-    return generator._vocabulary(generator._time_unit())
+    return AutomatonGenerator(automaton, "", "").vocabulary()
 
 
 def queries_path(model: str) -> str:

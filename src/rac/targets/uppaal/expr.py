@@ -8,7 +8,8 @@ label and query of the emitted model:
   ``$Overflow``): :class:`NotRepresentable` otherwise;
 - logical operators are ``&&``, ``||``, ``!`` and ``imply``. In UPPAAL ``imply`` has the
   precedence of ``||`` and associates to the *left* (``.ra``'s ``imply`` associates to the
-  right), so operands are parenthesised whenever a reader could hesitate;
+  right), so operands are parenthesised whenever a reader could hesitate (the table
+  :data:`UPPAAL` of :class:`UppaalSyntax`, a :class:`rac.core.printing.Printer`);
 - formulas are printed on one line.
 
 Numbers: a real value ``v`` is held in an integer as its significand ``v * SCALE``
@@ -28,30 +29,22 @@ from fractions import Fraction
 
 from rac import ir
 from rac.core.numbers import INT32_MAX
+from rac.core.printing import C_BINARY, Associativity, Level, Operator, OperatorTable, Printed, Printer, signed_sum
 from rac.ir.expr import integer_bound
+from rac.ir.text import GuardPrinter
 
 __all__ = [
-    "ADD",
-    "AND",
-    "ATOM",
-    "CMP",
-    "MUL",
-    "NEG",
-    "NUM",
-    "OR",
+    "UPPAAL",
     "NotRepresentable",
-    "Text",
     "QueryError",
+    "UppaalGuards",
+    "UppaalSyntax",
     "compare_significand",
     "double_literal",
-    "imply",
     "int_literal",
-    "join",
-    "negate",
     "number_literal",
-    "paren",
-    "print_guard",
     "print_exact_sum",
+    "print_guard",
     "print_int_linear",
     "print_real_linear",
     "terms_text",
@@ -101,84 +94,66 @@ def number_literal(value: Fraction) -> str:
     return double_literal(value)
 
 
-# ---------------------------------------------------------------- precedence
-# 0: top level; 1: `||` and `imply` (one level in UPPAAL, left-associative); 2: `&&`;
-# 3: comparisons; 4: `!` and atoms. Arithmetic: 5 `+ -`, 6 `* /`, 7 unary minus, 8 atoms.
-OR, AND, CMP, ATOM = 1, 2, 3, 4
-ADD, MUL, NEG, NUM = 5, 6, 7, 8
-
-#: A printed expression and its precedence level.
-Text = tuple[str, int]
-
-
-def paren(text: str, level: int, need: int) -> str:
-    """``text`` in parentheses when its level is below ``need``."""
-    return f"({text})" if level < need else text
+# ---------------------------------------------------------------- the operators
+#: UPPAAL's operators: C's, and ``imply``, which UPPAAL gives the level of ``||`` and associates to
+#: the left; it is printed with both operands above that level, so that no reader depends on that.
+UPPAAL = OperatorTable(
+    binary={**C_BINARY, "imply": Operator(" imply ", Level.OR, Associativity.NONE)},
+    # `!!a`, but `-(-a)`: C would read `--a` as a decrement
+    prefix={"!": Operator("!", Level.PREFIX, Associativity.RIGHT),
+            "-": Operator("-", Level.PREFIX, Associativity.NONE)},
+)
 
 
-def join(parts: Sequence[Text], op: str) -> Text:
-    """``a && b && c`` or ``a || b || c`` (left-associative, so equal levels need no parentheses)."""
-    level = AND if op == "&&" else OR
-    texts = []
-    for i, (text, own) in enumerate(parts):
-        # `a || b` may stand left of `||`; anything of `imply`'s level stands in parentheses elsewhere.
-        need = level + 1 if (own == level and (i > 0 or "imply" in text.split())) else level
-        texts.append(paren(text, own, need))
-    return f" {op} ".join(texts), level
+class UppaalSyntax(Printer):
+    """Parenthesises by :data:`UPPAAL`, and more where a reader of `.ra` could hesitate."""
 
+    table = UPPAAL
 
-def imply(left: Text, right: Text) -> Text:
-    """``a imply b`` (UPPAAL's ``imply``: the level of ``||``, left-associative)."""
-    return f"{paren(left[0], left[1], AND)} imply {paren(right[0], right[1], AND)}", OR
-
-
-def negate(operand: Text) -> Text:
-    """``!a``."""
-    return "!" + paren(operand[0], operand[1], ATOM), ATOM
+    def needs_parentheses(self, op: str, operand: Printed, need: int) -> bool:
+        # `a imply b || c` is `(a imply b) || c` in UPPAAL, `a imply (b || c)` in `.ra`: in a chain of
+        # `||` or `&&`, an operand of the chain's level that holds `imply` stands in parentheses even first
+        if op in ("||", "&&") and operand.level == self.binary(op).level and "imply" in operand.text.split():
+            return True
+        return super().needs_parentheses(op, operand, need)
 
 
 # ---------------------------------------------------------------- significand comparisons
-def compare_significand(significand: str, op: str, threshold: Fraction, scale: int) -> tuple[str, int]:
+def compare_significand(significand: str, op: str, threshold: Fraction, scale: int) -> Printed:
     """``x op threshold`` for an input held as the integer significand ``x * scale``, exactly."""
     result = integer_bound(op, threshold * scale)
     if isinstance(result, bool):
-        return ("true" if result else "false"), ATOM
+        return Printed(UPPAAL.true if result else UPPAAL.false, Level.ATOM)
     new_op, bound = result
-    return f"{significand} {new_op} {int_literal(bound)}", CMP
+    return Printed(f"{significand} {new_op} {int_literal(bound)}", Level.COMPARE)
 
 
 # ---------------------------------------------------------------- guards of the automaton
+class UppaalGuards(UppaalSyntax, GuardPrinter):
+    """Prints the automaton's guards; a numeric input is held as its significand at ``scale``."""
+
+    def __init__(self, names: Mapping[str, str], scale: int) -> None:
+        super().__init__(names)
+        self.scale = scale
+
+    def print_BAtom(self, guard: ir.BAtom) -> Printed:
+        return compare_significand(self.names[guard.input], guard.op, guard.threshold, self.scale)
+
+
 def print_guard(guard: ir.Guard, names: Mapping[str, str], scale: int) -> str:
     """A guard over the inputs; ``names`` maps each input to the UPPAAL expression holding it
     (a ``bool`` for boolean inputs, an integer significand for numeric ones)."""
-    return _guard(guard, names, scale)[0]
-
-
-def _guard(guard: ir.Guard, names: Mapping[str, str], scale: int) -> tuple[str, int]:
-    if isinstance(guard, ir.BConst):
-        return ("true" if guard.value else "false"), ATOM
-    if isinstance(guard, ir.BInput):
-        return names[guard.name], ATOM
-    if isinstance(guard, ir.BAtom):
-        return compare_significand(names[guard.input], guard.op, guard.threshold, scale)
-    if isinstance(guard, ir.BNot):
-        return negate(_guard(guard.operand, names, scale))
-    op = "&&" if isinstance(guard, ir.BAnd) else "||"
-    return join([_guard(g, names, scale) for g in guard.operands], op)  # type: ignore[union-attr]
+    return UppaalGuards(names, scale).print(guard).text
 
 
 # ---------------------------------------------------------------- linear forms
 def terms_text(terms: Sequence[tuple[int, str]]) -> str:
     """``10*iSa + 5*iPr - iCo`` from integer coefficients (none zero)."""
-    text = ""
-    for i, (coef, name) in enumerate(terms):
-        magnitude = abs(coef)
-        term = name if magnitude == 1 else f"{int_literal(magnitude)}*{name}"
-        if i == 0:
-            text = ("-" if coef < 0 else "") + term
-        else:
-            text += f" {'-' if coef < 0 else '+'} {term}"
-    return text
+    return signed_sum(_term_parts(terms))
+
+
+def _term_parts(terms: Sequence[tuple[int, str]]) -> list[tuple[bool, str]]:
+    return [(coef < 0, name if abs(coef) == 1 else f"{int_literal(abs(coef))}*{name}") for coef, name in terms]
 
 
 def print_int_linear(const: Fraction, terms: Sequence[tuple[Fraction, str]]) -> str:
@@ -194,9 +169,10 @@ def print_int_linear(const: Fraction, terms: Sequence[tuple[Fraction, str]]) -> 
     k = int(const * q)
     if not ints:
         return int_literal(math.trunc(const))
-    text = terms_text(ints)
+    parts = _term_parts(ints)
     if k:
-        text += f" {'-' if k < 0 else '+'} {int_literal(abs(k))}"
+        parts.append((k < 0, int_literal(abs(k))))
+    text = signed_sum(parts)
     if q == 1:
         return text
     if len(ints) == 1 and not k and ints[0][0] > 0:
@@ -219,13 +195,7 @@ def print_exact_sum(const: Fraction, terms: Sequence[tuple[Fraction, str]]) -> s
         parts.append((coef < 0, text))
     if const:
         parts.append((const < 0, int_literal(abs(const))))
-    if not parts:
-        return "0"
-    negative, first = parts[0]
-    text = ("-" if negative else "") + first
-    for negative, part in parts[1:]:
-        text += f" {'-' if negative else '+'} {part}"
-    return text
+    return signed_sum(parts) or "0"
 
 
 def print_real_linear(const: Fraction, terms: Sequence[tuple[Fraction, str, int]]) -> str:
@@ -248,10 +218,6 @@ def print_real_linear(const: Fraction, terms: Sequence[tuple[Fraction, str, int]
         parts.append((coef < 0, text))
     if not parts:
         return number_literal(const)
-    negative, first = parts[0]
-    text = ("-" if negative else "") + first
-    for negative, part in parts[1:]:
-        text += f" {'-' if negative else '+'} {part}"
     if const:
-        text += f" {'-' if const < 0 else '+'} {number_literal(abs(const))}"
-    return text
+        parts.append((const < 0, number_literal(abs(const))))
+    return signed_sum(parts)

@@ -75,7 +75,7 @@ class _ModelGenerator(AutomatonGenerator):
             g[key] = n.fresh(base)
 
     # ------------------------------------------------------------ processes
-    def _timer(self, ids: Ids, keeps: bool) -> Template:
+    def _model_timer(self, ids: Ids, keeps: bool) -> Template:
         """``keeps``: the start edge calls ``keep_sample()`` — as the sender of the first ``decide!``,
         before the Action chooses, so ``prev(jerk)`` at the first sample reads the start's 0."""
         g, ch = self.g, self.channels
@@ -263,7 +263,7 @@ class _ModelGenerator(AutomatonGenerator):
         bindings = self._bindings(printer)
         queries = self._queries(printer)
         ids = Ids()
-        templates = [self._timer(ids, bool(printer.prevs)), self._controller(ids), self._action(ids),
+        templates = [self._model_timer(ids, bool(printer.prevs)), self._controller(ids), self._action(ids),
                      self._dynamics(ids)]
         if data.obstacle_count:
             templates.append(self._obstacle(ids))
@@ -316,6 +316,4 @@ def model_vocabulary(automaton: ir.Automaton, *, data: ModelData | None = None) 
         raise ValueError("the automaton has no `model` block")
     if data is None:
         data = build_model_data(load_scenario(spec.scenario_path), spec)
-    generator = _ModelGenerator(automaton, data, "", "")
-    generator._inputs()
-    return generator._vocabulary(generator._time_unit())
+    return _ModelGenerator(automaton, data, "", "").vocabulary()

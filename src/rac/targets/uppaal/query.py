@@ -17,9 +17,10 @@ and operators are written (the tables below):
   compile it with the system C compiler and compare it with the engine. ``time`` is the sample
   counter times the period there, and ``a imply b`` is ``!a || b``.
 
-Numbers are printed the way the engine computes them: a double expression is printed as its tree
-(no reordering), constants as double literals, a significand as ``i2d(s)`` (``s / SCALE_D``); an
-exact comparison as integers. :class:`QueryError` says why a query cannot be written over the
+The printer extends :class:`rac.targets.uppaal.expr.UppaalSyntax`, whose operator table puts the
+parentheses. Numbers are printed the way the engine computes them: a double expression is printed as
+its tree (no reordering), constants as double literals, a significand as ``i2d(s)``
+(``s / SCALE_D``); an exact comparison as integers. :class:`QueryError` says why a query cannot be written over the
 emitted model (e.g. a symbolic query that reads the true state).
 """
 
@@ -31,34 +32,17 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac.core.numbers import INT32_MAX
+from rac.core.printing import Level, Printed, number, signed_sum
 from rac.ir import compare
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.vocabulary import Holding
-from rac.targets.uppaal.expr import (
-    ADD,
-    ATOM,
-    CMP,
-    MUL,
-    NEG,
-    NUM,
-    NotRepresentable,
-    QueryError,
-    Text,
-    double_literal,
-    imply,
-    int_literal,
-    join,
-    negate,
-    paren,
-    terms_text,
-)
+from rac.targets.uppaal.expr import NotRepresentable, QueryError, UppaalSyntax, double_literal, int_literal, terms_text
 
 __all__ = ["FUNCTION", "STATISTICAL", "SYMBOLIC", "ModelNames", "UppaalPrinter", "Vocabulary", "time_constants"]
 
 SYMBOLIC, STATISTICAL, FUNCTION = "symbolic", "statistical", "function"
 
-_ARITH_LEVEL = {"+": ADD, "-": ADD, "*": MUL, "/": MUL}
 _FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
 
 
@@ -107,7 +91,7 @@ class Vocabulary:
 
 
 @dataclass
-class UppaalPrinter:
+class UppaalPrinter(UppaalSyntax):
     """Print checked queries and bindings over one emitted model.
 
     ``fresh(base)`` names a new function of the declarations; :attr:`conditions` collects the
@@ -128,16 +112,17 @@ class UppaalPrinter:
     def formula(self, query: iq.Query) -> str:
         """The query as one line of UPPAAL property syntax (:class:`QueryError` when it cannot be written)."""
         if isinstance(query, iq.PathQuery):
-            text = f"{query.quantifier} {self.state(query.expr, SYMBOLIC, query.quantifier in ('A[]', 'E[]'))[0]}"
+            text = f"{query.quantifier} {self.state(query.expr, SYMBOLIC, query.quantifier in ('A[]', 'E[]')).text}"
         elif isinstance(query, iq.LeadsToQuery):
-            text = f"{self.state(query.left, SYMBOLIC, False)[0]} --> {self.state(query.right, SYMBOLIC, False)[0]}"
+            left, right = self.state(query.left, SYMBOLIC, False), self.state(query.right, SYMBOLIC, False)
+            text = f"{left.text} --> {right.text}"
         elif isinstance(query, iq.ControlStrategy):
-            body = self.state(query.expr, SYMBOLIC, query.goal == "A[]")[0]
+            body = self.state(query.expr, SYMBOLIC, query.goal == "A[]").text
             # UPPAAL 5 states a reachability objective as `control: A<> p` (the strategy forces p)
             goal = "A<>" if query.goal == "E<>" else query.goal
             text = f"strategy {self._strategy(query.name)} = control: {goal} {body}"
         elif isinstance(query, iq.ProbabilityQuery):
-            body = self.state(query.expr, STATISTICAL, query.path == "[]")[0]
+            body = self.state(query.expr, STATISTICAL, query.path == "[]").text
             if query.compare is not None and query.runs is not None:
                 raise QueryError("UPPAAL tests a probability against a threshold sequentially, choosing the "
                                  "number of runs itself: drop `;N` from the bound")
@@ -149,7 +134,7 @@ class UppaalPrinter:
                 text += f" {op} {double_literal(threshold)}"
         elif isinstance(query, iq.ExpectationQuery):
             text = (f"E[{self._bound(query.bound, query.runs)}]"
-                    f"({query.aggregate}: {self.number(query.expr, STATISTICAL)[0]})")
+                    f"({query.aggregate}: {self.number(query.expr, STATISTICAL).text})")
         elif isinstance(query, iq.SimulateQuery):
             exprs = ", ".join(self.any(e) for e in query.exprs)
             text = f"simulate[{self._bound(query.bound, query.runs)}]{{{exprs}}}"
@@ -158,9 +143,9 @@ class UppaalPrinter:
                 raise QueryError("UPPAAL learns reachability goals only (`: <> p`)")
             discrete = ", ".join(self.discrete(e) for e in query.discrete)
             continuous = ", ".join(self.any(e) for e in query.continuous)
-            body = self.state(query.expr, STATISTICAL, query.path == "[]")[0]
+            body = self.state(query.expr, STATISTICAL, query.path == "[]").text
             text = (f"strategy {self._strategy(query.name)} = {query.optimise}("
-                    f"{self.number(query.objective, STATISTICAL)[0]})[{self._bound(query.bound, None)}]"
+                    f"{self.number(query.objective, STATISTICAL).text})[{self._bound(query.bound, None)}]"
                     f"{{{discrete}}}->{{{continuous}}}: {query.path} {body}")
         else:
             raise TypeError(f"not a query: {query!r}")
@@ -185,69 +170,64 @@ class UppaalPrinter:
         return text if runs is None else f"{text};{int_literal(runs)}"
 
     # ------------------------------------------------------------ conditions
-    def state(self, expr: ie.Expr, dialect: str, box: bool) -> Text:
+    def state(self, expr: ie.Expr, dialect: str, box: bool) -> Printed:
         """A state formula; when it reads an input, states where the inputs are newer than the
         location (``settled`` false) are left out: ``settled imply p`` under ``[]``, else ``settled && p``."""
         text = self.condition(expr, dialect)
         if not any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr)):
             return text
-        settled = (self.v.settled, ATOM)
+        settled = Printed(self.v.settled, Level.ATOM)
         if box and self.c_syntax:
-            return join([negate(settled), text], "||")
+            return self.infix("||", self.prefix("!", settled), text)
         if box:
-            return imply(settled, text)
-        return join([settled, text], "&&")
+            return self.infix("imply", settled, text)
+        return self.infix("&&", settled, text)
 
-    def condition(self, expr: ie.Expr, dialect: str) -> Text:
+    def condition(self, expr: ie.Expr, dialect: str) -> Printed:
         """A boolean expression."""
         if isinstance(expr, ie.Const):
-            return ("true" if expr.value else "false"), ATOM
+            return self.literal(bool(expr.value))
         if isinstance(expr, ie.Ref):
-            return self._name(expr, dialect), ATOM
+            return Printed(self._name(expr, dialect), Level.ATOM)
         if isinstance(expr, ie.Unary):
-            return negate(self.condition(expr.operand, dialect))
+            return self.prefix("!", self.condition(expr.operand, dialect))
         if isinstance(expr, ie.Binary):
             left, right = self.condition(expr.left, dialect), self.condition(expr.right, dialect)
-            if expr.op == "imply":
-                if dialect == FUNCTION or self.c_syntax:
-                    return join([negate(left), right], "||")
-                return imply(left, right)
-            return join([left, right], expr.op)
+            if expr.op == "imply" and (dialect == FUNCTION or self.c_syntax):
+                return self.infix("||", self.prefix("!", left), right)
+            return self.infix(expr.op, left, right)
         if isinstance(expr, ie.Call):
-            return self._call(expr, dialect), ATOM
+            return Printed(self._call(expr, dialect), Level.ATOM)
         if isinstance(expr, ie.Prev):
-            return self._prev(expr, dialect), ATOM
+            return Printed(self._prev(expr, dialect), Level.ATOM)
         assert isinstance(expr, ie.Compare)
         if expr.left.type == ie.BOOL:
-            left = paren(*self.condition(expr.left, dialect), ATOM)
-            right = paren(*self.condition(expr.right, dialect), ATOM)
-            return f"{left} {expr.op} {right}", CMP
+            return self.infix(expr.op, self.condition(expr.left, dialect), self.condition(expr.right, dialect))
         exact = self._exact(expr, dialect)
         if exact is not None:
             return exact
         if dialect == SYMBOLIC:
-            return self._hoisted(expr), ATOM
-        left, right = self.number(expr.left, dialect), self.number(expr.right, dialect)
-        return f"{paren(left[0], left[1], ADD)} {expr.op} {paren(right[0], right[1], ADD)}", CMP
+            return Printed(self._hoisted(expr), Level.ATOM)
+        return self.infix(expr.op, self.number(expr.left, dialect), self.number(expr.right, dialect))
 
     def _hoisted(self, expr: ie.Compare) -> str:
         """A condition of a symbolic query that computes with doubles, as a call of a function."""
         try:
-            body = self.condition(expr, FUNCTION)[0]
+            body = self.condition(expr, FUNCTION).text
         except QueryError as exc:
             raise QueryError(f"a symbolic query cannot compute this comparison: {exc}") from None
         if body not in self.conditions:
             self.conditions[body] = self.fresh("cond")
         return f"{self.conditions[body]}()"
 
-    def _exact(self, expr: ie.Compare, dialect: str) -> Text | None:
+    def _exact(self, expr: ie.Compare, dialect: str) -> Printed | None:
         """``left op right`` as an exact comparison of integers, when both sides are linear in values
         held as integers in this dialect; None otherwise."""
         form = expr.linear
         if form is None:
             return None
         if form.is_constant:
-            return ("true" if compare(form.const, expr.op, 0) else "false"), ATOM
+            return self.literal(compare(form.const, expr.op, 0))
         terms = []
         for ref, coefficient in form.terms:
             held = self._integer(ref, dialect)
@@ -266,30 +246,29 @@ class UppaalPrinter:
             bound, op = -bound, _FLIP[op]
         result = ie.integer_bound(op, bound)
         if isinstance(result, bool):
-            return ("true" if result else "false"), ATOM
+            return self.literal(result)
         op, whole = result
         largest = sum(abs(c) * (self._count_locations() if name.endswith(".location") else INT32_MAX)
                       for c, name in coefficients)
         if largest <= INT32_MAX:
-            return f"{terms_text(coefficients)} {op} {int_literal(whole)}", CMP
+            return Printed(f"{terms_text(coefficients)} {op} {int_literal(whole)}", Level.COMPARE)
         # a sum of int32 values may leave int32 (10*iSa with iSa = -3e8): compute it in doubles, exact
         # for integers below 2**53, in a condition of the declarations when the query is symbolic
         if largest + abs(whole) >= 2**53:
             raise NotRepresentable(f"the comparison's coefficients are too large to be computed exactly "
                                    f"({largest + abs(whole)} >= 2**53)")
         if dialect == SYMBOLIC:
-            return self._hoisted(expr), ATOM
-        first, *rest = coefficients
-        text = f"{double_literal(first[0])} * {first[1]}"
-        for c, name in rest:
-            term = name if abs(c) == 1 else f"{double_literal(abs(c))} * {name}"
-            text += f" {'-' if c < 0 else '+'} {term}"
-        return f"{text} {op} {double_literal(whole)}", CMP
+            return Printed(self._hoisted(expr), Level.ATOM)
+        (first, name), *rest = coefficients  # the first coefficient is positive (flipped above)
+        parts = [(False, f"{double_literal(first)} * {name}")]
+        parts += [(c < 0, name if abs(c) == 1 else f"{double_literal(abs(c))} * {name}") for c, name in rest]
+        text = signed_sum(parts)
+        return Printed(f"{text} {op} {double_literal(whole)}", Level.COMPARE)
 
     def _count_locations(self) -> int:
         return max(1, len(self.v.locations))
 
-    def _clock(self, terms: list[tuple[str, Fraction]], const: Fraction, op: str, dialect: str) -> Text | None:
+    def _clock(self, terms: list[tuple[str, Fraction]], const: Fraction, op: str, dialect: str) -> Printed | None:
         """``c * time + const op 0`` as UPPAAL's clock constraint ``time op' k`` (``k`` whole time units)."""
         if len(terms) > 1:
             if dialect == SYMBOLIC:
@@ -304,11 +283,11 @@ class UppaalPrinter:
             if dialect == SYMBOLIC:
                 raise QueryError(f"`time` is compared with {_short(bound * self.v.unit)} s, which is not a whole "
                                  f"number of time units ({_short(self.v.unit)} s)")
-            return f"{name} {op} {double_literal(bound)}", CMP
+            return Printed(f"{name} {op} {double_literal(bound)}", Level.COMPARE)
         model = self.v.model
         if model is not None and bound * self.v.unit == self.v.horizon:
-            return f"{name} {op} {model.maxt}", CMP
-        return f"{name} {op} {int_literal(bound)}", CMP
+            return Printed(f"{name} {op} {model.maxt}", Level.COMPARE)
+        return Printed(f"{name} {op} {int_literal(bound)}", Level.COMPARE)
 
     def _integer(self, ref: ie.Ref, dialect: str) -> tuple[str, Fraction] | None:
         """The integer that holds ``ref`` in this dialect and the value of one of its units, or None."""
@@ -330,61 +309,58 @@ class UppaalPrinter:
         return None
 
     # ------------------------------------------------------------ numbers (doubles)
-    def number(self, expr: ie.Expr, dialect: str) -> Text:
+    def number(self, expr: ie.Expr, dialect: str) -> Printed:
         """A numeric expression as a double, printed as its tree (the engine computes the same)."""
-        if expr.type == ie.BOOL:  # a condition counting 0 or 1 (reward expressions)
-            return paren(*self.condition(expr, dialect), NUM), NUM
+        if expr.type == ie.BOOL:  # a condition counting 0 or 1 (reward expressions), always in parentheses
+            return Printed(f"({self.condition(expr, dialect).text})", Level.ATOM)
         if isinstance(expr, ie.Const):
-            text = double_literal(expr.value)  # type: ignore[arg-type]
-            return text, NEG if text.startswith("-") else NUM
+            return number(double_literal(expr.value))
         if isinstance(expr, ie.Ref):
             return self._number_name(expr, dialect)
         if isinstance(expr, ie.Call):
-            return self._call(expr, dialect), NUM
+            return Printed(self._call(expr, dialect), Level.ATOM)
         if isinstance(expr, ie.Prev):
-            return self._prev(expr, dialect), NUM
+            return Printed(self._prev(expr, dialect), Level.ATOM)
         if isinstance(expr, ie.Unary):
-            inner = self.number(expr.operand, dialect)
-            return "-" + paren(inner[0], inner[1], NUM), NEG
+            return self.prefix("-", self.number(expr.operand, dialect))
         assert isinstance(expr, ie.Binary)
-        level = _ARITH_LEVEL[expr.op]
-        left, right = self.number(expr.left, dialect), self.number(expr.right, dialect)
-        return f"{paren(left[0], left[1], level)} {expr.op} {paren(right[0], right[1], level + 1)}", level
+        return self.infix(expr.op, self.number(expr.left, dialect), self.number(expr.right, dialect))
 
-    def _number_name(self, ref: ie.Ref, dialect: str) -> Text:
+    def _number_name(self, ref: ie.Ref, dialect: str) -> Printed:
         v = self.v
         scale = double_literal(v.scale)
         if ref.kind is ie.RefKind.INPUT:
-            return f"{v.significands[ref.name]} / {scale}", MUL
+            return Printed(f"{v.significands[ref.name]} / {scale}", Level.MUL)
         if ref.kind is ie.RefKind.REWARD:
             if dialect == STATISTICAL:
-                return v.hybrids[ref.name], NUM
-            return f"{v.mirrors[ref.name]} / {scale}", MUL
+                return Printed(v.hybrids[ref.name], Level.ATOM)
+            return Printed(f"{v.mirrors[ref.name]} / {scale}", Level.MUL)
         if ref.kind is ie.RefKind.LOCATION_INDEX:
             if dialect == FUNCTION:
                 raise QueryError("a location cannot be read in a condition computed with doubles")
-            return f"{v.process}.location", NUM
+            return Printed(f"{v.process}.location", Level.ATOM)
         if ref.kind is not ie.RefKind.MODEL:
             raise QueryError(f"`{ref.name}` is not a number")
         entry = ref.model
         model = self._model(ref.name) if entry.holding is not Holding.TIME or dialect == FUNCTION else None
         if entry.holding is Holding.SIGNIFICAND:
-            return f"i2d({entry.uppaal})", NUM
+            return Printed(f"i2d({entry.uppaal})", Level.ATOM)
         if entry.holding is Holding.EXACT:
             assert ref.value is not None
-            return (entry.uppaal, NUM) if entry.uppaal else (double_literal(ref.value), NUM)
+            return Printed(entry.uppaal, Level.ATOM) if entry.uppaal else number(double_literal(ref.value))
         if entry.holding is Holding.TIME:
             if dialect == FUNCTION:
-                return f"{model.count} * {double_literal(v.period)}", MUL
+                assert model is not None  # looked up above: functions count samples
+                return Printed(f"{model.count} * {double_literal(v.period)}", Level.MUL)
             # k * C1 at sample k, as the engine computes it: the clock counts PERIOD time units a sample
             if v.period == v.unit:
-                return f"{v.time} * {double_literal(v.period)}", MUL
-            return f"{v.time} / {v.period_name} * {double_literal(v.period)}", MUL
+                return Printed(f"{v.time} * {double_literal(v.period)}", Level.MUL)
+            return Printed(f"{v.time} / {v.period_name} * {double_literal(v.period)}", Level.MUL)
         if dialect != STATISTICAL:
             raise QueryError(f"`{ref.name}` is the ground truth, which only statistical queries (Pr, E, simulate) "
                              "follow")
         assert model is not None
-        return f"{model.dynamics}.{entry.uppaal}", NUM
+        return Printed(f"{model.dynamics}.{entry.uppaal}", Level.ATOM)
 
     def _model(self, name: str = "") -> ModelNames:
         if self.v.model is None:
@@ -419,20 +395,20 @@ class UppaalPrinter:
                 raise QueryError(f"`{function.name}()` is a function of the scenario model, which the "
                                  f"automaton-alone UPPAAL model does not contain")
             return f"{function.uppaal}()"
-        args = ", ".join(self.number(a, dialect)[0] for a in call.args)
+        args = ", ".join(self.number(a, dialect).text for a in call.args)
         return f"{function.uppaal}({args})"
 
     # ------------------------------------------------------------ observations
     def any(self, expr: ie.Expr) -> str:
         """A simulated or continuously observed expression: a condition or a (double) number."""
         if expr.type == ie.BOOL:
-            return self.condition(expr, STATISTICAL)[0]
-        return self.number(expr, STATISTICAL)[0]
+            return self.condition(expr, STATISTICAL).text
+        return self.number(expr, STATISTICAL).text
 
     def discrete(self, expr: ie.Expr) -> str:
         """A discrete observation of a learning query: an integer expression (mirrors, significands)."""
         if expr.type == ie.BOOL:
-            return self.condition(expr, SYMBOLIC)[0]
+            return self.condition(expr, SYMBOLIC).text
         form = ie.linear_form(expr)
         terms = []
         for ref, coefficient in form.terms if form is not None else ():
@@ -451,14 +427,14 @@ class UppaalPrinter:
         if not whole:
             return int_literal(constant)
         text = terms_text(whole)
-        return f"{text} {'-' if constant < 0 else '+'} {int_literal(abs(constant))}" if constant else text
+        return signed_sum([(False, text), (constant < 0, int_literal(abs(constant)))]) if constant else text
 
     # ------------------------------------------------------------ bindings
     def binding(self, expr: ie.Expr) -> str:
         """A binding's expression in the function dialect (numbers as doubles, conditions as bools)."""
         if expr.type == ie.BOOL:
-            return self.condition(expr, FUNCTION)[0]
-        return self.number(expr, FUNCTION)[0]
+            return self.condition(expr, FUNCTION).text
+        return self.number(expr, FUNCTION).text
 
 
 _PREV = ("`prev(...)` cannot be read by a query over the emitted model: the model keeps the previous sample "

@@ -1,0 +1,237 @@
+"""The automaton's own expressions typed: numbers as linear forms, conditions as guards.
+
+The resolver (:mod:`rac.check.resolve`) reads every guard, rate, update, the objective and the
+constants through an :class:`ExpressionTyper`. A number must be linear in the numeric inputs and
+rewards (:class:`rac.ir.Linear`); a condition becomes a guard over the inputs (:data:`rac.ir.Guard`),
+each comparison normalised to ``input op threshold``. A :class:`Context` says what the expression
+may name. Errors go to the scope and raise :class:`rac.check.symbols.Unresolvable`. (Queries and
+bindings are typed by :mod:`rac.check.queries`, into :mod:`rac.ir.expr` instead.)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import ClassVar, NoReturn
+
+from rac import ir
+from rac.check.queries import type_word
+from rac.check.symbols import Scope, Unresolvable
+from rac.lang import ast
+
+__all__ = ["CONSTANT", "GUARD", "OBJECTIVE", "RATE", "UPDATE", "Bool", "Context", "ExpressionTyper", "Num", "Typed"]
+
+
+@dataclass(frozen=True)
+class Context:
+    """What an expression may mention, and how to call it in messages."""
+
+    what: str
+    rewards: bool = False
+    inputs: bool = True
+
+
+GUARD = Context("a guard")
+RATE = Context("a rate")
+UPDATE = Context("an update", rewards=True)
+OBJECTIVE = Context("the objective", rewards=True, inputs=False)
+CONSTANT = Context("a constant expression", inputs=False)
+
+
+@dataclass(frozen=True)
+class Num:
+    """A numeric expression of the automaton: linear in its numeric inputs and rewards."""
+
+    value: ir.Linear
+    kind: ClassVar[str] = "num"
+
+
+@dataclass(frozen=True)
+class Bool:
+    """A condition of the automaton (a guard over its inputs)."""
+
+    value: ir.Guard
+    kind: ClassVar[str] = "bool"
+
+
+#: A typed expression of the automaton, as :meth:`ExpressionTyper.expr` returns it.
+Typed = Num | Bool
+
+
+class ExpressionTyper:
+    """Types the automaton's expressions against ``scope`` (its symbols; its diagnostics)."""
+
+    def __init__(self, scope: Scope) -> None:
+        self.scope = scope
+        #: The inputs the typed expressions read (the others are reported unused).
+        self.used_inputs: set[str] = set()
+
+    def expr(self, node: ast.Expr, ctx: Context) -> Typed:
+        """Type an expression: a :class:`Num` (linear) or a :class:`Bool` (a guard)."""
+        if isinstance(node, ast.Number):
+            return Num(ir.Linear.constant(node.value))
+        if isinstance(node, ast.BoolLit):
+            return Bool(ir.BConst(node.value))
+        if isinstance(node, ast.Name):
+            return self._name(node, ctx)
+        if isinstance(node, ast.Unary):
+            operand = self.expr(node.operand, ctx)
+            if node.op == "-":
+                return Num(self._num(operand, node.operand, "`-`").scaled(-1))
+            return Bool(_not(self._bool(operand, node.operand, "`!`")))
+        if isinstance(node, ast.Binary):
+            return self._binary(node, ctx)
+        if isinstance(node, ast.Call):
+            self.scope.error("E0103", f"`{node.func}(...)` is not available in {ctx.what}", node.span,
+                             hints=["function calls are allowed in queries only"])
+            raise Unresolvable
+        self.scope.error("E0103", f"`{node.scope}.{node.id}` is not available in {ctx.what}", node.span,
+                         hints=["qualified names are allowed in queries only"])
+        raise Unresolvable
+
+    def _num(self, typed: Typed, node: ast.Expr, where: str) -> ir.Linear:
+        """The linear value of ``typed``; E0201 (and :class:`Unresolvable`) for a condition."""
+        if isinstance(typed, Bool):
+            self._mismatch("num", typed, node, where)
+        return typed.value
+
+    def _bool(self, typed: Typed, node: ast.Expr, where: str) -> ir.Guard:
+        """The guard of ``typed``; E0201 (and :class:`Unresolvable`) for a number."""
+        if isinstance(typed, Num):
+            self._mismatch("bool", typed, node, where)
+        return typed.value
+
+    def _mismatch(self, want: str, got: Typed, node: ast.Expr, where: str) -> NoReturn:
+        hints = []
+        if want == "bool":
+            shown = node.id if isinstance(node, ast.Name) else "x"
+            hints.append(f"a number is not a condition: compare it, e.g. `{shown} < 2`")
+        self.scope.error("E0201", f"{where} needs {type_word(want)}, found {type_word(got.kind)}", node.span,
+                         hints=hints)
+        raise Unresolvable
+
+    def _name(self, node: ast.Name, ctx: Context) -> Typed:
+        symbol = self.scope.symbols.get(node.id)
+        if symbol is None:
+            self.scope.unknown(node.id, node.span)
+            raise Unresolvable
+        if symbol.kind == "const":
+            if symbol.value is None:
+                raise Unresolvable
+            if isinstance(symbol.value, bool):
+                return Bool(ir.BConst(symbol.value))
+            return Num(ir.Linear.constant(symbol.value))
+        if symbol.kind == "input":
+            if not ctx.inputs:
+                self.scope.error("E0103", f"input `{node.id}` cannot appear in {ctx.what}", node.span,
+                                 hints=[_why_no_inputs(ctx)])
+                raise Unresolvable
+            self.used_inputs.add(node.id)
+            if symbol.type == "bool":
+                return Bool(ir.BInput(node.id))
+            return Num(ir.Linear.variable(node.id))
+        if symbol.kind == "reward":
+            if not ctx.rewards:
+                code = "E0202" if ctx is GUARD or ctx.what == "`assume`" else "E0203"
+                self.scope.error(code, f"reward `{node.id}` cannot appear in {ctx.what}", node.span,
+                                 hints=[_why_no_rewards(ctx)])
+                raise Unresolvable
+            return Num(ir.Linear.variable(node.id))
+        self.scope.error("E0103", f"location `{node.id}` cannot appear in {ctx.what}", node.span,
+                         hints=["location names are boolean only in queries (e.g. `A[] Unsafe imply ...`)"])
+        raise Unresolvable
+
+    def _binary(self, node: ast.Binary, ctx: Context) -> Typed:
+        lt, rt = self.expr(node.left, ctx), self.expr(node.right, ctx)
+        op = node.op
+        if op in ast.ARITHMETIC_OPS:
+            left, right = self._num(lt, node.left, f"`{op}`"), self._num(rt, node.right, f"`{op}`")
+            if op == "+":
+                return Num(left + right)
+            if op == "-":
+                return Num(left - right)
+            if op == "*":
+                if left.is_constant:
+                    return Num(right.scaled(left.const))
+                if right.is_constant:
+                    return Num(left.scaled(right.const))
+                self.scope.error("E0203", f"{ctx.what} must be linear: both sides of `*` vary", node.span,
+                                 hints=["multiply by constants only (rewards and inputs evolve linearly)"])
+                raise Unresolvable
+            if not right.is_constant:
+                self.scope.error("E0203", f"{ctx.what} must be linear: division by a varying value", node.span,
+                                 hints=["divide by constants only"])
+                raise Unresolvable
+            if right.const == 0:
+                self.scope.error("E0207", "division by zero", node.right.span)
+                raise Unresolvable
+            return Num(left.scaled(1 / right.const))
+        if op in ast.COMPARISON_OPS:
+            if isinstance(lt, Bool) and isinstance(rt, Bool) and op in ("==", "!="):
+                lv, rv = lt.value, rt.value
+                same = ir.BOr((ir.BAnd((lv, rv)), ir.BAnd((_not(lv), _not(rv)))))
+                return Bool(same if op == "==" else _not(same))
+            left, right = self._num(lt, node.left, f"`{op}`"), self._num(rt, node.right, f"`{op}`")
+            return Bool(self._atom(node, left - right, op))
+        lv, rv = self._bool(lt, node.left, f"`{op}`"), self._bool(rt, node.right, f"`{op}`")
+        if op == "&&":
+            return Bool(ir.BAnd((lv, rv)))
+        if op == "||":
+            return Bool(ir.BOr((lv, rv)))
+        return Bool(ir.BOr((_not(lv), rv)))
+
+    def _atom(self, node: ast.Binary, difference: ir.Linear, op: str) -> ir.Guard:
+        """Normalise ``left op right`` (as ``left - right op 0``) to ``input op' threshold``."""
+        if difference.is_constant:
+            return ir.BConst(ir.compare(difference.const, op, 0))
+        rewards = [n for n in difference.variables() if self.scope.symbols[n].kind == "reward"]
+        if rewards:
+            self.scope.error("E0202", f"reward `{rewards[0]}` cannot be compared", node.span,
+                             hints=["rewards only flow and are updated; guards read inputs"])
+            raise Unresolvable
+        if len(difference.terms) > 1:
+            names = ", ".join(f"`{n}`" for n in difference.variables())
+            self.scope.error("E0208", f"comparison mixes several numeric inputs ({names})", node.span,
+                             hints=["compare each numeric input with a constant; "
+                                    "combine such conditions with `&&`/`||`, or add a bool input for it"])
+            raise Unresolvable
+        (name, coefficient), = difference.terms
+        threshold = -difference.const / coefficient
+        if coefficient < 0:
+            op = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
+        return ir.BAtom(name, op, threshold)
+
+    def guard(self, node: ast.Expr | None, ctx: Context = GUARD) -> ir.Guard:
+        """A condition (``true`` when absent) as a guard over the inputs."""
+        if node is None:
+            return ir.TRUE
+        return self._bool(self.expr(node, ctx), node, ctx.what)
+
+    def linear(self, node: ast.Expr, ctx: Context) -> ir.Linear:
+        """A number, linear in what ``ctx`` lets it read."""
+        return self._num(self.expr(node, ctx), node, ctx.what)
+
+    def constant(self, node: ast.Expr, what: str) -> Fraction:
+        """The value of a constant expression (``what`` names it in messages)."""
+        value = self.linear(node, Context(what, inputs=False))
+        return value.const
+
+
+def _not(guard: ir.Guard) -> ir.Guard:
+    if isinstance(guard, ir.BConst):
+        return ir.BConst(not guard.value)
+    if isinstance(guard, ir.BNot):
+        return guard.operand
+    return ir.BNot(guard)
+
+
+def _why_no_rewards(ctx: Context) -> str:
+    if ctx.what == "a rate":
+        return "rates are constants or linear in numeric inputs; rewards grow linearly between samples"
+    return "rewards behave like UPPAAL hybrid clocks: they cannot steer the automaton"
+
+
+def _why_no_inputs(ctx: Context) -> str:
+    if ctx.what == "the objective":
+        return "the objective weighs rewards; let inputs act through guards, rates and updates"
+    return "only constants are allowed here"

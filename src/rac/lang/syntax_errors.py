@@ -1,0 +1,182 @@
+"""Syntax errors in user terms: lark's exceptions become diagnostics (E0001-E0003).
+
+Terminals are named as a reader knows them (``NAME`` is "a name", a literal terminal its text),
+long lists of alternatives are summarised ("a declaration", "an expression", "an operator"), and
+a few common slips get a hint. The same translation serves every start rule of the grammar.
+"""
+
+from __future__ import annotations
+
+import re
+
+from lark import Token
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+from lark.parsers.lalr_interactive_parser import InteractiveParser
+
+from rac.core.diagnostics import Diagnostic, error
+from rac.core.source import SourceFile, Span
+from rac.lang.grammar import MODULE, lark_parser, literal_terminal
+
+__all__ = ["syntax_error"]
+
+# How terminals are named in messages. Literal terminals are shown as their text.
+_TERMINAL_WORDS = {
+    "NAME": "a name",
+    "NUMBER": "a number",
+    "CMP_OP": "a comparison (`<`, `<=`, `==`, ...)",
+    "ADD_OP": "`+` or `-`",
+    "MUL_OP": "`*` or `/`",
+    "ASSIGN_OP": "`=`, `+=` or `-=`",
+    "OR_OP": "`||`",
+    "OR_WORD": "`||`",
+    "AND_OP": "`&&`",
+    "AND_WORD": "`&&`",
+    "NUMERIC_TYPE": "`real` or `int`",
+    "OPTIMISE": "`maxE` or `minE`",
+    "MAXMIN": "`max` or `min`",
+    "A_BOX": "`A[]`",
+    "E_BOX": "`E[]`",
+    "A_DIAMOND": "`A<>`",
+    "E_DIAMOND": "`E<>`",
+    "PR_OPEN": "`Pr[`",
+    "E_OPEN": "`E[`",
+    "STRING": 'a file name in quotes (`"..."`)',
+    "$END": "end of file",
+}
+_DECLARATION_WORDS = ("input", "assume", "const", "reward", "priority", "objective", "sample",
+                      "horizon", "initial", "location", "edge", "at", "query", "model")
+_EXPRESSION_START = {"a name", "a number", "`true`", "`false`", "`(`", "`-`", "`!`", "`not`"}
+
+
+def _describe_terminal(name: str) -> str:
+    if name in _TERMINAL_WORDS:
+        return _TERMINAL_WORDS[name]
+    literal = literal_terminal(name)
+    return f"`{literal}`" if literal is not None else name.lower()
+
+
+def _describe_expected(expected: set[str]) -> str:
+    words = {_describe_terminal(t) for t in expected}
+    declaration_words = {f"`{w}`" for w in _DECLARATION_WORDS}
+    parts: list[str] = []
+    if len(words & declaration_words) >= 5:
+        words -= declaration_words
+        parts.append("a declaration (`input`, `reward`, `location`, `edge`, `query`, ...)")
+    if len(words & _EXPRESSION_START) >= 4:
+        words -= _EXPRESSION_START
+        parts.append("an expression")
+    operators = {w for w in words if w.startswith("`") and any(c in w for c in "+-*/<>=&|")}
+    if len(operators) >= 4:
+        words -= operators
+        parts.append("an operator")
+    parts.extend(sorted(words))
+    if len(parts) == 1:
+        return parts[0]
+    return ", ".join(parts[:-1]) + " or " + parts[-1]
+
+
+def _token_text(token: Token) -> str:
+    if token.type == "$END":
+        return "end of file"
+    return f"`{token.value}`"
+
+
+def _syntax_hints(found: str, expected: set[str]) -> list[str]:
+    hints = []
+    words = {_describe_terminal(t) for t in expected}
+    if found == "=" and "`==`" in words:
+        hints.append("a flow is written `reward' == rate`, with `==`")
+    if found == ":=":
+        hints.append("assignments are written `reward = expr` (UPPAAL's `:=` is old syntax)")
+    if found in ("{", "}") and "RBRACE" in expected:
+        hints.append("check that every `{` has a matching `}`")
+    if found == ";" and "RBRACE" not in expected:
+        hints.append("`;` only separates flows inside a location; declarations need no terminator")
+    return hints
+
+
+#: Comments, strings (whose text may hold ``//`` or ``/*``) and an unclosed ``/*``, lexed like the grammar.
+_COMMENT_SCAN = re.compile(r'(?P<line>//[^\n]*)|(?P<block>/\*.*?\*/)|(?P<string>"[^"\n]*")|(?P<open>/\*)', re.DOTALL)
+
+
+def _unterminated_comment(text: str) -> int | None:
+    """Offset of the first ``/*`` that is never closed (lexed like the grammar does), if any."""
+    for match in _COMMENT_SCAN.finditer(text):
+        if match.lastgroup == "open":
+            return match.start()
+    return None
+
+
+def _acceptable(exc: UnexpectedInput, source: SourceFile, rule: str, at_end: bool) -> set[str]:
+    """The terminals the parser really accepts at the error (LALR tables over-approximate)."""
+    parser = _parser_before_end(source, rule) if at_end else getattr(exc, "interactive_parser", None)
+    accepted: set[str] = set()
+    if parser is not None:
+        try:
+            accepted = set(parser.accepts())
+        except UnexpectedInput:
+            accepted = set()
+    return accepted or set(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or ())
+
+
+def _parser_before_end(source: SourceFile, rule: str) -> InteractiveParser | None:
+    """The parser of ``rule`` after the last token of ``source``, before the end of the text.
+
+    At the end lark first reduces what the end may follow, then fails: the rules that stop at the
+    end of the text (an expression list, a query list) share their parse states with the same
+    rules inside a file, so the reductions would lose what could still follow the last token
+    (an operator, a `}`). Only taken on an error, so a good parse pays nothing.
+    """
+    parser = lark_parser().parse_interactive(source.text, start=rule)
+    try:
+        parser.exhaust_lexer()
+    except UnexpectedInput:
+        return None
+    return parser
+
+
+def _end_of_text(source: SourceFile) -> Span:
+    """Where "unexpected end of file" points: just after the last non-blank character."""
+    end = len(source.text.rstrip())
+    return source.span(end, end)
+
+
+_CHARACTER_HINTS = {
+    "&": "logical and is written `&&` (or `and`)",
+    "|": "logical or is written `||` (or `or`)",
+    '"': 'a file name is written in double quotes on one line: `scenario "left_turn.xml"`',
+}
+
+
+def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -> Diagnostic:
+    """The diagnostic of a syntax error lark raised while parsing ``source`` from the start rule ``rule``."""
+    at_end = isinstance(exc, UnexpectedEOF) or (isinstance(exc, UnexpectedToken) and exc.token.type == "$END")
+    if at_end:
+        where = len(source.text)
+    elif isinstance(exc, UnexpectedToken) and exc.token.start_pos is not None:
+        where = exc.token.start_pos
+    else:
+        where = getattr(exc, "pos_in_stream", None) or 0
+    comment = _unterminated_comment(source.text)
+    if comment is not None and comment <= where:
+        # Without its `*/` the lexer reads `/*` as a division and a product: say what happened.
+        return error("E0003", "unterminated block comment", source.span(comment, comment + 2),
+                     hints=["close the comment with `*/`"])
+    expected = _acceptable(exc, source, rule, at_end)
+    notes = [f"expected {_describe_expected(expected)}"] if expected else []
+    if isinstance(exc, UnexpectedCharacters):
+        start = where  # the character's offset (pos_in_stream)
+        char = source.text[start]
+        shown = repr(char)[1:-1] if not char.isprintable() or char == " " else char
+        hints = [_CHARACTER_HINTS[char]] if char in _CHARACTER_HINTS else []
+        return error("E0002", f"unexpected character `{shown}`", source.span(start, start + 1),
+                     notes=notes, hints=hints)
+    if at_end:
+        hints = ["check that every `{` has a matching `}`"] if "RBRACE" in expected else []
+        return error("E0001", "unexpected end of file", _end_of_text(source), notes=notes, hints=hints)
+    if isinstance(exc, UnexpectedToken):
+        start = where
+        span = source.span(start, exc.token.end_pos or start + len(exc.token.value))
+        return error("E0001", f"unexpected {_token_text(exc.token)}", span, notes=notes,
+                     hints=_syntax_hints(str(exc.token.value), expected))
+    return error("E0001", "syntax error", _end_of_text(source))

@@ -1,0 +1,453 @@
+"""Learned strategies: the observation key, the strategy's table, its runs and its evaluation.
+
+A strategy learned by :func:`rac.learning.qlearning.learn` maps an *observation key* to one
+Q-value per action of the episodes (:class:`rac.learning.episodes.EpisodeBatch`):
+
+- **Observation key.** The discrete expressions' values as they are (booleans 0/1, locations by
+  index), then each continuous value binned: ``floor(value / width + 1e-9)`` (the tolerance keeps
+  ``0.3 / 0.1`` in bin 3). Default widths (:func:`default_bin`, :data:`DEFAULT_BINS`): 1 m for
+  positions and distances (``x, y, mindist(), dist_goal()``), 0.5 m/s for speeds, 0.5 m/s² for
+  accelerations, 0.5 m/s³ for the jerk, 0.1 rad for headings, 0.05 rad/s for the turn rate, 0.1 s
+  for ``time``, 1 (in the expression's unit) for anything else. The key holds only what the query
+  lists (the sample is not added): put ``time`` in the discrete list for a time-dependent strategy.
+- **Choices.** Greedy among the *allowed* actions (the shield's mask at the state key; all
+  actions without a shield; all actions where the shield allows nothing, counted as
+  ``fallbacks``). Ties go to the lowest action index, so a strategy is deterministic.
+- **Unseen observations.** A strategy picks the lowest-index allowed action in a state it never
+  saw (its Q-values count as 0, and ties go to the lowest index).
+
+:func:`run_strategy` gives the strategy's run (:meth:`StrategyRun.samples` every sample of it,
+for ``A[] p under S``) and :func:`evaluate` a success rate (see there for why it is 0 or 1
+without action noise). :meth:`LearnedStrategy.save` and :meth:`LearnedStrategy.load` keep a
+strategy in a ``.strategy.npz`` file.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from rac.core.source import SourceFile
+from rac.engine.shield import ShieldTable
+from rac.ir import expr as ie
+from rac.lang import ast
+from rac.lang.parser import parse_expressions
+from rac.learning.episodes import Expression
+
+if TYPE_CHECKING:  # imported when a run is replayed (the simulator is not needed before)
+    from rac.engine.simulate import Runs
+    from rac.model.data import ModelData
+
+__all__ = ["DEFAULT_BIN", "DEFAULT_BINS", "Episodes", "LearnedStrategy", "StepOutcome", "StrategyEvaluation",
+           "StrategyRun", "allowed_actions", "check_shield", "default_bin", "evaluate", "greedy_actions",
+           "key_bytes", "observation_keys", "rollout", "run_strategy", "uniform_allowed"]
+
+FORMAT = "rac-strategy-1"
+#: Default bin widths of continuous observations, by name (a plain name, a model function, or
+#: ``fabs``/``-`` of one); see the module docstring.
+DEFAULT_BINS: dict[str, float] = {
+    "x": 1.0, "y": 1.0, "true_x": 1.0, "true_y": 1.0, "mindist": 1.0, "dist_goal": 1.0,
+    "v": 0.5, "true_v": 0.5, "acc": 0.5, "true_acc": 0.5, "jerk": 0.5,
+    "head": 0.1, "true_head": 0.1, "turn": 0.05, "time": 0.1,
+}
+#: The width of a continuous expression :data:`DEFAULT_BINS` does not name.
+DEFAULT_BIN = 1.0
+#: Added to ``value / width`` before flooring, so that float noise does not drop a value on a
+#: bin's edge into the bin below.
+BIN_TOLERANCE = 1e-9
+
+
+class StepOutcome(Protocol):
+    """What a step returns (:class:`rac.learning.episodes.StepResult`): ``(n,)`` arrays, read only."""
+
+    @property
+    def reward(self) -> np.ndarray: ...
+
+    @property
+    def terminated(self) -> np.ndarray: ...
+
+    @property
+    def truncated(self) -> np.ndarray: ...
+
+    @property
+    def collided(self) -> np.ndarray: ...
+
+    @property
+    def offroad(self) -> np.ndarray: ...
+
+
+class Episodes(Protocol):
+    """What learning needs of :class:`rac.learning.episodes.EpisodeBatch` (tests may pass a stand-in);
+    learning reads these attributes, it never sets them."""
+
+    @property
+    def n_actions(self) -> int: ...
+
+    @property
+    def decide_every(self) -> int: ...
+
+    @property
+    def horizon_samples(self) -> int: ...
+
+    @property
+    def max_steps(self) -> int: ...
+
+    @property
+    def n(self) -> int: ...
+
+    @property
+    def done(self) -> np.ndarray: ...
+
+    def reset(self, n: int) -> None: ...
+
+    def state_keys(self) -> np.ndarray: ...
+
+    def observe(self, exprs: Sequence[Expression]) -> np.ndarray: ...
+
+    def expression(self, expr: Expression) -> ie.Expr: ...
+
+    def step(self, actions: np.ndarray) -> StepOutcome: ...
+
+
+# ---------------------------------------------------------------- observations
+def default_bin(expr: ie.Expr | ast.Expr) -> float:
+    """The default bin width of a continuous observation (:data:`DEFAULT_BINS`), checked or parsed:
+    by the name it observes (``v``, ``fabs(turn)``, ``-acc``)."""
+    if isinstance(expr, ie.Unary | ast.Unary) and expr.op == "-":
+        return default_bin(expr.operand)
+    if isinstance(expr, ie.Call) and expr.name in ("fabs", "abs") and len(expr.args) == 1:
+        return default_bin(expr.args[0])
+    if isinstance(expr, ast.Call) and expr.func in ("fabs", "abs") and len(expr.args) == 1:
+        return default_bin(expr.args[0])
+    name = (expr.name if isinstance(expr, ie.Ref | ie.Call) else expr.id if isinstance(expr, ast.Name)
+            else expr.func if isinstance(expr, ast.Call) else None)
+    return DEFAULT_BINS.get(name, DEFAULT_BIN) if name is not None else DEFAULT_BIN
+
+
+def observation_keys(values: np.ndarray, n_discrete: int, bins: Sequence[float] | np.ndarray) -> np.ndarray:
+    """``(n, d + c)`` float64 keys of observed values: the ``n_discrete`` first columns as they
+    are, the others binned (``floor(value / width + 1e-9)``); ``-0.0`` becomes ``0.0`` (one key)."""
+    keys = np.array(values, dtype=np.float64, ndmin=2, copy=True)
+    widths = np.asarray(bins, dtype=np.float64)
+    if keys.shape[1] != n_discrete + widths.size:
+        raise ValueError(f"{keys.shape[1]} observed values, expected {n_discrete} discrete + {widths.size} binned")
+    keys[:, n_discrete:] = np.floor(keys[:, n_discrete:] / widths + BIN_TOLERANCE)
+    return keys + 0.0
+
+
+def key_bytes(keys: np.ndarray) -> list[bytes]:
+    """Each observation key as bytes, for dictionaries of keys (float64, row by row)."""
+    return [row.tobytes() for row in np.ascontiguousarray(keys, dtype=np.float64)]
+
+
+def greedy_actions(utilities: np.ndarray, masks: np.ndarray) -> np.ndarray:
+    """The best allowed action per row; ``argmax`` takes the first maximum, so ties go to the lowest index."""
+    return np.argmax(np.where(masks, utilities, -np.inf), axis=1).astype(np.int64)
+
+
+def uniform_allowed(rng: np.random.Generator, masks: np.ndarray) -> np.ndarray:
+    """One allowed action per row, uniformly (every row allows one)."""
+    pick = rng.integers(0, masks.sum(axis=1))
+    return np.argmax(np.cumsum(masks, axis=1) > pick[:, None], axis=1).astype(np.int64)
+
+
+def allowed_actions(batch: Episodes, shield: ShieldTable | None) -> tuple[np.ndarray, np.ndarray]:
+    """The allowed actions of every episode and which rows fell back to all actions (empty masks)."""
+    if shield is None:
+        return np.ones((batch.n, batch.n_actions), dtype=bool), np.zeros(batch.n, dtype=bool)
+    masks = np.array(shield.masks_for(batch.state_keys()), dtype=bool)
+    empty = np.logical_not(masks.any(axis=1))
+    masks[empty] = True
+    return masks, empty
+
+
+def check_shield(batch: Episodes, shield: ShieldTable | None) -> None:
+    """``ValueError`` unless ``shield`` (if any) has the episodes' actions."""
+    if shield is not None and shield.n_actions != batch.n_actions:
+        raise ValueError(f"the shield has {shield.n_actions} actions, the episodes {batch.n_actions}")
+
+
+# ---------------------------------------------------------------- the learned strategy
+@dataclass(frozen=True, eq=False)
+class LearnedStrategy:
+    """A learned Q-table and how to observe: ``keys (S, d + c)`` observation keys (see
+    :func:`observation_keys`), ``values (S, P)`` their Q-values in the objective's sense (expected
+    return for ``optimise="max"``, expected cost for ``"min"``), the expressions as text, the bin
+    widths and ``meta`` (JSON-ready facts: the objective, the goal, the shield, the seed...)."""
+
+    discrete: tuple[str, ...]
+    continuous: tuple[str, ...]
+    bins: tuple[float, ...]
+    optimise: str
+    keys: np.ndarray
+    values: np.ndarray
+    action_pairs: np.ndarray | None = None
+    meta: Mapping[str, object] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.optimise not in ("max", "min"):
+            raise ValueError(f"optimise must be 'max' or 'min', not {self.optimise!r}")
+        object.__setattr__(self, "_index", {raw: i for i, raw in enumerate(key_bytes(self.keys))})
+
+    @property
+    def n_actions(self) -> int:
+        return int(self.values.shape[1])
+
+    @property
+    def n_states(self) -> int:
+        """How many observation keys the table holds."""
+        return int(self.keys.shape[0])
+
+    def observation_keys(self, observations: np.ndarray) -> np.ndarray:
+        """The keys of ``(n, d + c)`` observed values (discrete then continuous, as :meth:`expressions`)."""
+        return observation_keys(observations, len(self.discrete), self.bins)
+
+    def expressions(self) -> tuple[ast.Expr, ...]:
+        """The observed expressions, parsed back from their text (discrete first; the episodes check
+        them against their automaton when observing)."""
+        texts = (*self.discrete, *self.continuous)
+        if not texts:
+            return ()
+        return parse_expressions(SourceFile("<observations>", ", ".join(texts)))
+
+    def lookup(self, keys: np.ndarray) -> np.ndarray:
+        """Each key's row in :attr:`keys`, -1 for a key never seen."""
+        index: dict[bytes, int] = self._index  # type: ignore[attr-defined]
+        return np.array([index.get(raw, -1) for raw in key_bytes(keys)], dtype=np.int64)
+
+    def action(self, keys: np.ndarray, masks: np.ndarray | None = None) -> np.ndarray:
+        """``(n,)`` the greedy action of every observation key among the allowed ones (``masks``
+        ``(n, P)`` bool; None: all). An unseen key, or a row allowing nothing, gets the lowest-index
+        allowed action (every action, for an empty row)."""
+        keys = np.array(keys, dtype=np.float64, ndmin=2)
+        rows = self.lookup(keys)
+        sign = 1.0 if self.optimise == "max" else -1.0
+        utilities = sign * self.values[np.maximum(rows, 0)] if self.n_states else np.zeros((len(rows), self.n_actions))
+        utilities[rows < 0] = 0.0
+        allowed = np.ones(utilities.shape, dtype=bool) if masks is None else np.array(masks, dtype=bool)
+        allowed[~allowed.any(axis=1)] = True
+        return greedy_actions(utilities, allowed)
+
+    def act(self, observations: np.ndarray, masks: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`action` of raw observed values."""
+        return self.action(self.observation_keys(observations), masks)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the strategy to ``path`` (compressed .npz: ``keys``, ``values``, ``action_pairs`` and
+        a JSON ``meta`` with the format, the expressions, bins and ``optimise``). The file is written
+        under a temporary name and renamed, so an interrupted write leaves no half strategy."""
+        path = Path(path)
+        header = {"format": FORMAT, "discrete": list(self.discrete), "continuous": list(self.continuous),
+                  "bins": list(self.bins), "optimise": self.optimise, "meta": dict(self.meta)}
+        pairs = self.action_pairs if self.action_pairs is not None else np.zeros((0, 2), dtype=np.int64)
+        partial = path.with_name(path.name + ".partial")
+        try:
+            with partial.open("wb") as handle:
+                np.savez_compressed(handle, header=np.array(json.dumps(header)), keys=self.keys, values=self.values,
+                                    action_pairs=pairs)
+            os.replace(partial, path)
+        finally:
+            partial.unlink(missing_ok=True)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> LearnedStrategy:
+        """Read a strategy written by :meth:`save` (``ValueError`` when the file is not one)."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                header = json.loads(str(data["header"]))
+                if header.get("format") != FORMAT:
+                    raise ValueError(f"not a rac strategy (format {header.get('format')!r})")
+                pairs = data["action_pairs"]
+                return cls(tuple(header["discrete"]), tuple(header["continuous"]),
+                           tuple(float(b) for b in header["bins"]), header["optimise"],
+                           data["keys"].astype(np.float64), data["values"].astype(np.float64),
+                           pairs if pairs.size else None, header.get("meta", {}))
+        except FileNotFoundError:
+            raise
+        except (OSError, KeyError, ValueError, TypeError) as exc:
+            raise ValueError(f"{path}: cannot read the strategy: {exc}") from None
+
+
+# ---------------------------------------------------------------- runs
+@dataclass(frozen=True, eq=False)
+class StrategyRun:
+    """Runs of the episodes under a strategy, one row per run, one column per decision.
+
+    ``states (n, S+1, 8)`` int32 the state keys ``[k, x, y, v, acc, head, jerk, turn]`` before each
+    step and after the last (a finished run's row repeats its last state); ``observations (n, S+1,
+    d+c)`` the observed values there; ``actions (n, S)`` (-1 after the end), ``rewards (n, S)`` (0
+    after the end); per run: ``returns`` (the undiscounted sum of rewards), ``reached`` the goal,
+    ``collided``, ``offroad`` (at any sample), ``fallbacks`` (decisions where the shield allowed
+    nothing) and ``steps`` taken. ``decide_every`` samples per step, ``horizon_samples`` the
+    episodes' horizon."""
+
+    states: np.ndarray
+    observations: np.ndarray
+    actions: np.ndarray
+    rewards: np.ndarray
+    returns: np.ndarray
+    reached: np.ndarray
+    collided: np.ndarray
+    offroad: np.ndarray
+    fallbacks: np.ndarray
+    steps: np.ndarray
+    decide_every: int
+    horizon_samples: int
+
+    @property
+    def n_runs(self) -> int:
+        return int(self.actions.shape[0])
+
+    @property
+    def success(self) -> np.ndarray:
+        """``(n,)`` the run reached the goal and never collided nor left the road."""
+        return self.reached & ~self.collided & ~self.offroad
+
+    @property
+    def samples_taken(self) -> np.ndarray:
+        """``(n,)`` the last sample of each run (an episode ends at the sample that reaches the goal,
+        which may lie inside a decision period, or at the horizon)."""
+        return self.states[:, -1, 0].astype(np.int64)
+
+    def samples(self, data: ModelData, *, truth_substeps: int = 100) -> Runs:
+        """Every sample of the runs (:class:`rac.engine.simulate.Runs`), replayed with
+        :func:`rac.engine.simulate.simulate` forced to the runs' actions (``data``: the
+        :class:`rac.model.data.ModelData`), to the longest run's last sample; beyond a run's own
+        :attr:`samples_taken` its row is not part of the run. Also the ground truth.
+
+        ``RuntimeError`` when the replay does not meet the recorded decision states."""
+        from rac.engine.explore import action_pairs
+        from rac.engine.simulate import simulate
+
+        horizon = int(self.samples_taken.max()) if self.n_runs else 0
+        actions = np.where(self.actions >= 0, self.actions, 0)  # past a run's end: any action
+        n_actions = len(action_pairs(data))
+
+        def forced(k: int, states: np.ndarray) -> np.ndarray:
+            mask = np.zeros((states.shape[0], n_actions), dtype=bool)
+            mask[np.arange(states.shape[0]), actions[:, k // self.decide_every]] = True
+            return mask
+
+        runs = simulate(data, runs=self.n_runs, horizon_samples=horizon, seed=0, policy=forced,
+                        truth_substeps=truth_substeps)
+        rows = np.arange(self.n_runs)
+        for j in range(self.states.shape[1]):
+            k = self.states[:, j, 0].astype(np.int64)
+            if not np.array_equal(runs.states[rows, k], self.states[:, j, 1:]):
+                raise RuntimeError(f"replaying the strategy's actions does not give its state at decision {j}")
+        return runs
+
+
+def rollout(batch: Episodes, exprs: Sequence[Expression], n: int, shield: ShieldTable | None,
+             choose: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> StrategyRun:
+    """``n`` episodes to their end; ``choose(observations, masks) -> actions`` at each decision."""
+    batch.reset(n)
+    steps_max = batch.max_steps
+    states = np.zeros((n, steps_max + 1, 8), dtype=np.int32)
+    observed = np.zeros((n, steps_max + 1, len(exprs)), dtype=np.float64)
+    actions = np.full((n, steps_max), -1, dtype=np.int64)
+    rewards = np.zeros((n, steps_max), dtype=np.float64)
+    flags = {name: np.zeros(n, dtype=bool) for name in ("reached", "collided", "offroad")}
+    fallbacks = np.zeros(n, dtype=np.int64)
+    steps = np.zeros(n, dtype=np.int64)
+    j = 0
+    while True:
+        states[:, j] = batch.state_keys()
+        observed[:, j] = batch.observe(exprs) if exprs else np.zeros((n, 0))
+        active = ~np.asarray(batch.done, dtype=bool)
+        if j >= steps_max or not active.any():
+            states[:, j + 1:] = states[:, j:j + 1]
+            observed[:, j + 1:] = observed[:, j:j + 1]
+            break
+        masks, empty = allowed_actions(batch, shield)
+        fallbacks += empty & active
+        chosen = np.where(active, choose(observed[:, j], masks), 0)
+        outcome = batch.step(chosen)
+        actions[active, j] = chosen[active]
+        rewards[active, j] = np.asarray(outcome.reward)[active]
+        flags["reached"] |= np.asarray(outcome.terminated, dtype=bool) & active
+        flags["collided"] |= np.asarray(outcome.collided, dtype=bool) & active
+        flags["offroad"] |= np.asarray(outcome.offroad, dtype=bool) & active
+        steps += active
+        j += 1
+    return StrategyRun(states, observed, actions, rewards, rewards.sum(axis=1), flags["reached"], flags["collided"],
+                       flags["offroad"], fallbacks, steps, int(batch.decide_every), int(batch.horizon_samples))
+
+
+def _strategy_chooser(strategy: LearnedStrategy) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    return lambda observed, masks: strategy.act(observed, masks)
+
+
+def run_strategy(batch: Episodes, strategy: LearnedStrategy, *, exprs: Sequence[Expression] | None = None,
+                 shield: ShieldTable | None = None, runs: int = 1) -> StrategyRun:
+    """The run(s) of the episodes under ``strategy`` (greedy among the actions ``shield`` allows):
+    with the deterministic model and strategy all ``runs`` are the same run. ``exprs``: the
+    observed expressions (default: :meth:`LearnedStrategy.expressions`). Use
+    :meth:`StrategyRun.samples` for every sample of it (``A[] p under S``: ``p`` at each)."""
+    check_shield(batch, shield)
+    exprs = tuple(exprs) if exprs is not None else strategy.expressions()
+    return rollout(batch, exprs, runs, shield, _strategy_chooser(strategy))
+
+
+@dataclass(frozen=True)
+class StrategyEvaluation:
+    """:func:`evaluate`'s counts over ``runs`` runs; ``interval`` is the Clopper-Pearson 95%
+    interval of the success rate."""
+
+    runs: int
+    successes: int
+    reached: int
+    collided: int
+    offroad: int
+    fallbacks: int
+    mean_return: float
+    interval: tuple[float, float]
+    epsilon: float
+    seed: int | None
+
+    @property
+    def success_rate(self) -> float:
+        return self.successes / self.runs if self.runs else math.nan
+
+
+def evaluate(batch: Episodes, strategy: LearnedStrategy, *, runs: int = 100, shield: ShieldTable | None = None,
+             seed: int | None = None, epsilon: float = 0.0, exprs: Sequence[Expression] | None = None
+             ) -> StrategyEvaluation:
+    """The success rate of ``strategy`` over ``runs`` runs (success: the goal reached, never a
+    collision nor off the road).
+
+    The model and the greedy strategy are deterministic, so with ``epsilon == 0`` (default) every
+    run is the one run and the rate is 0 or 1 — the honest answer, counted once per run. With
+    ``epsilon > 0`` each decision takes, with that probability, a uniformly drawn *allowed* action
+    instead of the greedy one (seeded by ``seed``): the rate then measures how well the strategy
+    recovers from deviations, and under a shield the deviations stay safe. Action noise was
+    chosen over perturbing the start because the episodes' start is the scenario's and a shield
+    knows only the states reachable from it."""
+    check_shield(batch, shield)
+    if not 0.0 <= epsilon <= 1.0:
+        raise ValueError(f"epsilon must lie in [0, 1], not {epsilon}")
+    from rac.engine.stats import clopper_pearson
+
+    exprs = tuple(exprs) if exprs is not None else strategy.expressions()
+    rng = np.random.default_rng(seed)
+
+    def choose(observed: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        greedy = strategy.act(observed, masks)
+        if epsilon == 0.0:
+            return greedy
+        return np.where(rng.random(len(greedy)) < epsilon, uniform_allowed(rng, masks), greedy)
+
+    run = rollout(batch, exprs, runs, shield, choose)
+    successes = int(run.success.sum())
+    return StrategyEvaluation(runs, successes, int(run.reached.sum()), int(run.collided.sum()),
+                              int(run.offroad.sum()), int(run.fallbacks.sum()), float(run.returns.mean()),
+                              clopper_pearson(successes, runs), epsilon, seed)

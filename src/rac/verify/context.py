@@ -1,0 +1,244 @@
+"""What every answer of ``rac verify`` needs: the options (:class:`VerifyOptions`), the checked file,
+and what earlier queries computed (explored graphs, shields, learned strategies), held by one
+:class:`Context` that the answerers of :mod:`rac.verify.symbolic`, :mod:`rac.verify.statistical`
+and :mod:`rac.verify.learning` receive.
+
+An answer that cannot be given within the options raises :class:`UnknownVerdict`; the runner
+turns it into the verdict *unknown* with its message.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rac.compiler import CompileResult
+from rac.engine import shield, storm
+from rac.engine.evaluate import EvaluationError, Evaluator, Frame
+from rac.engine.explore import action_pairs, explore
+from rac.engine.graph import ExploredGraph
+from rac.ir import expr as ie
+from rac.ir import query as iq
+from rac.model.data import ModelData, ModelRangeError
+
+if TYPE_CHECKING:
+    from rac.engine.simulate import Policy, Runs
+    from rac.learning.episodes import EpisodeBatch
+    from rac.learning.qlearning import LearnedStrategy, StrategyRun
+
+__all__ = ["Context", "Learned", "UnknownVerdict", "VerifyOptions"]
+
+
+class UnknownVerdict(Exception):
+    """A query that cannot be decided within the options; the message says why, for the user."""
+
+
+@dataclass(frozen=True)
+class VerifyOptions:
+    """How :func:`rac.verify.runner.verify` answers queries (the ``rac verify`` options)."""
+
+    #: Horizon of exhaustive queries in seconds (None: the automaton's ``horizon``).
+    horizon: Fraction | None = None
+    #: Exhaustive exploration stops with *unknown* beyond this many states.
+    max_states: int = 5_000_000
+    #: Seed of the statistical queries (None: a fresh seed, printed with the result).
+    seed: int | None = None
+    #: ``Pr[...](<> p)``: stop when the interval's half-width is at most epsilon (UPPAAL's -E).
+    epsilon: float = 0.05
+    #: Confidence of intervals (UPPAAL's 1 - alpha).
+    confidence: float = 0.95
+    #: Error bounds and indifference region of ``Pr[...] >= θ`` (UPPAAL's -a, -B, -d).
+    alpha: float = 0.05
+    beta: float = 0.05
+    delta: float = 0.01
+    #: Where strategies, CSV files and plots go (None: ``<file>.out`` beside the .ra file).
+    out_dir: Path | None = None
+    #: Also answer the paper's standard queries Qa–Qd and the Fig. 7 simulations.
+    standard: bool = False
+    #: Only these queries (by name); None: all.
+    only: tuple[str, ...] | None = None
+    #: Draw plots for ``simulate`` queries.
+    plots: bool = True
+    #: ``progress(message)``: called before each query (the CLI shows it on a TTY).
+    progress: Callable[[str], None] | None = None
+    #: Exploration callback ``(layer, frontier, total)`` (the CLI's progress bar).
+    explore_progress: Callable[[int, int, int], None] | None = None
+    #: Learning queries (``maxE``/``minE``, :func:`rac.learning.qlearning.learn`): the episode budget,
+    #: the episodes stepped together, and the early stop after this many greedy evaluations
+    #: without improvement once the greedy run succeeded.
+    learn_episodes: int = 1000
+    learn_parallel: int = 32
+    learn_stop_after: int = 10
+    #: Show a progress bar (on a terminal) while learning, with the running mean return.
+    bars: bool = False
+
+
+@dataclass(frozen=True)
+class Learned:
+    """A learned strategy (``strategy S = maxE(...)``), the shield it was learned (and is run)
+    under, and the expressions it observes."""
+
+    strategy: LearnedStrategy
+    shield: shield.ShieldTable | None
+    exprs: tuple[ie.Expr, ...]
+
+
+def _decimal(value: Fraction) -> str:
+    return str(value.numerator) if value.denominator == 1 else repr(float(value))
+
+
+class Context:
+    """One file's verification in progress: the checked file and its model, the options, and what
+    the queries answered so far computed, which later ones reuse (the explored graphs) or name
+    (``under S``: :attr:`strategies`, :attr:`learned`).
+
+    ``ValueError`` when the file has no ``model`` block or the horizon is not a whole number of
+    samples; :class:`rac.core.diagnostics.CheckError` when the file has errors.
+    """
+
+    def __init__(self, result: CompileResult, options: VerifyOptions) -> None:
+        automaton = result.raise_for_errors()
+        if automaton.model is None or result.model_data is None:
+            raise ValueError("rac verify needs a `model` block: the queries are answered on the scenario model")
+        #: The checked file and its automaton.
+        self.result = result
+        self.automaton = automaton
+        #: The scenario model the queries are answered on.
+        self.data: ModelData = result.model_data
+        self.options = options
+        #: Evaluates the queries' expressions on explored states and simulated samples.
+        self.evaluator = Evaluator(self.data, automaton)
+        #: The sample period ``C1`` in seconds.
+        self.period = Fraction(automaton.period)
+        horizon = options.horizon if options.horizon is not None else Fraction(automaton.horizon)
+        if (horizon / self.period).denominator != 1:
+            raise ValueError(f"the horizon {_decimal(horizon)} s is not a whole number of samples of "
+                             f"{_decimal(self.period)} s")
+        #: The horizon of exhaustive queries in samples.
+        self.horizon_samples = int(horizon / self.period)
+        #: The explored model up to the horizon, by whether unsafe states were pruned (see :meth:`graph`).
+        self.graphs: dict[bool, ExploredGraph] = {}
+        #: Shields (``strategy S = control: A[] p``) by name, for later queries ``under S``.
+        self.strategies: dict[str, tuple[storm.Shield, shield.ShieldTable]] = {}
+        #: Learned strategies (``strategy S = maxE(...)``) by name, for later queries ``under S``.
+        self.learned: dict[str, Learned] = {}
+        #: The model's (jerk, turn) action pairs; a shield's masks index them.
+        self.pairs = action_pairs(self.data)
+        #: Where strategies, CSV files and plots go (None: nowhere).
+        self.out_dir = options.out_dir
+        self._seeds = np.random.SeedSequence(options.seed)
+
+    # ------------------------------------------------------------ files and seeds
+    def out(self, name: str) -> Path:
+        """The path of the output file ``name`` (its folder created); unknown without a folder."""
+        if self.out_dir is None:
+            raise UnknownVerdict("no output folder")
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        return self.out_dir / name
+
+    def next_seed(self) -> int:
+        """A fresh seed per query, all derived from the options' seed (reproducible as a whole)."""
+        return int(self._seeds.spawn(1)[0].generate_state(1)[0])
+
+    def bound_samples(self, bound: iq.Bound) -> int:
+        """The samples within a query's time bound ``[<=T]`` (whole samples up to T s). A step bound
+        ``[#<=K]`` is refused: UPPAAL counts transitions with it, and a sample of the model takes
+        three or more (``accrue``, ``read``, ``sense``, at decisions ``decide`` and the choice)."""
+        if bound.kind == "steps":
+            raise EvaluationError("`[#<=K]` counts UPPAAL's transitions, not samples (a sample takes three or "
+                                  "more): rac verify answers time bounds `[<=T]`")
+        return math.floor(bound.limit / self.period)
+
+    # ------------------------------------------------------------ the explored model
+    def graph(self, prune: bool) -> ExploredGraph:
+        """The explored model up to the horizon (pruned: unsafe states are not expanded), explored
+        once and kept for later queries."""
+        if prune not in self.graphs:
+            try:
+                self.graphs[prune] = explore(self.data, horizon_samples=self.horizon_samples, prune_unsafe=prune,
+                                             progress=self.options.explore_progress,
+                                             max_states=self.options.max_states)
+            except MemoryError as exc:
+                raise UnknownVerdict(f"{exc}: shorten the horizon (--horizon), coarsen the model (exponent, "
+                                     "action steps, decide_period) or raise --max-states") from None
+            except ModelRangeError as exc:
+                raise UnknownVerdict(f"a sensed value left the int32 range: {exc}") from None
+        return self.graphs[prune]
+
+    def label(self, graph: ExploredGraph, expr: ie.Expr) -> np.ndarray:
+        """A state formula on every state of a plain explored graph."""
+        if ie.uses_prev(expr):
+            raise EvaluationError("`prev(...)` in an exhaustive query is not supported: a merged state has no "
+                                  "single previous sample")
+        frame = Frame(k=graph.states[:, 0].astype(np.int64), ego=graph.states[:, 1:8])
+        return np.ascontiguousarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
+
+    # ------------------------------------------------------------ strategies
+    def strategy(self, name: str) -> tuple[storm.Shield, shield.ShieldTable]:
+        """The shield ``name`` computed by an earlier query; unknown when there is none to use."""
+        if name not in self.strategies:
+            raise UnknownVerdict(f"the strategy `{name}` has not been computed (it is defined by a query that "
+                                 "was skipped or failed; run it first)")
+        if not self.strategies[name][0].shield_exists:
+            # As in UPPAAL: a control query that is not satisfied yields no strategy to use.
+            raise UnknownVerdict(f"the strategy `{name}` does not exist: no safe strategy exists from the start")
+        return self.strategies[name]
+
+    def policy(self, under: str | None) -> Policy | None:
+        """The simulation policy of the shield ``under`` (None: every action)."""
+        return None if under is None else self.strategy(under)[1].masks_at
+
+    def episodes(self, reward: str | ie.Expr, goal: ie.Expr | None, samples: int) -> EpisodeBatch:
+        """Episodes of the model with the automaton (:class:`rac.learning.episodes.EpisodeBatch`);
+        unknown when the episodes cannot be set up (an expression the engine cannot read stays an
+        :class:`EvaluationError`: unsupported)."""
+        from rac.learning.episodes import EpisodeBatch
+
+        try:
+            return EpisodeBatch(self.result, reward=reward, goal=goal, horizon_samples=samples, data=self.data)
+        except EvaluationError:
+            raise
+        except ValueError as exc:
+            raise UnknownVerdict(str(exc)) from None
+
+    def learned_run(self, name: str, samples: int) -> tuple[StrategyRun, Runs]:
+        """The one run of the learned strategy ``name`` over ``samples`` samples (it does not stop at
+        the learning goal): the :class:`rac.learning.qlearning.StrategyRun` and its samples replayed as
+        :class:`rac.engine.simulate.Runs` (one run, with the ground truth)."""
+        from rac.learning.qlearning import run_strategy
+
+        entry = self.learned[name]
+        batch = self.episodes("automaton", None, samples)
+        try:
+            run = run_strategy(batch, entry.strategy, exprs=entry.exprs, shield=entry.shield)
+            return run, run.samples(self.data)
+        except EvaluationError:
+            raise
+        except ValueError as exc:
+            raise UnknownVerdict(str(exc)) from None
+
+    # ------------------------------------------------------------ simulated runs
+    def frames(self, runs: Runs) -> Iterator[Frame]:
+        """One frame per sample of the runs (``prev`` is the previous sample's frame)."""
+        previous = None
+        n = runs.n_runs
+        for k in range(runs.horizon + 1):
+            frame = Frame(k=np.full(n, k, dtype=np.int64), ego=np.ascontiguousarray(runs.states[:, k]),
+                          truth=np.ascontiguousarray(runs.truth[:, k]), prev=previous)
+            yield frame
+            previous = dataclasses.replace(frame, prev=None)
+
+    def values(self, runs: Runs, exprs: tuple[ie.Expr, ...]) -> list[np.ndarray]:
+        """Each expression per run and sample: ``(N, T+1)`` arrays."""
+        columns: list[list[np.ndarray]] = [[] for _ in exprs]
+        for frame in self.frames(runs):
+            for column, expr in zip(columns, exprs):
+                column.append(np.asarray(self.evaluator.evaluate(expr, frame), dtype=np.float64))
+        return [np.stack(column, axis=1) for column in columns]

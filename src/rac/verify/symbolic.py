@@ -1,0 +1,202 @@
+"""``rac verify``'s exhaustive queries: ``A[] p``, ``E<> p``, ``E[] p``, ``A<> p``, ``p --> q`` and
+``strategy S = control: ...``, decided by Storm on the explored model (or its product with the
+automaton), within the horizon and the state budget of the :class:`~rac.verify.context.Context`."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from rac.engine import shield, storm
+from rac.engine.evaluate import EvaluationError
+from rac.engine.graph import ExploredGraph
+from rac.ir import expr as ie
+from rac.ir import query as iq
+from rac.ir.vocabulary import EGO_STATE
+from rac.verify.context import Context, UnknownVerdict
+from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow
+
+__all__ = ["SymbolicAnswerer"]
+
+
+class SymbolicAnswerer:
+    """Answers path, leads-to and control queries on the explored model; a shield computed by a
+    control query is kept in the context for later queries ``under`` it."""
+
+    def __init__(self, context: Context) -> None:
+        self.context = context
+
+    def path(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
+        """``A[] p``, ``E<> p``, ``E[] p``, ``A<> p`` (optionally ``under`` a shield), with a witness or
+        counterexample trace where Storm gives one."""
+        ctx = self.context
+        if ie.reads_automaton(query.expr):
+            return self.path_in_product(query, base)
+        # Pruning unsafe states is sound for A[]/E[] of a formula that unsafe states violate
+        # (reaching one already decides the query), never for E<>/A<>.
+        prune = query.quantifier in ("A[]", "E[]") and _implies_safe(query.expr) and query.under is None
+        graph = ctx.graph(prune)
+        if query.under is not None:
+            shield_, _ = ctx.strategy(query.under)
+            graph = _restricted(shield_)
+        labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
+        verdict = storm.decide(labelled, query.quantifier, "query")
+        message = None
+        if verdict.trace and "safe" in graph.labels and not graph.labels["safe"][verdict.trace[:-1]].all():
+            # A collision does not end a run of the model (as in the emitted UPPAAL model), so a
+            # witness may pass through unsafe states; say so, and whether a safe one exists.
+            message = "the trace passes through unsafe states (a collision does not end a run)"
+            if query.quantifier == "E<>" and query.under is None:
+                safe_graph = ctx.graph(True)
+                target = ctx.label(safe_graph, query.expr) & safe_graph.labels["safe"]
+                safe_verdict = storm.decide(dataclasses.replace(safe_graph, labels={**safe_graph.labels,
+                                                                                   "query": target}), "E<>", "query")
+                message += ("; a run that stays safe also reaches it" if safe_verdict.holds
+                            else "; NO run that stays safe reaches it")
+        return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
+                                   states=graph.n_states, horizon_samples=ctx.horizon_samples,
+                                   trace=self.trace_rows(graph, verdict.trace), message=message)
+
+    def path_in_product(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
+        """A path query over the automaton's names, on the product of model and automaton."""
+        from rac.engine.product import decide_product, explore_product
+
+        ctx = self.context
+        if query.under is not None:
+            raise UnknownVerdict("`under` a strategy is not supported on the product of model and automaton")
+        try:
+            graph = explore_product(ctx.data, ctx.automaton, horizon_samples=ctx.horizon_samples,
+                                    progress=ctx.options.explore_progress, max_states=ctx.options.max_states)
+        except MemoryError as exc:
+            raise UnknownVerdict(f"{exc}: the product of model and automaton grows quickly; shorten the horizon "
+                                 "(--horizon) or coarsen the model") from None
+        verdict = decide_product(graph, query, base.formula)
+        return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
+                                   states=graph.n_states, horizon_samples=ctx.horizon_samples,
+                                   trace=self.trace_rows(graph, verdict.trace))
+
+    def leads_to(self, query: iq.LeadsToQuery, base: QueryResult) -> QueryResult:
+        """``p --> q``: every reachable ``p``-state is followed by ``q`` on every run."""
+        ctx = self.context
+        if ie.reads_automaton(query.left) or ie.reads_automaton(query.right):
+            raise UnknownVerdict("`-->` over the automaton's names is not supported yet")
+        graph = self.under_shield(query.under, "`-->`") if query.under is not None else ctx.graph(False)
+        p, q = ctx.label(graph, query.left), ctx.label(graph, query.right)
+        # p --> q fails exactly when a reachable p-state has a run avoiding q forever (E[] !q there).
+        mdp = storm.to_mdp(dataclasses.replace(graph, labels={"notq": ~q}))
+        values, _ = storm.check_formula(mdp, 'Pmax=? [G "notq"]')
+        holds = not bool(np.any(p & (values > 0.5) & _reachable(graph)))
+        return dataclasses.replace(base, status="satisfied" if holds else "not satisfied", states=graph.n_states,
+                                   horizon_samples=ctx.horizon_samples)
+
+    def control(self, query: iq.ControlStrategy, base: QueryResult) -> QueryResult:
+        """``strategy S = control: A[] p``: the most permissive shield keeping ``p``, kept as ``S`` and
+        saved to ``OUT/S.shield.npz``; a reachability goal (``E<> p``) is decided, not saved."""
+        ctx = self.context
+        if ie.reads_automaton(query.expr):
+            raise UnknownVerdict("strategies over the automaton's names are not supported yet")
+        within = self.under_shield(query.under, "a strategy") if query.under is not None else None
+        if query.goal != "A[]":
+            graph = within if within is not None else ctx.graph(False)
+            labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
+            verdict = storm.decide(labelled, "E<>", "query")
+            return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
+                                       states=graph.n_states, horizon_samples=ctx.horizon_samples,
+                                       message="reachability strategies are decided but not saved")
+        graph = within if within is not None else ctx.graph(_implies_safe(query.expr))
+        labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
+        computed = storm.safety_shield(labelled, "query")
+        table = shield.table(computed, n_actions=len(ctx.pairs))
+        ctx.strategies[query.name] = (computed, table)
+        files: tuple[str, ...] = ()
+        if ctx.out_dir is not None and computed.shield_exists:  # UPPAAL defines no strategy either
+            files = (str(shield.save(table, ctx.out(f"{query.name}.shield.npz"))),)
+        allowed = int(computed.allowed_choices.sum())
+        message = (f"{int(computed.winning.sum()):,} winning states, {allowed:,} allowed choices"
+                   if computed.shield_exists else "no safe strategy exists from the start")
+        return dataclasses.replace(base, status="satisfied" if computed.shield_exists else "not satisfied",
+                                   states=graph.n_states, horizon_samples=ctx.horizon_samples, files=files,
+                                   message=message)
+
+    # ------------------------------------------------------------ pieces
+    def under_shield(self, name: str, what: str) -> ExploredGraph:
+        """The explored model restricted to the choices the shield ``name`` allows; a learned
+        strategy is refused (its one run is answered for path queries only)."""
+        if name in self.context.learned:
+            raise EvaluationError(f"{what} under the learned strategy `{name}` is not supported (under a shield "
+                                  "it is; path queries under a learned strategy are answered on its one run)")
+        shield_, _ = self.context.strategy(name)
+        return _restricted(shield_)
+
+    def trace_rows(self, graph: ExploredGraph, trace: list[int] | None) -> tuple[TraceRow, ...] | None:
+        """The states of a witness trace as :data:`~rac.verify.report.TraceRow` s (None: no trace)."""
+        if not trace:
+            return None
+        automaton = self.context.automaton
+        rows = []
+        scale = float(self.context.data.scale)
+        columns = list(graph.columns)
+        for index in trace:
+            state = graph.states[index]
+            row: TraceRow = {"time": round(int(state[columns.index("k")]) * float(self.context.period), 9)}
+            for name in EGO_STATE:
+                row[name] = int(state[columns.index(name)]) / scale
+            if "location" in columns and automaton.location_names:
+                row["location"] = automaton.location_names[int(state[columns.index("location")])]
+            if "phase" in columns:  # a product state: which instant of its sample, and the rewards
+                from rac.engine.product import PHASES
+
+                row["phase"] = PHASES[int(state[columns.index("phase")])]
+                for reward in automaton.rewards:
+                    if reward not in row:  # a reward named like an ego column would hide it
+                        row[reward] = int(state[columns.index(f"mirror:{reward}")]) / scale
+            for label in TRACE_FLAGS:
+                if label in graph.labels:
+                    row[label] = bool(graph.labels[label][index])
+            rows.append(row)
+        return tuple(rows)
+
+
+def _implies_safe(expr: ie.Expr) -> bool:
+    """``expr`` is a conjunction containing ``!collide()`` and ``!offroad()`` (so unsafe states violate it)."""
+    found: set[str] = set()
+
+    def walk(node: ie.Expr) -> None:
+        if isinstance(node, ie.Binary) and node.op == "&&":
+            walk(node.left)
+            walk(node.right)
+        elif (isinstance(node, ie.Unary) and node.op == "!" and isinstance(node.operand, ie.Call)
+              and node.operand.function.kind == "model"):
+            found.add(node.operand.name)
+
+    walk(expr)
+    return {"collide", "offroad"} <= found
+
+
+def _reachable(graph: ExploredGraph) -> np.ndarray:
+    """The states reachable from the initial one through the graph's choices (a restricted graph
+    keeps every explored state, also those its choices no longer reach)."""
+    seen = np.zeros(graph.n_states, dtype=bool)
+    frontier = np.array([graph.initial], dtype=np.int64)
+    seen[frontier] = True
+    while frontier.size:
+        starts, ends = graph.choice_offsets[frontier], graph.choice_offsets[frontier + 1]
+        counts = ends - starts
+        index = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
+        targets = np.unique(graph.choice_target[index])
+        frontier = targets[~seen[targets]]
+        seen[frontier] = True
+    return seen
+
+
+def _restricted(computed: storm.Shield) -> ExploredGraph:
+    """The shield's graph with only the allowed choices (states without one become terminal)."""
+    graph = computed.graph
+    keep = computed.allowed_choices
+    owner = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
+    counts = np.bincount(owner[keep], minlength=graph.n_states)
+    offsets = np.zeros(graph.n_states + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    return dataclasses.replace(graph, choice_offsets=offsets, choice_action=graph.choice_action[keep],
+                               choice_target=graph.choice_target[keep])
