@@ -18,6 +18,7 @@ from fractions import Fraction
 
 from rac import ir
 from rac.check.queries import lower_queries
+from rac.core.numbers import exact_decimal
 from rac.core.source import SourceFile
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -125,4 +126,4 @@ def _rename(text: str, old: str, new: str) -> str:
 
 
 def _decimal(value: Fraction) -> str:
-    return str(value.numerator) if value.denominator == 1 else repr(float(value))
+    return exact_decimal(value) or repr(float(value))

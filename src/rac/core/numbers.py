@@ -3,10 +3,29 @@
 
 from __future__ import annotations
 
-__all__ = ["INT32_LOW", "INT32_MAX", "INT32_MIN"]
+from fractions import Fraction
+
+__all__ = ["INT32_LOW", "INT32_MAX", "INT32_MIN", "exact_decimal"]
 
 INT32_MAX = 2**31 - 1
 INT32_MIN = -(2**31)
 #: The most negative value rac writes or stores: ``-INT32_MAX``, because UPPAAL's lexer reads
 #: ``-2147483648`` as the negation of a literal that does not fit.
 INT32_LOW = -INT32_MAX
+
+
+def exact_decimal(value: Fraction, max_places: int | None = None) -> str | None:
+    """``value`` as a decimal with exactly its value and no exponent (``0.05``, ``-12.5``, ``3``), or
+    None when it has none (``1/3``) or needs more than ``max_places`` digits after the point."""
+    if value.denominator == 1:
+        return str(value.numerator)
+    rest, places = value.denominator, 0
+    for prime in (2, 5):
+        count = 0
+        while rest % prime == 0:
+            rest, count = rest // prime, count + 1
+        places = max(places, count)
+    if rest != 1 or (max_places is not None and places > max_places):
+        return None
+    digits = str(abs(value.numerator) * 10**places // value.denominator).rjust(places + 1, "0")
+    return ("-" if value < 0 else "") + f"{digits[:-places]}.{digits[-places:]}"

@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from fractions import Fraction
 
+from rac.core.numbers import exact_decimal
 from rac.core.printing import C_BINARY, Associativity, Level, Operator, OperatorTable, Printed, Printer, number
 from rac.lang import ast
 from rac.lang.parser import parse_text
@@ -49,20 +50,8 @@ def _format_number(value: Fraction) -> str:
     """Print an exact decimal literal (no exponent); ``(n / d)`` when none exists."""
     if value < 0:
         return "-" + _format_number(-value)
-    numerator, denominator = value.numerator, value.denominator
-    if denominator == 1:
-        return str(numerator)
-    rest, twos, fives = denominator, 0, 0
-    while rest % 2 == 0:
-        rest, twos = rest // 2, twos + 1
-    while rest % 5 == 0:
-        rest, fives = rest // 5, fives + 1
-    if rest != 1:
-        # Not a finite decimal: never produced by the parser; print an equal value.
-        return f"({numerator} / {denominator})"
-    places = max(twos, fives)
-    digits = str(numerator * (10**places // denominator)).rjust(places + 1, "0")
-    return f"{digits[:-places]}.{digits[-places:]}"
+    # Not a finite decimal: never produced by the parser; print an equal value.
+    return exact_decimal(value) or f"({value.numerator} / {value.denominator})"
 
 
 class RaPrinter(Printer):

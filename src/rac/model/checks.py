@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic, Note, error, short_number
+from rac.core.numbers import exact_decimal
 
 if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
@@ -143,17 +144,7 @@ def _seconds(value: float) -> str:
 
 def _decimal(value: Fraction) -> str:
     """``value`` as an exact decimal when it has one (base 10: 214748.3647), else shortened."""
-    rest = value.denominator
-    for prime in (2, 5):
-        while rest % prime == 0:
-            rest //= prime
-    if rest != 1:
-        return short_number(value)
-    from decimal import Decimal, localcontext
-
-    with localcontext() as context:
-        context.prec = 80
-        return format(Decimal(value.numerator) / Decimal(value.denominator), "f")
+    return exact_decimal(value) or short_number(value)
 
 
 def _fits(scenario, spec: ir.ModelSpec, exponent: int) -> bool:

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rac.compiler import CompileResult
+from rac.core.numbers import exact_decimal
 from rac.engine import shield, storm
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
@@ -91,7 +92,7 @@ class Learned:
 
 
 def _decimal(value: Fraction) -> str:
-    return str(value.numerator) if value.denominator == 1 else repr(float(value))
+    return exact_decimal(value) or repr(float(value))
 
 
 class Context:

@@ -164,7 +164,7 @@ class _ModelGenerator(AutomatonGenerator):
         try:
             return template.format(printer.binding(expr))
         except (QueryError, NotRepresentable) as exc:
-            self._unrepresentable(f"{what} cannot be written in UPPAAL: {exc}", span, hints=[])
+            self.numbers.unrepresentable(f"{what} cannot be written in UPPAAL: {exc}", span, hints=[])
             return "// (not representable)"
 
     def _controller(self, ids: Ids) -> Template:
@@ -267,7 +267,7 @@ class _ModelGenerator(AutomatonGenerator):
                      self._dynamics(ids)]
         if data.obstacle_count:
             templates.append(self._obstacle(ids))
-        templates.append(self._automaton(ids, unit, accruals))
+        templates.append(self.processes.automaton(ids, unit, accruals))
         if self.diagnostics:
             raise UppaalError(self.diagnostics)
         env = environment()

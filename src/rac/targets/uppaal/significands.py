@@ -1,0 +1,197 @@
+"""Numbers of the UPPAAL target as significands, and E0801 when one does not fit.
+
+A real value ``v`` is held in an ``int32`` as its significand ``v * base**exponent`` (base 10,
+exponent 4, or the ``model`` block's). :class:`Significands` owns that representation for one
+emitted model: the value the Environment chooses for each piece of a numeric input's range
+(:class:`NumericInput`), what each integer mirror gains per sample in each location (an
+:data:`Accrual`), and the E0801 diagnostic, with its notes and hints, for every number that has no
+significand — an input's bound or compared value, a rate times the period, or (reported through
+:meth:`Significands.unrepresentable` by the other modules) a threshold or an update.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from fractions import Fraction
+
+from rac import ir
+from rac.core.diagnostics import Diagnostic, error, short_number
+from rac.core.numbers import INT32_MAX, exact_decimal
+from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
+from rac.runtime.semantics import mirror_accrual
+from rac.targets.uppaal.expr import NotRepresentable, int_literal
+from rac.targets.uppaal.names import Names
+
+__all__ = ["Accrual", "NumericInput", "Significands"]
+
+#: What a reward's mirror gains per sample in one location: a constant and ``(coefficient,
+#: significand name)`` terms, in significand units (``None`` where it is not representable).
+Accrual = tuple[Fraction, list[tuple[Fraction, str]]]
+
+_HINT_REPRESENTATION = ("add a `model` block with a larger `exponent`, or change the number so that it "
+                        "is a whole multiple of 1/{scale}")
+
+
+@dataclass
+class NumericInput:
+    """A numeric input as the emitted model declares it: its UPPAAL name, bounds (as text) and the
+    array of significands the Environment chooses from, one per piece of its range."""
+
+    source: str
+    name: str
+    low: str
+    high: str
+    array: str
+    values: list[int]
+    pieces: str
+    select: str
+
+    @property
+    def count(self) -> int:
+        """How many values the Environment chooses from."""
+        return len(self.values)
+
+    @property
+    def initializer(self) -> str:
+        """The value array's initialiser, ``{v0, v1, ...}``."""
+        return "{" + ", ".join(int_literal(v) for v in self.values) + "}"
+
+
+class Significands:
+    """The number representation of one emitted model of ``automaton``; the E0801 diagnostics of the
+    numbers it cannot hold are appended to ``diagnostics``."""
+
+    def __init__(self, automaton: ir.Automaton, diagnostics: list[Diagnostic]):
+        self.a = automaton
+        model = automaton.model
+        self.base = model.base if model is not None else DEFAULT_BASE
+        self.exponent = model.exponent if model is not None else DEFAULT_EXPONENT
+        self.scale = self.base ** self.exponent
+        self.diagnostics = diagnostics
+
+    # ------------------------------------------------------------ diagnostics
+    def span(self, span):
+        """Where a diagnostic points: ``span``, else the automaton's name."""
+        if span is not None:
+            return span
+        return self.a.source.name.span if self.a.source is not None else None
+
+    def unrepresentable(self, message: str, span, notes: Iterable[str] = (), hints: Iterable[str] | None = None):
+        """Report E0801 at ``span``; without ``hints``, the hint to enlarge the exponent or round the number."""
+        hint = _HINT_REPRESENTATION.format(scale=self.scale)
+        self.diagnostics.append(error(
+            "E0801", message, self.span(span), notes=list(notes),
+            hints=list(hints) if hints is not None else [hint],
+            data={"base": self.base, "exponent": self.exponent}))
+
+    # ------------------------------------------------------------ inputs
+    def inputs(self, names: Names, arrays: dict[str, str], selects: dict[str, str]) -> list[NumericInput]:
+        """The numeric inputs with the significands the Environment chooses from (``arrays`` and
+        ``selects``: the names of each input's value array and select variable)."""
+        # Imported here: InputSpace needs numpy, which `import rac.targets.uppaal.automaton` does not load.
+        from rac.ir.inputs import InputSpace
+
+        space = InputSpace(self.a)
+        result = []
+        for item in self.a.numeric_inputs:
+            values = []
+            for piece in space.pieces[item.name]:
+                value = self._representative(item, piece)
+                if value is None:
+                    break  # one diagnostic per input: its first unrepresentable piece
+                values.append(value)
+            for bound in (item.low, item.high):
+                try:
+                    int_literal(bound * self.scale)
+                except NotRepresentable:
+                    self.unrepresentable(
+                        f"the bound {_decimal(bound)} of input `{item.name}` is not representable as a 32-bit "  # type: ignore[arg-type]
+                        f"significand at base {self.base}, exponent {self.exponent}", item.span,
+                        notes=[f"its significand {_decimal(bound * self.scale)} is not a 32-bit integer"],
+                        hints=["narrow the input's bounds, or lower the exponent of the number representation"])
+                    break
+            result.append(NumericInput(
+                item.name, names[item.name], _decimal(item.low), _decimal(item.high),  # type: ignore[arg-type]
+                arrays[item.name], values,
+                ", ".join(p.describe(item.name) for p in space.pieces[item.name]), selects[item.name]))
+        return result
+
+    def _representative(self, item: ir.Input, piece) -> int | None:
+        """The significand the Environment chooses for one piece of a numeric input's range."""
+        scale = self.scale
+        if piece.is_point or item.kind == "int":
+            value = piece.representative(item.kind == "int") * scale
+            if value.denominator == 1:
+                return value.numerator
+            self.unrepresentable(
+                f"input `{item.name}` compares with {_decimal(piece.low)}, which is not representable as a "
+                f"significand at base {self.base}, exponent {self.exponent}", item.span,
+                notes=[f"{_decimal(piece.low)} * {scale} = {_decimal(value)} is not an integer, "
+                       "so the model cannot give the input that value"])
+            return None
+        low = math.floor(piece.low * scale) + 1
+        high = math.ceil(piece.high * scale) - 1
+        if low > high:
+            self.unrepresentable(
+                f"input `{item.name}` has no representable value in ({_decimal(piece.low)}, {_decimal(piece.high)}) "
+                f"at base {self.base}, exponent {self.exponent}", item.span,
+                notes=["the interval between two thresholds of its guards is narrower than one significand unit "
+                       f"(1/{scale})"])
+            return None
+        middle = (piece.low + piece.high) / 2 * scale
+        return min(max(round(middle), low), high)
+
+    # ------------------------------------------------------------ rates
+    def accruals(self, inputs: list[NumericInput], names: Names) -> list[list[Accrual | None]]:
+        """Per location and reward: (constant, [(coefficient, significand)]) that the mirror gains per sample."""
+        period = Fraction(self.a.period)
+        values = {i.source: i.values for i in inputs}
+        result: list[list[Accrual | None]] = []
+        for location in self.a.locations:
+            row: list[Accrual | None] = []
+            for reward, rate in zip(self.a.rewards, location.rates):
+                const, terms = mirror_accrual(rate, period, self.scale)
+                bad = const.denominator != 1 or any(
+                    (coef * v).denominator != 1 for coef, name in terms for v in values.get(name, []))
+                if not bad and abs(const) > INT32_MAX:
+                    self.unrepresentable(
+                        f"reward rate `{reward}' == {_linear_text(rate)}` in location `{location.name}` adds "
+                        f"{short_number(const)} significand units per sample, beyond the 32-bit integer range",
+                        location.span, hints=["lower the rate, or the exponent of the number representation"])
+                    row.append(None)
+                    continue
+                if bad:
+                    if terms:
+                        note = (f"one sample adds ({_linear_text(rate)}) * {_decimal(period)} to `{reward}`, which is "
+                                "not a whole number of significand units for every value its inputs take")
+                    else:
+                        step = rate.const * period
+                        note = (f"one sample adds {_decimal(rate.const)} * {_decimal(period)} = {_decimal(step)} to "
+                                f"`{reward}`, that is {_decimal(step * self.scale)} significand units (1/{self.scale} "
+                                "each): not a whole number")
+                    self.unrepresentable(
+                        f"reward rate `{reward}' == {_linear_text(rate)}` in location `{location.name}` is not "
+                        f"representable in significands at exponent {self.exponent}", location.span,
+                        notes=[note],
+                        hints=[f"make rate * period a multiple of 1/{self.scale}, or add a `model` block with a "
+                               "larger `exponent`"])
+                    row.append(None)
+                else:
+                    row.append((const, [(c, names[name]) for c, name in terms]))
+            result.append(row)
+        return result
+
+
+def _decimal(value: Fraction) -> str:
+    """A rational for messages: its exact decimal when it has a short one (``0.00001``), else rounded."""
+    return exact_decimal(value, max_places=12) or short_number(value)
+
+
+def _linear_text(linear: ir.Linear) -> str:
+    """A rate for messages: ``0.1 + 2*x``, its terms joined by ``+`` (a negative coefficient keeps its sign)."""
+    parts = [_decimal(linear.const)] if linear.const or not linear.terms else []
+    for name, coefficient in linear.terms:
+        parts.append(name if coefficient == 1 else f"{_decimal(coefficient)}*{name}")
+    return " + ".join(parts)
