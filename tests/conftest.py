@@ -15,6 +15,9 @@ import utap as utap_module
 import rac
 
 REPOSITORY = Path(__file__).resolve().parent.parent
+# Off a terminal rac prints a progress line every RAC_PROGRESS_INTERVAL seconds; tests that compare
+# stderr must not depend on how fast the machine is (tests/test_progress_lines.py sets its own).
+os.environ.setdefault("RAC_PROGRESS_INTERVAL", "3600")
 #: The folder holding the `rac` package these tests import (src/ in a checkout, site-packages when installed).
 RAC_PARENT = Path(rac.__file__).resolve().parent.parent
 

@@ -163,3 +163,17 @@ def test_render_trajectory_rejects_a_malformed_trajectory(tmp_path: Path) -> Non
         render_trajectory(LEFT_TURN, np.zeros((4, 2)), tmp_path / "x.png")
     with pytest.raises(ValueError, match="non-finite"):
         render_trajectory(LEFT_TURN, np.full((4, 3), np.nan), tmp_path / "x.png")
+
+
+def test_render_draws_the_chosen_planning_problem(tmp_path: Path) -> None:
+    """A file with two planning problems: the `model` block's `planning_problem` is the one drawn
+    (and its start time the run's); an id the file lacks is a RenderError listing the ids."""
+    from tiny_scenarios import SECOND_PROBLEM_ID, junction_with_two_problems
+
+    junction = tmp_path / "junction.xml"
+    junction.write_bytes(junction_with_two_problems())
+    png = render_trajectory(junction, _straight(3), tmp_path / "one.png", planning_problem=SECOND_PROBLEM_ID,
+                            figsize=(4.0, 3.0), dpi=50)
+    assert _image(png, "PNG").size == (200, 150)
+    with pytest.raises(RenderError, match=r"has no planning problem 999 \(its planning problems: 100, 101\)"):
+        render_trajectory(junction, _straight(3), tmp_path / "x.png", planning_problem=999)

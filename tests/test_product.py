@@ -385,7 +385,7 @@ def test_fewer_false_alarms_than_the_static_check(tmp_path: Path) -> None:
 
 def test_max_states_raises_memory_error(driving) -> None:
     automaton, data, _ = driving
-    with pytest.raises(MemoryError, match="more than 1000 states"):
+    with pytest.raises(MemoryError, match="more than 1,000 states"):
         explore_product(data, automaton, horizon_samples=HORIZON, max_states=1000)
 
 

@@ -193,3 +193,15 @@ def test_rejects_bad_input(diamond: ExploredGraph) -> None:
     clash = make_graph([[1], []], {"init": [True, False]})
     with pytest.raises(ValueError, match="reserved"):
         to_mdp(clash)
+
+
+@pytest.mark.parametrize("size", [0, 1, 63, 64, 65, 1000])
+def test_bit_vectors_from_packed_masks(size: int) -> None:
+    """storm.bit_vector(mask) is the BitVector of the mask's set indices, at every length."""
+    from stormpy import datastructures as sd
+
+    from rac.engine.storm import bit_vector
+
+    for seed in range(3):
+        mask = np.random.default_rng(seed).random(size) < 0.4
+        assert bit_vector(mask) == sd.BitVector(size, np.flatnonzero(mask).tolist())

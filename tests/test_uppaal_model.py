@@ -321,7 +321,8 @@ def test_shared_scenarios_compile(name: str, tmp_path: Path) -> None:
     scenario = SCENARIOS / name
     if not scenario.exists():
         pytest.skip(f"{scenario} is absent")
-    source = MODEL_RA.read_text(encoding="utf-8").replace('"left_turn.xml"', f'"{scenario}"')
+    # ZAM_Tutorial's ego starts at 22 m/s: faster than the default `max_speed` 20 (E0714)
+    source = MODEL_RA.read_text(encoding="utf-8").replace('"left_turn.xml"', f'"{scenario}" max_speed 25')
     ra = tmp_path / "model.ra"
     ra.write_text(source, encoding="utf-8")
     out = tmp_path / "model.xml"

@@ -242,7 +242,8 @@ def test_shared_scenario_whole_model(utap: Utap, name: str, tmp_path: Path,
     if not scenario.exists():
         pytest.skip(f"{scenario} is absent (../shared/scenarios beside this checkout)")
     source = tmp_path / "model.ra"
-    source.write_text(MODEL_RA.read_text(encoding="utf-8").replace('"left_turn.xml"', f'"{scenario}"'),
+    # ZAM_Tutorial's ego starts at 22 m/s: faster than the default `max_speed` 20 (E0714)
+    source.write_text(MODEL_RA.read_text(encoding="utf-8").replace('"left_turn.xml"', f'"{scenario}" max_speed 25'),
                       encoding="utf-8")
     utap.validate_files(*compile_cli(source, tmp_path / f"{scenario.stem}.xml", capsys))
 

@@ -79,6 +79,8 @@ __all__ = [
     "DT",
     "LANE_WIDTH",
     "PLANNING_PROBLEM_ID",
+    "SECOND_PROBLEM_ID",
+    "SECOND_START",
     "TINY_SCENARIOS",
     "WALL",
     "WALL_EGO",
@@ -89,9 +91,13 @@ __all__ = [
     "TinyScenario",
     "TinySettings",
     "avoidable_obstacle",
+    "commonroad_xml",
     "goal_ahead",
     "goal_behind_wall",
+    "highway",
+    "junction_with_two_problems",
     "narrow_road",
+    "ramp",
     "StraightRoad",
     "straight_road",
 ]
@@ -313,20 +319,27 @@ class StraightRoad:
     def xml(self, name: str) -> bytes:
         """:meth:`build` written with commonroad-io's writer as CommonRoad 2020a XML (schema-checked,
         with a fixed date, so that the same road gives the same bytes)."""
-        scenario, problems = self.build(name)
         tag = Tag.SINGLE_LANE if self.lanes == 1 else Tag.MULTI_LANE  # one tag: no set order to pin
-        writer = CommonRoadFileWriter(scenario, problems, author="rac", affiliation="rac (reward-automata compiler)",
-                                      source=f"tiny_scenarios: {name}", tags={tag},
-                                      decimal_precision=DECIMALS, file_format=FileFormat.XML)
-        with tempfile.TemporaryDirectory(prefix="rac-tiny-") as folder:
-            target = Path(folder) / f"{name}.xml"
-            writer.write_to_file(str(target), OverwriteExistingFile.ALWAYS)
-            data = target.read_bytes()
-        root = etree.fromstring(data, etree.XMLParser(remove_blank_text=True))
-        root.set("date", FILE_DATE)
-        text = etree.tostring(root.getroottree(), pretty_print=True, xml_declaration=True, encoding="UTF-8")
-        _check_schema(text)
-        return text
+        return commonroad_xml(*self.build(name), name, tag)
+
+
+def commonroad_xml(scenario: CRScenario, problems: PlanningProblemSet, name: str, tag: Tag) -> bytes:
+    """A commonroad-io scenario and its planning problems written with commonroad-io's writer as
+    CommonRoad 2020a XML, schema-checked, with a fixed date (the same objects give the same bytes);
+    ``tag`` is the scenario's one tag (one: no set order to pin). E.g. the left-turn junction of
+    :func:`rac.model.intersection.build_left_turn` with a second planning problem added."""
+    writer = CommonRoadFileWriter(scenario, problems, author="rac", affiliation="rac (reward-automata compiler)",
+                                  source=f"tiny_scenarios: {name}", tags={tag},
+                                  decimal_precision=DECIMALS, file_format=FileFormat.XML)
+    with tempfile.TemporaryDirectory(prefix="rac-tiny-") as folder:
+        target = Path(folder) / f"{name}.xml"
+        writer.write_to_file(str(target), OverwriteExistingFile.ALWAYS)
+        data = target.read_bytes()
+    root = etree.fromstring(data, etree.XMLParser(remove_blank_text=True))
+    root.set("date", FILE_DATE)
+    text = etree.tostring(root.getroottree(), pretty_print=True, xml_declaration=True, encoding="UTF-8")
+    _check_schema(text)
+    return text
 
 
 @functools.cache
@@ -509,6 +522,45 @@ def goal_ahead() -> TinyScenario:
         stays_safe=True, reaches_goal=True, start_actions=frozenset({_BRAKE, _KEEP, _SPEED_UP}),
         safe_plan=(_KEEP,) * _DECISIONS, goal_plan=(_SPEED_UP,) * _DECISIONS,
         facts="the goal lies ahead on an empty road; speeding up reaches it within the horizon")
+
+
+# ---------------------------------------------------------------- scenes whose start `rac check` questions
+def highway(speed: float = 33.0, acceleration: float = 0.0) -> bytes:
+    """Three lanes of 3.5 m, 400 m long; the ego on the middle lane at x = 20 at ``speed`` m/s (with
+    ``acceleration``), a truck (12 m × 2.5 m) ahead on the right lane at 22 m/s; the goal 300 m to
+    390 m within 12 s. At the default 33 m/s the ego is faster than the default `max_speed` 20 (E0714)."""
+    road = StraightRoad(400.0, EgoStart(20.0, 5.25, 0.0, speed, acceleration), GoalBox(300.0, 390.0, 0.0, 12.0),
+                        lanes=3, obstacles=(Block(11, x=80.0, y=1.75, length=12.0, width=2.5, velocity=22.0,
+                                                  kind=ObstacleType.TRUCK),))
+    return road.xml("highway")
+
+
+#: The second planning problem of :func:`junction_with_two_problems` and its start (x, y, heading, velocity).
+SECOND_PROBLEM_ID = 101
+SECOND_START = (-1.75, 18.0, round(-math.pi / 2, DECIMALS), 5.0)
+
+
+def junction_with_two_problems() -> bytes:
+    """The left-turn junction (:func:`rac.model.intersection.build_left_turn`, planning problem 100)
+    with a second planning problem, :data:`SECOND_PROBLEM_ID`: an ego on the north arm's southbound
+    lane at (-1.75, 18), 5 m/s, going straight on to the south arm (E0715 until one is chosen)."""
+    from rac.model.intersection import build_left_turn
+
+    scenario, problems = build_left_turn()
+    x, y, heading, velocity = SECOND_START
+    initial = InitialState(time_step=0, position=np.array([x, y]), orientation=heading, velocity=velocity,
+                           acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
+    area = RectOccupancy(rect_center=shapely.Point(-1.75, -22.0), length=3.5, width=8.0, orientation=0.0)
+    problems.add_planning_problem(PlanningProblem(
+        SECOND_PROBLEM_ID, initial, GoalRegion([CustomState(time_step=Interval(0, 100), position=area)])))
+    return commonroad_xml(scenario, problems, "junction", Tag.INTERSECTION)
+
+
+def ramp(start_x: float = 0.0) -> bytes:
+    """One lane 3.5 m wide, 200 m long; the ego starts at x = ``start_x`` on the lane's middle line
+    at 10 m/s; no obstacle; the goal 100 m to 150 m within 8 s. At the default x = 0 half of the
+    ego lies before the road's start, as in CommonUppRoad's ZAM_Ramp (W0716)."""
+    return StraightRoad(200.0, EgoStart(start_x, 1.75, 0.0, 10.0), GoalBox(100.0, 150.0, 0.0, 8.0)).xml("ramp")
 
 
 #: The named tiny scenarios, by name.

@@ -101,6 +101,24 @@ def _scenario_exponent(folder: Path) -> None:
     (folder / "left_turn.xml").write_bytes(shifted_scenario(*UTM_SHIFT))
 
 
+def _scene(name: str, scenario: str, comment: str, build: str) -> Callable[[Path], None]:
+    """The automaton of the E0712 example as ``NAME.ra`` over ``scenario``, which the builder
+    ``build`` of tests/tiny_scenarios.py (commonroad-io) writes next to it."""
+    text = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
+        .replace("// A model whose scenario file is not next to this one", f"// A model over {comment}") \
+        .replace('scenario "left_turn.xml"          // the CommonRoad file, next to this one',
+                 f'scenario "{scenario}"{" " * (23 - len(scenario))}// the CommonRoad file, next to this one')
+
+    def make(folder: Path) -> None:
+        if str(HERE.parent) not in sys.path:  # tests/, where tiny_scenarios lives
+            sys.path.insert(0, str(HERE.parent))
+        import tiny_scenarios
+
+        (folder / f"{name}.ra").write_text(text, encoding="utf-8")
+        (folder / scenario).write_bytes(getattr(tiny_scenarios, build)())
+    return make
+
+
 @dataclass(frozen=True)
 class Case:
     """One failing example: committed as ``NAME.ra``, or made by ``make`` in a scratch folder."""
@@ -188,6 +206,22 @@ GENERATED: tuple[Case, ...] = (
          "(examples/left_turn) moved 500 km east and 5,400 km north, as a map in UTM coordinates "
          "places it:",
          _scenario_exponent),
+    Case("E0714_ego_too_fast", None,
+         "`E0714_ego_too_fast.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
+         "next to it: three lanes, the ego at 33 m/s on the middle one, a truck ahead (`highway()` of "
+         "tests/tiny_scenarios.py); the `model` block leaves `max_speed` at its default, 20 m/s:",
+         _scene("E0714_ego_too_fast", "highway.xml", "a highway whose ego starts at 33 m/s", "highway")),
+    Case("E0715_several_planning_problems", None,
+         "`E0715_several_planning_problems.ra` is the automaton of the E0712 example over `junction.xml` "
+         "(line 22), next to it: the left-turn junction of examples/left_turn with a second planning "
+         "problem, 101, from the north arm (`junction_with_two_problems()` of tests/tiny_scenarios.py):",
+         _scene("E0715_several_planning_problems", "junction.xml", "a junction with two planning problems",
+                "junction_with_two_problems")),
+    Case("W0716_start_off_road", None,
+         "`W0716_start_off_road.ra` is the automaton of the E0712 example over `ramp.xml` (line 22), next "
+         "to it: one lane from x = 0, the ego starting at x = 0, half of it before the road, as in "
+         "CommonUppRoad's ZAM_Ramp (`ramp()` of tests/tiny_scenarios.py):",
+         _scene("W0716_start_off_road", "ramp.xml", "a ramp whose ego starts half before the road", "ramp")),
 )
 
 

@@ -32,7 +32,7 @@ from rac.check.queries import Lowering, model_settings_of, type_word
 from rac.check.symbols import ModelContext, Unresolvable
 from rac.core.diagnostics import Note, short_number
 from rac.core.source import Span
-from rac.ir.vocabulary import ACTIONS, SETTINGS, Setting
+from rac.ir.vocabulary import ACTIONS, NO_PLANNING_PROBLEM, SETTINGS, Setting
 from rac.lang import ast
 
 __all__ = ["allowed", "resolve_model"]
@@ -110,6 +110,7 @@ class _ModelResolver:
             comfort_turn=v["comfort_turn"],
             bindings=bindings,
             sensor_error=v["sensor_error"],
+            planning_problem=int(v["planning_problem"]),
             span=self.block.span,
         )
 
@@ -183,13 +184,16 @@ class _ModelResolver:
         self.error("E0701", f"unknown setting `{name}` in the `model` block", item.name.span, hints=hints)
 
     def _defaults(self, values: dict[str, _Value]) -> dict[str, _Value]:
-        """Every setting: the written ones, else their defaults (derived ones from the timing)."""
+        """Every setting: the written ones, else their defaults (derived ones from the timing;
+        ``planning_problem`` :data:`NO_PLANNING_PROBLEM`, none chosen)."""
         result = dict(values)
         for name, setting in SETTINGS.items():
             if name in result:
                 continue
             if setting.default is not None:
                 result[name] = _Value(setting.default, None)
+            elif name == "planning_problem":
+                result[name] = _Value(Fraction(NO_PLANNING_PROBLEM), None)
             elif name == "sense_period":
                 result[name] = _Value(self.period if self.period is not None else Fraction(1, 10), None)
             else:  # decide_period
@@ -365,8 +369,8 @@ def resolve_model(r: ModelContext, inputs: tuple[ir.Input, ...], period: Fractio
                  hints=["an automaton has one model: merge the blocks"])
     resolver = _ModelResolver(r, blocks[0], inputs, period)
     spec = resolver.run()
-    for item in blocks[0].of(ast.ModelSetting):
-        if item.name.name in ("base", "exponent", "sense_period") and item.span is not None:
+    for item in blocks[0].of(ast.ModelSetting):  # where each setting is written (the scenario's checks point there)
+        if item.name.name in SETTINGS and item.span is not None:
             r.spans.setdefault(f"model:{item.name.name}", item.span)
     for scenario in blocks[0].of(ast.ModelScenario)[:1]:
         if scenario.span is not None:

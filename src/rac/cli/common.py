@@ -1,7 +1,8 @@
 """What the ``rac`` commands share: exit codes, reading a `.ra` file, writing files atomically.
 
 Exit codes: 0 clean (warnings allowed), 1 errors in the input (or a query not satisfied), 2 bad
-usage or a file that cannot be read or written, 3 an internal error (a bug in rac).
+usage or a file that cannot be read or written, 3 an internal error (a bug in rac), 4 a query
+that was not decided (``rac verify``: an *unknown* or *unsupported* verdict and none that fails).
 """
 
 from __future__ import annotations
@@ -15,10 +16,10 @@ from pathlib import Path
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import Diagnostic, error
 
-__all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_USAGE", "FileWriteError", "read_and_check",
-           "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
+__all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "FileWriteError",
+           "read_and_check", "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
 
-EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 
 
 def unreadable(path: Path, exc: OSError) -> Diagnostic:

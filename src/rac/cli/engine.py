@@ -1,7 +1,8 @@
 """The engine commands of ``rac``: ``verify``, ``simulate``, ``render`` and ``preanalyse``.
 
 They share the conventions of :mod:`rac.cli.common`: exit 0 when everything asked holds, 1 when a query is
-not satisfied or the file has errors, 2 for bad usage or unreadable/unwritable files.
+not satisfied or the file has errors, 2 for bad usage or unreadable/unwritable files, 4 when a query
+was not decided (``verify``: *unknown* or *unsupported*, and none not satisfied).
 """
 
 from __future__ import annotations
@@ -10,14 +11,17 @@ import argparse
 import functools
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from fractions import Fraction
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, read_and_check
+from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE, read_and_check
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_text as render_diagnostics
+
+if TYPE_CHECKING:
+    from rac.verify.report import QueryResult
 
 #: A sub-command: its parsed arguments -> the exit code.
 Command = Callable[[argparse.Namespace], int]
@@ -45,6 +49,18 @@ _positive_int = _argument(int, "a whole number", lambda value: value >= 1, "must
 _probability = _argument(float, "a number", lambda value: 0 < value < 1, "must lie strictly between 0 and 1")
 
 
+def _size(text: str) -> int:
+    from rac.engine.budget import parse_size
+
+    try:
+        size = parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if size <= 0:
+        raise argparse.ArgumentTypeError(f"`{text}` must be more than 0 bytes")
+    return size
+
+
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", type=Path, metavar="FILE", help="a .ra file with a `model` block")
     parser.add_argument("--horizon", type=_fraction, metavar="SECONDS",
@@ -52,6 +68,9 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, help="seed of the simulations (default: fresh, printed)")
     parser.add_argument("--max-states", type=_positive_int, default=5_000_000, metavar="N",
                         help="give up (verdict unknown) beyond this many states (default 5,000,000)")
+    parser.add_argument("--max-memory", type=_size, default=None, metavar="SIZE",
+                        help="give up (verdict unknown) before deciding would need more memory than this, "
+                             "e.g. 4G (default: half the machine's memory)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
 
 
@@ -155,10 +174,29 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
 
     @functools.wraps(command)
     def run(args: argparse.Namespace) -> int:
+        from rac.output.progress import Heartbeat
+
         result, status = _prepare(args)
-        return status if result is None else command(args, result)
+        if result is None:
+            return status
+        # off a terminal (CI logs, pipes) a long command says what it does every few seconds
+        with Heartbeat(f"rac {args.command}", enabled=False if args.quiet else None):
+            return command(args, result)
 
     return run
+
+
+def _announcer(quiet: bool) -> Callable[[str], None]:
+    """``announce(message)``: a line on a terminal (unless ``quiet``), and the phase of the active heartbeat."""
+    from rac.output.progress import Heartbeat
+
+    def announce(message: str) -> None:
+        if Heartbeat.active is not None:  # printed only off a terminal, and not with -q
+            Heartbeat.active.phase(message)
+        if not quiet and sys.stderr.isatty():
+            print(f"… {message}", file=sys.stderr)
+
+    return announce
 
 
 def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int, n: int):
@@ -170,7 +208,7 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
 
     policy = None
     if args.shield:
-        policy, problem = _shield_policy(result, samples, args.max_states, args.quiet)
+        policy, problem = _shield_policy(result, samples, args)
         if policy is None:
             return None, problem
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
@@ -181,6 +219,7 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
     """The one run of the file's learned strategy ``args.strategy`` (learned now, with the shield it
     is learned under), and the seed; or None and why (None and "" after printing a usage error)."""
+    from rac.engine.budget import default_max_bytes
     from rac.ir import query as iq
     from rac.verify.runner import VerifyOptions, run_queries
 
@@ -191,7 +230,7 @@ def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int)
               f"{', '.join(learned) or 'none'})", file=sys.stderr)
         return None, ""
     options = VerifyOptions(seed=args.seed, max_states=args.max_states, only=(learned[args.strategy].name,),
-                            bars=not args.quiet)
+                            max_bytes=args.max_memory or default_max_bytes(), bars=not args.quiet)
     context, results = run_queries(result, options)
     if args.strategy not in context.learned:
         reasons = "; ".join(f"{r.name}: {r.message}" for r in results if r.message)
@@ -242,17 +281,15 @@ def _explore_bar(quiet: bool):
 
 @_on_checked_file
 def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
+    from rac.engine.budget import default_max_bytes
     from rac.verify.runner import UnknownQuery, VerifyOptions, render_json, render_text, verify
 
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".out")
     quiet = args.quiet or args.format == "json"
     bar, callback = _explore_bar(quiet)
-
-    def announce(message: str) -> None:
-        if not quiet and sys.stderr.isatty():
-            print(f"… {message}", file=sys.stderr)
-
+    announce = _announcer(quiet)
     options = VerifyOptions(horizon=args.horizon, max_states=args.max_states, seed=args.seed, epsilon=args.epsilon,
+                            max_bytes=args.max_memory or default_max_bytes(),
                             confidence=args.confidence, out_dir=out_dir, standard=args.standard,
                             only=tuple(args.query) if args.query else None, plots=not args.no_plots,
                             progress=announce, explore_progress=callback, learn_episodes=args.learn_episodes,
@@ -275,21 +312,33 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(render_text(results, traces=args.trace))
     if not results:
         print(f"{args.file}: no queries (add `query NAME: ...` lines, or pass --standard)", file=sys.stderr)
-    return EXIT_ERRORS if any(r.status == "not satisfied" for r in results) else EXIT_OK
+    return verdict_status(results)
 
 
-def _shield_policy(result: CompileResult, horizon_samples: int, max_states: int, quiet: bool):
+def verdict_status(results: Sequence[QueryResult]) -> int:
+    """``rac verify``'s exit code: a query that does not hold outweighs one that was not decided."""
+    if any(r.status == "not satisfied" for r in results):
+        return EXIT_ERRORS
+    if any(r.status in ("unknown", "unsupported") for r in results):
+        return EXIT_UNDECIDED
+    return EXIT_OK
+
+
+def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.Namespace):
     """The safety shield (Qd) at this horizon as a simulation policy, or an error message."""
     from rac.engine import shield as shields
+    from rac.engine.budget import BudgetExceeded, default_max_bytes
+    from rac.verify.context import over_budget
 
     assert result.model_data is not None
-    bar, callback = _explore_bar(quiet)
+    bar, callback = _explore_bar(args.quiet)
     try:
         with bar:
-            computed, table = shields.synthesise(result.model_data, horizon_samples, max_states=max_states,
+            computed, table = shields.synthesise(result.model_data, horizon_samples, max_states=args.max_states,
+                                                 max_bytes=args.max_memory or default_max_bytes(),
                                                  progress=callback)
-    except MemoryError as exc:
-        return None, f"cannot compute the shield: {exc}; shorten --horizon or coarsen the model"
+    except BudgetExceeded as exc:
+        return None, f"cannot compute the shield: {over_budget(exc)}"
     if not computed.shield_exists:
         return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)"
     return table.masks_at, None
@@ -334,6 +383,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     import numpy as np
 
     from rac.engine.evaluate import EvaluationError
+    from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
     from rac.verify.context import Context, VerifyOptions
     from rac.verify.report import plot_series, write_csv
 
@@ -366,6 +416,11 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     if len(values) == 2 and np.ptp(values[1]) == 0:
         below = int(np.any(values[0] < values[1], axis=1).sum())
         print(f"{below} of {args.runs} runs go below {texts[1]} = {float(values[1].flat[0]):g}")
+    if np.all(values[0] == NO_OBSTACLE):  # mindist() without an obstacle: say so, not "1e9 m"
+        assert result.model_data is not None
+        none = "the scenario has none" if result.model_data.obstacle_count == 0 else "none within the horizon"
+        print(f"rac simulate: note: no obstacle at any sample ({none}): `{texts[0]}` reads {NO_OBSTACLE_TEXT}, "
+              "its value without one", file=sys.stderr)
     left = int(runs.left_policy.sum())
     if left:
         print(f"{left} runs met a state where the shield allowed nothing and continued unshielded")
@@ -393,6 +448,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     spec = automaton.model
     try:
         written = render_trajectory(spec.scenario_path, trajectory, png, gif_path=args.gif,
+                                    planning_problem=spec.planning_problem or None,
                                     sample_period=float(automaton.period),
                                     length=float(spec.length), width=float(spec.width),
                                     title=f"{args.file.name}, {_short(args)}, seed {seed}")
@@ -447,12 +503,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
             print(f"rac experiment: --bins: not a list of numbers: {args.bins!r}", file=sys.stderr)
             return EXIT_USAGE
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".experiment")
-    quiet = args.quiet or args.format == "json"
-
-    def announce(message: str) -> None:
-        if not quiet and sys.stderr.isatty():
-            print(f"… {message}", file=sys.stderr)
-
+    announce = _announcer(args.quiet)
     try:
         report = run_experiment(result, seeds=seeds, episodes=args.episodes, evaluation_runs=args.runs,
                                 reward_function=args.reward_function,

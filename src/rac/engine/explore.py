@@ -18,9 +18,16 @@ from collections.abc import Callable
 import numpy as np
 
 from rac.core.numbers import INT32_MAX
+from rac.engine.budget import (
+    GRAPH_BYTES_PER_CHOICE,
+    GRAPH_BYTES_PER_STATE,
+    Budget,
+    BudgetExceeded,
+    projected_states,
+)
 from rac.engine.graph import LABELS, ExploredGraph
 from rac.ir.vocabulary import EGO_STATE
-from rac.model.batch import batch_model, distinct_values
+from rac.model.batch import BatchModel, batch_model, distinct_values
 from rac.model.data import ModelData
 
 __all__ = ["COLUMNS", "action_pairs", "explore"]
@@ -69,6 +76,59 @@ def _unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---------------------------------------------------------------- exploration
+#: How many successors a layer computes at a time (their sensing needs about 200 B each).
+CHUNK_ROWS = 1 << 20
+
+
+def _graph_bytes(states: int, choices: int) -> int:
+    return states * GRAPH_BYTES_PER_STATE + choices * GRAPH_BYTES_PER_CHOICE
+
+
+def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
+            check: Callable[[int], None]) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct successors of ``sources`` (one per (jerk, turn) pair of ``pairs``, or one with
+    their own actions when ``pairs`` is None) in lexicographic order, and each choice's successor.
+
+    Successors are computed :data:`CHUNK_ROWS` at a time and merged as they come, so the memory
+    beyond the result stays bounded; ``check(distinct)`` is called with the distinct successors
+    found so far whenever they are merged (it raises to stop)."""
+    per = 1 if pairs is None else len(pairs)
+    step = max(1, CHUNK_ROWS // per)
+    parts: list[np.ndarray] = []  # distinct rows, merged or per chunk
+    inverses: list[np.ndarray] = []  # per chunk: each choice's row in the concatenation of parts
+    merged_rows = pending = 0
+    for start in range(0, sources.shape[0], step):
+        block = sources[start:start + step]
+        if pairs is None:
+            chosen = block
+        else:
+            chosen = np.repeat(block, per, axis=0)
+            chosen[:, 5:7] = np.tile(pairs, (block.shape[0], 1))
+        rows, inverse = _unique_rows(model.sense(chosen))
+        inverses.append(inverse + merged_rows + pending)
+        parts.append(rows)
+        pending += rows.shape[0]
+        if pending > max(merged_rows, CHUNK_ROWS):  # merge: memory stays within twice the distinct rows
+            parts, merged_rows, pending = _merge(parts, inverses), 0, 0
+            merged_rows = parts[0].shape[0]
+            check(merged_rows)
+    if not parts:
+        return np.zeros((0, sources.shape[1]), dtype=np.int32), np.zeros(0, dtype=np.int64)
+    if len(parts) > 1:
+        parts = _merge(parts, inverses)
+    check(parts[0].shape[0])
+    return np.ascontiguousarray(parts[0], dtype=np.int32), np.concatenate(inverses)
+
+
+def _merge(parts: list[np.ndarray], inverses: list[np.ndarray]) -> list[np.ndarray]:
+    """One distinct, ordered array of the rows of ``parts``; ``inverses`` are rewritten in place to
+    index it."""
+    rows, inverse = _unique_rows(np.concatenate(parts))
+    for i, old in enumerate(inverses):
+        inverses[i] = inverse[old]
+    return [rows]
+
+
 def action_pairs(data: ModelData) -> np.ndarray:
     """``(P, 2)`` int32: every (jerk, turn) pair; row ``a`` is action index ``a`` of the graph,
     ``a = jerk_index * turn_count + turn_index`` over :attr:`ActionData.values`."""
@@ -78,7 +138,8 @@ def action_pairs(data: ModelData) -> np.ndarray:
 
 
 def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe: bool = False,
-            progress: Progress | None = None, max_states: int | None = None) -> ExploredGraph:
+            progress: Progress | None = None, max_states: int | None = None,
+            max_bytes: int | None = None) -> ExploredGraph:
     """Explore every state reachable from the ego's start, breadth-first, one sample per layer.
 
     A state is ``(k, x, y, v, acc, head, jerk, turn)`` (:data:`COLUMNS`; int32); state 0 is the
@@ -97,7 +158,12 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
 
     Labels (``(n,)`` bool): ``collide``, ``offroad``, ``goal``, ``safe`` (``!collide && !offroad``).
     ``progress(layer, frontier_size, total_states)`` is called once per explored layer.
-    ``max_states``: ``MemoryError`` as soon as more states than that have been found.
+
+    Budgets (:mod:`rac.engine.budget`): :class:`~rac.engine.budget.BudgetExceeded` (a ``MemoryError``)
+    as soon as more than ``max_states`` states have been found, or when deciding a query on the
+    graph would need more than ``max_bytes`` — checked before a layer is expanded and while it is
+    merged: a layer is expanded :data:`CHUNK_ROWS` successors at a time, so the memory a layer needs
+    beyond the graph stays bounded, and an exploration stops before it allocates what exceeds the budget.
     """
     if horizon_samples is None:
         if data.goal_high >= INT32_MAX:
@@ -109,53 +175,60 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     native = model.native
     pairs = action_pairs(data)
     n_pairs = len(pairs)
+    budget = Budget(max_states, max_bytes, "the model", float(data.period))
     frontier = np.asarray([native.initial_state()], dtype=np.int32)  # ego columns of layer k
     layers: list[np.ndarray] = []
     counts: list[np.ndarray] = []  # choices per state
     actions: list[np.ndarray] = []
     targets: list[np.ndarray] = []
     labels: dict[str, list[np.ndarray]] = {name: [] for name in LABELS}
-    total = 0
-    for k in range(horizon_samples + 1):
-        size = frontier.shape[0]
-        layers.append(frontier)
-        collide = model.collide(frontier, k)
-        offroad = model.offroad(frontier)
-        safe = ~collide & ~offroad
-        for name, mask in (("collide", collide), ("offroad", offroad), ("goal", model.goal(frontier, k)),
-                           ("safe", safe)):
-            labels[name].append(mask)
-        base = total + size  # index of the next layer's first state
-        total = base
-        if progress is not None:
-            progress(k, size, total)
-        if max_states is not None and total > max_states:
-            raise MemoryError(f"explore(): more than {max_states} states by sample {k}")
-        if k == horizon_samples:
-            counts.append(np.zeros(size, dtype=np.int64))
-            break
-        expand = safe if prune_unsafe else np.ones(size, dtype=bool)
-        sources = frontier[expand]
-        if k % data.decide_every == 0:
-            chosen = np.repeat(sources, n_pairs, axis=0)
-            chosen[:, 5:7] = np.tile(pairs, (sources.shape[0], 1))
-            action = np.tile(np.arange(n_pairs, dtype=np.int64), sources.shape[0])
-            per_state = n_pairs
-        else:
-            chosen = sources
-            action = np.full(sources.shape[0], -1, dtype=np.int64)
-            per_state = 1
-        counts.append(np.where(expand, per_state, 0).astype(np.int64))
-        successors = model.sense(chosen)
-        if successors.shape[0]:
-            frontier, inverse = _unique_rows(successors)
-            frontier = np.ascontiguousarray(frontier, dtype=np.int32)
-        else:
-            frontier, inverse = successors, np.zeros(0, dtype=np.int64)
-        actions.append(action)
-        targets.append(base + inverse.reshape(-1).astype(np.int64))
-        if frontier.shape[0] == 0:
-            break
+    total = choices = 0
+    try:
+        for k in range(horizon_samples + 1):
+            size = frontier.shape[0]
+            layers.append(frontier)
+            collide = model.collide(frontier, k)
+            offroad = model.offroad(frontier)
+            safe = ~collide & ~offroad
+            for name, mask in (("collide", collide), ("offroad", offroad), ("goal", model.goal(frontier, k)),
+                               ("safe", safe)):
+                labels[name].append(mask)
+            base = total + size  # index of the next layer's first state
+            total = base
+            if progress is not None:
+                progress(k, size, total)
+            budget.check_states(total, k)
+            if k == horizon_samples:
+                counts.append(np.zeros(size, dtype=np.int64))
+                break
+            expand = safe if prune_unsafe else np.ones(size, dtype=bool)
+            sources = frontier[expand]
+            decide = k % data.decide_every == 0
+            per_state = n_pairs if decide else 1
+            # Before anything is allocated: the graph with this layer's choices and, at most, one new
+            # state per choice must leave room to decide a query on it.
+            choices += sources.shape[0] * per_state
+            budget.check_bytes(_graph_bytes(total, choices), total, k)
+            budget.check_bytes(_graph_bytes(total + sources.shape[0] * per_state, choices), total, k + 1)
+            action = (np.tile(np.arange(n_pairs, dtype=np.int64), sources.shape[0]) if decide
+                      else np.full(sources.shape[0], -1, dtype=np.int64))
+            counts.append(np.where(expand, per_state, 0).astype(np.int64))
+            found = total  # the states before this layer's successors
+
+            def check(distinct: int) -> None:
+                budget.check_states(found + distinct, k + 1)  # noqa: B023 - called within this iteration
+
+            frontier, inverse = _expand(model, sources, pairs if decide else None, check)
+            actions.append(action)
+            targets.append(base + inverse)
+            if frontier.shape[0] == 0:
+                break
+    except BudgetExceeded as exc:
+        # how far the horizon is, at the growth seen so far: which settings to change, and how much
+        estimate = projected_states([layer.shape[0] for layer in layers], data.decide_every, horizon_samples)
+        if estimate is not None and estimate[0] > exc.states:
+            exc.project(*estimate, horizon_samples)
+        raise
     states = np.empty((sum(layer.shape[0] for layer in layers), len(COLUMNS)), dtype=np.int32)
     row = 0
     for k, layer in enumerate(layers):

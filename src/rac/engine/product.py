@@ -47,8 +47,8 @@ Every input needs a binding (a checked file with a ``model`` block has one for e
 are not enforced on the values the bindings give. A mirror leaving int32 (UPPAAL aborts there)
 raises :class:`rac.model.ModelRangeError`.
 
-Rewards rarely merge, so product state spaces grow fast: pass ``max_states`` for a clean
-:class:`MemoryError` instead of running out of memory.
+Rewards rarely merge, so product state spaces grow fast: pass ``max_states`` and ``max_bytes`` for a
+clean :class:`~rac.engine.budget.BudgetExceeded` instead of running out of memory.
 
 Example (81 action pairs every 0.2 s: 4 samples are 33,000 states, 6 samples 2.7 million)::
 
@@ -70,6 +70,7 @@ import numpy as np
 from rac import ir
 from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.engine.bindings import Bindings
+from rac.engine.budget import GRAPH_BYTES_PER_CHOICE, Budget
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame, int_sum
 from rac.engine.explore import action_pairs
 from rac.engine.graph import LABELS, ExploredGraph
@@ -251,20 +252,26 @@ class _Layer:
 
 
 class _Builder:
-    """Layers in state order and the choices from each layer into the next one."""
+    """Layers in state order and the choices from each layer into the next one, within a budget."""
 
-    def __init__(self, max_states: int | None) -> None:
-        self.max_states = max_states
+    def __init__(self, budget: Budget, state_bytes: int) -> None:
+        self.budget = budget
+        #: The bytes of one state while exploring (int64 columns, labels) and of one choice.
+        self.state_bytes = state_bytes
         self.layers: list[_Layer] = []
         self.links: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # counts, actions, local targets
-        self.total = 0
+        self.total = self.choices = 0
 
     def add(self, layer: _Layer) -> None:
         self.layers.append(layer)
         self.total += layer.n
-        if self.max_states is not None and self.total > self.max_states:
-            raise MemoryError(f"explore_product(): more than {self.max_states} states by sample {layer.k} "
-                              f"({PHASES[layer.phase]})")
+        self.budget.check_states(self.total, layer.k)
+
+    def reserve(self, rows: int, k: int) -> None:
+        """Before ``rows`` successor rows of sample ``k`` are built: room for them as states and choices."""
+        self.choices += rows
+        needed = (self.total + rows) * self.state_bytes + self.choices * GRAPH_BYTES_PER_CHOICE
+        self.budget.check_bytes(needed, self.total, k)
 
     def link(self, counts: np.ndarray, actions: np.ndarray, targets: np.ndarray) -> None:
         self.links.append((counts.astype(np.int64), actions.astype(np.int64), targets.astype(np.int64)))
@@ -375,7 +382,7 @@ class ProductGraph(ExploredGraph):
 # ---------------------------------------------------------------- exploration
 def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples: int | None = None,
                     prune_unsafe: bool = False, progress: Progress | None = None,
-                    max_states: int | None = None) -> ProductGraph:
+                    max_states: int | None = None, max_bytes: int | None = None) -> ProductGraph:
     """Explore the product of the model and ``automaton`` breadth-first, one phase of a sample per layer.
 
     State 0 is the start (sample 0, ``sampled``, the ego's start with jerk and turn 0, the initial
@@ -383,9 +390,11 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     samples; the ``at end`` clauses apply after its last sample (see the module docstring for the
     order of one sample and the phases). With ``prune_unsafe=True``, ``sampled`` states that collide
     or are off-road are terminal (the automaton has reacted to the sample; nothing follows).
-    ``progress(sample, sampled_states, total_states)`` is called once per sample. ``max_states``:
-    :class:`MemoryError` as soon as more states than that have been found — product state spaces
-    grow fast, since rewards rarely merge. :class:`ValueError` for an input without a binding.
+    ``progress(sample, sampled_states, total_states)`` is called once per sample. Product state
+    spaces grow fast, since rewards rarely merge: :class:`~rac.engine.budget.BudgetExceeded` (a
+    ``MemoryError``) as soon as more than ``max_states`` states have been found, or before a sample's
+    successors are built when deciding on the graph would need more than ``max_bytes``.
+    :class:`ValueError` for an input without a binding.
     """
     horizon = automaton.steps if horizon_samples is None else horizon_samples
     if horizon < 0:
@@ -410,7 +419,10 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     sampled = _Layer(0, SAMPLED, ego0, np.full(1, automaton.initial, dtype=np.int64),
                      np.zeros((1, n_inputs), dtype=np.int64), np.zeros((1, n_rewards), dtype=np.int64),
                      bindings.prevs(start), labels(start))
-    built = _Builder(max_states)
+    # while exploring a state is int64 columns (ego, location, inputs, mirrors, prevs) and 4 labels
+    width = len(EGO_STATE) + 1 + n_inputs + n_rewards + sampled.prevs.shape[1]
+    built = _Builder(Budget(max_states, max_bytes, "the product of model and automaton", float(data.period)),
+                     8 * width + 4)
     built.add(sampled)
     if progress is not None:
         progress(0, 1, built.total)
@@ -430,6 +442,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
             src, action = sources, np.full(sources.size, -1, dtype=np.int64)
             chosen = sampled.ego[src, 5:7]
         counts = np.where(expand, per, 0)
+        built.reserve(src.size, k + 1)
         # ---- sense_state() and read_inputs() once per distinct (ego, actions): they read nothing else
         # (prev(e) reads the ego of sample k), so the product costs no more model calls than explore()
         _, first_u, inv_u = np.unique(np.hstack([sampled.ego[src], chosen]), axis=0, return_index=True,
@@ -530,7 +543,8 @@ def decide_product(graph: ProductGraph, query: iq.PathQuery | iq.QueryDecl, text
 
 def decide_in_model(source: object, data: ModelData | None, query: iq.PathQuery | iq.QueryDecl | str, *,
                     horizon_samples: int | None = None, prune_unsafe: bool = False,
-                    max_states: int | None = None, progress: Progress | None = None) -> Verdict:
+                    max_states: int | None = None, max_bytes: int | None = None,
+                    progress: Progress | None = None) -> Verdict:
     """Decide a path query of an automaton on its product with the scenario model.
 
     ``source`` is an :class:`rac.ir.Automaton` or a :class:`rac.compiler.CompileResult`; ``data``
@@ -546,7 +560,8 @@ def decide_in_model(source: object, data: ModelData | None, query: iq.PathQuery 
     if data is None:
         if automaton.model is None:
             raise ValueError("the automaton has no `model` block: pass the model's data")
-        data = build_model_data(load_scenario(automaton.model.scenario_path), automaton.model)
+        spec = automaton.model
+        data = build_model_data(load_scenario(spec.scenario_path, spec.planning_problem or None), spec)
     if isinstance(query, str):
         found = [decl for decl in automaton.queries if decl.name == query]
         if not found:
@@ -556,5 +571,5 @@ def decide_in_model(source: object, data: ModelData | None, query: iq.PathQuery 
                                                                            iq.PathQuery):
         raise ValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
     graph = explore_product(data, automaton, horizon_samples=horizon_samples, prune_unsafe=prune_unsafe,
-                            progress=progress, max_states=max_states)
+                            progress=progress, max_states=max_states, max_bytes=max_bytes)
     return decide_product(graph, query)

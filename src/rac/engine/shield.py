@@ -107,15 +107,17 @@ class ShieldTable:
 
 
 def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None = None,
+               max_bytes: int | None = None,
                progress: Callable[[int, int, int], None] | None = None) -> tuple[Shield, ShieldTable]:
     """The safety shield of ``control: A[] !collide() && !offroad()`` up to the horizon: the model
     explored with unsafe states not expanded, Storm's most permissive strategy, and its table over
-    the model's whole action grid. ``MemoryError`` beyond ``max_states`` (from the exploration)."""
+    the model's whole action grid. :class:`~rac.engine.budget.BudgetExceeded` (a ``MemoryError``)
+    beyond ``max_states`` or ``max_bytes`` (from the exploration)."""
     from rac.engine.explore import action_pairs, explore
     from rac.engine.storm import safety_shield
 
     graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=True, max_states=max_states,
-                    progress=progress)
+                    max_bytes=max_bytes, progress=progress)
     computed = safety_shield(graph, "safe")
     return computed, table(computed, n_actions=len(action_pairs(data)))
 

@@ -40,6 +40,17 @@ def _row_layout(graph: ExploredGraph) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return group_starts.astype(np.int64), choice_rows, terminal
 
 
+def bit_vector(mask: np.ndarray) -> sd.BitVector:
+    """Storm's ``BitVector`` of a boolean mask, from its packed bits (Storm's text form: the length,
+    then 64-bit buckets, most significant bit first) — not from a Python list of set indices, which
+    costs ~50 bytes per set bit and three times the time."""
+    mask = np.asarray(mask, dtype=bool).reshape(-1)
+    padded = np.zeros(-(-mask.size // 64) * 64, dtype=bool)
+    padded[:mask.size] = mask
+    buckets = np.frombuffer(np.packbits(padded, bitorder="big").tobytes(), dtype=">u8")
+    return sd.BitVector.load_from_string(f"{mask.size}" + "".join(f" {bucket}" for bucket in buckets.tolist()))
+
+
 def to_mdp(graph: ExploredGraph) -> sm.SparseMdp:
     """The graph as a Storm ``SparseMdp[float]``, built from numpy arrays in one builder call.
 
@@ -66,7 +77,7 @@ def to_mdp(graph: ExploredGraph) -> sm.SparseMdp:
     masks = {**graph.labels, "init": np.arange(n) == graph.initial, "terminal": terminal}
     for name, mask in masks.items():
         labeling.add_label(name)
-        labeling.set_states(name, sd.BitVector(n, np.flatnonzero(mask).tolist()))
+        labeling.set_states(name, bit_vector(mask))
     components = sm.SparseModelComponents(transition_matrix=matrix, state_labeling=labeling)
     return sm.SparseMdp[float](components)
 
@@ -235,7 +246,7 @@ def uniform_reach_probability(graph: ExploredGraph, label: str) -> float:
     labeling = sm.StateLabeling(n)
     for name, mask in ((label, graph.labels[label]), ("init", np.arange(n) == graph.initial)):
         labeling.add_label(name)
-        labeling.set_states(name, sd.BitVector(n, np.flatnonzero(mask).tolist()))
+        labeling.set_states(name, bit_vector(mask))
     dtmc = sm.SparseDtmc[float](sm.SparseModelComponents(transition_matrix=builder.build(), state_labeling=labeling))
     prop = stormpy.parse_properties(f'P=? [F "{label}"]')[0]
     result = stormpy.model_checking(dtmc, prop, only_initial_states=True)

@@ -168,6 +168,9 @@ class ModelSpec:
     comfort_turn: Fraction  # p2
     bindings: tuple[Binding, ...]
     sensor_error: Fraction = Fraction(1, 2)  # THD: the threshold of the sensor-error query Qa (m)
+    #: The id of the CommonRoad planning problem the ego's start and goal come from; 0 (CommonRoad
+    #: ids are positive): none chosen, the file must have exactly one (E0715 otherwise).
+    planning_problem: int = 0
     span: Span | None = field(default=None, compare=False)
 
     @property

@@ -37,6 +37,7 @@ __all__ = [
     "MATH_FUNCTIONS",
     "MODEL_FUNCTIONS",
     "MODEL_NAMES",
+    "NO_PLANNING_PROBLEM",
     "SETTINGS",
     "TRUE_STATE",
     "held_value",
@@ -77,6 +78,11 @@ def _f(text: str) -> Fraction:
     return Fraction(text)
 
 
+#: ``planning_problem`` when the block does not write it: CommonRoad ids are positive, so 0 chooses
+#: none, and the scenario must have exactly one planning problem (E0715 lists them otherwise).
+NO_PLANNING_PROBLEM = 0
+
+
 #: Every setting, in the order of :class:`rac.ir.ModelSpec` (docs/language.md shows this table).
 SETTINGS: dict[str, Setting] = {s.name: s for s in (
     Setting("base", _f("10"), "", "base of the number representation", _f("2"), whole=True),
@@ -101,6 +107,8 @@ SETTINGS: dict[str, Setting] = {s.name: s for s in (
     Setting("comfort_turn", _f("0.8"), "", "p2, the comfortable fraction of MT", _f("0"), exclusive=True,
             maximum=_f("1")),
     Setting("sensor_error", _f("0.5"), "m", "THD: the sensor-error threshold of query Qa", _f("0"), exclusive=True),
+    Setting("planning_problem", None, "", "the id of the CommonRoad planning problem the ego's start and goal "
+            "come from", _f("1"), whole=True, derived=f"{NO_PLANNING_PROBLEM}: none chosen, the scenario's only one"),
 )}
 #: The number representation of a model that does not set ``base`` and ``exponent``.
 DEFAULT_BASE = int(SETTINGS["base"].default or 10)

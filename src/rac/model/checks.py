@@ -1,4 +1,4 @@
-"""The `model` block's scenario, checked against the model: E0712 (cannot load) and E0713 (int32).
+"""The `model` block's scenario, checked against the model: E0712-E0715 and W0716.
 
 :func:`check_scenario` loads the CommonRoad file of a checked automaton's `model` block once
 (:func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
@@ -9,6 +9,14 @@
   and the element. Anything else the loader or the builder raises becomes E0712 as well.
 * E0713: a value of the scenario (a position, a speed, an obstacle's size, ...) whose
   significand ``trunc(v · base^exponent)`` overflows int32, with the largest exponent that fits.
+* E0714: the ego starts outside the model's limits (a speed outside [`min_speed`, `max_speed`],
+  an acceleration beyond ±`max_acceleration`), which ``sense()`` would clamp at the first
+  sample; the hint names the setting to change and the value that holds the start.
+* E0715: the planning problem is not clear: the file has several and the block writes no
+  `planning_problem`, or the one it writes is not in the file; the message lists the ids.
+* W0716: the ego starts off the road: ``offroad()`` holds in the initial state, so no run is
+  safe from the start. A warning, not an error: the model is consistent and answers every query
+  (CommonUppRoad's ZAM_Ramp starts so, and its model does not check the start).
 
 The loaded :class:`~rac.model.commonroad.Scenario` and :class:`~rac.model.data.ModelData` are returned so
 that :class:`rac.compiler.CompileResult` can hand them to the targets without reloading.
@@ -23,16 +31,17 @@ from fractions import Fraction
 from typing import TYPE_CHECKING
 
 from rac import ir
-from rac.core.diagnostics import Diagnostic, Note, error, short_number
+from rac.core.diagnostics import Diagnostic, Note, error, short_number, warning
 from rac.core.numbers import exact_decimal
+from rac.ir.vocabulary import NO_PLANNING_PROBLEM
 
 if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
     from rac.model.data import ModelData
 
-#: Loaded scenarios by (path, modification time, size): checking several files that share a
-#: scenario, or the same file again, reads it once.
-_CACHE: dict[tuple[str, int, int], Scenario] = {}
+#: Loaded scenarios by (path, modification time, size, planning problem): checking several files
+#: that share a scenario, or the same file again, reads it once.
+_CACHE: dict[tuple[str, int, int, int | None], Scenario] = {}
 _CACHE_SIZE = 8
 
 
@@ -46,18 +55,20 @@ class ScenarioCheck:
     data: ModelData | None = None
 
 
-def _load(path: str) -> Scenario:
-    """``load_scenario(path)``, cached while the file is unchanged."""
+def _load(path: str, planning_problem: int | None = None) -> Scenario:
+    """``load_scenario(path, planning_problem)``, cached while the file is unchanged; without a
+    planning problem, a file with several is a :class:`~rac.model.commonroad.PlanningProblemError`."""
     from rac.model.commonroad import load_scenario
 
     try:
         stat = os.stat(path)
-        key: tuple[str, int, int] | None = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size)
+        key: tuple[str, int, int, int | None] | None = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size,
+                                                        planning_problem)
     except OSError:
         key = None  # the loader reports it
     if key is not None and key in _CACHE:
         return _CACHE[key]
-    scenario = load_scenario(path)
+    scenario = load_scenario(path, planning_problem, require_choice=True)
     if key is not None:
         if len(_CACHE) >= _CACHE_SIZE:
             _CACHE.pop(next(iter(_CACHE)))
@@ -81,10 +92,14 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
                                         notes=notes, hints=hints))
         return result
 
-    from rac.model.commonroad import ScenarioError
+    from rac.model.commonroad import PlanningProblemError, ScenarioError
 
     try:
-        scenario = _load(spec.scenario_path)
+        chosen = spec.planning_problem
+        scenario = _load(spec.scenario_path) if chosen == NO_PLANNING_PROBLEM else _load(spec.scenario_path, chosen)
+    except PlanningProblemError as failure:
+        result.diagnostics.append(_planning_problem(automaton, spec, failure))
+        return result
     except ScenarioError as failure:
         return cannot_load(str(failure), _load_hints(failure, written))
     except Exception as failure:  # never a traceback: whatever the loader raises is a diagnostic
@@ -103,6 +118,9 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
     except Exception as failure:
         return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
     result.data = data
+    result.diagnostics.extend(_start(automaton, spec, scenario, data))
+    if any(d.is_error for d in result.diagnostics):
+        return result  # a start the model would clamp: nothing to sum up
     try:
         what, largest = max_significand(scenario, spec)
     except Exception:  # only the fact's detail: the data is built
@@ -110,12 +128,109 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
     goal = scenario.goal
     obstacles = len(scenario.obstacles)
     detail = f" (the largest is {what}: {largest})" if what else ""
+    ids = scenario.planning_problem_ids
+    problem = f", planning problem {scenario.planning_problem_id} (of {_ids(ids)})" if len(ids) > 1 else ""
+    from rac.model.native import NO_OBSTACLE_TEXT
+
+    counted = (f"{obstacles} obstacle{'s' if obstacles != 1 else ''}" if obstacles else
+               f"no obstacle (`mindist()` reads {NO_OBSTACLE_TEXT} and `collide()` never holds)")
     result.facts.append(
-        f"scenario {written}: {len(scenario.road)} lanelet{'s' if len(scenario.road) != 1 else ''}, "
-        f"{obstacles} obstacle{'s' if obstacles != 1 else ''}, goal at t in [{_seconds(goal.time_low)}, "
-        f"{_seconds(goal.time_high)}] s; every significand fits int32 at base {spec.base}, exponent "
+        f"scenario {written}{problem}: {len(scenario.road)} lanelet{'s' if len(scenario.road) != 1 else ''}, "
+        f"{counted}, goal at t in [{_number(goal.time_low)}, "
+        f"{_number(goal.time_high)}] s; every significand fits int32 at base {spec.base}, exponent "
         f"{spec.exponent}{detail}")
     return result
+
+
+def _ids(ids: tuple[int, ...]) -> str:
+    return ", ".join(map(str, ids))
+
+
+def _planning_problem(automaton: ir.Automaton, spec: ir.ModelSpec, failure) -> Diagnostic:
+    """E0715: several planning problems and none chosen, or a chosen one the file lacks."""
+    spans = automaton.spans
+    scenario_span = spans.get("model:scenario", spec.span)
+    ids = failure.ids
+    choices = [f"`planning_problem {i}`" for i in ids]
+    if failure.chosen is None:
+        listed = ", ".join(choices[:-1]) + f" or {choices[-1]}" if len(ids) <= 4 else \
+            f"{choices[0]} (or another id above)"
+        return error("E0715", f"the scenario has {len(ids)} planning problems ({_ids(ids)}) and the `model` block "
+                     "chooses none", scenario_span,
+                     notes=["each planning problem has its own start and goal; the model is built for one"],
+                     hints=[f"choose one with {listed} in the `model` block"])
+    which = f"its only planning problem is {ids[0]}" if len(ids) == 1 else f"its planning problems are {_ids(ids)}"
+    hint = (f"write `planning_problem {ids[0]}`, or leave the setting out (the file has one planning problem)"
+            if len(ids) == 1 else f"write one of its ids, e.g. {choices[0]}")
+    return error("E0715", f"the scenario has no planning problem {failure.chosen}",
+                 spans.get("model:planning_problem", scenario_span),
+                 notes=[which, Note(f"the scenario `{spec.scenario}` is named here", scenario_span)], hints=[hint])
+
+
+def _start(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, data) -> list[Diagnostic]:
+    """E0714 for an ego start outside the model's speed and acceleration limits, W0716 for a start
+    off the road."""
+    found = []
+    ego = scenario.ego
+    speed, low, high = data.ego_v, data.min_speed, data.max_speed
+    if not low <= speed <= high:
+        setting = "max_speed" if speed > high else "min_speed"
+        limit = spec.max_speed if speed > high else spec.min_speed
+        words = "faster than" if speed > high else "slower than"
+        found.append(_limit(automaton, spec, setting, Fraction(speed, data.scale), "m/s",
+                            f"the ego starts at {_number(ego.velocity)} m/s, {words} `{setting}` "
+                            f"({short_number(limit)} m/s)",
+                            f"the model holds the speed within [`min_speed`, `max_speed`] = "
+                            f"[{short_number(spec.min_speed)}, {short_number(spec.max_speed)}] m/s at every Euler "
+                            f"sub-step of `sense()`: from the first sample on the ego would drive at "
+                            f"{short_number(limit)} m/s, not the scenario's {_number(ego.velocity)} m/s"))
+    if abs(data.ego_acc) > data.max_acc:
+        bound = spec.max_acceleration if ego.acceleration > 0 else -spec.max_acceleration
+        found.append(_limit(automaton, spec, "max_acceleration", Fraction(abs(data.ego_acc), data.scale), "m/s²",
+                            f"the ego starts with the acceleration {_number(ego.acceleration)} m/s², beyond "
+                            f"`max_acceleration` ({short_number(spec.max_acceleration)} m/s²)",
+                            f"the model holds the acceleration within ±`max_acceleration` at every Euler sub-step "
+                            f"of `sense()`: from the first sample on the ego would accelerate at "
+                            f"{short_number(bound)} m/s², not the scenario's {_number(ego.acceleration)} m/s²"))
+    from rac.model.native import CORNER_NAMES, NativeModel
+
+    model = NativeModel(data)
+    off = [name for name, outside in zip(CORNER_NAMES, model.corners_off(model.initial_state())) if outside]
+    if off:
+        corners = "all four of its corners lie" if len(off) == 4 else \
+            f"its {' and '.join(off) if len(off) == 2 else ', '.join(off[:-1]) + ' and ' + off[-1]} " \
+            f"corner{'s lie' if len(off) > 1 else ' lies'}"
+        found.append(warning(
+            "W0716", f"the ego starts off the road: {corners} outside every lanelet",
+            automaton.spans.get("model:scenario", spec.span),
+            notes=[f"planning problem {scenario.planning_problem_id} starts the ego's {short_number(spec.length)} m × "
+                   f"{short_number(spec.width)} m rectangle at ({_number(ego.x)}, {_number(ego.y)}), heading "
+                   f"{_number(ego.heading)} rad",
+                   "`offroad()` holds in the initial state: no run is safe from the start, so `E[] !offroad()` "
+                   "and the safety shield (`control: A[] !collide() && !offroad()`) fail there"],
+            hints=["move the ego's start onto the road (the initial state of the scenario's planning problem); "
+                   "CommonUppRoad's model does not check off-road at the start, rac's does"]))
+    return found
+
+
+def _limit(automaton: ir.Automaton, spec: ir.ModelSpec, setting: str, held: Fraction, unit: str, message: str,
+           why: str) -> Diagnostic:
+    """E0714 for ``setting``: at the setting when written, else at the scenario (with its default)."""
+    spans = automaton.spans
+    scenario_span = spans.get("model:scenario", spec.span)
+    written = spans.get(f"model:{setting}")
+    notes: list[Note | str] = [why]
+    if written is None:
+        notes.append(f"`{setting}` defaults to {short_number(Fraction(getattr(spec, setting)))} {unit}")
+    else:
+        notes.append(Note(f"the scenario `{spec.scenario}` is named here", scenario_span))
+    if setting == "min_speed" and held < 0:
+        hint = "the model's speeds are >= 0 (`min_speed` cannot be negative): choose a planning problem whose ego " \
+               "does not start backwards"
+    else:
+        hint = f"set `{setting} {short_number(held)}` (or {'less' if setting == 'min_speed' else 'more'}) in the " \
+               "`model` block"
+    return error("E0714", message, written or scenario_span, notes=notes, hints=[hint])
 
 
 _GENERIC_HINT = ("rac reads CommonRoad XML files (formats 2018b and 2020a) with commonroad-io; "
@@ -136,7 +251,8 @@ def _text(failure: BaseException) -> str:
     return f"{type(failure).__name__}: {text}" if text else type(failure).__name__
 
 
-def _seconds(value: float) -> str:
+def _number(value: float) -> str:
+    """A scenario's float as its shortest decimal (33.0 is 33; an open goal interval ends at ∞)."""
     if math.isinf(value):
         return "∞" if value > 0 else "-∞"
     return short_number(Fraction(repr(float(value))))

@@ -84,6 +84,7 @@ class Scenario:
     ego: EgoStart
     goal: Goal
     planning_problem_id: int | None = None  # the CommonRoad planning problem ego and goal come from
+    planning_problem_ids: tuple[int, ...] = ()  # every planning problem of the file, in id order
 
 
 # ---------------------------------------------------------------- reading CommonRoad files
@@ -103,11 +104,26 @@ class ScenarioError(Exception):
         super().__init__(f"{self.path}: {element} {problem}" if element else f"{self.path}: {problem}")
 
 
+class PlanningProblemError(ScenarioError):
+    """The planning problem to use is not clear: ``chosen`` is not among the file's ``ids``, or
+    (``chosen`` None, with ``require_choice``) the file has several."""
+
+    def __init__(self, path: str | os.PathLike[str], chosen: int | None, ids: tuple[int, ...]) -> None:
+        self.chosen = chosen
+        self.ids = ids
+        listed = ", ".join(map(str, ids))
+        if chosen is None:
+            super().__init__(path, None, f"has {len(ids)} planning problems ({listed}) and none was chosen")
+        else:
+            super().__init__(path, f"planning problem {chosen}", f"does not exist (the file has {listed})")
+
+
 #: Vertices of the regular polygon that stands for a circular goal region.
 CIRCLE_VERTICES = 16
 
 
-def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None = None) -> Scenario:
+def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None = None, *,
+                  require_choice: bool = False) -> Scenario:
     """Read a CommonRoad XML file (format 2018b or 2020a) with commonroad-io's CommonRoadFileReader.
 
     - ``road``: one polygon per lanelet (its right bound, then its left bound reversed), in lanelet
@@ -131,7 +147,10 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
       ``Goal.velocity`` / ``Goal.orientation``. Several goal states are merged (their regions
       concatenated) when they ask for the same time, velocity and orientation.
 
-    ``planning_problem_id`` picks the planning problem; None picks the one with the smallest id.
+    ``planning_problem_id`` picks the planning problem; None picks the one with the smallest id, or,
+    with ``require_choice``, raises :class:`PlanningProblemError` when the file has several (before
+    reading any of them). An id the file lacks is a :class:`PlanningProblemError` as well.
+    ``planning_problem_ids`` lists every planning problem of the file.
     All polygons come counter-clockwise, without the first point repeated. Anything rac cannot
     represent raises :class:`ScenarioError` naming the file and the element; so do a missing file,
     a file that is not XML or not CommonRoad, and a file commonroad-io fails on.
@@ -153,7 +172,7 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
             diagnosis = None
         if diagnosis is not None:
             raise diagnosis
-        return _convert(path, root, cr_scenario, problems, planning_problem_id)
+        return _convert(path, root, cr_scenario, problems, planning_problem_id, require_choice)
 
 
 def _read_bytes(path: str | os.PathLike[str]) -> bytes:
@@ -291,7 +310,8 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
     return ScenarioError(path, None, f"cannot be read by commonroad-io ({_describe(error)})")
 
 
-def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None) -> Scenario:
+def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
+             require_choice: bool = False) -> Scenario:
     dt = float(cr_scenario.dt)
     lanelets = sorted(cr_scenario.lanelet_network.lanelets, key=lambda lanelet: lanelet.lanelet_id)
     if not lanelets:
@@ -307,20 +327,21 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None)
         name = f"{'static' if static else 'dynamic'} obstacle {obstacle.obstacle_id}"
         obstacles.append(_obstacle(path, name, obstacle, static, dt))
 
-    ids = sorted(problems.planning_problem_dict)
+    ids = tuple(sorted(problems.planning_problem_dict))
     if not ids:
         raise ScenarioError(path, None, "has no planning problem (rac needs one for the ego's start and goal)")
+    if planning_problem_id is None and require_choice and len(ids) > 1:
+        raise PlanningProblemError(path, None, ids)
     if planning_problem_id is None:
         planning_problem_id = ids[0]
     elif planning_problem_id not in problems.planning_problem_dict:
-        raise ScenarioError(path, f"planning problem {planning_problem_id}",
-                            f"does not exist (the file has {', '.join(map(str, ids))})")
+        raise PlanningProblemError(path, planning_problem_id, ids)
     problem = problems.planning_problem_dict[planning_problem_id]
     ego = _ego(path, f"planning problem {planning_problem_id}", problem.initial_state, dt)
     goal = _goal(path, f"goal of planning problem {planning_problem_id}", problem.goal, cr_scenario.lanelet_network, dt)
     name = root.get("benchmarkID") or Path(path).stem
     return Scenario(name=name, path=os.fspath(path), dt=dt, road=road, obstacles=tuple(obstacles), ego=ego,
-                    goal=goal, planning_problem_id=planning_problem_id)
+                    goal=goal, planning_problem_id=planning_problem_id, planning_problem_ids=ids)
 
 
 def _seconds(step: float, dt: float) -> float:

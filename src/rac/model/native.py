@@ -28,12 +28,16 @@ from typing import NamedTuple
 
 from rac.model.data import ModelData, ModelRangeError
 
-__all__ = ["CORNERS", "NO_OBSTACLE", "NativeModel", "State", "point_in_polygons"]
+__all__ = ["CORNERS", "CORNER_NAMES", "NO_OBSTACLE", "NO_OBSTACLE_TEXT", "NativeModel", "State", "point_in_polygons"]
 
 #: ``mindist()`` when no obstacle exists at the sample.
 NO_OBSTACLE = 1.0e9
+#: :data:`NO_OBSTACLE` as messages write it.
+NO_OBSTACLE_TEXT = "1e9"
 #: The ego rectangle's corners as (along, across) signs, in the order offroad() visits them.
 CORNERS = ((1, 1), (1, -1), (-1, -1), (-1, 1))
+#: The corners of :data:`CORNERS` in words (across > 0 is the ego's left).
+CORNER_NAMES = ("front-left", "front-right", "rear-right", "rear-left")
 
 
 class State(NamedTuple):
@@ -257,6 +261,11 @@ class NativeModel:
         of :data:`CORNERS` is ``(x + ca * hl * c - cb * hw * s, y + ca * hl * s + cb * hw * c)``;
         each is tested with :func:`point_in_polygons` against the road.
         """
+        return any(self.corners_off(state))
+
+    def corners_off(self, state: State) -> tuple[bool, ...]:
+        """For each corner of :data:`CORNERS`, whether it lies outside every road polygon
+        (:meth:`offroad` is their ``any``)."""
         scale = self.scale_d
         ex = state.x / scale
         ey = state.y / scale
@@ -265,13 +274,12 @@ class NativeModel:
         s = math.sin(eh)
         hl = self.length_d / 2.0
         hw = self.width_d / 2.0
-        off = False
+        off = []
         for ca, cb in CORNERS:
             px = ex + ca * hl * c - cb * hw * s
             py = ey + ca * hl * s + cb * hw * c
-            if not point_in_polygons(self.road_xd, self.road_yd, self.data.road_start, px, py):
-                off = True
-        return off
+            off.append(not point_in_polygons(self.road_xd, self.road_yd, self.data.road_start, px, py))
+        return tuple(off)
 
     def goal(self, state: State, k: int) -> bool:
         """``GOAL_LOW <= k <= GOAL_HIGH`` and the ego's centre inside a goal polygon."""

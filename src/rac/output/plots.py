@@ -34,6 +34,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.transforms import blended_transform_factory
 
+from rac.model.native import NO_OBSTACLE
+
 __all__ = [
     "ABOVE_COLOUR", "BELOW_COLOUR", "THRESHOLD_COLOUR", "atomic_write", "below_summary", "new_figure",
     "plot_learning_curves", "plot_runs", "plot_sweep", "runs_below", "save_figure",
@@ -118,7 +120,8 @@ def below_summary(values: np.ndarray, threshold: float, threshold_label: str = "
 
 def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str], *,
               threshold: float | None = None, threshold_label: str = "threshold", ylabel: str = "distance (m)",
-              xlabel: str = "time (s)", title: str | None = None, highlight_below: bool = True) -> Path:
+              xlabel: str = "time (s)", title: str | None = None, highlight_below: bool = True,
+              missing: float | None = NO_OBSTACLE, missing_label: str = "no obstacle") -> Path:
     """The paper's Fig. 7: N simulated runs of a quantity (e.g. ``mindist()``) over time, against a
     horizontal threshold line; write the PNG to ``path`` and return it.
 
@@ -127,12 +130,19 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
     (:func:`runs_below`) are drawn in red on top of the others, their lowest point marked, and
     counted in the legend and the title: "12 of 100 runs below 3·TD".
 
+    Samples equal to ``missing`` (default :data:`rac.model.native.NO_OBSTACLE`, what ``mindist()``
+    reads when no obstacle exists) have no value: they leave gaps too, the legend says
+    ``missing_label`` (and at how many samples), and the axes are scaled to the other values; when
+    every sample is missing, the plot says so instead of drawing a line at 1e9.
+
     Example::
 
         plot_runs(np.arange(300) * 0.1, mindist, "fig7.png", threshold=3 * 0.5, threshold_label="3·TD",
                   title="left turn, exponent 2")
     """
     values = np.atleast_2d(np.asarray(values, dtype=float))
+    absent = values == missing if missing is not None else np.zeros(values.shape, dtype=bool)
+    values = np.where(absent, np.nan, values)
     n_runs, n_samples = values.shape
     times = np.asarray(times, dtype=float)
     if times.shape == (n_samples,):
@@ -151,7 +161,10 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
     others = ~below if emphasise else np.ones(n_runs, dtype=bool)
     ax.add_collection(LineCollection(segments[others], colors=ABOVE_COLOUR, linewidths=0.9, alpha=alpha, zorder=2))
     handles: list[Any] = []
-    if emphasise:
+    finite = np.isfinite(values)
+    if not finite.any():
+        pass  # no run to show: only the threshold and the note below
+    elif emphasise:
         handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5, label=f"{n_runs - n_below} runs staying above"))
         if n_below:
             ax.add_collection(LineCollection(segments[below], colors=BELOW_COLOUR, linewidths=1.1,
@@ -169,19 +182,29 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
         handles.append(Line2D([], [], color=THRESHOLD_COLOUR, linestyle="--", lw=1.4,
                               label=f"{threshold_label} = {threshold:g}"))
 
-    finite = np.isfinite(values)
-    if finite.any():
-        low, high = float(values[finite].min()), float(values[finite].max())
+    if absent.any() and finite.any():
+        handles.append(Line2D([], [], color="none", label=f"gaps: {missing_label} at {int(absent.sum())} of "
+                                                          f"{absent.size} samples"))
+    if finite.any() or threshold is not None:
+        # nothing drawn: the threshold in the middle of the axis
+        low, high = (float(values[finite].min()), float(values[finite].max())) if finite.any() else \
+            (0.0, 2 * (threshold or 0.0))
         if threshold is not None:
             low, high = min(low, threshold), max(high, threshold)
         pad = 0.05 * (high - low) or 1.0
         ax.set_ylim(min(0.0, low) if low >= 0 else low - pad, high + pad)  # distances: keep 0 in view
+    if np.isfinite(times).any():
         start, end = float(np.nanmin(times)), float(np.nanmax(times))
         ax.set_xlim(start, end if end > start else start + 1.0)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(True, color="#e0e0e0", linewidth=0.6, zorder=0)
     count = below_summary(values, threshold, threshold_label) if threshold is not None else f"{n_runs} runs"
+    if not finite.any():
+        nothing = f"{missing_label} at any sample" if absent.all() else "no value at any sample"
+        ax.text(0.5, 0.75, f"{nothing}: nothing to draw", transform=ax.transAxes, ha="center", va="center",
+                fontsize=11, color=THRESHOLD_COLOUR)
+        count = f"{nothing} of {n_runs} run{'s' * (n_runs != 1)}"
     ax.set_title(f"{title}: {count}" if title else count)
     ax.legend(handles=handles, loc="upper right", framealpha=0.9)
     return save_figure(figure, path)
@@ -194,7 +217,7 @@ def _setting_label(row: Mapping[str, Any]) -> str:
 
 def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str], *,
                xlabel: str = "minimum distance of a run (m)", threshold_label: str = "threshold",
-               title: str = "pre-analysis sweep") -> Path:
+               title: str = "pre-analysis sweep", missing_label: str = "no obstacle") -> Path:
     """One line per setting of the pre-analysis sweep: each run's minimum distance as a dot, a box
     of their quartiles, the threshold as a dashed line, and on the right how many runs went below
     it and the probability interval. Settings with a run below the threshold are drawn in red
@@ -202,9 +225,10 @@ def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str], 
 
     Each row is a mapping with the keys ``exponent`` (int), ``sense`` and ``decide`` (the periods
     C1 and C2 in seconds), ``min_distances`` (the minimum distance reached in each run, sequence
-    of floats; non-finite values are ignored), ``threshold`` (float) and optionally
-    ``probability`` (the (low, high) interval of the probability of going below). Rows are drawn
-    top to bottom in the given order.
+    of floats; non-finite values are ignored: a run that met no obstacle has none), ``threshold``
+    (float) and optionally ``probability`` (the (low, high) interval of the probability of going
+    below). Rows are drawn top to bottom in the given order; a row without any distance says
+    ``missing_label``.
 
     Example::
 
@@ -245,9 +269,9 @@ def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str], 
         # one short threshold segment per row: settings may differ in their threshold (e.g. TD)
         ax.plot([threshold, threshold], [y - 0.4, y + 0.4], color=THRESHOLD_COLOUR, linestyle="--", linewidth=1.3,
                 zorder=5)
-        note = f"{int(below.sum())}/{distances.size} below"
+        note = f"{int(below.sum())}/{distances.size} below" if distances.size else missing_label
         probability = row.get("probability")
-        if probability is not None:
+        if probability is not None and distances.size:
             low, high = probability
             note += f"   P ∈ [{low:.3f}, {high:.3f}]"
         ax.text(1.01, y, note, transform=right, va="center", ha="left", fontsize=9, color=colour,

@@ -1,7 +1,11 @@
-"""Progress bars for long engine work (exploration, simulation batches), on stderr via tqdm.
+"""Progress for long engine work (exploration, simulation batches, learning), on stderr.
 
-A bar shows only when stderr is a terminal, so piped output, ``--format json`` and tests stay
-clean; ``enabled=True`` forces it, ``enabled=False`` silences it.
+On a terminal a :class:`Progress` is a tqdm bar; ``enabled=True`` forces it, ``enabled=False``
+silences it. When stderr is not a terminal (CI logs, ``nohup``, a pipe) a :class:`Heartbeat` prints
+one plain line every few seconds instead — the phase, what every :class:`Progress` counted so far,
+its rate and the time elapsed — so a long command is never silent::
+
+    rac verify: Qd: strategy safe = control: A[] !collide() && !offroad(); 1.2 M states (412 k/s); 12 s
 
 Example::
 
@@ -14,14 +18,17 @@ Example::
 
 from __future__ import annotations
 
+import os
 import sys
+import threading
+import time
 from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TextIO
 
 from tqdm import tqdm
 
-__all__ = ["Progress", "explore_callback"]
+__all__ = ["Heartbeat", "Progress", "explore_callback"]
 
 
 class Progress:
@@ -49,6 +56,7 @@ class Progress:
             enabled = bool(isatty and isatty())
         self.enabled: bool = enabled
         self.n: int = 0
+        self.unit, self.desc = unit, desc
         # a disabled bar never touches tqdm: no output, no monitor thread, no cost per update
         self._bar: tqdm | None = None
         if enabled:
@@ -57,10 +65,13 @@ class Progress:
                              dynamic_ncols=True, leave=False)
 
     def update(self, n: int = 1) -> None:
-        """Advance the bar by ``n``."""
+        """Advance the bar by ``n`` (and tell the active :class:`Heartbeat`, if any)."""
         self.n += n
         if self._bar is not None:
             self._bar.update(n)
+        beat = Heartbeat.active
+        if beat is not None:
+            beat.count(self.n, self.unit, self.desc)
 
     def set_postfix(self, **values: Any) -> None:
         """Show ``key=value`` pairs after the bar (e.g. the current layer); ignored when disabled."""
@@ -97,3 +108,85 @@ def explore_callback(bar: Progress) -> Callable[[int, int, int], None]:
         bar.update(total_states - bar.n)  # explore reports a running total, the bar wants increments
 
     return progress
+
+
+class Heartbeat:
+    """Plain progress lines for a stream that is not a terminal: every ``interval`` seconds (default
+    ``RAC_PROGRESS_INTERVAL``, else 10) while the command runs, ``COMMAND: PHASE; COUNT UNIT (RATE/s); ELAPSED``.
+
+    ``enabled`` None: on when ``file`` (default: the current ``sys.stderr``) is not a TTY. While a
+    heartbeat is entered it is :attr:`active`, and every :class:`Progress` reports its count to it.
+
+    Example::
+
+        with Heartbeat("rac experiment") as beat:
+            beat.phase("learning, seed 1")
+            ...
+    """
+
+    #: The heartbeat entered last and not yet left (the one :meth:`Progress.update` reports to).
+    active: Heartbeat | None = None
+
+    def __init__(self, command: str, *, interval: float | None = None, enabled: bool | None = None,
+                 file: TextIO | None = None) -> None:
+        if interval is None:  # RAC_PROGRESS_INTERVAL: seconds between lines (default 10)
+            interval = float(os.environ.get("RAC_PROGRESS_INTERVAL", "") or 10.0)
+        self.stream = sys.stderr if file is None else file
+        if enabled is None:
+            isatty = getattr(self.stream, "isatty", None)
+            enabled = not (isatty and isatty())
+        self.enabled = enabled
+        self.command, self.interval = command, interval
+        self._phase = ""
+        self._count: tuple[int, str, float] | None = None  # count, unit, when the phase's counting began
+        self._start = time.monotonic()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._outer: Heartbeat | None = None
+
+    def phase(self, text: str) -> None:
+        """What the command is doing now (a query, a setting, a seed)."""
+        self._phase, self._count = text, None
+
+    def count(self, n: int, unit: str, what: str = "") -> None:
+        """How much of the phase is done (``n`` states, episodes, runs; ``what`` names the work)."""
+        since = self._count[2] if self._count is not None and self._count[1] == unit else time.monotonic()
+        self._count = (n, unit, since)
+        if what and not self._phase:
+            self._phase = what
+
+    def line(self) -> str:
+        """The line printed now."""
+        now = time.monotonic()
+        parts = [self._phase or "working"]
+        if self._count is not None:
+            n, unit, since = self._count
+            rate = n / max(now - since, 1e-9)
+            parts.append(f"{_short(n)} {unit.strip()} ({_short(rate)}/s)")
+        return f"{self.command}: {'; '.join(parts)}; {now - self._start:.0f} s"
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.interval):
+            print(self.line(), file=self.stream, flush=True)
+
+    def __enter__(self) -> Heartbeat:
+        self._outer, Heartbeat.active = Heartbeat.active, self
+        if self.enabled:
+            self._thread = threading.Thread(target=self._run, name="rac-heartbeat", daemon=True)
+            self._thread.start()
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        Heartbeat.active = self._outer
+
+
+def _short(value: float) -> str:
+    """``1234567`` -> ``1.2 M``; small numbers as they are."""
+    for unit, scale in (("G", 1e9), ("M", 1e6), ("k", 1e3)):
+        if value >= scale:
+            return f"{value / scale:.3g} {unit}"
+    return f"{value:.3g}" if value != int(value) else str(int(value))

@@ -101,6 +101,17 @@ def _goal_center(problems: Any) -> tuple[float, float] | None:
     return None
 
 
+def _only(problems: Any, problem_id: int, path: Path) -> Any:
+    """The planning problem set with the problem ``problem_id`` alone."""
+    from commonroad.planning.planning_problem import PlanningProblemSet
+
+    chosen = problems.planning_problem_dict.get(problem_id)
+    if chosen is None:
+        ids = ", ".join(map(str, sorted(problems.planning_problem_dict))) or "none"
+        raise RenderError(path, f"has no planning problem {problem_id} (its planning problems: {ids})")
+    return PlanningProblemSet([chosen])
+
+
 def _initial_step(problems: Any) -> int:
     steps = [problem.initial_state.time_step for problem in problems.planning_problem_dict.values()]
     return int(min(steps)) if steps else 0
@@ -159,7 +170,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
                       *, gif_path: str | os.PathLike[str] | None = None, time_step: int | None = None,
                       title: str | None = None, sample_period: float | None = None, length: float = 4.5,
                       width: float = 1.8, max_frames: int = 100, plot_limits: Sequence[float] | None = None,
-                      figsize: tuple[float, float] | None = None, dpi: int = 100) -> Path:
+                      figsize: tuple[float, float] | None = None, dpi: int = 100,
+                      planning_problem: int | None = None) -> Path:
     """Draw the CommonRoad scenario in ``scenario_path`` with the ego's trajectory; write the PNG
     (and with ``gif_path`` an animated GIF) and return the PNG's path.
 
@@ -175,6 +187,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
     played in real time, with obstacles and ego moving. ``plot_limits`` (xmin, xmax, ymin, ymax)
     defaults to the path and the goal with a 15 m margin; ``figsize`` (inches) to 8 wide and as
     high as that view needs. ``length`` and ``width`` default to rac's vehicle (model.md).
+    ``planning_problem`` (an id of the file's) draws that problem only and starts at its initial
+    time step, as the model does with the `model` block's ``planning_problem``; None: all of them.
 
     Raises :class:`RenderError` naming the file when it is missing or not a readable CommonRoad
     scenario, ``ValueError`` for a malformed trajectory.
@@ -189,6 +203,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
     if max_frames < 2:
         raise ValueError(f"render_trajectory: max_frames must be at least 2, not {max_frames}")
     scenario, problems = _read(path)
+    if planning_problem is not None:
+        problems = _only(problems, planning_problem, path)
     dt = float(scenario.dt)
     period = dt if sample_period is None else float(sample_period)
     if period <= 0:

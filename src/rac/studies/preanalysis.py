@@ -12,7 +12,9 @@ period C2 the sweep answers, on the model built at that setting:
 - Fig. 7 — N runs under the shield; per run the smallest distance to an obstacle, *sensed*
   (``mindist()`` on the model's significands, what the shield sees) and *true* (the same
   distance for the ground truth, integrated finely and measured at exponent 4 at every CommonRoad
-  time step, also between samples).
+  time step, also between samples). A run that meets no obstacle (``mindist()`` reads
+  :data:`~rac.model.native.NO_OBSTACLE` at every sample) has no smallest distance: NaN in the row,
+  null in the JSON, "no obstacle" in the table and the plots; ``obstacles`` counts the scenario's.
 
 The coarse settings' point: the shield keeps the *sensed* distance safe, but a coarse
 representation or a long period lets the *true* distance drop below the threshold.
@@ -38,6 +40,7 @@ from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
 from rac.model.batch import BatchModel
 from rac.model.data import ModelData, ModelRangeError, build_model_data
+from rac.model.native import NO_OBSTACLE
 
 __all__ = ["Row", "SweepError", "render_table", "sweep"]
 
@@ -117,6 +120,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
         return row
     samples = int(horizon / spec.sense_period)
     row["samples"] = samples
+    row["obstacles"] = data.obstacle_count
     threshold = threshold_factor * data.td / data.scale
     row["threshold"] = threshold
     # Qa: sensor error, unshielded runs (UPPAAL's SMC semantics: uniform actions).
@@ -147,8 +151,8 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
     true = _true_distances(result, spec, shielded, data)
-    row["sensed_min"] = sensed.min(axis=1)
-    row["true_min"] = true.min(axis=1)
+    row["sensed_min"] = _smallest(sensed)
+    row["true_min"] = _smallest(true)
     below = int((row["true_min"] < threshold).sum())
     row["below"] = below
     row["below_interval"] = clopper_pearson(below, runs)
@@ -217,6 +221,12 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
     return [_jsonable(r) for r in rows]
 
 
+def _smallest(distances: np.ndarray) -> np.ndarray:
+    """Each run's smallest distance to an obstacle; NaN for a run that met none (every sample
+    :data:`~rac.model.native.NO_OBSTACLE`)."""
+    return np.fmin.reduce(np.where(distances == NO_OBSTACLE, np.nan, distances), axis=1)
+
+
 def _td(factor: int) -> str:
     return "TD (collision)" if factor == 1 else f"{factor}·TD"
 
@@ -224,10 +234,8 @@ def _td(factor: int) -> str:
 def _jsonable(row: Row) -> Row:
     out: Row = {}
     for key, value in row.items():
-        if isinstance(value, np.ndarray):
-            out[key] = [round(float(v), 4) for v in value]
-        elif isinstance(value, tuple):
-            out[key] = [round(float(v), 4) for v in value]
+        if isinstance(value, (np.ndarray, tuple)):  # NaN (no obstacle) is null: JSON has no NaN
+            out[key] = [round(float(v), 4) if math.isfinite(v) else None for v in value]
         elif isinstance(value, float):
             out[key] = value if math.isfinite(value) else None
         else:
@@ -257,10 +265,13 @@ def render_table(rows: list[Row]) -> str:
         qa = row.get("qa")
         qa_text = f"[{qa[0]:.3f}, {qa[1]:.3f}]" if qa else "—"
         below = "—"
-        if "below" in row:
+        measured = [v for v in row.get("true_min", ()) if v is not None and math.isfinite(v)]
+        if "below" in row and not measured:
+            below = f"no obstacle at any sample of the {len(row['true_min'])} runs: no distance to measure"
+        elif "below" in row:
             interval = row["below_interval"]
             below = (f"{row['below']} of {len(row['true_min'])} (Pr in [{interval[0]:.3f}, {interval[1]:.3f}]); "
-                     f"min {min(row['true_min']):.2f} m vs {row['threshold']:g} m")
+                     f"min {min(measured):.2f} m vs {row['threshold']:g} m")
         lines.append(f"{head} {qa_text} | {_yes(row.get('qb'))} | {_yes(row.get('qc'))} | {_yes(row.get('qd'))} | "
                      f"{row.get('states', 0):,} | {row.get('seconds', 0):.2f} | {below} |")
     return "\n".join(lines + ([""] + notes if notes else []))

@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,6 +22,7 @@ import numpy as np
 from rac.compiler import CompileResult
 from rac.core.numbers import exact_decimal
 from rac.engine import shield, storm
+from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
 from rac.engine.graph import ExploredGraph
@@ -34,7 +35,7 @@ if TYPE_CHECKING:
     from rac.learning.episodes import EpisodeBatch
     from rac.learning.qlearning import LearnedStrategy, StrategyRun
 
-__all__ = ["Context", "Learned", "UnknownVerdict", "VerifyOptions"]
+__all__ = ["Context", "Learned", "UnknownVerdict", "VerifyOptions", "over_budget"]
 
 
 class UnknownVerdict(Exception):
@@ -49,6 +50,8 @@ class VerifyOptions:
     horizon: Fraction | None = None
     #: Exhaustive exploration stops with *unknown* beyond this many states.
     max_states: int = 5_000_000
+    #: ... or before deciding a query would need more memory than this (bytes; None: no limit).
+    max_bytes: int | None = field(default_factory=default_max_bytes)
     #: Seed of the statistical queries (None: a fresh seed, printed with the result).
     seed: int | None = None
     #: ``Pr[...](<> p)``: stop when the interval's half-width is at most epsilon (UPPAAL's -E).
@@ -95,6 +98,16 @@ def _decimal(value: Fraction) -> str:
     return exact_decimal(value) or repr(float(value))
 
 
+def over_budget(exc: BudgetExceeded) -> str:
+    """Why an exploration stopped, and what to change, in the options' terms."""
+    if exc.kind == "states":
+        change = "raise --max-states if the machine has the memory"
+    else:
+        change = "raise --max-memory only if the machine has that much memory free"
+    return (f"{exc}: shorten the horizon (--horizon), coarsen the model (exponent, action steps, "
+            f"decide_period) or {change}")
+
+
 class Context:
     """One file's verification in progress: the checked file and its model, the options, and what
     the queries answered so far computed, which later ones reuse (the explored graphs) or name
@@ -128,6 +141,8 @@ class Context:
         self.graphs: dict[bool, ExploredGraph] = {}
         #: Shields (``strategy S = control: A[] p``) by name, for later queries ``under S``.
         self.strategies: dict[str, tuple[storm.Shield, shield.ShieldTable]] = {}
+        #: What each shield keeps (``p`` of ``control: A[] p``, as written), for messages.
+        self.strategy_goals: dict[str, str] = {}
         #: Learned strategies (``strategy S = maxE(...)``) by name, for later queries ``under S``.
         self.learned: dict[str, Learned] = {}
         #: The model's (jerk, turn) action pairs; a shield's masks index them.
@@ -165,10 +180,9 @@ class Context:
             try:
                 self.graphs[prune] = explore(self.data, horizon_samples=self.horizon_samples, prune_unsafe=prune,
                                              progress=self.options.explore_progress,
-                                             max_states=self.options.max_states)
-            except MemoryError as exc:
-                raise UnknownVerdict(f"{exc}: shorten the horizon (--horizon), coarsen the model (exponent, "
-                                     "action steps, decide_period) or raise --max-states") from None
+                                             max_states=self.options.max_states, max_bytes=self.options.max_bytes)
+            except BudgetExceeded as exc:
+                raise UnknownVerdict(over_budget(exc)) from None
             except ModelRangeError as exc:
                 raise UnknownVerdict(f"a sensed value left the int32 range: {exc}") from None
         return self.graphs[prune]
@@ -189,7 +203,8 @@ class Context:
                                  "was skipped or failed; run it first)")
         if not self.strategies[name][0].shield_exists:
             # As in UPPAAL: a control query that is not satisfied yields no strategy to use.
-            raise UnknownVerdict(f"the strategy `{name}` does not exist: no safe strategy exists from the start")
+            goal = self.strategy_goals.get(name, "its goal")
+            raise UnknownVerdict(f"the strategy `{name}` does not exist: no strategy keeps `{goal}` from the start")
         return self.strategies[name]
 
     def policy(self, under: str | None) -> Policy | None:

@@ -17,6 +17,7 @@ from rac.engine.explore import explore
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.model.data import ModelRangeError
+from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.verify.context import Context, UnknownVerdict
 from rac.verify.report import QueryResult, count_noun, plot_series, write_csv
 
@@ -134,6 +135,11 @@ class StatisticalAnswerer:
         if len(values) == 2 and np.ptp(values[1]) == 0:
             below = int(np.any(values[0] < values[1], axis=1).sum())
             message += f"; {below} of {n} runs go below {names[1]} = {float(values[1].flat[0]):g}"
+        for name, expr, value in zip(names, query.exprs, values):
+            if isinstance(expr, ie.Call) and expr.name == "mindist" and np.all(value == NO_OBSTACLE):
+                none = "the scenario has none" if ctx.data.obstacle_count == 0 else "none within the horizon"
+                message += (f"; no obstacle at any sample ({none}): `{name}` reads {NO_OBSTACLE_TEXT}, "
+                            "its value without one")
         return dataclasses.replace(base, status="value", runs=n, horizon_samples=samples, seed=seed,
                                    files=tuple(files), message=message,
                                    estimate=float(np.min(values[0])) if values else None)

@@ -9,12 +9,14 @@ import dataclasses
 import numpy as np
 
 from rac.engine import shield, storm
+from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
-from rac.verify.context import Context, UnknownVerdict
+from rac.verify.context import Context, UnknownVerdict, over_budget
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow
 
 __all__ = ["SymbolicAnswerer"]
@@ -29,34 +31,56 @@ class SymbolicAnswerer:
 
     def path(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
         """``A[] p``, ``E<> p``, ``E[] p``, ``A<> p`` (optionally ``under`` a shield), with a witness or
-        counterexample trace where Storm gives one."""
+        counterexample trace where Storm gives one.
+
+        Under a shield the query is answered on what the shield allows (the shield's graph with its
+        choices), never on the whole model; a shield that is missing or does not exist is reported
+        before anything is explored. ``E<> p`` is tried on the pruned model first (unsafe states end
+        a run there): a run found there is a run of the model, found at a fraction of the cost."""
         ctx = self.context
         if ie.reads_automaton(query.expr):
             return self.path_in_product(query, base)
-        # Pruning unsafe states is sound for A[]/E[] of a formula that unsafe states violate
-        # (reaching one already decides the query), never for E<>/A<>.
-        prune = query.quantifier in ("A[]", "E[]") and _implies_safe(query.expr) and query.under is None
-        graph = ctx.graph(prune)
         if query.under is not None:
-            shield_, _ = ctx.strategy(query.under)
-            graph = _restricted(shield_)
+            return self._decided(query, base, self.under_shield(query.under, "a query"))
+        if query.quantifier == "E<>":
+            pruned = ctx.graph(True)
+            result = self._decided(query, base, pruned)
+            if result.status == "satisfied":
+                return dataclasses.replace(result, message=self._safety_of_witness(query.expr, pruned)
+                                           if _implies_safe(query.expr) else None)
+        # Pruning unsafe states is sound for A[]/E[] of a formula that unsafe states violate
+        # (reaching one already decides the query), never for A<>, nor E<> when the pruned model said no.
+        prune = query.quantifier in ("A[]", "E[]") and _implies_safe(query.expr)
+        result = self._decided(query, base, ctx.graph(prune))
+        if query.quantifier == "E<>" and result.trace:
+            # A collision does not end a run of the model (as in the emitted UPPAAL model), and the
+            # pruned model found no run: every witness passes through an unsafe state.
+            result = dataclasses.replace(result, message="the trace passes through unsafe states (a collision "
+                                                         "does not end a run); NO run that stays safe until it "
+                                                         "gets there exists")
+        return result
+
+    def _decided(self, query: iq.PathQuery, base: QueryResult, graph: ExploredGraph) -> QueryResult:
+        """``query`` decided by Storm on ``graph``."""
+        ctx = self.context
         labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
         verdict = storm.decide(labelled, query.quantifier, "query")
-        message = None
-        if verdict.trace and "safe" in graph.labels and not graph.labels["safe"][verdict.trace[:-1]].all():
-            # A collision does not end a run of the model (as in the emitted UPPAAL model), so a
-            # witness may pass through unsafe states; say so, and whether a safe one exists.
-            message = "the trace passes through unsafe states (a collision does not end a run)"
-            if query.quantifier == "E<>" and query.under is None:
-                safe_graph = ctx.graph(True)
-                target = ctx.label(safe_graph, query.expr) & safe_graph.labels["safe"]
-                safe_verdict = storm.decide(dataclasses.replace(safe_graph, labels={**safe_graph.labels,
-                                                                                   "query": target}), "E<>", "query")
-                message += ("; a run that stays safe also reaches it" if safe_verdict.holds
-                            else "; NO run that stays safe reaches it")
         return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
                                    states=graph.n_states, horizon_samples=ctx.horizon_samples,
-                                   trace=self.trace_rows(graph, verdict.trace), message=message)
+                                   trace=self.trace_rows(graph, verdict.trace))
+
+    def _safety_of_witness(self, expr: ie.Expr, pruned: ExploredGraph) -> str:
+        """What ``E<> p`` (``p`` safe) found on the pruned model means: a run that is safe until it
+        reaches ``p``; and whether one of those stays safe to the horizon too."""
+        ctx = self.context
+        values, _ = storm.check_formula(storm.to_mdp(pruned), 'Pmax=? [G "safe"]')
+        staying = ctx.label(pruned, expr) & (values > 0.5)
+        verdict = storm.decide(dataclasses.replace(pruned, labels={**pruned.labels, "query": staying}), "E<>",
+                               "query")
+        horizon = f"{ctx.horizon_samples * float(ctx.period):g} s"
+        return ("a run that stays safe until it gets there exists (the trace); "
+                + (f"one of them stays safe to the horizon ({horizon}) too" if verdict.holds
+                   else f"NONE of them stays safe to the horizon ({horizon})"))
 
     def path_in_product(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
         """A path query over the automaton's names, on the product of model and automaton."""
@@ -67,10 +91,10 @@ class SymbolicAnswerer:
             raise UnknownVerdict("`under` a strategy is not supported on the product of model and automaton")
         try:
             graph = explore_product(ctx.data, ctx.automaton, horizon_samples=ctx.horizon_samples,
-                                    progress=ctx.options.explore_progress, max_states=ctx.options.max_states)
-        except MemoryError as exc:
-            raise UnknownVerdict(f"{exc}: the product of model and automaton grows quickly; shorten the horizon "
-                                 "(--horizon) or coarsen the model") from None
+                                    progress=ctx.options.explore_progress, max_states=ctx.options.max_states,
+                                    max_bytes=ctx.options.max_bytes)
+        except BudgetExceeded as exc:
+            raise UnknownVerdict(over_budget(exc) + " (rewards rarely merge: the product grows quickly)") from None
         verdict = decide_product(graph, query, base.formula)
         return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
                                    states=graph.n_states, horizon_samples=ctx.horizon_samples,
@@ -109,6 +133,7 @@ class SymbolicAnswerer:
         computed = storm.safety_shield(labelled, "query")
         table = shield.table(computed, n_actions=len(ctx.pairs))
         ctx.strategies[query.name] = (computed, table)
+        ctx.strategy_goals[query.name] = format_checked(query.expr)
         files: tuple[str, ...] = ()
         if ctx.out_dir is not None and computed.shield_exists:  # UPPAAL defines no strategy either
             files = (str(shield.save(table, ctx.out(f"{query.name}.shield.npz"))),)

@@ -296,7 +296,8 @@ def generate_uppaal_model(automaton: ir.Automaton, *, data: ModelData | None = N
     """The whole UPPAAL model of ``automaton`` in the scenario of its ``model`` block, and its queries.
 
     ``data`` is the model's data when already built (else the scenario is loaded from
-    ``automaton.model.scenario_path``). Raises :class:`rac.targets.uppaal.automaton.UppaalError` like
+    ``automaton.model.scenario_path``, at the block's ``planning_problem``). Raises
+    :class:`rac.targets.uppaal.automaton.UppaalError` like
     :func:`rac.targets.uppaal.automaton.generate_uppaal`; :class:`rac.model.commonroad.ScenarioError` or
     :class:`rac.model.ModelRangeError` when the scenario cannot be loaded or represented.
     """
@@ -304,7 +305,7 @@ def generate_uppaal_model(automaton: ir.Automaton, *, data: ModelData | None = N
     if spec is None:
         raise ValueError("the automaton has no `model` block")
     if data is None:
-        data = build_model_data(load_scenario(spec.scenario_path), spec)
+        data = build_model_data(load_scenario(spec.scenario_path, spec.planning_problem or None), spec)
     return _ModelGenerator(automaton, data, source_name, model_name).run()
 
 
@@ -315,5 +316,5 @@ def model_vocabulary(automaton: ir.Automaton, *, data: ModelData | None = None) 
     if spec is None:
         raise ValueError("the automaton has no `model` block")
     if data is None:
-        data = build_model_data(load_scenario(spec.scenario_path), spec)
+        data = build_model_data(load_scenario(spec.scenario_path, spec.planning_problem or None), spec)
     return _ModelGenerator(automaton, data, "", "").vocabulary()

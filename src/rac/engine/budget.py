@@ -1,0 +1,142 @@
+"""What an exhaustive exploration may use, and the error that stops it before it uses more.
+
+A :class:`Budget` holds a state limit (``--max-states``) and a memory limit (``--max-memory``,
+default :func:`default_max_bytes`: half the machine's memory). The explorations check it before
+each layer is expanded and while a layer is being merged, so they stop *before* they allocate
+what exceeds it, with a :class:`BudgetExceeded` (a ``MemoryError``) that says, in the user's
+terms, how far the exploration got and what to change.
+
+Memory is estimated, not measured: the explored graph costs :data:`GRAPH_BYTES_PER_STATE` and
+:data:`GRAPH_BYTES_PER_CHOICE` (its arrays, exactly), and deciding a query on it costs
+:data:`PEAK_FACTOR` times the graph (Storm's sparse MDP, its value vectors and scheduler; the
+factor is measured by ``benchmarks/engine.py``: 3.7 on the paper's model at 39 M states).
+
+Example::
+
+    budget = Budget(max_states=5_000_000, max_bytes=parse_size("8G"))
+    graph = explore(data, horizon_samples=140, max_states=budget.max_states, max_bytes=budget.max_bytes)
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+
+__all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "PEAK_FACTOR", "Budget", "BudgetExceeded",
+           "default_max_bytes", "format_bytes", "machine_memory", "parse_size", "projected_states"]
+
+#: An explored state: 8 int32 columns (32 B), its choice offset (8 B) and 4 labels (4 B).
+GRAPH_BYTES_PER_STATE = 44
+#: A choice: its action and its target (int64 each).
+GRAPH_BYTES_PER_CHOICE = 16
+#: The peak memory of deciding a query, as a multiple of the explored graph's bytes.
+PEAK_FACTOR = 4
+#: The fraction of the machine's memory the default budget allows.
+DEFAULT_FRACTION = 0.5
+
+_UNITS = {"": 1, "k": 2**10, "m": 2**20, "g": 2**30, "t": 2**40}
+
+
+def machine_memory() -> int:
+    """The machine's physical memory in bytes."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # no sysconf (Windows): assume a small machine
+        return 4 * 2**30
+
+
+def default_max_bytes() -> int:
+    """The default memory budget: :data:`DEFAULT_FRACTION` of the machine's memory."""
+    return int(machine_memory() * DEFAULT_FRACTION)
+
+
+def parse_size(text: str) -> int:
+    """``"512M"``, ``"4G"``, ``"1.5G"``, ``"64k"`` or a number of bytes; ``ValueError`` otherwise."""
+    match = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([kKmMgGtT]?)[bB]?\s*", text)
+    if match is None:
+        raise ValueError(f"`{text}` is not a size: write a number of bytes or e.g. 512M, 4G, 1.5G")
+    return int(float(match.group(1)) * _UNITS[match.group(2).lower()])
+
+
+def format_bytes(size: float) -> str:
+    """``size`` for people: ``2 MB``, ``1.5 GB``."""
+    for unit, scale in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
+        if size >= scale:
+            return f"{size / scale:.3g} {unit}"
+    return f"{int(size)} B"
+
+
+class BudgetExceeded(MemoryError):
+    """An exploration stopped before exceeding its budget.
+
+    ``what`` is what was explored ("the model", "the product of model and automaton"), ``kind``
+    ``"states"`` or ``"memory"``, ``limit`` the limit passed (states or bytes), ``states`` the
+    states found so far, ``sample`` the sample being explored and ``seconds`` its time, and
+    ``needed_bytes`` the estimated peak memory that the next step would have needed."""
+
+    def __init__(self, *, what: str, kind: str, limit: int, states: int, sample: int, seconds: float,
+                 needed_bytes: int = 0) -> None:
+        self.what, self.kind, self.limit, self.states = what, kind, limit, states
+        self.sample, self.seconds, self.needed_bytes = sample, seconds, needed_bytes
+        when = f"by t = {seconds:g} s (sample {sample})"
+        if kind == "states":
+            text = f"{what} has more than {limit:,} states {when}"
+        else:
+            text = (f"{what} would need about {format_bytes(needed_bytes)} {when}, more than the memory "
+                    f"budget of {format_bytes(limit)} (--max-memory); {states:,} states so far")
+        super().__init__(text)
+        #: The states the whole horizon would have at the recent growth (None: not estimated).
+        self.projected_states: int | None = None
+
+    def project(self, states: int, growth: float, horizon_sample: int) -> None:
+        """Add to the message what the horizon would need at the recent ``growth`` per decision."""
+        self.projected_states = states
+        self.args = (f"{self.args[0]}; growing ×{growth:.3g} per decision, the horizon (sample "
+                     f"{horizon_sample}) would have about {states:.2g} states",)
+
+
+def projected_states(layers: list[int], decide_every: int, horizon: int) -> tuple[int, float] | None:
+    """The total states up to ``horizon`` if the layers kept growing as over the last decision
+    period (``layers[k]``: the states of sample ``k``), and that growth; None before a period."""
+    k = len(layers) - 1
+    if k < decide_every or layers[k - decide_every] == 0:
+        return None
+    growth = layers[k] / layers[k - decide_every]
+    rate, remaining = growth ** (1 / decide_every), horizon - k  # the period's growth spread over its samples
+    ahead: float
+    try:
+        ahead = layers[k] * (rate * (rate**remaining - 1) / (rate - 1) if rate != 1 else remaining)
+    except OverflowError:
+        ahead = math.inf
+    return int(min(sum(layers) + ahead, 1e18)), growth
+
+
+@dataclass(frozen=True)
+class Budget:
+    """The limits of one exploration (None: no limit) and how to report exceeding them."""
+
+    max_states: int | None = None
+    max_bytes: int | None = None
+    #: What is explored, for messages.
+    what: str = "the model"
+    #: The sample period in seconds, for messages.
+    period: float = 1.0
+
+    def check_states(self, states: int, sample: int) -> None:
+        """:class:`BudgetExceeded` when ``states`` is more than :attr:`max_states`."""
+        if self.max_states is not None and states > self.max_states:
+            raise BudgetExceeded(what=self.what, kind="states", limit=self.max_states, states=states,
+                                 sample=sample, seconds=self.seconds(sample))
+
+    def check_bytes(self, graph_bytes: int, states: int, sample: int) -> None:
+        """:class:`BudgetExceeded` when deciding on a graph of ``graph_bytes`` would exceed :attr:`max_bytes`."""
+        needed = graph_bytes * PEAK_FACTOR
+        if self.max_bytes is not None and needed > self.max_bytes:
+            raise BudgetExceeded(what=self.what, kind="memory", limit=self.max_bytes, states=states,
+                                 sample=sample, seconds=self.seconds(sample), needed_bytes=needed)
+
+    def seconds(self, sample: int) -> float:
+        """The time of ``sample``, rounded for messages."""
+        return round(sample * self.period, 9) if math.isfinite(self.period) else float(sample)

@@ -1,0 +1,57 @@
+"""Progress off a terminal (issue 11): a long command is never silent. Where stderr is not a TTY
+(CI logs, pipes) a heartbeat prints the phase, what was counted, its rate and the time elapsed
+every few seconds; ``-q`` silences it; on a terminal the tqdm bars do the job instead."""
+
+from __future__ import annotations
+
+import io
+import re
+import time
+from pathlib import Path
+
+import pytest
+from engine_files import QUERIES, write_engine_file
+
+from rac.cli.main import main
+from rac.output.progress import Heartbeat, Progress
+
+LINE = re.compile(r"^rac verify: (?P<phase>.+?); (?:(?P<count>[\d.]+(?: [kMG])?) states \([\d.]+(?: [kMG])?/s\); )?"
+                  r"(?P<elapsed>\d+) s$")
+
+
+def test_a_heartbeat_prints_the_phase_the_count_and_the_time() -> None:
+    stream = io.StringIO()
+    with Heartbeat("rac test", interval=0.02, file=stream) as beat:
+        assert Heartbeat.active is beat
+        beat.phase("exploring")
+        with Progress(desc="exploring", unit="states", enabled=False) as bar:
+            bar.update(1500)
+            time.sleep(0.1)
+    assert Heartbeat.active is None
+    lines = stream.getvalue().splitlines()
+    assert lines, "no heartbeat line"
+    assert re.fullmatch(r"rac test: exploring; 1.5 k states \([\d.]+ [kMG]?/s\); 0 s", lines[-1]), lines[-1]
+
+
+def test_a_heartbeat_is_silent_on_a_terminal_and_when_disabled() -> None:
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    for stream, enabled in ((Terminal(), None), (io.StringIO(), False)):
+        with Heartbeat("rac test", interval=0.01, file=stream, enabled=enabled):
+            time.sleep(0.05)
+        assert stream.getvalue() == ""
+
+
+def test_verify_off_a_terminal_says_what_it_does(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.001")
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"Stays": QUERIES["Stays"], "safe": QUERIES["safe"]})
+    assert main(["verify", str(path), "--out", str(tmp_path / "o")]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("rac verify:")]
+    assert lines, "no progress line on stderr"
+    assert all(LINE.match(line) for line in lines), lines
+    assert any("safe: strategy safe = control" in line for line in lines) or any("Stays" in line for line in lines)
+    assert main(["verify", str(path), "-q", "--out", str(tmp_path / "o")]) == 0
+    assert "rac verify:" not in capsys.readouterr().err
