@@ -237,3 +237,31 @@ def test_a_simulation_without_obstacles_says_so(tmp_path: Path) -> None:
     (answer,) = run_queries(result, VerifyOptions(seed=1, plots=False, out_dir=tmp_path / "o"))[1]
     assert answer.message is not None
     assert "no obstacle at any sample (the scenario has none): `mindist()` reads 1e9" in answer.message
+
+
+# ---------------------------------------------------------------- what Qc means, everywhere
+def dead_end(folder: Path) -> Path:
+    """A road that ends 3 m after the goal (x in [20, 30]); the ego at 10 m/s cannot stop before
+    the end within the 4 s horizon: a run reaches the goal safely, and every run then leaves the road."""
+    from engine_files import engine_source
+    from tiny_scenarios import EgoStart, GoalBox, StraightRoad, straight_road
+
+    tiny = straight_road("dead_end", StraightRoad(33.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(20.0, 30.0)))
+    tiny.write(folder / "dead_end.xml")
+    path = folder / "dead_end.ra"
+    path.write_text(engine_source(tiny, {"Stays": QUERIES["Stays"], "Reaches": QUERIES["Reaches"]}), encoding="utf-8")
+    return path
+
+
+def test_qc_means_the_same_in_verify_and_preanalyse(tmp_path: Path) -> None:
+    from rac.studies.preanalysis import render_table, sweep
+
+    result = compile_file(dead_end(tmp_path))
+    answers = {r.name: r for r in run_queries(result, VerifyOptions(seed=1, plots=False, out_dir=tmp_path / "o"))[1]}
+    assert answers["Stays"].status == "not satisfied"  # no run stays safe to the horizon
+    assert answers["Reaches"].status == "satisfied"
+    assert answers["Reaches"].message == ("a run that stays safe until it gets there exists (the trace); "
+                                          "NONE of them stays safe to the horizon (4 s)")
+    (row,) = sweep(result, runs=5, seed=1)
+    assert (row["qb"], row["qc"], row["qc_horizon"]) == (False, True, False)
+    assert "| true (safe until the goal only) |" in render_table([row])

@@ -13,6 +13,7 @@ Choices are deterministic, so every probability Storm computes here is 0 or 1: `
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -139,6 +140,30 @@ def _bfs_trace(graph: ExploredGraph, allowed: np.ndarray, goal: np.ndarray) -> l
                 parent[nxt] = state
                 queue.append(nxt)
     return None
+
+
+@dataclass(frozen=True)
+class SafeReach:
+    """What ``E<> target`` means on a pruned graph (unsafe states end a run there): ``until`` — a
+    run that stays safe until it reaches ``target`` exists (the verdict, with a trace); and
+    ``to_horizon`` — one of those stays safe to the horizon too. ``rac verify``'s Qc message,
+    ``rac preanalyse``'s Qc columns and ``rac experiment``'s safety judgement read these two."""
+
+    until: Verdict
+    to_horizon: bool
+
+
+def safe_reach(pruned: ExploredGraph, target: np.ndarray, safe_label: str = "safe") -> SafeReach:
+    """:class:`SafeReach` of the states ``target`` on the graph ``pruned`` (``safe_label`` marks
+    the safe states; the graph's unsafe states are terminal, as :func:`rac.engine.explore.explore`
+    leaves them with ``prune_unsafe=True``)."""
+    until = decide(dataclasses.replace(pruned, labels={**pruned.labels, "target": target}), "E<>", "target")
+    if not until.holds:
+        return SafeReach(until, False)
+    values, _ = check_formula(to_mdp(pruned), f'Pmax=? [G "{safe_label}"]')
+    staying = target & (values > 0.5)
+    return SafeReach(until, decide(dataclasses.replace(pruned, labels={**pruned.labels, "target": staying}),
+                                   "E<>", "target").holds)
 
 
 def decide(graph: ExploredGraph, kind: str, prop_label: str) -> Verdict:

@@ -6,7 +6,9 @@ period C2 the sweep answers, on the model built at that setting:
 - Qa — ``Pr[<=T](<> fabs(true_x - x) >= sensor_error)``: how often the sensed position drifts
   from the ground truth (N simulated runs, Clopper–Pearson interval);
 - Qb — a run that is never unsafe exists (``E[] !collide() && !offroad()``);
-- Qc — a run that stays safe reaches the goal (``E<>`` on the graph whose unsafe states end a run);
+- Qc — a run that stays safe until it reaches the goal exists (``E<>`` on the graph whose unsafe
+  states end a run), and ``qc_horizon``: one of them also stays safe to the horizon (the table says
+  which; :func:`rac.engine.storm.safe_reach`, the same words as ``rac verify``'s Qc message);
 - Qd — the safety shield exists (``control: A[] !collide() && !offroad()``), with the states
   explored and the time;
 - Fig. 7 — N runs under the shield; per run the smallest distance to an obstacle, *sensed*
@@ -139,8 +141,8 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     graph = shield.graph
     safe = graph.labels["safe"]
     row["qb"] = storm.decide(graph, "E[]", "safe").holds
-    labelled = dataclasses.replace(graph, labels={**graph.labels, "safe_goal": safe & graph.labels["goal"]})
-    row["qc"] = storm.decide(labelled, "E<>", "safe_goal").holds
+    reach = storm.safe_reach(graph, safe & graph.labels["goal"])
+    row["qc"], row["qc_horizon"] = reach.until.holds, reach.to_horizon
     row["qd"] = shield.shield_exists
     row["states"] = graph.n_states
     row["seconds"] = time.perf_counter() - t0
@@ -247,6 +249,13 @@ def _yes(value: object) -> str:
     return "—" if value is None else ("true" if value else "false")
 
 
+def _qc(row: Row) -> str:
+    """Qc and what it means: safe until the goal only, or safe to the horizon too."""
+    if not row.get("qc"):
+        return _yes(row.get("qc"))
+    return "true (safe to the horizon)" if row.get("qc_horizon") else "true (safe until the goal only)"
+
+
 def render_table(rows: list[Row]) -> str:
     """The sweep as a markdown table (what ``rac preanalyse`` prints)."""
     lines = ["| exponent | C1 (s) | C2 (s) | Qa: Pr sensor error | Qb | Qc | Qd | states | time (s) | "
@@ -272,6 +281,6 @@ def render_table(rows: list[Row]) -> str:
             interval = row["below_interval"]
             below = (f"{row['below']} of {len(row['true_min'])} (Pr in [{interval[0]:.3f}, {interval[1]:.3f}]); "
                      f"min {min(measured):.2f} m vs {row['threshold']:g} m")
-        lines.append(f"{head} {qa_text} | {_yes(row.get('qb'))} | {_yes(row.get('qc'))} | {_yes(row.get('qd'))} | "
+        lines.append(f"{head} {qa_text} | {_yes(row.get('qb'))} | {_qc(row)} | {_yes(row.get('qd'))} | "
                      f"{row.get('states', 0):,} | {row.get('seconds', 0):.2f} | {below} |")
     return "\n".join(lines + ([""] + notes if notes else []))

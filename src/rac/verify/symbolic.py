@@ -44,10 +44,13 @@ class SymbolicAnswerer:
             return self._decided(query, base, self.under_shield(query.under, "a query"))
         if query.quantifier == "E<>":
             pruned = ctx.graph(True)
-            result = self._decided(query, base, pruned)
-            if result.status == "satisfied":
-                return dataclasses.replace(result, message=self._safety_of_witness(query.expr, pruned)
-                                           if _implies_safe(query.expr) else None)
+            found = storm.safe_reach(pruned, ctx.label(pruned, query.expr))
+            if found.until.holds:
+                horizon = ctx.horizon_samples * float(ctx.period)
+                message = _meaning(found, horizon) if _implies_safe(query.expr) else None
+                return dataclasses.replace(base, status="satisfied", states=pruned.n_states,
+                                           horizon_samples=ctx.horizon_samples, message=message,
+                                           trace=self.trace_rows(pruned, found.until.trace))
         # Pruning unsafe states is sound for A[]/E[] of a formula that unsafe states violate
         # (reaching one already decides the query), never for A<>, nor E<> when the pruned model said no.
         prune = query.quantifier in ("A[]", "E[]") and _implies_safe(query.expr)
@@ -68,19 +71,6 @@ class SymbolicAnswerer:
         return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
                                    states=graph.n_states, horizon_samples=ctx.horizon_samples,
                                    trace=self.trace_rows(graph, verdict.trace))
-
-    def _safety_of_witness(self, expr: ie.Expr, pruned: ExploredGraph) -> str:
-        """What ``E<> p`` (``p`` safe) found on the pruned model means: a run that is safe until it
-        reaches ``p``; and whether one of those stays safe to the horizon too."""
-        ctx = self.context
-        values, _ = storm.check_formula(storm.to_mdp(pruned), 'Pmax=? [G "safe"]')
-        staying = ctx.label(pruned, expr) & (values > 0.5)
-        verdict = storm.decide(dataclasses.replace(pruned, labels={**pruned.labels, "query": staying}), "E<>",
-                               "query")
-        horizon = f"{ctx.horizon_samples * float(ctx.period):g} s"
-        return ("a run that stays safe until it gets there exists (the trace); "
-                + (f"one of them stays safe to the horizon ({horizon}) too" if verdict.holds
-                   else f"NONE of them stays safe to the horizon ({horizon})"))
 
     def path_in_product(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
         """A path query over the automaton's names, on the product of model and automaton."""
@@ -181,6 +171,13 @@ class SymbolicAnswerer:
                     row[label] = bool(graph.labels[label][index])
             rows.append(row)
         return tuple(rows)
+
+
+def _meaning(found: storm.SafeReach, horizon_seconds: float) -> str:
+    """What ``E<> p`` found on the pruned model means, for a ``p`` that excludes collisions."""
+    return ("a run that stays safe until it gets there exists (the trace); "
+            + (f"one of them stays safe to the horizon ({horizon_seconds:g} s) too" if found.to_horizon
+               else f"NONE of them stays safe to the horizon ({horizon_seconds:g} s)"))
 
 
 def _implies_safe(expr: ie.Expr) -> bool:
