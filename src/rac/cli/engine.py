@@ -467,12 +467,14 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
 
 @_on_checked_file
 def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
+    from rac.engine.budget import default_max_bytes
     from rac.studies.preanalysis import SweepError, render_table, sweep
 
     out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".preanalysis")
     try:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
                      horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
+                     max_bytes=args.max_memory or default_max_bytes(),
                      threshold_factor=args.threshold_factor,
                      quiet=args.quiet or args.format == "json")
     except SweepError as exc:

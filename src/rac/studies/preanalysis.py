@@ -109,7 +109,7 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
 
 
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
-         max_states: int, threshold_factor: int, out_dir: Path | None) -> Row:
+         max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None) -> Row:
     row: Row = {"exponent": spec.exponent, "sense": float(spec.sense_period),
                               "decide": float(spec.decide_period)}
     scenario = result.scenario
@@ -133,7 +133,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     # Qb-Qd on the explored model (unsafe states end a run): the shield's own graph.
     t0 = time.perf_counter()
     try:
-        shield, masks = synthesise(data, samples, max_states=max_states)
+        shield, masks = synthesise(data, samples, max_states=max_states, max_bytes=max_bytes)
     except MemoryError as exc:
         row["error"] = f"{exc}"
         row["seconds"] = time.perf_counter() - t0
@@ -174,7 +174,8 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
 
 def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | None = None,
           decides: str | None = None, runs: int = 100, horizon: Fraction | None = None, seed: int | None = None,
-          max_states: int = 5_000_000, out_dir: Path | None = None, quiet: bool = True,
+          max_states: int = 5_000_000, max_bytes: int | None = None, out_dir: Path | None = None,
+          quiet: bool = True,
           threshold_factor: int = 1) -> list[Row]:
     """Answer Qa–Qd and the shielded Fig. 7 runs for every setting of the grid; one dict per setting.
 
@@ -204,6 +205,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                              "error": "the exponent must lie in 1..6"})
             else:
                 rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
+                                 max_bytes=max_bytes,
                                  threshold_factor=threshold_factor, out_dir=out_dir))
                 rows[-1]["seed"] = seed
             bar.update()
