@@ -1,22 +1,35 @@
-"""The learning benchmark (issue 5): ``python benchmarks/learning.py [--quick]``.
+"""The learning benchmark (issues 5 and 11): ``python benchmarks/learning.py [--quick]``.
 
-Simulated learning episodes per minute on the left-turn intersection (examples/left_turn/model.ra,
-the paper's driving automaton as the reward), for an episode of 30 time steps (3 s). Target: at
-least 1,000 episodes per minute. Rows:
+Three tables:
 
-  episodes, random actions   rac.learning.episodes.EpisodeBatch, 64 episodes stepped together
-  Q-learning                 rac.learning.qlearning.learn (episodes, Q-table updates and the greedy
-                             evaluation after every batch), 32 episodes per batch
-  Q-learning under a shield  the same on examples/paper/model.ra (14 s episodes) under its shield
-  ScenarioEnv                rac.learning.gym.ScenarioEnv, one episode at a time (a gymnasium agent's view)
+1. **Samples per second against batch size** (issue 11): :class:`rac.learning.episodes.EpisodeBatch`
+   on examples/paper/model.ra (the experiment's model: 140 samples an episode, 3 obstacles, 20
+   Euler sub-steps a sample), random actions, 1 to 1024 episodes stepped together. A *sample* is
+   one sense period of every episode of the batch; episode-samples per second is what learning
+   gets done. Before issue 11 a sample cost the same ~2.5 ms for 1 or 16 episodes.
+2. **Learning episodes per minute** (issue 5; target at least 1,000 for 30-step episodes):
 
-Each row is the best of ``--repeat`` runs (default 3).
+     episodes, random actions   EpisodeBatch on the left turn (examples/left_turn/model.ra), 64 at once
+     Q-learning                 rac.learning.qlearning.learn (episodes, Q-table updates and the greedy
+                                evaluation after every batch), 32 episodes per batch
+     Q-learning under a shield  the same on examples/paper/model.ra (14 s episodes) under its shield
+     ScenarioEnv                rac.learning.gym.ScenarioEnv, one episode at a time (a gymnasium agent's view)
+
+3. **Commands** (issue 11): ``rac experiment examples/paper/model.ra --episodes 2000 --bins
+   4,4,2,0.4`` as docs/learning.md runs it (goal: under 60 s; ``--quick``: 200 episodes), and the
+   replay of a learned run on the paper's model (``StrategyRun.samples``, what every ``A[] p under
+   S`` query on a learned ``S`` does).
+
+Each row is the best of ``--repeat`` runs (default 3; the experiment runs once).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -28,6 +41,8 @@ REPOSITORY = HERE.parent
 LEFT_TURN = REPOSITORY / "examples" / "left_turn" / "model.ra"
 PAPER = REPOSITORY / "examples" / "paper" / "model.ra"
 TARGET = 1000.0  # episodes per minute
+EXPERIMENT_GOAL = 60.0  # seconds
+BATCH_SIZES = (1, 4, 16, 64, 256, 1024)
 
 try:  # benchmark the installed rac; in a checkout without it, the checkout's src/
     import rac  # noqa: F401
@@ -36,23 +51,44 @@ except ImportError:
 
 
 def _best(run: Callable[[], int], repeat: int) -> tuple[int, float]:
-    """(episodes, seconds) of the fastest of ``repeat`` runs."""
+    """(count, seconds) of the fastest of ``repeat`` runs."""
     results = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        episodes = run()
-        results.append((episodes, time.perf_counter() - t0))
+        count = run()
+        results.append((count, time.perf_counter() - t0))
     return max(results, key=lambda r: r[0] / r[1])
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python benchmarks/learning.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer episodes, one run per row")
-    parser.add_argument("--repeat", type=int, default=3)
-    args = parser.parse_args(argv)
-    repeat = 1 if args.quick else args.repeat
-    scale = 1 if args.quick else 4
+def samples_by_batch_size(repeat: int, quick: bool) -> list[tuple[int, int, float]]:
+    """Per batch size: (samples, seconds) of random episodes of the paper's model, after one warm-up
+    episode (the model keeps cos/sin and sub-step trajectories it has computed)."""
+    from rac.compiler import compile_file
+    from rac.learning.episodes import EpisodeBatch
 
+    batch = EpisodeBatch(compile_file(PAPER))
+    rng = np.random.default_rng(1)
+
+    def episodes(n: int, count: int) -> int:
+        samples = 0
+        for _ in range(count):
+            batch.reset(n)
+            while not batch.done.all():
+                before = int(batch.k.max())
+                batch.step(rng.integers(0, batch.n_actions, batch.n))
+                samples += int(batch.k.max()) - before
+        return samples
+
+    rows = []
+    for n in BATCH_SIZES:
+        episodes(n, 1)
+        count = 1 if quick or n >= 256 else 2
+        rows.append((n, *_best(lambda n=n, count=count: episodes(n, count), repeat)))
+    return rows
+
+
+def episodes_per_minute(repeat: int, scale: int) -> list[tuple[str, int, float]]:
+    """The issue-5 rows: (case, episodes, seconds)."""
     from rac.compiler import compile_file
     from rac.learning.episodes import EpisodeBatch
     from rac.learning.gym import ScenarioEnv
@@ -62,7 +98,6 @@ def main(argv: list[str] | None = None) -> int:
     left = compile_file(LEFT_TURN)
     paper = compile_file(PAPER)
     rows: list[tuple[str, int, float]] = []
-
     rng = np.random.default_rng(1)
     batch = EpisodeBatch(left, horizon_samples=30)
 
@@ -76,7 +111,6 @@ def main(argv: list[str] | None = None) -> int:
         return total
 
     rows.append(("episodes, random actions (64 at once), left turn, 30 steps", *_best(random_episodes, repeat)))
-
     discrete, continuous = _learning_spec(left)
 
     def q_learning() -> int:
@@ -84,7 +118,6 @@ def main(argv: list[str] | None = None) -> int:
                      episodes=128 * scale, parallel=32, seed=1, stop_after=10**6).episodes
 
     rows.append(("Q-learning (32 per batch), left turn, 30 steps", *_best(q_learning, repeat)))
-
     table, _, _ = _shield(paper, paper.automaton.steps, 5_000_000)  # type: ignore[union-attr]
     paper_discrete, paper_continuous = _learning_spec(paper)
 
@@ -93,7 +126,6 @@ def main(argv: list[str] | None = None) -> int:
                      episodes=64 * scale, parallel=32, seed=1, stop_after=10**6).episodes
 
     rows.append(("Q-learning under the shield, examples/paper (14 s, 140 steps)", *_best(shielded, repeat)))
-
     env = ScenarioEnv(LEFT_TURN, horizon=3)
 
     def gym_episodes() -> int:
@@ -106,13 +138,73 @@ def main(argv: list[str] | None = None) -> int:
         return 8 * scale
 
     rows.append(("ScenarioEnv, one episode at a time, left turn, 30 steps", *_best(gym_episodes, repeat)))
+    return rows
 
-    print(f"Learning episodes per minute (target >= {TARGET:,.0f} for 30-step episodes)\n")
+
+def replay_seconds(repeat: int) -> float:
+    """The replay of a learned strategy's run on the paper's model (140 samples, the ground truth
+    in 100 RK4 steps a sample): the fastest of ``repeat``."""
+    from rac.compiler import compile_file
+    from rac.learning.episodes import EpisodeBatch
+    from rac.learning.qlearning import learn, run_strategy
+    from rac.studies.experiment import _learning_spec, _shield
+
+    paper = compile_file(PAPER)
+    assert paper.model_data is not None and paper.automaton is not None
+    table, _, _ = _shield(paper, paper.automaton.steps, 5_000_000)
+    discrete, continuous = _learning_spec(paper)
+    outcome = learn(EpisodeBatch(paper), discrete=discrete, continuous=continuous, shield=table, episodes=64,
+                    parallel=16, seed=1, bins=[4, 4, 2, 0.4])
+    run = run_strategy(EpisodeBatch(paper, goal=None), outcome.strategy, shield=table)
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        run.samples(paper.model_data)
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def experiment_seconds(episodes: int) -> float:
+    """``rac experiment examples/paper/model.ra --episodes N --bins 4,4,2,0.4``, in a fresh process."""
+    with tempfile.TemporaryDirectory() as out:
+        command = [sys.executable, "-m", "rac", "experiment", str(PAPER), "--episodes", str(episodes),
+                   "--bins", "4,4,2,0.4", "--out", out, "-q"]
+        t0 = time.perf_counter()
+        subprocess.run(command, check=True, stdout=subprocess.DEVNULL, env=dict(os.environ))
+        return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python benchmarks/learning.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer episodes, one run per row")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args(argv)
+    repeat = 1 if args.quick else args.repeat
+    scale = 1 if args.quick else 4
+
+    print("Samples per second against batch size: random episodes of examples/paper/model.ra\n")
+    print("| episodes in the batch | samples | seconds | ms per sample | samples/s | episode-samples/s |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for n, samples, seconds in samples_by_batch_size(repeat, args.quick):
+        print(f"| {n:,} | {samples:,} | {seconds:.2f} | {seconds / samples * 1e3:.3f} | {samples / seconds:,.0f} | "
+              f"{n * samples / seconds:,.0f} |")
+
+    print(f"\nLearning episodes per minute (target >= {TARGET:,.0f} for 30-step episodes)\n")
     print("| case | episodes | seconds | episodes/min | target met |")
     print("| --- | --- | --- | --- | --- |")
-    for name, episodes, seconds in rows:
+    for name, episodes, seconds in episodes_per_minute(repeat, scale):
         rate = episodes / seconds * 60
         print(f"| {name} | {episodes:,} | {seconds:.2f} | {rate:,.0f} | {'yes' if rate >= TARGET else 'no'} |")
+
+    episodes = 200 if args.quick else 2000
+    replay = replay_seconds(repeat)
+    experiment = experiment_seconds(episodes)
+    print(f"\nCommands on examples/paper/model.ra (goal: the experiment under {EXPERIMENT_GOAL:g} s)\n")
+    print("| command | seconds | goal met |")
+    print("| --- | --- | --- |")
+    print(f"| rac experiment examples/paper/model.ra --episodes {episodes} --bins 4,4,2,0.4 | {experiment:.1f} | "
+          f"{'yes' if experiment < EXPERIMENT_GOAL else 'no'} |")
+    print(f"| replay of a learned run (StrategyRun.samples, 140 samples) | {replay:.3f} | |")
     return 0
 
 

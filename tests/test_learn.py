@@ -6,7 +6,9 @@ reaches the goal, and learning under the safety shield finds a strategy whose on
 safely, without a single unsafe learning episode; on :func:`avoidable_obstacle` only braking at
 once avoids the van, so unshielded learning collides while shielded learning never does. Also:
 observation keys and bins, greedy ties, unseen keys, save/load, seeds, fallbacks of a shield that
-does not know a state, the objective's increase as the reward, and the replayed samples of a run.
+does not know a state, the objective's increase as the reward, and the replayed samples of a run;
+the greedy evaluation inside the next batch, and runs stepped together in one batch, each the
+same as alone.
 """
 
 from __future__ import annotations
@@ -23,15 +25,19 @@ from engine_files import QUERIES, write_engine_file
 from rac.compiler import CompileResult, compile_file
 from rac.engine import shield
 from rac.learning.episodes import EpisodeBatch, parse_expr
+from rac.learning.lockstep import Job, Lane, run_together
 from rac.learning.qlearning import (
     LearnedStrategy,
+    LearningResult,
     ObjectiveIncrease,
     default_bin,
     evaluate,
     learn,
+    learning,
     observation_keys,
     run_strategy,
 )
+from rac.learning.runs import evaluation_steps
 from rac.verify.runner import VerifyOptions, render_text, verify
 
 X, V, LOCATION = parse_expr("x"), parse_expr("v"), parse_expr("Tiny.location")
@@ -203,6 +209,77 @@ def test_the_replayed_samples_are_the_run(scenario: Callable[[str], Scenario]) -
     decisions = run.states[0, :, 0]
     assert (runs.states[0, decisions] == run.states[0, :, 1:]).all()
     assert runs.actions[0, ::batch.decide_every].tolist() == run.actions[0].tolist()
+
+
+# ---------------------------------------------------------------- the greedy run in the batch, runs together
+def same_learning(a: LearningResult, b: LearningResult) -> bool:
+    """Everything but the seconds, bit for bit."""
+    arrays = [(getattr(a.history, f.name), getattr(b.history, f.name)) for f in dataclasses.fields(a.history)]
+    arrays += [(getattr(a.greedy, f.name), getattr(b.greedy, f.name)) for f in dataclasses.fields(a.greedy)]
+    arrays += [(a.strategy.keys, b.strategy.keys), (a.strategy.values, b.strategy.values)]
+    return all(np.array_equal(x, y) for x, y in arrays) and (
+        (a.first_success_episode, a.episodes, a.stopped_early, a.fallbacks, a.seed)
+        == (b.first_success_episode, b.episodes, b.stopped_early, b.fallbacks, b.seed))
+
+
+def test_the_greedy_run_in_the_next_batch_is_the_greedy_run_alone(scenario: Callable[[str], Scenario]) -> None:
+    """Evaluating the greedy strategy as one more episode of the next batch (frozen table, no random
+    numbers, not learned from; that batch discarded when the verdict stops learning) changes nothing."""
+    goal, van = scenario("goal_ahead"), scenario("avoidable_obstacle")
+    cases = [(EpisodeBatch(goal.result, reward=V, horizon_samples=HORIZON), goal.table, "max", 2),
+             (EpisodeBatch(van.result, reward=parse_expr("x - 100 * collide()"), goal=SURVIVE,
+                           horizon_samples=HORIZON), None, "max", 3),
+             (EpisodeBatch(goal.result, reward=V, horizon_samples=HORIZON), None, "min", 50)]
+    stopped = []
+    for batch, table, optimise, stop_after in cases:
+        for seed in (1, 2):
+            options = dict(discrete=[LOCATION], continuous=[X, V], shield=table, optimise=optimise, episodes=160,
+                           parallel=8, seed=seed, stop_after=stop_after)
+            inside, alone = learn(batch, **options), learn(batch, evaluate_in_batch=False, **options)
+            assert same_learning(inside, alone)
+            assert len(inside.history.eval_episodes) == inside.episodes // 8
+            stopped.append(inside.stopped_early)
+    assert any(stopped) and not all(stopped)  # both ends of learning are compared
+
+
+def test_runs_learned_together_are_the_runs_learned_alone(scenario: Callable[[str], Scenario]) -> None:
+    item = scenario("avoidable_obstacle")
+    shared = EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON)
+    objective = parse_expr("x - 100 * sa")
+    runs = [(item.table, None, 1, 8), (None, None, 2, 8), (None, objective, 1, 5), (item.table, objective, 3, 16)]
+
+    def options(table: shield.ShieldTable | None, seed: int, parallel: int) -> dict[str, object]:
+        return dict(discrete=[LOCATION], continuous=[X, V], shield=table, episodes=48, parallel=parallel, seed=seed,
+                    stop_after=2)
+
+    jobs = [Job(learning(shared, **options(table, seed, parallel)),
+                None if reward is None else shared.expression(reward)) for table, reward, seed, parallel in runs]
+    together = run_together(jobs, shared)
+    for (table, reward, seed, parallel), (outcome, seconds) in zip(runs, together):
+        batch = EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON)
+        alone = learn(batch if reward is None else ObjectiveIncrease(batch, reward), **options(table, seed, parallel))
+        assert same_learning(outcome, alone) and seconds > 0
+    evaluations = run_together([Job(evaluation_steps(outcome.strategy, runs=runs_, shield=table, seed=4,
+                                                     epsilon=0.3))
+                                for (table, _, _, _), (outcome, _), runs_ in zip(runs, together, (10, 1, 7, 30))],
+                               shared)
+    batch = EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON)
+    for (table, _, _, _), (outcome, _), runs_, (evaluation, _) in zip(runs, together, (10, 1, 7, 30), evaluations):
+        assert evaluation == evaluate(batch, outcome.strategy, runs=runs_, shield=table, seed=4, epsilon=0.3)
+
+
+def test_a_lane_is_some_rows_of_the_shared_batch(scenario: Callable[[str], Scenario]) -> None:
+    batch = EpisodeBatch(scenario("avoidable_obstacle").result, horizon_samples=HORIZON)
+    batch.reset(6)
+    batch.step(np.arange(6) % batch.n_actions)
+    lane = Lane(batch, slice(2, 5))
+    exprs = [X, V, LOCATION, parse_expr("prev(x)"), parse_expr("mindist()")]
+    assert np.array_equal(lane.observe(exprs), batch.observe(exprs)[2:5])
+    assert np.array_equal(lane.state_keys(), batch.state_keys()[2:5]) and lane.n == 3
+    with pytest.raises(RuntimeError, match="run_together"):
+        lane.step(np.zeros(3, dtype=np.int64))
+    with pytest.raises(RuntimeError, match="run_together"):
+        lane.reset(3)
 
 
 # ---------------------------------------------------------------- rac verify

@@ -35,7 +35,7 @@ from rac import ir
 from rac.core.source import Span
 from rac.ir import expr as ie
 from rac.ir.vocabulary import Holding
-from rac.model.batch import BatchModel
+from rac.model.batch import batch_model
 from rac.model.data import ModelData
 
 __all__ = ["EvaluationError", "Evaluator", "Frame", "int_sum"]
@@ -44,6 +44,7 @@ _MATH_1 = {"abs": np.abs, "fabs": np.abs, "sqrt": np.sqrt, "floor": np.floor, "c
 _COMPARE = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal, "==": np.equal,
             "!=": np.not_equal}
 _SAFE_INT64 = 2**62
+_MINDIST = ie.call("mindist")
 
 
 class EvaluationError(ValueError):
@@ -99,7 +100,7 @@ class Evaluator:
     def __init__(self, data: ModelData, automaton: ir.Automaton | None = None) -> None:
         self.data = data
         self.automaton = automaton
-        self.model = BatchModel(data)
+        self.model = batch_model(data)  # shared: its kept cos/sin and trajectories too
         self.scale_d = float(data.scale)
         self.period_d = float(data.period)
         self.period = Fraction(automaton.period) if automaton is not None else Fraction(data.sense_period, data.scale)
@@ -176,7 +177,8 @@ class Evaluator:
             if name not in frame._cache:  # one model call per frame, however often a query reads it
                 model = self.model
                 frame._cache[name] = {
-                    "collide": lambda: model.collide(frame.ego, frame.k),
+                    # collide() is mindist() < TD: one mindist per frame for both
+                    "collide": lambda: self._call(_MINDIST, frame) < model.native.td_d,
                     "offroad": lambda: model.offroad(frame.ego),
                     "goal": lambda: model.goal(frame.ego, frame.k),
                     "mindist": lambda: model.mindist(frame.ego, frame.k),

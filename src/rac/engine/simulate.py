@@ -4,7 +4,7 @@
 loop iteration:
 
 - **Controller (sensed state).** The integer state ``(x, y, v, acc, head, jerk, turn)`` advances by
-  :meth:`rac.engine.explore.BatchModel.sense`, bit for bit :meth:`rac.model.native.NativeModel.sense`,
+  :meth:`rac.model.batch.BatchModel.sense`, bit for bit :meth:`rac.model.native.NativeModel.sense`,
   with the same ``sample_k`` convention as :func:`rac.engine.explore.explore`: the state at sample
   ``k + 1`` is ``sense()`` of the state at ``k`` with the jerk and turn chosen at ``k``.
 - **Choices.** At a decision sample (``k % decide_every == 0``) every run picks one (jerk, turn)
@@ -43,10 +43,11 @@ from rac.core.numbers import INT32_MAX
 from rac.engine.explore import action_pairs
 from rac.engine.graph import LABELS
 from rac.ir.vocabulary import EGO_STATE, TRUE_STATE
-from rac.model.batch import BatchModel
+from rac.model.batch import batch_model
 from rac.model.data import ModelData
 
-__all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "event_sampler", "integrate_truth", "label_runs", "simulate"]
+__all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "event_sampler", "integrate_one", "integrate_truth",
+           "label_runs", "simulate"]
 
 #: The columns of :attr:`Runs.truth` (metres, metres per second, ..., radians).
 TRUTH_COLUMNS: tuple[str, ...] = TRUE_STATE
@@ -152,7 +153,10 @@ def integrate_truth(truth: np.ndarray, jerk: np.ndarray, turn: np.ndarray, perio
                     substeps: int, limits: Limits) -> np.ndarray:
     """Classic RK4 over one sense period in ``substeps`` equal steps; ``truth`` is (5, n).
     After each step speed and acceleration are clipped to their ranges (a step may overshoot
-    the switch of the saturated right-hand side)."""
+    the switch of the saturated right-hand side). One run (``n == 1``, a learned strategy's
+    replay) is integrated on scalars by :func:`integrate_one`, to the same doubles."""
+    if truth.shape[1] == 1:
+        return integrate_one(truth, float(jerk[0]), float(turn[0]), period, substeps, limits)
     h = period / substeps
     for _ in range(substeps):
         k1 = _derivative(truth, jerk, turn, limits)
@@ -163,6 +167,43 @@ def integrate_truth(truth: np.ndarray, jerk: np.ndarray, turn: np.ndarray, perio
         truth[2] = np.clip(truth[2], limits.min_speed, limits.max_speed)
         truth[3] = np.clip(truth[3], -limits.max_acc, limits.max_acc)
     return truth
+
+
+def _clip(value: float, low: float, high: float) -> float:
+    """``np.clip`` of one double (a bound only where the value passes it; NaN stays)."""
+    value = low if value < low else value
+    return high if value > high else value
+
+
+def integrate_one(truth: np.ndarray, jerk: float, turn: float, period: float, substeps: int,
+                  limits: Limits) -> np.ndarray:
+    """:func:`integrate_truth` of one run (``truth`` (5, 1)) on Python floats: the same operations in
+    the same order (IEEE doubles, no fused multiply-add, ``np.cos``/``np.sin`` as the array version
+    calls them), without numpy's cost per call on arrays of one element — about ten times faster."""
+    x, y, v, acc, head = (float(value) for value in truth[:, 0])
+    h = period / substeps
+    half = h / 2
+    sixth = h / 6
+    max_acc, min_speed, max_speed = limits.max_acc, limits.min_speed, limits.max_speed
+    cos, sin = np.cos, np.sin
+
+    def rates(v: float, acc: float, head: float) -> tuple[float, float, float, float]:
+        """x', y', v', acc' (head' is the turn): :func:`_derivative` of one state."""
+        dacc = 0.0 if (acc >= max_acc and jerk > 0) or (acc <= -max_acc and jerk < 0) else jerk
+        dv = 0.0 if (v >= max_speed and acc > 0) or (v <= min_speed and acc < 0) else acc
+        return v * float(cos(head)), v * float(sin(head)), dv, dacc
+
+    for _ in range(substeps):
+        x1, y1, v1, a1 = rates(v, acc, head)
+        x2, y2, v2, a2 = rates(v + half * v1, acc + half * a1, head + half * turn)
+        x3, y3, v3, a3 = rates(v + half * v2, acc + half * a2, head + half * turn)
+        x4, y4, v4, a4 = rates(v + h * v3, acc + h * a3, head + h * turn)
+        x = x + sixth * (x1 + 2 * x2 + 2 * x3 + x4)
+        y = y + sixth * (y1 + 2 * y2 + 2 * y3 + y4)
+        v = _clip(v + sixth * (v1 + 2 * v2 + 2 * v3 + v4), min_speed, max_speed)
+        acc = _clip(acc + sixth * (a1 + 2 * a2 + 2 * a3 + a4), -max_acc, max_acc)
+        head = head + sixth * (turn + 2 * turn + 2 * turn + turn)
+    return np.array([[x], [y], [v], [acc], [head]], dtype=np.float64)
 
 
 def _horizon(data: ModelData, horizon_samples: int | None) -> int:
@@ -201,7 +242,7 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
         assert isinstance(entropy, int)  # a fresh SeedSequence draws one int from the OS
         seed = entropy
     rng = np.random.default_rng(seed)
-    model = BatchModel(data)
+    model = batch_model(data)
     pairs = action_pairs(data)
     n_pairs = len(pairs)
     scale = float(data.scale)
@@ -253,7 +294,7 @@ def label_runs(data: ModelData, runs: Runs, label: str) -> np.ndarray:
     """
     if label not in LABELS:
         raise ValueError(f"unknown label {label!r}; expected one of {LABELS}")
-    model = BatchModel(data)
+    model = batch_model(data)
     n, samples, _ = runs.states.shape
     flat = runs.states.reshape(n * samples, -1)
     k = np.tile(np.arange(samples, dtype=np.int64), n)

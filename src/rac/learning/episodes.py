@@ -10,7 +10,7 @@ and takes up to ``decide_every`` samples. **One sample** ``k -> k + 1`` is the p
 :mod:`rac.engine.product`, on floats as :mod:`rac.runtime.interpreter` computes them:
 
 1. the ego moves: the state at ``k + 1`` is ``sense()`` of the state at ``k`` with the chosen pair
-   (:meth:`rac.engine.explore.BatchModel.sense`, as :mod:`rac.engine.simulate` advances runs);
+   (:meth:`rac.model.batch.BatchModel.sense`, as :mod:`rac.engine.simulate` advances runs);
 2. every input is read from its binding on sample ``k + 1`` with :class:`rac.engine.evaluate.Evaluator`:
    booleans as they are, numbers as the emitted model's significand ``d2i(e)`` (truncated towards
    zero) over the scale; ``prev(e)`` is ``e`` at sample ``k`` (at the first sample, ``e`` in the
@@ -272,11 +272,12 @@ class EpisodeBatch:
             raise RuntimeError("no episodes yet: call reset(n) first")
         return self._now, self._prev, self._automata
 
-    def state_keys(self) -> np.ndarray:
+    def state_keys(self, rows: slice | None = None) -> np.ndarray:
         """``(n, 8)`` int32 rows ``k, x, y, v, acc, head, jerk, turn``: the shield's state rows
-        (:meth:`rac.engine.shield.ShieldTable.masks_for`)."""
+        (:meth:`rac.engine.shield.ShieldTable.masks_for`); of the episodes ``rows`` only, if given."""
         now, _, _ = self._require()
-        return np.column_stack([now.k, now.ego]).astype(np.int32)
+        where = slice(None) if rows is None else rows
+        return np.column_stack([now.k[where], now.ego[where]]).astype(np.int32)
 
     @property
     def location(self) -> np.ndarray:
@@ -307,13 +308,15 @@ class EpisodeBatch:
             return lower_expression(self.automaton, expr, bool_numbers=True)
         return expr
 
-    def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
+    def observe(self, exprs: Sequence[Expression], rows: slice | None = None) -> np.ndarray:
         """``(n, len(exprs))`` float64: each expression in every episode's current frame (booleans
-        0/1). An expression may read the model's vocabulary (ego names, ``time``, ``mindist()`` ...),
-        the inputs, rewards and locations (``Driving.location``, ``Unsafe``) and ``prev(e)``."""
+        0/1); of the episodes ``rows`` only, if given. An expression may read the model's vocabulary
+        (ego names, ``time``, ``mindist()`` ...), the inputs, rewards and locations
+        (``Driving.location``, ``Unsafe``) and ``prev(e)``."""
         now, prev, _ = self._require()
-        frame = now.frame(slice(None), prev=prev.frame(slice(None)))
-        out = np.empty((self.n, len(exprs)), dtype=np.float64)
+        where = slice(None) if rows is None else rows
+        frame = now.frame(where, prev=prev.frame(where))
+        out = np.empty((frame.n, len(exprs)), dtype=np.float64)
         for column, expr in enumerate(exprs):
             out[:, column] = self.evaluator.evaluate(self.expression(expr), frame)
         return out

@@ -22,7 +22,11 @@ simulated episodes: the observation is the discrete list then the continuous lis
   so a strategy is deterministic. epsilon decays linearly per episode from ``epsilon[0]`` at the
   first episode to ``epsilon[1]`` at the last of the budget (a float keeps it constant).
 - **Stopping rule.** After every batch the greedy strategy is evaluated by one run (the model is
-  deterministic, so a deterministic strategy has exactly one run). A run *succeeds* when it
+  deterministic, so a deterministic strategy has exactly one run). That run is one more episode
+  of the next batch, which chooses greedily from a copy of the table as it was, draws no random
+  numbers and is not learned from (:mod:`rac.learning.tabular`): the same run as alone, at almost
+  no cost (issue 11). When its verdict stops learning, the batch that carried it is discarded;
+  the last batch's evaluation runs alone. A run *succeeds* when it
   reaches the goal and never collides nor leaves the road. The first episode count at which the
   greedy run succeeds is ``first_success_episode``. Learning stops when the episode budget is
   spent, or early once the best greedy run succeeded and ``stop_after`` evaluations in a row did
@@ -33,9 +37,9 @@ simulated episodes: the observation is the discrete list then the continuous lis
   summed over the samples, or (:class:`ObjectiveIncrease`) the increase of any expression over the
   automaton's rewards, such as a ``maxE(10*sa + 5*pr + co)`` that weighs them unlike ``objective``.
 
-After learning, :func:`rac.learning.strategy.run_strategy` gives the strategy's run
+After learning, :func:`rac.learning.runs.run_strategy` gives the strategy's run
 (:meth:`StrategyRun.samples` every sample of it, for ``A[] p under S``) and
-:func:`rac.learning.strategy.evaluate` a success rate (see there for why it is 0 or 1 without
+:func:`rac.learning.runs.evaluate` a success rate (see there for why it is 0 or 1 without
 action noise).
 
 Example::
@@ -56,38 +60,32 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from rac.engine.shield import ShieldTable
-from rac.ir import expr as ie
 from rac.lang import ast
 from rac.learning.episodes import Expression
 
-# The strategy itself (observation keys, table, runs, evaluation) lives in rac.learning.strategy;
-# its public names stay importable from here, where callers and the docs have always found them.
+# The strategy itself (observation keys, table) lives in rac.learning.strategy, its runs and evaluation
+# in rac.learning.runs; their public names stay importable from here, where callers and the docs
+# have always found them.
+from rac.learning.runs import Steps, StrategyEvaluation, StrategyRun, alone, evaluate, run_strategy
 from rac.learning.strategy import (
     DEFAULT_BINS,
     Episodes,
+    Forwarding,
     LearnedStrategy,
     StepOutcome,
-    StrategyEvaluation,
-    StrategyRun,
-    allowed_actions,
     check_shield,
     default_bin,
-    evaluate,
-    greedy_actions,
-    key_bytes,
     observation_keys,
-    rollout,
-    run_strategy,
-    uniform_allowed,
 )
+from rac.learning.tabular import BatchLog, Frozen, Learner, QTable
 
 __all__ = ["DEFAULT_BINS", "Episodes", "LearnedStrategy", "LearningResult", "ObjectiveIncrease", "StrategyEvaluation",
-           "StrategyRun", "default_bin", "evaluate", "learn", "observation_keys", "run_strategy"]
+           "StrategyRun", "default_bin", "evaluate", "learn", "learning", "observation_keys", "run_strategy"]
 
 #: ``progress(episodes_done, budget, mean_return)``: after every batch, with the batch's mean return.
 Progress = Callable[[int, int, float], None]
@@ -112,46 +110,7 @@ def _texts(exprs: Sequence[Expression], labels: Sequence[str] | None) -> tuple[s
     return tuple(texts)
 
 
-class _QTable:
-    """The growing table of learning: observation key -> row of Q-values, in the *maximised* sense
-    (``sign * value``: for ``minE`` the negated costs)."""
-
-    def __init__(self, width: int, n_actions: int) -> None:
-        self.index: dict[bytes, int] = {}
-        self.keys = np.zeros((64, width), dtype=np.float64)
-        self.values = np.zeros((64, n_actions), dtype=np.float64)
-        self.size = 0
-
-    def rows(self, keys: np.ndarray, *, create: bool) -> np.ndarray:
-        """Each key's row; a new key gets a row of zeros (``create``) or -1."""
-        out = np.empty(keys.shape[0], dtype=np.int64)
-        for i, raw in enumerate(key_bytes(keys)):
-            row = self.index.get(raw)
-            if row is None:
-                if not create:
-                    out[i] = -1
-                    continue
-                row = self._add(keys[i], raw)
-            out[i] = row
-        return out
-
-    def _add(self, key: np.ndarray, raw: bytes) -> int:
-        if self.size == self.keys.shape[0]:  # amortised doubling
-            self.keys = np.concatenate([self.keys, np.zeros_like(self.keys)])
-            self.values = np.concatenate([self.values, np.zeros_like(self.values)])
-        self.keys[self.size] = key
-        self.index[raw] = self.size
-        self.size += 1
-        return self.size - 1
-
-    def utilities(self, rows: np.ndarray) -> np.ndarray:
-        """``(n, P)``: the rows' values, zeros for unseen rows (-1)."""
-        out = self.values[np.maximum(rows, 0)]
-        out[rows < 0] = 0.0
-        return out
-
-
-class ObjectiveIncrease:
+class ObjectiveIncrease(Forwarding):
     """``batch`` with each step's reward replaced by the increase of ``expr`` over the step
     (``expr`` observed before and after it; 0 for episodes already done): UPPAAL's ``maxE(e)`` for
     an ``e`` over the automaton's rewards, such as ``10*sa + 5*pr + co`` when the automaton's own
@@ -166,22 +125,6 @@ class ObjectiveIncrease:
         return getattr(self.batch, name)  # what Episodes does not name (e.g. EpisodeBatch.action_pairs)
 
     # What Episodes names is forwarded explicitly, so that ObjectiveIncrease is one (mypy checks).
-    @property
-    def n_actions(self) -> int:
-        return self.batch.n_actions
-
-    @property
-    def decide_every(self) -> int:
-        return self.batch.decide_every
-
-    @property
-    def horizon_samples(self) -> int:
-        return self.batch.horizon_samples
-
-    @property
-    def max_steps(self) -> int:
-        return self.batch.max_steps
-
     @property
     def n(self) -> int:
         return self.batch.n
@@ -198,9 +141,6 @@ class ObjectiveIncrease:
 
     def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
         return self.batch.observe(exprs)
-
-    def expression(self, expr: Expression) -> ie.Expr:
-        return self.batch.expression(expr)
 
     def step(self, actions: np.ndarray) -> StepOutcome:
         active = ~np.asarray(self.batch.done, dtype=bool)
@@ -249,32 +189,6 @@ class LearningResult:
     seed: int
 
 
-class _Transition(NamedTuple):
-    """One step of a batch: the ``active`` episodes' indices, then per episode (``(n,)`` or
-    ``(n, P)``) the table row before, the action, the reward in the maximised sense, the row and
-    allowed actions after, and whether the episode ``ends``."""
-
-    active: np.ndarray
-    rows: np.ndarray
-    actions: np.ndarray
-    reward: np.ndarray
-    next_rows: np.ndarray
-    next_masks: np.ndarray
-    ends: np.ndarray
-
-
-def _update(values: np.ndarray, step: _Transition, alpha: float, gamma: float) -> None:
-    """Watkins' update of every active episode's transition, in episode order (a later row sees an
-    earlier one's update). An ending episode does not bootstrap; the maximum runs over the actions
-    allowed in the next state."""
-    rows, actions = step.rows, step.actions
-    for i in step.active:
-        target = step.reward[i]
-        if not step.ends[i]:
-            target += gamma * values[step.next_rows[i]][step.next_masks[i]].max()
-        values[rows[i], actions[i]] += alpha * (target - values[rows[i], actions[i]])
-
-
 def _fresh_seed() -> int:
     """A seed from the operating system's entropy (recorded with the strategy, so a run can be repeated)."""
     entropy = np.random.SeedSequence().entropy
@@ -289,19 +203,25 @@ def _epsilon_schedule(epsilon: float | tuple[float, float], episodes: int) -> Ca
     return lambda index: start + (end - start) * np.minimum(1.0, index / max(1, episodes - 1))
 
 
-def learn(batch: Episodes, *, discrete: Sequence[Expression], continuous: Sequence[Expression], optimise: str = "max",
-          shield: ShieldTable | None = None, episodes: int = 1000, parallel: int = 32, seed: int | None = None,
-          alpha: float = 0.3, gamma: float = 1.0, epsilon: float | tuple[float, float] = (1.0, 0.05),
-          bins: Sequence[float] | None = None, stop_after: int = 10, progress: Progress | None = None,
-          meta: Mapping[str, object] | None = None, replay: int = 1,
-          labels: Sequence[str] | None = None) -> LearningResult:
+def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Sequence[Expression],
+             optimise: str = "max", shield: ShieldTable | None = None, episodes: int = 1000, parallel: int = 32,
+             seed: int | None = None, alpha: float = 0.3, gamma: float = 1.0,
+             epsilon: float | tuple[float, float] = (1.0, 0.05), bins: Sequence[float] | None = None,
+             stop_after: int = 10, progress: Progress | None = None, meta: Mapping[str, object] | None = None,
+             replay: int = 1, labels: Sequence[str] | None = None,
+             evaluate_in_batch: bool = True) -> Steps[LearningResult]:
     """Learn a strategy by tabular Q-learning on ``batch`` (see the module docstring for the
-    observation, the algorithm and the stopping rule). ``optimise``: ``"max"`` (``maxE``) or
+    observation, the algorithm and the stopping rule): ``learn(batch, ...)`` learns on ``batch``
+    alone; ``learning(batch, ...)`` is the same as a generator of steps (:mod:`rac.learning.runs`),
+    which reads ``batch`` for its actions and expressions and steps the episodes it is sent, for
+    :func:`rac.learning.lockstep.run_together`. ``optimise``: ``"max"`` (``maxE``) or
     ``"min"`` (``minE``) of the episodes' rewards; ``shield``: the allowed actions at each state
     key; ``episodes``: the budget; ``parallel`` episodes per batch; ``bins``: one width per
     continuous expression (default :func:`default_bin`); ``progress(episodes_done, budget, mean_return)`` after
     every batch; ``meta``: stored with the strategy; ``replay``: backward replays of each finished
-    batch (0: plain online Q-learning). The same ``seed`` gives the same result."""
+    batch (0: plain online Q-learning); ``evaluate_in_batch``: run each greedy evaluation in the
+    next batch (default) or alone after its batch — the results are the same, alone is slower.
+    The same ``seed`` gives the same result."""
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
     for name, value in (("episodes", episodes), ("parallel", parallel), ("stop_after", stop_after)):
@@ -320,27 +240,20 @@ def learn(batch: Episodes, *, discrete: Sequence[Expression], continuous: Sequen
     if len(widths) != len(continuous_exprs) or not all(w > 0 and math.isfinite(w) for w in widths):
         raise ValueError(f"bins must be {len(continuous_exprs)} positive widths, not {list(widths)}")
     seed = _fresh_seed() if seed is None else int(seed)
-    rng = np.random.default_rng(seed)
     sign = 1.0 if optimise == "max" else -1.0
     n_discrete = len(discrete_exprs)
-    table = _QTable(len(exprs), batch.n_actions)
+    table = QTable(len(exprs), batch.n_actions)
+    learner = Learner(table, exprs, n_discrete, widths, shield, np.random.default_rng(seed), sign, alpha, gamma, replay)
     schedule = _epsilon_schedule(epsilon, episodes)
     pairs = getattr(batch, "action_pairs", None)
 
-    def keys_now() -> np.ndarray:
-        return observation_keys(batch.observe(exprs) if exprs else np.zeros((batch.n, 0)), n_discrete, widths)
+    def strategy(frozen: Frozen) -> LearnedStrategy:
+        return LearnedStrategy(texts[:n_discrete], texts[n_discrete:], widths, optimise,
+                               table.keys[:frozen.size].copy(), sign * frozen.values,
+                               None if pairs is None else np.array(pairs), dict(meta or {}, seed=seed))
 
-    def snapshot() -> LearnedStrategy:
-        return LearnedStrategy(texts[:n_discrete], texts[n_discrete:], widths, optimise, table.keys[:table.size].copy(),
-                               sign * table.values[:table.size], None if pairs is None else np.array(pairs),
-                               dict(meta or {}, seed=seed))
-
-    def greedy_choice(observed: np.ndarray, masks: np.ndarray) -> np.ndarray:
-        rows = table.rows(observation_keys(observed, n_discrete, widths), create=False)
-        return greedy_actions(table.utilities(rows), masks)
-
-    log: dict[str, list] = {name: [] for name in ("returns", "reached", "collided", "offroad", "fallbacks",
-                                                  "eval_episodes", "eval_returns", "eval_success")}
+    logs: list[BatchLog] = []
+    evaluations: list[tuple[int, float, bool]] = []  # (episodes learned, return, success)
     t0 = time.perf_counter()
     learned = 0
     first_success: int | None = None
@@ -349,71 +262,59 @@ def learn(batch: Episodes, *, discrete: Sequence[Expression], continuous: Sequen
     best_run: StrategyRun | None = None
     stale = 0
     stopped_early = False
-    while learned < episodes:
-        n = min(parallel, episodes - learned)
-        eps = schedule(learned + np.arange(n, dtype=np.float64))
-        batch.reset(n)
-        rows = table.rows(keys_now(), create=True)
-        masks, empty = allowed_actions(batch, shield)
-        fallbacks = empty.astype(np.int64)
-        returns = np.zeros(n)
-        reached, collided, offroad = (np.zeros(n, dtype=bool) for _ in range(3))
-        steps: list[_Transition] = []  # this batch's transitions, for the backward replay
-        for _ in range(batch.max_steps):
-            active = ~np.asarray(batch.done, dtype=bool)
-            if not active.any():
-                break
-            explore = rng.random(n) < eps
-            random_actions = uniform_allowed(rng, masks)
-            actions = np.where(explore, random_actions, greedy_actions(table.utilities(rows), masks))
-            actions = np.where(active, actions, 0)
-            outcome = batch.step(actions)
-            reward = np.asarray(outcome.reward, dtype=np.float64)
-            ends = np.asarray(outcome.terminated, dtype=bool) | np.asarray(outcome.truncated, dtype=bool)
-            next_rows = table.rows(keys_now(), create=True)
-            next_masks, next_empty = allowed_actions(batch, shield)
-            transition = _Transition(np.flatnonzero(active), rows, actions, sign * reward, next_rows, next_masks, ends)
-            _update(table.values, transition, alpha, gamma)
-            steps.append(transition)
-            returns[active] += reward[active]
-            reached |= np.asarray(outcome.terminated, dtype=bool) & active
-            collided |= np.asarray(outcome.collided, dtype=bool) & active
-            offroad |= np.asarray(outcome.offroad, dtype=bool) & active
-            fallbacks += next_empty & active & ~ends  # only a continuing episode decides there
-            rows, masks = next_rows, next_masks
-        # Backward replay: the batch's transitions again, last step first, so a reward at the end
-        # of an episode reaches its first decision in one sweep instead of one step per visit.
-        for _ in range(replay):
-            for step in reversed(steps):
-                _update(table.values, step, alpha, gamma)
-        learned += n
-        for name, column in (("returns", returns), ("reached", reached), ("collided", collided),
-                             ("offroad", offroad), ("fallbacks", fallbacks)):
-            log[name].append(column)
-        # The stopping rule: evaluate the greedy strategy by its one run.
-        run = rollout(batch, exprs, 1, shield, greedy_choice)
+
+    def judge(frozen: Frozen, after: int, mean_return: float, run: StrategyRun) -> bool:
+        """The stopping rule on the greedy run of the table ``frozen`` after ``after`` episodes:
+        whether learning stops there."""
+        nonlocal first_success, best, best_strategy, best_run, stale
         success, ret = bool(run.success[0]), float(run.returns[0])
-        log["eval_episodes"].append(learned)
-        log["eval_returns"].append(ret)
-        log["eval_success"].append(success)
+        evaluations.append((after, ret, success))
         if success and first_success is None:
-            first_success = learned
+            first_success = after
         if best is None or (success, sign * ret) > (best[0], sign * best[1]):
-            best, best_strategy, best_run, stale = (success, ret), snapshot(), run, 0
+            best, best_strategy, best_run, stale = (success, ret), strategy(frozen), run, 0
         else:
             stale += 1
         if progress is not None:
-            progress(learned, episodes, float(returns.mean()))
-        if best[0] and stale >= stop_after and learned < episodes:
+            progress(after, episodes, mean_return)
+        return best[0] and stale >= stop_after and after < episodes
+
+    # After each batch the greedy strategy is evaluated by its one run (the stopping rule). With
+    # evaluate_in_batch that run rides along in the next batch, choosing from the table as it was
+    # (Frozen): the next batch is learned before the verdict on this one, and when the verdict
+    # stops learning that batch is discarded (its episodes are not counted, its table not kept).
+    pending: tuple[Frozen, int, float] | None = None  # the table, episodes learned, mean return
+    while learned < episodes:
+        n = min(parallel, episodes - learned)
+        riding, pending = pending, None
+        log, run = yield from learner.run(n, schedule(learned + np.arange(n, dtype=np.float64)),
+                                          None if riding is None else riding[0])
+        if riding is not None and run is not None and judge(*riding, run):
             stopped_early = True
             break
+        learned += n
+        logs.append(log)
+        pending = (table.freeze(), learned, float(log.returns.mean()))
+        if not evaluate_in_batch:
+            evaluated, pending = pending, None
+            if judge(*evaluated, (yield from learner.greedy_run())):
+                stopped_early = True
+                break
+    if pending is not None:  # the last batch's evaluation: no batch follows to carry it
+        judge(*pending, (yield from learner.greedy_run()))
     assert best_strategy is not None and best_run is not None
-    history = History(returns=np.concatenate(log["returns"]), reached=np.concatenate(log["reached"]),
-                      collided=np.concatenate(log["collided"]), offroad=np.concatenate(log["offroad"]),
-                      fallbacks=np.concatenate(log["fallbacks"]),
-                      eval_episodes=np.array(log["eval_episodes"], dtype=np.int64),
-                      eval_returns=np.array(log["eval_returns"]),
-                      eval_success=np.array(log["eval_success"], dtype=bool))
+    history = History(returns=np.concatenate([log.returns for log in logs]),
+                      reached=np.concatenate([log.reached for log in logs]),
+                      collided=np.concatenate([log.collided for log in logs]),
+                      offroad=np.concatenate([log.offroad for log in logs]),
+                      fallbacks=np.concatenate([log.fallbacks for log in logs]),
+                      eval_episodes=np.array([e[0] for e in evaluations], dtype=np.int64),
+                      eval_returns=np.array([e[1] for e in evaluations]),
+                      eval_success=np.array([e[2] for e in evaluations], dtype=bool))
     return LearningResult(best_strategy, best_run, history, first_success, int(history.collided.sum()),
                           int(history.offroad.sum()), int(history.fallbacks.sum()), learned, stopped_early,
                           time.perf_counter() - t0, seed)
+
+
+#: :func:`learning` on one batch alone (same arguments): ``learn(batch, discrete=..., continuous=..., ...)``.
+learn = alone(learning)

@@ -1,4 +1,5 @@
-"""Learned strategies: the observation key, the strategy's table, its runs and its evaluation.
+"""Learned strategies: the observation key, the strategy's table and its runs' record (making runs:
+:mod:`rac.learning.runs`).
 
 A strategy learned by :func:`rac.learning.qlearning.learn` maps an *observation key* to one
 Q-value per action of the episodes (:class:`rac.learning.episodes.EpisodeBatch`):
@@ -16,21 +17,19 @@ Q-value per action of the episodes (:class:`rac.learning.episodes.EpisodeBatch`)
 - **Unseen observations.** A strategy picks the lowest-index allowed action in a state it never
   saw (its Q-values count as 0, and ties go to the lowest index).
 
-:func:`run_strategy` gives the strategy's run (:meth:`StrategyRun.samples` every sample of it,
-for ``A[] p under S``) and :func:`evaluate` a success rate (see there for why it is 0 or 1
-without action noise). :meth:`LearnedStrategy.save` and :meth:`LearnedStrategy.load` keep a
-strategy in a ``.strategy.npz`` file.
+:func:`rac.learning.runs.run_strategy` gives the strategy's run and :func:`rac.learning.runs.evaluate`
+a success rate. :meth:`LearnedStrategy.save` and :meth:`LearnedStrategy.load` keep a strategy in a
+``.strategy.npz`` file.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -45,9 +44,9 @@ if TYPE_CHECKING:  # imported when a run is replayed (the simulator is not neede
     from rac.engine.simulate import Runs
     from rac.model.data import ModelData
 
-__all__ = ["DEFAULT_BIN", "DEFAULT_BINS", "Episodes", "LearnedStrategy", "StepOutcome", "StrategyEvaluation",
-           "StrategyRun", "allowed_actions", "check_shield", "default_bin", "evaluate", "greedy_actions",
-           "key_bytes", "observation_keys", "rollout", "run_strategy", "uniform_allowed"]
+__all__ = ["DEFAULT_BIN", "DEFAULT_BINS", "Episodes", "Forwarding", "LearnedStrategy", "StepOutcome", "StrategyRun",
+           "allowed_actions", "check_shield", "default_bin", "greedy_actions", "key_bytes", "observation_keys",
+           "uniform_allowed"]
 
 FORMAT = "rac-strategy-1"
 #: Default bin widths of continuous observations, by name (a plain name, a model function, or
@@ -114,6 +113,25 @@ class Episodes(Protocol):
     def expression(self, expr: Expression) -> ie.Expr: ...
 
     def step(self, actions: np.ndarray) -> StepOutcome: ...
+
+
+def _forwarded(name: str) -> Any:
+    """A read-only property: the attribute ``name`` of ``self.batch``."""
+    return property(lambda self: getattr(self.batch, name), doc=f"``self.batch.{name}``")
+
+
+class Forwarding:
+    """The facts of the episodes ``self.batch`` that a view of them repeats (:class:`Episodes`'s
+    ``n_actions``, ``decide_every``, ``horizon_samples``, ``max_steps``, and ``expression``)."""
+
+    batch: Episodes
+    n_actions: int = _forwarded("n_actions")
+    decide_every: int = _forwarded("decide_every")
+    horizon_samples: int = _forwarded("horizon_samples")
+    max_steps: int = _forwarded("max_steps")
+
+    def expression(self, expr: Expression) -> ie.Expr:
+        return self.batch.expression(expr)
 
 
 # ---------------------------------------------------------------- observations
@@ -345,109 +363,3 @@ class StrategyRun:
             if not np.array_equal(runs.states[rows, k], self.states[:, j, 1:]):
                 raise RuntimeError(f"replaying the strategy's actions does not give its state at decision {j}")
         return runs
-
-
-def rollout(batch: Episodes, exprs: Sequence[Expression], n: int, shield: ShieldTable | None,
-             choose: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> StrategyRun:
-    """``n`` episodes to their end; ``choose(observations, masks) -> actions`` at each decision."""
-    batch.reset(n)
-    steps_max = batch.max_steps
-    states = np.zeros((n, steps_max + 1, 8), dtype=np.int32)
-    observed = np.zeros((n, steps_max + 1, len(exprs)), dtype=np.float64)
-    actions = np.full((n, steps_max), -1, dtype=np.int64)
-    rewards = np.zeros((n, steps_max), dtype=np.float64)
-    flags = {name: np.zeros(n, dtype=bool) for name in ("reached", "collided", "offroad")}
-    fallbacks = np.zeros(n, dtype=np.int64)
-    steps = np.zeros(n, dtype=np.int64)
-    j = 0
-    while True:
-        states[:, j] = batch.state_keys()
-        observed[:, j] = batch.observe(exprs) if exprs else np.zeros((n, 0))
-        active = ~np.asarray(batch.done, dtype=bool)
-        if j >= steps_max or not active.any():
-            states[:, j + 1:] = states[:, j:j + 1]
-            observed[:, j + 1:] = observed[:, j:j + 1]
-            break
-        masks, empty = allowed_actions(batch, shield)
-        fallbacks += empty & active
-        chosen = np.where(active, choose(observed[:, j], masks), 0)
-        outcome = batch.step(chosen)
-        actions[active, j] = chosen[active]
-        rewards[active, j] = np.asarray(outcome.reward)[active]
-        flags["reached"] |= np.asarray(outcome.terminated, dtype=bool) & active
-        flags["collided"] |= np.asarray(outcome.collided, dtype=bool) & active
-        flags["offroad"] |= np.asarray(outcome.offroad, dtype=bool) & active
-        steps += active
-        j += 1
-    return StrategyRun(states, observed, actions, rewards, rewards.sum(axis=1), flags["reached"], flags["collided"],
-                       flags["offroad"], fallbacks, steps, int(batch.decide_every), int(batch.horizon_samples))
-
-
-def _strategy_chooser(strategy: LearnedStrategy) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    return lambda observed, masks: strategy.act(observed, masks)
-
-
-def run_strategy(batch: Episodes, strategy: LearnedStrategy, *, exprs: Sequence[Expression] | None = None,
-                 shield: ShieldTable | None = None, runs: int = 1) -> StrategyRun:
-    """The run(s) of the episodes under ``strategy`` (greedy among the actions ``shield`` allows):
-    with the deterministic model and strategy all ``runs`` are the same run. ``exprs``: the
-    observed expressions (default: :meth:`LearnedStrategy.expressions`). Use
-    :meth:`StrategyRun.samples` for every sample of it (``A[] p under S``: ``p`` at each)."""
-    check_shield(batch, shield)
-    exprs = tuple(exprs) if exprs is not None else strategy.expressions()
-    return rollout(batch, exprs, runs, shield, _strategy_chooser(strategy))
-
-
-@dataclass(frozen=True)
-class StrategyEvaluation:
-    """:func:`evaluate`'s counts over ``runs`` runs; ``interval`` is the Clopper-Pearson 95%
-    interval of the success rate."""
-
-    runs: int
-    successes: int
-    reached: int
-    collided: int
-    offroad: int
-    fallbacks: int
-    mean_return: float
-    interval: tuple[float, float]
-    epsilon: float
-    seed: int | None
-
-    @property
-    def success_rate(self) -> float:
-        return self.successes / self.runs if self.runs else math.nan
-
-
-def evaluate(batch: Episodes, strategy: LearnedStrategy, *, runs: int = 100, shield: ShieldTable | None = None,
-             seed: int | None = None, epsilon: float = 0.0, exprs: Sequence[Expression] | None = None
-             ) -> StrategyEvaluation:
-    """The success rate of ``strategy`` over ``runs`` runs (success: the goal reached, never a
-    collision nor off the road).
-
-    The model and the greedy strategy are deterministic, so with ``epsilon == 0`` (default) every
-    run is the one run and the rate is 0 or 1 — the honest answer, counted once per run. With
-    ``epsilon > 0`` each decision takes, with that probability, a uniformly drawn *allowed* action
-    instead of the greedy one (seeded by ``seed``): the rate then measures how well the strategy
-    recovers from deviations, and under a shield the deviations stay safe. Action noise was
-    chosen over perturbing the start because the episodes' start is the scenario's and a shield
-    knows only the states reachable from it."""
-    check_shield(batch, shield)
-    if not 0.0 <= epsilon <= 1.0:
-        raise ValueError(f"epsilon must lie in [0, 1], not {epsilon}")
-    from rac.engine.stats import clopper_pearson
-
-    exprs = tuple(exprs) if exprs is not None else strategy.expressions()
-    rng = np.random.default_rng(seed)
-
-    def choose(observed: np.ndarray, masks: np.ndarray) -> np.ndarray:
-        greedy = strategy.act(observed, masks)
-        if epsilon == 0.0:
-            return greedy
-        return np.where(rng.random(len(greedy)) < epsilon, uniform_allowed(rng, masks), greedy)
-
-    run = rollout(batch, exprs, runs, shield, choose)
-    successes = int(run.success.sum())
-    return StrategyEvaluation(runs, successes, int(run.reached.sum()), int(run.collided.sum()),
-                              int(run.offroad.sum()), int(run.fallbacks.sum()), float(run.returns.mean()),
-                              clopper_pearson(successes, runs), epsilon, seed)

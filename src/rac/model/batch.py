@@ -6,9 +6,17 @@ the columns of :class:`rac.model.native.State` (``x, y, v, acc, head, jerk, turn
 and ``k`` is one sample index or an ``(n,)`` array of them. Each result equals what
 :class:`rac.model.native.NativeModel` gives for every row, bit for bit: the same operations in the
 same order on doubles (numpy's ufuncs neither fuse nor reorder), ``np.sqrt`` (correctly rounded,
-like ``math.sqrt``), and cos/sin taken from ``math.cos``/``math.sin`` (the C library) over the
-distinct headings only, because numpy's SIMD ``np.cos``/``np.sin`` may differ from the C library in
-the last bit on some platforms.
+like ``math.sqrt``), and cos/sin taken from ``math.cos``/``math.sin`` (the C library), because
+numpy's SIMD ``np.cos``/``np.sin`` may differ from the C library in the last bit on some platforms.
+
+What depends on a few integers only is computed once per distinct value and kept
+(:class:`rac.model.memo.KeyedRows`; issue 11): the cos/sin of a heading; the ``1/G`` Euler
+sub-steps' headings and their cos/sin, per (head, turn) pair; the sub-steps' speeds and the
+final acceleration, per (v, acc, jerk); the obstacles' discs per sample. A sample of ``n``
+episodes is then a fixed number of array operations: the positions add up the sub-steps' moves
+``v * cos(head) * u`` in order (``np.add.accumulate``, a left-to-right sum), and ``mindist`` takes
+every (ego disc, obstacle disc) pair at once (an absent obstacle's discs are NaN, which
+``np.fmin`` skips as the scalar code skips the obstacle).
 """
 
 from __future__ import annotations
@@ -20,126 +28,30 @@ import numpy as np
 
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.data import ModelData, ModelRangeError
+from rac.model.memo import KeyedRows, cos_sin, distinct_values
 from rac.model.native import CORNERS, NO_OBSTACLE, NativeModel
+from rac.model.polygons import Polygons
 
 __all__ = ["BLOCK", "BatchModel", "batch_model", "collide_many", "dist_goal_many", "distinct_values", "goal_many",
            "mindist_many", "offroad_many", "sense_many"]
 
 #: The model functions of :class:`BatchModel` work through larger arrays in blocks of this many rows.
 BLOCK = 1 << 16
+#: ... and ``sense`` in blocks of this many (its kept sub-steps are rows of 2 * substeps + 1 doubles).
+SENSE_BLOCK = 1 << 13
+#: ``mindist`` compares the ego's discs with at most this many obstacle discs' doubles at a time.
+DISC_CELLS = 1 << 16
+#: Up to this many states look their kept rows up one by one; more look up their distinct keys.
+_DIRECT_ROWS = 256
+#: New keys up to this many are computed on Python floats (numpy costs more per call than per row there).
+_SCALAR_ROWS = 8
+#: (v, acc, jerk) significands in ``(-_FIELD, _FIELD)`` pack into one int64 key (21 bits each).
+_FIELD = 1 << 20
 
 
-def _cos_sin(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``math.cos`` and ``math.sin`` of every element, called once per distinct bit pattern."""
-    flat = np.ascontiguousarray(angles, dtype=np.float64)
-    bits, inverse = np.unique(flat.view(np.int64), return_inverse=True)
-    values = bits.view(np.float64).tolist()
-    cos = np.array([math.cos(t) for t in values], dtype=np.float64)
-    sin = np.array([math.sin(t) for t in values], dtype=np.float64)
-    inverse = inverse.reshape(-1)
-    return cos[inverse], sin[inverse]
-
-
-#: :func:`distinct_values` marks values in a table instead of sorting them while they span at most this
-#: many integers (or four times the number of values, when that is more).
-_DENSE_SPAN = 1 << 16
-
-
-def distinct_values(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``np.unique(values, return_inverse=True)`` of a 1-d integer array (int64 results).
-
-    When the values span few integers this marks them in a table instead of sorting (linear
-    time); the result is the same: the distinct values ascending, and each element's index
-    among them."""
-    values = np.asarray(values, dtype=np.int64).reshape(-1)
-    if values.size == 0:
-        return values.copy(), np.zeros(0, dtype=np.int64)
-    low = int(values.min())
-    span = int(values.max()) - low + 1
-    if span > max(_DENSE_SPAN, 4 * values.size):
-        distinct, inverse = np.unique(values, return_inverse=True)
-        return distinct, inverse.reshape(-1).astype(np.int64, copy=False)
-    offset = values - low
-    present = np.zeros(span, dtype=bool)
-    present[offset] = True
-    distinct = np.flatnonzero(present)
-    rank = np.cumsum(present, dtype=np.int64)
-    rank -= 1
-    return distinct + low, rank[offset]
-
-
-def _cos_sin_of_significands(head: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_cos_sin` of ``head / scale`` for integer ``head``: equal integers give equal
-    doubles, so the distinct integers are found without sorting doubles."""
-    distinct, inverse = distinct_values(head)
-    cos, sin = _cos_sin(distinct / scale)
-    return cos[inverse], sin[inverse]
-
-
-class _Polygons:
-    """Flattened polygons (``xs[start[p]:start[p + 1]]``, ``ys`` likewise) prepared for
-    :meth:`inside`, the crossing test of :func:`rac.model.native.point_in_polygons` on arrays.
-
-    Per polygon: its bounding box, and its *bands*: between two consecutive distinct vertex
-    y-values ``Y[b] <= y < Y[b + 1]`` the same edges pass the test ``(yi > py) != (yj > py)``,
-    namely those with ``min(yi, yj) <= Y[b]`` and ``Y[b + 1] <= max(yi, yj)`` (both ends are
-    vertex y-values, and none lies strictly inside a band). So a point tests only the (few)
-    edges of its band: ``px < (xj - xi) * (py - yi) / (yj - yi) + xi`` with the same operations
-    on the same doubles, and it is inside when an odd number of them hold."""
-
-    def __init__(self, xs: list[float], ys: list[float], start: tuple[int, ...]) -> None:
-        #: Per polygon: (x low, x high, margin, y low, y high, band bounds Y, table of
-        #: (band, slot) -> xj - xi, yi, yj - yi, xi and whether the slot holds an edge).
-        self.parts: list[tuple[float, float, float, float, float, np.ndarray, np.ndarray, np.ndarray,
-                               np.ndarray, np.ndarray, np.ndarray]] = []
-        for p in range(len(start) - 1):
-            if start[p + 1] == start[p]:
-                continue
-            pxs, pys = xs[start[p]:start[p + 1]], ys[start[p]:start[p + 1]]
-            low, high = min(pxs), max(pxs)
-            margin = 1e-6 * (abs(low) + abs(high)) + 1e-6
-            xi = np.asarray(pxs, dtype=np.float64)
-            yi = np.asarray(pys, dtype=np.float64)
-            xj = np.roll(xi, 1)  # the vertex before i, cyclically
-            yj = np.roll(yi, 1)
-            bounds = np.unique(yi)
-            if bounds.size < 2:
-                continue  # no band: no point has min(y) <= py < max(y)
-            crossing = ((np.minimum(yi, yj)[None, :] <= bounds[:-1, None])
-                        & (bounds[1:, None] <= np.maximum(yi, yj)[None, :]))  # (band, edge)
-            slots = max(1, int(crossing.sum(axis=1).max()))
-            edge = np.zeros((len(bounds) - 1, slots), dtype=np.int64)
-            used = np.zeros((len(bounds) - 1, slots), dtype=bool)
-            for band, edges in enumerate(crossing):
-                found = np.flatnonzero(edges)
-                edge[band, :found.size] = found
-                used[band, :found.size] = True
-            self.parts.append((low, high, margin, min(pys), max(pys), bounds, (xj - xi)[edge], yi[edge],
-                               (yj - yi)[edge], xi[edge], used))
-
-    def inside(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
-        """Whether each point lies inside one of the polygons (bool array like ``px``)."""
-        px = np.asarray(px, dtype=np.float64)
-        py = np.asarray(py, dtype=np.float64)
-        found = np.zeros(px.shape, dtype=bool)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for low, high, margin, y_low, y_high, bounds, dx, yi, dy, xi, used in self.parts:
-                # (a point found inside an earlier polygon need not be tested again)
-                rows = np.flatnonzero((py >= y_low) & (py < y_high) & (px >= low - margin)
-                                      & (px <= high + margin) & ~found)
-                if rows.size == 0:
-                    continue
-                qx = px[rows]
-                qy = py[rows]
-                band = np.searchsorted(bounds, qy, side="right") - 1
-                inside = np.zeros(rows.shape, dtype=bool)
-                for slot in range(used.shape[1]):
-                    crosses = qx < dx[band, slot] * (qy - yi[band, slot]) / dy[band, slot] + xi[band, slot]
-                    if not used[:, slot].all():
-                        crosses &= used[band, slot]
-                    inside ^= crosses
-                found[rows] = inside
-        return found
+def _pair_keys(head: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    """One int64 per (head, turn) pair of int32 significands: head in the high 32 bits."""
+    return (np.asarray(head, dtype=np.int64) << 32) | (np.asarray(turn, dtype=np.int64) & 0xFFFFFFFF)
 
 
 def _inside(xs: list[float], ys: list[float], start: tuple[int, ...], px: np.ndarray,
@@ -150,8 +62,8 @@ def _inside(xs: list[float], ys: list[float], start: tuple[int, ...], px: np.nda
     below ``min(y)`` or at/above ``max(y)`` no edge passes the test ``(yi > py) != (yj > py)``;
     left of the box every crossing edge counts, and there is an even number of them; right of
     the box (beyond a margin far larger than rounding) none counts. Within the box a point tests
-    only the edges that pass that test for it (:class:`_Polygons`)."""
-    return _Polygons(xs, ys, start).inside(px, py)
+    only the edges that pass that test for it (:class:`Polygons`)."""
+    return Polygons(xs, ys, start).inside(px, py)
 
 
 class BatchModel:
@@ -160,8 +72,23 @@ class BatchModel:
     def __init__(self, data: ModelData) -> None:
         self.data = data
         self.native = NativeModel(data)
-        self._road = _Polygons(self.native.road_xd, self.native.road_yd, data.road_start)
-        self._goal = _Polygons(self.native.goal_xd, self.native.goal_yd, data.goal_start)
+        self._road = Polygons(self.native.road_xd, self.native.road_yd, data.road_start)
+        self._goal = Polygons(self.native.goal_xd, self.native.goal_yd, data.goal_start)
+        m = data.substeps
+        #: heading significand -> cos, sin of it
+        self._trig = KeyedRows(2, self._trig_rows)
+        #: (head, turn) -> the sub-steps' cos (m), sin (m), then the last heading
+        self._headings = KeyedRows(2 * m + 1, self._heading_rows)
+        #: (v, acc, jerk) -> the sub-steps' speeds (m), then the last speed and acceleration
+        self._speeds = KeyedRows(m + 2, self._speed_rows)
+        #: sample -> the obstacles' disc centres (x then y, 3 per obstacle; NaN: absent)
+        self._discs: dict[int, np.ndarray] = {}
+        radii = []
+        for i in range(data.obstacle_count):
+            ol = data.obs_length[i] / self.native.scale_d
+            ow = data.obs_width[i] / self.native.scale_d
+            radii += [math.sqrt((ol / 6.0) * (ol / 6.0) + (ow / 2.0) * (ow / 2.0))] * 3
+        self._radii = np.asarray(radii, dtype=np.float64)
 
     def _ego(self, states: np.ndarray) -> np.ndarray:
         states = np.asarray(states)
@@ -173,21 +100,21 @@ class BatchModel:
         return np.broadcast_to(np.asarray(k, dtype=np.int64), (n,))
 
     def _blockwise(self, method: Callable[..., np.ndarray], states: np.ndarray,
-                   k: int | np.ndarray | None = None) -> np.ndarray:
-        """``method(states[, k])`` over blocks of :data:`BLOCK` rows, concatenated. Every result
-        is row by row, so blocks change no value; they keep the temporaries small (in cache,
-        and not allocated afresh by the operating system for every operation)."""
+                   k: int | np.ndarray | None = None, block: int = BLOCK) -> np.ndarray:
+        """``method(states[, k])`` over blocks of ``block`` rows, concatenated. Every result is row
+        by row, so blocks change no value; they keep the temporaries small (in cache, and not
+        allocated afresh by the operating system for every operation)."""
         n = states.shape[0]
-        if n <= BLOCK:
+        if n <= block:
             return method(states) if k is None else method(states, k)
         samples = None if k is None or np.ndim(k) == 0 else self._samples(k, n)
         parts = []
-        for low in range(0, n, BLOCK):
-            block = states[low:low + BLOCK]
+        for low in range(0, n, block):
+            rows = states[low:low + block]
             if k is None:
-                parts.append(method(block))
+                parts.append(method(rows))
             else:
-                parts.append(method(block, k if samples is None else samples[low:low + BLOCK]))
+                parts.append(method(rows, k if samples is None else samples[low:low + block]))
         return np.concatenate(parts)
 
     def sense(self, states: np.ndarray) -> np.ndarray:
@@ -195,7 +122,7 @@ class BatchModel:
         :class:`ModelRangeError` for the first row whose result does not fit int32."""
         states = self._ego(states)
         try:
-            return self._blockwise(self._sense, states)
+            return self._blockwise(self._sense, states, block=SENSE_BLOCK)
         except ModelRangeError:
             if states.shape[0] <= BLOCK:
                 raise
@@ -204,50 +131,169 @@ class BatchModel:
     def _sense(self, states: np.ndarray) -> np.ndarray:
         native = self.native
         scale = native.scale_d
-        x = states[:, 0] / scale
-        y = states[:, 1] / scale
-        v = states[:, 2] / scale
-        acc = states[:, 3] / scale
-        jerk = states[:, 5] / scale
-        # A row's headings depend on its (head, turn) only: they are followed for the distinct
-        # pairs (the same operations on the same doubles) and gathered back (``pair``).
-        heads, head_rank = distinct_values(states[:, 4])
-        turns, turn_rank = distinct_values(states[:, 6])
-        pairs, pair = distinct_values(head_rank * len(turns) + turn_rank)
-        head = heads[pairs // len(turns)] / scale
-        turn = turns[pairs % len(turns)] / scale
+        m = self.data.substeps
+        n = states.shape[0]
+        # The sub-steps' cos, sin (and last heading) per (head, turn) pair and speeds (and last
+        # speed and acceleration) per (v, acc, jerk), kept: a table of rows and each state's row.
+        if n <= _DIRECT_ROWS:
+            heading, pair = self._headings(_pair_keys(states[:, 4], states[:, 6])), np.arange(n)
+        else:  # the distinct pairs from the distinct heads and turns (few values: no sorting)
+            heads, head_rank = distinct_values(states[:, 4])
+            turns, turn_rank = distinct_values(states[:, 6])
+            pairs, pair = distinct_values(head_rank * len(turns) + turn_rank)
+            heading = self._headings(_pair_keys(heads[pairs // len(turns)], turns[pairs % len(turns)]))
+        speeds, speed = self._speed_table(states)
+        x, y = (self._moved(states[:, column] / scale, speeds, speed, heading[:, part], pair)
+                for column, part in ((0, slice(0, m)), (1, slice(m, 2 * m))))
+        values = np.stack([x, y, speeds[speed, m], speeds[speed, m + 1], heading[pair, 2 * m]])  # x, y, v, acc, head
+        scaled = values * scale
+        bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
+        if bad.any():  # the first column with a value out of range, at its first row (as native)
+            column, row = divmod(int(np.argmax(bad)), n)
+            what = ("x", "y", "v", "acc", "head")[column]
+            native.significand(what, float(values[column, row]))  # raises the same error as native
+            raise ModelRangeError(f"sense(): {what}", float(values[column, row]), None, self.data.scale)
+        out = np.empty(states.shape, dtype=np.int32)
+        out[:, :5] = scaled.T.astype(np.int64)  # truncation toward zero, like int()
+        out[:, 5:] = states[:, 5:]
+        return out
+
+    def _moved(self, start: np.ndarray, speeds: np.ndarray, speed: np.ndarray, trig: np.ndarray,
+               pair: np.ndarray) -> np.ndarray:
+        """``start`` plus the sub-steps' moves ``v * trig * u`` (``v``: rows ``speed`` of ``speeds``,
+        ``trig``: rows ``pair`` of ``trig``), added in order as the scalar loop adds them."""
+        m = self.data.substeps
+        u = self.data.unit
+        if start.size <= _DIRECT_ROWS:  # one running sum along each row: start, move 1, ..., move m
+            moves = np.empty((start.size, m + 1), dtype=np.float64)
+            moves[:, 0] = start
+            np.multiply(speeds[speed, :m], trig[pair], out=moves[:, 1:])
+            moves[:, 1:] *= u
+            return np.add.accumulate(moves, axis=1)[:, m]
+        steps = np.take(np.ascontiguousarray(speeds[:, :m].T), speed, axis=1)  # (m, n)
+        steps *= np.take(np.ascontiguousarray(trig.T), pair, axis=1)
+        steps *= u
+        for move in steps:
+            start = start + move
+        return start
+
+    def _speed_table(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_speed_rows` of the rows' (v, acc, jerk), kept while they fit the key: the rows and
+        each state's row."""
+        triple = states[:, (2, 3, 5)].astype(np.int64)
+        if triple.size and (triple.min() <= -_FIELD or triple.max() >= _FIELD):
+            return self._speed_rows(None, triple), np.arange(states.shape[0])
+        triple += _FIELD
+        keys = (triple[:, 0] << 42) | (triple[:, 1] << 21) | triple[:, 2]
+        return self._speeds.table(keys) if keys.size > _DIRECT_ROWS else (self._speeds(keys), np.arange(keys.size))
+
+    def _speed_rows(self, keys: np.ndarray | None, triple: np.ndarray | None = None) -> np.ndarray:
+        """``(n, m + 2)``: the speed after each of the ``m`` Euler sub-steps of :meth:`NativeModel.sense`,
+        then the last speed and acceleration, for (v, acc, jerk) significands (packed ``keys``, or
+        ``triple`` rows)."""
+        if triple is None:
+            assert keys is not None
+            triple = np.stack([keys >> 42, (keys >> 21) & (2 * _FIELD - 1), keys & (2 * _FIELD - 1)], axis=1) - _FIELD
+        native = self.native
+        scale = native.scale_d
+        m = self.data.substeps
         u = self.data.unit
         ma = native.max_acc_d
         vmin = native.min_speed_d
         vmax = native.max_speed_d
-        for _ in range(self.data.substeps):
+        if triple.shape[0] <= _SCALAR_ROWS:  # a few new keys: on Python floats, the same operations
+            return np.array([self._speed_row(*row) for row in triple.tolist()], dtype=np.float64).reshape(-1, m + 2)
+        v = triple[:, 0] / scale
+        acc = triple[:, 1] / scale
+        jerk = triple[:, 2] / scale
+        out = np.empty((triple.shape[0], m + 2), dtype=np.float64)
+        for step in range(m):
             acc = acc + jerk * u
             acc = np.where(acc > ma, ma, acc)
             acc = np.where(acc < -ma, -ma, acc)
-            head = head + turn * u
             v = v + acc * u
             v = np.where(v > vmax, vmax, v)
             v = np.where(v < vmin, vmin, v)
-            cos, sin = _cos_sin(head)
-            x = x + v * cos[pair] * u
-            y = y + v * sin[pair] * u
-        head = head[pair]
-        out = np.empty(states.shape, dtype=np.int32)
-        for column, (what, value) in enumerate((("x", x), ("y", y), ("v", v), ("acc", acc), ("head", head))):
-            scaled = value * scale
-            bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
-            if bad.any():
-                row = int(np.flatnonzero(bad)[0])
-                native.significand(what, float(value[row]))  # raises the same error as native
-                raise ModelRangeError(f"sense(): {what}", float(value[row]), None, self.data.scale)
-            out[:, column] = scaled.astype(np.int64)  # truncation toward zero, like int()
-        out[:, 5] = states[:, 5]
-        out[:, 6] = states[:, 6]
+            out[:, step] = v
+        out[:, m] = v
+        out[:, m + 1] = acc
         return out
+
+    def _speed_row(self, v_sig: int, acc_sig: int, jerk_sig: int) -> list[float]:
+        """One row of :meth:`_speed_rows` on Python floats (IEEE doubles, as numpy's)."""
+        native = self.native
+        scale = native.scale_d
+        u = self.data.unit
+        ma, vmin, vmax = native.max_acc_d, native.min_speed_d, native.max_speed_d
+        v = v_sig / scale
+        acc = acc_sig / scale
+        jerk = jerk_sig / scale
+        speeds = []
+        for _ in range(self.data.substeps):
+            acc = acc + jerk * u
+            acc = ma if acc > ma else acc
+            acc = -ma if acc < -ma else acc
+            v = v + acc * u
+            v = vmax if v > vmax else v
+            v = vmin if v < vmin else v
+            speeds.append(v)
+        return [*speeds, v, acc]
+
+    def _heading_rows(self, keys: np.ndarray) -> np.ndarray:
+        """``(n, 2m + 1)`` for (head, turn) keys (:func:`_pair_keys`): the heading after each Euler
+        sub-step of :meth:`NativeModel.sense` (``head = head + turn * u``), its cos (m columns) and
+        sin (m columns), then the last heading."""
+        scale = self.native.scale_d
+        m = self.data.substeps
+        u = self.data.unit
+        low = keys & 0xFFFFFFFF
+        head = (keys >> 32) / scale
+        turn = np.where(low >= 1 << 31, low - (1 << 32), low) / scale
+        angles = np.empty((keys.size, m), dtype=np.float64)
+        for step in range(m):
+            head = head + turn * u
+            angles[:, step] = head
+        cos, sin = cos_sin(angles)
+        return np.concatenate([cos, sin, head[:, None]], axis=1)
+
+    def _trig_rows(self, heads: np.ndarray) -> np.ndarray:
+        """``(n, 2)``: cos and sin of heading significands over the scale (``math.cos``/``math.sin``)."""
+        cos, sin = cos_sin(heads / self.native.scale_d)
+        return np.stack([cos, sin], axis=1)
+
+    def cos_sin(self, head: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``math.cos`` and ``math.sin`` of ``head / SCALE_D`` for integer heading significands."""
+        head = np.asarray(head, dtype=np.int64)
+        if head.size <= _DIRECT_ROWS:
+            rows = self._trig(head)
+            return rows[:, 0], rows[:, 1]
+        rows, inverse = self._trig.table(head)
+        return rows[inverse, 0], rows[inverse, 1]
 
     def mindist(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         """:meth:`NativeModel.mindist` of every row at its sample: ``(n,)`` float64."""
         return self._blockwise(self._mindist, self._ego(states), k)
+
+    def _obstacle_discs(self, sample: int) -> np.ndarray:
+        """``(2, 3 * O)``: the centres' x and y of every obstacle's three discs at ``sample``, by
+        the scalar code of :meth:`NativeModel.mindist`; NaN for an obstacle absent at the sample."""
+        discs = self._discs.get(sample)
+        if discs is not None:
+            return discs
+        data = self.data
+        native = self.native
+        discs = np.full((2, 3 * data.obstacle_count), np.nan)
+        positions = [native.obstacle_position(i, sample) for i in range(data.obstacle_count)]
+        for i, (ox, oy, oh) in ((i, p) for i, p in enumerate(positions) if p is not None):
+            cos_sin_oh = (math.cos(oh), math.sin(oh))
+            ooff = data.obs_length[i] / native.scale_d / 3.0
+            for b in range(3):  # ox + (b - 1) * ooff * cos(oh), as NativeModel.mindist
+                discs[0, 3 * i + b] = ox + (b - 1) * ooff * cos_sin_oh[0]
+                discs[1, 3 * i + b] = oy + (b - 1) * ooff * cos_sin_oh[1]
+        if len(self._discs) > 4096:
+            self._discs.clear()
+        self._discs[sample] = discs
+        return discs
 
     def _mindist(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         n = states.shape[0]
@@ -257,52 +303,34 @@ class BatchModel:
         best = np.full(n, NO_OBSTACLE, dtype=np.float64)
         if data.obstacle_count == 0 or n == 0:
             return best
-        if np.ndim(k) == 0:
-            samples, where = np.asarray([k], dtype=np.int64), None  # one sample: scalars below
+        samples = self._samples(k, n)
+        if samples[0] == samples[-1] and (np.ndim(k) == 0 or (samples == samples[0]).all()):
+            discs, where = self._obstacle_discs(int(samples[0]))[:, None, :], None  # (2, 1, D): one row for all
         else:
-            samples, where = np.unique(self._samples(k, n), return_inverse=True)
-            where = where.reshape(-1)
-        ex = states[:, 0] / scale
-        ey = states[:, 1] / scale
-        ec, es = _cos_sin_of_significands(states[:, 4], scale)
+            distinct, where = distinct_values(samples)
+            discs = np.stack([self._obstacle_discs(sample) for sample in distinct.tolist()], axis=1)  # (2, S, D)
+        ec, es = self.cos_sin(states[:, 4])
         el = native.length_d
         ew = native.width_d
         er = math.sqrt((el / 6.0) * (el / 6.0) + (ew / 2.0) * (ew / 2.0))
         eoff = el / 3.0
-        for i in range(data.obstacle_count):
-            # the obstacle's discs per distinct sample, computed by the scalar code of native.py
-            present = np.zeros(len(samples), dtype=bool)
-            bx = np.zeros((3, len(samples)))
-            by = np.zeros((3, len(samples)))
-            ol = data.obs_length[i] / scale
-            ow = data.obs_width[i] / scale
-            orad = math.sqrt((ol / 6.0) * (ol / 6.0) + (ow / 2.0) * (ow / 2.0))
-            ooff = ol / 3.0
-            for s, sample in enumerate(samples.tolist()):
-                position = native.obstacle_position(i, sample)
-                if position is None:
-                    continue
-                ox, oy, oh = position
-                oc = math.cos(oh)
-                os_ = math.sin(oh)
-                present[s] = True
-                for b in range(3):
-                    bx[b, s] = ox + (b - 1) * ooff * oc
-                    by[b, s] = oy + (b - 1) * ooff * os_
-            if not present.any():
-                continue
-            here = None if where is None else present[where]  # one sample: present (else skipped)
-            for a in range(3):
-                ax = ex + (a - 1) * eoff * ec
-                ay = ey + (a - 1) * eoff * es
-                for b in range(3):
-                    dx = ax - (bx[b, 0] if where is None else bx[b][where])
-                    dy = ay - (by[b, 0] if where is None else by[b][where])
-                    d = np.sqrt(dx * dx + dy * dy) - er - orad
-                    closer = d < best
-                    if here is not None:
-                        closer &= here
-                    best = np.where(closer, d, best)
+        # the ego's disc centres ex + (a - 1) * eoff * ec (a = 0, 1, 2) as (3, 1, n): the states last
+        along = np.array([(a - 1) * eoff for a in range(3)])[:, None, None]
+        ax = states[:, 0] / scale + along * ec
+        ay = states[:, 1] / scale + along * es
+        width = discs.shape[2]
+        chunk = max(1, min(width, DISC_CELLS // (3 * n)))  # temporaries of at most DISC_CELLS doubles
+        with np.errstate(invalid="ignore"):
+            for low in range(0, width, chunk):
+                columns = slice(low, low + chunk)
+                # the obstacles' disc centres as (1, c, 1) (one sample) or (1, c, n) (each row's)
+                bx = discs[0, :, columns].T[None] if where is None else discs[0][where, columns].T[None]
+                by = discs[1, :, columns].T[None] if where is None else discs[1][where, columns].T[None]
+                dx = ax - bx
+                dy = ay - by
+                d = np.sqrt(dx * dx + dy * dy) - er - self._radii[columns, None]
+                # the smallest d (NaN, an absent obstacle, is skipped as the scalar code skips it)
+                np.fmin(best, np.fmin.reduce(d.reshape(-1, n), axis=0), out=best)
         return best
 
     def collide(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
@@ -318,13 +346,14 @@ class BatchModel:
         scale = native.scale_d
         ex = states[:, 0] / scale
         ey = states[:, 1] / scale
-        c, s = _cos_sin_of_significands(states[:, 4], scale)
+        c, s = self.cos_sin(states[:, 4])
         hl = native.length_d / 2.0
         hw = native.width_d / 2.0
-        px = np.concatenate([ex + ca * hl * c - cb * hw * s for ca, cb in CORNERS])
-        py = np.concatenate([ey + ca * hl * s + cb * hw * c for ca, cb in CORNERS])
-        inside = self._road.inside(px, py)
-        return ~np.all(inside.reshape(len(CORNERS), states.shape[0]), axis=0)
+        along = np.array([ca * hl for ca, _ in CORNERS])[:, None]  # (4, 1): every corner at once
+        across = np.array([cb * hw for _, cb in CORNERS])[:, None]
+        px = ex + along * c - across * s
+        py = ey + along * s + across * c
+        return ~np.all(self._road.inside(px, py), axis=0)
 
     def goal(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         """:meth:`NativeModel.goal` per row: in the goal interval and the centre in a goal polygon."""
@@ -335,8 +364,14 @@ class BatchModel:
         native = self.native
         samples = self._samples(k, states.shape[0])
         scale = native.scale_d
-        inside = self._goal.inside(states[:, 0] / scale, states[:, 1] / scale)
-        return inside & (samples >= data.goal_low) & (samples <= data.goal_high)
+        due = (samples >= data.goal_low) & (samples <= data.goal_high)
+        if not due.any():  # outside the goal's time interval nothing is tested
+            return due
+        if due.all():
+            return self._goal.inside(states[:, 0] / scale, states[:, 1] / scale)
+        rows = np.flatnonzero(due)
+        due[rows] = self._goal.inside(states[rows, 0] / scale, states[rows, 1] / scale)
+        return due
 
     def dist_goal(self, states: np.ndarray) -> np.ndarray:
         """:meth:`NativeModel.dist_goal` per row: ``(n,)`` float64."""

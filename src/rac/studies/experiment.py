@@ -23,6 +23,10 @@ during learning (episodes with at least one), and the final strategy's success â
 with probability 0.1 (how well the strategy recovers from deviations; under the shield the
 random actions are the shield's). The shield is computed once (its time is reported apart, as in
 the paper's table).
+
+All runs learn together in one batch of episodes (:mod:`rac.learning.lockstep`; issue 11): each
+run's results are the ones it has alone, and its learning time is its own computation plus its
+share of the batch's steps (by its episodes still running).
 """
 
 from __future__ import annotations
@@ -109,9 +113,15 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                    bins: Sequence[float] | None = None,
                    progress: Callable[[str], None] | None = None) -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
-    ``bins``: the widths of the continuous observations (default :func:`rac.learning.qlearning.default_bin`)."""
+    ``bins``: the widths of the continuous observations (default :func:`rac.learning.qlearning.default_bin`).
+
+    All runs learn together in one batch of episodes (:func:`rac.learning.lockstep.run_together`),
+    then all evaluations run together: each result is the one the run has alone, and a run's
+    learning time is its own computation plus its share of the batch's steps."""
     from rac.learning.episodes import EpisodeBatch, parse_expr
-    from rac.learning.qlearning import ObjectiveIncrease, evaluate, learn
+    from rac.learning.lockstep import Job, run_together
+    from rac.learning.qlearning import LearningResult, learning
+    from rac.learning.runs import evaluation_steps
 
     automaton = result.raise_for_errors()
     if automaton.model is None or result.model_data is None:
@@ -134,24 +144,46 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         if progress:
             progress("computing the safety shield")
         shield_table, shield_seconds, shield_states = _shield(result, horizon, max_states)
+    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon)
+    objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
+    runs = [(label, seed, shield_table if shielded else None, kind)
+            for label, shielded, kind in wanted for seed in seeds]
+    what = (f"learning {len(runs)} runs together ({', '.join(label for label, _, _ in wanted)}; "
+            f"seeds {', '.join(map(str, seeds))})")
+    if progress:
+        progress(what)
+    done = [0] * len(runs)
+    shown = [0]
+
+    def learned_so_far(run: int) -> Callable[[int, int, float], None]:
+        """Each run's learning progress; the episodes of all runs announced at every tenth of the budget."""
+        def report(episodes_done: int, budget: int, mean_return: float) -> None:
+            done[run] = episodes_done
+            tenth = 10 * sum(done) // (len(runs) * episodes)
+            if progress and tenth > shown[0]:
+                shown[0] = tenth
+                progress(f"{what}: {sum(done):,} of {len(runs) * episodes:,} episodes")
+        return report
+
+    learned = run_together([Job(learning(shared, discrete=discrete, continuous=continuous, shield=table,
+                                         episodes=episodes, parallel=parallel, seed=seed, bins=bins,
+                                         progress=learned_so_far(run)),
+                                None if kind == "automaton" else objective)
+                            for run, (_, seed, table, kind) in enumerate(runs)], shared)
+    outcomes: list[LearningResult] = [outcome for outcome, _ in learned]
+    if progress:
+        progress(f"evaluating {len(runs)} strategies over {evaluation_runs} runs each")
+    evaluations = run_together([Job(evaluation_steps(outcome.strategy, runs=evaluation_runs, shield=table, seed=seed,
+                                                     epsilon=EVALUATION_NOISE))
+                                for outcome, (_, seed, table, _) in zip(outcomes, runs)], shared)
     records: list[RunRecord] = []
-    for label, shielded, kind in wanted:
-        for seed in seeds:
-            if progress:
-                progress(f"{label}, seed {seed}")
-            batch = EpisodeBatch(result, reward="automaton", horizon_samples=horizon)
-            table = shield_table if shielded else None
-            rewarded = batch if kind == "automaton" else ObjectiveIncrease(batch, rf)
-            outcome = learn(rewarded, discrete=discrete, continuous=continuous, shield=table, episodes=episodes,
-                            parallel=parallel, seed=seed, bins=bins)
-            evaluation = evaluate(batch, outcome.strategy, runs=evaluation_runs, shield=table, seed=seed,
-                                  epsilon=EVALUATION_NOISE)
-            history = outcome.history
-            succeeded = np.asarray(history.reached) & ~np.asarray(history.collided) & ~np.asarray(history.offroad)
-            records.append(RunRecord(label, seed, outcome.seconds, outcome.episodes, outcome.first_success_episode,
-                                     outcome.collisions_during_learning, outcome.offroad_during_learning,
-                                     bool(outcome.greedy.success[0]), evaluation.successes, evaluation.runs,
-                                     np.asarray(history.returns, dtype=float), succeeded))
+    for (label, seed, _, _), (outcome, seconds), (evaluation, _) in zip(runs, learned, evaluations):
+        history = outcome.history
+        succeeded = np.asarray(history.reached) & ~np.asarray(history.collided) & ~np.asarray(history.offroad)
+        records.append(RunRecord(label, seed, seconds, outcome.episodes, outcome.first_success_episode,
+                                 outcome.collisions_during_learning, outcome.offroad_during_learning,
+                                 bool(outcome.greedy.success[0]), evaluation.successes, evaluation.runs,
+                                 np.asarray(history.returns, dtype=float), succeeded))
     return {"file": automaton.model.scenario_path, "horizon_samples": horizon, "episodes": episodes,
             "seeds": list(seeds), "reward_function": text, "shield_seconds": shield_seconds,
             "shield_states": shield_states, "records": records, "bins": list(bins) if bins else None,

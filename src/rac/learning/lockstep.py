@@ -1,0 +1,163 @@
+"""Many learners and evaluations stepped together in one batch of episodes (issue 11).
+
+A sample of an :class:`rac.learning.episodes.EpisodeBatch` costs about the same for one episode
+as for a hundred, so independent runs — the seeds and combinations of ``rac experiment`` — are
+cheapest stepped together. :func:`run_together` takes generators of steps
+(:mod:`rac.learning.runs`: :func:`rac.learning.qlearning.learning`,
+:func:`rac.learning.runs.evaluation_steps`, ...) and answers all their requests with one shared
+batch, in *rounds*: when every generator asks for fresh episodes (:class:`rac.learning.runs.Reset`),
+the batch is reset with all their widths side by side and each generator is sent a :class:`Lane`,
+its own rows; then every step asked for is taken in one step of the batch, each generator getting
+its rows' outcome. A generator whose episodes end before the others' waits for the next round (its
+rows, done, cost nothing). Every episode is stepped row by row, a generator reads and draws
+random numbers only for its own rows, so each result is the one the generator has alone
+(:func:`rac.learning.runs.drive`); only the time changes. Each run is charged its own computing
+time plus, for every step of the batch, a share of that step by its episodes still running.
+
+Example::
+
+    shared = EpisodeBatch(result, reward="automaton")
+    jobs = [Job(learning(shared, discrete=d, continuous=c, seed=seed)) for seed in (1, 2, 3)]
+    for outcome, seconds in run_together(jobs, shared): ...
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from rac.ir import expr as ie
+from rac.learning.episodes import EpisodeBatch, Expression, StepResult
+from rac.learning.runs import Reset, Steps
+from rac.learning.strategy import Forwarding
+
+__all__ = ["Job", "Lane", "run_together"]
+
+
+@dataclass
+class Job:
+    """A generator of steps for :func:`run_together`; with an ``objective`` (checked against the
+    shared batch) each of its steps is rewarded with that expression's increase, as
+    :class:`rac.learning.qlearning.ObjectiveIncrease` rewards it, else with the batch's reward."""
+
+    steps: Steps[Any]
+    objective: ie.Expr | None = None
+
+
+class Lane(Forwarding):
+    """The episodes ``rows`` of a shared batch, as a generator of steps reads them between its steps
+    (:class:`rac.learning.strategy.Episodes`); :func:`run_together` resets and steps them."""
+
+    def __init__(self, shared: EpisodeBatch, rows: slice) -> None:
+        self.batch = self.shared = shared
+        self.rows = rows
+
+    @property
+    def action_pairs(self) -> np.ndarray:
+        return self.shared.action_pairs
+
+    @property
+    def n(self) -> int:
+        return int(self.rows.stop - self.rows.start)
+
+    @property
+    def done(self) -> np.ndarray:
+        return self.shared.done[self.rows]
+
+    def reset(self, n: int) -> None:
+        raise RuntimeError("a lane is reset by run_together: yield Reset(width)")
+
+    def state_keys(self) -> np.ndarray:
+        return self.shared.state_keys(self.rows)
+
+    def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
+        return self.shared.observe(exprs, self.rows)
+
+    def step(self, actions: np.ndarray) -> StepResult:
+        raise RuntimeError("a lane is stepped by run_together: yield the actions")
+
+
+class _Running:
+    """One job in :func:`run_together`: its last request (None once finished), result and seconds."""
+
+    def __init__(self, job: Job) -> None:
+        self.job = job
+        self.request: Any = None
+        self.result: Any = None
+        self.finished = False
+        self.seconds = 0.0
+        self.lane = slice(0, 0)
+
+    def send(self, reply: Any) -> None:
+        """Start the generator (``reply`` None) or answer its request; record the next one."""
+        t0 = time.perf_counter()
+        try:
+            steps = self.job.steps
+            self.request = next(steps) if reply is None else steps.send(reply)
+        except StopIteration as stop:
+            self.finished, self.result, self.request = True, stop.value, None
+        self.seconds += time.perf_counter() - t0
+
+    @property
+    def stepping(self) -> bool:
+        return not self.finished and not isinstance(self.request, Reset)
+
+
+def run_together(jobs: Sequence[Job], shared: EpisodeBatch) -> list[tuple[Any, float]]:
+    """Run every job's generator to its end on the one batch ``shared`` (see the module docstring);
+    per job, in order: its result and the seconds charged to it."""
+    running = [_Running(job) for job in jobs]
+    for run in running:
+        run.send(None)
+    while True:
+        live = [run for run in running if not run.finished]
+        if not live:
+            return [(run.result, run.seconds) for run in running]
+        widths = []
+        for run in live:
+            if not isinstance(run.request, Reset):  # every live generator waits for fresh episodes now
+                raise RuntimeError(f"a generator stepped outside of a round: {run.request!r}")
+            widths.append(int(run.request.width))
+        t0 = time.perf_counter()
+        shared.reset(sum(widths))
+        spent = time.perf_counter() - t0
+        start = 0
+        for run, width in zip(live, widths):
+            run.lane = slice(start, start + width)
+            run.seconds += spent * width / sum(widths)
+            start += width
+        for run in live:
+            run.send(Lane(shared, run.lane))
+        while any(run.stepping for run in live):
+            _step(shared, [run for run in live if run.stepping])
+
+
+def _step(shared: EpisodeBatch, stepping: list[_Running]) -> None:
+    """One step of ``shared`` with the actions the ``stepping`` jobs asked for; each is answered with
+    its rows' outcome and charged a share of the step by its episodes still running."""
+    actions = np.zeros(shared.n, dtype=np.int64)
+    for run in stepping:
+        actions[run.lane] = run.request
+    running = ~shared.done
+    objectives = list(dict.fromkeys(run.job.objective for run in stepping if run.job.objective is not None))
+    t0 = time.perf_counter()
+    before = shared.observe(objectives) if objectives else None
+    outcome = shared.step(actions)
+    after = shared.observe(objectives) if objectives else None
+    spent = time.perf_counter() - t0
+    weights = [int(running[run.lane].sum()) for run in stepping]
+    total = max(1, sum(weights))
+    for run, weight in zip(stepping, weights):
+        lane = run.lane
+        reward = outcome.reward[lane]
+        if run.job.objective is not None:
+            assert before is not None and after is not None
+            column = objectives.index(run.job.objective)
+            reward = np.where(running[lane], after[lane, column] - before[lane, column], 0.0)
+        run.seconds += spent * weight / total
+        run.send(StepResult(reward=reward, terminated=outcome.terminated[lane], truncated=outcome.truncated[lane],
+                            collided=outcome.collided[lane], offroad=outcome.offroad[lane]))

@@ -1,0 +1,230 @@
+"""Runs of episodes under a strategy, and the protocol that lets several of them share a batch.
+
+:func:`rollout` runs ``n`` episodes to their end, choosing at each decision; :func:`run_strategy`
+is a learned strategy's run (:meth:`StrategyRun.samples` every sample of it, for ``A[] p under
+S``) and :func:`evaluate` its success rate.
+
+**Steps as requests (issue 11).** Whatever runs episodes — a rollout, an evaluation, learning
+(:func:`rac.learning.qlearning.learning`) — is written as a generator that *requests* what it
+needs from its episodes instead of calling them: it yields :class:`Reset` (``width`` fresh
+episodes; it is sent the :class:`rac.learning.strategy.Episodes` to read them through) or the
+actions of one step (it is sent the step's outcome). Everything else (observing, the state keys,
+``done``) it reads directly. :func:`drive` answers the requests with one batch of episodes;
+:func:`rac.learning.lockstep.run_together` answers many generators with one shared batch, each
+reading its own rows, so that they pay for a sample together.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Generator, Sequence
+from dataclasses import dataclass
+from typing import Any, Concatenate, ParamSpec, TypeVar
+
+import numpy as np
+
+from rac.engine.shield import ShieldTable
+from rac.learning.episodes import Expression
+from rac.learning.strategy import (
+    Episodes,
+    LearnedStrategy,
+    StepOutcome,
+    StrategyRun,
+    allowed_actions,
+    check_shield,
+    uniform_allowed,
+)
+
+__all__ = ["Request", "Reset", "RunRecorder", "Steps", "StrategyEvaluation", "alone", "drive", "evaluate",
+           "evaluation_steps", "rollout", "rollout_steps", "run_strategy"]
+
+T = TypeVar("T")
+P = ParamSpec("P")
+
+
+@dataclass(frozen=True)
+class Reset:
+    """A request for ``width`` fresh episodes (answered with the episodes to read them through)."""
+
+    width: int
+
+
+#: What a generator of steps yields: a :class:`Reset`, or the ``(n,)`` actions of one step.
+Request = Reset | np.ndarray
+#: A generator of steps returning a ``T``; it is sent an :class:`Episodes` after a :class:`Reset`
+#: and a :class:`StepOutcome` after actions.
+Steps = Generator[Request, Any, T]
+
+
+def drive(steps: Steps[T], episodes: Episodes) -> T:
+    """Answer every request of ``steps`` with ``episodes`` alone (``reset``, ``step``); its result."""
+    try:
+        request = next(steps)
+        while True:
+            if isinstance(request, Reset):
+                episodes.reset(request.width)
+                request = steps.send(episodes)
+            else:
+                request = steps.send(episodes.step(request))
+    except StopIteration as stop:
+        return stop.value
+
+
+def alone(steps: Callable[Concatenate[Episodes, P], Steps[T]]) -> Callable[Concatenate[Episodes, P], T]:
+    """``steps(batch, ...)``, a function making a generator of steps, as the function that drives
+    it on ``batch`` alone (:func:`drive`) and returns its result."""
+
+    @functools.wraps(steps)
+    def run(batch: Episodes, /, *args: P.args, **kwargs: P.kwargs) -> T:
+        return drive(steps(batch, *args, **kwargs), batch)
+
+    return run
+
+
+class RunRecorder:
+    """Records rows ``rows`` of a batch of episodes, decision by decision, as the
+    :class:`StrategyRun` :func:`rollout` returns: :meth:`before` each decision (and once after the
+    last), :meth:`after` each step, then :meth:`finish`. Learning records its greedy episode so
+    while it steps it next to the learning episodes (:func:`rac.learning.qlearning.learn`)."""
+
+    def __init__(self, batch: Episodes, rows: slice, n: int, width: int) -> None:
+        steps_max = batch.max_steps
+        self.batch = batch
+        self.rows = rows
+        self.j = 0
+        self.states = np.zeros((n, steps_max + 1, 8), dtype=np.int32)
+        self.observed = np.zeros((n, steps_max + 1, width), dtype=np.float64)
+        self.actions = np.full((n, steps_max), -1, dtype=np.int64)
+        self.rewards = np.zeros((n, steps_max), dtype=np.float64)
+        self.flags = {name: np.zeros(n, dtype=bool) for name in ("reached", "collided", "offroad")}
+        self.fallbacks = np.zeros(n, dtype=np.int64)
+        self.steps = np.zeros(n, dtype=np.int64)
+
+    def before(self, observed: np.ndarray) -> None:
+        """The recorded rows' state keys and ``observed`` values (every row of the batch) at decision ``j``."""
+        self.states[:, self.j] = self.batch.state_keys()[self.rows]
+        self.observed[:, self.j] = observed[self.rows]
+
+    def after(self, active: np.ndarray, empty: np.ndarray, chosen: np.ndarray, outcome: StepOutcome) -> None:
+        """One step of the batch (arrays over every row): which rows were ``active``, had an
+        ``empty`` shield mask, the actions ``chosen`` and the step's ``outcome``."""
+        j = self.j
+        live = active[self.rows]
+        self.fallbacks += empty[self.rows] & live
+        self.actions[live, j] = chosen[self.rows][live]
+        self.rewards[live, j] = np.asarray(outcome.reward)[self.rows][live]
+        for name, value in (("reached", outcome.terminated), ("collided", outcome.collided),
+                            ("offroad", outcome.offroad)):
+            self.flags[name] |= np.asarray(value, dtype=bool)[self.rows] & live
+        self.steps += live
+        self.j += 1
+
+    def finish(self) -> StrategyRun:
+        """The run: after the last recorded decision every row repeats its last state."""
+        j = self.j
+        self.states[:, j + 1:] = self.states[:, j:j + 1]
+        self.observed[:, j + 1:] = self.observed[:, j:j + 1]
+        return StrategyRun(self.states, self.observed, self.actions, self.rewards, self.rewards.sum(axis=1),
+                           self.flags["reached"], self.flags["collided"], self.flags["offroad"], self.fallbacks,
+                           self.steps, int(self.batch.decide_every), int(self.batch.horizon_samples))
+
+
+def rollout_steps(exprs: Sequence[Expression], n: int, shield: ShieldTable | None,
+                  choose: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> Steps[StrategyRun]:
+    """:func:`rollout` as a generator of steps (see the module docstring)."""
+    batch: Episodes = yield Reset(n)
+    recorder = RunRecorder(batch, slice(None), n, len(exprs))
+    while True:
+        observed = batch.observe(exprs) if exprs else np.zeros((n, 0))
+        recorder.before(observed)
+        active = ~np.asarray(batch.done, dtype=bool)
+        if recorder.j >= batch.max_steps or not active.any():
+            return recorder.finish()
+        masks, empty = allowed_actions(batch, shield)
+        chosen = np.where(active, choose(observed, masks), 0)
+        outcome: StepOutcome = yield chosen
+        recorder.after(active, empty, chosen, outcome)
+
+
+def rollout(batch: Episodes, exprs: Sequence[Expression], n: int, shield: ShieldTable | None,
+            choose: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> StrategyRun:
+    """``n`` episodes to their end; ``choose(observations, masks) -> actions`` at each decision."""
+    return drive(rollout_steps(exprs, n, shield, choose), batch)
+
+
+def _strategy_chooser(strategy: LearnedStrategy) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    return lambda observed, masks: strategy.act(observed, masks)
+
+
+def run_strategy(batch: Episodes, strategy: LearnedStrategy, *, exprs: Sequence[Expression] | None = None,
+                 shield: ShieldTable | None = None, runs: int = 1) -> StrategyRun:
+    """The run(s) of the episodes under ``strategy`` (greedy among the actions ``shield`` allows):
+    with the deterministic model and strategy all ``runs`` are the same run. ``exprs``: the
+    observed expressions (default: :meth:`LearnedStrategy.expressions`). Use
+    :meth:`StrategyRun.samples` for every sample of it (``A[] p under S``: ``p`` at each)."""
+    check_shield(batch, shield)
+    exprs = tuple(exprs) if exprs is not None else strategy.expressions()
+    return rollout(batch, exprs, runs, shield, _strategy_chooser(strategy))
+
+
+@dataclass(frozen=True)
+class StrategyEvaluation:
+    """:func:`evaluate`'s counts over ``runs`` runs; ``interval`` is the Clopper-Pearson 95%
+    interval of the success rate."""
+
+    runs: int
+    successes: int
+    reached: int
+    collided: int
+    offroad: int
+    fallbacks: int
+    mean_return: float
+    interval: tuple[float, float]
+    epsilon: float
+    seed: int | None
+
+    @property
+    def success_rate(self) -> float:
+        return self.successes / self.runs if self.runs else math.nan
+
+
+def evaluate(batch: Episodes, strategy: LearnedStrategy, *, runs: int = 100, shield: ShieldTable | None = None,
+             seed: int | None = None, epsilon: float = 0.0, exprs: Sequence[Expression] | None = None
+             ) -> StrategyEvaluation:
+    """The success rate of ``strategy`` over ``runs`` runs (success: the goal reached, never a
+    collision nor off the road).
+
+    The model and the greedy strategy are deterministic, so with ``epsilon == 0`` (default) every
+    run is the one run and the rate is 0 or 1 — the honest answer, counted once per run. With
+    ``epsilon > 0`` each decision takes, with that probability, a uniformly drawn *allowed* action
+    instead of the greedy one (seeded by ``seed``): the rate then measures how well the strategy
+    recovers from deviations, and under a shield the deviations stay safe. Action noise was
+    chosen over perturbing the start because the episodes' start is the scenario's and a shield
+    knows only the states reachable from it."""
+    check_shield(batch, shield)
+    return drive(evaluation_steps(strategy, runs=runs, shield=shield, seed=seed, epsilon=epsilon, exprs=exprs), batch)
+
+
+def evaluation_steps(strategy: LearnedStrategy, *, runs: int = 100, shield: ShieldTable | None = None,
+                     seed: int | None = None, epsilon: float = 0.0, exprs: Sequence[Expression] | None = None
+                     ) -> Steps[StrategyEvaluation]:
+    """:func:`evaluate` as a generator of steps (see the module docstring)."""
+    if not 0.0 <= epsilon <= 1.0:
+        raise ValueError(f"epsilon must lie in [0, 1], not {epsilon}")
+    from rac.engine.stats import clopper_pearson
+
+    exprs = tuple(exprs) if exprs is not None else strategy.expressions()
+    rng = np.random.default_rng(seed)
+
+    def choose(observed: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        greedy = strategy.act(observed, masks)
+        if epsilon == 0.0:
+            return greedy
+        return np.where(rng.random(len(greedy)) < epsilon, uniform_allowed(rng, masks), greedy)
+
+    run = yield from rollout_steps(exprs, runs, shield, choose)
+    successes = int(run.success.sum())
+    return StrategyEvaluation(runs, successes, int(run.reached.sum()), int(run.collided.sum()),
+                              int(run.offroad.sum()), int(run.fallbacks.sum()), float(run.returns.mean()),
+                              clopper_pearson(successes, runs), epsilon, seed)

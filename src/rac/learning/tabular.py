@@ -1,0 +1,231 @@
+"""The Q-table of :func:`rac.learning.qlearning.learn` and one batch of its episodes.
+
+:class:`QTable` maps observation keys to rows of Q-values (in the maximised sense). :class:`Learner`
+steps one batch of ``parallel`` learning episodes (epsilon-greedy choices, Watkins' updates after
+each step, the backward replay at the end) and, next to them in the same batch, the greedy episode
+that evaluates the table as it was before the batch (issue 11): that episode chooses from a
+:class:`Frozen` copy of the table, is not learned from and draws no random numbers, so it is the
+run a separate greedy episode would have had — every episode of a batch is stepped row by row —
+while the batch's cost per sample is shared. Its run is recorded as :func:`rac.learning.strategy.rollout`
+records one (:class:`rac.learning.runs.RunRecorder`). A batch is a generator of steps
+(:mod:`rac.learning.runs`): it requests its episodes and each step, so that it can share a batch
+with others (:mod:`rac.learning.lockstep`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from rac.engine.shield import ShieldTable
+from rac.ir import expr as ie
+from rac.learning.runs import Reset, RunRecorder, Steps, StrategyRun, rollout_steps
+from rac.learning.strategy import (
+    Episodes,
+    StepOutcome,
+    allowed_actions,
+    greedy_actions,
+    key_bytes,
+    observation_keys,
+    uniform_allowed,
+)
+
+__all__ = ["BatchLog", "Frozen", "Learner", "QTable", "Transition", "update"]
+
+
+@dataclass(frozen=True, eq=False)
+class Frozen:
+    """The first ``size`` rows of a :class:`QTable`'s values as they were (a copy)."""
+
+    size: int
+    values: np.ndarray
+
+
+class QTable:
+    """The growing table of learning: observation key -> row of Q-values, in the *maximised* sense
+    (``sign * value``: for ``minE`` the negated costs)."""
+
+    def __init__(self, width: int, n_actions: int) -> None:
+        self.index: dict[bytes, int] = {}
+        self.keys = np.zeros((64, width), dtype=np.float64)
+        self.values = np.zeros((64, n_actions), dtype=np.float64)
+        self.size = 0
+
+    def rows(self, keys: np.ndarray, *, create: bool) -> np.ndarray:
+        """Each key's row; a new key gets a row of zeros (``create``) or -1."""
+        out = np.empty(keys.shape[0], dtype=np.int64)
+        for i, raw in enumerate(key_bytes(keys)):
+            row = self.index.get(raw)
+            if row is None:
+                if not create:
+                    out[i] = -1
+                    continue
+                row = self._add(keys[i], raw)
+            out[i] = row
+        return out
+
+    def _add(self, key: np.ndarray, raw: bytes) -> int:
+        if self.size == self.keys.shape[0]:  # amortised doubling
+            self.keys = np.concatenate([self.keys, np.zeros_like(self.keys)])
+            self.values = np.concatenate([self.values, np.zeros_like(self.values)])
+        self.keys[self.size] = key
+        self.index[raw] = self.size
+        self.size += 1
+        return self.size - 1
+
+    def utilities(self, rows: np.ndarray) -> np.ndarray:
+        """``(n, P)``: the rows' values, zeros for unseen rows (-1)."""
+        out = self.values[np.maximum(rows, 0)]
+        out[rows < 0] = 0.0
+        return out
+
+    def freeze(self) -> Frozen:
+        """The table's values now, to choose from later (:meth:`frozen_utilities`)."""
+        return Frozen(self.size, self.values[:self.size].copy())
+
+    def frozen_utilities(self, frozen: Frozen, keys: np.ndarray) -> np.ndarray:
+        """:meth:`utilities` of ``keys`` in the table as it was when ``frozen``: a key added since is unseen."""
+        rows = self.rows(keys, create=False)
+        rows[rows >= frozen.size] = -1
+        out = frozen.values[np.maximum(rows, 0)] if frozen.size else np.zeros((rows.size, self.values.shape[1]))
+        out[rows < 0] = 0.0
+        return out
+
+
+class Transition(NamedTuple):
+    """One step of a batch: the ``active`` episodes' indices, then per episode (``(n,)`` or
+    ``(n, P)``) the table row before, the action, the reward in the maximised sense, the row and
+    allowed actions after, and whether the episode ``ends``."""
+
+    active: np.ndarray
+    rows: np.ndarray
+    actions: np.ndarray
+    reward: np.ndarray
+    next_rows: np.ndarray
+    next_masks: np.ndarray
+    ends: np.ndarray
+
+
+def update(values: np.ndarray, step: Transition, alpha: float, gamma: float) -> None:
+    """Watkins' update of every active episode's transition, in episode order (a later row sees an
+    earlier one's update). An ending episode does not bootstrap; the maximum runs over the actions
+    allowed in the next state."""
+    rows, actions = step.rows, step.actions
+    for i in step.active:
+        target = step.reward[i]
+        if not step.ends[i]:
+            target += gamma * values[step.next_rows[i]][step.next_masks[i]].max()
+        values[rows[i], actions[i]] += alpha * (target - values[rows[i], actions[i]])
+
+
+@dataclass(frozen=True, eq=False)
+class BatchLog:
+    """Per learning episode of a batch: the undiscounted ``returns``, whether it ``reached`` the goal,
+    ``collided``, went ``offroad`` (at any sample), and its ``fallbacks`` (empty shield masks)."""
+
+    returns: np.ndarray
+    reached: np.ndarray
+    collided: np.ndarray
+    offroad: np.ndarray
+    fallbacks: np.ndarray
+
+
+@dataclass
+class Learner:
+    """Batches of Q-learning on one :class:`QTable` (see the module docstring). ``exprs`` are the
+    checked observations (the first ``n_discrete`` as they are, the others binned by ``widths``),
+    ``sign`` 1 to maximise the rewards and -1 to minimise them."""
+
+    table: QTable
+    exprs: Sequence[ie.Expr]
+    n_discrete: int
+    widths: tuple[float, ...]
+    shield: ShieldTable | None
+    rng: np.random.Generator
+    sign: float
+    alpha: float
+    gamma: float
+    replay: int
+
+    def observe(self, batch: Episodes) -> np.ndarray:
+        """Every episode's observed values now."""
+        return batch.observe(self.exprs) if self.exprs else np.zeros((batch.n, 0))
+
+    def keys(self, observed: np.ndarray) -> np.ndarray:
+        return observation_keys(observed, self.n_discrete, self.widths)
+
+    def greedy_run(self) -> Steps[StrategyRun]:
+        """The greedy strategy of the table now, by its one run alone (a batch of one episode)."""
+        table = self.table
+
+        def choose(observed: np.ndarray, masks: np.ndarray) -> np.ndarray:
+            return greedy_actions(table.utilities(table.rows(self.keys(observed), create=False)), masks)
+
+        return rollout_steps(self.exprs, 1, self.shield, choose)
+
+    def run(self, n: int, eps: np.ndarray, frozen: Frozen | None) -> Steps[tuple[BatchLog, StrategyRun | None]]:
+        """One batch of ``n`` learning episodes (exploring with the probabilities ``eps``), then the
+        backward replay; with ``frozen``, also the greedy episode of that table, in the batch's last
+        row, and its run. A generator of steps (:mod:`rac.learning.runs`)."""
+        table, rng, shield = self.table, self.rng, self.shield
+        width = n + (frozen is not None)
+        batch: Episodes = yield Reset(width)
+        recorder = RunRecorder(batch, slice(n, width), 1, len(self.exprs)) if frozen is not None else None
+        observed = self.observe(batch)
+        rows = table.rows(self.keys(observed[:n]), create=True)
+        masks, empty = allowed_actions(batch, shield)
+        fallbacks = empty[:n].astype(np.int64)
+        returns = np.zeros(n)
+        reached, collided, offroad = (np.zeros(n, dtype=bool) for _ in range(3))
+        steps: list[Transition] = []  # this batch's transitions, for the backward replay
+        recording = recorder is not None
+        for _ in range(batch.max_steps):
+            active = ~np.asarray(batch.done, dtype=bool)
+            if recorder is not None and recording:
+                recorder.before(observed)
+                recording = bool(active[n])
+            if not active.any():
+                break
+            learning = active[:n]
+            actions = np.zeros(width, dtype=np.int64)
+            if learning.any():  # the random numbers are the learning episodes' only
+                explore = rng.random(n) < eps
+                random_actions = uniform_allowed(rng, masks[:n])
+                chosen = np.where(explore, random_actions, greedy_actions(table.utilities(rows), masks[:n]))
+                actions[:n] = np.where(learning, chosen, 0)
+            if frozen is not None and active[n]:
+                greedy = table.frozen_utilities(frozen, self.keys(observed[n:]))
+                actions[n] = greedy_actions(greedy, masks[n:])[0]
+            outcome: StepOutcome = yield actions
+            if recorder is not None and active[n]:
+                recorder.after(active, empty, actions, outcome)
+            observed = self.observe(batch)
+            next_masks, next_empty = allowed_actions(batch, shield)
+            if learning.any():
+                reward = np.asarray(outcome.reward, dtype=np.float64)[:n]
+                ends = (np.asarray(outcome.terminated, dtype=bool) | np.asarray(outcome.truncated, dtype=bool))[:n]
+                next_rows = table.rows(self.keys(observed[:n]), create=True)
+                step = Transition(np.flatnonzero(learning), rows, actions[:n], self.sign * reward, next_rows,
+                                  next_masks[:n], ends)
+                update(table.values, step, self.alpha, self.gamma)
+                steps.append(step)
+                returns[learning] += reward[learning]
+                reached |= np.asarray(outcome.terminated, dtype=bool)[:n] & learning
+                collided |= np.asarray(outcome.collided, dtype=bool)[:n] & learning
+                offroad |= np.asarray(outcome.offroad, dtype=bool)[:n] & learning
+                fallbacks += next_empty[:n] & learning & ~ends  # only a continuing episode decides there
+                rows = next_rows
+            masks, empty = next_masks, next_empty
+        else:
+            if recorder is not None and recording:
+                recorder.before(observed)  # the state after the last decision
+        # Backward replay: the batch's transitions again, last step first, so a reward at the end
+        # of an episode reaches its first decision in one sweep instead of one step per visit.
+        for _ in range(self.replay):
+            for step in reversed(steps):
+                update(table.values, step, self.alpha, self.gamma)
+        log = BatchLog(returns, reached, collided, offroad, fallbacks)
+        return log, recorder.finish() if recorder is not None else None

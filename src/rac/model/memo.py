@@ -1,0 +1,128 @@
+"""Values computed once per key and kept: the trigonometry and trajectories of the vectorised model.
+
+:class:`KeyedRows` maps int64 keys to rows of doubles that are a pure function of the key (the
+cos/sin of a heading significand, the 1/G sub-steps of a (head, turn) pair, ...): a row is computed
+the first time its key is asked for and then looked up (a sorted key array and
+``np.searchsorted``, no Python loop over the rows). :mod:`rac.model.batch` uses it so that a
+sample of many episodes costs a few array operations instead of one ``math.cos`` per heading and
+sub-step. A row is the same doubles whenever it is computed (every computation is row by row), so
+keeping it changes no result.
+
+:func:`cos_sin` is ``math.cos``/``math.sin`` (the C library's, which the emitted C calls) over an
+array, each distinct value once; numpy's own ``np.cos``/``np.sin`` may differ in the last bit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+__all__ = ["KeyedRows", "cos_sin", "distinct_values"]
+
+#: A :class:`KeyedRows` keeps at most about this many doubles (16 MiB), then starts afresh.
+MEMO_DOUBLES = 1 << 21
+
+
+def cos_sin(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``math.cos`` and ``math.sin`` of every element (the shape of ``angles``), called once per
+    distinct bit pattern."""
+    flat = np.ascontiguousarray(angles, dtype=np.float64).reshape(-1)
+    bits, inverse = np.unique(flat.view(np.int64), return_inverse=True)
+    values = bits.view(np.float64).tolist()
+    cos = np.array([math.cos(t) for t in values], dtype=np.float64)
+    sin = np.array([math.sin(t) for t in values], dtype=np.float64)
+    inverse = inverse.reshape(np.shape(angles))
+    return cos[inverse], sin[inverse]
+
+
+#: :func:`distinct_values` marks values in a table instead of sorting them while they span at most this
+#: many integers (or four times the number of values, when that is more).
+_DENSE_SPAN = 1 << 16
+
+
+def distinct_values(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(values, return_inverse=True)`` of a 1-d integer array (int64 results).
+
+    When the values span few integers this marks them in a table instead of sorting (linear
+    time); the result is the same: the distinct values ascending, and each element's index
+    among them."""
+    values = np.asarray(values, dtype=np.int64).reshape(-1)
+    if values.size == 0:
+        return values.copy(), np.zeros(0, dtype=np.int64)
+    low = int(values.min())
+    span = int(values.max()) - low + 1
+    if span > max(_DENSE_SPAN, 4 * values.size):
+        distinct, inverse = np.unique(values, return_inverse=True)
+        return distinct, inverse.reshape(-1).astype(np.int64, copy=False)
+    offset = values - low
+    present = np.zeros(span, dtype=bool)
+    present[offset] = True
+    distinct = np.flatnonzero(present)
+    rank = np.cumsum(present, dtype=np.int64)
+    rank -= 1
+    return distinct + low, rank[offset]
+
+
+class KeyedRows:
+    """``rows(keys)``: the ``(len(keys), width)`` rows of int64 keys, ``compute(distinct_keys)`` once
+    per key (``compute`` must be a pure function of each key, row by row). The rows are stored in
+    the order they were computed (in an array that doubles when full) and found through the sorted
+    keys, so a new key costs its own row, not a copy of the table. At most about
+    :data:`MEMO_DOUBLES` doubles are kept; beyond, the table starts afresh (only the time changes)."""
+
+    def __init__(self, width: int, compute: Callable[[np.ndarray], np.ndarray], limit: int = MEMO_DOUBLES) -> None:
+        self.width = width
+        self.compute = compute
+        self.max_rows = max(1024, limit // max(1, width))
+        self.keys = np.zeros(0, dtype=np.int64)  # sorted
+        self.slots = np.zeros(0, dtype=np.int64)  # each sorted key's row in self.rows
+        self.rows = np.zeros((64, width), dtype=np.float64)
+
+    def __len__(self) -> int:
+        return int(self.keys.size)
+
+    def table(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rows of the distinct ``keys`` (ascending) and each key's index among them: for many
+        keys with few distinct ones, cheaper than :meth:`__call__` (one lookup per distinct key)."""
+        distinct, inverse = distinct_values(keys)
+        return self(distinct), inverse
+
+    def __call__(self, keys: np.ndarray) -> np.ndarray:
+        keys = np.asarray(keys, dtype=np.int64)
+        position, found = self._find(keys)
+        if not found.all():
+            fresh = np.unique(keys[~found])
+            rows = np.asarray(self.compute(fresh), dtype=np.float64).reshape(fresh.size, self.width)
+            if self.keys.size + fresh.size > self.max_rows:  # start afresh, with the rows asked for now
+                kept = np.unique(position[found])
+                fresh = np.concatenate([self.keys[kept], fresh])
+                rows = np.concatenate([self.rows[self.slots[kept]], rows])
+                order = np.argsort(fresh)
+                fresh, rows = fresh[order], rows[order]
+                self.keys, self.slots = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+            self._add(fresh, rows)
+            position, found = self._find(keys)
+        return self.rows[self.slots[position]]
+
+    def _find(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each key's index in the sorted keys (clipped into them) and whether the key is there."""
+        if self.keys.size == 0:
+            return np.zeros(keys.shape, dtype=np.int64), np.zeros(keys.shape, dtype=bool)
+        position = np.searchsorted(self.keys, keys)
+        np.minimum(position, self.keys.size - 1, out=position)
+        return position, self.keys[position] == keys
+
+    def _add(self, keys: np.ndarray, rows: np.ndarray) -> None:
+        """Distinct ascending ``keys``, none in the table yet, and their rows."""
+        count = self.keys.size
+        need = count + keys.size
+        if need > self.rows.shape[0]:
+            grown = np.zeros((max(2 * self.rows.shape[0], need), self.width))
+            grown[:count] = self.rows[:count]
+            self.rows = grown
+        self.rows[count:need] = rows
+        where = np.searchsorted(self.keys, keys)
+        self.keys = np.insert(self.keys, where, keys)
+        self.slots = np.insert(self.slots, where, np.arange(count, need))

@@ -1,0 +1,127 @@
+"""What the vectorised model keeps between calls (issue 11) changes no value: rac.model.memo and the
+kept trigonometry, sub-step trajectories and obstacle discs of rac.model.batch, bit for bit against
+rac.model.native; and one run of the ground truth integrated on scalars as in a batch."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_explore import datasets, random_states
+
+from rac.engine.evaluate import Evaluator, Frame
+from rac.engine.simulate import Limits, integrate_one, integrate_truth
+from rac.ir import expr as ie
+from rac.model import ModelData, NativeModel, State
+from rac.model.batch import BatchModel
+from rac.model.memo import KeyedRows, cos_sin
+
+DATASETS = datasets()
+
+
+def bits(values: np.ndarray | list[float]) -> list[int]:
+    """The doubles' bit patterns, flattened (equal lists: equal bit for bit)."""
+    return np.ascontiguousarray(values, dtype=np.float64).reshape(-1).view(np.int64).tolist()
+
+
+def test_cos_sin_is_the_c_librarys() -> None:
+    rng = np.random.default_rng(1)
+    angles = np.concatenate([rng.uniform(-20, 20, 500), [0.0, -0.0, math.pi, 1e-300], rng.uniform(-20, 20, 6)])
+    angles = np.concatenate([angles, angles[:50]])  # repeated values too
+    cos, sin = cos_sin(angles.reshape(2, -1))
+    assert cos.shape == (2, angles.size // 2)
+    assert bits(cos) == bits([math.cos(a) for a in angles]) and bits(sin) == bits([math.sin(a) for a in angles])
+
+
+@pytest.mark.parametrize("name, data", DATASETS, ids=lambda value: value if isinstance(value, str) else "")
+def test_kept_headings_are_the_c_librarys(name: str, data: ModelData) -> None:
+    model = BatchModel(data)
+    heads = np.random.default_rng(2).integers(-7 * data.scale, 7 * data.scale, 400)
+    for _ in range(2):  # computed, then kept
+        cos, sin = model.cos_sin(heads)
+        assert bits(cos) == bits([math.cos(h / float(data.scale)) for h in heads.tolist()])
+        assert bits(sin) == bits([math.sin(h / float(data.scale)) for h in heads.tolist()])
+
+
+def test_keyed_rows_compute_each_key_once_and_start_afresh_when_full() -> None:
+    computed: list[int] = []
+
+    def compute(keys: np.ndarray) -> np.ndarray:
+        computed.extend(keys.tolist())
+        return np.stack([keys * 0.5, -keys.astype(np.float64)], axis=1)
+
+    rows = KeyedRows(2, compute, limit=2 * 1024)  # 1024 rows at most
+    keys = np.array([5, -3, 5, 2**40, -(2**62)], dtype=np.int64)
+    assert rows(keys).tolist() == [[k * 0.5, -float(k)] for k in keys.tolist()]
+    assert sorted(computed) == sorted(set(keys.tolist())) and len(rows) == 4
+    assert rows(keys[::-1]).tolist() == [[k * 0.5, -float(k)] for k in keys[::-1].tolist()]
+    assert len(computed) == 4  # nothing computed twice
+    many = np.arange(3000, dtype=np.int64)
+    for start in range(0, 3000, 700):  # past the limit: the table starts afresh, the answers stay
+        part = np.concatenate([many[start:start + 700], keys])
+        assert rows(part).tolist() == [[k * 0.5, -float(k)] for k in part.tolist()]
+        assert len(rows) <= 1024 + 700
+
+
+@pytest.mark.parametrize("name, data", DATASETS, ids=lambda value: value if isinstance(value, str) else "")
+def test_sense_and_mindist_stay_native_as_states_come_in_small_batches(name: str, data: ModelData) -> None:
+    """New keys a few at a time (computed on Python floats), many at once (on arrays), kept ones,
+    and a table that starts afresh: always the native values."""
+    model = BatchModel(data)
+    model._speeds.max_rows = model._headings.max_rows = 1024  # restarts too
+    native = NativeModel(data)
+    states, k = random_states(data, 2400, seed=len(name) + 10)
+    for size in (1, 3, 8, 9, 400, 1, 1500):
+        for _ in range(2):
+            part, ks = states[:size], k[:size]
+            sensed = model.sense(part)
+            assert sensed.tolist() == [list(native.sense(State(*map(int, row)))) for row in part]
+            expected = [native.mindist(State(*map(int, row)), int(j)) for row, j in zip(part, ks)]
+            assert bits(model.mindist(part, ks)) == bits(expected)
+            same = np.full(size, ks[0])  # one sample for every row, as an array
+            assert bits(model.mindist(part, same)) == bits([native.mindist(State(*map(int, row)), int(ks[0]))
+                                                            for row in part])
+        states, k = np.roll(states, -size, axis=0), np.roll(k, -size)
+
+
+def test_the_speed_rows_on_python_floats_are_the_array_rows() -> None:
+    data = DATASETS[0][1]
+    model = BatchModel(data)
+    rng = np.random.default_rng(3)
+    triple = np.stack([rng.integers(data.min_speed - 50, data.max_speed + 50, 300),
+                       rng.integers(-data.max_acc - 50, data.max_acc + 50, 300),
+                       rng.choice(np.asarray(data.action("jerk").values), 300)], axis=1)
+    arrays = model._speed_rows(None, triple)  # 300 rows: numpy's path
+    scalars = np.array([model._speed_row(*row) for row in triple.tolist()])
+    assert bits(arrays) == bits(scalars)
+
+
+def test_collide_is_mindist_below_the_distance_once_per_frame() -> None:
+    data = DATASETS[1][1]
+    states, k = random_states(data, 500, seed=4)
+    evaluator = Evaluator(data)
+    frame = Frame(k=k, ego=states)
+    collide = evaluator.evaluate(ie.call("collide"), frame)
+    native = NativeModel(data)
+    assert collide.tolist() == [native.collide(State(*map(int, row)), int(j)) for row, j in zip(states, k)]
+    assert collide.any() and not collide.all()
+    assert set(frame._cache) == {"collide", "mindist"}  # collide() read the frame's mindist()
+
+
+def test_one_run_of_the_truth_is_integrated_as_in_a_batch() -> None:
+    data = DATASETS[3][1]
+    limits = Limits.of(data)
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        truth = np.array([[rng.uniform(-50, 50)], [rng.uniform(-50, 50)],
+                          [rng.choice([0.0, limits.max_speed, rng.uniform(0, limits.max_speed)])],
+                          [rng.choice([limits.max_acc, -limits.max_acc, rng.uniform(-limits.max_acc, limits.max_acc)])],
+                          [rng.uniform(-4, 4)]])
+        jerk, turn = float(rng.choice([-2.0, 0.0, 2.0])), float(rng.choice([-0.4, 0.0, 0.4]))
+        alone = integrate_one(truth, jerk, turn, data.period, 7, limits)
+        # the same run twice side by side takes the arrays' path
+        batch = integrate_truth(np.repeat(truth, 2, axis=1), np.array([jerk, jerk]), np.array([turn, turn]),
+                                data.period, 7, limits)
+        assert bits(alone[:, 0]) == bits(batch[:, 0]) == bits(batch[:, 1])
+        assert bits(integrate_truth(truth, np.array([jerk]), np.array([turn]), data.period, 7, limits)) == bits(alone)
