@@ -130,9 +130,10 @@ class Budget:
             raise BudgetExceeded(what=self.what, kind="states", limit=self.max_states, states=states,
                                  sample=sample, seconds=self.seconds(sample))
 
-    def check_bytes(self, graph_bytes: int, states: int, sample: int) -> None:
-        """:class:`BudgetExceeded` when deciding on a graph of ``graph_bytes`` would exceed :attr:`max_bytes`."""
-        needed = graph_bytes * PEAK_FACTOR
+    def check_bytes(self, graph_bytes: int, states: int, sample: int, working_bytes: int = 0) -> None:
+        """:class:`BudgetExceeded` when deciding on a graph of ``graph_bytes`` would exceed :attr:`max_bytes`,
+        or exploring it would with ``working_bytes`` more of temporary arrays."""
+        needed = max(graph_bytes * PEAK_FACTOR, graph_bytes + working_bytes)
         if self.max_bytes is not None and needed > self.max_bytes:
             raise BudgetExceeded(what=self.what, kind="memory", limit=self.max_bytes, states=states,
                                  sample=sample, seconds=self.seconds(sample), needed_bytes=needed)
