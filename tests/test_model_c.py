@@ -174,11 +174,9 @@ EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "left_turn" / "l
 
 
 @needs_cc
-@pytest.mark.skipif(not EXAMPLE.exists(), reason=f"{EXAMPLE} is not in this checkout")
 def test_c_agrees_with_native_on_a_commonroad_scenario(tmp_path):
-    load_scenario = pytest.importorskip("rac.model.commonroad").__dict__.get("load_scenario")
-    if load_scenario is None:
-        pytest.skip("rac.model.commonroad.load_scenario is not available")
+    from rac.model.commonroad import load_scenario
+
     data = build_model_data(load_scenario(EXAMPLE), make_spec(3, max_speed=F(15)))
     model = NativeModel(data)
     binary = compile_model(data, tmp_path)

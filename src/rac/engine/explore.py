@@ -212,7 +212,6 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
             # Before anything is allocated: the graph with this layer's choices and, at most, one new
             # state per choice must leave room to decide a query on it.
             choices += sources.shape[0] * per_state
-            budget.check_bytes(_graph_bytes(total, choices), total, k)
             budget.check_bytes(_graph_bytes(total + sources.shape[0] * per_state, choices), total, k + 1,
                                min(sources.shape[0] * per_state, CHUNK_ROWS) * CHUNK_BYTES_PER_ROW)
             action = (np.tile(np.arange(n_pairs, dtype=np.int64), sources.shape[0]) if decide

@@ -50,6 +50,21 @@ class ExploredGraph:
         """(n,) bool: states without choices."""
         return np.diff(self.choice_offsets) == 0
 
+    def reachable(self) -> np.ndarray:
+        """The states reachable from the initial one through the graph's choices (a restricted graph
+        keeps every explored state, also those its choices no longer reach)."""
+        seen = np.zeros(self.n_states, dtype=bool)
+        frontier = np.array([self.initial], dtype=np.int64)
+        seen[frontier] = True
+        while frontier.size:
+            starts, ends = self.choice_offsets[frontier], self.choice_offsets[frontier + 1]
+            counts = ends - starts
+            index = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
+            targets = np.unique(self.choice_target[index])
+            frontier = targets[~seen[targets]]
+            seen[frontier] = True
+        return seen
+
     def validate(self) -> None:
         """Raise ValueError when the arrays do not describe a graph (cheap; call in tests)."""
         n = self.n_states

@@ -161,9 +161,8 @@ def safe_reach(pruned: ExploredGraph, target: np.ndarray, safe_label: str = "saf
     if not until.holds:
         return SafeReach(until, False)
     values, _ = check_formula(to_mdp(pruned), f'Pmax=? [G "{safe_label}"]')
-    staying = target & (values > 0.5)
-    return SafeReach(until, decide(dataclasses.replace(pruned, labels={**pruned.labels, "target": staying}),
-                                   "E<>", "target").holds)
+    # on the pruned graph every reachable state is reached through safe states only
+    return SafeReach(until, bool(np.any(target & (values > 0.5) & pruned.reachable())))
 
 
 def decide(graph: ExploredGraph, kind: str, prop_label: str) -> Verdict:

@@ -8,6 +8,7 @@ target gives the operator table and prints the comparisons of numeric inputs.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 
 from rac import ir
@@ -39,7 +40,7 @@ def _to_ast(expr: ie.Expr) -> ast.Expr:
     return ast.Binary(expr.op, _to_ast(expr.left), _to_ast(expr.right))
 
 
-class GuardPrinter(Printer):
+class GuardPrinter(Printer, ABC):
     """Prints guards with the table of a subclass (keys ``"!"``, ``"&&"``, ``"||"``); ``names`` maps
     each input to the target's expression holding it. A subclass prints :class:`rac.ir.BAtom`."""
 
@@ -52,8 +53,9 @@ class GuardPrinter(Printer):
     def print_BInput(self, guard: ir.BInput) -> Printed:
         return Printed(self.names[guard.name], Level.ATOM)
 
+    @abstractmethod
     def print_BAtom(self, guard: ir.BAtom) -> Printed:
-        raise NotImplementedError("a target prints the comparisons of its numeric inputs")
+        """A comparison of a numeric input, as the target prints it."""
 
     def print_BNot(self, guard: ir.BNot) -> Printed:
         return self.prefix("!", self.print(guard.operand))

@@ -100,7 +100,7 @@ class SymbolicAnswerer:
         # p --> q fails exactly when a reachable p-state has a run avoiding q forever (E[] !q there).
         mdp = storm.to_mdp(dataclasses.replace(graph, labels={"notq": ~q}))
         values, _ = storm.check_formula(mdp, 'Pmax=? [G "notq"]')
-        holds = not bool(np.any(p & (values > 0.5) & _reachable(graph)))
+        holds = not bool(np.any(p & (values > 0.5) & graph.reachable()))
         return dataclasses.replace(base, status="satisfied" if holds else "not satisfied", states=graph.n_states,
                                    horizon_samples=ctx.horizon_samples)
 
@@ -194,22 +194,6 @@ def _implies_safe(expr: ie.Expr) -> bool:
 
     walk(expr)
     return {"collide", "offroad"} <= found
-
-
-def _reachable(graph: ExploredGraph) -> np.ndarray:
-    """The states reachable from the initial one through the graph's choices (a restricted graph
-    keeps every explored state, also those its choices no longer reach)."""
-    seen = np.zeros(graph.n_states, dtype=bool)
-    frontier = np.array([graph.initial], dtype=np.int64)
-    seen[frontier] = True
-    while frontier.size:
-        starts, ends = graph.choice_offsets[frontier], graph.choice_offsets[frontier + 1]
-        counts = ends - starts
-        index = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
-        targets = np.unique(graph.choice_target[index])
-        frontier = targets[~seen[targets]]
-        seen[frontier] = True
-    return seen
 
 
 def _restricted(computed: storm.Shield) -> ExploredGraph:
