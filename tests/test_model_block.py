@@ -22,7 +22,7 @@ from rac import ir
 from rac.check.queries import MODEL_FUNCTIONS as QUERY_MODEL_FUNCTIONS
 from rac.compiler import compile_file, compile_text
 from rac.ir import expr as ie
-from rac.ir.vocabulary import ACTIONS, BINDING_MATH, MODEL_FUNCTIONS, SETTINGS
+from rac.ir.vocabulary import ACTIONS, BINDING_MATH, MODEL_FUNCTIONS, MODELLING, SETTINGS, WORD_SETTINGS
 from rac.lang import ast
 from rac.lang.format import format_module, format_source
 from rac.lang.parser import ParseFailure, parse_text
@@ -238,7 +238,7 @@ def test_syntax_errors(text: str, message: str) -> None:
 def test_syntax_error_in_the_block_lists_its_items() -> None:
     with pytest.raises(ParseFailure) as failure:
         parse_text("automaton M { model { 3 } }")
-    assert failure.value.diagnostic.notes[0].message == "expected `action`, `bind`, `scenario`, `}` or a name"
+    assert failure.value.diagnostic.notes[0].message == "expected `action`, `allow`, `bind`, `scenario`, `}` or a name"
 
 
 # ---------------------------------------------------------------- the IR
@@ -279,7 +279,9 @@ def test_defaults() -> None:
 def test_settings_table_matches_the_contract() -> None:
     fields = set(ir.ModelSpec.__dataclass_fields__)
     assert set(SETTINGS) <= fields
-    assert fields - set(SETTINGS) == {"scenario", "scenario_path", "actions", "bindings", "span"}
+    # the modelling choices are settings too, but not values an expression reads
+    assert fields - set(SETTINGS) == {"scenario", "scenario_path", "actions", "bindings", "span", "allow",
+                                      *MODELLING, *WORD_SETTINGS}
     assert set(QUERY_MODEL_FUNCTIONS) == set(MODEL_FUNCTIONS)
     assert not set(MODEL_FUNCTIONS) & set(BINDING_MATH)
 

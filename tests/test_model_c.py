@@ -14,6 +14,7 @@ import math
 import random
 import shutil
 import subprocess
+from dataclasses import replace
 from fractions import Fraction as F
 from pathlib import Path
 
@@ -65,6 +66,11 @@ CASES = [
     ("crossing", crossing_scenario, make_spec(4, granularity=F(1, 5), decide=F(3, 10))),
     ("goal", goal_scenario, make_spec(2, granularity=F(1, 4), sense=F(1, 5), decide=F(2, 5))),
     ("goal-coarse", goal_scenario, make_spec(1, min_speed=F(-2), max_speed=F(15))),
+    # the modelling choices: integer increments (each sub-step adds truncated increments) and a
+    # start whose off-road state is not checked
+    ("straight-increments", straight_scenario, replace(make_spec(3), dynamics="increments", offroad_from=3)),
+    ("crossing-increments", crossing_scenario,
+     replace(make_spec(2, granularity=F(1, 2), decide=F(3, 10)), dynamics="increments")),
 ]
 
 
@@ -83,7 +89,7 @@ def python_line(model: NativeModel, state: State, k: int) -> str:
     md = model.mindist(state, k)
     dg = model.dist_goal(state)
     scale = model.scale_d
-    parts = [str(int(model.collide(state, k))), str(int(model.offroad(state))), str(int(model.goal(state, k))),
+    parts = [str(int(model.collide(state, k))), str(int(model.offroad(state, k))), str(int(model.goal(state, k))),
              repr(md), repr(dg), str(int(md * scale)), str(int(dg * scale))]
     for i in range(model.data.obstacle_count):
         position = model.obstacle_position(i, k)

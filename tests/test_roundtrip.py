@@ -158,11 +158,13 @@ members = st.one_of(
 )
 # The model block: settings under any name (the resolver, not the grammar, knows the real ones),
 # scenario paths with characters that look like comments.
-setting_names = st.sampled_from([*NAME_POOL, "base", "exponent", "sense_period", "granularity", "max_turn"])
+setting_names = st.sampled_from([*NAME_POOL, "base", "exponent", "sense_period", "granularity", "max_turn",
+                                 "dynamics", "start_x", "offroad_from"])
 model_items = st.one_of(
     st.builds(ast.ModelScenario, st.text(alphabet="ab_./*-:\\", max_size=12)),
     st.builds(ast.ModelAction, idents, small_exprs, small_exprs, small_exprs),
     st.builds(ast.ModelBinding, idents, exprs),
+    st.builds(ast.ModelAllow, exprs),
     st.builds(ast.ModelSetting, setting_names.map(ast.Ident), exprs),
 )
 members = st.one_of(members, st.builds(ast.ModelDecl, tuples(model_items, 0, 6)))

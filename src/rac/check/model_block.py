@@ -13,7 +13,10 @@ diagnostic with a span:
   significands), E0707 an action other than ``jerk`` and ``turn``;
 * E0708 a binding for something that is not an input, E0709 an input without a binding,
   E0710 a binding whose type differs from its input's, E0711 an unknown model function (or a
-  known one with the wrong arguments);
+  known one with the wrong arguments); E0717 an ``allow when`` that is not a condition or reads
+  ``prev``;
+* the modelling choices (:data:`MODELLING`, :data:`WORD_SETTINGS`): ``start_*``, ``offroad_from``,
+  ``dynamics`` (a word, E0702 for another), and ``allow when`` (:attr:`rac.ir.ModelSpec.allow`);
 * the generic codes where they fit: E0102 an item written twice, E0105 no ``scenario``, E0106
   a second ``model`` block, E0101/E0103/E0201 for names and types inside bindings.
 
@@ -32,7 +35,8 @@ from rac.check.queries import Lowering, model_settings_of, type_word
 from rac.check.symbols import ModelContext, Unresolvable
 from rac.core.diagnostics import Note, short_number
 from rac.core.source import Span
-from rac.ir.vocabulary import ACTIONS, NO_PLANNING_PROBLEM, SETTINGS, Setting
+from rac.ir import expr as ie
+from rac.ir.vocabulary import ACTIONS, MODELLING, NO_PLANNING_PROBLEM, SETTINGS, WORD_SETTINGS, Setting
 from rac.lang import ast
 
 __all__ = ["allowed", "resolve_model"]
@@ -68,6 +72,8 @@ class _ModelResolver:
         self.ok = True
         #: Settings whose written value was rejected: checks that compare them are skipped.
         self.rejected: set[str] = set()
+        #: The word-valued settings as written (:data:`WORD_SETTINGS`).
+        self.words: dict[str, str] = {}
 
     def error(self, code: str, message: str, span: Span | None, **kw) -> None:
         self.ok = False
@@ -86,6 +92,7 @@ class _ModelResolver:
         values = self._settings()
         actions = self._actions(values)
         bindings = self._bindings(values)
+        allow = self._allow()
         if not self.ok or scenario is None:
             return None
         folder = os.path.dirname(scenario.span.file) if scenario.span is not None else ""
@@ -111,6 +118,13 @@ class _ModelResolver:
             bindings=bindings,
             sensor_error=v["sensor_error"],
             planning_problem=int(v["planning_problem"]),
+            dynamics=self.words.get("dynamics", WORD_SETTINGS["dynamics"][0]),
+            start_x=v.get("start_x"),
+            start_y=v.get("start_y"),
+            start_heading=v.get("start_heading"),
+            start_speed=v.get("start_speed"),
+            offroad_from=int(v["offroad_from"]),
+            allow=allow,
             span=self.block.span,
         )
 
@@ -139,14 +153,17 @@ class _ModelResolver:
         values: dict[str, _Value] = {}
         for item in self.block.of(ast.ModelSetting):
             name = item.name.name
-            setting = SETTINGS.get(name)
-            if setting is None:
+            setting = SETTINGS.get(name) or MODELLING.get(name)
+            if setting is None and name not in WORD_SETTINGS:
                 self._unknown_setting(item)
                 continue
             if name in written:
                 self._twice(f"`{name}`", item.name.span, written[name].name.span)
                 continue
             written[name] = item
+            if setting is None:
+                self._word(item)
+                continue
             value = self.constant(item.value, f"the value of `{name}`")
             if value is None:
                 self.rejected.add(name)
@@ -167,10 +184,48 @@ class _ModelResolver:
             self._check_speeds(values)
         return values
 
+    def _word(self, item: ast.ModelSetting) -> None:
+        """A setting whose value is one of a few words (:data:`WORD_SETTINGS`), e.g. ``dynamics increments``."""
+        name = item.name.name
+        words = WORD_SETTINGS[name]
+        value = item.value
+        if isinstance(value, ast.Name) and value.id in words:
+            self.words[name] = value.id
+            return
+        self.rejected.add(name)
+        choices = " or ".join(f"`{name} {w}`" for w in words)
+        self.error("E0702", f"`{name}` must be one of the words {', '.join(f'`{w}`' for w in words)}",
+                   value.span, hints=[f"write {choices}; the default is `{name} {words[0]}`"])
+
+    def _allow(self) -> ir.Expr | None:
+        """``allow when e``: a condition over the model's vocabulary, read one sense period ahead."""
+        items = self.block.of(ast.ModelAllow)
+        for extra in items[1:]:
+            self._twice("`allow when`", extra.span, items[0].span, "written")
+        if not items:
+            return None
+        item = items[0]
+        lowering = Lowering(self.r.scope, binding=True)
+        got, expr = lowering.typed(item.expr)
+        if lowering.failed:
+            self.ok = False
+            return None
+        if got is not None and got != "bool":
+            self.error("E0717", f"`allow when` needs a condition, but this is {type_word(got)}", item.expr.span,
+                       hints=["compare a value, e.g. `allow when fabs(head) <= 0.2 && !offroad()`"])
+            return None
+        if expr is not None and ie.prev_operands([expr]):
+            self.error("E0717", "`allow when` cannot read `prev(...)`: the rule is checked on the state each "
+                       "action would lead to, before the model takes that sample (it keeps `prev` only "
+                       "while reading the inputs)", item.expr.span,
+                       hints=["compare the next state's values with constants, e.g. `fabs(head) <= 0.2`"])
+            return None
+        return expr
+
     def _unknown_setting(self, item: ast.ModelSetting) -> None:
         name = item.name.name
         hints = []
-        close = difflib.get_close_matches(name, list(SETTINGS), n=1)
+        close = difflib.get_close_matches(name, [*SETTINGS, *MODELLING, *WORD_SETTINGS], n=1)
         if name in ACTIONS:
             low, high, step, _ = ACTIONS[name]
             hints.append(f"an action is declared with its range: `action {name} in [{_num(low)}, {_num(high)}] "
@@ -180,15 +235,19 @@ class _ModelResolver:
         elif close:
             hints.append(f"did you mean `{close[0]}`?")
         else:
-            hints.append("the settings are " + ", ".join(f"`{s}`" for s in SETTINGS))
+            hints.append("the settings are " + ", ".join(f"`{s}`" for s in (*SETTINGS, *MODELLING, *WORD_SETTINGS)))
         self.error("E0701", f"unknown setting `{name}` in the `model` block", item.name.span, hints=hints)
 
     def _defaults(self, values: dict[str, _Value]) -> dict[str, _Value]:
         """Every setting: the written ones, else their defaults (derived ones from the timing;
         ``planning_problem`` :data:`NO_PLANNING_PROBLEM`, none chosen)."""
         result = dict(values)
-        for name, setting in SETTINGS.items():
+        for name, setting in (*SETTINGS.items(), *MODELLING.items()):
             if name in result:
+                continue
+            if name in MODELLING:  # absent: the scenario's value, or the default
+                if setting.default is not None:
+                    result[name] = _Value(setting.default, None)
                 continue
             if setting.default is not None:
                 result[name] = _Value(setting.default, None)
@@ -370,7 +429,7 @@ def resolve_model(r: ModelContext, inputs: tuple[ir.Input, ...], period: Fractio
     resolver = _ModelResolver(r, blocks[0], inputs, period)
     spec = resolver.run()
     for item in blocks[0].of(ast.ModelSetting):  # where each setting is written (the scenario's checks point there)
-        if item.name.name in SETTINGS and item.span is not None:
+        if (item.name.name in SETTINGS or item.name.name in MODELLING) and item.span is not None:
             r.spans.setdefault(f"model:{item.name.name}", item.span)
     for scenario in blocks[0].of(ast.ModelScenario)[:1]:
         if scenario.span is not None:

@@ -179,7 +179,7 @@ class Evaluator:
                 frame._cache[name] = {
                     # collide() is mindist() < TD: one mindist per frame for both
                     "collide": lambda: self._call(_MINDIST, frame) < model.native.td_d,
-                    "offroad": lambda: model.offroad(frame.ego),
+                    "offroad": lambda: model.offroad(frame.ego, frame.k),
                     "goal": lambda: model.goal(frame.ego, frame.k),
                     "mindist": lambda: model.mindist(frame.ego, frame.k),
                     "dist_goal": lambda: model.dist_goal(frame.ego),

@@ -18,6 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from rac.core.numbers import INT32_MAX
+from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.budget import (
     GRAPH_BYTES_PER_CHOICE,
     GRAPH_BYTES_PER_STATE,
@@ -89,9 +90,11 @@ def _graph_bytes(states: int, choices: int) -> int:
 
 
 def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
-            check: Callable[[int], None]) -> tuple[np.ndarray, np.ndarray]:
+            check: Callable[[int], None],
+            keep: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The distinct successors of ``sources`` (one per (jerk, turn) pair of ``pairs``, or one with
-    their own actions when ``pairs`` is None) in lexicographic order, and each choice's successor.
+    their own actions when ``pairs`` is None) in lexicographic order, each kept choice's successor,
+    and which choices are kept (``keep(successors)``: the ``allow when`` rule; None keeps all).
 
     Successors are computed :data:`CHUNK_ROWS` at a time and merged as they come, so the memory
     beyond the result stays bounded; ``check(distinct)`` is called with the distinct successors
@@ -100,6 +103,7 @@ def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
     step = max(1, CHUNK_ROWS // per)
     parts: list[np.ndarray] = []  # distinct rows, merged or per chunk
     inverses: list[np.ndarray] = []  # per chunk: each choice's row in the concatenation of parts
+    kept: list[np.ndarray] = []
     merged_rows = pending = 0
     for start in range(0, sources.shape[0], step):
         block = sources[start:start + step]
@@ -108,7 +112,14 @@ def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
         else:
             chosen = np.repeat(block, per, axis=0)
             chosen[:, 5:7] = np.tile(pairs, (block.shape[0], 1))
-        rows, inverse = _unique_rows(model.sense(chosen))
+        successors = model.sense(chosen)
+        if keep is not None:
+            allowed = keep(successors)
+            kept.append(allowed)
+            successors = successors[allowed]
+        else:
+            kept.append(np.ones(chosen.shape[0], dtype=bool))
+        rows, inverse = _unique_rows(successors)
         inverses.append(inverse + merged_rows + pending)
         parts.append(rows)
         pending += rows.shape[0]
@@ -117,11 +128,12 @@ def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
             merged_rows = parts[0].shape[0]
             check(merged_rows)
     if not parts:
-        return np.zeros((0, sources.shape[1]), dtype=np.int32), np.zeros(0, dtype=np.int64)
+        return (np.zeros((0, sources.shape[1]), dtype=np.int32), np.zeros(0, dtype=np.int64),
+                np.zeros(0, dtype=bool))
     if len(parts) > 1:
         parts = _merge(parts, inverses)
     check(parts[0].shape[0])
-    return np.ascontiguousarray(parts[0], dtype=np.int32), np.concatenate(inverses)
+    return np.ascontiguousarray(parts[0], dtype=np.int32), np.concatenate(inverses), np.concatenate(kept)
 
 
 def _merge(parts: list[np.ndarray], inverses: list[np.ndarray]) -> list[np.ndarray]:
@@ -131,14 +143,6 @@ def _merge(parts: list[np.ndarray], inverses: list[np.ndarray]) -> list[np.ndarr
     for i, old in enumerate(inverses):
         inverses[i] = inverse[old]
     return [rows]
-
-
-def action_pairs(data: ModelData) -> np.ndarray:
-    """``(P, 2)`` int32: every (jerk, turn) pair; row ``a`` is action index ``a`` of the graph,
-    ``a = jerk_index * turn_count + turn_index`` over :attr:`ActionData.values`."""
-    jerk = np.asarray(data.action("jerk").values, dtype=np.int32)
-    turn = np.asarray(data.action("turn").values, dtype=np.int32)
-    return np.stack([np.repeat(jerk, len(turn)), np.tile(turn, len(jerk))], axis=1)
 
 
 def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe: bool = False,
@@ -152,7 +156,9 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     choice, action ``-1``, keeping its jerk and turn. The successor of a choice is ``sense()`` of
     the state with the chosen actions, at ``k + 1``. Each layer's successors are merged
     (``np.unique`` over rows; states at different samples never coincide, so this merges every
-    duplicate). States at ``k == horizon_samples`` are terminal.
+    duplicate). States at ``k == horizon_samples`` are terminal. Under the model's ``allow when``
+    (:class:`rac.engine.allow.ActionGuard`) a decision state has only its allowed choices; one with
+    none is terminal (the run stops there, as the emitted model deadlocks).
 
     ``horizon_samples`` defaults to the goal interval's last sample (``goal()`` is false ever
     after); ``ValueError`` when that is unbounded. With ``prune_unsafe=True`` states that collide
@@ -177,6 +183,7 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
         raise ValueError(f"horizon_samples must be >= 0, not {horizon_samples}")
     model = batch_model(data)
     native = model.native
+    guard = ActionGuard(data)
     pairs = action_pairs(data)
     n_pairs = len(pairs)
     budget = Budget(max_states, max_bytes, "the model", float(data.period))
@@ -192,7 +199,7 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
             size = frontier.shape[0]
             layers.append(frontier)
             collide = model.collide(frontier, k)
-            offroad = model.offroad(frontier)
+            offroad = model.offroad(frontier, k)
             safe = ~collide & ~offroad
             for name, mask in (("collide", collide), ("offroad", offroad), ("goal", model.goal(frontier, k)),
                                ("safe", safe)):
@@ -216,14 +223,22 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
                                min(sources.shape[0] * per_state, CHUNK_ROWS) * CHUNK_BYTES_PER_ROW)
             action = (np.tile(np.arange(n_pairs, dtype=np.int64), sources.shape[0]) if decide
                       else np.full(sources.shape[0], -1, dtype=np.int64))
-            counts.append(np.where(expand, per_state, 0).astype(np.int64))
             found = total  # the states before this layer's successors
 
             def check(distinct: int) -> None:
                 budget.check_states(found + distinct, k + 1)  # noqa: B023 - called within this iteration
 
-            frontier, inverse = _expand(model, sources, pairs if decide else None, check)
-            actions.append(action)
+            def keep(successors: np.ndarray) -> np.ndarray:
+                return guard.successors_allowed(successors, k + 1)  # noqa: B023 - called within this iteration
+
+            restricted = decide and guard.restricts
+            frontier, inverse, kept = _expand(model, sources, pairs if decide else None, check,
+                                              keep if restricted else None)
+            choices -= kept.size - int(kept.sum())  # the disallowed choices are not in the graph
+            count = np.zeros(size, dtype=np.int64)
+            count[expand] = kept.reshape(-1, per_state).sum(axis=1) if restricted else per_state
+            counts.append(count)
+            actions.append(action[kept] if restricted else action)
             targets.append(base + inverse)
             if frontier.shape[0] == 0:
                 break

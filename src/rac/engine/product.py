@@ -69,10 +69,10 @@ import numpy as np
 
 from rac import ir
 from rac.core.numbers import INT32_LOW, INT32_MAX
+from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
 from rac.engine.budget import GRAPH_BYTES_PER_CHOICE, Budget
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame, int_sum
-from rac.engine.explore import action_pairs
 from rac.engine.graph import LABELS, ExploredGraph
 from rac.engine.storm import Verdict, decide
 from rac.ir import expr as ie
@@ -405,6 +405,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     bindings = Bindings(evaluator, automaton, "the product")
     first_reads = first_sample_reads(automaton)
     pairs = action_pairs(data).astype(np.int64)
+    guard = ActionGuard(data)
     n_inputs, n_rewards = len(automaton.inputs), len(automaton.rewards)
 
     def labels(frame: Frame) -> dict[str, np.ndarray]:
@@ -452,6 +453,11 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
         moved = before.copy()
         moved[:, 5:7] = chosen[first_u]
         after = model.sense(moved).astype(np.int64)
+        if k % data.decide_every == 0 and guard.restricts:
+            # allow when: only the choices whose successor meets the condition (none: a terminal state)
+            ok = guard.successors_allowed(after, k + 1)[inv_u]
+            src, action, inv_u = src[ok], action[ok], inv_u[ok]
+            counts = np.bincount(src, minlength=sampled.n).astype(np.int64)
         now = Frame(np.full(after.shape[0], k + 1, dtype=np.int64), after,
                     prev=Frame(np.full(after.shape[0], k, dtype=np.int64), before))
         read = bindings.read(now)

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rac.core.numbers import INT32_MAX
-from rac.engine.explore import action_pairs
+from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.graph import LABELS
 from rac.ir.vocabulary import EGO_STATE, TRUE_STATE
 from rac.model.batch import batch_model
@@ -227,7 +227,8 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     Without a seed a fresh one is drawn and recorded in :attr:`Runs.seed`.
 
     ``policy(k, states)`` (None: every action allowed) returns the ``(n, P)`` bool mask of the
-    actions allowed to each run at decision sample ``k``; a run whose row allows nothing chooses
+    actions allowed to each run at decision sample ``k``; the model's ``allow when`` restricts them
+    further (:class:`rac.engine.allow.ActionGuard`). A run whose row allows nothing chooses
     among all actions there and is flagged in :attr:`Runs.left_policy`.
 
     :class:`rac.model.data.ModelRangeError` when a sensed value overflows int32 (as explore()).
@@ -244,6 +245,7 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     rng = np.random.default_rng(seed)
     model = batch_model(data)
     pairs = action_pairs(data)
+    guard = ActionGuard(data)
     n_pairs = len(pairs)
     scale = float(data.scale)
     period = data.period
@@ -263,6 +265,8 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     for k in range(horizon):
         if k % data.decide_every == 0:
             allowed = everything if policy is None else _check_policy(policy(k, current.copy()), runs, n_pairs)
+            if guard.restricts:  # the model's own `allow when`, under any policy
+                allowed = allowed & guard.masks(current, k)
             empty = ~np.any(allowed, axis=1)
             if empty.any():
                 left_policy |= empty
@@ -303,9 +307,9 @@ def label_runs(data: ModelData, runs: Runs, label: str) -> np.ndarray:
     elif label == "collide":
         value = model.collide(flat, k)
     elif label == "offroad":
-        value = model.offroad(flat)
+        value = model.offroad(flat, k)
     else:
-        value = ~model.collide(flat, k) & ~model.offroad(flat)
+        value = ~model.collide(flat, k) & ~model.offroad(flat, k)
     return value.reshape(n, samples)
 
 

@@ -171,6 +171,20 @@ class ModelSpec:
     #: The id of the CommonRoad planning problem the ego's start and goal come from; 0 (CommonRoad
     #: ids are positive): none chosen, the file must have exactly one (E0715 otherwise).
     planning_problem: int = 0
+    #: How ``sense()`` moves the ego (:data:`rac.ir.vocabulary.WORD_SETTINGS`): ``"integrated"``
+    #: (Algorithm 1 on doubles, truncated at the end) or ``"increments"`` (each sub-step adds truncated
+    #: increments to the integer state, as CommonUppRoad's model does).
+    dynamics: str = "integrated"
+    #: The ego's start, each None: the planning problem's (``start_*`` settings).
+    start_x: Fraction | None = None
+    start_y: Fraction | None = None
+    start_heading: Fraction | None = None
+    start_speed: Fraction | None = None
+    #: ``offroad()`` is false at samples before this one (1: the start is not checked).
+    offroad_from: int = 0
+    #: ``allow when e``: an action is allowed only where ``e`` (a condition over the model's
+    #: vocabulary, without ``prev``) holds in the state it leads to one sense period later; None: all.
+    allow: Expr | None = None
     span: Span | None = field(default=None, compare=False)
 
     @property

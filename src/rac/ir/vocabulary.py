@@ -38,7 +38,9 @@ __all__ = [
     "MODEL_FUNCTIONS",
     "MODEL_NAMES",
     "NO_PLANNING_PROBLEM",
+    "MODELLING",
     "SETTINGS",
+    "WORD_SETTINGS",
     "TRUE_STATE",
     "held_value",
     "Function",
@@ -110,6 +112,24 @@ SETTINGS: dict[str, Setting] = {s.name: s for s in (
     Setting("planning_problem", None, "", "the id of the CommonRoad planning problem the ego's start and goal "
             "come from", _f("1"), whole=True, derived=f"{NO_PLANNING_PROBLEM}: none chosen, the scenario's only one"),
 )}
+#: Settings that choose how the model moves, not values an expression reads (docs/language.md,
+#: "Modelling choices"): numbers whose absent value means "the scenario's" (``default`` None) or
+#: the stated default.
+MODELLING: dict[str, Setting] = {s.name: s for s in (
+    Setting("start_x", None, "m", "the ego's start x", derived="the planning problem's initial state"),
+    Setting("start_y", None, "m", "the ego's start y", derived="the planning problem's initial state"),
+    Setting("start_heading", None, "rad", "the ego's start heading", derived="the planning problem's initial state"),
+    Setting("start_speed", None, "m/s", "the ego's start speed", _f("0"),
+            derived="the planning problem's initial state"),
+    Setting("offroad_from", _f("0"), "samples", "`offroad()` is false before this sample (1: the start is "
+            "not checked)", _f("0"), whole=True),
+)}
+#: Settings whose value is a word: name -> the words, the default first.
+WORD_SETTINGS: dict[str, tuple[str, ...]] = {
+    # integrated: sense() integrates doubles and truncates the result (Algorithm 1);
+    # increments: every sub-step adds truncated increments to the integer state (CommonUppRoad).
+    "dynamics": ("integrated", "increments"),
+}
 #: The number representation of a model that does not set ``base`` and ``exponent``.
 DEFAULT_BASE = int(SETTINGS["base"].default or 10)
 DEFAULT_EXPONENT = int(SETTINGS["exponent"].default or 4)

@@ -323,6 +323,14 @@ class ModelBinding:
 
 
 @dataclass(frozen=True)
+class ModelAllow:
+    """``allow when expr``: an action is allowed only where ``expr`` holds one sense period later."""
+
+    expr: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
 class ModelSetting:
     """``name value``, e.g. ``exponent 4`` (the resolver knows which names exist)."""
 
@@ -331,7 +339,7 @@ class ModelSetting:
     span: Span | None = _span()
 
 
-ModelItem = Union[ModelScenario, ModelAction, ModelBinding, ModelSetting]
+ModelItem = Union[ModelScenario, ModelAction, ModelBinding, ModelAllow, ModelSetting]
 
 
 @dataclass(frozen=True)

@@ -181,6 +181,8 @@ def format_model_item(item: ast.ModelItem) -> str:
         return f"action {item.name.name} in [{_expr(item.low)}, {_expr(item.high)}] step {_expr(item.step)}"
     if isinstance(item, ast.ModelBinding):
         return f"bind {item.input.name} = {_expr(item.expr)}"
+    if isinstance(item, ast.ModelAllow):
+        return f"allow when {_expr(item.expr)}"
     if isinstance(item, ast.ModelSetting):
         return f"{item.name.name} {_expr(item.value)}"
     raise TypeError(f"not a model item: {item!r}")

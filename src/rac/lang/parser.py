@@ -168,6 +168,9 @@ class _ToAst(Transformer):
     def model_binding(self, meta, items):
         return ast.ModelBinding(self._ident(items[0]), items[1], self._sp(meta))
 
+    def model_allow(self, meta, items):
+        return ast.ModelAllow(items[0], self._sp(meta))
+
     def model_setting(self, meta, items):
         return ast.ModelSetting(self._ident(items[0]), items[1], self._sp(meta))
 

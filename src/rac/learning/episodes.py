@@ -58,9 +58,9 @@ import numpy as np
 from rac import ir
 from rac.check.queries import lower_expression
 from rac.compiler import CompileResult
+from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
 from rac.engine.evaluate import Evaluator, Frame
-from rac.engine.explore import action_pairs
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.lang.parser import parse_expression
@@ -223,6 +223,7 @@ class EpisodeBatch:
         pairs.setflags(write=False)
         self.action_pairs = pairs
         self.n_actions = int(pairs.shape[0])
+        self.guard = ActionGuard(data)
         self.clipped = 0
         self.clipped_inputs = {item.name: 0 for item in automaton.numeric_inputs}
         self._td = self.evaluator.model.native.td_d
@@ -278,6 +279,19 @@ class EpisodeBatch:
         now, _, _ = self._require()
         where = slice(None) if rows is None else rows
         return np.column_stack([now.k[where], now.ego[where]]).astype(np.int32)
+
+    def model_masks(self, rows: slice | None = None) -> np.ndarray:
+        """``(n, P)`` bool: the actions the model's ``allow when`` allows each episode now (all of
+        them without the rule, or for a state the rule leaves none: the emitted model would deadlock
+        there, an episode goes on unrestricted); of the episodes ``rows`` only, if given."""
+        now, _, _ = self._require()
+        where = slice(None) if rows is None else rows
+        ego, k = now.ego[where], now.k[where]
+        if not self.guard.restricts:
+            return np.ones((ego.shape[0], self.n_actions), dtype=bool)
+        masks = self.guard.masks(ego, k)
+        masks[~masks.any(axis=1)] = True
+        return masks
 
     @property
     def location(self) -> np.ndarray:

@@ -74,6 +74,9 @@ class Lane(Forwarding):
     def state_keys(self) -> np.ndarray:
         return self.shared.state_keys(self.rows)
 
+    def model_masks(self) -> np.ndarray:
+        return self.shared.model_masks(self.rows)
+
     def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
         return self.shared.observe(exprs, self.rows)
 

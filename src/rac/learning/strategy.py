@@ -108,6 +108,8 @@ class Episodes(Protocol):
 
     def state_keys(self) -> np.ndarray: ...
 
+    def model_masks(self) -> np.ndarray: ...
+
     def observe(self, exprs: Sequence[Expression]) -> np.ndarray: ...
 
     def expression(self, expr: Expression) -> ie.Expr: ...
@@ -177,12 +179,14 @@ def uniform_allowed(rng: np.random.Generator, masks: np.ndarray) -> np.ndarray:
 
 
 def allowed_actions(batch: Episodes, shield: ShieldTable | None) -> tuple[np.ndarray, np.ndarray]:
-    """The allowed actions of every episode and which rows fell back to all actions (empty masks)."""
+    """The allowed actions of every episode — the model's ``allow when`` and the shield's mask —
+    and which rows fell back to the model's actions (the shield allowed none of them)."""
+    model = batch.model_masks()
     if shield is None:
-        return np.ones((batch.n, batch.n_actions), dtype=bool), np.zeros(batch.n, dtype=bool)
-    masks = np.array(shield.masks_for(batch.state_keys()), dtype=bool)
+        return model, np.zeros(batch.n, dtype=bool)
+    masks = np.array(shield.masks_for(batch.state_keys()), dtype=bool) & model
     empty = np.logical_not(masks.any(axis=1))
-    masks[empty] = True
+    masks[empty] = model[empty]
     return masks, empty
 
 

@@ -121,6 +121,8 @@ class BatchModel:
         """:meth:`NativeModel.sense` of every row: an ``(n, 7)`` int32 array (jerk, turn kept).
         :class:`ModelRangeError` for the first row whose result does not fit int32."""
         states = self._ego(states)
+        if self.data.increments:
+            return self._blockwise(self._sense_increments, states)
         try:
             return self._blockwise(self._sense, states, block=SENSE_BLOCK)
         except ModelRangeError:
@@ -157,6 +159,43 @@ class BatchModel:
         out[:, :5] = scaled.T.astype(np.int64)  # truncation toward zero, like int()
         out[:, 5:] = states[:, 5:]
         return out
+
+    def _sense_increments(self, states: np.ndarray) -> np.ndarray:
+        """:meth:`NativeModel.sense_increments` of every row, the same operations on int64 and doubles."""
+        data = self.data
+        scale = self.native.scale_d
+        u = data.unit
+        x, y, v, acc, head = (states[:, column].astype(np.int64) for column in range(5))
+        jerk_step = self._increment("acc", states[:, 5] / scale * u)
+        turn_step = self._increment("head", states[:, 6] / scale * u)
+        for _ in range(data.substeps):
+            acc = np.clip(acc + jerk_step, -data.max_acc, data.max_acc)  # two comparisons: hi, then lo
+            head = head + turn_step
+            v = v + self._increment("v", acc / scale * u)
+            v = np.where(v > data.max_speed, data.max_speed, v)
+            v = np.where(v < data.min_speed, data.min_speed, v)
+            cos, sin = self.cos_sin(head)
+            speed = v / scale
+            x = x + self._increment("x", speed * cos * u)
+            y = y + self._increment("y", speed * sin * u)
+        out = np.empty(states.shape, dtype=np.int32)
+        for column, (what, value) in enumerate((("x", x), ("y", y), ("v", v), ("acc", acc), ("head", head))):
+            bad = (value <= -2147483648) | (value >= 2147483648)
+            if bad.any():
+                row = int(np.argmax(bad))
+                raise ModelRangeError(f"sense(): {what}", int(value[row]) / scale, int(value[row]), data.scale)
+            out[:, column] = value
+        out[:, 5:] = states[:, 5:]
+        return out
+
+    def _increment(self, what: str, value: np.ndarray) -> np.ndarray:
+        """``trunc(value * SCALE_D)`` as int64, or :class:`ModelRangeError` (as native) for the first
+        value beyond int32."""
+        scaled = value * self.native.scale_d
+        bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))
+        if bad.any():
+            self.native.significand(what, float(value[int(np.argmax(bad))]))
+        return scaled.astype(np.int64)
 
     def _moved(self, start: np.ndarray, speeds: np.ndarray, speed: np.ndarray, trig: np.ndarray,
                pair: np.ndarray) -> np.ndarray:
@@ -337,9 +376,18 @@ class BatchModel:
         """``mindist < TD`` per row: ``(n,)`` bool."""
         return self.mindist(states, k) < self.native.td_d
 
-    def offroad(self, states: np.ndarray) -> np.ndarray:
-        """:meth:`NativeModel.offroad` per row: a corner of the ego outside every road polygon."""
-        return self._blockwise(self._offroad, self._ego(states))
+    def offroad(self, states: np.ndarray, k: int | np.ndarray | None = None) -> np.ndarray:
+        """:meth:`NativeModel.offroad` per row: a corner of the ego outside every road polygon (and,
+        with samples ``k``, not before ``offroad_from``)."""
+        states = self._ego(states)
+        start = self.data.offroad_from
+        if k is None or start == 0:
+            return self._blockwise(self._offroad, states)
+        checked = self._samples(k, states.shape[0]) >= start
+        out = np.zeros(states.shape[0], dtype=bool)
+        if checked.any():
+            out[checked] = self._blockwise(self._offroad, states[checked])
+        return out
 
     def _offroad(self, states: np.ndarray) -> np.ndarray:
         native = self.native
@@ -411,9 +459,9 @@ def collide_many(data: ModelData, states: np.ndarray, k: int | np.ndarray) -> np
     return batch_model(data).collide(states, k)
 
 
-def offroad_many(data: ModelData, states: np.ndarray) -> np.ndarray:
+def offroad_many(data: ModelData, states: np.ndarray, k: int | np.ndarray | None = None) -> np.ndarray:
     """:meth:`BatchModel.offroad`."""
-    return batch_model(data).offroad(states)
+    return batch_model(data).offroad(states, k)
 
 
 def goal_many(data: ModelData, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:

@@ -173,17 +173,18 @@ def _start(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, data) -> list[
     found = []
     ego = scenario.ego
     speed, low, high = data.ego_v, data.min_speed, data.max_speed
+    origin = "scenario's" if spec.start_speed is None else "`start_speed`"
     if not low <= speed <= high:
         setting = "max_speed" if speed > high else "min_speed"
         limit = spec.max_speed if speed > high else spec.min_speed
         words = "faster than" if speed > high else "slower than"
         found.append(_limit(automaton, spec, setting, Fraction(speed, data.scale), "m/s",
-                            f"the ego starts at {_number(ego.velocity)} m/s, {words} `{setting}` "
+                            f"the ego starts at {_number(speed / data.scale)} m/s, {words} `{setting}` "
                             f"({short_number(limit)} m/s)",
                             f"the model holds the speed within [`min_speed`, `max_speed`] = "
                             f"[{short_number(spec.min_speed)}, {short_number(spec.max_speed)}] m/s at every Euler "
                             f"sub-step of `sense()`: from the first sample on the ego would drive at "
-                            f"{short_number(limit)} m/s, not the scenario's {_number(ego.velocity)} m/s"))
+                            f"{short_number(limit)} m/s, not the {origin} {_number(speed / data.scale)} m/s"))
     if abs(data.ego_acc) > data.max_acc:
         bound = spec.max_acceleration if ego.acceleration > 0 else -spec.max_acceleration
         found.append(_limit(automaton, spec, "max_acceleration", Fraction(abs(data.ego_acc), data.scale), "m/s²",
@@ -196,20 +197,23 @@ def _start(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, data) -> list[
 
     model = NativeModel(data)
     off = [name for name, outside in zip(CORNER_NAMES, model.corners_off(model.initial_state())) if outside]
-    if off:
+    written = any(getattr(spec, f"start_{name}") is not None for name in ("x", "y", "heading"))
+    where = ("the `start_*` settings start" if written else f"planning problem {scenario.planning_problem_id} starts")
+    start = tuple(_number(value / data.scale) for value in (data.ego_x, data.ego_y, data.ego_head))
+    if off and data.offroad_from == 0:
         corners = "all four of its corners lie" if len(off) == 4 else \
             f"its {' and '.join(off) if len(off) == 2 else ', '.join(off[:-1]) + ' and ' + off[-1]} " \
             f"corner{'s lie' if len(off) > 1 else ' lies'}"
         found.append(warning(
             "W0716", f"the ego starts off the road: {corners} outside every lanelet",
             automaton.spans.get("model:scenario", spec.span),
-            notes=[f"planning problem {scenario.planning_problem_id} starts the ego's {short_number(spec.length)} m × "
-                   f"{short_number(spec.width)} m rectangle at ({_number(ego.x)}, {_number(ego.y)}), heading "
-                   f"{_number(ego.heading)} rad",
+            notes=[f"{where} the ego's {short_number(spec.length)} m × "
+                   f"{short_number(spec.width)} m rectangle at ({start[0]}, {start[1]}), heading {start[2]} rad",
                    "`offroad()` holds in the initial state: no run is safe from the start, so `E[] !offroad()` "
                    "and the safety shield (`control: A[] !collide() && !offroad()`) fail there"],
-            hints=["move the ego's start onto the road (the initial state of the scenario's planning problem); "
-                   "CommonUppRoad's model does not check off-road at the start, rac's does"]))
+            hints=["move the ego's start onto the road (`start_x`, `start_y`, `start_heading`, or the scenario's "
+                   "planning problem), or write `offroad_from 1` to leave the start unchecked, as CommonUppRoad's "
+                   "model does"]))
     return found
 
 

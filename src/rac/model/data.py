@@ -31,6 +31,7 @@ from fractions import Fraction
 
 from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.ir import ModelSpec
+from rac.ir.expr import Expr
 from rac.model.commonroad import Scenario
 
 __all__ = [
@@ -153,6 +154,14 @@ class ModelData:
     p1: int
     p2: int
     actions: tuple[ActionData, ...]
+    # ---- modelling choices (docs/language.md, "Modelling choices")
+    #: ``dynamics increments``: every sub-step adds truncated increments to the significands
+    #: (:meth:`rac.model.native.NativeModel.sense`); False: Algorithm 1 on doubles.
+    increments: bool = False
+    #: ``offroad()`` is false at samples ``k < offroad_from``.
+    offroad_from: int = 0
+    #: ``allow when e``: the condition an action's successor must meet (None: every action is allowed).
+    allow: Expr | None = None
 
     @property
     def road_count(self) -> int:
@@ -382,9 +391,10 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
         obs_from=tuple(obs_from), obs_until=tuple(obs_until), wp_start=tuple(wp_start),
         wp_time=tuple(wp["time"]), wp_x=tuple(wp["x"]), wp_y=tuple(wp["y"]),
         wp_head=tuple(wp["head"]), wp_vel=tuple(wp["vel"]),
-        ego_x=sig("ego start x", ego.x), ego_y=sig("ego start y", ego.y),
-        ego_v=sig("ego start velocity", ego.velocity), ego_acc=sig("ego start acceleration", ego.acceleration),
-        ego_head=sig("ego start heading", ego.heading),
+        ego_x=sig("ego start x", _start(spec.start_x, ego.x)), ego_y=sig("ego start y", _start(spec.start_y, ego.y)),
+        ego_v=sig("ego start velocity", _start(spec.start_speed, ego.velocity)),
+        ego_acc=sig("ego start acceleration", ego.acceleration),
+        ego_head=sig("ego start heading", _start(spec.start_heading, ego.heading)),
         goal_x=goal_x, goal_y=goal_y, goal_start=goal_start,
         goal_low=conv.periods("goal time low (sense periods)", goal.time_low, unbounded=1),
         goal_high=conv.periods("goal time high (sense periods)", goal.time_high, unbounded=1),
@@ -395,7 +405,13 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
         td=sig("collision distance TD", spec.collision_distance),
         p1=sig("comfort fraction p1", spec.comfort_acceleration), p2=sig("comfort fraction p2", spec.comfort_turn),
         actions=actions,
+        increments=spec.dynamics == "increments", offroad_from=spec.offroad_from, allow=spec.allow,
     )
+
+
+def _start(setting: Fraction | None, scenario: float) -> Number:
+    """A ``start_*`` setting where written, else the planning problem's value."""
+    return scenario if setting is None else setting
 
 
 def build_model_data(scenario: Scenario, spec: ModelSpec) -> ModelData:

@@ -139,6 +139,8 @@ class NativeModel:
         The sample index is not touched (UPPAAL's Timer increments ``count``).
         :class:`ModelRangeError` if a result does not fit int32 (UPPAAL aborts there too).
         """
+        if self.data.increments:
+            return self.sense_increments(state)
         scale = self.scale_d
         x = state.x / scale
         y = state.y / scale
@@ -168,6 +170,44 @@ class NativeModel:
         sig = self.significand
         return State(sig("x", x), sig("y", y), sig("v", v), sig("acc", acc), sig("head", head),
                      state.jerk, state.turn)
+
+    def sense_increments(self, state: State) -> State:
+        """:meth:`sense` under ``dynamics increments``: each of the ``1/G`` sub-steps adds truncated
+        increments to the significands (CommonUppRoad's model: ``x += d2i(v * cos(head))``), so a
+        value that moves by whole significands stays on them. With ``d(e) = trunc(e * SCALE_D)``
+        and every significand ``s`` read as ``s / SCALE_D``, a sub-step does, in order::
+
+            acc = acc + d(jerk * u);        clamped to [-MA, MA] (significands)
+            head = head + d(turn * u)
+            v = v + d(acc * u);             clamped to [VMIN, VMAX]
+            x = x + d(v * cos(head) * u)
+            y = y + d(v * sin(head) * u)
+
+        with the new acc, head and v. :class:`ModelRangeError` if a value leaves int32."""
+        data = self.data
+        scale = self.scale_d
+        u = data.unit
+        sig = self.significand
+        x, y, v, acc, head = state.x, state.y, state.v, state.acc, state.head
+        for _ in range(data.substeps):
+            acc = acc + sig("acc", state.jerk / scale * u)
+            if acc > data.max_acc:
+                acc = data.max_acc
+            if acc < -data.max_acc:
+                acc = -data.max_acc
+            head = head + sig("head", state.turn / scale * u)
+            v = v + sig("v", acc / scale * u)
+            if v > data.max_speed:
+                v = data.max_speed
+            if v < data.min_speed:
+                v = data.min_speed
+            h = head / scale
+            x = x + sig("x", v / scale * math.cos(h) * u)
+            y = y + sig("y", v / scale * math.sin(h) * u)
+        for what, value in (("x", x), ("y", y), ("head", head)):
+            if not -2147483648 < value < 2147483648:
+                raise ModelRangeError(f"sense(): {what}", value / scale, value, data.scale)
+        return State(x, y, v, acc, head, state.jerk, state.turn)
 
     # ------------------------------------------------------------ obstacles
     def waypoint(self, i: int, k: int) -> int:
@@ -254,13 +294,16 @@ class NativeModel:
         """``mindist(state, k) < TD``."""
         return self.mindist(state, k) < self.td_d
 
-    def offroad(self, state: State) -> bool:
-        """Whether a corner of the ego rectangle lies outside every road polygon.
+    def offroad(self, state: State, k: int | None = None) -> bool:
+        """Whether a corner of the ego rectangle lies outside every road polygon; false at samples
+        ``k < offroad_from`` (``k`` None: the corners only).
 
         With ``c = cos(h)``, ``s = sin(h)``, ``hl = l / 2.0``, ``hw = w / 2.0``, corner ``(ca, cb)``
         of :data:`CORNERS` is ``(x + ca * hl * c - cb * hw * s, y + ca * hl * s + cb * hw * c)``;
         each is tested with :func:`point_in_polygons` against the road.
         """
+        if k is not None and k < self.data.offroad_from:
+            return False
         return any(self.corners_off(state))
 
     def corners_off(self, state: State) -> tuple[bool, ...]:

@@ -104,6 +104,7 @@ def emit_declarations(data: ModelData) -> str:
         f"const double SENSE_PERIOD_S = {double_literal(data.period)};  // C1 seconds",
         _scalar("SENSE_PERIOD", data.sense_period, "C1"),
         _scalar("DECIDE_PERIOD", data.decide_period, "C2"),
+        _scalar("OFFROAD_FROM", data.offroad_from, "offroad() is false before this sample"),
         _scalar("DECIDE_EVERY", data.decide_every, "C2 / C1"),
         f"const double NO_OBSTACLE = {double_literal(1.0e9)};  // mindist() without obstacles",
         "// ---- vehicle",
@@ -175,7 +176,7 @@ def emit_declarations(data: ModelData) -> str:
         "int32_t jerk = 0;",
         "int32_t turn = 0;",
         "",
-        environment().get_template("model_functions.c.j2").render(),
+        environment().get_template("model_functions.c.j2").render(increments=data.increments),
     ]
     return "\n".join(out)
 

@@ -71,7 +71,8 @@ class _ModelGenerator(AutomatonGenerator):
         for key, base in (("controller", "Controller"), ("action", "Action"), ("dynamics", "Dynamics"),
                           ("obstacle", "Obstacle"), ("start", "Start"), ("deciding", "Deciding"),
                           ("sensing", "Sensing"), ("init", "Init"), ("driving", "Running"), ("moving", "Moving"),
-                          ("read_inputs", "read_inputs"), ("keep_sample", "keep_sample")):
+                          ("read_inputs", "read_inputs"), ("keep_sample", "keep_sample"),
+                          ("allowed", "ALLOWED"), ("allow_actions", "allow_actions")):
             g[key] = n.fresh(base)
 
     # ------------------------------------------------------------ processes
@@ -160,6 +161,48 @@ class _ModelGenerator(AutomatonGenerator):
         lines += [f"void {g['read_inputs']}() {{", *(f"    {line}" for line in locals_ + statements), "}"]
         return "\n".join(lines)
 
+    def _allow(self, printer: UppaalPrinter) -> str:
+        """``allow when e``: ``allow_actions()`` fills ``ALLOWED[j * TURN_COUNT + u]`` with ``e`` on the state
+        each action pair leads to (``sense_state()`` on the state with that pair, at ``count + 1``) and
+        restores the state; the Action calls it on ``decide?`` and its choice is guarded by the entry
+        (a guard cannot call a function that assigns, so the mask is computed in an update)."""
+        spec, g, data = self.a.model, self.g, self.data
+        assert spec is not None
+        if spec.allow is None:
+            return ""
+        jerk, turn = (action_name(a.name) for a in data.actions)
+        size = len(data.actions[0].values) * len(data.actions[1].values)
+        saved = {c: self.n.fresh(f"s_{c}") for c in ("x", "y", "v", "acc", "head", "jerk", "turn")}
+        condition = self._bound(f"{g['allowed']}[j * {turn}_COUNT + u] = {{}};", spec.allow, printer,
+                                "`allow when`", spec.allow.span if hasattr(spec.allow, "span") else spec.span)
+        body = [
+            "int32_t j;", "int32_t u;", *(f"int32_t {name};" for name in saved.values()),
+            *(f"{name} = {c};" for c, name in saved.items()),
+            f"{g['count']} = {g['count']} + 1;",
+            f"for (j = 0; j < {jerk}_COUNT; j++) {{",
+            f"    for (u = 0; u < {turn}_COUNT; u++) {{",
+            *(f"        {c} = {name};" for c, name in saved.items() if c not in ("jerk", "turn")),
+            f"        jerk = {jerk}_VALUES[j];",
+            f"        turn = {turn}_VALUES[u];",
+            "        sense_state();",
+            f"        {condition}",
+            "    }",
+            "}",
+            *(f"{c} = {name};" for c, name in saved.items()),
+            f"{g['count']} = {g['count']} - 1;",
+        ]
+        return "\n".join([
+            "",
+            "",
+            "// ---- allow when: an action is allowed where the condition holds one sense period on; the Action",
+            f"// calls {g['allow_actions']}() on its decide? edge, and its choice is guarded by {g['allowed']}",
+            f"bool {g['allowed']}[{size}];",
+            "",
+            f"void {g['allow_actions']}() {{",
+            *(f"    {line}" for line in body),
+            "}",
+        ])
+
     def _bound(self, template: str, expr: ie.Expr, printer: UppaalPrinter, what: str, span=None) -> str:
         try:
             return template.format(printer.binding(expr))
@@ -193,9 +236,13 @@ class _ModelGenerator(AutomatonGenerator):
             name = action_name(action.name)
             selects.append(f"{var} : int[0,{name}_COUNT-1]")
             assigns.append(f"{action.name} = {name}_VALUES[{var}]")
+        guarded = self.a.model is not None and self.a.model.allow is not None
+        turn = action_name(self.data.actions[1].name)
         transitions = [
-            edge(ids, idle, choosing, sync=f"{ch['decide']}?", nails=[(170, -50)], anchor=(140, -80)),
+            edge(ids, idle, choosing, sync=f"{ch['decide']}?", nails=[(170, -50)], anchor=(140, -80),
+                  assignment=f"{g['allow_actions']}()" if guarded else ""),
             edge(ids, choosing, idle, select=", ".join(selects), assignment=", ".join(assigns), nails=[(170, 60)],
+                  guard=f"{g['allowed']}[j * {turn}_COUNT + u]" if guarded else "",
                   anchor=(20, 80), controllable=True),
         ]
         return Template(g["action"], idle.id, [idle, choosing], transitions, name_x=-40, name_y=-100)
@@ -260,7 +307,7 @@ class _ModelGenerator(AutomatonGenerator):
         assert spec is not None
         inputs, unit, period_units, accruals = self._prepare()
         printer = self._printer(unit)
-        bindings = self._bindings(printer)
+        bindings = self._bindings(printer) + self._allow(printer)
         queries = self._queries(printer)
         ids = Ids()
         templates = [self._model_timer(ids, bool(printer.prevs)), self._controller(ids), self._action(ids),

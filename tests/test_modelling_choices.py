@@ -1,0 +1,209 @@
+"""The model block's modelling choices (issue 11): `dynamics increments`, `allow when`, the
+ego's start (`start_*`) and `offroad_from`, in the checker, the engine and the UPPAAL target alike.
+
+The C side of `dynamics increments` and `offroad_from` is in tests/test_model_c.py (the emitted
+sense_state() and offroad() against rac.model.native, bit for bit)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from fractions import Fraction as F
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_explore import random_states
+from test_model_native import crossing_scenario, make_spec, straight_scenario
+from test_utap import compile_cli
+from tiny_scenarios import ramp
+from utap import Utap
+
+from rac.cli.main import main
+from rac.compiler import compile_file
+from rac.engine.allow import ActionGuard, action_pairs
+from rac.engine.explore import explore
+from rac.engine.product import explore_product
+from rac.engine.simulate import simulate
+from rac.model import NativeModel, State, build_model_data
+from rac.model.batch import BatchModel
+
+RAMP = """\
+automaton Ramp {{
+    input close : bool
+    reward sa
+    priority sa
+    objective sa
+    sample every 0.1
+    horizon 1
+    initial location Safe {{ sa' == 1 }}
+    location Unsafe {{ sa' == -1 }}
+    edge * -> Unsafe when close do sa = sa - 100
+    edge * -> Safe when !close
+    model {{
+        scenario "ramp.xml"
+        exponent 2
+        decide_period 0.1
+        granularity 1
+        width 1
+        max_speed 40
+{settings}
+        action jerk in [0, 0] step 1
+        action turn in [-1, 1] step 1
+        bind close = mindist() < 2
+    }}
+    query Qd: strategy safe = control: A[] !collide() && !offroad()
+    query Reach: E<> goal()
+}}
+"""
+
+#: CommonUppRoad's ZAM_Ramp choices on the tiny ramp: constant speed, a yaw step of 0.1 rad per
+#: 0.1 s, turning allowed only while the next heading stays within 0.2 rad and the ego on the road.
+CHOICES = """\
+        dynamics increments
+        start_speed 30
+        start_heading 0.05
+        offroad_from 1
+        allow when turn == 0 || (fabs(head) <= 0.2 && !offroad())"""
+
+
+def ramp_file(folder: Path, settings: str = CHOICES) -> Path:
+    (folder / "ramp.xml").write_bytes(ramp())
+    source = folder / "ramp.ra"
+    source.write_text(RAMP.format(settings=settings), encoding="utf-8")
+    return source
+
+
+# ---------------------------------------------------------------- the checker
+def test_the_choices_reach_the_model_data(tmp_path: Path) -> None:
+    result = compile_file(ramp_file(tmp_path))
+    assert result.ok, result.diagnostics
+    spec, data = result.automaton.model, result.model_data
+    assert spec.dynamics == "increments" and spec.offroad_from == 1 and spec.allow is not None
+    assert (spec.start_speed, spec.start_heading, spec.start_x) == (F(30), F(1, 20), None)
+    # the start: speed and heading from the settings, the position from the planning problem
+    assert (data.ego_x, data.ego_y, data.ego_v, data.ego_head) == (0, 175, 3000, 5)
+    assert data.increments and data.offroad_from == 1 and data.allow is spec.allow
+
+
+@pytest.mark.parametrize(("settings", "code", "excerpt"), [
+    ("        dynamics euler", "E0702", "`dynamics` must be one of the words `integrated`, `increments`"),
+    ("        allow when prev(x) < x", "E0717", "cannot read `prev(...)`"),
+    ("        allow when head + 1", "E0717", "`allow when` needs a condition"),
+    ("        offroad_from 0.5", "E0702", "`offroad_from` must be a whole number"),
+    ("        start_speed -3", "E0702", "`start_speed` must be a number >= 0"),
+    ("        dynamic increments", "E0701", "did you mean `dynamics`?"),
+    ("        allow when true\n        allow when false", "E0102", "`allow when` is written twice"),
+])
+def test_a_wrong_choice_is_an_error_at_its_place(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                 settings: str, code: str, excerpt: str) -> None:
+    source = ramp_file(tmp_path, settings)
+    assert main(["check", "--format", "json", str(source)]) == 1
+    found = json.loads(capsys.readouterr().out)[0]
+    diagnostics = [d for d in found["diagnostics"] if d["code"] == code]
+    assert diagnostics, found
+    text = json.dumps(diagnostics)
+    assert excerpt in text
+    assert diagnostics[0]["span"]["line"] > 12  # in the model block, at the item
+
+
+def test_a_start_off_the_road_is_not_reported_when_the_start_is_not_checked(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    source = ramp_file(tmp_path, "        start_speed 30")  # the ramp's ego starts half before the road
+    main(["check", str(source)])
+    assert "W0716" in capsys.readouterr().out
+    source = ramp_file(tmp_path, "        start_speed 30\n        offroad_from 1")
+    main(["check", str(source)])
+    assert "W0716" not in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- integer increments
+def test_increments_keep_whole_significands_where_integration_drifts() -> None:
+    """The issue's drift: integrated on doubles and truncated, 0.35 + 0.1 rad is 0.44999999999999996
+    and becomes 0.44; as an increment it is 0.45, and ten steps of 0.1 rad from 0.35 end at 1.35."""
+    spec = replace(make_spec(2, granularity=F(1)), actions=make_spec(2).actions)
+    data = build_model_data(straight_scenario(), spec)
+    integrated = NativeModel(data)
+    stepped = NativeModel(replace(data, increments=True))
+    state = State(1000, -175, 1000, 0, 35, 0, 100)  # turn 1 rad/s over 0.1 s
+    assert integrated.sense(state).head == 44
+    after = state
+    for _ in range(10):
+        after = stepped.sense(after)
+    assert after.head == 135
+    # the position moves by truncated increments: x grows by d2i(v * cos(head) * u) each step
+    one = stepped.sense(state)
+    assert one.x == 1000 + int(10.0 * np.cos(0.45) * 0.1 * 100)
+
+
+@pytest.mark.parametrize("scenario", [straight_scenario, crossing_scenario])
+def test_batch_increments_equal_native(scenario) -> None:
+    data = replace(build_model_data(scenario(), make_spec(3, granularity=F(1, 4))), increments=True)
+    model, native = BatchModel(data), NativeModel(data)
+    states, _ = random_states(data, 1500, seed=7)
+    for size in (1, 5, 1500):
+        assert model.sense(states[:size]).tolist() == [list(native.sense(State(*map(int, row))))
+                                                       for row in states[:size]]
+
+
+def test_offroad_from_leaves_the_early_samples_unchecked() -> None:
+    data = replace(build_model_data(straight_scenario(), make_spec(3)), offroad_from=2)
+    model, native = BatchModel(data), NativeModel(data)
+    off = np.array([[-50000, 0, 10000, 0, 0, 0, 0]] * 3, dtype=np.int32)  # 50 m before the road
+    assert model.offroad(off, np.array([0, 1, 2])).tolist() == [False, False, True]
+    assert [native.offroad(State(*map(int, off[0])), k) for k in range(3)] == [False, False, True]
+    assert model.offroad(off).all()  # without samples: the corners only
+
+
+# ---------------------------------------------------------------- allow when
+def test_explore_keeps_only_the_allowed_choices(tmp_path: Path) -> None:
+    data = compile_file(ramp_file(tmp_path)).model_data
+    free = replace(data, allow=None)
+    graph, unguarded = explore(data, horizon_samples=8), explore(free, horizon_samples=8)
+    heads = graph.states[:, 5]
+    assert np.abs(heads[graph.states[:, 0] > 0]).max() <= 25  # 0.05 + k * 0.1 within 0.2 (and one step back)
+    assert np.unique(heads).size < np.unique(unguarded.states[:, 5]).size
+    assert graph.n_states < unguarded.n_states
+    # every kept choice's successor meets the condition; every dropped one's does not
+    guard = ActionGuard(data)
+    decision = np.flatnonzero(np.diff(graph.choice_offsets) > 0)
+    pairs = action_pairs(data)
+    for state in decision[:200]:
+        k, ego = int(graph.states[state, 0]), graph.states[state, 1:]
+        mask = guard.masks(ego[None, :], k)[0]
+        kept = graph.choice_action[graph.choice_offsets[state]:graph.choice_offsets[state + 1]]
+        assert sorted(kept.tolist()) == np.flatnonzero(mask).tolist()
+        assert mask[np.flatnonzero(pairs[:, 1] == 0)].all()  # going straight is always allowed here
+
+
+def test_the_product_and_simulation_obey_the_rule(tmp_path: Path) -> None:
+    result = compile_file(ramp_file(tmp_path))
+    data = result.model_data
+    product = explore_product(data, result.automaton, horizon_samples=6)
+    ego_heads = product.states[:, product.columns.index("head")]
+    assert np.abs(ego_heads).max() <= 25
+    runs = simulate(data, runs=64, horizon_samples=10, seed=3)
+    assert np.abs(runs.states[:, 1:, 4]).max() <= 25
+    guard = ActionGuard(data)
+    for k in range(10):
+        masks = guard.masks(runs.states[:, k], k)
+        assert masks[np.arange(64), runs.actions[:, k]].all()
+
+
+def test_the_emitted_model_guards_the_choice(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                             utap: Utap) -> None:
+    xml, queries = compile_cli(ramp_file(tmp_path), tmp_path / "ramp_model.xml", capsys)
+    text = xml.read_text(encoding="utf-8")
+    assert "void allow_actions()" in text and "bool ALLOWED[3];" in text
+    assert "ALLOWED[j * TURN_COUNT + u]" in text  # the controllable edge's guard
+    assert "const int32_t OFFROAD_FROM = 1;" in text
+    assert "x = x + d2i(i2d(v) * cos(i2d(head)) * SENSE_UNIT);" in text
+    utap.validate_files(xml, queries)
+
+
+def test_without_choices_the_emitted_model_is_unchanged(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    xml, _ = compile_cli(ramp_file(tmp_path, "        start_speed 10"), tmp_path / "plain.xml", capsys)
+    text = xml.read_text(encoding="utf-8")
+    assert "allow_actions" not in text and "ALLOWED" not in text
+    assert "const int32_t OFFROAD_FROM = 0;" in text
+    assert "fx = fx + fv * cos(fh) * SENSE_UNIT;" in text
