@@ -11,17 +11,21 @@ Cases (each horizon of each case runs in a child process of its own, so that its
 its own; ``ru_maxrss`` of the child):
 
   left turn        examples/left_turn/model.ra at the benchmark's settings, ``prune_unsafe=True``.
-  ZAM_Ramp         ../shared/scenarios/ZAM_Ramp-1_1-T-1.xml (``--ramp``), ``prune_unsafe=False``:
-                   its ego starts partly off the road, so with pruning the graph is the initial
-                   state alone and no shield exists (checked and reported in a note).
-  ZAM_Ramp +2.5 m  the same scenario with the ego's start moved 2.5 m forward, onto the road
-                   (a copy of the XML in a temporary folder), ``prune_unsafe=True``.
+  ZAM_Ramp as CommonUppRoad ran it
+                   benchmarks/zam_ramp.ra over ../shared/scenarios/ZAM_Ramp-1_1-T-1.xml (``--ramp``):
+                   CommonUppRoad's experiments/exp2 model written as rac's modelling choices (SCALE
+                   100, a decision every 0.1 s, constant speed 30 m/s, turn -0.1/0/+0.1 rad per step
+                   allowed only while the next heading stays within 0.2 rad and the ego on the road,
+                   integer increments, the start at the centre of lane 0, off-road not checked at the
+                   start), ``prune_unsafe=False`` as UPPAAL's control synthesis explores the whole
+                   game. Next to UPPAAL's published states and times; the notes give the growth per
+                   decision of both and compare the counts per step of UPPAAL's Decisions cycle.
   left turn, model.ra's settings   examples/left_turn/model.ra as written (exponent 4, a decision
                    every 0.2 s among 81 (jerk, turn) pairs) at horizon 6, pruned: almost no states
                    merge there (81 ** 3 leaves), so the horizons above are out of reach.
 
-The ZAM_Ramp cases are skipped, with a message, when the shared scenario is absent (a fresh clone
-has no ../shared). The ``.ra`` models are generated into a temporary folder from
+The ZAM_Ramp case is skipped, with a message, when the shared scenario is absent (a fresh clone
+has no ../shared). The left-turn ``.ra`` model is generated into a temporary folder from
 examples/left_turn/model.ra (the driving automaton and its bindings), with the benchmark's settings
 in the ``model`` block and the scenario given by its absolute path.
 """
@@ -52,6 +56,7 @@ REPOSITORY = HERE.parent
 DEFAULT_OUTPUT = HERE / "results" / "engine.md"
 LEFT_TURN = REPOSITORY / "examples" / "left_turn" / "model.ra"
 DEFAULT_RAMP = REPOSITORY.parent / "shared" / "scenarios" / "ZAM_Ramp-1_1-T-1.xml"
+ZAM_RAMP_RA = HERE / "zam_ramp.ra"
 
 try:  # benchmark the installed rac; in a checkout without it, the checkout's src/
     import rac
@@ -73,36 +78,29 @@ SETTINGS = (
     "action jerk in [-2, 2] step 2",
     "action turn in [-0.4, 0.4] step 0.4",
 )
-#: How far the ``ZAM_Ramp +2.5 m`` case moves the ego's start forward (m), onto the road.
-RAMP_SHIFT = 2.5
+#: The locations UPPAAL stores per step of CommonUppRoad's Decisions cycle (Idle, EgoGo, ObsGo, Done;
+#: the Controller's committed Choose is not kept under its conservative space optimisation): its
+#: stored states per state of rac's, one per sample.
+UPPAAL_STATES_PER_STEP = 4
+#: The goal: rac's states within this factor of UPPAAL's (per step of its cycle).
+GOAL_STATES_FACTOR = 2.0
 AS_WRITTEN_HORIZON = 6
 MAX_STATES = 30_000_000  # a child gives up (MemoryError) beyond this many states
 CHILD_TIMEOUT = 900  # seconds
 
 
 # ---------------------------------------------------------------- the models
-def ra_text(scenario: Path, settings: Sequence[str]) -> str:
-    """examples/left_turn/model.ra with ``scenario`` (absolute) and ``settings`` in its model block."""
-    text = LEFT_TURN.read_text(encoding="utf-8")
+def ra_text(scenario: Path, settings: Sequence[str], source: Path = LEFT_TURN) -> str:
+    """``source`` (examples/left_turn/model.ra) with ``scenario`` (absolute) and ``settings`` in its model block."""
+    text = source.read_text(encoding="utf-8")
     path = str(scenario.resolve())
     if '"' in path or "\\" in path:
         raise SystemExit(f"benchmarks/engine.py: cannot write the path {path!r} as a .ra string")
     lines = "".join(f"\n        {setting}" for setting in settings)
     changed, count = re.subn(r'(?m)^(\s*)scenario\s+"[^"]*"', lambda m: f'{m.group(1)}scenario "{path}"{lines}', text)
     if count != 1:
-        raise SystemExit("benchmarks/engine.py: cannot find the `scenario` line in examples/left_turn/model.ra")
+        raise SystemExit(f"benchmarks/engine.py: cannot find the `scenario` line in {source}")
     return changed
-
-
-def moved_ramp(source: Path, target: Path, shift: float) -> None:
-    """A copy of the ZAM_Ramp XML whose planning problem starts ``shift`` m further along x."""
-    text = source.read_text(encoding="utf-8")
-    pattern = r"(<planningProblem\b.*?<initialState>\s*<position>\s*<point>\s*<x>)([-0-9.eE+]+)(</x>)"
-    changed, count = re.subn(pattern, lambda m: f"{m.group(1)}{float(m.group(2)) + shift!r}{m.group(3)}", text,
-                             count=1, flags=re.S)
-    if count != 1:
-        raise SystemExit(f"benchmarks/engine.py: cannot find the ego's initial x in {source}")
-    target.write_text(changed, encoding="utf-8")
 
 
 @dataclass(frozen=True)
@@ -114,6 +112,7 @@ class Case:
     prune: bool
     horizons: tuple[int, ...]
     reference: bool  # compare with the UPPAAL ZAM_Ramp run
+    forget: bool = False  # explore(..., forget_actions=True): the action that led to a state merged away
 
 
 # ---------------------------------------------------------------- one measurement (child process)
@@ -123,7 +122,7 @@ def peak_rss_mb() -> float:
     return peak / 2**20 if sys.platform == "darwin" else peak / 2**10
 
 
-def measure(model: str, horizon: int, prune: bool, repeat: int) -> dict[str, Any]:
+def measure(model: str, horizon: int, prune: bool, repeat: int, forget: bool = False) -> dict[str, Any]:
     """Explore and shield ``model`` ``repeat`` times; the repeat with the best total time."""
     from rac.compiler import compile_file
     from rac.engine.explore import explore
@@ -140,7 +139,8 @@ def measure(model: str, horizon: int, prune: bool, repeat: int) -> dict[str, Any
     for _ in range(repeat):
         start = time.perf_counter()
         try:
-            graph = explore(data, horizon_samples=horizon, prune_unsafe=prune, max_states=MAX_STATES)
+            graph = explore(data, horizon_samples=horizon, prune_unsafe=prune, max_states=MAX_STATES,
+                            forget_actions=forget)
         except MemoryError:
             return {"error": f"more than {MAX_STATES:,} states"}
         explored = time.perf_counter()
@@ -165,15 +165,15 @@ def measure(model: str, horizon: int, prune: bool, repeat: int) -> dict[str, Any
 def child_main(spec: str) -> int:
     """The child's side of :func:`run_child`: one JSON line with :func:`measure`'s result."""
     args = json.loads(spec)
-    print(json.dumps(measure(args["model"], args["horizon"], args["prune"], args["repeat"])))
+    print(json.dumps(measure(args["model"], args["horizon"], args["prune"], args["repeat"], args["forget"])))
     return 0
 
 
-def run_child(model: Path, horizon: int, prune: bool, repeat: int) -> dict[str, Any]:
+def run_child(model: Path, horizon: int, prune: bool, repeat: int, forget: bool = False) -> dict[str, Any]:
     """:func:`measure` in a fresh Python process (the same rac), so that ``ru_maxrss`` is this case's."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [str(Path(rac.__file__).resolve().parent.parent), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    spec = json.dumps({"model": str(model), "horizon": horizon, "prune": prune, "repeat": repeat})
+    spec = json.dumps({"model": str(model), "horizon": horizon, "prune": prune, "repeat": repeat, "forget": forget})
     try:
         done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", spec], env=env,
                               capture_output=True, text=True, timeout=CHILD_TIMEOUT, check=False)
@@ -258,10 +258,42 @@ def environment(quick: bool, repeat: int) -> list[str]:
         f"python {platform.python_version()} ({platform.python_implementation()}), numpy {np.__version__}{storm}",
         f"rac {rac.__version__} from {Path(rac.__file__).resolve().parent}",
         "settings (model block): " + "; ".join(SETTINGS) + " — sense_period 0.1 s (one CommonRoad time step), "
-        "granularity 0.25, the rest model.ra's; 3 x 3 = 9 (jerk, turn) pairs per decision",
+        "granularity 0.25, the rest model.ra's; 3 x 3 = 9 (jerk, turn) pairs per decision (left turn); "
+        "benchmarks/zam_ramp.ra as written (ZAM_Ramp)",
         "memory: peak RSS = ru_maxrss of the child (Python, numpy, stormpy, the compiled model, the graph and "
         "Storm's MDP); (+growth) = its growth over the peak before the first exploration",
     ]
+
+
+ZAM_CASE = "ZAM_Ramp as CommonUppRoad ran it"
+ZAM_MERGED = "ZAM_Ramp, the action that led to a state merged away"
+
+
+def states_notes(states: dict[int, int], merged: dict[int, int]) -> list[str]:
+    """The ZAM_Ramp state counts against UPPAAL's: the goal (within 2x per step of its cycle) and the
+    growth per decision between consecutive horizons: rac's before and after merging (``merged``:
+    ``forget_actions``), and UPPAAL's."""
+    compared = {h: (n, REFERENCE[h][0]) for h, n in sorted(states.items()) if h in REFERENCE}
+    if not compared:
+        return []
+    ratios = {h: n * UPPAAL_STATES_PER_STEP / uppaal for h, (n, uppaal) in compared.items()}
+    worst = max(ratios.values(), key=lambda r: max(r, 1 / r))
+    verdict = "ok" if max(worst, 1 / worst) <= GOAL_STATES_FACTOR else "MISS"
+    lines = [f"goal: ZAM_Ramp's states within {GOAL_STATES_FACTOR:g}x of UPPAAL's at every horizon, counted per "
+             f"step of its Decisions cycle (UPPAAL stores {UPPAAL_STATES_PER_STEP} locations per step — Idle, "
+             f"EgoGo, ObsGo, Done — for each of rac's states, one per sample): {verdict} (rac x "
+             f"{UPPAAL_STATES_PER_STEP} / UPPAAL: " + ", ".join(f"{r:.2f} at {h}" for h, r in ratios.items()) + ")"]
+    rows = ["| horizons | rac | rac, merged | UPPAAL |", "|---|---:|---:|---:|"]
+    horizons = list(compared)
+    for low, high in zip(horizons, horizons[1:]):
+        steps = high - low
+        ours = (compared[high][0] / compared[low][0]) ** (1 / steps)
+        theirs = (compared[high][1] / compared[low][1]) ** (1 / steps)
+        after = (f"{(merged[high] / merged[low]) ** (1 / steps):.3f}x" if low in merged and high in merged else "—")
+        rows.append(f"| {low} -> {high} | {ours:.3f}x | {after} | {theirs:.3f}x |")
+    if len(horizons) > 1:
+        lines.append("growth per decision (states(h2) / states(h1)) ** (1 / (h2 - h1)):\n\n" + "\n".join(rows) + "\n")
+    return lines
 
 
 # ---------------------------------------------------------------- main
@@ -302,13 +334,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         ramp = args.ramp
         if ramp.is_file():
             ramp_model = tmp / "zam_ramp.ra"
-            ramp_model.write_text(ra_text(ramp, SETTINGS), encoding="utf-8")
-            moved_xml = tmp / "ZAM_Ramp-1_1-T-1_moved.xml"
-            moved_ramp(ramp, moved_xml, RAMP_SHIFT)
-            moved_model = tmp / "zam_ramp_moved.ra"
-            moved_model.write_text(ra_text(moved_xml, SETTINGS), encoding="utf-8")
-            cases += [Case("ZAM_Ramp", ramp_model, False, horizons, True),
-                      Case(f"ZAM_Ramp +{RAMP_SHIFT} m", moved_model, True, horizons, True)]
+            ramp_model.write_text(ra_text(ramp, (), ZAM_RAMP_RA), encoding="utf-8")
+            cases += [Case(ZAM_CASE, ramp_model, False, horizons, True),
+                      Case(ZAM_MERGED, ramp_model, False, horizons, True, forget=True)]
         else:
             message = f"skipped the ZAM_Ramp cases: {ramp} not found (a fresh clone has no ../shared; see --ramp)"
             print(message, file=sys.stderr)
@@ -320,29 +348,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         for case in cases:
             for horizon in case.horizons:
                 print(f"... {case.name}, horizon {horizon}", file=sys.stderr, flush=True)
-                measured = run_child(case.model, horizon, case.prune, repeat)
+                measured = run_child(case.model, horizon, case.prune, repeat, case.forget)
                 results[case.name, horizon] = measured
                 rows.append(table_row(case, horizon, measured))
-        if ramp.is_file():  # what pruning does to ZAM_Ramp as given
-            pruned = run_child(tmp / "zam_ramp.ra", horizons[0], True, 1)
-            if "error" in pruned:
-                notes.append(f"ZAM_Ramp with prune_unsafe=True: {pruned['error']}")
-            else:
-                notes.append(
-                    f"ZAM_Ramp with prune_unsafe=True (horizon {horizons[0]}): {pruned['states']:,} state(s); the "
-                    f"initial state is {'off-road' if pruned['start_offroad'] else 'on the road'}"
-                    f"{' and colliding' if pruned['start_collide'] else ''}, so it is "
-                    f"{'winning' if pruned['winning_start'] else 'losing: no safety shield exists'}. The ego "
-                    "starts at x = 0 with velocity 0, half its length before the road's start; hence the unpruned "
-                    f"rows, and the +{RAMP_SHIFT} m case with the start moved onto the road.")
-
     speedups = [(REFERENCE[h][1] / m["total"], name, h) for (name, h), m in results.items()
-                if name.startswith("ZAM_Ramp") and h in REFERENCE and "error" not in m]
+                if name == ZAM_CASE and h in REFERENCE and "error" not in m]
     if speedups:
         worst = min(speedups)
         verdict = "ok" if worst[0] >= GOAL_SPEEDUP else "MISS"
         notes.insert(0, f"goal: >= {GOAL_SPEEDUP:.0f}x faster than UPPAAL on ZAM_Ramp at every horizon: {verdict} "
                         f"(lowest {worst[0]:,.0f}x: {worst[1]}, horizon {worst[2]})")
+    zam = {h: m["states"] for (name, h), m in results.items() if name == ZAM_CASE and "error" not in m}
+    merged = {h: m["states"] for (name, h), m in results.items() if name == ZAM_MERGED and "error" not in m}
+    if zam:
+        notes[1:1] = states_notes(zam, merged)
     largest = max((m for m in results.values() if "error" not in m), key=lambda m: m["states"], default=None)
     if largest is not None:
         notes.append(f"exploration throughput, largest case: {largest['states']:,} states in "

@@ -207,3 +207,35 @@ def test_without_choices_the_emitted_model_is_unchanged(tmp_path: Path, capsys: 
     assert "allow_actions" not in text and "ALLOWED" not in text
     assert "const int32_t OFFROAD_FROM = 0;" in text
     assert "fx = fx + fv * cos(fh) * SENSE_UNIT;" in text
+
+
+# ---------------------------------------------------------------- merging the action that led to a state
+def test_forgetting_the_last_action_merges_states_and_changes_no_answer(tmp_path: Path) -> None:
+    """At decision samples the carried (jerk, turn) is replaced before sense() reads it: states that
+    differ only there are one state for every label, choice and successor, and the shield's answers
+    on them are the same."""
+    from rac.engine import shield as shields
+    from rac.engine.explore import forgets_actions
+    from rac.engine.storm import safety_shield
+
+    data = compile_file(ramp_file(tmp_path)).model_data
+    kept, merged = explore(data, horizon_samples=10), explore(data, horizon_samples=10, forget_actions=True)
+    assert merged.n_states < 0.8 * kept.n_states
+    forgotten = forgets_actions(merged.states[:, 0], data.decide_every, 10)
+    assert not merged.states[forgotten][:, 6:8].any()
+    # the same distinct (k, x, y, v, acc, head) with the same labels, in both graphs
+    def labelled(graph):
+        rows = {}
+        for i, row in enumerate(graph.states[:, :6].tolist()):
+            rows.setdefault(tuple(row), set()).add(tuple(bool(graph.labels[n][i]) for n in sorted(graph.labels)))
+        return rows
+    assert labelled(kept) == labelled(merged)
+    a, b = safety_shield(kept, "safe"), safety_shield(merged, "safe")
+    assert a.shield_exists == b.shield_exists
+    table_kept = shields.table(a, n_actions=len(action_pairs(data)))
+    table_merged = shields.table(b, n_actions=len(action_pairs(data)), forget_every=data.decide_every)
+    # every decision state of the unmerged graph, looked up in the merged table with its own action
+    assert np.array_equal(table_merged.masks_for(table_kept.states), table_kept.masks)
+    saved = shields.load(shields.save(table_merged, tmp_path / "merged.shield.npz"))
+    assert saved.forget_every == data.decide_every
+    assert np.array_equal(saved.masks_for(table_kept.states), table_kept.masks)

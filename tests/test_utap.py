@@ -248,6 +248,17 @@ def test_shared_scenario_whole_model(utap: Utap, name: str, tmp_path: Path,
     utap.validate_files(*compile_cli(source, tmp_path / f"{scenario.stem}.xml", capsys))
 
 
+def test_zam_ramp_benchmark_model(utap: Utap, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """benchmarks/zam_ramp.ra: CommonUppRoad's ZAM_Ramp model as rac's modelling choices (dynamics
+    increments, allow when, the start settings, offroad_from)."""
+    source = ROOT / "benchmarks" / "zam_ramp.ra"
+    if not (SCENARIOS / "ZAM_Ramp-1_1-T-1.xml").exists():
+        pytest.skip("../shared/scenarios/ZAM_Ramp-1_1-T-1.xml is absent (../shared beside this checkout)")
+    xml, queries = compile_cli(source, tmp_path / "zam_ramp.xml", capsys)
+    assert "allow_actions()" in xml.read_text(encoding="utf-8")
+    utap.validate_files(xml, queries)
+
+
 # ---------------------------------------------------------------- random automata, alone
 #: Over the names every automaton of test_agreement's `automata()` has: L0, r0, inputs b c x m.
 RANDOM_QUERIES = (

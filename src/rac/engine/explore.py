@@ -31,7 +31,7 @@ from rac.ir.vocabulary import EGO_STATE
 from rac.model.batch import BatchModel, batch_model, distinct_values
 from rac.model.data import ModelData
 
-__all__ = ["COLUMNS", "action_pairs", "explore"]
+__all__ = ["COLUMNS", "action_pairs", "explore", "forgets_actions"]
 
 #: The columns of :attr:`ExploredGraph.states` produced by :func:`explore`.
 COLUMNS: tuple[str, ...] = ("k", *EGO_STATE)
@@ -91,10 +91,13 @@ def _graph_bytes(states: int, choices: int) -> int:
 
 def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
             check: Callable[[int], None],
-            keep: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            keep: Callable[[np.ndarray], np.ndarray] | None = None,
+            forget: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The distinct successors of ``sources`` (one per (jerk, turn) pair of ``pairs``, or one with
     their own actions when ``pairs`` is None) in lexicographic order, each kept choice's successor,
     and which choices are kept (``keep(successors)``: the ``allow when`` rule; None keeps all).
+    With ``forget`` the successors' jerk and turn are set to 0 (after ``keep`` read them), so that
+    successors differing only in the action that led to them merge.
 
     Successors are computed :data:`CHUNK_ROWS` at a time and merged as they come, so the memory
     beyond the result stays bounded; ``check(distinct)`` is called with the distinct successors
@@ -119,6 +122,8 @@ def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
             successors = successors[allowed]
         else:
             kept.append(np.ones(chosen.shape[0], dtype=bool))
+        if forget:
+            successors[:, 5:7] = 0
         rows, inverse = _unique_rows(successors)
         inverses.append(inverse + merged_rows + pending)
         parts.append(rows)
@@ -145,9 +150,16 @@ def _merge(parts: list[np.ndarray], inverses: list[np.ndarray]) -> list[np.ndarr
     return [rows]
 
 
+def forgets_actions(k: int | np.ndarray, decide_every: int, horizon_samples: int) -> np.ndarray:
+    """Where :func:`explore` with ``forget_actions=True`` holds jerk and turn as 0: at decision samples
+    (the action is chosen anew before anything reads it) and at the horizon (nothing follows)."""
+    k = np.asarray(k)
+    return (k % decide_every == 0) | (k == horizon_samples)
+
+
 def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe: bool = False,
             progress: Progress | None = None, max_states: int | None = None,
-            max_bytes: int | None = None) -> ExploredGraph:
+            max_bytes: int | None = None, forget_actions: bool = False) -> ExploredGraph:
     """Explore every state reachable from the ego's start, breadth-first, one sample per layer.
 
     A state is ``(k, x, y, v, acc, head, jerk, turn)`` (:data:`COLUMNS`; int32); state 0 is the
@@ -165,6 +177,15 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     or are off-road are also terminal (not expanded): enough for ``E[] safe``, ``E<> safe && goal``
     and the safety shield, and far smaller; their choices are then absent, so a consumer must not
     read a terminal state before the horizon as "the run ends safely".
+
+    ``forget_actions=True`` merges states that differ only in the action that led to them where that
+    action is never read again (:func:`forgets_actions`: at decision samples, where the next choice
+    replaces it before ``sense()`` runs, and at the horizon): their jerk and turn are held as 0. The
+    labels do not read them and the ``allow when`` rule reads them before they are forgotten, so
+    every label, choice and successor is unchanged — only the count of states (on CommonUppRoad's
+    ZAM_Ramp, by half). A consumer must then not read those states' jerk and turn (a query over
+    ``jerk``/``turn``, a trace printing them) and must look them up with the same two columns at 0
+    (:class:`rac.engine.shield.ShieldTable` does, given ``forget_every``).
 
     Labels (``(n,)`` bool): ``collide``, ``offroad``, ``goal``, ``safe`` (``!collide && !offroad``).
     ``progress(layer, frontier_size, total_states)`` is called once per explored layer.
@@ -232,8 +253,9 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
                 return guard.successors_allowed(successors, k + 1)  # noqa: B023 - called within this iteration
 
             restricted = decide and guard.restricts
+            forget = forget_actions and bool(forgets_actions(k + 1, data.decide_every, horizon_samples))
             frontier, inverse, kept = _expand(model, sources, pairs if decide else None, check,
-                                              keep if restricted else None)
+                                              keep if restricted else None, forget)
             choices -= kept.size - int(kept.sum())  # the disallowed choices are not in the graph
             count = np.zeros(size, dtype=np.int64)
             count[expand] = kept.reshape(-1, per_state).sum(axis=1) if restricted else per_state

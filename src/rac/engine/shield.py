@@ -52,6 +52,10 @@ class ShieldTable:
     states: np.ndarray  # (s, d) int32, decision states
     masks: np.ndarray  # (s, n_actions) bool
     unseen: str = "none"
+    #: > 0: the shield was computed with ``explore(..., forget_actions=True)``, so a state at a sample
+    #: ``k`` with ``k % forget_every == 0`` is looked up with its ``jerk`` and ``turn`` as 0 (the action
+    #: that led to it, which no later step reads); 0: states are looked up as they are.
+    forget_every: int = 0
 
     def __post_init__(self) -> None:
         if self.unseen not in UNSEEN_POLICIES:
@@ -63,8 +67,18 @@ class ShieldTable:
     def n_actions(self) -> int:
         return int(self.masks.shape[1])
 
+    def _keys(self, rows: np.ndarray) -> np.ndarray:
+        """``rows`` ``(n, d)`` as the table keys them (see :attr:`forget_every`)."""
+        rows = np.array(rows, dtype=np.int32, ndmin=2)
+        if self.forget_every > 0 and "k" in self.columns:
+            forgotten = rows[:, self.columns.index("k")] % self.forget_every == 0
+            for name in ("jerk", "turn"):
+                if name in self.columns:
+                    rows[forgotten, self.columns.index(name)] = 0
+        return np.ascontiguousarray(rows)
+
     def _row(self, state: object) -> int | None:
-        key = np.ascontiguousarray(np.asarray(state, dtype=np.int32)).tobytes()
+        key = self._keys(np.asarray(state))[0].tobytes()
         return self._index.get(key)  # type: ignore[attr-defined]
 
     def mask(self, state: object) -> np.ndarray:
@@ -94,7 +108,7 @@ class ShieldTable:
         """``(n, n_actions)`` bool: :meth:`mask` of every row of ``states`` (``(n, d)``), in one call.
 
         Unseen rows follow the table's ``unseen`` policy (``"error"`` raises for the first one)."""
-        rows = np.ascontiguousarray(np.asarray(states, dtype=np.int32))
+        rows = self._keys(np.asarray(states))
         found = np.array([self._index.get(row.tobytes(), -1) for row in rows], dtype=np.int64)  # type: ignore[attr-defined]
         out = np.empty((rows.shape[0], self.n_actions), dtype=bool)
         seen = found >= 0
@@ -116,14 +130,16 @@ def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None 
     from rac.engine.explore import action_pairs, explore
     from rac.engine.storm import safety_shield
 
+    # The shield reads labels and choices only: states differing in the action that led to them merge.
     graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=True, max_states=max_states,
-                    max_bytes=max_bytes, progress=progress)
+                    max_bytes=max_bytes, progress=progress, forget_actions=True)
     computed = safety_shield(graph, "safe")
-    return computed, table(computed, n_actions=len(action_pairs(data)))
+    return computed, table(computed, n_actions=len(action_pairs(data)), forget_every=data.decide_every)
 
 
-def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none") -> ShieldTable:
-    """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads)."""
+def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none", forget_every: int = 0) -> ShieldTable:
+    """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads);
+    ``forget_every``: the model's ``decide_every`` when the graph was explored with ``forget_actions``."""
     graph = shield.graph
     actions = graph.choice_action
     decision = actions >= 0
@@ -135,7 +151,8 @@ def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none")
     masks = np.zeros((states_with_decisions.size, n_actions), dtype=bool)
     picked = decision & shield.allowed_choices
     masks[row_of[owner[picked]], actions[picked]] = True
-    return ShieldTable(tuple(graph.columns), graph.states[states_with_decisions].astype(np.int32), masks, unseen)
+    return ShieldTable(tuple(graph.columns), graph.states[states_with_decisions].astype(np.int32), masks, unseen,
+                       forget_every)
 
 
 def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | None = None) -> Path:
@@ -149,7 +166,8 @@ def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | Non
     try:
         with partial.open("wb") as handle:
             np.savez_compressed(handle, format=np.array(FORMAT), columns=np.array(shield_table.columns),
-                                states=shield_table.states.astype(np.int32), masks=shield_table.masks)
+                                states=shield_table.states.astype(np.int32), masks=shield_table.masks,
+                                forget_every=np.array(shield_table.forget_every))
         os.replace(partial, path)
     finally:
         partial.unlink(missing_ok=True)
@@ -163,8 +181,9 @@ def load(path: str | Path, *, unseen: str = "none") -> ShieldTable:
         with np.load(path, allow_pickle=False) as data:
             if str(data["format"]) != FORMAT:
                 raise ValueError(f"{path}: not a rac shield (format {str(data['format'])!r})")
+            forget_every = int(data["forget_every"]) if "forget_every" in data.files else 0
             return ShieldTable(tuple(str(c) for c in data["columns"]), data["states"].astype(np.int32),
-                               data["masks"].astype(bool), unseen)
+                               data["masks"].astype(bool), unseen, forget_every)
     except (OSError, KeyError, ValueError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
