@@ -265,3 +265,17 @@ def test_qc_means_the_same_in_verify_and_preanalyse(tmp_path: Path) -> None:
     (row,) = sweep(result, runs=5, seed=1)
     assert (row["qb"], row["qc"], row["qc_horizon"]) == (False, True, False)
     assert "| true (safe until the goal only) |" in render_table([row])
+
+
+def test_the_experiment_counts_a_goal_only_when_the_run_can_stay_safe_to_the_horizon(tmp_path: Path) -> None:
+    """On the dead end every run that reaches the goal leaves the road before the horizon: no greedy
+    run, learning episode or evaluation run is "safe at the goal" (before: all of them were)."""
+    from rac.studies.experiment import render_markdown, run_experiment
+
+    result = compile_file(dead_end(tmp_path))
+    report = run_experiment(result, seeds=(1, 2), episodes=40, evaluation_runs=5, parallel=8,
+                            combinations=("RA", "RF"), reward_function="10 * !near + 100 * goal()")
+    records = report["records"]
+    assert records and all(r.greedy_success is False and r.first_success_episode is None for r in records)
+    assert all(r.evaluation_successes == 0 and not r.succeeded.any() for r in records)
+    assert "safe at the goal and to the horizon" in render_markdown(report)

@@ -120,6 +120,46 @@ class ShieldTable:
         return out
 
 
+class SafeOnward:
+    """Whether a run can stay safe from a state to the horizon: the state is winning in the safety
+    game of ``shield`` (``control: A[] !collide() && !offroad()`` up to ``horizon_samples``), read off
+    its graph. Called with ``(m, 8)`` state keys ``k, x, y, v, acc, head, jerk, turn``; a state the
+    graph does not hold (none a safe run reaches) is not. ``forget_every``: the graph was explored
+    with ``forget_actions`` (:func:`rac.engine.explore.forgets_actions`), so such keys are looked up
+    with jerk and turn at 0 where it holds them so. Used by ``rac experiment`` to judge a run that
+    reaches the goal: "safe at the goal" means it can also stay safe to the horizon."""
+
+    def __init__(self, shield: Shield, horizon_samples: int, forget_every: int = 0) -> None:
+        graph = shield.graph
+        self.horizon = horizon_samples
+        self.forget_every = forget_every
+        k = graph.states[:, 0]
+        order = np.argsort(k, kind="stable")
+        bounds = np.searchsorted(k[order], np.arange(horizon_samples + 2))
+        self._layers = {layer: order[bounds[layer]:bounds[layer + 1]] for layer in range(horizon_samples + 1)}
+        self._graph = graph
+        self._winning = shield.winning
+        self._sets: dict[int, set[bytes]] = {}
+
+    def _winning_at(self, k: int) -> set[bytes]:
+        found = self._sets.get(k)
+        if found is None:
+            rows = self._layers.get(k, np.zeros(0, dtype=np.int64))
+            rows = rows[self._winning[rows]]
+            states = np.ascontiguousarray(self._graph.states[rows], dtype=np.int32)
+            found = self._sets[k] = {row.tobytes() for row in states}
+        return found
+
+    def __call__(self, keys: np.ndarray) -> np.ndarray:
+        from rac.engine.explore import forgets_actions
+
+        rows = np.array(keys, dtype=np.int32, ndmin=2)
+        if self.forget_every > 0:
+            rows[forgets_actions(rows[:, 0], self.forget_every, self.horizon), 6:8] = 0
+        rows = np.ascontiguousarray(rows)
+        return np.array([row.tobytes() in self._winning_at(int(row[0])) for row in rows], dtype=bool)
+
+
 def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None = None,
                max_bytes: int | None = None,
                progress: Callable[[int, int, int], None] | None = None) -> tuple[Shield, ShieldTable]:

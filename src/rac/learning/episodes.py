@@ -50,7 +50,7 @@ Example::
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,6 +101,9 @@ class StepResult:
     collided: np.ndarray
     #: bool: ``offroad()`` held at some sample of this step.
     offroad: np.ndarray
+    #: bool: the goal was reached in this step in a state from which no run stays safe to the horizon
+    #: (judged only with ``onward``; else always False).
+    stranded: np.ndarray
 
 
 class _Inputs:
@@ -197,7 +200,8 @@ class EpisodeBatch:
 
     def __init__(self, result: CompileResult, *, reward: Expression = "automaton",
                  goal: Expression | None = GOAL, horizon_samples: int | None = None,
-                 data: ModelData | None = None) -> None:
+                 data: ModelData | None = None,
+                 onward: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         automaton = result.automaton
         if automaton is None:
             raise ValueError("the file has errors: there is no automaton to run")
@@ -209,6 +213,10 @@ class EpisodeBatch:
         self.result = result
         self.automaton = automaton
         self.data = data
+        #: Whether a run can stay safe to the horizon from a state (``(m, 8)`` keys ``k, x, ..., turn``
+        #: -> ``(m,)`` bool), e.g. :class:`rac.engine.shield.SafeOnward`: an episode that reaches the
+        #: goal where it cannot is ``stranded`` (:class:`StepResult`). None: not judged.
+        self.onward = onward
         self.evaluator = Evaluator(data, automaton)
         self._bindings = _Inputs(self.evaluator, automaton)
         self.reward_expr: ie.Expr | None = None if reward == "automaton" else self.expression(reward)
@@ -346,7 +354,8 @@ class EpisodeBatch:
                              f"{actions.shape}")
         n = self.n
         reward = np.zeros(n)
-        flags = {name: np.zeros(n, dtype=bool) for name in ("terminated", "truncated", "collided", "offroad")}
+        flags = {name: np.zeros(n, dtype=bool) for name in ("terminated", "truncated", "collided", "offroad",
+                                                              "stranded")}
         live = ~self.done
         chosen = actions[live]
         if chosen.size and (chosen.min() < 0 or chosen.max() >= self.n_actions):
@@ -405,6 +414,10 @@ class EpisodeBatch:
         ending = reached | last
         if ending.any():
             flags["terminated"][rows[reached]] = True
+            if self.onward is not None and reached.any():
+                arrived = rows[reached]
+                keys = np.column_stack([now.k[arrived], now.ego[arrived]]).astype(np.int32)
+                flags["stranded"][arrived] = ~np.asarray(self.onward(keys), dtype=bool)
             flags["truncated"][rows[last & ~reached]] = True
             mask = np.zeros(self.n, dtype=bool)
             mask[rows[ending]] = True

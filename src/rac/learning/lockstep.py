@@ -163,4 +163,5 @@ def _step(shared: EpisodeBatch, stepping: list[_Running]) -> None:
             reward = np.where(running[lane], after[lane, column] - before[lane, column], 0.0)
         run.seconds += spent * weight / total
         run.send(StepResult(reward=reward, terminated=outcome.terminated[lane], truncated=outcome.truncated[lane],
-                            collided=outcome.collided[lane], offroad=outcome.offroad[lane]))
+                            collided=outcome.collided[lane], offroad=outcome.offroad[lane],
+                            stranded=outcome.stranded[lane]))

@@ -155,13 +155,14 @@ class ObjectiveIncrease(Forwarding):
 @dataclass(frozen=True, eq=False)
 class History:
     """Per learning episode (in the order they started): ``returns`` (undiscounted), ``reached``
-    the goal, ``collided``, ``offroad`` (at any sample) and ``fallbacks``; per evaluation (after
+    the goal, ``collided``, ``offroad`` (at any sample), ``stranded`` and ``fallbacks``; per evaluation (after
     each batch): ``eval_episodes`` (episodes learned so far), ``eval_returns``, ``eval_success``."""
 
     returns: np.ndarray
     reached: np.ndarray
     collided: np.ndarray
     offroad: np.ndarray
+    stranded: np.ndarray
     fallbacks: np.ndarray
     eval_episodes: np.ndarray
     eval_returns: np.ndarray
@@ -307,6 +308,7 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
                       reached=np.concatenate([log.reached for log in logs]),
                       collided=np.concatenate([log.collided for log in logs]),
                       offroad=np.concatenate([log.offroad for log in logs]),
+                      stranded=np.concatenate([log.stranded for log in logs]),
                       fallbacks=np.concatenate([log.fallbacks for log in logs]),
                       eval_episodes=np.array([e[0] for e in evaluations], dtype=np.int64),
                       eval_returns=np.array([e[1] for e in evaluations]),

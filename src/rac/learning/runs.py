@@ -97,7 +97,7 @@ class RunRecorder:
         self.observed = np.zeros((n, steps_max + 1, width), dtype=np.float64)
         self.actions = np.full((n, steps_max), -1, dtype=np.int64)
         self.rewards = np.zeros((n, steps_max), dtype=np.float64)
-        self.flags = {name: np.zeros(n, dtype=bool) for name in ("reached", "collided", "offroad")}
+        self.flags = {name: np.zeros(n, dtype=bool) for name in ("reached", "collided", "offroad", "stranded")}
         self.fallbacks = np.zeros(n, dtype=np.int64)
         self.steps = np.zeros(n, dtype=np.int64)
 
@@ -115,7 +115,7 @@ class RunRecorder:
         self.actions[live, j] = chosen[self.rows][live]
         self.rewards[live, j] = np.asarray(outcome.reward)[self.rows][live]
         for name, value in (("reached", outcome.terminated), ("collided", outcome.collided),
-                            ("offroad", outcome.offroad)):
+                            ("offroad", outcome.offroad), ("stranded", outcome.stranded)):
             self.flags[name] |= np.asarray(value, dtype=bool)[self.rows] & live
         self.steps += live
         self.j += 1
@@ -126,7 +126,8 @@ class RunRecorder:
         self.states[:, j + 1:] = self.states[:, j:j + 1]
         self.observed[:, j + 1:] = self.observed[:, j:j + 1]
         return StrategyRun(self.states, self.observed, self.actions, self.rewards, self.rewards.sum(axis=1),
-                           self.flags["reached"], self.flags["collided"], self.flags["offroad"], self.fallbacks,
+                           self.flags["reached"], self.flags["collided"], self.flags["offroad"],
+                           self.flags["stranded"], self.fallbacks,
                            self.steps, int(self.batch.decide_every), int(self.batch.horizon_samples))
 
 

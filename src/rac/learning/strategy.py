@@ -79,6 +79,9 @@ class StepOutcome(Protocol):
     def collided(self) -> np.ndarray: ...
 
     @property
+    def stranded(self) -> np.ndarray: ...
+
+    @property
     def offroad(self) -> np.ndarray: ...
 
 
@@ -308,8 +311,9 @@ class StrategyRun:
     step and after the last (a finished run's row repeats its last state); ``observations (n, S+1,
     d+c)`` the observed values there; ``actions (n, S)`` (-1 after the end), ``rewards (n, S)`` (0
     after the end); per run: ``returns`` (the undiscounted sum of rewards), ``reached`` the goal,
-    ``collided``, ``offroad`` (at any sample), ``fallbacks`` (decisions where the shield allowed
-    nothing) and ``steps`` taken. ``decide_every`` samples per step, ``horizon_samples`` the
+    ``collided``, ``offroad`` (at any sample), ``stranded`` (reached the goal where no run stays safe
+    to the horizon: :attr:`rac.learning.episodes.EpisodeBatch.onward`), ``fallbacks`` (decisions where
+    the shield allowed nothing) and ``steps`` taken. ``decide_every`` samples per step, ``horizon_samples`` the
     episodes' horizon."""
 
     states: np.ndarray
@@ -320,6 +324,7 @@ class StrategyRun:
     reached: np.ndarray
     collided: np.ndarray
     offroad: np.ndarray
+    stranded: np.ndarray
     fallbacks: np.ndarray
     steps: np.ndarray
     decide_every: int
@@ -331,8 +336,9 @@ class StrategyRun:
 
     @property
     def success(self) -> np.ndarray:
-        """``(n,)`` the run reached the goal and never collided nor left the road."""
-        return self.reached & ~self.collided & ~self.offroad
+        """``(n,)`` the run reached the goal, never collided nor left the road, and (where the episodes
+        judge it) can stay safe from the goal to the horizon."""
+        return self.reached & ~self.collided & ~self.offroad & ~self.stranded
 
     @property
     def samples_taken(self) -> np.ndarray:

@@ -124,12 +124,14 @@ def update(values: np.ndarray, step: Transition, alpha: float, gamma: float) -> 
 @dataclass(frozen=True, eq=False)
 class BatchLog:
     """Per learning episode of a batch: the undiscounted ``returns``, whether it ``reached`` the goal,
-    ``collided``, went ``offroad`` (at any sample), and its ``fallbacks`` (empty shield masks)."""
+    ``collided``, went ``offroad`` (at any sample), was ``stranded`` at the goal (no safe run to the
+    horizon from there, where judged), and its ``fallbacks`` (empty shield masks)."""
 
     returns: np.ndarray
     reached: np.ndarray
     collided: np.ndarray
     offroad: np.ndarray
+    stranded: np.ndarray
     fallbacks: np.ndarray
 
 
@@ -179,7 +181,7 @@ class Learner:
         masks, empty = allowed_actions(batch, shield)
         fallbacks = empty[:n].astype(np.int64)
         returns = np.zeros(n)
-        reached, collided, offroad = (np.zeros(n, dtype=bool) for _ in range(3))
+        reached, collided, offroad, stranded = (np.zeros(n, dtype=bool) for _ in range(4))
         steps: list[Transition] = []  # this batch's transitions, for the backward replay
         recording = recorder is not None
         for _ in range(batch.max_steps):
@@ -216,6 +218,7 @@ class Learner:
                 reached |= np.asarray(outcome.terminated, dtype=bool)[:n] & learning
                 collided |= np.asarray(outcome.collided, dtype=bool)[:n] & learning
                 offroad |= np.asarray(outcome.offroad, dtype=bool)[:n] & learning
+                stranded |= np.asarray(outcome.stranded, dtype=bool)[:n] & learning
                 fallbacks += next_empty[:n] & learning & ~ends  # only a continuing episode decides there
                 rows = next_rows
             masks, empty = next_masks, next_empty
@@ -227,5 +230,5 @@ class Learner:
         for _ in range(self.replay):
             for step in reversed(steps):
                 update(table.values, step, self.alpha, self.gamma)
-        log = BatchLog(returns, reached, collided, offroad, fallbacks)
+        log = BatchLog(returns, reached, collided, offroad, stranded, fallbacks)
         return log, recorder.finish() if recorder is not None else None

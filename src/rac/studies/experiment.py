@@ -91,20 +91,24 @@ def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
     return [f"{automaton.name}.location"], ["x", "y", "v", "head"]
 
 
-def _shield(result: CompileResult, horizon_samples: int, max_states: int):
-    """The safety shield's table, the seconds it took and its states; ExperimentError without one."""
+def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed: bool):
+    """The safety shield's table (None when ``needed`` is false and no safe strategy exists from the
+    start), the seconds it took, its states, and the judge of "safe to the horizon" from a goal state
+    (:class:`rac.engine.shield.SafeOnward`); ExperimentError when the shield is needed and absent."""
     from rac.engine import shield as shields
 
-    assert result.model_data is not None
+    data = result.model_data
+    assert data is not None
     t0 = time.perf_counter()
     try:
-        computed, table = shields.synthesise(result.model_data, horizon_samples, max_states=max_states)
+        computed, table = shields.synthesise(data, horizon_samples, max_states=max_states)
     except MemoryError as exc:
         raise ExperimentError(f"the safety shield cannot be computed: {exc}; coarsen the model (actions, "
                               "decide_period) or shorten the horizon") from None
-    if not computed.shield_exists:
+    if not computed.shield_exists and needed:
         raise ExperimentError("no safe strategy exists from the start: the shielded combinations cannot run")
-    return table, time.perf_counter() - t0, computed.graph.n_states
+    onward = shields.SafeOnward(computed, horizon_samples, forget_every=table.forget_every)
+    return (table if computed.shield_exists else None), time.perf_counter() - t0, computed.graph.n_states, onward
 
 
 def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4, 5), episodes: int = 500,
@@ -139,12 +143,13 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         raise ExperimentError(f"--reward-function: {exc}") from None
     wanted = [c for c in COMBINATIONS if combinations is None or c[0] in combinations]
     discrete, continuous = _learning_spec(result)
-    shield_table, shield_seconds, shield_states = (None, 0.0, 0)
-    if any(shielded for _, shielded, _ in wanted):
-        if progress:
-            progress("computing the safety shield")
-        shield_table, shield_seconds, shield_states = _shield(result, horizon, max_states)
-    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon)
+    # The shield also judges every combination's runs: a run is safe at the goal only if it can stay
+    # safe from there to the horizon, the horizon the shield guarantees.
+    if progress:
+        progress("computing the safety shield")
+    shield_table, shield_seconds, shield_states, onward = _shield(
+        result, horizon, max_states, any(shielded for _, shielded, _ in wanted))
+    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward)
     objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
     runs = [(label, seed, shield_table if shielded else None, kind)
             for label, shielded, kind in wanted for seed in seeds]
@@ -179,7 +184,8 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     records: list[RunRecord] = []
     for (label, seed, _, _), (outcome, seconds), (evaluation, _) in zip(runs, learned, evaluations):
         history = outcome.history
-        succeeded = np.asarray(history.reached) & ~np.asarray(history.collided) & ~np.asarray(history.offroad)
+        succeeded = (np.asarray(history.reached) & ~np.asarray(history.collided) & ~np.asarray(history.offroad)
+                     & ~np.asarray(history.stranded))
         records.append(RunRecord(label, seed, seconds, outcome.episodes, outcome.first_success_episode,
                                  outcome.collisions_during_learning, outcome.offroad_during_learning,
                                  bool(outcome.greedy.success[0]), evaluation.successes, evaluation.runs,
@@ -228,7 +234,7 @@ def render_markdown(report: Report) -> str:
     rows = summary(report)
     lines = [
         "| combination | learning time (s) | episodes until the first safe goal | episodes learned | "
-        "collisions during learning (episodes) | greedy strategy safe at the goal | "
+        "collisions during learning (episodes) | greedy strategy safe at the goal and to the horizon | "
         f"success over {_evaluation_runs(report)} runs with {EVALUATION_NOISE:g} random actions |",
         "| --- | --- | --- | --- | --- | --- | --- |",
     ]
@@ -250,6 +256,9 @@ def render_markdown(report: Report) -> str:
         f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}}.",
         "Values are mean ± standard deviation over the seeds; 'episodes until the first safe goal' counts only "
         "the seeds that got there.",
+        f"A run succeeds when it reaches the goal without colliding or leaving the road and, from the state it "
+        f"reaches the goal in, some run stays safe to the horizon ({report['horizon_samples']} samples, the "
+        "shield's): a run that reaches the goal only to leave the road after it does not count.",
     ]
     return "\n".join(lines + notes)
 

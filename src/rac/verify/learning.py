@@ -100,7 +100,7 @@ class LearningAnswerer:
         stop = ", stopped early" if outcome.stopped_early else ""
         lines = [f"learned in {outcome.episodes} episodes{stop}: the greedy run {run}, return "
                  f"{format_number(float(greedy.returns[0]))}",
-                 f"safe greedy run to the goal: {first}; learning episodes that collided: "
+                 f"greedy run safe until the goal: {first}; learning episodes that collided: "
                  f"{outcome.collisions_during_learning}, left the road: {outcome.offroad_during_learning}; "
                  f"{outcome.strategy.n_states:,} observations"]
         if outcome.fallbacks:
