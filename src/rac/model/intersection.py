@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import tempfile
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -43,9 +42,7 @@ import numpy as np
 import shapely
 from commonroad.common.common_lanelet import LaneletType, LineMarking
 from commonroad.common.common_scenario import ScenarioID
-from commonroad.common.file_writer import CommonRoadFileWriter
-from commonroad.common.util import FileFormat, Interval
-from commonroad.common.writer.file_writer_interface import OverwriteExistingFile
+from commonroad.common.util import Interval
 from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
 from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
 from commonroad.planning.goal import GoalRegion
@@ -56,26 +53,22 @@ from commonroad.scenario.obstacle import DynamicObstacle, ObstacleType
 from commonroad.scenario.scenario import Scenario, Tag
 from commonroad.scenario.state import CustomState, ExtendedPMState, InitialState
 from commonroad.scenario.trajectory import Trajectory
-from lxml import etree
+
+from rac.model.scenario_xml import DECIMALS, DT, clean, scenario_bytes
 
 __all__ = [
     "ARM_END", "DT", "EGO_START", "GOAL_CENTER", "GOAL_SIZE", "HALF_BOX", "LANE_WIDTH", "OBSTACLES",
-    "PLANNING_PROBLEM_ID", "STEPS", "build_left_turn", "render_left_turn", "write_left_turn",
+    "PLANNING_PROBLEM_ID", "STEPS", "T_ARMS", "build_left_turn", "build_t_junction", "render_left_turn",
+    "left_turn_bytes", "t_junction_bytes", "write_left_turn",
 ]
 
 LANE_WIDTH = 3.5  #: m, one lane per direction
 HALF_BOX = 8.0  #: m, from the centre to where the arms begin (the intersection box is 16 m wide)
 ARM_END = 70.0  #: m, from the centre to the far end of each arm
-DT = 0.1  #: s, the CommonRoad time step
 STEPS = 100  #: time steps of the obstacles' trajectories and of the goal's time interval (10 s)
 ARC_SEGMENTS = 16  #: segments of each quarter-circle boundary of a turning connector
 STRAIGHT_SPACING = 5.0  #: m, at most between two boundary points of a straight lanelet
-#: Decimals written to the file. commonroad-io's writer truncates floats to its precision, so every
-#: number is rounded to it first: the built scenario and the file hold the same values.
-DECIMALS = 6
 PLANNING_PROBLEM_ID = 100
-#: The fixed ``date`` written into the file header, so that regenerating the file is byte-stable.
-FILE_DATE = "2026-01-01"
 
 #: Approaches in counter-clockwise order: name, rotation (multiples of 90°) of the south approach.
 APPROACHES = ("south", "east", "north", "west")
@@ -124,11 +117,6 @@ def _rotate(points: np.ndarray, approach: int) -> np.ndarray:
     return np.column_stack((c * x - s * y, s * x + c * y))
 
 
-def _clean(values):
-    """Rounded to the file's ``DECIMALS`` (so the built and the re-read scenario agree), without -0.0."""
-    return np.round(values, DECIMALS) + 0.0
-
-
 def _straight(x: float, y0: float, y1: float) -> np.ndarray:
     n = max(2, math.ceil(abs(y1 - y0) / STRAIGHT_SPACING) + 1)
     return np.column_stack((np.full(n, x), np.linspace(y0, y1, n)))
@@ -157,14 +145,17 @@ def _south_polylines() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     }
 
 
-def _lanelets() -> list[Lanelet]:
+def _lanelets(arms: Sequence[int] = (0, 1, 2, 3)) -> list[Lanelet]:
+    """The lanelets of the junction's ``arms`` (approach indices) and of the connectors between them."""
     south = _south_polylines()
     lanelets = []
-    targets = {"left": 3, "straight": 2, "right": 1}  # outgoing approach = (approach + offset) % 4
-    for k in range(4):
+    every = {"left": 3, "straight": 2, "right": 1}  # outgoing approach = (approach + offset) % 4
+    for k in arms:
+        targets = {turn: offset for turn, offset in every.items() if (k + offset) % 4 in arms}
+        sources = {turn: offset for turn, offset in every.items() if (k - offset) % 4 in arms}
         def bounds(kind: str, k: int = k) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             left, centre, right = south[kind]
-            return _clean(_rotate(left, k)), _clean(_rotate(centre, k)), _clean(_rotate(right, k))
+            return clean(_rotate(left, k)), clean(_rotate(centre, k)), clean(_rotate(right, k))
 
         left, centre, right = bounds("incoming")
         lanelets.append(Lanelet(
@@ -176,7 +167,7 @@ def _lanelets() -> list[Lanelet]:
         left, centre, right = bounds("outgoing")
         lanelets.append(Lanelet(
             left, centre, right, outgoing_id(k),
-            predecessor=[connector_id((k - offset) % 4, turn) for turn, offset in targets.items()],
+            predecessor=[connector_id((k - offset) % 4, turn) for turn, offset in sources.items()],
             adjacent_left=incoming_id(k), adjacent_left_same_direction=False,
             line_marking_left_vertices=LineMarking.DASHED, line_marking_right_vertices=LineMarking.SOLID,
             lanelet_type={LaneletType.URBAN}))
@@ -191,17 +182,17 @@ def _lanelets() -> list[Lanelet]:
 
 def _heading(approach: int) -> float:
     """Heading of traffic on an approach's incoming lane, in (-pi, pi]."""
-    return float(_clean(math.remainder(math.pi / 2 * (1 + approach), 2 * math.pi)))
+    return float(clean(math.remainder(math.pi / 2 * (1 + approach), 2 * math.pi)))
 
 
 def _car(spec: CarSpec, shift: float, dv: float, steps: int = STEPS) -> DynamicObstacle:
     (x0, y0), = _rotate(np.array([[LANE_WIDTH / 2, -(spec.start_distance + shift)]]), spec.approach)
     heading = _heading(spec.approach)
     c, s = _ROTATIONS[(spec.approach + 1) % 4]  # unit vector of the heading, exactly
-    v = float(_clean(spec.velocity + dv))
+    v = float(clean(spec.velocity + dv))
 
     def position(k: int) -> np.ndarray:
-        return _clean(np.array([[x0 + c * v * k * DT, y0 + s * v * k * DT]]))[0]
+        return clean(np.array([[x0 + c * v * k * DT, y0 + s * v * k * DT]]))[0]
 
     initial = InitialState(time_step=0, position=position(0), orientation=heading, velocity=v,
                            acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
@@ -233,73 +224,61 @@ def build_left_turn(seed: int = 0, steps: int = STEPS) -> tuple[Scenario, Planni
         shift, dv = (rng.uniform(-4.0, 4.0), rng.uniform(-1.0, 1.0)) if rng is not None else (0.0, 0.0)
         scenario.add_objects(_car(spec, shift, dv, steps))
 
+    return scenario, _problems(steps)
+
+
+def _problems(steps: int) -> PlanningProblemSet:
+    """The ego's start on the south arm and the goal on the west arm, within ``steps`` time steps."""
     x, y, heading, velocity = EGO_START
     initial = InitialState(time_step=0, position=np.array([x, y]), orientation=heading, velocity=velocity,
                            acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
     goal_area = RectOccupancy(rect_center=shapely.Point(*GOAL_CENTER), length=GOAL_SIZE[0], width=GOAL_SIZE[1],
                               orientation=0.0)
     goal = GoalRegion([CustomState(time_step=Interval(0, steps), position=goal_area)])
-    problems = PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, initial, goal)])
-    return scenario, problems
+    return PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, initial, goal)])
 
 
-def _xml_bytes(seed: int, steps: int = STEPS) -> bytes:
+#: The T-junction's arms: the intersection without its north arm.
+T_ARMS = (0, 1, 3)
+
+
+def build_t_junction(steps: int = STEPS) -> tuple[Scenario, PlanningProblemSet]:
+    """A T-junction: the intersection without its north arm (:data:`T_ARMS`), the same ego turning
+    left from the south arm into the west arm's westbound lane and the same goal, across two cars
+    driving straight through on the main road: 51 from the west going east (it crosses the ego's
+    path) and 53 from the east going west (it drives ahead of the ego through the goal area)."""
+    if steps < 1:
+        raise ValueError(f"steps must be >= 1, got {steps}")
+    scenario = Scenario(DT, ScenarioID(country_id="ZAM", map_name="TJunction", map_id=1, obstacle_behavior="T",
+                                       prediction_id=1))
+    for lanelet in _lanelets(T_ARMS):
+        scenario.add_objects(lanelet)
+    for spec in OBSTACLES:
+        if spec.approach in T_ARMS:
+            scenario.add_objects(_car(spec, 0.0, 0.0, steps))
+    return scenario, _problems(steps)
+
+
+def t_junction_bytes(steps: int = STEPS) -> bytes:
+    """:func:`build_t_junction` as canonical CommonRoad XML."""
+    scenario, problems = build_t_junction(steps)
+    return scenario_bytes(scenario, problems, tags={Tag.URBAN, Tag.INTERSECTION, Tag.TURN_LEFT, Tag.TWO_LANE},
+                          source="generated by rac.model.intersection (T-junction)")
+
+
+def left_turn_bytes(seed: int = 0, steps: int = STEPS) -> bytes:
+    """:func:`build_left_turn` as canonical CommonRoad XML."""
     scenario, problems = build_left_turn(seed, steps)
-    writer = CommonRoadFileWriter(
-        scenario, problems, author="rac", affiliation="rac (reward-automata compiler)",
-        source=(f"generated by rac.model.intersection (seed {seed})"
-                + (f" ({steps} steps)" if steps != STEPS else "")),
-        tags={Tag.URBAN, Tag.INTERSECTION, Tag.TURN_LEFT, Tag.ONCOMING_TRAFFIC, Tag.TWO_LANE},
-        decimal_precision=DECIMALS, file_format=FileFormat.XML)
-    with tempfile.TemporaryDirectory(prefix="rac-left-turn-") as folder:
-        target = Path(folder) / "left_turn.xml"
-        writer.write_to_file(str(target), OverwriteExistingFile.ALWAYS)
-        return _canonical(target.read_bytes())
-
-
-def _canonical(data: bytes) -> bytes:
-    """The writer's output made byte-stable: its header carries today's date and it writes sets
-    (scenario tags, lanelet types) in hash order, which changes from one interpreter to the next.
-    The date is pinned to ``FILE_DATE`` and set-valued elements are sorted; the result is checked
-    against commonroad-io's XSD."""
-    root = etree.fromstring(data, etree.XMLParser(remove_blank_text=True))
-    root.set("date", FILE_DATE)
-    for parent in root.iter():
-        children = list(parent)
-        if parent.tag == "scenarioTags":
-            parent[:] = sorted(children, key=lambda child: child.tag)
-            continue
-        ordered = list(children)
-        for tag in _SET_VALUED:
-            indices = [i for i, child in enumerate(children) if child.tag == tag]
-            for i, child in zip(indices, sorted((children[i] for i in indices), key=lambda c: c.text or "")):
-                ordered[i] = child
-        if ordered != children:
-            parent[:] = ordered
-    canonical = etree.tostring(root.getroottree(), pretty_print=True, xml_declaration=True, encoding="UTF-8")
-    _check_schema(canonical)
-    return canonical
-
-
-def _check_schema(data: bytes) -> None:
-    """Validate against commonroad-io's 2020a XSD (the writer's ``check_validity`` ignores the result)."""
-    import commonroad
-
-    xsd = Path(commonroad.__file__).parent / "common" / "xml_definition_files" / "XML_commonRoad_XSD.xsd"
-    schema = etree.XMLSchema(etree.parse(str(xsd)))
-    if not schema.validate(etree.fromstring(data)):
-        last = schema.error_log.last_error  # type: ignore[attr-defined]  # lxml has it; lxml-stubs 0.5 does not
-        raise RuntimeError(f"the generated scenario does not match {xsd.name}: {last}")
-
-
-#: Elements the writer emits from Python sets, one element per member.
-_SET_VALUED = ("laneletType", "userOneWay", "userBidirectional", "trafficSignRef", "trafficLightRef")
+    return scenario_bytes(scenario, problems,
+                          tags={Tag.URBAN, Tag.INTERSECTION, Tag.TURN_LEFT, Tag.ONCOMING_TRAFFIC, Tag.TWO_LANE},
+                          source=(f"generated by rac.model.intersection (seed {seed})"
+                                  + (f" ({steps} steps)" if steps != STEPS else "")))
 
 
 def write_left_turn(path: str | Path, seed: int = 0, steps: int = STEPS) -> Path:
     """Write the left-turn scenario as a CommonRoad 2020a XML file (schema-checked) and return its path."""
     path = Path(path)
-    path.write_bytes(_xml_bytes(seed, steps))
+    path.write_bytes(left_turn_bytes(seed, steps))
     return path
 
 

@@ -1,0 +1,121 @@
+"""The generated scenes of rac.model.scenes (highway, T-junction, overtaking, the left turn): valid,
+byte-stable CommonRoad files whose hazards are there by construction, answered by the engine and
+emitted for UPPAAL like any user's scenario (benchmarks/queries.py runs every query on them)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_utap import compile_cli
+from utap import Utap
+
+from rac.compiler import compile_file
+from rac.model import NativeModel
+from rac.model.commonroad import load_scenario
+from rac.model.scenes import SCENES, scene_bytes, write_scene
+from rac.verify.context import VerifyOptions
+from rac.verify.runner import run_queries
+
+#: Per scene: lanelets, obstacles, and the settings of a small model over it.
+EXPECTED = {"highway": (3, 3), "overtaking": (2, 2), "t_junction": (12, 2), "left_turn": (20, 3)}
+SETTINGS = {
+    "highway": "max_speed 30\n        action turn in [-0.2, 0.2] step 0.2",
+    "overtaking": "max_speed 25\n        action turn in [-0.2, 0.2] step 0.2",
+    "t_junction": "action turn in [0, 0.4] step 0.2",
+    "left_turn": "action turn in [0, 0.4] step 0.2",
+}
+SOURCE = """\
+automaton Scene {{
+    input close : bool
+    reward sa
+    priority sa
+    objective sa
+    sample every 0.1
+    horizon {horizon}
+    initial location Safe {{ sa' == 1 }}
+    location Unsafe {{ sa' == -1 }}
+    edge * -> Unsafe when close do sa = sa - 1000
+    edge * -> Safe when !close
+    model {{
+        scenario "{name}.xml"
+        exponent 2
+        decide_period 2
+        granularity 0.25
+        action jerk in [-2, 2] step 2
+        {settings}
+        bind close = mindist() < 3 * collision_distance
+    }}
+    query Qb: E[] !collide() && !offroad()
+    query Qd: strategy safe = control: A[] !collide() && !offroad()
+}}
+"""
+
+
+def scene_file(folder: Path, name: str, horizon: int = 10) -> Path:
+    write_scene(name, folder / f"{name}.xml")
+    source = folder / f"{name}.ra"
+    source.write_text(SOURCE.format(name=name, horizon=horizon, settings=SETTINGS[name]), encoding="utf-8")
+    return source
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_a_scene_is_a_stable_commonroad_file_rac_reads(name: str, tmp_path: Path) -> None:
+    data = scene_bytes(name)
+    assert data == scene_bytes(name)  # byte-stable
+    path = write_scene(name, tmp_path / f"{name}.xml")
+    scenario = load_scenario(path)
+    assert (len(scenario.road), len(scenario.obstacles)) == EXPECTED[name]
+    assert scenario.goal.regions and scenario.ego.velocity > 0
+
+
+#: What the ego meets when it keeps its speed and heading, and at which sample (0.1 s each).
+HAZARDS = {"highway": ("collide", 61), "overtaking": ("collide", 27), "t_junction": ("offroad", 33)}
+
+
+@pytest.mark.parametrize("name", sorted(HAZARDS))
+def test_keeping_speed_and_heading_fails_and_a_safe_run_exists(name: str, tmp_path: Path) -> None:
+    """The hazard of each scene is real: the ego that keeps its speed and heading runs into the truck
+    (highway, at 6.1 s) or the tractor (overtaking, 2.7 s), or straight on off the T-junction's road
+    where the north arm is missing (3.3 s); and some run stays safe to the horizon (Qb), so a safety
+    shield exists (Qd)."""
+    result = compile_file(scene_file(tmp_path, name))
+    assert result.ok, result.diagnostics
+    model = NativeModel(result.model_data)
+    state, first = model.initial_state(), {}
+    for k in range(1, 101):
+        state = model.sense(state)
+        for label, holds in (("collide", model.collide(state, k)), ("offroad", model.offroad(state, k))):
+            if holds:
+                first.setdefault(label, k)
+    label, sample = HAZARDS[name]
+    assert min(first.items(), key=lambda item: item[1]) == (label, sample)
+    answers = {a.name: a.status for a in run_queries(result, VerifyOptions(seed=1, out_dir=tmp_path / "o",
+                                                                          plots=False))[1]}
+    assert answers == {"Qb": "satisfied", "Qd": "satisfied"}
+
+
+@pytest.mark.parametrize("name", ["highway", "overtaking", "t_junction"])
+def test_the_scene_model_passes_uppaals_parser(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                utap: Utap) -> None:
+    utap.validate_files(*compile_cli(scene_file(tmp_path, name), tmp_path / f"{name}_model.xml", capsys))
+
+
+def test_the_scenes_differ_in_kind() -> None:
+    """Highway and overtaking are straight roads along x (a multi-lane one, and one lane each way);
+    the T-junction has curved connectors."""
+    highway = load_scenario_bytes("highway")
+    overtaking = load_scenario_bytes("overtaking")
+    junction = load_scenario_bytes("t_junction")
+    assert {round(p.points[0][1], 2) for p in highway.road} == {0.0, 3.5, 7.0}
+    assert max(len(p.points) for p in junction.road) > 20  # quarter circles
+    headings = {round(o.waypoints[0].heading, 2) for o in overtaking.obstacles}
+    assert headings == {0.0, round(np.pi, 2)}  # one vehicle each way
+
+
+def load_scenario_bytes(name: str):
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        return load_scenario(write_scene(name, Path(folder) / f"{name}.xml"))
