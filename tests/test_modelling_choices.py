@@ -239,3 +239,15 @@ def test_forgetting_the_last_action_merges_states_and_changes_no_answer(tmp_path
     saved = shields.load(shields.save(table_merged, tmp_path / "merged.shield.npz"))
     assert saved.forget_every == data.decide_every
     assert np.array_equal(saved.masks_for(table_kept.states), table_kept.masks)
+
+
+def test_a_start_speed_beyond_the_limits_points_at_both_settings(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    source = ramp_file(tmp_path, "        start_speed 50")  # max_speed 40
+    assert main(["check", "--format", "json", str(source)]) == 1
+    (found,) = [d for d in json.loads(capsys.readouterr().out)[0]["diagnostics"] if d["code"] == "E0714"]
+    assert found["message"] == "the ego starts at 50 m/s, faster than `max_speed` (40 m/s)"
+    assert any("`start_speed` 50 m/s" in note["message"] for note in found["notes"])
+    assert any(note["message"] == "the start speed is set here" and note["span"]["line"] == 19
+               for note in found["notes"])
+    assert found["hints"] == ["set `max_speed 50` (or more) in the `model` block, or change `start_speed`"]

@@ -234,6 +234,10 @@ def _limit(automaton: ir.Automaton, spec: ir.ModelSpec, setting: str, held: Frac
     else:
         hint = f"set `{setting} {short_number(held)}` (or {'less' if setting == 'min_speed' else 'more'}) in the " \
                "`model` block"
+    start = spans.get("model:start_speed")
+    if start is not None and setting in ("min_speed", "max_speed"):
+        notes.append(Note("the start speed is set here", start))
+        hint += ", or change `start_speed`"
     return error("E0714", message, written or scenario_span, notes=notes, hints=[hint])
 
 
