@@ -39,8 +39,6 @@ import json
 import os
 import platform
 import re
-import resource
-import subprocess
 import sys
 import tempfile
 import time
@@ -63,6 +61,11 @@ try:  # benchmark the installed rac; in a checkout without it, the checkout's sr
 except ImportError:
     sys.path.insert(0, str(REPOSITORY / "src"))
     import rac
+
+import children  # noqa: E402 - benchmarks/, on sys.path as the script's folder
+from children import peak_rss_mb, seconds  # noqa: E402
+
+RAC_PATH = Path(rac.__file__).resolve().parent.parent
 
 HORIZONS = (10, 15, 20, 25, 30)
 QUICK_HORIZONS = (10, 15, 20)
@@ -116,10 +119,6 @@ class Case:
 
 
 # ---------------------------------------------------------------- one measurement (child process)
-def peak_rss_mb() -> float:
-    """This process's peak resident set size in MB (``ru_maxrss``: KiB on Linux, bytes on macOS)."""
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10
 
 
 def measure(model: str, horizon: int, prune: bool, repeat: int, forget: bool = False) -> dict[str, Any]:
@@ -171,28 +170,11 @@ def child_main(spec: str) -> int:
 
 def run_child(model: Path, horizon: int, prune: bool, repeat: int, forget: bool = False) -> dict[str, Any]:
     """:func:`measure` in a fresh Python process (the same rac), so that ``ru_maxrss`` is this case's."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(Path(rac.__file__).resolve().parent.parent), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    spec = json.dumps({"model": str(model), "horizon": horizon, "prune": prune, "repeat": repeat, "forget": forget})
-    try:
-        done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", spec], env=env,
-                              capture_output=True, text=True, timeout=CHILD_TIMEOUT, check=False)
-    except subprocess.TimeoutExpired:
-        return {"error": f"timed out after {CHILD_TIMEOUT} s"}
-    if done.returncode != 0:
-        tail = (done.stderr.strip().splitlines() or ["(no message)"])[-1]
-        return {"error": f"child exited with {done.returncode}: {tail}"}
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    spec = {"model": str(model), "horizon": horizon, "prune": prune, "repeat": repeat, "forget": forget}
+    return children.run_child(Path(__file__).resolve(), spec, CHILD_TIMEOUT, RAC_PATH)
 
 
 # ---------------------------------------------------------------- the table
-def seconds(value: float) -> str:
-    """A duration with three significant digits or so: ``290.2 s``, ``1.21 s``, ``465 ms``, ``5.3 ms``."""
-    if value >= 10:
-        return f"{value:.1f} s"
-    if value >= 1:
-        return f"{value:.2f} s"
-    return f"{value * 1e3:.0f} ms" if value >= 0.01 else f"{value * 1e3:.1f} ms"
 
 
 def rate(value: float) -> str:

@@ -27,8 +27,6 @@ import json
 import os
 import platform
 import re
-import resource
-import subprocess
 import sys
 import tempfile
 import time
@@ -49,6 +47,11 @@ try:  # benchmark the installed rac; in a checkout without it, the checkout's sr
 except ImportError:
     sys.path.insert(0, str(REPOSITORY / "src"))
     import rac
+
+import children  # noqa: E402 - benchmarks/, on sys.path as the script's folder
+from children import peak_rss_mb, seconds  # noqa: E402
+
+RAC_PATH = Path(rac.__file__).resolve().parent.parent
 
 GOAL_SECONDS = 10.0
 HORIZON = 10  # s, the generated scenes' horizon
@@ -107,9 +110,6 @@ class Case:
 
 
 # ---------------------------------------------------------------- one file (child process)
-def peak_rss_mb() -> float:
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10
 
 
 def measure(model: str, out_dir: str) -> dict[str, Any]:
@@ -130,28 +130,12 @@ def measure(model: str, out_dir: str) -> dict[str, Any]:
 
 
 def run_child(model: Path, out_dir: Path) -> dict[str, Any]:
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(Path(rac.__file__).resolve().parent.parent), *filter(None, [os.environ.get("PYTHONPATH")])]),
-        RAC_PROGRESS_INTERVAL="3600")
-    spec = json.dumps({"model": str(model), "out": str(out_dir)})
-    try:
-        done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", spec], env=env,
-                              capture_output=True, text=True, timeout=CHILD_TIMEOUT, check=False)
-    except subprocess.TimeoutExpired:
-        return {"error": f"timed out after {CHILD_TIMEOUT} s"}
-    if done.returncode != 0:
-        tail = (done.stderr.strip().splitlines() or ["(no message)"])[-1]
-        return {"error": f"child exited with {done.returncode}: {tail}"}
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    """:func:`measure` in a fresh Python process (the same rac), so that ``ru_maxrss`` is this file's."""
+    spec = {"model": str(model), "out": str(out_dir)}
+    return children.run_child(Path(__file__).resolve(), spec, CHILD_TIMEOUT, RAC_PATH)
 
 
 # ---------------------------------------------------------------- the table
-def seconds(value: float) -> str:
-    if value >= 10:
-        return f"{value:.1f} s"
-    if value >= 1:
-        return f"{value:.2f} s"
-    return f"{value * 1e3:.0f} ms" if value >= 0.01 else f"{value * 1e3:.1f} ms"
 
 
 VERDICTS = {"satisfied": "satisfied", "not satisfied": "NOT satisfied", "value": "value", "unknown": "UNKNOWN",

@@ -83,3 +83,34 @@ def write_engine_file(folder: Path, name: str, queries: Mapping[str, str] | None
 def _decimal(value: object) -> str:
     """A Fraction with a finite decimal as the decimal literal ``.ra`` reads (``1/2`` -> ``0.5``)."""
     return format(float(value), "g")  # type: ignore[arg-type]
+
+
+#: A one-input automaton for model tests: ``close`` (bound in the model block) sends it to ``Unsafe``,
+#: where ``sa`` falls. ``{name}``, ``{horizon}``, ``{model}`` (the block's items, one per line,
+#: indented by 8) and ``{queries}`` (lines indented by 4) are filled in by :func:`safety_source`.
+SAFETY = """\
+automaton {name} {{
+    input close : bool
+    reward sa
+    priority sa
+    objective sa
+    sample every 0.1
+    horizon {horizon}
+    initial location Safe {{ sa' == 1 }}
+    location Unsafe {{ sa' == -1 }}
+    edge * -> Unsafe when close do sa = sa - 1000
+    edge * -> Safe when !close
+    model {{
+{model}
+    }}
+{queries}
+}}
+"""
+
+
+def safety_source(name: str, horizon: float, model: str, queries: Mapping[str, str]) -> str:
+    """:data:`SAFETY` with ``model`` (newline-separated items) and ``queries`` (name -> text)."""
+    items = "\n".join(f"        {line.strip()}" for line in model.strip().splitlines())
+    lines = "\n".join(f"    query {key}: {text}" for key, text in queries.items())
+    return SAFETY.format(name=name, horizon=f"{horizon:g}", model=items, queries=lines)
+

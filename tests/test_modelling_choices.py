@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from engine_files import safety_source
 from test_explore import random_states
 from test_model_native import crossing_scenario, make_spec, straight_scenario
 from test_utap import compile_cli
@@ -28,34 +29,21 @@ from rac.engine.simulate import simulate
 from rac.model import NativeModel, State, build_model_data
 from rac.model.batch import BatchModel
 
-RAMP = """\
-automaton Ramp {{
-    input close : bool
-    reward sa
-    priority sa
-    objective sa
-    sample every 0.1
-    horizon 1
-    initial location Safe {{ sa' == 1 }}
-    location Unsafe {{ sa' == -1 }}
-    edge * -> Unsafe when close do sa = sa - 100
-    edge * -> Safe when !close
-    model {{
-        scenario "ramp.xml"
-        exponent 2
-        decide_period 0.1
-        granularity 1
-        width 1
-        max_speed 40
+#: The tiny ramp's model block before the choices under test (:func:`ramp_file` adds them).
+RAMP_MODEL = """\
+scenario "ramp.xml"
+exponent 2
+decide_period 0.1
+granularity 1
+width 1
+max_speed 40
 {settings}
-        action jerk in [0, 0] step 1
-        action turn in [-1, 1] step 1
-        bind close = mindist() < 2
-    }}
-    query Qd: strategy safe = control: A[] !collide() && !offroad()
-    query Reach: E<> goal()
-}}
+action jerk in [0, 0] step 1
+action turn in [-1, 1] step 1
+bind close = mindist() < 2
 """
+RAMP_QUERIES = {"Qd": "strategy safe = control: A[] !collide() && !offroad()", "Reach": "E<> goal()"}
+
 
 #: CommonUppRoad's ZAM_Ramp choices on the tiny ramp: constant speed, a yaw step of 0.1 rad per
 #: 0.1 s, turning allowed only while the next heading stays within 0.2 rad and the ego on the road.
@@ -70,7 +58,7 @@ CHOICES = """\
 def ramp_file(folder: Path, settings: str = CHOICES) -> Path:
     (folder / "ramp.xml").write_bytes(ramp())
     source = folder / "ramp.ra"
-    source.write_text(RAMP.format(settings=settings), encoding="utf-8")
+    source.write_text(safety_source("Ramp", 1, RAMP_MODEL.format(settings=settings), RAMP_QUERIES), encoding="utf-8")
     return source
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from engine_files import safety_source
 from test_utap import compile_cli
 from utap import Utap
 
@@ -21,42 +22,28 @@ from rac.verify.runner import run_queries
 #: Per scene: lanelets, obstacles, and the settings of a small model over it.
 EXPECTED = {"highway": (3, 3), "overtaking": (2, 2), "t_junction": (12, 2), "left_turn": (20, 3)}
 SETTINGS = {
-    "highway": "max_speed 30\n        action turn in [-0.2, 0.2] step 0.2",
-    "overtaking": "max_speed 25\n        action turn in [-0.2, 0.2] step 0.2",
+    "highway": "max_speed 30\naction turn in [-0.2, 0.2] step 0.2",
+    "overtaking": "max_speed 25\naction turn in [-0.2, 0.2] step 0.2",
     "t_junction": "action turn in [0, 0.4] step 0.2",
     "left_turn": "action turn in [0, 0.4] step 0.2",
 }
-SOURCE = """\
-automaton Scene {{
-    input close : bool
-    reward sa
-    priority sa
-    objective sa
-    sample every 0.1
-    horizon {horizon}
-    initial location Safe {{ sa' == 1 }}
-    location Unsafe {{ sa' == -1 }}
-    edge * -> Unsafe when close do sa = sa - 1000
-    edge * -> Safe when !close
-    model {{
-        scenario "{name}.xml"
-        exponent 2
-        decide_period 2
-        granularity 0.25
-        action jerk in [-2, 2] step 2
-        {settings}
-        bind close = mindist() < 3 * collision_distance
-    }}
-    query Qb: E[] !collide() && !offroad()
-    query Qd: strategy safe = control: A[] !collide() && !offroad()
-}}
+MODEL = """\
+scenario "{name}.xml"
+exponent 2
+decide_period 2
+granularity 0.25
+action jerk in [-2, 2] step 2
+{settings}
+bind close = mindist() < 3 * collision_distance
 """
+QUERIES = {"Qb": "E[] !collide() && !offroad()", "Qd": "strategy safe = control: A[] !collide() && !offroad()"}
 
 
 def scene_file(folder: Path, name: str, horizon: int = 10) -> Path:
     write_scene(name, folder / f"{name}.xml")
     source = folder / f"{name}.ra"
-    source.write_text(SOURCE.format(name=name, horizon=horizon, settings=SETTINGS[name]), encoding="utf-8")
+    model = MODEL.format(name=name, settings=SETTINGS[name])
+    source.write_text(safety_source("Scene", horizon, model, QUERIES), encoding="utf-8")
     return source
 
 
