@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["peak_rss_mb", "run_child", "seconds"]
+__all__ = ["peak_rss_mb", "report", "run_child", "seconds"]
 
 
 def peak_rss_mb() -> float:
@@ -46,3 +46,18 @@ def seconds(value: float) -> str:
     if value >= 1:
         return f"{value:.2f} s"
     return f"{value * 1e3:.0f} ms" if value >= 0.01 else f"{value * 1e3:.1f} ms"
+
+
+def report(title: str, header: list[str], table: str, notes: list[str], output: Path) -> None:
+    """Print the header lines, the table and the notes, and write them as markdown to ``output``."""
+    print("\n".join(header))
+    print()
+    print(table)
+    print()
+    for note in notes:
+        print(f"note: {note}")
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_text(f"# {title}\n\n" + "\n".join(f"- {item}" for item in header) + "\n\n" + table
+                      + "\n\n" + "\n".join(f"- {note}" for note in notes) + "\n", encoding="utf-8")
+    print(f"\nwrote {output}")
+

@@ -351,16 +351,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     env = environment(args.quick, repeat)
     table = markdown(rows)
-    print("\n".join(env))
-    print()
-    print(table)
-    print()
-    for note in notes:
-        print(f"note: {note}")
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text("# rac engine benchmark\n\n" + "\n".join(f"- {item}" for item in env) + "\n\n" + table
-                           + "\n\n" + "\n".join(f"- {note}" for note in notes) + "\n", encoding="utf-8")
-    print(f"\nwrote {args.output}")
+    children.report("rac engine benchmark", env, table, notes, args.output)
     failed = [name for (name, _), m in results.items() if "error" in m]
     return 1 if failed else 0
 

@@ -215,16 +215,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{platform.python_version()}; rac {rac.__version__}",
               "each file: `rac verify --standard --seed 1` (the paper's Qa-Qd and Fig. 7 simulations, then the "
               "file's own queries) in a child process; peak RSS is the child's ru_maxrss"]
-    print("\n".join(header))
-    print()
-    print(text)
-    print()
-    for note in notes:
-        print(f"note: {note}")
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text("# rac: every query on every kind of scene\n\n" + "\n".join(f"- {h}" for h in header)
-                           + "\n\n" + text + "\n\n" + "\n".join(f"- {n}" for n in notes) + "\n", encoding="utf-8")
-    print(f"\nwrote {args.output}")
+    children.report("rac: every query on every kind of scene", header, text, notes, args.output)
     return 1 if any("error" in m for m in results.values()) else 0
 
 
