@@ -239,3 +239,17 @@ def test_a_start_speed_beyond_the_limits_points_at_both_settings(tmp_path: Path,
     assert any(note["message"] == "the start speed is set here" and note["span"]["line"] == 19
                for note in found["notes"])
     assert found["hints"] == ["set `max_speed 50` (or more) in the `model` block, or change `start_speed`"]
+
+
+def test_a_rule_that_leaves_no_action_is_reported(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`allow when false`: the start has no successor. The verdicts stand (the run stops there, as
+    the emitted model deadlocks) and say so; a simulation says who left no action."""
+    source = ramp_file(tmp_path, "        start_speed 30\n        offroad_from 1\n        allow when false")
+    assert main(["verify", "--format", "json", "-q", str(source)]) == 1  # Reach is not satisfied
+    results = {r["name"]: r for r in json.loads(capsys.readouterr().out)["results"]}
+    assert results["Qd"]["status"] == "satisfied" and results["Reach"]["status"] == "not satisfied"
+    for result in results.values():
+        assert "`allow when` leaves no action in 1 state before the horizon: runs stop there" in result["message"]
+    assert main(["simulate", str(source), "--runs", "3", "--seed", "1", "-o", str(tmp_path / "runs.csv"),
+                 "--plot", str(tmp_path / "runs.png")]) == 0
+    assert "3 runs met a state where the model's `allow when` allowed nothing" in capsys.readouterr().out

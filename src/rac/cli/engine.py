@@ -423,7 +423,10 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
               "its value without one", file=sys.stderr)
     left = int(runs.left_policy.sum())
     if left:
-        print(f"{left} runs met a state where the shield allowed nothing and continued unshielded")
+        guarded = result.model_data is not None and result.model_data.allow is not None
+        who = "the shield or the model's `allow when`" if args.shield and guarded else \
+            "the model's `allow when`" if guarded else "the shield"
+        print(f"{left} runs met a state where {who} allowed nothing and continued with every action")
     print(f"wrote {csv_path}\nwrote {png_path}")
     return EXIT_OK
 

@@ -50,6 +50,13 @@ class ExploredGraph:
         """(n,) bool: states without choices."""
         return np.diff(self.choice_offsets) == 0
 
+    def stopped(self, horizon_samples: int) -> np.ndarray:
+        """(n,) bool: safe states before the horizon without choices — where the model's ``allow when``
+        leaves no action (an explored graph ends a run early nowhere else), so runs stop there, as
+        the emitted model deadlocks. Needs the ``k`` column and the ``safe`` label."""
+        k = self.states[:, self.columns.index("k")]
+        return self.terminal() & (k < horizon_samples) & self.labels["safe"]
+
     def reachable(self) -> np.ndarray:
         """The states reachable from the initial one through the graph's choices (a restricted graph
         keeps every explored state, also those its choices no longer reach)."""

@@ -187,6 +187,20 @@ class Context:
                 raise UnknownVerdict(f"a sensed value left the int32 range: {exc}") from None
         return self.graphs[prune]
 
+    def stopped_note(self) -> str | None:
+        """What the exhaustive verdicts should say when the model's ``allow when`` leaves no action in
+        some safe state before the horizon (None when it never does, or nothing was explored)."""
+        if self.data.allow is None or not self.graphs:
+            return None
+        graph = self.graphs.get(False, self.graphs.get(True))
+        assert graph is not None
+        stopped = int((graph.stopped(self.horizon_samples) & graph.reachable()).sum())
+        if not stopped:
+            return None
+        return (f"`allow when` leaves no action in {stopped:,} state{'s' if stopped != 1 else ''} before the "
+                "horizon: runs stop there (the emitted model deadlocks), safe if that state is, never reaching "
+                "a later goal")
+
     def label(self, graph: ExploredGraph, expr: ie.Expr) -> np.ndarray:
         """A state formula on every state of a plain explored graph."""
         if ie.uses_prev(expr):

@@ -117,6 +117,9 @@ class Verifier:
             result = dataclasses.replace(base, status="unknown", message=str(exc))
         except EvaluationError as exc:
             result = dataclasses.replace(base, status="unsupported", message=str(exc))
+        note = self.context.stopped_note() if result.states is not None else None
+        if note is not None and result.status in ("satisfied", "not satisfied"):
+            result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
         return dataclasses.replace(result, seconds=time.perf_counter() - t0)
 
     def _dispatch(self, query: iq.Query, base: QueryResult) -> QueryResult:
