@@ -7,6 +7,7 @@ sense_state() and offroad() against rac.model.native, bit for bit)."""
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import replace
 from fractions import Fraction as F
 from pathlib import Path
@@ -15,7 +16,7 @@ import numpy as np
 import pytest
 from engine_files import safety_source
 from test_explore import random_states
-from test_model_native import crossing_scenario, make_spec, straight_scenario
+from test_model_native import crossing_scenario, make_spec, rectangle, straight_scenario
 from test_utap import compile_cli
 from tiny_scenarios import ramp
 from utap import Utap
@@ -26,8 +27,10 @@ from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.explore import explore
 from rac.engine.product import explore_product
 from rac.engine.simulate import simulate
+from rac.ir import Action
 from rac.model import NativeModel, State, build_model_data
 from rac.model.batch import BatchModel
+from rac.model.commonroad import EgoStart, Goal, Obstacle, Scenario, Waypoint
 
 #: The tiny ramp's model block before the choices under test (:func:`ramp_file` adds them).
 RAMP_MODEL = """\
@@ -253,3 +256,102 @@ def test_a_rule_that_leaves_no_action_is_reported(tmp_path: Path, capsys: pytest
     assert main(["simulate", str(source), "--runs", "3", "--seed", "1", "-o", str(tmp_path / "runs.csv"),
                  "--plot", str(tmp_path / "runs.png")]) == 0
     assert "3 runs met a state where the model's `allow when` allowed nothing" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- collision sticky
+def crossing_car() -> Scenario:
+    """One lane along x; the ego at (0, 1.75) heading east at 10 m/s; a car crossing the lane going
+    north at 10 m/s, through the ego's path at x = 20 at t = 2 s and gone by 2.5 s."""
+    crossing = tuple(Waypoint(0.1 * i, 20.0, -18.25 + 1.0 * i, math.pi / 2, 10.0) for i in range(0, 51, 10))
+    return Scenario(name="crossing_car", path="crossing_car.xml", dt=0.1,
+                    road=(rectangle(-10.0, 0.0, 200.0, 3.5),), obstacles=(Obstacle(31, 4.5, 1.8, crossing),),
+                    ego=EgoStart(0.0, 1.75, 0.0, 10.0), goal=Goal((rectangle(60.0, 0.0, 80.0, 3.5),), 0.0, 5.0))
+
+
+def sticky_data(sticky: bool = True):
+    spec = replace(make_spec(2, granularity=F(1, 2), decide=F(1, 2)),
+                   actions=(Action("jerk", F(-2), F(2), F(2)), Action("turn", F(0), F(0), F(1, 10))),
+                   collision="sticky" if sticky else "instant")
+    return build_model_data(crossing_car(), spec)
+
+
+def test_a_sticky_collision_holds_for_the_rest_of_the_run() -> None:
+    """Keeping 10 m/s the ego meets the crossing car at about 2 s; the car is gone by 2.5 s. With
+    `collision sticky` collide() holds from then on, in exploration, simulation and episodes alike."""
+    data, instant = sticky_data(), sticky_data(False)
+    assert data.sticky and not instant.sticky
+    model = NativeModel(data)
+    state, tests = model.initial_state(), []
+    for k in range(1, 41):
+        state = model.sense(state)
+        tests.append(model.collide(state, k))
+    first = tests.index(True) + 1
+    assert not tests[-1]  # the car has gone: the test alone no longer holds
+    # exploration: a `crashed` column, the collide label never falls back along a choice
+    graph = explore(data, horizon_samples=40)
+    assert graph.columns[-1] == "crashed"
+    collide = graph.labels["collide"]
+    source = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
+    assert not (collide[source] & ~collide[graph.choice_target]).any()
+    keep = graph.states[:, 0] == 40
+    assert collide[keep].any() and not explore(instant, horizon_samples=40).labels["collide"][keep].all()
+    # simulation under the constant action: the label stays up from the first collision
+    runs = simulate(data, runs=2, horizon_samples=40, seed=1, policy=lambda k, s: np.eye(3, dtype=bool)[[1, 1]])
+    from rac.engine.simulate import label_runs
+
+    labels = label_runs(data, runs, "collide")
+    assert labels[:, first:].all() and not labels[:, :first].any()
+
+
+def test_sticky_collision_in_the_emitted_model(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                               utap: Utap) -> None:
+    source = ramp_file(tmp_path, "        start_speed 30\n        collision sticky")
+    xml, queries = compile_cli(source, tmp_path / "sticky.xml", capsys)
+    text = xml.read_text(encoding="utf-8")
+    assert "const bool STICKY_COLLISION = true;" in text and "bool crashed = false;" in text
+    assert "sense_state(), keep_collision()" in text  # the Controller, after every sample
+    assert text.count("keep_collision()") >= 3  # declared, at the start, after sensing
+    utap.validate_files(xml, queries)
+
+
+@pytest.mark.parametrize(("settings", "excerpt"), [
+    ("        collision sometimes", "`collision` must be one of the words `instant`, `sticky`"),
+    ("        collision sticky\n        allow when !collide()", "with `collision sticky`, `allow when` cannot read"),
+])
+def test_sticky_collision_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str], settings: str,
+                                 excerpt: str) -> None:
+    assert main(["check", str(ramp_file(tmp_path, settings))]) == 1
+    assert excerpt in capsys.readouterr().out
+
+
+def test_episodes_remember_a_sticky_collision(tmp_path: Path) -> None:
+    """A training loop's collide() (observations, bindings) holds from the first collision on."""
+    from rac.learning.episodes import EpisodeBatch
+
+    result = compile_file(ramp_file(tmp_path, "        start_speed 30"))
+    seen = []
+    for data in (sticky_data(), sticky_data(False)):
+        batch = EpisodeBatch(result, data=data, horizon_samples=40, goal=None)
+        batch.reset(1)
+        observed = []
+        for _ in range(8):  # 8 decisions of 5 samples, keeping the speed
+            batch.step(np.array([1]))
+            observed.append(bool(batch.observe(["collide()"])[0, 0]))
+        seen.append(observed)
+    sticky, instant = seen
+    first = sticky.index(True)
+    assert all(sticky[first:]) and not any(sticky[:first])
+    assert instant[first] and not instant[-1]  # the same collision, forgotten once the car has gone
+
+
+def test_the_product_remembers_a_sticky_collision(tmp_path: Path) -> None:
+    result = compile_file(ramp_file(tmp_path, "        start_speed 30"))
+    product = explore_product(sticky_data(), result.automaton, horizon_samples=40)
+    assert product.columns[-1] == "crashed"
+    collide = product.labels["collide"]
+    source = np.repeat(np.arange(product.n_states), np.diff(product.choice_offsets))
+    assert not (collide[source] & ~collide[product.choice_target]).any()
+    last = product.states[:, 0] == 40
+    assert collide[last].any()
+    plain = explore_product(sticky_data(False), result.automaton, horizon_samples=40)
+    assert not plain.labels["collide"][plain.states[:, 0] == 40].all()

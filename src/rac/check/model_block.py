@@ -119,6 +119,7 @@ class _ModelResolver:
             sensor_error=v["sensor_error"],
             planning_problem=int(v["planning_problem"]),
             dynamics=self.words.get("dynamics", WORD_SETTINGS["dynamics"][0]),
+            collision=self.words.get("collision", WORD_SETTINGS["collision"][0]),
             start_x=v.get("start_x"),
             start_y=v.get("start_y"),
             start_heading=v.get("start_heading"),
@@ -213,6 +214,12 @@ class _ModelResolver:
         if got is not None and got != "bool":
             self.error("E0717", f"`allow when` needs a condition, but this is {type_word(got)}", item.expr.span,
                        hints=["compare a value, e.g. `allow when fabs(head) <= 0.2 && !offroad()`"])
+            return None
+        if expr is not None and self.words.get("collision") == "sticky" and any(
+                isinstance(node, ie.Call) and node.name == "collide" for node in ie.walk(expr)):
+            self.error("E0717", "with `collision sticky`, `allow when` cannot read `collide()`: the rule is "
+                       "checked on the state an action would lead to, which carries no run history",
+                       item.expr.span, hints=["compare `mindist()` with `collision_distance` instead"])
             return None
         if expr is not None and ie.prev_operands([expr]):
             self.error("E0717", "`allow when` cannot read `prev(...)`: the rule is checked on the state each "

@@ -77,6 +77,9 @@ class Frame:
     prev: Frame | None = None
     mirrors: Mapping[str, np.ndarray] | None = None
     significands: Mapping[str, np.ndarray] | None = None
+    #: (n,) bool: under ``collision sticky``, whether ``collide()`` held at an earlier sample of the run
+    #: (or at this one): ``collide()`` is that or this sample's test. Needed then, ignored otherwise.
+    crashed: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
@@ -115,6 +118,16 @@ class Evaluator:
         """:meth:`evaluate` for a boolean expression (numbers compare with 0, as in C)."""
         value = self.evaluate(expr, frame)
         return value if value.dtype == bool else value != 0
+
+    def _collide(self, frame: Frame) -> np.ndarray:
+        """``collide()``: ``mindist() < TD`` at the frame's sample, or before it under ``collision sticky``."""
+        now = self._call(_MINDIST, frame) < self.model.native.td_d
+        if not self.data.sticky:
+            return now
+        if frame.crashed is None:
+            raise EvaluationError("`collide()` under `collision sticky` reads the run's history, which this "
+                                  "evaluation does not have")
+        return np.asarray(frame.crashed, dtype=bool) | now
 
     # ------------------------------------------------------------ the walk
     def _eval(self, expr: ie.Expr, frame: Frame):
@@ -178,7 +191,7 @@ class Evaluator:
                 model = self.model
                 frame._cache[name] = {
                     # collide() is mindist() < TD: one mindist per frame for both
-                    "collide": lambda: self._call(_MINDIST, frame) < model.native.td_d,
+                    "collide": lambda: self._collide(frame),
                     "offroad": lambda: model.offroad(frame.ego, frame.k),
                     "goal": lambda: model.goal(frame.ego, frame.k),
                     "mindist": lambda: model.mindist(frame.ego, frame.k),

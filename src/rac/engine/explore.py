@@ -31,10 +31,12 @@ from rac.ir.vocabulary import EGO_STATE
 from rac.model.batch import BatchModel, batch_model, distinct_values
 from rac.model.data import ModelData
 
-__all__ = ["COLUMNS", "action_pairs", "explore", "forgets_actions"]
+__all__ = ["COLUMNS", "STICKY_COLUMNS", "action_pairs", "explore", "forgets_actions"]
 
 #: The columns of :attr:`ExploredGraph.states` produced by :func:`explore`.
 COLUMNS: tuple[str, ...] = ("k", *EGO_STATE)
+#: ... under ``collision sticky``: one more, whether ``collide()`` held at this sample or before (0/1).
+STICKY_COLUMNS: tuple[str, ...] = (*COLUMNS, "crashed")
 
 Progress = Callable[[int, int, int], None]
 
@@ -92,12 +94,14 @@ def _graph_bytes(states: int, choices: int) -> int:
 def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
             check: Callable[[int], None],
             keep: Callable[[np.ndarray], np.ndarray] | None = None,
-            forget: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            forget: bool = False,
+            successor: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The distinct successors of ``sources`` (one per (jerk, turn) pair of ``pairs``, or one with
     their own actions when ``pairs`` is None) in lexicographic order, each kept choice's successor,
     and which choices are kept (``keep(successors)``: the ``allow when`` rule; None keeps all).
     With ``forget`` the successors' jerk and turn are set to 0 (after ``keep`` read them), so that
-    successors differing only in the action that led to them merge.
+    successors differing only in the action that led to them merge. ``successor(rows)`` computes the
+    successor rows of the chosen rows (default: ``model.sense``; rows may carry more columns).
 
     Successors are computed :data:`CHUNK_ROWS` at a time and merged as they come, so the memory
     beyond the result stays bounded; ``check(distinct)`` is called with the distinct successors
@@ -115,7 +119,7 @@ def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
         else:
             chosen = np.repeat(block, per, axis=0)
             chosen[:, 5:7] = np.tile(pairs, (block.shape[0], 1))
-        successors = model.sense(chosen)
+        successors = model.sense(chosen) if successor is None else successor(chosen)
         if keep is not None:
             allowed = keep(successors)
             kept.append(allowed)
@@ -187,6 +191,10 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     ``jerk``/``turn``, a trace printing them) and must look them up with the same two columns at 0
     (:class:`rac.engine.shield.ShieldTable` does, given ``forget_every``).
 
+    Under ``collision sticky`` (:attr:`ModelData.sticky`) a state has one more column, ``crashed``
+    (:data:`STICKY_COLUMNS`): whether ``collide()`` held at its sample or an earlier one of its run —
+    the ``collide`` label. States reached with and without a collision on the way stay apart.
+
     Labels (``(n,)`` bool): ``collide``, ``offroad``, ``goal``, ``safe`` (``!collide && !offroad``).
     ``progress(layer, frontier_size, total_states)`` is called once per explored layer.
 
@@ -208,7 +216,11 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     pairs = action_pairs(data)
     n_pairs = len(pairs)
     budget = Budget(max_states, max_bytes, "the model", float(data.period))
-    frontier = np.asarray([native.initial_state()], dtype=np.int32)  # ego columns of layer k
+    start = np.asarray([native.initial_state()], dtype=np.int32)
+    sticky = data.sticky
+    # ego columns of layer k; under `collision sticky` one more: collide() held at this sample or before
+    frontier = np.column_stack([start, model.collide(start, 0)]).astype(np.int32) if sticky else start
+    columns = STICKY_COLUMNS if sticky else COLUMNS
     layers: list[np.ndarray] = []
     counts: list[np.ndarray] = []  # choices per state
     actions: list[np.ndarray] = []
@@ -219,10 +231,10 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
         for k in range(horizon_samples + 1):
             size = frontier.shape[0]
             layers.append(frontier)
-            collide = model.collide(frontier, k)
-            offroad = model.offroad(frontier, k)
+            collide = frontier[:, 7] != 0 if sticky else model.collide(frontier, k)
+            offroad = model.offroad(frontier[:, :7], k)
             safe = ~collide & ~offroad
-            for name, mask in (("collide", collide), ("offroad", offroad), ("goal", model.goal(frontier, k)),
+            for name, mask in (("collide", collide), ("offroad", offroad), ("goal", model.goal(frontier[:, :7], k)),
                                ("safe", safe)):
                 labels[name].append(mask)
             base = total + size  # index of the next layer's first state
@@ -250,12 +262,18 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
                 budget.check_states(found + distinct, k + 1)  # noqa: B023 - called within this iteration
 
             def keep(successors: np.ndarray) -> np.ndarray:
-                return guard.successors_allowed(successors, k + 1)  # noqa: B023 - called within this iteration
+                return guard.successors_allowed(successors[:, :7], k + 1)  # noqa: B023 - called within this iteration
+
+            def step(chosen: np.ndarray) -> np.ndarray:
+                """sense() of the ego columns; the sticky collision carried on and tested at k + 1."""
+                moved = model.sense(chosen[:, :7])
+                crashed = (chosen[:, 7] != 0) | model.collide(moved, k + 1)  # noqa: B023 - within this iteration
+                return np.column_stack([moved, crashed]).astype(np.int32)
 
             restricted = decide and guard.restricts
             forget = forget_actions and bool(forgets_actions(k + 1, data.decide_every, horizon_samples))
             frontier, inverse, kept = _expand(model, sources, pairs if decide else None, check,
-                                              keep if restricted else None, forget)
+                                              keep if restricted else None, forget, step if sticky else None)
             choices -= kept.size - int(kept.sum())  # the disallowed choices are not in the graph
             count = np.zeros(size, dtype=np.int64)
             count[expand] = kept.reshape(-1, per_state).sum(axis=1) if restricted else per_state
@@ -270,7 +288,7 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
         if estimate is not None and estimate[0] > exc.states:
             exc.project(*estimate, horizon_samples)
         raise
-    states = np.empty((sum(layer.shape[0] for layer in layers), len(COLUMNS)), dtype=np.int32)
+    states = np.empty((sum(layer.shape[0] for layer in layers), len(columns)), dtype=np.int32)
     row = 0
     for k, layer in enumerate(layers):
         states[row:row + layer.shape[0], 0] = k
@@ -279,7 +297,7 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     offsets = np.zeros(states.shape[0] + 1, dtype=np.int64)
     np.cumsum(np.concatenate(counts), out=offsets[1:])
     return ExploredGraph(
-        states=states, columns=COLUMNS, choice_offsets=offsets,
+        states=states, columns=columns, choice_offsets=offsets,
         choice_action=np.concatenate(actions) if actions else np.zeros(0, dtype=np.int64),
         choice_target=np.concatenate(targets) if targets else np.zeros(0, dtype=np.int64),
         initial=0, labels={name: np.concatenate(masks) for name, masks in labels.items()})

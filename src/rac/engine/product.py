@@ -357,8 +357,9 @@ class ProductGraph(ExploredGraph):
         first = 10 + len(self.automaton.inputs)
         mirrors = {r: rows[:, first + i] for i, r in enumerate(self.automaton.rewards)}
         rewards = {r: column / scale for r, column in mirrors.items()}
+        crashed = rows[:, self.columns.index("crashed")] != 0 if "crashed" in self.columns else None
         return Frame(k=rows[:, 0].astype(np.int64), ego=rows[:, 2:9], location=rows[:, 9].astype(np.int64),
-                     rewards=rewards, inputs=inputs, mirrors=mirrors, significands=significands)
+                     rewards=rewards, inputs=inputs, mirrors=mirrors, significands=significands, crashed=crashed)
 
     def evaluate(self, expr: ie.Expr, indices: np.ndarray | None = None) -> np.ndarray:
         """A state formula per state, as the emitted symbolic query computes it: comparisons of linear
@@ -411,17 +412,23 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     def labels(frame: Frame) -> dict[str, np.ndarray]:
         # through the evaluator, so that the bindings' mindist() etc. on this frame are reused
         collide = evaluator.evaluate(_CALLS["mindist"], frame) < model.native.td_d
+        if data.sticky and frame.crashed is not None:  # collision sticky: or at an earlier sample
+            collide = collide | frame.crashed
         offroad = np.asarray(evaluator.evaluate(_CALLS["offroad"], frame), dtype=bool)
         goal = np.asarray(evaluator.evaluate(_CALLS["goal"], frame), dtype=bool)
         return {"collide": collide, "offroad": offroad, "goal": goal, "safe": ~collide & ~offroad}
 
+    sticky = data.sticky
     ego0 = np.asarray([model.native.initial_state()], dtype=np.int64)
-    start = Frame(np.zeros(1, dtype=np.int64), ego0)
+    start = Frame(np.zeros(1, dtype=np.int64), ego0, crashed=np.zeros(1, dtype=bool))
+    start_labels = labels(start)
+    if sticky:  # collision sticky: the layers' ego rows carry one more column, collide() so far (0/1)
+        ego0 = np.column_stack([ego0, start_labels["collide"]]).astype(np.int64)
     sampled = _Layer(0, SAMPLED, ego0, np.full(1, automaton.initial, dtype=np.int64),
                      np.zeros((1, n_inputs), dtype=np.int64), np.zeros((1, n_rewards), dtype=np.int64),
-                     bindings.prevs(start), labels(start))
+                     bindings.prevs(start), start_labels)
     # while exploring a state is int64 columns (ego, location, inputs, mirrors, prevs) and 4 labels
-    width = len(EGO_STATE) + 1 + n_inputs + n_rewards + sampled.prevs.shape[1]
+    width = ego0.shape[1] + 1 + n_inputs + n_rewards + sampled.prevs.shape[1]
     built = _Builder(Budget(max_states, max_bytes, "the product of model and automaton", float(data.period)),
                      8 * width + 4)
     built.add(sampled)
@@ -450,7 +457,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
                                       return_inverse=True)
         inv_u = inv_u.reshape(-1)
         before = sampled.ego[src[first_u]]
-        moved = before.copy()
+        moved = before[:, :7].copy()
         moved[:, 5:7] = chosen[first_u]
         after = model.sense(moved).astype(np.int64)
         if k % data.decide_every == 0 and guard.restricts:
@@ -458,11 +465,14 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
             ok = guard.successors_allowed(after, k + 1)[inv_u]
             src, action, inv_u = src[ok], action[ok], inv_u[ok]
             counts = np.bincount(src, minlength=sampled.n).astype(np.int64)
-        now = Frame(np.full(after.shape[0], k + 1, dtype=np.int64), after,
-                    prev=Frame(np.full(after.shape[0], k, dtype=np.int64), before))
+        crashed = before[:, 7] != 0 if sticky else None
+        now = Frame(np.full(after.shape[0], k + 1, dtype=np.int64), after, crashed=crashed,
+                    prev=Frame(np.full(after.shape[0], k, dtype=np.int64), before[:, :7], crashed=crashed))
         read = bindings.read(now)
         prevs = bindings.prevs(now)
         sample_labels = labels(now)
+        if sticky:
+            after = np.column_stack([after, sample_labels["collide"]]).astype(np.int64)
         # ---- accrue!: the new ego, the mirrors grow with the held inputs (not at a first sample that reads them)
         mirrors = sampled.mirrors[src]
         if k > 0 or not first_reads:
@@ -508,15 +518,18 @@ def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon
     layers = built.layers
     sizes = np.array([layer.n for layer in layers], dtype=np.int64)
     starts = np.concatenate([[0], np.cumsum(sizes)])
+    # under `collision sticky` the ego rows' last column, collide() so far, goes last (after the mirrors)
     states = np.concatenate([
-        np.column_stack([np.full(layer.n, layer.k), np.full(layer.n, layer.phase), layer.ego, layer.loc,
-                         layer.inputs, layer.mirrors]).astype(np.int64) for layer in layers]).astype(np.int32)
+        np.column_stack([np.full(layer.n, layer.k), np.full(layer.n, layer.phase), layer.ego[:, :7], layer.loc,
+                         layer.inputs, layer.mirrors, layer.ego[:, 7:]]).astype(np.int64)
+        for layer in layers]).astype(np.int32)
+    columns = ProductGraph.columns_of(automaton) + (("crashed",) if data.sticky else ())
     counts = np.concatenate([link[0] for link in built.links])
     offsets = np.zeros(states.shape[0] + 1, dtype=np.int64)
     np.cumsum(counts, out=offsets[1:])
     targets = np.concatenate([starts[i + 1] + link[2] for i, link in enumerate(built.links)])
     return ProductGraph(
-        states=states, columns=ProductGraph.columns_of(automaton), choice_offsets=offsets,
+        states=states, columns=columns, choice_offsets=offsets,
         choice_action=np.concatenate([link[1] for link in built.links]), choice_target=targets.astype(np.int64),
         initial=0, labels={name: np.concatenate([layer.labels[name] for layer in layers]) for name in LABELS},
         automaton=automaton, data=data, horizon=horizon, prev_exprs=tuple(bindings.prev_args),

@@ -138,6 +138,10 @@ class SafeOnward:
         bounds = np.searchsorted(k[order], np.arange(horizon_samples + 2))
         self._layers = {layer: order[bounds[layer]:bounds[layer + 1]] for layer in range(horizon_samples + 1)}
         self._graph = graph
+        # collision sticky: only states no collision has reached, keyed without the flag
+        self._columns = [i for i, name in enumerate(graph.columns) if name != "crashed"]
+        self._clean = (graph.states[:, graph.columns.index("crashed")] == 0 if "crashed" in graph.columns
+                       else np.ones(graph.n_states, dtype=bool))
         self._winning = shield.winning
         self._sets: dict[int, set[bytes]] = {}
 
@@ -145,8 +149,8 @@ class SafeOnward:
         found = self._sets.get(k)
         if found is None:
             rows = self._layers.get(k, np.zeros(0, dtype=np.int64))
-            rows = rows[self._winning[rows]]
-            states = np.ascontiguousarray(self._graph.states[rows], dtype=np.int32)
+            rows = rows[self._winning[rows] & self._clean[rows]]
+            states = np.ascontiguousarray(self._graph.states[rows][:, self._columns], dtype=np.int32)
             found = self._sets[k] = {row.tobytes() for row in states}
         return found
 
@@ -186,13 +190,20 @@ def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none",
     n_actions = n_actions if n_actions is not None else (int(actions.max()) + 1 if decision.any() else 0)
     owner = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
     states_with_decisions = np.unique(owner[decision])
+    columns = tuple(graph.columns)
+    kept = list(range(len(columns)))
+    if "crashed" in columns:  # collision sticky: the table holds the states no collision has reached yet,
+        crashed = columns.index("crashed")  # keyed without the flag, as a training loop observes them
+        states_with_decisions = states_with_decisions[graph.states[states_with_decisions, crashed] == 0]
+        kept.remove(crashed)
+        columns = tuple(columns[i] for i in kept)
     row_of = np.full(graph.n_states, -1, dtype=np.int64)
     row_of[states_with_decisions] = np.arange(states_with_decisions.size)
     masks = np.zeros((states_with_decisions.size, n_actions), dtype=bool)
     picked = decision & shield.allowed_choices
     masks[row_of[owner[picked]], actions[picked]] = True
-    return ShieldTable(tuple(graph.columns), graph.states[states_with_decisions].astype(np.int32), masks, unseen,
-                       forget_every)
+    states = graph.states[states_with_decisions][:, kept].astype(np.int32)
+    return ShieldTable(columns, states, masks, unseen, forget_every)
 
 
 def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | None = None) -> Path:

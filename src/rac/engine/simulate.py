@@ -46,8 +46,8 @@ from rac.ir.vocabulary import EGO_STATE, TRUE_STATE
 from rac.model.batch import batch_model
 from rac.model.data import ModelData
 
-__all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "event_sampler", "integrate_one", "integrate_truth",
-           "label_runs", "simulate"]
+__all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "collided_so_far", "event_sampler", "integrate_one",
+           "integrate_truth", "label_runs", "simulate"]
 
 #: The columns of :attr:`Runs.truth` (metres, metres per second, ..., radians).
 TRUTH_COLUMNS: tuple[str, ...] = TRUE_STATE
@@ -304,13 +304,22 @@ def label_runs(data: ModelData, runs: Runs, label: str) -> np.ndarray:
     k = np.tile(np.arange(samples, dtype=np.int64), n)
     if label == "goal":
         value = model.goal(flat, k)
-    elif label == "collide":
-        value = model.collide(flat, k)
     elif label == "offroad":
         value = model.offroad(flat, k)
     else:
-        value = ~model.collide(flat, k) & ~model.offroad(flat, k)
+        collide = model.collide(flat, k).reshape(n, samples)
+        if data.sticky:
+            collide = np.logical_or.accumulate(collide, axis=1)
+        if label == "collide":
+            return collide
+        value = ~collide.reshape(-1) & ~model.offroad(flat, k)
     return value.reshape(n, samples)
+
+
+def collided_so_far(data: ModelData, runs: Runs) -> np.ndarray | None:
+    """``(N, T+1)`` bool under ``collision sticky``: whether ``collide()`` held at each sample or an
+    earlier one of each run (what :class:`rac.engine.evaluate.Frame` ``crashed`` wants); None otherwise."""
+    return label_runs(data, runs, "collide") if data.sticky else None
 
 
 def event_sampler(data: ModelData, event: Callable[[Runs], np.ndarray], *, horizon_samples: int | None = None,

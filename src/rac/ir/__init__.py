@@ -175,6 +175,9 @@ class ModelSpec:
     #: (Algorithm 1 on doubles, truncated at the end) or ``"increments"`` (each sub-step adds truncated
     #: increments to the integer state, as CommonUppRoad's model does).
     dynamics: str = "integrated"
+    #: ``"instant"``: ``collide()`` tests the current sample; ``"sticky"``: once it held, it holds for
+    #: the rest of the run (``collision`` setting).
+    collision: str = "instant"
     #: The ego's start, each None: the planning problem's (``start_*`` settings).
     start_x: Fraction | None = None
     start_y: Fraction | None = None

@@ -129,6 +129,9 @@ WORD_SETTINGS: dict[str, tuple[str, ...]] = {
     # integrated: sense() integrates doubles and truncates the result (Algorithm 1);
     # increments: every sub-step adds truncated increments to the integer state (CommonUppRoad).
     "dynamics": ("integrated", "increments"),
+    # instant: collide() is this sample's test; sticky: once it held, it holds for the rest of the run
+    # (CommonUppRoad's `collide |= check_collision(...)`).
+    "collision": ("instant", "sticky"),
 }
 #: The number representation of a model that does not set ``base`` and ``exponent``.
 DEFAULT_BASE = int(SETTINGS["base"].default or 10)

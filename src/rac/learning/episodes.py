@@ -153,21 +153,25 @@ class _State:
     location: np.ndarray
     rewards: dict[str, np.ndarray]
     inputs: dict[str, np.ndarray]
+    #: (n,) bool: ``collide()`` held at this sample or an earlier one (read under ``collision sticky``).
+    crashed: np.ndarray
 
     def frame(self, rows: np.ndarray | slice, prev: Frame | None = None) -> Frame:
         return Frame(k=self.k[rows], ego=self.ego[rows], location=self.location[rows],
                      rewards={name: values[rows] for name, values in self.rewards.items()},
-                     inputs={name: values[rows] for name, values in self.inputs.items()}, prev=prev)
+                     inputs={name: values[rows] for name, values in self.inputs.items()}, prev=prev,
+                     crashed=self.crashed[rows])
 
     def copy(self) -> _State:
         return _State(self.k.copy(), self.ego.copy(), self.location.copy(),
                       {name: values.copy() for name, values in self.rewards.items()},
-                      {name: values.copy() for name, values in self.inputs.items()})
+                      {name: values.copy() for name, values in self.inputs.items()}, self.crashed.copy())
 
     def put(self, rows: np.ndarray, other: _State) -> None:
         """Copy ``other``'s rows ``rows`` into this state."""
         self.k[rows] = other.k[rows]
         self.ego[rows] = other.ego[rows]
+        self.crashed[rows] = other.crashed[rows]
         self.location[rows] = other.location[rows]
         for name, values in self.rewards.items():
             values[rows] = other.rewards[name][rows]
@@ -255,10 +259,13 @@ class EpisodeBatch:
         ego = np.tile(self._start, (n, 1))
         # The inputs shown at sample 0 (observe(), ScenarioEnv's info): the bindings on the start,
         # never fed to the automaton (it takes its first sample at k = 1) nor counted as clipped.
-        inputs = self._bindings.read(Frame(k, ego))
+        crashed = np.zeros(n, dtype=bool)
+        start = Frame(k, ego, crashed=crashed)
+        crashed = self.evaluator.evaluate(_MINDIST, start) < self._td  # collide() at the start
+        inputs = self._bindings.read(Frame(k, ego, crashed=crashed))
         location = np.full(n, self.automaton.initial, dtype=np.int64)
         rewards = {name: np.zeros(n) for name in self.automaton.rewards}
-        return _State(k, ego, location, rewards, inputs)
+        return _State(k, ego, location, rewards, inputs, np.asarray(crashed, dtype=bool))
 
     def reset(self, n: int) -> None:
         """Start ``n`` episodes at the ego's start (sample 0)."""
@@ -377,7 +384,7 @@ class EpisodeBatch:
         moved = now.ego[rows].copy()
         moved[:, 5:7] = pairs[rows]
         after = evaluator.model.sense(moved)
-        frame = Frame(k=before.k + 1, ego=after, prev=before)
+        frame = Frame(k=before.k + 1, ego=after, prev=before, crashed=before.crashed)
         counts = dict.fromkeys(self.clipped_inputs, 0)
         values = self._bindings.read(frame, counts)
         active = np.zeros(self.n, dtype=bool)
@@ -402,7 +409,9 @@ class EpisodeBatch:
         sampled = dataclasses.replace(frame, location=now.location[rows],
                                       rewards={name: values[rows] for name, values in now.rewards.items()},
                                       inputs=values)
-        flags["collided"][rows] |= evaluator.evaluate(_MINDIST, sampled) < self._td
+        collided = evaluator.evaluate(_MINDIST, sampled) < self._td
+        now.crashed[rows] |= collided
+        flags["collided"][rows] |= collided
         flags["offroad"][rows] |= np.asarray(evaluator.evaluate(_OFFROAD, sampled), dtype=bool)
         if self.reward_expr is None:
             reward[rows] += gain[rows]

@@ -162,6 +162,8 @@ class ModelData:
     offroad_from: int = 0
     #: ``allow when e``: the condition an action's successor must meet (None: every action is allowed).
     allow: Expr | None = None
+    #: ``collision sticky``: ``collide()`` holds from the first sample it held at to the end of the run.
+    sticky: bool = False
 
     @property
     def road_count(self) -> int:
@@ -406,6 +408,7 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
         p1=sig("comfort fraction p1", spec.comfort_acceleration), p2=sig("comfort fraction p2", spec.comfort_turn),
         actions=actions,
         increments=spec.dynamics == "increments", offroad_from=spec.offroad_from, allow=spec.allow,
+        sticky=spec.collision == "sticky",
     )
 
 

@@ -206,7 +206,8 @@ class Context:
         if ie.uses_prev(expr):
             raise EvaluationError("`prev(...)` in an exhaustive query is not supported: a merged state has no "
                                   "single previous sample")
-        frame = Frame(k=graph.states[:, 0].astype(np.int64), ego=graph.states[:, 1:8])
+        crashed = graph.states[:, graph.columns.index("crashed")] != 0 if "crashed" in graph.columns else None
+        frame = Frame(k=graph.states[:, 0].astype(np.int64), ego=graph.states[:, 1:8], crashed=crashed)
         return np.ascontiguousarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
 
     # ------------------------------------------------------------ strategies
@@ -257,11 +258,15 @@ class Context:
     # ------------------------------------------------------------ simulated runs
     def frames(self, runs: Runs) -> Iterator[Frame]:
         """One frame per sample of the runs (``prev`` is the previous sample's frame)."""
+        from rac.engine.simulate import collided_so_far
+
         previous = None
         n = runs.n_runs
+        crashed = collided_so_far(self.data, runs)
         for k in range(runs.horizon + 1):
             frame = Frame(k=np.full(n, k, dtype=np.int64), ego=np.ascontiguousarray(runs.states[:, k]),
-                          truth=np.ascontiguousarray(runs.truth[:, k]), prev=previous)
+                          truth=np.ascontiguousarray(runs.truth[:, k]), prev=previous,
+                          crashed=None if crashed is None else crashed[:, k])
             yield frame
             previous = dataclasses.replace(frame, prev=None)
 

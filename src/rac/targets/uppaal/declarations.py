@@ -175,6 +175,9 @@ def emit_declarations(data: ModelData) -> str:
         f"int32_t head = {_int(data.ego_head)};",
         "int32_t jerk = 0;",
         "int32_t turn = 0;",
+        "// collision sticky: a collision at this sample or an earlier one (keep_collision() sets it)",
+        f"const bool STICKY_COLLISION = {'true' if data.sticky else 'false'};",
+        "bool crashed = false;",
         "",
         environment().get_template("model_functions.c.j2").render(increments=data.increments),
     ]

@@ -218,9 +218,11 @@ class _ModelGenerator(AutomatonGenerator):
         init = Location(ids(), g["init"], -272, 0, committed=True)
         idle = Location(ids(), g["idle"], 0, 0)
         sensing = Location(ids(), g["sensing"], 340, 0, committed=True)
+        sticky = self.data.sticky  # collision sticky: the start's and every sample's collision remembered
         transitions = [
-            edge(ids, init, idle, anchor=(-250, -30)),
-            edge(ids, idle, sensing, sync=f"{ch['accrue']}?", assignment="sense_state()", nails=[(170, -50)],
+            edge(ids, init, idle, anchor=(-250, -30), assignment="keep_collision()" if sticky else ""),
+            edge(ids, idle, sensing, sync=f"{ch['accrue']}?",
+                  assignment="sense_state(), keep_collision()" if sticky else "sense_state()", nails=[(170, -50)],
                   anchor=(140, -80)),
             edge(ids, sensing, idle, sync=f"{ch['read']}!", assignment=f"{g['read_inputs']}()",
                   nails=[(170, 60)], anchor=(20, 80)),
