@@ -18,6 +18,7 @@ from dataclasses import replace
 from fractions import Fraction as F
 from pathlib import Path
 
+import numpy as np
 import pytest
 from test_model_native import crossing_scenario, goal_scenario, make_spec, straight_scenario
 
@@ -74,9 +75,9 @@ CASES = [
 ]
 
 
-def compile_model(data: ModelData, folder: Path) -> Path:
+def compile_model(data: ModelData, folder: Path, main: str = MAIN) -> Path:
     source = folder / f"{data.name}.c"
-    source.write_text(C_PRELUDE + emit_declarations(data) + "\n" + MAIN, encoding="utf-8")
+    source.write_text(C_PRELUDE + emit_declarations(data) + "\n" + main, encoding="utf-8")
     binary = folder / data.name
     result = subprocess.run([COMPILER, "-O2", "-ffp-contract=off", "-fno-builtin", "-std=c99", "-Wall", "-Werror", "-o",
                              str(binary), str(source), "-lm"], capture_output=True, text=True, check=False)
@@ -236,3 +237,49 @@ def test_double_literals():
     assert double_literal(-0.5) == "-0.5"
     with pytest.raises(ValueError):
         double_literal(math.inf)
+
+
+#: Under `collision sticky`: the state of each sample in, keep_collision() as the Controller calls it
+#: (at the start, then after sense_state()), collide() out.
+STICKY_MAIN = r"""
+#include <stdio.h>
+
+int main(void) {
+    long long in[8];
+    while (scanf("%lld %lld %lld %lld %lld %lld %lld %lld",
+                 &in[0], &in[1], &in[2], &in[3], &in[4], &in[5], &in[6], &in[7]) == 8) {
+        x = (int32_t)in[0];
+        y = (int32_t)in[1];
+        v = (int32_t)in[2];
+        acc = (int32_t)in[3];
+        head = (int32_t)in[4];
+        jerk = (int32_t)in[5];
+        turn = (int32_t)in[6];
+        count = (int32_t)in[7];
+        keep_collision();
+        printf("%d\n", (int)collide());
+    }
+    return 0;
+}
+"""
+
+
+@needs_cc
+def test_c_keeps_a_sticky_collision_as_the_engine_does(tmp_path):
+    """The emitted crashed/keep_collision()/collide() along a run that meets a crossing car and leaves
+    it: the engine's sticky labels, sample by sample."""
+    from test_modelling_choices import sticky_data
+
+    from rac.engine.simulate import label_runs, simulate
+
+    data = sticky_data()
+    runs = simulate(data, runs=1, horizon_samples=40, seed=1,
+                    policy=lambda k, states: np.eye(3, dtype=bool)[[1]])
+    binary = compile_model(data, tmp_path, STICKY_MAIN)
+    stdin = "".join(f"{' '.join(map(str, runs.states[0, k].tolist()))} {k}\n" for k in range(41))
+    out = subprocess.run([str(binary)], input=stdin, capture_output=True, text=True, check=True, timeout=60)
+    c_labels = [line == "1" for line in out.stdout.split()]
+    engine = label_runs(data, runs, "collide")[0].tolist()
+    assert c_labels == engine
+    assert any(engine) and engine[-1]  # a collision, remembered to the end
+
