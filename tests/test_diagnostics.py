@@ -334,12 +334,77 @@ def test_nul_in_the_middle(tmp_path, capsys, monkeypatch):
     assert status == 1 and "error[E0004]" in output
 
 
-def test_huge_numbers_do_not_crash(tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize(("horizon", "code"), [("1e400", "E0010"), ("1e300", "E0206")])
+def test_huge_numbers_do_not_crash(horizon, code, tmp_path, capsys, monkeypatch):
+    """A literal no double holds is E0010; one that a double holds but the horizon cannot use, E0206."""
     text = DRIVING.read_text().replace("sample every 0.1 ", "sample every 0.3 ")
-    text = text.replace("horizon 30 ", "horizon 1e400 ")
+    text = text.replace("horizon 30 ", f"horizon {horizon} ")
     status, output = check_bytes(text.encode(), tmp_path, capsys, monkeypatch)
     assert_diagnosed(status, output)
-    assert status == 1 and "error[E0206]" in output
+    assert status == 1 and f"error[{code}]" in output
+
+
+#: The fuzzer's numbers (issue 12): each ends in a diagnostic for every command, none in exit 3.
+FUZZ_NUMBERS = [
+    ("input d : real in [1e5000, 0]", "", "E0010"),
+    ("sample every 1e-5000", "", "E0010"),
+    ("const C = 1e5000", "", "E0010"),
+    ("const C = 1e10000000", "", "E0010"),
+    ("const C = 0e10000000", "", "E0010"),
+    ("const C = 1" + "0" * 150, "", "E0010"),
+    ("input e : real in [0, 1e400]", "", "E0010"),
+    ("const C = 1e308 * 10", "", "E0011"),
+    ("const C = 1e200", "location U { r' == C * C }", "E0011"),
+    ("const C = 1e308 + 1e308", "edge L -> L when d > C", "E0011"),
+    ("", "location U { r' == 1e-300 * 1e-300 }", "E0011"),
+]
+
+
+@pytest.mark.parametrize(("declaration", "more", "code"), FUZZ_NUMBERS)
+def test_numbers_beyond_a_double_are_diagnosed_by_every_command(declaration, more, code, tmp_path, capsys):
+    from rac.cli.main import main
+
+    source = tmp_path / "numbers.ra"
+    source.write_text(f"""automaton A {{
+    input d : real in [0, 1]
+    reward r
+    priority r
+    objective r
+    sample every 0.1
+    horizon 1
+    {declaration}
+    initial location L {{ r' == 1 }}
+    {more}
+}}
+""", encoding="utf-8")
+    for command in (["check"], ["fmt", "--check"], ["compile", "--target", "python", "-o", str(tmp_path / "a.py")],
+                    ["compile", "--target", "uppaal", "-o", str(tmp_path / "a.xml")]):
+        status = main([*command, str(source)])
+        output = capsys.readouterr()
+        assert status in (1, 2), (command, output)
+        if command == ["check"]:
+            assert f"error[{code}]" in output.out
+
+
+def test_a_rate_beyond_int32_in_an_unreachable_location_is_e0801(tmp_path, capsys):
+    """The UPPAAL target reports it (its mirror cannot hold it) instead of failing on it."""
+    from rac.cli.main import main
+
+    source = tmp_path / "rate.ra"
+    source.write_text("""automaton A {
+    input d : real in [0, 1]
+    reward r
+    priority r
+    objective r
+    sample every 0.1
+    horizon 1
+    initial location L { r' == 1 }
+    location U { r' == 1e300 * d }
+}
+""", encoding="utf-8")
+    assert main(["compile", "--target", "uppaal", str(source), "-o", str(tmp_path / "rate.xml")]) == 1
+    err = capsys.readouterr().err
+    assert "error[E0801]" in err and "1e299 significand units" in err and "internal error" not in err
 
 
 def test_unterminated_comment_anywhere(tmp_path, capsys, monkeypatch):

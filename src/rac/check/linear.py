@@ -10,6 +10,7 @@ bindings are typed by :mod:`rac.check.queries`, into :mod:`rac.ir.expr` instead.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import ClassVar, NoReturn
@@ -18,6 +19,7 @@ from rac import ir
 from rac.check.queries import type_word
 from rac.check.symbols import Scope, Unresolvable
 from rac.lang import ast
+from rac.lang.parser import MAX_MAGNITUDE, MIN_MAGNITUDE
 
 __all__ = ["CONSTANT", "GUARD", "OBJECTIVE", "RATE", "UPDATE", "Bool", "Context", "ExpressionTyper", "Num", "Typed"]
 
@@ -141,7 +143,26 @@ class ExpressionTyper:
                          hints=["location names are boolean only in queries (e.g. `A[] Unsafe imply ...`)"])
         raise Unresolvable
 
+    def _in_range(self, value: ir.Linear, node: ast.Expr) -> Num:
+        """``value`` as a number, or E0011 (and :class:`Unresolvable`) when a constant or coefficient of
+        it lies beyond what a double holds: the targets compute with doubles."""
+        for number in (value.const, *(coefficient for _, coefficient in value.terms)):
+            size = abs(number)
+            if size > MAX_MAGNITUDE or 0 < size < MIN_MAGNITUDE:
+                which = "large" if size > MAX_MAGNITUDE else "small"
+                self.scope.error("E0011", f"this computes a number too {which} for a double "
+                                 f"(about {_about(number)})", node.span,
+                                 notes=["the checks compute exactly, but every target computes with doubles: a "
+                                        "value must be 0 or between 1e-307 and 1e308 in size"],
+                                 hints=["use smaller constants or another unit"])
+                raise Unresolvable
+        return Num(value)
+
     def _binary(self, node: ast.Binary, ctx: Context) -> Typed:
+        typed = self._binary_value(node, ctx)
+        return self._in_range(typed.value, node) if isinstance(typed, Num) else typed
+
+    def _binary_value(self, node: ast.Binary, ctx: Context) -> Typed:
         lt, rt = self.expr(node.left, ctx), self.expr(node.right, ctx)
         op = node.op
         if op in ast.ARITHMETIC_OPS:
@@ -197,6 +218,7 @@ class ExpressionTyper:
             raise Unresolvable
         (name, coefficient), = difference.terms
         threshold = -difference.const / coefficient
+        self._in_range(ir.Linear.constant(threshold), node)
         if coefficient < 0:
             op = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
         return ir.BAtom(name, op, threshold)
@@ -215,6 +237,13 @@ class ExpressionTyper:
         """The value of a constant expression (``what`` names it in messages)."""
         value = self.linear(node, Context(what, inputs=False))
         return value.const
+
+
+def _about(value: Fraction) -> str:
+    """A rational of any size as ``1.2e400`` (no float conversion, which would overflow)."""
+    exponent = math.log10(abs(value.numerator)) - math.log10(value.denominator)
+    whole = math.floor(exponent)
+    return f"{'-' if value < 0 else ''}{10 ** (exponent - whole):.1f}e{whole}"
 
 
 def _not(guard: ir.Guard) -> ir.Guard:

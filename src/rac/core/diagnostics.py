@@ -90,8 +90,11 @@ def _make(severity: Severity, code: str, message: str, span: Span | None,
 
 def short_number(value: Fraction, digits: int = 6) -> str:
     """A rational as a short decimal for messages; a trailing ``…`` marks a rounded value."""
-    if value.denominator == 1:
+    if value.denominator == 1 and abs(value.numerator) < 10**16:
         return str(value.numerator)
+    if value.denominator == 1:  # a huge integer: 1E+308, not 309 digits
+        text = str(Context(prec=digits).create_decimal(value.numerator).normalize()).replace("E+", "e")
+        return text if Fraction(text) == value else f"{text}…"
     if Fraction(1, 10**12) <= abs(value) <= 10**15:
         text = f"{float(value):.{digits}g}"
     else:  # beyond the range floats print well (or at all): decimal arithmetic never overflows

@@ -22,6 +22,42 @@ from rac.lang import ast
 from rac.lang.grammar import EXPRESSIONS, MODULE, QUERIES, lark_parser, terminal_regexp
 from rac.lang.syntax_errors import syntax_error
 
+#: A number literal's magnitude must lie within what a double holds (the targets compute with doubles)...
+MAX_MAGNITUDE = 1e308
+#: ... and, when it is not zero, not below the smallest normal double.
+MIN_MAGNITUDE = 1e-307
+#: ... with at most this many digits (more cannot matter to a double, and cost time to hold exactly).
+MAX_DIGITS = 100
+_NUMBER_PARTS = re.compile(r"(\d+)(?:\.(\d+))?(?:[eE]([+-]?\d+))?")
+
+
+def number_problem(text: str) -> str | None:
+    """Why the literal ``text`` (the grammar's NUMBER) is out of range, or None when it is not:
+    decided on the text, before anything large is built (``1e10000000`` is refused at once)."""
+    match = _NUMBER_PARTS.fullmatch(text)
+    if match is None:
+        return None
+    whole, fraction, exponent = match.group(1), match.group(2) or "", match.group(3) or "0"
+    digits = (whole + fraction).lstrip("0")
+    if len(whole) + len(fraction) > MAX_DIGITS:
+        return f"written with more than {MAX_DIGITS} digits"
+    if len(exponent.lstrip("+-").lstrip("0")) > 6:  # even 0e... would build 10**exponent
+        return "out of range (its exponent has more than 6 digits)"
+    if not digits:
+        return None  # zero
+    # the decimal exponent of the leading digit: 10**magnitude <= value < 10**(magnitude + 1)
+    magnitude = int(exponent) + len(whole.lstrip("0")) - 1 if whole.lstrip("0") else \
+        int(exponent) - (len(fraction) - len(fraction.lstrip("0"))) - 1
+    if magnitude > 308 or (magnitude == 308 and float(text) == float("inf")):
+        return "too large (beyond 1e308)"
+    if magnitude < -307:
+        return "too small (below 1e-307, but not 0)"
+    return None
+
+
+def _abbreviated(text: str) -> str:
+    return text if len(text) <= 40 else f"{text[:20]}…{text[-12:]}"
+
 
 class ParseFailure(Exception):
     """Internal: carries the diagnostic of the first syntax error."""
@@ -278,7 +314,16 @@ class _ToAst(Transformer):
         return ast.Unary("-", items[0], self._sp(meta))
 
     def number(self, meta, items):
-        return ast.Number(Fraction(str(items[0])), self._sp(items[0]))
+        text = str(items[0])
+        span = self._sp(items[0])
+        problem = number_problem(text)
+        if problem is not None:
+            raise ParseFailure(error(
+                "E0010", f"the number `{_abbreviated(text)}` is {problem}", span,
+                notes=["numbers are held exactly, and every target computes with doubles: a number is 0 or "
+                       f"between 1e-307 and 1e308 in size, written with at most {MAX_DIGITS} digits"],
+                hints=["use a smaller unit or a smaller value"]))
+        return ast.Number(Fraction(text), span)
 
     def true(self, meta, items):
         return ast.BoolLit(True, self._sp(items[0]))

@@ -198,6 +198,14 @@ def print_exact_sum(const: Fraction, terms: Sequence[tuple[Fraction, str]]) -> s
     return signed_sum(parts) or "0"
 
 
+def real_literal(value: Fraction) -> str:
+    """A number in a double expression: an integer literal within int32, else a double literal
+    (an integer literal beyond int32 would overflow where a double does not)."""
+    if value.denominator == 1 and abs(value.numerator) <= INT32_MAX:
+        return int_literal(value.numerator)
+    return double_literal(value)
+
+
 def print_real_linear(const: Fraction, terms: Sequence[tuple[Fraction, str, int]]) -> str:
     """``const + Σ coefficient*variable/divisor`` as a double expression.
 
@@ -211,13 +219,13 @@ def print_real_linear(const: Fraction, terms: Sequence[tuple[Fraction, str, int]
             continue
         magnitude = abs(coef)
         if divisor == 1:
-            text = name if magnitude == 1 else f"{number_literal(magnitude)}*{name}"
+            text = name if magnitude == 1 else f"{real_literal(magnitude)}*{name}"
         else:
             text = f"{name} / {double_literal(divisor)}" if magnitude == 1 else (
                 f"{double_literal(magnitude)}*{name} / {double_literal(divisor)}")
         parts.append((coef < 0, text))
     if not parts:
-        return number_literal(const)
+        return real_literal(const)
     if const:
-        parts.append((const < 0, number_literal(abs(const))))
+        parts.append((const < 0, real_literal(abs(const))))
     return signed_sum(parts)

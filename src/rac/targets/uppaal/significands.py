@@ -155,10 +155,11 @@ class Significands:
                 const, terms = mirror_accrual(rate, period, self.scale)
                 bad = const.denominator != 1 or any(
                     (coef * v).denominator != 1 for coef, name in terms for v in values.get(name, []))
-                if not bad and abs(const) > INT32_MAX:
+                if not bad and max([abs(const), *(abs(coef) for coef, _ in terms)]) > INT32_MAX:
                     self.unrepresentable(
                         f"reward rate `{reward}' == {_linear_text(rate)}` in location `{location.name}` adds "
-                        f"{short_number(const)} significand units per sample, beyond the 32-bit integer range",
+                        f"{short_number(max([abs(const), *(abs(coef) for coef, _ in terms)]))} significand units "
+                        "per sample (per unit of its inputs), beyond the 32-bit integer range",
                         location.span, hints=["lower the rate, or the exponent of the number representation"])
                     row.append(None)
                     continue
@@ -186,6 +187,8 @@ class Significands:
 
 def _decimal(value: Fraction) -> str:
     """A rational for messages: its exact decimal when it has a short one (``0.00001``), else rounded."""
+    if abs(value) >= 10**16:
+        return short_number(value)
     return exact_decimal(value, max_places=12) or short_number(value)
 
 
