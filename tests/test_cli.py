@@ -356,3 +356,28 @@ def test_benchmarks_quick_smoke(tmp_path: Path) -> None:
                 "parse only", "agreement"):
         assert row in table, row
     assert "FAIL" not in table
+
+
+# ---------------------------------------------------------------- a reader that leaves early
+def test_a_failed_check_fails_whoever_reads_its_first_line(tmp_path: Path) -> None:
+    """`rac check bad.ra | head -1`: the reader leaves after one line (the output is 400 kB, far more
+    than a pipe holds); rac still exits 1, and prints no "Exception ignored" on the way out."""
+    import subprocess
+    import sys
+
+    from conftest import rac_env
+
+    lines = ["automaton A {", "    input d : bool", "    reward r", "    priority r", "    objective r",
+             "    sample every 0.1", "    horizon 1", "    initial location L { r' == 1 }",
+             *(f"    edge L -> L when nope{i}" for i in range(3000)), "}"]
+    source = tmp_path / "many.ra"
+    source.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    for _ in range(3):
+        child = subprocess.Popen([sys.executable, "-m", "rac", "check", str(source)], env=rac_env(),
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        assert child.stdout is not None and child.stderr is not None
+        assert child.stdout.readline()  # head -1
+        child.stdout.close()
+        err = child.stderr.read().decode()
+        assert child.wait(timeout=120) == 1
+        assert "Exception ignored" not in err and "BrokenPipe" not in err

@@ -413,3 +413,19 @@ def test_unterminated_comment_anywhere(tmp_path, capsys, monkeypatch):
         at = text.rindex(marker)
         status, output = check_bytes((text[:at] + "/* " + text[at:]).encode(), tmp_path, capsys, monkeypatch)
         assert status == 1 and "error[E0003]" in output, marker
+
+
+def test_a_long_source_line_is_shown_as_a_window_around_the_span(tmp_path, capsys):
+    """A generated file may have lines of megabytes: the excerpt shows 120 characters around the
+    span, marked with …, and the caret still sits under it."""
+    from rac.cli.main import main
+
+    source = tmp_path / "wide.ra"
+    source.write_text("automaton A {\n    input d : bool " + " " * 300 + "input e : real in [1e400, 2]\n}\n",
+                      encoding="utf-8")
+    assert main(["check", str(source)]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    shown, caret = lines[2], lines[3]
+    assert shown.startswith("2 | …") and len(shown) < 140
+    column = caret.index("^")
+    assert shown[column:column + 5] == "1e400" and caret.count("^") == 5

@@ -291,3 +291,32 @@ def test_random_automata_alone(utap: Utap, automaton: ir.Automaton) -> None:
         assume(not re.search(r"\bE0801\b", str(failure)))
         raise
     utap.validate(model.xml, model.queries, "random")
+
+
+@pytest.mark.parametrize("length", [3900, 3901])
+def test_the_longest_name_reaches_uppaal(length: int, utap: Utap, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """A name of MAX_NAME characters compiles into a model UPPAAL's parser accepts (the target's
+    derived names included); one character more is E0012 at the name."""
+    name = "a" * length
+    source = tmp_path / "long.ra"
+    source.write_text(f"""automaton A {{
+    input {name} : bool
+    input d : real in [0, 2]
+    reward r
+    priority r
+    objective r
+    sample every 0.1
+    horizon 1
+    initial location L {{ r' == 1 }}
+    location M {{ r' == d }}
+    edge L -> M when {name}
+    edge M -> L when d > 1
+    query Q: A[] r >= -1
+}}
+""", encoding="utf-8")
+    if length == 3901:
+        assert main(["check", str(source)]) == 1
+        assert "error[E0012]: a name of 3,901 characters: at most 3,900" in capsys.readouterr().out
+        return
+    utap.validate_files(*compile_cli(source, tmp_path / "long.xml", capsys))

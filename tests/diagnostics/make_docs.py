@@ -180,6 +180,12 @@ GENERATED: tuple[Case, ...] = (
     Case("E0005_too_large", None,
          "A valid automaton followed by a comment of a million characters (1,000,040 bytes in all):",
          _write("E0005_too_large.ra", (SMALL + "// " + "x" * (1_000_040 - len(SMALL) - 4) + "\n").encode())),
+    Case("E0012_name_too_long", None,
+         "`E0012_name_too_long.ra` is the minimal automaton of the E0004 example with an input whose name is "
+         "3,901 characters long (the line is shown as a window around the name):",
+         _write("E0012_name_too_long.ra", SMALL.replace("automaton Driving {",
+                                                       "automaton Driving {\n    input " + "a" * 3901 + " : bool",
+                                                       1).encode())),
     Case("E0008_directory", None,
          "`E0008_directory.ra` is a directory:", _directory("E0008_directory.ra")),
     Case("E0008_missing_file", None,

@@ -220,11 +220,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     from rac.cli.engine import HANDLERS
 
     handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, **HANDLERS}
+    stdout = sys.stdout
+    sys.stdout = ReaderSafe(stdout)  # `rac check ... | head`: the command still ends with its own status
     try:
         return handlers[args.command](args)
-    except BrokenPipeError:  # e.g. `rac check ... | head`: the reader left; not an error of ours
-        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
-        return EXIT_OK
     except KeyboardInterrupt:
         print("rac: interrupted", file=sys.stderr)
         return 130
@@ -234,6 +233,45 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"rac: internal error: {type(exc).__name__}: {exc}\n"
               "This is a bug in rac; rerun with RAC_DEBUG=1 for the traceback and report it.", file=sys.stderr)
         return EXIT_INTERNAL
+    finally:
+        sys.stdout = stdout
+
+
+class ReaderSafe:
+    """Standard output that outlives its reader. When the reader leaves (``rac check ... | head -1``),
+    the rest of the output is dropped and the command goes on to its own exit status: a failed check
+    stays failed whoever reads its first line."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+        self.gone = False
+
+    def write(self, text: str) -> int:
+        if not self.gone:
+            try:
+                return self._stream.write(text)
+            except BrokenPipeError:
+                self._reader_left()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.gone:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._reader_left()
+
+    def _reader_left(self) -> None:
+        self.gone = True
+        try:  # later flushes of the real stream (at exit too) go to /dev/null, silently
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
 
 
 def entry() -> None:

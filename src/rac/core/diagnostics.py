@@ -117,6 +117,11 @@ def sort_key(d: Diagnostic) -> tuple[str, int, int, str]:
     return (d.span.file, d.span.line, d.span.column, d.code)
 
 
+#: Source lines longer than this are shown as a window around the span (a generated file may have
+#: lines of megabytes).
+MAX_SHOWN_LINE = 120
+
+
 def _render_one(d: Diagnostic, sources: Mapping[str, SourceFile]) -> str:
     where = f"{d.span}: " if d.span else ""
     lines = [f"{where}{d.severity.value}[{d.code}]: {d.message}"]
@@ -129,8 +134,16 @@ def _render_one(d: Diagnostic, sources: Mapping[str, SourceFile]) -> str:
         pad = " " * gutter
         # The caret covers the span on its first line (at least one character).
         last = d.span.end_column if d.span.end_line == d.span.line else len(text) + 1
-        width = max(1, last - d.span.column)
-        prefix = "".join(ch if ch == "\t" else " " for ch in text[: d.span.column - 1])
+        first = d.span.column
+        if len(text) > MAX_SHOWN_LINE:  # a window of the line around the span's start, marked with …
+            start = max(0, first - 1 - 40)
+            end = min(len(text), start + MAX_SHOWN_LINE)
+            head, tail = ("…" if start else ""), ("…" if end < len(text) else "")
+            text = head + text[start:end] + tail
+            first = first - start + len(head)
+            last = min(last - start + len(head), len(head) + (end - start) + 1)
+        width = max(1, last - first)
+        prefix = "".join(ch if ch == "\t" else " " for ch in text[: first - 1])
         lines += [
             f"{pad} |",
             f"{d.span.line} | {text}",

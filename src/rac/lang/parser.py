@@ -28,6 +28,9 @@ MAX_MAGNITUDE = 1e308
 MIN_MAGNITUDE = 1e-307
 #: ... with at most this many digits (more cannot matter to a double, and cost time to hold exactly).
 MAX_DIGITS = 100
+#: The longest name: UPPAAL's parser refuses identifiers of 4,000 characters, and the UPPAAL target
+#: derives names from the user's (a select variable, a mirror) a few characters longer.
+MAX_NAME = 3900
 _NUMBER_PARTS = re.compile(r"(\d+)(?:\.(\d+))?(?:[eE]([+-]?\d+))?")
 
 
@@ -103,7 +106,18 @@ class _ToAst(Transformer):
         return self.source.span(a.start, b.end)
 
     def _ident(self, token: Token) -> ast.Ident:
-        return ast.Ident(str(token), self._sp(token))
+        return ast.Ident(self._name_text(token), self._sp(token))
+
+    def _name_text(self, token: Token) -> str:
+        """A name's text, or E0012 when it is longer than UPPAAL accepts (the target would be refused)."""
+        text = str(token)
+        if len(text) > MAX_NAME:
+            raise ParseFailure(error(
+                "E0012", f"a name of {len(text):,} characters: at most {MAX_NAME:,}", self._sp(token),
+                notes=["UPPAAL's parser refuses names of 4,000 characters, and the UPPAAL target derives "
+                       "longer names from yours: the emitted model could not be loaded"],
+                hints=["use a shorter name"]))
+        return text
 
     def _binary(self, op: Token, left: ast.Expr, right: ast.Expr) -> ast.Binary:
         name = _CANONICAL_OP.get(str(op), str(op))
@@ -332,7 +346,7 @@ class _ToAst(Transformer):
         return ast.BoolLit(False, self._sp(items[0]))
 
     def name(self, meta, items):
-        return ast.Name(str(items[0]), self._sp(items[0]))
+        return ast.Name(self._name_text(items[0]), self._sp(items[0]))
 
     def qualified(self, meta, items):
         return ast.Qualified(str(items[0]), str(items[1]), self._sp(meta))
