@@ -381,3 +381,36 @@ def test_a_failed_check_fails_whoever_reads_its_first_line(tmp_path: Path) -> No
         err = child.stderr.read().decode()
         assert child.wait(timeout=120) == 1
         assert "Exception ignored" not in err and "BrokenPipe" not in err
+
+
+# ---------------------------------------------------------------- the files rac writes
+def test_written_files_get_the_usual_mode_links_stay_links_and_the_source_is_never_overwritten(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import os
+
+    from rac.cli.main import main
+
+    source = tmp_path / "driving.ra"
+    source.write_text((REPOSITORY / "stdlib" / "driving.ra").read_text(encoding="utf-8"), encoding="utf-8")
+    old = os.umask(0o022)
+    try:
+        assert main(["compile", "--target", "python", str(source), "-o", str(tmp_path / "out.py")]) == 0
+    finally:
+        os.umask(old)
+    assert (tmp_path / "out.py").stat().st_mode & 0o777 == 0o644  # as any new file, not mkstemp's 0600
+    # rac fmt through a symbolic link rewrites its target and keeps the link
+    messy = tmp_path / "messy.ra"
+    messy.write_text(source.read_text(encoding="utf-8").replace("horizon 30", "horizon    30"), encoding="utf-8")
+    link = tmp_path / "link.ra"
+    link.symlink_to(messy.name)
+    assert main(["fmt", str(link)]) == 0
+    assert link.is_symlink() and "horizon    30" not in messy.read_text(encoding="utf-8")
+    # -o naming the input file (directly or through the link) is refused, nothing written
+    before = messy.read_bytes()
+    capsys.readouterr()
+    for output in (messy, link):
+        assert main(["compile", "--target", "python", str(messy), "-o", str(output)]) == 2
+        assert "error[E0009]: cannot write" in capsys.readouterr().err
+    assert main(["compile", "--target", "uppaal", str(messy), "-o", str(messy)]) == 2
+    assert "error[E0009]: cannot write" in capsys.readouterr().err
+    assert messy.read_bytes() == before

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from rac.lang import ast
 from rac.lang.format import format_expr, format_module, format_query, format_source
-from rac.lang.parser import parse_text
+from rac.lang.parser import parse_expression, parse_text
 
 GOLDEN = Path(__file__).parent / "golden" / "driving.fmt.ra"
 
@@ -343,7 +343,8 @@ def test_numbers() -> None:
     assert format_expr(ast.Number(Fraction(1, 10))) == "0.1"
     assert format_expr(ast.Number(Fraction(9, 4))) == "2.25"
     assert format_expr(ast.Number(Fraction(1, 1024))) == "0.0009765625"
-    assert format_expr(ast.Number(Fraction(10**30))) == "1" + "0" * 30
+    assert format_expr(ast.Number(Fraction(10**20))) == "1" + "0" * 20
+    assert format_expr(ast.Number(Fraction(10**30))) == "1e30"  # long: with an exponent
     assert format_expr(ast.Number(Fraction(1, 3))) == "(1 / 3)"  # no decimal: an equal value
 
 
@@ -367,3 +368,18 @@ def test_queries_are_canonical(query: str) -> None:
     module = parse_text(f"automaton M {{ query Q: {query} }}")
     assert format_query(module.automata[0].members[0].query) == query
     assert re.search(r"\n    query Q: ", format_module(module))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 10**30), st.integers(-307, 290))
+def test_numbers_of_any_size_print_and_read_back(digits: int, exponent: int) -> None:
+    """Numbers up to the limits of E0010 print in a form that parses back to the same value, also
+    where the plain decimal would be hundreds of digits (``rac fmt`` printed 1e308 as 309 digits,
+    which no longer parsed)."""
+    value = Fraction(digits) * Fraction(10) ** exponent
+    if not Fraction(1, 10**307) <= value <= Fraction(10**308):
+        return
+    text = format_expr(ast.Number(value))
+    assert len(text) <= 60
+    assert parse_expression(text) == ast.Number(value)
+

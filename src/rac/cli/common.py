@@ -17,7 +17,8 @@ from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import Diagnostic, error
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "FileWriteError",
-           "read_and_check", "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
+           "overwrites_source", "read_and_check", "same_file", "unreadable", "unwritable", "write_all_atomically",
+           "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 
@@ -37,6 +38,20 @@ def read_and_check(path: Path) -> tuple[CompileResult | None, Diagnostic | None]
         return compile_file(path), None
     except OSError as exc:
         return None, unreadable(path, exc)
+
+
+def same_file(output: Path, source: Path) -> bool:
+    """Whether writing ``output`` would overwrite ``source`` (the same file, by any path or link)."""
+    try:
+        return output.exists() and os.path.samefile(output, source)
+    except OSError:
+        return False
+
+
+def overwrites_source(output: Path, source: Path) -> Diagnostic:
+    """E0009: ``output`` is the input file itself (nothing was written)."""
+    return error("E0009", f"cannot write `{output}`: it is the input file `{source}`", None,
+                 hints=["choose another output file; rac never overwrites the `.ra` file it reads"])
 
 
 def unwritable(path: Path, exc: OSError) -> Diagnostic:
@@ -72,6 +87,10 @@ def write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
         if path.is_dir():  # os.replace would fail only after the earlier files were replaced
             raise FileWriteError(path, IsADirectoryError(errno.EISDIR, "it is a directory", str(path)))
     temporaries: list[tuple[Path, str]] = []
+    # a symbolic link stays one: its target is rewritten
+    files = [(Path(os.path.realpath(path)) if path.is_symlink() else path, text) for path, text in files]
+    mask = os.umask(0)  # the mode a new file would get (mkstemp makes 0600)
+    os.umask(mask)
     try:
         for path, text in files:
             directory = path.parent if str(path.parent) else Path(".")
@@ -80,8 +99,7 @@ def write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
                 temporaries.append((path, temporary))
                 with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
                     handle.write(text)
-                if path.exists():
-                    os.chmod(temporary, path.stat().st_mode & 0o777)
+                os.chmod(temporary, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~mask)
             except OSError as exc:
                 raise FileWriteError(path, exc) from exc
         for path, temporary in temporaries:

@@ -22,7 +22,9 @@ from rac.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     FileWriteError,
+    overwrites_source,
     read_and_check,
+    same_file,
     unreadable,
     unwritable,
     write_all_atomically,
@@ -112,6 +114,15 @@ def _compile_command(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     if not result.ok or result.automaton is None:
         return EXIT_ERRORS
+    outputs = [args.output] if args.output is not None else []
+    if args.output is not None and args.target == "uppaal":
+        from rac.targets.uppaal.automaton import queries_path
+
+        outputs.append(Path(queries_path(str(args.output))))
+    for output in outputs:
+        if same_file(output, args.file):
+            print(render_text([overwrites_source(output, args.file)], {}), file=sys.stderr)
+            return EXIT_USAGE
     if args.target == "uppaal":
         return _compile_uppaal(args, result)
     from rac.targets.python import generate_python

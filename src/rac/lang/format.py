@@ -46,12 +46,32 @@ RA = OperatorTable(
 )
 
 
+#: An exact decimal longer than this prints with an exponent (``1e308``, not 309 digits).
+PLAIN_NUMBER_CHARS = 24
+
+
 def _format_number(value: Fraction) -> str:
-    """Print an exact decimal literal (no exponent); ``(n / d)`` when none exists."""
+    """Print an exact decimal literal — plain when short, else with an exponent (``1.5e-300``), both
+    reading back as the same value; ``(n / d)`` when no finite decimal exists."""
     if value < 0:
         return "-" + _format_number(-value)
-    # Not a finite decimal: never produced by the parser; print an equal value.
-    return exact_decimal(value) or f"({value.numerator} / {value.denominator})"
+    plain = exact_decimal(value)
+    if plain is None:  # not a finite decimal: never produced by the parser; print an equal value
+        return f"({value.numerator} / {value.denominator})"
+    if len(plain) <= PLAIN_NUMBER_CHARS or value == 0:
+        return plain
+    # value = digits * 10**exponent, digits without trailing zeros
+    places = 0
+    while (value * 10**places).denominator != 1:
+        places += 1
+    digits, exponent = (value * 10**places).numerator, -places
+    while digits % 10 == 0:
+        digits //= 10
+        exponent += 1
+    text = str(digits)
+    mantissa = text[0] + (f".{text[1:]}" if len(text) > 1 else "")
+    scientific = f"{mantissa}e{exponent + len(text) - 1}"
+    return scientific if len(scientific) < len(plain) else plain
 
 
 class RaPrinter(Printer):
