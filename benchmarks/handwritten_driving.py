@@ -5,7 +5,8 @@ a rate table, one validation helper shared by ``step`` and ``end``), with the sa
 the same input validation as :class:`rac.runtime.interpreter.RewardAutomaton`:
 
 * every declared input must be present and nothing else (``ValueError`` naming the missing and
-  unknown ones); booleans are read with ``bool(v)``, ``dgoal`` with ``float(v)`` and must lie in
+  unknown ones); booleans must be True/False or 0/1, ``dgoal`` a real number (read with
+  ``float(v)``; a string, None or complex number is refused) and must lie in
   [0, 500] (which also refuses NaN and infinities); ``collide`` implies ``isClose`` (the
   ``assume``). A refused sample leaves the automaton untouched.
 * one sample: every reward grows by its rate in the current location times the period, then the
@@ -19,6 +20,7 @@ generated module on its traces, and refuses the same invalid inputs, before it t
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Mapping
 
 NORMAL, UNCOMFORTABLE, STALLED, UNSAFE = "Normal", "Uncomfortable", "Stalled", "Unsafe"
@@ -38,6 +40,23 @@ RATES = {
 STEP_RATES = {location: tuple(rate * PERIOD for rate in rates) for location, rates in RATES.items()}
 
 
+
+def _boolean(name: str, raw: object) -> bool:
+    """A boolean input: True/False (Python's or numpy's) or 0/1; else ValueError."""
+    if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
+        return bool(raw)
+    raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
+
+
+def _number(name: str, raw: object) -> float:
+    """A numeric input: a real number, as a float; else ValueError."""
+    if not isinstance(raw, numbers.Real):
+        raise ValueError(f"input {name!r} = {raw!r} is not a number")  # noqa: TRY004 - the documented error
+    try:
+        return float(raw)
+    except OverflowError:
+        raise ValueError(f"input {name!r} = {raw!r} is too large for a float") from None
+
 class HandwrittenDriving:
     """Safety > progress > comfort, as a plain Python class."""
 
@@ -54,14 +73,14 @@ class HandwrittenDriving:
     @staticmethod
     def _read(inputs: Mapping[str, object]) -> tuple[bool, bool, bool, bool, float]:
         """Validate one sample's inputs; raise ValueError without touching any state."""
+        if not isinstance(inputs, Mapping):
+            raise ValueError(f"inputs must map input names to values, not {type(inputs).__name__}")  # noqa: TRY004
         try:
             if len(inputs) != len(INPUTS):
                 raise KeyError
-            is_close = bool(inputs["isClose"])
-            prog = bool(inputs["prog"])
-            comf = bool(inputs["comf"])
-            collide = bool(inputs["collide"])
-            dgoal = float(inputs["dgoal"])  # type: ignore[arg-type]
+            is_close, prog, comf, collide = (_boolean(name, inputs[name])
+                                             for name in ("isClose", "prog", "comf", "collide"))
+            dgoal = _number("dgoal", inputs["dgoal"])
         except KeyError:
             missing = [name for name in INPUTS if name not in inputs]
             unknown = sorted(repr(key) for key in inputs if key not in INPUTS)

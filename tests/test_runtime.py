@@ -214,11 +214,31 @@ def test_invalid_inputs_raise_and_leave_the_state_alone(driving: ir.Automaton, v
 
 
 def test_inputs_are_converted(driving: ir.Automaton) -> None:
+    """Booleans: True/False (Python's or numpy's) or 0/1; numbers: any real number, numpy's too."""
     ra = RewardAutomaton(driving)
-    ra.step({"isClose": 0, "prog": "yes", "comf": np.bool_(True), "collide": None, "dgoal": "499.5"})
+    ra.step({"isClose": 0, "prog": True, "comf": np.bool_(True), "collide": False, "dgoal": np.int64(499)})
     assert ra.location == "Normal"
     ra.step({"isClose": 1, "prog": 1, "comf": 1, "collide": 1, "dgoal": np.float32(500)})
     assert ra.location == "Unsafe"
+
+
+@pytest.mark.parametrize(("name", "value", "message"), [
+    ("prog", "yes", "is not a boolean"), ("collide", None, "is not a boolean"), ("isClose", 2, "is not a boolean"),
+    ("comf", 0.5, "is not a boolean"), ("dgoal", "5", "is not a number"), ("dgoal", None, "is not a number"),
+    ("dgoal", [1.0], "is not a number"), ("dgoal", 1j, "is not a number"),
+    ("dgoal", np.array([1.0, 2.0]), "is not a number"), ("dgoal", 10**400, "too large for a float"),
+])
+def test_inputs_of_the_wrong_kind_are_refused_with_valueerror(driving: ir.Automaton, name: str, value: object,
+                                                              message: str) -> None:
+    """Issue 12: a string, None, a complex number or a sequence was read by its truth or by
+    float() (or raised TypeError/OverflowError); now ValueError, as documented, and nothing changes."""
+    ra = RewardAutomaton(driving)
+    good = inputs()
+    with pytest.raises(ValueError, match=message):
+        ra.step({**good, name: value})
+    with pytest.raises(ValueError, match="must map input names"):
+        ra.step(None)  # type: ignore[arg-type]
+    assert ra.samples == 0 and ra.location == "Normal"
 
 
 def test_step_and_end_after_end_raise(driving: ir.Automaton) -> None:
@@ -403,3 +423,27 @@ def test_batch_strategies_agree_with_scalars(n_flags: int, auto: str) -> None:
             assert batch.location_names() == [ra.location for ra in scalars]
             assert batch.rewards["r"].tolist() == [ra.rewards["r"] for ra in scalars]
     assert moves == {"A", "B"}
+
+
+def test_the_batch_refuses_inputs_of_the_wrong_kind(driving: ir.Automaton) -> None:
+    """Complex arrays lost their imaginary part, numeric strings were read, a NaN mask counted as
+    True and batch(2.5) made two automata (issue 12): each is a ValueError now."""
+    from rac.runtime.batch import BatchRewardAutomaton
+
+    batch = BatchRewardAutomaton(driving, 2)
+    good = {name: np.array([value, value]) for name, value in inputs().items()}
+    for name, value, message in [("dgoal", np.array([1 + 1j, 2]), "real numbers"),
+                                 ("dgoal", np.array(["5", "6"]), "real numbers"),
+                                 ("dgoal", np.array([None, 1.0], dtype=object), "real numbers"),
+                                 ("isClose", np.array([0.5, 1.0]), "booleans"),
+                                 ("isClose", np.array([2, 0]), "booleans")]:
+        with pytest.raises(ValueError, match=message):
+            batch.step_batch({**good, name: value})
+    with pytest.raises(ValueError, match="mask must hold booleans"):
+        batch.step_batch(good, mask=np.array([np.nan, 1.0]))
+    with pytest.raises(ValueError, match="must map input names"):
+        batch.step_batch(None)  # type: ignore[arg-type]
+    for n in (2.5, True, 0):
+        with pytest.raises(ValueError, match="whole number of automata"):
+            BatchRewardAutomaton(driving, n)  # type: ignore[arg-type]
+    batch.step_batch(good, mask=np.array([1, 0]))  # 0/1 masks and inputs of the right kinds still work

@@ -9,6 +9,7 @@ once when the run stops, and ``reset()`` before the next run.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 
 __all__ = ["Driving"]
@@ -23,6 +24,29 @@ def _key_error(inputs: Mapping[str, object], names: tuple[str, ...]) -> ValueErr
     if unknown:
         parts.append("unknown input(s): " + ", ".join(unknown))
     return ValueError("; ".join(parts) or "the inputs do not match the declared inputs")
+
+
+def _mapping(inputs: object) -> None:
+    if not isinstance(inputs, Mapping):  # the documented error of bad inputs is ValueError
+        message = f"inputs must map input names to values, not {type(inputs).__name__}"
+        raise ValueError(message)  # noqa: TRY004
+
+
+def _boolean(inputs: Mapping[str, object], name: str) -> bool:
+    raw = inputs[name]
+    if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
+        return bool(raw)
+    raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
+
+
+def _number(inputs: Mapping[str, object], name: str) -> float:
+    raw = inputs[name]
+    if not isinstance(raw, numbers.Real):
+        raise ValueError(f"input {name!r} = {raw!r} is not a number")  # noqa: TRY004
+    try:
+        return float(raw)
+    except OverflowError:
+        raise ValueError(f"input {name!r} = {raw!r} is too large for a float") from None
 
 
 def _range_error(name: str, value: float, low: float, high: float) -> ValueError:
@@ -81,14 +105,15 @@ class Driving:
         """Take one sample with ``inputs``; return the objective's increase."""
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
+        _mapping(inputs)
         try:
             if len(inputs) != 5:
                 raise KeyError
-            i_isClose = bool(inputs["isClose"])
-            i_prog = bool(inputs["prog"])
-            i_comf = bool(inputs["comf"])
-            i_collide = bool(inputs["collide"])
-            i_dgoal = float(inputs["dgoal"])
+            i_isClose = _boolean(inputs, "isClose")
+            i_prog = _boolean(inputs, "prog")
+            i_comf = _boolean(inputs, "comf")
+            i_collide = _boolean(inputs, "collide")
+            i_dgoal = _number(inputs, "dgoal")
             if not 0.0 <= i_dgoal <= 500.0:
                 raise _range_error("dgoal", i_dgoal, 0.0, 500.0)
         except KeyError:
@@ -155,14 +180,15 @@ class Driving:
         """End the run with the final ``inputs`` (applies ``at end``); return the objective's increase."""
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
+        _mapping(inputs)
         try:
             if len(inputs) != 5:
                 raise KeyError
-            i_isClose = bool(inputs["isClose"])
-            bool(inputs["prog"])
-            bool(inputs["comf"])
-            i_collide = bool(inputs["collide"])
-            i_dgoal = float(inputs["dgoal"])
+            i_isClose = _boolean(inputs, "isClose")
+            _boolean(inputs, "prog")
+            _boolean(inputs, "comf")
+            i_collide = _boolean(inputs, "collide")
+            i_dgoal = _number(inputs, "dgoal")
             if not 0.0 <= i_dgoal <= 500.0:
                 raise _range_error("dgoal", i_dgoal, 0.0, 500.0)
         except KeyError:

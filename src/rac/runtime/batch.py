@@ -19,6 +19,7 @@ from rac.runtime.semantics import (
     AutomatonDescription,
     FloatLinear,
     check_automaton,
+    check_mapping,
     float_linear,
     input_specs,
     key_error,
@@ -137,8 +138,8 @@ class BatchRewardAutomaton(AutomatonDescription):
 
     def __init__(self, automaton: ir.Automaton, n: int, *, strategy: str = "auto") -> None:
         check_automaton(automaton)
-        if n < 1:
-            raise ValueError("a batch holds at least one automaton")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"a batch holds a whole number of automata, at least one (not {n!r})")
         if strategy not in ("auto", "table", "direct"):
             raise ValueError(f"unknown strategy {strategy!r}")
         self._ir = automaton
@@ -301,7 +302,10 @@ class BatchRewardAutomaton(AutomatonDescription):
 
     # -------------------------------------------------------- running
     def _mask(self, mask: object) -> np.ndarray:
-        m = np.asarray(mask, dtype=bool)
+        raw = np.asarray(mask)
+        if raw.dtype.kind not in "biu" or (raw.dtype.kind in "iu" and not np.isin(raw, (0, 1)).all()):
+            raise ValueError(f"mask must hold booleans, not {raw.dtype} values")
+        m = raw.astype(bool)
         if m.shape != (self._n,):
             raise ValueError(f"mask must have shape ({self._n},), not {m.shape}")
         return m
@@ -330,6 +334,7 @@ class BatchRewardAutomaton(AutomatonDescription):
     def _read(self, inputs: Mapping[str, object], rows: np.ndarray | None) -> dict[str, np.ndarray]:
         """Validated inputs as arrays (bool / float64); only ``rows`` are checked when given."""
         n = self._n
+        check_mapping(inputs)
         if len(inputs) != len(self._names) or any(name not in inputs for name in self._names):
             raise key_error(inputs, self._names)
         out: dict[str, np.ndarray] = {}
@@ -339,9 +344,15 @@ class BatchRewardAutomaton(AutomatonDescription):
                 if raw.ndim != 0:
                     raise ValueError(f"input {spec.name!r} must have shape ({n},), not {raw.shape}")
                 raw = np.broadcast_to(raw, (n,))
+            kind = raw.dtype.kind
             if spec.is_bool:
+                if kind not in "biu" or (kind in "iu" and not np.isin(raw, (0, 1)).all()):
+                    raise ValueError(f"input {spec.name!r} must hold booleans (True/False or 0/1), not {raw.dtype} "
+                                     "values")
                 out[spec.name] = raw.astype(bool, copy=False)
                 continue
+            if kind not in "biuf":  # not strings, complex numbers or Python objects
+                raise ValueError(f"input {spec.name!r} must hold real numbers, not {raw.dtype} values")
             value = raw.astype(np.float64, copy=False)
             if spec.bounded:
                 ok = (value >= spec.low) & (value <= spec.high)

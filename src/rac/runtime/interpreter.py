@@ -8,8 +8,9 @@ module of :mod:`rac.targets.python`; the agreement tests hold all three to it.
 One ``step(inputs)`` (one sample):
 
 1. the inputs are validated: every declared input present, nothing else; booleans via
-   ``bool(v)``; numbers via ``float(v)``, finite and within their bounds (compared with the
-   bounds as floats); ``int`` inputs integral. Then the ``assume`` guard must hold on them.
+   ``True``/``False`` or 0/1 (:func:`rac.runtime.semantics.boolean_input`); numbers are real numbers
+   (not strings, complex numbers or sequences), read via ``float(v)``, finite and within their
+   bounds (compared with the bounds as floats); ``int`` inputs integral. Then the ``assume`` guard must hold on them.
    A violation raises :class:`ValueError` and leaves the automaton untouched.
 2. every reward grows by its rate in the current location times the period
    (``rate.scaled(period)`` rounded to floats), evaluated on the inputs held from the previous
@@ -38,10 +39,13 @@ from rac.runtime.semantics import (
     ENDED_MESSAGE,
     AutomatonDescription,
     FloatLinear,
+    boolean_input,
     check_automaton,
+    check_mapping,
     float_linear,
     input_specs,
     key_error,
+    number_input,
     range_error,
     to_float,
 )
@@ -200,6 +204,7 @@ class RewardAutomaton(AutomatonDescription):
         return BatchRewardAutomaton(self._ir, n)
 
     def _read(self, inputs: Mapping[str, object]) -> _Values:
+        check_mapping(inputs)
         values: _Values = {}
         try:
             if len(inputs) != len(self._specs):
@@ -207,9 +212,9 @@ class RewardAutomaton(AutomatonDescription):
             for spec in self._specs:
                 raw = inputs[spec.name]
                 if spec.kind == "bool":
-                    values[spec.name] = bool(raw)
+                    values[spec.name] = boolean_input(spec.name, raw)
                     continue
-                value = float(raw)  # type: ignore[arg-type]
+                value = number_input(spec.name, raw)
                 if not spec.low <= value <= spec.high or not math.isfinite(value) or (
                         spec.kind == "int" and not value.is_integer()):
                     raise range_error(spec, value)

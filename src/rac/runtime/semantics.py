@@ -9,6 +9,7 @@ what cannot be represented faithfully.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -135,6 +136,31 @@ def check_automaton(automaton: ir.Automaton) -> None:
         check_updates(clause.updates, "at end")
     check_guard(automaton.assume, "assume")
     check_linear(automaton.objective, rewards, "objective")
+
+
+def check_mapping(inputs: object) -> None:
+    """``ValueError`` unless ``inputs`` maps input names to values (``step(None)`` said TypeError)."""
+    if not isinstance(inputs, Mapping):
+        raise ValueError(f"inputs must map input names to values, not {type(inputs).__name__}")
+
+
+def boolean_input(name: str, raw: object) -> bool:
+    """A boolean input's value: ``True``/``False`` (Python's or numpy's) or the integers 0 and 1;
+    anything else (``"x"``, ``None``, ``0.5``) is ``ValueError``, not read by its truth."""
+    if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
+        return bool(raw)
+    raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
+
+
+def number_input(name: str, raw: object) -> float:
+    """A numeric input's value as a float: a real number (``int``, ``float``, a numpy number);
+    a string, ``None``, a complex number or a sequence is ``ValueError``, so is a number no float holds."""
+    if not isinstance(raw, numbers.Real):
+        raise ValueError(f"input {name!r} = {raw!r} is not a number")
+    try:
+        return float(raw)
+    except OverflowError:
+        raise ValueError(f"input {name!r} = {raw!r} is too large for a float") from None
 
 
 def key_error(inputs: Mapping[str, object], names: Sequence[str]) -> ValueError:

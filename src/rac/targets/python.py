@@ -194,14 +194,14 @@ class _Generator:
             check = [f"if {self.expr(ir.BNot(self.a.assume))}:",
                      "    raise ValueError(\"inputs violate `assume`\")"]
         body = "\n".join([body, *check])
-        lines = ["try:", f"    if len(inputs) != {len(self.specs)}:", "        raise KeyError"]
+        lines = ["_mapping(inputs)", "try:", f"    if len(inputs) != {len(self.specs)}:", "        raise KeyError"]
         for spec in self.specs:
             var = self.inputs[spec.name]
             if spec.is_bool:
                 used = re.search(rf"\b{var}\b", body) is not None
-                lines.append(f"    {var + ' = ' if used else ''}bool(inputs[{_py(spec.name)}])")
+                lines.append(f"    {var + ' = ' if used else ''}_boolean(inputs, {_py(spec.name)})")
                 continue
-            lines.append(f"    {var} = float(inputs[{_py(spec.name)}])")
+            lines.append(f"    {var} = _number(inputs, {_py(spec.name)})")
             low, high = _num_or_inf(spec.low), _num_or_inf(spec.high)
             if spec.bounded:
                 bad = [f"not {low} <= {var} <= {high}"]
