@@ -210,7 +210,7 @@ def test_goal_time_velocity_and_orientation(tmp_path: Path, example_xml: Path) -
 
 
 def test_several_planning_problems(tmp_path: Path, example_xml: Path) -> None:
-    second = (r'\g<0>\n  <planningProblem id="7"><initialState><position><point><x>-1.75</x><y>20.0</y></point>'
+    second = (r'\g<0>\n  <planningProblem id="70"><initialState><position><point><x>-1.75</x><y>20.0</y></point>'
               r"</position><orientation><exact>-1.5</exact></orientation><time><exact>3</exact></time>"
               r"<velocity><exact>4.0</exact></velocity><yawRate><exact>0.0</exact></yawRate>"
               r"<slipAngle><exact>0.0</exact></slipAngle></initialState><goalState><position><rectangle>"
@@ -218,12 +218,12 @@ def test_several_planning_problems(tmp_path: Path, example_xml: Path) -> None:
               r"<time><intervalStart>50</intervalStart><intervalEnd>50</intervalEnd></time></goalState></planningProblem>")
     path = edited(tmp_path, example_xml, "two.xml", r"</planningProblem>", second)
     first = load_scenario(path)  # the smallest id
-    assert first.planning_problem_id == 7 and (first.ego.x, first.ego.y, first.ego.time) == (-1.75, 20.0, 0.3)
+    assert first.planning_problem_id == 70 and (first.ego.x, first.ego.y, first.ego.time) == (-1.75, 20.0, 0.3)
     assert (first.goal.time_low, first.goal.time_high) == (5.0, 5.0)
     chosen = load_scenario(path, planning_problem_id=100)
     assert chosen.planning_problem_id == 100 and chosen.ego.y == -18.0
     error = error_of(path, planning_problem_id=3)
-    assert error.element == "planning problem 3" and "does not exist (the file has 7, 100)" in str(error)
+    assert error.element == "planning problem 3" and "does not exist (the file has 70, 100)" in str(error)
 
 
 def test_obstacle_shapes_become_rectangles(tmp_path: Path, example_xml: Path) -> None:
@@ -417,3 +417,37 @@ def test_the_paper_example_is_the_left_turn_with_15_s_of_traffic(tmp_path: Path,
         assert moved.waypoints[-1].time == 15.0
     with pytest.raises(ValueError, match="steps"):
         write_left_turn(tmp_path / "none.xml", steps=0)
+
+
+# ---------------------------------------------------------------- files rac refuses plainly (issue 12)
+def _variant(tmp_path: Path, name: str, change) -> Path:
+    """The example intersection with one change to its XML text."""
+    text = change(COMMITTED.read_text(encoding="utf-8"))
+    path = tmp_path / f"{name}.xml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(("name", "change", "message"), [
+    ("reversed_goal_time", lambda t: re.sub(r"<intervalStart>0</intervalStart>\s*<intervalEnd>100</intervalEnd>",
+                                            "<intervalStart>100</intervalStart><intervalEnd>0</intervalEnd>", t,
+                                            count=1),
+     "planning problem 100's <time> has the interval [100, 0], which ends before it starts"),
+    ("duplicate_id", lambda t: t.replace('<lanelet id="2">', '<lanelet id="1">', 1),
+     "lanelet 1 has the id of lanelet 1: ids must be unique in a file"),
+    ("zero_length", lambda t: re.sub(r"<length>4.5</length>", "<length>0.0</length>", t, count=1),
+     "dynamic obstacle 51 has a 0 m × 1.8 m shape: an obstacle needs a positive length and width"),
+    ("negative_start", lambda t: re.sub(r"(<planningProblem id=\"100\">\s*<initialState>.*?<exact>)0(</exact>)",
+                                        r"\g<1>-3\2", t, count=1, flags=re.S),
+     "planning problem 100 starts at time step -3: a scenario's time begins at step 0"),
+])
+def test_a_scenario_rac_cannot_use_is_refused_in_its_own_words(tmp_path: Path, name: str, change,
+                                                                message: str) -> None:
+    """A reversed goal interval leaked commonroad-io's AssertionError text; duplicate ids, a
+    zero-length obstacle and a negative start time were accepted silently."""
+    path = _variant(tmp_path, name, change)
+    assert path.read_text(encoding="utf-8") != COMMITTED.read_text(encoding="utf-8")
+    with pytest.raises(ScenarioError) as failure:
+        load_scenario(path)
+    assert message in str(failure.value) and str(path) in str(failure.value)
+    assert "Assertion" not in str(failure.value)

@@ -214,6 +214,14 @@ def _parse_root(path: str | os.PathLike[str], data: bytes):
     return root
 
 
+def _number_text(text: str | None) -> float | None:
+    """A number of the XML (an interval's bound), or None when it is not one (commonroad-io reports it)."""
+    try:
+        return float(text or "")
+    except ValueError:
+        return None
+
+
 def _describe(error: BaseException) -> str:
     text = str(error).strip()
     if isinstance(error, AttributeError) and "NoneType" in text or isinstance(error, IndexError):
@@ -245,6 +253,14 @@ _LABELS = {
 
 
 def _check_structure(path: str | os.PathLike[str], root) -> None:
+    seen: dict[str, str] = {}  # CommonRoad ids are unique within a file (commonroad-io keeps the last)
+    for node in root:
+        ident = node.get("id")
+        if node.tag in _LABELS and ident is not None:
+            here = f"{_LABELS[node.tag]} {ident}"
+            if ident in seen:
+                raise ScenarioError(path, here, f"has the id of {seen[ident]}: ids must be unique in a file")
+            seen[ident] = here
     for node in root:
         for child in _REQUIRED.get(node.tag, ()):
             if node.find(child) is None:
@@ -272,6 +288,13 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
         except Exception as failure:
             return ScenarioError(path, element, f"cannot be read: {_describe(failure)}")
     lanelet_ids = {node.get("id") for node in root.iter("lanelet")}
+    for node in root.iter():
+        low, high = node.find("intervalStart"), node.find("intervalEnd")
+        bounds = (_number_text(low.text), _number_text(high.text)) if low is not None and high is not None else None
+        if bounds is not None and None not in bounds and bounds[0] > bounds[1]:  # type: ignore[operator]
+            owner = next((f"{label(n)}'s" for n in root if n.tag in _LABELS and node in n.iter()), "an")
+            return ScenarioError(path, f"{owner} <{node.tag}>",
+                                 f"has the interval [{low.text}, {high.text}], which ends before it starts")
     for problem in root.iter("planningProblem"):
         for position in problem.iterfind("goalState/position"):
             shapes = [child.tag for child in position]
@@ -421,6 +444,9 @@ def _obstacle(path, element: str, obstacle, static: bool, dt: float) -> Obstacle
     from commonroad.prediction.prediction import SetBasedPrediction, TrajectoryPrediction
 
     length, width, forward, left = _box(path, element, obstacle.obstacle_shape)
+    if not (length > 0 and width > 0):  # a point or a line: mindist() would treat it as nothing there
+        raise ScenarioError(path, element, f"has a {length:g} m × {width:g} m shape: an obstacle needs a positive "
+                                           "length and width")
     kind = getattr(obstacle.obstacle_type, "value", "") or ""
     if static:
         states = [obstacle.initial_state]
@@ -484,6 +510,8 @@ def _ego(path, element: str, state, dt: float) -> EgoStart:
             raise ScenarioError(path, element, f"has no {attribute} in {what}")
         values[attribute] = value or 0.0
     step = _time_step(path, element, state, what)
+    if step < 0:
+        raise ScenarioError(path, element, f"starts at time step {step}: a scenario's time begins at step 0")
     return EgoStart(x=x, y=y, heading=values["orientation"], velocity=values["velocity"],
                     acceleration=values["acceleration"], time=_seconds(step, dt))
 
