@@ -429,3 +429,35 @@ def test_a_long_source_line_is_shown_as_a_window_around_the_span(tmp_path, capsy
     assert shown.startswith("2 | …") and len(shown) < 140
     column = caret.index("^")
     assert shown[column:column + 5] == "1e400" and caret.count("^") == 5
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "mkfifo"), reason="no named pipes on this platform")
+def test_a_named_pipe_is_refused_instead_of_blocking(tmp_path, capsys):
+    """`rac check fifo.ra` and a `scenario "fifo.xml"` blocked on the read (issue 12)."""
+    import os
+
+    from rac.cli.main import main
+    from rac.model.commonroad import ScenarioError, load_scenario
+
+    os.mkfifo(tmp_path / "fifo.ra")
+    os.mkfifo(tmp_path / "fifo.xml")
+    assert main(["check", str(tmp_path / "fifo.ra")]) == 2
+    assert "error[E0008]: cannot read" in capsys.readouterr().err
+    with pytest.raises(ScenarioError, match="is not a regular file"):
+        load_scenario(tmp_path / "fifo.xml")
+
+
+def test_a_file_with_cr_line_endings_checks_like_one_with_lf(tmp_path, capsys):
+    """Old Mac line endings (CR only) are line breaks: the automaton is found and a diagnostic
+    points at the right line (the fuzzer saw E0007 "declares no automaton")."""
+    from rac.cli.main import main
+
+    text = DRIVING.read_text(encoding="utf-8").replace("horizon 30 ", "horizon 30 q ")
+    for name, ending in (("lf", "\n"), ("cr", "\r"), ("crlf", "\r\n")):
+        path = tmp_path / f"{name}.ra"
+        path.write_bytes(text.replace("\n", ending).encode("utf-8"))
+        assert main(["check", str(path)]) == 1
+        out = capsys.readouterr().out
+        assert "E0007" not in out
+        line = text[:text.index("horizon 30 q")].count("\n") + 1
+        assert f"{name}.ra:{line}:" in out

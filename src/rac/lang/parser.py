@@ -8,6 +8,7 @@ query declarations (:func:`parse_queries`). Syntax errors are put in user terms 
 
 from __future__ import annotations
 
+import errno
 import re
 from dataclasses import replace
 from fractions import Fraction
@@ -366,6 +367,8 @@ def read_source(path: str | Path) -> SourceFile:
     name = str(path)
     if path.is_dir():
         raise IsADirectoryError(f"{name} is a directory, not a .ra file")
+    if path.exists() and not path.is_file():  # a FIFO or a device: reading it would block
+        raise OSError(errno.EINVAL, "not a regular file (a pipe or a device?)", name)
     data = path.read_bytes()
     empty = SourceFile(name, "")
     if len(data) > MAX_SOURCE_BYTES:
@@ -403,7 +406,8 @@ def decode_source(name: str, data: bytes) -> SourceFile:
                                  source.span(offset, offset + 1),
                                  hints=[f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
                                         "`.ra` files are UTF-8 text; is this a binary file?"]))
-    return SourceFile(name, text.removeprefix("\ufeff"))
+    # A lone CR (old Mac line endings) is a line break: as LF, one character for one, so offsets stay.
+    return SourceFile(name, re.sub(r"\r(?!\n)", "\n", text.removeprefix("\ufeff")))
 
 
 #: Deepest expression accepted: operators nested in one another, each link of a chain like

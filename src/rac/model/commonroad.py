@@ -177,6 +177,9 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
 
 def _read_bytes(path: str | os.PathLike[str]) -> bytes:
     try:
+        if Path(path).exists() and not Path(path).is_dir() and not Path(path).is_file():
+            # a FIFO or a device would block the read (or never end): refuse it
+            raise ScenarioError(path, None, "is not a regular file (a pipe or a device?), not a CommonRoad XML file")
         return Path(path).read_bytes()
     except FileNotFoundError:
         raise ScenarioError(path, None, "does not exist") from None
