@@ -226,6 +226,11 @@ def test_every_probability_query_draws_its_own_seed(tmp_path: Path) -> None:
     again = run_queries(result, VerifyOptions(seed=7, plots=False, out_dir=tmp_path / "o"))[1]
     assert first[0].seed != first[1].seed
     assert [(r.seed, r.estimate) for r in first] == [(r.seed, r.estimate) for r in again]
+    # the seed a command reports is the one that reproduces it (`rac render --seed 1` said "seed 164...")
+    context, drawn = run_queries(result, VerifyOptions(plots=False, out_dir=tmp_path / "o"))
+    assert run_queries(result, VerifyOptions(seed=7, plots=False, out_dir=tmp_path / "o"))[0].seed == 7
+    replay = run_queries(result, VerifyOptions(seed=context.seed, plots=False, out_dir=tmp_path / "o"))[1]
+    assert [(r.seed, r.estimate) for r in replay] == [(r.seed, r.estimate) for r in drawn]
 
 
 def test_a_simulation_without_obstacles_says_so(tmp_path: Path) -> None:

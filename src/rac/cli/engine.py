@@ -236,7 +236,7 @@ def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int)
         reasons = "; ".join(f"{r.name}: {r.message}" for r in results if r.message)
         return None, f"the strategy `{args.strategy}` could not be learned ({reasons})"
     _, runs = context.learned_run(args.strategy, samples)
-    return runs, results[-1].seed
+    return runs, context.seed  # what --seed reproduces (the learning query's own seed derives from it)
 
 
 def _how(args: argparse.Namespace) -> str:

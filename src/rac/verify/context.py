@@ -150,6 +150,9 @@ class Context:
         #: Where strategies, CSV files and plots go (None: nowhere).
         self.out_dir = options.out_dir
         self._seeds = np.random.SeedSequence(options.seed)
+        #: The seed every query's seed derives from: the options' seed, or the fresh one drawn (give it
+        #: as ``seed`` to reproduce the whole run).
+        self.seed = int(self._seeds.entropy)  # type: ignore[arg-type]  # an int when given or drawn
 
     # ------------------------------------------------------------ files and seeds
     def out(self, name: str) -> Path:
