@@ -157,3 +157,15 @@ def test_invalid_inputs_propagate() -> None:
     env.reset()
     with pytest.raises(ValueError, match="assume"):
         env.step(0)
+
+
+def test_an_inputs_callable_that_fails_says_where_things_stand() -> None:
+    """A KeyError from the user's inputs(obs, info) escaped after the environment had stepped and
+    before the automaton had (issue 12): now a ValueError that says so."""
+    env = RewardAutomatonWrapper(Scripted(TRACE, truncate_at=3), driving_automaton(),
+                                 lambda obs, info: info["no such key"])
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"inputs\(obs, info\) raised KeyError: 'no such key'; the environment has "
+                                         "taken this step and the automaton has not"):
+        env.step(0)
+    assert env.automaton.samples == 0

@@ -139,7 +139,11 @@ class RewardAutomatonWrapper(gymnasium.Wrapper):
         """Step the environment; the reward is the automaton's (``at end`` included on the last step)."""
         obs, env_reward, terminated, truncated, info = self.env.step(action)
         info = dict(info)
-        values = self.inputs(obs, info)
+        try:
+            values = self.inputs(obs, info)
+        except Exception as exc:  # the user's callable: say what it did and what state things are in
+            raise ValueError(f"inputs(obs, info) raised {type(exc).__name__}: {exc}; the environment has taken "
+                             "this step and the automaton has not: reset before the next step") from exc
         reward = self.automaton.step(values)
         if terminated or truncated:
             reward += self.automaton.end(values)
