@@ -83,3 +83,15 @@ def test_the_default_reward_function_needs_the_papers_inputs(tmp_path: Path,
     assert "--reward-function" in capsys.readouterr().err
     assert main(["experiment", str(path), "--seeds", "x"]) == 2
     assert main(["experiment", str(path), "--reward-function", "10 *", "--out", str(tmp_path / "o")]) == 1
+
+
+def test_seed_is_one_seed_and_not_ignored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac experiment --seed 3` ran seeds 1..5 (its --seed was ignored next to --seeds, issue 12)."""
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "out"
+    assert main(["experiment", str(path), "--seed", "3", "--episodes", "8", "--runs", "2", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "RF", "--out", str(out), "-q"]) == 0
+    assert json.loads((out / "results.json").read_text())["seeds"] == [3]
+    capsys.readouterr()
+    assert main(["experiment", str(path), "--seed", "3", "--seeds", "1,2", "-q"]) == 2
+    assert "not both" in capsys.readouterr().err

@@ -125,7 +125,7 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     exp = commands.add_parser("experiment", help="the paper's Table 2: learning with/without shield, automaton "
                                                  "or reward function, over seeds")
     _common(exp)
-    exp.add_argument("--seeds", default="1,2,3,4,5", metavar="LIST", help="seeds, e.g. 1,2,3 (default 1..5)")
+    exp.add_argument("--seeds", metavar="LIST", help="seeds, e.g. 1,2,3 (default 1..5; --seed N is --seeds N)")
     exp.add_argument("--episodes", type=_positive_int, default=500, help="episode budget per run (default 500)")
     exp.add_argument("--runs", type=_positive_int, default=100, help="evaluation runs per strategy (default 100)")
     exp.add_argument("--reward-function", metavar="EXPR",
@@ -495,8 +495,12 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
 def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.studies.experiment import ExperimentError, render_markdown, run_experiment, write_outputs
 
+    if args.seed is not None and args.seeds is not None:
+        print("rac experiment: give --seeds LIST or --seed N (one seed), not both", file=sys.stderr)
+        return EXIT_USAGE
+    text = args.seeds if args.seeds is not None else str(args.seed) if args.seed is not None else "1,2,3,4,5"
     try:
-        seeds = [int(s) for s in args.seeds.split(",")]
+        seeds = [int(s) for s in text.split(",")]
     except ValueError:
         print(f"rac experiment: --seeds: not a list of whole numbers: {args.seeds!r}", file=sys.stderr)
         return EXIT_USAGE
