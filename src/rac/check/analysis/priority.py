@@ -10,7 +10,7 @@ from rac import ir
 from rac.check.analysis.affine import Affine, Outcome, accrual, moves
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.worst import AFTER_END, BEFORE_EDGE, BEFORE_NEXT, CONTINUE, START, Target, Worst, maximise
-from rac.core.diagnostics import Diagnostic, Note, error
+from rac.core.diagnostics import Diagnostic, Note, error, short_number
 from rac.core.numbers import INT32_MAX, INT32_MIN
 from rac.ir.inputs import InputSpace, guard_inputs
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
@@ -426,6 +426,8 @@ def _linear_text(linear: ir.Linear) -> str:
 
 def _num(value: Fraction) -> str:
     if value.denominator == 1:
-        return str(value.numerator)
+        return str(value.numerator) if abs(value.numerator) < 10**16 else short_number(value)
+    if not Fraction(1, 10**300) < abs(value) < 10**300:  # beyond a float: no float() of it
+        return short_number(value)
     text = f"{float(value):.10g}"
     return text if Fraction(text) == value else f"{value.numerator}/{value.denominator}"
