@@ -425,8 +425,8 @@ def _linear_text(linear: ir.Linear) -> str:
 
 
 def _num(value: Fraction) -> str:
-    if value.denominator == 1:
-        return str(value.numerator) if abs(value.numerator) < 10**16 else short_number(value)
+    if value.denominator == 1:  # exact, however long
+        return str(value.numerator)
     if not Fraction(1, 10**300) < abs(value) < 10**300:  # beyond a float: no float() of it
         return short_number(value)
     text = f"{float(value):.10g}"
