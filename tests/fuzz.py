@@ -83,8 +83,9 @@ def mutate(text: str, rng: random.Random) -> str:
     return text
 
 
-class Hang(Exception):
-    """A command ran past :data:`TIME_LIMIT`."""
+class Hang(BaseException):
+    """A command ran past :data:`TIME_LIMIT` (a BaseException: rac's own handler of unexpected
+    exceptions must not take it for an internal error)."""
 
 
 @contextlib.contextmanager
