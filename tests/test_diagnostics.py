@@ -360,12 +360,9 @@ FUZZ_NUMBERS = [
 ]
 
 
-@pytest.mark.parametrize(("declaration", "more", "code"), FUZZ_NUMBERS)
-def test_numbers_beyond_a_double_are_diagnosed_by_every_command(declaration, more, code, tmp_path, capsys):
-    from rac.cli.main import main
-
-    source = tmp_path / "numbers.ra"
-    source.write_text(f"""automaton A {{
+def _one_reward(path, declaration: str = "", more: str = ""):
+    """A one-reward automaton with ``declaration`` before its initial location and ``more`` after it."""
+    path.write_text(f"""automaton A {{
     input d : real in [0, 1]
     reward r
     priority r
@@ -377,6 +374,14 @@ def test_numbers_beyond_a_double_are_diagnosed_by_every_command(declaration, mor
     {more}
 }}
 """, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(("declaration", "more", "code"), FUZZ_NUMBERS)
+def test_numbers_beyond_a_double_are_diagnosed_by_every_command(declaration, more, code, tmp_path, capsys):
+    from rac.cli.main import main
+
+    source = _one_reward(tmp_path / "numbers.ra", declaration, more)
     for command in (["check"], ["fmt", "--check"], ["compile", "--target", "python", "-o", str(tmp_path / "a.py")],
                     ["compile", "--target", "uppaal", "-o", str(tmp_path / "a.xml")]):
         status = main([*command, str(source)])
@@ -390,18 +395,7 @@ def test_a_rate_beyond_int32_in_an_unreachable_location_is_e0801(tmp_path, capsy
     """The UPPAAL target reports it (its mirror cannot hold it) instead of failing on it."""
     from rac.cli.main import main
 
-    source = tmp_path / "rate.ra"
-    source.write_text("""automaton A {
-    input d : real in [0, 1]
-    reward r
-    priority r
-    objective r
-    sample every 0.1
-    horizon 1
-    initial location L { r' == 1 }
-    location U { r' == 1e300 * d }
-}
-""", encoding="utf-8")
+    source = _one_reward(tmp_path / "rate.ra", more="location U { r' == 1e300 * d }")
     assert main(["compile", "--target", "uppaal", str(source), "-o", str(tmp_path / "rate.xml")]) == 1
     err = capsys.readouterr().err
     assert "error[E0801]" in err and "1e299 significand units" in err and "internal error" not in err

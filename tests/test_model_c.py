@@ -29,15 +29,8 @@ from rac.targets.uppaal.expr import double_literal
 COMPILER = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")
 
-MAIN = r"""
-#include <stdio.h>
-
-int main(void) {
-    long long in[8];
-    int32_t i;
-    double md;
-    double dg;
-    while (scanf("%lld %lld %lld %lld %lld %lld %lld %lld",
+#: The C mains' loop head: one state and its sample per input line, into the model's globals.
+READ_STATE = r"""    while (scanf("%lld %lld %lld %lld %lld %lld %lld %lld",
                  &in[0], &in[1], &in[2], &in[3], &in[4], &in[5], &in[6], &in[7]) == 8) {
         x = (int32_t)in[0];
         y = (int32_t)in[1];
@@ -47,7 +40,17 @@ int main(void) {
         jerk = (int32_t)in[5];
         turn = (int32_t)in[6];
         count = (int32_t)in[7];
-        md = mindist();
+"""
+
+MAIN = r"""
+#include <stdio.h>
+
+int main(void) {
+    long long in[8];
+    int32_t i;
+    double md;
+    double dg;
+""" + READ_STATE + r"""        md = mindist();
         dg = dist_goal();
         printf("%d %d %d %.17e %.17e %lld %lld", (int)collide(), (int)offroad(), (int)goal(), md, dg,
                (long long)(md * SCALE_D), (long long)(dg * SCALE_D));
@@ -246,17 +249,7 @@ STICKY_MAIN = r"""
 
 int main(void) {
     long long in[8];
-    while (scanf("%lld %lld %lld %lld %lld %lld %lld %lld",
-                 &in[0], &in[1], &in[2], &in[3], &in[4], &in[5], &in[6], &in[7]) == 8) {
-        x = (int32_t)in[0];
-        y = (int32_t)in[1];
-        v = (int32_t)in[2];
-        acc = (int32_t)in[3];
-        head = (int32_t)in[4];
-        jerk = (int32_t)in[5];
-        turn = (int32_t)in[6];
-        count = (int32_t)in[7];
-        keep_collision();
+""" + READ_STATE + r"""        keep_collision();
         printf("%d\n", (int)collide());
     }
     return 0;

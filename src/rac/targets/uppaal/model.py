@@ -174,7 +174,7 @@ class _ModelGenerator(AutomatonGenerator):
         size = len(data.actions[0].values) * len(data.actions[1].values)
         saved = {c: self.n.fresh(f"s_{c}") for c in ("x", "y", "v", "acc", "head", "jerk", "turn")}
         condition = self._bound(f"{g['allowed']}[j * {turn}_COUNT + u] = {{}};", spec.allow, printer,
-                                "`allow when`", spec.allow.span if hasattr(spec.allow, "span") else spec.span)
+                                "`allow when`", spec.allow.span or spec.span)
         body = [
             "int32_t j;", "int32_t u;", *(f"int32_t {name};" for name in saved.values()),
             *(f"{name} = {c};" for c, name in saved.items()),
