@@ -70,7 +70,7 @@ def test_verify_shield_in_the_default_folder_exits_0(capsys: pytest.CaptureFixtu
     path = write_engine_file(tmp_path, "goal_ahead")
     assert main(["verify", str(path), "--query", "Shielded"]) == 0  # pulls in `safe`, which it is under
     out = capsys.readouterr().out
-    saved = tmp_path / "goal_ahead.out" / "safe.shield.npz"
+    saved = tmp_path / "goal_ahead.out" / "verify" / "safe.shield.npz"
     assert f"    wrote {saved}\n" in out
     assert out.index("Verifying safe:") < out.index("Verifying Shielded:")
     assert out.count(" -- Formula is satisfied.") == 2
@@ -229,9 +229,8 @@ def test_verify_usage_errors_exit_2(capsys: pytest.CaptureFixture[str], tmp_path
 # ---------------------------------------------------------------- simulate
 def test_simulate_writes_csv_and_png(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", {})
-    csv_path, png_path = tmp_path / "runs.csv", tmp_path / "runs.png"
-    assert main(["simulate", str(path), "--runs", "3", "--seed", "5", "-o", str(csv_path), "--plot",
-                 str(png_path)]) == 0
+    csv_path, png_path = tmp_path / "chosen" / "runs.csv", tmp_path / "chosen" / "runs.png"
+    assert main(["simulate", str(path), "--runs", "3", "--seed", "5", "-o", str(tmp_path / "chosen")]) == 0
     assert capsys.readouterr().out == (f"simulated 3 runs of 8 samples (seed 5)\n"
                                        f"0 of 3 runs go below 3 * collision_distance = 1.5\n"
                                        f"wrote {csv_path}\nwrote {png_path}\n")
@@ -242,7 +241,7 @@ def test_simulate_writes_csv_and_png(capsys: pytest.CaptureFixture[str], tmp_pat
     assert {(r[2], r[3]) for r in rows[1:]} == {("1e+09", "1.5")}  # no obstacle on the road
     image_size(png_path)
     first = csv_path.read_text()
-    assert main(["simulate", str(path), "--runs", "3", "--seed", "5", "-o", str(csv_path)]) == 0
+    assert main(["simulate", str(path), "--runs", "3", "--seed", "5", "--out", str(csv_path.parent)]) == 0
     assert csv_path.read_text() == first  # same seed, same runs
 
 
@@ -251,7 +250,7 @@ def test_simulate_default_paths_and_expressions(capsys: pytest.CaptureFixture[st
     assert main(["simulate", str(path), "--runs", "2", "--horizon", "1", "--expr", "v", "--expr", "prev(x)",
                  "--expr", "collide()"]) == 0
     out = capsys.readouterr().out
-    csv_path = tmp_path / "avoidable_obstacle.csv"
+    csv_path = tmp_path / "avoidable_obstacle.out" / "simulate" / "runs.csv"
     assert out.endswith(f"wrote {csv_path}\nwrote {csv_path.with_suffix('.png')}\n")
     rows = csv_rows(csv_path)
     assert rows[0] == ["run", "time", "v", "prev(x)", "collide()"]
@@ -262,9 +261,9 @@ def test_simulate_default_paths_and_expressions(capsys: pytest.CaptureFixture[st
 
 def test_simulate_under_the_shield(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "avoidable_obstacle", {})
-    csv_path = tmp_path / "shielded.csv"
+    csv_path = tmp_path / "shielded" / "runs.csv"
     assert main(["simulate", str(path), "--shield", "--runs", "20", "--seed", "3", "--expr", "collide()",
-                 "--expr", "offroad()", "-o", str(csv_path)]) == 0
+                 "--expr", "offroad()", "-o", str(csv_path.parent)]) == 0
     out = capsys.readouterr().out
     assert out.startswith("simulated 20 runs of 8 samples (seed 3) under the shield\n")
     assert "continued unshielded" not in out
@@ -279,7 +278,7 @@ def test_simulate_shield_without_safe_strategy_exits_1(capsys: pytest.CaptureFix
     assert captured.out == ""
     assert captured.err == ("rac simulate: no safe strategy exists from the start within the horizon "
                             "(Qd is not satisfied)\n")
-    assert not (tmp_path / "narrow_road.csv").exists()
+    assert not (tmp_path / "narrow_road.out").exists()
 
 
 @pytest.mark.parametrize(("expr", "message"), [
@@ -297,14 +296,14 @@ def test_simulate_bad_expression_exits_2(capsys: pytest.CaptureFixture[str], tmp
     captured = capsys.readouterr()
     assert captured.out == ""
     assert captured.err == f"rac simulate: --expr: {message}\n"
-    assert not (tmp_path / "goal_ahead.csv").exists()
+    assert not (tmp_path / "goal_ahead.out").exists()
 
 
 # ---------------------------------------------------------------- render
 def test_render_writes_png_and_gif(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "goal_behind_wall", {})
-    png, gif = tmp_path / "run.png", tmp_path / "run.gif"
-    assert main(["render", str(path), "--horizon", "1", "--seed", "4", "-o", str(png), "--gif", str(gif)]) == 0
+    png, gif = tmp_path / "pictures" / "run.png", tmp_path / "pictures" / "run.gif"
+    assert main(["render", str(path), "--horizon", "1", "--seed", "4", "-o", str(png.parent), "--gif"]) == 0
     assert capsys.readouterr().out == f"rendered one run: 2 samples (seed 4)\nwrote {png}\nwrote {gif}\n"
     image_size(png)
     with Image.open(gif) as image:
@@ -316,7 +315,7 @@ def test_render_default_path_and_shield(capsys: pytest.CaptureFixture[str], tmp_
     assert main(["render", str(path), "--horizon", "1", "--shield"]) == 0
     out = capsys.readouterr().out
     assert re.fullmatch(r"rendered one run under the shield: 2 samples \(seed \d+\)\nwrote .*\n", out)
-    image_size(tmp_path / "avoidable_obstacle.png")
+    image_size(tmp_path / "avoidable_obstacle.out" / "render" / "run.png")
     narrow = write_engine_file(tmp_path, "narrow_road", {})
     assert main(["render", str(narrow), "--horizon", "1", "--shield"]) == 1
     assert "no safe strategy exists from the start" in capsys.readouterr().err
@@ -400,3 +399,53 @@ def test_preanalyse_bad_lists_exit_2(capsys: pytest.CaptureFixture[str], tmp_pat
     assert main(["preanalyse", str(path), *option]) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and captured.err == f"rac preanalyse: {message}\n"
+
+
+# ---------------------------------------------------------------- where outputs go
+def test_help_names_the_output_convention(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps the epilog
+    assert "one folder per input file and command, FILE.out/COMMAND/ beside FILE.ra" in text
+    assert "-o/--out" in text
+    assert main(["simulate", "--help"]) == 0
+    assert "default: FILE.out/simulate/ beside the file" in " ".join(capsys.readouterr().out.split())
+
+
+def test_each_command_writes_into_its_own_folder(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """simulate's plot and render's picture once shared `FILE.png`: now every command has its folder."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"Sim": QUERIES["Sim"]})
+    assert main(["verify", str(path), "--seed", "1", "-q"]) == 0
+    assert main(["simulate", str(path), "--runs", "2", "--horizon", "1", "--seed", "1", "-q"]) == 0
+    assert main(["render", str(path), "--horizon", "1", "--seed", "1", "-q"]) == 0
+    assert main(["preanalyse", str(path), "--runs", "2", "--seed", "1", "-q"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "avoidable_obstacle.out"
+    written = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert written == ["preanalyse/fig7_e2_c1_0.5_c2_1.png", "preanalyse/sweep.png", "render/run.png",
+                       "simulate/runs.csv", "simulate/runs.png", "verify/Sim.csv", "verify/Sim.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["avoidable_obstacle.out", "avoidable_obstacle.ra",
+                                                          "avoidable_obstacle.xml"]
+
+
+def test_the_output_folders_are_git_ignored() -> None:
+    import shutil
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    if shutil.which("git") is None or not (root / ".git").exists():
+        pytest.skip("not a git checkout (the .gitignore rule is tested where one is)")
+    for command in ("verify", "simulate", "render", "preanalyse", "experiment"):
+        inside = f"examples/left_turn/model.out/{command}/runs.png"
+        assert subprocess.run(["git", "-C", str(root), "check-ignore", "-q", inside]).returncode == 0, inside
+    assert subprocess.run(["git", "-C", str(root), "check-ignore", "-q", "examples/left_turn/model.ra"]).returncode == 1
+
+
+def test_verify_standard_keeps_a_query_of_the_same_name(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """`--standard` adds a Fig7 of its own: a query named Fig7 in the file keeps its files."""
+    path = write_engine_file(tmp_path, "goal_ahead", {"Fig7": "simulate[<=1; 2]{v}"})
+    out = tmp_path / "o"
+    assert main(["verify", str(path), "--standard", "--query", "Fig7", "--seed", "1", "--out", str(out), "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert f"wrote {out / 'standard' / 'Fig7.png'}" in printed and f"wrote {out / 'Fig7.png'}" in printed
+    assert csv_rows(out / "Fig7.csv")[0] == ["run", "time", "v"]  # the file's own query
+    assert csv_rows(out / "standard" / "Fig7.csv")[0][2] == "mindist()"  # the paper's Fig. 7

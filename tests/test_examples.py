@@ -212,8 +212,8 @@ def _engine_block(doc: str) -> Block:
 
 
 @pytest.mark.parametrize(("doc", "example", "queries", "folder"), [
-    ("verify.md", "examples/left_turn/preanalysis.ra", ["Qd"], "examples/left_turn/preanalysis.out"),
-    ("learning.md", "examples/paper/model.ra", ["reachSafe"], "examples/paper/model.out"),
+    ("verify.md", "examples/left_turn/preanalysis.ra", ["Qd"], "examples/left_turn/preanalysis.out/verify"),
+    ("learning.md", "examples/paper/model.ra", ["reachSafe"], "examples/paper/model.out/verify"),
 ])
 def test_engine_doc_blocks_run(doc: str, example: str, queries: list[str], folder: str, tmp_path: Path) -> None:
     """The files the block reads are made by `rac verify` (into tmp_path instead of beside the example)."""

@@ -16,7 +16,16 @@ from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
-from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE, read_and_check
+from rac.cli.common import (
+    EXIT_ERRORS,
+    EXIT_OK,
+    EXIT_UNDECIDED,
+    EXIT_USAGE,
+    OUTPUT_CONVENTION,
+    OUTPUT_SUFFIX,
+    output_folder,
+    read_and_check,
+)
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_text as render_diagnostics
 
@@ -61,8 +70,12 @@ def _size(text: str) -> int:
     return size
 
 
-def _common(parser: argparse.ArgumentParser) -> None:
+def _common(parser: argparse.ArgumentParser, outputs: str) -> None:
+    """The options every engine command has; ``outputs`` says what goes into its output folder."""
     parser.add_argument("file", type=Path, metavar="FILE", help="a .ra file with a `model` block")
+    parser.add_argument("-o", "--out", type=Path, metavar="DIR",
+                        help=f"where {outputs} go (default: FILE{OUTPUT_SUFFIX}/{parser.prog.split()[-1]}/ "
+                             "beside the file)")
     parser.add_argument("--horizon", type=_fraction, metavar="SECONDS",
                         help="horizon of exhaustive exploration (default: the automaton's `horizon`)")
     parser.add_argument("--seed", type=int, help="seed of the simulations (default: fresh, printed)")
@@ -76,55 +89,53 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 def add_parsers(commands: argparse._SubParsersAction) -> None:
     """Add ``verify``, ``simulate``, ``render`` and ``preanalyse`` to ``rac``'s sub-commands."""
-    verify = commands.add_parser("verify", help="answer the file's queries with the native engine (Storm)")
-    _common(verify)
+    verify = commands.add_parser("verify", help="answer the file's queries with the native engine (Storm)",
+                                 epilog=OUTPUT_CONVENTION)
+    _common(verify, "strategies, CSV files and plots (--standard's in standard/)")
     verify.add_argument("--query", action="append", metavar="NAME", help="only this query (repeatable)")
     verify.add_argument("--standard", action="store_true",
                         help="also answer the paper's pre-analysis queries Qa-Qd and the Fig. 7 simulations")
     verify.add_argument("--epsilon", type=_probability, default=0.05,
                         help="half-width of probability intervals (UPPAAL's -E, default 0.05)")
     verify.add_argument("--confidence", type=_probability, default=0.95, help="confidence of intervals (0.95)")
-    verify.add_argument("--out", type=Path, metavar="DIR",
-                        help="where strategies, CSV files and plots go (default: FILE's name + .out)")
     verify.add_argument("--no-plots", action="store_true", help="no PNG plots for simulate queries")
     verify.add_argument("--trace", action="store_true", help="print whole traces")
     verify.add_argument("--learn-episodes", type=_positive_int, default=1000, metavar="N",
                         help="episode budget of learning queries (maxE/minE; default 1000)")
     verify.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
-    simulate = commands.add_parser("simulate", help="simulate runs; write CSV and the paper's Fig. 7 plot")
-    _common(simulate)
+    simulate = commands.add_parser("simulate", help="simulate runs; write CSV and the paper's Fig. 7 plot",
+                                   epilog=OUTPUT_CONVENTION)
+    _common(simulate, "runs.csv and runs.png")
     simulate.add_argument("--runs", type=_positive_int, default=100, help="number of runs (default 100)")
     simulate.add_argument("--expr", action="append", metavar="EXPR",
                           help="what to record per sample (default: mindist() and 3 * collision_distance)")
     simulate.add_argument("--shield", action="store_true",
                           help="choose actions under the safety shield (computed first, like Qd)")
-    simulate.add_argument("-o", "--output", type=Path, metavar="CSV", help="CSV file (default: FILE's name + .csv)")
-    simulate.add_argument("--plot", type=Path, metavar="PNG", help="plot file (default: the CSV's name + .png)")
 
-    render = commands.add_parser("render", help="draw the scenario with a simulated trajectory (PNG, GIF)")
-    _common(render)
+    render = commands.add_parser("render", help="draw the scenario with a simulated trajectory (PNG, GIF)",
+                                 epilog=OUTPUT_CONVENTION)
+    _common(render, "run.png (and run.gif)")
     how = render.add_mutually_exclusive_group()
     how.add_argument("--shield", action="store_true", help="drive under the safety shield (random allowed actions)")
     how.add_argument("--strategy", metavar="NAME",
                      help="drive the file's learned strategy NAME (learned first, like rac verify does)")
-    render.add_argument("-o", "--output", type=Path, metavar="PNG", help="PNG file (default: FILE's name + .png)")
-    render.add_argument("--gif", type=Path, metavar="GIF", help="also write an animated GIF")
+    render.add_argument("--gif", action="store_true", help="also write an animated GIF, run.gif")
 
-    pre = commands.add_parser("preanalyse", help="sweep number representation and periods: Qa-Qd per setting")
-    _common(pre)
+    pre = commands.add_parser("preanalyse", help="sweep number representation and periods: Qa-Qd per setting",
+                              epilog=OUTPUT_CONVENTION)
+    _common(pre, "the plots")
     pre.add_argument("--exponent", default=None, metavar="LIST", help="exponents, e.g. 1,2,4")
     pre.add_argument("--sense", default=None, metavar="LIST", help="sensing periods C1 in seconds, e.g. 0.1,0.2")
     pre.add_argument("--decide", default=None, metavar="LIST", help="decision periods C2 in seconds, e.g. 0.2,0.4")
     pre.add_argument("--runs", type=_positive_int, default=100, help="simulated runs per setting (default 100)")
     pre.add_argument("--threshold-factor", type=_positive_int, default=1, metavar="K",
                      help="a run is unsafe when its true distance drops below K * collision_distance (default 1)")
-    pre.add_argument("--out", type=Path, metavar="DIR", help="where the plots go (default: FILE's name + .preanalysis)")
     pre.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
     exp = commands.add_parser("experiment", help="the paper's Table 2: learning with/without shield, automaton "
-                                                 "or reward function, over seeds")
-    _common(exp)
+                                                 "or reward function, over seeds", epilog=OUTPUT_CONVENTION)
+    _common(exp, "the table, JSON and plots")
     exp.add_argument("--seeds", metavar="LIST", help="seeds, e.g. 1,2,3 (default 1..5; --seed N is --seeds N)")
     exp.add_argument("--episodes", type=_positive_int, default=500, help="episode budget per run (default 500)")
     exp.add_argument("--runs", type=_positive_int, default=100, help="evaluation runs per strategy (default 100)")
@@ -134,8 +145,6 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
                      help="widths of the continuous observations, e.g. 4,4,2,0.4 (default: 1 m, 0.5 m/s, 0.1 rad ...)")
     exp.add_argument("--combination", action="append", choices=("SS&RA", "SS&RF", "RA", "RF"),
                      help="only this combination (repeatable)")
-    exp.add_argument("--out", type=Path, metavar="DIR",
-                     help="table, JSON and plots (default: FILE's name + .experiment)")
     exp.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
 
@@ -284,7 +293,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.engine.budget import default_max_bytes
     from rac.verify.runner import UnknownQuery, VerifyOptions, render_json, render_text, verify
 
-    out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".out")
+    out_dir = output_folder(args.file, "verify", args.out)
     quiet = args.quiet or args.format == "json"
     bar, callback = _explore_bar(quiet)
     announce = _announcer(quiet)
@@ -403,9 +412,10 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     except EvaluationError as exc:
         print(f"rac simulate: --expr: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    csv_path = args.output if args.output is not None else args.file.with_name(args.file.stem + ".csv")
-    png_path = args.plot if args.plot is not None else csv_path.with_suffix(".png")
+    out_dir = output_folder(args.file, "simulate", args.out)
+    csv_path, png_path = out_dir / "runs.csv", out_dir / "runs.png"
     try:
+        out_dir.mkdir(parents=True, exist_ok=True)
         write_csv(csv_path, runs.times, texts, values)
         title = f"{args.file.name}: {args.runs} runs{' under the shield' if args.shield else ''} (seed {seed})"
         plot_series(png_path, runs.times, texts, values, title)
@@ -445,12 +455,14 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
         return EXIT_ERRORS if seed else EXIT_USAGE
     real = runs.sensed_real()[0]
     trajectory = real[:, [0, 1, 4]]
-    png = args.output if args.output is not None else args.file.with_name(args.file.stem + ".png")
+    out_dir = output_folder(args.file, "render", args.out)
+    png, gif = out_dir / "run.png", out_dir / "run.gif" if args.gif else None
     automaton = result.automaton
     assert automaton is not None and automaton.model is not None  # _load refused a file without them
     spec = automaton.model
     try:
-        written = render_trajectory(spec.scenario_path, trajectory, png, gif_path=args.gif,
+        out_dir.mkdir(parents=True, exist_ok=True)
+        written = render_trajectory(spec.scenario_path, trajectory, png, gif_path=gif,
                                     planning_problem=spec.planning_problem or None,
                                     sample_period=float(automaton.period),
                                     length=float(spec.length), width=float(spec.width),
@@ -463,8 +475,8 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
         return EXIT_USAGE
     print(f"rendered {_how(args)}: {samples} samples (seed {seed})")
     print(f"wrote {written}")
-    if args.gif is not None:
-        print(f"wrote {args.gif}")
+    if gif is not None:
+        print(f"wrote {gif}")
     return EXIT_OK
 
 
@@ -473,7 +485,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.engine.budget import default_max_bytes
     from rac.studies.preanalysis import SweepError, render_table, sweep
 
-    out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".preanalysis")
+    out_dir = output_folder(args.file, "preanalyse", args.out)
     try:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
                      horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
@@ -511,7 +523,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
         except ValueError:
             print(f"rac experiment: --bins: not a list of numbers: {args.bins!r}", file=sys.stderr)
             return EXIT_USAGE
-    out_dir = args.out if args.out is not None else args.file.with_name(args.file.stem + ".experiment")
+    out_dir = output_folder(args.file, "experiment", args.out)
     announce = _announcer(args.quiet)
     try:
         report = run_experiment(result, seeds=seeds, episodes=args.episodes, evaluation_runs=args.runs,

@@ -21,6 +21,7 @@ from rac.cli.common import (
     EXIT_INTERNAL,
     EXIT_OK,
     EXIT_USAGE,
+    OUTPUT_CONVENTION,
     FileWriteError,
     overwrites_source,
     read_and_check,
@@ -39,7 +40,10 @@ TARGETS = ("python", "uppaal")
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rac", description="The reward-automata compiler: check, compile and format .ra files; verify "
-                    "their queries, simulate and pre-analyse them on a CommonRoad scenario.")
+                    "their queries, simulate and pre-analyse them on a CommonRoad scenario.",
+        epilog=f"{OUTPUT_CONVENTION} Exit codes: 0 ok, 1 errors in the input or a query not satisfied, 2 bad "
+               "usage or a file that cannot be read or written, 3 an internal error (a bug in rac), 4 a query "
+               "not decided.")
     parser.add_argument("--version", action="version", version=f"rac {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 

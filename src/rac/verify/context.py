@@ -9,6 +9,7 @@ turns it into the verdict *unknown* with its message.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 from collections.abc import Callable, Iterator
@@ -161,6 +162,18 @@ class Context:
             raise UnknownVerdict("no output folder")
         self.out_dir.mkdir(parents=True, exist_ok=True)
         return self.out_dir / name
+
+    @contextlib.contextmanager
+    def outputs_in(self, subfolder: str) -> Iterator[None]:
+        """Within the block, :meth:`out` writes into ``subfolder`` of the output folder: the standard
+        queries' files go there, so a file query of the same name (a user's ``Fig7``) keeps its own."""
+        saved = self.out_dir
+        if saved is not None:
+            self.out_dir = saved / subfolder
+        try:
+            yield
+        finally:
+            self.out_dir = saved
 
     def next_seed(self) -> int:
         """A fresh seed per query, all derived from the options' seed (reproducible as a whole)."""

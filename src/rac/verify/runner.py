@@ -103,7 +103,11 @@ class Verifier:
         for decl, title in decls:
             if self.context.options.progress is not None:
                 self.context.options.progress(f"{decl.name}: {decl.text}")
-            results.append(self.answer(decl, title))
+            if decl.title:  # a standard query: its files go to standard/ (see Context.outputs_in)
+                with self.context.outputs_in("standard"):
+                    results.append(self.answer(decl, title))
+            else:
+                results.append(self.answer(decl, title))
         return results
 
     def answer(self, decl: iq.QueryDecl, title: str | None) -> QueryResult:
