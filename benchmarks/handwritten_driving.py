@@ -8,7 +8,8 @@ the same input validation as :class:`rac.runtime.interpreter.RewardAutomaton`:
   unknown ones); booleans must be True/False or 0/1, ``dgoal`` a real number (read with
   ``float(v)``; a string, None or complex number is refused) and must lie in
   [0, 500] (which also refuses NaN and infinities); ``collide`` implies ``isClose`` (the
-  ``assume``). A refused sample leaves the automaton untouched.
+  ``assume``, named in the message as the generated module names it). A refused sample leaves the
+  automaton untouched.
 * one sample: every reward grows by its rate in the current location times the period, then the
   enabled edge (if any) is taken and its update applied; the reward handed out is the increase of
   ``10*sa + 5*pr + co``.
@@ -92,8 +93,9 @@ class HandwrittenDriving:
             raise ValueError("; ".join(parts) or "the inputs do not match the declared inputs") from None
         if not DGOAL_MIN <= dgoal <= DGOAL_MAX:  # also false for NaN
             raise ValueError(f"input 'dgoal' = {dgoal!r} is outside [{DGOAL_MIN!r}, {DGOAL_MAX!r}]")
-        if collide and not is_close:
-            raise ValueError("inputs violate `assume`")
+        if collide and not is_close:  # the generated module's words: the clause, its line, what it reads
+            raise ValueError(f"inputs violate `assume collide imply isClose` (driving.ra:9): collide={collide!r}, "
+                             f"isClose={is_close!r}")
         return is_close, prog, comf, collide, dgoal
 
     def _increase(self) -> float:

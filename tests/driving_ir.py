@@ -10,6 +10,7 @@ from __future__ import annotations
 from fractions import Fraction
 
 from rac import ir
+from rac.core.source import Span
 
 NORMAL, UNCOMFORTABLE, STALLED, UNSAFE = range(4)
 LOCATIONS = ("Normal", "Uncomfortable", "Stalled", "Unsafe")
@@ -60,7 +61,9 @@ def driving_automaton() -> ir.Automaton:
         initial=NORMAL,
         edges=tuple(edges),
         end_clauses=(ir.EndClause(ir.BAtom("dgoal", "<", Fraction(2)), (_add("pr", Fraction(100)),)),),
-        assume=ir.BOr((ir.BNot(collide), is_close)),
+        # as written on line 9 of stdlib/driving.ra (the runtimes quote it)
+        assumptions=(ir.Assumption(ir.BOr((ir.BNot(collide), is_close)), "collide imply isClose",
+                                   Span("driving.ra", 9, 5, 9, 33)),),
         objective=ir.Linear(Fraction(0), (("sa", Fraction(10)), ("pr", Fraction(5)), ("co", Fraction(1)))),
         priority=("sa", "pr", "co"),
         strict=False,

@@ -140,7 +140,7 @@ FRACTIONS = st.builds(Fraction, st.integers(-12, 12), st.sampled_from([1, 1, 2, 
 B, C = ir.BInput("b"), ir.BInput("c")
 INPUTS = (ir.Input("b", "bool"), ir.Input("c", "bool"), ir.Input("x", "real", Fraction(-5), Fraction(5)),
           ir.Input("m", "int", Fraction(0), Fraction(3)))
-LIMITED = ir.BNot(ir.BAnd((B, ir.BAtom("x", ">", Fraction(3)))))  # assume: b implies x <= 3
+LIMITED = ir.Assumption(ir.BNot(ir.BAnd((B, ir.BAtom("x", ">", Fraction(3))))), "b imply x <= 3")
 
 
 @st.composite
@@ -201,7 +201,7 @@ def automata(draw: st.DrawFn) -> ir.Automaton:
     return ir.Automaton(
         name="Random", inputs=INPUTS, rewards=rewards, locations=locations,
         initial=draw(st.integers(0, n_loc - 1)),
-        edges=tuple(edges), end_clauses=end_clauses, assume=draw(st.sampled_from([ir.TRUE, LIMITED])),
+        edges=tuple(edges), end_clauses=end_clauses, assumptions=draw(st.sampled_from([(), (LIMITED,)])),
         objective=draw(linear(rewards)), priority=rewards, strict=False,
         period=draw(st.sampled_from([Fraction(1, 10), Fraction(1, 4), Fraction(1), Fraction(1, 3),
                                      Fraction(3, 2)])),
@@ -223,7 +223,7 @@ def random_values(draw: st.DrawFn, limited: bool) -> Values:
 @st.composite
 def automaton_and_columns(draw: st.DrawFn) -> tuple[ir.Automaton, list[Column]]:
     automaton = draw(automata())
-    return automaton, draw(columns_of(random_values(automaton.assume == LIMITED)))
+    return automaton, draw(columns_of(random_values(automaton.assumptions == (LIMITED,))))
 
 
 @settings(max_examples=200, deadline=None,
@@ -232,3 +232,78 @@ def automaton_and_columns(draw: st.DrawFn) -> tuple[ir.Automaton, list[Column]]:
 def test_random_automata_agree(case: tuple[ir.Automaton, list[Column]]) -> None:
     automaton, columns = case
     check_agreement(automaton, columns)
+
+
+# ---------------------------------------------------------------- assume violations: one message everywhere
+#: Three assumptions over every kind of input; the second is written over two lines.
+ASSUMING = """\
+automaton Assuming {
+    input b : bool
+    input c : bool
+    input x : real in [-5, 5]
+    input m : int in [0, 3]
+    assume b imply x <= 3
+    assume m != 2 ||
+           c
+    assume !(c && x < -4.5) && (m == 0 || m >= 1)
+    reward r
+    objective r
+    sample every 1
+    horizon 10
+    initial location L { r' == 1 }
+}
+"""
+
+
+def _compiled_assuming() -> ir.Automaton:
+    from rac.compiler import compile_text
+
+    return compile_text(ASSUMING, "assuming.ra").raise_for_errors()
+
+
+ASSUMING_IR = _compiled_assuming()
+ASSUMING_CLASS = load_class(ASSUMING_IR)
+OK: Values = {"b": False, "c": True, "x": 0.0, "m": 0}
+
+
+def message(call: Any, values: Any) -> str:
+    """The message of the ValueError ``call(values)`` raises."""
+    try:
+        call(values)
+    except ValueError as exc:
+        return str(exc)
+    raise AssertionError(f"{values} was accepted")
+
+
+@st.composite
+def violations(draw: st.DrawFn) -> Values:
+    """Valuations within the bounds that break at least one assumption (often several)."""
+    x = draw(st.one_of(st.floats(-5, 5), st.sampled_from([3.0, math.nextafter(3.0, 4.0), -4.5, -5.0, -0.0])))
+    values = {"b": draw(st.booleans()), "c": draw(st.booleans()), "x": x,
+              "m": draw(st.sampled_from([0, 1, 2, 3, 2.0, True]))}
+    broken = draw(st.sampled_from(["first", "second", "third"]))
+    if broken == "first":
+        values.update(b=True, x=draw(st.floats(math.nextafter(3.0, 4.0), 5)))
+    elif broken == "second":
+        values.update(m=2, c=False)
+    else:
+        values.update(c=True, x=draw(st.floats(-5, math.nextafter(-4.5, -5))))
+    return values
+
+
+@settings(max_examples=150, deadline=None)
+@given(violations(), st.integers(0, 3))
+def test_assume_violations_read_the_same_everywhere(values: Values, column: int) -> None:
+    """Issue 12: every runtime names the first violated assumption (as written, with its line) and the
+    values of the inputs it reads, in the same words; the batch adds which automata broke it."""
+    expected = message(RewardAutomaton(ASSUMING_IR).step, values)
+    assert expected.startswith("inputs violate `assume ")
+    assert "(assuming.ra:" in expected
+    for ra in (RewardAutomaton(ASSUMING_IR), ASSUMING_CLASS()):
+        assert message(ra.step, values) == expected
+        assert message(ra.end, values) == expected
+    rows = [values if j == column else OK for j in range(4)]
+    for strategy in ("table", "direct"):
+        batch = BatchRewardAutomaton(ASSUMING_IR, 4, strategy=strategy)
+        assert message(batch.step_batch, stack(rows)) == f"{expected} (automata [{column}])"
+        assert message(batch.end_batch, stack(rows)) == f"{expected} (automata [{column}])"

@@ -455,3 +455,43 @@ def test_a_file_with_cr_line_endings_checks_like_one_with_lf(tmp_path, capsys):
         assert "E0007" not in out
         line = text[:text.index("horizon 30 q")].count("\n") + 1
         assert f"{name}.ra:{line}:" in out
+
+
+# ---------------------------------------------------------------- every finding inside one expression
+MIXED = """\
+automaton Mixed {
+    input dfront : real in [0, 200]
+    input dside  : real in [0, 200]
+    input dsafe  : real in [0, 200]
+    reward r
+    objective r
+    sample every 1
+    horizon 10
+    initial location Safe { r' == 1 }
+    location Unsafe { r' == -1 }
+    edge Safe -> Unsafe when dfront < dsafe || dside < dsafe / 2
+    edge Unsafe -> Safe when dfront >= 3
+}
+"""
+
+
+def test_every_mixed_comparison_of_a_guard_is_reported():
+    """Issue 12: E0208 stopped at the first comparison of two numeric inputs in a guard; each is
+    reported, with its own span and hint, in source order."""
+    from rac.compiler import compile_text
+
+    found = [d for d in compile_text(MIXED, "mixed.ra").diagnostics if d.code == "E0208"]
+    assert [(d.span.line, d.span.column) for d in found] == [(11, 30), (11, 48)]
+    assert [d.message for d in found] == ["comparison mixes several numeric inputs (`dfront`, `dsafe`)",
+                                          "comparison mixes several numeric inputs (`dside`, `dsafe`)"]
+    assert all(d.hints for d in found)
+
+
+def test_independent_errors_of_one_expression_are_all_reported():
+    """Both operands of an operator are checked even when the first has an error: an unknown name
+    and a reward in a guard, in one condition, are two findings."""
+    from rac.compiler import compile_text
+
+    text = MIXED.replace("dfront >= 3", "dfrnt >= 3 && r > 1")
+    found = [(d.code, d.span.column) for d in compile_text(text, "mixed.ra").diagnostics if d.span.line == 12]
+    assert found == [("E0101", 30), ("E0202", 44)]

@@ -509,6 +509,19 @@ def test_binding_errors(bindings: str, code: str, message: str, line_text: str) 
     assert diagnostic.span is not None and diagnostic.span.line == line_of(text, line_text)
 
 
+def test_the_arguments_of_a_refused_call_are_checked_too() -> None:
+    """A call with the wrong number of arguments, or a nested `prev()`, still reports the errors
+    inside its arguments (they were skipped): every finding of one expression, in source order."""
+    cases = [
+        ("        bind isClose = fabs(spd, 2) < 1\n        bind prog = goal()\n", ["E0711", "E0101"]),
+        ("        bind isClose = prev(prev(spd > 1))\n        bind prog = goal()\n", ["E0711", "E0101"]),
+        ("        bind isClose = distnce(spd) < 1\n        bind prog = goal()\n", ["E0711", "E0101"]),
+    ]
+    for bindings, expected in cases:
+        assert codes(small("", bindings)) == expected, bindings
+    assert codes(small("", extra="    query Q: A[] mindist(spd) > 0\n")) == ["E0711", "E0101"]
+
+
 def test_binding_hints() -> None:
     unknown = only(small("", "        bind isClose = distance() < 1\n        bind prog = goal()\n"), "E0711")
     assert "`collide()`" in unknown.hints[-1] and "`fmax(a, b)`" in unknown.hints[-1]

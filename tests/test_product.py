@@ -295,7 +295,7 @@ def test_mirror_arithmetic_truncates_towards_zero_like_c() -> None:
     halve = ir.Assignment("r", ir.Linear(F(1, 4), (("r", F(1, 2)), ("d", F(1, 3)))))  # (3*r + 2*d + 15000) / 6
     automaton = ir.Automaton(
         name="A", inputs=(ir.Input("d", "real", F(-10), F(10)),), rewards=("r",), locations=(loc,), initial=0,
-        edges=((ir.Edge(0, 0, ir.BAtom("d", "<", F(1, 3)), (halve,)),),), end_clauses=(), assume=ir.TRUE,
+        edges=((ir.Edge(0, 0, ir.BAtom("d", "<", F(1, 3)), (halve,)),),), end_clauses=(), assumptions=(),
         objective=ir.Linear.variable("r"), priority=(), strict=False, period=F(1, 10), horizon=F(1))
     arithmetic = _Arithmetic(automaton, 10_000)
     d = np.array([[-7], [7], [-13], [3333], [3334]], dtype=np.int64)

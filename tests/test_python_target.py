@@ -164,7 +164,8 @@ def test_generated_class_behaves_like_the_interpreter() -> None:
     ({**inputs(), "speed": 3.0}, "unknown input.*speed"),
     (inputs(dgoal=500.5), "dgoal.*outside"),
     (inputs(dgoal=float("nan")), "dgoal"),
-    (inputs(collide=True), "assume"),
+    (inputs(collide=True), r"^inputs violate `assume collide imply isClose` \(driving\.ra:9\): "
+                           r"collide=True, isClose=False$"),
 ])
 def test_generated_validation(values: dict[str, object], message: str) -> None:
     ra = load(GOLDEN.read_text(encoding="utf-8")).Driving()
@@ -192,7 +193,7 @@ def odd_automaton() -> ir.Automaton:
         edges=((ir.Edge(0, 1, ir.BOr((ir.BAtom("x", ">=", Fraction(1, 10)), ir.BNot(ir.BAnd((bi, bi))))),
                         (update,)),), (loop, ir.Edge(1, 0, bi, ()))),
         end_clauses=(ir.EndClause(ir.TRUE, (ir.Assignment("s", ir.Linear(Fraction(7))),)),),
-        assume=ir.BNot(ir.BAtom("x", "==", Fraction(13))),
+        assumptions=(ir.Assumption(ir.BNot(ir.BAtom("x", "==", Fraction(13))), "x != 13"),),
         objective=ir.Linear(Fraction(-1, 2), (("s", Fraction(-1)), ("r", Fraction(1, 4)))),
         priority=("r", "s"), strict=False, period=Fraction(3, 2), horizon=Fraction(15))
 
@@ -231,7 +232,7 @@ def wide_automaton() -> ir.Automaton:
         locations=(ir.Location("A", rates), ir.Location("B", rates[::-1])), initial=0,
         edges=((ir.Edge(0, 1, every, (ir.Assignment(rewards[0], total),)),),
                (ir.Edge(1, 0, ir.BNot(every), (ir.Assignment(rewards[1], total),)),)),
-        end_clauses=(), assume=ir.TRUE, objective=total, priority=rewards, strict=False,
+        end_clauses=(), assumptions=(), objective=total, priority=rewards, strict=False,
         period=Fraction(1, 10), horizon=Fraction(10))
 
 

@@ -153,7 +153,7 @@ def held_automaton() -> ir.Automaton:
         inputs=(ir.Input("x", "real", Fraction(-10), Fraction(10)),
                 ir.Input("k", "int", Fraction(0), Fraction(3))),
         rewards=("d",), locations=(ir.Location("A", (ir.Linear(Fraction(0), (("x", Fraction(1)),)),)),),
-        initial=0, edges=((),), end_clauses=(), assume=ir.TRUE,
+        initial=0, edges=((),), end_clauses=(), assumptions=(),
         objective=ir.Linear(Fraction(1), (("d", Fraction(1)),)), priority=("d",), strict=False,
         period=Fraction(1, 2), horizon=Fraction(10))
 
@@ -181,7 +181,7 @@ def test_first_enabled_edge_wins_and_self_loops_fire_every_sample() -> None:
         name="First", inputs=(ir.Input("b", "bool"),), rewards=("r",),
         locations=(ir.Location("A", (ir.Linear(),)), ir.Location("B", (ir.Linear(),))), initial=0,
         edges=((ir.Edge(0, 0, b, (add, double)), ir.Edge(0, 1, ir.TRUE, ())), ()),
-        end_clauses=(), assume=ir.TRUE, objective=ir.Linear.variable("r"), priority=("r",), strict=False,
+        end_clauses=(), assumptions=(), objective=ir.Linear.variable("r"), priority=("r",), strict=False,
         period=Fraction(1), horizon=Fraction(10))
     ra = RewardAutomaton(automaton)
     assert ra.step({"b": 1}) == 2.0  # (0 + 1) * 2, updates left to right
@@ -199,7 +199,7 @@ def test_first_enabled_edge_wins_and_self_loops_fire_every_sample() -> None:
     (inputs(dgoal=-1e-300), "dgoal.*outside"),
     (inputs(dgoal=math.nan), "dgoal"),
     (inputs(dgoal=math.inf), "dgoal"),
-    (inputs(collide=True), "assume"),
+    (inputs(collide=True), r"assume collide imply isClose` \(driving\.ra:9\): collide=True, isClose=False$"),
 ])
 def test_invalid_inputs_raise_and_leave_the_state_alone(driving: ir.Automaton, values: dict[str, object],
                                                         message: str) -> None:
@@ -261,7 +261,57 @@ def test_malformed_ir_is_refused() -> None:
     with pytest.raises(ValueError, match="too small"):
         RewardAutomaton(ir.Automaton(**{**good.__dict__, "locations": (tiny,)}))
     with pytest.raises(ValueError, match="not a boolean input"):
-        RewardAutomaton(ir.Automaton(**{**good.__dict__, "assume": ir.BInput("x")}))
+        RewardAutomaton(ir.Automaton(**{**good.__dict__, "assumptions": (ir.Assumption(ir.BInput("x"), "x"),)}))
+
+
+DRIVING_VIOLATION = "inputs violate `assume collide imply isClose` (driving.ra:9): collide=True, isClose=False"
+
+#: Two assumptions, the second written over two lines with a comment: messages quote each as written.
+TWO_ASSUMPTIONS = """\
+automaton Two {
+    input b : bool
+    input c : bool
+    input x : real in [-5, 5]
+    input m : int in [0, 3]
+    assume b imply x <= 3
+    assume m != 2 ||   // two is special
+           c
+    reward r
+    objective r
+    sample every 1
+    horizon 10
+    initial location L { r' == 1 }
+}
+"""
+
+
+def test_an_assume_violation_names_the_clause_and_the_values(driving: ir.Automaton) -> None:
+    """Issue 12: the message said only "inputs violate `assume`"; it quotes the clause as written, its
+    line, and the values of the inputs the clause reads (in the order it reads them)."""
+    ra = RewardAutomaton(driving)
+    for call in (ra.step, ra.end):
+        with pytest.raises(ValueError) as caught:
+            call(inputs(collide=True))
+        assert str(caught.value) == DRIVING_VIOLATION
+    batch = BatchRewardAutomaton(driving, 3)
+    with pytest.raises(ValueError) as caught:
+        batch.step_batch(columns([inputs(), inputs(collide=True), inputs(collide=True, dgoal=1.0)]))
+    assert str(caught.value) == f"{DRIVING_VIOLATION} (automata [1, 2])"
+
+
+def test_the_first_violated_assumption_in_source_order_is_named() -> None:
+    from rac.compiler import compile_text
+
+    ra = RewardAutomaton(compile_text(TWO_ASSUMPTIONS, "two.ra").raise_for_errors())
+    both = {"b": True, "c": False, "x": 4.5, "m": 2}
+    second = {**both, "x": 3.0}
+    with pytest.raises(ValueError) as caught:
+        ra.step(both)
+    assert str(caught.value) == "inputs violate `assume b imply x <= 3` (two.ra:6): b=True, x=4.5"
+    with pytest.raises(ValueError) as caught:
+        ra.end(second)
+    # an int input shows as an int; the comment and the line break are not part of the clause
+    assert str(caught.value) == "inputs violate `assume m != 2 || c` (two.ra:7): m=2, c=False"
 
 
 # ---------------------------------------------------------------- batch
@@ -354,7 +404,7 @@ def test_batch_validation(driving: ir.Automaton, strategy: str) -> None:
         batch.step_batch({**good, "x": np.zeros(4)})
     with pytest.raises(ValueError, match=r"'dgoal'\[2\]"):
         batch.step_batch({**good, "dgoal": np.array([1.0, 2.0, 600.0, np.nan])})
-    with pytest.raises(ValueError, match="assume.*3"):
+    with pytest.raises(ValueError, match=r"collide=True, isClose=False \(automata \[3\]\)$"):
         batch.step_batch({**good, "collide": np.array([False, False, False, True])})
     with pytest.raises(ValueError, match="shape"):
         batch.step_batch({**good, "prog": np.ones(5, dtype=bool)})
@@ -392,7 +442,8 @@ def many_atoms_automaton(n_flags: int) -> ir.Automaton:
         initial=0, edges=((ir.Edge(0, 1, even, (bump,)), ir.Edge(0, 0, ir.BNot(even), ())),
                           (ir.Edge(1, 0, ir.BAnd((odd, ir.BNot(x_low))), (bump,)),)),
         end_clauses=(ir.EndClause(odd, (bump,)),),
-        assume=ir.BNot(ir.BAnd((ir.BInput(flags[1]), ir.BAtom("x", "==", Fraction(1))))),
+        assumptions=(ir.Assumption(ir.BNot(ir.BAnd((ir.BInput(flags[1]), ir.BAtom("x", "==", Fraction(1))))),
+                                   f"!({flags[1]} && x == 1)"),),
         objective=ir.Linear(Fraction(0), (("r", Fraction(-2)),)), priority=("r",), strict=False,
         period=Fraction(1, 4), horizon=Fraction(10))
 

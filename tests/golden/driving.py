@@ -55,6 +55,12 @@ def _range_error(name: str, value: float, low: float, high: float) -> ValueError
     return ValueError(f"input {name!r} = {value!r} is outside [{low!r}, {high!r}]")
 
 
+def _assume_error(clause: str, *values: tuple[str, object]) -> ValueError:
+    # the interpreter's words: the clause violated, then the values of the inputs it reads
+    read = ", ".join(f"{name}={value!r}" for name, value in values)
+    return ValueError(f"{clause}: {read}" if values else clause)
+
+
 class Driving:
     """Reward automaton ``Driving``.
 
@@ -119,7 +125,11 @@ class Driving:
         except KeyError:
             raise _key_error(inputs, self.inputs) from None
         if not (not i_collide or i_isClose):
-            raise ValueError("inputs violate `assume`")
+            raise _assume_error(
+                "inputs violate `assume collide imply isClose` (driving.ra:9)",
+                ("collide", i_collide),
+                ("isClose", i_isClose),
+            )
         r_sa = self._r_sa
         r_pr = self._r_pr
         r_co = self._r_co
@@ -194,7 +204,11 @@ class Driving:
         except KeyError:
             raise _key_error(inputs, self.inputs) from None
         if not (not i_collide or i_isClose):
-            raise ValueError("inputs violate `assume`")
+            raise _assume_error(
+                "inputs violate `assume collide imply isClose` (driving.ra:9)",
+                ("collide", i_collide),
+                ("isClose", i_isClose),
+            )
         r_sa = self._r_sa
         r_pr = self._r_pr
         r_co = self._r_co

@@ -10,6 +10,7 @@ bindings are typed by :mod:`rac.check.queries`, into :mod:`rac.ir.expr` instead.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 from fractions import Fraction
@@ -162,8 +163,19 @@ class ExpressionTyper:
         typed = self._binary_value(node, ctx)
         return self._in_range(typed.value, node) if isinstance(typed, Num) else typed
 
+    def _operands(self, node: ast.Binary, ctx: Context) -> tuple[Typed, Typed]:
+        """Both operands typed. When the left one has errors, the right one is still typed, for its
+        own errors (a guard reports every mixed comparison, in source order), then it fails too."""
+        try:
+            left = self.expr(node.left, ctx)
+        except Unresolvable:
+            with contextlib.suppress(Unresolvable):
+                self.expr(node.right, ctx)
+            raise
+        return left, self.expr(node.right, ctx)
+
     def _binary_value(self, node: ast.Binary, ctx: Context) -> Typed:
-        lt, rt = self.expr(node.left, ctx), self.expr(node.right, ctx)
+        lt, rt = self._operands(node, ctx)
         op = node.op
         if op in ast.ARITHMETIC_OPS:
             left, right = self._num(lt, node.left, f"`{op}`"), self._num(rt, node.right, f"`{op}`")

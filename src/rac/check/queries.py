@@ -242,16 +242,23 @@ class Lowering:
         if len(node.args) != function.arity:
             self.s.error("E0711", f"`{node.func}()` takes {_arguments(function.arity)}, found {len(node.args)}",
                          node.span, hints=[FUNCTIONS_HINT])
+            self._walk_all(node.args)
             return None, None
         if node.func == "prev":
             return self._prev(node)
         return function.result, ie.Call(function, (), node.span)
+
+    def _walk_all(self, nodes: tuple[ast.Expr, ...]) -> None:
+        """Check the arguments of a call that has an error of its own: theirs are reported too."""
+        for node in nodes:
+            self.walk(node)
 
     def _prev(self, node: ast.Call) -> Lowered:
         if self._in_prev:
             self.report("E0711", "`prev()` cannot be nested", node.span,
                         hints=["`prev(e)` is the value of `e` at the previous sample; the model keeps "
                                "one sample of history"])
+            self._walk_all(node.args)
             return None, None
         self._in_prev = True
         try:
@@ -266,13 +273,13 @@ class Lowering:
             close = difflib.get_close_matches(func, [*MODEL_FUNCTIONS, *BINDING_MATH], n=1)
             self.report("E0711", f"unknown function `{func}()` in a binding", node.span,
                         hints=([f"did you mean `{close[0]}()`?"] if close else []) + [FUNCTIONS_HINT])
-            for arg in node.args:
-                self.walk(arg)
+            self._walk_all(node.args)
             return None, None
         function = FUNCTIONS[func]
         if len(node.args) != function.arity:
             self.report("E0711", f"`{func}()` takes {_arguments(function.arity)}, found {len(node.args)}", node.span,
                         hints=[FUNCTIONS_HINT])
+            self._walk_all(node.args)
             return None, None
         if func == "prev":
             return self._prev(node)

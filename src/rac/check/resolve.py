@@ -94,7 +94,7 @@ class Resolver:
         locations, initial = self._locations(rewards)
         edges = self._edges(locations, rewards)
         ends = tuple(self._end(d, rewards) for d in node.of(ast.EndDecl))
-        assume = self._assume()
+        assumptions = self._assumptions()
         objective = self._objective(_single(singles, ast.ObjectiveDecl), rewards)
         priority, strict = self._priority(_single(singles, ast.PriorityDecl), rewards)
         queries = self._check_queries()
@@ -111,7 +111,7 @@ class Resolver:
             initial=initial,
             edges=edges,
             end_clauses=ends,
-            assume=assume,
+            assumptions=assumptions,
             objective=objective,
             priority=priority,
             strict=strict,
@@ -334,16 +334,14 @@ class Resolver:
             guard = ir.TRUE
         return ir.EndClause(guard, self._updates(decl.updates, rewards), decl.span)
 
-    def _assume(self) -> ir.Guard:
+    def _assumptions(self) -> tuple[ir.Assumption, ...]:
         parts = []
         for decl in self.node.of(ast.AssumeDecl):
             try:
-                parts.append(self.typer.guard(decl.expr, Context("`assume`")))
+                parts.append(ir.Assumption(self.typer.guard(decl.expr, Context("`assume`")), decl.text, decl.span))
             except Unresolvable:
                 pass
-        if not parts:
-            return ir.TRUE
-        return parts[0] if len(parts) == 1 else ir.BAnd(tuple(parts))
+        return tuple(parts)
 
     def _objective(self, member: ast.ObjectiveDecl | None, rewards: tuple[str, ...]) -> ir.Linear | None:
         if member is None:

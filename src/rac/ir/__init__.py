@@ -251,6 +251,16 @@ class EndClause:
 
 
 @dataclass(frozen=True)
+class Assumption:
+    """One ``assume`` declaration: its guard, its condition as written and its place (the runtimes
+    quote both when inputs violate it; neither takes part in equality)."""
+
+    guard: Guard
+    text: str = field(compare=False)
+    span: Span | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
 class Automaton:
     """A checked reward automaton."""
 
@@ -262,7 +272,8 @@ class Automaton:
     #: Edges grouped by source location, in source order (``*`` already expanded).
     edges: tuple[tuple[Edge, ...], ...]
     end_clauses: tuple[EndClause, ...]
-    assume: Guard
+    #: The ``assume`` declarations, in source order.
+    assumptions: tuple[Assumption, ...]
     objective: Linear
     priority: tuple[str, ...]
     strict: bool
@@ -278,6 +289,14 @@ class Automaton:
     standard_queries: tuple[QueryDecl, ...] = field(default=(), compare=False)
     source: ast.Automaton | None = field(default=None, compare=False, repr=False)
     spans: dict[str, Span] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def assume(self) -> Guard:
+        """What every input valuation satisfies: the assumptions together (``true`` without any)."""
+        if not self.assumptions:
+            return TRUE
+        guards = tuple(a.guard for a in self.assumptions)
+        return guards[0] if len(guards) == 1 else BAnd(guards)
 
     @property
     def steps(self) -> int:

@@ -112,6 +112,8 @@ class InputDecl:
 class AssumeDecl:
     expr: Expr
     span: Span | None = _span()
+    #: The condition as written (comments dropped, whitespace runs as one space): runtime errors quote it.
+    text: str = field(default="", compare=False, repr=False)
 
 
 @dataclass(frozen=True)

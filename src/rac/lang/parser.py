@@ -12,6 +12,7 @@ import errno
 import re
 from dataclasses import replace
 from fractions import Fraction
+from functools import lru_cache
 from pathlib import Path
 
 from lark import Token, Transformer, Tree, v_args
@@ -152,7 +153,10 @@ class _ToAst(Transformer):
         return ast.NumericType(str(kind), low, high, self._sp(meta))
 
     def assume_decl(self, meta, items):
-        return ast.AssumeDecl(items[0], self._sp(meta))
+        span = self._sp(meta)
+        written = self.source.text[span.start:span.end] if span is not None else ""
+        text = " ".join(_comments().sub(" ", written).split()[1:])  # without the keyword `assume`
+        return ast.AssumeDecl(items[0], span, text)
 
     def const_decl(self, meta, items):
         return ast.ConstDecl(self._ident(items[0]), items[1], self._sp(meta))
@@ -489,6 +493,12 @@ def parse_source(source: SourceFile) -> ast.Module:
         raise ParseFailure(error("E0007", "the file declares no automaton", source.span(0, 0),
                                  hints=["start with `automaton Name { ... }`"]))
     return replace(module, comments=tuple(_collect_comments(source)))
+
+
+@lru_cache(maxsize=1)
+def _comments() -> re.Pattern[str]:
+    """The grammar's comments (an expression holds no string a comment marker could be part of)."""
+    return re.compile("|".join(terminal_regexp(name) for name in ("LINE_COMMENT", "BLOCK_COMMENT")), re.DOTALL)
 
 
 def _collect_comments(source: SourceFile) -> list[ast.Comment]:

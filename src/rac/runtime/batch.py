@@ -14,10 +14,10 @@ import numpy as np
 
 from rac import ir
 from rac.runtime.semantics import (
-    ASSUME_MESSAGE,
     ENDED_MESSAGE,
     AutomatonDescription,
     FloatLinear,
+    assume_checks,
     check_automaton,
     check_mapping,
     float_linear,
@@ -205,6 +205,8 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._end = [(self._guards.add(c.guard), self._compile_updates(c.updates))
                      for c in automaton.end_clauses]
         self._end_assume = self._guards.add(automaton.assume)
+        # each clause on its own, to name the first one violated (the clauses of `assume` are already there)
+        self._assume_checks = [(self._guards.add(check.guard), check) for check in assume_checks(automaton)]
 
         self._objective_form = float_linear(automaton.objective, "objective")
         zeros = np.zeros((k, 1))
@@ -368,9 +370,15 @@ class BatchRewardAutomaton(AutomatonDescription):
             out[spec.name] = value
         return out
 
-    def _assume_failed(self, ok: np.ndarray) -> ValueError:
+    def _assume_failed(self, ok: np.ndarray, x: Mapping[str, np.ndarray]) -> ValueError:
+        """The scalar runtime's error for the first automaton whose inputs violate ``assume`` (its first
+        clause violated), followed by the automata that violate it (the first ten)."""
         bad = np.flatnonzero(~ok)
-        return ValueError(f"{ASSUME_MESSAGE} (automata {bad[:10].tolist()}{'...' if len(bad) > 10 else ''})")
+        first = int(bad[0])
+        g = self._guards.evaluate(x)
+        check = next(check for gid, check in self._assume_checks if not g[gid][first])
+        error = check.error({name: x[name][first] for name, _ in check.reads})
+        return ValueError(f"{error} (automata {bad[:10].tolist()}{'...' if len(bad) > 10 else ''})")
 
     def _apply(self, updates: list[tuple[int, FloatLinear]], where: np.ndarray,
                x: Mapping[str, np.ndarray]) -> None:
@@ -418,7 +426,7 @@ class BatchRewardAutomaton(AutomatonDescription):
                 if self._assume_table is not None:
                     ok = self._assume_table[code] if only is None else self._assume_table[code] | ~only
                     if not ok.all():
-                        raise self._assume_failed(ok)
+                        raise self._assume_failed(ok, x)
                 idx = (loc << self._atom_bits) | code
                 nxt = self._next_table[idx]
                 if len(self._classes) > 1:
@@ -432,7 +440,7 @@ class BatchRewardAutomaton(AutomatonDescription):
                 if self._assume_id is not None:
                     ok = g[self._assume_id] if only is None else g[self._assume_id] | ~only
                     if not ok.all():
-                        raise self._assume_failed(ok)
+                        raise self._assume_failed(ok, x)
                 nxt = loc.copy()
                 masks: dict[int, np.ndarray] = {}
                 for source, edges in self._direct:
@@ -501,7 +509,7 @@ class BatchRewardAutomaton(AutomatonDescription):
             g = self._guards.evaluate(x)
             ok = g[self._end_assume] | ~m
             if not ok.all():
-                raise self._assume_failed(ok)
+                raise self._assume_failed(ok, x)
             for gid, updates in self._end:
                 f = m & g[gid]
                 if f.any():

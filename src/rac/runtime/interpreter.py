@@ -10,8 +10,9 @@ One ``step(inputs)`` (one sample):
 1. the inputs are validated: every declared input present, nothing else; booleans via
    ``True``/``False`` or 0/1 (:func:`rac.runtime.semantics.boolean_input`); numbers are real numbers
    (not strings, complex numbers or sequences), read via ``float(v)``, finite and within their
-   bounds (compared with the bounds as floats); ``int`` inputs integral. Then the ``assume`` guard must hold on them.
-   A violation raises :class:`ValueError` and leaves the automaton untouched.
+   bounds (compared with the bounds as floats); ``int`` inputs integral. Then every ``assume`` must hold on them.
+   A violation raises :class:`ValueError` and leaves the automaton untouched; for an ``assume``, the
+   message names the first clause violated, in source order (:class:`rac.runtime.semantics.AssumeCheck`).
 2. every reward grows by its rate in the current location times the period
    (``rate.scaled(period)`` rounded to floats), evaluated on the inputs held from the previous
    sample (the current ones at the first sample after a reset);
@@ -35,10 +36,10 @@ from typing import TYPE_CHECKING, Any
 
 from rac import ir
 from rac.runtime.semantics import (
-    ASSUME_MESSAGE,
     ENDED_MESSAGE,
     AutomatonDescription,
     FloatLinear,
+    assume_checks,
     boolean_input,
     check_automaton,
     check_mapping,
@@ -145,7 +146,7 @@ class RewardAutomaton(AutomatonDescription):
         )
         self._end_clauses = tuple((_compile_guard(c.guard), updates(c.updates, "end update"))
                                   for c in automaton.end_clauses)
-        self._assume = _compile_guard(automaton.assume)
+        self._assume = tuple((_compile_guard(check.guard), check) for check in assume_checks(automaton))
         self._objective_fn = _compile_linear(float_linear(automaton.objective, "objective"), index)
         self._initial_objective = self._objective_fn([0.0] * len(automaton.rewards), {})
         self.reset()
@@ -221,8 +222,9 @@ class RewardAutomaton(AutomatonDescription):
                 values[spec.name] = value
         except KeyError:
             raise key_error(inputs, self._names) from None
-        if not self._assume(values):
-            raise ValueError(ASSUME_MESSAGE)
+        for holds, check in self._assume:
+            if not holds(values):
+                raise check.error(values)
         return values
 
     def _increase(self, x: _Values) -> float:

@@ -13,13 +13,13 @@ import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import Any
 
 from rac import ir
 
 #: ``(float(const), ((float(coefficient), name), ...))`` — a Linear as every target evaluates it.
 FloatLinear = tuple[float, tuple[tuple[float, str], ...]]
 
-ASSUME_MESSAGE = "inputs violate `assume`"
 ENDED_MESSAGE = "the run has ended; call reset() first"
 
 
@@ -69,6 +69,62 @@ def input_specs(automaton: ir.Automaton) -> tuple[InputSpec, ...]:
         high = math.inf if item.high is None else to_float(item.high, f"upper bound of {item.name}")
         specs.append(InputSpec(item.name, item.kind, low, high))
     return tuple(specs)
+
+
+@dataclass(frozen=True)
+class AssumeCheck:
+    """One ``assume`` clause as every runtime checks and reports it.
+
+    An input valuation that violates it raises ``ValueError(error text)``: ``label`` (the clause as
+    written and its line), then the value of each input the clause reads, in the order it reads
+    them: ``inputs violate `assume collide imply isClose` (driving.ra:9): collide=True, isClose=False``.
+    The generated module (:mod:`rac.targets.python`) prints the same text with its own helper.
+    """
+
+    guard: ir.Guard
+    #: ``inputs violate `assume TEXT` (FILE:LINE)``; FILE is the base name of the `.ra` file.
+    label: str
+    #: ``(name, kind)`` of each input the clause reads, first read first.
+    reads: tuple[tuple[str, str], ...]
+
+    def error(self, values: Mapping[str, object]) -> ValueError:
+        """The error for the validated ``values`` (bools, and floats for numeric inputs)."""
+        return ValueError(violation(self.label, [(name, shown(values[name], kind)) for name, kind in self.reads]))
+
+
+def shown(value: Any, kind: str) -> bool | int | float:
+    """A validated input value (a Python or numpy bool or float) as violation messages print it
+    (with ``repr``): ``int`` inputs as whole numbers."""
+    if kind == "bool":
+        return bool(value)
+    return int(value) if kind == "int" else float(value)
+
+
+def violation(label: str, values: Sequence[tuple[str, object]]) -> str:
+    """``label: name=value, ...`` (the values by ``repr``); ``label`` alone when the clause reads no input."""
+    return label + (": " + ", ".join(f"{name}={value!r}" for name, value in values) if values else "")
+
+
+def assume_checks(automaton: ir.Automaton) -> tuple[AssumeCheck, ...]:
+    """The clauses the runtimes check, in source order (the first violated one is reported);
+    a clause that is always true is left out."""
+    kinds = {i.name: i.kind for i in automaton.inputs}
+    checks = []
+    for assumption in automaton.assumptions:
+        if assumption.guard == ir.TRUE:
+            continue
+        label = f"inputs violate `assume {assumption.text}`"
+        if assumption.span is not None:
+            label += f" ({_base_name(assumption.span.file)}:{assumption.span.line})"
+        names = dict.fromkeys(leaf.name if isinstance(leaf, ir.BInput) else leaf.input
+                              for leaf in ir.guard_leaves(assumption.guard))
+        checks.append(AssumeCheck(assumption.guard, label, tuple((name, kinds[name]) for name in names)))
+    return tuple(checks)
+
+
+def _base_name(path: str) -> str:
+    """The file's name without its folders (either separator): the message is the same wherever rac ran."""
+    return path.replace("\\", "/").rsplit("/", 1)[-1]
 
 
 def check_automaton(automaton: ir.Automaton) -> None:
@@ -134,7 +190,8 @@ def check_automaton(automaton: ir.Automaton) -> None:
     for clause in automaton.end_clauses:
         check_guard(clause.guard, "at end")
         check_updates(clause.updates, "at end")
-    check_guard(automaton.assume, "assume")
+    for assumption in automaton.assumptions:
+        check_guard(assumption.guard, "assume")
     check_linear(automaton.objective, rewards, "objective")
 
 

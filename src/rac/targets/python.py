@@ -37,13 +37,13 @@ import jinja2
 from rac import ir
 from rac.core.printing import COMPARISONS, Associativity, Level, Operator, OperatorTable, Printed, number, signed_sum
 from rac.ir.text import GuardPrinter
-from rac.runtime.semantics import FloatLinear, check_automaton, float_linear, input_specs, to_float
+from rac.runtime.semantics import FloatLinear, assume_checks, check_automaton, float_linear, input_specs, to_float
 
 __all__ = ["PYTHON", "PythonGuards", "generate_python", "print_expr"]
 
 _TEMPLATE = "python_module.py.j2"
 _LINE = 110
-_RESERVED = {"Mapping", "math", "annotations", "_key_error", "_range_error"}
+_RESERVED = {"Mapping", "math", "annotations", "_key_error", "_range_error", "_assume_error"}
 
 
 # ---------------------------------------------------------------- the printer
@@ -159,6 +159,15 @@ def _pydict(items: list[tuple[str, str]], column: int) -> str:
     return "{\n" + "".join(f"            {k}: {v},\n" for k, v in items) + "        }"
 
 
+def _call(head: str, arguments: list[str], column: int) -> list[str]:
+    """``head(arguments)`` on one line when it fits after ``column``, else one argument per line."""
+    flat = f"{head}({', '.join(arguments)})"
+    if column + len(flat) <= _LINE:
+        return [flat]
+    indent = head[: len(head) - len(head.lstrip())]
+    return [f"{head}(", *(f"{indent}    {argument}," for argument in arguments), f"{indent})"]
+
+
 def _ra_linear(linear: ir.Linear) -> str:
     """A linear form in `.ra` syntax, for documentation."""
     parts = [(coef < 0, name if abs(coef) == 1 else f"{abs(coef)}*{name}") for name, coef in linear.terms]
@@ -190,9 +199,11 @@ class _Generator:
     def read(self, body: str) -> list[str]:
         """Read and validate every input; the locals of unused booleans are not bound."""
         check: list[str] = []
-        if self.a.assume != ir.TRUE:
-            check = [f"if {self.expr(ir.BNot(self.a.assume))}:",
-                     "    raise ValueError(\"inputs violate `assume`\")"]
+        for clause in assume_checks(self.a):  # in source order: the first violated one is named
+            check.append(f"if {self.expr(ir.BNot(clause.guard))}:")
+            check += _call("    raise _assume_error", [_py(clause.label), *(
+                f"({_py(name)}, {'int(' + self.inputs[name] + ')' if kind == 'int' else self.inputs[name]})"
+                for name, kind in clause.reads)], 12)
         body = "\n".join([body, *check])
         lines = ["_mapping(inputs)", "try:", f"    if len(inputs) != {len(self.specs)}:", "        raise KeyError"]
         for spec in self.specs:

@@ -10,7 +10,6 @@ from rac import ir
 from rac.core.diagnostics import Diagnostic, Note, error, warning
 from rac.core.source import Span
 from rac.ir.inputs import InputSpace, TooManyClasses, guard_inputs
-from rac.lang import ast
 
 
 def input_space(automaton: ir.Automaton) -> tuple[InputSpace | None, list[Diagnostic]]:
@@ -89,21 +88,16 @@ def _reachability(automaton: ir.Automaton, space: InputSpace) -> list[Diagnostic
 
 def _unsatisfiable_assume(automaton: ir.Automaton, space: InputSpace) -> tuple[Span | None, list[Note]]:
     """The first `assume` that, with the ones before it, excludes every valuation (and those)."""
-    if automaton.source is None:
-        return None, []
-    assumes = automaton.source.of(ast.AssumeDecl)
-    if not assumes:
-        return automaton.source.name.span, []
-    parts = automaton.assume.operands if isinstance(automaton.assume, ir.BAnd) else ()
-    if len(assumes) == 1 or len(parts) != len(assumes):
-        return assumes[0].span, []
+    assumptions = automaton.assumptions
+    if not assumptions:
+        return (None if automaton.source is None else automaton.source.name.span), []
     allowed = np.ones(space.count, dtype=bool)
-    for k, part in enumerate(parts):
-        allowed = allowed & space.evaluate(part)
+    for k, assumption in enumerate(assumptions):
+        allowed = allowed & space.evaluate(assumption.guard)
         if not allowed.any():
-            earlier = [Note("together with this assumption", a.span) for a in assumes[:k]]
-            return assumes[k].span, earlier
-    return assumes[0].span, []
+            earlier = [Note("together with this assumption", a.span) for a in assumptions[:k]]
+            return assumption.span, earlier
+    return assumptions[0].span, []
 
 
 def _json_valuation(space: InputSpace, cls: int) -> dict[str, object]:
