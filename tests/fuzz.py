@@ -40,7 +40,7 @@ from rac.lang.parser import ParseFailure, parse_text  # noqa: E402
 #: Tokens that have broken rac before, or that sit at the edges of what it accepts.
 TOKENS = ("1e5000", "1e-5000", "1e308", "1e-307", "0e10000000", "9" * 120, "1e400", "0.0000001", "2147483648",
           "-1", "/*", "*/", "//", "\r", "\r\n", "\t", '"', "{", "}", "(", ")", ";", ",", "&&", "||", "!", "imply",
-          "==", "<=", "'", "*", "->", "when", "do", "edge", "location", "initial", "input", "reward", "const",
+          "==", "<=", "'", "*", "except", "->", "when", "do", "edge", "location", "initial", "input", "reward", "const",
           "assume", "priority", "objective", "horizon", "sample every", "model", "query", "A[]", "E<>", "Pr[<=1]",
           "under", "strategy", "bind", "allow when", "action", "a" * 5000, "é", "\x00", "🚗", "true", "false",
           "prev(", "mindist()", "collision sticky", "dynamics increments", "offroad_from 1")

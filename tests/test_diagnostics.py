@@ -219,7 +219,7 @@ def test_random_text(text, scratch, capsys, monkeypatch):
 WORDS = ["automaton", "Driving", "{", "}", "input", "isClose", "dgoal", ":", "bool", "real", "int", "in", "[",
          "]", ",", "0", "1", "0.1", "30", "1e9", "-", "+", "*", "/", "reward", "sa", "pr", "priority", "strict",
          ">", "objective", "sample", "every", "horizon", "initial", "location", "Normal", "Unsafe", "'", "==",
-         ";", "edge", "->", "when", "do", "=", "-=", "at", "end", "query", "Q", "A[]", "E<>", "imply", "&&",
+         ";", "edge", "->", "except", "when", "do", "=", "-=", "at", "end", "query", "Q", "A[]", "E<>", "imply", "&&",
          "||", "!", "(", ")", "assume", "const", "under", "strategy", "control", "Pr[", "<=", "simulate",
          "#<=", "-->", "not", "true", "/*", "*/", "//", "\n", "time", "collide()", "model", "scenario",
          '"a.xml"', '"', "action", "jerk", "step", "bind", "exponent", "granularity", "mindist()"]

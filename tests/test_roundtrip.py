@@ -78,7 +78,7 @@ KEYWORDS = {
     "automaton", "input", "assume", "const", "reward", "priority", "strict", "objective", "sample", "every",
     "horizon", "initial", "location", "edge", "when", "do", "at", "end", "query", "under", "strategy",
     "control", "simulate", "maxE", "minE", "max", "min", "bool", "real", "int", "in", "true", "false",
-    "imply", "not", "and", "or", "model", "scenario", "action", "bind", "step",
+    "imply", "not", "and", "or", "model", "scenario", "action", "bind", "step", "except",
 }
 
 # Plain names, names that start like keywords, and the letters of UPPAAL's quantifiers.
@@ -151,8 +151,9 @@ members = st.one_of(
     st.builds(ast.SampleDecl, small_exprs),
     st.builds(ast.HorizonDecl, small_exprs),
     st.builds(ast.LocationDecl, idents, st.booleans(), tuples(st.builds(ast.Flow, idents, exprs))),
-    st.builds(ast.EdgeDecl, st.one_of(st.none(), idents), idents, st.one_of(st.none(), exprs),
-              tuples(updates)),
+    st.builds(ast.EdgeDecl, idents, idents, st.one_of(st.none(), exprs), tuples(updates)),
+    # `*`, with or without `except` (only a `*` edge can exclude locations)
+    st.builds(ast.EdgeDecl, st.none(), idents, st.one_of(st.none(), exprs), tuples(updates), tuples(idents)),
     st.builds(ast.EndDecl, st.one_of(st.none(), exprs), tuples(updates, 1)),
     st.builds(ast.QueryDecl, idents, queries),
 )

@@ -315,17 +315,50 @@ class Resolver:
         for decl in self.node.of(ast.EdgeDecl):
             target = self._location_index(decl.target)
             source = None if decl.source is None else self._location_index(decl.source)
-            if target is None or (decl.source is not None and source is None):
+            excluded = self._excluded(decl, target)
+            if target is None or (decl.source is not None and source is None) or excluded is None:
                 continue
             try:
                 guard = self.typer.guard(decl.guard)
             except Unresolvable:
                 continue
             updates = self._updates(decl.updates, rewards)
-            sources = [source] if source is not None else [i for i in range(len(locations)) if i != target]
+            if source is not None:
+                sources = [source]
+            else:
+                sources = [i for i in range(len(locations)) if i != target and i not in excluded]
+                if not sources and decl.excluded:
+                    self.diagnostics.append(warning(
+                        "W0109", "this edge leaves out every location: it never applies", decl.span,
+                        notes=["`*` stands for every location except the target, and `except` names all "
+                               "the others"],
+                        hints=["remove the edge, or exclude fewer locations; a self-loop is written out: "
+                               f"`edge {decl.target.name} -> {decl.target.name}`"]))
             for s in sources:
                 grouped[s].append(ir.Edge(s, target, guard, updates, decl.span))
         return tuple(tuple(g) for g in grouped)
+
+    def _excluded(self, decl: ast.EdgeDecl, target: int | None) -> set[int] | None:
+        """The locations after ``except`` (each name resolved here, once), or None when one is not a
+        location. A name excluded twice, or the target (which ``*`` leaves out anyway), is W0108."""
+        found: dict[int, Span | None] = {}
+        ok = True
+        for ident in decl.excluded:
+            index = self._location_index(ident)
+            if index is None:
+                ok = False
+            elif index in found:
+                self.diagnostics.append(warning(
+                    "W0108", f"`{ident.name}` is excluded twice", ident.span,
+                    notes=[Note("first excluded here", found[index])], hints=["remove one of the two"]))
+            else:
+                if index == target:
+                    self.diagnostics.append(warning(
+                        "W0108", f"`{ident.name}` is the edge's target, which `*` leaves out already", ident.span,
+                        notes=["`*` never includes the target: a self-loop has to be written out"],
+                        hints=[f"remove `{ident.name}` from the `except` list"]))
+                found[index] = ident.span
+        return set(found) if ok else None
 
     def _end(self, decl: ast.EndDecl, rewards: tuple[str, ...]) -> ir.EndClause:
         try:

@@ -181,11 +181,19 @@ class Update:
 
 @dataclass(frozen=True)
 class EdgeDecl:
-    source: Ident | None  # None is ``*``: every location except the target
+    """``edge SOURCE -> TARGET when g do u``; ``edge * except A, B -> TARGET ...`` leaves A and B out."""
+
+    source: Ident | None  # None is ``*``: every location except the target (and ``excluded``)
     target: Ident
     guard: Expr | None
     updates: tuple[Update, ...]
+    #: The names after ``except``, as written (the checker resolves them); only with ``*``.
+    excluded: tuple[Ident, ...] = ()
     span: Span | None = _span()
+
+    def __post_init__(self) -> None:
+        if self.excluded and self.source is not None:
+            raise ValueError("only a `*` edge can exclude locations")
 
 
 @dataclass(frozen=True)

@@ -236,6 +236,8 @@ def format_member(member: ast.Member) -> str:
         return f"{'initial ' if member.initial else ''}location {member.name.name} {body}"
     if isinstance(member, ast.EdgeDecl):
         source = member.source.name if member.source is not None else "*"
+        if member.excluded:
+            source += f" except {_names(member.excluded)}"
         return f"edge {source} -> {member.target.name}{_guard(member.guard)}{_updates(member.updates)}"
     if isinstance(member, ast.EndDecl):
         return f"at end{_guard(member.guard)}{_updates(member.updates)}"

@@ -188,12 +188,15 @@ class _ToAst(Transformer):
         return ast.Flow(self._ident(items[0]), items[1], self._sp(meta))
 
     def edge_decl(self, meta, items):
-        source, target, guard, updates = items
-        return ast.EdgeDecl(source, self._ident(target), guard, updates or (), self._sp(meta))
+        (source, excluded), target, guard, updates = items
+        return ast.EdgeDecl(source, self._ident(target), guard, updates or (), excluded, self._sp(meta))
 
     def edge_source(self, meta, items):
+        """(the source, or None for ``*``; the names after ``except``)."""
         token = items[0]
-        return None if token.type == "STAR" else self._ident(token)
+        if token.type == "STAR":
+            return None, items[1] or ()
+        return self._ident(token), ()
 
     def guard(self, meta, items):
         return items[0]
