@@ -160,6 +160,8 @@ class _Builder:
         if self.kind == "near miss":
             self.defects = {pick(c, DEFECTS) for _ in range(c.integer(1, 2))}
         self.used: set[str] = set()
+        self.automaton = ""
+        self.namesake = False  # a declaration is named like the automaton
         self.inputs: list[_Input] = []
         self.consts: dict[str, Fraction] = {}
         self.lines: dict[str, list[str]] = {}  # group -> declarations
@@ -179,6 +181,9 @@ class _Builder:
             return pick(self.c, KEYWORDS)
         if "duplicate" in self.defects and self.used and self.c.chance(5):
             return sorted(self.used)[0]
+        if self.kind == "extreme" and self.automaton and not self.namesake and self.c.chance(5):
+            self.namesake = True  # named like the automaton: its own namespace in .ra, not in UPPAAL
+            return self.automaton
         top = len(pool) if self.kind == "extreme" or self.c.chance(15) else min(plain, len(pool))
         for _ in range(4):
             candidate = pool[self.c.integer(0, top - 1)]
@@ -295,7 +300,7 @@ class _Builder:
     # ------------------------------------------------------------ the automaton
     def build(self) -> str:
         c = self.c
-        automaton = self.name(AUTOMATA, 3)
+        automaton = self.automaton = self.name(AUTOMATA, 3)
         self.declare_consts()
         self.declare_inputs()
         if len([i for i in self.inputs if i.kind == "bool"]) >= 2 and c.chance(30):
