@@ -1,25 +1,115 @@
-"""The fuzzer (tests/fuzz.py) in the suite: a bounded run over mutants of the shipped `.ra` files must
-find no internal error, no hang and no misbehaving `rac fmt`; long runs are `python tests/fuzz.py
---minutes N` (docs/benchmarks.md)."""
+"""The fuzzer (tests/fuzz.py) in the suite: bounded runs over mutants of the shipped `.ra` files and
+over generated programs (tests/fuzzgen.py) must find no internal error, no hang, no misbehaving
+`rac fmt` and, when UPPAAL's parser is available, no compiled model it rejects; long runs are
+`python tests/fuzz.py --minutes N` (docs/benchmarks.md)."""
 
 from __future__ import annotations
 
+import random
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
+import fuzz
+import fuzzgen
 import pytest
-from fuzz import fuzz
+import utap
+from fuzz import Report, fuzz_one, generated_share
+from hypothesis import HealthCheck, given, settings
 
 from rac.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.fixture(scope="module")
+def utap_binary() -> Path | None:
+    """UPPAAL's parser, or None when it is unavailable (the fuzz tests then run without it, and
+    fail under ``RAC_REQUIRE_UTAP=1``)."""
+    located = utap.locate()
+    if located.path is None and utap.required():
+        pytest.fail(f"{located.reason} ({utap.ENV_REQUIRE}=1)", pytrace=False)
+    return located.path
+
+
+@pytest.fixture(scope="module")
+def folder() -> Iterator[Path]:
+    """A folder with the scenario files the inputs name (a module fixture: hypothesis runs many
+    examples in one test)."""
+    with tempfile.TemporaryDirectory(prefix="rac-fuzz-test-") as name:
+        yield fuzz.scenario_folder(Path(name))
+
+
+def first_failure(report: Report) -> str:
+    what, text, detail = report.failures[0]
+    return f"{what}: {detail}\n--- input ---\n{text}"
+
+
 @pytest.mark.parametrize("seed", [1, 2])
-def test_mutants_of_the_shipped_files_never_fail_internally(seed: int) -> None:
-    report = fuzz(seed, inputs=300)
+def test_mutants_of_the_shipped_files_never_fail_internally(seed: int, utap_binary: Path | None) -> None:
+    report = fuzz.fuzz(seed, inputs=300, utap_binary=utap_binary)
     assert report.counts["inputs"] == 300
-    assert not report.failures, report.failures[0][:1] + (report.failures[0][2],)
+    assert not report.failures, first_failure(report)
     assert report.counts["check exit 0"] > 0  # some mutants still check, and went through fmt and both targets
+
+
+def test_generated_programs_check_compile_and_satisfy_uppaal(utap_binary: Path | None) -> None:
+    """The seeded generator, as the long runs use it: no failure, and most of what it writes
+    checks (so fmt, both targets and UPPAAL's parser see it), near misses included."""
+    report = fuzz.fuzz(3, inputs=60, source="generate", utap_binary=utap_binary)
+    assert not report.failures, first_failure(report)
+    passed, generated = generated_share(report)
+    assert generated == 60 and passed >= 0.3 * generated, fuzz.summary(report)
+    assert report.counts["generated valid check ok"] == report.counts["generated valid"] > 0
+    assert report.counts["generated near miss"] > report.counts["generated near miss check ok"]
+    assert report.counts["compile python exit 0"] == passed
+    assert report.counts["compile uppaal exit 0"] > 0
+    if utap_binary is not None:
+        assert report.counts["utap accepted"] == report.counts["compile uppaal exit 0"]
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(program=fuzzgen.programs())
+def test_generated_programs_never_fail(program: fuzzgen.Generated, folder: Path, utap_binary: Path | None) -> None:
+    """The same generator drawn by hypothesis: a failing program shrinks to a small one."""
+    report = Report()
+    fuzz_one(program.text, folder, report, utap_binary)
+    assert not report.failures, first_failure(report)
+
+
+def test_the_generator_is_reproducible_from_its_seed() -> None:
+    def texts(seed: int) -> list[str]:
+        choices = fuzzgen.RandomChoices(random.Random(seed))
+        return [fuzzgen.generate(choices).text for _ in range(5)]
+
+    assert texts(4) == texts(4) != texts(5)
+
+
+def test_a_model_uppaal_rejects_is_a_finding(tmp_path: Path, utap_binary: Path | None) -> None:
+    """The UTAP oracle is not vacuous: a compiled model with an undeclared name is reported, with
+    UPPAAL's message."""
+    if utap_binary is None:
+        utap.unavailable(utap.locate().reason)
+    source = tmp_path / "fuzz.ra"
+    source.write_text((ROOT / "stdlib" / "driving.ra").read_text(encoding="utf-8"), encoding="utf-8")
+    assert main(["compile", "--target", "uppaal", str(source), "-o", str(tmp_path / "out.xml")]) == 0
+    assert fuzz.utap_problem(utap_binary, tmp_path) is None
+    xml = tmp_path / "out.xml"
+    xml.write_text(xml.read_text(encoding="utf-8").replace("</declaration>", "int broken = undeclared;</declaration>",
+                                                           1), encoding="utf-8")
+    complaint = fuzz.utap_problem(utap_binary, tmp_path)
+    assert complaint is not None and "undeclared" in complaint
+
+
+def test_fmt_changing_the_meaning_or_losing_a_comment_is_a_finding(monkeypatch: pytest.MonkeyPatch) -> None:
+    text = (ROOT / "stdlib" / "driving.ra").read_text(encoding="utf-8")
+    assert fuzz.fmt_problem(text) is None
+    real = fuzz.format_module
+    monkeypatch.setattr(fuzz, "format_module", lambda module: real(module, comments=False))
+    assert "comments" in (fuzz.fmt_problem(text) or "")
+    monkeypatch.setattr(fuzz, "format_module", lambda module: real(module).replace("sa - 100", "sa - 10"))
+    assert fuzz.fmt_problem(text) == "the formatted text parses to a different tree"
 
 
 def test_a_penalty_whose_sum_no_float_holds_is_reported(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

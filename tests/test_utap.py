@@ -163,6 +163,27 @@ def test_every_query_form_alone(utap: Utap, form: str, tmp_path: Path, capsys: p
     utap.validate_files(*compile_cli(source, out, capsys))
 
 
+#: A declaration of stdlib/driving.ra whose name the automaton takes (found by tests/fuzz.py's generator).
+NAMESAKES = {"const": "PENALTY", "bool input": "isClose", "numeric input": "dgoal", "reward": "sa",
+             "location": "Unsafe"}
+
+
+@pytest.mark.parametrize("whole_model", [False, True], ids=["alone", "whole-model"])
+@pytest.mark.parametrize("kind", NAMESAKES)
+def test_an_automaton_named_like_one_of_its_names(utap: Utap, kind: str, whole_model: bool, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """The automaton's name is not in the namespace of its inputs, constants, rewards and
+    locations, but in UPPAAL the template's name is as global as the constants and variables:
+    `automaton PENALTY { const PENALTY = 100 ... }` once declared both as `PENALTY`."""
+    name = NAMESAKES[kind]
+    text = (MODEL_RA if whole_model else DRIVING_RA).read_text(encoding="utf-8")
+    source = tmp_path / "namesake.ra"
+    source.write_text(text.replace("automaton Driving {", f"automaton {name} {{"), encoding="utf-8")
+    if whole_model:
+        (tmp_path / "left_turn.xml").write_bytes((MODEL_RA.parent / "left_turn.xml").read_bytes())
+    utap.validate_files(*compile_cli(source, tmp_path / "namesake.xml", capsys))
+
+
 def test_time_in_queries_with_a_coarse_period(utap: Utap, tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     """A time unit (here the period, 1.5 s) that is not a whole fraction of a second."""

@@ -109,11 +109,13 @@ class AutomatonGenerator:
 
     def _names(self) -> None:
         a = self.a
-        user = [a.name, *(i.name for i in a.inputs), *a.rewards, *a.location_names, *(n for n, _ in a.constants)]
+        user = [*(i.name for i in a.inputs), *a.rewards, *a.location_names, *(n for n, _ in a.constants)]
         strategies = [q.query.name for q in self.queries() if isinstance(q.query, iq.STRATEGY_QUERIES)]
         names = Names([*user, *strategies], self.reserved_names())
         self.n = names
-        self.process = names[a.name]
+        # The .ra keeps the automaton's name apart from its other names, UPPAAL does not (a template's
+        # name is as global as a constant's): a namesake keeps its name, the template gets a fresh one.
+        self.process = names.fresh(a.name)
         self.mirror = {r: names.fresh(mirror_name(r)) for r in a.rewards}
         self.channels = {key: names.fresh(key) for key in ("accrue", "read", "sense", "finish")}
         self.g = {key: names.fresh(base) for key, base in (
