@@ -8,6 +8,8 @@
   unless a preceding ``<!-- expect: CODE -->`` comment, or the ``<!-- case: CODE_name -->``
   region of docs/checks.md it sits in, names the error it must fail with (or the warning it
   must print);
+- every shipped `.ra` file (stdlib/, examples/, benchmarks/) and every such ```ra block that parses is
+  in `rac fmt`'s canonical layout (`rac fmt --check` passes);
 - every ```python block in docs/python.md runs (in a subprocess, from the repository root).
 """
 
@@ -25,6 +27,7 @@ import pytest
 
 import rac
 from rac.cli.main import main as rac_main
+from rac.lang.parser import ParseFailure, parse_text
 
 REPO = Path(__file__).resolve().parents[1]
 DOC_FILES = sorted((REPO / "docs").glob("*.md")) + [REPO / "README.md"]
@@ -138,6 +141,36 @@ def test_ra_block_checks(block: Block, tmp_path: Path, capsys: pytest.CaptureFix
 def test_python_block_runs(block: Block) -> None:
     result = run_python("-c", block.text)
     assert result.returncode == 0, f"{block.id} failed:\n{result.stdout}\n{result.stderr}"
+
+
+# ---------------------------------------------------------------- rac fmt --check
+#: Every `.ra` file the project ships (globbed, so new files are covered).
+SHIPPED_RA = sorted([*REPO.glob("stdlib/**/*.ra"), *REPO.glob("examples/**/*.ra"), *REPO.glob("benchmarks/**/*.ra")])
+
+
+def test_the_shipped_files_are_found() -> None:
+    names = {p.name for p in SHIPPED_RA}
+    assert {"driving.ra", "model.ra", "preanalysis.ra", "naive_driving.ra", "zam_ramp.ra"} <= names
+
+
+@pytest.mark.parametrize("path", SHIPPED_RA, ids=lambda p: str(p.relative_to(REPO)))
+def test_shipped_file_is_formatted(path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    status = rac_main(["fmt", "--check", str(path)])
+    assert status == 0, f"`rac fmt --check {path.relative_to(REPO)}` fails:\n{capsys.readouterr().err}"
+
+
+@pytest.mark.parametrize("block", RA_BLOCKS, ids=lambda b: b.id)
+def test_ra_block_is_formatted(block: Block, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A block that does not parse must be an example of the error it shows."""
+    try:
+        parse_text(block.text, block.id)
+    except ParseFailure:
+        assert block.expect is not None, f"{block.id} does not parse"
+        pytest.skip(f"{block.id} shows a syntax error")
+    source = tmp_path / "block.ra"
+    source.write_text(block.text, encoding="utf-8")
+    status = rac_main(["fmt", "--check", str(source)])
+    assert status == 0, f"{block.id} is not in `rac fmt`'s layout:\n{capsys.readouterr().err}"
 
 
 # ---------------------------------------------------------------- examples/naive_driving.ra
