@@ -5,6 +5,7 @@ from __future__ import annotations
 import ast
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -23,6 +24,9 @@ from rac.targets.python import generate_python
 DRIVING = stdlib_file("driving.ra")
 DRIVING_TEXT = DRIVING.read_text(encoding="utf-8")
 GOLDEN_FMT = REPOSITORY / "tests" / "golden" / "driving.fmt.ra"
+#: stdlib/driving.ra (in rac fmt's layout) with its alignment collapsed to single spaces; the
+#: comments keep their columns, so the continuation comment stays a continuation.
+UNFORMATTED = re.sub(r"(?<=\S) {2,}(?=[^ /])", " ", DRIVING_TEXT)
 VALID = {"isClose": False, "prog": True, "comf": True, "collide": False, "dgoal": 40.0}
 
 
@@ -30,6 +34,14 @@ VALID = {"isClose": False, "prog": True, "comf": True, "collide": False, "dgoal"
 def clean(tmp_path: Path) -> Path:
     path = tmp_path / "driving.ra"
     path.write_text(DRIVING_TEXT, encoding="utf-8")
+    return path
+
+
+@pytest.fixture
+def unformatted(tmp_path: Path) -> Path:
+    assert UNFORMATTED != DRIVING_TEXT
+    path = tmp_path / "driving.ra"
+    path.write_text(UNFORMATTED, encoding="utf-8")
     return path
 
 
@@ -255,48 +267,48 @@ def test_compile_to_a_missing_folder_is_a_usage_error(capsys: pytest.CaptureFixt
 
 
 # ---------------------------------------------------------------- fmt
-def test_fmt_rewrites_in_place_keeping_comments(clean: Path) -> None:
-    done = run_rac("fmt", clean)
+def test_fmt_rewrites_in_place_keeping_comments(unformatted: Path) -> None:
+    done = run_rac("fmt", unformatted)
     assert done.returncode == 0, done.stderr
-    assert f"{clean}: reformatted" in done.stderr
-    formatted = clean.read_text(encoding="utf-8")
+    assert f"{unformatted}: reformatted" in done.stderr
+    formatted = unformatted.read_text(encoding="utf-8")
     assert formatted == GOLDEN_FMT.read_text(encoding="utf-8")
     original_comments = [line.split("//", 1)[1].strip() for line in DRIVING_TEXT.splitlines() if "//" in line]
     assert original_comments
     for comment in original_comments:
         assert f"// {comment}" in formatted
-    assert folder_listing(clean.parent) == [clean.name]
-    assert compile_file(clean).ok
+    assert folder_listing(unformatted.parent) == [unformatted.name]
+    assert compile_file(unformatted).ok
 
 
-def test_fmt_is_idempotent(capsys: pytest.CaptureFixture[str], clean: Path) -> None:
-    assert main(["fmt", str(clean)]) == 0
-    first = clean.read_bytes()
+def test_fmt_is_idempotent(capsys: pytest.CaptureFixture[str], unformatted: Path) -> None:
+    assert main(["fmt", str(unformatted)]) == 0
+    first = unformatted.read_bytes()
     capsys.readouterr()
-    assert main(["fmt", str(clean)]) == 0
-    assert clean.read_bytes() == first
+    assert main(["fmt", str(unformatted)]) == 0
+    assert unformatted.read_bytes() == first
     assert capsys.readouterr().err == ""  # nothing to say: already formatted
 
 
-def test_fmt_check(capsys: pytest.CaptureFixture[str], clean: Path, tmp_path: Path) -> None:
-    assert main(["fmt", "--check", str(clean)]) == 1
-    assert f"{clean}: would be reformatted" in capsys.readouterr().err
-    assert clean.read_text(encoding="utf-8") == DRIVING_TEXT  # --check never writes
+def test_fmt_check(capsys: pytest.CaptureFixture[str], unformatted: Path, tmp_path: Path) -> None:
+    assert main(["fmt", "--check", str(unformatted)]) == 1
+    assert f"{unformatted}: would be reformatted" in capsys.readouterr().err
+    assert unformatted.read_text(encoding="utf-8") == UNFORMATTED  # --check never writes
     formatted = tmp_path / "formatted.ra"
     shutil.copy(GOLDEN_FMT, formatted)
     assert main(["fmt", "--check", str(formatted)]) == 0
-    assert main(["fmt", "--check", str(formatted), str(clean)]) == 1
+    assert main(["fmt", "--check", str(formatted), str(unformatted)]) == 1
 
 
-def test_fmt_check_as_a_command(clean: Path) -> None:
-    assert run_rac("fmt", "--check", clean).returncode == 1
+def test_fmt_check_as_a_command(unformatted: Path) -> None:
+    assert run_rac("fmt", "--check", unformatted).returncode == 1
     assert run_rac("fmt", "--check", GOLDEN_FMT).returncode == 0
 
 
-def test_fmt_stdout(capsys: pytest.CaptureFixture[str], clean: Path) -> None:
-    assert main(["fmt", "--stdout", str(clean)]) == 0
+def test_fmt_stdout(capsys: pytest.CaptureFixture[str], unformatted: Path) -> None:
+    assert main(["fmt", "--stdout", str(unformatted)]) == 0
     assert capsys.readouterr().out == GOLDEN_FMT.read_text(encoding="utf-8")
-    assert clean.read_text(encoding="utf-8") == DRIVING_TEXT  # untouched
+    assert unformatted.read_text(encoding="utf-8") == UNFORMATTED  # untouched
 
 
 def test_fmt_syntax_error_exits_1_and_leaves_the_file(capsys: pytest.CaptureFixture[str], syntax_error: Path) -> None:

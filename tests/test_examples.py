@@ -1,14 +1,13 @@
-"""The examples and the documentation do what they say.
+"""The examples do what they say, and the shipped `.ra` text is in `rac fmt`'s layout.
 
 - examples/train_wrapper.py trains and prints a summary, deterministically for a seed;
 - examples/generated_module.py compiles the Python target and agrees with the interpreter;
-- examples/naive_driving.ra fails P2 (E0402) with the counterexample the docs describe, and the
-  README's excerpt of that output is still what `rac check` prints;
-- every ```ra block in docs/*.md and README.md that is a complete automaton passes `rac check`,
-  unless a preceding ``<!-- expect: CODE -->`` comment, or the ``<!-- case: CODE_name -->``
-  region of docs/checks.md it sits in, names the error it must fail with (or the warning it
-  must print);
-- every ```python block in docs/python.md runs (in a subprocess, from the repository root).
+- examples/naive_driving.ra fails P2 (E0402) with the counterexample the docs describe;
+- every shipped `.ra` file (stdlib/, examples/, benchmarks/) and every ```ra block of docs/*.md and
+  README.md that is a complete automaton and parses is in `rac fmt`'s canonical layout.
+
+Every block of the docs runs, or is compared with what rac prints: tests/test_doc_blocks.py (which
+reads the blocks with :func:`code_blocks`).
 """
 
 from __future__ import annotations
@@ -25,6 +24,7 @@ import pytest
 
 import rac
 from rac.cli.main import main as rac_main
+from rac.lang.parser import ParseFailure, parse_text
 
 REPO = Path(__file__).resolve().parents[1]
 DOC_FILES = sorted((REPO / "docs").glob("*.md")) + [REPO / "README.md"]
@@ -106,38 +106,41 @@ def is_complete_automaton(block: Block) -> bool:
 
 
 RA_BLOCKS = [b for path in DOC_FILES for b in code_blocks(path) if is_complete_automaton(b)]
-PYTHON_BLOCKS = [b for b in code_blocks(REPO / "docs" / "python.md") if b.language == "python"]
 
 
 def test_the_docs_have_blocks_to_check() -> None:
     assert len([b for b in RA_BLOCKS if b.path.name == "language.md"]) >= 3
     assert any(b.expect == "E0402" for b in RA_BLOCKS)
-    assert len(PYTHON_BLOCKS) >= 5
+
+
+# ---------------------------------------------------------------- rac fmt --check
+#: Every `.ra` file the project ships (globbed, so new files are covered).
+SHIPPED_RA = sorted([*REPO.glob("stdlib/**/*.ra"), *REPO.glob("examples/**/*.ra"), *REPO.glob("benchmarks/**/*.ra")])
+
+
+def test_the_shipped_files_are_found() -> None:
+    names = {p.name for p in SHIPPED_RA}
+    assert {"driving.ra", "model.ra", "preanalysis.ra", "naive_driving.ra", "zam_ramp.ra"} <= names
+
+
+@pytest.mark.parametrize("path", SHIPPED_RA, ids=lambda p: str(p.relative_to(REPO)))
+def test_shipped_file_is_formatted(path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    status = rac_main(["fmt", "--check", str(path)])
+    assert status == 0, f"`rac fmt --check {path.relative_to(REPO)}` fails:\n{capsys.readouterr().err}"
 
 
 @pytest.mark.parametrize("block", RA_BLOCKS, ids=lambda b: b.id)
-def test_ra_block_checks(block: Block, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    if block.expect in BYTE_LEVEL:
-        pytest.skip(f"{block.expect} is about the file's bytes, not its text (tests/test_diagnostics.py makes it)")
+def test_ra_block_is_formatted(block: Block, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A block that does not parse must be an example of the error it shows."""
+    try:
+        parse_text(block.text, block.id)
+    except ParseFailure:
+        assert block.expect is not None, f"{block.id} does not parse"
+        pytest.skip(f"{block.id} shows a syntax error")
     source = tmp_path / "block.ra"
     source.write_text(block.text, encoding="utf-8")
-    status = rac_main(["check", str(source)])
-    output = capsys.readouterr()
-    report = output.out + output.err
-    if block.expect is None:
-        assert status == 0, f"{block.id} should pass `rac check`:\n{report}"
-    elif block.expect.startswith("W"):
-        assert status == 0, f"{block.id} should pass `rac check` with warning {block.expect}:\n{report}"
-        assert f"[{block.expect}]" in report, f"{block.id} should warn {block.expect}:\n{report}"
-    else:
-        assert status == 1, f"{block.id} should fail with {block.expect}:\n{report}"
-        assert f"[{block.expect}]" in report, f"{block.id} should fail with {block.expect}:\n{report}"
-
-
-@pytest.mark.parametrize("block", PYTHON_BLOCKS, ids=lambda b: b.id)
-def test_python_block_runs(block: Block) -> None:
-    result = run_python("-c", block.text)
-    assert result.returncode == 0, f"{block.id} failed:\n{result.stdout}\n{result.stderr}"
+    status = rac_main(["fmt", "--check", str(source)])
+    assert status == 0, f"{block.id} is not in `rac fmt`'s layout:\n{capsys.readouterr().err}"
 
 
 # ---------------------------------------------------------------- examples/naive_driving.ra
@@ -160,21 +163,6 @@ def test_naive_driving_counterexample_as_json(capsys: pytest.CaptureFixture[str]
     assert diagnostic["data"]["value"] == "80"
     run = diagnostic["data"]["run"]
     assert len(run) == 300 and run[-1]["to"] == "Unsafe"
-
-
-def test_readme_quotes_the_real_check_output() -> None:
-    readme = (REPO / "README.md").read_text(encoding="utf-8").splitlines()
-    start = next(i for i, line in enumerate(readme) if line.startswith("$ rac check examples/naive_driving.ra"))
-    quoted = []
-    for line in readme[start + 1:]:
-        if line.startswith("$ ") or line.startswith("```"):
-            break
-        quoted.append(line.strip())
-    assert quoted, "the README quotes no output"
-    output = run_python("-m", "rac", "check", "examples/naive_driving.ra").stdout
-    actual = {line.strip() for line in output.splitlines()}
-    missing = [line for line in quoted if line not in actual]
-    assert not missing, f"the README quotes lines `rac check` no longer prints: {missing}"
 
 
 # ---------------------------------------------------------------- examples/*.py
@@ -203,25 +191,3 @@ def test_generated_module_agrees_with_the_interpreter(tmp_path: Path) -> None:
     assert "agree on all 300 samples" in result.stdout
     assert "it imports __future__, collections, math" in result.stdout
     assert (tmp_path / "driving_ra.py").exists()
-
-
-# ---------------------------------------------------------------- the engine docs' Python blocks
-def _engine_block(doc: str) -> Block:
-    (block,) = [b for b in code_blocks(REPO / "docs" / doc) if b.language == "python"]
-    return block
-
-
-@pytest.mark.parametrize(("doc", "example", "queries", "folder"), [
-    ("verify.md", "examples/left_turn/preanalysis.ra", ["Qd"], "examples/left_turn/preanalysis.out/verify"),
-    ("learning.md", "examples/paper/model.ra", ["reachSafe"], "examples/paper/model.out/verify"),
-])
-def test_engine_doc_blocks_run(doc: str, example: str, queries: list[str], folder: str, tmp_path: Path) -> None:
-    """The files the block reads are made by `rac verify` (into tmp_path instead of beside the example)."""
-    made = run_python("-m", "rac", "verify", example, "--seed", "1", "--out", str(tmp_path), "-q",
-                      *(arg for q in queries for arg in ("--query", q)))
-    assert made.returncode == 0, made.stdout + made.stderr
-    block = _engine_block(doc)
-    assert folder in block.text
-    result = run_python("-c", block.text.replace(folder, str(tmp_path)))
-    assert result.returncode == 0, f"{block.id} failed:\n{result.stdout}\n{result.stderr}"
-    assert result.stdout.strip()

@@ -161,9 +161,10 @@ def test_the_issue_block_formats_canonically_and_keeps_its_comments() -> None:
         '        scenario "left_turn.xml"         // CommonRoad file, relative to the .ra file\'s folder',
         "        base 10                          // number representation: significand = trunc(v * base^exponent)",
     ]
-    assert "        bind prog = dist_goal() < prev(dist_goal())\n" in block
-    assert "        bind comf = fabs(acc) < comfort_acceleration * max_acceleration && fabs(turn) < " in block
-    assert block.endswith("        bind dgoal = dist_goal()\n    }\n}\n")
+    # the bindings align their `=`
+    assert "        bind prog    = dist_goal() < prev(dist_goal())\n" in block
+    assert "        bind comf    = fabs(acc) < comfort_acceleration * max_acceleration && fabs(turn) < " in block
+    assert block.endswith("        bind dgoal   = dist_goal()\n    }\n}\n")
 
 
 def test_format_layout() -> None:

@@ -175,8 +175,8 @@ def test_strict_driving_reports_the_lower_levels_only() -> None:
 
 def test_strict_reports_the_failing_level_when_the_top_holds() -> None:
     # Comfort never grows: level 2 holds (co <= 0 in Uncomfortable), level 1 fails with 5*130.
-    variant = {"initial location Normal  { sa' == 1;  pr' == 1;  co' == 1 }":
-               "initial location Normal  { sa' == 1;  pr' == 1;  co' == 0 }"}
+    variant = {"initial location Normal { sa' == 1;  pr' == 1;  co' == 1 }":
+               "initial location Normal { sa' == 1;  pr' == 1;  co' == 0 }"}
     result = compiled(driving_text(100, strict=True, **variant))
     (diag,) = errors(result, "E0402")
     assert diag.data["level"] == 1 and diag.data["reward"] == "pr"
@@ -193,7 +193,7 @@ def test_strict_reports_the_failing_level_when_the_top_holds() -> None:
 
 def test_strict_level_constant_only_counts_at_the_top() -> None:
     raw = compile_text(driving_text(100, strict=True,
-                                    **{"objective 10*sa + 5*pr + co": "objective 10*sa + 5*pr + co - 1000"}),
+                                    **{"objective 10 * sa + 5 * pr + co": "objective 10 * sa + 5 * pr + co - 1000"}),
                        analyse=False).automaton
     assert raw is not None
     diagnostics = check_priorities(raw)

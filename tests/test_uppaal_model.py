@@ -348,7 +348,7 @@ def test_standard_queries_read_the_models_names(tmp_path: Path) -> None:
     source = MODEL_RA.read_text(encoding="utf-8").replace(
         "reward sa, pr, co", "reward sa, pr, co, v").replace(
         "input dgoal   : real in [0, 500]", "input dgoal   : real in [0, 500]\n    input x : real in [0, 10]").replace(
-        "objective 10*sa + 5*pr + co", "objective 10*sa + 5*pr + co + v").replace(
+        "objective 10 * sa + 5 * pr + co", "objective 10 * sa + 5 * pr + co + v").replace(
         "priority sa > pr > co ", "priority sa > pr > co > v ").replace(
         "bind dgoal   = dist_goal()", "bind dgoal   = dist_goal()\n        bind x = fmin(v, 10)").replace(
         '"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"')

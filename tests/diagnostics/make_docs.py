@@ -73,7 +73,7 @@ _UPPAAL = ("compile", "--target", "uppaal", "{file}", "-o", "driving.xml")
 
 #: The same automaton with German comments, as an editor set to Latin-1 saves it.
 LATIN1 = SMALL.replace("// Safety only: a minimal automaton", "// Nur Sicherheit: ein minimaler Automat") \
-    .replace("input isClose : bool", "input isClose : bool    // Hindernis näher als der Sicherheitsabstand")
+    .replace("input isClose : bool", "input isClose : bool  // Hindernis näher als der Sicherheitsabstand")
 
 
 #: The automaton of the E0712 example (which names a `left_turn.xml` that is missing), with the
@@ -81,7 +81,7 @@ LATIN1 = SMALL.replace("// Safety only: a minimal automaton", "// Nur Sicherheit
 SCENARIO_EXPONENT = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
     .replace("// A model whose scenario file is not next to this one",
              "// A model whose scenario lies in UTM coordinates, hundreds of kilometres from the origin") \
-    .replace("        bind isClose", "        exponent 4                        // significand = trunc(v * 10^4)\n"
+    .replace("        bind isClose", "        exponent 4                // significand = trunc(v * 10^4)\n"
              "        bind isClose", 1)
 #: examples/left_turn/left_turn.xml moved by (500 km, 5400 km), as a map in UTM coordinates places it.
 UTM_SHIFT = (500_000, 5_400_000)
@@ -106,8 +106,8 @@ def _scene(name: str, scenario: str, comment: str, build: str) -> Callable[[Path
     ``build`` of tests/tiny_scenarios.py (commonroad-io) writes next to it."""
     text = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
         .replace("// A model whose scenario file is not next to this one", f"// A model over {comment}") \
-        .replace('scenario "left_turn.xml"          // the CommonRoad file, next to this one',
-                 f'scenario "{scenario}"{" " * (23 - len(scenario))}// the CommonRoad file, next to this one')
+        .replace('scenario "left_turn.xml"  // the CommonRoad file, next to this one',
+                 f'scenario "{scenario}"  // the CommonRoad file, next to this one')
 
     def make(folder: Path) -> None:
         if str(HERE.parent) not in sys.path:  # tests/, where tiny_scenarios lives

@@ -163,7 +163,7 @@ class Resolver:
                 found[kind] = members[0]
             elif kind is not ast.PriorityDecl:
                 example = {"sample every": "sample every 0.1", "horizon": "horizon 30",
-                           "objective": "objective 10*sa + 5*pr + co"}[word]
+                           "objective": "objective 10 * sa + 5 * pr + co"}[word]
                 self._error("E0105", f"automaton `{self.node.name.name}` has no `{word}` declaration",
                             self.node.name.span, hints=[f"add e.g. `{example}`"])
         return found

@@ -11,7 +11,10 @@ Three layers:
   on one line (a ``model`` block: one item per line, :func:`format_model_item`);
 * :func:`format_module` lays out whole files: four-space indentation, one member
   per line, a blank line where the kind of declaration changes, and every comment
-  of the source kept, attached by position to the member it belongs to.
+  of the source kept, attached by position to the member it belongs to. Runs of
+  declarations of one kind are aligned in columns (:mod:`rac.lang.columns`): the ``:``
+  of inputs, the ``=`` of constants and bindings, location bodies and their flows,
+  the ``when`` and ``do`` of edges and ``at end`` clauses, and trailing comments.
 
 The property the tests check: ``parse_text(format_module(m)) == m`` for every tree
 ``m`` the parser can produce, and formatting formatted text changes nothing.
@@ -19,12 +22,14 @@ The property the tests check: ``parse_text(format_module(m)) == m`` for every tr
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac.core.numbers import exact_decimal
 from rac.core.printing import C_BINARY, Associativity, Level, Operator, OperatorTable, Printed, Printer, number
 from rac.lang import ast
+from rac.lang.columns import align_cells, comment_column
 from rac.lang.parser import parse_text
 
 __all__ = ["RA", "RaPrinter", "format_expr", "format_member", "format_model_item", "format_module", "format_query",
@@ -32,8 +37,8 @@ __all__ = ["RA", "RaPrinter", "format_expr", "format_member", "format_model_item
 
 INDENT = "    "
 
-#: Trailing comments of consecutive declarations of one kind are aligned in one
-#: column, unless a declaration is longer than this (its comment then follows two spaces).
+#: Trailing comments of consecutive lines are aligned in one column, unless a line is
+#: longer than this (its comment then follows two spaces).
 _ALIGN_LIMIT = 72
 
 # ---------------------------------------------------------------- expressions
@@ -184,11 +189,66 @@ def _type(kind: ast.InputType) -> str:
 
 
 def _updates(updates: tuple[ast.Update, ...]) -> str:
-    return " do " + ", ".join(f"{u.target.name} {u.op} {_expr(u.expr)}" for u in updates) if updates else ""
+    return "do " + ", ".join(f"{u.target.name} {u.op} {_expr(u.expr)}" for u in updates) if updates else ""
 
 
 def _guard(guard: ast.Expr | None) -> str:
-    return f" when {_expr(guard)}" if guard is not None else ""
+    return f"when {_expr(guard)}" if guard is not None else ""
+
+
+def _edge_source(edge: ast.EdgeDecl) -> str:
+    """What an edge leaves from: a location's name, ``*`` for every location, or ``* except A, B``."""
+    if edge.source is not None:
+        return edge.source.name
+    return f"* except {_names(edge.excluded)}" if edge.excluded else "*"
+
+
+#: A line of a printed automaton: a declaration, or an item of its ``model`` block.
+_Node = ast.Member | ast.ModelItem
+
+
+def _cells(node: _Node) -> list[str] | None:
+    """The cells of a declaration whose runs are aligned in columns (:func:`align_cells`), or None.
+
+    Locations are not here: the columns of their flows span the run (:func:`_location_lines`).
+    """
+    if isinstance(node, ast.InputDecl):
+        return [f"input {_names(node.names)}", f": {_type(node.type)}"]
+    if isinstance(node, ast.ConstDecl):
+        return [f"const {node.name.name}", f"= {_expr(node.expr)}"]
+    if isinstance(node, ast.ModelBinding):
+        return [f"bind {node.input.name}", f"= {_expr(node.expr)}"]
+    if isinstance(node, ast.EdgeDecl):
+        return [f"edge {_edge_source(node)} -> {node.target.name}", _guard(node.guard), _updates(node.updates)]
+    if isinstance(node, ast.EndDecl):
+        return ["at end", _guard(node.guard), _updates(node.updates)]
+    return None
+
+
+def _location_lines(locations: Sequence[ast.LocationDecl]) -> list[str]:
+    """A run of locations: the bodies start in one column, and so do the i-th flows of the bodies."""
+    flows = align_cells([[f"{f.reward.name}' == {_expr(f.rate)}" + (";" if i < len(loc.flows) - 1 else "")
+                          for i, f in enumerate(loc.flows)] for loc in locations])
+    return align_cells([[f"{'initial ' if loc.initial else ''}location {loc.name.name}",
+                         f"{{ {text} }}" if text else "{ }"] for loc, text in zip(locations, flows, strict=True)])
+
+
+def _run_lines(run: Sequence[_Node]) -> list[str]:
+    """The lines of a run of declarations (or model items) of one kind, aligned."""
+    locations = [node for node in run if isinstance(node, ast.LocationDecl)]
+    if len(locations) == len(run):
+        return _location_lines(locations)
+    rows = [cells for cells in map(_cells, run) if cells is not None]
+    if len(rows) == len(run):
+        return align_cells(rows)
+    return [_line(node) for node in run]
+
+
+def _line(node: _Node) -> str:
+    """One declaration or model item alone on its line (no alignment applies to its kind)."""
+    if isinstance(node, (ast.ModelScenario, ast.ModelAction, ast.ModelBinding, ast.ModelAllow, ast.ModelSetting)):
+        return format_model_item(node)
+    return format_member(node)
 
 
 def format_model_item(item: ast.ModelItem) -> str:
@@ -200,7 +260,7 @@ def format_model_item(item: ast.ModelItem) -> str:
     if isinstance(item, ast.ModelAction):
         return f"action {item.name.name} in [{_expr(item.low)}, {_expr(item.high)}] step {_expr(item.step)}"
     if isinstance(item, ast.ModelBinding):
-        return f"bind {item.input.name} = {_expr(item.expr)}"
+        return _run_lines([item])[0]
     if isinstance(item, ast.ModelAllow):
         return f"allow when {_expr(item.expr)}"
     if isinstance(item, ast.ModelSetting):
@@ -212,14 +272,13 @@ def format_member(member: ast.Member) -> str:
     """Print one declaration of an automaton, without indentation or comments.
 
     Every declaration fits on one line except a ``model`` block, which prints one item per
-    line, indented by four spaces, between ``model {`` and ``}``.
+    line, indented by four spaces, between ``model {`` and ``}``. A declaration alone in its
+    run prints the same in :func:`format_module`.
     """
-    if isinstance(member, ast.InputDecl):
-        return f"input {_names(member.names)} : {_type(member.type)}"
+    if isinstance(member, (ast.InputDecl, ast.ConstDecl, ast.LocationDecl, ast.EdgeDecl, ast.EndDecl)):
+        return _run_lines([member])[0]
     if isinstance(member, ast.AssumeDecl):
         return f"assume {_expr(member.expr)}"
-    if isinstance(member, ast.ConstDecl):
-        return f"const {member.name.name} = {_expr(member.expr)}"
     if isinstance(member, ast.RewardDecl):
         return f"reward {_names(member.names)}"
     if isinstance(member, ast.PriorityDecl):
@@ -230,17 +289,6 @@ def format_member(member: ast.Member) -> str:
         return f"sample every {_expr(member.period)}"
     if isinstance(member, ast.HorizonDecl):
         return f"horizon {_expr(member.length)}"
-    if isinstance(member, ast.LocationDecl):
-        flows = "; ".join(f"{f.reward.name}' == {_expr(f.rate)}" for f in member.flows)
-        body = f"{{ {flows} }}" if flows else "{ }"
-        return f"{'initial ' if member.initial else ''}location {member.name.name} {body}"
-    if isinstance(member, ast.EdgeDecl):
-        source = member.source.name if member.source is not None else "*"
-        if member.excluded:
-            source += f" except {_names(member.excluded)}"
-        return f"edge {source} -> {member.target.name}{_guard(member.guard)}{_updates(member.updates)}"
-    if isinstance(member, ast.EndDecl):
-        return f"at end{_guard(member.guard)}{_updates(member.updates)}"
     if isinstance(member, ast.QueryDecl):
         return f"query {member.name.name}: {format_query(member.query)}"
     if isinstance(member, ast.ModelDecl):
@@ -441,20 +489,36 @@ def _emit_line(lines: list[str], code: str, slot: _Slot, column: int | None = No
     lines.extend(" " * at + _comment_text(c) for c in slot.continued)
 
 
-def _aligned_columns(codes: list[str], slots: list[_Slot], groups: list[int]) -> list[int | None]:
-    """The column of each line's trailing comments: shared by a run of lines of one group."""
-    columns: list[int | None] = [None] * len(codes)
+def _runs(keys: Sequence[object], slots: Sequence[_Slot]) -> list[range]:
+    """Split consecutive lines into runs: a run ends where the key changes (a blank line or
+    another kind of declaration follows) or before a line with own-line comments above it."""
+    runs: list[range] = []
     start = 0
-    while start < len(codes):
-        end = start
-        while end < len(codes) and groups[end] == groups[start]:
-            end += 1
-        widths = [len(codes[i]) for i in range(start, end) if slots[i].trailing and len(codes[i]) <= _ALIGN_LIMIT]
-        if widths:
-            for i in range(start, end):
-                columns[i] = max(widths) + 2
-        start = end
-    return columns
+    for index in range(1, len(keys) + 1):
+        if index == len(keys) or keys[index] != keys[start] or slots[index].leading:
+            runs.append(range(start, index))
+            start = index
+    return runs
+
+
+def _layout(nodes: Sequence[_Node], slots: Sequence[_Slot], groups: Sequence[int],
+            indent: str) -> tuple[list[str], list[int | None]]:
+    """Each line's code, aligned within its run of one kind of declaration, and the column of its
+    trailing comments, shared by its run of consecutive lines (None: two spaces after the code).
+
+    A ``model`` block spans several lines: it has no code here (:func:`_format_block` prints it).
+    """
+    codes = [""] * len(nodes)
+    for run in _runs([type(node) for node in nodes], slots):
+        if not isinstance(nodes[run.start], ast.ModelDecl):
+            for index, line in zip(run, _run_lines([nodes[i] for i in run]), strict=True):
+                codes[index] = indent + line
+    columns: list[int | None] = [None] * len(nodes)
+    for run in _runs(groups, slots):
+        column = comment_column([len(codes[i]) for i in run if slots[i].trailing], _ALIGN_LIMIT)
+        for index in run:
+            columns[index] = column if len(codes[index]) <= _ALIGN_LIMIT else None
+    return codes, columns
 
 
 def _format_block(block: ast.ModelDecl, comments: _BlockComments, slot: _Slot) -> list[str]:
@@ -466,11 +530,10 @@ def _format_block(block: ast.ModelDecl, comments: _BlockComments, slot: _Slot) -
         return lines
     lines = []
     _emit_line(lines, INDENT + "model {", comments.header)
-    codes = [indent + format_model_item(i) for i in block.items]
-    columns = _aligned_columns(codes, comments.items, [0] * len(codes))
+    codes, columns = _layout(block.items, comments.items, [0] * len(block.items), indent)
     for code, item, column in zip(codes, comments.items, columns, strict=True):
         lines.extend(indent + _comment_text(c) for c in item.leading)
-        _emit_line(lines, code, item, column if len(code) <= _ALIGN_LIMIT else None)
+        _emit_line(lines, code, item, column)
     lines.extend(indent + _comment_text(c) for c in comments.closing)
     _emit_line(lines, INDENT + "}", slot)
     return lines
@@ -479,11 +542,8 @@ def _format_block(block: ast.ModelDecl, comments: _BlockComments, slot: _Slot) -
 def _format_automaton(automaton: ast.Automaton, comments: _AutomatonComments) -> list[str]:
     lines = [_comment_text(c) for c in comments.header.leading]
     _emit_line(lines, f"automaton {automaton.name.name} {{", comments.header)
-    # A model block spans several lines: it takes no part in the alignment of trailing comments.
-    codes = ["" if isinstance(m, ast.ModelDecl) else INDENT + format_member(m) for m in automaton.members]
     groups = [_GROUP[type(m)] for m in automaton.members]
-    # Trailing comments of a run of same-group declarations share one column.
-    columns = _aligned_columns(codes, comments.members, groups)
+    codes, columns = _layout(automaton.members, comments.members, groups, INDENT)
     for index, (code, slot) in enumerate(zip(codes, comments.members, strict=True)):
         if index and groups[index] != groups[index - 1]:
             lines.append("")
@@ -492,7 +552,7 @@ def _format_automaton(automaton: ast.Automaton, comments: _AutomatonComments) ->
         if isinstance(member, ast.ModelDecl):
             lines.extend(_format_block(member, comments.blocks[index], slot))
         else:
-            _emit_line(lines, code, slot, columns[index] if len(code) <= _ALIGN_LIMIT else None)
+            _emit_line(lines, code, slot, columns[index])
     lines.extend(INDENT + _comment_text(c) for c in comments.closing)
     closing = "}"
     if comments.after:
