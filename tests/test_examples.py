@@ -60,8 +60,6 @@ _EXPECT = re.compile(r"^<!--\s*expect:\s*([EW]\d{4})\s*-->$")
 #: docs/checks.md marks each diagnostic example as ``<!-- case: E0402_name -->`` ... ``<!-- end case -->``.
 _CASE = re.compile(r"^<!--\s*case:\s*(([EW]\d{4})_\w+)\s*-->$")
 _END_CASE = re.compile(r"^<!--\s*end case\s*-->$")
-#: Cases about bytes a text block cannot carry (encoding, size, unreadable files).
-BYTE_LEVEL = {"E0004", "E0005", "E0008"}
 
 
 def code_blocks(path: Path) -> list[Block]:

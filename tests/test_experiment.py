@@ -95,3 +95,18 @@ def test_seed_is_one_seed_and_not_ignored(tmp_path: Path, capsys: pytest.Capture
     capsys.readouterr()
     assert main(["experiment", str(path), "--seed", "3", "--seeds", "1,2", "-q"]) == 2
     assert "not both" in capsys.readouterr().err
+
+
+def test_the_learning_curves_say_mean_and_sd_once(report: dict[str, object], tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """The review read "(mean ± sd over seeds)" twice in the title of returns.png."""
+    import rac.output.plots as plots
+    from rac.studies.experiment import write_outputs
+
+    figures = []
+    monkeypatch.setattr(plots, "save_figure", lambda figure, path, **options: figures.append(figure) or Path(path))
+    write_outputs(report, tmp_path)
+    returns = figures[0].axes[0]
+    assert returns.get_title().count("over seeds") == 1 and "mean ± sd" in returns.get_title()
+    styles = [(line.get_linestyle(), line.get_marker()) for line in returns.get_lines()]
+    assert len(set(styles)) == len(styles) == 4

@@ -418,7 +418,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
         out_dir.mkdir(parents=True, exist_ok=True)
         write_csv(csv_path, runs.times, texts, values)
         title = f"{args.file.name}: {args.runs} runs{' under the shield' if args.shield else ''} (seed {seed})"
-        plot_series(png_path, runs.times, texts, values, title)
+        plot_series(png_path, runs.times, texts, values, title, exprs)
     except OSError as exc:
         print(f"rac simulate: cannot write: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -54,6 +54,7 @@ __all__ = [
     "reads_automaton",
     "reads_truth",
     "refs",
+    "unit_of",
     "uses_prev",
     "walk",
 ]
@@ -282,6 +283,52 @@ def integer_bound(op: str, bound: Fraction) -> tuple[str, int] | bool:
     if op == ">=":
         return ">=", math.ceil(bound)
     return op == "!="  # X == non-integer is never true, X != non-integer always
+
+
+# ---------------------------------------------------------------- units
+#: Math functions whose result has the unit their arguments share.
+_SAME_UNIT = frozenset({"fabs", "abs", "fmin", "fmax", "floor", "ceil", "round", "trunc"})
+
+
+def unit_of(expr: Expr) -> str | None:
+    """The unit of a number expression, from the vocabulary: ``"m"`` for ``mindist()`` and
+    ``3 * collision_distance``, ``"m/s"`` for ``prev(v)``, ``""`` for a plain number; None when it
+    has none to tell: a truth value, a name of the automaton (an input or reward has no declared
+    unit), or two units combined (``mindist() / v``: products and quotients are not worked out).
+
+    A bare number added to a quantity takes its unit (``mindist() - 1.5`` is in metres).
+
+    Example::
+
+        unit_of(Binary("*", Const(Fraction(3)), model_ref("collision_distance")))  # "m"
+    """
+    if expr.type != NUM:
+        return None
+    if isinstance(expr, Const):
+        return ""
+    if isinstance(expr, Ref):
+        return expr.model.unit if expr.is_model else None
+    if isinstance(expr, (Prev, Unary)):
+        return unit_of(expr.operand)
+    if isinstance(expr, Call):
+        if expr.function.kind == "model":
+            return expr.function.unit
+        units = {unit_of(arg) for arg in expr.args}
+        if expr.name in _SAME_UNIT or units == {""}:  # sqrt of a plain number is one
+            return units.pop() if len(units) == 1 else None
+        return None
+    if isinstance(expr, Binary):
+        left, right = unit_of(expr.left), unit_of(expr.right)
+        if expr.op in ("+", "-"):
+            if left == right:
+                return left
+            return right if isinstance(expr.left, Const) else left if isinstance(expr.right, Const) else None
+        if expr.op == "*":
+            return right if left == "" else left if right == "" else None
+        if right == "":
+            return left
+        return "" if left == right and left is not None else None
+    return None
 
 
 # ---------------------------------------------------------------- walking

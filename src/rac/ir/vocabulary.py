@@ -235,6 +235,9 @@ class Function:
     in_bindings: bool = True
     #: How it is written in messages, e.g. ``fmin(a, b)``.
     signature: str = ""
+    #: The unit of a model function's number (``mindist()``: ``"m"``); "" for truth values, for
+    #: ``prev`` and the math functions (their unit is their arguments', :func:`rac.ir.expr.unit_of`).
+    unit: str = ""
 
     def __repr__(self) -> str:
         return f"Function({self.name!r})"
@@ -247,9 +250,9 @@ MODEL_FUNCTIONS: dict[str, Function] = {f.name: f for f in (
     Function("goal", 0, "bool", "model", "the ego is in the goal region, within its time interval", "goal",
              signature="goal()"),
     Function("mindist", 0, "num", "model", "the distance to the nearest obstacle (m)", "mindist",
-             signature="mindist()"),
+             signature="mindist()", unit="m"),
     Function("dist_goal", 0, "num", "model", "the distance to the goal's centre (m)", "dist_goal",
-             signature="dist_goal()"),
+             signature="dist_goal()", unit="m"),
     Function("prev", 1, None, "model", "the value of e at the previous sample", "", signature="prev(e)"),
 )}
 MATH_FUNCTIONS: dict[str, Function] = {f.name: f for f in (

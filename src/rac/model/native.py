@@ -28,12 +28,16 @@ from typing import NamedTuple
 
 from rac.model.data import ModelData, ModelRangeError
 
-__all__ = ["CORNERS", "CORNER_NAMES", "NO_OBSTACLE", "NO_OBSTACLE_TEXT", "NativeModel", "State", "point_in_polygons"]
+__all__ = ["CORNERS", "CORNER_NAMES", "NEGATIVE_DISTANCE_TEXT", "NO_OBSTACLE", "NO_OBSTACLE_TEXT", "NativeModel",
+           "State", "point_in_polygons"]
 
 #: ``mindist()`` when no obstacle exists at the sample.
 NO_OBSTACLE = 1.0e9
 #: :data:`NO_OBSTACLE` as messages write it.
 NO_OBSTACLE_TEXT = "1e9"
+#: What a ``mindist()`` below 0 means, as plots say it: the discs covering the ego and an obstacle
+#: (:meth:`NativeModel.mindist`) overlap, by that many metres; the vehicles have run into each other.
+NEGATIVE_DISTANCE_TEXT = "below 0 m: the vehicles overlap (by that depth)"
 #: The ego rectangle's corners as (along, across) signs, in the order offroad() visits them.
 CORNERS = ((1, 1), (1, -1), (-1, -1), (-1, 1))
 #: The corners of :data:`CORNERS` in words (across > 0 is the ego's left).

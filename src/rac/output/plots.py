@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import secrets
+import textwrap
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -32,13 +33,16 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.text import Text
 from matplotlib.transforms import blended_transform_factory
 
 from rac.model.native import NO_OBSTACLE
 
 __all__ = [
-    "ABOVE_COLOUR", "BELOW_COLOUR", "THRESHOLD_COLOUR", "atomic_write", "below_summary", "new_figure",
-    "plot_learning_curves", "plot_runs", "plot_sweep", "runs_below", "save_figure",
+    "ABOVE_COLOUR", "BELOW_COLOUR", "CURVE_STYLES", "THRESHOLD_COLOUR", "atomic_write", "below_summary", "curve_style",
+    "fit_title", "new_figure", "plot_first_success", "plot_learning_curves", "plot_runs", "plot_sweep",
+    "quantity_label", "runs_below", "save_figure", "wrap_text",
 ]
 
 ABOVE_COLOUR = "#4c72b0"  #: runs / settings that stay at or above the threshold
@@ -50,6 +54,13 @@ _HORIZONTAL: dict[str, Any] = (
     else {"vert": False})
 _CYCLE = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860", "#da8bc3", "#8c8c8c", "#ccb974",
           "#64b5cd")
+#: Line styles and markers of curves drawn over one another (learning curves often coincide: the
+#: style and marker tell them apart where the colours hide each other). Pairs repeat after 12.
+CURVE_STYLES: tuple[tuple[str, ...], tuple[str, ...]] = (("-", "--", "-.", ":"), ("o", "s", "^", "D", "v", "P"))
+#: The region of values below 0 (an overlap, for distances) is tinted with this colour.
+_NEGATIVE_TINT = "#fdeeee"
+#: The smallest font size a title is shrunk to before it is wrapped into more lines.
+_SMALLEST_TITLE = 7.0
 
 
 # ---------------------------------------------------------------- files
@@ -89,6 +100,74 @@ def save_figure(figure: Figure, path: str | os.PathLike[str], *, dpi: int = 110)
     return atomic_write(path, lambda file: figure.savefig(file, format="png", dpi=dpi))
 
 
+# ---------------------------------------------------------------- labels
+def quantity_label(text: str, unit: str | None) -> str:
+    """An axis label: the quantity and its unit in brackets, ``"mindist() (m)"``; the text alone
+    when it has no unit (None or "").
+
+    Example::
+
+        >>> quantity_label("3 * collision_distance", "m")
+        '3 * collision_distance (m)'
+    """
+    return f"{text} ({unit})" if unit else text
+
+
+def curve_style(index: int) -> tuple[str, str, str]:
+    """The colour, line style and marker of the ``index``-th of several curves on one axes."""
+    styles, markers = CURVE_STYLES
+    return _CYCLE[index % len(_CYCLE)], styles[index % len(styles)], markers[index % len(markers)]
+
+
+def wrap_text(text: str, width: int) -> str:
+    """``text`` wrapped at spaces into lines of at most ``width`` characters (a longer word, such as
+    a file name, is broken); its own line breaks are kept."""
+    return "\n".join(line for paragraph in text.split("\n")
+                     for line in textwrap.wrap(paragraph, max(width, 1), break_on_hyphens=False) or [""])
+
+
+def fit_title(figure: Figure, title: Text) -> int | None:
+    """Wrap ``title`` into shorter lines, and shrink its font when that takes more than three lines
+    or the lines become very short, until its rendered box lies inside ``figure``: a long title
+    (a long file name) is otherwise cut off at both ends. Returns the width in characters it was
+    wrapped at (None: it fitted as it was), so a text that later changes a little (a GIF frame's
+    time) can be wrapped alike with :func:`wrap_text`. Each try lays the figure out once (no pixels)."""
+    text = title.get_text()
+    width: int | None = None
+    renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]  # Agg: new_figure's canvas
+    for _ in range(30):
+        figure.draw_without_rendering()
+        box, room = title.get_window_extent(renderer), figure.bbox
+        centre = (box.x0 + box.x1) / 2
+        available = 2 * min(centre - room.x0, room.x1 - centre) - 2  # a title is centred: the nearer edge counts
+        fits_across = box.width <= available
+        if fits_across and box.y0 >= room.y0 and box.y1 <= room.y1:
+            return width
+        smallest = float(title.get_fontsize()) <= _SMALLEST_TITLE
+        if fits_across:  # too tall: only a smaller font helps
+            if smallest:
+                return width
+            chars = 0
+        else:
+            longest = max(len(line) for line in title.get_text().split("\n"))
+            chars = min(longest - 1, int(longest * max(available, 0.0) / max(box.width, 1.0)))
+        wrapped = wrap_text(text, chars) if chars >= 1 else text
+        lines = wrapped.count("\n")
+        while chars > 1 and wrap_text(text, chars - 1).count("\n") == lines:  # balanced: no word alone below
+            chars -= 1
+            wrapped = wrap_text(text, chars)
+        if chars >= 1 and (smallest or (chars >= 16 and lines < 3)):
+            title.set_text(wrapped)
+            width = chars
+        elif not smallest:  # too many or too short lines, or too tall: a smaller font, then wrap again
+            title.set_fontsize(max(_SMALLEST_TITLE, float(title.get_fontsize()) - 1))
+            title.set_text(text)
+            width = None
+        else:
+            return width
+    return width
+
+
 # ---------------------------------------------------------------- Fig. 7: runs against a threshold
 def runs_below(values: np.ndarray, threshold: float) -> np.ndarray:
     """Which runs go strictly below ``threshold`` at some sample: a bool array, one per run.
@@ -121,7 +200,8 @@ def below_summary(values: np.ndarray, threshold: float, threshold_label: str = "
 def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str], *,
               threshold: float | None = None, threshold_label: str = "threshold", ylabel: str = "distance (m)",
               xlabel: str = "time (s)", title: str | None = None, highlight_below: bool = True,
-              missing: float | None = NO_OBSTACLE, missing_label: str = "no obstacle") -> Path:
+              missing: float | None = NO_OBSTACLE, missing_label: str = "no obstacle", unit: str = "",
+              below_zero: str | None = None) -> Path:
     """The paper's Fig. 7: N simulated runs of a quantity (e.g. ``mindist()``) over time, against a
     horizontal threshold line; write the PNG to ``path`` and return it.
 
@@ -135,10 +215,15 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
     ``missing_label`` (and at how many samples), and the axes are scaled to the other values; when
     every sample is missing, the plot says so instead of drawing a line at 1e9.
 
+    ``unit`` follows the threshold's value in the legend (``3·TD = 1.5 m``). ``below_zero``
+    explains values below 0 (for ``mindist()``: :data:`rac.model.native.NEGATIVE_DISTANCE_TEXT`):
+    when a run goes below 0, that region is tinted and the legend says ``below_zero``. A long
+    title is wrapped to fit (:func:`fit_title`).
+
     Example::
 
         plot_runs(np.arange(300) * 0.1, mindist, "fig7.png", threshold=3 * 0.5, threshold_label="3·TD",
-                  title="left turn, exponent 2")
+                  title="left turn, exponent 2", unit="m", ylabel="mindist() (m)")
     """
     values = np.atleast_2d(np.asarray(values, dtype=float))
     absent = values == missing if missing is not None else np.zeros(values.shape, dtype=bool)
@@ -180,7 +265,7 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
     if threshold is not None:
         ax.axhline(threshold, color=THRESHOLD_COLOUR, linestyle="--", linewidth=1.4, zorder=5)
         handles.append(Line2D([], [], color=THRESHOLD_COLOUR, linestyle="--", lw=1.4,
-                              label=f"{threshold_label} = {threshold:g}"))
+                              label=f"{threshold_label} = {threshold:g}{' ' * bool(unit)}{unit}"))
 
     if absent.any() and finite.any():
         handles.append(Line2D([], [], color="none", label=f"gaps: {missing_label} at {int(absent.sum())} of "
@@ -193,6 +278,9 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
             low, high = min(low, threshold), max(high, threshold)
         pad = 0.05 * (high - low) or 1.0
         ax.set_ylim(min(0.0, low) if low >= 0 else low - pad, high + pad)  # distances: keep 0 in view
+        if below_zero is not None and low < 0:
+            ax.axhspan(low - pad, 0.0, color=_NEGATIVE_TINT, zorder=0.5, linewidth=0)
+            handles.append(Patch(facecolor=_NEGATIVE_TINT, edgecolor="#e0b4b4", label=below_zero))
     if np.isfinite(times).any():
         start, end = float(np.nanmin(times)), float(np.nanmax(times))
         ax.set_xlim(start, end if end > start else start + 1.0)
@@ -206,8 +294,26 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
                 fontsize=11, color=THRESHOLD_COLOUR)
         count = f"{nothing} of {n_runs} run{'s' * (n_runs != 1)}"
     ax.set_title(f"{title}: {count}" if title else count)
-    ax.legend(handles=handles, loc="upper right", framealpha=0.9)
+    ax.legend(handles=handles, loc=_emptiest_corner(ax, times, values, len(handles)), framealpha=0.9)
+    fit_title(figure, ax.title)
     return save_figure(figure, path)
+
+
+_Corner = Literal["upper right", "upper left", "lower right", "lower left"]
+
+
+def _emptiest_corner(ax: Axes, times: np.ndarray, values: np.ndarray, entries: int) -> _Corner:
+    """The corner of ``ax`` where a legend of ``entries`` lines covers the fewest samples (upper
+    right on a tie). Matplotlib's ``loc="best"`` ignores the runs' LineCollections."""
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    with np.errstate(invalid="ignore"):
+        fx, fy = (times - x0) / ((x1 - x0) or 1.0), (values - y0) / ((y1 - y0) or 1.0)
+    width, height = 0.5, 0.04 + 0.075 * entries  # roughly the legend's size, as a fraction of the axes
+    right, left, top, bottom = fx > 1 - width, fx < width, fy > 1 - height, fy < height
+    corners: dict[_Corner, np.ndarray] = {"upper right": right & top, "upper left": left & top,
+                                          "lower right": right & bottom, "lower left": left & bottom}
+    counts = {corner: int(np.count_nonzero(inside)) for corner, inside in corners.items()}
+    return min(counts, key=lambda corner: counts[corner])  # dicts keep order: upper right wins a tie
 
 
 # ---------------------------------------------------------------- pre-analysis sweep
@@ -217,7 +323,8 @@ def _setting_label(row: Mapping[str, Any]) -> str:
 
 def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str], *,
                xlabel: str = "minimum distance of a run (m)", threshold_label: str = "threshold",
-               title: str = "pre-analysis sweep", missing_label: str = "no obstacle") -> Path:
+               title: str = "pre-analysis sweep", missing_label: str = "no obstacle", unit: str = "",
+               below_zero: str | None = None) -> Path:
     """One line per setting of the pre-analysis sweep: each run's minimum distance as a dot, a box
     of their quartiles, the threshold as a dashed line, and on the right how many runs went below
     it and the probability interval. Settings with a run below the threshold are drawn in red
@@ -228,7 +335,8 @@ def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str], 
     of floats; non-finite values are ignored: a run that met no obstacle has none), ``threshold``
     (float) and optionally ``probability`` (the (low, high) interval of the probability of going
     below). Rows are drawn top to bottom in the given order; a row without any distance says
-    ``missing_label``.
+    ``missing_label``. ``unit`` follows the threshold's value in the legend and ``below_zero``
+    explains distances below 0, as in :func:`plot_runs`.
 
     Example::
 
@@ -282,16 +390,26 @@ def plot_sweep(rows: Sequence[Mapping[str, Any]], path: str | os.PathLike[str], 
         tick.set_color(BELOW_COLOUR if red else "#212121")
     ax.set_ylim(-len(rows) + 0.4, 0.6)
     ax.set_xlabel(xlabel)
+    left, right_end = ax.get_xlim()
+    negative = below_zero is not None and left < 0
+    if negative:
+        ax.axvspan(left, 0.0, color=_NEGATIVE_TINT, zorder=0.5, linewidth=0)
+        ax.set_xlim(left, right_end)
     ax.grid(True, axis="x", color="#e0e0e0", linewidth=0.6, zorder=0)
     same = len(set(thresholds)) == 1
-    handles = [
+    handles: list[Any] = [
         Line2D([], [], color=THRESHOLD_COLOUR, linestyle="--", lw=1.3,
-               label=f"{threshold_label} = {thresholds[0]:g}" if same else threshold_label),
+               label=f"{threshold_label} = {thresholds[0]:g}{' ' * bool(unit)}{unit}" if same else threshold_label),
         Line2D([], [], color=BELOW_COLOUR, marker="o", linestyle="", markersize=5, label="run below"),
         Line2D([], [], color=ABOVE_COLOUR, marker="o", linestyle="", markersize=5, label="run above"),
     ]
-    ax.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncols=3, frameon=False, fontsize=9)
-    ax.set_title(f"{title}: {sum(reds)} of {len(rows)} settings go below {threshold_label}", pad=24)
+    if negative:
+        handles.append(Patch(facecolor=_NEGATIVE_TINT, edgecolor="#e0b4b4", label=below_zero))
+    ax.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncols=2 if negative else 3,
+              frameon=False, fontsize=9)
+    ax.set_title(f"{title}: {sum(reds)} of {len(rows)} settings go below {threshold_label}",
+                 pad=40 if negative else 24)
+    fit_title(figure, ax.title)
     return save_figure(figure, path)
 
 
@@ -309,7 +427,9 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
                          xlabel: str = "episode", title: str | None = None, band: Literal["std", "minmax"] = "std",
                          smooth: int = 1) -> Path:
     """Learning curves: for each label an array (seeds, episodes), drawn as the mean over seeds with
-    a shaded band (mean ± standard deviation, or min to max with ``band="minmax"``).
+    a shaded band (mean ± standard deviation, or min to max with ``band="minmax"``). Each curve has
+    its own colour, line style and marker (:func:`curve_style`), so a curve on top of another does
+    not hide it; the title ends in what is drawn, e.g. ``"(mean ± sd over seeds)"``.
 
     A 1-D array is one seed. ``smooth`` > 1 first takes a trailing moving average over that many
     episodes of each seed. NaN entries (a seed with fewer episodes) are left out of the statistics.
@@ -324,6 +444,9 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
         raise ValueError(f"plot_learning_curves: band must be 'std' or 'minmax', not {band!r}")
     figure = new_figure(7.5, 4.4)
     ax: Axes = figure.add_subplot()
+    # a marker every 1/12 of the longest curve (a short curve gets fewer), each curve's shifted:
+    # where curves coincide, every curve's markers still show
+    every = max(1, max(np.atleast_2d(np.asarray(data)).shape[1] for data in curves.values()) // 12)
     for i, (label, data) in enumerate(curves.items()):
         runs = _moving_average(np.atleast_2d(np.asarray(data, dtype=float)), smooth)
         episodes = np.arange(1, runs.shape[1] + 1)
@@ -335,17 +458,19 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
                 low, high = mean - spread, mean + spread
             else:
                 low, high = np.nanmin(runs, axis=0), np.nanmax(runs, axis=0)
-        colour = _CYCLE[i % len(_CYCLE)]
+        colour, style, marker = curve_style(i)
         seeds = runs.shape[0]
-        ax.plot(episodes, mean, color=colour, linewidth=1.6, label=f"{label} ({seeds} seed{'s' * (seeds != 1)})")
+        ax.plot(episodes, mean, color=colour, linewidth=1.6, linestyle=style, marker=marker, markersize=5,
+                markevery=(i * every // len(curves), every), label=f"{label} ({seeds} seed{'s' * (seeds != 1)})")
         if seeds > 1:
             ax.fill_between(episodes, low, high, color=colour, alpha=0.2, linewidth=0)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(True, color="#e0e0e0", linewidth=0.6)
-    spread_name = "mean ± std over seeds" if band == "std" else "mean, min–max over seeds"
+    spread_name = "mean ± sd over seeds" if band == "std" else "mean, min–max over seeds"
     ax.set_title(f"{title} ({spread_name})" if title else spread_name)
     ax.legend(loc="best", framealpha=0.9)
+    fit_title(figure, ax.title)
     return save_figure(figure, path)
 
 
@@ -363,14 +488,14 @@ def plot_first_success(first: Mapping[str, Sequence[int | None]], budget: int, p
         raise ValueError("plot_first_success: nothing to plot")
     figure = new_figure(7.5, 4.2)
     axes = figure.add_subplot()
-    styles = ("-", "--", "-.", ":")  # curves often coincide: the line style tells them apart
     for index, (label, episodes) in enumerate(first.items()):
         seeds = len(episodes)
         reached = sorted(e for e in episodes if e is not None)
         xs = [0, *reached, budget]
         ys = [0, *(i / seeds for i in range(1, len(reached) + 1)), len(reached) / seeds]
-        axes.step(xs, ys, where="post", linewidth=2, linestyle=styles[index % len(styles)],
-                  label=f"{label} ({len(reached)} of {seeds} seeds)")
+        colour, style, marker = curve_style(index)  # curves often coincide: style and marker tell them apart
+        axes.step(xs, ys, where="post", linewidth=2, color=colour, linestyle=style, marker=marker, markersize=6,
+                  markerfacecolor="none" if index % 2 else colour, label=f"{label} ({len(reached)} of {seeds} seeds)")
     axes.set_xlim(0, budget)
     axes.set_ylim(-0.02, 1.05)
     axes.set_xlabel("episodes learned")
@@ -378,4 +503,5 @@ def plot_first_success(first: Mapping[str, Sequence[int | None]], budget: int, p
     axes.set_title(title)
     axes.grid(alpha=0.3)
     axes.legend(loc="lower right")
+    fit_title(figure, axes.title)
     return save_figure(figure, path)

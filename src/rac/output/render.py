@@ -27,10 +27,10 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.lines import Line2D
-from matplotlib.patches import Polygon
+from matplotlib.patches import Patch, Polygon
 from PIL import Image
 
-from rac.output.plots import atomic_write, new_figure, save_figure
+from rac.output.plots import atomic_write, fit_title, new_figure, save_figure, wrap_text
 
 __all__ = ["EGO_COLOUR", "RenderError", "render_trajectory"]
 
@@ -39,6 +39,8 @@ EGO_COLOUR = "#2e7d32"
 MARGIN = 15.0
 #: The last GIF frame stays this long (ms), so a looping animation visibly ends before restarting.
 LAST_FRAME_MS = 1200
+#: Inches added below the map for the legend's row (the legend lies outside the map, hiding none of it).
+LEGEND_HEIGHT = 0.4
 
 
 class RenderError(Exception):
@@ -136,6 +138,26 @@ class _Scene:
         self.renderer.dynamic_artists = []  # ...but must survive remove_dynamic() of every later instant
         self.renderer.clear()
 
+    def legend_handles(self, problems: Any) -> list[Any]:
+        """Legend entries for what commonroad-io drew, in its colours: the obstacles (if the scenario
+        has any), the goal region (if a goal has a shape) and the planning problem's start."""
+        params = self.renderer.draw_params
+        handles: list[Any] = []
+        if self.scenario.obstacles:
+            shape = params.dynamic_obstacle.vehicle_shape.occupancy.shape
+            handles.append(Patch(facecolor=shape.facecolor, edgecolor=shape.edgecolor, label="obstacles"))
+            path = params.dynamic_obstacle.trajectory
+            if path.draw_trajectory:  # commonroad-io dots each obstacle's positions still to come
+                handles.append(Line2D([], [], color=path.facecolor, linestyle=":", linewidth=1.2,
+                                      label="obstacle paths ahead"))
+        if _goal_center(problems) is not None:
+            goal = params.planning_problem.goal_region.shape
+            handles.append(Patch(facecolor=goal.facecolor, edgecolor=goal.edgecolor, label="goal region"))
+        start = params.planning_problem.initial_state.state
+        handles.append(Line2D([], [], color=start.facecolor, marker="o", linestyle="", markersize=7,
+                              label="start"))
+        return handles
+
     def show_obstacles(self, time_step: int) -> None:
         """Replace the obstacles by those at ``time_step`` (gone ones vanish, as commonroad-io draws them)."""
         renderer = self.renderer
@@ -182,11 +204,13 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
 
     The PNG shows the road, the goal, the obstacles at ``time_step`` (default: the last sample's)
     with their remaining trajectories, the ego's path as a line and the ego as a ``length`` ×
-    ``width`` rectangle at the sample nearest ``time_step``. The GIF has one frame per sample,
-    or per k-th sample to keep at most ``max_frames`` frames (the last sample always included),
-    played in real time, with obstacles and ego moving. ``plot_limits`` (xmin, xmax, ymin, ymax)
-    defaults to the path and the goal with a 15 m margin; ``figsize`` (inches) to 8 wide and as
-    high as that view needs. ``length`` and ``width`` default to rac's vehicle (model.md).
+    ``width`` rectangle at the sample nearest ``time_step``; a legend below the map names the ego's
+    path, the ego, the obstacles, the goal region and the start. A long title is wrapped to fit.
+    The GIF has one frame per sample, or per k-th sample to keep at most ``max_frames`` frames
+    (the last sample always included), played in real time, with obstacles and ego moving.
+    ``plot_limits`` (xmin, xmax, ymin, ymax) defaults to the path and the goal with a 15 m margin;
+    ``figsize`` (inches) to 8 wide and as high as that view and the legend need. ``length`` and
+    ``width`` default to rac's vehicle (model.md).
     ``planning_problem`` (an id of the file's) draws that problem only and starts at its initial
     time step, as the model does with the `model` block's ``planning_problem``; None: all of them.
 
@@ -222,7 +246,7 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
         warnings.simplefilter("ignore")  # commonroad-io's drawing code warns about deprecated matplotlib use
         if figsize is None:  # fit the view's aspect, so little of the picture is blank margin
             ratio = (limits[3] - limits[2]) / max(limits[1] - limits[0], 1e-9)
-            figsize = (8.0, min(max(7.2 * ratio + 1.0, 3.5), 11.0))
+            figsize = (8.0, min(max(7.2 * ratio + 1.0, 3.5), 11.0) + LEGEND_HEIGHT)
         figure = new_figure(*figsize)
         figure.set_dpi(dpi)
         ax = figure.add_subplot()
@@ -239,18 +263,21 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
         body = Polygon(_corners(x0, y0, head0, length, width), closed=True, facecolor=EGO_COLOUR, edgecolor="black",
                        linewidth=0.8, alpha=0.9, zorder=30)
         ax.add_patch(body)
-        ax.legend(handles=[Line2D([], [], color=EGO_COLOUR, linewidth=1.8, label="ego path"),
-                           Polygon([[0, 0]], facecolor=EGO_COLOUR, edgecolor="black",
-                                   label=f"ego ({length:g} m × {width:g} m)")],
-                  loc="upper right", fontsize=8, framealpha=0.9)
+        handles = [Line2D([], [], color=EGO_COLOUR, linewidth=1.8, label="ego path"),
+                   Line2D([], [], color=EGO_COLOUR, linewidth=1.2, linestyle="--", alpha=0.6, label="ego path ahead"),
+                   Patch(facecolor=EGO_COLOUR, edgecolor="black", label=f"ego ({length:g} m × {width:g} m)"),
+                   *scene.legend_handles(problems)]
+        _place_legend(figure, handles)
+        ax.set_title("", fontsize=10)
+        wrap_at: list[int | None] = [None]  # the title's wrap width, fitted once (GIF frames reuse it)
 
         def show(sample: int, step: int) -> None:
             scene.show_obstacles(step)
             driven.set_data(ego[: sample + 1, 0], ego[: sample + 1, 1])
             x, y, head = ego[sample]
             body.set_xy(_corners(x, y, head, length, width))
-            ax.set_title(f"{name}: t = {step * dt:.1f} s (step {step}, sample {sample + 1} of {n_samples})",
-                         fontsize=10)
+            text = f"{name}: t = {step * dt:.1f} s (step {step}, sample {sample + 1} of {n_samples})"
+            ax.title.set_text(text if wrap_at[0] is None else wrap_text(text, wrap_at[0]))
 
         if time_step is None:
             shown_sample, shown_step = n_samples - 1, step_of(n_samples - 1)
@@ -258,6 +285,7 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
             shown_step = int(time_step)
             shown_sample = min(max(round((shown_step - start) * dt / period), 0), n_samples - 1)
         show(shown_sample, shown_step)
+        wrap_at[0] = fit_title(figure, ax.title)
         png = save_figure(figure, png_path, dpi=dpi)
 
         if gif_path is not None:
@@ -273,6 +301,20 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
                 frames.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
             _write_gif(frames, gif_path, frame_ms=period * 1000 * (samples[1] - samples[0] if len(samples) > 1 else 1))
     return png
+
+
+def _place_legend(figure: Any, handles: list[Any]) -> None:
+    """The legend below the map, outside the axes: commonroad-io's patches (zorder up to 35) cannot
+    cover it and it covers no lanelet, obstacle or goal. One row if it fits the figure's width,
+    else as few (full) rows as do."""
+    renderer = figure.canvas.get_renderer()
+    for rows in range(1, len(handles) + 1):
+        columns = math.ceil(len(handles) / rows)
+        legend = figure.legend(handles=handles, loc="outside lower center", ncols=columns, fontsize=8, frameon=False,
+                               handlelength=1.8, columnspacing=1.2)
+        if legend.get_window_extent(renderer).width <= figure.bbox.width - 4 or columns == 1:
+            return
+        legend.remove()
 
 
 def _write_gif(frames: list[Image.Image], path: str | os.PathLike[str], frame_ms: float) -> Path:

@@ -299,7 +299,7 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
         return out
 
     written.append(plot_learning_curves(curves("returns"), out_dir / "returns.png", ylabel="episode return",
-                                        title="learning curves (mean ± sd over seeds)", smooth=10))
+                                        title="learning curves", smooth=10))
     firsts: dict[str, list[int | None]] = {}
     for r in records:
         firsts.setdefault(r.combination, []).append(r.first_success_episode)

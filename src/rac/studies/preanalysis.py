@@ -42,7 +42,7 @@ from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
 from rac.model.batch import BatchModel
 from rac.model.data import ModelData, ModelRangeError, build_model_data
-from rac.model.native import NO_OBSTACLE
+from rac.model.native import NEGATIVE_DISTANCE_TEXT, NO_OBSTACLE
 
 __all__ = ["Row", "SweepError", "render_table", "sweep"]
 
@@ -166,7 +166,9 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
         name = f"fig7_e{spec.exponent}_c1_{float(spec.sense_period):g}_c2_{float(spec.decide_period):g}.png"
         times = np.arange(true.shape[1]) * (data.period / (true.shape[1] - 1) * samples) if samples else np.zeros(1)
         row["plot"] = str(plot_runs(times, true, out_dir / name, threshold=threshold,
-                                    threshold_label=_td(threshold_factor), ylabel="true distance (m)",
+                                    threshold_label=_td(threshold_factor), unit="m",
+                                    ylabel="true distance to the nearest obstacle (m)",
+                                    below_zero=NEGATIVE_DISTANCE_TEXT,
                                     title=f"exponent {spec.exponent}, C1 {float(spec.sense_period):g} s, "
                                           f"C2 {float(spec.decide_period):g} s: {runs} runs under the shield"))
     return row
@@ -219,7 +221,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                            "min_distances": list(r["true_min"]), "threshold": r["threshold"],
                            "probability": r["below_interval"]} for r in plotted]
             path = plot_sweep(sweep_rows, out_dir / "sweep.png", xlabel="smallest true distance of a run (m)",
-                              threshold_label=_td(threshold_factor),
+                              threshold_label=_td(threshold_factor), unit="m", below_zero=NEGATIVE_DISTANCE_TEXT,
                               title="pre-analysis: runs under the shield")
             rows.append({"sweep_plot": str(path)})
     return [_jsonable(r) for r in rows]

@@ -8,6 +8,7 @@ import csv
 import dataclasses
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,7 +16,9 @@ import numpy as np
 
 from rac.core.source import Span
 from rac.engine.graph import LABELS
+from rac.ir import expr as ie
 from rac.ir.vocabulary import EGO_STATE
+from rac.model.native import NEGATIVE_DISTANCE_TEXT
 
 __all__ = ["TRACE_FLAGS", "QueryResult", "TraceRow", "count_noun", "format_number", "plot_series", "render_json",
            "render_text", "write_csv"]
@@ -82,18 +85,27 @@ def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.n
     return path
 
 
-def plot_series(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray], title: str) -> Path:
+def plot_series(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray], title: str,
+                exprs: Sequence[ie.Expr] = ()) -> Path:
     """The plot of simulated runs (``values`` as for :func:`write_csv`): the paper's Fig. 7 for
     ``simulate{distance, threshold}`` (a constant second series is the threshold line); one line
-    per run of the first series otherwise."""
-    from rac.output.plots import plot_runs
+    per run of the first series otherwise.
+
+    ``exprs``, the checked expressions of ``names``, give the y axis its unit (``mindist() (m)``,
+    :func:`rac.ir.expr.unit_of`) and, when the first is ``mindist()``, a note on what a
+    distance below 0 means; without them the axis says the expression alone."""
+    from rac.output.plots import plot_runs, quantity_label
 
     threshold = float(values[1].flat[0]) if len(values) == 2 and np.ptp(values[1]) == 0 else None
-    # A threshold of exactly 0 is labelled "None" (the label was chosen by the threshold's truth,
-    # not its presence); kept while the verifier is reorganised, so that every plot stays the same.
-    label = names[1] if threshold else "None"
-    return Path(plot_runs(times, values[0], path, threshold=threshold, threshold_label=label, ylabel=names[0],
-                          title=title))
+    units = [ie.unit_of(expr) for expr in exprs] if len(exprs) == len(names) else [None] * len(names)
+    # the threshold's own unit; a bare number (`1.5`) is in the unit of what it is compared with
+    threshold_unit = (units[1] or units[0] or "") if threshold is not None else ""
+    # only mindist() itself: below 0 it is an overlap (mindist() - 1 below 0 is not)
+    distance = bool(exprs) and isinstance(exprs[0], ie.Call) and exprs[0].name == "mindist"
+    return Path(plot_runs(times, values[0], path, threshold=threshold,
+                          threshold_label=names[1] if threshold is not None else "threshold",
+                          ylabel=quantity_label(names[0], units[0]), unit=threshold_unit, title=title,
+                          below_zero=NEGATIVE_DISTANCE_TEXT if distance else None))
 
 
 # ---------------------------------------------------------------- rendering

@@ -130,7 +130,8 @@ class StatisticalAnswerer:
         if ctx.out_dir is not None:
             files.append(str(write_csv(ctx.out(f"{base.name}.csv"), runs.times, names, values)))
             if ctx.options.plots:
-                files.append(str(plot_series(ctx.out(f"{base.name}.png"), runs.times, names, values, base.formula)))
+                files.append(str(plot_series(ctx.out(f"{base.name}.png"), runs.times, names, values, base.formula,
+                                             query.exprs)))
         message = f"{count_noun(n, 'run')} of {samples} samples"
         if len(values) == 2 and np.ptp(values[1]) == 0:
             below = int(np.any(values[0] < values[1], axis=1).sum())
