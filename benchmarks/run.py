@@ -12,6 +12,10 @@ Rows:
              hand-written class in ``benchmarks/handwritten_driving.py`` (and the interpreter).
   batch      ``BatchRewardAutomaton.step_batch`` on 4096 automata, in automaton-steps per second.
   parse      parse-only throughput of a generated 200-location / 2000-edge `.ra` file.
+  scenario   ``rac.model.commonroad.load_scenario`` of the example scenario and, when ../shared is
+             beside the checkout, three shared CommonRoad scenarios (target: under 0.5 s each,
+             commonroad-io imported first); ``rac check`` and ``rac compile --target uppaal`` of
+             examples/left_turn/model.ra, the whole model (targets: 5 s and 2 s).
 
 Before timing the ``step`` rows the three implementations run the same traces and a list of odd
 inputs (invalid ones must be refused alike, odd valid ones accepted alike); any disagreement is
@@ -370,6 +374,32 @@ def bench_parse(report: Report, quick: bool) -> None:
                f"{size / best / 1e6:.2f} MB/s ({seconds(best)}, {lines / best:,.0f} lines/s)")
 
 
+def bench_scenario(report: Report, quick: bool) -> None:
+    from rac.model.commonroad import load_scenario
+    from rac.targets.uppaal.model import generate_uppaal_model
+
+    repeat = 1 if quick else 3
+    example = REPOSITORY / "examples" / "left_turn" / "left_turn.xml"
+    load_scenario(example)  # commonroad-io's import is not the reading
+    shared = REPOSITORY.parent / "shared" / "scenarios"
+    paths = [example, *(shared / name for name in ("DEU_Muc-3_1_T-1.xml", "ZAM_Ramp-1_1-T-1.xml",
+                                                   "ZAM_Tutorial-1_2_T-1.xml") if (shared / name).exists())]
+    for path in paths:
+        best = best_of(lambda path=path: load_scenario(path), repeat)
+        report.add(f"load scenario {path.name}", seconds(best), "< 0.5 s", best < 0.5)
+    model = REPOSITORY / "examples" / "left_turn" / "model.ra"
+    best = best_of(lambda: compile_file(model), repeat)
+    report.add("rac check examples/left_turn/model.ra (scenario + analyses)", seconds(best), "< 5 s", best < 5)
+    result = compile_file(model)
+    assert result.automaton is not None
+
+    def emit() -> object:
+        return generate_uppaal_model(result.automaton, data=result.model_data, source_name=model.name)
+
+    best = best_of(emit, repeat)
+    report.add("compile --target uppaal examples/left_turn/model.ra (whole model)", seconds(best), "< 2 s", best < 2)
+
+
 # ---------------------------------------------------------------- main
 def environment(quick: bool) -> list[str]:
     cpu = platform.processor() or platform.machine()
@@ -398,7 +428,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     report = Report()
-    for bench in (bench_check, bench_step, bench_batch, bench_parse):
+    for bench in (bench_check, bench_step, bench_batch, bench_parse, bench_scenario):
         bench(report, args.quick)
     env = environment(args.quick)
     print("\n".join(env))

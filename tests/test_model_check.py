@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import pytest
@@ -107,10 +106,8 @@ def test_the_scenario_is_loaded_once(tmp_path: Path, monkeypatch: pytest.MonkeyP
         return real(name)
 
     monkeypatch.setattr(scenario_check, "_load", counting)
-    start = time.perf_counter()
     result = compile_file(path)
     assert result.ok and len(calls) == 1
-    assert time.perf_counter() - start < 5  # ~50 ms for the scenario; the analyses dominate
     again = compile_file(path)  # unchanged file: the cached Scenario
     assert again.scenario is result.scenario
 

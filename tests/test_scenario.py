@@ -15,7 +15,6 @@ import math
 import re
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -383,15 +382,12 @@ def test_no_commonroad_exception_escapes(tmp_path: Path, example_xml: Path) -> N
 
 # ---------------------------------------------------------------- the shared CommonRoad scenarios
 @pytest.mark.parametrize("name", ["DEU_Muc-3_1_T-1.xml", "ZAM_Ramp-1_1-T-1.xml", "ZAM_Tutorial-1_2_T-1.xml"])
-def test_shared_scenarios_load_quickly(name: str) -> None:
+def test_shared_scenarios_load(name: str) -> None:
+    """What they hold; how fast they load is a row of ``python benchmarks/run.py``."""
     path = SHARED / name
     if not path.exists():
         pytest.skip(f"{SHARED} is absent")
-    load_scenario(COMMITTED if COMMITTED.exists() else path)  # import commonroad-io outside the timing
-    started = time.perf_counter()
     scenario = load_scenario(path)
-    elapsed = time.perf_counter() - started
-    assert elapsed < 0.5, f"{name} took {elapsed:.3f} s"
     assert scenario.dt == pytest.approx(0.1) and scenario.road and scenario.goal.regions
     assert scenario.goal.time_low <= scenario.goal.time_high
     dynamic = [obstacle for obstacle in scenario.obstacles if not obstacle.static]

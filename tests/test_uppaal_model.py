@@ -16,7 +16,6 @@ from __future__ import annotations
 import re
 import shutil
 import subprocess
-import time
 from fractions import Fraction
 from pathlib import Path
 
@@ -326,9 +325,7 @@ def test_shared_scenarios_compile(name: str, tmp_path: Path) -> None:
     ra = tmp_path / "model.ra"
     ra.write_text(source, encoding="utf-8")
     out = tmp_path / "model.xml"
-    started = time.perf_counter()
     assert main(["compile", "--target", "uppaal", str(ra), "-o", str(out)]) == 0
-    assert time.perf_counter() - started < 2.0
     parsed = Parsed(out.read_text(encoding="utf-8"))
     assert parsed.processes[:4] == ["Timer", "Controller", "Action", "Dynamics"] and parsed.processes[-1] == "Driving"
     assert len(parsed.queries) == 14
