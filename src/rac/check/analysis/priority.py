@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections import deque
 from fractions import Fraction
 
 from rac import ir
@@ -15,7 +16,6 @@ from rac.check.analysis.worst import (
     BEFORE_NEXT,
     CONTINUE,
     MAX_SAMPLES,
-    START,
     Target,
     Unfinished,
     Worst,
@@ -223,14 +223,28 @@ def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, le
               "values": {r: str(v) for r, v in zip(automaton.rewards, values)}})
 
 
+class _When:
+    """An instant of a run, formatted only when shown (a replay goes through every sample)."""
+
+    __slots__ = ("time", "what")
+
+    def __init__(self, time: Fraction, what: str) -> None:
+        self.time, self.what = time, what
+
+    def __str__(self) -> str:
+        return f"t = {_num(self.time)} s, {self.what}"
+
+
 def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
-    """Exact reward values along the worst run: yields (phrase naming the instant, values)."""
+    """Exact reward values along the worst run: yields (the instant, whose str() is a phrase naming it, values)."""
     r = [ZERO] * len(automaton.rewards)
-    yield "t = 0 s, before any sample", r
+    yield _When(ZERO, "before any sample"), r
     l0 = automaton.initial
-    name = automaton.location_names[l0]
-    time = "0"
-    accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
+    names = automaton.location_names
+    name = names[l0]
+    time = ZERO
+    period = automaton.period
+    accruals = [accrual(loc, period) for loc in automaton.locations]
     inputs: dict[tuple[int, int], dict[str, Fraction]] = {}  # a run repeats its samples: build each once
     offsets: dict[tuple[int, int], list[Fraction]] = {}
 
@@ -247,33 +261,31 @@ def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
         x = inputs.get((o.cls, id(step.inputs)))
         if x is None:
             x = inputs[o.cls, id(step.inputs)] = _inputs(space, step)
-        time = _num(step.sample * automaton.period)
+        time = step.sample * period
         if step.sample == 1:
             r = apply(accruals[l0], r, x)
-            yield f"t = {time} s, in `{name}` before the sample's edge", r
+            yield _When(time, f"in `{name}` before the sample's edge"), r
             if step.instant == BEFORE_EDGE:
                 return
         r = apply(o.edge_map, r, x)
-        name = automaton.location_names[o.target]
-        yield f"t = {time} s, in `{name}` right after the sample", r
+        name = names[o.target]
+        yield _When(time, f"in `{name}` right after the sample"), r
         if step.instant not in (CONTINUE, BEFORE_NEXT):
             break
         r = apply(accruals[o.target], r, x)
-        yield f"t = {_num((step.sample + 1) * automaton.period)} s, in `{name}` just before the next sample", r
+        yield _When(time + period, f"in `{name}` just before the next sample"), r
         if step.instant != CONTINUE:
             return
     if worst.instant == AFTER_END and worst.end is not None:
         x = {n: v for n, v in space.valuation(worst.end.cls).items() if not isinstance(v, bool)}
         x.update(worst.end_inputs)
-        yield f"t = {time} s, in `{name}` after the `at end` updates", _apply(worst.end.end_map, r, x)
+        yield _When(time, f"in `{name}` after the `at end` updates"), _apply(worst.end.end_map, r, x)
 
 
 def replay(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> tuple[list[Fraction], str]:
     """Exact reward values at the instant the worst run ends, and a phrase naming that instant."""
-    where, values = START, [ZERO] * len(automaton.rewards)
-    for instant in trace(automaton, space, worst):
-        where, values = instant
-    return values, where
+    (where, values), = deque(trace(automaton, space, worst), maxlen=1)  # the last instant (the start, at least)
+    return values, str(where)
 
 
 def _apply(affine: Affine, r: list[Fraction], x: dict[str, Fraction]) -> list[Fraction]:
