@@ -9,6 +9,7 @@ that satisfy ``assume`` covers every input valuation exactly.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 from dataclasses import dataclass
@@ -21,6 +22,9 @@ from rac.core.diagnostics import short_number
 
 #: Above this many classes the exact checks refuse (reported as a diagnostic).
 MAX_CLASSES = 1 << 20
+#: Bytes of guard truth tables :meth:`InputSpace.evaluate` keeps; beyond, tables are recomputed
+#: (a file with hundreds of guards over a large space would otherwise hold gigabytes).
+MAX_CACHED_BYTES = 1 << 27
 
 
 @dataclass(frozen=True)
@@ -120,14 +124,34 @@ class InputSpace:
             self.columns[name] = grid[:, k].astype(bool)
         for k, item in enumerate(self.numerics):
             self.columns[item.name] = grid[:, len(self.bools) + k]
+        # Each piece's representative, in increasing order: an atom's truth table is a bisection.
+        self._representatives = {item.name: [p.representative(item.kind == "int") for p in self.pieces[item.name]]
+                                 for item in self.numerics}
         self._cache: dict[ir.Guard, np.ndarray] = {}
+        self._cached_bytes = 0
+        self._satisfiable: dict[ir.Guard, bool] = {}
         self.valid = self.evaluate(automaton.assume)
 
     def _atom_table(self, atom: ir.BAtom) -> np.ndarray:
-        item = self.automaton.input(atom.input)
-        pieces = self.pieces[atom.input]
-        return np.array([ir.compare(p.representative(item.kind == "int"), atom.op, atom.threshold)
-                         for p in pieces], dtype=bool)
+        """The atom's truth on each piece of its input (pieces are ordered, so a prefix, suffix or point)."""
+        values = self._representatives[atom.input]
+        below = bisect.bisect_left(values, atom.threshold)  # pieces [0, below) lie below the threshold
+        upto = bisect.bisect_right(values, atom.threshold)  # pieces [below, upto) equal it
+        table = np.zeros(len(values), dtype=bool)
+        if atom.op in ("<", "<=", "!="):
+            table[:below] = True
+        if atom.op in (">", ">=", "!="):
+            table[upto:] = True
+        if atom.op in ("<=", ">=", "=="):
+            table[below:upto] = True
+        return table
+
+    def satisfiable(self, guard: ir.Guard) -> bool:
+        """Does some class allowed by ``assume`` satisfy the guard? (Decided once per guard.)"""
+        known = self._satisfiable.get(guard)
+        if known is None:
+            known = self._satisfiable[guard] = bool((self.evaluate(guard) & self.valid).any())
+        return known
 
     def evaluate(self, guard: ir.Guard) -> np.ndarray:
         """Truth of a guard in every class (ignoring ``assume``)."""
@@ -146,7 +170,9 @@ class InputSpace:
             result = np.logical_and.reduce([self.evaluate(g) for g in guard.operands])
         else:
             result = np.logical_or.reduce([self.evaluate(g) for g in guard.operands])
-        self._cache[guard] = result
+        if self._cached_bytes + result.nbytes <= MAX_CACHED_BYTES:
+            self._cache[guard] = result
+            self._cached_bytes += result.nbytes
         return result
 
     def piece(self, cls: int, name: str) -> Piece:

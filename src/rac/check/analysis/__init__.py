@@ -11,18 +11,25 @@ def analyse_automaton(automaton: ir.Automaton, facts: list[str] | None = None) -
 
     What was proved is appended to ``facts`` as sentences (the CLI prints them).
     """
-    from rac.check.analysis.behaviour import check_behaviour
+    from rac.check.analysis.affine import moves
+    from rac.check.analysis.behaviour import check_behaviour, input_space
     from rac.check.analysis.priority import check_priorities, check_ranges
 
     facts = facts if facts is not None else []
-    diagnostics = check_behaviour(automaton)
+    # One input space and one set of moves serve every analysis (each costs a pass over every class).
+    space, diagnostics = input_space(automaton)
+    if space is None:
+        return diagnostics
+    diagnostics = check_behaviour(automaton, space)
     if any(d.is_error for d in diagnostics):
         return diagnostics
     facts.append("deterministic: every location has at most one enabled edge for every input")
-    diagnostics += check_priorities(automaton, facts)
+    prepared = (space, moves(automaton, space))
+    diagnostics += check_priorities(automaton, facts, prepared)
     model = automaton.model
     if model is not None:
-        diagnostics += check_ranges(automaton, base=model.base, exponent=model.exponent, facts=facts)
+        diagnostics += check_ranges(automaton, base=model.base, exponent=model.exponent, facts=facts,
+                                    prepared=prepared)
     else:
-        diagnostics += check_ranges(automaton, facts=facts)
+        diagnostics += check_ranges(automaton, facts=facts, prepared=prepared)
     return diagnostics

@@ -9,10 +9,14 @@ An *outcome* groups the input classes that behave identically in a location
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from fractions import Fraction
 
+import numpy as np
+
 from rac import ir
+from rac.check.analysis.behaviour import distances
 from rac.ir.inputs import InputSpace, Piece
 
 ZERO = Fraction(0)
@@ -112,48 +116,105 @@ def arithmetic_inputs(automaton: ir.Automaton) -> tuple[str, ...]:
     return tuple(i.name for i in automaton.numeric_inputs if i.name in names)
 
 
-def outcomes(automaton: ir.Automaton, space: InputSpace) -> list[list[Outcome]]:
-    """Distinct outcomes of a sample per location, over the classes allowed by ``assume``."""
-    relevant = arithmetic_inputs(automaton)
+def outcomes(automaton: ir.Automaton, space: InputSpace,
+             reachable: Collection[int] | None = None) -> list[list[Outcome]]:
+    """Distinct outcomes of a sample per location, over the classes allowed by ``assume``.
+
+    Locations outside ``reachable`` (when given) get none: no run is ever there. Within a location
+    the outcomes come in the order of their first class; each one's representative class is the one
+    that leaves the most numeric inputs as intervals (the first such), as witnesses read better so.
+    """
+    groups = _Grouping(automaton, space)
     rewards = automaton.rewards
-    valid = space.valid
+    maps: dict[int, Affine] = {}  # per edge: its updates as one map (shared by the edge's outcomes)
     result: list[list[Outcome]] = []
     for index, edges in enumerate(automaton.edges):
-        enabled = [space.evaluate(e.guard) for e in edges]
-        seen: dict[tuple, Outcome] = {}
-        for cls in map(int, valid.nonzero()[0]):
-            taken = next((e for e, mask in zip(edges, enabled) if mask[cls]), None)
-            box = tuple((name, space.piece(cls, name)) for name in relevant)
-            key = (id(taken), box)
-            if key in seen and _intervals(space, seen[key].cls) >= _intervals(space, cls):
-                continue
-            edge_map = from_assignments(taken.updates, rewards) if taken else identity(len(rewards))
-            seen[key] = Outcome(index, cls, taken, taken.target if taken else index, box, edge_map)
-        result.append(list(seen.values()))
+        if reachable is not None and index not in reachable:
+            result.append([])
+            continue
+        taken = np.full(groups.size, len(edges), dtype=np.int64)  # len(edges): no edge fires
+        for k in range(len(edges) - 1, -1, -1):  # the first enabled edge wins (the last write)
+            taken[space.evaluate(edges[k].guard)[groups.classes]] = k
+        found = []
+        for k, cls in groups.representatives(taken, len(edges) + 1):
+            edge = edges[k] if k < len(edges) else None
+            if edge is None:
+                edge_map = identity(len(rewards))
+            else:
+                edge_map = maps.get(id(edge)) or maps.setdefault(id(edge), from_assignments(edge.updates, rewards))
+            found.append(Outcome(index, cls, edge, edge.target if edge else index, groups.box(cls), edge_map))
+        result.append(found)
     return result
 
 
-def _intervals(space: InputSpace, cls: int) -> int:
-    """How many numeric inputs a class leaves as intervals: such witnesses read better than points."""
-    return sum(not space.piece(cls, item.name).is_point for item in space.numerics)
+class _Grouping:
+    """Groups the classes allowed by ``assume`` by a per-class label and the pieces the arithmetic reads.
+
+    Vectorised (a file with hundreds of locations and ~10^5 classes would otherwise spend minutes in a
+    Python loop per location and class); it picks the same representatives, in the same order, as
+    going through the classes one by one would.
+    """
+
+    def __init__(self, automaton: ir.Automaton, space: InputSpace) -> None:
+        self.space = space
+        self.relevant = arithmetic_inputs(automaton)
+        self.classes = np.flatnonzero(space.valid)
+        self.size = len(self.classes)
+        columns = [space.columns[name][self.classes].astype(np.int64) for name in self.relevant]
+        if columns:
+            _, self.boxes = np.unique(np.stack(columns, axis=1), axis=0, return_inverse=True)
+            self.boxes = self.boxes.reshape(-1)
+        else:
+            self.boxes = np.zeros(self.size, dtype=np.int64)
+        self.box_count = int(self.boxes.max()) + 1 if self.size else 1
+        intervals = np.zeros(self.size, dtype=np.int64)
+        for item in space.numerics:
+            is_interval = np.array([not p.is_point for p in space.pieces[item.name]], dtype=bool)
+            intervals += is_interval[space.columns[item.name][self.classes]]
+        # Preference among the classes of one group: more intervals first, then the earlier class.
+        self.by_preference = np.lexsort((-np.arange(self.size), intervals))  # least preferred first
+        self.rank = np.empty(self.size, dtype=np.int64)
+        self.rank[self.by_preference] = np.arange(self.size)
+
+    def representatives(self, labels: np.ndarray, label_count: int) -> list[tuple[int, int]]:
+        """(label, representative class) per group of equal (label, box), in the order of first classes."""
+        keys = labels * self.box_count + self.boxes
+        if label_count * self.box_count > 4 * self.size + 1024:  # sparse keys: number them densely first
+            _, keys = np.unique(keys, return_inverse=True)
+            keys = keys.reshape(-1)
+        span = int(keys.max()) + 1 if self.size else 0
+        first = np.full(span, self.size, dtype=np.int64)
+        np.minimum.at(first, keys, np.arange(self.size))
+        best = np.full(span, -1, dtype=np.int64)
+        np.maximum.at(best, keys, self.rank)
+        present = np.flatnonzero(first < self.size)
+        present = present[np.argsort(first[present])]
+        chosen = self.by_preference[best[present]]
+        return [(int(labels[i]), int(self.classes[i])) for i in chosen]
+
+    def box(self, cls: int) -> tuple[tuple[str, Piece], ...]:
+        return tuple((name, self.space.piece(cls, name)) for name in self.relevant)
 
 
 def end_outcomes(automaton: ir.Automaton, space: InputSpace) -> list[EndOutcome]:
     """Distinct ways a run can end, over the classes allowed by ``assume``."""
-    relevant = arithmetic_inputs(automaton)
+    groups = _Grouping(automaton, space)
     rewards = automaton.rewards
-    enabled = [space.evaluate(c.guard) for c in automaton.end_clauses]
-    seen: dict[tuple, EndOutcome] = {}
-    for cls in map(int, space.valid.nonzero()[0]):
-        ends = tuple(i for i, mask in enumerate(enabled) if mask[cls])
-        box = tuple((name, space.piece(cls, name)) for name in relevant)
-        if (ends, box) in seen and _intervals(space, seen[(ends, box)].cls) >= _intervals(space, cls):
-            continue
+    enabled = [space.evaluate(c.guard)[groups.classes] for c in automaton.end_clauses]
+    # Each class's set of enabled clauses, numbered densely in the order of first classes.
+    if enabled:
+        _, labels = np.unique(np.stack(enabled, axis=1), axis=0, return_inverse=True)
+        labels = labels.reshape(-1)
+    else:
+        labels = np.zeros(groups.size, dtype=np.int64)
+    result = []
+    for _, cls in groups.representatives(labels, int(labels.max()) + 1 if groups.size else 1):
+        ends = tuple(i for i, clause in enumerate(automaton.end_clauses) if space.evaluate(clause.guard)[cls])
         end_map = identity(len(rewards))
         for i in ends:
             end_map = then(end_map, from_assignments(automaton.end_clauses[i].updates, rewards))
-        seen[(ends, box)] = EndOutcome(cls, ends, box, end_map)
-    return list(seen.values())
+        result.append(EndOutcome(cls, ends, groups.box(cls), end_map))
+    return result
 
 
 @dataclass(frozen=True)
@@ -170,8 +231,13 @@ class Moves:
 
 
 def moves(automaton: ir.Automaton, space: InputSpace) -> Moves:
-    """Sample outcomes and end outcomes of an automaton over its input classes."""
-    return Moves(tuple(tuple(os) for os in outcomes(automaton, space)), tuple(end_outcomes(automaton, space)))
+    """Sample outcomes and end outcomes of an automaton over its input classes.
+
+    Locations no run can reach have no outcomes (no analysis of runs looks at them).
+    """
+    reachable = distances(automaton, space)
+    return Moves(tuple(tuple(os) for os in outcomes(automaton, space, reachable)),
+                 tuple(end_outcomes(automaton, space)))
 
 
 def sup_linear(form: dict[str, Fraction], box: tuple[tuple[str, Piece], ...]) -> tuple[Fraction, dict[str, Fraction]]:

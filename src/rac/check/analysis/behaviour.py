@@ -23,11 +23,16 @@ def input_space(automaton: ir.Automaton) -> tuple[InputSpace | None, list[Diagno
             hints=["use fewer inputs, or fewer distinct thresholds on numeric inputs"])]
 
 
-def check_behaviour(automaton: ir.Automaton) -> list[Diagnostic]:
-    """Assume satisfiable, determinism, edges that never fire, reachability within the horizon."""
-    space, diagnostics = input_space(automaton)
+def check_behaviour(automaton: ir.Automaton, space: InputSpace | None = None) -> list[Diagnostic]:
+    """Assume satisfiable, determinism, edges that never fire, reachability within the horizon.
+
+    ``space`` is the automaton's :class:`InputSpace` when the caller has built it already.
+    """
+    diagnostics: list[Diagnostic] = []
     if space is None:
-        return diagnostics
+        space, diagnostics = input_space(automaton)
+        if space is None:
+            return diagnostics
     valid = space.valid
     if not valid.any():
         span, notes = _unsatisfiable_assume(automaton, space)
@@ -36,44 +41,69 @@ def check_behaviour(automaton: ir.Automaton) -> list[Diagnostic]:
     reported_dead: set[object] = set()
     reported_pairs: set[tuple[object, object]] = set()
     for location, edges in zip(automaton.locations, automaton.edges):
-        enabled = [space.evaluate(e.guard) & valid for e in edges]
-        for edge, mask in zip(edges, enabled):
-            if not mask.any() and edge.span not in reported_dead:
+        for edge in edges:
+            if not space.satisfiable(edge.guard) and edge.span not in reported_dead:
                 reported_dead.add(edge.span)
                 diagnostics.append(warning(
                     "W0304", "this edge can never fire: its guard is false for every input allowed by "
                     "`assume`", edge.span, hints=["remove the edge or correct its guard"]))
-        for i in range(len(edges)):
-            for j in range(i + 1, len(edges)):
-                both = enabled[i] & enabled[j]
-                key = (edges[i].span, edges[j].span)
-                if not both.any() or key in reported_pairs:
-                    continue
-                reported_pairs.add(key)
-                cls = int(np.argmax(both))
-                names = automaton.location_names
-                diagnostics.append(error(
-                    "E0301",
-                    f"nondeterminism: two edges leave `{location.name}` on the same inputs",
-                    edges[j].span,
-                    notes=[Note(f"the other edge (to `{names[edges[i].target]}`)", edges[i].span),
-                           "witness: " + space.describe(
-                               cls, guard_inputs(edges[i].guard) | guard_inputs(edges[j].guard))],
-                    hints=["make the guards exclusive, e.g. add `&& !(...)` of the other guard"],
-                    data={"location": location.name, "witness": _json_valuation(space, cls)}))
+        diagnostics += _overlaps(automaton, space, location, edges, reported_pairs)
     diagnostics += _reachability(automaton, space)
     return diagnostics
 
 
-def _reachability(automaton: ir.Automaton, space: InputSpace) -> list[Diagnostic]:
+def _overlaps(automaton: ir.Automaton, space: InputSpace, location: ir.Location, edges: tuple[ir.Edge, ...],
+              reported_pairs: set[tuple[object, object]]) -> list[Diagnostic]:
+    """E0301 for every pair of the location's edges enabled together in some allowed class."""
+    live = [k for k, edge in enumerate(edges) if space.satisfiable(edge.guard)]
+    if len(live) < 2:
+        return []
+    count = np.zeros(space.count, dtype=np.int32)
+    for k in live:
+        count += space.evaluate(edges[k].guard)
+    # Only classes that enable two edges or more can witness a pair: look at those alone
+    # (a location with n edges would otherwise cost n^2 passes over every class).
+    crowded = np.flatnonzero((count > 1) & space.valid)
+    if not len(crowded):
+        return []
+    enabled = {k: space.evaluate(edges[k].guard)[crowded] for k in live}
+    result = []
+    for a, i in enumerate(live):
+        for j in live[a + 1:]:
+            both = enabled[i] & enabled[j]
+            key = (edges[i].span, edges[j].span)
+            if not both.any() or key in reported_pairs:
+                continue
+            reported_pairs.add(key)
+            cls = int(crowded[np.argmax(both)])
+            names = automaton.location_names
+            result.append(error(
+                "E0301",
+                f"nondeterminism: two edges leave `{location.name}` on the same inputs",
+                edges[j].span,
+                notes=[Note(f"the other edge (to `{names[edges[i].target]}`)", edges[i].span),
+                       "witness: " + space.describe(
+                           cls, guard_inputs(edges[i].guard) | guard_inputs(edges[j].guard))],
+                hints=["make the guards exclusive, e.g. add `&& !(...)` of the other guard"],
+                data={"location": location.name, "witness": _json_valuation(space, cls)}))
+    return result
+
+
+def distances(automaton: ir.Automaton, space: InputSpace) -> dict[int, int]:
+    """Samples needed to reach each reachable location (breadth-first over edges that can fire)."""
     distance = {automaton.initial: 0}
     queue = deque([automaton.initial])
     while queue:
         here = queue.popleft()
         for edge in automaton.edges[here]:
-            if edge.target not in distance and (space.evaluate(edge.guard) & space.valid).any():
+            if edge.target not in distance and space.satisfiable(edge.guard):
                 distance[edge.target] = distance[here] + 1
                 queue.append(edge.target)
+    return distance
+
+
+def _reachability(automaton: ir.Automaton, space: InputSpace) -> list[Diagnostic]:
+    distance = distances(automaton, space)
     result = []
     for index, location in enumerate(automaton.locations):
         if index not in distance:

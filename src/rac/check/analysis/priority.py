@@ -4,13 +4,24 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections import deque
 from fractions import Fraction
 
 from rac import ir
-from rac.check.analysis.affine import Affine, Outcome, accrual, moves
+from rac.check.analysis.affine import Affine, Moves, Outcome, accrual, moves
 from rac.check.analysis.behaviour import input_space
-from rac.check.analysis.worst import AFTER_END, BEFORE_EDGE, BEFORE_NEXT, CONTINUE, START, Target, Worst, maximise
-from rac.core.diagnostics import Diagnostic, Note, error, short_number
+from rac.check.analysis.worst import (
+    AFTER_END,
+    BEFORE_EDGE,
+    BEFORE_NEXT,
+    CONTINUE,
+    MAX_SAMPLES,
+    Target,
+    Unfinished,
+    Worst,
+    maximise,
+)
+from rac.core.diagnostics import Diagnostic, Note, error, short_number, warning
 from rac.core.numbers import INT32_MAX, INT32_MIN
 from rac.ir.inputs import InputSpace, guard_inputs
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
@@ -115,8 +126,21 @@ def _penalised(automaton: ir.Automaton, reward: str) -> tuple[bool, ...]:
     return tuple(marks)
 
 
-def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None) -> list[Diagnostic]:
-    """P1 and P2 (every level when ``priority strict``); proofs are appended to ``facts``."""
+def _prepared(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves] | None
+              ) -> tuple[InputSpace | None, Moves | None, list[Diagnostic]]:
+    """The input space and the moves: the caller's (``prepared``), or built here."""
+    if prepared is not None:
+        return prepared[0], prepared[1], []
+    space, problems = input_space(automaton)
+    return space, (moves(automaton, space) if space is not None else None), problems
+
+
+def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None,
+                     prepared: tuple[InputSpace, Moves] | None = None) -> list[Diagnostic]:
+    """P1 and P2 (every level when ``priority strict``); proofs are appended to ``facts``.
+
+    ``prepared`` is the automaton's input space and moves when the caller has built them.
+    """
     facts = facts if facts is not None else []
     if not automaton.priority:
         facts.append("no `priority` declared: P1 and P2 not checked")
@@ -124,10 +148,9 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None) ->
     diagnostics = check_rate_dominance(automaton)
     if not diagnostics:
         facts.append("P1 holds: wherever a reward decreases, no lower-priority reward grows")
-    space, problems = input_space(automaton)
-    if space is None:
+    space, outs, problems = _prepared(automaton, prepared)
+    if space is None or outs is None:
         return diagnostics + problems
-    outs = moves(automaton, space)
     levels = range(len(automaton.priority)) if automaton.strict else range(1)
     for level in levels:
         reward = automaton.priority[level]
@@ -138,7 +161,11 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None) ->
         if not any(watched):
             facts.append(f"P2 holds trivially for `{reward}`: no location penalises it")
             continue
-        worst = maximise(automaton, outs, Target(weights, constant, watched))
+        try:
+            worst = maximise(automaton, outs, Target(weights, constant, watched), run=lambda value: value > 0)
+        except Unfinished as stop:
+            diagnostics.append(_unfinished(automaton, f"P2 for `{reward}`", stop))
+            continue
         if worst is None or worst.value <= 0:
             places = ", ".join(f"`{n}`" for n, w in zip(automaton.location_names, watched) if w)
             what = "the objective" if level == 0 else f"the weighted sum from `{reward}` down"
@@ -151,6 +178,17 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None) ->
             continue
         diagnostics.append(_p2_error(automaton, space, outs, worst, level, weights, constant))
     return diagnostics
+
+
+def _unfinished(automaton: ir.Automaton, what: str, stop: Unfinished) -> Diagnostic:
+    """W0405: an analysis stopped at its limit, neither proved nor refuted."""
+    return warning(
+        "W0405", f"{what} not checked: {stop.reason}",
+        automaton.spans.get("decl:horizon") or automaton.spans.get("decl:sample"),
+        notes=[f"the horizon has {automaton.steps:,} samples (horizon / sample period); the worst-run search "
+               f"stops at {MAX_SAMPLES:,} unless the worst values settle before"],
+        hints=["shorten the horizon or sample less often to have it checked"],
+        data={"limit": MAX_SAMPLES, "samples": automaton.steps})
 
 
 def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, level: int,
@@ -185,47 +223,73 @@ def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, le
               "values": {r: str(v) for r, v in zip(automaton.rewards, values)}})
 
 
+class _When:
+    """An instant of a run, formatted only when shown (a replay goes through every sample)."""
+
+    __slots__ = ("time", "what")
+
+    def __init__(self, time: Fraction, what: str) -> None:
+        self.time, self.what = time, what
+
+    def __str__(self) -> str:
+        return f"t = {_num(self.time)} s, {self.what}"
+
+
 def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
-    """Exact reward values along the worst run: yields (phrase naming the instant, values)."""
+    """Exact reward values along the worst run: yields (the instant, whose str() is a phrase naming it, values)."""
     r = [ZERO] * len(automaton.rewards)
-    yield "t = 0 s, before any sample", r
+    yield _When(ZERO, "before any sample"), r
     l0 = automaton.initial
-    name = automaton.location_names[l0]
-    time = "0"
-    accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
+    names = automaton.location_names
+    name = names[l0]
+    time = ZERO
+    period = automaton.period
+    accruals = [accrual(loc, period) for loc in automaton.locations]
+    inputs: dict[tuple[int, int], dict[str, Fraction]] = {}  # a run repeats its samples: build each once
+    offsets: dict[tuple[int, int], list[Fraction]] = {}
+
+    def apply(affine: Affine, r: list[Fraction], x: dict[str, Fraction]) -> list[Fraction]:
+        if affine.matrix is not None:
+            return _apply(affine, r, x)
+        offset = offsets.get((id(affine), id(x)))
+        if offset is None:
+            offset = offsets[id(affine), id(x)] = [term.evaluate(x) for term in affine.offset]
+        return [a + b for a, b in zip(r, offset)]
+
     for step in worst.steps:
         o = step.outcome
-        x = _inputs(space, step)
-        time = _num(step.sample * automaton.period)
+        x = inputs.get((o.cls, id(step.inputs)))
+        if x is None:
+            x = inputs[o.cls, id(step.inputs)] = _inputs(space, step)
+        time = step.sample * period
         if step.sample == 1:
             r = apply(accruals[l0], r, x)
-            yield f"t = {time} s, in `{name}` before the sample's edge", r
+            yield _When(time, f"in `{name}` before the sample's edge"), r
             if step.instant == BEFORE_EDGE:
                 return
         r = apply(o.edge_map, r, x)
-        name = automaton.location_names[o.target]
-        yield f"t = {time} s, in `{name}` right after the sample", r
+        name = names[o.target]
+        yield _When(time, f"in `{name}` right after the sample"), r
         if step.instant not in (CONTINUE, BEFORE_NEXT):
             break
         r = apply(accruals[o.target], r, x)
-        yield f"t = {_num((step.sample + 1) * automaton.period)} s, in `{name}` just before the next sample", r
+        yield _When(time + period, f"in `{name}` just before the next sample"), r
         if step.instant != CONTINUE:
             return
     if worst.instant == AFTER_END and worst.end is not None:
         x = {n: v for n, v in space.valuation(worst.end.cls).items() if not isinstance(v, bool)}
         x.update(worst.end_inputs)
-        yield f"t = {time} s, in `{name}` after the `at end` updates", apply(worst.end.end_map, r, x)
+        yield _When(time, f"in `{name}` after the `at end` updates"), _apply(worst.end.end_map, r, x)
 
 
 def replay(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> tuple[list[Fraction], str]:
     """Exact reward values at the instant the worst run ends, and a phrase naming that instant."""
-    where, values = START, [ZERO] * len(automaton.rewards)
-    for instant in trace(automaton, space, worst):
-        where, values = instant
-    return values, where
+    (where, values), = deque(trace(automaton, space, worst), maxlen=1)  # the last instant (the start, at least)
+    return values, str(where)
 
 
-def apply(affine: Affine, r: list[Fraction], x: dict[str, Fraction]) -> list[Fraction]:
+def _apply(affine: Affine, r: list[Fraction], x: dict[str, Fraction]) -> list[Fraction]:
+    """``affine`` applied to the rewards ``r`` with the inputs ``x``."""
     size = len(r)
     if affine.matrix is None:
         base = list(r)
@@ -256,9 +320,12 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> li
     if not worst.steps and worst.instant != AFTER_END:
         return [f"  t = 0 s: in `{names[automaton.initial]}` before any sample"]
     groups: list[list] = []
+    labels: dict[int, str] = {}
     for step in worst.steps:
         o = step.outcome
-        label = space.describe(o.cls, _outcome_inputs(automaton, o))
+        label = labels.get(id(o))
+        if label is None:
+            label = labels[id(o)] = space.describe(o.cls, _outcome_inputs(automaton, o))
         key = (o.source, id(o.edge), label)
         if groups and groups[-1][0] == key and groups[-1][1][-1].instant == CONTINUE:
             groups[-1][1].append(step)
@@ -300,17 +367,22 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> li
 
 def run_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> list[dict[str, object]]:
     result = []
+    shown: dict[tuple[int, int], dict[str, object]] = {}  # a run repeats its samples: build each once
     for step in worst.steps:
         o = step.outcome
-        values = space.valuation(o.cls)
-        values.update(step.inputs)
+        inputs = shown.get((o.cls, id(step.inputs)))
+        if inputs is None:
+            values = space.valuation(o.cls)
+            values.update(step.inputs)
+            inputs = shown[o.cls, id(step.inputs)] = {k: (v if isinstance(v, bool) else str(v))
+                                                       for k, v in values.items()}
         result.append({
             "sample": step.sample,
             "time": str(step.sample * automaton.period),
             "from": automaton.location_names[o.source],
             "to": automaton.location_names[o.target],
             "edge_line": o.edge.span.line if o.edge and o.edge.span else None,
-            "inputs": {k: (v if isinstance(v, bool) else str(v)) for k, v in values.items()},
+            "inputs": dict(inputs),
             "instant": step.instant,
         })
     return result
@@ -331,21 +403,28 @@ def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[s
 
 
 def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: int = DEFAULT_EXPONENT,
-                 facts: list[str] | None = None) -> list[Diagnostic]:
+                 facts: list[str] | None = None, prepared: tuple[InputSpace, Moves] | None = None
+                 ) -> list[Diagnostic]:
     """Every reward's significand trunc(v·base^exponent) stays within int32 over the horizon."""
     facts = facts if facts is not None else []
     extremes = []
-    space, problems = input_space(automaton)
-    if space is None:
+    space, outs, problems = _prepared(automaton, prepared)
+    if space is None or outs is None:
         return problems
-    outs = moves(automaton, space)
     everywhere = tuple(True for _ in automaton.locations)
     factor = Fraction(base) ** exponent
     size = len(automaton.rewards)
     for k, reward in enumerate(automaton.rewards):
         for sign, limit in ((1, INT32_MAX + 1), (-1, -INT32_MIN + 1)):
             weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
-            worst = maximise(automaton, outs, Target(weights, ZERO, everywhere))
+
+            def overflows(value: Fraction, limit: int = limit) -> bool:
+                return value * factor >= limit
+
+            try:
+                worst = maximise(automaton, outs, Target(weights, ZERO, everywhere), run=overflows)
+            except Unfinished as stop:
+                return [_unfinished(automaton, f"the int32 range at base {base}, exponent {exponent}", stop)]
             if worst is None or worst.value * factor < limit:
                 if worst is not None:
                     extremes.append(sign * worst.value)
@@ -369,7 +448,10 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
                 if setting is not None:
                     span = setting
                     notes.insert(0, Note(f"`{reward}` is declared here", declared))
-                hints = [_exponent_hint(_largest_magnitude(automaton, outs), base, exponent)]
+                try:
+                    hints = [_exponent_hint(_largest_magnitude(automaton, outs), base, exponent)]
+                except Unfinished:
+                    pass  # the general hint stays
             return [error(
                 "E0501",
                 f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}: "
@@ -392,7 +474,7 @@ def _largest_magnitude(automaton: ir.Automaton, outs) -> Fraction:
     for k in range(size):
         for sign in (1, -1):
             weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
-            worst = maximise(automaton, outs, Target(weights, ZERO, everywhere))
+            worst = maximise(automaton, outs, Target(weights, ZERO, everywhere), run=False)
             if worst is not None:
                 largest = max(largest, worst.value)
     return largest

@@ -22,6 +22,7 @@ one pass over the horizon.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -34,6 +35,21 @@ ZERO = Fraction(0)
 #: Instants of one sample, in time order; START is t = 0 before any sample.
 BEFORE_EDGE, AFTER_EDGE, AFTER_END, BEFORE_NEXT, CONTINUE, START = (
     "before-edge", "after-edge", "after-end", "before-next", "continue", "start")
+
+
+#: The most samples the worst-run search goes through. Beyond it the search goes on only while the
+#: values still change (the translation engine: once two consecutive samples give the same values,
+#: every earlier sample does too), and a run to show may not be longer; otherwise it stops with
+#: :class:`Unfinished`, which the checks report as a warning (W0405), never as a proof.
+MAX_SAMPLES = 100_000
+
+
+class Unfinished(Exception):
+    """The worst-run search stopped at :data:`MAX_SAMPLES`; ``reason`` says why, for the warning."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
 
 
 @dataclass(frozen=True)
@@ -66,10 +82,19 @@ class Worst:
     end_inputs: dict[str, Fraction] = field(default_factory=dict)
 
 
-def maximise(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
-    """The worst run for ``target`` (None when no watched instant is reachable)."""
+def maximise(automaton: ir.Automaton, moves: Moves, target: Target,
+             run: bool | Callable[[Fraction], bool] = True) -> Worst | None:
+    """The worst run for ``target`` (None when no watched instant is reachable).
+
+    ``run`` says whether the run itself is wanted, or for which values (a proof needs the value
+    only, and a run can be as long as the horizon); when not, its steps are left empty.
+    Raises :class:`Unfinished` beyond :data:`MAX_SAMPLES` (see there).
+    """
     if moves.translations_only:
-        return _maximise_translations(automaton, moves, target)
+        return _maximise_translations(automaton, moves, target, run)
+    if automaton.steps > MAX_SAMPLES:
+        raise Unfinished(f"the horizon has {automaton.steps:,} samples, more than the {MAX_SAMPLES:,} the "
+                         "search goes through when updates scale rewards")
     return _maximise_generic(automaton, moves, target)
 
 
@@ -267,7 +292,8 @@ def _offer(best: dict, func: _Func, o: Outcome, oi: int, instant: str, link: obj
 
 
 # ---------------------------------------------------------------- fast engine
-def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
+def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target,
+                           run: bool | Callable[[Fraction], bool] = True) -> Worst | None:
     """Every map is a translation: the functional stays ``w``; a max-plus recurrence on scalars.
 
     V_k(l) = max over outcomes o of l of
@@ -328,8 +354,10 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
             stop[here, oi] = max(edge_value + end_bonus, w0 + int(kn * scale))
             stop_last[here, oi] = edge_value + end_bonus
     value = np.full(n_loc, neg_inf, dtype=dtype)
-    choice = np.zeros((steps + 1, n_loc), dtype=np.int32)
-    stopped = np.zeros((steps + 1, n_loc), dtype=bool)
+    # choice[k], stopped[k] for k = steps down to `settled`; below it they equal those at `settled`.
+    choice: dict[int, np.ndarray] = {}
+    stopped: dict[int, np.ndarray] = {}
+    settled = 2
     rows_idx = np.arange(n_loc)
     for k in range(steps, 1, -1):
         if k == steps:
@@ -342,7 +370,14 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
         best = cand.argmax(axis=1)
         choice[k] = best
         stopped[k] = s[rows_idx, best] >= cont[rows_idx, best]
-        value = cand[rows_idx, best]
+        previous, value = value, cand[rows_idx, best]
+        if k < steps and np.array_equal(previous, value):
+            # V_k = V_{k+1}, and V_{k-1} = F(V_k) with the same F: every earlier sample repeats sample k.
+            settled = k
+            break
+        if steps - k + 1 >= MAX_SAMPLES:
+            raise Unfinished(f"the horizon has {steps:,} samples and the worst value still changes after "
+                             f"{MAX_SAMPLES:,} of them")
     # Sample 1, from the initial location only.
     best_value, best_choice = None, None
     for oi, t, ke, kn, kb in first_rows:
@@ -364,24 +399,37 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
         return start
     result = Worst(Fraction(best_value, scale))
     assert best_choice is not None  # set together with best_value
+    if not (run(result.value) if callable(run) else run):
+        return result
     oi, instant = best_choice
     here, k = l0, 1
+    points: dict[tuple[int, str, bool], dict[str, Fraction]] = {}  # a run repeats its samples: weigh each once
+    stops: dict[tuple[int, bool], str] = {}
     while True:
+        if k > MAX_SAMPLES:
+            raise Unfinished(f"the worst run is longer than {MAX_SAMPLES:,} samples")
         o = outs[here][oi]
         if instant == "stop":
-            instant = _which_stop(w, o, accruals, k_end, last=k == steps)
+            last = k == steps
+            if (id(o), last) not in stops:
+                stops[id(o), last] = _which_stop(w, o, accruals, k_end, last=last)
+            instant = stops[id(o), last]
         if instant == AFTER_END:
             assert best_end is not None
             result.end = best_end
             result.end_inputs = _point(_weigh(w, (best_end.end_map,)), best_end.box)
-        point = _point(_weigh(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0)), o.box)
+        key = (id(o), instant, k == 1)
+        point = points.get(key)
+        if point is None:
+            point = points[key] = _point(_weigh(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0)), o.box)
         result.steps.append(Step(k, o, point, instant))
         if instant != CONTINUE:
             result.instant = instant
             return result
         here, k = o.target, k + 1
-        oi = int(choice[k, here])
-        instant = "stop" if stopped[k, here] else CONTINUE
+        at = max(k, settled)
+        oi = int(choice[at][here])
+        instant = "stop" if stopped[at][here] else CONTINUE
 
 
 def _maps_for(instant: str, o: Outcome, accruals: list[Affine], *, first: bool, l0: int) -> tuple[Affine, ...]:
