@@ -207,3 +207,16 @@ def test_comments_in_a_model_block_align_per_run() -> None:
 
 def test_multiplication_is_spaced_like_every_binary_operator() -> None:
     assert fmt("objective 10*sa + 5*pr/2 + co") == "    objective 10 * sa + 5 * pr / 2 + co\n"
+
+
+def test_and_inside_or_keeps_its_parentheses() -> None:
+    """The grammar does not need them; a reader does. The tree is the same either way."""
+    from rac.lang.format import format_expr
+    from rac.lang.parser import parse_expression
+
+    for text, printed in [("turn == 0 || (a && !b)", "turn == 0 || (a && !b)"),
+                          ("a && b || c", "(a && b) || c"),
+                          ("(a || b) && c", "(a || b) && c"),
+                          ("a || b || c", "a || b || c")]:
+        assert format_expr(parse_expression(text)) == printed
+        assert parse_expression(printed) == parse_expression(text)

@@ -3,7 +3,7 @@
 Three layers:
 
 * :func:`format_expr` prints an expression with the fewest parentheses the grammar
-  needs to read it back as the same tree (precedence, lowest first: ``imply``
+  needs to read it back as the same tree, and around ``&&`` inside ``||`` (precedence, lowest first: ``imply``
   (right-associative), ``||``, ``&&``, comparisons (non-associative), ``+ -``,
   ``* /`` (both left-associative), unary ``-`` and ``!``: the table :data:`RA` of
   :class:`RaPrinter`, a :class:`rac.core.printing.Printer`);
@@ -110,6 +110,11 @@ class RaPrinter(Printer):
     def print_Binary(self, node: ast.Binary) -> Printed:
         self.binary(node.op)  # an unknown operator is reported before its operands
         return self.infix(node.op, self.print(node.left), self.print(node.right))
+
+    def needs_parentheses(self, op: str, operand: Printed, need: int) -> bool:
+        """Also ``a || (b && c)``: the grammar needs no parentheses there, but a reader does (C
+        compilers warn without them), and files write them."""
+        return (op == "||" and operand.level == Level.AND) or super().needs_parentheses(op, operand, need)
 
 
 _PRINTER = RaPrinter()
