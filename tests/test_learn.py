@@ -353,11 +353,11 @@ def test_render_draws_the_learned_strategys_run(tmp_path: Path, capsys: pytest.C
     from rac.cli.main import main
 
     path = write_engine_file(tmp_path, "goal_ahead", VERIFY_QUERIES)
-    png = tmp_path / "run.png"
-    assert main(["render", str(path), "--strategy", "reach", "--seed", "1", "-o", str(png), "-q"]) == 0
+    png = tmp_path / "run.png"  # in the folder -o names
+    assert main(["render", str(path), "--strategy", "reach", "--seed", "1", "-o", str(tmp_path), "-q"]) == 0
     assert "the run under the learned strategy reach" in capsys.readouterr().out
     with Image.open(png) as image:
         assert image.format == "PNG"
-    assert main(["render", str(path), "--strategy", "nope", "-o", str(png)]) == 2
+    assert main(["render", str(path), "--strategy", "nope", "-o", str(tmp_path)]) == 2
     assert "learning queries: reach, rush" in capsys.readouterr().err
-    assert main(["render", str(path), "--strategy", "reach", "--shield", "-o", str(png)]) == 2  # one or the other
+    assert main(["render", str(path), "--strategy", "reach", "--shield", "-o", str(tmp_path)]) == 2  # one or the other

@@ -178,7 +178,7 @@ def test_format_layout() -> None:
         '        scenario "s.xml"\n'
         "        base 2 * K\n"
         "        // own line\n"
-        "        bind a = x && y || !z\n"
+        "        bind a = (x && y) || !z\n"
         "    }  // after\n"
         "    model { }\n"
         "}\n")

@@ -253,8 +253,7 @@ def test_a_rule_that_leaves_no_action_is_reported(tmp_path: Path, capsys: pytest
     assert results["Qd"]["status"] == "satisfied" and results["Reach"]["status"] == "not satisfied"
     for result in results.values():
         assert "`allow when` leaves no action in 1 state before the horizon: runs stop there" in result["message"]
-    assert main(["simulate", str(source), "--runs", "3", "--seed", "1", "-o", str(tmp_path / "runs.csv"),
-                 "--plot", str(tmp_path / "runs.png")]) == 0
+    assert main(["simulate", str(source), "--runs", "3", "--seed", "1", "-o", str(tmp_path / "runs")]) == 0
     assert "3 runs met a state where the model's `allow when` allowed nothing" in capsys.readouterr().out
 
 

@@ -372,7 +372,7 @@ def test_standard_queries(compiled: Callable[[str], Compiled], tmp_path: Path) -
     assert "NO run that stays safe until it gets there exists" in (results["Qc"].message or "")
     # the file defines a strategy `safe` of its own: the standard one is `safe_` (nothing is overwritten)
     assert decls[3].text == "strategy safe_ = control: A[] !collide() && !offroad()"
-    assert (tmp_path / "safe_.shield.npz").is_file() and not (tmp_path / "safe.shield.npz").exists()
+    assert (tmp_path / "standard" / "safe_.shield.npz").is_file() and not (tmp_path / "safe.shield.npz").exists()
     assert standard_queries(item.result, Fraction(3, 2))[0].text.startswith("Pr[<=1.5](<> ")
 
 
