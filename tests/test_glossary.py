@@ -23,6 +23,10 @@ TERMS = {
 }
 
 
+#: A markdown link: its text stays, its target goes.
+_LINK = re.compile(r"\[([^\]]*)\]\([^)]*\)")
+
+
 def paragraphs(page: Path) -> list[str]:
     """The page's prose paragraphs, in order, without code blocks and HTML comments."""
     text = re.sub(r"^\s*```.*?^\s*```", "", page.read_text(encoding="utf-8"), flags=re.S | re.M)
@@ -42,7 +46,7 @@ def test_first_use_links_the_glossary(page: Path) -> None:
     link = "glossary.md" if page.parent.name == "docs" else "docs/glossary.md"
     for term, (pattern, anchor) in TERMS.items():
         # a use inside link text counts, its target does not (`[numbers](#numbers-significands-and-mirrors)`)
-        first = next((p for p in paragraphs(page) if re.search(pattern, re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", p))), None)
+        first = next((p for p in paragraphs(page) if re.search(pattern, _LINK.sub(r"\1", p))), None)
         if first is not None and f"{link}#{anchor}" not in first:
             missing.append(f"{term}: {first.strip()[:100]!r}")
     assert not missing, f"{page.name}: first use without a link to its glossary entry:\n" + "\n".join(missing)
