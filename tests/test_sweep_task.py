@@ -14,6 +14,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from concurrent.futures import ThreadPoolExecutor
 from fractions import Fraction
 from pathlib import Path
@@ -200,6 +201,31 @@ def test_a_task_past_its_timeout_is_a_timeout_row(folder: Path, monkeypatch: pyt
     assert 0.3 <= row["seconds"] < 10  # type: ignore[operator]
     assert row["verdicts"] == {} and set(row) >= ROW_KEYS
     assert _marked(mark) == [], "the task's process outlived its timeout"
+
+
+def test_the_task_leaves_with_its_worker(folder: Path) -> None:
+    """A worker that dies (Dask reruns its task elsewhere) takes its task's process along."""
+    mark = f"RAC_SWEEP_WORKER_MARK_{os.getpid()}"
+    long = spec(folder, "goal_ahead.xml", "experiment",
+                options=(("episodes", "1000000"), ("reward_function", "goal()"), ("seeds", "1")))
+    code = ("import json, sys; from rac.sweep.task import TaskSpec, run_task; "
+            "run_task(TaskSpec.from_json(json.load(sys.stdin)))")
+    worker = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, text=True,
+                              env={**rac_env(), mark: "1"})
+    try:
+        worker.stdin.write(json.dumps(long.to_json()))  # type: ignore[union-attr]
+        worker.stdin.close()  # type: ignore[union-attr]
+        deadline = time.monotonic() + 30
+        while len(_marked(mark)) < 2 and time.monotonic() < deadline:  # the worker and its task
+            time.sleep(0.1)
+        assert len(_marked(mark)) == 2
+    finally:
+        worker.kill()
+        worker.wait()
+    deadline = time.monotonic() + 5
+    while _marked(mark) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _marked(mark) == [], "the task's process outlived its worker"
 
 
 def test_a_task_past_its_memory_limit_is_a_memory_row(folder: Path) -> None:

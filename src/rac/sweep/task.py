@@ -52,8 +52,10 @@ OPTIONS: dict[str, str] = {
     "runs": "preanalyse: simulated runs per setting (default 100); experiment: evaluation runs (default 100)",
     "reward_function": "experiment: the reward function of the RF combinations (default: the paper's Eq. 9)",
 }
-#: What the child's standard error says when it ran out of memory (Python, numpy, C++, the loader).
-_OUT_OF_MEMORY = ("MemoryError", "Unable to allocate", "Cannot allocate memory", "bad_alloc", "out of memory")
+#: What an error says when the task ran out of memory under its limit (Python, numpy, C++, the loader;
+#: CPython's SystemError "returned NULL without setting an exception" when even the MemoryError failed).
+_OUT_OF_MEMORY = ("MemoryError", "Unable to allocate", "Cannot allocate memory", "bad_alloc", "out of memory",
+                  "SystemError")
 #: The last characters of the child's standard error an error row quotes.
 _STDERR_TAIL = 2000
 
@@ -158,7 +160,7 @@ def _in_child(spec: TaskSpec) -> dict[str, Any]:
     absolute = TaskSpec(**{**asdict(spec), "template": os.path.abspath(spec.template),
                            "scenario": os.path.abspath(spec.scenario), "settings": spec.settings,
                            "options": spec.options})
-    process = subprocess.Popen([sys.executable, "-m", "rac.sweep.task"], stdin=subprocess.PIPE,
+    process = subprocess.Popen([sys.executable, "-m", "rac.sweep.task", str(os.getpid())], stdin=subprocess.PIPE,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_environment(),
                                start_new_session=True)
     start = time.perf_counter()
@@ -193,15 +195,14 @@ def _memory_error(limit: int, what: str) -> str:
 
 
 # ---------------------------------------------------------------- the child
-def _leave_with_parent() -> None:
-    """Exit when the parent (the sweep's worker) is gone: a task whose worker died is rerun elsewhere."""
-    parent = os.getppid()
+def _leave_with_parent(parent: int) -> None:
+    """Exit when the parent ``parent`` (the sweep's worker) is gone, even before this call: a task whose
+    worker died is rerun elsewhere."""
 
     def watch() -> None:
-        while True:
+        while os.getppid() == parent:
             time.sleep(0.5)
-            if os.getppid() != parent:
-                os._exit(1)
+        os._exit(1)
 
     threading.Thread(target=watch, name="rac-sweep-parent", daemon=True).start()
 
@@ -214,14 +215,16 @@ def _limit_memory(limit: int) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
 
 
-def main() -> int:
-    """``python -m rac.sweep.task``: read a :class:`TaskSpec` as JSON on standard input, run it, write
-    the task's part of the row as JSON on standard output."""
+def main(argv: list[str] | None = None) -> int:
+    """``python -m rac.sweep.task [PARENT_PID]``: read a :class:`TaskSpec` as JSON on standard input, run
+    it, write the task's part of the row as JSON on standard output; leave when the process
+    ``PARENT_PID`` (default: the parent at the start) is no longer the parent."""
+    argv = sys.argv[1:] if argv is None else argv
+    _leave_with_parent(int(argv[0]) if argv else os.getppid())
     spec = TaskSpec.from_json(json.load(sys.stdin))
     sys.stdout.flush()
     result = os.fdopen(os.dup(1), "w", encoding="utf-8")
     os.dup2(2, 1)  # whatever the task prints goes to standard error, not into the result
-    _leave_with_parent()
     from rac.sweep import work
 
     work.load(spec.task)  # the task's modules, before the memory limit: it limits the task, not them
