@@ -233,6 +233,8 @@ def write_plots(rows: Sequence[Mapping[str, object]], folder: Path) -> list[Path
 
 
 def _plot_verdicts(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
+    from matplotlib.ticker import MaxNLocator
+
     from rac.output.plots import fit_title, new_figure, save_figure
 
     points = list(dict.fromkeys(grid_label(_mapping(row, "settings")) for row in rows))
@@ -250,8 +252,9 @@ def _plot_verdicts(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
         ax.bar(range(len(points)), heights, bottom=bottom, label=category, width=0.7,
                color=_COLOURS.get(category.removeprefix("task "), "#64b5cd"))
         bottom = [b + h for b, h in zip(bottom, heights)]
-    ax.set_xticks(range(len(points)), points, rotation=20 if len(points) > 3 else 0, ha="right"
+    ax.set_xticks(range(len(points)), points, rotation=30 if len(points) > 3 else 0, ha="right"
                   if len(points) > 3 else "center", fontsize=8)
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
     ax.set_ylabel("queries × scenarios" if any(_mapping(row, "verdicts") for row in rows) else "tasks")
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), frameon=False, fontsize=8)
     ax.grid(True, axis="y", color="#e0e0e0", linewidth=0.6)
