@@ -64,8 +64,10 @@ def _parser() -> argparse.ArgumentParser:
     fmt.add_argument("--stdout", action="store_true", help="print the result instead of rewriting")
 
     from rac.cli.engine import add_parsers
+    from rac.cli.sweep import add_parser as add_sweep
 
     add_parsers(commands)
+    add_sweep(commands)
     return parser
 
 
@@ -233,8 +235,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # argparse exits 2 on bad usage, 0 on --help
         return int(exc.code or 0)
     from rac.cli.engine import HANDLERS
+    from rac.cli.sweep import sweep_command
 
-    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, **HANDLERS}
+    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, **HANDLERS, "sweep": sweep_command}
     stdout = sys.stdout
     sys.stdout = ReaderSafe(stdout)  # `rac check ... | head`: the command still ends with its own status
     try:

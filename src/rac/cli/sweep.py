@@ -1,0 +1,166 @@
+"""``rac sweep``: a template ``.ra`` file over many scenarios and a grid of model settings, on Dask
+(:mod:`rac.sweep`, docs/sweep.md).
+
+Exit codes (:mod:`rac.cli.common`): 0 every task ok, 1 a task failed (errors in the file, a query not
+satisfied), 2 bad usage (no scenario matched, a bad ``--set``; before any cluster starts) or an output
+folder that cannot be written, 4 none failed but a task could not run (error, timeout, memory) or a verdict
+is unknown, 130 Ctrl-C (what was done is merged first).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Mapping, Sequence
+from fractions import Fraction
+from pathlib import Path
+
+from rac.cli.common import (
+    EXIT_ERRORS,
+    EXIT_OK,
+    EXIT_UNDECIDED,
+    EXIT_USAGE,
+    OUTPUT_CONVENTION,
+    OUTPUT_SUFFIX,
+    output_folder,
+)
+
+__all__ = ["add_parser", "exit_status", "sweep_command"]
+
+#: The exit code after Ctrl-C (128 + SIGINT), as the shell reports it.
+EXIT_INTERRUPTED = 130
+
+
+def _checked(check, kind: str):
+    """An argparse ``type`` that keeps the text and refuses it when ``check(text)`` is false or raises."""
+
+    def parse(text: str) -> str:
+        try:
+            ok = check(text)
+        except (ValueError, ZeroDivisionError):
+            ok = False
+        if not ok:
+            raise argparse.ArgumentTypeError(f"not {kind}: {text!r}")
+        return text
+
+    return parse
+
+
+def _size(text: str) -> int:
+    from rac.engine.budget import parse_size
+
+    try:
+        size = parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if size <= 0:
+        raise argparse.ArgumentTypeError(f"`{text}` must be more than 0 bytes")
+    return size
+
+
+def exit_status(rows: Sequence[Mapping[str, object]]) -> int:
+    """The exit code of a sweep's rows: 1 when a task failed (errors in the file, a query not satisfied),
+    else 4 when a task could not run (error, timeout, memory) or a verdict is unknown or unsupported, else 0."""
+    if any(row.get("status") == "failed" for row in rows):
+        return EXIT_ERRORS
+    undecided = {"unknown", "unsupported"}
+    for row in rows:
+        verdicts = row.get("verdicts")
+        if row.get("status") != "ok" or isinstance(verdicts, Mapping) and undecided & set(map(str, verdicts.values())):
+            return EXIT_UNDECIDED
+    return EXIT_OK
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'s' * (n != 1)}"
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """Add ``sweep`` to ``rac``'s sub-commands."""
+    from rac.sweep.task import TASKS
+
+    sweep = commands.add_parser(
+        "sweep", help="run a template over many scenarios and a grid of settings, on Dask",
+        description="Run TASK of the template .ra file (with a `model` block) on every scenario and every point "
+                    "of the --set grid, one Dask task each: on a local cluster started for the sweep, or on the "
+                    "cluster at --scheduler. Rows already stored in the output folder are reused.",
+        epilog=f"{OUTPUT_CONVENTION} The sweep keeps one file per task in tasks/ and merges them into "
+               "results.parquet (results.csv without pyarrow) and results.json. Exit codes: 0 every task ok, "
+               "1 a task failed, 2 bad usage, 4 a task could not run or a verdict is unknown, 130 interrupted.")
+    sweep.add_argument("template", metavar="TEMPLATE.ra", help="a .ra file with a `model` block")
+    sweep.add_argument("scenarios", nargs="+", metavar="SCENARIOS",
+                       help="CommonRoad files, folders (searched for *.xml) or globs")
+    sweep.add_argument("--set", action="append", default=[], dest="sets", metavar="NAME=V1,V2",
+                       help="a model setting's values (repeatable: the grid is every combination)")
+    sweep.add_argument("--task", choices=TASKS, default="verify", help="what each task runs (default verify)")
+    sweep.add_argument("--scheduler", metavar="ADDR",
+                       help="an existing Dask cluster, tcp://HOST:PORT (default: Dask's `scheduler-address` "
+                            "configuration, else a local cluster)")
+    sweep.add_argument("--workers", type=_checked(lambda t: int(t) >= 1, "a whole number of at least 1"),
+                       metavar="N", help="worker processes of the local cluster (default: one per core)")
+    sweep.add_argument("--task-timeout", type=_checked(lambda t: float(t) > 0, "a positive number of seconds"),
+                       metavar="S", help="seconds per task; past them the task is a timeout row")
+    sweep.add_argument("--task-memory", type=_size, metavar="SIZE",
+                       help="memory per task, e.g. 2G; past it the task is a memory row")
+    sweep.add_argument("--force", action="store_true", help="run every task again, even those already stored")
+    sweep.add_argument("-o", "--out", metavar="DIR",
+                       help=f"the output folder (default: TEMPLATE{OUTPUT_SUFFIX}/sweep/ beside the template)")
+    sweep.add_argument("--horizon", type=_checked(lambda t: Fraction(t) > 0, "a positive number"),
+                       metavar="SECONDS", help="horizon of each task (default: the automaton's)")
+    sweep.add_argument("--seed", type=_checked(lambda t: isinstance(int(t), int), "a whole number"), metavar="N",
+                       help="seed of each task's simulations")
+    sweep.add_argument("--max-states", type=_checked(lambda t: int(t) >= 1, "a whole number of at least 1"),
+                       metavar="N", help="each task gives up (verdict unknown) beyond this many states")
+    sweep.add_argument("-q", "--quiet", action="store_true", help="no progress, no dashboard address")
+    sweep.add_argument("--format", choices=("text", "json"), default="text", help="the summary's format")
+
+
+def sweep_command(args: argparse.Namespace) -> int:
+    """``rac sweep``: plan (bad arguments exit 2 before any cluster starts), run, merge, summarise."""
+    from rac.sweep import execute, plan
+    from rac.sweep.report import render_summary
+
+    if args.scheduler and args.workers:
+        print("rac sweep: --workers sizes the local cluster; the cluster at --scheduler has its own workers",
+              file=sys.stderr)
+        return EXIT_USAGE
+    options = {"horizon": args.horizon, "seed": args.seed, "max_states": args.max_states}
+    try:
+        planned = plan(args.template, args.scenarios, sets=args.sets, task=args.task,
+                       out=output_folder(Path(args.template), "sweep", Path(args.out) if args.out else None),
+                       task_timeout=float(args.task_timeout) if args.task_timeout else None,
+                       task_memory=args.task_memory, options={k: v for k, v in options.items() if v is not None})
+    except OSError as exc:
+        print(f"rac sweep: cannot read {args.template}: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except ValueError as exc:
+        print(f"rac sweep: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    quiet = args.quiet or args.format == "json"
+    say = (lambda _: None) if args.quiet else (lambda line: print(f"rac sweep: {line}", file=sys.stderr))
+    say(f"{_count(len(planned.specs), 'task')}: {_count(planned.scenarios, 'scenario')} × "
+        f"{_count(planned.points, 'grid point')}, task {args.task}; outputs in {planned.out}")
+    try:
+        result = execute(planned, scheduler=args.scheduler, workers=int(args.workers) if args.workers else None,
+                         force=args.force, quiet=quiet, announce=say)
+    except OSError as exc:
+        print(f"rac sweep: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    status = exit_status(result.rows)
+    if args.format == "json":
+        print(json.dumps({"template": str(planned.template), "out": str(planned.out),
+                          "interrupted": result.outcome.interrupted, "exit_code": status,
+                          "summary": result.summary.to_json(), "files": [str(f) for f in result.files]}, indent=2))
+    else:
+        print(render_summary(result.summary))
+        print()
+        for path in result.files:
+            print(f"wrote {path}")
+    for note in result.notes:
+        print(f"rac sweep: note: {note}", file=sys.stderr)
+    if result.outcome.interrupted:
+        print(f"rac sweep: interrupted: {result.summary.not_run} tasks not run (run the same command again to "
+              "run only those)", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return status

@@ -1,0 +1,293 @@
+"""What a sweep leaves behind: its rows merged into one table (``results.parquet``, or ``results.csv`` when
+pyarrow is not installed) and ``results.json``, a summary table and two plots.
+
+The rows are those of :func:`rac.sweep.task.run_task` (one per task). ``results.json`` holds them as they
+are; the table flattens them: one column per row field, ``settings.NAME`` per model setting of the grid,
+``verdicts.QUERY`` per query, ``grid_point`` (the settings in words) and ``diagnostics``/``details`` as JSON
+text. The plots use :mod:`rac.output.plots` (Agg only, written atomically).
+
+Example::
+
+    paths, notes = write_results(rows, Path("driving.out/sweep"))
+    print(render_summary(summarise(rows, tasks=len(rows))))
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rac.output.plots import atomic_write
+from rac.sweep.store import write_text
+from rac.sweep.task import STATUSES, VERDICTS  # in the order tables and plots show them
+
+__all__ = ["RESULTS_CSV", "RESULTS_JSON", "RESULTS_PARQUET", "Summary", "frame", "grid_label", "render_summary",
+           "summarise", "table", "write_plots", "write_results"]
+
+RESULTS_PARQUET, RESULTS_CSV, RESULTS_JSON = "results.parquet", "results.csv", "results.json"
+VERDICT_PLOT, TIME_PLOT = "verdicts.png", "time_vs_size.png"
+#: The row's fields, in the table's order (``settings`` and ``verdicts`` become one column per name).
+_FIELDS = ("key", "scenario", "scenario_name", "task", "status", "error", "seconds", "peak_memory", "states",
+           "scenario_size")
+_COLOURS = {"satisfied": "#55a868", "not satisfied": "#c44e52", "unknown": "#8c8c8c", "unsupported": "#ccb974",
+            "ok": "#4c72b0", "failed": "#dd8452", "error": "#8172b3", "timeout": "#937860", "memory": "#da8bc3"}
+
+
+def grid_label(settings: Mapping[str, object]) -> str:
+    """A grid point in words, ``exponent=1 decide_period=0.5``; ``template settings`` without ``--set``."""
+    return " ".join(f"{name}={value}" for name, value in settings.items()) or "template settings"
+
+
+def _mapping(row: Mapping[str, object], name: str) -> Mapping[str, object]:
+    value = row.get(name)
+    return value if isinstance(value, Mapping) else {}
+
+
+def table(rows: Sequence[Mapping[str, object]]) -> tuple[list[str], list[dict[str, object]]]:
+    """The rows flattened into one table: its column names and one record per row."""
+    settings = list(dict.fromkeys(name for row in rows for name in _mapping(row, "settings")))
+    queries = list(dict.fromkeys(name for row in rows for name in _mapping(row, "verdicts")))
+    known = {*_FIELDS, "settings", "verdicts", "diagnostics", "details"}
+    extra = list(dict.fromkeys(name for row in rows for name in row if name not in known))  # e.g. wall_seconds
+    columns = [*_FIELDS[:4], "grid_point", *(f"settings.{name}" for name in settings), *_FIELDS[4:], *extra,
+               *(f"verdicts.{name}" for name in queries), "diagnostics", "details"]
+    records = []
+    for row in rows:
+        record: dict[str, object] = {name: row.get(name) for name in _FIELDS}
+        record.update({name: _scalar(row.get(name)) for name in extra})
+        record["grid_point"] = grid_label(_mapping(row, "settings"))
+        record.update({f"settings.{name}": _mapping(row, "settings").get(name) for name in settings})
+        record.update({f"verdicts.{name}": _mapping(row, "verdicts").get(name) for name in queries})
+        record["diagnostics"] = json.dumps(row.get("diagnostics") or [])
+        record["details"] = None if row.get("details") is None else json.dumps(row.get("details"), default=str)
+        records.append({name: record[name] for name in columns})
+    return columns, records
+
+
+def _scalar(value: object) -> object:
+    """A table cell: numbers, text, truth values and None as they are, anything else as JSON text."""
+    return value if value is None or isinstance(value, str | int | float | bool) else json.dumps(value, default=str)
+
+
+def frame(rows: Sequence[Mapping[str, object]]) -> Any:
+    """The table of :func:`table` as a pandas DataFrame; the rows themselves (a list of dicts) when pandas
+    is not installed."""
+    try:
+        import pandas as pd
+    except ImportError:
+        return [dict(row) for row in rows]
+    columns, records = table(rows)
+    return pd.DataFrame.from_records(records, columns=columns)
+
+
+def _parquet_writer() -> Any:
+    """pandas, when it can write Parquet (it needs pyarrow); else None."""
+    try:
+        import pandas as pd
+        import pyarrow  # noqa: F401  (pandas' Parquet engine)
+    except ImportError:
+        return None
+    return pd
+
+
+def write_results(rows: Sequence[Mapping[str, object]], folder: Path) -> tuple[list[Path], list[str]]:
+    """Write ``results.parquet`` (or ``results.csv`` when pandas or pyarrow is missing; the other of the
+    two, left by an earlier run, is removed) and ``results.json`` into ``folder``; return the files written
+    and notes for the user. Raises ``OSError`` when a file cannot be written."""
+    folder.mkdir(parents=True, exist_ok=True)
+    columns, records = table(rows)
+    pd = _parquet_writer()
+    notes = []
+    if pd is not None:
+        data = pd.DataFrame.from_records(records, columns=columns)
+        written = atomic_write(folder / RESULTS_PARQUET, lambda file: data.to_parquet(file, index=False))
+        (folder / RESULTS_CSV).unlink(missing_ok=True)
+    else:
+        text = io.StringIO()
+        writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(records)
+        written = write_text(folder / RESULTS_CSV, text.getvalue())
+        (folder / RESULTS_PARQUET).unlink(missing_ok=True)
+        notes.append(f"wrote {RESULTS_CSV}, not {RESULTS_PARQUET}: Parquet needs pandas and pyarrow "
+                     "(pip install 'rac[sweep]')")
+    json_path = folder / RESULTS_JSON
+    write_text(json_path, json.dumps([dict(row) for row in rows], indent=1, default=str) + "\n")
+    return [written, json_path], notes
+
+
+# ---------------------------------------------------------------- summary
+@dataclass
+class Summary:
+    """The numbers of the summary table: tasks in the sweep, finished (ok or not), skipped (their rows were
+    stored by an earlier run), not run (Ctrl-C); the count of each status; per query the count of each
+    verdict; the seconds per task (50th and 90th percentile, maximum; over the rows that have them); and the
+    tasks that did not end ok as ``(status, scenario name, grid point, error)``."""
+
+    tasks: int
+    finished: int
+    skipped: int
+    not_run: int
+    statuses: dict[str, int]
+    queries: dict[str, dict[str, int]]
+    seconds: dict[str, float] = field(default_factory=dict)
+    problems: list[tuple[str, str, str, str]] = field(default_factory=list)
+
+    @property
+    def ok(self) -> int:
+        """Tasks that ended ok."""
+        return self.statuses.get("ok", 0)
+
+    @property
+    def failed(self) -> int:
+        """Tasks that finished but not ok (failed, error, timeout, memory)."""
+        return self.finished - self.ok
+
+    def to_json(self) -> dict[str, object]:
+        """The summary as JSON-serialisable data."""
+        return {**asdict(self), "ok": self.ok, "failed": self.failed,
+                "problems": [dict(zip(("status", "scenario", "grid_point", "error"), p)) for p in self.problems]}
+
+
+def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int = 0) -> Summary:
+    """The :class:`Summary` of ``rows`` out of ``tasks`` tasks, ``skipped`` of them reused from the store."""
+    statuses = Counter(str(row.get("status")) for row in rows)
+    queries: dict[str, Counter[str]] = {}
+    for row in rows:
+        for name, verdict in _mapping(row, "verdicts").items():
+            queries.setdefault(name, Counter())[str(verdict)] += 1
+    seconds = sorted(float(s) for row in rows if isinstance(s := row.get("seconds"), int | float) and math.isfinite(s))
+    percentiles = {}
+    if seconds:
+        import numpy as np
+
+        percentiles = {"p50": float(np.percentile(seconds, 50)), "p90": float(np.percentile(seconds, 90)),
+                       "max": seconds[-1]}
+    problems = [(str(row.get("status")), str(row.get("scenario_name")), grid_label(_mapping(row, "settings")),
+                 str(row.get("error") or "")) for row in rows if row.get("status") != "ok"]
+    order = {status: i for i, status in enumerate(STATUSES)}
+    return Summary(tasks=tasks, finished=len(rows), skipped=skipped, not_run=tasks - len(rows),
+                   statuses={s: n for s, n in sorted(statuses.items(), key=lambda item: order.get(item[0], 99))},
+                   queries={name: {v: counts.get(v, 0) for v in VERDICTS} for name, counts in queries.items()},
+                   seconds=percentiles, problems=problems)
+
+
+def _aligned(header: Sequence[str], lines: Sequence[Sequence[object]], *, names: bool = True) -> list[str]:
+    """A plain text table, numbers right-aligned; the first column left-aligned when it holds ``names``."""
+    cells = [list(map(str, header)), *([str(cell) for cell in line] for line in lines)]
+    widths = [max(len(line[i]) for line in cells) for i in range(len(header))]
+    return ["  ".join(cell.ljust(w) if i == 0 and names else cell.rjust(w)
+                      for i, (cell, w) in enumerate(zip(line, widths))).rstrip() for line in cells]
+
+
+def render_summary(summary: Summary, *, problems_shown: int = 10) -> str:
+    """The summary as text: the task counts, each status, the verdicts per query, the seconds per task,
+    and the first ``problems_shown`` tasks that did not end ok (with why)."""
+    out = _aligned(["tasks", "ok", "failed", "skipped", "not run"],
+                   [[summary.tasks, summary.ok, summary.failed, summary.skipped, summary.not_run]], names=False)
+    if summary.skipped:
+        out.append(f"skipped: {summary.skipped} stored by an earlier run (--force runs them again)")
+    if summary.failed:
+        out.append("failed: " + ", ".join(f"{n} {status}" for status, n in summary.statuses.items()
+                                          if status != "ok"))
+    if summary.queries:
+        out.append("")
+        out.extend(_aligned(["query", *VERDICTS],
+                            [[name, *(counts[v] for v in VERDICTS)] for name, counts in summary.queries.items()]))
+    if summary.seconds:
+        s = summary.seconds
+        out.append("")
+        out.append(f"time per task: p50 {s['p50']:.2f} s, p90 {s['p90']:.2f} s, max {s['max']:.2f} s")
+    if summary.problems:
+        out.append("")
+        for status, scenario, point, error in summary.problems[:problems_shown]:
+            first = error.splitlines()[0] if error else ""
+            out.append(f"{status}: {scenario} [{point}]{': ' + first if first else ''}")
+        if len(summary.problems) > problems_shown:
+            out.append(f"... and {len(summary.problems) - problems_shown} more (results.json has every row)")
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------- plots
+def _outcomes(row: Mapping[str, object]) -> list[str]:
+    """What a row adds to the verdict mix: one verdict per query, or its status when it has no verdicts."""
+    verdicts = _mapping(row, "verdicts")
+    return [str(v) for v in verdicts.values()] if verdicts else [f"task {row.get('status')}"]
+
+
+def write_plots(rows: Sequence[Mapping[str, object]], folder: Path) -> list[Path]:
+    """``verdicts.png`` (the verdict mix per grid point, stacked bars; a task without verdicts counts as
+    its status) and ``time_vs_size.png`` (seconds per task against the scenario's size, lanelets plus
+    obstacles, one colour per status) in ``folder``; nothing without rows. Returns the files written."""
+    if not rows:
+        return []
+    folder.mkdir(parents=True, exist_ok=True)
+    return [_plot_verdicts(rows, folder / VERDICT_PLOT), _plot_times(rows, folder / TIME_PLOT)]
+
+
+def _plot_verdicts(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
+    from matplotlib.ticker import MaxNLocator
+
+    from rac.output.plots import fit_title, new_figure, save_figure
+
+    points = list(dict.fromkeys(grid_label(_mapping(row, "settings")) for row in rows))
+    counts = {point: Counter[str]() for point in points}
+    for row in rows:
+        counts[grid_label(_mapping(row, "settings"))].update(_outcomes(row))
+    known = [*VERDICTS, *(f"task {status}" for status in STATUSES)]
+    seen = {outcome for c in counts.values() for outcome in c}
+    categories = [c for c in known if c in seen] + sorted(seen - set(known))
+    figure = new_figure(max(5.0, 1.2 + 0.8 * len(points)), 4.4)
+    ax = figure.add_subplot()
+    bottom = [0] * len(points)
+    for category in categories:
+        heights = [counts[point][category] for point in points]
+        ax.bar(range(len(points)), heights, bottom=bottom, label=category, width=0.7,
+               color=_COLOURS.get(category.removeprefix("task "), "#64b5cd"))
+        bottom = [b + h for b, h in zip(bottom, heights)]
+    ax.set_xticks(range(len(points)), points, rotation=30 if len(points) > 3 else 0, ha="right"
+                  if len(points) > 3 else "center", fontsize=8)
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
+    ax.set_ylabel("queries × scenarios" if any(_mapping(row, "verdicts") for row in rows) else "tasks")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), frameon=False, fontsize=8)
+    ax.grid(True, axis="y", color="#e0e0e0", linewidth=0.6)
+    ax.set_axisbelow(True)
+    ax.set_title(f"verdicts per grid point ({len(rows)} tasks)")
+    fit_title(figure, ax.title)
+    return save_figure(figure, path)
+
+
+def _number(value: object) -> float:
+    return float(value) if isinstance(value, int | float) else math.nan
+
+
+def _plot_times(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
+    from rac.output.plots import fit_title, new_figure, save_figure
+
+    figure = new_figure(6.5, 4.4)
+    ax = figure.add_subplot()
+    sized = [row for row in rows if isinstance(row.get("scenario_size"), int) and
+             isinstance(row.get("seconds"), int | float)]
+    for status in [*STATUSES, *sorted({str(r.get("status")) for r in sized} - set(STATUSES))]:
+        mine = [row for row in sized if row.get("status") == status]
+        if mine:
+            ax.scatter([_number(row["scenario_size"]) for row in mine], [_number(row["seconds"]) for row in mine],
+                       s=22, alpha=0.8,
+                       color=_COLOURS.get(status, "#64b5cd"), label=f"{status} ({len(mine)})", linewidths=0)
+    if sized:
+        ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    ax.set_xlabel("scenario size (lanelets + obstacles)")
+    ax.set_ylabel("seconds per task")
+    ax.grid(True, color="#e0e0e0", linewidth=0.6)
+    missing = len(rows) - len(sized)
+    ax.set_title("task time against scenario size" + (f" ({missing} tasks without a size not shown)"
+                                                      if missing else ""))
+    fit_title(figure, ax.title)
+    return save_figure(figure, path)

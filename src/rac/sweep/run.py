@@ -1,0 +1,261 @@
+"""Running a sweep's tasks on Dask (``dask.distributed``).
+
+:func:`connect` yields a :class:`distributed.Client`: of a ``LocalCluster`` that rac starts and stops
+(one single-threaded worker process per core) or, given a scheduler address (``--scheduler``, or Dask's
+own ``scheduler-address`` configuration), of an existing cluster. :func:`run_tasks` submits one Dask task
+per :class:`~rac.sweep.task.TaskSpec` not already in the :class:`~rac.sweep.store.Store`, and stores each
+row as it arrives. A task that raises, or whose worker died twice (Dask's ``KilledWorker``: the scheduler
+allows one failure, so a task whose worker dies is retried once on another worker), becomes an error row;
+Ctrl-C cancels what is left and returns what is done.
+
+Dask is imported by these functions, never when this module is imported: ``import rac`` stays light.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import signal
+import time
+import uuid
+import warnings
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from importlib.util import find_spec
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from rac.output.progress import Heartbeat, Progress
+from rac.sweep.store import Store
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+    from rac.sweep.task import TaskSpec
+
+__all__ = ["ALLOWED_FAILURES", "Outcome", "connect", "error_row", "run_tasks", "task_function"]
+
+#: Dask's ``distributed.scheduler.allowed-failures`` for the clusters rac starts: a task whose worker dies
+#: is retried once on another worker, then reported as an error row (``KilledWorker``).
+ALLOWED_FAILURES = 1
+#: What a row's ``error`` says when its task's worker died twice (``KilledWorker``).
+KILLED = ("its worker died twice while running it (Dask's KilledWorker: a crash in native code, the operating "
+          "system's out-of-memory killer or the worker's memory limit)")
+
+#: A row: the result of one task (:func:`rac.sweep.task.run_task`).
+Row = dict[str, object]
+
+
+def task_function() -> Callable[[TaskSpec], Row]:
+    """The function each Dask task runs on its spec: :func:`rac.sweep.task.run_task` (tests replace it)."""
+    from rac.sweep.task import run_task
+
+    return run_task
+
+
+def error_row(spec: TaskSpec, key: str, status: str, message: str) -> Row:
+    """The row of a task that produced none itself (its worker died, it raised, it could not be sent):
+    ``status`` and ``message``, every other measurement None."""
+    return {"key": key, "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem,
+            "settings": dict(spec.settings), "task": spec.task, "status": status, "error": message,
+            "seconds": 0.0, "peak_memory": None, "states": None, "scenario_size": None, "verdicts": {},
+            "diagnostics": [], "details": None}
+
+
+@dataclass
+class Outcome:
+    """What :func:`run_tasks` did: the row of every task that has one (stored before or now) by task
+    key, each spec's key, how many ran now and how many were skipped (stored before), and whether
+    Ctrl-C stopped it."""
+
+    rows: dict[str, Row] = field(default_factory=dict)
+    keys: list[str] = field(default_factory=list)  #: the key of each spec, in the order given
+    ran: int = 0
+    skipped: int = 0
+    interrupted: bool = False
+
+
+@contextlib.contextmanager
+def connect(scheduler: str | None = None, workers: int | None = None, *,
+            announce: Callable[[str], None] | None = None) -> Iterator[Client]:
+    """A Dask client: of the cluster at ``scheduler`` (or Dask's ``scheduler-address`` configuration) when
+    given, else of a ``LocalCluster`` of ``workers`` processes (default: one per core) with one thread
+    each, closed on exit. ``announce`` receives the dashboard's address. Raises ``OSError`` when the
+    scheduler cannot be reached."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    address = scheduler or dask.config.get("scheduler-address", None)
+    say = announce or (lambda _: None)
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+        if address:
+            try:
+                client = Client(address, timeout="10s")
+            except (OSError, TimeoutError) as exc:
+                raise OSError(f"cannot connect to the Dask scheduler at {address}: {exc}") from exc
+            with client:
+                workers = len(client.scheduler_info().get("workers", {}))
+                say(f"dashboard: {client.dashboard_link} (the cluster at {address}, {workers} workers{_bokeh()})")
+                yield client
+            return
+        n_workers = workers or os.cpu_count() or 1
+        with _workers_ignore_sigint(), warnings.catch_warnings():
+            # another cluster holds the dashboard's usual port 8787: Dask takes another and says so
+            warnings.filterwarnings("ignore", message=".*already in use.*")
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                   silence_logs=logging.ERROR)
+        with cluster, Client(cluster) as client:
+            say(f"dashboard: {client.dashboard_link} (a local cluster, {n_workers} workers{_bokeh()})")
+            yield client
+
+
+def _bokeh() -> str:
+    """What the dashboard line adds when the dashboard cannot show its pages."""
+    return "" if find_spec("bokeh") is not None else "; its pages need bokeh: pip install bokeh"
+
+
+@contextlib.contextmanager
+def _workers_ignore_sigint() -> Iterator[None]:
+    """Worker processes started in here ignore SIGINT: Ctrl-C on a terminal reaches the whole process group,
+    and rac (not each worker) is the one that stops the sweep and closes the cluster."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals cannot be changed, nor can Ctrl-C arrive here
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False) -> tuple[Outcome, dict[str, TaskSpec]]:
+    """What is done and what is left: an :class:`Outcome` holding each spec's key and the rows ``store``
+    has (none with ``force``), and the specs to run by key (specs with equal keys, the same scenario file
+    under two paths, run once)."""
+    outcome = Outcome()
+    todo: dict[str, TaskSpec] = {}
+    for spec in specs:
+        key = spec.key()
+        outcome.keys.append(key)
+        stored = None if force else store.get(key)
+        if stored is not None:
+            outcome.rows[key] = stored
+        elif key not in outcome.rows:
+            todo.setdefault(key, spec)
+    outcome.skipped = sum(1 for key in outcome.keys if key in outcome.rows)
+    return outcome, todo
+
+
+def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpec], outcome: Outcome,
+              store: Store, *, on_row: Callable[[TaskSpec, Row], None] | None = None) -> Outcome:
+    """Run each spec of ``todo`` (by key, from :func:`pending`) as one Dask task and store its row as it
+    arrives, adding it to ``outcome``; ``on_row(spec, row)`` is called for each spec of ``specs`` with that
+    key. Ctrl-C (``KeyboardInterrupt``) cancels the tasks not finished and returns what is done, with
+    :attr:`Outcome.interrupted` set. Raises ``OSError`` when a row cannot be stored."""
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    function = task_function()
+    token = uuid.uuid4().hex[:8]  # a key of this run only: a shared scheduler may still hold an earlier run's
+    futures: dict[Any, tuple[TaskSpec, str]] = {}
+    try:
+        for key, spec in todo.items():
+            future = client.submit(function, spec, key=f"rac-{spec.task}-{key}-{token}", pure=False, retries=0)
+            futures[future] = (spec, key)
+        for future in as_completed(list(futures)):
+            spec, key = futures.pop(future)
+            try:
+                row = dict(future.result())
+            except KilledWorker:
+                row = error_row(spec, key, "error", KILLED)
+            except Exception as exc:  # run_task never raises; a stand-in may, and so may unpickling
+                row = error_row(spec, key, "error", f"{type(exc).__name__}: {exc}")
+            row["key"] = key
+            outcome.rows[key] = row  # first: a Ctrl-C while it is being stored still merges it
+            outcome.ran += 1
+            store.put(key, row)
+            if on_row is not None:
+                for other, other_key in zip(specs, outcome.keys):
+                    if other_key == key:
+                        on_row(other, row)
+    except KeyboardInterrupt:
+        outcome.interrupted = True
+        with contextlib.suppress(Exception):  # the cluster may already be going away
+            client.cancel(list(futures), force=True)
+    return outcome
+
+
+def rows_in_order(specs: Sequence[TaskSpec], outcome: Outcome) -> list[Row]:
+    """One row per spec that has one, in the order of ``specs`` (those :func:`run_tasks` ran); a spec
+    sharing its key with another (the same scenario file under two paths) gets that row with its own path."""
+    rows: list[Row] = []
+    for spec, key in zip(specs, outcome.keys):
+        row = outcome.rows.get(key)
+        if row is not None:
+            rows.append(row if row.get("scenario") == spec.scenario else {**row, "scenario": spec.scenario})
+    return rows
+
+
+def _duration(seconds: float) -> str:
+    """``75`` -> ``75 s``, ``4000`` -> ``67 min``."""
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
+
+
+class Tracker:
+    """The sweep's progress on stderr: on a terminal a bar (tasks done, rate, ETA, failed so far), off one
+    a plain line every few seconds (a :class:`rac.output.progress.Heartbeat`, every ``RAC_PROGRESS_INTERVAL``
+    seconds); nothing when ``quiet``. Use as a context manager: :meth:`start` once, then :meth:`row` per row
+    (:func:`run_tasks`' ``on_row``)."""
+
+    def __init__(self, *, quiet: bool = False) -> None:
+        self.quiet = quiet
+        self.total = self.done = self.failed = 0
+        self._beat = _Lines(self, enabled=False if quiet else None)
+        self._bar: Progress | None = None
+        self._started = time.monotonic()
+
+    def __enter__(self) -> Tracker:
+        self._beat.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.close()
+        self._beat.__exit__(None, None, None)
+
+    def start(self, to_run: int, skipped: int) -> None:
+        """``to_run`` tasks are about to be sent, ``skipped`` were done by an earlier run."""
+        self.total, self._started = to_run, time.monotonic()
+        self._bar = Progress(total=to_run, desc="sweep", unit="tasks", enabled=False if self.quiet else None)
+
+    def row(self, spec: TaskSpec, row: Row) -> None:
+        """A task's row arrived."""
+        self.done += 1
+        self.failed += row.get("status") != "ok"
+        if self._bar is not None:
+            self._bar.set_postfix(failed=self.failed)
+            self._bar.update()
+
+    def line(self) -> str:
+        """The progress in words: ``12 of 40 tasks done, 1 failed, 9.5 tasks/min, ETA 3 min``."""
+        elapsed = time.monotonic() - self._started
+        text = f"{self.done} of {self.total} tasks done, {self.failed} failed"
+        if self.done:
+            rate = self.done / max(elapsed, 1e-9)
+            per_minute = rate * 60
+            text += f", {per_minute:.{1 if per_minute < 100 else 0}f} tasks/min, " \
+                    f"ETA {_duration((self.total - self.done) / rate)}"
+        return f"{text}; {_duration(elapsed)}"
+
+
+class _Lines(Heartbeat):
+    """The heartbeat of a sweep: its line is the :class:`Tracker`'s."""
+
+    def __init__(self, tracker: Tracker, *, enabled: bool | None) -> None:
+        super().__init__("rac sweep", enabled=enabled)
+        self.tracker = tracker
+
+    def line(self) -> str:
+        return f"{self.command}: {self.tracker.line()}"

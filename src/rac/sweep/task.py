@@ -1,0 +1,244 @@
+"""One task of ``rac sweep``: a template instantiated with one scenario and one grid point, checked
+and run as one command (``check``, ``verify``, ``preanalyse`` or ``experiment``), giving one result row.
+
+:func:`run_task` runs the task in a child process, ``python -m rac.sweep.task`` reading the
+:class:`TaskSpec` as JSON on its standard input: a Dask worker is a daemonic process, which cannot
+have ``multiprocessing`` children, but can start a subprocess. The child runs in a process group
+of its own, killed whole when the task passes its ``timeout``; its address space is limited to
+``memory`` bytes (``RLIMIT_AS``, set once the task's modules are imported), so that a task that
+needs more fails with ``MemoryError`` in the child instead of taking the worker down. The child
+writes its part of the row as JSON on its standard output (anything the task prints goes to its
+standard error) and leaves when its parent does. What the child runs is :mod:`rac.sweep.work`.
+
+The row (:func:`run_task`'s docstring lists its keys) never carries an exception: whatever
+happens becomes its ``status`` and ``error``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import rac
+from rac.engine.budget import format_bytes
+
+__all__ = ["OPTIONS", "STATUSES", "TASKS", "VERDICTS", "TaskSpec", "main", "run_task"]
+
+#: What a task runs: the command of the same name on one file.
+TASKS = ("check", "verify", "preanalyse", "experiment")
+#: A row's ``status``: "ok" (no errors; every query decided), "failed" (errors in the file, a query
+#: not satisfied), "error" (rac could not run it), "timeout" and "memory" (the task's limits).
+STATUSES = ("ok", "failed", "error", "timeout", "memory")
+#: The verdicts a row's ``verdicts`` holds (a query whose answer is a value, ``Pr[<=T](<> p)`` or
+#: ``simulate``, has none and is not listed).
+VERDICTS = ("satisfied", "not satisfied", "unknown", "unsupported")
+#: The options a task takes (:attr:`TaskSpec.options`), as the commands' options of the same names.
+OPTIONS: dict[str, str] = {
+    "horizon": "horizon in seconds (default: the automaton's)",
+    "seed": "seed of simulations and learning (default: fresh)",
+    "max_states": "give up (verdict unknown) beyond this many states (default 5,000,000)",
+    "episodes": "episode budget of learning (experiment: per run, default 500; verify: learning queries)",
+    "seeds": "experiment: the seeds, e.g. 1,2,3 (default 1..5)",
+    "runs": "preanalyse: simulated runs per setting (default 100); experiment: evaluation runs (default 100)",
+    "reward_function": "experiment: the reward function of the RF combinations (default: the paper's Eq. 9)",
+}
+#: What an error says when the task ran out of memory under its limit (Python, numpy, C++, the loader;
+#: CPython's SystemError "returned NULL without setting an exception" when even the MemoryError failed).
+_OUT_OF_MEMORY = ("MemoryError", "Unable to allocate", "Cannot allocate memory", "bad_alloc", "out of memory",
+                  "SystemError")
+#: The last characters of the child's standard error an error row quotes.
+_STDERR_TAIL = 2000
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """One task: the template, one scenario, one grid point, the command and its options, and the
+    limits (which do not change what the task computes, so they are not part of :meth:`key`)."""
+
+    template: str  #: path of the template .ra (relative scenario paths resolve from its folder)
+    template_text: str  #: its text, read once by the caller
+    scenario: str  #: path of one CommonRoad XML file
+    settings: tuple[tuple[str, str], ...]  #: one point of the --set grid: (model setting name, value text)
+    task: str  #: one of TASKS
+    options: tuple[tuple[str, str], ...] = ()  #: e.g. ("horizon", "2"), ("seed", "1"); see OPTIONS
+    timeout: float | None = None  #: seconds; past it the task is a "timeout" row
+    memory: int | None = None  #: bytes of address space; past it the task is a "memory" row
+
+    def __post_init__(self) -> None:
+        if self.task not in TASKS:
+            raise ValueError(f"unknown task `{self.task}`: the tasks are {', '.join(TASKS)}")
+
+    def key(self) -> str:
+        """16 hex digits of the SHA-256 of the scenario file's bytes, the template's text, the settings,
+        the task and its options (settings and options in name order): equal inputs, equal key, in
+        any process. A scenario that cannot be read is keyed by its absolute path."""
+        try:
+            scenario = hashlib.sha256(Path(self.scenario).read_bytes()).hexdigest()
+        except OSError:
+            scenario = "unreadable:" + os.path.abspath(self.scenario)
+        payload = json.dumps([scenario, self.template_text, sorted(map(list, self.settings)), self.task,
+                              sorted(map(list, self.options))], ensure_ascii=True)
+        return hashlib.sha256(payload.encode("ascii")).hexdigest()[:16]
+
+    def to_json(self) -> dict[str, Any]:
+        """The spec as JSON data (what :func:`run_task` sends the child)."""
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> TaskSpec:
+        """The spec :meth:`to_json` gave."""
+        pairs = {name: tuple((str(a), str(b)) for a, b in data.get(name, ())) for name in ("settings", "options")}
+        return cls(data["template"], data["template_text"], data["scenario"], pairs["settings"], data["task"],
+                   pairs["options"], data.get("timeout"), data.get("memory"))
+
+
+def _row(spec: TaskSpec) -> dict[str, Any]:
+    """The row before the task ran: what the spec says, and an error nothing replaced yet."""
+    return {"key": spec.key(), "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem,
+            "settings": dict(spec.settings), "task": spec.task, "status": "error",
+            "error": "the task gave no result", "seconds": 0.0, "peak_memory": None, "states": None,
+            "scenario_size": None, "verdicts": {}, "diagnostics": [], "details": None}
+
+
+def run_task(spec: TaskSpec) -> dict[str, object]:
+    """One result row; never raises (an exception, a timeout, the memory limit, an unreadable or broken
+    scenario, a template that fails ``rac check`` all become a row with status "error"/"failed" and an
+    ``error`` text).
+
+    Keys (always present, JSON-serialisable): key, scenario (path), scenario_name (the file's stem),
+    settings (dict name -> value text), task, status (:data:`STATUSES`), error (str or None), seconds
+    (the task's own time in the child; the whole time when the child gave no result), peak_memory
+    (bytes, the child's largest resident size, or None), states (int or None), scenario_size (int:
+    lanelets + obstacles, or None), verdicts (dict query name -> :data:`VERDICTS`; {} for check),
+    diagnostics (list of "CODE message" of the check's errors and warnings), details (the preanalysis
+    row(s), or the experiment's summary table, as a list of dicts; None otherwise); and wall_seconds
+    (the time of the whole task, the child's start included)."""
+    start = time.perf_counter()
+    row = _row(spec)
+    try:
+        row.update(_in_child(spec))
+    except Exception as exc:  # a row, never an exception: the sweep goes on
+        row.update(status="error", error=f"rac could not run the task: {type(exc).__name__}: {exc}")
+    row["wall_seconds"] = time.perf_counter() - start
+    if not row["seconds"]:
+        row["seconds"] = row["wall_seconds"]
+    return row
+
+
+def _environment() -> dict[str, str]:
+    """The child's environment: it imports the same rac as this process; one thread for numerical
+    libraries (a sweep runs tasks side by side, one per core)."""
+    env = dict(os.environ)
+    parent = str(Path(rac.__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = os.pathsep.join([parent, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))])
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env.setdefault(name, "1")
+    env["PYTHONIOENCODING"] = "utf-8"
+    return env
+
+
+def _kill(process: subprocess.Popen[bytes]) -> None:
+    """Kill the child's whole process group (what it started too)."""
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):  # gone already
+        pass
+
+
+def _in_child(spec: TaskSpec) -> dict[str, Any]:
+    """Run ``spec`` in ``python -m rac.sweep.task``; its part of the row."""
+    absolute = TaskSpec(**{**asdict(spec), "template": os.path.abspath(spec.template),
+                           "scenario": os.path.abspath(spec.scenario), "settings": spec.settings,
+                           "options": spec.options})
+    process = subprocess.Popen([sys.executable, "-m", "rac.sweep.task", str(os.getpid())], stdin=subprocess.PIPE,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_environment(),
+                               start_new_session=True)
+    start = time.perf_counter()
+    try:
+        out, err = process.communicate(json.dumps(absolute.to_json()).encode("utf-8"), timeout=spec.timeout)
+    except subprocess.TimeoutExpired:
+        _kill(process)
+        process.communicate()
+        return {"status": "timeout", "error": f"ran past the task timeout of {spec.timeout:g} s",
+                "seconds": time.perf_counter() - start}
+    finally:
+        _kill(process)  # on any exit: nothing of the task outlives it
+    seconds = time.perf_counter() - start
+    try:
+        result: dict[str, Any] = json.loads(out.decode("utf-8"))
+        return result
+    except ValueError:
+        pass
+    stderr = err.decode("utf-8", "replace")
+    code = process.returncode
+    how = f"died of signal {signal.Signals(-code).name}" if code < 0 else f"exited with status {code}"
+    tail = stderr[-_STDERR_TAIL:].strip()
+    if spec.memory is not None and any(sign in stderr for sign in _OUT_OF_MEMORY):
+        return {"status": "memory", "error": _memory_error(spec.memory, f"the task's process {how}"),
+                "seconds": seconds}
+    return {"status": "error", "error": f"the task's process {how}" + (f":\n{tail}" if tail else ""),
+            "seconds": seconds}
+
+
+def _memory_error(limit: int, what: str) -> str:
+    return f"{what}: out of memory under the task memory limit of {format_bytes(limit)}"
+
+
+# ---------------------------------------------------------------- the child
+def _leave_with_parent(parent: int) -> None:
+    """Exit when the parent ``parent`` (the sweep's worker) is gone, even before this call: a task whose
+    worker died is rerun elsewhere."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="rac-sweep-parent", daemon=True).start()
+
+
+def _limit_memory(limit: int) -> None:
+    """Limit the address space to ``limit`` bytes (never above the hard limit already set)."""
+    _, hard = resource.getrlimit(resource.RLIMIT_AS)
+    if hard != resource.RLIM_INFINITY:
+        limit = min(limit, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m rac.sweep.task [PARENT_PID]``: read a :class:`TaskSpec` as JSON on standard input, run
+    it, write the task's part of the row as JSON on standard output; leave when the process
+    ``PARENT_PID`` (default: the parent at the start) is no longer the parent."""
+    argv = sys.argv[1:] if argv is None else argv
+    _leave_with_parent(int(argv[0]) if argv else os.getppid())
+    spec = TaskSpec.from_json(json.load(sys.stdin))
+    sys.stdout.flush()
+    result = os.fdopen(os.dup(1), "w", encoding="utf-8")
+    os.dup2(2, 1)  # whatever the task prints goes to standard error, not into the result
+    from rac.sweep import work
+
+    work.load(spec.task)  # the task's modules, before the memory limit: it limits the task, not them
+    if spec.memory is not None:
+        _limit_memory(spec.memory)
+    row = work.execute(spec)
+    if spec.memory is not None and (row["status"] == "memory" or row["status"] in ("failed", "error") and
+                                    any(sign in str(row["error"]) for sign in _OUT_OF_MEMORY)):
+        row.update(status="memory", error=_memory_error(spec.memory, str(row["error"])))
+    row["peak_memory"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
+    with result:
+        json.dump(row, result)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,229 @@
+"""What one task of ``rac sweep`` runs, inside its child process (:mod:`rac.sweep.task`): the template
+instantiated for the task (:func:`rac.sweep.template.instantiate`), checked with
+:func:`rac.compiler.compile_text`, then the command's own function on the checked file:
+
+- ``check``: the diagnostics alone;
+- ``verify``: :func:`rac.verify.runner.verify` (the verdict per query; states: the most any query explored);
+- ``preanalyse``: :func:`rac.studies.preanalysis.sweep` at the file's own settings (details: its
+  rows; verdicts: Qb, Qc and Qd);
+- ``experiment``: :func:`rac.studies.experiment.run_experiment` and its
+  :func:`~rac.studies.experiment.summary` (details: the table's rows; states: the shield's).
+
+Nothing is written but into a temporary folder that is removed (verify's strategies, CSV files).
+:func:`execute` returns the task's part of the row and never raises.
+"""
+
+from __future__ import annotations
+
+import importlib
+import tempfile
+import time
+import traceback
+from fractions import Fraction
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from rac.compiler import CompileResult, compile_text
+from rac.core.diagnostics import Severity
+from rac.engine.budget import BudgetExceeded
+from rac.sweep.template import instantiate
+
+if TYPE_CHECKING:
+    from rac.sweep.task import TaskSpec
+
+__all__ = ["execute", "load"]
+
+#: The modules each task needs (the check's, which it imports when it runs, first), imported by
+#: :func:`load` before the memory limit is set.
+CHECK_MODULES = ("rac.check.analysis", "rac.model.checks", "rac.model.commonroad", "rac.model.data")
+MODULES = {"check": (), "verify": ("rac.verify.runner",), "preanalyse": ("rac.studies.preanalysis",),
+           "experiment": ("rac.studies.experiment", "rac.learning.episodes", "rac.learning.lockstep",
+                          "rac.learning.qlearning", "rac.learning.runs")}
+#: The diagnostic of a scenario that cannot be loaded: rac could not run the task ("error", not "failed").
+CANNOT_LOAD = "E0712"
+#: The preanalysis answers that are verdicts, by the row's column.
+PREANALYSIS_VERDICTS = {"qb": "Qb", "qc": "Qc", "qd": "Qd"}
+
+
+class TaskError(Exception):
+    """The task cannot run as asked (an option, the scenario file): an "error" row with this message."""
+
+
+def load(task: str) -> None:
+    """Import the modules ``task`` runs."""
+    for name in (*CHECK_MODULES, *MODULES[task]):
+        importlib.import_module(name)
+
+
+def execute(spec: TaskSpec) -> dict[str, Any]:
+    """Run ``spec`` here; its part of the row (status, error, seconds, states, scenario_size, verdicts,
+    diagnostics, details)."""
+    start = time.perf_counter()
+    row: dict[str, Any] = {}
+    try:
+        row = _execute(spec, row)
+    except TaskError as exc:
+        row.update(status="error", error=str(exc))
+    except BudgetExceeded as exc:  # an estimate, before the memory was used: the budget's words
+        row.update(status="error", error=str(exc))
+    except MemoryError as exc:
+        row.update(status="memory", error=f"MemoryError: {exc}".rstrip(": "))
+    except Exception as exc:  # a bug or an unforeseen input: the row says where
+        where = traceback.extract_tb(exc.__traceback__)[-1]
+        row.update(status="error", error=f"{type(exc).__name__}: {exc} ({Path(where.filename).name}:{where.lineno})")
+    row["seconds"] = time.perf_counter() - start
+    return row
+
+
+def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
+    options = _options(spec)
+    scenario = Path(spec.scenario)
+    try:
+        with scenario.open("rb"):
+            pass
+    except OSError as exc:
+        raise TaskError(f"cannot read the scenario {scenario}: {exc.strerror or exc}") from None
+    try:
+        text = instantiate(spec.template_text, spec.template, scenario, spec.settings)
+    except ValueError as exc:
+        raise TaskError(str(exc)) from None
+    result = compile_text(text, name=spec.template)
+    row["diagnostics"] = [f"{d.code} {d.message}" for d in result.diagnostics
+                          if d.severity in (Severity.ERROR, Severity.WARNING)]
+    row["scenario_size"] = _size(result)
+    errors = [d for d in result.diagnostics if d.is_error]
+    if errors:
+        status = "error" if any(d.code == CANNOT_LOAD for d in errors) else "failed"
+        row.update(status=status, error=f"{errors[0].code} {errors[0].message}")
+        return row
+    if result.automaton is None or result.automaton.model is None or result.model_data is None:
+        raise TaskError("the instantiated template has no scenario model")  # the template has a model block
+    row.update(status="ok", error=None)
+    if spec.task == "verify":
+        _verify(result, options, row)
+    elif spec.task == "preanalyse":
+        _preanalyse(result, options, row)
+    elif spec.task == "experiment":
+        _experiment(result, options, row)
+    return row
+
+
+def _size(result: CompileResult) -> int | None:
+    """Lanelets + obstacles of the scenario the check loaded (None when it could not load it)."""
+    scenario = result.scenario
+    return None if scenario is None else len(scenario.road) + len(scenario.obstacles)
+
+
+# ---------------------------------------------------------------- options
+def _whole(name: str, text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise TaskError(f"option {name}: not a whole number: {text!r}") from None
+    if value < (0 if name == "seed" else 1):
+        raise TaskError(f"option {name}: must be at least 1: {text!r}")
+    return value
+
+
+def _options(spec: TaskSpec) -> dict[str, Any]:
+    """The task's options, converted; :class:`TaskError` for an unknown name or a bad value."""
+    from rac.sweep.task import OPTIONS
+
+    options: dict[str, Any] = {}
+    for name, text in spec.options:
+        if name not in OPTIONS:
+            raise TaskError(f"unknown option `{name}` (the options are {', '.join(OPTIONS)})")
+        if name == "horizon":
+            try:
+                options[name] = Fraction(text)
+            except (ValueError, ZeroDivisionError):
+                raise TaskError(f"option horizon: not a number: {text!r}") from None
+            if options[name] <= 0:
+                raise TaskError(f"option horizon: must be positive: {text!r}")
+        elif name == "seeds":
+            options[name] = [_whole("seed", part.strip()) for part in text.split(",")]
+        elif name == "reward_function":
+            options[name] = text
+        else:
+            options[name] = _whole(name, text)
+    return options
+
+
+def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int | None:
+    if horizon is None:
+        return None
+    assert result.automaton is not None
+    samples = horizon / Fraction(result.automaton.period)
+    if samples.denominator != 1:
+        raise TaskError(f"option horizon: {float(horizon):g} s is not a whole number of samples of "
+                        f"{float(result.automaton.period):g} s")
+    return int(samples)
+
+
+# ---------------------------------------------------------------- the tasks
+def _budget(options: dict[str, Any]) -> dict[str, Any]:
+    """``max_states`` when the option gives it (else the command's own default applies)."""
+    return {"max_states": options["max_states"]} if "max_states" in options else {}
+
+
+def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+    from rac.verify.runner import VerifyOptions, verify
+
+    chosen: dict[str, Any] = {"horizon": options.get("horizon"), "seed": options.get("seed"), "plots": False,
+                              **_budget(options)}
+    if "episodes" in options:
+        chosen["learn_episodes"] = options["episodes"]
+    with tempfile.TemporaryDirectory(prefix="rac-sweep-") as out:  # strategies and CSV files are not kept
+        try:
+            results = verify(result, VerifyOptions(out_dir=Path(out), **chosen))
+        except ValueError as exc:  # the horizon is not a whole number of samples
+            raise TaskError(str(exc)) from None
+    row["verdicts"] = {r.name: r.status for r in results if r.status in ("satisfied", "not satisfied", "unknown",
+                                                                         "unsupported")}
+    states = [r.states for r in results if r.states is not None]
+    row["states"] = max(states) if states else None
+    failed = [r.name for r in results if r.status == "not satisfied"]
+    undecided = [f"{r.name} ({r.status}: {r.message})" for r in results if r.status in ("unknown", "unsupported")]
+    if failed:
+        row.update(status="failed", error="not satisfied: " + ", ".join(failed))
+    elif undecided:
+        row.update(status="error", error="not decided: " + "; ".join(undecided))
+
+
+def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+    from rac.studies.preanalysis import SweepError, sweep
+
+    try:
+        rows = sweep(result, horizon=options.get("horizon"), seed=options.get("seed"),
+                     runs=options.get("runs", 100), quiet=True, **_budget(options))
+    except SweepError as exc:
+        raise TaskError(str(exc)) from None
+    row["details"] = rows
+    answered = [r for r in rows if "exponent" in r]
+    if len(answered) == 1:  # the file's own setting: Qb-Qd are its verdicts
+        row["verdicts"] = {query: "satisfied" if answered[0][column] else "not satisfied"
+                           for column, query in PREANALYSIS_VERDICTS.items() if answered[0].get(column) is not None}
+    states = [r["states"] for r in answered if r.get("states") is not None]
+    row["states"] = max(states) if states else None
+    problems = [r["error"] for r in answered if r.get("error")]
+    if problems:
+        row.update(status="failed", error=problems[0])
+
+
+def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+    from rac.studies.experiment import ExperimentError, run_experiment, summary
+
+    if "seed" in options and "seeds" in options:
+        raise TaskError("give the option seeds or seed, not both")
+    seeds = options.get("seeds", [options["seed"]] if "seed" in options else [1, 2, 3, 4, 5])
+    try:
+        report = run_experiment(result, seeds=seeds, episodes=options.get("episodes", 500),
+                                evaluation_runs=options.get("runs", 100),
+                                reward_function=options.get("reward_function"),
+                                horizon_samples=_horizon_samples(result, options.get("horizon")),
+                                **_budget(options))
+    except ExperimentError as exc:
+        row.update(status="failed", error=str(exc))
+        return
+    row["details"] = summary(report)
+    row["states"] = report["shield_states"]

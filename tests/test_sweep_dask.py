@@ -1,0 +1,395 @@
+"""``rac sweep`` on Dask (issue 13): the orchestration half — a real ``LocalCluster`` of 2 workers, the
+store and its skip on re-run, a worker killed mid-task, the timeout row, Ctrl-C, a separate ``dask
+scheduler`` and ``dask worker`` driven through ``--scheduler``, the merged results (Parquet, or CSV
+without pyarrow), the summary, the plots and the exit codes.
+
+The scenarios are built with commonroad-io (:mod:`tiny_scenarios`, :mod:`rac.model.scenes`): four tiny
+roads, the highway scene (its ego starts at 20 m/s, above the template's ``max_speed 10``: its check fails)
+and a broken XML file. The template asks one query, ``Stays`` (Qb), whose answers the tiny roads know by
+construction: it fails only on the narrow road. Stand-in tasks (:mod:`sweep_helpers`) kill their worker,
+sleep or raise where the real :func:`rac.sweep.task.run_task` cannot be made to.
+"""
+
+from __future__ import annotations
+
+import _thread
+import json
+import re
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import sweep_helpers
+from conftest import rac_env
+from engine_files import engine_source
+from PIL import Image
+from tiny_scenarios import TINY_SCENARIOS
+
+from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE, output_folder
+from rac.cli.main import main
+from rac.cli.sweep import exit_status
+from rac.model.scenes import write_scene
+from rac.sweep import SweepResult, execute, plan, sweep
+from rac.sweep.report import render_summary, summarise
+from rac.sweep.run import KILLED, Tracker, connect, pending, run_tasks
+from rac.sweep.store import Store
+from rac.sweep.task import TaskSpec
+
+#: The scenarios of the sweep and the status each task ends in (the template's query is Qb).
+EXPECTED = {"avoidable_obstacle": "ok", "broken": "error", "goal_ahead": "ok", "goal_behind_wall": "ok",
+            "highway": "failed", "narrow_road": "failed"}
+OPTIONS = {"horizon": "2"}  # half the tiny roads' horizon: their Qb answers hold, and each task is quick
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``sweep.ra`` (its own scenario is never used) and ``scenarios/`` (:data:`EXPECTED`)."""
+    root = tmp_path_factory.mktemp("sweep_dask")
+    queries = {"Stays": "E[] !collide() && !offroad()"}
+    (root / "sweep.ra").write_text(engine_source(TINY_SCENARIOS["goal_ahead"](), queries,
+                                                 scenario_file="placeholder.xml"), encoding="utf-8")
+    scenarios = root / "scenarios"
+    scenarios.mkdir()
+    for name in ("avoidable_obstacle", "goal_ahead", "goal_behind_wall", "narrow_road"):
+        TINY_SCENARIOS[name]().write(scenarios / f"{name}.xml")
+    write_scene("highway", scenarios / "highway.xml")
+    (scenarios / "broken.xml").write_text("<commonRoad><lanelet id='1'>", encoding="utf-8")
+    return root
+
+
+@pytest.fixture(scope="module")
+def swept(world: Path) -> tuple[SweepResult, list[str]]:
+    """The sweep of every scenario on a local cluster of 2 workers, and what it announced."""
+    said: list[str] = []
+    planned = plan(world / "sweep.ra", [str(world / "scenarios")], options=OPTIONS)
+    return execute(planned, workers=2, quiet=True, announce=said.append), said
+
+
+@pytest.fixture(scope="module")
+def client() -> Iterator[object]:
+    """A local cluster of 2 workers, as rac starts it, for the stand-in tasks."""
+    with connect(workers=2) as dask_client:
+        yield dask_client
+
+
+def by_scenario(rows: list[dict[str, object]]) -> dict[str, dict[str, object]]:
+    return {str(row["scenario_name"]): row for row in rows}
+
+
+def is_png(path: Path) -> bool:
+    with Image.open(path) as image:
+        image.verify()
+        return image.format == "PNG"
+
+
+def no_cluster(*args: object, **kwargs: object) -> None:
+    raise AssertionError("a cluster was started")
+
+
+def stand_in(monkeypatch: pytest.MonkeyPatch, function: object) -> None:
+    """Dask tasks run ``function`` instead of run_task (it is sent to the workers by reference)."""
+    monkeypatch.setattr("rac.sweep.run.task_function", lambda: function)
+
+
+def specs_for(folder: Path, template: Path, names: list[str], **kw: object) -> list[TaskSpec]:
+    """Stand-in specs: one small file per name (a key hashes the file's bytes)."""
+    specs = []
+    text = template.read_text(encoding="utf-8")
+    for name in names:
+        (folder / name).write_text(name, encoding="utf-8")
+        specs.append(TaskSpec(str(template), text, str(folder / name), (), "verify", **kw))  # type: ignore[arg-type]
+    return specs
+
+
+# ---------------------------------------------------------------- the rows, on a local cluster
+def test_every_scenario_gives_its_row(swept: tuple[SweepResult, list[str]], world: Path) -> None:
+    result, said = swept
+    rows = by_scenario(result.rows)
+    assert {name: row["status"] for name, row in rows.items()} == EXPECTED
+    assert result.outcome.ran == 6 and result.outcome.skipped == 0 and not result.outcome.interrupted
+    for name in ("avoidable_obstacle", "goal_ahead", "goal_behind_wall"):
+        assert rows[name]["verdicts"] == {"Stays": "satisfied"}, rows[name]
+    assert rows["narrow_road"]["verdicts"] == {"Stays": "not satisfied"}  # every state is off its road
+    assert any(str(d).startswith("E0714 ") for d in rows["highway"]["diagnostics"])  # type: ignore[attr-defined]
+    assert "broken.xml" in str(rows["broken"]["error"])
+    assert rows["goal_ahead"]["settings"] == {} and rows["goal_ahead"]["task"] == "verify"
+    assert any(line.startswith("dashboard: http://") and "local cluster, 2 workers" in line for line in said), said
+    # one stored file per task, each holding its row
+    store = Store(result.plan.out)
+    assert sorted(p.stem for p in store.folder.glob("*.json")) == sorted(str(r["key"]) for r in result.rows)
+    assert store.get(str(rows["narrow_road"]["key"])) == rows["narrow_road"]
+
+
+def test_the_results_are_merged_summarised_and_plotted(swept: tuple[SweepResult, list[str]]) -> None:
+    result, _ = swept
+    out = result.plan.out
+    assert out == output_folder(result.plan.template, "sweep")  # the output convention: sweep.out/sweep/
+    table = pd.read_parquet(out / "results.parquet")
+    assert dict(zip(table["scenario_name"], table["status"])) == EXPECTED
+    verdicts = table.set_index("scenario_name")["verdicts.Stays"].dropna().to_dict()
+    assert verdicts == {"avoidable_obstacle": "satisfied", "goal_ahead": "satisfied", "goal_behind_wall": "satisfied",
+                        "narrow_road": "not satisfied"}  # no verdict where the file could not be checked
+    assert set(table["grid_point"]) == {"template settings"}
+    assert json.loads((out / "results.json").read_text(encoding="utf-8")) == result.rows
+    assert is_png(out / "verdicts.png") and is_png(out / "time_vs_size.png")
+    summary = result.summary
+    assert (summary.tasks, summary.ok, summary.failed, summary.skipped, summary.not_run) == (6, 3, 3, 0, 0)
+    assert summary.queries == {"Stays": {"satisfied": 3, "not satisfied": 1, "unknown": 0, "unsupported": 0}}
+    assert summary.seconds["p50"] <= summary.seconds["p90"] <= summary.seconds["max"]
+    text = render_summary(summary)
+    assert text.splitlines()[:3] == ["tasks  ok  failed  skipped  not run",
+                                     "    6   3       3        0        0",
+                                     "failed: 2 failed, 1 error"]
+    assert "error: broken [template settings]: " in text and "failed: highway [template settings]: E0714" in text
+    assert exit_status(result.rows) == EXIT_ERRORS  # a query not satisfied, a file with errors
+
+
+def test_a_rerun_skips_the_stored_tasks_without_a_cluster(swept: tuple[SweepResult, list[str]], world: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    first, _ = swept
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    again = execute(plan(world / "sweep.ra", [str(world / "scenarios")], options=OPTIONS), workers=2, quiet=True)
+    assert again.outcome.ran == 0 and again.outcome.skipped == 6
+    assert again.rows == first.rows
+    assert render_summary(again.summary).splitlines()[1:3] == [
+        "    6   3       3        6        0", "skipped: 6 stored by an earlier run (--force runs them again)"]
+    # --force: every task again; a task whose file is gone: that one only
+    store = Store(first.plan.out)
+    assert len(pending(first.plan.specs, store, force=True)[1]) == 6
+    goal = next(row for row in first.rows if row["scenario_name"] == "goal_ahead")
+    store.path(str(goal["key"])).rename(store.folder / "elsewhere")
+    try:
+        outcome, todo = pending(first.plan.specs, store)
+        assert list(todo) == [goal["key"]] and outcome.skipped == 5
+    finally:
+        (store.folder / "elsewhere").rename(store.path(str(goal["key"])))
+    # a different grid point is a different task: nothing stored yet
+    other = plan(world / "sweep.ra", [str(world / "scenarios")], sets=["exponent=1"], options=OPTIONS)
+    assert len(pending(other.specs, store)[1]) == 6
+
+
+def test_the_python_api_returns_a_dataframe_or_dicts(swept: tuple[SweepResult, list[str]], world: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)  # every row is stored
+    frame = sweep(world / "sweep.ra", world / "scenarios", options=OPTIONS, quiet=True)
+    assert isinstance(frame, pd.DataFrame) and len(frame) == 6
+    assert frame.set_index("scenario_name").loc["narrow_road", "verdicts.Stays"] == "not satisfied"
+    with monkeypatch.context() as without:
+        without.setitem(sys.modules, "pandas", None)  # pandas not installed
+        rows = sweep(world / "sweep.ra", world / "scenarios", options=OPTIONS, quiet=True)
+    assert rows == swept[0].rows
+    sweep(world / "sweep.ra", world / "scenarios", options=OPTIONS, quiet=True)  # results.parquet again
+
+
+def test_without_pyarrow_the_results_are_csv(swept: tuple[SweepResult, list[str]], world: Path,
+                                             monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+                                             ) -> None:
+    out = swept[0].plan.out
+    command = ["sweep", str(world / "sweep.ra"), str(world / "scenarios"), "--horizon", "2", "-q"]
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    with monkeypatch.context() as without:
+        without.setitem(sys.modules, "pyarrow", None)  # pyarrow not installed
+        assert main(command) == EXIT_ERRORS
+    captured = capsys.readouterr()
+    assert "note: wrote results.csv, not results.parquet: Parquet needs pandas and pyarrow" in captured.err
+    assert f"wrote {out / 'results.csv'}" in captured.out
+    assert not (out / "results.parquet").exists()  # the earlier run's: it would not be this run's results
+    table = pd.read_csv(out / "results.csv")
+    assert dict(zip(table["scenario_name"], table["status"])) == EXPECTED
+    assert main(command) == EXIT_ERRORS  # with pyarrow: results.parquet again, and no stale CSV
+    assert (out / "results.parquet").exists() and not (out / "results.csv").exists()
+
+
+# ---------------------------------------------------------------- workers that die, tasks that raise or time out
+def test_a_killed_worker_is_replaced_and_its_task_retried(client, tmp_path: Path, world: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    stand_in(monkeypatch, sweep_helpers.kill_once)
+    specs = specs_for(tmp_path, world / "sweep.ra", ["kill_me.xml", "calm.xml"])
+    store = Store(tmp_path / "out")
+    outcome, todo = pending(specs, store)
+    run_tasks(client, specs, todo, outcome, store)
+    killed, calm = (outcome.rows[key] for key in outcome.keys)
+    assert killed["status"] == "ok", killed
+    assert killed["details"]["attempts"] == 2  # type: ignore[index]  # killed once, then retried
+    assert calm["status"] == "ok" and calm["details"]["attempts"] == 1  # type: ignore[index]
+    client.wait_for_workers(2, timeout=60)  # type: ignore[attr-defined]  # Dask replaced the dead worker
+    assert store.get(str(killed["key"])) == killed
+
+
+def test_a_worker_that_dies_twice_or_a_task_that_raises_is_an_error_row(client, tmp_path: Path, world: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    specs = specs_for(tmp_path, world / "sweep.ra", ["doomed.xml"])
+    store = Store(tmp_path / "out")
+    stand_in(monkeypatch, sweep_helpers.kill_always)
+    outcome, todo = pending(specs, store)
+    run_tasks(client, specs, todo, outcome, store)
+    doomed = outcome.rows[outcome.keys[0]]
+    assert (doomed["status"], doomed["error"], doomed["scenario_name"]) == ("error", KILLED, "doomed")
+    assert exit_status([doomed]) == EXIT_UNDECIDED
+
+    stand_in(monkeypatch, sweep_helpers.raises)
+    specs = specs_for(tmp_path, world / "sweep.ra", ["raising.xml"])
+    outcome, todo = pending(specs, store)
+    run_tasks(client, specs, todo, outcome, store)
+    row = outcome.rows[outcome.keys[0]]
+    assert (row["status"], row["error"]) == ("error", "RuntimeError: no row for raising.xml")
+    assert store.get(outcome.keys[0]) == row  # stored: a re-run does not try again (--force does)
+    client.wait_for_workers(2, timeout=60)  # type: ignore[attr-defined]
+
+
+def test_a_task_past_its_timeout_is_a_timeout_row(client, world: Path, tmp_path: Path) -> None:
+    # the real run_task: its child process takes longer than 0.2 s only to start
+    planned = plan(world / "sweep.ra", [str(world / "scenarios" / "goal_ahead.xml")], options=OPTIONS,
+                   task_timeout=0.2, out=tmp_path / "out")
+    store = Store(planned.out)
+    outcome, todo = pending(planned.specs, store)
+    run_tasks(client, planned.specs, todo, outcome, store)
+    row = outcome.rows[outcome.keys[0]]
+    assert row["status"] == "timeout" and "0.2 s" in str(row["error"]), row
+    assert exit_status([row]) == EXIT_UNDECIDED
+
+
+# ---------------------------------------------------------------- Ctrl-C
+def test_ctrl_c_merges_what_is_done_and_exits_130(world: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    stand_in(monkeypatch, sweep_helpers.slow)
+    files = []
+    for name in ("fast.xml", "slow_1.xml", "slow_2.xml"):
+        (tmp_path / name).write_text(name, encoding="utf-8")
+        files.append(str(tmp_path / name))
+    out = tmp_path / "out"
+
+    def press_ctrl_c() -> None:  # as soon as the fast task's row is stored
+        deadline = time.monotonic() + 60
+        while not list((out / "tasks").glob("*.json")) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        _thread.interrupt_main()
+
+    watcher = threading.Thread(target=press_ctrl_c, daemon=True)
+    watcher.start()
+    start = time.monotonic()
+    code = main(["sweep", str(world / "sweep.ra"), *files, "--workers", "2", "-o", str(out), "-q"])
+    watcher.join()
+    captured = capsys.readouterr()
+    assert code == 130, captured.err
+    assert time.monotonic() - start < 25  # the slow tasks (30 s each) were cancelled
+    rows = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert [row["scenario_name"] for row in rows] == ["fast"]
+    assert captured.out.splitlines()[1] == "    3   1       0        0        2"
+    assert "rac sweep: interrupted: 2 tasks not run" in captured.err
+
+
+# ---------------------------------------------------------------- an existing cluster
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def test_the_cli_on_a_separate_dask_scheduler_and_worker(world: Path, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "dask"]
+    processes = [subprocess.Popen([*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                   "--no-dashboard"], env=rac_env(), cwd=tmp_path,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.monotonic() + 60
+        while True:  # until the scheduler listens
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                assert time.monotonic() < deadline and processes[0].poll() is None, "the scheduler did not start"
+                time.sleep(0.2)
+        processes.append(subprocess.Popen([*dask, "worker", address, "--nworkers", "1", "--nthreads", "1",
+                                           "--no-dashboard"], env=rac_env(), cwd=tmp_path,
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        scenarios = [str(world / "scenarios" / f"{name}.xml") for name in ("goal_ahead", "narrow_road")]
+        out = tmp_path / "out"
+        args = ["sweep", str(world / "sweep.ra"), *scenarios, "--scheduler", address, "--horizon", "2",
+                "--set", "exponent=2", "-o", str(out)]
+        assert main([*args, "--format", "json"]) == EXIT_ERRORS  # the narrow road fails
+        captured = capsys.readouterr()
+        report = json.loads(captured.out)
+        assert report["summary"]["tasks"] == 2 and report["summary"]["ok"] == 1 and report["exit_code"] == 1
+        assert f"(the cluster at {address}, " in captured.err
+        rows = by_scenario(json.loads((out / "results.json").read_text(encoding="utf-8")))
+        assert {name: (row["status"], row["settings"]) for name, row in rows.items()} == {
+            "goal_ahead": ("ok", {"exponent": "2"}), "narrow_road": ("failed", {"exponent": "2"})}
+        assert main([*args, "-q"]) == EXIT_ERRORS  # the same command again: both rows are stored
+        assert "skipped: 2 stored by an earlier run" in capsys.readouterr().out
+    finally:
+        for process in reversed(processes):
+            process.terminate()
+        for process in processes:
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                process.kill()
+
+
+# ---------------------------------------------------------------- usage, exit codes, import time
+@pytest.mark.parametrize(("args", "message"), [
+    (["{scenarios}/nothing*.xml"], "no scenario file matched `{scenarios}/nothing*.xml`"),
+    (["{scenarios}", "--set", "exponnt=1,2"], "unknown setting `exponnt` of the `model` block; did you mean"),
+    (["{scenarios}", "--set", "exponent"], "`--set exponent`: write NAME=V1,V2,..."),
+    (["{scenarios}", "--scheduler", "tcp://127.0.0.1:1", "--workers", "2"], "--workers sizes the local cluster"),
+    (["{scenarios}", "--task-memory", "lots"], "`lots` is not a size"),
+])
+def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytest.MonkeyPatch,
+                                                 capsys: pytest.CaptureFixture[str], args: list[str],
+                                                 message: str) -> None:
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    scenarios = str(world / "scenarios")
+    given = [arg.format(scenarios=scenarios) for arg in args]
+    assert main(["sweep", str(world / "sweep.ra"), *given]) == EXIT_USAGE
+    assert message.format(scenarios=scenarios) in capsys.readouterr().err
+
+
+def test_a_template_that_cannot_be_read_exits_2(world: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["sweep", str(world / "missing.ra"), str(world / "scenarios")]) == EXIT_USAGE
+    assert f"rac sweep: cannot read {world / 'missing.ra'}: No such file or directory" in capsys.readouterr().err
+
+
+def test_the_exit_code_follows_the_worst_row() -> None:
+    def row(status: str, **verdicts: str) -> dict[str, object]:
+        return {"status": status, "verdicts": verdicts}
+
+    assert exit_status([row("ok", A="satisfied")]) == EXIT_OK
+    assert exit_status([row("ok", A="unknown")]) == EXIT_UNDECIDED
+    assert exit_status([row("ok"), row("timeout")]) == EXIT_UNDECIDED
+    assert exit_status([row("memory"), row("failed", A="not satisfied")]) == EXIT_ERRORS
+    assert summarise([row("ok"), row("error")], tasks=3).not_run == 1
+
+
+def test_off_a_terminal_the_progress_is_plain_lines(monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.05")  # captured stderr is not a terminal
+    with Tracker() as tracker:
+        tracker.start(4, 0)
+        tracker.row(None, {"status": "ok"})  # type: ignore[arg-type]
+        tracker.row(None, {"status": "timeout"})  # type: ignore[arg-type]
+        time.sleep(0.3)
+    lines = capsys.readouterr().err.splitlines()
+    assert lines and all(re.fullmatch(r"rac sweep: 2 of 4 tasks done, 1 failed, [\d.]+ tasks/min, ETA \d+ s; \d+ s",
+                                      line) for line in lines), lines
+    with Tracker(quiet=True) as tracker:
+        tracker.start(4, 0)
+        time.sleep(0.2)
+    assert capsys.readouterr().err == ""
+
+
+def test_import_rac_does_not_import_dask() -> None:
+    heavy = ("dask", "distributed", "pandas", "pyarrow")
+    code = ("import sys, rac, rac.sweep, rac.cli.main; rac.cli.main._parser(); "
+            f"print(sorted(m for m in sys.modules if m.split('.')[0] in {heavy!r}))")
+    done = subprocess.run([sys.executable, "-c", code], env=rac_env(), capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
