@@ -39,12 +39,14 @@ LAYERS: dict[str, set[str]] = {
     "verify": {"core", "lang", "ir", "check", "model", "runtime", "engine", "learning", "output", "rac.compiler"},
     "studies": {"core", "lang", "ir", "check", "model", "runtime", "engine", "learning", "output", "verify",
                 "rac.compiler"},
+    "sweep": {"rac", "rac.compiler", "core", "lang", "ir", "check", "model", "runtime", "engine", "output",
+              "learning", "verify", "studies"},
     "cli": {"rac", "rac.compiler", "core", "lang", "ir", "check", "model", "runtime", "targets", "engine",
-            "output", "learning", "verify", "studies"},
+            "output", "learning", "verify", "studies", "sweep"},
 }
 #: The order in which the layers are listed (lowest first).
 ORDER = ["rac", "rac.compiler", "core", "lang", "ir", "check", "model", "runtime", "targets", "engine", "output",
-         "learning", "verify", "studies", "cli"]
+         "learning", "verify", "studies", "sweep", "cli"]
 #: The modules directly under src/rac and what each may import.
 TOP = {
     "rac": {"rac", "rac.compiler", "core", "runtime"},  # __init__: load, loads, compile_file, CheckError

@@ -379,8 +379,8 @@ def test_parse_set_refuses_a_setting_twice() -> None:
 
 
 def test_the_child_reads_the_spec_on_stdin(folder: Path) -> None:
-    """``python -m rac.sweep.task`` (what run_task starts) prints the row's task part as JSON."""
+    """``python -m rac.sweep.child`` (what run_task starts) prints the row's task part as JSON."""
     task = spec(folder, "goal_ahead.xml", task="check")
-    done = subprocess.run([sys.executable, "-m", "rac.sweep.task"], input=json.dumps(task.to_json()), text=True,
+    done = subprocess.run([sys.executable, "-m", "rac.sweep.child"], input=json.dumps(task.to_json()), text=True,
                           env=rac_env(), capture_output=True, check=True, timeout=60, cwd=os.getcwd())
     assert json.loads(done.stdout)["status"] == "ok"

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import Diagnostic, error
+from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
            "OUTPUT_SUFFIX", "FileWriteError", "output_folder", "overwrites_source", "read_and_check", "same_file",
@@ -23,22 +24,6 @@ __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_US
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 
-#: The suffix of the folder beside ``FILE.ra`` that receives every command's outputs (git-ignored as ``*.out/``).
-OUTPUT_SUFFIX = ".out"
-#: The convention in words, for ``rac --help`` and the docs.
-OUTPUT_CONVENTION = (
-    f"Outputs: each engine command writes into one folder per input file and command, FILE{OUTPUT_SUFFIX}/COMMAND/ "
-    f"beside FILE.ra (e.g. driving{OUTPUT_SUFFIX}/verify/, driving{OUTPUT_SUFFIX}/simulate/), or into the folder "
-    "given with -o/--out. A new run replaces the files of the previous run of the same command; no two "
-    "commands, and no two results of one run, share a file name.")
-
-
-def output_folder(source: Path, command: str, chosen: Path | None = None) -> Path:
-    """The folder ``command``'s outputs for ``source`` go to: ``chosen`` (``-o``) when given, else
-    ``FILE.out/COMMAND/`` beside the file (see :data:`OUTPUT_CONVENTION`)."""
-    if chosen is not None:
-        return chosen
-    return source.with_name(source.stem + OUTPUT_SUFFIX) / command
 
 
 def unreadable(path: Path, exc: OSError) -> Diagnostic:

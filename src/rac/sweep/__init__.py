@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rac.output.paths import output_folder
+
 if TYPE_CHECKING:
     from rac.sweep.report import Summary
     from rac.sweep.run import Outcome, Row
@@ -105,7 +107,7 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
 def default_folder(template: Path) -> Path:
     """``TEMPLATE.out/sweep/`` beside the template: the output convention of every rac command
     (:data:`rac.cli.common.OUTPUT_CONVENTION`, which sits above this package and cannot be imported here)."""
-    return template.with_name(template.stem + ".out") / "sweep"
+    return output_folder(template, "sweep")
 
 
 def _bytes(size: int | str | None) -> int | None:

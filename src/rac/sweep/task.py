@@ -1,7 +1,7 @@
 """One task of ``rac sweep``: a template instantiated with one scenario and one grid point, checked
 and run as one command (``check``, ``verify``, ``preanalyse`` or ``experiment``), giving one result row.
 
-:func:`run_task` runs the task in a child process, ``python -m rac.sweep.task`` reading the
+:func:`run_task` runs the task in a child process, ``python -m rac.sweep.child`` reading the
 :class:`TaskSpec` as JSON on its standard input: a Dask worker is a daemonic process, which cannot
 have ``multiprocessing`` children, but can start a subprocess. The child runs in a process group
 of its own, killed whole when the task passes its ``timeout``; its address space is limited to
@@ -19,11 +19,9 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import resource
 import signal
 import subprocess
 import sys
-import threading
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -32,7 +30,7 @@ from typing import Any
 import rac
 from rac.engine.budget import format_bytes
 
-__all__ = ["OPTIONS", "STATUSES", "TASKS", "VERDICTS", "TaskSpec", "main", "run_task"]
+__all__ = ["OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec", "memory_error", "run_task"]
 
 #: What a task runs: the command of the same name on one file.
 TASKS = ("check", "verify", "preanalyse", "experiment")
@@ -54,7 +52,7 @@ OPTIONS: dict[str, str] = {
 }
 #: What an error says when the task ran out of memory under its limit (Python, numpy, C++, the loader;
 #: CPython's SystemError "returned NULL without setting an exception" when even the MemoryError failed).
-_OUT_OF_MEMORY = ("MemoryError", "Unable to allocate", "Cannot allocate memory", "bad_alloc", "out of memory",
+OUT_OF_MEMORY = ("MemoryError", "Unable to allocate", "Cannot allocate memory", "bad_alloc", "out of memory",
                   "SystemError")
 #: The last characters of the child's standard error an error row quotes.
 _STDERR_TAIL = 2000
@@ -156,11 +154,11 @@ def _kill(process: subprocess.Popen[bytes]) -> None:
 
 
 def _in_child(spec: TaskSpec) -> dict[str, Any]:
-    """Run ``spec`` in ``python -m rac.sweep.task``; its part of the row."""
+    """Run ``spec`` in ``python -m rac.sweep.child``; its part of the row."""
     absolute = TaskSpec(**{**asdict(spec), "template": os.path.abspath(spec.template),
                            "scenario": os.path.abspath(spec.scenario), "settings": spec.settings,
                            "options": spec.options})
-    process = subprocess.Popen([sys.executable, "-m", "rac.sweep.task", str(os.getpid())], stdin=subprocess.PIPE,
+    process = subprocess.Popen([sys.executable, "-m", "rac.sweep.child", str(os.getpid())], stdin=subprocess.PIPE,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_environment(),
                                start_new_session=True)
     start = time.perf_counter()
@@ -183,62 +181,12 @@ def _in_child(spec: TaskSpec) -> dict[str, Any]:
     code = process.returncode
     how = f"died of signal {signal.Signals(-code).name}" if code < 0 else f"exited with status {code}"
     tail = stderr[-_STDERR_TAIL:].strip()
-    if spec.memory is not None and any(sign in stderr for sign in _OUT_OF_MEMORY):
-        return {"status": "memory", "error": _memory_error(spec.memory, f"the task's process {how}"),
+    if spec.memory is not None and any(sign in stderr for sign in OUT_OF_MEMORY):
+        return {"status": "memory", "error": memory_error(spec.memory, f"the task's process {how}"),
                 "seconds": seconds}
     return {"status": "error", "error": f"the task's process {how}" + (f":\n{tail}" if tail else ""),
             "seconds": seconds}
 
 
-def _memory_error(limit: int, what: str) -> str:
+def memory_error(limit: int, what: str) -> str:
     return f"{what}: out of memory under the task memory limit of {format_bytes(limit)}"
-
-
-# ---------------------------------------------------------------- the child
-def _leave_with_parent(parent: int) -> None:
-    """Exit when the parent ``parent`` (the sweep's worker) is gone, even before this call: a task whose
-    worker died is rerun elsewhere."""
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(0.5)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="rac-sweep-parent", daemon=True).start()
-
-
-def _limit_memory(limit: int) -> None:
-    """Limit the address space to ``limit`` bytes (never above the hard limit already set)."""
-    _, hard = resource.getrlimit(resource.RLIMIT_AS)
-    if hard != resource.RLIM_INFINITY:
-        limit = min(limit, hard)
-    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m rac.sweep.task [PARENT_PID]``: read a :class:`TaskSpec` as JSON on standard input, run
-    it, write the task's part of the row as JSON on standard output; leave when the process
-    ``PARENT_PID`` (default: the parent at the start) is no longer the parent."""
-    argv = sys.argv[1:] if argv is None else argv
-    _leave_with_parent(int(argv[0]) if argv else os.getppid())
-    spec = TaskSpec.from_json(json.load(sys.stdin))
-    sys.stdout.flush()
-    result = os.fdopen(os.dup(1), "w", encoding="utf-8")
-    os.dup2(2, 1)  # whatever the task prints goes to standard error, not into the result
-    from rac.sweep import work
-
-    work.load(spec.task)  # the task's modules, before the memory limit: it limits the task, not them
-    if spec.memory is not None:
-        _limit_memory(spec.memory)
-    row = work.execute(spec)
-    if spec.memory is not None and (row["status"] == "memory" or row["status"] in ("failed", "error") and
-                                    any(sign in str(row["error"]) for sign in _OUT_OF_MEMORY)):
-        row.update(status="memory", error=_memory_error(spec.memory, str(row["error"])))
-    row["peak_memory"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
-    with result:
-        json.dump(row, result)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
