@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.check.resolve import Resolver
-from rac.core.diagnostics import CheckError, Diagnostic, error
+from rac.core.diagnostics import CheckError, Diagnostic, error, short_number
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, read_source
@@ -62,6 +63,9 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
     facts: list[str] = []
     scenario: Scenario | None = None
     model_data: ModelData | None = None
+    if automaton is not None and analyse and automaton.parameters and not any(d.is_error for d in diagnostics):
+        automaton, found = _synthesised(module.automata[0], automaton.parameters[0], facts)
+        diagnostics.extend(found)
     if automaton is not None and analyse and not any(d.is_error for d in diagnostics):
         from rac.check.analysis import analyse_automaton
 
@@ -77,6 +81,47 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
     if any(d.is_error for d in diagnostics):
         automaton = None
     return CompileResult(automaton, tuple(diagnostics), sources, module, tuple(facts), scenario, model_data)
+
+
+def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
+                 ) -> tuple[ir.Automaton | None, list[Diagnostic]]:
+    """The automaton at the least value of its parameter for which every check holds (the fact saying
+    so goes to ``facts``), or None and why there is none (E0406 and the checks failing at the value
+    that shows it, or E0407 where the search cannot be exact)."""
+    from rac.check.analysis import analyse_automaton
+    from rac.check.analysis.synthesis import Unfinished, synthesise, unsupported
+
+    name = parameter.name
+
+    def resolve(value: Fraction) -> ir.Automaton | None:
+        return Resolver(node, {name: value}).run()
+
+    low, high = resolve(parameter.low), resolve(parameter.high)
+    assert low is not None and high is not None, "the file resolved at the low bound"
+    reason = unsupported(low, high)
+    if reason is None:
+        try:
+            result = synthesise(resolve, parameter)
+        except Unfinished as stop:
+            reason = f"the worst-run search stopped: {stop.reason}"
+    if reason is not None:
+        return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {reason}",
+                            parameter.span, hints=[f"write `const {name} = ...` instead"])]
+    least = result.least
+    if least is None:
+        witness = resolve(result.witness)
+        assert witness is not None
+        failing = [d for d in analyse_automaton(witness, []) if d.is_error]
+        what = ("no value" if result.empty else
+                f"no least value (the values that pass form {result.interval()})")
+        return None, [error("E0406", f"{what} of parameter `{name}` in [{short_number(parameter.low)}, "
+                            f"{short_number(parameter.high)}] passes every check", parameter.span,
+                            notes=[*result.cuts, f"the checks at {name} = {short_number(result.witness)} follow"],
+                            hints=["widen the parameter's bounds, or change what it cannot compensate"]),
+                      *failing]
+    facts.append(f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
+                 f"checked with {name} = {short_number(least)}")
+    return resolve(least), []
 
 
 def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+from collections.abc import Mapping
 from fractions import Fraction
 from typing import TypeVar
 
@@ -34,8 +35,11 @@ MAX_SAMPLES = 1_000_000
 class Resolver:
     """Resolve one automaton. Call :meth:`run`; read :attr:`diagnostics`."""
 
-    def __init__(self, automaton: ast.Automaton):
+    def __init__(self, automaton: ast.Automaton, values: Mapping[str, Fraction] | None = None):
+        """``values`` gives parameters (``param``) their values; a parameter not given takes its low bound."""
         self.node = automaton
+        self.values = dict(values or {})
+        self.parameters: list[ir.Parameter] = []
         self.diagnostics: list[Diagnostic] = []
         self.symbols: dict[str, Symbol] = {}
         #: What queries and bindings may name; shares the symbols and the diagnostics.
@@ -102,6 +106,7 @@ class Resolver:
             # Expressions with errors were not fully read: an "unused" input may be used there.
             return None
         self._unused_inputs(inputs)
+        self._unused_parameters()
         assert period is not None and horizon is not None and objective is not None
         automaton = ir.Automaton(
             name=node.name.name,
@@ -119,6 +124,7 @@ class Resolver:
             horizon=horizon,
             constants=tuple((n, s.value) for n, s in self.symbols.items()
                             if s.kind == "const" and s.value is not None),
+            parameters=tuple(self.parameters),
             model=model,
             queries=queries,
             source=node,
@@ -193,6 +199,39 @@ class Resolver:
                 except Unresolvable:
                     pass
                 self._declare(member.name, symbol)
+            elif isinstance(member, ast.ParamDecl):
+                self._declare(member.name, self._parameter(member))
+
+    def _parameter(self, member: ast.ParamDecl) -> Symbol:
+        """A parameter is a constant whose value the caller chose (by default its low bound)."""
+        symbol = Symbol("const", "num", member.name.span)
+        try:
+            low = self.typer.constant(member.low, f"the low bound of `{member.name.name}`")
+            high = self.typer.constant(member.high, f"the high bound of `{member.name.name}`")
+        except Unresolvable:
+            return symbol
+        if low > high:
+            self._error("E0409", f"the bounds of parameter `{member.name.name}` are reversed: "
+                        f"{_num(low)} > {_num(high)}", member.span,
+                        hints=[f"write `param {member.name.name} in [{_num(high)}, {_num(low)}]`"])
+            return symbol
+        if self.parameters:
+            self._error("E0407", "not yet: one parameter per file; this is a second one", member.span,
+                        notes=[Note(f"the first is `{self.parameters[0].name}`", self.parameters[0].span)],
+                        hints=[f"write `const {member.name.name} = ...` until weights can be synthesised "
+                               "together"])
+            return symbol
+        symbol.value = self.values.get(member.name.name, low)
+        self.parameters.append(ir.Parameter(member.name.name, low, high, symbol.value, member.span))
+        return symbol
+
+    def _unused_parameters(self) -> None:
+        used = {n.id for n in _names_in(self.node)}
+        for parameter in self.parameters:
+            if parameter.name not in used:
+                self.diagnostics.append(warning(
+                    "W0408", f"parameter `{parameter.name}` is never used", parameter.span,
+                    hints=["remove it, or use it in an update, a rate or the objective"]))
 
     def _time_value(self, member: ast.SampleDecl | ast.HorizonDecl | None, word: str, what: str) -> Fraction | None:
         if member is None:
@@ -446,3 +485,14 @@ def _kind_word(kind: str) -> str:
 def _num(value: Fraction) -> str:
     """A rational as a short decimal for messages."""
     return short_number(value)
+
+
+def _names_in(node: object) -> list[ast.Name]:
+    """Every name an AST node mentions (a walk over the frozen dataclasses' fields)."""
+    if isinstance(node, ast.Name):
+        return [node]
+    if isinstance(node, (tuple, list)):
+        return [n for item in node for n in _names_in(item)]
+    if dataclasses.is_dataclass(node) and not isinstance(node, type):
+        return [n for f in dataclasses.fields(node) for n in _names_in(getattr(node, f.name))]
+    return []

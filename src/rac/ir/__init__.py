@@ -261,6 +261,17 @@ class Assumption:
 
 
 @dataclass(frozen=True)
+class Parameter:
+    """``param NAME in [low, high]``: the automaton was resolved with ``value`` in its place."""
+
+    name: str
+    low: Fraction
+    high: Fraction
+    value: Fraction
+    span: Span | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
 class Automaton:
     """A checked reward automaton."""
 
@@ -280,6 +291,8 @@ class Automaton:
     period: Fraction
     horizon: Fraction
     constants: tuple[tuple[str, Fraction | bool], ...] = ()
+    #: The ``param`` declarations (each resolved as a constant of the value it records).
+    parameters: tuple[Parameter, ...] = ()
     #: The scenario model from the `model` block, if the file has one.
     model: ModelSpec | None = None
     #: The file's queries, checked (:mod:`rac.ir.query`).

@@ -124,6 +124,16 @@ class ConstDecl:
 
 
 @dataclass(frozen=True)
+class ParamDecl:
+    """``param NAME in [low, high]``: a constant whose value the checker synthesises."""
+
+    name: Ident
+    low: Expr
+    high: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
 class RewardDecl:
     names: tuple[Ident, ...]
     span: Span | None = _span()
@@ -364,7 +374,7 @@ class ModelDecl:
         return [i for i in self.items if isinstance(i, kind)]
 
 
-Member = Union[InputDecl, AssumeDecl, ConstDecl, RewardDecl, PriorityDecl, ObjectiveDecl,
+Member = Union[InputDecl, AssumeDecl, ConstDecl, ParamDecl, RewardDecl, PriorityDecl, ObjectiveDecl,
                SampleDecl, HorizonDecl, LocationDecl, EdgeDecl, EndDecl, QueryDecl, ModelDecl]
 
 

@@ -282,6 +282,8 @@ def format_member(member: ast.Member) -> str:
     """
     if isinstance(member, (ast.InputDecl, ast.ConstDecl, ast.LocationDecl, ast.EdgeDecl, ast.EndDecl)):
         return _run_lines([member])[0]
+    if isinstance(member, ast.ParamDecl):
+        return f"param {member.name.name} in [{_expr(member.low)}, {_expr(member.high)}]"
     if isinstance(member, ast.AssumeDecl):
         return f"assume {_expr(member.expr)}"
     if isinstance(member, ast.RewardDecl):
@@ -307,7 +309,7 @@ def format_member(member: ast.Member) -> str:
 _GROUP = {
     ast.InputDecl: 0,
     ast.AssumeDecl: 1,
-    ast.ConstDecl: 2,
+    ast.ConstDecl: 2, ast.ParamDecl: 2,
     ast.RewardDecl: 3, ast.PriorityDecl: 3, ast.ObjectiveDecl: 3,
     ast.SampleDecl: 4, ast.HorizonDecl: 4,
     ast.LocationDecl: 5,

@@ -43,7 +43,7 @@ _TERMINAL_WORDS = {
     "STRING": 'a file name in quotes (`"..."`)',
     "$END": "end of file",
 }
-_DECLARATION_WORDS = ("input", "assume", "const", "reward", "priority", "objective", "sample",
+_DECLARATION_WORDS = ("input", "assume", "const", "param", "reward", "priority", "objective", "sample",
                       "horizon", "initial", "location", "edge", "at", "query", "model")
 _EXPRESSION_START = {"a name", "a number", "`true`", "`false`", "`(`", "`-`", "`!`", "`not`"}
 

@@ -126,6 +126,34 @@ def _penalised(automaton: ir.Automaton, reward: str) -> tuple[bool, ...]:
     return tuple(marks)
 
 
+def p2_levels(automaton: ir.Automaton) -> range:
+    """The priority levels P2 checks: the highest only, or every level under ``priority strict``."""
+    if not automaton.priority:
+        return range(0)
+    return range(len(automaton.priority)) if automaton.strict else range(1)
+
+
+def p2_target(automaton: ir.Automaton, level: int) -> Target:
+    """What P2 maximises at ``level``: the weighted sum from that level down, over the instants spent
+    where the level's reward is penalised; P2 holds when the maximum is <= 0."""
+    ranked = set(automaton.priority[level:])
+    weights = tuple(automaton.objective.coefficient(r) if r in ranked else ZERO for r in automaton.rewards)
+    constant = automaton.objective.const if level == 0 else ZERO
+    return Target(weights, constant, _penalised(automaton, automaton.priority[level]))
+
+
+def range_target(automaton: ir.Automaton, k: int, sign: int) -> Target:
+    """What the int32 range check maximises for reward ``k``: ``sign``·r_k over every instant."""
+    size = len(automaton.rewards)
+    weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
+    return Target(weights, ZERO, tuple(True for _ in automaton.locations))
+
+
+def range_limit(sign: int) -> int:
+    """The significand a reward must stay below (``sign`` 1) or whose negation it must stay below (-1)."""
+    return INT32_MAX + 1 if sign > 0 else -INT32_MIN + 1
+
+
 def _prepared(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves] | None
               ) -> tuple[InputSpace | None, Moves | None, list[Diagnostic]]:
     """The input space and the moves: the caller's (``prepared``), or built here."""
@@ -151,18 +179,15 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None,
     space, outs, problems = _prepared(automaton, prepared)
     if space is None or outs is None:
         return diagnostics + problems
-    levels = range(len(automaton.priority)) if automaton.strict else range(1)
-    for level in levels:
+    for level in p2_levels(automaton):
         reward = automaton.priority[level]
-        ranked = set(automaton.priority[level:])
-        weights = tuple(automaton.objective.coefficient(r) if r in ranked else ZERO for r in automaton.rewards)
-        constant = automaton.objective.const if level == 0 else ZERO
-        watched = _penalised(automaton, reward)
+        target = p2_target(automaton, level)
+        weights, constant, watched = target.weights, target.constant, target.watched
         if not any(watched):
             facts.append(f"P2 holds trivially for `{reward}`: no location penalises it")
             continue
         try:
-            worst = maximise(automaton, outs, Target(weights, constant, watched), run=lambda value: value > 0)
+            worst = maximise(automaton, outs, target, run=lambda value: value > 0)
         except Unfinished as stop:
             diagnostics.append(_unfinished(automaton, f"P2 for `{reward}`", stop))
             continue
@@ -411,18 +436,16 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
     space, outs, problems = _prepared(automaton, prepared)
     if space is None or outs is None:
         return problems
-    everywhere = tuple(True for _ in automaton.locations)
     factor = Fraction(base) ** exponent
-    size = len(automaton.rewards)
     for k, reward in enumerate(automaton.rewards):
-        for sign, limit in ((1, INT32_MAX + 1), (-1, -INT32_MIN + 1)):
-            weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
+        for sign in (1, -1):
+            limit = range_limit(sign)
 
             def overflows(value: Fraction, limit: int = limit) -> bool:
                 return value * factor >= limit
 
             try:
-                worst = maximise(automaton, outs, Target(weights, ZERO, everywhere), run=overflows)
+                worst = maximise(automaton, outs, range_target(automaton, k, sign), run=overflows)
             except Unfinished as stop:
                 return [_unfinished(automaton, f"the int32 range at base {base}, exponent {exponent}", stop)]
             if worst is None or worst.value * factor < limit:

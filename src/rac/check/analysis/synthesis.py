@@ -1,0 +1,263 @@
+"""Synthesis of one parameter (``param P in [lo, hi]``): the exact set of values for which every
+check holds, by cutting planes over the exact worst-run oracle (docs/checks.md, "Parameters").
+
+Each check c (P2 at a level, either side of a reward's int32 range) holds at a value p when
+``V_c(p) = max over runs r of J_r(p)`` stays <= its bound (< for the range). Under the conditions
+:func:`unsupported` checks, the runs do not depend on p and each ``J_r`` is affine in p, so ``V_c`` is
+convex and the values where c holds form an interval; so does their intersection. The lower end is
+found from ``lo`` upwards: the oracle's worst run at the candidate gives the affine constraint
+``J_r(p) <= bound``, the next candidate is the least value satisfying every constraint so far, and the
+search stops when the oracle finds no violation. The upper end is found the same way from ``hi`` down.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from fractions import Fraction
+from functools import partial
+
+from rac import ir
+from rac.check.analysis.affine import Affine, from_assignments, identity, moves, then
+from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.priority import p2_levels, p2_target, range_limit, range_target, replay
+from rac.check.analysis.worst import Target, Unfinished, Worst, maximise
+from rac.core.diagnostics import short_number
+from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
+
+#: The automaton resolved with the parameter at a value (None when it does not resolve).
+Resolve = Callable[[Fraction], "ir.Automaton | None"]
+
+
+@dataclass(frozen=True)
+class Check:
+    """One check as a maximisation: it holds while the worst value is <= ``bound`` (< when ``strict``)."""
+
+    what: str
+    target: Callable[[ir.Automaton], Target]
+    bound: Fraction
+    strict: bool
+
+    def violated(self, value: Fraction) -> bool:
+        return value >= self.bound if self.strict else value > self.bound
+
+
+@dataclass(frozen=True)
+class End:
+    """One end of the set: ``value``, excluded when ``open``."""
+
+    value: Fraction
+    open: bool = False
+
+
+@dataclass(frozen=True)
+class Synthesis:
+    """The values of the parameter for which every check holds: ``[low, high]`` (ends may be open),
+    or empty (``low``/``high`` None) with ``witness`` the value whose checks show why."""
+
+    parameter: ir.Parameter
+    low: End | None
+    high: End | None
+    witness: Fraction
+    #: Each cut, as a sentence ("at P = 90, P2 for `sa` needs P >= 98").
+    cuts: tuple[str, ...] = ()
+
+    @property
+    def empty(self) -> bool:
+        return self.low is None or self.high is None
+
+    @property
+    def least(self) -> Fraction | None:
+        """The least value of the set (None when it is empty or its lower end is open)."""
+        return None if self.low is None or self.low.open else self.low.value
+
+    def describe(self) -> str:
+        """The set as inequalities: ``P >= 98``, ``2 <= P < 7``, or every value of the declared range."""
+        p = self.parameter
+        assert self.low is not None and self.high is not None
+        low = None if self.low == End(p.low) else self.low
+        high = None if self.high == End(p.high) else self.high
+        if low is None and high is None:
+            return f"every value of {p.name} in [{_num(p.low)}, {_num(p.high)}]"
+        if high is None:
+            assert low is not None
+            return f"{p.name} {'>' if low.open else '>='} {_num(low.value)}"
+        if low is None:
+            return f"{p.name} {'<' if high.open else '<='} {_num(high.value)}"
+        return (f"{_num(low.value)} {'<' if low.open else '<='} {p.name} "
+                f"{'<' if high.open else '<='} {_num(high.value)}")
+
+    def interval(self) -> str:
+        assert self.low is not None and self.high is not None
+        return (f"{'(' if self.low.open else '['}{_num(self.low.value)}, "
+                f"{_num(self.high.value)}{')' if self.high.open else ']'}")
+
+
+def checks(automaton: ir.Automaton) -> list[Check]:
+    """Every check whose outcome depends on the values of rewards: P2 per level and the int32 range."""
+    result = [Check(f"P2 for `{automaton.priority[level]}`", partial(p2_target, level=level),
+                    Fraction(0), False) for level in p2_levels(automaton)]
+    base, exponent = ((automaton.model.base, automaton.model.exponent) if automaton.model is not None
+                      else (DEFAULT_BASE, DEFAULT_EXPONENT))
+    factor = Fraction(base) ** exponent
+    for k, reward in enumerate(automaton.rewards):
+        for sign in (1, -1):
+            side = "upper" if sign > 0 else "lower"
+            result.append(Check(f"the int32 range of `{reward}` (its {side} end)",
+                                partial(range_target, k=k, sign=sign),
+                                Fraction(range_limit(sign)) / factor, True))
+    return result
+
+
+def unsupported(low: ir.Automaton, high: ir.Automaton) -> str | None:
+    """Why the parameter's place keeps the search from being exact (None when it is supported).
+
+    ``low`` and ``high`` are the automaton at the two declared bounds; what is affine in the parameter
+    differs between them only through the parameter.
+    """
+    if (low.inputs, low.assumptions, low.period, low.horizon, low.model) != \
+            (high.inputs, high.assumptions, high.period, high.horizon, high.model):
+        return "it sets an input bound, an assumption, the sample period, the horizon or the model"
+    if [[(e.guard, e.target) for e in es] for es in low.edges] != [[(e.guard, e.target) for e in es]
+                                                                   for es in high.edges] \
+            or [c.guard for c in low.end_clauses] != [c.guard for c in high.end_clauses]:
+        return "it appears in a guard (the runs would depend on it)"
+    if any(_maps(low, e).matrix != _maps(high, f).matrix for es, fs in zip(low.edges, high.edges)
+           for e, f in zip(es, fs)) or \
+            any(_end_map(low, c.updates).matrix != _end_map(high, d.updates).matrix
+                for c, d in zip(low.end_clauses, high.end_clauses)):
+        return "it scales a reward in an update (the rewards would not be affine in it)"
+    rewards_move = (low.locations != high.locations or low.edges != high.edges
+                    or low.end_clauses != high.end_clauses)
+    if rewards_move and low.objective != high.objective:
+        return "it is both an objective weight and in a rate or an update (the objective would be quadratic in it)"
+    for level in p2_levels(low):
+        if p2_target(low, level).watched != p2_target(high, level).watched:
+            return (f"whether a location penalises `{low.priority[level]}` changes between its bounds: "
+                    "narrow them to one side of that change")
+    return None
+
+
+def synthesise(resolve: Resolve, parameter: ir.Parameter) -> Synthesis:
+    """The exact set of values of ``parameter`` in its bounds for which every check holds.
+
+    Raises :class:`Unfinished` when the worst-run search stops at its limit.
+    """
+    cuts: list[str] = []
+    low, high = End(parameter.low), End(parameter.high)
+    # The lower end first (the least value satisfying every cut so far, until no check fails there),
+    # then the upper end from the top down: the set is an interval, so every value between holds.
+    for upwards in (True, False):
+        while True:
+            candidate = low.value if upwards else high.value
+            found = _cuts(resolve, parameter, candidate, cuts)
+            if not found:
+                break
+            new_low, new_high = _tighten(low, high, found)
+            if _is_empty(new_low, new_high):
+                return Synthesis(parameter, None, None, candidate, tuple(cuts))
+            if (new_low, new_high) == (low, high):
+                break  # an open end that every failing check reaches exactly: see _tighten
+            low, high = new_low, new_high
+    return Synthesis(parameter, low, high, low.value, tuple(cuts))
+
+
+def _is_empty(low: End, high: End) -> bool:
+    return low.value > high.value or (low.value == high.value and (low.open or high.open))
+
+
+#: A cut: the check holds only where ``p >= value`` (``lower``) or ``p <= value``, strictly when ``open``;
+#: None for the value: the check fails at every value.
+_Cut = tuple[bool, Fraction | None, bool]
+
+
+def _tighten(low: End, high: End, found: list[_Cut]) -> tuple[End, End]:
+    """The ends after the cuts. A cut that leaves an end where it is (a strict check reaching its bound
+    exactly at an open end) proves that end: the check's convex worst value is below the bound inside."""
+    for lower, value, is_open in found:
+        if value is None:
+            return End(high.value + 1), high
+        end = End(value, is_open)
+        if lower and (value, is_open) > (low.value, low.open):
+            low = end
+        elif not lower and (value, not is_open) < (high.value, not high.open):
+            high = end
+    return low, high
+
+
+def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences: list[str]) -> list[_Cut]:
+    """The oracle at ``value``: a cut from the worst run of every check that fails there."""
+    automaton = resolve(value)
+    assert automaton is not None, "the parameter's bounds resolved, so every value between does"
+    space, _ = input_space(automaton)
+    assert space is not None
+    outs = moves(automaton, space)
+    other: ir.Automaton | None = None
+    found: list[_Cut] = []
+    for check in checks(automaton):
+        worst = maximise(automaton, outs, check.target(automaton), run=check.violated)
+        if worst is None or not check.violated(worst.value):
+            continue
+        if other is None:
+            other = resolve(value + 1)
+            assert other is not None
+        # The same run one unit further: its value is affine in the parameter, so two values fix it.
+        here = _value(automaton, space, worst, check.target(automaton))
+        there = _value(other, space, _transplant(worst, automaton, other), check.target(other))
+        slope = there - here
+        name = parameter.name
+        if slope == 0:
+            found.append((True, None, False))
+            sentences.append(f"at {name} = {_num(value)}, {check.what} fails whatever {name} is")
+            continue
+        root = value + (check.bound - worst.value) / slope
+        lower = slope < 0
+        found.append((lower, root, check.strict))
+        sign = (">" if lower else "<") + ("" if check.strict else "=")
+        sentences.append(f"at {name} = {_num(value)}, {check.what} needs {name} {sign} {_num(root)}")
+    return found
+
+
+def _value(automaton: ir.Automaton, space, worst: Worst, target: Target) -> Fraction:
+    values, _ = replay(automaton, space, worst)
+    return sum((w * v for w, v in zip(target.weights, values)), target.constant)
+
+
+def _maps(automaton: ir.Automaton, edge: ir.Edge) -> Affine:
+    return from_assignments(edge.updates, automaton.rewards)
+
+
+def _end_map(automaton: ir.Automaton, updates: tuple[ir.Assignment, ...]) -> Affine:
+    return from_assignments(updates, automaton.rewards)
+
+
+def _transplant(worst: Worst, source: ir.Automaton, target: ir.Automaton) -> Worst:
+    """The run ``worst`` of ``source`` as a run of ``target`` (the same automaton at another value of
+    the parameter: the same edges and input classes, other update values)."""
+    maps: dict[int, tuple[ir.Edge, Affine]] = {}
+    steps = []
+    for step in worst.steps:
+        o = step.outcome
+        if o.edge is not None:
+            moved = maps.get(id(o.edge))
+            if moved is None:
+                index = next(i for i, e in enumerate(source.edges[o.source]) if e is o.edge)
+                edge = target.edges[o.source][index]
+                moved = maps[id(o.edge)] = (edge, _maps(target, edge))
+            o = dataclasses.replace(o, edge=moved[0], edge_map=moved[1])
+        steps.append(dataclasses.replace(step, outcome=o))
+    end = worst.end
+    if end is not None:
+        end_map = identity(len(target.rewards))
+        for i in end.ends:
+            end_map = then(end_map, _end_map(target, target.end_clauses[i].updates))
+        end = dataclasses.replace(end, end_map=end_map)
+    return dataclasses.replace(worst, steps=steps, end=end)
+
+
+def _num(value: Fraction) -> str:
+    return short_number(value)
+
+
+__all__ = ["Check", "End", "Synthesis", "Unfinished", "checks", "synthesise", "unsupported"]
