@@ -112,6 +112,15 @@ def check_rate_dominance(automaton: ir.Automaton) -> list[Diagnostic]:
     return result
 
 
+def rate_conflicts(automaton: ir.Automaton, location: ir.Location, high: str, low: str) -> tuple[bool, bool]:
+    """Whether, in ``location``, ``high`` can decrease while ``low`` increases, and while ``low``
+    decreases: P1 fails for a positive weight of ``low`` with the first, for a negative one with the second."""
+    index = {r: i for i, r in enumerate(automaton.rewards)}
+    rate_high, rate_low = location.rates[index[high]], location.rates[index[low]]
+    return (_exists_neg_pos(rate_high, rate_low, automaton),
+            _exists_neg_pos(rate_high, rate_low.scaled(Fraction(-1)), automaton))
+
+
 def _penalised(automaton: ir.Automaton, reward: str) -> tuple[bool, ...]:
     """Locations that penalise a reward: a negative rate there, or an edge into it that lowers it."""
     k = automaton.rewards.index(reward)

@@ -21,7 +21,14 @@ from functools import partial
 from rac import ir
 from rac.check.analysis.affine import Affine, from_assignments, identity, moves, then
 from rac.check.analysis.behaviour import input_space
-from rac.check.analysis.priority import p2_levels, p2_target, range_limit, range_target, replay
+from rac.check.analysis.priority import (
+    p2_levels,
+    p2_target,
+    range_limit,
+    range_target,
+    rate_conflicts,
+    replay,
+)
 from rac.check.analysis.worst import Target, Unfinished, Worst, maximise
 from rac.core.diagnostics import short_number
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
@@ -116,6 +123,8 @@ def unsupported(low: ir.Automaton, high: ir.Automaton) -> str | None:
     ``low`` and ``high`` are the automaton at the two declared bounds; what is affine in the parameter
     differs between them only through the parameter.
     """
+    if low.locations != high.locations:
+        return "it appears in a rate (not yet: P1 would depend on it beyond a weight's sign)"
     if (low.inputs, low.assumptions, low.period, low.horizon, low.model) != \
             (high.inputs, high.assumptions, high.period, high.horizon, high.model):
         return "it sets an input bound, an assumption, the sample period, the horizon or the model"
@@ -139,6 +148,36 @@ def unsupported(low: ir.Automaton, high: ir.Automaton) -> str | None:
     return None
 
 
+def p1_cuts(low: ir.Automaton, high: ir.Automaton, parameter: ir.Parameter, sentences: list[str]) -> list[_Cut]:
+    """P1 as constraints on the parameter, which can only be a weight of the objective (rates do not
+    depend on it): a pair high > low fails in a location for a positive weight of ``low`` when ``high``
+    can decrease while ``low`` increases, and for a negative weight when both can decrease."""
+    found: list[_Cut] = []
+    name, span = parameter.name, parameter.high - parameter.low
+    for location in low.locations:
+        for a, first in enumerate(low.priority):
+            for second in low.priority[a + 1:]:
+                w0, w1 = low.objective.coefficient(second), high.objective.coefficient(second)
+                slope = (w1 - w0) / span if span else Fraction(0)
+                plus, minus = rate_conflicts(low, location, first, second)
+                for conflict, sign in ((plus, 1), (minus, -1)):
+                    if not conflict:
+                        continue
+                    # The weight must stay on the side of 0 where the conflict does no harm:
+                    # sign·(w0 + slope·(p - low)) <= 0.
+                    what = f"P1 in `{location.name}` ({first} > {second})"
+                    if slope == 0:
+                        if sign * w0 > 0:
+                            found.append((True, None, False))
+                            sentences.append(f"{what} fails whatever {name} is")
+                        continue
+                    root = parameter.low - w0 / slope
+                    lower = sign * slope < 0
+                    found.append((lower, root, False))
+                    sentences.append(f"{what} needs {name} {'>=' if lower else '<='} {_num(root)}")
+    return found
+
+
 def synthesise(resolve: Resolve, parameter: ir.Parameter) -> Synthesis:
     """The exact set of values of ``parameter`` in its bounds for which every check holds.
 
@@ -146,6 +185,11 @@ def synthesise(resolve: Resolve, parameter: ir.Parameter) -> Synthesis:
     """
     cuts: list[str] = []
     low, high = End(parameter.low), End(parameter.high)
+    at_low, at_high = resolve(parameter.low), resolve(parameter.high)
+    assert at_low is not None and at_high is not None
+    low, high = _tighten(low, high, p1_cuts(at_low, at_high, parameter, cuts))
+    if _is_empty(low, high):
+        return Synthesis(parameter, None, None, parameter.low, tuple(cuts))
     # The lower end first (the least value satisfying every cut so far, until no check fails there),
     # then the upper end from the top down: the set is an interval, so every value between holds.
     for upwards in (True, False):
