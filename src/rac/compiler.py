@@ -119,8 +119,12 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
                             notes=[*result.cuts, f"the checks at {name} = {short_number(result.witness)} follow"],
                             hints=["widen the parameter's bounds, or change what it cannot compensate"]),
                       *failing]
-    facts.append(f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
-                 f"checked with {name} = {short_number(least)}")
+    if result.whole:
+        facts.append(f"synthesised: every check holds for every value of {name} in {result.interval()}; "
+                     f"checked with {name} = {short_number(least)}")
+    else:
+        facts.append(f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
+                     f"checked with {name} = {short_number(least)}")
     return resolve(least), []
 
 

@@ -75,20 +75,24 @@ class Synthesis:
         return self.low is None or self.high is None
 
     @property
+    def whole(self) -> bool:
+        """Whether every value of the declared range passes."""
+        p = self.parameter
+        return (self.low, self.high) == (End(p.low), End(p.high))
+
+    @property
     def least(self) -> Fraction | None:
         """The least value of the set (None when it is empty or its lower end is open)."""
         return None if self.low is None or self.low.open else self.low.value
 
     def describe(self) -> str:
-        """The set as inequalities: ``P >= 98``, ``2 <= P < 7``, or every value of the declared range."""
+        """The set as the inequalities the checks add to the declared range: ``P >= 98``, ``2 <= P < 7``."""
         p = self.parameter
         assert self.low is not None and self.high is not None
         low = None if self.low == End(p.low) else self.low
         high = None if self.high == End(p.high) else self.high
-        if low is None and high is None:
-            return f"every value of {p.name} in [{_num(p.low)}, {_num(p.high)}]"
         if high is None:
-            assert low is not None
+            assert low is not None, "the whole range: see whole"
             return f"{p.name} {'>' if low.open else '>='} {_num(low.value)}"
         if low is None:
             return f"{p.name} {'<' if high.open else '<='} {_num(high.value)}"
@@ -194,13 +198,14 @@ def synthesise(resolve: Resolve, parameter: ir.Parameter) -> Synthesis:
     # then the upper end from the top down: the set is an interval, so every value between holds.
     for upwards in (True, False):
         while True:
-            candidate = low.value if upwards else high.value
-            found = _cuts(resolve, parameter, candidate, cuts)
+            found = _cuts(resolve, parameter, low.value if upwards else high.value, cuts)
             if not found:
                 break
             new_low, new_high = _tighten(low, high, found)
             if _is_empty(new_low, new_high):
-                return Synthesis(parameter, None, None, candidate, tuple(cuts))
+                # Show the checks at the best candidate: the value of the range nearest to what the cuts ask.
+                best = high.value if new_low != low else low.value
+                return Synthesis(parameter, None, None, best, tuple(cuts))
             if (new_low, new_high) == (low, high):
                 break  # an open end that every failing check reaches exactly: see _tighten
             low, high = new_low, new_high
