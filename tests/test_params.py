@@ -39,6 +39,8 @@ def test_driving_penalty_is_synthesised_exactly():
     assert result.facts[1:] == at_98.facts
     assert result.automaton is not None and at_98.automaton is not None
     assert result.automaton.edges == at_98.automaton.edges
+    # What the targets are compiled from carries the value too.
+    assert ("PENALTY", 98) in result.automaton.constants
 
 
 def test_one_less_fails_p2():
