@@ -163,3 +163,19 @@ def test_new_from_an_unknown_file_lists_the_library(tmp_path: Path, monkeypatch:
     err = capsys.readouterr().err
     assert "error[E0008]" in err and "speed_limit.ra" in err
     assert not (tmp_path / "x.ra").exists()
+
+
+@pytest.mark.parametrize("name", NEW)
+def test_model_example_compiles_to_a_whole_uppaal_model(name: str, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str], utap) -> None:
+    example = (EXAMPLES / f"{name}.ra").read_text(encoding="utf-8")
+    scene = re.search(r'scenario "(\w+)\.xml"', example)
+    assert scene
+    write_scene(scene.group(1), tmp_path / f"{scene.group(1)}.xml")
+    (tmp_path / f"{name}.ra").write_text(example, encoding="utf-8")
+    out = tmp_path / f"{name}.xml"
+    assert main(["compile", "--target", "uppaal", str(tmp_path / f"{name}.ra"), "-o", str(out)]) == 0, \
+        capsys.readouterr().err
+    xml = out.read_text(encoding="utf-8")
+    assert "mindist" in xml or "dist_goal" in xml or "offroad" in xml  # the bindings' model functions
+    utap.validate(xml, out.with_suffix(".q").read_text(encoding="utf-8"), f"{name}_model")
