@@ -1,7 +1,7 @@
 """The standard library (stdlib/*.ra): every file checks with its priority proved, is in canonical
 layout, compiles to both targets (UPPAAL's parser accepts the model), says in its header what
-`rac check` proves, and has a `model` example (examples/stdlib/NAME.ra) that checks on a built
-scene. ``rac new`` copies one as a starting point."""
+`rac check` proves, and has a `model` example (examples/stdlib/NAME.ra) that checks on a scene
+rac.model.scenes builds (kept beside it). ``rac new`` copies one as a starting point."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from conftest import REPOSITORY
 from rac.cli.main import main
 from rac.compiler import compile_file
 from rac.lang.resources import stdlib_dir
-from rac.model.scenes import write_scene
+from rac.model.scenes import scene_bytes
 from rac.targets.python import generate_python
 from rac.targets.uppaal.automaton import generate_uppaal
 
@@ -84,19 +84,20 @@ def _without_model_block(text: str) -> str:
 
 
 @pytest.mark.parametrize("name", NEW)
-def test_model_example_checks_on_its_scene(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    example = (EXAMPLES / f"{name}.ra").read_text(encoding="utf-8")
+def test_model_example_checks_on_its_scene(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    path = EXAMPLES / f"{name}.ra"
+    example = path.read_text(encoding="utf-8")
     stdlib = (REPOSITORY / "stdlib" / f"{name}.ra").read_text(encoding="utf-8")
     # the example is the stdlib automaton itself, plus its model block
     body = example[example.index("automaton "):]
     assert _without_model_block(body) == stdlib[stdlib.index("automaton "):]
     scene = re.search(r'scenario "(\w+)\.xml"', example)
     assert scene, f"examples/stdlib/{name}.ra has no scene"
-    write_scene(scene.group(1), tmp_path / f"{scene.group(1)}.xml")
-    (tmp_path / f"{name}.ra").write_text(example, encoding="utf-8")
-    status, out = _check(tmp_path / f"{name}.ra", capsys)
+    # the scene beside it is the one rac.model.scenes builds
+    assert (EXAMPLES / f"{scene.group(1)}.xml").read_bytes() == scene_bytes(scene.group(1))
+    status, out = _check(path, capsys)
     assert status == 0, out
-    assert f"{name}.ra: ok\n" in out
+    assert f"{path}: ok\n" in out
     assert f"proved: scenario {scene.group(1)}.xml: " in out
     # every binding in the stdlib header is the one the example uses
     bindings = re.findall(r"^        (bind \w+ += .*?)(?:\s+//.*)?$", example, re.M)
@@ -168,13 +169,8 @@ def test_new_from_an_unknown_file_lists_the_library(tmp_path: Path, monkeypatch:
 @pytest.mark.parametrize("name", NEW)
 def test_model_example_compiles_to_a_whole_uppaal_model(name: str, tmp_path: Path,
                                                         capsys: pytest.CaptureFixture[str], utap) -> None:
-    example = (EXAMPLES / f"{name}.ra").read_text(encoding="utf-8")
-    scene = re.search(r'scenario "(\w+)\.xml"', example)
-    assert scene
-    write_scene(scene.group(1), tmp_path / f"{scene.group(1)}.xml")
-    (tmp_path / f"{name}.ra").write_text(example, encoding="utf-8")
     out = tmp_path / f"{name}.xml"
-    assert main(["compile", "--target", "uppaal", str(tmp_path / f"{name}.ra"), "-o", str(out)]) == 0, \
+    assert main(["compile", "--target", "uppaal", str(EXAMPLES / f"{name}.ra"), "-o", str(out)]) == 0, \
         capsys.readouterr().err
     xml = out.read_text(encoding="utf-8")
     assert "mindist" in xml or "dist_goal" in xml or "offroad" in xml  # the bindings' model functions
