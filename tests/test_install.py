@@ -20,6 +20,7 @@ from conftest import REPOSITORY
 
 DEPENDENCIES = ("lark", "numpy", "jinja2", "markupsafe")
 IN_WHEEL = ("rac/__init__.py", "rac/grammar/rac.lark", "rac/stdlib/driving.ra",
+            *(f"rac/stdlib/{name}.ra" for name in ("safe_distance", "speed_limit", "goal_window", "lane_change")),
             "rac/targets/templates/python_module.py.j2", "rac/targets/uppaal/templates/model.xml.j2")
 
 

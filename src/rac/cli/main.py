@@ -1,4 +1,5 @@
-"""The ``rac`` command: check, compile and format `.ra` files; verify, simulate, render and
+"""The ``rac`` command: check, compile and format `.ra` files, start one from the standard library
+(:mod:`rac.cli.new`); verify, simulate, render and
 pre-analyse them with the native engine (:mod:`rac.cli.engine`).
 
 Exit codes: 0 clean (warnings allowed), 1 errors in the input, 2 bad usage or a
@@ -64,10 +65,12 @@ def _parser() -> argparse.ArgumentParser:
     fmt.add_argument("--stdout", action="store_true", help="print the result instead of rewriting")
 
     from rac.cli.engine import add_parsers
+    from rac.cli.new import add_parser as add_new
     from rac.cli.sweep import add_parser as add_sweep
 
     add_parsers(commands)
     add_sweep(commands)
+    add_new(commands)
     return parser
 
 
@@ -235,9 +238,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # argparse exits 2 on bad usage, 0 on --help
         return int(exc.code or 0)
     from rac.cli.engine import HANDLERS
+    from rac.cli.new import new_command
     from rac.cli.sweep import sweep_command
 
-    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, **HANDLERS, "sweep": sweep_command}
+    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, **HANDLERS, "sweep": sweep_command,
+                "new": new_command}
     stdout = sys.stdout
     sys.stdout = ReaderSafe(stdout)  # `rac check ... | head`: the command still ends with its own status
     try:

@@ -1,0 +1,107 @@
+"""``rac new NAME [--from FILE]``: start a reward automaton from a standard-library file.
+
+The file (default ``driving.ra``; a bare name such as ``speed_limit`` is looked up in the standard
+library) is copied to ``NAME.ra``, its automaton renamed to the CamelCase of NAME when NAME is an
+identifier. An existing file is never overwritten (E0009, exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+
+from rac.cli.common import EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
+from rac.core.diagnostics import Diagnostic, error, render_text
+from rac.lang.parser import ParseFailure, parse_text
+from rac.lang.resources import stdlib_file
+
+__all__ = ["DEFAULT_TEMPLATE", "add_parser", "camel_case", "new_command", "renamed", "template_path"]
+
+#: The standard-library file ``rac new`` copies when ``--from`` is not given.
+DEFAULT_TEMPLATE = "driving.ra"
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """Register ``rac new`` on the ``rac`` command's subparsers."""
+    new = commands.add_parser("new", help="start a new .ra file from a standard-library automaton")
+    new.add_argument("name", metavar="NAME", help="the file to write, NAME.ra (may include a folder)")
+    new.add_argument("--from", dest="template", default=DEFAULT_TEMPLATE, metavar="FILE",
+                     help="a .ra file, or a standard-library name such as speed_limit (default: driving.ra)")
+
+
+def camel_case(name: str) -> str | None:
+    """``my_reward`` -> ``MyReward``; None when ``name`` is not an identifier of the language."""
+    if not _IDENTIFIER.fullmatch(name):
+        return None
+    camel = "".join(part[:1].upper() + part[1:] for part in name.split("_") if part)
+    return camel or None
+
+
+def template_path(template: str) -> Path:
+    """The file ``--from`` names: an existing path, else a standard-library file (``speed_limit``,
+    ``speed_limit.ra`` or ``stdlib/speed_limit.ra``). Raises FileNotFoundError listing the stdlib."""
+    path = Path(template)
+    if path.exists():
+        return path
+    if path.parent in (Path("."), Path("stdlib")):  # a stdlib name, wherever rac is installed
+        return stdlib_file(path.name if path.suffix == ".ra" else f"{path.name}.ra")
+    raise FileNotFoundError(f"no such file: {template}")
+
+
+def renamed(text: str, name: str) -> str:
+    """``text`` with its (first) automaton called ``name``: the declaration and the qualified
+    references ``Old.location`` in queries. ``text`` unchanged when it does not parse or the new
+    text would not."""
+    try:
+        automata = parse_text(text).automata
+    except ParseFailure:
+        return text
+    if not automata or automata[0].name.span is None:
+        return text
+    old, span = automata[0].name.name, automata[0].name.span
+    rest = re.sub(rf"(?<![A-Za-z0-9_.]){re.escape(old)}(?=\.[A-Za-z_])", name, text[span.end:])
+    result = text[:span.start] + name + rest
+    try:
+        parse_text(result)
+    except ParseFailure:  # the name is a word the grammar reserves (e.g. a query's `A`)
+        return text
+    return result
+
+
+def _exists(path: Path) -> Diagnostic:
+    """E0009: ``rac new`` never overwrites a file."""
+    return error("E0009", f"cannot write `{path}`: the file exists", None,
+                 hints=["choose another NAME or remove the file; `rac new` never overwrites one"])
+
+
+def new_command(args: argparse.Namespace) -> int:
+    """``rac new NAME --from FILE``: copy, rename, write atomically, say what to run next."""
+    target = Path(args.name if args.name.endswith(".ra") else f"{args.name}.ra")
+    try:
+        source = template_path(args.template)
+        text = source.read_text(encoding="utf-8")
+    except FileNotFoundError as exc:
+        print(render_text([error("E0008", f"cannot read `{args.template}`: {exc.args[0]}", None,
+                                 hints=["pass a .ra file or a standard-library name"])], {}), file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        print(render_text([unreadable(Path(args.template), exc)], {}), file=sys.stderr)
+        return EXIT_USAGE
+    if target.exists() or target.is_symlink():
+        print(render_text([_exists(target)], {}), file=sys.stderr)
+        return EXIT_USAGE
+    automaton = camel_case(target.name[:-len(".ra")])
+    written = renamed(text, automaton) if automaton else text
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        write_atomically(target, written)
+    except OSError as exc:
+        print(render_text([unwritable(target, exc)], {}), file=sys.stderr)
+        return EXIT_USAGE
+    how = f", automaton {automaton}" if written != text else ""
+    print(f"wrote {target} (from {source}{how})")
+    print(f"next: rac check {target}")
+    return EXIT_OK
