@@ -8,6 +8,7 @@ that was not decided (``rac verify``: an *unknown* or *unsupported* verdict and 
 
 from __future__ import annotations
 
+import argparse
 import errno
 import os
 import tempfile
@@ -20,7 +21,7 @@ from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
            "OUTPUT_SUFFIX", "FileWriteError", "output_folder", "overwrites_source", "read_and_check", "same_file",
-           "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
+           "size_argument", "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 
@@ -114,3 +115,17 @@ def write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
         for _, temporary in temporaries:
             Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def size_argument(text: str) -> int:
+    """An argparse ``type`` for a memory size such as ``512M`` or ``4G`` (``--max-memory``,
+    ``--task-memory``): the bytes, more than 0."""
+    from rac.engine.budget import parse_size
+
+    try:
+        size = parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if size <= 0:
+        raise argparse.ArgumentTypeError(f"`{text}` must be more than 0 bytes")
+    return size

@@ -25,6 +25,7 @@ from rac.cli.common import (
     OUTPUT_SUFFIX,
     output_folder,
     read_and_check,
+    size_argument,
 )
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_text as render_diagnostics
@@ -58,18 +59,6 @@ _positive_int = _argument(int, "a whole number", lambda value: value >= 1, "must
 _probability = _argument(float, "a number", lambda value: 0 < value < 1, "must lie strictly between 0 and 1")
 
 
-def _size(text: str) -> int:
-    from rac.engine.budget import parse_size
-
-    try:
-        size = parse_size(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    if size <= 0:
-        raise argparse.ArgumentTypeError(f"`{text}` must be more than 0 bytes")
-    return size
-
-
 def _common(parser: argparse.ArgumentParser, outputs: str) -> None:
     """The options every engine command has; ``outputs`` says what goes into its output folder."""
     parser.add_argument("file", type=Path, metavar="FILE", help="a .ra file with a `model` block")
@@ -81,7 +70,7 @@ def _common(parser: argparse.ArgumentParser, outputs: str) -> None:
     parser.add_argument("--seed", type=int, help="seed of the simulations (default: fresh, printed)")
     parser.add_argument("--max-states", type=_positive_int, default=5_000_000, metavar="N",
                         help="give up (verdict unknown) beyond this many states (default 5,000,000)")
-    parser.add_argument("--max-memory", type=_size, default=None, metavar="SIZE",
+    parser.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
                         help="give up (verdict unknown) before deciding would need more memory than this, "
                              "e.g. 4G (default: half the machine's memory)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")

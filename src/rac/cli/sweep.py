@@ -24,6 +24,7 @@ from rac.cli.common import (
     OUTPUT_CONVENTION,
     OUTPUT_SUFFIX,
     output_folder,
+    size_argument,
 )
 
 __all__ = ["add_parser", "exit_status", "sweep_command"]
@@ -45,18 +46,6 @@ def _checked(check, kind: str):
         return text
 
     return parse
-
-
-def _size(text: str) -> int:
-    from rac.engine.budget import parse_size
-
-    try:
-        size = parse_size(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    if size <= 0:
-        raise argparse.ArgumentTypeError(f"`{text}` must be more than 0 bytes")
-    return size
 
 
 def exit_status(rows: Sequence[Mapping[str, object]]) -> int:
@@ -101,7 +90,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                        metavar="N", help="worker processes of the local cluster (default: one per core)")
     sweep.add_argument("--task-timeout", type=_checked(lambda t: float(t) > 0, "a positive number of seconds"),
                        metavar="S", help="seconds per task; past them the task is a timeout row")
-    sweep.add_argument("--task-memory", type=_size, metavar="SIZE",
+    sweep.add_argument("--task-memory", type=size_argument, metavar="SIZE",
                        help="memory per task, e.g. 2G; past it the task is a memory row")
     sweep.add_argument("--force", action="store_true", help="run every task again, even those already stored")
     sweep.add_argument("-o", "--out", metavar="DIR",
