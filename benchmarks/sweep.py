@@ -64,7 +64,8 @@ def timed_direct(scenarios: Path, sets: list[str], folder: Path) -> tuple[float,
     """Every task's file, instantiated as the sweep does, through ``python -m rac verify``."""
     tasks = plan(TEMPLATE, [scenarios], sets=sets, out=folder / "unused").specs
     text = TEMPLATE.read_text(encoding="utf-8")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPOSITORY / "src"), os.environ.get("PYTHONPATH", "")])}
+    paths = [str(REPOSITORY / "src"), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}  # no empty entry: that would add the cwd
     started = time.perf_counter()
     for index, spec in enumerate(tasks):
         path = folder / f"task{index}.ra"

@@ -33,6 +33,7 @@ answerer. Example::
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 from collections.abc import Callable, Iterable
@@ -103,10 +104,8 @@ class Verifier:
         for decl, title in decls:
             if self.context.options.progress is not None:
                 self.context.options.progress(f"{decl.name}: {decl.text}")
-            if decl.title:  # a standard query: its files go to standard/ (see Context.outputs_in)
-                with self.context.outputs_in("standard"):
-                    results.append(self.answer(decl, title))
-            else:
+            # a standard query's files go to standard/ (see Context.outputs_in)
+            with self.context.outputs_in("standard") if decl.title else contextlib.nullcontext():
                 results.append(self.answer(decl, title))
         return results
 
