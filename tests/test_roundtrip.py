@@ -145,7 +145,7 @@ members = st.one_of(
     st.builds(ast.InputDecl, tuples(idents, 1), input_types),
     st.builds(ast.AssumeDecl, exprs),
     st.builds(ast.ConstDecl, idents, exprs),
-    st.builds(ast.ParamDecl, idents, small_exprs, small_exprs),
+    st.builds(ast.ParamDecl, tuples(idents, 1), small_exprs, small_exprs),
     st.builds(ast.RewardDecl, tuples(idents, 1)),
     st.builds(ast.PriorityDecl, st.booleans(), tuples(idents, 1, 4)),
     st.builds(ast.ObjectiveDecl, exprs),

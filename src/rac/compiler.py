@@ -15,6 +15,7 @@ from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, read_source
 
 if TYPE_CHECKING:
+    from rac.check.analysis.synthesis import Synthesised
     from rac.model.commonroad import Scenario
     from rac.model.data import ModelData
 
@@ -29,6 +30,9 @@ class CompileResult:
     module: ast.Module | None = None
     #: What the analyses proved, as sentences (printed by ``rac check``).
     facts: tuple[str, ...] = ()
+    #: With `param` declarations: the values synthesised for them (None without parameters, or when
+    #: synthesis failed; the diagnostics then say why).
+    synthesis: Synthesised | None = None
     #: With a `model` block: the scenario it names, loaded once by the checks
     #: (a :class:`rac.model.commonroad.Scenario`), and the model's data built from it at the block's
     #: base and exponent (a :class:`rac.model.data.ModelData`); None when not loaded.
@@ -63,8 +67,9 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
     facts: list[str] = []
     scenario: Scenario | None = None
     model_data: ModelData | None = None
+    synthesis: Synthesised | None = None
     if automaton is not None and analyse and automaton.parameters and not any(d.is_error for d in diagnostics):
-        automaton, found = _synthesised(module.automata[0], automaton.parameters[0], facts)
+        automaton, found, synthesis = synthesise_parameters(module.automata[0], automaton.parameters, facts)
         diagnostics.extend(found)
     if automaton is not None and analyse and not any(d.is_error for d in diagnostics):
         from rac.check.analysis import analyse_automaton
@@ -80,16 +85,35 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
             scenario, model_data = checked.scenario, checked.data
     if any(d.is_error for d in diagnostics):
         automaton = None
-    return CompileResult(automaton, tuple(diagnostics), sources, module, tuple(facts), scenario, model_data)
+    return CompileResult(automaton, tuple(diagnostics), sources, module, tuple(facts), synthesis, scenario,
+                         model_data)
+
+
+def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], facts: list[str]
+                          ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
+    """The automaton at the synthesised values of its parameters (one: the least value; several
+    weights: the lexicographically least integer point), the diagnostics, and what was synthesised."""
+    from rac.check.params import nonlinear_use
+
+    place = nonlinear_use(node, {p.name for p in parameters})
+    if place is not None:
+        name, span, how = place
+        return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {how}", span,
+                            hints=[f"write `const {name} = ...` instead"])], None
+    if len(parameters) == 1:
+        return _synthesised(node, parameters[0], facts)
+    from rac.check.analysis.weights import synthesised_weights
+
+    return synthesised_weights(node, parameters, facts)
 
 
 def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
-                 ) -> tuple[ir.Automaton | None, list[Diagnostic]]:
+                 ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
     """The automaton at the least value of its parameter for which every check holds (the fact saying
     so goes to ``facts``), or None and why there is none (E0406 and the checks failing at the value
     that shows it, or E0407 where the search cannot be exact)."""
     from rac.check.analysis import analyse_automaton
-    from rac.check.analysis.synthesis import Unfinished, synthesise, unsupported
+    from rac.check.analysis.synthesis import Synthesised, Unfinished, synthesise, unsupported
 
     name = parameter.name
 
@@ -106,7 +130,7 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
             reason = f"the worst-run search stopped: {stop.reason}"
     if reason is not None:
         return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {reason}",
-                            parameter.span, hints=[f"write `const {name} = ...` instead"])]
+                            parameter.span, hints=[f"write `const {name} = ...` instead"])], None
     least = result.least
     if least is None:
         witness = resolve(result.witness)
@@ -118,14 +142,16 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
                             f"{short_number(parameter.high)}] passes every check", parameter.span,
                             notes=[*result.cuts, f"the checks at {name} = {short_number(result.witness)} follow"],
                             hints=["widen the parameter's bounds, or change what it cannot compensate"]),
-                      *failing]
+                      *failing], None
     if result.whole:
-        facts.append(f"synthesised: every check holds for every value of {name} in {result.interval()}; "
-                     f"checked with {name} = {short_number(least)}")
+        sentence = (f"synthesised: every check holds for every value of {name} in {result.interval()}; "
+                    f"checked with {name} = {short_number(least)}")
     else:
-        facts.append(f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
-                     f"checked with {name} = {short_number(least)}")
-    return resolve(least), []
+        sentence = (f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
+                    f"checked with {name} = {short_number(least)}")
+    facts.append(sentence)
+    return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(),),
+                                           sentence)
 
 
 def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:

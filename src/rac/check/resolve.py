@@ -200,30 +200,30 @@ class Resolver:
                     pass
                 self._declare(member.name, symbol)
             elif isinstance(member, ast.ParamDecl):
-                self._declare(member.name, self._parameter(member))
+                for name, symbol in zip(member.names, self._parameters(member)):
+                    self._declare(name, symbol)
 
-    def _parameter(self, member: ast.ParamDecl) -> Symbol:
-        """A parameter is a constant whose value the caller chose (by default its low bound)."""
-        symbol = Symbol("const", "num", member.name.span)
+    def _parameters(self, member: ast.ParamDecl) -> list[Symbol]:
+        """Parameters are constants whose values the caller chose (by default their low bound)."""
+        symbols = [Symbol("const", "num", name.span) for name in member.names]
+        first = member.names[0].name
         try:
-            low = self.typer.constant(member.low, f"the low bound of `{member.name.name}`")
-            high = self.typer.constant(member.high, f"the high bound of `{member.name.name}`")
+            low = self.typer.constant(member.low, f"the low bound of `{first}`")
+            high = self.typer.constant(member.high, f"the high bound of `{first}`")
         except Unresolvable:
-            return symbol
+            return symbols
         if low > high:
-            self._error("E0409", f"the bounds of parameter `{member.name.name}` are reversed: "
+            self._error("E0409", f"the bounds of parameter `{first}` are reversed: "
                         f"{_num(low)} > {_num(high)}", member.span,
-                        hints=[f"write `param {member.name.name} in [{_num(high)}, {_num(low)}]`"])
-            return symbol
-        if self.parameters:
-            self._error("E0407", "not yet: one parameter per file; this is a second one", member.span,
-                        notes=[Note(f"the first is `{self.parameters[0].name}`", self.parameters[0].span)],
-                        hints=[f"write `const {member.name.name} = ...` until weights can be synthesised "
-                               "together"])
-            return symbol
-        symbol.value = self.values.get(member.name.name, low)
-        self.parameters.append(ir.Parameter(member.name.name, low, high, symbol.value, member.span))
-        return symbol
+                        hints=[f"write `param {', '.join(n.name for n in member.names)} in "
+                               f"[{_num(high)}, {_num(low)}]`"])
+            return symbols
+        for name, symbol in zip(member.names, symbols):
+            symbol.value = self.values.get(name.name, low)
+            # One name: the declaration is the parameter's place; several: each its own name.
+            span = member.span if len(member.names) == 1 else name.span
+            self.parameters.append(ir.Parameter(name.name, low, high, symbol.value, span))
+        return symbols
 
     def _unused_parameters(self) -> None:
         used = {n.id for n in _names_in(self.node)}

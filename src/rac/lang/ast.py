@@ -125,9 +125,9 @@ class ConstDecl:
 
 @dataclass(frozen=True)
 class ParamDecl:
-    """``param NAME in [low, high]``: a constant whose value the checker synthesises."""
+    """``param NAME, ... in [low, high]``: constants whose values the checker synthesises."""
 
-    name: Ident
+    names: tuple[Ident, ...]
     low: Expr
     high: Expr
     span: Span | None = _span()

@@ -283,7 +283,7 @@ def format_member(member: ast.Member) -> str:
     if isinstance(member, (ast.InputDecl, ast.ConstDecl, ast.LocationDecl, ast.EdgeDecl, ast.EndDecl)):
         return _run_lines([member])[0]
     if isinstance(member, ast.ParamDecl):
-        return f"param {member.name.name} in [{_expr(member.low)}, {_expr(member.high)}]"
+        return f"param {_names(member.names)} in [{_expr(member.low)}, {_expr(member.high)}]"
     if isinstance(member, ast.AssumeDecl):
         return f"assume {_expr(member.expr)}"
     if isinstance(member, ast.RewardDecl):

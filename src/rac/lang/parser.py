@@ -162,7 +162,7 @@ class _ToAst(Transformer):
         return ast.ConstDecl(self._ident(items[0]), items[1], self._sp(meta))
 
     def param_decl(self, meta, items):
-        return ast.ParamDecl(self._ident(items[0]), items[1], items[2], self._sp(meta))
+        return ast.ParamDecl(items[0], items[1], items[2], self._sp(meta))
 
     def reward_decl(self, meta, items):
         return ast.RewardDecl(items[0], self._sp(meta))

@@ -38,6 +38,21 @@ Resolve = Callable[[Fraction], "ir.Automaton | None"]
 
 
 @dataclass(frozen=True)
+class Synthesised:
+    """What ``rac check`` synthesised for a file's parameters: the values it checked the file with
+    (declaration order), the set of passing values as inequalities beyond the declared bounds
+    (empty when every declared value passes) and the ``synthesised:`` sentence it printed."""
+
+    values: tuple[tuple[str, Fraction], ...]
+    inequalities: tuple[str, ...]
+    sentence: str
+
+    def value(self, name: str) -> Fraction:
+        """The value the file was checked with for parameter ``name``."""
+        return dict(self.values)[name]
+
+
+@dataclass(frozen=True)
 class Check:
     """One check as a maximisation: it holds while the worst value is <= ``bound`` (< when ``strict``)."""
 
@@ -309,4 +324,4 @@ def _num(value: Fraction) -> str:
     return short_number(value)
 
 
-__all__ = ["Check", "End", "Synthesis", "Unfinished", "checks", "synthesise", "unsupported"]
+__all__ = ["Check", "End", "Synthesised", "Synthesis", "Unfinished", "checks", "synthesise", "unsupported"]
