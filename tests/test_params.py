@@ -76,7 +76,9 @@ def test_reversed_bounds_unused_and_second_parameter():
     assert unused.ok and codes(unused) == ["W0408"]
     two = compile_text(SMALL.format(param="param P in [1, 50]\n    param Q in [1, 5]", penalty="P",
                                     weight="Q"), "small.ra")
+    # A penalty and a weight together: the objective would be quadratic in them.
     assert codes(two) == ["E0407"]
+    assert "`P` cannot be synthesised here: with several parameters" in two.diagnostics[0].message
 
 
 def test_parameter_in_a_guard_is_refused():

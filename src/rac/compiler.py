@@ -102,9 +102,64 @@ def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, .
                             hints=[f"write `const {name} = ...` instead"])], None
     if len(parameters) == 1:
         return _synthesised(node, parameters[0], facts)
-    from rac.check.analysis.weights import synthesised_weights
+    return _synthesised_weights(node, parameters, facts)
 
-    return synthesised_weights(node, parameters, facts)
+
+def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], facts: list[str]
+                         ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
+    """Several parameters, weights of the objective: the automaton at the lexicographically least integer
+    point of the exact polyhedron where every check holds, or None and why there is none."""
+    from rac.check.analysis import analyse_automaton
+    from rac.check.analysis.synthesis import Synthesised
+    from rac.check.analysis.weights import Unsupported, synthesise_region
+    from rac.check.analysis.worst import Unfinished
+
+    names = [p.name for p in parameters]
+    listed = ", ".join(names)
+
+    def resolve(point: tuple[Fraction, ...]) -> ir.Automaton | None:
+        return Resolver(node, dict(zip(names, point))).run()
+
+    try:
+        region = synthesise_region(resolve, parameters)
+    except Unsupported as where:
+        name = where.name
+        span = next(p.span for p in parameters if p.name == name)
+        return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: with several "
+                            f"parameters, each must be a weight of the objective only, and it appears in "
+                            f"{where.where}", span,
+                            notes=[f"the parameters synthesised together: {listed}"],
+                            hints=[f"write `const {name} = ...`, or synthesise it alone"])], None
+    except Unfinished as stop:
+        return None, [error("E0407", f"not yet: parameters {listed} cannot be synthesised here: the worst-run "
+                            f"search stopped: {stop.reason}", parameters[0].span,
+                            hints=["write the values as `const`"])], None
+    bounds = _bounds_text(parameters)
+    if region.point is None:
+        witness = resolve(region.witness)
+        assert witness is not None
+        failing = [d for d in analyse_automaton(witness, []) if d.is_error]
+        at = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(names, region.witness))
+        return None, [error("E0406", f"no values of parameters {listed} ({bounds}) pass every check",
+                            parameters[0].span, notes=[*region.cuts, f"the checks at {at} follow"],
+                            hints=["widen the parameters' bounds, or change what they cannot compensate"]),
+                      *failing], None
+    point = region.point
+    chosen = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(names, point))
+    first = names[region.order[0]]
+    how = (f"the lexicographically least integer weights, `{first}` first" if region.integer
+           else f"the lexicographically least values, `{first}` first (no integer point)")
+    inequalities = tuple(region.describe())
+    if inequalities:
+        sentence = (f"synthesised: every check holds exactly where {' and '.join(inequalities)} ({bounds}); "
+                    f"checked with {chosen}, {how}")
+    else:
+        sentence = f"synthesised: every check holds for all values ({bounds}); checked with {chosen}, {how}"
+    facts.append(sentence)
+    shown = ", ".join("(" + ", ".join(_exact(x) for x in v) + ")" for v in region.vertices[:8])
+    more = f" and {len(region.vertices) - 8} more" if len(region.vertices) > 8 else ""
+    facts.append(f"the set of ({listed}) has {len(region.vertices)} vertices, each checked: {shown}{more}")
+    return resolve(point), [], Synthesised(tuple(zip(names, point)), inequalities, sentence)
 
 
 def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
@@ -152,6 +207,20 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
     facts.append(sentence)
     return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(),),
                                            sentence)
+
+
+def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:
+    """``w1, w2 in [1, 100]; P in [0, 5]``: the declared bounds, names with the same bounds together."""
+    groups: dict[tuple[Fraction, Fraction], list[str]] = {}
+    for p in parameters:
+        groups.setdefault((p.low, p.high), []).append(p.name)
+    return "; ".join(f"{', '.join(names)} in [{short_number(low)}, {short_number(high)}]"
+                     for (low, high), names in groups.items())
+
+
+def _exact(value: Fraction) -> str:
+    """An exact rational: ``3`` or ``16/7``."""
+    return str(value.numerator) if value.denominator == 1 else f"{value.numerator}/{value.denominator}"
 
 
 def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:

@@ -1,0 +1,462 @@
+"""Synthesis of several weights of the objective (``param w1, w2 in [1, 100]`` with
+``objective w1 * sa + w2 * pr + co``): the exact set of weights for which every check holds, a
+polyhedron, by cutting planes (docs/checks.md, "Parameters").
+
+The parameters may appear only in the objective, affinely (:mod:`rac.check.params` proves the
+latter), so the runs and the reward values along them do not depend on them. Each check is then a
+maximum over finitely many runs of a function affine in the weights:
+
+- P2 at a level holds at weights θ when ``max over runs r of J_r(θ) <= 0``, where ``J_r(θ)`` is the
+  weighted sum at the run's violating instant, linear in θ once the run's reward values are known;
+- P1 holds when each weight stays on the side of 0 where a rate conflict does no harm, a linear
+  inequality by itself.
+
+The set is therefore the polyhedron ``{θ in the box : J_r(θ) <= 0 for every run r}``. It is found
+by cutting planes: an exact rational LP (:func:`sympy.solvers.simplex.linprog`, the matrix form of
+``lpmin``/``lpmax``) proposes the lexicographically least point of the current outer polyhedron, the
+exact worst-run oracle finds the most violating run there, its inequality ``J_r(θ) <= 0`` is added, and
+so on until the oracle finds no violation. Then every vertex of the outer polyhedron is checked the same
+way: when none violates, the outer polyhedron is the set itself, since the set is convex (an
+intersection of half-spaces) and holds every vertex. Each cut comes from a run whose inequality the
+current polyhedron did not yet imply, and there are finitely many distinct reward vectors at violating
+instants (finitely many runs), so the search terminates; all arithmetic is rational, so it is exact.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+from rac import ir
+from rac.check.analysis.affine import moves
+from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.priority import p2_levels, p2_target, rate_conflicts, replay
+from rac.check.analysis.worst import Target, Unfinished, maximise
+from rac.core.diagnostics import short_number
+
+Vector = tuple[Fraction, ...]
+#: The automaton resolved with the parameters at a point (None when it does not resolve).
+ResolveAt = Callable[[Vector], "ir.Automaton | None"]
+#: The most vertices the exactness proof enumerates (constraint subsets of the parameters' size).
+MAX_SUBSETS = 200_000
+
+
+@dataclass(frozen=True)
+class Inequality:
+    """``coefficients · θ <= bound`` over the parameters, in declaration order."""
+
+    coefficients: Vector
+    bound: Fraction
+
+    def slack(self, point: Sequence[Fraction]) -> Fraction:
+        """``bound - coefficients · point``: negative where the point violates it."""
+        return self.bound - sum((a * x for a, x in zip(self.coefficients, point)), Fraction(0))
+
+
+@dataclass(frozen=True)
+class Region:
+    """The weights for which every check holds: ``inequalities`` within the declared box (empty when
+    ``point`` is None), its ``vertices``, and the point the file is checked with."""
+
+    parameters: tuple[ir.Parameter, ...]
+    inequalities: tuple[Inequality, ...]
+    vertices: tuple[Vector, ...]
+    #: The lexicographically least integer point (highest priority first), else the least point.
+    point: Vector | None
+    integer: bool
+    #: Parameter indices, highest priority first (the order of the lexicographic minimum).
+    order: tuple[int, ...]
+    #: Each cut, as a sentence.
+    cuts: tuple[str, ...]
+    #: When empty: the point whose checks show why (the last candidate).
+    witness: Vector
+
+    @property
+    def empty(self) -> bool:
+        return self.point is None
+
+    def describe(self) -> list[str]:
+        """The inequalities, each in least integer terms with its leading parameter alone on one side."""
+        return [_describe(q, self.parameters, self.order) for q in self.inequalities]
+
+
+class Unsupported(Exception):
+    """A parameter is somewhere the polyhedron would not be exact: ``name`` and ``where``."""
+
+    def __init__(self, name: str, where: str) -> None:
+        super().__init__(f"`{name}` appears in {where}")
+        self.name, self.where = name, where
+
+
+@dataclass(frozen=True)
+class Weights:
+    """The objective's coefficients (per reward) and constant, each affine in the parameters:
+    ``(value at θ = 0, gradient)``."""
+
+    rewards: tuple[tuple[Fraction, Vector], ...]
+    constant: tuple[Fraction, Vector]
+
+    @staticmethod
+    def measure(resolve: ResolveAt, origin: Vector) -> tuple[Weights, ir.Automaton]:
+        """The affine forms, from the objective at ``origin`` and one unit along each parameter
+        (exact: the parameters enter affinely). Raises :class:`Unsupported` when a parameter changes
+        anything but the objective."""
+        base = resolve(origin)
+        assert base is not None
+        size = len(origin)
+        steps = []
+        for i in range(size):
+            point = tuple(x + (1 if j == i else 0) for j, x in enumerate(origin))
+            moved = resolve(point)
+            assert moved is not None
+            if _without_objective(moved) != _without_objective(base):
+                raise Unsupported(base.parameters[i].name, _where(base, moved))
+            steps.append(moved.objective)
+        forms = []
+        for name in [*base.rewards, None]:
+            at = base.objective.const if name is None else base.objective.coefficient(name)
+            gradient = tuple((o.const if name is None else o.coefficient(name)) - at for o in steps)
+            forms.append((at - sum((g * x for g, x in zip(gradient, origin)), Fraction(0)), gradient))
+        return Weights(tuple(forms[:-1]), forms[-1]), base
+
+    def at(self, point: Vector) -> tuple[tuple[Fraction, ...], Fraction]:
+        """The coefficients and the constant at ``point``."""
+        def value(form: tuple[Fraction, Vector]) -> Fraction:
+            return form[0] + sum((g * x for g, x in zip(form[1], point)), Fraction(0))
+        return tuple(value(f) for f in self.rewards), value(self.constant)
+
+
+def _where(a: ir.Automaton, b: ir.Automaton) -> str:
+    """What differs between two resolutions of the file besides the objective, in the user's words."""
+    if a.locations != b.locations:
+        return "a rate"
+    if a.edges != b.edges:
+        return "an edge (its guard or its updates)"
+    if a.end_clauses != b.end_clauses:
+        return "an `at end` clause"
+    if (a.inputs, a.assumptions) != (b.inputs, b.assumptions):
+        return "an input bound or `assume`"
+    if a.model != b.model:
+        return "the `model` block"
+    return "the timing (`sample every` or `horizon`)"
+
+
+def _without_objective(automaton: ir.Automaton) -> ir.Automaton:
+    import dataclasses
+
+    return dataclasses.replace(automaton, objective=ir.Linear.constant(Fraction(0)), constants=(), parameters=())
+
+
+def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) -> Region:
+    """The exact polyhedron of parameter values for which P1 and P2 hold (see the module docstring).
+
+    Raises :class:`Unsupported` (a parameter outside the objective) or :class:`Unfinished` (the
+    worst-run search stopped at its limit).
+    """
+    lows = tuple(p.low for p in parameters)
+    weights, base = Weights.measure(resolve, lows)
+    order = _order(base, weights, len(parameters))
+    names = [p.name for p in parameters]
+    box = _box(parameters)
+    sentences: list[str] = []
+    cuts = _p1(base, weights, sentences)
+    oracle = _Oracle(base, weights, names)
+    # Phase 1: the LP's lexicographically least candidate, until the oracle finds no violation there.
+    candidate = lows
+    while True:
+        found = _least(box + cuts, order)
+        if found is None:
+            return Region(parameters, (), (), None, False, order, tuple(sentences), candidate)
+        candidate = found
+        new = oracle.cuts(candidate, sentences)
+        if not new:
+            break
+        cuts += new
+    # Phase 2: every vertex of the outer polyhedron, until none violates: then it is the set.
+    checked: set[Vector] = set()
+    while True:
+        vertices = _vertices(box + cuts, len(parameters))
+        new = []
+        for vertex in vertices:
+            if vertex not in checked:
+                checked.add(vertex)
+                new += oracle.cuts(vertex, sentences)
+        if not new:
+            break
+        cuts += new
+        if _least(box + cuts, order) is None:
+            return Region(parameters, (), (), None, False, order, tuple(sentences), vertex)
+    kept = tuple(_irredundant(box, cuts))
+    point = _least_integer(box + list(kept), order, parameters)
+    integer = point is not None
+    if point is None:
+        point = _least(box + list(kept), order)
+    return Region(parameters, kept, tuple(sorted(vertices)), point, integer, order, tuple(sentences),
+                  point if point is not None else candidate)
+
+
+class _Oracle:
+    """The exact worst-run search over the automaton with the weights at a point."""
+
+    def __init__(self, automaton: ir.Automaton, weights: Weights, names: list[str]) -> None:
+        self.automaton, self.weights, self.names = automaton, weights, names
+        space, _ = input_space(automaton)
+        assert space is not None
+        self.space, self.moves = space, moves(automaton, space)
+
+    def cuts(self, point: Vector, sentences: list[str]) -> list[Inequality]:
+        """An inequality from the worst run of every P2 level violated at ``point``."""
+        a = self.automaton
+        coefficients, constant = self.weights.at(point)
+        found = []
+        for level in p2_levels(a):
+            watched = p2_target(a, level).watched
+            ranked = set(a.priority[level:])
+            target = Target(tuple(c if r in ranked else Fraction(0) for r, c in zip(a.rewards, coefficients)),
+                            constant if level == 0 else Fraction(0), watched)
+            worst = maximise(a, self.moves, target, run=lambda value: value > 0)
+            if worst is None or worst.value <= 0:
+                continue
+            values, _ = replay(a, self.space, worst)
+            # J(θ) = Σ over ranked rewards of coefficient_r(θ)·value_r (+ the constant at level 0) <= 0.
+            row = [Fraction(0)] * len(point)
+            bound = Fraction(0)
+            for (at, gradient), reward, value in zip(self.weights.rewards, a.rewards, values):
+                if reward in ranked:
+                    bound -= at * value
+                    row = [x + g * value for x, g in zip(row, gradient)]
+            if level == 0:
+                bound -= self.weights.constant[0]
+                row = [x + g for x, g in zip(row, self.weights.constant[1])]
+            cut = Inequality(tuple(row), bound)
+            found.append(cut)
+            where = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(self.names, point))
+            need = (f"needs {_describe(cut, None, None, self.names)}" if any(row)
+                    else "fails whatever the parameters are (they do not weigh what it compares)")
+            sentences.append(f"at {where}, P2 for `{a.priority[level]}` {need}")
+        return found
+
+
+def _order(automaton: ir.Automaton, weights: Weights, size: int) -> tuple[int, ...]:
+    """Parameter indices by the priority of the reward they weight, highest first; then the rest."""
+    rank = {r: k for k, r in enumerate(automaton.priority)}
+    def key(i: int) -> tuple[int, int]:
+        ranks = [rank.get(r, len(rank)) for r, (_, g) in zip(automaton.rewards, weights.rewards) if g[i] != 0]
+        return (min(ranks, default=len(rank) + 1), i)
+    return tuple(sorted(range(size), key=key))
+
+
+def _box(parameters: tuple[ir.Parameter, ...]) -> list[Inequality]:
+    size = len(parameters)
+    result = []
+    for i, p in enumerate(parameters):
+        unit = tuple(Fraction(1 if j == i else 0) for j in range(size))
+        result.append(Inequality(tuple(-x for x in unit), -p.low))
+        result.append(Inequality(unit, p.high))
+    return result
+
+
+def _p1(automaton: ir.Automaton, weights: Weights, sentences: list[str]) -> list[Inequality]:
+    """P1 as inequalities: a rate conflict (``high`` falls while ``low`` rises, or while it falls)
+    keeps the weight of ``low`` at most 0 (or at least 0)."""
+    found: list[Inequality] = []
+    index = {r: k for k, r in enumerate(automaton.rewards)}
+    for location in automaton.locations:
+        for a, first in enumerate(automaton.priority):
+            for second in automaton.priority[a + 1:]:
+                at, gradient = weights.rewards[index[second]]
+                plus, minus = rate_conflicts(automaton, location, first, second)
+                for conflict, sign in ((plus, 1), (minus, -1)):
+                    if conflict:
+                        cut = Inequality(tuple(sign * g for g in gradient), -sign * at)
+                        if not any(gradient) and cut.bound >= 0:
+                            continue  # a constant weight on the harmless side
+                        found.append(cut)
+                        sentences.append(f"P1 in `{location.name}` ({first} > {second}) needs the weight of "
+                                         f"`{second}` {'<=' if sign > 0 else '>='} 0")
+    return found
+
+
+def _linprog(objective: Sequence[Fraction], rows: Sequence[Inequality]) -> tuple[Fraction, Vector] | None:
+    """The exact minimum of ``objective · θ`` over ``rows`` and a point reaching it (None: infeasible)."""
+    from sympy import Matrix, Rational
+    from sympy.solvers.simplex import InfeasibleLPError, linprog
+
+    def q(x: Fraction) -> Rational:
+        return Rational(x.numerator, x.denominator)
+
+    size = len(objective)
+    zero = [r for r in rows if not any(r.coefficients)]
+    if any(r.bound < 0 for r in zero):
+        return None
+    rows = [r for r in rows if any(r.coefficients)]
+    a = Matrix([[q(x) for x in r.coefficients] for r in rows]) if rows else None
+    b = Matrix([q(r.bound) for r in rows]) if rows else None
+    try:
+        value, point = linprog(Matrix([[q(x) for x in objective]]), a, b, bounds=[(None, None)] * size)
+    except InfeasibleLPError:
+        return None
+    return _fraction(value), tuple(_fraction(x) for x in point)
+
+
+def _fraction(x: object) -> Fraction:
+    """A sympy Rational (or a plain int, which linprog returns for 0) as a Fraction."""
+    from sympy import Rational
+
+    value = Rational(x)  # type: ignore[arg-type]
+    return Fraction(int(value.p), int(value.q))
+
+
+def _unit(i: int, size: int, sign: int = 1) -> Vector:
+    return tuple(Fraction(sign if j == i else 0) for j in range(size))
+
+
+def _least(rows: list[Inequality], order: tuple[int, ...]) -> Vector | None:
+    """The lexicographically least point of the polyhedron in ``order`` (None when it is empty)."""
+    size = len(order)
+    fixed = list(rows)
+    point: Vector | None = None
+    for i in order:
+        found = _linprog(_unit(i, size), fixed)
+        if found is None:
+            return None
+        value, point = found
+        fixed += [Inequality(_unit(i, size), value), Inequality(_unit(i, size, -1), -value)]
+    return point
+
+
+def _least_integer(rows: list[Inequality], order: tuple[int, ...],
+                   parameters: tuple[ir.Parameter, ...]) -> Vector | None:
+    """The lexicographically least integer point (None when there is none): the least integer of the
+    first parameter for which the rest has a (recursively least) integer completion, and so on."""
+    size = len(order)
+
+    def search(fixed: list[Inequality], depth: int) -> list[Fraction] | None:
+        if depth == size:
+            return []
+        i = order[depth]
+        low = _linprog(_unit(i, size), fixed)
+        high = _linprog(_unit(i, size, -1), fixed)
+        if low is None or high is None:
+            return None
+        for v in range(math.ceil(low[0]), math.floor(-high[0]) + 1):
+            value = Fraction(v)
+            rest = search(fixed + [Inequality(_unit(i, size), value), Inequality(_unit(i, size, -1), -value)],
+                          depth + 1)
+            if rest is not None:
+                return [value, *rest]
+        return None
+
+    found = search(list(rows), 0)
+    if found is None:
+        return None
+    point = [Fraction(0)] * size
+    for i, value in zip(order, found):
+        point[i] = value
+    return tuple(point)
+
+
+def _vertices(rows: list[Inequality], size: int) -> list[Vector]:
+    """Every vertex of the polyhedron (bounded by the box): the feasible solutions of ``size`` rows
+    taken as equalities."""
+    if math.comb(len(rows), size) > MAX_SUBSETS:
+        raise Unfinished(f"the polyhedron has {len(rows)} inequalities in {size} parameters: more than "
+                         f"{MAX_SUBSETS:,} vertex candidates")
+    found: set[Vector] = set()
+    for subset in itertools.combinations(rows, size):
+        point = _solve([r.coefficients for r in subset], [r.bound for r in subset])
+        if point is not None and all(r.slack(point) >= 0 for r in rows):
+            found.add(point)
+    return sorted(found)
+
+
+def _solve(matrix: list[Vector], rhs: list[Fraction]) -> Vector | None:
+    """The unique solution of a square system (None when it is singular), by exact elimination."""
+    size = len(rhs)
+    m = [list(row) + [b] for row, b in zip(matrix, rhs)]
+    for col in range(size):
+        pivot = next((r for r in range(col, size) if m[r][col] != 0), None)
+        if pivot is None:
+            return None
+        m[col], m[pivot] = m[pivot], m[col]
+        for r in range(size):
+            if r != col and m[r][col] != 0:
+                factor = m[r][col] / m[col][col]
+                m[r] = [x - factor * y for x, y in zip(m[r], m[col])]
+    return tuple(m[i][size] / m[i][i] for i in range(size))
+
+
+def _irredundant(box: list[Inequality], cuts: list[Inequality]) -> list[Inequality]:
+    """The cuts that the box and the other kept cuts do not imply (each checked by an exact LP),
+    in least integer terms, without repeats."""
+    unique: list[Inequality] = []
+    for cut in cuts:
+        normal = _normalised(cut)
+        if normal is not None and normal not in unique:
+            unique.append(normal)
+    kept = list(unique)
+    for cut in unique:
+        others = [c for c in kept if c != cut]
+        found = _linprog(tuple(-a for a in cut.coefficients), box + others)
+        if found is not None and -found[0] <= cut.bound:
+            kept = others
+    return kept
+
+
+def _normalised(cut: Inequality) -> Inequality | None:
+    """The same half-space with coprime integer coefficients (None for a row without coefficients)."""
+    if not any(cut.coefficients):
+        return None
+    scale = math.lcm(*(x.denominator for x in (*cut.coefficients, cut.bound)))
+    whole = [int(x * scale) for x in cut.coefficients]
+    divisor = math.gcd(*whole)
+    return Inequality(tuple(Fraction(x, divisor) for x in whole), cut.bound * scale / divisor)
+
+
+def _describe(cut: Inequality, parameters: tuple[ir.Parameter, ...] | None, order: tuple[int, ...] | None,
+              names: list[str] | None = None) -> str:
+    """``10 * w1 >= 37 * w2 + 50``: the leading parameter (first in ``order``) alone on the left,
+    with a positive coefficient, the rest on the right, in least integer terms (sympy's ``primitive``)."""
+    from sympy import Poly, Rational, symbols
+
+    names = names if names is not None else [p.name for p in parameters or ()]
+    order = order if order is not None else tuple(range(len(names)))
+    xs = symbols(" ".join(f"x{i}" for i in range(len(names))) + " _", seq=True)[:len(names)]
+    expr = sum((Rational(a.numerator, a.denominator) * x for a, x in zip(cut.coefficients, xs)), Rational(0)) \
+        - Rational(cut.bound.numerator, cut.bound.denominator)
+    _, primitive = Poly(expr, *xs).primitive()
+    terms = {i: Fraction(int(primitive.coeff_monomial(x))) for i, x in enumerate(xs)}
+    constant = Fraction(int(primitive.coeff_monomial(1)))
+    lead = next(i for i in order if terms[i] != 0)
+    # a·θ_lead + Σ rest + c <= 0  ⇔  sign: θ_lead on the left with a positive coefficient.
+    flip = terms[lead] < 0
+    left = abs(terms[lead])
+    rest = [(-t if not flip else t, names[i]) for i, t in terms.items() if i != lead and t != 0]
+    bound = -constant if not flip else constant
+    op = ">=" if flip else "<="
+    right = _sum_text(rest, bound)
+    return f"{_term(left, names[lead])} {op} {right}"
+
+
+def _term(coefficient: Fraction, name: str) -> str:
+    return name if coefficient == 1 else f"{short_number(coefficient)} * {name}"
+
+
+def _sum_text(terms: list[tuple[Fraction, str]], constant: Fraction) -> str:
+    parts: list[str] = []
+    for c, name in terms:
+        text = _term(abs(c), name)
+        parts.append(text if not parts and c > 0 else (f"- {text}" if c < 0 else f"+ {text}"))
+    if constant != 0 or not parts:
+        text = short_number(abs(constant))
+        parts.append((text if constant >= 0 else f"-{text}") if not parts else
+                     (f"+ {text}" if constant > 0 else f"- {text}"))
+    if parts[0].startswith("- "):
+        parts[0] = "-" + parts[0][2:]
+    return " ".join(parts)
+
+
+__all__ = ["Inequality", "Region", "Unsupported", "Weights", "synthesise_region"]
