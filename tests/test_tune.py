@@ -84,6 +84,15 @@ def test_a_file_in_fmt_layout_stays_in_it_with_its_comments(tmp_path: Path) -> N
            "                        // compensate an unsafe moment within the horizon\n" in text
 
 
+def test_crlf_line_ends_stay(tmp_path: Path) -> None:
+    path = tmp_path / "crlf.ra"
+    path.write_bytes(DRIVING.replace(CONST, PARAM).replace("\n", "\r\n").encode("utf-8"))
+    assert main(["tune", str(path)]) == 0
+    data = path.read_bytes()
+    assert b"\r\n    const PENALTY = 98  // large enough" in data
+    assert data.count(b"\n") == data.count(b"\r\n") == DRIVING.count("\n") + 1
+
+
 def test_a_fraction_is_written_exactly_and_checks(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     text = DRIVING.replace(CONST, PARAM).replace("do sa = sa - PENALTY", "do sa = sa - 3 * PENALTY")
     path = write(tmp_path / "thirds.ra", text)
@@ -129,17 +138,22 @@ def test_json_gives_the_values_the_set_and_where_it_wrote(param_file: Path,
 
 
 # ---------------------------------------------------------------- refusals
-def test_a_failing_synthesis_leaves_the_file_untouched(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    path = write(tmp_path / "long.ra", at_horizon(DRIVING.replace(CONST, PARAM), "300"))
+@pytest.mark.parametrize(("code", "change"), [
+    ("E0406", ("horizon 30", "horizon 300")),  # the int32 range of `sa` leaves no value
+    ("E0407", ("dgoal < 2", "dgoal < PENALTY")),  # in a guard: synthesis would not be exact
+])
+def test_a_failing_synthesis_leaves_the_file_untouched(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                       code: str, change: tuple[str, str]) -> None:
+    path = write(tmp_path / "failing.ra", DRIVING.replace(CONST, PARAM).replace(*change))
     before = path.read_bytes()
     capsys.readouterr()
     assert main(["tune", str(path)]) == 1
     out = capsys.readouterr().out
-    assert "error[E0406]: no value of parameter `PENALTY`" in out and "nothing was tuned or written" in out
+    assert f"error[{code}]: " in out and "nothing was tuned or written" in out
     assert path.read_bytes() == before
     assert main(["tune", "--format", "json", str(path)]) == 1
     report = json.loads(capsys.readouterr().out)
-    assert not report["ok"] and "E0406" in [d["code"] for d in report["diagnostics"]]
+    assert not report["ok"] and code in [d["code"] for d in report["diagnostics"]]
     assert path.read_bytes() == before
 
 

@@ -87,7 +87,8 @@ def _coefficient(value: Fraction) -> str:
 
 
 def formula_text(fit: Fit, variable: str = "H") -> str:
-    """The fitted line as ``1.6 * H + 50`` (``H``, ``-H / 2`` style terms omitted where 0 or 1)."""
+    """The fitted line as ``1.6 * H + 50``: a slope of 1 writes ``H``, a zero slope or intercept is left
+    out, a coefficient that is no short decimal is a fraction (``1/3 * H``)."""
     assert fit.slope is not None and fit.intercept is not None, "only a line that was found prints"
     slope, intercept = fit.slope, fit.intercept
     if slope == 0:

@@ -156,13 +156,15 @@ def tuned_text(source: SourceFile, module: ast.Module, synthesis: Synthesised) -
 
 
 def _replaced(text: str, start: int, end: int, lines: list[str]) -> str:
-    """``text`` with ``[start, end)`` replaced by ``lines`` at its indentation. Where own-line comments
+    """``text`` with ``[start, end)`` replaced by ``lines`` at its indentation (on a line of their own
+    when something precedes the region on its line). Where own-line comments
     continue a trailing comment after the region (in its column), that column is kept, so the
     formatter still reads them as one comment."""
+    newline = "\r\n" if "\r\n" in text else "\n"  # the file's own line ends
     line_start = text.rfind("\n", 0, start) + 1
     prefix = text[line_start:start]
     indent = prefix if not prefix.strip() else prefix[:len(prefix) - len(prefix.lstrip())]
-    replacement = ("" if not prefix.strip() else "\n" + indent) + ("\n" + indent).join(lines)
+    replacement = ("" if not prefix.strip() else newline + indent) + (newline + indent).join(lines)
     line_end = text.find("\n", end)
     line_end = len(text) if line_end < 0 else line_end
     after = text[end:line_end]
@@ -249,7 +251,7 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
     # One parameter's synthesised value is the least of its set; several are a chosen point of theirs.
     relation = ">=" if len(names) == 1 else "="
     if not text:
-        print(json.dumps({"file": str(path), "written": None, "horizons": [_row_json(r) for r in rows],
+        print(json.dumps({"file": str(path), "ok": True, "written": None, "horizons": [_row_json(r) for r in rows],
                           "formulas": [_fit_json(name, relation, fit) for name, fit in fits.items()]}, indent=2))
         return EXIT_OK
     for name, fit in fits.items():
