@@ -79,6 +79,7 @@ class _Row:
 def tune_command(args: argparse.Namespace) -> int:
     """``rac tune``: see the module docstring. Exit 0, 1 when synthesis fails, 2 on bad usage."""
     path: Path = args.file
+    source: SourceFile | None = None
     try:
         source = read_source(path)
         module = parse_source(source)
@@ -86,9 +87,8 @@ def tune_command(args: argparse.Namespace) -> int:
         print(render_text([unreadable(path, exc)], {}), file=sys.stderr)
         return EXIT_USAGE
     except ParseFailure as failure:
-        shown = failure.source
-        print(render_text([failure.diagnostic], {shown.name: shown} if shown else {}), file=sys.stderr)
-        return EXIT_ERRORS
+        shown = source or failure.source
+        return _failed(args, path, CompileResult(None, (failure.diagnostic,), {shown.name: shown} if shown else {}))
     node = module.automata[0] if module.automata else None
     if node is None or not node.of(ast.ParamDecl):
         print(f"rac: {path} declares no `param`: there is nothing to tune.\n"
