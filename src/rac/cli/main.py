@@ -1,5 +1,5 @@
-"""The ``rac`` command: check, compile and format `.ra` files, start one from the standard library
-(:mod:`rac.cli.new`); verify, simulate, render and
+"""The ``rac`` command: check, compile and format `.ra` files, tune their parameters
+(:mod:`rac.cli.tune`), start one from the standard library (:mod:`rac.cli.new`); verify, simulate, render and
 pre-analyse them with the native engine (:mod:`rac.cli.engine`).
 
 Exit codes: 0 clean (warnings allowed), 1 errors in the input, 2 bad usage or a
@@ -67,7 +67,9 @@ def _parser() -> argparse.ArgumentParser:
     from rac.cli.engine import add_parsers
     from rac.cli.new import add_parser as add_new
     from rac.cli.sweep import add_parser as add_sweep
+    from rac.cli.tune import add_parser as add_tune
 
+    add_tune(commands)
     add_parsers(commands)
     add_sweep(commands)
     add_new(commands)
@@ -240,9 +242,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     from rac.cli.engine import HANDLERS
     from rac.cli.new import new_command
     from rac.cli.sweep import sweep_command
+    from rac.cli.tune import tune_command
 
-    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, **HANDLERS, "sweep": sweep_command,
-                "new": new_command}
+    handlers = {"check": _check, "compile": _compile_command, "fmt": _fmt, "tune": tune_command, **HANDLERS,
+                "sweep": sweep_command, "new": new_command}
     stdout = sys.stdout
     sys.stdout = ReaderSafe(stdout)  # `rac check ... | head`: the command still ends with its own status
     try:

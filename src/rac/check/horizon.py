@@ -1,0 +1,100 @@
+"""How synthesised values depend on the horizon (``rac tune --horizon``, docs/tune.md): a file's text
+at another horizon, and the line through the values found at several horizons, fitted and checked
+with sympy's exact rationals.
+
+The fit is a statement about the horizons the table holds, not a proof for every horizon: the line
+goes through two of them and is then compared with every other one, so a third horizon is the least
+that can contradict it (with two, :func:`fit_line` says that nothing was checked).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+from rac.core.numbers import exact_decimal
+from rac.core.source import SourceFile
+from rac.lang import ast
+
+__all__ = ["Fit", "at_horizon", "exact_text", "fit_line", "formula_text"]
+
+
+def at_horizon(source: SourceFile, node: ast.Automaton, horizon: Fraction) -> str:
+    """The text of ``source`` with the expression of ``node``'s ``horizon`` declaration replaced by
+    ``horizon`` (an exact decimal): every other character, comments included, stays as it was.
+    Raises ``ValueError`` when the automaton has no ``horizon`` declaration or it has no place."""
+    declarations = node.of(ast.HorizonDecl)
+    if not declarations or declarations[0].length.span is None:
+        raise ValueError(f"automaton `{node.name.name}` has no `horizon` declaration to replace")
+    literal = exact_decimal(horizon)
+    if literal is None:
+        raise ValueError(f"the horizon {horizon} is not a finite decimal")
+    span = declarations[0].length.span
+    return source.text[:span.start] + literal + source.text[span.end:]
+
+
+def exact_text(value: Fraction) -> str:
+    """``value`` as `.ra` reads it back exactly: an integer, or ``a / b`` (``197 / 2``)."""
+    if value.denominator == 1:
+        return str(value.numerator)
+    return f"{value.numerator} / {value.denominator}"
+
+
+@dataclass(frozen=True)
+class Fit:
+    """The line ``value = slope * H + intercept`` through the points (horizon, value), when one is
+    known: ``slope``/``intercept`` are None with fewer than three points (two fix a line and check
+    nothing) or when a point is off the line through the first two (``off`` is then that point and
+    the line's value there)."""
+
+    points: tuple[tuple[Fraction, Fraction], ...]
+    slope: Fraction | None = None
+    intercept: Fraction | None = None
+    off: tuple[Fraction, Fraction, Fraction] | None = None
+
+    @property
+    def linear(self) -> bool:
+        """Whether every point lies on the fitted line (at least three of them)."""
+        return self.slope is not None
+
+
+def fit_line(points: Sequence[tuple[Fraction, Fraction]]) -> Fit:
+    """The line through the first two of ``points`` (distinct horizons, ascending), checked against
+    every other one, all in sympy's exact rationals."""
+    import sympy
+
+    distinct = tuple(sorted(dict(points).items()))
+    if len(distinct) < 3:
+        return Fit(distinct)
+    h = sympy.Symbol("H")
+    exact = [(sympy.Rational(x.numerator, x.denominator), sympy.Rational(y.numerator, y.denominator))
+             for x, y in distinct]
+    line = sympy.Poly(sympy.interpolate(exact[:2], h), h)
+    for (x, y), (hx, hy) in zip(distinct[2:], exact[2:]):
+        predicted = line.eval(hx)
+        if predicted != hy:
+            return Fit(distinct, off=(x, y, Fraction(int(predicted.p), int(predicted.q))))
+    coefficients = line.all_coeffs()
+    slope, intercept = (coefficients if len(coefficients) == 2 else [sympy.Integer(0), *coefficients])
+    return Fit(distinct, Fraction(int(slope.p), int(slope.q)), Fraction(int(intercept.p), int(intercept.q)))
+
+
+def _coefficient(value: Fraction) -> str:
+    """A decimal where it is exact and short, else the fraction (``1.6``, ``1/3``)."""
+    decimal = exact_decimal(value)
+    return decimal if decimal is not None and len(decimal) <= 12 else f"{value.numerator}/{value.denominator}"
+
+
+def formula_text(fit: Fit, variable: str = "H") -> str:
+    """The fitted line as ``1.6 * H + 50``: a slope of 1 writes ``H``, a zero slope or intercept is left
+    out, a coefficient that is no short decimal is a fraction (``1/3 * H``)."""
+    assert fit.slope is not None and fit.intercept is not None, "only a line that was found prints"
+    slope, intercept = fit.slope, fit.intercept
+    if slope == 0:
+        return _coefficient(intercept)
+    term = variable if abs(slope) == 1 else f"{_coefficient(abs(slope))} * {variable}"
+    text = f"-{term}" if slope < 0 else term
+    if intercept:
+        text += f" {'-' if intercept < 0 else '+'} {_coefficient(abs(intercept))}"
+    return text

@@ -1,0 +1,339 @@
+"""``rac tune FILE.ra``: synthesise a file's ``param`` values (what ``rac check`` does) and write them
+back as constants, or show them (``--print``), or tabulate them over horizons (``--horizon``).
+
+The write-back edits only the text of each ``param`` declaration: it becomes one ``const NAME = VALUE``
+line per name (VALUE exact: an integer or ``a / b``), under a comment recording the declaration and
+the set that was synthesised, so every other character of the file stays. A file that was in
+``rac fmt`` layout is formatted again (its comments kept). The result is checked before it is written:
+``rac check`` must prove of it what it proved of the parametrised file, or nothing is written.
+docs/tune.md has a worked example.
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import json
+import re
+import sys
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+
+from rac.check.analysis.synthesis import Synthesised
+from rac.check.horizon import Fit, at_horizon, exact_text, fit_line, formula_text
+from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
+from rac.compiler import CompileResult, compile_source
+from rac.core.diagnostics import Diagnostic, render_text, sort_key
+from rac.core.numbers import exact_decimal
+from rac.core.source import SourceFile
+from rac.lang import ast
+from rac.lang.format import format_module
+from rac.lang.parser import ParseFailure, parse_source, parse_text, read_source
+
+__all__ = ["add_parser", "horizons_argument", "tune_command", "tuned_text"]
+
+_DECIMAL = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """Register ``rac tune`` on the ``rac`` command's subparsers."""
+    tune = commands.add_parser(
+        "tune", help="synthesise a file's `param` values and write them back into it as `const` lines",
+        description="Synthesise the values of FILE's `param` declarations (as `rac check` does) and write "
+                    "FILE back with each declaration replaced by `const` lines at those values (atomically, "
+                    "comments kept; the result is checked first). --print or --horizon write nothing.")
+    tune.add_argument("file", type=Path, metavar="FILE")
+    tune.add_argument("--print", dest="show", action="store_true",
+                      help="show the values, their set and the lines that would be written; write nothing")
+    tune.add_argument("--horizon", type=horizons_argument, metavar="H,H,...",
+                      help="synthesise at each horizon (seconds, whole numbers of sample periods) and print a "
+                           "table and the formula in the horizon where it is linear (implies --print)")
+    tune.add_argument("--format", choices=("text", "json"), default="text", help="output format")
+
+
+def horizons_argument(text: str) -> tuple[Fraction, ...]:
+    """An argparse ``type`` for ``--horizon 30,60,120``: positive decimal numbers of seconds."""
+    values = []
+    for item in text.split(","):
+        item = item.strip()
+        if not _DECIMAL.fullmatch(item):
+            raise argparse.ArgumentTypeError(f"`{item}` is not a horizon: give positive numbers of seconds, "
+                                             "such as 30,60,120")
+        value = Fraction(item)
+        if value <= 0:
+            raise argparse.ArgumentTypeError(f"the horizon `{item}` must be more than 0 s")
+        values.append(value)
+    return tuple(values)
+
+
+@dataclass(frozen=True)
+class _Row:
+    """One horizon of the table: the synthesised values, or the errors that left none."""
+
+    horizon: Fraction
+    synthesis: Synthesised | None
+    errors: tuple[Diagnostic, ...]
+
+
+def tune_command(args: argparse.Namespace) -> int:
+    """``rac tune``: see the module docstring. Exit 0, 1 when synthesis fails, 2 on bad usage."""
+    path: Path = args.file
+    source: SourceFile | None = None
+    try:
+        source = read_source(path)
+        module = parse_source(source)
+    except OSError as exc:
+        print(render_text([unreadable(path, exc)], {}), file=sys.stderr)
+        return EXIT_USAGE
+    except ParseFailure as failure:
+        shown = source or failure.source
+        return _failed(args, path, CompileResult(None, (failure.diagnostic,), {shown.name: shown} if shown else {}))
+    node = module.automata[0] if module.automata else None
+    if node is None or not node.of(ast.ParamDecl):
+        print(f"rac: {path} declares no `param`: there is nothing to tune.\n"
+              "  = note: `param NAME in [lo, hi]` declares a constant whose value rac synthesises: the least "
+              "value in the bounds for which every check holds\n"
+              "  = hint: write e.g. `param PENALTY in [0, 1000]` in place of `const PENALTY = 100` and run "
+              f"`rac tune {path}` again (`rac check` shows what it synthesises)", file=sys.stderr)
+        return EXIT_USAGE
+    if args.horizon is not None:
+        return _horizons(args, source, node)
+    result = compile_source(source)
+    if not result.ok or result.synthesis is None:
+        return _failed(args, path, result)
+    synthesis = result.synthesis
+    text = tuned_text(source, module, synthesis)
+    _confirm(source, text, result)
+    written = None
+    if not args.show:
+        try:
+            write_atomically(path, text)
+        except OSError as exc:
+            print(render_text([unwritable(path, exc)], {}), file=sys.stderr)
+            return EXIT_USAGE
+        written = path
+    changes = list(difflib.unified_diff(source.text.splitlines(), text.splitlines(), str(path),
+                                        f"{path} (tuned)", n=0, lineterm=""))
+    if args.format == "json":
+        print(json.dumps({"file": str(path), "ok": True, **_values_json(synthesis),
+                          "sentence": synthesis.sentence, "written": None if written is None else str(written),
+                          "diff": changes, "diagnostics": _diagnostics_json(result.diagnostics)}, indent=2))
+        return EXIT_OK
+    if result.diagnostics:  # warnings: they hold for the tuned file too
+        print(render_text(result.diagnostics, result.sources))
+        print()
+    print(f"{path}: {', '.join(f'{name} = {_value_text(value)}' for name, value in synthesis.values)}")
+    print(f"  {synthesis.sentence}")
+    print(f"wrote {path}:" if written is not None else f"would write {path} (rac tune without --print):")
+    for line in changes:
+        print(line)
+    return EXIT_OK
+
+
+def tuned_text(source: SourceFile, module: ast.Module, synthesis: Synthesised) -> str:
+    """``source``'s text with every ``param`` declaration of its automaton replaced by ``const`` lines
+    at the values of ``synthesis``, each under a ``// rac tune:`` comment recording the declaration
+    and the set; formatted again when ``source`` was in ``rac fmt`` layout and that keeps every comment."""
+    values = dict(synthesis.values)
+    text = source.text
+    for decl in reversed(module.automata[0].of(ast.ParamDecl)):
+        assert decl.span is not None, "a parsed declaration has its place"
+        names = [n.name for n in decl.names]
+        held = [i for i in synthesis.inequalities if any(re.search(rf"\b{re.escape(n)}\b", i) for n in names)]
+        record = (f"// rac tune: {' '.join(text[decl.span.start:decl.span.end].split())}; every check holds for "
+                  + (" and ".join(held) if held else "every value in these bounds"))
+        text = _replaced(text, decl.span.start, decl.span.end,
+                         [record, *(f"const {n} = {exact_text(values[n])}" for n in names)])
+    if format_module(module) == source.text:
+        try:
+            formatted = format_module(parse_text(text, source.name))
+        except ParseFailure:
+            return text
+        if _comments(formatted) == _comments(text):
+            return formatted
+    return text
+
+
+def _replaced(text: str, start: int, end: int, lines: list[str]) -> str:
+    """``text`` with ``[start, end)`` replaced by ``lines`` at its indentation (on a line of their own
+    when something precedes the region on its line). Where own-line comments
+    continue a trailing comment after the region (in its column), that column is kept, so the
+    formatter still reads them as one comment."""
+    newline = "\r\n" if "\r\n" in text else "\n"  # the file's own line ends
+    line_start = text.rfind("\n", 0, start) + 1
+    prefix = text[line_start:start]
+    indent = prefix if not prefix.strip() else prefix[:len(prefix) - len(prefix.lstrip())]
+    replacement = ("" if not prefix.strip() else newline + indent) + (newline + indent).join(lines)
+    line_end = text.find("\n", end)
+    line_end = len(text) if line_end < 0 else line_end
+    after = text[end:line_end]
+    old_column = end - line_start
+    column = old_column + len(after) - len(after.lstrip())  # the trailing comment's
+    below = text[line_end:].split("\n")
+    continued = 0
+    while (after.strip() and "\n" not in text[start:end] and continued + 1 < len(below)
+           and below[continued + 1].lstrip().startswith("//")
+           and len(below[continued + 1]) - len(below[continued + 1].lstrip()) == column):
+        continued += 1
+    if not continued:
+        return text[:start] + replacement + text[end:]
+    shift = len(indent) + len(lines[-1]) - old_column
+    if shift < 0:
+        return text[:start] + replacement + " " * -shift + text[end:]
+    for k in range(1, continued + 1):
+        below[k] = " " * shift + below[k]
+    return text[:start] + replacement + after + "\n".join(below)
+
+
+def _comments(text: str) -> list[str]:
+    return [c.text for c in parse_text(text).comments]
+
+
+def _confirm(source: SourceFile, text: str, result: CompileResult) -> None:
+    """Raise unless ``rac check`` of ``text`` passes and proves what it proved of ``source`` (every fact
+    but the ``synthesised:`` one): a rewrite that changed the meaning is a bug, and is never written."""
+    assert result.synthesis is not None
+    expected = tuple(fact for fact in result.facts if fact != result.synthesis.sentence)
+    checked = compile_source(SourceFile(source.name, text))
+    if not checked.ok or checked.facts != expected:
+        raise RuntimeError(f"the tuned text of {source.name} does not check as the parametrised file did "
+                           f"(errors: {[d.code for d in checked.diagnostics if d.is_error]}); nothing was written")
+
+
+def _failed(args: argparse.Namespace, path: Path, result: CompileResult) -> int:
+    """Synthesis (or another check) failed: the diagnostics as ``rac check`` prints them; exit 1."""
+    errors = sum(d.is_error for d in result.diagnostics)
+    if args.format == "json":
+        print(json.dumps({"file": str(path), "ok": False, "values": None, "inequalities": None, "sentence": None,
+                          "written": None, "diff": [], "diagnostics": _diagnostics_json(result.diagnostics)},
+                         indent=2))
+        return EXIT_ERRORS
+    print(render_text(result.diagnostics, result.sources))
+    print()
+    print(f"{path}: {errors} error{'s' * (errors != 1)}; nothing was tuned or written")
+    return EXIT_ERRORS
+
+
+def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton) -> int:
+    """``--horizon``: synthesise at each horizon, print the rows as they come, then the formulas."""
+    path: Path = args.file
+    plain = compile_source(source, analyse=False)  # the sample period, without running any check
+    if plain.automaton is None:
+        return _failed(args, path, plain)
+    period = plain.automaton.period
+    for horizon in args.horizon:
+        if (horizon / period).denominator != 1:
+            print(f"rac: --horizon: {exact_decimal(horizon)} s is not a whole number of sample periods of "
+                  f"{path} (sample every {exact_decimal(period) or period} s)", file=sys.stderr)
+            return EXIT_USAGE
+    names = [p.name for p in plain.automaton.parameters]
+    text = args.format == "text"
+    if text:
+        print(f"{path}: the synthesised value of each parameter at each horizon H (seconds)")
+        print("| H (s) | " + " | ".join(names) + " | set |")
+        print("| --- | " + " | ".join("---" for _ in names) + " | --- |", flush=True)
+    rows = []
+    for k, horizon in enumerate(args.horizon):
+        if text and sys.stderr.isatty():
+            print(f"\rsynthesising at H = {exact_decimal(horizon)} s ({k + 1}/{len(args.horizon)}) ...",
+                  end="", file=sys.stderr, flush=True)
+        result = compile_source(SourceFile(source.name, at_horizon(source, node, horizon)))
+        row = _Row(horizon, result.synthesis if result.ok else None,
+                   tuple(sorted((d for d in result.diagnostics if d.is_error), key=sort_key)))
+        rows.append(row)
+        if text:
+            if sys.stderr.isatty():
+                print("\r\033[K", end="", file=sys.stderr, flush=True)
+            print(_row_text(row, names), flush=True)
+    fits = {name: fit_line([(r.horizon, r.synthesis.value(name)) for r in rows if r.synthesis is not None])
+            for name in names}
+    # One parameter's synthesised value is the least of its set; several are a chosen point of theirs.
+    relation = ">=" if len(names) == 1 else "="
+    if not text:
+        print(json.dumps({"file": str(path), "ok": True, "written": None, "horizons": [_row_json(r) for r in rows],
+                          "formulas": [_fit_json(name, relation, fit) for name, fit in fits.items()]}, indent=2))
+        return EXIT_OK
+    for name, fit in fits.items():
+        print(_fit_text(name, relation, fit))
+    return EXIT_OK
+
+
+def _row_text(row: _Row, names: list[str]) -> str:
+    if row.synthesis is None:
+        return f"| {exact_decimal(row.horizon)} | " + " | ".join("none" for _ in names) + f" | {_reason(row)} |"
+    held = " and ".join(row.synthesis.inequalities) or "every value in the bounds"
+    return (f"| {exact_decimal(row.horizon)} | " + " | ".join(_value_text(v) for _, v in row.synthesis.values)
+            + f" | {held} |")
+
+
+def _reason(row: _Row) -> str:
+    """The errors of a row without values, short: the first one's code, and the others' (or its own)
+    message up to its details (``E0406 (E0501: reward `sa` overflows int32 at base 10, exponent 4)``)."""
+    first, *others = row.errors or (None,)
+    if first is None:
+        return "no values"
+    if not others:
+        return _headline(first)
+    return f"{first.code} ({'; '.join(_headline(d) for d in others)})"
+
+
+def _headline(diagnostic: Diagnostic) -> str:
+    """``CODE: message`` without the details after the message's first colon."""
+    return f"{diagnostic.code}: {diagnostic.message.split(': ')[0]}"
+
+
+def _fit_text(name: str, relation: str, fit: Fit) -> str:
+    horizons = ", ".join(exact_decimal(h) or str(h) for h, _ in fit.points)
+    if fit.linear:
+        return (f"{name} {relation} {formula_text(fit)} (H the horizon in seconds): checked against "
+                f"{len(fit.points)} horizons ({horizons})")
+    if fit.off is not None:
+        (h1, _), (h2, _) = fit.points[:2]
+        h, value, predicted = fit.off
+        return (f"{name}: not linear in the horizon: the line through H = {exact_decimal(h1)} and "
+                f"H = {exact_decimal(h2)} gives {_value_text(predicted)} at H = {exact_decimal(h)}, where the "
+                f"value is {_value_text(value)} (no formula)")
+    if not fit.points:
+        return f"{name}: no horizon has a value (no formula)"
+    count = len(fit.points)
+    return (f"{name}: a value at {count} horizon{'s' * (count != 1)} only ({horizons}): a line through 2 points "
+            "proves nothing (no formula; give at least 3 horizons that have a value)")
+
+
+def _value_text(value: Fraction) -> str:
+    """An exact value for reading: an integer, or ``a / b (≈ decimal)``."""
+    return exact_text(value) if value.denominator == 1 else f"{exact_text(value)} (~{float(value):.6g})"
+
+
+def _number_json(value: Fraction) -> dict[str, object]:
+    return {"exact": exact_text(value).replace(" ", ""), "float": float(value)}
+
+
+def _values_json(synthesis: Synthesised) -> dict[str, object]:
+    return {"values": [{"name": name, **_number_json(value)} for name, value in synthesis.values],
+            "inequalities": list(synthesis.inequalities)}
+
+
+def _diagnostics_json(diagnostics: tuple[Diagnostic, ...]) -> list[dict[str, object]]:
+    return [d.to_json() for d in sorted(diagnostics, key=sort_key)]
+
+
+def _row_json(row: _Row) -> dict[str, object]:
+    found: dict[str, object] = ({"values": None, "inequalities": None, "sentence": None}
+                                if row.synthesis is None else
+                                {**_values_json(row.synthesis), "sentence": row.synthesis.sentence})
+    return {"horizon": exact_decimal(row.horizon), **found,
+            "error": None if row.synthesis is not None else {"codes": [d.code for d in row.errors],
+                                                             "reason": _reason(row)}}
+
+
+def _fit_json(name: str, relation: str, fit: Fit) -> dict[str, object]:
+    linear = fit.linear
+    return {"parameter": name, "relation": relation, "linear": linear,
+            "formula": f"{name} {relation} {formula_text(fit)}" if linear else None,
+            "slope": None if fit.slope is None else _number_json(fit.slope),
+            "intercept": None if fit.intercept is None else _number_json(fit.intercept),
+            "checked": len(fit.points) if linear else 0,
+            "points": [{"horizon": exact_decimal(h), "value": _number_json(v)} for h, v in fit.points],
+            "text": _fit_text(name, relation, fit)}
