@@ -220,6 +220,23 @@ def test_two_horizons_give_no_formula(param_file: Path, capsys: pytest.CaptureFi
     assert "a line through 2 points proves nothing" in out and ">= 1.6" not in out
 
 
+def test_three_weights_are_written_back_and_prove_the_same(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    text = DRIVING.replace(CONST, CONST + "\n    param w1, w2, w3 in [1, 100]").replace(
+        "objective 10 * sa + 5 * pr + co", "objective w1 * sa + w2 * pr + w3 * co")
+    path = write(tmp_path / "weights.ra", text)
+    proofs = proved(capsys, path)
+    assert proofs[0].startswith("proved: synthesised: every check holds exactly where 7 * w1 >= 13 * w2 + 3 * w3")
+    assert main(["tune", str(path)]) == 0
+    lines = path.read_text(encoding="utf-8").splitlines()
+    k = lines.index("    // rac tune: param w1, w2, w3 in [1, 100]; every check holds for 7 * w1 >= 13 * w2 + 3 * w3")
+    # (the declaration's trailing comment, here the penalty's, stays on its last line)
+    assert lines[k + 1:k + 3] == ["    const w1 = 3", "    const w2 = 1"]
+    assert lines[k + 3].startswith("    const w3 = 1  // large enough")
+    # Everything the synthesis proved of the set is gone with the parameters; the rest is the same.
+    assert proved(capsys, path) == proofs[2:]
+
+
 # ---------------------------------------------------------------- the pieces
 def test_several_names_become_one_const_line_each() -> None:
     text = DRIVING.replace(CONST, "param PENALTY, BONUS in [0, 1000]").replace("pr = pr + 100", "pr = pr + BONUS")

@@ -54,7 +54,7 @@ def test_driving_weights():
     assert result.facts[0] == (
         "synthesised: every check holds exactly where 7 * w1 >= 13 * w2 + 3 * w3 (w1, w2, w3 in [1, 100]); "
         "checked with w1 = 3, w2 = 1, w3 = 1, the lexicographically least integer weights, `w1` first")
-    assert result.facts[1].startswith("the set of (w1, w2, w3) has 6 vertices, each checked: (16/7, 1, 1), ")
+    assert result.facts[1].startswith("the set of (w1, w2, w3) has 6 vertices, each checked: (16 / 7, 1, 1), ")
     assert result.synthesis is not None
     assert result.synthesis.values == (("w1", 3), ("w2", 1), ("w3", 1))
     assert result.synthesis.inequalities == ("7 * w1 >= 13 * w2 + 3 * w3",)

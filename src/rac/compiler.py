@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from rac import ir
 from rac.check.resolve import Resolver
 from rac.core.diagnostics import CheckError, Diagnostic, error, short_number
+from rac.core.numbers import exact_text
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, read_source
@@ -156,10 +157,11 @@ def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ..
     else:
         sentence = f"synthesised: every check holds for all values ({bounds}); checked with {chosen}, {how}"
     facts.append(sentence)
-    shown = ", ".join("(" + ", ".join(_exact(x) for x in v) + ")" for v in region.vertices[:8])
+    shown = ", ".join("(" + ", ".join(exact_text(x) for x in v) + ")" for v in region.vertices[:8])
     more = f" and {len(region.vertices) - 8} more" if len(region.vertices) > 8 else ""
-    facts.append(f"the set of ({listed}) has {len(region.vertices)} vertices, each checked: {shown}{more}")
-    return resolve(point), [], Synthesised(tuple(zip(names, point)), inequalities, sentence)
+    vertices = f"the set of ({listed}) has {len(region.vertices)} vertices, each checked: {shown}{more}"
+    facts.append(vertices)
+    return resolve(point), [], Synthesised(tuple(zip(names, point)), inequalities, sentence, (vertices,))
 
 
 def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
@@ -205,7 +207,7 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
         sentence = (f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
                     f"checked with {name} = {short_number(least)}")
     facts.append(sentence)
-    return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(),),
+    return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
                                            sentence)
 
 
@@ -216,11 +218,6 @@ def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:
         groups.setdefault((p.low, p.high), []).append(p.name)
     return "; ".join(f"{', '.join(names)} in [{short_number(low)}, {short_number(high)}]"
                      for (low, high), names in groups.items())
-
-
-def _exact(value: Fraction) -> str:
-    """An exact rational: ``3`` or ``16/7``."""
-    return str(value.numerator) if value.denominator == 1 else f"{value.numerator}/{value.denominator}"
 
 
 def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:

@@ -17,7 +17,7 @@ from rac.core.numbers import exact_decimal
 from rac.core.source import SourceFile
 from rac.lang import ast
 
-__all__ = ["Fit", "at_horizon", "exact_text", "fit_line", "formula_text"]
+__all__ = ["Fit", "at_horizon", "fit_line", "formula_text"]
 
 
 def at_horizon(source: SourceFile, node: ast.Automaton, horizon: Fraction) -> str:
@@ -32,13 +32,6 @@ def at_horizon(source: SourceFile, node: ast.Automaton, horizon: Fraction) -> st
         raise ValueError(f"the horizon {horizon} is not a finite decimal")
     span = declarations[0].length.span
     return source.text[:span.start] + literal + source.text[span.end:]
-
-
-def exact_text(value: Fraction) -> str:
-    """``value`` as `.ra` reads it back exactly: an integer, or ``a / b`` (``197 / 2``)."""
-    if value.denominator == 1:
-        return str(value.numerator)
-    return f"{value.numerator} / {value.denominator}"
 
 
 @dataclass(frozen=True)

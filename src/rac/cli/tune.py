@@ -21,11 +21,11 @@ from fractions import Fraction
 from pathlib import Path
 
 from rac.check.analysis.synthesis import Synthesised
-from rac.check.horizon import Fit, at_horizon, exact_text, fit_line, formula_text
+from rac.check.horizon import Fit, at_horizon, fit_line, formula_text
 from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
 from rac.compiler import CompileResult, compile_source
 from rac.core.diagnostics import Diagnostic, render_text, sort_key
-from rac.core.numbers import exact_decimal
+from rac.core.numbers import exact_decimal, exact_text
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.format import format_module
@@ -192,9 +192,9 @@ def _comments(text: str) -> list[str]:
 
 def _confirm(source: SourceFile, text: str, result: CompileResult) -> None:
     """Raise unless ``rac check`` of ``text`` passes and proves what it proved of ``source`` (every fact
-    but the ``synthesised:`` one): a rewrite that changed the meaning is a bug, and is never written."""
+    but the synthesis's own): a rewrite that changed the meaning is a bug, and is never written."""
     assert result.synthesis is not None
-    expected = tuple(fact for fact in result.facts if fact != result.synthesis.sentence)
+    expected = tuple(fact for fact in result.facts if fact not in result.synthesis.facts)
     checked = compile_source(SourceFile(source.name, text))
     if not checked.ok or checked.facts != expected:
         raise RuntimeError(f"the tuned text of {source.name} does not check as the parametrised file did "

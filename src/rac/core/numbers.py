@@ -14,6 +14,13 @@ INT32_MIN = -(2**31)
 INT32_LOW = -INT32_MAX
 
 
+def exact_text(value: Fraction) -> str:
+    """``value`` as `.ra` reads it back exactly: an integer, or ``a / b`` (``197 / 2``)."""
+    if value.denominator == 1:
+        return str(value.numerator)
+    return f"{value.numerator} / {value.denominator}"
+
+
 def exact_decimal(value: Fraction, max_places: int | None = None) -> str | None:
     """``value`` as a decimal with exactly its value and no exponent (``0.05``, ``-12.5``, ``3``), or
     None when it has none (``1/3``) or needs more than ``max_places`` digits after the point."""

@@ -31,6 +31,7 @@ from rac.check.analysis.priority import (
 )
 from rac.check.analysis.worst import Target, Unfinished, Worst, maximise
 from rac.core.diagnostics import short_number
+from rac.core.numbers import exact_text
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 
 #: The automaton resolved with the parameter at a value (None when it does not resolve).
@@ -41,11 +42,18 @@ Resolve = Callable[[Fraction], "ir.Automaton | None"]
 class Synthesised:
     """What ``rac check`` synthesised for a file's parameters: the values it checked the file with
     (declaration order), the set of passing values as inequalities beyond the declared bounds
-    (empty when every declared value passes) and the ``synthesised:`` sentence it printed."""
+    (empty when every declared value passes), the ``synthesised:`` sentence it printed and any further
+    facts about the set (the vertices of several weights' polyhedron)."""
 
     values: tuple[tuple[str, Fraction], ...]
     inequalities: tuple[str, ...]
     sentence: str
+    details: tuple[str, ...] = ()
+
+    @property
+    def facts(self) -> tuple[str, ...]:
+        """Every fact the synthesis added to ``rac check``'s output."""
+        return (self.sentence, *self.details)
 
     def value(self, name: str) -> Fraction:
         """The value the file was checked with for parameter ``name``."""
@@ -100,10 +108,12 @@ class Synthesis:
         """The least value of the set (None when it is empty or its lower end is open)."""
         return None if self.low is None or self.low.open else self.low.value
 
-    def describe(self) -> str:
-        """The set as the inequalities the checks add to the declared range: ``P >= 98``, ``2 <= P < 7``."""
+    def describe(self, exact: bool = False) -> str:
+        """The set as the inequalities the checks add to the declared range: ``P >= 98``, ``2 <= P < 7``
+        (numbers rounded for reading, or ``exact``: ``P < 1431 / 2``)."""
         p = self.parameter
         assert self.low is not None and self.high is not None
+        _num = exact_text if exact else short_number
         low = None if self.low == End(p.low) else self.low
         high = None if self.high == End(p.high) else self.high
         if high is None:

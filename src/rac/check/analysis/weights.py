@@ -12,14 +12,21 @@ maximum over finitely many runs of a function affine in the weights:
   inequality by itself.
 
 The set is therefore the polyhedron ``{θ in the box : J_r(θ) <= 0 for every run r}``. It is found
-by cutting planes: an exact rational LP (:func:`sympy.solvers.simplex.linprog`, the matrix form of
-``lpmin``/``lpmax``) proposes the lexicographically least point of the current outer polyhedron, the
-exact worst-run oracle finds the most violating run there, its inequality ``J_r(θ) <= 0`` is added, and
-so on until the oracle finds no violation. Then every vertex of the outer polyhedron is checked the same
-way: when none violates, the outer polyhedron is the set itself, since the set is convex (an
-intersection of half-spaces) and holds every vertex. Each cut comes from a run whose inequality the
-current polyhedron did not yet imply, and there are finitely many distinct reward vectors at violating
-instants (finitely many runs), so the search terminates; all arithmetic is rational, so it is exact.
+by cutting planes: the lexicographically least point of the current outer polytope (the box and the
+cuts so far) is the candidate, the exact worst-run oracle finds the most violating run there, its
+inequality ``J_r(θ) <= 0`` is added, and so on until the oracle finds no violation. Then every vertex
+of the outer polytope is checked the same way: when none violates, the outer polytope is the set
+itself, since the set is convex (an intersection of half-spaces) and holds every vertex. Each cut
+comes from a run whose inequality the current polytope did not yet imply, and there are finitely
+many distinct reward vectors at violating instants (finitely many runs), so the search terminates.
+
+The linear programs involved (the lexicographic minimum, redundancy of a cut, the least integer
+point) are over a polytope of a few parameters and a few dozen rows, and are solved exactly by
+enumerating its vertices in rational arithmetic. sympy's simplex (``sympy.solvers.simplex``,
+1.14) was the first choice; on small degenerate systems like these (repeated rows, cuts through a
+vertex) it returned infeasible points as optima and cycled (14 and 1 of 600 random cases for
+``linprog``, 1 wrong for ``lpmin``), which an exact answer cannot afford. sympy puts each
+inequality in least integer terms (``Poly.primitive``).
 """
 
 from __future__ import annotations
@@ -174,6 +181,8 @@ def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) 
         new = oracle.cuts(candidate, sentences)
         if not new:
             break
+        # Each cut excludes the point it was found at; were it not so, the loop would not end.
+        assert any(c.slack(candidate) < 0 for c in new), "a cut must exclude its candidate"
         cuts += new
     # Phase 2: every vertex of the outer polyhedron, until none violates: then it is the set.
     checked: set[Vector] = set()
@@ -190,7 +199,7 @@ def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) 
         if _least(box + cuts, order) is None:
             return Region(parameters, (), (), None, False, order, tuple(sentences), vertex)
     kept = tuple(_irredundant(box, cuts))
-    point = _least_integer(box + list(kept), order, parameters)
+    point = _least_integer(box + list(kept), order)
     integer = point is not None
     if point is None:
         point = _least(box + list(kept), order)
@@ -280,95 +289,61 @@ def _p1(automaton: ir.Automaton, weights: Weights, sentences: list[str]) -> list
     return found
 
 
-def _linprog(objective: Sequence[Fraction], rows: Sequence[Inequality]) -> tuple[Fraction, Vector] | None:
-    """The exact minimum of ``objective · θ`` over ``rows`` and a point reaching it (None: infeasible)."""
-    from sympy import Matrix, Rational
-    from sympy.solvers.simplex import InfeasibleLPError, linprog
-
-    def q(x: Fraction) -> Rational:
-        return Rational(x.numerator, x.denominator)
-
-    size = len(objective)
-    zero = [r for r in rows if not any(r.coefficients)]
-    if any(r.bound < 0 for r in zero):
-        return None
-    rows = [r for r in rows if any(r.coefficients)]
-    a = Matrix([[q(x) for x in r.coefficients] for r in rows]) if rows else None
-    b = Matrix([q(r.bound) for r in rows]) if rows else None
-    try:
-        value, point = linprog(Matrix([[q(x) for x in objective]]), a, b, bounds=[(None, None)] * size)
-    except InfeasibleLPError:
-        return None
-    return _fraction(value), tuple(_fraction(x) for x in point)
-
-
-def _fraction(x: object) -> Fraction:
-    """A sympy Rational (or a plain int, which linprog returns for 0) as a Fraction."""
-    from sympy import Rational
-
-    value = Rational(x)  # type: ignore[arg-type]
-    return Fraction(int(value.p), int(value.q))
-
-
-def _unit(i: int, size: int, sign: int = 1) -> Vector:
-    return tuple(Fraction(sign if j == i else 0) for j in range(size))
-
-
 def _least(rows: list[Inequality], order: tuple[int, ...]) -> Vector | None:
-    """The lexicographically least point of the polyhedron in ``order`` (None when it is empty)."""
-    size = len(order)
-    fixed = list(rows)
-    point: Vector | None = None
-    for i in order:
-        found = _linprog(_unit(i, size), fixed)
-        if found is None:
-            return None
-        value, point = found
-        fixed += [Inequality(_unit(i, size), value), Inequality(_unit(i, size, -1), -value)]
-    return point
+    """The lexicographically least point of the polytope in ``order`` (None when it is empty): a
+    lexicographic minimum over a polytope is attained at a vertex."""
+    vertices = _vertices(rows, len(order))
+    return min(vertices, key=lambda p: tuple(p[i] for i in order)) if vertices else None
 
 
-def _least_integer(rows: list[Inequality], order: tuple[int, ...],
-                   parameters: tuple[ir.Parameter, ...]) -> Vector | None:
+def _fix(i: int, size: int, value: Fraction) -> list[Inequality]:
+    """``θ_i = value`` as two inequalities."""
+    unit = tuple(Fraction(1 if j == i else 0) for j in range(size))
+    return [Inequality(unit, value), Inequality(tuple(-x for x in unit), -value)]
+
+
+def _least_integer(rows: list[Inequality], order: tuple[int, ...]) -> Vector | None:
     """The lexicographically least integer point (None when there is none): the least integer of the
-    first parameter for which the rest has a (recursively least) integer completion, and so on."""
+    first parameter for which the rest has an integer completion (recursively the least), and so on."""
     size = len(order)
 
-    def search(fixed: list[Inequality], depth: int) -> list[Fraction] | None:
-        if depth == size:
-            return []
-        i = order[depth]
-        low = _linprog(_unit(i, size), fixed)
-        high = _linprog(_unit(i, size, -1), fixed)
-        if low is None or high is None:
+    def search(fixed: list[Inequality], depth: int) -> dict[int, Fraction] | None:
+        vertices = _vertices(fixed, size)
+        if not vertices:
             return None
-        for v in range(math.ceil(low[0]), math.floor(-high[0]) + 1):
-            value = Fraction(v)
-            rest = search(fixed + [Inequality(_unit(i, size), value), Inequality(_unit(i, size, -1), -value)],
-                          depth + 1)
+        if depth == size:
+            return {}
+        i = order[depth]
+        low, high = min(p[i] for p in vertices), max(p[i] for p in vertices)
+        for v in range(math.ceil(low), math.floor(high) + 1):
+            rest = search(fixed + _fix(i, size, Fraction(v)), depth + 1)
             if rest is not None:
-                return [value, *rest]
+                return {i: Fraction(v), **rest}
         return None
 
     found = search(list(rows), 0)
-    if found is None:
-        return None
-    point = [Fraction(0)] * size
-    for i, value in zip(order, found):
-        point[i] = value
-    return tuple(point)
+    return None if found is None else tuple(found[i] for i in range(size))
 
 
 def _vertices(rows: list[Inequality], size: int) -> list[Vector]:
-    """Every vertex of the polyhedron (bounded by the box): the feasible solutions of ``size`` rows
-    taken as equalities."""
-    if math.comb(len(rows), size) > MAX_SUBSETS:
-        raise Unfinished(f"the polyhedron has {len(rows)} inequalities in {size} parameters: more than "
+    """Every vertex of the polytope (bounded by the box, so it has one when it is not empty): the
+    solutions of ``size`` of its rows taken as equalities that satisfy every row. Exact, and small
+    here (a few parameters, a few dozen rows); the rows are first reduced to distinct half-spaces."""
+    distinct: list[Inequality] = []
+    for row in rows:
+        normal = _normalised(row)
+        if normal is None:
+            if row.bound < 0:
+                return []  # 0 <= negative: nothing satisfies it
+        elif normal not in distinct:
+            distinct.append(normal)
+    if math.comb(len(distinct), size) > MAX_SUBSETS:
+        raise Unfinished(f"the polytope has {len(distinct)} inequalities in {size} parameters: more than "
                          f"{MAX_SUBSETS:,} vertex candidates")
     found: set[Vector] = set()
-    for subset in itertools.combinations(rows, size):
+    for subset in itertools.combinations(distinct, size):
         point = _solve([r.coefficients for r in subset], [r.bound for r in subset])
-        if point is not None and all(r.slack(point) >= 0 for r in rows):
+        if point is not None and point not in found and all(r.slack(point) >= 0 for r in distinct):
             found.add(point)
     return sorted(found)
 
@@ -398,10 +373,11 @@ def _irredundant(box: list[Inequality], cuts: list[Inequality]) -> list[Inequali
         if normal is not None and normal not in unique:
             unique.append(normal)
     kept = list(unique)
+    size = len(box) // 2
     for cut in unique:
         others = [c for c in kept if c != cut]
-        found = _linprog(tuple(-a for a in cut.coefficients), box + others)
-        if found is not None and -found[0] <= cut.bound:
+        # Implied when its left side stays within its bound at every vertex of what the others leave.
+        if all(cut.slack(v) >= 0 for v in _vertices(box + others, size)):
             kept = others
     return kept
 
