@@ -195,3 +195,18 @@ def test_region_matches_brute_force(text):
         assert compile_text(at(text, {"u": region.point[0], "v": region.point[1]}), "s.ra").ok
         for vertex in region.vertices:
             assert compile_text(at(text, {"u": vertex[0], "v": vertex[1]}), "s.ra").ok, vertex
+
+
+def test_the_benchmark_runs(tmp_path):
+    """`python benchmarks/synthesis.py --quick` works and reports what rac check synthesises (the
+    numbers are the benchmark's business, not this test's)."""
+    import subprocess
+    import sys
+
+    output = tmp_path / "synthesis.md"
+    run = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "synthesis.py"), "--quick", "--repeat", "1",
+                          "--output", str(output)], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    table = output.read_text(encoding="utf-8")
+    assert "| PENALTY | 30 s | 300 |" in table and "PENALTY = 98 |" in table
+    assert "| w1, w2, w3 | 30 s | 300 |" in table and "7 * w1 >= 13 * w2 + 3 * w3; w1 = 3, w2 = 1, w3 = 1 |" in table

@@ -185,7 +185,7 @@ def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) 
         assert any(c.slack(candidate) < 0 for c in new), "a cut must exclude its candidate"
         cuts += new
     # Phase 2: every vertex of the outer polyhedron, until none violates: then it is the set.
-    checked: set[Vector] = set()
+    checked: set[Vector] = {candidate}  # the oracle found no violation there
     while True:
         vertices = _vertices(box + cuts, len(parameters))
         new = []
