@@ -171,7 +171,7 @@ def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) 
     sentences: list[str] = []
     cuts = _p1(base, weights, sentences)
     oracle = _Oracle(base, weights, names)
-    # Phase 1: the LP's lexicographically least candidate, until the oracle finds no violation there.
+    # Phase 1: the lexicographically least candidate, until the oracle finds no violation there.
     candidate = lows
     while True:
         found = _least(box + cuts, order)
@@ -192,12 +192,15 @@ def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) 
         for vertex in vertices:
             if vertex not in checked:
                 checked.add(vertex)
-                new += oracle.cuts(vertex, sentences)
+                found_here = oracle.cuts(vertex, sentences)
+                if found_here:
+                    new += found_here
+                    candidate = vertex  # a point whose checks fail, to show if nothing is left
         if not new:
             break
         cuts += new
         if _least(box + cuts, order) is None:
-            return Region(parameters, (), (), None, False, order, tuple(sentences), vertex)
+            return Region(parameters, (), (), None, False, order, tuple(sentences), candidate)
     kept = tuple(_irredundant(box, cuts))
     point = _least_integer(box + list(kept), order)
     integer = point is not None
