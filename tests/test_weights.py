@@ -148,7 +148,37 @@ def test_p1_keeps_a_weight_on_its_side_of_zero():
     assert result.ok, [d.message for d in result.diagnostics]
     region = region_of(text)
     assert all(v[1] <= 0 for v in region.vertices)
-    assert any("P1 in `Bad` (sa > pr) needs the weight of `pr` <= 0" in c for c in region.cuts)
+    assert "P1 in `Bad` (sa > pr) needs v <= 0" in region.cuts
+
+
+def test_an_empty_set_found_through_p1_and_p2_together():
+    # P1 pins the weight of `co` to 0 at most, P2 then asks u >= 4/3 and u <= (v - 2) / 2 at once. (An
+    # LP by sympy's simplex answered this system with an infeasible point, and the search did not end.)
+    text = """automaton S {
+    input a : bool
+    input b : bool
+    param u, v in [0, 3]
+    reward sa, pr, co
+    priority sa > pr > co
+    objective u * sa + 2 * pr + v * co
+    sample every 1
+    horizon 3
+    initial location L0 { sa' == 2; pr' == 1; co' == -1 }
+    location L1 { sa' == -2; pr' == -2; co' == 2 }
+    edge * -> L0 when a do sa = sa - 2, pr = pr + 2
+    edge * -> L1 when !a do sa = sa - 6, pr = pr + 3
+    assume a || !b
+}
+"""
+    result = compile_text(text, "s.ra")
+    assert [d.code for d in result.diagnostics][:1] == ["E0406"]
+    notes = [n.message for n in result.diagnostics[0].notes]
+    assert notes[:4] == ["P1 in `L1` (sa > co) needs v <= 0", "P1 in `L1` (pr > co) needs v <= 0",
+                         "at u = 0, v = 0, P2 for `sa` needs 3 * u >= 4",
+                         "at u = 1.33333…, v = 0, P2 for `sa` needs 2 * u <= v - 2"]
+    for u in range(4):
+        for v in range(4):
+            assert not compile_text(at(text, {"u": Fraction(u), "v": Fraction(v)}), "s.ra").ok
 
 
 # ---------------------------------------------------------------- against brute force

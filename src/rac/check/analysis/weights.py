@@ -287,8 +287,10 @@ def _p1(automaton: ir.Automaton, weights: Weights, sentences: list[str]) -> list
                         if not any(gradient) and cut.bound >= 0:
                             continue  # a constant weight on the harmless side
                         found.append(cut)
-                        sentences.append(f"P1 in `{location.name}` ({first} > {second}) needs the weight of "
-                                         f"`{second}` {'<=' if sign > 0 else '>='} 0")
+                        names = [p.name for p in automaton.parameters]
+                        need = (_describe(cut, None, None, names) if any(gradient) else
+                                f"the weight of `{second}` {'<=' if sign > 0 else '>='} 0, whatever the parameters are")
+                        sentences.append(f"P1 in `{location.name}` ({first} > {second}) needs {need}")
     return found
 
 
