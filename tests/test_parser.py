@@ -113,3 +113,45 @@ def test_the_resolver_types_numbers_and_conditions() -> None:
         typer.linear(parse_expression("sa"), RATE)
     assert [d.message for d in typer.scope.diagnostics] == [
         "a guard needs a boolean, found a number", "reward `sa` cannot appear in a rate"]
+
+
+def test_words_of_expressions_cannot_name_anything():
+    """`and`, `or`, `not`, `imply`, `true`, `false` in a declaration are E0013 (an expression would read
+    the word, and queries over an automaton called `not` did not parse: an internal error)."""
+    import re as _re
+
+    from rac.compiler import compile_text
+    from rac.lang.parser import EXPRESSION_WORDS
+
+    grammar = (Path(__file__).resolve().parents[1] / "grammar" / "rac.lark").read_text(encoding="utf-8")
+    words = {w for name in ("IMPLY", "NOT_WORD", "OR_WORD", "AND_WORD", "TRUE", "FALSE")
+             for w in _re.findall(rf'^{name}: "(\w+)"', grammar, _re.M)}
+    assert words == set(EXPRESSION_WORDS)
+    template = """automaton {a} {{
+    input {i} : bool
+    const {c} = 2
+    reward {r}
+    objective {r}
+    sample every 1
+    horizon 2
+    initial location {loc} {{ {r}' == 1 }}
+    edge * -> {loc} when {i}
+    model {{
+        bind {i} = offroad()
+        scenario "x.xml"
+    }}
+}}
+"""
+    names = {"a": "A", "i": "gap", "c": "K", "r": "pr", "loc": "Go"}
+    for word in EXPRESSION_WORDS:
+        for slot in names:
+            text = template.format(**{**names, slot: word})
+            result = compile_text(text, "w.ra")
+            codes = [d.code for d in result.diagnostics]
+            if slot in ("i", "r") and codes == ["E0001"]:
+                # Read in an expression too, where the word can start one (`when not`): the syntax
+                # error there comes first.
+                assert word in ("not",), (word, slot)
+                continue
+            assert codes == ["E0013"], (word, slot)
+            assert f"`{word}` is a word of the language" in result.diagnostics[0].message

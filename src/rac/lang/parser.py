@@ -33,6 +33,10 @@ MAX_DIGITS = 100
 #: The longest name: UPPAAL's parser refuses identifiers of 4,000 characters, and the UPPAAL target
 #: derives names from the user's (a select variable, a mirror) a few characters longer.
 MAX_NAME = 3900
+#: The words that are operators or literals inside expressions (grammar/rac.lark's IMPLY, NOT_WORD,
+#: OR_WORD, AND_WORD, TRUE, FALSE): the contextual lexer would accept them as a declared name, but an
+#: expression would read the word, never the name (E0013).
+EXPRESSION_WORDS = ("and", "or", "not", "imply", "true", "false")
 _NUMBER_PARTS = re.compile(r"(\d+)(?:\.(\d+))?(?:[eE]([+-]?\d+))?")
 
 
@@ -111,7 +115,8 @@ class _ToAst(Transformer):
         return ast.Ident(self._name_text(token), self._sp(token))
 
     def _name_text(self, token: Token) -> str:
-        """A name's text, or E0012 when it is longer than UPPAAL accepts (the target would be refused)."""
+        """A name's text; E0012 when it is longer than UPPAAL accepts (the target would be refused), E0013
+        when it is a word expressions read as an operator or a literal."""
         text = str(token)
         if len(text) > MAX_NAME:
             raise ParseFailure(error(
@@ -119,6 +124,12 @@ class _ToAst(Transformer):
                 notes=["UPPAAL's parser refuses names of 4,000 characters, and the UPPAAL target derives "
                        "longer names from yours: the emitted model could not be loaded"],
                 hints=["use a shorter name"]))
+        if text in EXPRESSION_WORDS:
+            raise ParseFailure(error(
+                "E0013", f"`{text}` is a word of the language: it cannot name anything", self._sp(token),
+                notes=[f"in an expression `{text}` is always the "
+                       f"{'literal' if text in ('true', 'false') else 'operator'}, so the name could never be read"],
+                hints=[f"choose another name, e.g. `{text}_`"]))
         return text
 
     def _binary(self, op: Token, left: ast.Expr, right: ast.Expr) -> ast.Binary:
