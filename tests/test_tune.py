@@ -237,6 +237,13 @@ def test_three_weights_are_written_back_and_prove_the_same(tmp_path: Path,
     assert proved(capsys, path) == proofs[2:]
 
 
+def test_no_horizon_with_a_value_exits_1(param_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    assert main(["tune", "--horizon", "300,600,900", str(param_file)]) == 1
+    out = capsys.readouterr().out
+    assert out.count("| none |") == 3 and "PENALTY: no horizon has a value (no formula)" in out
+
+
 # ---------------------------------------------------------------- the pieces
 def test_several_names_become_one_const_line_each() -> None:
     text = DRIVING.replace(CONST, "param PENALTY, BONUS in [0, 1000]").replace("pr = pr + 100", "pr = pr + BONUS")

@@ -216,7 +216,8 @@ def _failed(args: argparse.Namespace, path: Path, result: CompileResult) -> int:
 
 
 def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton) -> int:
-    """``--horizon``: synthesise at each horizon, print the rows as they come, then the formulas."""
+    """``--horizon``: synthesise at each horizon, print the rows as they come, then the formulas; exit 1
+    when no horizon has a value."""
     path: Path = args.file
     plain = compile_source(source, analyse=False)  # the sample period, without running any check
     if plain.automaton is None:
@@ -250,13 +251,15 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
             for name in names}
     # One parameter's synthesised value is the least of its set; several are a chosen point of theirs.
     relation = ">=" if len(names) == 1 else "="
+    # No horizon with a value is a failed synthesis, like `rac tune` on the file itself: exit 1.
+    found = any(r.synthesis is not None for r in rows)
     if not text:
-        print(json.dumps({"file": str(path), "ok": True, "written": None, "horizons": [_row_json(r) for r in rows],
+        print(json.dumps({"file": str(path), "ok": found, "written": None, "horizons": [_row_json(r) for r in rows],
                           "formulas": [_fit_json(name, relation, fit) for name, fit in fits.items()]}, indent=2))
-        return EXIT_OK
+        return EXIT_OK if found else EXIT_ERRORS
     for name, fit in fits.items():
         print(_fit_text(name, relation, fit))
-    return EXIT_OK
+    return EXIT_OK if found else EXIT_ERRORS
 
 
 def _row_text(row: _Row, names: list[str]) -> str:
