@@ -344,7 +344,16 @@ class _Builder:
                 order = order[:-1]  # E0404
             self.add("priority", "priority " + ("strict " if self.strict else "") + " > ".join(order))
         terms = []
+        # Weights to synthesise, from the weight upwards: the least point of the set is the weight itself
+        # (it passes), so a valid program stays valid and the synthesis runs on every kind of program.
+        parametrised = c.chance(12)
         for reward, weight in zip(rewards, self.weights, strict=True):
+            if parametrised and c.chance(70):
+                w = f"w_{reward}"
+                high = weight + pick(c, (Fraction(0), Fraction(1), Fraction(5)))
+                self.add("const", f"param {w} in [{self.literal(weight)}, {self.literal(high)}]")
+                terms.append(pick(c, (f"{w}*{reward}", f"{reward} * {w}")))
+                continue
             w = self.value_or_const(weight)
             terms.append(reward if weight == 1 and c.chance(70) else pick(c, (f"{w}*{reward}", f"{reward} * {w}")))
         if not self.prioritised and c.chance(20):
