@@ -67,10 +67,15 @@ def fit_line(points: Sequence[tuple[Fraction, Fraction]]) -> Fit:
     for (x, y), (hx, hy) in zip(distinct[2:], exact[2:]):
         predicted = line.eval(hx)
         if predicted != hy:
-            return Fit(distinct, off=(x, y, Fraction(int(predicted.p), int(predicted.q))))
+            return Fit(distinct, off=(x, y, _fraction(predicted)))
     coefficients = line.all_coeffs()
     slope, intercept = (coefficients if len(coefficients) == 2 else [sympy.Integer(0), *coefficients])
-    return Fit(distinct, Fraction(int(slope.p), int(slope.q)), Fraction(int(intercept.p), int(intercept.q)))
+    return Fit(distinct, _fraction(slope), _fraction(intercept))
+
+
+def _fraction(value: object) -> Fraction:
+    """A sympy Rational as a Fraction."""
+    return Fraction(int(value.p), int(value.q))  # type: ignore[attr-defined]
 
 
 def _coefficient(value: Fraction) -> str:

@@ -79,18 +79,6 @@ class _Walk:
         if self.found is not None:
             return
         # The parameter itself where one is named, else the constant computed from one.
-        names = sorted({n.id for n in _names(expr) if self.degrees.get(n.id)},
+        names = sorted({n.id for n in ast.names_in(expr) if self.degrees.get(n.id)},
                        key=lambda n: (n not in self.parameters, n))
         self.found = (names[0], expr.span, f"{why} (the checks would not be linear in it)")
-
-
-def _names(expr: ast.Expr) -> list[ast.Name]:
-    if isinstance(expr, ast.Name):
-        return [expr]
-    if isinstance(expr, ast.Unary):
-        return _names(expr.operand)
-    if isinstance(expr, ast.Call):
-        return [n for a in expr.args for n in _names(a)]
-    if isinstance(expr, ast.Binary):
-        return _names(expr.left) + _names(expr.right)
-    return []

@@ -226,7 +226,7 @@ class Resolver:
         return symbols
 
     def _unused_parameters(self) -> None:
-        used = {n.id for n in _names_in(self.node)}
+        used = {n.id for n in ast.names_in(self.node)}
         for parameter in self.parameters:
             if parameter.name not in used:
                 self.diagnostics.append(warning(
@@ -485,14 +485,3 @@ def _kind_word(kind: str) -> str:
 def _num(value: Fraction) -> str:
     """A rational as a short decimal for messages."""
     return short_number(value)
-
-
-def _names_in(node: object) -> list[ast.Name]:
-    """Every name an AST node mentions (a walk over the frozen dataclasses' fields)."""
-    if isinstance(node, ast.Name):
-        return [node]
-    if isinstance(node, (tuple, list)):
-        return [n for item in node for n in _names_in(item)]
-    if dataclasses.is_dataclass(node) and not isinstance(node, type):
-        return [n for f in dataclasses.fields(node) for n in _names_in(getattr(node, f.name))]
-    return []

@@ -8,6 +8,7 @@ Surface variants are normalised here: ``and``/``or``/``not`` become
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Union
@@ -402,3 +403,14 @@ class Module:
     automata: tuple[Automaton, ...]
     comments: tuple[Comment, ...] = field(default=(), compare=False)
     span: Span | None = _span()
+
+
+def names_in(node: object) -> list[Name]:
+    """Every name an AST node mentions (a walk over the frozen dataclasses' fields)."""
+    if isinstance(node, Name):
+        return [node]
+    if isinstance(node, (tuple, list)):
+        return [n for item in node for n in names_in(item)]
+    if dataclasses.is_dataclass(node) and not isinstance(node, type):
+        return [n for f in dataclasses.fields(node) for n in names_in(getattr(node, f.name))]
+    return []

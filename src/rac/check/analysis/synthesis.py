@@ -113,16 +113,16 @@ class Synthesis:
         (numbers rounded for reading, or ``exact``: ``P < 1431 / 2``)."""
         p = self.parameter
         assert self.low is not None and self.high is not None
-        _num = exact_text if exact else short_number
+        number = exact_text if exact else short_number
         low = None if self.low == End(p.low) else self.low
         high = None if self.high == End(p.high) else self.high
         if high is None:
             assert low is not None, "the whole range: see whole"
-            return f"{p.name} {'>' if low.open else '>='} {_num(low.value)}"
+            return f"{p.name} {'>' if low.open else '>='} {number(low.value)}"
         if low is None:
-            return f"{p.name} {'<' if high.open else '<='} {_num(high.value)}"
-        return (f"{_num(low.value)} {'<' if low.open else '<='} {p.name} "
-                f"{'<' if high.open else '<='} {_num(high.value)}")
+            return f"{p.name} {'<' if high.open else '<='} {number(high.value)}"
+        return (f"{number(low.value)} {'<' if low.open else '<='} {p.name} "
+                f"{'<' if high.open else '<='} {number(high.value)}")
 
     def interval(self) -> str:
         assert self.low is not None and self.high is not None

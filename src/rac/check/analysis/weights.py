@@ -31,6 +31,7 @@ inequality in least integer terms (``Poly.primitive``).
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Callable, Sequence
@@ -87,7 +88,8 @@ class Region:
 
     def describe(self) -> list[str]:
         """The inequalities, each in least integer terms with its leading parameter alone on one side."""
-        return [_describe(q, self.parameters, self.order) for q in self.inequalities]
+        names = [p.name for p in self.parameters]
+        return [_describe(q, names, self.order) for q in self.inequalities]
 
 
 class Unsupported(Exception):
@@ -152,8 +154,6 @@ def _where(a: ir.Automaton, b: ir.Automaton) -> str:
 
 
 def _without_objective(automaton: ir.Automaton) -> ir.Automaton:
-    import dataclasses
-
     return dataclasses.replace(automaton, objective=ir.Linear.constant(Fraction(0)), constants=(), parameters=())
 
 
@@ -206,8 +206,8 @@ def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) 
     integer = point is not None
     if point is None:
         point = _least(box + list(kept), order)
-    return Region(parameters, kept, tuple(sorted(vertices)), point, integer, order, tuple(sentences),
-                  point if point is not None else candidate)
+    assert point is not None, "the set has a vertex: it passed the vertex check"
+    return Region(parameters, kept, tuple(sorted(vertices)), point, integer, order, tuple(sentences), point)
 
 
 class _Oracle:
@@ -246,7 +246,7 @@ class _Oracle:
             cut = Inequality(tuple(row), bound)
             found.append(cut)
             where = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(self.names, point))
-            need = (f"needs {_describe(cut, None, None, self.names)}" if any(row)
+            need = (f"needs {_describe(cut, self.names)}" if any(row)
                     else "fails whatever the parameters are (they do not weigh what it compares)")
             sentences.append(f"at {where}, P2 for `{a.priority[level]}` {need}")
         return found
@@ -288,7 +288,7 @@ def _p1(automaton: ir.Automaton, weights: Weights, sentences: list[str]) -> list
                             continue  # a constant weight on the harmless side
                         found.append(cut)
                         names = [p.name for p in automaton.parameters]
-                        need = (_describe(cut, None, None, names) if any(gradient) else
+                        need = (_describe(cut, names) if any(gradient) else
                                 f"the weight of `{second}` {'<=' if sign > 0 else '>='} 0, whatever the parameters are")
                         sentences.append(f"P1 in `{location.name}` ({first} > {second}) needs {need}")
     return found
@@ -397,13 +397,12 @@ def _normalised(cut: Inequality) -> Inequality | None:
     return Inequality(tuple(Fraction(x, divisor) for x in whole), cut.bound * scale / divisor)
 
 
-def _describe(cut: Inequality, parameters: tuple[ir.Parameter, ...] | None, order: tuple[int, ...] | None,
-              names: list[str] | None = None) -> str:
-    """``10 * w1 >= 37 * w2 + 50``: the leading parameter (first in ``order``) alone on the left,
-    with a positive coefficient, the rest on the right, in least integer terms (sympy's ``primitive``)."""
+def _describe(cut: Inequality, names: list[str], order: tuple[int, ...] | None = None) -> str:
+    """``10 * w1 >= 37 * w2 + 50``: the leading parameter (first in ``order``, else in declaration order)
+    alone on the left, with a positive coefficient, the rest on the right, in least integer terms
+    (sympy's ``primitive``)."""
     from sympy import Poly, Rational, symbols
 
-    names = names if names is not None else [p.name for p in parameters or ()]
     order = order if order is not None else tuple(range(len(names)))
     xs = symbols(" ".join(f"x{i}" for i in range(len(names))) + " _", seq=True)[:len(names)]
     expr = sum((Rational(a.numerator, a.denominator) * x for a, x in zip(cut.coefficients, xs)), Rational(0)) \
