@@ -314,10 +314,13 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
 
 
 def verdict_status(results: Sequence[QueryResult]) -> int:
-    """``rac verify``'s exit code: a query that does not hold outweighs one that was not decided."""
-    if any(r.status == "not satisfied" for r in results):
+    """``rac verify``'s exit code: a query that does not hold outweighs one that was not decided (a
+    query that is not applicable is neither: its failed defining query sets the code)."""
+    from rac.verify.status import NOT_SATISFIED, UNDECIDED
+
+    if any(r.status == NOT_SATISFIED for r in results):
         return EXIT_ERRORS
-    if any(r.status in ("unknown", "unsupported") for r in results):
+    if any(r.status in UNDECIDED for r in results):
         return EXIT_UNDECIDED
     return EXIT_OK
 

@@ -53,7 +53,9 @@ def exit_status(rows: Sequence[Mapping[str, object]]) -> int:
     else 4 when a task could not run (error, timeout, memory) or a verdict is unknown or unsupported, else 0."""
     if any(row.get("status") == "failed" for row in rows):
         return EXIT_ERRORS
-    undecided = {"unknown", "unsupported"}
+    from rac.verify.status import UNDECIDED
+
+    undecided = set(UNDECIDED)
     for row in rows:
         verdicts = row.get("verdicts")
         if row.get("status") != "ok" or isinstance(verdicts, Mapping) and undecided & set(map(str, verdicts.values())):

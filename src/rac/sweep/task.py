@@ -29,6 +29,7 @@ from typing import Any
 
 import rac
 from rac.engine.budget import format_bytes
+from rac.verify.status import VERDICTS as report_verdicts
 
 __all__ = ["OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec", "memory_error", "run_task"]
 
@@ -38,8 +39,8 @@ TASKS = ("check", "verify", "preanalyse", "experiment")
 #: not satisfied), "error" (rac could not run it), "timeout" and "memory" (the task's limits).
 STATUSES = ("ok", "failed", "error", "timeout", "memory")
 #: The verdicts a row's ``verdicts`` holds (a query whose answer is a value, ``Pr[<=T](<> p)`` or
-#: ``simulate``, has none and is not listed).
-VERDICTS = ("satisfied", "not satisfied", "unknown", "unsupported")
+#: ``simulate``, has none and is not listed): rac verify's own (:data:`rac.verify.report.VERDICTS`).
+VERDICTS = report_verdicts
 #: The options a task takes (:attr:`TaskSpec.options`), as the commands' options of the same names.
 OPTIONS: dict[str, str] = {
     "horizon": "horizon in seconds (default: the automaton's)",

@@ -168,6 +168,7 @@ def _budget(options: dict[str, Any]) -> dict[str, Any]:
 
 def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
     from rac.verify.runner import VerifyOptions, verify
+    from rac.verify.status import UNDECIDED, VERDICTS
 
     chosen: dict[str, Any] = {"horizon": options.get("horizon"), "seed": options.get("seed"), "plots": False,
                               **_budget(options)}
@@ -178,12 +179,11 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any])
             results = verify(result, VerifyOptions(out_dir=Path(out), **chosen))
         except ValueError as exc:  # the horizon is not a whole number of samples
             raise TaskError(str(exc)) from None
-    row["verdicts"] = {r.name: r.status for r in results if r.status in ("satisfied", "not satisfied", "unknown",
-                                                                         "unsupported")}
+    row["verdicts"] = {r.name: r.status for r in results if r.status in VERDICTS}
     states = [r.states for r in results if r.states is not None]
     row["states"] = max(states) if states else None
     failed = [r.name for r in results if r.status == "not satisfied"]
-    undecided = [f"{r.name} ({r.status}: {r.message})" for r in results if r.status in ("unknown", "unsupported")]
+    undecided = [f"{r.name} ({r.status}: {r.message})" for r in results if r.status in UNDECIDED]
     if failed:
         row.update(status="failed", error="not satisfied: " + ", ".join(failed))
     elif undecided:

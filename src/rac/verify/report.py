@@ -19,9 +19,11 @@ from rac.engine.graph import LABELS
 from rac.ir import expr as ie
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.native import NEGATIVE_DISTANCE_TEXT
+from rac.verify.status import METHODS, NOT_APPLICABLE, NOT_SATISFIED, SATISFIED, UNKNOWN
 
 __all__ = ["TRACE_FLAGS", "QueryResult", "TraceRow", "count_noun", "format_number", "plot_series", "render_json",
            "render_text", "write_csv"]
+
 
 #: One state of a witness trace: ``time`` (s) and the sensed ego state (:data:`EGO_STATE`, reals); where
 #: known the automaton's ``location``, a product state's ``phase`` and rewards, and the :data:`TRACE_FLAGS`.
@@ -35,9 +37,11 @@ TRACE_FLAGS: tuple[str, ...] = tuple(label for label in LABELS if label != "safe
 class QueryResult:
     """One query's answer, in the shape ``rac verify`` prints and ``--format json`` writes.
 
-    ``status`` is ``"satisfied"``, ``"not satisfied"``, ``"value"`` (a probability, an
-    expectation or simulated runs), ``"unknown"`` (budget or horizon exceeded) or
-    ``"unsupported"``; ``message`` says why for the last two."""
+    ``status`` is one of :data:`rac.verify.status.STATUSES`: ``"satisfied"``, ``"not satisfied"``, ``"value"`` (a
+    probability, an expectation or simulated runs), ``"unknown"`` (budget or horizon exceeded),
+    ``"unsupported"`` or ``"not_applicable"`` (the strategy it depends on provably does not exist);
+    ``message`` says why for the last three. ``method`` (a key of :data:`rac.verify.status.METHODS`, or None) says how
+    the verdict was reached."""
 
     name: str
     formula: str
@@ -58,6 +62,8 @@ class QueryResult:
     #: ``Pr`` without ``under``: the exact probability under uniform choices, computed by Storm
     #: on the explored model (what the interval estimates); None when the model is too large.
     exact: float | None = None
+    #: How the verdict was reached: a key of :data:`rac.verify.status.METHODS` (None: not said).
+    method: str | None = None
     span: Span | None = field(default=None, compare=False)
 
     def to_json(self) -> dict[str, object]:
@@ -133,6 +139,8 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
             lines.append(f" -- Formula is UNKNOWN: {r.message}")
         elif r.status == "unsupported":
             lines.append(f" -- Not answered: {r.message}")
+        elif r.status == NOT_APPLICABLE:
+            lines.append(f" -- Not applicable: {r.message}")
         if r.kind == "probability" and r.interval is not None:
             lines.append(f" -- Pr in [{r.interval[0]:.4f}, {r.interval[1]:.4f}] ({r.runs} runs, "
                          f"{_confidence(r)} CI)")
@@ -159,7 +167,9 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
         if r.seed is not None:
             details.append(f"seed {r.seed}")
         lines.append("    " + ", ".join(details))
-        if r.kind in ("strategy", "symbolic") and r.message and r.status != "unknown":
+        if r.method is not None and r.status in (SATISFIED, NOT_SATISFIED):
+            lines.append(f"    {METHODS[r.method]}")
+        if r.kind in ("strategy", "symbolic") and r.message and r.status not in (UNKNOWN, NOT_APPLICABLE):
             lines.append(f"    {r.message}")
         for file in r.files:
             lines.append(f"    wrote {file}")
