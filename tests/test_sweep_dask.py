@@ -140,7 +140,8 @@ def test_the_results_are_merged_summarised_and_plotted(swept: tuple[SweepResult,
     assert is_png(out / "verdicts.png") and is_png(out / "time_vs_size.png")
     summary = result.summary
     assert (summary.tasks, summary.ok, summary.failed, summary.skipped, summary.not_run) == (6, 3, 3, 0, 0)
-    assert summary.queries == {"Stays": {"satisfied": 3, "not satisfied": 1, "unknown": 0, "unsupported": 0}}
+    assert summary.queries == {"Stays": {"satisfied": 3, "not satisfied": 1, "unknown": 0, "unsupported": 0,
+                                            "not_applicable": 0}}
     assert summary.seconds["p50"] <= summary.seconds["p90"] <= summary.seconds["max"]
     text = render_summary(summary)
     assert text.splitlines()[:3] == ["tasks  ok  failed  skipped  not run",
