@@ -317,6 +317,11 @@ class Automaton:
         return int(self.horizon / self.period)
 
     @property
+    def rates_read_inputs(self) -> bool:
+        """Whether some rate reads an input (then the first sample's rewards accrue with its inputs)."""
+        return any(rate.terms for location in self.locations for rate in location.rates)
+
+    @property
     def location_names(self) -> tuple[str, ...]:
         return tuple(loc.name for loc in self.locations)
 

@@ -299,4 +299,4 @@ def mirror_update(value: ir.Linear, scale: int) -> tuple[Fraction, list[tuple[Fr
 def first_sample_reads(automaton: ir.Automaton) -> bool:
     """Whether some rate reads an input: then the first sample's accrual, which has no held inputs
     yet, happens on ``read?`` with that sample's inputs instead of on ``accrue?``."""
-    return any(rate.terms for location in automaton.locations for rate in location.rates)
+    return automaton.rates_read_inputs
