@@ -11,6 +11,7 @@ comparisons is exact, so it must agree too.
 from __future__ import annotations
 
 from fractions import Fraction
+from pathlib import Path
 
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
@@ -23,6 +24,8 @@ from rac.compiler import compile_text
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.runtime.semantics import first_sample_reads
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def value(node: ie.Expr, location: int, inputs: dict[str, object], rewards: tuple[Fraction, ...]) -> object:
@@ -165,7 +168,7 @@ def test_invariant_agrees_with_brute_force(data: st.DataObject) -> None:
 
 
 def test_the_driving_queries_are_proved_and_a_wrong_one_refuted() -> None:
-    text = open("stdlib/driving.ra").read()
+    text = open(ROOT / "stdlib/driving.ra").read()
     for formula, expected in [("isClose imply Unsafe", PROVED), ("Unsafe imply 10 * sa + 5 * pr + co <= 0", PROVED),
                               ("isClose imply Normal", REFUTED), ("Unsafe imply sa <= -200", REFUTED)]:
         automaton, expr = with_query(text.replace("horizon 30", "horizon 2"), formula)
@@ -173,7 +176,7 @@ def test_the_driving_queries_are_proved_and_a_wrong_one_refuted() -> None:
 
 
 def test_queries_reading_the_model_are_left_to_the_model() -> None:
-    result = compile_text(open("examples/left_turn/model.ra").read().replace(
+    result = compile_text(open(ROOT / "examples/left_turn/model.ra").read().replace(
         "query Qe:", "query Q: A[] Unsafe imply mindist() < 10\n    query Qe:"), "examples/left_turn/model.ra",
         analyse=False)
     assert result.automaton is not None
