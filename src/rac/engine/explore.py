@@ -31,7 +31,7 @@ from rac.ir.vocabulary import EGO_STATE
 from rac.model.batch import BatchModel, batch_model, distinct_values
 from rac.model.data import ModelData
 
-__all__ = ["COLUMNS", "STICKY_COLUMNS", "action_pairs", "explore", "forgets_actions"]
+__all__ = ["COLUMNS", "STICKY_COLUMNS", "Beam", "Stop", "action_pairs", "explore", "forgets_actions"]
 
 #: The columns of :attr:`ExploredGraph.states` produced by :func:`explore`.
 COLUMNS: tuple[str, ...] = ("k", *EGO_STATE)
@@ -39,6 +39,12 @@ COLUMNS: tuple[str, ...] = ("k", *EGO_STATE)
 STICKY_COLUMNS: tuple[str, ...] = (*COLUMNS, "crashed")
 
 Progress = Callable[[int, int, int], None]
+#: ``stop_at(k, rows) -> (n,) bool``: the states of layer ``k`` (its rows as the graph stores them, without
+#: the ``k`` column) at which :func:`explore` stops — a witness found, nothing more to build.
+Stop = Callable[[int, np.ndarray], np.ndarray]
+#: ``beam(k, rows) -> indices``: the states of layer ``k`` (rows as for :data:`Stop`) that :func:`explore`
+#: keeps (distinct, ascending); the others are dropped with the choices leading to them.
+Beam = Callable[[int, np.ndarray], np.ndarray]
 
 
 def _unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -161,9 +167,23 @@ def forgets_actions(k: int | np.ndarray, decide_every: int, horizon_samples: int
     return (k % decide_every == 0) | (k == horizon_samples)
 
 
+def _trim(frontier: np.ndarray, inverse: np.ndarray, kept: np.ndarray,
+          rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The layer ``frontier`` cut to its ``rows``: the kept rows, each surviving choice's row among them,
+    and which choices are kept (those leading to a dropped row are no longer)."""
+    remap = np.full(frontier.shape[0], -1, dtype=np.int64)
+    remap[rows] = np.arange(rows.size, dtype=np.int64)
+    inverse = remap[inverse]
+    survives = inverse >= 0
+    kept = kept.copy()
+    kept[np.flatnonzero(kept)[~survives]] = False
+    return np.ascontiguousarray(frontier[rows]), inverse[survives], kept
+
+
 def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe: bool = False,
             progress: Progress | None = None, max_states: int | None = None,
-            max_bytes: int | None = None, forget_actions: bool = False) -> ExploredGraph:
+            max_bytes: int | None = None, forget_actions: bool = False,
+            stop_at: Stop | None = None, beam: Beam | None = None) -> ExploredGraph:
     """Explore every state reachable from the ego's start, breadth-first, one sample per layer.
 
     A state is ``(k, x, y, v, acc, head, jerk, turn)`` (:data:`COLUMNS`; int32); state 0 is the
@@ -198,6 +218,12 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     Labels (``(n,)`` bool): ``collide``, ``offroad``, ``goal``, ``safe`` (``!collide && !offroad``).
     ``progress(layer, frontier_size, total_states)`` is called once per explored layer.
 
+    Searching rather than building (:mod:`rac.engine.witness`): ``stop_at`` (:data:`Stop`) is asked
+    about each layer as soon as it is built; when it marks a state the exploration stops there, that
+    layer's states without choices. ``beam`` (:data:`Beam`) chooses which states of each new layer
+    are kept. A graph stopped early or cut by the beam has :attr:`ExploredGraph.complete` False: its
+    terminal states are not the model's, and no query may be decided "no" on it.
+
     Budgets (:mod:`rac.engine.budget`): :class:`~rac.engine.budget.BudgetExceeded` (a ``MemoryError``)
     as soon as more than ``max_states`` states have been found, or when deciding a query on the
     graph would need more than ``max_bytes`` — checked before a layer is expanded and while it is
@@ -227,6 +253,7 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     targets: list[np.ndarray] = []
     labels: dict[str, list[np.ndarray]] = {name: [] for name in LABELS}
     total = choices = 0
+    complete = True  # False once a layer is cut by the beam or the search stops before the horizon
     try:
         for k in range(horizon_samples + 1):
             size = frontier.shape[0]
@@ -242,8 +269,10 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
             if progress is not None:
                 progress(k, size, total)
             budget.check_states(total, k)
-            if k == horizon_samples:
+            found = stop_at is not None and bool(np.any(stop_at(k, frontier)))
+            if k == horizon_samples or found:
                 counts.append(np.zeros(size, dtype=np.int64))
+                complete = complete and k == horizon_samples
                 break
             expand = safe if prune_unsafe else np.ones(size, dtype=bool)
             sources = frontier[expand]
@@ -274,6 +303,11 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
             forget = forget_actions and bool(forgets_actions(k + 1, data.decide_every, horizon_samples))
             frontier, inverse, kept = _expand(model, sources, pairs if decide else None, check,
                                               keep if restricted else None, forget, step if sticky else None)
+            if beam is not None and frontier.shape[0]:
+                rows = np.asarray(beam(k + 1, frontier), dtype=np.int64)
+                if rows.size < frontier.shape[0]:
+                    frontier, inverse, kept = _trim(frontier, inverse, kept, rows)
+                    restricted, complete = True, False  # some choices now lead nowhere: dropped
             choices -= kept.size - int(kept.sum())  # the disallowed choices are not in the graph
             count = np.zeros(size, dtype=np.int64)
             count[expand] = kept.reshape(-1, per_state).sum(axis=1) if restricted else per_state
@@ -300,4 +334,4 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
         states=states, columns=columns, choice_offsets=offsets,
         choice_action=np.concatenate(actions) if actions else np.zeros(0, dtype=np.int64),
         choice_target=np.concatenate(targets) if targets else np.zeros(0, dtype=np.int64),
-        initial=0, labels={name: np.concatenate(masks) for name, masks in labels.items()})
+        initial=0, labels={name: np.concatenate(masks) for name, masks in labels.items()}, complete=complete)

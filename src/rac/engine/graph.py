@@ -25,6 +25,11 @@ class ExploredGraph:
     state i are ``choice_offsets[i] : choice_offsets[i + 1]`` in ``choice_action`` (the
     action index, -1 when no decision is taken) and ``choice_target`` (the successor's index).
     A state with no choices is terminal (the horizon is reached).
+
+    ``complete`` is False for a graph whose exploration stopped at a witness before the horizon or
+    kept only some states of a layer (:func:`rac.engine.explore.explore`'s ``stop_at`` and ``beam``):
+    its states and paths are the model's, but its terminal states need not be, so it proves that a
+    run exists, never that none does.
     """
 
     states: np.ndarray  # (n, d) int32 (significands and the sample index)
@@ -34,6 +39,7 @@ class ExploredGraph:
     choice_target: np.ndarray  # (m,) int64
     initial: int = 0
     labels: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (n,) bool
+    complete: bool = True
 
     @property
     def n_states(self) -> int:
@@ -56,6 +62,20 @@ class ExploredGraph:
         the emitted model deadlocks. Needs the ``k`` column and the ``safe`` label."""
         k = self.states[:, self.columns.index("k")]
         return self.terminal() & (k < horizon_samples) & self.labels["safe"]
+
+    def path_to(self, state: int) -> list[int]:
+        """A path of states from the initial state to ``state`` through the graph's choices (a graph
+        explored layer by layer has no cycles; ``ValueError`` when ``state`` is not reached)."""
+        owner = np.repeat(np.arange(self.n_states, dtype=np.int64), np.diff(self.choice_offsets))
+        parent = np.full(self.n_states, -1, dtype=np.int64)
+        parent[self.choice_target[::-1]] = owner[::-1]  # the first choice leading to each state
+        path = [int(state)]
+        while path[-1] != self.initial:
+            before = int(parent[path[-1]])
+            if before < 0 or len(path) > self.n_states:
+                raise ValueError(f"state {state} is not reached from the initial state")
+            path.append(before)
+        return path[::-1]
 
     def reachable(self) -> np.ndarray:
         """The states reachable from the initial one through the graph's choices (a restricted graph
