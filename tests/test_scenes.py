@@ -20,12 +20,15 @@ from rac.verify.context import VerifyOptions
 from rac.verify.runner import run_queries
 
 #: Per scene: lanelets, obstacles, and the settings of a small model over it.
-EXPECTED = {"highway": (3, 3), "overtaking": (2, 2), "t_junction": (12, 2), "left_turn": (20, 3)}
+EXPECTED = {"highway": (3, 3), "overtaking": (2, 2), "t_junction": (12, 2), "left_turn": (20, 3), "urban": (6, 0),
+            "urban_head_on": (4, 1)}
 SETTINGS = {
     "highway": "max_speed 30\naction turn in [-0.2, 0.2] step 0.2",
     "overtaking": "max_speed 25\naction turn in [-0.2, 0.2] step 0.2",
     "t_junction": "action turn in [0, 0.4] step 0.2",
     "left_turn": "action turn in [0, 0.4] step 0.2",
+    "urban": "action turn in [0, 0.4] step 0.2",
+    "urban_head_on": "action turn in [0, 0.4] step 0.2",
 }
 MODEL = """\
 scenario "{name}.xml"
@@ -99,6 +102,28 @@ def test_the_scenes_differ_in_kind() -> None:
     assert max(len(p.points) for p in junction.road) > 20  # quarter circles
     headings = {round(o.waypoints[0].heading, 2) for o in overtaking.obstacles}
     assert headings == {0.0, round(np.pi, 2)}  # one vehicle each way
+
+
+def test_the_urban_scenes_keep_their_promises(tmp_path: Path) -> None:
+    """On the obstacle-free boulevard the ego that keeps its speed reaches the goal at 13.2 s, safely;
+    on the head-on street it runs into car 91 at 10.3 s, while the car changes back to its side."""
+    arrivals = {}
+    for name, horizon in (("urban", 14), ("urban_head_on", 21)):
+        result = compile_file(scene_file(tmp_path, name, horizon))
+        assert result.ok, result.diagnostics
+        data = result.model_data
+        model = NativeModel(data)
+        state = model.initial_state()
+        for k in range(1, horizon * 10 + 1):
+            state = model.sense(state)
+            if model.collide(state, k) or model.offroad(state, k) or model.goal(state, k):
+                arrivals[name] = (k, model.collide(state, k), model.offroad(state, k), model.goal(state, k))
+                break
+        if name == "urban_head_on":
+            assert (data.goal_low, data.goal_high) == (194, 204)
+            x, y, _ = model.obstacle_position(0, k)
+            assert x == pytest.approx(200 - 10 * 10.3, abs=0.1) and 5.25 < y < 8.75  # changing lanes
+    assert arrivals == {"urban": (132, False, False, True), "urban_head_on": (103, True, False, False)}
 
 
 def load_scenario_bytes(name: str):

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import numpy as np
@@ -30,8 +30,8 @@ from commonroad.scenario.state import ExtendedPMState, InitialState
 from commonroad.scenario.trajectory import Trajectory
 from lxml import etree
 
-__all__ = ["DECIMALS", "DT", "FILE_DATE", "canonical_xml", "check_schema", "clean", "straight_car",
-           "scenario_bytes"]
+__all__ = ["DECIMALS", "DT", "FILE_DATE", "Track", "canonical_xml", "check_schema", "clean", "recorded_car",
+           "straight_car", "scenario_bytes"]
 
 DT = 0.1  #: s, the CommonRoad time step of the generated scenes
 #: Decimals written to the file. commonroad-io's writer truncates floats to its precision, so every
@@ -62,6 +62,32 @@ def straight_car(obstacle_id: int, x: float, y: float, heading: float, velocity:
                            acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
     states = [ExtendedPMState(time_step=k, position=position(k), velocity=velocity, orientation=heading,
                               acceleration=0.0) for k in range(1, steps + 1)]
+    shape = RectObstacleShape(width=width, length=length)
+    return DynamicObstacle(obstacle_id, kind, shape, initial, TrajectoryPrediction(Trajectory(1, states), shape))
+
+
+#: ``track(t) -> (x, y, heading, speed)``: where a recorded vehicle is at time ``t`` (s), which way it drives
+#: (rad) and how fast (m/s).
+Track = Callable[[float], tuple[float, float, float, float]]
+
+
+def recorded_car(obstacle_id: int, track: Track, steps: int, *, length: float = 4.5, width: float = 1.8,
+                 kind: ObstacleType = ObstacleType.CAR) -> DynamicObstacle:
+    """A vehicle following ``track`` (:data:`Track`) at each time step ``0 .. steps`` (the way a recorded
+    trajectory is written: a position, an orientation and a speed per step)."""
+
+    def state(k: int) -> tuple[np.ndarray, float, float]:
+        x, y, heading, speed = track(k * DT)
+        return clean(np.array([x, y])), float(clean(heading)), float(clean(speed))
+
+    position, heading, speed = state(0)
+    initial = InitialState(time_step=0, position=position, orientation=heading, velocity=speed,
+                           acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
+    states = []
+    for k in range(1, steps + 1):
+        position, heading, speed = state(k)
+        states.append(ExtendedPMState(time_step=k, position=position, velocity=speed, orientation=heading,
+                                      acceleration=0.0))
     shape = RectObstacleShape(width=width, length=length)
     return DynamicObstacle(obstacle_id, kind, shape, initial, TrajectoryPrediction(Trajectory(1, states), shape))
 

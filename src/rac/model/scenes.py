@@ -1,6 +1,6 @@
 """Small scenes of the kinds rac is judged on, built in code with commonroad-io.
 
-Four scenes, each a CommonRoad 2020a file written like a user's (:mod:`rac.model.scenario_xml`),
+Six scenes, each a CommonRoad 2020a file written like a user's (:mod:`rac.model.scenario_xml`),
 with the ego's planning problem 100 and 0.1 s time steps:
 
 - ``left_turn``: the paper's left-turn intersection (:mod:`rac.model.intersection`);
@@ -38,15 +38,17 @@ from commonroad.scenario.scenario import Scenario, Tag
 from commonroad.scenario.state import CustomState, InitialState
 
 from rac.model.intersection import left_turn_bytes, t_junction_bytes
-from rac.model.scenario_xml import DT, clean, scenario_bytes, straight_car
+from rac.model.scenario_xml import DT, clean, recorded_car, scenario_bytes, straight_car
 
-__all__ = ["LANE_WIDTH", "PLANNING_PROBLEM_ID", "SCENES", "build_highway", "build_overtaking", "scene_bytes",
-           "write_scene"]
+__all__ = ["HEAD_ON_STEPS", "LANE_WIDTH", "PLANNING_PROBLEM_ID", "SCENES", "URBAN_STEPS", "build_highway",
+           "build_overtaking", "build_urban", "build_urban_head_on", "head_on_track", "scene_bytes", "write_scene"]
 
 LANE_WIDTH = 3.5  #: m
 PLANNING_PROBLEM_ID = 100
 ROAD_LENGTH = 300.0  #: m, from x = 0
 STEPS = 120  #: time steps of the obstacles' trajectories and of the goal's time interval (12 s)
+URBAN_STEPS = 140  #: the urban street's time steps (14 s)
+HEAD_ON_STEPS = 210  #: the head-on scene's time steps (21 s)
 
 
 def _lane(lanelet_id: int, y_right: float, *, towards_x: bool, left: int | None, left_same: bool | None,
@@ -69,12 +71,15 @@ def _lane(lanelet_id: int, y_right: float, *, towards_x: bool, left: int | None,
                    lanelet_type={kind})
 
 
-def _problem(x: float, y: float, velocity: float, goal_x: tuple[float, float], road_width: float) -> PlanningProblemSet:
+def _problem(x: float, y: float, velocity: float, goal_x: tuple[float, float], road_width: float,
+             steps: tuple[int, int] = (0, STEPS)) -> PlanningProblemSet:
+    """The ego's planning problem: its start, and a goal spanning the road from ``goal_x[0]`` to
+    ``goal_x[1]`` within the time steps ``steps``."""
     initial = InitialState(time_step=0, position=clean(np.array([x, y])), orientation=0.0,
                            velocity=float(clean(velocity)), acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
     area = RectOccupancy(rect_center=shapely.Point(float(clean((goal_x[0] + goal_x[1]) / 2)), road_width / 2),
                          length=float(clean(goal_x[1] - goal_x[0])), width=road_width, orientation=0.0)
-    goal = GoalRegion([CustomState(time_step=Interval(0, STEPS), position=area)])
+    goal = GoalRegion([CustomState(time_step=Interval(*steps), position=area)])
     return PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, initial, goal)])
 
 
@@ -115,6 +120,59 @@ def build_overtaking() -> tuple[Scenario, PlanningProblemSet]:
     return scenario, _problem(20.0, LANE_WIDTH / 2, 12.0, (100.0, 150.0), 2 * LANE_WIDTH)
 
 
+def _street(name: str, lanes: int) -> Scenario:
+    """An urban street of ``lanes`` 3.5 m lanes per direction: lanelets 1 .. ``lanes`` towards +x from
+    y = 0 up, the next ``lanes`` towards -x above them."""
+    scenario = Scenario(DT, ScenarioID(country_id="ZAM", map_name=name, map_id=1, obstacle_behavior="T",
+                                       prediction_id=1))
+    for i in range(2 * lanes):
+        if i < lanes:  # towards +x: its left is the next lane up (the first oncoming one after the last)
+            scenario.add_objects(_lane(i + 1, i * LANE_WIDTH, towards_x=True, left=i + 2, left_same=i + 1 < lanes,
+                                       right=i if i > 0 else None, kind=LaneletType.URBAN))
+        else:  # towards -x: its left is the lane below
+            scenario.add_objects(_lane(i + 1, i * LANE_WIDTH, towards_x=False, left=i, left_same=i > lanes,
+                                       right=i + 2 if i + 1 < 2 * lanes else None, kind=LaneletType.URBAN))
+    return scenario
+
+
+def build_urban() -> tuple[Scenario, PlanningProblemSet]:
+    """An urban boulevard without other road users: three lanes per direction (:func:`_street`). The
+    ego starts at x = 10 in lanelet 1 at 8 m/s; the goal spans the road from x = 115 to 145 within
+    14 s (keeping its speed the ego gets there after about 13.2 s; accelerating, from 7 s on). Every
+    run is safe as long as it stays on the road, so the runs are many (each decision's actions
+    multiply them: examples/paper/model.ra's settings give more than 5 million states) and those that
+    reach the goal early few."""
+    scenario = _street("Urban", 3)
+    return scenario, _problem(10.0, LANE_WIDTH / 2, 8.0, (115.0, 145.0), 6 * LANE_WIDTH, (0, URBAN_STEPS))
+
+
+#: Car 91 of :func:`build_urban_head_on`: from x = 200 at 10 m/s towards -x in the ego's lane
+#: (lanelet 2), back to its own side (lanelet 3) between 10 and 12 s (a smooth lane change of 3.5 m).
+HEAD_ON_START, HEAD_ON_SPEED, HEAD_ON_BACK = 200.0, 10.0, (10.0, 12.0)
+
+
+def head_on_track(t: float) -> tuple[float, float, float, float]:
+    """Car 91's position, heading and speed at time ``t`` (:data:`rac.model.scenario_xml.Track`)."""
+    start, end = HEAD_ON_BACK
+    u = min(max((t - start) / (end - start), 0.0), 1.0)
+    y = 1.5 * LANE_WIDTH + LANE_WIDTH * (3 * u * u - 2 * u * u * u)
+    vy = LANE_WIDTH * 6 * u * (1 - u) / (end - start) if 0.0 < u < 1.0 else 0.0
+    vx = -HEAD_ON_SPEED
+    return HEAD_ON_START + vx * t, y, float(np.arctan2(vy, vx)), float(np.hypot(vx, vy))
+
+
+def build_urban_head_on() -> tuple[Scenario, PlanningProblemSet]:
+    """An urban street of two lanes per direction (:func:`_street`) over 21 s with car 91
+    (:func:`head_on_track`) coming towards the ego in the ego's lane (lanelet 2, the inner one),
+    overtaking, until it returns to its own side between 10 and 12 s. The ego starts at x = 10 in
+    lanelet 2 at 8 m/s: keeping its speed and heading it runs into car 91 at 10.3 s. The goal spans the
+    road from x = 140 to 180 between 19.4 and 20.4 s (samples 194 to 204): the ego gives way — slows
+    down or changes lanes — and drives on to arrive in that window."""
+    scenario = _street("UrbanHeadOn", 2)
+    scenario.add_objects(recorded_car(91, head_on_track, HEAD_ON_STEPS))
+    return scenario, _problem(10.0, 1.5 * LANE_WIDTH, 8.0, (140.0, 180.0), 4 * LANE_WIDTH, (194, 204))
+
+
 def _straight_bytes(build: Callable[[], tuple[Scenario, PlanningProblemSet]], name: str,
                     tags: set[Tag]) -> Callable[[], bytes]:
     def make() -> bytes:
@@ -130,6 +188,9 @@ SCENES: dict[str, Callable[[], bytes]] = {
                                   {Tag.RURAL, Tag.TWO_LANE, Tag.ONCOMING_TRAFFIC, Tag.EMERGENCY_BRAKING}),
     "t_junction": t_junction_bytes,
     "left_turn": left_turn_bytes,
+    "urban": _straight_bytes(build_urban, "urban", {Tag.URBAN, Tag.TWO_LANE, Tag.NO_ONCOMING_TRAFFIC}),
+    "urban_head_on": _straight_bytes(build_urban_head_on, "urban_head_on",
+                                     {Tag.URBAN, Tag.TWO_LANE, Tag.ONCOMING_TRAFFIC, Tag.CRITICAL}),
 }
 
 
