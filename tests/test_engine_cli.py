@@ -118,7 +118,7 @@ def test_verify_unknown_query_exits_2(capsys: pytest.CaptureFixture[str], tmp_pa
 
 def test_verify_state_budget_is_unknown_with_a_hint(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "goal_ahead")
-    assert main(["verify", str(path), "--query", "Stays", "--query", "Product", "--max-states", "10"]) == 4
+    assert main(["verify", str(path), "--query", "Stays", "--query", "Somewhere", "--max-states", "10"]) == 4
     out = normalised(capsys.readouterr().out)
     assert out == f"""\
 Verifying Stays: E[] !collide() && !offroad()  ({path}:{line_of(path, "Stays")})
@@ -126,10 +126,11 @@ Verifying Stays: E[] !collide() && !offroad()  ({path}:{line_of(path, "Stays")})
 (--horizon), coarsen the model (exponent, action steps, decide_period) or raise --max-states if the machine has \
 the memory
     T s
-Verifying Product: A[] Close imply sa <= 0  ({path}:{line_of(path, "Product")})
+Verifying Somewhere: E<> Close  ({path}:{line_of(path, "Somewhere")})
  -- Formula is UNKNOWN: the product of model and automaton has more than 10 states by t = 0.5 s (sample 1): \
 shorten the horizon (--horizon), coarsen the model (exponent, action steps, decide_period) or raise --max-states \
-if the machine has the memory (rewards rarely merge: the product grows quickly)
+if the machine has the memory (the automaton alone does not decide it: a run of the automaton reaches `Close` \
+with inputs near=true)
     T s
 """
 

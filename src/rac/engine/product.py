@@ -47,7 +47,8 @@ Every input needs a binding (a checked file with a ``model`` block has one for e
 are not enforced on the values the bindings give. A mirror leaving int32 (UPPAAL aborts there)
 raises :class:`rac.model.ModelRangeError`.
 
-Rewards rarely merge, so product state spaces grow fast: pass ``max_states`` and ``max_bytes`` for a
+The model's own states rarely merge (centimetre positions are unique per action history), so product
+state spaces grow fast: pass ``max_states`` and ``max_bytes`` for a
 clean :class:`~rac.engine.budget.BudgetExceeded` instead of running out of memory.
 
 Example (81 action pairs every 0.2 s: 4 samples are 33,000 states, 6 samples 2.7 million)::
@@ -83,7 +84,7 @@ from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
 
 __all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
-           "explore_product"]
+           "explore_product", "trace_to"]
 
 #: The ``phase`` column: which instant of its sample a state is (see the module docstring).
 PHASES: tuple[str, ...] = ("accrued", "read", "sampled", "ended")
@@ -297,6 +298,8 @@ class ProductGraph(ExploredGraph):
     prev_exprs: tuple[ie.Expr, ...] = ()
     prev_values: np.ndarray | None = None
     evaluator: Evaluator | None = field(default=None, compare=False, repr=False)
+    #: With ``stop_at``: the first state it marked (the exploration stopped after its layer), else -1.
+    stopped_at: int = -1
 
     @staticmethod
     def columns_of(automaton: ir.Automaton) -> tuple[str, ...]:
@@ -383,7 +386,8 @@ class ProductGraph(ExploredGraph):
 # ---------------------------------------------------------------- exploration
 def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples: int | None = None,
                     prune_unsafe: bool = False, progress: Progress | None = None,
-                    max_states: int | None = None, max_bytes: int | None = None) -> ProductGraph:
+                    max_states: int | None = None, max_bytes: int | None = None,
+                    stop_at: Callable[[ProductGraph], np.ndarray] | None = None) -> ProductGraph:
     """Explore the product of the model and ``automaton`` breadth-first, one phase of a sample per layer.
 
     State 0 is the start (sample 0, ``sampled``, the ego's start with jerk and turn 0, the initial
@@ -392,10 +396,15 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     order of one sample and the phases). With ``prune_unsafe=True``, ``sampled`` states that collide
     or are off-road are terminal (the automaton has reacted to the sample; nothing follows).
     ``progress(sample, sampled_states, total_states)`` is called once per sample. Product state
-    spaces grow fast, since rewards rarely merge: :class:`~rac.engine.budget.BudgetExceeded` (a
-    ``MemoryError``) as soon as more than ``max_states`` states have been found, or before a sample's
-    successors are built when deciding on the graph would need more than ``max_bytes``.
+    spaces grow fast (the model's own states rarely merge: positions are unique per action history):
+    :class:`~rac.engine.budget.BudgetExceeded` (a ``MemoryError``) as soon as more than ``max_states``
+    states have been found, or before a sample's successors are built when deciding on the graph
+    would need more than ``max_bytes``.
     :class:`ValueError` for an input without a binding.
+
+    ``stop_at`` (on the fly): called with each new layer as a graph of its own states (no choices);
+    where it marks a state, exploration stops after that layer and :attr:`ProductGraph.stopped_at`
+    is the first marked state's index in the returned (partial) graph, which :func:`trace_to` leads to.
     """
     horizon = automaton.steps if horizon_samples is None else horizon_samples
     if horizon < 0:
@@ -431,10 +440,23 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     width = ego0.shape[1] + 1 + n_inputs + n_rewards + sampled.prevs.shape[1]
     built = _Builder(Budget(max_states, max_bytes, "the product of model and automaton", float(data.period)),
                      8 * width + 4)
-    built.add(sampled)
+    found = [-1]
+
+    def add(layer: _Layer) -> bool:
+        """Add ``layer``; whether ``stop_at`` marks one of its states (then exploration stops)."""
+        offset = built.total
+        built.add(layer)
+        if stop_at is None or found[0] >= 0 or layer.n == 0:
+            return False
+        marked = np.flatnonzero(stop_at(_layer_graph(layer, automaton, data, horizon, bindings, evaluator)))
+        if marked.size:
+            found[0] = offset + int(marked[0])
+        return found[0] >= 0
+
+    stopped = add(sampled)
     if progress is not None:
         progress(0, 1, built.total)
-    for k in range(horizon):
+    for k in range(0 if stopped else horizon):
         # ---- the choices: as explore(), one per action pair at decision samples
         expand = sampled.labels["safe"] if prune_unsafe else np.ones(sampled.n, dtype=bool)
         sources = np.flatnonzero(expand)
@@ -481,7 +503,8 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
                       sampled.prevs[src], {name: mask[inv_u] for name, mask in sample_labels.items()})
         accrued, first_a, to_accrued = rows.merged()
         built.link(counts, action, to_accrued)
-        built.add(accrued)
+        if add(accrued):
+            break
         pending = inv_u[first_a]  # each accrued state's (ego, actions) entry: its new inputs and prevs
         current, inputs, prevs_now = accrued, read[pending], prevs[pending]
         if k == 0 and first_reads:  # read!: the first sample's accrual, with the inputs just read
@@ -489,28 +512,62 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
                                        mirrors=arithmetic.accrue(current.loc, inputs, current.mirrors))
             current, _, to_read = rows.merged()
             built.single(to_read)
-            built.add(current)
+            if add(current):
+                break
             inputs, prevs_now = current.inputs, current.prevs
         # ---- sense!: the edge
         loc, mirrors = arithmetic.edges(current.loc, inputs, current.mirrors)
         rows = dataclasses.replace(current, phase=SAMPLED, loc=loc, inputs=inputs, mirrors=mirrors, prevs=prevs_now)
         sampled, _, to_sampled = rows.merged()
         built.single(to_sampled)
-        built.add(sampled)
+        if add(sampled):
+            break
         if progress is not None:
             progress(k + 1, sampled.n, built.total)
         if sampled.n == 0:
             break
-    if automaton.end_clauses and horizon > 0 and sampled.k == horizon and sampled.n:
+    if automaton.end_clauses and horizon > 0 and sampled.k == horizon and sampled.n and found[0] < 0:
         expand = sampled.labels["safe"] if prune_unsafe else np.ones(sampled.n, dtype=bool)
         ending = np.flatnonzero(expand)
         rows = sampled.take(ending)
         rows = dataclasses.replace(rows, phase=ENDED, mirrors=arithmetic.end(rows.inputs, rows.mirrors))
         ended, _, to_ended = rows.merged()
         built.link(expand.astype(np.int64), np.full(ending.size, -1), to_ended)
-        built.add(ended)
+        add(ended)
     built.link(np.zeros(built.layers[-1].n), np.zeros(0), np.zeros(0))
-    return _assemble(built, automaton, data, horizon, bindings, evaluator)
+    graph = _assemble(built, automaton, data, horizon, bindings, evaluator)
+    return dataclasses.replace(graph, stopped_at=found[0]) if found[0] >= 0 else graph
+
+
+def _layer_graph(layer: _Layer, automaton: ir.Automaton, data: ModelData, horizon: int, bindings: Bindings,
+                 evaluator: Evaluator) -> ProductGraph:
+    """One layer's states as a graph without choices (what ``stop_at`` labels)."""
+    states = _rows(layer)
+    return ProductGraph(
+        states=states, columns=ProductGraph.columns_of(automaton) + (("crashed",) if data.sticky else ()),
+        choice_offsets=np.zeros(layer.n + 1, dtype=np.int64), choice_action=np.zeros(0, dtype=np.int64),
+        choice_target=np.zeros(0, dtype=np.int64), initial=0, labels=dict(layer.labels), automaton=automaton,
+        data=data, horizon=horizon, prev_exprs=tuple(bindings.prev_args), prev_values=layer.prevs,
+        evaluator=evaluator)
+
+
+def _rows(layer: _Layer) -> np.ndarray:
+    """The state rows of a layer (the columns of :meth:`ProductGraph.columns_of`, then ``crashed``)."""
+    return np.column_stack([np.full(layer.n, layer.k), np.full(layer.n, layer.phase), layer.ego[:, :7], layer.loc,
+                            layer.inputs, layer.mirrors, layer.ego[:, 7:]]).astype(np.int32)
+
+
+def trace_to(graph: ExploredGraph, target: int) -> list[int]:
+    """State indices from the initial state to ``target`` along the graph's choices (a layered graph:
+    each step goes back to some state with a choice into the current one)."""
+    owner = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
+    path = [target]
+    while path[-1] != graph.initial:
+        into = np.flatnonzero(graph.choice_target == path[-1])
+        if into.size == 0:
+            raise ValueError(f"state {path[-1]} has no predecessor: not reachable from the initial state")
+        path.append(int(owner[into[0]]))
+    return path[::-1]
 
 
 def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon: int, bindings: Bindings,
@@ -519,10 +576,7 @@ def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon
     sizes = np.array([layer.n for layer in layers], dtype=np.int64)
     starts = np.concatenate([[0], np.cumsum(sizes)])
     # under `collision sticky` the ego rows' last column, collide() so far, goes last (after the mirrors)
-    states = np.concatenate([
-        np.column_stack([np.full(layer.n, layer.k), np.full(layer.n, layer.phase), layer.ego[:, :7], layer.loc,
-                         layer.inputs, layer.mirrors, layer.ego[:, 7:]]).astype(np.int64)
-        for layer in layers]).astype(np.int32)
+    states = np.concatenate([_rows(layer) for layer in layers])
     columns = ProductGraph.columns_of(automaton) + (("crashed",) if data.sticky else ())
     counts = np.concatenate([link[0] for link in built.links])
     offsets = np.zeros(states.shape[0] + 1, dtype=np.int64)

@@ -5,6 +5,7 @@ automaton), within the horizon and the state budget of the :class:`~rac.verify.c
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,8 +17,13 @@ from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
+from rac.verify import compositional
 from rac.verify.context import Context, UnknownVerdict, over_budget
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow
+from rac.verify.status import NOT_SATISFIED, SATISFIED
+
+if TYPE_CHECKING:
+    from rac.engine.product import ProductGraph
 
 __all__ = ["SymbolicAnswerer"]
 
@@ -73,20 +79,37 @@ class SymbolicAnswerer:
                                    trace=self.trace_rows(graph, verdict.trace))
 
     def path_in_product(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
-        """A path query over the automaton's names, on the product of model and automaton."""
-        from rac.engine.product import decide_product, explore_product
+        """A path query over the automaton's names: on the automaton alone where that decides it
+        (:mod:`rac.verify.compositional`), else on the product of model and automaton, explored
+        layer by layer and stopped at the first witness or counterexample (on the fly)."""
+        from rac.engine.product import decide_product, explore_product, trace_to
 
         ctx = self.context
         if query.under is not None:
             raise UnknownVerdict("`under` a strategy is not supported on the product of model and automaton")
+        holds, meaning = compositional.decide(ctx, query.quantifier, query.expr)
+        if holds is not None:
+            return dataclasses.replace(base, status=SATISFIED if holds else NOT_SATISFIED, method="compositional",
+                                       horizon_samples=ctx.horizon_samples, message=meaning)
+        stop = None
+        if query.quantifier in ("A[]", "E<>"):
+            box = query.quantifier == "A[]"
+
+            def stop(layer: ProductGraph) -> np.ndarray:
+                mask = layer.label(query.expr, box=box)
+                return ~mask if box else mask
         try:
             graph = explore_product(ctx.data, ctx.automaton, horizon_samples=ctx.horizon_samples,
                                     progress=ctx.options.explore_progress, max_states=ctx.options.max_states,
-                                    max_bytes=ctx.options.max_bytes)
+                                    max_bytes=ctx.options.max_bytes, stop_at=stop)
         except BudgetExceeded as exc:
-            raise UnknownVerdict(over_budget(exc) + " (rewards rarely merge: the product grows quickly)") from None
+            raise UnknownVerdict(f"{over_budget(exc)} (the automaton alone does not decide it: {meaning})") from None
+        if graph.stopped_at >= 0:
+            return dataclasses.replace(base, status=NOT_SATISFIED if query.quantifier == "A[]" else SATISFIED,
+                                       method="on the fly", states=graph.n_states, horizon_samples=ctx.horizon_samples,
+                                       trace=self.trace_rows(graph, trace_to(graph, graph.stopped_at)))
         verdict = decide_product(graph, query, base.formula)
-        return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
+        return dataclasses.replace(base, status=SATISFIED if verdict.holds else NOT_SATISFIED, method="exhaustive",
                                    states=graph.n_states, horizon_samples=ctx.horizon_samples,
                                    trace=self.trace_rows(graph, verdict.trace))
 

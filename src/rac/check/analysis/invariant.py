@@ -215,7 +215,7 @@ def _disjunct(automaton: ir.Automaton, space: InputSpace, pairs: _Pairs, disjunc
               settled_only: bool) -> Invariant:
     names = automaton.location_names
     if not settled_only and _start_holds(automaton, disjunct):
-        return Invariant(REFUTED, "the query is false at the start (t = 0)")
+        return Invariant(REFUTED, "the query is false at the start (t = 0), where every input is false or 0")
     where = frozenset(range(len(automaton.locations)))
     classes = np.ones(space.count, dtype=bool)
     rewards = []
@@ -236,8 +236,8 @@ def _disjunct(automaton: ir.Automaton, space: InputSpace, pairs: _Pairs, disjunc
         row, column = np.argwhere(shown)[0]
         location = sorted(where)[int(row)]
         cls = int(np.flatnonzero(classes)[int(column)])
-        return Invariant(REFUTED, f"in `{names[location]}` with inputs {space.describe(cls)} (a run of the "
-                                  "automaton reaches it; whether the model produces those inputs is another question)")
+        return Invariant(REFUTED, f"a run of the automaton reaches `{names[location]}` with inputs "
+                                  f"{space.describe(cls)}")
     if len(rewards) > 1 or any(lit.guard is not None for lit in disjunct):
         return Invariant(UNDECIDED, "not decided on the automaton alone: a disjunct combines a reward comparison "
                                     "with other comparisons or with inputs")
@@ -257,6 +257,6 @@ def _disjunct(automaton: ir.Automaton, space: InputSpace, pairs: _Pairs, disjunc
     if worst.value < 0 or (strict and worst.value == 0):
         return Invariant(PROVED, "")
     if worst.value > 0:
-        return Invariant(REFUTED, f"a run of the automaton reaches {short_number(sign * worst.value + 0)} for the "
-                                  "compared sum (the model may not produce that run)")
+        return Invariant(REFUTED, "a run of the automaton makes the reward comparison true (left side minus "
+                                  f"right side = {short_number(sign * worst.value)})")
     return Invariant(UNDECIDED, "the compared sum reaches 0 at best; whether it attains it is not decided here")
