@@ -60,7 +60,7 @@ Verifying Stays: E[] !collide() && !offroad()  ({path}:{line_of(path, "Stays")})
 Verifying safe: strategy safe = control: A[] !collide() && !offroad()  ({path}:{line_of(path, "safe")})
  -- Formula is NOT satisfied.
     1 state, horizon 8 samples, T s
-    no safe strategy exists from the start
+    no strategy keeps `!collide() && !offroad()` from the start: it is false at the start
 """
     assert captured.err == ""
     assert not (out / "safe.shield.npz").exists()  # no strategy, no file (UPPAAL defines none either)

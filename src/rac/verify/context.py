@@ -36,11 +36,16 @@ if TYPE_CHECKING:
     from rac.learning.episodes import EpisodeBatch
     from rac.learning.qlearning import LearnedStrategy, StrategyRun
 
-__all__ = ["Context", "Learned", "UnknownVerdict", "VerifyOptions", "over_budget"]
+__all__ = ["Context", "Learned", "NotApplicable", "UnknownVerdict", "VerifyOptions", "over_budget"]
 
 
 class UnknownVerdict(Exception):
     """A query that cannot be decided within the options; the message says why, for the user."""
+
+
+class NotApplicable(Exception):
+    """A query that depends on a strategy that provably does not exist: nothing to decide (status
+    ``not_applicable``); the message cites the defining query and why it failed."""
 
 
 @dataclass(frozen=True)
@@ -146,6 +151,8 @@ class Context:
         self.strategy_goals: dict[str, str] = {}
         #: Learned strategies (``strategy S = maxE(...)``) by name, for later queries ``under S``.
         self.learned: dict[str, Learned] = {}
+        #: Strategies that provably do not exist, by name: why (the defining query and its failure).
+        self.missing: dict[str, str] = {}
         #: The model's (jerk, turn) action pairs; a shield's masks index them.
         self.pairs = action_pairs(self.data)
         #: Where strategies, CSV files and plots go (None: nowhere).
@@ -229,14 +236,20 @@ class Context:
     # ------------------------------------------------------------ strategies
     def strategy(self, name: str) -> tuple[storm.Shield, shield.ShieldTable]:
         """The shield ``name`` computed by an earlier query; unknown when there is none to use."""
+        if name in self.missing:
+            raise NotApplicable(self.missing[name])
         if name not in self.strategies:
             raise UnknownVerdict(f"the strategy `{name}` has not been computed (it is defined by a query that "
                                  "was skipped or failed; run it first)")
         if not self.strategies[name][0].shield_exists:
             # As in UPPAAL: a control query that is not satisfied yields no strategy to use.
             goal = self.strategy_goals.get(name, "its goal")
-            raise UnknownVerdict(f"the strategy `{name}` does not exist: no strategy keeps `{goal}` from the start")
+            raise NotApplicable(f"the strategy `{name}` does not exist: no strategy keeps `{goal}` from the start")
         return self.strategies[name]
+
+    def strategy_exists(self, name: str) -> bool:
+        """Whether the shield ``name`` was computed and exists."""
+        return name in self.strategies and self.strategies[name][0].shield_exists
 
     def policy(self, under: str | None) -> Policy | None:
         """The simulation policy of the shield ``under`` (None: every action)."""

@@ -45,10 +45,11 @@ from rac.check.standard import standard_queries as checked_standard_queries
 from rac.compiler import CompileResult
 from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
-from rac.verify.context import Context, UnknownVerdict, VerifyOptions
+from rac.verify.context import Context, NotApplicable, UnknownVerdict, VerifyOptions
 from rac.verify.learning import LearningAnswerer
 from rac.verify.report import QueryResult, render_json, render_text
 from rac.verify.statistical import StatisticalAnswerer
+from rac.verify.status import NOT_APPLICABLE, NOT_SATISFIED
 from rac.verify.symbolic import SymbolicAnswerer
 
 __all__ = ["QueryResult", "UnknownQuery", "Verifier", "VerifyOptions", "render_json", "render_text", "run_queries",
@@ -118,8 +119,17 @@ class Verifier:
             result = self._dispatch(query, base)
         except UnknownVerdict as exc:
             result = dataclasses.replace(base, status="unknown", message=str(exc))
+        except NotApplicable as exc:
+            result = dataclasses.replace(base, status=NOT_APPLICABLE, message=str(exc))
         except EvaluationError as exc:
             result = dataclasses.replace(base, status="unsupported", message=str(exc))
+        defined = _defines(query)
+        if defined is not None and result.status in (NOT_SATISFIED, NOT_APPLICABLE) and \
+                not (defined in self.context.learned or self.context.strategy_exists(defined)):
+            # later queries `under` it have nothing to be decided on; they cite this query
+            failed = "not satisfied" if result.status == NOT_SATISFIED else "not applicable"
+            self.context.missing[defined] = (f"the strategy `{defined}` does not exist: its defining query "
+                                             f"{decl.name} is {failed} ({result.message or failed})")
         note = self.context.stopped_note() if result.states is not None else None
         if note is not None and result.status in ("satisfied", "not satisfied"):
             result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
@@ -172,6 +182,12 @@ def _selected(decls: list[tuple[iq.QueryDecl, str | None]], only: tuple[str, ...
         if decl.name in wanted and under:
             wanted |= {d.name for d, _ in decls if getattr(d.query, "name", None) == under}
     return [(d, t) for d, t in decls if d.name in wanted]
+
+
+def _defines(query: iq.Query) -> str | None:
+    """The strategy a query defines (a shield or a learned strategy), if any."""
+    name = getattr(query, "name", None)
+    return name if isinstance(query, (iq.ControlStrategy, iq.LearnStrategy)) and isinstance(name, str) else None
 
 
 def _kind(query: iq.Query) -> str:

@@ -151,8 +151,14 @@ class SymbolicAnswerer:
         if ctx.out_dir is not None and computed.shield_exists:  # UPPAAL defines no strategy either
             files = (str(shield.save(table, ctx.out(f"{query.name}.shield.npz"))),)
         allowed = int(computed.allowed_choices.sum())
-        message = (f"{int(computed.winning.sum()):,} winning states, {allowed:,} allowed choices"
-                   if computed.shield_exists else "no safe strategy exists from the start")
+        if computed.shield_exists:
+            message = f"{int(computed.winning.sum()):,} winning states, {allowed:,} allowed choices"
+        else:
+            kept = _longest_kept(graph, labelled.labels["query"])
+            message = (f"no strategy keeps `{format_checked(query.expr)}` from the start: "
+                       + ("it is false at the start" if kept < 0 else
+                          f"the longest any run keeps it is until t = {kept * float(ctx.period):g} s, before the "
+                          f"horizon ({ctx.horizon_samples * float(ctx.period):g} s)"))
         return dataclasses.replace(base, status="satisfied" if computed.shield_exists else "not satisfied",
                                    states=graph.n_states, horizon_samples=ctx.horizon_samples, files=files,
                                    message=message)
@@ -194,6 +200,27 @@ class SymbolicAnswerer:
                     row[label] = bool(graph.labels[label][index])
             rows.append(row)
         return tuple(rows)
+
+
+def _longest_kept(graph: ExploredGraph, keep: np.ndarray) -> int:
+    """The last sample that some run reaches while ``keep`` has held at every state so far (-1: not
+    even the initial state keeps it): the counterexample of a shield that does not exist."""
+    if not keep[graph.initial]:
+        return -1
+    owner = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
+    k = graph.states[:, graph.columns.index("k")]
+    frontier = np.zeros(graph.n_states, dtype=bool)
+    frontier[graph.initial] = True
+    last = int(k[graph.initial])
+    while frontier.any():
+        targets = graph.choice_target[frontier[owner]]
+        targets = targets[keep[targets]]
+        if targets.size == 0:
+            break
+        frontier = np.zeros(graph.n_states, dtype=bool)
+        frontier[targets] = True
+        last = max(last, int(k[targets].max()))
+    return last
 
 
 def _meaning(found: storm.SafeReach, horizon_seconds: float) -> str:
