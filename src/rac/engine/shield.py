@@ -168,9 +168,10 @@ def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None 
                max_bytes: int | None = None,
                progress: Callable[[int, int, int], None] | None = None) -> tuple[Shield, ShieldTable]:
     """The safety shield of ``control: A[] !collide() && !offroad()`` up to the horizon: the model
-    explored with unsafe states not expanded, Storm's most permissive strategy, and its table over
-    the model's whole action grid. :class:`~rac.engine.budget.BudgetExceeded` (a ``MemoryError``)
-    beyond ``max_states`` or ``max_bytes`` (from the exploration)."""
+    explored with unsafe states not expanded, the most permissive strategy
+    (:func:`rac.engine.storm.safety_shield`), and its table over the model's whole action grid.
+    :class:`~rac.engine.budget.BudgetExceeded` (a ``MemoryError``) beyond ``max_states`` or ``max_bytes``
+    (from the exploration)."""
     from rac.engine.explore import action_pairs, explore
     from rac.engine.storm import safety_shield
 

@@ -1,4 +1,8 @@
-"""Handing an explored graph to Storm: verdicts for E<>, E[], A[], A<> and the permissive safety shield.
+"""Handing an explored graph to Storm: verdicts for E<>, E[], A[], A<>; the permissive safety shield.
+
+The shield (:func:`safety_shield`) is solved without Storm, by a backward pass over the graph's
+layers (:mod:`rac.engine.layered`); :func:`safety_shield_storm` reads it from Storm, the oracle the
+tests compare it with.
 
 The graph (``ExploredGraph``) becomes a Storm MDP with one row group per state and one row per
 choice (probability 1 to its single successor). Terminal states (the horizon) get one self-loop
@@ -25,6 +29,7 @@ from stormpy import datastructures as sd
 from stormpy import models as sm
 
 from rac.engine.graph import ExploredGraph
+from rac.engine.layered import safety_game
 
 #: Labels ``to_mdp`` adds itself; the graph's own labels must not use them.
 RESERVED_LABELS = ("init", "terminal")
@@ -227,7 +232,18 @@ class Shield:
 
 
 def safety_shield(graph: ExploredGraph, safe_label: str) -> Shield:
-    """The permissive safety shield read from Storm's ``Pmax=? [G "safe"]`` value vector.
+    """The permissive safety shield of ``control: A[] safe_label``: the winning states and allowed
+    choices of :func:`rac.engine.layered.safety_game` (a backward pass over the graph's layers, no
+    Storm model built), the same as :func:`safety_shield_storm`'s on every graph."""
+    if safe_label not in graph.labels:
+        raise KeyError(f"no state label {safe_label!r}")
+    t0 = time.perf_counter()
+    winning, allowed = safety_game(graph, graph.labels[safe_label])
+    return Shield(graph, winning, allowed, time.perf_counter() - t0)
+
+
+def safety_shield_storm(graph: ExploredGraph, safe_label: str) -> Shield:
+    """:func:`safety_shield` read from Storm's ``Pmax=? [G "safe"]`` value vector (the oracle of the tests).
 
     A state is winning when its value is 1; a choice is allowed when its state and its (only)
     successor are winning — one vectorised pass over the choice arrays.
