@@ -1,4 +1,4 @@
-"""The generated scenes of rac.model.scenes (highway, T-junction, overtaking, the left turn): valid,
+"""The generated scenes of rac.model.scenes (highway, T-junction, overtaking, tutorial, the left turn): valid,
 byte-stable CommonRoad files whose hazards are there by construction, answered by the engine and
 emitted for UPPAAL like any user's scenario (benchmarks/queries.py runs every query on them)."""
 
@@ -21,11 +21,12 @@ from rac.verify.runner import run_queries
 
 #: Per scene: lanelets, obstacles, and the settings of a small model over it.
 EXPECTED = {"highway": (3, 3), "overtaking": (2, 2), "t_junction": (12, 2), "left_turn": (20, 3), "urban": (6, 0),
-            "urban_head_on": (4, 1)}
+            "urban_head_on": (4, 1), "tutorial": (2, 3)}
 SETTINGS = {
     "highway": "max_speed 30\naction turn in [-0.2, 0.2] step 0.2",
     "overtaking": "max_speed 25\naction turn in [-0.2, 0.2] step 0.2",
     "t_junction": "action turn in [0, 0.4] step 0.2",
+    "tutorial": "action turn in [-0.2, 0.2] step 0.2",
     "left_turn": "action turn in [0, 0.4] step 0.2",
     "urban": "action turn in [0, 0.4] step 0.2",
     "urban_head_on": "action turn in [0, 0.4] step 0.2",
@@ -61,13 +62,14 @@ def test_a_scene_is_a_stable_commonroad_file_rac_reads(name: str, tmp_path: Path
 
 
 #: What the ego meets when it keeps its speed and heading, and at which sample (0.1 s each).
-HAZARDS = {"highway": ("collide", 61), "overtaking": ("collide", 27), "t_junction": ("offroad", 33)}
+HAZARDS = {"highway": ("collide", 61), "overtaking": ("collide", 27), "t_junction": ("offroad", 33),
+           "tutorial": ("collide", 36)}
 
 
 @pytest.mark.parametrize("name", sorted(HAZARDS))
 def test_keeping_speed_and_heading_fails_and_a_safe_run_exists(name: str, tmp_path: Path) -> None:
     """The hazard of each scene is real: the ego that keeps its speed and heading runs into the truck
-    (highway, at 6.1 s) or the tractor (overtaking, 2.7 s), or straight on off the T-junction's road
+    (highway, at 6.1 s), the tractor (overtaking, 2.7 s) or the slower car ahead (tutorial, 3.6 s), or straight on off the T-junction's road
     where the north arm is missing (3.3 s); and some run stays safe to the horizon (Qb), so a safety
     shield exists (Qd)."""
     result = compile_file(scene_file(tmp_path, name))

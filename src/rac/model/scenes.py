@@ -1,6 +1,6 @@
 """Small scenes of the kinds rac is judged on, built in code with commonroad-io.
 
-Six scenes, each a CommonRoad 2020a file written like a user's (:mod:`rac.model.scenario_xml`),
+Seven scenes, each a CommonRoad 2020a file written like a user's (:mod:`rac.model.scenario_xml`),
 with the ego's planning problem 100 and 0.1 s time steps:
 
 - ``left_turn``: the paper's left-turn intersection (:mod:`rac.model.intersection`);
@@ -11,7 +11,11 @@ with the ego's planning problem 100 and 0.1 s time steps:
   15 m/s, a faster car coming up in the left lane and a slower one ahead in the right lane
   (:func:`build_highway`);
 - ``overtaking``: a two-lane country road, one lane per direction, the ego at 12 m/s behind a
-  tractor at 5 m/s, a car coming the other way in the oncoming lane (:func:`build_overtaking`).
+  tractor at 5 m/s, a car coming the other way in the oncoming lane (:func:`build_overtaking`);
+- ``tutorial``: a short two-lane road like CommonRoad's tutorial scenario, the ego at 10 m/s behind
+  a slower car, a faster one coming up the left lane and a parked van further on
+  (:func:`build_tutorial`); with :data:`TUTORIAL_45` (45 actions every 0.2 s) it is the scene on
+  which an exhaustive shield cannot be computed for a whole episode (issue 20).
 
 ``python -m rac.model.scenes NAME OUT.xml`` writes one; ``write_scene(name, path)`` from Python.
 The benchmark of every query on each kind (``benchmarks/queries.py``) and the tests use them.
@@ -33,15 +37,17 @@ from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
 from commonroad.planning.goal import GoalRegion
 from commonroad.planning.planning_problem import PlanningProblem, PlanningProblemSet
 from commonroad.scenario.lanelet import Lanelet
-from commonroad.scenario.obstacle import ObstacleType
+from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
+from commonroad.scenario.obstacle import ObstacleType, StaticObstacle
 from commonroad.scenario.scenario import Scenario, Tag
 from commonroad.scenario.state import CustomState, InitialState
 
 from rac.model.intersection import left_turn_bytes, t_junction_bytes
 from rac.model.scenario_xml import DT, clean, recorded_car, scenario_bytes, straight_car
 
-__all__ = ["HEAD_ON_STEPS", "LANE_WIDTH", "PLANNING_PROBLEM_ID", "SCENES", "URBAN_STEPS", "build_highway",
-           "build_overtaking", "build_urban", "build_urban_head_on", "head_on_track", "scene_bytes", "write_scene"]
+__all__ = ["HEAD_ON_STEPS", "LANE_WIDTH", "PLANNING_PROBLEM_ID", "SCENES", "TUTORIAL_45", "URBAN_STEPS",
+           "build_highway", "build_overtaking", "build_tutorial", "build_urban", "build_urban_head_on", "head_on_track",
+           "scene_bytes", "write_scene"]
 
 LANE_WIDTH = 3.5  #: m
 PLANNING_PROBLEM_ID = 100
@@ -173,6 +179,37 @@ def build_urban_head_on() -> tuple[Scenario, PlanningProblemSet]:
     return scenario, _problem(10.0, 1.5 * LANE_WIDTH, 8.0, (140.0, 180.0), 4 * LANE_WIDTH, (194, 204))
 
 
+#: The ``model`` block settings (besides ``scenario`` and the bindings) of the tutorial scene with 45
+#: actions every 0.2 s: 9 jerks (the default -2 .. 2 m/s³ in steps of 0.5) x 5 turning rates (-0.4 ..
+#: 0.4 rad/s in steps of 0.2), a decision every second sample of 0.1 s. An exhaustive exploration
+#: meets 45 successors per decision, which hardly merge: it ends after a few decisions, far short of
+#: a 4 s episode (docs/verify.md, "A shield for every step").
+TUTORIAL_45: tuple[str, ...] = ("exponent 2", "decide_period 0.2", "granularity 0.25", "max_speed 20",
+                                "action jerk in [-2, 2] step 0.5", "action turn in [-0.4, 0.4] step 0.2")
+
+
+def build_tutorial() -> tuple[Scenario, PlanningProblemSet]:
+    """Two 3.5 m lanes towards +x (lanelets 1, right, and 2, left), like the road of CommonRoad's
+    tutorial scenario. The ego starts at x = 10 in the right lane at 10 m/s; car 81 drives
+    ahead of it at 6 m/s from x = 30; car 82 comes up the left lane at 14 m/s from x = -5; van 83
+    (6 m × 2.2 m) is parked in the right lane at x = 95. The goal spans the road from x = 45 to 80
+    within 12 s: keeping 10 m/s runs into car 81 after about 4 s, so the ego brakes behind it or
+    changes lanes after car 82 has passed."""
+    scenario = Scenario(DT, ScenarioID(country_id="ZAM", map_name="Tutorial", map_id=45, obstacle_behavior="T",
+                                       prediction_id=1))
+    scenario.add_objects(_lane(1, 0.0, towards_x=True, left=2, left_same=True, right=None, kind=LaneletType.URBAN))
+    scenario.add_objects(_lane(2, LANE_WIDTH, towards_x=True, left=None, left_same=None, right=1,
+                               kind=LaneletType.URBAN))
+    right, left = LANE_WIDTH / 2, 1.5 * LANE_WIDTH
+    scenario.add_objects(straight_car(81, 30.0, right, 0.0, 6.0, STEPS))
+    scenario.add_objects(straight_car(82, -5.0, left, 0.0, 14.0, STEPS))
+    parked = InitialState(time_step=0, position=clean(np.array([95.0, right])), orientation=0.0, velocity=0.0,
+                          acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
+    scenario.add_objects(StaticObstacle(83, ObstacleType.PARKED_VEHICLE, RectObstacleShape(length=6.0, width=2.2),
+                                        parked))
+    return scenario, _problem(10.0, right, 10.0, (45.0, 80.0), 2 * LANE_WIDTH)
+
+
 def _straight_bytes(build: Callable[[], tuple[Scenario, PlanningProblemSet]], name: str,
                     tags: set[Tag]) -> Callable[[], bytes]:
     def make() -> bytes:
@@ -186,6 +223,7 @@ SCENES: dict[str, Callable[[], bytes]] = {
     "highway": _straight_bytes(build_highway, "highway", {Tag.HIGHWAY, Tag.MULTI_LANE, Tag.LANE_CHANGE}),
     "overtaking": _straight_bytes(build_overtaking, "overtaking",
                                   {Tag.RURAL, Tag.TWO_LANE, Tag.ONCOMING_TRAFFIC, Tag.EMERGENCY_BRAKING}),
+    "tutorial": _straight_bytes(build_tutorial, "tutorial", {Tag.URBAN, Tag.MULTI_LANE, Tag.LANE_CHANGE}),
     "t_junction": t_junction_bytes,
     "left_turn": left_turn_bytes,
     "urban": _straight_bytes(build_urban, "urban", {Tag.URBAN, Tag.TWO_LANE, Tag.NO_ONCOMING_TRAFFIC}),
