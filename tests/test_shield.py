@@ -62,3 +62,16 @@ def test_a_file_that_is_not_a_shield_is_refused(tmp_path: Path) -> None:
         shields.load(other)
     with pytest.raises(FileNotFoundError):
         shields.load(tmp_path / "missing.npz")
+
+
+def test_the_table_keeps_its_horizon(tmp_path: Path) -> None:
+    """A table knows the sample it was computed to (the graph's last layer by default), through a file;
+    a file written before it was recorded loads with None (taken to cover every run)."""
+    table = shields.table(safety_shield(layered_graph(), "safe"))
+    assert table.horizon == 2
+    assert shields.load(shields.save(table, tmp_path / "s.npz")).horizon == 2
+    assert shields.table(safety_shield(layered_graph(), "safe"), horizon=5).horizon == 5
+    old = tmp_path / "old.npz"
+    np.savez_compressed(old, format=np.array(shields.FORMAT), columns=np.array(table.columns), states=table.states,
+                        masks=table.masks, forget_every=np.array(0))
+    assert shields.load(old).horizon is None

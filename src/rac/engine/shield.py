@@ -19,6 +19,16 @@ is *unseen*. What to do then is the caller's choice, made once when loading:
   mask). A masked learner must then fall back to a safe manoeuvre of its own;
 - ``unseen="all"``: every action is allowed (the shield does not restrict unseen states);
 - ``unseen="error"``: raise :class:`UnseenState`.
+
+**A shield for every step** (:class:`StepShield`): the table where it applies, the runtime shield
+(:mod:`rac.engine.lookahead`: a safe continuation for the next ``depth`` decisions) elsewhere —
+beyond the table's horizon, in a state it has not seen, where it allows nothing, or when it could
+not be computed at all (:func:`step_shield`). Each answer (:class:`ShieldStep`) says which guarantee
+its mask carries, and is never an all-False mask::
+
+    shield = step_shield(data, horizon_samples=40, table_horizon=20)   # the table if it can be had
+    step = shield.decide(state)        # state: k, x, y, v, acc, head, jerk, turn
+    step.mask, step.guarantee          # e.g. "exhaustive", "lookahead 5", "none"
 """
 
 from __future__ import annotations
@@ -31,6 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rac.engine.lookahead import Lookahead, LookaheadMask, LookaheadSettings
 from rac.engine.storm import Shield
 
 if TYPE_CHECKING:
@@ -56,6 +67,9 @@ class ShieldTable:
     #: ``k`` with ``k % forget_every == 0`` is looked up with its ``jerk`` and ``turn`` as 0 (the action
     #: that led to it, which no later step reads); 0: states are looked up as they are.
     forget_every: int = 0
+    #: The sample the shield was computed to: an allowed action has a safe continuation up to it
+    #: (None: not recorded, e.g. a file written before it was; then taken to cover every run).
+    horizon: int | None = None
 
     def __post_init__(self) -> None:
         if self.unseen not in UNSEEN_POLICIES:
@@ -179,13 +193,18 @@ def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None 
     graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=True, max_states=max_states,
                     max_bytes=max_bytes, progress=progress, forget_actions=True)
     computed = safety_shield(graph, "safe")
-    return computed, table(computed, n_actions=len(action_pairs(data)), forget_every=data.decide_every)
+    return computed, table(computed, n_actions=len(action_pairs(data)), forget_every=data.decide_every,
+                           horizon=horizon_samples)
 
 
-def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none", forget_every: int = 0) -> ShieldTable:
+def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none", forget_every: int = 0,
+          horizon: int | None = None) -> ShieldTable:
     """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads);
-    ``forget_every``: the model's ``decide_every`` when the graph was explored with ``forget_actions``."""
+    ``forget_every``: the model's ``decide_every`` when the graph was explored with ``forget_actions``;
+    ``horizon``: the sample the graph was explored to (default: its last sample)."""
     graph = shield.graph
+    if horizon is None and graph.n_states and "k" in graph.columns:
+        horizon = int(graph.states[:, graph.columns.index("k")].max())
     actions = graph.choice_action
     decision = actions >= 0
     n_actions = n_actions if n_actions is not None else (int(actions.max()) + 1 if decision.any() else 0)
@@ -204,7 +223,7 @@ def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none",
     picked = decision & shield.allowed_choices
     masks[row_of[owner[picked]], actions[picked]] = True
     states = graph.states[states_with_decisions][:, kept].astype(np.int32)
-    return ShieldTable(columns, states, masks, unseen, forget_every)
+    return ShieldTable(columns, states, masks, unseen, forget_every, horizon)
 
 
 def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | None = None) -> Path:
@@ -219,7 +238,8 @@ def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | Non
         with partial.open("wb") as handle:
             np.savez_compressed(handle, format=np.array(FORMAT), columns=np.array(shield_table.columns),
                                 states=shield_table.states.astype(np.int32), masks=shield_table.masks,
-                                forget_every=np.array(shield_table.forget_every))
+                                forget_every=np.array(shield_table.forget_every),
+                                horizon=np.array(-1 if shield_table.horizon is None else shield_table.horizon))
         os.replace(partial, path)
     finally:
         partial.unlink(missing_ok=True)
@@ -234,9 +254,135 @@ def load(path: str | Path, *, unseen: str = "none") -> ShieldTable:
             if str(data["format"]) != FORMAT:
                 raise ValueError(f"{path}: not a rac shield (format {str(data['format'])!r})")
             forget_every = int(data["forget_every"]) if "forget_every" in data.files else 0
+            horizon = int(data["horizon"]) if "horizon" in data.files else -1
             return ShieldTable(tuple(str(c) for c in data["columns"]), data["states"].astype(np.int32),
-                               data["masks"].astype(bool), unseen, forget_every)
+                               data["masks"].astype(bool), unseen, forget_every, None if horizon < 0 else horizon)
     except (OSError, KeyError, ValueError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
         raise ValueError(f"{path}: cannot read the shield: {exc}") from None
+
+
+# ---------------------------------------------------------------- a shield for every step
+#: The guarantees a :class:`ShieldStep` carries (``"lookahead"`` is written with its depth: ``"lookahead 5"``).
+GUARANTEES = ("exhaustive", "lookahead", "none")
+
+
+@dataclass(frozen=True)
+class ShieldStep:
+    """What :class:`StepShield` hands out at one decision state.
+
+    ``mask`` ``(P,)`` bool is never all False. ``guarantee`` says what it carries:
+
+    - ``"exhaustive"``: the table's row — every allowed action has a safe continuation up to the
+      table's horizon, and every action that has one is allowed (the most permissive shield);
+    - ``"lookahead d"``: the runtime shield's — every allowed action has a safe continuation for the
+      next ``d`` decisions (up to the sample ``until``); with ``timed_out`` its budget ran out, so
+      ``d`` may fall short of the setting and the mask may leave out actions a complete search would
+      allow;
+    - ``"none"``: no action is known to be safe (``no_safe_action``): every action of the model
+      (those its ``allow when`` permits) is allowed, no guarantee at all.
+    """
+
+    mask: np.ndarray
+    guarantee: str
+    #: The sample up to which every allowed action is proved to have a safe continuation (the
+    #: state's own sample under ``"none"``).
+    until: int
+    timed_out: bool = False
+    no_safe_action: bool = False
+    #: The runtime shield's answer, where it was asked.
+    lookahead: LookaheadMask | None = None
+
+    @property
+    def kind(self) -> str:
+        """The guarantee without its depth: one of :data:`GUARANTEES`."""
+        return self.guarantee.split(" ", 1)[0]
+
+
+class StepShield:
+    """The exhaustive table where it applies and the runtime shield elsewhere, for runs of
+    ``horizon_samples`` samples of the model ``data`` (see the module docstring).
+
+    At a decision state the answer with the farther guarantee wins: the table's row (when the table
+    knows the state and allows an action there; it guarantees safety up to the table's horizon) or
+    the runtime shield's (a continuation for the next ``depth`` decisions), which is asked only where
+    it could reach farther — the table is absent, does not know the state or allows nothing there,
+    or ends before the runtime shield's horizon would. Equal reach goes to the table (it is the most
+    permissive). Neither: ``"none"``, the model's own allowed actions (see :class:`ShieldStep`).
+
+    A table with ``unseen="error"`` still raises :class:`UnseenState` for a state it has not seen;
+    its other policies give way to the runtime shield. ``reason``: why there is no table, if there
+    is none (e.g. the exhaustive shield exceeded its budget), for reports."""
+
+    def __init__(self, data: ModelData, horizon_samples: int, *, table: ShieldTable | None = None,
+                 lookahead: LookaheadSettings | None = None, reason: str | None = None) -> None:
+        from rac.engine.allow import ActionGuard, action_pairs
+
+        self.data = data
+        self.horizon = int(horizon_samples)
+        self.table = table
+        self.n_actions = len(action_pairs(data))
+        if table is not None and table.n_actions != self.n_actions:
+            raise ValueError(f"the shield table has {table.n_actions} actions, the model {self.n_actions}")
+        self.runtime = Lookahead(data, self.horizon, lookahead) if lookahead is not None else None
+        self.reason = reason
+        self._guard = ActionGuard(data)
+
+    def decide(self, state: np.ndarray, crashed: bool = False) -> ShieldStep:
+        """The mask at ``state`` (``(8,)`` ``k, x, y, v, acc, head, jerk, turn``, ``k`` a decision sample
+        before the horizon); ``crashed``: under ``collision sticky``, a collision happened on the way
+        here (nothing that follows is safe then, so neither shield allows anything)."""
+        row = np.asarray(state, dtype=np.int64).reshape(-1)
+        k = int(row[0])
+        doomed = crashed and self.data.sticky
+        table = self.table
+        exhaustive: ShieldStep | None = None
+        if table is not None and not doomed:
+            if table.knows(row):
+                mask = table.mask(row)
+                if mask.any():
+                    exhaustive = ShieldStep(mask, "exhaustive", self.horizon if table.horizon is None
+                                            else min(table.horizon, self.horizon))
+            elif table.unseen == "error":
+                table.mask(row)  # raises UnseenState, naming the state
+        runtime = self.runtime
+        if runtime is not None and not doomed and k < self.horizon:
+            if exhaustive is None or exhaustive.until < runtime.reach(k):
+                found = runtime.decide(row, crashed)
+                if found.depth > 0 and (exhaustive is None or found.until > exhaustive.until):
+                    return ShieldStep(found.mask, f"lookahead {found.depth}", found.until, found.timed_out,
+                                      lookahead=found)
+                if exhaustive is None:
+                    return self._none(row, found.timed_out, found)
+        return exhaustive if exhaustive is not None else self._none(row, False, None)
+
+    def _none(self, row: np.ndarray, timed_out: bool, found: LookaheadMask | None) -> ShieldStep:
+        """No action is known to be safe: the model's allowed actions (all, where ``allow when``
+        leaves none: the run would stop there)."""
+        mask = self._guard.masks(row[None, 1:].astype(np.int32), int(row[0]))[0]
+        if not mask.any():
+            mask = np.ones(self.n_actions, dtype=bool)
+        return ShieldStep(mask, "none", int(row[0]), timed_out, no_safe_action=True, lookahead=found)
+
+
+def step_shield(data: ModelData, horizon_samples: int, *, table_horizon: int | None = None,
+                lookahead: LookaheadSettings | None = None, max_states: int | None = None,
+                max_bytes: int | None = None) -> StepShield:
+    """A :class:`StepShield` for runs of ``horizon_samples`` samples: the exhaustive shield
+    (:func:`synthesise`) up to ``table_horizon`` (default: the whole run; 0: none) if it can be
+    computed within ``max_states`` and ``max_bytes``, the runtime shield with ``lookahead`` (default
+    :class:`~rac.engine.lookahead.LookaheadSettings`) everywhere else. When the exhaustive shield
+    exceeds its budget, the result has no table and says why (:attr:`StepShield.reason`)."""
+    from rac.engine.budget import BudgetExceeded
+
+    until = horizon_samples if table_horizon is None else min(int(table_horizon), horizon_samples)
+    settings = lookahead if lookahead is not None else LookaheadSettings()
+    if until <= 0:
+        return StepShield(data, horizon_samples, lookahead=settings, reason="no exhaustive shield was asked for")
+    try:
+        _, found = synthesise(data, until, max_states=max_states, max_bytes=max_bytes)
+    except BudgetExceeded as exc:
+        return StepShield(data, horizon_samples, lookahead=settings,
+                          reason=f"the exhaustive shield up to sample {until} could not be computed: {exc}")
+    return StepShield(data, horizon_samples, table=found, lookahead=settings)
