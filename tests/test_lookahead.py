@@ -100,7 +100,8 @@ def visited(data: ModelData, horizon: int, seed: int, runs: int = 6) -> list[tup
     shield = Lookahead(data, horizon, LookaheadSettings(depth=2, seconds=None))
     out = []
     for _ in range(runs):
-        state, k, crashed = oracle.native.initial_state(), 0, bool(oracle.native.collide(oracle.native.initial_state(), 0))
+        state, k = oracle.native.initial_state(), 0
+        crashed = bool(oracle.native.collide(state, 0))
         while k < horizon:
             out.append((k, state, crashed))
             mask = shield.decide(np.array([k, *state]), crashed).mask

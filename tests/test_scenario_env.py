@@ -21,6 +21,7 @@ from rac.compiler import CompileResult, compile_file, compile_text
 from rac.core.diagnostics import CheckError
 from rac.engine import shield as shield_file
 from rac.engine.explore import COLUMNS, explore
+from rac.engine.lookahead import Lookahead, LookaheadSettings
 from rac.engine.shield import ShieldTable, UnseenState
 from rac.engine.storm import safety_shield
 from rac.learning.episodes import EpisodeBatch
@@ -174,21 +175,130 @@ def test_shield_from_a_file(tiny: CompileResult, table: ShieldTable, tmp_path: P
 
 
 @pytest.mark.parametrize("unseen", ["none", "all", "error"])
-def test_unseen_states_follow_the_shields_policy(tiny: CompileResult, unseen: str) -> None:
+def test_unseen_states_without_a_runtime_shield(tiny: CompileResult, unseen: str) -> None:
+    """Without a runtime shield an unseen state gets no guarantee, never an all-False mask: every action
+    the model allows, flagged and counted (``unseen="error"`` still raises, as asked)."""
     short = shield_table(tiny, 2, unseen)  # a shield for the first second only: later states are unseen
-    env = ScenarioEnv(tiny, shield=short)
+    env = ScenarioEnv(tiny, shield=short, lookahead=None)
     env.reset()
     first = env.action_masks()
     assert 0 < first.sum() < first.size
-    env.step(int(np.flatnonzero(first)[0]))  # now at sample 2: a state the shield never decided in
+    _, _, _, _, info = env.step(int(np.flatnonzero(first)[0]))  # now at sample 2: a state the shield never decided in
+    assert info["shield"] == "exhaustive" and not info["no_safe_action"]
     if unseen == "error":
         with pytest.raises(UnseenState):
             env.action_masks()
         return
     mask = env.action_masks()
-    assert mask.all() if unseen == "all" else not mask.any()
-    env.step(0)  # an all-False mask does not stop the environment: it takes any action
-    assert env.episodes.k[0] == 4
+    assert mask.all()  # avoidable_obstacle has no `allow when`: the model allows every action
+    _, _, _, _, info = env.step(0)
+    assert info["shield"] == "none" and info["no_safe_action"] and info["shield_until"] == pytest.approx(1.0)
+    assert env.episodes.k[0] == 4 and env.no_safe_action_steps == 1
+    assert env.shield_steps == {"exhaustive": 1, "none": 1}
+
+
+def test_past_the_exhaustive_horizon_the_masks_are_the_runtime_shields(tiny: CompileResult) -> None:
+    """A table for the first second of a 4 s episode: from there on the runtime shield's masks, each
+    step's info saying which guarantee its mask carried (the depth the search reached)."""
+    short = shield_table(tiny, 2, "none")
+    env = ScenarioEnv(tiny, shield=short, lookahead=LookaheadSettings(depth=1, seconds=None))
+    runtime = Lookahead(env.episodes.data, env.episodes.horizon_samples, LookaheadSettings(depth=1, seconds=None))
+    rng = np.random.default_rng(2)
+    kinds = []
+    for _ in range(6):
+        env.reset()
+        done = False
+        while not done:
+            key = env.episodes.state_keys()[0]
+            mask = env.action_masks()
+            assert mask.any()
+            expected = runtime.decide(key)
+            _, _, terminated, truncated, info = env.step(int(rng.choice(np.flatnonzero(mask))))
+            kinds.append(info["shield"])
+            if key[0] < 2:
+                assert info["shield"] == "exhaustive" and mask.tolist() == short.mask(key).tolist()
+                assert info["shield_until"] == pytest.approx(1.0)
+            elif expected.depth:
+                assert info["shield"] == "lookahead 1" and mask.tolist() == expected.mask.tolist()
+                assert info["shield_until"] == pytest.approx(expected.until * 0.5)
+            else:
+                assert info["shield"] == "none" and info["no_safe_action"]
+            assert info["shield_allowed"] and not info["shield_timeout"]
+            done = terminated or truncated
+    assert kinds.count("exhaustive") == 6 and kinds.count("lookahead 1") > 0
+    assert sum(env.shield_steps.values()) == len(kinds)
+    assert env.shield_steps["lookahead 1"] == kinds.count("lookahead 1")
+
+
+def test_a_runtime_shield_alone_keeps_random_walks_safe(tiny: CompileResult) -> None:
+    """Without any table, a lookahead over the rest of the episode is the exhaustive shield computed at
+    run time: shielded random walks never collide nor leave the road."""
+    env = ScenarioEnv(tiny, lookahead=LookaheadSettings(depth=4, seconds=None))
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        env.reset()
+        done = False
+        while not done:
+            _, _, terminated, truncated, info = env.step(int(rng.choice(np.flatnonzero(env.action_masks()))))
+            assert not info["collided"] and not info["offroad"] and info["shield"].startswith("lookahead ")
+            done = terminated or truncated
+    assert set(env.shield_steps) == {"lookahead 4", "lookahead 3", "lookahead 2", "lookahead 1"}
+
+
+def test_never_an_all_false_mask(tiny: CompileResult) -> None:
+    """Random walks that ignore the masks run into the van: where no action has a safe continuation the
+    mask allows every action of the model, with info["shield"] == "none" and the step flagged and counted."""
+    env = ScenarioEnv(tiny, lookahead=LookaheadSettings(depth=2, seconds=None))
+    rng = np.random.default_rng(5)
+    flagged = 0
+    for _ in range(10):
+        env.reset()
+        done = False
+        while not done:
+            mask = env.action_masks()
+            assert mask.dtype == bool and mask.any()
+            _, _, terminated, truncated, info = env.step(int(rng.integers(env.action_space.n)))
+            assert info["no_safe_action"] == (info["shield"] == "none")
+            if info["no_safe_action"]:
+                assert mask.all()
+                flagged += 1
+            done = terminated or truncated
+    assert flagged > 0 and env.no_safe_action_steps == flagged == env.shield_steps["none"]
+
+
+def test_after_a_sticky_collision_nothing_is_safe(tmp_path: Path) -> None:
+    """Under ``collision sticky`` a collision makes every later state unsafe: "none" to the end."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", queries={})
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace("    model {\n", "    model {\n        collision sticky\n", 1), encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok and result.model_data is not None and result.model_data.sticky
+    env = ScenarioEnv(result, lookahead=LookaheadSettings(depth=2, seconds=None))
+    env.reset()
+    crashed, done, kinds = False, False, []
+    while not done:
+        _, _, terminated, truncated, info = env.step(8)  # full throttle, straight on: into the van
+        if crashed:
+            kinds.append(info["shield"])
+        crashed = crashed or info["collided"]
+        done = terminated or truncated
+    assert crashed and kinds and set(kinds) == {"none"}
+
+
+def test_the_time_budget_reports_itself_in_info(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny, lookahead=LookaheadSettings(depth=4, seconds=None, nodes=0))
+    env.reset()
+    _, _, _, _, info = env.step(int(np.flatnonzero(env.action_masks())[0]))
+    assert info["shield_timeout"] and info["shield"] == "lookahead 1" and env.timeout_steps == 1
+
+
+def test_the_step_info_without_a_shield(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny)
+    env.reset()
+    assert env.action_masks().all()
+    _, _, _, _, info = env.step(4)
+    assert info["shield"] == "none" and not info["no_safe_action"] and not info["shield_timeout"]
+    assert env.no_safe_action_steps == 0 and env.shield_steps == {"none": 1}
 
 
 def test_shield_for_another_model(tiny: CompileResult, table: ShieldTable) -> None:

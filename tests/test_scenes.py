@@ -69,7 +69,8 @@ HAZARDS = {"highway": ("collide", 61), "overtaking": ("collide", 27), "t_junctio
 @pytest.mark.parametrize("name", sorted(HAZARDS))
 def test_keeping_speed_and_heading_fails_and_a_safe_run_exists(name: str, tmp_path: Path) -> None:
     """The hazard of each scene is real: the ego that keeps its speed and heading runs into the truck
-    (highway, at 6.1 s), the tractor (overtaking, 2.7 s) or the slower car ahead (tutorial, 3.6 s), or straight on off the T-junction's road
+    (highway, at 6.1 s), the tractor (overtaking, 2.7 s) or the slower car ahead (tutorial, 3.6 s), or
+    straight on off the T-junction's road
     where the north arm is missing (3.3 s); and some run stays safe to the horizon (Qb), so a safety
     shield exists (Qd)."""
     result = compile_file(scene_file(tmp_path, name))
