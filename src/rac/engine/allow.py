@@ -48,10 +48,15 @@ class ActionGuard:
     def successors_allowed(self, successors: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         """``(n,)`` bool: whether each successor state (ego columns, reached at sample ``k``) meets the
         condition — whether the choice that led to it is allowed."""
-        if self.evaluator is None or self.data.allow is None:
-            return np.ones(successors.shape[0], dtype=bool)
         samples = np.broadcast_to(np.asarray(k, dtype=np.int64), (successors.shape[0],))
-        return np.asarray(self.evaluator.evaluate_bool(self.data.allow, Frame(k=samples, ego=successors)), dtype=bool)
+        return self.allowed_in(Frame(k=samples, ego=successors))
+
+    def allowed_in(self, frame: Frame) -> np.ndarray:
+        """``(n,)`` bool: whether each successor state of ``frame`` meets the condition, read on that frame
+        (so its model calls are shared with whatever else reads the frame)."""
+        if self.evaluator is None or self.data.allow is None:
+            return np.ones(frame.n, dtype=bool)
+        return np.asarray(self.evaluator.evaluate_bool(self.data.allow, frame), dtype=bool)
 
     def masks(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         """``(n, P)`` bool: the actions (:func:`action_pairs`) allowed in each state (ego columns) at

@@ -25,7 +25,7 @@ Example::
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -80,6 +80,10 @@ class Frame:
     #: (n,) bool: under ``collision sticky``, whether ``collide()`` held at an earlier sample of the run
     #: (or at this one): ``collide()`` is that or this sample's test. Needed then, ignored otherwise.
     crashed: np.ndarray | None = None
+    #: The model's functions of position (``offroad``, ``mindist``, ``goal``, ``dist_goal``) of these
+    #: states, when the caller has them: ``functions(name)`` is ``(n,)`` (e.g. computed once per distinct
+    #: position that many states share, :class:`rac.engine.explore.Geometry`). None: the model is called.
+    functions: Callable[[str], np.ndarray] | None = None
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
@@ -187,6 +191,8 @@ class Evaluator:
     def _call(self, call: ie.Call, frame: Frame):
         name = call.name
         if call.function.kind == "model":
+            if name not in frame._cache and name != "collide" and frame.functions is not None:
+                frame._cache[name] = np.asarray(frame.functions(name))
             if name not in frame._cache:  # one model call per frame, however often a query reads it
                 model = self.model
                 frame._cache[name] = {

@@ -26,12 +26,14 @@ from rac.engine.budget import (
     BudgetExceeded,
     projected_states,
 )
+from rac.engine.evaluate import Frame
 from rac.engine.graph import LABELS, ExploredGraph
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.batch import BatchModel, batch_model, distinct_values
 from rac.model.data import ModelData
 
-__all__ = ["COLUMNS", "STICKY_COLUMNS", "Beam", "Stop", "action_pairs", "explore", "forgets_actions"]
+__all__ = ["COLUMNS", "GEOMETRY", "STICKY_COLUMNS", "Beam", "Geometry", "Stop", "action_pairs", "explore",
+           "forgets_actions"]
 
 #: The columns of :attr:`ExploredGraph.states` produced by :func:`explore`.
 COLUMNS: tuple[str, ...] = ("k", *EGO_STATE)
@@ -97,24 +99,110 @@ def _graph_bytes(states: int, choices: int) -> int:
     return states * GRAPH_BYTES_PER_STATE + choices * GRAPH_BYTES_PER_CHOICE
 
 
-def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
-            check: Callable[[int], None],
-            keep: Callable[[np.ndarray], np.ndarray] | None = None,
-            forget: bool = False,
-            successor: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The distinct successors of ``sources`` (one per (jerk, turn) pair of ``pairs``, or one with
-    their own actions when ``pairs`` is None) in lexicographic order, each kept choice's successor,
-    and which choices are kept (``keep(successors)``: the ``allow when`` rule; None keeps all).
-    With ``forget`` the successors' jerk and turn are set to 0 (after ``keep`` read them), so that
-    successors differing only in the action that led to them merge. ``successor(rows)`` computes the
-    successor rows of the chosen rows (default: ``model.sense``; rows may carry more columns).
+#: The model's functions of a state's position (what :class:`Geometry` computes): none reads the action
+#: (jerk, turn) that led to the state, nor, under ``collision sticky``, its history.
+GEOMETRY: dict[str, type] = {"offroad": bool, "mindist": float, "goal": bool, "dist_goal": float}
+
+
+class Geometry:
+    """The model's functions of position (:data:`GEOMETRY`) at one sample, on distinct rows (ego columns
+    with jerk and turn 0), each computed at most once per row and only for the rows asked for.
+
+    Exploration keys a layer's successors by these rows before anything reads the model: the ``allow
+    when`` rule, the sticky collision test and the labels then share one evaluation per distinct
+    position, however many actions or histories lead there (issue 20: before, ``offroad`` ran on every
+    successor for the rule and again for the labels)."""
+
+    def __init__(self, model: BatchModel, rows: np.ndarray, k: int) -> None:
+        self.model = model
+        self.rows = rows
+        self.k = k
+        self._values: dict[str, np.ndarray] = {}
+        self._known: dict[str, np.ndarray] = {}
+
+    @property
+    def n(self) -> int:
+        return int(self.rows.shape[0])
+
+    def _compute(self, name: str, rows: np.ndarray) -> np.ndarray:
+        model, k = self.model, self.k
+        if name == "offroad":
+            return model.offroad(rows, k)
+        if name == "mindist":
+            return model.mindist(rows, k)
+        if name == "goal":
+            return model.goal(rows, k)
+        if name == "dist_goal":
+            return model.dist_goal(rows)
+        raise KeyError(f"{name}() is not a function of the position")
+
+    def __call__(self, name: str, index: np.ndarray) -> np.ndarray:
+        """``name()`` of rows ``index`` (any order, repeats allowed), computing the rows not known yet."""
+        values = self._values.get(name)
+        if values is None:
+            values = self._values[name] = np.zeros(self.n, dtype=GEOMETRY[name])
+            self._known[name] = np.zeros(self.n, dtype=bool)
+        known = self._known[name]
+        todo = np.zeros(self.n, dtype=bool)
+        todo[index] = True
+        todo &= ~known
+        count = int(np.count_nonzero(todo))
+        if count == self.n:  # all of them: no copy of the rows
+            values[:] = self._compute(name, self.rows)
+            known[:] = True
+        elif count:
+            missing = np.flatnonzero(todo)
+            values[missing] = self._compute(name, self.rows[missing])
+            known[missing] = True
+        return values[index]
+
+    @staticmethod
+    def merged(parts: list[Geometry]) -> tuple[Geometry, list[np.ndarray]]:
+        """One geometry of the distinct rows of ``parts`` (of one sample), what any of them knew kept,
+        and for each part its rows' index in it."""
+        rows, inverse = _unique_rows(np.concatenate([part.rows for part in parts]))
+        whole = Geometry(parts[0].model, rows, parts[0].k)
+        bounds = np.cumsum([0, *(part.n for part in parts)])
+        maps = [inverse[low:high] for low, high in zip(bounds[:-1], bounds[1:])]
+        for name in {name for part in parts for name in part._values}:
+            values = whole._values[name] = np.zeros(whole.n, dtype=GEOMETRY[name])
+            known = whole._known[name] = np.zeros(whole.n, dtype=bool)
+            for part, where in zip(parts, maps):
+                if name in part._known:
+                    have = part._known[name]
+                    values[where[have]] = part._values[name][have]
+                    known[where[have]] = True
+        return whole, maps
+
+
+def _ranks(values: np.ndarray) -> tuple[np.ndarray, int]:
+    """Each value's rank among the distinct ``values`` (their order kept), and how many there are."""
+    distinct, rank = distinct_values(values)
+    return rank, len(distinct)
+
+
+def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None, sample: int,
+            check: Callable[[int], None], guard: ActionGuard | None = None, forget: bool = False,
+            sticky: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, Geometry, np.ndarray]:
+    """The distinct successors (at ``sample``) of ``sources`` (one per (jerk, turn) pair of ``pairs``, or
+    one with their own actions when ``pairs`` is None) in lexicographic order, each kept choice's
+    successor, which choices are kept (``guard``: the ``allow when`` rule; None keeps all), and the
+    successors' :class:`Geometry` with each successor's row in it. With ``forget`` the successors' jerk
+    and turn are set to 0 (after the rule read them), so that successors differing only in the action
+    that led to them merge. With ``sticky`` rows carry the ``crashed`` column: the source's, or
+    ``collide()`` of the successor.
+
+    Where the rule or the collision test reads the successors before they merge, each chunk's
+    successors are keyed by their position first (:func:`_by_position`), so that the model is read
+    once per distinct position, and the labels later reuse it; otherwise the successors merge first
+    and the labels read the model once per distinct successor.
 
     Successors are computed :data:`CHUNK_ROWS` at a time and merged as they come, so the memory
     beyond the result stays bounded; ``check(distinct)`` is called with the distinct successors
     found so far whenever they are merged (it raises to stop)."""
     per = 1 if pairs is None else len(pairs)
     step = max(1, CHUNK_ROWS // per)
-    parts: list[np.ndarray] = []  # distinct rows, merged or per chunk
+    parts: list[tuple[np.ndarray, np.ndarray, Geometry]] = []  # distinct rows, their geometry rows, geometry
     inverses: list[np.ndarray] = []  # per chunk: each choice's row in the concatenation of parts
     kept: list[np.ndarray] = []
     merged_rows = pending = 0
@@ -125,39 +213,88 @@ def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None,
         else:
             chosen = np.repeat(block, per, axis=0)
             chosen[:, 5:7] = np.tile(pairs, (block.shape[0], 1))
-        successors = model.sense(chosen) if successor is None else successor(chosen)
-        if keep is not None:
-            allowed = keep(successors)
-            kept.append(allowed)
-            successors = successors[allowed]
-        else:
+        moved = model.sense(chosen[:, :7])
+        if guard is None and not sticky:  # nothing reads the model before the successors merge
             kept.append(np.ones(chosen.shape[0], dtype=bool))
-        if forget:
-            successors[:, 5:7] = 0
-        rows, inverse = _unique_rows(successors)
+            if forget:
+                moved[:, 5:7] = 0
+            rows, inverse = _unique_rows(moved)
+            places = rows.copy()
+            places[:, 5:7] = 0
+            part = (rows, np.arange(rows.shape[0], dtype=np.int64), Geometry(model, places, sample))
+        else:
+            part, inverse = _by_position(model, chosen, moved, sample, guard, forget, kept)
         inverses.append(inverse + merged_rows + pending)
-        parts.append(rows)
-        pending += rows.shape[0]
+        parts.append(part)
+        pending += part[0].shape[0]
         if pending > max(merged_rows, CHUNK_ROWS):  # merge: memory stays within twice the distinct rows
-            parts, merged_rows, pending = _merge(parts, inverses), 0, 0
-            merged_rows = parts[0].shape[0]
+            parts = [_merge(parts, inverses)]
+            merged_rows, pending = parts[0][0].shape[0], 0
             check(merged_rows)
     if not parts:
         return (np.zeros((0, sources.shape[1]), dtype=np.int32), np.zeros(0, dtype=np.int64),
-                np.zeros(0, dtype=bool))
+                np.zeros(0, dtype=bool), Geometry(model, np.zeros((0, 7), dtype=np.int32), sample),
+                np.zeros(0, dtype=np.int64))
     if len(parts) > 1:
-        parts = _merge(parts, inverses)
-    check(parts[0].shape[0])
-    return np.ascontiguousarray(parts[0], dtype=np.int32), np.concatenate(inverses), np.concatenate(kept)
+        parts = [_merge(parts, inverses)]
+    rows, where, geometry = parts[0]
+    check(rows.shape[0])
+    return np.ascontiguousarray(rows, dtype=np.int32), np.concatenate(inverses), np.concatenate(kept), geometry, where
 
 
-def _merge(parts: list[np.ndarray], inverses: list[np.ndarray]) -> list[np.ndarray]:
-    """One distinct, ordered array of the rows of ``parts``; ``inverses`` are rewritten in place to
-    index it."""
-    rows, inverse = _unique_rows(np.concatenate(parts))
+def _by_position(model: BatchModel, chosen: np.ndarray, moved: np.ndarray, sample: int, guard: ActionGuard | None,
+                 forget: bool, kept: list[np.ndarray]) -> tuple[tuple[np.ndarray, np.ndarray, Geometry], np.ndarray]:
+    """:func:`_expand` of one chunk whose successors ``moved`` (of the rows ``chosen``) are read before
+    they merge (the ``allow when`` rule, the sticky collision when ``chosen`` has the ``crashed``
+    column): ``(distinct rows, their geometry rows, geometry)`` and each kept choice's row; the chunk's
+    kept mask is appended to ``kept``. The successors are keyed by position first, so that the model is
+    read once per distinct position; the distinct rows are then found from that key's rank and the few
+    other columns, in the order ``np.unique`` gives the rows."""
+    key = moved.copy()
+    key[:, 5:7] = 0
+    places, where = _unique_rows(key)
+    del key
+    geometry = Geometry(model, np.ascontiguousarray(places, dtype=np.int32), sample)
+    sticky = chosen.shape[1] > moved.shape[1]
+    crashed = ((chosen[:, 7] != 0) | (geometry("mindist", where) < model.native.td_d)) if sticky else None
+    if guard is not None:
+        frame = Frame(k=np.full(moved.shape[0], sample, dtype=np.int64), ego=moved,
+                      functions=lambda name: geometry(name, where))
+        allowed = guard.allowed_in(frame)
+        kept.append(allowed)
+        moved, where = moved[allowed], where[allowed]
+        crashed = crashed[allowed] if crashed is not None else None
+    else:
+        kept.append(np.ones(chosen.shape[0], dtype=bool))
+    # the distinct successors: by position (rank `where`), then jerk, turn and crashed, as the rows sort
+    code, span = np.zeros(moved.shape[0], dtype=np.int64), 1
+    if not forget:
+        for column in (5, 6):
+            rank, count = _ranks(moved[:, column])
+            code, span = code * count + rank, span * count
+    if crashed is not None:
+        code, span = code * 2 + crashed, span * 2
+    distinct, inverse = distinct_values(where * span + code)
+    rows = np.empty((distinct.size, moved.shape[1] + (crashed is not None)), dtype=np.int32)
+    rows[inverse, :7] = moved
+    if forget:
+        rows[:, 5:7] = 0
+    if crashed is not None:
+        rows[inverse, 7] = crashed
+    return (rows, distinct // span, geometry), inverse
+
+
+def _merge(parts: list[tuple[np.ndarray, np.ndarray, Geometry]],
+           inverses: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, Geometry]:
+    """One distinct, ordered array of the rows of ``parts``, with their geometry merged; ``inverses``
+    are rewritten in place to index it."""
+    rows, inverse = _unique_rows(np.concatenate([part[0] for part in parts]))
     for i, old in enumerate(inverses):
         inverses[i] = inverse[old]
-    return [rows]
+    geometry, maps = Geometry.merged([part[2] for part in parts])
+    where = np.empty(rows.shape[0], dtype=np.int64)
+    where[inverse] = np.concatenate([places[part[1]] for places, part in zip(maps, parts)])
+    return rows, where, geometry
 
 
 def forgets_actions(k: int | np.ndarray, decide_every: int, horizon_samples: int) -> np.ndarray:
@@ -216,6 +353,8 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     the ``collide`` label. States reached with and without a collision on the way stay apart.
 
     Labels (``(n,)`` bool): ``collide``, ``offroad``, ``goal``, ``safe`` (``!collide && !offroad``).
+    The model's functions of position are read once per distinct position of a layer
+    (:class:`Geometry`): the ``allow when`` rule, the sticky collision test and the labels share it.
     ``progress(layer, frontier_size, total_states)`` is called once per explored layer.
 
     Searching rather than building (:mod:`rac.engine.witness`): ``stop_at`` (:data:`Stop`) is asked
@@ -246,6 +385,11 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     sticky = data.sticky
     # ego columns of layer k; under `collision sticky` one more: collide() held at this sample or before
     frontier = np.column_stack([start, model.collide(start, 0)]).astype(np.int32) if sticky else start
+    # the frontier's positions: the model's functions on them, shared with the rule that made them
+    place = start.copy()
+    place[:, 5:7] = 0
+    geometry, where = Geometry(model, place, 0), np.zeros(1, dtype=np.int64)
+    td = native.td_d
     columns = STICKY_COLUMNS if sticky else COLUMNS
     layers: list[np.ndarray] = []
     counts: list[np.ndarray] = []  # choices per state
@@ -258,10 +402,10 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
         for k in range(horizon_samples + 1):
             size = frontier.shape[0]
             layers.append(frontier)
-            collide = frontier[:, 7] != 0 if sticky else model.collide(frontier, k)
-            offroad = model.offroad(frontier[:, :7], k)
+            collide = frontier[:, 7] != 0 if sticky else geometry("mindist", where) < td
+            offroad = geometry("offroad", where)
             safe = ~collide & ~offroad
-            for name, mask in (("collide", collide), ("offroad", offroad), ("goal", model.goal(frontier[:, :7], k)),
+            for name, mask in (("collide", collide), ("offroad", offroad), ("goal", geometry("goal", where)),
                                ("safe", safe)):
                 labels[name].append(mask)
             base = total + size  # index of the next layer's first state
@@ -290,23 +434,15 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
             def check(distinct: int) -> None:
                 budget.check_states(found + distinct, k + 1)  # noqa: B023 - called within this iteration
 
-            def keep(successors: np.ndarray) -> np.ndarray:
-                return guard.successors_allowed(successors[:, :7], k + 1)  # noqa: B023 - called within this iteration
-
-            def step(chosen: np.ndarray) -> np.ndarray:
-                """sense() of the ego columns; the sticky collision carried on and tested at k + 1."""
-                moved = model.sense(chosen[:, :7])
-                crashed = (chosen[:, 7] != 0) | model.collide(moved, k + 1)  # noqa: B023 - within this iteration
-                return np.column_stack([moved, crashed]).astype(np.int32)
-
             restricted = decide and guard.restricts
             forget = forget_actions and bool(forgets_actions(k + 1, data.decide_every, horizon_samples))
-            frontier, inverse, kept = _expand(model, sources, pairs if decide else None, check,
-                                              keep if restricted else None, forget, step if sticky else None)
+            frontier, inverse, kept, geometry, where = _expand(model, sources, pairs if decide else None, k + 1,
+                                                               check, guard if restricted else None, forget, sticky)
             if beam is not None and frontier.shape[0]:
                 rows = np.asarray(beam(k + 1, frontier), dtype=np.int64)
                 if rows.size < frontier.shape[0]:
                     frontier, inverse, kept = _trim(frontier, inverse, kept, rows)
+                    where = where[rows]
                     restricted, complete = True, False  # some choices now lead nowhere: dropped
             choices -= kept.size - int(kept.sum())  # the disallowed choices are not in the graph
             count = np.zeros(size, dtype=np.int64)

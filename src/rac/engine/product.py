@@ -482,14 +482,15 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
         moved = before[:, :7].copy()
         moved[:, 5:7] = chosen[first_u]
         after = model.sense(moved).astype(np.int64)
-        if k % data.decide_every == 0 and guard.restricts:
-            # allow when: only the choices whose successor meets the condition (none: a terminal state)
-            ok = guard.successors_allowed(after, k + 1)[inv_u]
-            src, action, inv_u = src[ok], action[ok], inv_u[ok]
-            counts = np.bincount(src, minlength=sampled.n).astype(np.int64)
         crashed = before[:, 7] != 0 if sticky else None
         now = Frame(np.full(after.shape[0], k + 1, dtype=np.int64), after, crashed=crashed,
                     prev=Frame(np.full(after.shape[0], k, dtype=np.int64), before[:, :7], crashed=crashed))
+        if k % data.decide_every == 0 and guard.restricts:
+            # allow when: only the choices whose successor meets the condition (none: a terminal state);
+            # read on the frame of the bindings and labels, so that they share its model calls
+            ok = guard.allowed_in(now)[inv_u]
+            src, action, inv_u = src[ok], action[ok], inv_u[ok]
+            counts = np.bincount(src, minlength=sampled.n).astype(np.int64)
         read = bindings.read(now)
         prevs = bindings.prevs(now)
         sample_labels = labels(now)
