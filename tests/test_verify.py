@@ -325,9 +325,12 @@ def test_state_budget_gives_unknown_not_a_crash(compiled: Callable[[str], Compil
     # the automaton alone decides Product: no state of the model is needed
     product = results.pop("Product")
     assert product.status == "satisfied" and product.method == "compositional"
+    stays = results.pop("Stays")  # a run safe to the horizon is found within the budget (a run is 9 states)
+    assert (stays.status, stays.method) == ("satisfied", "witness search")
+    assert stays.states is not None and stays.states <= 2 * 10  # the random runs', then the beam's
     assert {r.status for r in results.values()} == {"unknown"}
-    assert "more than 10 states" in (results["Stays"].message or "")
-    assert "--max-states" in (results["Stays"].message or "")
+    assert "more than 10 states" in (results["safe"].message or "")
+    assert "--max-states" in (results["safe"].message or "")
     assert "--horizon" in (results["LeadsTo"].message or "")
     assert "UNKNOWN" in render_text(list(results.values()))
 

@@ -150,8 +150,8 @@ def test_a_tampered_witness_does_not_replay() -> None:
     assert witness is not None
     states = witness.states.copy()
     states[2, 1] += 1  # x of sample 2 off by one significand
-    with pytest.raises(ReplayMismatch, match=r"internal error: the witness found by random runs does not "
-                                             r"replay .* at sample 2: the search has x="):
+    with pytest.raises(ReplayMismatch, match=r"^the witness found by random runs does not replay with the scalar "
+                                             r"model .* at sample 2: the search has x=.*\(a bug in rac"):
         replay(data, dataclasses.replace(witness, states=states), target)
     with pytest.raises(ReplayMismatch, match="does not satisfy the target"):
         replay(data, witness, fast(data, 99.0))

@@ -45,7 +45,8 @@ from rac.model.data import ModelData
 from rac.model.native import NativeModel
 
 __all__ = ["Bounds", "Found", "Predicate", "ReplayMismatch", "Witness", "beam_search", "goal_distance",
-           "layered_search", "random_runs", "replay", "search", "witness_graph", "witness_in"]
+           "layered_search", "random_runs", "replay", "safe_states", "search", "witness_along", "witness_graph",
+           "witness_in"]
 
 #: ``predicate(k, rows) -> (n,) bool`` over states of sample ``k``: ``rows`` as
 #: :func:`rac.engine.explore.explore` stores them, without ``k`` (the ego columns; ``crashed`` too under
@@ -61,7 +62,8 @@ RUN_BATCH = 1000
 @dataclass(frozen=True)
 class Bounds:
     """What the cheap witness searches (:func:`search`) may spend: ``runs`` random runs, a beam of
-    ``width`` states per layer, and ``seconds`` in all; each search at most ``max_states`` states."""
+    ``width`` states per layer, and ``seconds`` in all; each search at most ``max_states`` states.
+    ``runs`` or ``width`` 0 leaves that search out."""
 
     runs: int = 2000
     width: int = 5000
@@ -130,7 +132,9 @@ def _start(data: ModelData, model: BatchModel) -> np.ndarray:
     return start[0]
 
 
-def _safe(data: ModelData, model: BatchModel, k: int, rows: np.ndarray) -> np.ndarray:
+def safe_states(data: ModelData, k: int, rows: np.ndarray) -> np.ndarray:
+    """``!collide() && !offroad()`` (the ``safe`` label) on rows of sample ``k`` (a :data:`Predicate`)."""
+    model = batch_model(data)
     collide = rows[:, 7] != 0 if data.sticky else model.collide(rows[:, :7], k)
     return ~collide & ~model.offroad(rows[:, :7], k)
 
@@ -144,13 +148,14 @@ def goal_distance(data: ModelData) -> Score:
 # ---------------------------------------------------------------- random runs
 def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, runs: int, seed: int,
                 through: Predicate | None = None, prune_unsafe: bool = False, deadline: float | None = None,
-                start: tuple[int, np.ndarray] | None = None) -> Found:
+                start: tuple[int, np.ndarray] | None = None, via: Predicate | None = None) -> Found:
     """Up to ``runs`` random runs (:data:`RUN_BATCH` at a time) until one is a witness.
 
     At each decision a run draws one of its allowed actions uniformly (``allow when``; a run with none
     ends); a run ends at its first state outside ``through`` (and, with ``prune_unsafe``, at its first
     unsafe state) — after that state was tested against ``target``. ``start`` ``(k, row)`` starts the
-    runs there instead of at the ego's start (the witness then starts at ``k``). ``deadline``: a
+    runs there instead of at the ego's start (the witness then starts at ``k``). With ``via`` a run is
+    a witness only once one of its states satisfied ``via`` too. ``deadline``: a
     :func:`time.perf_counter` value after which no new batch is started."""
     model = batch_model(data)
     guard = ActionGuard(data)
@@ -168,11 +173,14 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
         history = np.zeros((n, length, rows.shape[1]), dtype=np.int32)
         chosen = np.full((n, max(length - 1, 0)), -1, dtype=np.int64)
         alive = np.arange(n)
+        visited = np.zeros(n, dtype=bool) if via is not None else np.ones(n, dtype=bool)
         for k in range(first_k, horizon_samples + 1):
             step = k - first_k
             history[alive, step] = rows[alive]
             generated += alive.size
-            hit = np.asarray(target(k, rows[alive]), dtype=bool)
+            if via is not None:
+                visited[alive] |= np.asarray(via(k, rows[alive]), dtype=bool)
+            hit = np.asarray(target(k, rows[alive]), dtype=bool) & visited[alive]
             if hit.any():
                 run = int(alive[np.flatnonzero(hit)[0]])
                 states = np.column_stack([np.arange(first_k, k + 1, dtype=np.int32), history[run, :step + 1]])
@@ -181,7 +189,7 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
                 break
             go = np.ones(alive.size, dtype=bool)
             if prune_unsafe:
-                go &= _safe(data, model, k, rows[alive])
+                go &= safe_states(data, k, rows[alive])
             if through is not None:
                 go &= np.asarray(through(k, rows[alive]), dtype=bool)
             alive = alive[go]
@@ -216,7 +224,11 @@ def witness_in(graph: ExploredGraph, target: Predicate, search: str) -> Witness 
     hit = np.asarray(target(k, graph.states[layer, 1:]), dtype=bool)
     if not hit.any():
         return None
-    path = graph.path_to(int(layer[np.flatnonzero(hit)[0]]))
+    return witness_along(graph, graph.path_to(int(layer[np.flatnonzero(hit)[0]])), search)
+
+
+def witness_along(graph: ExploredGraph, path: list[int], search: str) -> Witness:
+    """The run of ``graph`` through the states ``path`` (consecutive ones joined by a choice)."""
     actions = []
     for source, following in zip(path, path[1:]):
         choices = graph.choices(source)
@@ -281,9 +293,11 @@ def search(data: ModelData, target: Predicate, *, horizon_samples: int, seed: in
     runs = min(bounds.runs, max(bounds.max_states // per_run, 1))
     width = min(bounds.width, max(bounds.max_states // per_run, 1))
     seeds = np.random.SeedSequence(seed).spawn(2)
-    found = random_runs(data, target, horizon_samples=horizon_samples, runs=runs, seed=_seed(seeds[0]),
-                        through=through, prune_unsafe=prune_unsafe, deadline=deadline)
-    if found.witness is not None:
+    found = Found(None, 0)
+    if runs > 0:
+        found = random_runs(data, target, horizon_samples=horizon_samples, runs=runs, seed=_seed(seeds[0]),
+                            through=through, prune_unsafe=prune_unsafe, deadline=deadline)
+    if found.witness is not None or width <= 0:
         return found
     beam = beam_search(data, target, horizon_samples=horizon_samples, width=width, seed=_seed(seeds[1]),
                        through=through, prune_unsafe=prune_unsafe, score=score, deadline=deadline)
@@ -313,8 +327,8 @@ def replay(data: ModelData, witness: Witness, target: Predicate, *, through: Pre
     found_by = f"the witness found by {witness.search}"
 
     def fail(sample: int, what: str) -> ReplayMismatch:
-        return ReplayMismatch(f"internal error: {found_by} does not replay with the scalar model "
-                              f"(rac.model.native) at sample {sample}: {what}")
+        return ReplayMismatch(f"{found_by} does not replay with the scalar model (rac.model.native) at sample "
+                              f"{sample}: {what} (a bug in rac: the searches and the scalar model disagree)")
 
     states = witness.states.tolist()
     if len(witness.actions) != len(states) - 1:

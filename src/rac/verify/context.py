@@ -27,6 +27,7 @@ from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
 from rac.engine.graph import ExploredGraph
+from rac.engine.witness import Bounds, Predicate
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.model.data import ModelData, ModelRangeError
@@ -88,6 +89,9 @@ class VerifyOptions:
     learn_stop_after: int = 10
     #: Show a progress bar (on a terminal) while learning, with the running mean return.
     bars: bool = False
+    #: What the witness searches before an exhaustive exploration may spend (random runs, the beam's
+    #: width, seconds, states; :class:`rac.engine.witness.Bounds`).
+    witness: Bounds = field(default_factory=Bounds)
 
 
 @dataclass(frozen=True)
@@ -102,6 +106,12 @@ class Learned:
 
 def _decimal(value: Fraction) -> str:
     return exact_decimal(value) or repr(float(value))
+
+
+def _no_prev(expr: ie.Expr) -> None:
+    if ie.uses_prev(expr):
+        raise EvaluationError("`prev(...)` in an exhaustive query is not supported: a merged state has no "
+                              "single previous sample")
 
 
 def over_budget(exc: BudgetExceeded) -> str:
@@ -161,6 +171,9 @@ class Context:
         #: The seed every query's seed derives from: the options' seed, or the fresh one drawn (give it
         #: as ``seed`` to reproduce the whole run).
         self.seed = int(self._seeds.entropy)  # type: ignore[arg-type]  # an int when given or drawn
+        # The witness searches draw from a stream of their own, so that a reachability query does not
+        # change the seeds of the statistical and learning queries after it.
+        self._search_seeds = np.random.SeedSequence((self.seed, 1))
 
     # ------------------------------------------------------------ files and seeds
     def out(self, name: str) -> Path:
@@ -185,6 +198,11 @@ class Context:
     def next_seed(self) -> int:
         """A fresh seed per query, all derived from the options' seed (reproducible as a whole)."""
         return int(self._seeds.spawn(1)[0].generate_state(1)[0])
+
+    def search_seed(self) -> int:
+        """A fresh seed per witness search (:mod:`rac.verify.reach`), derived from the options' seed but
+        apart from :meth:`next_seed`'s: a search never shifts a statistical query's seed."""
+        return int(self._search_seeds.spawn(1)[0].generate_state(1)[0])
 
     def bound_samples(self, bound: iq.Bound) -> int:
         """The samples within a query's time bound ``[<=T]`` (whole samples up to T s). A step bound
@@ -226,12 +244,24 @@ class Context:
 
     def label(self, graph: ExploredGraph, expr: ie.Expr) -> np.ndarray:
         """A state formula on every state of a plain explored graph."""
-        if ie.uses_prev(expr):
-            raise EvaluationError("`prev(...)` in an exhaustive query is not supported: a merged state has no "
-                                  "single previous sample")
+        _no_prev(expr)
         crashed = graph.states[:, graph.columns.index("crashed")] != 0 if "crashed" in graph.columns else None
         frame = Frame(k=graph.states[:, 0].astype(np.int64), ego=graph.states[:, 1:8], crashed=crashed)
         return np.ascontiguousarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
+
+    def predicate(self, expr: ie.Expr, *, negate: bool = False) -> Predicate:
+        """The state formula ``expr`` (negated with ``negate``) on the states of one sample, as the
+        witness searches read it (:data:`rac.engine.witness.Predicate`)."""
+        _no_prev(expr)
+        sticky = self.data.sticky
+
+        def holds(k: int, rows: np.ndarray) -> np.ndarray:
+            frame = Frame(k=np.full(rows.shape[0], k, dtype=np.int64), ego=np.ascontiguousarray(rows[:, :7]),
+                          crashed=rows[:, 7] != 0 if sticky else None)
+            value = np.asarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
+            return ~value if negate else value
+
+        return holds
 
     # ------------------------------------------------------------ strategies
     def strategy(self, name: str) -> tuple[storm.Shield, shield.ShieldTable]:

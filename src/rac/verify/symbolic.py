@@ -13,12 +13,14 @@ from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
+from rac.engine.witness import Predicate, Witness, witness_graph
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
 from rac.verify import compositional
 from rac.verify.context import Context, UnknownVerdict, over_budget
+from rac.verify.reach import Reached, Reacher, in_graph
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow
 from rac.verify.status import NOT_SATISFIED, SATISFIED
 
@@ -34,48 +36,120 @@ class SymbolicAnswerer:
 
     def __init__(self, context: Context) -> None:
         self.context = context
+        self.reacher = Reacher(context)
 
     def path(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
         """``A[] p``, ``E<> p``, ``E[] p``, ``A<> p`` (optionally ``under`` a shield), with a witness or
-        counterexample trace where Storm gives one.
+        counterexample trace.
 
         Under a shield the query is answered on what the shield allows (the shield's graph with its
         choices), never on the whole model; a shield that is missing or does not exist is reported
-        before anything is explored. ``E<> p`` is tried on the pruned model first (unsafe states end
-        a run there): a run found there is a run of the model, found at a fraction of the cost."""
-        ctx = self.context
+        before anything is explored. Otherwise the run that decides the query — the witness of ``E<>``
+        and ``E[]``, the counterexample of ``A[]`` and ``A<>`` — is looked for first
+        (:class:`~rac.verify.reach.Reacher`: a cheap search, then a layered one that stops at the first
+        witness), and only its absence needs the complete graph. ``E<> p`` is tried on the pruned model
+        first (unsafe states end a run there): a run found there is a run of the model."""
         if ie.reads_automaton(query.expr):
             return self.path_in_product(query, base)
         if query.under is not None:
             return self._decided(query, base, self.under_shield(query.under, "a query"))
         if query.quantifier == "E<>":
-            pruned = ctx.graph(True)
-            found = storm.safe_reach(pruned, ctx.label(pruned, query.expr))
-            if found.until.holds:
-                horizon = ctx.horizon_samples * float(ctx.period)
-                message = _meaning(found, horizon) if _implies_safe(query.expr) else None
-                return dataclasses.replace(base, status="satisfied", states=pruned.n_states,
-                                           horizon_samples=ctx.horizon_samples, message=message,
-                                           trace=self.trace_rows(pruned, found.until.trace))
-        # Pruning unsafe states is sound for A[]/E[] of a formula that unsafe states violate
-        # (reaching one already decides the query), never for A<>, nor E<> when the pruned model said no.
-        prune = query.quantifier in ("A[]", "E[]") and _implies_safe(query.expr)
-        result = self._decided(query, base, ctx.graph(prune))
-        if query.quantifier == "E<>" and result.trace:
-            # A collision does not end a run of the model (as in the emitted UPPAAL model), and the
-            # pruned model found no run: every witness passes through an unsafe state.
-            result = dataclasses.replace(result, message="the trace passes through unsafe states (a collision "
-                                                         "does not end a run); NO run that stays safe until it "
-                                                         "gets there exists")
-        return result
+            return self._reach(query.expr, base)
+        if query.quantifier == "A[]":
+            return self._invariant(query.expr, base)
+        return self._stays(query, base)
+
+    def _reach(self, expr: ie.Expr, base: QueryResult) -> QueryResult:
+        """``E<> p``: a safe run reaching ``p`` (the pruned model), else any run (the whole model)."""
+        ctx = self.context
+        target = ctx.predicate(expr)
+        found = self._reaches(target)
+        if found.witness is None:
+            return dataclasses.replace(base, status="not satisfied", states=found.states,
+                                       horizon_samples=ctx.horizon_samples, method=found.method)
+        if found.pruned:
+            message = self._safe_meaning(target, found.witness) if _implies_safe(expr) else None
+        else:  # the pruned model has no such run: every witness passes through an unsafe state
+            message = ("the trace passes through unsafe states (a collision does not end a run); NO run that stays "
+                       "safe until it gets there exists")
+        return self._witnessed(base, found, "satisfied", message)
+
+    def _reaches(self, target: Predicate) -> Reached:
+        """A run reaching ``target``: on the pruned model first (unsafe states end a run there; a run
+        found there is a run of the model), then — when the pruned model proves that no run reaches it
+        while safe — on the whole model, since a collision does not end a run of the model (as in the
+        emitted UPPAAL model)."""
+        found = self.reacher.find(target, prune=True)
+        assert found is not None  # an exhaustive search either finds a run or proves there is none
+        if found.witness is not None:
+            return found
+        anyway = self.reacher.find(target, prune=False)
+        assert anyway is not None
+        return anyway
+
+    def _invariant(self, expr: ie.Expr, base: QueryResult) -> QueryResult:
+        """``A[] p``: a run reaching ``!p`` is its counterexample. When unsafe states violate ``p``, the
+        pruned model holds every first violation (the states before it are safe)."""
+        ctx = self.context
+        found = self.reacher.find(ctx.predicate(expr, negate=True), prune=_implies_safe(expr))
+        assert found is not None
+        status = "satisfied" if found.witness is None else "not satisfied"
+        if found.witness is not None:
+            return self._witnessed(base, found, status)
+        return dataclasses.replace(base, status=status, states=found.states, horizon_samples=ctx.horizon_samples,
+                                   method=found.method)
+
+    def _stays(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
+        """``E[] p`` (a run keeping ``p`` to the horizon) and ``A<> p`` (fails on a run keeping ``!p``): the
+        cheap search for that run first, then Storm on the complete graph. Pruning unsafe states is sound
+        for a formula that unsafe states violate (reaching one ends the run's claim)."""
+        ctx = self.context
+        horizon = ctx.horizon_samples
+        keep = ctx.predicate(query.expr, negate=query.quantifier == "A<>")
+
+        def to_end(k: int, rows: np.ndarray) -> np.ndarray:
+            return keep(k, rows) & (k == horizon)
+
+        prune = query.quantifier == "E[]" and _implies_safe(query.expr)
+        found = self.reacher.find(to_end, prune=prune, through=keep, exhaustive=False)
+        if found is not None and found.witness is not None:
+            return self._witnessed(base, found, "satisfied" if query.quantifier == "E[]" else "not satisfied")
+        return self._decided(query, base, ctx.graph(prune))
+
+    def _witnessed(self, base: QueryResult, found: Reached, status: str, message: str | None = None) -> QueryResult:
+        """The verdict a replayed witness gives, with its trace."""
+        assert found.witness is not None
+        chain = witness_graph(self.context.data, found.witness)
+        return dataclasses.replace(base, status=status, states=found.states,
+                                   horizon_samples=self.context.horizon_samples, message=message, method=found.method,
+                                   trace=self.trace_rows(chain, list(range(chain.n_states))))
+
+    def _safe_meaning(self, target: Predicate, witness: Witness) -> str:
+        """What ``E<> p`` found on the pruned model means, for a ``p`` that excludes collisions: whether
+        one of the runs that stay safe until ``p`` stays safe to the horizon too — exactly when the
+        complete pruned graph is at hand, else as far as a continuation of the witness shows it."""
+        ctx = self.context
+        horizon = f"{ctx.horizon_samples * float(ctx.period):g} s"
+        complete = ctx.graphs.get(True)
+        to_horizon: bool | None
+        if complete is not None:
+            to_horizon = storm.safe_reach(complete, in_graph(complete, target)).to_horizon
+        else:
+            to_horizon = True if self.reacher.continues_safely(witness, target) is not None else None
+        return "a run that stays safe until it gets there exists (the trace); " + (
+            f"one of them stays safe to the horizon ({horizon}) too" if to_horizon
+            else f"NONE of them stays safe to the horizon ({horizon})" if to_horizon is False
+            else f"whether one of them stays safe to the horizon ({horizon}) is not known: random runs found none "
+                 "(the complete pruned model would decide it)")
 
     def _decided(self, query: iq.PathQuery, base: QueryResult, graph: ExploredGraph) -> QueryResult:
-        """``query`` decided by Storm on ``graph``."""
+        """``query`` decided by Storm on ``graph`` (a complete one: a shield's, or the explored model)."""
         ctx = self.context
+        assert graph.complete, "a query is decided only on a complete graph"
         labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
         verdict = storm.decide(labelled, query.quantifier, "query")
         return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
-                                   states=graph.n_states, horizon_samples=ctx.horizon_samples,
+                                   states=graph.n_states, horizon_samples=ctx.horizon_samples, method="exhaustive",
                                    trace=self.trace_rows(graph, verdict.trace))
 
     def path_in_product(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
@@ -135,12 +209,17 @@ class SymbolicAnswerer:
             raise UnknownVerdict("strategies over the automaton's names are not supported yet")
         within = self.under_shield(query.under, "a strategy") if query.under is not None else None
         if query.goal != "A[]":
-            graph = within if within is not None else ctx.graph(False)
-            labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
+            saved = "reachability strategies are decided but not saved"
+            if within is None:  # a run reaching p: the strategy that follows it exists
+                found = self._reaches(ctx.predicate(query.expr))
+                return dataclasses.replace(base, status="not satisfied" if found.witness is None else "satisfied",
+                                           states=found.states, horizon_samples=ctx.horizon_samples,
+                                           method=found.method, message=saved)
+            labelled = dataclasses.replace(within, labels={**within.labels, "query": ctx.label(within, query.expr)})
             verdict = storm.decide(labelled, "E<>", "query")
             return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
-                                       states=graph.n_states, horizon_samples=ctx.horizon_samples,
-                                       message="reachability strategies are decided but not saved")
+                                       states=within.n_states, horizon_samples=ctx.horizon_samples,
+                                       method="exhaustive", message=saved)
         graph = within if within is not None else ctx.graph(_implies_safe(query.expr))
         labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
         computed = storm.safety_shield(labelled, "query")
@@ -161,7 +240,7 @@ class SymbolicAnswerer:
                           f"horizon ({ctx.horizon_samples * float(ctx.period):g} s)"))
         return dataclasses.replace(base, status="satisfied" if computed.shield_exists else "not satisfied",
                                    states=graph.n_states, horizon_samples=ctx.horizon_samples, files=files,
-                                   message=message)
+                                   message=message, method="exhaustive")
 
     # ------------------------------------------------------------ pieces
     def under_shield(self, name: str, what: str) -> ExploredGraph:
@@ -221,13 +300,6 @@ def _longest_kept(graph: ExploredGraph, keep: np.ndarray) -> int:
         frontier[targets] = True
         last = max(last, int(k[targets].max()))
     return last
-
-
-def _meaning(found: storm.SafeReach, horizon_seconds: float) -> str:
-    """What ``E<> p`` found on the pruned model means, for a ``p`` that excludes collisions."""
-    return ("a run that stays safe until it gets there exists (the trace); "
-            + (f"one of them stays safe to the horizon ({horizon_seconds:g} s) too" if found.to_horizon
-               else f"NONE of them stays safe to the horizon ({horizon_seconds:g} s)"))
 
 
 def _implies_safe(expr: ie.Expr) -> bool:
