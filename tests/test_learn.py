@@ -331,6 +331,28 @@ def test_verify_an_unshielded_strategy_into_the_van(tmp_path: Path) -> None:
     assert again["rush"].estimate == results["rush"].estimate and again["rush"].runs == results["rush"].runs
 
 
+def test_when_no_allowed_run_reaches_the_goal_the_report_says_so(tmp_path: Path) -> None:
+    """On the avoidable obstacle the van blocks the only lane: the shield exists, but no run it allows
+    reaches the goal — the complete graph proves it, and the learning report says that rather than a
+    bare "never". Without a shield the complete pruned graph (the shield's) proves that no run staying
+    safe reaches it."""
+    queries = {"safe": VERIFY_QUERIES["safe"],
+               "go": "strategy go = maxE(sa + x)[<=4]{}->{x, v}: <> goal() under safe",
+               "rush": VERIFY_QUERIES["rush"]}
+    path = write_engine_file(tmp_path, "avoidable_obstacle", queries)
+    results = {r.name: r for r in verify(compile_file(path), VerifyOptions(seed=1, plots=False, learn_episodes=64))}
+    assert results["safe"].status == "satisfied"
+    assert ("greedy run safe until the goal: never: no run the shield `safe` allows reaches goal() safely within "
+            "4 s (the complete graph proves it), so no episode can succeed") in (results["go"].message or "")
+    assert ("greedy run safe until the goal: never: no run that stays safe reaches goal() safely within 4 s"
+            in (results["rush"].message or ""))
+    # where a run reaches it, no such claim
+    reachable = write_engine_file(tmp_path, "goal_ahead", queries, ra_name="reachable")
+    learned = {r.name: r for r in verify(compile_file(reachable), VerifyOptions(seed=1, plots=False,
+                                                                                learn_episodes=8))}
+    assert "proves it" not in (learned["go"].message or "")
+
+
 def test_statistical_queries_under_a_learned_strategy_use_its_one_run(tmp_path: Path) -> None:
     queries = {**VERIFY_QUERIES, "Trace": "simulate[<=4;3]{x, v} under reach",
                "PrGoal": "Pr[<=4](<> goal()) under reach", "MaxSpeed": "E[<=4;5](max: v) under reach"}

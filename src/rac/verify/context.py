@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from rac.learning.episodes import EpisodeBatch
     from rac.learning.qlearning import LearnedStrategy, StrategyRun
 
-__all__ = ["Context", "Learned", "NotApplicable", "UnknownVerdict", "VerifyOptions", "over_budget"]
+__all__ = ["Context", "Learned", "NotApplicable", "UnknownVerdict", "VerifyOptions", "over_budget", "restricted"]
 
 
 class UnknownVerdict(Exception):
@@ -336,3 +336,15 @@ class Context:
             for column, expr in zip(columns, exprs):
                 column.append(np.asarray(self.evaluator.evaluate(expr, frame), dtype=np.float64))
         return [np.stack(column, axis=1) for column in columns]
+
+
+def restricted(computed: storm.Shield) -> ExploredGraph:
+    """The shield's graph with only the allowed choices (states without one become terminal)."""
+    graph = computed.graph
+    keep = computed.allowed_choices
+    owner = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
+    counts = np.bincount(owner[keep], minlength=graph.n_states)
+    offsets = np.zeros(graph.n_states + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    return dataclasses.replace(graph, choice_offsets=offsets, choice_action=graph.choice_action[keep],
+                               choice_target=graph.choice_target[keep])

@@ -9,10 +9,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rac.engine.evaluate import EvaluationError
+from rac.engine.graph import ExploredGraph
 from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
-from rac.verify.context import Context, Learned, UnknownVerdict
+from rac.verify.context import Context, Learned, UnknownVerdict, restricted
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow, format_number
 
 if TYPE_CHECKING:  # rac.learning is imported when a query learns (rac verify without one never loads it)
@@ -97,6 +98,10 @@ class LearningAnswerer:
             run = f"does not reach {goal}"
         first = (f"first after {outcome.first_success_episode} episodes" if outcome.first_success_episode is not None
                  else "never")
+        if outcome.first_success_episode is None:
+            proof = self._unreachable(query)
+            if proof is not None:
+                first = f"never: {proof}"
         stop = ", stopped early" if outcome.stopped_early else ""
         lines = [f"learned in {outcome.episodes} episodes{stop}: the greedy run {run}, return "
                  f"{format_number(float(greedy.returns[0]))}",
@@ -106,6 +111,34 @@ class LearningAnswerer:
         if outcome.fallbacks:
             lines.append(f"{outcome.fallbacks} decisions where `{query.under}` allowed no action chose among all")
         return "\n".join(lines)
+
+    def _unreachable(self, query: iq.LearnStrategy) -> str | None:
+        """Why no episode can succeed, when a complete graph proves it: no run the shield ``under``
+        allows (or, without a shield, no run that stays safe) reaches the goal within the bound. None
+        when there is no such graph or it does not prove it (its horizon is shorter than the bound,
+        the goal reads the automaton)."""
+        ctx = self.context
+        samples = ctx.bound_samples(query.bound)
+        graph: ExploredGraph | None
+        if query.under is not None:
+            graph = restricted(ctx.strategy(query.under)[0])
+            runs = f"no run the shield `{query.under}` allows"
+        else:
+            graph = ctx.graphs.get(True)  # the pruned model: unsafe states end a run there
+            runs = "no run that stays safe"
+        if graph is None or not graph.complete or samples > ctx.horizon_samples:
+            return None
+        try:
+            goal = ctx.label(graph, query.expr)
+        except EvaluationError:
+            return None
+        k = graph.states[:, graph.columns.index("k")]
+        safe_goal = goal & graph.labels["safe"] & (k <= samples)
+        if np.any(safe_goal & graph.reachable()):
+            return None
+        when = f"{samples * float(ctx.period):g} s"
+        return (f"{runs} reaches {format_checked(query.expr)} safely within {when} (the complete graph proves it), "
+                "so no episode can succeed")
 
     def path_under_learned(self, query: iq.PathQuery, under: str, base: QueryResult) -> QueryResult:
         """``A[] p``, ``E[] p``, ``A<> p``, ``E<> p`` under the learned strategy ``under``: the model and

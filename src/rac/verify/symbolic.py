@@ -19,7 +19,7 @@ from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
 from rac.verify import compositional
-from rac.verify.context import Context, UnknownVerdict, over_budget
+from rac.verify.context import Context, UnknownVerdict, over_budget, restricted
 from rac.verify.reach import Reached, Reacher, in_graph
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow
 from rac.verify.status import NOT_SATISFIED, SATISFIED
@@ -250,7 +250,7 @@ class SymbolicAnswerer:
             raise EvaluationError(f"{what} under the learned strategy `{name}` is not supported (under a shield "
                                   "it is; path queries under a learned strategy are answered on its one run)")
         shield_, _ = self.context.strategy(name)
-        return _restricted(shield_)
+        return restricted(shield_)
 
     def trace_rows(self, graph: ExploredGraph, trace: list[int] | None) -> tuple[TraceRow, ...] | None:
         """The states of a witness trace as :data:`~rac.verify.report.TraceRow` s (None: no trace)."""
@@ -316,15 +316,3 @@ def _implies_safe(expr: ie.Expr) -> bool:
 
     walk(expr)
     return {"collide", "offroad"} <= found
-
-
-def _restricted(computed: storm.Shield) -> ExploredGraph:
-    """The shield's graph with only the allowed choices (states without one become terminal)."""
-    graph = computed.graph
-    keep = computed.allowed_choices
-    owner = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
-    counts = np.bincount(owner[keep], minlength=graph.n_states)
-    offsets = np.zeros(graph.n_states + 1, dtype=np.int64)
-    np.cumsum(counts, out=offsets[1:])
-    return dataclasses.replace(graph, choice_offsets=offsets, choice_action=graph.choice_action[keep],
-                               choice_target=graph.choice_target[keep])
