@@ -68,9 +68,9 @@ def test_a_shield_that_does_not_exist_is_said_before_any_exploration(tmp_path: P
     budget = between(result.model_data, result.automaton.steps)  # type: ignore[union-attr]
     _, results = run_queries(result, VerifyOptions(seed=1, plots=False, max_states=budget))
     shielded = {r.name: r for r in results}["Shielded"]
-    assert shielded.status == "unknown"
-    assert shielded.message == ("the strategy `safe` does not exist: no strategy keeps "
-                                "`!collide() && !offroad()` from the start")
+    assert shielded.status == "not_applicable"
+    assert shielded.message == ("the strategy `safe` does not exist: its defining query safe is not satisfied (no "
+                                "strategy keeps `!collide() && !offroad()` from the start: it is false at the start)")
 
 
 def test_reachability_is_tried_on_the_pruned_model_first(tmp_path: Path) -> None:
@@ -93,9 +93,9 @@ def test_an_undecided_query_has_its_own_exit_code(tmp_path: Path, capsys: pytest
     out = capsys.readouterr().out
     assert "UNKNOWN" in out
     # a query that does not hold (Qb on the narrow road: decided within 10 states) outweighs one that
-    # is undecided (the product)
-    path = write_engine_file(tmp_path, "narrow_road", {"Stays": QUERIES["Stays"], "Product": QUERIES["Product"]})
-    assert main(["verify", str(path), "--query", "Product", "--max-states", "10"]) == EXIT_UNDECIDED
+    # is undecided (E<> Close, in the product)
+    path = write_engine_file(tmp_path, "narrow_road", {"Stays": QUERIES["Stays"], "Somewhere": QUERIES["Somewhere"]})
+    assert main(["verify", str(path), "--query", "Somewhere", "--max-states", "10"]) == EXIT_UNDECIDED
     assert main(["verify", str(path), "--max-states", "10"]) == EXIT_ERRORS
     out = capsys.readouterr().out
     assert "Verifying Stays" in out and "Formula is NOT satisfied" in out
@@ -103,7 +103,7 @@ def test_an_undecided_query_has_its_own_exit_code(tmp_path: Path, capsys: pytest
 
 def test_an_unknown_verdict_speaks_the_users_language(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write_engine_file(tmp_path, "goal_ahead")
-    main(["verify", str(path), "--query", "safe", "--query", "Product", "--max-states", "10"])
+    main(["verify", str(path), "--query", "safe", "--query", "Somewhere", "--max-states", "10"])
     out = capsys.readouterr().out
     assert not re.search(r"\b\w+\(\):", out), out  # no internal function names
     assert "the model has more than 10 states by t = 1 s (sample 2)" in out
