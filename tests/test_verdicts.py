@@ -156,9 +156,13 @@ def test_a_layer_beyond_the_state_budget_is_never_allocated(monkeypatch: pytest.
 
 
 def test_the_message_says_how_far_the_horizon_is() -> None:
-    assert projected_states([1, 9, 9, 81, 81], 2, 10) == (1 + 9 + 9 + 81 + 81 + 81 * (3 + 9 + 27 + 81 + 243 + 729), 9.0)
+    # nine successors per decision, a decision every 2 samples: the layers stay constant in between
+    nine = [1, *(9 ** ((k + 1) // 2) for k in range(1, 11))]
+    assert nine[:5] == [1, 9, 9, 81, 81]
+    assert projected_states(nine[:5], 2, 10) == (sum(nine), 9.0)
+    assert projected_states(nine[:2], 2, 10) == (sum(nine), 9.0)  # from the first decision's successors on
     assert projected_states([1, 1, 1], 1, 5) == (6, 1.0)
-    assert projected_states([1, 9], 2, 10) is None  # not a whole decision period yet
+    assert projected_states([1], 2, 10) is None  # no decision's successors yet
     with pytest.raises(BudgetExceeded) as raised:
         explore(left_turn(), horizon_samples=6, max_states=5000)
     assert raised.value.projected_states is not None and raised.value.projected_states > 5000

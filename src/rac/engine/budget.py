@@ -98,18 +98,37 @@ class BudgetExceeded(MemoryError):
 
 
 def projected_states(layers: list[int], decide_every: int, horizon: int) -> tuple[int, float] | None:
-    """The total states up to ``horizon`` if the layers kept growing as over the last decision
-    period (``layers[k]``: the states of sample ``k``), and that growth; None before a period."""
+    """The total states up to ``horizon`` if the layers went on as over the last decision (``layers[k]``:
+    the states of sample ``k``), and that growth per decision; None before the first decision's
+    successors are known.
+
+    States branch only at decisions: between two decisions each state has one successor, so a layer
+    keeps its size, or shrinks where states merge or are pruned. The samples after one decision are
+    a *block* (the first is the successor of the decision sample, ``j * decide_every + 1``). The growth
+    is the current block's states so far over the previous block's at the same samples; every later
+    block is the previous block's profile (its shrinking within the block included) times that growth
+    once more per decision. Before a whole previous block is known (one decision so far), the current
+    layer stands for its block."""
     k = len(layers) - 1
-    if k < decide_every or layers[k - decide_every] == 0:
+    if k < 1:
         return None
-    growth = layers[k] / layers[k - decide_every]
-    rate, remaining = growth ** (1 / decide_every), horizon - k  # the period's growth spread over its samples
-    ahead: float
-    try:
-        ahead = layers[k] * (rate * (rate**remaining - 1) / (rate - 1) if rate != 1 else remaining)
-    except OverflowError:
-        ahead = math.inf
+    first = (k - 1) // decide_every * decide_every + 1  # the current block's first sample
+    seen = k - first + 1
+    previous = layers[first - decide_every:first] if first - decide_every >= 1 else None
+    before = sum(previous[:seen]) if previous is not None else layers[0]
+    if before == 0:
+        return None
+    growth = sum(layers[first:k + 1]) / before
+    ahead = 0.0
+    for sample in range(k + 1, horizon + 1):
+        later, offset = divmod(sample - first, decide_every)  # blocks after the current one, place in the block
+        try:
+            ahead += (previous[offset] * growth ** (later + 1) if previous is not None
+                      else layers[k] * growth ** later)
+        except OverflowError:
+            ahead = math.inf
+        if ahead >= 1e18:
+            break
     return int(min(sum(layers) + ahead, 1e18)), growth
 
 

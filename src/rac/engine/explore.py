@@ -413,8 +413,8 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
             if progress is not None:
                 progress(k, size, total)
             budget.check_states(total, k)
-            found = stop_at is not None and bool(np.any(stop_at(k, frontier)))
-            if k == horizon_samples or found:
+            witnessed = stop_at is not None and bool(np.any(stop_at(k, frontier)))
+            if k == horizon_samples or witnessed:
                 counts.append(np.zeros(size, dtype=np.int64))
                 complete = complete and k == horizon_samples
                 break
