@@ -124,9 +124,9 @@ def test_verify_state_budget_is_unknown_with_a_hint(capsys: pytest.CaptureFixtur
     out = normalised(capsys.readouterr().out)
     assert out == f"""\
 Verifying safe: strategy safe = control: A[] !collide() && !offroad()  ({path}:{line_of(path, "safe")})
- -- Formula is UNKNOWN: the model has more than 10 states by t = 1 s (sample 2): shorten the horizon \
-(--horizon), coarsen the model (exponent, action steps, decide_period) or raise --max-states if the machine has \
-the memory
+ -- Formula is UNKNOWN: the model has more than 10 states by t = 1 s (sample 2); growing ×9 per decision, the \
+horizon (sample 8) would have about 1.5e+04 states: shorten the horizon (--horizon), coarsen the model (exponent, \
+action steps, decide_period) or raise --max-states if the machine has the memory
     T s
 Verifying Somewhere: E<> Close  ({path}:{line_of(path, "Somewhere")})
  -- Formula is UNKNOWN: the product of model and automaton has more than 10 states by t = 0.5 s (sample 1): \
