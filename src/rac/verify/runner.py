@@ -49,7 +49,7 @@ from rac.verify.context import Context, NotApplicable, UnknownVerdict, VerifyOpt
 from rac.verify.learning import LearningAnswerer
 from rac.verify.report import QueryResult, render_json, render_text
 from rac.verify.statistical import StatisticalAnswerer
-from rac.verify.status import NOT_APPLICABLE, NOT_SATISFIED
+from rac.verify.status import NOT_APPLICABLE, NOT_SATISFIED, UNKNOWN, UNSUPPORTED
 from rac.verify.symbolic import SymbolicAnswerer
 
 __all__ = ["QueryResult", "UnknownQuery", "Verifier", "VerifyOptions", "render_json", "render_text", "run_queries",
@@ -130,6 +130,8 @@ class Verifier:
             failed = "not satisfied" if result.status == NOT_SATISFIED else "not applicable"
             self.context.missing[defined] = (f"the strategy `{defined}` does not exist: its defining query "
                                              f"{decl.name} is {failed} ({result.message or failed})")
+        if result.method is None and result.status not in (UNKNOWN, UNSUPPORTED, NOT_APPLICABLE):
+            result = dataclasses.replace(result, method=_method(query, self.context))
         note = self.context.stopped_note() if result.states is not None else None
         if note is not None and result.status in ("satisfied", "not satisfied"):
             result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
@@ -188,6 +190,18 @@ def _defines(query: iq.Query) -> str | None:
     """The strategy a query defines (a shield or a learned strategy), if any."""
     name = getattr(query, "name", None)
     return name if isinstance(query, (iq.ControlStrategy, iq.LearnStrategy)) and isinstance(name, str) else None
+
+
+def _method(query: iq.Query, context: Context) -> str:
+    """How a verdict was reached when its answerer did not say: the complete graph for the symbolic
+    queries, simulation for the statistical ones, the one run under a learned strategy."""
+    if isinstance(query, iq.PathQuery) and query.under is not None and query.under in context.learned:
+        return "strategy run"
+    if isinstance(query, (iq.PathQuery, iq.LeadsToQuery, iq.ControlStrategy)):
+        return "exhaustive"
+    if isinstance(query, iq.LearnStrategy):
+        return "learning"
+    return "simulation"
 
 
 def _kind(query: iq.Query) -> str:
