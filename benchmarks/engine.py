@@ -24,7 +24,17 @@ its own; ``ru_maxrss`` of the child):
                    every 0.2 s among 81 (jerk, turn) pairs) at horizon 6, pruned: almost no states
                    merge there (81 ** 3 leaves), so the horizons above are out of reach.
 
-The ZAM_Ramp case is skipped, with a message, when the shared scenario is absent (a fresh clone
+The shield against the exploration (issue 20): a second table, on ZAM_Ramp at horizons of 10, 20,
+30, 60, 80, 100, 150 and 200 samples (``--shield-horizons``; ``--quick``: 10 and 20), each in a child
+process: the CPU time of ``explore`` and of ``safety_shield`` (the backward pass over the layers) and
+their ratio; the peak memory of each (``tracemalloc``, in a second, traced run: the exploration's
+peak, and the shield's own allocations beyond the graph it is given) and their ratio; up to
+horizon 30 also Storm's shield (``safety_shield_storm``), checked to give the same winning states and
+allowed choices. Two cases: the graph as UPPAAL explores it (not pruned), and as
+``rac.engine.shield.synthesise`` does (unsafe states pruned, the action that led to a state merged
+away). The goal: both ratios at most 0.25 at every horizon.
+
+The ZAM_Ramp cases are skipped, with a message, when the shared scenario is absent (a fresh clone
 has no ../shared). The left-turn ``.ra`` model is generated into a temporary folder from
 examples/left_turn/model.ra (the driving automaton and its bindings), with the benchmark's settings
 in the ``model`` block and the scenario given by its absolute path.
@@ -69,6 +79,16 @@ RAC_PATH = Path(rac.__file__).resolve().parent.parent
 
 HORIZONS = (10, 15, 20, 25, 30)
 QUICK_HORIZONS = (10, 15, 20)
+#: The shield against the exploration: ZAM_Ramp's horizons (samples of 0.1 s).
+SHIELD_HORIZONS = (10, 20, 30, 60, 80, 100, 150, 200)
+QUICK_SHIELD_HORIZONS = (10, 20)
+#: Storm's shield, the oracle, is timed and compared up to this horizon (beyond, it costs minutes).
+ORACLE_HORIZON = 30
+#: Repeats (the best time kept) only below this horizon; one run each beyond.
+REPEAT_BELOW = 60
+#: The goal: the shield's CPU time and peak memory at most this fraction of the exploration's.
+GOAL_SHIELD_RATIO = 0.25
+MB = 2**20
 #: The published CommonUppRoad run of UPPAAL on ZAM_Ramp-1_1-T-1: horizon (time steps) -> (states, seconds).
 REFERENCE: dict[int, tuple[int, float]] = {
     10: (7_692, 3.1), 15: (42_772, 13.1), 20: (147_280, 52.5), 25: (380_679, 136.7), 30: (796_534, 290.2),
@@ -161,16 +181,73 @@ def measure(model: str, horizon: int, prune: bool, repeat: int, forget: bool = F
     return best
 
 
+def measure_shield(model: str, horizon: int, prune: bool, repeat: int, forget: bool) -> dict[str, Any]:
+    """The shield against the exploration on ``model``: CPU times (the best of ``repeat`` untraced runs),
+    then peak memories from one run under ``tracemalloc``; Storm's shield up to :data:`ORACLE_HORIZON`."""
+    import tracemalloc
+
+    from rac.compiler import compile_file
+    from rac.engine.explore import explore
+    from rac.engine.storm import safety_shield, safety_shield_storm
+
+    data = compile_file(model).model_data
+    if data is None:
+        return {"error": f"{model} does not check"}
+
+    def run() -> Any:
+        return explore(data, horizon_samples=horizon, prune_unsafe=prune, max_states=MAX_STATES,
+                       forget_actions=forget)
+
+    row: dict[str, Any] = {}
+    try:
+        for _ in range(repeat):
+            gc.collect()
+            start = time.process_time()
+            graph = run()
+            explored = time.process_time()
+            shield = safety_shield(graph, "safe")
+            done = time.process_time()
+            if not row or explored - start + done - explored < row["explore"] + row["shield"]:
+                row.update(explore=explored - start, shield=done - explored)
+            row.update(states=graph.n_states, choices=graph.n_choices, winning_start=shield.shield_exists)
+            if horizon <= ORACLE_HORIZON and "storm" not in row:
+                before = time.process_time()
+                oracle = safety_shield_storm(graph, "safe")
+                row["storm"] = time.process_time() - before
+                row["same"] = bool(np.array_equal(oracle.winning, shield.winning)
+                                   and np.array_equal(oracle.allowed_choices, shield.allowed_choices))
+                del oracle
+            del graph, shield
+        gc.collect()
+        tracemalloc.start()
+        graph = run()
+        graph_bytes, explore_peak = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        shield = safety_shield(graph, "safe")  # its result stays alive: counted in its peak
+        shield_peak = tracemalloc.get_traced_memory()[1] - graph_bytes  # beyond the graph it is given
+        tracemalloc.stop()
+        row["winning"] = int(shield.winning.sum())
+    except MemoryError:
+        return {"error": f"more than {MAX_STATES:,} states"}
+    row.update(explore_peak=explore_peak / MB, graph=graph_bytes / MB, shield_peak=shield_peak / MB)
+    return row
+
+
 def child_main(spec: str) -> int:
-    """The child's side of :func:`run_child`: one JSON line with :func:`measure`'s result."""
+    """The child's side of :func:`run_child`: one JSON line with :func:`measure`'s (or
+    :func:`measure_shield`'s) result."""
     args = json.loads(spec)
-    print(json.dumps(measure(args["model"], args["horizon"], args["prune"], args["repeat"], args["forget"])))
+    how = measure_shield if args.get("shield") else measure
+    print(json.dumps(how(args["model"], args["horizon"], args["prune"], args["repeat"], args["forget"])))
     return 0
 
 
-def run_child(model: Path, horizon: int, prune: bool, repeat: int, forget: bool = False) -> dict[str, Any]:
-    """:func:`measure` in a fresh Python process (the same rac), so that ``ru_maxrss`` is this case's."""
-    spec = {"model": str(model), "horizon": horizon, "prune": prune, "repeat": repeat, "forget": forget}
+def run_child(model: Path, horizon: int, prune: bool, repeat: int, forget: bool = False,
+              shield: bool = False) -> dict[str, Any]:
+    """:func:`measure` (``shield``: :func:`measure_shield`) in a fresh Python process (the same rac), so
+    that ``ru_maxrss`` is this case's."""
+    spec = {"model": str(model), "horizon": horizon, "prune": prune, "repeat": repeat, "forget": forget,
+            "shield": shield}
     return children.run_child(Path(__file__).resolve(), spec, CHILD_TIMEOUT, RAC_PATH)
 
 
@@ -202,14 +279,47 @@ def table_row(case: Case, horizon: int, m: dict[str, Any]) -> list[str]:
     ]
 
 
-def markdown(rows: list[list[str]]) -> str:
+def markdown(rows: list[list[str]], columns: Sequence[str] = COLUMNS) -> str:
     """The table in markdown, numbers right-aligned."""
-    numeric = {"horizon", "states", "choices", "explore", "shield", "total", "explore rate", "peak RSS (+growth)",
-               "UPPAAL states", "UPPAAL time", "speed-up"}
-    lines = ["| " + " | ".join(COLUMNS) + " |",
-             "|" + "|".join("---:" if c in numeric else "---" for c in COLUMNS) + "|"]
+    text = {"case", "pruned", "start winning", "same as Storm's"}
+    lines = ["| " + " | ".join(columns) + " |",
+             "|" + "|".join("---" if c in text else "---:" for c in columns) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines)
+
+
+SHIELD_COLUMNS = ("case", "horizon", "states", "choices", "explore CPU", "shield CPU", "shield / explore",
+                  "explore peak", "shield peak", "shield / explore (memory)", "Storm's shield CPU", "same as Storm's")
+
+
+def shield_row(case: str, horizon: int, m: dict[str, Any]) -> list[str]:
+    """The cells of one row of the shield table (:data:`SHIELD_COLUMNS`) for :func:`measure_shield`'s ``m``."""
+    head = [case, str(horizon)]
+    if "error" in m:
+        return head + [m["error"]] + ["—"] * (len(SHIELD_COLUMNS) - len(head) - 1)
+    storm = (seconds(m["storm"]), "yes" if m["same"] else "NO") if "storm" in m else ("—", "—")
+    return head + [
+        f"{m['states']:,}", f"{m['choices']:,}", seconds(m["explore"]), seconds(m["shield"]),
+        f"{m['shield'] / m['explore']:.3f}", f"{m['explore_peak']:,.0f} MB", f"{m['shield_peak']:,.1f} MB",
+        f"{m['shield_peak'] / m['explore_peak']:.3f}", *storm,
+    ]
+
+
+def shield_notes(results: dict[tuple[str, int], dict[str, Any]]) -> list[str]:
+    """The goal (both ratios at most :data:`GOAL_SHIELD_RATIO` at every horizon) and the worst ratios."""
+    measured = [(name, h, m) for (name, h), m in results.items() if "error" not in m]
+    if not measured:
+        return []
+    time_ratio = max((m["shield"] / m["explore"], name, h) for name, h, m in measured)
+    memory_ratio = max((m["shield_peak"] / m["explore_peak"], name, h) for name, h, m in measured)
+    verdict = "ok" if max(time_ratio[0], memory_ratio[0]) <= GOAL_SHIELD_RATIO else "MISS"
+    differ = [f"{name}, horizon {h}" for name, h, m in measured if m.get("same") is False]
+    notes = [f"goal: the shield at most {GOAL_SHIELD_RATIO:g} of the exploration in CPU time and in peak memory "
+             f"at every horizon: {verdict} (highest: time {time_ratio[0]:.3f} at {time_ratio[1]}, horizon "
+             f"{time_ratio[2]}; memory {memory_ratio[0]:.3f} at {memory_ratio[1]}, horizon {memory_ratio[2]})"]
+    if differ:
+        notes.append("the shield differs from Storm's: " + "; ".join(differ))
+    return notes
 
 
 def environment(quick: bool, repeat: int) -> list[str]:
@@ -247,6 +357,8 @@ def environment(quick: bool, repeat: int) -> list[str]:
     ]
 
 
+SHIELD_WHOLE = "ZAM_Ramp, not pruned"
+SHIELD_SYNTHESISE = "ZAM_Ramp as synthesise explores it (pruned, merged)"
 ZAM_CASE = "ZAM_Ramp as CommonUppRoad ran it"
 ZAM_MERGED = "ZAM_Ramp, the action that led to a state merged away"
 
@@ -286,6 +398,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help=f"horizons {QUICK_HORIZONS}, one run each (a smoke run)")
     parser.add_argument("--horizons", help="comma-separated horizons in time steps (default: 10,15,20,25,30)")
     parser.add_argument("--repeat", type=int, help="runs per case, the best total kept (default 3; --quick: 1)")
+    parser.add_argument("--shield-horizons",
+                        help="comma-separated ZAM_Ramp horizons of the shield table (default: "
+                             f"{','.join(map(str, SHIELD_HORIZONS))}; --quick: "
+                             f"{','.join(map(str, QUICK_SHIELD_HORIZONS))}; 0 or an empty list: no shield table)")
+    parser.add_argument("--shield-only", action="store_true",
+                        help="only the table of the shield against the exploration")
     parser.add_argument("--ramp", type=Path, default=DEFAULT_RAMP, help="the ZAM_Ramp-1_1-T-1 CommonRoad file")
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT,
                         help=f"markdown file to write (default: {DEFAULT_OUTPUT.relative_to(REPOSITORY)})")
@@ -294,15 +412,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.child:
         return child_main(args.child)
 
-    if args.horizons:
+    def parse(option: str, text: str) -> tuple[int, ...]:
         try:
-            horizons = tuple(int(h) for h in args.horizons.split(",") if h.strip())
+            found = tuple(int(h) for h in text.split(",") if h.strip())
         except ValueError:
-            parser.error(f"--horizons: expected whole numbers separated by commas, not {args.horizons!r}")
-        if not horizons or min(horizons) < 0:
+            parser.error(f"{option}: expected whole numbers separated by commas, not {text!r}")
+        if found and min(found) < 0:
+            parser.error(f"{option}: horizons are >= 0")
+        return found
+
+    if args.horizons:
+        horizons = parse("--horizons", args.horizons)
+        if not horizons:
             parser.error("--horizons: give at least one horizon >= 0")
     else:
         horizons = QUICK_HORIZONS if args.quick else HORIZONS
+    if args.shield_horizons is not None:
+        shield_horizons = tuple(h for h in parse("--shield-horizons", args.shield_horizons) if h > 0)
+    else:
+        shield_horizons = QUICK_SHIELD_HORIZONS if args.quick else SHIELD_HORIZONS
+    if args.shield_only and not shield_horizons:
+        parser.error("--shield-only needs shield horizons")
     repeat = args.repeat or (1 if args.quick else 3)
 
     notes: list[str] = []
@@ -313,12 +443,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         left_turn = tmp / "left_turn.ra"
         left_turn.write_text(ra_text(LEFT_TURN.parent / "left_turn.xml", SETTINGS), encoding="utf-8")
         cases = [Case("left turn", left_turn, True, horizons, False)]
+        shield_cases: list[Case] = []
         ramp = args.ramp
         if ramp.is_file():
             ramp_model = tmp / "zam_ramp.ra"
             ramp_model.write_text(ra_text(ramp, (), ZAM_RAMP_RA), encoding="utf-8")
             cases += [Case(ZAM_CASE, ramp_model, False, horizons, True),
                       Case(ZAM_MERGED, ramp_model, False, horizons, True, forget=True)]
+            shield_cases = [Case(SHIELD_WHOLE, ramp_model, False, shield_horizons, False),
+                            Case(SHIELD_SYNTHESISE, ramp_model, True, shield_horizons, False, forget=True)]
         else:
             message = f"skipped the ZAM_Ramp cases: {ramp} not found (a fresh clone has no ../shared; see --ramp)"
             print(message, file=sys.stderr)
@@ -326,6 +459,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not args.quick:
             cases.append(Case("left turn, model.ra's settings (exponent 4, 81 pairs every 0.2 s)", LEFT_TURN, True,
                               (AS_WRITTEN_HORIZON,), False))
+        if args.shield_only:
+            cases = []
 
         for case in cases:
             for horizon in case.horizons:
@@ -333,6 +468,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                 measured = run_child(case.model, horizon, case.prune, repeat, case.forget)
                 results[case.name, horizon] = measured
                 rows.append(table_row(case, horizon, measured))
+        shield_results: dict[tuple[str, int], dict[str, Any]] = {}
+        shield_rows: list[list[str]] = []
+        for case in shield_cases:
+            for horizon in case.horizons:
+                print(f"... the shield against the exploration: {case.name}, horizon {horizon}", file=sys.stderr,
+                      flush=True)
+                measured = run_child(case.model, horizon, case.prune, repeat if horizon < REPEAT_BELOW else 1,
+                                     case.forget, shield=True)
+                shield_results[case.name, horizon] = measured
+                shield_rows.append(shield_row(case.name, horizon, measured))
     speedups = [(REFERENCE[h][1] / m["total"], name, h) for (name, h), m in results.items()
                 if name == ZAM_CASE and h in REFERENCE and "error" not in m]
     if speedups:
@@ -350,9 +495,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                      f"{seconds(largest['explore'])} = {rate(largest['states'] / largest['explore'])}")
 
     env = environment(args.quick, repeat)
-    table = markdown(rows)
-    children.report("rac engine benchmark", env, table, notes, args.output)
-    failed = [name for (name, _), m in results.items() if "error" in m]
+    tables = [markdown(rows)] if rows else []
+    if shield_rows:
+        tables.append("the shield against the exploration (CPU seconds; peak memory by tracemalloc):\n\n"
+                      + markdown(shield_rows, SHIELD_COLUMNS))
+        notes += shield_notes(shield_results)
+    children.report("rac engine benchmark", env, "\n\n".join(tables), notes, args.output)
+    failed = [name for (name, _), m in [*results.items(), *shield_results.items()] if "error" in m]
     return 1 if failed else 0
 
 
