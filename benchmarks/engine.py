@@ -1,8 +1,9 @@
-"""The engine's benchmark (issue 4): ``python benchmarks/engine.py [--quick] [--horizons 10,15] [--output FILE]``.
+"""The engine's benchmark (issue 4): ``python benchmarks/engine.py [--quick] [--horizons 10,15] [--shield-only]
+[--shield-horizons 10,60] [--output FILE]``.
 
 Explores the discrete state space (``rac.engine.explore.explore``) and computes the most permissive
-safety shield with Storm (``rac.engine.storm.safety_shield(graph, "safe")``) at horizons of 10, 15,
-20, 25 and 30 time steps, and prints one markdown table: states, time (explore, shield, total),
+safety shield (``rac.engine.storm.safety_shield(graph, "safe")``, a backward pass over the layers) at
+horizons of 10, 15, 20, 25 and 30 time steps, and prints a markdown table: states, time (explore, shield, total),
 exploration throughput in states/s, peak memory, and the speed-up over the published CommonUppRoad
 run of UPPAAL on ZAM_Ramp. The same table goes to ``benchmarks/results/engine.md`` (or ``--output``).
 ``docs/benchmarks.md`` explains the settings and the columns.
@@ -353,7 +354,7 @@ def environment(quick: bool, repeat: int) -> list[str]:
         "granularity 0.25, the rest model.ra's; 3 x 3 = 9 (jerk, turn) pairs per decision (left turn); "
         "benchmarks/zam_ramp.ra as written (ZAM_Ramp)",
         "memory: peak RSS = ru_maxrss of the child (Python, numpy, stormpy, the compiled model, the graph and "
-        "Storm's MDP); (+growth) = its growth over the peak before the first exploration",
+        "the shield); (+growth) = its growth over the peak before the first exploration",
     ]
 
 
