@@ -221,10 +221,11 @@ def test_no_witness_is_a_verdict_only_on_a_complete_graph(tmp_path: Path) -> Non
 
 def test_json_says_how_each_verdict_was_reached(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", {"Reaches": QUERIES["Reaches"], "Never": "E<> v >= 99",
-                                                      "safe": QUERIES["safe"]})
+                                                      "safe": QUERIES["safe"], "LeadsTo": QUERIES["LeadsTo"]})
     main(["verify", str(path), "--format", "json", "--seed", "1", "-o", str(tmp_path / "o")])
     methods = {r["name"]: r["method"] for r in json.loads(capsys.readouterr().out)["results"]}
-    assert methods == {"Reaches": "witness search", "Never": "exhaustive", "safe": "exhaustive"}
+    assert methods == {"Reaches": "witness search", "Never": "exhaustive", "safe": "exhaustive",
+                       "LeadsTo": "exhaustive"}
     main(["verify", str(path), "--seed", "1", "-o", str(tmp_path / "o"), "--query", "Reaches"])
     assert "    found by a bounded witness search and replayed\n" in capsys.readouterr().out
 

@@ -199,7 +199,7 @@ class SymbolicAnswerer:
         values, _ = storm.check_formula(mdp, 'Pmax=? [G "notq"]')
         holds = not bool(np.any(p & (values > 0.5) & graph.reachable()))
         return dataclasses.replace(base, status="satisfied" if holds else "not satisfied", states=graph.n_states,
-                                   horizon_samples=ctx.horizon_samples)
+                                   horizon_samples=ctx.horizon_samples, method="exhaustive")
 
     def control(self, query: iq.ControlStrategy, base: QueryResult) -> QueryResult:
         """``strategy S = control: A[] p``: the most permissive shield keeping ``p``, kept as ``S`` and
