@@ -2,9 +2,10 @@
 
 Every query form of the language is routed to the engine part that can answer it:
 
-- ``A[] p``, ``E<> p``, ``E[] p``, ``A<> p`` and ``p --> q`` — exhaustive: the model is explored
-  breadth-first (:func:`rac.engine.explore.explore`) up to the horizon, or its product with the
-  automaton (:mod:`rac.engine.product`) when ``p`` reads the automaton's names, and Storm decides;
+- ``A[] p``, ``E<> p``, ``E[] p``, ``A<> p`` and ``p --> q`` — the run that decides a path query (a
+  witness, a counterexample) searched first (:mod:`rac.verify.reach`), else exhaustive: the model is
+  explored breadth-first (:func:`rac.engine.explore.explore`) up to the horizon, or its product with
+  the automaton (:mod:`rac.engine.product`) when ``p`` reads the automaton's names, and Storm decides;
 - ``strategy S = control: A[] p`` — the most permissive strategy keeping ``p`` (the shield),
   saved to ``OUT/S.shield.npz`` (load it with :func:`rac.engine.shield.load`) and usable by later
   queries ``... under S``;

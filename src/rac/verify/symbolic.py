@@ -1,6 +1,8 @@
-"""``rac verify``'s exhaustive queries: ``A[] p``, ``E<> p``, ``E[] p``, ``A<> p``, ``p --> q`` and
-``strategy S = control: ...``, decided by Storm on the explored model (or its product with the
-automaton), within the horizon and the state budget of the :class:`~rac.verify.context.Context`."""
+"""``rac verify``'s symbolic queries: ``A[] p``, ``E<> p``, ``E[] p``, ``A<> p``, ``p --> q`` and
+``strategy S = control: ...``, within the horizon and the state budget of the
+:class:`~rac.verify.context.Context`: a run that decides a path query is looked for first
+(:mod:`rac.verify.reach`); without one, and for the other forms, Storm decides on the complete
+explored model (or its product with the automaton)."""
 
 from __future__ import annotations
 
