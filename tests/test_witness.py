@@ -188,8 +188,19 @@ def test_the_cheap_search_agrees_with_the_exhaustive_answer(name: str, tmp_path:
     def to_end(k: int, rows: np.ndarray) -> np.ndarray:
         return safe(k, rows) & (k == horizon)
 
-    reach = storm.safe_reach(pruned, pruned.labels["safe"] & pruned.labels["goal"]).until.holds
+    safe_goal = pruned.labels["safe"] & pruned.labels["goal"]
+    found = storm.safe_reach(pruned, safe_goal)
+    reach = found.until.holds
     stays = storm.decide(pruned, "E[]", "safe").holds
+    # safe_reach reads the graph; Storm agrees (E<> on the graph, Pmax G safe for the horizon)
+    labelled = dataclasses.replace(pruned, labels={**pruned.labels, "t": safe_goal})
+    assert reach == storm.decide(labelled, "E<>", "t").holds
+    values, _ = storm.check_formula(storm.to_mdp(pruned), 'Pmax=? [G "safe"]')
+    assert found.to_horizon == bool(np.any(safe_goal & (values > 0.5) & pruned.reachable()))
+    if found.until.trace is not None:
+        assert found.until.trace[0] == pruned.initial and safe_goal[found.until.trace[-1]]
+    with pytest.raises(ValueError, match="complete graph"):
+        storm.safe_reach(dataclasses.replace(pruned, complete=False), safe_goal)
     assert (reach, stays) == (tiny.reaches_goal, tiny.stays_safe)
     for target, through, expected in ((goal, None, reach), (to_end, safe, stays)):
         found = search(data, target, horizon_samples=horizon, seed=5, prune_unsafe=True, through=through)

@@ -17,7 +17,6 @@ Choices are deterministic, so every probability Storm computes here is 0 or 1: `
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -159,15 +158,24 @@ class SafeReach:
 
 
 def safe_reach(pruned: ExploredGraph, target: np.ndarray, safe_label: str = "safe") -> SafeReach:
-    """:class:`SafeReach` of the states ``target`` on the graph ``pruned`` (``safe_label`` marks
-    the safe states; the graph's unsafe states are terminal, as :func:`rac.engine.explore.explore`
-    leaves them with ``prune_unsafe=True``)."""
-    until = decide(dataclasses.replace(pruned, labels={**pruned.labels, "target": target}), "E<>", "target")
+    """:class:`SafeReach` of the states ``target`` on the complete graph ``pruned`` (``safe_label``
+    marks the safe states; the graph's unsafe states are terminal, as :func:`rac.engine.explore.explore`
+    leaves them with ``prune_unsafe=True``), read from the graph rather than asked of Storm: a target
+    state it reaches (one of the earliest sample: the trace is a shortest one), and whether one of
+    them wins the safety game (:func:`rac.engine.layered.safety_game`: Storm's ``Pmax G safe = 1``).
+    ``ValueError`` for a graph that is not complete (it proves no "no")."""
+    if not pruned.complete:
+        raise ValueError("safe_reach needs a complete graph: an exploration stopped early proves no absence")
+    t0 = time.perf_counter()
+    # on the pruned graph every reachable state is reached through safe states only
+    reached = target & pruned.reachable()
+    hits = np.flatnonzero(reached)
+    trace = pruned.path_to(int(hits[0])) if hits.size else None
+    until = Verdict("E<> target", bool(hits.size), pruned.n_states, pruned.n_choices, time.perf_counter() - t0, trace)
     if not until.holds:
         return SafeReach(until, False)
-    values, _ = check_formula(to_mdp(pruned), f'Pmax=? [G "{safe_label}"]')
-    # on the pruned graph every reachable state is reached through safe states only
-    return SafeReach(until, bool(np.any(target & (values > 0.5) & pruned.reachable())))
+    winning, _ = safety_game(pruned, pruned.labels[safe_label])
+    return SafeReach(until, bool(np.any(reached & winning)))
 
 
 def decide(graph: ExploredGraph, kind: str, prop_label: str) -> Verdict:
