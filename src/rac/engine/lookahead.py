@@ -34,11 +34,13 @@ decisions — but it may allow fewer actions than a complete search, or reach le
 ``info["shield_timeout"]``), never silently.
 
 The search (all of it numpy over :class:`rac.model.batch.BatchModel`, the functions the exploration
-uses): a node's children — one per action, over one decision period — are computed in one call;
-before recursing, a few fixed continuations (hold the action, brake straight on, coast straight on,
-brake holding the turn) are tried for every child at once, so that most actions are proved with a
-handful of vectorised calls; only children none of them carries are searched exactly, in order of
-their clearance to the obstacles.
+uses) goes layer by layer, all open actions at once: a layer holds the states that have survived
+so many decisions, each tagged with the first action it continues. A few fixed continuations (hold
+the state's action, brake, coast or accelerate straight on) are tried from every state of a layer
+in one vectorised pass, and an action one of them carries to the end is done: most actions are
+proved so within a few calls. The states of the actions left open are expanded exhaustively, one
+decision period under every action in one call per chunk, and their safe successors (merged where
+equal) form the next layer; an action whose states all die out has the depth of its last layer.
 
 Example::
 
@@ -50,7 +52,6 @@ Example::
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,6 +66,8 @@ __all__ = ["DEFAULT_DEPTH", "DEFAULT_SECONDS", "Lookahead", "LookaheadMask", "Lo
 DEFAULT_DEPTH = 5
 #: The default time budget per decision, in seconds.
 DEFAULT_SECONDS = 0.25
+#: How many successor rows one call computes (states of a layer times actions).
+CHUNK_ROWS = 1 << 12
 
 
 @dataclass(frozen=True)
@@ -138,8 +141,8 @@ class Lookahead:
 
     # ------------------------------------------------------------ the model over decision periods
     def _fallback_actions(self) -> list[int]:
-        """Fixed continuations tried before the exact search (besides holding the action): brake
-        hard, coast, accelerate — each with the turning rate nearest 0."""
+        """The fixed continuations tried before a layer is expanded (besides holding the state's
+        action): brake hard, coast, accelerate — each with the turning rate nearest 0."""
         jerks = np.unique(self.pairs[:, 0])
         turns = self.pairs[:, 1]
         straight = turns[np.argmin(np.abs(turns))]
@@ -205,13 +208,13 @@ class Lookahead:
         complete = True
         if not (self.sticky and crashed):
             actions = np.arange(self.n_actions)
-            ends, safe, clearance = self.periods(np.repeat(ego, self.n_actions, axis=0), k, actions)
+            ends, safe, _ = self.periods(np.repeat(ego, self.n_actions, axis=0), k, actions)
             self._nodes = 1
             depths[safe] = 1
             end = self.period_end(k)
             try:
                 if target > 1:
-                    self._deepen(ends, safe, clearance, actions, end, target - 1, depths)
+                    self._deepen(ends, safe, actions, end, target - 1, depths)
             except _OutOfBudget:
                 complete = False
         best = int(depths.max())
@@ -238,45 +241,96 @@ class Lookahead:
         """The sample a complete answer at sample ``k`` guarantees safety up to."""
         return self.sample_after(k, self.decisions_left(k))
 
-    def _spend(self) -> None:
-        """Count one expanded node; :class:`_OutOfBudget` once the budget is spent."""
+    def _spend(self, nodes: int = 1) -> None:
+        """Count ``nodes`` expanded states; :class:`_OutOfBudget` when that would exceed the node budget
+        or the time is up."""
         settings = self.settings
-        if settings.nodes is not None and self._nodes >= settings.nodes:
+        if settings.nodes is not None and self._nodes + nodes > settings.nodes:
             raise _OutOfBudget
         if self._deadline is not None and time.perf_counter() >= self._deadline:
             raise _OutOfBudget
-        self._nodes += 1
+        self._nodes += nodes
 
-    def _deepen(self, ends: np.ndarray, safe: np.ndarray, clearance: np.ndarray, actions: np.ndarray, k: int,
-                remaining: int, depths: np.ndarray) -> None:
-        """Raise ``depths[actions[i]]`` (already 1 where ``safe``) to ``1 +`` the deepest continuation of
-        ``remaining`` decisions from ``ends[i]`` at sample ``k`` — the root's children, all at once where
-        the fixed continuations carry them, else one by one, the clearest first."""
-        open_ = np.flatnonzero(safe)
-        if open_.size == 0:
-            return
-        # complete already: at the horizon, or where `allow when` leaves no action (the run stops)
-        done = self._stopped(ends[open_], k) if k < self.horizon else np.ones(open_.size, dtype=bool)
-        depths[actions[open_[done]]] = 1 + remaining
-        open_ = open_[~done]
-        if open_.size == 0:
-            return
-        reached = self._fixed(ends[open_], k, actions[open_], remaining)
-        depths[actions[open_]] = np.maximum(depths[actions[open_]], 1 + reached)
-        rest = open_[reached < remaining]
-        for i in rest[np.argsort(-clearance[rest], kind="stable")]:
-            action = int(actions[i])
+    def _deepen(self, ends: np.ndarray, safe: np.ndarray, actions: np.ndarray, k: int, remaining: int,
+                depths: np.ndarray) -> None:
+        """Raise ``depths[a]`` (1 where the root's child ``a`` is ``safe``) to ``1 +`` the deepest safe
+        continuation of ``remaining`` decisions from its state ``ends[a]`` at sample ``k``.
 
-            def found(d: int, action: int = action) -> None:
-                depths[action] = max(int(depths[action]), 1 + d)
+        Layer by layer over all open actions at once: a layer holds the states (each tagged with the
+        root action it continues) that have survived so many decisions. Before a layer is expanded,
+        the fixed continuations (:meth:`_fixed`) are tried from all of its states; an action one of
+        them carries to the end is done, and its states leave the layer. The rest are expanded —
+        every action, one decision period, in one call per chunk — and the safe successors (merged
+        where equal) are the next layer. An action whose states all die out has the depth of its
+        last layer: the search below it was exhaustive."""
+        owners = np.flatnonzero(safe)
+        layer = ends[owners]
+        survived = 1  # decisions behind the states of `layer`
+        sample = k
+        while owners.size:
+            left = remaining - (survived - 1)  # decisions still to survive from `layer`
+            # complete already: at the horizon, or where `allow when` leaves no action (the run stops)
+            done = (self._stopped(layer, sample) if sample < self.horizon else np.ones(owners.size, dtype=bool))
+            if left == 0:
+                done[:] = True
+            finished = np.unique(owners[done])
+            depths[finished] = 1 + remaining
+            keep = ~np.isin(owners, finished)
+            owners, layer = owners[keep], layer[keep]
+            if owners.size == 0:
+                return
+            reached = np.zeros(owners.size, dtype=np.int64)
+            chunk = max(1, CHUNK_ROWS // (1 + len(self._fallbacks)))
+            for start in range(0, owners.size, chunk):  # the budget checked before each chunk
+                self._spend()
+                part = slice(start, start + chunk)
+                reached[part] = self._fixed(layer[part], sample, self._action_of(layer[part]), left)
+                np.maximum.at(depths, owners[part], survived + reached[part])
+            carried = np.unique(owners[reached >= left])
+            keep = ~np.isin(owners, carried)
+            owners, layer = owners[keep], layer[keep]
+            if owners.size == 0:
+                return
+            owners, layer = self._expand(owners, layer, sample)
+            survived += 1
+            np.maximum.at(depths, owners, survived)
+            sample = self.period_end(sample)
 
-            self._search(ends[i], k, action, remaining, found)
+    def _action_of(self, states: np.ndarray) -> np.ndarray:
+        """``(n,)``: the action index of each state's own jerk and turn (the action that led to it;
+        jerk-major over the grids, as :func:`rac.engine.allow.action_pairs`)."""
+        jerks, turns = np.unique(self.pairs[:, 0]), np.unique(self.pairs[:, 1])
+        j = np.clip(np.searchsorted(jerks, states[:, 5]), 0, jerks.size - 1)
+        t = np.clip(np.searchsorted(turns, states[:, 6]), 0, turns.size - 1)
+        return (j * turns.size + t).astype(np.int64)
+
+    def _expand(self, owners: np.ndarray, layer: np.ndarray, sample: int) -> tuple[np.ndarray, np.ndarray]:
+        """The next layer: every safe successor, one decision period from sample ``sample`` under each
+        action, of every state of ``layer``, tagged with its state's owner; equal (owner, state) rows
+        merged. Computed in chunks, the budget checked before each."""
+        per = self.n_actions
+        chunk = max(1, CHUNK_ROWS // per)
+        next_owners: list[np.ndarray] = []
+        next_states: list[np.ndarray] = []
+        for start in range(0, owners.size, chunk):
+            rows = layer[start:start + chunk]
+            self._spend(rows.shape[0])
+            actions = np.tile(np.arange(per), rows.shape[0])
+            ends, safe, _ = self.periods(np.repeat(rows, per, axis=0), sample, actions)
+            next_owners.append(np.repeat(owners[start:start + chunk], per)[safe])
+            next_states.append(ends[safe])
+        owners = np.concatenate(next_owners)
+        states = np.concatenate(next_states)
+        if owners.size == 0:
+            return owners, states
+        merged = np.unique(np.column_stack([owners, states]), axis=0)
+        return merged[:, 0].astype(np.int64), np.ascontiguousarray(merged[:, 1:], dtype=np.int32)
 
     def _fixed(self, states: np.ndarray, k: int, held: np.ndarray, remaining: int) -> np.ndarray:
         """``(n,)``: per row, the most decisions (up to ``remaining``) one of the fixed continuations —
         the row's own action held, or one of :meth:`_fallback_actions` held — survives from ``states``
-        at sample ``k``. Every number returned is proved (a continuation of that many decisions is safe)."""
-        self._spend()
+        at sample ``k``. Every number returned is proved (a continuation of that many decisions is safe).
+        ``held`` only picks which continuations are tried: any choice is sound."""
         n = states.shape[0]
         candidates = [held] + [np.full(n, action) for action in self._fallbacks]
         count = len(candidates)
@@ -302,51 +356,3 @@ class Lookahead:
             reached[live[ok]] = decision + 1
             sample = self.period_end(sample)
         return reached.reshape(count, n).max(axis=0)
-
-    def _search(self, state: np.ndarray, k: int, parent: int, remaining: int, found: Callable[[int], None]) -> int:
-        """The deepest safe continuation (up to ``remaining`` decisions) from the decision state
-        ``state`` at sample ``k``, depth first with early exit; ``found(d)`` is called with every deeper
-        ``d`` proved on the way (so that a search cut short by the budget keeps what it proved)."""
-        if remaining == 0 or k >= self.horizon:
-            found(remaining)
-            return remaining
-        self._spend()
-        ego = state[None, :]
-        if self._stopped(ego, k)[0]:
-            found(remaining)
-            return remaining
-        actions = np.arange(self.n_actions)
-        ends, safe, clearance = self.periods(np.repeat(ego, self.n_actions, axis=0), k, actions)
-        open_ = np.flatnonzero(safe)
-        if open_.size == 0:
-            return 0
-        best = 1
-        found(1)
-        if remaining == 1:
-            return 1
-        end = self.period_end(k)
-        if end >= self.horizon:
-            found(remaining)
-            return remaining
-        reached = self._fixed(ends[open_], end, actions[open_], remaining - 1)
-        top = int(reached.max())
-        if top >= 1:
-            best = max(best, 1 + top)
-            found(best)
-            if best == remaining:
-                return best
-        # the parent's action first (continuity), then the clearest
-        order = open_[np.lexsort((-clearance[open_], actions[open_] != parent))]
-        for i in order:
-            if reached[np.searchsorted(open_, i)] >= remaining - 1:
-                continue
-            def deeper(d: int) -> None:
-                found(1 + d)
-
-            depth = 1 + self._search(ends[i], end, int(actions[i]), remaining - 1, deeper)
-            if depth > best:
-                best = depth
-                if best == remaining:
-                    return best
-        return best
-
