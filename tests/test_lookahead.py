@@ -229,3 +229,17 @@ def test_exhaustive_masks_agree_with_brute_force_up_to_their_horizon(name: str,
             assert answer.mask.tolist() == expected_mask(want).tolist() and answer.guarantee == "lookahead 1"
             assert k >= cut or not table.knows(key) or not table.mask(key).any()
     assert seen["exhaustive"] and seen["lookahead"]
+
+
+def test_step_shield_takes_the_table_it_can_have(tmp_path: Path) -> None:
+    """``step_shield``: the exhaustive table when its exploration fits the budget, else none and the
+    reason; the runtime shield covers every step either way, and ScenarioEnv takes the result."""
+    data, horizon = scene("ahead", str(tmp_path))
+    whole = shields.step_shield(data, horizon)
+    assert whole.table is not None and whole.table.horizon == horizon and whole.reason is None
+    start = np.array([0, data.ego_x, data.ego_y, data.ego_v, data.ego_acc, data.ego_head, 0, 0])
+    assert whole.decide(start).guarantee == "exhaustive"
+    none = shields.step_shield(data, horizon, max_states=10)
+    assert none.table is None and none.reason is not None and "could not be computed" in none.reason
+    assert none.decide(start).kind == "lookahead"
+    assert shields.step_shield(data, horizon, table_horizon=0).table is None

@@ -223,7 +223,7 @@ def test_past_the_exhaustive_horizon_the_masks_are_the_runtime_shields(tiny: Com
                 assert info["shield_until"] == pytest.approx(expected.until * 0.5)
             else:
                 assert info["shield"] == "none" and info["no_safe_action"]
-            assert info["shield_allowed"] and not info["shield_timeout"]
+            assert info["shield_allowed"] and not info["shield_timeout"] and not info["shield_short"]
             done = terminated or truncated
     assert kinds.count("exhaustive") == 6 and kinds.count("lookahead 1") > 0
     assert sum(env.shield_steps.values()) == len(kinds)
@@ -290,6 +290,7 @@ def test_the_time_budget_reports_itself_in_info(tiny: CompileResult) -> None:
     env.reset()
     _, _, _, _, info = env.step(int(np.flatnonzero(env.action_masks())[0]))
     assert info["shield_timeout"] and info["shield"] == "lookahead 1" and env.timeout_steps == 1
+    assert info["shield_short"]  # 1 of the 4 decisions asked for
 
 
 def test_the_step_info_without_a_shield(tiny: CompileResult) -> None:
@@ -326,3 +327,18 @@ def test_errors(tiny: CompileResult) -> None:
     with pytest.raises(ValueError, match="action"):
         env.step(9)
     assert env.render() is None
+
+
+def test_a_step_shield_as_the_shield(tiny: CompileResult) -> None:
+    from rac.engine.shield import step_shield
+
+    data = tiny.model_data
+    assert data is not None
+    env = ScenarioEnv(tiny, shield=step_shield(data, 8, lookahead=LookaheadSettings(depth=2, seconds=None)))
+    env.reset()
+    _, _, _, _, info = env.step(int(np.flatnonzero(env.action_masks())[0]))
+    assert info["shield"] == "exhaustive" and env.shield is not None
+    with pytest.raises(ValueError, match="runs of 4 samples"):
+        ScenarioEnv(tiny, shield=step_shield(data, 4))
+    with pytest.raises(ValueError, match="lookahead"):
+        ScenarioEnv(tiny, shield=step_shield(data, 8), lookahead=3)

@@ -65,7 +65,7 @@ __all__ = ["DEFAULT_DEPTH", "DEFAULT_SECONDS", "Lookahead", "LookaheadMask", "Lo
 #: The default number of decisions a continuation must survive.
 DEFAULT_DEPTH = 5
 #: The default time budget per decision, in seconds.
-DEFAULT_SECONDS = 0.25
+DEFAULT_SECONDS = 0.1
 #: How many successor rows one call computes (states of a layer times actions).
 CHUNK_ROWS = 1 << 12
 

@@ -299,6 +299,12 @@ class ShieldStep:
         """The guarantee without its depth: one of :data:`GUARANTEES`."""
         return self.guarantee.split(" ", 1)[0]
 
+    @property
+    def short(self) -> bool:
+        """The runtime shield's mask reaches fewer decisions than were asked for at this state (no
+        action survives all of them, or its budget ran out first)."""
+        return self.lookahead is not None and self.kind == "lookahead" and self.lookahead.depth < self.lookahead.target
+
 
 class StepShield:
     """The exhaustive table where it applies and the runtime shield elsewhere, for runs of

@@ -231,8 +231,10 @@ class ScenarioEnv(gymnasium.Env):
     :meth:`step`, what the mask of the state the step left carried (the mask a masked learner chose
     from; :class:`rac.engine.shield.ShieldStep`): ``shield`` (``"exhaustive"``, ``"lookahead d"``,
     ``"none"``), ``shield_until`` (the time, s, up to which every allowed action had a safe
-    continuation), ``shield_timeout`` (the runtime shield's budget ran out: the mask was sound for
-    its depth but may have allowed fewer actions), ``no_safe_action`` (the shield knew no safe
+    continuation), ``shield_short`` (the runtime shield reached fewer decisions than asked for at
+    that state: no action survived them all, or its budget ran out), ``shield_timeout`` (the
+    runtime shield's budget ran out: the mask was sound for its depth but may have allowed fewer
+    actions), ``no_safe_action`` (the shield knew no safe
     action: the mask allowed every action of the model) and ``shield_allowed`` (the action taken
     was in the mask). Counted since construction: :attr:`shield_steps` (steps per ``shield``
     value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`.
@@ -384,11 +386,12 @@ class ScenarioEnv(gymnasium.Env):
         self._decision = None
         shield: dict[str, Any]
         if decision is None:
-            shield = {"shield": "none", "shield_until": time, "shield_timeout": False, "no_safe_action": unseen,
-                      "shield_allowed": True}
+            shield = {"shield": "none", "shield_until": time, "shield_short": False, "shield_timeout": False,
+                      "no_safe_action": unseen, "shield_allowed": True}
         else:
             shield = {"shield": decision.guarantee, "shield_until": float(decision.until * self._period),
-                      "shield_timeout": decision.timed_out, "no_safe_action": decision.no_safe_action,
+                      "shield_short": decision.short, "shield_timeout": decision.timed_out,
+                      "no_safe_action": decision.no_safe_action,
                       "shield_allowed": bool(decision.mask[int(action)])}
         self.shield_steps[shield["shield"]] += 1
         self.no_safe_action_steps += shield["no_safe_action"]
