@@ -4,8 +4,9 @@ decisions (issue 20, "a shield for every step of training").
 The exhaustive shield (:func:`rac.engine.shield.synthesise`) answers for every state the model can
 reach up to its horizon, and beyond a few decisions of a fine action grid it cannot be computed at
 all. :class:`Lookahead` answers for one state at a time, at run time: from a decision state it
-searches the next ``depth`` decisions against the recorded obstacles, depth first, and stops
-searching below an action as soon as one continuation has survived them all.
+searches the next ``depth`` decisions against the recorded obstacles and stops searching below an
+action as soon as one continuation of it has survived them all (first the few fixed continuations
+that most actions survive, then exhaustively, layer by layer).
 
 **What "safe" means** is what it means to the exhaustive shield (``control: A[] !collide() &&
 !offroad()``, :data:`rac.engine.graph.LABELS`): every sample of the continuation is safe (no
