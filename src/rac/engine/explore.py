@@ -105,8 +105,9 @@ GEOMETRY: dict[str, type] = {"offroad": bool, "mindist": float, "goal": bool, "d
 
 
 class Geometry:
-    """The model's functions of position (:data:`GEOMETRY`) at one sample, on distinct rows (ego columns
-    with jerk and turn 0), each computed at most once per row and only for the rows asked for.
+    """The model's functions of position (:data:`GEOMETRY`) at one sample, on rows of ego columns (distinct
+    positions; their jerk and turn are not read), each computed at most once per row and only for the
+    rows asked for.
 
     Exploration keys a layer's successors by these rows before anything reads the model: the ``allow
     when`` rule, the sticky collision test and the labels then share one evaluation per distinct
@@ -218,10 +219,8 @@ def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None, sa
             kept.append(np.ones(chosen.shape[0], dtype=bool))
             if forget:
                 moved[:, 5:7] = 0
-            rows, inverse = _unique_rows(moved)
-            places = rows.copy()
-            places[:, 5:7] = 0
-            part = (rows, np.arange(rows.shape[0], dtype=np.int64), Geometry(model, places, sample))
+            rows, inverse = _unique_rows(moved)  # the geometry reads the rows themselves (not their jerk, turn)
+            part = (rows, np.arange(rows.shape[0], dtype=np.int64), Geometry(model, rows, sample))
         else:
             part, inverse = _by_position(model, chosen, moved, sample, guard, forget, kept)
         inverses.append(inverse + merged_rows + pending)
