@@ -119,20 +119,20 @@ def test_verify_unknown_query_exits_2(capsys: pytest.CaptureFixture[str], tmp_pa
 
 
 def test_verify_state_budget_is_unknown_with_a_hint(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    path = write_engine_file(tmp_path, "goal_ahead")  # the shield needs the whole pruned model
-    assert main(["verify", str(path), "--query", "safe", "--query", "Somewhere", "--max-states", "10"]) == 4
+    path = write_engine_file(tmp_path, "goal_ahead")  # `-->` needs the whole model
+    assert main(["verify", str(path), "--query", "LeadsTo", "--query", "Somewhere", "--max-states", "10"]) == 4
     out = normalised(capsys.readouterr().out)
     assert out == f"""\
-Verifying safe: strategy safe = control: A[] !collide() && !offroad()  ({path}:{line_of(path, "safe")})
- -- Formula is UNKNOWN: the model has more than 10 states by t = 1 s (sample 2); growing ×9 per decision, the \
-horizon (sample 8) would have about 1.5e+04 states: shorten the horizon (--horizon), coarsen the model (exponent, \
-action steps, decide_period) or raise --max-states if the machine has the memory
-    T s
 Verifying Somewhere: E<> Close  ({path}:{line_of(path, "Somewhere")})
  -- Formula is UNKNOWN: the product of model and automaton has more than 10 states by t = 0.5 s (sample 1): \
 shorten the horizon (--horizon), coarsen the model (exponent, action steps, decide_period) or raise --max-states \
 if the machine has the memory (the automaton alone does not decide it: a run of the automaton reaches `Close` \
 with inputs near=true)
+    T s
+Verifying LeadsTo: goal() --> goal()  ({path}:{line_of(path, "LeadsTo")})
+ -- Formula is UNKNOWN: the model has more than 10 states by t = 1 s (sample 2); growing ×9 per decision, the \
+horizon (sample 8) would have about 1.5e+04 states: shorten the horizon (--horizon), coarsen the model (exponent, \
+action steps, decide_period) or raise --max-states if the machine has the memory
     T s
 """
 

@@ -87,8 +87,8 @@ def test_reachability_is_tried_on_the_pruned_model_first(tmp_path: Path) -> None
 
 # ---------------------------------------------------------------- exit codes and messages
 def test_an_undecided_query_has_its_own_exit_code(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    path = write_engine_file(tmp_path, "goal_ahead")  # the shield needs the whole pruned model: beyond 10 states
-    assert main(["verify", str(path), "--query", "safe", "--max-states", "10"]) == EXIT_UNDECIDED
+    path = write_engine_file(tmp_path, "goal_ahead")  # `-->` needs the whole model: beyond 10 states
+    assert main(["verify", str(path), "--query", "LeadsTo", "--max-states", "10"]) == EXIT_UNDECIDED
     assert EXIT_UNDECIDED not in (0, EXIT_ERRORS)
     out = capsys.readouterr().out
     assert "UNKNOWN" in out
@@ -103,13 +103,13 @@ def test_an_undecided_query_has_its_own_exit_code(tmp_path: Path, capsys: pytest
 
 def test_an_unknown_verdict_speaks_the_users_language(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write_engine_file(tmp_path, "goal_ahead")
-    main(["verify", str(path), "--query", "safe", "--query", "Somewhere", "--max-states", "10"])
+    main(["verify", str(path), "--query", "LeadsTo", "--query", "Somewhere", "--max-states", "10"])
     out = capsys.readouterr().out
     assert not re.search(r"\b\w+\(\):", out), out  # no internal function names
     assert "the model has more than 10 states by t = 1 s (sample 2)" in out
     assert "the product of model and automaton has more than 10 states by t = 0.5 s (sample 1)" in out
     assert "--max-states" in out and "--horizon" in out
-    main(["verify", str(path), "--query", "safe", "--max-states", "10", "--format", "json"])
+    main(["verify", str(path), "--query", "LeadsTo", "--max-states", "10", "--format", "json"])
     (result,) = json.loads(capsys.readouterr().out)["results"]
     assert result["status"] == "unknown"
     assert result["message"].startswith("the model has more than 10 states by t = 1 s (sample 2)")

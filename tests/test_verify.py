@@ -328,9 +328,12 @@ def test_state_budget_gives_unknown_not_a_crash(compiled: Callable[[str], Compil
     stays = results.pop("Stays")  # a run safe to the horizon is found within the budget (a run is 9 states)
     assert (stays.status, stays.method) == ("satisfied", "witness search")
     assert stays.states is not None and stays.states <= 2 * 10  # the random runs', then the beam's
+    safe = results.pop("safe")  # beyond the budget the shield is computed state by state
+    assert (safe.status, safe.method) == ("satisfied", "on demand") and "more than 10 states" in (safe.message or "")
     assert {r.status for r in results.values()} == {"unknown"}
-    assert "more than 10 states" in (results["safe"].message or "")
-    assert "--max-states" in (results["safe"].message or "")
+    assert "state by state" in (results["Shielded"].message or "")
+    assert "more than 10 states" in (results["LeadsTo"].message or "")
+    assert "--max-states" in (results["LeadsTo"].message or "")
     assert "--horizon" in (results["LeadsTo"].message or "")
     assert "UNKNOWN" in render_text(list(results.values()))
 

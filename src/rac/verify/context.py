@@ -27,6 +27,7 @@ from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
 from rac.engine.graph import ExploredGraph
+from rac.engine.ondemand import OnDemandShield
 from rac.engine.witness import Bounds, Predicate
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -163,6 +164,10 @@ class Context:
         self.learned: dict[str, Learned] = {}
         #: Strategies that provably do not exist, by name: why (the defining query and its failure).
         self.missing: dict[str, str] = {}
+        #: Safety shields computed state by state (the model was too large to explore), by name.
+        self.on_demand: dict[str, OnDemandShield] = {}
+        #: Why exploring the model failed, by ``prune`` (the budget): said again, not tried again.
+        self.graph_failures: dict[bool, str] = {}
         #: The model's (jerk, turn) action pairs; a shield's masks index them.
         self.pairs = action_pairs(self.data)
         #: Where strategies, CSV files and plots go (None: nowhere).
@@ -217,13 +222,16 @@ class Context:
     def graph(self, prune: bool) -> ExploredGraph:
         """The explored model up to the horizon (pruned: unsafe states are not expanded), explored
         once and kept for later queries."""
+        if prune in self.graph_failures:
+            raise UnknownVerdict(self.graph_failures[prune])
         if prune not in self.graphs:
             try:
                 self.graphs[prune] = explore(self.data, horizon_samples=self.horizon_samples, prune_unsafe=prune,
                                              progress=self.options.explore_progress,
                                              max_states=self.options.max_states, max_bytes=self.options.max_bytes)
             except BudgetExceeded as exc:
-                raise UnknownVerdict(over_budget(exc)) from None
+                self.graph_failures[prune] = over_budget(exc)
+                raise UnknownVerdict(self.graph_failures[prune]) from None
             except ModelRangeError as exc:
                 raise UnknownVerdict(f"a sensed value left the int32 range: {exc}") from None
         return self.graphs[prune]
@@ -268,6 +276,10 @@ class Context:
         """The shield ``name`` computed by an earlier query; unknown when there is none to use."""
         if name in self.missing:
             raise NotApplicable(self.missing[name])
+        if name in self.on_demand:
+            raise UnknownVerdict(f"the shield `{name}` was computed state by state (the model is too large to "
+                                 "explore), so exhaustive queries under it are not decided; simulations and "
+                                 "learning under it are")
         if name not in self.strategies:
             raise UnknownVerdict(f"the strategy `{name}` has not been computed (it is defined by a query that "
                                  "was skipped or failed; run it first)")
@@ -279,11 +291,17 @@ class Context:
 
     def strategy_exists(self, name: str) -> bool:
         """Whether the shield ``name`` was computed and exists."""
-        return name in self.strategies and self.strategies[name][0].shield_exists
+        return name in self.on_demand or (name in self.strategies and self.strategies[name][0].shield_exists)
+
+    def shield_table(self, name: str) -> shield.ShieldTable:
+        """The masks of the shield ``name``: its table, or the on-demand shield computed state by state."""
+        if name in self.on_demand and name not in self.missing:
+            return self.on_demand[name]
+        return self.strategy(name)[1]
 
     def policy(self, under: str | None) -> Policy | None:
         """The simulation policy of the shield ``under`` (None: every action)."""
-        return None if under is None else self.strategy(under)[1].masks_at
+        return None if under is None else self.shield_table(under).masks_at
 
     def episodes(self, reward: str | ie.Expr, goal: ie.Expr | None, samples: int) -> EpisodeBatch:
         """Episodes of the model with the automaton (:class:`rac.learning.episodes.EpisodeBatch`);

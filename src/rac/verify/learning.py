@@ -47,7 +47,7 @@ class LearningAnswerer:
             if query.under in ctx.learned:
                 raise EvaluationError(f"learning under the learned strategy `{query.under}` is not supported "
                                       "(only under a shield: `strategy S = control: A[] ...`)")
-            _, table = ctx.strategy(query.under)
+            table = ctx.shield_table(query.under)
         samples = ctx.bound_samples(query.bound)
         if samples < 1:
             raise UnknownVerdict("the time bound is shorter than one sample")

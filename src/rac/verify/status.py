@@ -28,6 +28,8 @@ METHODS: dict[str, str] = {
     "witness search": "found by a bounded witness search and replayed",
     # the complete graph up to the horizon
     "exhaustive": "decided on the complete graph up to the horizon",
+    # the runtime shield searching the whole horizon from the start; the shield then computed state by state
+    "on demand": "decided by a search of the whole horizon from the start (the model is too large to explore)",
     "simulation": "estimated by simulation",
     "learning": "learned",
     # the one run of a deterministic model under a learned strategy

@@ -222,7 +222,12 @@ class SymbolicAnswerer:
             return dataclasses.replace(base, status="satisfied" if verdict.holds else "not satisfied",
                                        states=within.n_states, horizon_samples=ctx.horizon_samples,
                                        method="exhaustive", message=saved)
-        graph = within if within is not None else ctx.graph(_implies_safe(query.expr))
+        try:
+            graph = within if within is not None else ctx.graph(_implies_safe(query.expr))
+        except UnknownVerdict as exc:
+            if within is not None or not _is_safety(query.expr):
+                raise
+            return self._on_demand(query, base, str(exc))
         labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
         computed = storm.safety_shield(labelled, "query")
         table = shield.table(computed, n_actions=len(ctx.pairs))
@@ -243,6 +248,49 @@ class SymbolicAnswerer:
         return dataclasses.replace(base, status="satisfied" if computed.shield_exists else "not satisfied",
                                    states=graph.n_states, horizon_samples=ctx.horizon_samples, files=files,
                                    message=message, method="exhaustive")
+
+    def _on_demand(self, query: iq.ControlStrategy, base: QueryResult, too_large: str) -> QueryResult:
+        """``control: A[] !collide() && !offroad()`` where the model is too large to explore: decided by
+        the runtime shield searching the whole horizon from the start (a safe continuation proves the
+        strategy exists; a complete search without one, that it does not); the strategy is then the
+        on-demand shield (:mod:`rac.engine.ondemand`), computed state by state as runs reach them."""
+        from rac.engine.lookahead import Lookahead, LookaheadSettings
+        from rac.engine.ondemand import on_demand
+        from rac.model.native import NativeModel
+
+        ctx = self.context
+        native = NativeModel(ctx.data)
+        start = native.initial_state()
+        row = np.array([0, *list(start)[:7]], dtype=np.int64)
+        goal = format_checked(query.expr)
+        ctx.strategy_goals[query.name] = goal
+        at = ctx.period
+        if native.collide(start, 0) or native.offroad(start, 0):
+            return dataclasses.replace(base, status=NOT_SATISFIED, method="on demand",
+                                       horizon_samples=ctx.horizon_samples,
+                                       message=f"no strategy keeps `{goal}` from the start: it is false at the start")
+        search = Lookahead(ctx.data, ctx.horizon_samples,
+                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=START_SECONDS))
+        found = search.decide(row)
+        proved = found.depth >= found.target and found.depth > 0
+        reach = f"t = {found.until * float(at):g} s"
+        if not proved and not found.complete:
+            raise UnknownVerdict(f"{too_large}; a search of {START_SECONDS:g} s for a safe run to the horizon "
+                                 f"found none (the longest it proved safe reaches {reach})")
+        if not proved:
+            return dataclasses.replace(base, status=NOT_SATISFIED, method="on demand",
+                                       horizon_samples=ctx.horizon_samples,
+                                       message=(f"no strategy keeps `{goal}` from the start: the complete search of "
+                                                f"the runs from the start keeps it until {reach} at best"))
+        computed = on_demand(ctx.data, ctx.horizon_samples)
+        ctx.on_demand[query.name] = computed
+        allowed = int(found.mask.sum())
+        return dataclasses.replace(
+            base, status=SATISFIED, method="on demand", horizon_samples=ctx.horizon_samples,
+            message=(f"{too_large.split(':')[0]}, so the shield is computed state by state: at the start "
+                     f"{allowed} of {found.mask.size} actions have a safe continuation to the horizon; later "
+                     f"states when runs reach them ({computed.seconds:g} s each at most; an action not proved "
+                     "within it is not allowed). Not saved."))
 
     # ------------------------------------------------------------ pieces
     def under_shield(self, name: str, what: str) -> ExploredGraph:
@@ -302,6 +350,16 @@ def _longest_kept(graph: ExploredGraph, keep: np.ndarray) -> int:
         frontier[targets] = True
         last = max(last, int(k[targets].max()))
     return last
+
+
+#: The time the on-demand shield may search from the start for a safe run to the horizon (Qd's verdict).
+START_SECONDS = 20.0
+
+
+def _is_safety(expr: ie.Expr) -> bool:
+    """``expr`` is exactly ``!collide() && !offroad()`` (in either order): what the runtime shield keeps."""
+    return (isinstance(expr, ie.Binary) and expr.op == "&&" and _implies_safe(expr)
+            and all(isinstance(side, ie.Unary) for side in (expr.left, expr.right)))
 
 
 def _implies_safe(expr: ie.Expr) -> bool:

@@ -1,0 +1,102 @@
+"""The safety shield up to the horizon, state by state, where the model is too large to explore.
+
+``strategy safe = control: A[] !collide() && !offroad()`` needs the whole (pruned) model for its
+table (:func:`rac.engine.shield.synthesise`); on a fine action grid or a long horizon that graph
+cannot be built. :class:`OnDemandShield` answers the same question for one state at a time, when a
+run reaches it: an action is allowed when the runtime shield (:class:`rac.engine.lookahead.Lookahead`)
+proves a safe continuation from it **up to the horizon** (every remaining decision). That is the
+exhaustive shield's own condition, so every allowed action is one the table would allow.
+
+The search per state has a time budget (:attr:`OnDemandShield.seconds`). When it runs out before an
+action is proved, that action is not allowed: the mask stays sound (nothing unsafe is allowed) but
+may allow fewer actions than the table would; :attr:`OnDemandShield.stats` counts those states, and
+the states where no action was proved (a mask of all False, the table's answer for a losing state),
+so that every consumer can say how far the guarantee reached.
+
+It is a :class:`~rac.engine.shield.ShieldTable` without rows: :meth:`masks_for` computes a row
+when it is asked for (and keeps it), so simulations and learning use it as they use a table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rac.engine.allow import action_pairs
+from rac.engine.lookahead import Lookahead, LookaheadMask, LookaheadSettings
+from rac.engine.shield import ShieldTable
+from rac.model.data import ModelData
+
+__all__ = ["OnDemandShield", "OnDemandStats", "on_demand"]
+
+#: The default time budget per state, in seconds.
+DEFAULT_SECONDS = 0.5
+#: The columns of the shield's state rows (as :meth:`rac.learning.episodes.EpisodeBatch.state_keys`).
+COLUMNS = ("k", "x", "y", "v", "acc", "head", "jerk", "turn")
+
+
+@dataclass
+class OnDemandStats:
+    """What the on-demand shield has answered so far."""
+
+    states: int = 0  # distinct states asked about
+    timed_out: int = 0  # of them, where the budget ran out (the mask may allow fewer actions)
+    empty: int = 0  # of them, where no action was proved safe to the horizon
+
+
+@dataclass(frozen=True)
+class OnDemandShield(ShieldTable):
+    """A :class:`ShieldTable` whose rows are the runtime shield's answers up to the horizon, computed
+    when asked for (see the module docstring). Build it with :func:`on_demand`."""
+
+    lookahead: Lookahead | None = field(default=None, compare=False, repr=False)
+    seconds: float | None = DEFAULT_SECONDS
+    stats: OnDemandStats = field(default_factory=OnDemandStats, compare=False)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "_memo", {})
+
+    def decide(self, row: np.ndarray, crashed: bool = False) -> LookaheadMask:
+        """The runtime shield's whole answer at the state row ``k, x, y, v, acc, head, jerk, turn``."""
+        assert self.lookahead is not None
+        return self.lookahead.decide(np.asarray(row, dtype=np.int64), crashed)
+
+    def masks_for(self, states: np.ndarray) -> np.ndarray:
+        """``(n, n_actions)`` bool: per state row, the actions proved to have a safe continuation up
+        to the horizon (all False: none proved; at or after the horizon: every action)."""
+        assert self.lookahead is not None
+        rows = np.array(states, dtype=np.int64, ndmin=2)
+        memo: dict[bytes, np.ndarray] = self._memo  # type: ignore[attr-defined]
+        out = np.empty((rows.shape[0], self.n_actions), dtype=bool)
+        for i, row in enumerate(rows):
+            key = row[:8].tobytes()
+            mask = memo.get(key)
+            if mask is None:
+                if int(row[0]) >= self.lookahead.horizon:
+                    mask = np.ones(self.n_actions, dtype=bool)
+                else:
+                    found = self.lookahead.decide(row[:8])
+                    full = found.depth >= found.target and found.depth > 0
+                    mask = found.mask.copy() if full else np.zeros(self.n_actions, dtype=bool)
+                    self.stats.states += 1
+                    self.stats.timed_out += int(not found.complete)
+                    self.stats.empty += int(not mask.any())
+                memo[key] = mask
+            out[i] = mask
+        return out
+
+    def mask(self, state: object) -> np.ndarray:
+        return self.masks_for(np.asarray(state))[0].copy()
+
+    def knows(self, state: object) -> bool:
+        return True
+
+
+def on_demand(data: ModelData, horizon_samples: int, seconds: float | None = DEFAULT_SECONDS) -> OnDemandShield:
+    """The on-demand safety shield of ``data`` up to ``horizon_samples`` (``seconds`` per state)."""
+    n_actions = len(action_pairs(data))
+    lookahead = Lookahead(data, horizon_samples, LookaheadSettings(depth=horizon_samples + 1, seconds=seconds))
+    return OnDemandShield(COLUMNS, np.zeros((0, len(COLUMNS)), dtype=np.int32), np.zeros((0, n_actions), dtype=bool),
+                          horizon=horizon_samples, lookahead=lookahead, seconds=seconds)
