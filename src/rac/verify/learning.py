@@ -120,6 +120,8 @@ class LearningAnswerer:
         ctx = self.context
         samples = ctx.bound_samples(query.bound)
         graph: ExploredGraph | None
+        if query.under is not None and query.under in ctx.on_demand:
+            return None  # a shield computed state by state has no graph to prove anything on
         if query.under is not None:
             graph = restricted(ctx.strategy(query.under)[0])
             runs = f"no run the shield `{query.under}` allows"
