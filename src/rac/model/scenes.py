@@ -1,6 +1,6 @@
 """Small scenes of the kinds rac is judged on, built in code with commonroad-io.
 
-Seven scenes, each a CommonRoad 2020a file written like a user's (:mod:`rac.model.scenario_xml`),
+The scenes, each a CommonRoad 2020a file written like a user's (:mod:`rac.model.scenario_xml`),
 with the ego's planning problem 100 and 0.1 s time steps:
 
 - ``left_turn``: the paper's left-turn intersection (:mod:`rac.model.intersection`);
@@ -15,7 +15,11 @@ with the ego's planning problem 100 and 0.1 s time steps:
 - ``tutorial``: a short two-lane road like CommonRoad's tutorial scenario, the ego at 10 m/s behind
   a slower car, a faster one coming up the left lane and a parked van further on
   (:func:`build_tutorial`); with :data:`TUTORIAL_45` (45 actions every 0.2 s) it is the scene on
-  which an exhaustive shield cannot be computed for a whole episode (issue 20).
+  which an exhaustive shield cannot be computed for a whole episode (issue 20);
+- ``urban``: an urban boulevard, three lanes per direction, no other road users, a goal 105-135 m
+  ahead within 14 s (:func:`build_urban`): every run on the road is safe, so runs are many;
+- ``urban_head_on``: an urban street, two lanes per direction, a car overtaking towards the ego in
+  the ego's lane until 12 s, a goal window at 19.4-20.4 s (:func:`build_urban_head_on`).
 
 ``python -m rac.model.scenes NAME OUT.xml`` writes one; ``write_scene(name, path)`` from Python.
 The benchmark of every query on each kind (``benchmarks/queries.py``) and the tests use them.
