@@ -31,7 +31,7 @@ from rac.model.data import ModelData
 __all__ = ["OnDemandShield", "OnDemandStats", "on_demand"]
 
 #: The default time budget per state, in seconds (simulations and learning ask for thousands).
-DEFAULT_SECONDS = 0.1
+DEFAULT_SECONDS = 0.02
 #: The columns of the shield's state rows (as :meth:`rac.learning.episodes.EpisodeBatch.state_keys`).
 COLUMNS = ("k", "x", "y", "v", "acc", "head", "jerk", "turn")
 
