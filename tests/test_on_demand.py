@@ -34,12 +34,14 @@ def test_the_on_demand_shield_allows_only_what_the_table_allows(tmp_path: Path, 
     horizon = result.automaton.steps
     computed, table = shields.synthesise(data, horizon)
     lazy = on_demand(data, horizon, seconds=None)  # unbounded: exactly the table's masks
+    budgeted = on_demand(data, horizon)  # fixed continuations tried first, then a budgeted search
     runs = simulate(data, runs=30, horizon_samples=horizon, seed=3, policy=table.masks_at)
     for k in range(0, horizon, data.decide_every):
         rows = np.column_stack([np.full(runs.states.shape[0], k), runs.states[:, k, :7]]).astype(np.int32)
-        exhaustive, found = table.masks_for(rows), lazy.masks_for(rows)
+        exhaustive, found, quick = table.masks_for(rows), lazy.masks_for(rows), budgeted.masks_for(rows)
         assert not (found & ~exhaustive).any(), (scene, k)  # sound
         assert (found == exhaustive).all(), (scene, k)  # and, unbounded, as permissive
+        assert not (quick & ~exhaustive).any(), (scene, k)  # sound with a budget too
     assert lazy.stats.states > 0 and lazy.stats.timed_out == 0
 
 

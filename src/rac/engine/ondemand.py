@@ -65,27 +65,69 @@ class OnDemandShield(ShieldTable):
 
     def masks_for(self, states: np.ndarray) -> np.ndarray:
         """``(n, n_actions)`` bool: per state row, the actions proved to have a safe continuation up
-        to the horizon (all False: none proved; at or after the horizon: every action)."""
+        to the horizon (all False: none proved; at or after the horizon: every action).
+
+        With a budget per state, the rows asked for together at one sample are first tried at once:
+        every action of every row, followed by two fixed continuations to the horizon (holding the
+        action; braking straight on), in one vectorised pass. A row where that proves some action
+        keeps the actions it proved (sound; it may allow fewer than a full search); the others are
+        searched one by one. Without a budget every row is searched exactly."""
         assert self.lookahead is not None
         rows = np.array(states, dtype=np.int64, ndmin=2)
         memo: dict[bytes, np.ndarray] = self._memo  # type: ignore[attr-defined]
-        out = np.empty((rows.shape[0], self.n_actions), dtype=bool)
-        for i, row in enumerate(rows):
-            key = row[:8].tobytes()
-            mask = memo.get(key)
-            if mask is None:
-                if int(row[0]) >= self.lookahead.horizon:
-                    mask = np.ones(self.n_actions, dtype=bool)
-                else:
-                    found = self.lookahead.decide(row[:8])
-                    full = found.depth >= found.target and found.depth > 0
-                    mask = found.mask.copy() if full else np.zeros(self.n_actions, dtype=bool)
-                    self.stats.states += 1
-                    self.stats.timed_out += int(not found.complete)
-                    self.stats.empty += int(not mask.any())
-                memo[key] = mask
-            out[i] = mask
-        return out
+        keys = [row[:8].tobytes() for row in rows]
+        todo = [i for i, key in enumerate(keys) if key not in memo]
+        if todo and self.seconds is not None:
+            for k in np.unique(rows[todo, 0]).tolist():
+                group = [i for i in todo if rows[i, 0] == k and keys[i] not in memo]
+                if k >= self.lookahead.horizon or not group:
+                    continue
+                proved = self._fixed_proofs(rows[group, 1:8], int(k))
+                for i, mask in zip(group, proved):
+                    if mask.any():
+                        memo[keys[i]] = mask
+                        self.stats.states += 1
+        for i, key in enumerate(keys):
+            if key not in memo:
+                memo[key] = self._searched(rows[i])
+        return np.array([memo[key] for key in keys], dtype=bool).reshape(rows.shape[0], self.n_actions)
+
+    def _searched(self, row: np.ndarray) -> np.ndarray:
+        """One row's mask by the runtime shield's own search up to the horizon."""
+        assert self.lookahead is not None
+        if int(row[0]) >= self.lookahead.horizon:
+            return np.ones(self.n_actions, dtype=bool)
+        found = self.lookahead.decide(row[:8])
+        full = found.depth >= found.target and found.depth > 0
+        mask = found.mask.copy() if full else np.zeros(self.n_actions, dtype=bool)
+        self.stats.states += 1
+        self.stats.timed_out += int(not found.complete)
+        self.stats.empty += int(not mask.any())
+        return mask
+
+    def _fixed_proofs(self, egos: np.ndarray, k: int) -> np.ndarray:
+        """``(n, P)``: the actions at sample ``k`` of the ego rows ``egos`` ``(n, 7)`` that a fixed
+        continuation (hold the action, or brake straight on) keeps safe up to the horizon."""
+        shield = self.lookahead
+        assert shield is not None
+        n, count = egos.shape[0], self.n_actions
+        actions = np.tile(np.arange(count), n)
+        ends, safe, _ = shield.periods(np.repeat(egos.astype(np.int32), count, axis=0), k, actions)
+        pairs = shield.pairs
+        brake = int(np.lexsort((np.abs(pairs[:, 1]), pairs[:, 0]))[0])  # the hardest braking, straight on
+        proved = np.zeros(actions.size, dtype=bool)
+        for hold in (True, False):
+            alive = safe.copy()
+            current = ends.copy()
+            sample = shield.period_end(k)
+            while sample < shield.horizon and alive.any():
+                live = np.flatnonzero(alive)
+                chosen = actions[live] if hold else np.full(live.size, brake)
+                current[live], ok, _ = shield.periods(current[live], sample, chosen)
+                alive[live] = ok
+                sample = shield.period_end(sample)
+            proved |= alive
+        return proved.reshape(n, count)
 
     def mask(self, state: object) -> np.ndarray:
         return self.masks_for(np.asarray(state))[0].copy()
