@@ -219,7 +219,7 @@ def test_product_queries_read_the_location_and_the_reward(compiled: Callable[[st
     # decided on the automaton alone (near = mindist() < 3 TD needs no assume); the others on the product,
     # stopped at the first witness or counterexample
     assert product.status == "satisfied" and product.method == "compositional" and product.states is None
-    assert somewhere.status == "satisfied" and somewhere.trace is not None and somewhere.method == "on the fly"
+    assert somewhere.status == "satisfied" and somewhere.trace is not None and somewhere.method == "product search"
     assert_trace_is_a_run(item, somewhere.trace, product=True)
     assert somewhere.trace[0]["location"] == "Normal" and somewhere.trace[-1]["location"] == "Close"
     # Entering Close costs 10, more than the 4 s of `sa' == 1` can have earned: sa < 0 there.

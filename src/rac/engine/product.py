@@ -387,7 +387,8 @@ class ProductGraph(ExploredGraph):
 def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples: int | None = None,
                     prune_unsafe: bool = False, progress: Progress | None = None,
                     max_states: int | None = None, max_bytes: int | None = None,
-                    stop_at: Callable[[ProductGraph], np.ndarray] | None = None) -> ProductGraph:
+                    stop_at: Callable[[ProductGraph], np.ndarray] | None = None,
+                    beam: tuple[int, Callable[[ProductGraph], np.ndarray]] | None = None) -> ProductGraph:
     """Explore the product of the model and ``automaton`` breadth-first, one phase of a sample per layer.
 
     State 0 is the start (sample 0, ``sampled``, the ego's start with jerk and turn 0, the initial
@@ -405,6 +406,10 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     ``stop_at`` (on the fly): called with each new layer as a graph of its own states (no choices);
     where it marks a state, exploration stops after that layer and :attr:`ProductGraph.stopped_at`
     is the first marked state's index in the returned (partial) graph, which :func:`trace_to` leads to.
+
+    ``beam`` (width, score): at each sample only the ``width`` sampled states of lowest score (the
+    score is called with the layer as a graph of its own) are expanded; the graph is then not
+    complete (:attr:`ExploredGraph.complete`), so it shows witnesses, never their absence.
     """
     horizon = automaton.steps if horizon_samples is None else horizon_samples
     if horizon < 0:
@@ -456,9 +461,16 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     stopped = add(sampled)
     if progress is not None:
         progress(0, 1, built.total)
+    narrowed = False
     for k in range(0 if stopped else horizon):
         # ---- the choices: as explore(), one per action pair at decision samples
         expand = sampled.labels["safe"] if prune_unsafe else np.ones(sampled.n, dtype=bool)
+        if beam is not None and int(expand.sum()) > beam[0]:
+            candidates = np.flatnonzero(expand)
+            scores = np.asarray(beam[1](_layer_graph(sampled, automaton, data, horizon, bindings, evaluator)))
+            expand = np.zeros(sampled.n, dtype=bool)
+            expand[candidates[np.argsort(scores[candidates], kind="stable")[:beam[0]]]] = True
+            narrowed = True
         sources = np.flatnonzero(expand)
         if sources.size == 0:  # every state pruned: the last layer is terminal
             break
@@ -537,7 +549,9 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
         add(ended)
     built.link(np.zeros(built.layers[-1].n), np.zeros(0), np.zeros(0))
     graph = _assemble(built, automaton, data, horizon, bindings, evaluator)
-    return dataclasses.replace(graph, stopped_at=found[0]) if found[0] >= 0 else graph
+    if found[0] >= 0 or narrowed:
+        graph = dataclasses.replace(graph, stopped_at=found[0], complete=False)
+    return graph
 
 
 def _layer_graph(layer: _Layer, automaton: ir.Automaton, data: ModelData, horizon: int, bindings: Bindings,

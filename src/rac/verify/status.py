@@ -26,6 +26,8 @@ METHODS: dict[str, str] = {
     "on the fly": "found on the fly, before the whole graph was built",
     # a witness found by a bounded search (random runs, a beam), replayed with the scalar model
     "witness search": "found by a bounded witness search and replayed",
+    # a beam search of the product of model and automaton toward where the automaton alone fails
+    "product search": "found by a bounded search of the product, guided by the automaton's own counterexample",
     # the complete graph up to the horizon
     "exhaustive": "decided on the complete graph up to the horizon",
     # the runtime shield searching the whole horizon from the start; the shield then computed state by state

@@ -7,14 +7,16 @@ explored model (or its product with the automaton)."""
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 import numpy as np
 
+from rac import ir
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
+from rac.engine.product import ProductGraph
 from rac.engine.witness import Predicate, Witness, witness_graph
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -25,9 +27,6 @@ from rac.verify.context import Context, UnknownVerdict, over_budget, restricted
 from rac.verify.reach import Reached, Reacher, in_graph
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow
 from rac.verify.status import NOT_SATISFIED, SATISFIED
-
-if TYPE_CHECKING:
-    from rac.engine.product import ProductGraph
 
 __all__ = ["SymbolicAnswerer"]
 
@@ -174,6 +173,15 @@ class SymbolicAnswerer:
             def stop(layer: ProductGraph) -> np.ndarray:
                 mask = layer.label(query.expr, box=box)
                 return ~mask if box else mask
+        if stop is not None:
+            # the automaton reaches a violation (or the witness): search the model for a run that
+            # produces it first, a beam toward the locations where it happens and toward the goal
+            guided = self._guided_product(query, stop)
+            if guided is not None:
+                return dataclasses.replace(base, status=NOT_SATISFIED if query.quantifier == "A[]" else SATISFIED,
+                                           method="product search", states=guided.n_states,
+                                           horizon_samples=ctx.horizon_samples,
+                                           trace=self.trace_rows(guided, trace_to(guided, guided.stopped_at)))
         try:
             graph = explore_product(ctx.data, ctx.automaton, horizon_samples=ctx.horizon_samples,
                                     progress=ctx.options.explore_progress, max_states=ctx.options.max_states,
@@ -188,6 +196,37 @@ class SymbolicAnswerer:
         return dataclasses.replace(base, status=SATISFIED if verdict.holds else NOT_SATISFIED, method="exhaustive",
                                    states=graph.n_states, horizon_samples=ctx.horizon_samples,
                                    trace=self.trace_rows(graph, verdict.trace))
+
+    def _guided_product(self, query: iq.PathQuery, stop: Callable[[ProductGraph], np.ndarray]) -> ProductGraph | None:
+        """A beam search of the product toward where ``stop`` marks a state (the automaton's own
+        distance to the locations where the query can fail, then the distance to the goal), bounded
+        by :data:`GUIDED_WIDTH` states per sample and :data:`GUIDED_STATES` in all; the partial graph
+        with the first marked state, or None (which proves nothing)."""
+        from rac.engine.product import explore_product
+
+        ctx = self.context
+        automaton = ctx.automaton
+        targets = _query_locations(query.expr, len(automaton.locations))
+        distance = _distances_to(automaton, targets)
+        jitter = np.random.default_rng(ctx.next_seed())
+        locations = ProductGraph.columns_of(automaton).index("location")
+
+        def score(layer: ProductGraph) -> np.ndarray:
+            loc = layer.states[:, locations].astype(np.int64)
+            goal = np.asarray(layer.evaluate(ie.call("dist_goal")), dtype=float)
+            return distance[loc] * 1e6 + np.minimum(goal, 1e5) + jitter.random(layer.n_states)
+
+        # a width that keeps the whole search within GUIDED_STATES: each expanded state has a choice
+        # per action pair at a decision and one between decisions, in about three phases per sample
+        branching = max(1, len(ctx.pairs) // max(1, ctx.data.decide_every))
+        width = int(np.clip(GUIDED_STATES // (3 * max(1, ctx.horizon_samples) * branching), 8, GUIDED_WIDTH))
+        try:
+            graph = explore_product(ctx.data, automaton, horizon_samples=ctx.horizon_samples,
+                                    max_states=min(ctx.options.max_states, GUIDED_STATES),
+                                    max_bytes=ctx.options.max_bytes, stop_at=stop, beam=(width, score))
+        except BudgetExceeded:
+            return None
+        return graph if graph.stopped_at >= 0 else None
 
     def leads_to(self, query: iq.LeadsToQuery, base: QueryResult) -> QueryResult:
         """``p --> q``: every reachable ``p``-state is followed by ``q`` on every run."""
@@ -350,6 +389,30 @@ def _longest_kept(graph: ExploredGraph, keep: np.ndarray) -> int:
         frontier[targets] = True
         last = max(last, int(k[targets].max()))
     return last
+
+
+#: The guided search of the product: states expanded per sample, and states in all.
+GUIDED_WIDTH, GUIDED_STATES = 2_000, 2_000_000
+
+
+def _query_locations(expr: ie.Expr, count: int) -> np.ndarray:
+    """The locations a query names (where it can turn), or all of them when it names none."""
+    named = {node.index for node in ie.walk(expr) if isinstance(node, ie.Ref) and node.kind is ie.RefKind.LOCATION}
+    mask = np.zeros(count, dtype=bool)
+    mask[sorted(named) if named else list(range(count))] = True
+    return mask
+
+
+def _distances_to(automaton: ir.Automaton, targets: np.ndarray) -> np.ndarray:
+    """Per location, the fewest edges to one of ``targets`` (guards ignored; unreachable: a large number)."""
+    count = len(automaton.locations)
+    distance = np.full(count, 1_000, dtype=np.int64)
+    distance[targets] = 0
+    for _ in range(count):
+        for here, edges in enumerate(automaton.edges):
+            for edge in edges:
+                distance[here] = min(distance[here], distance[edge.target] + 1)
+    return distance
 
 
 #: The time the on-demand shield may search from the start for a safe run to the horizon (Qd's verdict).
