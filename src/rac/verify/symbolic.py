@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,7 +17,6 @@ from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
-from rac.engine.product import ProductGraph
 from rac.engine.witness import Predicate, Witness, witness_graph
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -27,6 +27,9 @@ from rac.verify.context import Context, UnknownVerdict, over_budget, restricted
 from rac.verify.reach import Reached, Reacher, in_graph
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow
 from rac.verify.status import NOT_SATISFIED, SATISFIED
+
+if TYPE_CHECKING:  # the product is imported when a query needs it (a sweep task's memory limit is tight)
+    from rac.engine.product import ProductGraph
 
 __all__ = ["SymbolicAnswerer"]
 
@@ -202,7 +205,7 @@ class SymbolicAnswerer:
         distance to the locations where the query can fail, then the distance to the goal), bounded
         by :data:`GUIDED_WIDTH` states per sample and :data:`GUIDED_STATES` in all; the partial graph
         with the first marked state, or None (which proves nothing)."""
-        from rac.engine.product import explore_product
+        from rac.engine.product import ProductGraph, explore_product
 
         ctx = self.context
         automaton = ctx.automaton
