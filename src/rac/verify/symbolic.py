@@ -211,7 +211,7 @@ class SymbolicAnswerer:
         automaton = ctx.automaton
         targets = _query_locations(query.expr, len(automaton.locations))
         distance = _distances_to(automaton, targets)
-        jitter = np.random.default_rng(ctx.next_seed())
+        jitter = np.random.default_rng(ctx.search_seed())
         locations = ProductGraph.columns_of(automaton).index("location")
 
         def score(layer: ProductGraph) -> np.ndarray:
