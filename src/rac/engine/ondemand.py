@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rac.engine.allow import action_pairs
-from rac.engine.lookahead import Lookahead, LookaheadMask, LookaheadSettings
+from rac.engine.lookahead import Lookahead, LookaheadSettings
 from rac.engine.shield import ShieldTable
 from rac.model.data import ModelData
 
@@ -57,11 +57,6 @@ class OnDemandShield(ShieldTable):
     def __post_init__(self) -> None:
         super().__post_init__()
         object.__setattr__(self, "_memo", {})
-
-    def decide(self, row: np.ndarray, crashed: bool = False) -> LookaheadMask:
-        """The runtime shield's whole answer at the state row ``k, x, y, v, acc, head, jerk, turn``."""
-        assert self.lookahead is not None
-        return self.lookahead.decide(np.asarray(row, dtype=np.int64), crashed)
 
     def masks_for(self, states: np.ndarray) -> np.ndarray:
         """``(n, n_actions)`` bool: per state row, the actions proved to have a safe continuation up

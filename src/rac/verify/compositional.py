@@ -61,10 +61,6 @@ class Transfer:
 Formula = tuple
 
 
-class _Opaque(Exception):
-    pass
-
-
 def _affine(expr: ie.Expr) -> tuple[dict[object, Fraction], Fraction]:
     """``expr`` as coefficients of opaque terms plus a constant (calls, ``prev`` and products of
     varying values are terms of their own)."""
