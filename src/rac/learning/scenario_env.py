@@ -1,0 +1,307 @@
+"""The scenario model of a ``.ra`` file's ``model`` block as a gymnasium environment.
+
+:class:`ScenarioEnv`: one step per decision period, with the automaton's reward
+(:class:`rac.learning.episodes.EpisodeBatch` with one episode) and, optionally, a safety shield's
+action masks — the exhaustive table where it applies, the runtime shield
+(:mod:`rac.engine.lookahead`) elsewhere (:class:`rac.engine.shield.StepShield`)::
+
+    env = ScenarioEnv("examples/left_turn/model.ra", shield="safe.shield.npz", horizon=3)
+    obs, info = env.reset(seed=0)
+    mask = env.action_masks()                       # (P,) bool: the actions the shield allows, never all False
+    obs, reward, terminated, truncated, info = env.step(int(np.flatnonzero(mask)[0]))
+    info["shield"]                                  # "exhaustive", "lookahead 5" or "none"
+"""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+from fractions import Fraction
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal, SupportsFloat
+
+import gymnasium
+import numpy as np
+
+from rac.ir import expr as ie
+from rac.lang import ast
+
+if TYPE_CHECKING:
+    from rac.compiler import CompileResult
+    from rac.engine.lookahead import LookaheadSettings
+    from rac.engine.shield import ShieldStep, ShieldTable, StepShield
+
+__all__ = ["ScenarioEnv"]
+
+
+def _compile(model: str | os.PathLike[str] | CompileResult) -> CompileResult:
+    from rac.compiler import CompileResult, compile_file
+    from rac.core.diagnostics import CheckError
+
+    result = compile_file(Path(model)) if isinstance(model, (str, os.PathLike)) else model
+    if not isinstance(result, CompileResult):
+        raise TypeError(f"model must be a .ra path or a CompileResult, not {type(model).__name__}")
+    if not result.ok or result.automaton is None:
+        raise CheckError(result.diagnostics, result.sources)
+    return result
+
+
+def _shield(shield: str | os.PathLike[str] | ShieldTable | None, columns: tuple[str, ...],
+            n_actions: int) -> ShieldTable | None:
+    from rac.engine import shield as shield_file
+
+    if shield is None:
+        return None
+    table = shield_file.load(Path(shield)) if isinstance(shield, (str, os.PathLike)) else shield
+    if not isinstance(table, shield_file.ShieldTable):
+        raise TypeError(f"shield must be a shield file or a ShieldTable, not {type(shield).__name__}")
+    if tuple(table.columns) != columns or table.n_actions != n_actions:
+        raise ValueError(f"the shield is for states {tuple(table.columns)} and {table.n_actions} actions; this "
+                         f"model has states {columns} and {n_actions} actions")
+    return table
+
+
+def _lookahead(lookahead: LookaheadSettings | int | Literal["auto"] | None,
+               table: ShieldTable | None) -> LookaheadSettings | None:
+    """The runtime shield's settings: ``"auto"`` — the defaults when there is a table (so that every
+    step beyond it is shielded too), none without one; a number is the depth."""
+    from rac.engine.lookahead import LookaheadSettings
+
+    if lookahead == "auto":
+        return LookaheadSettings() if table is not None else None
+    if lookahead is None or isinstance(lookahead, LookaheadSettings):
+        return lookahead
+    if isinstance(lookahead, int) and not isinstance(lookahead, bool):
+        return LookaheadSettings(depth=lookahead)
+    raise TypeError(f"lookahead must be LookaheadSettings, a depth, 'auto' or None, not {lookahead!r}")
+
+
+class ScenarioEnv(gymnasium.Env):
+    """The scenario model of a ``.ra`` file's ``model`` block as a gymnasium environment.
+
+    One :meth:`step` is one decision period of :class:`rac.learning.episodes.EpisodeBatch` (one
+    episode): the action (``Discrete(P)``, an index into ``action_pairs``: jerk-major over the
+    ``model`` block's action grid) is held for ``decide_every`` samples.
+
+    Args:
+        model: a ``.ra`` file with a ``model`` block (compiled; errors raise
+            :class:`rac.core.diagnostics.CheckError`) or a :class:`rac.compiler.CompileResult`.
+        shield: the exhaustive shield for :meth:`action_masks`: a shield file (:func:`rac.engine.shield.load`,
+            ``unseen="none"``), a :class:`rac.engine.shield.ShieldTable`, or a whole
+            :class:`rac.engine.shield.StepShield` (table and runtime shield, e.g. from
+            :func:`rac.engine.shield.step_shield`; then ``lookahead`` stays ``"auto"``).
+        lookahead: the runtime shield beyond the table (:class:`rac.engine.lookahead.LookaheadSettings`,
+            or its depth in decisions); ``"auto"`` (default): the default settings when there is a
+            table, none without one; None: no runtime shield. Without table and runtime shield every
+            action is allowed.
+        reward: ``"automaton"`` (the objective's increase, plus the ``at end`` bonus on the last
+            step) or a reward expression (its text, or a parsed or checked expression), as ``EpisodeBatch``.
+        horizon: the episode's length in seconds (default the automaton's ``horizon``); a whole
+            number of sense periods.
+        render_mode: None or ``"ansi"`` (:meth:`render` returns one line of text).
+
+    Observation: ``float32`` ``(8,)``: the sensed ``x, y, v, acc, head, jerk, turn`` (metres,
+    seconds, radians: significand / scale) and the time in seconds. ``terminated`` when the
+    goal is reached, ``truncated`` at the horizon; a collision does not end the episode.
+    ``info``: ``location``, ``rewards``, ``objective``, ``inputs`` (the bindings' values at the
+    current sample), ``collided``/``offroad`` (at some sample of the step; after :meth:`reset`:
+    at the start), ``goal`` (the episode reached the goal; after reset: False) and ``time``. After
+    :meth:`step`, what the mask of the state the step left carried (the mask a masked learner chose
+    from; :class:`rac.engine.shield.ShieldStep`): ``shield`` (``"exhaustive"``, ``"lookahead d"``,
+    ``"none"``), ``shield_until`` (the time, s, up to which every allowed action had a safe
+    continuation), ``shield_short`` (the runtime shield reached fewer decisions than asked for at
+    that state: no action survived them all, or its budget ran out), ``shield_timeout`` (the
+    runtime shield's budget ran out: the mask was sound for its depth but may have allowed fewer
+    actions), ``no_safe_action`` (the shield knew no safe
+    action: the mask allowed every action of the model) and ``shield_allowed`` (the action taken
+    was in the mask). Counted since construction: :attr:`shield_steps` (steps per ``shield``
+    value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`.
+
+    The model is deterministic: ``reset(seed=...)`` only seeds :attr:`np_random` (for wrappers
+    and agents that draw from it); every episode starts from the same state.
+    """
+
+    metadata = {"render_modes": ["ansi"]}
+
+    def __init__(self, model: str | os.PathLike[str] | CompileResult, *,
+                 shield: str | os.PathLike[str] | ShieldTable | StepShield | None = None,
+                 lookahead: LookaheadSettings | int | Literal["auto"] | None = "auto",
+                 reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
+                 render_mode: str | None = None) -> None:
+        from rac.core.numbers import INT32_MAX
+        from rac.engine.explore import COLUMNS
+        from rac.learning.episodes import EpisodeBatch
+
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, not {render_mode!r}")
+        result = _compile(model)
+        automaton = result.automaton
+        assert automaton is not None
+        samples = None
+        if horizon is not None:
+            # a float through its shortest repr: 0.3 is 3/10, as written in a .ra file
+            seconds = Fraction(str(horizon)) if isinstance(horizon, float) else Fraction(horizon)
+            exact = seconds / Fraction(automaton.period)
+            if exact.denominator != 1 or exact < 1:
+                raise ValueError(f"horizon {horizon} s is not a positive whole number of samples of "
+                                 f"{float(automaton.period):g} s")
+            samples = int(exact)
+        self.episodes = EpisodeBatch(result, reward=reward, horizon_samples=samples)
+        self._step_shield = self._shields(shield, lookahead, COLUMNS)
+        #: The exhaustive shield's table (None without one).
+        self.shield = self._step_shield.table if self._step_shield is not None else None
+        #: Steps per guarantee of their mask (``info["shield"]``), since construction.
+        self.shield_steps: Counter[str] = Counter()
+        #: Steps whose state had no action known to be safe (``info["no_safe_action"]``).
+        self.no_safe_action_steps = 0
+        #: Steps whose runtime shield ran out of its budget (``info["shield_timeout"]``).
+        self.timeout_steps = 0
+        self._decision: ShieldStep | None = None
+        self._crashed = False
+        self.render_mode = render_mode
+        data = self.episodes.data
+        # one frame per step: a decision period
+        self.metadata = {**self.metadata, "render_fps": 1.0 / (data.period * self.episodes.decide_every)}
+        self._scale = float(data.scale)
+        self._period = float(data.period)
+        self._names = automaton.location_names
+        bound = np.float32(INT32_MAX / self._scale)  # every sensed value is an int32 significand
+        end = np.float32(self.episodes.horizon_samples * self._period)
+        self.observation_space = gymnasium.spaces.Box(
+            low=np.array([-bound] * 7 + [0.0], dtype=np.float32), high=np.array([bound] * 7 + [end], dtype=np.float32),
+            dtype=np.float32)
+        self.action_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(self.episodes.n_actions)
+        self._last: dict[str, bool] = {}
+
+    def _shields(self, shield: str | os.PathLike[str] | ShieldTable | StepShield | None,
+                 lookahead: LookaheadSettings | int | Literal["auto"] | None,
+                 columns: tuple[str, ...]) -> StepShield | None:
+        from rac.engine.shield import StepShield
+
+        episodes = self.episodes
+        if isinstance(shield, StepShield):
+            if lookahead != "auto":
+                raise ValueError("a StepShield brings its own runtime shield: leave lookahead as 'auto'")
+            if shield.horizon != episodes.horizon_samples or shield.n_actions != episodes.n_actions:
+                raise ValueError(f"the shield is for runs of {shield.horizon} samples and {shield.n_actions} "
+                                 f"actions; this environment's have {episodes.horizon_samples} and "
+                                 f"{episodes.n_actions}")
+            return shield
+        table = _shield(shield, columns, episodes.n_actions)
+        settings = _lookahead(lookahead, table)
+        if table is None and settings is None:
+            return None
+        return StepShield(episodes.data, episodes.horizon_samples, table=table, lookahead=settings)
+
+    @property
+    def step_shield(self) -> StepShield | None:
+        """The shield behind :meth:`action_masks` (None: every action allowed)."""
+        return self._step_shield
+
+    def shield_step(self) -> ShieldStep | None:
+        """What the shield hands out in the current state (computed once per state; None without a
+        shield): the mask and the guarantee it carries."""
+        if self.episodes.n != 1:
+            raise RuntimeError("call reset() before asking the shield")
+        if self._step_shield is None:
+            return None
+        if self._decision is None:
+            self._decision = self._step_shield.decide(self.episodes.state_keys()[0], crashed=self._crashed)
+        return self._decision
+
+    @property
+    def action_pairs(self) -> np.ndarray:
+        """``(P, 2)`` int32: action ``a`` is the (jerk, turn) significand pair ``action_pairs[a]``."""
+        return self.episodes.action_pairs
+
+    def _obs(self) -> np.ndarray:
+        episodes = self.episodes
+        time = episodes.k[0] * self._period
+        return np.append(episodes.ego[0] / self._scale, time).astype(np.float32)
+
+    def _info(self) -> dict[str, Any]:
+        episodes = self.episodes
+        inputs = {name: bool(values[0]) if values.dtype == bool else float(values[0])
+                  for name, values in episodes.inputs.items()}
+        return {"location": self._names[int(episodes.location[0])],
+                "rewards": {name: float(values[0]) for name, values in episodes.rewards.items()},
+                "objective": float(episodes.objective[0]), "inputs": inputs, **self._last,
+                "time": float(episodes.k[0] * self._period)}
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode at the ego's start (the seed only seeds ``np_random``: the model is deterministic)."""
+        super().reset(seed=seed)
+        episodes = self.episodes
+        episodes.reset(1)
+        collided, offroad = episodes.observe([ie.call("collide"), ie.call("offroad")])[0] != 0
+        # "goal" is False at the start: an episode ends at the goal only after a step
+        self._last = {"collided": bool(collided), "offroad": bool(offroad), "goal": False}
+        self._crashed = bool(collided)  # under `collision sticky`: nothing after a collision is safe
+        self._decision = None
+        return self._obs(), self._info()
+
+    def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
+        """One decision period with action ``action`` (an index into :attr:`action_pairs`)."""
+        if self.episodes.n != 1:
+            raise RuntimeError("call reset() before step()")
+        if self.episodes.done[0]:
+            raise RuntimeError("the episode has ended; call reset() first")
+        if not self.action_space.contains(action):
+            raise ValueError(f"action must be an integer in [0, {self.action_space.n}), not {action!r}")
+        from rac.engine.shield import UnseenState
+
+        time = float(self.episodes.k[0] * self._period)
+        try:
+            decision = self.shield_step()  # the mask of the state this step leaves
+            unseen = False
+        except UnseenState:  # unseen="error" raises from action_masks(); the step itself goes on
+            decision, unseen = None, True
+        out = self.episodes.step(np.array([int(action)]))
+        terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])
+        self._last = {"collided": bool(out.collided[0]), "offroad": bool(out.offroad[0]), "goal": terminated}
+        self._crashed = self._crashed or bool(out.collided[0])
+        self._decision = None
+        shield: dict[str, Any]
+        if decision is None:
+            shield = {"shield": "none", "shield_until": time, "shield_short": False, "shield_timeout": False,
+                      "no_safe_action": unseen, "shield_allowed": True}
+        else:
+            shield = {"shield": decision.guarantee, "shield_until": float(decision.until * self._period),
+                      "shield_short": decision.short, "shield_timeout": decision.timed_out,
+                      "no_safe_action": decision.no_safe_action,
+                      "shield_allowed": bool(decision.mask[int(action)])}
+        self.shield_steps[shield["shield"]] += 1
+        self.no_safe_action_steps += shield["no_safe_action"]
+        self.timeout_steps += shield["shield_timeout"]
+        return self._obs(), float(out.reward[0]), terminated, truncated, {**self._info(), **shield}
+
+    def action_masks(self) -> np.ndarray:
+        """``(P,)`` bool: the actions the shield allows in the current state (all without a shield);
+        never all False.
+
+        The exhaustive table's row where it applies, the runtime shield's mask elsewhere (beyond the
+        table's horizon, in a state it has not seen, where it allows nothing; :class:`rac.engine.shield.StepShield`).
+        Where neither knows a safe action the mask allows every action of the model, and the step
+        is flagged (``info["no_safe_action"]``, ``info["shield"] == "none"``) and counted: an
+        all-False mask would not stop a masked learner — sb3-contrib's ``MaskableCategorical``
+        samples uniformly from one, without a warning — so it is never handed out. A table loaded
+        with ``unseen="error"`` still raises :class:`rac.engine.shield.UnseenState` for a state it has
+        not seen."""
+        if self.episodes.n != 1:
+            raise RuntimeError("call reset() before action_masks()")
+        decision = self.shield_step()
+        if decision is None:
+            return np.ones(self.episodes.n_actions, dtype=bool)
+        return decision.mask.copy()
+
+    def render(self) -> str | None:
+        """``"ansi"``: one line with the time, the sensed state and the automaton's location and objective."""
+        if self.render_mode != "ansi":
+            return None
+        if self.episodes.n != 1:
+            return "(not reset)"
+        x, y, v, acc, head, jerk, turn, time = self._obs().tolist()
+        info = self._info()
+        return (f"t={time:.2f}s x={x:.2f} y={y:.2f} v={v:.2f} acc={acc:.2f} head={head:.3f} jerk={jerk:g} "
+                f"turn={turn:g} {info['location']} objective={info['objective']:.3f}")
