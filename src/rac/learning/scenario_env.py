@@ -25,6 +25,7 @@ import numpy as np
 
 from rac.ir import expr as ie
 from rac.lang import ast
+from rac.learning.observation import make_observation
 
 if TYPE_CHECKING:
     from rac.compiler import CompileResult
@@ -99,9 +100,10 @@ class ScenarioEnv(gymnasium.Env):
         horizon: the episode's length in seconds (default the automaton's ``horizon``); a whole
             number of sense periods.
         render_mode: None or ``"ansi"`` (:meth:`render` returns one line of text).
+        observation: what the agent observes, a kind of :mod:`rac.learning.observation`.
 
-    Observation: ``float32`` ``(8,)``: the sensed ``x, y, v, acc, head, jerk, turn`` (metres,
-    seconds, radians: significand / scale) and the time in seconds. ``terminated`` when the
+    Observation: :attr:`observation` (``"ego"``: ``float32`` ``(8,)``, the sensed ``x, y, v, acc, head,
+    jerk, turn`` and the time in seconds). ``terminated`` when the
     goal is reached, ``truncated`` at the horizon; a collision does not end the episode.
     ``info``: ``location``, ``rewards``, ``objective``, ``inputs`` (the bindings' values at the
     current sample), ``collided``/``offroad`` (at some sample of the step; after :meth:`reset`:
@@ -127,8 +129,7 @@ class ScenarioEnv(gymnasium.Env):
                  shield: str | os.PathLike[str] | ShieldTable | StepShield | None = None,
                  lookahead: LookaheadSettings | int | Literal["auto"] | None = "auto",
                  reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
-                 render_mode: str | None = None) -> None:
-        from rac.core.numbers import INT32_MAX
+                 render_mode: str | None = None, observation: str = "ego") -> None:
         from rac.engine.explore import COLUMNS
         from rac.learning.episodes import EpisodeBatch
 
@@ -165,11 +166,9 @@ class ScenarioEnv(gymnasium.Env):
         self._scale = float(data.scale)
         self._period = float(data.period)
         self._names = automaton.location_names
-        bound = np.float32(INT32_MAX / self._scale)  # every sensed value is an int32 significand
-        end = np.float32(self.episodes.horizon_samples * self._period)
-        self.observation_space = gymnasium.spaces.Box(
-            low=np.array([-bound] * 7 + [0.0], dtype=np.float32), high=np.array([bound] * 7 + [end], dtype=np.float32),
-            dtype=np.float32)
+        #: What the agent observes (:mod:`rac.learning.observation`).
+        self.observation = make_observation(observation, self.episodes)
+        self.observation_space = self.observation.space
         self.action_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(self.episodes.n_actions)
         self._last: dict[str, bool] = {}
 
@@ -215,9 +214,7 @@ class ScenarioEnv(gymnasium.Env):
         return self.episodes.action_pairs
 
     def _obs(self) -> np.ndarray:
-        episodes = self.episodes
-        time = episodes.k[0] * self._period
-        return np.append(episodes.ego[0] / self._scale, time).astype(np.float32)
+        return self.observation.observe(self.episodes)[0]
 
     def _info(self) -> dict[str, Any]:
         episodes = self.episodes
@@ -301,7 +298,8 @@ class ScenarioEnv(gymnasium.Env):
             return None
         if self.episodes.n != 1:
             return "(not reset)"
-        x, y, v, acc, head, jerk, turn, time = self._obs().tolist()
+        x, y, v, acc, head, jerk, turn = (self.episodes.ego[0] / self._scale).tolist()
+        time = float(self.episodes.k[0] * self._period)
         info = self._info()
         return (f"t={time:.2f}s x={x:.2f} y={y:.2f} v={v:.2f} acc={acc:.2f} head={head:.3f} jerk={jerk:g} "
                 f"turn={turn:g} {info['location']} objective={info['objective']:.3f}")
