@@ -408,3 +408,60 @@ def test_left_turn_batches_end_every_episode(left_turn: CompileResult) -> None:
             batch.step(rng.integers(batch.n_actions, size=64))
             steps += 1
         assert steps <= 30
+
+
+# ---------------------------------------------------------------- restarting some rows
+def snapshot(batch: EpisodeBatch, row: int) -> dict[str, object]:
+    """Everything a learner reads of one episode of ``batch`` now, prev(e) included."""
+    return {"k": int(batch.k[row]), "ego": batch.ego[row].tolist(), "done": bool(batch.done[row]),
+            "location": int(batch.location[row]), "objective": float(batch.objective[row]),
+            "rewards": {name: float(v[row]) for name, v in batch.rewards.items()},
+            "inputs": {name: float(v[row]) for name, v in batch.inputs.items()},
+            "observed": batch.observe(["prev(d)", "d", "prev(v)", "collide()"])[row].tolist()}
+
+
+@pytest.mark.parametrize("reward", ["automaton", EQ9])
+def test_reset_rows_restarts_only_those_episodes(probe: CompileResult, reward: str) -> None:
+    """Rows restarted at different times (so they sit at different samples) play exactly as
+    one-episode batches with the same actions; the other rows go on untouched."""
+    n = 3
+    batch = EpisodeBatch(probe, reward=reward)
+    alone = [EpisodeBatch(probe, reward=reward) for _ in range(n)]
+    batch.reset(n)
+    for single in alone:
+        single.reset(1)
+    rng = np.random.default_rng(7)
+    restarts, staggered = 0, False
+    for step in range(40):
+        actions = rng.integers(batch.n_actions, size=n)
+        if step % 5 == 2:  # restart row 1 mid-episode, at a sample the others are not at
+            batch.reset_rows(np.array([1]))
+            alone[1].reset(1)
+        out = batch.step(actions)
+        for row, single in enumerate(alone):
+            one = single.step(actions[row:row + 1])
+            for name in ("reward", "terminated", "truncated", "collided", "offroad"):
+                assert getattr(out, name)[row] == pytest.approx(getattr(one, name)[0]), (step, row, name)
+            assert snapshot(batch, row) == snapshot(single, 0), (step, row)
+        ended = np.flatnonzero(batch.done)
+        if ended.size:
+            restarts += ended.size
+            batch.reset_rows(ended)
+            for row in ended:
+                alone[row].reset(1)
+            for row in ended:
+                assert snapshot(batch, row) == snapshot(alone[row], 0)
+        staggered |= len(set(batch.k.tolist())) > 1
+    assert restarts >= n and staggered
+    assert batch.clipped == sum(single.clipped for single in alone)
+
+
+def test_reset_rows_errors(probe: CompileResult) -> None:
+    batch = EpisodeBatch(probe)
+    with pytest.raises(RuntimeError, match="reset"):
+        batch.reset_rows(np.array([0]))
+    batch.reset(2)
+    with pytest.raises(ValueError, match="rows"):
+        batch.reset_rows(np.array([2]))
+    batch.reset_rows(np.array([], dtype=np.int64))  # nothing to restart
+    assert batch.n == 2

@@ -31,7 +31,8 @@ and takes up to ``decide_every`` samples. **One sample** ``k -> k + 1`` is the p
 A step's reward is the sum of its samples' rewards (in sample order). A collision or leaving the
 road does *not* end an episode (UPPAAL's semantics: the run goes on); :class:`StepResult` flags it
 for the learner to count. Episodes that are done stay frozen (their state is kept, their reward is
-0) until the next :meth:`EpisodeBatch.reset`, which restarts all ``n``.
+0) until the next :meth:`EpisodeBatch.reset`, which restarts all ``n``, or
+:meth:`EpisodeBatch.reset_rows`, which restarts some of them.
 
 The inputs must satisfy the automaton's ``assume`` (the runtime refuses other valuations):
 :class:`ValueError` when the bindings' values break it. :class:`rac.model.ModelRangeError` when a
@@ -249,6 +250,7 @@ class EpisodeBatch:
         self._prev: _State | None = None
         # Evaluate the expressions once on the start, so that a name the engine cannot read fails here.
         start = self._start_state(1)
+        self._first = start  # one episode's start, read by reset_rows (never written)
         for expr in (self.reward_expr, self.goal):
             if expr is not None:
                 self.evaluator.evaluate(expr, start.frame(slice(None)))
@@ -282,6 +284,33 @@ class EpisodeBatch:
         self.k = self._now.k
         self.ego = self._now.ego
         self.done = np.zeros(n, dtype=bool)
+
+    def reset_rows(self, rows: np.ndarray | Sequence[int]) -> None:
+        """Restart the episodes ``rows`` (indices into the batch) at the ego's start, as :meth:`reset`
+        starts one; the other episodes go on untouched. The rows then sit at other samples than the
+        rest, which :meth:`step` allows (every row keeps its own sample). For vector environments'
+        autoreset (:mod:`rac.learning.vector`)."""
+        now, prev, automata = self._require()
+        where = np.unique(np.asarray(rows, dtype=np.int64).reshape(-1))
+        if where.size and (where[0] < 0 or where[-1] >= self.n):
+            raise ValueError(f"rows must be indices in [0, {self.n}), not {where.tolist()}")
+        if where.size == 0:
+            return
+        mask = np.zeros(self.n, dtype=bool)
+        mask[where] = True
+        automata.reset(mask)
+        self._sync(now, automata)
+        start = self._first  # every episode starts from the same state: one row, broadcast
+        for state in (now, prev):  # prev(e) at the start is e itself
+            state.k[where] = start.k[0]
+            state.ego[where] = start.ego[0]
+            state.crashed[where] = start.crashed[0]
+            state.location[where] = start.location[0]
+            for name, values in state.rewards.items():
+                values[where] = start.rewards[name][0]
+            for name, values in state.inputs.items():
+                values[where] = start.inputs[name][0]
+        self.done[where] = False
 
     def _require(self) -> tuple[_State, _State, BatchRewardAutomaton]:
         if self._now is None or self._prev is None or self._automata is None:
@@ -377,7 +406,8 @@ class EpisodeBatch:
         return StepResult(reward=reward, **flags)
 
     def _sample(self, rows: np.ndarray, pairs: np.ndarray, reward: np.ndarray, flags: dict[str, np.ndarray]) -> None:
-        """One sample ``k -> k + 1`` of the episodes ``rows`` (all at the same ``k``)."""
+        """One sample ``k -> k + 1`` of the episodes ``rows``, each at its own ``k`` (the model's
+        functions and the evaluator read ``k`` per row; after :meth:`reset_rows` the rows differ)."""
         now, prev, automata = self._require()
         evaluator = self.evaluator
         before = now.frame(rows)  # the state at k, before the choice: what prev(e) reads
@@ -395,7 +425,7 @@ class EpisodeBatch:
         try:
             gain = automata.step_batch(fed, mask=active)
         except ValueError as exc:
-            raise ValueError(f"sample {int(before.k[0]) + 1}: the bindings' values are not valid inputs of "
+            raise ValueError(f"sample {int(before.k.min()) + 1}: the bindings' values are not valid inputs of "
                              f"`{self.automaton.name}`: {exc}") from None
         self.clipped += sum(counts.values())
         for name, count in counts.items():
