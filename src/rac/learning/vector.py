@@ -1,0 +1,278 @@
+"""The scenario model as a gymnasium vector environment: ``num_envs`` episodes of one
+:class:`rac.learning.episodes.EpisodeBatch` stepped as one array operation.
+
+:class:`ScenarioVectorEnv` is :class:`rac.learning.scenario_env.ScenarioEnv` ``num_envs`` times, with
+the same constructor arguments, observations, rewards, ``info`` keys and action masks as a
+:class:`gymnasium.vector.SyncVectorEnv` of ScenarioEnvs, but one numpy step for all of them instead
+of one Python step each. Autoreset is gymnasium's next-step mode: the step after an episode ended
+restarts it (:meth:`rac.learning.episodes.EpisodeBatch.reset_rows`) and returns its first
+observation with reward 0, ``terminated`` and ``truncated`` False, and its reset ``info``::
+
+    envs = ScenarioVectorEnv("examples/left_turn/model.ra", num_envs=64)
+    obs, info = envs.reset(seed=0)                  # (64, dim) float32
+    masks = envs.action_masks()                     # (64, P) bool, never an all-False row
+    obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample(mask=...))
+
+:func:`make_vector_env` is the registered id's vector entry point (``gymnasium.make_vec("rac/Scenario-v0",
+num_envs=N, model=...)``, :mod:`rac.gym`): this class, or a SyncVectorEnv of ScenarioEnvs where one
+batch cannot hold the episodes (a set of scenes) or where frames are rendered.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+from fractions import Fraction
+from typing import TYPE_CHECKING, Any, Literal
+
+import gymnasium
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from rac.ir import expr as ie
+from rac.lang import ast
+from rac.learning.scenario_env import ScenarioEnv
+
+if TYPE_CHECKING:
+    from rac.compiler import CompileResult
+    from rac.engine.lookahead import LookaheadSettings
+    from rac.engine.shield import ShieldStep, ShieldTable, StepShield
+
+__all__ = ["ScenarioVectorEnv", "make_vector_env"]
+
+#: The ``info`` keys a step adds to the reset ones: what the mask of the state the step left carried.
+SHIELD_KEYS = ("shield", "shield_until", "shield_short", "shield_timeout", "no_safe_action", "shield_allowed")
+
+
+class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
+    """``num_envs`` episodes of the scenario model stepped together (see the module docstring).
+
+    Args: those of :class:`rac.learning.scenario_env.ScenarioEnv` (``model``, ``shield``, ``lookahead``,
+    ``reward``, ``horizon``, ``observation``; ``render_mode`` must be None: use
+    :func:`make_vector_env` for frames) and ``num_envs``, the number of episodes.
+
+    Spaces: ``single_observation_space`` and ``single_action_space`` (``Discrete(P)``) are one
+    ScenarioEnv's; ``observation_space`` and ``action_space`` their batches (``(num_envs, dim)``,
+    ``MultiDiscrete``). ``info`` is in gymnasium's vector layout, as SyncVectorEnv gathers it from
+    the ScenarioEnvs: every key of ScenarioEnv's info holds an array over the episodes (``location``
+    and ``shield``: object arrays of text; ``rewards`` and ``inputs``: dicts of arrays) with a mask
+    ``_key`` of the episodes that report it — the shield's keys are missing for an episode that was
+    restarted in this step (its info is the reset info). Counted since construction over all
+    episodes, as ScenarioEnv counts: :attr:`shield_steps`, :attr:`no_safe_action_steps`, :attr:`timeout_steps`.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, model: str | os.PathLike[str] | CompileResult, *, num_envs: int = 1,
+                 shield: str | os.PathLike[str] | ShieldTable | StepShield | None = None,
+                 lookahead: LookaheadSettings | int | Literal["auto"] | None = "auto",
+                 reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
+                 render_mode: str | None = None, observation: str = "ego") -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, not {num_envs!r}")
+        if render_mode is not None:
+            raise ValueError(f"ScenarioVectorEnv renders nothing (render_mode={render_mode!r}): make_vector_env "
+                             "(gymnasium.make_vec) returns a SyncVectorEnv of ScenarioEnvs for frames")
+        # One ScenarioEnv owns the arguments' meaning (model, shield, horizon, reward, observation);
+        # its batch, reset to num_envs episodes, is this environment's.
+        self._single = ScenarioEnv(model, shield=shield, lookahead=lookahead, reward=reward, horizon=horizon,
+                                   observation=observation)
+        self.episodes = self._single.episodes
+        self.num_envs = int(num_envs)
+        #: What the agent observes (:mod:`rac.learning.observation`), read over the whole batch.
+        self.observation = self._single.observation
+        self.single_observation_space = self._single.observation_space
+        self.single_action_space = self._single.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.metadata = {**self.metadata, "render_fps": self._single.metadata["render_fps"]}
+        self.render_mode = None
+        self._step_shield = self._single.step_shield
+        #: Steps per guarantee of their mask (``info["shield"]``), since construction, over all episodes.
+        self.shield_steps: Counter[str] = Counter()
+        #: Steps whose state had no action known to be safe (``info["no_safe_action"]``).
+        self.no_safe_action_steps = 0
+        #: Steps whose runtime shield ran out of its budget (``info["shield_timeout"]``).
+        self.timeout_steps = 0
+        data = self.episodes.data
+        self._period = float(data.period)
+        self._names = np.array(self.episodes.automaton.location_names, dtype=object)
+        n = self.num_envs
+        self._autoreset = np.zeros(n, dtype=bool)  # ended in the last step: restarted in the next
+        self._crashed = np.zeros(n, dtype=bool)  # under `collision sticky`: nothing after a collision is safe
+        self._last = {name: np.zeros(n, dtype=bool) for name in ("collided", "offroad", "goal")}
+        self._decisions: list[ShieldStep | None] = [None] * n
+        self._start: tuple[bool, bool] | None = None  # collide(), offroad() at the start (the same for all)
+
+    # ------------------------------------------------------------ what ScenarioEnv also offers
+    @property
+    def step_shield(self) -> StepShield | None:
+        """The shield behind :meth:`action_masks` (None: every action allowed)."""
+        return self._step_shield
+
+    @property
+    def action_pairs(self) -> np.ndarray:
+        """``(P, 2)`` int32: action ``a`` is the (jerk, turn) significand pair ``action_pairs[a]``."""
+        return self.episodes.action_pairs
+
+    def _require(self) -> None:
+        if self.episodes.n != self.num_envs:
+            raise RuntimeError("call reset() first")
+
+    def _decision(self, row: int) -> ShieldStep:
+        """The shield's answer at episode ``row``'s state (once per state; a shield is required)."""
+        decision = self._decisions[row]
+        if decision is None:
+            assert self._step_shield is not None
+            state = self.episodes.state_keys(slice(row, row + 1))[0]
+            decision = self._step_shield.decide(state, crashed=bool(self._crashed[row]))
+            self._decisions[row] = decision
+        return decision
+
+    def action_masks(self) -> np.ndarray:
+        """``(num_envs, P)`` bool: each episode's :meth:`ScenarioEnv.action_masks
+        <rac.learning.scenario_env.ScenarioEnv.action_masks>` (the shield's mask, never an all-False
+        row; all True without a shield). An episode that ended in the last step is restarted by the
+        next whatever its action: its row allows every action."""
+        self._require()
+        masks = np.ones((self.num_envs, self.episodes.n_actions), dtype=bool)
+        if self._step_shield is not None:
+            for row in np.flatnonzero(~self._autoreset).tolist():
+                masks[row] = self._decision(row).mask
+        return masks
+
+    # ------------------------------------------------------------ stepping
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start every episode at the ego's start (the seed only seeds ``np_random``: the model is
+        deterministic). ``options["reset_mask"]`` is not supported (it belongs to the other autoreset modes)."""
+        if options and "reset_mask" in options:
+            raise ValueError("options['reset_mask'] is for gymnasium's same-step and disabled autoreset modes; "
+                             "this environment resets an ended episode in the next step")
+        super().reset(seed=seed)
+        episodes = self.episodes
+        episodes.reset(self.num_envs)
+        collided, offroad = episodes.observe([ie.call("collide"), ie.call("offroad")])[0] != 0
+        self._start = (bool(collided), bool(offroad))
+        everyone = np.ones(self.num_envs, dtype=bool)
+        self._restarted(everyone)
+        self._autoreset[:] = False
+        return self.observation.observe(episodes), self._info(everyone, None)
+
+    def _restarted(self, rows: np.ndarray) -> None:
+        """The flags of the episodes ``rows`` (a mask) just started."""
+        assert self._start is not None
+        collided, offroad = self._start
+        self._last["collided"][rows] = collided
+        self._last["offroad"][rows] = offroad
+        self._last["goal"][rows] = False  # an episode ends at the goal only after a step
+        self._crashed[rows] = collided
+        for row in np.flatnonzero(rows).tolist():
+            self._decisions[row] = None
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One decision period of every episode (``actions`` ``(num_envs,)``, indices into
+        :attr:`action_pairs`); the episodes that ended in the last step are restarted instead."""
+        self._require()
+        episodes = self.episodes
+        actions = np.asarray(actions)
+        if actions.shape != (self.num_envs,) or not np.issubdtype(actions.dtype, np.integer):
+            raise ValueError(f"actions must be an integer array of shape ({self.num_envs},), not "
+                             f"{actions.dtype} {actions.shape}")
+        stepping = ~self._autoreset
+        chosen = actions[stepping]
+        if chosen.size and (chosen.min() < 0 or chosen.max() >= episodes.n_actions):
+            raise ValueError(f"actions must be in [0, {episodes.n_actions}), got {chosen.min()}..{chosen.max()}")
+        shield = self._shield_info(stepping, actions)  # the masks of the states the step leaves
+        out = episodes.step(np.where(stepping, actions, 0))  # ended episodes are frozen: not moved
+        restart = self._autoreset.copy()
+        episodes.reset_rows(np.flatnonzero(restart))
+        self._restarted(restart)
+        for name, flags in (("collided", out.collided), ("offroad", out.offroad), ("goal", out.terminated)):
+            self._last[name][stepping] = flags[stepping]
+        self._crashed |= out.collided
+        if self._step_shield is not None:
+            for row in np.flatnonzero(stepping).tolist():
+                self._decisions[row] = None
+        self._autoreset = out.terminated | out.truncated
+        info = self._info(np.ones(self.num_envs, dtype=bool), shield)
+        return (self.observation.observe(episodes), out.reward.copy(), out.terminated.copy(),
+                out.truncated.copy(), info)
+
+    def _shield_info(self, stepping: np.ndarray, actions: np.ndarray) -> dict[str, np.ndarray] | None:
+        """The shield's ``info`` keys for the episodes ``stepping`` (a mask), as ScenarioEnv sets
+        them, counted; None when no episode steps."""
+        if not stepping.any():
+            return None
+        from rac.engine.shield import UnseenState
+
+        n = self.num_envs
+        kind = np.full(n, None, dtype=object)
+        kind[stepping] = "none"
+        until = np.where(stepping, self.episodes.k * self._period, 0.0)
+        flags = {name: np.zeros(n, dtype=bool) for name in SHIELD_KEYS[2:]}
+        flags["shield_allowed"][stepping] = True
+        if self._step_shield is not None:
+            for row in np.flatnonzero(stepping).tolist():
+                try:
+                    decision = self._decision(row)
+                except UnseenState:  # unseen="error" raises from action_masks(); the step itself goes on
+                    flags["no_safe_action"][row] = True
+                    continue
+                kind[row] = decision.guarantee
+                until[row] = decision.until * self._period
+                flags["shield_short"][row] = decision.short
+                flags["shield_timeout"][row] = decision.timed_out
+                flags["no_safe_action"][row] = decision.no_safe_action
+                flags["shield_allowed"][row] = bool(decision.mask[int(actions[row])])
+        self.shield_steps.update(kind[stepping].tolist())
+        self.no_safe_action_steps += int(flags["no_safe_action"].sum())
+        self.timeout_steps += int(flags["shield_timeout"].sum())
+        info: dict[str, np.ndarray] = {"shield": kind, "shield_until": until, **flags}
+        return {**info, **{f"_{key}": stepping.copy() for key in info}}
+
+    def _info(self, rows: np.ndarray, shield: dict[str, np.ndarray] | None) -> dict[str, Any]:
+        """ScenarioEnv's ``info`` of every episode in the vector layout (``rows``: the mask every
+        key but the shield's carries)."""
+        episodes = self.episodes
+
+        def masked(values: dict[str, Any]) -> dict[str, Any]:
+            return {**values, **{f"_{key}": rows.copy() for key in values}}
+
+        inputs = {name: values if values.dtype == bool else values.astype(np.float64)
+                  for name, values in episodes.inputs.items()}
+        info = masked({"location": self._names[episodes.location],
+                       "objective": np.asarray(episodes.objective, dtype=np.float64).copy(),
+                       **{name: flags.copy() for name, flags in self._last.items()},
+                       "time": episodes.k * self._period})
+        info.update(masked({"rewards": masked(episodes.rewards), "inputs": masked(inputs)}))
+        if shield is not None:
+            info.update(shield)
+        return info
+
+
+def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.VectorEnv:  # type: ignore[type-arg]
+    """The vector entry point of ``rac/Scenario-v0`` (``gymnasium.make_vec``): a
+    :class:`ScenarioVectorEnv` of ``num_envs`` episodes, with ``kwargs`` those of
+    :class:`rac.learning.scenario_env.ScenarioEnv`.
+
+    Two cases get a :class:`gymnasium.vector.SyncVectorEnv` of ScenarioEnvs instead (same autoreset,
+    spaces and info; one Python step per episode): a set of scenes (``scenarios=``, which ScenarioEnv
+    draws from per episode: one EpisodeBatch holds one scene) and a ``render_mode`` (each ScenarioEnv
+    renders its own frames). The model is compiled once for all of them."""
+    if kwargs.get("scenarios") is None and kwargs.get("render_mode") is None:
+        kwargs.pop("scenarios", None)
+        return ScenarioVectorEnv(num_envs=num_envs, **kwargs)
+    model = kwargs.pop("model")
+    if isinstance(model, (str, os.PathLike)):
+        from pathlib import Path
+
+        from rac.compiler import compile_file
+
+        model = compile_file(Path(model))  # ScenarioEnv reports its errors
+
+    def single() -> gymnasium.Env:  # type: ignore[type-arg]
+        return ScenarioEnv(model, **kwargs)
+
+    return gymnasium.vector.SyncVectorEnv([single for _ in range(num_envs)])
