@@ -273,3 +273,20 @@ def test_errors(tiny: CompileResult) -> None:
         envs.step(np.array([0, 9]))
     with pytest.raises(ValueError, match="reset_mask"):
         envs.reset(options={"reset_mask": np.array([True, False])})
+
+
+# ---------------------------------------------------------------- the benchmark
+def test_the_benchmark_runs(tmp_path: Path) -> None:
+    """benchmarks/vector_env.py --quick writes its table (the speed itself is not asserted)."""
+    from conftest import rac_env
+
+    output = tmp_path / "vector_env.md"
+    benchmark = SRC.parent / "benchmarks" / "vector_env.py"
+    done = subprocess.run([sys.executable, str(benchmark), "--quick", "--seconds", "0.2", "--output", str(output)],
+                          env=rac_env(), capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+    text = output.read_text(encoding="utf-8")
+    rows = [row.split("|")[1:3] for row in text.splitlines() if row.startswith("| Scenario")]
+    assert [(name.strip(), int(n)) for name, n in rows] == [("ScenarioEnv", 1)] + [
+        ("ScenarioVectorEnv", n) for n in (1, 16, 64, 256)]
+    assert "64 episodes: " in text and ("met" in text.splitlines()[-1])
