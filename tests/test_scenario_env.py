@@ -72,11 +72,11 @@ def test_check_env_left_turn() -> None:
     assert checked(env) == []
     assert env.action_space.n == 81 and env.episodes.horizon_samples == 10 and env.episodes.max_steps == 5
     obs, _ = env.reset()
-    assert "Normal" in env.render() and obs.shape == (8,)
+    assert "Normal" in env.render() and obs.shape == (29,)  # the "relative" observation by default
 
 
 def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> None:
-    env = ScenarioEnv(tiny)
+    env = ScenarioEnv(tiny, observation="ego")
     batch = EpisodeBatch(tiny)
     obs, info = env.reset(seed=3)
     batch.reset(1)
@@ -84,7 +84,8 @@ def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> 
     assert obs.dtype == np.float32 and env.observation_space.contains(obs)
     assert obs.tolist() == np.append(batch.ego[0] / scale, 0.0).astype(np.float32).tolist()
     assert info == {"location": "Normal", "rewards": {"sa": 0.0}, "objective": 0.0, "inputs": {"near": False},
-                    "collided": False, "offroad": False, "goal": False, "time": 0.0}
+                    "collided": False, "offroad": False, "goal": False, "time": 0.0,
+                    "scenario": tiny.automaton.model.scenario_path}  # type: ignore[union-attr]
     rng = np.random.default_rng(1)
     total, done = 0.0, False
     while not done:
@@ -127,7 +128,7 @@ def test_seed_only_seeds_np_random(tiny: CompileResult) -> None:
 
 
 def test_horizon_in_seconds(tiny: CompileResult) -> None:
-    env = ScenarioEnv(tiny, horizon=1.5)
+    env = ScenarioEnv(tiny, horizon=1.5, observation="ego")
     assert env.episodes.horizon_samples == 3 and env.episodes.max_steps == 2
     assert env.observation_space.high[-1] == np.float32(1.5)
     env.reset()
@@ -342,3 +343,132 @@ def test_a_step_shield_as_the_shield(tiny: CompileResult) -> None:
         ScenarioEnv(tiny, shield=step_shield(data, 4))
     with pytest.raises(ValueError, match="lookahead"):
         ScenarioEnv(tiny, shield=step_shield(data, 8), lookahead=3)
+
+
+# ---------------------------------------------------------------- scene sets, the relative observation, frames
+HIGHWAY_MODEL = """\
+automaton Drive {
+    reward r
+    objective r
+    sample every 0.1
+    horizon 2
+    initial location L { r' == 1 }
+    model {
+        scenario "highway.xml"
+        exponent 2
+        decide_period 0.5
+        granularity 0.25
+        max_speed 30
+        action jerk in [-2, 2] step 2
+        action turn in [-0.2, 0.2] step 0.2
+    }
+}
+"""
+
+
+@pytest.fixture(scope="module")
+def highway_set(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Path]]:
+    """A .ra file on the highway scene and a set of three seeded highway variants."""
+    from rac.model.scenes import scene_set, write_scene
+
+    folder = tmp_path_factory.mktemp("set")
+    write_scene("highway", folder / "highway.xml")
+    (folder / "drive.ra").write_text(HIGHWAY_MODEL, encoding="utf-8")
+    return folder / "drive.ra", scene_set("highway", 3, 0, folder / "scenes")
+
+
+def test_the_relative_observation_by_hand(highway_set: tuple[Path, list[Path]]) -> None:
+    from rac.learning.observation import RELATIVE_COLUMNS
+
+    env = ScenarioEnv(highway_set[0])
+    obs, _ = env.reset()
+    got = dict(zip([name for name, _, _ in RELATIVE_COLUMNS], obs.tolist()))
+    # the ego at (30, 5.25) heading 0 at 20 m/s in the middle of three 3.5 m lanes, goal centre (200, 5.25)
+    ego = {"v": 20.0, "acc": 0.0, "lane_head": 0.0, "lane_offset": 0.0, "edge_left": 5.25, "edge_right": 5.25,
+           "goal_ahead": 170.0, "goal_left": 0.0, "time_left": 2.0}
+    # nearest first: car 62 (10, 8.75) at 25 m/s, truck 61 (70, 5.25) at 15, car 63 (95, 1.75) at 17; slot 3 empty
+    cars = [(1, -20.0, 3.5, 5.0, 0.0), (1, 40.0, 0.0, -5.0, 0.0), (1, 65.0, -3.5, -3.0, 0.0), (0, 0, 0, 0, 0)]
+    expected = {**ego, **{f"obstacle{j}_{name}": float(value) for j, car in enumerate(cars)
+                          for name, value in zip(["present", "ahead", "left", "v_ahead", "v_left"], car)}}
+    assert got == pytest.approx(expected, abs=1e-5)
+    # one step of jerk 0, turn 0.2: the ego turns left of the lane's direction and drifts left
+    obs, *_ = env.step(int(np.flatnonzero((env.action_pairs[:, 0] == 0) & (env.action_pairs[:, 1] > 0))[0]))
+    assert obs[2] > 0 and obs[3] > 0 and obs[4] < 5.25 < obs[5] and obs[8] == pytest.approx(1.5)
+
+
+def test_every_observation_lies_in_the_bounds(highway_set: tuple[Path, list[Path]]) -> None:
+    env = ScenarioEnv(highway_set[0], scenarios=highway_set[1])
+    space = env.observation_space
+    assert np.isfinite(space.low).all() and np.isfinite(space.high).all() and space.shape == (29,)
+    rng = np.random.default_rng(0)
+    seen = []
+    for episode in range(6):
+        obs, _ = env.reset(seed=episode)
+        done = False
+        while not done:
+            assert space.contains(obs), obs
+            seen.append(obs)
+            obs, _, terminated, truncated, _ = env.step(int(rng.integers(env.action_space.n)))
+            done = terminated or truncated
+        assert space.contains(obs)
+    assert len({tuple(o[9:]) for o in seen}) > 10  # the obstacles move and differ from scene to scene
+
+
+def test_a_scene_set_draws_from_np_random_and_picks_on_request(highway_set: tuple[Path, list[Path]]) -> None:
+    model, scenes = highway_set
+    env = ScenarioEnv(model, scenarios=scenes[0].parent)  # a folder: its .xml files in name order
+    assert env.scenarios == tuple(scenes)
+    drawn = [env.reset(seed=s)[1]["scenario"] for s in range(20)]
+    assert drawn == [env.reset(seed=s)[1]["scenario"] for s in range(20)]  # reproducible per seed
+    assert set(drawn) == {str(p) for p in scenes}
+    first, info = env.reset(options={"scenario": 1})
+    assert info["scenario"] == str(scenes[1])
+    again, info = env.reset(options={"scenario": str(scenes[1])})
+    assert info["scenario"] == str(scenes[1]) and first.tolist() == again.tolist()
+    other, _ = env.reset(options={"scenario": 2})
+    assert other[9:].tolist() != first[9:].tolist()  # other obstacles
+    with pytest.raises(ValueError, match="3 scenes"):
+        env.reset(options={"scenario": 3})
+    with pytest.raises(ValueError, match="not one of the scenes"):
+        env.reset(options={"scenario": "elsewhere.xml"})
+    with pytest.raises(ValueError, match="runtime shield"):
+        ScenarioEnv(model, scenarios=scenes, shield="safe.shield.npz")
+    shielded = ScenarioEnv(model, scenarios=scenes, lookahead=2)
+    shielded.reset(seed=0)
+    assert shielded.action_masks().any() and shielded.step(0)[4]["shield"].startswith("lookahead")
+
+
+def test_a_broken_scene_names_its_file(highway_set: tuple[Path, list[Path]], tmp_path: Path) -> None:
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<commonRoad>", encoding="utf-8")
+    env = ScenarioEnv(highway_set[0], scenarios=[highway_set[1][0], broken])
+    with pytest.raises(CheckError, match="broken.xml"):
+        env.reset(options={"scenario": 1})
+    with pytest.raises(CheckError, match="broken.xml"):
+        ScenarioEnv(highway_set[0], scenarios=[broken])
+
+
+def test_check_env_with_a_set_and_frames(highway_set: tuple[Path, list[Path]]) -> None:
+    env = ScenarioEnv(highway_set[0], scenarios=highway_set[1], render_mode="rgb_array")
+    assert "rgb_array" in env.metadata["render_modes"]
+    assert checked(env) == []
+    env.reset(seed=0)
+    first = env.render()
+    assert isinstance(first, np.ndarray) and first.dtype == np.uint8 and first.ndim == 3 and first.shape[2] == 3
+    env.step(0)
+    later = env.render()
+    assert isinstance(later, np.ndarray) and later.shape == first.shape and (later != first).any()
+
+
+def test_record_video(highway_set: tuple[Path, list[Path]], tmp_path: Path) -> None:
+    pytest.importorskip("moviepy", reason="gymnasium's RecordVideo writes videos with moviepy, not installed here")
+    from gymnasium.wrappers import RecordVideo
+
+    env = RecordVideo(ScenarioEnv(highway_set[0], render_mode="rgb_array"), str(tmp_path / "videos"))
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(0)
+        done = terminated or truncated
+    env.close()
+    assert list((tmp_path / "videos").glob("*.mp4"))
