@@ -23,6 +23,7 @@ its first draw; :meth:`ScenarioEnv.reset` draws one from ``np_random``::
 
 from __future__ import annotations
 
+import functools
 import os
 from collections import Counter
 from fractions import Fraction
@@ -80,12 +81,24 @@ def _scene_paths(scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike
 
 
 def _compile_scene(model: Path, text: str, scenario: Path) -> CompileResult:
-    """The model file ``model`` (text ``text``) with the scene ``scenario``; errors name the scene."""
+    """The model file ``model`` (text ``text``) with the scene ``scenario``; errors name the scene.
+    Checked once per process for the same model text and scene file (the sub-environments of a
+    vector environment share it): a changed scene file (size or time) is checked again."""
+    try:
+        stat = scenario.stat()
+        stamp = (stat.st_size, stat.st_mtime_ns)
+    except OSError:  # the checker names the missing file
+        stamp = (-1, -1)
+    return _checked_scene(str(model), text, str(scenario), stamp)
+
+
+@functools.lru_cache(maxsize=256)
+def _checked_scene(model: str, text: str, scenario: str, stamp: tuple[int, int]) -> CompileResult:
     from rac.compiler import compile_text
     from rac.core.diagnostics import CheckError
     from rac.lang.edit import with_model
 
-    result = compile_text(with_model(text, model, scenario), name=str(model))
+    result = compile_text(with_model(text, Path(model), Path(scenario)), name=model)
     if not result.ok or result.automaton is None:
         error = CheckError(result.diagnostics, result.sources)
         # the diagnostics speak of the model file; say which scene of the set broke it

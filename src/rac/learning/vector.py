@@ -68,7 +68,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                  shield: str | os.PathLike[str] | ShieldTable | StepShield | None = None,
                  lookahead: LookaheadSettings | int | Literal["auto"] | None = "auto",
                  reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
-                 render_mode: str | None = None, observation: str = "ego") -> None:
+                 render_mode: str | None = None, observation: str = "relative") -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, not {num_envs!r}")
         if render_mode is not None:
@@ -245,7 +245,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         info = masked({"location": self._names[episodes.location],
                        "objective": np.asarray(episodes.objective, dtype=np.float64).copy(),
                        **{name: flags.copy() for name, flags in self._last.items()},
-                       "time": episodes.k * self._period})
+                       "time": episodes.k * self._period,
+                       "scenario": np.full(self.num_envs, str(self._single.scenarios[0]), dtype=object)})
         info.update(masked({"rewards": masked(episodes.rewards), "inputs": masked(inputs)}))
         if shield is not None:
             info.update(shield)
@@ -265,7 +266,8 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
         kwargs.pop("scenarios", None)
         return ScenarioVectorEnv(num_envs=num_envs, **kwargs)
     model = kwargs.pop("model")
-    if isinstance(model, (str, os.PathLike)):
+    # with a set, ScenarioEnv needs the file (its model block is the template) and shares each scene's check
+    if isinstance(model, (str, os.PathLike)) and kwargs.get("scenarios") is None:
         from pathlib import Path
 
         from rac.compiler import compile_file
