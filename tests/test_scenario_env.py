@@ -72,11 +72,11 @@ def test_check_env_left_turn() -> None:
     assert checked(env) == []
     assert env.action_space.n == 81 and env.episodes.horizon_samples == 10 and env.episodes.max_steps == 5
     obs, _ = env.reset()
-    assert "Normal" in env.render() and obs.shape == (8,)
+    assert "Normal" in env.render() and obs.shape == (29,)  # the "relative" observation by default
 
 
 def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> None:
-    env = ScenarioEnv(tiny)
+    env = ScenarioEnv(tiny, observation="ego")
     batch = EpisodeBatch(tiny)
     obs, info = env.reset(seed=3)
     batch.reset(1)
@@ -84,7 +84,8 @@ def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> 
     assert obs.dtype == np.float32 and env.observation_space.contains(obs)
     assert obs.tolist() == np.append(batch.ego[0] / scale, 0.0).astype(np.float32).tolist()
     assert info == {"location": "Normal", "rewards": {"sa": 0.0}, "objective": 0.0, "inputs": {"near": False},
-                    "collided": False, "offroad": False, "goal": False, "time": 0.0}
+                    "collided": False, "offroad": False, "goal": False, "time": 0.0,
+                    "scenario": tiny.automaton.model.scenario_path}  # type: ignore[union-attr]
     rng = np.random.default_rng(1)
     total, done = 0.0, False
     while not done:
@@ -127,7 +128,7 @@ def test_seed_only_seeds_np_random(tiny: CompileResult) -> None:
 
 
 def test_horizon_in_seconds(tiny: CompileResult) -> None:
-    env = ScenarioEnv(tiny, horizon=1.5)
+    env = ScenarioEnv(tiny, horizon=1.5, observation="ego")
     assert env.episodes.horizon_samples == 3 and env.episodes.max_steps == 2
     assert env.observation_space.high[-1] == np.float32(1.5)
     env.reset()

@@ -134,3 +134,34 @@ def load_scenario_bytes(name: str):
 
     with tempfile.TemporaryDirectory() as folder:
         return load_scenario(write_scene(name, Path(folder) / f"{name}.xml"))
+
+
+# ---------------------------------------------------------------- seeded scene sets
+@pytest.mark.parametrize("kind", ["highway", "tutorial"])
+def test_a_scene_set_is_seeded_and_keeps_the_ego_and_goal(kind: str, tmp_path: Path) -> None:
+    from rac.model.scenes import scene_set, variant_bytes
+
+    paths = scene_set(kind, 3, 5, tmp_path / "set")
+    assert [p.name for p in paths] == [f"{kind}_5.xml", f"{kind}_6.xml", f"{kind}_7.xml"]
+    assert paths[0].read_bytes() == variant_bytes(kind, 5)  # the same seed, the same bytes
+    assert [p.read_bytes() for p in scene_set(kind, 3, 5, tmp_path / "again")] == [p.read_bytes() for p in paths]
+    base = load_scenario(write_scene(kind, tmp_path / "base.xml"))
+    starts = set()
+    for path in paths:
+        scenario = load_scenario(path)
+        assert scenario.ego == base.ego and scenario.goal == base.goal and scenario.road == base.road
+        assert [o.id for o in scenario.obstacles] == [o.id for o in base.obstacles]
+        starts.add(tuple((o.waypoints[0].x, o.waypoints[0].velocity) for o in scenario.obstacles))
+        model = NativeModel(compile_file(_set_model(tmp_path, path)).model_data)  # type: ignore[arg-type]
+        assert not model.collide(model.sense(model.initial_state()), 1)  # a sensible start: no crash at once
+    assert len(starts) == 3  # the obstacles differ from seed to seed
+    with pytest.raises(ValueError, match="no variants"):
+        variant_bytes("left_turn", 0)
+
+
+def _set_model(folder: Path, scenario: Path) -> Path:
+    source = folder / f"{scenario.stem}.ra"
+    model = MODEL.format(name=scenario.stem, settings=SETTINGS["highway"]).replace(
+        f'"{scenario.stem}.xml"', f'"{scenario}"')
+    source.write_text(safety_source("Scene", 10, model, QUERIES), encoding="utf-8")
+    return source

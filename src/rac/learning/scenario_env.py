@@ -10,6 +10,15 @@ action masks — the exhaustive table where it applies, the runtime shield
     mask = env.action_masks()                       # (P,) bool: the actions the shield allows, never all False
     obs, reward, terminated, truncated, info = env.step(int(np.flatnonzero(mask)[0]))
     info["shield"]                                  # "exhaustive", "lookahead 5" or "none"
+
+A set of scenes: the ``.ra`` file's ``model`` block is the template, its scenario swapped for each
+file (:func:`rac.lang.edit.with_model`; every other setting kept), each scene checked once, on
+its first draw; :meth:`ScenarioEnv.reset` draws one from ``np_random``::
+
+    env = ScenarioEnv("model.ra", scenarios="scenes/", lookahead=3, render_mode="rgb_array")
+    obs, info = env.reset(seed=0)                   # info["scenario"]: the scene drawn
+    obs, info = env.reset(options={"scenario": 2})  # or a path of the set
+    frame = env.render()                            # (H, W, 3) uint8
 """
 
 from __future__ import annotations
@@ -25,14 +34,21 @@ import numpy as np
 
 from rac.ir import expr as ie
 from rac.lang import ast
-from rac.learning.observation import make_observation
+from rac.learning.observation import Observation, make_observation
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from rac.compiler import CompileResult
     from rac.engine.lookahead import LookaheadSettings
     from rac.engine.shield import ShieldStep, ShieldTable, StepShield
+    from rac.learning.episodes import EpisodeBatch
+    from rac.output.render import SceneFrames
 
 __all__ = ["ScenarioEnv"]
+
+#: The render modes of :class:`ScenarioEnv`.
+RENDER_MODES = ["ansi", "rgb_array"]
 
 
 def _compile(model: str | os.PathLike[str] | CompileResult) -> CompileResult:
@@ -44,6 +60,37 @@ def _compile(model: str | os.PathLike[str] | CompileResult) -> CompileResult:
         raise TypeError(f"model must be a .ra path or a CompileResult, not {type(model).__name__}")
     if not result.ok or result.automaton is None:
         raise CheckError(result.diagnostics, result.sources)
+    return result
+
+
+def _scene_paths(scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike[str]) -> list[Path]:
+    """The scene files of a set: the paths given, or a folder's ``*.xml`` files in name order."""
+    if isinstance(scenarios, (str, os.PathLike)):
+        folder = Path(scenarios)
+        if not folder.is_dir():
+            raise ValueError(f"scenarios must be a folder of CommonRoad files or a list of them; {folder} is no folder")
+        paths = sorted(folder.glob("*.xml"))
+        if not paths:
+            raise ValueError(f"the folder {folder} holds no .xml scenario")
+        return paths
+    paths = [Path(path) for path in scenarios]
+    if not paths:
+        raise ValueError("scenarios is empty: give at least one CommonRoad file")
+    return paths
+
+
+def _compile_scene(model: Path, text: str, scenario: Path) -> CompileResult:
+    """The model file ``model`` (text ``text``) with the scene ``scenario``; errors name the scene."""
+    from rac.compiler import compile_text
+    from rac.core.diagnostics import CheckError
+    from rac.lang.edit import with_model
+
+    result = compile_text(with_model(text, model, scenario), name=str(model))
+    if not result.ok or result.automaton is None:
+        error = CheckError(result.diagnostics, result.sources)
+        # the diagnostics speak of the model file; say which scene of the set broke it
+        error.args = (f"the scene {scenario} does not check with the model block of {model}:\n{error}",)
+        raise error
     return result
 
 
@@ -99,11 +146,22 @@ class ScenarioEnv(gymnasium.Env):
             step) or a reward expression (its text, or a parsed or checked expression), as ``EpisodeBatch``.
         horizon: the episode's length in seconds (default the automaton's ``horizon``); a whole
             number of sense periods.
-        render_mode: None or ``"ansi"`` (:meth:`render` returns one line of text).
-        observation: what the agent observes, a kind of :mod:`rac.learning.observation`.
+        render_mode: None, ``"ansi"`` (:meth:`render` returns one line of text) or ``"rgb_array"``
+            (an ``(H, W, 3)`` uint8 picture of the scene now: road, obstacles, ego;
+            :class:`rac.output.render.SceneFrames`).
+        observation: what the agent observes, a kind of :mod:`rac.learning.observation`:
+            ``"relative"`` (default; the ego against its lane, the road, the goal and the nearest
+            obstacles) or ``"ego"`` (the sensed ego state and the time, in the scene's coordinates).
+        scenarios: a set of scenes instead of the ``model`` block's own: CommonRoad files, or a
+            folder whose ``*.xml`` files are the set. ``model`` must then be a ``.ra`` file; its
+            ``model`` block is the template (:func:`rac.lang.edit.with_model`), checked with each scene
+            on the scene's first draw (a scene that does not check raises
+            :class:`rac.core.diagnostics.CheckError` naming it). Every scene must give the same
+            number of actions and the same observation space. Only the runtime shield
+            (``lookahead``) works with a set: a shield table is computed for one scene.
 
-    Observation: :attr:`observation` (``"ego"``: ``float32`` ``(8,)``, the sensed ``x, y, v, acc, head,
-    jerk, turn`` and the time in seconds). ``terminated`` when the
+    Observation: :attr:`observation` (:mod:`rac.learning.observation`; ``"relative"``: ``float32``
+    ``(29,)``, ``"ego"``: ``(8,)``). ``terminated`` when the
     goal is reached, ``truncated`` at the horizon; a collision does not end the episode.
     ``info``: ``location``, ``rewards``, ``objective``, ``inputs`` (the bindings' values at the
     current sample), ``collided``/``offroad`` (at some sample of the step; after :meth:`reset`:
@@ -119,23 +177,42 @@ class ScenarioEnv(gymnasium.Env):
     was in the mask). Counted since construction: :attr:`shield_steps` (steps per ``shield``
     value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`.
 
-    The model is deterministic: ``reset(seed=...)`` only seeds :attr:`np_random` (for wrappers
-    and agents that draw from it); every episode starts from the same state.
+    ``info["scenario"]``: the scene's file.
+
+    The model is deterministic: with one scene, ``reset(seed=...)`` only seeds :attr:`np_random`
+    (for wrappers and agents that draw from it) and every episode starts from the same state. With
+    a set, :meth:`reset` draws the scene from :attr:`np_random` (so ``reset(seed=s)`` gives the same
+    scene again), or takes ``options={"scenario": i}`` (an index into :attr:`scenarios` or a path).
     """
 
-    metadata = {"render_modes": ["ansi"]}
+    metadata = {"render_modes": RENDER_MODES}
 
     def __init__(self, model: str | os.PathLike[str] | CompileResult, *,
                  shield: str | os.PathLike[str] | ShieldTable | StepShield | None = None,
                  lookahead: LookaheadSettings | int | Literal["auto"] | None = "auto",
                  reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
-                 render_mode: str | None = None, observation: str = "ego") -> None:
-        from rac.engine.explore import COLUMNS
-        from rac.learning.episodes import EpisodeBatch
-
+                 render_mode: str | None = None, observation: str = "relative",
+                 scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | None = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, not {render_mode!r}")
-        result = _compile(model)
+        self._template: tuple[Path, str] | None = None
+        if scenarios is not None:
+            if not isinstance(model, (str, os.PathLike)):
+                raise TypeError("with scenarios, model must be a .ra file (its model block is the scenes' template)")
+            if shield is not None:
+                raise ValueError("a shield table is computed for one scene; with a set of scenes only the runtime "
+                                 "shield works: pass lookahead=<depth> instead of shield=")
+            paths = _scene_paths(scenarios)
+            self._template = (Path(model), Path(model).read_text(encoding="utf-8"))
+            result = _compile_scene(*self._template, paths[0])
+        else:
+            result = _compile(model)
+            spec = result.automaton.model if result.automaton is not None else None
+            paths = [Path(spec.scenario_path)] if spec is not None else []  # none: EpisodeBatch says why
+        #: The scene files (one without ``scenarios``: the ``model`` block's).
+        self.scenarios: tuple[Path, ...] = tuple(paths)
+        self._reward, self._observation_kind = reward, observation
+        self._shield_args = (shield, lookahead)
         automaton = result.automaton
         assert automaton is not None
         samples = None
@@ -147,8 +224,12 @@ class ScenarioEnv(gymnasium.Env):
                 raise ValueError(f"horizon {horizon} s is not a positive whole number of samples of "
                                  f"{float(automaton.period):g} s")
             samples = int(exact)
-        self.episodes = EpisodeBatch(result, reward=reward, horizon_samples=samples)
-        self._step_shield = self._shields(shield, lookahead, COLUMNS)
+        self._samples = samples
+        #: Per scene, once checked: its episodes, observation and shield (:meth:`_scene`).
+        self._scenes: dict[int, tuple[EpisodeBatch, Observation, StepShield | None]] = {}
+        self._frames: dict[int, SceneFrames] = {}
+        self._index = 0
+        self.episodes, self.observation, self._step_shield = self._scene(0, result)
         #: The exhaustive shield's table (None without one).
         self.shield = self._step_shield.table if self._step_shield is not None else None
         #: Steps per guarantee of their mask (``info["shield"]``), since construction.
@@ -166,18 +247,43 @@ class ScenarioEnv(gymnasium.Env):
         self._scale = float(data.scale)
         self._period = float(data.period)
         self._names = automaton.location_names
-        #: What the agent observes (:mod:`rac.learning.observation`).
-        self.observation = make_observation(observation, self.episodes)
         self.observation_space = self.observation.space
         self.action_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(self.episodes.n_actions)
         self._last: dict[str, bool] = {}
 
-    def _shields(self, shield: str | os.PathLike[str] | ShieldTable | StepShield | None,
+    def _scene(self, index: int, result: CompileResult | None = None
+               ) -> tuple[EpisodeBatch, Observation, StepShield | None]:
+        """Scene ``index``'s episodes, observation and shield, built on first use (``result``: its
+        checked model, when the caller has it); a scene whose actions or observation space differ
+        from the first's is a ``ValueError`` naming it."""
+        from rac.engine.explore import COLUMNS
+        from rac.learning.episodes import EpisodeBatch
+
+        scene = self._scenes.get(index)
+        if scene is not None:
+            return scene
+        if result is None:
+            assert self._template is not None
+            result = _compile_scene(*self._template, self.scenarios[index])
+        episodes = EpisodeBatch(result, reward=self._reward, horizon_samples=self._samples)
+        observation = make_observation(self._observation_kind, episodes)
+        if self._scenes:
+            first, first_observation, _ = self._scenes[0]
+            if (episodes.n_actions != first.n_actions or episodes.horizon_samples != first.horizon_samples
+                    or observation.space != first_observation.space):
+                raise ValueError(f"the scene {self.scenarios[index]} gives {episodes.n_actions} actions, "
+                                 f"{episodes.horizon_samples} samples and {observation.space}; the first scene "
+                                 f"{self.scenarios[0]} gives {first.n_actions}, {first.horizon_samples} and "
+                                 f"{first_observation.space}: a set's scenes must agree")
+        scene = (episodes, observation, self._shields(episodes, *self._shield_args, COLUMNS))
+        self._scenes[index] = scene
+        return scene
+
+    def _shields(self, episodes: EpisodeBatch, shield: str | os.PathLike[str] | ShieldTable | StepShield | None,
                  lookahead: LookaheadSettings | int | Literal["auto"] | None,
                  columns: tuple[str, ...]) -> StepShield | None:
         from rac.engine.shield import StepShield
 
-        episodes = self.episodes
         if isinstance(shield, StepShield):
             if lookahead != "auto":
                 raise ValueError("a StepShield brings its own runtime shield: leave lookahead as 'auto'")
@@ -223,12 +329,16 @@ class ScenarioEnv(gymnasium.Env):
         return {"location": self._names[int(episodes.location[0])],
                 "rewards": {name: float(values[0]) for name, values in episodes.rewards.items()},
                 "objective": float(episodes.objective[0]), "inputs": inputs, **self._last,
-                "time": float(episodes.k[0] * self._period)}
+                "time": float(episodes.k[0] * self._period), "scenario": str(self.scenarios[self._index])}
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-        """Start an episode at the ego's start (the seed only seeds ``np_random``: the model is deterministic)."""
+        """Start an episode at the ego's start: of the scene ``options["scenario"]`` (an index into
+        :attr:`scenarios` or one of its paths), else of one drawn from ``np_random`` (with one
+        scene: that one; the seed only seeds ``np_random``, the model is deterministic)."""
         super().reset(seed=seed)
+        self._index = self._pick((options or {}).get("scenario"))
+        self.episodes, self.observation, self._step_shield = self._scene(self._index)
         episodes = self.episodes
         episodes.reset(1)
         collided, offroad = episodes.observe([ie.call("collide"), ie.call("offroad")])[0] != 0
@@ -237,6 +347,24 @@ class ScenarioEnv(gymnasium.Env):
         self._crashed = bool(collided)  # under `collision sticky`: nothing after a collision is safe
         self._decision = None
         return self._obs(), self._info()
+
+    def _pick(self, chosen: Any) -> int:
+        """The index of the scene ``chosen`` (None: one drawn from ``np_random``)."""
+        count = len(self.scenarios)
+        if chosen is None:
+            return int(self.np_random.integers(count)) if count > 1 else 0
+        if isinstance(chosen, (int, np.integer)) and not isinstance(chosen, bool):
+            if not 0 <= chosen < count:
+                raise ValueError(f"options['scenario'] = {chosen}: there are {count} scenes (0 .. {count - 1})")
+            return int(chosen)
+        if isinstance(chosen, (str, os.PathLike)):
+            wanted = Path(chosen).resolve()
+            for index, path in enumerate(self.scenarios):
+                if path.resolve() == wanted:
+                    return index
+            raise ValueError(f"options['scenario'] = {os.fspath(chosen)!r} is not one of the scenes: "
+                             f"{', '.join(map(str, self.scenarios))}")
+        raise TypeError(f"options['scenario'] must be an index or a path, not {chosen!r}")
 
     def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         """One decision period with action ``action`` (an index into :attr:`action_pairs`)."""
@@ -292,8 +420,12 @@ class ScenarioEnv(gymnasium.Env):
             return np.ones(self.episodes.n_actions, dtype=bool)
         return decision.mask.copy()
 
-    def render(self) -> str | None:
-        """``"ansi"``: one line with the time, the sensed state and the automaton's location and objective."""
+    def render(self) -> str | np.ndarray | None:
+        """``"ansi"``: one line with the time, the sensed state and the automaton's location and
+        objective; ``"rgb_array"``: an ``(H, W, 3)`` uint8 picture of the scene now (road, goal,
+        obstacles, ego; :class:`rac.output.render.SceneFrames`)."""
+        if self.render_mode == "rgb_array":
+            return self._frame()
         if self.render_mode != "ansi":
             return None
         if self.episodes.n != 1:
@@ -303,3 +435,21 @@ class ScenarioEnv(gymnasium.Env):
         info = self._info()
         return (f"t={time:.2f}s x={x:.2f} y={y:.2f} v={v:.2f} acc={acc:.2f} head={head:.3f} jerk={jerk:g} "
                 f"turn={turn:g} {info['location']} objective={info['objective']:.3f}")
+
+    def _frame(self) -> np.ndarray:
+        from rac.output.render import SceneFrames
+
+        episodes = self.episodes
+        frames = self._frames.get(self._index)
+        if frames is None:
+            data = episodes.data
+            scenario = episodes.result.scenario
+            frames = SceneFrames(self.scenarios[self._index], sample_period=self._period,
+                                 planning_problem=scenario.planning_problem_id if scenario is not None else None,
+                                 length=data.length / self._scale, width=data.width / self._scale)
+            self._frames[self._index] = frames
+        if episodes.n != 1:  # before reset: the ego at its start
+            data = episodes.data
+            return frames.frame(0, data.ego_x / self._scale, data.ego_y / self._scale, data.ego_head / self._scale)
+        x, y, _, _, head = (episodes.ego[0, :5] / self._scale).tolist()
+        return frames.frame(int(episodes.k[0]), x, y, head)

@@ -83,6 +83,8 @@ class BatchModel:
         self._speeds = KeyedRows(m + 2, self._speed_rows)
         #: sample -> the obstacles' disc centres (x then y, 3 per obstacle; NaN: absent)
         self._discs: dict[int, np.ndarray] = {}
+        #: sample -> the obstacles' x, y, heading, speed (NaN: absent)
+        self._states: dict[int, np.ndarray] = {}
         radii = []
         for i in range(data.obstacle_count):
             ol = data.obs_length[i] / self.native.scale_d
@@ -333,6 +335,33 @@ class BatchModel:
             self._discs.clear()
         self._discs[sample] = discs
         return discs
+
+    def obstacle_states(self, k: int | np.ndarray) -> np.ndarray:
+        """``(n, O, 4)`` float64 for ``n`` samples ``k`` (one sample: ``n = 1``): each obstacle's
+        ``x, y, heading`` (:meth:`NativeModel.obstacle_position`, the one owner of an obstacle's
+        position) and speed (its waypoint's) at the sample, in metres, radians and m/s; NaN where
+        the obstacle does not exist. Computed once per distinct sample and kept."""
+        samples = np.atleast_1d(np.asarray(k, dtype=np.int64))
+        distinct, where = np.unique(samples, return_inverse=True)
+        table = np.stack([self._obstacle_state(int(sample)) for sample in distinct.tolist()]) if distinct.size else \
+            np.zeros((0, self.data.obstacle_count, 4))
+        return table[where.reshape(-1)]
+
+    def _obstacle_state(self, sample: int) -> np.ndarray:
+        row = self._states.get(sample)
+        if row is not None:
+            return row
+        data = self.data
+        native = self.native
+        row = np.full((data.obstacle_count, 4), np.nan)
+        for i in range(data.obstacle_count):
+            position = native.obstacle_position(i, sample)
+            if position is not None:
+                row[i] = (*position, data.wp_vel[native.waypoint(i, sample)] / native.scale_d)
+        if len(self._states) > 4096:
+            self._states.clear()
+        self._states[sample] = row
+        return row
 
     def _mindist(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         n = states.shape[0]

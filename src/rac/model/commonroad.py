@@ -21,6 +21,18 @@ class Polygon:
 
 
 @dataclass(frozen=True)
+class Lane:
+    """A lanelet's centre line and bounds, each point in the driving direction (index ``i`` of the
+    three is one cross-section). The model reads only the road's polygons; a learner's observation
+    (:mod:`rac.learning.observation`) measures the ego against the lanes."""
+
+    id: int
+    centre: tuple[tuple[float, float], ...]
+    left: tuple[tuple[float, float], ...]
+    right: tuple[tuple[float, float], ...]
+
+
+@dataclass(frozen=True)
 class Waypoint:
     """An obstacle's state at one time: it moves in a straight line at ``velocity`` along
     ``heading`` until the next waypoint (velocity and heading change only at waypoints)."""
@@ -85,6 +97,7 @@ class Scenario:
     goal: Goal
     planning_problem_id: int | None = None  # the CommonRoad planning problem ego and goal come from
     planning_problem_ids: tuple[int, ...] = ()  # every planning problem of the file, in id order
+    lanes: tuple[Lane, ...] = ()  # the lanelets as lanes, in lanelet id order (like ``road``)
 
 
 # ---------------------------------------------------------------- reading CommonRoad files
@@ -343,6 +356,8 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     if not lanelets:
         raise ScenarioError(path, None, "has no lanelets (rac needs the road network)")
     road = tuple(_polygon(lanelet.polygon.vertices) for lanelet in lanelets)
+    lanes = tuple(Lane(lanelet.lanelet_id, _points(lanelet.center_vertices), _points(lanelet.left_vertices),
+                       _points(lanelet.right_vertices)) for lanelet in lanelets)
 
     from commonroad.scenario.obstacle import StaticObstacle
 
@@ -367,12 +382,17 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     goal = _goal(path, f"goal of planning problem {planning_problem_id}", problem.goal, cr_scenario.lanelet_network, dt)
     name = root.get("benchmarkID") or Path(path).stem
     return Scenario(name=name, path=os.fspath(path), dt=dt, road=road, obstacles=tuple(obstacles), ego=ego,
-                    goal=goal, planning_problem_id=planning_problem_id, planning_problem_ids=ids)
+                    goal=goal, planning_problem_id=planning_problem_id, planning_problem_ids=ids,
+                    lanes=lanes)
 
 
 def _seconds(step: float, dt: float) -> float:
     """``step * dt`` without the float noise of the product (3 * 0.1 is 0.3, not 0.30000000000000004)."""
     return round(step * dt, 9)
+
+
+def _points(vertices) -> tuple[tuple[float, float], ...]:
+    return tuple((float(x), float(y)) for x, y in vertices)
 
 
 def _polygon(points) -> Polygon:

@@ -21,7 +21,14 @@ with the ego's planning problem 100 and 0.1 s time steps:
 - ``urban_head_on``: an urban street, two lanes per direction, a car overtaking towards the ego in
   the ego's lane until 12 s, a goal window at 19.4-20.4 s (:func:`build_urban_head_on`).
 
-``python -m rac.model.scenes NAME OUT.xml`` writes one; ``write_scene(name, path)`` from Python.
+Seeded variants, for training on a set of scenes (:class:`rac.learning.scenario_env.ScenarioEnv`):
+:func:`highway_variant` and :func:`tutorial_variant` draw the other road users' starts and speeds
+from a seed (on a 0.5 grid, within ranges that keep the hazard of the scene) and keep the ego's
+start, the road and the goal; :func:`scene_set` writes ``count`` of them (``variant_bytes`` one).
+The same seed gives the same file, byte for byte.
+
+``python -m rac.model.scenes NAME OUT.xml`` writes one; ``write_scene(name, path)`` from Python;
+``python -m rac.model.scenes highway OUT_FOLDER --count 8 --seed 0`` writes a set.
 The benchmark of every query on each kind (``benchmarks/queries.py``) and the tests use them.
 """
 
@@ -49,9 +56,9 @@ from commonroad.scenario.state import CustomState, InitialState
 from rac.model.intersection import left_turn_bytes, t_junction_bytes
 from rac.model.scenario_xml import DT, clean, recorded_car, scenario_bytes, straight_car
 
-__all__ = ["HEAD_ON_STEPS", "LANE_WIDTH", "PLANNING_PROBLEM_ID", "SCENES", "TUTORIAL_45", "URBAN_STEPS",
+__all__ = ["HEAD_ON_STEPS", "LANE_WIDTH", "PLANNING_PROBLEM_ID", "SCENES", "TUTORIAL_45", "URBAN_STEPS", "VARIANTS",
            "build_highway", "build_overtaking", "build_tutorial", "build_urban", "build_urban_head_on", "head_on_track",
-           "scene_bytes", "write_scene"]
+           "highway_variant", "scene_bytes", "scene_set", "tutorial_variant", "variant_bytes", "write_scene"]
 
 LANE_WIDTH = 3.5  #: m
 PLANNING_PROBLEM_ID = 100
@@ -59,6 +66,8 @@ ROAD_LENGTH = 300.0  #: m, from x = 0
 STEPS = 120  #: time steps of the obstacles' trajectories and of the goal's time interval (12 s)
 URBAN_STEPS = 140  #: the urban street's time steps (14 s)
 HEAD_ON_STEPS = 210  #: the head-on scene's time steps (21 s)
+#: Mixed into every variant's seed, so a scene set's draws are rac's own (not another numpy stream's).
+SET_SEED = 21
 
 
 def _lane(lanelet_id: int, y_right: float, *, towards_x: bool, left: int | None, left_same: bool | None,
@@ -93,24 +102,42 @@ def _problem(x: float, y: float, velocity: float, goal_x: tuple[float, float], r
     return PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, initial, goal)])
 
 
-def build_highway() -> tuple[Scenario, PlanningProblemSet]:
+def build_highway(truck: tuple[float, float] = (70.0, 15.0), left: tuple[float, float] = (10.0, 25.0),
+                  right: tuple[float, float] = (95.0, 17.0), name: str = "Highway",
+                  map_id: int = 1) -> tuple[Scenario, PlanningProblemSet]:
     """Three 3.5 m lanes towards +x (lanelets 1, 2, 3 from the right). The ego starts at x = 30 in
     the middle lane at 20 m/s; truck 61 (12 m × 2.5 m) drives ahead of it at 15 m/s from x = 70; car
     62 comes up the left lane at 25 m/s from x = 10; car 63 drives in the right lane at 17 m/s from
     x = 95. The goal spans the road from x = 170 to 230 within 12 s: keeping 20 m/s runs into the
-    truck after about 6 s, so the ego brakes behind it or changes lanes between the other two."""
-    scenario = Scenario(DT, ScenarioID(country_id="ZAM", map_name="Highway", map_id=1, obstacle_behavior="T",
+    truck after about 6 s, so the ego brakes behind it or changes lanes between the other two.
+    ``truck``, ``left``, ``right``: the three vehicles' (start x, speed) (:func:`highway_variant`)."""
+    scenario = Scenario(DT, ScenarioID(country_id="ZAM", map_name=name, map_id=map_id, obstacle_behavior="T",
                                        prediction_id=1))
     for i in range(3):
         scenario.add_objects(_lane(i + 1, i * LANE_WIDTH, towards_x=True, left=i + 2 if i < 2 else None,
                                    left_same=True if i < 2 else None, right=i if i > 0 else None,
                                    kind=LaneletType.HIGHWAY))
     middle = [LANE_WIDTH * (i + 0.5) for i in range(3)]
-    scenario.add_objects(straight_car(61, 70.0, middle[1], 0.0, 15.0, STEPS, length=12.0, width=2.5,
+    scenario.add_objects(straight_car(61, truck[0], middle[1], 0.0, truck[1], STEPS, length=12.0, width=2.5,
                                       kind=ObstacleType.TRUCK))
-    scenario.add_objects(straight_car(62, 10.0, middle[2], 0.0, 25.0, STEPS))
-    scenario.add_objects(straight_car(63, 95.0, middle[0], 0.0, 17.0, STEPS))
+    scenario.add_objects(straight_car(62, left[0], middle[2], 0.0, left[1], STEPS))
+    scenario.add_objects(straight_car(63, right[0], middle[0], 0.0, right[1], STEPS))
     return scenario, _problem(30.0, middle[1], 20.0, (170.0, 230.0), 3 * LANE_WIDTH)
+
+
+def _draw(rng: np.random.Generator, low: float, high: float) -> float:
+    """A number in ``[low, high]`` on a 0.5 grid (short decimals, exact in the XML)."""
+    return float(rng.integers(round(2 * low), round(2 * high) + 1)) / 2
+
+
+def highway_variant(seed: int) -> tuple[Scenario, PlanningProblemSet]:
+    """:func:`build_highway` with the three vehicles' start and speed drawn from ``seed`` (the same
+    seed, the same scene): truck 61 from x 55-85 at 12-18 m/s, car 62 from x -10-20 at 22-28 m/s,
+    car 63 from x 80-120 at 14-20 m/s; the ego's start and the goal are the highway's."""
+    rng = np.random.default_rng([SET_SEED, 1, seed])
+    return build_highway(truck=(_draw(rng, 55, 85), _draw(rng, 12, 18)), left=(_draw(rng, -10, 20), _draw(rng, 22, 28)),
+                         right=(_draw(rng, 80, 120), _draw(rng, 14, 20)), name="HighwayVariant",
+                         map_id=seed + 1)
 
 
 def build_overtaking() -> tuple[Scenario, PlanningProblemSet]:
@@ -192,26 +219,38 @@ TUTORIAL_45: tuple[str, ...] = ("exponent 2", "decide_period 0.2", "granularity 
                                 "action jerk in [-2, 2] step 0.5", "action turn in [-0.4, 0.4] step 0.2")
 
 
-def build_tutorial() -> tuple[Scenario, PlanningProblemSet]:
+def build_tutorial(ahead: tuple[float, float] = (30.0, 6.0), left: tuple[float, float] = (-5.0, 14.0),
+                   parked: float = 95.0, name: str = "Tutorial",
+                   map_id: int = 45) -> tuple[Scenario, PlanningProblemSet]:
     """Two 3.5 m lanes towards +x (lanelets 1, right, and 2, left), like the road of CommonRoad's
     tutorial scenario. The ego starts at x = 10 in the right lane at 10 m/s; car 81 drives
     ahead of it at 6 m/s from x = 30; car 82 comes up the left lane at 14 m/s from x = -5; van 83
     (6 m × 2.2 m) is parked in the right lane at x = 95. The goal spans the road from x = 45 to 80
     within 12 s: keeping 10 m/s runs into car 81 after about 4 s, so the ego brakes behind it or
-    changes lanes after car 82 has passed."""
-    scenario = Scenario(DT, ScenarioID(country_id="ZAM", map_name="Tutorial", map_id=45, obstacle_behavior="T",
+    changes lanes after car 82 has passed. ``ahead``, ``left``: cars 81 and 82's (start x, speed);
+    ``parked``: van 83's x (:func:`tutorial_variant`)."""
+    scenario = Scenario(DT, ScenarioID(country_id="ZAM", map_name=name, map_id=map_id, obstacle_behavior="T",
                                        prediction_id=1))
     scenario.add_objects(_lane(1, 0.0, towards_x=True, left=2, left_same=True, right=None, kind=LaneletType.URBAN))
     scenario.add_objects(_lane(2, LANE_WIDTH, towards_x=True, left=None, left_same=None, right=1,
                                kind=LaneletType.URBAN))
-    right, left = LANE_WIDTH / 2, 1.5 * LANE_WIDTH
-    scenario.add_objects(straight_car(81, 30.0, right, 0.0, 6.0, STEPS))
-    scenario.add_objects(straight_car(82, -5.0, left, 0.0, 14.0, STEPS))
-    parked = InitialState(time_step=0, position=clean(np.array([95.0, right])), orientation=0.0, velocity=0.0,
+    right, left_y = LANE_WIDTH / 2, 1.5 * LANE_WIDTH
+    scenario.add_objects(straight_car(81, ahead[0], right, 0.0, ahead[1], STEPS))
+    scenario.add_objects(straight_car(82, left[0], left_y, 0.0, left[1], STEPS))
+    standing = InitialState(time_step=0, position=clean(np.array([parked, right])), orientation=0.0, velocity=0.0,
                           acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
     scenario.add_objects(StaticObstacle(83, ObstacleType.PARKED_VEHICLE, RectObstacleShape(length=6.0, width=2.2),
-                                        parked))
+                                        standing))
     return scenario, _problem(10.0, right, 10.0, (45.0, 80.0), 2 * LANE_WIDTH)
+
+
+def tutorial_variant(seed: int) -> tuple[Scenario, PlanningProblemSet]:
+    """:func:`build_tutorial` with the other road users drawn from ``seed`` (the same seed, the same
+    scene): car 81 from x 25-40 at 4-8 m/s, car 82 from x -15-5 at 12-16 m/s, van 83 parked at x
+    85-110; the ego's start and the goal are the tutorial's."""
+    rng = np.random.default_rng([SET_SEED, 2, seed])
+    return build_tutorial(ahead=(_draw(rng, 25, 40), _draw(rng, 4, 8)), left=(_draw(rng, -15, 5), _draw(rng, 12, 16)),
+                          parked=_draw(rng, 85, 110), name="TutorialVariant", map_id=seed + 1)
 
 
 def _straight_bytes(build: Callable[[], tuple[Scenario, PlanningProblemSet]], name: str,
@@ -236,6 +275,39 @@ SCENES: dict[str, Callable[[], bytes]] = {
 }
 
 
+#: The scene kinds with seeded variants (:func:`scene_set`): the variant builder and the scene's tags.
+VARIANTS: dict[str, tuple[Callable[[int], tuple[Scenario, PlanningProblemSet]], set[Tag]]] = {
+    "highway": (highway_variant, {Tag.HIGHWAY, Tag.MULTI_LANE, Tag.LANE_CHANGE}),
+    "tutorial": (tutorial_variant, {Tag.URBAN, Tag.MULTI_LANE, Tag.LANE_CHANGE}),
+}
+
+
+def variant_bytes(kind: str, seed: int) -> bytes:
+    """The variant ``seed`` of the scene ``kind`` (:data:`VARIANTS`) as CommonRoad XML (byte-stable)."""
+    if kind not in VARIANTS:
+        raise ValueError(f"no variants of scene {kind!r}; the kinds with variants are {', '.join(VARIANTS)}")
+    build, tags = VARIANTS[kind]
+    scenario, problems = build(seed)
+    return scenario_bytes(scenario, problems, tags=tags,
+                          source=f"generated by rac.model.scenes ({kind} variant {seed})")
+
+
+def scene_set(kind: str, count: int, seed: int, folder: str | Path) -> list[Path]:
+    """Write ``count`` variants of the scene ``kind`` (:data:`VARIANTS`) into ``folder`` (created if
+    missing) as ``{kind}_{seed + i}.xml``, variant ``seed + i`` for ``i < count``; return their paths
+    in that order. The same arguments give the same files, byte for byte."""
+    if count < 1:
+        raise ValueError(f"a scene set needs at least one scene, not {count}")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i in range(count):
+        path = folder / f"{kind}_{seed + i}.xml"
+        path.write_bytes(variant_bytes(kind, seed + i))
+        paths.append(path)
+    return paths
+
+
 def scene_bytes(name: str) -> bytes:
     """The scene ``name`` (:data:`SCENES`) as CommonRoad XML."""
     if name not in SCENES:
@@ -254,9 +326,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m rac.model.scenes",
                                      description="Write one of rac's generated scenes as CommonRoad XML.")
     parser.add_argument("name", choices=list(SCENES))
-    parser.add_argument("out", help="the .xml file to write")
+    parser.add_argument("out", help="the .xml file to write (with --count: the folder of the set)")
+    parser.add_argument("--count", type=int, help="write a set of this many seeded variants instead")
+    parser.add_argument("--seed", type=int, default=0, help="the set's first variant (default 0)")
     args = parser.parse_args(argv)
-    print(f"wrote {write_scene(args.name, args.out)}")
+    if args.count is None:
+        print(f"wrote {write_scene(args.name, args.out)}")
+        return 0
+    if args.name not in VARIANTS:
+        parser.error(f"{args.name} has no variants; --count works with {', '.join(VARIANTS)}")
+    paths = scene_set(args.name, args.count, args.seed, args.out)
+    print(f"wrote {len(paths)} scenes to {args.out}")
     return 0
 
 

@@ -32,7 +32,7 @@ from PIL import Image
 
 from rac.output.plots import atomic_write, fit_title, new_figure, save_figure, wrap_text
 
-__all__ = ["EGO_COLOUR", "RenderError", "render_trajectory"]
+__all__ = ["EGO_COLOUR", "RenderError", "SceneFrames", "render_trajectory"]
 
 EGO_COLOUR = "#2e7d32"
 #: Metres of scenery kept around the ego's path (and the goal) when no ``plot_limits`` are given.
@@ -168,6 +168,70 @@ class _Scene:
         for obstacle in self.scenario.obstacles:
             obstacle.draw(renderer)
         renderer.render_dynamic()
+
+
+class SceneFrames:
+    """Frames of a CommonRoad scenario with the ego at one instant each, as ``(H, W, 3)`` uint8 RGB
+    arrays (gymnasium's ``render_mode="rgb_array"``): the road, the goal, the obstacles at the
+    instant and the ego as a ``length`` × ``width`` rectangle, in a ``view`` × ``view / 2`` metre
+    window centred on the ego. The scenario is read and the road drawn once; every frame has the
+    same size (``size`` pixels, width × height).
+
+    Example::
+
+        frames = SceneFrames("left_turn.xml", sample_period=0.1)
+        image = frames.frame(0, x=1.75, y=-18.0, head=math.pi / 2)   # (240, 480, 3) uint8
+    """
+
+    def __init__(self, scenario_path: str | os.PathLike[str], *, sample_period: float | None = None,
+                 planning_problem: int | None = None, length: float = 4.5, width: float = 1.8,
+                 view: float = 80.0, size: tuple[int, int] = (480, 240)) -> None:
+        from matplotlib.figure import Figure
+
+        path = Path(scenario_path)
+        scenario, problems = _read(path)
+        if planning_problem is not None:
+            problems = _only(problems, planning_problem, path)
+        self._dt = float(scenario.dt)
+        self._period = self._dt if sample_period is None else float(sample_period)
+        self._start = _initial_step(problems)
+        self._view = view
+        self._length, self._width = length, width
+        dpi = 80
+        # no layout engine: the axes fill the figure, and every frame has the same size
+        self._figure = Figure(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi)
+        FigureCanvasAgg(self._figure)
+        self._ax = self._figure.add_axes((0.0, 0.0, 1.0, 1.0))
+        self._ax.set_axis_off()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # commonroad-io's drawing code warns about deprecated matplotlib use
+            self._scene = _Scene(scenario, problems, self._ax, _road_limits(scenario))
+        self._body = Polygon(_corners(0.0, 0.0, 0.0, length, width), closed=True, facecolor=EGO_COLOUR,
+                             edgecolor="black", linewidth=0.8, zorder=30)
+        self._ax.add_patch(self._body)
+
+    def frame(self, sample: int, x: float, y: float, head: float) -> np.ndarray:
+        """The picture at sample ``sample`` (CommonRoad time step ``t0 + sample * sample_period / dt``)
+        with the ego centred at ``(x, y)`` heading ``head`` (metres, radians)."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self._scene.show_obstacles(self._start + round(sample * self._period / self._dt))
+            self._body.set_xy(_corners(x, y, head, self._length, self._width))
+            half = self._view / 2
+            self._ax.set_xlim(x - half, x + half)
+            self._ax.set_ylim(y - half / 2, y + half / 2)
+            self._ax.set_aspect("auto")
+            canvas = self._figure.canvas
+            canvas.draw()
+            assert isinstance(canvas, FigureCanvasAgg)
+            return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+
+def _road_limits(scenario: Any) -> list[float]:
+    """The whole road's bounding box with a margin (commonroad-io draws what lies within)."""
+    points = np.vstack([lanelet.polygon.vertices for lanelet in scenario.lanelet_network.lanelets])
+    (x0, y0), (x1, y1) = points.min(axis=0) - MARGIN, points.max(axis=0) + MARGIN
+    return [float(x0), float(x1), float(y0), float(y1)]
 
 
 def _validated(trajectory: np.ndarray) -> np.ndarray:
