@@ -22,7 +22,7 @@ torch==2.13.0`` (the CPU build), then ``pip install '.[rl]'``.
 from __future__ import annotations
 
 import argparse
-import re
+import dataclasses
 import sys
 import time
 from collections.abc import Sequence
@@ -46,32 +46,26 @@ except ImportError:
 EQ9 = "10*!isClose + (5 + 100*goal())*prog + comf"
 #: The two configurations compared: (masked by the shield, reward).
 CONFIGS: dict[str, tuple[bool, str]] = {"shield + automaton": (True, "automaton"), "no shield + Eq. 9": (False, EQ9)}
-#: The scenes trained on and held out (until seeded scene variants exist: distinct built scenes).
-TRAIN_SCENES = ("highway", "tutorial")
-HELD_OUT_SCENES = ("overtaking",)
+#: The kinds of scene (rac.model.scenes.scene_set), half of each set from each.
+KINDS = ("highway", "tutorial")
+#: The first variant seed of the held-out scenes: far from the training scenes' (0 on).
+HELD_OUT_SEED = 1000
 
 
-def build_scenes(folder: Path) -> tuple[list[Path], list[Path]]:
-    """Write the training and held-out scenes into ``folder/scenes``; their paths (train, held out)."""
-    from rac.model.scenes import write_scene
+def build_scenes(folder: Path, train: int, held_out: int) -> tuple[list[Path], list[Path]]:
+    """Write ``train`` training scenes into ``folder/train`` and ``held_out`` others into
+    ``folder/held_out`` (seeded variants of each kind: the same files on every run);
+    their paths (train, held out)."""
+    from rac.model.scenes import scene_set
 
-    scenes = folder / "scenes"
-    scenes.mkdir(parents=True, exist_ok=True)
-    return ([write_scene(name, scenes / f"{name}.xml") for name in TRAIN_SCENES],
-            [write_scene(name, scenes / f"{name}.xml") for name in HELD_OUT_SCENES])
+    def write(count: int, seed: int, where: Path) -> list[Path]:
+        paths = []
+        for i, kind in enumerate(KINDS):  # the count split evenly, the first kinds taking the rest
+            share = count // len(KINDS) + (i < count % len(KINDS))
+            paths += scene_set(kind, share, seed, where) if share else []
+        return paths
 
-
-def write_models(folder: Path, scenes: Sequence[Path]) -> list[Path]:
-    """driving.ra once per scene in ``folder`` (its ``scenario`` line pointing at the scene): the
-    ``.ra`` files the environments load."""
-    text = MODEL.read_text(encoding="utf-8")
-    models = []
-    for scene in scenes:
-        path = folder / f"driving_{scene.stem}.ra"
-        path.write_text(re.sub(r'scenario "[^"]*"', f'scenario "{scene.resolve().as_posix()}"', text, count=1),
-                        encoding="utf-8")
-        models.append(path)
-    return models
+    return write(train, 0, folder / "train"), write(held_out, HELD_OUT_SEED, folder / "held_out")
 
 
 def reward_scale(reward: str) -> float:
@@ -99,14 +93,17 @@ class Scaled(gymnasium.RewardWrapper):
         return self.env.unwrapped.action_masks()  # type: ignore[attr-defined, no-any-return]
 
 
-def make_env(model: Path, config: str, depth: int, seconds: float) -> gymnasium.Env:
-    """The environment of ``config`` on the scene of ``model``."""
+def make_env(scenes: Sequence[Path], config: str, depth: int, nodes: int) -> gymnasium.Env:
+    """The environment of ``config`` on the set ``scenes`` (one drawn per reset), with the
+    scene-independent ``"relative"`` observation."""
     from rac.engine.lookahead import LookaheadSettings
     from rac.learning.gym import ScenarioEnv
 
     shielded, reward = CONFIGS[config]
-    lookahead = LookaheadSettings(depth=depth, seconds=seconds) if shielded else None
-    return Scaled(ScenarioEnv(model, lookahead=lookahead, reward=reward), reward_scale(reward))
+    # a budget of search nodes, not seconds: the same masks however loaded the machine is
+    lookahead = LookaheadSettings(depth=depth, seconds=None, nodes=nodes) if shielded else None
+    env = ScenarioEnv(MODEL, scenarios=scenes, lookahead=lookahead, reward=reward, observation="relative")
+    return Scaled(env, reward_scale(reward))
 
 
 @dataclass
@@ -156,23 +153,46 @@ class Result:
     wall_seconds: float
 
 
-def train_and_evaluate(config: str, seed: int, *, timesteps: int, eval_episodes: int, out: Path,
-                       depth: int = 4, seconds: float = 0.05, quick: bool = False) -> Result:
-    """Train ``config`` from ``seed`` for ``timesteps`` env steps on the training scenes, then run
-    its greedy policy (masked, for the shielded one) for ``eval_episodes`` episodes on the held-out
-    scenes, round-robin."""
+@dataclass(frozen=True)
+class Settings:
+    """How a run trains and is evaluated (the defaults: the benchmark's full run)."""
+
+    timesteps: int = 6_000
+    train_scenes: int = 16
+    held_out_scenes: int = 100
+    eval_episodes: int = 100
+    #: The runtime shield: a safe continuation for the next ``depth`` decisions (3 s), found within
+    #: ``nodes`` search nodes per decision.
+    depth: int = 6
+    nodes: int = 1000
+    #: Environments stepped together (sb3's DummyVecEnv), and PPO's rollout and update.
+    n_envs: int = 2
+    n_steps: int = 256
+    batch_size: int = 128
+    n_epochs: int = 5
+
+
+#: A smoke run's settings (``--quick``).
+QUICK = Settings(timesteps=400, train_scenes=2, held_out_scenes=5, eval_episodes=5, n_steps=64, batch_size=64,
+                 n_epochs=2)
+
+
+def train_and_evaluate(config: str, seed: int, settings: Settings, out: Path) -> Result:
+    """Train ``config`` from ``seed`` for ``settings.timesteps`` env steps on the training scenes,
+    then run its greedy policy (masked, for the shielded one) for ``settings.eval_episodes``
+    episodes on the held-out scenes, one scene after the other."""
     import torch
     from sb3_contrib import MaskablePPO
     from stable_baselines3 import PPO
+    from stable_baselines3.common.base_class import BaseAlgorithm
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     torch.set_num_threads(1)  # the machine's cores are shared: one thread per process
     cpu, wall = time.process_time(), time.perf_counter()
-    train_scenes, held_out = build_scenes(out)
-    train_models, eval_models = write_models(out, train_scenes), write_models(out, held_out)
+    train_scenes, held_out = build_scenes(out, settings.train_scenes, settings.held_out_scenes)
     shielded = CONFIGS[config][0]
-    vec = DummyVecEnv([lambda model=model: make_env(model, config, depth, seconds) for model in train_models])
+    vec = DummyVecEnv([lambda: make_env(train_scenes, config, settings.depth, settings.nodes)] * settings.n_envs)
     tally = Tally()
 
     class Record(BaseCallback):
@@ -181,30 +201,26 @@ def train_and_evaluate(config: str, seed: int, *, timesteps: int, eval_episodes:
                 tally.add(env, info, bool(done))
             return True
 
-    hyper: dict[str, Any] = dict(n_steps=32, batch_size=32, n_epochs=2) if quick else \
-        dict(n_steps=256, batch_size=128, n_epochs=5)
-    algorithm = MaskablePPO if shielded else PPO
-    agent = algorithm("MlpPolicy", vec, seed=seed, verbose=0, gamma=0.99, ent_coef=0.01,
-                      policy_kwargs=dict(net_arch=[64, 64]), device="cpu", **hyper)
-    agent.learn(total_timesteps=timesteps, callback=Record())
+    algorithm: type[BaseAlgorithm] = MaskablePPO if shielded else PPO
+    agent = algorithm("MlpPolicy", vec, seed=seed, verbose=0, gamma=0.99, ent_coef=0.01, n_steps=settings.n_steps,
+                      batch_size=settings.batch_size, n_epochs=settings.n_epochs,
+                      policy_kwargs=dict(net_arch=[64, 64]), device="cpu")
+    agent.learn(total_timesteps=settings.timesteps, callback=Record())
     vec.close()
     success = collided = 0
-    envs = [make_env(model, config, depth, seconds) for model in eval_models]
-    for episode in range(eval_episodes):
-        env = envs[episode % len(envs)]
-        obs, _ = env.reset(seed=seed + episode)
+    env = make_env(held_out, config, settings.depth, settings.nodes)
+    for episode in range(settings.eval_episodes):
+        obs, _ = env.reset(seed=seed, options={"scenario": episode % len(held_out)})
         done, crashed = False, False
         while not done:
-            if shielded:
-                action, _ = agent.predict(obs, action_masks=env.action_masks(), deterministic=True)  # type: ignore[attr-defined]
-            else:
-                action, _ = agent.predict(obs, deterministic=True)
+            masks = env.action_masks() if shielded else None  # type: ignore[attr-defined]
+            action, _ = agent.predict(obs, deterministic=True, **({"action_masks": masks} if shielded else {}))
             obs, _, terminated, truncated, info = env.step(int(action))
             crashed |= bool(info["collided"])
             done = terminated or truncated
         collided += crashed
         success += bool(info["goal"]) and not crashed
-    return Result(config, seed, tally, eval_episodes, success, collided, time.process_time() - cpu,
+    return Result(config, seed, tally, settings.eval_episodes, success, collided, time.process_time() - cpu,
                   time.perf_counter() - wall)
 
 
@@ -221,14 +237,16 @@ def describe(result: Result) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--timesteps", type=int, default=20_000, help="training env steps per agent")
-    parser.add_argument("--eval-episodes", type=int, default=100)
+    parser.add_argument("--quick", action="store_true", help="a smoke run: 400 steps, 5 evaluation episodes")
+    parser.add_argument("--timesteps", type=int, default=None, help="training env steps per agent (default 6000)")
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="where the scenes and models are written")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="where the scenes are written")
     args = parser.parse_args(argv)
+    settings = QUICK if args.quick else Settings()
+    if args.timesteps is not None:
+        settings = dataclasses.replace(settings, timesteps=args.timesteps)
     for config in CONFIGS:
-        print(describe(train_and_evaluate(config, args.seed, timesteps=args.timesteps,
-                                          eval_episodes=args.eval_episodes, out=args.out)), flush=True)
+        print(describe(train_and_evaluate(config, args.seed, settings, args.out)), flush=True)
     return 0
 
 
