@@ -1,0 +1,60 @@
+"""The deep-RL example (examples/deep_rl/, issue 21): its automaton checks with P1 and P2 proved on a
+built scene, and ``python benchmarks/deep_rl.py --quick`` trains MaskablePPO under the shield and
+plain PPO over three seeds and writes a sane table. The benchmark needs the ``rl`` extra; its test
+is skipped without it (CI installs the test extra only)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import rac_env
+
+from rac.compiler import compile_file
+from rac.model.scenes import scene_set
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLE = REPO / "examples" / "deep_rl"
+BENCHMARK = REPO / "benchmarks" / "deep_rl.py"
+CONFIGS = ("shield + automaton", "no shield + Eq. 9")
+
+
+def test_the_example_automaton_checks_with_its_priorities_proved(tmp_path: Path) -> None:
+    # the scene the model block names is the first training scene train.py writes
+    scene_set("highway", 1, 0, tmp_path / "out" / "train")
+    shutil.copy(EXAMPLE / "driving.ra", tmp_path / "driving.ra")
+    result = compile_file(tmp_path / "driving.ra")
+    assert result.ok, [d.message for d in result.diagnostics]
+    facts = "\n".join(str(fact) for fact in result.facts)
+    assert "P1 holds" in facts and "P2 holds" in facts
+
+
+def test_the_benchmark_runs_and_writes_a_sane_table(tmp_path: Path) -> None:
+    pytest.importorskip("sb3_contrib", reason="benchmarks/deep_rl.py needs sb3-contrib and torch (the rl extra: "
+                        "pip install torch==2.13.0, then pip install '.[rl]'), which are not installed")
+    output = tmp_path / "deep_rl.md"
+    done = subprocess.run([sys.executable, str(BENCHMARK), "--quick", "--output", str(output)], env=rac_env(),
+                          capture_output=True, text=True, timeout=900, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+    text = output.read_text(encoding="utf-8")
+    rows = [[cell.strip() for cell in row.split("|")[1:-1]] for row in text.splitlines()
+            if row.startswith("| ") and not row.startswith("| configuration ")]
+    runs = [row for row in rows if row[1]]
+    means = [row for row in rows if not row[1]]
+    assert sorted((row[0], row[1]) for row in runs) == sorted((c, s) for c in CONFIGS for s in "123")
+    assert [row[0] for row in means] == [f"**{c}**, mean" for c in CONFIGS]
+    collisions = dict.fromkeys(CONFIGS, 0)
+    for config, _, first, training, episodes, success, crashed, cpu, wall in runs:
+        assert first == "never" or int(first.replace(",", "")) > 0
+        steps, with_collision = (int(n.replace(",", "")) for n in training.split(" / "))
+        assert 0 <= with_collision <= steps and with_collision <= int(episodes.replace(",", ""))
+        won, of = map(int, success.split("/"))
+        assert of == 5 and 0 <= won <= of and 0 <= int(crashed) <= of - won
+        assert re.fullmatch(r"\d+ s", cpu) and re.fullmatch(r"\d+ s", wall)
+        collisions[config] += steps
+    # the shield keeps the learner out of collisions the unshielded one runs into
+    assert collisions["shield + automaton"] <= collisions["no shield + Eq. 9"]
