@@ -182,12 +182,12 @@ class _Timing:
                  f"({self.steps} samples) only")
         if not math.isclose(step, self.period, rel_tol=1e-9):
             warnings.warn(f"the environment's time step is {step:g} s but the automaton samples every "
-                          f"{self.period:g} s (one step is one sample); {cover}", UserWarning, stacklevel=4)
+                          f"{self.period:g} s (one step is one sample); {cover}", UserWarning, stacklevel=3)
         if episode is not None and self.steps is not None:
             if not math.isclose(episode, horizon, rel_tol=1e-9):
                 warnings.warn(f"the environment's episode lasts {episode:g} s ({episode / step:g} steps of "
                               f"{step:g} s) but the automaton's horizon is {horizon:g} s ({self.steps} samples); "
-                              f"{cover}", UserWarning, stacklevel=4)
+                              f"{cover}", UserWarning, stacklevel=3)
 
 
 def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
