@@ -30,7 +30,7 @@ class TrainingLog:
 
     def _clear(self) -> None:
         self.steps = 0
-        self._reward: Counter[str] = Counter()
+        self._reward: dict[str, float] = {}
         self._location: Counter[str] = Counter()
         self._shield: Counter[str] = Counter()
         self._clipped: Counter[str] = Counter()
@@ -46,7 +46,7 @@ class TrainingLog:
             if isinstance(rac, Mapping):
                 self._rac_steps += 1
                 for name, change in rac.get("reward_steps", {}).items():
-                    self._reward[name] += float(change)
+                    self._reward[name] = self._reward.get(name, 0.0) + float(change)
                 if "location" in rac:
                     self._location[str(rac["location"])] += 1
                 for name, count in rac.get("clipped", {}).items():
