@@ -16,7 +16,7 @@ from rac.targets.python import generate_python
 
 TRACE = [inputs(dgoal=50.0), inputs(comf=False, dgoal=40.0), inputs(is_close=True, dgoal=30.0),
          inputs(is_close=True, collide=True, dgoal=20.0), inputs(prog=False, dgoal=10.0), inputs(dgoal=1.0)]
-INITIAL = {"location": "Normal", "rewards": {"sa": 0.0, "pr": 0.0, "co": 0.0}, "objective": 0.0}
+INITIAL = {"location": "Normal", "rewards": {"sa": 0.0, "pr": 0.0, "co": 0.0}, "objective": 0.0, "scale": 1.0}
 
 
 class Scripted(gymnasium.Env):
@@ -80,12 +80,14 @@ def test_rewards_are_the_automatons_and_end_is_applied(mode: str) -> None:
     assert [r[1] for r in run] == expected_rewards(steps, end=True)
     reference = RewardAutomaton(driving_automaton())
     for (obs, _, terminated, truncated, info), values in zip(run, TRACE):
+        before = reference.rewards
         reference.step(values)
         if terminated or truncated:
             reference.end(values)
         assert info["k"] == obs
         assert info["rac"] == {"location": reference.location, "rewards": reference.rewards,
-                               "objective": reference.objective, "env_reward": 7.0}
+                               "objective": reference.objective, "env_reward": 7.0, "scale": 1.0, "clipped": {},
+                               "reward_steps": {k: v - before[k] for k, v in reference.rewards.items()}}
     assert run[-1][1] == pytest.approx(run[-1][4]["rac"]["objective"] - run[-2][4]["rac"]["objective"])
     assert run[-1][4]["rac"]["rewards"]["pr"] > 100  # the end bonus (dgoal < 2)
     assert sum(r[1] for r in run) == pytest.approx(run[-1][4]["rac"]["objective"])

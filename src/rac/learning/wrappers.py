@@ -13,30 +13,45 @@ Example::
     env = RewardAutomatonWrapper(gymnasium.make("MyDriving-v0"), "stdlib/driving.ra", inputs)
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
-    info["rac"]  # {"location": ..., "rewards": {...}, "objective": ..., "env_reward": ...}
+    info["rac"]  # {"location": ..., "rewards": {...}, "reward_steps": {...}, "objective": ..., ...}
 
 Each ``step`` reads the automaton's inputs from the new observation and info, takes one sample,
-and returns the objective's increase as the reward; when the episode terminates or is
-truncated, the ``at end`` clauses are applied with the same inputs and their increase is added.
-An episode's return is thus the objective's final value. The automaton's own ``sample every`` is
-not enforced: one environment step is one sample.
+and returns the objective's increase as the reward (divided by ``scale``); when the episode
+terminates or is truncated, the ``at end`` clauses are applied with the same inputs and their
+increase is added. An unscaled episode's return is thus the objective's final value. The
+automaton's own ``sample every`` is not enforced: one environment step is one sample (a warning
+says when the environment's time step differs). :class:`RewardAutomatonVectorWrapper` does the
+same for a vector environment, with one :class:`~rac.runtime.batch.BatchRewardAutomaton`.
 """
 
 from __future__ import annotations
 
+import inspect
+import math
 import os
+import warnings
 from collections.abc import Callable, Mapping
+from fractions import Fraction
 from pathlib import Path
 from typing import Any, Protocol, SupportsFloat, runtime_checkable
 
 import gymnasium
+import numpy as np
+from gymnasium.utils import RecordConstructorArgs
+from gymnasium.vector import AutoresetMode, VectorEnv, VectorWrapper
 
 from rac import ir
+from rac.check.analysis.scale import sample_change_bound
+from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
+from rac.runtime.semantics import clip_inputs, input_specs
 
-__all__ = ["AutomatonLike", "RewardAutomatonWrapper"]
+__all__ = ["AutomatonLike", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "env_timing", "scale_factor"]
 
-InputFn = Callable[[Any, dict[str, Any]], Mapping[str, object]]
+#: ``inputs(obs, info)`` or ``inputs(obs, info, env)``: the automaton's inputs.
+InputFn = Callable[..., Mapping[str, object]]
+#: ``None`` (unscaled), ``"proven"`` (the proven bound, :func:`scale_factor`) or a positive factor.
+Scale = str | float | None
 
 
 @runtime_checkable
@@ -76,7 +91,115 @@ def _load(automaton: str | os.PathLike[str] | ir.Automaton | AutomatonLike) -> A
                     f"with reset/step/end, not {type(automaton).__name__}")
 
 
-class RewardAutomatonWrapper(gymnasium.Wrapper):
+def _ir_of(automaton: object) -> ir.Automaton | None:
+    found = getattr(automaton, "ir", None)
+    return found if isinstance(found, ir.Automaton) else None
+
+
+def _takes_env(inputs: Callable[..., object], what: str) -> bool:
+    """Whether ``inputs`` takes a third positional argument (the environment); read once."""
+    if not callable(inputs):
+        raise TypeError(f"inputs must be a callable {what} -> mapping of input values")
+    try:
+        parameters = list(inspect.signature(inputs).parameters.values())
+    except (TypeError, ValueError):  # a builtin without a signature: the two-argument form
+        return False
+    if any(p.kind is p.VAR_POSITIONAL for p in parameters):
+        return True
+    positional = [p for p in parameters if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    return len(positional) >= 3
+
+
+def scale_factor(automaton: ir.Automaton | None, scale: Scale, samples: int = 1) -> float:
+    """The positive number every reward is divided by: 1.0 for ``None``; the user's factor; or for
+    ``"proven"`` the largest ``|objective increase|`` of a step of ``samples`` samples that may end
+    the run, proved from the automaton (:meth:`rac.check.analysis.scale.SampleChange.step_bound`),
+    so every scaled reward lies in [-1, 1]. A positive factor keeps the priority proofs."""
+    if scale is None:
+        return 1.0
+    if isinstance(scale, str):
+        if scale != "proven":
+            raise ValueError(f"scale must be None, 'proven' or a positive number, not {scale!r}")
+        if automaton is None:
+            raise ValueError("scale='proven' needs the automaton's IR (a .ra path, an ir.Automaton or a "
+                             "RewardAutomaton), not a generated class")
+        bound = sample_change_bound(automaton).step_bound(samples)
+        if bound == 0:
+            raise ValueError("scale='proven': the objective never changes, so there is nothing to scale")
+        return float(bound)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) or scale <= 0:
+        raise ValueError(f"scale must be None, 'proven' or a positive number, not {scale!r}")
+    return float(scale)
+
+
+def env_timing(env: object, dt: float | None = None) -> tuple[float | None, float | None]:
+    """(seconds per step, seconds per episode) of ``env``, each None when unknown.
+
+    The step: ``dt`` when given; else ``env.unwrapped.dt``; else highway-env's
+    ``1 / config["policy_frequency"]``. The episode: ``spec.max_episode_steps`` steps; else
+    highway-env's ``config["duration"]`` (seconds in highway-env: its clock advances by
+    ``1 / policy_frequency`` per step and the episode is truncated at ``time >= duration``).
+    """
+    unwrapped = getattr(env, "unwrapped", env)
+    config = getattr(unwrapped, "config", None)
+    config = config if isinstance(config, Mapping) else {}
+    step = dt
+    if step is None:
+        own = getattr(unwrapped, "dt", None)
+        if isinstance(own, (int, float)) and not isinstance(own, bool):
+            step = float(own)
+        elif isinstance(config.get("policy_frequency"), (int, float)) and config["policy_frequency"] > 0:
+            step = 1.0 / config["policy_frequency"]
+    spec = getattr(env, "spec", None)
+    limit = getattr(spec, "max_episode_steps", None)
+    episode: float | None = None
+    if isinstance(limit, int) and step is not None:
+        episode = limit * step
+    elif isinstance(config.get("duration"), (int, float)):
+        episode = float(config["duration"])
+    return step, episode
+
+
+class _Timing:
+    """Warns once when the environment's step or episode differs from the automaton's period or horizon."""
+
+    def __init__(self, automaton: object, dt: float | None) -> None:
+        period, steps = getattr(automaton, "period", None), getattr(automaton, "steps", None)
+        self.period = float(period) if isinstance(period, (int, float, Fraction)) else None
+        self.steps = steps if isinstance(steps, int) else None
+        self.dt = dt
+        self.done = self.period is None
+
+    def check(self, env: object) -> None:
+        if self.done or self.period is None:
+            return
+        step, episode = env_timing(env, self.dt)
+        if step is None:
+            return  # not known yet: perhaps after the first reset
+        self.done = True
+        horizon = (self.steps or 0) * self.period
+        cover = (f"the priority proofs cover runs sampled every {self.period:g} s over a horizon of {horizon:g} s "
+                 f"({self.steps} samples) only")
+        if not math.isclose(step, self.period, rel_tol=1e-9):
+            warnings.warn(f"the environment's time step is {step:g} s but the automaton samples every "
+                          f"{self.period:g} s (one step is one sample); {cover}", UserWarning, stacklevel=3)
+        if episode is not None and self.steps is not None:
+            if not math.isclose(episode, horizon, rel_tol=1e-9):
+                warnings.warn(f"the environment's episode lasts {episode:g} s ({episode / step:g} steps of "
+                              f"{step:g} s) but the automaton's horizon is {horizon:g} s ({self.steps} samples); "
+                              f"{cover}", UserWarning, stacklevel=3)
+
+
+def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
+    if not clip:
+        return None
+    if automaton is None:
+        raise ValueError("clip=True needs the automaton's declared ranges: pass a .ra path, an ir.Automaton "
+                         "or a RewardAutomaton")
+    return input_specs(automaton)
+
+
+class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
     """Hand out a reward automaton's reward instead of the environment's.
 
     Args:
@@ -84,35 +207,63 @@ class RewardAutomatonWrapper(gymnasium.Wrapper):
         automaton: a `.ra` file path (compiled with :func:`rac.compiler.compile_file`; errors
             raise :class:`rac.core.diagnostics.CheckError`), an :class:`rac.ir.Automaton`, a
             :class:`rac.runtime.interpreter.RewardAutomaton`, or any object with the same ``reset``/``step``/
-            ``end`` API (e.g. an instance of a class generated by :mod:`rac.targets.python`).
-        inputs: ``inputs(obs, info) -> {input name: value}``, called after every step.
+            ``end`` API (e.g. an instance of a class generated by :mod:`rac.targets.python`; it
+            cannot clip or prove a scale).
+        inputs: ``inputs(obs, info) -> {input name: value}``, or ``inputs(obs, info, env)`` (three
+            positional parameters, read once here) where ``env`` is the wrapped environment (so
+            ``env.unwrapped.road`` is reachable); called after every step.
+        clip: numeric inputs outside their declared range are clipped to it
+            (:func:`rac.runtime.semantics.clip_inputs`); NaN still raises ``ValueError``. The counts
+            per input are in ``info["rac"]["clipped"]`` (this step) and :attr:`clipped_total`.
+        scale: ``None`` (rewards unscaled), ``"proven"`` (divided by the largest change of the
+            objective in one step proved from the automaton, so they lie in [-1, 1]), or a positive
+            factor of your own (:func:`scale_factor`). The factor is :attr:`scale`.
+        dt: the environment's seconds per step, when it does not say itself (:func:`env_timing`).
 
-    ``info["rac"]`` holds ``location``, ``rewards`` and ``objective`` after ``reset`` and
-    ``step``, plus ``env_reward`` (the environment's own reward) after ``step``.
+    Timing: a ``UserWarning`` (at construction, or at the first reset when the environment only
+    knows then) when the environment's step differs from the automaton's ``sample every``, or its
+    episode (``spec.max_episode_steps`` steps, or highway-env's ``duration``) from the automaton's
+    horizon: the priority proofs cover runs of the automaton's period and horizon only. When
+    neither ``dt``, ``env.unwrapped.dt`` nor highway-env's ``policy_frequency`` is there, nothing
+    is checked.
+
+    ``info["rac"]`` holds ``location``, ``rewards`` (values), ``objective`` and ``scale`` after
+    ``reset`` and ``step``; after ``step`` also ``reward_steps`` (each reward's change over the
+    step, unscaled), ``env_reward`` (the environment's own reward) and ``clipped``.
 
     Example::
 
-        env = RewardAutomatonWrapper(env, "stdlib/driving.ra", lambda obs, info: info["ra_inputs"])
+        env = RewardAutomatonWrapper(env, "stdlib/driving.ra", lambda obs, info: info["ra_inputs"],
+                                     clip=True, scale="proven")
         obs, info = env.reset(seed=1)
         obs, reward, terminated, truncated, info = env.step(action)
     """
 
     def __init__(self, env: gymnasium.Env, automaton: str | os.PathLike[str] | ir.Automaton | AutomatonLike,
-                 inputs: InputFn) -> None:
-        super().__init__(env)
-        if not callable(inputs):
-            raise TypeError("inputs must be a callable (obs, info) -> mapping of input values")
+                 inputs: InputFn, *, clip: bool = False, scale: Scale = None, dt: float | None = None) -> None:
+        RecordConstructorArgs.__init__(self, automaton=automaton, inputs=inputs, clip=clip, scale=scale, dt=dt)
+        gymnasium.Wrapper.__init__(self, env)
+        self._with_env = _takes_env(inputs, "(obs, info) or (obs, info, env)")
         self.automaton: AutomatonLike = _load(automaton)
         self.inputs = inputs
+        program = _ir_of(self.automaton)
+        self._specs = _clipping(program, clip)
+        #: The positive factor every reward is divided by (1.0 when unscaled).
+        self.scale: float = scale_factor(program, scale)
+        #: Per numeric input, how many values were clipped since the wrapper was made.
+        self.clipped_total: dict[str, int] = {}
+        self._timing = _Timing(self.automaton, dt)
+        self._timing.check(env)
 
     def _snapshot(self) -> dict[str, Any]:
         ra = self.automaton
-        return {"location": ra.location, "rewards": dict(ra.rewards), "objective": ra.objective}
+        return {"location": ra.location, "rewards": dict(ra.rewards), "objective": ra.objective, "scale": self.scale}
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         """Reset the environment and the automaton."""
         obs, info = self.env.reset(seed=seed, options=options)
+        self._timing.check(self.env)
         self.automaton.reset()
         info = dict(info)
         info["rac"] = self._snapshot()
@@ -123,12 +274,122 @@ class RewardAutomatonWrapper(gymnasium.Wrapper):
         obs, env_reward, terminated, truncated, info = self.env.step(action)
         info = dict(info)
         try:
-            values = self.inputs(obs, info)
+            values = self.inputs(obs, info, self.env) if self._with_env else self.inputs(obs, info)
         except Exception as exc:  # the user's callable: say what it did and what state things are in
             raise ValueError(f"inputs(obs, info) raised {type(exc).__name__}: {exc}; the environment has taken "
                              "this step and the automaton has not: reset before the next step") from exc
+        clipped: dict[str, int] = {}
+        if self._specs is not None:
+            values, clipped = clip_inputs(self._specs, values)
+            for name, count in clipped.items():
+                self.clipped_total[name] = self.clipped_total.get(name, 0) + count
+        before = dict(self.automaton.rewards)
         reward = self.automaton.step(values)
         if terminated or truncated:
             reward += self.automaton.end(values)
-        info["rac"] = {**self._snapshot(), "env_reward": env_reward}
-        return obs, reward, terminated, truncated, info
+        info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped,
+                       "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
+        return obs, reward / self.scale, terminated, truncated, info
+
+
+class RewardAutomatonVectorWrapper(VectorWrapper):
+    """:class:`RewardAutomatonWrapper` for a vector environment: one
+    :class:`~rac.runtime.batch.BatchRewardAutomaton` steps the ``num_envs`` automata together.
+
+    Args:
+        env: a ``gymnasium.vector.VectorEnv`` whose ``metadata["autoreset_mode"]`` is
+            ``NEXT_STEP`` (gymnasium's default; other modes are refused): the step after a
+            sub-environment's episode ended resets it, so that step resets its automaton and its
+            reward is 0.
+        automaton: a `.ra` path, an :class:`rac.ir.Automaton` or a
+            :class:`~rac.runtime.interpreter.RewardAutomaton` (its IR is batched).
+        inputs: ``inputs(obs, infos) -> {input name: array of shape (num_envs,)}`` (scalars
+            broadcast), or ``inputs(obs, infos, env)`` with the vector environment. Rows of
+            sub-environments being reset are not read.
+        clip, scale, dt: as for :class:`RewardAutomatonWrapper` (``dt``: the sub-environments' step).
+
+    ``infos["rac"]`` holds, per sub-environment (vector-info layout, ``infos["_rac"]`` the mask):
+    ``location``, ``objective``, ``scale``, ``env_reward``, and dicts ``rewards``,
+    ``reward_steps`` and ``clipped`` of arrays. The ``at end`` clauses apply where a
+    sub-environment terminated or was truncated.
+    """
+
+    def __init__(self, env: VectorEnv, automaton: str | os.PathLike[str] | ir.Automaton | RewardAutomaton,
+                 inputs: InputFn, *, clip: bool = False, scale: Scale = None, dt: float | None = None) -> None:
+        super().__init__(env)
+        mode = env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
+        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.NEXT_STEP.value):
+            raise ValueError(f"RewardAutomatonVectorWrapper supports the autoreset mode NEXT_STEP only, not {mode!r}: "
+                             "make the vector environment with autoreset_mode=AutoresetMode.NEXT_STEP")
+        self._with_env = _takes_env(inputs, "(obs, infos) or (obs, infos, env)")
+        loaded = _load(automaton)
+        program = _ir_of(loaded)
+        if program is None:
+            raise TypeError("the vector wrapper batches the automaton's IR: pass a .ra path, an ir.Automaton or "
+                            "a RewardAutomaton")
+        self.automaton: BatchRewardAutomaton = RewardAutomaton(program).batch(self.num_envs)
+        self.inputs = inputs
+        self._specs = _clipping(program, clip)
+        #: The positive factor every reward is divided by (1.0 when unscaled).
+        self.scale: float = scale_factor(program, scale)
+        #: Per numeric input, how many values were clipped since the wrapper was made.
+        self.clipped_total: dict[str, int] = {}
+        self._resetting = np.zeros(self.num_envs, dtype=bool)
+        self._timing = _Timing(self.automaton, dt)
+        self._timing.check(self._first_env())
+
+    def _first_env(self) -> object:
+        """The first sub-environment when the vector environment holds them (SyncVectorEnv), for its timing."""
+        envs = getattr(self.env.unwrapped, "envs", None)
+        return envs[0] if envs else self.env
+
+    def _info(self, infos: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
+        ra, n = self.automaton, self.num_envs
+        infos = dict(infos)
+        infos["rac"] = {"location": np.array(ra.location_names(), dtype=object), "rewards": ra.rewards,
+                        "objective": ra.objective, "scale": np.full(n, self.scale), **extra}
+        infos["_rac"] = np.ones(n, dtype=bool)
+        return infos
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset every sub-environment and automaton."""
+        obs, infos = self.env.reset(seed=seed, options=options)
+        self._timing.check(self._first_env())
+        self.automaton.reset()
+        self._resetting[:] = False
+        return obs, self._info(infos, {})
+
+    def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
+        """Step every sub-environment; the rewards are the automata's (0 on a sub-environment's reset step)."""
+        obs, env_rewards, terminated, truncated, infos = self.env.step(actions)
+        resetting = self._resetting
+        if resetting.any():
+            self.automaton.reset(resetting)
+        active = ~resetting
+        try:
+            values = self.inputs(obs, infos, self.env) if self._with_env else self.inputs(obs, infos)
+        except Exception as exc:
+            raise ValueError(f"inputs(obs, infos) raised {type(exc).__name__}: {exc}; the environments have taken "
+                             "this step and the automata have not: reset before the next step") from exc
+        clipped: dict[str, np.ndarray] = {}
+        if self._specs is not None:
+            raw = values
+            values, counts = clip_inputs(self._specs, values, active)
+            for name, count in counts.items():
+                self.clipped_total[name] = self.clipped_total.get(name, 0) + count
+                # per sub-environment: where the value changed (the rule itself is clip_inputs')
+                before = np.broadcast_to(np.asarray(raw[name], dtype=np.float64), (self.num_envs,))
+                after = np.broadcast_to(np.asarray(values[name], dtype=np.float64), (self.num_envs,))
+                clipped[name] = ((before != after) & active).astype(np.int64)
+        previous = self.automaton.rewards
+        rewards = self.automaton.step_batch(values, mask=active)
+        done = (np.asarray(terminated) | np.asarray(truncated)) & active
+        if done.any():
+            rewards = rewards + self.automaton.end_batch(values, mask=done)
+        self._resetting = done
+        now = self.automaton.rewards
+        steps = {k: np.where(active, v - previous[k], 0.0) for k, v in now.items()}
+        infos = self._info(infos, {"env_reward": np.asarray(env_rewards, dtype=np.float64), "clipped": clipped,
+                                   "reward_steps": steps})
+        return obs, rewards / self.scale, terminated, truncated, infos

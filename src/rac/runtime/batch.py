@@ -20,6 +20,7 @@ from rac.runtime.semantics import (
     assume_checks,
     check_automaton,
     check_mapping,
+    clip_inputs,
     float_linear,
     input_specs,
     key_error,
@@ -223,6 +224,8 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._held: dict[str, np.ndarray] = {name: np.zeros(n) for name in self._held_names}
         self._first = np.ones(n, dtype=bool)
         self._any_first = True
+        #: Per numeric input, how many values the last ``step_batch``/``end_batch`` with ``clip=True`` clipped.
+        self.clipped: dict[str, int] = {}
 
     def _compile_updates(self, updates: Sequence[ir.Assignment]) -> list[tuple[int, FloatLinear]]:
         return [(self._index[a.reward], float_linear(a.value, "update")) for a in updates]
@@ -395,14 +398,23 @@ class BatchRewardAutomaton(AutomatonDescription):
         R, index = self._R, self._index
         return _eval_np_linear(self._objective_form, lambda name: R[index[name]], self._n)
 
+    def _clip(self, inputs: Mapping[str, object], clip: bool, rows: np.ndarray | None) -> Mapping[str, object]:
+        if not clip:
+            return inputs
+        check_mapping(inputs)
+        inputs, self.clipped = clip_inputs(self._specs, inputs, rows)
+        return inputs
+
     def step_batch(self, inputs: Mapping[str, object],
-                   mask: np.ndarray | Sequence[bool] | None = None) -> np.ndarray:
+                   mask: np.ndarray | Sequence[bool] | None = None, *, clip: bool = False) -> np.ndarray:
         """One sample for every automaton, or for those where ``mask`` is true; returns each one's
         objective increase (float64, (n,); 0.0 where unmasked).
 
         As in :meth:`end_batch`, inputs are validated on the masked automata only, and the
-        unmasked ones keep their state (they may have ended)."""
+        unmasked ones keep their state (they may have ended). ``clip``: numeric values outside their
+        range are clipped first on the masked automata (NaN refused), :attr:`clipped` counts them per input."""
         only = None if mask is None else self._mask(mask)
+        inputs = self._clip(inputs, clip, only)
         ended = self._ended if only is None else self._ended & only
         if self._n_ended and ended.any():
             raise RuntimeError(f"{ENDED_MESSAGE} (automata {np.flatnonzero(ended)[:10].tolist()} have ended)")
@@ -496,12 +508,14 @@ class BatchRewardAutomaton(AutomatonDescription):
         return reward
 
     def end_batch(self, inputs: Mapping[str, object],
-                  mask: np.ndarray | Sequence[bool] | None = None) -> np.ndarray:
+                  mask: np.ndarray | Sequence[bool] | None = None, *, clip: bool = False) -> np.ndarray:
         """End the runs where ``mask`` is true (all when ``None``); returns their objective increase.
 
-        Inputs are validated on the masked automata only; unmasked ones get reward 0.0.
+        Inputs are validated on the masked automata only; unmasked ones get reward 0.0. ``clip`` as
+        in :meth:`step_batch`.
         """
         m = np.ones(self._n, dtype=bool) if mask is None else self._mask(mask)
+        inputs = self._clip(inputs, clip, m)
         if (self._ended & m).any():
             raise RuntimeError(f"{ENDED_MESSAGE} (automata {np.flatnonzero(self._ended & m)[:10].tolist()})")
         x = self._read(inputs, m)

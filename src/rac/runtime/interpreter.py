@@ -43,6 +43,7 @@ from rac.runtime.semantics import (
     boolean_input,
     check_automaton,
     check_mapping,
+    clip_inputs,
     float_linear,
     input_specs,
     key_error,
@@ -149,6 +150,8 @@ class RewardAutomaton(AutomatonDescription):
         self._assume = tuple((_compile_guard(check.guard), check) for check in assume_checks(automaton))
         self._objective_fn = _compile_linear(float_linear(automaton.objective, "objective"), index)
         self._initial_objective = self._objective_fn([0.0] * len(automaton.rewards), {})
+        #: Per numeric input, how many values the last ``step``/``end`` with ``clip=True`` clipped.
+        self.clipped: dict[str, int] = {}
         self.reset()
 
     # -------------------------------------------------------- description
@@ -233,11 +236,22 @@ class RewardAutomaton(AutomatonDescription):
         self._objective = objective
         return reward
 
-    def step(self, inputs: Mapping[str, object]) -> float:
-        """Take one sample with ``inputs``; return the objective's increase."""
+    def _clip(self, inputs: Mapping[str, object], clip: bool) -> Mapping[str, object]:
+        if not clip:
+            return inputs
+        check_mapping(inputs)
+        inputs, self.clipped = clip_inputs(self._specs, inputs)
+        return inputs
+
+    def step(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
+        """Take one sample with ``inputs``; return the objective's increase.
+
+        ``clip``: numeric values outside their declared range are clipped to it first
+        (:func:`rac.runtime.semantics.clip_inputs`; NaN is refused), and :attr:`clipped` counts them.
+        """
         if self._ended:
             raise RuntimeError(ENDED_MESSAGE)
-        x = self._read(inputs)
+        x = self._read(self._clip(inputs, clip))
         held = x if self._held is None else self._held
         r = self._r
         for i, rate in self._rates[self._loc]:
@@ -252,11 +266,13 @@ class RewardAutomaton(AutomatonDescription):
         self._samples += 1
         return self._increase(x)
 
-    def end(self, inputs: Mapping[str, object]) -> float:
-        """End the run with the final ``inputs`` (applies ``at end`` clauses); return the increase."""
+    def end(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
+        """End the run with the final ``inputs`` (applies ``at end`` clauses); return the increase.
+
+        ``clip`` as in :meth:`step`."""
         if self._ended:
             raise RuntimeError(ENDED_MESSAGE)
-        x = self._read(inputs)
+        x = self._read(self._clip(inputs, clip))
         r = self._r
         for guard, updates in self._end_clauses:
             if guard(x):

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
+import numpy as np
+
 from rac import ir
 
 #: ``(float(const), ((float(coefficient), name), ...))`` — a Linear as every target evaluates it.
@@ -218,6 +220,52 @@ def number_input(name: str, raw: object) -> float:
         return float(raw)
     except OverflowError:
         raise ValueError(f"input {name!r} = {raw!r} is too large for a float") from None
+
+
+def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
+                rows: np.ndarray | None = None) -> tuple[dict[str, object], dict[str, int]]:
+    """``inputs`` with every numeric value outside its declared range clipped to it, and how many
+    values of each numeric input were clipped.
+
+    Works on scalars and on arrays (a batch's columns; ``rows``: only those are clipped and counted).
+    NaN is never clipped (it is no value on either side of a range): ``ValueError`` naming the input.
+    What is not a real number, and booleans, are left for validation to report.
+    """
+    out = dict(inputs)
+    counts: dict[str, int] = {}
+    for spec in specs:
+        if spec.is_bool or spec.name not in inputs:
+            continue
+        raw = inputs[spec.name]
+        if isinstance(raw, numbers.Real) and type(raw).__name__ not in ("bool", "bool_"):
+            try:
+                value = float(raw)
+            except OverflowError:
+                continue  # validation says it is too large for a float
+            if math.isnan(value):
+                raise ValueError(f"input {spec.name!r} is NaN, which is never clipped")
+            clipped = min(max(value, spec.low), spec.high)
+            counts[spec.name] = int(clipped != value)
+            if clipped != value:
+                out[spec.name] = clipped
+            continue
+        array = np.asarray(raw)
+        if array.dtype.kind not in "iuf":
+            continue
+        column = array.astype(np.float64)
+        nan = np.isnan(column) if rows is None else np.isnan(column) & rows
+        if nan.any():
+            where = "" if column.ndim == 0 else f"[{int(np.flatnonzero(nan)[0])}]"
+            raise ValueError(f"input {spec.name!r}{where} is NaN, which is never clipped")
+        bounded = np.clip(column, spec.low, spec.high)
+        moved = bounded != column
+        if rows is not None:  # rows outside are neither read nor counted (NaN there is no one's business)
+            bounded = np.where(rows, bounded, column)
+            moved &= rows
+        counts[spec.name] = int(moved.sum())
+        if counts[spec.name]:
+            out[spec.name] = bounded
+    return out, counts
 
 
 def key_error(inputs: Mapping[str, object], names: Sequence[str]) -> ValueError:

@@ -1,0 +1,73 @@
+"""What a deep-RL training loop records about the reward automaton, with no RL library needed.
+
+:class:`TrainingLog` is fed the ``infos`` of each vector step (a list of per-env info dicts, as
+stable-baselines3 hands them to callbacks) and aggregates, until :meth:`TrainingLog.record`:
+
+- ``rac/reward/<name>``: each reward's mean change per step (``info["rac"]["reward_steps"]``);
+- ``rac/location/<name>``: the share of steps that ended in each automaton location;
+- ``rac/shield/<guarantee>``: the share of steps per shield guarantee (``info["shield"]`` of
+  :class:`~rac.learning.scenario_env.ScenarioEnv`: ``"exhaustive"``, ``"lookahead d"``, ``"none"``),
+  and ``rac/shield/no_safe_action`` (steps with ``info["no_safe_action"]``);
+- ``rac/collisions``: steps with a collision (``info["collided"]`` in ScenarioEnv,
+  ``info["crashed"]`` in highway-env);
+- ``rac/clipped/<input>``: values clipped (``info["rac"]["clipped"]``).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+__all__ = ["TrainingLog"]
+
+
+class TrainingLog:
+    """Aggregates the wrapper's and the scenario environment's infos between two :meth:`record` calls."""
+
+    def __init__(self) -> None:
+        self._clear()
+
+    def _clear(self) -> None:
+        self.steps = 0
+        self._reward: dict[str, float] = {}
+        self._location: Counter[str] = Counter()
+        self._shield: Counter[str] = Counter()
+        self._clipped: Counter[str] = Counter()
+        self._no_safe = 0
+        self._collisions = 0
+        self._rac_steps = 0
+
+    def add(self, infos: Iterable[Mapping[str, Any]]) -> None:
+        """One vector step: the info dict of every sub-environment."""
+        for info in infos:
+            self.steps += 1
+            rac = info.get("rac")
+            if isinstance(rac, Mapping):
+                self._rac_steps += 1
+                for name, change in rac.get("reward_steps", {}).items():
+                    self._reward[name] = self._reward.get(name, 0.0) + float(change)
+                if "location" in rac:
+                    self._location[str(rac["location"])] += 1
+                for name, count in rac.get("clipped", {}).items():
+                    self._clipped[name] += int(count)
+            if "shield" in info:
+                self._shield[str(info["shield"])] += 1
+            self._no_safe += bool(info.get("no_safe_action", False))
+            self._collisions += bool(info.get("collided", False) or info.get("crashed", False))
+
+    def record(self) -> dict[str, float]:
+        """The values to log since the last call (then cleared); ``{}`` when no step was added."""
+        if not self.steps:
+            return {}
+        out: dict[str, float] = {}
+        if self._rac_steps:
+            out.update({f"rac/reward/{k}": v / self._rac_steps for k, v in self._reward.items()})
+            out.update({f"rac/location/{k}": v / self._rac_steps for k, v in self._location.items()})
+            out.update({f"rac/clipped/{k}": float(v) for k, v in self._clipped.items()})
+        if self._shield:
+            out.update({f"rac/shield/{k}": v / self.steps for k, v in self._shield.items()})
+            out["rac/shield/no_safe_action"] = float(self._no_safe)
+        out["rac/collisions"] = float(self._collisions)
+        self._clear()
+        return out

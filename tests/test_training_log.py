@@ -1,0 +1,59 @@
+"""TrainingLog (no RL library) and the stable-baselines3 RacCallback on a real PPO run."""
+
+from __future__ import annotations
+
+import csv
+import importlib
+import sys
+from pathlib import Path
+
+import pytest
+from gymnasium.wrappers import TimeLimit
+from highway_like import HighwayLike, follow, inputs
+
+from rac.learning.training_log import TrainingLog
+from rac.learning.wrappers import RewardAutomatonWrapper
+
+
+def info(location: str, sa: float, **extra: object) -> dict[str, object]:
+    return {"rac": {"location": location, "reward_steps": {"sa": sa, "pr": 1.0}, "clipped": {"x": 1}}, **extra}
+
+
+def test_the_log_aggregates_and_clears() -> None:
+    log = TrainingLog()
+    assert log.record() == {}
+    log.add([info("Safe", 1.0, shield="exhaustive", collided=False),
+             info("Unsafe", -10.0, shield="lookahead 3", no_safe_action=True)])
+    log.add([info("Safe", 2.0, shield="exhaustive", crashed=True), {"shield": "none", "collided": True}])
+    assert log.record() == {
+        "rac/reward/sa": (1.0 - 10.0 + 2.0) / 3, "rac/reward/pr": 1.0,
+        "rac/location/Safe": 2 / 3, "rac/location/Unsafe": 1 / 3, "rac/clipped/x": 3.0,
+        "rac/shield/exhaustive": 2 / 4, "rac/shield/lookahead 3": 1 / 4, "rac/shield/none": 1 / 4,
+        "rac/shield/no_safe_action": 1.0, "rac/collisions": 2.0}
+    assert log.record() == {}
+
+
+def test_the_callback_records_with_a_real_ppo(tmp_path: Path) -> None:
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import configure
+
+    from rac.learning.sb3 import RacCallback
+
+    env = RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True, scale="proven")
+    model = PPO("MlpPolicy", env, n_steps=128, batch_size=64, n_epochs=1, seed=0, device="cpu")
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    model.learn(256, callback=RacCallback())
+    with open(tmp_path / "progress.csv", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert rows, "nothing was logged"
+    keys = set(rows[0])
+    assert {"rac/reward/sa", "rac/reward/pr", "rac/location/Safe", "rac/collisions"} <= keys
+    assert all(0.0 <= float(row["rac/location/Safe"] or 0) <= 1.0 for row in rows)
+
+
+def test_without_stable_baselines3_the_import_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "stable_baselines3.common.callbacks", None)  # as if not installed
+    monkeypatch.delitem(sys.modules, "rac.learning.sb3", raising=False)
+    with pytest.raises(ImportError, match=r"pip install 'rac\[rl\]'"):
+        importlib.import_module("rac.learning.sb3")

@@ -1,0 +1,155 @@
+"""RewardAutomatonWrapper and RewardAutomatonVectorWrapper on a small highway-like environment."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from gymnasium.vector import AutoresetMode, SyncVectorEnv
+from gymnasium.wrappers import TimeLimit
+from highway_like import HighwayLike, follow, inputs, vector_inputs
+
+from rac.check.analysis.scale import sample_change_bound
+from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper, env_timing
+
+ENV_ID = "rac-test/HighwayLike-v0"
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(ENV_ID, entry_point=HighwayLike, max_episode_steps=30)
+
+
+def wrapped(**kwargs: Any) -> RewardAutomatonWrapper:
+    return RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, clip=True, **kwargs)
+
+
+def test_check_env_and_make_from_the_spec() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)  # the timing matches: no warning
+        env = wrapped(scale="proven")
+    check_env(env, skip_render_check=True)
+    remade = gymnasium.make(env.spec)
+    assert isinstance(remade, RewardAutomatonWrapper) and remade.scale == env.scale
+    a, b = env.reset(seed=4), remade.reset(seed=4)
+    assert a[0].tolist() == b[0].tolist()
+    assert [env.step(2)[1] for _ in range(5)] == [remade.step(2)[1] for _ in range(5)]
+
+
+def test_the_inputs_may_read_the_environment() -> None:
+    seen = []
+
+    def three(obs: Any, info: dict[str, Any], env: gymnasium.Env) -> dict[str, object]:
+        seen.append(env.unwrapped.road)  # type: ignore[attr-defined]
+        return inputs(obs, info)
+
+    env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), three, clip=True)
+    env.reset(seed=0)
+    env.step(1)
+    assert seen == ["the road"]
+
+
+def test_out_of_range_inputs_are_clipped_and_counted_and_nan_refused() -> None:
+    env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs)
+    env.reset(seed=1)
+    env.unwrapped.gap = 40.0  # type: ignore[attr-defined]
+    with pytest.raises(ValueError, match=r"input 'headway' = 3\d\.\d+ is outside \[0.0, 10.0\]"):
+        env.step(1)
+    env = wrapped()
+    env.reset(seed=1)
+    env.unwrapped.gap = 40.0  # type: ignore[attr-defined]
+    info = env.step(1)[4]
+    assert info["rac"]["clipped"] == {"headway": 1} and env.clipped_total == {"headway": 1}
+    env.unwrapped.gap = 5.0  # type: ignore[attr-defined]
+    info = env.step(1)[4]
+    assert info["rac"]["clipped"] == {"headway": 0} and env.clipped_total == {"headway": 1}
+    nan = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), lambda o, i: {"headway": math.nan,
+                                                                                   "collide": False}, clip=True)
+    nan.reset(seed=0)
+    with pytest.raises(ValueError, match="'headway' is NaN"):
+        nan.step(1)
+
+
+def test_proven_scale_keeps_every_reward_within_one_and_reports_the_steps() -> None:
+    bound = sample_change_bound(follow())
+    env, raw = wrapped(scale="proven"), wrapped()
+    # a collision in Unsafe: 10 * (-0.1 - 20); the end bonus 5
+    assert env.scale == float(bound.per_sample + bound.at_end) == 201 + 5
+    for seed in range(5):
+        env.reset(seed=seed)
+        raw.reset(seed=seed)
+        done = False
+        while not done:
+            action = seed % 3
+            _, reward, terminated, truncated, info = env.step(action)
+            _, unscaled, *_, raw_info = raw.step(action)
+            assert -1.0 <= float(reward) <= 1.0
+            assert reward == unscaled / env.scale and info["rac"]["scale"] == env.scale
+            steps = info["rac"]["reward_steps"]
+            assert sum(c * steps[r] for r, c in (("sa", 10), ("pr", 1))) == pytest.approx(unscaled)
+            done = terminated or truncated
+    assert wrapped(scale=20.0).scale == 20.0
+    for bad in (0, -1.0, "big", math.inf):
+        with pytest.raises(ValueError, match="scale"):
+            wrapped(scale=bad)
+
+
+def test_timing_warnings_name_both_numbers() -> None:
+    with pytest.warns(UserWarning, match=r"time step is 0.5 s but the automaton samples every 0.1 s.*priority proofs"):
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=0.5), 6), follow(), inputs)
+    with pytest.warns(UserWarning, match=r"episode lasts 5 s \(50 steps of 0.1 s\) but the automaton's horizon is 3 s"):
+        RewardAutomatonWrapper(gymnasium.make(ENV_ID, max_episode_steps=50), follow(), inputs)
+    with pytest.warns(UserWarning, match="time step is 0.25 s"):
+        RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, dt=0.25)
+
+
+def test_highway_env_timing_is_read_from_its_config() -> None:
+    class Highway:
+        config = {"policy_frequency": 5, "duration": 40}
+
+    assert env_timing(Highway()) == (0.2, 40.0)
+    assert env_timing(object()) == (None, None)
+
+
+def test_the_vector_wrapper_equals_single_wrappers_over_whole_episodes() -> None:
+    n, seed = 3, 7
+    vector = RewardAutomatonVectorWrapper(
+        SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30) for _ in range(n)]), follow(), vector_inputs,
+        clip=True, scale="proven")
+    singles = [RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True, scale="proven")
+               for _ in range(n)]
+    vector.reset(seed=seed)
+    for i, single in enumerate(singles):
+        single.reset(seed=seed + i)
+    rng = np.random.default_rng(0)
+    resetting = [False] * n
+    episodes = 0
+    for _ in range(120):
+        actions = rng.integers(0, 3, n)
+        _, rewards, terminated, truncated, infos = vector.step(actions)
+        assert infos["_rac"].all()
+        for i, single in enumerate(singles):
+            if resetting[i]:
+                single.reset()
+                assert rewards[i] == 0.0 and infos["rac"]["location"][i] == "Safe"
+                resetting[i] = False
+                continue
+            _, reward, term, trunc, info = single.step(int(actions[i]))
+            assert rewards[i] == reward
+            assert (term, trunc) == (terminated[i], truncated[i])
+            assert infos["rac"]["location"][i] == info["rac"]["location"]
+            assert infos["rac"]["reward_steps"]["sa"][i] == info["rac"]["reward_steps"]["sa"]
+            assert infos["rac"]["clipped"]["headway"][i] == info["rac"]["clipped"]["headway"]
+            if term or trunc:
+                resetting[i] = True
+                episodes += 1
+    assert episodes >= n  # whole episodes, with autoreset
+    assert vector.clipped_total == {"headway": sum(s.clipped_total.get("headway", 0) for s in singles)}
+
+
+def test_the_vector_wrapper_refuses_other_autoreset_modes() -> None:
+    env = SyncVectorEnv([HighwayLike], autoreset_mode=AutoresetMode.SAME_STEP)
+    with pytest.raises(ValueError, match="NEXT_STEP"):
+        RewardAutomatonVectorWrapper(env, follow(), vector_inputs)
