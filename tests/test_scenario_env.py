@@ -85,8 +85,9 @@ def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> 
     assert obs.tolist() == np.append(batch.ego[0] / scale, 0.0).astype(np.float32).tolist()
     assert info == {"location": "Normal", "rewards": {"sa": 0.0}, "objective": 0.0, "inputs": {"near": False},
                     "collided": False, "offroad": False, "goal": False, "time": 0.0,
-                    "scenario": tiny.automaton.model.scenario_path}  # type: ignore[union-attr]
+                    "scenario": tiny.automaton.model.scenario_path, "scale": 1.0}  # type: ignore[union-attr]
     rng = np.random.default_rng(1)
+    before = 0.0
     total, done = 0.0, False
     while not done:
         action = int(rng.integers(env.action_space.n))
@@ -100,6 +101,8 @@ def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> 
         assert info["location"] == tiny.automaton.location_names[batch.location[0]]  # type: ignore[union-attr]
         assert info["rewards"] == {"sa": batch.rewards["sa"][0]} and info["objective"] == batch.objective[0]
         assert info["inputs"] == {"near": bool(batch.inputs["near"][0])}
+        assert info["reward_steps"] == {"sa": info["rewards"]["sa"] - before}
+        before = info["rewards"]["sa"]
         assert env.observation_space.contains(obs)
         total += reward
         done = terminated or truncated
@@ -472,3 +475,77 @@ def test_record_video(highway_set: tuple[Path, list[Path]], tmp_path: Path) -> N
         done = terminated or truncated
     env.close()
     assert list((tmp_path / "videos").glob("*.mp4"))
+
+
+# ---------------------------------------------------------------- the proven reward scale (issue 21)
+#: Safety over progress on the highway scene, with rewards in the tens and a penalty of 100.
+CAREFUL_MODEL = """\
+automaton Careful {
+    input isClose : bool
+    input collide : bool
+    assume collide imply isClose
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 0.1
+    horizon 2
+    initial location Normal { sa' == 1; pr' == 1 }
+    location Unsafe { sa' == -1; pr' == 0 }
+    edge * -> Unsafe when isClose do sa = sa - 100
+    edge * -> Normal when !isClose
+    model {
+        scenario "highway.xml"
+        exponent 2
+        decide_period 0.5
+        granularity 0.25
+        max_speed 30
+        action jerk in [-2, 2] step 2
+        action turn in [-0.2, 0.2] step 0.2
+        bind isClose = mindist() < 3 * collision_distance
+        bind collide = collide()
+    }
+}
+"""
+
+
+def test_the_proven_scale_keeps_every_reward_within_one(highway_set: tuple[Path, list[Path]]) -> None:
+    """Rewards in the tens become rewards in [-1, 1], divided by one positive factor: the largest
+    change of the objective over one step (decide_every samples and ``at end``) that the checker proves."""
+    from rac.check.analysis.scale import sample_change_bound
+
+    model = highway_set[0].with_name("careful.ra")
+    model.write_text(CAREFUL_MODEL, encoding="utf-8")
+    scenes = highway_set[1]
+    plain = ScenarioEnv(model, scenarios=scenes, lookahead=None)
+    scaled = ScenarioEnv(model, scenarios=scenes, lookahead=None, scale="proven")
+    automaton = scaled.episodes.automaton
+    factor = float(sample_change_bound(automaton).step_bound(scaled.episodes.decide_every))
+    assert scaled.reward_scale == factor > 1 and plain.reward_scale == 1.0
+    rng = np.random.default_rng(0)
+    largest = 0.0
+    for episode in range(6):
+        plain.reset(seed=episode)
+        _, info = scaled.reset(seed=episode)
+        assert info["scale"] == factor
+        done = False
+        while not done:
+            action = int(rng.integers(plain.action_space.n))
+            _, raw, *_ = plain.step(action)
+            _, reward, terminated, truncated, info = scaled.step(action)
+            assert -1.0 <= float(reward) <= 1.0
+            assert float(reward) == pytest.approx(float(raw) / factor, rel=1e-12)
+            largest = max(largest, abs(float(raw)))
+            done = terminated or truncated
+    assert largest > 1.0  # the unscaled rewards would not have fitted
+
+
+def test_a_scale_for_a_reward_expression_is_the_users(tiny: CompileResult) -> None:
+    with pytest.raises(ValueError, match="proved for the automaton's reward"):
+        ScenarioEnv(tiny, reward="10 * !collide()", scale="proven")
+    plain = ScenarioEnv(tiny, reward="10 * !collide()")
+    scaled = ScenarioEnv(tiny, reward="10 * !collide()", scale=10.0)
+    plain.reset(seed=0)
+    scaled.reset(seed=0)
+    _, raw, *_ = plain.step(0)
+    _, reward, *_ = scaled.step(0)
+    assert float(raw) > 10 and float(reward) == pytest.approx(float(raw) / 10)

@@ -57,3 +57,25 @@ def test_without_stable_baselines3_the_import_says_what_to_install(monkeypatch: 
     monkeypatch.delitem(sys.modules, "rac.learning.sb3", raising=False)
     with pytest.raises(ImportError, match=r"pip install 'rac\[rl\]'"):
         importlib.import_module("rac.learning.sb3")
+
+
+def test_scenario_env_infos_are_logged_per_objective(tmp_path: Path) -> None:
+    """ScenarioEnv reports each reward's change over a step (``info["reward_steps"]``) and its
+    location: the log averages them as it does the wrapper's ``info["rac"]``."""
+    from engine_files import write_engine_file
+
+    from rac.learning.scenario_env import ScenarioEnv
+
+    env = ScenarioEnv(write_engine_file(tmp_path, "avoidable_obstacle", queries={}), lookahead=None)
+    log = TrainingLog()
+    _, info = env.reset(seed=0)
+    start = dict(info["rewards"])
+    steps = []
+    for action in (0, 1, 2, 3):
+        _, _, _, _, info = env.step(action)
+        steps.append(info)
+    log.add(steps)
+    recorded = log.record()
+    for name, value in info["rewards"].items():
+        assert recorded[f"rac/reward/{name}"] == pytest.approx((value - start[name]) / 4)
+    assert sum(v for k, v in recorded.items() if k.startswith("rac/location/")) == pytest.approx(1.0)

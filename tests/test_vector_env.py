@@ -291,3 +291,19 @@ def test_the_benchmark_runs(tmp_path: Path) -> None:
     assert [(name.strip(), int(n)) for name, n in rows] == [("ScenarioEnv", 1)] + [
         ("ScenarioVectorEnv", n) for n in (1, 16, 64, 256)]
     assert "64 episodes: " in text and ("met" in text.splitlines()[-1])
+
+
+def test_the_vector_env_scales_as_scenario_env(near: CompileResult) -> None:
+    plain = ScenarioVectorEnv(near, num_envs=3)
+    scaled = ScenarioVectorEnv(near, num_envs=3, scale=4.0)
+    plain.reset(seed=0)
+    _, info = scaled.reset(seed=0)
+    assert (info["scale"] == 4.0).all()
+    nonzero = 0
+    for step in range(8):
+        actions = np.full(3, step % plain.single_action_space.n)
+        raw = plain.step(actions)[1]
+        reward = scaled.step(actions)[1]
+        assert np.allclose(reward, raw / 4.0)
+        nonzero += int((raw != 0).sum())
+    assert nonzero > 0

@@ -5,8 +5,8 @@ Two agents learn to drive through a set of built highway scenes and are evaluate
 
   shield + automaton   sb3-contrib's MaskablePPO, its actions masked by the runtime shield
                        (rac.engine.lookahead), rewarded by driving.ra's automaton (safety > progress >
-                       comfort, P1 and P2 proved by ``rac check``), scaled so a sample's reward lies in
-                       [-1, 1]
+                       comfort, P1 and P2 proved by ``rac check``), ``scale="proven"``: every step's
+                       reward in [-1, 1]
   no shield + Eq. 9    stable-baselines3's PPO, every action allowed, rewarded by the paper's weighted
                        reward function (Eq. 9: ``10*!isClose + (5 + 100*goal())*prog + comf``), scaled
                        the same way
@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium
-import numpy as np
 
 HERE = Path(__file__).resolve().parent
 MODEL = HERE / "driving.ra"
@@ -68,29 +67,9 @@ def build_scenes(folder: Path, train: int, held_out: int) -> tuple[list[Path], l
     return write(train, 0, folder / "train"), write(held_out, HELD_OUT_SEED, folder / "held_out")
 
 
-def reward_scale(reward: str) -> float:
-    """What a sample's reward is divided by so that it lies in [-1, 1]: the largest change of the
-    objective in one sample (the penalty of 100 in ``sa``, weighted 10, and the collision's 100 on
-    top) for the automaton, Eq. 9's largest value otherwise.
-
-    A stand-in for the proven scale (``ScenarioEnv(scale="proven")``), written out by hand from
-    driving.ra until rac derives it."""
-    return 10 * 200.0 + 5 + 1 if reward == "automaton" else 10 + 105 + 1
-
-
-class Scaled(gymnasium.RewardWrapper):
-    """The environment's reward divided by ``scale`` (``action_masks`` passes through)."""
-
-    def __init__(self, env: gymnasium.Env, scale: float) -> None:
-        super().__init__(env)
-        self.scale = scale
-
-    def reward(self, reward: Any) -> float:
-        return float(reward) / self.scale
-
-    def action_masks(self) -> np.ndarray:
-        """The wrapped environment's mask (MaskablePPO asks every environment of the vector env)."""
-        return self.env.unwrapped.action_masks()  # type: ignore[attr-defined, no-any-return]
+#: Eq. 9's largest value over one step (5 samples of at most 10 + 105 + 1): its rewards are divided by it,
+#: so they lie in [-1, 1] like the automaton's under ``scale="proven"`` (which rac proves; Eq. 9 has no proof).
+EQ9_SCALE = 5 * (10 + 105 + 1)
 
 
 def make_env(scenes: Sequence[Path], config: str, depth: int, nodes: int) -> gymnasium.Env:
@@ -102,8 +81,11 @@ def make_env(scenes: Sequence[Path], config: str, depth: int, nodes: int) -> gym
     shielded, reward = CONFIGS[config]
     # a budget of search nodes, not seconds: the same masks however loaded the machine is
     lookahead = LookaheadSettings(depth=depth, seconds=None, nodes=nodes) if shielded else None
-    env = ScenarioEnv(MODEL, scenarios=scenes, lookahead=lookahead, reward=reward, observation="relative")
-    return Scaled(env, reward_scale(reward))
+    # the automaton's rewards divided by the largest change of its objective over one step that
+    # rac check proves: every reward in [-1, 1], and the priority proofs still hold (a positive factor)
+    scale: float | str = "proven" if reward == "automaton" else EQ9_SCALE
+    return ScenarioEnv(MODEL, scenarios=scenes, lookahead=lookahead, reward=reward, observation="relative",
+                       scale=scale)
 
 
 @dataclass

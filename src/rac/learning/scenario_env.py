@@ -36,6 +36,7 @@ import numpy as np
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.learning.observation import Observation, make_observation
+from rac.learning.wrappers import Scale, scale_factor
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -162,6 +163,11 @@ class ScenarioEnv(gymnasium.Env):
         render_mode: None, ``"ansi"`` (:meth:`render` returns one line of text) or ``"rgb_array"``
             (an ``(H, W, 3)`` uint8 picture of the scene now: road, obstacles, ego;
             :class:`rac.output.render.SceneFrames`).
+        scale: None (default: rewards as the automaton gives them), ``"proven"`` (divided by the
+            largest change of the objective over one step that ``rac check``'s analysis proves,
+            :func:`rac.check.analysis.scale.sample_change_bound`: every reward in [-1, 1], and the
+            priority proofs still hold, a positive factor) or a positive number of your own (the
+            only choice for a reward expression); the factor is :attr:`reward_scale` and ``info["scale"]``.
         observation: what the agent observes, a kind of :mod:`rac.learning.observation`:
             ``"relative"`` (default; the ego against its lane, the road, the goal and the nearest
             obstacles) or ``"ego"`` (the sensed ego state and the time, in the scene's coordinates).
@@ -190,7 +196,9 @@ class ScenarioEnv(gymnasium.Env):
     was in the mask). Counted since construction: :attr:`shield_steps` (steps per ``shield``
     value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`.
 
-    ``info["scenario"]``: the scene's file.
+    ``info["scenario"]``: the scene's file; ``info["scale"]``: :attr:`reward_scale`. After :meth:`step`,
+    ``info["reward_steps"]``: each reward's change over the step (unscaled), as
+    :class:`rac.learning.wrappers.RewardAutomatonWrapper` reports it in ``info["rac"]``.
 
     The model is deterministic: with one scene, ``reset(seed=...)`` only seeds :attr:`np_random`
     (for wrappers and agents that draw from it) and every episode starts from the same state. With
@@ -205,7 +213,8 @@ class ScenarioEnv(gymnasium.Env):
                  lookahead: LookaheadSettings | int | Literal["auto"] | None = "auto",
                  reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
                  render_mode: str | None = None, observation: str = "relative",
-                 scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | None = None) -> None:
+                 scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | None = None,
+                 scale: Scale = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, not {render_mode!r}")
         self._template: tuple[Path, str] | None = None
@@ -260,6 +269,12 @@ class ScenarioEnv(gymnasium.Env):
         self._scale = float(data.scale)
         self._period = float(data.period)
         self._names = automaton.location_names
+        if reward != "automaton" and isinstance(scale, str):
+            raise ValueError(f"scale={scale!r} is proved for the automaton's reward; for a reward expression give "
+                             "your own positive factor (scale=<number>)")
+        #: What every reward is divided by (1.0 unscaled; ``info["scale"]``): with ``scale="proven"``
+        #: the largest change of the objective over one step (:func:`rac.learning.wrappers.scale_factor`).
+        self.reward_scale = scale_factor(automaton, scale, samples=self.episodes.decide_every)
         self.observation_space = self.observation.space
         self.action_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(self.episodes.n_actions)
         self._last: dict[str, bool] = {}
@@ -342,7 +357,8 @@ class ScenarioEnv(gymnasium.Env):
         return {"location": self._names[int(episodes.location[0])],
                 "rewards": {name: float(values[0]) for name, values in episodes.rewards.items()},
                 "objective": float(episodes.objective[0]), "inputs": inputs, **self._last,
-                "time": float(episodes.k[0] * self._period), "scenario": str(self.scenarios[self._index])}
+                "time": float(episodes.k[0] * self._period), "scenario": str(self.scenarios[self._index]),
+                "scale": self.reward_scale}
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
@@ -395,6 +411,7 @@ class ScenarioEnv(gymnasium.Env):
             unseen = False
         except UnseenState:  # unseen="error" raises from action_masks(); the step itself goes on
             decision, unseen = None, True
+        before = self.episodes.rewards
         out = self.episodes.step(np.array([int(action)]))
         terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])
         self._last = {"collided": bool(out.collided[0]), "offroad": bool(out.offroad[0]), "goal": terminated}
@@ -412,7 +429,10 @@ class ScenarioEnv(gymnasium.Env):
         self.shield_steps[shield["shield"]] += 1
         self.no_safe_action_steps += shield["no_safe_action"]
         self.timeout_steps += shield["shield_timeout"]
-        return self._obs(), float(out.reward[0]), terminated, truncated, {**self._info(), **shield}
+        info = self._info()
+        # each reward's change over the step, unscaled (what a training log averages per objective)
+        info["reward_steps"] = {name: value - float(before[name][0]) for name, value in info["rewards"].items()}
+        return self._obs(), float(out.reward[0]) / self.reward_scale, terminated, truncated, {**info, **shield}
 
     def action_masks(self) -> np.ndarray:
         """``(P,)`` bool: the actions the shield allows in the current state (all without a shield);

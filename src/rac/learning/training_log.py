@@ -3,7 +3,8 @@
 :class:`TrainingLog` is fed the ``infos`` of each vector step (a list of per-env info dicts, as
 stable-baselines3 hands them to callbacks) and aggregates, until :meth:`TrainingLog.record`:
 
-- ``rac/reward/<name>``: each reward's mean change per step (``info["rac"]["reward_steps"]``);
+- ``rac/reward/<name>``: each reward's mean change per step (``info["rac"]["reward_steps"]`` of the
+  wrapper, ``info["reward_steps"]`` of ScenarioEnv);
 - ``rac/location/<name>``: the share of steps that ended in each automaton location;
 - ``rac/shield/<guarantee>``: the share of steps per shield guarantee (``info["shield"]`` of
   :class:`~rac.learning.scenario_env.ScenarioEnv`: ``"exhaustive"``, ``"lookahead d"``, ``"none"``),
@@ -42,7 +43,8 @@ class TrainingLog:
         """One vector step: the info dict of every sub-environment."""
         for info in infos:
             self.steps += 1
-            rac = info.get("rac")
+            # the wrapper's keys are under info["rac"]; ScenarioEnv's (the same names) in info itself
+            rac = info.get("rac", info if "reward_steps" in info else None)
             if isinstance(rac, Mapping):
                 self._rac_steps += 1
                 for name, change in rac.get("reward_steps", {}).items():

@@ -33,6 +33,7 @@ from gymnasium.vector.utils import batch_space
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.learning.scenario_env import ScenarioEnv
+from rac.learning.wrappers import Scale
 
 if TYPE_CHECKING:
     from rac.compiler import CompileResult
@@ -49,7 +50,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     """``num_envs`` episodes of the scenario model stepped together (see the module docstring).
 
     Args: those of :class:`rac.learning.scenario_env.ScenarioEnv` (``model``, ``shield``, ``lookahead``,
-    ``reward``, ``horizon``, ``observation``; ``render_mode`` must be None: use
+    ``reward``, ``horizon``, ``observation``, ``scale``; ``render_mode`` must be None: use
     :func:`make_vector_env` for frames) and ``num_envs``, the number of episodes.
 
     Spaces: ``single_observation_space`` and ``single_action_space`` (``Discrete(P)``) are one
@@ -68,7 +69,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                  shield: str | os.PathLike[str] | ShieldTable | StepShield | None = None,
                  lookahead: LookaheadSettings | int | Literal["auto"] | None = "auto",
                  reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
-                 render_mode: str | None = None, observation: str = "relative") -> None:
+                 render_mode: str | None = None, observation: str = "relative", scale: Scale = None) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, not {num_envs!r}")
         if render_mode is not None:
@@ -77,7 +78,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         # One ScenarioEnv owns the arguments' meaning (model, shield, horizon, reward, observation);
         # its batch, reset to num_envs episodes, is this environment's.
         self._single = ScenarioEnv(model, shield=shield, lookahead=lookahead, reward=reward, horizon=horizon,
-                                   observation=observation)
+                                   observation=observation, scale=scale)
         self.episodes = self._single.episodes
         self.num_envs = int(num_envs)
         #: What the agent observes (:mod:`rac.learning.observation`), read over the whole batch.
@@ -185,6 +186,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         if chosen.size and (chosen.min() < 0 or chosen.max() >= episodes.n_actions):
             raise ValueError(f"actions must be in [0, {episodes.n_actions}), got {chosen.min()}..{chosen.max()}")
         shield = self._shield_info(stepping, actions)  # the masks of the states the step leaves
+        before = episodes.rewards
         out = episodes.step(np.where(stepping, actions, 0))  # ended episodes are frozen: not moved
         restart = self._autoreset.copy()
         episodes.reset_rows(np.flatnonzero(restart))
@@ -197,7 +199,13 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                 self._decisions[row] = None
         self._autoreset = out.terminated | out.truncated
         info = self._info(np.ones(self.num_envs, dtype=bool), shield)
-        return (self.observation.observe(episodes), out.reward.copy(), out.terminated.copy(),
+        # each reward's change over the step, for the episodes that stepped (a restarted one reports its reset info)
+        if stepping.any():
+            after = episodes.rewards
+            changes = {name: np.where(stepping, after[name] - before[name], 0.0) for name in after}
+            info["reward_steps"] = {**changes, **{f"_{name}": stepping.copy() for name in changes}}
+            info["_reward_steps"] = stepping.copy()
+        return (self.observation.observe(episodes), out.reward / self._single.reward_scale, out.terminated.copy(),
                 out.truncated.copy(), info)
 
     def _shield_info(self, stepping: np.ndarray, actions: np.ndarray) -> dict[str, np.ndarray] | None:
@@ -246,7 +254,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                        "objective": np.asarray(episodes.objective, dtype=np.float64).copy(),
                        **{name: flags.copy() for name, flags in self._last.items()},
                        "time": episodes.k * self._period,
-                       "scenario": np.full(self.num_envs, str(self._single.scenarios[0]), dtype=object)})
+                       "scenario": np.full(self.num_envs, str(self._single.scenarios[0]), dtype=object),
+                       "scale": np.full(self.num_envs, self._single.reward_scale)})
         info.update(masked({"rewards": masked(episodes.rewards), "inputs": masked(inputs)}))
         if shield is not None:
             info.update(shield)
