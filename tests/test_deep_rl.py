@@ -58,3 +58,23 @@ def test_the_benchmark_runs_and_writes_a_sane_table(tmp_path: Path) -> None:
         collisions[config] += steps
     # the shield keeps the learner out of collisions the unshielded one runs into
     assert collisions["shield + automaton"] <= collisions["no shield + Eq. 9"]
+
+
+def test_the_quickstart_trains_through_make_vec_env_and_logs_the_objectives(tmp_path: Path) -> None:
+    """examples/deep_rl/quickstart.py (docs/python.md, "Training with SB3"): SB3's make_vec_env on the
+    registered id, MaskablePPO on the runtime shield's masks, RacCallback's keys in SB3's log."""
+    pytest.importorskip("sb3_contrib", reason="the quickstart needs sb3-contrib and torch (the rl extra: "
+                        "pip install torch==2.13.0, then pip install '.[rl]'), which are not installed")
+    shutil.copy(EXAMPLE / "quickstart.py", tmp_path / "quickstart.py")
+    shutil.copy(EXAMPLE / "driving.ra", tmp_path / "driving.ra")
+    done = subprocess.run([sys.executable, str(tmp_path / "quickstart.py")], env=rac_env(), cwd=tmp_path,
+                          capture_output=True, text=True, timeout=600, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+    logged = dict(match.groups() for line in done.stdout.splitlines()  # SB3's table: | key | value |
+                  if (match := re.fullmatch(r"\|\s+([\w/ ]+?)\s+\|\s+([^|\s]+)\s+\|", line)))
+    for key in ("reward/sa", "reward/pr", "reward/co", "location/Normal", "collisions", "total_timesteps"):
+        assert key in logged, (key, done.stdout)
+    assert int(logged["total_timesteps"]) >= 256
+    shares = [float(v) for k, v in logged.items() if k.startswith("location/")]
+    assert sum(shares) == pytest.approx(1.0, abs=0.01)
+    assert any(k.startswith("shield/lookahead") for k in logged)  # every mask came from the runtime shield
