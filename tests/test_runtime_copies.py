@@ -4,6 +4,7 @@ checks its arguments and the size of its text like a file's."""
 from __future__ import annotations
 
 import copy
+import multiprocessing
 import pickle
 import struct
 from concurrent.futures import ProcessPoolExecutor
@@ -20,6 +21,9 @@ from rac.runtime.interpreter import RewardAutomaton
 
 DRIVING = Path(__file__).parent.parent / "stdlib" / "driving.ra"
 #: Unsafe (PENALTY), a held numeric input, an end bonus: every kind of state a run carries.
+#: spawn: the worker starts from nothing, so the automaton must arrive whole in the pickle
+#: (fork would let it inherit the parent's memory).
+SPAWN = multiprocessing.get_context("spawn")
 TRACE = [inputs(), inputs(comf=False), inputs(is_close=True), inputs(prog=False, dgoal=1.0), inputs()]
 
 
@@ -71,7 +75,7 @@ def test_a_pickled_automaton_steps_in_another_process() -> None:
     for x in TRACE[:3]:
         ra.step(x)
     expected = run(copy.copy(ra), TRACE[3:])
-    with ProcessPoolExecutor(max_workers=1) as pool:
+    with ProcessPoolExecutor(max_workers=1, mp_context=SPAWN) as pool:
         rewards, back = pool.submit(_step_in_worker, ra).result(timeout=120)
     assert rewards == expected
     assert back.ended and back.samples == len(TRACE) and not ra.ended
@@ -87,7 +91,7 @@ def test_a_batch_pickles_copies_and_steps_in_another_process() -> None:
     twin = copy.copy(batch)
     twin.step_batch({k: np.full(3, v) for k, v in inputs(is_close=True).items()})
     assert (batch.samples == 1).all() and (twin.samples == 2).all()  # the copy has its own arrays
-    with ProcessPoolExecutor(max_workers=1) as pool:
+    with ProcessPoolExecutor(max_workers=1, mp_context=SPAWN) as pool:
         remote = pool.submit(_batch_in_worker, pickle.loads(pickle.dumps(batch))).result(timeout=120)
     local = batch.step_batch({k: np.full(3, v) for k, v in inputs(is_close=True).items()})
     assert remote.tobytes() == local.tobytes()

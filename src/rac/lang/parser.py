@@ -400,7 +400,8 @@ def _check_size(name: str, size: int, what: str) -> None:
     if size > MAX_SOURCE_BYTES:
         raise ParseFailure(error(
             "E0005", f"{what} is too large ({size:,} bytes; at most {MAX_SOURCE_BYTES:,})",
-            SourceFile(name, "").span(0, 0), hints=["a reward automaton is a few kilobytes: is this the right file?"]))
+            SourceFile(name, "").span(0, 0),
+            hints=[f"a reward automaton is a few kilobytes: is this the right {what.split()[-1]}?"]))
 
 
 def text_source(text: str, name: str) -> SourceFile:
