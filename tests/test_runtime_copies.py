@@ -118,5 +118,6 @@ def test_loads_has_the_size_limit_of_files() -> None:
     assert diagnostic.message == f"source text is too large ({MAX_SOURCE_BYTES + 1:,} bytes; at most 1,000,000)"
     wide = text + "//" + "é" * (room // 2 + 1)  # fewer characters than the limit, more bytes
     assert [d.code for d in rac.compile_text(wide).diagnostics] == ["E0005"]
+    assert rac.compile_text(text, DRIVING).sources.keys() == {str(DRIVING)}  # a path names text too
     at_limit = text + "//" + "é" * (room // 2)  # two bytes each: at most the limit in bytes
     assert rac.loads(at_limit).name == "Driving"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -220,10 +221,10 @@ def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:
                      for (low, high), names in groups.items())
 
 
-def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:
+def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analyse: bool = True) -> CompileResult:
     """Check `.ra` source given as a string (at most 1 MB as UTF-8, like a file: E0005).
 
-    ``TypeError`` when ``text`` or ``name`` is not a ``str``.
+    ``TypeError`` when ``text`` is not a ``str``, or ``name`` neither a ``str`` nor a path.
     """
     try:
         source = text_source(text, name)

@@ -9,6 +9,7 @@ query declarations (:func:`parse_queries`). Syntax errors are put in user terms 
 from __future__ import annotations
 
 import errno
+import os
 import re
 from dataclasses import replace
 from fractions import Fraction
@@ -404,12 +405,15 @@ def _check_size(name: str, size: int, what: str) -> None:
             hints=[f"a reward automaton is a few kilobytes: is this the right {what.split()[-1]}?"]))
 
 
-def text_source(text: str, name: str) -> SourceFile:
+def text_source(text: str, name: str | os.PathLike[str]) -> SourceFile:
     """Source text given as a string, with the checks of a file's: a ``TypeError`` naming the argument
     that is not a ``str``, and E0005 (:class:`ParseFailure`) over :data:`MAX_SOURCE_BYTES` UTF-8 bytes."""
-    for argument, value in (("text", text), ("name", name)):
-        if not isinstance(value, str):
-            raise TypeError(f"{argument} must be a str, not {type(value).__name__}")
+    if not isinstance(text, str):
+        raise TypeError(f"text must be a str, not {type(text).__name__}")
+    if isinstance(name, os.PathLike):  # a file's path names its text as well
+        name = os.fspath(name)
+    if not isinstance(name, str):
+        raise TypeError(f"name must be a str, not {type(name).__name__}")
     if len(text) > MAX_SOURCE_BYTES // 4:  # only then can it be too large: a character is 1 to 4 bytes
         _check_size(name, len(text.encode("utf-8", "surrogatepass")), "source text")
     return SourceFile(name, text)
