@@ -14,12 +14,14 @@ import keyword
 import struct
 import symtable
 import types
+from pathlib import Path
 
 import pytest
 
+from rac.cli.main import main
 from rac.compiler import compile_text
 from rac.runtime.interpreter import RewardAutomaton
-from rac.targets.python import RESERVED_NAMES, generate_python
+from rac.targets.python import RESERVED_NAMES, generate_python, python_class_name
 
 #: The module's own top-level names (imports, helpers) and the names Python gives every module.
 MODULE_NAMES = ("annotations", "math", "numbers", "Mapping", "_key_error", "_mapping", "_boolean", "_number",
@@ -131,3 +133,15 @@ def test_every_global_name_of_the_module_is_reserved() -> None:
     code = generate_python(automaton)
     dunders = {name for name in global_reads(code) if name.startswith("__") and name.endswith("__")}
     assert global_reads(code) - {"A"} - dunders <= RESERVED_NAMES
+
+
+def test_compile_says_when_the_class_is_renamed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for name, said in [("float", "the class is `float_`: `float` is a Python keyword or a name the module itself uses"),
+                       ("Driving", None)]:
+        path = tmp_path / f"{name}.ra"
+        path.write_text(source(automaton=name), encoding="utf-8")
+        assert main(["compile", str(path), "--target", "python", "-o", str(tmp_path / "out.py")]) == 0
+        err = capsys.readouterr().err
+        assert (said in err) if said else "class" not in err, err
+        assert python_class_name(name) == (name + "_" if said else name)
+    assert python_class_name("__init__") == "init" and python_class_name("__") == "Automaton"

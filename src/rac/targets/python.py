@@ -39,7 +39,7 @@ from rac.core.printing import COMPARISONS, Associativity, Level, Operator, Opera
 from rac.ir.text import GuardPrinter
 from rac.runtime.semantics import FloatLinear, assume_checks, check_automaton, float_linear, input_specs, to_float
 
-__all__ = ["PYTHON", "RESERVED_NAMES", "PythonGuards", "generate_python", "print_expr"]
+__all__ = ["PYTHON", "RESERVED_NAMES", "PythonGuards", "generate_python", "print_expr", "python_class_name"]
 
 _TEMPLATE = "python_module.py.j2"
 _LINE = 110
@@ -56,7 +56,7 @@ RESERVED_NAMES = frozenset({
     # builtins called, raised or named in annotations (typing.get_type_hints evaluates those)
     "bool", "float", "int", "str", "object", "dict", "tuple", "len", "isinstance", "type", "repr", "sorted",
     "property", "super", "ValueError", "KeyError", "RuntimeError", "OverflowError", "TypeError",
-    # (every dunder, `__all__` among them, is renamed too: see _identifier)
+    # (every dunder, `__all__` among them, is renamed too: see python_class_name)
 })
 
 
@@ -136,7 +136,10 @@ def _linear(form: FloatLinear, names: Mapping[str, str], safe: frozenset[str]) -
 
 
 # ---------------------------------------------------------------- generation
-def _identifier(name: str) -> str:
+def python_class_name(name: str) -> str:
+    """The generated class's name for an automaton named ``name``: ``name`` itself, unless it is a
+    keyword or one of :data:`RESERVED_NAMES` (then ``_`` is appended: ``float_``) or a dunder (then
+    its underscores go: ``__init__`` -> ``init``)."""
     if not name.isidentifier():
         name = re.sub(r"\W", "_", name)
         if not name or name[0].isdigit():
@@ -451,7 +454,7 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
     """
     check_automaton(automaton)
     gen = _Generator(automaton)
-    class_name = _identifier(automaton.name)
+    class_name = python_class_name(automaton.name)
     zeros = {r: 0.0 for r in automaton.rewards}
     const, terms = float_linear(automaton.objective, "objective")
     initial_objective = const
