@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -13,7 +14,7 @@ from rac.core.diagnostics import CheckError, Diagnostic, error, short_number
 from rac.core.numbers import exact_text
 from rac.core.source import SourceFile
 from rac.lang import ast
-from rac.lang.parser import ParseFailure, parse_source, read_source
+from rac.lang.parser import ParseFailure, parse_source, read_source, text_source
 
 if TYPE_CHECKING:
     from rac.check.analysis.synthesis import Synthesised
@@ -220,9 +221,16 @@ def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:
                      for (low, high), names in groups.items())
 
 
-def compile_text(text: str, name: str = "<string>", *, analyse: bool = True) -> CompileResult:
-    """Check `.ra` source given as a string."""
-    return compile_source(SourceFile(name, text), analyse=analyse)
+def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analyse: bool = True) -> CompileResult:
+    """Check `.ra` source given as a string (at most 1 MB as UTF-8, like a file: E0005).
+
+    ``TypeError`` when ``text`` is not a ``str``, or ``name`` neither a ``str`` nor a path.
+    """
+    try:
+        source = text_source(text, name)
+    except ParseFailure as failure:
+        return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
+    return compile_source(source, analyse=analyse)
 
 
 def compile_file(path: str | Path, *, analyse: bool = True) -> CompileResult:

@@ -136,9 +136,13 @@ def _compile_command(args: argparse.Namespace) -> int:
             return EXIT_USAGE
     if args.target == "uppaal":
         return _compile_uppaal(args, result)
-    from rac.targets.python import generate_python
+    from rac.targets.python import generate_python, python_class_name
 
     text = generate_python(result.automaton, source_name=args.file.name)
+    name = result.automaton.name
+    if python_class_name(name) != name:  # whoever imports the class must know what it is called
+        print(f"note: the class is `{python_class_name(name)}`: `{name}` is a Python keyword or a name the "
+              "module itself uses", file=sys.stderr)
     if args.output is None:
         sys.stdout.write(text)
     else:

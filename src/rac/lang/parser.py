@@ -9,6 +9,7 @@ query declarations (:func:`parse_queries`). Syntax errors are put in user terms 
 from __future__ import annotations
 
 import errno
+import os
 import re
 from dataclasses import replace
 from fractions import Fraction
@@ -391,12 +392,31 @@ def read_source(path: str | Path) -> SourceFile:
     if path.exists() and not path.is_file():  # a FIFO or a device: reading it would block
         raise OSError(errno.EINVAL, "not a regular file (a pipe or a device?)", name)
     data = path.read_bytes()
-    empty = SourceFile(name, "")
-    if len(data) > MAX_SOURCE_BYTES:
-        raise ParseFailure(error(
-            "E0005", f"file is too large ({len(data):,} bytes; at most {MAX_SOURCE_BYTES:,})",
-            empty.span(0, 0), hints=["a reward automaton is a few kilobytes: is this the right file?"]))
+    _check_size(name, len(data), "file")
     return decode_source(name, data)
+
+
+def _check_size(name: str, size: int, what: str) -> None:
+    """E0005 for a source over :data:`MAX_SOURCE_BYTES` (``size`` in UTF-8 bytes)."""
+    if size > MAX_SOURCE_BYTES:
+        raise ParseFailure(error(
+            "E0005", f"{what} is too large ({size:,} bytes; at most {MAX_SOURCE_BYTES:,})",
+            SourceFile(name, "").span(0, 0),
+            hints=[f"a reward automaton is a few kilobytes: is this the right {what.split()[-1]}?"]))
+
+
+def text_source(text: str, name: str | os.PathLike[str]) -> SourceFile:
+    """Source text given as a string, with the checks of a file's: a ``TypeError`` naming the argument
+    that is not a ``str``, and E0005 (:class:`ParseFailure`) over :data:`MAX_SOURCE_BYTES` UTF-8 bytes."""
+    if not isinstance(text, str):
+        raise TypeError(f"text must be a str, not {type(text).__name__}")
+    if isinstance(name, os.PathLike):  # a file's path names its text as well
+        name = os.fspath(name)
+    if not isinstance(name, str):
+        raise TypeError(f"name must be a str, not {type(name).__name__}")
+    if len(text) > MAX_SOURCE_BYTES // 4:  # only then can it be too large: a character is 1 to 4 bytes
+        _check_size(name, len(text.encode("utf-8", "surrogatepass")), "source text")
+    return SourceFile(name, text)
 
 
 def _looks_like_utf16(data: bytes) -> bool:

@@ -535,5 +535,22 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._n_ended = int(self._ended.sum())
         return reward
 
+    def __copy__(self) -> BatchRewardAutomaton:
+        """A copy with run arrays of its own (locations, rewards, counters, held inputs, clip counts).
+
+        The tables built from the IR are shared: nothing writes to them after ``__init__``.
+        """
+        twin = object.__new__(type(self))
+        twin.__dict__.update(self.__dict__)
+        for key in ("_loc", "_R", "_samples", "_ended", "_obj", "_first"):
+            setattr(twin, key, getattr(self, key).copy())
+        twin._held = {name: value.copy() for name, value in self._held.items()}
+        twin.clipped = dict(self.clipped)
+        return twin
+
+    def __deepcopy__(self, memo: dict[int, object]) -> BatchRewardAutomaton:
+        """As :meth:`__copy__`: the IR and the tables are never changed, so they may be shared."""
+        return self.__copy__()
+
     def __repr__(self) -> str:
         return f"<BatchRewardAutomaton {self.name} n={self._n} strategy={self.strategy}>"

@@ -67,6 +67,9 @@ _OPS: dict[str, Callable[[Any, Any], Any]] = {
 }
 
 
+#: What a run changes (pickled with the IR; everything else is compiled from the IR).
+_RUN_STATE = ("_loc", "_r", "_held", "_samples", "_ended", "_objective", "clipped")
+
 _Values = dict[str, Any]
 _LinearFn = Callable[[list[float], _Values], float]
 _GuardFn = Callable[[_Values], bool]
@@ -280,6 +283,34 @@ class RewardAutomaton(AutomatonDescription):
                     r[i] = value(r, x)
         self._ended = True
         return self._increase(x)
+
+    # -------------------------------------------------------- copies and pickles
+    def __copy__(self) -> RewardAutomaton:
+        """A copy with a run state of its own (rewards, held inputs, clip counts) at the same point.
+
+        The compiled guards and forms are shared: they are pure functions of the frozen IR.
+        """
+        twin = object.__new__(type(self))
+        twin.__dict__.update(self.__dict__)
+        twin._r = list(self._r)
+        twin._held = None if self._held is None else dict(self._held)
+        twin.clipped = dict(self.clipped)
+        return twin
+
+    def __deepcopy__(self, memo: dict[int, object]) -> RewardAutomaton:
+        """As :meth:`__copy__`: the run state holds only floats and bools, the IR is immutable."""
+        return self.__copy__()
+
+    def __getstate__(self) -> dict[str, object]:
+        """For pickle: the IR and the run state; the compiled closures are rebuilt from the IR on load
+        (they are local functions, which pickle cannot carry, and this lets SubprocVecEnv or Dask ship
+        an automaton to a worker)."""
+        return {"ir": self._ir, **{key: getattr(self, key) for key in _RUN_STATE}}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        RewardAutomaton.__init__(self, state["ir"])
+        for key in _RUN_STATE:
+            setattr(self, key, state[key])
 
     def __repr__(self) -> str:
         return (f"<RewardAutomaton {self.name} at {self.location}, samples={self._samples}, "

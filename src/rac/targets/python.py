@@ -39,11 +39,25 @@ from rac.core.printing import COMPARISONS, Associativity, Level, Operator, Opera
 from rac.ir.text import GuardPrinter
 from rac.runtime.semantics import FloatLinear, assume_checks, check_automaton, float_linear, input_specs, to_float
 
-__all__ = ["PYTHON", "PythonGuards", "generate_python", "print_expr"]
+__all__ = ["PYTHON", "RESERVED_NAMES", "PythonGuards", "generate_python", "print_expr", "python_class_name"]
 
 _TEMPLATE = "python_module.py.j2"
 _LINE = 110
-_RESERVED = {"Mapping", "math", "annotations", "_key_error", "_range_error", "_assume_error"}
+#: The module-level names the generated module binds or reads: its imports and helpers, the builtins
+#: its code and annotations use, and the dunders Python and tools look up on a module. The automaton's
+#: class is the one module-level name a `.ra` file chooses (the grammar allows any ASCII identifier,
+#: so no helper name is out of its reach); one of these gets a ``_`` appended (``float_``), since a
+#: class named ``float`` would shadow the ``float`` the helpers call. Dunders lose their underscores.
+#: tests/test_python_names.py checks that this covers every global the generated code uses.
+RESERVED_NAMES = frozenset({
+    # imports and helpers of the template
+    "annotations", "math", "numbers", "Mapping",
+    "_key_error", "_mapping", "_boolean", "_number", "_range_error", "_assume_error",
+    # builtins called, raised or named in annotations (typing.get_type_hints evaluates those)
+    "bool", "float", "int", "str", "object", "dict", "tuple", "len", "isinstance", "type", "repr", "sorted",
+    "property", "super", "ValueError", "KeyError", "RuntimeError", "OverflowError", "TypeError",
+    # (every dunder, `__all__` among them, is renamed too: see python_class_name)
+})
 
 
 # ---------------------------------------------------------------- the printer
@@ -122,12 +136,19 @@ def _linear(form: FloatLinear, names: Mapping[str, str], safe: frozenset[str]) -
 
 
 # ---------------------------------------------------------------- generation
-def _identifier(name: str) -> str:
+def python_class_name(name: str) -> str:
+    """The generated class's name for an automaton named ``name``: ``name`` itself, unless it is a
+    keyword or one of :data:`RESERVED_NAMES` (then ``_`` is appended: ``float_``) or a dunder (then
+    its underscores go: ``__init__`` -> ``init``)."""
     if not name.isidentifier():
         name = re.sub(r"\W", "_", name)
         if not name or name[0].isdigit():
             name = "_" + name
-    if keyword.iskeyword(name) or name in _RESERVED:
+    if name.startswith("__") and name.endswith("__"):
+        # dunders belong to Python: `module.__class__` is the module's type whatever the module binds,
+        # and appending `_` would keep the name a dunder
+        name = name.strip("_") or "Automaton"
+    while keyword.iskeyword(name) or name in RESERVED_NAMES:
         name += "_"
     return name
 
@@ -433,7 +454,7 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
     """
     check_automaton(automaton)
     gen = _Generator(automaton)
-    class_name = _identifier(automaton.name)
+    class_name = python_class_name(automaton.name)
     zeros = {r: 0.0 for r in automaton.rewards}
     const, terms = float_linear(automaton.objective, "objective")
     initial_objective = const
