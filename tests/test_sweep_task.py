@@ -393,3 +393,13 @@ def test_a_task_whose_process_is_killed_is_an_error_row_to_retry(folder: Path) -
     assert row["status"] == "error", row
     assert "died of signal SIGKILL" in str(row["error"]) and row["retry"] is True
     assert run_task(spec(folder, "goal_ahead.xml", "check"))["retry"] is False
+
+
+def test_an_inconsistent_scenario_is_an_error_row(folder: Path, tmp_path: Path) -> None:
+    """E0718-E0721 say the input is unusable, as E0712 does: no verdict on the template ("error")."""
+    text = (folder / "scenarios" / "goal_ahead.xml").read_text(encoding="utf-8")
+    assert 'timeStepSize="0.1"' in text
+    step = tmp_path / "step.xml"  # outside the module's folder: other tests count its scenarios
+    step.write_text(text.replace('timeStepSize="0.1"', 'timeStepSize="1e-308"'), encoding="utf-8")
+    row = run_task(spec(folder, str(step), "check"))
+    assert row["status"] == "error" and str(row["error"]).startswith("E0718 inconsistent scenario: "), row

@@ -44,6 +44,9 @@ if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
     from rac.model.data import ModelData
 
+#: The codes of a scenario rac cannot build a model from: unreadable (E0712) or inconsistent (E0718-E0721).
+#: ``rac sweep`` counts a task that ends in one as an error of its input, not a verdict ("error", not "failed").
+UNUSABLE_SCENARIO = ("E0712", "E0718", "E0719", "E0720", "E0721")
 #: Loaded scenarios by (path, modification time, size, planning problem): checking several files
 #: that share a scenario, or the same file again, reads it once.
 _CACHE: dict[tuple[str, int, int, int | None], Scenario] = {}
