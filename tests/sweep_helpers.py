@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
 import time
 from pathlib import Path
 
-from rac.sweep.task import TaskSpec
+import psutil
+
+from rac.sweep.task import TaskSpec, run_task
 
 
 def row(spec: TaskSpec, status: str = "ok", **fields: object) -> dict[str, object]:
@@ -57,3 +60,37 @@ def slow(spec: TaskSpec) -> dict[str, object]:
 def raises(spec: TaskSpec) -> dict[str, object]:
     """A stand-in that breaks the promise of :func:`rac.sweep.task.run_task` never to raise."""
     raise RuntimeError(f"no row for {Path(spec.scenario).name}")
+
+
+def run_task_killed(spec: TaskSpec) -> dict[str, object]:
+    """The real :func:`rac.sweep.task.run_task`, whose task process (the child of this process) is killed
+    with SIGKILL as soon as it starts, as the out-of-memory killer would."""
+    me = psutil.Process()
+    done = threading.Event()
+
+    def kill_the_child() -> None:
+        while not done.is_set():
+            for child in me.children():
+                try:
+                    if "rac.sweep.child" in " ".join(child.cmdline()):
+                        child.send_signal(signal.SIGKILL)
+                        return
+                except psutil.Error:  # gone, or not yet readable: look again
+                    pass
+            time.sleep(0.01)
+
+    killer = threading.Thread(target=kill_the_child, daemon=True)
+    killer.start()
+    try:
+        return run_task(spec)
+    finally:
+        done.set()
+        killer.join()
+
+
+def kill_task_process_once(spec: TaskSpec) -> dict[str, object]:
+    """:func:`run_task_killed` the first time it runs on a scenario, the real task after that."""
+    attempts = marker(spec, "attempts")
+    count = int(attempts.read_text()) + 1 if attempts.exists() else 1
+    attempts.write_text(str(count))
+    return run_task_killed(spec) if count == 1 else run_task(spec)

@@ -13,8 +13,10 @@ sleep or raise where the real :func:`rac.sweep.task.run_task` cannot be made to.
 from __future__ import annotations
 
 import _thread
+import contextlib
 import json
 import re
+import shutil
 import socket
 import subprocess
 import sys
@@ -242,6 +244,43 @@ def test_a_worker_that_dies_twice_or_a_task_that_raises_is_an_error_row(client, 
     assert (row["status"], row["error"]) == ("error", "RuntimeError: no row for raising.xml")
     assert store.get(outcome.keys[0]) == row  # stored: a re-run does not try again (--force does)
     client.wait_for_workers(2, timeout=60)  # type: ignore[attr-defined]
+
+
+def test_a_task_whose_process_was_killed_runs_again_on_resume(client, world: Path, tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """A SIGKILLed task process (the out-of-memory killer) is not a verdict: the resumed sweep runs it again."""
+    stand_in(monkeypatch, sweep_helpers.kill_task_process_once)  # the real task; its process killed the first time
+    monkeypatch.setattr("rac.sweep.run.connect", lambda *args, **kwargs: contextlib.nullcontext(client))
+    scenarios = tmp_path / "scenarios"
+    scenarios.mkdir()
+    shutil.copy(world / "scenarios" / "goal_ahead.xml", scenarios / "goal_ahead.xml")
+    planned = plan(world / "sweep.ra", [str(scenarios)], options=OPTIONS, out=tmp_path / "out")
+    first = execute(planned, quiet=True)
+    killed = first.rows[0]
+    assert (killed["status"], killed["retry"]) == ("error", True), killed
+    assert "died of signal SIGKILL" in str(killed["error"])
+    said: list[str] = []
+    again = execute(planned, quiet=True, announce=said.append)
+    assert "rerunning 1 task whose process was killed" in said
+    assert (again.outcome.ran, again.outcome.skipped, again.outcome.rerun_killed) == (1, 0, 1)
+    assert (again.rows[0]["status"], again.rows[0]["retry"]) == ("ok", False), again.rows[0]
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)  # an ok row is a result: stored, not rerun
+    assert execute(planned, quiet=True).outcome.skipped == 1
+
+
+def test_retry_failed_reruns_the_stored_rows_that_are_not_ok(world: Path, tmp_path: Path) -> None:
+    specs = specs_for(tmp_path, world / "sweep.ra", ["fine.xml", "failed.xml", "killed.xml"])
+    store = Store(tmp_path / "out")
+    fine, failed, killed = (spec.key() for spec in specs)
+    store.put(fine, sweep_helpers.row(specs[0]))
+    store.put(failed, sweep_helpers.row(specs[1], "timeout", error="ran past the task timeout of 1 s", retry=False))
+    store.put(killed, sweep_helpers.row(specs[2], "error", error="the task's process died of signal SIGKILL",
+                                        retry=True))
+    outcome, todo = pending(specs, store)
+    assert list(todo) == [killed] and (outcome.skipped, outcome.rerun_killed, outcome.rerun_failed) == (2, 1, 0)
+    outcome, todo = pending(specs, store, retry_failed=True)
+    assert list(todo) == [failed, killed] and (outcome.skipped, outcome.rerun_killed, outcome.rerun_failed) == (1, 1, 1)
+    assert len(pending(specs + specs, store)[1]) == 1  # a key given twice runs once
 
 
 def test_a_task_past_its_timeout_is_a_timeout_row(client, world: Path, tmp_path: Path) -> None:

@@ -20,6 +20,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
+import sweep_helpers
 from conftest import rac_env
 from engine_files import engine_source
 from tiny_scenarios import TINY_SCENARIOS
@@ -384,3 +385,21 @@ def test_the_child_reads_the_spec_on_stdin(folder: Path) -> None:
     done = subprocess.run([sys.executable, "-m", "rac.sweep.child"], input=json.dumps(task.to_json()), text=True,
                           env=rac_env(), capture_output=True, check=True, timeout=60, cwd=os.getcwd())
     assert json.loads(done.stdout)["status"] == "ok"
+
+
+def test_a_task_whose_process_is_killed_is_an_error_row_to_retry(folder: Path) -> None:
+    """SIGKILL from outside (the out-of-memory killer) is no verdict on the task: the row says so."""
+    row = sweep_helpers.run_task_killed(spec(folder, "goal_ahead.xml"))
+    assert row["status"] == "error", row
+    assert "died of signal SIGKILL" in str(row["error"]) and row["retry"] is True
+    assert run_task(spec(folder, "goal_ahead.xml", "check"))["retry"] is False
+
+
+def test_an_inconsistent_scenario_is_an_error_row(folder: Path, tmp_path: Path) -> None:
+    """E0718-E0721 say the input is unusable, as E0712 does: no verdict on the template ("error")."""
+    text = (folder / "scenarios" / "goal_ahead.xml").read_text(encoding="utf-8")
+    assert 'timeStepSize="0.1"' in text
+    step = tmp_path / "step.xml"  # outside the module's folder: other tests count its scenarios
+    step.write_text(text.replace('timeStepSize="0.1"', 'timeStepSize="1e-308"'), encoding="utf-8")
+    row = run_task(spec(folder, str(step), "check"))
+    assert row["status"] == "error" and str(row["error"]).startswith("E0718 inconsistent scenario: "), row

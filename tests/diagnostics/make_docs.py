@@ -119,6 +119,36 @@ def _scene(name: str, scenario: str, comment: str, build: str) -> Callable[[Path
     return make
 
 
+def _left_turn() -> bytes:
+    return (ROOT / "examples" / "left_turn" / "left_turn.xml").read_bytes()
+
+
+def _one_lane() -> bytes:
+    """A lane 3 m wide (y in [0, 3]) with a parked van: ``avoidable_obstacle()`` of tests/tiny_scenarios.py."""
+    if str(HERE.parent) not in sys.path:  # tests/, where tiny_scenarios lives
+        sys.path.insert(0, str(HERE.parent))
+    import tiny_scenarios
+
+    return tiny_scenarios.avoidable_obstacle().xml
+
+
+def _edited(name: str, scenario: str, comment: str, source: Callable[[], bytes], pattern: str,
+            replacement: str) -> Callable[[Path], None]:
+    """The automaton of the E0712 example as ``NAME.ra`` over ``scenario``: the bytes of ``source()`` with
+    the regular expression ``pattern`` (DOTALL) replaced everywhere by ``replacement``, next to it."""
+    text = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
+        .replace("// A model whose scenario file is not next to this one", f"// A model over {comment}") \
+        .replace('scenario "left_turn.xml"  // the CommonRoad file, next to this one',
+                 f'scenario "{scenario}"  // the CommonRoad file, next to this one')
+
+    def make(folder: Path) -> None:
+        edited, made = re.subn(pattern, replacement, source().decode("utf-8"), flags=re.S)
+        assert made, f"{name}: the pattern {pattern!r} is not in the scenario"
+        (folder / f"{name}.ra").write_text(text, encoding="utf-8")
+        (folder / scenario).write_text(edited, encoding="utf-8")
+    return make
+
+
 @dataclass(frozen=True)
 class Case:
     """One failing example: committed as ``NAME.ra``, or made by ``make`` in a scratch folder."""
@@ -223,6 +253,28 @@ GENERATED: tuple[Case, ...] = (
          "problem, 101, from the north arm (`junction_with_two_problems()` of tests/tiny_scenarios.py):",
          _scene("E0715_several_planning_problems", "junction.xml", "a junction with two planning problems",
                 "junction_with_two_problems")),
+    Case("E0718_time_step", None,
+         "`E0718_time_step.ra` is the automaton of the E0712 example over `tiny_step.xml` (line 22), next to "
+         "it: examples/left_turn/left_turn.xml with `timeStepSize=\"1e-308\"`:",
+         _edited("E0718_time_step", "tiny_step.xml", "a scenario whose time step is 1e-308 s", _left_turn,
+                 r'timeStepSize="0\.1"', 'timeStepSize="1e-308"')),
+    Case("E0719_trajectory_gap", None,
+         "`E0719_trajectory_gap.ra` is the automaton of the E0712 example over `gap.xml` (line 22), next to "
+         "it: examples/left_turn/left_turn.xml whose obstacles' trajectories lack their state at time step 5:",
+         _edited("E0719_trajectory_gap", "gap.xml", "a scenario whose trajectories skip a time step", _left_turn,
+                 r"<state>\s*<time>\s*<exact>5</exact>.*?</state>\s*", "")),
+    Case("E0720_missing_lanelet", None,
+         "`E0720_missing_lanelet.ra` is the automaton of the E0712 example over `dangling.xml` (line 22), "
+         "next to it: examples/left_turn/left_turn.xml whose lanelet 1 names lanelet 99, which is not in the "
+         "file, as a successor (line 134):",
+         _edited("E0720_missing_lanelet", "dangling.xml", "a scenario with a dangling lanelet reference",
+                 _left_turn, r'<successor ref="11"/>', '<successor ref="99"/>')),
+    Case("E0721_lanelet_without_width", None,
+         "`E0721_lanelet_without_width.ra` is the automaton of the E0712 example over `flat.xml` (line 22), "
+         "next to it: one straight lanelet (`avoidable_obstacle()` of tests/tiny_scenarios.py) whose left "
+         "bound lies on its right bound, y = 0:",
+         _edited("E0721_lanelet_without_width", "flat.xml", "a road without width", _one_lane,
+                 r"<y>3\.0</y>", "<y>0.0</y>")),
     Case("W0716_start_off_road", None,
          "`W0716_start_off_road.ra` is the automaton of the E0712 example over `ramp.xml` (line 22), next "
          "to it: one lane from x = 0, the ego starting at x = 0, half of it before the road, as in "

@@ -95,6 +95,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     sweep.add_argument("--task-memory", type=size_argument, metavar="SIZE",
                        help="memory per task, e.g. 2G; past it the task is a memory row")
     sweep.add_argument("--force", action="store_true", help="run every task again, even those already stored")
+    sweep.add_argument("--retry-failed", action="store_true",
+                       help="run the stored tasks that are not ok again (those whose process was killed always are)")
     sweep.add_argument("-o", "--out", metavar="DIR",
                        help=f"the output folder (default: TEMPLATE{OUTPUT_SUFFIX}/sweep/ beside the template)")
     sweep.add_argument("--horizon", type=_checked(lambda t: Fraction(t) > 0, "a positive number"),
@@ -134,7 +136,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         f"{_count(planned.points, 'grid point')}, task {args.task}; outputs in {planned.out}")
     try:
         result = execute(planned, scheduler=args.scheduler, workers=int(args.workers) if args.workers else None,
-                         force=args.force, quiet=quiet, announce=say)
+                         force=args.force, retry_failed=args.retry_failed, quiet=quiet, announce=say)
     except OSError as exc:
         print(f"rac sweep: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -1,4 +1,4 @@
-"""The `model` block's scenario, checked against the model: E0712-E0715 and W0716.
+"""The `model` block's scenario, checked against the model: E0712-E0715, W0716 and E0718-E0721.
 
 :func:`check_scenario` loads the CommonRoad file of a checked automaton's `model` block once
 (:func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
@@ -12,6 +12,11 @@
 * E0714: the ego starts outside the model's limits (a speed outside [`min_speed`, `max_speed`],
   an acceleration beyond ±`max_acceleration`), which ``sense()`` would clamp at the first
   sample; the hint names the setting to change and the value that holds the start.
+* E0718-E0721: the file reads but is inconsistent (:class:`~rac.model.commonroad.InconsistentScenarioError`):
+  a time step that makes the model's times meaningless (E0718), an obstacle's trajectory whose time
+  steps repeat, go back or skip (E0719), a lanelet's predecessor, successor or neighbour that the file
+  lacks (E0720), a lanelet without width (E0721); the message names the file with the element's
+  line:column, the element and the attribute.
 * E0715: the planning problem is not clear: the file has several and the block writes no
   `planning_problem`, or the one it writes is not in the file; the message lists the ids.
 * W0716: the ego starts off the road: ``offroad()`` holds in the initial state, so no run is
@@ -39,6 +44,9 @@ if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
     from rac.model.data import ModelData
 
+#: The codes of a scenario rac cannot build a model from: unreadable (E0712) or inconsistent (E0718-E0721).
+#: ``rac sweep`` counts a task that ends in one as an error of its input, not a verdict ("error", not "failed").
+UNUSABLE_SCENARIO = ("E0712", "E0718", "E0719", "E0720", "E0721")
 #: Loaded scenarios by (path, modification time, size, planning problem): checking several files
 #: that share a scenario, or the same file again, reads it once.
 _CACHE: dict[tuple[str, int, int, int | None], Scenario] = {}
@@ -92,13 +100,16 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
                                         notes=notes, hints=hints))
         return result
 
-    from rac.model.commonroad import PlanningProblemError, ScenarioError
+    from rac.model.commonroad import InconsistentScenarioError, PlanningProblemError, ScenarioError
 
     try:
         chosen = spec.planning_problem
         scenario = _load(spec.scenario_path) if chosen == NO_PLANNING_PROBLEM else _load(spec.scenario_path, chosen)
     except PlanningProblemError as failure:
         result.diagnostics.append(_planning_problem(automaton, spec, failure))
+        return result
+    except InconsistentScenarioError as failure:
+        result.diagnostics.append(_inconsistent(spec, scenario_span, failure))
         return result
     except ScenarioError as failure:
         return cannot_load(str(failure), _load_hints(failure, written))
@@ -140,6 +151,15 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
         f"{_number(goal.time_high)}] s; every significand fits int32 at base {spec.base}, exponent "
         f"{spec.exponent}{detail}")
     return result
+
+
+def _inconsistent(spec: ir.ModelSpec, scenario_span, failure) -> Diagnostic:
+    """E0718-E0721: the file reads, but contradicts itself or the model; the message names the file with
+    the element's line:column, the element and the attribute."""
+    notes: list[Note | str] = [f"the scenario file is `{spec.scenario_path}`; the attribute at fault is "
+                               f"`{failure.attribute}`"]
+    return error(failure.code, f"inconsistent scenario: {failure}", scenario_span, notes=notes,
+                 hints=[failure.hint])
 
 
 def _ids(ids: tuple[int, ...]) -> str:

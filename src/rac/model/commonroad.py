@@ -117,6 +117,35 @@ class ScenarioError(Exception):
         super().__init__(f"{self.path}: {element} {problem}" if element else f"{self.path}: {problem}")
 
 
+class InconsistentScenarioError(ScenarioError):
+    """A CommonRoad file that reads, but whose parts contradict each other or the model: its own
+    diagnostic ``code`` (E0718-E0721, docs/checks.md), the ``attribute`` at fault, the position
+    ``line``:``column`` (1-based) of the element in the file when known, and a ``hint`` for the fix.
+
+    ``str(error)`` is ``"<path>:<line>:<column>: <element> <problem>"`` (without the position when
+    unknown)."""
+
+    def __init__(self, path: str | os.PathLike[str], code: str, element: str | None, attribute: str, problem: str,
+                 hint: str, position: tuple[int, int] | None = None) -> None:
+        super().__init__(path, element, problem)
+        self.code = code
+        self.attribute = attribute
+        self.hint = hint
+        self.line: int | None = position[0] if position is not None else None
+        self.column: int | None = position[1] if position is not None else None
+        where = f"{self.path}:{self.line}:{self.column}" if position is not None else self.path
+        self.args = (f"{where}: {element} {problem}" if element else f"{where}: {problem}",)
+
+
+#: E0718: the shortest and longest CommonRoad time step rac accepts (s). Times are held to 1e-9 s
+#: (:func:`_seconds`), so a shorter step loses its digits and its time steps collapse; a longer one
+#: puts an obstacle's second state beyond any horizon the model's int32 periods reach.
+MIN_TIME_STEP = 1e-6
+MAX_TIME_STEP = 1e6
+#: The lanelet elements that name another lanelet by its ``ref`` (E0720).
+LANELET_REFERENCES = ("predecessor", "successor", "adjacentLeft", "adjacentRight")
+
+
 class PlanningProblemError(ScenarioError):
     """The planning problem to use is not clear: ``chosen`` is not among the file's ``ids``, or
     (``chosen`` None, with ``require_choice``) the file has several."""
@@ -170,7 +199,10 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
     """
     data = _read_bytes(path)
     root = _parse_root(path, data)
+    positions = _positions(root, data)
+    _check_time_step(path, root, positions)
     _check_structure(path, root)
+    _check_references(path, root, positions)
     import warnings
 
     from commonroad.common.file_reader import CommonRoadFileReader
@@ -185,7 +217,52 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
             diagnosis = None
         if diagnosis is not None:
             raise diagnosis
-        return _convert(path, root, cr_scenario, problems, planning_problem_id, require_choice)
+        return _convert(path, root, cr_scenario, problems, planning_problem_id, require_choice, positions)
+
+
+def _positions(root, data: bytes) -> dict[int, tuple[int, int]]:
+    """The (line, column), 1-based, of every element of ``root`` by ``id(element)``: expat reports the
+    start tags in document order, the order of ``root.iter()`` (ElementTree keeps no positions)."""
+    from xml.parsers import expat
+
+    parser = expat.ParserCreate()
+    starts: list[tuple[int, int]] = []
+    parser.StartElementHandler = lambda name, attributes: starts.append(
+        (parser.CurrentLineNumber, parser.CurrentColumnNumber + 1))
+    try:
+        parser.Parse(data, True)
+    except expat.ExpatError:  # ElementTree read it: only the positions are lost
+        return {}
+    return {id(node): where for node, where in zip(root.iter(), starts)}
+
+
+def _check_time_step(path: str | os.PathLike[str], root, positions: dict[int, tuple[int, int]]) -> None:
+    """E0718: a ``timeStepSize`` outside [MIN_TIME_STEP, MAX_TIME_STEP]."""
+    dt = float(root.get("timeStepSize"))
+    if MIN_TIME_STEP <= dt <= MAX_TIME_STEP:
+        return
+    why = ("shorter than 1 µs: rac holds times to 1 ns, so its time steps would collapse into each other"
+           if dt < MIN_TIME_STEP else "longer than 10^6 s: an obstacle's next state would lie beyond any horizon")
+    raise InconsistentScenarioError(
+        path, "E0718", None, "timeStepSize", f"has timeStepSize=\"{root.get('timeStepSize')}\" s, {why}",
+        "write the time step the trajectories were recorded at (CommonRoad's scenarios use 0.1 s); rac accepts "
+        "steps from 1 µs to 10^6 s", positions.get(id(root)))
+
+
+def _check_references(path: str | os.PathLike[str], root, positions: dict[int, tuple[int, int]]) -> None:
+    """E0720: a lanelet's predecessor, successor or adjacent lanelet that the file does not define
+    (commonroad-io keeps the dangling id, and the road graph would lead nowhere)."""
+    defined = {node.get("id") for node in root.iter("lanelet")}
+    for lanelet in root.iter("lanelet"):
+        for kind in LANELET_REFERENCES:
+            for reference in lanelet.iterfind(kind):
+                target = reference.get("ref")
+                if target is not None and target not in defined:
+                    raise InconsistentScenarioError(
+                        path, "E0720", f"lanelet {lanelet.get('id')}", kind,
+                        f"has <{kind} ref=\"{target}\">, but the file defines no lanelet {target}",
+                        f"add lanelet {target}, correct the `ref`, or remove the <{kind}>",
+                        positions.get(id(reference)))
 
 
 def _read_bytes(path: str | os.PathLike[str]) -> bytes:
@@ -350,11 +427,20 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
 
 
 def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
-             require_choice: bool = False) -> Scenario:
+             require_choice: bool = False, positions: dict[int, tuple[int, int]] | None = None) -> Scenario:
+    positions = positions or {}
+    nodes = {(node.tag, node.get("id")): node for node in root}
+
+    def where(tag: str, ident: int) -> tuple[int, int] | None:
+        node = nodes.get((tag, str(ident)))
+        return None if node is None else positions.get(id(node))
+
     dt = float(cr_scenario.dt)
     lanelets = sorted(cr_scenario.lanelet_network.lanelets, key=lambda lanelet: lanelet.lanelet_id)
     if not lanelets:
         raise ScenarioError(path, None, "has no lanelets (rac needs the road network)")
+    for lanelet in lanelets:
+        _check_width(path, lanelet, where("lanelet", lanelet.lanelet_id))
     road = tuple(_polygon(lanelet.polygon.vertices) for lanelet in lanelets)
     lanes = tuple(Lane(lanelet.lanelet_id, _points(lanelet.center_vertices), _points(lanelet.left_vertices),
                        _points(lanelet.right_vertices)) for lanelet in lanelets)
@@ -366,7 +452,8 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
                            key=lambda obstacle: obstacle.obstacle_id):
         static = isinstance(obstacle, StaticObstacle)
         name = f"{'static' if static else 'dynamic'} obstacle {obstacle.obstacle_id}"
-        obstacles.append(_obstacle(path, name, obstacle, static, dt))
+        tag = "staticObstacle" if static else "dynamicObstacle"
+        obstacles.append(_obstacle(path, name, obstacle, static, dt, where(tag, obstacle.obstacle_id)))
 
     ids = tuple(sorted(problems.planning_problem_dict))
     if not ids:
@@ -384,6 +471,17 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     return Scenario(name=name, path=os.fspath(path), dt=dt, road=road, obstacles=tuple(obstacles), ego=ego,
                     goal=goal, planning_problem_id=planning_problem_id, planning_problem_ids=ids,
                     lanes=lanes)
+
+
+def _check_width(path, lanelet, position: tuple[int, int] | None) -> None:
+    """E0721: a lanelet whose left and right bounds coincide at every point: no area, so nothing can
+    be on it (a lane may narrow to a point where it merges, but not everywhere)."""
+    left, right = _points(lanelet.left_vertices), _points(lanelet.right_vertices)
+    if len(left) == len(right) and all(math.hypot(lx - rx, ly - ry) <= 1e-9 for (lx, ly), (rx, ry) in zip(left, right)):
+        raise InconsistentScenarioError(
+            path, "E0721", f"lanelet {lanelet.lanelet_id}", "leftBound",
+            "has no width: its <leftBound> and <rightBound> coincide at every point",
+            "give the lanelet its two bounds (a lane's width apart, e.g. 3.5 m), or remove it", position)
 
 
 def _seconds(step: float, dt: float) -> float:
@@ -463,7 +561,8 @@ def _box(path, element: str, shape) -> tuple[float, float, float, float]:
     return max_x - min_x, max_y - min_y, (min_x + max_x) / 2, (min_y + max_y) / 2
 
 
-def _obstacle(path, element: str, obstacle, static: bool, dt: float) -> Obstacle:
+def _obstacle(path, element: str, obstacle, static: bool, dt: float,
+              position: tuple[int, int] | None = None) -> Obstacle:
     from commonroad.prediction.prediction import SetBasedPrediction, TrajectoryPrediction
 
     length, width, forward, left = _box(path, element, obstacle.obstacle_shape)
@@ -486,13 +585,13 @@ def _obstacle(path, element: str, obstacle, static: bool, dt: float) -> Obstacle
     points: list[tuple[float, float]] = []
     headings: list[float | None] = []  # None: not given, derived from the motion below
     speeds: list[float | None] = []
-    for state in states:
+    for index, state in enumerate(states):
         what = f"the state at time step {getattr(state, 'time_step', '?')}"
         step = _time_step(path, element, state, what)
-        if steps and step <= steps[-1]:
-            if step == steps[-1]:
-                continue  # a trajectory that repeats the initial state
-            raise ScenarioError(path, element, f"has time steps out of order ({steps[-1]} then {step})")
+        if index == 1 and step == steps[-1]:
+            continue  # a trajectory that repeats the initial state
+        if steps and step != steps[-1] + 1:
+            _trajectory_times(path, element, steps[-1], step, position)
         steps.append(step)
         points.append(_exact_position(path, element, state, what))
         heading = _exact_number(path, element, state, "orientation", what)
@@ -521,6 +620,22 @@ def _obstacle(path, element: str, obstacle, static: bool, dt: float) -> Obstacle
                                   y=y + forward * sin + left * cos, heading=heading, velocity=speed))
     return Obstacle(id=int(obstacle.obstacle_id), length=length, width=width, waypoints=tuple(waypoints),
                     static=static, kind=kind)
+
+
+def _trajectory_times(path, element: str, previous: int, step: int, position: tuple[int, int] | None) -> None:
+    """E0719: a trajectory's time step that repeats, goes back, or skips steps: CommonRoad gives a
+    dynamic obstacle one state per time step, and the model's obstacle would jump or stand still."""
+    if step == previous:
+        problem = f"has two states at time step {step}"
+    elif step < previous:
+        problem = f"has time steps out of order ({previous} then {step})"
+    else:
+        missing = f"step {previous + 1}" if step == previous + 2 else f"steps {previous + 1} to {step - 1}"
+        problem = f"skips time {missing} (its trajectory goes from step {previous} to {step})"
+    raise InconsistentScenarioError(
+        path, "E0719", element, "time", f"{problem}: a trajectory has one state per time step",
+        "give the trajectory one state at each time step, in order (interpolate the missing ones, drop the "
+        "repeated ones)", position)
 
 
 def _ego(path, element: str, state, dt: float) -> EgoStart:

@@ -123,9 +123,11 @@ def _bytes(size: int | str | None) -> int | None:
 
 
 def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = None, force: bool = False,
-            quiet: bool = False, announce: Any = None) -> SweepResult:
+            retry_failed: bool = False, quiet: bool = False, announce: Any = None) -> SweepResult:
     """Run ``plan`` on Dask (:func:`rac.sweep.run.connect`), store each row as it arrives, then merge the
     rows into ``results.parquet`` (or CSV) and ``results.json`` and draw the plots in ``plan.out``.
+    Stored rows are reused, except those whose task's process was killed (run again, and ``announce`` says
+    how many), every row not ok with ``retry_failed``, and all of them with ``force``.
     ``announce(line)`` receives the dashboard's address; ``quiet`` turns the progress off. Ctrl-C stops the
     sweep: what is done is merged, and the result says ``outcome.interrupted``. Raises ``OSError`` when the
     scheduler cannot be reached or the output folder cannot be written."""
@@ -135,7 +137,12 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
 
     store = Store(plan.out)
     store.folder.mkdir(parents=True, exist_ok=True)  # an unwritable folder fails before the cluster starts
-    outcome, todo = pending(plan.specs, store, force=force)
+    outcome, todo = pending(plan.specs, store, force=force, retry_failed=retry_failed)
+    say = announce or (lambda _: None)
+    for count, why in ((outcome.rerun_killed, "whose process was killed"),
+                       (outcome.rerun_failed, "that failed (--retry-failed)")):
+        if count:
+            say(f"rerunning {count} task{'s' * (count != 1)} {why}")
     if todo:  # everything stored already: no cluster
         with Tracker(quiet=quiet) as tracker, connect(scheduler, workers, announce=announce) as client:
             tracker.start(len(todo), outcome.skipped)
@@ -150,7 +157,8 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
 def sweep(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
           sets: Mapping[str, object] | Sequence[str] | None = None, task: str = "verify",
           scheduler: str | None = None, workers: int | None = None, out: str | Path | None = None,
-          force: bool = False, task_timeout: float | None = None, task_memory: int | str | None = None,
+          force: bool = False, retry_failed: bool = False, task_timeout: float | None = None,
+          task_memory: int | str | None = None,
           options: Mapping[str, object] | None = None, quiet: bool = False) -> Any:
     """Run ``task`` (``check``, ``verify``, ``preanalyse`` or ``experiment``) of the template ``.ra``
     file on every scenario (files, folders searched for ``*.xml``, globs) and every point of the grid
@@ -159,7 +167,8 @@ def sweep(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     per core). ``options`` are the task's (:data:`rac.sweep.task.OPTIONS`: ``horizon``, ``seed``,
     ``max_states``, ...); ``task_timeout``
     (seconds) and ``task_memory`` (bytes, or e.g. ``"2G"``) limit each task. Rows already in the output
-    folder ``out`` (default ``TEMPLATE.out/sweep/``) are reused unless ``force``.
+    folder ``out`` (default ``TEMPLATE.out/sweep/``) are reused unless ``force``; a row whose task's
+    process was killed is not a result and runs again, and so does every row not ok with ``retry_failed``.
 
     Returns one row per task: a pandas DataFrame (columns as in ``results.parquet``, docs/sweep.md) when
     pandas is installed, else the rows as a list of dicts. ``ValueError`` on bad arguments; on Ctrl-C the
@@ -168,7 +177,7 @@ def sweep(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
 
     result = execute(plan(template, scenarios, sets=sets, task=task, out=out, task_timeout=task_timeout,
                           task_memory=task_memory, options=options),
-                     scheduler=scheduler, workers=workers, force=force, quiet=quiet)
+                     scheduler=scheduler, workers=workers, force=force, retry_failed=retry_failed, quiet=quiet)
     if result.outcome.interrupted:
         raise KeyboardInterrupt
     return frame(result.rows)

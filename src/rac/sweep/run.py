@@ -54,25 +54,28 @@ def task_function() -> Callable[[TaskSpec], Row]:
     return run_task
 
 
-def error_row(spec: TaskSpec, key: str, status: str, message: str) -> Row:
+def error_row(spec: TaskSpec, key: str, status: str, message: str, *, retry: bool = False) -> Row:
     """The row of a task that produced none itself (its worker died, it raised, it could not be sent):
-    ``status`` and ``message``, every other measurement None."""
+    ``status`` and ``message``, whether a resumed sweep runs it again (``retry``), every other measurement None."""
     return {"key": key, "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem,
             "settings": dict(spec.settings), "task": spec.task, "status": status, "error": message,
-            "seconds": 0.0, "peak_memory": None, "states": None, "scenario_size": None, "verdicts": {},
+            "retry": retry, "seconds": 0.0, "peak_memory": None, "states": None, "scenario_size": None, "verdicts": {},
             "diagnostics": [], "details": None}
 
 
 @dataclass
 class Outcome:
     """What :func:`run_tasks` did: the row of every task that has one (stored before or now) by task
-    key, each spec's key, how many ran now and how many were skipped (stored before), and whether
+    key, each spec's key, how many ran now and how many were skipped (stored before), how many stored
+    rows are run again (their process was killed; other failures with ``retry_failed``), and whether
     Ctrl-C stopped it."""
 
     rows: dict[str, Row] = field(default_factory=dict)
     keys: list[str] = field(default_factory=list)  #: the key of each spec, in the order given
     ran: int = 0
     skipped: int = 0
+    rerun_killed: int = 0  #: stored rows marked ``retry`` (the task's process was killed), run again
+    rerun_failed: int = 0  #: other stored rows not ok, run again under ``retry_failed``
     interrupted: bool = False
 
 
@@ -130,20 +133,30 @@ def _workers_ignore_sigint() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False) -> tuple[Outcome, dict[str, TaskSpec]]:
+def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
+            retry_failed: bool = False) -> tuple[Outcome, dict[str, TaskSpec]]:
     """What is done and what is left: an :class:`Outcome` holding each spec's key and the rows ``store``
     has (none with ``force``), and the specs to run by key (specs with equal keys, the same scenario file
-    under two paths, run once)."""
+    under two paths, run once). A stored row marked ``retry`` (its task's process was killed: no verdict)
+    is run again; with ``retry_failed`` every stored row that is not ok is."""
     outcome = Outcome()
     todo: dict[str, TaskSpec] = {}
     for spec in specs:
         key = spec.key()
         outcome.keys.append(key)
+        if key in todo or key in outcome.rows:  # the same scenario file under another path: decided once
+            continue
         stored = None if force else store.get(key)
+        if stored is not None and stored.get("retry") is True:
+            outcome.rerun_killed += 1
+            stored = None
+        elif stored is not None and retry_failed and stored.get("status") != "ok":
+            outcome.rerun_failed += 1
+            stored = None
         if stored is not None:
             outcome.rows[key] = stored
-        elif key not in outcome.rows:
-            todo.setdefault(key, spec)
+        else:
+            todo[key] = spec
     outcome.skipped = sum(1 for key in outcome.keys if key in outcome.rows)
     return outcome, todo
 
@@ -169,7 +182,7 @@ def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpe
             try:
                 row = dict(future.result())
             except KilledWorker:
-                row = error_row(spec, key, "error", KILLED)
+                row = error_row(spec, key, "error", KILLED, retry=True)  # killed, most likely from outside
             except Exception as exc:  # run_task never raises; a stand-in may, and so may unpickling
                 row = error_row(spec, key, "error", f"{type(exc).__name__}: {exc}")
             row["key"] = key

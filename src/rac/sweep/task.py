@@ -31,7 +31,8 @@ import rac
 from rac.engine.budget import format_bytes
 from rac.verify.status import VERDICTS as report_verdicts
 
-__all__ = ["OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec", "memory_error", "run_task"]
+__all__ = ["KILLING_SIGNALS", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec", "memory_error",
+           "run_task"]
 
 #: What a task runs: the command of the same name on one file.
 TASKS = ("check", "verify", "preanalyse", "experiment")
@@ -55,6 +56,10 @@ OPTIONS: dict[str, str] = {
 #: CPython's SystemError "returned NULL without setting an exception" when even the MemoryError failed).
 OUT_OF_MEMORY = ("MemoryError", "Unable to allocate", "Cannot allocate memory", "bad_alloc", "out of memory",
                   "SystemError")
+#: The signals that end a task's process from outside (the out-of-memory killer's SIGKILL, a shutdown's
+#: SIGTERM): such a death says nothing about the task, so its row is marked ``retry`` and a resumed sweep
+#: runs it again. A crash (SIGSEGV, SIGABRT) is the task's own doing and stays a plain error.
+KILLING_SIGNALS = frozenset({signal.SIGKILL, signal.SIGTERM})
 #: The last characters of the child's standard error an error row quotes.
 _STDERR_TAIL = 2000
 
@@ -105,7 +110,7 @@ def _row(spec: TaskSpec) -> dict[str, Any]:
     """The row before the task ran: what the spec says, and an error nothing replaced yet."""
     return {"key": spec.key(), "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem,
             "settings": dict(spec.settings), "task": spec.task, "status": "error",
-            "error": "the task gave no result", "seconds": 0.0, "peak_memory": None, "states": None,
+            "error": "the task gave no result", "retry": False, "seconds": 0.0, "peak_memory": None, "states": None,
             "scenario_size": None, "verdicts": {}, "diagnostics": [], "details": None}
 
 
@@ -115,7 +120,9 @@ def run_task(spec: TaskSpec) -> dict[str, object]:
     ``error`` text).
 
     Keys (always present, JSON-serialisable): key, scenario (path), scenario_name (the file's stem),
-    settings (dict name -> value text), task, status (:data:`STATUSES`), error (str or None), seconds
+    settings (dict name -> value text), task, status (:data:`STATUSES`), error (str or None), retry (bool:
+    the task's process was killed from outside, :data:`KILLING_SIGNALS`, so the row is no verdict and a
+    resumed sweep runs the task again), seconds
     (the task's own time in the child; the whole time when the child gave no result), peak_memory
     (bytes, the child's largest resident size, or None), states (int or None), scenario_size (int:
     lanelets + obstacles, or None), verdicts (dict query name -> :data:`VERDICTS`; {} for check),
@@ -185,8 +192,9 @@ def _in_child(spec: TaskSpec) -> dict[str, Any]:
     if spec.memory is not None and any(sign in stderr for sign in OUT_OF_MEMORY):
         return {"status": "memory", "error": memory_error(spec.memory, f"the task's process {how}"),
                 "seconds": seconds}
+    killed = code < 0 and -code in KILLING_SIGNALS
     return {"status": "error", "error": f"the task's process {how}" + (f":\n{tail}" if tail else ""),
-            "seconds": seconds}
+            "retry": killed, "seconds": seconds}
 
 
 def memory_error(limit: int, what: str) -> str:

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import Severity
 from rac.engine.budget import BudgetExceeded
+from rac.model.checks import UNUSABLE_SCENARIO
 from rac.sweep.template import instantiate
 
 if TYPE_CHECKING:
@@ -39,8 +40,6 @@ CHECK_MODULES = ("rac.check.analysis", "rac.model.checks", "rac.model.commonroad
 MODULES = {"check": (), "verify": ("rac.verify.runner",), "preanalyse": ("rac.studies.preanalysis",),
            "experiment": ("rac.studies.experiment", "rac.learning.episodes", "rac.learning.lockstep",
                           "rac.learning.qlearning", "rac.learning.runs")}
-#: The diagnostic of a scenario that cannot be loaded: rac could not run the task ("error", not "failed").
-CANNOT_LOAD = "E0712"
 #: The preanalysis answers that are verdicts, by the row's column.
 PREANALYSIS_VERDICTS = {"qb": "Qb", "qc": "Qc", "qd": "Qd"}
 
@@ -93,7 +92,8 @@ def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
     row["scenario_size"] = _size(result)
     errors = [d for d in result.diagnostics if d.is_error]
     if errors:
-        status = "error" if any(d.code == CANNOT_LOAD for d in errors) else "failed"
+        # a scenario that cannot be loaded or is inconsistent: rac could not run the task ("error", not "failed")
+        status = "error" if any(d.code in UNUSABLE_SCENARIO for d in errors) else "failed"
         row.update(status=status, error=f"{errors[0].code} {errors[0].message}")
         return row
     if result.automaton is None or result.automaton.model is None or result.model_data is None:
