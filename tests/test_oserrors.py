@@ -217,3 +217,27 @@ def test_concurrent_fmt_and_tune_never_both_succeed_while_losing_work(tmp_path: 
         else:
             assert tune.returncode == 2 and "changed since rac tune read it" in tune_err, tune_err
             assert not tuned
+
+
+def test_a_hard_link_that_cannot_be_rewritten_in_place_still_gets_a_whole_file(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import builtins
+
+    from rac.cli import common
+
+    path, other = tmp_path / "x.ra", tmp_path / "same.ra"
+    path.write_text("old\n", encoding="utf-8")
+    os.link(path, other)
+    real_open = builtins.open
+
+    def full_disk(file: object, mode: str = "r", *args: object, **kwargs: object) -> object:
+        if Path(str(file)) == path and "w" in mode:
+            raise OSError(28, "No space left on device")
+        return real_open(file, mode, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", full_disk)
+    with pytest.raises(OSError, match="has all of the new text"):
+        common.write_atomically(path, "new\n")
+    monkeypatch.undo()
+    assert path.read_text(encoding="utf-8") == "new\n"
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []

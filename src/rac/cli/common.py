@@ -96,16 +96,15 @@ def locked(path: Path) -> Iterator[None]:
     ``rac fmt`` and ``rac tune`` on one file at once take turns instead of losing each other's work.
     The folder, not a lock file beside ``path``: nothing is left behind, and the lock survives the
     rename that replaces the file. Without a folder that can be opened there is no lock (nor a write)."""
-    try:
+    fd: int | None = None
+    with contextlib.suppress(OSError):
         fd = os.open(path.parent if str(path.parent) else ".", os.O_RDONLY)
-    except OSError:
-        yield
-        return
-    try:
         fcntl.flock(fd, fcntl.LOCK_EX)
+    try:
         yield
     finally:
-        os.close(fd)  # closing releases the lock
+        if fd is not None:
+            os.close(fd)  # closing releases the lock
 
 
 def _remove_stale_temporaries(path: Path) -> None:
@@ -172,8 +171,13 @@ def write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
             try:
                 if _linked(path):  # a hard link stays one: the text goes into the file itself, the
                     # complete temporary copy written first (the disk had room for it)
-                    with open(path, "w", encoding="utf-8", newline="\n") as handle:
-                        handle.write(dict(files)[path])
+                    try:
+                        with open(path, "w", encoding="utf-8", newline="\n") as handle:
+                            handle.write(dict(files)[path])
+                    except OSError as exc:  # never half a file here: the complete copy replaces it
+                        os.replace(temporary, path)
+                        raise OSError(exc.errno, f"{exc.strerror}; `{path}` has all of the new text, but as a "
+                                                 "new file: its other hard links may hold part of it") from exc
                     os.unlink(temporary)
                 else:
                     os.replace(temporary, path)
