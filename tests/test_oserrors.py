@@ -83,6 +83,7 @@ def test_a_too_long_name_for_uppaal_is_e0009(clean: Path) -> None:
     done = run_rac("compile", clean, "--target", "uppaal", "-o", clean.parent / f"{LONG}.xml")
     assert done.returncode == 2, done.stderr
     assert "error[E0009]: cannot write" in done.stderr and "File name too long" in done.stderr
+    assert "hint: use a shorter name" in done.stderr
 
 
 def test_a_too_long_name_for_new_is_e0009(tmp_path: Path) -> None:
@@ -98,6 +99,7 @@ def test_an_output_folder_that_cannot_be_written_is_e0009(clean: Path, target: s
     done = run_rac("compile", clean, "--target", target, "-o", blocker / "out.xml")
     assert done.returncode == 2, done.stderr
     assert "error[E0009]: cannot write" in done.stderr and "Not a directory" in done.stderr
+    assert "a part of the path is a file, not a folder" in done.stderr
 
 
 def test_new_under_a_regular_file_is_e0009(tmp_path: Path) -> None:

@@ -69,8 +69,13 @@ def overwrites_source(output: Path, source: Path) -> Diagnostic:
 def unwritable(path: Path, exc: OSError) -> Diagnostic:
     """E0009: ``path`` cannot be written (nothing was)."""
     reason = exc.strerror or str(exc)
-    return error("E0009", f"cannot write `{path}`: {reason}", None,
-                 hints=["check that the folder exists and is writable; nothing was written"])
+    # the hint names the remedy of the condition: a folder is not the problem with a long name
+    hint = {errno.ENAMETOOLONG: "use a shorter name (a file system allows about 255 bytes per name)",
+            errno.ENOTDIR: "a part of the path is a file, not a folder: choose another path",
+            errno.ENOSPC: "free some space on the disk or write elsewhere",
+            errno.EROFS: "the file system is read-only: write elsewhere"}.get(
+        exc.errno or 0, "check that the folder exists and is writable")
+    return error("E0009", f"cannot write `{path}`: {reason}", None, hints=[f"{hint}; nothing was written"])
 
 
 class StdoutError(Exception):
