@@ -2,17 +2,21 @@
 atomically.
 
 Exit codes: 0 clean (warnings allowed), 1 errors in the input (or a query not satisfied), 2 bad
-usage or a file that cannot be read or written, 3 an internal error (a bug in rac), 4 a query
-that was not decided (``rac verify``: an *unknown* or *unsupported* verdict and none that fails).
+usage or a file that cannot be read or written (standard output too: full, or closed), 3 an internal
+error (a bug in rac), 4 a query that was not decided (``rac verify``: an *unknown* or *unsupported*
+verdict and none that fails).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
+import fcntl
 import os
 import tempfile
-from collections.abc import Sequence
+import time
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from rac.compiler import CompileResult, compile_file
@@ -20,11 +24,15 @@ from rac.core.diagnostics import Diagnostic, error
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
-           "OUTPUT_SUFFIX", "FileWriteError", "output_folder", "overwrites_source", "read_and_check", "same_file",
-           "size_argument", "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
+           "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "locked", "output_folder",
+           "overwrites_source", "read_and_check", "same_file", "size_argument", "stdout_unwritable",
+           "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 
+#: A writer's temporary file older than this (seconds) was left by a writer that was killed: the
+#: next write of the same file removes it. A live writer writes its text at once, in far less time.
+STALE_SECONDS = 3600
 
 
 def unreadable(path: Path, exc: OSError) -> Diagnostic:
@@ -61,8 +69,58 @@ def overwrites_source(output: Path, source: Path) -> Diagnostic:
 def unwritable(path: Path, exc: OSError) -> Diagnostic:
     """E0009: ``path`` cannot be written (nothing was)."""
     reason = exc.strerror or str(exc)
-    return error("E0009", f"cannot write `{path}`: {reason}", None,
-                 hints=["check that the folder exists and is writable; nothing was written"])
+    # the hint names the remedy of the condition: a folder is not the problem with a long name
+    hint = {errno.ENAMETOOLONG: "use a shorter name (a file system allows about 255 bytes per name)",
+            errno.ENOTDIR: "a part of the path is a file, not a folder: choose another path",
+            errno.ENOSPC: "free some space on the disk or write elsewhere",
+            errno.EROFS: "the file system is read-only: write elsewhere"}.get(
+        exc.errno or 0, "check that the folder exists and is writable")
+    return error("E0009", f"cannot write `{path}`: {reason}", None, hints=[f"{hint}; nothing was written"])
+
+
+class StdoutError(Exception):
+    """Standard output cannot be written (full disk, closed, ...): the user's or the environment's
+    condition, not a bug in rac; ``cause`` says why."""
+
+    def __init__(self, cause: OSError) -> None:
+        super().__init__(f"cannot write standard output: {cause}")
+        self.cause = cause
+
+
+def stdout_unwritable(exc: OSError) -> Diagnostic:
+    """E0009: standard output cannot be written (what was printed before may be incomplete)."""
+    reason = "it is closed" if exc.errno == errno.EBADF else exc.strerror or str(exc)
+    return error("E0009", f"cannot write `<standard output>`: {reason}", None,
+                 hints=["send the output where it can be written (another redirect, a disk with free space, "
+                        "or -o FILE where the command has it); what was printed may be incomplete"])
+
+
+@contextlib.contextmanager
+def locked(path: Path) -> Iterator[None]:
+    """Hold an advisory lock (``flock``) on the folder of ``path`` while rac reads and rewrites it:
+    ``rac fmt`` and ``rac tune`` on one file at once take turns instead of losing each other's work.
+    The folder, not a lock file beside ``path``: nothing is left behind, and the lock survives the
+    rename that replaces the file. Without a folder that can be opened there is no lock (nor a write)."""
+    fd: int | None = None
+    with contextlib.suppress(OSError):
+        fd = os.open(path.parent if str(path.parent) else ".", os.O_RDONLY)
+        fcntl.flock(fd, fcntl.LOCK_EX)
+    try:
+        yield
+    finally:
+        if fd is not None:
+            os.close(fd)  # closing releases the lock
+
+
+def _remove_stale_temporaries(path: Path) -> None:
+    """Remove ``.NAME.*.tmp`` files beside ``path`` that a killed writer left (older than
+    :data:`STALE_SECONDS`); a failure to look or remove is no reason to fail the write."""
+    cutoff = time.time() - STALE_SECONDS
+    with contextlib.suppress(OSError):
+        for leftover in path.parent.glob(f".{path.name}.*.tmp"):
+            with contextlib.suppress(OSError):
+                if leftover.stat().st_mtime < cutoff:
+                    leftover.unlink()
 
 
 class FileWriteError(Exception):
@@ -85,19 +143,27 @@ def write_atomically(path: Path, text: str) -> None:
 
 def write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
     """Write several files so that, on error, none of them changed: every text goes to a
-    temporary file first, and the renames happen only once all of them are written.
+    temporary file first, and the renames happen only once all of them are written. A file with
+    hard links is rewritten in place instead (after its temporary copy is complete), so the links
+    stay; temporaries a killed writer left are removed (:data:`STALE_SECONDS`).
     Raises :class:`FileWriteError` naming the file that failed."""
-    for path, _ in files:
-        if path.is_dir():  # os.replace would fail only after the earlier files were replaced
-            raise FileWriteError(path, IsADirectoryError(errno.EISDIR, "it is a directory", str(path)))
+    resolved: list[tuple[Path, str]] = []
+    for path, text in files:
+        try:  # a name too long, a "folder" that is a file: OSError here too
+            if path.is_dir():  # os.replace would fail only after the earlier files were replaced
+                raise IsADirectoryError(errno.EISDIR, "it is a directory", str(path))
+            # a symbolic link stays one: its target is rewritten
+            resolved.append((Path(os.path.realpath(path)) if path.is_symlink() else path, text))
+        except OSError as exc:
+            raise FileWriteError(path, exc) from exc
+    files = resolved
     temporaries: list[tuple[Path, str]] = []
-    # a symbolic link stays one: its target is rewritten
-    files = [(Path(os.path.realpath(path)) if path.is_symlink() else path, text) for path, text in files]
     mask = os.umask(0)  # the mode a new file would get (mkstemp makes 0600)
     os.umask(mask)
     try:
         for path, text in files:
             directory = path.parent if str(path.parent) else Path(".")
+            _remove_stale_temporaries(path)
             try:
                 fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
                 temporaries.append((path, temporary))
@@ -108,13 +174,32 @@ def write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
                 raise FileWriteError(path, exc) from exc
         for path, temporary in temporaries:
             try:
-                os.replace(temporary, path)
+                if _linked(path):  # a hard link stays one: the text goes into the file itself, the
+                    # complete temporary copy written first (the disk had room for it)
+                    try:
+                        with open(path, "w", encoding="utf-8", newline="\n") as handle:
+                            handle.write(dict(files)[path])
+                    except OSError as exc:  # never half a file here: the complete copy replaces it
+                        os.replace(temporary, path)
+                        raise OSError(exc.errno, f"{exc.strerror}; `{path}` has all of the new text, but as a "
+                                                 "new file: its other hard links may hold part of it") from exc
+                    os.unlink(temporary)
+                else:
+                    os.replace(temporary, path)
             except OSError as exc:
                 raise FileWriteError(path, exc) from exc
     except BaseException:
         for _, temporary in temporaries:
             Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def _linked(path: Path) -> bool:
+    """Whether ``path`` is a file with more than one hard link (a rename would break them)."""
+    try:
+        return path.stat().st_nlink > 1
+    except OSError:
+        return False
 
 
 def size_argument(text: str) -> int:

@@ -3,18 +3,20 @@
 pre-analyse them with the native engine (:mod:`rac.cli.engine`).
 
 Exit codes: 0 clean (warnings allowed), 1 errors in the input, 2 bad usage or a
-file that cannot be read, 3 an internal error (a bug in rac; set RAC_DEBUG=1 for
+file that cannot be read or written (standard output too), 3 an internal error (a bug in rac; set RAC_DEBUG=1 for
 the traceback).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import json
 import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TextIO
 
 from rac import __version__
 from rac.cli.common import (
@@ -24,9 +26,12 @@ from rac.cli.common import (
     EXIT_USAGE,
     OUTPUT_CONVENTION,
     FileWriteError,
+    StdoutError,
+    locked,
     overwrites_source,
     read_and_check,
     same_file,
+    stdout_unwritable,
     unreadable,
     unwritable,
     write_all_atomically,
@@ -43,8 +48,8 @@ def _parser() -> argparse.ArgumentParser:
         prog="rac", description="The reward-automata compiler: check, compile and format .ra files; verify "
                     "their queries, simulate and pre-analyse them on a CommonRoad scenario.",
         epilog=f"{OUTPUT_CONVENTION} Exit codes: 0 ok, 1 errors in the input or a query not satisfied, 2 bad "
-               "usage or a file that cannot be read or written, 3 an internal error (a bug in rac), 4 a query "
-               "not decided.")
+               "usage or a file that cannot be read or written (standard output too), 3 an internal error (a "
+               "bug in rac), 4 a query not decided.")
     parser.add_argument("--version", action="version", version=f"rac {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -201,39 +206,46 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
 
 
 def _fmt(args: argparse.Namespace) -> int:
+    status = EXIT_OK
+    for path in args.files:
+        with locked(path):  # read, format and write while no other rac rewrites the file
+            status = max(status, _fmt_one(args, path))
+    return status
+
+
+def _fmt_one(args: argparse.Namespace, path: Path) -> int:
+    """``rac fmt`` of one file; its exit status."""
     from rac.lang.format import format_module
     from rac.lang.parser import ParseFailure, parse_source, read_source
 
-    status = EXIT_OK
-    for path in args.files:
-        source = None
+    source = None
+    try:
+        source = read_source(path)
+        formatted = format_module(parse_source(source))
+        # the bytes, not the decoded text: a BOM or CR line ends differ from the output too
+        unchanged = formatted.encode("utf-8") == path.read_bytes()
+    except OSError as exc:
+        print(render_text([unreadable(path, exc)], {}), file=sys.stderr)
+        return EXIT_USAGE
+    except ParseFailure as failure:
+        shown = source or failure.source
+        print(render_text([failure.diagnostic], {shown.name: shown} if shown else {}), file=sys.stderr)
+        return EXIT_ERRORS
+    if args.stdout:
+        sys.stdout.write(formatted)
+    elif unchanged:
+        pass
+    elif args.check:
+        print(f"{path}: would be reformatted", file=sys.stderr)
+        return EXIT_ERRORS
+    else:
         try:
-            source = read_source(path)
-            formatted = format_module(parse_source(source))
+            write_atomically(path, formatted)
         except OSError as exc:
-            print(render_text([unreadable(path, exc)], {}), file=sys.stderr)
-            status = max(status, EXIT_USAGE)
-            continue
-        except ParseFailure as failure:
-            shown = source or failure.source
-            print(render_text([failure.diagnostic], {shown.name: shown} if shown else {}), file=sys.stderr)
-            status = max(status, EXIT_ERRORS)
-            continue
-        if args.stdout:
-            sys.stdout.write(formatted)
-        elif formatted != source.text:
-            if args.check:
-                print(f"{path}: would be reformatted", file=sys.stderr)
-                status = max(status, EXIT_ERRORS)
-            else:
-                try:
-                    write_atomically(path, formatted)
-                except OSError as exc:
-                    print(render_text([unwritable(path, exc)], {}), file=sys.stderr)
-                    status = max(status, EXIT_USAGE)
-                    continue
-                print(f"{path}: reformatted", file=sys.stderr)
-    return status
+            print(render_text([unwritable(path, exc)], {}), file=sys.stderr)
+            return EXIT_USAGE
+        print(f"{path}: reformatted", file=sys.stderr)
+    return EXIT_OK
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -253,7 +265,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     stdout = sys.stdout
     sys.stdout = ReaderSafe(stdout)  # `rac check ... | head`: the command still ends with its own status
     try:
-        return handlers[args.command](args)
+        status = handlers[args.command](args)
+        sys.stdout.flush()  # here, not at exit: a full disk is reported like any other write
+        return status
+    except StdoutError as exc:  # the environment's, not a bug: say what failed, exit 2
+        print(render_text([stdout_unwritable(exc.cause)], {}), file=sys.stderr)
+        return EXIT_USAGE
     except KeyboardInterrupt:
         print("rac: interrupted", file=sys.stderr)
         return 130
@@ -270,29 +287,43 @@ def main(argv: Sequence[str] | None = None) -> int:
 class ReaderSafe:
     """Standard output that outlives its reader. When the reader leaves (``rac check ... | head -1``),
     the rest of the output is dropped and the command goes on to its own exit status: a failed check
-    stays failed whoever reads its first line."""
+    stays failed whoever reads its first line.
 
-    def __init__(self, stream) -> None:
+    Any other failure to write (a full disk, a closed standard output) raises :class:`StdoutError`,
+    once: later output is dropped, so that the report of it and the exit go through.
+    """
+
+    def __init__(self, stream: TextIO | None) -> None:
         self._stream = stream
         self.gone = False
 
     def write(self, text: str) -> int:
         if not self.gone:
             try:
+                if self._stream is None:  # started with standard output closed (`rac ... >&-`)
+                    raise OSError(errno.EBADF, "standard output is closed")
                 return self._stream.write(text)
             except BrokenPipeError:
                 self._reader_left()
+            except OSError as exc:
+                self._reader_left()
+                raise StdoutError(exc) from exc
         return len(text)
 
     def flush(self) -> None:
-        if not self.gone:
+        if not self.gone and self._stream is not None:
             try:
                 self._stream.flush()
             except BrokenPipeError:
                 self._reader_left()
+            except OSError as exc:
+                self._reader_left()
+                raise StdoutError(exc) from exc
 
     def _reader_left(self) -> None:
         self.gone = True
+        if self._stream is None:
+            return
         try:  # later flushes of the real stream (at exit too) go to /dev/null, silently
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, self._stream.fileno())

@@ -8,6 +8,7 @@ identifier. An existing file is never overwritten (E0009, exit 2).
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 from pathlib import Path
@@ -79,6 +80,11 @@ def _exists(path: Path) -> Diagnostic:
 
 def new_command(args: argparse.Namespace) -> int:
     """``rac new NAME --from FILE``: copy, rename, write atomically, say what to run next."""
+    stem = Path(args.name).name.removesuffix(".ra")
+    if not stem.strip(".") or args.name.endswith(("/", os.sep)):  # "", ".", "..", ".ra", "dir/"
+        print(f"rac new: NAME `{args.name}` names no file: give the file's name, e.g. `rac new my_reward` "
+              "(writes my_reward.ra)", file=sys.stderr)
+        return EXIT_USAGE
     target = Path(args.name if args.name.endswith(".ra") else f"{args.name}.ra")
     try:
         source = template_path(args.template)
@@ -90,7 +96,12 @@ def new_command(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(render_text([unreadable(Path(args.template), exc)], {}), file=sys.stderr)
         return EXIT_USAGE
-    if target.exists() or target.is_symlink():
+    try:
+        taken = target.exists() or target.is_symlink()
+    except OSError as exc:  # a name too long for the file system
+        print(render_text([unwritable(target, exc)], {}), file=sys.stderr)
+        return EXIT_USAGE
+    if taken:
         print(render_text([_exists(target)], {}), file=sys.stderr)
         return EXIT_USAGE
     automaton = camel_case(target.name[:-len(".ra")])

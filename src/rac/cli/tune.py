@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import errno
 import json
 import re
 import sys
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from rac.check.analysis.synthesis import Synthesised
 from rac.check.horizon import Fit, at_horizon, fit_line, formula_text
-from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
+from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, locked, unreadable, unwritable, write_atomically
 from rac.compiler import CompileResult, compile_source
 from rac.core.diagnostics import Diagnostic, render_text, sort_key
 from rac.core.numbers import exact_decimal, exact_text
@@ -107,10 +108,19 @@ def tune_command(args: argparse.Namespace) -> int:
     _confirm(source, text, result)
     written = None
     if not args.show:
-        try:
-            write_atomically(path, text)
-        except OSError as exc:
-            print(render_text([unwritable(path, exc)], {}), file=sys.stderr)
+        with locked(path):  # rac fmt (or another tune) may have rewritten the file while this one worked
+            try:
+                changed = read_source(path).text != source.text
+                if not changed:
+                    write_atomically(path, text)
+            except (OSError, ParseFailure) as exc:
+                cause = exc if isinstance(exc, OSError) else OSError(errno.EIO, "it can no longer be read")
+                print(render_text([unwritable(path, cause)], {}), file=sys.stderr)
+                return EXIT_USAGE
+        if changed:
+            print(f"rac tune: `{path}` changed since rac tune read it (another program wrote it meanwhile); "
+                  f"nothing was written, so that its changes are kept\n"
+                  f"  = hint: run `rac tune {path}` again", file=sys.stderr)
             return EXIT_USAGE
         written = path
     changes = list(difflib.unified_diff(source.text.splitlines(), text.splitlines(), str(path),

@@ -309,6 +309,10 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
 
 def _write_text(path: Path, text: str) -> None:
     partial = path.with_name(path.name + ".partial")
-    partial.write_text(text, encoding="utf-8")
-    os.replace(partial, path)
+    try:
+        partial.write_text(text, encoding="utf-8")
+        os.replace(partial, path)
+    except BaseException:  # a full disk, an interrupt: no half file left behind
+        partial.unlink(missing_ok=True)
+        raise
 

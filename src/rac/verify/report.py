@@ -81,13 +81,17 @@ def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.n
     """``run,time,expr...`` rows of simulated runs (``values``: one ``(N, T+1)`` array per name),
     written to a temporary file and renamed (never half a file); returns ``path``."""
     partial = path.with_name(path.name + ".partial")
-    with partial.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["run", "time", *names])
-        for run in range(values[0].shape[0] if values else 0):
-            for k, t in enumerate(times):
-                writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
-    os.replace(partial, path)
+    try:
+        with partial.open("w", newline="", encoding="utf-8") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(["run", "time", *names])
+            for run in range(values[0].shape[0] if values else 0):
+                for k, t in enumerate(times):
+                    writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
+        os.replace(partial, path)
+    except BaseException:  # a full disk, an interrupt: no half file left behind
+        partial.unlink(missing_ok=True)
+        raise
     return path
 
 
