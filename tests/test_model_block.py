@@ -653,3 +653,22 @@ def test_formatted_examples_still_check() -> None:
     text = with_model(BLOCK)
     formatted = format_module(parse_text(text))
     assert check(formatted).automaton == check(text).automaton
+
+
+def test_memory_error_while_loading_is_not_a_broken_scenario(monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    """Issue 22: a MemoryError while the scenario loads (a process limit, a machine too small) was
+    reported as E0712, "cannot load the scenario", about a file that is fine; it is a resource error."""
+    from rac.cli.main import main
+    from rac.model import checks
+
+    def out_of_memory(*args: object, **kwargs: object) -> None:
+        raise MemoryError
+
+    monkeypatch.setattr(checks, "_load", out_of_memory)
+    folder = Path(__file__).parent / "diagnostics"
+    monkeypatch.chdir(folder)
+    status = main(["check", "E0712_missing_scenario.ra"])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert "E0712" not in err and "internal error" not in err
+    assert "out of memory" in err and "ulimit -v" in err

@@ -6,7 +6,8 @@
 
 * E0712: the file cannot be loaded (missing, not XML, not CommonRoad, an element rac cannot
   represent), or the model's data cannot be built from it; the loader's message names the file
-  and the element. Anything else the loader or the builder raises becomes E0712 as well.
+  and the element. Anything else the loader or the builder raises becomes E0712 as well, except
+  a ``MemoryError``: the file is not at fault, so it propagates (``rac`` reports a resource error).
 * E0713: a value of the scenario (a position, a speed, an obstacle's size, ...) whose
   significand ``trunc(v · base^exponent)`` overflows int32, with the largest exponent that fits.
 * E0714: the ego starts outside the model's limits (a speed outside [`min_speed`, `max_speed`],
@@ -102,6 +103,8 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
         return result
     except ScenarioError as failure:
         return cannot_load(str(failure), _load_hints(failure, written))
+    except MemoryError:  # the machine or the process limit, not the file: the caller reports a resource error
+        raise
     except Exception as failure:  # never a traceback: whatever the loader raises is a diagnostic
         return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
     result.scenario = scenario
@@ -115,6 +118,8 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
             return cannot_load(f"{spec.scenario_path}: {failure}", [_GENERIC_HINT])
         result.diagnostics.append(_overflow(automaton, spec, scenario, failure))
         return result
+    except MemoryError:
+        raise
     except Exception as failure:
         return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
     result.data = data
