@@ -672,3 +672,24 @@ def test_memory_error_while_loading_is_not_a_broken_scenario(monkeypatch: pytest
     assert status == 2
     assert "E0712" not in err and "internal error" not in err
     assert "out of memory" in err and "ulimit -v" in err
+
+
+def test_a_large_scenario_load_is_announced(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """Issue 22: a 50 MB scenario loaded for 15 minutes without a word. A file expected to take more than
+    a few seconds is announced through the caller's callback, with its size and the expected time."""
+    from rac.compiler import compile_file
+    from rac.model import checks
+
+    folder = Path(__file__).parent / "diagnostics"
+    source = (folder / "E0712_missing_scenario.ra").read_text(encoding="utf-8")
+    scenario = re.search(r'scenario "([^"]+)"', source)
+    assert scenario is not None
+    (tmp_path / scenario.group(1)).write_bytes(b"<x/>" + b" " * (checks.LOAD_NOTICE_BYTES + 1))
+    (tmp_path / "big.ra").write_text(source, encoding="utf-8")
+    said: list[str] = []
+    compile_file(tmp_path / "big.ra", progress=said.append)
+    assert len(said) == 1 and "loading the scenario" in said[0] and "MB" in said[0], said
+    said.clear()
+    (tmp_path / scenario.group(1)).write_bytes(b"<x/>")
+    compile_file(tmp_path / "big.ra", progress=said.append)
+    assert said == []

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from typing import TYPE_CHECKING
@@ -39,6 +40,13 @@ from rac.ir.vocabulary import NO_PLANNING_PROBLEM
 if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
     from rac.model.data import ModelData
+
+#: A scenario file larger than this is announced before it loads (``check_scenario``'s ``progress``):
+#: at :data:`LOAD_BYTES_PER_SECOND` it takes a few seconds or more.
+LOAD_NOTICE_BYTES = 4 * 2**20
+#: How fast a scenario loads and its model data is built, roughly: 20 MB (8,000 lanelets) took 20 s on
+#: one core of the development machine. For the announced estimate only.
+LOAD_BYTES_PER_SECOND = 2**20
 
 #: Loaded scenarios by (path, modification time, size, planning problem): checking several files
 #: that share a scenario, or the same file again, reads it once.
@@ -77,12 +85,15 @@ def _load(path: str, planning_problem: int | None = None) -> Scenario:
     return scenario
 
 
-def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
-    """Load the scenario of ``automaton``'s `model` block and build the model's data from it."""
+def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | None = None) -> ScenarioCheck:
+    """Load the scenario of ``automaton``'s `model` block and build the model's data from it;
+    ``progress`` (the caller's: this layer prints nothing) hears of a load expected to take a while."""
     result = ScenarioCheck()
     spec = automaton.model
     if spec is None:
         return result
+    if progress is not None:
+        _announce(spec.scenario_path, progress)
     scenario_span = automaton.spans.get("model:scenario", spec.span)
     written = spec.scenario
 
@@ -145,6 +156,19 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
         f"{_number(goal.time_high)}] s; every significand fits int32 at base {spec.base}, exponent "
         f"{spec.exponent}{detail}")
     return result
+
+
+def _announce(path: str, progress: Callable[[str], None]) -> None:
+    """Tell ``progress`` of a scenario larger than :data:`LOAD_NOTICE_BYTES`: its size and the time
+    expected (the load cannot report its own progress: commonroad-io reads the file in one call)."""
+    try:
+        size = os.path.getsize(path)
+    except OSError:
+        return  # the loader reports it
+    if size > LOAD_NOTICE_BYTES:
+        seconds = size / LOAD_BYTES_PER_SECOND
+        expected = f"{seconds / 60:.0f} min" if seconds >= 120 else f"{seconds:.0f} s"
+        progress(f"loading the scenario {path} ({size / 2**20:.0f} MB): about {expected}")
 
 
 def _ids(ids: tuple[int, ...]) -> str:
