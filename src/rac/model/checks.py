@@ -120,10 +120,10 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
         return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
     result.scenario = scenario
 
-    from rac.model.data import ModelRangeError, build_model_data, max_significand
+    from rac.model.data import ModelRangeError, build_model_data_and_largest
 
     try:
-        data = build_model_data(scenario, spec)
+        data, (what, largest) = build_model_data_and_largest(scenario, spec)
     except ModelRangeError as failure:
         if failure.significand is None:
             return cannot_load(f"{spec.scenario_path}: {failure}", [_GENERIC_HINT])
@@ -137,10 +137,6 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     result.diagnostics.extend(_start(automaton, spec, scenario, data))
     if any(d.is_error for d in result.diagnostics):
         return result  # a start the model would clamp: nothing to sum up
-    try:
-        what, largest = max_significand(scenario, spec)
-    except Exception:  # only the fact's detail: the data is built
-        what, largest = "", 0
     goal = scenario.goal
     obstacles = len(scenario.obstacles)
     detail = f" (the largest is {what}: {largest})" if what else ""
