@@ -402,6 +402,12 @@ def test_model_does_not_change_the_checks_or_runtime() -> None:
      "the range [-2, 2] of action `jerk` is not a whole number of steps of 0.3",
      "end the range at 1.9 or 2.2, or choose a step that divides its width"),
     ("        action jerk in [2, -2] step 0.5\n", "E0706", "empty range [2, -2] for action `jerk`", None),
+    ("        exponent 2\n        action jerk in [-20000000, 20000000] step 0.01\n", "E0901",
+     "action `jerk` in [-20000000, 20000000] step 0.01 offers 4,000,000,001 values, more than the limit of 1,000",
+     "choose a coarser step or a narrower range"),
+    ("        action jerk in [-2, 2] step 0.02\n        action turn in [-0.4, 0.4] step 0.01\n", "E0901",
+     "the actions offer 16,281 (jerk, turn) pairs (201 × 81), more than the limit of 10,000",
+     "choose coarser steps or narrower ranges"),
     ("        action turn in [-1, 1] step 0\n", "E0706", "the step of action `turn` must be positive (found 0)",
      None),
     ("        exponent 1\n        action turn in [-0.4, 0.4] step 0.05\n", "E0706",
@@ -647,3 +653,43 @@ def test_formatted_examples_still_check() -> None:
     text = with_model(BLOCK)
     formatted = format_module(parse_text(text))
     assert check(formatted).automaton == check(text).automaton
+
+
+def test_memory_error_while_loading_is_not_a_broken_scenario(monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    """Issue 22: a MemoryError while the scenario loads (a process limit, a machine too small) was
+    reported as E0712, "cannot load the scenario", about a file that is fine; it is a resource error."""
+    from rac.cli.main import main
+    from rac.model import checks
+
+    def out_of_memory(*args: object, **kwargs: object) -> None:
+        raise MemoryError
+
+    monkeypatch.setattr(checks, "_load", out_of_memory)
+    folder = Path(__file__).parent / "diagnostics"
+    monkeypatch.chdir(folder)
+    status = main(["check", "E0712_missing_scenario.ra"])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert "E0712" not in err and "internal error" not in err
+    assert "out of memory" in err and "ulimit -v" in err
+
+
+def test_a_large_scenario_load_is_announced(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """Issue 22: a 50 MB scenario loaded for 15 minutes without a word. A file expected to take more than
+    a few seconds is announced through the caller's callback, with its size and the expected time."""
+    from rac.compiler import compile_file
+    from rac.model import checks
+
+    folder = Path(__file__).parent / "diagnostics"
+    source = (folder / "E0712_missing_scenario.ra").read_text(encoding="utf-8")
+    scenario = re.search(r'scenario "([^"]+)"', source)
+    assert scenario is not None
+    (tmp_path / scenario.group(1)).write_bytes(b"<x/>" + b" " * (checks.LOAD_NOTICE_BYTES + 1))
+    (tmp_path / "big.ra").write_text(source, encoding="utf-8")
+    said: list[str] = []
+    compile_file(tmp_path / "big.ra", progress=said.append)
+    assert len(said) == 1 and "loading the scenario" in said[0] and "MB" in said[0], said
+    said.clear()
+    (tmp_path / scenario.group(1)).write_bytes(b"<x/>")
+    compile_file(tmp_path / "big.ra", progress=said.append)
+    assert said == []

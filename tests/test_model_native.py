@@ -241,3 +241,14 @@ def test_goal_and_dist_goal():
     assert model.dist_goal(inside) == 0.0
     assert model.dist_goal(State(5650, -1500, 0, 0, 0, 0, 0)) == 40.0
     assert model.dist_goal(State(5650 + 300, 2500 + 400, 0, 0, 0, 0, 0)) == 5.0
+
+
+def test_one_pass_builds_the_data_and_finds_the_largest_significand():
+    """`rac check` builds the model's data once (issue 22: twice doubled a large scenario's check)."""
+    from rac.model.data import build_model_data_and_largest
+
+    for scenario, spec in ((straight_scenario(), make_spec(3)),
+                           (replace(straight_scenario(), ego=EgoStart(3000.0, 0.0, 0.0, 0.0)), make_spec(5))):
+        data, largest = build_model_data_and_largest(scenario, spec)
+        assert data == build_model_data(scenario, spec)
+        assert largest == max_significand(scenario, spec)

@@ -455,3 +455,23 @@ def test_probability_interval_covers_the_exact_value(tmp_path: Path, event: str)
     assert answer.interval is not None
     assert answer.interval[0] <= answer.exact <= answer.interval[1]
     assert "exact (Storm" in render_text([answer])
+
+
+# ---------------------------------------------------------------- statistical queries within --max-memory (issue 22)
+def test_expectation_runs_in_chunks_within_the_memory_budget(tmp_path: Path) -> None:
+    """`E[...]` with many runs and a small budget is answered in chunks, with the same mean as one batch
+    would give for a deterministic per-run value (the chunks aggregate the statistic incrementally)."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"E": "E[<=2;3000](max: time)"})
+    (answer,) = verify(compile_file(path), VerifyOptions(seed=1, only=("E",), out_dir=tmp_path / "out",
+                                                         max_bytes=2 * 2**20))
+    assert answer.status == "value" and answer.runs == 3000
+    assert answer.estimate == pytest.approx(2.0) and answer.interval == (pytest.approx(2.0), pytest.approx(2.0))
+
+
+def test_simulate_beyond_the_memory_budget_stops_before_allocating(tmp_path: Path) -> None:
+    """`simulate` must hold every trace: beyond --max-memory it stops at once, naming the estimate."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"S": "simulate[<=3;1000000]{mindist()}"})
+    (answer,) = verify(compile_file(path), VerifyOptions(seed=1, only=("S",), out_dir=tmp_path / "out",
+                                                         max_bytes=300 * 2**20))
+    assert answer.status == "unknown"
+    assert answer.message is not None and "--max-memory" in answer.message and "1,000,000 runs" in answer.message

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -52,8 +53,10 @@ class CompileResult:
         return self.automaton
 
 
-def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult:
-    """Parse, resolve and (unless ``analyse=False``) run every static check on one source."""
+def compile_source(source: SourceFile, *, analyse: bool = True,
+                   progress: Callable[[str], None] | None = None) -> CompileResult:
+    """Parse, resolve and (unless ``analyse=False``) run every static check on one source;
+    ``progress`` hears of a scenario whose load takes a while (:func:`rac.model.checks.check_scenario`)."""
     sources = {source.name: source}
     try:
         module = parse_source(source)
@@ -81,7 +84,7 @@ def compile_source(source: SourceFile, *, analyse: bool = True) -> CompileResult
             # The scenario comes last: it checks the model's numbers, once the automaton is sound.
             from rac.model.checks import check_scenario
 
-            checked = check_scenario(automaton)
+            checked = check_scenario(automaton, progress)
             diagnostics.extend(checked.diagnostics)
             facts.extend(checked.facts)
             scenario, model_data = checked.scenario, checked.data
@@ -233,13 +236,15 @@ def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analys
     return compile_source(source, analyse=analyse)
 
 
-def compile_file(path: str | Path, *, analyse: bool = True) -> CompileResult:
-    """Check one `.ra` file. ``OSError`` propagates for files that cannot be read at all."""
+def compile_file(path: str | Path, *, analyse: bool = True,
+                 progress: Callable[[str], None] | None = None) -> CompileResult:
+    """Check one `.ra` file (``progress`` as in :func:`compile_source`). ``OSError`` propagates for
+    files that cannot be read at all."""
     try:
         source = read_source(path)
     except ParseFailure as failure:
         return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
-    return compile_source(source, analyse=analyse)
+    return compile_source(source, analyse=analyse, progress=progress)
 
 
 def _sources_of(failure: ParseFailure) -> dict[str, SourceFile]:

@@ -26,6 +26,7 @@ The vocabulary of bindings (and, once a model is attached, of queries) is define
 from __future__ import annotations
 
 import difflib
+import math
 import os
 from dataclasses import dataclass
 from fractions import Fraction
@@ -36,7 +37,16 @@ from rac.check.symbols import ModelContext, Unresolvable
 from rac.core.diagnostics import Note, short_number
 from rac.core.source import Span
 from rac.ir import expr as ie
-from rac.ir.vocabulary import ACTIONS, MODELLING, NO_PLANNING_PROBLEM, SETTINGS, WORD_SETTINGS, Setting
+from rac.ir.vocabulary import (
+    ACTIONS,
+    MAX_ACTION_PAIRS,
+    MAX_ACTION_VALUES,
+    MODELLING,
+    NO_PLANNING_PROBLEM,
+    SETTINGS,
+    WORD_SETTINGS,
+    Setting,
+)
 from rac.lang import ast
 
 __all__ = ["allowed", "resolve_model"]
@@ -330,6 +340,8 @@ class _ModelResolver:
         for name, (low, high, step, _) in ACTIONS.items():
             if name not in written:
                 result[name] = ir.Action(name, low, high, step)
+        if len(result) == len(ACTIONS) and written and not self._check_pairs(result, written):
+            return tuple(result[name] for name in ACTIONS)
         if not self.rejected & {"base", "exponent"} and len(result) == len(ACTIONS):
             self._check_significands(result, written, values)
         return tuple(result[name] for name in ACTIONS if name in result)
@@ -350,9 +362,30 @@ class _ModelResolver:
                        notes=[f"{_num(high - low)} / {_num(step)} = {_num((high - low) / step)}"],
                        hints=[f"end the range at {_num(low + count * step)} or {_num(low + (count + 1) * step)}, "
                               "or choose a step that divides its width"])
+        elif action.count > MAX_ACTION_VALUES:
+            self.error("E0901", f"action `{name}` in {shown} step {_num(step)} offers {action.count:,} values, "
+                       f"more than the limit of {MAX_ACTION_VALUES:,}", item.span,
+                       notes=["the controller chooses among every value at every decision: each one is a "
+                              "column of the engine's tables and of the UPPAAL model"],
+                       hints=[f"choose a coarser step or a narrower range, e.g. step "
+                              f"{_num(_coarser(low, high, MAX_ACTION_VALUES))}"])
         else:
             return action
         return None
+
+    def _check_pairs(self, actions: dict[str, ir.Action], written: dict[str, ast.ModelAction]) -> bool:
+        """E0901 when the actions together offer more than :data:`MAX_ACTION_PAIRS` pairs."""
+        counts = [actions[name].count for name in ACTIONS]
+        pairs = math.prod(counts)
+        if pairs <= MAX_ACTION_PAIRS:
+            return True
+        item = list(written.values())[-1]  # the action written last makes the grid too large
+        self.error("E0901", f"the actions offer {pairs:,} ({', '.join(ACTIONS)}) pairs "
+                   f"({' × '.join(map(str, counts))}), more than the limit of {MAX_ACTION_PAIRS:,}", item.span,
+                   notes=["the controller chooses one pair at every decision: every explored state and every "
+                          "simulated decision holds a mask over the pairs"],
+                   hints=["choose coarser steps or narrower ranges"])
+        return False
 
     def _check_significands(self, actions: dict[str, ir.Action], written: dict[str, ast.ModelAction],
                             values: dict[str, _Value]) -> None:
@@ -447,6 +480,14 @@ def resolve_model(r: ModelContext, inputs: tuple[ir.Input, ...], period: Fractio
 # ---------------------------------------------------------------- words
 def _num(value: Fraction) -> str:
     return short_number(value)
+
+
+def _coarser(low: Fraction, high: Fraction, most: int) -> Fraction:
+    """A round step (1, 2 or 5 times a power of ten) that splits ``[low, high]`` into at most ``most - 1``
+    steps: the hint's example of a grid within the limit."""
+    width = high - low
+    scale = Fraction(10) ** math.floor(math.log10(max(float(width / (most - 1)), 1e-12)))
+    return next(scale * k for k in (1, 2, 5, 10, 20, 50) if width / (scale * k) <= most - 1)
 
 
 def _fraction_text(value: Fraction) -> str:

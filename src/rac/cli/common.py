@@ -22,6 +22,7 @@ from pathlib import Path
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import Diagnostic, error
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
+from rac.output.progress import notice
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
            "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "locked", "output_folder",
@@ -47,7 +48,7 @@ def unreadable(path: Path, exc: OSError) -> Diagnostic:
 def read_and_check(path: Path) -> tuple[CompileResult | None, Diagnostic | None]:
     """``rac check`` of one file, or the E0008 diagnostic when it cannot be read at all."""
     try:
-        return compile_file(path), None
+        return compile_file(path, progress=notice()), None
     except OSError as exc:
         return None, unreadable(path, exc)
 

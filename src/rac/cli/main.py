@@ -2,9 +2,9 @@
 (:mod:`rac.cli.tune`), start one from the standard library (:mod:`rac.cli.new`); verify, simulate, render and
 pre-analyse them with the native engine (:mod:`rac.cli.engine`).
 
-Exit codes: 0 clean (warnings allowed), 1 errors in the input, 2 bad usage or a
-file that cannot be read or written (standard output too), 3 an internal error (a bug in rac; set RAC_DEBUG=1 for
-the traceback).
+Exit codes: 0 clean (warnings allowed), 1 errors in the input, 2 bad usage, a file that cannot be
+read or written (standard output too), or memory that ran out (a resource, not the input), 3 an
+internal error (a bug in rac; set RAC_DEBUG=1 for the traceback).
 """
 
 from __future__ import annotations
@@ -274,6 +274,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("rac: interrupted", file=sys.stderr)
         return 130
+    except MemoryError as exc:  # the machine or the process limit ran out, not a bug and not a broken input
+        if os.environ.get("RAC_DEBUG"):
+            raise
+        print(f"rac: out of memory{': ' + str(exc) if str(exc) else ''}: rac needed more memory than this process "
+              "may use (the machine's memory, or a limit such as `ulimit -v`); the input files are not at fault: "
+              "raise the limit, or lower --max-memory (where the command has it) so that rac stops before it",
+              file=sys.stderr)
+        return EXIT_USAGE
     except Exception as exc:  # a bug in rac: say so plainly instead of a traceback
         if os.environ.get("RAC_DEBUG"):
             raise

@@ -24,8 +24,9 @@ import os
 import re
 from dataclasses import dataclass
 
-__all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "PEAK_FACTOR", "Budget", "BudgetExceeded",
-           "default_max_bytes", "format_bytes", "machine_memory", "parse_size", "projected_states"]
+__all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "PEAK_FACTOR", "RUN_BYTES_PER_SAMPLE",
+           "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded", "default_max_bytes", "format_bytes",
+           "machine_memory", "parse_size", "projected_states", "runs_within", "simulation_bytes"]
 
 #: An explored state: 8 int32 columns (32 B), its choice offset (8 B) and 4 labels (4 B).
 GRAPH_BYTES_PER_STATE = 44
@@ -33,6 +34,15 @@ GRAPH_BYTES_PER_STATE = 44
 GRAPH_BYTES_PER_CHOICE = 16
 #: The peak memory of deciding a query, as a multiple of the explored graph's bytes.
 PEAK_FACTOR = 4
+#: A simulated run's bytes per sample (:class:`rac.engine.simulate.Runs`): the sensed state (7 int32),
+#: the ground truth (5 float64) and the action chosen (int64).
+RUN_BYTES_PER_SAMPLE = 7 * 4 + 5 * 8 + 8
+#: One value of an expression evaluated per run and sample (float64).
+VALUE_BYTES = 8
+#: The peak memory of simulating runs and evaluating expressions on them, as a multiple of the runs'
+#: arrays and the values (the model's and the evaluator's temporaries). An upper estimate, not yet
+#: measured by a benchmark.
+SIMULATION_PEAK_FACTOR = 3
 #: The fraction of the machine's memory the default budget allows.
 DEFAULT_FRACTION = 0.5
 
@@ -58,6 +68,20 @@ def parse_size(text: str) -> int:
     if match is None:
         raise ValueError(f"`{text}` is not a size: write a number of bytes or e.g. 512M, 4G, 1.5G")
     return int(float(match.group(1)) * _UNITS[match.group(2).lower()])
+
+
+def simulation_bytes(runs: int, samples: int, columns: int) -> int:
+    """The estimated peak bytes of simulating ``runs`` runs of ``samples`` samples (sample 0 included
+    besides) and evaluating ``columns`` expressions on every sample of them."""
+    return runs * (samples + 1) * (RUN_BYTES_PER_SAMPLE + columns * VALUE_BYTES) * SIMULATION_PEAK_FACTOR
+
+
+def runs_within(max_bytes: int | None, samples: int, columns: int) -> int:
+    """The most runs that :func:`simulation_bytes` allows at once within ``max_bytes`` (None: no
+    limit, a very large number); 0 when not even one run fits."""
+    if max_bytes is None:
+        return 2**62
+    return max_bytes // simulation_bytes(1, samples, columns)
 
 
 def format_bytes(size: float) -> str:

@@ -28,6 +28,7 @@ from scipy import stats as sps
 __all__ = [
     "HypothesisResult",
     "ProbabilityEstimate",
+    "RunningMean",
     "Sampler",
     "clopper_pearson",
     "estimate_probability",
@@ -248,7 +249,37 @@ def mean_interval(values: Sequence[float] | np.ndarray, confidence: float = 0.95
         raise ValueError(f"mean_interval needs a 1-D sequence of at least 2 values, not shape {data.shape}")
     if not np.isfinite(data).all():
         raise ValueError("mean_interval needs finite values")
-    n = data.shape[0]
-    mean = float(data.mean())
-    sd = float(data.std(ddof=1))
-    return mean, float(sps.t.ppf((1.0 + confidence) / 2.0, n - 1) * sd / math.sqrt(n))
+    return RunningMean().add(data).interval(confidence)
+
+
+@dataclass
+class RunningMean:
+    """The mean and the sum of squared deviations of values added in chunks (Chan et al.'s pairwise
+    update): :func:`mean_interval` over many runs in bounded memory, one chunk of runs at a time."""
+
+    count: int = 0
+    mean: float = 0.0
+    #: The sum of squared deviations from the mean.
+    squares: float = 0.0
+
+    def add(self, values: np.ndarray) -> RunningMean:
+        """Take a chunk of finite values in; returns self."""
+        data = np.asarray(values, dtype=np.float64)
+        if data.size == 0:
+            return self
+        n, mean = int(data.size), float(data.mean())
+        squares = float(((data - mean) ** 2).sum())
+        total = self.count + n
+        delta = mean - self.mean
+        self.squares += squares + delta * delta * self.count * n / total
+        self.mean += delta * n / total
+        self.count = total
+        return self
+
+    def interval(self, confidence: float = 0.95) -> tuple[float, float]:
+        """The mean and the half-width of its Student-t interval (as :func:`mean_interval`)."""
+        confidence = _open_unit("confidence", confidence)
+        if self.count < 2:
+            raise ValueError(f"mean_interval needs at least 2 values, not {self.count}")
+        sd = math.sqrt(self.squares / (self.count - 1))
+        return self.mean, float(sps.t.ppf((1.0 + confidence) / 2.0, self.count - 1) * sd / math.sqrt(self.count))

@@ -125,9 +125,14 @@ class Action:
     step: Fraction
 
     @property
+    def count(self) -> int:
+        """How many values the action offers, counted exactly without listing them (the checker
+        compares it with :data:`rac.ir.vocabulary.MAX_ACTION_VALUES` before anything lists them)."""
+        return int((self.high - self.low) / self.step) + 1
+
+    @property
     def values(self) -> tuple[Fraction, ...]:
-        count = int((self.high - self.low) / self.step)
-        return tuple(self.low + i * self.step for i in range(count + 1))
+        return tuple(self.low + i * self.step for i in range(self.count))
 
 
 @dataclass(frozen=True)

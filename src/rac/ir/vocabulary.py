@@ -30,6 +30,8 @@ from fractions import Fraction
 __all__ = [
     "DEFAULT_BASE",
     "DEFAULT_EXPONENT",
+    "MAX_ACTION_PAIRS",
+    "MAX_ACTION_VALUES",
     "ACTIONS",
     "BINDING_MATH",
     "EGO_STATE",
@@ -136,6 +138,14 @@ WORD_SETTINGS: dict[str, tuple[str, ...]] = {
 #: The number representation of a model that does not set ``base`` and ``exponent``.
 DEFAULT_BASE = int(SETTINGS["base"].default or 10)
 DEFAULT_EXPONENT = int(SETTINGS["exponent"].default or 4)
+
+#: The most values one action may offer (``action NAME in [LOW, HIGH] step S``, E0901): every value
+#: is a column of the engine's action tables and a UPPAAL ``select`` value, and a grid is checked
+#: by counting it (exact arithmetic on low, high and step), never by listing it.
+MAX_ACTION_VALUES = 1_000
+#: The most (jerk, turn) pairs the actions may offer together (E0901): every explored state and every
+#: simulated decision holds a mask over the pairs.
+MAX_ACTION_PAIRS = 10_000
 
 #: The controller's actions and their defaults: (low, high, step, unit).
 ACTIONS: dict[str, tuple[Fraction, Fraction, Fraction, str]] = {

@@ -6,7 +6,8 @@
 
 * E0712: the file cannot be loaded (missing, not XML, not CommonRoad, an element rac cannot
   represent), or the model's data cannot be built from it; the loader's message names the file
-  and the element. Anything else the loader or the builder raises becomes E0712 as well.
+  and the element. Anything else the loader or the builder raises becomes E0712 as well, except
+  a ``MemoryError``: the file is not at fault, so it propagates (``rac`` reports a resource error).
 * E0713: a value of the scenario (a position, a speed, an obstacle's size, ...) whose
   significand ``trunc(v · base^exponent)`` overflows int32, with the largest exponent that fits.
 * E0714: the ego starts outside the model's limits (a speed outside [`min_speed`, `max_speed`],
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from typing import TYPE_CHECKING
@@ -47,6 +49,14 @@ if TYPE_CHECKING:
 #: The codes of a scenario rac cannot build a model from: unreadable (E0712) or inconsistent (E0718-E0721).
 #: ``rac sweep`` counts a task that ends in one as an error of its input, not a verdict ("error", not "failed").
 UNUSABLE_SCENARIO = ("E0712", "E0718", "E0719", "E0720", "E0721")
+
+#: A scenario file larger than this is announced before it loads (``check_scenario``'s ``progress``):
+#: at :data:`LOAD_BYTES_PER_SECOND` it takes a few seconds or more.
+LOAD_NOTICE_BYTES = 4 * 2**20
+#: How fast a scenario loads and its model data is built, roughly: 20 MB (8,000 lanelets) took 20 s on
+#: one core of the development machine. For the announced estimate only.
+LOAD_BYTES_PER_SECOND = 2**20
+
 #: Loaded scenarios by (path, modification time, size, planning problem): checking several files
 #: that share a scenario, or the same file again, reads it once.
 _CACHE: dict[tuple[str, int, int, int | None], Scenario] = {}
@@ -84,12 +94,15 @@ def _load(path: str, planning_problem: int | None = None) -> Scenario:
     return scenario
 
 
-def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
-    """Load the scenario of ``automaton``'s `model` block and build the model's data from it."""
+def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | None = None) -> ScenarioCheck:
+    """Load the scenario of ``automaton``'s `model` block and build the model's data from it;
+    ``progress`` (the caller's: this layer prints nothing) hears of a load expected to take a while."""
     result = ScenarioCheck()
     spec = automaton.model
     if spec is None:
         return result
+    if progress is not None:
+        _announce(spec.scenario_path, progress)
     scenario_span = automaton.spans.get("model:scenario", spec.span)
     written = spec.scenario
 
@@ -113,29 +126,29 @@ def check_scenario(automaton: ir.Automaton) -> ScenarioCheck:
         return result
     except ScenarioError as failure:
         return cannot_load(str(failure), _load_hints(failure, written))
+    except MemoryError:  # the machine or the process limit, not the file: the caller reports a resource error
+        raise
     except Exception as failure:  # never a traceback: whatever the loader raises is a diagnostic
         return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
     result.scenario = scenario
 
-    from rac.model.data import ModelRangeError, build_model_data, max_significand
+    from rac.model.data import ModelRangeError, build_model_data_and_largest
 
     try:
-        data = build_model_data(scenario, spec)
+        data, (what, largest) = build_model_data_and_largest(scenario, spec)
     except ModelRangeError as failure:
         if failure.significand is None:
             return cannot_load(f"{spec.scenario_path}: {failure}", [_GENERIC_HINT])
         result.diagnostics.append(_overflow(automaton, spec, scenario, failure))
         return result
+    except MemoryError:
+        raise
     except Exception as failure:
         return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
     result.data = data
     result.diagnostics.extend(_start(automaton, spec, scenario, data))
     if any(d.is_error for d in result.diagnostics):
         return result  # a start the model would clamp: nothing to sum up
-    try:
-        what, largest = max_significand(scenario, spec)
-    except Exception:  # only the fact's detail: the data is built
-        what, largest = "", 0
     goal = scenario.goal
     obstacles = len(scenario.obstacles)
     detail = f" (the largest is {what}: {largest})" if what else ""
@@ -160,6 +173,19 @@ def _inconsistent(spec: ir.ModelSpec, scenario_span, failure) -> Diagnostic:
                                f"`{failure.attribute}`"]
     return error(failure.code, f"inconsistent scenario: {failure}", scenario_span, notes=notes,
                  hints=[failure.hint])
+
+
+def _announce(path: str, progress: Callable[[str], None]) -> None:
+    """Tell ``progress`` of a scenario larger than :data:`LOAD_NOTICE_BYTES`: its size and the time
+    expected (the load cannot report its own progress: commonroad-io reads the file in one call)."""
+    try:
+        size = os.path.getsize(path)
+    except OSError:
+        return  # the loader reports it
+    if size > LOAD_NOTICE_BYTES:
+        seconds = size / LOAD_BYTES_PER_SECOND
+        expected = f"{seconds / 60:.0f} min" if seconds >= 120 else f"{seconds:.0f} s"
+        progress(f"loading the scenario {path} ({size / 2**20:.0f} MB): about {expected}")
 
 
 def _ids(ids: tuple[int, ...]) -> str:

@@ -28,7 +28,7 @@ from typing import Any, TextIO
 
 from tqdm import tqdm
 
-__all__ = ["Heartbeat", "Progress", "explore_callback"]
+__all__ = ["Heartbeat", "Progress", "explore_callback", "notice"]
 
 
 class Progress:
@@ -108,6 +108,17 @@ def explore_callback(bar: Progress) -> Callable[[int, int, int], None]:
         bar.update(total_states - bar.n)  # explore reports a running total, the bar wants increments
 
     return progress
+
+
+def notice(command: str = "rac", file: TextIO | None = None) -> Callable[[str], None]:
+    """A callback printing each word it hears as one line on stderr (``rac check: loading ...``): for
+    work that cannot count its own progress, such as a scenario's load (the ``model`` layer prints
+    nothing itself)."""
+
+    def say(text: str) -> None:
+        print(f"{command}: {text}", file=file or sys.stderr, flush=True)
+
+    return say
 
 
 class Heartbeat:

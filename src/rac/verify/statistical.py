@@ -47,6 +47,8 @@ class StatisticalAnswerer:
         batch_seeds = np.random.SeedSequence(seed)
         every = query.path == "[]"
 
+        chunk = self.chunk(1, samples, "this probability")
+
         def sample(n: int) -> np.ndarray:
             runs = self.runs(n, samples, query.under, int(batch_seeds.spawn(1)[0].generate_state(1)[0]))
             holds = ctx.values(runs, (query.expr,))[0] != 0
@@ -59,18 +61,19 @@ class StatisticalAnswerer:
                 raise EvaluationError("a probability compared with a threshold is tested sequentially, which "
                                       "chooses the number of runs (as UPPAAL does): drop `;N` from the bound")
             test = stats.sequential_test(sample, theta, alpha=ctx.options.alpha, beta=ctx.options.beta,
-                                         delta=ctx.options.delta)
+                                         delta=ctx.options.delta, batch=min(stats.DEFAULT_BATCH, chunk))
             accepted = test.accepted if op in (">=", ">") else not test.accepted
             message = None if test.decided else "the run budget ran out before the test decided"
             return dataclasses.replace(base, status="satisfied" if accepted else "not satisfied", runs=test.runs,
                                        estimate=test.successes / test.runs if test.runs else None,
                                        horizon_samples=samples, seed=seed, message=message)
         if query.runs is not None:
-            estimate = stats.estimate_probability_fixed(sample, query.runs,
-                                                        confidence=ctx.options.confidence)
+            estimate = stats.estimate_probability_fixed(sample, query.runs, confidence=ctx.options.confidence,
+                                                        batch=min(query.runs, chunk))
         else:
             estimate = stats.estimate_probability(sample, epsilon=ctx.options.epsilon,
-                                                  confidence=ctx.options.confidence)
+                                                  confidence=ctx.options.confidence,
+                                                  batch=min(stats.DEFAULT_BATCH, chunk))
         return dataclasses.replace(base, status="value", interval=(estimate.lo, estimate.hi),
                                    estimate=estimate.estimate, runs=estimate.runs, horizon_samples=samples,
                                    seed=seed, confidence=ctx.options.confidence,
@@ -106,12 +109,20 @@ class StatisticalAnswerer:
         samples = ctx.bound_samples(query.bound)
         n = _runs_of(query.runs)
         seed = ctx.next_seed()
-        values = ctx.values(self.runs(n, samples, query.under, seed), (query.expr,))[0]
-        per_run = values.max(axis=1) if query.aggregate == "max" else values.min(axis=1)
+        chunk = self.chunk(1, samples, f"`{base.name}`")
+        # Runs in chunks that fit the memory budget, the mean aggregated as they come; the chunks' seeds
+        # derive from the query's, so the answer depends on the seed and the budget only.
+        seeds = np.random.SeedSequence(seed)
+        running = stats.RunningMean()
+        for start in range(0, n, chunk):
+            count = min(chunk, n - start)
+            chunk_seed = seed if count == n else int(seeds.spawn(1)[0].generate_state(1)[0])
+            values = ctx.values(self.runs(count, samples, query.under, chunk_seed), (query.expr,))[0]
+            running.add(values.max(axis=1) if query.aggregate == "max" else values.min(axis=1))
         if n >= 2:
-            mean, half = stats.mean_interval(per_run, ctx.options.confidence)
+            mean, half = running.interval(ctx.options.confidence)
         else:
-            mean, half = float(per_run[0]), math.inf
+            mean, half = running.mean, math.inf
         return dataclasses.replace(base, status="value", estimate=mean, interval=(mean - half, mean + half), runs=n,
                                    horizon_samples=samples, seed=seed, confidence=ctx.options.confidence)
 
@@ -123,6 +134,15 @@ class StatisticalAnswerer:
         samples = ctx.bound_samples(query.bound)
         n = _runs_of(query.runs)
         seed = ctx.next_seed()
+        if n > self.chunk(len(query.exprs), samples, f"`{base.name}`"):
+            from rac.engine.budget import format_bytes, runs_within, simulation_bytes
+
+            fit = runs_within(ctx.options.max_bytes, samples, len(query.exprs))
+            raise UnknownVerdict(
+                f"simulate keeps every run's trace: {n:,} runs of {samples + 1} samples would need about "
+                f"{format_bytes(simulation_bytes(n, samples, len(query.exprs)))}, more than the memory budget of "
+                f"{format_bytes(ctx.options.max_bytes or 0)} (--max-memory): ask for at most {fit:,} runs, or "
+                "raise --max-memory")
         runs = self.runs(n, samples, query.under, seed)
         values = ctx.values(runs, query.exprs)
         files: list[str] = []
@@ -144,6 +164,20 @@ class StatisticalAnswerer:
         return dataclasses.replace(base, status="value", runs=n, horizon_samples=samples, seed=seed,
                                    files=tuple(files), message=message,
                                    estimate=float(np.min(values[0])) if values else None)
+
+    def chunk(self, columns: int, samples: int, what: str) -> int:
+        """The most runs of ``samples`` samples, with ``columns`` expressions evaluated on them, that fit
+        the memory budget at once (:func:`rac.engine.budget.runs_within`); unknown when not even one does."""
+        from rac.engine.budget import format_bytes, runs_within, simulation_bytes
+
+        limit = self.context.options.max_bytes
+        fit = runs_within(limit, samples, columns)
+        if fit < 1:
+            raise UnknownVerdict(f"one run of {what} ({samples + 1} samples) would need about "
+                                 f"{format_bytes(simulation_bytes(1, samples, columns))}, more than the memory "
+                                 f"budget of {format_bytes(limit or 0)} (--max-memory): raise it, or shorten the "
+                                 "time bound")
+        return fit
 
     def runs(self, n: int, samples: int, under: str | None, seed: int) -> Runs:
         """``n`` runs of ``samples`` samples: actions drawn uniformly (among a shield's with
