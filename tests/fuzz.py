@@ -5,25 +5,45 @@ Two sources of inputs (``--source``; the default, ``both``, takes them in turn):
 - **mutants** of the shipped `.ra` files (stdlib, examples, the diagnostic examples), each changed
   by a few random mutations: bytes deleted or duplicated, lines swapped, a token replaced by one
   from a pool of troublemakers (huge and tiny numbers, long names, keywords, operators, comment
-  openers, CR line endings);
+  openers, CR line endings, a huge action grid, Python builtins and keywords);
 - **generated programs** (tests/fuzzgen.py): random automata written from the shape of a `.ra`
   file (inputs, constants, rewards, priority, locations, edges, ``at end``, queries, a ``model``
   block), most of them built to pass ``rac check`` (deterministic guards, penalties sized for P2),
   some with extreme values where they still check (1e308, -0.0, 40-digit integers, names UPPAAL
-  reserves), some near misses with one or two defects. The same generator is a hypothesis
-  strategy in the suite, where a failing program shrinks.
+  reserves), some near misses with one or two defects (among them a ``model`` block with a huge
+  action grid, ``action jerk in [-20000000, 20000000] step 0.01``: E0901 at once, never a hang).
+  Any kind now and then names its automaton, locations, rewards, inputs or constants after
+  Python builtins and keywords (``float``, ``len``, ``ValueError``, ``math``, ``class``, ``None``).
+  The same generator is a hypothesis strategy in the suite, where a failing program shrinks.
 
 Each input goes through ``rac check``; when it checks, through ``rac fmt`` (idempotent, the
 formatted text parses to the same tree and keeps every comment) and ``rac compile`` to both
 targets; a model compiled for UPPAAL goes with its queries through UPPAAL's own parser
-(``utap_validate``, found as tests/utap.py finds it; ``--no-utap`` leaves it out). rac must never
-fail internally (exit 3) nor hang (each command has a time limit), UPPAAL's parser must accept
-every model rac writes, and fmt must behave; every other outcome is fine. The scenario files the
-examples and the generated ``model`` blocks name are copied next to the inputs, so they load.
+(``utap_validate``, found as tests/utap.py finds it; ``--no-utap`` leaves it out), and the Python
+module compiled is imported from the temporary folder and stepped once (every bool False, every
+number at its lower bound), giving the reward ``rac.load``'s runtime gives. rac must never fail
+internally (exit 3) nor hang (each command has a time limit), UPPAAL's parser must accept every
+model rac writes, the Python target must import and step like the runtime, and fmt must behave;
+every other outcome is fine. The scenario files the examples and the generated ``model`` blocks
+name are copied next to the inputs, so they load.
 
-The test suite runs bounded numbers of both (tests/test_fuzz.py). A long run prints, at its end,
-the count of each outcome (check ok, diagnostics, compiled, accepted by UPPAAL's parser, internal
-errors, hangs, UTAP rejections, fmt problems) and the share of generated programs that passed
+Two phases for the conditions of the operating system, on some checked inputs:
+
+- **stdout full or closed** (every 20th checked input): ``rac check``, ``rac fmt --stdout`` and
+  ``rac compile --target python`` as subprocesses with stdout on ``/dev/full`` and with stdout
+  closed must exit 2 with E0009 on stderr, never 3 nor a traceback;
+- **concurrent writers** (every 50th): ``rac fmt FILE`` and ``rac tune FILE`` (a file with
+  ``param``; otherwise a second ``rac fmt``) started together on a copy must each exit 0 or 2
+  (tune refuses when the file changed under it), and the file must then be formatted (``rac fmt
+  --check`` exit 0).
+
+Killed sweep tasks (rerun on resume) are too slow for this loop: tests/test_sweep_task.py keeps them.
+
+The test suite runs bounded numbers of both, and a handful of seeded inputs of each class above
+(tests/test_fuzz.py). A long run prints, at its end, the count of each outcome (check ok,
+diagnostics, compiled, Python modules stepped and problems, accepted by UPPAAL's parser, UTAP
+rejections, fmt problems, stdout full/closed runs and those not E0009 exit 2, concurrent writer
+pairs and their problems, internal errors, hangs) and the share of generated programs that passed
 ``rac check``, by kind. Exit status 1 when something was found; each finding is written to
 ``--keep DIR`` (default: ``fuzz-failures/``) as ``NNN-KIND.ra``, the input, and ``NNN-KIND.txt``,
 what went wrong (for a UTAP rejection, UPPAAL's message with the line it points at).
@@ -33,8 +53,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import io
+import math
+import os
 import random
+import re
 import shutil
 import signal
 import subprocess
@@ -53,6 +77,7 @@ if str(ROOT / "src") not in sys.path:  # run as a script from a checkout
 import fuzzgen  # noqa: E402 - tests/ is the script's folder
 import utap  # noqa: E402
 
+import rac  # noqa: E402
 from rac.cli.main import main  # noqa: E402
 from rac.lang.format import format_module  # noqa: E402
 from rac.lang.parser import ParseFailure, parse_text  # noqa: E402
@@ -63,12 +88,18 @@ TOKENS = ("1e5000", "1e-5000", "1e308", "1e-307", "0e10000000", "9" * 120, "1e40
           "==", "<=", "'", "*", "except", "->", "when", "do", "edge", "location", "initial", "input", "reward", "const",
           "assume", "priority", "objective", "horizon", "sample every", "model", "query", "A[]", "E<>", "Pr[<=1]",
           "under", "strategy", "bind", "allow when", "action", "a" * 5000, "é", "\x00", "🚗", "true", "false",
-          "prev(", "mindist()", "collision sticky", "dynamics increments", "offroad_from 1")
+          "prev(", "mindist()", "collision sticky", "dynamics increments", "offroad_from 1",
+          "action jerk in [-20000000, 20000000] step 0.01", "step 1e-9", "float", "ValueError", "class", "None")
 #: Seconds a command may take before it counts as a hang.
 TIME_LIMIT = 20
 SCENARIOS = (ROOT / "examples" / "left_turn" / "left_turn.xml", ROOT / "examples" / "paper" / "left_turn_15s.xml")
 #: Where the inputs come from (``--source``): mutants, generated programs, or the two in turn.
 SOURCES = ("both", "mutate", "generate")
+#: The OS-conditions phase runs on every this many checked inputs, concurrent writers on every
+#: this many (each costs a few subprocesses).
+OS_EVERY, WRITERS_EVERY = 20, 50
+#: The commands that write to stdout, run with stdout full and closed.
+STDOUT_COMMANDS = (["check"], ["fmt", "--stdout"], ["compile", "--target", "python"])
 
 
 def corpus() -> list[tuple[str, str]]:
@@ -180,10 +211,104 @@ def utap_problem(binary: Path, folder: Path) -> str | None:
     return f"utap_validate exit {result.returncode}:\n" + utap.explain(result.stdout + result.stderr, xml, queries)
 
 
-def fuzz_one(text: str, folder: Path, report: Report, utap_binary: Path | None = None) -> int | None:
-    """Every command on one input; records internal errors, hangs, fmt problems and (with
-    ``utap_binary``) UPPAAL's parser rejecting a compiled model. Returns the exit status of
-    ``rac check`` (None when it failed internally or hung)."""
+def python_problem(module_path: Path, source: Path) -> str | None:
+    """The Python target's module imported from ``module_path``: it must import, and one
+    ``reset``/``step`` (every bool False, every number at its lower bound) must give the reward
+    ``rac.load``'s runtime gives (or both refuse the inputs with ValueError, an ``assume``)."""
+    spec = importlib.util.spec_from_file_location(f"rac_fuzz_{time.monotonic_ns()}", module_path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # noqa: BLE001 - any failure to import is the finding
+        return f"the generated module does not import: {type(exc).__name__}: {exc}"
+    classes = [value for value in vars(module).values()
+               if isinstance(value, type) and value.__module__ == module.__name__ and hasattr(value, "step")]
+    if len(classes) != 1:
+        return f"the generated module has {len(classes)} automaton classes"
+    runtime = rac.load(source)
+    inputs: dict[str, object] = {}
+    for spec_ in runtime._specs:  # noqa: SLF001 - the declared inputs, as the runtime validates them
+        if spec_.is_bool:
+            inputs[spec_.name] = False
+        else:
+            value = spec_.low if math.isfinite(spec_.low) else 0.0 if math.isinf(spec_.high) else spec_.high
+            inputs[spec_.name] = int(value) if spec_.kind == "int" else value
+    outcomes = []
+    for automaton in (classes[0](), runtime):
+        automaton.reset()
+        try:
+            outcomes.append(automaton.step(inputs))
+        except ValueError:
+            outcomes.append("ValueError")
+    compiled, interpreted = outcomes
+    if compiled == interpreted or (isinstance(compiled, float) and isinstance(interpreted, float) and (
+            math.isclose(compiled, interpreted, rel_tol=1e-9, abs_tol=1e-9)
+            or (math.isnan(compiled) and math.isnan(interpreted)))):
+        return None
+    return f"step({inputs}): the Python target gives {compiled!r}, rac.load's runtime {interpreted!r}"
+
+
+def rac_process(args: list[str], **options) -> subprocess.CompletedProcess:
+    """``python -m rac ARGS`` as a subprocess (this checkout's rac), its stderr captured."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    return subprocess.run([sys.executable, "-m", "rac", *args], env=env, stderr=subprocess.PIPE, text=True,
+                          timeout=TIME_LIMIT, check=False, **options)
+
+
+def stdout_problems(source: Path) -> list[str]:
+    """Each command of :data:`STDOUT_COMMANDS` with stdout full (``/dev/full``) and closed: what went
+    wrong where it did not exit 2 with E0009 (never 3, never a traceback)."""
+    problems = []
+    for command in STDOUT_COMMANDS:
+        for condition in ("full", "closed"):
+            if condition == "full":
+                with open("/dev/full", "w") as full:  # noqa: PTH123 - Linux's always-full device
+                    result = rac_process([*command, str(source)], stdout=full)
+            else:
+                result = rac_process([*command, str(source)], stdout=subprocess.DEVNULL,
+                                     preexec_fn=lambda: os.close(1))  # noqa: PLW1509 - single-threaded
+            if result.returncode != 2 or "E0009" not in result.stderr or "Traceback" in result.stderr:
+                problems.append(f"rac {' '.join(command)} with stdout {condition}: exit {result.returncode}\n"
+                                f"{result.stderr[-400:]}")
+    return problems
+
+
+def writers_problem(text: str, folder: Path) -> str | None:
+    """``rac fmt FILE`` and ``rac tune FILE`` (a second ``rac fmt`` without ``param``) started together
+    on a copy of ``text``: both exit 0 or 2 (tune refuses when the file changed under it), and the
+    file is formatted afterwards."""
+    target = folder / "writers.ra"
+    target.write_bytes(text.encode("utf-8", "surrogatepass"))
+    second = "tune" if re.search(r"^\s*param\b", text, re.MULTILINE) else "fmt"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    processes = [subprocess.Popen([sys.executable, "-m", "rac", command, str(target)], env=env,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                 for command in ("fmt", second)]
+    try:
+        errors = [process.communicate(timeout=TIME_LIMIT)[1] for process in processes]
+    except subprocess.TimeoutExpired:
+        for process in processes:
+            process.kill()
+            process.wait()
+        raise Hang from None
+    codes = [process.returncode for process in processes]
+    if any(code not in (0, 2) for code in codes):
+        return f"rac fmt and rac {second} together: exit {codes[0]} and {codes[1]}\n" + "\n".join(
+            e[-400:] for e in errors)
+    status, output = run(["fmt", "--check", str(target)])
+    if status != 0:
+        return f"after rac fmt and rac {second} together, rac fmt --check exits {status}:\n{output[-400:]}"
+    return None
+
+
+def fuzz_one(text: str, folder: Path, report: Report, utap_binary: Path | None = None, *,
+             os_every: int = OS_EVERY, writers_every: int = WRITERS_EVERY) -> int | None:
+    """Every command on one input; records internal errors, hangs, fmt problems, a Python target
+    that does not import or step like the runtime, and (with ``utap_binary``) UPPAAL's parser
+    rejecting a compiled model. On every ``os_every``-th checked input, the stdout commands with
+    stdout full and closed; on every ``writers_every``-th, concurrent writers (0: never). Returns
+    the exit status of ``rac check`` (None when it failed internally or hung)."""
     source = folder / "fuzz.ra"
     source.write_bytes(text.encode("utf-8", "surrogatepass"))
     report.counts["inputs"] += 1
@@ -207,14 +332,31 @@ def fuzz_one(text: str, folder: Path, report: Report, utap_binary: Path | None =
                 report.fail("internal error", text, f"rac compile --target {target}: {output[-400:]}")
                 return checked
             report.counts[f"compile {target} exit {status}"] += 1
+            if target == "python" and status == 0:
+                problem = python_problem(folder / out, source)
+                if problem is None:
+                    report.counts["python stepped"] += 1
+                else:
+                    report.fail("python target", text, problem)
         if status == 0 and utap_binary is not None:
             complaint = utap_problem(utap_binary, folder)
             if complaint is None:
                 report.counts["utap accepted"] += 1
             else:
                 report.fail("utap rejection", text, complaint)
+        checked_inputs = report.counts["check exit 0"]
+        if os_every and checked_inputs % os_every == 0:
+            problems = stdout_problems(source)
+            report.counts["stdout conditions"] += 2 * len(STDOUT_COMMANDS)
+            for problem in problems:
+                report.fail("stdout", text, problem)
+        if writers_every and checked_inputs % writers_every == 0:
+            problem = writers_problem(text, folder)
+            report.counts["concurrent writers"] += 1
+            if problem is not None:
+                report.fail("writers", text, problem)
         return checked
-    except Hang:
+    except (Hang, subprocess.TimeoutExpired):
         report.fail("hang", text, f"a command ran past {TIME_LIMIT} s")
         return None
 
@@ -227,10 +369,11 @@ def scenario_folder(folder: Path) -> Path:
 
 
 def fuzz(seed: int, *, inputs: int | None = None, seconds: float | None = None, source: str = "mutate",
-         utap_binary: Path | None = None) -> Report:
+         utap_binary: Path | None = None, os_every: int = OS_EVERY, writers_every: int = WRITERS_EVERY) -> Report:
     """Fuzz with ``seed`` for ``inputs`` inputs or ``seconds`` seconds, whichever ends first: mutants
     of the shipped files, generated programs (:mod:`fuzzgen`) or both in turn (``source``, one of
-    :data:`SOURCES`). With ``utap_binary``, UPPAAL's parser reads every model compiled for UPPAAL."""
+    :data:`SOURCES`). With ``utap_binary``, UPPAAL's parser reads every model compiled for UPPAAL;
+    ``os_every`` and ``writers_every`` as in :func:`fuzz_one`."""
     if source not in SOURCES:
         raise ValueError(f"source {source!r}: one of {', '.join(SOURCES)}")
     rng = random.Random(seed)
@@ -245,11 +388,13 @@ def fuzz(seed: int, *, inputs: int | None = None, seconds: float | None = None, 
             if source == "mutate" or (source == "both" and report.counts["inputs"] % 2 == 0):
                 _, text = rng.choice(files)
                 report.counts["mutants"] += 1
-                fuzz_one(mutate(text, rng), folder, report, utap_binary)
+                fuzz_one(mutate(text, rng), folder, report, utap_binary, os_every=os_every,
+                         writers_every=writers_every)
                 continue
             program = fuzzgen.generate(choices)
             report.counts[f"generated {program.kind}"] += 1
-            if fuzz_one(program.text, folder, report, utap_binary) == 0:
+            if fuzz_one(program.text, folder, report, utap_binary, os_every=os_every,
+                        writers_every=writers_every) == 0:
                 report.counts[f"generated {program.kind} check ok"] += 1
     return report
 
@@ -269,8 +414,12 @@ def summary(report: Report) -> list[str]:
     for target in ("python", "uppaal"):
         rows += [(f"compile {target} ok", c[f"compile {target} exit 0"]),
                  (f"compile {target} diagnostics", c[f"compile {target} exit 1"] + c[f"compile {target} exit 2"])]
-    rows += [("UTAP accepted", c["utap accepted"]), ("UTAP rejections", c["utap rejection"]),
-             ("fmt problems", c["fmt"]), ("internal errors", c["internal error"]), ("hangs", c["hang"])]
+    rows += [("python module stepped", c["python stepped"]), ("python target problems", c["python target"]),
+             ("UTAP accepted", c["utap accepted"]), ("UTAP rejections", c["utap rejection"]),
+             ("fmt problems", c["fmt"]),
+             ("stdout full/closed runs", c["stdout conditions"]), ("  not E0009 exit 2", c["stdout"]),
+             ("concurrent writer pairs", c["concurrent writers"]), ("  writer problems", c["writers"]),
+             ("internal errors", c["internal error"]), ("hangs", c["hang"])]
     lines = [f"{what:30} {count:>8,}" for what, count in rows]
     passed, generated = generated_share(report)
     if generated:

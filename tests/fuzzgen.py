@@ -17,7 +17,10 @@ Each program has a *kind*: ``valid`` (built to check), ``extreme`` (valid, with 
 places that still check: constants such as 1e308, 0, -0.0 or a 40-digit integer, thresholds far
 outside an input's range, names that UPPAAL reserves or the emitted model also uses), or ``near
 miss`` (one or two defects: a required declaration dropped, a keyword as a name, overlapping
-guards, a penalty too small, an unknown name, an out-of-range number...).
+guards, a penalty too small, an unknown name, an out-of-range number, a huge action grid in the
+``model`` block (E0901)...). Any kind sometimes names its automaton, locations, rewards, inputs or
+constants after Python builtins and keywords (``float``, ``len``, ``ValueError``, ``math``,
+``class``, ``None``: :data:`PYTHON_NAMES`), which the Python target must rename.
 
 The choices come from a :class:`Choices`, of which there are two:
 
@@ -71,7 +74,17 @@ EXTREME = ("1e308", "0", "-0.0", "123456789012345678901234567890123456789", "1e-
 #: Numbers that break a declaration when a near miss puts them in a number's place.
 BREAKING = ("1e5000", "1e-5000", "0", "-0.0", "1e308", "9" * 60, "0.0000001", "-1", "1e400")
 DEFECTS = ("drop", "keyword", "overlap", "cheap", "unknown", "reward guard", "nonlinear", "number",
-           "duplicate", "bounds", "two inputs", "model", "query")
+           "duplicate", "bounds", "two inputs", "model", "query", "huge grid")
+#: Names the Python target must not shadow: builtins, modules and names of the generated module,
+#: and Python keywords (all of them names in `.ra`); the generated module renames what would clash.
+PYTHON_NAMES = ("float", "bool", "len", "type", "ValueError", "math", "list", "print", "self", "None", "True",
+                "False", "def", "class", "lambda", "pass", "return", "yield", "import", "from", "global", "with",
+                "as", "is", "if", "else", "for", "while", "try", "except", "raise", "del", "assert", "async",
+                "await", "nonlocal", "str", "object", "super", "id", "max", "min", "abs", "Mapping", "inputs",
+                "reset", "step")
+#: Action grids past the limit of issue 22 (E0901 at once, never a hang): a near miss's "huge grid".
+HUGE_GRIDS = ("action jerk in [-20000000, 20000000] step 0.01", "action turn in [0, 1] step 1e-9",
+              "action jerk in [-1e300, 1e300] step 1e-300")
 
 
 class Choices(Protocol):
@@ -185,6 +198,8 @@ class _Builder:
             self.namesake = True  # named like the automaton: its own namespace in .ra, not in UPPAAL
             return self.automaton
         top = len(pool) if self.kind == "extreme" or self.c.chance(15) else min(plain, len(pool))
+        if self.c.chance(12 if self.kind == "extreme" else 3):
+            pool, top = PYTHON_NAMES, len(PYTHON_NAMES)  # a Python builtin or keyword
         for _ in range(4):
             candidate = pool[self.c.integer(0, top - 1)]
             if candidate not in self.used:
@@ -318,7 +333,7 @@ class _Builder:
         if "reward guard" in self.defects:
             self.inputs.append(_Input(self.rewards[0], "bool"))  # a reward read as a condition: E0202
         self.declare_edges()
-        model = c.chance(30) or "model" in self.defects
+        model = c.chance(30) or "model" in self.defects or "huge grid" in self.defects
         self.queries(automaton, [loc.name for loc in self.locations], model)
         if model:
             self.model_block()
@@ -542,6 +557,8 @@ class _Builder:
         if "model" in self.defects:
             items.append(pick(c, ("exponent 9", "colour 3", "decide_period 0.33", "action brake in [0, 1] step 1",
                                   "granularity 0.3")))
+        if "huge grid" in self.defects:
+            items.append(pick(c, HUGE_GRIDS))
         for item in self.inputs:
             if "model" in self.defects and c.chance(20):
                 continue  # E0709

@@ -1,13 +1,15 @@
 """The fuzzer (tests/fuzz.py) in the suite: bounded runs over mutants of the shipped `.ra` files and
 over generated programs (tests/fuzzgen.py) must find no internal error, no hang, no misbehaving
-`rac fmt` and, when UPPAAL's parser is available, no compiled model it rejects; long runs are
-`python tests/fuzz.py --minutes N` (docs/benchmarks.md)."""
+`rac fmt`, no Python target that fails to import or steps unlike the runtime and, when UPPAAL's
+parser is available, no compiled model it rejects; bounded, seeded runs of the classes of issue 22
+(huge action grids, Python builtins and keywords as names, stdout full or closed, concurrent
+writers); long runs are `python tests/fuzz.py --minutes N` (docs/benchmarks.md)."""
 
 from __future__ import annotations
 
 import random
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import fuzz
@@ -47,7 +49,8 @@ def first_failure(report: Report) -> str:
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_mutants_of_the_shipped_files_never_fail_internally(seed: int, utap_binary: Path | None) -> None:
-    report = fuzz.fuzz(seed, inputs=300, utap_binary=utap_binary)
+    # (stdout conditions and concurrent writers start subprocesses: their own tests below)
+    report = fuzz.fuzz(seed, inputs=300, utap_binary=utap_binary, os_every=0, writers_every=0)
     assert report.counts["inputs"] == 300
     assert not report.failures, first_failure(report)
     assert report.counts["check exit 0"] > 0  # some mutants still check, and went through fmt and both targets
@@ -121,3 +124,92 @@ def test_a_penalty_whose_sum_no_float_holds_is_reported(tmp_path: Path, capsys: 
     assert main(["check", str(source)]) == 1
     out = capsys.readouterr()
     assert "internal error" not in out.err and "error[E0" in out.out
+
+
+def generated(seed: int, count: int, keep: Callable[[fuzzgen.Generated], bool]) -> list[fuzzgen.Generated]:
+    """The first ``count`` programs of the seeded generator that ``keep`` takes."""
+    choices, found = fuzzgen.RandomChoices(random.Random(seed)), []
+    for _ in range(2000):
+        program = fuzzgen.generate(choices)
+        if keep(program):
+            found.append(program)
+            if len(found) == count:
+                return found
+    raise AssertionError(f"the generator wrote only {len(found)} such programs")
+
+
+def test_huge_action_grids_are_refused_with_a_diagnostic(folder: Path) -> None:
+    """Issue 22: a grid past the limit is E0901 at once (the time limit would catch a hang)."""
+    refused = 0
+    for program in generated(22, 5, lambda p: "huge grid" in p.defects):
+        report = Report()
+        assert fuzz_one(program.text, folder, report) is not None, first_failure(report)
+        assert not report.failures, first_failure(report)
+        status, output = fuzz.run(["check", str(folder / "fuzz.ra")])
+        refused += status == 1 and "E0901" in output
+    assert refused > 0
+
+
+PYTHON_NAMED = """automaton float {
+    input None, len : bool
+    input class : real in [1, 5]
+    reward ValueError, math
+    priority ValueError > math
+    objective 10 * ValueError + math
+    sample every 1
+    horizon 5
+    initial location def { math' == 1 }
+    location type { ValueError' == -1 }
+    edge * -> type when len do ValueError -= 100
+    edge * -> def when !len && class < 3
+    edge def -> def when !len && class >= 3 do math += 1
+}
+"""
+
+
+def test_python_builtins_and_keywords_as_names_compile_import_and_step(folder: Path) -> None:
+    """Issue 22: the Python target renames what would shadow a builtin (`float_`); its module
+    imports and steps as rac.load's runtime does."""
+    programs = [PYTHON_NAMED] + [p.text for p in generated(
+        23, 5, lambda p: p.kind != "near miss" and any(f" {n} " in p.text for n in fuzzgen.PYTHON_NAMES[:12]))]
+    report = Report()
+    for text in programs:
+        assert fuzz_one(text, folder, report, os_every=0, writers_every=0) == 0, text
+    assert not report.failures, first_failure(report)
+    assert report.counts["python stepped"] == len(programs)
+
+
+def test_a_python_module_stepping_unlike_the_runtime_is_a_finding(tmp_path: Path) -> None:
+    source = tmp_path / "fuzz.ra"
+    source.write_text(PYTHON_NAMED, encoding="utf-8")
+    assert main(["compile", "--target", "python", str(source), "-o", str(tmp_path / "out.py")]) == 0
+    assert fuzz.python_problem(tmp_path / "out.py", source) is None
+    module = tmp_path / "out.py"
+    module.write_text(module.read_text(encoding="utf-8") + "\nfloat_.step = lambda self, inputs: 7.0\n",
+                      encoding="utf-8")
+    assert "7.0" in (fuzz.python_problem(module, source) or "")
+
+
+def test_stdout_full_or_closed_is_e0009_exit_2(folder: Path) -> None:
+    """Issue 22: `rac check`, `rac fmt --stdout` and `rac compile --target python` with stdout
+    on /dev/full and closed exit 2 with E0009, never 3."""
+    programs = [(ROOT / "stdlib" / "driving.ra").read_text(encoding="utf-8")] + [
+        p.text for p in generated(24, 2, lambda p: p.kind == "valid")]
+    report = Report()
+    for text in programs:
+        assert fuzz_one(text, folder, report, os_every=1, writers_every=0) == 0
+    assert not report.failures, first_failure(report)
+    assert report.counts["stdout conditions"] == 2 * len(fuzz.STDOUT_COMMANDS) * len(programs)
+
+
+def test_concurrent_fmt_and_tune_leave_a_formatted_file(folder: Path) -> None:
+    """Issue 22: `rac fmt` with `rac tune` (a file with `param`) or a second `rac fmt`, started
+    together: exit 0 or 2 each, and the file formatted afterwards."""
+    programs = [(ROOT / "examples" / "tune" / "driving_weights.ra").read_text(encoding="utf-8")] + [
+        p.text for p in generated(25, 3, lambda p: p.kind == "valid" and "param " in p.text)] + [
+        p.text for p in generated(26, 1, lambda p: p.kind == "valid" and "param " not in p.text)]
+    report = Report()
+    for text in programs:
+        assert fuzz_one(text, folder, report, os_every=0, writers_every=1) == 0
+    assert not report.failures, first_failure(report)
+    assert report.counts["concurrent writers"] == len(programs)
