@@ -179,7 +179,7 @@ def test_builder_errors_become_e0712(tmp_path: Path, monkeypatch: pytest.MonkeyP
     def broken(scenario, spec):
         raise ValueError("obstacle 51: waypoint times must not decrease")
 
-    monkeypatch.setattr(rac.model.data, "build_model_data", broken)
+    monkeypatch.setattr(rac.model.data, "build_model_data_and_largest", broken)  # what the checker calls
     (diagnostic,) = errors(compile_file(write(tmp_path, source(), LEFT_TURN.read_bytes())))
     assert diagnostic.code == "E0712" and "waypoint times must not decrease" in diagnostic.message
 

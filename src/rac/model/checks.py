@@ -2,7 +2,7 @@
 
 :func:`check_scenario` loads the CommonRoad file of a checked automaton's `model` block once
 (:func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
-(:func:`rac.model.data.build_model_data`), so that ``rac check`` reports, with a span:
+(:func:`rac.model.data.build_model_data_and_largest`), so that ``rac check`` reports, with a span:
 
 * E0712: the file cannot be loaded (missing, not XML, not CommonRoad, an element rac cannot
   represent), or the model's data cannot be built from it; the loader's message names the file
