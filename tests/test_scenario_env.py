@@ -349,6 +349,17 @@ def test_a_step_shield_as_the_shield(tiny: CompileResult) -> None:
 
 
 # ---------------------------------------------------------------- scene sets, the relative observation, frames
+#: The model block of the highway scene the tests below share (9 actions every 0.5 s).
+HIGHWAY_BLOCK = """\
+        scenario "highway.xml"
+        exponent 2
+        decide_period 0.5
+        granularity 0.25
+        max_speed 30
+        action jerk in [-2, 2] step 2
+        action turn in [-0.2, 0.2] step 0.2
+"""
+
 HIGHWAY_MODEL = """\
 automaton Drive {
     reward r
@@ -357,14 +368,7 @@ automaton Drive {
     horizon 2
     initial location L { r' == 1 }
     model {
-        scenario "highway.xml"
-        exponent 2
-        decide_period 0.5
-        granularity 0.25
-        max_speed 30
-        action jerk in [-2, 2] step 2
-        action turn in [-0.2, 0.2] step 0.2
-    }
+""" + HIGHWAY_BLOCK + """    }
 }
 """
 
@@ -494,13 +498,7 @@ automaton Careful {
     edge * -> Unsafe when isClose do sa = sa - 100
     edge * -> Normal when !isClose
     model {
-        scenario "highway.xml"
-        exponent 2
-        decide_period 0.5
-        granularity 0.25
-        max_speed 30
-        action jerk in [-2, 2] step 2
-        action turn in [-0.2, 0.2] step 0.2
+""" + HIGHWAY_BLOCK + """\
         bind isClose = mindist() < 3 * collision_distance
         bind collide = collide()
     }
