@@ -96,8 +96,6 @@ class Tally:
     episodes: int = 0
     collision_steps: int = 0
     collided_episodes: int = 0
-    goal_episodes: int = 0
-    safe_goal_episodes: int = 0
     #: Env steps (over all environments) up to the end of the first episode at the goal without a collision.
     first_safe_goal: int | None = None
     _collided: list[bool] = field(default_factory=list)
@@ -112,12 +110,8 @@ class Tally:
         if done:
             self.episodes += 1
             self.collided_episodes += self._collided[env]
-            goal = bool(info["goal"])
-            self.goal_episodes += goal
-            if goal and not self._collided[env]:
-                self.safe_goal_episodes += 1
-                if self.first_safe_goal is None:
-                    self.first_safe_goal = self.steps
+            if info["goal"] and not self._collided[env] and self.first_safe_goal is None:
+                self.first_safe_goal = self.steps
             self._collided[env] = False
 
 
