@@ -91,6 +91,9 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     verify.add_argument("--trace", action="store_true", help="print whole traces")
     verify.add_argument("--learn-episodes", type=_positive_int, default=1000, metavar="N",
                         help="episode budget of learning queries (maxE/minE; default 1000)")
+    verify.add_argument("--exact", action="store_true",
+                        help="learning queries: emit the exact optimal strategy under the shield instead of "
+                             "learning one (a backward pass over the shielded decision graph)")
     verify.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
     simulate = commands.add_parser("simulate", help="simulate runs; write CSV and the paper's Fig. 7 plot",
@@ -291,7 +294,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
                             confidence=args.confidence, out_dir=out_dir, standard=args.standard,
                             only=tuple(args.query) if args.query else None, plots=not args.no_plots,
                             progress=announce, explore_progress=callback, learn_episodes=args.learn_episodes,
-                            bars=not quiet)
+                            bars=not quiet, exact=args.exact)
     try:
         with bar:
             results = verify(result, options)

@@ -168,6 +168,16 @@ class _State:
                       {name: values.copy() for name, values in self.rewards.items()},
                       {name: values.copy() for name, values in self.inputs.items()}, self.crashed.copy())
 
+    def take(self, rows: np.ndarray) -> _State:
+        """A new state of the rows ``rows`` (indices, repeats allowed), in that order."""
+        return _State(self.k[rows].copy(), self.ego[rows].copy(), self.location[rows].copy(),
+                      {name: values[rows].copy() for name, values in self.rewards.items()},
+                      {name: values[rows].copy() for name, values in self.inputs.items()}, self.crashed[rows].copy())
+
+    def columns(self) -> list[np.ndarray]:
+        """Everything but the rewards, one ``(n,)`` or ``(n, 7)`` array after the other."""
+        return [self.k, self.ego, self.location, self.crashed, *(self.inputs[name] for name in sorted(self.inputs))]
+
     def put(self, rows: np.ndarray, other: _State) -> None:
         """Copy ``other``'s rows ``rows`` into this state."""
         self.k[rows] = other.k[rows]
@@ -311,6 +321,34 @@ class EpisodeBatch:
             for name, values in state.inputs.items():
                 values[where] = start.inputs[name][0]
         self.done[where] = False
+
+    def select(self, rows: np.ndarray | Sequence[int]) -> None:
+        """Keep the episodes ``rows`` (indices into the batch; an index may repeat), in that order, as
+        the new batch of ``len(rows)`` episodes: each goes on exactly as its row would have. An
+        exhaustive search branches every episode over its actions so (:mod:`rac.learning.optimum`)."""
+        now, prev, automata = self._require()
+        where = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if where.size == 0 or where.min() < 0 or where.max() >= self.n:
+            raise ValueError(f"rows must be at least one index in [0, {self.n}), not {where.tolist()[:10]}")
+        self._automata = automata.take(where)
+        self._now, self._prev = now.take(where), prev.take(where)
+        self.n = int(where.size)
+        self.k = self._now.k
+        self.ego = self._now.ego
+        self.done = self.done[where].copy()
+
+    def memory(self, *, rewards: bool = False) -> np.ndarray:
+        """``(n, m)`` float64: all that each episode's future depends on — the sample, the sensed
+        state, the location, whether it collided, the inputs, the same of the previous sample (what
+        ``prev(e)`` reads) and ``done`` — but not its rewards (with ``rewards``: those too). Two
+        episodes with equal rows go on alike under the same actions; without the rewards, their
+        rewards differ by what they hold now only when every update is a translation
+        (:mod:`rac.learning.optimum` checks it)."""
+        now, prev, _ = self._require()
+        columns = [*now.columns(), *prev.columns(), self.done]
+        if rewards:
+            columns += [now.rewards[name] for name in sorted(now.rewards)]
+        return np.column_stack([np.asarray(c, dtype=np.float64).reshape(self.n, -1) for c in columns]) + 0.0
 
     def _require(self) -> tuple[_State, _State, BatchRewardAutomaton]:
         if self._now is None or self._prev is None or self._automata is None:

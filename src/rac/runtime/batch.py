@@ -548,6 +548,25 @@ class BatchRewardAutomaton(AutomatonDescription):
         twin.clipped = dict(self.clipped)
         return twin
 
+    def take(self, rows: np.ndarray | Sequence[int]) -> BatchRewardAutomaton:
+        """A new batch of ``len(rows)`` automata, each a copy of row ``rows[i]`` of this one (a row may
+        repeat): every automaton's state goes on from there as its row's would. For exhaustive searches
+        that branch every run over its choices (:mod:`rac.learning.optimum`)."""
+        where = np.asarray(rows, dtype=np.intp).reshape(-1)
+        if where.size == 0:
+            raise ValueError("a batch holds at least one automaton: take() needs rows")
+        twin = BatchRewardAutomaton(self._ir, int(where.size), strategy=self.strategy)
+        twin._loc = self._loc[where].copy()
+        twin._R = self._R[:, where].copy()
+        twin._samples = self._samples[where].copy()
+        twin._ended = self._ended[where].copy()
+        twin._obj = self._obj[where].copy()
+        twin._first = self._first[where].copy()
+        twin._held = {name: value[where].copy() for name, value in self._held.items()}
+        twin._n_ended = int(twin._ended.sum())
+        twin._any_first = bool(twin._first.any())
+        return twin
+
     def __deepcopy__(self, memo: dict[int, object]) -> BatchRewardAutomaton:
         """As :meth:`__copy__`: the IR and the tables are never changed, so they may be shared."""
         return self.__copy__()

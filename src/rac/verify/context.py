@@ -88,6 +88,9 @@ class VerifyOptions:
     learn_episodes: int = 1000
     learn_parallel: int = 32
     learn_stop_after: int = 10
+    #: Learning queries: emit the exact optimal strategy (:func:`rac.learning.optimum.solve`) instead of
+    #: learning one (``rac verify --exact``). Without it, the optimum is reported beside what was learned.
+    exact: bool = False
     #: Show a progress bar (on a terminal) while learning, with the running mean return.
     bars: bool = False
     #: What the witness searches before an exhaustive exploration may spend (random runs, the beam's

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -17,7 +18,9 @@ from rac.verify.context import Context, Learned, UnknownVerdict, restricted
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow, format_number
 
 if TYPE_CHECKING:  # rac.learning is imported when a query learns (rac verify without one never loads it)
-    from rac.learning.qlearning import LearningResult
+    from rac.engine.shield import ShieldTable
+    from rac.learning.optimum import Optimum
+    from rac.learning.qlearning import LearningResult, StrategyRun
 
 __all__ = ["LearningAnswerer"]
 
@@ -51,11 +54,13 @@ class LearningAnswerer:
         samples = ctx.bound_samples(query.bound)
         if samples < 1:
             raise UnknownVerdict("the time bound is shorter than one sample")
-        batch = ctx.episodes("automaton", query.expr, samples)
-        seed = ctx.next_seed()
         meta = {"query": base.formula, "objective": format_checked(query.objective),
                 "goal": format_checked(query.expr), "under": query.under, "horizon_samples": samples,
                 "reward": "the objective's increase per step (its value at the episode's end)"}
+        if ctx.options.exact:
+            return self._exact(query, base, table, samples, meta)
+        batch = ctx.episodes("automaton", query.expr, samples)
+        seed = ctx.next_seed()
         bar = Progress(total=ctx.options.learn_episodes, desc=f"learning {query.name}", unit="episodes",
                        enabled=None if ctx.options.bars else False)
 
@@ -80,22 +85,98 @@ class LearningAnswerer:
         files: tuple[str, ...] = ()
         if ctx.out_dir is not None:
             files = (str(outcome.strategy.save(ctx.out(f"{query.name}.strategy.npz"))),)
-        return dataclasses.replace(base, status="value", estimate=float(outcome.greedy.returns[0]),
+        learned = float(outcome.greedy.returns[0])
+        optimum = self._optimum(query, table, samples, meta)
+        message = self._message(outcome, query) + "\n" + self._beside(learned, optimum, query)
+        return dataclasses.replace(base, status="value", estimate=learned,
                                    runs=outcome.episodes, horizon_samples=samples, seed=seed, files=files,
-                                   message=self._message(outcome, query))
+                                   message=message, optimum=self._optimum_fields(optimum, learned, query))
+
+    def _optimum(self, query: iq.LearnStrategy, table: ShieldTable | None, samples: int,
+                 meta: Mapping[str, object]) -> Optimum | str:
+        """The exact optimum of the learning query (:func:`rac.learning.optimum.solve`) on the episodes
+        learning sees, or why it is out of reach (the budget: ``--max-states``, ``--max-memory``)."""
+        from rac.engine.budget import BudgetExceeded
+        from rac.learning.optimum import solve
+
+        ctx = self.context
+        try:
+            batch = ctx.episodes("automaton", query.expr, samples)
+            return solve(batch, objective=query.objective, optimise="max" if query.optimise == "maxE" else "min",
+                         shield=table, max_states=ctx.options.max_states, max_bytes=ctx.options.max_bytes,
+                         meta=meta)
+        except BudgetExceeded as exc:
+            return str(exc)
+        except (UnknownVerdict, ValueError) as exc:  # a sensed value out of range, bindings breaking `assume`
+            return str(exc)
+
+    @staticmethod
+    def _beside(learned: float, optimum: Optimum | str, query: iq.LearnStrategy) -> str:
+        """The learned return beside the optimum: "learned return X, optimum Y (how), Z% below"."""
+        from rac.learning.optimum import shortfall
+
+        if isinstance(optimum, str):
+            return f"optimum out of reach ({optimum}): the learned strategy stands alone"
+        gap = shortfall(learned, optimum.value, optimum.optimise)
+        worse = "below" if optimum.optimise == "max" else "above"
+        text = (f"learned return {format_number(learned)}, optimum {format_number(optimum.value)} ({optimum.method}), "
+                f"{100 * gap:.1f}% {worse}")
+        if not optimum.run.success[0]:
+            text += f"; the optimal run does not reach {format_checked(query.expr)} safely"
+        return text
+
+    @staticmethod
+    def _optimum_fields(optimum: Optimum | str, learned: float | None, query: iq.LearnStrategy
+                        ) -> dict[str, object]:
+        """The optimum as ``--format json`` writes it."""
+        from rac.learning.optimum import shortfall
+
+        if isinstance(optimum, str):
+            return {"out_of_reach": optimum}
+        fields: dict[str, object] = {
+            "value": optimum.value, "backward_pass": optimum.backward, "states": optimum.states,
+            "edges": optimum.edges, "additive": optimum.additive, "why_not_additive": optimum.why,
+            "method": optimum.method, "arithmetic": "float64, as learning's rewards",
+            "reaches_goal_safely": bool(optimum.run.success[0]), "actions": optimum.run.actions[0].tolist(),
+            "seconds": optimum.seconds}
+        if learned is not None:
+            fields["learned"] = learned
+            fields["shortfall"] = shortfall(learned, optimum.value, optimum.optimise)
+        return fields
+
+    def _exact(self, query: iq.LearnStrategy, base: QueryResult, table: ShieldTable | None, samples: int,
+               meta: Mapping[str, object]) -> QueryResult:
+        """``rac verify --exact``: the optimal strategy instead of a learned one, kept and saved like one
+        (queries ``under`` it decide on its one run)."""
+        ctx = self.context
+        optimum = self._optimum(query, table, samples, meta)
+        if isinstance(optimum, str):
+            raise UnknownVerdict(f"the exact optimum is out of reach: {optimum}")
+        ctx.strategies.pop(query.name, None)  # the name now means the optimal strategy
+        ctx.learned[query.name] = Learned(optimum.strategy, table, optimum.observed)
+        files: tuple[str, ...] = ()
+        if ctx.out_dir is not None:
+            files = (str(optimum.strategy.save(ctx.out(f"{query.name}.strategy.npz"))),)
+        message = (f"the optimal strategy ({optimum.method}; {optimum.edges:,} choices, {optimum.seconds:.2f} s): "
+                   f"its run {self._run_text(optimum.run, query)}, return {format_number(optimum.value)}")
+        return dataclasses.replace(base, status="value", estimate=optimum.value, states=optimum.states,
+                                   horizon_samples=samples, files=files, message=message, method="exact optimum",
+                                   optimum=self._optimum_fields(optimum, None, query))
+
+    def _run_text(self, run: StrategyRun, query: iq.LearnStrategy) -> str:
+        """What a strategy's one run does: reaches the goal safely at some time, or not."""
+        goal = format_checked(query.expr)
+        at = f"{int(run.samples_taken[0]) * float(self.context.period):g} s"
+        if run.success[0]:
+            return f"reaches {goal} safely at {at}"
+        if run.reached[0]:
+            unsafe = "collides" if run.collided[0] else "leaves the road"
+            return f"reaches {goal} at {at} but {unsafe}"
+        return f"does not reach {goal}"
 
     def _message(self, outcome: LearningResult, query: iq.LearnStrategy) -> str:
         """What learning found: the greedy run, when learning first succeeded, what went wrong on the way."""
-        greedy = outcome.greedy
-        goal = format_checked(query.expr)
-        at = f"{int(greedy.samples_taken[0]) * float(self.context.period):g} s"
-        if greedy.success[0]:
-            run = f"reaches {goal} safely at {at}"
-        elif greedy.reached[0]:
-            unsafe = "collides" if greedy.collided[0] else "leaves the road"
-            run = f"reaches {goal} at {at} but {unsafe}"
-        else:
-            run = f"does not reach {goal}"
+        run = self._run_text(outcome.greedy, query)
         first = (f"first after {outcome.first_success_episode} episodes" if outcome.first_success_episode is not None
                  else "never")
         if outcome.first_success_episode is None:
@@ -104,7 +185,7 @@ class LearningAnswerer:
                 first = f"never: {proof}"
         stop = ", stopped early" if outcome.stopped_early else ""
         lines = [f"learned in {outcome.episodes} episodes{stop}: the greedy run {run}, return "
-                 f"{format_number(float(greedy.returns[0]))}",
+                 f"{format_number(float(outcome.greedy.returns[0]))}",
                  f"greedy run safe until the goal: {first}; learning episodes that collided: "
                  f"{outcome.collisions_during_learning}, left the road: {outcome.offroad_during_learning}; "
                  f"{outcome.strategy.n_states:,} observations"]

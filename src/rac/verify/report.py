@@ -64,6 +64,9 @@ class QueryResult:
     exact: float | None = None
     #: How the verdict was reached: a key of :data:`rac.verify.status.METHODS` (None: not said).
     method: str | None = None
+    #: A learning query: the exact optimum beside the learned strategy (:mod:`rac.learning.optimum`):
+    #: ``value``, ``learned``, ``shortfall``, ``states``... or ``out_of_reach`` and why (None: not computed).
+    optimum: dict[str, object] | None = None
     span: Span | None = field(default=None, compare=False)
 
     def to_json(self) -> dict[str, object]:

@@ -34,6 +34,8 @@ METHODS: dict[str, str] = {
     "on demand": "decided by a search of the whole horizon from the start (the model is too large to explore)",
     "simulation": "estimated by simulation",
     "learning": "learned",
+    # the best strategy under the shield, by a backward pass over its decision graph (rac verify --exact)
+    "exact optimum": "computed exactly by a backward pass over the shielded decision graph",
     # the one run of a deterministic model under a learned strategy
     "strategy run": "decided on the strategy's one run",
 }

@@ -1,0 +1,281 @@
+"""The exact optimum of a learning query under a shield: the best return any strategy gets on the
+very episodes learning sees (issue 23).
+
+``strategy S = maxE(e)[<=T]{...}->{...}: <> p under safe`` is learned on episodes of a deterministic
+model (:class:`rac.learning.episodes.EpisodeBatch`, one step per decision period) whose choices the
+shield restricts to a finite set. So its optimum can be computed, not estimated: :func:`solve`
+
+1. **explores the decision graph forward** with the stepping code learning uses: from the start,
+   every node (a decision state) is stepped one decision period under each action the shield allows
+   there (:func:`rac.learning.strategy.allowed_actions`: the model's ``allow when`` and the shield's
+   mask, all of the model's actions where the shield allows none — learning's fallback), each edge
+   recording the step's reward as learning receives it (the objective's increase,
+   :class:`rac.learning.qlearning.ObjectiveIncrease`; or the batch's own reward). An episode ends at
+   the first sample where the goal holds, or at the bound, with its ``at end`` clauses: such an edge
+   leads nowhere.
+2. **merges the nodes whose episode state is the same** (:meth:`EpisodeBatch.memory`: the sample,
+   the sensed state, the automaton's location, the inputs, the previous sample's of each for
+   ``prev(e)``) — *without* the accumulated rewards. That is sound when the increments are additive
+   along a run: every update a translation ``r = r + c`` (``c`` free of rewards), the objective
+   affine in the rewards with constant coefficients, and neither the goal nor a reward function
+   reading the rewards (:func:`why_not_additive`). Then two runs in one node differ in their
+   rewards by a constant from there on, and the graph is the shielded model times the automaton's
+   locations at decision granularity. Otherwise the rewards are part of the node (an enumeration,
+   exact too, which merges less): the reason is reported.
+3. **solves it backwards**: a node's value is the best (``max`` for ``maxE``, ``min`` for ``minE``)
+   of its edges' reward plus the value of their target; ties go to the lowest action index, as
+   learning's greedy choices.
+
+The graph is bounded by ``max_states`` decision states and ``max_bytes``
+(:class:`rac.engine.budget.Budget`): beyond it :class:`rac.engine.budget.BudgetExceeded`, and the
+optimum is out of reach.
+
+**Arithmetic.** The rewards are float64, as learning's. The backward pass adds each edge's increment
+as one representative run of its node computed it; runs merged into that node would compute it up to
+rounding. So the optimum reported is :attr:`Optimum.value`: the return of the optimal strategy's own
+run, replayed through the same episodes (:func:`rac.learning.runs.run_strategy`), bit for bit
+comparable with a learned strategy's return; :attr:`Optimum.backward` is the backward pass's sum
+(they agree to rounding).
+
+**The optimal strategy** (:attr:`Optimum.strategy`) is a :class:`rac.learning.strategy.LearnedStrategy`
+over the exact decision state (``time``, the sensed state and the location, unbinned), holding every
+node's action values: saved, loaded and run like a learned one, its one run is the optimal run.
+
+Example::
+
+    batch = EpisodeBatch(result, horizon_samples=140)
+    best = solve(batch, objective=parse_expr("10*sa + 5*pr + co"), shield=table)
+    print(best.value, best.states, best.run.success[0])
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from rac import ir
+from rac.engine.budget import Budget
+from rac.engine.shield import ShieldTable
+from rac.ir import expr as ie
+from rac.learning.episodes import EpisodeBatch, Expression
+from rac.learning.qlearning import ObjectiveIncrease
+from rac.learning.runs import run_strategy
+from rac.learning.strategy import Episodes, LearnedStrategy, StrategyRun, allowed_actions, check_shield
+
+__all__ = ["Optimum", "observed_state", "shortfall", "solve", "why_not_additive"]
+
+#: The bytes a graph edge costs while exploring (its parent, action, reward, target and flags) besides
+#: the key of its target state, which :func:`solve` counts per column.
+EDGE_BYTES = 8 * 4 + 4
+
+
+@dataclass(frozen=True, eq=False)
+class Optimum:
+    """What :func:`solve` found: the optimum ``value`` (the optimal strategy's replayed return) and
+    ``backward`` (the backward pass's value), the optimal ``strategy``, its ``run`` and ``observed``
+    expressions, the decision
+    ``states`` and ``edges`` of the graph, whether it merged states without their rewards
+    (``additive``; else ``why`` not), ``optimise`` (``"max"``/``"min"``) and ``seconds``."""
+
+    value: float
+    backward: float
+    strategy: LearnedStrategy
+    run: StrategyRun
+    #: The strategy's observed expressions, checked (:func:`observed_state`).
+    observed: tuple[ie.Expr, ...]
+    states: int
+    edges: int
+    additive: bool
+    why: str | None
+    optimise: str
+    seconds: float
+
+    @property
+    def method(self) -> str:
+        """How the optimum was computed, in words."""
+        if self.additive:
+            return f"exact, backward pass over {self.states:,} decision states"
+        return f"exact, backward pass over {self.states:,} decision states with their rewards ({self.why})"
+
+
+def shortfall(learned: float, optimum: float, optimise: str = "max") -> float:
+    """How far ``learned`` falls short of ``optimum``, relative to ``|optimum|`` (0: optimal; 0.05:
+    5 % worse). For ``minE`` a higher cost falls short. ``inf`` when the optimum is 0 and learned worse."""
+    gap = optimum - learned if optimise == "max" else learned - optimum
+    if gap <= 0:
+        return 0.0
+    return gap / abs(optimum) if optimum != 0 else float("inf")
+
+
+def _affine(expr: ie.Expr) -> bool:
+    """Whether ``expr`` is a reward-free term plus constant multiples of rewards (its increments
+    along a run do not depend on the rewards held)."""
+    if not any(r.kind is ie.RefKind.REWARD for r in ie.refs(expr)):
+        return True
+    if isinstance(expr, ie.Ref):
+        return True
+    if isinstance(expr, ie.Unary) and expr.op == "-":
+        return _affine(expr.operand)
+    if isinstance(expr, ie.Binary):
+        if expr.op in ("+", "-"):
+            return _affine(expr.left) and _affine(expr.right)
+        constant = [side for side in (expr.left, expr.right) if _constant(side)]
+        if expr.op == "*" and constant:
+            return _affine(expr.right if constant[0] is expr.left else expr.left)
+        if expr.op == "/" and _constant(expr.right):
+            return _affine(expr.left)
+    return False
+
+
+def _constant(expr: ie.Expr) -> bool:
+    form = ie.linear_form(expr)
+    return form is not None and form.is_constant
+
+
+def why_not_additive(automaton: ir.Automaton, *, objective: ie.Expr | None = None, goal: ie.Expr | None = None,
+                     reward: ie.Expr | None = None) -> str | None:
+    """Why the episodes' rewards cannot be left out of a decision state (None: they can, see the module
+    docstring): an update that is not a translation, an objective not affine in the rewards, a goal
+    or reward function that reads them. ``objective`` None: the automaton's own (linear)."""
+    rewards = set(automaton.rewards)
+    updates = [a for edge in automaton.all_edges() for a in edge.updates]
+    updates += [a for clause in automaton.end_clauses for a in clause.updates]
+    for update in updates:
+        read = [name for name in update.value.variables() if name in rewards]
+        if update.value.coefficient(update.reward) != 1 or any(name != update.reward for name in read):
+            return f"the update of `{update.reward}` is not `{update.reward} = {update.reward} + c`"
+    if any(name in rewards for location in automaton.locations for rate in location.rates
+           for name in rate.variables()):
+        return "a rate reads the rewards"
+    if objective is not None and (not _affine(objective) or any(
+            isinstance(node, ie.Prev) and _reads_rewards(node) for node in ie.walk(objective))):
+        return "the objective is not affine in the rewards"
+    for what, expr in (("the goal", goal), ("the reward function", reward)):
+        if expr is not None and _reads_rewards(expr):
+            return f"{what} reads the rewards"
+    return None
+
+
+def _reads_rewards(expr: ie.Expr) -> bool:
+    return any(r.kind is ie.RefKind.REWARD for r in ie.refs(expr))
+
+
+def observed_state(automaton: ir.Automaton) -> tuple[str, ...]:
+    """The optimal strategy's observation: the decision state exactly (``time``, the sensed state and
+    the automaton's location, as they are)."""
+    return ("time", "x", "y", "v", "acc", "head", "jerk", "turn", f"{automaton.name}.location")
+
+
+@dataclass(frozen=True, eq=False)
+class _Layer:
+    """The edges out of one layer of decision states (sorted by parent, then action)."""
+
+    parent: np.ndarray
+    action: np.ndarray
+    reward: np.ndarray
+    target: np.ndarray  # the next layer's node, -1 where the episode ended
+    observed: np.ndarray  # (nodes, len(observed_state)): the layer's nodes observed
+
+
+def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise: str = "max",
+          shield: ShieldTable | None = None, max_states: int | None = None, max_bytes: int | None = None,
+          meta: Mapping[str, object] | None = None) -> Optimum:
+    """The optimum of ``maxE``/``minE`` (``optimise``) of the episodes' return on ``batch`` under
+    ``shield`` (see the module docstring). ``objective``: reward each step with the increase of this
+    expression (:class:`rac.learning.qlearning.ObjectiveIncrease`, as ``rac verify`` learns); None:
+    the batch's own reward. ``batch`` is used up (its episodes are replaced). ``meta``: stored with
+    the optimal strategy. :class:`rac.engine.budget.BudgetExceeded` beyond ``max_states`` decision
+    states or ``max_bytes``."""
+    if optimise not in ("max", "min"):
+        raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
+    check_shield(batch, shield)
+    t0 = time.perf_counter()
+    checked = None if objective is None else batch.expression(objective)
+    why = why_not_additive(batch.automaton, objective=checked, goal=batch.goal, reward=batch.reward_expr)
+    scored: Episodes = batch if checked is None else ObjectiveIncrease(batch, checked)
+    names = observed_state(batch.automaton)
+    exprs = [batch.expression(name) for name in names]
+    budget = Budget(max_states=max_states, max_bytes=max_bytes,
+                    what="the decision graph of the shielded episodes", period=float(batch.automaton.period))
+    layers: list[_Layer] = []
+    states, edges, stored = 1, 0, 0
+    scored.reset(1)
+    for _ in range(batch.max_steps):
+        observed = batch.observe(exprs)
+        masks, _empty = allowed_actions(scored, shield)
+        parent, action = np.nonzero(masks)  # by parent, then action: the lowest action first
+        sample = int(batch.k.max())
+        budget.check_bytes(stored + parent.size * (EDGE_BYTES + 8 * observed.shape[1]), states, sample)
+        batch.select(parent)
+        outcome = scored.step(action.astype(np.int64))
+        live = ~np.asarray(batch.done, dtype=bool)
+        target = np.full(parent.size, -1, dtype=np.int64)
+        keys = batch.memory(rewards=why is not None)
+        edges += parent.size
+        if live.any():
+            unique, first, inverse = np.unique(keys[live], axis=0, return_index=True, return_inverse=True)
+            target[live] = inverse.reshape(-1)
+            states += unique.shape[0]
+            budget.check_states(states, sample + batch.decide_every)
+            stored += parent.size * EDGE_BYTES + unique.shape[0] * 8 * (keys.shape[1] + len(exprs))
+            budget.check_bytes(stored, states, sample + batch.decide_every)
+        layers.append(_Layer(parent, action, np.asarray(outcome.reward, dtype=np.float64), target, observed))
+        if not live.any():
+            break
+        batch.select(np.flatnonzero(live)[first])
+    else:
+        raise RuntimeError("episodes went on past their last step")  # max_steps covers the horizon
+    sign = 1.0 if optimise == "max" else -1.0
+    # Backwards: a node's value is its best edge's reward plus its target's value (0 where the episode ends).
+    after = np.zeros(0)
+    best: list[np.ndarray] = []
+    q_values: list[np.ndarray] = []
+    for layer in reversed(layers):
+        q = layer.reward + np.where(layer.target >= 0, after[np.maximum(layer.target, 0)] if after.size else 0.0, 0.0)
+        nodes = layer.observed.shape[0]
+        top = np.full(nodes, -np.inf)
+        np.maximum.at(top, layer.parent, sign * q)
+        hits = np.flatnonzero(sign * q == top[layer.parent])
+        _, first_hit = np.unique(layer.parent[hits], return_index=True)  # the lowest action of the best
+        choice = np.zeros(nodes, dtype=np.int64)
+        choice[layer.parent[hits[first_hit]]] = hits[first_hit]
+        best.append(choice)
+        q_values.append(q)
+        after = sign * top
+    best.reverse()
+    q_values.reverse()
+    strategy = _strategy(batch, layers, best, q_values, names, sign, optimise,
+                         dict(meta or {}, exact=True, optimum=float(after[0]), decision_states=states,
+                              additive=why is None))
+    run = run_strategy(scored, strategy, exprs=exprs, shield=shield)
+    return Optimum(float(run.returns[0]), float(after[0]), strategy, run, tuple(exprs), states, edges, why is None,
+                   why, optimise, time.perf_counter() - t0)
+
+
+def _strategy(batch: EpisodeBatch, layers: Sequence[_Layer], best: Sequence[np.ndarray],
+              q_values: Sequence[np.ndarray], names: tuple[str, ...], sign: float, optimise: str,
+              meta: dict[str, object]) -> LearnedStrategy:
+    """The optimal strategy as a table over the observed decision states: every node's action values
+    (the edge's reward plus its target's value; ``-inf`` in the maximised sense for an action not
+    taken there). Two nodes observed alike (they differ in the previous sample or the inputs only)
+    share a row: the optimal run's node keeps it, so the strategy's one run is the optimal run."""
+    keys, values = [], []
+    on_path: int | None = 0  # the optimal run's node in the current layer (None: the run has ended)
+    for depth, layer in enumerate(layers):
+        nodes = layer.observed.shape[0]
+        table = np.full((nodes, batch.n_actions), -np.inf)
+        table[layer.parent, layer.action] = sign * q_values[depth]
+        order = np.arange(nodes)
+        if on_path is not None:  # the run's node first: np.unique keeps the first of equal rows
+            order = np.concatenate([[on_path], np.delete(order, on_path)])
+            target = int(layer.target[best[depth][on_path]])
+            on_path = target if target >= 0 else None
+        _, first = np.unique(layer.observed[order], axis=0, return_index=True)
+        rows = order[np.sort(first)]
+        keys.append(layer.observed[rows])
+        values.append(sign * table[rows])  # the objective's sense: costs for minE
+    return LearnedStrategy(names, (), (), optimise, np.concatenate(keys) + 0.0, np.concatenate(values),
+                           np.array(batch.action_pairs), meta)
