@@ -24,6 +24,12 @@ with probability 0.1 (how well the strategy recovers from deviations; under the 
 random actions are the shield's). The shield is computed once (its time is reported apart, as in
 the paper's table).
 
+Beside each shielded combination's greedy return stands the exact optimum under the shield: the best
+return any strategy gets on the same episodes with the same reward (:func:`rac.learning.optimum.solve`,
+a backward pass over the shielded decision graph), computed once per combination, and each seed's
+shortfall from it (``(optimum - learned) / |optimum|``). Where the graph is out of reach (the
+``max_states`` budget) the report says so and the learning results stand alone.
+
 All runs learn together in one batch of episodes (:mod:`rac.learning.lockstep`; issue 11): each
 run's results are the ones it has alone, and its learning time is its own computation plus its
 share of the batch's steps (by its episodes still running).
@@ -78,6 +84,8 @@ class RunRecord:
     evaluation_runs: int
     returns: np.ndarray
     succeeded: np.ndarray  # per learning episode: goal reached safely
+    greedy_return: float = float("nan")  # the final greedy strategy's return (its one run)
+    optimum: float | None = None  # the exact optimum of the combination under the shield (None: none)
 
 
 def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
@@ -151,6 +159,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         result, horizon, max_states, any(shielded for _, shielded, _ in wanted))
     shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward)
     objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
+    optima = _optima(result, wanted, shield_table, horizon, onward, rf, max_states, progress)
     runs = [(label, seed, shield_table if shielded else None, kind)
             for label, shielded, kind in wanted for seed in seeds]
     what = (f"learning {len(runs)} runs together ({', '.join(label for label, _, _ in wanted)}; "
@@ -189,11 +198,42 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         records.append(RunRecord(label, seed, seconds, outcome.episodes, outcome.first_success_episode,
                                  outcome.collisions_during_learning, outcome.offroad_during_learning,
                                  bool(outcome.greedy.success[0]), evaluation.successes, evaluation.runs,
-                                 np.asarray(history.returns, dtype=float), succeeded))
+                                 np.asarray(history.returns, dtype=float), succeeded,
+                                 float(outcome.greedy.returns[0]), _value(optima.get(label))))
     return {"file": automaton.model.scenario_path, "horizon_samples": horizon, "episodes": episodes,
             "seeds": list(seeds), "reward_function": text, "shield_seconds": shield_seconds,
             "shield_states": shield_states, "records": records, "bins": list(bins) if bins else None,
-            "observation": {"discrete": discrete, "continuous": continuous}}
+            "observation": {"discrete": discrete, "continuous": continuous}, "optima": optima}
+
+
+def _value(optimum: Report | None) -> float | None:
+    value = None if optimum is None else optimum.get("value")
+    return float(value) if isinstance(value, float) else None
+
+
+def _optima(result: CompileResult, wanted: Sequence[tuple[str, bool, str]], table: Any, horizon: int, onward: Any,
+            rf: Any, max_states: int, progress: Callable[[str], None] | None) -> dict[str, Report]:
+    """The exact optimum of every shielded combination (:func:`rac.learning.optimum.solve`) on the episodes it
+    learns on, by label: its value and how it was computed, or why it is out of reach."""
+    from rac.learning.episodes import EpisodeBatch
+    from rac.learning.optimum import solve
+
+    optima: dict[str, Report] = {}
+    for label, shielded, kind in wanted:
+        if not shielded or table is None:
+            continue
+        if progress:
+            progress(f"the exact optimum of {label} under the shield")
+        batch = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward)
+        try:
+            best = solve(batch, objective=None if kind == "automaton" else rf, shield=table, max_states=max_states)
+        except (MemoryError, ValueError) as exc:  # the budget (BudgetExceeded is a MemoryError), an unusable model
+            optima[label] = {"out_of_reach": str(exc)}
+            continue
+        optima[label] = {"value": best.value, "states": best.states, "method": best.method,
+                         "seconds": best.seconds, "reaches_goal_safely": bool(best.run.success[0]),
+                         "actions": best.run.actions[0].tolist()}
+    return optima
 
 
 def _mean_sd(values: Sequence[float]) -> str:
@@ -225,8 +265,19 @@ def summary(report: Report) -> list[Report]:
             "greedy_success": sum(r.greedy_success for r in runs),
             "evaluation": [r.evaluation_successes / r.evaluation_runs for r in runs],
             "episodes": [r.episodes for r in runs],
+            "greedy_return": [r.greedy_return for r in runs],
+            "optimum": runs[0].optimum,
+            "shortfall": [_shortfall(r) for r in runs if r.optimum is not None],
         })
     return rows
+
+
+def _shortfall(record: RunRecord) -> float:
+    """How far the greedy return falls short of the exact optimum, relative to ``|optimum|``."""
+    from rac.learning.optimum import shortfall
+
+    assert record.optimum is not None
+    return shortfall(record.greedy_return, record.optimum)
 
 
 def render_markdown(report: Report) -> str:
@@ -235,8 +286,9 @@ def render_markdown(report: Report) -> str:
     lines = [
         "| combination | learning time (s) | episodes until the first safe goal | episodes learned | "
         "collisions during learning (episodes) | greedy strategy safe at the goal and to the horizon | "
-        f"success over {_evaluation_runs(report)} runs with {EVALUATION_NOISE:g} random actions |",
-        "| --- | --- | --- | --- | --- | --- | --- |",
+        f"success over {_evaluation_runs(report)} runs with {EVALUATION_NOISE:g} random actions | "
+        "greedy return | exact optimum under the shield (shortfall) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for row in rows:
         n = row["seeds"]
@@ -246,9 +298,14 @@ def render_markdown(report: Report) -> str:
         lines.append(
             f"| {row['combination']} | {_mean_sd(row['seconds'])} | {first} | {_mean_sd(row['episodes'])} | "
             f"{_mean_sd(row['collisions'])} | {row['greedy_success']} of {n} seeds | "
-            f"{_mean_sd([100 * v for v in row['evaluation']])} % |")
+            f"{_mean_sd([100 * v for v in row['evaluation']])} % | {_mean_sd(row['greedy_return'])} | "
+            f"{_optimum_cell(row)} |")
     notes = [
         "",
+        *(f"Exact optimum of {label} under the shield: "
+          + (f"out of reach ({optimum['out_of_reach']})" if "out_of_reach" in optimum else
+             f"{optimum['value']:.1f} ({optimum['method']}, {optimum['seconds']:.2f} s)")
+          + "." for label, optimum in report.get("optima", {}).items()),
         f"Safety shield: {report['shield_states']:,} states, {report['shield_seconds']:.2f} s (computed once, "
         "used by SS&RA and SS&RF).",
         f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} episodes per run; horizon "
@@ -261,6 +318,13 @@ def render_markdown(report: Report) -> str:
         "shield's): a run that reaches the goal only to leave the road after it does not count.",
     ]
     return "\n".join(lines + notes)
+
+
+def _optimum_cell(row: Report) -> str:
+    """The optimum and the seeds' shortfall from it in percent (— without an optimum)."""
+    if row["optimum"] is None:
+        return "—"
+    return f"{row['optimum']:.1f} ({_mean_sd([100 * v for v in row['shortfall']])} % below)"
 
 
 def _evaluation_runs(report: Report) -> int:
@@ -284,6 +348,8 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
                      "collisions_during_learning": r.collisions_during_learning,
                      "offroad_during_learning": r.offroad_during_learning, "greedy_success": r.greedy_success,
                      "evaluation_successes": r.evaluation_successes, "evaluation_runs": r.evaluation_runs,
+                     "greedy_return": r.greedy_return, "optimum": r.optimum,
+                     "shortfall": None if r.optimum is None else _shortfall(r),
                      "returns": [round(float(v), 4) for v in r.returns],
                      "succeeded": [bool(v) for v in r.succeeded]} for r in records]
     results = out_dir / "results.json"
