@@ -439,7 +439,8 @@ def test_render_json_is_strict_json(compiled: Callable[[str], Compiled], tmp_pat
     assert sim["files"] == [str(tmp_path / "Sim.csv")]
     assert sim["location"] == {"file": str(path), "line": one["location"]["line"] + 1, "column": 5}
     expected = {"name", "formula", "kind", "status", "title", "interval", "estimate", "runs", "states", "seconds",
-                "horizon_samples", "trace", "files", "message", "seed", "confidence", "exact", "method", "location"}
+                "horizon_samples", "trace", "files", "message", "seed", "confidence", "exact", "method", "optimum",
+                "location"}
     assert set(one) == expected
 
 
