@@ -110,3 +110,21 @@ def test_the_learning_curves_say_mean_and_sd_once(report: dict[str, object], tmp
     assert returns.get_title().count("over seeds") == 1 and "mean ± sd" in returns.get_title()
     styles = [(line.get_linestyle(), line.get_marker()) for line in returns.get_lines()]
     assert len(set(styles)) == len(styles) == 4
+
+
+def test_the_ablation_learns_every_row(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "out"
+    code = main(["experiment", str(path), "--seeds", "1", "--episodes", "16", "--runs", "5", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "SS&RA", "--ablation", "--out", str(out), "-q"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "(derived from the model's action grid and goal)" in printed
+    assert "| SS&RA |" in printed and printed.count("| yes |") == 1
+    ablation = (out / "ablation.md").read_text().splitlines()
+    assert [line.split(" | ")[0] for line in ablation[2:7]] == [
+        "| as the experiment", "| other bins", "| counterfactuals switched", "| replay switched",
+        "| all three switched"]
+    data = json.loads((out / "results.json").read_text())
+    assert [len(variant["records"]) for variant in data["ablation"]] == [1] * 5
+    assert [variant["counterfactuals"] for variant in data["ablation"]] == [True, True, False, True, False]

@@ -134,7 +134,15 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     exp.add_argument("--reward-function", metavar="EXPR",
                      help="per-sample reward of the RF combinations (default: the paper's Eq. 9)")
     exp.add_argument("--bins", metavar="LIST",
-                     help="widths of the continuous observations, e.g. 4,4,2,0.4 (default: 1 m, 0.5 m/s, 0.1 rad ...)")
+                     help="widths of the continuous observations, e.g. 4,4,2,0.4 (default: derived from the model's "
+                          "action grid and goal, docs/learning.md)")
+    exp.add_argument("--no-counterfactuals", action="store_true",
+                     help="the RA combinations learn from their own transitions only (default: also from every "
+                          "automaton location's counterfactual)")
+    exp.add_argument("--replay", type=int, default=1, metavar="N",
+                     help="backward replays of each batch of episodes (default 1; 0: none)")
+    exp.add_argument("--ablation", action="store_true",
+                     help="also learn SS&RA with other bins, counterfactuals and replay switched (ablation.md)")
     exp.add_argument("--combination", action="append", choices=("SS&RA", "SS&RF", "RA", "RF"),
                      help="only this combination (repeatable)")
     exp.add_argument("--format", choices=("text", "json"), default="text", help="output format")
@@ -500,7 +508,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
 
 @_on_checked_file
 def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
-    from rac.studies.experiment import ExperimentError, render_markdown, run_experiment, write_outputs
+    from rac.studies.experiment import ExperimentError, render_ablation, render_markdown, run_experiment, write_outputs
 
     if args.seed is not None and args.seeds is not None:
         print("rac experiment: give --seeds LIST or --seed N (one seed), not both", file=sys.stderr)
@@ -510,6 +518,9 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
         seeds = [int(s) for s in text.split(",")]
     except ValueError:
         print(f"rac experiment: --seeds: not a list of whole numbers: {args.seeds!r}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.replay < 0:
+        print(f"rac experiment: --replay must be 0 or more, not {args.replay}", file=sys.stderr)
         return EXIT_USAGE
     bins = None
     if args.bins:
@@ -525,7 +536,8 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                 reward_function=args.reward_function,
                                 horizon_samples=_horizon_samples(result, args.horizon) if args.horizon else None,
                                 max_states=args.max_states, combinations=args.combination, bins=bins,
-                                progress=announce)
+                                counterfactuals=not args.no_counterfactuals, replay=args.replay,
+                                ablation=args.ablation, progress=announce)
         files = write_outputs(report, out_dir)
     except ExperimentError as exc:
         print(f"rac experiment: {exc}", file=sys.stderr)
@@ -538,6 +550,9 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     else:
         print(render_markdown(report))
         print()
+        if report.get("ablation"):
+            print(render_ablation(report))
+            print()
         for path in files:
             print(f"wrote {path}")
     return EXIT_OK

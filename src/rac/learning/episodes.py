@@ -65,6 +65,7 @@ from rac.engine.evaluate import Evaluator, Frame
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.lang.parser import parse_expression
+from rac.learning.counterfactual import Counterfactuals, Replayer, Sample
 from rac.model.data import ModelData
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.semantics import InputSpec, input_specs
@@ -105,6 +106,19 @@ class StepResult:
     #: bool: the goal was reached in this step in a state from which no run stays safe to the horizon
     #: (judged only with ``onward``; else always False).
     stranded: np.ndarray
+
+
+def _reads_location_or_rewards(expr: ie.Expr) -> bool:
+    return any(r.kind in (ie.RefKind.REWARD, ie.RefKind.LOCATION, ie.RefKind.LOCATION_INDEX) for r in ie.refs(expr))
+
+
+def _spread(state: _State, where: slice, rows: np.ndarray, location: np.ndarray, rewards: dict[str, np.ndarray],
+            prev: Frame | None = None) -> Frame:
+    """The frame of ``state``'s episodes ``where``, each repeated by ``rows`` (one per location), in
+    the locations ``location`` with the reward values ``rewards``."""
+    return Frame(k=state.k[where][rows], ego=state.ego[where][rows], location=location, rewards=rewards,
+                 inputs={name: values[where][rows] for name, values in state.inputs.items()}, prev=prev,
+                 crashed=state.crashed[where][rows])
 
 
 class _Inputs:
@@ -216,7 +230,7 @@ class EpisodeBatch:
     def __init__(self, result: CompileResult, *, reward: Expression = "automaton",
                  goal: Expression | None = GOAL, horizon_samples: int | None = None,
                  data: ModelData | None = None,
-                 onward: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
+                 onward: Callable[[np.ndarray], np.ndarray] | None = None, counterfactuals: bool = False) -> None:
         automaton = result.automaton
         if automaton is None:
             raise ValueError("the file has errors: there is no automaton to run")
@@ -258,6 +272,12 @@ class EpisodeBatch:
         self.done = np.zeros(0, dtype=bool)
         self._now: _State | None = None
         self._prev: _State | None = None
+        #: Record every step's samples, for :meth:`counterfactual` (off: a step records nothing).
+        self.counterfactuals = counterfactuals
+        self._replayer = Replayer(automaton)
+        self._record: list[Sample] = []
+        self._before: _State | None = None
+        self._last_reward = np.zeros(0)
         # Evaluate the expressions once on the start, so that a name the engine cannot read fails here.
         start = self._start_state(1)
         self._first = start  # one episode's start, read by reset_rows (never written)
@@ -289,6 +309,7 @@ class EpisodeBatch:
         else:
             self._automata.reset()
         self.n = n
+        self._before = None
         self._now = self._start_state(n)
         self._prev = self._now.copy()  # prev(e) at the start is e itself
         self.k = self._now.k
@@ -436,12 +457,58 @@ class EpisodeBatch:
             raise ValueError(f"actions must be in [0, {self.n_actions}), got {chosen.min()}..{chosen.max()}")
         pairs = np.zeros((n, 2), dtype=np.int32)
         pairs[live] = self.action_pairs[chosen]
+        if self.counterfactuals:
+            self._before, self._record = now.copy(), []
         for _ in range(self.decide_every):
             rows = np.flatnonzero(~self.done)
             if rows.size == 0:
                 break
             self._sample(rows, pairs, reward, flags)
+        self._last_reward = reward.copy()
         return StepResult(reward=reward, **flags)
+
+    def counterfactual(self, rows: slice | None = None, objective: Expression | None = None) -> Counterfactuals:
+        """The last :meth:`step` replayed from every location of the automaton, for the episodes
+        ``rows`` (default all): per episode and location, the step's reward had the automaton been
+        there when the step began, and the location it would have reached
+        (:mod:`rac.learning.counterfactual`; the episodes must have been made with
+        ``counterfactuals=True``). The reward is the batch's: the objective's increase, or with
+        ``objective`` that expression's increase (as :class:`rac.learning.qlearning.ObjectiveIncrease`
+        rewards a step), or a reward expression's value, which must then not read the automaton's
+        locations or rewards (it is the same in every location). ``ValueError`` when the goal reads
+        them (the episode's end would depend on the location)."""
+        now, _, _ = self._require()
+        before = self._before
+        if not self.counterfactuals or before is None:
+            raise ValueError("no step recorded: make the episodes with counterfactuals=True and step them first")
+        if self.goal is not None and _reads_location_or_rewards(self.goal):
+            raise ValueError("counterfactual experiences need a goal that does not read the automaton's locations "
+                             "or rewards")
+        where = slice(None) if rows is None else rows
+        n = int(now.k[where].shape[0])
+        samples = [Sample({name: values[where] for name, values in s.inputs.items()}, s.active[where],
+                          s.ending[where]) for s in self._record]
+        cf = self._replayer.replay(samples, n, {name: values[where] for name, values in before.rewards.items()})
+        if objective is not None:
+            expr = self.expression(objective)
+            size = cf.n_locations
+            spread = np.repeat(np.arange(n), size)
+            locations = np.tile(np.arange(size), n)
+            start = _spread(before, where, spread, locations,
+                            {name: np.repeat(values[where], size) for name, values in before.rewards.items()})
+            end = _spread(now, where, spread, cf.next_location.reshape(-1),
+                          {name: values.reshape(-1) for name, values in cf.rewards.items()}, prev=start)
+            gain = (np.asarray(self.evaluator.evaluate(expr, end), dtype=np.float64)
+                    - np.asarray(self.evaluator.evaluate(expr, start), dtype=np.float64)).reshape(n, size)
+            ran = np.repeat(np.asarray(self._record[0].active[where] if self._record else np.zeros(n, bool)), size)
+            return dataclasses.replace(cf, reward=np.where(ran.reshape(n, size), gain, 0.0))
+        if self.reward_expr is not None:
+            if _reads_location_or_rewards(self.reward_expr):
+                raise ValueError("counterfactual experiences of a reward expression that reads the automaton's "
+                                 "locations or rewards are not supported: pass the automaton's objective")
+            reward = np.repeat(self._last_reward[where][:, None], cf.n_locations, axis=1)
+            return dataclasses.replace(cf, reward=reward)
+        return cf
 
     def _sample(self, rows: np.ndarray, pairs: np.ndarray, reward: np.ndarray, flags: dict[str, np.ndarray]) -> None:
         """One sample ``k -> k + 1`` of the episodes ``rows``, each at its own ``k`` (the model's
@@ -489,6 +556,10 @@ class EpisodeBatch:
                    else np.zeros(rows.size, dtype=bool))
         last = now.k[rows] >= self.horizon_samples
         ending = reached | last
+        if self.counterfactuals:
+            ends = np.zeros(self.n, dtype=bool)
+            ends[rows[ending]] = True
+            self._record.append(Sample({name: values.copy() for name, values in fed.items()}, active, ends))
         if ending.any():
             flags["terminated"][rows[reached]] = True
             if self.onward is not None and reached.any():

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from rac.ir import expr as ie
+from rac.learning.counterfactual import Counterfactuals
 from rac.learning.episodes import EpisodeBatch, Expression, StepResult
 from rac.learning.runs import Reset, Steps
 from rac.learning.strategy import Forwarding
@@ -52,9 +53,10 @@ class Lane(Forwarding):
     """The episodes ``rows`` of a shared batch, as a generator of steps reads them between its steps
     (:class:`rac.learning.strategy.Episodes`); :func:`run_together` resets and steps them."""
 
-    def __init__(self, shared: EpisodeBatch, rows: slice) -> None:
+    def __init__(self, shared: EpisodeBatch, rows: slice, objective: ie.Expr | None = None) -> None:
         self.batch = self.shared = shared
         self.rows = rows
+        self.objective = objective
 
     @property
     def action_pairs(self) -> np.ndarray:
@@ -82,6 +84,11 @@ class Lane(Forwarding):
 
     def step(self, actions: np.ndarray) -> StepResult:
         raise RuntimeError("a lane is stepped by run_together: yield the actions")
+
+    def counterfactual(self) -> Counterfactuals:
+        """The last step of the lane's episodes replayed from every location of the automaton, with
+        the lane's reward (:meth:`rac.learning.episodes.EpisodeBatch.counterfactual`)."""
+        return self.shared.counterfactual(self.rows, self.objective)
 
 
 class _Running:
@@ -134,7 +141,7 @@ def run_together(jobs: Sequence[Job], shared: EpisodeBatch) -> list[tuple[Any, f
             run.seconds += spent * width / sum(widths)
             start += width
         for run in live:
-            run.send(Lane(shared, run.lane))
+            run.send(Lane(shared, run.lane, run.job.objective))
         while any(run.stepping for run in live):
             _step(shared, [run for run in live if run.stepping])
 

@@ -65,7 +65,9 @@ from typing import Any
 import numpy as np
 
 from rac.engine.shield import ShieldTable
+from rac.ir import expr as ie
 from rac.lang import ast
+from rac.learning.counterfactual import Counterfactuals
 from rac.learning.episodes import Expression
 
 # The strategy itself (observation keys, table) lives in rac.learning.strategy, its runs and evaluation
@@ -142,6 +144,11 @@ class ObjectiveIncrease(Forwarding):
     def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
         return self.batch.observe(exprs)
 
+    def counterfactual(self) -> Counterfactuals:
+        """The last step replayed from every location, rewarded with ``expr``'s increase
+        (:meth:`rac.learning.episodes.EpisodeBatch.counterfactual`)."""
+        return self.batch.counterfactual(objective=self.expr)  # type: ignore[attr-defined]
+
     def step(self, actions: np.ndarray) -> StepOutcome:
         active = ~np.asarray(self.batch.done, dtype=bool)
         before = self.batch.observe([self.expr])[:, 0]
@@ -197,6 +204,23 @@ def _fresh_seed() -> int:
     return entropy
 
 
+def location_column(discrete: Sequence[ie.Expr], continuous: Sequence[ie.Expr] = ()) -> int:
+    """The column of the observation holding the automaton's location (``A.location`` among the
+    discrete expressions), for counterfactual experiences; ``ValueError`` when there is none, or when
+    another observation reads the automaton's locations or rewards (its counterfactual value would
+    be unknown)."""
+    found = [i for i, e in enumerate(discrete) if isinstance(e, ie.Ref) and e.kind is ie.RefKind.LOCATION_INDEX]
+    if not found:
+        raise ValueError("counterfactual experiences need the automaton's location in the discrete observations "
+                         "(e.g. {Driving.location})")
+    automaton_state = (ie.RefKind.REWARD, ie.RefKind.LOCATION, ie.RefKind.LOCATION_INDEX)
+    for i, e in enumerate((*discrete, *continuous)):
+        if i != found[0] and any(r.kind in automaton_state for r in ie.refs(e)):
+            raise ValueError("counterfactual experiences need an observation that sees the automaton only through "
+                             "its location: another observation reads its locations or rewards")
+    return found[0]
+
+
 def _epsilon_schedule(epsilon: float | tuple[float, float], episodes: int) -> Callable[[np.ndarray], np.ndarray]:
     start, end = (epsilon, epsilon) if isinstance(epsilon, int | float) else epsilon
     if not (0.0 <= start <= 1.0 and 0.0 <= end <= 1.0):
@@ -210,7 +234,8 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
              epsilon: float | tuple[float, float] = (1.0, 0.05), bins: Sequence[float] | None = None,
              stop_after: int = 10, progress: Progress | None = None, meta: Mapping[str, object] | None = None,
              replay: int = 1, labels: Sequence[str] | None = None,
-             evaluate_in_batch: bool = True) -> Steps[LearningResult]:
+             evaluate_in_batch: bool = True, counterfactuals: bool = False,
+             growth: float | None = None, optimism: float = 0.0) -> Steps[LearningResult]:
     """Learn a strategy by tabular Q-learning on ``batch`` (see the module docstring for the
     observation, the algorithm and the stopping rule): ``learn(batch, ...)`` learns on ``batch``
     alone; ``learning(batch, ...)`` is the same as a generator of steps (:mod:`rac.learning.runs`),
@@ -243,8 +268,9 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     seed = _fresh_seed() if seed is None else int(seed)
     sign = 1.0 if optimise == "max" else -1.0
     n_discrete = len(discrete_exprs)
-    table = QTable(len(exprs), batch.n_actions)
-    learner = Learner(table, exprs, n_discrete, widths, shield, np.random.default_rng(seed), sign, alpha, gamma, replay)
+    table = QTable(len(exprs), batch.n_actions, optimism)
+    learner = Learner(table, exprs, n_discrete, widths, shield, np.random.default_rng(seed), sign, alpha, gamma, replay,
+                      location_column(discrete_exprs, continuous_exprs) if counterfactuals else None)
     schedule = _epsilon_schedule(epsilon, episodes)
     pairs = getattr(batch, "action_pairs", None)
 
@@ -261,24 +287,29 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     best: tuple[bool, float] | None = None
     best_strategy: LearnedStrategy | None = None
     best_run: StrategyRun | None = None
-    stale = 0
+    best_after = 0  # episodes learned at the best evaluation
     stopped_early = False
+
+    def batch_size(learned: int) -> int:
+        """The next batch's episodes: ``parallel``, or with ``growth`` a batch growing with the
+        episodes learned (the greedy strategy is evaluated after every batch: early, often)."""
+        if growth is None:
+            return parallel
+        return max(1, min(parallel, math.ceil(growth * learned)))
 
     def judge(frozen: Frozen, after: int, mean_return: float, run: StrategyRun) -> bool:
         """The stopping rule on the greedy run of the table ``frozen`` after ``after`` episodes:
         whether learning stops there."""
-        nonlocal first_success, best, best_strategy, best_run, stale
+        nonlocal first_success, best, best_strategy, best_run, best_after
         success, ret = bool(run.success[0]), float(run.returns[0])
         evaluations.append((after, ret, success))
         if success and first_success is None:
             first_success = after
         if best is None or (success, sign * ret) > (best[0], sign * best[1]):
-            best, best_strategy, best_run, stale = (success, ret), strategy(frozen), run, 0
-        else:
-            stale += 1
+            best, best_strategy, best_run, best_after = (success, ret), strategy(frozen), run, after
         if progress is not None:
             progress(after, episodes, mean_return)
-        return best[0] and stale >= stop_after and after < episodes
+        return best[0] and after - best_after >= stop_after * parallel and after < episodes
 
     # After each batch the greedy strategy is evaluated by its one run (the stopping rule). With
     # evaluate_in_batch that run rides along in the next batch, choosing from the table as it was
@@ -286,7 +317,7 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     # stops learning that batch is discarded (its episodes are not counted, its table not kept).
     pending: tuple[Frozen, int, float] | None = None  # the table, episodes learned, mean return
     while learned < episodes:
-        n = min(parallel, episodes - learned)
+        n = min(batch_size(learned), episodes - learned)
         riding, pending = pending, None
         log, run = yield from learner.run(n, schedule(learned + np.arange(n, dtype=np.float64)),
                                           None if riding is None else riding[0])

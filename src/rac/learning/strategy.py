@@ -25,6 +25,7 @@ a success rate. :meth:`LearnedStrategy.save` and :meth:`LearnedStrategy.load` ke
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -45,8 +46,8 @@ if TYPE_CHECKING:  # imported when a run is replayed (the simulator is not neede
     from rac.model.data import ModelData
 
 __all__ = ["DEFAULT_BIN", "DEFAULT_BINS", "Episodes", "Forwarding", "LearnedStrategy", "StepOutcome", "StrategyRun",
-           "allowed_actions", "check_shield", "default_bin", "greedy_actions", "key_bytes", "observation_keys",
-           "uniform_allowed"]
+           "allowed_actions", "check_shield", "default_bin", "derived_bins", "greedy_actions", "key_bytes",
+           "observation_keys", "observed_name", "uniform_allowed"]
 
 FORMAT = "rac-strategy-1"
 #: Default bin widths of continuous observations, by name (a plain name, a model function, or
@@ -143,15 +144,48 @@ class Forwarding:
 def default_bin(expr: ie.Expr | ast.Expr) -> float:
     """The default bin width of a continuous observation (:data:`DEFAULT_BINS`), checked or parsed:
     by the name it observes (``v``, ``fabs(turn)``, ``-acc``)."""
-    if isinstance(expr, ie.Unary | ast.Unary) and expr.op == "-":
-        return default_bin(expr.operand)
-    if isinstance(expr, ie.Call) and expr.name in ("fabs", "abs") and len(expr.args) == 1:
-        return default_bin(expr.args[0])
-    if isinstance(expr, ast.Call) and expr.func in ("fabs", "abs") and len(expr.args) == 1:
-        return default_bin(expr.args[0])
-    name = (expr.name if isinstance(expr, ie.Ref | ie.Call) else expr.id if isinstance(expr, ast.Name)
-            else expr.func if isinstance(expr, ast.Call) else None)
+    name = observed_name(expr)
     return DEFAULT_BINS.get(name, DEFAULT_BIN) if name is not None else DEFAULT_BIN
+
+
+def observed_name(expr: ie.Expr | ast.Expr) -> str | None:
+    """The name a continuous observation observes (``v``, ``fabs(turn)``, ``-acc``, ``dist_goal()``), or None."""
+    if isinstance(expr, ie.Unary | ast.Unary) and expr.op == "-":
+        return observed_name(expr.operand)
+    if isinstance(expr, ie.Call) and expr.name in ("fabs", "abs") and len(expr.args) == 1:
+        return observed_name(expr.args[0])
+    if isinstance(expr, ast.Call) and expr.func in ("fabs", "abs") and len(expr.args) == 1:
+        return observed_name(expr.args[0])
+    return (expr.name if isinstance(expr, ie.Ref | ie.Call) else expr.id if isinstance(expr, ast.Name)
+            else expr.func if isinstance(expr, ast.Call) else None)
+
+
+def derived_bins(data: ModelData, exprs: Sequence[ie.Expr | ast.Expr]) -> tuple[float, ...]:
+    """Bin widths of continuous observations derived from the model's own resolution and its goal
+    (``rac experiment``'s default; issue 23): the change one step of the action grid makes over one
+    decision period ``T``, so that two decisions one grid step apart lead to different bins. With
+    ``dj`` the jerk grid's step and ``dw`` the turn rate's: ``jerk`` dj, ``turn`` dw, ``acc``
+    dj*T, ``v`` dj*T^2/2, ``head`` dw*T, positions and distances (``x, y, dist_goal(), mindist()``)
+    dj*T^3/6 but at most half the goal region's shorter side (so that the goal spans two bins
+    across), ``time`` T. Any other expression, or a model without a jerk or turn grid, gets
+    :func:`default_bin`."""
+    scale = float(data.scale)
+    period = data.decide_period / scale
+    steps = {action.name: action.step / scale for action in data.actions if action.step > 0}
+    xs, ys = np.array(data.goal_x[:data.goal_start[1]] if data.goal_count else [], dtype=np.float64), \
+        np.array(data.goal_y[:data.goal_start[1]] if data.goal_count else [], dtype=np.float64)
+    goal_side = min(np.ptp(xs), np.ptp(ys)) / scale if xs.size else math.inf
+    jerk, turn = steps.get("jerk"), steps.get("turn")
+    position = None if jerk is None else min(jerk * period ** 3 / 6, goal_side / 2)
+    widths = {"jerk": jerk, "turn": turn, "acc": None if jerk is None else jerk * period,
+              "v": None if jerk is None else jerk * period ** 2 / 2, "head": None if turn is None else turn * period,
+              "x": position, "y": position, "dist_goal": position, "mindist": position, "time": period}
+    out = []
+    for expr in exprs:
+        name = observed_name(expr)
+        width = widths.get(name.removeprefix("true_")) if name is not None else None
+        out.append(float(width) if width is not None and width > 0 else default_bin(expr))
+    return tuple(out)
 
 
 def observation_keys(values: np.ndarray, n_discrete: int, bins: Sequence[float] | np.ndarray) -> np.ndarray:

@@ -48,7 +48,9 @@ class QTable:
     """The growing table of learning: observation key -> row of Q-values, in the *maximised* sense
     (``sign * value``: for ``minE`` the negated costs)."""
 
-    def __init__(self, width: int, n_actions: int) -> None:
+    def __init__(self, width: int, n_actions: int, initial: float = 0.0) -> None:
+        #: The value of every entry not yet learned (optimistic initial values when above any return).
+        self.initial = initial
         self.index: dict[bytes, int] = {}
         self.keys = np.zeros((64, width), dtype=np.float64)
         self.values = np.zeros((64, n_actions), dtype=np.float64)
@@ -72,14 +74,15 @@ class QTable:
             self.keys = np.concatenate([self.keys, np.zeros_like(self.keys)])
             self.values = np.concatenate([self.values, np.zeros_like(self.values)])
         self.keys[self.size] = key
+        self.values[self.size] = self.initial
         self.index[raw] = self.size
         self.size += 1
         return self.size - 1
 
     def utilities(self, rows: np.ndarray) -> np.ndarray:
-        """``(n, P)``: the rows' values, zeros for unseen rows (-1)."""
+        """``(n, P)``: the rows' values, :attr:`initial` for unseen rows (-1)."""
         out = self.values[np.maximum(rows, 0)]
-        out[rows < 0] = 0.0
+        out[rows < 0] = self.initial
         return out
 
     def freeze(self) -> Frozen:
@@ -91,7 +94,7 @@ class QTable:
         rows = self.rows(keys, create=False)
         rows[rows >= frozen.size] = -1
         out = frozen.values[np.maximum(rows, 0)] if frozen.size else np.zeros((rows.size, self.values.shape[1]))
-        out[rows < 0] = 0.0
+        out[rows < 0] = self.initial
         return out
 
 
@@ -151,6 +154,10 @@ class Learner:
     alpha: float
     gamma: float
     replay: int
+    #: The observation's column holding the automaton's location, for counterfactual experiences
+    #: (:mod:`rac.learning.counterfactual`): every transition also updates the observation in every
+    #: other location. None: off.
+    location_column: int | None = None
 
     def observe(self, batch: Episodes) -> np.ndarray:
         """Every episode's observed values now."""
@@ -158,6 +165,29 @@ class Learner:
 
     def keys(self, observed: np.ndarray) -> np.ndarray:
         return observation_keys(observed, self.n_discrete, self.widths)
+
+    def counterfactual(self, batch: Episodes, step: Transition, keys: np.ndarray, next_keys: np.ndarray) -> Transition:
+        """The counterfactual transitions of ``step`` (the batch's last step, whose learning episodes
+        had the observation ``keys`` before it and ``next_keys`` after): the same step of the model
+        from every *other* location of the automaton, its reward and next location from the
+        automaton (``batch.counterfactual()``, :meth:`rac.learning.episodes.EpisodeBatch.counterfactual`)."""
+        column = self.location_column
+        assert column is not None
+        replay = getattr(batch, "counterfactual", None)
+        if replay is None:
+            raise ValueError("these episodes cannot replay a step from other locations (no counterfactual())")
+        cf = replay()
+        sources = step.active
+        actual = keys[sources, column].astype(np.int64)
+        which, location = np.nonzero(np.arange(cf.n_locations)[None, :] != actual[:, None])
+        source = sources[which]
+        before = keys[source].copy()
+        before[:, column] = location
+        after = next_keys[source].copy()
+        after[:, column] = cf.next_location[source, location]
+        return Transition(np.arange(source.size), self.table.rows(before, create=True), step.actions[source],
+                          self.sign * cf.reward[source, location], self.table.rows(after, create=True),
+                          step.next_masks[source], step.ends[source])
 
     def greedy_run(self) -> Steps[StrategyRun]:
         """The greedy strategy of the table now, by its one run alone (a batch of one episode)."""
@@ -177,7 +207,8 @@ class Learner:
         batch: Episodes = yield Reset(width)
         recorder = RunRecorder(batch, slice(n, width), 1, len(self.exprs)) if frozen is not None else None
         observed = self.observe(batch)
-        rows = table.rows(self.keys(observed[:n]), create=True)
+        keys = self.keys(observed[:n])
+        rows = table.rows(keys, create=True)
         masks, empty = allowed_actions(batch, shield)
         fallbacks = empty[:n].astype(np.int64)
         returns = np.zeros(n)
@@ -209,11 +240,17 @@ class Learner:
             if learning.any():
                 reward = np.asarray(outcome.reward, dtype=np.float64)[:n]
                 ends = (np.asarray(outcome.terminated, dtype=bool) | np.asarray(outcome.truncated, dtype=bool))[:n]
-                next_rows = table.rows(self.keys(observed[:n]), create=True)
+                next_keys = self.keys(observed[:n])
+                next_rows = table.rows(next_keys, create=True)
                 step = Transition(np.flatnonzero(learning), rows, actions[:n], self.sign * reward, next_rows,
                                   next_masks[:n], ends)
                 update(table.values, step, self.alpha, self.gamma)
                 steps.append(step)
+                if self.location_column is not None:
+                    counterfactual = self.counterfactual(batch, step, keys, next_keys)
+                    update(table.values, counterfactual, self.alpha, self.gamma)
+                    steps.append(counterfactual)
+                keys = next_keys
                 returns[learning] += reward[learning]
                 reached |= np.asarray(outcome.terminated, dtype=bool)[:n] & learning
                 collided |= np.asarray(outcome.collided, dtype=bool)[:n] & learning

@@ -336,6 +336,21 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._n_ended = int(self._ended.sum())
         self._any_first = bool(self._first.any())
 
+    def resume(self, locations: np.ndarray | Sequence[int], rewards: Mapping[str, np.ndarray] | None = None) -> None:
+        """Reset every automaton, then put automaton ``i`` in location ``locations[i]`` with the reward
+        values ``rewards[name][i]`` (default 0): a run resumed from another state, e.g. to replay one
+        sequence of inputs from every location (counterfactual experiences,
+        :mod:`rac.learning.counterfactual`). Input-dependent rates hold the next sample's inputs, as
+        after :meth:`reset`."""
+        loc = np.asarray(locations, dtype=np.intp)
+        if loc.shape != (self._n,) or (loc.size and (loc.min() < 0 or loc.max() >= len(self._ir.locations))):
+            raise ValueError(f"locations must be {self._n} location indices in [0, {len(self._ir.locations)})")
+        self.reset()
+        self._loc = loc.copy()
+        for name, values in (rewards or {}).items():
+            self._R[self._index[name]] = np.broadcast_to(np.asarray(values, dtype=np.float64), (self._n,))
+        self._obj = np.array(self._objective_now(), dtype=np.float64).reshape(self._n)
+
     def _read(self, inputs: Mapping[str, object], rows: np.ndarray | None) -> dict[str, np.ndarray]:
         """Validated inputs as arrays (bool / float64); only ``rows`` are checked when given."""
         n = self._n

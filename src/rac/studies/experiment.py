@@ -37,6 +37,7 @@ share of the batch's steps (by its episodes still running).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import time
@@ -50,7 +51,8 @@ import numpy as np
 from rac.compiler import CompileResult
 from rac.ir import query as iq
 
-__all__ = ["COMBINATIONS", "PAPER_REWARD_FUNCTION", "ExperimentError", "Report", "render_markdown", "run_experiment"]
+__all__ = ["ABLATION", "COMBINATIONS", "GROWTH", "PAPER_REWARD_FUNCTION", "ExperimentError", "Options", "Report",
+           "default_widths", "render_ablation", "render_markdown", "run_experiment"]
 
 #: The experiment's report and its summary rows (JSON-shaped: written as JSON and as Markdown).
 Report = dict[str, Any]
@@ -62,6 +64,14 @@ COMBINATIONS: tuple[tuple[str, bool, str], ...] = (
     ("SS&RA", True, "automaton"), ("SS&RF", True, "function"), ("RA", False, "automaton"), ("RF", False, "function"))
 #: Probability of a random action in the evaluation runs.
 EVALUATION_NOISE = 0.1
+#: Batches grow with the episodes learned: ``ceil(GROWTH * learned)`` episodes, at least 1, at most
+#: ``parallel``; the greedy strategy is evaluated after each batch, so "episodes until the first
+#: safe goal" is measured to within a quarter early on (after 1, 2, 3, 4, 5, 7, 9, 12, 15 ... episodes).
+GROWTH = 0.25
+#: The ablation's rows (SS&RA, every seed): what the experiment used, then the observation's bins
+#: swapped (derived <-> the fixed defaults, or --bins <-> the fixed defaults), counterfactual
+#: experiences switched, the backward replay switched, and all three at once.
+ABLATION = ("as the experiment", "other bins", "counterfactuals switched", "replay switched", "all three switched")
 
 
 class ExperimentError(ValueError):
@@ -86,6 +96,7 @@ class RunRecord:
     succeeded: np.ndarray  # per learning episode: goal reached safely
     greedy_return: float = float("nan")  # the final greedy strategy's return (its one run)
     optimum: float | None = None  # the exact optimum of the combination under the shield (None: none)
+    counterfactuals: bool = False
 
 
 def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
@@ -122,10 +133,16 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
 def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4, 5), episodes: int = 500,
                    evaluation_runs: int = 100, reward_function: str | None = None, horizon_samples: int | None = None,
                    parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
-                   bins: Sequence[float] | None = None,
+                   bins: Sequence[float] | None = None, counterfactuals: bool = True, replay: int = 1,
+                   growth: float | None = GROWTH, ablation: bool = False,
                    progress: Callable[[str], None] | None = None) -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
-    ``bins``: the widths of the continuous observations (default :func:`rac.learning.qlearning.default_bin`).
+    ``bins``: the widths of the continuous observations (default: derived from the model and its
+    goal, :func:`rac.learning.strategy.derived_bins`); ``counterfactuals``: the RA combinations learn
+    from counterfactual experiences (:mod:`rac.learning.counterfactual`); ``replay``: backward
+    replays per batch; ``growth``: batches grow with the episodes learned (:func:`rac.learning.qlearning.learning`),
+    so the greedy strategy is evaluated after 1, 2, 3, ... episodes at first; ``ablation``: also
+    SS&RA without each of these (:data:`ABLATION`), in ``report["ablation"]``.
 
     All runs learn together in one batch of episodes (:func:`rac.learning.lockstep.run_together`),
     then all evaluations run together: each result is the one the run has alone, and a run's
@@ -134,6 +151,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     from rac.learning.lockstep import Job, run_together
     from rac.learning.qlearning import LearningResult, learning
     from rac.learning.runs import evaluation_steps
+    from rac.learning.strategy import derived_bins
 
     automaton = result.raise_for_errors()
     if automaton.model is None or result.model_data is None:
@@ -151,17 +169,30 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         raise ExperimentError(f"--reward-function: {exc}") from None
     wanted = [c for c in COMBINATIONS if combinations is None or c[0] in combinations]
     discrete, continuous = _learning_spec(result)
+    derived = derived_bins(result.model_data, [parse_expr(text) for text in continuous])
+    widths = tuple(float(b) for b in bins) if bins is not None else derived
+    bins_from = "--bins" if bins is not None else "derived from the model's action grid and goal"
     # The shield also judges every combination's runs: a run is safe at the goal only if it can stay
     # safe from there to the horizon, the horizon the shield guarantees.
     if progress:
         progress("computing the safety shield")
     shield_table, shield_seconds, shield_states, onward = _shield(
         result, horizon, max_states, any(shielded for _, shielded, _ in wanted))
-    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward)
+    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward,
+                          counterfactuals=counterfactuals or ablation)
     objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
     optima = _optima(result, wanted, shield_table, horizon, onward, rf, max_states, progress)
-    runs = [(label, seed, shield_table if shielded else None, kind)
+    # (label, seed, shield, reward kind, options): counterfactuals for the automaton's rewards only
+    # (the reward function knows nothing of the automaton: the paper's RF learner)
+    main = Options(widths, counterfactuals, replay)
+    runs = [(label, seed, shield_table if shielded else None, kind,
+             main if kind == "automaton" else dataclasses.replace(main, counterfactuals=False))
             for label, shielded, kind in wanted for seed in seeds]
+    variants = _ablation(main, widths if bins is not None else default_widths(continuous)) if ablation else []
+    if variants and shield_table is None:
+        raise ExperimentError("the ablation learns SS&RA: it needs the safety shield")
+    runs += [(f"ablation {i}", seed, shield_table, "automaton", options)
+             for i, options in enumerate(variants) for seed in seeds]
     what = (f"learning {len(runs)} runs together ({', '.join(label for label, _, _ in wanted)}; "
             f"seeds {', '.join(map(str, seeds))})")
     if progress:
@@ -180,18 +211,19 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         return report
 
     learned = run_together([Job(learning(shared, discrete=discrete, continuous=continuous, shield=table,
-                                         episodes=episodes, parallel=parallel, seed=seed, bins=bins,
-                                         progress=learned_so_far(run)),
+                                         episodes=episodes, parallel=parallel, seed=seed, bins=options.bins,
+                                         counterfactuals=options.counterfactuals, replay=options.replay,
+                                         growth=growth, progress=learned_so_far(run)),
                                 None if kind == "automaton" else objective)
-                            for run, (_, seed, table, kind) in enumerate(runs)], shared)
+                            for run, (_, seed, table, kind, options) in enumerate(runs)], shared)
     outcomes: list[LearningResult] = [outcome for outcome, _ in learned]
     if progress:
         progress(f"evaluating {len(runs)} strategies over {evaluation_runs} runs each")
     evaluations = run_together([Job(evaluation_steps(outcome.strategy, runs=evaluation_runs, shield=table, seed=seed,
                                                      epsilon=EVALUATION_NOISE))
-                                for outcome, (_, seed, table, _) in zip(outcomes, runs)], shared)
+                                for outcome, (_, seed, table, _, _) in zip(outcomes, runs)], shared)
     records: list[RunRecord] = []
-    for (label, seed, _, _), (outcome, seconds), (evaluation, _) in zip(runs, learned, evaluations):
+    for (label, seed, _, _, options), (outcome, seconds), (evaluation, _) in zip(runs, learned, evaluations):
         history = outcome.history
         succeeded = (np.asarray(history.reached) & ~np.asarray(history.collided) & ~np.asarray(history.offroad)
                      & ~np.asarray(history.stranded))
@@ -199,11 +231,45 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                                  outcome.collisions_during_learning, outcome.offroad_during_learning,
                                  bool(outcome.greedy.success[0]), evaluation.successes, evaluation.runs,
                                  np.asarray(history.returns, dtype=float), succeeded,
-                                 float(outcome.greedy.returns[0]), _value(optima.get(label))))
+                                 float(outcome.greedy.returns[0]), _value(optima.get(label)), options.counterfactuals))
+    ablation_records = [r for r in records if r.combination.startswith("ablation ")]
+    records = [r for r in records if not r.combination.startswith("ablation ")]
     return {"file": automaton.model.scenario_path, "horizon_samples": horizon, "episodes": episodes,
             "seeds": list(seeds), "reward_function": text, "shield_seconds": shield_seconds,
-            "shield_states": shield_states, "records": records, "bins": list(bins) if bins else None,
-            "observation": {"discrete": discrete, "continuous": continuous}, "optima": optima}
+            "shield_states": shield_states, "records": records, "bins": list(widths), "bins_from": bins_from,
+            "derived_bins": list(derived), "replay": replay, "counterfactuals": counterfactuals, "growth": growth,
+            "parallel": parallel, "observation": {"discrete": discrete, "continuous": continuous}, "optima": optima,
+            "ablation": [{"bins": list(options.bins), "counterfactuals": options.counterfactuals,
+                          "replay": options.replay,
+                          "records": [r for r in ablation_records if r.combination == f"ablation {i}"]}
+                         for i, options in enumerate(variants)]}
+
+
+@dataclass(frozen=True)
+class Options:
+    """How one run learns: the observation's bin widths, counterfactual experiences, backward replays."""
+
+    bins: tuple[float, ...]
+    counterfactuals: bool
+    replay: int
+
+
+def default_widths(continuous: Sequence[str]) -> tuple[float, ...]:
+    """The fixed default widths of the observations (1 m, 0.5 m/s, 0.1 rad ...;
+    :func:`rac.learning.strategy.default_bin`)."""
+    from rac.learning.episodes import parse_expr
+    from rac.learning.strategy import default_bin
+
+    return tuple(default_bin(parse_expr(text)) for text in continuous)
+
+
+def _ablation(main: Options, other_bins: tuple[float, ...]) -> list[Options]:
+    """SS&RA's variants: the experiment's options, then each ingredient taken away or changed alone,
+    then all of them (see :data:`ABLATION`)."""
+    return [main, dataclasses.replace(main, bins=other_bins),
+            dataclasses.replace(main, counterfactuals=not main.counterfactuals),
+            dataclasses.replace(main, replay=0 if main.replay else 1),
+            Options(other_bins, not main.counterfactuals, 0 if main.replay else 1)]
 
 
 def _value(optimum: Report | None) -> float | None:
@@ -249,9 +315,9 @@ def _mean_sd(values: Sequence[float]) -> str:
     return f"{shown} ± {sd:.0f}" if whole or sd >= 100 else f"{shown} ± {sd:.2g}"
 
 
-def summary(report: Report) -> list[Report]:
-    """Per combination: mean and spread over the seeds."""
-    records: list[RunRecord] = report["records"]
+def summary(report: Report, records: Sequence[RunRecord] | None = None) -> list[Report]:
+    """Per combination: mean and spread over the seeds (of ``records``, default the report's)."""
+    records = report["records"] if records is None else records
     rows = []
     for label in dict.fromkeys(r.combination for r in records):
         runs = [r for r in records if r.combination == label]
@@ -265,9 +331,10 @@ def summary(report: Report) -> list[Report]:
             "greedy_success": sum(r.greedy_success for r in runs),
             "evaluation": [r.evaluation_successes / r.evaluation_runs for r in runs],
             "episodes": [r.episodes for r in runs],
-            "greedy_return": [r.greedy_return for r in runs],
+            "greedy_returns": [r.greedy_return for r in runs],
             "optimum": runs[0].optimum,
             "shortfall": [_shortfall(r) for r in runs if r.optimum is not None],
+            "counterfactuals": any(r.counterfactuals for r in runs),
         })
     return rows
 
@@ -287,8 +354,8 @@ def render_markdown(report: Report) -> str:
         "| combination | learning time (s) | episodes until the first safe goal | episodes learned | "
         "collisions during learning (episodes) | greedy strategy safe at the goal and to the horizon | "
         f"success over {_evaluation_runs(report)} runs with {EVALUATION_NOISE:g} random actions | "
-        "greedy return | exact optimum under the shield (shortfall) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "greedy return | exact optimum under the shield (shortfall) | counterfactual experiences |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for row in rows:
         n = row["seeds"]
@@ -298,8 +365,8 @@ def render_markdown(report: Report) -> str:
         lines.append(
             f"| {row['combination']} | {_mean_sd(row['seconds'])} | {first} | {_mean_sd(row['episodes'])} | "
             f"{_mean_sd(row['collisions'])} | {row['greedy_success']} of {n} seeds | "
-            f"{_mean_sd([100 * v for v in row['evaluation']])} % | {_mean_sd(row['greedy_return'])} | "
-            f"{_optimum_cell(row)} |")
+            f"{_mean_sd([100 * v for v in row['evaluation']])} % | {_mean_sd(row['greedy_returns'])} | "
+            f"{_optimum_cell(row)} | {'yes' if row['counterfactuals'] else 'no'} |")
     notes = [
         "",
         *(f"Exact optimum of {label} under the shield: "
@@ -310,7 +377,15 @@ def render_markdown(report: Report) -> str:
         "used by SS&RA and SS&RF).",
         f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} episodes per run; horizon "
         f"{report['horizon_samples']} samples; reward function `{report['reward_function']}`; observation "
-        f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}}.",
+        f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}} "
+        f"in bins of {_widths(report['bins'])} ({report['bins_from']}).",
+        f"Learning: tabular Q-learning, {'backward replay of each batch' if report['replay'] else 'no replay'}"
+        f"{' (' + str(report['replay']) + ' times)' if report['replay'] > 1 else ''}; batches of "
+        + (f"ceil({report['growth']:g} x episodes learned) episodes, 1 to {report['parallel']}, the greedy strategy "
+           "evaluated after each (after 1, 2, 3, 4, 5, 7, 9, 12, 15 ... episodes)" if report['growth']
+           else f"{report['parallel']} episodes, the greedy strategy evaluated after each")
+        + "; counterfactual experiences (every transition replayed from every automaton location) for the "
+        "reward automaton's combinations" + ("" if report['counterfactuals'] else ": off") + ".",
         "Values are mean ± standard deviation over the seeds; 'episodes until the first safe goal' counts only "
         "the seeds that got there.",
         f"A run succeeds when it reaches the goal without colliding or leaving the road and, from the state it "
@@ -325,6 +400,30 @@ def _optimum_cell(row: Report) -> str:
     if row["optimum"] is None:
         return "—"
     return f"{row['optimum']:.1f} ({_mean_sd([100 * v for v in row['shortfall']])} % below)"
+
+
+def _widths(widths: Sequence[float]) -> str:
+    return ", ".join(f"{w:g}" for w in widths)
+
+
+def render_ablation(report: Report) -> str:
+    """The ablation (SS&RA with each ingredient switched, :data:`ABLATION`) as a markdown table."""
+    lines = ["| SS&RA | bins | counterfactual experiences | backward replay | episodes until the first safe goal | "
+             "episodes learned | greedy strategy safe at the goal | greedy run's return |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for name, variant in zip(ABLATION, report.get("ablation", [])):
+        rows = summary(report, variant["records"])
+        if not rows:
+            continue
+        row = rows[0]
+        first = _mean_sd(row["first_success"])
+        if row["never_succeeded"]:
+            first += f" ({row['never_succeeded']} of {row['seeds']} seeds never)"
+        lines.append(f"| {name} | {_widths(variant['bins'])} | {'on' if variant['counterfactuals'] else 'off'} | "
+                     f"{'on' if variant['replay'] else 'off'} | {first} | {_mean_sd(row['episodes'])} | "
+                     f"{row['greedy_success']} of {row['seeds']} seeds | {_mean_sd(row['greedy_returns'])} |")
+    return "\n".join(lines + ["", f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} "
+                               "episodes per run; every row learned (not copied from the table above)."])
 
 
 def _evaluation_runs(report: Report) -> int:
@@ -342,16 +441,26 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
     markdown = out_dir / "experiment.md"
     _write_text(markdown, render_markdown(report) + "\n")
     written.append(markdown)
-    data = {key: value for key, value in report.items() if key != "records"}
-    data["runs"] = [{"combination": r.combination, "seed": r.seed, "seconds": r.seconds, "episodes": r.episodes,
-                     "first_success_episode": r.first_success_episode,
-                     "collisions_during_learning": r.collisions_during_learning,
-                     "offroad_during_learning": r.offroad_during_learning, "greedy_success": r.greedy_success,
-                     "evaluation_successes": r.evaluation_successes, "evaluation_runs": r.evaluation_runs,
-                     "greedy_return": r.greedy_return, "optimum": r.optimum,
-                     "shortfall": None if r.optimum is None else _shortfall(r),
-                     "returns": [round(float(v), 4) for v in r.returns],
-                     "succeeded": [bool(v) for v in r.succeeded]} for r in records]
+    if report.get("ablation"):
+        ablation = out_dir / "ablation.md"
+        _write_text(ablation, render_ablation(report) + "\n")
+        written.append(ablation)
+
+    def as_json(r: RunRecord) -> Report:
+        return {"combination": r.combination, "seed": r.seed, "seconds": r.seconds, "episodes": r.episodes,
+                "first_success_episode": r.first_success_episode,
+                "collisions_during_learning": r.collisions_during_learning,
+                "offroad_during_learning": r.offroad_during_learning, "greedy_success": r.greedy_success,
+                "greedy_return": round(r.greedy_return, 4), "counterfactuals": r.counterfactuals,
+                "optimum": r.optimum, "shortfall": None if r.optimum is None else _shortfall(r),
+                "evaluation_successes": r.evaluation_successes, "evaluation_runs": r.evaluation_runs,
+                "returns": [round(float(v), 4) for v in r.returns],
+                "succeeded": [bool(v) for v in r.succeeded]}
+
+    data = {key: value for key, value in report.items() if key not in ("records", "ablation")}
+    data["runs"] = [as_json(r) for r in records]
+    data["ablation"] = [dict(variant, name=name, records=[as_json(r) for r in variant["records"]])
+                        for name, variant in zip(ABLATION, report.get("ablation", []))]
     results = out_dir / "results.json"
     _write_text(results, json.dumps(data, indent=1) + "\n")
     written.append(results)
