@@ -1,26 +1,29 @@
-"""The learning benchmark (issues 5 and 11): ``python benchmarks/learning.py [--quick]``.
+"""The learning benchmark (issues 5, 11 and 23): ``python benchmarks/learning.py [--quick]``.
 
 Three tables:
 
-1. **Samples per second against batch size** (issue 11): :class:`rac.learning.episodes.EpisodeBatch`
+1. **Samples per second against batch size** (issues 11 and 23): :class:`rac.learning.episodes.EpisodeBatch`
    on examples/paper/model.ra (the experiment's model: 140 samples an episode, 3 obstacles, 20
-   Euler sub-steps a sample), random actions, 1 to 1024 episodes stepped together. A *sample* is
-   one sense period of every episode of the batch; episode-samples per second is what learning
-   gets done. Before issue 11 a sample cost the same ~2.5 ms for 1 or 16 episodes.
+   Euler sub-steps a sample), random actions, 1 to 1024 episodes stepped together, with the
+   bindings, reward and goal walked by the evaluator (``compiled=False``, before issue 23) and
+   compiled (:mod:`rac.engine.compiled`, the default). A *sample* is one sense period of every
+   episode of the batch; episode-samples per second is what learning gets done.
 2. **Learning episodes per minute** (issue 5; target at least 1,000 for 30-step episodes):
 
      episodes, random actions   EpisodeBatch on the left turn (examples/left_turn/model.ra), 64 at once
      Q-learning                 rac.learning.qlearning.learn (episodes, Q-table updates and the greedy
                                 evaluation after every batch), 32 episodes per batch
      Q-learning under a shield  the same on examples/paper/model.ra (14 s episodes) under its shield
+                                (rac.engine.shield.synthesise)
      ScenarioEnv                rac.learning.gym.ScenarioEnv, one episode at a time (a gymnasium agent's view)
 
 3. **Commands** (issue 11): ``rac experiment examples/paper/model.ra --episodes 2000 --bins
-   4,4,2,0.4`` as docs/learning.md runs it (goal: under 60 s; ``--quick``: 200 episodes), and the
+   4,4,2,0.4`` as docs/learning.md runs it (goal: under 60 s; ``--quick``: 50 episodes, seed 1), and the
    replay of a learned run on the paper's model (``StrategyRun.samples``, what every ``A[] p under
    S`` query on a learned ``S`` does).
 
-Each row is the best of ``--repeat`` runs (default 3; the experiment runs once).
+Each row is the best of ``--repeat`` runs (default 3; the experiment runs once). ``--quick``: one
+run per row, fewer episodes (tests/test_benchmarks_quick.py runs it so).
 """
 
 from __future__ import annotations
@@ -60,16 +63,18 @@ def _best(run: Callable[[], int], repeat: int) -> tuple[int, float]:
     return max(results, key=lambda r: r[0] / r[1])
 
 
-def samples_by_batch_size(repeat: int, quick: bool) -> list[tuple[int, int, float]]:
-    """Per batch size: (samples, seconds) of random episodes of the paper's model, after one warm-up
-    episode (the model keeps cos/sin and sub-step trajectories it has computed)."""
+def samples_by_batch_size(repeat: int, quick: bool) -> list[tuple[int, dict[bool, tuple[int, float]]]]:
+    """Per batch size: (samples, seconds) of random episodes of the paper's model, walked
+    (``compiled=False``) and compiled, each after one warm-up episode (the model keeps cos/sin and
+    sub-step trajectories it has computed). The same actions for both."""
     from rac.compiler import compile_file
     from rac.learning.episodes import EpisodeBatch
 
-    batch = EpisodeBatch(compile_file(PAPER))
-    rng = np.random.default_rng(1)
+    result = compile_file(PAPER)
+    batches = {compiled: EpisodeBatch(result, compiled=compiled) for compiled in (False, True)}
 
-    def episodes(n: int, count: int) -> int:
+    def episodes(batch: EpisodeBatch, n: int, count: int) -> int:
+        rng = np.random.default_rng(1)
         samples = 0
         for _ in range(count):
             batch.reset(n)
@@ -81,10 +86,33 @@ def samples_by_batch_size(repeat: int, quick: bool) -> list[tuple[int, int, floa
 
     rows = []
     for n in BATCH_SIZES:
-        episodes(n, 1)
         count = 1 if quick or n >= 256 else 2
-        rows.append((n, *_best(lambda n=n, count=count: episodes(n, count), repeat)))
+        timed = {}
+        for compiled, batch in batches.items():
+            episodes(batch, n, 1)
+            timed[compiled] = _best(lambda batch=batch, n=n, count=count: episodes(batch, n, count), repeat)
+        rows.append((n, timed))
     return rows
+
+
+def learning_spec(result) -> tuple[list[str], list[str]]:  # type: ignore[no-untyped-def]
+    """The observation lists (as text) of the file's first learning query, or the paper's defaults
+    (as rac experiment chooses them)."""
+    from rac.ir import query as iq
+
+    automaton = result.automaton
+    for decl in automaton.queries:
+        if isinstance(decl.query, iq.LearnStrategy):
+            count = len(decl.query.discrete)
+            return list(decl.query.labels[:count]), list(decl.query.labels[count:])
+    return [f"{automaton.name}.location"], ["x", "y", "v", "head"]
+
+
+def paper_shield(paper):  # type: ignore[no-untyped-def]
+    """The paper model's safety shield table (:func:`rac.engine.shield.synthesise`, as rac experiment)."""
+    from rac.engine.shield import synthesise
+
+    return synthesise(paper.model_data, paper.automaton.steps, max_states=5_000_000)[1]
 
 
 def episodes_per_minute(repeat: int, scale: int) -> list[tuple[str, int, float]]:
@@ -93,8 +121,6 @@ def episodes_per_minute(repeat: int, scale: int) -> list[tuple[str, int, float]]
     from rac.learning.episodes import EpisodeBatch
     from rac.learning.gym import ScenarioEnv
     from rac.learning.qlearning import learn
-    from rac.studies.experiment import _learning_spec, _shield
-
     left = compile_file(LEFT_TURN)
     paper = compile_file(PAPER)
     rows: list[tuple[str, int, float]] = []
@@ -111,15 +137,15 @@ def episodes_per_minute(repeat: int, scale: int) -> list[tuple[str, int, float]]
         return total
 
     rows.append(("episodes, random actions (64 at once), left turn, 30 steps", *_best(random_episodes, repeat)))
-    discrete, continuous = _learning_spec(left)
+    discrete, continuous = learning_spec(left)
 
     def q_learning() -> int:
         return learn(EpisodeBatch(left, horizon_samples=30), discrete=discrete, continuous=continuous,
                      episodes=128 * scale, parallel=32, seed=1, stop_after=10**6).episodes
 
     rows.append(("Q-learning (32 per batch), left turn, 30 steps", *_best(q_learning, repeat)))
-    table, _, _ = _shield(paper, paper.automaton.steps, 5_000_000)  # type: ignore[union-attr]
-    paper_discrete, paper_continuous = _learning_spec(paper)
+    table = paper_shield(paper)
+    paper_discrete, paper_continuous = learning_spec(paper)
 
     def shielded() -> int:
         return learn(EpisodeBatch(paper), discrete=paper_discrete, continuous=paper_continuous, shield=table,
@@ -147,12 +173,11 @@ def replay_seconds(repeat: int) -> float:
     from rac.compiler import compile_file
     from rac.learning.episodes import EpisodeBatch
     from rac.learning.qlearning import learn, run_strategy
-    from rac.studies.experiment import _learning_spec, _shield
 
     paper = compile_file(PAPER)
     assert paper.model_data is not None and paper.automaton is not None
-    table, _, _ = _shield(paper, paper.automaton.steps, 5_000_000)
-    discrete, continuous = _learning_spec(paper)
+    table = paper_shield(paper)
+    discrete, continuous = learning_spec(paper)
     outcome = learn(EpisodeBatch(paper), discrete=discrete, continuous=continuous, shield=table, episodes=64,
                     parallel=16, seed=1, bins=[4, 4, 2, 0.4])
     run = run_strategy(EpisodeBatch(paper, goal=None), outcome.strategy, shield=table)
@@ -164,11 +189,11 @@ def replay_seconds(repeat: int) -> float:
     return best
 
 
-def experiment_seconds(episodes: int) -> float:
-    """``rac experiment examples/paper/model.ra --episodes N --bins 4,4,2,0.4``, in a fresh process."""
+def experiment_seconds(episodes: int, more: tuple[str, ...] = ()) -> float:
+    """``rac experiment examples/paper/model.ra --episodes N --bins 4,4,2,0.4 [more]``, in a fresh process."""
     with tempfile.TemporaryDirectory() as out:
         command = [sys.executable, "-m", "rac", "experiment", str(PAPER), "--episodes", str(episodes),
-                   "--bins", "4,4,2,0.4", "--out", out, "-q"]
+                   "--bins", "4,4,2,0.4", *more, "--out", out, "-q"]
         t0 = time.perf_counter()
         subprocess.run(command, check=True, stdout=subprocess.DEVNULL, env=dict(os.environ))
         return time.perf_counter() - t0
@@ -182,12 +207,16 @@ def main(argv: list[str] | None = None) -> int:
     repeat = 1 if args.quick else args.repeat
     scale = 1 if args.quick else 4
 
-    print("Samples per second against batch size: random episodes of examples/paper/model.ra\n")
-    print("| episodes in the batch | samples | seconds | ms per sample | samples/s | episode-samples/s |")
-    print("| --- | --- | --- | --- | --- | --- |")
-    for n, samples, seconds in samples_by_batch_size(repeat, args.quick):
-        print(f"| {n:,} | {samples:,} | {seconds:.2f} | {seconds / samples * 1e3:.3f} | {samples / seconds:,.0f} | "
-              f"{n * samples / seconds:,.0f} |")
+    print("Samples per second against batch size: random episodes of examples/paper/model.ra, the bindings "
+          "walked by the evaluator (before issue 23) and compiled (rac.engine.compiled)\n")
+    print("| episodes in the batch | samples | ms per sample, walked | ms per sample, compiled | samples/s, walked | "
+          "samples/s, compiled | episode-samples/s, compiled | speed-up |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for n, timed in samples_by_batch_size(repeat, args.quick):
+        (walked, walked_s), (samples, seconds) = timed[False], timed[True]
+        before, after = walked / walked_s, samples / seconds
+        print(f"| {n:,} | {samples:,} | {1e3 / before:.3f} | {1e3 / after:.3f} | {before:,.0f} | {after:,.0f} | "
+              f"{n * after:,.0f} | {after / before:.2f}x |")
 
     print(f"\nLearning episodes per minute (target >= {TARGET:,.0f} for 30-step episodes)\n")
     print("| case | episodes | seconds | episodes/min | target met |")
@@ -196,13 +225,15 @@ def main(argv: list[str] | None = None) -> int:
         rate = episodes / seconds * 60
         print(f"| {name} | {episodes:,} | {seconds:.2f} | {rate:,.0f} | {'yes' if rate >= TARGET else 'no'} |")
 
-    episodes = 200 if args.quick else 2000
+    episodes = 50 if args.quick else 2000
+    more = ("--seeds", "1", "--runs", "10") if args.quick else ()  # a smoke run: one seed, 10 evaluation runs
     replay = replay_seconds(repeat)
-    experiment = experiment_seconds(episodes)
+    experiment = experiment_seconds(episodes, more)
     print(f"\nCommands on examples/paper/model.ra (goal: the experiment under {EXPERIMENT_GOAL:g} s)\n")
     print("| command | seconds | goal met |")
     print("| --- | --- | --- |")
-    print(f"| rac experiment examples/paper/model.ra --episodes {episodes} --bins 4,4,2,0.4 | {experiment:.1f} | "
+    print(f"| rac experiment examples/paper/model.ra --episodes {episodes} --bins 4,4,2,0.4{' '.join(('',) + more)} | "
+          f"{experiment:.1f} | "
           f"{'yes' if experiment < EXPERIMENT_GOAL else 'no'} |")
     print(f"| replay of a learned run (StrategyRun.samples, 140 samples) | {replay:.3f} | |")
     return 0

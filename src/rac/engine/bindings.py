@@ -4,6 +4,11 @@ Both the product of model and automaton (:mod:`rac.engine.product`) and the trai
 episodes (:mod:`rac.learning.episodes`) compute every input from its binding on a frame: a
 condition as a ``bool``, a number as its significand ``d2i(e) = trunc(e * SCALE_D)`` (a value
 beyond int32 is :class:`rac.model.data.ModelRangeError`, as the emitted model would abort).
+
+The bindings are compiled once into one function of a frame (:mod:`rac.engine.compiled`, issue 23):
+a sample reads every input without walking the expressions' trees. ``compiled=False`` reads them
+with the evaluator's walk instead, the reference (the same values; benchmarks/learning.py compares
+the speed).
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ import math
 import numpy as np
 
 from rac import ir
+from rac.engine.compiled import compile_expressions
 from rac.engine.evaluate import Evaluator, Frame
 from rac.ir import expr as ie
 from rac.model.data import ModelRangeError
@@ -24,7 +30,7 @@ class Bindings:
     """Every input of ``automaton`` from its binding (``reader`` names who reads them in the error
     for an input without one, e.g. ``"the product"``), and the bindings' ``prev(e)`` operands."""
 
-    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton, reader: str) -> None:
+    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton, reader: str, *, compiled: bool = True) -> None:
         self.evaluator = evaluator
         spec = automaton.model
         bound = {b.input: b.expr for b in spec.bindings} if spec is not None else {}
@@ -37,13 +43,28 @@ class Bindings:
         self.items: list[tuple[str, bool, ie.Expr]] = [(item.name, item.is_bool, bound[item.name])
                                                        for item in automaton.inputs]
         self.prev_args: list[ie.Expr] = ie.prev_operands([expr for _, _, expr in self.items])
+        #: Whether the bindings are read by compiled code (else by the evaluator's walk).
+        self.compiled = compiled
+        # one function for all bindings (a subexpression they share is computed once), one for the prevs
+        self._bindings = compile_expressions(evaluator, [expr for _, _, expr in self.items]) if compiled else None
+        self._prevs = compile_expressions(evaluator, self.prev_args) if compiled else None
 
     def column(self, index: int, frame: Frame) -> np.ndarray:
         """Input ``index`` on every state of ``frame``: bool, or int64 significands."""
-        name, is_bool, expr = self.items[index]
+        return self._held(index, self.evaluator.evaluate(self.items[index][2], frame))
+
+    def columns(self, frame: Frame) -> list[np.ndarray]:
+        """Every input on every state of ``frame`` (:meth:`column` of each, in the input order)."""
+        if self._bindings is None:
+            return [self.column(index, frame) for index in range(len(self.items))]
+        return [self._held(index, value) for index, value in enumerate(self._bindings(frame))]
+
+    def _held(self, index: int, value: np.ndarray) -> np.ndarray:
+        """A binding's value as the model holds the input: bool, or int64 significands."""
+        name, is_bool, _ = self.items[index]
         if is_bool:
-            return np.asarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
-        value = np.asarray(self.evaluator.evaluate(expr, frame), dtype=np.float64)
+            return np.asarray(value if value.dtype == bool else value != 0, dtype=bool)
+        value = np.asarray(value, dtype=np.float64)
         scaled = value * self.evaluator.scale_d
         bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
         if bad.any():
@@ -56,13 +77,15 @@ class Bindings:
     def read(self, frame: Frame) -> np.ndarray:
         """``(n, inputs)`` int64: booleans 0/1, numbers as significands."""
         out = np.zeros((frame.n, len(self.items)), dtype=np.int64)
-        for index in range(len(self.items)):
-            out[:, index] = self.column(index, frame)
+        for index, column in enumerate(self.columns(frame)):
+            out[:, index] = column
         return out
 
     def prevs(self, frame: Frame) -> np.ndarray:
         """``(n, prevs)`` float64: the value of every ``prev(e)``'s ``e`` (booleans as 0/1)."""
         out = np.zeros((frame.n, len(self.prev_args)), dtype=np.float64)
-        for column, expr in enumerate(self.prev_args):
-            out[:, column] = self.evaluator.evaluate(expr, frame)
+        values = (self._prevs(frame) if self._prevs is not None
+                  else [self.evaluator.evaluate(expr, frame) for expr in self.prev_args])
+        for column, value in enumerate(values):
+            out[:, column] = value
         return out

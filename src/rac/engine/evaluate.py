@@ -44,7 +44,6 @@ _MATH_1 = {"abs": np.abs, "fabs": np.abs, "sqrt": np.sqrt, "floor": np.floor, "c
 _COMPARE = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal, "==": np.equal,
             "!=": np.not_equal}
 _SAFE_INT64 = 2**62
-_MINDIST = ie.call("mindist")
 
 
 class EvaluationError(ValueError):
@@ -90,6 +89,15 @@ class Frame:
     def n(self) -> int:
         return int(self.ego.shape[0])
 
+    def known(self) -> dict[str, np.ndarray]:
+        """The model functions computed on this frame so far (name -> ``(n,)``, :meth:`Evaluator.function`)."""
+        return dict(self._cache)
+
+    def keep(self, name: str, values: np.ndarray) -> None:
+        """Hand the frame model function ``name``'s values on its states, computed elsewhere (e.g. on
+        the same states at the previous sample), so that :meth:`Evaluator.function` does not call the model."""
+        self._cache[name] = values
+
 
 def int_sum(const: int, terms: Sequence[tuple[int, np.ndarray]], n: int) -> np.ndarray:
     """``const + Σ c * column`` exactly: int64 when no intermediate can overflow it, else Python ints."""
@@ -125,7 +133,7 @@ class Evaluator:
 
     def _collide(self, frame: Frame) -> np.ndarray:
         """``collide()``: ``mindist() < TD`` at the frame's sample, or before it under ``collision sticky``."""
-        now = self._call(_MINDIST, frame) < self.model.native.td_d
+        now = self.function("mindist", frame) < self.model.native.td_d
         if not self.data.sticky:
             return now
         if frame.crashed is None:
@@ -188,22 +196,40 @@ class Evaluator:
         assert ref.value is not None, ref
         return np.float64(float(ref.value))  # a setting, as the model holds it
 
+    def function(self, name: str, frame: Frame) -> np.ndarray:
+        """The model function ``name`` (``collide``, ``offroad``, ``goal``, ``mindist``, ``dist_goal``)
+        on every state of ``frame``: computed once per frame and kept on it, so that the bindings,
+        the labels, the ``allow when`` rule and any query reading the frame share one model call
+        (``collide()`` is ``mindist() < TD``: one ``mindist`` for both)."""
+        cache = frame._cache
+        if name not in cache and name != "collide" and frame.functions is not None:
+            cache[name] = np.asarray(frame.functions(name))
+        if name not in cache:
+            model = self.model
+            if name == "collide":
+                cache[name] = self._collide(frame)
+            elif name == "offroad":
+                cache[name] = model.offroad(frame.ego, frame.k)
+            elif name == "goal":
+                cache[name] = model.goal(frame.ego, frame.k)
+            elif name == "mindist":
+                cache[name] = model.mindist(frame.ego, frame.k)
+            elif name == "dist_goal":
+                cache[name] = model.dist_goal(frame.ego)
+            else:
+                raise KeyError(name)
+        return cache[name]
+
+    def value(self, expr: ie.Expr, frame: Frame):
+        """The value of ``expr`` on ``frame`` as the walk computes it: a ``(n,)`` array, or a numpy
+        scalar for a constant (what :meth:`evaluate` broadcasts); the reference of
+        :mod:`rac.engine.compiled`, which calls it for what it does not compile."""
+        return self._eval(expr, frame)
+
     def _call(self, call: ie.Call, frame: Frame):
         name = call.name
         if call.function.kind == "model":
-            if name not in frame._cache and name != "collide" and frame.functions is not None:
-                frame._cache[name] = np.asarray(frame.functions(name))
-            if name not in frame._cache:  # one model call per frame, however often a query reads it
-                model = self.model
-                frame._cache[name] = {
-                    # collide() is mindist() < TD: one mindist per frame for both
-                    "collide": lambda: self._collide(frame),
-                    "offroad": lambda: model.offroad(frame.ego, frame.k),
-                    "goal": lambda: model.goal(frame.ego, frame.k),
-                    "mindist": lambda: model.mindist(frame.ego, frame.k),
-                    "dist_goal": lambda: model.dist_goal(frame.ego),
-                }[name]()
-            return frame._cache[name]
+            return self.function(name, frame)
         args = [np.asarray(self._eval(a, frame), dtype=np.float64) for a in call.args]
         if name in _MATH_1:
             with np.errstate(invalid="ignore"):

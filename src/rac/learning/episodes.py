@@ -61,6 +61,7 @@ from rac.check.queries import lower_expression
 from rac.compiler import CompileResult
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
+from rac.engine.compiled import compile_expressions
 from rac.engine.evaluate import Evaluator, Frame
 from rac.ir import expr as ie
 from rac.lang import ast
@@ -74,8 +75,9 @@ __all__ = ["GOAL", "EpisodeBatch", "Expression", "StepResult", "parse_expr"]
 
 #: The default goal: the model's ``goal()`` (the planning problem's goal region and time interval).
 GOAL: ie.Expr = ie.call("goal")
-_MINDIST = ie.call("mindist")
-_OFFROAD = ie.call("offroad")
+#: The model functions of a state alone (its ego and sample, not the run's history like ``collide()``
+#: under ``collision sticky``): computed on a sample, they are handed on to the next sample's ``prev``.
+_OF_THE_STATE = ("mindist", "offroad", "goal", "dist_goal")
 
 #: An expression as the engine's entry points take it: text, a parsed node (both checked against
 #: the batch's automaton, :func:`rac.check.queries.lower_expression`) or a checked expression.
@@ -125,9 +127,9 @@ class _Inputs:
     """Every input's value from its binding on a frame (see step 2 of the module docstring): the
     emitted model's reading (:class:`rac.engine.bindings.Bindings`), numbers clipped to their bounds."""
 
-    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton) -> None:
+    def __init__(self, evaluator: Evaluator, automaton: ir.Automaton, compiled: bool) -> None:
         self.scale = evaluator.scale_d
-        self.bindings = Bindings(evaluator, automaton, "an episode")
+        self.bindings = Bindings(evaluator, automaton, "an episode", compiled=compiled)
         self.items: list[tuple[InputSpec, float, float]] = []
         for spec in input_specs(automaton):
             low, high = spec.low, spec.high
@@ -138,8 +140,7 @@ class _Inputs:
     def read(self, frame: Frame, clipped: dict[str, int] | None = None) -> dict[str, np.ndarray]:
         """Input name -> ``(n,)`` values (bool, or float64 reals); counts clipped values into ``clipped``."""
         out: dict[str, np.ndarray] = {}
-        for index, (spec, low, high) in enumerate(self.items):
-            column = self.bindings.column(index, frame)
+        for (spec, low, high), column in zip(self.items, self.bindings.columns(frame)):
             if spec.is_bool:
                 out[spec.name] = column
                 continue
@@ -218,6 +219,9 @@ class EpisodeBatch:
         horizon_samples: the episode's length in samples (default the automaton's ``horizon``
             over its period).
         data: a variant of the model's data (default ``result.model_data``).
+        compiled: read the bindings, the reward expression, the goal and observed expressions with
+            compiled code (:mod:`rac.engine.compiled`, the default), or with the evaluator's walk
+            (the reference: the same values, slower; benchmarks/learning.py compares them).
 
     Attributes: ``n_actions``, ``action_pairs`` ``(P, 2)`` (jerk, turn significands; action ``a``
     is row ``a``), ``decide_every``, ``horizon_samples``, ``max_steps`` (steps in an episode that
@@ -230,7 +234,8 @@ class EpisodeBatch:
     def __init__(self, result: CompileResult, *, reward: Expression = "automaton",
                  goal: Expression | None = GOAL, horizon_samples: int | None = None,
                  data: ModelData | None = None,
-                 onward: Callable[[np.ndarray], np.ndarray] | None = None, counterfactuals: bool = False) -> None:
+                 onward: Callable[[np.ndarray], np.ndarray] | None = None, counterfactuals: bool = False,
+                 compiled: bool = True) -> None:
         automaton = result.automaton
         if automaton is None:
             raise ValueError("the file has errors: there is no automaton to run")
@@ -247,9 +252,13 @@ class EpisodeBatch:
         #: goal where it cannot is ``stranded`` (:class:`StepResult`). None: not judged.
         self.onward = onward
         self.evaluator = Evaluator(data, automaton)
-        self._bindings = _Inputs(self.evaluator, automaton)
+        self.compiled = compiled
+        self._bindings = _Inputs(self.evaluator, automaton, compiled)
         self.reward_expr: ie.Expr | None = None if reward == "automaton" else self.expression(reward)
         self.goal = None if goal is None else self.expression(goal)
+        # what every sample reads after the automaton's edge: the reward expression and the goal, in one function
+        self._after_edge = self._compile([expr for expr in (self.reward_expr, self.goal) if expr is not None])
+        self._observers: dict[tuple, Callable[[Frame], list[np.ndarray]]] = {}
         horizon = automaton.steps if horizon_samples is None else int(horizon_samples)
         if horizon < 1:
             raise ValueError(f"horizon_samples must be at least 1, not {horizon}")
@@ -278,12 +287,23 @@ class EpisodeBatch:
         self._record: list[Sample] = []
         self._before: _State | None = None
         self._last_reward = np.zeros(0)
+        #: the rows of the last sample and the model functions computed on it (:data:`_OF_THE_STATE`):
+        #: the next sample's prev(e) reads them instead of calling the model again
+        self._carried: tuple[np.ndarray, dict[str, np.ndarray]] | None = None
         # Evaluate the expressions once on the start, so that a name the engine cannot read fails here.
         start = self._start_state(1)
         self._first = start  # one episode's start, read by reset_rows (never written)
         for expr in (self.reward_expr, self.goal):
             if expr is not None:
                 self.evaluator.evaluate(expr, start.frame(slice(None)))
+
+    def _compile(self, exprs: Sequence[ie.Expr]) -> Callable[[Frame], list[np.ndarray]]:
+        """One function of a frame giving each expression's value (``Evaluator.evaluate``'s): compiled,
+        or the evaluator's walk when the batch is not :attr:`compiled`."""
+        if self.compiled:
+            return compile_expressions(self.evaluator, exprs)
+        evaluator = self.evaluator
+        return lambda frame: [evaluator.evaluate(expr, frame) for expr in exprs]
 
     # ------------------------------------------------------------ state
     def _start_state(self, n: int) -> _State:
@@ -293,11 +313,18 @@ class EpisodeBatch:
         # never fed to the automaton (it takes its first sample at k = 1) nor counted as clipped.
         crashed = np.zeros(n, dtype=bool)
         start = Frame(k, ego, crashed=crashed)
-        crashed = self.evaluator.evaluate(_MINDIST, start) < self._td  # collide() at the start
-        inputs = self._bindings.read(Frame(k, ego, crashed=crashed))
+        crashed = self.evaluator.function("mindist", start) < self._td  # collide() at the start
+        # the same frame's mindist() (its cache is shared), with collide() so far
+        inputs = self._bindings.read(dataclasses.replace(start, crashed=crashed))
         location = np.full(n, self.automaton.initial, dtype=np.int64)
         rewards = {name: np.zeros(n) for name in self.automaton.rewards}
+        self._carry(np.arange(n), start)
         return _State(k, ego, location, rewards, inputs, np.asarray(crashed, dtype=bool))
+
+    def _carry(self, rows: np.ndarray, frame: Frame) -> None:
+        """Keep ``frame``'s model functions of the state, the frame of episodes ``rows``."""
+        known = frame.known()
+        self._carried = (rows, {name: known[name] for name in _OF_THE_STATE if name in known})
 
     def reset(self, n: int) -> None:
         """Start ``n`` episodes at the ego's start (sample 0)."""
@@ -327,6 +354,7 @@ class EpisodeBatch:
             raise ValueError(f"rows must be indices in [0, {self.n}), not {where.tolist()}")
         if where.size == 0:
             return
+        self._carried = None  # the restarted rows' states changed
         mask = np.zeros(self.n, dtype=bool)
         mask[where] = True
         automata.reset(mask)
@@ -351,6 +379,7 @@ class EpisodeBatch:
         where = np.asarray(rows, dtype=np.int64).reshape(-1)
         if where.size == 0 or where.min() < 0 or where.max() >= self.n:
             raise ValueError(f"rows must be at least one index in [0, {self.n}), not {where.tolist()[:10]}")
+        self._carried = None  # its rows are the old batch's
         self._automata = automata.take(where)
         self._now, self._prev = now.take(where), prev.take(where)
         self.n = int(where.size)
@@ -434,9 +463,23 @@ class EpisodeBatch:
         where = slice(None) if rows is None else rows
         frame = now.frame(where, prev=prev.frame(where))
         out = np.empty((frame.n, len(exprs)), dtype=np.float64)
-        for column, expr in enumerate(exprs):
-            out[:, column] = self.evaluator.evaluate(self.expression(expr), frame)
+        for column, value in enumerate(self._observer(exprs)(frame)):
+            out[:, column] = value
         return out
+
+    def _observer(self, exprs: Sequence[Expression]) -> Callable[[Frame], list[np.ndarray]]:
+        """The function giving ``exprs``' values, checked and compiled the first time (learners observe
+        the same expressions at every step); kept for up to 64 distinct lists."""
+        try:
+            key = tuple(exprs)
+            known = self._observers.get(key)
+        except TypeError:  # an unhashable node: checked and compiled each time
+            return self._compile([self.expression(expr) for expr in exprs])
+        if known is None:
+            if len(self._observers) >= 64:
+                self._observers.clear()
+            known = self._observers[key] = self._compile([self.expression(expr) for expr in exprs])
+        return known
 
     # ------------------------------------------------------------ stepping
     def step(self, actions: np.ndarray) -> StepResult:
@@ -516,6 +559,12 @@ class EpisodeBatch:
         now, prev, automata = self._require()
         evaluator = self.evaluator
         before = now.frame(rows)  # the state at k, before the choice: what prev(e) reads
+        if self._carried is not None:  # computed on these states at the last sample (or the start)
+            carried, known = self._carried
+            where = np.minimum(np.searchsorted(carried, rows), max(carried.size - 1, 0))
+            if carried.size and np.array_equal(carried[where], rows):
+                for name, column in known.items():
+                    before.keep(name, column[where])
         moved = now.ego[rows].copy()
         moved[:, 5:7] = pairs[rows]
         after = evaluator.model.sense(moved)
@@ -544,16 +593,22 @@ class EpisodeBatch:
         sampled = dataclasses.replace(frame, location=now.location[rows],
                                       rewards={name: values[rows] for name, values in now.rewards.items()},
                                       inputs=values)
-        collided = evaluator.evaluate(_MINDIST, sampled) < self._td
+        # the labels through the evaluator: the frame's one mindist() and offroad(), shared with the bindings
+        collided = evaluator.function("mindist", sampled) < self._td
         now.crashed[rows] |= collided
         flags["collided"][rows] |= collided
-        flags["offroad"][rows] |= np.asarray(evaluator.evaluate(_OFFROAD, sampled), dtype=bool)
+        flags["offroad"][rows] |= np.asarray(evaluator.function("offroad", sampled), dtype=bool)
+        after_edge = self._after_edge(sampled)
         if self.reward_expr is None:
             reward[rows] += gain[rows]
         else:
-            reward[rows] += np.asarray(evaluator.evaluate(self.reward_expr, sampled), dtype=np.float64)
-        reached = (np.asarray(evaluator.evaluate_bool(self.goal, sampled), dtype=bool) if self.goal is not None
-                   else np.zeros(rows.size, dtype=bool))
+            reward[rows] += np.asarray(after_edge[0], dtype=np.float64)
+        if self.goal is not None:
+            reached = after_edge[-1]
+            reached = np.asarray(reached if reached.dtype == bool else reached != 0, dtype=bool)
+        else:
+            reached = np.zeros(rows.size, dtype=bool)
+        self._carry(rows, sampled)
         last = now.k[rows] >= self.horizon_samples
         ending = reached | last
         if self.counterfactuals:
