@@ -45,10 +45,12 @@ def unreadable(path: Path, exc: OSError) -> Diagnostic:
                  hints=["pass the path of a .ra file"])
 
 
-def read_and_check(path: Path) -> tuple[CompileResult | None, Diagnostic | None]:
-    """``rac check`` of one file, or the E0008 diagnostic when it cannot be read at all."""
+def read_and_check(path: Path, max_bytes: int | None = None) -> tuple[CompileResult | None, Diagnostic | None]:
+    """``rac check`` of one file, or the E0008 diagnostic when it cannot be read at all. ``max_bytes``:
+    the memory budget of the scenario's load (``--max-memory``; None: no limit); a scenario estimated
+    to need more raises :class:`rac.model.checks.ScenarioTooLarge` before it loads."""
     try:
-        return compile_file(path, progress=notice()), None
+        return compile_file(path, progress=notice(), max_bytes=max_bytes), None
     except OSError as exc:
         return None, unreadable(path, exc)
 

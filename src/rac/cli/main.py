@@ -31,6 +31,7 @@ from rac.cli.common import (
     overwrites_source,
     read_and_check,
     same_file,
+    size_argument,
     stdout_unwritable,
     unreadable,
     unwritable,
@@ -39,6 +40,7 @@ from rac.cli.common import (
 )
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_json, render_text, sort_key
+from rac.model.checks import ScenarioTooLarge
 
 TARGETS = ("python", "uppaal")
 
@@ -57,12 +59,17 @@ def _parser() -> argparse.ArgumentParser:
     check.add_argument("files", nargs="+", type=Path, metavar="FILE")
     check.add_argument("--format", choices=("text", "json"), default="text", help="output format")
     check.add_argument("-q", "--quiet", action="store_true", help="print diagnostics only, not what was proved")
+    check.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
+                       help="refuse, before loading it, a scenario whose load would need more memory than this, "
+                            "e.g. 4G (default: half the machine's memory)")
 
     compile_ = commands.add_parser("compile", help="generate code for a target")
     compile_.add_argument("file", type=Path, metavar="FILE")
     compile_.add_argument("--target", choices=TARGETS, required=True)
     compile_.add_argument("-o", "--output", type=Path, help="output file (default: standard output)")
     compile_.add_argument("--format", choices=("text", "json"), default="text", help="diagnostics format")
+    compile_.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
+                          help="as for `rac check` (default: half the machine's memory)")
 
     fmt = commands.add_parser("fmt", help="rewrite files in canonical layout (comments are kept)")
     fmt.add_argument("files", nargs="+", type=Path, metavar="FILE")
@@ -81,11 +88,27 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _budget(args: argparse.Namespace) -> int:
+    """The memory budget of the scenario's load: ``--max-memory``, else the engine's default."""
+    from rac.engine.budget import default_max_bytes
+
+    return args.max_memory or default_max_bytes()
+
+
 def _check(args: argparse.Namespace) -> int:
+    from rac.output.progress import Heartbeat
+
+    # off a terminal (CI logs, pipes) a long check (a large scenario's load) says what it does
+    with Heartbeat("rac check"):
+        return _check_files(args)
+
+
+def _check_files(args: argparse.Namespace) -> int:
     status = EXIT_OK
     report: list[dict[str, object]] = []
+    max_bytes = _budget(args)
     for path in args.files:
-        result, failure = read_and_check(path)
+        result, failure = read_and_check(path, max_bytes)
         if result is None:
             assert failure is not None
             status = max(status, EXIT_USAGE)
@@ -118,7 +141,7 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _compile_command(args: argparse.Namespace) -> int:
-    result, failure = read_and_check(args.file)
+    result, failure = read_and_check(args.file, _budget(args))
     diagnostics = [failure] if failure else list(result.diagnostics if result else [])
     failed = result is None or not result.ok
     if diagnostics and (failed or args.format == "text"):
@@ -274,6 +297,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("rac: interrupted", file=sys.stderr)
         return 130
+    except ScenarioTooLarge as exc:  # refused before loading: the budget, not the file, is at fault
+        print(f"rac: resource limit: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     except MemoryError as exc:  # the machine or the process limit ran out, not a bug and not a broken input
         if os.environ.get("RAC_DEBUG"):
             raise

@@ -24,6 +24,8 @@ import os
 import re
 from dataclasses import dataclass
 
+from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
+
 __all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "PEAK_FACTOR", "RUN_BYTES_PER_SAMPLE",
            "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded", "default_max_bytes", "format_bytes",
            "machine_memory", "parse_size", "projected_states", "runs_within", "simulation_bytes"]
@@ -82,14 +84,6 @@ def runs_within(max_bytes: int | None, samples: int, columns: int) -> int:
     if max_bytes is None:
         return 2**62
     return max_bytes // simulation_bytes(1, samples, columns)
-
-
-def format_bytes(size: float) -> str:
-    """``size`` for people: ``2 MB``, ``1.5 GB``."""
-    for unit, scale in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
-        if size >= scale:
-            return f"{size / scale:.3g} {unit}"
-    return f"{int(size)} B"
 
 
 class BudgetExceeded(MemoryError):

@@ -273,12 +273,11 @@ def linear_ids() -> Iterator[None]:
             ids = self._id_set
             if self._rac_count != len(ids):  # changed behind our back (an id removed): scan once
                 self._rac_largest, self._rac_count = max(ids, default=None), len(ids)
-            if self._id_counter is None:
-                self._id_counter = 0
+            counter: int = getattr(self, "_id_counter", None) or 0  # commonroad-io's: None before the first id
             if self._rac_largest is not None:
-                self._id_counter = max(self._id_counter, self._rac_largest)
-            self._id_counter += 1
-            return self._id_counter
+                counter = max(counter, self._rac_largest)
+            self._id_counter = counter + 1
+            return counter + 1
 
     with _READER_LOCK:
         file_reader_xml.Scenario = LinearIdScenario
