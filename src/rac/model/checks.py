@@ -54,17 +54,20 @@ UNUSABLE_SCENARIO = ("E0712", "E0718", "E0719", "E0720", "E0721")
 #: at :data:`LOAD_BYTES_PER_SECOND` it takes a few seconds or more.
 LOAD_NOTICE_BYTES = 4 * 2**20
 #: How fast a scenario loads and its model's data is built, per byte of the file: the slowest rate
-#: ``benchmarks/scenario_load.py`` measured (docs/benchmarks.md, "Loading a large scenario"). For
-#: the announced time only.
-LOAD_BYTES_PER_SECOND = 2**20
+#: ``benchmarks/scenario_load.py`` measured (docs/benchmarks.md, "Loading a large scenario": 0.38 MB/s
+#: for 500 to 3,000 obstacles, 0.5 MB/s for 2,000 to 10,000 lanelets, on a shared 2-core machine).
+#: For the announced time only.
+LOAD_BYTES_PER_SECOND = 384 * 2**10
 #: The peak memory of loading a scenario and building its model's data, beyond what the process held
-#: before, per byte of the file: an upper estimate, the largest ratio ``benchmarks/scenario_load.py``
-#: measured (lanelets cost more per byte than obstacles' trajectories), rounded up. The file is held
-#: three times over while it loads (its bytes, rac's XML tree, commonroad-io's) besides commonroad-io's
-#: objects and rac's own.
-LOAD_BYTES_PER_FILE_BYTE = 48
-#: What any load costs besides: importing commonroad-io (and shapely, lxml) the first time.
-LOAD_BASE_BYTES = 96 * 2**20
+#: before, per byte of the file: an upper estimate over what ``benchmarks/scenario_load.py`` measured
+#: (docs/benchmarks.md, "Loading a large scenario"): lanelets cost about 43 bytes per file byte, 500
+#: obstacles of 40 time steps 64 (549 MB for 8.6 MB), 1,500 of them 30. The file is held three times
+#: over while it loads (its bytes, rac's XML tree, commonroad-io's) besides commonroad-io's objects
+#: and rac's own.
+LOAD_BYTES_PER_FILE_BYTE = 64
+#: What any load costs besides: importing commonroad-io (and shapely, lxml) the first time, the
+#: model's fixed tables.
+LOAD_BASE_BYTES = 128 * 2**20
 
 #: Loaded scenarios by (path, modification time, size, planning problem): checking several files
 #: that share a scenario, or the same file again, reads it once.
