@@ -22,7 +22,7 @@ from pathlib import Path
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import Diagnostic, error
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
-from rac.output.progress import notice
+from rac.output.progress import Heartbeat, notice
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
            "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "locked", "output_folder",
@@ -53,6 +53,9 @@ def read_and_check(path: Path, max_bytes: int | None = None) -> tuple[CompileRes
         return compile_file(path, progress=notice(), max_bytes=max_bytes), None
     except OSError as exc:
         return None, unreadable(path, exc)
+    finally:  # the load's phases are over: the command names its next
+        if Heartbeat.active is not None:
+            Heartbeat.active.phase("")
 
 
 def same_file(output: Path, source: Path) -> bool:
