@@ -44,8 +44,10 @@ RUN_BYTES_PER_SAMPLE = 7 * 4 + 5 * 8 + 8
 #: One value of an expression evaluated per run and sample (float64).
 VALUE_BYTES = 8
 #: The peak memory of simulating runs and evaluating expressions on them, as a multiple of the runs'
-#: arrays and the values (the model's and the evaluator's temporaries). An upper estimate, not yet
-#: measured by a benchmark.
+#: arrays and the values (the model's and the evaluator's temporaries, the values' per-sample columns
+#: before they are stacked). Measured by ``benchmarks/simulation.py`` (docs/benchmarks.md): the peak RSS
+#: grows by 1.5 (16,000 runs of 100 samples) to 2.5 times the arrays (2,000 runs, where the model's
+#: one-off tables weigh most); 3 keeps it an upper bound.
 SIMULATION_PEAK_FACTOR = 3
 #: Tabular Q-learning (:mod:`rac.learning.tabular`): the copies of a Q-table row's float64 entries (its key's
 #: observations and its actions' values) that may exist at once: the table's capacity doubles (up to 2x the
