@@ -500,6 +500,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
 
 @_on_checked_file
 def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
+    from rac.engine.budget import default_max_bytes
     from rac.studies.experiment import ExperimentError, render_markdown, run_experiment, write_outputs
 
     if args.seed is not None and args.seeds is not None:
@@ -525,7 +526,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                 reward_function=args.reward_function,
                                 horizon_samples=_horizon_samples(result, args.horizon) if args.horizon else None,
                                 max_states=args.max_states, combinations=args.combination, bins=bins,
-                                progress=announce)
+                                max_bytes=args.max_memory or default_max_bytes(), progress=announce)
         files = write_outputs(report, out_dir)
     except ExperimentError as exc:
         print(f"rac experiment: {exc}", file=sys.stderr)

@@ -273,6 +273,15 @@ def _fmt_one(args: argparse.Namespace, path: Path) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``rac`` command; returns the exit code."""
+    stderr = sys.stderr
+    sys.stderr = StderrSafe(stderr)  # type: ignore[assignment]  # `rac check x.ra 2>&-`: still its own status
+    try:
+        return _main(argv)
+    finally:
+        sys.stderr = stderr
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = _parser()
     try:
         args = parser.parse_args(argv)
@@ -364,6 +373,47 @@ class ReaderSafe:
             os.close(devnull)
         except (OSError, ValueError, AttributeError):
             pass
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+class StderrSafe:
+    """Standard error that never fails the command. Closed (``rac check x.ra 2>&-``) or unwritable
+    (``2>/dev/full``), its messages are dropped: there is nowhere left to report that failure, and the
+    command's exit status (its verdict, or the error it reports) is the one it would have had.
+    """
+
+    def __init__(self, stream: TextIO | None) -> None:
+        self._stream = stream
+        self.gone = stream is None
+
+    def write(self, text: str) -> int:
+        if not self.gone and self._stream is not None:
+            try:
+                return self._stream.write(text)
+            except (OSError, ValueError):  # ValueError: the stream itself was closed
+                self._drop()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.gone and self._stream is not None:
+            try:
+                self._stream.flush()
+            except (OSError, ValueError):
+                self._drop()
+
+    def _drop(self) -> None:
+        self.gone = True
+        try:  # the real stream's buffered text, flushed again at exit, goes to /dev/null, silently
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())  # type: ignore[union-attr]
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def isatty(self) -> bool:
+        return not self.gone and self._stream is not None and self._stream.isatty()
 
     def __getattr__(self, name: str):
         return getattr(self._stream, name)

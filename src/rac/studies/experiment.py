@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from rac.compiler import CompileResult
+from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
 
 __all__ = ["COMBINATIONS", "PAPER_REWARD_FUNCTION", "ExperimentError", "Report", "render_markdown", "run_experiment"]
@@ -91,7 +92,8 @@ def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
     return [f"{automaton.name}.location"], ["x", "y", "v", "head"]
 
 
-def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed: bool):
+def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed: bool,
+            max_bytes: int | None = None):
     """The safety shield's table (None when ``needed`` is false and no safe strategy exists from the
     start), the seconds it took, its states, and the judge of "safe to the horizon" from a goal state
     (:class:`rac.engine.shield.SafeOnward`); ExperimentError when the shield is needed and absent."""
@@ -101,7 +103,7 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
     assert data is not None
     t0 = time.perf_counter()
     try:
-        computed, table = shields.synthesise(data, horizon_samples, max_states=max_states)
+        computed, table = shields.synthesise(data, horizon_samples, max_states=max_states, max_bytes=max_bytes)
     except MemoryError as exc:
         raise ExperimentError(f"the safety shield cannot be computed: {exc}; coarsen the model (actions, "
                               "decide_period) or shorten the horizon") from None
@@ -114,10 +116,12 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
 def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4, 5), episodes: int = 500,
                    evaluation_runs: int = 100, reward_function: str | None = None, horizon_samples: int | None = None,
                    parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
-                   bins: Sequence[float] | None = None,
+                   bins: Sequence[float] | None = None, max_bytes: int | None = None,
                    progress: Callable[[str], None] | None = None) -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
-    ``bins``: the widths of the continuous observations (default :func:`rac.learning.qlearning.default_bin`).
+    ``bins``: the widths of the continuous observations (default :func:`rac.learning.qlearning.default_bin`);
+    ``max_bytes``: the memory budget of the shield and the learning (None: none), checked before either
+    starts (:func:`rac.engine.budget.learning_bytes` for all runs together).
 
     All runs learn together in one batch of episodes (:func:`rac.learning.lockstep.run_together`),
     then all evaluations run together: each result is the one the run has alone, and a run's
@@ -143,13 +147,22 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         raise ExperimentError(f"--reward-function: {exc}") from None
     wanted = [c for c in COMBINATIONS if combinations is None or c[0] in combinations]
     discrete, continuous = _learning_spec(result)
+    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon)  # its onward: the shield's, below
+    count = len(wanted) * len(seeds)
+    needed = learning_bytes(episodes=episodes, parallel=parallel, steps=shared.max_steps, runs=count,
+                            observations=len(discrete) + len(continuous), actions=shared.n_actions)
+    try:  # before the shield and the learning: the runs learn together, so their tables add up
+        check_estimate(f"learning {count} runs together", needed, max_bytes,
+                       f"lower the episodes per run ({episodes:,}, --episodes), the seeds or the combinations")
+    except BudgetExceeded as exc:
+        raise ExperimentError(str(exc)) from None
     # The shield also judges every combination's runs: a run is safe at the goal only if it can stay
     # safe from there to the horizon, the horizon the shield guarantees.
     if progress:
         progress("computing the safety shield")
     shield_table, shield_seconds, shield_states, onward = _shield(
-        result, horizon, max_states, any(shielded for _, shielded, _ in wanted))
-    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward)
+        result, horizon, max_states, any(shielded for _, shielded, _ in wanted), max_bytes)
+    shared.onward = onward
     objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
     runs = [(label, seed, shield_table if shielded else None, kind)
             for label, shielded, kind in wanted for seed in seeds]
