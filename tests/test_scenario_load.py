@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import subprocess
 import sys
@@ -188,3 +189,28 @@ def test_the_load_benchmark_quick(tmp_path: Path) -> None:
     rows = [line for line in table.splitlines() if re.match(r"\| [\d,]+ \| [\d,]+ \|", line)]
     assert len(rows) == 5 and all(row.endswith("| yes |") for row in rows), table
     assert "fitted on lanelets: peak =" in table and "LOAD_BYTES_PER_FILE_BYTE" in table and "holds" in table
+
+
+def test_rac_tune_refuses_it_too(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``rac tune`` loads the scenario as ``rac check`` does, under the same budget."""
+    model = grid_model(tmp_path, 40)
+    model.write_text(model.read_text(encoding="utf-8").replace("const PENALTY = 100", "param PENALTY in [0, 1000]"),
+                     encoding="utf-8")
+    before = model.read_bytes()
+    assert main(["tune", str(model), "--max-memory", "1M"]) == 2
+    err = capsys.readouterr().err
+    assert "--max-memory" in err and "grid.xml" in err and "internal error" not in err
+    assert model.read_bytes() == before  # nothing written
+
+
+def test_a_sweep_task_refuses_it_under_its_memory_limit(tmp_path: Path) -> None:
+    """A sweep task's memory limit is its scenario load's budget: the row says so, before the load."""
+    from rac.sweep.task import TaskSpec
+    from rac.sweep.work import execute
+
+    model = grid_model(tmp_path, 40)
+    spec = TaskSpec(template=str(model), template_text=model.read_text(encoding="utf-8"),
+                    scenario=str(tmp_path / "grid.xml"), settings=(), task="check", memory=2**20)
+    row = execute(spec)
+    assert row["status"] == "memory" and "--task-memory" in row["error"] and "grid.xml" in row["error"]
+    assert execute(dataclasses.replace(spec, memory=None))["status"] == "ok"

@@ -227,8 +227,10 @@ def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:
                      for (low, high), names in groups.items())
 
 
-def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analyse: bool = True) -> CompileResult:
-    """Check `.ra` source given as a string (at most 1 MB as UTF-8, like a file: E0005).
+def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analyse: bool = True,
+                 progress: Callable[[str], None] | None = None, max_bytes: int | None = None) -> CompileResult:
+    """Check `.ra` source given as a string (at most 1 MB as UTF-8, like a file: E0005); ``progress``
+    and ``max_bytes`` as in :func:`compile_source`.
 
     ``TypeError`` when ``text`` is not a ``str``, or ``name`` neither a ``str`` nor a path.
     """
@@ -236,7 +238,7 @@ def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analys
         source = text_source(text, name)
     except ParseFailure as failure:
         return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
-    return compile_source(source, analyse=analyse)
+    return compile_source(source, analyse=analyse, progress=progress, max_bytes=max_bytes)
 
 
 def compile_file(path: str | Path, *, analyse: bool = True, progress: Callable[[str], None] | None = None,

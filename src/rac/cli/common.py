@@ -25,7 +25,7 @@ from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 from rac.output.progress import Heartbeat, notice
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
-           "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "locked", "output_folder",
+           "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "load_budget", "locked", "output_folder",
            "overwrites_source", "read_and_check", "same_file", "size_argument", "stdout_unwritable",
            "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
 
@@ -206,6 +206,13 @@ def _linked(path: Path) -> bool:
         return path.stat().st_nlink > 1
     except OSError:
         return False
+
+
+def load_budget(args: argparse.Namespace) -> int:
+    """The memory budget of the scenario's load: ``--max-memory``, else the engine's default (half the machine)."""
+    from rac.engine.budget import default_max_bytes
+
+    return args.max_memory or default_max_bytes()
 
 
 def size_argument(text: str) -> int:

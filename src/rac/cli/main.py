@@ -27,6 +27,7 @@ from rac.cli.common import (
     OUTPUT_CONVENTION,
     FileWriteError,
     StdoutError,
+    load_budget,
     locked,
     overwrites_source,
     read_and_check,
@@ -88,13 +89,6 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _budget(args: argparse.Namespace) -> int:
-    """The memory budget of the scenario's load: ``--max-memory``, else the engine's default."""
-    from rac.engine.budget import default_max_bytes
-
-    return args.max_memory or default_max_bytes()
-
-
 def _check(args: argparse.Namespace) -> int:
     from rac.output.progress import Heartbeat
 
@@ -106,7 +100,7 @@ def _check(args: argparse.Namespace) -> int:
 def _check_files(args: argparse.Namespace) -> int:
     status = EXIT_OK
     report: list[dict[str, object]] = []
-    max_bytes = _budget(args)
+    max_bytes = load_budget(args)
     for path in args.files:
         result, failure = read_and_check(path, max_bytes)
         if result is None:
@@ -141,7 +135,7 @@ def _check_files(args: argparse.Namespace) -> int:
 
 
 def _compile_command(args: argparse.Namespace) -> int:
-    result, failure = read_and_check(args.file, _budget(args))
+    result, failure = read_and_check(args.file, load_budget(args))
     diagnostics = [failure] if failure else list(result.diagnostics if result else [])
     failed = result is None or not result.ok
     if diagnostics and (failed or args.format == "text"):
