@@ -9,7 +9,7 @@ import pytest
 from driving_ir import driving_automaton, inputs
 
 from rac.runtime.interpreter import RewardAutomaton
-from rac.runtime.semantics import clip_inputs, input_specs
+from rac.runtime.semantics import clip_column, clip_inputs, clip_rows, input_specs
 
 
 def test_out_of_range_values_are_refused_without_clip_and_clipped_with_it() -> None:
@@ -57,3 +57,21 @@ def test_clip_inputs_leaves_what_is_not_a_number_to_validation() -> None:
     specs = input_specs(driving_automaton())
     raw = {**inputs(), "dgoal": "far", "isClose": 2}
     assert clip_inputs(specs, raw) == (raw, {})
+
+
+def test_clip_rows_counts_each_row_by_the_rule_of_clip_inputs() -> None:
+    """The vector wrapper's per-environment counts: one per clipped row, summing to clip_inputs' count
+    for a column; a scalar standing for every row counts in every row it is read in (``rows``)."""
+    specs = input_specs(driving_automaton())
+    column = np.array([600.0, 3.0, -1.0, 500.0, -0.0])
+    rows = np.array([True, True, False, True, True])
+    values, per_row = clip_rows(specs, {**inputs(), "dgoal": column}, 5, rows)
+    assert per_row["dgoal"].tolist() == [1, 0, 0, 0, 0] and per_row["dgoal"].dtype == np.int64
+    same, counts = clip_inputs(specs, {**inputs(), "dgoal": column}, rows)
+    assert counts["dgoal"] == per_row["dgoal"].sum() and np.array_equal(same["dgoal"], values["dgoal"])  # type: ignore[arg-type]
+    assert set(per_row) == {spec.name for spec in specs if not spec.is_bool}
+    scalar, per_row = clip_rows(specs, {**inputs(), "dgoal": 600.0}, 5, rows)
+    assert per_row["dgoal"].tolist() == [1, 1, 0, 1, 1]
+    assert np.asarray(scalar["dgoal"]).tolist() == [500.0, 500.0, 600.0, 500.0, 500.0]
+    with pytest.raises(ValueError, match=r"input 'dgoal'\[1\] is NaN"):
+        clip_column(next(s for s in specs if s.name == "dgoal"), np.array([1.0, math.nan]))

@@ -383,3 +383,56 @@ def test_render_draws_the_learned_strategys_run(tmp_path: Path, capsys: pytest.C
     assert main(["render", str(path), "--strategy", "nope", "-o", str(tmp_path)]) == 2
     assert "learning queries: reach, rush" in capsys.readouterr().err
     assert main(["render", str(path), "--strategy", "reach", "--shield", "-o", str(tmp_path)]) == 2  # one or the other
+
+
+# ---------------------------------------------------------------- learning within --max-memory (issue 22)
+def test_learning_beyond_the_memory_budget_is_refused_before_it_allocates(scenario: Callable[[str], Scenario],
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """The estimate (Q-table rows up to one per decision, the replay, the history) is checked before the
+    table exists: with a tiny budget no table is made; a budget that fits learns as without one."""
+    from rac.engine.budget import EstimateExceeded, learning_bytes
+    from rac.learning import tabular
+
+    batch = EpisodeBatch(scenario("goal_ahead").result, horizon_samples=HORIZON)
+    options: dict[str, object] = dict(discrete=[LOCATION], continuous=[X, V], episodes=500, seed=1)
+    needed = learning_bytes(episodes=500, parallel=32, steps=batch.max_steps, observations=3,
+                            actions=batch.n_actions)
+    assert needed > 500 * batch.max_steps * (3 + batch.n_actions) * 8  # at least the table's rows, once
+    made: list[int] = []
+    real = tabular.QTable.__init__
+
+    def counting(self: tabular.QTable, width: int, n_actions: int) -> None:
+        made.append(width)
+        real(self, width, n_actions)
+
+    monkeypatch.setattr(tabular.QTable, "__init__", counting)
+    with pytest.raises(EstimateExceeded, match=r"learning would need about .*--max-memory.*episode budget") as info:
+        learn(batch, max_bytes=needed - 1, **options)  # type: ignore[arg-type]
+    assert isinstance(info.value, MemoryError) and info.value.needed_bytes == needed and not made
+    fits = learn(batch, max_bytes=needed, **options)  # type: ignore[arg-type]
+    assert made == [3] and same_learning(fits, learn(batch, **options))  # type: ignore[arg-type]
+
+
+def test_verify_and_experiment_refuse_learning_beyond_max_memory(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """rac verify: the learning query is unknown (exit 4) and says what to change; rac experiment stops
+    with the estimate (exit 1); the same commands within the default budget learn."""
+    from rac.cli.main import main
+
+    path = write_engine_file(tmp_path, "goal_ahead", VERIFY_QUERIES)
+    (rush,) = verify(compile_file(path), VerifyOptions(seed=1, only=("rush",), out_dir=tmp_path / "out",
+                                                       max_bytes=64 * 2**10))
+    assert rush.status == "unknown" and rush.message is not None
+    assert "--max-memory" in rush.message and "--learn-episodes" in rush.message
+    assert not (tmp_path / "out" / "rush.strategy.npz").exists()
+    capsys.readouterr()
+    assert main(["verify", str(path), "--query", "rush", "--seed", "1", "--max-memory", "64k", "-q",
+                 "-o", str(tmp_path / "cli")]) == 4
+    assert "learning would need about" in capsys.readouterr().out
+    assert main(["verify", str(path), "--query", "rush", "--seed", "1", "-q", "-o", str(tmp_path / "cli")]) == 0
+    assert "learned in" in capsys.readouterr().out
+    assert main(["experiment", str(path), "--seeds", "1,2", "--episodes", "16", "--runs", "2", "--reward-function",
+                 "v", "--max-memory", "64k", "-q", "-o", str(tmp_path / "exp")]) == 1
+    err = capsys.readouterr().err
+    assert "learning 8 runs together would need about" in err and "--episodes" in err and "--max-memory" in err
+    assert not (tmp_path / "exp" / "results.json").exists()

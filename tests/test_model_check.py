@@ -101,9 +101,9 @@ def test_the_scenario_is_loaded_once(tmp_path: Path, monkeypatch: pytest.MonkeyP
     calls = []
     real = scenario_check._load
 
-    def counting(name: str):
+    def counting(name: str, *args: object):
         calls.append(name)
-        return real(name)
+        return real(name, *args)
 
     monkeypatch.setattr(scenario_check, "_load", counting)
     result = compile_file(path)
@@ -165,7 +165,7 @@ def test_a_directory_is_not_a_scenario(tmp_path: Path) -> None:
 
 
 def test_unexpected_exceptions_become_e0712(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    def boom(path: str):
+    def boom(path: str, *args: object):
         raise RuntimeError("the reader broke")
 
     monkeypatch.setattr(scenario_check, "_load", boom)

@@ -243,3 +243,33 @@ def test_a_hard_link_that_cannot_be_rewritten_in_place_still_gets_a_whole_file(
     monkeypatch.undo()
     assert path.read_text(encoding="utf-8") == "new\n"
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
+
+
+# ---------------------------------------------------------------- standard error closed or full
+def run_with_stderr(how: str, *args: str | Path) -> subprocess.CompletedProcess[str]:
+    """``python -m rac ARGS 2>&-`` (``how`` "closed": a shell closes descriptor 2 before Python starts) or
+    ``2>/dev/full`` ("full"); standard output captured."""
+    redirect = "2>&-" if how == "closed" else "2>/dev/full"
+    return subprocess.run(["sh", "-c", f'"$0" -m rac "$@" {redirect}', sys.executable, *map(str, args)],
+                          env=rac_env(), stdout=subprocess.PIPE, text=True, timeout=120, check=False)
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists() or os.name != "posix", reason="needs sh and /dev/full")
+@pytest.mark.parametrize("how", ["closed", "full"])
+def test_a_closed_or_full_standard_error_keeps_the_exit_code(tmp_path: Path, how: str) -> None:
+    """The messages are lost (there is nowhere to report that), but not the exit code: a missing file is
+    still 2, a file with errors 1, a clean one 0; no traceback or internal error (exit 3), and no
+    message strays onto standard output."""
+    bad = tmp_path / "bad.ra"
+    bad.write_text("automaton A {\n", encoding="utf-8")
+    clean = tmp_path / "clean.ra"
+    clean.write_text(DRIVING, encoding="utf-8")
+    missing = run_with_stderr(how, "check", tmp_path / "missing.ra")
+    assert missing.returncode == 2 and missing.stdout == ""
+    compiled = run_with_stderr(how, "compile", "--target", "python", bad, "-o", tmp_path / "bad.py")
+    assert compiled.returncode == 1 and compiled.stdout == "" and not (tmp_path / "bad.py").exists()
+    assert run_with_stderr(how, "check", bad).returncode == 1
+    assert run_with_stderr(how, "fmt", "--check", bad).returncode == 1
+    done = run_with_stderr(how, "compile", "--target", "python", clean, "-o", tmp_path / "clean.py")
+    assert done.returncode == 0 and (tmp_path / "clean.py").exists()
+    assert run_with_stderr(how, "check").returncode == 2  # usage: argparse's message is lost too

@@ -121,3 +121,21 @@ def test_loads_has_the_size_limit_of_files() -> None:
     assert rac.compile_text(text, DRIVING).sources.keys() == {str(DRIVING)}  # a path names text too
     at_limit = text + "//" + "é" * (room // 2)  # two bytes each: at most the limit in bytes
     assert rac.loads(at_limit).name == "Driving"
+
+
+@pytest.mark.parametrize("where", ["in a comment", "between tokens", "at the end"])
+def test_loads_refuses_a_nul_byte_as_a_file_does(tmp_path: Path, where: str) -> None:
+    """A NUL character is E0004 in a string as in a file (not a syntax error, nor anything else),
+    at the NUL's position."""
+    text = DRIVING.read_text(encoding="utf-8")
+    at = {"in a comment": text.index("//") + 2, "between tokens": text.index("{") + 1, "at the end": len(text)}[where]
+    bad = text[:at] + "\x00" + text[at:]
+    with pytest.raises(rac.CheckError) as caught:
+        rac.loads(bad)
+    (diagnostic,) = caught.value.diagnostics
+    assert diagnostic.code == "E0004" and "NUL" in diagnostic.message
+    assert diagnostic.span is not None and diagnostic.span.start == at
+    path = tmp_path / "nul.ra"
+    path.write_text(bad, encoding="utf-8")
+    (from_file,) = rac.compile_file(path).diagnostics
+    assert from_file.span is not None and (from_file.code, from_file.span.start) == ("E0004", at)

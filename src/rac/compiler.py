@@ -53,10 +53,13 @@ class CompileResult:
         return self.automaton
 
 
-def compile_source(source: SourceFile, *, analyse: bool = True,
-                   progress: Callable[[str], None] | None = None) -> CompileResult:
+def compile_source(source: SourceFile, *, analyse: bool = True, progress: Callable[[str], None] | None = None,
+                   max_bytes: int | None = None) -> CompileResult:
     """Parse, resolve and (unless ``analyse=False``) run every static check on one source;
-    ``progress`` hears of a scenario whose load takes a while (:func:`rac.model.checks.check_scenario`)."""
+    ``progress`` hears of a scenario whose load takes a while (:func:`rac.model.checks.check_scenario`).
+    ``max_bytes`` is the memory budget of loading the scenario (None: no limit): a scenario estimated
+    to need more is refused before it loads (:class:`rac.model.checks.ScenarioTooLarge`, a
+    ``MemoryError``)."""
     sources = {source.name: source}
     try:
         module = parse_source(source)
@@ -84,7 +87,7 @@ def compile_source(source: SourceFile, *, analyse: bool = True,
             # The scenario comes last: it checks the model's numbers, once the automaton is sound.
             from rac.model.checks import check_scenario
 
-            checked = check_scenario(automaton, progress)
+            checked = check_scenario(automaton, progress, max_bytes)
             diagnostics.extend(checked.diagnostics)
             facts.extend(checked.facts)
             scenario, model_data = checked.scenario, checked.data
@@ -224,8 +227,10 @@ def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:
                      for (low, high), names in groups.items())
 
 
-def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analyse: bool = True) -> CompileResult:
-    """Check `.ra` source given as a string (at most 1 MB as UTF-8, like a file: E0005).
+def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analyse: bool = True,
+                 progress: Callable[[str], None] | None = None, max_bytes: int | None = None) -> CompileResult:
+    """Check `.ra` source given as a string (at most 1 MB as UTF-8, like a file: E0005); ``progress``
+    and ``max_bytes`` as in :func:`compile_source`.
 
     ``TypeError`` when ``text`` is not a ``str``, or ``name`` neither a ``str`` nor a path.
     """
@@ -233,18 +238,18 @@ def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analys
         source = text_source(text, name)
     except ParseFailure as failure:
         return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
-    return compile_source(source, analyse=analyse)
+    return compile_source(source, analyse=analyse, progress=progress, max_bytes=max_bytes)
 
 
-def compile_file(path: str | Path, *, analyse: bool = True,
-                 progress: Callable[[str], None] | None = None) -> CompileResult:
-    """Check one `.ra` file (``progress`` as in :func:`compile_source`). ``OSError`` propagates for
-    files that cannot be read at all."""
+def compile_file(path: str | Path, *, analyse: bool = True, progress: Callable[[str], None] | None = None,
+                 max_bytes: int | None = None) -> CompileResult:
+    """Check one `.ra` file (``progress`` and ``max_bytes`` as in :func:`compile_source`). ``OSError``
+    propagates for files that cannot be read at all."""
     try:
         source = read_source(path)
     except ParseFailure as failure:
         return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
-    return compile_source(source, analyse=analyse, progress=progress)
+    return compile_source(source, analyse=analyse, progress=progress, max_bytes=max_bytes)
 
 
 def _sources_of(failure: ParseFailure) -> dict[str, SourceFile]:

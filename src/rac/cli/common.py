@@ -22,10 +22,10 @@ from pathlib import Path
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import Diagnostic, error
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
-from rac.output.progress import notice
+from rac.output.progress import Heartbeat, notice
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
-           "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "locked", "output_folder",
+           "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "load_budget", "locked", "output_folder",
            "overwrites_source", "read_and_check", "same_file", "size_argument", "stdout_unwritable",
            "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
 
@@ -45,12 +45,17 @@ def unreadable(path: Path, exc: OSError) -> Diagnostic:
                  hints=["pass the path of a .ra file"])
 
 
-def read_and_check(path: Path) -> tuple[CompileResult | None, Diagnostic | None]:
-    """``rac check`` of one file, or the E0008 diagnostic when it cannot be read at all."""
+def read_and_check(path: Path, max_bytes: int | None = None) -> tuple[CompileResult | None, Diagnostic | None]:
+    """``rac check`` of one file, or the E0008 diagnostic when it cannot be read at all. ``max_bytes``:
+    the memory budget of the scenario's load (``--max-memory``; None: no limit); a scenario estimated
+    to need more raises :class:`rac.model.checks.ScenarioTooLarge` before it loads."""
     try:
-        return compile_file(path, progress=notice()), None
+        return compile_file(path, progress=notice(), max_bytes=max_bytes), None
     except OSError as exc:
         return None, unreadable(path, exc)
+    finally:  # the load's phases are over: the command names its next
+        if Heartbeat.active is not None:
+            Heartbeat.active.phase("")
 
 
 def same_file(output: Path, source: Path) -> bool:
@@ -201,6 +206,13 @@ def _linked(path: Path) -> bool:
         return path.stat().st_nlink > 1
     except OSError:
         return False
+
+
+def load_budget(args: argparse.Namespace) -> int:
+    """The memory budget of the scenario's load: ``--max-memory``, else the engine's default (half the machine)."""
+    from rac.engine.budget import default_max_bytes
+
+    return args.max_memory or default_max_bytes()
 
 
 def size_argument(text: str) -> int:

@@ -148,8 +148,8 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     exp.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
 
-def _load(path: Path) -> tuple[CompileResult | None, int]:
-    result, problem = read_and_check(path)
+def _load(path: Path, max_bytes: int | None) -> tuple[CompileResult | None, int]:
+    result, problem = read_and_check(path, max_bytes)
     if result is None:
         assert problem is not None
         print(render_diagnostics([problem], {}), file=sys.stderr)
@@ -171,7 +171,9 @@ def _load(path: Path) -> tuple[CompileResult | None, int]:
 def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     """The checked file with a model (or None and the exit code, after saying why); ``--horizon``
     must be a whole number of samples (the sweep checks its own periods)."""
-    result, status = _load(args.file)
+    from rac.engine.budget import default_max_bytes
+
+    result, status = _load(args.file, args.max_memory or default_max_bytes())
     if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
         return None, EXIT_USAGE
     return result, status
@@ -185,11 +187,12 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
     def run(args: argparse.Namespace) -> int:
         from rac.output.progress import Heartbeat
 
-        result, status = _prepare(args)
-        if result is None:
-            return status
-        # off a terminal (CI logs, pipes) a long command says what it does every few seconds
+        # off a terminal (CI logs, pipes) a long command says what it does every few seconds, from the
+        # scenario's load on
         with Heartbeat(f"rac {args.command}", enabled=False if args.quiet else None):
+            result, status = _prepare(args)
+            if result is None:
+                return status
             return command(args, result)
 
     return run
@@ -508,6 +511,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
 
 @_on_checked_file
 def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
+    from rac.engine.budget import default_max_bytes
     from rac.studies.experiment import ExperimentError, render_ablation, render_markdown, run_experiment, write_outputs
 
     if args.seed is not None and args.seeds is not None:
@@ -537,7 +541,8 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                 horizon_samples=_horizon_samples(result, args.horizon) if args.horizon else None,
                                 max_states=args.max_states, combinations=args.combination, bins=bins,
                                 counterfactuals=not args.no_counterfactuals, replay=args.replay,
-                                ablation=args.ablation, progress=announce)
+                                ablation=args.ablation, max_bytes=args.max_memory or default_max_bytes(),
+                                progress=announce)
         files = write_outputs(report, out_dir)
     except ExperimentError as exc:
         print(f"rac experiment: {exc}", file=sys.stderr)

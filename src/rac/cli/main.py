@@ -27,10 +27,12 @@ from rac.cli.common import (
     OUTPUT_CONVENTION,
     FileWriteError,
     StdoutError,
+    load_budget,
     locked,
     overwrites_source,
     read_and_check,
     same_file,
+    size_argument,
     stdout_unwritable,
     unreadable,
     unwritable,
@@ -39,6 +41,7 @@ from rac.cli.common import (
 )
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_json, render_text, sort_key
+from rac.model.checks import ScenarioTooLarge
 
 TARGETS = ("python", "uppaal")
 
@@ -57,12 +60,17 @@ def _parser() -> argparse.ArgumentParser:
     check.add_argument("files", nargs="+", type=Path, metavar="FILE")
     check.add_argument("--format", choices=("text", "json"), default="text", help="output format")
     check.add_argument("-q", "--quiet", action="store_true", help="print diagnostics only, not what was proved")
+    check.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
+                       help="refuse, before loading it, a scenario whose load would need more memory than this, "
+                            "e.g. 4G (default: half the machine's memory)")
 
     compile_ = commands.add_parser("compile", help="generate code for a target")
     compile_.add_argument("file", type=Path, metavar="FILE")
     compile_.add_argument("--target", choices=TARGETS, required=True)
     compile_.add_argument("-o", "--output", type=Path, help="output file (default: standard output)")
     compile_.add_argument("--format", choices=("text", "json"), default="text", help="diagnostics format")
+    compile_.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
+                          help="as for `rac check` (default: half the machine's memory)")
 
     fmt = commands.add_parser("fmt", help="rewrite files in canonical layout (comments are kept)")
     fmt.add_argument("files", nargs="+", type=Path, metavar="FILE")
@@ -82,10 +90,19 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _check(args: argparse.Namespace) -> int:
+    from rac.output.progress import Heartbeat
+
+    # off a terminal (CI logs, pipes) a long check (a large scenario's load) says what it does
+    with Heartbeat("rac check"):
+        return _check_files(args)
+
+
+def _check_files(args: argparse.Namespace) -> int:
     status = EXIT_OK
     report: list[dict[str, object]] = []
+    max_bytes = load_budget(args)
     for path in args.files:
-        result, failure = read_and_check(path)
+        result, failure = read_and_check(path, max_bytes)
         if result is None:
             assert failure is not None
             status = max(status, EXIT_USAGE)
@@ -118,7 +135,7 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _compile_command(args: argparse.Namespace) -> int:
-    result, failure = read_and_check(args.file)
+    result, failure = read_and_check(args.file, load_budget(args))
     diagnostics = [failure] if failure else list(result.diagnostics if result else [])
     failed = result is None or not result.ok
     if diagnostics and (failed or args.format == "text"):
@@ -250,6 +267,15 @@ def _fmt_one(args: argparse.Namespace, path: Path) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``rac`` command; returns the exit code."""
+    stderr = sys.stderr
+    sys.stderr = StderrSafe(stderr)  # type: ignore[assignment]  # `rac check x.ra 2>&-`: still its own status
+    try:
+        return _main(argv)
+    finally:
+        sys.stderr = stderr
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = _parser()
     try:
         args = parser.parse_args(argv)
@@ -274,6 +300,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("rac: interrupted", file=sys.stderr)
         return 130
+    except ScenarioTooLarge as exc:  # refused before loading: the budget, not the file, is at fault
+        print(f"rac: resource limit: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     except MemoryError as exc:  # the machine or the process limit ran out, not a bug and not a broken input
         if os.environ.get("RAC_DEBUG"):
             raise
@@ -338,6 +367,47 @@ class ReaderSafe:
             os.close(devnull)
         except (OSError, ValueError, AttributeError):
             pass
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+class StderrSafe:
+    """Standard error that never fails the command. Closed (``rac check x.ra 2>&-``) or unwritable
+    (``2>/dev/full``), its messages are dropped: there is nowhere left to report that failure, and the
+    command's exit status (its verdict, or the error it reports) is the one it would have had.
+    """
+
+    def __init__(self, stream: TextIO | None) -> None:
+        self._stream = stream
+        self.gone = stream is None
+
+    def write(self, text: str) -> int:
+        if not self.gone and self._stream is not None:
+            try:
+                return self._stream.write(text)
+            except (OSError, ValueError):  # ValueError: the stream itself was closed
+                self._drop()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.gone and self._stream is not None:
+            try:
+                self._stream.flush()
+            except (OSError, ValueError):
+                self._drop()
+
+    def _drop(self) -> None:
+        self.gone = True
+        try:  # the real stream's buffered text, flushed again at exit, goes to /dev/null, silently
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())  # type: ignore[union-attr]
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def isatty(self) -> bool:
+        return not self.gone and self._stream is not None and self._stream.isatty()
 
     def __getattr__(self, name: str):
         return getattr(self._stream, name)

@@ -23,7 +23,17 @@ from pathlib import Path
 
 from rac.check.analysis.synthesis import Synthesised
 from rac.check.horizon import Fit, at_horizon, fit_line, formula_text
-from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, locked, unreadable, unwritable, write_atomically
+from rac.cli.common import (
+    EXIT_ERRORS,
+    EXIT_OK,
+    EXIT_USAGE,
+    load_budget,
+    locked,
+    size_argument,
+    unreadable,
+    unwritable,
+    write_atomically,
+)
 from rac.compiler import CompileResult, compile_source
 from rac.core.diagnostics import Diagnostic, render_text, sort_key
 from rac.core.numbers import exact_decimal, exact_text
@@ -51,6 +61,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                       help="synthesise at each horizon (seconds, whole numbers of sample periods) and print a "
                            "table and the formula in the horizon where it is linear (implies --print)")
     tune.add_argument("--format", choices=("text", "json"), default="text", help="output format")
+    tune.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
+                      help="as for `rac check` (default: half the machine's memory)")
 
 
 def horizons_argument(text: str) -> tuple[Fraction, ...]:
@@ -100,7 +112,7 @@ def tune_command(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     if args.horizon is not None:
         return _horizons(args, source, node)
-    result = compile_source(source)
+    result = compile_source(source, max_bytes=load_budget(args))
     if not result.ok or result.synthesis is None:
         return _failed(args, path, result)
     synthesis = result.synthesis
@@ -249,7 +261,7 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
         if text and sys.stderr.isatty():
             print(f"\rsynthesising at H = {exact_decimal(horizon)} s ({k + 1}/{len(args.horizon)}) ...",
                   end="", file=sys.stderr, flush=True)
-        result = compile_source(SourceFile(source.name, at_horizon(source, node, horizon)))
+        result = compile_source(SourceFile(source.name, at_horizon(source, node, horizon)), max_bytes=load_budget(args))
         row = _Row(horizon, result.synthesis if result.ok else None,
                    tuple(sorted((d for d in result.diagnostics if d.is_error), key=sort_key)))
         rows.append(row)

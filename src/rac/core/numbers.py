@@ -1,11 +1,13 @@
 """The integer limits every stage shares: the model computes with 32-bit integers (UPPAAL's
-``int``, the emitted C's ``int32_t``, the engine's ``np.int32``)."""
+``int``, the emitted C's ``int32_t``, the engine's ``np.int32``); and sizes in bytes as people read
+them (:func:`format_bytes`: the engine's budgets and the scenario's load estimate say them alike)."""
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 
-__all__ = ["INT32_LOW", "INT32_MAX", "INT32_MIN", "exact_decimal"]
+__all__ = ["INT32_LOW", "INT32_MAX", "INT32_MIN", "exact_decimal", "format_bytes", "size_option"]
 
 INT32_MAX = 2**31 - 1
 INT32_MIN = -(2**31)
@@ -36,3 +38,19 @@ def exact_decimal(value: Fraction, max_places: int | None = None) -> str | None:
         return None
     digits = str(abs(value.numerator) * 10**places // value.denominator).rjust(places + 1, "0")
     return ("-" if value < 0 else "") + f"{digits[:-places]}.{digits[-places:]}"
+
+
+def format_bytes(size: float) -> str:
+    """``size`` for people: ``2 MB``, ``1.5 GB``."""
+    for unit, scale in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
+        if size >= scale:
+            return f"{size / scale:.3g} {unit}"
+    return f"{int(size)} B"
+
+
+def size_option(size: int) -> str:
+    """``size`` rounded up to what ``--max-memory`` reads: ``1.6G``, ``300M`` (a budget that holds it)."""
+    gib = size / 2**30
+    if gib >= 1:
+        return f"{math.ceil(gib * 10) / 10:g}G"
+    return f"{math.ceil(size / 2**20)}M"

@@ -10,6 +10,8 @@ Memory is estimated, not measured: the explored graph costs :data:`GRAPH_BYTES_P
 :data:`GRAPH_BYTES_PER_CHOICE` (its arrays, exactly), and deciding a query on it costs
 :data:`PEAK_FACTOR` times the graph (Storm's sparse MDP, its value vectors and scheduler; the
 factor is measured by ``benchmarks/engine.py``: 3.7 on the paper's model at 39 M states).
+Simulating runs is estimated by :func:`simulation_bytes`, learning a Q-table by :func:`learning_bytes`;
+a computation refused on such an estimate, before it starts, raises :class:`EstimateExceeded`.
 
 Example::
 
@@ -24,9 +26,13 @@ import os
 import re
 from dataclasses import dataclass
 
-__all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "PEAK_FACTOR", "RUN_BYTES_PER_SAMPLE",
-           "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded", "default_max_bytes", "format_bytes",
-           "machine_memory", "parse_size", "projected_states", "runs_within", "simulation_bytes"]
+from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
+
+__all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
+           "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW", "REPLAY_BYTES_PER_DECISION", "RUN_BYTES_PER_SAMPLE",
+           "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded", "EstimateExceeded",
+           "check_estimate", "default_max_bytes", "format_bytes", "learning_bytes", "machine_memory", "parse_size",
+           "projected_states", "runs_within", "simulation_bytes"]
 
 #: An explored state: 8 int32 columns (32 B), its choice offset (8 B) and 4 labels (4 B).
 GRAPH_BYTES_PER_STATE = 44
@@ -40,9 +46,26 @@ RUN_BYTES_PER_SAMPLE = 7 * 4 + 5 * 8 + 8
 #: One value of an expression evaluated per run and sample (float64).
 VALUE_BYTES = 8
 #: The peak memory of simulating runs and evaluating expressions on them, as a multiple of the runs'
-#: arrays and the values (the model's and the evaluator's temporaries). An upper estimate, not yet
-#: measured by a benchmark.
+#: arrays and the values (the model's and the evaluator's temporaries, the values' per-sample columns
+#: before they are stacked). Measured by ``benchmarks/simulation.py`` (docs/benchmarks.md): the peak RSS
+#: grows by 1.5 (16,000 runs of 100 samples) to 2.5 times the arrays (2,000 runs, where the model's
+#: one-off tables weigh most); 3 keeps it an upper bound.
 SIMULATION_PEAK_FACTOR = 3
+#: Tabular Q-learning (:mod:`rac.learning.tabular`): the copies of a Q-table row's float64 entries (its key's
+#: observations and its actions' values) that may exist at once: the table's capacity doubles (up to 2x the
+#: rows, 4x while the old arrays are copied into the new), plus the frozen copies of the values that the
+#: greedy evaluations choose from and the best strategy's keys and values (up to 4x more). An upper bound.
+QTABLE_COPIES = 8
+#: A Q-table row's entry in the table's index (a Python dict from the key's bytes to the row): the bytes
+#: object's header (33 B, its 8 B per observation are counted apart), the dict's slot and the row's int.
+QTABLE_INDEX_BYTES_PER_ROW = 160
+#: One learning episode's decision kept for the backward replay (:class:`rac.learning.tabular.Transition`):
+#: its index, table rows before and after, action, reward (int64/float64 each) and end flag; its allowed
+#: actions (one byte per action) are counted apart.
+REPLAY_BYTES_PER_DECISION = 5 * 8 + 1
+#: One learning episode's record in the history (its return, four flags, its fallbacks), held twice: per
+#: batch and concatenated at the end.
+LEARNING_BYTES_PER_EPISODE = 2 * (8 + 4 + 8)
 #: The fraction of the machine's memory the default budget allows.
 DEFAULT_FRACTION = 0.5
 
@@ -76,20 +99,27 @@ def simulation_bytes(runs: int, samples: int, columns: int) -> int:
     return runs * (samples + 1) * (RUN_BYTES_PER_SAMPLE + columns * VALUE_BYTES) * SIMULATION_PEAK_FACTOR
 
 
+def learning_bytes(*, episodes: int, parallel: int, steps: int, observations: int, actions: int,
+                   runs: int = 1) -> int:
+    """The estimated peak bytes of ``runs`` tabular Q-learnings stepped together, each of ``episodes``
+    episodes, ``parallel`` at a time, of at most ``steps`` decisions, observing ``observations`` values
+    and choosing among ``actions``: the Q-table (each decision adds at most one row, the start one more:
+    ``1 + episodes * steps`` rows of ``observations + actions`` float64 entries, times
+    :data:`QTABLE_COPIES`, and their index), a batch's decisions kept for the replay and the episodes'
+    history. The episodes' own arrays (``parallel`` rows of the model's state) are small beside these."""
+    rows = 1 + episodes * steps
+    table = rows * ((observations + actions) * VALUE_BYTES * QTABLE_COPIES + QTABLE_INDEX_BYTES_PER_ROW
+                    + observations * VALUE_BYTES)
+    replay = (parallel + 1) * steps * (REPLAY_BYTES_PER_DECISION + actions)
+    return runs * (table + replay + episodes * LEARNING_BYTES_PER_EPISODE)
+
+
 def runs_within(max_bytes: int | None, samples: int, columns: int) -> int:
     """The most runs that :func:`simulation_bytes` allows at once within ``max_bytes`` (None: no
     limit, a very large number); 0 when not even one run fits."""
     if max_bytes is None:
         return 2**62
     return max_bytes // simulation_bytes(1, samples, columns)
-
-
-def format_bytes(size: float) -> str:
-    """``size`` for people: ``2 MB``, ``1.5 GB``."""
-    for unit, scale in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
-        if size >= scale:
-            return f"{size / scale:.3g} {unit}"
-    return f"{int(size)} B"
 
 
 class BudgetExceeded(MemoryError):
@@ -119,6 +149,26 @@ class BudgetExceeded(MemoryError):
         self.projected_states = states
         self.args = (f"{self.args[0]}; growing ×{growth:.3g} per decision, the horizon (sample "
                      f"{horizon_sample}) would have about {states:.2g} states",)
+
+
+class EstimateExceeded(BudgetExceeded):
+    """A computation refused before it starts: its estimated peak memory ``needed_bytes`` (e.g.
+    :func:`learning_bytes`) exceeds the budget ``limit`` (``--max-memory``). The message names both,
+    ``what`` would need it, and ``change``: what to change instead of raising the budget."""
+
+    def __init__(self, *, what: str, needed_bytes: int, limit: int, change: str) -> None:
+        MemoryError.__init__(self, f"{what} would need about {format_bytes(needed_bytes)}, more than the memory "
+                                   f"budget of {format_bytes(limit)} (--max-memory): {change}, or raise "
+                                   "--max-memory if the machine has that much memory free")
+        self.what, self.kind, self.limit, self.states = what, "memory", limit, 0
+        self.sample, self.seconds, self.needed_bytes = 0, 0.0, needed_bytes
+        self.projected_states = None
+
+
+def check_estimate(what: str, needed_bytes: int, max_bytes: int | None, change: str) -> None:
+    """:class:`EstimateExceeded` when ``needed_bytes`` is more than ``max_bytes`` (None: no limit)."""
+    if max_bytes is not None and needed_bytes > max_bytes:
+        raise EstimateExceeded(what=what, needed_bytes=needed_bytes, limit=max_bytes, change=change)
 
 
 def projected_states(layers: list[int], decide_every: int, horizon: int) -> tuple[int, float] | None:

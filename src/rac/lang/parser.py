@@ -407,7 +407,8 @@ def _check_size(name: str, size: int, what: str) -> None:
 
 def text_source(text: str, name: str | os.PathLike[str]) -> SourceFile:
     """Source text given as a string, with the checks of a file's: a ``TypeError`` naming the argument
-    that is not a ``str``, and E0005 (:class:`ParseFailure`) over :data:`MAX_SOURCE_BYTES` UTF-8 bytes."""
+    that is not a ``str``, E0005 (:class:`ParseFailure`) over :data:`MAX_SOURCE_BYTES` UTF-8 bytes, and
+    E0004 for a NUL character."""
     if not isinstance(text, str):
         raise TypeError(f"text must be a str, not {type(text).__name__}")
     if isinstance(name, os.PathLike):  # a file's path names its text as well
@@ -416,7 +417,19 @@ def text_source(text: str, name: str | os.PathLike[str]) -> SourceFile:
         raise TypeError(f"name must be a str, not {type(name).__name__}")
     if len(text) > MAX_SOURCE_BYTES // 4:  # only then can it be too large: a character is 1 to 4 bytes
         _check_size(name, len(text.encode("utf-8", "surrogatepass")), "source text")
+    _reject_nul(name, text, "source text", "`.ra` source is text; is this binary data?")
     return SourceFile(name, text)
+
+
+def _reject_nul(name: str, text: str, what: str, hint: str) -> None:
+    """E0004 (:class:`ParseFailure`) at the first NUL character of ``text``: a file's or a string's
+    source alike is text, never binary data."""
+    if "\x00" in text:
+        offset = text.index("\x00")
+        source = SourceFile(name, text)
+        raise ParseFailure(error("E0004", f"{what} contains a NUL byte: it is not a text file" if what == "file"
+                                 else f"{what} contains a NUL byte: it is not text", source.span(offset, offset + 1),
+                                 hints=[hint]))
 
 
 def _looks_like_utf16(data: bytes) -> bool:
@@ -440,13 +453,8 @@ def decode_source(name: str, data: bytes) -> SourceFile:
                                      "`.ra` files are UTF-8 text: save it as UTF-8 (it may be in Latin-1 or "
                                      "another legacy encoding), or check that this is the right file"]),
             partial) from None
-    if "\x00" in text:
-        offset = text.index("\x00")
-        source = SourceFile(name, text)
-        raise ParseFailure(error("E0004", "file contains a NUL byte: it is not a text file",
-                                 source.span(offset, offset + 1),
-                                 hints=[f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
-                                        "`.ra` files are UTF-8 text; is this a binary file?"]))
+    _reject_nul(name, text, "file", f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
+                "`.ra` files are UTF-8 text; is this a binary file?")
     # A lone CR (old Mac line endings) is a line break: as LF, one character for one, so offsets stay.
     return SourceFile(name, re.sub(r"\r(?!\n)", "\n", text.removeprefix("\ufeff")))
 

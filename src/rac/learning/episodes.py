@@ -69,7 +69,7 @@ from rac.lang.parser import parse_expression
 from rac.learning.counterfactual import Counterfactuals, Replayer, Sample
 from rac.model.data import ModelData
 from rac.runtime.batch import BatchRewardAutomaton
-from rac.runtime.semantics import InputSpec, input_specs
+from rac.runtime.semantics import InputSpec, clip_column, input_specs
 
 __all__ = ["GOAL", "EpisodeBatch", "Expression", "StepResult", "parse_expr"]
 
@@ -130,17 +130,15 @@ class _Inputs:
     def __init__(self, evaluator: Evaluator, automaton: ir.Automaton, compiled: bool) -> None:
         self.scale = evaluator.scale_d
         self.bindings = Bindings(evaluator, automaton, "an episode", compiled=compiled)
-        self.items: list[tuple[InputSpec, float, float]] = []
-        for spec in input_specs(automaton):
-            low, high = spec.low, spec.high
-            if spec.kind == "int":  # the whole numbers within the bounds
-                low, high = float(np.ceil(low)), float(np.floor(high))
-            self.items.append((spec, low, high))
+        #: Each input as it is clipped: an ``int`` input's bounds are the whole numbers within them.
+        self.specs: list[InputSpec] = [
+            dataclasses.replace(spec, low=float(np.ceil(spec.low)), high=float(np.floor(spec.high)))
+            if spec.kind == "int" else spec for spec in input_specs(automaton)]
 
     def read(self, frame: Frame, clipped: dict[str, int] | None = None) -> dict[str, np.ndarray]:
         """Input name -> ``(n,)`` values (bool, or float64 reals); counts clipped values into ``clipped``."""
         out: dict[str, np.ndarray] = {}
-        for (spec, low, high), column in zip(self.items, self.bindings.columns(frame)):
+        for spec, column in zip(self.specs, self.bindings.columns(frame)):
             if spec.is_bool:
                 out[spec.name] = column
                 continue
@@ -150,10 +148,8 @@ class _Inputs:
                 whole = np.trunc(real)
                 changed |= whole != real
                 real = whole
-            outside = (real < low) | (real > high)
-            if outside.any():
-                changed |= outside
-                real = np.clip(real, low, high)
+            real, outside = clip_column(spec, real)  # the runtimes' bounds rule, not a copy of it
+            changed |= outside
             if clipped is not None:
                 clipped[spec.name] += int(changed.sum())
             out[spec.name] = real

@@ -64,6 +64,7 @@ from typing import Any
 
 import numpy as np
 
+from rac.engine.budget import check_estimate, learning_bytes
 from rac.engine.shield import ShieldTable
 from rac.ir import expr as ie
 from rac.lang import ast
@@ -235,7 +236,8 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
              stop_after: int = 10, progress: Progress | None = None, meta: Mapping[str, object] | None = None,
              replay: int = 1, labels: Sequence[str] | None = None,
              evaluate_in_batch: bool = True, counterfactuals: bool = False,
-             growth: float | None = None, optimism: float = 0.0) -> Steps[LearningResult]:
+             growth: float | None = None, optimism: float = 0.0,
+             max_bytes: int | None = None) -> Steps[LearningResult]:
     """Learn a strategy by tabular Q-learning on ``batch`` (see the module docstring for the
     observation, the algorithm and the stopping rule): ``learn(batch, ...)`` learns on ``batch``
     alone; ``learning(batch, ...)`` is the same as a generator of steps (:mod:`rac.learning.runs`),
@@ -246,7 +248,9 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     continuous expression (default :func:`default_bin`); ``progress(episodes_done, budget, mean_return)`` after
     every batch; ``meta``: stored with the strategy; ``replay``: backward replays of each finished
     batch (0: plain online Q-learning); ``evaluate_in_batch``: run each greedy evaluation in the
-    next batch (default) or alone after its batch — the results are the same, alone is slower.
+    next batch (default) or alone after its batch — the results are the same, alone is slower;
+    ``max_bytes``: the memory budget (None: none): :class:`rac.engine.budget.EstimateExceeded` before
+    anything is learned when :func:`rac.engine.budget.learning_bytes` estimates more.
     The same ``seed`` gives the same result."""
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
@@ -265,6 +269,10 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     widths = tuple(float(b) for b in (bins if bins is not None else [default_bin(e) for e in continuous_exprs]))
     if len(widths) != len(continuous_exprs) or not all(w > 0 and math.isfinite(w) for w in widths):
         raise ValueError(f"bins must be {len(continuous_exprs)} positive widths, not {list(widths)}")
+    # Refused before the table exists: the estimate bounds what the learning would allocate.
+    check_estimate("learning", learning_bytes(episodes=episodes, parallel=parallel, steps=batch.max_steps,
+                                              observations=len(exprs), actions=batch.n_actions), max_bytes,
+                   f"lower the episode budget ({episodes:,}) or shorten the time bound")
     seed = _fresh_seed() if seed is None else int(seed)
     sign = 1.0 if optimise == "max" else -1.0
     n_discrete = len(discrete_exprs)

@@ -44,7 +44,7 @@ from rac import ir
 from rac.check.analysis.scale import sample_change_bound
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
-from rac.runtime.semantics import clip_inputs, input_specs
+from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
 
 __all__ = ["AutomatonLike", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "env_timing", "scale_factor"]
 
@@ -373,15 +373,10 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
             raise ValueError(f"inputs(obs, infos) raised {type(exc).__name__}: {exc}; the environments have taken "
                              "this step and the automata have not: reset before the next step") from exc
         clipped: dict[str, np.ndarray] = {}
-        if self._specs is not None:
-            raw = values
-            values, counts = clip_inputs(self._specs, values, active)
-            for name, count in counts.items():
-                self.clipped_total[name] = self.clipped_total.get(name, 0) + count
-                # per sub-environment: where the value changed (the rule itself is clip_inputs')
-                before = np.broadcast_to(np.asarray(raw[name], dtype=np.float64), (self.num_envs,))
-                after = np.broadcast_to(np.asarray(values[name], dtype=np.float64), (self.num_envs,))
-                clipped[name] = ((before != after) & active).astype(np.int64)
+        if self._specs is not None:  # per sub-environment, counted by the clip rule itself
+            values, clipped = clip_rows(self._specs, values, self.num_envs, active)
+            for name, per_env in clipped.items():
+                self.clipped_total[name] = self.clipped_total.get(name, 0) + int(per_env.sum())
         previous = self.automaton.rewards
         rewards = self.automaton.step_batch(values, mask=active)
         done = (np.asarray(terminated) | np.asarray(truncated)) & active

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic, Note, error, short_number, warning
-from rac.core.numbers import exact_decimal
+from rac.core.numbers import exact_decimal, format_bytes, size_option
 from rac.ir.vocabulary import NO_PLANNING_PROBLEM
 
 if TYPE_CHECKING:
@@ -53,14 +53,58 @@ UNUSABLE_SCENARIO = ("E0712", "E0718", "E0719", "E0720", "E0721")
 #: A scenario file larger than this is announced before it loads (``check_scenario``'s ``progress``):
 #: at :data:`LOAD_BYTES_PER_SECOND` it takes a few seconds or more.
 LOAD_NOTICE_BYTES = 4 * 2**20
-#: How fast a scenario loads and its model data is built, roughly: 20 MB (8,000 lanelets) took 20 s on
-#: one core of the development machine. For the announced estimate only.
-LOAD_BYTES_PER_SECOND = 2**20
+#: How fast a scenario loads and its model's data is built, per byte of the file: the slowest rate
+#: ``benchmarks/scenario_load.py`` measured (docs/benchmarks.md, "Loading a large scenario": 0.38 MB/s
+#: for 500 to 3,000 obstacles, 0.5 MB/s for 2,000 to 10,000 lanelets, on a shared 2-core machine).
+#: For the announced time only.
+LOAD_BYTES_PER_SECOND = 384 * 2**10
+#: The peak memory of loading a scenario and building its model's data, beyond what the process held
+#: before, per byte of the file: an upper estimate over what ``benchmarks/scenario_load.py`` measured
+#: (docs/benchmarks.md, "Loading a large scenario"): lanelets cost about 43 bytes per file byte, 500
+#: obstacles of 40 time steps 64 (549 MB for 8.6 MB), 1,500 of them 30. The file is held three times
+#: over while it loads (its bytes, rac's XML tree, commonroad-io's) besides commonroad-io's objects
+#: and rac's own.
+LOAD_BYTES_PER_FILE_BYTE = 64
+#: What any load costs besides: importing commonroad-io (and shapely, lxml) the first time, the
+#: model's fixed tables.
+LOAD_BASE_BYTES = 128 * 2**20
 
 #: Loaded scenarios by (path, modification time, size, planning problem): checking several files
 #: that share a scenario, or the same file again, reads it once.
 _CACHE: dict[tuple[str, int, int, int | None], Scenario] = {}
 _CACHE_SIZE = 8
+
+
+@dataclass(frozen=True)
+class LoadEstimate:
+    """What loading a scenario file of ``file_bytes`` and building its model's data is expected to
+    cost: ``peak_bytes`` of memory at most (:data:`LOAD_BYTES_PER_FILE_BYTE`, :data:`LOAD_BASE_BYTES`)
+    and about ``seconds`` (:data:`LOAD_BYTES_PER_SECOND`)."""
+
+    file_bytes: int
+    peak_bytes: int
+    seconds: float
+
+
+def estimate_load(file_bytes: int) -> LoadEstimate:
+    """The :class:`LoadEstimate` of a scenario file of ``file_bytes`` bytes."""
+    return LoadEstimate(file_bytes, LOAD_BASE_BYTES + LOAD_BYTES_PER_FILE_BYTE * file_bytes,
+                        file_bytes / LOAD_BYTES_PER_SECOND)
+
+
+class ScenarioTooLarge(MemoryError):
+    """A scenario refused before it loads: its :class:`LoadEstimate` ``estimate`` exceeds the memory
+    budget ``limit`` (bytes; ``--max-memory``). A ``MemoryError`` like the engine's budget errors: the
+    file is not at fault, the budget is too small for it; ``rac`` reports it as a resource error."""
+
+    def __init__(self, path: str, estimate: LoadEstimate, limit: int) -> None:
+        self.path, self.estimate, self.limit = path, estimate, limit
+        super().__init__(
+            f"the scenario {path} ({format_bytes(estimate.file_bytes)}) would need about "
+            f"{format_bytes(estimate.peak_bytes)} of memory to load, more than the memory budget of "
+            f"{format_bytes(limit)} (--max-memory); nothing was loaded: give rac more with "
+            f"`--max-memory {size_option(estimate.peak_bytes)}` (on a machine that has it), or use a smaller "
+            "scenario")
 
 
 @dataclass
@@ -73,9 +117,11 @@ class ScenarioCheck:
     data: ModelData | None = None
 
 
-def _load(path: str, planning_problem: int | None = None) -> Scenario:
+def _load(path: str, planning_problem: int | None = None, max_bytes: int | None = None) -> Scenario:
     """``load_scenario(path, planning_problem)``, cached while the file is unchanged; without a
-    planning problem, a file with several is a :class:`~rac.model.commonroad.PlanningProblemError`."""
+    planning problem, a file with several is a :class:`~rac.model.commonroad.PlanningProblemError`.
+    :class:`ScenarioTooLarge`, before anything is read, when the file is not cached and its
+    :class:`LoadEstimate` exceeds ``max_bytes``."""
     from rac.model.commonroad import load_scenario
 
     try:
@@ -86,6 +132,10 @@ def _load(path: str, planning_problem: int | None = None) -> Scenario:
         key = None  # the loader reports it
     if key is not None and key in _CACHE:
         return _CACHE[key]
+    if key is not None and max_bytes is not None:
+        estimate = estimate_load(key[2])
+        if estimate.peak_bytes > max_bytes:
+            raise ScenarioTooLarge(path, estimate, max_bytes)
     scenario = load_scenario(path, planning_problem, require_choice=True)
     if key is not None:
         if len(_CACHE) >= _CACHE_SIZE:
@@ -94,15 +144,17 @@ def _load(path: str, planning_problem: int | None = None) -> Scenario:
     return scenario
 
 
-def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | None = None) -> ScenarioCheck:
+def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | None = None,
+                   max_bytes: int | None = None) -> ScenarioCheck:
     """Load the scenario of ``automaton``'s `model` block and build the model's data from it;
-    ``progress`` (the caller's: this layer prints nothing) hears of a load expected to take a while."""
+    ``progress`` (the caller's: this layer prints nothing) hears of a load expected to take a while,
+    and of each of its phases. ``max_bytes`` (None: no limit) is the memory budget: a scenario whose
+    :class:`LoadEstimate` exceeds it is refused before it loads, with :class:`ScenarioTooLarge`."""
     result = ScenarioCheck()
     spec = automaton.model
     if spec is None:
         return result
-    if progress is not None:
-        _announce(spec.scenario_path, progress)
+    announced = progress is not None and _announce(spec.scenario_path, progress)
     scenario_span = automaton.spans.get("model:scenario", spec.span)
     written = spec.scenario
 
@@ -117,7 +169,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
 
     try:
         chosen = spec.planning_problem
-        scenario = _load(spec.scenario_path) if chosen == NO_PLANNING_PROBLEM else _load(spec.scenario_path, chosen)
+        scenario = _load(spec.scenario_path, None if chosen == NO_PLANNING_PROBLEM else chosen, max_bytes)
     except PlanningProblemError as failure:
         result.diagnostics.append(_planning_problem(automaton, spec, failure))
         return result
@@ -126,7 +178,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
         return result
     except ScenarioError as failure:
         return cannot_load(str(failure), _load_hints(failure, written))
-    except MemoryError:  # the machine or the process limit, not the file: the caller reports a resource error
+    except MemoryError:  # the budget, the machine or the process limit, not the file: a resource error
         raise
     except Exception as failure:  # never a traceback: whatever the loader raises is a diagnostic
         return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
@@ -134,6 +186,9 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
 
     from rac.model.data import ModelRangeError, build_model_data_and_largest
 
+    if announced and progress is not None:  # a phase of its own: a heartbeat says which one is slow
+        progress(f"building the model's data from {len(scenario.road):,} lanelets and "
+                 f"{len(scenario.obstacles):,} obstacles")
     try:
         data, (what, largest) = build_model_data_and_largest(scenario, spec)
     except ModelRangeError as failure:
@@ -175,17 +230,22 @@ def _inconsistent(spec: ir.ModelSpec, scenario_span, failure) -> Diagnostic:
                  hints=[failure.hint])
 
 
-def _announce(path: str, progress: Callable[[str], None]) -> None:
-    """Tell ``progress`` of a scenario larger than :data:`LOAD_NOTICE_BYTES`: its size and the time
-    expected (the load cannot report its own progress: commonroad-io reads the file in one call)."""
+def _announce(path: str, progress: Callable[[str], None]) -> bool:
+    """Tell ``progress`` of a scenario larger than :data:`LOAD_NOTICE_BYTES`: its size, the time and
+    the memory expected (the load cannot report its own progress: commonroad-io reads the file in one
+    call); whether it was announced."""
     try:
         size = os.path.getsize(path)
     except OSError:
-        return  # the loader reports it
-    if size > LOAD_NOTICE_BYTES:
-        seconds = size / LOAD_BYTES_PER_SECOND
-        expected = f"{seconds / 60:.0f} min" if seconds >= 120 else f"{seconds:.0f} s"
-        progress(f"loading the scenario {path} ({size / 2**20:.0f} MB): about {expected}")
+        return False  # the loader reports it
+    if size <= LOAD_NOTICE_BYTES:
+        return False
+    estimate = estimate_load(size)
+    seconds = estimate.seconds
+    expected = f"{seconds / 60:.0f} min" if seconds >= 120 else f"{seconds:.0f} s"
+    progress(f"loading the scenario {path} ({size / 2**20:.0f} MB): about {expected}, at most about "
+             f"{format_bytes(estimate.peak_bytes)} of memory")
+    return True
 
 
 def _ids(ids: tuple[int, ...]) -> str:

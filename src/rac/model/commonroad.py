@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import math
 import os
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -210,7 +213,8 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # commonroad-io warns about e.g. benchmark ids it finds irregular
         try:
-            cr_scenario, problems = CommonRoadFileReader(data).open()
+            with linear_ids():
+                cr_scenario, problems = CommonRoadFileReader(data).open()
         except Exception as error:  # whatever commonroad-io raises becomes a ScenarioError
             diagnosis: ScenarioError | None = _diagnose(path, root, error)
         else:
@@ -218,6 +222,69 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
         if diagnosis is not None:
             raise diagnosis
         return _convert(path, root, cr_scenario, problems, planning_problem_id, require_choice, positions)
+
+
+#: Serialises :func:`linear_ids`: it swaps a name of commonroad-io's reader module while a file is read.
+_READER_LOCK = threading.Lock()
+
+
+@contextmanager
+def linear_ids() -> Iterator[None]:
+    """While the block runs, commonroad-io's XML reader builds its scenario as a subclass whose
+    ``generate_object_id`` takes constant time instead of time linear in the ids used so far.
+
+    Why: reading a CommonRoad 2020a file, commonroad-io (2026.1 and earlier) gives every lanelet's
+    two bounds an id of their own (``ScenarioFactory.create_from_xml_node``), each from
+    ``Scenario.generate_object_id``, which scans the whole id set (``max(self._id_set)``): 2 n scans of
+    about n ids for n lanelets, O(n²). Measured on a generated grid of lanes: 2,000 lanelets 0.4 s of
+    the load, 5,000 2.2 s, 10,000 8.6 s, 25,000 about 55 s (docs/benchmarks.md, "Loading a large
+    scenario"). The subclass keeps the largest id as ids are marked used (the one place commonroad-io
+    adds to the set) and scans again only when the set changed otherwise (an id removed), so its ids
+    are those commonroad-io's method gives. The reader's module is left as it was when the block
+    ends; when commonroad-io's reader or its ``Scenario`` do not look as expected (another version),
+    nothing is swapped and the reader runs as it is."""
+    from commonroad.common.reader import file_reader_xml
+    from commonroad.scenario.scenario import Scenario as CommonRoadScenario
+
+    expected = (getattr(file_reader_xml, "Scenario", None) is CommonRoadScenario
+                and callable(getattr(CommonRoadScenario, "generate_object_id", None))
+                and callable(getattr(CommonRoadScenario, "_mark_object_id_as_used", None)))
+    if not expected:
+        yield
+        return
+
+    class LinearIdScenario(CommonRoadScenario):  # type: ignore[misc]
+        """commonroad-io's ``Scenario`` with the largest id used kept up to date."""
+
+        _rac_count = 0  # the ids in the set when _rac_largest was last known (-1: not known)
+        _rac_largest: int | None = None
+
+        def _mark_object_id_as_used(self, object_id: int) -> None:
+            in_step = self._rac_count == len(self._id_set)
+            super()._mark_object_id_as_used(object_id)
+            if in_step:
+                largest = self._rac_largest
+                self._rac_largest = object_id if largest is None or object_id > largest else largest
+                self._rac_count = len(self._id_set)
+            else:
+                self._rac_count = -1
+
+        def generate_object_id(self) -> int:
+            ids = self._id_set
+            if self._rac_count != len(ids):  # changed behind our back (an id removed): scan once
+                self._rac_largest, self._rac_count = max(ids, default=None), len(ids)
+            counter: int = getattr(self, "_id_counter", None) or 0  # commonroad-io's: None before the first id
+            if self._rac_largest is not None:
+                counter = max(counter, self._rac_largest)
+            self._id_counter = counter + 1
+            return counter + 1
+
+    with _READER_LOCK:
+        file_reader_xml.Scenario = LinearIdScenario
+        try:
+            yield
+        finally:
+            file_reader_xml.Scenario = CommonRoadScenario
 
 
 def _positions(root, data: bytes) -> dict[int, tuple[int, int]]:

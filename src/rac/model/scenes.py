@@ -27,6 +27,9 @@ from a seed (on a 0.5 grid, within ranges that keep the hazard of the scene) and
 start, the road and the goal; :func:`scene_set` writes ``count`` of them (``variant_bytes`` one).
 The same seed gives the same file, byte for byte.
 
+A scene as large as asked, for measuring how a large scenario loads (issue 22): :func:`build_grid`
+(``grid_bytes(lanelets, obstacles)``), parallel roads of four lanes with cars on the first.
+
 ``python -m rac.model.scenes NAME OUT.xml`` writes one; ``write_scene(name, path)`` from Python;
 ``python -m rac.model.scenes highway OUT_FOLDER --count 8 --seed 0`` writes a set.
 The benchmark of every query on each kind (``benchmarks/queries.py``) and the tests use them.
@@ -56,9 +59,10 @@ from commonroad.scenario.state import CustomState, InitialState
 from rac.model.intersection import left_turn_bytes, t_junction_bytes
 from rac.model.scenario_xml import DT, clean, recorded_car, scenario_bytes, straight_car
 
-__all__ = ["HEAD_ON_STEPS", "LANE_WIDTH", "PLANNING_PROBLEM_ID", "SCENES", "TUTORIAL_45", "URBAN_STEPS", "VARIANTS",
-           "build_highway", "build_overtaking", "build_tutorial", "build_urban", "build_urban_head_on", "head_on_track",
-           "highway_variant", "scene_bytes", "scene_set", "tutorial_variant", "variant_bytes", "write_scene"]
+__all__ = ["GRID_FIRST_ID", "GRID_LANES", "GRID_SEGMENTS", "HEAD_ON_STEPS", "LANE_WIDTH", "PLANNING_PROBLEM_ID",
+           "SCENES", "TUTORIAL_45", "URBAN_STEPS", "VARIANTS", "build_grid", "build_highway", "build_overtaking",
+           "build_tutorial", "build_urban", "build_urban_head_on", "grid_bytes", "head_on_track", "highway_variant",
+           "scene_bytes", "scene_set", "tutorial_variant", "variant_bytes", "write_scene"]
 
 LANE_WIDTH = 3.5  #: m
 PLANNING_PROBLEM_ID = 100
@@ -71,10 +75,11 @@ SET_SEED = 21
 
 
 def _lane(lanelet_id: int, y_right: float, *, towards_x: bool, left: int | None, left_same: bool | None,
-          right: int | None, kind: LaneletType) -> Lanelet:
-    """A straight lane from x = 0 to :data:`ROAD_LENGTH` between ``y_right`` and ``y_right + LANE_WIDTH``;
-    ``towards_x`` False: it drives towards -x (its vertices run backwards, its left is lower y)."""
-    xs = np.linspace(0.0, ROAD_LENGTH, 7)
+          right: int | None, kind: LaneletType, x0: float = 0.0, predecessor: int | None = None,
+          successor: int | None = None) -> Lanelet:
+    """A straight lane from x = ``x0`` to ``x0`` + :data:`ROAD_LENGTH` between ``y_right`` and ``y_right +
+    LANE_WIDTH``; ``towards_x`` False: it drives towards -x (its vertices run backwards, its left is lower y)."""
+    xs = np.linspace(x0, x0 + ROAD_LENGTH, 7)
     low, high = y_right, y_right + LANE_WIDTH
 
     def line(y: float) -> np.ndarray:
@@ -83,7 +88,9 @@ def _lane(lanelet_id: int, y_right: float, *, towards_x: bool, left: int | None,
 
     left_y, right_y = (high, low) if towards_x else (low, high)
     return Lanelet(line(left_y), line((low + high) / 2), line(right_y), lanelet_id,
-                   adjacent_left=left, adjacent_left_same_direction=left_same,
+                   predecessor=None if predecessor is None else [predecessor],
+                   successor=None if successor is None else [successor], adjacent_left=left,
+                   adjacent_left_same_direction=left_same,
                    adjacent_right=right, adjacent_right_same_direction=True if right is not None else None,
                    line_marking_left_vertices=LineMarking.DASHED if left is not None else LineMarking.SOLID,
                    line_marking_right_vertices=LineMarking.DASHED if right is not None else LineMarking.SOLID,
@@ -251,6 +258,55 @@ def tutorial_variant(seed: int) -> tuple[Scenario, PlanningProblemSet]:
     rng = np.random.default_rng([SET_SEED, 2, seed])
     return build_tutorial(ahead=(_draw(rng, 25, 40), _draw(rng, 4, 8)), left=(_draw(rng, -15, 5), _draw(rng, 12, 16)),
                           parked=_draw(rng, 85, 110), name="TutorialVariant", map_id=seed + 1)
+
+
+#: :func:`build_grid`: the lanes of one road, its segments along x, and the first lanelet's id (above the
+#: planning problem's 100: CommonRoad ids are unique across a file).
+GRID_LANES, GRID_SEGMENTS, GRID_FIRST_ID = 4, 10, 1000
+
+
+def build_grid(lanelets: int, obstacles: int = 0, steps: int = STEPS) -> tuple[Scenario, PlanningProblemSet]:
+    """A scene as large as asked: ``lanelets`` lanelets and ``obstacles`` cars, for measuring the load
+    of a large scenario (``benchmarks/scenario_load.py``, issue 22). Roads of :data:`GRID_LANES` lanes
+    towards +x, each of :data:`GRID_SEGMENTS` straight segments of :data:`ROAD_LENGTH` m (a segment's
+    successor the next), are stacked along y until there are ``lanelets`` lanelets (the last road may
+    be narrower or shorter). The cars drive straight on at 10 m/s for ``steps`` time steps, one per
+    lane of the first segments in turn, 20 m apart. The ego starts at x = 30 in the first lane at 10
+    m/s; the goal spans the first road from x = 170 to 230 within ``steps`` time steps."""
+    if lanelets < 1 or obstacles < 0:
+        raise ValueError(f"a grid needs at least one lanelet and no negative count of obstacles, not "
+                         f"{lanelets} and {obstacles}")
+    from commonroad.scenario.lanelet import LaneletNetwork
+
+    per_road = GRID_LANES * GRID_SEGMENTS
+    built = []
+    for index in range(lanelets):
+        road, rest = divmod(index, per_road)
+        segment, lane = divmod(rest, GRID_LANES)
+        ident = GRID_FIRST_ID + index
+        left = ident + 1 if lane + 1 < GRID_LANES and index + 1 < lanelets else None
+        ahead = ident + GRID_LANES if segment + 1 < GRID_SEGMENTS and index + GRID_LANES < lanelets else None
+        built.append(_lane(ident, (road * GRID_LANES + lane) * LANE_WIDTH, towards_x=True, left=left,
+                           left_same=True if left is not None else None, right=ident - 1 if lane > 0 else None,
+                           kind=LaneletType.HIGHWAY, x0=segment * ROAD_LENGTH,
+                           predecessor=ident - GRID_LANES if segment > 0 else None, successor=ahead))
+    scenario = Scenario(DT, ScenarioID(country_id="ZAM", map_name="Grid", map_id=1, obstacle_behavior="T",
+                                       prediction_id=1))
+    # one network at once: adding lanelets one by one rebuilds commonroad-io's spatial index each time
+    scenario.add_objects(LaneletNetwork.create_from_lanelet_list(built, cleanup_ids=False))
+    lanes = min(lanelets, GRID_LANES)
+    for k in range(obstacles):
+        lane, row = k % lanes, k // lanes
+        scenario.add_objects(straight_car(GRID_FIRST_ID + lanelets + k, 60.0 + 20.0 * row,
+                                          LANE_WIDTH * (lane + 0.5), 0.0, 10.0, steps))
+    return scenario, _problem(30.0, LANE_WIDTH / 2, 10.0, (170.0, 230.0), lanes * LANE_WIDTH, (0, steps))
+
+
+def grid_bytes(lanelets: int, obstacles: int = 0, steps: int = STEPS) -> bytes:
+    """:func:`build_grid` as CommonRoad XML (byte-stable)."""
+    scenario, problems = build_grid(lanelets, obstacles, steps)
+    return scenario_bytes(scenario, problems, tags={Tag.HIGHWAY, Tag.MULTI_LANE},
+                          source=f"generated by rac.model.scenes (grid of {lanelets} lanelets, {obstacles} cars)")
 
 
 def _straight_bytes(build: Callable[[], tuple[Scenario, PlanningProblemSet]], name: str,

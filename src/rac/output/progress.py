@@ -113,10 +113,13 @@ def explore_callback(bar: Progress) -> Callable[[int, int, int], None]:
 def notice(command: str = "rac", file: TextIO | None = None) -> Callable[[str], None]:
     """A callback printing each word it hears as one line on stderr (``rac check: loading ...``): for
     work that cannot count its own progress, such as a scenario's load (the ``model`` layer prints
-    nothing itself)."""
+    nothing itself). The word is the phase of the active :class:`Heartbeat` as well, so that its
+    lines say what a long load is doing."""
 
     def say(text: str) -> None:
         print(f"{command}: {text}", file=file or sys.stderr, flush=True)
+        if Heartbeat.active is not None:
+            Heartbeat.active.phase(text)
 
     return say
 

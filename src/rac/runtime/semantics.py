@@ -252,18 +252,50 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
         array = np.asarray(raw)
         if array.dtype.kind not in "iuf":
             continue
-        column = array.astype(np.float64)
-        nan = np.isnan(column) if rows is None else np.isnan(column) & rows
-        if nan.any():
-            where = "" if column.ndim == 0 else f"[{int(np.flatnonzero(nan)[0])}]"
-            raise ValueError(f"input {spec.name!r}{where} is NaN, which is never clipped")
-        bounded = np.clip(column, spec.low, spec.high)
-        moved = bounded != column
-        if rows is not None:  # rows outside are neither read nor counted (NaN there is no one's business)
-            bounded = np.where(rows, bounded, column)
-            moved &= rows
+        bounded, moved = clip_column(spec, array, rows)
         counts[spec.name] = int(moved.sum())
         if counts[spec.name]:
+            out[spec.name] = bounded
+    return out, counts
+
+
+def clip_column(spec: InputSpec, values: np.ndarray, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The numeric input ``spec``'s values (an array of numbers, any shape) clipped to its declared range
+    as float64, and where each was clipped (bool, the same shape): the rule of :func:`clip_inputs`.
+    ``rows`` (bool): only those are clipped and marked. ``ValueError`` naming the input for a NaN."""
+    column = np.asarray(values).astype(np.float64)
+    nan = np.isnan(column) if rows is None else np.isnan(column) & rows
+    if nan.any():
+        where = "" if column.ndim == 0 else f"[{int(np.flatnonzero(nan)[0])}]"
+        raise ValueError(f"input {spec.name!r}{where} is NaN, which is never clipped")
+    bounded = np.clip(column, spec.low, spec.high)
+    moved = bounded != column
+    if rows is not None:  # rows outside are neither read nor counted (NaN there is no one's business)
+        bounded = np.where(rows, bounded, column)
+        moved &= rows
+    return bounded, moved
+
+
+def clip_rows(specs: Sequence[InputSpec], inputs: Mapping[str, object], n: int,
+              rows: np.ndarray | None = None) -> tuple[dict[str, object], dict[str, np.ndarray]]:
+    """:func:`clip_inputs` on a batch of ``n`` rows, with its counts per row: ``inputs`` with every numeric
+    value clipped (a column, or a scalar that stands for every row, then a column when it was clipped),
+    and per numeric input an ``(n,)`` int64 array, 1 where the row's value was clipped (``rows``: only
+    those rows are clipped and counted). The counts sum to :func:`clip_inputs`' for columns."""
+    out = dict(inputs)
+    counts: dict[str, np.ndarray] = {}
+    for spec in specs:
+        if spec.is_bool or spec.name not in inputs:
+            continue
+        raw = inputs[spec.name]
+        if type(raw).__name__ in ("bool", "bool_"):
+            continue  # left for validation to report
+        array = np.asarray(raw)
+        if array.dtype.kind not in "iuf":
+            continue
+        bounded, moved = clip_column(spec, np.broadcast_to(array, (n,)), rows)
+        counts[spec.name] = moved.astype(np.int64)
+        if moved.any():
             out[spec.name] = bounded
     return out, counts
 

@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from rac.compiler import CompileResult
+from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
 
 __all__ = ["ABLATION", "COMBINATIONS", "GROWTH", "PAPER_REWARD_FUNCTION", "ExperimentError", "Options", "Report",
@@ -110,7 +111,8 @@ def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
     return [f"{automaton.name}.location"], ["x", "y", "v", "head"]
 
 
-def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed: bool):
+def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed: bool,
+            max_bytes: int | None = None):
     """The safety shield's table (None when ``needed`` is false and no safe strategy exists from the
     start), the seconds it took, its states, and the judge of "safe to the horizon" from a goal state
     (:class:`rac.engine.shield.SafeOnward`); ExperimentError when the shield is needed and absent."""
@@ -120,7 +122,7 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
     assert data is not None
     t0 = time.perf_counter()
     try:
-        computed, table = shields.synthesise(data, horizon_samples, max_states=max_states)
+        computed, table = shields.synthesise(data, horizon_samples, max_states=max_states, max_bytes=max_bytes)
     except MemoryError as exc:
         raise ExperimentError(f"the safety shield cannot be computed: {exc}; coarsen the model (actions, "
                               "decide_period) or shorten the horizon") from None
@@ -134,7 +136,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                    evaluation_runs: int = 100, reward_function: str | None = None, horizon_samples: int | None = None,
                    parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
                    bins: Sequence[float] | None = None, counterfactuals: bool = True, replay: int = 1,
-                   growth: float | None = GROWTH, ablation: bool = False,
+                   growth: float | None = GROWTH, ablation: bool = False, max_bytes: int | None = None,
                    progress: Callable[[str], None] | None = None) -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
     ``bins``: the widths of the continuous observations (default: derived from the model and its
@@ -142,7 +144,9 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     from counterfactual experiences (:mod:`rac.learning.counterfactual`); ``replay``: backward
     replays per batch; ``growth``: batches grow with the episodes learned (:func:`rac.learning.qlearning.learning`),
     so the greedy strategy is evaluated after 1, 2, 3, ... episodes at first; ``ablation``: also
-    SS&RA without each of these (:data:`ABLATION`), in ``report["ablation"]``.
+    SS&RA without each of these (:data:`ABLATION`), in ``report["ablation"]``; ``max_bytes``: the memory
+    budget of the shield and the learning (None: none), checked before either starts
+    (:func:`rac.engine.budget.learning_bytes` for all runs together).
 
     All runs learn together in one batch of episodes (:func:`rac.learning.lockstep.run_together`),
     then all evaluations run together: each result is the one the run has alone, and a run's
@@ -172,14 +176,23 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     derived = derived_bins(result.model_data, [parse_expr(text) for text in continuous])
     widths = tuple(float(b) for b in bins) if bins is not None else derived
     bins_from = "--bins" if bins is not None else "derived from the model's action grid and goal"
+    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon,  # its onward: the shield's, below
+                          counterfactuals=counterfactuals or ablation)
+    count = (len(wanted) + (len(ABLATION) if ablation else 0)) * len(seeds)
+    needed = learning_bytes(episodes=episodes, parallel=parallel, steps=shared.max_steps, runs=count,
+                            observations=len(discrete) + len(continuous), actions=shared.n_actions)
+    try:  # before the shield and the learning: the runs learn together, so their tables add up
+        check_estimate(f"learning {count} runs together", needed, max_bytes,
+                       f"lower the episodes per run ({episodes:,}, --episodes), the seeds or the combinations")
+    except BudgetExceeded as exc:
+        raise ExperimentError(str(exc)) from None
     # The shield also judges every combination's runs: a run is safe at the goal only if it can stay
     # safe from there to the horizon, the horizon the shield guarantees.
     if progress:
         progress("computing the safety shield")
     shield_table, shield_seconds, shield_states, onward = _shield(
-        result, horizon, max_states, any(shielded for _, shielded, _ in wanted))
-    shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward,
-                          counterfactuals=counterfactuals or ablation)
+        result, horizon, max_states, any(shielded for _, shielded, _ in wanted), max_bytes)
+    shared.onward = onward
     objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
     optima = _optima(result, wanted, shield_table, horizon, onward, rf, max_states, progress)
     # (label, seed, shield, reward kind, options): counterfactuals for the automaton's rewards only

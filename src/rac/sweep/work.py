@@ -25,8 +25,9 @@ from typing import TYPE_CHECKING, Any
 
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import Severity
+from rac.core.numbers import format_bytes
 from rac.engine.budget import BudgetExceeded
-from rac.model.checks import UNUSABLE_SCENARIO
+from rac.model.checks import UNUSABLE_SCENARIO, ScenarioTooLarge
 from rac.sweep.template import instantiate
 
 if TYPE_CHECKING:
@@ -65,6 +66,11 @@ def execute(spec: TaskSpec) -> dict[str, Any]:
         row.update(status="error", error=str(exc))
     except BudgetExceeded as exc:  # an estimate, before the memory was used: the budget's words
         row.update(status="error", error=str(exc))
+    except ScenarioTooLarge as exc:  # refused before the load: in the sweep's terms (its limit is --task-memory)
+        row.update(status="memory", error=(
+            f"MemoryError: the scenario {exc.path} ({format_bytes(exc.estimate.file_bytes)}) would need about "
+            f"{format_bytes(exc.estimate.peak_bytes)} of memory to load, more than the task's limit of "
+            f"{format_bytes(exc.limit)} (--task-memory); nothing was loaded"))
     except MemoryError as exc:
         row.update(status="memory", error=f"MemoryError: {exc}".rstrip(": "))
     except Exception as exc:  # a bug or an unforeseen input: the row says where
@@ -86,7 +92,8 @@ def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
         text = instantiate(spec.template_text, spec.template, scenario, spec.settings)
     except ValueError as exc:
         raise TaskError(str(exc)) from None
-    result = compile_text(text, name=spec.template)
+    # the task's memory limit is the scenario load's budget too: refused before it is read, not killed in it
+    result = compile_text(text, name=spec.template, max_bytes=spec.memory)
     row["diagnostics"] = [f"{d.code} {d.message}" for d in result.diagnostics
                           if d.severity in (Severity.ERROR, Severity.WARNING)]
     row["scenario_size"] = _size(result)

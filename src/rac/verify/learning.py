@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
 from rac.ir import query as iq
@@ -75,9 +76,11 @@ class LearningAnswerer:
                                          optimise="max" if query.optimise == "maxE" else "min", shield=table,
                                          episodes=ctx.options.learn_episodes, parallel=ctx.options.learn_parallel,
                                          seed=seed, stop_after=ctx.options.learn_stop_after, meta=meta,
-                                         labels=query.labels)
+                                         labels=query.labels, max_bytes=ctx.options.max_bytes)
         except EvaluationError:
             raise
+        except BudgetExceeded as exc:  # refused on the estimate, before learning allocated it
+            raise UnknownVerdict(f"{exc}; the episode budget is --learn-episodes") from None
         except ValueError as exc:  # a sensed value out of range, bindings breaking `assume`
             raise UnknownVerdict(str(exc)) from None
         ctx.strategies.pop(query.name, None)  # the name now means the learned strategy
