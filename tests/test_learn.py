@@ -401,9 +401,9 @@ def test_learning_beyond_the_memory_budget_is_refused_before_it_allocates(scenar
     made: list[int] = []
     real = tabular.QTable.__init__
 
-    def counting(self: tabular.QTable, width: int, n_actions: int) -> None:
+    def counting(self: tabular.QTable, width: int, n_actions: int, *rest: float) -> None:
         made.append(width)
-        real(self, width, n_actions)
+        real(self, width, n_actions, *rest)
 
     monkeypatch.setattr(tabular.QTable, "__init__", counting)
     with pytest.raises(EstimateExceeded, match=r"learning would need about .*--max-memory.*episode budget") as info:
