@@ -18,7 +18,8 @@ simulated episodes: the observation is the discrete list then the continuous lis
   first update sets it (rather than moving it by ``alpha`` from an arbitrary start). With
   ``alpha=1`` on a deterministic model whose observation is the decision state (``time`` among
   the discrete observations), every tried entry then holds the best return seen after it, and
-  the greedy strategy follows the best run seen; exploration is epsilon's alone. After each batch its transitions are *replayed backwards*
+  the greedy strategy follows the best run seen; exploration is epsilon's alone. After each
+  batch its transitions are *replayed backwards*
   (``replay`` times, default once; Lin's experience replay in reverse order): a reward at the end
   of an episode — reaching the goal — then reaches the episode's first decision at once rather
   than one step per later visit, which matters when the goal is rare (a few runs in a hundred).
