@@ -30,7 +30,7 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
 def test_every_combination_runs_for_every_seed(report: dict[str, object]) -> None:
     records = report["records"]
     assert [(r.combination, r.seed) for r in records] == [(c, s) for c, _, _ in COMBINATIONS for s in (1, 2)]
-    assert report["observation"] == {"discrete": ["Tiny.location"], "continuous": ["x", "v"]}
+    assert report["observation"] == {"discrete": ["Tiny.location", "time"], "continuous": ["x", "v"]}
     assert report["shield_states"] > 0
 
 
@@ -120,11 +120,14 @@ def test_the_ablation_learns_every_row(tmp_path: Path, capsys: pytest.CaptureFix
     assert code == 0
     printed = capsys.readouterr().out
     assert "(derived from the model's action grid and goal)" in printed
-    assert "| SS&RA |" in printed and printed.count("| yes |") == 1
+    assert "| SS&RA |" in printed and printed.splitlines()[2].endswith("| yes |")  # counterfactuals
     ablation = (out / "ablation.md").read_text().splitlines()
-    assert [line.split(" | ")[0] for line in ablation[2:7]] == [
+    assert [line.split(" | ")[0] for line in ablation[2:9]] == [
         "| as the experiment", "| other bins", "| counterfactuals switched", "| replay switched",
-        "| all three switched"]
+        "| all three switched", "| time not observed", "| untried actions at 0"]
     data = json.loads((out / "results.json").read_text())
-    assert [len(variant["records"]) for variant in data["ablation"]] == [1] * 5
-    assert [variant["counterfactuals"] for variant in data["ablation"]] == [True, True, False, True, False]
+    assert [len(variant["records"]) for variant in data["ablation"]] == [1] * 7
+    assert [variant["counterfactuals"] for variant in data["ablation"]] == [True, True, False, True, False, True, True]
+    assert [variant["time"] for variant in data["ablation"]] == [True] * 5 + [False, True]
+    assert [variant["pessimistic"] for variant in data["ablation"]] == [True] * 6 + [False]
+    assert data["observation"]["discrete"][-1] == "time" and data["learner"]["alpha"] == 1.0

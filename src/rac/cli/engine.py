@@ -139,10 +139,13 @@ def add_parsers(commands: argparse._SubParsersAction) -> None:
     exp.add_argument("--no-counterfactuals", action="store_true",
                      help="the RA combinations learn from their own transitions only (default: also from every "
                           "automaton location's counterfactual)")
+    exp.add_argument("--no-time", action="store_true",
+                     help="observe only the file's discrete list (default: also the decision time, docs/learning.md)")
     exp.add_argument("--replay", type=int, default=1, metavar="N",
                      help="backward replays of each batch of episodes (default 1; 0: none)")
     exp.add_argument("--ablation", action="store_true",
-                     help="also learn SS&RA with other bins, counterfactuals and replay switched (ablation.md)")
+                     help="also learn SS&RA with other bins, counterfactuals, replay, time and the learner switched "
+                          "(ablation.md)")
     exp.add_argument("--combination", action="append", choices=("SS&RA", "SS&RF", "RA", "RF"),
                      help="only this combination (repeatable)")
     exp.add_argument("--format", choices=("text", "json"), default="text", help="output format")
@@ -541,8 +544,8 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                 horizon_samples=_horizon_samples(result, args.horizon) if args.horizon else None,
                                 max_states=args.max_states, combinations=args.combination, bins=bins,
                                 counterfactuals=not args.no_counterfactuals, replay=args.replay,
-                                ablation=args.ablation, max_bytes=args.max_memory or default_max_bytes(),
-                                progress=announce)
+                                ablation=args.ablation, observe_time=not args.no_time,
+                                max_bytes=args.max_memory or default_max_bytes(), progress=announce)
         files = write_outputs(report, out_dir)
     except ExperimentError as exc:
         print(f"rac experiment: {exc}", file=sys.stderr)

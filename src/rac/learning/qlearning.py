@@ -12,15 +12,24 @@ simulated episodes: the observation is the discrete list then the continuous lis
   row by row in episode order (so two episodes in the same state see each other's update). The
   maximum runs over the actions allowed in ``s'``; an episode that ends (goal reached or horizon)
   does not bootstrap. ``minE`` minimises: the table then holds costs and every max is a min.
-  Unseen table entries are 0. After each batch its transitions are *replayed backwards*
+  Unseen table entries are 0 (``optimism``: another value), or with ``pessimistic`` a value below
+  any return (:data:`rac.learning.tabular.UNTRIED`): an untried action is never preferred to a
+  tried one, a tried one whose future is unknown yet ranks below every known one, and an entry's
+  first update sets it (rather than moving it by ``alpha`` from an arbitrary start). With
+  ``alpha=1`` on a deterministic model whose observation is the decision state (``time`` among
+  the discrete observations), every tried entry then holds the best return seen after it, and
+  the greedy strategy follows the best run seen; exploration is epsilon's alone. After each
+  batch its transitions are *replayed backwards*
   (``replay`` times, default once; Lin's experience replay in reverse order): a reward at the end
   of an episode — reaching the goal — then reaches the episode's first decision at once rather
   than one step per later visit, which matters when the goal is rare (a few runs in a hundred).
 - **Choices.** epsilon-greedy among the *allowed* actions (the shield's mask at the state key;
   all actions without a shield). A state where the shield allows nothing falls back to all
   actions; such decisions are counted (``fallbacks``). Greedy ties go to the lowest action index,
-  so a strategy is deterministic. epsilon decays linearly per episode from ``epsilon[0]`` at the
-  first episode to ``epsilon[1]`` at the last of the budget (a float keeps it constant).
+  so a strategy is deterministic (``random_ties``: a learning episode breaks them at random, so a
+  state where nothing was tried yet continues at random rather than always with action 0).
+  epsilon decays linearly per episode from ``epsilon[0]`` at the first episode to ``epsilon[1]``
+  at the last of the budget (a float keeps it constant).
 - **Stopping rule.** After every batch the greedy strategy is evaluated by one run (the model is
   deterministic, so a deterministic strategy has exactly one run). That run is one more episode
   of the next batch, which chooses greedily from a copy of the table as it was, draws no random
@@ -85,7 +94,7 @@ from rac.learning.strategy import (
     default_bin,
     observation_keys,
 )
-from rac.learning.tabular import BatchLog, Frozen, Learner, QTable
+from rac.learning.tabular import UNTRIED, BatchLog, Frozen, Learner, QTable
 
 __all__ = ["DEFAULT_BINS", "Episodes", "LearnedStrategy", "LearningResult", "ObjectiveIncrease", "StrategyEvaluation",
            "StrategyRun", "default_bin", "evaluate", "learn", "learning", "observation_keys", "run_strategy"]
@@ -236,8 +245,8 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
              stop_after: int = 10, progress: Progress | None = None, meta: Mapping[str, object] | None = None,
              replay: int = 1, labels: Sequence[str] | None = None,
              evaluate_in_batch: bool = True, counterfactuals: bool = False,
-             growth: float | None = None, optimism: float = 0.0,
-             max_bytes: int | None = None) -> Steps[LearningResult]:
+             growth: float | None = None, optimism: float = 0.0, pessimistic: bool = False,
+             random_ties: bool = False, max_bytes: int | None = None) -> Steps[LearningResult]:
     """Learn a strategy by tabular Q-learning on ``batch`` (see the module docstring for the
     observation, the algorithm and the stopping rule): ``learn(batch, ...)`` learns on ``batch``
     alone; ``learning(batch, ...)`` is the same as a generator of steps (:mod:`rac.learning.runs`),
@@ -248,10 +257,15 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     continuous expression (default :func:`default_bin`); ``progress(episodes_done, budget, mean_return)`` after
     every batch; ``meta``: stored with the strategy; ``replay``: backward replays of each finished
     batch (0: plain online Q-learning); ``evaluate_in_batch``: run each greedy evaluation in the
-    next batch (default) or alone after its batch — the results are the same, alone is slower;
-    ``max_bytes``: the memory budget (None: none): :class:`rac.engine.budget.EstimateExceeded` before
-    anything is learned when :func:`rac.engine.budget.learning_bytes` estimates more.
-    The same ``seed`` gives the same result."""
+    next batch (default) or alone after its batch — the results are the same, alone is slower.
+    ``optimism``: the value of untried entries (0 by default); ``pessimistic``: untried entries are
+    never preferred to tried ones (:data:`rac.learning.tabular.UNTRIED`; their first update sets them, so with
+    ``alpha=1`` on a deterministic model whose observation is its decision state every tried entry
+    holds the best return seen after it and the greedy strategy is the best run seen);
+    ``random_ties``: learning episodes break greedy ties at random (the greedy strategy keeps the
+    lowest index); ``max_bytes``: the memory budget (None: none): :class:`rac.engine.budget.EstimateExceeded`
+    before anything is learned when :func:`rac.engine.budget.learning_bytes` estimates more. The same
+    ``seed`` gives the same result."""
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
     for name, value in (("episodes", episodes), ("parallel", parallel), ("stop_after", stop_after)):
@@ -276,9 +290,11 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     seed = _fresh_seed() if seed is None else int(seed)
     sign = 1.0 if optimise == "max" else -1.0
     n_discrete = len(discrete_exprs)
-    table = QTable(len(exprs), batch.n_actions, optimism)
+    if pessimistic and optimism:
+        raise ValueError("optimism and pessimistic exclude each other: untried entries have one value")
+    table = QTable(len(exprs), batch.n_actions, UNTRIED if pessimistic else optimism)
     learner = Learner(table, exprs, n_discrete, widths, shield, np.random.default_rng(seed), sign, alpha, gamma, replay,
-                      location_column(discrete_exprs, continuous_exprs) if counterfactuals else None)
+                      location_column(discrete_exprs, continuous_exprs) if counterfactuals else None, random_ties)
     schedule = _epsilon_schedule(epsilon, episodes)
     pairs = getattr(batch, "action_pairs", None)
 

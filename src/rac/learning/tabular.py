@@ -33,7 +33,13 @@ from rac.learning.strategy import (
     uniform_allowed,
 )
 
-__all__ = ["BatchLog", "Frozen", "Learner", "QTable", "Transition", "update"]
+__all__ = ["UNTRIED", "BatchLog", "Frozen", "Learner", "QTable", "Transition", "update"]
+
+#: The pessimistic initial value (:func:`rac.learning.qlearning.learning`'s ``pessimistic``): below
+#: any return a run can have (learning refuses episodes whose return comes within a factor 10 of it),
+#: so an untried action is never preferred to a tried one, and a tried action whose future is not
+#: known yet (its next state has nothing tried: ``reward + UNTRIED``) ranks below every known one.
+UNTRIED = -1e9
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,10 +52,12 @@ class Frozen:
 
 class QTable:
     """The growing table of learning: observation key -> row of Q-values, in the *maximised* sense
-    (``sign * value``: for ``minE`` the negated costs)."""
+    (``sign * value``: for ``minE`` the negated costs). ``initial`` is the value of an entry not yet
+    learned: 0, an optimistic value above any return, or :data:`UNTRIED` (pessimistic)."""
 
     def __init__(self, width: int, n_actions: int, initial: float = 0.0) -> None:
-        #: The value of every entry not yet learned (optimistic initial values when above any return).
+        #: The value of every entry not yet learned (optimistic initial values when above any return,
+        #: pessimistic ones at UNTRIED).
         self.initial = initial
         self.index: dict[bytes, int] = {}
         self.keys = np.zeros((64, width), dtype=np.float64)
@@ -112,16 +120,18 @@ class Transition(NamedTuple):
     ends: np.ndarray
 
 
-def update(values: np.ndarray, step: Transition, alpha: float, gamma: float) -> None:
+def update(values: np.ndarray, step: Transition, alpha: float, gamma: float, untried: float | None = None) -> None:
     """Watkins' update of every active episode's transition, in episode order (a later row sees an
     earlier one's update). An ending episode does not bootstrap; the maximum runs over the actions
-    allowed in the next state."""
+    allowed in the next state. With ``untried`` (:data:`UNTRIED`, pessimistic initial values), an
+    entry still at that value takes its target as it is: its first update sets it."""
     rows, actions = step.rows, step.actions
     for i in step.active:
         target = step.reward[i]
         if not step.ends[i]:
             target += gamma * values[step.next_rows[i]][step.next_masks[i]].max()
-        values[rows[i], actions[i]] += alpha * (target - values[rows[i], actions[i]])
+        old = values[rows[i], actions[i]]
+        values[rows[i], actions[i]] = target if old == untried else old + alpha * (target - old)
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,6 +168,15 @@ class Learner:
     #: (:mod:`rac.learning.counterfactual`): every transition also updates the observation in every
     #: other location. None: off.
     location_column: int | None = None
+    #: Learning episodes break greedy ties at random (among the allowed actions of equal value), so a
+    #: state where no allowed action was tried continues with a uniformly random one; False: the
+    #: lowest index, as the greedy strategy (deterministic either way).
+    random_ties: bool = False
+
+    @property
+    def untried(self) -> float | None:
+        """:data:`UNTRIED` when the table's initial values are the pessimistic ones, else None."""
+        return UNTRIED if self.table.initial == UNTRIED else None
 
     def observe(self, batch: Episodes) -> np.ndarray:
         """Every episode's observed values now."""
@@ -188,6 +207,14 @@ class Learner:
         return Transition(np.arange(source.size), self.table.rows(before, create=True), step.actions[source],
                           self.sign * cf.reward[source, location], self.table.rows(after, create=True),
                           step.next_masks[source], step.ends[source])
+
+    def exploit(self, utilities: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        """The learning episodes' greedy choices: the best allowed action per row, ties to the lowest
+        index or (:attr:`random_ties`) uniformly among the tied ones."""
+        if not self.random_ties:
+            return greedy_actions(utilities, masks)
+        masked = np.where(masks, utilities, -np.inf)
+        return uniform_allowed(self.rng, masks & (masked == masked.max(axis=1, keepdims=True)))
 
     def greedy_run(self) -> Steps[StrategyRun]:
         """The greedy strategy of the table now, by its one run alone (a batch of one episode)."""
@@ -227,7 +254,7 @@ class Learner:
             if learning.any():  # the random numbers are the learning episodes' only
                 explore = rng.random(n) < eps
                 random_actions = uniform_allowed(rng, masks[:n])
-                chosen = np.where(explore, random_actions, greedy_actions(table.utilities(rows), masks[:n]))
+                chosen = np.where(explore, random_actions, self.exploit(table.utilities(rows), masks[:n]))
                 actions[:n] = np.where(learning, chosen, 0)
             if frozen is not None and active[n]:
                 greedy = table.frozen_utilities(frozen, self.keys(observed[n:]))
@@ -244,11 +271,11 @@ class Learner:
                 next_rows = table.rows(next_keys, create=True)
                 step = Transition(np.flatnonzero(learning), rows, actions[:n], self.sign * reward, next_rows,
                                   next_masks[:n], ends)
-                update(table.values, step, self.alpha, self.gamma)
+                update(table.values, step, self.alpha, self.gamma, self.untried)
                 steps.append(step)
                 if self.location_column is not None:
                     counterfactual = self.counterfactual(batch, step, keys, next_keys)
-                    update(table.values, counterfactual, self.alpha, self.gamma)
+                    update(table.values, counterfactual, self.alpha, self.gamma, self.untried)
                     steps.append(counterfactual)
                 keys = next_keys
                 returns[learning] += reward[learning]
@@ -266,6 +293,9 @@ class Learner:
         # of an episode reaches its first decision in one sweep instead of one step per visit.
         for _ in range(self.replay):
             for step in reversed(steps):
-                update(table.values, step, self.alpha, self.gamma)
+                update(table.values, step, self.alpha, self.gamma, self.untried)
+        if self.untried is not None and (self.sign * returns <= UNTRIED / 10).any():
+            raise ValueError(f"a return of {returns.min():g} is too large for the pessimistic initial value "
+                             f"{UNTRIED:g}")
         log = BatchLog(returns, reached, collided, offroad, stranded, fallbacks)
         return log, recorder.finish() if recorder is not None else None

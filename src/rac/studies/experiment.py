@@ -72,7 +72,17 @@ GROWTH = 0.25
 #: The ablation's rows (SS&RA, every seed): what the experiment used, then the observation's bins
 #: swapped (derived <-> the fixed defaults, or --bins <-> the fixed defaults), counterfactual
 #: experiences switched, the backward replay switched, and all three at once.
-ABLATION = ("as the experiment", "other bins", "counterfactuals switched", "replay switched", "all three switched")
+ABLATION = ("as the experiment", "other bins", "counterfactuals switched", "replay switched", "all three switched",
+            "time not observed", "untried actions at 0")
+#: The learner of every combination (issue 23): the model is deterministic and the decision index is
+#: observed, so ``alpha=1`` makes a tried table entry the best return seen after it; untried actions
+#: are never preferred to tried ones (``pessimistic``), so the greedy strategy is the best run seen and
+#: exploration is epsilon's alone, from 1 down to 0.2 over the budget, ties broken at random in the
+#: learning episodes. "untried actions at 0" in the ablation is the learner before (``EARLIER``).
+LEARNER: dict[str, Any] = {"alpha": 1.0, "epsilon": (1.0, 0.2), "pessimistic": True, "random_ties": True}
+#: The learner before issue 23's second round: untried entries 0, ``alpha=0.3``, epsilon down to
+#: 0.05, ties to the lowest index (the ablation's "untried actions at 0").
+EARLIER: dict[str, Any] = {"alpha": 0.3, "epsilon": (1.0, 0.05), "pessimistic": False, "random_ties": False}
 
 
 class ExperimentError(ValueError):
@@ -98,6 +108,18 @@ class RunRecord:
     greedy_return: float = float("nan")  # the final greedy strategy's return (its one run)
     optimum: float | None = None  # the exact optimum of the combination under the shield (None: none)
     counterfactuals: bool = False
+
+
+def _with_time(discrete: Sequence[str]) -> list[str]:
+    """The discrete observations with the decision time (``time``) added when it is not among them.
+
+    An episode is a finite-horizon problem whose obstacles move with time, whose goal may have a
+    time window and which ends at the horizon: the same place and speed at two decision times are
+    two states with different futures (waiting for a crossing car at 4 s is not waiting at 8 s),
+    and the optimal strategy depends on the time. Without it in the observation, Q-learning averages
+    the two futures (the observation is not Markov); with it, the decision states form a tree
+    (depth: the decisions per episode) on which Q-learning with ``alpha=1`` is exact where visited."""
+    return [*discrete] if "time" in discrete else [*discrete, "time"]
 
 
 def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
@@ -136,7 +158,8 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                    evaluation_runs: int = 100, reward_function: str | None = None, horizon_samples: int | None = None,
                    parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
                    bins: Sequence[float] | None = None, counterfactuals: bool = True, replay: int = 1,
-                   growth: float | None = GROWTH, ablation: bool = False, max_bytes: int | None = None,
+                   growth: float | None = GROWTH, ablation: bool = False, observe_time: bool = True,
+                   max_bytes: int | None = None,
                    progress: Callable[[str], None] | None = None) -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
     ``bins``: the widths of the continuous observations (default: derived from the model and its
@@ -144,9 +167,12 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     from counterfactual experiences (:mod:`rac.learning.counterfactual`); ``replay``: backward
     replays per batch; ``growth``: batches grow with the episodes learned (:func:`rac.learning.qlearning.learning`),
     so the greedy strategy is evaluated after 1, 2, 3, ... episodes at first; ``ablation``: also
-    SS&RA without each of these (:data:`ABLATION`), in ``report["ablation"]``; ``max_bytes``: the memory
-    budget of the shield and the learning (None: none), checked before either starts
-    (:func:`rac.engine.budget.learning_bytes` for all runs together).
+    SS&RA without each of these (:data:`ABLATION`), in ``report["ablation"]``; ``observe_time``: the
+    decision time is added to the discrete observations (:func:`_with_time`); ``max_bytes``: the
+    memory budget of the shield and the learning (None: none), checked before either starts
+    (:func:`rac.engine.budget.learning_bytes` for all runs together). Every combination
+    learns with :data:`LEARNER` and learns to the budget (the greedy strategy kept is the best
+    evaluated: its return keeps improving late, after 90 to 490 of 500 episodes on examples/paper).
 
     All runs learn together in one batch of episodes (:func:`rac.learning.lockstep.run_together`),
     then all evaluations run together: each result is the one the run has alone, and a run's
@@ -180,7 +206,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                           counterfactuals=counterfactuals or ablation)
     count = (len(wanted) + (len(ABLATION) if ablation else 0)) * len(seeds)
     needed = learning_bytes(episodes=episodes, parallel=parallel, steps=shared.max_steps, runs=count,
-                            observations=len(discrete) + len(continuous), actions=shared.n_actions)
+                            observations=len(discrete) + len(continuous) + int(observe_time), actions=shared.n_actions)
     try:  # before the shield and the learning: the runs learn together, so their tables add up
         check_estimate(f"learning {count} runs together", needed, max_bytes,
                        f"lower the episodes per run ({episodes:,}, --episodes), the seeds or the combinations")
@@ -197,7 +223,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     optima = _optima(result, wanted, shield_table, horizon, onward, rf, max_states, progress)
     # (label, seed, shield, reward kind, options): counterfactuals for the automaton's rewards only
     # (the reward function knows nothing of the automaton: the paper's RF learner)
-    main = Options(widths, counterfactuals, replay)
+    main = Options(widths, counterfactuals, replay, time=observe_time)
     runs = [(label, seed, shield_table if shielded else None, kind,
              main if kind == "automaton" else dataclasses.replace(main, counterfactuals=False))
             for label, shielded, kind in wanted for seed in seeds]
@@ -223,10 +249,13 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                 progress(f"{what}: {sum(done):,} of {len(runs) * episodes:,} episodes")
         return report
 
-    learned = run_together([Job(learning(shared, discrete=discrete, continuous=continuous, shield=table,
-                                         episodes=episodes, parallel=parallel, seed=seed, bins=options.bins,
+    learned = run_together([Job(learning(shared, discrete=_with_time(discrete) if options.time else discrete,
+                                         continuous=continuous, shield=table, episodes=episodes,
+                                         parallel=parallel, seed=seed, bins=options.bins,
                                          counterfactuals=options.counterfactuals, replay=options.replay,
-                                         growth=growth, progress=learned_so_far(run)),
+                                         growth=growth, progress=learned_so_far(run),
+                                         stop_after=-(-episodes // parallel) + 1,
+                                         **(LEARNER if options.pessimistic else EARLIER)),
                                 None if kind == "automaton" else objective)
                             for run, (_, seed, table, kind, options) in enumerate(runs)], shared)
     outcomes: list[LearningResult] = [outcome for outcome, _ in learned]
@@ -244,27 +273,35 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                                  outcome.collisions_during_learning, outcome.offroad_during_learning,
                                  bool(outcome.greedy.success[0]), evaluation.successes, evaluation.runs,
                                  np.asarray(history.returns, dtype=float), succeeded,
-                                 float(outcome.greedy.returns[0]), _value(optima.get(label)), options.counterfactuals))
+                                 float(outcome.greedy.returns[0]),
+                                 _value(optima.get("SS&RA" if label.startswith("ablation ") else label)),
+                                 options.counterfactuals))
     ablation_records = [r for r in records if r.combination.startswith("ablation ")]
     records = [r for r in records if not r.combination.startswith("ablation ")]
     return {"file": automaton.model.scenario_path, "horizon_samples": horizon, "episodes": episodes,
             "seeds": list(seeds), "reward_function": text, "shield_seconds": shield_seconds,
             "shield_states": shield_states, "records": records, "bins": list(widths), "bins_from": bins_from,
             "derived_bins": list(derived), "replay": replay, "counterfactuals": counterfactuals, "growth": growth,
-            "parallel": parallel, "observation": {"discrete": discrete, "continuous": continuous}, "optima": optima,
+            "parallel": parallel, "optima": optima,
+            "observation": {"discrete": _with_time(discrete) if observe_time else discrete, "continuous": continuous},
+            "learner": {key: list(v) if isinstance(v, tuple) else v for key, v in LEARNER.items()},
             "ablation": [{"bins": list(options.bins), "counterfactuals": options.counterfactuals,
-                          "replay": options.replay,
+                          "replay": options.replay, "time": options.time, "pessimistic": options.pessimistic,
                           "records": [r for r in ablation_records if r.combination == f"ablation {i}"]}
                          for i, options in enumerate(variants)]}
 
 
 @dataclass(frozen=True)
 class Options:
-    """How one run learns: the observation's bin widths, counterfactual experiences, backward replays."""
+    """How one run learns: the observation's bin widths, counterfactual experiences, backward replays,
+    the decision time observed (:func:`_with_time`), and :data:`LEARNER` (``pessimistic``) or
+    :data:`EARLIER`."""
 
     bins: tuple[float, ...]
     counterfactuals: bool
     replay: int
+    time: bool = True
+    pessimistic: bool = True
 
 
 def default_widths(continuous: Sequence[str]) -> tuple[float, ...]:
@@ -282,7 +319,8 @@ def _ablation(main: Options, other_bins: tuple[float, ...]) -> list[Options]:
     return [main, dataclasses.replace(main, bins=other_bins),
             dataclasses.replace(main, counterfactuals=not main.counterfactuals),
             dataclasses.replace(main, replay=0 if main.replay else 1),
-            Options(other_bins, not main.counterfactuals, 0 if main.replay else 1)]
+            Options(other_bins, not main.counterfactuals, 0 if main.replay else 1, main.time),
+            dataclasses.replace(main, time=not main.time), dataclasses.replace(main, pessimistic=False)]
 
 
 def _value(optimum: Report | None) -> float | None:
@@ -392,7 +430,10 @@ def render_markdown(report: Report) -> str:
         f"{report['horizon_samples']} samples; reward function `{report['reward_function']}`; observation "
         f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}} "
         f"in bins of {_widths(report['bins'])} ({report['bins_from']}).",
-        f"Learning: tabular Q-learning, {'backward replay of each batch' if report['replay'] else 'no replay'}"
+        "Learning: tabular Q-learning"
+        + (", alpha 1, untried actions never preferred to tried ones (the greedy strategy is the best run seen), "
+           "epsilon 1 down to 0.2 over the budget, learning to the budget" if report.get("learner") else "")
+        + f", {'backward replay of each batch' if report['replay'] else 'no replay'}"
         f"{' (' + str(report['replay']) + ' times)' if report['replay'] > 1 else ''}; batches of "
         + (f"ceil({report['growth']:g} x episodes learned) episodes, 1 to {report['parallel']}, the greedy strategy "
            "evaluated after each (after 1, 2, 3, 4, 5, 7, 9, 12, 15 ... episodes)" if report['growth']
@@ -412,7 +453,9 @@ def _optimum_cell(row: Report) -> str:
     """The optimum and the seeds' shortfall from it in percent (— without an optimum)."""
     if row["optimum"] is None:
         return "—"
-    return f"{row['optimum']:.1f} ({_mean_sd([100 * v for v in row['shortfall']])} % below)"
+    within = sum(v <= 0.05 for v in row["shortfall"])
+    return (f"{row['optimum']:.1f} ({_mean_sd([100 * v for v in row['shortfall']])} % below; "
+            f"{within} of {len(row['shortfall'])} within 5 %)")
 
 
 def _widths(widths: Sequence[float]) -> str:
@@ -421,9 +464,10 @@ def _widths(widths: Sequence[float]) -> str:
 
 def render_ablation(report: Report) -> str:
     """The ablation (SS&RA with each ingredient switched, :data:`ABLATION`) as a markdown table."""
-    lines = ["| SS&RA | bins | counterfactual experiences | backward replay | episodes until the first safe goal | "
-             "episodes learned | greedy strategy safe at the goal | greedy run's return |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines = ["| SS&RA | bins | counterfactual experiences | backward replay | time observed | untried actions | "
+             "episodes until the first safe goal | episodes learned | greedy strategy safe at the goal | "
+             "greedy run's return | within 5 % of the optimum |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for name, variant in zip(ABLATION, report.get("ablation", [])):
         rows = summary(report, variant["records"])
         if not rows:
@@ -432,9 +476,13 @@ def render_ablation(report: Report) -> str:
         first = _mean_sd(row["first_success"])
         if row["never_succeeded"]:
             first += f" ({row['never_succeeded']} of {row['seeds']} seeds never)"
+        close = sum(v <= 0.05 for v in row["shortfall"])
+        within = "—" if row["optimum"] is None else f"{close} of {row['seeds']} seeds"
         lines.append(f"| {name} | {_widths(variant['bins'])} | {'on' if variant['counterfactuals'] else 'off'} | "
-                     f"{'on' if variant['replay'] else 'off'} | {first} | {_mean_sd(row['episodes'])} | "
-                     f"{row['greedy_success']} of {row['seeds']} seeds | {_mean_sd(row['greedy_returns'])} |")
+                     f"{'on' if variant['replay'] else 'off'} | {'yes' if variant.get('time', True) else 'no'} | "
+                     f"{'never preferred' if variant.get('pessimistic', True) else 'at 0'} | {first} | "
+                     f"{_mean_sd(row['episodes'])} | {row['greedy_success']} of {row['seeds']} seeds | "
+                     f"{_mean_sd(row['greedy_returns'])} | {within} |")
     return "\n".join(lines + ["", f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} "
                                "episodes per run; every row learned (not copied from the table above)."])
 
