@@ -3,7 +3,8 @@
 The scenario set: the four scenes rac builds with commonroad-io (``rac.model.scenes``: left_turn,
 t_junction, highway, overtaking) and, when ``../shared/scenarios`` lies beside the checkout, its real
 CommonRoad files. The template: ``benchmarks/sweep_template.ra`` (Qb, Qc, Qd over a 2 s horizon).
-The grid: ``exponent=1,2`` and ``decide_period=0.5,1`` (``--quick``: ``exponent=1`` on the four built scenes only, a smoke run).
+The grid: ``exponent=1,2`` and ``decide_period=0.5,1`` (``--quick``: ``exponent=1`` on the four built
+scenes only, a smoke run).
 
 Rows:
   sweep, N workers   the whole sweep on a local cluster of N worker processes (cluster start and
