@@ -93,15 +93,8 @@ class Replayer:
         spread = {name: np.repeat(np.asarray(values, dtype=np.float64), self.n_locations)
                   for name, values in (rewards or {}).items()}
         batch.resume(np.tile(np.arange(self.n_locations), n), spread)
-        total = np.zeros(size)
-        for sample in samples:
-            inputs = {name: np.repeat(np.asarray(values), self.n_locations) for name, values in sample.inputs.items()}
-            active = np.repeat(np.asarray(sample.active, dtype=bool), self.n_locations)
-            if active.any():
-                total += batch.step_batch(inputs, mask=active)
-            ending = np.repeat(np.asarray(sample.ending, dtype=bool), self.n_locations)
-            if ending.any():
-                total += batch.end_batch(inputs, mask=ending)
+        total = batch.run_samples([(sample.inputs, sample.active, sample.ending) for sample in samples],
+                                  repeat=self.n_locations)
         shape = (n, self.n_locations)
         return Counterfactuals(total.reshape(shape), batch.locations.astype(np.int64).reshape(shape),
                                {name: values.reshape(shape) for name, values in batch.rewards.items()})

@@ -53,6 +53,21 @@ def _eval_np_linear(form: FloatLinear, values: Callable[[str], np.ndarray], n: i
     return acc
 
 
+def _rows(value: object, rows: int) -> np.ndarray:
+    """``value`` as ``rows`` values (a scalar broadcast; broadcast_to only when needed: it is slow)."""
+    array = np.asarray(value)
+    return array if array.shape == (rows,) else np.broadcast_to(array, (rows,))
+
+
+def _spread_inputs(inputs: Mapping[str, object], repeat: int) -> dict[str, object]:
+    """Each row's inputs repeated for its ``repeat`` automata (scalars stay scalars)."""
+    spread: dict[str, object] = {}
+    for name, value in inputs.items():
+        array = np.asarray(value)
+        spread[name] = value if array.ndim == 0 else np.repeat(array, repeat)
+    return spread
+
+
 class _Guards:
     """Every distinct guard sub-expression of an automaton, evaluated once per call over all n."""
 
@@ -351,9 +366,11 @@ class BatchRewardAutomaton(AutomatonDescription):
             self._R[self._index[name]] = np.broadcast_to(np.asarray(values, dtype=np.float64), (self._n,))
         self._obj = np.array(self._objective_now(), dtype=np.float64).reshape(self._n)
 
-    def _read(self, inputs: Mapping[str, object], rows: np.ndarray | None) -> dict[str, np.ndarray]:
-        """Validated inputs as arrays (bool / float64); only ``rows`` are checked when given."""
-        n = self._n
+    def _read(self, inputs: Mapping[str, object], rows: np.ndarray | None,
+              n: int | None = None) -> dict[str, np.ndarray]:
+        """Validated inputs as arrays (bool / float64) of ``n`` values (default the batch's); only ``rows``
+        are checked when given."""
+        n = self._n if n is None else n
         check_mapping(inputs)
         if len(inputs) != len(self._names) or any(name not in inputs for name in self._names):
             raise key_error(inputs, self._names)
@@ -521,6 +538,99 @@ class BatchRewardAutomaton(AutomatonDescription):
                 objective = np.where(only, objective, self._obj)
         self._obj = objective
         return reward
+
+    def run_samples(self, samples: Sequence[tuple[Mapping[str, object], np.ndarray, np.ndarray]], *,
+                    repeat: int = 1) -> np.ndarray:
+        """Several samples in a row, each ``(inputs, active, ending)`` over ``n // repeat`` rows: row ``i``
+        stands for the ``repeat`` consecutive automata ``i * repeat ...`` (one real transition replayed
+        from every location: :mod:`rac.learning.counterfactual`). A sample steps the ``active`` automata
+        (:meth:`step_batch`) and then ends the ``ending`` ones (:meth:`end_batch`, same inputs). Returns
+        each automaton's summed objective increase.
+
+        Bit for bit what those calls on the repeated inputs give. For an automaton whose edges are a
+        table and whose rates are constants, a sample is a few array operations: inputs are read and
+        the guard atoms coded on the rows, not on every copy, which makes replaying a transition cheap."""
+        if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1 or self._n % repeat:
+            raise ValueError(f"repeat must be a whole number >= 1 dividing n = {self._n}, not {repeat!r}")
+        rows = self._n // repeat
+        total = np.zeros(self._n)
+        active = np.zeros((len(samples), rows), dtype=bool)
+        ending = np.zeros((len(samples), rows), dtype=bool)
+        for j, (_, active_rows, ending_rows) in enumerate(samples):
+            a, e = np.asarray(active_rows), np.asarray(ending_rows)
+            if a.shape != (rows,) or e.shape != (rows,):
+                raise ValueError(f"active and ending must have shape ({rows},)")
+            active[j], ending[j] = a, e
+        with np.errstate(all="ignore"):
+            if not self._run_lean(samples, active, ending, repeat, total):
+                for (inputs, _, _), a, e in zip(samples, active, ending, strict=True):
+                    if a.any():
+                        total += self.step_batch(_spread_inputs(inputs, repeat), mask=np.repeat(a, repeat))
+                    if e.any():
+                        total += self.end_batch(_spread_inputs(inputs, repeat), mask=np.repeat(e, repeat))
+        return total
+
+    def _run_lean(self, samples: Sequence[tuple[Mapping[str, object], np.ndarray, np.ndarray]], active: np.ndarray,
+                  ending: np.ndarray, repeat: int, total: np.ndarray) -> bool:
+        """:meth:`run_samples` for table edges and constant rates: the inputs of all samples read and
+        coded at once on the rows, then per sample the same float operations as :meth:`step_batch`, in
+        the same order. False (nothing done) where it does not apply or an input is refused: the
+        caller then steps sample by sample, and those calls raise the usual errors."""
+        names = set(self._names)
+        if (self.strategy != "table" or not self._all_constant or self._held_names or self._n_ended
+                or not samples or any(not isinstance(inputs, Mapping) or set(inputs) != names
+                                      for inputs, _, _ in samples)):
+            return False
+        ended_before = np.zeros_like(ending)
+        ended_before[1:] = np.logical_or.accumulate(ending, axis=0)[:-1]
+        if (active & ended_before).any() or (ending & ended_before).any():
+            return False
+        n_samples, rows = active.shape
+        stacked = {name: np.concatenate([_rows(inputs[name], rows) for inputs, _, _ in samples])
+                   for name in self._names}
+        try:
+            x = self._read(stacked, active.reshape(-1), n_samples * rows)
+        except ValueError:
+            return False
+        code: Any = np.zeros(n_samples * rows, dtype=self._code_dtype)
+        for bit, (name, op, threshold) in enumerate(self._atom_list):
+            truth = x[name] if op is None else op(x[name], threshold)
+            code |= np.left_shift(truth.astype(self._code_dtype), bit)
+        code = code.reshape(n_samples, rows)
+        if self._assume_table is not None and not (self._assume_table[code] | ~active).all():
+            return False
+        bits, n_classes = self._atom_bits, len(self._classes)
+        for j in range(n_samples):
+            a = active[j]
+            if a.any():
+                only = None if a.all() else np.repeat(a, repeat)
+                loc = self._loc
+                idx = (loc << bits) | np.repeat(code[j], repeat)
+                nxt = self._next_table[idx]
+                gain = self._rate_table[:, loc]  # accrual, then the edges' updates, as step_batch
+                self._R += gain if only is None else gain * only
+                if n_classes > 1:
+                    cls = self._class_table[idx]
+                    spread: dict[str, np.ndarray] | None = None
+                    for c in range(1, n_classes):
+                        fired = cls == c if only is None else (cls == c) & only
+                        if fired.any():
+                            if spread is None:
+                                spread = {name: np.repeat(values.reshape(n_samples, rows)[j], repeat)
+                                          for name, values in x.items()}
+                            self._apply(self._classes[c], fired, spread)
+                self._loc = nxt if only is None else np.where(only, nxt, loc)
+                self._samples += 1 if only is None else only
+                objective = self._objective_now()
+                reward = objective - self._obj
+                if only is not None:
+                    reward = np.where(only, reward, 0.0)
+                    objective = np.where(only, objective, self._obj)
+                self._obj = objective
+                total += reward
+            if ending[j].any():
+                total += self.end_batch(_spread_inputs(samples[j][0], repeat), mask=np.repeat(ending[j], repeat))
+        return True
 
     def end_batch(self, inputs: Mapping[str, object],
                   mask: np.ndarray | Sequence[bool] | None = None, *, clip: bool = False) -> np.ndarray:
