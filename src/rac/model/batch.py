@@ -91,6 +91,11 @@ class BatchModel:
             ow = data.obs_width[i] / self.native.scale_d
             radii += [math.sqrt((ol / 6.0) * (ol / 6.0) + (ow / 2.0) * (ow / 2.0))] * 3
         self._radii = np.asarray(radii, dtype=np.float64)
+        hl = self.native.length_d / 2.0
+        hw = self.native.width_d / 2.0
+        #: (4, 1) each: the corners' ``ca * hl`` and ``cb * hw`` (:meth:`_offroad`, every corner at once)
+        self._corners = (np.array([ca * hl for ca, _ in CORNERS])[:, None],
+                         np.array([cb * hw for _, cb in CORNERS])[:, None])
 
     def _ego(self, states: np.ndarray) -> np.ndarray:
         states = np.asarray(states)
@@ -410,10 +415,12 @@ class BatchModel:
         with samples ``k``, not before ``offroad_from``)."""
         states = self._ego(states)
         start = self.data.offroad_from
-        if k is None or start == 0:
+        if k is None or start == 0 or (np.ndim(k) == 0 and int(k) >= start):
             return self._blockwise(self._offroad, states)
         checked = self._samples(k, states.shape[0]) >= start
         out = np.zeros(states.shape[0], dtype=bool)
+        if checked.all():  # no copy of the rows
+            return self._blockwise(self._offroad, states)
         if checked.any():
             out[checked] = self._blockwise(self._offroad, states[checked])
         return out
@@ -424,13 +431,10 @@ class BatchModel:
         ex = states[:, 0] / scale
         ey = states[:, 1] / scale
         c, s = self.cos_sin(states[:, 4])
-        hl = native.length_d / 2.0
-        hw = native.width_d / 2.0
-        along = np.array([ca * hl for ca, _ in CORNERS])[:, None]  # (4, 1): every corner at once
-        across = np.array([cb * hw for _, cb in CORNERS])[:, None]
+        along, across = self._corners
         px = ex + along * c - across * s
         py = ey + along * s + across * c
-        return ~np.all(self._road.inside(px, py), axis=0)
+        return ~np.logical_and.reduce(self._road.inside(px, py), axis=0)
 
     def goal(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         """:meth:`NativeModel.goal` per row: in the goal interval and the centre in a goal polygon."""
@@ -439,8 +443,12 @@ class BatchModel:
     def _goal_block(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         data = self.data
         native = self.native
-        samples = self._samples(k, states.shape[0])
         scale = native.scale_d
+        if np.ndim(k) == 0:  # one sample for all rows: no array of samples
+            if not data.goal_low <= int(k) <= data.goal_high:
+                return np.zeros(states.shape[0], dtype=bool)
+            return self._goal.inside(states[:, 0] / scale, states[:, 1] / scale)
+        samples = self._samples(k, states.shape[0])
         due = (samples >= data.goal_low) & (samples <= data.goal_high)
         if not due.any():  # outside the goal's time interval nothing is tested
             return due

@@ -1,15 +1,24 @@
 """Points in polygons for arrays of points: the crossing test of
 :func:`rac.model.native.point_in_polygons`, vectorised (:class:`Polygons`; used by
-:class:`rac.model.batch.BatchModel` for ``offroad`` and ``goal``), with the same answers."""
+:class:`rac.model.batch.BatchModel` for ``offroad`` and ``goal``), with the same answers; most
+points get theirs from a grid of cells wholly inside or outside the polygons."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["BOX_CELLS", "Polygons"]
+__all__ = ["BOX_CELLS", "GRID_CELLS", "GRID_SIZE", "Polygons"]
 
 #: :class:`Polygons` matches up to this many (point, polygon) pairs with the polygons' boxes at once.
 BOX_CELLS = 1 << 15
+#: :class:`Polygons` answers from a grid of at most about this many cells (one byte each) ...
+GRID_CELLS = 1 << 22
+#: ... and no smaller than this (a 16th of a metre in the model: finer cells cost more to build than they save).
+GRID_SIZE = 2.0 ** -4
+#: A grid cell's state: no point in it is inside a polygon / every point is / test each point.
+OUTSIDE, INSIDE, EXACT = 0, 1, 2
 
 
 class Polygons:
@@ -27,9 +36,19 @@ class Polygons:
     a point's band in a polygon is found for all (point, polygon) pairs at once, on integers: with
     ``U`` every polygon's distinct bounds and ``r`` the number of them at or below the point's y,
     the bounds of polygon ``q`` at or below it are those with a rank in ``U`` below ``r``, counted
-    by one ``np.searchsorted`` in the sorted keys ``q * (len(U) + 1) + rank``."""
+    by one ``np.searchsorted`` in the sorted keys ``q * (len(U) + 1) + rank``.
+
+    :meth:`inside` first looks each point up in a grid of square cells over the polygons' boxes
+    (:meth:`_build_grid`): a cell far from a polygon's edges is wholly inside or wholly outside
+    it, so most points get their answer from one lookup; only the points in cells near an edge
+    (and beyond the grid) run the crossing test (:meth:`exact`)."""
 
     def __init__(self, xs: list[float], ys: list[float], start: tuple[int, ...]) -> None:
+        self._prepare(xs, ys, start)
+        self._build_grid(xs, ys, start)
+
+    def _prepare(self, xs: list[float], ys: list[float], start: tuple[int, ...]) -> None:
+        """The boxes, bands and tables of :meth:`exact`."""
         boxes: list[tuple[float, float, float, float]] = []
         polygon_bounds: list[np.ndarray] = []
         tables: list[tuple[np.ndarray, ...]] = []
@@ -74,10 +93,102 @@ class Polygons:
         #: (slot, band) over every polygon's bands: xj - xi, yi, yj - yi, xi, and whether the slot holds an edge
         self.table = [np.ascontiguousarray(np.concatenate([np.pad(table[i], ((0, 0), (0, slots - table[i].shape[1])))
                                                            for table in tables]).T)
-                      if tables else np.zeros((slots, 0)) for i in range(5)]
+                      if tables else np.zeros((slots, 0), dtype=bool if i == 4 else np.float64) for i in range(5)]
+
+    def _build_grid(self, xs: list[float], ys: list[float], start: tuple[int, ...]) -> None:
+        """The cell grid of :meth:`inside`: ``cells[row, column]`` is OUTSIDE, INSIDE or EXACT for
+        the points ``x0 + column * size <= x < x0 + (column + 1) * size`` (rows likewise in y).
+
+        Why a cell's answer is exact: at a distance ``d`` from every edge of a polygon the crossing
+        test on doubles gives the true answer (the edge's x at the point's y is off by a few ulps of
+        the coordinates, far less than ``d``), and the true answer is the same all over a convex
+        region touching none of its edges. So a cell whose box, grown by ``margin`` (far more than
+        rounding, also that of finding a point's cell), meets no box of the polygon's edges is
+        wholly inside or outside it, as its centre is. INSIDE: wholly inside some polygon;
+        OUTSIDE: wholly outside every polygon; otherwise EXACT. The grid has a ring of cells beyond
+        the polygons and their margin; a point beyond the grid (or NaN) looks up a cell of that ring,
+        and is outside every polygon, far from its edges (or NaN: no comparison holds), as the ring's
+        cells are (OUTSIDE, or EXACT if rounding put an edge's margin in one)."""
+        polygons = [(np.asarray(xs[start[p]:start[p + 1]], dtype=np.float64),
+                     np.asarray(ys[start[p]:start[p + 1]], dtype=np.float64))
+                    for p in range(len(start) - 1) if start[p + 1] > start[p]]
+        finite = bool(polygons) and all(np.isfinite(pxs).all() and np.isfinite(pys).all() for pxs, pys in polygons)
+        if not finite:  # no grid: a single EXACT cell
+            self.grid_origin, self.grid_scale, self.cells = (0.0, 0.0), 0.0, np.full((1, 1), EXACT, dtype=np.int8)
+            return
+        low_x = min(float(pxs.min()) for pxs, _ in polygons)
+        high_x = max(float(pxs.max()) for pxs, _ in polygons)
+        low_y = min(float(pys.min()) for _, pys in polygons)
+        high_y = max(float(pys.max()) for _, pys in polygons)
+        reach = max(abs(low_x), abs(high_x), abs(low_y), abs(high_y))
+        margin = 1e-6 * (1.0 + reach)
+        # a power of two (a point's cell is then one rounding away): at most GRID_CELLS cells, at least GRID_SIZE
+        span = max(high_x - low_x, high_y - low_y, margin)
+        size = 2.0 ** math.ceil(math.log2(max(span / math.sqrt(GRID_CELLS), GRID_SIZE)))
+        # one more ring of cells beyond the polygons' boxes (and their margin) on every side
+        x0 = low_x - margin - size
+        y0 = low_y - margin - size
+        columns = int((high_x + margin - x0) / size) + 2
+        rows = int((high_y + margin - y0) / size) + 2
+        inside = np.zeros((rows, columns), dtype=bool)  # wholly inside some polygon
+        outside = np.ones((rows, columns), dtype=bool)  # wholly outside every polygon so far
+
+        def cell_range(low: float, high: float, origin: float, count: int) -> tuple[int, int]:
+            """The cells ``[first, end)`` that ``[low, high]`` grown by the margin meets (a rounding of
+            ``first`` or ``end`` by one cell leaves a point at least nearly the margin away)."""
+            return (max(0, int((low - margin - origin) / size)),
+                    min(count, int((high + margin - origin) / size) + 1))
+
+        for pxs, pys in polygons:
+            # beyond the cells of the polygon's box no cell is near it or inside it
+            c0, c1 = cell_range(float(pxs.min()), float(pxs.max()), x0, columns)
+            r0, r1 = cell_range(float(pys.min()), float(pys.max()), y0, rows)
+            near = np.zeros((r1 - r0, c1 - c0), dtype=bool)  # the cells near one of the polygon's edges
+            for xi, yi, xj, yj in zip(pxs.tolist(), pys.tolist(), np.roll(pxs, 1).tolist(), np.roll(pys, 1).tolist()):
+                e0, e1 = cell_range(min(xi, xj), max(xi, xj), x0, columns)
+                f0, f1 = cell_range(min(yi, yj), max(yi, yj), y0, rows)
+                near[f0 - r0:f1 - r0, e0 - c0:e1 - c0] = True
+            one = Polygons.__new__(Polygons)
+            one._prepare(pxs.tolist(), pys.tolist(), (0, pxs.size))
+            free_rows, free_columns = np.nonzero(~near)
+            hit = one.exact(x0 + (free_columns + c0 + 0.5) * size, y0 + (free_rows + r0 + 0.5) * size)  # centres
+            inside[free_rows[hit] + r0, free_columns[hit] + c0] = True
+            outside[r0:r1, c0:c1] &= ~near
+            outside[free_rows[hit] + r0, free_columns[hit] + c0] = False
+        cells = np.full((rows, columns), EXACT, dtype=np.int8)
+        cells[outside] = OUTSIDE
+        cells[inside] = INSIDE
+        self.grid_origin = (x0, y0)
+        self.grid_scale = 1.0 / size
+        self.cells = cells
 
     def inside(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
-        """Whether each point lies inside one of the polygons (bool array like ``px``).
+        """Whether each point lies inside one of the polygons (bool array like ``px``): the grid's
+        answer where it has one (:meth:`_build_grid`), else :meth:`exact`'s."""
+        px = np.asarray(px, dtype=np.float64)
+        py = np.asarray(py, dtype=np.float64)
+        cells = self.cells
+        rows, columns = cells.shape
+        x0, y0 = self.grid_origin
+        scale = self.grid_scale
+        # the cell's column and row, clipped into the grid (NaN to 0: fmax skips it) before the cast
+        column = (px - x0) * scale
+        np.fmin(np.fmax(column, 0.0, out=column), columns - 1, out=column)
+        row = (py - y0) * scale
+        np.fmin(np.fmax(row, 0.0, out=row), rows - 1, out=row)
+        row = row.astype(np.int64)
+        row *= columns
+        row += column.astype(np.int64)
+        state = cells.reshape(-1)[row]
+        found = state == INSIDE
+        test = state == EXACT
+        if test.any():
+            found[test] = self.exact(px[test], py[test])
+        return found
+
+    def exact(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        """Whether each point lies inside one of the polygons (bool array like ``px``), by the
+        crossing test itself.
 
         Few points are matched with every polygon's box at once (one array operation per step for
         all (point, polygon) pairs); many points go polygon by polygon, each testing only the points
