@@ -30,6 +30,11 @@ simulated episodes: the observation is the discrete list then the continuous lis
   state where nothing was tried yet continues at random rather than always with action 0).
   epsilon decays linearly per episode from ``epsilon[0]`` at the first episode to ``epsilon[1]``
   at the last of the budget (a float keeps it constant).
+- **The best run replayed** (``replay_best``). After each batch the best learning episode seen so
+  far (reaching the goal safely first, then the return) is replayed backwards once more: where
+  the continuous observations are binned, a later, worse run through the same key overwrites a
+  value (``alpha=1``), and the greedy strategy stops following the best run; the replay restores
+  its values every batch (as self-imitation learning keeps good episodes).
 - **Stopping rule.** After every batch the greedy strategy is evaluated by one run (the model is
   deterministic, so a deterministic strategy has exactly one run). That run is one more episode
   of the next batch, which chooses greedily from a copy of the table as it was, draws no random
@@ -246,7 +251,8 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
              replay: int = 1, labels: Sequence[str] | None = None,
              evaluate_in_batch: bool = True, counterfactuals: bool = False,
              growth: float | None = None, optimism: float = 0.0, pessimistic: bool = False,
-             random_ties: bool = False, max_bytes: int | None = None) -> Steps[LearningResult]:
+             random_ties: bool = False, max_bytes: int | None = None,
+             replay_best: bool = False) -> Steps[LearningResult]:
     """Learn a strategy by tabular Q-learning on ``batch`` (see the module docstring for the
     observation, the algorithm and the stopping rule): ``learn(batch, ...)`` learns on ``batch``
     alone; ``learning(batch, ...)`` is the same as a generator of steps (:mod:`rac.learning.runs`),
@@ -263,9 +269,10 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     ``alpha=1`` on a deterministic model whose observation is its decision state every tried entry
     holds the best return seen after it and the greedy strategy is the best run seen);
     ``random_ties``: learning episodes break greedy ties at random (the greedy strategy keeps the
-    lowest index); ``max_bytes``: the memory budget (None: none): :class:`rac.engine.budget.EstimateExceeded`
-    before anything is learned when :func:`rac.engine.budget.learning_bytes` estimates more. The same
-    ``seed`` gives the same result."""
+    lowest index); ``replay_best``: after each batch, the best learning episode seen so far (a safe goal
+    first, then the return) is replayed backwards too; ``max_bytes``: the memory budget (None:
+    none): :class:`rac.engine.budget.EstimateExceeded` before anything is learned when
+    :func:`rac.engine.budget.learning_bytes` estimates more. The same ``seed`` gives the same result."""
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
     for name, value in (("episodes", episodes), ("parallel", parallel), ("stop_after", stop_after)):
@@ -294,7 +301,8 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
         raise ValueError("optimism and pessimistic exclude each other: untried entries have one value")
     table = QTable(len(exprs), batch.n_actions, UNTRIED if pessimistic else optimism)
     learner = Learner(table, exprs, n_discrete, widths, shield, np.random.default_rng(seed), sign, alpha, gamma, replay,
-                      location_column(discrete_exprs, continuous_exprs) if counterfactuals else None, random_ties)
+                      location_column(discrete_exprs, continuous_exprs) if counterfactuals else None, random_ties,
+                      replay_best=replay_best)
     schedule = _epsilon_schedule(epsilon, episodes)
     pairs = getattr(batch, "action_pairs", None)
 

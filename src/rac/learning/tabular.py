@@ -2,20 +2,20 @@
 
 :class:`QTable` maps observation keys to rows of Q-values (in the maximised sense). :class:`Learner`
 steps one batch of ``parallel`` learning episodes (epsilon-greedy choices, Watkins' updates after
-each step, the backward replay at the end) and, next to them in the same batch, the greedy episode
-that evaluates the table as it was before the batch (issue 11): that episode chooses from a
-:class:`Frozen` copy of the table, is not learned from and draws no random numbers, so it is the
-run a separate greedy episode would have had — every episode of a batch is stepped row by row —
-while the batch's cost per sample is shared. Its run is recorded as :func:`rac.learning.strategy.rollout`
-records one (:class:`rac.learning.runs.RunRecorder`). A batch is a generator of steps
-(:mod:`rac.learning.runs`): it requests its episodes and each step, so that it can share a batch
-with others (:mod:`rac.learning.lockstep`).
+each step, the backward replay at the end, then the best episode seen replayed) and, next to them
+in the same batch, the greedy episode that evaluates the table as it was before the batch (issue
+11): that episode chooses from a :class:`Frozen` copy of the table, is not learned from and draws
+no random numbers, so it is the run a separate greedy episode would have had — every episode of a
+batch is stepped row by row — while the batch's cost per sample is shared. Its run is recorded as
+:func:`rac.learning.strategy.rollout` records one (:class:`rac.learning.runs.RunRecorder`). A batch
+is a generator of steps (:mod:`rac.learning.runs`): it requests its episodes and each step, so that
+it can share a batch with others (:mod:`rac.learning.lockstep`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -172,6 +172,12 @@ class Learner:
     #: state where no allowed action was tried continues with a uniformly random one; False: the
     #: lowest index, as the greedy strategy (deterministic either way).
     random_ties: bool = False
+    #: After every batch, the best learning episode seen so far (a safe goal first, then the
+    #: return) is replayed backwards too, so the greedy strategy keeps following it where later
+    #: episodes through the same (binned) observation keys overwrote its values.
+    replay_best: bool = False
+    #: The best learning episode seen: its (safe goal, return in the maximised sense) and transitions.
+    best: tuple[tuple[bool, float], list[Transition]] | None = field(default=None, repr=False)
 
     @property
     def untried(self) -> float | None:
@@ -216,6 +222,19 @@ class Learner:
         masked = np.where(masks, utilities, -np.inf)
         return uniform_allowed(self.rng, masks & (masked == masked.max(axis=1, keepdims=True)))
 
+    def _replay_best(self, own: Sequence[Transition], returns: np.ndarray, good: np.ndarray) -> None:
+        """Keep the best of the batch's episodes if it beats the best seen, then replay that one backwards."""
+        for i in range(returns.size):
+            score = (bool(good[i]), float(returns[i]))
+            if self.best is None or score > self.best[0]:
+                path = [Transition(np.array([0]), step.rows[i:i + 1], step.actions[i:i + 1], step.reward[i:i + 1],
+                                   step.next_rows[i:i + 1], step.next_masks[i:i + 1], step.ends[i:i + 1])
+                        for step in own if i in step.active]
+                self.best = (score, path)
+        if self.best is not None:
+            for step in reversed(self.best[1]):
+                update(self.table.values, step, self.alpha, self.gamma, self.untried)
+
     def greedy_run(self) -> Steps[StrategyRun]:
         """The greedy strategy of the table now, by its one run alone (a batch of one episode)."""
         table = self.table
@@ -241,6 +260,7 @@ class Learner:
         returns = np.zeros(n)
         reached, collided, offroad, stranded = (np.zeros(n, dtype=bool) for _ in range(4))
         steps: list[Transition] = []  # this batch's transitions, for the backward replay
+        own: list[Transition] = []  # the learning episodes' own (not the counterfactual ones)
         recording = recorder is not None
         for _ in range(batch.max_steps):
             active = ~np.asarray(batch.done, dtype=bool)
@@ -273,6 +293,7 @@ class Learner:
                                   next_masks[:n], ends)
                 update(table.values, step, self.alpha, self.gamma, self.untried)
                 steps.append(step)
+                own.append(step)
                 if self.location_column is not None:
                     counterfactual = self.counterfactual(batch, step, keys, next_keys)
                     update(table.values, counterfactual, self.alpha, self.gamma, self.untried)
@@ -294,6 +315,8 @@ class Learner:
         for _ in range(self.replay):
             for step in reversed(steps):
                 update(table.values, step, self.alpha, self.gamma, self.untried)
+        if self.replay_best:
+            self._replay_best(own, self.sign * returns, reached & ~collided & ~offroad & ~stranded)
         if self.untried is not None and (self.sign * returns <= UNTRIED / 10).any():
             raise ValueError(f"a return of {returns.min():g} is too large for the pessimistic initial value "
                              f"{UNTRIED:g}")
