@@ -11,7 +11,7 @@ process of its own (``benchmarks/children.py``) so that its peak memory is its o
 Per scene the table gives the file's size, the lanelets and obstacles, the time of the check, its
 peak memory beyond what the process held before (``ru_maxrss`` after against the resident size
 before: the automaton checked, rac, numpy and commonroad-io imported), the ratio of that peak to
-the file's size, and rac's estimate (:func:`rac.model.checks.estimate_load`), which must be at
+the file's size, and rac's estimate (:func:`rac.core.resources.estimate_load`), which must be at
 least the peak. The notes give the
 fitted factors: the largest peak per file byte (what ``LOAD_BYTES_PER_FILE_BYTE`` must hold), the
 slowest rate in bytes per second (``LOAD_BYTES_PER_SECOND``), and the time per lanelet at the
@@ -118,7 +118,7 @@ def run_case(folder: Path, lanelets: int, obstacles: int, steps: int) -> dict[st
 
 def row(lanelets: int, obstacles: int, measured: dict[str, Any]) -> list[str]:
     """One line of the table."""
-    from rac.model.checks import estimate_load
+    from rac.core.resources import estimate_load
 
     size = measured["file"]
     if "error" in measured:
@@ -131,7 +131,7 @@ def row(lanelets: int, obstacles: int, measured: dict[str, Any]) -> list[str]:
 
 def notes(results: list[tuple[int, int, dict[str, Any]]]) -> list[str]:
     """The fitted factors, and whether rac's constants hold them."""
-    from rac.model.checks import LOAD_BASE_BYTES, LOAD_BYTES_PER_FILE_BYTE, LOAD_BYTES_PER_SECOND
+    from rac.core.resources import LOAD_BASE_BYTES, LOAD_BYTES_PER_FILE_BYTE, LOAD_BYTES_PER_SECOND
 
     good = [(n, m, r) for n, m, r in results if "error" not in r and not r["errors"]]
     if not good:

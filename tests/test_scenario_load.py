@@ -23,6 +23,7 @@ from conftest import rac_env
 
 from rac.cli.main import main
 from rac.compiler import compile_file
+from rac.core import resources
 from rac.core.numbers import format_bytes
 from rac.model import checks, commonroad
 from rac.model.scenes import grid_bytes
@@ -99,14 +100,14 @@ def test_a_scenario_over_the_budget_is_refused_before_it_loads(tmp_path: Path,
                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     model = grid_model(tmp_path, 40)
     size = (tmp_path / "grid.xml").stat().st_size
-    estimate = checks.estimate_load(size)
-    assert estimate.peak_bytes >= checks.LOAD_BASE_BYTES + checks.LOAD_BYTES_PER_FILE_BYTE * size
+    estimate = resources.estimate_load(size)
+    assert estimate.peak_bytes >= resources.LOAD_BASE_BYTES + resources.LOAD_BYTES_PER_FILE_BYTE * size
 
     def never(*args: object, **kwargs: object) -> None:
         raise AssertionError("the scenario was read")
 
     monkeypatch.setattr(commonroad, "load_scenario", never)
-    with pytest.raises(checks.ScenarioTooLarge) as refused:
+    with pytest.raises(resources.ScenarioTooLarge) as refused:
         compile_file(model, max_bytes=2**20)
     assert isinstance(refused.value, MemoryError)
     assert refused.value.estimate == estimate and refused.value.limit == 2**20
@@ -118,7 +119,7 @@ def test_a_scenario_over_the_budget_is_refused_before_it_loads(tmp_path: Path,
 def test_within_the_budget_it_loads(tmp_path: Path) -> None:
     model = grid_model(tmp_path, 40, obstacles=2)
     size = (tmp_path / "grid.xml").stat().st_size
-    result = compile_file(model, max_bytes=checks.estimate_load(size).peak_bytes)
+    result = compile_file(model, max_bytes=resources.estimate_load(size).peak_bytes)
     assert result.ok and result.scenario is not None and len(result.scenario.road) == 40
     assert compile_file(model).ok  # no budget: no limit
 
@@ -127,7 +128,7 @@ def test_within_the_budget_it_loads(tmp_path: Path) -> None:
 def test_the_cli_refuses_it_as_a_resource_error(command: list[str], tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
     model = grid_model(tmp_path, 40)
-    estimate = checks.estimate_load((tmp_path / "grid.xml").stat().st_size)
+    estimate = resources.estimate_load((tmp_path / "grid.xml").stat().st_size)
     assert main([*command, str(model), "--max-memory", "1M"]) == 2
     err = capsys.readouterr().err
     assert "--max-memory" in err and format_bytes(estimate.peak_bytes) in err and "grid.xml" in err

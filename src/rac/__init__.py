@@ -11,13 +11,13 @@ that its priority order holds, and train with it::
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-from rac.compiler import CompileResult, compile_file, compile_text
-from rac.core.diagnostics import CheckError, Diagnostic
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from rac.compiler import CompileResult, compile_file, compile_text
+    from rac.core.diagnostics import CheckError, Diagnostic
     from rac.runtime.interpreter import RewardAutomaton
 
 __version__ = "0.1.0"
@@ -29,6 +29,7 @@ def load(path: str | Path) -> RewardAutomaton:
 
     Raises :class:`CheckError` (with every diagnostic) if the file has errors.
     """
+    from rac.compiler import compile_file
     from rac.runtime.interpreter import RewardAutomaton
 
     return RewardAutomaton(compile_file(path).raise_for_errors())
@@ -36,6 +37,26 @@ def load(path: str | Path) -> RewardAutomaton:
 
 def loads(text: str, name: str = "<string>") -> RewardAutomaton:
     """Like :func:`load`, for source text."""
+    from rac.compiler import compile_text
     from rac.runtime.interpreter import RewardAutomaton
 
     return RewardAutomaton(compile_text(text, name).raise_for_errors())
+
+
+#: The public names defined elsewhere, imported on first use (PEP 562): ``import rac`` and ``rac
+#: --version`` then load neither the checker nor numpy.
+_LAZY = {"CheckError": "rac.core.diagnostics", "Diagnostic": "rac.core.diagnostics", "CompileResult": "rac.compiler",
+         "compile_file": "rac.compiler", "compile_text": "rac.compiler"}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rac' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})

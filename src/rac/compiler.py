@@ -58,7 +58,7 @@ def compile_source(source: SourceFile, *, analyse: bool = True, progress: Callab
     """Parse, resolve and (unless ``analyse=False``) run every static check on one source;
     ``progress`` hears of a scenario whose load takes a while (:func:`rac.model.checks.check_scenario`).
     ``max_bytes`` is the memory budget of loading the scenario (None: no limit): a scenario estimated
-    to need more is refused before it loads (:class:`rac.model.checks.ScenarioTooLarge`, a
+    to need more is refused before it loads (:class:`rac.core.resources.ScenarioTooLarge`, a
     ``MemoryError``)."""
     sources = {source.name: source}
     try:

@@ -19,14 +19,12 @@ import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import Diagnostic, error
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
-from rac.output.progress import Heartbeat, notice
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
            "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "load_budget", "locked", "output_folder",
-           "overwrites_source", "read_and_check", "same_file", "size_argument", "stdout_unwritable",
+           "overwrites_source", "same_file", "size_argument", "stdout_unwritable",
            "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
@@ -43,19 +41,6 @@ def unreadable(path: Path, exc: OSError) -> Diagnostic:
         reason = "it is a directory"
     return error("E0008", f"cannot read `{path}`: {reason}", None,
                  hints=["pass the path of a .ra file"])
-
-
-def read_and_check(path: Path, max_bytes: int | None = None) -> tuple[CompileResult | None, Diagnostic | None]:
-    """``rac check`` of one file, or the E0008 diagnostic when it cannot be read at all. ``max_bytes``:
-    the memory budget of the scenario's load (``--max-memory``; None: no limit); a scenario estimated
-    to need more raises :class:`rac.model.checks.ScenarioTooLarge` before it loads."""
-    try:
-        return compile_file(path, progress=notice(), max_bytes=max_bytes), None
-    except OSError as exc:
-        return None, unreadable(path, exc)
-    finally:  # the load's phases are over: the command names its next
-        if Heartbeat.active is not None:
-            Heartbeat.active.phase("")
 
 
 def same_file(output: Path, source: Path) -> bool:

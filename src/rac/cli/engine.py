@@ -21,12 +21,9 @@ from rac.cli.common import (
     EXIT_OK,
     EXIT_UNDECIDED,
     EXIT_USAGE,
-    OUTPUT_CONVENTION,
-    OUTPUT_SUFFIX,
     output_folder,
-    read_and_check,
-    size_argument,
 )
+from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_text as render_diagnostics
 
@@ -36,119 +33,6 @@ if TYPE_CHECKING:
 #: A sub-command: its parsed arguments -> the exit code.
 Command = Callable[[argparse.Namespace], int]
 T = TypeVar("T")
-
-
-def _argument(convert: Callable[[str], T], kind: str, accepts: Callable[[T], bool], need: str) -> Callable[[str], T]:
-    """An argparse ``type``: ``convert(text)``, refused with "not KIND" when it cannot convert and
-    with ``need`` when the value is not ``accepts``-ed."""
-
-    def parse(text: str) -> T:
-        try:
-            value = convert(text)
-        except (ValueError, ZeroDivisionError):  # Fraction("1/0") divides by zero
-            raise argparse.ArgumentTypeError(f"not {kind}: {text!r}") from None
-        if not accepts(value):
-            raise argparse.ArgumentTypeError(f"{need}: {text!r}")
-        return value
-
-    return parse
-
-
-_fraction = _argument(Fraction, "a number", lambda value: value > 0, "must be positive")
-_positive_int = _argument(int, "a whole number", lambda value: value >= 1, "must be at least 1")
-_probability = _argument(float, "a number", lambda value: 0 < value < 1, "must lie strictly between 0 and 1")
-
-
-def _common(parser: argparse.ArgumentParser, outputs: str) -> None:
-    """The options every engine command has; ``outputs`` says what goes into its output folder."""
-    parser.add_argument("file", type=Path, metavar="FILE", help="a .ra file with a `model` block")
-    parser.add_argument("-o", "--out", type=Path, metavar="DIR",
-                        help=f"where {outputs} go (default: FILE{OUTPUT_SUFFIX}/{parser.prog.split()[-1]}/ "
-                             "beside the file)")
-    parser.add_argument("--horizon", type=_fraction, metavar="SECONDS",
-                        help="horizon of exhaustive exploration (default: the automaton's `horizon`)")
-    parser.add_argument("--seed", type=int, help="seed of the simulations (default: fresh, printed)")
-    parser.add_argument("--max-states", type=_positive_int, default=5_000_000, metavar="N",
-                        help="give up (verdict unknown) beyond this many states (default 5,000,000)")
-    parser.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
-                        help="give up (verdict unknown) before deciding would need more memory than this, "
-                             "e.g. 4G (default: half the machine's memory)")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
-
-
-def add_parsers(commands: argparse._SubParsersAction) -> None:
-    """Add ``verify``, ``simulate``, ``render`` and ``preanalyse`` to ``rac``'s sub-commands."""
-    verify = commands.add_parser("verify", help="answer the file's queries with the native engine (Storm)",
-                                 epilog=OUTPUT_CONVENTION)
-    _common(verify, "strategies, CSV files and plots (--standard's in standard/)")
-    verify.add_argument("--query", action="append", metavar="NAME", help="only this query (repeatable)")
-    verify.add_argument("--standard", action="store_true",
-                        help="also answer the paper's pre-analysis queries Qa-Qd and the Fig. 7 simulations")
-    verify.add_argument("--epsilon", type=_probability, default=0.05,
-                        help="half-width of probability intervals (UPPAAL's -E, default 0.05)")
-    verify.add_argument("--confidence", type=_probability, default=0.95, help="confidence of intervals (0.95)")
-    verify.add_argument("--no-plots", action="store_true", help="no PNG plots for simulate queries")
-    verify.add_argument("--trace", action="store_true", help="print whole traces")
-    verify.add_argument("--learn-episodes", type=_positive_int, default=1000, metavar="N",
-                        help="episode budget of learning queries (maxE/minE; default 1000)")
-    verify.add_argument("--exact", action="store_true",
-                        help="learning queries: emit the exact optimal strategy under the shield instead of "
-                             "learning one (a backward pass over the shielded decision graph)")
-    verify.add_argument("--format", choices=("text", "json"), default="text", help="output format")
-
-    simulate = commands.add_parser("simulate", help="simulate runs; write CSV and the paper's Fig. 7 plot",
-                                   epilog=OUTPUT_CONVENTION)
-    _common(simulate, "runs.csv and runs.png")
-    simulate.add_argument("--runs", type=_positive_int, default=100, help="number of runs (default 100)")
-    simulate.add_argument("--expr", action="append", metavar="EXPR",
-                          help="what to record per sample (default: mindist() and 3 * collision_distance)")
-    simulate.add_argument("--shield", action="store_true",
-                          help="choose actions under the safety shield (computed first, like Qd)")
-
-    render = commands.add_parser("render", help="draw the scenario with a simulated trajectory (PNG, GIF)",
-                                 epilog=OUTPUT_CONVENTION)
-    _common(render, "run.png (and run.gif)")
-    how = render.add_mutually_exclusive_group()
-    how.add_argument("--shield", action="store_true", help="drive under the safety shield (random allowed actions)")
-    how.add_argument("--strategy", metavar="NAME",
-                     help="drive the file's learned strategy NAME (learned first, like rac verify does)")
-    render.add_argument("--gif", action="store_true", help="also write an animated GIF, run.gif")
-
-    pre = commands.add_parser("preanalyse", help="sweep number representation and periods: Qa-Qd per setting",
-                              epilog=OUTPUT_CONVENTION)
-    _common(pre, "the plots")
-    pre.add_argument("--exponent", default=None, metavar="LIST", help="exponents, e.g. 1,2,4")
-    pre.add_argument("--sense", default=None, metavar="LIST", help="sensing periods C1 in seconds, e.g. 0.1,0.2")
-    pre.add_argument("--decide", default=None, metavar="LIST", help="decision periods C2 in seconds, e.g. 0.2,0.4")
-    pre.add_argument("--runs", type=_positive_int, default=100, help="simulated runs per setting (default 100)")
-    pre.add_argument("--threshold-factor", type=_positive_int, default=1, metavar="K",
-                     help="a run is unsafe when its true distance drops below K * collision_distance (default 1)")
-    pre.add_argument("--format", choices=("text", "json"), default="text", help="output format")
-
-    exp = commands.add_parser("experiment", help="the paper's Table 2: learning with/without shield, automaton "
-                                                 "or reward function, over seeds", epilog=OUTPUT_CONVENTION)
-    _common(exp, "the table, JSON and plots")
-    exp.add_argument("--seeds", metavar="LIST", help="seeds, e.g. 1,2,3 (default 1..5; --seed N is --seeds N)")
-    exp.add_argument("--episodes", type=_positive_int, default=500, help="episode budget per run (default 500)")
-    exp.add_argument("--runs", type=_positive_int, default=100, help="evaluation runs per strategy (default 100)")
-    exp.add_argument("--reward-function", metavar="EXPR",
-                     help="per-sample reward of the RF combinations (default: the paper's Eq. 9)")
-    exp.add_argument("--bins", metavar="LIST",
-                     help="widths of the continuous observations, e.g. 4,4,2,0.4 (default: derived from the model's "
-                          "action grid and goal, docs/learning.md)")
-    exp.add_argument("--no-counterfactuals", action="store_true",
-                     help="the RA combinations learn from their own transitions only (default: also from every "
-                          "automaton location's counterfactual)")
-    exp.add_argument("--no-time", action="store_true",
-                     help="observe only the file's discrete list (default: also the decision time, docs/learning.md)")
-    exp.add_argument("--replay", type=int, default=1, metavar="N",
-                     help="backward replays of each batch of episodes (default 1; 0: none)")
-    exp.add_argument("--ablation", action="store_true",
-                     help="also learn SS&RA with other bins, counterfactuals, replay, time and the learner switched "
-                          "(ablation.md)")
-    exp.add_argument("--combination", action="append", choices=("SS&RA", "SS&RF", "RA", "RF"),
-                     help="only this combination (repeatable)")
-    exp.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
 
 def _load(path: Path, max_bytes: int | None) -> tuple[CompileResult | None, int]:
@@ -566,6 +450,3 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     return EXIT_OK
 
 
-HANDLERS: dict[str, Command] = {"experiment": experiment_command, "verify": verify_command,
-                                "simulate": simulate_command, "render": render_command,
-                                "preanalyse": preanalyse_command}

@@ -18,19 +18,9 @@ from rac.core.diagnostics import Diagnostic, error, render_text
 from rac.lang.parser import ParseFailure, parse_text
 from rac.lang.resources import stdlib_file
 
-__all__ = ["DEFAULT_TEMPLATE", "add_parser", "camel_case", "new_command", "renamed", "template_path"]
+__all__ = ["camel_case", "new_command", "renamed", "template_path"]
 
-#: The standard-library file ``rac new`` copies when ``--from`` is not given.
-DEFAULT_TEMPLATE = "driving.ra"
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-
-
-def add_parser(commands: argparse._SubParsersAction) -> None:
-    """Register ``rac new`` on the ``rac`` command's subparsers."""
-    new = commands.add_parser("new", help="start a new .ra file from a standard-library automaton")
-    new.add_argument("name", metavar="NAME", help="the file to write, NAME.ra (may include a folder)")
-    new.add_argument("--from", dest="template", default=DEFAULT_TEMPLATE, metavar="FILE",
-                     help="a .ra file, or a standard-library name such as speed_limit (default: driving.ra)")
 
 
 def camel_case(name: str) -> str | None:

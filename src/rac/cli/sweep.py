@@ -13,7 +13,6 @@ import argparse
 import json
 import sys
 from collections.abc import Mapping, Sequence
-from fractions import Fraction
 from pathlib import Path
 
 from rac.cli.common import (
@@ -21,31 +20,13 @@ from rac.cli.common import (
     EXIT_OK,
     EXIT_UNDECIDED,
     EXIT_USAGE,
-    OUTPUT_CONVENTION,
-    OUTPUT_SUFFIX,
     output_folder,
-    size_argument,
 )
 
-__all__ = ["add_parser", "exit_status", "sweep_command"]
+__all__ = ["exit_status", "sweep_command"]
 
 #: The exit code after Ctrl-C (128 + SIGINT), as the shell reports it.
 EXIT_INTERRUPTED = 130
-
-
-def _checked(check, kind: str):
-    """An argparse ``type`` that keeps the text and refuses it when ``check(text)`` is false or raises."""
-
-    def parse(text: str) -> str:
-        try:
-            ok = check(text)
-        except (ValueError, ZeroDivisionError):
-            ok = False
-        if not ok:
-            raise argparse.ArgumentTypeError(f"not {kind}: {text!r}")
-        return text
-
-    return parse
 
 
 def exit_status(rows: Sequence[Mapping[str, object]]) -> int:
@@ -65,48 +46,6 @@ def exit_status(rows: Sequence[Mapping[str, object]]) -> int:
 
 def _count(n: int, noun: str) -> str:
     return f"{n} {noun}{'s' * (n != 1)}"
-
-
-def add_parser(commands: argparse._SubParsersAction) -> None:
-    """Add ``sweep`` to ``rac``'s sub-commands."""
-    from rac.sweep.task import TASKS
-
-    sweep = commands.add_parser(
-        "sweep", help="run a template over many scenarios and a grid of settings, on Dask",
-        description="Run TASK of the template .ra file (with a `model` block) on every scenario and every point "
-                    "of the --set grid, one Dask task each: on a local cluster started for the sweep, or on the "
-                    "cluster at --scheduler. Rows already stored in the output folder are reused.",
-        epilog=f"{OUTPUT_CONVENTION} The sweep keeps one file per task in tasks/ and merges them into "
-               "results.parquet (results.csv without pyarrow) and results.json. Exit codes: 0 every task ok, "
-               "1 a task failed, 2 bad usage, 4 a task could not run or a verdict is unknown, 130 interrupted.")
-    sweep.add_argument("template", metavar="TEMPLATE.ra", help="a .ra file with a `model` block")
-    sweep.add_argument("scenarios", nargs="+", metavar="SCENARIOS",
-                       help="CommonRoad files, folders (searched for *.xml) or globs")
-    sweep.add_argument("--set", action="append", default=[], dest="sets", metavar="NAME=V1,V2",
-                       help="a model setting's values (repeatable: the grid is every combination)")
-    sweep.add_argument("--task", choices=TASKS, default="verify", help="what each task runs (default verify)")
-    sweep.add_argument("--scheduler", metavar="ADDR",
-                       help="an existing Dask cluster, tcp://HOST:PORT (default: Dask's `scheduler-address` "
-                            "configuration, else a local cluster)")
-    sweep.add_argument("--workers", type=_checked(lambda t: int(t) >= 1, "a whole number of at least 1"),
-                       metavar="N", help="worker processes of the local cluster (default: one per core)")
-    sweep.add_argument("--task-timeout", type=_checked(lambda t: float(t) > 0, "a positive number of seconds"),
-                       metavar="S", help="seconds per task; past them the task is a timeout row")
-    sweep.add_argument("--task-memory", type=size_argument, metavar="SIZE",
-                       help="memory per task, e.g. 2G; past it the task is a memory row")
-    sweep.add_argument("--force", action="store_true", help="run every task again, even those already stored")
-    sweep.add_argument("--retry-failed", action="store_true",
-                       help="run the stored tasks that are not ok again (those whose process was killed always are)")
-    sweep.add_argument("-o", "--out", metavar="DIR",
-                       help=f"the output folder (default: TEMPLATE{OUTPUT_SUFFIX}/sweep/ beside the template)")
-    sweep.add_argument("--horizon", type=_checked(lambda t: Fraction(t) > 0, "a positive number"),
-                       metavar="SECONDS", help="horizon of each task (default: the automaton's)")
-    sweep.add_argument("--seed", type=_checked(lambda t: isinstance(int(t), int), "a whole number"), metavar="N",
-                       help="seed of each task's simulations")
-    sweep.add_argument("--max-states", type=_checked(lambda t: int(t) >= 1, "a whole number of at least 1"),
-                       metavar="N", help="each task gives up (verdict unknown) beyond this many states")
-    sweep.add_argument("-q", "--quiet", action="store_true", help="no progress, no dashboard address")
-    sweep.add_argument("--format", choices=("text", "json"), default="text", help="the summary's format")
 
 
 def sweep_command(args: argparse.Namespace) -> int:

@@ -29,7 +29,6 @@ from rac.cli.common import (
     EXIT_USAGE,
     load_budget,
     locked,
-    size_argument,
     unreadable,
     unwritable,
     write_atomically,
@@ -42,42 +41,8 @@ from rac.lang import ast
 from rac.lang.format import format_module
 from rac.lang.parser import ParseFailure, parse_source, parse_text, read_source
 
-__all__ = ["add_parser", "horizons_argument", "tune_command", "tuned_text"]
+__all__ = ["tune_command", "tuned_text"]
 
-_DECIMAL = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
-
-
-def add_parser(commands: argparse._SubParsersAction) -> None:
-    """Register ``rac tune`` on the ``rac`` command's subparsers."""
-    tune = commands.add_parser(
-        "tune", help="synthesise a file's `param` values and write them back into it as `const` lines",
-        description="Synthesise the values of FILE's `param` declarations (as `rac check` does) and write "
-                    "FILE back with each declaration replaced by `const` lines at those values (atomically, "
-                    "comments kept; the result is checked first). --print or --horizon write nothing.")
-    tune.add_argument("file", type=Path, metavar="FILE")
-    tune.add_argument("--print", dest="show", action="store_true",
-                      help="show the values, their set and the lines that would be written; write nothing")
-    tune.add_argument("--horizon", type=horizons_argument, metavar="H,H,...",
-                      help="synthesise at each horizon (seconds, whole numbers of sample periods) and print a "
-                           "table and the formula in the horizon where it is linear (implies --print)")
-    tune.add_argument("--format", choices=("text", "json"), default="text", help="output format")
-    tune.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
-                      help="as for `rac check` (default: half the machine's memory)")
-
-
-def horizons_argument(text: str) -> tuple[Fraction, ...]:
-    """An argparse ``type`` for ``--horizon 30,60,120``: positive decimal numbers of seconds."""
-    values = []
-    for item in text.split(","):
-        item = item.strip()
-        if not _DECIMAL.fullmatch(item):
-            raise argparse.ArgumentTypeError(f"`{item}` is not a horizon: give positive numbers of seconds, "
-                                             "such as 30,60,120")
-        value = Fraction(item)
-        if value <= 0:
-            raise argparse.ArgumentTypeError(f"the horizon `{item}` must be more than 0 s")
-        values.append(value)
-    return tuple(values)
 
 
 @dataclass(frozen=True)

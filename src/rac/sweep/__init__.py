@@ -80,7 +80,8 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     argument (no scenario matched, a bad ``sets``, an unknown task or option, a template that does not
     parse or has no ``model`` block); ``OSError`` when the template cannot be read."""
     from rac.sweep.grid import grid_points, parse_set, scenario_files
-    from rac.sweep.task import OPTIONS, TASKS, TaskSpec
+    from rac.sweep.kinds import TASKS
+    from rac.sweep.task import OPTIONS, TaskSpec
     from rac.sweep.template import check_template
 
     if task not in TASKS:

@@ -29,13 +29,13 @@ from typing import Any
 
 import rac
 from rac.engine.budget import format_bytes
+from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
 
 __all__ = ["KILLING_SIGNALS", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec", "memory_error",
            "run_task"]
 
 #: What a task runs: the command of the same name on one file.
-TASKS = ("check", "verify", "preanalyse", "experiment")
 #: A row's ``status``: "ok" (no errors; every query decided), "failed" (errors in the file, a query
 #: not satisfied), "error" (rac could not run it), "timeout" and "memory" (the task's limits).
 STATUSES = ("ok", "failed", "error", "timeout", "memory")

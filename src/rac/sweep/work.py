@@ -26,8 +26,9 @@ from typing import TYPE_CHECKING, Any
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import Severity
 from rac.core.numbers import format_bytes
+from rac.core.resources import ScenarioTooLarge
 from rac.engine.budget import BudgetExceeded
-from rac.model.checks import UNUSABLE_SCENARIO, ScenarioTooLarge
+from rac.model.checks import UNUSABLE_SCENARIO
 from rac.sweep.template import instantiate
 
 if TYPE_CHECKING:

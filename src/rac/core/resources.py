@@ -1,0 +1,67 @@
+"""What a stage may refuse to spend before it starts: the memory and time of loading a scenario
+(:func:`estimate_load`) and the refusal, :class:`ScenarioTooLarge`.
+
+Here, in ``core``, and not beside the loader (:mod:`rac.model.checks`, which uses them): the ``rac``
+command catches :class:`ScenarioTooLarge` around every sub-command, and must not load the model (or
+numpy) to do so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rac.core.numbers import format_bytes, size_option
+
+__all__ = ["LOAD_BASE_BYTES", "LOAD_BYTES_PER_FILE_BYTE", "LOAD_BYTES_PER_SECOND", "LOAD_NOTICE_BYTES", "LoadEstimate",
+           "ScenarioTooLarge", "estimate_load"]
+
+#: A scenario file larger than this is announced before it loads (``check_scenario``'s ``progress``):
+#: at :data:`LOAD_BYTES_PER_SECOND` it takes a few seconds or more.
+LOAD_NOTICE_BYTES = 4 * 2**20
+#: How fast a scenario loads and its model's data is built, per byte of the file: the slowest rate
+#: ``benchmarks/scenario_load.py`` measured (docs/benchmarks.md, "Loading a large scenario": 0.38 MB/s
+#: for 500 to 3,000 obstacles, 0.5 MB/s for 2,000 to 10,000 lanelets, on a shared 2-core machine).
+#: For the announced time only.
+LOAD_BYTES_PER_SECOND = 384 * 2**10
+#: The peak memory of loading a scenario and building its model's data, beyond what the process held
+#: before, per byte of the file: an upper estimate over what ``benchmarks/scenario_load.py`` measured
+#: (docs/benchmarks.md, "Loading a large scenario"): lanelets cost about 43 bytes per file byte, 500
+#: obstacles of 40 time steps 64 (549 MB for 8.6 MB), 1,500 of them 30. The file is held three times
+#: over while it loads (its bytes, rac's XML tree, commonroad-io's) besides commonroad-io's objects
+#: and rac's own.
+LOAD_BYTES_PER_FILE_BYTE = 64
+#: What any load costs besides: importing commonroad-io (and shapely, lxml) the first time, the
+#: model's fixed tables.
+LOAD_BASE_BYTES = 128 * 2**20
+
+
+@dataclass(frozen=True)
+class LoadEstimate:
+    """What loading a scenario file of ``file_bytes`` and building its model's data is expected to
+    cost: ``peak_bytes`` of memory at most (:data:`LOAD_BYTES_PER_FILE_BYTE`, :data:`LOAD_BASE_BYTES`)
+    and about ``seconds`` (:data:`LOAD_BYTES_PER_SECOND`)."""
+
+    file_bytes: int
+    peak_bytes: int
+    seconds: float
+
+
+def estimate_load(file_bytes: int) -> LoadEstimate:
+    """The :class:`LoadEstimate` of a scenario file of ``file_bytes`` bytes."""
+    return LoadEstimate(file_bytes, LOAD_BASE_BYTES + LOAD_BYTES_PER_FILE_BYTE * file_bytes,
+                        file_bytes / LOAD_BYTES_PER_SECOND)
+
+
+class ScenarioTooLarge(MemoryError):
+    """A scenario refused before it loads: its :class:`LoadEstimate` ``estimate`` exceeds the memory
+    budget ``limit`` (bytes; ``--max-memory``). A ``MemoryError`` like the engine's budget errors: the
+    file is not at fault, the budget is too small for it; ``rac`` reports it as a resource error."""
+
+    def __init__(self, path: str, estimate: LoadEstimate, limit: int) -> None:
+        self.path, self.estimate, self.limit = path, estimate, limit
+        super().__init__(
+            f"the scenario {path} ({format_bytes(estimate.file_bytes)}) would need about "
+            f"{format_bytes(estimate.peak_bytes)} of memory to load, more than the memory budget of "
+            f"{format_bytes(limit)} (--max-memory); nothing was loaded: give rac more with "
+            f"`--max-memory {size_option(estimate.peak_bytes)}` (on a machine that has it), or use a smaller "
+            "scenario")
