@@ -126,3 +126,23 @@ def test_random_polygons(points: list[tuple[int, int]], dx: float, dy: float) ->
     py = np.concatenate([y[i] + (y[j] - y[i]) * t, rng.uniform(-3, 3, 200), y - dy * 1e-9, np.full(3, dy)])
     px = np.where(rng.random(px.size) < 0.2, np.nextafter(px, np.inf), px)
     assert polygons.inside(px, py).tolist() == polygons.exact(px, py).tolist()
+
+
+def test_many_polygons_skip_the_grid_and_answer_the_same(monkeypatch) -> None:
+    # Beyond GRID_POLYGONS (or GRID_WORK cells) building the grid would cost more than it saves: the
+    # crossing test alone answers, and the answers are the same.
+    import rac.model.polygons as polygons
+
+    xs, ys, start = polygon_sets()[0]
+    with_grid = Polygons(xs, ys, start)
+    assert with_grid.cells.size > 1
+    monkeypatch.setattr(polygons, "GRID_POLYGONS", 0)
+    without = Polygons(xs, ys, start)
+    assert without.cells.shape == (1, 1) and without.cells[0, 0] == polygons.EXACT
+    monkeypatch.setattr(polygons, "GRID_POLYGONS", 10**6)
+    monkeypatch.setattr(polygons, "GRID_WORK", 0)
+    assert Polygons(xs, ys, start).cells.shape == (1, 1)
+    rng = np.random.default_rng(3)
+    px = rng.uniform(min(xs) - 5, max(xs) + 5, 5000)
+    py = rng.uniform(min(ys) - 5, max(ys) + 5, 5000)
+    assert np.array_equal(with_grid.inside(px, py), without.inside(px, py))

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-__all__ = ["BOX_CELLS", "GRID_CELLS", "GRID_SIZE", "Polygons"]
+__all__ = ["BOX_CELLS", "GRID_CELLS", "GRID_SIZE", "GRID_POLYGONS", "GRID_WORK", "Polygons"]
 
 #: :class:`Polygons` matches up to this many (point, polygon) pairs with the polygons' boxes at once.
 BOX_CELLS = 1 << 15
@@ -17,6 +17,12 @@ BOX_CELLS = 1 << 15
 GRID_CELLS = 1 << 22
 #: ... and no smaller than this (a 16th of a metre in the model: finer cells cost more to build than they save).
 GRID_SIZE = 2.0 ** -4
+#: ... and is built only when its polygons' boxes hold at most this many cells in all (each such cell's
+#: centre is tested once while building): on a large map (thousands of lanelets) building would cost
+#: more than it saves, and the crossing test alone answers, as before the grid.
+GRID_WORK = 1 << 22
+#: ... and over at most this many polygons (the build handles one at a time, about 0.75 ms each: 0.3 s at most).
+GRID_POLYGONS = 400
 #: A grid cell's state: no point in it is inside a polygon / every point is / test each point.
 OUTSIDE, INSIDE, EXACT = 0, 1, 2
 
@@ -113,8 +119,8 @@ class Polygons:
                      np.asarray(ys[start[p]:start[p + 1]], dtype=np.float64))
                     for p in range(len(start) - 1) if start[p + 1] > start[p]]
         finite = bool(polygons) and all(np.isfinite(pxs).all() and np.isfinite(pys).all() for pxs, pys in polygons)
-        if not finite:  # no grid: a single EXACT cell
-            self.grid_origin, self.grid_scale, self.cells = (0.0, 0.0), 0.0, np.full((1, 1), EXACT, dtype=np.int8)
+        if not finite:
+            self._no_grid()
             return
         low_x = min(float(pxs.min()) for pxs, _ in polygons)
         high_x = max(float(pxs.max()) for pxs, _ in polygons)
@@ -130,6 +136,11 @@ class Polygons:
         y0 = low_y - margin - size
         columns = int((high_x + margin - x0) / size) + 2
         rows = int((high_y + margin - y0) / size) + 2
+        work = sum((int((float(pxs.max()) - float(pxs.min()) + 2 * margin) / size) + 2)
+                   * (int((float(pys.max()) - float(pys.min()) + 2 * margin) / size) + 2) for pxs, pys in polygons)
+        if work > GRID_WORK or len(polygons) > GRID_POLYGONS:
+            self._no_grid()
+            return
         inside = np.zeros((rows, columns), dtype=bool)  # wholly inside some polygon
         outside = np.ones((rows, columns), dtype=bool)  # wholly outside every polygon so far
 
@@ -161,6 +172,10 @@ class Polygons:
         self.grid_origin = (x0, y0)
         self.grid_scale = 1.0 / size
         self.cells = cells
+
+    def _no_grid(self) -> None:
+        """A grid of one EXACT cell: every point runs the crossing test."""
+        self.grid_origin, self.grid_scale, self.cells = (0.0, 0.0), 0.0, np.full((1, 1), EXACT, dtype=np.int8)
 
     def inside(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """Whether each point lies inside one of the polygons (bool array like ``px``): the grid's
