@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats as sps
+from scipy import special  # betaincinv and stdtrit: scipy.stats' quantiles, without importing scipy.stats (~0.8 s)
 
 __all__ = [
     "HypothesisResult",
@@ -107,8 +107,8 @@ def _cp(successes: np.ndarray, n: np.ndarray, alpha: float) -> tuple[np.ndarray,
     s = np.asarray(successes, dtype=np.float64)
     n = np.asarray(n, dtype=np.float64)
     with np.errstate(invalid="ignore"):  # the quantiles at s == 0 / s == n are replaced below
-        lo = np.where(s > 0, sps.beta.ppf(alpha / 2, s, n - s + 1), 0.0)
-        hi = np.where(s < n, sps.beta.ppf(1 - alpha / 2, s + 1, n - s), 1.0)
+        lo = np.where(s > 0, special.betaincinv(s, n - s + 1, alpha / 2), 0.0)
+        hi = np.where(s < n, special.betaincinv(s + 1, n - s, 1 - alpha / 2), 1.0)
     return lo, hi
 
 
@@ -282,4 +282,4 @@ class RunningMean:
         if self.count < 2:
             raise ValueError(f"mean_interval needs at least 2 values, not {self.count}")
         sd = math.sqrt(self.squares / (self.count - 1))
-        return self.mean, float(sps.t.ppf((1.0 + confidence) / 2.0, self.count - 1) * sd / math.sqrt(self.count))
+        return self.mean, float(special.stdtrit(self.count - 1, (1.0 + confidence) / 2.0) * sd / math.sqrt(self.count))
