@@ -122,12 +122,16 @@ def test_the_ablation_learns_every_row(tmp_path: Path, capsys: pytest.CaptureFix
     assert "(derived from the model's action grid and goal)" in printed
     assert "| SS&RA |" in printed and printed.splitlines()[2].endswith("| yes |")  # counterfactuals
     ablation = (out / "ablation.md").read_text().splitlines()
-    assert [line.split(" | ")[0] for line in ablation[2:9]] == [
+    assert [line.split(" | ")[0] for line in ablation[2:10]] == [
         "| as the experiment", "| other bins", "| counterfactuals switched", "| replay switched",
-        "| all three switched", "| time not observed", "| untried actions at 0"]
+        "| all three switched", "| time not observed", "| untried actions at 0", "| best episode not replayed"]
     data = json.loads((out / "results.json").read_text())
-    assert [len(variant["records"]) for variant in data["ablation"]] == [1] * 7
-    assert [variant["counterfactuals"] for variant in data["ablation"]] == [True, True, False, True, False, True, True]
-    assert [variant["time"] for variant in data["ablation"]] == [True] * 5 + [False, True]
-    assert [variant["pessimistic"] for variant in data["ablation"]] == [True] * 6 + [False]
+    assert [len(variant["records"]) for variant in data["ablation"]] == [1] * 8
+    assert [variant["counterfactuals"] for variant in data["ablation"]] == [True, True, False, True, False, True, True,
+                                                                           True]
+    assert [variant["time"] for variant in data["ablation"]] == [True] * 5 + [False, True, True]
+    assert [variant["pessimistic"] for variant in data["ablation"]] == [True] * 6 + [False, True]
+    # the earlier learner has no best-episode replay; the last row switches it off alone
+    assert [variant["replay_best"] for variant in data["ablation"]] == [True] * 6 + [False, False]
+    assert ablation[9].split(" | ")[6] == "no" and ablation[2].split(" | ")[6] == "yes"
     assert data["observation"]["discrete"][-1] == "time" and data["learner"]["alpha"] == 1.0

@@ -186,8 +186,8 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     exp.add_argument("--replay", type=int, default=1, metavar="N",
                      help="backward replays of each batch of episodes (default 1; 0: none)")
     exp.add_argument("--ablation", action="store_true",
-                     help="also learn SS&RA with other bins, counterfactuals, replay, time and the learner switched "
-                          "(ablation.md)")
+                     help="also learn SS&RA with other bins, counterfactuals, replay, time, the learner and the "
+                          "best episode's replay switched (ablation.md)")
     exp.add_argument("--combination", action="append", choices=("SS&RA", "SS&RF", "RA", "RF"),
                      help="only this combination (repeatable)")
     exp.add_argument("--format", choices=("text", "json"), default="text", help="output format")

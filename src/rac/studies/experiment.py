@@ -71,9 +71,10 @@ EVALUATION_NOISE = 0.1
 GROWTH = 0.25
 #: The ablation's rows (SS&RA, every seed): what the experiment used, then the observation's bins
 #: swapped (derived <-> the fixed defaults, or --bins <-> the fixed defaults), counterfactual
-#: experiences switched, the backward replay switched, and all three at once.
+#: experiences switched, the backward replay switched, all three at once, the decision time not
+#: observed, the earlier learner (:data:`EARLIER`), and the best episode not replayed.
 ABLATION = ("as the experiment", "other bins", "counterfactuals switched", "replay switched", "all three switched",
-            "time not observed", "untried actions at 0")
+            "time not observed", "untried actions at 0", "best episode not replayed")
 #: The learner of every combination (issue 23): the model is deterministic and the decision index is
 #: observed, so ``alpha=1`` makes a tried table entry the best return seen after it; untried actions
 #: are never preferred to tried ones (``pessimistic``), so the greedy strategy is the best run seen;
@@ -267,7 +268,8 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                                          counterfactuals=options.counterfactuals, replay=options.replay,
                                          growth=growth, progress=learned_so_far(run),
                                          stop_after=-(-episodes // parallel) + 1,
-                                         **(LEARNER if options.pessimistic else EARLIER)),
+                                         **({**LEARNER, "replay_best": options.replay_best} if options.pessimistic
+                                            else EARLIER)),
                                 None if kind == "automaton" else objective)
                             for run, (_, seed, table, kind, options) in enumerate(runs)], shared)
     outcomes: list[LearningResult] = [outcome for outcome, _ in learned]
@@ -299,6 +301,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
             "learner": {key: list(v) if isinstance(v, tuple) else v for key, v in LEARNER.items()},
             "ablation": [{"bins": list(options.bins), "counterfactuals": options.counterfactuals,
                           "replay": options.replay, "time": options.time, "pessimistic": options.pessimistic,
+                          "replay_best": options.replay_best and options.pessimistic,
                           "records": [r for r in ablation_records if r.combination == f"ablation {i}"]}
                          for i, options in enumerate(variants)]}
 
@@ -314,6 +317,8 @@ class Options:
     replay: int
     time: bool = True
     pessimistic: bool = True
+    #: :data:`LEARNER`'s ``replay_best`` (the best learning episode seen replayed after every batch).
+    replay_best: bool = True
 
 
 def default_widths(continuous: Sequence[str]) -> tuple[float, ...]:
@@ -332,7 +337,8 @@ def _ablation(main: Options, other_bins: tuple[float, ...]) -> list[Options]:
             dataclasses.replace(main, counterfactuals=not main.counterfactuals),
             dataclasses.replace(main, replay=0 if main.replay else 1),
             Options(other_bins, not main.counterfactuals, 0 if main.replay else 1, main.time),
-            dataclasses.replace(main, time=not main.time), dataclasses.replace(main, pessimistic=False)]
+            dataclasses.replace(main, time=not main.time), dataclasses.replace(main, pessimistic=False),
+            dataclasses.replace(main, replay_best=not main.replay_best)]
 
 
 def _value(optimum: Report | None) -> float | None:
@@ -478,9 +484,9 @@ def _widths(widths: Sequence[float]) -> str:
 def render_ablation(report: Report) -> str:
     """The ablation (SS&RA with each ingredient switched, :data:`ABLATION`) as a markdown table."""
     lines = ["| SS&RA | bins | counterfactual experiences | backward replay | time observed | untried actions | "
-             "episodes until the first safe goal | episodes learned | greedy strategy safe at the goal | "
-             "greedy run's return | within 5 % of the optimum |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "best episode replayed | episodes until the first safe goal | episodes learned | greedy strategy safe "
+             "at the goal | greedy run's return | within 5 % of the optimum |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for name, variant in zip(ABLATION, report.get("ablation", [])):
         rows = summary(report, variant["records"])
         if not rows:
@@ -493,7 +499,8 @@ def render_ablation(report: Report) -> str:
         within = "—" if row["optimum"] is None else f"{close} of {row['seeds']} seeds"
         lines.append(f"| {name} | {_widths(variant['bins'])} | {'on' if variant['counterfactuals'] else 'off'} | "
                      f"{'on' if variant['replay'] else 'off'} | {'yes' if variant.get('time', True) else 'no'} | "
-                     f"{'never preferred' if variant.get('pessimistic', True) else 'at 0'} | {first} | "
+                     f"{'never preferred' if variant.get('pessimistic', True) else 'at 0'} | "
+                     f"{'yes' if variant.get('replay_best', True) else 'no'} | {first} | "
                      f"{_mean_sd(row['episodes'])} | {row['greedy_success']} of {row['seeds']} seeds | "
                      f"{_mean_sd(row['greedy_returns'])} | {within} |")
     return "\n".join(lines + ["", f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} "
