@@ -8,7 +8,12 @@ Each rule fails with the offending file and line:
   nothing of rac but ``core`` and itself, ``check`` only ``core``, ``lang`` and ``ir``, the targets
   only ``core``, ``ir``, ``model`` and ``runtime``, the engine never ``targets``, ``check`` or
   ``lang``; only ``cli`` (and ``python -m rac``) imports ``cli``;
-- at most a handful of modules directly under ``src/rac``.
+- at most a handful of modules directly under ``src/rac``;
+- one owner of the scenario: no module but :data:`SCENARIO_OWNER` imports or calls commonroad-io's
+  loader ``load_scenario`` (every other one asks the owner, so all read the same planning problem);
+- no ``getattr``/``hasattr`` probing a checked file for ``automaton``, ``model_data``, ``scenario`` or
+  ``sources``: what holds them is typed (:class:`rac.model.program.CheckedProgram`,
+  :class:`rac.compiler.CompileResult`), and isinstance picks among them.
 
 docs/architecture.md shows the same layers.
 """
@@ -208,3 +213,42 @@ def test_every_package_says_what_it_holds_and_may_import(package: str) -> None:
     assert said == f"{expected}.", (
         f"src/rac/{package}/__init__.py: its docstring should end with the line `May import: {expected}.`"
         " (the layers of tests/test_layout.py)")
+
+
+#: The one module that loads a `model` block's scenario (docs/architecture.md, "One owner per fact"),
+#: and the module defining the loader it calls.
+SCENARIO_OWNER = "rac.model.checks"
+LOADER_MODULE = "rac.model.commonroad"
+#: The attributes of a checked file that are read by type, never probed for.
+PROGRAM_ATTRIBUTES = {"automaton", "model_data", "scenario", "sources"}
+
+
+def test_one_owner_loads_the_scenario() -> None:
+    found = []
+    for module, path in MODULES.items():
+        if module in (SCENARIO_OWNER, LOADER_MODULE):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and any(a.name == "load_scenario" for a in node.names):
+                found.append(f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {module} imports load_scenario")
+            elif isinstance(node, ast.Call):
+                func = node.func
+                name = func.id if isinstance(func, ast.Name) else func.attr if isinstance(func, ast.Attribute) else ""
+                if name == "load_scenario":
+                    found.append(f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {module} calls load_scenario")
+    assert not found, (f"only {SCENARIO_OWNER} loads scenarios (ask it: rac.model.checks.load, "
+                       "rac.model.program.CheckedProgram.of):\n" + "\n".join(found))
+
+
+def test_no_probing_for_a_checked_files_parts() -> None:
+    found = []
+    for module, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                    and node.func.id in ("getattr", "hasattr") and len(node.args) >= 2
+                    and isinstance(node.args[1], ast.Constant)
+                    and node.args[1].value in PROGRAM_ATTRIBUTES):
+                found.append(f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {module} probes "
+                             f"{node.func.id}(..., {node.args[1].value!r})")
+    assert not found, ("a checked file's parts are typed: accept CompileResult | CheckedProgram | ir.Automaton "
+                       "and use isinstance:\n" + "\n".join(found))

@@ -664,7 +664,7 @@ def test_memory_error_while_loading_is_not_a_broken_scenario(monkeypatch: pytest
     def out_of_memory(*args: object, **kwargs: object) -> None:
         raise MemoryError
 
-    monkeypatch.setattr(checks, "_load", out_of_memory)
+    monkeypatch.setattr(checks, "load", out_of_memory)
     folder = Path(__file__).parent / "diagnostics"
     monkeypatch.chdir(folder)
     status = main(["check", "E0712_missing_scenario.ra"])

@@ -99,13 +99,13 @@ def test_left_turn_loads_and_is_summed_up(tmp_path: Path) -> None:
 def test_the_scenario_is_loaded_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     path = write(tmp_path, source(), LEFT_TURN.read_bytes())
     calls = []
-    real = scenario_check._load
+    real = scenario_check.load_file
 
-    def counting(name: str, *args: object):
+    def counting(name: str, *args: object, **kwargs: object):
         calls.append(name)
-        return real(name, *args)
+        return real(name, *args, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(scenario_check, "_load", counting)
+    monkeypatch.setattr(scenario_check, "load_file", counting)
     result = compile_file(path)
     assert result.ok and len(calls) == 1
     again = compile_file(path)  # unchanged file: the cached Scenario
@@ -165,10 +165,10 @@ def test_a_directory_is_not_a_scenario(tmp_path: Path) -> None:
 
 
 def test_unexpected_exceptions_become_e0712(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    def boom(path: str, *args: object):
+    def boom(path: str, *args: object, **kwargs: object):
         raise RuntimeError("the reader broke")
 
-    monkeypatch.setattr(scenario_check, "_load", boom)
+    monkeypatch.setattr(scenario_check, "load_file", boom)
     (diagnostic,) = errors(compile_file(write(tmp_path, source(), LEFT_TURN.read_bytes())))
     assert diagnostic.code == "E0712" and "RuntimeError: the reader broke" in diagnostic.message
 

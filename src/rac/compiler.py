@@ -16,6 +16,7 @@ from rac.core.numbers import exact_text
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, read_source, text_source
+from rac.model.program import CheckedProgram, ProgramSource
 
 if TYPE_CHECKING:
     from rac.check.analysis.synthesis import Synthesised
@@ -24,8 +25,9 @@ if TYPE_CHECKING:
 
 
 @dataclass(frozen=True)
-class CompileResult:
-    """What checking one file produced: the IR when there are no errors, and every diagnostic."""
+class CompileResult(ProgramSource):
+    """What checking one file produced: the IR when there are no errors, and every diagnostic;
+    :meth:`checked` gives the :class:`~rac.model.program.CheckedProgram` the other stages read."""
 
     automaton: ir.Automaton | None
     diagnostics: tuple[Diagnostic, ...]
@@ -51,6 +53,16 @@ class CompileResult:
         if not self.ok or self.automaton is None:
             raise CheckError(self.diagnostics, self.sources)
         return self.automaton
+
+    def checked(self) -> CheckedProgram:
+        """The automaton with the scenario and model's data the checks loaded, or
+        :class:`CheckError` carrying the diagnostics. Checked with ``analyse=False`` (nothing loaded),
+        a `model` block's scenario is loaded now, by the checks' own loader
+        (:meth:`~rac.model.program.CheckedProgram.of`)."""
+        automaton = self.raise_for_errors()
+        if automaton.model is not None and self.model_data is None:
+            return CheckedProgram.of(automaton)
+        return CheckedProgram(automaton, self.model_data, self.scenario)
 
 
 def compile_source(source: SourceFile, *, analyse: bool = True, progress: Callable[[str], None] | None = None,

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -25,7 +26,7 @@ from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.lang.parser import parse_queries
 
-__all__ = ["STANDARD", "StandardQuery", "objective_expression", "standard_queries"]
+__all__ = ["STANDARD", "StandardQuery", "at_horizon", "objective_expression", "standard_queries"]
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,8 @@ STANDARD: tuple[StandardQuery, ...] = (
     StandardQuery("reach_goal", "A<> goal() under reach", "the learned strategy reaches the goal", verify=False),
 )
 _STRATEGIES = ("safe", "reachSafe", "reach")
+#: The standard queries that read ``MAXT`` only as their time bound ``[<=MAXT]`` (:func:`at_horizon`).
+_BOUND_ONLY = frozenset(q.name for q in STANDARD if q.text.count("MAXT") == q.text.count("[<=MAXT"))
 
 
 def standard_queries(automaton: ir.Automaton, horizon: Fraction | None = None, *,
@@ -97,6 +100,28 @@ def standard_queries(automaton: ir.Automaton, horizon: Fraction | None = None, *
                             sources={source.name: source}, model_first=True)
     objective = objective_expression(automaton)
     return tuple(_with_objective(decl, objective) for decl in lowered)
+
+
+def at_horizon(decls: Iterable[iq.QueryDecl], horizon: Fraction) -> tuple[iq.QueryDecl, ...]:
+    """Standard queries as :func:`standard_queries` lowered them (:attr:`rac.ir.Automaton.standard_queries`)
+    with ``MAXT`` = ``horizon`` seconds: the time bound of each replaced in the IR and in the text,
+    the same queries as :func:`standard_queries` at ``horizon`` without lowering them again.
+    ``ValueError`` for a query that is not a standard one or reads ``MAXT`` elsewhere than in its
+    bound (``reach``'s ``<> time >= MAXT``)."""
+    found = []
+    for decl in decls:
+        if decl.name not in _BOUND_ONLY:
+            raise ValueError(f"`{decl.name}`: not a standard query whose only MAXT is its time bound")
+        query = decl.query
+        if isinstance(query, iq.ProbabilityQuery | iq.ExpectationQuery | iq.SimulateQuery | iq.LearnStrategy) \
+                and query.bound.kind == "time":
+            old, new = f"[<={_decimal(query.bound.limit)}", f"[<={_decimal(horizon)}"
+            if old not in decl.text:
+                raise ValueError(f"`{decl.name}`: its text {decl.text!r} does not show its bound {old}]")
+            decl = dataclasses.replace(decl, query=dataclasses.replace(query, bound=iq.Bound("time", horizon)),
+                                       text=decl.text.replace(old, new, 1))
+        found.append(decl)
+    return tuple(found)
 
 
 def objective_expression(automaton: ir.Automaton) -> ie.Expr:

@@ -149,8 +149,7 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
             from rac.targets.uppaal.model import generate_uppaal_model
 
             # With a `model` block: the whole model in its scenario (docs/uppaal.md).
-            model = generate_uppaal_model(result.automaton, data=getattr(result, "model_data", None),
-                                          source_name=args.file.name,
+            model = generate_uppaal_model(result.checked(), source_name=args.file.name,
                                           model_name=output.name if output is not None else "")
         else:
             model = generate_uppaal(result.automaton, source_name=args.file.name,

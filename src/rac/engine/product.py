@@ -79,8 +79,8 @@ from rac.engine.storm import Verdict, decide
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.vocabulary import EGO_STATE
-from rac.model.commonroad import load_scenario
-from rac.model.data import ModelData, ModelRangeError, build_model_data
+from rac.model.data import ModelData, ModelRangeError
+from rac.model.program import CheckedProgram, ProgramSource, program_of
 from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
 
 __all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
@@ -629,27 +629,30 @@ def decide_product(graph: ProductGraph, query: iq.PathQuery | iq.QueryDecl, text
     return dataclasses.replace(verdict, query=text or f"{query.quantifier} ...")
 
 
-def decide_in_model(source: object, data: ModelData | None, query: iq.PathQuery | iq.QueryDecl | str, *,
+def decide_in_model(source: ProgramSource | CheckedProgram | ir.Automaton, data: ModelData | None,
+                    query: iq.PathQuery | iq.QueryDecl | str, *,
                     horizon_samples: int | None = None, prune_unsafe: bool = False,
                     max_states: int | None = None, max_bytes: int | None = None,
                     progress: Progress | None = None) -> Verdict:
     """Decide a path query of an automaton on its product with the scenario model.
 
-    ``source`` is an :class:`rac.ir.Automaton` or a :class:`rac.compiler.CompileResult`; ``data``
-    the model's data (default: the result's, else built from the ``model`` block's scenario);
-    ``query`` a checked :class:`rac.ir.query.PathQuery`, a query declaration or the name of one of
-    the automaton's queries. The other arguments are :func:`explore_product`'s.
+    ``source`` is a :class:`rac.compiler.CompileResult` (a :class:`rac.model.program.ProgramSource`;
+    :class:`rac.core.diagnostics.CheckError` when the file has errors), a
+    :class:`rac.model.program.CheckedProgram` or an :class:`rac.ir.Automaton`; ``data`` the model's
+    data (default: the program's; for an automaton, built from the ``model`` block's scenario, loaded
+    as ``rac check`` loads it: :meth:`rac.model.program.CheckedProgram.of`); ``query`` a checked
+    :class:`rac.ir.query.PathQuery`, a query declaration or the name of one of the automaton's
+    queries. The other arguments are :func:`explore_product`'s.
     """
-    automaton = source if isinstance(source, ir.Automaton) else getattr(source, "automaton", None)
-    if automaton is None:
-        raise ValueError("no automaton: the file has errors (compile it with analyse=False to skip the checks)")
-    if data is None:
-        data = getattr(source, "model_data", None)
-    if data is None:
-        if automaton.model is None:
-            raise ValueError("the automaton has no `model` block: pass the model's data")
-        spec = automaton.model
-        data = build_model_data(load_scenario(spec.scenario_path, spec.planning_problem or None), spec)
+    if isinstance(source, ir.Automaton) and data is not None:
+        automaton = source  # the caller's data: nothing to load
+    else:
+        program = program_of(source)
+        automaton = program.automaton
+        if data is None:
+            if program.model_data is None:
+                raise ValueError("the automaton has no `model` block: pass the model's data")
+            data = program.model_data
     if isinstance(query, str):
         found = [decl for decl in automaton.queries if decl.name == query]
         if not found:

@@ -68,6 +68,7 @@ from rac.lang import ast
 from rac.lang.parser import parse_expression
 from rac.learning.counterfactual import Counterfactuals, Replayer, Sample
 from rac.model.data import ModelData
+from rac.model.program import CheckedProgram
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.semantics import InputSpec, clip_column, input_specs
 
@@ -206,7 +207,8 @@ class EpisodeBatch:
     one decision period). See the module docstring for the semantics.
 
     Args:
-        result: a checked file with a ``model`` block (:func:`rac.compiler.compile_file`).
+        result: a checked file with a ``model`` block (:func:`rac.compiler.compile_file`), or its
+            :class:`rac.model.program.CheckedProgram`.
         reward: ``"automaton"`` (the objective's increase, plus the ``at end`` bonus when the
             episode ends), or a reward expression evaluated on every sample (an :class:`rac.lang.ast.Expr`,
             or its text, parsed with :func:`parse_expr`).
@@ -227,7 +229,7 @@ class EpisodeBatch:
     ``int`` inputs) since construction, over all episodes; ``clipped_inputs`` the same per input.
     """
 
-    def __init__(self, result: CompileResult, *, reward: Expression = "automaton",
+    def __init__(self, result: CompileResult | CheckedProgram, *, reward: Expression = "automaton",
                  goal: Expression | None = GOAL, horizon_samples: int | None = None,
                  data: ModelData | None = None,
                  onward: Callable[[np.ndarray], np.ndarray] | None = None, counterfactuals: bool = False,

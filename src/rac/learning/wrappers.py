@@ -81,7 +81,7 @@ def _load(automaton: str | os.PathLike[str] | ir.Automaton | AutomatonLike) -> A
 
         result = compile_file(Path(automaton))
         if not result.ok or result.automaton is None:
-            raise CheckError(result.diagnostics, getattr(result, "sources", None))
+            raise CheckError(result.diagnostics, result.sources)
         return RewardAutomaton(result.automaton)
     if isinstance(automaton, ir.Automaton):
         return RewardAutomaton(automaton)

@@ -1,7 +1,7 @@
 """The `model` block's scenario, checked against the model: E0712-E0715, W0716 and E0718-E0721.
 
 :func:`check_scenario` loads the CommonRoad file of a checked automaton's `model` block once
-(:func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
+(:func:`load`, the one caller of :func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
 (:func:`rac.model.data.build_model_data_and_largest`), so that ``rac check`` reports, with a span:
 
 * E0712: the file cannot be loaded (missing, not XML, not CommonRoad, an element rac cannot
@@ -25,7 +25,8 @@
   (CommonUppRoad's ZAM_Ramp starts so, and its model does not check the start).
 
 The loaded :class:`~rac.model.commonroad.Scenario` and :class:`~rac.model.data.ModelData` are returned so
-that :class:`rac.compiler.CompileResult` can hand them to the targets without reloading.
+that :class:`rac.compiler.CompileResult` can hand them on (:class:`rac.model.program.CheckedProgram`)
+without reloading.
 """
 
 from __future__ import annotations
@@ -71,13 +72,26 @@ class ScenarioCheck:
     data: ModelData | None = None
 
 
-def _load(path: str, planning_problem: int | None = None, max_bytes: int | None = None) -> Scenario:
-    """``load_scenario(path, planning_problem)``, cached while the file is unchanged; without a
-    planning problem, a file with several is a :class:`~rac.model.commonroad.PlanningProblemError`.
-    :class:`ScenarioTooLarge`, before anything is read, when the file is not cached and its
-    :class:`LoadEstimate` exceeds ``max_bytes``."""
+def load(spec: ir.ModelSpec, *, max_bytes: int | None = None) -> Scenario:
+    """The scenario of a `model` block: the one place rac loads one (``rac check`` through
+    :func:`check_scenario`, and every consumer handed an automaton without it,
+    :meth:`rac.model.program.CheckedProgram.of`), so that all of them read the same planning problem.
+    The block's `planning_problem` is honoured as the checks honour it: none chosen in a file with
+    several, or one the file lacks, is a :class:`~rac.model.commonroad.PlanningProblemError` (what
+    E0715 reports), never a silent choice. Cached and ``max_bytes`` as in :func:`load_file`."""
+    chosen = spec.planning_problem
+    return load_file(spec.scenario_path, None if chosen == NO_PLANNING_PROBLEM else chosen, max_bytes=max_bytes)
+
+
+def load_file(path: str | os.PathLike[str], planning_problem: int | None = None, *,
+              max_bytes: int | None = None) -> Scenario:
+    """``load_scenario(path, planning_problem, require_choice=True)``, cached while the file is
+    unchanged: without a planning problem, a file with several is a
+    :class:`~rac.model.commonroad.PlanningProblemError`. :class:`ScenarioTooLarge`, before anything is
+    read, when the file is not cached and its :class:`LoadEstimate` exceeds ``max_bytes``."""
     from rac.model.commonroad import load_scenario
 
+    path = os.fspath(path)
     try:
         stat = os.stat(path)
         key: tuple[str, int, int, int | None] | None = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size,
@@ -122,8 +136,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     from rac.model.commonroad import InconsistentScenarioError, PlanningProblemError, ScenarioError
 
     try:
-        chosen = spec.planning_problem
-        scenario = _load(spec.scenario_path, None if chosen == NO_PLANNING_PROBLEM else chosen, max_bytes)
+        scenario = load(spec, max_bytes=max_bytes)
     except PlanningProblemError as failure:
         result.diagnostics.append(_planning_problem(automaton, spec, failure))
         return result

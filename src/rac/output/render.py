@@ -67,10 +67,14 @@ def _read(path: Path) -> tuple[Any, Any]:
         except Exception as error:  # commonroad-io raises anything from lxml errors to KeyError
             problem = f"is not a CommonRoad scenario commonroad-io can read ({type(error).__name__}: {error})"
     # rac's loader explains broken files far better (which element, which line); use its words if it fails too
-    from rac.model.commonroad import ScenarioError, load_scenario
+    from rac.model.checks import load_file
+    from rac.model.commonroad import PlanningProblemError, ScenarioError
 
     try:
-        load_scenario(path)
+        try:
+            load_file(path)
+        except PlanningProblemError as several:  # any one of them reads the file: the diagnosis is the file's
+            load_file(path, several.ids[0])
     except ScenarioError as diagnosis:
         problem = f"{diagnosis.element} {diagnosis.problem}" if diagnosis.element else diagnosis.problem
     except Exception:  # noqa: BLE001 - only a better message was sought; keep commonroad-io's

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rac import ir
 from rac.compiler import CompileResult
 from rac.core.numbers import exact_decimal
 from rac.engine import shield, storm
@@ -32,6 +34,7 @@ from rac.engine.witness import Bounds, Predicate
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.model.data import ModelData, ModelRangeError
+from rac.model.program import CheckedProgram
 
 if TYPE_CHECKING:
     from rac.engine.simulate import Policy, Runs
@@ -137,18 +140,14 @@ class Context:
     samples; :class:`rac.core.diagnostics.CheckError` when the file has errors.
     """
 
-    def __init__(self, result: CompileResult, options: VerifyOptions) -> None:
-        automaton = result.raise_for_errors()
-        if automaton.model is None or result.model_data is None:
+    def __init__(self, source: CompileResult | CheckedProgram, options: VerifyOptions) -> None:
+        program = source.checked() if isinstance(source, CompileResult) else source
+        if program.automaton.model is None or program.model_data is None:
             raise ValueError("rac verify needs a `model` block: the queries are answered on the scenario model")
-        #: The checked file and its automaton.
-        self.result = result
-        self.automaton = automaton
-        #: The scenario model the queries are answered on.
-        self.data: ModelData = result.model_data
+        #: The checked file: its automaton, the scenario model the queries are answered on, the scenario.
+        self.program = program
+        automaton = program.automaton
         self.options = options
-        #: Evaluates the queries' expressions on explored states and simulated samples.
-        self.evaluator = Evaluator(self.data, automaton)
         #: The sample period ``C1`` in seconds.
         self.period = Fraction(automaton.period)
         horizon = options.horizon if options.horizon is not None else Fraction(automaton.horizon)
@@ -182,6 +181,22 @@ class Context:
         # The witness searches draw from a stream of their own, so that a reachability query does not
         # change the seeds of the statistical and learning queries after it.
         self._search_seeds = np.random.SeedSequence((self.seed, 1))
+
+    # ------------------------------------------------------------ the program, read through
+    @property
+    def automaton(self) -> ir.Automaton:
+        """The checked automaton (:attr:`program`'s)."""
+        return self.program.automaton
+
+    @property
+    def data(self) -> ModelData:
+        """The scenario model's data (:attr:`program`'s)."""
+        return self.program.data
+
+    @functools.cached_property
+    def evaluator(self) -> Evaluator:
+        """Evaluates the queries' expressions on explored states and simulated samples (made once)."""
+        return Evaluator(self.data, self.automaton)
 
     # ------------------------------------------------------------ files and seeds
     def out(self, name: str) -> Path:
@@ -313,7 +328,7 @@ class Context:
         from rac.learning.episodes import EpisodeBatch
 
         try:
-            return EpisodeBatch(self.result, reward=reward, goal=goal, horizon_samples=samples, data=self.data)
+            return EpisodeBatch(self.program, reward=reward, goal=goal, horizon_samples=samples, data=self.data)
         except EvaluationError:
             raise
         except ValueError as exc:

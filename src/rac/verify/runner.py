@@ -41,11 +41,11 @@ from collections.abc import Callable, Iterable
 from fractions import Fraction
 from typing import Any
 
-from rac.check.standard import STANDARD
-from rac.check.standard import standard_queries as checked_standard_queries
+from rac.check.standard import STANDARD, at_horizon
 from rac.compiler import CompileResult
 from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
+from rac.model.program import CheckedProgram
 from rac.verify.context import Context, NotApplicable, UnknownVerdict, VerifyOptions
 from rac.verify.learning import LearningAnswerer
 from rac.verify.report import QueryResult, render_json, render_text
@@ -64,13 +64,16 @@ Answer = Callable[[Any, QueryResult], QueryResult]
 STANDARD_TITLES = {q.name: q.title for q in STANDARD if q.verify}
 
 
-def standard_queries(result: CompileResult, horizon_seconds: Fraction | None = None) -> tuple[iq.QueryDecl, ...]:
-    """The paper's standard queries that ``rac verify --standard`` answers, checked against the file's
-    automaton, with ``MAXT`` the horizon (default: the automaton's)."""
-    automaton = result.raise_for_errors()
+def standard_queries(result: CompileResult | CheckedProgram, horizon_seconds: Fraction | None = None
+                     ) -> tuple[iq.QueryDecl, ...]:
+    """The paper's standard queries that ``rac verify --standard`` answers, as the checker lowered them
+    against the file's automaton, with ``MAXT`` the horizon (default: the automaton's; another one
+    replaces their time bounds, :func:`rac.check.standard.at_horizon`: they are not lowered again)."""
+    automaton = result.raise_for_errors() if isinstance(result, CompileResult) else result.automaton
+    decls = tuple(d for d in automaton.standard_queries if d.name in STANDARD_TITLES)
     if horizon_seconds is None or horizon_seconds == automaton.horizon:
-        return tuple(d for d in automaton.standard_queries if d.name in STANDARD_TITLES)
-    return checked_standard_queries(automaton, horizon_seconds, verify_only=True)
+        return decls
+    return at_horizon(decls, horizon_seconds)
 
 
 class UnknownQuery(KeyError):
@@ -148,14 +151,15 @@ class Verifier:
         return answer(query, base)
 
 
-def verify(result: CompileResult, options: VerifyOptions | None = None) -> list[QueryResult]:
+def verify(result: CompileResult | CheckedProgram, options: VerifyOptions | None = None) -> list[QueryResult]:
     """Answer the queries of a checked file (and, with ``options.standard``, the paper's standard
     queries first). :class:`rac.core.diagnostics.CheckError` when the file has errors; ``ValueError``
     when it has no ``model`` block; :class:`UnknownQuery` when ``options.only`` names a missing query."""
     return run_queries(result, options)[1]
 
 
-def run_queries(result: CompileResult, options: VerifyOptions | None = None) -> tuple[Context, list[QueryResult]]:
+def run_queries(result: CompileResult | CheckedProgram, options: VerifyOptions | None = None
+                ) -> tuple[Context, list[QueryResult]]:
     """:func:`verify`, also returning the context, which keeps the strategies the queries computed
     (:attr:`~Context.strategies` for shields, :attr:`~Context.learned` and :meth:`~Context.learned_run`
     for learned ones)."""
@@ -163,7 +167,7 @@ def run_queries(result: CompileResult, options: VerifyOptions | None = None) -> 
     context = Context(result, options)
     decls: list[tuple[iq.QueryDecl, str | None]] = []
     if options.standard:
-        decls += [(d, d.title or None) for d in standard_queries(result, options.horizon)]
+        decls += [(d, d.title or None) for d in standard_queries(context.program, options.horizon)]
     decls += [(d, None) for d in context.automaton.queries]
     if options.only is not None:
         decls = _selected(decls, options.only)

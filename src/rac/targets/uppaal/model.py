@@ -39,8 +39,8 @@ from rac import ir
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.vocabulary import ACTIONS, EGO_STATE
-from rac.model.commonroad import load_scenario
-from rac.model.data import ModelData, build_model_data
+from rac.model.data import ModelData
+from rac.model.program import CheckedProgram
 from rac.targets.uppaal.automaton import AutomatonGenerator, UppaalError, UppaalModel
 from rac.targets.uppaal.declarations import action_name, declared_names, emit_declarations
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, double_literal
@@ -340,30 +340,38 @@ class _ModelGenerator(AutomatonGenerator):
         return self._files(declaration, templates, system, queries)
 
 
-def generate_uppaal_model(automaton: ir.Automaton, *, data: ModelData | None = None, source_name: str = "",
-                          model_name: str = "") -> UppaalModel:
+def generate_uppaal_model(automaton: ir.Automaton | CheckedProgram, *, data: ModelData | None = None,
+                          source_name: str = "", model_name: str = "") -> UppaalModel:
     """The whole UPPAAL model of ``automaton`` in the scenario of its ``model`` block, and its queries.
 
-    ``data`` is the model's data when already built (else the scenario is loaded from
-    ``automaton.model.scenario_path``, at the block's ``planning_problem``). Raises
+    ``automaton`` is a :class:`rac.model.program.CheckedProgram` (``rac compile``: the model's data the
+    checks built) or an :class:`rac.ir.Automaton`; ``data`` is the model's data when built otherwise
+    (else, for an automaton, the scenario is loaded as ``rac check`` loads it, at the block's
+    ``planning_problem``: :meth:`rac.model.program.CheckedProgram.of`). Raises
     :class:`rac.targets.uppaal.automaton.UppaalError` like
     :func:`rac.targets.uppaal.automaton.generate_uppaal`; :class:`rac.model.commonroad.ScenarioError` or
-    :class:`rac.model.ModelRangeError` when the scenario cannot be loaded or represented.
+    :class:`rac.model.ModelRangeError` when the scenario cannot be loaded or represented (a
+    :class:`rac.model.commonroad.PlanningProblemError` where ``rac check`` reports E0715).
     """
-    spec = automaton.model
-    if spec is None:
-        raise ValueError("the automaton has no `model` block")
-    if data is None:
-        data = build_model_data(load_scenario(spec.scenario_path, spec.planning_problem or None), spec)
-    return _ModelGenerator(automaton, data, source_name, model_name).run()
+    checked, data = _model_of(automaton, data)
+    return _ModelGenerator(checked, data, source_name, model_name).run()
 
 
-def model_vocabulary(automaton: ir.Automaton, *, data: ModelData | None = None) -> Vocabulary:
+def model_vocabulary(automaton: ir.Automaton | CheckedProgram, *, data: ModelData | None = None) -> Vocabulary:
     """The UPPAAL names of everything a query or binding reads in the whole model of ``automaton``
-    (as :func:`generate_uppaal_model` names them): for printing more expressions over it."""
-    spec = automaton.model
-    if spec is None:
+    (as :func:`generate_uppaal_model` names them, ``data`` as there): for printing more expressions
+    over it."""
+    checked, data = _model_of(automaton, data)
+    return _ModelGenerator(checked, data, "", "").vocabulary()
+
+
+def _model_of(source: ir.Automaton | CheckedProgram, data: ModelData | None) -> tuple[ir.Automaton, ModelData]:
+    """The automaton and the model's data: ``data``, else the program's, else loaded by the checks'
+    loader. ``ValueError`` without a `model` block."""
+    automaton = source.automaton if isinstance(source, CheckedProgram) else source
+    if automaton.model is None:
         raise ValueError("the automaton has no `model` block")
-    if data is None:
-        data = build_model_data(load_scenario(spec.scenario_path, spec.planning_problem or None), spec)
-    return _ModelGenerator(automaton, data, "", "").vocabulary()
+    if data is not None:
+        return automaton, data
+    program = source if isinstance(source, CheckedProgram) else CheckedProgram.of(automaton)
+    return automaton, program.data
