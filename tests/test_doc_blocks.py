@@ -20,8 +20,8 @@ How each block is taken, by its language and the HTML comment on the line before
   between ``...`` lines appears, in order, in the file (of the checkout, or written by an earlier
   command of the page) or in the command's output.
 - ``<!-- not run: REASON -->``: shown only (UPPAAL's verifier is closed source; a quoted paper).
-- docs/checks.md's ``case`` and ``output`` regions are generated from tests/diagnostics and
-  compared there (tests/test_diagnostics.py).
+- the ``case``, ``excerpt`` and ``output`` regions of docs/checks.md and docs/diagnostics.md are
+  generated from tests/diagnostics and compared there (tests/test_diagnostics.py).
 
 Any other block fails the test: a new block must say how it is checked.
 """
@@ -50,8 +50,8 @@ PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 COPIED = ("benchmarks", "examples", "stdlib", "tests")
 
 _ANNOTATION = re.compile(r"^<!--\s*([a-z][a-z ]*?)\s*:\s*(.*?)\s*-->$")
-_REGION_START = re.compile(r"^<!--\s*(case|output):")
-_REGION_END = re.compile(r"^<!--\s*end (case|output)\s*-->$")
+_REGION_START = re.compile(r"^<!--\s*(case|excerpt|output):")
+_REGION_END = re.compile(r"^<!--\s*end (case|excerpt|output)\s*-->$")
 _EXIT = re.compile(r"#.*\bexit (\d+)\b")
 #: Timings and rates differ from run to run.
 _DURATION = re.compile(r"\b\d[\d,]*(\.\d+)?\s?(ms|s|min)\b")
@@ -69,7 +69,7 @@ def _annotation(lines: list[str], fence: int) -> tuple[str, str] | None:
 
 
 def _in_generated_region(lines: list[str], fence: int) -> bool:
-    """Whether the fence lies in a ``<!-- case: -->`` / ``<!-- output: -->`` region of docs/checks.md."""
+    """Whether the fence lies in a ``case``, ``excerpt`` or ``output`` region (docs/checks.md, docs/diagnostics.md)."""
     for previous in reversed(lines[:fence]):
         if _REGION_END.match(previous.strip()):
             return False
@@ -306,6 +306,53 @@ def test_page_blocks_hold(page: Path, tmp_path: Path) -> None:
     reader = Reader(page, tmp_path)
     reader.read()
     assert not reader.problems, "\n\n".join(reader.problems)
+
+
+# ---------------------------------------------------------------- links between the pages
+#: A markdown link to a page of the checkout (not a URL), with its anchor if any.
+_LOCAL_LINK = re.compile(r"\]\((?![a-z]+:)(?P<path>[^)#\s]*)(?:#(?P<anchor>[^)\s]+))?\)")
+
+
+def slug(heading: str) -> str:
+    """GitHub's anchor for a heading: lower case, punctuation dropped, spaces as ``-``."""
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading).strip().lower()
+    return re.sub(r"[^\w\- ]", "", text).replace(" ", "-")
+
+
+def anchors(page: Path) -> set[str]:
+    """The anchors of a page: its headings' (outside code blocks, numbered when repeated) and its ``<a id>``s."""
+    text = re.sub(r"^\s*```.*?^\s*```", "", page.read_text(encoding="utf-8"), flags=re.S | re.M)
+    found: set[str] = set(re.findall(r'<a id="([^"]+)"', text))
+    for heading in re.findall(r"^#{1,6} (.+)$", text, re.M):
+        base = slug(heading)
+        name, n = base, 0
+        while name in found:
+            n += 1
+            name = f"{base}-{n}"
+        found.add(name)
+    return found
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(REPO)))
+def test_links_reach_their_anchor(page: Path) -> None:
+    """Every link to a page of the checkout names a file that exists, and an anchor the page has
+    (a diagnostic code's section: ``diagnostics.md#e0402``)."""
+    text = re.sub(r"^\s*```.*?^\s*```", "", page.read_text(encoding="utf-8"), flags=re.S | re.M)
+    text = re.sub(r"`[^`\n]*`", "", text)  # code: `Pr[<=30](...)` is no link
+    broken = []
+    for match in _LOCAL_LINK.finditer(text):
+        target = (page.parent / match["path"]).resolve() if match["path"] else page
+        if not target.exists():
+            broken.append(f"{match['path']}: no such file")
+        elif match["anchor"] and target.suffix == ".md" and match["anchor"] not in anchors(target):
+            broken.append(f"{match['path'] or page.name}#{match['anchor']}: no such anchor")
+    assert not broken, f"{page.relative_to(REPO)}: broken links:\n" + "\n".join(broken)
+
+
+def test_anchors_follow_github() -> None:
+    assert slug("E0714 — ego start outside the model's limits") == "e0714--ego-start-outside-the-models-limits"
+    assert slug("Input classes: why the checks are exact") == "input-classes-why-the-checks-are-exact"
+    assert slug("`assume` excludes every input valuation") == "assume-excludes-every-input-valuation"
 
 
 # ---------------------------------------------------------------- the comparisons themselves

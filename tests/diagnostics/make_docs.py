@@ -1,4 +1,4 @@
-"""The diagnostic examples: one failing input per check, its expected output, and docs/checks.md.
+"""The diagnostic examples: one failing input per check, its expected output, and docs/diagnostics.md.
 
 Every ``<CODE>_<short_name>.ra`` file in this folder is a failing example; its
 ``.expected`` file is the full output of ``rac check <CODE>_<short_name>.ra`` run in
@@ -7,13 +7,20 @@ committed (not UTF-8, over 1 MB, a directory, a missing file) and examples of ot
 commands (E0009: ``rac compile`` into a missing folder) are listed in :data:`GENERATED`;
 their inputs are made in a scratch folder under the same name.
 
-docs/checks.md shows every example: each ``<!-- case: NAME -->`` ... ``<!-- end case -->``
-region (source and output) and each ``<!-- output: NAME -->`` ... ``<!-- end output -->``
-region (output only) is generated from the files here, so the doc cannot drift from the tests.
+docs/diagnostics.md, the reference, shows every example once, under its code, in an
+``<!-- excerpt: NAME -->`` ... ``<!-- end excerpt -->`` region: the lines of the input around each
+line the output names (:data:`CONTEXT` lines before and after, ``...`` where lines are skipped,
+the line numbers kept) and the whole output. docs/checks.md, which explains the checks, shows a few
+examples whole (``<!-- case: NAME -->`` ... ``<!-- end case -->``: source and output), some outputs
+alone (``<!-- output: NAME -->`` ... ``<!-- end output -->``), and the index of the codes
+(``<!-- codes -->`` ... ``<!-- end codes -->``: one row per ``## CODE`` heading of
+docs/diagnostics.md). Every region is generated from the files here, so the docs cannot drift
+from the tests; the prose between the regions is written by hand. A new example gets a region of its
+own in its code's section of docs/diagnostics.md.
 
-    python tests/diagnostics/make_docs.py             # rewrite the example regions of docs/checks.md
+    python tests/diagnostics/make_docs.py             # rewrite the generated regions of both docs
     python tests/diagnostics/make_docs.py --expected  # also rerun rac and rewrite every .expected file
-    python tests/diagnostics/make_docs.py --check     # exit 1 if the doc or an .expected file is stale
+    python tests/diagnostics/make_docs.py --check     # exit 1 if a doc or an .expected file is stale
 
 After ``--expected``, read the diff: the new output is what the tests will demand.
 """
@@ -34,6 +41,9 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 DOC = ROOT / "docs" / "checks.md"
+REFERENCE = ROOT / "docs" / "diagnostics.md"
+#: Lines of the input shown before and after each line an output names.
+CONTEXT = 2
 
 if importlib.util.find_spec("rac") is None:  # run as a script from a checkout
     sys.path.insert(0, str(ROOT / "src"))
@@ -322,32 +332,114 @@ def run(c: Case, *extra: str) -> tuple[int, str]:
     return status, out.getvalue() + err.getvalue()
 
 
-# ------------------------------------------------------------------ the doc's example regions
-#: ``case`` regions show an example's source and output; ``output`` regions only the output.
-CASE_REGION = re.compile(r"<!-- (?P<kind>case|output): (?P<name>[A-Za-z0-9_]+) -->\n.*?<!-- end (?P=kind) -->",
-                         re.DOTALL)
+# ------------------------------------------------------------------ the docs' generated regions
+#: ``case`` regions show an example's source and output, ``excerpt`` regions the lines around the
+#: lines its output names and the output, ``output`` regions only the output.
+CASE_REGION = re.compile(r"<!-- (?P<kind>case|excerpt|output): (?P<name>[A-Za-z0-9_]+) -->\n.*?"
+                         r"<!-- end (?P=kind) -->", re.DOTALL)
+#: The index of the codes in docs/checks.md.
+CODES_REGION = re.compile(r"<!-- codes -->\n.*?<!-- end codes -->", re.DOTALL)
+#: A code's heading in docs/diagnostics.md: ``## E0001 — syntax error``.
+HEADING = re.compile(r"^## (?P<code>[EW]\d{4}) — (?P<title>.+)$", re.MULTILINE)
+
+
+def named_lines(c: Case) -> list[int]:
+    """The lines of the input that the example's output names: where each diagnostic and each note
+    points (``NAME.ra:LINE:COLUMN``), and the lines a counterexample's run names (``line N``)."""
+    output = c.expected
+    found = {int(m) for m in re.findall(rf"{re.escape(c.file)}:(\d+):\d+", output)}
+    found |= {int(m) for m in re.findall(r"\blines? (\d+)\b", output)}
+    return sorted(found)
+
+
+def excerpt(c: Case) -> str:
+    """The input's lines around each line :func:`named_lines` gives, numbered as in the output; ``...``
+    stands for the lines left out. An input whose output names no line is shown whole."""
+    assert c.shown is not None
+    lines = c.shown.rstrip("\n").split("\n")
+    named = [n for n in named_lines(c) if 1 <= n <= len(lines)]
+    keep = set(range(1, len(lines) + 1)) if not named else {
+        k for n in named for k in range(max(1, n - CONTEXT), min(len(lines), n + CONTEXT) + 1)}
+    width = len(str(max(keep)))
+    shown: list[str] = []
+    for number in range(1, len(lines) + 1):
+        if number in keep:
+            shown.append(f"{number:>{width}} | {lines[number - 1]}".rstrip())
+        elif not shown or shown[-1] != "...":
+            shown.append("...")
+    return "\n".join(shown)
 
 
 def region(c: Case, kind: str = "case") -> str:
-    """The doc's text for one example: the source (or what the file is) and rac's output."""
+    """The doc's text for one example: the source (whole, or the lines around the ones the output
+    names, or none), what the file is, and rac's output."""
     parts = [f"<!-- {kind}: {c.name} -->"]
-    if kind == "case" and c.note:
-        parts.append(c.note)
-        parts.append("")
+    if kind != "output" and c.note:
+        parts += [c.note, ""]
     if kind == "case" and c.shown is not None:
         parts += ["```ra", c.shown.rstrip("\n"), "```", ""]
+    if kind == "excerpt" and c.shown is not None:
+        if c.make is None:
+            total = len(c.shown.rstrip("\n").split("\n"))
+            parts += [f"[`{c.file}`](../tests/diagnostics/{c.file}) ({total} lines):", ""]
+        parts += ["```text", excerpt(c), "```", ""]
     parts += ["```text", "$ rac " + " ".join(c.command()), c.expected.rstrip("\n"), "```", f"<!-- end {kind} -->"]
     return "\n".join(parts)
 
 
-def render(doc: str) -> str:
-    """The doc with every example region regenerated from the files."""
-    return CASE_REGION.sub(lambda m: region(case(m.group("name")), m.group("kind")), doc)
+def anchor(code: str) -> str:
+    """The anchor of a code's section in docs/diagnostics.md (an ``<a id>`` before its heading)."""
+    return code.lower()
 
 
-def documented_cases(doc: str) -> list[str]:
-    """The examples the doc shows in full (``case`` regions), in order."""
-    return [m.group("name") for m in CASE_REGION.finditer(doc) if m.group("kind") == "case"]
+def codes_index(reference: str) -> str:
+    """docs/checks.md's index: a row per code of docs/diagnostics.md, linked to its section."""
+    rows = ["<!-- codes -->", "| Code | Meaning |", "| --- | --- |"]
+    rows += [f"| [{m['code']}](diagnostics.md#{anchor(m['code'])}) | {m['title']} |"
+             for m in HEADING.finditer(reference)]
+    return "\n".join(rows + ["<!-- end codes -->"])
+
+
+def with_new_cases(doc: str) -> str:
+    """docs/diagnostics.md with an (empty) excerpt region for every example it does not show yet:
+    after the last example of its code's section, else before the section's ``**Fix:**``, else at
+    the section's end. An example whose code has no section is left out (the tests name the code)."""
+    shown = set(documented_cases(doc))
+    for c in cases():
+        if c.name in shown:
+            continue
+        heading = next((m for m in HEADING.finditer(doc) if m["code"] == c.code), None)
+        if heading is None:
+            continue
+        following = next((m for m in HEADING.finditer(doc, heading.end())), None)
+        end = doc.rfind("<a id=", heading.end(), following.start()) if following else len(doc)
+        section = doc[heading.end():end]
+        regions = [m for m in CASE_REGION.finditer(section) if m["kind"] == "excerpt"]
+        fix = section.find("**Fix:**")
+        at = heading.end() + (regions[-1].end() if regions else fix if fix >= 0 else len(section.rstrip("\n")))
+        new = f"<!-- excerpt: {c.name} -->\n<!-- end excerpt -->"
+        doc = doc[:at] + ("\n\n" + new if regions or fix < 0 else new + "\n\n") + doc[at:]
+    return doc
+
+
+def render(doc: str, reference: str | None = None) -> str:
+    """The doc with every generated region regenerated from the files (the index of the codes from
+    ``reference``, the text of docs/diagnostics.md; read from the file when not given). In
+    docs/diagnostics.md (the doc with ``## CODE`` headings) a new example gets a region of its own."""
+    if HEADING.search(doc):
+        doc = with_new_cases(doc)
+    doc = CASE_REGION.sub(lambda m: region(case(m.group("name")), m.group("kind")), doc)
+    if CODES_REGION.search(doc):
+        if reference is None:
+            reference = REFERENCE.read_text(encoding="utf-8")
+        index = codes_index(reference)
+        doc = CODES_REGION.sub(lambda m: index, doc)
+    return doc
+
+
+def documented_cases(doc: str, kind: str = "excerpt") -> list[str]:
+    """The examples the doc shows in regions of ``kind``, in order."""
+    return [m.group("name") for m in CASE_REGION.finditer(doc) if m.group("kind") == kind]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -365,12 +457,13 @@ def main(argv: list[str] | None = None) -> int:
             stale.append(c.expected_path.name)
             if not args.check:
                 c.expected_path.write_text(output, encoding="utf-8")
-    doc = DOC.read_text(encoding="utf-8")
-    new = render(doc)
-    if new != doc:
-        stale.append(str(DOC.relative_to(ROOT)))
-        if not args.check:
-            DOC.write_text(new, encoding="utf-8")
+    for path in (REFERENCE, DOC):  # the reference first: the index of the codes is made from it
+        doc = path.read_text(encoding="utf-8")
+        new = render(doc)
+        if new != doc:
+            stale.append(str(path.relative_to(ROOT)))
+            if not args.check:
+                path.write_text(new, encoding="utf-8")
     for name in stale:
         print(f"{'stale' if args.check else 'wrote'}: {name}")
     return 1 if args.check and stale else 0

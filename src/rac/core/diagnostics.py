@@ -32,7 +32,7 @@ class Note:
 
 @dataclass(frozen=True)
 class Diagnostic:
-    """One finding: a code (documented in docs/checks.md), where, what, and what to do."""
+    """One finding: a code (documented in docs/diagnostics.md), where, what, and what to do."""
 
     code: str
     severity: Severity

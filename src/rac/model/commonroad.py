@@ -122,7 +122,7 @@ class ScenarioError(Exception):
 
 class InconsistentScenarioError(ScenarioError):
     """A CommonRoad file that reads, but whose parts contradict each other or the model: its own
-    diagnostic ``code`` (E0718-E0721, docs/checks.md), the ``attribute`` at fault, the position
+    diagnostic ``code`` (E0718-E0721, docs/diagnostics.md), the ``attribute`` at fault, the position
     ``line``:``column`` (1-based) of the element in the file when known, and a ``hint`` for the fix.
 
     ``str(error)`` is ``"<path>:<line>:<column>: <element> <problem>"`` (without the position when
