@@ -1,6 +1,6 @@
 """The deep-RL example (examples/deep_rl/, issue 21): its automaton checks with P1 and P2 proved on a
 built scene, and ``python benchmarks/deep_rl.py --quick`` trains MaskablePPO under the shield and
-plain PPO over three seeds and writes a sane table. The benchmark needs the ``rl`` extra; its test
+plain PPO (with ``--quick``, one seed) and writes a sane table. The benchmark needs the ``rl`` extra; its test
 is skipped without it (CI installs the test extra only)."""
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def test_the_benchmark_runs_and_writes_a_sane_table(tmp_path: Path) -> None:
             if row.startswith("| ") and not row.startswith("| configuration ")]
     runs = [row for row in rows if row[1]]
     means = [row for row in rows if not row[1]]
-    assert sorted((row[0], row[1]) for row in runs) == sorted((c, s) for c in CONFIGS for s in "123")
+    assert sorted((row[0], row[1]) for row in runs) == sorted((c, "1") for c in CONFIGS)  # --quick: seed 1
     assert [row[0] for row in means] == [f"**{c}**, mean" for c in CONFIGS]
     collisions = dict.fromkeys(CONFIGS, 0)
     for config, _, first, training, episodes, success, crashed, cpu, wall in runs:
