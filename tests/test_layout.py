@@ -208,3 +208,58 @@ def test_every_package_says_what_it_holds_and_may_import(package: str) -> None:
     assert said == f"{expected}.", (
         f"src/rac/{package}/__init__.py: its docstring should end with the line `May import: {expected}.`"
         " (the layers of tests/test_layout.py)")
+
+
+#: The names under which src/rac holds state arrays (rows of :mod:`rac.model.sample`'s columns): the
+#: value of a subscript, a variable or the last attribute (``graph.states``, ``layer.ego``).
+STATE_ARRAYS = {"state", "states", "row", "rows", "ego", "frame", "before", "after", "moved", "chosen", "current",
+                "frontier", "key", "place", "block", "start"}
+#: The module that names the columns.
+COLUMNS_MODULE = "rac.model.sample"
+#: Packages whose arrays have layouts of their own: plots and renders read (x, y, head) paths in metres.
+OWN_LAYOUTS = ("rac.output",)
+
+
+def _literal_column(node: ast.expr) -> bool:
+    """An integer literal (``4``, ``-1``), a slice of them (``:7``, ``5:7``, ``1:``) or a tuple of them."""
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        node = node.operand
+    if isinstance(node, ast.Constant):
+        return isinstance(node.value, int) and not isinstance(node.value, bool)
+    if isinstance(node, ast.Slice):
+        bounds = [b for b in (node.lower, node.upper) if b is not None]
+        return node.step is None and bool(bounds) and all(_literal_column(b) for b in bounds)
+    if isinstance(node, ast.Tuple):
+        return bool(node.elts) and all(_literal_column(e) for e in node.elts)
+    return False
+
+
+def bare_state_columns() -> Iterator[str]:
+    """``states[:, 4]``, ``rows[inverse, :7]``, ``runs.states[:, k, 5]``: a subscript of two or more indices
+    of an array named as a state array (:data:`STATE_ARRAYS`) whose last index, the column, is an integer
+    literal."""
+    for module, path in MODULES.items():
+        if module == COLUMNS_MODULE or module.startswith(OWN_LAYOUTS):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not (isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Tuple)
+                    and len(node.slice.elts) >= 2 and _literal_column(node.slice.elts[-1])
+                    and not (isinstance(node.slice.elts[0], ast.Constant) and node.slice.elts[0].value is Ellipsis)):
+                continue
+            value = node.value
+            name = value.id if isinstance(value, ast.Name) else value.attr if isinstance(value, ast.Attribute) else ""
+            if name in STATE_ARRAYS:
+                yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_state_columns_are_named() -> None:
+    """A state array's columns are named once, in :mod:`rac.model.sample` (``Ego.HEAD``, ``ACTION``,
+    ``GraphColumn.K``, ``PRODUCT_EGO``), never indexed by a bare integer elsewhere in src/rac.
+
+    Scope: subscripts ``a[rows, column]`` and ``a[runs, k, column]`` of arrays named as :data:`STATE_ARRAYS`
+    (a variable or an attribute: ``graph.states``), whose column is an integer literal, a slice or a tuple
+    of them. Not checked: one-index rows (``row[0]``), ``a[..., c]`` (the obstacles' ``(n, O, 4)``
+    states), arrays under other names (action ``pairs``, ``truth``, an observation ``out``) and
+    :data:`OWN_LAYOUTS`: layouts of their own."""
+    found = list(bare_state_columns())
+    assert not found, "state columns by bare integers (name them from rac.model.sample):\n" + "\n".join(found)

@@ -37,6 +37,7 @@ from rac.ir import expr as ie
 from rac.ir.vocabulary import Holding
 from rac.model.batch import batch_model
 from rac.model.data import ModelData
+from rac.model.sample import collides
 
 __all__ = ["EvaluationError", "Evaluator", "Frame", "int_sum"]
 
@@ -133,7 +134,7 @@ class Evaluator:
 
     def _collide(self, frame: Frame) -> np.ndarray:
         """``collide()``: ``mindist() < TD`` at the frame's sample, or before it under ``collision sticky``."""
-        now = self.function("mindist", frame) < self.model.native.td_d
+        now = collides(self.function("mindist", frame), self.model.native.td_d)
         if not self.data.sticky:
             return now
         if frame.crashed is None:

@@ -27,6 +27,7 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 from rac.model.data import ModelData, ModelRangeError
+from rac.model.sample import collides
 
 __all__ = ["CORNERS", "CORNER_NAMES", "NEGATIVE_DISTANCE_TEXT", "NO_OBSTACLE", "NO_OBSTACLE_TEXT", "NativeModel",
            "State", "point_in_polygons"]
@@ -296,7 +297,7 @@ class NativeModel:
 
     def collide(self, state: State, k: int) -> bool:
         """``mindist(state, k) < TD``."""
-        return self.mindist(state, k) < self.td_d
+        return collides(self.mindist(state, k), self.td_d)
 
     def offroad(self, state: State, k: int | None = None) -> bool:
         """Whether a corner of the ego rectangle lies outside every road polygon; false at samples

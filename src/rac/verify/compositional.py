@@ -35,6 +35,7 @@ from rac.check.analysis.priority import check_ranges
 from rac.core.diagnostics import Severity
 from rac.engine.evaluate import EvaluationError
 from rac.ir import expr as ie
+from rac.model.sample import GraphColumn
 from rac.runtime.semantics import mirror_accrual, mirror_update
 from rac.verify.context import Context, UnknownVerdict
 
@@ -308,7 +309,7 @@ def transfer(ctx: Context, expr: ie.Expr) -> Transfer:
                 holds &= ctx.label(graph, condition)
         except (UnknownVerdict, EvaluationError) as exc:
             return Transfer(False, why_not=f"{' and '.join(checked)} could not be checked on the model ({exc})")
-        later = graph.states[:, 0] >= 1  # the inputs are read from the first sample on
+        later = graph.states[:, GraphColumn.K] >= 1  # the inputs are read from the first sample on
         bad = int((~holds & later).sum())
         if bad:
             return Transfer(False, why_not=f"{' and '.join(checked)} fails in {bad:,} states of the model")
