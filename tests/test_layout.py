@@ -263,3 +263,59 @@ def test_state_columns_are_named() -> None:
     :data:`OWN_LAYOUTS`: layouts of their own."""
     found = list(bare_state_columns())
     assert not found, "state columns by bare integers (name them from rac.model.sample):\n" + "\n".join(found)
+
+
+#: The int32 limits as numbers: only :mod:`rac.core.numbers` writes them (``INT32_MAX``, ``INT32_MIN``,
+#: ``INT32_LOW``, ``INT32_BOUND``).
+INT32_LITERALS = {2**31 - 1, 2**31, 2**32}
+
+
+def int32_literals() -> Iterator[str]:
+    """A number literal equal to ``2**31 - 1``, ``2**31`` or ``2**32`` (an int or a float; a sign is a
+    separate node, so ``-2147483648`` is found too), or the expressions ``2**31``, ``2**32``, ``1 << 31``,
+    ``1 << 32`` and ``2**31 - 1`` written out."""
+    for module, path in MODULES.items():
+        if module == "rac.core.numbers":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            number = None
+            if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
+                    and not isinstance(node.value, bool):
+                number = node.value
+            elif isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Pow, ast.LShift)) \
+                    and isinstance(node.left, ast.Constant) and isinstance(node.right, ast.Constant):
+                if (node.left.value, node.right.value) in {(2, 31), (2, 32)} and isinstance(node.op, ast.Pow) \
+                        or (node.left.value, node.right.value) in {(1, 31), (1, 32)}:
+                    number = 2**31
+            if number is not None and number in INT32_LITERALS:
+                yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_int32_limits_only_from_core_numbers() -> None:
+    """The int32 limits are written once, in :mod:`rac.core.numbers`; every other module of src/rac imports
+    them (text in docstrings and messages may still say the numbers)."""
+    found = list(int32_literals())
+    assert not found, "int32 limits written out (import them from rac.core.numbers):\n" + "\n".join(found)
+
+
+def collide_comparisons() -> Iterator[str]:
+    """A comparison with the collision distance (``td``, ``_td``, ``td_d``, ``self._td``, ``native.td_d``)."""
+    for module, path in MODULES.items():
+        if module == COLUMNS_MODULE:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Compare):
+                for operand in (node.left, *node.comparators):
+                    name = operand.id if isinstance(operand, ast.Name) else (
+                        operand.attr if isinstance(operand, ast.Attribute) else "")
+                    if name in {"td", "_td", "td_d"}:
+                        yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_collide_is_defined_once() -> None:
+    """``collide()`` is ``mindist() < TD`` in one place, :func:`rac.model.sample.collides`: the scalar and
+    batch model, exploration, the product, the evaluator, simulation and episodes call it, none compares
+    with the collision distance itself."""
+    found = list(collide_comparisons())
+    assert not found, "collide() computed outside rac.model.sample:\n" + "\n".join(found)
+

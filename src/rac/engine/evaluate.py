@@ -32,6 +32,7 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
+from rac.core.numbers import INT32_BOUND
 from rac.core.source import Span
 from rac.ir import expr as ie
 from rac.ir.vocabulary import Holding
@@ -102,7 +103,7 @@ class Frame:
 
 def int_sum(const: int, terms: Sequence[tuple[int, np.ndarray]], n: int) -> np.ndarray:
     """``const + Σ c * column`` exactly: int64 when no intermediate can overflow it, else Python ints."""
-    exact = abs(const) + sum(abs(c) for c, _ in terms) * 2**31 < _SAFE_INT64
+    exact = abs(const) + sum(abs(c) for c, _ in terms) * INT32_BOUND < _SAFE_INT64
     dtype = np.int64 if exact else object
     total = np.full(n, const, dtype=dtype)
     for c, column in terms:

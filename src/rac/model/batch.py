@@ -26,6 +26,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rac.core.numbers import INT32_BOUND
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.data import ModelData, ModelRangeError
 from rac.model.memo import KeyedRows, cos_sin, distinct_values
@@ -157,7 +158,7 @@ class BatchModel:
                 for column, part in ((Ego.X, slice(0, m)), (Ego.Y, slice(m, 2 * m))))
         values = np.stack([x, y, speeds[speed, m], speeds[speed, m + 1], heading[pair, 2 * m]])  # x, y, v, acc, head
         scaled = values * scale
-        bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
+        bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))  # also NaN
         if bad.any():  # the first column with a value out of range, at its first row (as native)
             column, row = divmod(int(np.argmax(bad)), n)
             what = ("x", "y", "v", "acc", "head")[column]
@@ -188,7 +189,7 @@ class BatchModel:
             y = y + self._increment("y", speed * sin * u)
         out = np.empty(states.shape, dtype=np.int32)
         for column, (what, value) in enumerate((("x", x), ("y", y), ("v", v), ("acc", acc), ("head", head))):
-            bad = (value <= -2147483648) | (value >= 2147483648)
+            bad = (value <= -INT32_BOUND) | (value >= INT32_BOUND)
             if bad.any():
                 row = int(np.argmax(bad))
                 raise ModelRangeError(f"sense(): {what}", int(value[row]) / scale, int(value[row]), data.scale)
@@ -200,7 +201,7 @@ class BatchModel:
         """``trunc(value * SCALE_D)`` as int64, or :class:`ModelRangeError` (as native) for the first
         value beyond int32."""
         scaled = value * self.native.scale_d
-        bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))
+        bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))
         if bad.any():
             self.native.significand(what, float(value[int(np.argmax(bad))]))
         return scaled.astype(np.int64)
@@ -295,7 +296,7 @@ class BatchModel:
         u = self.data.unit
         low = keys & 0xFFFFFFFF
         head = (keys >> 32) / scale
-        turn = np.where(low >= 1 << 31, low - (1 << 32), low) / scale
+        turn = np.where(low >= INT32_BOUND, low - 2 * INT32_BOUND, low) / scale  # the low 32 bits as an int32
         angles = np.empty((keys.size, m), dtype=np.float64)
         for step in range(m):
             head = head + turn * u
