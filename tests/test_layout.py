@@ -8,7 +8,10 @@ Each rule fails with the offending file and line:
   nothing of rac but ``core`` and itself, ``check`` only ``core``, ``lang`` and ``ir``, the targets
   only ``core``, ``ir``, ``model`` and ``runtime``, the engine never ``targets``, ``check`` or
   ``lang``; only ``cli`` (and ``python -m rac``) imports ``cli``;
-- at most a handful of modules directly under ``src/rac``.
+- at most a handful of modules directly under ``src/rac``;
+- one sample's meaning written once: a state array's columns by name from :mod:`rac.model.sample`
+  (no bare integer column), the int32 limits only from :mod:`rac.core.numbers`, ``collide()`` only
+  from :func:`rac.model.sample.collides`, a guard walked by :class:`rac.ir.GuardFold`.
 
 docs/architecture.md shows the same layers.
 """
@@ -319,3 +322,30 @@ def test_collide_is_defined_once() -> None:
     found = list(collide_comparisons())
     assert not found, "collide() computed outside rac.model.sample:\n" + "\n".join(found)
 
+
+#: Modules that may test a guard node's connective themselves: rac.ir (the fold, and ir.inputs' table
+#: with its own cache), check.linear (which builds guards: ``not not g`` simplified) and the Python
+#: target's printer (the same simplification when printing).
+GUARD_WALKERS = {"rac.ir", "rac.ir.inputs", "rac.check.linear", "rac.targets.python"}
+
+
+def guard_connective_tests() -> Iterator[str]:
+    """``isinstance(x, ir.BNot)``, ``isinstance(x, (ir.BAnd, ...))``: a walk over the connectives."""
+    for module, path in MODULES.items():
+        if module in GUARD_WALKERS:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "isinstance"
+                    and len(node.args) == 2):
+                names = {n.attr if isinstance(n, ast.Attribute) else n.id for n in ast.walk(node.args[1])
+                         if isinstance(n, (ast.Attribute, ast.Name))}
+                if names & {"BNot", "BAnd", "BOr"}:
+                    yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_guards_are_walked_by_the_fold() -> None:
+    """A guard's meaning is given as leaves and combinations to :class:`rac.ir.GuardFold` (the interpreter,
+    the batch runtime, the product, the compositional transfer); only :data:`GUARD_WALKERS` test the
+    connectives (the printers dispatch by node name, ``print_BAnd``, with their operator tables)."""
+    found = list(guard_connective_tests())
+    assert not found, "isinstance chains over guard connectives (use rac.ir.GuardFold):\n" + "\n".join(found)

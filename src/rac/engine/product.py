@@ -151,21 +151,22 @@ class _Arithmetic:
     def guard(self, guard: ir.Guard, inputs: np.ndarray) -> np.ndarray:
         """A guard on the input globals (numbers as significands, thresholds compared exactly)."""
         n = inputs.shape[0]
-        if isinstance(guard, ir.BConst):
-            return np.full(n, guard.value)
-        if isinstance(guard, ir.BInput):
-            return inputs[:, self.input[guard.name]] != 0
-        if isinstance(guard, ir.BAtom):
-            bound = ie.integer_bound(guard.op, guard.threshold * self.scale)
+
+        def atom(leaf: ir.BAtom) -> np.ndarray:
+            bound = ie.integer_bound(leaf.op, leaf.threshold * self.scale)
             if isinstance(bound, bool):
                 return np.full(n, bound)
             op, value = bound
-            return _compare(inputs[:, self.input[guard.input]], op, value)
-        if isinstance(guard, ir.BNot):
-            return ~self.guard(guard.operand, inputs)
-        parts = [self.guard(g, inputs) for g in guard.operands]
-        combine = np.logical_and if isinstance(guard, ir.BAnd) else np.logical_or
-        return combine.reduce(parts) if parts else np.full(n, isinstance(guard, ir.BAnd))
+            return _compare(inputs[:, self.input[leaf.input]], op, value)
+
+        fold: ir.GuardFold[np.ndarray] = ir.GuardFold(
+            const=lambda value: np.full(n, value),
+            boolean=lambda leaf: inputs[:, self.input[leaf.name]] != 0,
+            atom=atom,
+            negate=lambda inner: ~inner,
+            conjoin=lambda parts: np.logical_and.reduce(parts) if parts else np.full(n, True),
+            disjoin=lambda parts: np.logical_or.reduce(parts) if parts else np.full(n, False))
+        return fold(guard)
 
     def update(self, updates: Sequence[ir.Assignment], inputs: np.ndarray, mirrors: np.ndarray) -> None:
         """Apply ``updates`` left to right to ``mirrors`` in place (each reads the ones before it)."""
