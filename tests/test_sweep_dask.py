@@ -429,7 +429,7 @@ def test_off_a_terminal_the_progress_is_plain_lines(monkeypatch: pytest.MonkeyPa
 
 def test_import_rac_does_not_import_dask() -> None:
     heavy = ("dask", "distributed", "pandas", "pyarrow")
-    code = ("import sys, rac, rac.sweep, rac.cli.main; rac.cli.main._parser(); "
+    code = ("import sys, rac, rac.sweep, rac.cli.arguments; rac.cli.arguments.build_parser(); "
             f"print(sorted(m for m in sys.modules if m.split('.')[0] in {heavy!r}))")
     done = subprocess.run([sys.executable, "-c", code], env=rac_env(), capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
