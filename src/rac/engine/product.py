@@ -78,6 +78,7 @@ from rac.engine.graph import LABELS, ExploredGraph
 from rac.engine.storm import Verdict, decide
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.ir.significands import Unrepresentable, rate_diagnostic, unrepresentable
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.commonroad import load_scenario
 from rac.model.data import ModelData, ModelRangeError, build_model_data
@@ -123,9 +124,11 @@ class _Arithmetic:
             row = []
             for reward, rate in zip(automaton.rewards, location.rates):
                 const, terms = mirror_accrual(rate, period, scale)
-                if const.denominator != 1:  # the emitted model does not exist (E0801)
-                    raise ValueError(f"the rate of `{reward}` in `{location.name}` adds {const} significand "
-                                     "units per sample, not a whole number (E0801)")
+                if const.denominator != 1:  # the emitted model does not exist: the checker's E0801
+                    problem = rate_diagnostic(automaton, location, reward, rate) or unrepresentable(
+                        automaton, f"reward rate of `{reward}` in location `{location.name}` adds {const} "
+                        "significand units per sample, not a whole number", location.span)
+                    raise Unrepresentable(diagnostic=problem)
                 row.append((int(const), [(1 if c > 0 else -1, abs(c.numerator), c.denominator, self.input[name])
                                          for c, name in terms if c != 0]))
             self.accruals.append(row)

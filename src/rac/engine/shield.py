@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rac.core.diagnostics import RacError
 from rac.engine.lookahead import Lookahead, LookaheadMask, LookaheadSettings
 from rac.engine.storm import Shield
 
@@ -51,7 +52,7 @@ FORMAT = "rac-shield-1"
 UNSEEN_POLICIES = ("none", "all", "error")
 
 
-class UnseenState(KeyError):
+class UnseenState(RacError, KeyError):
     """The shield has no entry for this state (``unseen="error"``)."""
 
 

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rac.compiler import CompileResult
+from rac.core.diagnostics import RacError
 from rac.core.numbers import exact_decimal
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded, default_max_bytes
@@ -41,11 +42,11 @@ if TYPE_CHECKING:
 __all__ = ["Context", "Learned", "NotApplicable", "UnknownVerdict", "VerifyOptions", "over_budget", "restricted"]
 
 
-class UnknownVerdict(Exception):
+class UnknownVerdict(RacError):
     """A query that cannot be decided within the options; the message says why, for the user."""
 
 
-class NotApplicable(Exception):
+class NotApplicable(RacError):
     """A query that depends on a strategy that provably does not exist: nothing to decide (status
     ``not_applicable``); the message cites the defining query and why it failed."""
 

@@ -44,6 +44,7 @@ from typing import Any
 from rac.check.standard import STANDARD
 from rac.check.standard import standard_queries as checked_standard_queries
 from rac.compiler import CompileResult
+from rac.core.diagnostics import RacError
 from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
 from rac.verify.context import Context, NotApplicable, UnknownVerdict, VerifyOptions
@@ -73,7 +74,7 @@ def standard_queries(result: CompileResult, horizon_seconds: Fraction | None = N
     return checked_standard_queries(automaton, horizon_seconds, verify_only=True)
 
 
-class UnknownQuery(KeyError):
+class UnknownQuery(RacError, KeyError):
     """``VerifyOptions.only`` names a query the file (and ``--standard``) does not have; ``args[0]``
     lists the missing names."""
 
