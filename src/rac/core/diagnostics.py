@@ -117,6 +117,13 @@ class RacError(Exception):
             self.diagnostic = diagnostic
 
 
+class RacValueError(RacError, ValueError):
+    """A value rac cannot use as given, met after the checker: a file without a ``model`` block where
+    one is needed, a shield or strategy file of another model, a horizon that is no whole number of
+    samples, a query the engine does not answer. The user's to change, not a bug in rac; a
+    ``ValueError`` as before."""
+
+
 class CheckError(RacError):
     """Raised by :func:`rac.load` when a file has errors; carries every diagnostic."""
 

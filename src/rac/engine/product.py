@@ -69,6 +69,7 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
+from rac.core.diagnostics import RacValueError
 from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
@@ -622,10 +623,10 @@ def decide_product(graph: ProductGraph, query: iq.PathQuery | iq.QueryDecl, text
         text = text or query.text
     path = query.query if isinstance(query, iq.QueryDecl) else query
     if not isinstance(path, iq.PathQuery):
-        raise ValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
+        raise RacValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
     query = path
     if query.under is not None:
-        raise ValueError(f"`under {query.under}`: strategies are not supported on the product")
+        raise RacValueError(f"`under {query.under}`: strategies are not supported on the product")
     mask = graph.label(query.expr, box=query.quantifier in ("A[]", "E[]"))
     labelled = dataclasses.replace(graph, labels={**graph.labels, "query": mask})
     verdict = decide(labelled, query.quantifier, "query")

@@ -231,14 +231,17 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
 def reader_failure(error: BaseException) -> bool:
     """Whether ``error`` is what commonroad-io (and the lxml and shapely it calls) raise on a file it
     cannot read: its own asserts and bare ``Exception()`` (``file_reader_xml``), lookups and
-    conversions of the XML's text, lxml's and shapely's errors. Anything else (a subclass of
-    ``Exception`` of no such kind) is a bug, rac's or commonroad-io's, and propagates."""
+    conversions of the XML's text, the XML parsers' (ElementTree's, expat's, lxml's) and shapely's
+    errors. Anything else (a subclass of ``Exception`` of no such kind) is a bug, rac's or
+    commonroad-io's, and propagates."""
+    from xml.parsers.expat import ExpatError
+
     from lxml import etree
     from shapely.errors import ShapelyError
 
     return type(error) is Exception or isinstance(error, (
         AssertionError, ArithmeticError, AttributeError, LookupError, TypeError, ValueError, NotImplementedError,
-        etree.Error, ShapelyError))
+        SyntaxError, ExpatError, etree.Error, ShapelyError))  # ElementTree's ParseError is a SyntaxError
 
 
 #: Serialises :func:`linear_ids`: it swaps a name of commonroad-io's reader module while a file is read.

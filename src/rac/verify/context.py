@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rac.compiler import CompileResult
-from rac.core.diagnostics import RacError
+from rac.core.diagnostics import RacError, RacValueError
 from rac.core.numbers import exact_decimal
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded, default_max_bytes
@@ -141,7 +141,7 @@ class Context:
     def __init__(self, result: CompileResult, options: VerifyOptions) -> None:
         automaton = result.raise_for_errors()
         if automaton.model is None or result.model_data is None:
-            raise ValueError("rac verify needs a `model` block: the queries are answered on the scenario model")
+            raise RacValueError("rac verify needs a `model` block: the queries are answered on the scenario model")
         #: The checked file and its automaton.
         self.result = result
         self.automaton = automaton
@@ -154,8 +154,8 @@ class Context:
         self.period = Fraction(automaton.period)
         horizon = options.horizon if options.horizon is not None else Fraction(automaton.horizon)
         if (horizon / self.period).denominator != 1:
-            raise ValueError(f"the horizon {_decimal(horizon)} s is not a whole number of samples of "
-                             f"{_decimal(self.period)} s")
+            raise RacValueError(f"the horizon {_decimal(horizon)} s is not a whole number of samples of "
+                                f"{_decimal(self.period)} s")
         #: The horizon of exhaustive queries in samples.
         self.horizon_samples = int(horizon / self.period)
         #: The explored model up to the horizon, by whether unsafe states were pruned (see :meth:`graph`).
