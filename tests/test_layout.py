@@ -16,7 +16,9 @@ Each rule fails with the offending file and line:
   :class:`rac.compiler.CompileResult`), and isinstance picks among them.
 - one sample's meaning written once: a state array's columns by name from :mod:`rac.model.sample`
   (no bare integer column), the int32 limits only from :mod:`rac.core.numbers`, ``collide()`` only
-  from :func:`rac.model.sample.collides`, a guard walked by :class:`rac.ir.GuardFold`.
+  from :func:`rac.model.sample.collides`, a guard walked by :class:`rac.ir.GuardFold`;
+- no ``except Exception`` (nor bare ``except:``) outside :data:`CATCH_ALL`, each with its reason;
+- every exception class of ``src/rac`` derives from ``RacError`` (``rac.core.diagnostics``).
 
 docs/architecture.md shows the same layers.
 """
@@ -393,3 +395,78 @@ def test_guards_are_walked_by_the_fold() -> None:
     connectives (the printers dispatch by node name, ``print_BAnd``, with their operator tables)."""
     found = list(guard_connective_tests())
     assert not found, "isinstance chains over guard connectives (use rac.ir.GuardFold):\n" + "\n".join(found)
+
+
+#: The handlers that may catch every ``Exception`` (or bare ``except:``), ``file:function`` -> why. A
+#: handler whose last statement is a bare ``raise`` (a cleanup that lets the failure go on) needs no entry.
+CATCH_ALL: dict[str, str] = {
+    "cli/main.py:_main": "the last-resort handler: a bug in rac is reported as an internal error (exit 3)",
+    "learning/wrappers.py:step": "the user's inputs callable may raise anything: said with the state things are in",
+    "sweep/task.py:run_task": "a task's failure is data (a row): the sweep goes on",
+    "sweep/work.py:execute": "a task's failure is data (a row, saying where): the sweep goes on",
+    "sweep/run.py:run_tasks": "a worker's result (a stand-in's, or unpickling it) may raise anything: a row",
+    # commonroad-io raises a bare `Exception()` on a bad file: caught, and re-raised unless
+    # rac.model.commonroad.reader_failure knows it as the library's
+    "model/commonroad.py:load_scenario": "commonroad-io's failures (reader_failure) become a ScenarioError",
+    "model/commonroad.py:_diagnose": "commonroad-io's failures (reader_failure) name the element at fault",
+    "model/commonroad.py:_box": "commonroad-io's and shapely's failures (reader_failure): a shape rac cannot bound",
+    "output/render.py:_read": "commonroad-io's failures (reader_failure) become a RenderError",
+}
+
+
+def catch_alls() -> Iterator[tuple[str, int]]:
+    """``(file:function, line)`` of each handler catching ``Exception``/``BaseException`` or bare."""
+    for path in sorted(SRC.rglob("*.py")):
+        where = str(path.relative_to(SRC))
+
+        def visit(node: ast.AST, function: str, where: str = where) -> Iterator[tuple[str, int]]:
+            for child in ast.iter_child_nodes(node):
+                name = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else function
+                if isinstance(child, ast.ExceptHandler):
+                    caught = child.type.elts if isinstance(child.type, ast.Tuple) else [child.type]
+                    broad = child.type is None or any(
+                        isinstance(c, ast.Name) and c.id in ("Exception", "BaseException") for c in caught)
+                    reraises = isinstance(child.body[-1], ast.Raise) and child.body[-1].exc is None
+                    if broad and not reraises:
+                        yield f"{where}:{function}", child.lineno
+                yield from visit(child, name)
+
+        yield from visit(ast.parse(path.read_text(encoding="utf-8")), "<module>")
+
+
+def test_no_catch_all_outside_the_allow_list() -> None:
+    found = list(catch_alls())
+    wrong = [f"src/rac/{site.split(':')[0]}:{line} ({site})" for site, line in found if site not in CATCH_ALL]
+    assert not wrong, ("`except Exception` (or bare `except:`) catches rac's own bugs too; catch the concrete "
+                       "types, or add the site to CATCH_ALL with the reason:\n" + "\n".join(wrong))
+    stale = set(CATCH_ALL) - {site for site, _ in found}
+    assert not stale, f"CATCH_ALL names sites without a catch-all: {sorted(stale)}"
+
+
+def test_every_exception_class_derives_from_rac_error() -> None:
+    import builtins
+
+    bases: dict[str, set[str]] = {}
+    where: dict[str, str] = {}
+    for path in sorted(SRC.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ClassDef):
+                names = {b.id if isinstance(b, ast.Name) else b.attr for b in node.bases
+                         if isinstance(b, (ast.Name, ast.Attribute))}
+                bases.setdefault(node.name, set()).update(names)
+                where[node.name] = f"{path.relative_to(SRC.parents[1])}:{node.lineno}"
+
+    def ancestors(name: str, seen: frozenset[str] = frozenset()) -> set[str]:
+        found = set()
+        for base in bases.get(name, set()) - seen:
+            found |= {base} | ancestors(base, seen | {name})
+        return found
+
+    def builtin_exception(name: str) -> bool:
+        value = getattr(builtins, name, None)
+        return isinstance(value, type) and issubclass(value, BaseException)
+
+    exceptions = [n for n in bases if any(builtin_exception(a) for a in ancestors(n))]
+    assert "RacError" in exceptions
+    wrong = [f"{where[n]}: {n}" for n in exceptions if n != "RacError" and "RacError" not in ancestors(n)]
+    assert not wrong, "exception classes that do not derive from rac.core.diagnostics.RacError:\n" + "\n".join(wrong)

@@ -17,11 +17,11 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from rac.compiler import CompileResult, compile_file, compile_text
-    from rac.core.diagnostics import CheckError, Diagnostic
+    from rac.core.diagnostics import CheckError, Diagnostic, RacError
     from rac.runtime.interpreter import RewardAutomaton
 
 __version__ = "0.1.0"
-__all__ = ["CheckError", "CompileResult", "Diagnostic", "compile_file", "compile_text", "load", "loads"]
+__all__ = ["CheckError", "CompileResult", "Diagnostic", "RacError", "compile_file", "compile_text", "load", "loads"]
 
 
 def load(path: str | Path) -> RewardAutomaton:
@@ -45,8 +45,8 @@ def loads(text: str, name: str = "<string>") -> RewardAutomaton:
 
 #: The public names defined elsewhere, imported on first use (PEP 562): ``import rac`` and ``rac
 #: --version`` then load neither the checker nor numpy.
-_LAZY = {"CheckError": "rac.core.diagnostics", "Diagnostic": "rac.core.diagnostics", "CompileResult": "rac.compiler",
-         "compile_file": "rac.compiler", "compile_text": "rac.compiler"}
+_LAZY = {"CheckError": "rac.core.diagnostics", "Diagnostic": "rac.core.diagnostics", "RacError": "rac.core.diagnostics",
+         "CompileResult": "rac.compiler", "compile_file": "rac.compiler", "compile_text": "rac.compiler"}
 
 
 def __getattr__(name: str) -> Any:

@@ -24,6 +24,7 @@ from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable
 from rac.core.diagnostics import Diagnostic, Note, short_number, warning
 from rac.core.source import Span
 from rac.ir import query as iq
+from rac.ir.significands import rate_diagnostics
 from rac.lang import ast
 
 _M = TypeVar("_M")
@@ -132,6 +133,12 @@ class Resolver:
         )
         if model is None:
             return automaton
+        # the model block fixes the number representation: a rate it cannot hold fails `rac check`, not
+        # only `rac compile --target uppaal` (the engine holds the same significands)
+        unheld = rate_diagnostics(automaton)
+        if unheld:
+            self.diagnostics.extend(unheld)
+            return None
         return dataclasses.replace(automaton, standard_queries=standard_queries(automaton))
 
     def _index(self, inputs: tuple[ir.Input, ...], rewards: tuple[str, ...]) -> None:

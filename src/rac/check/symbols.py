@@ -13,14 +13,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
 
-from rac.core.diagnostics import Diagnostic, error
+from rac.core.diagnostics import Diagnostic, RacError, error
 from rac.core.source import Span
 from rac.lang import ast
 
 __all__ = ["ModelContext", "Scope", "Symbol", "Unresolvable"]
 
 
-class Unresolvable(Exception):
+class Unresolvable(RacError):
     """An expression could not be typed; its diagnostic is already recorded."""
 
 

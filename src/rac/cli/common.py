@@ -19,7 +19,7 @@ import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from rac.core.diagnostics import Diagnostic, error
+from rac.core.diagnostics import Diagnostic, RacError, error
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
@@ -69,7 +69,7 @@ def unwritable(path: Path, exc: OSError) -> Diagnostic:
     return error("E0009", f"cannot write `{path}`: {reason}", None, hints=[f"{hint}; nothing was written"])
 
 
-class StdoutError(Exception):
+class StdoutError(RacError):
     """Standard output cannot be written (full disk, closed, ...): the user's or the environment's
     condition, not a bug in rac; ``cause`` says why."""
 
@@ -114,7 +114,7 @@ def _remove_stale_temporaries(path: Path) -> None:
                     leftover.unlink()
 
 
-class FileWriteError(Exception):
+class FileWriteError(RacError):
     """Writing ``path`` failed with ``cause``; raised by :func:`write_all_atomically`."""
 
     def __init__(self, path: Path, cause: OSError) -> None:

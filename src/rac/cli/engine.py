@@ -25,6 +25,7 @@ from rac.cli.common import (
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
+from rac.core.diagnostics import RacError, render_json
 from rac.core.diagnostics import render_text as render_diagnostics
 from rac.model.sample import Ego
 
@@ -81,7 +82,17 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
             result, status = _prepare(args)
             if result is None:
                 return status
-            return command(args, result)
+            try:
+                return command(args, result)
+            except RacError as exc:
+                if exc.diagnostic is None:
+                    raise
+                # the failure points into the file: rendered with its source line, like rac check's findings
+                if getattr(args, "format", None) == "json":
+                    print(render_json([exc.diagnostic]))
+                else:
+                    print(render_diagnostics([exc.diagnostic], result.sources), file=sys.stderr)
+                return EXIT_ERRORS
 
     return run
 

@@ -17,8 +17,8 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from rac.cli.arguments import COMMANDS, build_parser
-from rac.cli.common import EXIT_INTERNAL, EXIT_USAGE, StdoutError, stdout_unwritable
-from rac.core.diagnostics import render_text
+from rac.cli.common import EXIT_ERRORS, EXIT_INTERNAL, EXIT_USAGE, StdoutError, stdout_unwritable
+from rac.core.diagnostics import RacError, render_json, render_text
 from rac.core.resources import ScenarioTooLarge
 
 
@@ -63,14 +63,28 @@ def _main(argv: Sequence[str] | None) -> int:
               "raise the limit, or lower --max-memory (where the command has it) so that rac stops before it",
               file=sys.stderr)
         return EXIT_USAGE
+    except RacError as exc:
+        if exc.diagnostic is None:  # a failure rac handles itself reached the top: a bug, reported below
+            return _internal_error(exc)
+        # a failure in the user's words (after the checker): the one renderer, like rac check's findings
+        if getattr(args, "format", None) == "json":
+            print(render_json([exc.diagnostic]))
+        else:
+            print(render_text([exc.diagnostic], {}), file=sys.stderr)
+        return EXIT_ERRORS
     except Exception as exc:  # a bug in rac: say so plainly instead of a traceback
-        if os.environ.get("RAC_DEBUG"):
-            raise
-        print(f"rac: internal error: {type(exc).__name__}: {exc}\n"
-              "This is a bug in rac; rerun with RAC_DEBUG=1 for the traceback and report it.", file=sys.stderr)
-        return EXIT_INTERNAL
+        return _internal_error(exc)
     finally:
         sys.stdout = stdout
+
+
+def _internal_error(exc: Exception) -> int:
+    """Report ``exc`` as a bug in rac (exit 3); with RAC_DEBUG set, re-raise it for the traceback."""
+    if os.environ.get("RAC_DEBUG"):
+        raise exc
+    print(f"rac: internal error: {type(exc).__name__}: {exc}\n"
+          "This is a bug in rac; rerun with RAC_DEBUG=1 for the traceback and report it.", file=sys.stderr)
+    return EXIT_INTERNAL
 
 
 class ReaderSafe:

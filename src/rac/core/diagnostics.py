@@ -102,7 +102,29 @@ def short_number(value: Fraction, digits: int = 6) -> str:
     return text if Fraction(text) == value else f"{text}…"
 
 
-class CheckError(Exception):
+class RacError(Exception):
+    """The root of rac's own exceptions. ``diagnostic``, when set, is the failure in the user's words
+    (a code of docs/checks.md, where, and what to do): the ``rac`` command renders it through the one
+    renderer, like the checker's findings. Subclasses keep a builtin base where callers expect one
+    (``class ScenarioError(RacError, ValueError)``)."""
+
+    #: The failure as the user reads it; None for a failure that only rac itself handles.
+    diagnostic: Diagnostic | None = None
+
+    def __init__(self, *args: object, diagnostic: Diagnostic | None = None) -> None:
+        super().__init__(*(args or ((diagnostic.message,) if diagnostic is not None else ())))
+        if diagnostic is not None:
+            self.diagnostic = diagnostic
+
+
+class RacValueError(RacError, ValueError):
+    """A value rac cannot use as given, met after the checker: a file without a ``model`` block where
+    one is needed, a shield or strategy file of another model, a horizon that is no whole number of
+    samples, a query the engine does not answer. The user's to change, not a bug in rac; a
+    ``ValueError`` as before."""
+
+
+class CheckError(RacError):
     """Raised by :func:`rac.load` when a file has errors; carries every diagnostic."""
 
     def __init__(self, diagnostics: Iterable[Diagnostic], sources: Mapping[str, SourceFile] | None = None):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rac.core.diagnostics import RacError
 from rac.core.numbers import format_bytes, size_option
 
 __all__ = ["LOAD_BASE_BYTES", "LOAD_BYTES_PER_FILE_BYTE", "LOAD_BYTES_PER_SECOND", "LOAD_NOTICE_BYTES", "LoadEstimate",
@@ -52,7 +53,7 @@ def estimate_load(file_bytes: int) -> LoadEstimate:
                         file_bytes / LOAD_BYTES_PER_SECOND)
 
 
-class ScenarioTooLarge(MemoryError):
+class ScenarioTooLarge(RacError, MemoryError):
     """A scenario refused before it loads: its :class:`LoadEstimate` ``estimate`` exceeds the memory
     budget ``limit`` (bytes; ``--max-memory``). A ``MemoryError`` like the engine's budget errors: the
     file is not at fault, the budget is too small for it; ``rac`` reports it as a resource error."""

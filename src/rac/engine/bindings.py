@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from rac import ir
+from rac.core.diagnostics import RacValueError
 from rac.core.numbers import INT32_BOUND
 from rac.engine.compiled import compile_expressions
 from rac.engine.evaluate import Evaluator, Frame
@@ -38,8 +39,8 @@ class Bindings:
         missing = [item.name for item in automaton.inputs if item.name not in bound]
         if missing:
             names = ", ".join(f"`{name}`" for name in missing)
-            raise ValueError(f"input {names} has no binding: {reader} reads every input from the model, "
-                             f"as the emitted model does (add `bind {missing[0]} = ...` to the `model` block)")
+            raise RacValueError(f"input {names} has no binding: {reader} reads every input from the model, "
+                                f"as the emitted model does (add `bind {missing[0]} = ...` to the `model` block)")
         #: (input, is a condition, its binding), in the automaton's input order.
         self.items: list[tuple[str, bool, ie.Expr]] = [(item.name, item.is_bool, bound[item.name])
                                                        for item in automaton.inputs]

@@ -26,6 +26,7 @@ import os
 import re
 from dataclasses import dataclass
 
+from rac.core.diagnostics import RacError
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
 
 __all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
@@ -122,7 +123,7 @@ def runs_within(max_bytes: int | None, samples: int, columns: int) -> int:
     return max_bytes // simulation_bytes(1, samples, columns)
 
 
-class BudgetExceeded(MemoryError):
+class BudgetExceeded(RacError, MemoryError):
     """An exploration stopped before exceeding its budget.
 
     ``what`` is what was explored ("the model", "the product of model and automaton"), ``kind``

@@ -32,6 +32,7 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
+from rac.core.diagnostics import RacError
 from rac.core.numbers import INT32_BOUND
 from rac.core.source import Span
 from rac.ir import expr as ie
@@ -48,7 +49,7 @@ _COMPARE = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater
 _SAFE_INT64 = 2**62
 
 
-class EvaluationError(ValueError):
+class EvaluationError(RacError, ValueError):
     """An expression reads something the frame does not hold (e.g. ``true_x`` in an exhaustive query)."""
 
     def __init__(self, message: str, span: Span | None = None) -> None:

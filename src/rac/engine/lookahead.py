@@ -57,6 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rac.core.diagnostics import RacError
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.model.batch import BatchModel, batch_model
 from rac.model.data import ModelData
@@ -120,7 +121,7 @@ class LookaheadMask:
         return not self.complete
 
 
-class _OutOfBudget(Exception):
+class _OutOfBudget(RacError):
     """The search's budget is spent (caught inside :meth:`Lookahead.decide`)."""
 
 

@@ -69,6 +69,7 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
+from rac.core.diagnostics import RacValueError
 from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
@@ -78,6 +79,7 @@ from rac.engine.graph import LABELS, ExploredGraph
 from rac.engine.storm import Verdict, decide
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.ir.significands import Unrepresentable, rate_diagnostic, unrepresentable
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.data import ModelData, ModelRangeError
 from rac.model.program import CheckedProgram, ProgramSource, program_of
@@ -125,9 +127,11 @@ class _Arithmetic:
             row = []
             for reward, rate in zip(automaton.rewards, location.rates):
                 const, terms = mirror_accrual(rate, period, scale)
-                if const.denominator != 1:  # the emitted model does not exist (E0801)
-                    raise ValueError(f"the rate of `{reward}` in `{location.name}` adds {const} significand "
-                                     "units per sample, not a whole number (E0801)")
+                if const.denominator != 1:  # the emitted model does not exist: the checker's E0801
+                    problem = rate_diagnostic(automaton, location, reward, rate) or unrepresentable(
+                        automaton, f"reward rate of `{reward}` in location `{location.name}` adds {const} "
+                        "significand units per sample, not a whole number", location.span)
+                    raise Unrepresentable(diagnostic=problem)
                 row.append((int(const), [(1 if c > 0 else -1, abs(c.numerator), c.denominator, self.input[name])
                                          for c, name in terms if c != 0]))
             self.accruals.append(row)
@@ -622,10 +626,10 @@ def decide_product(graph: ProductGraph, query: iq.PathQuery | iq.QueryDecl, text
         text = text or query.text
     path = query.query if isinstance(query, iq.QueryDecl) else query
     if not isinstance(path, iq.PathQuery):
-        raise ValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
+        raise RacValueError("only path queries (A[], E<>, E[], A<>) are decided on the product")
     query = path
     if query.under is not None:
-        raise ValueError(f"`under {query.under}`: strategies are not supported on the product")
+        raise RacValueError(f"`under {query.under}`: strategies are not supported on the product")
     mask = graph.label(query.expr, box=query.quantifier in ("A[]", "E[]"))
     labelled = dataclasses.replace(graph, labels={**graph.labels, "query": mask})
     verdict = decide(labelled, query.quantifier, "query")

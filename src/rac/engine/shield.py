@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rac.core.diagnostics import RacError, RacValueError
 from rac.engine.lookahead import Lookahead, LookaheadMask, LookaheadSettings
 from rac.engine.storm import Shield
 from rac.model.sample import GRAPH_ACTION, GRAPH_EGO, GraphColumn
@@ -52,7 +53,7 @@ FORMAT = "rac-shield-1"
 UNSEEN_POLICIES = ("none", "all", "error")
 
 
-class UnseenState(KeyError):
+class UnseenState(RacError, KeyError):
     """The shield has no entry for this state (``unseen="error"``)."""
 
 
@@ -253,7 +254,7 @@ def load(path: str | Path, *, unseen: str = "none") -> ShieldTable:
     try:
         with np.load(path, allow_pickle=False) as data:
             if str(data["format"]) != FORMAT:
-                raise ValueError(f"{path}: not a rac shield (format {str(data['format'])!r})")
+                raise RacValueError(f"{path}: not a rac shield (format {str(data['format'])!r})")
             forget_every = int(data["forget_every"]) if "forget_every" in data.files else 0
             horizon = int(data["horizon"]) if "horizon" in data.files else -1
             return ShieldTable(tuple(str(c) for c in data["columns"]), data["states"].astype(np.int32),
@@ -261,7 +262,7 @@ def load(path: str | Path, *, unseen: str = "none") -> ShieldTable:
     except (OSError, KeyError, ValueError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
-        raise ValueError(f"{path}: cannot read the shield: {exc}") from None
+        raise RacValueError(f"{path}: cannot read the shield: {exc}") from None
 
 
 # ---------------------------------------------------------------- a shield for every step
@@ -331,7 +332,7 @@ class StepShield:
         self.table = table
         self.n_actions = len(action_pairs(data))
         if table is not None and table.n_actions != self.n_actions:
-            raise ValueError(f"the shield table has {table.n_actions} actions, the model {self.n_actions}")
+            raise RacValueError(f"the shield table has {table.n_actions} actions, the model {self.n_actions}")
         self.runtime = Lookahead(data, self.horizon, lookahead) if lookahead is not None else None
         self.reason = reason
         self._guard = ActionGuard(data)

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rac.core.diagnostics import RacError
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.budget import Budget
 from rac.engine.explore import COLUMNS, STICKY_COLUMNS, Progress, explore
@@ -114,11 +115,11 @@ class Found:
         return self.witness is None and self.graph is not None and self.graph.complete
 
 
-class ReplayMismatch(RuntimeError):
+class ReplayMismatch(RacError, RuntimeError):
     """A witness that the scalar model does not reproduce: an internal error (a bug in rac)."""
 
 
-class _OutOfTime(Exception):
+class _OutOfTime(RacError):
     """Raised inside an exploration when a search's time is up."""
 
 

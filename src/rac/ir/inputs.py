@@ -18,7 +18,7 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
-from rac.core.diagnostics import short_number
+from rac.core.diagnostics import RacError, short_number
 
 #: Above this many classes the exact checks refuse (reported as a diagnostic).
 MAX_CLASSES = 1 << 20
@@ -55,7 +55,7 @@ class Piece:
         return f"{name} in {left}{_num(self.low)}, {_num(self.high)}{right}"
 
 
-class TooManyClasses(Exception):
+class TooManyClasses(RacError):
     def __init__(self, count: int):
         super().__init__(f"{count} input classes")
         self.count = count

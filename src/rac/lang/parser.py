@@ -19,7 +19,7 @@ from pathlib import Path
 from lark import Token, Transformer, Tree, v_args
 from lark.exceptions import UnexpectedInput, VisitError
 
-from rac.core.diagnostics import Diagnostic, error
+from rac.core.diagnostics import Diagnostic, RacError, error
 from rac.core.source import MAX_SOURCE_BYTES, SourceFile, Span
 from rac.lang import ast
 from rac.lang.grammar import EXPRESSIONS, MODULE, QUERIES, lark_parser, terminal_regexp
@@ -69,8 +69,10 @@ def _abbreviated(text: str) -> str:
     return text if len(text) <= 40 else f"{text[:20]}…{text[-12:]}"
 
 
-class ParseFailure(Exception):
+class ParseFailure(RacError):
     """Internal: carries the diagnostic of the first syntax error."""
+
+    diagnostic: Diagnostic  # always set, unlike RacError's
 
     def __init__(self, diagnostic: Diagnostic, source: SourceFile | None = None):
         super().__init__(diagnostic.message)
@@ -581,7 +583,7 @@ def parse_queries(source: SourceFile) -> tuple[ast.QueryDecl, ...]:
     return decls
 
 
-class ExpressionError(ValueError):
+class ExpressionError(RacError, ValueError):
     """:func:`parse_expression`'s error; ``incomplete`` when the text stops mid-expression and
     ``count`` (how many expressions) when it holds a comma-separated list instead of one."""
 

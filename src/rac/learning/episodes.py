@@ -59,6 +59,7 @@ import numpy as np
 from rac import ir
 from rac.check.queries import lower_expression
 from rac.compiler import CompileResult
+from rac.core.diagnostics import RacValueError
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
 from rac.engine.compiled import compile_expressions
@@ -237,12 +238,12 @@ class EpisodeBatch:
                  compiled: bool = True) -> None:
         automaton = result.automaton
         if automaton is None:
-            raise ValueError("the file has errors: there is no automaton to run")
+            raise RacValueError("the file has errors: there is no automaton to run")
         if automaton.model is None:
-            raise ValueError(f"`{automaton.name}` has no `model` block: episodes need the scenario model")
+            raise RacValueError(f"`{automaton.name}` has no `model` block: episodes need the scenario model")
         data = data if data is not None else result.model_data
         if data is None:
-            raise ValueError("the model's data was not built (the scenario did not load): pass data=")
+            raise RacValueError("the model's data was not built (the scenario did not load): pass data=")
         self.result = result
         self.automaton = automaton
         self.data = data
@@ -522,10 +523,10 @@ class EpisodeBatch:
         now, _, _ = self._require()
         before = self._before
         if not self.counterfactuals or before is None:
-            raise ValueError("no step recorded: make the episodes with counterfactuals=True and step them first")
+            raise RacValueError("no step recorded: make the episodes with counterfactuals=True and step them first")
         if self.goal is not None and _reads_location_or_rewards(self.goal):
-            raise ValueError("counterfactual experiences need a goal that does not read the automaton's locations "
-                             "or rewards")
+            raise RacValueError("counterfactual experiences need a goal that does not read the automaton's locations "
+                                "or rewards")
         where = slice(None) if rows is None else rows
         n = int(now.k[where].shape[0])
         samples = [Sample({name: values[where] for name, values in s.inputs.items()}, s.active[where],
@@ -546,8 +547,8 @@ class EpisodeBatch:
             return dataclasses.replace(cf, reward=np.where(ran.reshape(n, size), gain, 0.0))
         if self.reward_expr is not None:
             if _reads_location_or_rewards(self.reward_expr):
-                raise ValueError("counterfactual experiences of a reward expression that reads the automaton's "
-                                 "locations or rewards are not supported: pass the automaton's objective")
+                raise RacValueError("counterfactual experiences of a reward expression that reads the automaton's "
+                                    "locations or rewards are not supported: pass the automaton's objective")
             reward = np.repeat(self._last_reward[where][:, None], cf.n_locations, axis=1)
             return dataclasses.replace(cf, reward=reward)
         return cf
@@ -578,8 +579,8 @@ class EpisodeBatch:
         try:
             gain = automata.step_batch(fed, mask=active)
         except ValueError as exc:
-            raise ValueError(f"sample {int(before.k.min()) + 1}: the bindings' values are not valid inputs of "
-                             f"`{self.automaton.name}`: {exc}") from None
+            raise RacValueError(f"sample {int(before.k.min()) + 1}: the bindings' values are not valid inputs of "
+                                f"`{self.automaton.name}`: {exc}") from None
         self.clipped += sum(counts.values())
         for name, count in counts.items():
             self.clipped_inputs[name] += count

@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING, Protocol
 import gymnasium
 import numpy as np
 
+from rac.core.diagnostics import RacValueError
 from rac.core.numbers import INT32_MAX
 from rac.model.sample import POSITION, Ego
 
@@ -185,7 +186,7 @@ class RelativeObservation:
         data = episodes.data
         scenario = episodes.result.scenario
         if scenario is None or not scenario.lanes:
-            raise ValueError("the relative observation needs the scenario's lanes (a checked `model` block)")
+            raise RacValueError("the relative observation needs the scenario's lanes (a checked `model` block)")
         self.nearest = nearest
         self._scale = float(data.scale)
         self._period = float(data.period)

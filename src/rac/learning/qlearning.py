@@ -78,6 +78,7 @@ from typing import Any
 
 import numpy as np
 
+from rac.core.diagnostics import RacValueError
 from rac.engine.budget import check_estimate, learning_bytes
 from rac.engine.shield import ShieldTable
 from rac.ir import expr as ie
@@ -226,13 +227,13 @@ def location_column(discrete: Sequence[ie.Expr], continuous: Sequence[ie.Expr] =
     be unknown)."""
     found = [i for i, e in enumerate(discrete) if isinstance(e, ie.Ref) and e.kind is ie.RefKind.LOCATION_INDEX]
     if not found:
-        raise ValueError("counterfactual experiences need the automaton's location in the discrete observations "
-                         "(e.g. {Driving.location})")
+        raise RacValueError("counterfactual experiences need the automaton's location in the discrete observations "
+                            "(e.g. {Driving.location})")
     automaton_state = (ie.RefKind.REWARD, ie.RefKind.LOCATION, ie.RefKind.LOCATION_INDEX)
     for i, e in enumerate((*discrete, *continuous)):
         if i != found[0] and any(r.kind in automaton_state for r in ie.refs(e)):
-            raise ValueError("counterfactual experiences need an observation that sees the automaton only through "
-                             "its location: another observation reads its locations or rewards")
+            raise RacValueError("counterfactual experiences need an observation that sees the automaton only through "
+                                "its location: another observation reads its locations or rewards")
     return found[0]
 
 

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Literal, SupportsFloat
 import gymnasium
 import numpy as np
 
+from rac.core.diagnostics import RacValueError
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.learning.observation import Observation, make_observation
@@ -71,14 +72,15 @@ def _scene_paths(scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike
     if isinstance(scenarios, (str, os.PathLike)):
         folder = Path(scenarios)
         if not folder.is_dir():
-            raise ValueError(f"scenarios must be a folder of CommonRoad files or a list of them; {folder} is no folder")
+            raise RacValueError(f"scenarios must be a folder of CommonRoad files or a list of them; {folder} is no "
+                                "folder")
         paths = sorted(folder.glob("*.xml"))
         if not paths:
-            raise ValueError(f"the folder {folder} holds no .xml scenario")
+            raise RacValueError(f"the folder {folder} holds no .xml scenario")
         return paths
     paths = [Path(path) for path in scenarios]
     if not paths:
-        raise ValueError("scenarios is empty: give at least one CommonRoad file")
+        raise RacValueError("scenarios is empty: give at least one CommonRoad file")
     return paths
 
 
@@ -119,8 +121,8 @@ def _shield(shield: str | os.PathLike[str] | ShieldTable | None, columns: tuple[
     if not isinstance(table, shield_file.ShieldTable):
         raise TypeError(f"shield must be a shield file or a ShieldTable, not {type(shield).__name__}")
     if tuple(table.columns) != columns or table.n_actions != n_actions:
-        raise ValueError(f"the shield is for states {tuple(table.columns)} and {table.n_actions} actions; this "
-                         f"model has states {columns} and {n_actions} actions")
+        raise RacValueError(f"the shield is for states {tuple(table.columns)} and {table.n_actions} actions; this "
+                            f"model has states {columns} and {n_actions} actions")
     return table
 
 
@@ -223,8 +225,8 @@ class ScenarioEnv(gymnasium.Env):
             if not isinstance(model, (str, os.PathLike)):
                 raise TypeError("with scenarios, model must be a .ra file (its model block is the scenes' template)")
             if shield is not None:
-                raise ValueError("a shield table is computed for one scene; with a set of scenes only the runtime "
-                                 "shield works: pass lookahead=<depth> instead of shield=")
+                raise RacValueError("a shield table is computed for one scene; with a set of scenes only the runtime "
+                                    "shield works: pass lookahead=<depth> instead of shield=")
             paths = _scene_paths(scenarios)
             self._template = (Path(model), Path(model).read_text(encoding="utf-8"))
             result = _compile_scene(*self._template, paths[0])
@@ -244,8 +246,8 @@ class ScenarioEnv(gymnasium.Env):
             seconds = Fraction(str(horizon)) if isinstance(horizon, float) else Fraction(horizon)
             exact = seconds / Fraction(automaton.period)
             if exact.denominator != 1 or exact < 1:
-                raise ValueError(f"horizon {horizon} s is not a positive whole number of samples of "
-                                 f"{float(automaton.period):g} s")
+                raise RacValueError(f"horizon {horizon} s is not a positive whole number of samples of "
+                                    f"{float(automaton.period):g} s")
             samples = int(exact)
         self._samples = samples
         #: Per scene, once checked: its episodes, observation and shield (:meth:`_scene`).
@@ -271,8 +273,8 @@ class ScenarioEnv(gymnasium.Env):
         self._period = float(data.period)
         self._names = automaton.location_names
         if reward != "automaton" and isinstance(scale, str):
-            raise ValueError(f"scale={scale!r} is proved for the automaton's reward; for a reward expression give "
-                             "your own positive factor (scale=<number>)")
+            raise RacValueError(f"scale={scale!r} is proved for the automaton's reward; for a reward expression give "
+                                "your own positive factor (scale=<number>)")
         #: What every reward is divided by (1.0 unscaled; ``info["scale"]``): with ``scale="proven"``
         #: the largest change of the objective over one step (:func:`rac.learning.wrappers.scale_factor`).
         self.reward_scale = scale_factor(automaton, scale, samples=self.episodes.decide_every)
@@ -300,10 +302,10 @@ class ScenarioEnv(gymnasium.Env):
             first, first_observation, _ = self._scenes[0]
             if (episodes.n_actions != first.n_actions or episodes.horizon_samples != first.horizon_samples
                     or observation.space != first_observation.space):
-                raise ValueError(f"the scene {self.scenarios[index]} gives {episodes.n_actions} actions, "
-                                 f"{episodes.horizon_samples} samples and {observation.space}; the first scene "
-                                 f"{self.scenarios[0]} gives {first.n_actions}, {first.horizon_samples} and "
-                                 f"{first_observation.space}: a set's scenes must agree")
+                raise RacValueError(f"the scene {self.scenarios[index]} gives {episodes.n_actions} actions, "
+                                    f"{episodes.horizon_samples} samples and {observation.space}; the first scene "
+                                    f"{self.scenarios[0]} gives {first.n_actions}, {first.horizon_samples} and "
+                                    f"{first_observation.space}: a set's scenes must agree")
         scene = (episodes, observation, self._shields(episodes, *self._shield_args, COLUMNS))
         self._scenes[index] = scene
         return scene
@@ -315,11 +317,11 @@ class ScenarioEnv(gymnasium.Env):
 
         if isinstance(shield, StepShield):
             if lookahead != "auto":
-                raise ValueError("a StepShield brings its own runtime shield: leave lookahead as 'auto'")
+                raise RacValueError("a StepShield brings its own runtime shield: leave lookahead as 'auto'")
             if shield.horizon != episodes.horizon_samples or shield.n_actions != episodes.n_actions:
-                raise ValueError(f"the shield is for runs of {shield.horizon} samples and {shield.n_actions} "
-                                 f"actions; this environment's have {episodes.horizon_samples} and "
-                                 f"{episodes.n_actions}")
+                raise RacValueError(f"the shield is for runs of {shield.horizon} samples and {shield.n_actions} "
+                                    f"actions; this environment's have {episodes.horizon_samples} and "
+                                    f"{episodes.n_actions}")
             return shield
         table = _shield(shield, columns, episodes.n_actions)
         settings = _lookahead(lookahead, table)
@@ -385,15 +387,15 @@ class ScenarioEnv(gymnasium.Env):
             return int(self.np_random.integers(count)) if count > 1 else 0
         if isinstance(chosen, (int, np.integer)) and not isinstance(chosen, bool):
             if not 0 <= chosen < count:
-                raise ValueError(f"options['scenario'] = {chosen}: there are {count} scenes (0 .. {count - 1})")
+                raise RacValueError(f"options['scenario'] = {chosen}: there are {count} scenes (0 .. {count - 1})")
             return int(chosen)
         if isinstance(chosen, (str, os.PathLike)):
             wanted = Path(chosen).resolve()
             for index, path in enumerate(self.scenarios):
                 if path.resolve() == wanted:
                     return index
-            raise ValueError(f"options['scenario'] = {os.fspath(chosen)!r} is not one of the scenes: "
-                             f"{', '.join(map(str, self.scenarios))}")
+            raise RacValueError(f"options['scenario'] = {os.fspath(chosen)!r} is not one of the scenes: "
+                                f"{', '.join(map(str, self.scenarios))}")
         raise TypeError(f"options['scenario'] must be an index or a path, not {chosen!r}")
 
     def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:

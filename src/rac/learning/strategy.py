@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from rac.core.diagnostics import RacValueError
 from rac.core.source import SourceFile
 from rac.engine.shield import ShieldTable
 from rac.ir import expr as ie
@@ -231,7 +232,7 @@ def allowed_actions(batch: Episodes, shield: ShieldTable | None) -> tuple[np.nda
 def check_shield(batch: Episodes, shield: ShieldTable | None) -> None:
     """``ValueError`` unless ``shield`` (if any) has the episodes' actions."""
     if shield is not None and shield.n_actions != batch.n_actions:
-        raise ValueError(f"the shield has {shield.n_actions} actions, the episodes {batch.n_actions}")
+        raise RacValueError(f"the shield has {shield.n_actions} actions, the episodes {batch.n_actions}")
 
 
 # ---------------------------------------------------------------- the learned strategy
@@ -325,7 +326,7 @@ class LearnedStrategy:
             with np.load(path, allow_pickle=False) as data:
                 header = json.loads(str(data["header"]))
                 if header.get("format") != FORMAT:
-                    raise ValueError(f"not a rac strategy (format {header.get('format')!r})")
+                    raise RacValueError(f"not a rac strategy (format {header.get('format')!r})")
                 pairs = data["action_pairs"]
                 return cls(tuple(header["discrete"]), tuple(header["continuous"]),
                            tuple(float(b) for b in header["bins"]), header["optimise"],
@@ -334,7 +335,7 @@ class LearnedStrategy:
         except FileNotFoundError:
             raise
         except (OSError, KeyError, ValueError, TypeError) as exc:
-            raise ValueError(f"{path}: cannot read the strategy: {exc}") from None
+            raise RacValueError(f"{path}: cannot read the strategy: {exc}") from None
 
 
 # ---------------------------------------------------------------- runs

@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rac.core.diagnostics import RacValueError
 from rac.engine.shield import ShieldTable
 from rac.ir import expr as ie
 from rac.learning.runs import Reset, RunRecorder, Steps, StrategyRun, rollout_steps
@@ -200,7 +201,7 @@ class Learner:
         assert column is not None
         replay = getattr(batch, "counterfactual", None)
         if replay is None:
-            raise ValueError("these episodes cannot replay a step from other locations (no counterfactual())")
+            raise RacValueError("these episodes cannot replay a step from other locations (no counterfactual())")
         cf = replay()
         sources = step.active
         actual = keys[sources, column].astype(np.int64)
@@ -318,7 +319,7 @@ class Learner:
         if self.replay_best:
             self._replay_best(own, self.sign * returns, reached & ~collided & ~offroad & ~stranded)
         if self.untried is not None and (self.sign * returns <= UNTRIED / 10).any():
-            raise ValueError(f"a return of {returns.min():g} is too large for the pessimistic initial value "
-                             f"{UNTRIED:g}")
+            raise RacValueError(f"a return of {returns.min():g} is too large for the pessimistic initial value "
+                                f"{UNTRIED:g}")
         log = BatchLog(returns, reached, collided, offroad, stranded, fallbacks)
         return log, recorder.finish() if recorder is not None else None

@@ -42,6 +42,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv, VectorWrapper
 
 from rac import ir
 from rac.check.analysis.scale import sample_change_bound
+from rac.core.diagnostics import RacValueError
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
@@ -121,11 +122,11 @@ def scale_factor(automaton: ir.Automaton | None, scale: Scale, samples: int = 1)
         if scale != "proven":
             raise ValueError(f"scale must be None, 'proven' or a positive number, not {scale!r}")
         if automaton is None:
-            raise ValueError("scale='proven' needs the automaton's IR (a .ra path, an ir.Automaton or a "
-                             "RewardAutomaton), not a generated class")
+            raise RacValueError("scale='proven' needs the automaton's IR (a .ra path, an ir.Automaton or a "
+                                "RewardAutomaton), not a generated class")
         bound = sample_change_bound(automaton).step_bound(samples)
         if bound == 0:
-            raise ValueError("scale='proven': the objective never changes, so there is nothing to scale")
+            raise RacValueError("scale='proven': the objective never changes, so there is nothing to scale")
         return float(bound)
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) or scale <= 0:
         raise ValueError(f"scale must be None, 'proven' or a positive number, not {scale!r}")
@@ -194,8 +195,8 @@ def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | N
     if not clip:
         return None
     if automaton is None:
-        raise ValueError("clip=True needs the automaton's declared ranges: pass a .ra path, an ir.Automaton "
-                         "or a RewardAutomaton")
+        raise RacValueError("clip=True needs the automaton's declared ranges: pass a .ra path, an ir.Automaton "
+                            "or a RewardAutomaton")
     return input_specs(automaton)
 
 
@@ -276,8 +277,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         try:
             values = self.inputs(obs, info, self.env) if self._with_env else self.inputs(obs, info)
         except Exception as exc:  # the user's callable: say what it did and what state things are in
-            raise ValueError(f"inputs(obs, info) raised {type(exc).__name__}: {exc}; the environment has taken "
-                             "this step and the automaton has not: reset before the next step") from exc
+            raise RacValueError(f"inputs(obs, info) raised {type(exc).__name__}: {exc}; the environment has taken "
+                                "this step and the automaton has not: reset before the next step") from exc
         clipped: dict[str, int] = {}
         if self._specs is not None:
             values, clipped = clip_inputs(self._specs, values)
@@ -319,8 +320,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         super().__init__(env)
         mode = env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
         if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.NEXT_STEP.value):
-            raise ValueError(f"RewardAutomatonVectorWrapper supports the autoreset mode NEXT_STEP only, not {mode!r}: "
-                             "make the vector environment with autoreset_mode=AutoresetMode.NEXT_STEP")
+            raise RacValueError(f"RewardAutomatonVectorWrapper supports the autoreset mode NEXT_STEP only, not "
+                                f"{mode!r}: make the vector environment with autoreset_mode=AutoresetMode.NEXT_STEP")
         self._with_env = _takes_env(inputs, "(obs, infos) or (obs, infos, env)")
         loaded = _load(automaton)
         program = _ir_of(loaded)
@@ -370,8 +371,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         try:
             values = self.inputs(obs, infos, self.env) if self._with_env else self.inputs(obs, infos)
         except Exception as exc:
-            raise ValueError(f"inputs(obs, infos) raised {type(exc).__name__}: {exc}; the environments have taken "
-                             "this step and the automata have not: reset before the next step") from exc
+            raise RacValueError(f"inputs(obs, infos) raised {type(exc).__name__}: {exc}; the environments have taken "
+                                "this step and the automata have not: reset before the next step") from exc
         clipped: dict[str, np.ndarray] = {}
         if self._specs is not None:  # per sub-environment, counted by the clip rule itself
             values, clipped = clip_rows(self._specs, values, self.num_envs, active)

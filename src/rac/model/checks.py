@@ -145,13 +145,11 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
         return result
     except ScenarioError as failure:
         return cannot_load(str(failure), _load_hints(failure, written))
-    except MemoryError:  # the budget, the machine or the process limit, not the file: a resource error
-        raise
-    except Exception as failure:  # never a traceback: whatever the loader raises is a diagnostic
-        return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
+    # anything else (MemoryError: the budget or the machine, not the file) propagates: the loader
+    # reports every fault of the file as a ScenarioError, so another failure is rac's own
     result.scenario = scenario
 
-    from rac.model.data import ModelRangeError, build_model_data_and_largest
+    from rac.model.data import ModelDataError, ModelRangeError, build_model_data_and_largest
 
     if announced and progress is not None:  # a phase of its own: a heartbeat says which one is slow
         progress(f"building the model's data from {len(scenario.road):,} lanelets and "
@@ -163,9 +161,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
             return cannot_load(f"{spec.scenario_path}: {failure}", [_GENERIC_HINT])
         result.diagnostics.append(_overflow(automaton, spec, scenario, failure))
         return result
-    except MemoryError:
-        raise
-    except Exception as failure:
+    except ModelDataError as failure:
         return cannot_load(f"{spec.scenario_path}: {_text(failure)}", [_GENERIC_HINT])
     result.data = data
     result.diagnostics.extend(_start(automaton, spec, scenario, data))
@@ -345,11 +341,11 @@ def _decimal(value: Fraction) -> str:
 
 
 def _fits(scenario, spec: ir.ModelSpec, exponent: int) -> bool:
-    from rac.model.data import check_significands
+    from rac.model.data import ModelDataError, check_significands
 
     try:
         return check_significands(scenario, replace(spec, exponent=exponent)) is None
-    except Exception:
+    except ModelDataError:
         return False
 
 

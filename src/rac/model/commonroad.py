@@ -15,6 +15,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from rac.core.diagnostics import RacError
+
 
 @dataclass(frozen=True)
 class Polygon:
@@ -104,7 +106,7 @@ class Scenario:
 
 
 # ---------------------------------------------------------------- reading CommonRoad files
-class ScenarioError(Exception):
+class ScenarioError(RacError):
     """A CommonRoad file rac cannot turn into a :class:`Scenario`.
 
     ``str(error)`` is ``"<path>: <element> <problem>"``, e.g. ``"left_turn.xml: dynamic obstacle 42
@@ -215,13 +217,31 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
         try:
             with linear_ids():
                 cr_scenario, problems = CommonRoadFileReader(data).open()
-        except Exception as error:  # whatever commonroad-io raises becomes a ScenarioError
+        except Exception as error:  # commonroad-io raises a bare Exception too: reader_failure sorts
+            if not reader_failure(error):
+                raise
             diagnosis: ScenarioError | None = _diagnose(path, root, error)
         else:
             diagnosis = None
         if diagnosis is not None:
             raise diagnosis
         return _convert(path, root, cr_scenario, problems, planning_problem_id, require_choice, positions)
+
+
+def reader_failure(error: BaseException) -> bool:
+    """Whether ``error`` is what commonroad-io (and the lxml and shapely it calls) raise on a file it
+    cannot read: its own asserts and bare ``Exception()`` (``file_reader_xml``), lookups and
+    conversions of the XML's text, the XML parsers' (ElementTree's, expat's, lxml's) and shapely's
+    errors. Anything else (a subclass of ``Exception`` of no such kind) is a bug, rac's or
+    commonroad-io's, and propagates."""
+    from xml.parsers.expat import ExpatError
+
+    from lxml import etree
+    from shapely.errors import ShapelyError
+
+    return type(error) is Exception or isinstance(error, (
+        AssertionError, ArithmeticError, AttributeError, LookupError, TypeError, ValueError, NotImplementedError,
+        SyntaxError, ExpatError, etree.Error, ShapelyError))  # ElementTree's ParseError is a SyntaxError
 
 
 #: Serialises :func:`linear_ids`: it swaps a name of commonroad-io's reader module while a file is read.
@@ -445,7 +465,9 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
     for element, read in header if root.get("commonRoadVersion") != "2018b" else ():
         try:
             read()
-        except Exception as failure:
+        except Exception as failure:  # commonroad-io's failures only (reader_failure)
+            if not reader_failure(failure):
+                raise
             return ScenarioError(path, element, f"cannot be read: {_describe(failure)}")
     lanelet_ids = {node.get("id") for node in root.iter("lanelet")}
     for node in root.iter():
@@ -479,16 +501,22 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
         if node.tag in readers:
             try:
                 readers[node.tag](node)
-            except Exception as failure:
+            except Exception as failure:  # commonroad-io's failures only (reader_failure)
+                if not reader_failure(failure):
+                    raise
                 return ScenarioError(path, label(node), f"cannot be read: {_describe(failure)}")
     try:
         network = factories.LaneletNetworkFactory.create_from_xml_node(ElementTree.ElementTree(root))
-    except Exception as failure:
+    except Exception as failure:  # commonroad-io's failures only (reader_failure)
+        if not reader_failure(failure):
+            raise
         return ScenarioError(path, "lanelet network", f"cannot be read: {_describe(failure)}")
     for node in root.iter("planningProblem"):
         try:
             factories.PlanningProblemFactory.create_from_xml_node(node, network)
-        except Exception as failure:
+        except Exception as failure:  # commonroad-io's failures only (reader_failure)
+            if not reader_failure(failure):
+                raise
             return ScenarioError(path, label(node), f"cannot be read: {_describe(failure)}")
     return ScenarioError(path, None, f"cannot be read by commonroad-io ({_describe(error)})")
 
@@ -620,7 +648,9 @@ def _box(path, element: str, shape) -> tuple[float, float, float, float]:
     try:
         occupancy = shape.compute_occupancy_for_state(InitialState(time_step=0, position=np.zeros(2), orientation=0.0))
         min_x, min_y, max_x, max_y = (float(v) for v in occupancy.shapely_object.bounds)
-    except Exception:
+    except Exception as failure:  # commonroad-io's and shapely's failures only (reader_failure)
+        if not reader_failure(failure):
+            raise
         raise ScenarioError(path, element, f"has a shape rac cannot bound by a rectangle "
                                            f"({type(shape).__name__})") from None
     if not all(map(math.isfinite, (min_x, min_y, max_x, max_y))):

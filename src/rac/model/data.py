@@ -29,6 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 
+from rac.core.diagnostics import RacError
 from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.ir import ModelSpec
 from rac.ir.expr import Expr
@@ -53,7 +54,12 @@ NANOSECOND = Fraction(1, 10**9)
 Number = Fraction | int | float
 
 
-class ModelRangeError(ValueError):
+class ModelDataError(RacError, ValueError):
+    """A scenario whose data the model cannot be built from (a value that is not finite, an obstacle
+    without waypoints, ...): the file's fault, reported as E0712 by :mod:`rac.model.checks`."""
+
+
+class ModelRangeError(RacError, ValueError):
     """A value whose significand (or count of sense periods) does not fit int32 at this scale.
 
     ``what`` names it (e.g. ``"obstacle 3 waypoint 2 x"``), ``value`` is the real value and
@@ -195,7 +201,7 @@ def exact(value: Number) -> Fraction:
         return Fraction(value)
     number = float(value)
     if not math.isfinite(number):
-        raise ValueError(f"{number} is not finite")
+        raise ModelDataError(f"{number} is not finite")
     return Fraction(repr(number))
 
 
@@ -323,7 +329,7 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
         obs_width.append(sig(f"{name} width", obstacle.width))
         waypoints = obstacle.waypoints
         if not waypoints:
-            raise ValueError(f"{name} has no waypoints")
+            raise ModelDataError(f"{name} has no waypoints")
         if obstacle.static:
             point = waypoints[0]
             where = f"{name} waypoint 0"
@@ -338,7 +344,7 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
             continue
         times = [conv.seconds(f"{name} waypoint {j} time", point.time) for j, point in enumerate(waypoints)]
         if any(b < a for a, b in zip(times, times[1:])):
-            raise ValueError(f"{name}: waypoint times must not decrease")
+            raise ModelDataError(f"{name}: waypoint times must not decrease")
         grid = _resample(conv, times)
         # Every waypoint's sample lies in first .. max(first, last): checking those two checks them all.
         obs_from.append(conv.clamp(f"{name} waypoint 0 time (sense periods)", waypoints[0].time, grid.first))
@@ -381,7 +387,7 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
         for a in spec.actions)
     decide_every = spec.decide_period / spec.sense_period
     if decide_every.denominator != 1 or decide_every < 1:
-        raise ValueError(f"the decision period {spec.decide_period} is not a multiple of {spec.sense_period}")
+        raise ModelDataError(f"the decision period {spec.decide_period} is not a multiple of {spec.sense_period}")
 
     return ModelData(
         name=scenario.name, base=spec.base, exponent=spec.exponent, scale=spec.scale,
@@ -420,7 +426,7 @@ def _start(setting: Fraction | None, scenario: float) -> Number:
 
 def build_model_data(scenario: Scenario, spec: ModelSpec) -> ModelData:
     """The model's data for ``scenario`` under ``spec``; :class:`ModelRangeError` names the first
-    value whose significand overflows int32 (or that is not finite). ``ValueError`` for a scenario
+    value whose significand overflows int32 (or that is not finite). :class:`ModelDataError` for a scenario
     that makes no sense (an obstacle without waypoints, C2 not a multiple of C1)."""
     return _build(scenario, spec, _converter(scenario, spec, strict=True))
 

@@ -30,6 +30,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Polygon
 from PIL import Image
 
+from rac.core.diagnostics import RacError
 from rac.output.plots import atomic_write, fit_title, new_figure, save_figure, wrap_text
 
 __all__ = ["EGO_COLOUR", "RenderError", "SceneFrames", "render_trajectory"]
@@ -43,7 +44,7 @@ LAST_FRAME_MS = 1200
 LEGEND_HEIGHT = 0.4
 
 
-class RenderError(Exception):
+class RenderError(RacError):
     """A scenario file that cannot be drawn; ``str(error)`` is ``"<path>: <problem>"``."""
 
     def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
@@ -60,11 +61,15 @@ def _read(path: Path) -> tuple[Any, Any]:
         raise RenderError(path, f"cannot be read ({error.strerror or error})") from None
     from commonroad.common.file_reader import CommonRoadFileReader
 
+    from rac.model.commonroad import reader_failure
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # commonroad-io warns about e.g. benchmark ids it finds irregular
         try:
             return CommonRoadFileReader(data).open()
-        except Exception as error:  # commonroad-io raises anything from lxml errors to KeyError
+        except Exception as error:  # commonroad-io raises a bare Exception, lxml errors, KeyError...
+            if not reader_failure(error):
+                raise
             problem = f"is not a CommonRoad scenario commonroad-io can read ({type(error).__name__}: {error})"
     # rac's loader explains broken files far better (which element, which line); use its words if it fails too
     from rac.model.checks import load_file
@@ -77,8 +82,6 @@ def _read(path: Path) -> tuple[Any, Any]:
             load_file(path, several.ids[0])
     except ScenarioError as diagnosis:
         problem = f"{diagnosis.element} {diagnosis.problem}" if diagnosis.element else diagnosis.problem
-    except Exception:  # noqa: BLE001 - only a better message was sought; keep commonroad-io's
-        pass
     raise RenderError(path, problem)
 
 

@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from rac.compiler import CompileResult
+from rac.core.diagnostics import RacError
 from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
 
@@ -98,7 +99,7 @@ LEARNER: dict[str, Any] = {"alpha": 1.0, "epsilon": (1.0, 0.2), "pessimistic": T
 EARLIER: dict[str, Any] = {"alpha": 0.3, "epsilon": (1.0, 0.05), "pessimistic": False, "random_ties": False}
 
 
-class ExperimentError(ValueError):
+class ExperimentError(RacError, ValueError):
     """The experiment cannot run on this file (no model, no goal, an unusable reward function)."""
 
 

@@ -36,6 +36,7 @@ import numpy as np
 
 from rac import ir
 from rac.compiler import CompileResult
+from rac.core.diagnostics import RacError
 from rac.engine import storm
 from rac.engine.shield import synthesise
 from rac.engine.simulate import Limits, integrate_truth, simulate
@@ -54,7 +55,7 @@ Row = dict[str, Any]
 TRUTH_EXPONENT = 4
 
 
-class SweepError(ValueError):
+class SweepError(RacError, ValueError):
     """Bad sweep arguments (a list that does not parse, a period that is not a multiple)."""
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rac.compiler import CompileResult, compile_text
-from rac.core.diagnostics import Severity
+from rac.core.diagnostics import RacError, Severity
 from rac.core.numbers import format_bytes
 from rac.core.resources import ScenarioTooLarge
 from rac.engine.budget import BudgetExceeded
@@ -46,7 +46,7 @@ MODULES = {"check": (), "verify": ("rac.verify.runner",), "preanalyse": ("rac.st
 PREANALYSIS_VERDICTS = {"qb": "Qb", "qc": "Qc", "qd": "Qd"}
 
 
-class TaskError(Exception):
+class TaskError(RacError):
     """The task cannot run as asked (an option, the scenario file): an "error" row with this message."""
 
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from rac import ir
 from rac.compiler import CompileResult
+from rac.core.diagnostics import RacError, RacValueError
 from rac.core.numbers import exact_decimal
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded, default_max_bytes
@@ -45,11 +46,11 @@ if TYPE_CHECKING:
 __all__ = ["Context", "Learned", "NotApplicable", "UnknownVerdict", "VerifyOptions", "over_budget", "restricted"]
 
 
-class UnknownVerdict(Exception):
+class UnknownVerdict(RacError):
     """A query that cannot be decided within the options; the message says why, for the user."""
 
 
-class NotApplicable(Exception):
+class NotApplicable(RacError):
     """A query that depends on a strategy that provably does not exist: nothing to decide (status
     ``not_applicable``); the message cites the defining query and why it failed."""
 
@@ -144,7 +145,7 @@ class Context:
     def __init__(self, source: CompileResult | CheckedProgram, options: VerifyOptions) -> None:
         program = source.checked() if isinstance(source, CompileResult) else source
         if program.automaton.model is None or program.model_data is None:
-            raise ValueError("rac verify needs a `model` block: the queries are answered on the scenario model")
+            raise RacValueError("rac verify needs a `model` block: the queries are answered on the scenario model")
         #: The checked file: its automaton, the scenario model the queries are answered on, the scenario.
         self.program = program
         automaton = program.automaton
@@ -153,8 +154,8 @@ class Context:
         self.period = Fraction(automaton.period)
         horizon = options.horizon if options.horizon is not None else Fraction(automaton.horizon)
         if (horizon / self.period).denominator != 1:
-            raise ValueError(f"the horizon {_decimal(horizon)} s is not a whole number of samples of "
-                             f"{_decimal(self.period)} s")
+            raise RacValueError(f"the horizon {_decimal(horizon)} s is not a whole number of samples of "
+                                f"{_decimal(self.period)} s")
         #: The horizon of exhaustive queries in samples.
         self.horizon_samples = int(horizon / self.period)
         #: The explored model up to the horizon, by whether unsafe states were pruned (see :meth:`graph`).

@@ -43,6 +43,7 @@ from typing import Any
 
 from rac.check.standard import STANDARD, at_horizon
 from rac.compiler import CompileResult
+from rac.core.diagnostics import RacError
 from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
 from rac.model.program import CheckedProgram
@@ -76,7 +77,7 @@ def standard_queries(result: CompileResult | CheckedProgram, horizon_seconds: Fr
     return at_horizon(decls, horizon_seconds)
 
 
-class UnknownQuery(KeyError):
+class UnknownQuery(RacError, KeyError):
     """``VerifyOptions.only`` names a query the file (and ``--standard``) does not have; ``args[0]``
     lists the missing names."""
 

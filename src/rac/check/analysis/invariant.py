@@ -29,7 +29,7 @@ import numpy as np
 from rac import ir
 from rac.check.analysis.affine import moves
 from rac.check.analysis.worst import Target, Unfinished, maximise
-from rac.core.diagnostics import short_number
+from rac.core.diagnostics import RacError, short_number
 from rac.ir import expr as ie
 from rac.ir.inputs import InputSpace, TooManyClasses
 
@@ -59,7 +59,7 @@ class _Literal:
     reward: tuple[ie.LinearForm, str] | None = None  # form op 0, the form over rewards
 
 
-class _Unsupported(Exception):
+class _Unsupported(RacError):
     pass
 
 

@@ -30,6 +30,7 @@ from rac.check.analysis.affine import Affine, Moves, moves, sup_linear
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.priority import range_target
 from rac.check.analysis.worst import Unfinished, maximise
+from rac.core.diagnostics import RacError
 from rac.ir.inputs import Piece
 
 __all__ = ["SampleChange", "ScaleUnproven", "sample_change_bound"]
@@ -38,7 +39,7 @@ ZERO = Fraction(0)
 _Box = tuple[tuple[str, Piece], ...]
 
 
-class ScaleUnproven(ValueError):
+class ScaleUnproven(RacError, ValueError):
     """No bound on the objective's change per sample could be proved; the message says why."""
 
 

@@ -43,7 +43,7 @@ from rac.check.analysis.affine import moves
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.priority import p2_levels, p2_target, rate_conflicts, replay
 from rac.check.analysis.worst import Target, Unfinished, maximise
-from rac.core.diagnostics import short_number
+from rac.core.diagnostics import RacError, short_number
 
 Vector = tuple[Fraction, ...]
 #: The automaton resolved with the parameters at a point (None when it does not resolve).
@@ -92,7 +92,7 @@ class Region:
         return [_describe(q, names, self.order) for q in self.inequalities]
 
 
-class Unsupported(Exception):
+class Unsupported(RacError):
     """A parameter is somewhere the polyhedron would not be exact: ``name`` and ``where``."""
 
     def __init__(self, name: str, where: str) -> None:

@@ -30,6 +30,7 @@ import numpy as np
 
 from rac import ir
 from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, sup_linear
+from rac.core.diagnostics import RacError
 
 ZERO = Fraction(0)
 #: Instants of one sample, in time order; START is t = 0 before any sample.
@@ -44,7 +45,7 @@ BEFORE_EDGE, AFTER_EDGE, AFTER_END, BEFORE_NEXT, CONTINUE, START = (
 MAX_SAMPLES = 100_000
 
 
-class Unfinished(Exception):
+class Unfinished(RacError):
     """The worst-run search stopped at :data:`MAX_SAMPLES`; ``reason`` says why, for the warning."""
 
     def __init__(self, reason: str) -> None:

@@ -50,7 +50,7 @@ from fractions import Fraction
 from pathlib import PurePath
 
 from rac import ir
-from rac.core.diagnostics import Diagnostic, error, short_number
+from rac.core.diagnostics import Diagnostic, RacError, error, short_number
 from rac.core.numbers import INT32_MAX
 from rac.ir import query as iq
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, double_literal
@@ -65,7 +65,7 @@ __all__ = ["AutomatonGenerator", "UppaalError", "UppaalModel", "generate_uppaal"
            "queries_path", "vocabulary"]
 
 
-class UppaalError(Exception):
+class UppaalError(RacError):
     """The automaton cannot be emitted as an UPPAAL model; carries the diagnostics (E0801, E0802)."""
 
     def __init__(self, diagnostics: Iterable[Diagnostic]):

@@ -28,6 +28,7 @@ from collections.abc import Mapping, Sequence
 from fractions import Fraction
 
 from rac import ir
+from rac.core.diagnostics import RacError
 from rac.core.numbers import INT32_MAX
 from rac.core.printing import C_BINARY, Associativity, Level, Operator, OperatorTable, Printed, Printer, signed_sum
 from rac.ir.expr import integer_bound
@@ -50,11 +51,11 @@ __all__ = [
     "terms_text",
 ]
 
-class NotRepresentable(ValueError):
+class NotRepresentable(RacError, ValueError):
     """A number has no UPPAAL literal (an integer beyond int32, an infinite double)."""
 
 
-class QueryError(ValueError):
+class QueryError(RacError, ValueError):
     """A query cannot be written over the emitted model (the message says why)."""
 
 

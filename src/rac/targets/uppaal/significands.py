@@ -17,8 +17,9 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from rac import ir
-from rac.core.diagnostics import Diagnostic, error, short_number
-from rac.core.numbers import INT32_MAX, exact_decimal
+from rac.core.diagnostics import Diagnostic
+from rac.ir.significands import decimal_text as _decimal
+from rac.ir.significands import rate_diagnostic, unrepresentable
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 from rac.runtime.semantics import mirror_accrual
 from rac.targets.uppaal.expr import NotRepresentable, int_literal
@@ -29,9 +30,6 @@ __all__ = ["Accrual", "NumericInput", "Significands"]
 #: What a reward's mirror gains per sample in one location: a constant and ``(coefficient,
 #: significand name)`` terms, in significand units (``None`` where it is not representable).
 Accrual = tuple[Fraction, list[tuple[Fraction, str]]]
-
-_HINT_REPRESENTATION = ("add a `model` block with a larger `exponent`, or change the number so that it "
-                        "is a whole multiple of 1/{scale}")
 
 
 @dataclass
@@ -80,11 +78,7 @@ class Significands:
 
     def unrepresentable(self, message: str, span, notes: Iterable[str] = (), hints: Iterable[str] | None = None):
         """Report E0801 at ``span``; without ``hints``, the hint to enlarge the exponent or round the number."""
-        hint = _HINT_REPRESENTATION.format(scale=self.scale)
-        self.diagnostics.append(error(
-            "E0801", message, self.span(span), notes=list(notes),
-            hints=list(hints) if hints is not None else [hint],
-            data={"base": self.base, "exponent": self.exponent}))
+        self.diagnostics.append(unrepresentable(self.a, message, self.span(span), notes, hints))
 
     # ------------------------------------------------------------ inputs
     def inputs(self, names: Names, arrays: dict[str, str], selects: dict[str, str]) -> list[NumericInput]:
@@ -152,49 +146,13 @@ class Significands:
         for location in self.a.locations:
             row: list[Accrual | None] = []
             for reward, rate in zip(self.a.rewards, location.rates):
-                const, terms = mirror_accrual(rate, period, self.scale)
-                bad = const.denominator != 1 or any(
-                    (coef * v).denominator != 1 for coef, name in terms for v in values.get(name, []))
-                if not bad and max([abs(const), *(abs(coef) for coef, _ in terms)]) > INT32_MAX:
-                    self.unrepresentable(
-                        f"reward rate `{reward}' == {_linear_text(rate)}` in location `{location.name}` adds "
-                        f"{short_number(max([abs(const), *(abs(coef) for coef, _ in terms)]))} significand units "
-                        "per sample (per unit of its inputs), beyond the 32-bit integer range",
-                        location.span, hints=["lower the rate, or the exponent of the number representation"])
+                problem = rate_diagnostic(self.a, location, reward, rate, values)
+                if problem is not None:
+                    self.diagnostics.append(problem)
                     row.append(None)
                     continue
-                if bad:
-                    if terms:
-                        note = (f"one sample adds ({_linear_text(rate)}) * {_decimal(period)} to `{reward}`, which is "
-                                "not a whole number of significand units for every value its inputs take")
-                    else:
-                        step = rate.const * period
-                        note = (f"one sample adds {_decimal(rate.const)} * {_decimal(period)} = {_decimal(step)} to "
-                                f"`{reward}`, that is {_decimal(step * self.scale)} significand units (1/{self.scale} "
-                                "each): not a whole number")
-                    self.unrepresentable(
-                        f"reward rate `{reward}' == {_linear_text(rate)}` in location `{location.name}` is not "
-                        f"representable in significands at exponent {self.exponent}", location.span,
-                        notes=[note],
-                        hints=[f"make rate * period a multiple of 1/{self.scale}, or add a `model` block with a "
-                               "larger `exponent`"])
-                    row.append(None)
-                else:
-                    row.append((const, [(c, names[name]) for c, name in terms]))
+                const, terms = mirror_accrual(rate, period, self.scale)
+                row.append((const, [(c, names[name]) for c, name in terms]))
             result.append(row)
         return result
 
-
-def _decimal(value: Fraction) -> str:
-    """A rational for messages: its exact decimal when it has a short one (``0.00001``), else rounded."""
-    if abs(value) >= 10**16:
-        return short_number(value)
-    return exact_decimal(value, max_places=12) or short_number(value)
-
-
-def _linear_text(linear: ir.Linear) -> str:
-    """A rate for messages: ``0.1 + 2*x``, its terms joined by ``+`` (a negative coefficient keeps its sign)."""
-    parts = [_decimal(linear.const)] if linear.const or not linear.terms else []
-    for name, coefficient in linear.terms:
-        parts.append(name if coefficient == 1 else f"{_decimal(coefficient)}*{name}")
-    return " + ".join(parts)

@@ -1,0 +1,119 @@
+"""E0801 for the reward rates: a rate whose growth over one sample has no whole number of significand
+units, or more than an ``int32`` holds.
+
+A real value ``v`` is held as its significand ``v * base**exponent`` in the UPPAAL model and in
+rac's engine (the reward mirrors). Here, below the checker, the UPPAAL target and the engine, so
+that all three report the one diagnostic: the checker when the automaton has a ``model`` block (its
+base and exponent are known then), ``rac compile --target uppaal``
+(:class:`rac.targets.uppaal.significands.Significands`), and the engine's product.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from fractions import Fraction
+
+from rac import ir
+from rac.core.diagnostics import Diagnostic, RacError, error, short_number
+from rac.core.numbers import INT32_MAX, exact_decimal
+from rac.core.source import Span
+from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
+
+__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "decimal_text", "linear_text", "rate_diagnostic",
+           "rate_diagnostics", "representation", "unrepresentable"]
+
+#: The hint of an E0801 without one of its own (``scale``: ``base**exponent``).
+HINT_REPRESENTATION = ("add a `model` block with a larger `exponent`, or change the number so that it "
+                       "is a whole multiple of 1/{scale}")
+
+
+class Unrepresentable(RacError, ValueError):
+    """A number the significands cannot hold met after the checker (an automaton checked without its
+    ``model`` block's checks, or built by hand); ``diagnostic`` is its E0801."""
+
+    diagnostic: Diagnostic
+
+
+def representation(automaton: ir.Automaton) -> tuple[int, int]:
+    """The automaton's ``(base, exponent)``: its ``model`` block's, else the defaults."""
+    model = automaton.model
+    return (model.base, model.exponent) if model is not None else (DEFAULT_BASE, DEFAULT_EXPONENT)
+
+
+def unrepresentable(automaton: ir.Automaton, message: str, span: Span | None, notes: Iterable[str] = (),
+                    hints: Iterable[str] | None = None) -> Diagnostic:
+    """E0801 at ``span`` (else the automaton's name); without ``hints``, the hint to enlarge the
+    exponent or round the number."""
+    base, exponent = representation(automaton)
+    if span is None and automaton.source is not None:
+        span = automaton.source.name.span
+    return error("E0801", message, span, notes=list(notes),
+                 hints=list(hints) if hints is not None else [HINT_REPRESENTATION.format(scale=base ** exponent)],
+                 data={"base": base, "exponent": exponent})
+
+
+def rate_diagnostic(automaton: ir.Automaton, location: ir.Location, reward: str, rate: ir.Linear,
+                    values: Mapping[str, Sequence[int]] | None = None) -> Diagnostic | None:
+    """E0801 when the mirror of ``reward`` cannot follow ``rate`` in ``location``: its gain per sample
+    is beyond the ``int32`` range, or not a whole number of significand units (``values``: the
+    significands each numeric input takes, where the caller knows them; None checks the constant
+    part only). None when the rate is representable."""
+    base, exponent = representation(automaton)
+    scale = base ** exponent
+    period = Fraction(automaton.period)
+    # runtime.semantics.mirror_accrual's numbers (the checker may not import the runtime)
+    const = rate.const * period * scale
+    terms = [(coef * period, name) for name, coef in rate.terms]
+    bad = const.denominator != 1 or any(
+        (coef * v).denominator != 1 for coef, name in terms for v in (values or {}).get(name, []))
+    if not bad and max([abs(const), *(abs(coef) for coef, _ in terms)]) > INT32_MAX:
+        return unrepresentable(
+            automaton,
+            f"reward rate `{reward}' == {linear_text(rate)}` in location `{location.name}` adds "
+            f"{short_number(max([abs(const), *(abs(coef) for coef, _ in terms)]))} significand units "
+            "per sample (per unit of its inputs), beyond the 32-bit integer range",
+            location.span, hints=["lower the rate, or the exponent of the number representation"])
+    if not bad:
+        return None
+    if terms:
+        note = (f"one sample adds ({linear_text(rate)}) * {decimal_text(period)} to `{reward}`, which is "
+                "not a whole number of significand units for every value its inputs take")
+    else:
+        step = rate.const * period
+        note = (f"one sample adds {decimal_text(rate.const)} * {decimal_text(period)} = {decimal_text(step)} to "
+                f"`{reward}`, that is {decimal_text(step * scale)} significand units (1/{scale} "
+                "each): not a whole number")
+    return unrepresentable(
+        automaton,
+        f"reward rate `{reward}' == {linear_text(rate)}` in location `{location.name}` is not "
+        f"representable in significands at exponent {exponent}", location.span,
+        notes=[note],
+        hints=[f"make rate * period a multiple of 1/{scale}, or add a `model` block with a "
+               "larger `exponent`"])
+
+
+def rate_diagnostics(automaton: ir.Automaton) -> list[Diagnostic]:
+    """E0801 for every rate of ``automaton`` whose constant part has no significand (the checker's
+    check, with a ``model`` block: the inputs' values come from the scenario, known later)."""
+    found = []
+    for location in automaton.locations:
+        for reward, rate in zip(automaton.rewards, location.rates):
+            diagnostic = rate_diagnostic(automaton, location, reward, rate)
+            if diagnostic is not None:
+                found.append(diagnostic)
+    return found
+
+
+def decimal_text(value: Fraction) -> str:
+    """A rational for messages: its exact decimal when it has a short one (``0.00001``), else rounded."""
+    if abs(value) >= 10**16:
+        return short_number(value)
+    return exact_decimal(value, max_places=12) or short_number(value)
+
+
+def linear_text(linear: ir.Linear) -> str:
+    """A rate for messages: ``0.1 + 2*x``, its terms joined by ``+`` (a negative coefficient keeps its sign)."""
+    parts = [decimal_text(linear.const)] if linear.const or not linear.terms else []
+    for name, coefficient in linear.terms:
+        parts.append(name if coefficient == 1 else f"{decimal_text(coefficient)}*{name}")
+    return " + ".join(parts)
