@@ -14,6 +14,9 @@ Each rule fails with the offending file and line:
 - no ``getattr``/``hasattr`` probing a checked file for ``automaton``, ``model_data``, ``scenario`` or
   ``sources``: what holds them is typed (:class:`rac.model.program.CheckedProgram`,
   :class:`rac.compiler.CompileResult`), and isinstance picks among them.
+- one sample's meaning written once: a state array's columns by name from :mod:`rac.model.sample`
+  (no bare integer column), the int32 limits only from :mod:`rac.core.numbers`, ``collide()`` only
+  from :func:`rac.model.sample.collides`, a guard walked by :class:`rac.ir.GuardFold`.
 
 docs/architecture.md shows the same layers.
 """
@@ -252,3 +255,141 @@ def test_no_probing_for_a_checked_files_parts() -> None:
                              f"{node.func.id}(..., {node.args[1].value!r})")
     assert not found, ("a checked file's parts are typed: accept CompileResult | CheckedProgram | ir.Automaton "
                        "and use isinstance:\n" + "\n".join(found))
+
+
+#: The names under which src/rac holds state arrays (rows of :mod:`rac.model.sample`'s columns): the
+#: value of a subscript, a variable or the last attribute (``graph.states``, ``layer.ego``).
+STATE_ARRAYS = {"state", "states", "row", "rows", "ego", "frame", "before", "after", "moved", "chosen", "current",
+                "frontier", "key", "place", "block", "start"}
+#: The module that names the columns.
+COLUMNS_MODULE = "rac.model.sample"
+#: Packages whose arrays have layouts of their own: plots and renders read (x, y, head) paths in metres.
+OWN_LAYOUTS = ("rac.output",)
+
+
+def _literal_column(node: ast.expr) -> bool:
+    """An integer literal (``4``, ``-1``), a slice of them (``:7``, ``5:7``, ``1:``) or a tuple of them."""
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        node = node.operand
+    if isinstance(node, ast.Constant):
+        return isinstance(node.value, int) and not isinstance(node.value, bool)
+    if isinstance(node, ast.Slice):
+        bounds = [b for b in (node.lower, node.upper) if b is not None]
+        return node.step is None and bool(bounds) and all(_literal_column(b) for b in bounds)
+    if isinstance(node, ast.Tuple):
+        return bool(node.elts) and all(_literal_column(e) for e in node.elts)
+    return False
+
+
+def bare_state_columns() -> Iterator[str]:
+    """``states[:, 4]``, ``rows[inverse, :7]``, ``runs.states[:, k, 5]``: a subscript of two or more indices
+    of an array named as a state array (:data:`STATE_ARRAYS`) whose last index, the column, is an integer
+    literal."""
+    for module, path in MODULES.items():
+        if module == COLUMNS_MODULE or module.startswith(OWN_LAYOUTS):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not (isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Tuple)
+                    and len(node.slice.elts) >= 2 and _literal_column(node.slice.elts[-1])
+                    and not (isinstance(node.slice.elts[0], ast.Constant) and node.slice.elts[0].value is Ellipsis)):
+                continue
+            value = node.value
+            name = value.id if isinstance(value, ast.Name) else value.attr if isinstance(value, ast.Attribute) else ""
+            if name in STATE_ARRAYS:
+                yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_state_columns_are_named() -> None:
+    """A state array's columns are named once, in :mod:`rac.model.sample` (``Ego.HEAD``, ``ACTION``,
+    ``GraphColumn.K``, ``PRODUCT_EGO``), never indexed by a bare integer elsewhere in src/rac.
+
+    Scope: subscripts ``a[rows, column]`` and ``a[runs, k, column]`` of arrays named as :data:`STATE_ARRAYS`
+    (a variable or an attribute: ``graph.states``), whose column is an integer literal, a slice or a tuple
+    of them. Not checked: one-index rows (``row[0]``), ``a[..., c]`` (the obstacles' ``(n, O, 4)``
+    states), arrays under other names (action ``pairs``, ``truth``, an observation ``out``) and
+    :data:`OWN_LAYOUTS`: layouts of their own."""
+    found = list(bare_state_columns())
+    assert not found, "state columns by bare integers (name them from rac.model.sample):\n" + "\n".join(found)
+
+
+#: The int32 limits as numbers: only :mod:`rac.core.numbers` writes them (``INT32_MAX``, ``INT32_MIN``,
+#: ``INT32_LOW``, ``INT32_BOUND``).
+INT32_LITERALS = {2**31 - 1, 2**31, 2**32}
+
+
+def int32_literals() -> Iterator[str]:
+    """A number literal equal to ``2**31 - 1``, ``2**31`` or ``2**32`` (an int or a float; a sign is a
+    separate node, so ``-2147483648`` is found too), or the expressions ``2**31``, ``2**32``, ``1 << 31``,
+    ``1 << 32`` and ``2**31 - 1`` written out."""
+    for module, path in MODULES.items():
+        if module == "rac.core.numbers":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            number = None
+            if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
+                    and not isinstance(node.value, bool):
+                number = node.value
+            elif isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Pow, ast.LShift)) \
+                    and isinstance(node.left, ast.Constant) and isinstance(node.right, ast.Constant):
+                if (node.left.value, node.right.value) in {(2, 31), (2, 32)} and isinstance(node.op, ast.Pow) \
+                        or (node.left.value, node.right.value) in {(1, 31), (1, 32)}:
+                    number = 2**31
+            if number is not None and number in INT32_LITERALS:
+                yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_int32_limits_only_from_core_numbers() -> None:
+    """The int32 limits are written once, in :mod:`rac.core.numbers`; every other module of src/rac imports
+    them (text in docstrings and messages may still say the numbers)."""
+    found = list(int32_literals())
+    assert not found, "int32 limits written out (import them from rac.core.numbers):\n" + "\n".join(found)
+
+
+def collide_comparisons() -> Iterator[str]:
+    """A comparison with the collision distance (``td``, ``_td``, ``td_d``, ``self._td``, ``native.td_d``)."""
+    for module, path in MODULES.items():
+        if module == COLUMNS_MODULE:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Compare):
+                for operand in (node.left, *node.comparators):
+                    name = operand.id if isinstance(operand, ast.Name) else (
+                        operand.attr if isinstance(operand, ast.Attribute) else "")
+                    if name in {"td", "_td", "td_d"}:
+                        yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_collide_is_defined_once() -> None:
+    """``collide()`` is ``mindist() < TD`` in one place, :func:`rac.model.sample.collides`: the scalar and
+    batch model, exploration, the product, the evaluator, simulation and episodes call it, none compares
+    with the collision distance itself."""
+    found = list(collide_comparisons())
+    assert not found, "collide() computed outside rac.model.sample:\n" + "\n".join(found)
+
+
+#: Modules that may test a guard node's connective themselves: rac.ir (the fold, and ir.inputs' table
+#: with its own cache), check.linear (which builds guards: ``not not g`` simplified) and the Python
+#: target's printer (the same simplification when printing).
+GUARD_WALKERS = {"rac.ir", "rac.ir.inputs", "rac.check.linear", "rac.targets.python"}
+
+
+def guard_connective_tests() -> Iterator[str]:
+    """``isinstance(x, ir.BNot)``, ``isinstance(x, (ir.BAnd, ...))``: a walk over the connectives."""
+    for module, path in MODULES.items():
+        if module in GUARD_WALKERS:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "isinstance"
+                    and len(node.args) == 2):
+                names = {n.attr if isinstance(n, ast.Attribute) else n.id for n in ast.walk(node.args[1])
+                         if isinstance(n, (ast.Attribute, ast.Name))}
+                if names & {"BNot", "BAnd", "BOr"}:
+                    yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_guards_are_walked_by_the_fold() -> None:
+    """A guard's meaning is given as leaves and combinations to :class:`rac.ir.GuardFold` (the interpreter,
+    the batch runtime, the product, the compositional transfer); only :data:`GUARD_WALKERS` test the
+    connectives (the printers dispatch by node name, ``print_BAnd``, with their operator tables)."""
+    found = list(guard_connective_tests())
+    assert not found, "isinstance chains over guard connectives (use rac.ir.GuardFold):\n" + "\n".join(found)

@@ -26,6 +26,7 @@ from rac.cli.common import (
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
 from rac.core.diagnostics import render_text as render_diagnostics
+from rac.model.sample import Ego
 
 if TYPE_CHECKING:
     from rac.verify.report import QueryResult
@@ -347,7 +348,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(f"rac render: {seed}", file=sys.stderr)
         return EXIT_ERRORS if seed else EXIT_USAGE
     real = runs.sensed_real()[0]
-    trajectory = real[:, [0, 1, 4]]
+    trajectory = real[:, [Ego.X, Ego.Y, Ego.HEAD]]
     out_dir = output_folder(args.file, "render", args.out)
     png, gif = out_dir / "run.png", out_dir / "run.gif" if args.gif else None
     automaton = result.automaton

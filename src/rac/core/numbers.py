@@ -7,10 +7,13 @@ from __future__ import annotations
 import math
 from fractions import Fraction
 
-__all__ = ["INT32_LOW", "INT32_MAX", "INT32_MIN", "exact_decimal", "format_bytes", "size_option"]
+__all__ = ["INT32_BOUND", "INT32_LOW", "INT32_MAX", "INT32_MIN", "exact_decimal", "format_bytes", "size_option"]
 
 INT32_MAX = 2**31 - 1
 INT32_MIN = -(2**31)
+#: ``2**31``: no int32 is larger in magnitude. A double ``d`` truncates into an int32 significand when
+#: ``-INT32_BOUND < d < INT32_BOUND`` (the model's range checks; NaN never does); it also bounds exact sums.
+INT32_BOUND = 2**31
 #: The most negative value rac writes or stores: ``-INT32_MAX``, because UPPAAL's lexer reads
 #: ``-2147483648`` as the negation of a literal that does not fit.
 INT32_LOW = -INT32_MAX

@@ -21,6 +21,7 @@ import numpy as np
 from rac.engine.evaluate import Evaluator, Frame
 from rac.model.batch import batch_model
 from rac.model.data import ModelData
+from rac.model.sample import ACTION
 
 __all__ = ["ActionGuard", "action_pairs"]
 
@@ -66,7 +67,7 @@ class ActionGuard:
         if self.evaluator is None or n == 0:
             return np.ones((n, len(pairs)), dtype=bool)
         chosen = np.repeat(np.asarray(states, dtype=np.int32), len(pairs), axis=0)
-        chosen[:, 5:7] = np.tile(pairs, (n, 1))
+        chosen[:, ACTION] = np.tile(pairs, (n, 1))
         samples = np.repeat(np.broadcast_to(np.asarray(k, dtype=np.int64), (n,)), len(pairs))
         successors = batch_model(self.data).sense(chosen)
         return self.successors_allowed(successors, samples + 1).reshape(n, len(pairs))

@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from rac import ir
+from rac.core.numbers import INT32_BOUND
 from rac.engine.compiled import compile_expressions
 from rac.engine.evaluate import Evaluator, Frame
 from rac.ir import expr as ie
@@ -66,7 +67,7 @@ class Bindings:
             return np.asarray(value if value.dtype == bool else value != 0, dtype=bool)
         value = np.asarray(value, dtype=np.float64)
         scaled = value * self.evaluator.scale_d
-        bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
+        bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))  # also NaN
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
             significand = int(scaled[row]) if math.isfinite(scaled[row]) else None

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from rac.core.numbers import INT32_BOUND
 from rac.engine.evaluate import Evaluator, Frame, int_sum
 from rac.ir import expr as ie
 from rac.ir.vocabulary import Holding
@@ -210,7 +211,7 @@ class _Writer:
         const = int(form.const * multiple)
         coefficients = [int(c * multiple) for c, _ in columns]
         compare = _COMPARE[expr.op]
-        if columns and abs(const) + sum(abs(c) for c in coefficients) * 2**31 < _SAFE_INT64:
+        if columns and abs(const) + sum(abs(c) for c in coefficients) * INT32_BOUND < _SAFE_INT64:
             # int64 holds every partial sum exactly (int_sum's test), so the order of the sum is free
             total = " + ".join([str(const)] + [f"{c} * {column}.astype(np.int64)"
                                                for c, (_, column) in zip(coefficients, columns)])

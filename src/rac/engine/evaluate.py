@@ -32,11 +32,13 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
+from rac.core.numbers import INT32_BOUND
 from rac.core.source import Span
 from rac.ir import expr as ie
 from rac.ir.vocabulary import Holding
 from rac.model.batch import batch_model
 from rac.model.data import ModelData
+from rac.model.sample import collides
 
 __all__ = ["EvaluationError", "Evaluator", "Frame", "int_sum"]
 
@@ -101,7 +103,7 @@ class Frame:
 
 def int_sum(const: int, terms: Sequence[tuple[int, np.ndarray]], n: int) -> np.ndarray:
     """``const + Σ c * column`` exactly: int64 when no intermediate can overflow it, else Python ints."""
-    exact = abs(const) + sum(abs(c) for c, _ in terms) * 2**31 < _SAFE_INT64
+    exact = abs(const) + sum(abs(c) for c, _ in terms) * INT32_BOUND < _SAFE_INT64
     dtype = np.int64 if exact else object
     total = np.full(n, const, dtype=dtype)
     for c, column in terms:
@@ -133,7 +135,7 @@ class Evaluator:
 
     def _collide(self, frame: Frame) -> np.ndarray:
         """``collide()``: ``mindist() < TD`` at the frame's sample, or before it under ``collision sticky``."""
-        now = self.function("mindist", frame) < self.model.native.td_d
+        now = collides(self.function("mindist", frame), self.model.native.td_d)
         if not self.data.sticky:
             return now
         if frame.crashed is None:

@@ -27,10 +27,12 @@ from rac.engine.budget import (
     projected_states,
 )
 from rac.engine.evaluate import Frame
-from rac.engine.graph import LABELS, ExploredGraph
+from rac.engine.graph import ExploredGraph
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.batch import BatchModel, batch_model, distinct_values
 from rac.model.data import ModelData
+from rac.model.sample import ACTION, CRASHED, EGO, GRAPH_LAYER_ROW, LABELS, Ego, GraphColumn, collides
+from rac.model.sample import labels as sample_labels
 
 __all__ = ["COLUMNS", "GEOMETRY", "STICKY_COLUMNS", "Beam", "Geometry", "Stop", "action_pairs", "explore",
            "forgets_actions"]
@@ -213,12 +215,12 @@ def _expand(model: BatchModel, sources: np.ndarray, pairs: np.ndarray | None, sa
             chosen = block
         else:
             chosen = np.repeat(block, per, axis=0)
-            chosen[:, 5:7] = np.tile(pairs, (block.shape[0], 1))
-        moved = model.sense(chosen[:, :7])
+            chosen[:, ACTION] = np.tile(pairs, (block.shape[0], 1))
+        moved = model.sense(chosen[:, EGO])
         if guard is None and not sticky:  # nothing reads the model before the successors merge
             kept.append(np.ones(chosen.shape[0], dtype=bool))
             if forget:
-                moved[:, 5:7] = 0
+                moved[:, ACTION] = 0
             rows, inverse = _unique_rows(moved)  # the geometry reads the rows themselves (not their jerk, turn)
             part = (rows, np.arange(rows.shape[0], dtype=np.int64), Geometry(model, rows, sample))
         else:
@@ -250,12 +252,12 @@ def _by_position(model: BatchModel, chosen: np.ndarray, moved: np.ndarray, sampl
     read once per distinct position; the distinct rows are then found from that key's rank and the few
     other columns, in the order ``np.unique`` gives the rows."""
     key = moved.copy()
-    key[:, 5:7] = 0
+    key[:, ACTION] = 0
     places, where = _unique_rows(key)
     del key
     geometry = Geometry(model, np.ascontiguousarray(places, dtype=np.int32), sample)
     sticky = chosen.shape[1] > moved.shape[1]
-    crashed = ((chosen[:, 7] != 0) | (geometry("mindist", where) < model.native.td_d)) if sticky else None
+    crashed = collides(geometry("mindist", where), model.native.td_d, chosen[:, CRASHED] != 0) if sticky else None
     if guard is not None:
         frame = Frame(k=np.full(moved.shape[0], sample, dtype=np.int64), ego=moved,
                       functions=lambda name: geometry(name, where))
@@ -268,18 +270,18 @@ def _by_position(model: BatchModel, chosen: np.ndarray, moved: np.ndarray, sampl
     # the distinct successors: by position (rank `where`), then jerk, turn and crashed, as the rows sort
     code, span = np.zeros(moved.shape[0], dtype=np.int64), 1
     if not forget:
-        for column in (5, 6):
+        for column in (Ego.JERK, Ego.TURN):
             rank, count = _ranks(moved[:, column])
             code, span = code * count + rank, span * count
     if crashed is not None:
         code, span = code * 2 + crashed, span * 2
     distinct, inverse = distinct_values(where * span + code)
     rows = np.empty((distinct.size, moved.shape[1] + (crashed is not None)), dtype=np.int32)
-    rows[inverse, :7] = moved
+    rows[inverse, EGO] = moved
     if forget:
-        rows[:, 5:7] = 0
+        rows[:, ACTION] = 0
     if crashed is not None:
-        rows[inverse, 7] = crashed
+        rows[inverse, CRASHED] = crashed
     return (rows, distinct // span, geometry), inverse
 
 
@@ -386,7 +388,7 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     frontier = np.column_stack([start, model.collide(start, 0)]).astype(np.int32) if sticky else start
     # the frontier's positions: the model's functions on them, shared with the rule that made them
     place = start.copy()
-    place[:, 5:7] = 0
+    place[:, ACTION] = 0
     geometry, where = Geometry(model, place, 0), np.zeros(1, dtype=np.int64)
     td = native.td_d
     columns = STICKY_COLUMNS if sticky else COLUMNS
@@ -401,12 +403,11 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
         for k in range(horizon_samples + 1):
             size = frontier.shape[0]
             layers.append(frontier)
-            collide = frontier[:, 7] != 0 if sticky else geometry("mindist", where) < td
-            offroad = geometry("offroad", where)
-            safe = ~collide & ~offroad
-            for name, mask in (("collide", collide), ("offroad", offroad), ("goal", geometry("goal", where)),
-                               ("safe", safe)):
+            collide = frontier[:, CRASHED] != 0 if sticky else collides(geometry("mindist", where), td)
+            layer_labels = sample_labels(collide, geometry("offroad", where), geometry("goal", where))
+            for name, mask in layer_labels.items():
                 labels[name].append(mask)
+            safe = layer_labels["safe"]
             base = total + size  # index of the next layer's first state
             total = base
             if progress is not None:
@@ -460,8 +461,8 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
     states = np.empty((sum(layer.shape[0] for layer in layers), len(columns)), dtype=np.int32)
     row = 0
     for k, layer in enumerate(layers):
-        states[row:row + layer.shape[0], 0] = k
-        states[row:row + layer.shape[0], 1:] = layer
+        states[row:row + layer.shape[0], GraphColumn.K] = k
+        states[row:row + layer.shape[0], GRAPH_LAYER_ROW] = layer
         row += layer.shape[0]
     offsets = np.zeros(states.shape[0] + 1, dtype=np.int64)
     np.cumsum(np.concatenate(counts), out=offsets[1:])

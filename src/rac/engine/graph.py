@@ -11,10 +11,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["LABELS", "ExploredGraph"]
+from rac.model.sample import LABELS
 
-#: The state labels every explored graph carries (the model's predicates a query may name).
-LABELS: tuple[str, ...] = ("collide", "offroad", "goal", "safe")
+__all__ = ["LABELS", "ExploredGraph"]
 
 
 @dataclass(frozen=True)

@@ -60,6 +60,7 @@ import numpy as np
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.model.batch import BatchModel, batch_model
 from rac.model.data import ModelData
+from rac.model.sample import ACTION, Ego, collides
 
 __all__ = ["DEFAULT_DEPTH", "DEFAULT_SECONDS", "Lookahead", "LookaheadMask", "LookaheadSettings"]
 
@@ -168,7 +169,7 @@ class Lookahead:
         successor), and the smallest ``mindist()`` over the period ``(n,)`` (for ordering)."""
         model = self.model
         current = np.array(states, dtype=np.int32, copy=True)
-        current[:, 5:7] = self.pairs[actions]
+        current[:, ACTION] = self.pairs[actions]
         safe = np.ones(current.shape[0], dtype=bool) if crashed is None else ~np.asarray(crashed, dtype=bool)
         clearance = np.full(current.shape[0], np.inf)
         end = self.period_end(k)
@@ -178,7 +179,7 @@ class Lookahead:
                 safe &= self.guard.successors_allowed(current, sample)
             distance = model.mindist(current, sample)
             np.minimum(clearance, distance, out=clearance)
-            safe &= ~(distance < model.native.td_d)
+            safe &= ~collides(distance, model.native.td_d)
             safe &= ~model.offroad(current, sample)
         return current, safe, clearance
 
@@ -301,8 +302,8 @@ class Lookahead:
         """``(n,)``: the action index of each state's own jerk and turn (the action that led to it;
         jerk-major over the grids, as :func:`rac.engine.allow.action_pairs`)."""
         jerks, turns = np.unique(self.pairs[:, 0]), np.unique(self.pairs[:, 1])
-        j = np.clip(np.searchsorted(jerks, states[:, 5]), 0, jerks.size - 1)
-        t = np.clip(np.searchsorted(turns, states[:, 6]), 0, turns.size - 1)
+        j = np.clip(np.searchsorted(jerks, states[:, Ego.JERK]), 0, jerks.size - 1)
+        t = np.clip(np.searchsorted(turns, states[:, Ego.TURN]), 0, turns.size - 1)
         return (j * turns.size + t).astype(np.int64)
 
     def _expand(self, owners: np.ndarray, layer: np.ndarray, sample: int) -> tuple[np.ndarray, np.ndarray]:

@@ -27,6 +27,7 @@ from rac.engine.allow import action_pairs
 from rac.engine.lookahead import Lookahead, LookaheadSettings
 from rac.engine.shield import ShieldTable
 from rac.model.data import ModelData
+from rac.model.sample import GRAPH_EGO, GraphColumn
 
 __all__ = ["OnDemandShield", "OnDemandStats", "on_demand"]
 
@@ -70,14 +71,14 @@ class OnDemandShield(ShieldTable):
         assert self.lookahead is not None
         rows = np.array(states, dtype=np.int64, ndmin=2)
         memo: dict[bytes, np.ndarray] = self._memo  # type: ignore[attr-defined]
-        keys = [row[:8].tobytes() for row in rows]
+        keys = [row[:GraphColumn.CRASHED].tobytes() for row in rows]
         todo = [i for i, key in enumerate(keys) if key not in memo]
         if todo and self.seconds is not None:
-            for k in np.unique(rows[todo, 0]).tolist():
-                group = [i for i in todo if rows[i, 0] == k and keys[i] not in memo]
+            for k in np.unique(rows[todo, GraphColumn.K]).tolist():
+                group = [i for i in todo if rows[i, GraphColumn.K] == k and keys[i] not in memo]
                 if k >= self.lookahead.horizon or not group:
                     continue
-                proved = self._fixed_proofs(rows[group, 1:8], int(k))
+                proved = self._fixed_proofs(rows[group, GRAPH_EGO], int(k))
                 for i, mask in zip(group, proved):
                     if mask.any():
                         memo[keys[i]] = mask
@@ -92,7 +93,7 @@ class OnDemandShield(ShieldTable):
         assert self.lookahead is not None
         if int(row[0]) >= self.lookahead.horizon:
             return np.ones(self.n_actions, dtype=bool)
-        found = self.lookahead.decide(row[:8])
+        found = self.lookahead.decide(row[:GraphColumn.CRASHED])
         full = found.depth >= found.target and found.depth > 0
         mask = found.mask.copy() if full else np.zeros(self.n_actions, dtype=bool)
         self.stats.states += 1

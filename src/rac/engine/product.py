@@ -81,6 +81,8 @@ from rac.ir import query as iq
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.data import ModelData, ModelRangeError
 from rac.model.program import CheckedProgram, ProgramSource, program_of
+from rac.model.sample import ACTION, CRASHED, EGO, PRODUCT_EGO, ProductColumn, collides
+from rac.model.sample import labels as label_states
 from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
 
 __all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
@@ -149,21 +151,22 @@ class _Arithmetic:
     def guard(self, guard: ir.Guard, inputs: np.ndarray) -> np.ndarray:
         """A guard on the input globals (numbers as significands, thresholds compared exactly)."""
         n = inputs.shape[0]
-        if isinstance(guard, ir.BConst):
-            return np.full(n, guard.value)
-        if isinstance(guard, ir.BInput):
-            return inputs[:, self.input[guard.name]] != 0
-        if isinstance(guard, ir.BAtom):
-            bound = ie.integer_bound(guard.op, guard.threshold * self.scale)
+
+        def atom(leaf: ir.BAtom) -> np.ndarray:
+            bound = ie.integer_bound(leaf.op, leaf.threshold * self.scale)
             if isinstance(bound, bool):
                 return np.full(n, bound)
             op, value = bound
-            return _compare(inputs[:, self.input[guard.input]], op, value)
-        if isinstance(guard, ir.BNot):
-            return ~self.guard(guard.operand, inputs)
-        parts = [self.guard(g, inputs) for g in guard.operands]
-        combine = np.logical_and if isinstance(guard, ir.BAnd) else np.logical_or
-        return combine.reduce(parts) if parts else np.full(n, isinstance(guard, ir.BAnd))
+            return _compare(inputs[:, self.input[leaf.input]], op, value)
+
+        fold: ir.GuardFold[np.ndarray] = ir.GuardFold(
+            const=lambda value: np.full(n, value),
+            boolean=lambda leaf: inputs[:, self.input[leaf.name]] != 0,
+            atom=atom,
+            negate=lambda inner: ~inner,
+            conjoin=lambda parts: np.logical_and.reduce(parts) if parts else np.full(n, True),
+            disjoin=lambda parts: np.logical_or.reduce(parts) if parts else np.full(n, False))
+        return fold(guard)
 
     def update(self, updates: Sequence[ir.Assignment], inputs: np.ndarray, mirrors: np.ndarray) -> None:
         """Apply ``updates`` left to right to ``mirrors`` in place (each reads the ones before it)."""
@@ -310,31 +313,31 @@ class ProductGraph(ExploredGraph):
     # ------------------------------------------------------------ columns
     @property
     def k(self) -> np.ndarray:
-        return self.states[:, 0]
+        return self.states[:, ProductColumn.K]
 
     @property
     def phase(self) -> np.ndarray:
-        return self.states[:, 1]
+        return self.states[:, ProductColumn.PHASE]
 
     @property
     def ego(self) -> np.ndarray:
-        return self.states[:, 2:9]
+        return self.states[:, PRODUCT_EGO]
 
     @property
     def location(self) -> np.ndarray:
-        return self.states[:, 9]
+        return self.states[:, ProductColumn.LOCATION]
 
     @property
     def inputs(self) -> dict[str, np.ndarray]:
         """Input name -> the emitted global per state (booleans 0/1, numbers as significands)."""
         assert self.automaton is not None
-        return {item.name: self.states[:, 10 + i] for i, item in enumerate(self.automaton.inputs)}
+        return {item.name: self.states[:, ProductColumn.INPUTS + i] for i, item in enumerate(self.automaton.inputs)}
 
     @property
     def mirrors(self) -> dict[str, np.ndarray]:
         """Reward name -> its integer mirror per state (the reward times the scale)."""
         assert self.automaton is not None
-        first = 10 + len(self.automaton.inputs)
+        first = ProductColumn.INPUTS + len(self.automaton.inputs)
         return {r: self.states[:, first + i] for i, r in enumerate(self.automaton.rewards)}
 
     @property
@@ -353,15 +356,16 @@ class ProductGraph(ExploredGraph):
         scale = float(self.data.scale)
         inputs, significands = {}, {}
         for i, item in enumerate(self.automaton.inputs):
-            column = rows[:, 10 + i]
+            column = rows[:, ProductColumn.INPUTS + i]
             inputs[item.name] = column != 0 if item.is_bool else column / scale
             if not item.is_bool:
                 significands[item.name] = column
-        first = 10 + len(self.automaton.inputs)
+        first = ProductColumn.INPUTS + len(self.automaton.inputs)
         mirrors = {r: rows[:, first + i] for i, r in enumerate(self.automaton.rewards)}
         rewards = {r: column / scale for r, column in mirrors.items()}
         crashed = rows[:, self.columns.index("crashed")] != 0 if "crashed" in self.columns else None
-        return Frame(k=rows[:, 0].astype(np.int64), ego=rows[:, 2:9], location=rows[:, 9].astype(np.int64),
+        return Frame(k=rows[:, ProductColumn.K].astype(np.int64), ego=rows[:, PRODUCT_EGO],
+                     location=rows[:, ProductColumn.LOCATION].astype(np.int64),
                      rewards=rewards, inputs=inputs, mirrors=mirrors, significands=significands, crashed=crashed)
 
     def evaluate(self, expr: ie.Expr, indices: np.ndarray | None = None) -> np.ndarray:
@@ -425,12 +429,11 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
 
     def labels(frame: Frame) -> dict[str, np.ndarray]:
         # through the evaluator, so that the bindings' mindist() etc. on this frame are reused
-        collide = evaluator.evaluate(_CALLS["mindist"], frame) < model.native.td_d
-        if data.sticky and frame.crashed is not None:  # collision sticky: or at an earlier sample
-            collide = collide | frame.crashed
+        collide = collides(evaluator.evaluate(_CALLS["mindist"], frame), model.native.td_d,
+                           frame.crashed if data.sticky else None)  # collision sticky: or at an earlier sample
         offroad = np.asarray(evaluator.evaluate(_CALLS["offroad"], frame), dtype=bool)
         goal = np.asarray(evaluator.evaluate(_CALLS["goal"], frame), dtype=bool)
-        return {"collide": collide, "offroad": offroad, "goal": goal, "safe": ~collide & ~offroad}
+        return label_states(collide, offroad, goal)
 
     sticky = data.sticky
     ego0 = np.asarray([model.native.initial_state()], dtype=np.int64)
@@ -482,7 +485,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
         else:
             per = 1
             src, action = sources, np.full(sources.size, -1, dtype=np.int64)
-            chosen = sampled.ego[src, 5:7]
+            chosen = sampled.ego[src, ACTION]
         counts = np.where(expand, per, 0)
         built.reserve(src.size, k + 1)
         # ---- sense_state() and read_inputs() once per distinct (ego, actions): they read nothing else
@@ -491,12 +494,12 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
                                       return_inverse=True)
         inv_u = inv_u.reshape(-1)
         before = sampled.ego[src[first_u]]
-        moved = before[:, :7].copy()
-        moved[:, 5:7] = chosen[first_u]
+        moved = before[:, EGO].copy()
+        moved[:, ACTION] = chosen[first_u]
         after = model.sense(moved).astype(np.int64)
-        crashed = before[:, 7] != 0 if sticky else None
+        crashed = before[:, CRASHED] != 0 if sticky else None
         now = Frame(np.full(after.shape[0], k + 1, dtype=np.int64), after, crashed=crashed,
-                    prev=Frame(np.full(after.shape[0], k, dtype=np.int64), before[:, :7], crashed=crashed))
+                    prev=Frame(np.full(after.shape[0], k, dtype=np.int64), before[:, EGO], crashed=crashed))
         if k % data.decide_every == 0 and guard.restricts:
             # allow when: only the choices whose successor meets the condition (none: a terminal state);
             # read on the frame of the bindings and labels, so that they share its model calls
@@ -568,8 +571,8 @@ def _layer_graph(layer: _Layer, automaton: ir.Automaton, data: ModelData, horizo
 
 def _rows(layer: _Layer) -> np.ndarray:
     """The state rows of a layer (the columns of :meth:`ProductGraph.columns_of`, then ``crashed``)."""
-    return np.column_stack([np.full(layer.n, layer.k), np.full(layer.n, layer.phase), layer.ego[:, :7], layer.loc,
-                            layer.inputs, layer.mirrors, layer.ego[:, 7:]]).astype(np.int32)
+    return np.column_stack([np.full(layer.n, layer.k), np.full(layer.n, layer.phase), layer.ego[:, EGO], layer.loc,
+                            layer.inputs, layer.mirrors, layer.ego[:, CRASHED:]]).astype(np.int32)
 
 
 def trace_to(graph: ExploredGraph, target: int) -> list[int]:

@@ -43,6 +43,7 @@ import numpy as np
 
 from rac.engine.lookahead import Lookahead, LookaheadMask, LookaheadSettings
 from rac.engine.storm import Shield
+from rac.model.sample import GRAPH_ACTION, GRAPH_EGO, GraphColumn
 
 if TYPE_CHECKING:
     from rac.model.data import ModelData
@@ -147,7 +148,7 @@ class SafeOnward:
         graph = shield.graph
         self.horizon = horizon_samples
         self.forget_every = forget_every
-        k = graph.states[:, 0]
+        k = graph.states[:, GraphColumn.K]
         order = np.argsort(k, kind="stable")
         bounds = np.searchsorted(k[order], np.arange(horizon_samples + 2))
         self._layers = {layer: order[bounds[layer]:bounds[layer + 1]] for layer in range(horizon_samples + 1)}
@@ -173,9 +174,9 @@ class SafeOnward:
 
         rows = np.array(keys, dtype=np.int32, ndmin=2)
         if self.forget_every > 0:
-            rows[forgets_actions(rows[:, 0], self.forget_every, self.horizon), 6:8] = 0
+            rows[forgets_actions(rows[:, GraphColumn.K], self.forget_every, self.horizon), GRAPH_ACTION] = 0
         rows = np.ascontiguousarray(rows)
-        return np.array([row.tobytes() in self._winning_at(int(row[0])) for row in rows], dtype=bool)
+        return np.array([row.tobytes() in self._winning_at(int(row[GraphColumn.K])) for row in rows], dtype=bool)
 
 
 def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None = None,
@@ -340,7 +341,7 @@ class StepShield:
         before the horizon); ``crashed``: under ``collision sticky``, a collision happened on the way
         here (nothing that follows is safe then, so neither shield allows anything)."""
         row = np.asarray(state, dtype=np.int64).reshape(-1)
-        k = int(row[0])
+        k = int(row[GraphColumn.K])
         doomed = crashed and self.data.sticky
         table = self.table
         exhaustive: ShieldStep | None = None
@@ -366,10 +367,10 @@ class StepShield:
     def _none(self, row: np.ndarray, timed_out: bool, found: LookaheadMask | None) -> ShieldStep:
         """No action is known to be safe: the model's allowed actions (all, where ``allow when``
         leaves none: the run would stop there)."""
-        mask = self._guard.masks(row[None, 1:].astype(np.int32), int(row[0]))[0]
+        mask = self._guard.masks(row[None, GRAPH_EGO].astype(np.int32), int(row[GraphColumn.K]))[0]
         if not mask.any():
             mask = np.ones(self.n_actions, dtype=bool)
-        return ShieldStep(mask, "none", int(row[0]), timed_out, no_safe_action=True, lookahead=found)
+        return ShieldStep(mask, "none", int(row[GraphColumn.K]), timed_out, no_safe_action=True, lookahead=found)
 
 
 def step_shield(data: ModelData, horizon_samples: int, *, table_horizon: int | None = None,

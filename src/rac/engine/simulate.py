@@ -45,6 +45,7 @@ from rac.engine.graph import LABELS
 from rac.ir.vocabulary import EGO_STATE, TRUE_STATE
 from rac.model.batch import batch_model
 from rac.model.data import ModelData
+from rac.model.sample import ACTION, Ego, safe
 
 __all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "collided_so_far", "event_sampler", "integrate_one",
            "integrate_truth", "label_runs", "simulate"]
@@ -258,7 +259,7 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     current = np.tile(np.asarray(model.native.initial_state(), dtype=np.int32), (runs, 1))
     start = np.array([data.ego_x, data.ego_y, data.ego_v, data.ego_acc, data.ego_head]) / scale
     true_now = np.repeat(start[:, None], runs, axis=1)  # (5, n): rows are the ODE's variables
-    states[:, 0] = current
+    states[:, 0, :] = current  # sample 0 of every run
     truth[:, 0] = true_now.T
     everything = np.ones((runs, n_pairs), dtype=bool)
     limits = Limits.of(data)
@@ -274,10 +275,10 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
             chosen = _choose(rng, allowed)
             actions[:, k] = chosen
             current = current.copy()
-            current[:, 5:7] = pairs[chosen]
+            current[:, ACTION] = pairs[chosen]
         # the truth uses the same reals as the emitted ODE: jerk / SCALE_D, turn / SCALE_D
-        true_now = integrate_truth(true_now, current[:, 5] / scale, current[:, 6] / scale, period, truth_substeps,
-                                 limits)
+        true_now = integrate_truth(true_now, current[:, Ego.JERK] / scale, current[:, Ego.TURN] / scale, period,
+                                   truth_substeps, limits)
         current = model.sense(current)
         states[:, k + 1] = current
         truth[:, k + 1] = true_now.T
@@ -312,7 +313,7 @@ def label_runs(data: ModelData, runs: Runs, label: str) -> np.ndarray:
             collide = np.logical_or.accumulate(collide, axis=1)
         if label == "collide":
             return collide
-        value = ~collide.reshape(-1) & ~model.offroad(flat, k)
+        value = safe(collide.reshape(-1), model.offroad(flat, k))
     return value.reshape(n, samples)
 
 

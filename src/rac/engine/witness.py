@@ -39,10 +39,12 @@ import numpy as np
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.budget import Budget
 from rac.engine.explore import COLUMNS, STICKY_COLUMNS, Progress, explore
-from rac.engine.graph import LABELS, ExploredGraph
+from rac.engine.graph import ExploredGraph
 from rac.model.batch import BatchModel, batch_model
 from rac.model.data import ModelData
 from rac.model.native import NativeModel
+from rac.model.sample import ACTION, CRASHED, EGO, GRAPH_EGO, GRAPH_LAYER_ROW, GraphColumn, safe
+from rac.model.sample import labels as sample_labels
 
 __all__ = ["Bounds", "Found", "Predicate", "ReplayMismatch", "Witness", "beam_search", "goal_distance",
            "layered_search", "random_runs", "replay", "safe_states", "search", "witness_along", "witness_graph",
@@ -87,12 +89,12 @@ class Witness:
     @property
     def last(self) -> np.ndarray:
         """The last state's row without ``k``."""
-        return self.states[-1, 1:]
+        return self.states[-1, GRAPH_LAYER_ROW]
 
     @property
     def samples(self) -> int:
         """The sample of the last state."""
-        return int(self.states[-1, 0])
+        return int(self.states[-1, GraphColumn.K])
 
 
 @dataclass(frozen=True)
@@ -135,14 +137,14 @@ def _start(data: ModelData, model: BatchModel) -> np.ndarray:
 def safe_states(data: ModelData, k: int, rows: np.ndarray) -> np.ndarray:
     """``!collide() && !offroad()`` (the ``safe`` label) on rows of sample ``k`` (a :data:`Predicate`)."""
     model = batch_model(data)
-    collide = rows[:, 7] != 0 if data.sticky else model.collide(rows[:, :7], k)
-    return ~collide & ~model.offroad(rows[:, :7], k)
+    collide = rows[:, CRASHED] != 0 if data.sticky else model.collide(rows[:, EGO], k)
+    return safe(collide, model.offroad(rows[:, EGO], k))
 
 
 def goal_distance(data: ModelData) -> Score:
     """The beam's default score: ``dist_goal()``, the distance from the goal region's centre."""
     model = batch_model(data)
-    return lambda k, rows: model.dist_goal(rows[:, :7])
+    return lambda k, rows: model.dist_goal(rows[:, EGO])
 
 
 # ---------------------------------------------------------------- random runs
@@ -194,18 +196,18 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
                 go &= np.asarray(through(k, rows[alive]), dtype=bool)
             alive = alive[go]
             if k % data.decide_every == 0 and alive.size:
-                masks = guard.masks(rows[alive, :7], k)
+                masks = guard.masks(rows[alive, EGO], k)
                 draw = np.where(masks, rng.random(masks.shape), -1.0)
                 action = draw.argmax(axis=1)
                 allowed = masks.any(axis=1)
                 alive, action = alive[allowed], action[allowed]
-                rows[alive, 5:7] = pairs[action]
+                rows[alive, ACTION] = pairs[action]
                 chosen[alive, step] = action
             if not alive.size:
                 break
-            moved = model.sense(rows[alive, :7])
+            moved = model.sense(rows[alive, EGO])
             if data.sticky:
-                crashed = (rows[alive, 7] != 0) | model.collide(moved, k + 1)
+                crashed = (rows[alive, CRASHED] != 0) | model.collide(moved, k + 1)
                 rows[alive] = np.column_stack([moved, crashed]).astype(np.int32)
             else:
                 rows[alive] = moved
@@ -219,9 +221,9 @@ def witness_in(graph: ExploredGraph, target: Predicate, search: str) -> Witness 
     None when no state there satisfies ``target``."""
     if graph.n_states == 0:
         return None
-    k = int(graph.states[-1, 0])
-    layer = np.flatnonzero(graph.states[:, 0] == k)
-    hit = np.asarray(target(k, graph.states[layer, 1:]), dtype=bool)
+    k = int(graph.states[-1, GraphColumn.K])
+    layer = np.flatnonzero(graph.states[:, GraphColumn.K] == k)
+    hit = np.asarray(target(k, graph.states[layer, GRAPH_LAYER_ROW]), dtype=bool)
     if not hit.any():
         return None
     return witness_along(graph, graph.path_to(int(layer[np.flatnonzero(hit)[0]])), search)
@@ -370,12 +372,10 @@ def witness_graph(data: ModelData, witness: Witness) -> ExploredGraph:
     :meth:`rac.verify.symbolic.SymbolicAnswerer.trace_rows` reads traces."""
     model = batch_model(data)
     n = witness.states.shape[0]
-    k = witness.states[:, 0].astype(np.int64)
-    rows = witness.states[:, 1:8]
-    collide = witness.states[:, 8] != 0 if data.sticky else model.collide(rows, k)
-    offroad = model.offroad(rows, k)
-    labels = {"collide": collide, "offroad": offroad, "goal": model.goal(rows, k), "safe": ~collide & ~offroad}
-    assert set(labels) == set(LABELS)
+    k = witness.states[:, GraphColumn.K].astype(np.int64)
+    rows = witness.states[:, GRAPH_EGO]
+    collide = witness.states[:, GraphColumn.CRASHED] != 0 if data.sticky else model.collide(rows, k)
+    labels = sample_labels(collide, model.offroad(rows, k), model.goal(rows, k))
     offsets = np.minimum(np.arange(n + 1, dtype=np.int64), n - 1)
     return ExploredGraph(states=witness.states, columns=witness.columns, choice_offsets=offsets,
                          choice_action=witness.actions.astype(np.int64),

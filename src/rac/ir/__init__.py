@@ -9,9 +9,10 @@ May import: core, lang.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Union
+from typing import Generic, TypeVar, Union
 
 from rac.core.source import Span
 from rac.ir.expr import Expr
@@ -112,6 +113,47 @@ class BOr:
 Guard = Union[BConst, BInput, BAtom, BNot, BAnd, BOr]
 
 TRUE = BConst(True)
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class GuardFold(Generic[T]):
+    """The one walk over the six guard nodes: what a guard means to one evaluator is a value per leaf
+    (``const``, ``boolean`` for a :class:`BInput`, ``atom`` for a :class:`BAtom`) and a combination per
+    connective (``negate``, ``conjoin``, ``disjoin`` of the operands' values, in order). Calling it folds a
+    guard bottom-up, the operands before their node; with ``memo``, each distinct sub-guard once (the
+    memo keeps the values). The interpreter folds into closures, the batch runtime into a program of
+    numpy steps, the product into arrays over its states, :func:`evaluate_guard` into exact truth."""
+
+    const: Callable[[bool], T]
+    boolean: Callable[[BInput], T]
+    atom: Callable[[BAtom], T]
+    negate: Callable[[T], T]
+    conjoin: Callable[[tuple[T, ...]], T]
+    disjoin: Callable[[tuple[T, ...]], T]
+
+    def __call__(self, guard: Guard, memo: dict[Guard, T] | None = None) -> T:
+        if memo is not None and guard in memo:
+            return memo[guard]
+        value: T
+        if isinstance(guard, BConst):
+            value = self.const(guard.value)
+        elif isinstance(guard, BInput):
+            value = self.boolean(guard)
+        elif isinstance(guard, BAtom):
+            value = self.atom(guard)
+        elif isinstance(guard, BNot):
+            value = self.negate(self(guard.operand, memo))
+        elif isinstance(guard, BAnd):
+            value = self.conjoin(tuple(self(g, memo) for g in guard.operands))
+        elif isinstance(guard, BOr):
+            value = self.disjoin(tuple(self(g, memo) for g in guard.operands))
+        else:
+            raise TypeError(f"not a guard: {guard!r}")
+        if memo is not None:
+            memo[guard] = value
+        return value
 
 
 # ---------------------------------------------------------------- scenario model (model block)
@@ -368,18 +410,17 @@ def guard_leaves(guard: Guard) -> list[BInput | BAtom]:
 
 
 def evaluate_guard(guard: Guard, values: dict[str, object]) -> bool:
-    """Exact evaluation of a guard on one input valuation (bools and Fractions/floats)."""
-    if isinstance(guard, BConst):
-        return guard.value
-    if isinstance(guard, BInput):
-        return bool(values[guard.name])
-    if isinstance(guard, BAtom):
-        return compare(values[guard.input], guard.op, guard.threshold)
-    if isinstance(guard, BNot):
-        return not evaluate_guard(guard.operand, values)
-    if isinstance(guard, BAnd):
-        return all(evaluate_guard(g, values) for g in guard.operands)
-    return any(evaluate_guard(g, values) for g in guard.operands)
+    """Exact evaluation of a guard on one input valuation (bools and Fractions/floats). ``and``/``or``
+    stop at their first deciding operand (the fold builds thunks), so an input read only past it
+    may be missing from ``values``."""
+    lazy: GuardFold[Callable[[], bool]] = GuardFold(
+        const=lambda value: lambda: value,
+        boolean=lambda leaf: lambda: bool(values[leaf.name]),
+        atom=lambda leaf: lambda: compare(values[leaf.input], leaf.op, leaf.threshold),
+        negate=lambda inner: lambda: not inner(),
+        conjoin=lambda parts: lambda: all(part() for part in parts),
+        disjoin=lambda parts: lambda: any(part() for part in parts))
+    return lazy(guard)()
 
 
 def compare(left, op: str, right) -> bool:

@@ -69,6 +69,7 @@ from rac.lang.parser import parse_expression
 from rac.learning.counterfactual import Counterfactuals, Replayer, Sample
 from rac.model.data import ModelData
 from rac.model.program import CheckedProgram
+from rac.model.sample import ACTION, collides
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.semantics import InputSpec, clip_column, input_specs
 
@@ -311,7 +312,7 @@ class EpisodeBatch:
         # never fed to the automaton (it takes its first sample at k = 1) nor counted as clipped.
         crashed = np.zeros(n, dtype=bool)
         start = Frame(k, ego, crashed=crashed)
-        crashed = self.evaluator.function("mindist", start) < self._td  # collide() at the start
+        crashed = collides(self.evaluator.function("mindist", start), self._td)  # collide() at the start
         # the same frame's mindist() (its cache is shared), with collide() so far
         inputs = self._bindings.read(dataclasses.replace(start, crashed=crashed))
         location = np.full(n, self.automaton.initial, dtype=np.int64)
@@ -564,7 +565,7 @@ class EpisodeBatch:
                 for name, column in known.items():
                     before.keep(name, column[where])
         moved = now.ego[rows].copy()
-        moved[:, 5:7] = pairs[rows]
+        moved[:, ACTION] = pairs[rows]
         after = evaluator.model.sense(moved)
         frame = Frame(k=before.k + 1, ego=after, prev=before, crashed=before.crashed)
         counts = dict.fromkeys(self.clipped_inputs, 0)
@@ -592,7 +593,7 @@ class EpisodeBatch:
                                       rewards={name: values[rows] for name, values in now.rewards.items()},
                                       inputs=values)
         # the labels through the evaluator: the frame's one mindist() and offroad(), shared with the bindings
-        collided = evaluator.function("mindist", sampled) < self._td
+        collided = collides(evaluator.function("mindist", sampled), self._td)
         now.crashed[rows] |= collided
         flags["collided"][rows] |= collided
         flags["offroad"][rows] |= np.asarray(evaluator.function("offroad", sampled), dtype=bool)

@@ -58,6 +58,7 @@ import gymnasium
 import numpy as np
 
 from rac.core.numbers import INT32_MAX
+from rac.model.sample import POSITION, Ego
 
 if TYPE_CHECKING:
     from rac.learning.episodes import EpisodeBatch
@@ -214,7 +215,7 @@ class RelativeObservation:
     def observe(self, episodes: EpisodeBatch) -> np.ndarray:
         n = episodes.n
         ego = episodes.ego / self._scale
-        position, v, acc, head = ego[:, :2], ego[:, 2], ego[:, 3], ego[:, 4]
+        position, v, acc, head = ego[:, POSITION], ego[:, Ego.V], ego[:, Ego.ACC], ego[:, Ego.HEAD]
         cos, sin = np.cos(head), np.sin(head)
         out = np.zeros((n, self._low.size), dtype=np.float64)
         out[:, 0], out[:, 1] = v, acc

@@ -37,6 +37,7 @@ from rac.ir import expr as ie
 from rac.lang import ast
 from rac.learning.observation import Observation, make_observation
 from rac.learning.wrappers import Scale, scale_factor
+from rac.model.sample import MOTION
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -484,5 +485,5 @@ class ScenarioEnv(gymnasium.Env):
         if episodes.n != 1:  # before reset: the ego at its start
             data = episodes.data
             return frames.frame(0, data.ego_x / self._scale, data.ego_y / self._scale, data.ego_head / self._scale)
-        x, y, _, _, head = (episodes.ego[0, :5] / self._scale).tolist()
+        x, y, _, _, head = (episodes.ego[0, MOTION] / self._scale).tolist()
         return frames.frame(int(episodes.k[0]), x, y, head)

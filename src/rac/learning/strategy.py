@@ -40,6 +40,7 @@ from rac.ir import expr as ie
 from rac.lang import ast
 from rac.lang.parser import parse_expressions
 from rac.learning.episodes import Expression
+from rac.model.sample import GRAPH_LAYER_ROW, GraphColumn
 
 if TYPE_CHECKING:  # imported when a run is replayed (the simulator is not needed before)
     from rac.engine.simulate import Runs
@@ -378,7 +379,7 @@ class StrategyRun:
     def samples_taken(self) -> np.ndarray:
         """``(n,)`` the last sample of each run (an episode ends at the sample that reaches the goal,
         which may lie inside a decision period, or at the horizon)."""
-        return self.states[:, -1, 0].astype(np.int64)
+        return self.states[:, -1, GraphColumn.K].astype(np.int64)
 
     def samples(self, data: ModelData, *, truth_substeps: int = 100) -> Runs:
         """Every sample of the runs (:class:`rac.engine.simulate.Runs`), replayed with
@@ -403,7 +404,7 @@ class StrategyRun:
                         truth_substeps=truth_substeps)
         rows = np.arange(self.n_runs)
         for j in range(self.states.shape[1]):
-            k = self.states[:, j, 0].astype(np.int64)
-            if not np.array_equal(runs.states[rows, k], self.states[:, j, 1:]):
+            k = self.states[:, j, GraphColumn.K].astype(np.int64)
+            if not np.array_equal(runs.states[rows, k], self.states[:, j, GRAPH_LAYER_ROW]):
                 raise RuntimeError(f"replaying the strategy's actions does not give its state at decision {j}")
         return runs

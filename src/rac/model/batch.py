@@ -26,11 +26,13 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rac.core.numbers import INT32_BOUND
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.data import ModelData, ModelRangeError
 from rac.model.memo import KeyedRows, cos_sin, distinct_values
 from rac.model.native import CORNERS, NO_OBSTACLE, NativeModel
 from rac.model.polygons import Polygons
+from rac.model.sample import ACTION, MOTION, Ego, collides
 
 __all__ = ["BLOCK", "BatchModel", "batch_model", "collide_many", "dist_goal_many", "distinct_values", "goal_many",
            "mindist_many", "offroad_many", "sense_many"]
@@ -145,26 +147,26 @@ class BatchModel:
         # The sub-steps' cos, sin (and last heading) per (head, turn) pair and speeds (and last
         # speed and acceleration) per (v, acc, jerk), kept: a table of rows and each state's row.
         if n <= _DIRECT_ROWS:
-            heading, pair = self._headings(_pair_keys(states[:, 4], states[:, 6])), np.arange(n)
+            heading, pair = self._headings(_pair_keys(states[:, Ego.HEAD], states[:, Ego.TURN])), np.arange(n)
         else:  # the distinct pairs from the distinct heads and turns (few values: no sorting)
-            heads, head_rank = distinct_values(states[:, 4])
-            turns, turn_rank = distinct_values(states[:, 6])
+            heads, head_rank = distinct_values(states[:, Ego.HEAD])
+            turns, turn_rank = distinct_values(states[:, Ego.TURN])
             pairs, pair = distinct_values(head_rank * len(turns) + turn_rank)
             heading = self._headings(_pair_keys(heads[pairs // len(turns)], turns[pairs % len(turns)]))
         speeds, speed = self._speed_table(states)
         x, y = (self._moved(states[:, column] / scale, speeds, speed, heading[:, part], pair)
-                for column, part in ((0, slice(0, m)), (1, slice(m, 2 * m))))
+                for column, part in ((Ego.X, slice(0, m)), (Ego.Y, slice(m, 2 * m))))
         values = np.stack([x, y, speeds[speed, m], speeds[speed, m + 1], heading[pair, 2 * m]])  # x, y, v, acc, head
         scaled = values * scale
-        bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))  # also NaN
+        bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))  # also NaN
         if bad.any():  # the first column with a value out of range, at its first row (as native)
             column, row = divmod(int(np.argmax(bad)), n)
             what = ("x", "y", "v", "acc", "head")[column]
             native.significand(what, float(values[column, row]))  # raises the same error as native
             raise ModelRangeError(f"sense(): {what}", float(values[column, row]), None, self.data.scale)
         out = np.empty(states.shape, dtype=np.int32)
-        out[:, :5] = scaled.T.astype(np.int64)  # truncation toward zero, like int()
-        out[:, 5:] = states[:, 5:]
+        out[:, MOTION] = scaled.T.astype(np.int64)  # truncation toward zero, like int()
+        out[:, ACTION] = states[:, ACTION]
         return out
 
     def _sense_increments(self, states: np.ndarray) -> np.ndarray:
@@ -172,9 +174,9 @@ class BatchModel:
         data = self.data
         scale = self.native.scale_d
         u = data.unit
-        x, y, v, acc, head = (states[:, column].astype(np.int64) for column in range(5))
-        jerk_step = self._increment("acc", states[:, 5] / scale * u)
-        turn_step = self._increment("head", states[:, 6] / scale * u)
+        x, y, v, acc, head = (states[:, column].astype(np.int64) for column in Ego if column < Ego.JERK)
+        jerk_step = self._increment("acc", states[:, Ego.JERK] / scale * u)
+        turn_step = self._increment("head", states[:, Ego.TURN] / scale * u)
         for _ in range(data.substeps):
             acc = np.clip(acc + jerk_step, -data.max_acc, data.max_acc)  # two comparisons: hi, then lo
             head = head + turn_step
@@ -187,19 +189,19 @@ class BatchModel:
             y = y + self._increment("y", speed * sin * u)
         out = np.empty(states.shape, dtype=np.int32)
         for column, (what, value) in enumerate((("x", x), ("y", y), ("v", v), ("acc", acc), ("head", head))):
-            bad = (value <= -2147483648) | (value >= 2147483648)
+            bad = (value <= -INT32_BOUND) | (value >= INT32_BOUND)
             if bad.any():
                 row = int(np.argmax(bad))
                 raise ModelRangeError(f"sense(): {what}", int(value[row]) / scale, int(value[row]), data.scale)
             out[:, column] = value
-        out[:, 5:] = states[:, 5:]
+        out[:, ACTION] = states[:, ACTION]
         return out
 
     def _increment(self, what: str, value: np.ndarray) -> np.ndarray:
         """``trunc(value * SCALE_D)`` as int64, or :class:`ModelRangeError` (as native) for the first
         value beyond int32."""
         scaled = value * self.native.scale_d
-        bad = ~((scaled > -2147483648.0) & (scaled < 2147483648.0))
+        bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))
         if bad.any():
             self.native.significand(what, float(value[int(np.argmax(bad))]))
         return scaled.astype(np.int64)
@@ -226,7 +228,7 @@ class BatchModel:
     def _speed_table(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_speed_rows` of the rows' (v, acc, jerk), kept while they fit the key: the rows and
         each state's row."""
-        triple = states[:, (2, 3, 5)].astype(np.int64)
+        triple = states[:, (Ego.V, Ego.ACC, Ego.JERK)].astype(np.int64)
         if triple.size and (triple.min() <= -_FIELD or triple.max() >= _FIELD):
             return self._speed_rows(None, triple), np.arange(states.shape[0])
         triple += _FIELD
@@ -294,7 +296,7 @@ class BatchModel:
         u = self.data.unit
         low = keys & 0xFFFFFFFF
         head = (keys >> 32) / scale
-        turn = np.where(low >= 1 << 31, low - (1 << 32), low) / scale
+        turn = np.where(low >= INT32_BOUND, low - 2 * INT32_BOUND, low) / scale  # the low 32 bits as an int32
         angles = np.empty((keys.size, m), dtype=np.float64)
         for step in range(m):
             head = head + turn * u
@@ -311,10 +313,10 @@ class BatchModel:
         """``math.cos`` and ``math.sin`` of ``head / SCALE_D`` for integer heading significands."""
         head = np.asarray(head, dtype=np.int64)
         if head.size <= _DIRECT_ROWS:
-            rows = self._trig(head)
-            return rows[:, 0], rows[:, 1]
-        rows, inverse = self._trig.table(head)
-        return rows[inverse, 0], rows[inverse, 1]
+            trig = self._trig(head)
+            return trig[:, 0], trig[:, 1]
+        trig, inverse = self._trig.table(head)
+        return trig[inverse, 0], trig[inverse, 1]
 
     def mindist(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         """:meth:`NativeModel.mindist` of every row at its sample: ``(n,)`` float64."""
@@ -382,15 +384,15 @@ class BatchModel:
         else:
             distinct, where = distinct_values(samples)
             discs = np.stack([self._obstacle_discs(sample) for sample in distinct.tolist()], axis=1)  # (2, S, D)
-        ec, es = self.cos_sin(states[:, 4])
+        ec, es = self.cos_sin(states[:, Ego.HEAD])
         el = native.length_d
         ew = native.width_d
         er = math.sqrt((el / 6.0) * (el / 6.0) + (ew / 2.0) * (ew / 2.0))
         eoff = el / 3.0
         # the ego's disc centres ex + (a - 1) * eoff * ec (a = 0, 1, 2) as (3, 1, n): the states last
         along = np.array([(a - 1) * eoff for a in range(3)])[:, None, None]
-        ax = states[:, 0] / scale + along * ec
-        ay = states[:, 1] / scale + along * es
+        ax = states[:, Ego.X] / scale + along * ec
+        ay = states[:, Ego.Y] / scale + along * es
         width = discs.shape[2]
         chunk = max(1, min(width, DISC_CELLS // (3 * n)))  # temporaries of at most DISC_CELLS doubles
         with np.errstate(invalid="ignore"):
@@ -408,7 +410,7 @@ class BatchModel:
 
     def collide(self, states: np.ndarray, k: int | np.ndarray) -> np.ndarray:
         """``mindist < TD`` per row: ``(n,)`` bool."""
-        return self.mindist(states, k) < self.native.td_d
+        return collides(self.mindist(states, k), self.native.td_d)
 
     def offroad(self, states: np.ndarray, k: int | np.ndarray | None = None) -> np.ndarray:
         """:meth:`NativeModel.offroad` per row: a corner of the ego outside every road polygon (and,
@@ -428,9 +430,9 @@ class BatchModel:
     def _offroad(self, states: np.ndarray) -> np.ndarray:
         native = self.native
         scale = native.scale_d
-        ex = states[:, 0] / scale
-        ey = states[:, 1] / scale
-        c, s = self.cos_sin(states[:, 4])
+        ex = states[:, Ego.X] / scale
+        ey = states[:, Ego.Y] / scale
+        c, s = self.cos_sin(states[:, Ego.HEAD])
         along, across = self._corners
         px = ex + along * c - across * s
         py = ey + along * s + across * c
@@ -447,15 +449,15 @@ class BatchModel:
         if np.ndim(k) == 0:  # one sample for all rows: no array of samples
             if not data.goal_low <= int(k) <= data.goal_high:
                 return np.zeros(states.shape[0], dtype=bool)
-            return self._goal.inside(states[:, 0] / scale, states[:, 1] / scale)
+            return self._goal.inside(states[:, Ego.X] / scale, states[:, Ego.Y] / scale)
         samples = self._samples(k, states.shape[0])
         due = (samples >= data.goal_low) & (samples <= data.goal_high)
         if not due.any():  # outside the goal's time interval nothing is tested
             return due
         if due.all():
-            return self._goal.inside(states[:, 0] / scale, states[:, 1] / scale)
+            return self._goal.inside(states[:, Ego.X] / scale, states[:, Ego.Y] / scale)
         rows = np.flatnonzero(due)
-        due[rows] = self._goal.inside(states[rows, 0] / scale, states[rows, 1] / scale)
+        due[rows] = self._goal.inside(states[rows, Ego.X] / scale, states[rows, Ego.Y] / scale)
         return due
 
     def dist_goal(self, states: np.ndarray) -> np.ndarray:
@@ -463,8 +465,8 @@ class BatchModel:
         states = self._ego(states)
         native = self.native
         scale = native.scale_d
-        dx = states[:, 0] / scale - native.goal_cx_d
-        dy = states[:, 1] / scale - native.goal_cy_d
+        dx = states[:, Ego.X] / scale - native.goal_cx_d
+        dy = states[:, Ego.Y] / scale - native.goal_cy_d
         return np.sqrt(dx * dx + dy * dy)
 
 

@@ -26,7 +26,9 @@ import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from rac.core.numbers import INT32_BOUND
 from rac.model.data import ModelData, ModelRangeError
+from rac.model.sample import collides
 
 __all__ = ["CORNERS", "CORNER_NAMES", "NEGATIVE_DISTANCE_TEXT", "NO_OBSTACLE", "NO_OBSTACLE_TEXT", "NativeModel",
            "State", "point_in_polygons"]
@@ -117,7 +119,7 @@ class NativeModel:
     def significand(self, what: str, value: float) -> int:
         """``trunc(value · scale)``, or :class:`ModelRangeError` naming ``what`` when it leaves int32."""
         scaled = value * self.scale_d
-        if not -2147483648.0 < scaled < 2147483648.0:  # also rejects NaN
+        if not -INT32_BOUND < scaled < INT32_BOUND:  # also rejects NaN
             significand = int(scaled) if math.isfinite(scaled) else None
             raise ModelRangeError(f"sense(): {what}", value, significand, self.data.scale)
         return int(scaled)
@@ -209,7 +211,7 @@ class NativeModel:
             x = x + sig("x", v / scale * math.cos(h) * u)
             y = y + sig("y", v / scale * math.sin(h) * u)
         for what, value in (("x", x), ("y", y), ("head", head)):
-            if not -2147483648 < value < 2147483648:
+            if not -INT32_BOUND < value < INT32_BOUND:
                 raise ModelRangeError(f"sense(): {what}", value / scale, value, data.scale)
         return State(x, y, v, acc, head, state.jerk, state.turn)
 
@@ -296,7 +298,7 @@ class NativeModel:
 
     def collide(self, state: State, k: int) -> bool:
         """``mindist(state, k) < TD``."""
-        return self.mindist(state, k) < self.td_d
+        return collides(self.mindist(state, k), self.td_d)
 
     def offroad(self, state: State, k: int | None = None) -> bool:
         """Whether a corner of the ego rectangle lies outside every road polygon; false at samples

@@ -6,6 +6,7 @@ operations in the same order, elementwise (see :mod:`rac.runtime.interpreter` fo
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Mapping, Sequence
 from fractions import Fraction
 from typing import Any
@@ -76,23 +77,21 @@ class _Guards:
         self._ids: dict[ir.Guard, int] = {}
         self.program: list[tuple[str, Any]] = []
 
-    def add(self, guard: ir.Guard) -> int:
-        found = self._ids.get(guard)
-        if found is not None:
-            return found
-        if isinstance(guard, ir.BConst):
-            node: tuple[str, Any] = ("const", np.full(self._n, bool(guard.value)))
-        elif isinstance(guard, ir.BInput):
-            node = ("input", guard.name)
-        elif isinstance(guard, ir.BAtom):
-            node = ("atom", (guard.input, _NP_OPS[guard.op], to_float(guard.threshold, "threshold")))
-        elif isinstance(guard, ir.BNot):
-            node = ("not", self.add(guard.operand))
-        else:
-            node = ("and" if isinstance(guard, ir.BAnd) else "or", tuple(self.add(g) for g in guard.operands))
-        self.program.append(node)
-        self._ids[guard] = len(self.program) - 1
+    def _step(self, kind: str, arg: Any) -> int:
+        self.program.append((kind, arg))
         return len(self.program) - 1
+
+    def add(self, guard: ir.Guard) -> int:
+        """The index of ``guard``'s value in :meth:`evaluate`'s list: its steps added, each distinct
+        sub-guard once (``_ids``, the fold's memo, holds their indices)."""
+        fold: ir.GuardFold[int] = ir.GuardFold(  # built per call: no closures kept on the instance
+            const=lambda value: self._step("const", np.full(self._n, bool(value))),
+            boolean=lambda leaf: self._step("input", leaf.name),
+            atom=lambda leaf: self._step("atom", (leaf.input, _NP_OPS[leaf.op], to_float(leaf.threshold, "threshold"))),
+            negate=lambda inner: self._step("not", inner),
+            conjoin=lambda parts: self._step("and", parts),
+            disjoin=lambda parts: self._step("or", parts))
+        return fold(guard, self._ids)
 
     def evaluate(self, x: Mapping[str, np.ndarray]) -> list[np.ndarray]:
         out: list[np.ndarray] = []
@@ -121,15 +120,10 @@ def _atoms(guard: ir.Guard, out: dict[ir.Guard, int]) -> None:
 
 
 def _eval_atoms(guard: ir.Guard, bits: Mapping[ir.Guard, bool]) -> bool:
-    if isinstance(guard, ir.BConst):
-        return bool(guard.value)
-    if isinstance(guard, (ir.BInput, ir.BAtom)):
-        return bits[guard]
-    if isinstance(guard, ir.BNot):
-        return not _eval_atoms(guard.operand, bits)
-    if isinstance(guard, ir.BAnd):
-        return all(_eval_atoms(g, bits) for g in guard.operands)
-    return any(_eval_atoms(g, bits) for g in guard.operands)
+    """``guard`` with every leaf's truth given by ``bits`` (every leaf is there: no short cut needed)."""
+    fold: ir.GuardFold[bool] = ir.GuardFold(const=bool, boolean=bits.__getitem__, atom=bits.__getitem__,
+                                            negate=operator.not_, conjoin=all, disjoin=any)
+    return fold(guard)
 
 
 class BatchRewardAutomaton(AutomatonDescription):

@@ -88,29 +88,42 @@ def _compile_linear(form: FloatLinear, reward_index: Mapping[str, int]) -> _Line
     return evaluate
 
 
-def _compile_guard(guard: ir.Guard) -> _GuardFn:
-    if isinstance(guard, ir.BConst):
-        value = bool(guard.value)
-        return lambda x: value
-    if isinstance(guard, ir.BInput):
-        name = guard.name
-        return lambda x: x[name]
-    if isinstance(guard, ir.BAtom):
-        op, name, threshold = _OPS[guard.op], guard.input, to_float(guard.threshold, "threshold")
-        return lambda x: op(x[name], threshold)
-    if isinstance(guard, ir.BNot):
-        inner = _compile_guard(guard.operand)
-        return lambda x: not inner(x)
-    parts = tuple(_compile_guard(g) for g in guard.operands)
-    if isinstance(guard, ir.BAnd):
-        if len(parts) == 2:
-            a, b = parts
-            return lambda x: a(x) and b(x)
-        return lambda x: all(p(x) for p in parts)
+def _guard_const(value: bool) -> _GuardFn:
+    value = bool(value)
+    return lambda x: value
+
+
+def _guard_input(leaf: ir.BInput) -> _GuardFn:
+    name = leaf.name
+    return lambda x: x[name]
+
+
+def _guard_atom(leaf: ir.BAtom) -> _GuardFn:
+    op, name, threshold = _OPS[leaf.op], leaf.input, to_float(leaf.threshold, "threshold")
+    return lambda x: op(x[name], threshold)
+
+
+def _guard_not(inner: _GuardFn) -> _GuardFn:
+    return lambda x: not inner(x)
+
+
+def _guard_and(parts: tuple[_GuardFn, ...]) -> _GuardFn:
+    if len(parts) == 2:  # the common case without a generator: a step evaluates guards often
+        a, b = parts
+        return lambda x: a(x) and b(x)
+    return lambda x: all(p(x) for p in parts)
+
+
+def _guard_or(parts: tuple[_GuardFn, ...]) -> _GuardFn:
     if len(parts) == 2:
         a, b = parts
         return lambda x: a(x) or b(x)
     return lambda x: any(p(x) for p in parts)
+
+
+#: A guard compiled into one closure over the inputs (Python's ``and``/``or``: the first deciding operand).
+_compile_guard: ir.GuardFold[_GuardFn] = ir.GuardFold(const=_guard_const, boolean=_guard_input, atom=_guard_atom,
+                                                     negate=_guard_not, conjoin=_guard_and, disjoin=_guard_or)
 
 
 class RewardAutomaton(AutomatonDescription):

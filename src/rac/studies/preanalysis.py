@@ -43,6 +43,7 @@ from rac.engine.stats import clopper_pearson
 from rac.model.batch import BatchModel
 from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.model.native import NEGATIVE_DISTANCE_TEXT, NO_OBSTACLE
+from rac.model.sample import MOTION, Ego
 
 __all__ = ["Row", "SweepError", "render_table", "sweep"]
 
@@ -94,14 +95,14 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
     out = np.empty((n, (samples - 1) * m + 1))
 
     def distance(truth: np.ndarray, index: int) -> np.ndarray:
-        ego = np.zeros((n, 7), dtype=np.int32)
-        ego[:, :5] = np.trunc(np.clip(truth.T * scale, -2.1e9, 2.1e9)).astype(np.int64)
+        ego = np.zeros((n, len(Ego)), dtype=np.int32)
+        ego[:, MOTION] = np.trunc(np.clip(truth.T * scale, -2.1e9, 2.1e9)).astype(np.int64)
         return model.mindist(ego, index)
 
     truth = runs.truth[:, 0].T.copy()  # (5, n), as the integrator holds it
     out[:, 0] = distance(truth, 0)
     for k in range(samples - 1):
-        jerk, turn = runs.states[:, k + 1, 5] / data.scale, runs.states[:, k + 1, 6] / data.scale
+        jerk, turn = runs.states[:, k + 1, Ego.JERK] / data.scale, runs.states[:, k + 1, Ego.TURN] / data.scale
         for j in range(1, m + 1):
             truth = integrate_truth(truth, jerk, turn, data.period / m, max(1, 100 // m), limits)
             out[:, k * m + j] = distance(truth, k * m + j)
@@ -127,7 +128,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     row["threshold"] = threshold
     # Qa: sensor error, unshielded runs (UPPAAL's SMC semantics: uniform actions).
     plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed)
-    drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, 0] / data.scale) >= float(spec.sensor_error)
+    drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, Ego.X] / data.scale) >= float(spec.sensor_error)
     hits = int(drift.any(axis=1).sum())
     row["qa"] = clopper_pearson(hits, runs)
     # Qb-Qd on the explored model (unsafe states end a run): the shield's own graph.

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -35,6 +35,7 @@ from rac.check.analysis.priority import check_ranges
 from rac.core.diagnostics import Severity
 from rac.engine.evaluate import EvaluationError
 from rac.ir import expr as ie
+from rac.model.sample import GraphColumn
 from rac.runtime.semantics import mirror_accrual, mirror_update
 from rac.verify.context import Context, UnknownVerdict
 
@@ -121,16 +122,14 @@ def _formula(expr: ie.Expr, ctx: Context) -> Formula:
 def _substituted(guard: ir.Guard, ctx: Context) -> Formula:
     """``assume`` with every boolean input replaced by its binding; a numeric input's atom stays an
     atom over the input's value (its truncated significand, related to nothing)."""
-    if isinstance(guard, ir.BConst):
-        return ("const", guard.value)
-    if isinstance(guard, ir.BInput):
-        return _formula(_binding(ctx, guard.name), ctx)
-    if isinstance(guard, ir.BAtom):
-        return ("lin", ((("input", guard.input), Fraction(1)),), -guard.threshold, guard.op)
-    if isinstance(guard, ir.BNot):
-        return ("not", _substituted(guard.operand, ctx))
-    parts = tuple(_substituted(g, ctx) for g in guard.operands)
-    return ("and" if isinstance(guard, ir.BAnd) else "or", parts)
+    fold: ir.GuardFold[Formula] = ir.GuardFold(
+        const=lambda value: ("const", value),
+        boolean=lambda leaf: _formula(_binding(ctx, leaf.name), ctx),
+        atom=lambda leaf: ("lin", ((("input", leaf.input), Fraction(1)),), -leaf.threshold, leaf.op),
+        negate=lambda inner: ("not", inner),
+        conjoin=lambda parts: ("and", parts),
+        disjoin=lambda parts: ("or", parts))
+    return fold(guard)
 
 
 def _binding(ctx: Context, name: str) -> ie.Expr:
@@ -308,7 +307,7 @@ def transfer(ctx: Context, expr: ie.Expr) -> Transfer:
                 holds &= ctx.label(graph, condition)
         except (UnknownVerdict, EvaluationError) as exc:
             return Transfer(False, why_not=f"{' and '.join(checked)} could not be checked on the model ({exc})")
-        later = graph.states[:, 0] >= 1  # the inputs are read from the first sample on
+        later = graph.states[:, GraphColumn.K] >= 1  # the inputs are read from the first sample on
         bad = int((~holds & later).sum())
         if bad:
             return Transfer(False, why_not=f"{' and '.join(checked)} fails in {bad:,} states of the model")
@@ -319,23 +318,25 @@ def transfer(ctx: Context, expr: ie.Expr) -> Transfer:
 
 def _assume_expr(guard: ir.Guard, ctx: Context) -> ie.Expr | None:
     """``assume`` over the model's values (None when it reads a numeric input)."""
-    if isinstance(guard, ir.BConst):
-        return ie.Const(guard.value)
-    if isinstance(guard, ir.BInput):
-        return _binding(ctx, guard.name)
-    if isinstance(guard, ir.BAtom):
-        return None
-    if isinstance(guard, ir.BNot):
-        inner = _assume_expr(guard.operand, ctx)
-        return None if inner is None else ie.Unary("!", inner)
-    parts = [_assume_expr(g, ctx) for g in guard.operands]
-    if any(p is None for p in parts):
-        return None
-    result = parts[0]
-    for part in parts[1:]:
-        assert result is not None and part is not None
-        result = ie.Binary("&&" if isinstance(guard, ir.BAnd) else "||", result, part)
-    return result
+    def chain(op: str) -> Callable[[tuple[ie.Expr | None, ...]], ie.Expr | None]:
+        def combine(parts: tuple[ie.Expr | None, ...]) -> ie.Expr | None:
+            if any(p is None for p in parts):
+                return None
+            result = parts[0]
+            for part in parts[1:]:
+                assert result is not None and part is not None
+                result = ie.Binary(op, result, part)
+            return result
+        return combine
+
+    fold: ir.GuardFold[ie.Expr | None] = ir.GuardFold(
+        const=ie.Const,
+        boolean=lambda leaf: _binding(ctx, leaf.name),
+        atom=lambda leaf: None,
+        negate=lambda inner: None if inner is None else ie.Unary("!", inner),
+        conjoin=chain("&&"),
+        disjoin=chain("||"))
+    return fold(guard)
 
 
 def decide(ctx: Context, quantifier: str, expr: ie.Expr) -> tuple[bool | None, str]:

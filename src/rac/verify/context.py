@@ -35,6 +35,7 @@ from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.model.data import ModelData, ModelRangeError
 from rac.model.program import CheckedProgram
+from rac.model.sample import CRASHED, EGO, GRAPH_EGO, GraphColumn
 
 if TYPE_CHECKING:
     from rac.engine.simulate import Policy, Runs
@@ -272,7 +273,8 @@ class Context:
         """A state formula on every state of a plain explored graph."""
         _no_prev(expr)
         crashed = graph.states[:, graph.columns.index("crashed")] != 0 if "crashed" in graph.columns else None
-        frame = Frame(k=graph.states[:, 0].astype(np.int64), ego=graph.states[:, 1:8], crashed=crashed)
+        frame = Frame(k=graph.states[:, GraphColumn.K].astype(np.int64), ego=graph.states[:, GRAPH_EGO],
+                      crashed=crashed)
         return np.ascontiguousarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
 
     def predicate(self, expr: ie.Expr, *, negate: bool = False) -> Predicate:
@@ -282,8 +284,8 @@ class Context:
         sticky = self.data.sticky
 
         def holds(k: int, rows: np.ndarray) -> np.ndarray:
-            frame = Frame(k=np.full(rows.shape[0], k, dtype=np.int64), ego=np.ascontiguousarray(rows[:, :7]),
-                          crashed=rows[:, 7] != 0 if sticky else None)
+            frame = Frame(k=np.full(rows.shape[0], k, dtype=np.int64), ego=np.ascontiguousarray(rows[:, EGO]),
+                          crashed=rows[:, CRASHED] != 0 if sticky else None)
             value = np.asarray(self.evaluator.evaluate_bool(expr, frame), dtype=bool)
             return ~value if negate else value
 

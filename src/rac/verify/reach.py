@@ -39,6 +39,7 @@ from rac.engine.witness import (
     witness_along,
 )
 from rac.model.data import ModelRangeError
+from rac.model.sample import GRAPH_LAYER_ROW, GraphColumn
 from rac.verify.context import Context, UnknownVerdict, over_budget
 
 __all__ = ["Reached", "Reacher", "in_graph"]
@@ -60,10 +61,10 @@ class Reached:
 def in_graph(graph: ExploredGraph, target: Predicate) -> np.ndarray:
     """``target`` on every state of ``graph`` (layer by layer: a predicate reads one sample)."""
     mask = np.zeros(graph.n_states, dtype=bool)
-    k = graph.states[:, 0]
+    k = graph.states[:, GraphColumn.K]
     for sample in np.unique(k).tolist():
         rows = np.flatnonzero(k == sample)
-        mask[rows] = target(int(sample), graph.states[rows, 1:])
+        mask[rows] = target(int(sample), graph.states[rows, GRAPH_LAYER_ROW])
     return mask
 
 
