@@ -163,12 +163,12 @@ def test_settled_values_are_checked_beyond_the_limit(monkeypatch: pytest.MonkeyP
     text = GROWING.replace("initial location Normal { sa' == 1;  pr' == 1 }",
                            "initial location Normal { sa' == 0;  pr' == 0 }")
     automaton = compiled(text)
-    facts: list[str] = []
+    facts: list[Fact] = []
     assert check_priorities(automaton, facts) == []
     monkeypatch.setattr(worst_module, "MAX_SAMPLES", 100)
-    limited: list[str] = []
+    limited: list[Fact] = []
     assert check_priorities(automaton, limited) == []
-    assert limited == facts and any(f.startswith("P2 holds for `sa`") for f in facts)
+    assert limited == facts and any(f.message.startswith("P2 holds for `sa`") for f in facts)
 
 
 def test_a_refutation_within_the_limit_is_unchanged(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rac import ir
-from rac.check.params import synthesise_parameters
 from rac.check.resolve import Resolver
 from rac.core.diagnostics import CheckError, Diagnostic, Fact, error
 from rac.core.source import SourceFile
@@ -115,6 +114,8 @@ def parameter_stage(state: Compilation, settings: Settings) -> Compilation:
     """With `param` declarations: the automaton at the synthesised values (:mod:`rac.check.params`)."""
     if state.automaton is None or not state.automaton.parameters or not settings.analyse or state.failed:
         return state
+    from rac.check.params import synthesise_parameters  # numpy and sympy: a syntax error never needs them
+
     outcome = synthesise_parameters(state.module.automata[0], state.automaton.parameters)
     return replace(state, automaton=outcome.automaton, diagnostics=(*state.diagnostics, *outcome.diagnostics),
                    facts=(*state.facts, *outcome.facts), synthesis=outcome.synthesised)
