@@ -4,7 +4,7 @@ The driving automaton (stdlib/driving.ra) with its penalty as ``param PENALTY in
 with its three weights as ``param w1, w2, w3 in [1, 100]`` (``objective w1 * sa + w2 * pr + w3 * co``),
 each at horizons of 30 s (300 samples) and 3600 s (36,000 samples). At 3600 s the weights are
 synthesised with ``PENALTY = 6000``, since 100 is paid back by an hour of ``sa' == 1`` whatever the
-weights. A row gives the synthesis alone (``rac.compiler.synthesise_parameters``: the cutting planes,
+weights. A row gives the synthesis alone (``rac.check.params.synthesise_parameters``: the cutting planes,
 the oracle's runs and, for the weights, the LPs and the vertex check) and the whole ``rac check``
 (synthesis, then every check at the chosen values), in this process, best of ``--repeat`` runs, and
 what was synthesised. Target: synthesis under 10 s at 3600 s.
@@ -55,8 +55,9 @@ def driving_text(kind: str, horizon: int) -> str:
 
 def measure(text: str, repeat: int) -> tuple[float, float, str]:
     """The best synthesis time, the best whole-check time, and what was synthesised (or why not)."""
+    from rac.check.params import synthesise_parameters
     from rac.check.resolve import Resolver
-    from rac.compiler import compile_text, synthesise_parameters
+    from rac.compiler import compile_text
     from rac.lang.parser import parse_text
 
     node = parse_text(text, "driving.ra").automata[0]
@@ -66,7 +67,8 @@ def measure(text: str, repeat: int) -> tuple[float, float, str]:
     outcome = ""
     for _ in range(repeat):
         started = time.perf_counter()
-        _, diagnostics, found = synthesise_parameters(node, automaton.parameters, [])
+        synthesised = synthesise_parameters(node, automaton.parameters)
+        diagnostics, found = synthesised.diagnostics, synthesised.synthesised
         synthesis = min(synthesis, time.perf_counter() - started)
         started = time.perf_counter()
         compile_text(text, "driving.ra")

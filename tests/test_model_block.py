@@ -352,8 +352,8 @@ def test_model_does_not_change_the_checks_or_runtime() -> None:
     plain = check(DRIVING)
     modelled = check(with_model(BLOCK))
     # The automaton's facts are the same; the model adds the scenario's (tests/test_model_check.py).
-    assert plain.facts == modelled.facts[:-1]
-    assert modelled.facts[-1].startswith("scenario left_turn.xml: ")
+    assert plain.proved == modelled.proved[:-1]
+    assert modelled.proved[-1].startswith("scenario left_turn.xml: ")
     ra = rac.loads(with_model(BLOCK))
     ra.reset()
     assert ra.step({"isClose": False, "prog": True, "comf": True, "collide": False, "dgoal": 40.0}) > 0
@@ -625,7 +625,7 @@ LONG = """automaton Long {
 def test_range_check_uses_the_model_exponent() -> None:
     ok = check(LONG % "        exponent 3\n")
     assert ok.ok
-    assert "int32 range holds at base 10, exponent 3: rewards stay within [-600599.8, 600]" in ok.facts
+    assert "int32 range holds at base 10, exponent 3: rewards stay within [-600599.8, 600]" in ok.proved
     text = LONG % "        exponent 6\n"
     diagnostic = only(text, "E0501")
     assert diagnostic.message == "reward `sa` overflows int32 at base 10, exponent 6: it can reach -600599.8"

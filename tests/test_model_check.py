@@ -87,7 +87,7 @@ def test_left_turn_loads_and_is_summed_up(tmp_path: Path) -> None:
     text = source()
     result = compile_file(write(tmp_path, text, LEFT_TURN.read_bytes()))
     assert result.ok, [d.message for d in result.diagnostics]
-    fact = result.facts[-1]
+    fact = result.proved[-1]
     assert fact.startswith("scenario left_turn.xml: 20 lanelets, 3 obstacles, goal at t in [0, 10] s; "
                            "every significand fits int32 at base 10, exponent 4")
     assert isinstance(result.scenario, Scenario) and len(result.scenario.road) == 20
@@ -118,7 +118,7 @@ def test_no_model_block_no_scenario(tmp_path: Path) -> None:
     path.write_text((REPO / "stdlib" / "driving.ra").read_text(encoding="utf-8"), encoding="utf-8")
     result = compile_file(path)
     assert result.ok and result.scenario is None and result.model_data is None
-    assert not any(f.startswith("scenario ") for f in result.facts)
+    assert not any(f.startswith("scenario ") for f in result.proved)
 
 
 # ---------------------------------------------------------------- E0712
@@ -199,7 +199,7 @@ def test_overflow_names_the_value_and_the_largest_exponent(tmp_path: Path) -> No
     assert diagnostic.hints[0].startswith("set `exponent 5` in the `model` block (the largest")
     assert result.scenario is not None and result.model_data is None
     fixed = compile_file(write(tmp_path, source(items="        exponent 5\n", horizon="2")))
-    assert fixed.ok and "exponent 5" in fixed.facts[-1]
+    assert fixed.ok and "exponent 5" in fixed.proved[-1]
 
 
 def test_overflow_at_the_default_exponent_points_at_the_block(tmp_path: Path) -> None:

@@ -31,12 +31,12 @@ def codes(result) -> list[str]:
 def test_driving_penalty_is_synthesised_exactly():
     result = compile_text(driving("param PENALTY in [0, 1000]"), "driving.ra")
     assert result.ok, [d.message for d in result.diagnostics]
-    assert result.facts[0] == ("synthesised: PENALTY >= 98 (every check holds for PENALTY in [98, 1000]); "
+    assert result.proved[0] == ("synthesised: PENALTY >= 98 (every check holds for PENALTY in [98, 1000]); "
                                "checked with PENALTY = 98")
     # The file is checked as if it said `const PENALTY = 98`: the same proofs.
     at_98 = compile_text(driving("const PENALTY = 98"), "driving.ra")
     assert at_98.ok
-    assert result.facts[1:] == at_98.facts
+    assert result.proved[1:] == at_98.proved
     assert result.automaton is not None and at_98.automaton is not None
     assert result.automaton.edges == at_98.automaton.edges
     # What the targets are compiled from carries the value too.
@@ -54,7 +54,7 @@ def test_decimal_bounds_and_an_upper_end():
     result = compile_text(text, "small.ra")
     assert result.ok, [d.message for d in result.diagnostics]
     # 10 * (5 - 6) + W * 5 <= 0 at the worst instant (5 s in `Ok`, then `Bad`).
-    assert result.facts[0] == ("synthesised: W <= 2 (every check holds for W in [0.5, 2]); "
+    assert result.proved[0] == ("synthesised: W <= 2 (every check holds for W in [0.5, 2]); "
                                "checked with W = 0.5")
 
 
@@ -197,4 +197,4 @@ def test_compile_reports_what_synthesise_finds():
     result = compile_text(text, "small.ra")
     assert result.ok
     assert re.match(r"synthesised: P >= 5\.5 \(every check holds for P in \[5\.5, 50\]\); checked with P = 5\.5",
-                    result.facts[0])
+                    result.proved[0])

@@ -65,7 +65,7 @@ def test_p2_holds_at_penalty_100_with_worst_value_minus_20() -> None:
     result = compiled(driving_text(100))
     assert result.ok, render_text(result.diagnostics, result.sources)
     assert not errors(result, "E0402")
-    assert any("P2 holds for `sa` (penalised in `Unsafe`): the objective stays <= -20 " in f for f in result.facts)
+    assert any("P2 holds for `sa` (penalised in `Unsafe`): the objective stays <= -20 " in f for f in result.proved)
     automaton = result.automaton
     assert automaton is not None
     facts: list[str] = []
@@ -125,7 +125,7 @@ def test_p2_worst_value_grows_with_the_horizon(penalty: int, horizon: str, perio
     if expected <= 0:
         assert not found
         assert any(f"the objective stays <= {_text(expected)} over every run of {horizon} s" in f
-                   for f in result.facts), result.facts
+                   for f in result.proved), result.proved
     else:
         (diag,) = found
         assert Fraction(diag.data["value"]) == expected
@@ -142,14 +142,14 @@ def test_p2_huge_penalty_is_exact() -> None:
     result = compiled(driving_text(penalty))
     assert not errors(result, "E0402")
     expected = p2_worst(penalty, Fraction(30))
-    assert any(f"the objective stays <= {expected} over" in f for f in result.facts), result.facts
+    assert any(f"the objective stays <= {expected} over" in f for f in result.proved), result.proved
 
 
 def test_p2_with_a_non_translation_update_uses_the_generic_engine() -> None:
     # Entering Unsafe also resets comfort: the worst objective is 10*(30-100) + 5*130 + 0.
     result = compiled(driving_text(100, **{"do sa = sa - PENALTY": "do sa = sa - PENALTY, co = 0"}))
     assert result.ok
-    assert any("the objective stays <= -50 " in f for f in result.facts), result.facts
+    assert any("the objective stays <= -50 " in f for f in result.proved), result.proved
     # 10 s: 10*(10 - 63) + 5*110 + 0 = 20.
     result = compiled(driving_text(63, "10", **{"do sa = sa - PENALTY": "do sa = sa - PENALTY, co = 0"}))
     (diag,) = errors(result, "E0402")
@@ -170,7 +170,7 @@ def test_strict_driving_reports_the_lower_levels_only() -> None:
     # Level 2 (co, penalised in Uncomfortable): co alone reaches 30.
     assert found[2].data["reward"] == "co" and found[2].data["value"] == "30"
     assert found[2].data["priority"] == "strict sa > pr > co"
-    assert any("P2 holds for `sa` (penalised in `Unsafe`): the objective stays <= -20 " in f for f in result.facts)
+    assert any("P2 holds for `sa` (penalised in `Unsafe`): the objective stays <= -20 " in f for f in result.proved)
 
 
 def test_strict_reports_the_failing_level_when_the_top_holds() -> None:
@@ -188,7 +188,7 @@ def test_strict_reports_the_failing_level_when_the_top_holds() -> None:
     # Without `strict` only the top level is checked, and it holds (10*(30-100) + 650 = -50).
     plain = compiled(driving_text(100, **variant))
     assert plain.ok
-    assert any("the objective stays <= -50 " in f for f in plain.facts)
+    assert any("the objective stays <= -50 " in f for f in plain.proved)
 
 
 def test_strict_level_constant_only_counts_at_the_top() -> None:
@@ -362,7 +362,7 @@ def test_int32_range_overflows_at_one_hour() -> None:
 def test_int32_range_holds_at_thirty_seconds() -> None:
     result = compiled(driving_text(100))
     assert not errors(result, "E0501")
-    assert "int32 range holds at base 10, exponent 4: rewards stay within [-30029.8, 130]" in result.facts
+    assert "int32 range holds at base 10, exponent 4: rewards stay within [-30029.8, 130]" in result.proved
     automaton = result.automaton
     assert automaton is not None
     assert check_ranges(automaton) == []

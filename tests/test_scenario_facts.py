@@ -112,7 +112,7 @@ def test_several_planning_problems_need_a_choice(tmp_path: Path) -> None:
     assert chosen.scenario is not None and chosen.scenario.planning_problem_id == SECOND_PROBLEM_ID
     data = chosen.model_data
     assert data is not None and (data.ego_x, data.ego_y, data.ego_v) == (-17_500, 180_000, 50_000)
-    assert "planning problem 101 (of 100, 101)" in chosen.facts[-1]
+    assert "planning problem 101 (of 100, 101)" in chosen.proved[-1]
     # the UPPAAL target, loading the scenario itself, takes the same planning problem
     from rac.targets.uppaal.model import generate_uppaal_model
 
@@ -151,7 +151,7 @@ def test_no_obstacle_is_reported_as_such(tmp_path: Path, monkeypatch: pytest.Mon
 
     path = write_engine_file(tmp_path, "goal_ahead", {})
     result = compile_file(path)
-    assert result.ok and result.facts[-1].startswith("scenario goal_ahead.xml: 1 lanelet, no obstacle (")
+    assert result.ok and result.proved[-1].startswith("scenario goal_ahead.xml: 1 lanelet, no obstacle (")
     # the pre-analysis: no 1e9 minimum in the table, nulls in the JSON
     rows = sweep(result, runs=5, seed=1, out_dir=tmp_path / "pre")
     table = render_table(rows)

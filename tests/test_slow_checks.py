@@ -22,6 +22,7 @@ from rac.check.analysis.behaviour import distances
 from rac.check.analysis.priority import check_priorities, check_ranges
 from rac.check.analysis.worst import Target, Unfinished, maximise
 from rac.compiler import compile_text
+from rac.core.diagnostics import Fact
 from rac.ir.inputs import InputSpace
 
 
@@ -145,15 +146,15 @@ def test_past_the_limit_p2_and_the_range_are_reported_unchecked(monkeypatch: pyt
     automaton = compiled(GROWING)  # 300 samples; the objective grows with every sample in Normal
     assert check_priorities(automaton) == []  # P2 holds at 30 s
     monkeypatch.setattr(worst_module, "MAX_SAMPLES", 100)
-    facts: list[str] = []
+    facts: list[Fact] = []
     (p2,) = check_priorities(automaton, facts)
     assert (p2.code, p2.severity.value, p2.message) == (
         "W0405", "warning", "P2 for `sa` not checked: the horizon has 300 samples and the worst value "
         "still changes after 100 of them")
-    assert not any(f.startswith("P2 holds") for f in facts)  # not a proof
+    assert not any(f.message.startswith("P2 holds") for f in facts)  # not a proof
     (rng,) = check_ranges(automaton, facts=facts)
     assert rng.code == "W0405" and "int32 range" in rng.message
-    assert not any(f.startswith("int32 range holds") for f in facts)
+    assert not any(f.message.startswith("int32 range holds") for f in facts)
 
 
 def test_settled_values_are_checked_beyond_the_limit(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -162,12 +163,12 @@ def test_settled_values_are_checked_beyond_the_limit(monkeypatch: pytest.MonkeyP
     text = GROWING.replace("initial location Normal { sa' == 1;  pr' == 1 }",
                            "initial location Normal { sa' == 0;  pr' == 0 }")
     automaton = compiled(text)
-    facts: list[str] = []
+    facts: list[Fact] = []
     assert check_priorities(automaton, facts) == []
     monkeypatch.setattr(worst_module, "MAX_SAMPLES", 100)
-    limited: list[str] = []
+    limited: list[Fact] = []
     assert check_priorities(automaton, limited) == []
-    assert limited == facts and any(f.startswith("P2 holds for `sa`") for f in facts)
+    assert limited == facts and any(f.message.startswith("P2 holds for `sa`") for f in facts)
 
 
 def test_a_refutation_within_the_limit_is_unchanged(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -224,7 +224,7 @@ def test_determinism_sees_the_exclusion() -> None:
     assert "E0301" in codes(checked(plain(CRASH)))
     result = checked(CRASH)
     assert result.ok and not result.diagnostics
-    assert any(f.startswith("deterministic") for f in result.facts)
+    assert any(f.startswith("deterministic") for f in result.proved)
 
 
 def test_p2_sees_the_exclusion() -> None:
@@ -233,7 +233,7 @@ def test_p2_sees_the_exclusion() -> None:
     assert "Parked" in str(p2.data)
     result = checked(PARKING)
     assert result.ok and not result.diagnostics
-    assert any(f.startswith("P2 holds for `sa`") for f in result.facts)
+    assert any(f.startswith("P2 holds for `sa`") for f in result.proved)
 
 
 def test_reachability_sees_the_exclusion() -> None:

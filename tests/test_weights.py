@@ -51,16 +51,16 @@ def test_driving_weights():
     text = weighted()
     result = compile_text(text, "driving.ra")
     assert result.ok, [d.message for d in result.diagnostics]
-    assert result.facts[0] == (
+    assert result.proved[0] == (
         "synthesised: every check holds exactly where 7 * w1 >= 13 * w2 + 3 * w3 (w1, w2, w3 in [1, 100]); "
         "checked with w1 = 3, w2 = 1, w3 = 1, the lexicographically least integer weights, `w1` first")
-    assert result.facts[1].startswith("the set of (w1, w2, w3) has 6 vertices, each checked: (16 / 7, 1, 1), ")
+    assert result.proved[1].startswith("the set of (w1, w2, w3) has 6 vertices, each checked: (16 / 7, 1, 1), ")
     assert result.synthesis is not None
     assert result.synthesis.values == (("w1", 3), ("w2", 1), ("w3", 1))
     assert result.synthesis.inequalities == ("7 * w1 >= 13 * w2 + 3 * w3",)
     # Checked as if the file said the constants: the same proofs.
     fixed = compile_text(at(text, {"w1": Fraction(3), "w2": Fraction(1), "w3": Fraction(1)}), "driving.ra")
-    assert fixed.ok and result.facts[2:] == fixed.facts
+    assert fixed.ok and result.proved[2:] == fixed.proved
     # The designer's own weights (10, 5, 1) are inside; (2, 1, 1) is not, and P2 says why.
     assert compile_text(at(text, {"w1": Fraction(10), "w2": Fraction(5), "w3": Fraction(1)}), "d.ra").ok
     assert [d.code for d in compile_text(at(text, {"w1": Fraction(2), "w2": Fraction(1), "w3": Fraction(1)}),

@@ -1,18 +1,20 @@
-"""The pipeline: text → AST → checked IR (+ diagnostics). Targets start from its result."""
+"""The pipeline: text → AST → checked IR (+ diagnostics and facts). Targets start from its result.
+
+After parsing, the compiler is a list of stages (:data:`STAGES`: names and types, the parameters'
+synthesis, the analyses, the scenario), each a function from the :class:`Compilation` so far to the
+next; the result is a :class:`CompileResult`."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from fractions import Fraction
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.check.resolve import Resolver
-from rac.core.diagnostics import CheckError, Diagnostic, error, short_number
-from rac.core.numbers import exact_text
+from rac.core.diagnostics import CheckError, Diagnostic, Fact, error
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, read_source, text_source
@@ -33,8 +35,8 @@ class CompileResult(ProgramSource):
     diagnostics: tuple[Diagnostic, ...]
     sources: dict[str, SourceFile] = field(default_factory=dict)
     module: ast.Module | None = None
-    #: What the analyses proved, as sentences (printed by ``rac check``).
-    facts: tuple[str, ...] = ()
+    #: What the analyses proved (``rac check`` prints each one's sentence, ``--format json`` them all).
+    facts: tuple[Fact, ...] = ()
     #: With `param` declarations: the values synthesised for them (None without parameters, or when
     #: synthesis failed; the diagnostics then say why).
     synthesis: Synthesised | None = None
@@ -43,6 +45,11 @@ class CompileResult(ProgramSource):
     #: base and exponent (a :class:`rac.model.data.ModelData`); None when not loaded.
     scenario: Scenario | None = None
     model_data: ModelData | None = None
+
+    @property
+    def proved(self) -> tuple[str, ...]:
+        """The facts' sentences, as ``rac check`` prints them."""
+        return tuple(fact.message for fact in self.facts)
 
     @property
     def ok(self) -> bool:
@@ -65,9 +72,89 @@ class CompileResult(ProgramSource):
         return CheckedProgram(automaton, self.model_data, self.scenario)
 
 
+@dataclass(frozen=True)
+class Settings:
+    """How a file is compiled: ``analyse`` (False: parse and resolve only), ``progress`` (hears of a
+    scenario whose load takes a while, :func:`rac.model.checks.check_scenario`) and ``max_bytes``
+    (the scenario load's memory budget; None: no limit)."""
+
+    analyse: bool = True
+    progress: Callable[[str], None] | None = None
+    max_bytes: int | None = None
+
+
+@dataclass(frozen=True)
+class Compilation:
+    """The state between two stages: what the stages before found. Each stage returns a new one."""
+
+    module: ast.Module
+    automaton: ir.Automaton | None = None
+    diagnostics: tuple[Diagnostic, ...] = ()
+    facts: tuple[Fact, ...] = ()
+    synthesis: Synthesised | None = None
+    scenario: Scenario | None = None
+    model_data: ModelData | None = None
+
+    @property
+    def failed(self) -> bool:
+        """Whether a stage reported an error (the later stages then do nothing)."""
+        return any(d.is_error for d in self.diagnostics)
+
+
+def resolve_stage(state: Compilation, settings: Settings) -> Compilation:
+    """Names and types: the AST's (first) automaton resolved into the IR (E01xx-E07xx)."""
+    found = [error("E0107", "a file holds one automaton; this is a second one", extra.name.span,
+                   hints=["move it to a file of its own"]) for extra in state.module.automata[1:]]
+    resolver = Resolver(state.module.automata[0])
+    automaton = resolver.run()
+    return replace(state, automaton=automaton, diagnostics=(*state.diagnostics, *found, *resolver.diagnostics))
+
+
+def parameter_stage(state: Compilation, settings: Settings) -> Compilation:
+    """With `param` declarations: the automaton at the synthesised values (:mod:`rac.check.params`)."""
+    if state.automaton is None or not state.automaton.parameters or not settings.analyse or state.failed:
+        return state
+    from rac.check.params import synthesise_parameters  # numpy and sympy: a syntax error never needs them
+
+    outcome = synthesise_parameters(state.module.automata[0], state.automaton.parameters)
+    return replace(state, automaton=outcome.automaton, diagnostics=(*state.diagnostics, *outcome.diagnostics),
+                   facts=(*state.facts, *outcome.facts), synthesis=outcome.synthesised)
+
+
+def analysis_stage(state: Compilation, settings: Settings) -> Compilation:
+    """Behaviour, the priority order and the range (:mod:`rac.check.analysis`)."""
+    if state.automaton is None or not settings.analyse or state.failed:
+        return state
+    from rac.check.analysis import analyse_automaton  # numpy and sympy: a syntax error never needs them
+
+    facts: list[Fact] = []
+    found = analyse_automaton(state.automaton, facts)
+    return replace(state, diagnostics=(*state.diagnostics, *found), facts=(*state.facts, *facts))
+
+
+def scenario_stage(state: Compilation, settings: Settings) -> Compilation:
+    """With a `model` block: its scenario loaded once and checked against the model
+    (:func:`rac.model.checks.check_scenario`). Last: it checks the model's numbers, once the
+    automaton is sound."""
+    if state.automaton is None or state.automaton.model is None or not settings.analyse or state.failed:
+        return state
+    from rac.model.checks import check_scenario  # commonroad-io loads with the first scenario
+
+    checked = check_scenario(state.automaton, settings.progress, settings.max_bytes)
+    return replace(state, diagnostics=(*state.diagnostics, *checked.diagnostics),
+                   facts=(*state.facts, *checked.facts), scenario=checked.scenario, model_data=checked.data)
+
+
+#: The compiler after parsing: each stage takes what the earlier ones found and adds its own; a stage
+#: does nothing once one before it reported an error (docs/architecture.md).
+STAGES: tuple[tuple[str, Callable[[Compilation, Settings], Compilation]], ...] = (
+    ("resolve", resolve_stage), ("parameters", parameter_stage), ("analysis", analysis_stage),
+    ("scenario", scenario_stage))
+
+
 def compile_source(source: SourceFile, *, analyse: bool = True, progress: Callable[[str], None] | None = None,
                    max_bytes: int | None = None) -> CompileResult:
-    """Parse, resolve and (unless ``analyse=False``) run every static check on one source;
+    """Parse one source, then run the :data:`STAGES` on it (only ``resolve`` when ``analyse=False``);
     ``progress`` hears of a scenario whose load takes a while (:func:`rac.model.checks.check_scenario`).
     ``max_bytes`` is the memory budget of loading the scenario (None: no limit): a scenario estimated
     to need more is refused before it loads (:class:`rac.core.resources.ScenarioTooLarge`, a
@@ -77,166 +164,12 @@ def compile_source(source: SourceFile, *, analyse: bool = True, progress: Callab
         module = parse_source(source)
     except ParseFailure as failure:
         return CompileResult(None, (failure.diagnostic,), sources)
-    diagnostics: list[Diagnostic] = []
-    for extra in module.automata[1:]:
-        diagnostics.append(error("E0107", "a file holds one automaton; this is a second one",
-                                 extra.name.span, hints=["move it to a file of its own"]))
-    resolver = Resolver(module.automata[0])
-    automaton = resolver.run()
-    diagnostics.extend(resolver.diagnostics)
-    facts: list[str] = []
-    scenario: Scenario | None = None
-    model_data: ModelData | None = None
-    synthesis: Synthesised | None = None
-    if automaton is not None and analyse and automaton.parameters and not any(d.is_error for d in diagnostics):
-        automaton, found, synthesis = synthesise_parameters(module.automata[0], automaton.parameters, facts)
-        diagnostics.extend(found)
-    if automaton is not None and analyse and not any(d.is_error for d in diagnostics):
-        from rac.check.analysis import analyse_automaton
-
-        diagnostics.extend(analyse_automaton(automaton, facts))
-        if automaton.model is not None and not any(d.is_error for d in diagnostics):
-            # The scenario comes last: it checks the model's numbers, once the automaton is sound.
-            from rac.model.checks import check_scenario
-
-            checked = check_scenario(automaton, progress, max_bytes)
-            diagnostics.extend(checked.diagnostics)
-            facts.extend(checked.facts)
-            scenario, model_data = checked.scenario, checked.data
-    if any(d.is_error for d in diagnostics):
-        automaton = None
-    return CompileResult(automaton, tuple(diagnostics), sources, module, tuple(facts), synthesis, scenario,
-                         model_data)
-
-
-def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], facts: list[str]
-                          ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
-    """The automaton at the synthesised values of its parameters (one: the least value; several
-    weights: the lexicographically least integer point), the diagnostics, and what was synthesised."""
-    from rac.check.params import nonlinear_use
-
-    place = nonlinear_use(node, {p.name for p in parameters})
-    if place is not None:
-        name, span, how = place
-        return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {how}", span,
-                            hints=[f"write `const {name} = ...` instead"])], None
-    if len(parameters) == 1:
-        return _synthesised(node, parameters[0], facts)
-    return _synthesised_weights(node, parameters, facts)
-
-
-def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], facts: list[str]
-                         ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
-    """Several parameters, weights of the objective: the automaton at the lexicographically least integer
-    point of the exact polyhedron where every check holds, or None and why there is none."""
-    from rac.check.analysis import analyse_automaton
-    from rac.check.analysis.synthesis import Synthesised
-    from rac.check.analysis.weights import Unsupported, synthesise_region
-    from rac.check.analysis.worst import Unfinished
-
-    names = [p.name for p in parameters]
-    listed = ", ".join(names)
-
-    def resolve(point: tuple[Fraction, ...]) -> ir.Automaton | None:
-        return Resolver(node, dict(zip(names, point))).run()
-
-    try:
-        region = synthesise_region(resolve, parameters)
-    except Unsupported as where:
-        name = where.name
-        span = next(p.span for p in parameters if p.name == name)
-        return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: with several "
-                            f"parameters, each must be a weight of the objective only, and it appears in "
-                            f"{where.where}", span,
-                            notes=[f"the parameters synthesised together: {listed}"],
-                            hints=[f"write `const {name} = ...`, or synthesise it alone"])], None
-    except Unfinished as stop:
-        return None, [error("E0407", f"not yet: parameters {listed} cannot be synthesised here: the worst-run "
-                            f"search stopped: {stop.reason}", parameters[0].span,
-                            hints=["write the values as `const`"])], None
-    bounds = _bounds_text(parameters)
-    if region.point is None:
-        witness = resolve(region.witness)
-        assert witness is not None
-        failing = [d for d in analyse_automaton(witness, []) if d.is_error]
-        at = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(names, region.witness))
-        return None, [error("E0406", f"no values of parameters {listed} ({bounds}) pass every check",
-                            parameters[0].span, notes=[*region.cuts, f"the checks at {at} follow"],
-                            hints=["widen the parameters' bounds, or change what they cannot compensate"]),
-                      *failing], None
-    point = region.point
-    chosen = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(names, point))
-    first = names[region.order[0]]
-    how = (f"the lexicographically least integer weights, `{first}` first" if region.integer
-           else f"the lexicographically least values, `{first}` first (no integer point)")
-    inequalities = tuple(region.describe())
-    if inequalities:
-        sentence = (f"synthesised: every check holds exactly where {' and '.join(inequalities)} ({bounds}); "
-                    f"checked with {chosen}, {how}")
-    else:
-        sentence = f"synthesised: every check holds for all values ({bounds}); checked with {chosen}, {how}"
-    facts.append(sentence)
-    shown = ", ".join("(" + ", ".join(exact_text(x) for x in v) + ")" for v in region.vertices[:8])
-    more = f" and {len(region.vertices) - 8} more" if len(region.vertices) > 8 else ""
-    vertices = f"the set of ({listed}) has {len(region.vertices)} vertices, each checked: {shown}{more}"
-    facts.append(vertices)
-    return resolve(point), [], Synthesised(tuple(zip(names, point)), inequalities, sentence, (vertices,))
-
-
-def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[str]
-                 ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
-    """The automaton at the least value of its parameter for which every check holds (the fact saying
-    so goes to ``facts``), or None and why there is none (E0406 and the checks failing at the value
-    that shows it, or E0407 where the search cannot be exact)."""
-    from rac.check.analysis import analyse_automaton
-    from rac.check.analysis.synthesis import Synthesised, Unfinished, synthesise, unsupported
-
-    name = parameter.name
-
-    def resolve(value: Fraction) -> ir.Automaton | None:
-        return Resolver(node, {name: value}).run()
-
-    low, high = resolve(parameter.low), resolve(parameter.high)
-    assert low is not None and high is not None, "the file resolved at the low bound"
-    reason = unsupported(low, high)
-    if reason is None:
-        try:
-            result = synthesise(resolve, parameter)
-        except Unfinished as stop:
-            reason = f"the worst-run search stopped: {stop.reason}"
-    if reason is not None:
-        return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {reason}",
-                            parameter.span, hints=[f"write `const {name} = ...` instead"])], None
-    least = result.least
-    if least is None:
-        witness = resolve(result.witness)
-        assert witness is not None
-        failing = [d for d in analyse_automaton(witness, []) if d.is_error]
-        what = ("no value" if result.empty else
-                f"no least value (the values that pass form {result.interval()})")
-        return None, [error("E0406", f"{what} of parameter `{name}` in [{short_number(parameter.low)}, "
-                            f"{short_number(parameter.high)}] passes every check", parameter.span,
-                            notes=[*result.cuts, f"the checks at {name} = {short_number(result.witness)} follow"],
-                            hints=["widen the parameter's bounds, or change what it cannot compensate"]),
-                      *failing], None
-    if result.whole:
-        sentence = (f"synthesised: every check holds for every value of {name} in {result.interval()}; "
-                    f"checked with {name} = {short_number(least)}")
-    else:
-        sentence = (f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
-                    f"checked with {name} = {short_number(least)}")
-    facts.append(sentence)
-    return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
-                                           sentence)
-
-
-def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:
-    """``w1, w2 in [1, 100]; P in [0, 5]``: the declared bounds, names with the same bounds together."""
-    groups: dict[tuple[Fraction, Fraction], list[str]] = {}
-    for p in parameters:
-        groups.setdefault((p.low, p.high), []).append(p.name)
-    return "; ".join(f"{', '.join(names)} in [{short_number(low)}, {short_number(high)}]"
-                     for (low, high), names in groups.items())
+    settings = Settings(analyse, progress, max_bytes)
+    state = Compilation(module)
+    for _, stage in STAGES:
+        state = stage(state, settings)
+    return CompileResult(None if state.failed else state.automaton, state.diagnostics, sources, module, state.facts,
+                         state.synthesis, state.scenario, state.model_data)
 
 
 def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analyse: bool = True,

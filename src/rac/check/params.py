@@ -1,17 +1,170 @@
-"""Where parameters enter a file non-linearly: the synthesis is exact only where every value that
-depends on a parameter is affine in the parameters (docs/checks.md, "Parameters").
+"""The parameters of a file (`param`): synthesising their values, and where they enter non-linearly
+(docs/checks.md, "Parameters").
 
-The walk is over the AST, before any value is computed, so the verdict is a proof rather than a
-sample: ``100 / P`` or ``P * Q`` is refused whatever values the bounds allow.
+- :func:`synthesise_parameters` gives the automaton at the synthesised values, or why there are
+  none (E0406, E0407), as one :class:`ParameterOutcome`: the compiler's parameter stage.
+- :func:`nonlinear_use`: the synthesis is exact only where every value that depends on a parameter
+  is affine in the parameters. The walk is over the AST, before any value is computed, so the
+  verdict is a proof rather than a sample: ``100 / P`` or ``P * Q`` is refused whatever values the
+  bounds allow.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
+from fractions import Fraction
 from typing import get_args
 
+from rac import ir
+from rac.check.analysis import analyse_automaton
+from rac.check.analysis.synthesis import Synthesised, Unfinished, synthesise, unsupported
+from rac.check.analysis.weights import Unsupported, synthesise_region
+from rac.check.resolve import Resolver
+from rac.core.diagnostics import Diagnostic, Fact, error, short_number
+from rac.core.numbers import exact_text
 from rac.core.source import Span
 from rac.lang import ast
+
+__all__ = ["ParameterOutcome", "nonlinear_use", "synthesise_parameters"]
+
+
+@dataclass(frozen=True)
+class ParameterOutcome:
+    """What the parameter stage found: the ``automaton`` at the synthesised values (None when there
+    are none), the ``diagnostics`` saying why not, what was ``synthesised`` (the values, their set)
+    and the ``facts`` stating it."""
+
+    automaton: ir.Automaton | None
+    diagnostics: tuple[Diagnostic, ...]
+    synthesised: Synthesised | None
+    facts: tuple[Fact, ...]
+
+
+def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, ...]) -> ParameterOutcome:
+    """The automaton at the synthesised values of its parameters (one: the least value; several
+    weights: the lexicographically least integer point), with the diagnostics and facts that say
+    what was found (:class:`ParameterOutcome`)."""
+    facts: list[Fact] = []
+    place = nonlinear_use(node, {p.name for p in parameters})
+    if place is not None:
+        name, span, how = place
+        found: tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None] = (
+            None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {how}", span,
+                         hints=[f"write `const {name} = ...` instead"])], None)
+    elif len(parameters) == 1:
+        found = _synthesised(node, parameters[0], facts)
+    else:
+        found = _synthesised_weights(node, parameters, facts)
+    automaton, diagnostics, synthesised = found
+    return ParameterOutcome(automaton, tuple(diagnostics), synthesised, tuple(facts))
+
+
+def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], facts: list[Fact]
+                         ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
+    """Several parameters, weights of the objective: the automaton at the lexicographically least integer
+    point of the exact polyhedron where every check holds, or None and why there is none."""
+    names = [p.name for p in parameters]
+    listed = ", ".join(names)
+
+    def resolve(point: tuple[Fraction, ...]) -> ir.Automaton | None:
+        return Resolver(node, dict(zip(names, point))).run()
+
+    try:
+        region = synthesise_region(resolve, parameters)
+    except Unsupported as where:
+        name = where.name
+        span = next(p.span for p in parameters if p.name == name)
+        return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: with several "
+                            f"parameters, each must be a weight of the objective only, and it appears in "
+                            f"{where.where}", span,
+                            notes=[f"the parameters synthesised together: {listed}"],
+                            hints=[f"write `const {name} = ...`, or synthesise it alone"])], None
+    except Unfinished as stop:
+        return None, [error("E0407", f"not yet: parameters {listed} cannot be synthesised here: the worst-run "
+                            f"search stopped: {stop.reason}", parameters[0].span,
+                            hints=["write the values as `const`"])], None
+    bounds = _bounds_text(parameters)
+    if region.point is None:
+        witness = resolve(region.witness)
+        assert witness is not None
+        failing = [d for d in analyse_automaton(witness, []) if d.is_error]
+        at = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(names, region.witness))
+        return None, [error("E0406", f"no values of parameters {listed} ({bounds}) pass every check",
+                            parameters[0].span, notes=[*region.cuts, f"the checks at {at} follow"],
+                            hints=["widen the parameters' bounds, or change what they cannot compensate"]),
+                      *failing], None
+    point = region.point
+    chosen = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(names, point))
+    first = names[region.order[0]]
+    how = (f"the lexicographically least integer weights, `{first}` first" if region.integer
+           else f"the lexicographically least values, `{first}` first (no integer point)")
+    inequalities = tuple(region.describe())
+    if inequalities:
+        sentence = (f"synthesised: every check holds exactly where {' and '.join(inequalities)} ({bounds}); "
+                    f"checked with {chosen}, {how}")
+    else:
+        sentence = f"synthesised: every check holds for all values ({bounds}); checked with {chosen}, {how}"
+    facts.append(Fact("synthesis", sentence))
+    shown = ", ".join("(" + ", ".join(exact_text(x) for x in v) + ")" for v in region.vertices[:8])
+    more = f" and {len(region.vertices) - 8} more" if len(region.vertices) > 8 else ""
+    vertices = f"the set of ({listed}) has {len(region.vertices)} vertices, each checked: {shown}{more}"
+    facts.append(Fact("synthesis", vertices))
+    return resolve(point), [], Synthesised(tuple(zip(names, point)), inequalities, sentence, (vertices,))
+
+
+def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
+                 ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
+    """The automaton at the least value of its parameter for which every check holds (the fact saying
+    so goes to ``facts``), or None and why there is none (E0406 and the checks failing at the value
+    that shows it, or E0407 where the search cannot be exact)."""
+    name = parameter.name
+
+    def resolve(value: Fraction) -> ir.Automaton | None:
+        return Resolver(node, {name: value}).run()
+
+    low, high = resolve(parameter.low), resolve(parameter.high)
+    assert low is not None and high is not None, "the file resolved at the low bound"
+    reason = unsupported(low, high)
+    if reason is None:
+        try:
+            result = synthesise(resolve, parameter)
+        except Unfinished as stop:
+            reason = f"the worst-run search stopped: {stop.reason}"
+    if reason is not None:
+        return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {reason}",
+                            parameter.span, hints=[f"write `const {name} = ...` instead"])], None
+    least = result.least
+    if least is None:
+        witness = resolve(result.witness)
+        assert witness is not None
+        failing = [d for d in analyse_automaton(witness, []) if d.is_error]
+        what = ("no value" if result.empty else
+                f"no least value (the values that pass form {result.interval()})")
+        return None, [error("E0406", f"{what} of parameter `{name}` in [{short_number(parameter.low)}, "
+                            f"{short_number(parameter.high)}] passes every check", parameter.span,
+                            notes=[*result.cuts, f"the checks at {name} = {short_number(result.witness)} follow"],
+                            hints=["widen the parameter's bounds, or change what it cannot compensate"]),
+                      *failing], None
+    if result.whole:
+        sentence = (f"synthesised: every check holds for every value of {name} in {result.interval()}; "
+                    f"checked with {name} = {short_number(least)}")
+    else:
+        sentence = (f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
+                    f"checked with {name} = {short_number(least)}")
+    facts.append(Fact("synthesis", sentence))
+    return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
+                                           sentence)
+
+
+def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:
+    """``w1, w2 in [1, 100]; P in [0, 5]``: the declared bounds, names with the same bounds together."""
+    groups: dict[tuple[Fraction, Fraction], list[str]] = {}
+    for p in parameters:
+        groups.setdefault((p.low, p.high), []).append(p.name)
+    return "; ".join(f"{', '.join(names)} in [{short_number(low)}, {short_number(high)}]"
+                     for (low, high), names in groups.items())
+
 
 
 def nonlinear_use(node: ast.Automaton, parameters: set[str]) -> tuple[str, Span | None, str] | None:

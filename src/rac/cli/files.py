@@ -71,7 +71,7 @@ def _check_files(args: argparse.Namespace) -> int:
         if args.format == "json":
             report.append({"file": str(path), "ok": errors == 0,
                            "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)],
-                           "proved": list(result.facts)})
+                           "proved": list(result.proved), "facts": [fact.to_json() for fact in result.facts]})
             continue
         if result.diagnostics:
             print(render_text(result.diagnostics, result.sources))
@@ -81,7 +81,7 @@ def _check_files(args: argparse.Namespace) -> int:
             summary += f", {warnings} warning{'s' * (warnings != 1)}"
         print(f"{path}: {summary}")
         if not args.quiet:
-            for fact in result.facts:
+            for fact in result.proved:
                 print(f"  proved: {fact}")
     if args.format == "json":
         print(json.dumps(report, indent=2))

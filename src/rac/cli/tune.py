@@ -181,9 +181,9 @@ def _confirm(source: SourceFile, text: str, result: CompileResult) -> None:
     """Raise unless ``rac check`` of ``text`` passes and proves what it proved of ``source`` (every fact
     but the synthesis's own): a rewrite that changed the meaning is a bug, and is never written."""
     assert result.synthesis is not None
-    expected = tuple(fact for fact in result.facts if fact not in result.synthesis.facts)
+    expected = tuple(fact for fact in result.proved if fact not in result.synthesis.facts)
     checked = compile_source(SourceFile(source.name, text))
-    if not checked.ok or checked.facts != expected:
+    if not checked.ok or checked.proved != expected:
         raise RuntimeError(f"the tuned text of {source.name} does not check as the parametrised file did "
                            f"(errors: {[d.code for d in checked.diagnostics if d.is_error]}); nothing was written")
 

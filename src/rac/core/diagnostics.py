@@ -62,6 +62,32 @@ class Diagnostic:
         }
 
 
+@dataclass(frozen=True)
+class Fact:
+    """What a check proved, the counterpart of a :class:`Diagnostic`: the ``check`` that proved it
+    (one of :data:`FACT_CHECKS`), the sentence ``rac check`` prints, and its numbers in ``data`` for
+    ``--format json``."""
+
+    check: str
+    message: str
+    data: Mapping[str, object] = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.check not in FACT_CHECKS:
+            raise ValueError(f"unknown check {self.check!r}: one of {', '.join(FACT_CHECKS)}")
+
+    def __str__(self) -> str:
+        return self.message
+
+    def to_json(self) -> dict[str, object]:
+        return {"check": self.check, "message": self.message, "data": dict(self.data)}
+
+
+#: The checks that state facts: determinism, the priority order's P1 and P2 (``priority``: none declared),
+#: the int32 range of the rewards, the parameters' synthesis, the scenario's load.
+FACT_CHECKS = ("determinism", "priority", "P1", "P2", "range", "synthesis", "scenario")
+
+
 def error(code: str, message: str, span: Span | None, *, notes: Iterable[Note | str] = (),
           hints: Iterable[str] = (), data: Mapping[str, object] | None = None) -> Diagnostic:
     """Build an error diagnostic; plain strings in ``notes`` become span-less notes."""

@@ -39,7 +39,7 @@ from fractions import Fraction
 from typing import TYPE_CHECKING
 
 from rac import ir
-from rac.core.diagnostics import Diagnostic, Note, error, short_number, warning
+from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number, warning
 from rac.core.numbers import exact_decimal, format_bytes
 from rac.core.resources import (  # the load's budget (its owner; the CLI catches the refusal without loading this)
     LOAD_NOTICE_BYTES,
@@ -67,7 +67,7 @@ class ScenarioCheck:
     """What :func:`check_scenario` found: diagnostics, facts, and what it loaded."""
 
     diagnostics: list[Diagnostic] = field(default_factory=list)
-    facts: list[str] = field(default_factory=list)
+    facts: list[Fact] = field(default_factory=list)
     scenario: Scenario | None = None
     data: ModelData | None = None
 
@@ -176,11 +176,14 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
 
     counted = (f"{obstacles} obstacle{'s' if obstacles != 1 else ''}" if obstacles else
                f"no obstacle (`mindist()` reads {NO_OBSTACLE_TEXT} and `collide()` never holds)")
-    result.facts.append(
+    result.facts.append(Fact(
+        "scenario",
         f"scenario {written}{problem}: {len(scenario.road)} lanelet{'s' if len(scenario.road) != 1 else ''}, "
         f"{counted}, goal at t in [{_number(goal.time_low)}, "
         f"{_number(goal.time_high)}] s; every significand fits int32 at base {spec.base}, exponent "
-        f"{spec.exponent}{detail}")
+        f"{spec.exponent}{detail}",
+        {"scenario": written, "lanelets": len(scenario.road), "obstacles": obstacles, "base": spec.base,
+         "exponent": spec.exponent}))
     return result
 
 

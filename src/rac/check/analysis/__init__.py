@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from rac import ir
-from rac.core.diagnostics import Diagnostic
+from rac.core.diagnostics import Diagnostic, Fact
 
 
-def analyse_automaton(automaton: ir.Automaton, facts: list[str] | None = None) -> list[Diagnostic]:
+def analyse_automaton(automaton: ir.Automaton, facts: list[Fact] | None = None) -> list[Diagnostic]:
     """Run every analysis; later ones run only when earlier ones found no error.
 
     What was proved is appended to ``facts`` as sentences (the CLI prints them).
@@ -23,7 +23,7 @@ def analyse_automaton(automaton: ir.Automaton, facts: list[str] | None = None) -
     diagnostics = check_behaviour(automaton, space)
     if any(d.is_error for d in diagnostics):
         return diagnostics
-    facts.append("deterministic: every location has at most one enabled edge for every input")
+    facts.append(Fact("determinism", "deterministic: every location has at most one enabled edge for every input"))
     prepared = (space, moves(automaton, space))
     diagnostics += check_priorities(automaton, facts, prepared)
     model = automaton.model

@@ -21,7 +21,7 @@ from rac.check.analysis.worst import (
     Worst,
     maximise,
 )
-from rac.core.diagnostics import Diagnostic, Note, error, short_number, warning
+from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number, warning
 from rac.core.numbers import INT32_MAX, INT32_MIN
 from rac.ir.inputs import InputSpace, guard_inputs
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
@@ -172,7 +172,7 @@ def _prepared(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves] | None
     return space, (moves(automaton, space) if space is not None else None), problems
 
 
-def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None,
+def check_priorities(automaton: ir.Automaton, facts: list[Fact] | None = None,
                      prepared: tuple[InputSpace, Moves] | None = None) -> list[Diagnostic]:
     """P1 and P2 (every level when ``priority strict``); proofs are appended to ``facts``.
 
@@ -180,11 +180,11 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None,
     """
     facts = facts if facts is not None else []
     if not automaton.priority:
-        facts.append("no `priority` declared: P1 and P2 not checked")
+        facts.append(Fact("priority", "no `priority` declared: P1 and P2 not checked"))
         return []
     diagnostics = check_rate_dominance(automaton)
     if not diagnostics:
-        facts.append("P1 holds: wherever a reward decreases, no lower-priority reward grows")
+        facts.append(Fact("P1", "P1 holds: wherever a reward decreases, no lower-priority reward grows"))
     space, outs, problems = _prepared(automaton, prepared)
     if space is None or outs is None:
         return diagnostics + problems
@@ -193,7 +193,7 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None,
         target = p2_target(automaton, level)
         weights, constant, watched = target.weights, target.constant, target.watched
         if not any(watched):
-            facts.append(f"P2 holds trivially for `{reward}`: no location penalises it")
+            facts.append(Fact("P2", f"P2 holds trivially for `{reward}`: no location penalises it", {"reward": reward}))
             continue
         try:
             worst = maximise(automaton, outs, target, run=lambda value: value > 0)
@@ -204,11 +204,12 @@ def check_priorities(automaton: ir.Automaton, facts: list[str] | None = None,
             places = ", ".join(f"`{n}`" for n, w in zip(automaton.location_names, watched) if w)
             what = "the objective" if level == 0 else f"the weighted sum from `{reward}` down"
             if worst is None:
-                facts.append(f"P2 holds for `{reward}`: no run of {_num(automaton.horizon)} s reaches a "
-                             f"location that penalises it ({places})")
+                facts.append(Fact("P2", f"P2 holds for `{reward}`: no run of {_num(automaton.horizon)} s reaches "
+                                  f"a location that penalises it ({places})", {"reward": reward}))
             else:
-                facts.append(f"P2 holds for `{reward}` (penalised in {places}): {what} stays "
-                             f"<= {_num(worst.value)} over every run of {_num(automaton.horizon)} s")
+                facts.append(Fact("P2", f"P2 holds for `{reward}` (penalised in {places}): {what} stays "
+                                  f"<= {_num(worst.value)} over every run of {_num(automaton.horizon)} s",
+                                  {"reward": reward, "bound": str(worst.value), "level": level}))
             continue
         diagnostics.append(_p2_error(automaton, space, outs, worst, level, weights, constant))
     return diagnostics
@@ -437,7 +438,7 @@ def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[s
 
 
 def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: int = DEFAULT_EXPONENT,
-                 facts: list[str] | None = None, prepared: tuple[InputSpace, Moves] | None = None
+                 facts: list[Fact] | None = None, prepared: tuple[InputSpace, Moves] | None = None
                  ) -> list[Diagnostic]:
     """Every reward's significand trunc(v·base^exponent) stays within int32 over the horizon."""
     facts = facts if facts is not None else []
@@ -493,8 +494,9 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
                 hints=hints,
                 data={"reward": reward, "value": str(sign * worst.value), "base": base, "exponent": exponent})]
     if extremes:
-        facts.append(f"int32 range holds at base {base}, exponent {exponent}: rewards stay within "
-                     f"[{_num(min(extremes))}, {_num(max(extremes))}]")
+        facts.append(Fact("range", f"int32 range holds at base {base}, exponent {exponent}: rewards stay within "
+                               f"[{_num(min(extremes))}, {_num(max(extremes))}]",
+                          {"base": base, "exponent": exponent, "low": str(min(extremes)), "high": str(max(extremes))}))
     return []
 
 
