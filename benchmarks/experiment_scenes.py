@@ -11,7 +11,7 @@ optimum, whether the paper's ordering holds (RF needs at least 10x SS&RA's episo
 there), and the command's user CPU.
 
 The table goes to ``benchmarks/results/experiment_scenes.md`` (or ``--output``); docs/learning.md
-quotes it. ``--quick``: the highway alone, seed 1, 40 episodes (tests/test_benchmarks_quick.py runs
+quotes it. ``--quick``: the highway alone, seed 1, 40 episodes (tests/benchmarks/test_benchmarks_quick.py runs
 it so).
 """
 

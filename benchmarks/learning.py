@@ -23,7 +23,7 @@ Three tables:
    S`` query on a learned ``S`` does).
 
 Each row is the best of ``--repeat`` runs (default 3; the experiment runs once). ``--quick``: one
-run per row, fewer episodes (tests/test_benchmarks_quick.py runs it so).
+run per row, fewer episodes (tests/benchmarks/test_benchmarks_quick.py runs it so).
 """
 
 from __future__ import annotations

@@ -1,6 +1,12 @@
-"""Shared helpers for the tests that run rac as a command (tests/test_cli.py, tests/test_install.py), and
-the ``utap`` fixture: UPPAAL's own parser (tests/utap.py), with a count of its validations printed at
-the end of the session."""
+"""Shared helpers for the tests that run rac as a command (tests/cli/test_cli.py,
+tests/project/test_install.py), and the ``utap`` fixture: UPPAAL's own parser (tests/support/utap.py),
+with a count of its validations printed at the end of the session.
+
+The tests live by package, ``tests/<package>/test_*.py`` for ``src/rac/<package>/`` (``project/``:
+the repository as a whole; ``benchmarks/``: the benchmark scripts; the compiler's stages in
+``check/``), and import their shared helpers from ``tests/support/`` and this file: these folders
+and the packages' are put on the import path here, before any test module is collected (test
+module names stay unique across the folders)."""
 
 from __future__ import annotations
 
@@ -10,13 +16,20 @@ import sys
 from pathlib import Path
 
 import pytest
-import utap as utap_module
 
-import rac
+_HERE = Path(__file__).resolve().parent
+# tests/ (this file), tests/support/ (the helpers) and every package's folder: some test modules
+# import another's builders (`from test_explore import tiny_data`), as when all lay in tests/
+sys.path[:0] = [str(_HERE), str(_HERE / "support"),
+                *sorted(str(folder) for folder in _HERE.iterdir() if folder.is_dir() and any(folder.glob("test_*.py")))]
+
+import utap as utap_module  # noqa: E402 - tests/support is on the path from the lines above
+
+import rac  # noqa: E402
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 # Off a terminal rac prints a progress line every RAC_PROGRESS_INTERVAL seconds; tests that compare
-# stderr must not depend on how fast the machine is (tests/test_progress_lines.py sets its own).
+# stderr must not depend on how fast the machine is (tests/output/test_progress_lines.py sets its own).
 os.environ.setdefault("RAC_PROGRESS_INTERVAL", "3600")
 #: The folder holding the `rac` package these tests import (src/ in a checkout, site-packages when installed).
 RAC_PARENT = Path(rac.__file__).resolve().parent.parent
@@ -34,7 +47,7 @@ def run_rac(*args: str | Path, cwd: Path | None = None, timeout: float = 120) ->
                           capture_output=True, text=True, timeout=timeout, check=False)
 
 
-# ---------------------------------------------------------------- UPPAAL's parser (tests/utap.py)
+# ---------------------------------------------------------------- UPPAAL's parser (tests/support/utap.py)
 @pytest.fixture(scope="session")
 def utap(tmp_path_factory: pytest.TempPathFactory) -> utap_module.Utap:
     """``utap.validate(xml, queries, name)`` asserts that UPPAAL's parser accepts the model and its

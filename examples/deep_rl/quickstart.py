@@ -5,7 +5,7 @@ driving.ra's automaton as the reward (``scale="proven"``: every step's reward in
 runtime shield's action masks, a set of four built highway scenes (one drawn per episode), and
 :class:`rac.learning.sb3.RacCallback` logging each objective, the automaton's locations, the
 shield's guarantees and the collisions beside SB3's own numbers. Needs the ``rl`` extra
-(``pip install torch==2.13.0``, then ``pip install '.[rl]'``); ``tests/test_deep_rl.py`` runs it.
+(``pip install torch==2.13.0``, then ``pip install '.[rl]'``); ``tests/learning/test_deep_rl.py`` runs it.
 """
 
 from pathlib import Path

@@ -113,15 +113,15 @@ def _scenario_exponent(folder: Path) -> None:
 
 def _scene(name: str, scenario: str, comment: str, build: str) -> Callable[[Path], None]:
     """The automaton of the E0712 example as ``NAME.ra`` over ``scenario``, which the builder
-    ``build`` of tests/tiny_scenarios.py (commonroad-io) writes next to it."""
+    ``build`` of tests/support/tiny_scenarios.py (commonroad-io) writes next to it."""
     text = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
         .replace("// A model whose scenario file is not next to this one", f"// A model over {comment}") \
         .replace('scenario "left_turn.xml"  // the CommonRoad file, next to this one',
                  f'scenario "{scenario}"  // the CommonRoad file, next to this one')
 
     def make(folder: Path) -> None:
-        if str(HERE.parent) not in sys.path:  # tests/, where tiny_scenarios lives
-            sys.path.insert(0, str(HERE.parent))
+        if str(HERE.parent / "support") not in sys.path:  # tests/support/, where tiny_scenarios lives
+            sys.path.insert(0, str(HERE.parent / "support"))
         import tiny_scenarios
 
         (folder / f"{name}.ra").write_text(text, encoding="utf-8")
@@ -134,7 +134,7 @@ def _left_turn() -> bytes:
 
 
 def _one_lane() -> bytes:
-    """A lane 3 m wide (y in [0, 3]) with a parked van: ``avoidable_obstacle()`` of tests/tiny_scenarios.py."""
+    """A lane 3 m wide (y in [0, 3]) with a parked van: ``avoidable_obstacle()`` of tests/support/tiny_scenarios.py."""
     if str(HERE.parent) not in sys.path:  # tests/, where tiny_scenarios lives
         sys.path.insert(0, str(HERE.parent))
     import tiny_scenarios
@@ -235,7 +235,7 @@ GENERATED: tuple[Case, ...] = (
          _write("E0009_missing_folder.ra", SMALL.encode()),
          ("compile", "--target", "python", "{file}", "-o", "build/driving.py")),
     # `rac check` accepts these two files (only the UPPAAL target rejects them), so the doc shows
-    # no ```ra block for them: tests/test_examples.py runs `rac check` on every such block.
+    # no ```ra block for them: tests/project/test_examples.py runs `rac check` on every such block.
     Case("E0801_rate_not_representable", None,
          "`E0801_rate_not_representable.ra` is the minimal automaton of the E0004 example, with the "
          "rate `sa' == 0.00001` in `Normal`:",
@@ -244,7 +244,7 @@ GENERATED: tuple[Case, ...] = (
          "`E0802_probability_comparison.ra` is the minimal automaton of the E0004 example, with the query "
          "`query Qp: Pr[<=10](<> Unsafe) > 0.5`:",
          _write("E0802_probability_comparison.ra", UPPAAL_QUERY.encode()), _UPPAAL),
-    # The scenario must sit next to the file: the doc shows no ```ra block (tests/test_examples.py
+    # The scenario must sit next to the file: the doc shows no ```ra block (tests/project/test_examples.py
     # would check it without the scenario, which is E0712).
     Case("E0713_scenario_exponent", None,
          "`E0713_scenario_exponent.ra` is the automaton of the E0712 example with `exponent 4` written "
@@ -255,12 +255,12 @@ GENERATED: tuple[Case, ...] = (
     Case("E0714_ego_too_fast", None,
          "`E0714_ego_too_fast.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: three lanes, the ego at 33 m/s on the middle one, a truck ahead (`highway()` of "
-         "tests/tiny_scenarios.py); the `model` block leaves `max_speed` at its default, 20 m/s:",
+         "tests/support/tiny_scenarios.py); the `model` block leaves `max_speed` at its default, 20 m/s:",
          _scene("E0714_ego_too_fast", "highway.xml", "a highway whose ego starts at 33 m/s", "highway")),
     Case("E0715_several_planning_problems", None,
          "`E0715_several_planning_problems.ra` is the automaton of the E0712 example over `junction.xml` "
          "(line 22), next to it: the left-turn junction of examples/left_turn with a second planning "
-         "problem, 101, from the north arm (`junction_with_two_problems()` of tests/tiny_scenarios.py):",
+         "problem, 101, from the north arm (`junction_with_two_problems()` of tests/support/tiny_scenarios.py):",
          _scene("E0715_several_planning_problems", "junction.xml", "a junction with two planning problems",
                 "junction_with_two_problems")),
     Case("E0718_time_step", None,
@@ -281,14 +281,14 @@ GENERATED: tuple[Case, ...] = (
                  _left_turn, r'<successor ref="11"/>', '<successor ref="99"/>')),
     Case("E0721_lanelet_without_width", None,
          "`E0721_lanelet_without_width.ra` is the automaton of the E0712 example over `flat.xml` (line 22), "
-         "next to it: one straight lanelet (`avoidable_obstacle()` of tests/tiny_scenarios.py) whose left "
+         "next to it: one straight lanelet (`avoidable_obstacle()` of tests/support/tiny_scenarios.py) whose left "
          "bound lies on its right bound, y = 0:",
          _edited("E0721_lanelet_without_width", "flat.xml", "a road without width", _one_lane,
                  r"<y>3\.0</y>", "<y>0.0</y>")),
     Case("W0716_start_off_road", None,
          "`W0716_start_off_road.ra` is the automaton of the E0712 example over `ramp.xml` (line 22), next "
          "to it: one lane from x = 0, the ego starting at x = 0, half of it before the road, as in "
-         "CommonUppRoad's ZAM_Ramp (`ramp()` of tests/tiny_scenarios.py):",
+         "CommonUppRoad's ZAM_Ramp (`ramp()` of tests/support/tiny_scenarios.py):",
          _scene("W0716_start_off_road", "ramp.xml", "a ramp whose ego starts half before the road", "ramp")),
 )
 

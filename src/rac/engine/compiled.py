@@ -9,7 +9,7 @@ coefficients already in place — and compiles it with :func:`compile`. A sample
 operations alone.
 
 The generated code makes *the same numpy calls on the same operands* as the evaluator, so its
-values are bit for bit the evaluator's (tests/test_compiled.py compares both on random expressions
+values are bit for bit the evaluator's (tests/engine/test_compiled.py compares both on random expressions
 and frames). The evaluator stays the reference: what depends on what a frame holds (a comparison
 over inputs, rewards or the location index, decided exactly only when the frame holds their
 integers), a name the frame may lack (its error is the evaluator's) and a function the engine

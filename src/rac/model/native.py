@@ -48,7 +48,7 @@ CORNER_NAMES = ("front-left", "front-right", "rear-right", "rear-left")
 
 class State(NamedTuple):
     """The controller's state: significands at the model's scale; the fields are
-    :data:`rac.ir.vocabulary.EGO_STATE` in order (tests/test_vocabulary.py checks)."""
+    :data:`rac.ir.vocabulary.EGO_STATE` in order (tests/ir/test_vocabulary.py checks)."""
 
     x: int
     y: int

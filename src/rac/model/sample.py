@@ -6,7 +6,7 @@ in order (:class:`Ego`); under ``collision sticky`` it carries one more column, 
 (:func:`rac.engine.explore.explore`) put the sample index first (:class:`GraphColumn`); the product's
 rows (:func:`rac.engine.product.explore_product`) put the sample index and the phase first, the
 automaton's location, inputs and reward mirrors after the ego (:class:`ProductColumn`). Code that
-indexes a state array by column names the column here; tests/test_layout.py fails on a bare integer.
+indexes a state array by column names the column here; tests/project/test_layout.py fails on a bare integer.
 
 Labels. :data:`LABELS` are the model's predicates every explored state carries; :func:`collides`,
 :func:`safe` and :func:`labels` are their one definition (``collide()`` is ``mindist() < TD``), which

@@ -48,7 +48,7 @@ _LINE = 110
 #: class is the one module-level name a `.ra` file chooses (the grammar allows any ASCII identifier,
 #: so no helper name is out of its reach); one of these gets a ``_`` appended (``float_``), since a
 #: class named ``float`` would shadow the ``float`` the helpers call. Dunders lose their underscores.
-#: tests/test_python_names.py checks that this covers every global the generated code uses.
+#: tests/targets/test_python_names.py checks that this covers every global the generated code uses.
 RESERVED_NAMES = frozenset({
     # imports and helpers of the template
     "annotations", "math", "numbers", "Mapping",

@@ -8,7 +8,7 @@ controller's state variables and the functions ``sense_state()``, ``mindist()``,
 model can avoid them. The functions' text is a template, ``templates/model_functions.c.j2``;
 this module prints the data in front of it.
 
-The text is in the subset that is valid both in UPPAAL and in C99 (tests/test_model_c.py compiles
+The text is in the subset that is valid both in UPPAAL and in C99 (tests/targets/test_model_c.py compiles
 it with a four-line prelude and checks it against :mod:`rac.model.native` bit for bit):
 
 - integers are ``int32_t`` (UPPAAL's ``int`` is 16-bit); no ``int[a,b]``, ``meta``, pointers,

@@ -1,0 +1,454 @@
+"""End to end: ``rac verify``, ``rac simulate``, ``rac render`` and ``rac preanalyse`` through
+:func:`rac.cli.main`, on the tiny scenarios of :mod:`tiny_scenarios` (tests/support/engine_files.py).
+
+Exit codes: 0 when everything asked holds, 1 when a query is not satisfied or the file has errors or
+no ``model`` block, 2 for bad usage and unreadable files, 4 when a query was not decided (*unknown*).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+from pathlib import Path
+
+import pytest
+from engine_files import QUERIES, write_engine_file
+from PIL import Image
+
+from rac.cli.main import main
+from rac.engine import shield
+
+#: The engine's timings vary: ``0.03 s`` becomes ``T s`` before texts are compared.
+SECONDS = re.compile(r"\b\d+\.\d\d s\b")
+
+
+def normalised(text: str) -> str:
+    """``text`` with every timing replaced by ``T s``."""
+    return SECONDS.sub("T s", text)
+
+
+def line_of(path: Path, name: str) -> int:
+    """The line of ``query NAME:`` in ``path`` (1-based)."""
+    lines = path.read_text(encoding="utf-8").splitlines()
+    return next(i for i, line in enumerate(lines, 1) if line.strip().startswith(f"query {name}:"))
+
+
+def csv_rows(path: Path) -> list[list[str]]:
+    with path.open(newline="", encoding="utf-8") as handle:
+        return list(csv.reader(handle))
+
+
+def image_size(path: Path) -> tuple[int, int]:
+    """The size of a PNG, after checking that PIL reads it as one."""
+    with Image.open(path) as image:
+        assert image.format == "PNG"
+        image.verify()
+        return image.size
+
+
+# ---------------------------------------------------------------- verify
+def test_verify_not_satisfied_exits_1(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "narrow_road")
+    out = tmp_path / "out"
+    assert main(["verify", str(path), "--query", "Stays", "--query", "safe", "--out", str(out)]) == 1
+    captured = capsys.readouterr()
+    assert normalised(captured.out) == f"""\
+Verifying Stays: E[] !collide() && !offroad()  ({path}:{line_of(path, "Stays")})
+ -- Formula is NOT satisfied.
+    1 state, horizon 8 samples, T s
+    decided on the complete graph up to the horizon
+Verifying safe: strategy safe = control: A[] !collide() && !offroad()  ({path}:{line_of(path, "safe")})
+ -- Formula is NOT satisfied.
+    1 state, horizon 8 samples, T s
+    decided on the complete graph up to the horizon
+    no strategy keeps `!collide() && !offroad()` from the start: it is false at the start
+"""
+    assert captured.err == ""
+    assert not (out / "safe.shield.npz").exists()  # no strategy, no file (UPPAAL defines none either)
+
+
+def test_verify_shield_in_the_default_folder_exits_0(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead")
+    assert main(["verify", str(path), "--query", "Shielded"]) == 0  # pulls in `safe`, which it is under
+    out = capsys.readouterr().out
+    saved = tmp_path / "goal_ahead.out" / "verify" / "safe.shield.npz"
+    assert f"    wrote {saved}\n" in out
+    assert out.index("Verifying safe:") < out.index("Verifying Shielded:")
+    assert out.count(" -- Formula is satisfied.") == 2
+    table = shield.load(saved)
+    assert table.columns == ("k", "x", "y", "v", "acc", "head", "jerk", "turn")
+    start = [0, 1000, 175, 800, 0, 0, 0, 0]  # x = 10, y = 1.75, v = 8 at exponent 2
+    assert table.knows(start) and table.allowed(start).size == 3  # every jerk, straight on
+
+
+def test_verify_literal_qc_mentions_the_collision(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_behind_wall")
+    assert main(["verify", str(path), "--standard", "--query", "Qb", "--query", "Qc", "--out",
+                 str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("Verifying Qb: E[] !collide() && !offroad()\n    (a run that is never unsafe exists)\n"
+                          " -- Formula is satisfied.\n")
+    assert "Verifying Qc: E<> !collide() && !offroad() && goal()\n    (a safe state in the goal is reachable)\n" in out
+    assert ("    the trace passes through unsafe states (a collision does not end a run); "
+            "NO run that stays safe until it gets there exists\n") in out
+    assert "[collide]" in out
+
+
+def test_verify_trace_option_prints_every_state(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {"Reaches": QUERIES["Reaches"]})
+    assert main(["verify", str(path), "--out", str(tmp_path / "o")]) == 0
+    short = capsys.readouterr().out
+    assert "trace (9 states, first and last 3; --trace shows all):" in short
+    assert short.count("\n      t=") == 6
+    assert main(["verify", str(path), "--trace", "--out", str(tmp_path / "o")]) == 0
+    rows = [line.strip() for line in capsys.readouterr().out.splitlines() if line.startswith("      t=")]
+    assert [row.split()[0] for row in rows] == [f"t={k * 0.5:g}s" for k in range(9)]
+    assert rows[0] == "t=0s x=10 y=1.75 v=8 acc=0 head=0 jerk=0 turn=0"
+    assert rows[-1].endswith("[goal]")
+
+
+def test_verify_unknown_query_exits_2(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {"Stays": QUERIES["Stays"], "Sim": QUERIES["Sim"]})
+    assert main(["verify", str(path), "--query", "Stays", "--query", "Nope"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err == (f"rac verify: no query named Nope in {path} (names: Stays, Sim; --standard adds Qa, Qb, "
+                            "Qc, Qd, Fig7, Fig7_safe, Unsafe_safe)\n")
+    assert not (tmp_path / "goal_ahead.out").exists()
+
+
+def test_verify_state_budget_is_unknown_with_a_hint(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead")  # `-->` needs the whole model
+    assert main(["verify", str(path), "--query", "LeadsTo", "--query", "Somewhere", "--max-states", "10"]) == 4
+    out = normalised(capsys.readouterr().out)
+    assert out == f"""\
+Verifying Somewhere: E<> Close  ({path}:{line_of(path, "Somewhere")})
+ -- Formula is UNKNOWN: the product of model and automaton has more than 10 states by t = 0.5 s (sample 1): \
+shorten the horizon (--horizon), coarsen the model (exponent, action steps, decide_period) or raise --max-states \
+if the machine has the memory (the automaton alone does not decide it: a run of the automaton reaches `Close` \
+with inputs near=true)
+    T s
+Verifying LeadsTo: goal() --> goal()  ({path}:{line_of(path, "LeadsTo")})
+ -- Formula is UNKNOWN: the model has more than 10 states by t = 1 s (sample 2); growing ×9 per decision, the \
+horizon (sample 8) would have about 1.5e+04 states: shorten the horizon (--horizon), coarsen the model (exponent, \
+action steps, decide_period) or raise --max-states if the machine has the memory
+    T s
+"""
+
+
+def test_verify_json_has_the_fields_and_repeats_with_the_seed(capsys: pytest.CaptureFixture[str],
+                                                              tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "avoidable_obstacle")
+    out = tmp_path / "out"
+    args = ["verify", str(path), "--format", "json", "--seed", "11", "--out", str(out), "--query", "Stays",
+            "--query", "ProbRuns", "--query", "Certain", "--query", "Speed", "--query", "Sim"]
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    report = json.loads(captured.out)
+    assert report["file"] == str(path)
+    results = {r["name"]: r for r in report["results"]}
+    assert list(results) == ["Stays", "ProbRuns", "Certain", "Speed", "Sim"]
+    for r in results.values():
+        assert {"name", "formula", "kind", "status", "interval", "estimate", "runs", "seconds", "trace",
+                "files", "message", "seed", "location"} <= set(r)
+        assert r["location"]["file"] == str(path)
+    assert results["Stays"]["status"] == "satisfied" and len(results["Stays"]["trace"]) == 9
+    assert results["ProbRuns"]["kind"] == "probability" and results["ProbRuns"]["runs"] == 30
+    assert results["Certain"]["status"] == "satisfied"
+    assert results["Speed"]["runs"] == 20 and 5 <= results["Speed"]["estimate"] <= 10
+    assert results["Sim"]["files"] == [str(out / "Sim.csv"), str(out / "Sim.png")]
+    assert len(csv_rows(out / "Sim.csv")) == 1 + 4 * 5
+    width, height = image_size(out / "Sim.png")
+    assert width > 100 and height > 100
+
+    def numbers(report: dict) -> list[dict]:
+        return [{k: v for k, v in r.items() if k != "seconds"} for r in report["results"]]
+
+    assert main(args) == 0
+    assert numbers(json.loads(capsys.readouterr().out)) == numbers(report)
+
+
+def test_verify_statistical_verdicts_and_exit_code(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {"Certain": QUERIES["Certain"],
+                                                      "Impossible": QUERIES["Impossible"]})
+    assert main(["verify", str(path), "--seed", "1"]) == 1  # Impossible is not satisfied
+    out = normalised(capsys.readouterr().out)
+    certain, impossible = out.split("Verifying Impossible")
+    assert " -- Formula is satisfied.\n" in certain and " satisfied the formula\n" in certain
+    assert " -- Formula is NOT satisfied.\n" in impossible and re.search(r" -- \d+ runs, 0 satisfied", impossible)
+
+
+def test_verify_without_queries_says_so(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["verify", str(path)]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == "\n"
+    assert captured.err == f"{path}: no queries (add `query NAME: ...` lines, or pass --standard)\n"
+
+
+def test_verify_file_without_model_block_exits_1(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = tmp_path / "plain.ra"
+    path.write_text("automaton Plain {\n    input near : bool\n    reward sa\n    objective sa\n    sample every 0.5\n"
+                    "    horizon 4\n    initial location N { sa' == 1 }\n    edge N -> N when near\n"
+                    "    query Q: E<> N\n}\n")
+    for command in ("verify", "simulate", "render", "preanalyse"):
+        assert main([command, str(path)]) == 1, command
+        captured = capsys.readouterr()
+        assert captured.out == ""
+        assert captured.err == (f"{path}: this automaton has no `model` block; the engine answers queries on a "
+                                "scenario model (docs/language.md, 'The model block')\n")
+
+
+def test_verify_file_with_errors_exits_1(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead")
+    path.write_text(path.read_text().replace("3 * collision_distance\n", "3 * colision_distance\n"))
+    assert main(["verify", str(path)]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    line = next(i for i, text in enumerate(path.read_text().splitlines(), 1) if "colision" in text)
+    assert f"{path.name}:{line}:37: error[E0101]: unknown name `colision_distance`" in captured.err
+    assert "did you mean `collision_distance`?" in captured.err
+    assert not (tmp_path / "goal_ahead.out").exists()
+
+
+def test_verify_usage_errors_exit_2(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {"Stays": QUERIES["Stays"]})
+    assert main(["verify", str(tmp_path / "missing.ra")]) == 2
+    assert "E0008" in capsys.readouterr().err
+    for bad in (["--epsilon", "0"], ["--confidence", "1.5"], ["--max-states", "0"], ["--horizon", "-1"],
+                ["--format", "xml"]):
+        assert main(["verify", str(path), *bad]) == 2, bad
+        assert "error: argument" in capsys.readouterr().err
+    (tmp_path / "taken").write_text("a file, not a folder")
+    assert main(["verify", str(path), "--query", "Stays", "--out", str(tmp_path / "taken")]) == 0
+    capsys.readouterr()  # nothing to write for Stays
+    strategy = write_engine_file(tmp_path, "goal_ahead", {"safe": QUERIES["safe"]}, ra_name="strategy")
+    assert main(["verify", str(strategy), "--out", str(tmp_path / "taken")]) == 2
+    assert capsys.readouterr().err.startswith(f"rac verify: cannot write to {tmp_path / 'taken'}: ")
+
+
+# ---------------------------------------------------------------- simulate
+def test_simulate_writes_csv_and_png(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    csv_path, png_path = tmp_path / "chosen" / "runs.csv", tmp_path / "chosen" / "runs.png"
+    assert main(["simulate", str(path), "--runs", "3", "--seed", "5", "-o", str(tmp_path / "chosen")]) == 0
+    assert capsys.readouterr().out == (f"simulated 3 runs of 8 samples (seed 5)\n"
+                                       f"0 of 3 runs go below 3 * collision_distance = 1.5\n"
+                                       f"wrote {csv_path}\nwrote {png_path}\n")
+    rows = csv_rows(csv_path)
+    assert rows[0] == ["run", "time", "mindist()", "3 * collision_distance"]
+    assert len(rows) == 1 + 3 * (8 + 1)
+    assert [(r[0], float(r[1])) for r in rows[1:10]] == [("0", k * 0.5) for k in range(9)]
+    assert {(r[2], r[3]) for r in rows[1:]} == {("1e+09", "1.5")}  # no obstacle on the road
+    image_size(png_path)
+    first = csv_path.read_text()
+    assert main(["simulate", str(path), "--runs", "3", "--seed", "5", "--out", str(csv_path.parent)]) == 0
+    assert csv_path.read_text() == first  # same seed, same runs
+
+
+def test_simulate_default_paths_and_expressions(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    assert main(["simulate", str(path), "--runs", "2", "--horizon", "1", "--expr", "v", "--expr", "prev(x)",
+                 "--expr", "collide()"]) == 0
+    out = capsys.readouterr().out
+    csv_path = tmp_path / "avoidable_obstacle.out" / "simulate" / "runs.csv"
+    assert out.endswith(f"wrote {csv_path}\nwrote {csv_path.with_suffix('.png')}\n")
+    rows = csv_rows(csv_path)
+    assert rows[0] == ["run", "time", "v", "prev(x)", "collide()"]
+    assert len(rows) == 1 + 2 * 3
+    assert rows[1][2:] == ["5", "10", "0"]  # the start: 5 m/s at x = 10, no collision
+    image_size(csv_path.with_suffix(".png"))
+
+
+def test_simulate_under_the_shield(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    csv_path = tmp_path / "shielded" / "runs.csv"
+    assert main(["simulate", str(path), "--shield", "--runs", "20", "--seed", "3", "--expr", "collide()",
+                 "--expr", "offroad()", "-o", str(csv_path.parent)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("simulated 20 runs of 8 samples (seed 3) under the shield\n")
+    assert "continued unshielded" not in out
+    rows = csv_rows(csv_path)[1:]
+    assert len(rows) == 20 * 9 and {(r[2], r[3]) for r in rows} == {("0", "0")}  # never unsafe
+
+
+def test_simulate_shield_without_safe_strategy_exits_1(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "narrow_road", {})
+    assert main(["simulate", str(path), "--shield", "--runs", "2"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err == ("rac simulate: no safe strategy exists from the start within the horizon "
+                            "(Qd is not satisfied)\n")
+    assert not (tmp_path / "narrow_road.out").exists()
+
+
+@pytest.mark.parametrize(("expr", "message"), [
+    ("mindist(", "`mindist(`: the expression is incomplete"),
+    ("3 *", "`3 *`: the expression is incomplete"),
+    ("a b", "`a b`: unexpected `b`"),
+    ("x, y", "`x, y`: one expression per --expr (repeat --expr for more)"),
+    ("foo()", "`foo()`: unknown function `foo`"),
+    ("near", "the input `near` is not known here: it needs the product of the model and the automaton"),
+])
+def test_simulate_bad_expression_exits_2(capsys: pytest.CaptureFixture[str], tmp_path: Path, expr: str,
+                                         message: str) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["simulate", str(path), "--runs", "1", "--horizon", "0.5", "--expr", "v", "--expr", expr]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err == f"rac simulate: --expr: {message}\n"
+    assert not (tmp_path / "goal_ahead.out").exists()
+
+
+# ---------------------------------------------------------------- render
+def test_render_writes_png_and_gif(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_behind_wall", {})
+    png, gif = tmp_path / "pictures" / "run.png", tmp_path / "pictures" / "run.gif"
+    assert main(["render", str(path), "--horizon", "1", "--seed", "4", "-o", str(png.parent), "--gif"]) == 0
+    assert capsys.readouterr().out == f"rendered one run: 2 samples (seed 4)\nwrote {png}\nwrote {gif}\n"
+    image_size(png)
+    with Image.open(gif) as image:
+        assert image.format == "GIF" and image.n_frames == 3  # one frame per sample: t = 0, 0.5, 1
+
+
+def test_render_default_path_and_shield(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    assert main(["render", str(path), "--horizon", "1", "--shield"]) == 0
+    out = capsys.readouterr().out
+    assert re.fullmatch(r"rendered one run under the shield: 2 samples \(seed \d+\)\nwrote .*\n", out)
+    image_size(tmp_path / "avoidable_obstacle.out" / "render" / "run.png")
+    narrow = write_engine_file(tmp_path, "narrow_road", {})
+    assert main(["render", str(narrow), "--horizon", "1", "--shield"]) == 1
+    assert "no safe strategy exists from the start" in capsys.readouterr().err
+
+
+def test_render_draws_the_model_blocks_vehicle(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+                                               tmp_path: Path) -> None:
+    import rac.output.render
+
+    seen: dict[str, object] = {}
+
+    def fake(scenario_path: object, trajectory: object, png_path: Path, **options: object) -> Path:
+        seen.update(options, trajectory=trajectory)
+        return Path(png_path)
+
+    monkeypatch.setattr(rac.output.render, "render_trajectory", fake)
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    path.write_text(path.read_text().replace("length 4.5", "length 4").replace("width 1.8", "width 1.6"))
+    assert main(["render", str(path), "--horizon", "1", "--seed", "1"]) == 0
+    capsys.readouterr()
+    assert (seen["length"], seen["width"], seen["sample_period"]) == (4.0, 1.6, 0.5)
+    assert seen["trajectory"].shape == (3, 3)  # type: ignore[attr-defined]
+
+
+# ---------------------------------------------------------------- preanalyse
+def test_preanalyse_table_json_and_plots(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    out = tmp_path / "pre"
+    assert main(["preanalyse", str(path), "--exponent", "1,4", "--runs", "5", "--seed", "1", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    lines = text.splitlines()
+    assert lines[0].startswith("| exponent | C1 (s) | C2 (s) | Qa: Pr sensor error | Qb | Qc | Qd |")
+    rows = [line for line in lines[2:] if line.startswith("| ")]
+    assert [row.split(" | ")[:3] for row in rows] == [["| 1", "0.5", "1"], ["| 4", "0.5", "1"]]
+    for row in rows:  # the known answers at both exponents: Qb, not Qc, Qd
+        assert " | true | false | true | " in row and " of 5 (Pr in [" in row
+    assert text.endswith(f"sweep plot: {out / 'sweep.png'}\n\nplots in {out}\n")
+    assert sorted(p.name for p in out.iterdir()) == ["fig7_e1_c1_0.5_c2_1.png", "fig7_e4_c1_0.5_c2_1.png",
+                                                     "sweep.png"]
+    for plot in out.iterdir():
+        image_size(plot)
+
+    assert main(["preanalyse", str(path), "--exponent", "1,4", "--runs", "5", "--seed", "1", "--out", str(out),
+                 "--format", "json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["file"] == str(path)
+    settings = [s for s in report["settings"] if "exponent" in s]
+    assert [s["exponent"] for s in settings] == [1, 4]
+    for s in settings:
+        assert (s["qb"], s["qc"], s["qd"], s["samples"], s["seed"]) == (True, False, True, 8, 1)
+        assert len(s["qa"]) == 2 and len(s["true_min"]) == 5 and s["threshold"] == 0.5
+        assert Path(s["plot"]).is_file()
+    assert report["settings"][-1] == {"sweep_plot": str(out / "sweep.png")}
+
+
+def test_preanalyse_reports_a_decide_period_that_is_no_multiple(capsys: pytest.CaptureFixture[str],
+                                                                tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["preanalyse", str(path), "--decide", "0.75", "--runs", "2", "--out", str(tmp_path / "pre")]) == 0
+    assert capsys.readouterr().out == (
+        "| exponent | C1 (s) | C2 (s) | Qa: Pr sensor error | Qb | Qc | Qd | states | time (s) | "
+        "runs below threshold under the shield (true distance) |\n"
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
+        "| 2 | 0.5 | 0.75 | the decision period is not a whole multiple of the sensing period | | | | | | |\n"
+        f"\nplots in {tmp_path / 'pre'}\n")
+    assert main(["preanalyse", str(path), "--decide", "0.75", "--format", "json"]) == 0
+    [row] = json.loads(capsys.readouterr().out)["settings"]
+    assert row == {"exponent": 2, "sense": 0.5, "decide": 0.75,
+                   "error": "the decision period is not a whole multiple of the sensing period"}
+
+
+@pytest.mark.parametrize(("option", "message"), [
+    (["--exponent", "0"], "--exponent: '0' must be a positive whole number"),
+    (["--exponent", "x"], "--exponent: 'x' is not a number"),
+    (["--exponent", "1.5"], "--exponent: '1.5' must be a positive whole number"),
+    (["--sense", "0.5,"], "--sense: '' is not a number"),
+])
+def test_preanalyse_bad_lists_exit_2(capsys: pytest.CaptureFixture[str], tmp_path: Path, option: list[str],
+                                     message: str) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["preanalyse", str(path), *option]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err == f"rac preanalyse: {message}\n"
+
+
+# ---------------------------------------------------------------- where outputs go
+def test_help_names_the_output_convention(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps the epilog
+    assert "one folder per input file and command, FILE.out/COMMAND/ beside FILE.ra" in text
+    assert "-o/--out" in text
+    assert main(["simulate", "--help"]) == 0
+    assert "default: FILE.out/simulate/ beside the file" in " ".join(capsys.readouterr().out.split())
+
+
+def test_each_command_writes_into_its_own_folder(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """simulate's plot and render's picture once shared `FILE.png`: now every command has its folder."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"Sim": QUERIES["Sim"]})
+    assert main(["verify", str(path), "--seed", "1", "-q"]) == 0
+    assert main(["simulate", str(path), "--runs", "2", "--horizon", "1", "--seed", "1", "-q"]) == 0
+    assert main(["render", str(path), "--horizon", "1", "--seed", "1", "-q"]) == 0
+    assert main(["preanalyse", str(path), "--runs", "2", "--seed", "1", "-q"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "avoidable_obstacle.out"
+    written = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert written == ["preanalyse/fig7_e2_c1_0.5_c2_1.png", "preanalyse/sweep.png", "render/run.png",
+                       "simulate/runs.csv", "simulate/runs.png", "verify/Sim.csv", "verify/Sim.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["avoidable_obstacle.out", "avoidable_obstacle.ra",
+                                                          "avoidable_obstacle.xml"]
+
+
+def test_the_output_folders_are_git_ignored() -> None:
+    import shutil
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    if shutil.which("git") is None or not (root / ".git").exists():
+        pytest.skip("not a git checkout (the .gitignore rule is tested where one is)")
+    for command in ("verify", "simulate", "render", "preanalyse", "experiment"):
+        inside = f"examples/left_turn/model.out/{command}/runs.png"
+        assert subprocess.run(["git", "-C", str(root), "check-ignore", "-q", inside]).returncode == 0, inside
+    assert subprocess.run(["git", "-C", str(root), "check-ignore", "-q", "examples/left_turn/model.ra"]).returncode == 1
+
+
+def test_verify_standard_keeps_a_query_of_the_same_name(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """`--standard` adds a Fig7 of its own: a query named Fig7 in the file keeps its files."""
+    path = write_engine_file(tmp_path, "goal_ahead", {"Fig7": "simulate[<=1; 2]{v}"})
+    out = tmp_path / "o"
+    assert main(["verify", str(path), "--standard", "--query", "Fig7", "--seed", "1", "--out", str(out), "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert f"wrote {out / 'standard' / 'Fig7.png'}" in printed and f"wrote {out / 'Fig7.png'}" in printed
+    assert csv_rows(out / "Fig7.csv")[0] == ["run", "time", "v"]  # the file's own query
+    assert csv_rows(out / "standard" / "Fig7.csv")[0][2] == "mindist()"  # the paper's Fig. 7

@@ -1,0 +1,202 @@
+"""Counterfactual experiences (issue 23): a transition replayed from every automaton location
+(rac.learning.counterfactual), the episodes' step replayed (EpisodeBatch.counterfactual), tabular
+Q-learning updating every location, and the bins derived from the model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from engine_files import write_engine_file
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rac.compiler import compile_file, compile_text
+from rac.learning.counterfactual import Replayer, Sample, counterfactual_transitions
+from rac.learning.episodes import EpisodeBatch, parse_expr
+from rac.learning.qlearning import learn, location_column
+from rac.learning.strategy import derived_bins
+from rac.runtime.batch import BatchRewardAutomaton
+
+#: Two locations: A earns 1 per sample, B loses 1; A -> B when p, B -> A when !p (+10 on the way);
+#: at the end in A, +100.
+TINY = """
+automaton Tiny {
+    input p : bool
+    reward r
+    objective r
+    sample every 1
+    horizon 10
+    initial location A { r' == 1 }
+    location B { r' == -1 }
+    edge A -> B when p
+    edge B -> A when !p do r = r + 10
+    at end when !p do r = r + 100
+}
+"""
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    return compile_text(TINY).raise_for_errors()
+
+
+def test_one_sample_from_every_location_by_hand(tiny) -> None:
+    # Per sample: accrue at the current location's rate, then take the edge (its update after).
+    cf = counterfactual_transitions(tiny, {"p": np.array([True, False])}, ended=np.array([False, True]))
+    assert cf.source.tolist() == [0, 0, 1, 1] and cf.location.tolist() == [0, 1, 0, 1]
+    # p: from A +1 then to B; from B -1 and stay.  !p and the end: from A +1 +100; from B -1, +10 to A, +100.
+    assert cf.next_location.tolist() == [1, 1, 0, 0]
+    assert cf.reward.tolist() == [1.0, -1.0, 101.0, 109.0]
+    assert cf.ended.tolist() == [False, False, True, True]
+
+
+def test_a_transition_of_several_samples_by_hand(tiny) -> None:
+    # Two episodes, three samples: p, !p, p; the second episode ends after the second sample.
+    on, off = np.array([True, True]), np.array([False, False])
+    samples = [Sample({"p": on}, np.array([True, True]), np.array([False, False])),
+               Sample({"p": off}, np.array([True, True]), np.array([False, True])),
+               Sample({"p": on}, np.array([True, False]), np.array([False, False]))]
+    cf = Replayer(tiny).replay(samples, 2, {"r": np.array([5.0, 0.0])})
+    # Episode 0 from A: +1 (to B), -1 +10 (to A), +1 (to B) = 11; from B: -1, -1 +10 (A), +1 (B) = 9.
+    # Episode 1 from A: +1 (B), -1 +10 (A), end +100 = 110; from B: -1, -1 +10 (A), end +100 = 108.
+    assert cf.reward.tolist() == [[11.0, 9.0], [110.0, 108.0]]
+    assert cf.next_location.tolist() == [[1, 1], [0, 0]]
+    assert cf.rewards["r"].tolist() == [[16.0, 14.0], [110.0, 108.0]]
+
+
+def test_the_helper_for_replay_buffers_equals_stepping_from_each_location(tiny) -> None:
+    from rac.runtime.batch import BatchRewardAutomaton
+
+    rng = np.random.default_rng(3)
+    inputs = {"p": rng.random(50) < 0.5}
+    ended = rng.random(50) < 0.2
+    cf = counterfactual_transitions(tiny, inputs, ended=ended)
+    assert cf.reward.shape == cf.location.shape == cf.next_location.shape == cf.source.shape == (100,)
+    for location in (0, 1):  # stepping a fresh batch put in that location, one sample (and the end)
+        batch = BatchRewardAutomaton(tiny, 50)
+        batch.resume(np.full(50, location))
+        expected = batch.step_batch(inputs) + batch.end_batch(inputs, mask=ended)
+        rows = cf.location == location
+        assert np.array_equal(cf.reward[rows], expected)
+        assert np.array_equal(cf.next_location[rows], batch.locations)
+
+
+def test_the_episodes_step_replayed_at_its_own_location_is_the_step() -> None:
+    result = compile_file(ROOT / "examples" / "paper" / "model.ra")
+    batch = EpisodeBatch(result, horizon_samples=60, counterfactuals=True)
+    batch.reset(6)
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        where = batch.location
+        out = batch.step(rng.integers(batch.n_actions, size=6))
+        cf = batch.counterfactual()
+        assert cf.reward.shape == (6, 4)
+        rows = np.arange(6)
+        assert np.allclose(cf.reward[rows, where], out.reward)
+        assert np.array_equal(cf.next_location[rows, where], batch.location)
+        objective = batch.counterfactual(objective="10 * sa + 5 * pr + co")
+        assert np.allclose(objective.reward, cf.reward)  # the automaton's objective, as an expression
+        part = batch.counterfactual(slice(2, 4))
+        assert np.array_equal(part.reward, cf.reward[2:4])
+
+
+def test_counterfactuals_need_the_location_in_the_observation() -> None:
+    result = compile_file(ROOT / "examples" / "paper" / "model.ra")
+    batch = EpisodeBatch(result, horizon_samples=20)
+    exprs = [batch.expression(t) for t in ("Driving.location", "x")]
+    assert location_column(exprs[:1], exprs[1:]) == 0
+    with pytest.raises(ValueError, match="location in the discrete"):
+        location_column([batch.expression("x")])
+    with pytest.raises(ValueError, match="only through its location"):
+        location_column(exprs[:1], [batch.expression("sa")])
+
+
+def test_q_learning_updates_every_location(tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {
+        "reach": "strategy reach = maxE(sa)[<=4]{Tiny.location}->{x, v}: <> goal()"})
+    batch = EpisodeBatch(compile_file(path), counterfactuals=True)
+    kwargs = dict(discrete=["Tiny.location"], continuous=["x", "v"], episodes=8, parallel=4, seed=1)
+    plain = learn(batch, **kwargs)
+    with_cf = learn(batch, counterfactuals=True, **kwargs)
+    n_locations = len(batch.automaton.locations)
+    start = tuple(plain.strategy.keys[0][1:])  # the first decision's observation, in the initial location
+    # a decision's observation is learned in every location (its counterfactuals), not only in its own
+    assert sorted(key[0] for key in with_cf.strategy.keys if tuple(key[1:]) == start) == list(range(n_locations))
+    assert [key[0] for key in plain.strategy.keys if tuple(key[1:]) == start] == [batch.automaton.initial]
+    assert with_cf.strategy.n_states > plain.strategy.n_states
+
+
+def test_bins_derived_from_the_action_grid_and_the_goal() -> None:
+    result = compile_file(ROOT / "examples" / "paper" / "model.ra")
+    exprs = [parse_expr(t) for t in ("x", "y", "v", "head", "fabs(acc)", "time", "sa")]
+    # jerk step 2 m/s^3, turn step 0.2 rad/s, decisions every 2 s, goal 8 m x 3.5 m:
+    # positions min(2 * 8 / 6, 3.5 / 2), v 2 * 4 / 2, head 0.2 * 2, acc 2 * 2, time 2, anything else 1
+    assert derived_bins(result.model_data, exprs) == pytest.approx((1.75, 1.75, 4.0, 0.4, 4.0, 2.0, 1.0))
+
+
+
+@pytest.mark.parametrize("source", ["tiny", "paper"])
+def test_run_samples_is_step_batch_bit_for_bit(source: str, tiny) -> None:
+    # The lean path (table edges, constant rates) against step_batch/end_batch on the repeated
+    # inputs: random valuations and start states, some samples partly inactive, some episodes ending.
+    automaton = tiny if source == "tiny" else compile_file(ROOT / "examples" / "paper" / "model.ra").raise_for_errors()
+    names = [spec.name for spec in automaton.inputs]
+    n_loc = len(automaton.locations)
+
+    @settings(max_examples=60, deadline=None)
+    @given(st.integers(1, 4), st.integers(1, 5), st.integers(0, 2**32 - 1))
+    def check(rows: int, length: int, seed: int) -> None:
+        rng = np.random.default_rng(seed)
+        samples, done = [], np.zeros(rows, dtype=bool)
+        for _ in range(length):
+            inputs = {name: rng.random(rows) < 0.5 for name in names}
+            if "collide" in inputs:  # the paper's `assume collide imply isClose`
+                inputs["collide"] &= inputs["isClose"]
+            active = (rng.random(rows) < 0.8) & ~done
+            ending = active & (rng.random(rows) < 0.2)
+            done |= ending
+            samples.append((inputs, active, ending))
+        start = rng.integers(0, n_loc, rows * n_loc)
+        rewards = {name: np.repeat(rng.integers(-50, 50, rows).astype(float), n_loc) for name in automaton.rewards}
+        lean, plain = BatchRewardAutomaton(automaton, rows * n_loc), BatchRewardAutomaton(automaton, rows * n_loc)
+        lean.resume(start, rewards)
+        plain.resume(start, rewards)
+        got = lean.run_samples(samples, repeat=n_loc)
+        want = np.zeros(rows * n_loc)
+        for inputs, active, ending in samples:
+            spread = {name: np.repeat(values, n_loc) for name, values in inputs.items()}
+            if active.any():
+                want += plain.step_batch(spread, mask=np.repeat(active, n_loc))
+            if ending.any():
+                want += plain.end_batch(spread, mask=np.repeat(ending, n_loc))
+        assert got.tobytes() == want.tobytes()
+        assert lean.locations.tolist() == plain.locations.tolist()
+        assert all(lean.rewards[name].tobytes() == plain.rewards[name].tobytes() for name in automaton.rewards)
+        assert lean.samples.tolist() == plain.samples.tolist() and lean.ended.tolist() == plain.ended.tolist()
+
+    check()
+
+
+def test_run_samples_refuses_a_repeat_that_does_not_divide(tiny) -> None:
+    with pytest.raises(ValueError, match="repeat must be"):
+        BatchRewardAutomaton(tiny, 4).run_samples([], repeat=3)
+
+
+def test_run_samples_refuses_what_step_batch_refuses() -> None:
+    # An assume violated at the second sample, a missing input, a row stepped after it ended: the
+    # same errors as stepping sample by sample.
+    automaton = compile_file(ROOT / "examples" / "paper" / "model.ra").raise_for_errors()
+    ok = {"isClose": np.array([True]), "prog": np.array([True]), "comf": np.array([True]),
+          "collide": np.array([False]), "atGoal": np.array([False])}
+    bad = dict(ok, isClose=np.array([False]), collide=np.array([True]))
+    yes, no = np.array([True]), np.array([False])
+    batch = BatchRewardAutomaton(automaton, 4)
+    with pytest.raises(ValueError, match="collide"):
+        batch.run_samples([(ok, yes, no), (bad, yes, no)], repeat=4)
+    with pytest.raises(ValueError, match="missing input"):
+        BatchRewardAutomaton(automaton, 4).run_samples([({"isClose": yes}, yes, no)], repeat=4)
+    with pytest.raises(RuntimeError, match="ended"):
+        BatchRewardAutomaton(automaton, 4).run_samples([(ok, yes, yes), (ok, yes, no)], repeat=4)

@@ -1,0 +1,549 @@
+"""ScenarioEnv (rac.learning.gym): the scenario model as a gymnasium environment, with a shield's action masks.
+
+gymnasium's env_checker passes; the observation, reward and info are those of EpisodeBatch with
+one episode; a random walk under a safety shield (rac.engine.explore + rac.engine.storm.safety_shield
++ rac.engine.shield.table) never collides nor leaves the road on a tiny scenario, while unshielded ones do;
+unseen states follow the shield's policy; horizon, seeding and errors.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import gymnasium
+import numpy as np
+import pytest
+from engine_files import write_engine_file
+from gymnasium.utils.env_checker import check_env
+
+from rac.compiler import CompileResult, compile_file, compile_text
+from rac.core.diagnostics import CheckError
+from rac.engine import shield as shield_file
+from rac.engine.explore import COLUMNS, explore
+from rac.engine.lookahead import Lookahead, LookaheadSettings
+from rac.engine.shield import ShieldTable, UnseenState
+from rac.engine.storm import safety_shield
+from rac.learning.episodes import EpisodeBatch
+from rac.learning.gym import ScenarioEnv
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> CompileResult:
+    """The engine test file (one input `near`, reward `sa`) on avoidable_obstacle: a van 15 m ahead."""
+    path = write_engine_file(tmp_path_factory.mktemp("env"), "avoidable_obstacle", queries={})
+    result = compile_file(path)
+    assert result.ok, [d.message for d in result.diagnostics]
+    return result
+
+
+def shield_table(result: CompileResult, horizon: int, unseen: str) -> ShieldTable:
+    data = result.model_data
+    assert data is not None
+    graph = explore(data, horizon_samples=horizon, prune_unsafe=True)
+    shield = safety_shield(graph, "safe")
+    assert shield.shield_exists
+    return shield_file.table(shield, n_actions=EpisodeBatch(result).n_actions, unseen=unseen)
+
+
+@pytest.fixture(scope="module")
+def table(tiny: CompileResult) -> ShieldTable:
+    return shield_table(tiny, 8, "error")  # the whole 4 s horizon: an unseen state would raise
+
+
+def checked(env: gymnasium.Env) -> list[str]:
+    """check_env's warnings, except the one that only says the env was not made with gymnasium.make."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env)
+    return [str(w.message) for w in caught if "spec" not in str(w.message)]
+
+
+# ---------------------------------------------------------------- the gymnasium API
+@pytest.mark.parametrize("render_mode", [None, "ansi"])
+def test_check_env(tiny: CompileResult, table: ShieldTable, render_mode: str | None) -> None:
+    assert checked(ScenarioEnv(tiny, shield=table, render_mode=render_mode)) == []
+
+
+def test_check_env_left_turn() -> None:
+    env = ScenarioEnv(REPO / "examples" / "left_turn" / "model.ra", horizon=1.0, render_mode="ansi")
+    assert checked(env) == []
+    assert env.action_space.n == 81 and env.episodes.horizon_samples == 10 and env.episodes.max_steps == 5
+    obs, _ = env.reset()
+    assert "Normal" in env.render() and obs.shape == (29,)  # the "relative" observation by default
+
+
+def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny, observation="ego")
+    batch = EpisodeBatch(tiny)
+    obs, info = env.reset(seed=3)
+    batch.reset(1)
+    scale, period = batch.data.scale, batch.data.period
+    assert obs.dtype == np.float32 and env.observation_space.contains(obs)
+    assert obs.tolist() == np.append(batch.ego[0] / scale, 0.0).astype(np.float32).tolist()
+    assert info == {"location": "Normal", "rewards": {"sa": 0.0}, "objective": 0.0, "inputs": {"near": False},
+                    "collided": False, "offroad": False, "goal": False, "time": 0.0,
+                    "scenario": tiny.automaton.model.scenario_path, "scale": 1.0}  # type: ignore[union-attr]
+    rng = np.random.default_rng(1)
+    before = 0.0
+    total, done = 0.0, False
+    while not done:
+        action = int(rng.integers(env.action_space.n))
+        obs, reward, terminated, truncated, info = env.step(action)
+        out = batch.step(np.array([action]))
+        assert reward == out.reward[0] and terminated == out.terminated[0] and truncated == out.truncated[0]
+        assert info["collided"] == out.collided[0] and info["offroad"] == out.offroad[0]
+        assert info["goal"] == terminated
+        assert obs.tolist() == np.append(batch.ego[0] / scale, batch.k[0] * period).astype(np.float32).tolist()
+        assert info["time"] == batch.k[0] * period
+        assert info["location"] == tiny.automaton.location_names[batch.location[0]]  # type: ignore[union-attr]
+        assert info["rewards"] == {"sa": batch.rewards["sa"][0]} and info["objective"] == batch.objective[0]
+        assert info["inputs"] == {"near": bool(batch.inputs["near"][0])}
+        assert info["reward_steps"] == {"sa": info["rewards"]["sa"] - before}
+        before = info["rewards"]["sa"]
+        assert env.observation_space.contains(obs)
+        total += reward
+        done = terminated or truncated
+    assert truncated and info["time"] == pytest.approx(4.0)
+    assert total == pytest.approx(info["objective"])  # automaton mode: the return is the final objective
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(0)
+
+
+def test_reward_expression(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny, reward="10 * !near + v")
+    env.reset()
+    _, reward, *_ = env.step(4)  # (jerk 0, turn 0): 5 m/s kept for two samples, nothing near
+    assert reward == pytest.approx(2 * (10 + 5))
+
+
+def test_seed_only_seeds_np_random(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny)
+    first, _ = env.reset(seed=1)
+    draw = env.np_random.integers(1000, size=4)
+    again, _ = env.reset(seed=1)
+    other, _ = env.reset(seed=2)
+    assert first.tolist() == again.tolist() == other.tolist()  # the model is deterministic
+    env.reset(seed=1)
+    assert env.np_random.integers(1000, size=4).tolist() == draw.tolist()
+
+
+def test_horizon_in_seconds(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny, horizon=1.5, observation="ego")
+    assert env.episodes.horizon_samples == 3 and env.episodes.max_steps == 2
+    assert env.observation_space.high[-1] == np.float32(1.5)
+    env.reset()
+    assert not env.step(4)[3] and env.step(4)[3]  # truncated on the second step, after 3 samples
+    for bad in (0.7, 0, -1):
+        with pytest.raises(ValueError, match="whole number"):
+            ScenarioEnv(tiny, horizon=bad)
+
+
+# ---------------------------------------------------------------- shield masks
+def test_shielded_random_walks_never_collide(tiny: CompileResult, table: ShieldTable) -> None:
+    env = ScenarioEnv(tiny, shield=table)
+    rng = np.random.default_rng(0)
+    for seed in range(15):
+        env.reset(seed=seed)
+        done = False
+        while not done:
+            mask = env.action_masks()
+            assert mask.dtype == bool and mask.shape == (env.action_space.n,) and mask.any()
+            _, _, terminated, truncated, info = env.step(int(rng.choice(np.flatnonzero(mask))))
+            assert not info["collided"] and not info["offroad"]
+            done = terminated or truncated
+    # the shield is what keeps them safe: at the start it allows only braking straight on
+    env.reset()
+    assert env.action_masks().sum() == 1
+    unshielded = ScenarioEnv(tiny)
+    hits = 0
+    for _ in range(15):
+        unshielded.reset()
+        assert unshielded.action_masks().all()
+        done = False
+        while not done:
+            _, _, terminated, truncated, info = unshielded.step(int(rng.integers(unshielded.action_space.n)))
+            hits += info["collided"] or info["offroad"]
+            done = terminated or truncated
+    assert hits > 0
+
+
+def test_shield_from_a_file(tiny: CompileResult, table: ShieldTable, tmp_path: Path) -> None:
+    path = shield_file.save(table, tmp_path / "safe.npz")
+    env = ScenarioEnv(tiny, shield=path)
+    env.reset()
+    assert env.shield is not None and env.shield.unseen == "none"
+    assert env.action_masks().tolist() == table.mask(env.episodes.state_keys()[0]).tolist()
+
+
+@pytest.mark.parametrize("unseen", ["none", "all", "error"])
+def test_unseen_states_without_a_runtime_shield(tiny: CompileResult, unseen: str) -> None:
+    """Without a runtime shield an unseen state gets no guarantee, never an all-False mask: every action
+    the model allows, flagged and counted (``unseen="error"`` still raises, as asked)."""
+    short = shield_table(tiny, 2, unseen)  # a shield for the first second only: later states are unseen
+    env = ScenarioEnv(tiny, shield=short, lookahead=None)
+    env.reset()
+    first = env.action_masks()
+    assert 0 < first.sum() < first.size
+    _, _, _, _, info = env.step(int(np.flatnonzero(first)[0]))  # now at sample 2: a state the shield never decided in
+    assert info["shield"] == "exhaustive" and not info["no_safe_action"]
+    if unseen == "error":
+        with pytest.raises(UnseenState):
+            env.action_masks()
+        return
+    mask = env.action_masks()
+    assert mask.all()  # avoidable_obstacle has no `allow when`: the model allows every action
+    _, _, _, _, info = env.step(0)
+    assert info["shield"] == "none" and info["no_safe_action"] and info["shield_until"] == pytest.approx(1.0)
+    assert env.episodes.k[0] == 4 and env.no_safe_action_steps == 1
+    assert env.shield_steps == {"exhaustive": 1, "none": 1}
+
+
+def test_past_the_exhaustive_horizon_the_masks_are_the_runtime_shields(tiny: CompileResult) -> None:
+    """A table for the first second of a 4 s episode: from there on the runtime shield's masks, each
+    step's info saying which guarantee its mask carried (the depth the search reached)."""
+    short = shield_table(tiny, 2, "none")
+    env = ScenarioEnv(tiny, shield=short, lookahead=LookaheadSettings(depth=1, seconds=None))
+    runtime = Lookahead(env.episodes.data, env.episodes.horizon_samples, LookaheadSettings(depth=1, seconds=None))
+    rng = np.random.default_rng(2)
+    kinds = []
+    for _ in range(6):
+        env.reset()
+        done = False
+        while not done:
+            key = env.episodes.state_keys()[0]
+            mask = env.action_masks()
+            assert mask.any()
+            expected = runtime.decide(key)
+            _, _, terminated, truncated, info = env.step(int(rng.choice(np.flatnonzero(mask))))
+            kinds.append(info["shield"])
+            if key[0] < 2:
+                assert info["shield"] == "exhaustive" and mask.tolist() == short.mask(key).tolist()
+                assert info["shield_until"] == pytest.approx(1.0)
+            elif expected.depth:
+                assert info["shield"] == "lookahead 1" and mask.tolist() == expected.mask.tolist()
+                assert info["shield_until"] == pytest.approx(expected.until * 0.5)
+            else:
+                assert info["shield"] == "none" and info["no_safe_action"]
+            assert info["shield_allowed"] and not info["shield_timeout"] and not info["shield_short"]
+            done = terminated or truncated
+    assert kinds.count("exhaustive") == 6 and kinds.count("lookahead 1") > 0
+    assert sum(env.shield_steps.values()) == len(kinds)
+    assert env.shield_steps["lookahead 1"] == kinds.count("lookahead 1")
+
+
+def test_a_runtime_shield_alone_keeps_random_walks_safe(tiny: CompileResult) -> None:
+    """Without any table, a lookahead over the rest of the episode is the exhaustive shield computed at
+    run time: shielded random walks never collide nor leave the road."""
+    env = ScenarioEnv(tiny, lookahead=LookaheadSettings(depth=4, seconds=None))
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        env.reset()
+        done = False
+        while not done:
+            _, _, terminated, truncated, info = env.step(int(rng.choice(np.flatnonzero(env.action_masks()))))
+            assert not info["collided"] and not info["offroad"] and info["shield"].startswith("lookahead ")
+            done = terminated or truncated
+    assert set(env.shield_steps) == {"lookahead 4", "lookahead 3", "lookahead 2", "lookahead 1"}
+
+
+def test_never_an_all_false_mask(tiny: CompileResult) -> None:
+    """Random walks that ignore the masks run into the van: where no action has a safe continuation the
+    mask allows every action of the model, with info["shield"] == "none" and the step flagged and counted."""
+    env = ScenarioEnv(tiny, lookahead=LookaheadSettings(depth=2, seconds=None))
+    rng = np.random.default_rng(5)
+    flagged = 0
+    for _ in range(10):
+        env.reset()
+        done = False
+        while not done:
+            mask = env.action_masks()
+            assert mask.dtype == bool and mask.any()
+            _, _, terminated, truncated, info = env.step(int(rng.integers(env.action_space.n)))
+            assert info["no_safe_action"] == (info["shield"] == "none")
+            if info["no_safe_action"]:
+                assert mask.all()
+                flagged += 1
+            done = terminated or truncated
+    assert flagged > 0 and env.no_safe_action_steps == flagged == env.shield_steps["none"]
+
+
+def test_after_a_sticky_collision_nothing_is_safe(tmp_path: Path) -> None:
+    """Under ``collision sticky`` a collision makes every later state unsafe: "none" to the end."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", queries={})
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace("    model {\n", "    model {\n        collision sticky\n", 1), encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok and result.model_data is not None and result.model_data.sticky
+    env = ScenarioEnv(result, lookahead=LookaheadSettings(depth=2, seconds=None))
+    env.reset()
+    crashed, done, kinds = False, False, []
+    while not done:
+        _, _, terminated, truncated, info = env.step(8)  # full throttle, straight on: into the van
+        if crashed:
+            kinds.append(info["shield"])
+        crashed = crashed or info["collided"]
+        done = terminated or truncated
+    assert crashed and kinds and set(kinds) == {"none"}
+
+
+def test_the_time_budget_reports_itself_in_info(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny, lookahead=LookaheadSettings(depth=4, seconds=None, nodes=0))
+    env.reset()
+    _, _, _, _, info = env.step(int(np.flatnonzero(env.action_masks())[0]))
+    assert info["shield_timeout"] and info["shield"] == "lookahead 1" and env.timeout_steps == 1
+    assert info["shield_short"]  # 1 of the 4 decisions asked for
+
+
+def test_the_step_info_without_a_shield(tiny: CompileResult) -> None:
+    env = ScenarioEnv(tiny)
+    env.reset()
+    assert env.action_masks().all()
+    _, _, _, _, info = env.step(4)
+    assert info["shield"] == "none" and not info["no_safe_action"] and not info["shield_timeout"]
+    assert env.no_safe_action_steps == 0 and env.shield_steps == {"none": 1}
+
+
+def test_shield_for_another_model(tiny: CompileResult, table: ShieldTable) -> None:
+    other = ShieldTable(COLUMNS, table.states, table.masks[:, :4])
+    with pytest.raises(ValueError, match="actions"):
+        ScenarioEnv(tiny, shield=other)
+    with pytest.raises(TypeError):
+        ScenarioEnv(tiny, shield=42)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- errors
+def test_errors(tiny: CompileResult) -> None:
+    with pytest.raises(CheckError):
+        ScenarioEnv(REPO / "examples" / "naive_driving.ra")
+    plain = compile_text("automaton A { input b : bool\n reward r\n objective r\n sample every 1\n horizon 2\n"
+                         " initial location L { r' == 1 } }")
+    with pytest.raises(ValueError, match="model"):
+        ScenarioEnv(plain)
+    with pytest.raises(ValueError, match="render_mode"):
+        ScenarioEnv(tiny, render_mode="human")
+    env = ScenarioEnv(tiny)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(0)
+    env.reset()
+    with pytest.raises(ValueError, match="action"):
+        env.step(9)
+    assert env.render() is None
+
+
+def test_a_step_shield_as_the_shield(tiny: CompileResult) -> None:
+    from rac.engine.shield import step_shield
+
+    data = tiny.model_data
+    assert data is not None
+    env = ScenarioEnv(tiny, shield=step_shield(data, 8, lookahead=LookaheadSettings(depth=2, seconds=None)))
+    env.reset()
+    _, _, _, _, info = env.step(int(np.flatnonzero(env.action_masks())[0]))
+    assert info["shield"] == "exhaustive" and env.shield is not None
+    with pytest.raises(ValueError, match="runs of 4 samples"):
+        ScenarioEnv(tiny, shield=step_shield(data, 4))
+    with pytest.raises(ValueError, match="lookahead"):
+        ScenarioEnv(tiny, shield=step_shield(data, 8), lookahead=3)
+
+
+# ---------------------------------------------------------------- scene sets, the relative observation, frames
+#: The model block of the highway scene the tests below share (9 actions every 0.5 s).
+HIGHWAY_BLOCK = """\
+        scenario "highway.xml"
+        exponent 2
+        decide_period 0.5
+        granularity 0.25
+        max_speed 30
+        action jerk in [-2, 2] step 2
+        action turn in [-0.2, 0.2] step 0.2
+"""
+
+HIGHWAY_MODEL = """\
+automaton Drive {
+    reward r
+    objective r
+    sample every 0.1
+    horizon 2
+    initial location L { r' == 1 }
+    model {
+""" + HIGHWAY_BLOCK + """    }
+}
+"""
+
+
+@pytest.fixture(scope="module")
+def highway_set(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Path]]:
+    """A .ra file on the highway scene and a set of three seeded highway variants."""
+    from rac.model.scenes import scene_set, write_scene
+
+    folder = tmp_path_factory.mktemp("set")
+    write_scene("highway", folder / "highway.xml")
+    (folder / "drive.ra").write_text(HIGHWAY_MODEL, encoding="utf-8")
+    return folder / "drive.ra", scene_set("highway", 3, 0, folder / "scenes")
+
+
+def test_the_relative_observation_by_hand(highway_set: tuple[Path, list[Path]]) -> None:
+    from rac.learning.observation import RELATIVE_COLUMNS
+
+    env = ScenarioEnv(highway_set[0])
+    obs, _ = env.reset()
+    got = dict(zip([name for name, _, _ in RELATIVE_COLUMNS], obs.tolist()))
+    # the ego at (30, 5.25) heading 0 at 20 m/s in the middle of three 3.5 m lanes, goal centre (200, 5.25)
+    ego = {"v": 20.0, "acc": 0.0, "lane_head": 0.0, "lane_offset": 0.0, "edge_left": 5.25, "edge_right": 5.25,
+           "goal_ahead": 170.0, "goal_left": 0.0, "time_left": 2.0}
+    # nearest first: car 62 (10, 8.75) at 25 m/s, truck 61 (70, 5.25) at 15, car 63 (95, 1.75) at 17; slot 3 empty
+    cars = [(1, -20.0, 3.5, 5.0, 0.0), (1, 40.0, 0.0, -5.0, 0.0), (1, 65.0, -3.5, -3.0, 0.0), (0, 0, 0, 0, 0)]
+    expected = {**ego, **{f"obstacle{j}_{name}": float(value) for j, car in enumerate(cars)
+                          for name, value in zip(["present", "ahead", "left", "v_ahead", "v_left"], car)}}
+    assert got == pytest.approx(expected, abs=1e-5)
+    # one step of jerk 0, turn 0.2: the ego turns left of the lane's direction and drifts left
+    obs, *_ = env.step(int(np.flatnonzero((env.action_pairs[:, 0] == 0) & (env.action_pairs[:, 1] > 0))[0]))
+    assert obs[2] > 0 and obs[3] > 0 and obs[4] < 5.25 < obs[5] and obs[8] == pytest.approx(1.5)
+
+
+def test_every_observation_lies_in_the_bounds(highway_set: tuple[Path, list[Path]]) -> None:
+    env = ScenarioEnv(highway_set[0], scenarios=highway_set[1])
+    space = env.observation_space
+    assert np.isfinite(space.low).all() and np.isfinite(space.high).all() and space.shape == (29,)
+    rng = np.random.default_rng(0)
+    seen = []
+    for episode in range(6):
+        obs, _ = env.reset(seed=episode)
+        done = False
+        while not done:
+            assert space.contains(obs), obs
+            seen.append(obs)
+            obs, _, terminated, truncated, _ = env.step(int(rng.integers(env.action_space.n)))
+            done = terminated or truncated
+        assert space.contains(obs)
+    assert len({tuple(o[9:]) for o in seen}) > 10  # the obstacles move and differ from scene to scene
+
+
+def test_a_scene_set_draws_from_np_random_and_picks_on_request(highway_set: tuple[Path, list[Path]]) -> None:
+    model, scenes = highway_set
+    env = ScenarioEnv(model, scenarios=scenes[0].parent)  # a folder: its .xml files in name order
+    assert env.scenarios == tuple(scenes)
+    drawn = [env.reset(seed=s)[1]["scenario"] for s in range(20)]
+    assert drawn == [env.reset(seed=s)[1]["scenario"] for s in range(20)]  # reproducible per seed
+    assert set(drawn) == {str(p) for p in scenes}
+    first, info = env.reset(options={"scenario": 1})
+    assert info["scenario"] == str(scenes[1])
+    again, info = env.reset(options={"scenario": str(scenes[1])})
+    assert info["scenario"] == str(scenes[1]) and first.tolist() == again.tolist()
+    other, _ = env.reset(options={"scenario": 2})
+    assert other[9:].tolist() != first[9:].tolist()  # other obstacles
+    with pytest.raises(ValueError, match="3 scenes"):
+        env.reset(options={"scenario": 3})
+    with pytest.raises(ValueError, match="not one of the scenes"):
+        env.reset(options={"scenario": "elsewhere.xml"})
+    with pytest.raises(ValueError, match="runtime shield"):
+        ScenarioEnv(model, scenarios=scenes, shield="safe.shield.npz")
+    shielded = ScenarioEnv(model, scenarios=scenes, lookahead=2)
+    shielded.reset(seed=0)
+    assert shielded.action_masks().any() and shielded.step(0)[4]["shield"].startswith("lookahead")
+
+
+def test_a_broken_scene_names_its_file(highway_set: tuple[Path, list[Path]], tmp_path: Path) -> None:
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<commonRoad>", encoding="utf-8")
+    env = ScenarioEnv(highway_set[0], scenarios=[highway_set[1][0], broken])
+    with pytest.raises(CheckError, match="broken.xml"):
+        env.reset(options={"scenario": 1})
+    with pytest.raises(CheckError, match="broken.xml"):
+        ScenarioEnv(highway_set[0], scenarios=[broken])
+
+
+def test_check_env_with_a_set_and_frames(highway_set: tuple[Path, list[Path]]) -> None:
+    env = ScenarioEnv(highway_set[0], scenarios=highway_set[1], render_mode="rgb_array")
+    assert "rgb_array" in env.metadata["render_modes"]
+    assert checked(env) == []
+    env.reset(seed=0)
+    first = env.render()
+    assert isinstance(first, np.ndarray) and first.dtype == np.uint8 and first.ndim == 3 and first.shape[2] == 3
+    env.step(0)
+    later = env.render()
+    assert isinstance(later, np.ndarray) and later.shape == first.shape and (later != first).any()
+
+
+def test_record_video(highway_set: tuple[Path, list[Path]], tmp_path: Path) -> None:
+    pytest.importorskip("moviepy", reason="gymnasium's RecordVideo writes videos with moviepy, not installed here")
+    from gymnasium.wrappers import RecordVideo
+
+    env = RecordVideo(ScenarioEnv(highway_set[0], render_mode="rgb_array"), str(tmp_path / "videos"))
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(0)
+        done = terminated or truncated
+    env.close()
+    assert list((tmp_path / "videos").glob("*.mp4"))
+
+
+# ---------------------------------------------------------------- the proven reward scale (issue 21)
+#: Safety over progress on the highway scene, with rewards in the tens and a penalty of 100.
+CAREFUL_MODEL = """\
+automaton Careful {
+    input isClose : bool
+    input collide : bool
+    assume collide imply isClose
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 0.1
+    horizon 2
+    initial location Normal { sa' == 1; pr' == 1 }
+    location Unsafe { sa' == -1; pr' == 0 }
+    edge * -> Unsafe when isClose do sa = sa - 100
+    edge * -> Normal when !isClose
+    model {
+""" + HIGHWAY_BLOCK + """\
+        bind isClose = mindist() < 3 * collision_distance
+        bind collide = collide()
+    }
+}
+"""
+
+
+def test_the_proven_scale_keeps_every_reward_within_one(highway_set: tuple[Path, list[Path]]) -> None:
+    """Rewards in the tens become rewards in [-1, 1], divided by one positive factor: the largest
+    change of the objective over one step (decide_every samples and ``at end``) that the checker proves."""
+    from rac.check.analysis.scale import sample_change_bound
+
+    model = highway_set[0].with_name("careful.ra")
+    model.write_text(CAREFUL_MODEL, encoding="utf-8")
+    scenes = highway_set[1]
+    plain = ScenarioEnv(model, scenarios=scenes, lookahead=None)
+    scaled = ScenarioEnv(model, scenarios=scenes, lookahead=None, scale="proven")
+    automaton = scaled.episodes.automaton
+    factor = float(sample_change_bound(automaton).step_bound(scaled.episodes.decide_every))
+    assert scaled.reward_scale == factor > 1 and plain.reward_scale == 1.0
+    rng = np.random.default_rng(0)
+    largest = 0.0
+    for episode in range(6):
+        plain.reset(seed=episode)
+        _, info = scaled.reset(seed=episode)
+        assert info["scale"] == factor
+        done = False
+        while not done:
+            action = int(rng.integers(plain.action_space.n))
+            _, raw, *_ = plain.step(action)
+            _, reward, terminated, truncated, info = scaled.step(action)
+            assert -1.0 <= float(reward) <= 1.0
+            assert float(reward) == pytest.approx(float(raw) / factor, rel=1e-12)
+            largest = max(largest, abs(float(raw)))
+            done = terminated or truncated
+    assert largest > 1.0  # the unscaled rewards would not have fitted
+
+
+def test_a_scale_for_a_reward_expression_is_the_users(tiny: CompileResult) -> None:
+    with pytest.raises(ValueError, match="proved for the automaton's reward"):
+        ScenarioEnv(tiny, reward="10 * !collide()", scale="proven")
+    plain = ScenarioEnv(tiny, reward="10 * !collide()")
+    scaled = ScenarioEnv(tiny, reward="10 * !collide()", scale=10.0)
+    plain.reset(seed=0)
+    scaled.reset(seed=0)
+    _, raw, *_ = plain.step(0)
+    _, reward, *_ = scaled.step(0)
+    assert float(raw) > 10 and float(reward) == pytest.approx(float(raw) / 10)

@@ -1,0 +1,309 @@
+"""The registered ids (rac.gym) and the vector environment (rac.learning.vector.ScenarioVectorEnv).
+
+``import rac.gym`` registers ``rac/Scenario-v0`` (idempotently, importing gymnasium only);
+gymnasium.make / make_vec / the ``module:id`` form work, masks reach through gymnasium's wrappers
+and SB3's vector envs, MaskablePPO trains on make_vec_env. ScenarioVectorEnv equals a SyncVectorEnv
+of ScenarioEnvs step for step (observations, rewards, flags, info in the vector layout, masks) over
+several autoreset episodes, with and without a shield; seeding and errors.
+"""
+
+from __future__ import annotations
+
+import importlib
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+import pytest
+from engine_files import engine_source, write_engine_file
+from gymnasium.utils.env_checker import check_env
+from tiny_scenarios import WALL_EGO, GoalBox, StraightRoad, straight_road
+
+import rac.gym
+from rac.compiler import CompileResult, compile_file
+from rac.engine import shield as shield_file
+from rac.engine.explore import explore
+from rac.engine.shield import ShieldTable
+from rac.engine.storm import safety_shield
+from rac.learning.episodes import EpisodeBatch
+from rac.learning.scenario_env import ScenarioEnv
+from rac.learning.vector import ScenarioVectorEnv, make_vector_env
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The engine test file on avoidable_obstacle (a van ahead; episodes run to the horizon) and
+    on goal_ahead (random episodes reach the goal at different steps)."""
+    folder = tmp_path_factory.mktemp("vector")
+    files = {name: write_engine_file(folder, name, queries={}) for name in ("avoidable_obstacle", "goal_ahead")}
+    # an empty road with the goal 10 m ahead of the ego (8 m/s): episodes end after 1 to 4 steps
+    near = straight_road("near_goal", StraightRoad(80.0, WALL_EGO, GoalBox(20.0, 30.0)))
+    near.write(folder / "near_goal.xml")
+    files["near_goal"] = folder / "near_goal.ra"
+    files["near_goal"].write_text(engine_source(near, {}), encoding="utf-8")
+    return files
+
+
+@pytest.fixture(scope="module")
+def tiny(files: dict[str, Path]) -> CompileResult:
+    result = compile_file(files["avoidable_obstacle"])
+    assert result.ok, [d.message for d in result.diagnostics]
+    return result
+
+
+@pytest.fixture(scope="module")
+def goal(files: dict[str, Path]) -> CompileResult:
+    result = compile_file(files["goal_ahead"])
+    assert result.ok, [d.message for d in result.diagnostics]
+    return result
+
+
+@pytest.fixture(scope="module")
+def near(files: dict[str, Path]) -> CompileResult:
+    result = compile_file(files["near_goal"])
+    assert result.ok, [d.message for d in result.diagnostics]
+    return result
+
+
+@pytest.fixture(scope="module")
+def table(tiny: CompileResult) -> ShieldTable:
+    data = tiny.model_data
+    assert data is not None
+    shield = safety_shield(explore(data, horizon_samples=8, prune_unsafe=True), "safe")
+    return shield_file.table(shield, n_actions=EpisodeBatch(tiny).n_actions, unseen="none")
+
+
+def run(code: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          env={"PYTHONPATH": str(SRC), "PATH": "/usr/bin:/bin"})
+
+
+def checked(env: Any) -> list[str]:
+    """check_env's warnings, except those about wrappers and specs (check_env asks for the raw env)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env)
+    return [str(w.message) for w in caught if "unwrapped" not in str(w.message) and "spec" not in str(w.message)]
+
+
+# ---------------------------------------------------------------- registration
+def test_rac_gym_is_light_and_registration_is_idempotent() -> None:
+    done = run("import rac.gym, sys; assert 'rac.learning.scenario_env' not in sys.modules; "
+               "assert 'rac.learning' not in sys.modules; import gymnasium; "
+               "assert 'rac/Scenario-v0' in gymnasium.registry")
+    assert done.returncode == 0, done.stderr
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        importlib.reload(rac.gym)
+        rac.gym.register()
+    assert gymnasium.spec(rac.gym.SCENARIO).max_episode_steps is None  # the env truncates at its horizon
+
+
+def test_make_without_the_import_in_a_fresh_process(files: dict[str, Path]) -> None:
+    model = str(files["goal_ahead"])
+    done = run(f"import gymnasium; env = gymnasium.make('rac.gym:rac/Scenario-v0', model={model!r}); "
+               "env.reset(seed=0); print(env.get_wrapper_attr('action_masks')().shape)")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "(9,)"
+
+
+def test_make_masks_through_the_wrappers_and_check_env(files: dict[str, Path], table: ShieldTable) -> None:
+    env = gymnasium.make(rac.gym.SCENARIO, model=files["avoidable_obstacle"], shield=table)
+    assert isinstance(env.unwrapped, ScenarioEnv) and env is not env.unwrapped
+    assert not isinstance(env, gymnasium.wrappers.TimeLimit)
+    env.reset(seed=0)
+    masks = env.get_wrapper_attr("action_masks")()  # the supported way through gymnasium's wrappers
+    assert masks.dtype == bool and masks.any() and not masks.all()  # the shield's mask: a van ahead
+    assert (masks == env.unwrapped.action_masks()).all()  # type: ignore[attr-defined]
+    assert checked(env) == [] and checked(env.unwrapped) == []
+
+
+def test_make_vec_uses_the_native_vector_env(files: dict[str, Path]) -> None:
+    envs = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=3, model=files["goal_ahead"])
+    assert isinstance(envs, ScenarioVectorEnv) and envs.num_envs == 3
+    obs, _ = envs.reset(seed=0)
+    assert obs.shape == (3, envs.single_observation_space.shape[0]) and envs.observation_space.contains(obs)
+    sync = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["goal_ahead"], render_mode="ansi")
+    assert isinstance(sync, gymnasium.vector.SyncVectorEnv)  # frames: each ScenarioEnv renders its own
+    sync.reset()
+    assert all("Normal" in line for line in sync.render())  # type: ignore[union-attr]
+    for env in sync.envs:  # the sub-envs are plain ScenarioEnvs
+        assert checked(env.unwrapped) == []
+    sync = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, vectorization_mode="sync", model=files["goal_ahead"])
+    assert isinstance(sync, gymnasium.vector.SyncVectorEnv) and checked(sync.envs[0]) == []
+
+
+def test_make_vec_with_a_set_of_scenes_steps_scenario_envs(files: dict[str, Path]) -> None:
+    """A set of scenes cannot share one batch: the entry point hands ``scenarios`` to ScenarioEnvs,
+    each drawing its scene per episode."""
+    scenes = [files[name].with_suffix(".xml") for name in ("avoidable_obstacle", "goal_ahead")]
+    envs = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["avoidable_obstacle"], scenarios=scenes)
+    assert isinstance(envs, gymnasium.vector.SyncVectorEnv)
+    drawn: set[str] = set()
+    for seed in range(8):
+        obs, info = envs.reset(seed=seed)
+        assert envs.observation_space.contains(obs)
+        drawn |= {Path(name).name for name in info["scenario"]}
+    assert drawn == {scene.name for scene in scenes}
+    assert isinstance(make_vector_env(num_envs=2, model=files["avoidable_obstacle"], scenarios=None),
+                      ScenarioVectorEnv)
+
+
+# ---------------------------------------------------------------- sb3-contrib
+@pytest.mark.parametrize("extra", [{}, {"render_mode": None}])  # make_vec_env asks for rgb_array first
+def test_maskable_ppo_on_make_vec_env(files: dict[str, Path], table: ShieldTable, extra: dict[str, Any]) -> None:
+    pytest.importorskip("sb3_contrib", reason="sb3-contrib is not installed")
+    from sb3_contrib import MaskablePPO
+    from sb3_contrib.common.maskable.utils import get_action_masks, is_masking_supported
+    from stable_baselines3.common.env_util import make_vec_env
+
+    venv = make_vec_env(rac.gym.SCENARIO, n_envs=2, seed=0,
+                        env_kwargs={"model": files["avoidable_obstacle"], "shield": table, "lookahead": None,
+                                    **extra})
+    assert is_masking_supported(venv)
+    venv.reset()
+    masks = get_action_masks(venv)  # DummyVecEnv.env_method -> get_wrapper_attr through Monitor and make's wrappers
+    assert masks.shape == (2, 9) and masks.any(axis=1).all() and not masks.all()
+    model = MaskablePPO("MlpPolicy", venv, n_steps=64, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.learn(256)
+    assert model.num_timesteps >= 256
+    steps = venv.get_attr("shield_steps")
+    assert sum(sum(counter.values()) for counter in steps) >= 256
+    allowed = [env.unwrapped.no_safe_action_steps for env in venv.envs]  # type: ignore[attr-defined]
+    assert allowed == [0, 0]  # every state the learner met had a safe action in the table
+
+
+# ---------------------------------------------------------------- equivalence with SyncVectorEnv
+def assert_same(left: Any, right: Any, where: str) -> None:
+    if isinstance(left, dict):
+        assert isinstance(right, dict) and sorted(left) == sorted(right), (where, sorted(left), sorted(right))
+        for key in left:
+            assert_same(left[key], right[key], f"{where}.{key}")
+    else:
+        left, right = np.asarray(left), np.asarray(right)
+        assert left.dtype == right.dtype and left.shape == right.shape, (where, left.dtype, right.dtype)
+        assert (left == right).all(), (where, left, right)
+
+
+@pytest.mark.parametrize("scene, shielded", [("near", False), ("tiny", False), ("tiny", True)])
+def test_equals_a_sync_vector_env(request: pytest.FixtureRequest, scene: str, shielded: bool) -> None:
+    result: CompileResult = request.getfixturevalue(scene)
+    shield = request.getfixturevalue("table") if shielded else None
+    n = 4
+    native = ScenarioVectorEnv(result, num_envs=n, shield=shield)
+    sync = gymnasium.vector.SyncVectorEnv([lambda: ScenarioEnv(result, shield=shield) for _ in range(n)])
+    assert native.single_observation_space == sync.single_observation_space
+    assert native.single_action_space == sync.single_action_space
+    assert native.observation_space == sync.observation_space and native.action_space == sync.action_space
+    assert native.metadata["autoreset_mode"] == sync.metadata["autoreset_mode"]
+    a, a_info = native.reset(seed=5)
+    b, b_info = sync.reset(seed=5)
+    assert_same(a, b, "obs")
+    assert_same(a_info, b_info, "info")
+    rng = np.random.default_rng(2)
+    pending = np.zeros(n, dtype=bool)
+    ended, staggered = 0, False
+    for step in range(40):
+        masks = native.action_masks()
+        other = np.stack([env.action_masks() for env in sync.envs])  # type: ignore[attr-defined]
+        assert masks.any(axis=1).all()
+        assert (masks[~pending] == other[~pending]).all() and masks[pending].all()
+        actions = np.array([rng.choice(np.flatnonzero(row)) for row in masks])
+        a_out = native.step(actions)
+        b_out = sync.step(actions)
+        for name, x, y in zip(("obs", "reward", "terminated", "truncated", "info"), a_out, b_out):
+            assert_same(x, y, f"step {step} {name}")
+        pending = a_out[2] | a_out[3]
+        ended += int(pending.sum())
+        staggered |= len(set(native.episodes.k.tolist())) > 1
+    assert staggered == (scene == "near")  # near_goal: episodes of 1 to 4 steps, restarted apart
+    assert ended >= 2 * n  # several episodes each, restarted by autoreset
+    singles = [env.unwrapped for env in sync.envs]
+    assert native.shield_steps == sum((env.shield_steps for env in singles), start=type(native.shield_steps)())
+    assert native.no_safe_action_steps == sum(env.no_safe_action_steps for env in singles)  # type: ignore[attr-defined]
+
+
+def test_episodes_end_at_different_steps(near: CompileResult) -> None:
+    """near_goal: some episodes reach the goal before others, so restarts are staggered (and the
+    equivalence test above sees episodes at different samples)."""
+    envs = ScenarioVectorEnv(near, num_envs=8)
+    envs.reset(seed=0)
+    rng = np.random.default_rng(0)
+    samples = set()
+    for _ in range(12):
+        envs.step(rng.integers(9, size=8))
+        samples.add(len(set(envs.episodes.k.tolist())))
+    assert max(samples) > 1
+
+
+def test_seeded_runs_repeat(goal: CompileResult) -> None:
+    def play(seed: int) -> list[np.ndarray]:
+        envs = ScenarioVectorEnv(goal, num_envs=3)
+        envs.reset(seed=seed)
+        envs.action_space.seed(seed)
+        seen = []
+        for _ in range(10):
+            draw = envs.np_random.integers(9, size=3)
+            obs, reward, *_ = envs.step(draw)
+            seen += [draw, obs, reward, envs.action_space.sample()]
+        return seen
+
+    first, again, other = play(3), play(3), play(4)
+    assert all((x == y).all() for x, y in zip(first, again))
+    assert not all((x == y).all() for x, y in zip(first, other))
+
+
+def test_errors(tiny: CompileResult) -> None:
+    with pytest.raises(ValueError, match="num_envs"):
+        ScenarioVectorEnv(tiny, num_envs=0)
+    with pytest.raises(ValueError, match="renders nothing"):
+        ScenarioVectorEnv(tiny, num_envs=2, render_mode="ansi")
+    envs = ScenarioVectorEnv(tiny, num_envs=2)
+    with pytest.raises(RuntimeError, match="reset"):
+        envs.step(np.zeros(2, dtype=int))
+    envs.reset()
+    with pytest.raises(ValueError, match="shape"):
+        envs.step(np.zeros(3, dtype=int))
+    with pytest.raises(ValueError, match="in \\[0, 9\\)"):
+        envs.step(np.array([0, 9]))
+    with pytest.raises(ValueError, match="reset_mask"):
+        envs.reset(options={"reset_mask": np.array([True, False])})
+
+
+# ---------------------------------------------------------------- the benchmark
+def test_the_benchmark_runs(tmp_path: Path) -> None:
+    """benchmarks/vector_env.py --quick writes its table (the speed itself is not asserted)."""
+    from conftest import rac_env
+
+    output = tmp_path / "vector_env.md"
+    benchmark = SRC.parent / "benchmarks" / "vector_env.py"
+    done = subprocess.run([sys.executable, str(benchmark), "--quick", "--seconds", "0.2", "--output", str(output)],
+                          env=rac_env(), capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+    text = output.read_text(encoding="utf-8")
+    rows = [row.split("|")[1:3] for row in text.splitlines() if row.startswith("| Scenario")]
+    assert [(name.strip(), int(n)) for name, n in rows] == [("ScenarioEnv", 1)] + [
+        ("ScenarioVectorEnv", n) for n in (1, 16, 64, 256)]
+    assert "64 episodes: " in text and ("met" in text.splitlines()[-1])
+
+
+def test_the_vector_env_scales_as_scenario_env(near: CompileResult) -> None:
+    plain = ScenarioVectorEnv(near, num_envs=3)
+    scaled = ScenarioVectorEnv(near, num_envs=3, scale=4.0)
+    plain.reset(seed=0)
+    _, info = scaled.reset(seed=0)
+    assert (info["scale"] == 4.0).all()
+    nonzero = 0
+    for step in range(8):
+        actions = np.full(3, step % plain.single_action_space.n)
+        raw = plain.step(actions)[1]
+        reward = scaled.step(actions)[1]
+        assert np.allclose(reward, raw / 4.0)
+        nonzero += int((raw != 0).sum())
+    assert nonzero > 0

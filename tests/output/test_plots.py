@@ -1,0 +1,377 @@
+"""The presentation layer: Fig. 7 and sweep / learning-curve plots, scenario rendering, progress bars."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from rac.output.plots import (
+    atomic_write,
+    below_summary,
+    plot_first_success,
+    plot_learning_curves,
+    plot_runs,
+    plot_sweep,
+    runs_below,
+)
+from rac.output.progress import Progress, explore_callback
+from rac.output.render import RenderError, render_trajectory
+
+LEFT_TURN = Path(__file__).resolve().parents[2] / "examples" / "left_turn" / "left_turn.xml"
+
+
+def _image(path: Path, kind: str) -> Image.Image:
+    image = Image.open(path)
+    image.load()
+    assert image.format == kind
+    return image
+
+
+def _no_leftovers(folder: Path) -> None:
+    assert not [p.name for p in folder.iterdir() if p.name.endswith(".tmp")], "a temporary file was left behind"
+
+
+# ---------------------------------------------------------------- Fig. 7
+def test_runs_below_counts_strictly_below_and_ignores_nan() -> None:
+    values = np.array([
+        [5.0, 1.0, 4.0],     # below
+        [5.0, 3.0, np.nan],  # ended early, never below
+        [2.0, 2.0, 2.0],     # touches the threshold only: not below (mindist() < 3*TD is strict)
+        [np.nan, np.nan, 0.5],
+    ])
+    assert runs_below(values, 2.0).tolist() == [True, False, False, True]
+    assert below_summary(values, 2.0, "3·TD") == "2 of 4 runs below 3·TD"
+    assert runs_below(np.array([3.0, 1.0]), 2.0).tolist() == [True]  # one run as a 1-D array
+
+
+def test_plot_runs_writes_a_png(tmp_path: Path) -> None:
+    rng = np.random.default_rng(7)
+    times = np.arange(50) * 0.1
+    values = 10 + rng.normal(0, 1, (40, 50)).cumsum(axis=1)
+    out = plot_runs(times, values, tmp_path / "fig7.png", threshold=3.0, threshold_label="3·TD", title="test")
+    assert out == tmp_path / "fig7.png"
+    image = _image(out, "PNG")
+    assert image.size == (880, 506) and image.mode == "RGBA"
+    assert below_summary(values, 3.0, "3·TD") == f"{int((values.min(axis=1) < 3).sum())} of 40 runs below 3·TD"
+    _no_leftovers(tmp_path)
+
+
+def test_plot_runs_without_threshold_and_with_per_run_times(tmp_path: Path) -> None:
+    times = np.tile(np.arange(5.0), (3, 1))
+    values = np.array([[1.0, 2, 3, 4, 5], [2, 3, np.nan, np.nan, np.nan], [0, 0, 0, 0, 0]])
+    _image(plot_runs(times, values, tmp_path / "a.png"), "PNG")
+    with pytest.raises(ValueError, match="times has shape"):
+        plot_runs(np.arange(4.0), values, tmp_path / "b.png")
+
+
+def test_atomic_write_replaces_or_leaves_the_old_file(tmp_path: Path) -> None:
+    target = tmp_path / "out.png"
+    target.write_bytes(b"old")
+
+    def fail(file: io.BufferedWriter) -> None:
+        file.write(b"half")
+        raise RuntimeError("disk full")
+
+    with pytest.raises(RuntimeError):
+        atomic_write(target, fail)
+    assert target.read_bytes() == b"old"
+    _no_leftovers(tmp_path)
+    atomic_write(target, lambda file: file.write(b"new"))
+    assert target.read_bytes() == b"new"
+
+
+# ---------------------------------------------------------------- sweep and learning curves
+def test_plot_sweep_writes_a_png(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    rows = [{"exponent": e, "sense": 0.1, "decide": 0.2, "min_distances": rng.normal(e + 1, 1, 20),
+             "threshold": 1.5, "probability": (0.01, 0.2)} for e in (1, 2, 3)]
+    rows.append({"exponent": 4, "sense": 0.2, "decide": 0.4, "min_distances": [np.inf, 5.0], "threshold": 1.5})
+    image = _image(plot_sweep(rows, tmp_path / "sweep.png", threshold_label="3·TD"), "PNG")
+    assert image.width == 935 and image.height > 300
+    with pytest.raises(ValueError, match="no rows"):
+        plot_sweep([], tmp_path / "empty.png")
+
+
+def test_plot_learning_curves_writes_a_png(tmp_path: Path) -> None:
+    rng = np.random.default_rng(2)
+    curves = {"shielded": rng.normal(0, 1, (4, 30)).cumsum(axis=1), "one seed": rng.normal(0, 1, 30)}
+    for band in ("std", "minmax"):
+        image = _image(plot_learning_curves(curves, tmp_path / f"{band}.png", band=band, smooth=3), "PNG")
+        assert image.size == (825, 484)
+    with pytest.raises(ValueError, match="band"):
+        plot_learning_curves(curves, tmp_path / "x.png", band="iqr")  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- progress
+def test_progress_is_silent_when_disabled(capsys: pytest.CaptureFixture[str]) -> None:
+    with Progress(total=10, desc="exploring", enabled=False) as bar:
+        bar.update(3)
+        bar.set_postfix(layer=1)
+        callback = explore_callback(bar)
+        callback(0, 1, 5)
+        callback(1, 4, 9)
+    assert bar.n == 9
+    assert capsys.readouterr() == ("", "")
+
+
+def test_progress_shows_only_on_a_terminal_unless_forced() -> None:
+    pipe = io.StringIO()  # not a TTY
+    with Progress(desc="exploring", file=pipe) as bar:
+        bar.update(5)
+    assert not bar.enabled and pipe.getvalue() == ""
+    forced = io.StringIO()
+    with Progress(desc="exploring", enabled=True, file=forced) as bar:
+        explore_callback(bar)(2, 7, 12)
+    assert bar.n == 12
+    assert "exploring" in forced.getvalue() and "states" in forced.getvalue()
+
+
+# ---------------------------------------------------------------- rendering
+def _straight(samples: int) -> np.ndarray:
+    """The ego driving north at 6 m/s from its start in the left-turn scenario, one sample per 0.1 s."""
+    return np.column_stack([np.full(samples, 1.75), -18 + 0.6 * np.arange(samples), np.full(samples, np.pi / 2),
+                            np.full(samples, 6.0)])  # an extra column (v) is ignored
+
+
+def test_render_trajectory_png_and_gif(tmp_path: Path) -> None:
+    png = render_trajectory(LEFT_TURN, _straight(10), tmp_path / "run.png", gif_path=tmp_path / "run.gif",
+                            max_frames=4, figsize=(4.0, 3.0), dpi=60, title="straight")
+    assert png == tmp_path / "run.png"
+    assert _image(png, "PNG").size == (240, 180)
+    gif = _image(tmp_path / "run.gif", "GIF")
+    assert gif.size == (240, 180)
+    assert gif.n_frames == 4  # samples 0, 3, 6, 9
+    assert gif.info["duration"] == 300  # three samples of 0.1 s per frame
+    _no_leftovers(tmp_path)
+
+
+def test_render_trajectory_at_a_time_step(tmp_path: Path) -> None:
+    png = render_trajectory(LEFT_TURN, _straight(5), tmp_path / "t.png", time_step=40, figsize=(4.0, 3.0), dpi=50)
+    assert _image(png, "PNG").size == (200, 150)
+
+
+def test_render_error_names_a_damaged_file(tmp_path: Path) -> None:
+    damaged = tmp_path / "damaged.xml"
+    data = LEFT_TURN.read_bytes()
+    damaged.write_bytes(data[: len(data) // 2])
+    with pytest.raises(RenderError, match="damaged.xml") as caught:
+        render_trajectory(damaged, _straight(3), tmp_path / "x.png")
+    assert caught.value.path == str(damaged)
+    assert not (tmp_path / "x.png").exists()
+    with pytest.raises(RenderError, match="missing.xml.*cannot be read"):
+        render_trajectory(tmp_path / "missing.xml", _straight(3), tmp_path / "x.png")
+
+
+def test_render_trajectory_rejects_a_malformed_trajectory(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="shape"):
+        render_trajectory(LEFT_TURN, np.zeros((4, 2)), tmp_path / "x.png")
+    with pytest.raises(ValueError, match="non-finite"):
+        render_trajectory(LEFT_TURN, np.full((4, 3), np.nan), tmp_path / "x.png")
+
+
+def test_render_draws_the_chosen_planning_problem(tmp_path: Path) -> None:
+    """A file with two planning problems: the `model` block's `planning_problem` is the one drawn
+    (and its start time the run's); an id the file lacks is a RenderError listing the ids."""
+    from tiny_scenarios import SECOND_PROBLEM_ID, junction_with_two_problems
+
+    junction = tmp_path / "junction.xml"
+    junction.write_bytes(junction_with_two_problems())
+    png = render_trajectory(junction, _straight(3), tmp_path / "one.png", planning_problem=SECOND_PROBLEM_ID,
+                            figsize=(4.0, 3.0), dpi=50)
+    assert _image(png, "PNG").size == (200, 150)
+    with pytest.raises(RenderError, match=r"has no planning problem 999 \(its planning problems: 100, 101\)"):
+        render_trajectory(junction, _straight(3), tmp_path / "x.png", planning_problem=999)
+
+
+# ---------------------------------------------------------------- readable plots
+@pytest.fixture
+def figures(monkeypatch: pytest.MonkeyPatch) -> list:
+    """Every figure the plot functions would save, instead of saving it (no file is written)."""
+    import rac.output.plots as plots
+    import rac.output.render as render
+
+    caught: list = []
+
+    def keep(figure, path, **options):  # type: ignore[no-untyped-def]
+        caught.append(figure)
+        return Path(path)
+
+    monkeypatch.setattr(plots, "save_figure", keep)
+    monkeypatch.setattr(render, "save_figure", keep)
+    return caught
+
+
+def _inside_figure(figure, artist) -> bool:  # type: ignore[no-untyped-def]
+    """Whether ``artist``'s rendered box lies within the figure (Agg renderer, layout solved)."""
+    figure.draw_without_rendering()
+    box = artist.get_window_extent(figure.canvas.get_renderer())
+    room = figure.bbox
+    return room.x0 - 0.5 <= box.x0 and box.x1 <= room.x1 + 0.5 and room.y0 - 0.5 <= box.y0 and box.y1 <= room.y1 + 0.5
+
+
+LONG_NAME = "a_very_long_scenario_file_name_from_an_automated_benchmark_generator_0001_left_turn_variant.ra"
+
+
+def test_long_titles_fit_in_the_figure(figures: list, tmp_path: Path) -> None:
+    """The review's Fig. 7 title was cut at both ends: every title is wrapped or shrunk to fit."""
+    values = 5 + np.random.default_rng(3).normal(0, 1, (20, 40)).cumsum(axis=1)
+    plot_runs(np.arange(40) * 0.1, values, tmp_path / "a.png", threshold=1.5, threshold_label="3 * collision_distance",
+              title=f"{LONG_NAME}: 100 runs under the shield (seed 1641411168)")
+    plot_sweep([{"exponent": 1, "sense": 0.1, "decide": 0.5, "min_distances": [1.0, 2.0], "threshold": 0.5}],
+               tmp_path / "b.png", title=f"pre-analysis of {LONG_NAME}: runs under the shield")
+    plot_learning_curves({"SS&RA": np.ones((2, 5))}, tmp_path / "c.png", title=f"learning curves of {LONG_NAME}")
+    plot_first_success({"SS&RA": [3, None]}, 10, tmp_path / "d.png", title=f"first success in {LONG_NAME}")
+    render_trajectory(LEFT_TURN, _straight(5), tmp_path / "e.png", title=LONG_NAME, figsize=(4.0, 3.0), dpi=60)
+    assert len(figures) == 5
+    for figure in figures:
+        title = figure.axes[0].title
+        assert LONG_NAME[:20] in title.get_text().replace("\n", "")
+        assert _inside_figure(figure, title), title.get_text()
+
+
+def test_a_short_title_is_left_alone(figures: list, tmp_path: Path) -> None:
+    plot_runs(np.arange(3.0), np.ones((2, 3)), tmp_path / "a.png", title="left turn")
+    assert figures[0].axes[0].get_title() == "left turn: 2 runs"
+
+
+def test_a_threshold_of_zero_is_labelled_by_its_expression(figures: list, tmp_path: Path) -> None:
+    from rac.verify.report import plot_series
+
+    times = np.arange(4) * 0.5
+    plot_series(tmp_path / "s.png", times, ["mindist()", "0"], [np.ones((2, 4)), np.zeros((2, 4))], "zero")
+    legend = [text.get_text() for text in figures[0].axes[0].get_legend().get_texts()]
+    assert "0 = 0" in legend and not any("None" in text for text in legend)
+
+
+def test_units_of_model_expressions() -> None:
+    """The y axis of a simulated quantity says its unit, taken from the vocabulary."""
+    from fractions import Fraction
+
+    from rac.ir import expr as ie
+
+    td = ie.model_ref("collision_distance", Fraction(1, 2))
+    assert ie.unit_of(ie.call("mindist")) == "m"
+    assert ie.unit_of(ie.call("dist_goal")) == "m"
+    assert ie.unit_of(ie.Binary("*", ie.Const(Fraction(3)), td)) == "m"
+    assert ie.unit_of(ie.Binary("-", ie.call("mindist"), td)) == "m"
+    assert ie.unit_of(ie.Prev(ie.model_ref("v"))) == "m/s"
+    assert ie.unit_of(ie.call("fabs", ie.model_ref("head"))) == "rad"
+    assert ie.unit_of(ie.model_ref("time")) == "s"
+    assert ie.unit_of(ie.Binary("/", ie.call("mindist"), ie.model_ref("v"))) is None  # m/(m/s): not worked out
+    assert ie.unit_of(ie.Binary("+", ie.call("mindist"), ie.model_ref("v"))) is None  # m + m/s: no unit
+    assert ie.unit_of(ie.call("collide")) is None  # a truth value
+    assert ie.unit_of(ie.Ref(ie.RefKind.INPUT, "speed", ie.NUM, 0)) is None  # the automaton's own: unknown
+
+
+def test_simulate_labels_its_axes_with_units(figures: list, tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """``rac simulate`` and a ``simulate`` query: "mindist() (m)", "time (s)", the threshold in metres."""
+    from engine_files import write_engine_file
+
+    from rac.cli.main import main
+    from rac.compiler import compile_file
+    from rac.verify.context import VerifyOptions
+    from rac.verify.runner import verify
+
+    path = write_engine_file(tmp_path, "avoidable_obstacle")  # with its queries, "Sim" among them
+    assert main(["simulate", str(path), "--runs", "2", "--seed", "1", "--horizon", "1"]) == 0
+    results = verify(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path / "out", only=("Sim",)))
+    assert [r.name for r in results] == ["Sim"]
+    assert len(figures) == 2
+    for figure in figures:
+        axes = figure.axes[0]
+        assert axes.get_ylabel() == "mindist() (m)" and axes.get_xlabel() == "time (s)"
+        legend = [text.get_text() for text in axes.get_legend().get_texts()]
+        assert "3 * collision_distance = 1.5 m" in legend
+
+
+def test_negative_distances_are_explained(figures: list, tmp_path: Path) -> None:
+    """A true distance below 0 is an overlap: the plot says so (only when one is drawn)."""
+    from rac.model.native import NEGATIVE_DISTANCE_TEXT
+
+    times = np.arange(3.0)
+    plot_runs(times, np.array([[2.0, -0.5, 1.0], [3.0, 2.0, 1.0]]), tmp_path / "a.png", threshold=0.5,
+              below_zero=NEGATIVE_DISTANCE_TEXT)
+    plot_runs(times, np.array([[2.0, 0.7, 1.0]]), tmp_path / "b.png", threshold=0.5, below_zero=NEGATIVE_DISTANCE_TEXT)
+    plot_sweep([{"exponent": 1, "sense": 0.1, "decide": 0.5, "min_distances": [-1.0, 2.0], "threshold": 0.5}],
+               tmp_path / "c.png", below_zero=NEGATIVE_DISTANCE_TEXT)
+
+    def legend(figure) -> list[str]:  # type: ignore[no-untyped-def]
+        return [text.get_text() for text in figure.axes[0].get_legend().get_texts()]
+
+    assert "overlap" in NEGATIVE_DISTANCE_TEXT
+    assert NEGATIVE_DISTANCE_TEXT in legend(figures[0])
+    assert NEGATIVE_DISTANCE_TEXT not in legend(figures[1])
+    assert NEGATIVE_DISTANCE_TEXT in legend(figures[2])
+
+
+def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]
+    return line.get_linestyle(), line.get_marker()
+
+
+def test_learning_curves_cannot_hide_each_other(figures: list, tmp_path: Path) -> None:
+    """Four identical curves: each has its own line style and marker; the title says the band once."""
+    curves = {name: np.zeros((3, 50)) for name in ("SS&RA", "SS&RF", "RA", "RF")}
+    plot_learning_curves(curves, tmp_path / "a.png", title="learning curves")
+    plot_first_success({name: [5, None] for name in curves}, 50, tmp_path / "b.png")
+    for figure in figures:
+        lines = [line for line in figure.axes[0].get_lines() if line.get_label() and
+                 not line.get_label().startswith("_")]
+        assert len(lines) == 4
+        styles = [line.get_linestyle() for line in lines]
+        markers = [line.get_marker() for line in lines]
+        assert len(set(styles)) == 4 and len(set(markers)) == 4, (styles, markers)
+        assert all(marker not in ("", "None", None) for marker in markers)
+    assert figures[0].axes[0].get_title() == "learning curves (mean ± sd over seeds)"
+
+
+def test_the_render_legend_names_everything_and_lies_above_the_map(figures: list, tmp_path: Path) -> None:
+    render_trajectory(LEFT_TURN, _straight(20), tmp_path / "r.png", time_step=10)
+    (figure,) = figures
+    ax = figure.axes[0]
+    legends = [*figure.legends, *([ax.get_legend()] if ax.get_legend() else [])]
+    assert len(legends) == 1
+    (legend,) = legends
+    labels = [text.get_text() for text in legend.get_texts()]
+    assert labels[0] == "ego path" and any(label.startswith("ego (4.5 m") for label in labels)
+    assert "obstacles" in labels and "goal region" in labels
+    figure.draw_without_rendering()
+    renderer = figure.canvas.get_renderer()
+    box = legend.get_window_extent(renderer)
+    # outside the map, so no lanelet, obstacle or goal is hidden under it or drawn over it
+    assert box.y1 <= ax.get_window_extent(renderer).y0 + 0.5 or box.x0 >= ax.get_window_extent(renderer).x1 - 0.5
+    if legend in ax.get_children():  # an axes legend must also be drawn after every map artist
+        assert legend.get_zorder() > max(a.get_zorder() for a in ax.get_children() if a is not legend)
+    assert _inside_figure(figure, legend)
+
+
+def test_the_fig7_legend_goes_where_no_run_is(figures: list, tmp_path: Path) -> None:
+    """matplotlib's loc="best" ignores LineCollections: the legend takes the corner with fewest samples."""
+    times = np.arange(20.0)
+    rising = np.tile(np.linspace(0.0, 10.0, 20), (5, 1))  # every run ends in the upper right
+    plot_runs(times, rising, tmp_path / "a.png", threshold=1.0)
+    plot_runs(times, rising[:, ::-1], tmp_path / "b.png", threshold=1.0)  # ... or starts in the upper left
+    assert figures[0].axes[0].get_legend()._loc == 2  # upper left
+    assert figures[1].axes[0].get_legend()._loc == 1  # upper right
+
+
+def test_a_bare_threshold_takes_the_unit_it_is_compared_with(figures: list, tmp_path: Path) -> None:
+    from fractions import Fraction
+
+    from rac.ir import expr as ie
+    from rac.model.native import NEGATIVE_DISTANCE_TEXT
+    from rac.verify.report import plot_series
+
+    distances = np.array([[3.0, -0.2, 1.0]])
+    plot_series(tmp_path / "a.png", np.arange(3.0), ["mindist()", "1.5"], [distances, np.full((1, 3), 1.5)], "t",
+                (ie.call("mindist"), ie.Const(Fraction(3, 2))))
+    plot_series(tmp_path / "b.png", np.arange(3.0), ["mindist() - 1", "v"], [distances, np.ones((1, 3))], "t",
+                (ie.Binary("-", ie.call("mindist"), ie.Const(Fraction(1))), ie.model_ref("v")))
+    first, second = ([text.get_text() for text in figure.axes[0].get_legend().get_texts()] for figure in figures)
+    assert "1.5 = 1.5 m" in first and NEGATIVE_DISTANCE_TEXT in first
+    assert "v = 1 m/s" in second and NEGATIVE_DISTANCE_TEXT not in second  # below 0 is no overlap here
+    assert figures[1].axes[0].get_ylabel() == "mindist() - 1 (m)"

@@ -1,0 +1,375 @@
+"""Every fenced block of README.md and docs/*.md runs, or is compared with what rac really prints
+or writes: a page is followed as a reader would, block by block, in a scratch copy of the project's
+``examples/``, ``stdlib/`` and ``tests/`` folders (so outputs never land in the checkout).
+
+How each block is taken, by its language and the HTML comment on the line before its fence:
+
+- ``ra``: a complete automaton must pass ``rac check`` (or fail with the code of a preceding
+  ``<!-- expect: CODE -->``); ``<!-- file: NAME.ra -->`` also saves it as NAME.ra for the page's
+  later commands. A fragment must parse inside an automaton (``<!-- fragment: model -->``: inside
+  its ``model`` block).
+- ``python``: runs (``python -c``) with the scratch folder as working directory and ``tests/`` on the
+  import path.
+- ``sh``: each command line runs and must exit 0 (a trailing ``# ... exit N`` comment names another
+  status). The README's install and test commands are what CI itself runs; ``python benchmarks/...``
+  lines are benchmarks, run by their own command (docs/benchmarks.md), never by the tests.
+- ``text`` beginning with ``$ COMMAND``: a transcript; the command runs and its output must equal
+  the block's lines (timings and rates masked, table columns about time dropped).
+  ``<!-- compare: the table below -->`` compares the markdown table after the block instead.
+- ``<!-- excerpt of: PATH -->`` / ``<!-- excerpt of output: COMMAND -->``: every run of lines
+  between ``...`` lines appears, in order, in the file (of the checkout, or written by an earlier
+  command of the page) or in the command's output.
+- ``<!-- not run: REASON -->``: shown only (UPPAAL's verifier is closed source; a quoted paper).
+- the ``case``, ``excerpt`` and ``output`` regions of docs/checks.md and docs/diagnostics.md are
+  generated from tests/diagnostics and compared there (tests/check/test_diagnostics.py).
+
+Any other block fails the test: a new block must say how it is checked.
+"""
+
+from __future__ import annotations
+
+import html
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+from test_examples import Block, code_blocks
+
+import rac
+from rac.lang.parser import ParseFailure, parse_text
+
+REPO = Path(__file__).resolve().parents[2]
+PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+#: The folders a page's commands may read, copied into the scratch folder.
+COPIED = ("benchmarks", "examples", "stdlib", "tests")
+
+_ANNOTATION = re.compile(r"^<!--\s*([a-z][a-z ]*?)\s*:\s*(.*?)\s*-->$")
+_REGION_START = re.compile(r"^<!--\s*(case|excerpt|output):")
+_REGION_END = re.compile(r"^<!--\s*end (case|excerpt|output)\s*-->$")
+_EXIT = re.compile(r"#.*\bexit (\d+)\b")
+#: Timings and rates differ from run to run.
+_DURATION = re.compile(r"\b\d[\d,]*(\.\d+)?\s?(ms|s|min)\b")
+_RATE = re.compile(r"\b\d[\d,.]*\s?[kM]?(states|episodes)?/s\b")
+
+
+def _annotation(lines: list[str], fence: int) -> tuple[str, str] | None:
+    """The ``<!-- key: value -->`` on the last non-blank line before the fence (0-based), if any."""
+    k = fence - 1
+    while k >= 0 and not lines[k].strip():
+        k -= 1
+    if k >= 0 and (found := _ANNOTATION.match(lines[k].strip())):
+        return found.group(1), found.group(2)
+    return None
+
+
+def _in_generated_region(lines: list[str], fence: int) -> bool:
+    """Whether the fence lies in a ``case``, ``excerpt`` or ``output`` region (docs/checks.md, docs/diagnostics.md)."""
+    for previous in reversed(lines[:fence]):
+        if _REGION_END.match(previous.strip()):
+            return False
+        if _REGION_START.match(previous.strip()):
+            return True
+    return False
+
+
+def _table_after(lines: list[str], block: Block) -> list[str]:
+    """The markdown table that follows ``block``'s closing fence (blank lines before it skipped)."""
+    k = block.line  # 0-based index of the first line after the opening fence
+    while not lines[k].strip().startswith("```"):
+        k += 1
+    k += 1
+    while k < len(lines) and not lines[k].strip():
+        k += 1
+    table = []
+    while k < len(lines) and lines[k].startswith("|"):
+        table.append(lines[k])
+        k += 1
+    return table
+
+
+def normalised(text: str) -> list[str]:
+    """Lines with timings and rates masked, spaces collapsed, and table columns about time dropped."""
+    result: list[str] = []
+    timing_columns: set[int] = set()
+    for line in text.splitlines():
+        line = line.rstrip()
+        if line.startswith("|"):
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            if any("time" in c for c in cells):
+                timing_columns = {i for i, c in enumerate(cells) if "time" in c}
+            line = "|".join(c for i, c in enumerate(cells) if i not in timing_columns)
+        line = _RATE.sub("R/s", _DURATION.sub("T", line))
+        result.append(" ".join(line.split()))
+    while result and not result[-1]:
+        result.pop()
+    return result
+
+
+def _flat_xml(text: str) -> list[str]:
+    """XML as one line without layout: coordinates, nails, transition ids and the space between tags dropped."""
+    text = re.sub(r'\s(x|y)="-?\d+"', "", text)
+    text = re.sub(r"<nail\s*/>", "", text)
+    text = re.sub(r'<transition id="\w+"', "<transition", text)
+    return ["".join(line.strip() for line in text.splitlines())]
+
+
+def contains_excerpt(source: str, excerpt: str, *, xml: bool = False) -> str | None:
+    """None when every run of ``excerpt``'s lines between ``...`` lines appears, in order, as
+    consecutive lines of ``source`` (both :func:`normalised`, XML entities read; ``xml``: as one
+    line each, without layout); else the first run that does not."""
+    have = [line for line in normalised(html.unescape(source)) if line]
+    chunks: list[list[str]] = [[]]
+    for line in normalised(html.unescape(excerpt)):
+        if line in ("...", "…"):
+            chunks.append([])
+        elif line:
+            chunks[-1].append(line)
+    if xml:
+        have = _flat_xml("\n".join(have))
+        chunks = [_flat_xml("\n".join(chunk)) for chunk in chunks]
+    position = 0
+    for chunk in filter(lambda c: any(c), chunks):
+        if xml:  # within the one line: a substring, after the previous one
+            found = have[0].find(chunk[0], position)
+            if found < 0:
+                return chunk[0]
+            position = found + len(chunk[0])
+            continue
+        found = next((i for i in range(position, len(have) - len(chunk) + 1) if have[i:i + len(chunk)] == chunk), None)
+        if found is None:
+            return "\n".join(chunk)
+        position = found + len(chunk)
+    return None
+
+
+@dataclass
+class Reader:
+    """Follows one page in a scratch folder, collecting what does not hold."""
+
+    page: Path
+    scratch: Path
+    problems: list[str] = field(default_factory=list)
+    #: What each command printed: a page that runs a command twice (a list of commands, then its
+    #: transcript) runs it once.
+    ran: dict[str, subprocess.CompletedProcess[str]] = field(default_factory=dict)
+
+    def env(self) -> dict[str, str]:
+        rac_parent = str(Path(rac.__file__).resolve().parent.parent)
+        return {**os.environ, "PYTHONPATH": os.pathsep.join([rac_parent, str(self.scratch / "tests"),
+                                                             str(self.scratch / "tests" / "support")]),
+                "PYTHONIOENCODING": "utf-8", "COLUMNS": "100"}
+
+    def run(self, command: str, block: Block, *, again: bool = False) -> subprocess.CompletedProcess[str] | None:
+        """One command line as a reader types it (``rac`` and ``python`` are this Python's); a command
+        the page ran before is not run twice unless ``again`` (its input changed)."""
+        words = shlex.split(command, comments=True)
+        key = " ".join(words)
+        if key in self.ran and not again:
+            return self.ran[key]
+        if words[0] == "rac":
+            words = [sys.executable, "-m", "rac", *words[1:]]
+        elif words[0] in ("python", "python3"):
+            words = [sys.executable, *words[1:]]
+        else:
+            self.problems.append(f"{block.id}: `{words[0]}` is not a command the docs' tests can run "
+                                 "(mark the block <!-- not run: why -->)")
+            return None
+        self.ran[key] = subprocess.run(words, cwd=self.scratch, env=self.env(), capture_output=True, text=True,
+                                       timeout=600)
+        return self.ran[key]
+
+    def fail(self, block: Block, message: str) -> None:
+        self.problems.append(f"{block.id}: {message}")
+
+    # ------------------------------------------------------------ by kind
+    def ra(self, block: Block, note: tuple[str, str] | None) -> None:
+        if note is not None and note[0] == "file":
+            (self.scratch / note[1]).write_text(block.text, encoding="utf-8")
+        code = re.sub(r"//[^\n]*|/\*.*?\*/", "", block.text, flags=re.S).lstrip()
+        if not code.startswith("automaton"):
+            inner = f"model {{\n{block.text}\n}}\n" if note == ("fragment", "model") else block.text
+            try:
+                parse_text(f"automaton Fragment {{\n{inner}\n}}\n", "<fragment>")
+            except ParseFailure as exc:
+                self.fail(block, f"the fragment does not parse: {exc}")
+            return
+        path = self.scratch / (note[1] if note is not None and note[0] == "file" else "block.ra")
+        path.write_text(block.text, encoding="utf-8")
+        checked = self.run(f"rac check {shlex.quote(str(path))}", block, again=True)
+        assert checked is not None
+        expect = note[1] if note is not None and note[0] == "expect" else None
+        report = checked.stdout + checked.stderr
+        if expect is None and checked.returncode != 0:
+            self.fail(block, f"should pass `rac check`:\n{report}")
+        elif expect is not None and (f"[{expect}]" not in report
+                                     or checked.returncode != (0 if expect.startswith("W") else 1)):
+            self.fail(block, f"should report {expect}:\n{report}")
+
+    def python(self, block: Block) -> None:
+        result = subprocess.run([sys.executable, "-c", block.text], cwd=self.scratch, env=self.env(),
+                                capture_output=True, text=True, timeout=600)
+        if result.returncode != 0:
+            self.fail(block, f"the Python block failed:\n{result.stdout}\n{result.stderr}")
+
+    def sh(self, block: Block) -> None:
+        for line in block.text.splitlines():
+            if not line.strip() or line.lstrip().startswith("#"):
+                continue
+            if line.startswith("python benchmarks/"):
+                continue  # a benchmark: its own command runs it (docs/benchmarks.md)
+            if line.startswith("verifyta "):
+                continue  # UPPAAL's verifier is closed source: tests/targets/test_utap.py parses rac's files
+            result = self.run(line, block)
+            want = int(found.group(1)) if (found := _EXIT.search(line)) else 0
+            if result is not None and result.returncode != want:
+                self.fail(block, f"`{line}` exited {result.returncode}, not {want}:\n{result.stdout}\n{result.stderr}")
+
+    def transcript(self, block: Block, note: tuple[str, str] | None, lines: list[str]) -> None:
+        text = block.text.splitlines()
+        command = text[0][2:]
+        result = self.run(command, block)
+        if result is None:
+            return
+        expected = "\n".join(text[1:])
+        if note == ("compare", "the table below"):
+            expected = "\n".join(_table_after(lines, block))
+            got = normalised("\n".join(line for line in result.stdout.splitlines() if line.startswith("|")))
+            if got != normalised(expected):
+                self.fail(block, f"`{command}` prints another table:\n" + "\n".join(got))
+            return
+        if normalised(result.stdout + result.stderr) != normalised(expected):
+            self.fail(block, f"`{command}` printed:\n{result.stdout}{result.stderr}")
+
+    def excerpt(self, block: Block, source: str) -> None:
+        if source.startswith("output: ") or source.startswith("$ "):
+            command = source.split(" ", 1)[1]
+            result = self.run(command, block)
+            if result is None:
+                return
+            text = result.stdout + result.stderr
+        else:
+            path = self.scratch / source if (self.scratch / source).exists() else REPO / source
+            if not path.exists():
+                self.fail(block, f"the excerpt's source {source} does not exist")
+                return
+            text = path.read_text(encoding="utf-8")
+            if path.suffix == ".xml" and block.language != "xml":  # code from a model's declarations
+                text = re.sub(r"<[^>]+>", "", text)  # before the entities are read: `&lt;` is code
+        shown = block.text
+        if shown.startswith("$ "):  # the command is the annotation's
+            shown = shown.split("\n", 1)[1]
+        missing = contains_excerpt(text, shown, xml=block.language == "xml")
+        if missing is not None:
+            self.fail(block, f"not in {source}:\n{missing}")
+
+    def read(self) -> None:
+        lines = self.page.read_text(encoding="utf-8").splitlines()
+        for block in code_blocks(self.page):
+            fence = block.line - 1
+            if _in_generated_region(lines, fence):
+                continue
+            note = _annotation(lines, fence)
+            key = note[0] if note else None
+            if key == "not run":
+                if not note or not note[1]:
+                    self.fail(block, "`not run` needs a reason")
+                continue
+            if key == "excerpt of":
+                assert note is not None
+                self.excerpt(block, note[1])
+            elif key == "excerpt of output":
+                assert note is not None
+                self.excerpt(block, "output: " + note[1])
+            elif block.language == "ra":
+                self.ra(block, note)
+            elif block.language == "python":
+                self.python(block)
+            elif block.language == "sh":
+                self.sh(block)
+            elif block.text.startswith("$ "):
+                self.transcript(block, note, lines)
+            else:
+                self.fail(block, f"a `{block.language}` block that nothing checks: run it, or mark it <!-- "
+                                 "excerpt of: PATH -->, <!-- excerpt of output: COMMAND --> or <!-- not run: why -->")
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(REPO)))
+def test_page_blocks_hold(page: Path, tmp_path: Path) -> None:
+    for name in COPIED:
+        shutil.copytree(REPO / name, tmp_path / name, ignore=shutil.ignore_patterns("*.out", "__pycache__",
+                                                                                    ".hypothesis", "golden"))
+    reader = Reader(page, tmp_path)
+    reader.read()
+    assert not reader.problems, "\n\n".join(reader.problems)
+
+
+# ---------------------------------------------------------------- links between the pages
+#: A markdown link to a page of the checkout (not a URL), with its anchor if any.
+_LOCAL_LINK = re.compile(r"\]\((?![a-z]+:)(?P<path>[^)#\s]*)(?:#(?P<anchor>[^)\s]+))?\)")
+
+
+def slug(heading: str) -> str:
+    """GitHub's anchor for a heading: lower case, punctuation dropped, spaces as ``-``."""
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading).strip().lower()
+    return re.sub(r"[^\w\- ]", "", text).replace(" ", "-")
+
+
+def anchors(page: Path) -> set[str]:
+    """The anchors of a page: its headings' (outside code blocks, numbered when repeated) and its ``<a id>``s."""
+    text = re.sub(r"^\s*```.*?^\s*```", "", page.read_text(encoding="utf-8"), flags=re.S | re.M)
+    found: set[str] = set(re.findall(r'<a id="([^"]+)"', text))
+    for heading in re.findall(r"^#{1,6} (.+)$", text, re.M):
+        base = slug(heading)
+        name, n = base, 0
+        while name in found:
+            n += 1
+            name = f"{base}-{n}"
+        found.add(name)
+    return found
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(REPO)))
+def test_links_reach_their_anchor(page: Path) -> None:
+    """Every link to a page of the checkout names a file that exists, and an anchor the page has
+    (a diagnostic code's section: ``diagnostics.md#e0402``)."""
+    text = re.sub(r"^\s*```.*?^\s*```", "", page.read_text(encoding="utf-8"), flags=re.S | re.M)
+    text = re.sub(r"`[^`\n]*`", "", text)  # code: `Pr[<=30](...)` is no link
+    broken = []
+    for match in _LOCAL_LINK.finditer(text):
+        target = (page.parent / match["path"]).resolve() if match["path"] else page
+        if not target.exists():
+            broken.append(f"{match['path']}: no such file")
+        elif match["anchor"] and target.suffix == ".md" and match["anchor"] not in anchors(target):
+            broken.append(f"{match['path'] or page.name}#{match['anchor']}: no such anchor")
+    assert not broken, f"{page.relative_to(REPO)}: broken links:\n" + "\n".join(broken)
+
+
+def test_anchors_follow_github() -> None:
+    assert slug("E0714 — ego start outside the model's limits") == "e0714--ego-start-outside-the-models-limits"
+    assert slug("Input classes: why the checks are exact") == "input-classes-why-the-checks-are-exact"
+    assert slug("`assume` excludes every input valuation") == "assume-excludes-every-input-valuation"
+
+
+# ---------------------------------------------------------------- the comparisons themselves
+def test_excerpts_need_their_lines_in_order() -> None:
+    source = "a\n  b  c\nd\ne\nf\n"
+    assert contains_excerpt(source, "b c\nd\n...\nf\n") is None
+    assert contains_excerpt(source, "d\n...\nb c\n") == "b c"  # out of order
+    assert contains_excerpt(source, "a\nd\n") == "a\nd"  # not consecutive
+    assert contains_excerpt("x &lt; 1 &amp;&amp; y\n", "x < 1 && y\n") is None
+    layout = '<a>\n  <b x="1" y="-2">one</b>\n  <c/>\n  <transition id="id3"><d/></transition>\n</a>\n'
+    assert contains_excerpt(layout, "<a><b>one</b>\n...\n<transition><d/>", xml=True) is None
+    assert contains_excerpt(layout, "<a><b>one</b><transition>", xml=True) == "<a><b>one</b><transition>"
+
+
+def test_transcripts_mask_timings_and_time_columns() -> None:
+    assert normalised("Qd: 1,392,461 states, 3.32 s (412 k/s)\n") == ["Qd: 1,392,461 states, T (R/s)"]
+    table = "| a | time (s) | b |\n| --- | --- | --- |\n| 1 | 0.28 | 53,152 |\n"
+    assert normalised(table) == ["a|b", "---|---", "1|53,152"]
+    assert normalised(table) != normalised(table.replace("53,152", "65,127"))

@@ -1,0 +1,141 @@
+"""Loaded automata as values: copies are independent, pickles cross process boundaries, ``rac.loads``
+checks its arguments and the size of its text like a file's."""
+
+from __future__ import annotations
+
+import copy
+import multiprocessing
+import pickle
+import struct
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pytest
+from driving_ir import inputs
+
+import rac
+from rac.core.source import MAX_SOURCE_BYTES
+from rac.runtime.batch import BatchRewardAutomaton
+from rac.runtime.interpreter import RewardAutomaton
+
+DRIVING = Path(__file__).parents[2] / "stdlib" / "driving.ra"
+#: Unsafe (PENALTY), a held numeric input, an end bonus: every kind of state a run carries.
+#: spawn: the worker starts from nothing, so the automaton must arrive whole in the pickle
+#: (fork would let it inherit the parent's memory).
+SPAWN = multiprocessing.get_context("spawn")
+TRACE = [inputs(), inputs(comf=False), inputs(is_close=True), inputs(prog=False, dgoal=1.0), inputs()]
+
+
+def bits(value: float) -> bytes:
+    return struct.pack("<d", value)
+
+
+def state(ra: RewardAutomaton) -> tuple[object, ...]:
+    return (ra.location, list(map(bits, ra.rewards.values())), bits(ra.objective), ra.samples, ra.ended)
+
+
+def run(ra: RewardAutomaton, trace: list[dict[str, object]]) -> list[bytes]:
+    return [bits(ra.step(x)) for x in trace] + [bits(ra.end(inputs(dgoal=1.0)))]
+
+
+@pytest.mark.parametrize("duplicate", [copy.copy, copy.deepcopy, lambda ra: pickle.loads(pickle.dumps(ra))])
+def test_a_copy_mid_run_is_independent_and_continues_alike(duplicate: object) -> None:
+    original = rac.load(DRIVING)
+    for x in TRACE[:3]:
+        original.step(x)
+    twin = duplicate(original)  # type: ignore[operator]
+    assert type(twin) is RewardAutomaton and state(twin) == state(original)
+    reference = rac.load(DRIVING)
+    for x in TRACE[:3]:
+        reference.step(x)
+    # the copy runs on; the original must not see it, and both continue exactly as an uncopied run
+    assert run(twin, TRACE[3:]) == run(reference, TRACE[3:])
+    fresh = rac.load(DRIVING)
+    for x in TRACE[:3]:
+        fresh.step(x)
+    assert state(original) == state(fresh)
+    assert run(original, TRACE[3:]) == run(fresh, TRACE[3:])
+
+
+def test_a_copy_keeps_its_own_clip_counts() -> None:
+    original = rac.load(DRIVING)
+    original.step(inputs(dgoal=600.0), clip=True)
+    twin = copy.copy(original)
+    twin.step(inputs(), clip=True)
+    assert original.clipped == {"dgoal": 1} and twin.clipped == {"dgoal": 0}
+
+
+def _step_in_worker(ra: RewardAutomaton) -> tuple[list[bytes], RewardAutomaton]:
+    return run(ra, TRACE[3:]), ra
+
+
+def test_a_pickled_automaton_steps_in_another_process() -> None:
+    ra = rac.load(DRIVING)
+    for x in TRACE[:3]:
+        ra.step(x)
+    expected = run(copy.copy(ra), TRACE[3:])
+    with ProcessPoolExecutor(max_workers=1, mp_context=SPAWN) as pool:
+        rewards, back = pool.submit(_step_in_worker, ra).result(timeout=120)
+    assert rewards == expected
+    assert back.ended and back.samples == len(TRACE) and not ra.ended
+
+
+def _batch_in_worker(batch: BatchRewardAutomaton) -> np.ndarray:
+    return batch.step_batch({k: np.full(len(batch), v) for k, v in inputs(is_close=True).items()})
+
+
+def test_a_batch_pickles_copies_and_steps_in_another_process() -> None:
+    batch = rac.load(DRIVING).batch(3)
+    batch.step_batch({k: np.full(3, v) for k, v in inputs().items()})
+    twin = copy.copy(batch)
+    twin.step_batch({k: np.full(3, v) for k, v in inputs(is_close=True).items()})
+    assert (batch.samples == 1).all() and (twin.samples == 2).all()  # the copy has its own arrays
+    with ProcessPoolExecutor(max_workers=1, mp_context=SPAWN) as pool:
+        remote = pool.submit(_batch_in_worker, pickle.loads(pickle.dumps(batch))).result(timeout=120)
+    local = batch.step_batch({k: np.full(3, v) for k, v in inputs(is_close=True).items()})
+    assert remote.tobytes() == local.tobytes()
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    ((DRIVING.read_text(encoding="utf-8"), None), r"name must be a str, not NoneType"),
+    ((None,), r"text must be a str, not NoneType"),
+    ((b"automaton A {}",), r"text must be a str, not bytes"),
+])
+def test_loads_refuses_arguments_that_are_not_text(args: tuple[object, ...], message: str) -> None:
+    with pytest.raises(TypeError, match=message):
+        rac.loads(*args)  # type: ignore[arg-type]
+
+
+def test_loads_has_the_size_limit_of_files() -> None:
+    text = DRIVING.read_text(encoding="utf-8")
+    room = MAX_SOURCE_BYTES - len(text.encode("utf-8")) - len("//")
+    big = text + "//" + "x" * (room + 1)  # one byte over
+    with pytest.raises(rac.CheckError) as caught:
+        rac.loads(big)
+    (diagnostic,) = caught.value.diagnostics
+    assert diagnostic.code == "E0005"
+    assert diagnostic.message == f"source text is too large ({MAX_SOURCE_BYTES + 1:,} bytes; at most 1,000,000)"
+    wide = text + "//" + "é" * (room // 2 + 1)  # fewer characters than the limit, more bytes
+    assert [d.code for d in rac.compile_text(wide).diagnostics] == ["E0005"]
+    assert rac.compile_text(text, DRIVING).sources.keys() == {str(DRIVING)}  # a path names text too
+    at_limit = text + "//" + "é" * (room // 2)  # two bytes each: at most the limit in bytes
+    assert rac.loads(at_limit).name == "Driving"
+
+
+@pytest.mark.parametrize("where", ["in a comment", "between tokens", "at the end"])
+def test_loads_refuses_a_nul_byte_as_a_file_does(tmp_path: Path, where: str) -> None:
+    """A NUL character is E0004 in a string as in a file (not a syntax error, nor anything else),
+    at the NUL's position."""
+    text = DRIVING.read_text(encoding="utf-8")
+    at = {"in a comment": text.index("//") + 2, "between tokens": text.index("{") + 1, "at the end": len(text)}[where]
+    bad = text[:at] + "\x00" + text[at:]
+    with pytest.raises(rac.CheckError) as caught:
+        rac.loads(bad)
+    (diagnostic,) = caught.value.diagnostics
+    assert diagnostic.code == "E0004" and "NUL" in diagnostic.message
+    assert diagnostic.span is not None and diagnostic.span.start == at
+    path = tmp_path / "nul.ra"
+    path.write_text(bad, encoding="utf-8")
+    (from_file,) = rac.compile_file(path).diagnostics
+    assert from_file.span is not None and (from_file.code, from_file.span.start) == ("E0004", at)

@@ -1,0 +1,56 @@
+"""The paper's pre-analysis finding on the left-turn example (issue 4, item 8; docs/verify.md).
+
+Under the safety shield, a coarse number representation or a long sensing period lets the *true*
+distance to a car drop below the collision distance; exponent 4 with a 0.1 s period does not.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rac.compiler import compile_file
+from rac.studies.preanalysis import render_table, sweep
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "left_turn" / "preanalysis.ra"
+
+
+@pytest.fixture(scope="module")
+def rows() -> list[dict[str, object]]:
+    result = compile_file(EXAMPLE)
+    assert result.ok, result.diagnostics
+    return sweep(result, exponents="1,4", senses="0.1,0.5", runs=100, seed=1)
+
+
+def row(rows: list[dict[str, object]], exponent: int, sense: float) -> dict[str, object]:
+    return next(r for r in rows if r.get("exponent") == exponent and r.get("sense") == sense)
+
+
+def test_the_fine_setting_keeps_every_run_clear_of_the_cars(rows: list[dict[str, object]]) -> None:
+    fine = row(rows, 4, 0.1)
+    assert fine["qb"] is True and fine["qd"] is True
+    assert fine["below"] == 0
+    assert min(fine["true_min"]) >= 0.5  # type: ignore[type-var, arg-type]
+    assert fine["qa"][1] < 0.05  # type: ignore[index]  # the sensed x stays within THD of the truth
+
+
+def test_a_coarse_representation_collides_under_the_shield(rows: list[dict[str, object]]) -> None:
+    coarse = row(rows, 1, 0.1)
+    assert coarse["qd"] is True  # the shield exists on the coarse model ...
+    assert coarse["below"] >= 20  # type: ignore[operator]  # ... yet many runs truly collide
+    assert coarse["qa"][0] > 0.9  # type: ignore[index]  # the sensed x drifts from the truth
+
+
+def test_a_long_sensing_period_misses_close_encounters(rows: list[dict[str, object]]) -> None:
+    slow = row(rows, 4, 0.5)
+    assert slow["qd"] is True
+    assert slow["below"] >= 3  # type: ignore[operator]
+    # the sensed distance, all the shield sees, never drops below the collision distance
+    assert min(slow["sensed_min"]) >= 0.5  # type: ignore[type-var, arg-type]
+
+
+def test_the_table_has_a_row_per_setting(rows: list[dict[str, object]]) -> None:
+    table = render_table(rows)
+    assert table.count("\n| 1 |") + table.count("\n| 4 |") == 4
+    assert "0 of 100" in table

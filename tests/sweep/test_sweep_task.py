@@ -1,0 +1,405 @@
+"""One task of ``rac sweep`` (issue 13): the template instantiated per scenario and grid point
+(:mod:`rac.sweep.template`), the grid and scenario expansion (:mod:`rac.sweep.grid`), and
+:func:`rac.sweep.task.run_task`, which runs one task in a child process and returns its row.
+
+The scenarios are built here with commonroad-io (:mod:`tiny_scenarios`, :mod:`rac.model.scenes`);
+the template is the engine test file of :mod:`engine_files` with two queries. The rows of one batch
+of tasks are computed once (two at a time, as two Dask workers would) and checked by several tests.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+import sweep_helpers
+from conftest import rac_env
+from engine_files import engine_source
+from tiny_scenarios import TINY_SCENARIOS
+
+from rac.compiler import compile_file, compile_text
+from rac.model.scenes import write_scene
+from rac.sweep.grid import grid_points, parse_set, scenario_files
+from rac.sweep.task import TASKS, TaskSpec, run_task
+from rac.sweep.template import check_template, instantiate
+
+QUERIES = {"Stays": "E[] !collide() && !offroad()", "Reaches": "E<> !collide() && !offroad() && goal()"}
+#: Every key a row has, whatever happened (the interface with the Dask half).
+ROW_KEYS = {"key", "scenario", "scenario_name", "settings", "task", "status", "error", "seconds", "peak_memory",
+            "states", "scenario_size", "verdicts", "diagnostics", "details"}
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``template/sweep.ra`` (its own scenario file is never used) and ``scenarios/``: three tiny roads,
+    the highway scene (its ego starts at 20 m/s, above the template's `max_speed 10`: the check fails)
+    and a broken XML file."""
+    root = tmp_path_factory.mktemp("sweep")
+    (root / "template").mkdir()
+    (root / "template" / "sweep.ra").write_text(engine_source(TINY_SCENARIOS["goal_ahead"](), QUERIES,
+                                                              scenario_file="placeholder.xml"), encoding="utf-8")
+    scenarios = root / "scenarios"
+    (scenarios / "more").mkdir(parents=True)
+    for name in ("goal_ahead", "narrow_road"):
+        TINY_SCENARIOS[name]().write(scenarios / f"{name}.xml")
+    TINY_SCENARIOS["avoidable_obstacle"]().write(scenarios / "more" / "avoidable_obstacle.xml")
+    write_scene("highway", scenarios / "highway.xml")
+    (scenarios / "broken.xml").write_text("<commonRoad><lanelet id='1'>", encoding="utf-8")
+    (scenarios / "notes.txt").write_text("not a scenario", encoding="utf-8")
+    return root
+
+
+def spec(folder: Path, scenario: str, task: str = "verify", settings: tuple[tuple[str, str], ...] = (),
+         **kw) -> TaskSpec:
+    template = folder / "template" / "sweep.ra"
+    return TaskSpec(str(template), template.read_text(encoding="utf-8"), str(folder / "scenarios" / scenario),
+                    settings, task, **kw)
+
+
+#: The batch whose rows the tests below read: name -> the task.
+BATCH = {
+    "check": ("goal_ahead.xml", "check", ()),
+    "ok": ("goal_ahead.xml", "verify", ()),
+    "unsafe": ("narrow_road.xml", "verify", ()),
+    "nested": ("more/avoidable_obstacle.xml", "verify", ()),
+    "highway": ("highway.xml", "verify", ()),
+    "highway_check": ("highway.xml", "check", ()),
+    "broken": ("broken.xml", "verify", ()),
+    "missing": ("no_such_file.xml", "verify", ()),
+    "decide": ("goal_ahead.xml", "verify", (("decide_period", "0.75"),)),
+    "exponent7": ("goal_ahead.xml", "check", (("exponent", "7"),)),
+    "exponent1": ("goal_ahead.xml", "verify", (("exponent", "1"), ("dynamics", "increments"))),
+    "preanalyse": ("avoidable_obstacle.xml", "preanalyse", ()),
+    "experiment": ("goal_ahead.xml", "experiment", ()),
+}
+OPTIONS = {"preanalyse": (("runs", "5"), ("seed", "3")),
+           "experiment": (("seeds", "1"), ("episodes", "20"), ("runs", "5"), ("reward_function", "goal()"))}
+
+
+@pytest.fixture(scope="module")
+def rows(folder: Path) -> dict[str, dict[str, object]]:
+    # avoidable_obstacle.xml is also written at the top for preanalyse (a path of its own)
+    TINY_SCENARIOS["avoidable_obstacle"]().write(folder / "scenarios" / "avoidable_obstacle.xml")
+    specs = {name: spec(folder, scenario, task, settings, options=OPTIONS.get(task, ()), timeout=120)
+             for name, (scenario, task, settings) in BATCH.items()}
+    with ThreadPoolExecutor(2) as pool:  # two at a time, as two Dask workers would
+        results = dict(zip(specs, pool.map(run_task, specs.values())))
+    for name, row in results.items():
+        assert set(row) >= ROW_KEYS, name
+        json.dumps(row)  # JSON-serialisable
+        assert row["key"] == specs[name].key()
+    return results
+
+
+# ---------------------------------------------------------------- the rows
+def test_check_row(rows: dict[str, dict[str, object]], folder: Path) -> None:
+    row = rows["check"]
+    assert row["status"] == "ok", row
+    assert row["error"] is None and row["verdicts"] == {} and row["details"] is None
+    assert row["task"] == "check" and row["settings"] == {}
+    assert row["scenario"] == str(folder / "scenarios" / "goal_ahead.xml") and row["scenario_name"] == "goal_ahead"
+    assert row["scenario_size"] == 1  # one lanelet, no obstacle
+    assert isinstance(row["seconds"], float) and row["seconds"] > 0
+    assert isinstance(row["peak_memory"], int) and row["peak_memory"] > 10 * 2**20
+
+
+def test_verify_rows_give_each_query_its_verdict(rows: dict[str, dict[str, object]]) -> None:
+    ok, unsafe, nested = rows["ok"], rows["unsafe"], rows["nested"]
+    assert ok["status"] == "ok" and ok["error"] is None, ok
+    assert ok["verdicts"] == {"Stays": "satisfied", "Reaches": "satisfied"}
+    assert isinstance(ok["states"], int) and ok["states"] > 100
+    # the narrow road: every state is off the road (tiny_scenarios.narrow_road)
+    assert unsafe["status"] == "failed", unsafe
+    assert unsafe["verdicts"] == {"Stays": "not satisfied", "Reaches": "not satisfied"}
+    assert "Stays" in str(unsafe["error"])
+    # the parked van: it stays safe by braking (tiny_scenarios.avoidable_obstacle); read literally, a run
+    # that collides with it and then stands in the goal satisfies Reaches
+    assert nested["status"] == "ok" and nested["verdicts"] == {"Stays": "satisfied", "Reaches": "satisfied"}
+    assert nested["scenario_size"] == 2 and nested["scenario_name"] == "avoidable_obstacle"
+
+
+def test_a_scenario_the_check_refuses_fails_with_its_diagnostics(rows: dict[str, dict[str, object]]) -> None:
+    for name in ("highway", "highway_check"):
+        row = rows[name]
+        assert row["status"] == "failed", row
+        assert any(d.startswith("E0714 ") for d in row["diagnostics"]), row["diagnostics"]  # type: ignore[union-attr]
+        assert str(row["error"]).startswith("E0714 ")
+        assert row["verdicts"] == {}
+        assert row["scenario_size"] == 3 + 3  # three lanes, three cars: the scenario was read
+
+
+def test_broken_and_missing_scenarios_are_error_rows(rows: dict[str, dict[str, object]]) -> None:
+    broken, missing = rows["broken"], rows["missing"]
+    assert broken["status"] == "error" and "cannot load the scenario" in str(broken["error"]), broken
+    assert broken["scenario_size"] is None and broken["verdicts"] == {}
+    assert missing["status"] == "error" and "no_such_file.xml" in str(missing["error"]), missing
+    assert missing["key"] and missing["scenario_name"] == "no_such_file"
+
+
+def test_a_setting_the_check_refuses_fails_that_task_only(rows: dict[str, dict[str, object]]) -> None:
+    decide = rows["decide"]
+    assert decide["status"] == "failed" and decide["settings"] == {"decide_period": "0.75"}
+    assert any(d.startswith("E0703 ") for d in decide["diagnostics"]), decide  # type: ignore[union-attr]
+    exponent = rows["exponent7"]
+    assert exponent["status"] == "failed"
+    assert any(d.startswith("E0702 ") and "found 7" in d for d in exponent["diagnostics"]), exponent  # type: ignore
+    assert rows["exponent1"]["status"] == "ok", rows["exponent1"]
+    assert rows["exponent1"]["settings"] == {"exponent": "1", "dynamics": "increments"}
+
+
+def test_preanalyse_row_holds_the_preanalysis_row(rows: dict[str, dict[str, object]]) -> None:
+    row = rows["preanalyse"]
+    assert row["status"] == "ok", row
+    details = row["details"]
+    assert isinstance(details, list) and len(details) == 1
+    assert details[0]["exponent"] == 2 and details[0]["qb"] is True and details[0]["qc"] is False
+    assert details[0]["seed"] == 3
+    assert row["verdicts"] == {"Qb": "satisfied", "Qc": "not satisfied", "Qd": "satisfied"}
+    assert row["states"] == details[0]["states"]
+
+
+def test_experiment_row_holds_the_summary_table(rows: dict[str, dict[str, object]]) -> None:
+    row = rows["experiment"]
+    assert row["status"] == "ok", row
+    details = row["details"]
+    assert isinstance(details, list)
+    assert [d["combination"] for d in details] == ["SS&RA", "SS&RF", "RA", "RF"]
+    assert all(d["seeds"] == 1 and d["episodes"] == [20] for d in details)
+
+
+def test_tasks_write_no_files(rows: dict[str, dict[str, object]], folder: Path) -> None:
+    assert not list(folder.rglob("*.out")), "a task wrote beside the template or a scenario"
+    assert sorted(p.name for p in (folder / "template").iterdir()) == ["sweep.ra"]
+
+
+# ---------------------------------------------------------------- limits
+def _marked(mark: str) -> list[int]:
+    """The processes whose environment holds ``mark``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            if entry.name.isdigit() and mark.encode() in (entry / "environ").read_bytes():
+                found.append(int(entry.name))
+        except OSError:  # gone, or not ours
+            pass
+    return found
+
+
+def test_a_task_past_its_timeout_is_a_timeout_row(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    mark = f"RAC_SWEEP_TEST_MARK_{os.getpid()}"
+    monkeypatch.setenv(mark, "1")  # the child inherits it: what is left of the task can be found
+    row = run_task(spec(folder, "goal_ahead.xml", timeout=0.3))
+    assert row["status"] == "timeout", row
+    assert "0.3 s" in str(row["error"])
+    assert 0.3 <= row["seconds"] < 10  # type: ignore[operator]
+    assert row["verdicts"] == {} and set(row) >= ROW_KEYS
+    assert _marked(mark) == [], "the task's process outlived its timeout"
+
+
+def test_the_task_leaves_with_its_worker(folder: Path) -> None:
+    """A worker that dies (Dask reruns its task elsewhere) takes its task's process along."""
+    mark = f"RAC_SWEEP_WORKER_MARK_{os.getpid()}"
+    long = spec(folder, "goal_ahead.xml", "experiment",
+                options=(("episodes", "1000000"), ("reward_function", "goal()"), ("seeds", "1")))
+    code = ("import json, sys; from rac.sweep.task import TaskSpec, run_task; "
+            "run_task(TaskSpec.from_json(json.load(sys.stdin)))")
+    worker = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, text=True,
+                              env={**rac_env(), mark: "1"})
+    try:
+        worker.stdin.write(json.dumps(long.to_json()))  # type: ignore[union-attr]
+        worker.stdin.close()  # type: ignore[union-attr]
+        deadline = time.monotonic() + 30
+        while len(_marked(mark)) < 2 and time.monotonic() < deadline:  # the worker and its task
+            time.sleep(0.1)
+        assert len(_marked(mark)) == 2
+    finally:
+        worker.kill()
+        worker.wait()
+    deadline = time.monotonic() + 5
+    while _marked(mark) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _marked(mark) == [], "the task's process outlived its worker"
+
+
+def test_a_task_past_its_memory_limit_is_a_memory_row(folder: Path) -> None:
+    row = run_task(spec(folder, "goal_ahead.xml", memory=64 * 2**20, timeout=60))
+    assert row["status"] == "memory", row
+    assert "64 MB" in str(row["error"])
+
+
+def test_an_unknown_option_is_an_error_row(folder: Path) -> None:
+    row = run_task(spec(folder, "goal_ahead.xml", options=(("horizn", "2"),)))
+    assert row["status"] == "error" and "horizn" in str(row["error"]), row
+
+
+def test_task_names() -> None:
+    assert TASKS == ("check", "verify", "preanalyse", "experiment")
+    with pytest.raises(ValueError, match="simulate"):
+        TaskSpec("t.ra", "", "s.xml", (), "simulate")
+
+
+# ---------------------------------------------------------------- the key
+def test_the_key_depends_on_the_inputs_only(folder: Path, tmp_path: Path) -> None:
+    base = spec(folder, "goal_ahead.xml")
+    assert len(base.key()) == 16 and int(base.key(), 16) >= 0
+    assert base.key() == spec(folder, "goal_ahead.xml").key()
+    # stable across processes (no hash randomisation)
+    code = ("import sys; from rac.sweep.task import TaskSpec; "
+            "print(TaskSpec(*sys.argv[1:3], sys.argv[3], (), 'verify').key())")
+    other = subprocess.run([sys.executable, "-c", code, base.template, base.template_text, base.scenario],
+                           env={**rac_env(), "PYTHONHASHSEED": "7"}, capture_output=True, text=True, check=True)
+    assert other.stdout.strip() == base.key()
+    # the limits do not change what a task computes
+    assert spec(folder, "goal_ahead.xml", timeout=5, memory=2**30).key() == base.key()
+    different = [spec(folder, "narrow_road.xml"), spec(folder, "goal_ahead.xml", task="check"),
+                 spec(folder, "goal_ahead.xml", settings=(("exponent", "1"),)),
+                 spec(folder, "goal_ahead.xml", settings=(("exponent", "3"),)),
+                 spec(folder, "goal_ahead.xml", options=(("horizon", "2"),)),
+                 TaskSpec(base.template, base.template_text + "\n", base.scenario, (), "verify")]
+    keys = {base.key(), *(s.key() for s in different)}
+    assert len(keys) == len(different) + 1
+    # the scenario's bytes, not its path: a copy has the same key, a changed file another
+    copy = tmp_path / "copy.xml"
+    copy.write_bytes(Path(base.scenario).read_bytes())
+    moved = TaskSpec(base.template, base.template_text, str(copy), (), "verify")
+    assert moved.key() == base.key()
+    write_scene("overtaking", copy)
+    assert moved.key() != base.key()
+    # an unreadable scenario still has a key (its row is an error row)
+    assert spec(folder, "no_such_file.xml").key() != spec(folder, "other_missing.xml").key()
+
+
+# ---------------------------------------------------------------- the template
+def test_instantiate_applies_the_scenario_and_the_settings(folder: Path) -> None:
+    template = folder / "template" / "sweep.ra"
+    scenario = folder / "scenarios" / "goal_ahead.xml"
+    text = instantiate(check_template(template), template, scenario,
+                       (("exponent", "1"), ("sensor_error", "0.25"), ("dynamics", "increments"),
+                        ("start_x", "-2")))
+    result = compile_text(text, name=str(template))
+    assert result.ok, result.diagnostics
+    model = result.automaton.model  # type: ignore[union-attr]
+    assert model.scenario_path == str(scenario)
+    assert model.exponent == 1 and result.model_data.scale == 10  # type: ignore[union-attr]
+    assert model.sensor_error == Fraction(1, 4)  # absent from the template: added
+    assert model.dynamics == "increments" and model.start_x == -2
+    assert text.count("exponent") == 1  # replaced, not written twice
+    # without settings: only the scenario changes
+    plain = compile_text(instantiate(check_template(template), template, scenario, ()), name=str(template))
+    assert plain.ok and plain.model_data.scale == 100  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize("example", ["paper/model.ra", "left_turn/model.ra", "left_turn/preanalysis.ra"])
+def test_instantiate_keeps_everything_but_the_scenario(example: str) -> None:
+    """The shipped files, instantiated with their own scenario and no settings, check to the same
+    automaton: printing the template again loses nothing but its comments."""
+    path = Path(__file__).resolve().parents[2] / "examples" / example
+    before = compile_file(path)
+    assert before.ok and before.automaton is not None and before.automaton.model is not None
+    scenario = before.automaton.model.scenario_path
+    after = compile_text(instantiate(check_template(path), path, scenario, ()), name=str(path))
+    assert after.ok and after.automaton is not None and after.automaton.model is not None
+    assert after.automaton.model.scenario_path == os.path.abspath(scenario)
+    same = dataclasses.replace(after.automaton.model, scenario=before.automaton.model.scenario,
+                               scenario_path=scenario)
+    assert same == before.automaton.model
+    assert dataclasses.replace(after.automaton, model=same, source=before.automaton.source) == before.automaton
+
+
+def test_check_template_refuses_a_template_without_a_model_block(tmp_path: Path) -> None:
+    bare = tmp_path / "bare.ra"
+    bare.write_text("automaton Bare {\n    reward r\n    objective r\n    sample every 1\n    horizon 2\n"
+                    "    initial location A { r' == 1 }\n}\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="no `model` block"):
+        check_template(bare)
+    broken = tmp_path / "broken.ra"
+    broken.write_text("automaton {", encoding="utf-8")
+    with pytest.raises(ValueError, match="E0"):
+        check_template(broken)
+    with pytest.raises(OSError):
+        check_template(tmp_path / "missing.ra")
+
+
+# ---------------------------------------------------------------- grid and scenarios
+def test_scenario_files_expand_folders_and_globs(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    scenarios = folder / "scenarios"
+    every = sorted(p for p in scenarios.rglob("*.xml"))
+    assert len(every) == 6
+    assert scenario_files([str(scenarios)]) == every  # recursively, *.xml only
+    # a file named twice, or inside a folder named too, counts once
+    assert scenario_files([str(scenarios / "highway.xml"), str(scenarios), str(scenarios / "highway.xml")]) == every
+    assert scenario_files([str(scenarios / "g*.xml")]) == [scenarios / "goal_ahead.xml"]
+    assert scenario_files([str(scenarios / "**" / "avoid*.xml")]) == [scenarios / "avoidable_obstacle.xml",
+                                                                      scenarios / "more" / "avoidable_obstacle.xml"]
+    monkeypatch.chdir(scenarios)
+    assert scenario_files(["highway.xml", "more"]) == [scenarios / "highway.xml",
+                                                       scenarios / "more" / "avoidable_obstacle.xml"]
+    with pytest.raises(ValueError, match=r"nothing\*\.xml.*missing\.xml"):
+        scenario_files(["nothing*.xml", "highway.xml", "missing.xml"])
+    (scenarios / "empty").mkdir()
+    with pytest.raises(ValueError, match="empty"):
+        scenario_files(["empty"])
+    with pytest.raises(ValueError):
+        scenario_files([])
+
+
+def test_parse_set_and_grid_points() -> None:
+    sets = parse_set(["exponent=1,2", "decide_period = 0.5, 1", "dynamics=integrated,increments,integrated"])
+    assert sets == [("exponent", ["1", "2"]), ("decide_period", ["0.5", "1"]),
+                    ("dynamics", ["integrated", "increments"])]
+    points = grid_points(sets)
+    assert len(points) == 8
+    assert points[0] == (("exponent", "1"), ("decide_period", "0.5"), ("dynamics", "integrated"))
+    assert points[1] == (("exponent", "1"), ("decide_period", "0.5"), ("dynamics", "increments"))
+    assert points[-1] == (("exponent", "2"), ("decide_period", "1"), ("dynamics", "increments"))
+    assert grid_points([]) == [()]
+    assert parse_set(["start_x=-2"]) == [("start_x", ["-2"])]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("exponent", "NAME=V1,V2"), ("exponent=", "no value"), ("=1,2", "NAME=V1,V2"), ("exponent=1,,2", "empty"),
+    ("exponent=1 2", "exponent"), ("expnent=1", "did you mean `exponent`"), ("scenario=a.xml", "SCENARIOS"),
+    ("jerk=1", "action"), ("exponent=1;exponent=2", "exponent"),
+])
+def test_parse_set_refuses(text: str, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        parse_set([text])
+
+
+def test_parse_set_refuses_a_setting_twice() -> None:
+    with pytest.raises(ValueError, match="twice"):
+        parse_set(["exponent=1", "exponent=2"])
+
+
+def test_the_child_reads_the_spec_on_stdin(folder: Path) -> None:
+    """``python -m rac.sweep.child`` (what run_task starts) prints the row's task part as JSON."""
+    task = spec(folder, "goal_ahead.xml", task="check")
+    done = subprocess.run([sys.executable, "-m", "rac.sweep.child"], input=json.dumps(task.to_json()), text=True,
+                          env=rac_env(), capture_output=True, check=True, timeout=60, cwd=os.getcwd())
+    assert json.loads(done.stdout)["status"] == "ok"
+
+
+def test_a_task_whose_process_is_killed_is_an_error_row_to_retry(folder: Path) -> None:
+    """SIGKILL from outside (the out-of-memory killer) is no verdict on the task: the row says so."""
+    row = sweep_helpers.run_task_killed(spec(folder, "goal_ahead.xml"))
+    assert row["status"] == "error", row
+    assert "died of signal SIGKILL" in str(row["error"]) and row["retry"] is True
+    assert run_task(spec(folder, "goal_ahead.xml", "check"))["retry"] is False
+
+
+def test_an_inconsistent_scenario_is_an_error_row(folder: Path, tmp_path: Path) -> None:
+    """E0718-E0721 say the input is unusable, as E0712 does: no verdict on the template ("error")."""
+    text = (folder / "scenarios" / "goal_ahead.xml").read_text(encoding="utf-8")
+    assert 'timeStepSize="0.1"' in text
+    step = tmp_path / "step.xml"  # outside the module's folder: other tests count its scenarios
+    step.write_text(text.replace('timeStepSize="0.1"', 'timeStepSize="1e-308"'), encoding="utf-8")
+    row = run_task(spec(folder, str(step), "check"))
+    assert row["status"] == "error" and str(row["error"]).startswith("E0718 inconsistent scenario: "), row

@@ -1,0 +1,343 @@
+"""UPPAAL's own parser accepts every model and query file rac emits.
+
+The validator is ``utap_validate`` (tests/support/utap.py): UTAP, the parser and type checker inside
+UPPAAL, built by ``../shared/tools/uppaal-parser``. Each test writes the emitted ``.xml`` and
+``.q``, runs it, and fails with its output (and the lines it points at) unless UPPAAL would accept
+the model, the queries in its ``<queries>`` section and every line of the ``.q`` file:
+
+* the golden files ``tests/golden/driving.xml`` + ``driving.q`` (the automaton alone) and
+  ``left_turn_model.xml`` + ``left_turn_model.q`` (the whole model of the left turn);
+* every ``.ra`` file under ``examples/`` and ``stdlib/``, compiled exactly as
+  ``rac compile --target uppaal FILE -o OUT.xml`` does (OUT.xml with OUT.q): the automaton alone,
+  or the whole vehicle-and-scenario model for a file with a ``model`` block.
+  ``examples/naive_driving.ra`` fails ``rac check`` on purpose (E0402), so rac compile writes
+  nothing for it; the model :func:`rac.targets.uppaal.automaton.generate_uppaal` emits for it is validated;
+* every query form of the language (docs/language.md, "Queries"), one test each, as queries of
+  stdlib/driving.ra's automaton alone compiled by ``rac compile``: ``A[]``, ``E<>``, ``E[]``,
+  ``A<>``, ``-->``, ``Pr`` (time and step bounds, runs, ``<>`` and ``[]``, ``>= θ``), ``E[..](max:
+  / min:)``, ``simulate``, ``strategy = control: A[]`` / ``E<>``, learning with ``maxE`` / ``minE``
+  and ``under``, the functions, ``deadlock``, constants and qualified names; and time in
+  symbolic queries with a time unit (1.5 s) that is not a whole fraction of a second. The two
+  forms UPPAAL has no counterpart for (``Pr[<=T; N](..) >= θ``, learning over ``[]``) are refused
+  by rac with E0802 on the query, and nothing is written; ``control: E<> p`` is written as UPPAAL
+  5's ``control: A<> p``;
+* the whole model of each tiny scenario (``tiny_scenarios``: narrow_road, avoidable_obstacle,
+  goal_behind_wall, goal_ahead) with stdlib/driving.ra's automaton, bound as in
+  examples/left_turn/model.ra, once with queries of every form over the automaton's names and
+  the model's functions ``collide()``, ``offroad()``, ``goal()``, ``dist_goal()``, and once with
+  queries over the model's vocabulary (the ego state ``x y v acc head``, settings such as
+  ``collision_distance``, ``mindist()``, the true state ``true_x``);
+* the whole model of each shared scenario (``../shared/scenarios/*.xml``, skipped when absent)
+  with examples/left_turn/model.ra's settings, as tests/targets/test_uppaal_model.py compiles them;
+* random reward automata (hypothesis; the strategy of tests/runtime/test_agreement.py) emitted alone by
+  ``generate_uppaal``, with queries of several forms over their names.
+
+Without the validator these tests skip (under ``RAC_REQUIRE_UTAP=1``, as in CI, they fail);
+the end of the session prints how many models and query files it accepted.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import re
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from test_agreement import automata
+from tiny_scenarios import TINY_SCENARIOS
+from utap import Utap
+
+from rac import ir
+from rac.cli.main import main
+from rac.compiler import compile_file, compile_text
+from rac.targets.uppaal.automaton import UppaalError, generate_uppaal
+
+ROOT = Path(__file__).resolve().parents[2]
+GOLDEN = Path(__file__).parents[1] / "golden"
+DRIVING_RA = ROOT / "stdlib" / "driving.ra"
+MODEL_RA = ROOT / "examples" / "left_turn" / "model.ra"
+SCENARIOS = ROOT.parent / "shared" / "scenarios"
+SHARED_SCENARIOS = ("DEU_Muc-3_1_T-1.xml", "ZAM_Ramp-1_1-T-1.xml", "ZAM_Tutorial-1_2_T-1.xml")
+RA_FILES = sorted([*ROOT.glob("examples/**/*.ra"), *ROOT.glob("stdlib/**/*.ra")])
+#: Files that `rac check` rejects on purpose (so `rac compile` writes nothing), with the expected code.
+REJECTED_BY_CHECK = {"examples/naive_driving.ra": "E0402"}
+
+
+def compile_cli(source: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> tuple[Path, Path]:
+    """``rac compile --target uppaal SOURCE -o OUT`` in process; returns OUT and OUT.q."""
+    code = main(["compile", "--target", "uppaal", str(source), "-o", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, f"rac compile --target uppaal {source} exited with {code}:\n{captured.err}{captured.out}"
+    return out, out.with_suffix(".q")
+
+
+def driving_without_queries() -> str:
+    """stdlib/driving.ra up to its queries (the closing brace left off)."""
+    text = DRIVING_RA.read_text(encoding="utf-8")
+    return text[:text.index("    query ")]
+
+
+def with_queries(head: str, queries: list[str] | tuple[str, ...]) -> str:
+    return head + "".join(f"    query Q{i}: {query}\n" for i, query in enumerate(queries)) + "}\n"
+
+
+# ---------------------------------------------------------------- golden files
+@pytest.mark.parametrize("stem", ["driving", "left_turn_model"])
+def test_golden_files(utap: Utap, stem: str) -> None:
+    utap.validate_files(GOLDEN / f"{stem}.xml", GOLDEN / f"{stem}.q")
+
+
+# ---------------------------------------------------------------- examples/ and stdlib/
+@pytest.mark.parametrize("path", RA_FILES, ids=[str(p.relative_to(ROOT)) for p in RA_FILES])
+def test_every_example_compiles_to_a_valid_model(utap: Utap, path: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    relative = path.relative_to(ROOT).as_posix()
+    out = tmp_path / f"{path.stem}.xml"
+    if relative in REJECTED_BY_CHECK:
+        code = main(["compile", "--target", "uppaal", str(path), "-o", str(out)])
+        err = capsys.readouterr().err
+        assert code == 1 and REJECTED_BY_CHECK[relative] in err, err
+        assert not out.exists() and not out.with_suffix(".q").exists()
+        result = compile_file(path, analyse=False)  # the model rac would emit if the check passed
+        assert result.automaton is not None and result.automaton.model is None, result.diagnostics
+        model = generate_uppaal(result.automaton, source_name=path.name, model_name=out.name)
+        utap.validate(model.xml, model.queries, path.stem)
+        return
+    utap.validate_files(*compile_cli(path, out, capsys))
+
+
+# ---------------------------------------------------------------- every query form, automaton alone
+#: One case per form of docs/language.md's query table (several queries where one needs another).
+QUERY_FORMS: dict[str, tuple[str, ...]] = {
+    "A[]": ("A[] isClose imply Unsafe",),
+    "E<>": ("E<> Unsafe && sa < 0",),
+    "E[]": ("E[] !Unsafe",),
+    "A<>": ("A<> time >= 30",),
+    "leads-to": ("isClose --> Unsafe",),
+    "Pr<>": ("Pr[<=30](<> Unsafe)",),
+    "Pr[]": ("Pr[<=30]([] !Unsafe)",),
+    "Pr-runs": ("Pr[<=30; 1000](<> Unsafe)",),
+    "Pr-steps": ("Pr[#<=300](<> Unsafe)",),
+    "Pr>=theta": ("Pr[<=30](<> Unsafe) >= 0.9",),
+    "Pr-runs>=theta": ("Pr[<=30; 1000](<> Unsafe) >= 0.9",),  # docs/language.md's example
+    "E-max": ("E[<=30; 100](max: 10*sa + 5*pr + co)",),
+    "E-min": ("E[<=30; 100](min: sa)",),
+    "simulate": ("simulate[<=30; 10]{sa, pr, co, Unsafe}",),
+    "simulate-one-run": ("simulate[<=30]{10*sa + 5*pr + co}",),
+    "control-A[]": ("strategy safe = control: A[] !Unsafe",),
+    "control-E<>": ("strategy arrive = control: E<> Normal && time >= 30",),
+    "learning-under": ("strategy safe = control: A[] !Unsafe",
+                       "strategy fast = maxE(pr)[<=30]{Driving.location}->{dgoal}: <> time >= 30 under safe",
+                       "A[] !Unsafe under fast", "E<> Unsafe under fast", "Pr[<=30](<> Unsafe) under fast",
+                       "E[<=30; 100](max: pr) under fast", "simulate[<=30; 5]{sa, pr} under fast"),
+    "learning-minE": ("strategy slow = minE(co)[<=30]{Driving.location}->{sa, pr}: <> time >= 30",),
+    "learning-steps": ("strategy k = maxE(sa)[#<=900]{Driving.location}->{}: <> time >= 30",),
+    "learning-[]": ("strategy calm = minE(co)[<=30]{}->{}: [] !Unsafe",),
+    "functions": ("Pr[<=30](<> fabs(sa) > 10 || abs(pr) > 10 || sqrt(fmax(co, 0)) > 3 || fmin(sa, pr) < -5 "
+                  "|| floor(co) != ceil(co) || round(sa) > trunc(pr))",),
+    "deadlock": ("A[] !deadlock",),
+    "constants-and-qualified": ("A[] Driving.Unsafe imply sa <= PENALTY && 10*sa + 5*pr + co <= 0",),
+    "numeric-input": ("E<> dgoal < 2 && Normal",),
+    "word-operators": ("A[] not isClose or Unsafe and true",),
+}
+
+
+#: Forms the language parses but UPPAAL has no counterpart for (a number of runs in a hypothesis
+#: test, a learning query over ``[]``): rac refuses them with E0802 on the query.
+UPPAAL_HAS_NO_SUCH_FORM = {"Pr-runs>=theta", "learning-[]"}
+
+
+@pytest.mark.parametrize("form", QUERY_FORMS)
+def test_every_query_form_alone(utap: Utap, form: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    source = tmp_path / "forms.ra"
+    source.write_text(with_queries(driving_without_queries(), QUERY_FORMS[form]), encoding="utf-8")
+    out = tmp_path / "forms.xml"
+    if form in UPPAAL_HAS_NO_SUCH_FORM:
+        code = main(["compile", "--target", "uppaal", str(source), "-o", str(out)])
+        err = capsys.readouterr().err
+        assert code == 1 and re.search(r"error\[E0802\]: query `Q0` cannot be written", err), err
+        assert not out.exists()
+        return
+    utap.validate_files(*compile_cli(source, out, capsys))
+
+
+#: A declaration of stdlib/driving.ra whose name the automaton takes (found by tests/support/fuzz.py's generator).
+NAMESAKES = {"const": "PENALTY", "bool input": "isClose", "numeric input": "dgoal", "reward": "sa",
+             "location": "Unsafe"}
+
+
+@pytest.mark.parametrize("whole_model", [False, True], ids=["alone", "whole-model"])
+@pytest.mark.parametrize("kind", NAMESAKES)
+def test_an_automaton_named_like_one_of_its_names(utap: Utap, kind: str, whole_model: bool, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """The automaton's name is not in the namespace of its inputs, constants, rewards and
+    locations, but in UPPAAL the template's name is as global as the constants and variables:
+    `automaton PENALTY { const PENALTY = 100 ... }` once declared both as `PENALTY`."""
+    name = NAMESAKES[kind]
+    text = (MODEL_RA if whole_model else DRIVING_RA).read_text(encoding="utf-8")
+    source = tmp_path / "namesake.ra"
+    source.write_text(text.replace("automaton Driving {", f"automaton {name} {{"), encoding="utf-8")
+    if whole_model:
+        (tmp_path / "left_turn.xml").write_bytes((MODEL_RA.parent / "left_turn.xml").read_bytes())
+    utap.validate_files(*compile_cli(source, tmp_path / "namesake.xml", capsys))
+
+
+def test_time_in_queries_with_a_coarse_period(utap: Utap, tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """A time unit (here the period, 1.5 s) that is not a whole fraction of a second."""
+    head = driving_without_queries().replace("sample every 0.1", "sample every 1.5")
+    source = tmp_path / "coarse.ra"
+    source.write_text(with_queries(head, ("A<> time >= 30", "E<> time >= 4.5 && Unsafe", "A[] time <= 30 || Unsafe",
+                                          "Pr[<=30](<> Unsafe)", "simulate[<=30; 5]{sa, pr, co}")), encoding="utf-8")
+    utap.validate_files(*compile_cli(source, tmp_path / "coarse.xml", capsys))
+
+
+# ---------------------------------------------------------------- the tiny scenarios' whole models
+#: The bindings of examples/left_turn/model.ra.
+BINDINGS = ("isClose = mindist() < 3 * collision_distance",
+            "prog    = dist_goal() < prev(dist_goal())",
+            "comf    = fabs(acc) < comfort_acceleration * max_acceleration && fabs(turn) < comfort_turn * max_turn",
+            "collide = collide()",
+            "dgoal   = dist_goal()")
+#: Queries over the automaton's names and the model's conditions (a tiny scenario's horizon is 4 s).
+AUTOMATON_QUERIES = (
+    "A[] isClose imply Unsafe", "E<> Unsafe", "E[] !Unsafe", "A<> time >= 4", "isClose --> Unsafe",
+    "Pr[<=4](<> Unsafe)", "Pr[<=4]([] !Unsafe) >= 0.5", "Pr[#<=40](<> Unsafe)",
+    "E[<=4; 100](max: 10*sa + 5*pr + co)", "simulate[<=4; 10]{sa, pr, co, Unsafe, dgoal}",
+    "strategy calm = control: A[] !Unsafe",
+    "strategy fast = maxE(10*sa + 5*pr + co)[<=4]{Driving.location}->{dgoal}: <> time >= 4 under calm",
+    "A[] !Unsafe under fast", "simulate[<=4; 5]{sa, pr, co} under fast",
+    "A[] collide() imply isClose", "E<> goal() && !collide() && !offroad()", "E[] !collide() && !offroad()",
+    "A<> goal()", "collide() --> Unsafe", "Pr[<=4](<> collide() || offroad())",
+    "strategy shield = control: A[] !collide() && !offroad()",
+    "strategy near = minE(dist_goal())[<=4]{Driving.location}->{dgoal}: <> goal() under shield",
+    "E<> goal() under near")
+#: Queries over the model's vocabulary: ego state, settings, mindist(), the true state.
+MODEL_QUERIES = (
+    "Pr[<=4](<> mindist() < 3 * collision_distance)", "Pr[<=4](<> fabs(true_x - x) >= 0.5) >= 0.1",
+    "E[<=4; 100](max: v)", "E[<=4; 100](min: dist_goal() + fabs(head))",
+    "simulate[<=4; 10]{x, y, v, acc, head, true_x, mindist()}",
+    "Pr[<=4](<> v > max_speed - 1 || fabs(acc) > comfort_acceleration * max_acceleration)",
+    "strategy shield = control: A[] !collide() && !offroad()",
+    "strategy reach = maxE(10*sa + 5*pr + co)[<=4]{Driving.location}->{x, y, v, head}: <> goal() under shield",
+    "simulate[<=4; 1]{x, y, v, head, true_x} under reach", "A[] !collide() && !offroad() under reach")
+
+
+def tiny_source(folder: Path, name: str, queries: tuple[str, ...]) -> Path:
+    """stdlib/driving.ra's automaton in the tiny scenario ``name`` (written into ``folder``), with the
+    scenario's settings as its model block, the bindings of the left turn and ``queries``."""
+    tiny = TINY_SCENARIOS[name]()
+    tiny.write(folder)
+    head = driving_without_queries()
+    head = head.replace("sample every 0.1", f"sample every {float(tiny.settings.sense_period):g}")
+    head = head.replace("horizon 30", f"horizon {float(tiny.settings.horizon):g}")
+    assert f"horizon {float(tiny.settings.horizon):g}" in head and "sample every 0.1" not in head
+    block = tiny.settings.model_block(f"{tiny.name}.xml", BINDINGS)
+    head += "\n" + "".join(f"    {line}\n" for line in block.splitlines()) + "\n"
+    source = folder / f"{name}.ra"
+    source.write_text(with_queries(head, queries), encoding="utf-8")
+    return source
+
+
+@pytest.mark.parametrize("name", sorted(TINY_SCENARIOS))
+def test_tiny_scenario_whole_model(utap: Utap, name: str, tmp_path: Path,
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    source = tiny_source(tmp_path, name, AUTOMATON_QUERIES)
+    utap.validate_files(*compile_cli(source, tmp_path / f"{name}_model.xml", capsys))
+
+
+@pytest.mark.parametrize("name", sorted(TINY_SCENARIOS))
+def test_tiny_scenario_model_vocabulary(utap: Utap, name: str, tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    source = tiny_source(tmp_path, name, MODEL_QUERIES)
+    utap.validate_files(*compile_cli(source, tmp_path / f"{name}_vocabulary.xml", capsys))
+
+
+# ---------------------------------------------------------------- the shared scenarios
+@pytest.mark.parametrize("name", SHARED_SCENARIOS)
+def test_shared_scenario_whole_model(utap: Utap, name: str, tmp_path: Path,
+                                     capsys: pytest.CaptureFixture[str]) -> None:
+    scenario = SCENARIOS / name
+    if not scenario.exists():
+        pytest.skip(f"{scenario} is absent (../shared/scenarios beside this checkout)")
+    source = tmp_path / "model.ra"
+    # ZAM_Tutorial's ego starts at 22 m/s: faster than the default `max_speed` 20 (E0714)
+    source.write_text(MODEL_RA.read_text(encoding="utf-8").replace('"left_turn.xml"', f'"{scenario}" max_speed 25'),
+                      encoding="utf-8")
+    utap.validate_files(*compile_cli(source, tmp_path / f"{scenario.stem}.xml", capsys))
+
+
+def test_zam_ramp_benchmark_model(utap: Utap, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """benchmarks/zam_ramp.ra: CommonUppRoad's ZAM_Ramp model as rac's modelling choices (dynamics
+    increments, allow when, the start settings, offroad_from)."""
+    source = ROOT / "benchmarks" / "zam_ramp.ra"
+    if not (SCENARIOS / "ZAM_Ramp-1_1-T-1.xml").exists():
+        pytest.skip("../shared/scenarios/ZAM_Ramp-1_1-T-1.xml is absent (../shared beside this checkout)")
+    xml, queries = compile_cli(source, tmp_path / "zam_ramp.xml", capsys)
+    assert "allow_actions()" in xml.read_text(encoding="utf-8")
+    utap.validate_files(xml, queries)
+
+
+# ---------------------------------------------------------------- random automata, alone
+#: Over the names every automaton of test_agreement's `automata()` has: L0, r0, inputs b c x m.
+RANDOM_QUERIES = (
+    "A[] L0 imply r0 <= 1000", "E<> L0 && b", "E[] r0 >= -1000", "A<> time >= 30", "b --> L0",
+    "Pr[<=30](<> L0 && x > 1)", "Pr[<=30]([] r0 < 100) >= 0.5", "E[<=30; 10](max: r0 + x)",
+    "simulate[<=30; 5]{r0, x, m, L0}", "strategy s = control: A[] r0 > -1000",
+    "strategy t = maxE(r0)[<=30]{Random.location}->{x, m}: <> time >= 30 under s", "A[] r0 > -1000 under t")
+
+
+@functools.cache
+def random_queries() -> tuple[object, ...]:
+    """:data:`RANDOM_QUERIES` checked, as rac's compiler attaches them to an automaton: compiled
+    with an automaton that declares the same names in the same order as test_agreement's."""
+    head = ("automaton Random {\n    input b : bool\n    input c : bool\n    input x : real in [-5, 5]\n"
+            "    input m : int in [0, 3]\n    reward r0\n    objective r0\n    sample every 1\n    horizon 30\n"
+            "    initial location L0 { r0' == 1 }\n")
+    result = compile_text(with_queries(head, RANDOM_QUERIES), "random.ra", analyse=False)
+    assert result.automaton is not None, result.diagnostics
+    assert len(result.automaton.queries) == len(RANDOM_QUERIES)
+    return tuple(result.automaton.queries)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(automaton=automata())
+def test_random_automata_alone(utap: Utap, automaton: ir.Automaton) -> None:
+    automaton = dataclasses.replace(automaton, queries=random_queries())
+    try:
+        model = generate_uppaal(automaton, source_name="random.ra", model_name="random.xml")
+    except UppaalError as failure:  # E0801: a number the significands cannot represent
+        assume(not re.search(r"\bE0801\b", str(failure)))
+        raise
+    utap.validate(model.xml, model.queries, "random")
+
+
+@pytest.mark.parametrize("length", [3900, 3901])
+def test_the_longest_name_reaches_uppaal(length: int, utap: Utap, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """A name of MAX_NAME characters compiles into a model UPPAAL's parser accepts (the target's
+    derived names included); one character more is E0012 at the name."""
+    name = "a" * length
+    source = tmp_path / "long.ra"
+    source.write_text(f"""automaton A {{
+    input {name} : bool
+    input d : real in [0, 2]
+    reward r
+    priority r
+    objective r
+    sample every 0.1
+    horizon 1
+    initial location L {{ r' == 1 }}
+    location M {{ r' == d }}
+    edge L -> M when {name}
+    edge M -> L when d > 1
+    query Q: A[] r >= -1
+}}
+""", encoding="utf-8")
+    if length == 3901:
+        assert main(["check", str(source)]) == 1
+        assert "error[E0012]: a name of 3,901 characters: at most 3,900" in capsys.readouterr().out
+        return
+    utap.validate_files(*compile_cli(source, tmp_path / "long.xml", capsys))

@@ -1,0 +1,244 @@
+"""Reachability on the fly in ``rac verify`` (issue 20, rac.verify.reach): the run that decides a query
+— the witness of ``E<>`` and ``E[]``, the counterexample of ``A[]`` and ``A<>`` — is looked for before
+anything is built in full, and said so (``method``).
+
+- On the obstacle-free boulevard (rac.model.scenes ``urban``, 14 s) the layered search finds Qc's
+  witness at sample 70 after some 24,000 states; the whole pruned model has millions.
+- On the head-on street (``urban_head_on``, 21 s, goal window at samples 194-204) breadth-first is
+  beyond any budget; the beam nearest the goal finds a witness.
+- On every tiny scenario and query form, the verdicts of the cheap searches, of the layered search
+  and of Storm on the complete graph agree; on the examples, the engine's searches agree with Storm.
+- A witness that does not replay with the scalar model is an internal error; "not satisfied" (for
+  ``E<>``; "satisfied" for ``A[]``) comes only from a complete graph; JSON says the method.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Callable
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from engine_files import QUERIES, safety_source, write_engine_file
+from tiny_scenarios import TINY_SCENARIOS
+
+import rac.verify.reach as reach_module
+from rac.cli.common import EXIT_INTERNAL
+from rac.cli.main import main
+from rac.compiler import CompileResult, compile_file
+from rac.engine import storm
+from rac.engine.budget import BudgetExceeded
+from rac.engine.explore import explore
+from rac.engine.witness import Bounds, Found, search
+from rac.model.batch import batch_model
+from rac.model.scenes import write_scene
+from rac.verify.context import Context, VerifyOptions
+from rac.verify.runner import run_queries
+
+REPO = Path(__file__).resolve().parents[2]
+#: examples/paper/model.ra's model settings (a decision every 2 s, 3 x 3 actions, left turns only).
+PAPER_MODEL = """\
+exponent 2
+decide_period 2
+granularity 0.05
+action jerk in [-2, 2] step 2
+action turn in [0, 0.4] step 0.2
+bind close = mindist() < 3 * collision_distance
+"""
+QC = "E<> !collide() && !offroad() && goal()"
+#: No cheap search: only the layered search and the complete graph.
+NO_SEARCH = Bounds(runs=0, width=0)
+
+
+def scene_file(folder: Path, scene: str, horizon: int, queries: dict[str, str]) -> CompileResult:
+    write_scene(scene, folder / f"{scene}.xml")
+    path = folder / f"{scene}.ra"
+    path.write_text(safety_source("Scene", horizon, f'scenario "{scene}.xml"\n' + PAPER_MODEL, queries),
+                    encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok, result.diagnostics
+    return result
+
+
+def answers(result: CompileResult, **options: object) -> dict[str, object]:
+    settings: dict[str, object] = {"seed": 1, "plots": False, **options}
+    return {r.name: r for r in run_queries(result, VerifyOptions(**settings))[1]}  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- the scenes of the issue
+def test_qc_is_found_on_the_fly_long_before_the_whole_model_is_built(tmp_path: Path) -> None:
+    result = scene_file(tmp_path, "urban", 14, {"Qc": QC})
+    assert result.model_data is not None
+    with pytest.raises(BudgetExceeded):  # the whole pruned model: beyond 200,000 states (5 million in all)
+        explore(result.model_data, horizon_samples=140, prune_unsafe=True, max_states=200_000)
+    layered = answers(result, witness=NO_SEARCH, max_states=200_000)["Qc"]
+    assert (layered.status, layered.method) == ("satisfied", "on the fly")  # type: ignore[attr-defined]
+    assert layered.states < 30_000  # type: ignore[attr-defined]
+    trace = layered.trace  # type: ignore[attr-defined]
+    assert len(trace) == 71 and trace[-1]["goal"] and trace[-1]["time"] == 7.0  # the first layer with a witness
+    assert not any(row["collide"] or row["offroad"] for row in trace)
+    cheap = answers(result, max_states=200_000)["Qc"]
+    assert (cheap.status, cheap.method) == ("satisfied", "witness search")  # type: ignore[attr-defined]
+    assert "a run that stays safe until it gets there exists" in cheap.message  # type: ignore[attr-defined]
+
+
+def test_the_beam_finds_the_head_on_witness_breadth_first_cannot(tmp_path: Path) -> None:
+    result = scene_file(tmp_path, "urban_head_on", 21, {"Qc": QC})
+    found = answers(result, max_states=1_000_000)["Qc"]
+    assert (found.status, found.method) == ("satisfied", "witness search")  # type: ignore[attr-defined]
+    last = found.trace[-1]  # type: ignore[attr-defined]
+    assert last["goal"] and 19.4 <= last["time"] <= 20.4
+    assert not any(row["collide"] or row["offroad"] for row in found.trace)  # type: ignore[attr-defined]
+    layered = answers(result, witness=NO_SEARCH, max_states=1_000_000)["Qc"]
+    assert layered.status == "unknown"  # type: ignore[attr-defined]
+    assert "more than 1,000,000 states" in layered.message  # type: ignore[attr-defined]
+    assert "no witness was found by 0 random runs" in layered.message  # type: ignore[attr-defined]
+
+
+# ---------------------------------------------------------------- agreement
+#: Model-level queries of every form the searches decide (and their negations' forms).
+FORMS = {
+    "Qc": QC, "Crash": "E<> collide()", "Off": "E<> offroad()", "Fast": "E<> v >= 9", "Never": "E<> v >= 99",
+    "NoCrash": "A[] !collide()", "Safe": "A[] !collide() && !offroad()", "Slow": "A[] v <= 9",
+    "Qb": "E[] !collide() && !offroad()", "Keeps": "E[] v > 7", "Goal": "A<> goal()", "Brakes": "A<> v < 7",
+    "Reach": "strategy r = control: E<> goal()",
+}
+
+
+def oracle(result: CompileResult, text: str) -> bool:
+    """Storm on the complete, unpruned graph: the verdict by brute force."""
+    context = Context(result, VerifyOptions(seed=1))
+    graph = explore(context.data, horizon_samples=context.horizon_samples)
+    query = result.raise_for_errors().queries[[d.text for d in result.raise_for_errors().queries].index(text)].query
+    kind = "E<>" if text.startswith("strategy") else query.quantifier  # type: ignore[attr-defined]
+    labelled = dataclasses.replace(graph, labels={**graph.labels, "q": context.label(graph, query.expr)})  # type: ignore[attr-defined]
+    return storm.decide(labelled, kind, "q").holds
+
+
+@pytest.mark.parametrize("name", sorted(TINY_SCENARIOS))
+def test_the_searches_agree_with_storm_on_the_complete_graph(name: str, tmp_path: Path) -> None:
+    result = compile_file(write_engine_file(tmp_path, name, FORMS))
+    assert result.ok, result.diagnostics
+    cheap = answers(result)
+    layered = answers(result, witness=NO_SEARCH)
+    narrow = answers(result, witness=Bounds(runs=1, width=1))
+    for query, text in FORMS.items():
+        expected = "satisfied" if oracle(result, text) else "not satisfied"
+        for how, got in (("cheap", cheap), ("layered", layered), ("narrow", narrow)):
+            answer = got[query]
+            assert answer.status == expected, (query, how, answer.message)  # type: ignore[attr-defined]
+            assert answer.method in ("witness search", "on the fly", "exhaustive"), (query, how)  # type: ignore[attr-defined]
+            if how == "layered":
+                assert answer.method != "witness search"  # type: ignore[attr-defined]
+            if answer.trace:  # type: ignore[attr-defined]
+                assert answer.trace[0]["time"] == 0  # type: ignore[attr-defined]
+
+
+EXAMPLES = sorted(REPO.glob("examples/**/model.ra"))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=[str(p.relative_to(REPO)) for p in EXAMPLES])
+def test_the_searches_agree_with_storm_on_the_examples(path: Path) -> None:
+    """Each example's model over two decisions: a safe run into the goal, a collision, leaving the road,
+    a run safe to the end — found by the cheap search exactly when Storm finds it on the complete graph,
+    and without a witness proved absent only by a complete beam."""
+    result = compile_file(path)
+    data = result.model_data
+    assert data is not None
+    horizon = 2 * data.decide_every
+    model = batch_model(data)
+    graph = explore(data, horizon_samples=horizon)
+
+    def safe(k: int, rows: np.ndarray) -> np.ndarray:
+        return ~model.collide(rows[:, :7], k) & ~model.offroad(rows[:, :7], k)
+
+    targets: dict[str, tuple[Callable[[int, np.ndarray], np.ndarray], bool]] = {
+        "goal": (lambda k, rows: safe(k, rows) & model.goal(rows[:, :7], k), True),
+        "collide": (lambda k, rows: model.collide(rows[:, :7], k), False),
+        "offroad": (lambda k, rows: model.offroad(rows[:, :7], k), False),
+        "fast": (lambda k, rows: rows[:, 2] >= data.ego_v + data.scale, False),
+    }
+    for name, (target, prune) in targets.items():
+        pruned = explore(data, horizon_samples=horizon, prune_unsafe=True) if prune else graph
+        labelled = dataclasses.replace(pruned, labels={**pruned.labels, "t": reach_module.in_graph(pruned, target)})
+        expected = storm.decide(labelled, "E<>", "t").holds
+        found = search(data, target, horizon_samples=horizon, seed=3, prune_unsafe=prune,
+                       bounds=Bounds(runs=50, width=200))
+        if found.witness is not None:
+            assert expected, name
+        elif found.proves_absence:
+            assert not expected, name
+        else:  # the beam was cut: nothing proved; the layered search decides
+            layered = reach_module.layered_search(data, target, horizon_samples=horizon, prune_unsafe=prune)
+            assert (layered.witness is not None) == expected, name
+
+
+# ---------------------------------------------------------------- what a verdict rests on
+def test_a_witness_that_does_not_replay_is_an_internal_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {"Reaches": QUERIES["Reaches"]})
+    real = reach_module.search
+
+    def tampered(*args: object, **kwargs: object) -> Found:
+        found = real(*args, **kwargs)  # type: ignore[arg-type]
+        assert found.witness is not None
+        states = found.witness.states.copy()
+        states[3, 2] += 1  # y off by a centimetre at sample 3
+        return dataclasses.replace(found, witness=dataclasses.replace(found.witness, states=states))
+
+    monkeypatch.setattr(reach_module, "search", tampered)
+    assert main(["verify", str(path), "-q"]) == EXIT_INTERNAL
+    err = capsys.readouterr().err
+    assert "rac: internal error: ReplayMismatch: the witness found by" in err
+    assert "does not replay with the scalar model (rac.model.native) at sample 3: the search has" in err
+
+
+def test_no_witness_is_a_verdict_only_on_a_complete_graph(tmp_path: Path) -> None:
+    """``E<> v >= 99`` cannot hold (speeds end at 10 m/s) and ``A[] v < 99`` holds: a narrow beam that
+    finds nothing proves neither; beyond the budget both are unknown, within it both are decided."""
+    path = write_engine_file(tmp_path, "goal_ahead", {"Never": "E<> v >= 99", "Always": "A[] v < 99"})
+    result = compile_file(path)
+    small = answers(result, witness=Bounds(runs=1, width=1), max_states=20)
+    for query in ("Never", "Always"):
+        assert small[query].status == "unknown", small[query]  # type: ignore[attr-defined]
+        assert "no witness was found" in small[query].message  # type: ignore[attr-defined]
+    decided = answers(result, witness=Bounds(runs=1, width=1))
+    assert {q: (r.status, r.method) for q, r in decided.items()} == {  # type: ignore[attr-defined]
+        "Never": ("not satisfied", "exhaustive"), "Always": ("satisfied", "exhaustive")}
+    # the answerer refuses to decide on an incomplete graph
+    from rac.verify.symbolic import SymbolicAnswerer
+
+    context = Context(result, VerifyOptions(seed=1))
+    cut = explore(context.data, horizon_samples=context.horizon_samples, beam=lambda k, rows: np.arange(1))
+    assert not cut.complete
+    query = result.raise_for_errors().queries[0]
+    with pytest.raises(AssertionError, match="complete graph"):
+        SymbolicAnswerer(context)._decided(query.query, None, cut)  # type: ignore[arg-type]
+
+
+def test_json_says_how_each_verdict_was_reached(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {"Reaches": QUERIES["Reaches"], "Never": "E<> v >= 99",
+                                                      "safe": QUERIES["safe"], "LeadsTo": QUERIES["LeadsTo"]})
+    main(["verify", str(path), "--format", "json", "--seed", "1", "-o", str(tmp_path / "o")])
+    methods = {r["name"]: r["method"] for r in json.loads(capsys.readouterr().out)["results"]}
+    assert methods == {"Reaches": "witness search", "Never": "exhaustive", "safe": "exhaustive",
+                       "LeadsTo": "exhaustive"}
+    main(["verify", str(path), "--seed", "1", "-o", str(tmp_path / "o"), "--query", "Reaches"])
+    assert "    found by a bounded witness search and replayed\n" in capsys.readouterr().out
+
+
+def test_a_search_does_not_change_the_seeds_of_later_queries(tmp_path: Path) -> None:
+    queries = {"Prob": QUERIES["Prob"]}
+    alone = compile_file(write_engine_file(tmp_path, "goal_ahead", queries, ra_name="alone"))
+    after = compile_file(write_engine_file(tmp_path, "goal_ahead", {"Reaches": QUERIES["Reaches"], **queries},
+                                           ra_name="after"))
+    assert answers(alone)["Prob"].seed == answers(after)["Prob"].seed  # type: ignore[attr-defined]
+
+
+def test_the_horizon_option_reaches_the_searches(tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {"Reaches": QUERIES["Reaches"]})
+    short = answers(compile_file(path), horizon=Fraction(1))["Reaches"]
+    assert (short.status, short.method) == ("not satisfied", "exhaustive")  # type: ignore[attr-defined]

@@ -1,0 +1,479 @@
+"""``rac.verify.runner``: the driver that answers a file's queries with the native engine.
+
+On the tiny scenarios of :mod:`tiny_scenarios` (known answers by construction): Qb, Qc and the
+safety shield (Qd) equal the known answers, witness traces start at the ego's start and advance
+one period per row, the saved shield reads back with :func:`rac.engine.shield.load` and allows exactly
+the known actions at the start, queries ``under`` it, product queries over the automaton's
+location and reward, the statistical queries (intervals, run counts, sequential tests, means,
+simulated CSV files), seeds, the state budget, query selection and the renderers.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+from collections.abc import Callable, Sequence
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from engine_files import QUERIES, engine_source, write_engine_file
+from tiny_scenarios import TINY_SCENARIOS, TinyScenario
+
+from rac.compiler import CompileResult, compile_file
+from rac.core.diagnostics import CheckError
+from rac.engine import shield
+from rac.engine.explore import action_pairs
+from rac.model import NativeModel
+from rac.verify.runner import (
+    QueryResult,
+    UnknownQuery,
+    VerifyOptions,
+    render_json,
+    render_text,
+    standard_queries,
+    verify,
+)
+
+NAMES = tuple(TINY_SCENARIOS)
+#: Qc as `rac verify` reads it (UPPAAL's literal reading: a collision does not end a run, so a run
+#: may pass through the wall or the van and still reach the goal).
+LITERAL_QC = {"narrow_road": "not satisfied", "avoidable_obstacle": "satisfied", "goal_behind_wall": "satisfied",
+              "goal_ahead": "satisfied"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Compiled:
+    """A tiny scenario's engine test file, compiled, with its folder."""
+
+    tiny: TinyScenario
+    result: CompileResult
+    folder: Path
+
+
+@pytest.fixture(scope="module")
+def compiled(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Compiled]:
+    """``compiled(name)``: the engine test file (tests/support/engine_files.py) for a tiny scenario, compiled
+    (cached)."""
+    cache: dict[str, Compiled] = {}
+
+    def get(name: str) -> Compiled:
+        if name not in cache:
+            folder = tmp_path_factory.mktemp(name)
+            path = write_engine_file(folder, name)
+            result = compile_file(path)
+            assert result.ok and result.model_data is not None, result.diagnostics
+            cache[name] = Compiled(TINY_SCENARIOS[name](), result, folder)
+        return cache[name]
+
+    return get
+
+
+def run(item: Compiled, *names: str, out: Path | None = None, **options: object) -> dict[str, QueryResult]:
+    """The named queries verified (plots off, seed 1 unless given), by name."""
+    settings: dict[str, object] = {"seed": 1, "plots": False, "out_dir": out, "only": names or None, **options}
+    results = verify(item.result, VerifyOptions(**settings))  # type: ignore[arg-type]
+    return {r.name: r for r in results}
+
+
+def assert_trace_is_a_run(item: Compiled, trace: Sequence[dict[str, object]], *, product: bool = False) -> None:
+    """The trace starts at the ego's start at time 0 and advances by one period per (sampled) row."""
+    data = item.result.model_data
+    assert data is not None
+    scale, period = data.scale, float(item.tiny.settings.sense_period)
+    start = NativeModel(data).initial_state()
+    first = trace[0]
+    assert first["time"] == 0
+    assert (first["x"], first["y"], first["v"], first["head"]) == (start.x / scale, start.y / scale,
+                                                                  start.v / scale, start.head / scale)
+    rows = [row for row in trace if row.get("phase", "sampled") == "sampled"] if product else list(trace)
+    assert [row["time"] for row in rows] == pytest.approx([k * period for k in range(len(rows))])
+    if product:  # an `accrued` row comes just before the sampled row of the same time
+        for before, after in zip(trace, trace[1:]):
+            if after.get("phase") == "sampled" and after["time"] != 0:
+                assert before["phase"] == "accrued" and before["time"] == after["time"]
+
+
+# ---------------------------------------------------------------- known answers
+@pytest.mark.parametrize("name", NAMES)
+def test_qb_qc_and_the_shield_are_the_known_answers(name: str, compiled: Callable[[str], Compiled],
+                                                    tmp_path: Path) -> None:
+    item = compiled(name)
+    tiny, horizon = item.tiny, item.tiny.settings.horizon_samples
+    results = run(item, "Stays", "Reaches", "safe", "Shielded", out=tmp_path)
+    assert list(results) == ["Stays", "Reaches", "safe", "Shielded"]  # file order
+
+    qb = results["Stays"]
+    assert qb.kind == "symbolic" and qb.horizon_samples == horizon
+    assert qb.status == ("satisfied" if tiny.stays_safe else "not satisfied")
+    if tiny.stays_safe:  # a witness: a whole run to the horizon, never unsafe
+        assert qb.trace is not None and len(qb.trace) == horizon + 1
+        assert_trace_is_a_run(item, qb.trace)
+        assert not any(row["collide"] or row["offroad"] for row in qb.trace)
+    else:
+        assert qb.trace is None
+
+    qc = results["Reaches"]
+    assert qc.status == LITERAL_QC[name]
+    if tiny.reaches_goal:  # a safe run reaches the goal: found on the pruned model, and said so
+        assert qc.message is not None and "a run that stays safe until it gets there exists" in qc.message
+    elif qc.status == "satisfied":  # only through a collision: verify says so
+        assert qc.message is not None and "a collision does not end a run" in qc.message
+        assert "NO run that stays safe until it gets there exists" in qc.message
+        assert qc.trace is not None and any(row["collide"] or row["offroad"] for row in qc.trace[:-1])
+    if qc.trace is not None:
+        assert_trace_is_a_run(item, qc.trace)
+        last = qc.trace[-1]
+        assert last["goal"] and not last["collide"] and not last["offroad"]
+
+    qd = results["safe"]
+    assert qd.kind == "strategy" and qd.status == ("satisfied" if tiny.stays_safe else "not satisfied")
+    if tiny.stays_safe:
+        assert qd.files == (str(tmp_path / "safe.shield.npz"),)
+        table = shield.load(tmp_path / "safe.shield.npz")
+        data = item.result.model_data
+        assert data is not None
+        start = [0, *NativeModel(data).initial_state()]
+        pairs = action_pairs(data).tolist()
+        allowed = {tuple(pairs[a]) for a in table.allowed(start)}
+        expected = {(math.trunc(jerk * data.scale), math.trunc(turn * data.scale))
+                    for jerk, turn in tiny.start_actions}
+        assert allowed == expected
+        assert table.knows(start)
+    else:  # no strategy exists: nothing is saved (UPPAAL defines no strategy either)
+        assert qd.files == () and not (tmp_path / "safe.shield.npz").exists()
+
+    shielded = results["Shielded"]
+    if tiny.stays_safe:
+        assert shielded.status == "satisfied"
+    else:  # no strategy to follow: as in UPPAAL, the query cannot use it
+        assert shielded.status == "not_applicable" and "does not exist" in (shielded.message or "")
+
+
+def test_a_query_under_a_strategy_is_answered_on_the_shielded_graph(compiled: Callable[[str], Compiled]) -> None:
+    """Unshielded, the ego can hit the van; under the shield it cannot (and `only` keeps the strategy)."""
+    item = compiled("avoidable_obstacle")
+    tiny = item.tiny
+    path = item.folder / "under.ra"
+    path.write_text(engine_source(tiny, {"Free": "A[] !collide()", "safe": QUERIES["safe"],
+                                         "Kept": "A[] !collide() && !offroad() under safe",
+                                         "Stuck": "A[] v > 0 under safe"}, scenario_file="avoidable_obstacle.xml"))
+    result = compile_file(path)
+    results = verify(result, VerifyOptions(only=("Free", "Kept", "Stuck")))
+    assert [r.name for r in results] == ["Free", "safe", "Kept", "Stuck"]
+    status = {r.name: r.status for r in results}
+    assert status == {"Free": "not satisfied", "safe": "satisfied", "Kept": "satisfied", "Stuck": "not satisfied"}
+    stuck = results[-1]  # the shield brakes to a stop: a counter-example ending at v = 0
+    assert stuck.trace is not None and stuck.trace[-1]["v"] == 0
+
+
+def test_leads_to_and_control_under_a_shield(compiled: Callable[[str], Compiled]) -> None:
+    """`-->` and `control:` under a shield are answered on the graph the shield allows (not ignored):
+    unshielded, the ego can hit the van and stay on the road; under the shield it never collides, so
+    `collide() --> offroad()` holds vacuously, and the strategy within the shield is the shield."""
+    item = compiled("avoidable_obstacle")
+    path = item.folder / "under_more.ra"
+    path.write_text(engine_source(item.tiny, {"safe": QUERIES["safe"], "Hit": "collide() --> offroad()",
+                                              "HitUnder": "collide() --> offroad() under safe",
+                                              "inner": "strategy inner = control: A[] !collide() under safe"},
+                                  scenario_file="avoidable_obstacle.xml"))
+    results = {r.name: r for r in verify(compile_file(path), VerifyOptions(seed=1, plots=False))}
+    assert results["Hit"].status == "not satisfied" and results["HitUnder"].status == "satisfied"
+    assert results["inner"].status == "satisfied"
+    assert results["inner"].states is not None and results["inner"].states < results["Hit"].states  # type: ignore
+
+
+def test_forms_uppaal_reads_otherwise_are_not_answered(compiled: Callable[[str], Compiled]) -> None:
+    """What UPPAAL would answer differently (a step bound counts its transitions) or not at all is
+    "unsupported", with the reason, never answered with another meaning."""
+    item = compiled("goal_ahead")
+    path = item.folder / "forms.ra"
+    queries = {"Steps": "Pr[#<=8](<> goal())", "Fixed": "Pr[<=2; 30](<> goal()) >= 0.5",
+               "Always": "strategy calm = maxE(sa)[<=2]{Tiny.location}->{x}: [] !collide()",
+               "Timed": "Pr[<=2](<> goal())"}
+    path.write_text(engine_source(item.tiny, queries, scenario_file="goal_ahead.xml"))
+    results = {r.name: r for r in verify(compile_file(path), VerifyOptions(seed=1, plots=False))}
+    assert {name: r.status for name, r in results.items()} == {
+        "Steps": "unsupported", "Fixed": "unsupported", "Always": "unsupported", "Timed": "value"}
+    assert "counts UPPAAL's transitions" in (results["Steps"].message or "")
+    assert "drop `;N`" in (results["Fixed"].message or "")
+    assert "only reachability goals" in (results["Always"].message or "")
+
+
+def test_a_strategy_without_an_output_folder_is_still_usable(compiled: Callable[[str], Compiled]) -> None:
+    results = run(compiled("goal_ahead"), "safe", "Shielded", out=None)
+    assert results["safe"].files == () and results["Shielded"].status == "satisfied"
+
+
+# ---------------------------------------------------------------- the product with the automaton
+def test_product_queries_read_the_location_and_the_reward(compiled: Callable[[str], Compiled]) -> None:
+    item = compiled("avoidable_obstacle")
+    path = item.folder / "product.ra"
+    path.write_text(engine_source(item.tiny, {"Product": QUERIES["Product"], "Somewhere": QUERIES["Somewhere"],
+                                              "Positive": "A[] sa >= 0"}, scenario_file="avoidable_obstacle.xml"))
+    item = dataclasses.replace(item, result=compile_file(path))
+    results = run(item)
+    product, somewhere, positive = results["Product"], results["Somewhere"], results["Positive"]
+    # decided on the automaton alone (near = mindist() < 3 TD needs no assume); the others on the product,
+    # stopped at the first witness or counterexample
+    assert product.status == "satisfied" and product.method == "compositional" and product.states is None
+    assert somewhere.status == "satisfied" and somewhere.trace is not None and somewhere.method == "product search"
+    assert_trace_is_a_run(item, somewhere.trace, product=True)
+    assert somewhere.trace[0]["location"] == "Normal" and somewhere.trace[-1]["location"] == "Close"
+    # Entering Close costs 10, more than the 4 s of `sa' == 1` can have earned: sa < 0 there.
+    assert positive.status == "not satisfied" and positive.trace is not None
+    assert positive.trace[-1]["location"] == "Close" and positive.trace[-1]["sa"] < 0
+    assert all(row["sa"] >= 0 for row in positive.trace[:-1])
+    text = render_text([positive])
+    assert "Close sa=" in text and "(accrued)" in text
+
+
+def test_product_on_an_empty_road_never_comes_close(compiled: Callable[[str], Compiled]) -> None:
+    results = run(compiled("goal_ahead"), "Product", "Somewhere")
+    assert results["Product"].status == "satisfied"
+    assert results["Somewhere"].status == "not satisfied" and results["Somewhere"].trace is None
+
+
+def test_leads_to_and_eventually(compiled: Callable[[str], Compiled]) -> None:
+    results = run(compiled("narrow_road"), "LeadsTo", "Eventually")
+    assert results["LeadsTo"].status == "satisfied" and results["Eventually"].status == "satisfied"
+    item = compiled("narrow_road")
+    path = item.folder / "eventually.ra"
+    path.write_text(engine_source(item.tiny, {"Goal": "A<> goal()", "Off": "A[] offroad()",
+                                              "Never": "!offroad() --> goal()"}, scenario_file="narrow_road.xml"))
+    results = {r.name: r for r in verify(compile_file(path))}
+    assert results["Goal"].status == "not satisfied"  # no run of the 1 m road gets anywhere near the goal
+    assert results["Off"].status == "satisfied"  # by construction: every state is off the road
+    assert results["Never"].status == "satisfied"  # vacuous: no state is on the road
+
+
+# ---------------------------------------------------------------- statistics
+def test_probability_interval_meets_epsilon(compiled: Callable[[str], Compiled]) -> None:
+    item = compiled("avoidable_obstacle")
+    for epsilon in (0.1, 0.05):
+        prob = run(item, "Prob", epsilon=epsilon)["Prob"]
+        assert prob.kind == "probability" and prob.status == "value"
+        assert prob.interval is not None and prob.estimate is not None and prob.runs is not None
+        lo, hi = prob.interval
+        assert (hi - lo) / 2 <= epsilon + 1e-12
+        assert lo <= prob.estimate <= hi and 0 < prob.estimate < 1  # v >= 6 from 5 m/s: sometimes
+        assert prob.horizon_samples == 4 and prob.confidence == 0.95
+    coarse = run(item, "Prob", epsilon=0.1)["Prob"]
+    assert coarse.runs is not None and prob.runs > coarse.runs  # a narrower interval needs more runs
+
+
+def test_probability_with_runs_and_sequential_tests(compiled: Callable[[str], Compiled]) -> None:
+    results = run(compiled("avoidable_obstacle"), "ProbRuns", "Certain", "Impossible", confidence=0.9)
+    runs = results["ProbRuns"]
+    assert runs.runs == 30 and runs.confidence == 0.9
+    assert runs.interval is not None and runs.estimate is not None
+    assert runs.interval[0] <= runs.estimate <= runs.interval[1]
+    assert runs.estimate > 0  # full speed into the parked van: some uniform runs collide
+    certain, impossible = results["Certain"], results["Impossible"]
+    assert certain.status == "satisfied" and certain.estimate == 1 and certain.message is None
+    assert impossible.status == "not satisfied" and impossible.estimate == 0  # the speed never drops below 0
+    assert certain.runs is not None and certain.runs >= 1 and impossible.runs is not None
+
+
+def test_expectation_mean_within_the_speed_range(compiled: Callable[[str], Compiled]) -> None:
+    item = compiled("avoidable_obstacle")
+    speed = run(item, "Speed")["Speed"]
+    settings = item.tiny.settings
+    assert speed.kind == "expectation" and speed.runs == 20 and speed.estimate is not None
+    assert float(settings.min_speed) <= speed.estimate <= float(settings.max_speed)
+    assert speed.estimate >= 5  # the largest speed of a run is at least the start's 5 m/s
+    assert speed.interval is not None and speed.interval[0] < speed.estimate < speed.interval[1]
+
+
+def test_simulate_writes_one_csv_row_per_run_and_sample(compiled: Callable[[str], Compiled], tmp_path: Path) -> None:
+    sim = run(compiled("avoidable_obstacle"), "Sim", out=tmp_path)["Sim"]
+    assert sim.kind == "simulate" and sim.runs == 4 and sim.horizon_samples == 4
+    assert sim.files == (str(tmp_path / "Sim.csv"),)  # plots off
+    with open(tmp_path / "Sim.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.reader(handle))
+    assert rows[0] == ["run", "time", "mindist()", "3 * collision_distance"]
+    body = rows[1:]
+    assert len(body) == 4 * (4 + 1)
+    assert [(int(r[0]), float(r[1])) for r in body] == [(n, k * 0.5) for n in range(4) for k in range(5)]
+    assert {float(r[3]) for r in body} == {1.5}
+    distances = np.array([float(r[2]) for r in body])
+    assert sim.estimate == pytest.approx(distances.min())
+    below = sum(any(float(r[2]) < 1.5 for r in body if int(r[0]) == n) for n in range(4))
+    assert sim.message == f"4 runs of 4 samples; {below} of 4 runs go below 3 * collision_distance = 1.5"
+
+
+def test_same_seed_same_numbers(compiled: Callable[[str], Compiled]) -> None:
+    item = compiled("avoidable_obstacle")
+    names = ("Prob", "ProbRuns", "Certain", "Speed", "Sim")
+
+    def numbers(seed: int) -> list[dict[str, object]]:
+        return [{k: v for k, v in r.items() if k != "seconds"}
+                for r in render_json(list(run(item, *names, seed=seed).values()))]
+
+    first = numbers(7)
+    assert first == numbers(7)
+    assert [r["seed"] for r in first] == [r["seed"] for r in numbers(7)]
+    other = numbers(8)
+    assert [r["estimate"] for r in other] != [r["estimate"] for r in first]
+
+
+# ---------------------------------------------------------------- budget, selection, errors
+def test_state_budget_gives_unknown_not_a_crash(compiled: Callable[[str], Compiled]) -> None:
+    results = run(compiled("goal_ahead"), "Stays", "safe", "Shielded", "Product", "LeadsTo", max_states=10)
+    # the automaton alone decides Product: no state of the model is needed
+    product = results.pop("Product")
+    assert product.status == "satisfied" and product.method == "compositional"
+    stays = results.pop("Stays")  # a run safe to the horizon is found within the budget (a run is 9 states)
+    assert (stays.status, stays.method) == ("satisfied", "witness search")
+    assert stays.states is not None and stays.states <= 2 * 10  # the random runs', then the beam's
+    safe = results.pop("safe")  # beyond the budget the shield is computed state by state
+    assert (safe.status, safe.method) == ("satisfied", "on demand") and "more than 10 states" in (safe.message or "")
+    assert {r.status for r in results.values()} == {"unknown"}
+    assert "state by state" in (results["Shielded"].message or "")
+    assert "more than 10 states" in (results["LeadsTo"].message or "")
+    assert "--max-states" in (results["LeadsTo"].message or "")
+    assert "--horizon" in (results["LeadsTo"].message or "")
+    assert "UNKNOWN" in render_text(list(results.values()))
+
+
+def test_only_names_that_exist(compiled: Callable[[str], Compiled]) -> None:
+    with pytest.raises(UnknownQuery) as caught:
+        run(compiled("goal_ahead"), "Stays", "Nope", "Neither")
+    assert caught.value.args[0] == "Nope, Neither"
+
+
+def test_learning_strategies_are_learned(compiled: Callable[[str], Compiled]) -> None:
+    learn = run(compiled("goal_ahead"), "Learn")
+    assert list(learn) == ["safe", "Learn"]  # `under safe` pulls in the strategy
+    result = learn["Learn"]  # rac.learning.qlearning (tests/learning/test_learn.py has the details)
+    assert result.kind == "learning" and result.status == "value" and result.runs is not None and result.runs > 0
+    assert "learned in" in (result.message or "") and "collided: 0" in (result.message or "")
+
+
+def test_horizon_option_overrides_the_automaton(compiled: Callable[[str], Compiled]) -> None:
+    stays = run(compiled("goal_ahead"), "Stays", horizon=Fraction(1))["Stays"]
+    assert stays.status == "satisfied" and stays.horizon_samples == 2
+    assert stays.trace is not None and [row["time"] for row in stays.trace] == [0, 0.5, 1]
+
+
+def test_a_file_without_a_model_block_or_with_errors(tmp_path: Path) -> None:
+    path = tmp_path / "plain.ra"
+    path.write_text("automaton Plain {\n    input near : bool\n    reward sa\n    objective sa\n    sample every 0.5\n"
+                    "    horizon 4\n    initial location N { sa' == 1 }\n    edge N -> N when near\n"
+                    "    query Q: E<> N\n}\n")
+    with pytest.raises(ValueError, match="needs a `model` block"):
+        verify(compile_file(path))
+    broken = write_engine_file(tmp_path, "goal_ahead", {"Q": "E<> goal()"})
+    broken.write_text(broken.read_text().replace("3 * collision_distance", "3 * colision_distance"))
+    with pytest.raises(CheckError) as caught:
+        verify(compile_file(broken))
+    assert [d.code for d in caught.value.diagnostics] == ["E0101"]
+
+
+def test_standard_queries(compiled: Callable[[str], Compiled], tmp_path: Path) -> None:
+    item = compiled("goal_behind_wall")
+    decls = standard_queries(item.result)
+    assert [d.name for d in decls] == ["Qa", "Qb", "Qc", "Qd", "Fig7", "Fig7_safe", "Unsafe_safe"]
+    results = run(item, "Qb", "Qc", "Qd", standard=True, out=tmp_path)
+    assert [r.name for r in results.values()] == ["Qb", "Qc", "Qd"]
+    assert results["Qb"].status == "satisfied" and results["Qd"].status == "satisfied"
+    assert results["Qb"].title == "a run that is never unsafe exists"
+    assert "NO run that stays safe until it gets there exists" in (results["Qc"].message or "")
+    # the file defines a strategy `safe` of its own: the standard one is `safe_` (nothing is overwritten)
+    assert decls[3].text == "strategy safe_ = control: A[] !collide() && !offroad()"
+    assert (tmp_path / "standard" / "safe_.shield.npz").is_file() and not (tmp_path / "safe.shield.npz").exists()
+    assert standard_queries(item.result, Fraction(3, 2))[0].text.startswith("Pr[<=1.5](<> ")
+
+
+# ---------------------------------------------------------------- rendering
+def _row(k: int, x: float) -> dict[str, float | int | str]:
+    return {"time": k * 0.5, "x": x, "y": 1.5, "v": 5.0, "acc": 0.0, "head": 0.0, "jerk": 0.0, "turn": 0.0,
+            "collide": False, "offroad": False, "goal": k == 7}
+
+
+def test_render_text_layout() -> None:
+    trace = tuple(_row(k, 10 + 2.5 * k) for k in range(8))
+    results = [
+        QueryResult("Qc", "E<> goal()", "symbolic", "satisfied", states=1234, horizon_samples=8, seconds=0.25,
+                    trace=trace),
+        QueryResult("P", "Pr[<=2](<> v >= 6)", "probability", "value", interval=(0.25, 0.35), estimate=0.3, runs=300,
+                    horizon_samples=4, seconds=1.5, seed=42, confidence=0.9),
+        QueryResult("E", "E[<=2;20](max: v)", "expectation", "value", interval=(7.5, 8.5), estimate=8.0, runs=20,
+                    horizon_samples=4, seconds=0.0, seed=3, confidence=0.95),
+        QueryResult("U", "A[] !collide()", "symbolic", "unknown", message="too many states"),
+    ]
+    assert render_text(results) == """\
+Verifying Qc: E<> goal()
+ -- Formula is satisfied.
+    1,234 states, horizon 8 samples, 0.25 s
+    trace (8 states, first and last 3; --trace shows all):
+      t=0s x=10 y=1.5 v=5 acc=0 head=0 jerk=0 turn=0
+      t=0.5s x=12.5 y=1.5 v=5 acc=0 head=0 jerk=0 turn=0
+      t=1s x=15 y=1.5 v=5 acc=0 head=0 jerk=0 turn=0
+      t=2.5s x=22.5 y=1.5 v=5 acc=0 head=0 jerk=0 turn=0
+      t=3s x=25 y=1.5 v=5 acc=0 head=0 jerk=0 turn=0
+      t=3.5s x=27.5 y=1.5 v=5 acc=0 head=0 jerk=0 turn=0 [goal]
+Verifying P: Pr[<=2](<> v >= 6)
+ -- Pr in [0.2500, 0.3500] (300 runs, 90% CI)
+    horizon 4 samples, 1.50 s, seed 42
+Verifying E: E[<=2;20](max: v)
+ -- (20 runs) E = 8 ± 0.5 (95% CI)
+    horizon 4 samples, 0.00 s, seed 3
+Verifying U: A[] !collide()
+ -- Formula is UNKNOWN: too many states
+    0.00 s"""
+    assert render_text(results[:1], traces=True).count("\n      t=") == 8
+
+
+def test_render_json_is_strict_json(compiled: Callable[[str], Compiled], tmp_path: Path) -> None:
+    item = compiled("avoidable_obstacle")
+    path = item.folder / "one.ra"
+    path.write_text(engine_source(item.tiny, {"One": "E[<=2;1](max: v)", "Sim": QUERIES["Sim"]},
+                                  scenario_file="avoidable_obstacle.xml"))
+    results = verify(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path, plots=False))
+    text = json.dumps(render_json(results), allow_nan=False)  # one run: no interval, but no Infinity either
+    one, sim = json.loads(text)
+    assert one["interval"] == [None, None] and one["runs"] == 1 and one["estimate"] >= 5
+    assert sim["files"] == [str(tmp_path / "Sim.csv")]
+    assert sim["location"] == {"file": str(path), "line": one["location"]["line"] + 1, "column": 5}
+    expected = {"name", "formula", "kind", "status", "title", "interval", "estimate", "runs", "states", "seconds",
+                "horizon_samples", "trace", "files", "message", "seed", "confidence", "exact", "method", "optimum",
+                "location"}
+    assert set(one) == expected
+
+
+# ---------------------------------------------------------------- Pr: the interval covers Storm's exact value
+@pytest.mark.parametrize("event", ["v > 8", "x > 20", "mindist() < 2"])
+def test_probability_interval_covers_the_exact_value(tmp_path: Path, event: str) -> None:
+    """SMC draws actions uniformly; Storm computes the same probability exactly on the explored
+    model (a DTMC with uniform choices). The interval must cover it (fixed seed: not flaky)."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"P": f"Pr[<=4](<> {event})"})
+    result = compile_file(path)
+    (answer,) = verify(result, VerifyOptions(seed=3, only=("P",), out_dir=tmp_path / "out"))
+    assert answer.exact is not None and 0.0 < answer.exact <= 1.0
+    assert answer.interval is not None
+    assert answer.interval[0] <= answer.exact <= answer.interval[1]
+    assert "exact (Storm" in render_text([answer])
+
+
+# ---------------------------------------------------------------- statistical queries within --max-memory (issue 22)
+def test_expectation_runs_in_chunks_within_the_memory_budget(tmp_path: Path) -> None:
+    """`E[...]` with many runs and a small budget is answered in chunks, with the same mean as one batch
+    would give for a deterministic per-run value (the chunks aggregate the statistic incrementally)."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"E": "E[<=2;3000](max: time)"})
+    (answer,) = verify(compile_file(path), VerifyOptions(seed=1, only=("E",), out_dir=tmp_path / "out",
+                                                         max_bytes=2 * 2**20))
+    assert answer.status == "value" and answer.runs == 3000
+    assert answer.estimate == pytest.approx(2.0) and answer.interval == (pytest.approx(2.0), pytest.approx(2.0))
+
+
+def test_simulate_beyond_the_memory_budget_stops_before_allocating(tmp_path: Path) -> None:
+    """`simulate` must hold every trace: beyond --max-memory it stops at once, naming the estimate."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"S": "simulate[<=3;1000000]{mindist()}"})
+    (answer,) = verify(compile_file(path), VerifyOptions(seed=1, only=("S",), out_dir=tmp_path / "out",
+                                                         max_bytes=300 * 2**20))
+    assert answer.status == "unknown"
+    assert answer.message is not None and "--max-memory" in answer.message and "1,000,000 runs" in answer.message
