@@ -19,13 +19,7 @@ PACKAGE = Path(rac.__file__).resolve().parent
 
 #: Modules no test imports yet, each with the reason; remove an entry when its test lands.
 NOT_YET: dict[str, str] = {
-    "rac.check.model_block": "only reached through other modules; a direct test is pending (issue 24)",
-    "rac.cli.engine": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.cli.new": "only reached through other modules; a direct test is pending (issue 24)",
-    "rac.core.printing": "only reached through other modules; a direct test is pending (issue 24)",
-    "rac.ir.text": "only reached through other modules; a direct test is pending (issue 24)",
-    "rac.lang.grammar": "only reached through other modules; a direct test is pending (issue 24)",
-    "rac.lang.syntax_errors": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.model.sample": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.model.scenario_xml": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.output.paths": "only reached through other modules; a direct test is pending (issue 24)",
@@ -38,7 +32,6 @@ NOT_YET: dict[str, str] = {
     "rac.targets.uppaal.significands": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.verify.learning": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.verify.statistical": "only reached through other modules; a direct test is pending (issue 24)",
-    "rac.verify.status": "only reached through other modules; a direct test is pending (issue 24)",
 }
 
 
