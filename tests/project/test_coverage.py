@@ -21,8 +21,6 @@ PACKAGE = Path(rac.__file__).resolve().parent
 NOT_YET: dict[str, str] = {
     "rac.model.scenario_xml": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.sweep.child": "only reached through other modules; a direct test is pending (issue 24)",
-    "rac.targets.uppaal.layout": "only reached through other modules; a direct test is pending (issue 24)",
-    "rac.targets.uppaal.processes": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.verify.learning": "only reached through other modules; a direct test is pending (issue 24)",
     "rac.verify.statistical": "only reached through other modules; a direct test is pending (issue 24)",
 }
