@@ -19,7 +19,6 @@ PACKAGE = Path(rac.__file__).resolve().parent
 
 #: Modules no test imports yet, each with the reason; remove an entry when its test lands.
 NOT_YET: dict[str, str] = {
-    "rac.verify.learning": "only reached through other modules; a direct test is pending (issue 24)",
 }
 
 
