@@ -1,0 +1,60 @@
+"""rac.cli.new: ``rac new NAME --from FILE`` copies a file, renaming its automaton after NAME."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from rac.cli.common import EXIT_OK, EXIT_USAGE
+from rac.cli.new import camel_case, new_command, renamed, template_path
+from rac.compiler import compile_file
+
+STDLIB = Path(__file__).resolve().parents[2] / "stdlib"
+
+
+@pytest.mark.parametrize(("name", "camel"), [
+    ("my_reward", "MyReward"), ("speed", "Speed"), ("a__b_", "AB"), ("x2_y", "X2Y"),
+    ("_", None), ("2fast", None), ("my-reward", None), ("", None),
+])
+def test_camel_case(name: str, camel: str | None) -> None:
+    assert camel_case(name) == camel
+
+
+def test_template_path_finds_stdlib_names() -> None:
+    for template in ("speed_limit", "speed_limit.ra", "stdlib/speed_limit.ra"):
+        assert template_path(template).name == "speed_limit.ra"
+        assert template_path(template).read_bytes() == (STDLIB / "speed_limit.ra").read_bytes()
+    with pytest.raises(FileNotFoundError):
+        template_path("some/where/missing.ra")
+
+
+def test_renamed_changes_the_declaration_and_qualified_references() -> None:
+    text = "automaton Old {\n  input p : bool\n  reward r\n  objective r\n" \
+           "  initial location L { r' == 1 }\n  query Q: E<> Old.L\n}\n"
+    new = renamed(text, "Fresh")
+    assert "automaton Fresh {" in new and "E<> Fresh.L" in new and "Old" not in new
+    assert renamed("not a .ra file {", "Fresh") == "not a .ra file {"  # does not parse: unchanged
+
+
+def test_new_command_writes_a_checked_copy(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    code = new_command(argparse.Namespace(name="my_limit", template="speed_limit"))
+    assert code == EXIT_OK
+    written = tmp_path / "my_limit.ra"
+    assert "automaton MyLimit" in written.read_text(encoding="utf-8")
+    out = capsys.readouterr().out
+    assert "wrote my_limit.ra" in out and "automaton MyLimit" in out and "next: rac check my_limit.ra" in out
+    original, copy = compile_file(STDLIB / "speed_limit.ra"), compile_file(written)
+    assert copy.ok and original.ok
+    assert [loc.name for loc in copy.automaton.locations] == [loc.name for loc in original.automaton.locations]
+    # never overwrites
+    assert new_command(argparse.Namespace(name="my_limit", template="speed_limit")) == EXIT_USAGE
+    assert "E0009" in capsys.readouterr().err
+
+
+def test_new_command_refuses_names_of_no_file(capsys: pytest.CaptureFixture[str]) -> None:
+    assert new_command(argparse.Namespace(name="..", template="speed_limit")) == EXIT_USAGE
+    assert "names no file" in capsys.readouterr().err

@@ -1,0 +1,58 @@
+"""rac.lang.syntax_errors: lark's exceptions become the documented E0001-E0003 diagnostics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from lark.exceptions import UnexpectedInput
+
+from rac.core.source import SourceFile
+from rac.lang.grammar import EXPRESSIONS, MODULE, lark_parser
+from rac.lang.syntax_errors import syntax_error
+
+DIAGNOSTICS = Path(__file__).resolve().parents[1] / "diagnostics"
+
+
+def diagnose(text: str, rule: str = MODULE, name: str = "t.ra"):
+    source = SourceFile(name, text)
+    with pytest.raises(UnexpectedInput) as caught:
+        lark_parser().parse(text, start=rule)
+    return syntax_error(caught.value, source, rule), source
+
+
+@pytest.mark.parametrize("case", ["E0001_missing_brace", "E0002_single_ampersand", "E0001_flow_single_equals"])
+def test_the_message_of_the_documented_example(case: str) -> None:
+    """The diagnostic's first line is the one the golden ``.expected`` file shows, at the same place."""
+    text = (DIAGNOSTICS / f"{case}.ra").read_text(encoding="utf-8")
+    diagnostic, _ = diagnose(text, name=f"{case}.ra")
+    first = (DIAGNOSTICS / f"{case}.expected").read_text(encoding="utf-8").splitlines()[0]
+    span = diagnostic.span
+    assert first == f"{case}.ra:{span.line}:{span.column}: error[{diagnostic.code}]: {diagnostic.message}"
+
+
+def test_single_ampersand_gets_the_hint() -> None:
+    diagnostic, _ = diagnose("automaton A { input p : bool  input q : bool  edge * -> L when p & q }")
+    assert diagnostic.code == "E0002"
+    assert diagnostic.message == "unexpected character `&`"
+    assert "logical and is written `&&` (or `and`)" in diagnostic.hints
+
+
+def test_missing_brace_is_an_unexpected_end_of_file() -> None:
+    diagnostic, _ = diagnose("automaton A { input p : bool")
+    assert (diagnostic.code, diagnostic.message) == ("E0001", "unexpected end of file")
+    assert "check that every `{` has a matching `}`" in diagnostic.hints
+
+
+def test_unterminated_block_comment() -> None:
+    diagnostic, _ = diagnose("automaton A { /* never closed\n input p : bool }")
+    assert (diagnostic.code, diagnostic.message) == ("E0003", "unterminated block comment")
+    assert diagnostic.span.start == len("automaton A { ")
+
+
+def test_expression_rule_names_the_unexpected_token() -> None:
+    diagnostic, _ = diagnose("3 * * 4", EXPRESSIONS)
+    assert diagnostic.code == "E0001"
+    assert diagnostic.message.startswith("unexpected")
+    assert diagnostic.message == "unexpected `*`"
+    assert [note.message for note in diagnostic.notes] == ["expected an expression"]

@@ -1,0 +1,62 @@
+"""rac.targets.uppaal.significands: the values the Environment chooses (one per piece of a numeric
+input's range), what the mirrors gain per sample, and E0801 when a number has no significand."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+from rac.compiler import compile_text
+from rac.targets.uppaal.automaton import AutomatonGenerator
+from rac.targets.uppaal.significands import NumericInput, Significands
+
+#: A small automaton with a bool and a real input, two rewards (the tests of labels and processes share it).
+TINY = """automaton Tiny {
+    input near : bool
+    input d : real in [0, 10]
+    reward sa, pr
+    objective 10*sa + pr
+    sample every 0.5
+    horizon 2
+    initial location Go { sa' == 1; pr' == 2 }
+    location Slow { sa' == -1; pr' == 0 }
+    edge * -> Slow when near || d < 2.5 do sa = sa - 3
+    edge * -> Go when !near && d >= 2.5
+}
+"""
+
+
+def generator(text: str = TINY) -> AutomatonGenerator:
+    """The UPPAAL generator of a checked ``text`` (its parts: numbers, labels, processes)."""
+    result = compile_text(text, "tiny.ra")
+    assert result.automaton is not None, [d.message for d in result.diagnostics]
+    return AutomatonGenerator(result.automaton, "tiny.ra", "tiny")
+
+
+def test_one_significand_per_piece_of_the_range() -> None:
+    g = generator()
+    numbers: Significands = g.numbers
+    assert numbers.scale == 10 ** 4  # base 10, exponent 4 without a model block
+    [d] = numbers.inputs(g.n, g.array, g.select)
+    assert isinstance(d, NumericInput)
+    assert d.pieces == "d = 0, d in (0, 2.5), d = 2.5, d in (2.5, 10), d = 10"
+    # points exactly, open pieces at their middle; each value falls in its own piece
+    assert d.values == [0, 12500, 25000, 62500, 100000]
+    assert (d.low, d.high, d.count) == ("0", "10", 5)
+    assert d.initializer == "{0, 12500, 25000, 62500, 100000}"
+    assert g.diagnostics == []
+
+
+def test_accrual_is_rate_times_period_in_significand_units() -> None:
+    g = generator()
+    inputs = g.numbers.inputs(g.n, g.array, g.select)
+    accruals = g.numbers.accruals(inputs, g.n)
+    # per location (Go, Slow) and reward (sa, pr): rate * 0.5 s * 10^4
+    assert accruals == [[(Fraction(5000), []), (Fraction(10000), [])],
+                        [(Fraction(-5000), []), (Fraction(0), [])]]
+
+
+def test_a_threshold_finer_than_one_unit_is_e0801() -> None:
+    g = generator(TINY.replace("d < 2.5", "d < 2.50001").replace("d >= 2.5", "d >= 2.50001"))
+    g.numbers.inputs(g.n, g.array, g.select)
+    assert [d.code for d in g.diagnostics] == ["E0801"]
+    assert "2.50001" in g.diagnostics[0].message and "exponent 4" in g.diagnostics[0].message

@@ -1,0 +1,63 @@
+"""rac.verify.learning: the LearningAnswerer on the tiny engine file, called directly. The query
+``maxE(sa)[<=4] ... under safe`` has a known optimum: the shield keeps the car in `Normal`, where
+``sa' == 1``, so the best return over 4 s is 4; learning reaches it, the exact backward pass equals it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from engine_files import write_engine_file
+
+from rac.compiler import CompileResult, compile_file
+from rac.engine.evaluate import EvaluationError
+from rac.verify.context import Context, UnknownVerdict
+from rac.verify.learning import LearningAnswerer
+from rac.verify.runner import QueryResult, Verifier, VerifyOptions
+
+
+@pytest.fixture(scope="module")
+def compiled(tmp_path_factory: pytest.TempPathFactory) -> CompileResult:
+    result = compile_file(write_engine_file(tmp_path_factory.mktemp("learning"), "avoidable_obstacle"))
+    assert result.ok and result.automaton is not None, result.diagnostics
+    return result
+
+
+def decl(result: CompileResult, name: str):
+    [found] = [d for d in result.automaton.queries if d.name == name]
+    return found
+
+
+def shielded_context(result: CompileResult, **options: object) -> Context:
+    """A context (seed 1) in which the shield `safe` has been computed, as `rac verify` does first."""
+    context = Context(result, VerifyOptions(seed=1, plots=False, learn_episodes=200, **options))  # type: ignore[arg-type]
+    assert Verifier(context).answer(decl(result, "safe"), None).status == "satisfied"
+    return context
+
+
+def learn(context: Context, query) -> QueryResult:
+    return LearningAnswerer(context).learn(query, QueryResult("Learn", "maxE", "learning", "unknown"))
+
+
+def test_learning_reaches_the_known_optimum(compiled: CompileResult) -> None:
+    context = shielded_context(compiled)
+    result = learn(context, decl(compiled, "Learn").query)
+    assert result.status == "value" and result.runs == 200
+    assert result.estimate == 4.0
+    assert result.optimum["value"] == 4.0 and result.optimum["shortfall"] == 0.0
+    assert "fast" in context.learned  # later queries `under fast` find it
+
+
+def test_exact_mode_gives_the_optimum_without_episodes(compiled: CompileResult) -> None:
+    result = learn(shielded_context(compiled, exact=True), decl(compiled, "Learn").query)
+    assert result.status == "value" and result.estimate == 4.0 and result.runs is None
+
+
+def test_learning_needs_the_shield_and_refuses_a_learned_one(compiled: CompileResult) -> None:
+    query = decl(compiled, "Learn").query
+    with pytest.raises(UnknownVerdict, match="has not been computed"):
+        learn(Context(compiled, VerifyOptions(seed=1, plots=False)), query)
+    context = shielded_context(compiled)
+    learn(context, query)
+    with pytest.raises(EvaluationError, match="learned strategy `fast`"):
+        learn(context, dataclasses.replace(query, under="fast"))

@@ -1,0 +1,54 @@
+"""rac.verify.statistical: the StatisticalAnswerer on the tiny engine file, called directly: known
+verdicts of sequential tests, a fixed-run estimate that is a count over the runs, and the same answer
+as ``rac verify`` gives under the same seed."""
+
+from __future__ import annotations
+
+import pytest
+from engine_files import write_engine_file
+
+from rac.compiler import CompileResult, compile_file
+from rac.verify.context import Context
+from rac.verify.runner import QueryResult, VerifyOptions, verify
+from rac.verify.statistical import StatisticalAnswerer
+
+
+@pytest.fixture(scope="module")
+def compiled(tmp_path_factory: pytest.TempPathFactory) -> CompileResult:
+    result = compile_file(write_engine_file(tmp_path_factory.mktemp("statistical"), "avoidable_obstacle"))
+    assert result.ok and result.automaton is not None, result.diagnostics
+    return result
+
+
+def answer(result: CompileResult, name: str, method: str) -> QueryResult:
+    """Query ``name`` answered by ``StatisticalAnswerer.<method>`` in a fresh context (seed 1)."""
+    [decl] = [d for d in result.automaton.queries if d.name == name]
+    answerer = StatisticalAnswerer(Context(result, VerifyOptions(seed=1, plots=False)))
+    base = QueryResult(decl.name, decl.text, "statistical", "unknown")
+    return getattr(answerer, method)(decl.query, base)
+
+
+def test_sequential_tests_decide_the_certain_and_the_impossible(compiled: CompileResult) -> None:
+    assert answer(compiled, "Certain", "probability").status == "satisfied"  # v >= 0 always
+    assert answer(compiled, "Impossible", "probability").status == "not satisfied"  # v < 0 never
+
+
+def test_fixed_runs_estimate_is_a_count_over_the_runs(compiled: CompileResult) -> None:
+    result = answer(compiled, "ProbRuns", "probability")
+    assert result.status == "value" and result.runs == 30 and result.seed is not None
+    assert result.estimate is not None and result.interval is not None
+    assert abs(result.estimate * 30 - round(result.estimate * 30)) < 1e-9
+    assert result.interval[0] <= result.estimate <= result.interval[1]
+
+
+@pytest.mark.parametrize(("name", "method"), [("ProbRuns", "probability"), ("Speed", "expectation")])
+def test_same_answer_as_rac_verify(compiled: CompileResult, name: str, method: str) -> None:
+    direct = answer(compiled, name, method)
+    [through_verify] = verify(compiled, VerifyOptions(seed=1, plots=False, only=(name,)))
+    for field in ("status", "estimate", "interval", "runs", "seed"):
+        assert getattr(direct, field) == getattr(through_verify, field), field
+
+
+def test_simulate_draws_the_asked_runs(compiled: CompileResult) -> None:
+    result = answer(compiled, "Sim", "simulate")
+    assert result.status == "value" and result.runs == 4
