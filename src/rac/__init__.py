@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from rac.compiler import CompileResult, compile_file, compile_text
     from rac.core.diagnostics import CheckError, Diagnostic, RacError
-    from rac.runtime.interpreter import RewardAutomaton
+    from rac.runtime.interpreter import RewardAutomaton  # the same: loaded on first use
 
 __version__ = "0.1.0"
 __all__ = ["CheckError", "CompileResult", "Diagnostic", "RacError", "compile_file", "compile_text", "load", "loads"]
@@ -29,16 +29,18 @@ def load(path: str | Path) -> RewardAutomaton:
 
     Raises :class:`CheckError` (with every diagnostic) if the file has errors.
     """
+    # the compiler loads on first use: `import rac` (rac --version) stays light
     from rac.compiler import compile_file
-    from rac.runtime.interpreter import RewardAutomaton
+    from rac.runtime.interpreter import RewardAutomaton  # the same: loaded on first use
 
     return RewardAutomaton(compile_file(path).raise_for_errors())
 
 
 def loads(text: str, name: str = "<string>") -> RewardAutomaton:
     """Like :func:`load`, for source text."""
+    # the compiler loads on first use: `import rac` (rac --version) stays light
     from rac.compiler import compile_text
-    from rac.runtime.interpreter import RewardAutomaton
+    from rac.runtime.interpreter import RewardAutomaton  # the same: loaded on first use
 
     return RewardAutomaton(compile_text(text, name).raise_for_errors())
 

@@ -18,7 +18,8 @@ Each rule fails with the offending file and line:
   (no bare integer column), the int32 limits only from :mod:`rac.core.numbers`, ``collide()`` only
   from :func:`rac.model.sample.collides`, a guard walked by :class:`rac.ir.GuardFold`;
 - no ``except Exception`` (nor bare ``except:``) outside :data:`CATCH_ALL`, each with its reason;
-- every exception class of ``src/rac`` derives from ``RacError`` (``rac.core.diagnostics``).
+- every exception class of ``src/rac`` derives from ``RacError`` (``rac.core.diagnostics``);
+- every import inside a function body says why it is there (a comment on its line or the line above).
 
 docs/architecture.md shows the same layers.
 """
@@ -26,6 +27,8 @@ docs/architecture.md shows the same layers.
 from __future__ import annotations
 
 import ast
+import io
+import tokenize
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -470,3 +473,54 @@ def test_every_exception_class_derives_from_rac_error() -> None:
     assert "RacError" in exceptions
     wrong = [f"{where[n]}: {n}" for n in exceptions if n != "RacError" and "RacError" not in ancestors(n)]
     assert not wrong, "exception classes that do not derive from rac.core.diagnostics.RacError:\n" + "\n".join(wrong)
+
+
+def _type_checking(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def function_local_imports(tree: ast.AST) -> Iterator[ast.Import | ast.ImportFrom]:
+    """The import statements inside a function body (at any depth below a ``def`` or ``lambda``),
+    skipping ``if TYPE_CHECKING:`` blocks."""
+
+    def visit(node: ast.AST, inside: bool) -> Iterator[ast.Import | ast.ImportFrom]:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.If) and _type_checking(child):
+                continue
+            if inside and isinstance(child, (ast.Import, ast.ImportFrom)):
+                yield child
+            yield from visit(child, inside or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)))
+
+    yield from visit(tree, False)
+
+
+def uncommented_local_imports() -> Iterator[str]:
+    for path in sorted(SRC.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        comments: dict[int, str] = {}  # line -> its comment (tokenize: a `#` inside a string is no comment)
+        only_comment: set[int] = set()  # lines holding a comment and nothing else
+        for token in tokenize.generate_tokens(io.StringIO(text).readline):
+            if token.type == tokenize.COMMENT:
+                comments[token.start[0]] = token.string
+                if not token.line[:token.start[1]].strip():
+                    only_comment.add(token.start[0])
+        for node in function_local_imports(ast.parse(text)):
+            said = [comments[n].lstrip("#").strip() for n in range(node.lineno, node.end_lineno + 1) if n in comments]
+            if node.lineno - 1 in only_comment:
+                said.append(comments[node.lineno - 1].lstrip("#").strip())
+            if not any(said):
+                yield f"{path.relative_to(SRC.parents[1])}:{node.lineno}: {ast.unparse(node)}"
+
+
+def test_function_local_imports_say_why() -> None:
+    """An import belongs at the top of its module; one inside a function body (at any depth, ``if
+    TYPE_CHECKING:`` blocks exempt) stays only at a seam, with a one-line reason as a comment on one of
+    its lines or on the line just above: a heavy third-party library the module's light users must not
+    load (``# numpy: rac fmt and a syntax error never load it``), or an import cycle (``# cycle:
+    rac.engine.product imports this module``). Scope: every module of src/rac; the comment's words are
+    not checked, only that there are some."""
+    found = list(uncommented_local_imports())
+    assert not found, ("imports inside functions without a reason (move them to the top, or say why on "
+                       "the line or the line above):\n" + "\n".join(found))

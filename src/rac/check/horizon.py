@@ -55,7 +55,7 @@ class Fit:
 def fit_line(points: Sequence[tuple[Fraction, Fraction]]) -> Fit:
     """The line through the first two of ``points`` (distinct horizons, ascending), checked against
     every other one, all in sympy's exact rationals."""
-    import sympy
+    import sympy  # sympy: only when this runs; importing rac.check.horizon stays light
 
     distinct = tuple(sorted(dict(points).items()))
     if len(distinct) < 3:

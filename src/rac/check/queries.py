@@ -36,6 +36,7 @@ from rac.ir.vocabulary import (
 )
 from rac.lang import ast
 from rac.lang.format import format_expr, format_query
+from rac.lang.parser import parse_expression
 
 __all__ = ["FUNCTIONS_HINT", "QUERY_FUNCTIONS", "VOCABULARY_HINT", "Lowering", "Scope", "Symbol",
            "lower_expression", "lower_queries", "model_settings", "model_settings_of", "scope_of", "strategy_names",
@@ -462,7 +463,6 @@ def lower_expression(automaton: ir.Automaton, source: str | ast.Expr, *, name: s
     Raises :class:`rac.lang.parser.ExpressionError` (a ``ValueError``) when the text is not one
     expression, :class:`rac.core.diagnostics.CheckError` with the diagnostics when it names something
     unknown or mixes types."""
-    from rac.lang.parser import parse_expression
 
     node = parse_expression(source, name) if isinstance(source, str) else source
     scope = scope_of(automaton)

@@ -20,6 +20,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from rac.core.diagnostics import Diagnostic, RacError, error
+from rac.engine.budget import default_max_bytes, parse_size
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
@@ -195,7 +196,6 @@ def _linked(path: Path) -> bool:
 
 def load_budget(args: argparse.Namespace) -> int:
     """The memory budget of the scenario's load: ``--max-memory``, else the engine's default (half the machine)."""
-    from rac.engine.budget import default_max_bytes
 
     return args.max_memory or default_max_bytes()
 
@@ -203,7 +203,6 @@ def load_budget(args: argparse.Namespace) -> int:
 def size_argument(text: str) -> int:
     """An argparse ``type`` for a memory size such as ``512M`` or ``4G`` (``--max-memory``,
     ``--task-memory``): the bytes, more than 0."""
-    from rac.engine.budget import parse_size
 
     try:
         size = parse_size(text)

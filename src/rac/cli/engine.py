@@ -16,6 +16,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
+from rac.check.queries import lower_expression
 from rac.cli.common import (
     EXIT_ERRORS,
     EXIT_OK,
@@ -25,9 +26,15 @@ from rac.cli.common import (
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
-from rac.core.diagnostics import RacError, render_json
+from rac.core.diagnostics import CheckError, RacError, render_json
 from rac.core.diagnostics import render_text as render_diagnostics
+from rac.engine.budget import BudgetExceeded, default_max_bytes
+from rac.ir import query as iq
+from rac.lang.parser import ExpressionError
+from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.model.sample import Ego
+from rac.output.progress import Heartbeat, Progress
+from rac.verify.status import NOT_SATISFIED, UNDECIDED
 
 if TYPE_CHECKING:
     from rac.verify.report import QueryResult
@@ -60,7 +67,6 @@ def _load(path: Path, max_bytes: int | None) -> tuple[CompileResult | None, int]
 def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     """The checked file with a model (or None and the exit code, after saying why); ``--horizon``
     must be a whole number of samples (the sweep checks its own periods)."""
-    from rac.engine.budget import default_max_bytes
 
     result, status = _load(args.file, args.max_memory or default_max_bytes())
     if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
@@ -74,8 +80,6 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
 
     @functools.wraps(command)
     def run(args: argparse.Namespace) -> int:
-        from rac.output.progress import Heartbeat
-
         # off a terminal (CI logs, pipes) a long command says what it does every few seconds, from the
         # scenario's load on
         with Heartbeat(f"rac {args.command}", enabled=False if args.quiet else None):
@@ -99,7 +103,6 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
 
 def _announcer(quiet: bool) -> Callable[[str], None]:
     """``announce(message)``: a line on a terminal (unless ``quiet``), and the phase of the active heartbeat."""
-    from rac.output.progress import Heartbeat
 
     def announce(message: str) -> None:
         if Heartbeat.active is not None:  # printed only off a terminal, and not with -q
@@ -113,8 +116,9 @@ def _announcer(quiet: bool) -> Callable[[str], None]:
 def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int, n: int):
     """``n`` simulated runs (under the safety shield with ``--shield``) and their seed, or None and
     the reason when no shield can be used."""
-    import numpy as np
+    import numpy as np  # numpy: only the command that uses it loads it
 
+    # numpy (via rac.engine.simulate): only the command that uses it loads it
     from rac.engine.simulate import simulate
 
     policy = None
@@ -130,8 +134,7 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
     """The one run of the file's learned strategy ``args.strategy`` (learned now, with the shield it
     is learned under), and the seed; or None and why (None and "" after printing a usage error)."""
-    from rac.engine.budget import default_max_bytes
-    from rac.ir import query as iq
+    # numpy, rac.check.analysis, stormpy (via rac.verify.runner): only the command that uses it loads it
     from rac.verify.runner import VerifyOptions, run_queries
 
     assert result.automaton is not None
@@ -175,7 +178,6 @@ def _horizon_ok(result: CompileResult, args: argparse.Namespace) -> bool:
 
 def _explore_bar(quiet: bool):
     """A progress bar and an exploration callback for it; several explorations add up."""
-    from rac.output.progress import Progress
 
     bar = Progress(desc="exploring", unit="states", enabled=False if quiet else None)
     seen = {"last": 0}
@@ -192,7 +194,7 @@ def _explore_bar(quiet: bool):
 
 @_on_checked_file
 def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
-    from rac.engine.budget import default_max_bytes
+    # numpy, rac.check.analysis, stormpy (via rac.verify.runner): only the command that uses it loads it
     from rac.verify.runner import UnknownQuery, VerifyOptions, render_json, render_text, verify
 
     out_dir = output_folder(args.file, "verify", args.out)
@@ -229,7 +231,6 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
 def verdict_status(results: Sequence[QueryResult]) -> int:
     """``rac verify``'s exit code: a query that does not hold outweighs one that was not decided (a
     query that is not applicable is neither: its failed defining query sets the code)."""
-    from rac.verify.status import NOT_SATISFIED, UNDECIDED
 
     if any(r.status == NOT_SATISFIED for r in results):
         return EXIT_ERRORS
@@ -240,8 +241,10 @@ def verdict_status(results: Sequence[QueryResult]) -> int:
 
 def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.Namespace):
     """The safety shield (Qd) at this horizon as a simulation policy, or an error message."""
+    # numpy, stormpy (via rac.engine.shield): only the command that uses it loads it
     from rac.engine import shield as shields
-    from rac.engine.budget import BudgetExceeded, default_max_bytes
+
+    # numpy, stormpy (via rac.verify.context): only the command that uses it loads it
     from rac.verify.context import over_budget
 
     assert result.model_data is not None
@@ -273,9 +276,6 @@ def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
 def _parse_exprs(texts: list[str], automaton):
     """Each ``--expr`` as one checked expression of the query language over the file's automaton,
     or an error message naming it."""
-    from rac.check.queries import lower_expression
-    from rac.core.diagnostics import CheckError
-    from rac.lang.parser import ExpressionError
 
     exprs = []
     for text in texts:
@@ -294,11 +294,15 @@ def _parse_exprs(texts: list[str], automaton):
 
 @_on_checked_file
 def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
-    import numpy as np
+    import numpy as np  # numpy: only the command that uses it loads it
 
+    # numpy (via rac.engine.evaluate): only the command that uses it loads it
     from rac.engine.evaluate import EvaluationError
-    from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
+
+    # numpy, stormpy (via rac.verify.context): only the command that uses it loads it
     from rac.verify.context import Context, VerifyOptions
+
+    # numpy (via rac.verify.report): only the command that uses it loads it
     from rac.verify.report import plot_series, write_csv
 
     texts = args.expr or ["mindist()", "3 * collision_distance"]
@@ -348,6 +352,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
 
 @_on_checked_file
 def render_command(args: argparse.Namespace, result: CompileResult) -> int:
+    # PIL, matplotlib, numpy (via rac.output.render): only the command that uses it loads it
     from rac.output.render import RenderError, render_trajectory
 
     samples = _horizon_samples(result, args.horizon)
@@ -387,7 +392,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
 
 @_on_checked_file
 def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
-    from rac.engine.budget import default_max_bytes
+    # numpy, scipy, stormpy (via rac.studies.preanalysis): only the command that uses it loads it
     from rac.studies.preanalysis import SweepError, render_table, sweep
 
     out_dir = output_folder(args.file, "preanalyse", args.out)
@@ -410,7 +415,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
 
 @_on_checked_file
 def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
-    from rac.engine.budget import default_max_bytes
+    # numpy (via rac.studies.experiment): only the command that uses it loads it
     from rac.studies.experiment import ExperimentError, render_ablation, render_markdown, run_experiment, write_outputs
 
     if args.seed is not None and args.seeds is not None:

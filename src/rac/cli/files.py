@@ -24,6 +24,10 @@ from rac.cli.common import (
 )
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import Diagnostic, render_json, render_text, sort_key
+from rac.lang.format import format_module
+from rac.lang.parser import ParseFailure, parse_source, read_source
+from rac.model.commonroad import ScenarioError
+from rac.model.data import ModelRangeError
 from rac.output.progress import Heartbeat, notice
 
 __all__ = ["check_command", "compile_command", "fmt_command", "read_and_check"]
@@ -44,8 +48,6 @@ def read_and_check(path: Path, max_bytes: int | None = None) -> tuple[CompileRes
 
 
 def check_command(args: argparse.Namespace) -> int:
-    from rac.output.progress import Heartbeat
-
     # off a terminal (CI logs, pipes) a long check (a large scenario's load) says what it does
     with Heartbeat("rac check"):
         return _check_files(args)
@@ -103,6 +105,7 @@ def compile_command(args: argparse.Namespace) -> int:
         return EXIT_ERRORS
     outputs = [args.output] if args.output is not None else []
     if args.output is not None and args.target == "uppaal":
+        # jinja2, numpy (via rac.targets.uppaal.automaton): rac --help, fmt and a syntax error never load it
         from rac.targets.uppaal.automaton import queries_path
 
         outputs.append(Path(queries_path(str(args.output))))
@@ -112,6 +115,7 @@ def compile_command(args: argparse.Namespace) -> int:
             return EXIT_USAGE
     if args.target == "uppaal":
         return _compile_uppaal(args, result)
+    # jinja2, numpy (via rac.targets.python): rac --help, fmt and a syntax error never load it
     from rac.targets.python import generate_python, python_class_name
 
     text = generate_python(result.automaton, source_name=args.file.name)
@@ -133,8 +137,7 @@ def compile_command(args: argparse.Namespace) -> int:
 
 def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
     """``--target uppaal``: the model to ``-o FILE.xml`` and its queries to ``FILE.q`` beside it."""
-    from rac.model.commonroad import ScenarioError
-    from rac.model.data import ModelRangeError
+    # jinja2, numpy (via rac.targets.uppaal.automaton): rac --help, fmt and a syntax error never load it
     from rac.targets.uppaal.automaton import UppaalError, generate_uppaal, queries_path
 
     output: Path | None = args.output
@@ -146,6 +149,7 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
     assert result.automaton is not None
     try:
         if result.automaton.model is not None:
+            # jinja2, numpy (via rac.targets.uppaal.model): rac --help, fmt and a syntax error never load it
             from rac.targets.uppaal.model import generate_uppaal_model
 
             # With a `model` block: the whole model in its scenario (docs/uppaal.md).
@@ -185,8 +189,6 @@ def fmt_command(args: argparse.Namespace) -> int:
 
 def _fmt_one(args: argparse.Namespace, path: Path) -> int:
     """``rac fmt`` of one file; its exit status."""
-    from rac.lang.format import format_module
-    from rac.lang.parser import ParseFailure, parse_source, read_source
 
     source = None
     try:

@@ -22,6 +22,8 @@ from rac.cli.common import (
     EXIT_USAGE,
     output_folder,
 )
+from rac.sweep import execute, plan
+from rac.verify.status import UNDECIDED
 
 __all__ = ["exit_status", "sweep_command"]
 
@@ -34,7 +36,6 @@ def exit_status(rows: Sequence[Mapping[str, object]]) -> int:
     else 4 when a task could not run (error, timeout, memory) or a verdict is unknown or unsupported, else 0."""
     if any(row.get("status") == "failed" for row in rows):
         return EXIT_ERRORS
-    from rac.verify.status import UNDECIDED
 
     undecided = set(UNDECIDED)
     for row in rows:
@@ -50,7 +51,7 @@ def _count(n: int, noun: str) -> str:
 
 def sweep_command(args: argparse.Namespace) -> int:
     """``rac sweep``: plan (bad arguments exit 2 before any cluster starts), run, merge, summarise."""
-    from rac.sweep import execute, plan
+    # matplotlib, numpy (via rac.sweep.report): only the command that uses it loads it
     from rac.sweep.report import render_summary
 
     if args.scheduler and args.workers:

@@ -42,8 +42,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rac.core.diagnostics import RacError, RacValueError
+from rac.engine.allow import ActionGuard, action_pairs
+from rac.engine.budget import BudgetExceeded
+from rac.engine.explore import explore, forgets_actions
 from rac.engine.lookahead import Lookahead, LookaheadMask, LookaheadSettings
-from rac.engine.storm import Shield
+from rac.engine.storm import Shield, safety_shield
 from rac.model.sample import GRAPH_ACTION, GRAPH_EGO, GraphColumn
 
 if TYPE_CHECKING:
@@ -171,8 +174,6 @@ class SafeOnward:
         return found
 
     def __call__(self, keys: np.ndarray) -> np.ndarray:
-        from rac.engine.explore import forgets_actions
-
         rows = np.array(keys, dtype=np.int32, ndmin=2)
         if self.forget_every > 0:
             rows[forgets_actions(rows[:, GraphColumn.K], self.forget_every, self.horizon), GRAPH_ACTION] = 0
@@ -188,8 +189,6 @@ def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None 
     (:func:`rac.engine.storm.safety_shield`), and its table over the model's whole action grid.
     :class:`~rac.engine.budget.BudgetExceeded` (a ``MemoryError``) beyond ``max_states`` or ``max_bytes``
     (from the exploration)."""
-    from rac.engine.explore import action_pairs, explore
-    from rac.engine.storm import safety_shield
 
     # The shield reads labels and choices only: states differing in the action that led to them merge.
     graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=True, max_states=max_states,
@@ -325,7 +324,6 @@ class StepShield:
 
     def __init__(self, data: ModelData, horizon_samples: int, *, table: ShieldTable | None = None,
                  lookahead: LookaheadSettings | None = None, reason: str | None = None) -> None:
-        from rac.engine.allow import ActionGuard, action_pairs
 
         self.data = data
         self.horizon = int(horizon_samples)
@@ -382,7 +380,6 @@ def step_shield(data: ModelData, horizon_samples: int, *, table_horizon: int | N
     computed within ``max_states`` and ``max_bytes``, the runtime shield with ``lookahead`` (default
     :class:`~rac.engine.lookahead.LookaheadSettings`) everywhere else. When the exhaustive shield
     exceeds its budget, the result has no table and says why (:attr:`StepShield.reason`)."""
-    from rac.engine.budget import BudgetExceeded
 
     until = horizon_samples if table_horizon is None else min(int(table_horizon), horizon_samples)
     settings = lookahead if lookahead is not None else LookaheadSettings()

@@ -59,6 +59,7 @@ import numpy as np
 
 from rac.core.diagnostics import RacValueError
 from rac.core.numbers import INT32_MAX
+from rac.model.batch import batch_model
 from rac.model.sample import POSITION, Ego
 
 if TYPE_CHECKING:
@@ -134,7 +135,7 @@ class EgoObservation:
 
 def _road_edges(episodes: EpisodeBatch) -> tuple[np.ndarray, np.ndarray]:
     """The road's boundary (the union of its polygons, ModelData's) as segments: starts, ends ``(E, 2)``."""
-    import shapely
+    import shapely  # shapely: only when this runs; importing rac.learning.observation stays light
 
     data = episodes.data
     scale = float(data.scale)
@@ -181,8 +182,6 @@ class RelativeObservation:
     kind = "relative"
 
     def __init__(self, episodes: EpisodeBatch, nearest: int = NEAREST) -> None:
-        from rac.model.batch import batch_model
-
         data = episodes.data
         scenario = episodes.result.scenario
         if scenario is None or not scenario.lanes:

@@ -83,6 +83,7 @@ from rac.engine.budget import check_estimate, learning_bytes
 from rac.engine.shield import ShieldTable
 from rac.ir import expr as ie
 from rac.lang import ast
+from rac.lang.format import format_expr
 from rac.learning.counterfactual import Counterfactuals
 from rac.learning.episodes import Expression
 
@@ -111,7 +112,6 @@ Progress = Callable[[int, int, float], None]
 
 def _texts(exprs: Sequence[Expression], labels: Sequence[str] | None) -> tuple[str, ...]:
     """The observations as text: ``labels``, else each as written (text, or a parsed node printed)."""
-    from rac.lang.format import format_expr
 
     if labels is not None:
         if len(labels) != len(exprs):

@@ -213,6 +213,7 @@ def evaluation_steps(strategy: LearnedStrategy, *, runs: int = 100, shield: Shie
     """:func:`evaluate` as a generator of steps (see the module docstring)."""
     if not 0.0 <= epsilon <= 1.0:
         raise ValueError(f"epsilon must lie in [0, 1], not {epsilon}")
+    # scipy (via rac.engine.stats): importing rac.learning.runs stays light
     from rac.engine.stats import clopper_pearson
 
     exprs = tuple(exprs) if exprs is not None else strategy.expressions()

@@ -33,9 +33,14 @@ from typing import TYPE_CHECKING, Any, Literal, SupportsFloat
 import gymnasium
 import numpy as np
 
-from rac.core.diagnostics import RacValueError
+from rac.compiler import CompileResult, compile_file, compile_text
+from rac.core.diagnostics import CheckError, RacValueError
+from rac.engine.explore import COLUMNS
+from rac.engine.lookahead import LookaheadSettings
 from rac.ir import expr as ie
 from rac.lang import ast
+from rac.lang.edit import with_model
+from rac.learning.episodes import EpisodeBatch
 from rac.learning.observation import Observation, make_observation
 from rac.learning.wrappers import Scale, scale_factor
 from rac.model.sample import MOTION
@@ -56,9 +61,6 @@ RENDER_MODES = ["ansi", "rgb_array"]
 
 
 def _compile(model: str | os.PathLike[str] | CompileResult) -> CompileResult:
-    from rac.compiler import CompileResult, compile_file
-    from rac.core.diagnostics import CheckError
-
     result = compile_file(Path(model)) if isinstance(model, (str, os.PathLike)) else model
     if not isinstance(result, CompileResult):
         raise TypeError(f"model must be a .ra path or a CompileResult, not {type(model).__name__}")
@@ -98,10 +100,6 @@ def _compile_scene(model: Path, text: str, scenario: Path) -> CompileResult:
 
 @functools.lru_cache(maxsize=256)
 def _checked_scene(model: str, text: str, scenario: str, stamp: tuple[int, int]) -> CompileResult:
-    from rac.compiler import compile_text
-    from rac.core.diagnostics import CheckError
-    from rac.lang.edit import with_model
-
     result = compile_text(with_model(text, Path(model), Path(scenario)), name=model)
     if not result.ok or result.automaton is None:
         error = CheckError(result.diagnostics, result.sources)
@@ -113,6 +111,7 @@ def _checked_scene(model: str, text: str, scenario: str, stamp: tuple[int, int])
 
 def _shield(shield: str | os.PathLike[str] | ShieldTable | None, columns: tuple[str, ...],
             n_actions: int) -> ShieldTable | None:
+    # stormpy (via rac.engine.shield): importing rac.learning.scenario_env stays light
     from rac.engine import shield as shield_file
 
     if shield is None:
@@ -130,7 +129,6 @@ def _lookahead(lookahead: LookaheadSettings | int | Literal["auto"] | None,
                table: ShieldTable | None) -> LookaheadSettings | None:
     """The runtime shield's settings: ``"auto"`` — the defaults when there is a table (so that every
     step beyond it is shielded too), none without one; a number is the depth."""
-    from rac.engine.lookahead import LookaheadSettings
 
     if lookahead == "auto":
         return LookaheadSettings() if table is not None else None
@@ -287,8 +285,6 @@ class ScenarioEnv(gymnasium.Env):
         """Scene ``index``'s episodes, observation and shield, built on first use (``result``: its
         checked model, when the caller has it); a scene whose actions or observation space differ
         from the first's is a ``ValueError`` naming it."""
-        from rac.engine.explore import COLUMNS
-        from rac.learning.episodes import EpisodeBatch
 
         scene = self._scenes.get(index)
         if scene is not None:
@@ -313,6 +309,7 @@ class ScenarioEnv(gymnasium.Env):
     def _shields(self, episodes: EpisodeBatch, shield: str | os.PathLike[str] | ShieldTable | StepShield | None,
                  lookahead: LookaheadSettings | int | Literal["auto"] | None,
                  columns: tuple[str, ...]) -> StepShield | None:
+        # stormpy (via rac.engine.shield): importing rac.learning.scenario_env stays light
         from rac.engine.shield import StepShield
 
         if isinstance(shield, StepShield):
@@ -406,6 +403,7 @@ class ScenarioEnv(gymnasium.Env):
             raise RuntimeError("the episode has ended; call reset() first")
         if not self.action_space.contains(action):
             raise ValueError(f"action must be an integer in [0, {self.action_space.n}), not {action!r}")
+        # stormpy (via rac.engine.shield): importing rac.learning.scenario_env stays light
         from rac.engine.shield import UnseenState
 
         time = float(self.episodes.k[0] * self._period)
@@ -473,6 +471,7 @@ class ScenarioEnv(gymnasium.Env):
                 f"turn={turn:g} {info['location']} objective={info['objective']:.3f}")
 
     def _frame(self) -> np.ndarray:
+        # PIL, matplotlib (via rac.output.render): importing rac.learning.scenario_env stays light
         from rac.output.render import SceneFrames
 
         episodes = self.episodes

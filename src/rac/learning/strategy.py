@@ -36,7 +36,9 @@ import numpy as np
 
 from rac.core.diagnostics import RacValueError
 from rac.core.source import SourceFile
+from rac.engine.explore import action_pairs
 from rac.engine.shield import ShieldTable
+from rac.engine.simulate import simulate
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.lang.parser import parse_expressions
@@ -389,8 +391,6 @@ class StrategyRun:
         :attr:`samples_taken` its row is not part of the run. Also the ground truth.
 
         ``RuntimeError`` when the replay does not meet the recorded decision states."""
-        from rac.engine.explore import action_pairs
-        from rac.engine.simulate import simulate
 
         horizon = int(self.samples_taken.max()) if self.n_runs else 0
         actions = np.where(self.actions >= 0, self.actions, 0)  # past a run's end: any action

@@ -23,6 +23,7 @@ from __future__ import annotations
 import os
 from collections import Counter
 from fractions import Fraction
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import gymnasium
@@ -30,6 +31,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from rac.compiler import compile_file
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.learning.scenario_env import ScenarioEnv
@@ -213,6 +215,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         them, counted; None when no episode steps."""
         if not stepping.any():
             return None
+        # stormpy (via rac.engine.shield): importing rac.learning.vector stays light
         from rac.engine.shield import UnseenState
 
         n = self.num_envs
@@ -277,9 +280,6 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
     model = kwargs.pop("model")
     # with a set, ScenarioEnv needs the file (its model block is the template) and shares each scene's check
     if isinstance(model, (str, os.PathLike)) and kwargs.get("scenarios") is None:
-        from pathlib import Path
-
-        from rac.compiler import compile_file
 
         model = compile_file(Path(model))  # ScenarioEnv reports its errors
 

@@ -42,7 +42,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv, VectorWrapper
 
 from rac import ir
 from rac.check.analysis.scale import sample_change_bound
-from rac.core.diagnostics import RacValueError
+from rac.compiler import compile_file
+from rac.core.diagnostics import CheckError, RacValueError
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
@@ -77,9 +78,6 @@ class AutomatonLike(Protocol):
 
 def _load(automaton: str | os.PathLike[str] | ir.Automaton | AutomatonLike) -> AutomatonLike:
     if isinstance(automaton, (str, os.PathLike)):
-        from rac.compiler import compile_file
-        from rac.core.diagnostics import CheckError
-
         result = compile_file(Path(automaton))
         if not result.ok or result.automaton is None:
             raise CheckError(result.diagnostics, result.sources)

@@ -40,13 +40,16 @@ from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number, warning
-from rac.core.numbers import exact_decimal, format_bytes
+from rac.core.numbers import INT32_MAX, exact_decimal, format_bytes
 from rac.core.resources import (  # the load's budget (its owner; the CLI catches the refusal without loading this)
     LOAD_NOTICE_BYTES,
     ScenarioTooLarge,
     estimate_load,
 )
 from rac.ir.vocabulary import NO_PLANNING_PROBLEM
+from rac.model.commonroad import InconsistentScenarioError, PlanningProblemError, ScenarioError
+from rac.model.data import ModelDataError, ModelRangeError, check_significands
+from rac.model.native import CORNER_NAMES, NO_OBSTACLE_TEXT, NativeModel
 
 if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
@@ -89,7 +92,6 @@ def load_file(path: str | os.PathLike[str], planning_problem: int | None = None,
     unchanged: without a planning problem, a file with several is a
     :class:`~rac.model.commonroad.PlanningProblemError`. :class:`ScenarioTooLarge`, before anything is
     read, when the file is not cached and its :class:`LoadEstimate` exceeds ``max_bytes``."""
-    from rac.model.commonroad import load_scenario
 
     path = os.fspath(path)
     try:
@@ -104,6 +106,9 @@ def load_file(path: str | os.PathLike[str], planning_problem: int | None = None,
         estimate = estimate_load(key[2])
         if estimate.peak_bytes > max_bytes:
             raise ScenarioTooLarge(path, estimate, max_bytes)
+    # looked up at each load: tests put a slow or failing loader in rac.model.commonroad's place
+    from rac.model.commonroad import load_scenario
+
     scenario = load_scenario(path, planning_problem, require_choice=True)
     if key is not None:
         if len(_CACHE) >= _CACHE_SIZE:
@@ -133,8 +138,6 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
                                         notes=notes, hints=hints))
         return result
 
-    from rac.model.commonroad import InconsistentScenarioError, PlanningProblemError, ScenarioError
-
     try:
         scenario = load(spec, max_bytes=max_bytes)
     except PlanningProblemError as failure:
@@ -149,12 +152,13 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     # reports every fault of the file as a ScenarioError, so another failure is rac's own
     result.scenario = scenario
 
-    from rac.model.data import ModelDataError, ModelRangeError, build_model_data_and_largest
-
     if announced and progress is not None:  # a phase of its own: a heartbeat says which one is slow
         progress(f"building the model's data from {len(scenario.road):,} lanelets and "
                  f"{len(scenario.obstacles):,} obstacles")
     try:
+        # looked up at each check: tests put a failing builder in rac.model.data's place
+        from rac.model.data import build_model_data_and_largest
+
         data, (what, largest) = build_model_data_and_largest(scenario, spec)
     except ModelRangeError as failure:
         if failure.significand is None:
@@ -172,7 +176,6 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     detail = f" (the largest is {what}: {largest})" if what else ""
     ids = scenario.planning_problem_ids
     problem = f", planning problem {scenario.planning_problem_id} (of {_ids(ids)})" if len(ids) > 1 else ""
-    from rac.model.native import NO_OBSTACLE_TEXT
 
     counted = (f"{obstacles} obstacle{'s' if obstacles != 1 else ''}" if obstacles else
                f"no obstacle (`mindist()` reads {NO_OBSTACLE_TEXT} and `collide()` never holds)")
@@ -265,7 +268,6 @@ def _start(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, data) -> list[
                             f"the model holds the acceleration within ±`max_acceleration` at every Euler sub-step "
                             f"of `sense()`: from the first sample on the ego would accelerate at "
                             f"{short_number(bound)} m/s², not the scenario's {_number(ego.acceleration)} m/s²"))
-    from rac.model.native import CORNER_NAMES, NativeModel
 
     model = NativeModel(data)
     off = [name for name, outside in zip(CORNER_NAMES, model.corners_off(model.initial_state())) if outside]
@@ -344,8 +346,6 @@ def _decimal(value: Fraction) -> str:
 
 
 def _fits(scenario, spec: ir.ModelSpec, exponent: int) -> bool:
-    from rac.model.data import ModelDataError, check_significands
-
     try:
         return check_significands(scenario, replace(spec, exponent=exponent)) is None
     except ModelDataError:
@@ -354,7 +354,6 @@ def _fits(scenario, spec: ir.ModelSpec, exponent: int) -> bool:
 
 def _overflow(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, failure) -> Diagnostic:
     """E0713 for a significand that overflows int32, with the largest exponent that fits."""
-    from rac.core.numbers import INT32_MAX
 
     base, exponent = spec.base, spec.exponent
     spans = automaton.spans

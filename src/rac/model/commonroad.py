@@ -10,10 +10,14 @@ from __future__ import annotations
 import math
 import os
 import threading
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from xml.etree import ElementTree
+from xml.parsers import expat
+from xml.parsers.expat import ExpatError
 
 from rac.core.diagnostics import RacError
 
@@ -208,8 +212,8 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
     _check_time_step(path, root, positions)
     _check_structure(path, root)
     _check_references(path, root, positions)
-    import warnings
 
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.common.file_reader import CommonRoadFileReader
 
     with warnings.catch_warnings():
@@ -234,10 +238,9 @@ def reader_failure(error: BaseException) -> bool:
     conversions of the XML's text, the XML parsers' (ElementTree's, expat's, lxml's) and shapely's
     errors. Anything else (a subclass of ``Exception`` of no such kind) is a bug, rac's or
     commonroad-io's, and propagates."""
-    from xml.parsers.expat import ExpatError
 
-    from lxml import etree
-    from shapely.errors import ShapelyError
+    from lxml import etree  # lxml: only when this runs; importing rac.model.commonroad stays light
+    from shapely.errors import ShapelyError  # shapely: only when this runs; importing rac.model.commonroad stays light
 
     return type(error) is Exception or isinstance(error, (
         AssertionError, ArithmeticError, AttributeError, LookupError, TypeError, ValueError, NotImplementedError,
@@ -263,7 +266,10 @@ def linear_ids() -> Iterator[None]:
     are those commonroad-io's method gives. The reader's module is left as it was when the block
     ends; when commonroad-io's reader or its ``Scenario`` do not look as expected (another version),
     nothing is swapped and the reader runs as it is."""
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.common.reader import file_reader_xml
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.scenario.scenario import Scenario as CommonRoadScenario
 
     expected = (getattr(file_reader_xml, "Scenario", None) is CommonRoadScenario
@@ -310,7 +316,6 @@ def linear_ids() -> Iterator[None]:
 def _positions(root, data: bytes) -> dict[int, tuple[int, int]]:
     """The (line, column), 1-based, of every element of ``root`` by ``id(element)``: expat reports the
     start tags in document order, the order of ``root.iter()`` (ElementTree keeps no positions)."""
-    from xml.parsers import expat
 
     parser = expat.ParserCreate()
     starts: list[tuple[int, int]] = []
@@ -367,8 +372,7 @@ def _read_bytes(path: str | os.PathLike[str]) -> bytes:
 
 
 def _parse_root(path: str | os.PathLike[str], data: bytes):
-    from xml.etree import ElementTree
-
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad import SUPPORTED_COMMONROAD_VERSIONS
 
     try:
@@ -452,9 +456,11 @@ def _check_structure(path: str | os.PathLike[str], root) -> None:
 
 def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> ScenarioError:
     """Find the element commonroad-io failed on by reading the elements one at a time."""
-    from xml.etree import ElementTree
 
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.common.reader import file_reader_xml as factories
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.scenario.lanelet import LaneletNetwork
 
     def label(node) -> str:
@@ -540,6 +546,7 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     lanes = tuple(Lane(lanelet.lanelet_id, _points(lanelet.center_vertices), _points(lanelet.left_vertices),
                        _points(lanelet.right_vertices)) for lanelet in lanelets)
 
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.scenario.obstacle import StaticObstacle
 
     obstacles = []
@@ -604,7 +611,7 @@ def _polygon(points) -> Polygon:
 
 
 def _exact_position(path, element: str, state, what: str) -> tuple[float, float]:
-    import numpy as np
+    import numpy as np  # numpy: only when this runs; importing rac.model.commonroad stays light
 
     position = getattr(state, "position", None)
     if position is None:
@@ -635,14 +642,19 @@ def _time_step(path, element: str, state, what: str) -> int:
 
 def _box(path, element: str, shape) -> tuple[float, float, float, float]:
     """length, width and the offset (forward, left) of the box centre from the obstacle's position."""
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.geometry.obstacle_shapes.circle_obstacle_shape import CircleObstacleShape
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
 
     if isinstance(shape, RectObstacleShape):
         return float(shape.length), float(shape.width), -float(shape.origin_x_shift), 0.0
     if isinstance(shape, CircleObstacleShape):  # (its occupancy's shapely polygon has half the radius)
         return 2.0 * shape.radius, 2.0 * shape.radius, 0.0, 0.0
-    import numpy as np
+    import numpy as np  # numpy: only when this runs; importing rac.model.commonroad stays light
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.scenario.state import InitialState
 
     try:
@@ -660,6 +672,7 @@ def _box(path, element: str, shape) -> tuple[float, float, float, float]:
 
 def _obstacle(path, element: str, obstacle, static: bool, dt: float,
               position: tuple[int, int] | None = None) -> Obstacle:
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.prediction.prediction import SetBasedPrediction, TrajectoryPrediction
 
     length, width, forward, left = _box(path, element, obstacle.obstacle_shape)
@@ -752,6 +765,7 @@ def _ego(path, element: str, state, dt: float) -> EgoStart:
 
 
 def _interval(path, element: str, value, attribute: str) -> tuple[float, float] | None:
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.common.util import Interval
 
     if value is None:
@@ -796,10 +810,18 @@ def _goal(path, element: str, goal, network, dt: float) -> Goal:
 
 
 def _regions(path, element: str, position) -> list[Polygon]:
-    import numpy as np
+    import numpy as np  # numpy: only when this runs; importing rac.model.commonroad stays light
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.geometry.occupancy.circle_occupancy import CircleOccupancy
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.geometry.occupancy.occupancy_group import OccupancyGroup
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.geometry.occupancy.polygon_occupancy import PolygonOccupancy
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
 
     if isinstance(position, OccupancyGroup):

@@ -286,11 +286,15 @@ def render_left_turn(xml_path: str | Path, png_path: str | Path) -> Path:
     """Draw the scenario in ``xml_path`` (with commonroad's MPRenderer, headless) into ``png_path``:
     the lanelets, the cars at time step 0 with their trajectories, the ego's start and the goal,
     plus the ego's route along the lanelets' centre lines (dashed) and labels."""
-    import matplotlib
+    import matplotlib  # matplotlib: only when a plot is written
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib: only when a plot is written
+
+    # commonroad: only when this runs; importing rac.model.intersection stays light
     from commonroad.common.file_reader import CommonRoadFileReader
+
+    # commonroad: only when this runs; importing rac.model.intersection stays light
     from commonroad.visualization.mp_renderer import MPRenderer
 
     with warnings.catch_warnings():

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from rac import ir
+from rac.model.checks import load
+from rac.model.data import build_model_data
 
 if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
@@ -48,8 +50,6 @@ class CheckedProgram:
         spec = automaton.model
         if spec is None:
             return cls(automaton)
-        from rac.model.checks import load
-        from rac.model.data import build_model_data
 
         scenario = load(spec, max_bytes=max_bytes)
         return cls(automaton, build_model_data(scenario, spec), scenario)

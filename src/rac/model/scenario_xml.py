@@ -129,7 +129,7 @@ def canonical_xml(data: bytes) -> bytes:
 
 def check_schema(data: bytes) -> None:
     """Validate against commonroad-io's 2020a XSD (the writer's ``check_validity`` ignores the result)."""
-    import commonroad
+    import commonroad  # commonroad: only when this runs; importing rac.model.scenario_xml stays light
 
     xsd = Path(commonroad.__file__).parent / "common" / "xml_definition_files" / "XML_commonRoad_XSD.xsd"
     schema = etree.XMLSchema(etree.parse(str(xsd)))

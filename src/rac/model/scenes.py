@@ -51,7 +51,7 @@ from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacle
 from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
 from commonroad.planning.goal import GoalRegion
 from commonroad.planning.planning_problem import PlanningProblem, PlanningProblemSet
-from commonroad.scenario.lanelet import Lanelet
+from commonroad.scenario.lanelet import Lanelet, LaneletNetwork
 from commonroad.scenario.obstacle import ObstacleType, StaticObstacle
 from commonroad.scenario.scenario import Scenario, Tag
 from commonroad.scenario.state import CustomState, InitialState
@@ -276,7 +276,6 @@ def build_grid(lanelets: int, obstacles: int = 0, steps: int = STEPS) -> tuple[S
     if lanelets < 1 or obstacles < 0:
         raise ValueError(f"a grid needs at least one lanelet and no negative count of obstacles, not "
                          f"{lanelets} and {obstacles}")
-    from commonroad.scenario.lanelet import LaneletNetwork
 
     per_road = GRID_LANES * GRID_SEGMENTS
     built = []

@@ -31,6 +31,7 @@ from matplotlib.patches import Patch, Polygon
 from PIL import Image
 
 from rac.core.diagnostics import RacError
+from rac.model.commonroad import PlanningProblemError, ScenarioError, reader_failure
 from rac.output.plots import atomic_write, fit_title, new_figure, save_figure, wrap_text
 
 __all__ = ["EGO_COLOUR", "RenderError", "SceneFrames", "render_trajectory"]
@@ -59,9 +60,8 @@ def _read(path: Path) -> tuple[Any, Any]:
         data = path.read_bytes()
     except OSError as error:
         raise RenderError(path, f"cannot be read ({error.strerror or error})") from None
+    # commonroad: only when this runs; importing rac.output.render stays light
     from commonroad.common.file_reader import CommonRoadFileReader
-
-    from rac.model.commonroad import reader_failure
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # commonroad-io warns about e.g. benchmark ids it finds irregular
@@ -73,7 +73,6 @@ def _read(path: Path) -> tuple[Any, Any]:
             problem = f"is not a CommonRoad scenario commonroad-io can read ({type(error).__name__}: {error})"
     # rac's loader explains broken files far better (which element, which line); use its words if it fails too
     from rac.model.checks import load_file
-    from rac.model.commonroad import PlanningProblemError, ScenarioError
 
     try:
         try:
@@ -112,6 +111,7 @@ def _goal_center(problems: Any) -> tuple[float, float] | None:
 
 def _only(problems: Any, problem_id: int, path: Path) -> Any:
     """The planning problem set with the problem ``problem_id`` alone."""
+    # commonroad: only when this runs; importing rac.output.render stays light
     from commonroad.planning.planning_problem import PlanningProblemSet
 
     chosen = problems.planning_problem_dict.get(problem_id)
@@ -130,6 +130,7 @@ class _Scene:
     """The scenario drawn once (road, planning problem) plus the parts that change per instant."""
 
     def __init__(self, scenario: Any, problems: Any, ax: Axes, limits: Sequence[float]) -> None:
+        # commonroad: only when this runs; importing rac.output.render stays light
         from commonroad.visualization.mp_renderer import MPRenderer
 
         self.scenario = scenario
@@ -193,7 +194,7 @@ class SceneFrames:
     def __init__(self, scenario_path: str | os.PathLike[str], *, sample_period: float | None = None,
                  planning_problem: int | None = None, length: float = 4.5, width: float = 1.8,
                  view: float = 80.0, size: tuple[int, int] = (480, 240)) -> None:
-        from matplotlib.figure import Figure
+        from matplotlib.figure import Figure  # matplotlib: only when a plot is written
 
         path = Path(scenario_path)
         scenario, problems = _read(path)

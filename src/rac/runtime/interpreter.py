@@ -35,6 +35,7 @@ from fractions import Fraction
 from typing import TYPE_CHECKING, Any
 
 from rac import ir
+from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.semantics import (
     ENDED_MESSAGE,
     AutomatonDescription,
@@ -219,7 +220,6 @@ class RewardAutomaton(AutomatonDescription):
 
     def batch(self, n: int) -> BatchRewardAutomaton:
         """``n`` independent copies of this automaton, stepped together with numpy."""
-        from rac.runtime.batch import BatchRewardAutomaton
 
         return BatchRewardAutomaton(self._ir, n)
 

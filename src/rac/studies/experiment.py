@@ -52,6 +52,7 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError
 from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
+from rac.learning.episodes import EpisodeBatch, parse_expr
 
 __all__ = ["ABLATION", "COMBINATIONS", "GROWTH", "PAPER_REWARD_FUNCTION", "ExperimentError", "Options", "Report",
            "default_widths", "render_ablation", "render_markdown", "run_experiment"]
@@ -152,6 +153,7 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
     """The safety shield's table (None when ``needed`` is false and no safe strategy exists from the
     start), the seconds it took, its states, and the judge of "safe to the horizon" from a goal state
     (:class:`rac.engine.shield.SafeOnward`); ExperimentError when the shield is needed and absent."""
+    # stormpy (via rac.engine.shield): importing rac.studies.experiment stays light
     from rac.engine import shield as shields
 
     data = result.model_data
@@ -191,10 +193,16 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     All runs learn together in one batch of episodes (:func:`rac.learning.lockstep.run_together`),
     then all evaluations run together: each result is the one the run has alone, and a run's
     learning time is its own computation plus its share of the batch's steps."""
-    from rac.learning.episodes import EpisodeBatch, parse_expr
+    # stormpy (via rac.learning.lockstep): importing rac.studies.experiment stays light
     from rac.learning.lockstep import Job, run_together
+
+    # stormpy (via rac.learning.qlearning): importing rac.studies.experiment stays light
     from rac.learning.qlearning import LearningResult, learning
+
+    # stormpy (via rac.learning.runs): importing rac.studies.experiment stays light
     from rac.learning.runs import evaluation_steps
+
+    # stormpy (via rac.learning.strategy): importing rac.studies.experiment stays light
     from rac.learning.strategy import derived_bins
 
     automaton = result.raise_for_errors()
@@ -325,7 +333,7 @@ class Options:
 def default_widths(continuous: Sequence[str]) -> tuple[float, ...]:
     """The fixed default widths of the observations (1 m, 0.5 m/s, 0.1 rad ...;
     :func:`rac.learning.strategy.default_bin`)."""
-    from rac.learning.episodes import parse_expr
+    # stormpy (via rac.learning.strategy): importing rac.studies.experiment stays light
     from rac.learning.strategy import default_bin
 
     return tuple(default_bin(parse_expr(text)) for text in continuous)
@@ -351,7 +359,7 @@ def _optima(result: CompileResult, wanted: Sequence[tuple[str, bool, str]], tabl
             rf: Any, max_states: int, progress: Callable[[str], None] | None) -> dict[str, Report]:
     """The exact optimum of every shielded combination (:func:`rac.learning.optimum.solve`) on the episodes it
     learns on, by label: its value and how it was computed, or why it is out of reach."""
-    from rac.learning.episodes import EpisodeBatch
+    # stormpy (via rac.learning.optimum): importing rac.studies.experiment stays light
     from rac.learning.optimum import solve
 
     optima: dict[str, Report] = {}
@@ -411,6 +419,7 @@ def summary(report: Report, records: Sequence[RunRecord] | None = None) -> list[
 
 def _shortfall(record: RunRecord) -> float:
     """How far the greedy return falls short of the exact optimum, relative to ``|optimum|``."""
+    # stormpy (via rac.learning.optimum): importing rac.studies.experiment stays light
     from rac.learning.optimum import shortfall
 
     assert record.optimum is not None
@@ -515,6 +524,7 @@ def _evaluation_runs(report: Report) -> int:
 
 def write_outputs(report: Report, out_dir: Path) -> list[Path]:
     """``experiment.md``, ``results.json``, ``returns.png`` and ``first_success.png`` in ``out_dir``."""
+    # matplotlib (via rac.output.plots): importing rac.studies.experiment stays light
     from rac.output.plots import plot_first_success, plot_learning_curves
 
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -162,6 +162,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     row["below_interval"] = clopper_pearson(below, runs)
     row["left_shield"] = int(shielded.left_policy.sum())
     if out_dir is not None:
+        # matplotlib (via rac.output.plots): importing rac.studies.preanalysis stays light
         from rac.output.plots import plot_runs
 
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -196,6 +197,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                                   _values(senses, spec.sense_period, "--sense"),
                                   _values(decides, spec.decide_period, "--decide")))
     rows: list[Row] = []
+    # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
     from rac.output.progress import Progress
 
     with Progress(total=len(grid), desc="settings", unit="settings", enabled=False if quiet else None) as bar:
@@ -216,6 +218,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
     if out_dir is not None:
         plotted = [r for r in rows if "true_min" in r]
         if plotted:
+            # matplotlib (via rac.output.plots): importing rac.studies.preanalysis stays light
             from rac.output.plots import plot_sweep
 
             out_dir.mkdir(parents=True, exist_ok=True)

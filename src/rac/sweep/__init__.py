@@ -23,7 +23,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rac.engine.budget import parse_size
 from rac.output.paths import output_folder
+from rac.sweep.grid import grid_points, parse_set, scenario_files
+from rac.sweep.kinds import TASKS
+from rac.sweep.task import OPTIONS, TaskSpec
+from rac.sweep.template import check_template
 
 if TYPE_CHECKING:
     from rac.sweep.report import Summary
@@ -79,10 +84,6 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     """The tasks of a sweep (nothing runs). ``ValueError`` with a message for the user on a bad
     argument (no scenario matched, a bad ``sets``, an unknown task or option, a template that does not
     parse or has no ``model`` block); ``OSError`` when the template cannot be read."""
-    from rac.sweep.grid import grid_points, parse_set, scenario_files
-    from rac.sweep.kinds import TASKS
-    from rac.sweep.task import OPTIONS, TaskSpec
-    from rac.sweep.template import check_template
 
     if task not in TASKS:
         raise ValueError(f"unknown task `{task}`: choose one of {', '.join(TASKS)}")
@@ -115,8 +116,6 @@ def _bytes(size: int | str | None) -> int | None:
     if size is None:
         return None
     if isinstance(size, str):
-        from rac.engine.budget import parse_size
-
         size = parse_size(size)
     if size <= 0:
         raise ValueError(f"the task memory limit must be more than 0 bytes, not {size}")
@@ -132,9 +131,11 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     ``announce(line)`` receives the dashboard's address; ``quiet`` turns the progress off. Ctrl-C stops the
     sweep: what is done is merged, and the result says ``outcome.interrupted``. Raises ``OSError`` when the
     scheduler cannot be reached or the output folder cannot be written."""
-    from rac.sweep import report
+    from rac.sweep import report  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
+
+    # matplotlib, numpy, tqdm (via rac.sweep.run): importing rac.sweep stays light
     from rac.sweep.run import Tracker, connect, pending, rows_in_order, run_tasks
-    from rac.sweep.store import Store
+    from rac.sweep.store import Store  # matplotlib, numpy (via rac.sweep.store): importing rac.sweep stays light
 
     store = Store(plan.out)
     store.folder.mkdir(parents=True, exist_ok=True)  # an unwritable folder fails before the cluster starts
@@ -174,7 +175,7 @@ def sweep(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     Returns one row per task: a pandas DataFrame (columns as in ``results.parquet``, docs/sweep.md) when
     pandas is installed, else the rows as a list of dicts. ``ValueError`` on bad arguments; on Ctrl-C the
     rows done are merged and ``KeyboardInterrupt`` is raised again."""
-    from rac.sweep.report import frame
+    from rac.sweep.report import frame  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
 
     result = execute(plan(template, scenarios, sets=sets, task=task, out=out, task_timeout=task_timeout,
                           task_memory=task_memory, options=options),

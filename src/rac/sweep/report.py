@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rac.output.plots import atomic_write
+from rac.output.plots import atomic_write, fit_title, new_figure, save_figure
 from rac.sweep.store import write_text
 from rac.sweep.task import STATUSES, VERDICTS  # in the order tables and plots show them
 
@@ -80,7 +80,7 @@ def frame(rows: Sequence[Mapping[str, object]]) -> Any:
     """The table of :func:`table` as a pandas DataFrame; the rows themselves (a list of dicts) when pandas
     is not installed."""
     try:
-        import pandas as pd
+        import pandas as pd  # pandas: only when this runs; importing rac.sweep.report stays light
     except ImportError:
         return [dict(row) for row in rows]
     columns, records = table(rows)
@@ -90,7 +90,7 @@ def frame(rows: Sequence[Mapping[str, object]]) -> Any:
 def _parquet_writer() -> Any:
     """pandas, when it can write Parquet (it needs pyarrow); else None."""
     try:
-        import pandas as pd
+        import pandas as pd  # pandas: only when this runs; importing rac.sweep.report stays light
         import pyarrow  # noqa: F401  (pandas' Parquet engine)
     except ImportError:
         return None
@@ -166,7 +166,7 @@ def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int 
     seconds = sorted(float(s) for row in rows if isinstance(s := row.get("seconds"), int | float) and math.isfinite(s))
     percentiles = {}
     if seconds:
-        import numpy as np
+        import numpy as np  # numpy: only when this runs; importing rac.sweep.report stays light
 
         percentiles = {"p50": float(np.percentile(seconds, 50)), "p90": float(np.percentile(seconds, 90)),
                        "max": seconds[-1]}
@@ -233,9 +233,7 @@ def write_plots(rows: Sequence[Mapping[str, object]], folder: Path) -> list[Path
 
 
 def _plot_verdicts(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
-    from matplotlib.ticker import MaxNLocator
-
-    from rac.output.plots import fit_title, new_figure, save_figure
+    from matplotlib.ticker import MaxNLocator  # matplotlib: only when a plot is written
 
     points = list(dict.fromkeys(grid_label(_mapping(row, "settings")) for row in rows))
     counts = {point: Counter[str]() for point in points}
@@ -269,8 +267,6 @@ def _number(value: object) -> float:
 
 
 def _plot_times(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
-    from rac.output.plots import fit_title, new_figure, save_figure
-
     figure = new_figure(6.5, 4.4)
     ax = figure.add_subplot()
     sized = [row for row in rows if isinstance(row.get("scenario_size"), int) and

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 from rac.output.progress import Heartbeat, Progress
 from rac.sweep.store import Store
+from rac.sweep.task import run_task
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -49,7 +50,6 @@ Row = dict[str, object]
 
 def task_function() -> Callable[[TaskSpec], Row]:
     """The function each Dask task runs on its spec: :func:`rac.sweep.task.run_task` (tests replace it)."""
-    from rac.sweep.task import run_task
 
     return run_task
 
@@ -86,7 +86,9 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
     given, else of a ``LocalCluster`` of ``workers`` processes (default: one per core) with one thread
     each, closed on exit. ``announce`` receives the dashboard's address. Raises ``OSError`` when the
     scheduler cannot be reached."""
-    import dask
+    import dask  # dask: only when a sweep runs; `import rac.sweep` never loads it
+
+    # distributed: only when a sweep runs; `import rac.sweep` never loads it
     from distributed import Client, LocalCluster
 
     address = scheduler or dask.config.get("scheduler-address", None)
@@ -167,7 +169,9 @@ def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpe
     arrives, adding it to ``outcome``; ``on_row(spec, row)`` is called for each spec of ``specs`` with that
     key. Ctrl-C (``KeyboardInterrupt``) cancels the tasks not finished and returns what is done, with
     :attr:`Outcome.interrupted` set. Raises ``OSError`` when a row cannot be stored."""
-    from distributed import as_completed
+    from distributed import as_completed  # distributed: only when a sweep runs; `import rac.sweep` never loads it
+
+    # distributed: only when a sweep runs; `import rac.sweep` never loads it
     from distributed.scheduler import KilledWorker
 
     function = task_function()

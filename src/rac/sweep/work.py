@@ -29,7 +29,9 @@ from rac.core.numbers import format_bytes
 from rac.core.resources import ScenarioTooLarge
 from rac.engine.budget import BudgetExceeded
 from rac.model.checks import UNUSABLE_SCENARIO
+from rac.sweep.task import OPTIONS
 from rac.sweep.template import instantiate
+from rac.verify.status import UNDECIDED, VERDICTS
 
 if TYPE_CHECKING:
     from rac.sweep.task import TaskSpec
@@ -135,7 +137,6 @@ def _whole(name: str, text: str) -> int:
 
 def _options(spec: TaskSpec) -> dict[str, Any]:
     """The task's options, converted; :class:`TaskError` for an unknown name or a bad value."""
-    from rac.sweep.task import OPTIONS
 
     options: dict[str, Any] = {}
     for name, text in spec.options:
@@ -175,8 +176,8 @@ def _budget(options: dict[str, Any]) -> dict[str, Any]:
 
 
 def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+    # numpy, rac.check.analysis, stormpy (via rac.verify.runner): importing rac.sweep.work stays light
     from rac.verify.runner import VerifyOptions, verify
-    from rac.verify.status import UNDECIDED, VERDICTS
 
     chosen: dict[str, Any] = {"horizon": options.get("horizon"), "seed": options.get("seed"), "plots": False,
                               **_budget(options)}
@@ -199,6 +200,7 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any])
 
 
 def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+    # numpy, scipy, stormpy (via rac.studies.preanalysis): importing rac.sweep.work stays light
     from rac.studies.preanalysis import SweepError, sweep
 
     try:
@@ -219,6 +221,7 @@ def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, A
 
 
 def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+    # numpy (via rac.studies.experiment): importing rac.sweep.work stays light
     from rac.studies.experiment import ExperimentError, run_experiment, summary
 
     if "seed" in options and "seeds" in options:

@@ -31,9 +31,12 @@ from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
 from rac.engine.graph import ExploredGraph
 from rac.engine.ondemand import OnDemandShield
+from rac.engine.simulate import collided_so_far
 from rac.engine.witness import Bounds, Predicate
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.learning.episodes import EpisodeBatch
+from rac.learning.qlearning import run_strategy
 from rac.model.data import ModelData, ModelRangeError
 from rac.model.program import CheckedProgram
 from rac.model.sample import CRASHED, EGO, GRAPH_EGO, GraphColumn
@@ -328,7 +331,6 @@ class Context:
         """Episodes of the model with the automaton (:class:`rac.learning.episodes.EpisodeBatch`);
         unknown when the episodes cannot be set up (an expression the engine cannot read stays an
         :class:`EvaluationError`: unsupported)."""
-        from rac.learning.episodes import EpisodeBatch
 
         try:
             return EpisodeBatch(self.program, reward=reward, goal=goal, horizon_samples=samples, data=self.data)
@@ -341,7 +343,6 @@ class Context:
         """The one run of the learned strategy ``name`` over ``samples`` samples (it does not stop at
         the learning goal): the :class:`rac.learning.qlearning.StrategyRun` and its samples replayed as
         :class:`rac.engine.simulate.Runs` (one run, with the ground truth)."""
-        from rac.learning.qlearning import run_strategy
 
         entry = self.learned[name]
         batch = self.episodes("automaton", None, samples)
@@ -356,7 +357,6 @@ class Context:
     # ------------------------------------------------------------ simulated runs
     def frames(self, runs: Runs) -> Iterator[Frame]:
         """One frame per sample of the runs (``prev`` is the previous sample's frame)."""
-        from rac.engine.simulate import collided_so_far
 
         previous = None
         n = runs.n_runs

@@ -12,9 +12,12 @@ import numpy as np
 from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
+from rac.engine.simulate import label_runs
 from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
+from rac.learning import qlearning as learning
+from rac.learning.optimum import shortfall, solve
 from rac.verify.context import Context, Learned, UnknownVerdict, restricted
 from rac.verify.report import TRACE_FLAGS, QueryResult, TraceRow, format_number
 
@@ -40,7 +43,7 @@ class LearningAnswerer:
         to that value. For ``e`` over the automaton's accumulating rewards (``10*sa + 5*pr + co``)
         the signal is dense; for a reward function of the current state (the paper's Eq. 9) only
         its value in the last state counts."""
-        from rac.learning import qlearning as learning
+        # tqdm (via rac.output.progress): importing rac.verify.learning stays light
         from rac.output.progress import Progress
 
         ctx = self.context
@@ -99,8 +102,6 @@ class LearningAnswerer:
                  meta: Mapping[str, object]) -> Optimum | str:
         """The exact optimum of the learning query (:func:`rac.learning.optimum.solve`) on the episodes
         learning sees, or why it is out of reach (the budget: ``--max-states``, ``--max-memory``)."""
-        from rac.engine.budget import BudgetExceeded
-        from rac.learning.optimum import solve
 
         ctx = self.context
         try:
@@ -116,7 +117,6 @@ class LearningAnswerer:
     @staticmethod
     def _beside(learned: float, optimum: Optimum | str, query: iq.LearnStrategy) -> str:
         """The learned return beside the optimum: "learned return X, optimum Y (how), Z% below"."""
-        from rac.learning.optimum import shortfall
 
         if isinstance(optimum, str):
             return f"optimum out of reach ({optimum}): the learned strategy stands alone"
@@ -132,7 +132,6 @@ class LearningAnswerer:
     def _optimum_fields(optimum: Optimum | str, learned: float | None, query: iq.LearnStrategy
                         ) -> dict[str, object]:
         """The optimum as ``--format json`` writes it."""
-        from rac.learning.optimum import shortfall
 
         if isinstance(optimum, str):
             return {"out_of_reach": optimum}
@@ -231,7 +230,6 @@ class LearningAnswerer:
         the greedy strategy are deterministic, so there is one run, followed to the horizon (it does not
         stop at the learning goal) and replayed sample by sample (:meth:`StrategyRun.samples`):
         ``[]`` holds iff ``p`` holds at every sample of it, ``<>`` iff at some sample."""
-        from rac.engine.simulate import label_runs
 
         ctx = self.context
         period = float(ctx.period)

@@ -107,6 +107,7 @@ def plot_series(path: Path, times: np.ndarray, names: list[str], values: list[np
     ``exprs``, the checked expressions of ``names``, give the y axis its unit (``mindist() (m)``,
     :func:`rac.ir.expr.unit_of`) and, when the first is ``mindist()``, a note on what a
     distance below 0 means; without them the axis says the expression alone."""
+    # matplotlib (via rac.output.plots): importing rac.verify.report stays light
     from rac.output.plots import plot_runs, quantity_label
 
     threshold = float(values[1].flat[0]) if len(values) == 2 and np.ptp(values[1]) == 0 else None

@@ -12,8 +12,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rac.engine import storm
+from rac.engine.budget import format_bytes, runs_within, simulation_bytes
 from rac.engine.evaluate import EvaluationError
 from rac.engine.explore import explore
+from rac.engine.simulate import simulate
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.model.data import ModelRangeError
@@ -38,7 +40,7 @@ class StatisticalAnswerer:
         """``Pr[<=T](<> p)`` or ``[] p``: a Clopper–Pearson interval (with ``;N`` runs, else until its
         half-width is at most epsilon) and the exact value where Storm can give it;
         ``Pr[...] >= θ``: a sequential test."""
-        from rac.engine import stats
+        from rac.engine import stats  # scipy (via rac.engine.stats): importing rac.verify.statistical stays light
 
         ctx = self.context
         _refuse_automaton_names([query.expr])
@@ -102,7 +104,7 @@ class StatisticalAnswerer:
     def expectation(self, query: iq.ExpectationQuery, base: QueryResult) -> QueryResult:
         """``E[<=T;N](max: e)`` (or ``min``): the mean over runs of each run's extreme of ``e``, with
         its confidence interval (infinite for one run)."""
-        from rac.engine import stats
+        from rac.engine import stats  # scipy (via rac.engine.stats): importing rac.verify.statistical stays light
 
         ctx = self.context
         _refuse_automaton_names([query.expr])
@@ -135,8 +137,6 @@ class StatisticalAnswerer:
         n = _runs_of(query.runs)
         seed = ctx.next_seed()
         if n > self.chunk(len(query.exprs), samples, f"`{base.name}`"):
-            from rac.engine.budget import format_bytes, runs_within, simulation_bytes
-
             fit = runs_within(ctx.options.max_bytes, samples, len(query.exprs))
             raise UnknownVerdict(
                 f"simulate keeps every run's trace: {n:,} runs of {samples + 1} samples would need about "
@@ -168,7 +168,6 @@ class StatisticalAnswerer:
     def chunk(self, columns: int, samples: int, what: str) -> int:
         """The most runs of ``samples`` samples, with ``columns`` expressions evaluated on them, that fit
         the memory budget at once (:func:`rac.engine.budget.runs_within`); unknown when not even one does."""
-        from rac.engine.budget import format_bytes, runs_within, simulation_bytes
 
         limit = self.context.options.max_bytes
         fit = runs_within(limit, samples, columns)
@@ -182,7 +181,6 @@ class StatisticalAnswerer:
     def runs(self, n: int, samples: int, under: str | None, seed: int) -> Runs:
         """``n`` runs of ``samples`` samples: actions drawn uniformly (among a shield's with
         ``under``), or, under a learned strategy, its one deterministic run ``n`` times."""
-        from rac.engine.simulate import simulate
 
         ctx = self.context
         if under is not None and under in ctx.learned:

@@ -17,11 +17,15 @@ from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
+from rac.engine.lookahead import Lookahead, LookaheadSettings
+from rac.engine.ondemand import on_demand
+from rac.engine.product import PHASES, ProductGraph, decide_product, explore_product, trace_to
 from rac.engine.witness import Predicate, Witness, witness_graph
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
+from rac.model.native import NativeModel
 from rac.verify import compositional
 from rac.verify.context import Context, UnknownVerdict, over_budget, restricted
 from rac.verify.reach import Reached, Reacher, in_graph
@@ -160,7 +164,6 @@ class SymbolicAnswerer:
         """A path query over the automaton's names: on the automaton alone where that decides it
         (:mod:`rac.verify.compositional`), else on the product of model and automaton, explored
         layer by layer and stopped at the first witness or counterexample (on the fly)."""
-        from rac.engine.product import decide_product, explore_product, trace_to
 
         ctx = self.context
         if query.under is not None:
@@ -205,7 +208,6 @@ class SymbolicAnswerer:
         distance to the locations where the query can fail, then the distance to the goal), bounded
         by :data:`GUIDED_WIDTH` states per sample and :data:`GUIDED_STATES` in all; the partial graph
         with the first marked state, or None (which proves nothing)."""
-        from rac.engine.product import ProductGraph, explore_product
 
         ctx = self.context
         automaton = ctx.automaton
@@ -296,9 +298,6 @@ class SymbolicAnswerer:
         the runtime shield searching the whole horizon from the start (a safe continuation proves the
         strategy exists; a complete search without one, that it does not); the strategy is then the
         on-demand shield (:mod:`rac.engine.ondemand`), computed state by state as runs reach them."""
-        from rac.engine.lookahead import Lookahead, LookaheadSettings
-        from rac.engine.ondemand import on_demand
-        from rac.model.native import NativeModel
 
         ctx = self.context
         native = NativeModel(ctx.data)
@@ -360,7 +359,6 @@ class SymbolicAnswerer:
             if "location" in columns and automaton.location_names:
                 row["location"] = automaton.location_names[int(state[columns.index("location")])]
             if "phase" in columns:  # a product state: which instant of its sample, and the rewards
-                from rac.engine.product import PHASES
 
                 row["phase"] = PHASES[int(state[columns.index("phase")])]
                 for reward in automaton.rewards:

@@ -11,9 +11,10 @@ def analyse_automaton(automaton: ir.Automaton, facts: list[Fact] | None = None) 
 
     What was proved is appended to ``facts`` as sentences (the CLI prints them).
     """
+    # numpy: importing any submodule loads this package first; these load only when the analyses run
     from rac.check.analysis.affine import moves
-    from rac.check.analysis.behaviour import check_behaviour, input_space
-    from rac.check.analysis.priority import check_priorities, check_ranges
+    from rac.check.analysis.behaviour import check_behaviour, input_space  # numpy: as above
+    from rac.check.analysis.priority import check_priorities, check_ranges  # numpy: as above
 
     facts = facts if facts is not None else []
     # One input space and one set of moves serve every analysis (each costs a pass over every class).

@@ -401,6 +401,7 @@ def _describe(cut: Inequality, names: list[str], order: tuple[int, ...] | None =
     """``10 * w1 >= 37 * w2 + 50``: the leading parameter (first in ``order``, else in declaration order)
     alone on the left, with a positive coefficient, the rest on the right, in least integer terms
     (sympy's ``primitive``)."""
+    # sympy: only when this runs; importing rac.check.analysis.weights stays light
     from sympy import Poly, Rational, symbols
 
     order = order if order is not None else tuple(range(len(names)))
