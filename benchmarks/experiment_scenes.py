@@ -86,13 +86,13 @@ def main() -> None:
     scenes = ("highway",) if args.quick else SCENES
     extra = ["--seeds", "1", "--episodes", "40", "--runs", "10"] if args.quick else []
     rows = []
+    queries.HORIZONS.update(HORIZONS)
     with tempfile.TemporaryDirectory(prefix="rac-experiment-scenes-") as scratch:
         folder = Path(scratch)
         for scene in scenes:
             xml = folder / f"{scene}.xml"
             subprocess.run([sys.executable, "-m", "rac.model.scenes", scene, str(xml)], check=True,
                            capture_output=True)
-            queries.HORIZONS.update(HORIZONS)
             source = folder / f"{scene}.ra"
             source.write_text(queries.scene_source(scene), encoding="utf-8")
             out = folder / f"{scene}.out"

@@ -431,6 +431,27 @@ class BatchRewardAutomaton(AutomatonDescription):
         inputs, self.clipped = clip_inputs(self._specs, inputs, rows)
         return inputs
 
+    def _atom_code(self, x: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+        """Each row's guard atoms as the bits of one integer: the index into the edge tables."""
+        code: Any = np.zeros(n, dtype=self._code_dtype)
+        for bit, (name, op, threshold) in enumerate(self._atom_list):
+            truth = x[name] if op is None else op(x[name], threshold)
+            code |= np.left_shift(truth.astype(self._code_dtype), bit)
+        return code
+
+    def _advance(self, nxt: np.ndarray, loc: np.ndarray, only: np.ndarray | None) -> np.ndarray:
+        """The end of a sample (after the accrual and the edges' updates): the next locations, the
+        sample count and the objective's increase, on the automata ``only`` (all when None)."""
+        self._loc = nxt if only is None else np.where(only, nxt, loc)
+        self._samples += 1 if only is None else only
+        objective = self._objective_now()
+        reward = objective - self._obj
+        if only is not None:
+            reward = np.where(only, reward, 0.0)
+            objective = np.where(only, objective, self._obj)
+        self._obj = objective
+        return reward
+
     def step_batch(self, inputs: Mapping[str, object],
                    mask: np.ndarray | Sequence[bool] | None = None, *, clip: bool = False) -> np.ndarray:
         """One sample for every automaton, or for those where ``mask`` is true; returns each one's
@@ -450,17 +471,7 @@ class BatchRewardAutomaton(AutomatonDescription):
             # ---- choose edges (before anything changes: an assume violation leaves the state alone)
             fired: list[tuple[int, np.ndarray]] = []
             if self.strategy == "table":
-                code: Any = None
-                for bit, (name, op, threshold) in enumerate(self._atom_list):
-                    truth = x[name] if op is None else op(x[name], threshold)
-                    term = truth.astype(self._code_dtype)
-                    if bit:
-                        np.left_shift(term, bit, out=term)
-                        code |= term
-                    else:
-                        code = term
-                if code is None:
-                    code = np.zeros(self._n, dtype=self._code_dtype)
+                code = self._atom_code(x, self._n)
                 if self._assume_table is not None:
                     ok = self._assume_table[code] if only is None else self._assume_table[code] | ~only
                     if not ok.all():
@@ -523,15 +534,7 @@ class BatchRewardAutomaton(AutomatonDescription):
             # ---- edges
             for c, f in fired:
                 self._apply(self._classes[c], f if only is None else f & only, x)
-            self._loc = nxt if only is None else np.where(only, nxt, loc)
-            self._samples += 1 if only is None else only
-            objective = self._objective_now()
-            reward = objective - self._obj
-            if only is not None:
-                reward = np.where(only, reward, 0.0)
-                objective = np.where(only, objective, self._obj)
-        self._obj = objective
-        return reward
+            return self._advance(nxt, loc, only)
 
     def run_samples(self, samples: Sequence[tuple[Mapping[str, object], np.ndarray, np.ndarray]], *,
                     repeat: int = 1) -> np.ndarray:
@@ -586,11 +589,7 @@ class BatchRewardAutomaton(AutomatonDescription):
             x = self._read(stacked, active.reshape(-1), n_samples * rows)
         except ValueError:
             return False
-        code: Any = np.zeros(n_samples * rows, dtype=self._code_dtype)
-        for bit, (name, op, threshold) in enumerate(self._atom_list):
-            truth = x[name] if op is None else op(x[name], threshold)
-            code |= np.left_shift(truth.astype(self._code_dtype), bit)
-        code = code.reshape(n_samples, rows)
+        code = self._atom_code(x, n_samples * rows).reshape(n_samples, rows)
         if self._assume_table is not None and not (self._assume_table[code] | ~active).all():
             return False
         bits, n_classes = self._atom_bits, len(self._classes)
@@ -613,15 +612,7 @@ class BatchRewardAutomaton(AutomatonDescription):
                                 spread = {name: np.repeat(values.reshape(n_samples, rows)[j], repeat)
                                           for name, values in x.items()}
                             self._apply(self._classes[c], fired, spread)
-                self._loc = nxt if only is None else np.where(only, nxt, loc)
-                self._samples += 1 if only is None else only
-                objective = self._objective_now()
-                reward = objective - self._obj
-                if only is not None:
-                    reward = np.where(only, reward, 0.0)
-                    objective = np.where(only, objective, self._obj)
-                self._obj = objective
-                total += reward
+                total += self._advance(nxt, loc, only)
             if ending[j].any():
                 total += self.end_batch(_spread_inputs(samples[j][0], repeat), mask=np.repeat(ending[j], repeat))
         return True
