@@ -318,6 +318,21 @@ class Parameter:
     span: Span | None = field(default=None, compare=False)
 
 
+#: The checks a ``require`` can make errors of (issue 25): ``risk`` takes a bound (the largest
+#: indifference point p* allowed); the others take none.
+REQUIREMENT_CHECKS = ("risk", "ending_early_never_pays", "goal_earlier_never_pays_less",
+                      "stalling_never_pays")
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """``require CHECK`` or ``require risk <= BOUND``: the check's failure is an error, not a warning."""
+
+    check: str  # one of REQUIREMENT_CHECKS
+    bound: Fraction | None = None  # for ``risk``: the largest p* allowed
+    span: Span | None = field(default=None, compare=False)
+
+
 @dataclass(frozen=True)
 class Automaton:
     """A checked reward automaton."""
@@ -340,6 +355,15 @@ class Automaton:
     constants: tuple[tuple[str, Fraction | bool], ...] = ()
     #: The ``param`` declarations (each resolved as a constant of the value it records).
     parameters: tuple[Parameter, ...] = ()
+    #: ``episode ends when COND``: after a sample's edge, the run ends when COND holds on that
+    #: sample's inputs (its ``at end`` clauses read the same inputs). None: runs last the horizon.
+    episode_ends: Guard | None = None
+    #: ``goal when COND``: a run reaches the goal at a sample where COND holds on its inputs.
+    goal: Guard | None = None
+    #: ``collision when COND``: a run collides (is unsafe) at a sample where COND holds.
+    collision: Guard | None = None
+    #: The ``require`` declarations, in source order.
+    requirements: tuple[Requirement, ...] = ()
     #: The scenario model from the `model` block, if the file has one.
     model: ModelSpec | None = None
     #: The file's queries, checked (:mod:`rac.ir.query`).
