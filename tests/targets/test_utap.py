@@ -29,8 +29,10 @@ the model, the queries in its ``<queries>`` section and every line of the ``.q``
   ``collision_distance``, ``mindist()``, the true state ``true_x``);
 * the whole model of each shared scenario (``../shared/scenarios/*.xml``, skipped when absent)
   with examples/left_turn/model.ra's settings, as tests/targets/test_uppaal_model.py compiles them;
-* random reward automata (hypothesis; the strategy of tests/runtime/test_agreement.py) emitted alone by
-  ``generate_uppaal``, with queries of several forms over their names.
+* random reward automata (hypothesis; the strategy of tests/runtime/test_agreement.py, some with
+  ``episode ends when``) emitted alone by ``generate_uppaal``, with queries of several forms over their names;
+* stdlib/driving.ra's automaton with ``episode ends when collide || dgoal < 2``, alone and as the
+  whole model of each tiny scenario.
 
 Without the validator these tests skip (under ``RAC_REQUIRE_UTAP=1``, as in CI, they fail);
 the end of the session prints how many models and query files it accepted.
@@ -41,6 +43,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -53,6 +56,7 @@ from rac import ir
 from rac.cli.main import main
 from rac.compiler import compile_file, compile_text
 from rac.targets.uppaal.automaton import UppaalError, generate_uppaal
+from rac.targets.uppaal.model import generate_uppaal_model
 
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = Path(__file__).parents[1] / "golden"
@@ -341,3 +345,34 @@ def test_the_longest_name_reaches_uppaal(length: int, utap: Utap, tmp_path: Path
         assert "error[E0012]: a name of 3,901 characters: at most 3,900" in capsys.readouterr().out
         return
     utap.validate_files(*compile_cli(source, tmp_path / "long.xml", capsys))
+
+
+# ---------------------------------------------------------------- episode ends when
+#: `episode ends when collide || dgoal < 2` over stdlib/driving.ra's inputs.
+ENDS = ir.BOr((ir.BInput("collide"), ir.BAtom("dgoal", "<", Fraction(2))))
+
+
+@pytest.mark.parametrize("name", [None, *sorted(TINY_SCENARIOS)])
+def test_episode_ends_reaches_uppaal(utap: Utap, name: str | None, tmp_path: Path) -> None:
+    """An automaton whose run ends at a sample (`episode ends when`), alone and as the whole model of
+    each tiny scenario: the Timer's `sense!` edges are guarded by the condition (the one into the ending
+    sets `ended`), every non-zero rate stops once `ended` is set, and UPPAAL accepts model and queries."""
+    if name is None:
+        source = tmp_path / "ends.ra"
+        queries = [query for form in ("A[]", "E-max", "simulate", "learning-under") for query in QUERY_FORMS[form]]
+        source.write_text(with_queries(driving_without_queries(), queries), encoding="utf-8")
+    else:
+        source = tiny_source(tmp_path, name, AUTOMATON_QUERIES)
+    automaton = compile_file(source).raise_for_errors()
+    ended = dataclasses.replace(automaton, episode_ends=ENDS)
+    if name is None:
+        model = generate_uppaal(ended, source_name="ends.ra", model_name="ends.xml")
+    else:
+        model = generate_uppaal_model(ended, source_name=source.name, model_name=f"{name}.xml")
+    assert "bool ended;" in model.xml
+    condition = r"\(collide_? \|\| dgoal &lt; \d+\)"  # the model's collide() makes the input `collide_`
+    assert re.search(rf"count == STEPS \|\| {condition}<", model.xml)
+    assert len(re.findall(rf"count &lt; STEPS &amp;&amp; [^<]*!{condition}<", model.xml)) == (1 if name is None else 2)
+    assert "settled = true, ended = true" in model.xml
+    assert re.search(r"sa&#39; == \(ended \? 0\.0 : 0\.\d\)", model.xml) and "co&#39; == 0" in model.xml
+    utap.validate(model.xml, model.queries, f"ends_{name or 'alone'}")
