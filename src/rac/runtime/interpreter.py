@@ -350,7 +350,8 @@ class RewardAutomaton(AutomatonDescription):
     def __setstate__(self, state: dict[str, Any]) -> None:
         RewardAutomaton.__init__(self, state["ir"])
         for key in _RUN_STATE:
-            setattr(self, key, state[key])
+            # a pickle from before `episode ends when` has no `_terminated`: such a run never ended itself
+            setattr(self, key, state.get(key, False) if key == "_terminated" else state[key])
 
     def __repr__(self) -> str:
         ending = ", terminated" if self._terminated else ", ended" if self._ended else ""
