@@ -3,7 +3,8 @@
 
 Create ``Driving()``, call ``step(inputs)`` once per sample with a mapping from input
 names to values (it returns the learner's reward: the objective's increase), ``end(inputs)``
-once when the run stops, and ``reset()`` before the next run.
+once when the run stops, and ``reset()`` before the next run. ``terminated`` says that a sample
+ended the run itself (``episode ends when``; ``end`` then returns 0.0).
 """
 
 from __future__ import annotations
