@@ -480,7 +480,9 @@ class BatchRewardAutomaton(AutomatonDescription):
 
         As in :meth:`end_batch`, inputs are validated on the masked automata only, and the
         unmasked ones keep their state (they may have ended). ``clip``: numeric values outside their
-        range are clipped first on the masked automata (NaN refused), :attr:`clipped` counts them per input."""
+        range are clipped first on the masked automata (NaN refused), :attr:`clipped` counts them per input.
+        With ``episode ends when``, the automata whose inputs satisfy the condition end their run at this
+        sample (end clauses applied, their increase in the reward): :attr:`terminated` marks them."""
         only = None if mask is None else self._mask(mask)
         inputs = self._clip(inputs, clip, only)
         ended = self._ended if only is None else self._ended & only
