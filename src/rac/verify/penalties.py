@@ -130,7 +130,11 @@ def _explore(context: Context, horizon: int, budget: int) -> tuple[ProductGraph 
                                    max_bytes=context.options.max_bytes,
                                    progress=context.options.explore_progress), samples, reason
         except BudgetExceeded as exc:
-            reason = f"beyond, the product has more than {budget:,} states" if exc.kind == "states" else str(exc)
+            if exc.kind == "states":
+                limit = "--max-states" if budget < PENALTY_STATES else "the check's own budget"
+                reason = f"the product has more than {budget:,} states ({limit}) by sample {exc.sample}"
+            else:
+                reason = str(exc)
             samples = min(samples - 1, exc.sample - 1)
         except (ModelRangeError, EvaluationError, Unrepresentable) as exc:
             return None, 0, f"the product cannot be explored: {exc}"
