@@ -139,7 +139,7 @@ horizon (sample 8) would have about 1.5e+04 states: shorten the horizon (--horiz
 action steps, decide_period) or raise --max-states if the machine has the memory
     T s
 Checking penalties that no action avoids
- -- not checked: the product has more than 10 states (--max-states) by sample 1
+ -- not checked: by sample 1 the product has more than 10 states, --max-states
 """
 
 

@@ -48,7 +48,7 @@ __all__ = ["PENALTY_STATES", "PenaltyCheck", "check_penalties", "penalised_locat
 
 #: The check's own state budget (``--max-states`` when smaller): it runs on every ``rac verify``, so
 #: it may cost a fraction of what the queries may (the spawn it looks for shows at the first samples).
-PENALTY_STATES = 500_000
+PENALTY_STATES = 200_000
 #: The actions a W1011 note lists before it says "and N more".
 SHOWN_ACTIONS = 9
 
@@ -106,8 +106,8 @@ def check_penalties(context: Context, max_states: int | None = None) -> PenaltyC
     decisions = max(u.decisions for u in found.values())
     counts = {o: int(u.states.size) for o, u in found.items() if u.states.size}
     reach = (f"up to the horizon ({count_noun(horizon, 'sample')})" if before is None else
-             f"in the first {count_noun(samples, 'sample')} of {horizon} ({reason}: the later decisions are "
-             "not checked)")
+             f"in the first {count_noun(samples, 'sample')} of {horizon} ({reason}: later decisions are not "
+             "checked)")
     names = ", ".join(f"`{o}`" for o in penalised)
     if not counts:
         message = (f"none: at each of the {count_noun(decisions, 'decision state')} {reach} some allowed action "
@@ -132,7 +132,7 @@ def _explore(context: Context, horizon: int, budget: int) -> tuple[ProductGraph 
         except BudgetExceeded as exc:
             if exc.kind == "states":
                 limit = "--max-states" if budget < PENALTY_STATES else "the check's own budget"
-                reason = f"the product has more than {budget:,} states ({limit}) by sample {exc.sample}"
+                reason = f"by sample {exc.sample} the product has more than {budget:,} states, {limit}"
             else:
                 reason = str(exc)
             samples = min(samples - 1, exc.sample - 1)
