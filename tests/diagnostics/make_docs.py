@@ -304,7 +304,8 @@ GENERATED: tuple[Case, ...] = (
     Case("W1011_penalty_no_action_avoids", None,
          "`W1011_penalty_no_action_avoids.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: the highway of `rac.model.scenes` (`build_highway(truck=(40.0, 20.0))`), whose truck starts "
-         "10 m ahead of the ego (its rear 1.75 m from the ego's front) at the ego's 20 m/s:",
+         "10 m ahead of the ego at the ego's 20 m/s: `mindist()` reads 0.97 m, inside the unsafe distance "
+         "`3 * collision_distance` (1.5 m), whatever the ego does:",
          _spawn, ("verify", "{file}")),
     Case("W0716_start_off_road", None,
          "`W0716_start_off_road.ra` is the automaton of the E0712 example over `ramp.xml` (line 22), next "
