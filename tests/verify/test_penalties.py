@@ -54,7 +54,8 @@ def test_beyond_the_budget_the_check_says_how_far_it_went(tmp_path: Path) -> Non
     whole = check_penalties(context)
     cut = check_penalties(context, max_states=whole.states - 1)
     assert cut.done and cut.samples < cut.horizon_samples == 4
-    assert f"in the first {cut.samples} samples of 4 (by sample {cut.samples + 1} the product has more than" in cut.message
+    reach = f"in the first {cut.samples} samples of 4 (by sample {cut.samples + 1} the product has more than"
+    assert reach in cut.message
     assert cut.diagnostics[0].data["first"]["sample"] == 0  # type: ignore[index]
     assert 0 < cut.counts["sa"] < whole.counts["sa"]  # only the decisions whose samples were explored
     none = check_penalties(context, max_states=3)
