@@ -194,8 +194,10 @@ def _explore_bar(quiet: bool):
 
 @_on_checked_file
 def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
-    # numpy, rac.check.analysis, stormpy (via rac.verify.runner): only the command that uses it loads it
+    # numpy, rac.check.analysis (via rac.verify.penalties): only the command that uses it loads it
     from rac.verify.penalties import check_penalties, render_penalties
+
+    # numpy, rac.check.analysis, stormpy (via rac.verify.runner): only the command that uses it loads it
     from rac.verify.runner import UnknownQuery, VerifyOptions, render_json, render_text, run_queries
 
     out_dir = output_folder(args.file, "verify", args.out)
