@@ -1,5 +1,5 @@
-"""Shared helper for the tests of penalties no action avoids (tests/engine/test_penalties.py,
-tests/verify/test_penalties.py): a safety automaton over the highway of :mod:`rac.model.scenes`
+"""Shared helper for the tests of penalties no action avoids (tests/engine/test_unavoidable.py,
+tests/verify/test_penalty_check.py): a safety automaton over the highway of :mod:`rac.model.scenes`
 (commonroad-io), with the truck where the test puts it.
 
 ``build_highway(truck=SPAWNED)`` starts the truck 10 m ahead of the ego at the ego's 20 m/s:
