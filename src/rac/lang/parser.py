@@ -229,6 +229,19 @@ class _ToAst(Transformer):
         guard, updates = items
         return ast.EndDecl(guard, updates, self._sp(meta))
 
+    def episode_decl(self, meta, items):
+        return ast.EpisodeEndsDecl(items[0], self._sp(meta))
+
+    def goal_decl(self, meta, items):
+        return ast.GoalDecl(items[0], self._sp(meta))
+
+    def collision_decl(self, meta, items):
+        return ast.CollisionDecl(items[0], self._sp(meta))
+
+    def require_decl(self, meta, items):
+        name, bound = items
+        return ast.RequireDecl(self._ident(name), bound, self._sp(meta))
+
     # ---- the model block
     def model_block(self, meta, items):
         return ast.ModelDecl(tuple(items), self._sp(meta))
