@@ -561,7 +561,12 @@ class _Builder:
         if "model" in self.defects and c.chance(30):
             items = []  # E0105
         if c.chance(40):
-            items.append(f"exponent {pick(c, (2, 3, 4, 1, 5))}")
+            # outside a near miss, an exponent that holds each rate's growth per sample (E0801): the
+            # rates are halves, whole numbers and `input / 50`
+            held = min(e for e in range(6) if all((step * self.period * 10**e).denominator == 1
+                                                  for step in (Fraction(1, 2), Fraction(1, 50))))
+            exponents = [e for e in (2, 3, 4, 1, 5) if self.kind == "near miss" or e >= held]
+            items.append(f"exponent {pick(c, exponents)}")
         if c.chance(30):
             items.append(f"decide_period {self.literal(self.period * pick(c, (2, 1, 5)))}")
         if c.chance(20):
