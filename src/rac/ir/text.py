@@ -1,4 +1,5 @@
-"""The IR as text: checked expressions back in ``.ra`` syntax, and the walk over guards the targets share.
+"""The IR as text: checked expressions, guards and issue 25's declarations back in ``.ra`` syntax, and
+the walk over guards the targets share.
 
 The checker inlines constants and resolves names; :func:`format_checked` prints the result with the
 formatter of the language (:func:`rac.lang.format.format_expr`), names as written.
@@ -17,7 +18,7 @@ from rac.ir import expr as ie
 from rac.lang import ast
 from rac.lang.format import format_expr
 
-__all__ = ["GuardPrinter", "format_checked"]
+__all__ = ["GuardPrinter", "declaration_lines", "format_checked", "format_guard"]
 
 
 def format_checked(expr: ie.Expr) -> str:
@@ -38,6 +39,45 @@ def _to_ast(expr: ie.Expr) -> ast.Expr:
     if isinstance(expr, ie.Unary):
         return ast.Unary(expr.op, _to_ast(expr.operand))
     return ast.Binary(expr.op, _to_ast(expr.left), _to_ast(expr.right))
+
+
+def format_guard(guard: ir.Guard) -> str:
+    """A checked guard (:data:`rac.ir.Guard`) in ``.ra`` syntax: an edge's, or the condition of
+    ``goal when``; parsing and checking the text gives the guard back."""
+    return format_expr(_guard_ast(guard))
+
+
+def _guard_ast(guard: ir.Guard) -> ast.Expr:
+    if isinstance(guard, ir.BConst):
+        return ast.BoolLit(guard.value)
+    if isinstance(guard, ir.BInput):
+        return ast.Name(guard.name)
+    if isinstance(guard, ir.BAtom):
+        threshold = ast.Number(abs(guard.threshold))
+        return ast.Binary(guard.op, ast.Name(guard.input),
+                          ast.Unary("-", threshold) if guard.threshold < 0 else threshold)
+    if isinstance(guard, ir.BNot):
+        return ast.Unary("!", _guard_ast(guard.operand))
+    op, empty = ("&&", True) if isinstance(guard, ir.BAnd) else ("||", False)
+    if not guard.operands:
+        return ast.BoolLit(empty)
+    result = _guard_ast(guard.operands[0])
+    for operand in guard.operands[1:]:
+        result = ast.Binary(op, result, _guard_ast(operand))
+    return result
+
+
+def declaration_lines(automaton: ir.Automaton) -> tuple[str, ...]:
+    """Issue 25's declarations of a checked automaton back in ``.ra`` syntax, one per line:
+    ``episode ends when``, ``goal when``, ``collision when`` (those it has), then its ``require``s
+    in source order, bounds exact (a parameter's as the value it was resolved with)."""
+    lines = [f"{word} when {format_guard(guard)}"
+             for word, guard in (("episode ends", automaton.episode_ends), ("goal", automaton.goal),
+                                 ("collision", automaton.collision)) if guard is not None]
+    for requirement in automaton.requirements:
+        bound = "" if requirement.bound is None else f" <= {format_expr(ast.Number(requirement.bound))}"
+        lines.append(f"require {requirement.check}{bound}")
+    return tuple(lines)
 
 
 class GuardPrinter(Printer, ABC):
