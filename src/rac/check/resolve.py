@@ -429,7 +429,8 @@ class Resolver:
         parts = []
         for decl in self.node.of(ast.AssumeDecl):
             try:
-                parts.append(ir.Assumption(self.typer.guard(decl.expr, Context("`assume`", condition=True)), decl.text, decl.span))
+                guard = self.typer.guard(decl.expr, Context("`assume`", condition=True))
+                parts.append(ir.Assumption(guard, decl.text, decl.span))
             except Unresolvable:
                 pass
         return tuple(parts)
@@ -499,7 +500,8 @@ class Resolver:
             missing = [word for kind, word in _READS[name] if kind not in singles]
             if missing:
                 words = " and ".join(f"`{w}`" for w in missing)
-                what = f"{words} declarations" if len(missing) > 1 else f"{'an' if missing[0][0] in 'aeiou' else 'a'} {words} declaration"
+                article = "an" if missing[0][0] in "aeiou" else "a"
+                what = f"{words} declarations" if len(missing) > 1 else f"{article} {words} declaration"
                 self._error("E1009", f"`require {name}` needs {what}", decl.span,
                             notes=[_WHY_READS[name]],
                             hints=[f"declare {' and '.join(_EXAMPLES[w] for w in missing)}"])
