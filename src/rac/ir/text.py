@@ -9,8 +9,9 @@ target gives the operator table and prints the comparisons of numeric inputs.
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 from rac import ir
 from rac.core.printing import Level, Printed, Printer
@@ -47,24 +48,22 @@ def format_guard(guard: ir.Guard) -> str:
     return format_expr(_guard_ast(guard))
 
 
-def _guard_ast(guard: ir.Guard) -> ast.Expr:
-    if isinstance(guard, ir.BConst):
-        return ast.BoolLit(guard.value)
-    if isinstance(guard, ir.BInput):
-        return ast.Name(guard.name)
-    if isinstance(guard, ir.BAtom):
-        threshold = ast.Number(abs(guard.threshold))
-        return ast.Binary(guard.op, ast.Name(guard.input),
-                          ast.Unary("-", threshold) if guard.threshold < 0 else threshold)
-    if isinstance(guard, ir.BNot):
-        return ast.Unary("!", _guard_ast(guard.operand))
-    op, empty = ("&&", True) if isinstance(guard, ir.BAnd) else ("||", False)
-    if not guard.operands:
-        return ast.BoolLit(empty)
-    result = _guard_ast(guard.operands[0])
-    for operand in guard.operands[1:]:
-        result = ast.Binary(op, result, _guard_ast(operand))
-    return result
+def _atom_ast(atom: ir.BAtom) -> ast.Expr:
+    threshold = ast.Number(abs(atom.threshold))
+    return ast.Binary(atom.op, ast.Name(atom.input), ast.Unary("-", threshold) if atom.threshold < 0 else threshold)
+
+
+def _chain(op: str, empty: bool) -> Callable[[tuple[ast.Expr, ...]], ast.Expr]:
+    """``a op b op c``, nested to the left as the parser nests it; ``empty`` without operands."""
+    def join(operands: tuple[ast.Expr, ...]) -> ast.Expr:
+        return functools.reduce(lambda left, right: ast.Binary(op, left, right), operands) if operands \
+            else ast.BoolLit(empty)
+    return join
+
+
+_guard_ast: ir.GuardFold[ast.Expr] = ir.GuardFold(
+    const=ast.BoolLit, boolean=lambda guard: ast.Name(guard.name), atom=_atom_ast,
+    negate=lambda operand: ast.Unary("!", operand), conjoin=_chain("&&", True), disjoin=_chain("||", False))
 
 
 def declaration_lines(automaton: ir.Automaton) -> tuple[str, ...]:
