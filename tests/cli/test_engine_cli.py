@@ -184,7 +184,10 @@ def test_verify_without_queries_says_so(capsys: pytest.CaptureFixture[str], tmp_
     path = write_engine_file(tmp_path, "goal_ahead", {})
     assert main(["verify", str(path)]) == 0
     captured = capsys.readouterr()
-    assert captured.out == "\n"
+    # the check of penalties that no action avoids runs without queries too
+    assert captured.out == ("Checking penalties that no action avoids\n -- none: at each of the 820 decision states up "
+                            "to the horizon (8 samples) some allowed action avoids every penalty of `sa`\n"
+                            "    27,091 states, horizon 8 samples\n")
     assert captured.err == f"{path}: no queries (add `query NAME: ...` lines, or pass --standard)\n"
 
 
