@@ -571,3 +571,19 @@ def test_the_automaton_ends_the_episode(tiny: CompileResult) -> None:
     assert info["time"] < 4.0 and env.episodes.done.all()
     with pytest.raises(RuntimeError, match="reset"):
         env.step(0)
+
+
+def test_a_file_that_ends_its_episodes(tmp_path: Path) -> None:
+    """`episode ends when near` written in the file's automaton: ScenarioEnv terminates at the first sample
+    the van is near, as with the declaration set on the IR above."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", queries={})
+    text = path.read_text(encoding="utf-8").replace("    model {", "    episode ends when near\n\n    model {")
+    path.write_text(text, encoding="utf-8")
+    env = ScenarioEnv(path)
+    assert env.episodes.automaton.episode_ends == ir.BInput("near")
+    env.reset(seed=0)
+    fastest = int(np.argmax(env.episodes.action_pairs[:, 0] - np.abs(env.episodes.action_pairs[:, 1])))
+    terminated = truncated = False
+    while not (terminated or truncated):
+        _, _, terminated, truncated, info = env.step(fastest)
+    assert terminated and not info["goal"] and info["inputs"] == {"near": True} and info["time"] < 4.0

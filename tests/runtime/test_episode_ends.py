@@ -12,6 +12,7 @@ import pickle
 import types
 from dataclasses import replace
 from fractions import Fraction
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,6 +20,7 @@ import pytest
 from driving_ir import driving_automaton
 
 from rac import ir
+from rac.compiler import compile_text
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import ENDED_MESSAGE, ends_guard
@@ -113,3 +115,21 @@ def test_run_samples_skips_a_terminated_row() -> None:
     total = batch.run_samples([(first, both, none), (second, both, both)])
     assert batch.samples.tolist() == [1, 2] and batch.terminated.tolist() == [True, False]
     assert total[0] == pytest.approx(1.6 + 500) and total[1] == pytest.approx(3.2)
+
+
+def test_the_declaration_in_a_file_runs_alike() -> None:
+    """`episode ends when` written in the language compiles to the guard these tests build by hand, and the
+    interpreter, the batch and the module `rac compile --target python` writes end the run at the same sample."""
+    text = (Path(__file__).resolve().parents[2] / "stdlib" / "driving.ra").read_text(encoding="utf-8")
+    text = text.replace("    at end when", "    episode ends when collide || dgoal < 2\n\n    at end when")
+    automaton = compile_text(text, "driving.ra").raise_for_errors()
+    assert automaton.episode_ends == ENDS
+    module = types.ModuleType("generated_from_text")
+    exec(compile(generate_python(automaton), "<generated>", "exec"), module.__dict__)  # noqa: S102
+    runs = [RewardAutomaton(automaton), module.Driving()]
+    batch = BatchRewardAutomaton(automaton, 1)
+    for values in (inputs(), inputs(dgoal=10.0), inputs(dgoal=1.9)):
+        rewards = {ra.step(values) for ra in runs}
+        rewards.add(float(batch.step_batch({k: np.array([v]) for k, v in values.items()})[0]))
+        assert len(rewards) == 1
+    assert all(ra.terminated for ra in runs) and batch.terminated[0]

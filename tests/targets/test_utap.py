@@ -56,7 +56,6 @@ from rac import ir
 from rac.cli.main import main
 from rac.compiler import compile_file, compile_text
 from rac.targets.uppaal.automaton import UppaalError, generate_uppaal
-from rac.targets.uppaal.model import generate_uppaal_model
 
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = Path(__file__).parents[1] / "golden"
@@ -353,26 +352,28 @@ ENDS = ir.BOr((ir.BInput("collide"), ir.BAtom("dgoal", "<", Fraction(2))))
 
 
 @pytest.mark.parametrize("name", [None, *sorted(TINY_SCENARIOS)])
-def test_episode_ends_reaches_uppaal(utap: Utap, name: str | None, tmp_path: Path) -> None:
-    """An automaton whose run ends at a sample (`episode ends when`), alone and as the whole model of
-    each tiny scenario: the Timer's `sense!` edges are guarded by the condition (the one into the ending
-    sets `ended`), every non-zero rate stops once `ended` is set, and UPPAAL accepts model and queries."""
+def test_episode_ends_reaches_uppaal(utap: Utap, name: str | None, tmp_path: Path,
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """An automaton whose run ends at a sample (`episode ends when collide || dgoal < 2` in its file),
+    compiled by `rac compile --target uppaal` alone and as the whole model of each tiny scenario: the
+    Timer's `sense!` edges are guarded by the condition (the one into the ending sets `ended`), every
+    non-zero rate stops once `ended` is set, and UPPAAL accepts model and queries."""
     if name is None:
         source = tmp_path / "ends.ra"
         queries = [query for form in ("A[]", "E-max", "simulate", "learning-under") for query in QUERY_FORMS[form]]
         source.write_text(with_queries(driving_without_queries(), queries), encoding="utf-8")
     else:
         source = tiny_source(tmp_path, name, AUTOMATON_QUERIES)
-    automaton = compile_file(source).raise_for_errors()
-    ended = dataclasses.replace(automaton, episode_ends=ENDS)
-    if name is None:
-        model = generate_uppaal(ended, source_name="ends.ra", model_name="ends.xml")
-    else:
-        model = generate_uppaal_model(ended, source_name=source.name, model_name=f"{name}.xml")
-    assert "bool ended;" in model.xml
+    text = source.read_text(encoding="utf-8")
+    source.write_text(text.replace("    at end when", "    episode ends when collide || dgoal < 2\n\n    at end when"),
+                      encoding="utf-8")
+    assert compile_file(source).raise_for_errors().episode_ends == ENDS
+    xml_path, queries_path = compile_cli(source, tmp_path / f"ends_{name or 'alone'}.xml", capsys)
+    xml = xml_path.read_text(encoding="utf-8")
+    assert "bool ended;" in xml
     condition = r"\(collide_? \|\| dgoal &lt; \d+\)"  # the model's collide() makes the input `collide_`
-    assert re.search(rf"count == STEPS \|\| {condition}<", model.xml)
-    assert len(re.findall(rf"count &lt; STEPS &amp;&amp; [^<]*!{condition}<", model.xml)) == (1 if name is None else 2)
-    assert "settled = true, ended = true" in model.xml
-    assert re.search(r"sa&#39; == \(ended \? 0\.0 : 0\.\d\)", model.xml) and "co&#39; == 0" in model.xml
-    utap.validate(model.xml, model.queries, f"ends_{name or 'alone'}")
+    assert re.search(rf"count == STEPS \|\| {condition}<", xml)
+    assert len(re.findall(rf"count &lt; STEPS &amp;&amp; [^<]*!{condition}<", xml)) == (1 if name is None else 2)
+    assert "settled = true, ended = true" in xml
+    assert re.search(r"sa&#39; == \(ended \? 0\.0 : 0\.\d\)", xml) and "co&#39; == 0" in xml
+    utap.validate_files(xml_path, queries_path)
