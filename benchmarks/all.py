@@ -169,7 +169,7 @@ def run_one(name: str, arguments: list[str], folder: Path, timeout: float | None
 
 
 def header(started: datetime.datetime, quick: bool) -> list[str]:
-    """The run's own facts: when, where, with what."""
+    """The run's own facts: when, where, with what (taken before the first script runs)."""
     try:
         import numpy  # the benchmarked code's numpy; imported here only to name its version
         numpy_version = numpy.__version__
@@ -183,8 +183,7 @@ def header(started: datetime.datetime, quick: bool) -> list[str]:
             f"- CPUs: {os.cpu_count()}",
             f"- Python {platform.python_version()} ({sys.executable}), numpy {numpy_version}",
             f"- load average (1, 5, 15 min) at the start: {load()}",
-            "- note: the machine is shared; the load averages before and after each script say how busy it was",
-            ""]
+            "- note: the machine is shared; the load averages before and after each script say how busy it was"]
 
 
 def main() -> int:
@@ -205,6 +204,7 @@ def main() -> int:
     folder = args.output or RESULTS / f"{started:%Y-%m-%d_%H%M}{'-quick' if args.quick else ''}"
     folder.mkdir(parents=True, exist_ok=True)
     rl = importlib.util.find_spec("sb3_contrib") is not None
+    facts = header(started, args.quick)  # at the start: the commit and the tree the scripts import
     print(f"benchmarks/all.py: {len(names)} benchmarks into {folder}", flush=True)
     outcomes: list[Outcome] = []
     clock = time.perf_counter()
@@ -221,9 +221,8 @@ def main() -> int:
         print(f"[{i}/{len(names)}] {name}: {outcome.status}, {outcome.wall:.1f} s wall, {outcome.cpu:.1f} s CPU",
               flush=True)
     total = time.perf_counter() - clock
-    lines = header(started, args.quick)
-    lines += [f"- finished: {now():%Y-%m-%d %H:%M:%S} UTC, {total / 60:.1f} min; load average at the end: {load()}",
-              "", "| script | command | status | wall (s) | CPU (s) | load before | load after |",
+    finished = f"- finished: {now():%Y-%m-%d %H:%M:%S} UTC, {total / 60:.1f} min; load average at the end: {load()}"
+    lines = [*facts, finished, "", "| script | command | status | wall (s) | CPU (s) | load before | load after |",
               "| --- | --- | --- | ---: | ---: | --- | --- |"]
     lines += [f"| [{o.name}]({o.name}.md) | `{o.shown}` | {o.status} | {o.wall:.1f} | {o.cpu:.1f} | {o.load_before} "
               f"| {o.load_after} |" for o in outcomes]
