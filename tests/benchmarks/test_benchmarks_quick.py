@@ -37,7 +37,8 @@ def is_script(path: Path) -> bool:
 #: Scripts whose own test already runs them with ``--quick`` and checks their numbers (not only a
 #: table): running them here too would double the suite's time for nothing.
 DEDICATED: dict[str, str] = {
-    "deep_rl.py": "test_deep_rl.py", "engine.py": "test_bench_engine.py", "masked_ppo.py": "test_masked_ppo.py",
+    "all.py": "test_benchmarks_quick.py", "deep_rl.py": "test_deep_rl.py",
+    "engine.py": "test_bench_engine.py", "masked_ppo.py": "test_masked_ppo.py",
     "queries.py": "test_benchmark_queries.py", "run.py": "test_cli.py", "scenario_load.py": "test_scenario_load.py",
     "simulation.py": "test_bench_simulation.py", "synthesis.py": "test_weights.py",
     "vector_env.py": "test_vector_env.py",
@@ -82,3 +83,31 @@ def test_every_benchmark_runs_quick_and_prints_a_table(script: Path, tmp_path: P
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-4000:]
     written = output.read_text(encoding="utf-8") if output.exists() else ""
     assert TABLE.search(done.stdout) or TABLE.search(written), done.stdout[-4000:]
+
+
+def test_all_runs_the_scripts_it_is_asked_for_into_one_folder(tmp_path: Path) -> None:
+    """``all.py --quick --only`` (a cheap script and the import times, not every benchmark again): each
+    one's output verbatim under its header, and the run's header and summary in README.md."""
+    if not BENCHMARKS.exists():
+        pytest.skip("benchmarks/ is not in this tree")
+    folder = tmp_path / "run"
+    done = subprocess.run([sys.executable, str(BENCHMARKS / "all.py"), "--quick", "--only", "startup",
+                           "--only", "importtime", "--output", str(folder)], env=rac_env(), cwd=tmp_path,
+                          capture_output=True, text=True, timeout=600, check=False)
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-4000:]
+    assert "[1/2] startup" in done.stdout and "[2/2] importtime" in done.stdout
+    readme = (folder / "README.md").read_text(encoding="utf-8")
+    for fact in ("git commit:", "CPUs:", "numpy", "load average"):
+        assert fact in readme
+    assert TABLE.search(readme) and "`python benchmarks/startup.py --quick` | ok" in readme
+    startup = (folder / "startup.md").read_text(encoding="utf-8")
+    assert "- command: `python benchmarks/startup.py --quick`" in startup and "wall time:" in startup
+    assert TABLE.search(startup) and "rac --version" in startup
+    importtime = (folder / "importtime.md").read_text(encoding="utf-8")
+    assert "## stdout" in importtime and "rac.cli.arguments" in importtime  # -X importtime's lines, verbatim
+    assert "numpy" not in importtime.split("## stderr", 1)[1]  # rac --version imports no numpy
+    refused = subprocess.run([sys.executable, str(BENCHMARKS / "all.py"), "--only", "nonesuch"], env=rac_env(),
+                             cwd=tmp_path, capture_output=True, text=True, timeout=60, check=False)
+    assert refused.returncode != 0 and "no such benchmark: nonesuch" in refused.stderr
+    known = refused.stderr.split("(known: ", 1)[1].split(")", 1)[0].split(", ")
+    assert set(known) == {path.stem for path in SCRIPTS} - {"all"} | {"importtime"}  # every script, not itself

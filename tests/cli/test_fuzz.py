@@ -3,7 +3,7 @@ over generated programs (tests/support/fuzzgen.py) must find no internal error, 
 `rac fmt`, no Python target that fails to import or steps unlike the runtime and, when UPPAAL's
 parser is available, no compiled model it rejects; bounded, seeded runs of the classes of issue 22
 (huge action grids, Python builtins and keywords as names, stdout full or closed, concurrent
-writers); long runs are `python tests/support/fuzz.py --minutes N` (docs/benchmarks.md)."""
+writers); long runs are `python tests/support/fuzz.py --minutes N` (docs/fuzzing.md)."""
 
 from __future__ import annotations
 

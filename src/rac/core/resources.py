@@ -20,13 +20,13 @@ __all__ = ["LOAD_BASE_BYTES", "LOAD_BYTES_PER_FILE_BYTE", "LOAD_BYTES_PER_SECOND
 #: at :data:`LOAD_BYTES_PER_SECOND` it takes a few seconds or more.
 LOAD_NOTICE_BYTES = 4 * 2**20
 #: How fast a scenario loads and its model's data is built, per byte of the file: the slowest rate
-#: ``benchmarks/scenario_load.py`` measured (docs/benchmarks.md, "Loading a large scenario": 0.38 MB/s
+#: ``benchmarks/scenario_load.py`` measured (docs/history.md, "Loading a large scenario (issue 22)": 0.38 MB/s
 #: for 500 to 3,000 obstacles, 0.5 MB/s for 2,000 to 10,000 lanelets, on a shared 2-core machine).
 #: For the announced time only.
 LOAD_BYTES_PER_SECOND = 384 * 2**10
 #: The peak memory of loading a scenario and building its model's data, beyond what the process held
 #: before, per byte of the file: an upper estimate over what ``benchmarks/scenario_load.py`` measured
-#: (docs/benchmarks.md, "Loading a large scenario"): lanelets cost about 43 bytes per file byte, 500
+#: (docs/history.md, "Loading a large scenario (issue 22)"): lanelets cost about 43 bytes per file byte, 500
 #: obstacles of 40 time steps 64 (549 MB for 8.6 MB), 1,500 of them 30. The file is held three times
 #: over while it loads (its bytes, rac's XML tree, commonroad-io's) besides commonroad-io's objects
 #: and rac's own.

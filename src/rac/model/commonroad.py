@@ -260,8 +260,8 @@ def linear_ids() -> Iterator[None]:
     two bounds an id of their own (``ScenarioFactory.create_from_xml_node``), each from
     ``Scenario.generate_object_id``, which scans the whole id set (``max(self._id_set)``): 2 n scans of
     about n ids for n lanelets, O(n²). Measured on a generated grid of lanes: 2,000 lanelets 0.4 s of
-    the load, 5,000 2.2 s, 10,000 8.6 s, 25,000 about 55 s (docs/benchmarks.md, "Loading a large
-    scenario"). The subclass keeps the largest id as ids are marked used (the one place commonroad-io
+    the load, 5,000 2.2 s, 10,000 8.6 s, 25,000 about 55 s (docs/history.md, "Loading a
+    large scenario (issue 22)"). The subclass keeps the largest id as ids are marked used (the one place commonroad-io
     adds to the set) and scans again only when the set changed otherwise (an id removed), so its ids
     are those commonroad-io's method gives. The reader's module is left as it was when the block
     ends; when commonroad-io's reader or its ``Scenario`` do not look as expected (another version),
