@@ -49,3 +49,13 @@ def test_every_command_of_the_parser_has_its_runner() -> None:
     assert set(choices) == set(COMMANDS)
     for module, function in COMMANDS.values():
         assert callable(getattr(importlib.import_module(module), function))
+
+
+@pytest.mark.parametrize("arguments", [["--version"], ["--help"]], ids=["version", "help"])
+def test_the_parser_alone_loads_no_language(arguments: list[str], tmp_path: Path) -> None:
+    # Building the parser reads the sweep's task list (rac.sweep.kinds); importing that submodule
+    # once pulled in rac.sweep's API and with it the grammar and the IR: 0.12 s of rac --version.
+    modules = imported(arguments, tmp_path)
+    assert "rac.cli.main" in modules
+    loaded = sorted(m for m in modules if m in ("lark", "rac.lang", "rac.ir", "rac.sweep.api", "rac.sweep.grid"))
+    assert not loaded, f"rac {' '.join(arguments)} imported {loaded}"

@@ -18,168 +18,24 @@ May import: rac, rac.compiler, core, lang, ir, check, model, runtime, engine, ou
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
+import importlib
 from typing import TYPE_CHECKING, Any
 
-from rac.engine.budget import parse_size
-from rac.output.paths import output_folder
-from rac.sweep.grid import grid_points, parse_set, scenario_files
-from rac.sweep.kinds import TASKS
-from rac.sweep.task import OPTIONS, TaskSpec
-from rac.sweep.template import check_template
-
 if TYPE_CHECKING:
-    from rac.sweep.report import Summary
-    from rac.sweep.run import Outcome, Row
-    from rac.sweep.task import TaskSpec
+    from rac.sweep.api import Plan, SweepResult, default_folder, execute, plan, sweep
 
 __all__ = ["Plan", "SweepResult", "default_folder", "execute", "plan", "sweep"]
 
-@dataclass(frozen=True)
-class Plan:
-    """The tasks of one sweep, before any runs: the template, the output folder and one spec per
-    (scenario, grid point), scenarios outermost."""
 
-    template: Path
-    out: Path
-    specs: tuple[TaskSpec, ...]
-    scenarios: int
-    points: int
-
-
-@dataclass
-class SweepResult:
-    """A finished (or interrupted) sweep: its plan, what ran, the rows in the plan's order, the summary,
-    the files written and notes for the user."""
-
-    plan: Plan
-    outcome: Outcome
-    rows: list[Row]
-    summary: Summary
-    files: list[Path] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
+def __getattr__(name: str) -> Any:
+    # PEP 562: `rac.sweep.kinds` (the task list rac's parser reads) is a submodule, and importing it
+    # runs this file: the API's imports (the grid, the templates, the checker) wait for first use.
+    if name not in __all__:
+        raise AttributeError(f"module 'rac.sweep' has no attribute {name!r}")
+    value = getattr(importlib.import_module("rac.sweep.api"), name)
+    globals()[name] = value
+    return value
 
 
-def _set_texts(sets: Mapping[str, object] | Sequence[str] | None) -> list[str]:
-    """``--set`` texts from ``{"exponent": [1, 2]}`` or ``["exponent=1,2"]``."""
-    if sets is None:
-        return []
-    if isinstance(sets, Mapping):
-        texts = []
-        for name, values in sets.items():
-            listed = values if isinstance(values, list | tuple) else [values]
-            texts.append(f"{name}={','.join(map(str, listed))}")
-        return texts
-    if isinstance(sets, str):
-        return [sets]
-    return list(sets)
-
-
-def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
-         sets: Mapping[str, object] | Sequence[str] | None = None, task: str = "verify", out: str | Path | None = None,
-         task_timeout: float | None = None, task_memory: int | str | None = None,
-         options: Mapping[str, object] | None = None) -> Plan:
-    """The tasks of a sweep (nothing runs). ``ValueError`` with a message for the user on a bad
-    argument (no scenario matched, a bad ``sets``, an unknown task or option, a template that does not
-    parse or has no ``model`` block); ``OSError`` when the template cannot be read."""
-
-    if task not in TASKS:
-        raise ValueError(f"unknown task `{task}`: choose one of {', '.join(TASKS)}")
-    unknown = sorted(set(options or {}) - set(OPTIONS))
-    if unknown:
-        raise ValueError(f"unknown option {', '.join(unknown)}: the options are {', '.join(OPTIONS)}")
-    if task_timeout is not None and not task_timeout > 0:
-        raise ValueError(f"the task timeout must be more than 0 seconds, not {task_timeout}")
-    memory = _bytes(task_memory)
-    items = [scenarios] if isinstance(scenarios, str | Path) else list(scenarios)
-    files = scenario_files([str(item) for item in items])
-    points = grid_points(parse_set(_set_texts(sets)))
-    path = Path(template).absolute()
-    text = check_template(path)
-    given = tuple(sorted((name, str(value)) for name, value in (options or {}).items() if value is not None))
-    specs = tuple(TaskSpec(template=str(path), template_text=text, scenario=str(scenario), settings=point,
-                           task=task, options=given, timeout=task_timeout, memory=memory)
-                  for scenario in files for point in points)
-    folder = Path(out) if out is not None else default_folder(Path(template))
-    return Plan(template=path, out=folder, specs=specs, scenarios=len(files), points=len(points))
-
-
-def default_folder(template: Path) -> Path:
-    """``TEMPLATE.out/sweep/`` beside the template: the output convention of every rac command
-    (:data:`rac.cli.common.OUTPUT_CONVENTION`, which sits above this package and cannot be imported here)."""
-    return output_folder(template, "sweep")
-
-
-def _bytes(size: int | str | None) -> int | None:
-    if size is None:
-        return None
-    if isinstance(size, str):
-        size = parse_size(size)
-    if size <= 0:
-        raise ValueError(f"the task memory limit must be more than 0 bytes, not {size}")
-    return size
-
-
-def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = None, force: bool = False,
-            retry_failed: bool = False, quiet: bool = False, announce: Any = None) -> SweepResult:
-    """Run ``plan`` on Dask (:func:`rac.sweep.run.connect`), store each row as it arrives, then merge the
-    rows into ``results.parquet`` (or CSV) and ``results.json`` and draw the plots in ``plan.out``.
-    Stored rows are reused, except those whose task's process was killed (run again, and ``announce`` says
-    how many), every row not ok with ``retry_failed``, and all of them with ``force``.
-    ``announce(line)`` receives the dashboard's address; ``quiet`` turns the progress off. Ctrl-C stops the
-    sweep: what is done is merged, and the result says ``outcome.interrupted``. Raises ``OSError`` when the
-    scheduler cannot be reached or the output folder cannot be written."""
-    from rac.sweep import report  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
-
-    # matplotlib, numpy, tqdm (via rac.sweep.run): importing rac.sweep stays light
-    from rac.sweep.run import Tracker, connect, pending, rows_in_order, run_tasks
-    from rac.sweep.store import Store  # matplotlib, numpy (via rac.sweep.store): importing rac.sweep stays light
-
-    store = Store(plan.out)
-    store.folder.mkdir(parents=True, exist_ok=True)  # an unwritable folder fails before the cluster starts
-    outcome, todo = pending(plan.specs, store, force=force, retry_failed=retry_failed)
-    say = announce or (lambda _: None)
-    for count, why in ((outcome.rerun_killed, "whose process was killed"),
-                       (outcome.rerun_failed, "that failed (--retry-failed)")):
-        if count:
-            say(f"rerunning {count} task{'s' * (count != 1)} {why}")
-    if todo:  # everything stored already: no cluster
-        with Tracker(quiet=quiet) as tracker, connect(scheduler, workers, announce=announce) as client:
-            tracker.start(len(todo), outcome.skipped)
-            run_tasks(client, plan.specs, todo, outcome, store, on_row=tracker.row)
-    rows = rows_in_order(plan.specs, outcome)
-    files, notes = report.write_results(rows, plan.out)
-    files += report.write_plots(rows, plan.out)
-    summary = report.summarise(rows, tasks=len(plan.specs), skipped=outcome.skipped)
-    return SweepResult(plan=plan, outcome=outcome, rows=rows, summary=summary, files=files, notes=notes)
-
-
-def sweep(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
-          sets: Mapping[str, object] | Sequence[str] | None = None, task: str = "verify",
-          scheduler: str | None = None, workers: int | None = None, out: str | Path | None = None,
-          force: bool = False, retry_failed: bool = False, task_timeout: float | None = None,
-          task_memory: int | str | None = None,
-          options: Mapping[str, object] | None = None, quiet: bool = False) -> Any:
-    """Run ``task`` (``check``, ``verify``, ``preanalyse`` or ``experiment``) of the template ``.ra``
-    file on every scenario (files, folders searched for ``*.xml``, globs) and every point of the grid
-    ``sets`` (``{"exponent": [1, 2]}`` or ``["exponent=1,2"]``), as Dask tasks: on the cluster at
-    ``scheduler`` (``tcp://HOST:PORT``), else on a local cluster of ``workers`` processes (default: one
-    per core). ``options`` are the task's (:data:`rac.sweep.task.OPTIONS`: ``horizon``, ``seed``,
-    ``max_states``, ...); ``task_timeout``
-    (seconds) and ``task_memory`` (bytes, or e.g. ``"2G"``) limit each task. Rows already in the output
-    folder ``out`` (default ``TEMPLATE.out/sweep/``) are reused unless ``force``; a row whose task's
-    process was killed is not a result and runs again, and so does every row not ok with ``retry_failed``.
-
-    Returns one row per task: a pandas DataFrame (columns as in ``results.parquet``, docs/sweep.md) when
-    pandas is installed, else the rows as a list of dicts. ``ValueError`` on bad arguments; on Ctrl-C the
-    rows done are merged and ``KeyboardInterrupt`` is raised again."""
-    from rac.sweep.report import frame  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
-
-    result = execute(plan(template, scenarios, sets=sets, task=task, out=out, task_timeout=task_timeout,
-                          task_memory=task_memory, options=options),
-                     scheduler=scheduler, workers=workers, force=force, retry_failed=retry_failed, quiet=quiet)
-    if result.outcome.interrupted:
-        raise KeyboardInterrupt
-    return frame(result.rows)
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

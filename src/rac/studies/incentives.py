@@ -1,0 +1,107 @@
+"""What each reward pays for, side by side: ``python -m rac.studies.incentives FILE.ra ...``.
+
+For every file, the risk tolerance p* with the three returns it weighs, and the verdict of each
+loophole check (docs/checks.md) as the file declares its episodes, and again as a gymnasium
+environment would run them when the file leaves the ending to it: the episode ending at a
+collision and at the goal (``episode ends when`` the file's ``collision`` or ``goal`` condition).
+Prints one markdown table (docs/stdlib.md shows the stdlib's). Exit 0, or 1 when a file does not
+check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from collections.abc import Sequence
+from fractions import Fraction
+
+from rac import ir
+from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.incentives import Findings, Loophole, Unchecked, analyse
+from rac.compiler import compile_file
+from rac.core.diagnostics import short_number
+
+__all__ = ["COLUMNS", "gym_ending", "main", "row"]
+
+#: The table's columns, in order.
+COLUMNS = ("file", "R_goal", "R_stall", "R_crash", "p*", "ending early never pays",
+           "... if a collision or the goal ends the episode", "goal earlier never pays less",
+           "stalling never pays")
+
+
+def gym_ending(automaton: ir.Automaton) -> ir.Automaton | None:
+    """The automaton with its episodes ending at a collision or at the goal (None when the file
+    declares its own ending, or neither condition)."""
+    if automaton.episode_ends is not None:
+        return None
+    parts = tuple(g for g in (automaton.collision, automaton.goal) if g is not None)
+    if not parts:
+        return None
+    return dataclasses.replace(automaton, episode_ends=parts[0] if len(parts) == 1 else ir.BOr(parts))
+
+
+def _findings(automaton: ir.Automaton) -> Findings | Unchecked | None:
+    space, _ = input_space(automaton)
+    if space is None:
+        return None
+    return analyse(automaton, space)
+
+
+def _verdict(found: Findings | Unchecked | None, check: str) -> str:
+    if found is None:
+        return "—"
+    if isinstance(found, Unchecked):
+        return f"not checked: {found.reason}"
+    if check not in found.verdicts:
+        return "—"
+    loophole: Loophole | None = found.verdicts[check]
+    if loophole is None:
+        return "holds"
+    return f"fails by {short_number(loophole.delta)} (sample {loophole.sample})"
+
+
+def _number(value: Fraction | None) -> str:
+    return "—" if value is None else short_number(value)
+
+
+def row(path: str, automaton: ir.Automaton) -> tuple[str, ...]:
+    """One file's cells, in the order of :data:`COLUMNS`."""
+    found = _findings(automaton)
+    incentives = found.incentives if isinstance(found, Findings) else None
+    if incentives is None:
+        returns = ("—", "—", "—")
+        p = "— (no `goal when`)" if automaton.goal is None else "—"
+    else:
+        returns = tuple(_number(None if run is None else run.value)
+                        for run in (incentives.goal, incentives.stall, incentives.crash))
+        p = _number(incentives.p_star) if incentives.p_star is not None else f"undefined: {incentives.p_note}"
+        if incentives.p_star is not None and incentives.p_note:
+            p += f" ({incentives.p_note})"
+    ended = gym_ending(automaton)
+    as_gym = _verdict(_findings(ended), "ending_early_never_pays") if ended is not None else "(as declared)"
+    return (path, *returns, p, _verdict(found, "ending_early_never_pays"), as_gym,
+            _verdict(found, "goal_earlier_never_pays_less"), _verdict(found, "stalling_never_pays"))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m rac.studies.incentives", description=__doc__.split("\n")[0])
+    parser.add_argument("files", nargs="+", help=".ra files")
+    args = parser.parse_args(argv)
+    rows, status = [], 0
+    for path in args.files:
+        result = compile_file(path)
+        if result.automaton is None or not result.ok:
+            print(f"{path}: does not check (run `rac check {path}`)", file=sys.stderr)
+            status = 1
+            continue
+        rows.append(row(path, result.automaton))
+    print("| " + " | ".join(COLUMNS) + " |")
+    print("|" + "---|" * len(COLUMNS))
+    for cells in rows:
+        print("| " + " | ".join(cells) + " |")
+    return status
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
