@@ -1,0 +1,455 @@
+"""What a reward automaton pays for over its horizon (issue 25): the risk tolerance p* and three loopholes.
+
+Knox et al., "Reward (Mis)design for Autonomous Driving", judge a reward by the returns of whole
+runs: ``R_goal`` (the best safe run that reaches the goal), ``R_stall`` (the best safe run that never
+does) and ``R_crash`` (the best run that collides). A learner that maximises the return accepts a
+crash probability up to ``p* = (R_goal - R_stall) / (R_goal - R_crash)`` to reach the goal rather
+than stall. With ``episode ends when``, a run may end early; three loopholes are checked:
+
+- ending early never pays: at no point does ending there (without the goal) earn more than the best
+  safe continuation from the same point;
+- reaching the goal earlier never pays less: ``G(k)``, the best return of a safe run first reaching
+  the goal at sample ``k``, never grows with ``k``;
+- stalling never beats reaching the goal: ``R_stall <= G(k)`` for every ``k``.
+
+Runs (docs/checks.md): inputs are free at each sample (subject to ``assume``); a run ends at the
+first sample whose inputs satisfy ``episode ends when``, else at the horizon, where its ``at end``
+clauses read the last sample's inputs (the gym wrappers pass them to ``end()``).
+
+Method: when every update is a translation (``r = r + c``, ``c`` linear in numeric inputs) the return
+is additive along a run. A sample's *gain* is what it adds to the objective: the edge's updates, then
+either the accrual in the new location (which reads the same, held, inputs) or, when the run ends
+there, the ``at end`` clauses; the first sample also accrues in the initial location with its own
+inputs. A gain is one linear form over one box of the inputs, its supremum exact
+(:func:`~rac.check.analysis.affine.sup_linear`). Every quantity is then a max-plus dynamic programme
+over (sample, location) and at most one flag, over the outcomes of
+:func:`~rac.check.analysis.affine.outcomes` split by the truth of ``episode ends``, ``goal``,
+``collision`` and the ``at end`` guards: finite, exact rationals, and a witness run for each value.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+from rac import ir
+from rac.check.analysis.affine import (
+    Affine,
+    EndOutcome,
+    Moves,
+    Outcome,
+    accrual,
+    from_assignments,
+    identity,
+    moves,
+    sup_linear,
+    then,
+)
+from rac.check.analysis.worst import AFTER_EDGE, AFTER_END, CONTINUE, MAX_SAMPLES, Step, Worst
+from rac.ir.inputs import InputSpace
+
+__all__ = ["Findings", "Incentives", "Loophole", "Run", "Unchecked", "analyse", "split_guards"]
+
+ZERO = Fraction(0)
+FALSE = ir.BConst(False)
+_Point = dict[str, Fraction]
+
+
+@dataclass(frozen=True)
+class Move:
+    """One outcome of a sample with what the checks read of it: the flags and the gains."""
+
+    outcome: Outcome
+    ends: bool  # `episode ends when` holds: the run ends at this sample
+    goal: bool
+    collision: bool
+    clauses: tuple[int, ...]  # the `at end` clauses that apply if the run ends here
+    end_map: Affine
+    #: (value, inputs) of the gain when the run goes on / stops here, at the first sample and later.
+    going: tuple[tuple[Fraction, _Point], tuple[Fraction, _Point]]
+    stopping: tuple[tuple[Fraction, _Point], tuple[Fraction, _Point]]
+
+
+@dataclass(frozen=True)
+class Run:
+    """A witness run: its return, the samples it takes (as :mod:`~rac.check.analysis.worst` runs are
+    described and replayed: ``worst``), why it ends, and its first goal sample (None: none)."""
+
+    value: Fraction
+    worst: Worst
+    ended_by: str  # "episode" (`episode ends when` held) or "horizon"
+    goal_sample: int | None
+
+    @property
+    def samples(self) -> int:
+        return len(self.worst.steps)
+
+
+@dataclass(frozen=True)
+class Loophole:
+    """A counterexample to one of the three checks: the better run, the run it beats, the gap ``delta``
+    (objective units), the sample(s) concerned, and for ending early the common prefix's length."""
+
+    check: str
+    better: Run
+    worse: Run
+    delta: Fraction
+    sample: int
+    other_sample: int | None = None
+    prefix: int = 0
+
+
+@dataclass(frozen=True)
+class Unchecked:
+    """The checks could not be made exactly; ``reason`` says why (a warning, never a verdict)."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class Incentives:
+    """The returns (None: no such run) with their witnesses, and p* (None: undefined; ``p_note`` says why)."""
+
+    goal: Run | None
+    stall: Run | None
+    crash: Run | None
+    p_star: Fraction | None
+    p_note: str
+    #: G(k) per sample k (1-based) at which a safe run can first reach the goal.
+    goal_by_sample: dict[int, Fraction]
+
+
+@dataclass(frozen=True)
+class Findings:
+    """What :func:`analyse` found: the incentives (with ``goal when``), and per check its verdict:
+    None (proved), a :class:`Loophole`; a check whose declarations are missing is left out."""
+
+    incentives: Incentives | None
+    verdicts: dict[str, Loophole | None]
+
+
+def split_guards(automaton: ir.Automaton) -> tuple[ir.Guard, ...]:
+    """The guards the checks tell a sample's outcomes apart by: `episode ends`, `goal`, `collision`
+    (``false`` when not declared), then each ``at end`` clause's."""
+    return (automaton.episode_ends or FALSE, automaton.goal or FALSE, automaton.collision or FALSE,
+            *(c.guard for c in automaton.end_clauses))
+
+
+def unchecked(automaton: ir.Automaton, outs: Moves) -> Unchecked | None:
+    """Why the checks cannot be exact here, or None."""
+    scaling = not outs.translations_only or any(
+        not from_assignments(c.updates, automaton.rewards).is_translation for c in automaton.end_clauses)
+    if scaling:
+        return Unchecked("an update scales or resets a reward (not `r = r + c`), so a run's return is not "
+                         "the sum of its samples' gains")
+    if automaton.steps > MAX_SAMPLES:
+        return Unchecked(f"the horizon has {automaton.steps:,} samples, more than the {MAX_SAMPLES:,} the "
+                         "checks go through")
+    return None
+
+
+def _weighted(w: tuple[Fraction, ...], maps: Sequence[Affine]) -> dict[str, Fraction]:
+    """``w·(sum of the maps' offsets)`` as {"": constant, input: coefficient} (translations only)."""
+    form: dict[str, Fraction] = {"": ZERO}
+    for affine in maps:
+        for k, offset in enumerate(affine.offset):
+            if w[k]:
+                form[""] += w[k] * offset.const
+                for name, coefficient in offset.terms:
+                    form[name] = form.get(name, ZERO) + w[k] * coefficient
+    return form
+
+
+def _sup(form: dict[str, Fraction], box: tuple) -> tuple[Fraction, _Point]:
+    bonus, point = sup_linear({k: v for k, v in form.items() if k}, box)
+    return form[""] + bonus, point
+
+
+class _Runs:
+    """The runs of one automaton as moves with gains, and the dynamic programmes over them."""
+
+    def __init__(self, automaton: ir.Automaton, space: InputSpace, outs: Moves) -> None:
+        self.automaton, self.space = automaton, space
+        self.steps = automaton.steps
+        self.l0 = automaton.initial
+        self.c0 = automaton.objective.const
+        w = tuple(automaton.objective.coefficient(r) for r in automaton.rewards)
+        accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
+        clause_maps = [from_assignments(c.updates, automaton.rewards) for c in automaton.end_clauses]
+        self.moves: list[list[Move]] = []
+        for os in outs.samples:
+            found = []
+            for o in os:
+                ends, goal, collision, *enabled = o.flags
+                clauses = tuple(i for i, on in enumerate(enabled) if on)
+                end_map = identity(len(automaton.rewards))
+                for i in clauses:
+                    end_map = then(end_map, clause_maps[i])
+                first = (accruals[self.l0],)
+                going = (o.edge_map, accruals[o.target])
+                stopping = (o.edge_map, end_map)
+                found.append(Move(
+                    o, bool(ends), bool(goal), bool(collision), clauses, end_map,
+                    (_sup(_weighted(w, first + going), o.box), _sup(_weighted(w, going), o.box)),
+                    (_sup(_weighted(w, first + stopping), o.box), _sup(_weighted(w, stopping), o.box))))
+            self.moves.append(found)
+
+    def stops(self, m: Move, k: int) -> bool:
+        return m.ends or k == self.steps
+
+    def gain(self, m: Move, k: int, stop: bool) -> Fraction:
+        return (m.stopping if stop else m.going)[0 if k == 1 else 1][0]
+
+    # ---------------------------------------------------------------- forward: prefixes
+    def forward(self, step: Callable[[int, Move], int | None], start: int = 0) -> list[dict]:
+        """layers[k][(location, state)] = (best value after k samples of a run not ended yet, back
+        pointer (previous key, move index)), for k = 0 .. steps-1; ``step`` gives a move's next state,
+        None where the run may not take it."""
+        layers: list[dict] = [{(self.l0, start): (self.c0, None)}]
+        for k in range(1, self.steps):
+            layer: dict = {}
+            for key, (value, _) in layers[-1].items():
+                here, state = key
+                for i, m in enumerate(self.moves[here]):
+                    if m.ends:
+                        continue
+                    following = step(state, m)
+                    if following is None:
+                        continue
+                    total = value + self.gain(m, k, False)
+                    target = (m.outcome.target, following)
+                    if target not in layer or total > layer[target][0]:
+                        layer[target] = (total, (key, i))
+            layers.append(layer)
+        return layers
+
+    def prefix(self, layers: list[dict], k: int, key: tuple[int, int]) -> list[tuple[int, Move]]:
+        """The moves of the best prefix of ``k`` samples reaching ``key``."""
+        found: list[tuple[int, Move]] = []
+        while k > 0:
+            _, (previous, i) = layers[k][key]
+            found.append((k, self.moves[previous[0]][i]))
+            key, k = previous, k - 1
+        return found[::-1]
+
+    # ---------------------------------------------------------------- backward: safe rests
+    def safe_rests(self) -> list[dict[int, tuple[Fraction, int]]]:
+        """rests[k][l] = (the best the rest of a safe run earns after k samples in l, the first move's
+        index), for k = 0 .. steps-1; a location without a safe rest is missing."""
+        rests: list[dict[int, tuple[Fraction, int]]] = [{} for _ in range(self.steps + 1)]
+        for k in range(self.steps - 1, -1, -1):
+            for here, ms in enumerate(self.moves):
+                best: tuple[Fraction, int] | None = None
+                for i, m in enumerate(ms):
+                    value = self.rest(m, k + 1, rests)
+                    if value is not None and not m.collision and (best is None or value > best[0]):
+                        best = (value, i)
+                if best is not None:
+                    rests[k][here] = best
+        return rests
+
+    def rest(self, m: Move, k: int, rests: list[dict[int, tuple[Fraction, int]]]) -> Fraction | None:
+        """What a run taking ``m`` at sample ``k`` earns from there on, its rest safe (None: none)."""
+        if self.stops(m, k):
+            return self.gain(m, k, True)
+        after = rests[k].get(m.outcome.target)
+        return None if after is None else self.gain(m, k, False) + after[0]
+
+    def suffix(self, m: Move, k: int, rests: list[dict[int, tuple[Fraction, int]]]) -> list[tuple[int, Move]]:
+        """``m`` at sample ``k``, then the best safe rest's moves."""
+        found = [(k, m)]
+        while not self.stops(m, k):
+            here = m.outcome.target
+            m = self.moves[here][rests[k][here][1]]
+            k += 1
+            found.append((k, m))
+        return found
+
+    # ---------------------------------------------------------------- runs
+    def run(self, taken: list[tuple[int, Move]]) -> Run:
+        """A run of the given moves (sample, move), its value summed again from the gains."""
+        value = self.c0
+        steps: list[Step] = []
+        goal_sample = None
+        for k, m in taken:
+            stop = self.stops(m, k)
+            gain, point = (m.stopping if stop else m.going)[0 if k == 1 else 1]
+            value += gain
+            steps.append(Step(k, m.outcome, point, AFTER_EDGE if stop else CONTINUE))
+            if m.goal and goal_sample is None:
+                goal_sample = k
+        k, last = taken[-1]
+        point = steps[-1].inputs
+        worst = Worst(value, steps, AFTER_END, EndOutcome(last.outcome.cls, last.clauses, last.outcome.box,
+                                                          last.end_map), point)
+        return Run(value, worst, "episode" if last.ends else "horizon", goal_sample)
+
+
+def _incentives(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], quiet: list[dict]) -> Incentives:
+    """R_goal, R_stall, R_crash with their witnesses, G(k) and p*."""
+    # quiet: prefixes that neither collide nor reach the goal.
+    goal_by_sample: dict[int, Fraction] = {}
+    best_goal: tuple[Fraction, int, tuple, Move] | None = None
+    best_stall: tuple[Fraction, int, tuple, Move] | None = None
+    for k in range(1, runs.steps + 1):
+        for key, (value, _) in quiet[k - 1].items():
+            for m in runs.moves[key[0]]:
+                if m.collision:
+                    continue
+                if m.goal:
+                    rest = runs.rest(m, k, rests)
+                    if rest is None:
+                        continue
+                    total = value + rest
+                    if k not in goal_by_sample or total > goal_by_sample[k]:
+                        goal_by_sample[k] = total
+                    if best_goal is None or total > best_goal[0]:
+                        best_goal = (total, k, key, m)
+                elif runs.stops(m, k):
+                    total = value + runs.gain(m, k, True)
+                    if best_stall is None or total > best_stall[0]:
+                        best_stall = (total, k, key, m)
+    goal = stall = None
+    if best_goal is not None:
+        _, k, key, m = best_goal
+        goal = runs.run(runs.prefix(quiet, k - 1, key) + runs.suffix(m, k, rests))
+    if best_stall is not None:
+        _, k, key, m = best_stall
+        stall = runs.run(runs.prefix(quiet, k - 1, key) + [(k, m)])
+    crash = None
+    if runs.automaton.collision is not None:
+        crashed = runs.forward(lambda state, m: 1 if state or m.collision else 0)
+        best_crash: tuple[Fraction, int, tuple, Move] | None = None
+        for k in range(1, runs.steps + 1):
+            for key, (value, _) in crashed[k - 1].items():
+                for m in runs.moves[key[0]]:
+                    if runs.stops(m, k) and (key[1] or m.collision):
+                        total = value + runs.gain(m, k, True)
+                        if best_crash is None or total > best_crash[0]:
+                            best_crash = (total, k, key, m)
+        if best_crash is not None:
+            _, k, key, m = best_crash
+            crash = runs.run(runs.prefix(crashed, k - 1, key) + [(k, m)])
+    p_star, note = risk_tolerance(goal, stall, crash, runs.automaton.collision is not None)
+    return Incentives(goal, stall, crash, p_star, note, goal_by_sample)
+
+
+def risk_tolerance(goal: Run | None, stall: Run | None, crash: Run | None,
+                   collision: bool = True) -> tuple[Fraction | None, str]:
+    """p* and a phrase for its edge cases ("" when it is a plain probability in (0, 1))."""
+    if goal is None:
+        return None, "no safe run reaches the goal"
+    if not collision:
+        return None, "no `collision when` declared: no risk to weigh"
+    if crash is None:
+        return None, "no run collides: no risk to weigh"
+    if stall is None:
+        return None, "every safe run reaches the goal: no stalling to weigh the risk against"
+    if crash.value >= goal.value:
+        return None, "a crash pays at least as much as reaching the goal (R_crash >= R_goal): any crash risk is accepted"
+    p = (goal.value - stall.value) / (goal.value - crash.value)
+    if p <= 0:
+        return p, "stalling pays at least as much as reaching the goal (R_stall >= R_goal): no risk is worth taking"
+    if p >= 1:
+        return p, "p* >= 1: any crash risk is accepted"
+    return p, ""
+
+
+def _ending_early(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], anyway: list[dict]) -> Loophole | None:
+    """The point where ending early (without the goal) beats the best safe continuation the most."""
+    found: tuple[Fraction, int, tuple, Move, Move] | None = None
+    for k in range(1, runs.steps + 1):
+        for key in anyway[k - 1]:
+            ms = runs.moves[key[0]]
+            early = [(runs.gain(m, k, True), m) for m in ms if m.ends and not m.goal]
+            if not early:
+                continue
+            e_value, e_move = max(early, key=lambda item: item[0])
+            safe: tuple[Fraction, Move] | None = None
+            for m in ms:
+                if m.collision or (m.ends and not m.goal):
+                    continue
+                value = runs.rest(m, k, rests)
+                if value is not None and (safe is None or value > safe[0]):
+                    safe = (value, m)
+            if safe is None or e_value <= safe[0]:
+                continue
+            delta = e_value - safe[0]
+            if found is None or delta > found[0]:
+                found = (delta, k, key, e_move, safe[1])
+    if found is None:
+        return None
+    delta, k, key, e_move, s_move = found
+    prefix = runs.prefix(anyway, k - 1, key)
+    return Loophole("ending_early_never_pays", runs.run(prefix + [(k, e_move)]),
+                    runs.run(prefix + runs.suffix(s_move, k, rests)), delta, k, prefix=k - 1)
+
+
+def _goal_run(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], quiet: list[dict], k: int) -> Run:
+    """The best safe run first reaching the goal at sample ``k`` (one exists)."""
+    best: tuple[Fraction, tuple, Move] | None = None
+    for key, (value, _) in quiet[k - 1].items():
+        for m in runs.moves[key[0]]:
+            if m.goal and not m.collision:
+                rest = runs.rest(m, k, rests)
+                if rest is not None and (best is None or value + rest > best[0]):
+                    best = (value + rest, key, m)
+    assert best is not None, k
+    _, key, m = best
+    return runs.run(runs.prefix(quiet, k - 1, key) + runs.suffix(m, k, rests))
+
+
+def _goal_earlier(runs: _Runs, rests: list, quiet: list[dict], by_sample: dict[int, Fraction]) -> Loophole | None:
+    """A later first goal sample paying more: k2 with the largest G among those beating an earlier
+    feasible k (the earliest such), k1 the earliest feasible k < k2 with G(k1) < G(k2)."""
+    order = sorted(by_sample)
+    lowest: Fraction | None = None
+    k2: int | None = None
+    for k in order:
+        if lowest is not None and by_sample[k] > lowest and (k2 is None or by_sample[k] > by_sample[k2]):
+            k2 = k
+        lowest = by_sample[k] if lowest is None else min(lowest, by_sample[k])
+    if k2 is None:
+        return None
+    k1 = next(k for k in order if k < k2 and by_sample[k] < by_sample[k2])
+    return Loophole("goal_earlier_never_pays_less", _goal_run(runs, rests, quiet, k2), _goal_run(runs, rests, quiet, k1),
+                    by_sample[k2] - by_sample[k1], k2, k1)
+
+
+def _stalling(runs: _Runs, rests: list, quiet: list[dict], found: Incentives) -> Loophole | None:
+    """Stalling beating a goal run: the latest k with R_stall > G(k); delta makes every k pass."""
+    stall = found.stall
+    if stall is None:
+        return None
+    beaten = [k for k, value in found.goal_by_sample.items() if stall.value > value]
+    if not beaten:
+        return None
+    k = max(beaten)
+    delta = stall.value - min(found.goal_by_sample[j] for j in beaten)
+    return Loophole("stalling_never_pays", stall, _goal_run(runs, rests, quiet, k), delta, k)
+
+
+def analyse(automaton: ir.Automaton, space: InputSpace, outs: Moves | None = None) -> Findings | Unchecked:
+    """The incentives and the loophole checks the automaton's declarations allow (see the module).
+
+    ``outs``: the moves split by :func:`split_guards` when the caller has built them.
+    """
+    if outs is None or outs.split != split_guards(automaton):
+        outs = moves(automaton, space, split_guards(automaton))
+    stop = unchecked(automaton, outs)
+    if stop is not None:
+        return stop
+    runs = _Runs(automaton, space, outs)
+    verdicts: dict[str, Loophole | None] = {}
+    rests = runs.safe_rests()
+    if automaton.episode_ends is not None:
+        anyway = runs.forward(lambda state, m: 0)
+        verdicts["ending_early_never_pays"] = _ending_early(runs, rests, anyway)
+    if automaton.goal is None:
+        return Findings(None, verdicts)
+    quiet = runs.forward(lambda state, m: None if m.goal or m.collision else 0)
+    found = _incentives(runs, rests, quiet)
+    verdicts["goal_earlier_never_pays_less"] = _goal_earlier(runs, rests, quiet, found.goal_by_sample)
+    verdicts["stalling_never_pays"] = _stalling(runs, rests, quiet, found)
+    return Findings(found, verdicts)
