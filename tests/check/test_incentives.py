@@ -79,7 +79,7 @@ def cases(draw) -> Case:
     kind = draw(st.sampled_from([None, None, None, "int", "real"]))
     # Crashes that cost: `collision when a`, and every sample with `a` goes to the last location with a
     # penalty (else random rewards rarely make R_crash < R_goal, and p* is rarely a probability).
-    crashy = draw(st.sampled_from([True, False, False]))
+    crashy = draw(st.booleans())
     threshold = Fraction(draw(st.sampled_from([1, 2])))
     in_rates = kind is not None and draw(st.booleans())
     in_updates = kind is not None and draw(st.booleans())
