@@ -128,7 +128,7 @@ def cases(draw) -> Case:
         flows = "; ".join(f"{r}' == {rate()}" for r in rewards)
         lines.append(f"    {'initial ' if i == initial else ''}location {name} {{ {flows} }}")
     crashing = [c for c in range(len(cells)) if crashy and cells[c].startswith("a")]
-    for i, name in enumerate(locs):
+    for name in locs:
         if crashing:
             lines.append(f"    edge {name} -> {locs[-1]} when {guard(crashing)} do p = p - {draw(st.integers(4, 9))}")
         choice = {c: draw(st.sampled_from([None, *range(n_loc)])) for c in range(len(cells)) if c not in crashing}

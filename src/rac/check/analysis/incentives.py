@@ -29,6 +29,7 @@ over (sample, location) and at most one flag, over the outcomes of
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -46,10 +47,15 @@ from rac.check.analysis.affine import (
     sup_linear,
     then,
 )
+from rac.check.analysis.priority import describe_run, end_json, replay, run_json
 from rac.check.analysis.worst import AFTER_EDGE, AFTER_END, CONTINUE, MAX_SAMPLES, Step, Worst
-from rac.ir.inputs import InputSpace
+from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number, warning
+from rac.core.numbers import exact_decimal
+from rac.core.source import Span
+from rac.ir.inputs import InputSpace, guard_inputs
 
-__all__ = ["Findings", "Incentives", "Loophole", "Run", "Unchecked", "analyse", "split_guards"]
+__all__ = ["CODES", "Findings", "Incentives", "Loophole", "Run", "Unchecked", "analyse", "check_incentives",
+           "risk_tolerance", "split_guards"]
 
 ZERO = Fraction(0)
 FALSE = ir.BConst(False)
@@ -166,6 +172,21 @@ def _sup(form: dict[str, Fraction], box: tuple) -> tuple[Fraction, _Point]:
     return form[""] + bonus, point
 
 
+def _useful(found: list[Move]) -> list[Move]:
+    """The moves a best run may take: per (target, flags), the best to go on and the best to stop with, at
+    the first sample and later (the others never do better; dropping them keeps every value exact)."""
+    best: dict[tuple, Move] = {}
+    for m in found:
+        group = (m.outcome.target, m.ends, m.goal, m.collision)
+        for which, gains in (("going", m.going), ("stopping", m.stopping)):
+            for first in (0, 1):
+                key = (*group, which, first)
+                if key not in best or gains[first][0] > getattr(best[key], which)[first][0]:
+                    best[key] = m
+    kept = {id(m) for m in best.values()}
+    return [m for m in found if id(m) in kept]
+
+
 class _Runs:
     """The runs of one automaton as moves with gains, and the dynamic programmes over them."""
 
@@ -193,20 +214,30 @@ class _Runs:
                     o, bool(ends), bool(goal), bool(collision), clauses, end_map,
                     (_sup(_weighted(w, first + going), o.box), _sup(_weighted(w, going), o.box)),
                     (_sup(_weighted(w, first + stopping), o.box), _sup(_weighted(w, stopping), o.box))))
-            self.moves.append(found)
+            self.moves.append(_useful(found))
+        # The programmes add and compare scaled integers (exact, and far faster than fractions).
+        values = [self.c0] + [g[0] for ms in self.moves for m in ms for g in (*m.going, *m.stopping)]
+        self.scale = math.lcm(*(v.denominator for v in values))
+        self.start = int(self.c0 * self.scale)
+        self.gains = {id(m): tuple(int(g[0] * self.scale) for g in (*m.going, *m.stopping))
+                      for ms in self.moves for m in ms}
 
     def stops(self, m: Move, k: int) -> bool:
         return m.ends or k == self.steps
 
-    def gain(self, m: Move, k: int, stop: bool) -> Fraction:
-        return (m.stopping if stop else m.going)[0 if k == 1 else 1][0]
+    def gain(self, m: Move, k: int, stop: bool) -> int:
+        """The move's gain at sample ``k``, scaled (``Fraction(gain, self.scale)`` is its value)."""
+        return self.gains[id(m)][(2 if stop else 0) + (0 if k == 1 else 1)]
+
+    def value(self, scaled: int) -> Fraction:
+        return Fraction(scaled, self.scale)
 
     # ---------------------------------------------------------------- forward: prefixes
     def forward(self, step: Callable[[int, Move], int | None], start: int = 0) -> list[dict]:
         """layers[k][(location, state)] = (best value after k samples of a run not ended yet, back
         pointer (previous key, move index)), for k = 0 .. steps-1; ``step`` gives a move's next state,
         None where the run may not take it."""
-        layers: list[dict] = [{(self.l0, start): (self.c0, None)}]
+        layers: list[dict] = [{(self.l0, start): (self.start, None)}]
         for k in range(1, self.steps):
             layer: dict = {}
             for key, (value, _) in layers[-1].items():
@@ -234,13 +265,13 @@ class _Runs:
         return found[::-1]
 
     # ---------------------------------------------------------------- backward: safe rests
-    def safe_rests(self) -> list[dict[int, tuple[Fraction, int]]]:
+    def safe_rests(self) -> list[dict[int, tuple[int, int]]]:
         """rests[k][l] = (the best the rest of a safe run earns after k samples in l, the first move's
         index), for k = 0 .. steps-1; a location without a safe rest is missing."""
-        rests: list[dict[int, tuple[Fraction, int]]] = [{} for _ in range(self.steps + 1)]
+        rests: list[dict[int, tuple[int, int]]] = [{} for _ in range(self.steps + 1)]
         for k in range(self.steps - 1, -1, -1):
             for here, ms in enumerate(self.moves):
-                best: tuple[Fraction, int] | None = None
+                best: tuple[int, int] | None = None
                 for i, m in enumerate(ms):
                     value = self.rest(m, k + 1, rests)
                     if value is not None and not m.collision and (best is None or value > best[0]):
@@ -249,14 +280,14 @@ class _Runs:
                     rests[k][here] = best
         return rests
 
-    def rest(self, m: Move, k: int, rests: list[dict[int, tuple[Fraction, int]]]) -> Fraction | None:
+    def rest(self, m: Move, k: int, rests: list[dict[int, tuple[int, int]]]) -> int | None:
         """What a run taking ``m`` at sample ``k`` earns from there on, its rest safe (None: none)."""
         if self.stops(m, k):
             return self.gain(m, k, True)
         after = rests[k].get(m.outcome.target)
         return None if after is None else self.gain(m, k, False) + after[0]
 
-    def suffix(self, m: Move, k: int, rests: list[dict[int, tuple[Fraction, int]]]) -> list[tuple[int, Move]]:
+    def suffix(self, m: Move, k: int, rests: list[dict[int, tuple[int, int]]]) -> list[tuple[int, Move]]:
         """``m`` at sample ``k``, then the best safe rest's moves."""
         found = [(k, m)]
         while not self.stops(m, k):
@@ -286,12 +317,12 @@ class _Runs:
         return Run(value, worst, "episode" if last.ends else "horizon", goal_sample)
 
 
-def _incentives(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], quiet: list[dict]) -> Incentives:
+def _incentives(runs: _Runs, rests: list[dict[int, tuple[int, int]]], quiet: list[dict]) -> Incentives:
     """R_goal, R_stall, R_crash with their witnesses, G(k) and p*."""
     # quiet: prefixes that neither collide nor reach the goal.
-    goal_by_sample: dict[int, Fraction] = {}
-    best_goal: tuple[Fraction, int, tuple, Move] | None = None
-    best_stall: tuple[Fraction, int, tuple, Move] | None = None
+    goal_by_sample: dict[int, int] = {}
+    best_goal: tuple[int, int, tuple, Move] | None = None
+    best_stall: tuple[int, int, tuple, Move] | None = None
     for k in range(1, runs.steps + 1):
         for key, (value, _) in quiet[k - 1].items():
             for m in runs.moves[key[0]]:
@@ -320,7 +351,7 @@ def _incentives(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], quiet
     crash = None
     if runs.automaton.collision is not None:
         crashed = runs.forward(lambda state, m: 1 if state or m.collision else 0)
-        best_crash: tuple[Fraction, int, tuple, Move] | None = None
+        best_crash: tuple[int, int, tuple, Move] | None = None
         for k in range(1, runs.steps + 1):
             for key, (value, _) in crashed[k - 1].items():
                 for m in runs.moves[key[0]]:
@@ -332,7 +363,7 @@ def _incentives(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], quiet
             _, k, key, m = best_crash
             crash = runs.run(runs.prefix(crashed, k - 1, key) + [(k, m)])
     p_star, note = risk_tolerance(goal, stall, crash, runs.automaton.collision is not None)
-    return Incentives(goal, stall, crash, p_star, note, goal_by_sample)
+    return Incentives(goal, stall, crash, p_star, note, {k: runs.value(v) for k, v in goal_by_sample.items()})
 
 
 def risk_tolerance(goal: Run | None, stall: Run | None, crash: Run | None,
@@ -347,7 +378,8 @@ def risk_tolerance(goal: Run | None, stall: Run | None, crash: Run | None,
     if stall is None:
         return None, "every safe run reaches the goal: no stalling to weigh the risk against"
     if crash.value >= goal.value:
-        return None, "a crash pays at least as much as reaching the goal (R_crash >= R_goal): any crash risk is accepted"
+        return None, ("a crash pays at least as much as reaching the goal (R_crash >= R_goal): any crash risk "
+                      "is accepted")
     p = (goal.value - stall.value) / (goal.value - crash.value)
     if p <= 0:
         return p, "stalling pays at least as much as reaching the goal (R_stall >= R_goal): no risk is worth taking"
@@ -356,9 +388,9 @@ def risk_tolerance(goal: Run | None, stall: Run | None, crash: Run | None,
     return p, ""
 
 
-def _ending_early(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], anyway: list[dict]) -> Loophole | None:
+def _ending_early(runs: _Runs, rests: list[dict[int, tuple[int, int]]], anyway: list[dict]) -> Loophole | None:
     """The point where ending early (without the goal) beats the best safe continuation the most."""
-    found: tuple[Fraction, int, tuple, Move, Move] | None = None
+    found: tuple[int, int, tuple, Move, Move] | None = None
     for k in range(1, runs.steps + 1):
         for key in anyway[k - 1]:
             ms = runs.moves[key[0]]
@@ -366,7 +398,7 @@ def _ending_early(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], any
             if not early:
                 continue
             e_value, e_move = max(early, key=lambda item: item[0])
-            safe: tuple[Fraction, Move] | None = None
+            safe: tuple[int, Move] | None = None
             for m in ms:
                 if m.collision or (m.ends and not m.goal):
                     continue
@@ -383,12 +415,12 @@ def _ending_early(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], any
     delta, k, key, e_move, s_move = found
     prefix = runs.prefix(anyway, k - 1, key)
     return Loophole("ending_early_never_pays", runs.run(prefix + [(k, e_move)]),
-                    runs.run(prefix + runs.suffix(s_move, k, rests)), delta, k, prefix=k - 1)
+                    runs.run(prefix + runs.suffix(s_move, k, rests)), runs.value(delta), k, prefix=k - 1)
 
 
-def _goal_run(runs: _Runs, rests: list[dict[int, tuple[Fraction, int]]], quiet: list[dict], k: int) -> Run:
+def _goal_run(runs: _Runs, rests: list[dict[int, tuple[int, int]]], quiet: list[dict], k: int) -> Run:
     """The best safe run first reaching the goal at sample ``k`` (one exists)."""
-    best: tuple[Fraction, tuple, Move] | None = None
+    best: tuple[int, tuple, Move] | None = None
     for key, (value, _) in quiet[k - 1].items():
         for m in runs.moves[key[0]]:
             if m.goal and not m.collision:
@@ -413,8 +445,8 @@ def _goal_earlier(runs: _Runs, rests: list, quiet: list[dict], by_sample: dict[i
     if k2 is None:
         return None
     k1 = next(k for k in order if k < k2 and by_sample[k] < by_sample[k2])
-    return Loophole("goal_earlier_never_pays_less", _goal_run(runs, rests, quiet, k2), _goal_run(runs, rests, quiet, k1),
-                    by_sample[k2] - by_sample[k1], k2, k1)
+    return Loophole("goal_earlier_never_pays_less", _goal_run(runs, rests, quiet, k2),
+                    _goal_run(runs, rests, quiet, k1), by_sample[k2] - by_sample[k1], k2, k1)
 
 
 def _stalling(runs: _Runs, rests: list, quiet: list[dict], found: Incentives) -> Loophole | None:
@@ -453,3 +485,250 @@ def analyse(automaton: ir.Automaton, space: InputSpace, outs: Moves | None = Non
     verdicts["goal_earlier_never_pays_less"] = _goal_earlier(runs, rests, quiet, found.goal_by_sample)
     verdicts["stalling_never_pays"] = _stalling(runs, rests, quiet, found)
     return Findings(found, verdicts)
+
+
+# ---------------------------------------------------------------- diagnostics and facts
+#: The warning and the error of each loophole check (the error when a `require` names the check).
+CODES = {"ending_early_never_pays": ("W1002", "E1003"), "goal_earlier_never_pays_less": ("W1004", "E1005"),
+         "stalling_never_pays": ("W1006", "E1007")}
+
+
+def check_incentives(automaton: ir.Automaton, space: InputSpace, facts: list[Fact] | None = None,
+                     outs: Moves | None = None) -> list[Diagnostic]:
+    """The checks of this module as diagnostics (warnings, or errors where a ``require`` names the
+    check: E1001 for ``risk``) and facts (p*, and each check proved). Nothing without ``goal when``
+    or ``episode ends when``."""
+    facts = facts if facts is not None else []
+    if automaton.goal is None and automaton.episode_ends is None:
+        return []
+    found = analyse(automaton, space, outs)
+    required = {r.check: r for r in automaton.requirements}
+    if isinstance(found, Unchecked):
+        return [_unchecked(automaton, found)]
+    report = _Report(automaton, space)
+    diagnostics: list[Diagnostic] = []
+    if found.incentives is not None:
+        facts.append(report.risk_fact(found.incentives))
+        risk = required.get("risk")
+        if risk is not None:
+            failure = report.risk_failure(found.incentives, risk)
+            if failure is not None:
+                diagnostics.append(failure)
+    for check, verdict in found.verdicts.items():
+        if verdict is None:
+            facts.append(report.proved(check, found.incentives))
+        else:
+            diagnostics.append(report.loophole(verdict, required.get(check)))
+    return diagnostics
+
+
+def _declared(automaton: ir.Automaton, *keys: str) -> Span | None:
+    """The span of the first declaration of ``keys`` the file has (else the automaton's name)."""
+    for key in keys:
+        span = automaton.spans.get(f"decl:{key}")
+        if span is not None:
+            return span
+    return automaton.source.name.span if automaton.source else None
+
+
+def _unchecked(automaton: ir.Automaton, stop: Unchecked) -> Diagnostic:
+    """W1008: the incentive checks were not made (never a verdict)."""
+    checks = [name for name, needs in (("risk", automaton.goal), ("ending_early_never_pays", automaton.episode_ends),
+                                       ("goal_earlier_never_pays_less", automaton.goal),
+                                       ("stalling_never_pays", automaton.goal)) if needs is not None]
+    scaling = "scales" in stop.reason
+    return warning(
+        "W1008", f"the incentive checks ({', '.join(checks)}) not done: {stop.reason}",
+        _declared(automaton, "goal", "episode_ends") if scaling else _declared(automaton, "horizon"),
+        notes=["they sum a run's return from its samples, exactly, when every update is a translation "
+               f"(`r = r + c`) and the horizon has at most {MAX_SAMPLES:,} samples"],
+        hints=["write the updates as translations to have them checked" if scaling
+               else "shorten the horizon or sample less often to have them checked"],
+        data={"checks": checks, "reason": stop.reason})
+
+
+def _num(value: Fraction) -> str:
+    """A rational as messages show it: exactly when short (``548``, ``0.5``, ``1/3``)."""
+    decimal = exact_decimal(value, 6)
+    if decimal is not None:
+        return decimal
+    if abs(value.numerator) < 10**6 and value.denominator < 10**6:
+        return f"{value.numerator}/{value.denominator}"
+    return short_number(value)
+
+
+def _p_text(p: Fraction) -> str:
+    exact = exact_decimal(p, 10)
+    return exact if exact is not None else f"{_num(p)} ≈ {short_number(p, 6)}"
+
+
+class _Report:
+    """Messages, notes and data of one automaton's findings."""
+
+    def __init__(self, automaton: ir.Automaton, space: InputSpace) -> None:
+        self.automaton, self.space = automaton, space
+        named = (automaton.goal, automaton.collision, automaton.episode_ends)
+        self.shown: set[str] = set()
+        for guard in named:
+            if guard is not None:
+                self.shown |= guard_inputs(guard)
+        self.runs = f"every run of {_num(automaton.horizon)} s ({automaton.steps:,} samples)"
+
+    def time(self, sample: int) -> str:
+        return f"t = {_num(sample * self.automaton.period)} s"
+
+    def describe(self, run: Run) -> str:
+        ending = ("the episode ends (`episode ends when` holds)" if run.ended_by == "episode"
+                  else "the horizon ends the run")
+        lines = describe_run(self.automaton, self.space, run.worst, shown=self.shown, ending=ending)
+        values, _ = replay(self.automaton, self.space, run.worst)
+        listing = ", ".join(f"{r} = {_num(v)}" for r, v in zip(self.automaton.rewards, values))
+        return "\n".join([*lines, f"  return {_num(run.value)} ({listing})"])
+
+    def json(self, run: Run | None) -> dict[str, object] | None:
+        if run is None:
+            return None
+        return {"return": str(run.value), "ended_by": run.ended_by, "goal_sample": run.goal_sample,
+                "run": run_json(self.automaton, self.space, run.worst),
+                "end": end_json(self.automaton, self.space, run.worst)}
+
+    # ------------------------------------------------------------ p*
+    def risk_data(self, found: Incentives) -> dict[str, object]:
+        def text(run: Run | None) -> str | None:
+            return None if run is None else str(run.value)
+
+        p = found.p_star
+        return {"p_star": None if p is None else str(p),
+                "p_star_decimal": None if p is None else short_number(p, 10),
+                "note": found.p_note, "R_goal": text(found.goal), "R_stall": text(found.stall),
+                "R_crash": text(found.crash),
+                "witnesses": {"goal": self.json(found.goal), "stall": self.json(found.stall),
+                              "crash": self.json(found.crash)}}
+
+    def returns(self, found: Incentives) -> str:
+        parts = []
+        for name, run in (("R_goal", found.goal), ("R_stall", found.stall), ("R_crash", found.crash)):
+            parts.append(f"{name} = {'none' if run is None else _num(run.value)}")
+        return ", ".join(parts)
+
+    def risk_fact(self, found: Incentives) -> Fact:
+        p = found.p_star
+        if p is None:
+            head = f"risk tolerance p* undefined: {found.p_note}"
+        else:
+            head = f"risk tolerance p* = {_p_text(p)}" + (f" ({found.p_note})" if found.p_note else "")
+        return Fact("risk", f"{head}; {self.returns(found)} over {self.runs}", self.risk_data(found))
+
+    def risk_failure(self, found: Incentives, requirement: ir.Requirement) -> Diagnostic | None:
+        """E1001 when p* exceeds the bound, is undefined for want of a safe goal run, or a crash pays."""
+        bound = requirement.bound if requirement.bound is not None else Fraction(0)
+        p = found.p_star
+        accepted = found.goal is not None and found.crash is not None and found.crash.value >= found.goal.value
+        if found.goal is not None and not accepted and (p is None or p <= bound) and (p is None or p < 1):
+            return None
+        notes: list[Note | str] = []
+        hints: list[str] = []
+        if found.goal is None:
+            message = f"`require risk <= {_num(bound)}` fails: no safe run reaches the goal, so p* is undefined"
+            hints.append("check `goal when` and `collision when`: a learner never reaches a goal no safe run reaches")
+        elif accepted:
+            assert found.crash is not None
+            message = (f"`require risk <= {_num(bound)}` fails: a crash pays at least as much as reaching the goal "
+                       f"(R_crash = {_num(found.crash.value)} >= R_goal = {_num(found.goal.value)}): any crash "
+                       "risk is accepted")
+        else:
+            assert p is not None
+            message = f"`require risk <= {_num(bound)}` fails: the risk tolerance p* = {_p_text(p)} exceeds it"
+        for name, run in (("R_goal", found.goal), ("R_stall", found.stall), ("R_crash", found.crash)):
+            if run is not None:
+                notes.append(f"{name} = {_num(run.value)}:\n{self.describe(run)}")
+        if found.goal is not None and found.stall is not None and found.crash is not None and bound > 0:
+            # p* <= bound needs R_goal - R_crash >= (R_goal - R_stall) / bound.
+            delta = found.crash.value - found.goal.value + (found.goal.value - found.stall.value) / bound
+            if delta > 0:
+                hints.append(f"make a crash cost at least {_num(delta)} more (objective units; "
+                             f"{self.per_reward(delta)}), or shrink what reaching the goal earns over stalling")
+        if found.goal is not None:
+            notes.insert(0, "p* = (R_goal - R_stall) / (R_goal - R_crash): the largest crash probability a learner "
+                            "maximising the return accepts to reach the goal rather than stall")
+        return error("E1001", message, requirement.span or _declared(self.automaton, "goal"),
+                     notes=notes, hints=hints, data={"bound": str(bound), **self.risk_data(found)})
+
+    def per_reward(self, delta: Fraction) -> str:
+        """``delta`` objective units in each positively weighted reward's own units."""
+        parts = []
+        for reward in self.automaton.rewards:
+            weight = self.automaton.objective.coefficient(reward)
+            if weight > 0:
+                parts.append(f"{_num(delta / weight)} of `{reward}` at weight {_num(weight)}")
+        return "; ".join(parts) if parts else "no reward has a positive weight"
+
+    # ------------------------------------------------------------ the loopholes
+    def proved(self, check: str, found: Incentives | None) -> Fact:
+        if check == "ending_early_never_pays":
+            return Fact(check, "ending early never pays: wherever a run can end without the goal, a safe "
+                        f"continuation earns at least as much, over {self.runs}")
+        assert found is not None
+        if check == "goal_earlier_never_pays_less":
+            if not found.goal_by_sample:
+                return Fact(check, "reaching the goal earlier never pays less: no safe run reaches the goal")
+            samples = sorted(found.goal_by_sample)
+            first, last = (found.goal_by_sample[samples[0]], found.goal_by_sample[samples[-1]])
+            return Fact(check, "reaching the goal earlier never pays less: G(k), the best return of a safe run "
+                        f"first reaching the goal at sample k, never grows with k (k = {samples[0]}..{samples[-1]}, "
+                        f"G from {_num(first)} to {_num(last)})",
+                        {"G": {str(k): str(found.goal_by_sample[k]) for k in (samples[0], samples[-1])}})
+        if found.stall is None:
+            return Fact(check, "stalling never beats reaching the goal: every safe run reaches the goal")
+        if not found.goal_by_sample:
+            return Fact(check, "stalling never beats reaching the goal: no safe run reaches the goal")
+        least = min(found.goal_by_sample.values())
+        return Fact(check, f"stalling never beats reaching the goal: R_stall = {_num(found.stall.value)} <= G(k) "
+                    f"for every k (the least G(k) is {_num(least)})",
+                    {"R_stall": str(found.stall.value), "least_G": str(least)})
+
+    def loophole(self, found: Loophole, requirement: ir.Requirement | None) -> Diagnostic:
+        a = self.automaton
+        code = CODES[found.check][1 if requirement is not None else 0]
+        make = error if requirement is not None else warning
+        notes: list[Note | str] = []
+        delta = _num(found.delta)
+        if found.check == "ending_early_never_pays":
+            where = (f"at sample {found.sample} ({self.time(found.sample)}), after {found.prefix} samples in "
+                     f"`{a.location_names[found.better.worst.steps[-1].outcome.source]}`")
+            message = (f"ending early pays: {where}, ending the run without the goal earns {delta} more than "
+                       "the best safe continuation")
+            notes += [f"the run that ends early (it ends there without the goal):\n{self.describe(found.better)}",
+                      f"the best safe continuation from the same point:\n{self.describe(found.worse)}"]
+            hints = [f"penalise ending without the goal by at least {delta} more (objective units; "
+                     f"{self.per_reward(found.delta)})"]
+            declared = _declared(a, "episode_ends")
+        elif found.check == "goal_earlier_never_pays_less":
+            assert found.other_sample is not None
+            message = (f"delaying the goal pays: a safe run first reaching the goal at sample {found.sample} "
+                       f"({self.time(found.sample)}) earns {_num(found.better.value)}, {delta} more than the best "
+                       f"reaching it at sample {found.other_sample} ({self.time(found.other_sample)})")
+            notes += [f"first reaching the goal at sample {found.sample}:\n{self.describe(found.better)}",
+                      f"first reaching it at sample {found.other_sample}:\n{self.describe(found.worse)}"]
+            hints = [f"make reaching the goal at sample {found.other_sample} pay at least {delta} more: a time "
+                     "penalty (a negative rate until the goal), or a goal bonus that shrinks with time"]
+            declared = _declared(a, "goal")
+        else:
+            message = (f"stalling beats reaching the goal: a safe run that never reaches it earns "
+                       f"{_num(found.better.value)}, more than the best reaching it first at sample {found.sample} "
+                       f"({_num(found.worse.value)})")
+            notes += [f"the run that stalls:\n{self.describe(found.better)}",
+                      f"first reaching the goal at sample {found.sample}:\n{self.describe(found.worse)}"]
+            hints = [f"raise the goal's bonus by at least {delta} (objective units; {self.per_reward(found.delta)}), "
+                     "or lower what stalling earns by as much; `rac tune` can synthesise it with a `param` and "
+                     "`require stalling_never_pays`"]
+            declared = _declared(a, "goal")
+        span = declared
+        if requirement is not None and requirement.span is not None:
+            span = requirement.span
+            if declared is not None:
+                notes.insert(0, Note("the condition is declared here", declared))
+        return make(code, message, span, notes=notes, hints=hints,
+                    data={"check": found.check, "delta": str(found.delta), "sample": found.sample,
+                          "other_sample": found.other_sample,
+                          "better": self.json(found.better), "worse": self.json(found.worse)})
