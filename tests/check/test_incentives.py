@@ -32,11 +32,13 @@ from rac.check.analysis.incentives import (
     Run,
     Unchecked,
     analyse,
+    check_incentives,
     risk_tolerance,
     split_guards,
 )
 from rac.check.analysis.priority import replay
 from rac.compiler import compile_file, compile_text
+from rac.core.diagnostics import Fact
 from rac.ir.inputs import InputSpace
 from rac.runtime.interpreter import RewardAutomaton
 
@@ -412,3 +414,103 @@ def test_driving_with_a_goal(ends: bool) -> None:
     assert incentives.p_star == Fraction(1, 2)
     earlier = found.verdicts["goal_earlier_never_pays_less"]
     assert (earlier is not None) == ends
+
+
+# ---------------------------------------------------------------- diagnostics and facts
+NAIVE = """automaton Naive {
+    input collide : bool
+    input dgoal   : real in [0, 500]
+
+    reward time, crash, arrived
+    objective -1 * time - 5 * crash + 10 * arrived
+
+    sample every 0.1
+    horizon 30
+
+    initial location Driving { time' == 1; crash' == 0; arrived' == 0 }
+
+    edge Driving -> Driving when collide do crash = crash + 1
+
+    at end when dgoal < 2 do arrived = arrived + 1
+}
+"""
+
+
+def naive(**changes: object) -> ir.Automaton:
+    """A naive weighted sum: time costs every sample, a collision ends the episode with a small penalty."""
+    automaton = compile_text(NAIVE).raise_for_errors()
+    goal, collide = ir.BAtom("dgoal", "<", Fraction(2)), ir.BInput("collide")
+    return dataclasses.replace(automaton, goal=goal, collision=collide, episode_ends=collide, **changes)
+
+
+def driving(ends: bool, **changes: object) -> ir.Automaton:
+    automaton = compile_file(REPO / "stdlib" / "driving.ra").raise_for_errors()
+    goal, collide = ir.BAtom("dgoal", "<", Fraction(2)), ir.BInput("collide")
+    return dataclasses.replace(automaton, goal=goal, collision=collide,
+                               episode_ends=ir.BOr((collide, goal)) if ends else None, **changes)
+
+
+def checked(automaton: ir.Automaton) -> tuple[list[str], dict[str, Fact]]:
+    facts: list[Fact] = []
+    diagnostics = check_incentives(automaton, InputSpace(automaton), facts)
+    return [d.code for d in diagnostics], {f.check: f for f in facts}
+
+
+def require(*checks: str, bound: Fraction = Fraction(1, 10000)) -> tuple[ir.Requirement, ...]:
+    return tuple(ir.Requirement(c, bound if c == "risk" else None) for c in checks)
+
+
+def test_driving_facts() -> None:
+    codes, facts = checked(driving(False))
+    assert codes == []
+    assert set(facts) == {"risk", "goal_earlier_never_pays_less", "stalling_never_pays"}
+    risk = facts["risk"]
+    assert risk.message.startswith("risk tolerance p* = 0.5; R_goal = 980, R_stall = 480, R_crash = -20")
+    assert risk.data["p_star"] == "1/2" and risk.data["p_star_decimal"] == "0.5"
+    witnesses = risk.data["witnesses"]
+    assert isinstance(witnesses, dict) and witnesses["crash"]["return"] == "-20"
+
+
+def test_driving_with_episode_ends_delays_the_goal() -> None:
+    codes, facts = checked(driving(True))
+    assert codes == ["W1004"] and "ending_early_never_pays" in facts
+    codes, _ = checked(driving(True, requirements=require(*ir.REQUIREMENT_CHECKS)))
+    assert sorted(codes) == ["E1001", "E1005"]
+    codes, _ = checked(driving(True, requirements=require("risk", bound=Fraction(1, 2))))
+    assert codes == ["W1004"]  # p* = 1/2 is within the bound
+
+
+def test_naive_weighted_sum_ending_early_pays() -> None:
+    automaton = naive()
+    space = InputSpace(automaton)
+    found = analyse(automaton, space)
+    assert isinstance(found, Findings) and found.incentives is not None
+    early = found.verdicts["ending_early_never_pays"]
+    assert early is not None and early.sample == 1 and early.delta == Fraction(149, 10)
+    assert found.incentives.p_star is None and "any crash risk" in found.incentives.p_note
+    codes, facts = checked(automaton)
+    assert sorted(codes) == ["W1002"]
+    codes, _ = checked(naive(requirements=require("ending_early_never_pays", "risk")))
+    assert sorted(codes) == ["E1001", "E1003"]
+
+
+def test_stalling_beats_the_goal() -> None:
+    # Stalling in Normal earns more than reaching the goal (which carries a cost here).
+    automaton = compile_text(NAIVE.replace("objective -1 * time", "objective 1 * time")
+                             .replace("+ 10 * arrived", "- 10 * arrived")).raise_for_errors()
+    automaton = dataclasses.replace(automaton, goal=ir.BAtom("dgoal", "<", Fraction(2)),
+                                    collision=ir.BInput("collide"))
+    codes, facts = checked(automaton)
+    assert codes == ["W1006"]
+    codes, _ = checked(dataclasses.replace(automaton, requirements=require("stalling_never_pays")))
+    assert codes == ["E1007"]
+
+
+def test_not_done_is_a_warning() -> None:
+    automaton = naive()
+    scaled = dataclasses.replace(automaton, end_clauses=(dataclasses.replace(
+        automaton.end_clauses[0], updates=(ir.Assignment("arrived", ir.Linear(Fraction(1))),)),))
+    codes, facts = checked(scaled)
+    assert codes == ["W1008"] and not facts
+    codes, _ = checked(dataclasses.replace(automaton, horizon=Fraction(20_000)))
+    assert codes == ["W1008"]
