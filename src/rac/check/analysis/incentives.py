@@ -654,14 +654,16 @@ class _Report:
         return error("E1001", message, requirement.span or _declared(self.automaton, "goal"),
                      notes=notes, hints=hints, data={"bound": str(bound), **self.risk_data(found)})
 
-    def per_reward(self, delta: Fraction) -> str:
-        """``delta`` objective units in each positively weighted reward's own units."""
+    def per_reward(self, delta: Fraction, sign: int = -1) -> str:
+        """A change of the objective by ``sign * delta`` in each weighted reward's own units (the
+        reward lowered or raised by ``delta / |weight|``)."""
         parts = []
         for reward in self.automaton.rewards:
             weight = self.automaton.objective.coefficient(reward)
-            if weight > 0:
-                parts.append(f"{_num(delta / weight)} of `{reward}` at weight {_num(weight)}")
-        return "; ".join(parts) if parts else "no reward has a positive weight"
+            if weight:
+                way = "raised" if sign * weight > 0 else "lowered"
+                parts.append(f"`{reward}` {way} by {_num(delta / abs(weight))} at weight {_num(weight)}")
+        return ", or ".join(parts) if parts else "no reward has a weight"
 
     # ------------------------------------------------------------ the loopholes
     def proved(self, check: str, found: Incentives | None) -> Fact:
@@ -694,8 +696,8 @@ class _Report:
         notes: list[Note | str] = []
         delta = _num(found.delta)
         if found.check == "ending_early_never_pays":
-            where = (f"at sample {found.sample} ({self.time(found.sample)}), after {found.prefix} samples in "
-                     f"`{a.location_names[found.better.worst.steps[-1].outcome.source]}`")
+            where = (f"in `{a.location_names[found.better.worst.steps[-1].outcome.source]}` at sample "
+                     f"{found.sample} ({self.time(found.sample)})")
             message = (f"ending early pays: {where}, ending the run without the goal earns {delta} more than "
                        "the best safe continuation")
             notes += [f"the run that ends early (it ends there without the goal):\n{self.describe(found.better)}",
@@ -719,7 +721,8 @@ class _Report:
                        f"({_num(found.worse.value)})")
             notes += [f"the run that stalls:\n{self.describe(found.better)}",
                       f"first reaching the goal at sample {found.sample}:\n{self.describe(found.worse)}"]
-            hints = [f"raise the goal's bonus by at least {delta} (objective units; {self.per_reward(found.delta)}), "
+            hints = [f"raise the goal's bonus by at least {delta} (objective units; "
+                     f"{self.per_reward(found.delta, 1)}), "
                      "or lower what stalling earns by as much; `rac tune` can synthesise it with a `param` and "
                      "`require stalling_never_pays`"]
             declared = _declared(a, "goal")
