@@ -214,6 +214,8 @@ class _Runs:
                     o, bool(ends), bool(goal), bool(collision), clauses, end_map,
                     (_sup(_weighted(w, first + going), o.box), _sup(_weighted(w, going), o.box)),
                     (_sup(_weighted(w, first + stopping), o.box), _sup(_weighted(w, stopping), o.box))))
+            # Staying first: among runs that earn alike, the witnesses stay rather than move for nothing.
+            found.sort(key=lambda m: m.outcome.edge is not None)
             self.moves.append(_useful(found))
         # The programmes add and compare scaled integers (exact, and far faster than fractions).
         values = [self.c0] + [g[0] for ms in self.moves for m in ms for g in (*m.going, *m.stopping)]
