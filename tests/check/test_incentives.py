@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import json
 import math
 import os
 from dataclasses import dataclass
@@ -514,3 +515,17 @@ def test_not_done_is_a_warning() -> None:
     assert codes == ["W1008"] and not facts
     codes, _ = checked(dataclasses.replace(automaton, horizon=Fraction(20_000)))
     assert codes == ["W1008"]
+
+
+def test_json_of_facts_and_diagnostics() -> None:
+    """Every fact and diagnostic of the checks serialises (``rac check --format json``), exact numbers as strings."""
+    automaton = driving(True, requirements=require(*ir.REQUIREMENT_CHECKS))
+    facts: list[Fact] = []
+    diagnostics = check_incentives(automaton, InputSpace(automaton), facts)
+    data = json.loads(json.dumps([d.to_json() for d in diagnostics] + [f.to_json() for f in facts]))
+    risk = next(item for item in data if item.get("code") == "E1001")["data"]
+    assert (risk["bound"], risk["p_star"], risk["R_goal"], risk["R_stall"], risk["R_crash"]) == (
+        "1/10000", "1/2", "980", "480", "-20")
+    delayed = next(item for item in data if item.get("code") == "E1005")["data"]
+    assert (delayed["sample"], delayed["other_sample"], delayed["delta"]) == (300, 1, "2392/5")
+    assert delayed["better"]["run"][-1]["sample"] == 300 and delayed["better"]["ended_by"] == "episode"
