@@ -194,8 +194,11 @@ def _explore_bar(quiet: bool):
 
 @_on_checked_file
 def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
+    # numpy, rac.check.analysis (via rac.verify.penalties): only the command that uses it loads it
+    from rac.verify.penalties import check_penalties, render_penalties
+
     # numpy, rac.check.analysis, stormpy (via rac.verify.runner): only the command that uses it loads it
-    from rac.verify.runner import UnknownQuery, VerifyOptions, render_json, render_text, verify
+    from rac.verify.runner import UnknownQuery, VerifyOptions, render_json, render_text, run_queries
 
     out_dir = output_folder(args.file, "verify", args.out)
     quiet = args.quiet or args.format == "json"
@@ -209,7 +212,9 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
                             bars=not quiet, exact=args.exact)
     try:
         with bar:
-            results = verify(result, options)
+            context, results = run_queries(result, options)
+            announce("penalties that no action avoids")
+            penalties = check_penalties(context)
     except UnknownQuery as exc:
         assert result.automaton is not None  # _load refused a file without one
         names = ", ".join(d.name for d in result.automaton.queries)
@@ -220,9 +225,14 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(f"rac verify: cannot write to {out_dir}: {exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
     if args.format == "json":
-        print(json.dumps({"file": str(args.file), "results": render_json(results)}, indent=2))
+        print(json.dumps({"file": str(args.file), "results": render_json(results), "penalties": penalties.to_json()},
+                         indent=2))
     else:
-        print(render_text(results, traces=args.trace))
+        if results:
+            print(render_text(results, traces=args.trace))
+        if penalties.diagnostics:  # W1011, rendered with the file's lines like rac check's findings
+            print(render_diagnostics(penalties.diagnostics, result.sources))
+        print(render_penalties(penalties))
     if not results:
         print(f"{args.file}: no queries (add `query NAME: ...` lines, or pass --standard)", file=sys.stderr)
     return verdict_status(results)

@@ -1,0 +1,71 @@
+"""rac.check.analysis.piecewise: convex functions recovered exactly from a supporting-line oracle,
+combined, and the sets where they are positive, against brute force over lines and points."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rac.check.analysis.piecewise import Interval, Piecewise, convex
+
+F = Fraction
+lines = st.lists(st.tuples(st.integers(-20, 20), st.integers(-200, 200)), min_size=1, max_size=8)
+
+
+def oracle_of(found: list[tuple[int, int]]):
+    def oracle(p: Fraction) -> tuple[Fraction, Fraction]:
+        value, slope = max((s * p + c, s) for s, c in found)
+        return F(value), F(slope)
+    return oracle
+
+
+def grid(low: Fraction, high: Fraction, n: int = 40) -> list[Fraction]:
+    return [low + (high - low) * F(i, n) for i in range(n + 1)]
+
+
+@settings(max_examples=200, deadline=None)
+@given(lines, st.integers(-30, 0), st.integers(1, 30))
+def test_convex_is_the_maximum_of_the_lines(found, low, high):
+    calls = []
+    oracle = oracle_of(found)
+
+    def counted(p):
+        calls.append(p)
+        return oracle(p)
+
+    f = convex(counted, F(low), F(high))
+    for p in grid(F(low), F(high)) + list(f.points):
+        assert f(p) == oracle(p)[0]
+    assert len(f.slopes) <= len(found)
+    assert len(calls) <= 2 * len(found) + 1
+    assert list(f.slopes) == sorted(f.slopes)  # convex
+
+
+@settings(max_examples=200, deadline=None)
+@given(lines, lines, st.integers(-3, 3), st.integers(-3, 3))
+def test_where_matches_the_sign_at_every_point(first, second, a, b):
+    low, high = F(-10), F(10)
+    f = convex(oracle_of(first), low, high).combine(convex(oracle_of(second), low, high), F(a), F(b))
+    positive, nonpositive = f.where(True), f.where(False)
+    points = grid(low, high, 80) + list(f.points)
+    for interval in positive + nonpositive:
+        points += [interval.low, interval.high]
+    for p in points:
+        value = a * oracle_of(first)(p)[0] + b * oracle_of(second)(p)[0]
+        assert f(p) == value
+        assert any(p in i for i in positive) == (value > 0)
+        assert any(p in i for i in nonpositive) == (value <= 0)
+
+
+def test_a_crossing_is_an_open_end_of_the_positive_set():
+    f = Piecewise.affine(F(0), F(10), F(1), F(-4))  # p - 4
+    assert f.where(True) == [Interval(F(4), F(10), low_open=True)]
+    assert f.where(False) == [Interval(F(0), F(4))]
+
+
+def test_lines_that_are_not_supporting_are_refused():
+    with pytest.raises(ValueError):
+        convex(lambda p: (F(0), F(1) if p < 5 else F(1)), F(0), F(10))
