@@ -63,10 +63,6 @@ Verifying safe: strategy safe = control: A[] !collide() && !offroad()  ({path}:{
     1 state, horizon 8 samples, T s
     decided on the complete graph up to the horizon
     no strategy keeps `!collide() && !offroad()` from the start: it is false at the start
-Checking penalties that no action avoids
- -- none: at each of the 820 decision states up to the horizon (8 samples) some allowed action avoids every penalty \
-of `sa`
-    27,505 states, horizon 8 samples
 """
     assert captured.err == ""
     assert not (out / "safe.shield.npz").exists()  # no strategy, no file (UPPAAL defines none either)
@@ -138,8 +134,6 @@ Verifying LeadsTo: goal() --> goal()  ({path}:{line_of(path, "LeadsTo")})
 horizon (sample 8) would have about 1.5e+04 states: shorten the horizon (--horizon), coarsen the model (exponent, \
 action steps, decide_period) or raise --max-states if the machine has the memory
     T s
-Checking penalties that no action avoids
- -- not checked: by sample 1 the product has more than 10 states, --max-states
 """
 
 

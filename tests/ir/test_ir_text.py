@@ -11,7 +11,7 @@ from rac import ir
 from rac.compiler import compile_text
 from rac.core.printing import C_BINARY, Level, Operator, OperatorTable, Printed
 from rac.ir import expr as ie
-from rac.ir.text import GuardPrinter, format_checked
+from rac.ir.text import GuardPrinter, declaration_lines, format_checked, format_guard
 from rac.lang.format import format_expr
 from rac.lang.parser import parse_expression
 
@@ -80,3 +80,46 @@ def test_guard_printer_uses_the_names_and_the_target_table() -> None:
     # an OR under an AND is parenthesised, the other way round it is not
     guard = ir.BAnd((ir.BOr((ir.BInput("p"), ir.BInput("q"))), ir.BConst(True)))
     assert printer.print(guard).text == "(in[0] or in[1]) and T"
+
+
+OUTCOMES = """\
+automaton A {
+    input collide, near : bool
+    input dgoal : real in [-5, 100]
+    param P in [0.25, 0.5]
+    reward sa
+    objective sa
+    sample every 1
+    horizon 2
+    initial location N { sa' == 1 }
+    edge N -> N when !near
+    episode ends when collide or not (dgoal >= -1.5 and near)
+    goal when dgoal < 2 && !collide && near
+    collision when collide
+    require stalling_never_pays
+    require risk <= P / 3
+}
+"""
+
+
+def test_declaration_lines_print_issue_25s_declarations_and_read_back() -> None:
+    automaton = compile_text(OUTCOMES, analyse=False).raise_for_errors()
+    lines = declaration_lines(automaton)
+    assert lines == ("episode ends when collide || !(dgoal >= -1.5 && near)",
+                     "goal when dgoal < 2 && !collide && near", "collision when collide",
+                     "require stalling_never_pays", "require risk <= (1 / 12)")
+    # the lines in place of the declarations check to the same automaton
+    head = OUTCOMES.split("    episode ends")[0]
+    again = compile_text(head + "".join(f"    {line}\n" for line in lines) + "}\n",
+                         analyse=False).raise_for_errors()
+    assert (again.episode_ends, again.goal, again.collision, again.requirements) == \
+        (automaton.episode_ends, automaton.goal, automaton.collision, automaton.requirements)
+
+
+@pytest.mark.parametrize(("guard", "text"), [
+    (ir.TRUE, "true"), (ir.BAnd(()), "true"), (ir.BOr(()), "false"),
+    (ir.BAtom("v", "<=", Fraction(-1, 4)), "v <= -0.25"),
+    (ir.BOr((ir.BAnd((ir.BInput("a"), ir.BInput("b"))), ir.BNot(ir.BInput("c")))), "(a && b) || !c"),
+])
+def test_format_guard(guard: ir.Guard, text: str) -> None:
+    assert format_guard(guard) == text

@@ -83,7 +83,9 @@ KEYWORDS = {
 
 # Plain names, names that start like keywords, and the letters of UPPAAL's quantifiers.
 NAME_POOL = ["a", "b", "x1", "sa", "pr", "co", "_t", "Unsafe", "A", "E", "Pr", "inputs", "ends", "atx",
-             "maxEx", "notably", "order", "android", "integer", "reals", "ifs", "truth", "E2", "Ax"]
+             "maxEx", "notably", "order", "android", "integer", "reals", "ifs", "truth", "E2", "Ax",
+             # keywords only where a member starts (issue 25): names everywhere else
+             "episode", "goal", "collision", "require"]
 assert not KEYWORDS & set(NAME_POOL)
 
 names = st.sampled_from(NAME_POOL)
@@ -156,6 +158,12 @@ members = st.one_of(
     # `*`, with or without `except` (only a `*` edge can exclude locations)
     st.builds(ast.EdgeDecl, st.none(), idents, st.one_of(st.none(), exprs), tuples(updates), tuples(idents)),
     st.builds(ast.EndDecl, st.one_of(st.none(), exprs), tuples(updates, 1)),
+    st.builds(ast.EpisodeEndsDecl, exprs),
+    st.builds(ast.GoalDecl, exprs),
+    st.builds(ast.CollisionDecl, exprs),
+    # the grammar reads any name as a check (the checker knows which exist) and any bound
+    st.builds(ast.RequireDecl, st.one_of(idents, st.sampled_from(["risk", "stalling_never_pays"]).map(ast.Ident)),
+              st.one_of(st.none(), small_exprs)),
     st.builds(ast.QueryDecl, idents, queries),
 )
 # The model block: settings under any name (the resolver, not the grammar, knows the real ones),

@@ -1,7 +1,8 @@
 """Random `.ra` programs for the fuzzer (tests/support/fuzz.py): a generator that knows the shape of a file.
 
 :func:`generate` writes one automaton, declaration by declaration (inputs, ``assume``, constants,
-rewards, priority, objective, timing, locations, edges, ``at end``, queries, a ``model`` block), and
+rewards, priority, objective, timing, locations, edges, ``at end``, ``episode ends when``, ``goal
+when`` and ``collision when``, queries, a ``model`` block), and
 randomises inside that shape. Most programs are built to pass ``rac check``, so that ``rac fmt``
 and both compile targets see them too:
 
@@ -56,7 +57,7 @@ KINDS = ("valid", "extreme", "near miss")
 AUTOMATA = ("Driving", "Car", "A1", "Lanes", "Timer", "clock", "system", "Pr", "E")
 INPUTS = ("isClose", "prog", "comf", "collide", "near", "slow", "b", "step", "bind", "scenario", "action",
           "chan", "sum", "sense", "read", "count", "clock_", "forall", "head", "Start", "x", "time", "crashed",
-          "in_road", "saturated", "OBS_N", "goal")
+          "in_road", "saturated", "OBS_N", "goal", "collision", "episode", "require", "ends")
 REWARDS = ("sa", "pr", "co", "safety", "speed", "r", "iSa", "SCALE", "double", "cost", "hybrid")
 LOCATIONS = ("Normal", "Unsafe", "Stalled", "Uncomfortable", "Go", "Near", "Idle", "init", "Running",
              "Timer", "Dynamics", "urgent", "commit", "PERIOD", "L0", "Sensing", "A", "Init", "Moving", "TD")
@@ -74,7 +75,7 @@ EXTREME = ("1e308", "0", "-0.0", "123456789012345678901234567890123456789", "1e-
 #: Numbers that break a declaration when a near miss puts them in a number's place.
 BREAKING = ("1e5000", "1e-5000", "0", "-0.0", "1e308", "9" * 60, "0.0000001", "-1", "1e400")
 DEFECTS = ("drop", "keyword", "overlap", "cheap", "unknown", "reward guard", "nonlinear", "number",
-           "duplicate", "bounds", "two inputs", "model", "query", "huge grid")
+           "duplicate", "bounds", "two inputs", "model", "query", "huge grid", "requirement")
 #: Names the Python target must not shadow: builtins, modules and names of the generated module,
 #: and Python keywords (all of them names in `.ra`); the generated module renames what would clash.
 PYTHON_NAMES = ("float", "bool", "len", "type", "ValueError", "math", "list", "print", "self", "None", "True",
@@ -337,6 +338,7 @@ class _Builder:
         self.queries(automaton, [loc.name for loc in self.locations], model)
         if model:
             self.model_block()
+        self.outcomes()
         if "drop" in self.defects:
             victim = pick(c, ("objective", "horizon", "sample", "location", "reward", "input"))
             self.lines.pop(victim, None)
@@ -536,13 +538,35 @@ class _Builder:
                                 f"E<> {place} imply", "A[] collide()"))
             self.add("query", f"query {name}: {form}")
 
+    def outcomes(self) -> None:
+        """Issue 25's declarations now and then: ``episode ends when``, ``goal when`` and ``collision
+        when`` over the inputs; a near miss with "requirement" gets a ``require`` the checker refuses
+        (E1009, E1010). Valid programs get no ``require``: whether one holds is the analyses' to say."""
+        c = self.c
+        declared = set()
+        for word in ("episode ends", "goal", "collision"):
+            if c.chance(12):
+                condition = self.guard(pick(c, self.tree(1))).removeprefix(" when ") or "true"
+                self.add("outcome", f"{word} when {condition}")
+                declared.add(word)
+        if "requirement" in self.defects:
+            wrong = ["require riks", "require stalling_never_pays <= 1", "require risk", "require risk <= 2"]
+            if "goal" not in declared:
+                wrong.append("require goal_earlier_never_pays_less")
+            self.add("require", pick(c, wrong))
+
     def model_block(self) -> None:
         c = self.c
         items = [f'scenario "{SCENARIO}"']
         if "model" in self.defects and c.chance(30):
             items = []  # E0105
         if c.chance(40):
-            items.append(f"exponent {pick(c, (2, 3, 4, 1, 5))}")
+            # outside a near miss, an exponent that holds each rate's growth per sample (E0801): the
+            # rates are halves, whole numbers and `input / 50`
+            held = min(e for e in range(6) if all((step * self.period * 10**e).denominator == 1
+                                                  for step in (Fraction(1, 2), Fraction(1, 50))))
+            exponents = [e for e in (2, 3, 4, 1, 5) if self.kind == "near miss" or e >= held]
+            items.append(f"exponent {pick(c, exponents)}")
         if c.chance(30):
             items.append(f"decide_period {self.literal(self.period * pick(c, (2, 1, 5)))}")
         if c.chance(20):
@@ -579,7 +603,7 @@ class _Builder:
     def render(self, automaton: str) -> str:
         c = self.c
         order = ["input", "assume", "const", "reward", "priority", "objective", "sample", "horizon", "location",
-                 "edge", "end", "query", "model"]
+                 "edge", "end", "outcome", "require", "query", "model"]
         if c.chance(15):  # any order works (only constants must come after those they use)
             rest = order[:2] + order[3:]
             random.Random(c.integer(0, 1000)).shuffle(rest)

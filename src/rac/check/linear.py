@@ -32,9 +32,11 @@ class Context:
     what: str
     rewards: bool = False
     inputs: bool = True
+    #: A condition over the inputs (a guard, an assumption, an outcome): a reward there is E0202.
+    condition: bool = False
 
 
-GUARD = Context("a guard")
+GUARD = Context("a guard", condition=True)
 RATE = Context("a rate")
 UPDATE = Context("an update", rewards=True)
 OBJECTIVE = Context("the objective", rewards=True, inputs=False)
@@ -135,7 +137,7 @@ class ExpressionTyper:
             return Num(ir.Linear.variable(node.id))
         if symbol.kind == "reward":
             if not ctx.rewards:
-                code = "E0202" if ctx is GUARD or ctx.what == "`assume`" else "E0203"
+                code = "E0202" if ctx.condition else "E0203"
                 self.scope.error(code, f"reward `{node.id}` cannot appear in {ctx.what}", node.span,
                                  hints=[_why_no_rewards(ctx)])
                 raise Unresolvable

@@ -102,6 +102,10 @@ class Resolver:
         assumptions = self._assumptions()
         objective = self._objective(_single(singles, ast.ObjectiveDecl), rewards)
         priority, strict = self._priority(_single(singles, ast.PriorityDecl), rewards)
+        episode_ends = self._outcome(_single(singles, ast.EpisodeEndsDecl), "episode ends when")
+        goal = self._outcome(_single(singles, ast.GoalDecl), "goal when")
+        collision = self._outcome(_single(singles, ast.CollisionDecl), "collision when")
+        requirements = self._requirements(singles)
         queries = self._check_queries()
         if any(d.is_error for d in self.diagnostics):
             # Expressions with errors were not fully read: an "unused" input may be used there.
@@ -126,6 +130,10 @@ class Resolver:
             constants=tuple((n, s.value) for n, s in self.symbols.items()
                             if s.kind == "const" and s.value is not None),
             parameters=tuple(self.parameters),
+            episode_ends=episode_ends,
+            goal=goal,
+            collision=collision,
+            requirements=requirements,
             model=model,
             queries=queries,
             source=node,
@@ -156,7 +164,9 @@ class Resolver:
     def _spans(self, singles: dict[type, ast.Member]) -> dict[str, Span]:
         spans = {name: s.span for name, s in self.symbols.items() if s.span is not None}
         for kind, key in ((ast.PriorityDecl, "priority"), (ast.ObjectiveDecl, "objective"),
-                          (ast.SampleDecl, "sample"), (ast.HorizonDecl, "horizon")):
+                          (ast.SampleDecl, "sample"), (ast.HorizonDecl, "horizon"),
+                          (ast.EpisodeEndsDecl, "episode_ends"), (ast.GoalDecl, "goal"),
+                          (ast.CollisionDecl, "collision")):
             member = singles.get(kind)
             if member is not None and member.span is not None:
                 spans[f"decl:{key}"] = member.span
@@ -165,7 +175,9 @@ class Resolver:
 
     def _singletons(self) -> dict[type, ast.Member]:
         words = {ast.SampleDecl: "sample every", ast.HorizonDecl: "horizon",
-                 ast.ObjectiveDecl: "objective", ast.PriorityDecl: "priority"}
+                 ast.ObjectiveDecl: "objective", ast.PriorityDecl: "priority",
+                 ast.EpisodeEndsDecl: "episode ends when", ast.GoalDecl: "goal when",
+                 ast.CollisionDecl: "collision when"}
         found: dict[type, ast.Member] = {}
         for kind, word in words.items():
             members = self.node.of(kind)
@@ -174,7 +186,7 @@ class Resolver:
                             notes=[Note("first declared here", members[0].span)])
             if members:
                 found[kind] = members[0]
-            elif kind is not ast.PriorityDecl:
+            elif kind not in _OPTIONAL:
                 example = {"sample every": "sample every 0.1", "horizon": "horizon 30",
                            "objective": "objective 10 * sa + 5 * pr + co"}[word]
                 self._error("E0105", f"automaton `{self.node.name.name}` has no `{word}` declaration",
@@ -417,7 +429,8 @@ class Resolver:
         parts = []
         for decl in self.node.of(ast.AssumeDecl):
             try:
-                parts.append(ir.Assumption(self.typer.guard(decl.expr, Context("`assume`")), decl.text, decl.span))
+                guard = self.typer.guard(decl.expr, Context("`assume`", condition=True))
+                parts.append(ir.Assumption(guard, decl.text, decl.span))
             except Unresolvable:
                 pass
         return tuple(parts)
@@ -454,6 +467,73 @@ class Resolver:
                                f"`priority {' > '.join(list(seen) + missing)}`"])
         return tuple(seen), member.strict
 
+    def _outcome(self, member: ast.EpisodeEndsDecl | ast.GoalDecl | ast.CollisionDecl | None,
+                 word: str) -> ir.Guard | None:
+        """``episode ends when``, ``goal when`` or ``collision when``: a condition typed like an edge's guard."""
+        if member is None:
+            return None
+        try:
+            return self.typer.guard(member.condition, Context(f"`{word}`", condition=True))
+        except Unresolvable:
+            return None
+
+    def _requirements(self, singles: dict[type, ast.Member]) -> tuple[ir.Requirement, ...]:
+        """The ``require`` declarations: each names a known check once, with a bound for ``risk`` only,
+        and the declarations its check reads (E1009, E1010, E0106)."""
+        result = []
+        seen: dict[str, Span | None] = {}
+        for decl in self.node.of(ast.RequireDecl):
+            name = decl.check.name
+            if name not in ir.REQUIREMENT_CHECKS:
+                close = difflib.get_close_matches(name, ir.REQUIREMENT_CHECKS, n=1)
+                self._error("E1010", f"unknown requirement `{name}`", decl.check.span,
+                            notes=["`require` takes one of: "
+                                   + ", ".join(f"`{c}`" for c in ir.REQUIREMENT_CHECKS)],
+                            hints=[f"did you mean `{close[0]}`?"] if close else [])
+                continue
+            if name in seen:
+                self._error("E0106", f"`require {name}` is declared more than once", decl.span,
+                            notes=[Note("first declared here", seen[name])])
+                continue
+            seen[name] = decl.span
+            bound = self._requirement_bound(decl)
+            missing = [word for kind, word in _READS[name] if kind not in singles]
+            if missing:
+                words = " and ".join(f"`{w}`" for w in missing)
+                article = "an" if missing[0][0] in "aeiou" else "a"
+                what = f"{words} declarations" if len(missing) > 1 else f"{article} {words} declaration"
+                self._error("E1009", f"`require {name}` needs {what}", decl.span,
+                            notes=[_WHY_READS[name]],
+                            hints=[f"declare {' and '.join(_EXAMPLES[w] for w in missing)}"])
+            elif bound is not None or name != "risk":  # `risk` without a readable bound was reported
+                result.append(ir.Requirement(name, bound, decl.span))
+        return tuple(result)
+
+    def _requirement_bound(self, decl: ast.RequireDecl) -> Fraction | None:
+        """``risk``'s bound, a constant in [0, 1] (E1010 without one, or out of range); the others take none."""
+        name = decl.check.name
+        if name != "risk":
+            if decl.bound is not None:
+                self._error("E1010", f"`require {name}` takes no bound", decl.bound.span,
+                            hints=[f"write `require {name}`; only `risk` has a bound"])
+            return None
+        if decl.bound is None:
+            self._error("E1010", "`require risk` needs a bound: the largest risk tolerance p* allowed",
+                        decl.span, hints=["write e.g. `require risk <= 1e-4`"])
+            return None
+        try:
+            value = self.typer.constant(decl.bound, "the bound of `require risk`")
+        except Unresolvable:
+            return None
+        if not 0 <= value <= 1:
+            self._error("E1010", f"the bound of `require risk` must lie in [0, 1] (found {_num(value)})",
+                        decl.bound.span,
+                        notes=["p* is a probability: the chance of a collision at which reaching the goal "
+                               "and not trying pay the same"],
+                        hints=["write a probability, e.g. `require risk <= 1e-4`"])
+            return None
+        return value
+
     def _unused_inputs(self, inputs: tuple[ir.Input, ...]) -> None:
         for item in inputs:
             if item.name not in self.typer.used_inputs:
@@ -477,6 +557,27 @@ class Resolver:
             if isinstance(decl.query, (ast.ControlStrategy, ast.LearnStrategy)):
                 strategies.add(decl.query.name)
         return tuple(lowered)
+
+
+#: Single declarations an automaton may leave out.
+_OPTIONAL = (ast.PriorityDecl, ast.EpisodeEndsDecl, ast.GoalDecl, ast.CollisionDecl)
+
+#: The declarations each requirement's check reads.
+_READS: dict[str, tuple[tuple[type, str], ...]] = {
+    "risk": ((ast.GoalDecl, "goal when"), (ast.CollisionDecl, "collision when")),
+    "ending_early_never_pays": ((ast.EpisodeEndsDecl, "episode ends when"),),
+    "goal_earlier_never_pays_less": ((ast.GoalDecl, "goal when"),),
+    "stalling_never_pays": ((ast.GoalDecl, "goal when"),),
+}
+_WHY_READS = {
+    "risk": "the risk tolerance p* compares the return of reaching the goal with that of a collision",
+    "ending_early_never_pays": "the check compares runs the condition ends early with runs that go on",
+    "goal_earlier_never_pays_less": "the check compares runs that reach the goal at different samples",
+    "stalling_never_pays": "the check compares runs that stall with runs that reach the goal",
+}
+_EXAMPLES = {"goal when": "what reaching the goal means, e.g. `goal when dgoal < 2`",
+             "collision when": "what a collision means, e.g. `collision when collide`",
+             "episode ends when": "when a run ends, e.g. `episode ends when collide || dgoal < 2`"}
 
 
 def _single(singles: dict[type, ast.Member], kind: type[_M]) -> _M | None:

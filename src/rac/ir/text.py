@@ -1,4 +1,5 @@
-"""The IR as text: checked expressions back in ``.ra`` syntax, and the walk over guards the targets share.
+"""The IR as text: checked expressions, guards and issue 25's declarations back in ``.ra`` syntax, and
+the walk over guards the targets share.
 
 The checker inlines constants and resolves names; :func:`format_checked` prints the result with the
 formatter of the language (:func:`rac.lang.format.format_expr`), names as written.
@@ -8,8 +9,9 @@ target gives the operator table and prints the comparisons of numeric inputs.
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 from rac import ir
 from rac.core.printing import Level, Printed, Printer
@@ -17,7 +19,7 @@ from rac.ir import expr as ie
 from rac.lang import ast
 from rac.lang.format import format_expr
 
-__all__ = ["GuardPrinter", "format_checked"]
+__all__ = ["GuardPrinter", "declaration_lines", "format_checked", "format_guard"]
 
 
 def format_checked(expr: ie.Expr) -> str:
@@ -38,6 +40,43 @@ def _to_ast(expr: ie.Expr) -> ast.Expr:
     if isinstance(expr, ie.Unary):
         return ast.Unary(expr.op, _to_ast(expr.operand))
     return ast.Binary(expr.op, _to_ast(expr.left), _to_ast(expr.right))
+
+
+def format_guard(guard: ir.Guard) -> str:
+    """A checked guard (:data:`rac.ir.Guard`) in ``.ra`` syntax: an edge's, or the condition of
+    ``goal when``; parsing and checking the text gives the guard back."""
+    return format_expr(_guard_ast(guard))
+
+
+def _atom_ast(atom: ir.BAtom) -> ast.Expr:
+    threshold = ast.Number(abs(atom.threshold))
+    return ast.Binary(atom.op, ast.Name(atom.input), ast.Unary("-", threshold) if atom.threshold < 0 else threshold)
+
+
+def _chain(op: str, empty: bool) -> Callable[[tuple[ast.Expr, ...]], ast.Expr]:
+    """``a op b op c``, nested to the left as the parser nests it; ``empty`` without operands."""
+    def join(operands: tuple[ast.Expr, ...]) -> ast.Expr:
+        return functools.reduce(lambda left, right: ast.Binary(op, left, right), operands) if operands \
+            else ast.BoolLit(empty)
+    return join
+
+
+_guard_ast: ir.GuardFold[ast.Expr] = ir.GuardFold(
+    const=ast.BoolLit, boolean=lambda guard: ast.Name(guard.name), atom=_atom_ast,
+    negate=lambda operand: ast.Unary("!", operand), conjoin=_chain("&&", True), disjoin=_chain("||", False))
+
+
+def declaration_lines(automaton: ir.Automaton) -> tuple[str, ...]:
+    """Issue 25's declarations of a checked automaton back in ``.ra`` syntax, one per line:
+    ``episode ends when``, ``goal when``, ``collision when`` (those it has), then its ``require``s
+    in source order, bounds exact (a parameter's as the value it was resolved with)."""
+    lines = [f"{word} when {format_guard(guard)}"
+             for word, guard in (("episode ends", automaton.episode_ends), ("goal", automaton.goal),
+                                 ("collision", automaton.collision)) if guard is not None]
+    for requirement in automaton.requirements:
+        bound = "" if requirement.bound is None else f" <= {format_expr(ast.Number(requirement.bound))}"
+        lines.append(f"require {requirement.check}{bound}")
+    return tuple(lines)
 
 
 class GuardPrinter(Printer, ABC):

@@ -216,6 +216,42 @@ class EndDecl:
     span: Span | None = _span()
 
 
+@dataclass(frozen=True)
+class EpisodeEndsDecl:
+    """``episode ends when COND``: the run ends after a sample whose inputs satisfy COND."""
+
+    condition: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class GoalDecl:
+    """``goal when COND``: what reaching the goal means, at a sample."""
+
+    condition: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class CollisionDecl:
+    """``collision when COND``: what a collision means, at a sample."""
+
+    condition: Expr
+    span: Span | None = _span()
+
+
+@dataclass(frozen=True)
+class RequireDecl:
+    """``require CHECK`` or ``require CHECK <= BOUND``: the check's failure is an error.
+
+    The check's name is kept as written; the checker knows which exist and which take a bound.
+    """
+
+    check: Ident
+    bound: Expr | None = None
+    span: Span | None = _span()
+
+
 # ---------------------------------------------------------------- queries
 @dataclass(frozen=True)
 class Bound:
@@ -376,7 +412,8 @@ class ModelDecl:
 
 
 Member = Union[InputDecl, AssumeDecl, ConstDecl, ParamDecl, RewardDecl, PriorityDecl, ObjectiveDecl,
-               SampleDecl, HorizonDecl, LocationDecl, EdgeDecl, EndDecl, QueryDecl, ModelDecl]
+               SampleDecl, HorizonDecl, LocationDecl, EdgeDecl, EndDecl, EpisodeEndsDecl, GoalDecl, CollisionDecl,
+               RequireDecl, QueryDecl, ModelDecl]
 
 
 @dataclass(frozen=True)

@@ -296,6 +296,15 @@ def format_member(member: ast.Member) -> str:
         return f"sample every {_expr(member.period)}"
     if isinstance(member, ast.HorizonDecl):
         return f"horizon {_expr(member.length)}"
+    if isinstance(member, ast.EpisodeEndsDecl):
+        return f"episode ends when {_expr(member.condition)}"
+    if isinstance(member, ast.GoalDecl):
+        return f"goal when {_expr(member.condition)}"
+    if isinstance(member, ast.CollisionDecl):
+        return f"collision when {_expr(member.condition)}"
+    if isinstance(member, ast.RequireDecl):
+        bound = f" <= {_expr(member.bound)}" if member.bound is not None else ""
+        return f"require {member.check.name}{bound}"
     if isinstance(member, ast.QueryDecl):
         return f"query {member.name.name}: {format_query(member.query)}"
     if isinstance(member, ast.ModelDecl):
@@ -315,8 +324,10 @@ _GROUP = {
     ast.LocationDecl: 5,
     ast.EdgeDecl: 6,
     ast.EndDecl: 7,
-    ast.QueryDecl: 8,
-    ast.ModelDecl: 9,
+    ast.EpisodeEndsDecl: 8, ast.GoalDecl: 8, ast.CollisionDecl: 8,
+    ast.RequireDecl: 9,
+    ast.QueryDecl: 10,
+    ast.ModelDecl: 11,
 }
 
 

@@ -17,7 +17,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from lark import Token, Transformer, Tree, v_args
-from lark.exceptions import UnexpectedInput, VisitError
+from lark.exceptions import UnexpectedInput, UnexpectedToken, VisitError
 
 from rac.core.diagnostics import Diagnostic, RacError, error
 from rac.core.source import MAX_SOURCE_BYTES, SourceFile, Span
@@ -228,6 +228,19 @@ class _ToAst(Transformer):
     def end_decl(self, meta, items):
         guard, updates = items
         return ast.EndDecl(guard, updates, self._sp(meta))
+
+    def episode_decl(self, meta, items):
+        return ast.EpisodeEndsDecl(items[0], self._sp(meta))
+
+    def goal_decl(self, meta, items):
+        return ast.GoalDecl(items[0], self._sp(meta))
+
+    def collision_decl(self, meta, items):
+        return ast.CollisionDecl(items[0], self._sp(meta))
+
+    def require_decl(self, meta, items):
+        name, bound = items
+        return ast.RequireDecl(self._ident(name), bound, self._sp(meta))
 
     # ---- the model block
     def model_block(self, meta, items):
@@ -512,11 +525,30 @@ def _check_nesting(tree: Tree, source: SourceFile) -> None:
         stack.extend(reversed([c for c in node.children if isinstance(c, Tree)]))
 
 
+#: Words that are keywords only where a declaration starts (grammar/rac.lark, issue 25). LALR merges
+#: the parse states after an expression inside and outside a ``model`` block, so the contextual lexer
+#: reads ``collision sticky`` after a setting as the keyword: where the keyword cannot go on but a name
+#: can, :func:`_as_name` reads it as the name it is.
+CONTEXTUAL_WORDS = ("episode", "ends", "goal", "collision", "require")
+
+
+def _as_name(exc: UnexpectedInput) -> bool:
+    """Lark's error handler: an unexpected contextual keyword is fed again as a name when a name may
+    stand there (parsing resumes); False (the syntax error stands) otherwise."""
+    if not isinstance(exc, UnexpectedToken) or str(exc.token) not in CONTEXTUAL_WORDS:
+        return False
+    parser = exc.interactive_parser
+    if "NAME" not in parser.accepts():
+        return False
+    parser.feed_token(Token.new_borrow_pos("NAME", str(exc.token), exc.token))
+    return True
+
+
 def _parse(source: SourceFile, start: str) -> object:
     """``source`` parsed from the start rule ``start`` and transformed into AST nodes;
     :class:`ParseFailure` on the first syntax error or on nesting beyond :data:`MAX_NESTING`."""
     try:
-        tree = lark_parser().parse(source.text, start=start)
+        tree = lark_parser().parse(source.text, start=start, on_error=_as_name)
     except UnexpectedInput as exc:
         raise ParseFailure(syntax_error(exc, source, start)) from None
     except RecursionError:

@@ -44,7 +44,8 @@ _TERMINAL_WORDS = {
     "$END": "end of file",
 }
 _DECLARATION_WORDS = ("input", "assume", "const", "param", "reward", "priority", "objective", "sample",
-                      "horizon", "initial", "location", "edge", "at", "query", "model")
+                      "horizon", "initial", "location", "edge", "at", "episode", "goal", "collision", "require",
+                      "query", "model")
 _EXPRESSION_START = {"a name", "a number", "`true`", "`false`", "`(`", "`-`", "`!`", "`not`"}
 
 
@@ -81,9 +82,24 @@ def _token_text(token: Token) -> str:
     return f"`{token.value}`"
 
 
-def _syntax_hints(found: str, expected: set[str]) -> list[str]:
+#: The words before an unexpected token that name one of issue 25's declarations, with its form.
+_DECLARATION_FORMS = {"goal": "goal when CONDITION", "collision": "collision when CONDITION",
+                      "episode": "episode ends when CONDITION", "ends": "episode ends when CONDITION"}
+_REQUIRE_CHECK = re.compile(r"\brequire\s+[A-Za-z_][A-Za-z0-9_]*\s*$")
+
+
+def _syntax_hints(found: str, expected: set[str], before: str = "") -> list[str]:
+    """Hints for the usual slips; ``before`` is the text before the unexpected token."""
     hints = []
     words = {_describe_terminal(t) for t in expected}
+    previous = before.split()[-1] if before.split() else ""
+    if previous in _DECLARATION_FORMS and words & {"`when`", "`ends`"}:
+        hints.append(f"the declaration is written `{_DECLARATION_FORMS[previous]}`")
+    if previous == "require" and "a name" in words:
+        hints.append("write `require CHECK` (e.g. `require ending_early_never_pays`) or `require risk <= BOUND`")
+    if _REQUIRE_CHECK.search(before) and "`<=`" in words and found != "}":
+        hints.append("a requirement's bound is written `require risk <= BOUND`, with `<=`; "
+                     "the other requirements take none")
     if found == "=" and "`==`" in words:
         hints.append("a flow is written `reward' == rate`, with `==`")
     if found == ":=":
@@ -178,5 +194,5 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
         start = where
         span = source.span(start, exc.token.end_pos or start + len(exc.token.value))
         return error("E0001", f"unexpected {_token_text(exc.token)}", span, notes=notes,
-                     hints=_syntax_hints(str(exc.token.value), expected))
+                     hints=_syntax_hints(str(exc.token.value), expected, source.text[:start]))
     return error("E0001", "syntax error", _end_of_text(source))

@@ -46,9 +46,9 @@ from rac.verify.report import count_noun, format_number
 
 __all__ = ["PENALTY_STATES", "PenaltyCheck", "check_penalties", "penalised_locations", "render_penalties"]
 
-#: The check's own state budget (``--max-states`` when smaller): it runs on every ``rac verify``, so
+#: The check's own state budget (``--max-states`` when smaller): it runs on every ``rac verify`` without ``--query``, so
 #: it may cost a fraction of what the queries may (the spawn it looks for shows at the first samples).
-PENALTY_STATES = 200_000
+PENALTY_STATES = 50_000
 #: The actions a W1011 note lists before it says "and N more".
 SHOWN_ACTIONS = 9
 
