@@ -5,6 +5,8 @@
   rac.runtime.interpreter.RewardAutomaton) reaches the product's location, inputs and rewards at every sample,
   the state before each edge, and the state after `at end`;
 - the mirrors' integer arithmetic truncates like C; query comparisons are exact on the integers;
+- with `episode ends when`, a run ends at the sample whose inputs satisfy the condition: its `ended`
+  state (the `at end` clauses applied) follows, terminal, exactly as the runtime ends it;
 - Qe and Qh on examples/left_turn/model.ra, a false verdict with a trace, and an automaton whose
   static P2 check fails on inputs the scenario cannot produce while Qh holds in the model.
 """
@@ -227,7 +229,11 @@ def grown(automaton: ir.Automaton, rates: tuple[ir.Linear, ...], rewards: dict[s
 
 
 def simulate_and_compare(automaton: ir.Automaton, data: ModelData, graph: ProductGraph, decisions: list[int]) -> None:
-    native, evaluator, runtime = NativeModel(data), Evaluator(data, automaton), RewardAutomaton(automaton)
+    """One run of ``decisions`` on the scalar model and the runtime, followed along the product; with
+    `episode ends when`, the run ends where the runtime's does (``runtime`` shows the state before the
+    end clauses, ``ending`` is the runtime with the declaration, which applies them)."""
+    native, evaluator = NativeModel(data), Evaluator(data, automaton)
+    runtime, ending = RewardAutomaton(replace(automaton, episode_ends=None)), RewardAutomaton(automaton)
     assert automaton.model is not None
     bound = {b.input: b.expr for b in automaton.model.bindings}
     pairs = action_pairs(data)
@@ -265,16 +271,22 @@ def simulate_and_compare(automaton: ir.Automaton, data: ModelData, graph: Produc
             check(node, k + 1, ACCRUED, grown(automaton, rates, rewards, held), location)
         node = follow(graph, node, -1)
         runtime.step(values)
+        ending.step(values)
         check(node, k + 1, SAMPLED, runtime.rewards, runtime.location)
         for item in automaton.inputs:
             significand = int(values[item.name]) if item.is_bool else round(values[item.name] * data.scale)
             assert int(graph.inputs[item.name][node]) == significand
         state, held = after, values
+        if ending.terminated:
+            break
     if automaton.end_clauses:
         runtime.end(values)
         node = follow(graph, node, -1)
-        check(node, graph.horizon, ENDED, runtime.rewards, runtime.location)
+        check(node, int(graph.k[node]), ENDED, runtime.rewards, runtime.location)
+        if ending.terminated:
+            check(node, int(graph.k[node]), ENDED, ending.rewards, ending.location)
     assert graph.terminal()[node]
+    assert ending.terminated == (int(graph.k[node]) < graph.horizon)
 
 
 @settings(max_examples=30, deadline=None)
@@ -287,6 +299,67 @@ def test_the_driving_product_follows_the_runtime(driving, decisions: list[int]) 
 @given(decisions=st.lists(st.integers(0, 8), min_size=HORIZON // 2, max_size=HORIZON // 2))
 def test_the_meter_product_follows_the_runtime(meter, decisions: list[int]) -> None:
     simulate_and_compare(*meter, decisions)
+
+
+# ---------------------------------------------------------------- episode ends when
+#: The left turn's run ends at an uncomfortable sample (turning or braking hard) or at the goal.
+UNCOMFORTABLE = ir.BOr((ir.BNot(ir.BInput("comf")), ir.BAtom("dgoal", "<", F(2))))
+
+
+@pytest.fixture(scope="module")
+def driving_ends(driving) -> tuple[ir.Automaton, ModelData, ProductGraph]:
+    automaton, data, _ = driving
+    ends = replace(automaton, episode_ends=UNCOMFORTABLE)
+    return ends, data, explore_product(data, ends, horizon_samples=HORIZON)
+
+
+@pytest.fixture(scope="module")
+def meter_ends(meter) -> tuple[ir.Automaton, ModelData, ProductGraph]:
+    automaton, data, _ = meter  # the run ends where `gain` holds, which its end clause rewards
+    ends = replace(automaton, episode_ends=ir.BInput("gain"))
+    return ends, data, explore_product(data, ends, horizon_samples=HORIZON)
+
+
+def test_episode_ends_makes_ended_states_terminal(driving, driving_ends) -> None:
+    _, _, full = driving
+    automaton, _, graph = driving_ends
+    graph.validate()
+    ended = graph.phase == ENDED
+    early = ended & (graph.k < HORIZON)
+    assert early.any() and (ended & (graph.k == HORIZON)).any()  # some runs end early, some go on
+    assert np.all(graph.terminal()[ended])
+    # every sampled state (after the start) whose inputs end the run leads to its ended state only
+    sampled = np.flatnonzero((graph.phase == SAMPLED) & (graph.k > 0) & (graph.k < HORIZON))
+    comf = graph.inputs["comf"][sampled] != 0
+    assert (~comf).any() and comf.any()
+    for state, ok in zip(sampled.tolist(), comf.tolist()):
+        targets = graph.choice_target[graph.choices(state)]
+        assert np.all(graph.phase[targets] == (ACCRUED if ok else ENDED))
+        assert len(targets) == (1 if not ok else len(targets))
+    assert graph.n_states < full.n_states
+
+
+@settings(max_examples=30, deadline=None)
+@given(decisions=st.lists(st.integers(0, 8), min_size=HORIZON // 2, max_size=HORIZON // 2))
+def test_the_driving_product_ends_like_the_runtime(driving_ends, decisions: list[int]) -> None:
+    simulate_and_compare(*driving_ends, decisions)
+
+
+@settings(max_examples=30, deadline=None)
+@given(decisions=st.lists(st.integers(0, 8), min_size=HORIZON // 2, max_size=HORIZON // 2))
+def test_the_meter_product_ends_like_the_runtime(meter_ends, decisions: list[int]) -> None:
+    simulate_and_compare(*meter_ends, decisions)
+
+
+def test_episode_ends_without_end_clauses_leaves_the_sampled_state_terminal(driving) -> None:
+    automaton, data, _ = driving
+    plain = replace(automaton, end_clauses=(), episode_ends=UNCOMFORTABLE)
+    graph = explore_product(data, plain, horizon_samples=HORIZON)
+    graph.validate()
+    assert not (graph.phase == ENDED).any()
+    sampled = (graph.phase == SAMPLED) & (graph.k > 0)
+    ends = (graph.inputs["comf"][sampled] == 0) | (graph.k[sampled] == HORIZON)
+    assert np.array_equal(graph.terminal()[sampled], ends)
 
 
 # ---------------------------------------------------------------- integer arithmetic

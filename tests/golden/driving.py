@@ -3,7 +3,8 @@
 
 Create ``Driving()``, call ``step(inputs)`` once per sample with a mapping from input
 names to values (it returns the learner's reward: the objective's increase), ``end(inputs)``
-once when the run stops, and ``reset()`` before the next run.
+once when the run stops, and ``reset()`` before the next run. ``terminated`` says that a sample
+ended the run itself (``episode ends when``; ``end`` then returns 0.0).
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ class Driving:
     ``at end`` clauses once; ``reset()`` starts a new run.
     """
 
-    __slots__ = ("_ended", "_loc", "_objective", "_r_co", "_r_pr", "_r_sa", "_samples")
+    __slots__ = ("_ended", "_loc", "_objective", "_r_co", "_r_pr", "_r_sa", "_samples", "_terminated")
 
     name = "Driving"
     #: Input names, in declaration order.
@@ -105,6 +106,7 @@ class Driving:
         self._r_co = 0.0
         self._samples = 0
         self._ended = False
+        self._terminated = False
         self._objective = 0.0
 
     def step(self, inputs: Mapping[str, object]) -> float:
@@ -187,7 +189,11 @@ class Driving:
         return reward
 
     def end(self, inputs: Mapping[str, object]) -> float:
-        """End the run with the final ``inputs`` (applies ``at end``); return the objective's increase."""
+        """End the run with the final ``inputs`` (applies ``at end``); return the objective's increase.
+
+        After a sample that ended the run (``terminated``): 0.0, nothing read or changed."""
+        if self._terminated:
+            return 0.0
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
         _mapping(inputs)
@@ -248,9 +254,14 @@ class Driving:
 
     @property
     def ended(self) -> bool:
-        """Whether ``end`` was called since the last reset."""
+        """Whether the run has ended since the last reset (``end``, or ``terminated``)."""
         return self._ended
 
+    @property
+    def terminated(self) -> bool:
+        """Whether a sample's inputs ended the run (``episode ends when``), its ``at end`` clauses applied."""
+        return self._terminated
+
     def __repr__(self) -> str:
-        return (f"<Driving at {self.location}, samples={self._samples}, "
-                f"objective={self._objective!r}{', ended' if self._ended else ''}>")
+        ending = ", terminated" if self._terminated else ", ended" if self._ended else ""
+        return f"<Driving at {self.location}, samples={self._samples}, objective={self._objective!r}{ending}>"

@@ -5,12 +5,15 @@ evaluated with Evaluator on one-row frames, rac.runtime.interpreter.RewardAutoma
 along random action sequences (hypothesis), on a tiny scenario with a probe automaton (numeric
 inputs that get clipped, a rate and an update that read inputs, ``prev``, an ``at end`` clause,
 a goal the ego can reach) and on examples/left_turn/model.ra. Also: the reward-expression mode,
-goal termination, frozen done episodes, observe(), the shield's state keys and the errors.
+goal termination, the automaton's `episode ends when`, frozen done episodes, observe(), the shield's state keys
+and the errors.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +22,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from tiny_scenarios import goal_ahead
 
+from rac import ir
 from rac.check.queries import lower_expression
 from rac.compiler import CompileResult, compile_file, compile_text
 from rac.core.diagnostics import CheckError
@@ -27,6 +31,7 @@ from rac.engine.explore import action_pairs, explore
 from rac.lang import ast
 from rac.learning.episodes import EpisodeBatch, StepResult, parse_expr
 from rac.model import NativeModel, State
+from rac.model.program import CheckedProgram
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import input_specs
 
@@ -94,6 +99,7 @@ class Reference:
     rewards: list[float] = field(default_factory=list)
     terminated: list[bool] = field(default_factory=list)
     truncated: list[bool] = field(default_factory=list)
+    ended: list[bool] = field(default_factory=list)
     collided: list[bool] = field(default_factory=list)
     offroad: list[bool] = field(default_factory=list)
     k: int = 0
@@ -115,7 +121,7 @@ def one_frame(k: int, state: State, ra: RewardAutomaton | None = None, inputs: d
                  inputs=values, prev=prev)
 
 
-def reference(result: CompileResult, actions: list[int], horizon: int, *, goal: bool = True,
+def reference(result: CompileResult | CheckedProgram, actions: list[int], horizon: int, *, goal: bool = True,
               reward: ast.Expr | None = None) -> Reference:
     """NativeModel + Evaluator (one row at a time) + RewardAutomaton, sample by sample."""
     data, automaton = result.model_data, result.automaton
@@ -162,14 +168,15 @@ def reference(result: CompileResult, actions: list[int], horizon: int, *, goal: 
             else:
                 total += float(evaluator.evaluate(checked, one_frame(k, state, ra, inputs, prev=before))[0])
             reached = goal and native.goal(state, k)
-            if reached or k == horizon:
-                bonus = ra.end(values)
+            if reached or k == horizon or ra.terminated:
+                bonus = ra.end(values)  # 0.0 where `episode ends when` has ended the run (its clauses applied)
                 total += bonus if reward is None else 0.0
                 ended = True
                 break
         out.rewards.append(total)
         out.terminated.append(reached)
-        out.truncated.append(ended and not reached)
+        out.ended.append(ra.terminated)
+        out.truncated.append(ended and not reached and not ra.terminated)
         out.collided.append(collided)
         out.offroad.append(offroad)
         if ended:
@@ -191,18 +198,18 @@ def play(batch: EpisodeBatch, plans: list[list[int]]) -> list[StepResult]:
         out = batch.step(actions)
         results.append(out)
         assert not (out.reward[frozen] != 0).any()
-        for flag in (out.terminated, out.truncated, out.collided, out.offroad):
+        for flag in (out.terminated, out.truncated, out.collided, out.offroad, out.ended):
             assert not flag[frozen].any()
         assert (batch.k[frozen] == before[0][frozen]).all() and (batch.ego[frozen] == before[1][frozen]).all()
         assert (batch.location[frozen] == before[2][frozen]).all()
         assert all((batch.rewards[r][frozen] == before[3][r][frozen]).all() for r in before[3])
         assert (batch.objective[frozen] == before[4][frozen]).all()
-        assert (batch.done == (frozen | out.terminated | out.truncated)).all()
+        assert (batch.done == (frozen | out.terminated | out.truncated | out.ended)).all()
     assert batch.done.all()
     return results
 
 
-def compare(batch: EpisodeBatch, result: CompileResult, plans: list[list[int]], *, goal: bool = True,
+def compare(batch: EpisodeBatch, result: CompileResult | CheckedProgram, plans: list[list[int]], *, goal: bool = True,
             reward: ast.Expr | None = None) -> list[StepResult]:
     """Play ``plans`` (:func:`play`) and check every episode against :func:`reference`; the StepResults."""
     clipped = batch.clipped
@@ -214,7 +221,7 @@ def compare(batch: EpisodeBatch, result: CompileResult, plans: list[list[int]], 
         expected_clipped += ref.clipped
         steps = len(ref.rewards)
         assert [out.reward[i] for out in results[:steps]] == ref.rewards  # bit for bit
-        for name in ("terminated", "truncated", "collided", "offroad"):
+        for name in ("terminated", "truncated", "ended", "collided", "offroad"):
             assert [bool(getattr(out, name)[i]) for out in results[:steps]] == getattr(ref, name), name
         assert all(out.reward[i] == 0 for out in results[steps:])
         assert batch.k[i] == ref.k and tuple(batch.ego[i].tolist()) == tuple(ref.state)
@@ -291,6 +298,30 @@ def test_goal_terminates_at_the_first_goal_sample(probe: CompileResult) -> None:
     results = compare(free, probe, [[go] * free.max_steps], goal=False)
     assert free.k[0] == free.horizon_samples and results[free.max_steps - 1].truncated[0]
     assert not any(out.terminated.any() for out in results)
+
+
+#: The probe's runs end when an obstacle is near or the goal is nearer than 28 m (the start is about 39 m away).
+PROBE_ENDS = ir.BOr((ir.BInput("near"), ir.BAtom("d", "<", Fraction(28))))
+
+
+@HYPOTHESIS
+@given(data=st.data(), goal=st.booleans())
+def test_episode_ends_when_the_automaton_ends_the_run(probe: CompileResult, data: st.DataObject, goal: bool) -> None:
+    """`episode ends when`: the episode ends at the sample whose inputs satisfy the condition (StepResult.ended),
+    the end clauses' increase in that sample's reward, exactly as the scalar runtime ends it."""
+    program = CheckedProgram(dataclasses.replace(probe.automaton, episode_ends=PROBE_ENDS), probe.model_data)
+    batch = EpisodeBatch(program, goal=parse_expr("goal()") if goal else None,
+                         horizon_samples=data.draw(st.integers(1, 12)))
+    compare(batch, program, data.draw(plans_of(batch.n_actions, batch.max_steps)), goal=goal)
+
+
+def test_speeding_up_ends_the_episode_early(probe: CompileResult) -> None:
+    program = CheckedProgram(dataclasses.replace(probe.automaton, episode_ends=PROBE_ENDS), probe.model_data)
+    batch = EpisodeBatch(program, goal=None, horizon_samples=12)
+    go, keep = speed_up(batch), batch.action_pairs.tolist().index([0, 0])
+    results = compare(batch, program, [[go] * batch.max_steps, [keep] * batch.max_steps], goal=False)
+    assert any(out.ended[0] for out in results) and batch.k[0] < batch.horizon_samples
+    assert not any(out.truncated[0] or out.terminated[0] for out in results)
 
 
 def test_a_custom_goal_may_read_the_automaton(probe: CompileResult) -> None:

@@ -3,11 +3,13 @@
 gymnasium's env_checker passes; the observation, reward and info are those of EpisodeBatch with
 one episode; a random walk under a safety shield (rac.engine.explore + rac.engine.storm.safety_shield
 + rac.engine.shield.table) never collides nor leaves the road on a tiny scenario, while unshielded ones do;
-unseen states follow the shield's policy; horizon, seeding and errors.
+unseen states follow the shield's policy; horizon, seeding and errors; an automaton's `episode ends when`
+terminates the episode.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from pathlib import Path
 
@@ -17,6 +19,7 @@ import pytest
 from engine_files import write_engine_file
 from gymnasium.utils.env_checker import check_env
 
+from rac import ir
 from rac.compiler import CompileResult, compile_file, compile_text
 from rac.core.diagnostics import CheckError
 from rac.engine import shield as shield_file
@@ -547,3 +550,40 @@ def test_a_scale_for_a_reward_expression_is_the_users(tiny: CompileResult) -> No
     _, raw, *_ = plain.step(0)
     _, reward, *_ = scaled.step(0)
     assert float(raw) > 10 and float(reward) == pytest.approx(float(raw) / 10)
+
+
+def test_the_automaton_ends_the_episode(tiny: CompileResult) -> None:
+    """`episode ends when near`: the episode terminates at the first sample the van is near (the goal is
+    not reached: info's goal stays False), with the reward EpisodeBatch gives; speeding up gets there."""
+    ending = dataclasses.replace(tiny, automaton=dataclasses.replace(tiny.automaton, episode_ends=ir.BInput("near")))
+    env, batch = ScenarioEnv(ending), EpisodeBatch(ending)
+    env.reset(seed=0)
+    batch.reset(1)
+    fastest = int(np.argmax(env.episodes.action_pairs[:, 0] - np.abs(env.episodes.action_pairs[:, 1])))
+    done, steps = False, 0
+    while not done:
+        _, reward, terminated, truncated, info = env.step(fastest)
+        out = batch.step(np.array([fastest]))
+        assert reward == out.reward[0] and terminated == bool(out.terminated[0] or out.ended[0])
+        assert truncated == out.truncated[0] and info["goal"] == out.terminated[0]
+        done, steps = terminated or truncated, steps + 1
+    assert terminated and out.ended[0] and not info["goal"] and info["inputs"] == {"near": True}
+    assert info["time"] < 4.0 and env.episodes.done.all()
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(0)
+
+
+def test_a_file_that_ends_its_episodes(tmp_path: Path) -> None:
+    """`episode ends when near` written in the file's automaton: ScenarioEnv terminates at the first sample
+    the van is near, as with the declaration set on the IR above."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", queries={})
+    text = path.read_text(encoding="utf-8").replace("    model {", "    episode ends when near\n\n    model {")
+    path.write_text(text, encoding="utf-8")
+    env = ScenarioEnv(path)
+    assert env.episodes.automaton.episode_ends == ir.BInput("near")
+    env.reset(seed=0)
+    fastest = int(np.argmax(env.episodes.action_pairs[:, 0] - np.abs(env.episodes.action_pairs[:, 1])))
+    terminated = truncated = False
+    while not (terminated or truncated):
+        _, _, terminated, truncated, info = env.step(fastest)
+    assert terminated and not info["goal"] and info["inputs"] == {"near": True} and info["time"] < 4.0

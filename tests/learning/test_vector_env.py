@@ -9,6 +9,7 @@ several autoreset episodes, with and without a shield; seeding and errors.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import subprocess
 import sys
@@ -24,6 +25,7 @@ from gymnasium.utils.env_checker import check_env
 from tiny_scenarios import WALL_EGO, GoalBox, StraightRoad, straight_road
 
 import rac.gym
+from rac import ir
 from rac.compiler import CompileResult, compile_file
 from rac.engine import shield as shield_file
 from rac.engine.explore import explore
@@ -69,6 +71,13 @@ def near(files: dict[str, Path]) -> CompileResult:
     result = compile_file(files["near_goal"])
     assert result.ok, [d.message for d in result.diagnostics]
     return result
+
+
+@pytest.fixture(scope="module")
+def tiny_ends(tiny: CompileResult) -> CompileResult:
+    """The tiny file whose automaton ends the episode where the van is near (`episode ends when near`)."""
+    assert tiny.automaton is not None
+    return dataclasses.replace(tiny, automaton=dataclasses.replace(tiny.automaton, episode_ends=ir.BInput("near")))
 
 
 @pytest.fixture(scope="module")
@@ -191,7 +200,7 @@ def assert_same(left: Any, right: Any, where: str) -> None:
         assert (left == right).all(), (where, left, right)
 
 
-@pytest.mark.parametrize("scene, shielded", [("near", False), ("tiny", False), ("tiny", True)])
+@pytest.mark.parametrize("scene, shielded", [("near", False), ("tiny", False), ("tiny", True), ("tiny_ends", False)])
 def test_equals_a_sync_vector_env(request: pytest.FixtureRequest, scene: str, shielded: bool) -> None:
     result: CompileResult = request.getfixturevalue(scene)
     shield = request.getfixturevalue("table") if shielded else None
@@ -208,7 +217,7 @@ def test_equals_a_sync_vector_env(request: pytest.FixtureRequest, scene: str, sh
     assert_same(a_info, b_info, "info")
     rng = np.random.default_rng(2)
     pending = np.zeros(n, dtype=bool)
-    ended, staggered = 0, False
+    ended, staggered, by_automaton = 0, False, 0
     for step in range(40):
         masks = native.action_masks()
         other = np.stack([env.action_masks() for env in sync.envs])  # type: ignore[attr-defined]
@@ -221,8 +230,11 @@ def test_equals_a_sync_vector_env(request: pytest.FixtureRequest, scene: str, sh
             assert_same(x, y, f"step {step} {name}")
         pending = a_out[2] | a_out[3]
         ended += int(pending.sum())
+        by_automaton += int((a_out[2] & ~a_out[4]["goal"]).sum())  # terminated without the goal
         staggered |= len(set(native.episodes.k.tolist())) > 1
-    assert staggered == (scene == "near")  # near_goal: episodes of 1 to 4 steps, restarted apart
+    # near_goal: episodes of 1 to 4 steps, restarted apart; the van near ends some episodes early
+    assert staggered == (scene in ("near", "tiny_ends"))
+    assert (by_automaton > 0) == (scene == "tiny_ends")
     assert ended >= 2 * n  # several episodes each, restarted by autoreset
     singles = [env.unwrapped for env in sync.envs]
     assert native.shield_steps == sum((env.shield_steps for env in singles), start=type(native.shield_steps)())

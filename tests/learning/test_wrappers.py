@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
+from fractions import Fraction
 from typing import Any
 
 import gymnasium
@@ -14,8 +16,10 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.wrappers import TimeLimit
 from highway_like import HighwayLike, follow, inputs, vector_inputs
 
+from rac import ir
 from rac.check.analysis.scale import sample_change_bound
 from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper, env_timing
+from rac.runtime.interpreter import RewardAutomaton
 
 ENV_ID = "rac-test/HighwayLike-v0"
 if ENV_ID not in gymnasium.registry:
@@ -113,12 +117,20 @@ def test_highway_env_timing_is_read_from_its_config() -> None:
     assert env_timing(object()) == (None, None)
 
 
-def test_the_vector_wrapper_equals_single_wrappers_over_whole_episodes() -> None:
+#: Follow whose episode ends when the gap closes below 3 m or opens to 9.5 m (where its end bonus applies).
+FOLLOW_ENDS = dataclasses.replace(follow(), episode_ends=ir.BOr((ir.BAtom("headway", "<", Fraction(3)),
+                                                                 ir.BAtom("headway", ">=", Fraction(19, 2)))))
+
+
+@pytest.mark.parametrize("automaton", [follow(), FOLLOW_ENDS], ids=["follow", "episode-ends"])
+def test_the_vector_wrapper_equals_single_wrappers_over_whole_episodes(automaton: ir.Automaton) -> None:
+    """With `episode ends when`, episodes the automaton ends while the environment goes on are reset by
+    the vector wrapper on the next step, as a single wrapper's user resets after `terminated`."""
     n, seed = 3, 7
     vector = RewardAutomatonVectorWrapper(
-        SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30) for _ in range(n)]), follow(), vector_inputs,
+        SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30) for _ in range(n)]), automaton, vector_inputs,
         clip=True, scale="proven")
-    singles = [RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True, scale="proven")
+    singles = [RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), automaton, inputs, clip=True, scale="proven")
                for _ in range(n)]
     vector.reset(seed=seed)
     for i, single in enumerate(singles):
@@ -126,17 +138,21 @@ def test_the_vector_wrapper_equals_single_wrappers_over_whole_episodes() -> None
     rng = np.random.default_rng(0)
     resetting = [False] * n
     episodes = 0
+    ended_early = 0
     for _ in range(120):
         actions = rng.integers(0, 3, n)
-        _, rewards, terminated, truncated, infos = vector.step(actions)
+        obs, rewards, terminated, truncated, infos = vector.step(actions)
         assert infos["_rac"].all()
         for i, single in enumerate(singles):
             if resetting[i]:
-                single.reset()
+                single_obs, _ = single.reset()
                 assert rewards[i] == 0.0 and infos["rac"]["location"][i] == "Safe"
+                assert obs[i].tolist() == single_obs.tolist() and not terminated[i] and not truncated[i]
                 resetting[i] = False
                 continue
-            _, reward, term, trunc, info = single.step(int(actions[i]))
+            single_obs, reward, term, trunc, info = single.step(int(actions[i]))
+            ended_early += bool(term) and not single.env.unwrapped.gap <= 0.0  # the automaton ended it
+            assert obs[i].tolist() == single_obs.tolist()
             assert rewards[i] == reward
             assert (term, trunc) == (terminated[i], truncated[i])
             assert infos["rac"]["location"][i] == info["rac"]["location"]
@@ -146,7 +162,40 @@ def test_the_vector_wrapper_equals_single_wrappers_over_whole_episodes() -> None
                 resetting[i] = True
                 episodes += 1
     assert episodes >= n  # whole episodes, with autoreset
+    assert (ended_early > 0) == (automaton.episode_ends is not None)
     assert vector.clipped_total == {"headway": sum(s.clipped_total.get("headway", 0) for s in singles)}
+
+
+class Gap(gymnasium.Env):
+    """Observation [gap]; the action is the next gap (a fake environment that never ends by itself)."""
+
+    observation_space = gymnasium.spaces.Box(0.0, 10.0, (1,), dtype=np.float32)
+    action_space = gymnasium.spaces.Box(0.0, 10.0, (1,), dtype=np.float32)
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        return np.array([5.0], dtype=np.float32), {"collision": False}
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        return np.asarray(action, dtype=np.float32).reshape(1), 0.0, False, False, {"collision": False}
+
+
+def test_the_automaton_ends_the_episode_with_its_end_clauses() -> None:
+    env = RewardAutomatonWrapper(Gap(), FOLLOW_ENDS, inputs)
+    reference = RewardAutomaton(FOLLOW_ENDS)
+    env.reset(seed=0)
+    for gap in (5.0, 8.0):
+        _, reward, terminated, truncated, _ = env.step(np.array([gap]))
+        assert reward == reference.step({"headway": gap, "collide": False}) and not terminated and not truncated
+    _, reward, terminated, truncated, info = env.step(np.array([9.5]))
+    expected = reference.step({"headway": 9.5, "collide": False})  # the end bonus pr + 5 in this step
+    assert terminated and not truncated and reward == expected and info["rac"]["rewards"] == reference.rewards
+    assert info["rac"]["reward_steps"]["pr"] == pytest.approx(5.1) and env.automaton.ended  # type: ignore[attr-defined]
+    with pytest.raises(RuntimeError, match="the run has ended"):
+        env.step(np.array([5.0]))  # gymnasium's contract: reset after terminated
+    env.reset()
+    assert not env.step(np.array([4.0]))[2]
 
 
 def test_the_vector_wrapper_refuses_other_autoreset_modes() -> None:

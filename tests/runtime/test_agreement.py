@@ -4,7 +4,9 @@ Each test runs ``n`` columns; a column is a sequence of samples with episode end
 ``reset``) scheduled before some samples and a final ``end``. Every column runs on its own
 interpreter and generated instance; all columns run at once on a batch (both edge-selection
 strategies), ended columns restarted with ``reset(mask)``. After every operation the returned
-reward, the location, every reward value, the objective and the sample count must be identical.
+reward, the location, every reward value, the objective, the sample count and whether the run
+ended and was terminated must be identical. With ``episode ends when``, a column whose sample ends
+its run is then ended again (``end``: 0.0, nothing changes) and reset before its next sample.
 """
 
 from __future__ import annotations
@@ -12,11 +14,12 @@ from __future__ import annotations
 import math
 import struct
 import types
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
+import pytest
 from driving_ir import driving_automaton
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -41,15 +44,17 @@ class Column:
     final: Values
 
 
-def record(reward: float, location: str, rewards: dict[str, float], objective: float, samples: int) -> Record:
-    return (bits(reward), location, tuple((k, bits(v)) for k, v in rewards.items()), bits(objective), samples)
+def record(reward: float, location: str, rewards: dict[str, float], objective: float, samples: int,
+           ended: bool, terminated: bool) -> Record:
+    return (bits(reward), location, tuple((k, bits(v)) for k, v in rewards.items()), bits(objective), samples,
+            bool(ended), bool(terminated))
 
 
 def run_single(ra: Any, column: Column) -> list[Record]:
     out = []
 
     def note(reward: float) -> None:
-        out.append(record(reward, ra.location, ra.rewards, ra.objective, ra.samples))
+        out.append(record(reward, ra.location, ra.rewards, ra.objective, ra.samples, ra.ended, ra.terminated))
 
     ra.reset()
     for t, values in enumerate(column.steps):
@@ -57,6 +62,9 @@ def run_single(ra: Any, column: Column) -> list[Record]:
             note(ra.end(column.ends[t]))
             ra.reset()
         note(ra.step(values))
+        if ra.terminated:
+            note(ra.end(column.final))
+            ra.reset()
     note(ra.end(column.final))
     return out
 
@@ -72,10 +80,11 @@ def run_batch(automaton: ir.Automaton, columns: list[Column], strategy: str) -> 
 
     def note(rewards: np.ndarray, mask: np.ndarray) -> None:
         locations, values, objective, samples = batch.locations, batch.rewards, batch.objective, batch.samples
+        ended, terminated = batch.ended, batch.terminated
         for j in np.flatnonzero(mask):
             current = {k: float(v[j]) for k, v in values.items()}
             out[j].append(record(float(rewards[j]), names[locations[j]], current, float(objective[j]),
-                                 int(samples[j])))
+                                 int(samples[j]), ended[j], terminated[j]))
 
     everyone = np.ones(len(columns), dtype=bool)
     for t in range(len(columns[0].steps)):
@@ -86,6 +95,14 @@ def run_batch(automaton: ir.Automaton, columns: list[Column], strategy: str) -> 
             note(rewards, mask)
             batch.reset(mask=mask)
         note(batch.step_batch(stack([c.steps[t] for c in columns])), everyone)
+        terminated = batch.terminated
+        if terminated.any():
+            with pytest.raises(RuntimeError, match="the run has ended"):
+                batch.step_batch(stack([c.steps[t] for c in columns]))
+            rewards = batch.end_batch(stack([c.final for c in columns]), mask=terminated)
+            assert not rewards.any()
+            note(rewards, terminated)
+            batch.reset(mask=terminated)
     note(batch.end_batch(stack([c.final for c in columns])), everyone)
     return out
 
@@ -133,6 +150,16 @@ DRIVING = driving_automaton()
 @given(columns_of(driving_values()))
 def test_driving_agrees(columns: list[Column]) -> None:
     check_agreement(DRIVING, columns)
+
+
+#: The driving automaton whose run ends at a collision or near the goal (its end clause applied there).
+DRIVING_ENDS = replace(DRIVING, episode_ends=ir.BOr((ir.BInput("collide"), ir.BAtom("dgoal", "<", Fraction(2)))))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(columns_of(driving_values()))
+def test_driving_with_episode_ends_agrees(columns: list[Column]) -> None:
+    check_agreement(DRIVING_ENDS, columns)
 
 
 # ---------------------------------------------------------------- random small automata
@@ -198,10 +225,13 @@ def automata(draw: st.DrawFn) -> ir.Automaton:
                            for guard in cells))
     end_clauses = tuple(ir.EndClause(draw(st.sampled_from(draw(partition()))), draw(updates(rewards)))
                         for _ in range(draw(st.integers(0, 2))))
+    # `episode ends when`: absent, or one cell of a partition (sometimes true: every first sample ends)
+    episode_ends = draw(st.one_of(st.none(), st.sampled_from(draw(partition()))))
     return ir.Automaton(
         name="Random", inputs=INPUTS, rewards=rewards, locations=locations,
         initial=draw(st.integers(0, n_loc - 1)),
-        edges=tuple(edges), end_clauses=end_clauses, assumptions=draw(st.sampled_from([(), (LIMITED,)])),
+        edges=tuple(edges), end_clauses=end_clauses, episode_ends=episode_ends,
+        assumptions=draw(st.sampled_from([(), (LIMITED,)])),
         objective=draw(linear(rewards)), priority=rewards, strict=False,
         period=draw(st.sampled_from([Fraction(1, 10), Fraction(1, 4), Fraction(1), Fraction(1, 3),
                                      Fraction(3, 2)])),

@@ -36,14 +36,17 @@ input, with two ``at end`` clauses and bindings that read ``prev()`` of a condit
 speed, in the tiny scenario ``goal_ahead`` (no obstacle). Each plays 200 seeded random action
 sequences, then one run to every value of every boolean input, location, label and ``at end``
 guard that the engine's graph reaches and the random runs missed, and checks that together they
-saw every such value. Two more tests: a changed label of the emitted model makes the comparison
-fail (it is live), and a binding that reads ``prev(turn)`` and ``prev(jerk)`` reads the same value
-at the first sample whichever order UPPAAL takes the committed edges at time 0 in.
+saw every such value. The last two also with `episode ends when` (a run ends where its sample's
+inputs satisfy the condition, in the network as in the engine). Two more tests: a changed label of
+the emitted model makes the comparison fail (it is live), and a binding that reads ``prev(turn)``
+and ``prev(jerk)`` reads the same value at the first sample whichever order UPPAAL takes the
+committed edges at time 0 in.
 """
 
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import math
 import re
 import shutil
@@ -517,7 +520,8 @@ def follow(graph: ProductGraph, state: int, action: int) -> int:
 
 
 def engine_path(graph: ProductGraph, decide_every: int, actions: list[int]) -> dict[tuple[int, int], int]:
-    """The graph's node at each (sample, phase) along ``actions`` (one per decision sample)."""
+    """The graph's node at each (sample, phase) along ``actions`` (one per decision sample), up to the
+    run's end: the horizon, or the sample `episode ends when` ends it at."""
     node, nodes, decisions = graph.initial, {(0, SAMPLED): graph.initial}, iter(actions)
     for k in range(graph.horizon):
         node = follow(graph, node, next(decisions) if k % decide_every == 0 else -1)
@@ -529,10 +533,13 @@ def engine_path(graph: ProductGraph, decide_every: int, actions: list[int]) -> d
             node = follow(graph, node, -1)
         assert (int(graph.k[node]), int(graph.phase[node])) == (k + 1, SAMPLED)
         nodes[(k + 1, SAMPLED)] = node
+        targets = graph.choice_target[graph.choices(node)]
+        if targets.size == 0 or (targets.size == 1 and graph.phase[targets[0]] == ENDED):
+            break  # the run ends here (`episode ends when`, or the horizon)
     if not graph.terminal()[node]:
         node = follow(graph, node, -1)
         assert int(graph.phase[node]) == ENDED
-        nodes[(graph.horizon, ENDED)] = node
+        nodes[(int(graph.k[node]), ENDED)] = node
     assert graph.terminal()[node]
     return nodes
 
@@ -563,9 +570,10 @@ class Scenario:
     graph: ProductGraph
 
 
-def build(source: Path) -> Scenario:
+def build(source: Path, ends: ir.Guard | None = None) -> Scenario:
+    """The file's scenario; ``ends``: its automaton with `episode ends when` that condition."""
     result = compile_file(source)
-    automaton = result.raise_for_errors()
+    automaton = dataclasses.replace(result.raise_for_errors(), episode_ends=ends)
     data = result.model_data
     xml = generate_uppaal_model(automaton, data=data).xml
     return Scenario(automaton, data, xml, explore_product(data, automaton))
@@ -750,7 +758,11 @@ class Comparison:
             self.check_obstacle_flow(k, f"before sample {k + 1}")
         else:
             raise AssertionError("the run did not finish")
-        assert finished == [g.horizon] and state[2] == len(actions)
+        end = max(k for k, _ in nodes)  # the horizon, or the sample the automaton ended the run at
+        assert finished == [end] and state[2] == -(-end // self.decide_every)
+        if a.episode_ends is not None:  # after the end the hybrid clocks stop: their rates are 0
+            state = net.delay(state)
+            self.check_rewards(f"{net.value('count')} samples, one period after the end")
         assert [p.name for p in net.processes if p.template == GROUND_TRUTH] == [GROUND_TRUTH]
         assert state[0][net.index[GROUND_TRUTH]] != net.processes[net.index[GROUND_TRUTH]].init
 
@@ -826,6 +838,10 @@ def meter_source(folder: Path, bindings: tuple[str, ...] = METER_BINDINGS) -> Pa
 SOURCES = {"left_turn": left_turn_source,
            "avoidable_obstacle": lambda folder: tiny_driving_source(folder, "avoidable_obstacle"),
            "meter_goal_ahead": meter_source}
+#: `episode ends when`: the driving automaton's run ends at an uncomfortable sample or near the goal (its
+#: end clause), the meter's where `gain` holds (its first end clause applies there).
+ENDS = {"avoidable_obstacle": ir.BOr((ir.BNot(ir.BInput("comf")), ir.BAtom("dgoal", "<", Fraction(2)))),
+        "meter_goal_ahead": ir.BInput("gain")}
 
 
 # ---------------------------------------------------------------- tests
@@ -833,6 +849,17 @@ SOURCES = {"left_turn": left_turn_source,
 def test_the_emitted_network_runs_like_the_engine(name: str, tmp_path: Path) -> None:
     comparison = Comparison(build(SOURCES[name](tmp_path)), tmp_path)
     assert comparison.run_many(seed=11) >= RUNS
+
+
+@pytest.mark.parametrize("name", sorted(ENDS))
+def test_a_run_ends_where_the_automaton_ends_it(name: str, tmp_path: Path) -> None:
+    """`episode ends when`: the emitted Timer ends the run (finish!, the end clauses on that sample's inputs,
+    no later sample, the hybrid clocks stopped) exactly where the engine's product does."""
+    scenario = build(SOURCES[name](tmp_path), ENDS[name])
+    ended = scenario.graph.phase == ENDED
+    assert (ended & (scenario.graph.k < scenario.graph.horizon)).any()  # some runs end before the horizon
+    comparison = Comparison(scenario, tmp_path)
+    assert comparison.run_many(seed=13) >= RUNS
 
 
 @pytest.mark.parametrize(("label", "changed"), [

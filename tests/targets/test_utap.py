@@ -29,8 +29,10 @@ the model, the queries in its ``<queries>`` section and every line of the ``.q``
   ``collision_distance``, ``mindist()``, the true state ``true_x``);
 * the whole model of each shared scenario (``../shared/scenarios/*.xml``, skipped when absent)
   with examples/left_turn/model.ra's settings, as tests/targets/test_uppaal_model.py compiles them;
-* random reward automata (hypothesis; the strategy of tests/runtime/test_agreement.py) emitted alone by
-  ``generate_uppaal``, with queries of several forms over their names.
+* random reward automata (hypothesis; the strategy of tests/runtime/test_agreement.py, some with
+  ``episode ends when``) emitted alone by ``generate_uppaal``, with queries of several forms over their names;
+* stdlib/driving.ra's automaton with ``episode ends when collide || dgoal < 2``, alone and as the
+  whole model of each tiny scenario.
 
 Without the validator these tests skip (under ``RAC_REQUIRE_UTAP=1``, as in CI, they fail);
 the end of the session prints how many models and query files it accepted.
@@ -41,6 +43,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -341,3 +344,36 @@ def test_the_longest_name_reaches_uppaal(length: int, utap: Utap, tmp_path: Path
         assert "error[E0012]: a name of 3,901 characters: at most 3,900" in capsys.readouterr().out
         return
     utap.validate_files(*compile_cli(source, tmp_path / "long.xml", capsys))
+
+
+# ---------------------------------------------------------------- episode ends when
+#: `episode ends when collide || dgoal < 2` over stdlib/driving.ra's inputs.
+ENDS = ir.BOr((ir.BInput("collide"), ir.BAtom("dgoal", "<", Fraction(2))))
+
+
+@pytest.mark.parametrize("name", [None, *sorted(TINY_SCENARIOS)])
+def test_episode_ends_reaches_uppaal(utap: Utap, name: str | None, tmp_path: Path,
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """An automaton whose run ends at a sample (`episode ends when collide || dgoal < 2` in its file),
+    compiled by `rac compile --target uppaal` alone and as the whole model of each tiny scenario: the
+    Timer's `sense!` edges are guarded by the condition (the one into the ending sets `ended`), every
+    non-zero rate stops once `ended` is set, and UPPAAL accepts model and queries."""
+    if name is None:
+        source = tmp_path / "ends.ra"
+        queries = [query for form in ("A[]", "E-max", "simulate", "learning-under") for query in QUERY_FORMS[form]]
+        source.write_text(with_queries(driving_without_queries(), queries), encoding="utf-8")
+    else:
+        source = tiny_source(tmp_path, name, AUTOMATON_QUERIES)
+    text = source.read_text(encoding="utf-8")
+    source.write_text(text.replace("    at end when", "    episode ends when collide || dgoal < 2\n\n    at end when"),
+                      encoding="utf-8")
+    assert compile_file(source).raise_for_errors().episode_ends == ENDS
+    xml_path, queries_path = compile_cli(source, tmp_path / f"ends_{name or 'alone'}.xml", capsys)
+    xml = xml_path.read_text(encoding="utf-8")
+    assert "bool ended;" in xml
+    condition = r"\(collide_? \|\| dgoal &lt; \d+\)"  # the model's collide() makes the input `collide_`
+    assert re.search(rf"count == STEPS \|\| {condition}<", xml)
+    assert len(re.findall(rf"count &lt; STEPS &amp;&amp; [^<]*!{condition}<", xml)) == (1 if name is None else 2)
+    assert "settled = true, ended = true" in xml
+    assert re.search(r"sa&#39; == \(ended \? 0\.0 : 0\.\d\)", xml) and "co&#39; == 0" in xml
+    utap.validate_files(xml_path, queries_path)

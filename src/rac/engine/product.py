@@ -24,9 +24,13 @@ Storm, so the query is answered on runs the scenario can produce, not on every i
    (jerk, turn) pair (action index as in :func:`rac.engine.explore.action_pairs`; at time 0 too).
 
 After the horizon's last sample ``finish!`` applies the ``at end`` clauses in order, on the inputs of
-that sample. ``horizon_samples`` stands for the automaton's ``horizon`` (the emitted model of a copy
-with ``horizon = horizon_samples * period``, as docs/uppaal.md suggests for Qe–Qh; the default, the
-automaton's own horizon, is the emitted model itself).
+that sample. With ``episode ends when COND`` (:func:`rac.runtime.semantics.ends_guard`), a sample
+whose inputs satisfy COND is the last of its run, as in the emitted model: its ``sampled`` state is
+followed by its ``ended`` state (the ``at end`` clauses applied on its inputs; with no clauses, the
+``sampled`` state itself is terminal), and nothing else. ``horizon_samples`` stands for the
+automaton's ``horizon`` (the emitted model of a copy with ``horizon = horizon_samples * period``,
+as docs/uppaal.md suggests for Qe–Qh; the default, the automaton's own horizon, is the emitted model
+itself).
 
 **States** are the instants at which a query can see something new (:data:`PHASES`): ``sampled``
 (after the edge; the start, at ``k = 0``, is one), ``accrued`` (after ``accrue!``: the new ego and
@@ -85,7 +89,7 @@ from rac.model.data import ModelData, ModelRangeError
 from rac.model.program import CheckedProgram, ProgramSource, program_of
 from rac.model.sample import ACTION, CRASHED, EGO, PRODUCT_EGO, ProductColumn, collides
 from rac.model.sample import labels as label_states
-from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
+from rac.runtime.semantics import ends_guard, first_sample_reads, mirror_accrual, mirror_update
 
 __all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
            "explore_product", "trace_to"]
@@ -267,7 +271,9 @@ class _Builder:
         #: The bytes of one state while exploring (int64 columns, labels) and of one choice.
         self.state_bytes = state_bytes
         self.layers: list[_Layer] = []
-        self.links: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # counts, actions, local targets
+        #: Per layer, in order: its states' choice counts, the actions, each choice's target (an index into
+        #: the layer ``skip`` layers on: 1, the next one, or 2 past an early `ended` layer).
+        self.links: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         self.total = self.choices = 0
 
     def add(self, layer: _Layer) -> None:
@@ -281,8 +287,10 @@ class _Builder:
         needed = (self.total + rows) * self.state_bytes + self.choices * GRAPH_BYTES_PER_CHOICE
         self.budget.check_bytes(needed, self.total, k)
 
-    def link(self, counts: np.ndarray, actions: np.ndarray, targets: np.ndarray) -> None:
-        self.links.append((counts.astype(np.int64), actions.astype(np.int64), targets.astype(np.int64)))
+    def link(self, counts: np.ndarray, actions: np.ndarray, targets: np.ndarray,
+             skip: np.ndarray | None = None) -> None:
+        skips = np.ones(targets.shape[0], dtype=np.int64) if skip is None else skip.astype(np.int64)
+        self.links.append((counts.astype(np.int64), actions.astype(np.int64), targets.astype(np.int64), skips))
 
     def single(self, targets: np.ndarray) -> None:
         """One choice (action -1) per state of the last layer."""
@@ -430,6 +438,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     pairs = action_pairs(data).astype(np.int64)
     guard = ActionGuard(data)
     n_inputs, n_rewards = len(automaton.inputs), len(automaton.rewards)
+    ends = ends_guard(automaton)
 
     def labels(frame: Frame) -> dict[str, np.ndarray]:
         # through the evaluator, so that the bindings' mindist() etc. on this frame are reused
@@ -472,6 +481,14 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     for k in range(0 if stopped else horizon):
         # ---- the choices: as explore(), one per action pair at decision samples
         expand = sampled.labels["safe"] if prune_unsafe else np.ones(sampled.n, dtype=bool)
+        early: _Layer | None = None  # `episode ends when`: the ended states of the runs that end at sample k
+        ending = np.zeros(sampled.n, dtype=bool)
+        if ends is not None and k > 0:
+            ending = expand & arithmetic.guard(ends, sampled.inputs)
+            expand = expand & ~ending
+            if automaton.end_clauses and ending.any():
+                rows = sampled.take(np.flatnonzero(ending))
+                early = dataclasses.replace(rows, phase=ENDED, mirrors=arithmetic.end(rows.inputs, rows.mirrors))
         if beam is not None and int(expand.sum()) > beam[0]:
             candidates = np.flatnonzero(expand)
             scores = np.asarray(beam[1](_layer_graph(sampled, automaton, data, horizon, bindings, evaluator)))
@@ -479,7 +496,12 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
             expand[candidates[np.argsort(scores[candidates], kind="stable")[:beam[0]]]] = True
             narrowed = True
         sources = np.flatnonzero(expand)
-        if sources.size == 0:  # every state pruned: the last layer is terminal
+        if early is not None:
+            early, _, to_early = early.merged()
+            if add(early) or sources.size == 0:  # stopped, or every run has ended: the ended layer is the last
+                built.link(ending, np.full(to_early.size, -1), to_early)
+                break
+        if sources.size == 0:  # every state pruned (or ended): the last layer is terminal
             break
         if k % data.decide_every == 0:
             per = len(pairs)
@@ -522,7 +544,15 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
         rows = _Layer(k + 1, ACCRUED, after[inv_u], sampled.loc[src], sampled.inputs[src], mirrors,
                       sampled.prevs[src], {name: mask[inv_u] for name, mask in sample_labels.items()})
         accrued, first_a, to_accrued = rows.merged()
-        built.link(counts, action, to_accrued)
+        if early is None:
+            built.link(counts, action, to_accrued)
+        else:  # the sampled layer's choices: one into the ended layer per ending state, the others past it
+            state = np.concatenate([np.flatnonzero(ending), src])
+            order = np.argsort(state, kind="stable")
+            built.link(counts + ending, np.concatenate([np.full(to_early.size, -1), action])[order],
+                       np.concatenate([to_early, to_accrued])[order],
+                       np.concatenate([np.ones(to_early.size), np.full(to_accrued.size, 2)])[order])
+            built.link(np.zeros(early.n), np.zeros(0), np.zeros(0))  # the ended states: terminal
         if add(accrued):
             break
         pending = inv_u[first_a]  # each accrued state's (ego, actions) entry: its new inputs and prevs
@@ -603,7 +633,7 @@ def _assemble(built: _Builder, automaton: ir.Automaton, data: ModelData, horizon
     counts = np.concatenate([link[0] for link in built.links])
     offsets = np.zeros(states.shape[0] + 1, dtype=np.int64)
     np.cumsum(counts, out=offsets[1:])
-    targets = np.concatenate([starts[i + 1] + link[2] for i, link in enumerate(built.links)])
+    targets = np.concatenate([starts[i + link[3]] + link[2] for i, link in enumerate(built.links)])
     return ProductGraph(
         states=states, columns=columns, choice_offsets=offsets,
         choice_action=np.concatenate([link[1] for link in built.links]), choice_target=targets.astype(np.int64),

@@ -26,7 +26,10 @@ and takes up to ``decide_every`` samples. **One sample** ``k -> k + 1`` is the p
    (after the edge, so it may read the location and rewards), and is *truncated* when the sample
    is the horizon's last one without the goal. Either way the automaton's ``at end`` clauses apply
    with the sample's inputs, and in automaton mode their increase is added to the reward. The goal
-   is checked from sample 1 on: an episode never ends before its first step.
+   is checked from sample 1 on: an episode never ends before its first step. With ``episode ends
+   when COND`` in the automaton, the episode also *ends* (:attr:`StepResult.ended`) at the sample
+   whose inputs satisfy COND: the automaton applied its ``at end`` clauses in step 3 (their increase
+   is in the sample's reward), exactly where the emitted model's run ends (:mod:`rac.engine.product`).
 
 A step's reward is the sum of its samples' rewards (in sample order). A collision or leaving the
 road does *not* end an episode (UPPAAL's semantics: the run goes on); :class:`StepResult` flags it
@@ -111,6 +114,10 @@ class StepResult:
     #: bool: the goal was reached in this step in a state from which no run stays safe to the horizon
     #: (judged only with ``onward``; else always False).
     stranded: np.ndarray
+    #: bool: the automaton's ``episode ends when`` held at a sample of this step: the episode ended
+    #: there, its ``at end`` clauses applied (always False without the declaration). A gym
+    #: environment reports ``terminated`` for it as for the goal.
+    ended: np.ndarray
 
 
 def _reads_location_or_rewards(expr: ie.Expr) -> bool:
@@ -493,7 +500,7 @@ class EpisodeBatch:
         n = self.n
         reward = np.zeros(n)
         flags = {name: np.zeros(n, dtype=bool) for name in ("terminated", "truncated", "collided", "offroad",
-                                                              "stranded")}
+                                                              "stranded", "ended")}
         live = ~self.done
         chosen = actions[live]
         if chosen.size and (chosen.min() < 0 or chosen.max() >= self.n_actions):
@@ -610,7 +617,8 @@ class EpisodeBatch:
             reached = np.zeros(rows.size, dtype=bool)
         self._carry(rows, sampled)
         last = now.k[rows] >= self.horizon_samples
-        ending = reached | last
+        ended = automata.terminated[rows]  # `episode ends when`: the automaton ended the run (end clauses applied)
+        ending = reached | last | ended
         if self.counterfactuals:
             ends = np.zeros(self.n, dtype=bool)
             ends[rows[ending]] = True
@@ -621,10 +629,11 @@ class EpisodeBatch:
                 arrived = rows[reached]
                 keys = np.column_stack([now.k[arrived], now.ego[arrived]]).astype(np.int32)
                 flags["stranded"][arrived] = ~np.asarray(self.onward(keys), dtype=bool)
-            flags["truncated"][rows[last & ~reached]] = True
+            flags["truncated"][rows[last & ~reached & ~ended]] = True
+            flags["ended"][rows[ended]] = True
             mask = np.zeros(self.n, dtype=bool)
             mask[rows[ending]] = True
-            bonus = automata.end_batch(fed, mask=mask)
+            bonus = automata.end_batch(fed, mask=mask)  # 0.0 where the automaton has ended the run itself
             if self.reward_expr is None:
                 reward[mask] += bonus[mask]
             self._sync(now, automata)

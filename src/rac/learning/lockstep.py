@@ -171,4 +171,4 @@ def _step(shared: EpisodeBatch, stepping: list[_Running]) -> None:
         run.seconds += spent * weight / total
         run.send(StepResult(reward=reward, terminated=outcome.terminated[lane], truncated=outcome.truncated[lane],
                             collided=outcome.collided[lane], offroad=outcome.offroad[lane],
-                            stranded=outcome.stranded[lane]))
+                            stranded=outcome.stranded[lane], ended=outcome.ended[lane]))

@@ -11,8 +11,8 @@ shield restricts to a finite set. So its optimum can be computed, not estimated:
    mask, all of the model's actions where the shield allows none — learning's fallback), each edge
    recording the step's reward as learning receives it (the objective's increase,
    :class:`rac.learning.qlearning.ObjectiveIncrease`; or the batch's own reward). An episode ends at
-   the first sample where the goal holds, or at the bound, with its ``at end`` clauses: such an edge
-   leads nowhere.
+   the first sample where the goal holds (or the automaton's ``episode ends when``), or at the bound,
+   with its ``at end`` clauses: such an edge leads nowhere.
 2. **merges the nodes whose episode state is the same** (:meth:`EpisodeBatch.memory`: the sample,
    the sensed state, the automaton's location, the inputs, the previous sample's of each for
    ``prev(e)``) — *without* the accumulated rewards. That is sound when the increments are additive

@@ -182,7 +182,8 @@ class ScenarioEnv(gymnasium.Env):
 
     Observation: :attr:`observation` (:mod:`rac.learning.observation`; ``"relative"``: ``float32``
     ``(29,)``, ``"ego"``: ``(8,)``). ``terminated`` when the
-    goal is reached, ``truncated`` at the horizon; a collision does not end the episode.
+    goal is reached or the automaton's ``episode ends when`` holds (its ``at end`` clauses then apply at
+    that sample), ``truncated`` at the horizon; a collision alone does not end the episode.
     ``info``: ``location``, ``rewards``, ``objective``, ``inputs`` (the bindings' values at the
     current sample), ``collided``/``offroad`` (at some sample of the step; after :meth:`reset`:
     at the start), ``goal`` (the episode reached the goal; after reset: False) and ``time``. After
@@ -414,8 +415,10 @@ class ScenarioEnv(gymnasium.Env):
             decision, unseen = None, True
         before = self.episodes.rewards
         out = self.episodes.step(np.array([int(action)]))
-        terminated, truncated = bool(out.terminated[0]), bool(out.truncated[0])
-        self._last = {"collided": bool(out.collided[0]), "offroad": bool(out.offroad[0]), "goal": terminated}
+        # terminated: the goal, or the automaton's `episode ends when` (its end clauses already applied)
+        terminated, truncated = bool(out.terminated[0] or out.ended[0]), bool(out.truncated[0])
+        self._last = {"collided": bool(out.collided[0]), "offroad": bool(out.offroad[0]),
+                      "goal": bool(out.terminated[0])}
         self._crashed = self._crashed or bool(out.collided[0])
         self._decision = None
         shield: dict[str, Any]

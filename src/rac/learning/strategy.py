@@ -89,6 +89,9 @@ class StepOutcome(Protocol):
     @property
     def offroad(self) -> np.ndarray: ...
 
+    @property
+    def ended(self) -> np.ndarray: ...
+
 
 class Episodes(Protocol):
     """What learning needs of :class:`rac.learning.episodes.EpisodeBatch` (tests may pass a stand-in);

@@ -287,7 +287,8 @@ class Learner:
             next_masks, next_empty = allowed_actions(batch, shield)
             if learning.any():
                 reward = np.asarray(outcome.reward, dtype=np.float64)[:n]
-                ends = (np.asarray(outcome.terminated, dtype=bool) | np.asarray(outcome.truncated, dtype=bool))[:n]
+                ends = (np.asarray(outcome.terminated, dtype=bool) | np.asarray(outcome.truncated, dtype=bool)
+                        | np.asarray(outcome.ended, dtype=bool))[:n]
                 next_keys = self.keys(observed[:n])
                 next_rows = table.rows(next_keys, create=True)
                 step = Transition(np.flatnonzero(learning), rows, actions[:n], self.sign * reward, next_rows,

@@ -199,7 +199,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         if self._step_shield is not None:
             for row in np.flatnonzero(stepping).tolist():
                 self._decisions[row] = None
-        self._autoreset = out.terminated | out.truncated
+        terminated = out.terminated | out.ended  # the goal, or the automaton's `episode ends when`
+        self._autoreset = terminated | out.truncated
         info = self._info(np.ones(self.num_envs, dtype=bool), shield)
         # each reward's change over the step, for the episodes that stepped (a restarted one reports its reset info)
         if stepping.any():
@@ -207,7 +208,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
             changes = {name: np.where(stepping, after[name] - before[name], 0.0) for name in after}
             info["reward_steps"] = {**changes, **{f"_{name}": stepping.copy() for name in changes}}
             info["_reward_steps"] = stepping.copy()
-        return (self.observation.observe(episodes), out.reward / self._single.reward_scale, out.terminated.copy(),
+        return (self.observation.observe(episodes), out.reward / self._single.reward_scale, terminated,
                 out.truncated.copy(), info)
 
     def _shield_info(self, stepping: np.ndarray, actions: np.ndarray) -> dict[str, np.ndarray] | None:

@@ -18,7 +18,10 @@ Example::
 Each ``step`` reads the automaton's inputs from the new observation and info, takes one sample,
 and returns the objective's increase as the reward (divided by ``scale``); when the episode
 terminates or is truncated, the ``at end`` clauses are applied with the same inputs and their
-increase is added. An unscaled episode's return is thus the objective's final value. The
+increase is added. An unscaled episode's return is thus the objective's final value. With
+``episode ends when COND`` in the automaton, a step whose inputs satisfy COND ends the episode:
+the wrapper reports ``terminated=True`` (whatever the environment said), the automaton has applied
+its ``at end`` clauses in that step (``end`` is not called again), and the next call must be ``reset``. The
 automaton's own ``sample every`` is not enforced: one environment step is one sample (a warning
 says when the environment's time step differs). :class:`RewardAutomatonVectorWrapper` does the
 same for a vector environment, with one :class:`~rac.runtime.batch.BatchRewardAutomaton`.
@@ -269,7 +272,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         return obs, info
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
-        """Step the environment; the reward is the automaton's (``at end`` included on the last step)."""
+        """Step the environment; the reward is the automaton's (``at end`` included on the last step).
+        ``terminated`` is the environment's, or true where the automaton's ``episode ends when`` held."""
         obs, env_reward, terminated, truncated, info = self.env.step(action)
         info = dict(info)
         try:
@@ -284,7 +288,11 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
                 self.clipped_total[name] = self.clipped_total.get(name, 0) + count
         before = dict(self.automaton.rewards)
         reward = self.automaton.step(values)
-        if terminated or truncated:
+        # `episode ends when`: the automaton ended the run itself, its end clauses applied in this step
+        # (a class generated before the declaration existed has no `terminated`: it never ends a run)
+        if getattr(self.automaton, "terminated", False):
+            terminated = True
+        elif terminated or truncated:
             reward += self.automaton.end(values)
         info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped,
                        "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
@@ -311,6 +319,13 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
     ``location``, ``objective``, ``scale``, ``env_reward``, and dicts ``rewards``,
     ``reward_steps`` and ``clipped`` of arrays. The ``at end`` clauses apply where a
     sub-environment terminated or was truncated.
+
+    With ``episode ends when COND``: where a step's inputs satisfy COND, that sub-environment is
+    reported ``terminated`` (its automaton applied the ``at end`` clauses in the step). When the
+    sub-environment itself goes on, the wrapper ends its episode as NEXT_STEP would: on the next step,
+    after the vector environment has stepped (that step of the old episode is discarded), it resets
+    that sub-environment (``reset(options={"reset_mask": ...})``, gymnasium >= 1.1) and returns its
+    reset observation with reward 0, ``terminated`` and ``truncated`` false.
     """
 
     def __init__(self, env: VectorEnv, automaton: str | os.PathLike[str] | ir.Automaton | RewardAutomaton,
@@ -334,6 +349,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         #: Per numeric input, how many values were clipped since the wrapper was made.
         self.clipped_total: dict[str, int] = {}
         self._resetting = np.zeros(self.num_envs, dtype=bool)
+        #: Sub-environments whose episode the automaton ended while they went on: reset on the next step.
+        self._forced = np.zeros(self.num_envs, dtype=bool)
         self._timing = _Timing(self.automaton, dt)
         self._timing.check(self._first_env())
 
@@ -357,11 +374,18 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         self._timing.check(self._first_env())
         self.automaton.reset()
         self._resetting[:] = False
+        self._forced[:] = False
         return obs, self._info(infos, {})
 
     def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
         """Step every sub-environment; the rewards are the automata's (0 on a sub-environment's reset step)."""
         obs, env_rewards, terminated, truncated, infos = self.env.step(actions)
+        terminated, truncated = np.array(terminated, dtype=bool), np.array(truncated, dtype=bool)
+        forced = self._forced
+        if forced.any():  # the automaton ended these episodes, the environment did not: the reset step now
+            obs, _ = self.env.reset(options={"reset_mask": forced.copy()})
+            terminated[forced] = truncated[forced] = False
+            self._forced = np.zeros(self.num_envs, dtype=bool)
         resetting = self._resetting
         if resetting.any():
             self.automaton.reset(resetting)
@@ -378,9 +402,13 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
                 self.clipped_total[name] = self.clipped_total.get(name, 0) + int(per_env.sum())
         previous = self.automaton.rewards
         rewards = self.automaton.step_batch(values, mask=active)
-        done = (np.asarray(terminated) | np.asarray(truncated)) & active
-        if done.any():
-            rewards = rewards + self.automaton.end_batch(values, mask=done)
+        ended = self.automaton.terminated & active  # `episode ends when`: end clauses applied in this step
+        self._forced = ended & ~terminated & ~truncated
+        terminated = (terminated | ended) & active
+        truncated = truncated & active
+        done = terminated | truncated
+        if (done & ~ended).any():
+            rewards = rewards + self.automaton.end_batch(values, mask=done & ~ended)
         self._resetting = done
         now = self.automaton.rewards
         steps = {k: np.where(active, v - previous[k], 0.0) for k, v in now.items()}

@@ -2,6 +2,13 @@
 
 Each column follows :class:`rac.runtime.interpreter.RewardAutomaton` to the bit: the same float
 operations in the same order, elementwise (see :mod:`rac.runtime.interpreter` for the semantics).
+
+With ``episode ends when COND``, an automaton whose sample's inputs satisfy COND ends its run at that
+sample (its end clauses applied, their increase in that sample's reward) and :attr:`BatchRewardAutomaton.terminated`
+marks it. Like an automaton ended by ``end_batch``, it refuses further steps (``RuntimeError``) until it
+is reset: a vectorised loop steps the live automata and resets the finished ones, the terminated among
+them, as gymnasium's vector environments do (``terminated | truncated``). ``end_batch`` on a terminated
+automaton gives 0.0 and changes nothing, as ``end`` does on the scalar runtime.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from rac.runtime.semantics import (
     check_automaton,
     check_mapping,
     clip_inputs,
+    ends_guard,
     float_linear,
     input_specs,
     key_error,
@@ -141,8 +149,10 @@ class BatchRewardAutomaton(AutomatonDescription):
 
         ra = RewardAutomaton(automaton).batch(4096)
         rewards = ra.step_batch(inputs)          # inputs: name -> array of shape (4096,)
+        terminated = ra.terminated               # `episode ends when` held (end clauses applied)
+        done |= terminated
         if done.any():
-            rewards += ra.end_batch(inputs, mask=done)
+            rewards += ra.end_batch(inputs, mask=done & ~terminated)
             ra.reset(mask=done)
     """
 
@@ -215,6 +225,8 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._end = [(self._guards.add(c.guard), self._compile_updates(c.updates))
                      for c in automaton.end_clauses]
         self._end_assume = self._guards.add(automaton.assume)
+        ends = ends_guard(automaton)
+        self._ends_id = None if ends is None else self._guards.add(ends)
         # each clause on its own, to name the first one violated (the clauses of `assume` are already there)
         self._assume_checks = [(self._guards.add(check.guard), check) for check in assume_checks(automaton)]
 
@@ -228,6 +240,7 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._R = np.zeros((k, n), dtype=np.float64)
         self._samples = np.zeros(n, dtype=np.int64)
         self._ended = np.zeros(n, dtype=bool)
+        self._terminated = np.zeros(n, dtype=bool)
         self._n_ended = 0
         self._obj = np.full(n, self._initial_objective)
         self._held: dict[str, np.ndarray] = {name: np.zeros(n) for name in self._held_names}
@@ -311,8 +324,14 @@ class BatchRewardAutomaton(AutomatonDescription):
 
     @property
     def ended(self) -> np.ndarray:
-        """Which automata have ended their run (a copy)."""
+        """Which automata have ended their run, by ``end_batch`` or :attr:`terminated` (a copy)."""
         return self._ended.copy()
+
+    @property
+    def terminated(self) -> np.ndarray:
+        """Which automata ``episode ends when COND`` ended: COND held on their last sample's inputs
+        (a copy; all False without the declaration, and after a reset)."""
+        return self._terminated.copy()
 
     # -------------------------------------------------------- running
     def _mask(self, mask: object) -> np.ndarray:
@@ -331,6 +350,7 @@ class BatchRewardAutomaton(AutomatonDescription):
             self._R[:] = 0.0
             self._samples[:] = 0
             self._ended[:] = False
+            self._terminated[:] = False
             self._obj[:] = self._initial_objective
             self._first[:] = True
         else:
@@ -340,6 +360,7 @@ class BatchRewardAutomaton(AutomatonDescription):
             self._R[:, m] = 0.0
             self._samples[m] = 0
             self._ended[m] = False
+            self._terminated[m] = False
             self._obj[m] = self._initial_objective
             self._first[m] = True
         self._n_ended = int(self._ended.sum())
@@ -459,7 +480,9 @@ class BatchRewardAutomaton(AutomatonDescription):
 
         As in :meth:`end_batch`, inputs are validated on the masked automata only, and the
         unmasked ones keep their state (they may have ended). ``clip``: numeric values outside their
-        range are clipped first on the masked automata (NaN refused), :attr:`clipped` counts them per input."""
+        range are clipped first on the masked automata (NaN refused), :attr:`clipped` counts them per input.
+        With ``episode ends when``, the automata whose inputs satisfy the condition end their run at this
+        sample (end clauses applied, their increase in the reward): :attr:`terminated` marks them."""
         only = None if mask is None else self._mask(mask)
         inputs = self._clip(inputs, clip, only)
         ended = self._ended if only is None else self._ended & only
@@ -534,7 +557,25 @@ class BatchRewardAutomaton(AutomatonDescription):
             # ---- edges
             for c, f in fired:
                 self._apply(self._classes[c], f if only is None else f & only, x)
+            if self._ends_id is not None:
+                self._end_where(x, only)
             return self._advance(nxt, loc, only)
+
+    def _end_where(self, x: Mapping[str, np.ndarray], only: np.ndarray | None) -> None:
+        """``episode ends when``: the automata (of ``only``) whose inputs satisfy the condition end here,
+        their end clauses applied with these inputs (before the objective is read)."""
+        assert self._ends_id is not None
+        g = self._guards.evaluate(x)
+        term = g[self._ends_id] if only is None else g[self._ends_id] & only
+        if not term.any():
+            return
+        for gid, updates in self._end:
+            f = term & g[gid]
+            if f.any():
+                self._apply(updates, f, x)
+        self._ended |= term
+        self._terminated |= term
+        self._n_ended = int(self._ended.sum())
 
     def run_samples(self, samples: Sequence[tuple[Mapping[str, object], np.ndarray, np.ndarray]], *,
                     repeat: int = 1) -> np.ndarray:
@@ -542,7 +583,8 @@ class BatchRewardAutomaton(AutomatonDescription):
         stands for the ``repeat`` consecutive automata ``i * repeat ...`` (one real transition replayed
         from every location: :mod:`rac.learning.counterfactual`). A sample steps the ``active`` automata
         (:meth:`step_batch`) and then ends the ``ending`` ones (:meth:`end_batch`, same inputs). Returns
-        each automaton's summed objective increase.
+        each automaton's summed objective increase. An automaton that ``episode ends when`` terminated
+        takes no later sample (it is left out of ``active``; ``ending`` gives it nothing).
 
         Bit for bit what those calls on the repeated inputs give. For an automaton whose edges are a
         table and whose rates are constants, a sample is a few array operations: inputs are read and
@@ -561,8 +603,9 @@ class BatchRewardAutomaton(AutomatonDescription):
         with np.errstate(all="ignore"):
             if not self._run_lean(samples, active, ending, repeat, total):
                 for (inputs, _, _), a, e in zip(samples, active, ending, strict=True):
-                    if a.any():
-                        total += self.step_batch(_spread_inputs(inputs, repeat), mask=np.repeat(a, repeat))
+                    live = np.repeat(a, repeat) & ~self._terminated
+                    if live.any():
+                        total += self.step_batch(_spread_inputs(inputs, repeat), mask=live)
                     if e.any():
                         total += self.end_batch(_spread_inputs(inputs, repeat), mask=np.repeat(e, repeat))
         return total
@@ -575,6 +618,7 @@ class BatchRewardAutomaton(AutomatonDescription):
         caller then steps sample by sample, and those calls raise the usual errors."""
         names = set(self._names)
         if (self.strategy != "table" or not self._all_constant or self._held_names or self._n_ended
+                or self._ends_id is not None
                 or not samples or any(not isinstance(inputs, Mapping) or set(inputs) != names
                                       for inputs, _, _ in samples)):
             return False
@@ -622,9 +666,11 @@ class BatchRewardAutomaton(AutomatonDescription):
         """End the runs where ``mask`` is true (all when ``None``); returns their objective increase.
 
         Inputs are validated on the masked automata only; unmasked ones get reward 0.0. ``clip`` as
-        in :meth:`step_batch`.
+        in :meth:`step_batch`. A :attr:`terminated` automaton gets 0.0 and is left as it is (its run
+        ended at its last sample, end clauses applied), whether masked or not.
         """
         m = np.ones(self._n, dtype=bool) if mask is None else self._mask(mask)
+        m &= ~self._terminated
         inputs = self._clip(inputs, clip, m)
         if (self._ended & m).any():
             raise RuntimeError(f"{ENDED_MESSAGE} (automata {np.flatnonzero(self._ended & m)[:10].tolist()})")
@@ -652,7 +698,7 @@ class BatchRewardAutomaton(AutomatonDescription):
         """
         twin = object.__new__(type(self))
         twin.__dict__.update(self.__dict__)
-        for key in ("_loc", "_R", "_samples", "_ended", "_obj", "_first"):
+        for key in ("_loc", "_R", "_samples", "_ended", "_terminated", "_obj", "_first"):
             setattr(twin, key, getattr(self, key).copy())
         twin._held = {name: value.copy() for name, value in self._held.items()}
         twin.clipped = dict(self.clipped)
@@ -670,6 +716,7 @@ class BatchRewardAutomaton(AutomatonDescription):
         twin._R = self._R[:, where].copy()
         twin._samples = self._samples[where].copy()
         twin._ended = self._ended[where].copy()
+        twin._terminated = self._terminated[where].copy()
         twin._obj = self._obj[where].copy()
         twin._first = self._first[where].copy()
         twin._held = {name: value[where].copy() for name, value in self._held.items()}

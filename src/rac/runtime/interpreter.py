@@ -18,13 +18,19 @@ One ``step(inputs)`` (one sample):
    sample (the current ones at the first sample after a reset);
 3. the first edge of the current location whose guard holds on the new inputs is taken: its
    updates are applied left to right, then the location changes. No enabled edge: stay;
-4. the sample counter advances and the reward handed out is ``objective - previous objective``.
+4. with ``episode ends when COND``: if COND holds on the new inputs, the run ends here: every end
+   clause whose guard holds on those inputs is applied, in order, and :attr:`~RewardAutomaton.terminated`
+   becomes true (:func:`rac.runtime.semantics.ends_guard`);
+5. the sample counter advances and the reward handed out is ``objective - previous objective``
+   (the end clauses' increase included).
 
 A linear form ``c0 + c1*v1 + ... + ck*vk`` is always evaluated as
 ``((float(c0) + float(c1)*v1) + ...) + float(ck)*vk``; guard atoms compare the input with
 ``float(threshold)``. ``end(inputs)`` validates, checks ``assume``, applies every end clause
 whose guard holds (in order), ends the run and returns the objective's increase; ``step`` and
-``end`` then raise :class:`RuntimeError` until :meth:`~RewardAutomaton.reset`.
+``end`` then raise :class:`RuntimeError` until :meth:`~RewardAutomaton.reset`. After a run that
+its condition ended (``terminated``), ``step`` raises the same, while ``end`` returns 0.0 and
+changes nothing (the end clauses were applied at that sample; nothing is read).
 """
 from __future__ import annotations
 
@@ -45,6 +51,7 @@ from rac.runtime.semantics import (
     check_automaton,
     check_mapping,
     clip_inputs,
+    ends_guard,
     float_linear,
     input_specs,
     key_error,
@@ -69,7 +76,7 @@ _OPS: dict[str, Callable[[Any, Any], Any]] = {
 
 
 #: What a run changes (pickled with the IR; everything else is compiled from the IR).
-_RUN_STATE = ("_loc", "_r", "_held", "_samples", "_ended", "_objective", "clipped")
+_RUN_STATE = ("_loc", "_r", "_held", "_samples", "_ended", "_terminated", "_objective", "clipped")
 
 _Values = dict[str, Any]
 _LinearFn = Callable[[list[float], _Values], float]
@@ -164,6 +171,8 @@ class RewardAutomaton(AutomatonDescription):
         )
         self._end_clauses = tuple((_compile_guard(c.guard), updates(c.updates, "end update"))
                                   for c in automaton.end_clauses)
+        ends = ends_guard(automaton)
+        self._episode_ends: _GuardFn | None = None if ends is None else _compile_guard(ends)
         self._assume = tuple((_compile_guard(check.guard), check) for check in assume_checks(automaton))
         self._objective_fn = _compile_linear(float_linear(automaton.objective, "objective"), index)
         self._initial_objective = self._objective_fn([0.0] * len(automaton.rewards), {})
@@ -205,8 +214,15 @@ class RewardAutomaton(AutomatonDescription):
 
     @property
     def ended(self) -> bool:
-        """Whether ``end`` was called since the last reset."""
+        """Whether the run has ended since the last reset: ``end`` was called, or :attr:`terminated`."""
         return self._ended
+
+    @property
+    def terminated(self) -> bool:
+        """Whether ``episode ends when COND`` ended the run: COND held on the last sample's inputs
+        (its end clauses are applied and counted in that ``step``'s reward). False after :meth:`reset`
+        and when the run ended by :meth:`end`; always False without the declaration."""
+        return self._terminated
 
     # -------------------------------------------------------- running
     def reset(self) -> None:
@@ -216,6 +232,7 @@ class RewardAutomaton(AutomatonDescription):
         self._held: _Values | None = None
         self._samples = 0
         self._ended = False
+        self._terminated = False
         self._objective = self._initial_objective
 
     def batch(self, n: int) -> BatchRewardAutomaton:
@@ -278,23 +295,33 @@ class RewardAutomaton(AutomatonDescription):
                     r[i] = value(r, x)
                 self._loc = target
                 break
+        if self._episode_ends is not None and self._episode_ends(x):
+            self._apply_end(x)
+            self._terminated = True
         self._held = x
         self._samples += 1
         return self._increase(x)
 
-    def end(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
-        """End the run with the final ``inputs`` (applies ``at end`` clauses); return the increase.
-
-        ``clip`` as in :meth:`step`."""
-        if self._ended:
-            raise RuntimeError(ENDED_MESSAGE)
-        x = self._read(self._clip(inputs, clip))
+    def _apply_end(self, x: _Values) -> None:
+        """Every end clause whose guard holds on ``x``, in order; the run has ended."""
         r = self._r
         for guard, updates in self._end_clauses:
             if guard(x):
                 for i, value in updates:
                     r[i] = value(r, x)
         self._ended = True
+
+    def end(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
+        """End the run with the final ``inputs`` (applies ``at end`` clauses); return the increase.
+
+        ``clip`` as in :meth:`step`. After a run its condition ended (:attr:`terminated`): 0.0, and
+        nothing is read or changed (the end clauses were applied at that sample)."""
+        if self._terminated:
+            return 0.0
+        if self._ended:
+            raise RuntimeError(ENDED_MESSAGE)
+        x = self._read(self._clip(inputs, clip))
+        self._apply_end(x)
         return self._increase(x)
 
     # -------------------------------------------------------- copies and pickles
@@ -323,8 +350,10 @@ class RewardAutomaton(AutomatonDescription):
     def __setstate__(self, state: dict[str, Any]) -> None:
         RewardAutomaton.__init__(self, state["ir"])
         for key in _RUN_STATE:
-            setattr(self, key, state[key])
+            # a pickle from before `episode ends when` has no `_terminated`: such a run never ended itself
+            setattr(self, key, state.get(key, False) if key == "_terminated" else state[key])
 
     def __repr__(self) -> str:
+        ending = ", terminated" if self._terminated else ", ended" if self._ended else ""
         return (f"<RewardAutomaton {self.name} at {self.location}, samples={self._samples}, "
-                f"objective={self._objective!r}{', ended' if self._ended else ''}>")
+                f"objective={self._objective!r}{ending}>")

@@ -194,7 +194,21 @@ def check_automaton(automaton: ir.Automaton) -> None:
         check_updates(clause.updates, "at end")
     for assumption in automaton.assumptions:
         check_guard(assumption.guard, "assume")
+    if automaton.episode_ends is not None:
+        check_guard(automaton.episode_ends, "episode ends when")
     check_linear(automaton.objective, rewards, "objective")
+
+
+def ends_guard(automaton: ir.Automaton) -> ir.Guard | None:
+    """The condition that ends a run at a sample (``episode ends when COND``), or None when no sample
+    ends it (no declaration, or a condition that is constantly false): the one rule every runtime,
+    target and the engine follow.
+
+    At a sample, after the accrual and the edge: if COND holds on the inputs just read, every end
+    clause whose guard holds on those same inputs is applied, in order, the sample's objective
+    increase includes theirs, and the run ends there (no further sample, no later ``end``)."""
+    ends = automaton.episode_ends
+    return None if ends is None or ends == ir.BConst(False) else ends
 
 
 def check_mapping(inputs: object) -> None:

@@ -1,7 +1,7 @@
 """The Python target: a standalone module (standard library only) that runs one automaton.
 
 The generated class has the API of :class:`rac.runtime.interpreter.RewardAutomaton` (``reset``, ``step``,
-``end``, ``location``, ``rewards``, ``objective``, ``samples``, ``time``, ``ended``) and its exact
+``end``, ``location``, ``rewards``, ``objective``, ``samples``, ``time``, ``ended``, ``terminated``) and its exact
 float semantics; it is straight-line code: one branch per location, guards inlined, rewards in
 locals while a sample is processed.
 
@@ -37,7 +37,15 @@ import jinja2
 from rac import ir
 from rac.core.printing import COMPARISONS, Associativity, Level, Operator, OperatorTable, Printed, number, signed_sum
 from rac.ir.text import GuardPrinter
-from rac.runtime.semantics import FloatLinear, assume_checks, check_automaton, float_linear, input_specs, to_float
+from rac.runtime.semantics import (
+    FloatLinear,
+    assume_checks,
+    check_automaton,
+    ends_guard,
+    float_linear,
+    input_specs,
+    to_float,
+)
 
 __all__ = ["PYTHON", "RESERVED_NAMES", "PythonGuards", "generate_python", "print_expr", "python_class_name"]
 
@@ -295,11 +303,19 @@ class _Generator:
                 body += ["    " + line for line in lines]
             if moves:
                 body.append("self._loc = loc")
+        ends = ends_guard(a)
+        if ends is not None:  # `episode ends when`: the end clauses with this sample's inputs, and the run ends
+            body.append(f"if {self.expr(ends)}:")
+            body += ["    " + line for line in self.end_clauses() + ["self._ended = True", "self._terminated = True"]]
         tail = [f"self._h_{name} = {self.inputs[name]}" for name in self.held]
         tail += ["self._samples += 1"]
         return self.finish(body, tail + self.objective())
 
     def end(self) -> list[str]:
+        return self.finish(self.end_clauses(), ["self._ended = True"] + self.objective())
+
+    def end_clauses(self) -> list[str]:
+        """Every ``at end`` clause whose guard holds, in order (the locals of rewards and inputs)."""
         body: list[str] = []
         for clause in self.a.end_clauses:
             inner = self.updates(clause.updates)
@@ -310,7 +326,7 @@ class _Generator:
             else:
                 body.append(f"if {self.expr(clause.guard)}:")
                 body += ["    " + line for line in inner]
-        return self.finish(body, ["self._ended = True"] + self.objective())
+        return body
 
     def objective(self) -> list[str]:
         return [f"objective = {self.expr(float_linear(self.a.objective, 'objective'))}",
@@ -332,6 +348,10 @@ class _Generator:
         if a.assume != ir.TRUE:
             plain = {i.name: i.name for i in a.inputs}
             facts.append(f"Assumed of every input valuation: {print_expr(a.assume, plain)}")
+        ends = ends_guard(a)
+        if ends is not None:
+            plain = {i.name: i.name for i in a.inputs}
+            facts.append(f"The run ends after a sample whose inputs satisfy: {print_expr(ends, plain)}")
         facts += [
             f"Rewards: {', '.join(a.rewards)} (each starts at 0)",
             f"Objective: {_ra_linear(a.objective)}",
@@ -347,6 +367,11 @@ class _Generator:
             "rewards of a run sum to the objective's final value; ``end(inputs)`` applies the",
             "``at end`` clauses once; ``reset()`` starts a new run.",
         ]
+        if ends is not None:
+            lines += [
+                "When a sample ends the run, ``step`` applies the ``at end`` clauses itself,",
+                "``terminated`` is true, and ``end`` returns 0.0.",
+            ]
         return "\n".join(lines)
 
 
@@ -475,7 +500,7 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
         name=automaton.name,
         class_name=class_name,
         docstring=gen.docstring(class_name),
-        slots=sorted(("_loc", *reward_slots, *held_slots, "_samples", "_ended", "_objective")),
+        slots=sorted(("_loc", *reward_slots, *held_slots, "_samples", "_ended", "_terminated", "_objective")),
         inputs=tuple(i.name for i in automaton.inputs),
         reward_names=tuple(automaton.rewards),
         locations=automaton.location_names,

@@ -8,7 +8,11 @@ model has three processes:
 
 - ``Timer`` — every sample period it broadcasts ``accrue``, waits for the Environment's
   ``read``, then broadcasts ``sense``; after the horizon's last sample it broadcasts ``finish``
-  once, then idles (it keeps ticking, so the model never deadlocks);
+  once, then idles (it keeps ticking, so the model never deadlocks). With ``episode ends when
+  COND``, a sample whose inputs satisfy COND is the last one: its ``sense`` edge goes to the same
+  ending (``finish``, so the ``at end`` clauses apply to that sample's inputs) and sets ``ended``,
+  which stops the hybrid clocks (every rate reads ``ended ? 0.0 : rate``); no ``accrue`` or
+  ``sense`` follows;
 - the reward automaton, named after the ``.ra`` automaton — one location per ``.ra`` location,
   the rates as ODEs of hybrid clocks (``sa' == 0.1``, per time unit), a ``accrue?`` self-loop
   that advances the integer mirrors of the rewards, one ``sense?`` edge per ``.ra`` edge, and a
@@ -53,6 +57,7 @@ from rac import ir
 from rac.core.diagnostics import Diagnostic, RacError, error, short_number
 from rac.core.numbers import INT32_MAX
 from rac.ir import query as iq
+from rac.runtime.semantics import ends_guard
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, double_literal
 from rac.targets.uppaal.labels import Labels
 from rac.targets.uppaal.layout import Ids, Template, environment
@@ -118,11 +123,13 @@ class AutomatonGenerator:
         self.process = names.fresh(a.name)
         self.mirror = {r: names.fresh(mirror_name(r)) for r in a.rewards}
         self.channels = {key: names.fresh(key) for key in ("accrue", "read", "sense", "finish")}
+        # `episode ends when`: a flag set where a sample ends the run (the hybrid clocks' rates are 0 after it)
+        ended = {"ended": names.fresh("ended")} if ends_guard(a) is not None else {}
         self.g = {key: names.fresh(base) for key, base in (
             ("period", "PERIOD"), ("steps", "STEPS"), ("scale", "SCALE"), ("count", "count"),
             ("settled", "settled"), ("time", "time"), ("timer", "Timer"), ("environment", "Environment"),
             ("t", "t"), ("wait", "Wait"), ("accrued", "Accrued"), ("reading", "Reading"), ("ending", "Ending"),
-            ("done", "Done"), ("idle", "Idle"), ("choosing", "Choosing"))}
+            ("done", "Done"), ("idle", "Idle"), ("choosing", "Choosing"))} | ended
         self.select = {}
         self.array = {}
         for item in a.inputs:
@@ -218,7 +225,7 @@ class AutomatonGenerator:
         g = self.g
         declaration = environment().get_template("declaration.j2").render(
             **self._declaration_args(inputs, unit, period_units),
-            names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time")},
+            names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time", "ended") if k in g},
             conditions=self._conditions(printer))
         system = environment().get_template("system.j2").render(
             channels=self.channels, processes=[g["timer"], self.process, g["environment"]])

@@ -39,12 +39,16 @@ class Labels:
         self.truncating = False
 
     # ------------------------------------------------------------ rates
-    def ode(self, location: ir.Location, unit: Fraction) -> str:
-        """The location's invariant: each reward's rate as the ODE of its hybrid clock, per time unit."""
+    def ode(self, location: ir.Location, unit: Fraction, ended: str | None = None) -> str:
+        """The location's invariant: each reward's rate as the ODE of its hybrid clock, per time unit;
+        ``ended`` (the flag of ``episode ends when``): 0 once it is set, the run having ended."""
         parts = []
         for reward, rate in zip(self.a.rewards, location.rates):
             terms = [(coef * unit, self.n[name], self.scale) for name, coef in rate.terms]
-            parts.append(f"{self.n[reward]}' == {print_real_linear(rate.const * unit, terms)}")
+            value = print_real_linear(rate.const * unit, terms)
+            if ended is not None and (rate.const or rate.terms):
+                value = f"({ended} ? 0.0 : {value})"
+            parts.append(f"{self.n[reward]}' == {value}")
         return " && ".join(parts)
 
     def accrual(self, row: list[Accrual | None]) -> list[str]:

@@ -89,6 +89,7 @@ class _ModelGenerator(AutomatonGenerator):
         done = Location(ids(), g["done"], 816, 170, f"{g['t']} <= {g['period']}")
         more, decide = f"{g['count']} < {g['steps']}", f"{g['count']} % DECIDE_EVERY == 0"
         settle = f"{g['settled']} = true"
+        goes_on, last, finish = self.processes.ending()  # `episode ends when`
         transitions = [
             edge(ids, start, wait, sync=f"{ch['decide']}!", assignment=f"{g['keep_sample']}()" if keeps else "",
                   anchor=(-250, -30)),
@@ -96,13 +97,13 @@ class _ModelGenerator(AutomatonGenerator):
                   sync=f"{ch['accrue']}!", assignment=f"{g['t']} = 0, {g['count']}++", anchor=(40, -60)),
             edge(ids, accrued, reading, sync=f"{ch['read']}?", assignment=f"{g['settled']} = false",
                   anchor=(282, 70)),
-            edge(ids, reading, wait, guard=f"{more} && {g['count']} % DECIDE_EVERY != 0", sync=f"{ch['sense']}!",
-                  assignment=settle, anchor=(60, 110)),
-            edge(ids, reading, deciding, guard=f"{more} && {decide}", sync=f"{ch['sense']}!",
+            edge(ids, reading, wait, guard=f"{more} && {g['count']} % DECIDE_EVERY != 0{goes_on}",
+                  sync=f"{ch['sense']}!", assignment=settle, anchor=(60, 110)),
+            edge(ids, reading, deciding, guard=f"{more} && {decide}{goes_on}", sync=f"{ch['sense']}!",
                   assignment=settle, anchor=(150, 280)),
             edge(ids, deciding, wait, sync=f"{ch['decide']}!", anchor=(-100, 170)),
-            edge(ids, reading, ending, guard=f"{g['count']} == {g['steps']}", sync=f"{ch['sense']}!",
-                  assignment=settle, anchor=(330, 180)),
+            edge(ids, reading, ending, guard=f"{g['count']} == {g['steps']}{last}", sync=f"{ch['sense']}!",
+                  assignment=settle + finish, anchor=(330, 180)),
             edge(ids, ending, done, sync=f"{ch['finish']}!", anchor=(620, 180)),
             edge(ids, done, done, guard=f"{g['t']} >= {g['period']}", assignment=f"{g['t']} = 0",
                   nails=[(790, 240), (842, 240)], anchor=(780, 250)),
@@ -328,7 +329,7 @@ class _ModelGenerator(AutomatonGenerator):
             **self._declaration_args(inputs, unit, period_units),
             scenario=spec.scenario, process=self.process, unit_double=double_literal(unit),
             names={k: g[k] for k in ("period", "steps", "scale", "count", "settled", "time", "controller", "action",
-                                     "dynamics", "obstacle")},
+                                     "dynamics", "obstacle", "ended") if k in g},
             scenario_declarations=emit_declarations(data), settings=settings,
             writer=g["controller"], value_arrays=False,
             thd=double_literal(spec.sensor_error), maxt=a.steps * period_units,

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from rac import ir
-from rac.runtime.semantics import first_sample_reads
+from rac.runtime.semantics import ends_guard, first_sample_reads
 from rac.targets.uppaal.labels import Labels
 from rac.targets.uppaal.layout import Ids, Location, Template, Transition, edge
 from rac.targets.uppaal.names import Names
@@ -37,9 +37,22 @@ class Processes:
     select: dict[str, str]
     labels: Labels
 
+    def ending(self) -> tuple[str, str, str]:
+        """What ``episode ends when COND`` adds to the Timer's ``sense!`` edges (all "" without it): to the
+        guard of those that go on ``&& !(COND)``, to the one into the ending ``|| (COND)`` (the sample's
+        inputs end the run: ``finish!`` follows), and to its assignment ``, ended = true``. COND reads the
+        inputs only, which the ``sense?`` edges do not change, so the sender's guard sees what they see."""
+        ends = ends_guard(self.a)
+        if ends is None:
+            return "", "", ""
+        condition = self.labels.guard(ends) or "true"
+        return f" && !({condition})", f" || ({condition})", f", {self.g['ended']} = true"
+
     def timer(self, ids: Ids) -> Template:
-        """``accrue!`` every period, waits for ``read?``, then ``sense!``; ``finish!`` after the last sample."""
+        """``accrue!`` every period, waits for ``read?``, then ``sense!``; ``finish!`` after the last sample
+        (and after a sample whose inputs satisfy ``episode ends when``: :meth:`ending`)."""
         g, ch = self.g, self.channels
+        goes_on, last, finish = self.ending()
         wait = Location(ids(), g["wait"], 0, 0, f"{g['t']} <= {g['period']}")
         accrued = Location(ids(), g["accrued"], 272, 0, committed=True)
         reading = Location(ids(), g["reading"], 272, 170, committed=True)
@@ -50,10 +63,10 @@ class Processes:
                   sync=f"{ch['accrue']}!", assignment=f"{g['t']} = 0, {g['count']}++", anchor=(40, -60)),
             edge(ids, accrued, reading, sync=f"{ch['read']}?", assignment=f"{g['settled']} = false",
                   anchor=(282, 70)),
-            edge(ids, reading, wait, guard=f"{g['count']} < {g['steps']}", sync=f"{ch['sense']}!",
+            edge(ids, reading, wait, guard=f"{g['count']} < {g['steps']}{goes_on}", sync=f"{ch['sense']}!",
                   assignment=f"{g['settled']} = true", nails=[(0, 170)], anchor=(40, 180)),
-            edge(ids, reading, ending, guard=f"{g['count']} == {g['steps']}", sync=f"{ch['sense']}!",
-                  assignment=f"{g['settled']} = true", anchor=(330, 180)),
+            edge(ids, reading, ending, guard=f"{g['count']} == {g['steps']}{last}", sync=f"{ch['sense']}!",
+                  assignment=f"{g['settled']} = true{finish}", anchor=(330, 180)),
             edge(ids, ending, done, sync=f"{ch['finish']}!", anchor=(620, 180)),
             edge(ids, done, done, guard=f"{g['t']} >= {g['period']}", assignment=f"{g['t']} = 0",
                   nails=[(790, 240), (842, 240)], anchor=(780, 250)),
@@ -98,7 +111,7 @@ class Processes:
             x, y = round(radius * math.cos(angle)), round(radius * math.sin(angle))
             if count == 1:
                 x, y = 0, 0
-            locations.append(Location(ids(), self.n[location.name], x, y, labels.ode(location, unit)))
+            locations.append(Location(ids(), self.n[location.name], x, y, labels.ode(location, unit, g.get("ended"))))
         # Rates that read inputs: the first sample's accrual uses that sample's inputs (nothing is held yet),
         # so it happens on read? at the first sample instead of on accrue?.
         first_reads = first_sample_reads(a)
