@@ -6,7 +6,8 @@ location partitions the input cells among its edges), compiled by the real front
 `collision` and `episode ends` conditions are random guards set on the IR. The brute force
 (tests/support/reference.py's valuations and sample semantics) simulates every input sequence with
 exact fractions: a run ends at the first sample whose inputs satisfy `episode ends`, else at the
-horizon, and its `at end` clauses read that sample's inputs.
+horizon, and its `at end` clauses read that sample's inputs. Witness runs are replayed by the
+interpreter (rac.runtime.interpreter), which ends a run itself where `episode ends when` holds.
 """
 
 from __future__ import annotations
@@ -264,7 +265,7 @@ def oracle(automaton: ir.Automaton, runs: list[BruteRun]) -> Oracle:
 # ---------------------------------------------------------------- witnesses
 def check_witness(automaton: ir.Automaton, space: InputSpace, run: Run) -> None:
     """The run's flags are what it claims, its exact replay gives its value, and (where its inputs lie
-    in their classes) the interpreter, fed them and ended at its last sample, gives the same return."""
+    in their classes) the interpreter, fed them, ends where the run does with the same return."""
     steps = run.worst.steps
     valuations_ = [space.valuation(step.outcome.cls) for step in steps]
     ends = [holds(automaton.episode_ends, v) for v in valuations_]
@@ -291,11 +292,17 @@ def check_witness(automaton: ir.Automaton, space: InputSpace, run: Run) -> None:
                 return  # a supremum at an open end of the class: not attained by any input
             x[name] = value
         concrete.append({n: (v if isinstance(v, bool) else float(v)) for n, v in x.items()})
-    interpreter = RewardAutomaton(dataclasses.replace(automaton, episode_ends=None))
+    # The runtime ends the run itself where `episode ends when` holds; at the horizon the training loop
+    # passes the last sample's inputs to end(), as the checks assume.
+    interpreter = RewardAutomaton(automaton)
     total = 0.0
-    for x in concrete:
+    for k, x in enumerate(concrete, start=1):
+        assert not interpreter.ended
         total += interpreter.step(x)
-    total += interpreter.end(concrete[-1])
+        assert interpreter.terminated == (k == len(concrete) and run.ended_by == "episode")
+    if run.ended_by == "horizon":
+        total += interpreter.end(concrete[-1])
+    assert interpreter.ended
     assert math.isclose(interpreter.objective, float(run.value), abs_tol=1e-9)
     assert math.isclose(total + float(objective.const), float(run.value), abs_tol=1e-9)
 
