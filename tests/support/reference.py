@@ -86,8 +86,9 @@ def _choices(automaton: ir.Automaton, item: ir.Input, arithmetic: bool) -> list[
     if item.kind == "int":
         return [(Fraction(v), [Fraction(v)]) for v in range(int(item.low), int(item.high) + 1)]
     cuts: set[Fraction] = {item.low, item.high}
+    named = (automaton.episode_ends, automaton.goal, automaton.collision)
     guards = [automaton.assume, *(e.guard for e in automaton.all_edges()),
-              *(c.guard for c in automaton.end_clauses)]
+              *(c.guard for c in automaton.end_clauses), *(g for g in named if g is not None)]
     for guard in guards:
         _thresholds(guard, item.name, cuts)
     points = sorted(c for c in cuts if item.low <= c <= item.high)

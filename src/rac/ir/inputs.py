@@ -71,8 +71,11 @@ def guard_inputs(guard: ir.Guard) -> set[str]:
 
 
 def all_guards(automaton: ir.Automaton) -> list[ir.Guard]:
+    """Every guard of the automaton: ``assume``, the edges', the ``at end`` clauses', and the
+    ``episode ends``/``goal``/``collision`` conditions (their thresholds cut the pieces too)."""
+    named = (automaton.episode_ends, automaton.goal, automaton.collision)
     return [automaton.assume, *(e.guard for e in automaton.all_edges()),
-            *(c.guard for c in automaton.end_clauses)]
+            *(c.guard for c in automaton.end_clauses), *(g for g in named if g is not None)]
 
 
 def _pieces(item: ir.Input, thresholds: set[Fraction]) -> list[Piece]:

@@ -1,4 +1,5 @@
-"""Static analyses of a checked automaton: behaviour (determinism, reachability) and priorities."""
+"""Static analyses of a checked automaton: behaviour (determinism, reachability), priorities, the int32
+range, and the incentives (issue 25: p* and the loophole checks, with `goal when` or `episode ends when`)."""
 
 from __future__ import annotations
 
@@ -33,4 +34,8 @@ def analyse_automaton(automaton: ir.Automaton, facts: list[Fact] | None = None) 
                                     prepared=prepared)
     else:
         diagnostics += check_ranges(automaton, facts=facts, prepared=prepared)
+    if automaton.goal is not None or automaton.episode_ends is not None:
+        from rac.check.analysis.incentives import check_incentives  # numpy: as above
+
+        diagnostics += check_incentives(automaton, space, facts)
     return diagnostics

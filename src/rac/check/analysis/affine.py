@@ -9,7 +9,7 @@ An *outcome* groups the input classes that behave identically in a location
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -86,6 +86,8 @@ class Outcome:
     target: int
     box: tuple[tuple[str, Piece], ...]  # pieces of the inputs the arithmetic reads
     edge_map: Affine
+    #: The truth of each guard of the ``split`` the outcomes were grouped by (:func:`outcomes`), in order.
+    flags: tuple[bool, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -117,15 +119,20 @@ def arithmetic_inputs(automaton: ir.Automaton) -> tuple[str, ...]:
 
 
 def outcomes(automaton: ir.Automaton, space: InputSpace,
-             reachable: Collection[int] | None = None) -> list[list[Outcome]]:
+             reachable: Collection[int] | None = None, split: Sequence[ir.Guard] = ()) -> list[list[Outcome]]:
     """Distinct outcomes of a sample per location, over the classes allowed by ``assume``.
 
     Locations outside ``reachable`` (when given) get none: no run is ever there. Within a location
     the outcomes come in the order of their first class; each one's representative class is the one
     that leaves the most numeric inputs as intervals (the first such), as witnesses read better so.
+    ``split``: guards whose truth also tells outcomes apart (``episode ends when``, ``goal when``, the
+    ``at end`` clauses of a sample that ends the run); each outcome's :attr:`Outcome.flags` holds it.
     """
     groups = _Grouping(automaton, space)
     rewards = automaton.rewards
+    bits = np.zeros(groups.size, dtype=np.int64)  # the split's truths, the first guard the highest bit
+    for guard in split:
+        bits = bits * 2 + space.evaluate(guard)[groups.classes]
     maps: dict[int, Affine] = {}  # per edge: its updates as one map (shared by the edge's outcomes)
     result: list[list[Outcome]] = []
     for index, edges in enumerate(automaton.edges):
@@ -136,13 +143,15 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
         for k in range(len(edges) - 1, -1, -1):  # the first enabled edge wins (the last write)
             taken[space.evaluate(edges[k].guard)[groups.classes]] = k
         found = []
-        for k, cls in groups.representatives(taken, len(edges) + 1):
+        for label, cls in groups.representatives(taken * (1 << len(split)) + bits, (len(edges) + 1) << len(split)):
+            k = label >> len(split)
             edge = edges[k] if k < len(edges) else None
             if edge is None:
                 edge_map = identity(len(rewards))
             else:
                 edge_map = maps.get(id(edge)) or maps.setdefault(id(edge), from_assignments(edge.updates, rewards))
-            found.append(Outcome(index, cls, edge, edge.target if edge else index, groups.box(cls), edge_map))
+            flags = tuple(bool(label >> (len(split) - 1 - j) & 1) for j in range(len(split)))
+            found.append(Outcome(index, cls, edge, edge.target if edge else index, groups.box(cls), edge_map, flags))
         result.append(found)
     return result
 
@@ -223,6 +232,8 @@ class Moves:
 
     samples: tuple[tuple[Outcome, ...], ...]
     ends: tuple[EndOutcome, ...]
+    #: The guards the sample outcomes were also told apart by (their :attr:`Outcome.flags`).
+    split: tuple[ir.Guard, ...] = ()
 
     @property
     def translations_only(self) -> bool:
@@ -230,14 +241,15 @@ class Moves:
                 and all(e.end_map.is_translation for e in self.ends))
 
 
-def moves(automaton: ir.Automaton, space: InputSpace) -> Moves:
-    """Sample outcomes and end outcomes of an automaton over its input classes.
+def moves(automaton: ir.Automaton, space: InputSpace, split: Sequence[ir.Guard] = ()) -> Moves:
+    """Sample outcomes and end outcomes of an automaton over its input classes (sample outcomes also
+    told apart by the truth of each guard of ``split``, see :func:`outcomes`).
 
     Locations no run can reach have no outcomes (no analysis of runs looks at them).
     """
     reachable = distances(automaton, space)
-    return Moves(tuple(tuple(os) for os in outcomes(automaton, space, reachable)),
-                 tuple(end_outcomes(automaton, space)))
+    return Moves(tuple(tuple(os) for os in outcomes(automaton, space, reachable, split)),
+                 tuple(end_outcomes(automaton, space)), tuple(split))
 
 
 def sup_linear(form: dict[str, Fraction], box: tuple[tuple[str, Piece], ...]) -> tuple[Fraction, dict[str, Fraction]]:

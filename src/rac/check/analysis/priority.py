@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections import deque
+from collections.abc import Collection
 from fractions import Fraction
 
 from rac import ir
@@ -347,8 +348,12 @@ def _outcome_inputs(automaton: ir.Automaton, o: Outcome) -> set[str]:
     return names
 
 
-def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> list[str]:
-    """The worst run as readable lines: (location, samples spent), inputs, edges, end."""
+def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, shown: Collection[str] = (),
+                 ending: str = "run ends") -> list[str]:
+    """The worst run as readable lines: (location, samples spent), inputs, edges, end.
+
+    Each sample shows the inputs its location's guards read, and those named in ``shown``;
+    ``ending`` starts the line of an end with ``at end`` (why the run ends there)."""
     names = automaton.location_names
     period = automaton.period
     lines: list[str] = []
@@ -360,7 +365,7 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> li
         o = step.outcome
         label = labels.get(id(o))
         if label is None:
-            label = labels[id(o)] = space.describe(o.cls, _outcome_inputs(automaton, o))
+            label = labels[id(o)] = space.describe(o.cls, _outcome_inputs(automaton, o) | set(shown))
         key = (o.source, id(o.edge), label)
         if groups and groups[-1][0] == key and groups[-1][1][-1].instant == CONTINUE:
             groups[-1][1].append(step)
@@ -391,12 +396,12 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> li
         end = worst.end
         spans = [(i, automaton.end_clauses[i].span) for i in end.ends]
         clauses = ", ".join(f"line {span.line}" if span else str(i) for i, span in spans)
-        shown: set[str] = set()
+        read: set[str] = set()
         for clause in automaton.end_clauses:
-            shown |= guard_inputs(clause.guard)
+            read |= guard_inputs(clause.guard)
         when = _num(worst.steps[-1].sample * period) if worst.steps else "0"
-        lines.append(f"  run ends at t = {when} s: `at end` ({clauses or 'no clause enabled'}); "
-                     f"inputs {space.describe(end.cls, shown)}")
+        lines.append(f"  {ending} at t = {when} s: `at end` ({clauses or 'no clause enabled'}); "
+                     f"inputs {space.describe(end.cls, read)}")
     return lines
 
 
