@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rac.check.analysis.piecewise import Interval, Piecewise, convex
+from rac.check.analysis.piecewise import Interval, Piecewise, convex, intersect
 
 F = Fraction
 lines = st.lists(st.tuples(st.integers(-20, 20), st.integers(-200, 200)), min_size=1, max_size=8)
@@ -69,3 +69,22 @@ def test_a_crossing_is_an_open_end_of_the_positive_set():
 def test_lines_that_are_not_supporting_are_refused():
     with pytest.raises(ValueError):
         convex(lambda p: (F(0), F(1) if p < 5 else F(1)), F(0), F(10))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(-10, 10), st.integers(0, 6), st.booleans(), st.booleans()), max_size=3),
+       st.lists(st.tuples(st.integers(-10, 10), st.integers(0, 6), st.booleans(), st.booleans()), max_size=3))
+def test_intersect_is_membership_in_both(raw_a, raw_b):
+    def disjoint(raw):
+        found, start = [], F(-30)
+        for gap, width, lo, hi in raw:
+            low = start + abs(gap) + 1
+            found.append(Interval(low, low + width, lo and width > 0, hi and width > 0))
+            start = low + width + 1
+        return found
+
+    a, b = disjoint(raw_a), disjoint(raw_b)
+    both = intersect(a, b)
+    for k in range(-60 * 4, 60 * 4):
+        p = F(k, 4)
+        assert any(p in i for i in both) == (any(p in i for i in a) and any(p in i for i in b))

@@ -18,7 +18,8 @@ from typing import get_args
 
 from rac import ir
 from rac.check.analysis import analyse_automaton
-from rac.check.analysis.synthesis import Synthesised, Unfinished, synthesise, unsupported
+from rac.check.analysis.piecewise import Interval, intersect
+from rac.check.analysis.synthesis import Synthesis, Synthesised, Unfinished, risk_values, synthesise, unsupported
 from rac.check.analysis.weights import Unsupported, synthesise_region
 from rac.check.resolve import Resolver
 from rac.core.diagnostics import Diagnostic, Fact, error, short_number
@@ -126,26 +127,51 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     low, high = resolve(parameter.low), resolve(parameter.high)
     assert low is not None and high is not None, "the file resolved at the low bound"
     reason = unsupported(low, high)
+    risk = next((r for r in low.requirements if r.check == "risk"), None)
+    allowed: list[Interval] | None = None
     if reason is None:
         try:
             result = synthesise(resolve, parameter)
+            if risk is not None and risk.bound is not None and not result.empty:
+                assert result.low is not None and result.high is not None
+                checked = Interval(result.low.value, result.high.value, result.low.open, result.high.open)
+                allowed = intersect([checked], risk_values(resolve, parameter, risk.bound))
         except Unfinished as stop:
             reason = f"the worst-run search stopped: {stop.reason}"
     if reason is not None:
         return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {reason}",
                             parameter.span, hints=[f"write `const {name} = ...` instead"])], None
     least = result.least
+    if allowed is not None:
+        least = allowed[0].low if allowed and not allowed[0].low_open else None
     if least is None:
-        witness = resolve(result.witness)
+        witness = resolve(result.witness if allowed is None or not allowed else allowed[0].low)
         assert witness is not None
         failing = [d for d in analyse_automaton(witness, []) if d.is_error]
-        what = ("no value" if result.empty else
-                f"no least value (the values that pass form {result.interval()})")
+        if allowed is not None and risk is not None and not result.empty:
+            what = ("no value" if not allowed else
+                    f"no least value (the values that pass form {_intervals_text(allowed)})")
+            notes = [f"every other check holds for {name} in {result.interval()}; `require risk <= "
+                     f"{short_number(risk.bound or Fraction(0))}` holds for "
+                     f"{_intervals_text(allowed) if allowed else 'none of them'}",
+                     f"the checks at {name} = {short_number(witness_value(result, allowed))} follow"]
+        else:
+            what = ("no value" if result.empty else
+                    f"no least value (the values that pass form {result.interval()})")
+            notes = [*result.cuts, f"the checks at {name} = {short_number(result.witness)} follow"]
         return None, [error("E0406", f"{what} of parameter `{name}` in [{short_number(parameter.low)}, "
                             f"{short_number(parameter.high)}] passes every check", parameter.span,
-                            notes=[*result.cuts, f"the checks at {name} = {short_number(result.witness)} follow"],
+                            notes=notes,
                             hints=["widen the parameter's bounds, or change what it cannot compensate"]),
                       *failing], None
+    if allowed is not None and risk is not None:
+        risk_text = (f"`require risk <= {short_number(risk.bound or Fraction(0))}` holds for {name} in "
+                     f"{_intervals_text(allowed)}")
+        sentence = (f"synthesised: every check holds for {name} in {result.interval()}, and {risk_text}; "
+                    f"checked with {name} = {short_number(least)}")
+        inequalities = tuple(_interval_inequality(name, i) for i in allowed)
+        facts.append(Fact("synthesis", sentence))
+        return resolve(least), [], Synthesised(((name, least),), (" or ".join(inequalities),), sentence)
     if result.whole:
         sentence = (f"synthesised: every check holds for every value of {name} in {result.interval()}; "
                     f"checked with {name} = {short_number(least)}")
@@ -155,6 +181,23 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     facts.append(Fact("synthesis", sentence))
     return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
                                            sentence)
+
+
+def witness_value(result: Synthesis, allowed: list[Interval]) -> Fraction:
+    """The value whose checks show why no value passes: the least one the requirement allows, else
+    the synthesis' own witness."""
+    return allowed[0].low if allowed else result.witness
+
+
+def _intervals_text(intervals: list[Interval]) -> str:
+    return " or ".join(f"{'(' if i.low_open else '['}{short_number(i.low)}, {short_number(i.high)}"
+                       f"{')' if i.high_open else ']'}" for i in intervals)
+
+
+def _interval_inequality(name: str, interval: Interval) -> str:
+    """``a <= NAME <= b`` with exact numbers (the form `rac tune` records)."""
+    return (f"{exact_text(interval.low)} {'<' if interval.low_open else '<='} {name} "
+            f"{'<' if interval.high_open else '<='} {exact_text(interval.high)}")
 
 
 def _bounds_text(parameters: tuple[ir.Parameter, ...]) -> str:

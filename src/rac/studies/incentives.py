@@ -69,6 +69,7 @@ def row(path: str, automaton: ir.Automaton) -> tuple[str, ...]:
     """One file's cells, in the order of :data:`COLUMNS`."""
     found = _findings(automaton)
     incentives = found.incentives if isinstance(found, Findings) else None
+    returns: tuple[str, ...]
     if incentives is None:
         returns = ("—", "—", "—")
         p = "— (no `goal when`)" if automaton.goal is None else "—"

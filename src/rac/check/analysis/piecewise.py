@@ -183,3 +183,16 @@ def oracle_at(line: Callable[[Fraction], tuple[Fraction, Fraction]], p: Fraction
     """(value, slope) at ``p`` from a line-returning oracle."""
     slope, intercept = line(p)
     return slope * p + intercept, slope
+
+
+def intersect(first: list[Interval], second: list[Interval]) -> list[Interval]:
+    """The intersection of two sets given as disjoint intervals in order."""
+    found: list[Interval] = []
+    for a in first:
+        for b in second:
+            low, low_open = max((a.low, a.low_open), (b.low, b.low_open))
+            high, high_open = min((b.high, not b.high_open), (a.high, not a.high_open))
+            part = Interval(low, high, low_open, not high_open)
+            if not part.empty:
+                found.append(part)
+    return sorted(found, key=lambda i: (i.low, i.low_open))

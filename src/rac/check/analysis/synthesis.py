@@ -21,6 +21,9 @@ from functools import partial
 from rac import ir
 from rac.check.analysis.affine import Affine, from_assignments, identity, moves, then
 from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.incentives import Incentives, analyse
+from rac.check.analysis.incentives import Unchecked as IncentivesUnchecked
+from rac.check.analysis.piecewise import Interval, convex, intersect
 from rac.check.analysis.priority import (
     p2_levels,
     p2_target,
@@ -32,6 +35,7 @@ from rac.check.analysis.priority import (
 from rac.check.analysis.worst import Target, Unfinished, Worst, maximise
 from rac.core.diagnostics import short_number
 from rac.core.numbers import exact_text
+from rac.ir.inputs import InputSpace
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 
 #: The automaton resolved with the parameter at a value (None when it does not resolve).
@@ -159,8 +163,11 @@ def unsupported(low: ir.Automaton, high: ir.Automaton) -> str | None:
         return "it sets an input bound, an assumption, the sample period, the horizon or the model"
     if [[(e.guard, e.target) for e in es] for es in low.edges] != [[(e.guard, e.target) for e in es]
                                                                    for es in high.edges] \
-            or [c.guard for c in low.end_clauses] != [c.guard for c in high.end_clauses]:
+            or [c.guard for c in low.end_clauses] != [c.guard for c in high.end_clauses] \
+            or (low.episode_ends, low.goal, low.collision) != (high.episode_ends, high.goal, high.collision):
         return "it appears in a guard (the runs would depend on it)"
+    if low.requirements != high.requirements:
+        return "it sets the bound of a `require` (the requirement would move with it)"
     if any(_maps(low, e).matrix != _maps(high, f).matrix for es, fs in zip(low.edges, high.edges)
            for e, f in zip(es, fs)) or \
             any(_end_map(low, c.updates).matrix != _end_map(high, d.updates).matrix
@@ -330,8 +337,72 @@ def _transplant(worst: Worst, source: ir.Automaton, target: ir.Automaton) -> Wor
     return dataclasses.replace(worst, steps=steps, end=end)
 
 
+def risk_values(resolve: Resolve, parameter: ir.Parameter, bound: Fraction) -> list[Interval]:
+    """The values of ``parameter`` in its bounds where ``require risk <= bound`` holds, exactly.
+
+    R_goal, R_stall and R_crash (:mod:`~rac.check.analysis.incentives`) are each the best return over a
+    set of runs that does not depend on the parameter (:func:`unsupported`), each run's return affine
+    in it: convex and piecewise affine, recovered by :func:`~rac.check.analysis.piecewise.convex` from
+    the witness runs (a run's slope: its return one unit further, :func:`_transplant`). The requirement
+    holds where ``R_goal > R_crash``, ``R_stall > R_crash`` (p* < 1) and
+    ``(R_goal - R_stall) <= bound * (R_goal - R_crash)``, as ``rac check`` decides it at one value.
+    """
+    low, high = parameter.low, parameter.high
+    found: dict[Fraction, Incentives] = {}
+
+    def incentives(value: Fraction) -> tuple[ir.Automaton, InputSpace, Incentives]:
+        automaton = resolve(value)
+        assert automaton is not None, "the parameter's bounds resolved, so every value between does"
+        space, _ = input_space(automaton)
+        assert space is not None
+        result = analyse(automaton, space)
+        if isinstance(result, IncentivesUnchecked):
+            raise Unfinished(result.reason)
+        assert result.incentives is not None, "`require risk` needs `goal when` (E1009)"
+        found[value] = result.incentives
+        return automaton, space, result.incentives
+
+    def oracle(which: str) -> Callable[[Fraction], tuple[Fraction, Fraction]]:
+        def at(value: Fraction) -> tuple[Fraction, Fraction]:
+            automaton, space, here = incentives(value)
+            run = getattr(here, which)
+            assert run is not None
+            other = resolve(value + 1)
+            assert other is not None
+            other_space, _ = input_space(other)
+            assert other_space is not None
+            now = _return(automaton, space, run.worst)
+            later = _return(other, other_space, _transplant(run.worst, automaton, other))
+            return run.value, later - now
+        return at
+
+    _, _, at_low = incentives(low)
+    whole = [Interval(low, high)]
+    if at_low.goal is None:
+        return []
+    if at_low.crash is None:
+        return whole
+    goal = convex(oracle("goal"), low, high)
+    crash = convex(oracle("crash"), low, high)
+    above = goal.combine(crash, Fraction(1), Fraction(-1)).where(True)  # R_goal > R_crash
+    if at_low.stall is None:
+        return above
+    stall = convex(oracle("stall"), low, high)
+    below_one = stall.combine(crash, Fraction(1), Fraction(-1)).where(True)  # p* < 1
+    # (1 - bound) R_goal - R_stall + bound R_crash <= 0
+    within = goal.combine(stall, 1 - bound, Fraction(-1)).combine(crash, Fraction(1), bound).where(False)
+    return intersect(intersect(above, below_one), within)
+
+
+def _return(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> Fraction:
+    """The objective at the end of the run ``worst`` (its return but for the objective's constant)."""
+    values, _ = replay(automaton, space, worst)
+    return sum((automaton.objective.coefficient(r) * v for r, v in zip(automaton.rewards, values)), Fraction(0))
+
+
 def _num(value: Fraction) -> str:
     return short_number(value)
 
 
-__all__ = ["Check", "End", "Synthesised", "Synthesis", "Unfinished", "checks", "synthesise", "unsupported"]
+__all__ = ["Check", "End", "Synthesised", "Synthesis", "Unfinished", "checks", "risk_values", "synthesise",
+           "unsupported"]

@@ -1,0 +1,81 @@
+"""Synthesis under `require risk <= b` (rac.check.analysis.synthesis.risk_values, the parameter stage):
+the set of values it finds is exactly where `rac check` with the value written as a constant has no
+E1001, on random small automata (brute force over a grid of values), and the least value on the
+paper's automaton."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from pathlib import Path
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rac.check.analysis.synthesis import risk_values
+from rac.check.resolve import Resolver
+from rac.compiler import compile_text
+from rac.lang.parser import parse_text
+
+ROOT = Path(__file__).resolve().parents[2]
+
+TEMPLATE = """\
+automaton Small {{
+    input near : bool
+    input crash : bool
+    input done : bool
+    assume crash imply near
+    param P in [0, 40]
+    reward sa, pr
+    objective {w} * sa + pr
+    sample every 1
+    horizon {horizon}
+    goal when done && !crash
+    collision when crash
+    require risk <= {bound}
+    initial location Go {{ sa' == 1; pr' == {go} }}
+    location Near {{ sa' == -1; pr' == {near} }}
+    edge * -> Near when near do sa = sa - P
+    edge Near -> Go when !near
+    at end when done do pr = pr + {bonus}
+}}
+"""
+
+
+def holds_at(text: str, value: Fraction) -> bool:
+    """Whether `rac check` finds no E1001 with P written as a constant of that value."""
+    fixed = text.replace("param P in [0, 40]", f"const P = {value.numerator} / {value.denominator}")
+    result = compile_text(fixed)
+    assert not any(d.is_error and d.code != "E1001" for d in result.diagnostics), fixed
+    return not any(d.code == "E1001" for d in result.diagnostics)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 10), st.integers(1, 3), st.sampled_from(["1/10", "1/4", "1/2", "9/10"]),
+       st.integers(-2, 2), st.integers(-2, 2), st.integers(0, 30))
+def test_the_set_is_where_the_requirement_holds(w, horizon, bound, go, near, bonus):
+    text = TEMPLATE.format(w=w, horizon=horizon, bound=bound, go=go, near=near, bonus=bonus)
+    node = parse_text(text).automata[0]
+    parameter = Resolver(node, {"P": Fraction(0)}).run().parameters[0]
+    found = risk_values(lambda value: Resolver(node, {"P": value}).run(), parameter, Fraction(bound))
+    for k in range(0, 81):
+        value = Fraction(k, 2)
+        assert any(value in interval for interval in found) == holds_at(text, value), (value, found)
+    for interval in found:  # the ends too, where an open end must fail and a closed one hold
+        for end, is_open in ((interval.low, interval.low_open), (interval.high, interval.high_open)):
+            assert holds_at(text, end) == (not is_open)
+
+
+def test_the_least_penalty_for_a_risk_of_one_in_ten():
+    # The paper's automaton, its penalty a parameter: p* <= 1/10 needs R_goal - R_crash >= 10 (R_goal -
+    # R_stall) = 5000, so a crash at the last sample must cost 4020 more than at PENALTY = 98 (P2's least).
+    text = (ROOT / "examples" / "tune" / "driving_risk.ra").read_text(encoding="utf-8")
+    result = compile_text(text)
+    assert result.ok, [str(d) for d in result.diagnostics]
+    assert result.automaton is not None and result.automaton.constants
+    assert dict(result.automaton.constants)["PENALTY"] == 500
+    sentence = next(f.message for f in result.facts if f.check == "synthesis")
+    assert "`require risk <= 0.1` holds for PENALTY in [500, " in sentence
+    risk = next(f for f in result.facts if f.check == "risk")
+    assert risk.data["p_star"] == "1/10"
+    below = compile_text(text.replace("param PENALTY in [0, 1400]", "const PENALTY = 499"))
+    assert [d.code for d in below.diagnostics if d.is_error] == ["E1001"]
