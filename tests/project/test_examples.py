@@ -24,6 +24,7 @@ import pytest
 
 import rac
 from rac.cli.main import main as rac_main
+from rac.compiler import compile_file, compile_text
 from rac.lang.parser import ParseFailure, parse_text
 
 REPO = Path(__file__).resolve().parents[2]
@@ -201,3 +202,20 @@ def test_generated_module_agrees_with_the_interpreter(tmp_path: Path) -> None:
     assert "agree on all 300 samples" in result.stdout
     assert "it imports __future__, collections, math" in result.stdout
     assert (tmp_path / "driving_ra.py").exists()
+
+
+def test_the_naive_weighted_reward_pays_for_ending_early_and_its_fix_does_not() -> None:
+    # examples/weighted: a time penalty of 1 a sample and a collision that ends the episode: crashing
+    # at the first sample returns -11 against -300 for the best safe run of the horizon (W1002, 289);
+    # fixed.ra makes that crash cost 300 more and requires the check.
+    naive = compile_file(REPO / "examples" / "weighted" / "naive.ra")
+    warnings = [d for d in naive.diagnostics if d.code == "W1002"]
+    assert naive.ok and len(warnings) == 1
+    assert "earns 289 more than the best safe continuation" in warnings[0].message
+    fixed = compile_file(REPO / "examples" / "weighted" / "fixed.ra")
+    assert fixed.ok and not fixed.diagnostics
+    assert [f.check for f in fixed.facts if f.check == "ending_early_never_pays"] == ["ending_early_never_pays"]
+    # one penalty short of the hint, the requirement turns the loophole into an error
+    text = (REPO / "examples" / "weighted" / "fixed.ra").read_text(encoding="utf-8")
+    short = compile_text(text.replace("const COLLISION = 300", "const COLLISION = 288"), "short.ra")
+    assert [d.code for d in short.diagnostics if d.is_error] == ["E1003"]
