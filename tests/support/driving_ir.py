@@ -70,6 +70,8 @@ def driving_automaton() -> ir.Automaton:
         period=Fraction(1, 10),
         horizon=Fraction(30),
         constants=(("PENALTY", PENALTY),),
+        goal=ir.BAtom("dgoal", "<", Fraction(2)),
+        collision=collide,
     )
 
 

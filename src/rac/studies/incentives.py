@@ -1,9 +1,9 @@
 """What each reward pays for, side by side: ``python -m rac.studies.incentives FILE.ra ...``.
 
 For every file, the risk tolerance p* with the three returns it weighs, and the verdict of each
-loophole check (docs/checks.md) as the file declares its episodes, and again as a gymnasium
-environment would run them when the file leaves the ending to it: the episode ending at a
-collision and at the goal (``episode ends when`` the file's ``collision`` or ``goal`` condition).
+loophole check (docs/checks.md), on one row as the file declares its episodes and, when it leaves
+the ending to the environment, on a second row as a gymnasium environment would run them: ending
+at a collision or at the goal (``episode ends when`` the file's ``collision`` or ``goal`` condition).
 Prints one markdown table (docs/stdlib.md shows the stdlib's). Exit 0, or 1 when a file does not
 check.
 """
@@ -21,13 +21,13 @@ from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.incentives import Findings, Loophole, Unchecked, analyse
 from rac.compiler import compile_file
 from rac.core.diagnostics import short_number
+from rac.ir.text import format_guard
 
-__all__ = ["COLUMNS", "gym_ending", "main", "row"]
+__all__ = ["COLUMNS", "gym_ending", "main", "row", "rows"]
 
 #: The table's columns, in order.
-COLUMNS = ("file", "R_goal", "R_stall", "R_crash", "p*", "ending early never pays",
-           "... if a collision or the goal ends the episode", "goal earlier never pays less",
-           "stalling never pays")
+COLUMNS = ("file", "episodes end", "R_goal", "R_stall", "R_crash", "p*", "ending early never pays",
+           "goal earlier never pays less", "stalling never pays")
 
 
 def gym_ending(automaton: ir.Automaton) -> ir.Automaton | None:
@@ -58,15 +58,23 @@ def _verdict(found: Findings | Unchecked | None, check: str) -> str:
     loophole: Loophole | None = found.verdicts[check]
     if loophole is None:
         return "holds"
-    return f"fails by {short_number(loophole.delta)} (sample {loophole.sample})"
+    at = (f"samples {loophole.other_sample} and {loophole.sample}" if loophole.other_sample
+          else f"sample {loophole.sample}")
+    return f"**fails** by {short_number(loophole.delta)} ({at})"
 
 
 def _number(value: Fraction | None) -> str:
     return "—" if value is None else short_number(value)
 
 
+def _ending(automaton: ir.Automaton) -> str:
+    if automaton.episode_ends is None:
+        return "at the horizon"
+    return f"when {format_guard(automaton.episode_ends)}, else at the horizon"
+
+
 def row(path: str, automaton: ir.Automaton) -> tuple[str, ...]:
-    """One file's cells, in the order of :data:`COLUMNS`."""
+    """One file's cells as it declares its episodes, in the order of :data:`COLUMNS`."""
     found = _findings(automaton)
     incentives = found.incentives if isinstance(found, Findings) else None
     returns: tuple[str, ...]
@@ -79,28 +87,37 @@ def row(path: str, automaton: ir.Automaton) -> tuple[str, ...]:
         p = _number(incentives.p_star) if incentives.p_star is not None else f"undefined: {incentives.p_note}"
         if incentives.p_star is not None and incentives.p_note:
             p += f" ({incentives.p_note})"
-    ended = gym_ending(automaton)
-    as_gym = _verdict(_findings(ended), "ending_early_never_pays") if ended is not None else "(as declared)"
-    return (path, *returns, p, _verdict(found, "ending_early_never_pays"), as_gym,
+    return (path, _ending(automaton), *returns, p, _verdict(found, "ending_early_never_pays"),
             _verdict(found, "goal_earlier_never_pays_less"), _verdict(found, "stalling_never_pays"))
+
+
+def rows(path: str, automaton: ir.Automaton) -> list[tuple[str, ...]]:
+    """The file as it declares its episodes and, when it leaves the ending to the environment, as a
+    gymnasium environment ending them at a collision or at the goal would run it."""
+    found = [row(path, automaton)]
+    ended = gym_ending(automaton)
+    if ended is not None:
+        found.append(row(path, ended))
+    return found
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m rac.studies.incentives", description=__doc__.split("\n")[0])
     parser.add_argument("files", nargs="+", help=".ra files")
     args = parser.parse_args(argv)
-    rows, status = [], 0
+    table: list[tuple[str, ...]] = []
+    status = 0
     for path in args.files:
         result = compile_file(path)
         if result.automaton is None or not result.ok:
             print(f"{path}: does not check (run `rac check {path}`)", file=sys.stderr)
             status = 1
             continue
-        rows.append(row(path, result.automaton))
+        table.extend(rows(path, result.automaton))
     print("| " + " | ".join(COLUMNS) + " |")
     print("|" + "---|" * len(COLUMNS))
-    for cells in rows:
-        print("| " + " | ".join(cells) + " |")
+    for cells in table:
+        print("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")  # `||` in a cell
     return status
 
 
