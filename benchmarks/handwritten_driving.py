@@ -44,6 +44,8 @@ STEP_RATES = {location: tuple(rate * PERIOD for rate in rates) for location, rat
 
 def _boolean(name: str, raw: object) -> bool:
     """A boolean input: True/False (Python's or numpy's) or 0/1; else ValueError."""
+    if raw is True or raw is False:  # the common case, without the abstract-class check below
+        return raw  # type: ignore[return-value]
     if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
         return bool(raw)
     raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
@@ -51,6 +53,8 @@ def _boolean(name: str, raw: object) -> bool:
 
 def _number(name: str, raw: object) -> float:
     """A numeric input: a real number, as a float; else ValueError."""
+    if type(raw) is float:  # the common case, without the abstract-class check below
+        return raw  # type: ignore[return-value]
     if not isinstance(raw, numbers.Real):
         raise ValueError(f"input {name!r} = {raw!r} is not a number")  # noqa: TRY004 - the documented error
     try:
@@ -74,13 +78,15 @@ class HandwrittenDriving:
     @staticmethod
     def _read(inputs: Mapping[str, object]) -> tuple[bool, bool, bool, bool, float]:
         """Validate one sample's inputs; raise ValueError without touching any state."""
-        if not isinstance(inputs, Mapping):
+        if type(inputs) is not dict and not isinstance(inputs, Mapping):
             raise ValueError(f"inputs must map input names to values, not {type(inputs).__name__}")  # noqa: TRY004
         try:
             if len(inputs) != len(INPUTS):
                 raise KeyError
-            is_close, prog, comf, collide = (_boolean(name, inputs[name])
-                                             for name in ("isClose", "prog", "comf", "collide"))
+            is_close = _boolean("isClose", inputs["isClose"])
+            prog = _boolean("prog", inputs["prog"])
+            comf = _boolean("comf", inputs["comf"])
+            collide = _boolean("collide", inputs["collide"])
             dgoal = _number("dgoal", inputs["dgoal"])
         except KeyError:
             missing = [name for name in INPUTS if name not in inputs]

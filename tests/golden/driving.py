@@ -33,15 +33,13 @@ def _mapping(inputs: object) -> None:
         raise ValueError(message)  # noqa: TRY004
 
 
-def _boolean(inputs: Mapping[str, object], name: str) -> bool:
-    raw = inputs[name]
+def _boolean(name: str, raw: object) -> bool:
     if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
         return bool(raw)
     raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
 
 
-def _number(inputs: Mapping[str, object], name: str) -> float:
-    raw = inputs[name]
+def _number(name: str, raw: object) -> float:
     if not isinstance(raw, numbers.Real):
         raise ValueError(f"input {name!r} = {raw!r} is not a number")  # noqa: TRY004
     try:
@@ -113,15 +111,26 @@ class Driving:
         """Take one sample with ``inputs``; return the objective's increase."""
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
-        _mapping(inputs)
+        if type(inputs) is not dict:
+            _mapping(inputs)
         try:
             if len(inputs) != 5:
                 raise KeyError
-            i_isClose = _boolean(inputs, "isClose")
-            i_prog = _boolean(inputs, "prog")
-            i_comf = _boolean(inputs, "comf")
-            i_collide = _boolean(inputs, "collide")
-            i_dgoal = _number(inputs, "dgoal")
+            i_isClose = inputs["isClose"]
+            if i_isClose is not True and i_isClose is not False:
+                i_isClose = _boolean("isClose", i_isClose)
+            i_prog = inputs["prog"]
+            if i_prog is not True and i_prog is not False:
+                i_prog = _boolean("prog", i_prog)
+            i_comf = inputs["comf"]
+            if i_comf is not True and i_comf is not False:
+                i_comf = _boolean("comf", i_comf)
+            i_collide = inputs["collide"]
+            if i_collide is not True and i_collide is not False:
+                i_collide = _boolean("collide", i_collide)
+            i_dgoal = inputs["dgoal"]
+            if type(i_dgoal) is not float:
+                i_dgoal = _number("dgoal", i_dgoal)
             if not 0.0 <= i_dgoal <= 500.0:
                 raise _range_error("dgoal", i_dgoal, 0.0, 500.0)
         except KeyError:
@@ -196,15 +205,26 @@ class Driving:
             return 0.0
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
-        _mapping(inputs)
+        if type(inputs) is not dict:
+            _mapping(inputs)
         try:
             if len(inputs) != 5:
                 raise KeyError
-            i_isClose = _boolean(inputs, "isClose")
-            _boolean(inputs, "prog")
-            _boolean(inputs, "comf")
-            i_collide = _boolean(inputs, "collide")
-            i_dgoal = _number(inputs, "dgoal")
+            i_isClose = inputs["isClose"]
+            if i_isClose is not True and i_isClose is not False:
+                i_isClose = _boolean("isClose", i_isClose)
+            i_prog = inputs["prog"]
+            if i_prog is not True and i_prog is not False:
+                _boolean("prog", i_prog)
+            i_comf = inputs["comf"]
+            if i_comf is not True and i_comf is not False:
+                _boolean("comf", i_comf)
+            i_collide = inputs["collide"]
+            if i_collide is not True and i_collide is not False:
+                i_collide = _boolean("collide", i_collide)
+            i_dgoal = inputs["dgoal"]
+            if type(i_dgoal) is not float:
+                i_dgoal = _number("dgoal", i_dgoal)
             if not 0.0 <= i_dgoal <= 500.0:
                 raise _range_error("dgoal", i_dgoal, 0.0, 500.0)
         except KeyError:

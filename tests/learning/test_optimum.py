@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 from rac.compiler import CompileResult, compile_file
 from rac.engine import shield
 from rac.engine.budget import BudgetExceeded
+from rac.learning import optimum
 from rac.learning.episodes import EpisodeBatch, Expression, parse_expr
 from rac.learning.optimum import shortfall, solve, why_not_additive
 from rac.learning.qlearning import LearnedStrategy, ObjectiveIncrease, learn
@@ -157,6 +158,29 @@ def test_out_of_reach_beyond_the_budget(tiny: Callable[..., Compiled]) -> None:
     result, _ = tiny("goal_ahead")
     with pytest.raises(BudgetExceeded, match="decision graph"):
         solve(EpisodeBatch(result, horizon_samples=HORIZON), max_states=5)
+
+
+def test_the_budget_is_checked_before_the_shield_is_asked(tiny: Callable[..., Compiled],
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """The next layer's states are bounded by the (state, action) pairs the model allows, and that bound
+    is checked before the shield is asked about the layer: an on-demand shield proves every pair, so a
+    layer checked only after it was masked (the tutorial's 45 actions: a million states, 6.7 GB and
+    minutes) could cost far more than the budget it then exceeded."""
+    result, table = tiny("goal_ahead")  # layers of 1, 3, 9, 37 decision states, 9 actions each
+    asked: list[int] = []
+    allowed = optimum.allowed_actions
+
+    def counted(batch: Episodes, shield: object) -> tuple[np.ndarray, np.ndarray]:
+        asked.append(batch.n)
+        return allowed(batch, shield)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(optimum, "allowed_actions", counted)
+    assert solve(EpisodeBatch(result, horizon_samples=HORIZON), shield=table).states == 1 + 3 + 9 + 37
+    assert asked == [1, 3, 9, 37]
+    asked.clear()
+    with pytest.raises(BudgetExceeded, match="decision graph"):
+        solve(EpisodeBatch(result, horizon_samples=HORIZON), shield=table, max_states=20)
+    assert asked == [1]  # 1 + 3 states, then up to 3 * 9 more: refused before the 3 were masked (was [1, 3, 9])
 
 
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

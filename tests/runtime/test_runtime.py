@@ -8,7 +8,9 @@ checked against the closed-form numbers they approximate.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from fractions import Fraction
+from types import MappingProxyType
 
 import numpy as np
 import pytest
@@ -220,6 +222,34 @@ def test_inputs_are_converted(driving: ir.Automaton) -> None:
     assert ra.location == "Normal"
     ra.step({"isClose": 1, "prog": 1, "comf": 1, "collide": 1, "dgoal": np.float32(500)})
     assert ra.location == "Unsafe"
+
+
+def test_common_inputs_are_read_without_the_checks(driving: ir.Automaton,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """A dict of True/False and floats skips check_mapping, boolean_input and number_input (their
+    isinstance checks against Mapping and numbers.Real cost more than the rest of a sample); other
+    values still go through them."""
+    import rac.runtime.interpreter as interpreter
+
+    calls: list[str] = []
+    for name in ("check_mapping", "boolean_input", "number_input"):
+        original = getattr(interpreter, name)
+
+        def counted(*args: object, original: Callable[..., object] = original,
+                    name: str = name) -> object:
+            calls.append(name)
+            return original(*args)
+        monkeypatch.setattr(interpreter, name, counted)
+    ra = RewardAutomaton(driving)
+    for x in (inputs(), inputs(is_close=True, collide=True), inputs(prog=False, dgoal=0.0)):
+        ra.step(x)
+    ra.end(inputs())
+    assert calls == []
+    ra.reset()
+    ra.step(MappingProxyType({"isClose": np.bool_(True), "prog": 1, "comf": True, "collide": 0,
+                              "dgoal": np.float64(40.0)}))
+    assert ra.location == "Unsafe"
+    assert calls == ["check_mapping", "boolean_input", "boolean_input", "boolean_input", "number_input"]
 
 
 @pytest.mark.parametrize(("name", "value", "message"), [

@@ -10,9 +10,11 @@ import struct
 import subprocess
 import sys
 import types
+from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
 
+import numpy as np
 import pytest
 from driving_ir import compiled_driving, driving_automaton, inputs
 
@@ -176,6 +178,36 @@ def test_generated_validation(values: dict[str, object], message: str) -> None:
     with pytest.raises(ValueError, match=message):
         ra.end(values)
     assert (ra.location, ra.rewards, ra.objective, ra.samples, ra.ended) == (*before, False)
+
+
+def test_common_inputs_are_read_without_the_helpers() -> None:
+    """A dict of True/False and floats is read by identity tests; only other values reach the helpers,
+    whose isinstance checks against Mapping and numbers.Real, run for every input, made step() about
+    5x slower (benchmarks/run.py's step rows: 280 -> 1533 ns)."""
+    module = load(GOLDEN.read_text(encoding="utf-8"))
+    calls: list[str] = []
+    for helper in ("_mapping", "_boolean", "_number"):
+        original = getattr(module, helper)
+
+        def counted(*args: object, original: Callable[..., object] = original,
+                    helper: str = helper) -> object:
+            calls.append(helper)
+            return original(*args)
+        setattr(module, helper, counted)
+    ra, reference = module.Driving(), load(GOLDEN.read_text(encoding="utf-8")).Driving()
+    for x in (inputs(), inputs(is_close=True, collide=True), inputs(prog=False, dgoal=0.0)):
+        assert bits(ra.step(x)) == bits(reference.step(x))
+    assert bits(ra.end(inputs())) == bits(reference.end(inputs()))
+    assert calls == []
+    ra.reset(), reference.reset()
+    odd = types.MappingProxyType({"isClose": np.bool_(False), "prog": 1, "comf": True, "collide": 0,
+                                  "dgoal": np.float64(40.0)})
+    assert bits(ra.step(odd)) == bits(reference.step(inputs(dgoal=40.0)))
+    assert calls == ["_mapping", "_boolean", "_boolean", "_boolean", "_number"]
+    with pytest.raises(ValueError, match="'comf' = 'x' is not a boolean"):
+        ra.step({**inputs(), "comf": "x"})
+    with pytest.raises(ValueError, match="'dgoal' = '7.5' is not a number"):
+        ra.step({**inputs(), "dgoal": "7.5"})
 
 
 def odd_automaton() -> ir.Automaton:

@@ -33,6 +33,9 @@ __all__ = ["OnDemandShield", "OnDemandStats", "on_demand"]
 
 #: The default time budget per state, in seconds (simulations and learning ask for thousands).
 DEFAULT_SECONDS = 0.02
+#: The (state, action) pairs whose fixed continuations are tried at once (their arrays, ~100 bytes a
+#: pair, stay near 25 MB however many states are asked about together).
+FIXED_PAIRS = 1 << 18
 #: The columns of the shield's state rows (as :meth:`rac.learning.episodes.EpisodeBatch.state_keys`).
 COLUMNS = ("k", "x", "y", "v", "acc", "head", "jerk", "turn")
 
@@ -78,7 +81,12 @@ class OnDemandShield(ShieldTable):
                 group = [i for i in todo if rows[i, GraphColumn.K] == k and keys[i] not in memo]
                 if k >= self.lookahead.horizon or not group:
                     continue
-                proved = self._fixed_proofs(rows[group, GRAPH_EGO], int(k))
+                # in chunks: the fixed continuations hold several int32 copies of every (row, action)
+                # pair, 6.7 GB for the million states of one layer of the tutorial's 45 actions
+                step = max(1, FIXED_PAIRS // self.n_actions)
+                egos = rows[group, GRAPH_EGO]
+                proved = np.concatenate([self._fixed_proofs(egos[start:start + step], int(k))
+                                         for start in range(0, len(group), step)])
                 for i, mask in zip(group, proved):
                     if mask.any():
                         memo[keys[i]] = mask

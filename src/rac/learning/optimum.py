@@ -203,8 +203,15 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
     layers: list[_Layer] = []
     states, edges, stored = 1, 0, 0
     scored.reset(1)
-    for _ in range(batch.max_steps):
+    for step in range(batch.max_steps):
         observed = batch.observe(exprs)
+        if step + 1 < batch.max_steps:
+            # The next layer has at most one state per (state, action) pair the model allows: checked
+            # before the shield is asked about them (an on-demand shield proves every pair; on the
+            # tutorial's 45 actions, a layer of a million states took minutes and 6.7 GB before
+            # check_states below refused the layer after it).
+            bound = states + int(batch.model_masks().sum())
+            budget.check_states(bound, int(batch.k.max()) + batch.decide_every)
         masks, _empty = allowed_actions(scored, shield)
         parent, action = np.nonzero(masks)  # by parent, then action: the lowest action first
         sample = int(batch.k.max())

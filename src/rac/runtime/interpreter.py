@@ -241,7 +241,10 @@ class RewardAutomaton(AutomatonDescription):
         return BatchRewardAutomaton(self._ir, n)
 
     def _read(self, inputs: Mapping[str, object]) -> _Values:
-        check_mapping(inputs)
+        # A dict, True/False and a float are taken by identity tests: the abstract-class checks of
+        # check_mapping, boolean_input and number_input cost more than the rest of a sample.
+        if type(inputs) is not dict:
+            check_mapping(inputs)
         values: _Values = {}
         try:
             if len(inputs) != len(self._specs):
@@ -249,9 +252,9 @@ class RewardAutomaton(AutomatonDescription):
             for spec in self._specs:
                 raw = inputs[spec.name]
                 if spec.kind == "bool":
-                    values[spec.name] = boolean_input(spec.name, raw)
+                    values[spec.name] = raw if raw is True or raw is False else boolean_input(spec.name, raw)
                     continue
-                value = number_input(spec.name, raw)
+                value = raw if type(raw) is float else number_input(spec.name, raw)
                 if not spec.low <= value <= spec.high or not math.isfinite(value) or (
                         spec.kind == "int" and not value.is_integer()):
                     raise range_error(spec, value)

@@ -226,7 +226,7 @@ class _Generator:
         return [f"{self.rewards[u.reward]} = {self.expr(float_linear(u.value, 'update'))}" for u in updates]
 
     def read(self, body: str) -> list[str]:
-        """Read and validate every input; the locals of unused booleans are not bound."""
+        """Read and validate every input; an unused boolean is validated, its value not converted."""
         check: list[str] = []
         for clause in assume_checks(self.a):  # in source order: the first violated one is named
             check.append(f"if {self.expr(ir.BNot(clause.guard))}:")
@@ -234,14 +234,21 @@ class _Generator:
                 f"({_py(name)}, {'int(' + self.inputs[name] + ')' if kind == 'int' else self.inputs[name]})"
                 for name, kind in clause.reads)], 12)
         body = "\n".join([body, *check])
-        lines = ["_mapping(inputs)", "try:", f"    if len(inputs) != {len(self.specs)}:", "        raise KeyError"]
+        # The common values (a dict, True/False, a float) are taken as they are, by identity tests;
+        # only others go through the helpers, whose abstract-class checks (Mapping, numbers.Real)
+        # cost more than the rest of a sample (benchmarks/run.py's step rows).
+        lines = ["if type(inputs) is not dict:", "    _mapping(inputs)",
+                 "try:", f"    if len(inputs) != {len(self.specs)}:", "        raise KeyError"]
         for spec in self.specs:
             var = self.inputs[spec.name]
+            name = _py(spec.name)
             if spec.is_bool:
                 used = re.search(rf"\b{var}\b", body) is not None
-                lines.append(f"    {var + ' = ' if used else ''}_boolean(inputs, {_py(spec.name)})")
+                lines += [f"    {var} = inputs[{name}]", f"    if {var} is not True and {var} is not False:",
+                          f"        {var + ' = ' if used else ''}_boolean({name}, {var})"]
                 continue
-            lines.append(f"    {var} = _number(inputs, {_py(spec.name)})")
+            lines += [f"    {var} = inputs[{name}]", f"    if type({var}) is not float:",
+                      f"        {var} = _number({name}, {var})"]
             low, high = _num_or_inf(spec.low), _num_or_inf(spec.high)
             if spec.bounded:
                 bad = [f"not {low} <= {var} <= {high}"]
