@@ -138,6 +138,8 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
                 allowed = intersect([checked], risk_values(resolve, parameter, risk.bound))
         except Unfinished as stop:
             reason = f"the worst-run search stopped: {stop.reason}"
+        except ValueError as why:  # piecewise.convex: the returns are not piecewise affine with few pieces
+            reason = f"under `require risk`: {why}"
     if reason is not None:
         return None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {reason}",
                             parameter.span, hints=[f"write `const {name} = ...` instead"])], None

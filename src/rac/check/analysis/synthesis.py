@@ -348,7 +348,6 @@ def risk_values(resolve: Resolve, parameter: ir.Parameter, bound: Fraction) -> l
     ``(R_goal - R_stall) <= bound * (R_goal - R_crash)``, as ``rac check`` decides it at one value.
     """
     low, high = parameter.low, parameter.high
-    found: dict[Fraction, Incentives] = {}
 
     def incentives(value: Fraction) -> tuple[ir.Automaton, InputSpace, Incentives]:
         automaton = resolve(value)
@@ -359,7 +358,6 @@ def risk_values(resolve: Resolve, parameter: ir.Parameter, bound: Fraction) -> l
         if isinstance(result, IncentivesUnchecked):
             raise Unfinished(result.reason)
         assert result.incentives is not None, "`require risk` needs `goal when` (E1009)"
-        found[value] = result.incentives
         return automaton, space, result.incentives
 
     def oracle(which: str) -> Callable[[Fraction], tuple[Fraction, Fraction]]:
