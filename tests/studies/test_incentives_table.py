@@ -52,5 +52,7 @@ def test_the_table_escapes_the_pipes_of_a_condition(capsys: pytest.CaptureFixtur
 def test_a_file_that_does_not_check_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     broken = tmp_path / "broken.ra"
     broken.write_text("automaton A {\n", encoding="utf-8")
-    assert main([str(broken)]) == 1
-    assert f"{broken}: does not check" in capsys.readouterr().err
+    assert main([str(broken), str(tmp_path / "missing.ra")]) == 1
+    err = capsys.readouterr().err
+    assert f"{broken}: does not check" in err
+    assert f"{tmp_path / 'missing.ra'}: cannot be read: No such file or directory" in err

@@ -102,13 +102,19 @@ def rows(path: str, automaton: ir.Automaton) -> list[tuple[str, ...]]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Print the table for the files in ``argv``; 0, or 1 when a file cannot be read or does not check."""
     parser = argparse.ArgumentParser(prog="python -m rac.studies.incentives", description=__doc__.split("\n")[0])
     parser.add_argument("files", nargs="+", help=".ra files")
     args = parser.parse_args(argv)
     table: list[tuple[str, ...]] = []
     status = 0
     for path in args.files:
-        result = compile_file(path)
+        try:
+            result = compile_file(path)
+        except OSError as why:
+            print(f"{path}: cannot be read: {why.strerror or why}", file=sys.stderr)
+            status = 1
+            continue
         if result.automaton is None or not result.ok:
             print(f"{path}: does not check (run `rac check {path}`)", file=sys.stderr)
             status = 1
