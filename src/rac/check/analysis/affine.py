@@ -262,3 +262,19 @@ def sup_linear(form: dict[str, Fraction], box: tuple[tuple[str, Piece], ...]) ->
         point[name] = value
         total += g * value
     return total, point
+
+
+def sup_weighted(w: tuple[Fraction, ...], maps: Collection[Affine],
+                 box: tuple[tuple[str, Piece], ...]) -> tuple[Fraction, dict[str, Fraction]]:
+    """Supremum of ``w·(sum of the maps' offsets)`` over the closure of ``box``, and a point attaining
+    it (translations only: what a sample adds to a weighted sum of the rewards)."""
+    const = ZERO
+    form: dict[str, Fraction] = {}
+    for affine in maps:
+        for k, offset in enumerate(affine.offset):
+            if w[k]:
+                const += w[k] * offset.const
+                for name, coefficient in offset.terms:
+                    form[name] = form.get(name, ZERO) + w[k] * coefficient
+    bonus, point = sup_linear(form, box)
+    return const + bonus, point

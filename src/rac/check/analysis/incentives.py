@@ -30,7 +30,7 @@ over (sample, location) and at most one flag, over the outcomes of
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -44,7 +44,7 @@ from rac.check.analysis.affine import (
     from_assignments,
     identity,
     moves,
-    sup_linear,
+    sup_weighted,
     then,
 )
 from rac.check.analysis.priority import describe_run, end_json, replay, run_json
@@ -155,23 +155,6 @@ def unchecked(automaton: ir.Automaton, outs: Moves) -> Unchecked | None:
     return None
 
 
-def _weighted(w: tuple[Fraction, ...], maps: Sequence[Affine]) -> dict[str, Fraction]:
-    """``w·(sum of the maps' offsets)`` as {"": constant, input: coefficient} (translations only)."""
-    form: dict[str, Fraction] = {"": ZERO}
-    for affine in maps:
-        for k, offset in enumerate(affine.offset):
-            if w[k]:
-                form[""] += w[k] * offset.const
-                for name, coefficient in offset.terms:
-                    form[name] = form.get(name, ZERO) + w[k] * coefficient
-    return form
-
-
-def _sup(form: dict[str, Fraction], box: tuple) -> tuple[Fraction, _Point]:
-    bonus, point = sup_linear({k: v for k, v in form.items() if k}, box)
-    return form[""] + bonus, point
-
-
 def _useful(found: list[Move]) -> list[Move]:
     """The moves a best run may take: per (target, flags), the best to go on and the best to stop with, at
     the first sample and later (the others never do better; dropping them keeps every value exact)."""
@@ -212,8 +195,8 @@ class _Runs:
                 stopping = (o.edge_map, end_map)
                 found.append(Move(
                     o, bool(ends), bool(goal), bool(collision), clauses, end_map,
-                    (_sup(_weighted(w, first + going), o.box), _sup(_weighted(w, going), o.box)),
-                    (_sup(_weighted(w, first + stopping), o.box), _sup(_weighted(w, stopping), o.box))))
+                    (sup_weighted(w, first + going, o.box), sup_weighted(w, going, o.box)),
+                    (sup_weighted(w, first + stopping, o.box), sup_weighted(w, stopping, o.box))))
             # Staying first: among runs that earn alike, the witnesses stay rather than move for nothing.
             found.sort(key=lambda m: m.outcome.edge is not None)
             self.moves.append(_useful(found))

@@ -29,7 +29,7 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
-from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, sup_linear
+from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, sup_linear, sup_weighted
 from rac.core.diagnostics import RacError
 
 ZERO = Fraction(0)
@@ -307,10 +307,10 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     w = target.weights
     outs = moves.samples
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
-    end_options = [(_sup(_weigh(w, (e.end_map,)), e.box), e) for e in moves.ends]
+    end_options = [(sup_weighted(w, (e.end_map,), e.box)[0], e) for e in moves.ends]
     k_end, best_end = max(end_options, key=lambda item: item[0]) if end_options else (None, None)
     start = _start(target, l0, {} if k_end is None or best_end is None else
-                   {(): (target.constant + k_end, best_end, _point(_weigh(w, (best_end.end_map,)), best_end.box))})
+                   {(): (target.constant + k_end, best_end, sup_weighted(w, (best_end.end_map,), best_end.box)[1])})
     if not any(outs):  # `assume` excludes every input: no sample ever happens
         return start
 
@@ -318,15 +318,15 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     for here, os in enumerate(outs):
         for oi, o in enumerate(os):
             t = o.target
-            rows.append((here, oi, t, _sup(_weigh(w, (o.edge_map,)), o.box),
-                         _sup(_weigh(w, (o.edge_map, accruals[t])), o.box)))
+            rows.append((here, oi, t, sup_weighted(w, (o.edge_map,), o.box)[0],
+                         sup_weighted(w, (o.edge_map, accruals[t]), o.box)[0]))
     first_rows = []  # sample 1 from l0: the accrual before the edge uses the same inputs
     for oi, o in enumerate(outs[l0]):
         t = o.target
         first_rows.append((oi, t,
-                           _sup(_weigh(w, (accruals[l0], o.edge_map)), o.box),
-                           _sup(_weigh(w, (accruals[l0], o.edge_map, accruals[t])), o.box),
-                           _sup(_weigh(w, (accruals[l0],)), o.box)))
+                           sup_weighted(w, (accruals[l0], o.edge_map), o.box)[0],
+                           sup_weighted(w, (accruals[l0], o.edge_map, accruals[t]), o.box)[0],
+                           sup_weighted(w, (accruals[l0],), o.box)[0]))
     values = ([v for r in rows for v in r[3:]] + [v for r in first_rows for v in r[2:]]
               + [target.constant] + ([k_end] if k_end is not None else []))
     scale = math.lcm(*(v.denominator for v in values))
@@ -418,11 +418,11 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
         if instant == AFTER_END:
             assert best_end is not None
             result.end = best_end
-            result.end_inputs = _point(_weigh(w, (best_end.end_map,)), best_end.box)
+            result.end_inputs = sup_weighted(w, (best_end.end_map,), best_end.box)[1]
         key = (id(o), instant, k == 1)
         point = points.get(key)
         if point is None:
-            point = points[key] = _point(_weigh(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0)), o.box)
+            point = points[key] = sup_weighted(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0), o.box)[1]
         result.steps.append(Step(k, o, point, instant))
         if instant != CONTINUE:
             result.instant = instant
@@ -447,31 +447,10 @@ def _maps_for(instant: str, o: Outcome, accruals: list[Affine], *, first: bool, 
 def _which_stop(w: tuple[Fraction, ...], o: Outcome, accruals: list[Affine], k_end: Fraction | None,
                 last: bool) -> str:
     """Which instant of a sample attains the stop value found by the recurrence."""
-    edge = _sup(_weigh(w, (o.edge_map,)), o.box)
+    edge = sup_weighted(w, (o.edge_map,), o.box)[0]
     options = [(edge, AFTER_EDGE)]
     if k_end is not None and k_end > 0:
         options.append((edge + k_end, AFTER_END))
     if not last:
-        options.append((_sup(_weigh(w, (o.edge_map, accruals[o.target])), o.box), BEFORE_NEXT))
+        options.append((sup_weighted(w, (o.edge_map, accruals[o.target]), o.box)[0], BEFORE_NEXT))
     return max(options, key=lambda item: item[0])[1]
-
-
-def _weigh(w: tuple[Fraction, ...], maps: tuple[Affine, ...]) -> dict[str, Fraction]:
-    """``w·(sum of the maps' offsets)`` as {"": constant, input: coefficient} (translations only)."""
-    form: dict[str, Fraction] = {"": ZERO}
-    for affine in maps:
-        for k, offset in enumerate(affine.offset):
-            if w[k]:
-                form[""] += w[k] * offset.const
-                for name, coefficient in offset.terms:
-                    form[name] = form.get(name, ZERO) + w[k] * coefficient
-    return form
-
-
-def _sup(form: dict[str, Fraction], box) -> Fraction:
-    bonus, _ = sup_linear({k: v for k, v in form.items() if k}, box)
-    return form[""] + bonus
-
-
-def _point(form: dict[str, Fraction], box) -> dict[str, Fraction]:
-    return sup_linear({k: v for k, v in form.items() if k}, box)[1]
