@@ -79,3 +79,15 @@ def test_the_least_penalty_for_a_risk_of_one_in_ten():
     assert risk.data["p_star"] == "1/10"
     below = compile_text(text.replace("param PENALTY in [0, 1400]", "const PENALTY = 499"))
     assert [d.code for d in below.diagnostics if d.is_error] == ["E1001"]
+
+
+def test_no_value_within_the_int32_range_reaches_a_risk_of_one_in_a_hundred():
+    # p* <= 1/100 needs PENALTY >= 5000; above 1430 the rewards leave int32: E0406, and the checks at
+    # the least value the other checks allow (98) show why (E1001)
+    text = (ROOT / "examples" / "tune" / "driving_risk.ra").read_text(encoding="utf-8")
+    result = compile_text(text.replace("require risk <= 0.1", "require risk <= 0.01"))
+    assert [d.code for d in result.diagnostics if d.is_error] == ["E0406", "E1001"]
+    e0406 = result.diagnostics[0]
+    assert "no value of parameter `PENALTY`" in e0406.message
+    assert any("`require risk <= 0.01` holds for none of them" in str(n) for n in e0406.notes)
+    assert any("the checks at PENALTY = 98 follow" in str(n) for n in e0406.notes)

@@ -19,7 +19,7 @@ from typing import get_args
 from rac import ir
 from rac.check.analysis import analyse_automaton
 from rac.check.analysis.piecewise import Interval, intersect
-from rac.check.analysis.synthesis import Synthesis, Synthesised, Unfinished, risk_values, synthesise, unsupported
+from rac.check.analysis.synthesis import Synthesised, Unfinished, risk_values, synthesise, unsupported
 from rac.check.analysis.weights import Unsupported, synthesise_region
 from rac.check.resolve import Resolver
 from rac.core.diagnostics import Diagnostic, Fact, error, short_number
@@ -147,7 +147,10 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     if allowed is not None:
         least = allowed[0].low if allowed and not allowed[0].low_open else None
     if least is None:
-        witness = resolve(result.witness if allowed is None or not allowed else allowed[0].low)
+        # the value whose checks show why: the least the requirement allows (its end is open), else
+        # the synthesis' own witness
+        shown = allowed[0].low if allowed else result.witness
+        witness = resolve(shown)
         assert witness is not None
         failing = [d for d in analyse_automaton(witness, []) if d.is_error]
         if allowed is not None and risk is not None and not result.empty:
@@ -156,7 +159,7 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
             notes = [f"every other check holds for {name} in {result.interval()}; `require risk <= "
                      f"{short_number(risk.bound or Fraction(0))}` holds for "
                      f"{_intervals_text(allowed) if allowed else 'none of them'}",
-                     f"the checks at {name} = {short_number(witness_value(result, allowed))} follow"]
+                     f"the checks at {name} = {short_number(shown)} follow"]
         else:
             what = ("no value" if result.empty else
                     f"no least value (the values that pass form {result.interval()})")
@@ -183,12 +186,6 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     facts.append(Fact("synthesis", sentence))
     return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
                                            sentence)
-
-
-def witness_value(result: Synthesis, allowed: list[Interval]) -> Fraction:
-    """The value whose checks show why no value passes: the least one the requirement allows, else
-    the synthesis' own witness."""
-    return allowed[0].low if allowed else result.witness
 
 
 def _intervals_text(intervals: list[Interval]) -> str:

@@ -164,12 +164,11 @@ def convex(oracle: Oracle, low: Fraction, high: Fraction, *, limit: int = 10_000
             raise ValueError("the oracle's lines are not supporting lines of one convex function")
         cross = (c2 - c1) / (s1 - s2)
         cross = min(max(cross, a), b)
-        value, slope = oracle_at(line, cross)
-        if value == s1 * cross + c1:
+        middle = line(cross)
+        if middle[0] * cross + middle[1] == s1 * cross + c1:  # the function's value at the crossing
             points[a] = left
             points[cross] = right
             continue
-        middle = (slope, value - slope * cross)
         stack.append((cross, middle, b, right))
         stack.append((a, left, cross, middle))
     ordered = sorted(points)
@@ -177,12 +176,6 @@ def convex(oracle: Oracle, low: Fraction, high: Fraction, *, limit: int = 10_000
     slopes = tuple(points[p][0] for p in ordered if p < high)
     intercepts = tuple(points[p][1] for p in ordered if p < high)
     return Piecewise(tuple(breakpoints), slopes, intercepts).simplified()
-
-
-def oracle_at(line: Callable[[Fraction], tuple[Fraction, Fraction]], p: Fraction) -> tuple[Fraction, Fraction]:
-    """(value, slope) at ``p`` from a line-returning oracle."""
-    slope, intercept = line(p)
-    return slope * p + intercept, slope
 
 
 def intersect(first: list[Interval], second: list[Interval]) -> list[Interval]:
