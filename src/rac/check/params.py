@@ -18,6 +18,7 @@ from typing import get_args
 
 from rac import ir
 from rac.check.analysis import analyse_automaton
+from rac.check.analysis.parametric import LOOPHOLES, loophole_values
 from rac.check.analysis.piecewise import Interval, intersect
 from rac.check.analysis.synthesis import Synthesised, Unfinished, risk_values, synthesise, unsupported
 from rac.check.analysis.weights import Unsupported, synthesise_region
@@ -127,17 +128,28 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     low, high = resolve(parameter.low), resolve(parameter.high)
     assert low is not None and high is not None, "the file resolved at the low bound"
     reason = unsupported(low, high)
-    risk = next((r for r in low.requirements if r.check == "risk"), None)
+    searched = [r for r in low.requirements if (r.check == "risk" and r.bound is not None) or r.check in LOOPHOLES]
+    #: each searched requirement with the values where it holds (in the order the file gives them)
+    holding: list[tuple[ir.Requirement, list[Interval]]] = []
     allowed: list[Interval] | None = None
     if reason is None:
         try:
             result = synthesise(resolve, parameter)
-            if risk is not None and risk.bound is not None and not result.empty:
+            if searched and not result.empty:
                 assert result.low is not None and result.high is not None
-                checked = Interval(result.low.value, result.high.value, result.low.open, result.high.open)
-                allowed = intersect([checked], risk_values(resolve, parameter, risk.bound))
+                allowed = [Interval(result.low.value, result.high.value, result.low.open, result.high.open)]
+                loopholes = loophole_values(resolve, parameter, [r.check for r in searched])
+                for requirement in searched:
+                    if requirement.check == "risk":
+                        assert requirement.bound is not None
+                        values = risk_values(resolve, parameter, requirement.bound)
+                    else:
+                        values = loopholes[requirement.check]
+                    holding.append((requirement, values))
+                    allowed = intersect(allowed, values)
         except Unfinished as stop:
-            reason = f"the worst-run search stopped: {stop.reason}"
+            reason = (f"under {', '.join(f'`{_requirement_text(r)}`' for r in searched)}: {stop.reason}"
+                      if allowed is not None else f"the worst-run search stopped: {stop.reason}")
         except ValueError as why:  # piecewise.convex: the returns are not piecewise affine with few pieces
             reason = f"under `require risk`: {why}"
     if reason is not None:
@@ -146,19 +158,20 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     least = result.least
     if allowed is not None:
         least = allowed[0].low if allowed and not allowed[0].low_open else None
+    required_text = "; ".join(f"`{_requirement_text(r)}` holds for "
+                              f"{f'{name} in {_intervals_text(values)}' if values else 'none of them'}"
+                              for r, values in holding)
     if least is None:
-        # the value whose checks show why: the least the requirement allows (its end is open), else
+        # the value whose checks show why: the least the requirements allow (its end is open), else
         # the synthesis' own witness
         shown = allowed[0].low if allowed else result.witness
         witness = resolve(shown)
         assert witness is not None
         failing = [d for d in analyse_automaton(witness, []) if d.is_error]
-        if allowed is not None and risk is not None and not result.empty:
+        if allowed is not None and not result.empty:
             what = ("no value" if not allowed else
                     f"no least value (the values that pass form {_intervals_text(allowed)})")
-            notes = [f"every other check holds for {name} in {result.interval()}; `require risk <= "
-                     f"{short_number(risk.bound or Fraction(0))}` holds for "
-                     f"{_intervals_text(allowed) if allowed else 'none of them'}",
+            notes = [f"every other check holds for {name} in {result.interval()}; {required_text}",
                      f"the checks at {name} = {short_number(shown)} follow"]
         else:
             what = ("no value" if result.empty else
@@ -169,10 +182,8 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
                             notes=notes,
                             hints=["widen the parameter's bounds, or change what it cannot compensate"]),
                       *failing], None
-    if allowed is not None and risk is not None:
-        risk_text = (f"`require risk <= {short_number(risk.bound or Fraction(0))}` holds for {name} in "
-                     f"{_intervals_text(allowed)}")
-        sentence = (f"synthesised: every check holds for {name} in {result.interval()}, and {risk_text}; "
+    if allowed is not None:
+        sentence = (f"synthesised: every check holds for {name} in {result.interval()}, and {required_text}; "
                     f"checked with {name} = {short_number(least)}")
         inequalities = tuple(_interval_inequality(name, i) for i in allowed)
         facts.append(Fact("synthesis", sentence))
@@ -186,6 +197,12 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     facts.append(Fact("synthesis", sentence))
     return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
                                            sentence)
+
+
+def _requirement_text(requirement: ir.Requirement) -> str:
+    if requirement.check == "risk":
+        return f"require risk <= {short_number(requirement.bound or Fraction(0))}"
+    return f"require {requirement.check}"
 
 
 def _intervals_text(intervals: list[Interval]) -> str:

@@ -54,8 +54,8 @@ from rac.core.numbers import exact_decimal
 from rac.core.source import Span
 from rac.ir.inputs import InputSpace, guard_inputs
 
-__all__ = ["CODES", "Findings", "Incentives", "Loophole", "Run", "Unchecked", "analyse", "check_incentives",
-           "risk_tolerance", "split_guards"]
+__all__ = ["CODES", "Findings", "Incentives", "Loophole", "Move", "Run", "Runs", "Unchecked", "analyse",
+           "check_incentives", "risk_tolerance", "split_guards", "unchecked"]
 
 ZERO = Fraction(0)
 FALSE = ir.BConst(False)
@@ -170,10 +170,15 @@ def _useful(found: list[Move]) -> list[Move]:
     return [m for m in found if id(m) in kept]
 
 
-class _Runs:
-    """The runs of one automaton as moves with gains, and the dynamic programmes over them."""
+class Runs:
+    """The runs of one automaton as moves with gains, and the dynamic programmes over them.
 
-    def __init__(self, automaton: ir.Automaton, space: InputSpace, outs: Moves) -> None:
+    ``prune``: keep only the moves a best run may take (:func:`_useful`); without it, ``moves[l]`` holds
+    every outcome of location ``l`` in the order of ``outs``, so that the runs of the same automaton at
+    other values of a parameter line up move for move (:mod:`~rac.check.analysis.parametric`).
+    """
+
+    def __init__(self, automaton: ir.Automaton, space: InputSpace, outs: Moves, prune: bool = True) -> None:
         self.automaton, self.space = automaton, space
         self.steps = automaton.steps
         self.l0 = automaton.initial
@@ -197,6 +202,9 @@ class _Runs:
                     o, bool(ends), bool(goal), bool(collision), clauses, end_map,
                     (sup_weighted(w, first + going, o.box), sup_weighted(w, going, o.box)),
                     (sup_weighted(w, first + stopping, o.box), sup_weighted(w, stopping, o.box))))
+            if not prune:
+                self.moves.append(found)
+                continue
             # Staying first: among runs that earn alike, the witnesses stay rather than move for nothing.
             found.sort(key=lambda m: m.outcome.edge is not None)
             self.moves.append(_useful(found))
@@ -302,7 +310,7 @@ class _Runs:
         return Run(value, worst, "episode" if last.ends else "horizon", goal_sample)
 
 
-def _incentives(runs: _Runs, rests: list[dict[int, tuple[int, int]]], quiet: list[dict]) -> Incentives:
+def _incentives(runs: Runs, rests: list[dict[int, tuple[int, int]]], quiet: list[dict]) -> Incentives:
     """R_goal, R_stall, R_crash with their witnesses, G(k) and p*."""
     # quiet: prefixes that neither collide nor reach the goal.
     goal_by_sample: dict[int, int] = {}
@@ -373,7 +381,7 @@ def risk_tolerance(goal: Run | None, stall: Run | None, crash: Run | None,
     return p, ""
 
 
-def _ending_early(runs: _Runs, rests: list[dict[int, tuple[int, int]]], anyway: list[dict]) -> Loophole | None:
+def _ending_early(runs: Runs, rests: list[dict[int, tuple[int, int]]], anyway: list[dict]) -> Loophole | None:
     """The point where ending early (without the goal) beats the best safe continuation the most."""
     found: tuple[int, int, tuple, Move, Move] | None = None
     for k in range(1, runs.steps + 1):
@@ -403,7 +411,7 @@ def _ending_early(runs: _Runs, rests: list[dict[int, tuple[int, int]]], anyway: 
                     runs.run(prefix + runs.suffix(s_move, k, rests)), runs.value(delta), k, prefix=k - 1)
 
 
-def _goal_run(runs: _Runs, rests: list[dict[int, tuple[int, int]]], quiet: list[dict], k: int) -> Run:
+def _goal_run(runs: Runs, rests: list[dict[int, tuple[int, int]]], quiet: list[dict], k: int) -> Run:
     """The best safe run first reaching the goal at sample ``k`` (one exists)."""
     best: tuple[int, tuple, Move] | None = None
     for key, (value, _) in quiet[k - 1].items():
@@ -417,7 +425,7 @@ def _goal_run(runs: _Runs, rests: list[dict[int, tuple[int, int]]], quiet: list[
     return runs.run(runs.prefix(quiet, k - 1, key) + runs.suffix(m, k, rests))
 
 
-def _goal_earlier(runs: _Runs, rests: list, quiet: list[dict], by_sample: dict[int, Fraction]) -> Loophole | None:
+def _goal_earlier(runs: Runs, rests: list, quiet: list[dict], by_sample: dict[int, Fraction]) -> Loophole | None:
     """A later first goal sample paying more: k2 with the largest G among those beating an earlier
     feasible k (the earliest such), k1 the earliest feasible k < k2 with G(k1) < G(k2)."""
     order = sorted(by_sample)
@@ -434,7 +442,7 @@ def _goal_earlier(runs: _Runs, rests: list, quiet: list[dict], by_sample: dict[i
                     _goal_run(runs, rests, quiet, k1), by_sample[k2] - by_sample[k1], k2, k1)
 
 
-def _stalling(runs: _Runs, rests: list, quiet: list[dict], found: Incentives) -> Loophole | None:
+def _stalling(runs: Runs, rests: list, quiet: list[dict], found: Incentives) -> Loophole | None:
     """Stalling beating a goal run: the latest k with R_stall > G(k); delta makes every k pass."""
     stall = found.stall
     if stall is None:
@@ -457,7 +465,7 @@ def analyse(automaton: ir.Automaton, space: InputSpace, outs: Moves | None = Non
     stop = unchecked(automaton, outs)
     if stop is not None:
         return stop
-    runs = _Runs(automaton, space, outs)
+    runs = Runs(automaton, space, outs)
     verdicts: dict[str, Loophole | None] = {}
     rests = runs.safe_rests()
     if automaton.episode_ends is not None:
