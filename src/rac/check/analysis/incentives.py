@@ -696,7 +696,8 @@ class _Report:
             notes += [f"the run that ends early (it ends there without the goal):\n{self.describe(found.better)}",
                       f"the best safe continuation from the same point:\n{self.describe(found.worse)}"]
             hints = [f"penalise ending without the goal by at least {delta} more (objective units; "
-                     f"{self.per_reward(found.delta)})"]
+                     f"{self.per_reward(found.delta)}); `rac tune` can synthesise the least such penalty "
+                     "with a `param` and `require ending_early_never_pays`"]
             declared = _declared(a, "episode_ends")
         elif found.check == "goal_earlier_never_pays_less":
             assert found.other_sample is not None
@@ -706,7 +707,8 @@ class _Report:
             notes += [f"first reaching the goal at sample {found.sample}:\n{self.describe(found.better)}",
                       f"first reaching it at sample {found.other_sample}:\n{self.describe(found.worse)}"]
             hints = [f"make reaching the goal at sample {found.other_sample} pay at least {delta} more: a time "
-                     "penalty (a negative rate until the goal), or a goal bonus that shrinks with time"]
+                     "penalty (a negative rate until the goal), or a goal bonus that shrinks with time; `rac tune` "
+                     "can synthesise it with a `param` and `require goal_earlier_never_pays_less`"]
             declared = _declared(a, "goal")
         else:
             message = (f"stalling beats reaching the goal: a safe run that never reaches it earns "
