@@ -1,6 +1,7 @@
 """``A[] p`` over the automaton alone (rac.check.analysis.invariant) against brute force.
 
-The oracle enumerates every input sequence of exactly the horizon's length (the product's runs)
+The oracle enumerates every input sequence of exactly the horizon's length, or shorter where ``episode
+ends when`` ends it (the product's runs),
 with the valuations of ``tests/support/reference.py`` and evaluates ``p`` at every instant the product of
 model and automaton shows (rac.engine.product: the start, ``read``/``accrued`` of the first sample,
 ``sampled``, ``accrued``, ``ended``), counting a formula that reads an input only where the inputs
@@ -56,7 +57,8 @@ def value(node: ie.Expr, location: int, inputs: dict[str, object], rewards: tupl
 
 
 def violated(automaton: ir.Automaton, expr: ie.Expr) -> bool:
-    """Whether some instant of some run of exactly the horizon's samples violates ``expr``."""
+    """Whether some instant of some run of exactly the horizon's samples (or fewer, ended by ``episode
+    ends when``) violates ``expr``."""
     settled_only = any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr))
     zero_inputs: dict[str, object] = {i.name: False if i.is_bool else ZERO for i in automaton.inputs}
     xs = valuations(automaton)
@@ -96,7 +98,8 @@ def violated(automaton: ir.Automaton, expr: ie.Expr) -> bool:
                 location = edge.target
             if bad(location, guards, r, True):
                 return True
-            if k == steps:
+            if k == steps or (automaton.episode_ends is not None
+                              and ir.evaluate_guard(automaton.episode_ends, guards)):  # the run ends here
                 ended = r
                 for clause in automaton.end_clauses:
                     if ir.evaluate_guard(clause.guard, guards):

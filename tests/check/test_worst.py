@@ -16,7 +16,7 @@ from fractions import Fraction
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from reference import Valuation, reference_max, simulate
+from reference import Valuation, ends_episode, reference_max, simulate
 
 from rac import ir
 from rac.check.analysis.affine import moves
@@ -25,6 +25,7 @@ from rac.check.analysis.worst import (
     AFTER_EDGE,
     AFTER_END,
     BEFORE_EDGE,
+    BEFORE_NEXT,
     CONTINUE,
     Target,
     Worst,
@@ -180,6 +181,9 @@ def cases(draw, general: bool = False):
         items = [update() for _ in range(draw(st.integers(1, 2)))]
         when = "" if len(chosen) == len(cells) else f" when {guard(chosen)}"
         lines.append(f"    at end{when} do {', '.join(items)}")
+    if draw(st.integers(0, 2)) == 0:  # a third of the cases: runs end where `episode ends when` holds
+        chosen = draw(st.lists(st.integers(0, len(cells) - 1), min_size=1, max_size=len(cells), unique=True))
+        lines.append(f"    episode ends when {guard(chosen)}")
     lines.append("}")
     text = "\n".join(lines) + "\n"
     result = compile_text(text, "random.ra", analyse=False)
@@ -233,6 +237,10 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
     for step in worst.steps:
         guards = space.valuation(step.outcome.cls)
         run.append(Valuation(guards, {**guards, **step.inputs}))
+    # a run ends at the first sample where `episode ends when` holds: none goes on after one
+    assert not any(ends_episode(automaton, v) for v in run[:-1])
+    if ends_episode(automaton, run[-1]):
+        assert worst.instant != BEFORE_NEXT
     where, rewards = simulate(automaton, run, worst.instant, end)
     assert where == (l0 if worst.instant == BEFORE_EDGE else here)
     assert target.watched[where]

@@ -168,9 +168,15 @@ def sample(automaton: ir.Automaton, location: int, r: tuple[Fraction, ...], v: V
     return instants, (location, after)
 
 
+def ends_episode(automaton: ir.Automaton, v: Valuation) -> bool:
+    """``episode ends when`` holds at a sample with these inputs: the run ends there."""
+    return automaton.episode_ends is not None and ir.evaluate_guard(automaton.episode_ends, v.guards)
+
+
 # ---------------------------------------------------------------- the brute force
 def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fraction | None:
-    """Max of ``weights·r + constant`` over every watched instant of every run (None: never watched)."""
+    """Max of ``weights·r + constant`` over every watched instant of every run (None: never watched); a
+    run ends at the first sample whose inputs satisfy ``episode ends when``."""
     weights = tuple(Fraction(w) for w in weights)
     constant = Fraction(constant)
     steps = automaton.steps
@@ -200,7 +206,7 @@ def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fracti
                 for _, where, values in instants:
                     see(where, values)
                 see_end(*instants[-1][1:])
-                if k < steps:
+                if k < steps and not ends_episode(automaton, v):
                     see(*after)  # "just before the next sample"
                     following.add(after)
         if len(following) > MAX_FRONTIER:

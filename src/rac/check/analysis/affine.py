@@ -88,6 +88,9 @@ class Outcome:
     edge_map: Affine
     #: The truth of each guard of the ``split`` the outcomes were grouped by (:func:`outcomes`), in order.
     flags: tuple[bool, ...] = ()
+    #: ``episode ends when`` holds (declared and true for this outcome's inputs): the run ends at this
+    #: sample, so no run continues from it (:func:`outcomes` always tells these apart).
+    ends_episode: bool = False
 
 
 @dataclass(frozen=True)
@@ -127,11 +130,18 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
     that leaves the most numeric inputs as intervals (the first such), as witnesses read better so.
     ``split``: guards whose truth also tells outcomes apart (``episode ends when``, ``goal when``, the
     ``at end`` clauses of a sample that ends the run); each outcome's :attr:`Outcome.flags` holds it.
+    ``episode ends when`` always tells them apart (:attr:`Outcome.ends_episode`).
     """
     groups = _Grouping(automaton, space)
     rewards = automaton.rewards
-    bits = np.zeros(groups.size, dtype=np.int64)  # the split's truths, the first guard the highest bit
-    for guard in split:
+    ends = automaton.episode_ends
+    grouping = list(split)
+    if ends is not None and ends not in grouping:
+        grouping.append(ends)
+    ends_at = grouping.index(ends) if ends is not None else -1
+    width = len(grouping)
+    bits = np.zeros(groups.size, dtype=np.int64)  # the guards' truths, the first guard the highest bit
+    for guard in grouping:
         bits = bits * 2 + space.evaluate(guard)[groups.classes]
     maps: dict[int, Affine] = {}  # per edge: its updates as one map (shared by the edge's outcomes)
     result: list[list[Outcome]] = []
@@ -143,15 +153,16 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
         for k in range(len(edges) - 1, -1, -1):  # the first enabled edge wins (the last write)
             taken[space.evaluate(edges[k].guard)[groups.classes]] = k
         found = []
-        for label, cls in groups.representatives(taken * (1 << len(split)) + bits, (len(edges) + 1) << len(split)):
-            k = label >> len(split)
+        for label, cls in groups.representatives(taken * (1 << width) + bits, (len(edges) + 1) << width):
+            k = label >> width
             edge = edges[k] if k < len(edges) else None
             if edge is None:
                 edge_map = identity(len(rewards))
             else:
                 edge_map = maps.get(id(edge)) or maps.setdefault(id(edge), from_assignments(edge.updates, rewards))
-            flags = tuple(bool(label >> (len(split) - 1 - j) & 1) for j in range(len(split)))
-            found.append(Outcome(index, cls, edge, edge.target if edge else index, groups.box(cls), edge_map, flags))
+            truths = tuple(bool(label >> (width - 1 - j) & 1) for j in range(width))
+            found.append(Outcome(index, cls, edge, edge.target if edge else index, groups.box(cls), edge_map,
+                                 truths[:len(split)], ends_at >= 0 and truths[ends_at]))
         result.append(found)
     return result
 

@@ -11,8 +11,9 @@ The instants are those at which the product of model and automaton shows a state
 0); after each sample's edge (the location it enters and the sample's inputs); before the next
 sample's edge (the same location and inputs, the rewards accrued); after the ``at end`` updates;
 and, when a rate reads an input, the first sample before its edge (the initial location, that
-sample's inputs). A disjunct without reward literals is decided on the pairs (location, input
-class) that these instants show, exactly; one with a single reward comparison and no input
+sample's inputs). A sample whose inputs satisfy ``episode ends when`` is the run's last. A
+disjunct without reward literals is decided on the pairs (location, input class) that these
+instants show, exactly; one with a single reward comparison and no input
 literals by the worst-run search of :mod:`rac.check.analysis.worst` (the supremum of that
 comparison's linear form over the instants spent in the disjunct's locations). Anything else is
 *undecided* here, and the caller falls back to the model.
@@ -165,7 +166,9 @@ class _Pairs:
         count = len(automaton.locations)
         valid = space.valid
         steps = automaton.steps
-        # Locations reachable at some sample before the last (the sources of every shown edge).
+        # Locations reachable at some sample before the last (the sources of every shown edge). A
+        # sample whose inputs satisfy `episode ends when` ends the run: no sample follows it.
+        going = valid & ~space.evaluate(automaton.episode_ends) if automaton.episode_ends is not None else valid
         reach = {automaton.initial: 0}
         frontier = [automaton.initial]
         targets: dict[int, np.ndarray] = {}
@@ -174,7 +177,7 @@ class _Pairs:
             for here in frontier:
                 target = self._targets(here)
                 targets[here] = target
-                for there in np.unique(target[valid]).tolist():
+                for there in np.unique(target[going]).tolist():
                     if there not in reach and reach[here] + 1 <= steps - 1:
                         reach[there] = reach[here] + 1
                         following.append(there)

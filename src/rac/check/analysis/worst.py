@@ -10,7 +10,9 @@ just before an edge (the first sample's; later ones equal the previous
 "before next"), just after it, just before the next sample, and just after the
 ``at end`` updates of a run that ends there. A run may end after any sample or
 before the first, with inputs of its own (``end(inputs)``), so the end's inputs
-range freely over what ``assume`` allows.
+range freely over what ``assume`` allows. A sample whose inputs satisfy ``episode
+ends when`` ends the run: no run continues from it (its instant "just before the
+next sample" is not one either).
 
 The search is a backward dynamic programme over sets of affine functionals of
 the reward vector (exact for any affine updates, rational arithmetic). When
@@ -233,13 +235,14 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
             for oi, o in enumerate(outs[here]):
                 t = o.target
                 candidates: list[tuple[_Func, str, object]] = []
+                goes_on = k < steps and not o.ends_episode
                 if target.watched[t]:
                     candidates.append((base, AFTER_EDGE, None))
                     for c_end, (d_end, end, point) in ends.items():
                         candidates.append(((c_end, d_end, {}), AFTER_END, (end, point)))
-                    if k < steps:
+                    if goes_on:
                         candidates.append((pull(base, accruals[t]), BEFORE_NEXT, None))
-                if k < steps:
+                if goes_on:
                     for c_next, entry in tables[k + 1][t].items():
                         candidates.append((pull((c_next, entry[0], {}), accruals[t]), CONTINUE, c_next))
                 for func, instant, link in candidates:
@@ -314,20 +317,20 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     if not any(outs):  # `assume` excludes every input: no sample ever happens
         return start
 
-    rows = []  # per (l, o): (l, oi, t, K_edge, K_next)
+    rows = []  # per (l, o): (l, oi, t, K_edge, K_next, whether the run ends there)
     for here, os in enumerate(outs):
         for oi, o in enumerate(os):
             t = o.target
             rows.append((here, oi, t, sup_weighted(w, (o.edge_map,), o.box)[0],
-                         sup_weighted(w, (o.edge_map, accruals[t]), o.box)[0]))
+                         sup_weighted(w, (o.edge_map, accruals[t]), o.box)[0], o.ends_episode))
     first_rows = []  # sample 1 from l0: the accrual before the edge uses the same inputs
     for oi, o in enumerate(outs[l0]):
         t = o.target
         first_rows.append((oi, t,
                            sup_weighted(w, (accruals[l0], o.edge_map), o.box)[0],
                            sup_weighted(w, (accruals[l0], o.edge_map, accruals[t]), o.box)[0],
-                           sup_weighted(w, (accruals[l0],), o.box)[0]))
-    values = ([v for r in rows for v in r[3:]] + [v for r in first_rows for v in r[2:]]
+                           sup_weighted(w, (accruals[l0],), o.box)[0], o.ends_episode))
+    values = ([v for r in rows for v in r[3:5]] + [v for r in first_rows for v in r[2:5]]
               + [target.constant] + ([k_end] if k_end is not None else []))
     scale = math.lcm(*(v.denominator for v in values))
     n_loc = len(automaton.locations)
@@ -347,12 +350,14 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     stop = np.full((n_loc, width), neg_inf, dtype=dtype)
     stop_last = np.full((n_loc, width), neg_inf, dtype=dtype)
     k_next = np.full((n_loc, width), neg_inf, dtype=dtype)
-    for here, oi, t, ke, kn in rows:
+    goes_on = np.zeros((n_loc, width), dtype=bool)  # the run may continue after this outcome
+    for here, oi, t, ke, kn, ending in rows:
         targets[here, oi] = t
         k_next[here, oi] = int(kn * scale)
+        goes_on[here, oi] = not ending
         if target.watched[t]:
             edge_value = w0 + int(ke * scale)
-            stop[here, oi] = max(edge_value + end_bonus, w0 + int(kn * scale))
+            stop[here, oi] = edge_value + end_bonus if ending else max(edge_value + end_bonus, w0 + int(kn * scale))
             stop_last[here, oi] = edge_value + end_bonus
     value = np.full(n_loc, neg_inf, dtype=dtype)
     # choice[k], stopped[k] for k = steps down to `settled`; below it they equal those at `settled`.
@@ -365,7 +370,7 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
             cont = np.full((n_loc, width), neg_inf, dtype=dtype)
             s = stop_last
         else:
-            cont = np.where(value[targets] > neg_inf // 2, value[targets] + k_next, neg_inf)
+            cont = np.where((value[targets] > neg_inf // 2) & goes_on, value[targets] + k_next, neg_inf)
             s = stop
         cand = np.maximum(s, cont)
         best = cand.argmax(axis=1)
@@ -381,15 +386,15 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
                              f"{MAX_SAMPLES:,} of them")
     # Sample 1, from the initial location only.
     best_value, best_choice = None, None
-    for oi, t, ke, kn, kb in first_rows:
+    for oi, t, ke, kn, kb, ending in first_rows:
         options = []
         if target.watched[t]:
             options += [(w0 + int(ke * scale) + end_bonus, "stop")]
-            if steps > 1:
+            if steps > 1 and not ending:
                 options.append((w0 + int(kn * scale), BEFORE_NEXT))
         if target.watched[l0]:
             options.append((w0 + int(kb * scale), BEFORE_EDGE))
-        if steps > 1 and value[t] > neg_inf // 2:
+        if steps > 1 and not ending and value[t] > neg_inf // 2:
             options.append((int(value[t]) + int(kn * scale), CONTINUE))
         for v, instant in options:
             if best_value is None or v > best_value:
@@ -411,7 +416,7 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
             raise Unfinished(f"the worst run is longer than {MAX_SAMPLES:,} samples")
         o = outs[here][oi]
         if instant == "stop":
-            last = k == steps
+            last = k == steps or o.ends_episode
             if (id(o), last) not in stops:
                 stops[id(o), last] = _which_stop(w, o, accruals, k_end, last=last)
             instant = stops[id(o), last]
