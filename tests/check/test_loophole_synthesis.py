@@ -62,7 +62,7 @@ def holds(node, value: Fraction) -> dict[str, bool]:
     return {check: verdict is None for check, verdict in found.verdicts.items()}
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(st.sampled_from(["1", "3", "P"]), st.integers(1, 4), st.sampled_from(["crash", "done || crash", "done"]),
        st.integers(-2, 2), st.integers(-2, 2), st.integers(-2, 2), TERMS, TERMS, TERMS, TERMS, TERMS)
 def test_the_sets_are_where_the_checks_hold(weight, horizon, ends, go, near, wait, penalty, waiting, back, bonus,
@@ -80,8 +80,8 @@ def test_the_sets_are_where_the_checks_hold(weight, horizon, ends, go, near, wai
         assert weight == "P" and "x" in "".join((penalty, waiting, back, bonus, crash)), (stop, text)
         return
     assert set(found) == set(LOOPHOLES)
-    for k in range(-20, 61):
-        value = Fraction(k, 2)
+    for k in range(-10, 31):  # every integer of the range; the sets' ends, often fractions, below
+        value = Fraction(k)
         at = holds(node, value)
         for check, intervals in found.items():
             assert any(value in i for i in intervals) == at[check], (check, value, intervals, text)
