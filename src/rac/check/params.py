@@ -138,7 +138,8 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
             if searched and not result.empty:
                 assert result.low is not None and result.high is not None
                 allowed = [Interval(result.low.value, result.high.value, result.low.open, result.high.open)]
-                loopholes = loophole_values(resolve, parameter, [r.check for r in searched])
+                loopholes = (loophole_values(resolve, parameter, [r.check for r in searched])
+                             if any(r.check in LOOPHOLES for r in searched) else {})
                 for requirement in searched:
                     if requirement.check == "risk":
                         assert requirement.bound is not None
