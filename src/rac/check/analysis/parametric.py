@@ -104,7 +104,7 @@ class _Parametric:
                 raise Unfinished(stop.reason)
             runs.append(Runs(automaton, space, outs, prune=False))
         first = runs[0]
-        self.automaton, self.steps, self.l0 = first.automaton, first.steps, first.l0
+        self.steps, self.l0 = first.steps, first.l0
         self.moves: list[list[Move]] = first.moves
         shapes = [[[(m.outcome.target, m.ends, m.goal, m.collision) for m in ms] for ms in r.moves] for r in runs]
         if shapes[1] != shapes[0] or shapes[2] != shapes[0]:
