@@ -23,8 +23,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rac.compiler import CompileResult, compile_file
-from rac.engine import shield
-from rac.engine.budget import BudgetExceeded
+from rac.engine import budget, shield
+from rac.engine.budget import BudgetExceeded, ProjectionExceeded
 from rac.learning import optimum
 from rac.learning.episodes import EpisodeBatch, Expression, parse_expr
 from rac.learning.optimum import shortfall, solve, why_not_additive
@@ -158,6 +158,39 @@ def test_out_of_reach_beyond_the_budget(tiny: Callable[..., Compiled]) -> None:
     result, _ = tiny("goal_ahead")
     with pytest.raises(BudgetExceeded, match="decision graph"):
         solve(EpisodeBatch(result, horizon_samples=HORIZON), max_states=5)
+
+
+def test_beside_an_answer_the_search_gives_up_on_a_projection(tiny: Callable[..., Compiled],
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """``project=True`` stops as soon as the layers so far project beyond the margin, before the shield
+    is asked about the next layer; without it the same budget holds the whole graph and solves it."""
+    result, table = tiny("goal_ahead")  # layers of 1, 3, 9, 37 decision states: 50 in all
+    whole = solve(EpisodeBatch(result, horizon_samples=HORIZON), shield=table, max_states=100)
+    assert whole.states == 50
+    # at 3 per decision from 9 states, the last layer would hold 27: 40 states, over 0.3 x 100
+    monkeypatch.setattr(budget, "PROJECTION_MARGIN", 0.3)
+    with pytest.raises(ProjectionExceeded) as raised:
+        solve(EpisodeBatch(result, horizon_samples=HORIZON), shield=table, max_states=100, project=True)
+    assert raised.value.states == 13 and raised.value.projected_states == 40 and raised.value.sample == 4
+    assert "would have about 40 states by the horizon (sample 8), growing ×3 per decision from 13 states" in str(
+        raised.value) and "not explored further" in str(raised.value)
+    # judged only once a thousandth of the budget is explored: here, never
+    monkeypatch.setattr(budget, "PROJECTION_FROM", 1.0)
+    assert solve(EpisodeBatch(result, horizon_samples=HORIZON), shield=table, max_states=100,
+                 project=True).value == whole.value
+
+
+def test_verify_gives_up_on_a_projection_beside_learning_but_not_with_exact(tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    result = compile_file(write_engine_file(tmp_path, "goal_ahead", LEARN))
+    monkeypatch.setattr(budget, "PROJECTION_MARGIN", 0.01)
+    _, fast, _ = verify(result, VerifyOptions(out_dir=tmp_path / "out", plots=False, seed=1, learn_episodes=32,
+                                              max_states=1000))
+    assert fast.status == "value" and fast.optimum is not None and "not explored further" in str(
+        fast.optimum["out_of_reach"])
+    _, exact, _ = verify(result, VerifyOptions(out_dir=tmp_path / "out", plots=False, seed=1, exact=True,
+                                               max_states=1000))
+    assert exact.status == "value" and exact.method == "exact optimum"
 
 
 def test_the_budget_is_checked_before_the_shield_is_asked(tiny: Callable[..., Compiled],

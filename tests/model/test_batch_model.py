@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_explore import datasets, random_states
 
 from rac.engine.evaluate import Evaluator, Frame
@@ -62,6 +64,29 @@ def test_keyed_rows_compute_each_key_once_and_start_afresh_when_full() -> None:
         part = np.concatenate([many[start:start + 700], keys])
         assert rows(part).tolist() == [[k * 0.5, -float(k)] for k in part.tolist()]
         assert len(rows) <= 1024 + 700
+
+
+@settings(max_examples=60, deadline=None)
+@given(batches=st.lists(st.lists(st.integers(-50, 50), min_size=1, max_size=30), min_size=1, max_size=25),
+       recent=st.integers(1, 20))
+def test_keyed_rows_answer_as_a_dict_would(batches: list[list[int]], recent: int) -> None:
+    """Batches of keys, the new ones merged into the main index every ``recent``: the rows always the
+    key's, each key computed once, the main and recent indexes sorted and disjoint (the table starting
+    afresh is the test above's)."""
+    computed: list[int] = []
+
+    def compute(keys: np.ndarray) -> np.ndarray:
+        computed.extend(keys.tolist())
+        return np.stack([keys * 0.25, keys.astype(np.float64) ** 2], axis=1)
+
+    rows = KeyedRows(2, compute, recent=recent)
+    for batch in batches:
+        keys = np.array(batch, dtype=np.int64)
+        assert rows(keys).tolist() == [[k * 0.25, float(k) ** 2] for k in batch]
+        assert (np.diff(rows.keys) > 0).all() and (np.diff(rows.recent_keys) > 0).all()
+        assert not set(rows.keys.tolist()) & set(rows.recent_keys.tolist())
+        assert rows.recent_keys.size < recent
+    assert sorted(computed) == sorted({k for batch in batches for k in batch})
 
 
 @pytest.mark.parametrize("name, data", DATASETS, ids=lambda value: value if isinstance(value, str) else "")

@@ -31,7 +31,8 @@ from rac.core.numbers import format_bytes  # re-exported: the budgets' messages 
 
 __all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
            "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW", "REPLAY_BYTES_PER_DECISION", "RUN_BYTES_PER_SAMPLE",
-           "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded", "EstimateExceeded",
+           "PROJECTION_FROM", "PROJECTION_MARGIN", "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded",
+           "EstimateExceeded", "ProjectionExceeded",
            "check_estimate", "default_max_bytes", "format_bytes", "learning_bytes", "machine_memory", "parse_size",
            "projected_states", "runs_within", "simulation_bytes"]
 
@@ -67,6 +68,14 @@ REPLAY_BYTES_PER_DECISION = 5 * 8 + 1
 #: One learning episode's record in the history (its return, four flags, its fallbacks), held twice: per
 #: batch and concatenated at the end.
 LEARNING_BYTES_PER_EPISODE = 2 * (8 + 4 + 8)
+#: An exploration that may give up on a projection (:meth:`Budget.check_projection`) does so when the
+#: horizon would have this many times the state budget at the growth seen: far enough over it that a
+#: slowing growth would not bring it back within, and early enough that the layers before the budget,
+#: the costliest ones, are not explored for nothing.
+PROJECTION_MARGIN = 100
+#: ... and only once it has explored this fraction of the state budget over at least two decisions: a
+#: growth seen over a handful of states (the first decision's 9 actions) says little of the horizon.
+PROJECTION_FROM = 1e-3
 #: The fraction of the machine's memory the default budget allows.
 DEFAULT_FRACTION = 0.5
 
@@ -166,6 +175,21 @@ class EstimateExceeded(BudgetExceeded):
         self.projected_states = None
 
 
+class ProjectionExceeded(BudgetExceeded):
+    """An exploration given up before its budget: at the growth seen so far, the horizon would have
+    more than :data:`PROJECTION_MARGIN` times the state budget (:meth:`Budget.check_projection`).
+    ``projected_states`` is that projection, ``states`` the states found so far."""
+
+    def __init__(self, *, what: str, limit: int, states: int, sample: int, seconds: float, projected: int,
+                 growth: float, horizon_sample: int) -> None:
+        super().__init__(what=what, kind="states", limit=limit, states=states, sample=sample, seconds=seconds)
+        self.projected_states = projected
+        self.args = (f"{what} would have about {projected:.2g} states by the horizon (sample {horizon_sample}), "
+                     f"growing ×{growth:.3g} per decision from {states:,} states by t = {seconds:g} s "
+                     f"(sample {sample}): over {PROJECTION_MARGIN} times the budget of {limit:,} states, so it "
+                     "was not explored further",)
+
+
 def check_estimate(what: str, needed_bytes: int, max_bytes: int | None, change: str) -> None:
     """:class:`EstimateExceeded` when ``needed_bytes`` is more than ``max_bytes`` (None: no limit)."""
     if max_bytes is not None and needed_bytes > max_bytes:
@@ -231,6 +255,24 @@ class Budget:
         if self.max_bytes is not None and needed > self.max_bytes:
             raise BudgetExceeded(what=self.what, kind="memory", limit=self.max_bytes, states=states,
                                  sample=sample, seconds=self.seconds(sample), needed_bytes=needed)
+
+    def check_projection(self, layers: list[int], decide_every: int, horizon: int, sample: int,
+                         horizon_sample: int | None = None) -> None:
+        """:class:`ProjectionExceeded` when the states up to layer ``horizon`` at the growth seen so far
+        (:func:`projected_states` of ``layers``, the states per layer so far, a decision every
+        ``decide_every`` layers) are more than :data:`PROJECTION_MARGIN` times :attr:`max_states`,
+        judged once two decisions and :data:`PROJECTION_FROM` of :attr:`max_states` are explored.
+        ``sample`` is the last layer's sample and ``horizon_sample`` the horizon's (default
+        ``horizon``: a layer per sample), for the message. For a search that may stop short of its
+        budget (a reference computed beside an answer, not the answer)."""
+        if (self.max_states is None or len(layers) <= 2 * decide_every
+                or sum(layers) < PROJECTION_FROM * self.max_states):
+            return
+        estimate = projected_states(layers, decide_every, horizon)
+        if estimate is not None and estimate[0] > PROJECTION_MARGIN * self.max_states:
+            raise ProjectionExceeded(what=self.what, limit=self.max_states, states=sum(layers), sample=sample,
+                                     seconds=self.seconds(sample), projected=estimate[0], growth=estimate[1],
+                                     horizon_sample=horizon if horizon_sample is None else horizon_sample)
 
     def seconds(self, sample: int) -> float:
         """The time of ``sample``, rounded for messages."""

@@ -23,6 +23,8 @@ __all__ = ["KeyedRows", "cos_sin", "distinct_values"]
 
 #: A :class:`KeyedRows` keeps at most about this many doubles (16 MiB), then starts afresh.
 MEMO_DOUBLES = 1 << 21
+#: A :class:`KeyedRows`' new keys are merged into its main index once this many have come.
+RECENT_KEYS = 4096
 
 
 def cos_sin(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -69,19 +71,26 @@ class KeyedRows:
     """``rows(keys)``: the ``(len(keys), width)`` rows of int64 keys, ``compute(distinct_keys)`` once
     per key (``compute`` must be a pure function of each key, row by row). The rows are stored in
     the order they were computed (in an array that doubles when full) and found through the sorted
-    keys, so a new key costs its own row, not a copy of the table. At most about
-    :data:`MEMO_DOUBLES` doubles are kept; beyond, the table starts afresh (only the time changes)."""
+    keys, so a new key costs its own row, not a copy of the table. New keys go to a small sorted
+    index of their own, merged into the main one when it holds ``recent`` (:data:`RECENT_KEYS`): a few new keys at
+    a time (an on-demand shield's lookahead adds them thousands of times) cost a copy of the small
+    index, not of the main one. At most about :data:`MEMO_DOUBLES` doubles are kept; beyond, the
+    table starts afresh (only the time changes)."""
 
-    def __init__(self, width: int, compute: Callable[[np.ndarray], np.ndarray], limit: int = MEMO_DOUBLES) -> None:
+    def __init__(self, width: int, compute: Callable[[np.ndarray], np.ndarray], limit: int = MEMO_DOUBLES,
+                 recent: int = RECENT_KEYS) -> None:
         self.width = width
+        self.recent = recent
         self.compute = compute
         self.max_rows = max(1024, limit // max(1, width))
         self.keys = np.zeros(0, dtype=np.int64)  # sorted
         self.slots = np.zeros(0, dtype=np.int64)  # each sorted key's row in self.rows
+        self.recent_keys = np.zeros(0, dtype=np.int64)  # sorted; none of them in self.keys
+        self.recent_slots = np.zeros(0, dtype=np.int64)
         self.rows = np.zeros((64, width), dtype=np.float64)
 
     def __len__(self) -> int:
-        return int(self.keys.size)
+        return int(self.keys.size + self.recent_keys.size)
 
     def table(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The rows of the distinct ``keys`` (ascending) and each key's index among them: for many
@@ -91,38 +100,57 @@ class KeyedRows:
 
     def __call__(self, keys: np.ndarray) -> np.ndarray:
         keys = np.asarray(keys, dtype=np.int64)
-        position, found = self._find(keys)
+        slot, found = self._find(keys)
         if not found.all():
             fresh = np.unique(keys[~found])
             rows = np.asarray(self.compute(fresh), dtype=np.float64).reshape(fresh.size, self.width)
-            if self.keys.size + fresh.size > self.max_rows:  # start afresh, with the rows asked for now
-                kept = np.unique(position[found])
-                fresh = np.concatenate([self.keys[kept], fresh])
-                rows = np.concatenate([self.rows[self.slots[kept]], rows])
+            if len(self) + fresh.size > self.max_rows:  # start afresh, with the rows asked for now
+                kept_keys, first = np.unique(keys[found], return_index=True)
+                kept_rows = self.rows[slot[found][first]]
+                fresh = np.concatenate([kept_keys, fresh])
+                rows = np.concatenate([kept_rows, rows])
                 order = np.argsort(fresh)
                 fresh, rows = fresh[order], rows[order]
                 self.keys, self.slots = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+                self.recent_keys, self.recent_slots = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
             self._add(fresh, rows)
-            position, found = self._find(keys)
-        return self.rows[self.slots[position]]
+            slot, found = self._find(keys)
+        return self.rows[slot]
 
     def _find(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each key's index in the sorted keys (clipped into them) and whether the key is there."""
-        if self.keys.size == 0:
+        """Each key's row in :attr:`rows` (0 where it is missing) and whether the key is there."""
+        slot, found = self._search(self.keys, self.slots, keys)
+        if self.recent_keys.size and not found.all():
+            missing = np.flatnonzero(~found.reshape(-1))
+            more, there = self._search(self.recent_keys, self.recent_slots, keys.reshape(-1)[missing])
+            slot.reshape(-1)[missing[there]] = more[there]
+            found.reshape(-1)[missing[there]] = True
+        return slot, found
+
+    @staticmethod
+    def _search(index: np.ndarray, slots: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each key's slot through one sorted ``index`` (0 where it is missing) and whether it is there."""
+        if index.size == 0:
             return np.zeros(keys.shape, dtype=np.int64), np.zeros(keys.shape, dtype=bool)
-        position = np.searchsorted(self.keys, keys)
-        np.minimum(position, self.keys.size - 1, out=position)
-        return position, self.keys[position] == keys
+        position = np.searchsorted(index, keys)
+        np.minimum(position, index.size - 1, out=position)
+        here = index[position] == keys
+        return np.where(here, slots[position], 0), here
 
     def _add(self, keys: np.ndarray, rows: np.ndarray) -> None:
         """Distinct ascending ``keys``, none in the table yet, and their rows."""
-        count = self.keys.size
+        count = len(self)
         need = count + keys.size
         if need > self.rows.shape[0]:
             grown = np.zeros((max(2 * self.rows.shape[0], need), self.width))
             grown[:count] = self.rows[:count]
             self.rows = grown
         self.rows[count:need] = rows
-        where = np.searchsorted(self.keys, keys)
-        self.keys = np.insert(self.keys, where, keys)
-        self.slots = np.insert(self.slots, where, np.arange(count, need))
+        where = np.searchsorted(self.recent_keys, keys)
+        self.recent_keys = np.insert(self.recent_keys, where, keys)
+        self.recent_slots = np.insert(self.recent_slots, where, np.arange(count, need))
+        if self.recent_keys.size >= self.recent:  # one copy of the main index for many new keys
+            where = np.searchsorted(self.keys, self.recent_keys)
+            self.keys = np.insert(self.keys, where, self.recent_keys)
+            self.slots = np.insert(self.slots, where, self.recent_slots)
+            self.recent_keys, self.recent_slots = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)

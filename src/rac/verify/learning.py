@@ -101,14 +101,16 @@ class LearningAnswerer:
     def _optimum(self, query: iq.LearnStrategy, table: ShieldTable | None, samples: int,
                  meta: Mapping[str, object]) -> Optimum | str:
         """The exact optimum of the learning query (:func:`rac.learning.optimum.solve`) on the episodes
-        learning sees, or why it is out of reach (the budget: ``--max-states``, ``--max-memory``)."""
+        learning sees, or why it is out of reach (the budget: ``--max-states``, ``--max-memory``). Beside a
+        learned strategy the search gives up as soon as its layers project far beyond ``--max-states``
+        (``project``); ``--exact`` asks for the optimum itself and explores to the budget."""
 
         ctx = self.context
         try:
             batch = ctx.episodes("automaton", query.expr, samples)
             return solve(batch, objective=query.objective, optimise="max" if query.optimise == "maxE" else "min",
                          shield=table, max_states=ctx.options.max_states, max_bytes=ctx.options.max_bytes,
-                         meta=meta)
+                         meta=meta, project=not ctx.options.exact)
         except BudgetExceeded as exc:
             return str(exc)
         except (UnknownVerdict, ValueError) as exc:  # a sensed value out of range, bindings breaking `assume`
