@@ -34,7 +34,8 @@ __all__ = ["OnDemandShield", "OnDemandStats", "on_demand"]
 #: The default time budget per state, in seconds (simulations and learning ask for thousands).
 DEFAULT_SECONDS = 0.02
 #: The (state, action) pairs whose fixed continuations are tried at once (their arrays, ~100 bytes a
-#: pair, stay near 25 MB however many states are asked about together).
+#: pair and continuation, two continuations a pair, stay near 50 MB however many states are asked
+#: about together).
 FIXED_PAIRS = 1 << 18
 #: The columns of the shield's state rows (as :meth:`rac.learning.episodes.EpisodeBatch.state_keys`).
 COLUMNS = ("k", "x", "y", "v", "acc", "head", "jerk", "turn")
@@ -83,7 +84,7 @@ class OnDemandShield(ShieldTable):
                     continue
                 # in chunks: the fixed continuations hold several int32 copies of every (row, action)
                 # pair, 6.7 GB for the million states of one layer of the tutorial's 45 actions
-                step = max(1, FIXED_PAIRS // self.n_actions)
+                step = max(1, FIXED_PAIRS // self.n_actions)  # rows of n_actions pairs each
                 egos = rows[group, GRAPH_EGO]
                 proved = np.concatenate([self._fixed_proofs(egos[start:start + step], int(k))
                                          for start in range(0, len(group), step)])
@@ -119,18 +120,18 @@ class OnDemandShield(ShieldTable):
         ends, safe, _ = shield.periods(np.repeat(egos.astype(np.int32), count, axis=0), k, actions)
         pairs = shield.pairs
         brake = int(np.lexsort((np.abs(pairs[:, 1]), pairs[:, 0]))[0])  # the hardest braking, straight on
-        proved = np.zeros(actions.size, dtype=bool)
-        for hold in (True, False):
-            alive = safe.copy()
-            current = ends.copy()
-            sample = shield.period_end(k)
-            while sample < shield.horizon and alive.any():
-                live = np.flatnonzero(alive)
-                chosen = actions[live] if hold else np.full(live.size, brake)
-                current[live], ok, _ = shield.periods(current[live], sample, chosen)
-                alive[live] = ok
-                sample = shield.period_end(sample)
-            proved |= alive
+        # both continuations in one batch (each row is computed alone, so stacking changes no value):
+        # the model's calls cost mostly their overhead on the few rows a learning step asks about
+        chosen = np.concatenate([actions, np.full(actions.size, brake)])
+        alive = np.concatenate([safe, safe])
+        current = np.concatenate([ends, ends])
+        sample = shield.period_end(k)
+        while sample < shield.horizon and alive.any():
+            live = np.flatnonzero(alive)
+            current[live], ok, _ = shield.periods(current[live], sample, chosen[live])
+            alive[live] = ok
+            sample = shield.period_end(sample)
+        proved = alive[:actions.size] | alive[actions.size:]
         return proved.reshape(n, count)
 
     def mask(self, state: object) -> np.ndarray:
