@@ -383,6 +383,18 @@ class Automaton:
         return guards[0] if len(guards) == 1 else BAnd(guards)
 
     @property
+    def ending(self) -> Guard | None:
+        """The condition that ends a run at a sample (``episode ends when COND``), or None when no
+        sample ends it (no declaration, or a condition that is constantly false): the one rule every
+        runtime, target, engine and static analysis follows.
+
+        At a sample, after the accrual and the edge: if COND holds on the inputs just read, every end
+        clause whose guard holds on those same inputs is applied, in order, the sample's objective
+        increase includes theirs, and the run ends there (no further sample, no later ``end``)."""
+        ends = self.episode_ends
+        return None if ends is None or ends == BConst(False) else ends
+
+    @property
     def steps(self) -> int:
         """Samples in a run of the full horizon."""
         return int(self.horizon / self.period)

@@ -200,15 +200,9 @@ def check_automaton(automaton: ir.Automaton) -> None:
 
 
 def ends_guard(automaton: ir.Automaton) -> ir.Guard | None:
-    """The condition that ends a run at a sample (``episode ends when COND``), or None when no sample
-    ends it (no declaration, or a condition that is constantly false): the one rule every runtime,
-    target and the engine follow.
-
-    At a sample, after the accrual and the edge: if COND holds on the inputs just read, every end
-    clause whose guard holds on those same inputs is applied, in order, the sample's objective
-    increase includes theirs, and the run ends there (no further sample, no later ``end``)."""
-    ends = automaton.episode_ends
-    return None if ends is None or ends == ir.BConst(False) else ends
+    """:attr:`rac.ir.Automaton.ending`: the condition that ends a run at a sample, or None (the rule
+    lives with the automaton, so that the static analyses below the runtimes follow it too)."""
+    return automaton.ending
 
 
 def check_mapping(inputs: object) -> None:

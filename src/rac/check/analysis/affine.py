@@ -134,7 +134,7 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
     """
     groups = _Grouping(automaton, space)
     rewards = automaton.rewards
-    ends = automaton.episode_ends
+    ends = automaton.ending
     grouping = list(split)
     if ends is not None and ends not in grouping:
         grouping.append(ends)

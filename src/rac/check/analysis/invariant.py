@@ -168,7 +168,7 @@ class _Pairs:
         steps = automaton.steps
         # Locations reachable at some sample before the last (the sources of every shown edge). A
         # sample whose inputs satisfy `episode ends when` ends the run: no sample follows it.
-        going = valid & ~space.evaluate(automaton.episode_ends) if automaton.episode_ends is not None else valid
+        going = valid & ~space.evaluate(automaton.ending) if automaton.ending is not None else valid
         reach = {automaton.initial: 0}
         frontier = [automaton.initial]
         targets: dict[int, np.ndarray] = {}
