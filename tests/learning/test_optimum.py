@@ -255,7 +255,20 @@ def test_verify_reports_the_optimum_beside_the_learned_strategy(tmp_path: Path) 
     assert isinstance(value, float) and fast.estimate <= value + 1e-9
     assert fast.optimum["learned"] == fast.estimate and fast.optimum["reaches_goal_safely"] is True
     assert "(exact, backward pass over" in fast.message and "% below" in fast.message
+    assert "--exact" not in fast.message  # the learned strategy reaches the goal: nothing to point to
     json.dumps(fast.to_json())  # JSON-ready
+
+
+def test_verify_points_to_exact_when_learning_missed_a_goal_the_optimum_reaches(tmp_path: Path) -> None:
+    """One learning episode on examples/paper: the greedy run misses the goal, the optimal run under the
+    same shield reaches it, and the message says how to get that strategy."""
+    result = compile_file(Path(__file__).resolve().parents[2] / "examples" / "paper" / "model.ra")
+    _, learned = verify(result, VerifyOptions(out_dir=tmp_path / "out", plots=False, seed=1, learn_episodes=1,
+                                              only=("Qd", "reachSafe")))
+    assert learned.optimum is not None and learned.optimum["reaches_goal_safely"] is True
+    assert learned.message is not None and "the greedy run does not reach goal()" in learned.message
+    assert learned.message.endswith("the optimal run reaches goal() safely: `rac verify --exact` emits that "
+                                    "strategy instead of learning one")
 
 
 def test_verify_exact_emits_the_optimal_strategy(tmp_path: Path) -> None:

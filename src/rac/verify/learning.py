@@ -94,6 +94,10 @@ class LearningAnswerer:
         learned = float(outcome.greedy.returns[0])
         optimum = self._optimum(query, table, samples, meta)
         message = self._message(outcome, query) + "\n" + self._beside(learned, optimum, query)
+        if not isinstance(optimum, str) and optimum.run.success[0] and not outcome.greedy.success[0]:
+            # learning missed what the shield allows: say how to get the strategy that does not
+            message += (f"; the optimal run reaches {format_checked(query.expr)} safely: `rac verify --exact` "
+                        "emits that strategy instead of learning one")
         return dataclasses.replace(base, status="value", estimate=learned,
                                    runs=outcome.episodes, horizon_samples=samples, seed=seed, files=files,
                                    message=message, optimum=self._optimum_fields(optimum, learned, query))
