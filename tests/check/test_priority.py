@@ -87,9 +87,10 @@ def test_p2_fails_at_penalty_90_with_the_expected_counterexample() -> None:
     assert "the objective can reach 80" in diag.message
     run, end = diag.data["run"], diag.data["end"]
     assert end["clause_lines"] == [32] and Fraction(end["inputs"]["dgoal"]) < 2
-    assert len(run) == 300
-    assert all(s["from"] == s["to"] == "Normal" and s["instant"] == CONTINUE for s in run[:299])
-    assert [s["sample"] for s in run] == list(range(1, 301))
+    # consecutive samples alike are one entry: Normal to Normal for 299 samples, then the crash
+    assert [k for s in run for k in range(s["sample"], s["last_sample"] + 1)] == list(range(1, 301))
+    assert all(s["from"] == s["to"] == "Normal" and s["instant"] == CONTINUE for s in run[:-1])
+    assert len(run) <= 3 and run[-1]["sample"] == run[-1]["last_sample"] == 300
     last = run[-1]
     assert (last["from"], last["to"], last["instant"]) == ("Normal", "Unsafe", AFTER_END)
     assert last["inputs"]["isClose"] is True
@@ -129,8 +130,24 @@ def test_p2_worst_value_grows_with_the_horizon(penalty: int, horizon: str, perio
     else:
         (diag,) = found
         assert Fraction(diag.data["value"]) == expected
-        assert len(diag.data["run"]) == int(Fraction(horizon) / Fraction(period))
+        assert diag.data["run"][-1]["last_sample"] == int(Fraction(horizon) / Fraction(period))
 
+
+
+@pytest.mark.parametrize("penalty, strict", [(90, False), (100, True), (63, False)])
+def test_a_run_in_json_covers_every_sample_once_and_joins_only_alike_neighbours(penalty: int, strict: bool) -> None:
+    """The JSON run's entries cover samples 1 .. last, in order, each once; two neighbouring entries
+    differ in what they show (a run of alike samples is one entry)."""
+    result = compiled(driving_text(penalty, strict=strict))
+    runs = [d.data["run"] for d in result.diagnostics if d.data and "run" in d.data]
+    assert runs
+    shown = ("from", "to", "edge_line", "inputs", "instant")
+    for run in runs:
+        covered = [k for s in run for k in range(s["sample"], s["last_sample"] + 1)]
+        assert covered == list(range(1, len(covered) + 1))
+        assert all(s["time"] == str(s["sample"] * Fraction(1, 10)) for s in run)
+        for before, after in zip(run, run[1:]):
+            assert any(before[key] != after[key] for key in shown), (before, after)
 
 def _text(value: Fraction) -> str:
     return str(value.numerator) if value.denominator == 1 else f"{float(value):g}"

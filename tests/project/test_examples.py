@@ -173,7 +173,7 @@ def test_naive_driving_counterexample_as_json(capsys: pytest.CaptureFixture[str]
     assert diagnostic["code"] == "E0402"
     assert diagnostic["data"]["value"] == "80"
     run = diagnostic["data"]["run"]
-    assert len(run) == 300 and run[-1]["to"] == "Unsafe"
+    assert run[-1]["last_sample"] == 300 and run[-1]["to"] == "Unsafe"
 
 
 # ---------------------------------------------------------------- examples/*.py
