@@ -23,7 +23,7 @@ from rac import ir
 from rac.compiler import compile_text
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
-from rac.runtime.semantics import ENDED_MESSAGE, ends_guard
+from rac.runtime.semantics import ENDED_MESSAGE
 from rac.targets.python import generate_python
 
 ENDS = ir.BOr((ir.BInput("collide"), ir.BAtom("dgoal", "<", Fraction(2))))
@@ -74,7 +74,7 @@ def test_end_after_a_plain_end_still_refuses() -> None:
 
 def test_without_the_declaration_nothing_terminates() -> None:
     plain = driving_automaton()
-    assert ends_guard(plain) is None and ends_guard(replace(plain, episode_ends=ir.BConst(False))) is None
+    assert plain.ending is None and replace(plain, episode_ends=ir.BConst(False)).ending is None
     ra = RewardAutomaton(plain)
     ra.step(inputs(dgoal=1.0, isClose=True, collide=True))
     assert not ra.terminated and not ra.ended

@@ -257,14 +257,14 @@ class Budget:
                                  sample=sample, seconds=self.seconds(sample), needed_bytes=needed)
 
     def check_projection(self, layers: list[int], decide_every: int, horizon: int, sample: int,
-                         horizon_sample: int | None = None) -> None:
+                         horizon_sample: int) -> None:
         """:class:`ProjectionExceeded` when the states up to layer ``horizon`` at the growth seen so far
         (:func:`projected_states` of ``layers``, the states per layer so far, a decision every
         ``decide_every`` layers) are more than :data:`PROJECTION_MARGIN` times :attr:`max_states`,
         judged once two decisions and :data:`PROJECTION_FROM` of :attr:`max_states` are explored.
-        ``sample`` is the last layer's sample and ``horizon_sample`` the horizon's (default
-        ``horizon``: a layer per sample), for the message. For a search that may stop short of its
-        budget (a reference computed beside an answer, not the answer)."""
+        ``sample`` is the last layer's sample and ``horizon_sample`` the horizon's, for the message.
+        For a search that may stop short of its budget (a reference computed beside an answer, not
+        the answer)."""
         if (self.max_states is None or len(layers) <= 2 * decide_every
                 or sum(layers) < PROJECTION_FROM * self.max_states):
             return
@@ -272,7 +272,7 @@ class Budget:
         if estimate is not None and estimate[0] > PROJECTION_MARGIN * self.max_states:
             raise ProjectionExceeded(what=self.what, limit=self.max_states, states=sum(layers), sample=sample,
                                      seconds=self.seconds(sample), projected=estimate[0], growth=estimate[1],
-                                     horizon_sample=horizon if horizon_sample is None else horizon_sample)
+                                     horizon_sample=horizon_sample)
 
     def seconds(self, sample: int) -> float:
         """The time of ``sample``, rounded for messages."""

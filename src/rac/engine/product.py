@@ -24,7 +24,7 @@ Storm, so the query is answered on runs the scenario can produce, not on every i
    (jerk, turn) pair (action index as in :func:`rac.engine.explore.action_pairs`; at time 0 too).
 
 After the horizon's last sample ``finish!`` applies the ``at end`` clauses in order, on the inputs of
-that sample. With ``episode ends when COND`` (:func:`rac.runtime.semantics.ends_guard`), a sample
+that sample. With ``episode ends when COND`` (:attr:`rac.ir.Automaton.ending`), a sample
 whose inputs satisfy COND is the last of its run, as in the emitted model: its ``sampled`` state is
 followed by its ``ended`` state (the ``at end`` clauses applied on its inputs; with no clauses, the
 ``sampled`` state itself is terminal), and nothing else. ``horizon_samples`` stands for the
@@ -89,7 +89,7 @@ from rac.model.data import ModelData, ModelRangeError
 from rac.model.program import CheckedProgram, ProgramSource, program_of
 from rac.model.sample import ACTION, CRASHED, EGO, PRODUCT_EGO, ProductColumn, collides
 from rac.model.sample import labels as label_states
-from rac.runtime.semantics import ends_guard, first_sample_reads, mirror_accrual, mirror_update
+from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
 
 __all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
            "explore_product", "trace_to"]
@@ -438,7 +438,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
     pairs = action_pairs(data).astype(np.int64)
     guard = ActionGuard(data)
     n_inputs, n_rewards = len(automaton.inputs), len(automaton.rewards)
-    ends = ends_guard(automaton)
+    ends = automaton.ending
 
     def labels(frame: Frame) -> dict[str, np.ndarray]:
         # through the evaluator, so that the bindings' mindist() etc. on this frame are reused

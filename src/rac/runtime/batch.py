@@ -29,7 +29,6 @@ from rac.runtime.semantics import (
     check_automaton,
     check_mapping,
     clip_inputs,
-    ends_guard,
     float_linear,
     input_specs,
     key_error,
@@ -225,7 +224,7 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._end = [(self._guards.add(c.guard), self._compile_updates(c.updates))
                      for c in automaton.end_clauses]
         self._end_assume = self._guards.add(automaton.assume)
-        ends = ends_guard(automaton)
+        ends = automaton.ending
         self._ends_id = None if ends is None else self._guards.add(ends)
         # each clause on its own, to name the first one violated (the clauses of `assume` are already there)
         self._assume_checks = [(self._guards.add(check.guard), check) for check in assume_checks(automaton)]

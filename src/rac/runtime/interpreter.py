@@ -20,7 +20,7 @@ One ``step(inputs)`` (one sample):
    updates are applied left to right, then the location changes. No enabled edge: stay;
 4. with ``episode ends when COND``: if COND holds on the new inputs, the run ends here: every end
    clause whose guard holds on those inputs is applied, in order, and :attr:`~RewardAutomaton.terminated`
-   becomes true (:func:`rac.runtime.semantics.ends_guard`);
+   becomes true (:attr:`rac.ir.Automaton.ending`);
 5. the sample counter advances and the reward handed out is ``objective - previous objective``
    (the end clauses' increase included).
 
@@ -51,7 +51,6 @@ from rac.runtime.semantics import (
     check_automaton,
     check_mapping,
     clip_inputs,
-    ends_guard,
     float_linear,
     input_specs,
     key_error,
@@ -171,7 +170,7 @@ class RewardAutomaton(AutomatonDescription):
         )
         self._end_clauses = tuple((_compile_guard(c.guard), updates(c.updates, "end update"))
                                   for c in automaton.end_clauses)
-        ends = ends_guard(automaton)
+        ends = automaton.ending
         self._episode_ends: _GuardFn | None = None if ends is None else _compile_guard(ends)
         self._assume = tuple((_compile_guard(check.guard), check) for check in assume_checks(automaton))
         self._objective_fn = _compile_linear(float_linear(automaton.objective, "objective"), index)

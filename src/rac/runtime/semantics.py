@@ -199,12 +199,6 @@ def check_automaton(automaton: ir.Automaton) -> None:
     check_linear(automaton.objective, rewards, "objective")
 
 
-def ends_guard(automaton: ir.Automaton) -> ir.Guard | None:
-    """:attr:`rac.ir.Automaton.ending`: the condition that ends a run at a sample, or None (the rule
-    lives with the automaton, so that the static analyses below the runtimes follow it too)."""
-    return automaton.ending
-
-
 def check_mapping(inputs: object) -> None:
     """``ValueError`` unless ``inputs`` maps input names to values (``step(None)`` said TypeError)."""
     if not isinstance(inputs, Mapping):

@@ -41,7 +41,6 @@ from rac.runtime.semantics import (
     FloatLinear,
     assume_checks,
     check_automaton,
-    ends_guard,
     float_linear,
     input_specs,
     to_float,
@@ -310,7 +309,7 @@ class _Generator:
                 body += ["    " + line for line in lines]
             if moves:
                 body.append("self._loc = loc")
-        ends = ends_guard(a)
+        ends = a.ending
         if ends is not None:  # `episode ends when`: the end clauses with this sample's inputs, and the run ends
             body.append(f"if {self.expr(ends)}:")
             body += ["    " + line for line in self.end_clauses() + ["self._ended = True", "self._terminated = True"]]
@@ -355,7 +354,7 @@ class _Generator:
         if a.assume != ir.TRUE:
             plain = {i.name: i.name for i in a.inputs}
             facts.append(f"Assumed of every input valuation: {print_expr(a.assume, plain)}")
-        ends = ends_guard(a)
+        ends = a.ending
         if ends is not None:
             plain = {i.name: i.name for i in a.inputs}
             facts.append(f"The run ends after a sample whose inputs satisfy: {print_expr(ends, plain)}")

@@ -342,19 +342,14 @@ def _incentives(runs: Runs, rests: list[dict[int, tuple[int, int]]], quiet: list
     best_stall: tuple[int, int, tuple, Move] | None = None
     for k in range(1, runs.steps + 1):
         first, last = k == 1, k == runs.steps
-        after = rests[k]
         for key, (value, _) in quiet[k - 1].items():
-            for _, m, target, ends, goal, collision, going_first, going, stop_first, stop in runs.entries[key[0]]:
+            for _, m, _, ends, goal, collision, _, _, stop_first, stop in runs.entries[key[0]]:
                 if collision:
                     continue
-                if goal:
-                    if ends or last:  # runs.rest(m, k, rests), inlined
-                        rest = stop_first if first else stop
-                    else:
-                        then = after.get(target)
-                        if then is None:
-                            continue
-                        rest = (going_first if first else going) + then[0]
+                if goal:  # few moves reach the goal: the shared rule, not an inlined copy
+                    rest = runs.rest(m, k, rests)
+                    if rest is None:
+                        continue
                     total = value + rest
                     if k not in goal_by_sample or total > goal_by_sample[k]:
                         goal_by_sample[k] = total

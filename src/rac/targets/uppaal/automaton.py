@@ -57,7 +57,6 @@ from rac import ir
 from rac.core.diagnostics import Diagnostic, RacError, error, short_number
 from rac.core.numbers import INT32_MAX
 from rac.ir import query as iq
-from rac.runtime.semantics import ends_guard
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, double_literal
 from rac.targets.uppaal.labels import Labels
 from rac.targets.uppaal.layout import Ids, Template, environment
@@ -124,7 +123,7 @@ class AutomatonGenerator:
         self.mirror = {r: names.fresh(mirror_name(r)) for r in a.rewards}
         self.channels = {key: names.fresh(key) for key in ("accrue", "read", "sense", "finish")}
         # `episode ends when`: a flag set where a sample ends the run (the hybrid clocks' rates are 0 after it)
-        ended = {"ended": names.fresh("ended")} if ends_guard(a) is not None else {}
+        ended = {"ended": names.fresh("ended")} if a.ending is not None else {}
         self.g = {key: names.fresh(base) for key, base in (
             ("period", "PERIOD"), ("steps", "STEPS"), ("scale", "SCALE"), ("count", "count"),
             ("settled", "settled"), ("time", "time"), ("timer", "Timer"), ("environment", "Environment"),

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from rac import ir
-from rac.runtime.semantics import ends_guard, first_sample_reads
+from rac.runtime.semantics import first_sample_reads
 from rac.targets.uppaal.labels import Labels
 from rac.targets.uppaal.layout import Ids, Location, Template, Transition, edge
 from rac.targets.uppaal.names import Names
@@ -42,7 +42,7 @@ class Processes:
         guard of those that go on ``&& !(COND)``, to the one into the ending ``|| (COND)`` (the sample's
         inputs end the run: ``finish!`` follows), and to its assignment ``, ended = true``. COND reads the
         inputs only, which the ``sense?`` edges do not change, so the sender's guard sees what they see."""
-        ends = ends_guard(self.a)
+        ends = self.a.ending
         if ends is None:
             return "", "", ""
         condition = self.labels.guard(ends) or "true"
