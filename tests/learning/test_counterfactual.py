@@ -114,6 +114,15 @@ def test_counterfactuals_need_the_location_in_the_observation() -> None:
         location_column(exprs[:1], [batch.expression("sa")])
 
 
+def test_learning_refuses_counterfactuals_on_episodes_that_do_not_record_their_steps() -> None:
+    # said before any episode is stepped, not after the first step as a replay with nothing recorded
+    batch = EpisodeBatch(compile_file(ROOT / "examples" / "paper" / "model.ra"), horizon_samples=20)
+    with pytest.raises(ValueError, match=r"EpisodeBatch\(\.\.\., counterfactuals=True\)"):
+        learn(batch, discrete=["Driving.location"], continuous=["x"], episodes=2, parallel=1, seed=1,
+              counterfactuals=True)
+    assert (batch.n, batch.done.size) == (0, 0)  # nothing was reset or stepped
+
+
 def test_q_learning_updates_every_location(tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", {
         "reach": "strategy reach = maxE(sa)[<=4]{Tiny.location}->{x, v}: <> goal()"})

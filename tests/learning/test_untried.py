@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from engine_files import write_engine_file
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from rac.compiler import compile_file
 from rac.learning.episodes import EpisodeBatch
@@ -72,3 +74,39 @@ def test_optimism_and_pessimism_exclude_each_other(goal_ahead: Path) -> None:
     batch = EpisodeBatch(compile_file(goal_ahead), reward="automaton", horizon_samples=8)
     with pytest.raises(ValueError, match="exclude each other"):
         learn(batch, discrete=["Tiny.location"], continuous=["x"], optimism=5.0, pessimistic=True, seed=1)
+
+
+def _in_order(values: np.ndarray, step: Transition, alpha: float, gamma: float, untried: float | None) -> None:
+    """The oracle: Watkins' update one episode at a time, in episode order."""
+    for i in step.active:
+        target = step.reward[i]
+        if not step.ends[i]:
+            target += gamma * values[step.next_rows[i]][step.next_masks[i]].max()
+        old = values[step.rows[i], step.actions[i]]
+        values[step.rows[i], step.actions[i]] = target if old == untried else old + alpha * (target - old)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_the_batched_update_is_the_one_at_a_time_update_to_the_last_bit(data: st.DataObject) -> None:
+    # Few rows and actions, so entries repeat within a step and next rows meet updated rows (the
+    # update then falls back to the loop); both must leave the table exactly as the oracle does.
+    n, n_rows, n_actions = data.draw(st.integers(1, 12)), data.draw(st.integers(1, 5)), data.draw(st.integers(1, 3))
+    ints = st.integers(0, n_rows - 1)
+    rows = np.array(data.draw(st.lists(ints, min_size=n, max_size=n)))
+    next_rows = np.array(data.draw(st.lists(ints, min_size=n, max_size=n)))
+    actions = np.array(data.draw(st.lists(st.integers(0, n_actions - 1), min_size=n, max_size=n)))
+    reward = np.array(data.draw(st.lists(st.floats(-50, 50), min_size=n, max_size=n)))
+    masks = np.array(data.draw(st.lists(st.lists(st.booleans(), min_size=n_actions, max_size=n_actions)
+                                        .filter(any), min_size=n, max_size=n)))
+    ends = np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n)))
+    active = np.flatnonzero(np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n))))
+    alpha = data.draw(st.sampled_from([1.0, 0.3]))
+    untried = data.draw(st.sampled_from([UNTRIED, None]))
+    start = np.array(data.draw(st.lists(st.sampled_from([UNTRIED, -3.0, 0.5, 12.25]),
+                                        min_size=n_rows * n_actions, max_size=n_rows * n_actions))).reshape(n_rows, -1)
+    step = Transition(active, rows, actions, reward, next_rows, masks, ends)
+    expected, got = start.copy(), start.copy()
+    _in_order(expected, step, alpha, 1.0, untried)
+    update(got, step, alpha, 1.0, untried)
+    assert np.array_equal(got, expected)

@@ -284,6 +284,9 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     if not (0.0 < alpha <= 1.0 and 0.0 <= gamma <= 1.0):
         raise ValueError(f"alpha must lie in (0, 1] and gamma in [0, 1], not {alpha}, {gamma}")
     check_shield(batch, shield)
+    if counterfactuals and getattr(batch, "counterfactuals", None) is False:  # said before any episode runs
+        raise RacValueError("counterfactual experiences replay each step from every location: make the episodes "
+                            "with EpisodeBatch(..., counterfactuals=True)")
     texts = _texts((*discrete, *continuous), labels)
     discrete_exprs = [batch.expression(e) for e in discrete]
     continuous_exprs = [batch.expression(e) for e in continuous]

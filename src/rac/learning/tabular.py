@@ -125,7 +125,42 @@ def update(values: np.ndarray, step: Transition, alpha: float, gamma: float, unt
     """Watkins' update of every active episode's transition, in episode order (a later row sees an
     earlier one's update). An ending episode does not bootstrap; the maximum runs over the actions
     allowed in the next state. With ``untried`` (:data:`UNTRIED`, pessimistic initial values), an
-    entry still at that value takes its target as it is: its first update sets it."""
+    entry still at that value takes its target as it is: its first update sets it.
+
+    Vectorised, with the same results to the last bit: when no continuing episode's next row is a
+    row this step updates (with the decision time observed, never), every target can be computed
+    first; the entries updated more than once are then updated in rounds, the k-th occurrence of
+    each in round k, so each sees its earlier occurrences' updates in episode order."""
+    active = step.active
+    if active.size == 0:
+        return
+    rows, actions = step.rows[active], step.actions[active]
+    going = ~step.ends[active]
+    next_rows = step.next_rows[active][going]
+    if next_rows.size and np.isin(next_rows, rows).any():
+        _update_in_order(values, step, alpha, gamma, untried)
+        return
+    targets = np.array(step.reward[active], dtype=np.float64)
+    if next_rows.size:
+        allowed = step.next_masks[active][going]
+        targets[going] += gamma * np.where(allowed, values[next_rows], -np.inf).max(axis=1)
+    flat = rows * values.shape[1] + actions
+    order = np.argsort(flat, kind="stable")
+    ordered = flat[order]
+    first = np.r_[True, ordered[1:] != ordered[:-1]]
+    rank = np.empty(flat.size, dtype=np.int64)  # each entry's occurrence before this one, in episode order
+    rank[order] = np.arange(flat.size) - np.maximum.accumulate(np.where(first, np.arange(flat.size), 0))
+    for k in range(int(rank.max()) + 1):
+        now = rank == k
+        r, a, t = rows[now], actions[now], targets[now]
+        old = values[r, a]
+        values[r, a] = np.where(old == untried, t, old + alpha * (t - old)) if untried is not None \
+            else old + alpha * (t - old)
+
+
+def _update_in_order(values: np.ndarray, step: Transition, alpha: float, gamma: float,
+                     untried: float | None) -> None:
+    """:func:`update` one transition at a time (a next row is a row this step updates)."""
     rows, actions = step.rows, step.actions
     for i in step.active:
         target = step.reward[i]
