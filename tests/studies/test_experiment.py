@@ -85,6 +85,25 @@ def test_the_default_reward_function_needs_the_papers_inputs(tmp_path: Path,
     assert main(["experiment", str(path), "--reward-function", "10 *", "--out", str(tmp_path / "o")]) == 1
 
 
+@pytest.mark.parametrize(("option", "value", "said"), [
+    ("--bins", "1", "--bins: 2 positive widths, one per continuous observation (x, v), not 1"),
+    ("--bins", "1,-2", "not 1,-2"),
+    ("--bins", "nan,1", "not nan,1"),
+    ("--reward-function", "foo", "--reward-function: `foo`: unknown name `foo`"),
+])
+def test_bad_bins_and_reward_functions_are_refused_before_anything_is_computed(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str, value: str, said: str) -> None:
+    # they were internal errors: the bins met only by the learning, the reward function's names
+    # only by the checker, after the shield and the optimum had been computed
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "o"
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", REWARD_FUNCTION,
+                 option, value, "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert said in err and "internal error" not in err and "computing" not in err
+    assert not out.exists()
+
+
 def test_seed_is_one_seed_and_not_ignored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """`rac experiment --seed 3` ran seeds 1..5 (its --seed was ignored next to --seeds, issue 12)."""
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)

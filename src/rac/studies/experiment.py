@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -49,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from rac.compiler import CompileResult
-from rac.core.diagnostics import RacError
+from rac.core.diagnostics import CheckError, RacError
 from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
@@ -227,9 +228,18 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     discrete, continuous = _learning_spec(result)
     derived = derived_bins(result.model_data, [parse_expr(text) for text in continuous])
     widths = tuple(float(b) for b in bins) if bins is not None else derived
+    if bins is not None and (len(widths) != len(continuous) or not all(w > 0 and math.isfinite(w) for w in widths)):
+        raise ExperimentError(f"--bins: {len(continuous)} positive widths, one per continuous observation "
+                              f"({', '.join(continuous)}), not {','.join(f'{w:g}' for w in widths)}")
     bins_from = "--bins" if bins is not None else "derived from the model's action grid and goal"
     shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon,  # its onward: the shield's, below
                           counterfactuals=counterfactuals or ablation)
+    try:  # checked before the shield and the learning, which would meet it only after them
+        objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
+    except CheckError as exc:
+        first = exc.diagnostics[0]
+        raise ExperimentError(f"--reward-function: `{text}`: {first.message}"
+                              + (f" ({first.hints[0]})" if first.hints else "")) from None
     count = (len(wanted) + (len(ABLATION) if ablation else 0)) * len(seeds)
     needed = learning_bytes(episodes=episodes, parallel=parallel, steps=shared.max_steps, runs=count,
                             observations=len(discrete) + len(continuous) + int(observe_time), actions=shared.n_actions)
@@ -245,7 +255,6 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     shield_table, shield_seconds, shield_states, onward = _shield(
         result, horizon, max_states, any(shielded for _, shielded, _ in wanted), max_bytes)
     shared.onward = onward
-    objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
     optima = _optima(result, wanted, shield_table, horizon, onward, rf, max_states, progress)
     # (label, seed, shield, reward kind, options): counterfactuals for the automaton's rewards only
     # (the reward function knows nothing of the automaton: the paper's RF learner)
