@@ -191,6 +191,22 @@ def test_the_time_budget_reports_itself(tmp_path: Path) -> None:
     assert (want[partial.mask] >= partial.depth).all()
 
 
+def test_a_held_continuation_stops_at_the_deadline(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fixed continuations (an action held to the horizon) checked the time only between layers:
+    `rac verify --horizon 100000` on an on-demand shield held one for 5,000 decisions past its 20 s.
+    Each clock reading here moves time on by a second, so the deadline passes inside the held run:
+    the search must say it was cut short, and what it allows stays proved."""
+    data, horizon = scene("ahead", str(tmp_path))
+    oracle = Oracle(data, horizon)
+    start = oracle.native.initial_state()
+    want, _ = oracle.depths(start, 0, 4)
+    clock = iter(range(10**6))
+    monkeypatch.setattr("rac.engine.lookahead.time.perf_counter", lambda: float(next(clock)))
+    got = Lookahead(data, horizon, LookaheadSettings(depth=4, seconds=2.5)).decide(np.array([0, *start]))
+    assert not got.complete and got.depth < 4
+    assert got.depth >= 1 and (want[got.mask] >= got.depth).all()
+
+
 def test_settings_are_checked() -> None:
     for bad in ({"depth": 0}, {"depth": 1.5}, {"seconds": -1.0}, {"nodes": -1}):
         with pytest.raises(ValueError):

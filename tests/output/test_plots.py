@@ -375,3 +375,13 @@ def test_a_bare_threshold_takes_the_unit_it_is_compared_with(figures: list, tmp_
     assert "1.5 = 1.5 m" in first and NEGATIVE_DISTANCE_TEXT in first
     assert "v = 1 m/s" in second and NEGATIVE_DISTANCE_TEXT not in second  # below 0 is no overlap here
     assert figures[1].axes[0].get_ylabel() == "mindist() - 1 (m)"
+
+
+def test_values_near_the_float_limit_are_drawn_clipped_and_judged_as_they_are(tmp_path: Path) -> None:
+    # matplotlib cannot lay out an axis spanning ±1.7e308 (a `simulate[...]{1e308, 0-1e308}` query
+    # was an internal error); the runs below the threshold are still counted on the values themselves
+    values = np.array([[1.7e308, 1.0, 2.0], [-1.7e308, 1.0, 2.0]])
+    path = plot_runs(np.arange(3) * 0.1, values, tmp_path / "far.png", threshold=-1e305, threshold_label="t")
+    with Image.open(path) as image:
+        assert image.format == "PNG"
+    assert below_summary(values, -1e305, "t").startswith("1 of 2 runs")

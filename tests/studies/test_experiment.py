@@ -104,6 +104,17 @@ def test_bad_bins_and_reward_functions_are_refused_before_anything_is_computed(
     assert not out.exists()
 
 
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy's, on dividing by zero
+def test_a_reward_function_that_is_not_a_number_stops_learning_with_a_message(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # a NaN reward poisoned the table and the greedy choice crashed (numpy: high <= 0): exit 3
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--runs", "2", "--reward-function",
+                 "0/0", "--combination", "RF", "--out", str(tmp_path / "o"), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert "not a finite number" in err and "`0/0`" in err and "internal error" not in err
+
+
 def test_seed_is_one_seed_and_not_ignored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """`rac experiment --seed 3` ran seeds 1..5 (its --seed was ignored next to --seeds, issue 12)."""
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)

@@ -4,7 +4,7 @@ them (:func:`format_bytes`: the engine's budgets and the scenario's load estimat
 
 from __future__ import annotations
 
-import math
+from decimal import Decimal
 from fractions import Fraction
 
 __all__ = ["INT32_BOUND", "INT32_LOW", "INT32_MAX", "INT32_MIN", "exact_decimal", "format_bytes", "size_option"]
@@ -44,16 +44,27 @@ def exact_decimal(value: Fraction, max_places: int | None = None) -> str | None:
 
 
 def format_bytes(size: float) -> str:
-    """``size`` for people: ``2 MB``, ``1.5 GB``."""
+    """``size`` for people: ``2 MB``, ``1.5 GB``; an integer too large for a float too (an estimate
+    for a horizon of ``1e400`` s is one: ``1.2e+380 TB``)."""
     for unit, scale in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
         if size >= scale:
-            return f"{size / scale:.3g} {unit}"
+            return f"{_ratio(size, scale):.3g} {unit}"
     return f"{int(size)} B"
 
 
 def size_option(size: int) -> str:
     """``size`` rounded up to what ``--max-memory`` reads: ``1.6G``, ``300M`` (a budget that holds it)."""
-    gib = size / 2**30
-    if gib >= 1:
-        return f"{math.ceil(gib * 10) / 10:g}G"
-    return f"{math.ceil(size / 2**20)}M"
+    if size >= 2**30:
+        if size > 2**100:  # beyond any machine: its magnitude, not a budget to type
+            return f"{_ratio(size, 2**30):.3g}G"
+        tenths = -(-size * 10 // 2**30)  # rounded up in integers: a float loses the last byte of large sizes
+        return f"{tenths // 10}G" if tenths % 10 == 0 else f"{tenths // 10}.{tenths % 10}G"
+    return f"{-(-size // 2**20)}M"
+
+
+def _ratio(size: float, scale: int) -> float | Decimal:
+    """``size / scale``, exact as a :class:`~decimal.Decimal` where the float would overflow."""
+    try:
+        return size / scale
+    except OverflowError:  # an int beyond float's range: Decimal keeps its magnitude
+        return Decimal(size) / scale

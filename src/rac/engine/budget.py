@@ -25,6 +25,7 @@ import math
 import os
 import re
 from dataclasses import dataclass
+from fractions import Fraction
 
 from rac.core.diagnostics import RacError
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
@@ -100,7 +101,7 @@ def parse_size(text: str) -> int:
     match = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([kKmMgGtT]?)[bB]?\s*", text)
     if match is None:
         raise ValueError(f"`{text}` is not a size: write a number of bytes or e.g. 512M, 4G, 1.5G")
-    return int(float(match.group(1)) * _UNITS[match.group(2).lower()])
+    return int(Fraction(match.group(1)) * _UNITS[match.group(2).lower()])  # exact: a float loses bytes of TBs
 
 
 def simulation_bytes(runs: int, samples: int, columns: int) -> int:

@@ -346,6 +346,8 @@ class Lookahead:
             if sample >= self.horizon:
                 reached[alive] = remaining
                 break
+            if self._deadline is not None and time.perf_counter() >= self._deadline:
+                break  # what is proved so far stands; the search's next _spend stops it (a long horizon held)
             live = np.flatnonzero(alive)
             if live.size == 0:
                 break

@@ -41,6 +41,7 @@ import numpy as np
 
 from rac.core.numbers import INT32_MAX
 from rac.engine.allow import ActionGuard, action_pairs
+from rac.engine.budget import check_estimate, simulation_bytes
 from rac.engine.graph import LABELS
 from rac.ir.vocabulary import EGO_STATE, TRUE_STATE
 from rac.model.batch import batch_model
@@ -218,7 +219,8 @@ def _horizon(data: ModelData, horizon_samples: int | None) -> int:
 
 
 def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, seed: int | None = None,
-             policy: Policy | None = None, truth_substeps: int = 100, progress: Progress | None = None) -> Runs:
+             policy: Policy | None = None, truth_substeps: int = 100, progress: Progress | None = None,
+             max_bytes: int | None = None) -> Runs:
     """Simulate ``runs`` runs of ``horizon_samples`` sense periods with uniformly drawn actions.
 
     See the module docstring for the semantics. ``horizon_samples`` defaults to the goal
@@ -233,12 +235,16 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     among all actions there and is flagged in :attr:`Runs.left_policy`.
 
     :class:`rac.model.data.ModelRangeError` when a sensed value overflows int32 (as explore()).
+    :class:`rac.engine.budget.EstimateExceeded`, before anything is allocated, when the runs would
+    need more than ``max_bytes`` (None: no limit; :func:`rac.engine.budget.simulation_bytes`).
     """
     if isinstance(runs, bool) or not isinstance(runs, int | np.integer) or runs < 1:
         raise ValueError(f"runs must be a positive integer, not {runs!r}")
     if isinstance(truth_substeps, bool) or not isinstance(truth_substeps, int | np.integer) or truth_substeps < 1:
         raise ValueError(f"truth_substeps must be a positive integer, not {truth_substeps!r}")
     horizon = _horizon(data, horizon_samples)
+    check_estimate(f"simulating {runs:,} runs of {horizon:,} samples", simulation_bytes(runs, horizon, 0), max_bytes,
+                   "lower the runs or the horizon")
     if seed is None:
         entropy = np.random.SeedSequence().entropy
         assert isinstance(entropy, int)  # a fresh SeedSequence draws one int from the OS

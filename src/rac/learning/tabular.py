@@ -322,6 +322,10 @@ class Learner:
             next_masks, next_empty = allowed_actions(batch, shield)
             if learning.any():
                 reward = np.asarray(outcome.reward, dtype=np.float64)[:n]
+                if not np.isfinite(reward[learning]).all():  # a NaN would poison the table silently
+                    bad = reward[learning][~np.isfinite(reward[learning])][0]
+                    raise RacValueError(f"a step's reward is {bad:g}, not a finite number: the reward divides by "
+                                        "zero or overflows on the episodes' samples")
                 ends = (np.asarray(outcome.terminated, dtype=bool) | np.asarray(outcome.truncated, dtype=bool)
                         | np.asarray(outcome.ended, dtype=bool))[:n]
                 next_keys = self.keys(observed[:n])

@@ -197,6 +197,11 @@ def below_summary(values: np.ndarray, threshold: float, threshold_label: str = "
     return f"{int(below.sum())} of {below.size} run{'s' * (below.size != 1)} below {threshold_label}"
 
 
+#: :func:`plot_runs` draws values beyond ± this at it: matplotlib cannot lay out an axis whose span
+#: overflows a float (values near ±1e308), and no plot of such values is read for their digits.
+DRAW_LIMIT = 1e300
+
+
 def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str], *,
               threshold: float | None = None, threshold_label: str = "threshold", ylabel: str = "distance (m)",
               xlabel: str = "time (s)", title: str | None = None, highlight_below: bool = True,
@@ -236,6 +241,9 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
         raise ValueError(f"plot_runs: times has shape {times.shape}; expected ({n_samples},) or {values.shape}")
 
     below = runs_below(values, threshold) if threshold is not None else np.zeros(n_runs, dtype=bool)
+    clipped = int((np.abs(values) > DRAW_LIMIT).sum())  # counted and judged above as they are, drawn clipped
+    values = np.clip(values, -DRAW_LIMIT, DRAW_LIMIT)  # NaN stays NaN
+    drawn = None if threshold is None else float(np.clip(threshold, -DRAW_LIMIT, DRAW_LIMIT))
     n_below = int(below.sum())
     emphasise = highlight_below and threshold is not None
     figure = new_figure(8.0, 4.6)
@@ -262,24 +270,27 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
                               label=f"{n_below} runs below {threshold_label}"))
     else:
         handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5, label=f"{n_runs} runs"))
-    if threshold is not None:
-        ax.axhline(threshold, color=THRESHOLD_COLOUR, linestyle="--", linewidth=1.4, zorder=5)
+    if threshold is not None and drawn is not None:
+        ax.axhline(drawn, color=THRESHOLD_COLOUR, linestyle="--", linewidth=1.4, zorder=5)
         handles.append(Line2D([], [], color=THRESHOLD_COLOUR, linestyle="--", lw=1.4,
                               label=f"{threshold_label} = {threshold:g}{' ' * bool(unit)}{unit}"))
 
+    if clipped:
+        handles.append(Line2D([], [], color="none", label=f"{clipped} values beyond ±{DRAW_LIMIT:g} drawn at it"))
     if absent.any() and finite.any():
         handles.append(Line2D([], [], color="none", label=f"gaps: {missing_label} at {int(absent.sum())} of "
                                                           f"{absent.size} samples"))
     if finite.any() or threshold is not None:
         # nothing drawn: the threshold in the middle of the axis
         low, high = (float(values[finite].min()), float(values[finite].max())) if finite.any() else \
-            (0.0, 2 * (threshold or 0.0))
-        if threshold is not None:
-            low, high = min(low, threshold), max(high, threshold)
+            (0.0, 2 * (drawn or 0.0))
+        if drawn is not None:
+            low, high = min(low, drawn), max(high, drawn)
         pad = 0.05 * (high - low) or 1.0
-        ax.set_ylim(min(0.0, low) if low >= 0 else low - pad, high + pad)  # distances: keep 0 in view
+        bottom, top = (min(0.0, low) if low >= 0 else low - pad), high + pad  # distances: keep 0 in view
+        ax.set_ylim(bottom, top)
         if below_zero is not None and low < 0:
-            ax.axhspan(low - pad, 0.0, color=_NEGATIVE_TINT, zorder=0.5, linewidth=0)
+            ax.axhspan(bottom, 0.0, color=_NEGATIVE_TINT, zorder=0.5, linewidth=0)
             handles.append(Patch(facecolor=_NEGATIVE_TINT, edgecolor="#e0b4b4", label=below_zero))
     if np.isfinite(times).any():
         start, end = float(np.nanmin(times)), float(np.nanmax(times))

@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, RacError
+from rac.core.diagnostics import CheckError, RacError, RacValueError
 from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
@@ -284,16 +284,20 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                 progress(f"{what}: {sum(done):,} of {len(runs) * episodes:,} episodes")
         return report
 
-    learned = run_together([Job(learning(shared, discrete=_with_time(discrete) if options.time else discrete,
-                                         continuous=continuous, shield=table, episodes=episodes,
-                                         parallel=parallel, seed=seed, bins=options.bins,
-                                         counterfactuals=options.counterfactuals, replay=options.replay,
-                                         growth=growth, progress=learned_so_far(run),
-                                         stop_after=-(-episodes // parallel) + 1,
-                                         **({**LEARNER, "replay_best": options.replay_best} if options.pessimistic
-                                            else EARLIER)),
-                                None if kind == "automaton" else objective)
-                            for run, (_, seed, table, kind, options) in enumerate(runs)], shared)
+    try:  # a reward that is not a number, met while learning: the user's reward, not a bug
+        learned = run_together([Job(learning(shared, discrete=_with_time(discrete) if options.time else discrete,
+                                             continuous=continuous, shield=table, episodes=episodes,
+                                             parallel=parallel, seed=seed, bins=options.bins,
+                                             counterfactuals=options.counterfactuals, replay=options.replay,
+                                             growth=growth, progress=learned_so_far(run),
+                                             stop_after=-(-episodes // parallel) + 1,
+                                             **({**LEARNER, "replay_best": options.replay_best} if options.pessimistic
+                                                else EARLIER)),
+                                    None if kind == "automaton" else objective)
+                                for run, (_, seed, table, kind, options) in enumerate(runs)], shared)
+    except RacValueError as exc:
+        raise ExperimentError(f"learning stopped: {exc} (the reward function `{text}` or the automaton's "
+                              "objective)") from None
     outcomes: list[LearningResult] = [outcome for outcome, _ in learned]
     if progress:
         progress(f"evaluating {len(runs)} strategies over {evaluation_runs} runs each")
