@@ -153,6 +153,16 @@ MIN_TIME_STEP = 1e-6
 MAX_TIME_STEP = 1e6
 #: The lanelet elements that name another lanelet by its ``ref`` (E0720).
 LANELET_REFERENCES = ("predecessor", "successor", "adjacentLeft", "adjacentRight")
+#: The largest ``|orientation|`` (rad) rac hands to commonroad-io. Its reader brings a state's
+#: orientation into [-2π, 2π] by adding or subtracting 2π one turn at a time (``make_valid_orientation``
+#: for an obstacle's initial state, ``make_valid_orientation_interval`` for any ``AngleInterval``): at
+#: 1e300 or inf a step no longer changes the number and the read never ends; at 1e6 it takes 160,000
+#: steps (14 ms for one value, seconds for a file of such obstacles) and ends 1e-6 rad off. Up to 1e4
+#: (1,600 turns, which no vehicle makes in a scenario; CommonRoad's files stay within ±2π) it takes at
+#: most 1,600 steps (50 µs) and ends within 1e-10 rad.
+MAX_ORIENTATION = 1e4
+#: The children of an ``<orientation>`` that hold its numbers (an orientation of a shape holds its own text).
+ORIENTATION_VALUES = ("exact", "intervalStart", "intervalEnd")
 
 
 class PlanningProblemError(ScenarioError):
@@ -212,6 +222,7 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
     _check_time_step(path, root, positions)
     _check_structure(path, root)
     _check_references(path, root, positions)
+    _check_orientations(path, root, positions)  # before commonroad-io: it loops forever on a huge one
 
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.common.file_reader import CommonRoadFileReader
@@ -357,6 +368,54 @@ def _check_references(path: str | os.PathLike[str], root, positions: dict[int, t
                         positions.get(id(reference)))
 
 
+def _check_orientations(path: str | os.PathLike[str], root, positions: dict[int, tuple[int, int]]) -> None:
+    """Refuse an ``<orientation>`` number (``exact``, ``intervalStart``, ``intervalEnd``, or a shape's own
+    text) that is not finite or beyond ±:data:`MAX_ORIENTATION` before commonroad-io reads the file:
+    its reader normalises such a value in a loop that never ends (or runs for seconds), so the loader's
+    checks after the read would never run. The only angles commonroad-io normalises are orientations
+    (``yawRate``, ``slipAngle``, ``steeringAngle``, ``hitchAngle`` are read as they are). One pass over
+    the ``<orientation>`` elements, under 1 % of the load: 0.3 ms of 60 ms for examples/paper/left_turn_15s.xml
+    (250 kB), 34 ms of 4 s for a generated grid of 10.8 MB (``scenes.grid_bytes(200, 200)``)."""
+    for node in root:
+        for orientation in node.iter("orientation"):
+            holders = [child for child in orientation if child.tag in ORIENTATION_VALUES] if len(orientation) \
+                else [orientation]
+            for holder in holders:
+                value = _number_text(holder.text)  # not a number: commonroad-io's reader reports it
+                if value is not None and not (math.isfinite(value) and abs(value) <= MAX_ORIENTATION):
+                    raise _orientation_error(path, node, orientation, (holder.text or "").strip(), value,
+                                             positions.get(id(orientation)))
+
+
+def _orientation_error(path: str | os.PathLike[str], node, orientation, text: str, value: float,
+                       position: tuple[int, int] | None) -> ScenarioError:
+    """The :class:`ScenarioError` of :func:`_check_orientations`: the element in the loader's words (a
+    goal's ``"goal of planning problem 7"``), the state or shape holding the orientation, its line."""
+    parents = {child: parent for parent in node.iter() for child in parent}  # only on failure: no cost otherwise
+    holder = parents.get(orientation, node)
+    ancestors = []
+    at = orientation
+    while at in parents:
+        at = parents[at]
+        ancestors.append(at.tag)
+    label = f"{_LABELS[node.tag]} {node.get('id', '(without id)')}" if node.tag in _LABELS else f"<{node.tag}>"
+    element = f"goal of {label}" if node.tag == "planningProblem" and "goalState" in ancestors else label
+    if holder.tag == "initialState":
+        what = "its initial state"
+    elif holder.tag == "goalState":
+        what = "its goal state"
+    elif holder.tag == "state":
+        step = (holder.findtext("time/exact") or holder.findtext("time/intervalStart") or "?").strip()
+        what = f"the state at time step {step}"
+    else:
+        what = f"its <{holder.tag}>"
+    where = f" (line {position[0]})" if position is not None else ""
+    if not math.isfinite(value):
+        return ScenarioError(path, element, f"has an orientation that is not finite ({text}) in {what}{where}")
+    return ScenarioError(path, element, f"has an orientation of {text} rad in {what}{where}, beyond the "
+                                        f"±{MAX_ORIENTATION:g} rad rac accepts (CommonRoad's are within ±2π)")
+
+
 def _read_bytes(path: str | os.PathLike[str]) -> bytes:
     try:
         if Path(path).exists() and not Path(path).is_dir() and not Path(path).is_file():
@@ -476,13 +535,25 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
                 raise
             return ScenarioError(path, element, f"cannot be read: {_describe(failure)}")
     lanelet_ids = {node.get("id") for node in root.iter("lanelet")}
+    for lanelet in root.iter("lanelet"):  # commonroad-io's shapely fails on a NaN with a GEOS message
+        for bound in ("leftBound", "rightBound"):
+            for point in lanelet.iterfind(f"{bound}/point"):
+                x, y = _number_text(point.findtext("x")), _number_text(point.findtext("y"))
+                if x is not None and y is not None and not (math.isfinite(x) and math.isfinite(y)):
+                    return ScenarioError(path, f"lanelet {lanelet.get('id')}",
+                                         f"has a point that is not finite ({x}, {y}) in its <{bound}>")
     for node in root.iter():
         low, high = node.find("intervalStart"), node.find("intervalEnd")
-        bounds = (_number_text(low.text), _number_text(high.text)) if low is not None and high is not None else None
-        if bounds is not None and None not in bounds and bounds[0] > bounds[1]:  # type: ignore[operator]
+        if low is None or high is None:
+            continue
+        start, end = _number_text(low.text), _number_text(high.text)
+        if start is None or end is None:
+            continue
+        finite = math.isfinite(start) and math.isfinite(end)  # NaN fails commonroad-io's start <= end assert
+        if not finite or start > end:
             owner = next((f"{label(n)}'s" for n in root if n.tag in _LABELS and node in n.iter()), "an")
-            return ScenarioError(path, f"{owner} <{node.tag}>",
-                                 f"has the interval [{low.text}, {high.text}], which ends before it starts")
+            why = "which ends before it starts" if finite else "whose bounds are not both finite"
+            return ScenarioError(path, f"{owner} <{node.tag}>", f"has the interval [{low.text}, {high.text}], {why}")
     for problem in root.iter("planningProblem"):
         for position in problem.iterfind("goalState/position"):
             shapes = [child.tag for child in position]
@@ -541,6 +612,7 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     if not lanelets:
         raise ScenarioError(path, None, "has no lanelets (rac needs the road network)")
     for lanelet in lanelets:
+        _check_finite_bounds(path, lanelet)
         _check_width(path, lanelet, where("lanelet", lanelet.lanelet_id))
     road = tuple(_polygon(lanelet.polygon.vertices) for lanelet in lanelets)
     lanes = tuple(Lane(lanelet.lanelet_id, _points(lanelet.center_vertices), _points(lanelet.left_vertices),
@@ -586,6 +658,28 @@ def _check_width(path, lanelet, position: tuple[int, int] | None) -> None:
             "give the lanelet its two bounds (a lane's width apart, e.g. 3.5 m), or remove it", position)
 
 
+def _check_finite_bounds(path, lanelet) -> None:
+    """A lanelet bound's point that is not finite: the road's polygons (and ``offroad()``) need finite ones."""
+    import numpy as np  # numpy: only when this runs; importing rac.model.commonroad stays light
+
+    for bound, vertices in (("leftBound", lanelet.left_vertices), ("rightBound", lanelet.right_vertices)):
+        points = np.asarray(vertices, dtype=float)
+        if not np.isfinite(points).all():  # one vectorised test per bound: a large road stays fast
+            x, y = next((x, y) for x, y in _points(points) if not (math.isfinite(x) and math.isfinite(y)))
+            raise ScenarioError(path, f"lanelet {lanelet.lanelet_id}",
+                                f"has a point that is not finite ({x}, {y}) in its <{bound}>")
+
+
+def _finite(path, element: str, quantity: str, value, what: str) -> float:
+    """``value`` as a float; a :class:`ScenarioError` when it is NaN or infinite: the model's numbers
+    and geometry need finite ones (and commonroad-io's derived values, e.g. a sine of inf, fail)."""
+    number = float(value)
+    if not math.isfinite(number):
+        article = "an" if quantity[:1] in ("a", "e", "i", "o", "u") else "a"
+        raise ScenarioError(path, element, f"has {article} {quantity} that is not finite ({number}) in {what}")
+    return number
+
+
 def _seconds(step: float, dt: float) -> float:
     """``step * dt`` without the float noise of the product (3 * 0.1 is 0.3, not 0.30000000000000004)."""
     return round(step * dt, 9)
@@ -620,7 +714,10 @@ def _exact_position(path, element: str, state, what: str) -> tuple[float, float]
     if array is None or array.shape != (2,):
         raise ScenarioError(path, element, f"has an uncertain position (a {type(position).__name__}) in {what}; "
                                            "rac needs exact states")
-    return float(array[0]), float(array[1])
+    x, y = float(array[0]), float(array[1])
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise ScenarioError(path, element, f"has a position that is not finite ({x}, {y}) in {what}")
+    return x, y
 
 
 def _exact_number(path, element: str, state, attribute: str, what: str) -> float | None:
@@ -630,7 +727,7 @@ def _exact_number(path, element: str, state, attribute: str, what: str) -> float
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ScenarioError(path, element, f"has an uncertain {attribute} (an interval) in {what}; "
                                            "rac needs exact states")
-    return float(value)
+    return _finite(path, element, attribute, value, what)
 
 
 def _time_step(path, element: str, state, what: str) -> int:
@@ -649,9 +746,12 @@ def _box(path, element: str, shape) -> tuple[float, float, float, float]:
     from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
 
     if isinstance(shape, RectObstacleShape):
-        return float(shape.length), float(shape.width), -float(shape.origin_x_shift), 0.0
+        return (_finite(path, element, "length", shape.length, "its shape"),
+                _finite(path, element, "width", shape.width, "its shape"),
+                -_finite(path, element, "originXShift", shape.origin_x_shift, "its shape"), 0.0)
     if isinstance(shape, CircleObstacleShape):  # (its occupancy's shapely polygon has half the radius)
-        return 2.0 * shape.radius, 2.0 * shape.radius, 0.0, 0.0
+        radius = _finite(path, element, "radius", shape.radius, "its shape")
+        return 2.0 * radius, 2.0 * radius, 0.0, 0.0
     import numpy as np  # numpy: only when this runs; importing rac.model.commonroad stays light
 
     # commonroad: only when this runs; importing rac.model.commonroad stays light
@@ -771,10 +871,14 @@ def _interval(path, element: str, value, attribute: str) -> tuple[float, float] 
     if value is None:
         return None
     if isinstance(value, Interval):
-        return float(value.start), float(value.end)
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        return float(value), float(value)
-    raise ScenarioError(path, element, f"has an unsupported {attribute} ({type(value).__name__})")
+        low, high = float(value.start), float(value.end)
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        low = high = float(value)
+    else:
+        raise ScenarioError(path, element, f"has an unsupported {attribute} ({type(value).__name__})")
+    if not (math.isfinite(low) and math.isfinite(high)):
+        raise ScenarioError(path, element, f"has a {attribute} interval that is not finite ([{low}, {high}])")
+    return low, high
 
 
 def _goal(path, element: str, goal, network, dt: float) -> Goal:
@@ -826,10 +930,23 @@ def _regions(path, element: str, position) -> list[Polygon]:
 
     if isinstance(position, OccupancyGroup):
         return [region for part in position.occupancies for region in _regions(path, element, part)]
-    if isinstance(position, (RectOccupancy, PolygonOccupancy)):
+    # each number checked before commonroad-io's shapely geometry is built from it: a NaN fails there
+    if isinstance(position, RectOccupancy):
+        for quantity, value in (("length", position.length), ("width", position.width),
+                                ("orientation", position.orientation), ("centre x", position.rect_center.x),
+                                ("centre y", position.rect_center.y)):
+            _finite(path, element, quantity, value, "its rectangle")
         return [_polygon(position.vertices)]
+    if isinstance(position, PolygonOccupancy):
+        points = _points(position.vertices)
+        bad = next(((x, y) for x, y in points if not (math.isfinite(x) and math.isfinite(y))), None)
+        if bad is not None:
+            raise ScenarioError(path, element, f"has a point that is not finite ({bad[0]}, {bad[1]}) in its polygon")
+        return [_polygon(points)]
     if isinstance(position, CircleOccupancy):
-        x, y, r = position.circle_center.x, position.circle_center.y, position.radius
+        x, y, r = (_finite(path, element, quantity, value, "its circle") for quantity, value in (
+            ("centre x", position.circle_center.x), ("centre y", position.circle_center.y),
+            ("radius", position.radius)))
         return [_polygon([(x + r * math.cos(2 * math.pi * i / CIRCLE_VERTICES),
                            y + r * math.sin(2 * math.pi * i / CIRCLE_VERTICES)) for i in range(CIRCLE_VERTICES)])]
     kind = "a point" if isinstance(position, (np.ndarray, list, tuple)) else type(position).__name__
