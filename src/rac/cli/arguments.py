@@ -20,8 +20,8 @@ from rac.cli.common import size_argument
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX
 from rac.sweep.kinds import TASKS
 
-__all__ = ["COMMANDS", "DEFAULT_TEMPLATE", "TARGETS", "build_parser", "positive_fraction",
-           "horizons_argument", "counting", "probability"]
+__all__ = ["COMMANDS", "DEFAULT_TEMPLATE", "MIN_SEED", "TARGETS", "build_parser", "positive_fraction",
+           "horizons_argument", "counting", "probability", "seed_argument", "seeds_argument"]
 
 T = TypeVar("T")
 
@@ -39,6 +39,9 @@ TARGETS = ("python", "uppaal")
 #: The standard-library file ``rac new`` copies when ``--from`` is not given.
 DEFAULT_TEMPLATE = "driving.ra"
 _DECIMAL = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
+#: The least seed of every command's --seed and --seeds (and of rac sweep's): numpy's SeedSequence, which
+#: every simulation and learner seeds from, takes any whole number from 0 up.
+MIN_SEED = 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -99,6 +102,18 @@ def _argument(convert: Callable[[str], T], kind: str, accepts: Callable[[T], boo
 positive_fraction = _argument(Fraction, "a number", lambda value: value > 0, "must be positive")
 counting = _argument(int, "a whole number", lambda value: value >= 1, "must be at least 1")
 probability = _argument(float, "a number", lambda value: 0 < value < 1, "must lie strictly between 0 and 1")
+seed_argument = _argument(int, "a whole number", lambda value: value >= MIN_SEED,
+                          f"a seed must be a whole number of at least {MIN_SEED}")
+
+
+def seeds_argument(text: str) -> tuple[int, ...]:
+    """An argparse ``type`` for ``--seeds 1,2,3``: seeds as :data:`seed_argument` takes each."""
+    return tuple(seed_argument(item) for item in text.split(","))
+
+
+def _seed_text(text: str) -> str:
+    """``rac sweep --seed``: :data:`seed_argument`'s rule, the value kept as text (a task's option)."""
+    return str(seed_argument(text))
 
 
 def _common(parser: argparse.ArgumentParser, outputs: str) -> None:
@@ -109,7 +124,9 @@ def _common(parser: argparse.ArgumentParser, outputs: str) -> None:
                              "beside the file)")
     parser.add_argument("--horizon", type=positive_fraction, metavar="SECONDS",
                         help="horizon of exhaustive exploration (default: the automaton's `horizon`)")
-    parser.add_argument("--seed", type=int, help="seed of the simulations (default: fresh, printed)")
+    parser.add_argument("--seed", type=seed_argument, metavar="N",
+                        help=f"seed of the simulations, a whole number of at least {MIN_SEED} (default: fresh, "
+                             "printed)")
     parser.add_argument("--max-states", type=counting, default=5_000_000, metavar="N",
                         help="give up (verdict unknown) beyond this many states (default 5,000,000)")
     parser.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
@@ -170,7 +187,8 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     exp = commands.add_parser("experiment", help="the paper's Table 2: learning with/without shield, automaton "
                                                  "or reward function, over seeds", epilog=OUTPUT_CONVENTION)
     _common(exp, "the table, JSON and plots")
-    exp.add_argument("--seeds", metavar="LIST", help="seeds, e.g. 1,2,3 (default 1..5; --seed N is --seeds N)")
+    exp.add_argument("--seeds", type=seeds_argument, metavar="LIST",
+                     help="seeds, e.g. 1,2,3 (default 1..5; --seed N is --seeds N)")
     exp.add_argument("--episodes", type=counting, default=500, help="episode budget per run (default 500)")
     exp.add_argument("--runs", type=counting, default=100, help="evaluation runs per strategy (default 100)")
     exp.add_argument("--reward-function", metavar="EXPR",
@@ -279,8 +297,8 @@ def _add_sweep(commands: argparse._SubParsersAction) -> None:
                        help=f"the output folder (default: TEMPLATE{OUTPUT_SUFFIX}/sweep/ beside the template)")
     sweep.add_argument("--horizon", type=_checked(lambda t: Fraction(t) > 0, "a positive number"),
                        metavar="SECONDS", help="horizon of each task (default: the automaton's)")
-    sweep.add_argument("--seed", type=_checked(lambda t: isinstance(int(t), int), "a whole number"), metavar="N",
-                       help="seed of each task's simulations")
+    sweep.add_argument("--seed", type=_seed_text, metavar="N",
+                       help=f"seed of each task's simulations, a whole number of at least {MIN_SEED}")
     sweep.add_argument("--max-states", type=_checked(lambda t: int(t) >= 1, "a whole number of at least 1"),
                        metavar="N", help="each task gives up (verdict unknown) beyond this many states")
     sweep.add_argument("-q", "--quiet", action="store_true", help="no progress, no dashboard address")

@@ -24,12 +24,16 @@ from rac.engine.budget import default_max_bytes, parse_size
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
-           "OUTPUT_SUFFIX", "STALE_SECONDS", "FileWriteError", "StdoutError", "load_budget", "locked", "output_folder",
-           "overwrites_source", "same_file", "size_argument", "stdout_unwritable",
+           "OUTPUT_SUFFIX", "SOURCE_SUFFIX", "STALE_SECONDS", "FileWriteError", "NotRegularFile", "StdoutError",
+           "check_writable", "held_source", "load_budget", "locked", "output_folder", "overwrites_source",
+           "overwrites_source_in", "same_file", "size_argument", "stdout_unwritable",
            "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 
+#: The suffix of the files rac reads: no output of an engine command (verify, simulate, render,
+#: preanalyse, experiment) has it, so their output folder may hold the input file under it.
+SOURCE_SUFFIX = ".ra"
 #: A writer's temporary file older than this (seconds) was left by a writer that was killed: the
 #: next write of the same file removes it. A live writer writes its text at once, in far less time.
 STALE_SECONDS = 3600
@@ -58,15 +62,59 @@ def overwrites_source(output: Path, source: Path) -> Diagnostic:
                  hints=["choose another output file; rac never overwrites the `.ra` file it reads"])
 
 
+def held_source(folder: Path, source: Path) -> Path | None:
+    """The path by which ``source`` (its name, or the file a link leads to) lies in ``folder`` or below
+    it under a name not ending in :data:`SOURCE_SUFFIX`, so that an output written there may replace it;
+    None when it lies elsewhere. An engine command's outputs have names of their own (``runs.csv``, a
+    query's ``NAME.png``, temporaries beside them), none ending in ``.ra``."""
+    out = Path(os.path.realpath(folder))
+    entry = Path(os.path.realpath(source.parent)) / source.name  # the name itself, a link not followed
+    for path in dict.fromkeys((entry, Path(os.path.realpath(source)))):
+        if not path.name.endswith(SOURCE_SUFFIX) and path.is_relative_to(out):
+            return source if path == entry else path
+    return None
+
+
+def overwrites_source_in(folder: Path, held: Path, source: Path) -> Diagnostic:
+    """E0009: the output folder ``folder`` holds the input file ``source`` (as ``held``) under a name an
+    output may take (nothing was written)."""
+    also = "" if held == source else f" (as `{held}`)"
+    return error("E0009", f"cannot write into `{folder}`: it holds the input file `{source}`{also}, which an "
+                          "output may replace", None,
+                 hints=[f"choose another folder with -o, or name the input FILE{SOURCE_SUFFIX} (no output has "
+                        f"that suffix); rac never overwrites the `{SOURCE_SUFFIX}` file it reads"])
+
+
+class NotRegularFile(RacError, OSError):
+    """An existing path that is not a regular file (a FIFO, a device, a socket): rac replaces only
+    regular files, where a rename would swap a pipe or a device node for a file."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(errno.EINVAL, "it is not a regular file (a pipe or a device?)", str(path))
+
+
+def check_writable(path: Path) -> None:
+    """Raise the ``OSError`` that writing ``path`` is bound to meet, known before anything is written:
+    ``path`` is a folder (``IsADirectoryError``), or exists and is no regular file (:class:`NotRegularFile`),
+    or its name is too long (the file system's own error)."""
+    if not path.name or path.is_dir():  # `-o /`, `-o .`: os.replace would fail, or name no file
+        raise IsADirectoryError(errno.EISDIR, "it is a directory", str(path))
+    if path.exists() and not path.is_file():  # is_file follows a link: a link to a FIFO is refused too
+        raise NotRegularFile(path)
+
+
 def unwritable(path: Path, exc: OSError) -> Diagnostic:
     """E0009: ``path`` cannot be written (nothing was)."""
     reason = exc.strerror or str(exc)
     # the hint names the remedy of the condition: a folder is not the problem with a long name
     hint = {errno.ENAMETOOLONG: "use a shorter name (a file system allows about 255 bytes per name)",
             errno.ENOTDIR: "a part of the path is a file, not a folder: choose another path",
+            errno.EISDIR: "name a file, not a folder",
             errno.ENOSPC: "free some space on the disk or write elsewhere",
             errno.EROFS: "the file system is read-only: write elsewhere"}.get(
         exc.errno or 0, "check that the folder exists and is writable")
+    if isinstance(exc, NotRegularFile):
+        hint = "rac replaces only regular files: choose the path of a file, or a new one"
     return error("E0009", f"cannot write `{path}`: {reason}", None, hints=[f"{hint}; nothing was written"])
 
 
@@ -142,8 +190,9 @@ def write_all_atomically(files: Sequence[tuple[Path, str]]) -> None:
     resolved: list[tuple[Path, str]] = []
     for path, text in files:
         try:  # a name too long, a "folder" that is a file: OSError here too
-            if path.is_dir():  # os.replace would fail only after the earlier files were replaced
-                raise IsADirectoryError(errno.EISDIR, "it is a directory", str(path))
+            # a folder, a FIFO or a device: os.replace would fail only after the earlier files were
+            # replaced, or swap the FIFO or device node for a file
+            check_writable(path)
             # a symbolic link stays one: its target is rewritten
             resolved.append((Path(os.path.realpath(path)) if path.is_symlink() else path, text))
         except OSError as exc:

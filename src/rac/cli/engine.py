@@ -11,7 +11,7 @@ import argparse
 import functools
 import json
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
@@ -22,12 +22,16 @@ from rac.cli.common import (
     EXIT_OK,
     EXIT_UNDECIDED,
     EXIT_USAGE,
+    held_source,
     output_folder,
+    overwrites_source_in,
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, RacError, render_json
+from rac.core.diagnostics import CheckError, Diagnostic, RacError, render_json, short_number
 from rac.core.diagnostics import render_text as render_diagnostics
+from rac.core.numbers import INT32_MAX
+from rac.core.source import SourceFile
 from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.ir import query as iq
 from rac.lang.parser import ExpressionError
@@ -66,7 +70,8 @@ def _load(path: Path, max_bytes: int | None) -> tuple[CompileResult | None, int]
 
 def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     """The checked file with a model (or None and the exit code, after saying why); ``--horizon``
-    must be a whole number of samples (the sweep checks its own periods)."""
+    must be a whole number of samples (preanalyse's sweep checks it against each sensing period of its
+    grid instead)."""
 
     result, status = _load(args.file, args.max_memory or default_max_bytes())
     if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
@@ -74,12 +79,33 @@ def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     return result, status
 
 
+def _out_dir(args: argparse.Namespace) -> Path:
+    """The command's output folder: ``-o``, else ``FILE.out/COMMAND/`` (each engine command's folder is
+    named after the command)."""
+    return output_folder(args.file, args.command, args.out)
+
+
+def _report(args: argparse.Namespace, diagnostic: Diagnostic, sources: Mapping[str, SourceFile]) -> None:
+    """Print ``diagnostic`` as the command's ``--format`` asks: JSON on standard output, else text on
+    standard error (with its source line when ``sources`` has the file)."""
+    if getattr(args, "format", None) == "json":
+        print(render_json([diagnostic]))
+    else:
+        print(render_diagnostics([diagnostic], sources), file=sys.stderr)
+
+
 def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]) -> Command:
     """A command run as ``command(args, result)`` on ``args.file`` checked, with a model (:func:`_prepare`);
-    when the file cannot be used, :func:`_prepare` said why and its exit code is the command's."""
+    when the file cannot be used, :func:`_prepare` said why and its exit code is the command's. An output
+    folder holding the input file under a name an output may take is refused first (E0009, exit 2)."""
 
     @functools.wraps(command)
     def run(args: argparse.Namespace) -> int:
+        # every output of the engine commands goes into this folder: rac never overwrites the file it reads
+        held = held_source(_out_dir(args), args.file)
+        if held is not None:
+            _report(args, overwrites_source_in(_out_dir(args), held, args.file), {})
+            return EXIT_USAGE
         # off a terminal (CI logs, pipes) a long command says what it does every few seconds, from the
         # scenario's load on
         with Heartbeat(f"rac {args.command}", enabled=False if args.quiet else None):
@@ -92,10 +118,7 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
                 if exc.diagnostic is None:
                     raise
                 # the failure points into the file: rendered with its source line, like rac check's findings
-                if getattr(args, "format", None) == "json":
-                    print(render_json([exc.diagnostic]))
-                else:
-                    print(render_diagnostics([exc.diagnostic], result.sources), file=sys.stderr)
+                _report(args, exc.diagnostic, result.sources)
                 return EXIT_ERRORS
 
     return run
@@ -128,7 +151,8 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
             return None, problem
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
     assert result.model_data is not None  # _load refused a file without one
-    return simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy), seed
+    return simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
+                    max_bytes=args.max_memory or default_max_bytes()), seed
 
 
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
@@ -200,7 +224,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
     # numpy, rac.check.analysis, stormpy (via rac.verify.runner): only the command that uses it loads it
     from rac.verify.runner import UnknownQuery, VerifyOptions, render_json, render_text, run_queries
 
-    out_dir = output_folder(args.file, "verify", args.out)
+    out_dir = _out_dir(args)
     quiet = args.quiet or args.format == "json"
     bar, callback = _explore_bar(quiet)
     announce = _announcer(quiet)
@@ -283,8 +307,11 @@ def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
     seconds = horizon if horizon is not None else Fraction(automaton.horizon)
     samples = seconds / Fraction(automaton.period)
     if samples.denominator != 1:
-        raise ValueError(f"--horizon {float(seconds):g} is not a whole number of samples of "
-                         f"{float(automaton.period):g} s")
+        raise ValueError(f"--horizon {short_number(seconds)} is not a whole number of samples of "
+                         f"{short_number(Fraction(automaton.period))} s")
+    if samples > INT32_MAX:  # the model counts samples in int32; numpy refuses arrays that long anyway
+        raise ValueError(f"--horizon {short_number(seconds)} is {short_number(samples)} samples of "
+                         f"{short_number(Fraction(automaton.period))} s: more than {INT32_MAX:,}")
     return int(samples)
 
 
@@ -336,7 +363,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     except EvaluationError as exc:
         print(f"rac simulate: --expr: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    out_dir = output_folder(args.file, "simulate", args.out)
+    out_dir = _out_dir(args)
     csv_path, png_path = out_dir / "runs.csv", out_dir / "runs.png"
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -376,11 +403,12 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     else:
         runs, seed = _shielded_runs(result, args, samples, 1)
     if runs is None:
-        print(f"rac render: {seed}", file=sys.stderr)
+        if seed:  # "": _strategy_run has said why (a usage error)
+            print(f"rac render: {seed}", file=sys.stderr)
         return EXIT_ERRORS if seed else EXIT_USAGE
     real = runs.sensed_real()[0]
     trajectory = real[:, [Ego.X, Ego.Y, Ego.HEAD]]
-    out_dir = output_folder(args.file, "render", args.out)
+    out_dir = _out_dir(args)
     png, gif = out_dir / "run.png", out_dir / "run.gif" if args.gif else None
     automaton = result.automaton
     assert automaton is not None and automaton.model is not None  # _load refused a file without them
@@ -410,7 +438,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     # numpy, scipy, stormpy (via rac.studies.preanalysis): only the command that uses it loads it
     from rac.studies.preanalysis import SweepError, render_table, sweep
 
-    out_dir = output_folder(args.file, "preanalyse", args.out)
+    out_dir = _out_dir(args)
     try:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
                      horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
@@ -419,6 +447,9 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
                      quiet=args.quiet or args.format == "json")
     except SweepError as exc:
         print(f"rac preanalyse: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:  # the plots' folder: a file, under a file, too long a name, no permission
+        print(f"rac preanalyse: cannot write to {out_dir}: {exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
     if args.format == "json":
         print(json.dumps({"file": str(args.file), "settings": rows}, indent=2, default=str))
@@ -436,12 +467,8 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     if args.seed is not None and args.seeds is not None:
         print("rac experiment: give --seeds LIST or --seed N (one seed), not both", file=sys.stderr)
         return EXIT_USAGE
-    text = args.seeds if args.seeds is not None else str(args.seed) if args.seed is not None else "1,2,3,4,5"
-    try:
-        seeds = [int(s) for s in text.split(",")]
-    except ValueError:
-        print(f"rac experiment: --seeds: not a list of whole numbers: {args.seeds!r}", file=sys.stderr)
-        return EXIT_USAGE
+    # --seed and --seeds are parsed as seeds (rac.cli.arguments.seed_argument)
+    seeds = list(args.seeds) if args.seeds is not None else [args.seed] if args.seed is not None else [1, 2, 3, 4, 5]
     if args.replay < 0:
         print(f"rac experiment: --replay must be 0 or more, not {args.replay}", file=sys.stderr)
         return EXIT_USAGE
@@ -452,7 +479,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
         except ValueError:
             print(f"rac experiment: --bins: not a list of numbers: {args.bins!r}", file=sys.stderr)
             return EXIT_USAGE
-    out_dir = output_folder(args.file, "experiment", args.out)
+    out_dir = _out_dir(args)
     announce = _announcer(args.quiet)
     try:
         report = run_experiment(result, seeds=seeds, episodes=args.episodes, evaluation_runs=args.runs,

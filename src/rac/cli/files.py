@@ -13,6 +13,7 @@ from rac.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     FileWriteError,
+    check_writable,
     load_budget,
     locked,
     overwrites_source,
@@ -104,6 +105,12 @@ def compile_command(args: argparse.Namespace) -> int:
     if not result.ok or result.automaton is None:
         return EXIT_ERRORS
     outputs = [args.output] if args.output is not None else []
+    if args.output is not None:
+        try:  # a folder (`-o ./`, `-o /`: no name to derive the .q file from), a FIFO, a device
+            check_writable(args.output)
+        except OSError as exc:
+            print(render_text([unwritable(args.output, exc)], {}), file=sys.stderr)
+            return EXIT_USAGE
     if args.output is not None and args.target == "uppaal":
         # jinja2, numpy (via rac.targets.uppaal.automaton): rac --help, fmt and a syntax error never load it
         from rac.targets.uppaal.automaton import queries_path

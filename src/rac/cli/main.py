@@ -20,6 +20,7 @@ from rac.cli.arguments import COMMANDS, build_parser
 from rac.cli.common import EXIT_ERRORS, EXIT_INTERNAL, EXIT_USAGE, StdoutError, stdout_unwritable
 from rac.core.diagnostics import RacError, render_json, render_text
 from rac.core.resources import ScenarioTooLarge
+from rac.engine.budget import EstimateExceeded
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -52,7 +53,7 @@ def _main(argv: Sequence[str] | None) -> int:
     except KeyboardInterrupt:
         print("rac: interrupted", file=sys.stderr)
         return 130
-    except ScenarioTooLarge as exc:  # refused before loading: the budget, not the file, is at fault
+    except (ScenarioTooLarge, EstimateExceeded) as exc:  # refused before it starts: the budget is at fault
         print(f"rac: resource limit: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except MemoryError as exc:  # the machine or the process limit ran out, not a bug and not a broken input

@@ -2,7 +2,8 @@
 
 The file (default ``driving.ra``; a bare name such as ``speed_limit`` is looked up in the standard
 library) is copied to ``NAME.ra``, its automaton renamed to the CamelCase of NAME when NAME is an
-identifier. An existing file is never overwritten (E0009, exit 2).
+identifier. An existing file is never overwritten (E0009, exit 2). The ``--from`` file is read as
+``rac check`` reads one: no UTF-8 text is E0004 (exit 1), a folder, a FIFO or a device E0008 (exit 2).
 """
 
 from __future__ import annotations
@@ -13,9 +14,9 @@ import re
 import sys
 from pathlib import Path
 
-from rac.cli.common import EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
+from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
 from rac.core.diagnostics import Diagnostic, error, render_text
-from rac.lang.parser import ParseFailure, parse_text
+from rac.lang.parser import ParseFailure, parse_text, read_source
 from rac.lang.resources import stdlib_file
 
 __all__ = ["camel_case", "new_command", "renamed", "template_path"]
@@ -78,14 +79,21 @@ def new_command(args: argparse.Namespace) -> int:
     target = Path(args.name if args.name.endswith(".ra") else f"{args.name}.ra")
     try:
         source = template_path(args.template)
-        text = source.read_text(encoding="utf-8")
     except FileNotFoundError as exc:
         print(render_text([error("E0008", f"cannot read `{args.template}`: {exc.args[0]}", None,
                                  hints=["pass a .ra file or a standard-library name"])], {}), file=sys.stderr)
         return EXIT_USAGE
+    try:  # as rac check, fmt and tune read a file: a FIFO or a device is refused, never read to its end
+        read = read_source(source)
     except OSError as exc:
         print(render_text([unreadable(Path(args.template), exc)], {}), file=sys.stderr)
         return EXIT_USAGE
+    except ParseFailure as failure:  # not UTF-8 text, NUL bytes, too large: E0004/E0005, as rac fmt says
+        shown = failure.source
+        print(render_text([failure.diagnostic], {shown.name: shown} if shown else {}), file=sys.stderr)
+        return EXIT_ERRORS
+    # Windows line ends as \n, as in every file rac writes (read_source keeps them for rac fmt)
+    text = read.text.replace("\r\n", "\n")
     try:
         taken = target.exists() or target.is_symlink()
     except OSError as exc:  # a name too long for the file system

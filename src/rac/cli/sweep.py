@@ -54,6 +54,9 @@ def sweep_command(args: argparse.Namespace) -> int:
     # matplotlib, numpy (via rac.sweep.report): only the command that uses it loads it
     from rac.sweep.report import render_summary
 
+    # matplotlib, numpy (via rac.sweep.run): only the command that uses it loads it
+    from rac.sweep.run import BadSchedulerAddress
+
     if args.scheduler and args.workers:
         print("rac sweep: --workers sizes the local cluster; the cluster at --scheduler has its own workers",
               file=sys.stderr)
@@ -77,6 +80,10 @@ def sweep_command(args: argparse.Namespace) -> int:
     try:
         result = execute(planned, scheduler=args.scheduler, workers=int(args.workers) if args.workers else None,
                          force=args.force, retry_failed=args.retry_failed, quiet=quiet, announce=say)
+    except BadSchedulerAddress as exc:  # the address itself, before any connection: bad usage
+        where = "--scheduler" if args.scheduler else "Dask's scheduler-address configuration"
+        print(f"rac sweep: {where}: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     except OSError as exc:
         print(f"rac sweep: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -36,11 +36,13 @@ import numpy as np
 
 from rac import ir
 from rac.compiler import CompileResult
-from rac.core.diagnostics import RacError
+from rac.core.diagnostics import RacError, short_number
+from rac.core.numbers import INT32_MAX
 from rac.engine import storm
 from rac.engine.shield import synthesise
 from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
+from rac.ir.vocabulary import SETTINGS
 from rac.model.batch import BatchModel
 from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.model.native import NEGATIVE_DISTANCE_TEXT, NO_OBSTACLE
@@ -56,10 +58,15 @@ TRUTH_EXPONENT = 4
 
 
 class SweepError(RacError, ValueError):
-    """Bad sweep arguments (a list that does not parse, a period that is not a multiple)."""
+    """Bad sweep arguments (a list that does not parse, a value out of its range, a horizon that is not
+    a whole number of sensing periods)."""
 
 
-def _values(text: str | None, default: Fraction, what: str, whole: bool = False) -> list[Fraction]:
+def _values(text: str | None, default: Fraction, what: str, *, whole: bool = False,
+            at_most: Fraction | None = None, bound: str = "") -> list[Fraction]:
+    """The comma-separated list ``text`` of positive numbers (whole ones with ``whole``), each at most
+    ``at_most`` (``bound`` names it); ``[default]`` when ``text`` is None. :class:`SweepError` names
+    ``what`` and the item otherwise."""
     if text is None:
         return [default]
     out = []
@@ -70,8 +77,24 @@ def _values(text: str | None, default: Fraction, what: str, whole: bool = False)
             raise SweepError(f"{what}: {item.strip()!r} is not a number") from None
         if value <= 0 or (whole and value.denominator != 1):
             raise SweepError(f"{what}: {item.strip()!r} must be a positive {'whole ' if whole else ''}number")
+        if at_most is not None and value > at_most:  # before any float(): 1e400 has none
+            raise SweepError(f"{what}: {item.strip()!r} must be at most {bound or short_number(at_most)}")
         out.append(value)
     return out
+
+
+def _check_horizon(horizon: Fraction, senses: list[Fraction]) -> None:
+    """:class:`SweepError` unless ``horizon`` (``--horizon``) is a whole number of every sensing period
+    C1 of the grid, of at most :data:`~rac.core.numbers.INT32_MAX` samples (the model counts them in
+    int32), as ``rac verify`` requires of its sample period."""
+    for sense in senses:
+        samples = horizon / sense
+        if samples.denominator != 1:
+            raise SweepError(f"--horizon {short_number(horizon)} is not a whole number of samples of "
+                             f"C1 = {short_number(sense)} s")
+        if samples > INT32_MAX:
+            raise SweepError(f"--horizon {short_number(horizon)} is {short_number(samples)} samples of "
+                             f"C1 = {short_number(sense)} s: more than {INT32_MAX:,}")
 
 
 def _substeps_per_sample(spec: ir.ModelSpec, dt: float) -> int:
@@ -128,7 +151,11 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     threshold = threshold_factor * data.td / data.scale
     row["threshold"] = threshold
     # Qa: sensor error, unshielded runs (UPPAAL's SMC semantics: uniform actions).
-    plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed)
+    try:
+        plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed, max_bytes=max_bytes)
+    except MemoryError as exc:  # the budget's estimate, refused before anything is allocated
+        row["error"] = f"{exc}"
+        return row
     drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, Ego.X] / data.scale) >= float(spec.sensor_error)
     hits = int(drift.any(axis=1).sum())
     row["qa"] = clopper_pearson(hits, runs)
@@ -151,7 +178,8 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     if not shield.shield_exists:
         return row
     # Fig. 7 under the shield: sensed and true distances.
-    shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at)
+    shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at,
+                        max_bytes=max_bytes)  # the unshielded runs' estimate, which passed above
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
     true = _true_distances(result, spec, shielded, data)
@@ -186,16 +214,27 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
 
     ``exponents``, ``senses``, ``decides``: comma-separated lists (None: the file's own value).
     A decision period that is not a whole multiple of the sensing period is skipped with an
-    ``error`` entry. ``out_dir`` receives one Fig. 7 plot per setting and ``sweep.png``."""
+    ``error`` entry. ``out_dir`` receives one Fig. 7 plot per setting and ``sweep.png``.
+    :class:`SweepError` before any setting runs: a list that does not parse, an exponent outside the
+    model's range, a period longer than the horizon, or a ``horizon`` given that is not a whole number
+    of samples of every sensing period (or is more than :data:`~rac.core.numbers.INT32_MAX` of them)."""
     automaton = result.raise_for_errors()
     spec = automaton.model
     if spec is None or result.scenario is None:
         raise SweepError("the file has no `model` block")
+    given = horizon is not None
     horizon = horizon if horizon is not None else Fraction(automaton.horizon)
     seed = seed if seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
-    grid = list(itertools.product(_values(exponents, Fraction(spec.exponent), "--exponent", whole=True),
-                                  _values(senses, spec.sense_period, "--sense"),
-                                  _values(decides, spec.decide_period, "--decide")))
+    setting = SETTINGS["exponent"]  # the model's own range of the setting
+    assert setting.minimum is not None and setting.maximum is not None
+    within = f"the horizon, {short_number(horizon)} s"
+    axes = (_values(exponents, Fraction(spec.exponent), "--exponent", whole=True, at_most=setting.maximum,
+                    bound=f"{setting.maximum} (the model's `exponent` lies in {setting.minimum}..{setting.maximum})"),
+            _values(senses, spec.sense_period, "--sense", at_most=horizon, bound=within),
+            _values(decides, spec.decide_period, "--decide", at_most=horizon, bound=within))
+    if given:  # as rac verify's --horizon; the file's own horizon is taken as the file has it
+        _check_horizon(horizon, axes[1])
+    grid = list(itertools.product(*axes))
     rows: list[Row] = []
     # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
     from rac.output.progress import Progress
@@ -206,9 +245,6 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
             if (decide / sense).denominator != 1:
                 rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
                              "error": "the decision period is not a whole multiple of the sensing period"})
-            elif not 1 <= exponent <= 6:
-                rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
-                             "error": "the exponent must lie in 1..6"})
             else:
                 rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
                                  max_bytes=max_bytes,

@@ -26,6 +26,7 @@ from importlib.util import find_spec
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rac.core.diagnostics import RacError
 from rac.output.progress import Heartbeat, Progress
 from rac.sweep.store import Store
 from rac.sweep.task import run_task
@@ -35,7 +36,7 @@ if TYPE_CHECKING:
 
     from rac.sweep.task import TaskSpec
 
-__all__ = ["ALLOWED_FAILURES", "Outcome", "connect", "error_row", "run_tasks", "task_function"]
+__all__ = ["ALLOWED_FAILURES", "BadSchedulerAddress", "Outcome", "connect", "error_row", "run_tasks", "task_function"]
 
 #: Dask's ``distributed.scheduler.allowed-failures`` for the clusters rac starts: a task whose worker dies
 #: is retried once on another worker, then reported as an error row (``KilledWorker``).
@@ -43,6 +44,17 @@ ALLOWED_FAILURES = 1
 #: What a row's ``error`` says when its task's worker died twice (``KilledWorker``).
 KILLED = ("its worker died twice while running it (Dask's KilledWorker: a crash in native code, the operating "
           "system's out-of-memory killer or the worker's memory limit)")
+
+
+class BadSchedulerAddress(RacError, ValueError):
+    """A scheduler address Dask cannot use at all (no port, an unknown scheme, ``tls://`` without Dask's
+    TLS settings): the user's to fix, not a cluster that could not be reached; ``address`` names it."""
+
+    def __init__(self, address: str, reason: str) -> None:
+        super().__init__(f"the scheduler address {address!r} is not one Dask can use ({reason}); give "
+                         "tcp://HOST:PORT")
+        self.address = address
+
 
 #: A row: the result of one task (:func:`rac.sweep.task.run_task`).
 Row = dict[str, object]
@@ -85,7 +97,7 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
     """A Dask client: of the cluster at ``scheduler`` (or Dask's ``scheduler-address`` configuration) when
     given, else of a ``LocalCluster`` of ``workers`` processes (default: one per core) with one thread
     each, closed on exit. ``announce`` receives the dashboard's address. Raises ``OSError`` when the
-    scheduler cannot be reached."""
+    scheduler cannot be reached, :class:`BadSchedulerAddress` when its address is not one Dask can use."""
     import dask  # dask: only when a sweep runs; `import rac.sweep` never loads it
 
     # distributed: only when a sweep runs; `import rac.sweep` never loads it
@@ -99,6 +111,9 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
                 client = Client(address, timeout="10s")
             except (OSError, TimeoutError) as exc:
                 raise OSError(f"cannot connect to the Dask scheduler at {address}: {exc}") from exc
+            except (ValueError, TypeError) as exc:  # Dask's parse of the address (ValueError: no port,
+                # an unknown scheme; TypeError: tls:// without an SSL context): nothing was connected
+                raise BadSchedulerAddress(str(address), str(exc)) from exc
             with client:
                 workers = len(client.scheduler_info().get("workers", {}))
                 say(f"dashboard: {client.dashboard_link} (the cluster at {address}, {workers} workers{_bokeh()})")
