@@ -26,6 +26,7 @@ from engine_files import engine_source
 from tiny_scenarios import TINY_SCENARIOS
 
 from rac.compiler import compile_file, compile_text
+from rac.core.numbers import MIN_SEED
 from rac.model.scenes import write_scene
 from rac.sweep.grid import grid_points, parse_set, scenario_files
 from rac.sweep.task import TASKS, TaskSpec, run_task
@@ -233,6 +234,17 @@ def test_a_task_past_its_memory_limit_is_a_memory_row(folder: Path) -> None:
     row = run_task(spec(folder, "goal_ahead.xml", memory=64 * 2**20, timeout=60))
     assert row["status"] == "memory", row
     assert "64 MB" in str(row["error"])
+
+
+@pytest.mark.parametrize(("option", "value", "said"), [
+    ("seed", "-1", f"option seed: must be at least {MIN_SEED}: '-1'"),  # it said "at least 1", and took 0
+    ("seeds", "2,-1", f"option seed: must be at least {MIN_SEED}: '-1'"),
+    ("runs", "0", "option runs: must be at least 1: '0'"),
+])
+def test_an_option_below_its_least_value_is_an_error_row_naming_it(folder: Path, option: str, value: str,
+                                                                    said: str) -> None:
+    row = run_task(spec(folder, "goal_ahead.xml", options=((option, value),)))
+    assert row["status"] == "error" and said in str(row["error"]), row
 
 
 def test_an_unknown_option_is_an_error_row(folder: Path) -> None:

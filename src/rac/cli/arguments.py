@@ -17,6 +17,7 @@ from typing import TypeVar
 
 from rac import __version__
 from rac.cli.common import size_argument
+from rac.core.numbers import MIN_SEED
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX
 from rac.sweep.kinds import TASKS
 
@@ -39,9 +40,6 @@ TARGETS = ("python", "uppaal")
 #: The standard-library file ``rac new`` copies when ``--from`` is not given.
 DEFAULT_TEMPLATE = "driving.ra"
 _DECIMAL = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
-#: The least seed of every command's --seed and --seeds (and of rac sweep's): numpy's SeedSequence, which
-#: every simulation and learner seeds from, takes any whole number from 0 up.
-MIN_SEED = 0
 
 
 def build_parser() -> argparse.ArgumentParser:

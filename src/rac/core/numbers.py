@@ -7,9 +7,13 @@ from __future__ import annotations
 from decimal import Decimal
 from fractions import Fraction
 
-__all__ = ["INT32_BOUND", "INT32_LOW", "INT32_MAX", "INT32_MIN", "exact_decimal", "format_bytes", "size_option"]
+__all__ = ["INT32_BOUND", "INT32_LOW", "INT32_MAX", "INT32_MIN", "MIN_SEED", "exact_decimal", "format_bytes",
+           "size_option"]
 
 INT32_MAX = 2**31 - 1
+#: The least seed rac takes (every command's --seed and --seeds, rac sweep's seed options): numpy's
+#: SeedSequence, which every simulation and learner seeds from, takes any whole number from 0 up.
+MIN_SEED = 0
 INT32_MIN = -(2**31)
 #: ``2**31``: no int32 is larger in magnitude. A double ``d`` truncates into an int32 significand when
 #: ``-INT32_BOUND < d < INT32_BOUND`` (the model's range checks; NaN never does); it also bounds exact sums.

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import RacError, Severity
-from rac.core.numbers import format_bytes
+from rac.core.numbers import MIN_SEED, format_bytes
 from rac.core.resources import ScenarioTooLarge
 from rac.engine.budget import BudgetExceeded
 from rac.model.checks import UNUSABLE_SCENARIO
@@ -130,8 +130,9 @@ def _whole(name: str, text: str) -> int:
         value = int(text)
     except ValueError:
         raise TaskError(f"option {name}: not a whole number: {text!r}") from None
-    if value < (0 if name == "seed" else 1):
-        raise TaskError(f"option {name}: must be at least 1: {text!r}")
+    least = MIN_SEED if name == "seed" else 1
+    if value < least:
+        raise TaskError(f"option {name}: must be at least {least}: {text!r}")
     return value
 
 
