@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from engine_files import write_engine_file
 
 from rac.compiler import compile_file
 from rac.studies.preanalysis import render_table, sweep
@@ -54,3 +55,13 @@ def test_the_table_has_a_row_per_setting(rows: list[dict[str, object]]) -> None:
     table = render_table(rows)
     assert table.count("\n| 1 |") + table.count("\n| 4 |") == 4
     assert "0 of 100" in table
+
+
+def test_a_sensing_period_that_does_not_divide_the_files_horizon_is_a_row_that_says_so(tmp_path: Path) -> None:
+    # its runs were cut to the whole periods within the horizon and the row did not say so
+    path = write_engine_file(tmp_path, "goal_ahead", {})  # horizon 4 s, sensing period 0.5 s
+    [short, whole] = sweep(compile_file(path), senses="0.3,0.5", decides="1.5", runs=2, seed=1)
+    assert short == {"exponent": 2, "sense": 0.3, "decide": 1.5,
+                     "error": "the horizon, 4 s, is not a whole number of sensing periods (its runs would stop "
+                              "short of it)"}
+    assert "error" not in whole and whole["samples"] == 8

@@ -242,7 +242,11 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
     with Progress(total=len(grid), desc="settings", unit="settings", enabled=False if quiet else None) as bar:
         for exponent, sense, decide in grid:
             variant = dataclasses.replace(spec, exponent=int(exponent), sense_period=sense, decide_period=decide)
-            if (decide / sense).denominator != 1:
+            if (horizon / sense).denominator != 1:  # the file's own horizon (a given one was checked above)
+                rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
+                             "error": f"the horizon, {short_number(horizon)} s, is not a whole number of sensing "
+                                      "periods (its runs would stop short of it)"})
+            elif (decide / sense).denominator != 1:
                 rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
                              "error": "the decision period is not a whole multiple of the sensing period"})
             else:
