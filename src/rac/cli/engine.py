@@ -28,9 +28,9 @@ from rac.cli.common import (
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, Diagnostic, RacError, render_json, short_number
+from rac.core.diagnostics import CheckError, Diagnostic, RacError, render_json
 from rac.core.diagnostics import render_text as render_diagnostics
-from rac.core.numbers import INT32_MAX
+from rac.core.numbers import samples_of
 from rac.core.source import SourceFile
 from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.ir import query as iq
@@ -304,15 +304,7 @@ def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
     """The horizon in samples; :class:`ValueError` when it is not a whole number of them."""
     automaton = result.automaton
     assert automaton is not None
-    seconds = horizon if horizon is not None else Fraction(automaton.horizon)
-    samples = seconds / Fraction(automaton.period)
-    if samples.denominator != 1:
-        raise ValueError(f"--horizon {short_number(seconds)} is not a whole number of samples of "
-                         f"{short_number(Fraction(automaton.period))} s")
-    if samples > INT32_MAX:  # the model counts samples in int32; numpy refuses arrays that long anyway
-        raise ValueError(f"--horizon {short_number(seconds)} is {short_number(samples)} samples of "
-                         f"{short_number(Fraction(automaton.period))} s: more than {INT32_MAX:,}")
-    return int(samples)
+    return samples_of(horizon if horizon is not None else Fraction(automaton.horizon), Fraction(automaton.period))
 
 
 def _parse_exprs(texts: list[str], automaton):
@@ -328,9 +320,7 @@ def _parse_exprs(texts: list[str], automaton):
                 return None, f"`{text}`: one expression per --expr (repeat --expr for more)"
             return None, str(exc)
         except CheckError as exc:
-            first = exc.diagnostics[0]
-            hint = f" ({first.hints[0]})" if first.hints else ""
-            return None, f"`{text}`: {first.message}{hint}"
+            return None, f"`{text}`: {exc.brief()}"
     return exprs, None
 
 

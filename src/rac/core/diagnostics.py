@@ -160,6 +160,12 @@ class CheckError(RacError):
         self.sources = dict(sources or {})
         super().__init__(render_text(self.diagnostics, self.sources))
 
+    def brief(self) -> str:
+        """The first diagnostic's message and first hint on one line, for an option's value (an
+        expression given on the command line has no file to show it in)."""
+        first = self.diagnostics[0]
+        return first.message + (f" ({first.hints[0]})" if first.hints else "")
+
 
 def sort_key(d: Diagnostic) -> tuple[str, int, int, str]:
     if d.span is None:

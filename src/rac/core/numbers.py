@@ -7,8 +7,10 @@ from __future__ import annotations
 from decimal import Decimal
 from fractions import Fraction
 
+from rac.core.diagnostics import short_number
+
 __all__ = ["INT32_BOUND", "INT32_LOW", "INT32_MAX", "INT32_MIN", "MIN_SEED", "exact_decimal", "format_bytes",
-           "size_option"]
+           "samples_of", "size_option"]
 
 INT32_MAX = 2**31 - 1
 #: The least seed rac takes (every command's --seed and --seeds, rac sweep's seed options): numpy's
@@ -72,3 +74,17 @@ def _ratio(size: float, scale: int) -> float | Decimal:
         return size / scale
     except OverflowError:  # an int beyond float's range: Decimal keeps its magnitude
         return Decimal(size) / scale
+
+
+def samples_of(seconds: Fraction, period: Fraction, *, what: str = "--horizon", period_name: str = "") -> int:
+    """``seconds`` as a whole number of samples of ``period`` s; ``ValueError`` naming it as ``what`` (and
+    the period as ``period_name``, e.g. ``"C1 = "``) when it is not one, or is more than
+    :data:`INT32_MAX` samples (the model counts samples in int32; numpy refuses arrays that long anyway)."""
+    samples = seconds / period
+    of = f"{period_name}{short_number(period)} s"
+    if samples.denominator != 1:
+        raise ValueError(f"{what} {short_number(seconds)} is not a whole number of samples of {of}")
+    if samples > INT32_MAX:
+        raise ValueError(f"{what} {short_number(seconds)} is {short_number(samples)} samples of {of}: more than "
+                         f"{INT32_MAX:,}")
+    return int(samples)

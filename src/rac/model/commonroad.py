@@ -537,11 +537,12 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
     lanelet_ids = {node.get("id") for node in root.iter("lanelet")}
     for lanelet in root.iter("lanelet"):  # commonroad-io's shapely fails on a NaN with a GEOS message
         for bound in ("leftBound", "rightBound"):
-            for point in lanelet.iterfind(f"{bound}/point"):
-                x, y = _number_text(point.findtext("x")), _number_text(point.findtext("y"))
-                if x is not None and y is not None and not (math.isfinite(x) and math.isfinite(y)):
-                    return ScenarioError(path, f"lanelet {lanelet.get('id')}",
-                                         f"has a point that is not finite ({x}, {y}) in its <{bound}>")
+            pairs = ((_number_text(point.findtext("x")), _number_text(point.findtext("y")))
+                     for point in lanelet.iterfind(f"{bound}/point"))
+            unfinite = _unfinite_point(path, f"lanelet {lanelet.get('id')}",
+                                       ((x, y) for x, y in pairs if x is not None and y is not None), f"its <{bound}>")
+            if unfinite is not None:
+                return unfinite
     for node in root.iter():
         low, high = node.find("intervalStart"), node.find("intervalEnd")
         if low is None or high is None:
@@ -665,9 +666,17 @@ def _check_finite_bounds(path, lanelet) -> None:
     for bound, vertices in (("leftBound", lanelet.left_vertices), ("rightBound", lanelet.right_vertices)):
         points = np.asarray(vertices, dtype=float)
         if not np.isfinite(points).all():  # one vectorised test per bound: a large road stays fast
-            x, y = next((x, y) for x, y in _points(points) if not (math.isfinite(x) and math.isfinite(y)))
-            raise ScenarioError(path, f"lanelet {lanelet.lanelet_id}",
-                                f"has a point that is not finite ({x}, {y}) in its <{bound}>")
+            unfinite = _unfinite_point(path, f"lanelet {lanelet.lanelet_id}", _points(points), f"its <{bound}>")
+            assert unfinite is not None  # a point is not finite: the test above
+            raise unfinite
+
+
+def _unfinite_point(path, element: str, points, where: str) -> ScenarioError | None:
+    """The :class:`ScenarioError` of the first of ``points`` ((x, y) numbers) that is not finite, in
+    ``where`` of ``element``; None when all are."""
+    bad = next(((x, y) for x, y in points if not (math.isfinite(x) and math.isfinite(y))), None)
+    return None if bad is None else ScenarioError(path, element, f"has a point that is not finite "
+                                                                 f"({bad[0]}, {bad[1]}) in {where}")
 
 
 def _finite(path, element: str, quantity: str, value, what: str) -> float:
@@ -939,9 +948,9 @@ def _regions(path, element: str, position) -> list[Polygon]:
         return [_polygon(position.vertices)]
     if isinstance(position, PolygonOccupancy):
         points = _points(position.vertices)
-        bad = next(((x, y) for x, y in points if not (math.isfinite(x) and math.isfinite(y))), None)
-        if bad is not None:
-            raise ScenarioError(path, element, f"has a point that is not finite ({bad[0]}, {bad[1]}) in its polygon")
+        unfinite = _unfinite_point(path, element, points, "its polygon")
+        if unfinite is not None:
+            raise unfinite
         return [_polygon(points)]
     if isinstance(position, CircleOccupancy):
         x, y, r = (_finite(path, element, quantity, value, "its circle") for quantity, value in (

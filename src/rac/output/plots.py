@@ -270,7 +270,7 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
                               label=f"{n_below} runs below {threshold_label}"))
     else:
         handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5, label=f"{n_runs} runs"))
-    if threshold is not None and drawn is not None:
+    if drawn is not None:  # a threshold, drawn within the axis
         ax.axhline(drawn, color=THRESHOLD_COLOUR, linestyle="--", linewidth=1.4, zorder=5)
         handles.append(Line2D([], [], color=THRESHOLD_COLOUR, linestyle="--", lw=1.4,
                               label=f"{threshold_label} = {threshold:g}{' ' * bool(unit)}{unit}"))

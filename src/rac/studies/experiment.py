@@ -237,9 +237,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     try:  # checked before the shield and the learning, which would meet it only after them
         objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
     except CheckError as exc:
-        first = exc.diagnostics[0]
-        raise ExperimentError(f"--reward-function: `{text}`: {first.message}"
-                              + (f" ({first.hints[0]})" if first.hints else "")) from None
+        raise ExperimentError(f"--reward-function: `{text}`: {exc.brief()}") from None
     count = (len(wanted) + (len(ABLATION) if ablation else 0)) * len(seeds)
     needed = learning_bytes(episodes=episodes, parallel=parallel, steps=shared.max_steps, runs=count,
                             observations=len(discrete) + len(continuous) + int(observe_time), actions=shared.n_actions)

@@ -37,7 +37,7 @@ import numpy as np
 from rac import ir
 from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, short_number
-from rac.core.numbers import INT32_MAX
+from rac.core.numbers import samples_of
 from rac.engine import storm
 from rac.engine.shield import synthesise
 from rac.engine.simulate import Limits, integrate_truth, simulate
@@ -88,13 +88,10 @@ def _check_horizon(horizon: Fraction, senses: list[Fraction]) -> None:
     C1 of the grid, of at most :data:`~rac.core.numbers.INT32_MAX` samples (the model counts them in
     int32), as ``rac verify`` requires of its sample period."""
     for sense in senses:
-        samples = horizon / sense
-        if samples.denominator != 1:
-            raise SweepError(f"--horizon {short_number(horizon)} is not a whole number of samples of "
-                             f"C1 = {short_number(sense)} s")
-        if samples > INT32_MAX:
-            raise SweepError(f"--horizon {short_number(horizon)} is {short_number(samples)} samples of "
-                             f"C1 = {short_number(sense)} s: more than {INT32_MAX:,}")
+        try:
+            samples_of(horizon, sense, period_name="C1 = ")
+        except ValueError as exc:
+            raise SweepError(str(exc)) from None
 
 
 def _substeps_per_sample(spec: ir.ModelSpec, dt: float) -> int:
