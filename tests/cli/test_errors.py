@@ -118,3 +118,19 @@ def test_an_unknown_loader_failure_is_an_internal_error(monkeypatch, capsys, tmp
     status = main(["check", str(tmp_path / "m.ra")])
     err = capsys.readouterr().err
     assert status == 3 and "internal error: RuntimeError: the reader broke" in err and "E0712" not in err
+
+
+@pytest.mark.parametrize("command", ["verify", "preanalyse", "experiment", "tune"])
+def test_engine_commands_print_load_errors_as_json_when_asked(command: str, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    # a script reading --format json parses standard output: a file rac cannot read or check is JSON
+    # there too (it was text on standard error, standard output empty)
+    broken = tmp_path / "broken.ra"
+    broken.write_text("automaton A {\n  bogus\n}\n", encoding="utf-8")
+    for path, code, status in [(tmp_path / "missing.ra", "E0008", 2), (broken, "E0001", 1)]:
+        extra = [] if command == "tune" else ["-o", str(tmp_path / "out")]
+        assert main([command, str(path), "--format", "json", *extra]) == status
+        out, err = capsys.readouterr()
+        found = json.loads(out)
+        diagnostics = found["diagnostics"] if command == "tune" else found
+        assert [d["code"] for d in diagnostics] == [code] and err == ""

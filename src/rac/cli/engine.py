@@ -48,15 +48,15 @@ Command = Callable[[argparse.Namespace], int]
 T = TypeVar("T")
 
 
-def _load(path: Path, max_bytes: int | None) -> tuple[CompileResult | None, int]:
+def _load(path: Path, max_bytes: int | None, as_json: bool = False) -> tuple[CompileResult | None, int]:
     result, problem = read_and_check(path, max_bytes)
     if result is None:
         assert problem is not None
-        print(render_diagnostics([problem], {}), file=sys.stderr)
+        _print_diagnostics([problem], {}, as_json)
         return None, EXIT_USAGE
     errors = [d for d in result.diagnostics if d.is_error]
     if errors:
-        print(render_diagnostics(result.diagnostics, result.sources), file=sys.stderr)
+        _print_diagnostics(result.diagnostics, result.sources, as_json)
         return None, EXIT_ERRORS
     if result.automaton is None or result.automaton.model is None:
         print(f"{path}: this automaton has no `model` block; the engine answers queries on a scenario model "
@@ -73,7 +73,7 @@ def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     must be a whole number of samples (preanalyse's sweep checks it against each sensing period of its
     grid instead)."""
 
-    result, status = _load(args.file, args.max_memory or default_max_bytes())
+    result, status = _load(args.file, args.max_memory or default_max_bytes(), getattr(args, "format", None) == "json")
     if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
         return None, EXIT_USAGE
     return result, status
@@ -85,13 +85,19 @@ def _out_dir(args: argparse.Namespace) -> Path:
     return output_folder(args.file, args.command, args.out)
 
 
-def _report(args: argparse.Namespace, diagnostic: Diagnostic, sources: Mapping[str, SourceFile]) -> None:
-    """Print ``diagnostic`` as the command's ``--format`` asks: JSON on standard output, else text on
-    standard error (with its source line when ``sources`` has the file)."""
-    if getattr(args, "format", None) == "json":
-        print(render_json([diagnostic]))
+def _print_diagnostics(diagnostics: Sequence[Diagnostic], sources: Mapping[str, SourceFile], as_json: bool) -> None:
+    """The one place the engine commands print diagnostics: with ``--format json`` a JSON array on
+    standard output (what a script parses: never text there), else text on standard error (with the
+    source line when ``sources`` has the file)."""
+    if as_json:
+        print(render_json(diagnostics))
     else:
-        print(render_diagnostics([diagnostic], sources), file=sys.stderr)
+        print(render_diagnostics(diagnostics, sources), file=sys.stderr)
+
+
+def _report(args: argparse.Namespace, diagnostic: Diagnostic, sources: Mapping[str, SourceFile]) -> None:
+    """Print ``diagnostic`` as the command's ``--format`` asks (:func:`_print_diagnostics`)."""
+    _print_diagnostics([diagnostic], sources, getattr(args, "format", None) == "json")
 
 
 def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]) -> Command:

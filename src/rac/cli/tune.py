@@ -62,6 +62,8 @@ def tune_command(args: argparse.Namespace) -> int:
         source = read_source(path)
         module = parse_source(source)
     except OSError as exc:
+        if args.format == "json":  # a script parses standard output: the usual document, not text
+            return _failed(args, path, CompileResult(None, (unreadable(path, exc),), {}), EXIT_USAGE)
         print(render_text([unreadable(path, exc)], {}), file=sys.stderr)
         return EXIT_USAGE
     except ParseFailure as failure:
@@ -188,14 +190,15 @@ def _confirm(source: SourceFile, text: str, result: CompileResult) -> None:
                            f"(errors: {[d.code for d in checked.diagnostics if d.is_error]}); nothing was written")
 
 
-def _failed(args: argparse.Namespace, path: Path, result: CompileResult) -> int:
-    """Synthesis (or another check) failed: the diagnostics as ``rac check`` prints them; exit 1."""
+def _failed(args: argparse.Namespace, path: Path, result: CompileResult, status: int = EXIT_ERRORS) -> int:
+    """Synthesis (or another check) failed: the diagnostics as ``rac check`` prints them; exit ``status``
+    (1: the file's errors; 2: it could not be read, in JSON, where standard output carries it)."""
     errors = sum(d.is_error for d in result.diagnostics)
     if args.format == "json":
         print(json.dumps({"file": str(path), "ok": False, "values": None, "inequalities": None, "sentence": None,
                           "written": None, "diff": [], "diagnostics": _diagnostics_json(result.diagnostics)},
                          indent=2))
-        return EXIT_ERRORS
+        return status
     print(render_text(result.diagnostics, result.sources))
     print()
     print(f"{path}: {errors} error{'s' * (errors != 1)}; nothing was tuned or written")
