@@ -247,6 +247,15 @@ def test_an_option_below_its_least_value_is_an_error_row_naming_it(folder: Path,
     assert row["status"] == "error" and said in str(row["error"]), row
 
 
+@pytest.mark.parametrize(("value", "said"), [
+    ("0.15", "horizon 0.15 is not a whole number of samples of 0.5 s"),
+    ("1e12", "samples of 0.5 s: more than 2,147,483,647"),  # the command line's rule: beyond int32 samples
+])
+def test_a_horizon_that_is_not_a_number_of_samples_is_an_error_row(folder: Path, value: str, said: str) -> None:
+    row = run_task(spec(folder, "goal_ahead.xml", options=(("horizon", value),)))
+    assert row["status"] == "error" and said in str(row["error"]), row
+
+
 def test_an_unknown_option_is_an_error_row(folder: Path) -> None:
     row = run_task(spec(folder, "goal_ahead.xml", options=(("horizn", "2"),)))
     assert row["status"] == "error" and "horizn" in str(row["error"]), row

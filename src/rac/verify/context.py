@@ -24,7 +24,7 @@ import numpy as np
 from rac import ir
 from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, RacValueError
-from rac.core.numbers import exact_decimal
+from rac.core.numbers import samples_of
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
@@ -116,10 +116,6 @@ class Learned:
     exprs: tuple[ie.Expr, ...]
 
 
-def _decimal(value: Fraction) -> str:
-    return exact_decimal(value) or repr(float(value))
-
-
 def _no_prev(expr: ie.Expr) -> None:
     if ie.uses_prev(expr):
         raise EvaluationError("`prev(...)` in an exhaustive query is not supported: a merged state has no "
@@ -156,11 +152,11 @@ class Context:
         #: The sample period ``C1`` in seconds.
         self.period = Fraction(automaton.period)
         horizon = options.horizon if options.horizon is not None else Fraction(automaton.horizon)
-        if (horizon / self.period).denominator != 1:
-            raise RacValueError(f"the horizon {_decimal(horizon)} s is not a whole number of samples of "
-                                f"{_decimal(self.period)} s")
-        #: The horizon of exhaustive queries in samples.
-        self.horizon_samples = int(horizon / self.period)
+        try:  # the rule the command line checks --horizon by (one owner: rac.core.numbers)
+            #: The horizon of exhaustive queries in samples.
+            self.horizon_samples = samples_of(horizon, self.period, what="the horizon")
+        except ValueError as exc:
+            raise RacValueError(str(exc)) from None
         #: The explored model up to the horizon, by whether unsafe states were pruned (see :meth:`graph`).
         self.graphs: dict[bool, ExploredGraph] = {}
         #: Shields (``strategy S = control: A[] p``) by name, for later queries ``under S``.
