@@ -62,6 +62,34 @@ def brute_force(batch: EpisodeBatch, objective: Expression | None, table: shield
     return best, len(complete)
 
 
+def brute_force_chance(batch: EpisodeBatch, table: shield.ShieldTable | None) -> float:
+    """The probability that an episode choosing uniformly among the allowed actions reaches the goal
+    safely: the sum over every allowed action sequence that succeeds of the product of 1 / (the actions
+    allowed) at its decisions, each sequence replayed from the start."""
+    prefixes = np.zeros((1, 0), dtype=np.int64)
+    chance = np.ones(1)
+    total = 0.0
+    while prefixes.shape[0]:
+        n, depth = prefixes.shape
+        batch.reset(n)
+        safe, reached, stranded = np.ones(n, dtype=bool), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        for j in range(depth):
+            outcome = batch.step(prefixes[:, j])
+            safe &= ~(outcome.collided | outcome.offroad)
+            reached |= outcome.terminated
+            stranded |= outcome.stranded
+        done = np.asarray(batch.done, dtype=bool)
+        total += float(chance[done & safe & reached & ~stranded].sum())
+        if done.all():
+            break
+        masks, _ = allowed_actions(batch, table)
+        masks[done] = False
+        rows, actions = np.nonzero(masks)
+        chance = chance[rows] / masks.sum(axis=1)[rows]
+        prefixes = np.column_stack([prefixes[rows], actions])
+    return total
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., Compiled]:
     cache: dict[tuple[str, str | None], Compiled] = {}
@@ -108,6 +136,10 @@ def test_the_backward_pass_is_brute_force(tiny: Callable[..., Compiled], name: s
     assert best.states < sequences or sequences < 50  # merging: fewer decision states than sequences
     # the optimal strategy, saved and loaded, has the optimal run
     assert best.run.returns[0] == best.value
+    # uniform exploration's chance of a safe goal, over the merged graph, is the sequences' sum
+    chance = brute_force_chance(EpisodeBatch(result, goal=parse_expr(goal), horizon_samples=HORIZON), under)
+    assert best.uniform_success == pytest.approx(chance, rel=1e-12, abs=1e-15)
+    assert best.expected_first == pytest.approx(1 / chance if chance > 0 else float("inf"), rel=1e-12)
 
 
 def test_a_reset_puts_the_rewards_into_the_state(tiny: Callable[..., Compiled],

@@ -58,6 +58,22 @@ def test_the_table_reports_mean_and_spread(report: dict[str, object]) -> None:
     assert [row["seeds"] for row in rows] == [2, 2, 2, 2]
 
 
+def test_the_shielded_rows_say_what_uniform_exploration_can_expect(report: dict[str, object]) -> None:
+    optima = report["optima"]
+    assert set(optima) == {"SS&RA", "SS&RF"}
+    table = render_markdown(report)
+    for label, optimum in optima.items():
+        chance = optimum["uniform_success"]
+        line = next(line for line in table.splitlines() if line.startswith(f"Exact optimum of {label} "))
+        if chance == 0:  # the tiny road's goal lies behind the obstacle: no allowed run reaches it safely
+            assert not optimum["reaches_goal_safely"]
+            assert "under the shield no uniformly random episode reaches the goal safely" in line
+        else:
+            assert 0 < chance <= 1, optimum
+            assert f"uniformly random episode reaches the goal safely with probability {100 * chance:.3g} %" in line
+            assert f"{1 / chance:.3g} episodes on average until the first" in line
+
+
 def test_cli_writes_table_json_and_curves(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)
     out = tmp_path / "out"

@@ -45,6 +45,10 @@ def test_learning_reaches_the_known_optimum(compiled: CompileResult) -> None:
     assert result.status == "value" and result.runs == 200
     assert result.estimate == 4.0
     assert result.optimum["value"] == 4.0 and result.optimum["shortfall"] == 0.0
+    # beside it, what exploring can expect (exact, from the same graph: tests/learning/test_optimum.py)
+    assert result.optimum["uniform_success"] == 1.0  # every allowed run speeds into the goal region
+    assert ("a uniformly random episode reaches the goal safely with probability 100 % (exact; 1 episodes on "
+            "average until the first)") in result.message
     assert "fast" in context.learned  # later queries `under fast` find it
 
 

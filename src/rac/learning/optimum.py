@@ -69,7 +69,7 @@ from rac.learning.qlearning import ObjectiveIncrease
 from rac.learning.runs import run_strategy
 from rac.learning.strategy import Episodes, LearnedStrategy, StrategyRun, allowed_actions, check_shield
 
-__all__ = ["Optimum", "observed_state", "shortfall", "solve", "why_not_additive"]
+__all__ = ["Optimum", "exploration_text", "observed_state", "shortfall", "solve", "why_not_additive"]
 
 #: The bytes a graph edge costs while exploring (its parent, action, reward, target and flags) besides
 #: the key of its target state, which :func:`solve` counts per column.
@@ -96,6 +96,22 @@ class Optimum:
     why: str | None
     optimise: str
     seconds: float
+    #: The probability that an episode choosing uniformly at random among the allowed actions at
+    #: every decision (what ε-greedy learning does at ε = 1, before it has learned anything) reaches
+    #: the goal safely (:attr:`rac.learning.strategy.StrategyRun.success`), exact over the same graph.
+    uniform_success: float = float("nan")
+
+    @property
+    def expected_first(self) -> float:
+        """The episodes a uniformly random explorer needs on average until the first that reaches the
+        goal safely, that one included (``1 / uniform_success``: a geometric distribution; ``inf`` when
+        none can)."""
+        return 1.0 / self.uniform_success if self.uniform_success > 0 else float("inf")
+
+    @property
+    def exploration(self) -> str:
+        """:attr:`uniform_success` in words, for the reports beside a learned strategy."""
+        return exploration_text(self.uniform_success)
 
     @property
     def method(self) -> str:
@@ -103,6 +119,16 @@ class Optimum:
         if self.additive:
             return f"exact, backward pass over {self.states:,} decision states"
         return f"exact, backward pass over {self.states:,} decision states with their rewards ({self.why})"
+
+
+def exploration_text(chance: float) -> str:
+    """What uniform exploration can expect (:attr:`Optimum.uniform_success`), in words: the probability
+    that an episode choosing uniformly among the allowed actions reaches the goal safely, and the
+    episodes until the first such one on average."""
+    if not chance > 0:
+        return "no uniformly random episode reaches the goal safely"
+    return (f"a uniformly random episode reaches the goal safely with probability {100 * chance:.3g} % "
+            f"(exact; {1 / chance:.3g} episodes on average until the first)")
 
 
 def shortfall(learned: float, optimum: float, optimise: str = "max") -> float:
@@ -182,6 +208,8 @@ class _Layer:
     reward: np.ndarray
     target: np.ndarray  # the next layer's node, -1 where the episode ended
     observed: np.ndarray  # (nodes, len(observed_state)): the layer's nodes observed
+    safe: np.ndarray  # the step neither collided nor left the road
+    arrived: np.ndarray  # the episode ended at the goal, in a state from which it can stay safe
 
 
 def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise: str = "max",
@@ -239,7 +267,9 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
                                         horizon_sample=batch.horizon_samples)
             stored += parent.size * EDGE_BYTES + unique.shape[0] * 8 * (keys.shape[1] + len(exprs))
             budget.check_bytes(stored, states, sample + batch.decide_every)
-        layers.append(_Layer(parent, action, np.asarray(outcome.reward, dtype=np.float64), target, observed))
+        layers.append(_Layer(parent, action, np.asarray(outcome.reward, dtype=np.float64), target, observed,
+                             ~(np.asarray(outcome.collided, dtype=bool) | np.asarray(outcome.offroad, dtype=bool)),
+                             np.asarray(outcome.terminated, dtype=bool) & ~np.asarray(outcome.stranded, dtype=bool)))
         if not live.any():
             break
         batch.select(np.flatnonzero(live)[first])
@@ -248,11 +278,16 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
     sign = 1.0 if optimise == "max" else -1.0
     # Backwards: a node's value is its best edge's reward plus its target's value (0 where the episode ends).
     after = np.zeros(0)
+    chance = np.zeros(0)  # per node of the layer after: a uniformly random continuation's chance of success
     best: list[np.ndarray] = []
     q_values: list[np.ndarray] = []
     for layer in reversed(layers):
         q = layer.reward + np.where(layer.target >= 0, after[np.maximum(layer.target, 0)] if after.size else 0.0, 0.0)
         nodes = layer.observed.shape[0]
+        onward = np.where(layer.target >= 0, chance[np.maximum(layer.target, 0)] if chance.size else 0.0,
+                          layer.arrived.astype(np.float64))
+        chance = (np.bincount(layer.parent, weights=np.where(layer.safe, onward, 0.0), minlength=nodes)
+                  / np.maximum(np.bincount(layer.parent, minlength=nodes), 1))
         top = np.full(nodes, -np.inf)
         np.maximum.at(top, layer.parent, sign * q)
         hits = np.flatnonzero(sign * q == top[layer.parent])
@@ -269,7 +304,7 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
                               additive=why is None))
     run = run_strategy(scored, strategy, exprs=exprs, shield=shield)
     return Optimum(float(run.returns[0]), float(after[0]), strategy, run, tuple(exprs), states, edges, why is None,
-                   why, optimise, time.perf_counter() - t0)
+                   why, optimise, time.perf_counter() - t0, float(chance[0]))
 
 
 def _strategy(batch: EpisodeBatch, layers: Sequence[_Layer], best: Sequence[np.ndarray],

@@ -391,6 +391,7 @@ def _optima(result: CompileResult, wanted: Sequence[tuple[str, bool, str]], tabl
             continue
         optima[label] = {"value": best.value, "states": best.states, "method": best.method,
                          "seconds": best.seconds, "reaches_goal_safely": bool(best.run.success[0]),
+                         "uniform_success": best.uniform_success,
                          "actions": best.run.actions[0].tolist()}
     return optima
 
@@ -465,7 +466,8 @@ def render_markdown(report: Report) -> str:
         "",
         *(f"Exact optimum of {label} under the shield: "
           + (f"out of reach ({optimum['out_of_reach']})" if "out_of_reach" in optimum else
-             f"{optimum['value']:.1f} ({optimum['method']}, {optimum['seconds']:.2f} s)")
+             f"{optimum['value']:.1f} ({optimum['method']}, {optimum['seconds']:.2f} s)"
+             + _exploration(optimum))
           + "." for label, optimum in report.get("optima", {}).items()),
         f"Safety shield: {report['shield_states']:,} states, {report['shield_seconds']:.2f} s (computed once, "
         "used by SS&RA and SS&RF).",
@@ -491,6 +493,17 @@ def render_markdown(report: Report) -> str:
         "shield's): a run that reaches the goal only to leave the road after it does not count.",
     ]
     return "\n".join(lines + notes)
+
+
+def _exploration(optimum: Report) -> str:
+    """What exploring uniformly under the shield can expect (reports written before it have none)."""
+    # stormpy (via rac.learning.optimum): importing rac.studies.experiment stays light
+    from rac.learning.optimum import exploration_text
+
+    if "uniform_success" not in optimum:
+        return ""
+    return ("; under the shield " + exploration_text(optimum["uniform_success"])
+            + ", what a learner exploring at epsilon near 1 can expect before it has learned anything")
 
 
 def _optimum_cell(row: Report) -> str:

@@ -132,7 +132,8 @@ class LearningAnswerer:
                 f"{100 * gap:.1f}% {worse}")
         if not optimum.run.success[0]:
             text += f"; the optimal run does not reach {format_checked(query.expr)} safely"
-        return text
+        # how hard the goal is to find by exploring: what a learner can expect before it has learned anything
+        return text + f"\n{optimum.exploration}"
 
     @staticmethod
     def _optimum_fields(optimum: Optimum | str, learned: float | None, query: iq.LearnStrategy
@@ -146,7 +147,7 @@ class LearningAnswerer:
             "edges": optimum.edges, "additive": optimum.additive, "why_not_additive": optimum.why,
             "method": optimum.method, "arithmetic": "float64, as learning's rewards",
             "reaches_goal_safely": bool(optimum.run.success[0]), "actions": optimum.run.actions[0].tolist(),
-            "seconds": optimum.seconds}
+            "seconds": optimum.seconds, "uniform_success": optimum.uniform_success}
         if learned is not None:
             fields["learned"] = learned
             fields["shortfall"] = shortfall(learned, optimum.value, optimum.optimise)
