@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
+
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rac.core.numbers import format_bytes, size_option
+from rac.core.numbers import format_bytes, seconds_at, size_option
 from rac.engine.budget import parse_size
 
 
@@ -22,3 +25,11 @@ def test_sizes_read_as_people_write_them(size: int, text: str, option: str) -> N
 @given(st.integers(1, 2**60))
 def test_the_suggested_budget_holds_the_size(size: int) -> None:
     assert parse_size(size_option(size)) >= size
+
+
+@given(st.integers(0, 2**31 - 1), st.fractions(Fraction(1, 1000), Fraction(10)).filter(lambda f: f.denominator <= 1000))
+def test_seconds_at_is_the_exact_time_rounded_once(samples: int, period: Fraction) -> None:
+    # the float nearest to samples * period: info["time"] of 71 samples of 0.1 s reads 7.1
+    assert seconds_at(samples, period) == float(samples * period)
+    assert (seconds_at(np.array([samples]), period) == float(samples * period)).all()
+    assert seconds_at(71, Fraction(1, 10)) == 7.1 != 71 * 0.1

@@ -16,7 +16,7 @@ from pathlib import Path
 import gymnasium
 import numpy as np
 import pytest
-from engine_files import write_engine_file
+from engine_files import ALLOW_WHEN, write_engine_file
 from gymnasium.utils.env_checker import check_env
 
 from rac import ir
@@ -250,6 +250,10 @@ def test_a_runtime_shield_alone_keeps_random_walks_safe(tiny: CompileResult) -> 
             assert not info["collided"] and not info["offroad"] and info["shield"].startswith("lookahead ")
             done = terminated or truncated
     assert set(env.shield_steps) == {"lookahead 4", "lookahead 3", "lookahead 2", "lookahead 1"}
+    # a depth is any integer, numpy's too (np.int64(3) was a TypeError); a bool is not one
+    assert ScenarioEnv(tiny, lookahead=np.int64(3)).step_shield.runtime.settings.depth == 3  # type: ignore[union-attr]
+    with pytest.raises(TypeError, match="lookahead must be"):
+        ScenarioEnv(tiny, lookahead=True)
 
 
 def test_never_an_all_false_mask(tiny: CompileResult) -> None:
@@ -307,6 +311,32 @@ def test_the_step_info_without_a_shield(tiny: CompileResult) -> None:
     _, _, _, _, info = env.step(4)
     assert info["shield"] == "none" and not info["no_safe_action"] and not info["shield_timeout"]
     assert env.no_safe_action_steps == 0 and env.shield_steps == {"none": 1}
+
+
+def test_without_a_shield_the_mask_is_the_models_allow_when(tiny: CompileResult, tmp_path: Path) -> None:
+    # `allow when` is part of the model: a mask without any shield still keeps to it (it allowed
+    # every action), and a step that takes what it forbids is flagged and counted, never silent
+    source = Path(tiny.sources and next(iter(tiny.sources))).read_text(encoding="utf-8")
+    assert "        bind near =" in source
+    path = tmp_path / "allowing.ra"
+    path.write_text(source.replace("        bind near =", ALLOW_WHEN + "        bind near =", 1), encoding="utf-8")
+    (tmp_path / "avoidable_obstacle.xml").write_bytes((Path(next(iter(tiny.sources))).parent
+                                                      / "avoidable_obstacle.xml").read_bytes())
+    env = ScenarioEnv(path)
+    env.reset()
+    left = int(np.flatnonzero((env.action_pairs[:, 1] > 0) & (env.action_pairs[:, 0] == 0))[0])  # turn on, jerk 0
+    seen = []
+    for _ in range(2):
+        masks = env.action_masks()
+        model = env.episodes.model_masks()[0]
+        assert (masks == model).all() and masks.any()
+        seen.append(bool(masks[left]))
+        _, _, _, _, info = env.step(left)
+        assert info["model_allowed"] == info["shield_allowed"] == seen[-1] and info["shield"] == "none"
+    assert seen == [True, False]  # turning on is allowed at the start, forbidden once the heading has grown
+    assert env.disallowed_steps == 1
+    # beyond 0.25 rad the rule forbids everything: the run would stop there, so every action is allowed
+    assert env.action_masks().all()
 
 
 def test_shield_for_another_model(tiny: CompileResult, table: ShieldTable) -> None:

@@ -79,3 +79,48 @@ def test_scenario_env_infos_are_logged_per_objective(tmp_path: Path) -> None:
     for name, value in info["rewards"].items():
         assert recorded[f"rac/reward/{name}"] == pytest.approx((value - start[name]) / 4)
     assert sum(v for k, v in recorded.items() if k.startswith("rac/location/")) == pytest.approx(1.0)
+
+
+def test_a_key_once_recorded_is_recorded_as_zero_not_left_blank() -> None:
+    # a CSV logger writes every key it has seen: a share missing from one rollout was a blank cell
+    log = TrainingLog()
+    log.add([info("Unsafe", -1.0, shield="lookahead 3", no_safe_action=True, model_allowed=False)])
+    first = log.record()
+    assert first["rac/location/Unsafe"] == 1.0 and first["rac/disallowed"] == 1.0
+    log.add([info("Safe", 1.0, shield="exhaustive")])
+    second = log.record()
+    assert set(first) <= set(second)
+    assert second["rac/location/Unsafe"] == second["rac/shield/lookahead 3"] == second["rac/disallowed"] == 0.0
+    assert second["rac/location/Safe"] == second["rac/shield/exhaustive"] == 1.0
+
+
+def test_gymnasiums_vector_layout_is_logged_as_the_per_env_infos(tmp_path: Path) -> None:
+    """ScenarioVectorEnv (and gymnasium's vector envs) hand out one dict of arrays with ``_key`` masks;
+    the log reads it as it reads the same steps' per-env dicts (it failed on it: 'str' has no 'get')."""
+    import numpy as np
+    from engine_files import ALLOW_WHEN, write_engine_file
+
+    from rac.learning.scenario_env import ScenarioEnv
+    from rac.learning.training_log import split_vector_info
+    from rac.learning.vector import ScenarioVectorEnv
+
+    path = write_engine_file(tmp_path, "avoidable_obstacle", queries={})
+    path.write_text(path.read_text(encoding="utf-8").replace("        bind near =", ALLOW_WHEN + "        bind near =",
+                                                             1), encoding="utf-8")
+    n = 3
+    vector, singles = ScenarioVectorEnv(path, num_envs=n, lookahead=None), [ScenarioEnv(path) for _ in range(n)]
+    vector.reset(seed=0)
+    for env in singles:
+        env.reset(seed=0)
+    by_vector, by_env = TrainingLog(), TrainingLog()
+    for actions in ([0, 5, 8], [5, 5, 4], [2, 5, 6]):  # turning on twice (5, 5) goes past what `allow when` permits
+        _, _, _, _, layout = vector.step(np.array(actions))
+        infos = [env.step(action)[4] for env, action in zip(singles, actions)]
+        split = split_vector_info(layout)
+        assert [sorted(i) for i in split] == [sorted(i) for i in infos]
+        assert [i["location"] for i in split] == [i["location"] for i in infos]
+        by_vector.add(layout)
+        by_env.add(infos)
+    expected = by_env.record()
+    assert expected["rac/disallowed"] >= 1.0 and by_vector.record() == pytest.approx(expected)
+    assert split_vector_info({}) == []

@@ -20,7 +20,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 import pytest
-from engine_files import engine_source, write_engine_file
+from engine_files import ALLOW_WHEN, engine_source, write_engine_file
 from gymnasium.utils.env_checker import check_env
 from tiny_scenarios import WALL_EGO, GoalBox, StraightRoad, straight_road
 
@@ -33,7 +33,7 @@ from rac.engine.shield import ShieldTable
 from rac.engine.storm import safety_shield
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.scenario_env import ScenarioEnv
-from rac.learning.vector import ScenarioVectorEnv, make_vector_env
+from rac.learning.vector import ScenarioSyncVectorEnv, ScenarioVectorEnv, make_vector_env
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
@@ -70,6 +70,17 @@ def goal(files: dict[str, Path]) -> CompileResult:
 def near(files: dict[str, Path]) -> CompileResult:
     result = compile_file(files["near_goal"])
     assert result.ok, [d.message for d in result.diagnostics]
+    return result
+
+
+@pytest.fixture(scope="module")
+def allowing(files: dict[str, Path]) -> CompileResult:
+    """The tiny file with an `allow when` rule: no heading beyond 0.25 rad (turning on is forbidden there)."""
+    path = files["avoidable_obstacle"].with_name("allowing.ra")
+    text = files["avoidable_obstacle"].read_text(encoding="utf-8")
+    path.write_text(text.replace("        bind near =", ALLOW_WHEN + "        bind near =", 1), encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok and result.model_data is not None and result.model_data.allow is not None, result.diagnostics
     return result
 
 
@@ -164,6 +175,36 @@ def test_make_vec_with_a_set_of_scenes_steps_scenario_envs(files: dict[str, Path
                       ScenarioVectorEnv)
 
 
+def test_both_vector_envs_offer_the_same_masks_and_calls(files: dict[str, Path], table: ShieldTable) -> None:
+    """The same loop serves what make_vec returns with and without frames (or a set of scenes):
+    ``action_masks()`` on the SyncVectorEnv (it had none), ``call``/``get_attr`` on ScenarioVectorEnv
+    (it had none)."""
+    native = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["avoidable_obstacle"], shield=table)
+    sync = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["avoidable_obstacle"], shield=table,
+                              render_mode="ansi")
+    assert isinstance(native, ScenarioVectorEnv) and isinstance(sync, ScenarioSyncVectorEnv)
+    native.reset(seed=0)
+    sync.reset(seed=0)
+    rng = np.random.default_rng(1)
+    for _ in range(6):  # past the 4-step horizon: the restarted rows allow every action in both
+        masks = native.action_masks()
+        assert (masks == sync.action_masks()).all() and masks.any(axis=1).all()  # type: ignore[attr-defined]
+        assert [row.tolist() for row in native.call("action_masks")] == [row.tolist() for row in masks]
+        assert [row.tolist() for row in sync.call("action_masks")] == [row.tolist() for row in masks]
+        actions = np.array([rng.choice(np.flatnonzero(row)) for row in masks])
+        native.step(actions)
+        sync.step(actions)
+    assert native.shield_steps == sync.shield_steps and native.shield_steps  # type: ignore[attr-defined]
+    assert native.no_safe_action_steps == sync.no_safe_action_steps  # type: ignore[attr-defined]
+    assert native.disallowed_steps == sync.disallowed_steps == 0  # type: ignore[attr-defined]
+    assert native.get_attr("reward_scale") == sync.get_attr("reward_scale") == (1.0, 1.0)
+    assert native.call("action_pairs")[0].tolist() == sync.get_attr("action_pairs")[0].tolist()
+    with pytest.raises(AttributeError, match="no ScenarioEnv per episode to give `episodes`"):
+        native.get_attr("episodes")
+    with pytest.raises(AttributeError, match="cannot set `reward_scale` per episode"):
+        native.set_attr("reward_scale", [2.0, 2.0])
+
+
 # ---------------------------------------------------------------- sb3-contrib
 @pytest.mark.parametrize("extra", [{}, {"render_mode": None}])  # make_vec_env asks for rgb_array first
 def test_maskable_ppo_on_make_vec_env(files: dict[str, Path], table: ShieldTable, extra: dict[str, Any]) -> None:
@@ -200,7 +241,8 @@ def assert_same(left: Any, right: Any, where: str) -> None:
         assert (left == right).all(), (where, left, right)
 
 
-@pytest.mark.parametrize("scene, shielded", [("near", False), ("tiny", False), ("tiny", True), ("tiny_ends", False)])
+@pytest.mark.parametrize("scene, shielded", [("near", False), ("tiny", False), ("tiny", True), ("tiny_ends", False),
+                                             ("allowing", False)])
 def test_equals_a_sync_vector_env(request: pytest.FixtureRequest, scene: str, shielded: bool) -> None:
     result: CompileResult = request.getfixturevalue(scene)
     shield = request.getfixturevalue("table") if shielded else None
@@ -224,6 +266,8 @@ def test_equals_a_sync_vector_env(request: pytest.FixtureRequest, scene: str, sh
         assert masks.any(axis=1).all()
         assert (masks[~pending] == other[~pending]).all() and masks[pending].all()
         actions = np.array([rng.choice(np.flatnonzero(row)) for row in masks])
+        ignoring = rng.random(n) < 0.25  # a learner that does not read the masks takes any action
+        actions[ignoring] = rng.integers(native.single_action_space.n, size=int(ignoring.sum()))
         a_out = native.step(actions)
         b_out = sync.step(actions)
         for name, x, y in zip(("obs", "reward", "terminated", "truncated", "info"), a_out, b_out):
@@ -239,6 +283,9 @@ def test_equals_a_sync_vector_env(request: pytest.FixtureRequest, scene: str, sh
     singles = [env.unwrapped for env in sync.envs]
     assert native.shield_steps == sum((env.shield_steps for env in singles), start=type(native.shield_steps)())
     assert native.no_safe_action_steps == sum(env.no_safe_action_steps for env in singles)  # type: ignore[attr-defined]
+    assert native.disallowed_steps == sum(env.disallowed_steps for env in singles)  # type: ignore[attr-defined]
+    # without a shield the masks are the model's `allow when`: some steps took what it forbids, and say so
+    assert (native.disallowed_steps > 0) == (scene == "allowing")
 
 
 def test_episodes_end_at_different_steps(near: CompileResult) -> None:

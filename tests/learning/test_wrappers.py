@@ -109,6 +109,22 @@ def test_timing_warnings_name_both_numbers() -> None:
         RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, dt=0.25)
 
 
+def test_timing_is_checked_again_when_the_environment_is_reconfigured() -> None:
+    # highway-env's usual pattern: make, wrap, then env.unwrapped.configure({...}) and reset(); the
+    # wrapper checked the timing at construction only, and the new one went unsaid
+    inner = HighwayLike(dt=0.1)
+    env = RewardAutomatonWrapper(TimeLimit(inner, 30), follow(), inputs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        env.reset(seed=0)  # the same timing as at construction: nothing new to say
+    inner.dt = 0.2  # type: ignore[attr-defined]
+    with pytest.warns(UserWarning, match=r"time step is 0.2 s but the automaton samples every 0.1 s"):
+        env.reset(seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        env.reset(seed=2)  # said once per timing
+
+
 def test_highway_env_timing_is_read_from_its_config() -> None:
     class Highway:
         config = {"policy_frequency": 5, "duration": 40}

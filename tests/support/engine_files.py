@@ -57,6 +57,9 @@ automaton Tiny {{
 """
 
 
+#: A line for an engine file's model block: no heading beyond 0.25 rad (turning on is forbidden there).
+ALLOW_WHEN = "        allow when fabs(head) <= 0.25\n"
+
 def engine_source(tiny: TinyScenario, queries: Mapping[str, str] | None = None, *,
                   scenario_file: str | None = None) -> str:
     """The text of the engine test file for ``tiny`` (its default settings) with ``queries``

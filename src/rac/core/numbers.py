@@ -6,10 +6,12 @@ from __future__ import annotations
 
 from decimal import Decimal
 from fractions import Fraction
+from typing import Any
 
 from rac.core.diagnostics import short_number
 
 __all__ = ["INT32_BOUND", "INT32_LOW", "INT32_MAX", "INT32_MIN", "MIN_SEED", "exact_decimal", "format_bytes",
+           "seconds_at",
            "samples_of", "size_option"]
 
 INT32_MAX = 2**31 - 1
@@ -88,3 +90,10 @@ def samples_of(seconds: Fraction, period: Fraction, *, what: str = "--horizon", 
         raise ValueError(f"{what} {short_number(seconds)} is {short_number(samples)} samples of {of}: more than "
                          f"{INT32_MAX:,}")
     return int(samples)
+
+
+def seconds_at(samples: Any, period: Fraction) -> Any:
+    """The time in seconds of sample ``samples`` (an int, or an integer numpy array) at ``period`` s,
+    rounded once: ``samples * numerator / denominator``, so multiples of 0.1 s read as written
+    (``7.1``, where ``71 * 0.1`` gives ``7.1000000000000005``)."""
+    return samples * period.numerator / period.denominator

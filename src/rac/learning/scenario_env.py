@@ -24,6 +24,7 @@ its first draw; :meth:`ScenarioEnv.reset` draws one from ``np_random``::
 from __future__ import annotations
 
 import functools
+import numbers
 import os
 from collections import Counter
 from fractions import Fraction
@@ -35,6 +36,7 @@ import numpy as np
 
 from rac.compiler import CompileResult, compile_file, compile_text
 from rac.core.diagnostics import CheckError, RacValueError
+from rac.core.numbers import seconds_at
 from rac.engine.explore import COLUMNS
 from rac.engine.lookahead import LookaheadSettings
 from rac.ir import expr as ie
@@ -134,8 +136,8 @@ def _lookahead(lookahead: LookaheadSettings | int | Literal["auto"] | None,
         return LookaheadSettings() if table is not None else None
     if lookahead is None or isinstance(lookahead, LookaheadSettings):
         return lookahead
-    if isinstance(lookahead, int) and not isinstance(lookahead, bool):
-        return LookaheadSettings(depth=lookahead)
+    if isinstance(lookahead, numbers.Integral) and not isinstance(lookahead, (bool, np.bool_)):
+        return LookaheadSettings(depth=int(lookahead))  # numpy's integers too (a depth from a sweep's array)
     raise TypeError(f"lookahead must be LookaheadSettings, a depth, 'auto' or None, not {lookahead!r}")
 
 
@@ -155,8 +157,8 @@ class ScenarioEnv(gymnasium.Env):
             :func:`rac.engine.shield.step_shield`; then ``lookahead`` stays ``"auto"``).
         lookahead: the runtime shield beyond the table (:class:`rac.engine.lookahead.LookaheadSettings`,
             or its depth in decisions); ``"auto"`` (default): the default settings when there is a
-            table, none without one; None: no runtime shield. Without table and runtime shield every
-            action is allowed.
+            table, none without one; None: no runtime shield. Without table and runtime shield the
+            mask is the model's ``allow when`` (every action where the model has no such rule).
         reward: ``"automaton"`` (the objective's increase, plus the ``at end`` bonus on the last
             step) or a reward expression (its text, or a parsed or checked expression), as ``EpisodeBatch``.
         horizon: the episode's length in seconds (default the automaton's ``horizon``); a whole
@@ -194,9 +196,11 @@ class ScenarioEnv(gymnasium.Env):
     that state: no action survived them all, or its budget ran out), ``shield_timeout`` (the
     runtime shield's budget ran out: the mask was sound for its depth but may have allowed fewer
     actions), ``no_safe_action`` (the shield knew no safe
-    action: the mask allowed every action of the model) and ``shield_allowed`` (the action taken
-    was in the mask). Counted since construction: :attr:`shield_steps` (steps per ``shield``
-    value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`.
+    action: the mask allowed every action of the model), ``shield_allowed`` (the action taken
+    was in the mask) and ``model_allowed`` (the action taken was one the model's ``allow when``
+    permits: a learner that ignores the masks can take another, and that step is no step of the
+    model, which no proof covers). Counted since construction: :attr:`shield_steps` (steps per
+    ``shield`` value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`, :attr:`disallowed_steps`.
 
     ``info["scenario"]``: the scene's file; ``info["scale"]``: :attr:`reward_scale`. After :meth:`step`,
     ``info["reward_steps"]``: each reward's change over the step (unscaled), as
@@ -262,6 +266,8 @@ class ScenarioEnv(gymnasium.Env):
         self.no_safe_action_steps = 0
         #: Steps whose runtime shield ran out of its budget (``info["shield_timeout"]``).
         self.timeout_steps = 0
+        #: Steps that took an action the model's ``allow when`` forbids (``info["model_allowed"]`` False).
+        self.disallowed_steps = 0
         self._decision: ShieldStep | None = None
         self._crashed = False
         self.render_mode = render_mode
@@ -270,6 +276,7 @@ class ScenarioEnv(gymnasium.Env):
         self.metadata = {**self.metadata, "render_fps": 1.0 / (data.period * self.episodes.decide_every)}
         self._scale = float(data.scale)
         self._period = float(data.period)
+        self._exact_period = Fraction(self.episodes.automaton.period)  # times as written: 7.1 s, not 7.1000000000000005
         self._names = automaton.location_names
         if reward != "automaton" and isinstance(scale, str):
             raise RacValueError(f"scale={scale!r} is proved for the automaton's reward; for a reward expression give "
@@ -358,7 +365,8 @@ class ScenarioEnv(gymnasium.Env):
         return {"location": self._names[int(episodes.location[0])],
                 "rewards": {name: float(values[0]) for name, values in episodes.rewards.items()},
                 "objective": float(episodes.objective[0]), "inputs": inputs, **self._last,
-                "time": float(episodes.k[0] * self._period), "scenario": str(self.scenarios[self._index]),
+                "time": float(seconds_at(int(episodes.k[0]), self._exact_period)),
+                "scenario": str(self.scenarios[self._index]),
                 "scale": self.reward_scale}
 
     def reset(self, *, seed: int | None = None,
@@ -407,12 +415,13 @@ class ScenarioEnv(gymnasium.Env):
         # stormpy (via rac.engine.shield): importing rac.learning.scenario_env stays light
         from rac.engine.shield import UnseenState
 
-        time = float(self.episodes.k[0] * self._period)
+        time = float(seconds_at(int(self.episodes.k[0]), self._exact_period))
         try:
             decision = self.shield_step()  # the mask of the state this step leaves
             unseen = False
         except UnseenState:  # unseen="error" raises from action_masks(); the step itself goes on
             decision, unseen = None, True
+        model_allowed = bool(self.episodes.model_masks()[0][int(action)])
         before = self.episodes.rewards
         out = self.episodes.step(np.array([int(action)]))
         # terminated: the goal, or the automaton's `episode ends when` (its end clauses already applied)
@@ -423,24 +432,28 @@ class ScenarioEnv(gymnasium.Env):
         self._decision = None
         shield: dict[str, Any]
         if decision is None:
+            # no shield: the mask handed out was the model's own
             shield = {"shield": "none", "shield_until": time, "shield_short": False, "shield_timeout": False,
-                      "no_safe_action": unseen, "shield_allowed": True}
+                      "no_safe_action": unseen, "shield_allowed": model_allowed}
         else:
-            shield = {"shield": decision.guarantee, "shield_until": float(decision.until * self._period),
+            shield = {"shield": decision.guarantee,
+                      "shield_until": float(seconds_at(int(decision.until), self._exact_period)),
                       "shield_short": decision.short, "shield_timeout": decision.timed_out,
                       "no_safe_action": decision.no_safe_action,
                       "shield_allowed": bool(decision.mask[int(action)])}
+        shield["model_allowed"] = model_allowed
         self.shield_steps[shield["shield"]] += 1
         self.no_safe_action_steps += shield["no_safe_action"]
         self.timeout_steps += shield["shield_timeout"]
+        self.disallowed_steps += not model_allowed
         info = self._info()
         # each reward's change over the step, unscaled (what a training log averages per objective)
         info["reward_steps"] = {name: value - float(before[name][0]) for name, value in info["rewards"].items()}
         return self._obs(), float(out.reward[0]) / self.reward_scale, terminated, truncated, {**info, **shield}
 
     def action_masks(self) -> np.ndarray:
-        """``(P,)`` bool: the actions the shield allows in the current state (all without a shield);
-        never all False.
+        """``(P,)`` bool: the actions the shield allows in the current state (without a shield, those
+        the model's ``allow when`` permits); never all False.
 
         The exhaustive table's row where it applies, the runtime shield's mask elsewhere (beyond the
         table's horizon, in a state it has not seen, where it allows nothing; :class:`rac.engine.shield.StepShield`).
@@ -453,8 +466,8 @@ class ScenarioEnv(gymnasium.Env):
         if self.episodes.n != 1:
             raise RuntimeError("call reset() before action_masks()")
         decision = self.shield_step()
-        if decision is None:
-            return np.ones(self.episodes.n_actions, dtype=bool)
+        if decision is None:  # the model's own rule still holds (all of them where it leaves none)
+            return self.episodes.model_masks()[0].copy()
         return decision.mask.copy()
 
     def render(self) -> str | np.ndarray | None:
@@ -468,7 +481,7 @@ class ScenarioEnv(gymnasium.Env):
         if self.episodes.n != 1:
             return "(not reset)"
         x, y, v, acc, head, jerk, turn = (self.episodes.ego[0] / self._scale).tolist()
-        time = float(self.episodes.k[0] * self._period)
+        time = float(seconds_at(int(self.episodes.k[0]), self._exact_period))
         info = self._info()
         return (f"t={time:.2f}s x={x:.2f} y={y:.2f} v={v:.2f} acc={acc:.2f} head={head:.3f} jerk={jerk:g} "
                 f"turn={turn:g} {info['location']} objective={info['objective']:.3f}")

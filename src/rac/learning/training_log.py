@@ -1,7 +1,9 @@
 """What a deep-RL training loop records about the reward automaton, with no RL library needed.
 
-:class:`TrainingLog` is fed the ``infos`` of each vector step (a list of per-env info dicts, as
-stable-baselines3 hands them to callbacks) and aggregates, until :meth:`TrainingLog.record`:
+:class:`TrainingLog` is fed the ``infos`` of each vector step — a list of per-env info dicts, as
+stable-baselines3 hands them to callbacks, or one dict in gymnasium's vector layout, as
+:class:`~rac.learning.vector.ScenarioVectorEnv` and gymnasium's vector envs return it
+(:func:`split_vector_info`) — and aggregates, until :meth:`TrainingLog.record`:
 
 - ``rac/reward/<name>``: each reward's mean change per step (``info["rac"]["reward_steps"]`` of the
   wrapper, ``info["reward_steps"]`` of ScenarioEnv);
@@ -11,7 +13,12 @@ stable-baselines3 hands them to callbacks) and aggregates, until :meth:`Training
   and ``rac/shield/no_safe_action`` (steps with ``info["no_safe_action"]``);
 - ``rac/collisions``: steps with a collision (``info["collided"]`` in ScenarioEnv,
   ``info["crashed"]`` in highway-env);
-- ``rac/clipped/<input>``: values clipped (``info["rac"]["clipped"]``).
+- ``rac/clipped/<input>``: values clipped (``info["rac"]["clipped"]``);
+- ``rac/disallowed``: steps whose action the model's ``allow when`` forbids
+  (``info["model_allowed"]`` False: a learner that ignores the masks).
+
+A key once recorded is recorded at every later call (0 when nothing of it happened since), so a
+CSV log has no blank cells for it.
 """
 
 from __future__ import annotations
@@ -20,7 +27,29 @@ from collections import Counter
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-__all__ = ["TrainingLog"]
+__all__ = ["TrainingLog", "split_vector_info"]
+
+
+def split_vector_info(info: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """One info dict per sub-environment from gymnasium's vector layout: every key an array over
+    the environments, ``_key`` the mask of those that report it, nested dicts laid out alike. The
+    number of environments is read from the masks (``[]`` without any)."""
+    sizes = {len(value) for key, value in info.items() if key.startswith("_") and hasattr(value, "__len__")}
+    if not sizes:
+        return []
+    n = max(sizes)
+    out: list[dict[str, Any]] = [{} for _ in range(n)]
+    for key, value in info.items():
+        if key.startswith("_"):
+            continue
+        mask = info.get(f"_{key}")
+        parts = split_vector_info(value) if isinstance(value, Mapping) else None
+        for env in range(n):
+            if mask is not None and not mask[env]:
+                continue
+            item = (parts[env] if env < len(parts) else {}) if parts is not None else value[env]
+            out[env][key] = item.item() if hasattr(item, "item") and getattr(item, "ndim", 1) == 0 else item
+    return out
 
 
 class TrainingLog:
@@ -28,6 +57,7 @@ class TrainingLog:
 
     def __init__(self) -> None:
         self._clear()
+        self._recorded: set[str] = set()  # every key recorded so far
 
     def _clear(self) -> None:
         self.steps = 0
@@ -36,11 +66,15 @@ class TrainingLog:
         self._shield: Counter[str] = Counter()
         self._clipped: Counter[str] = Counter()
         self._no_safe = 0
+        self._disallowed = 0
         self._collisions = 0
         self._rac_steps = 0
 
-    def add(self, infos: Iterable[Mapping[str, Any]]) -> None:
-        """One vector step: the info dict of every sub-environment."""
+    def add(self, infos: Iterable[Mapping[str, Any]] | Mapping[str, Any]) -> None:
+        """One vector step: the info dict of every sub-environment, or one dict in gymnasium's vector
+        layout (:func:`split_vector_info`)."""
+        if isinstance(infos, Mapping):
+            infos = split_vector_info(infos)
         for info in infos:
             self.steps += 1
             # the wrapper's keys are under info["rac"]; ScenarioEnv's (the same names) in info itself
@@ -56,6 +90,7 @@ class TrainingLog:
             if "shield" in info:
                 self._shield[str(info["shield"])] += 1
             self._no_safe += bool(info.get("no_safe_action", False))
+            self._disallowed += not info.get("model_allowed", True)
             self._collisions += bool(info.get("collided", False) or info.get("crashed", False))
 
     def record(self) -> dict[str, float]:
@@ -71,5 +106,9 @@ class TrainingLog:
             out.update({f"rac/shield/{k}": v / self.steps for k, v in self._shield.items()})
             out["rac/shield/no_safe_action"] = float(self._no_safe)
         out["rac/collisions"] = float(self._collisions)
+        if self._disallowed or "rac/disallowed" in self._recorded:
+            out["rac/disallowed"] = float(self._disallowed)
+        out = {**dict.fromkeys(self._recorded, 0.0), **out}  # nothing of a known key since: 0, not a blank
+        self._recorded.update(out)
         self._clear()
         return out

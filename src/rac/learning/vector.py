@@ -32,6 +32,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from rac.compiler import compile_file
+from rac.core.numbers import seconds_at
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.learning.scenario_env import ScenarioEnv
@@ -42,10 +43,11 @@ if TYPE_CHECKING:
     from rac.engine.lookahead import LookaheadSettings
     from rac.engine.shield import ShieldStep, ShieldTable, StepShield
 
-__all__ = ["ScenarioVectorEnv", "make_vector_env"]
+__all__ = ["ScenarioSyncVectorEnv", "ScenarioVectorEnv", "make_vector_env"]
 
 #: The ``info`` keys a step adds to the reset ones: what the mask of the state the step left carried.
-SHIELD_KEYS = ("shield", "shield_until", "shield_short", "shield_timeout", "no_safe_action", "shield_allowed")
+SHIELD_KEYS = ("shield", "shield_until", "shield_short", "shield_timeout", "no_safe_action", "shield_allowed",
+               "model_allowed")
 
 
 class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
@@ -62,7 +64,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     and ``shield``: object arrays of text; ``rewards`` and ``inputs``: dicts of arrays) with a mask
     ``_key`` of the episodes that report it — the shield's keys are missing for an episode that was
     restarted in this step (its info is the reset info). Counted since construction over all
-    episodes, as ScenarioEnv counts: :attr:`shield_steps`, :attr:`no_safe_action_steps`, :attr:`timeout_steps`.
+    episodes, as ScenarioEnv counts: :attr:`shield_steps`, :attr:`no_safe_action_steps`, :attr:`timeout_steps`,
+    :attr:`disallowed_steps`.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -98,8 +101,9 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self.no_safe_action_steps = 0
         #: Steps whose runtime shield ran out of its budget (``info["shield_timeout"]``).
         self.timeout_steps = 0
-        data = self.episodes.data
-        self._period = float(data.period)
+        #: Steps that took an action the model's ``allow when`` forbids (``info["model_allowed"]`` False).
+        self.disallowed_steps = 0
+        self._period = Fraction(self.episodes.automaton.period)  # times as written (rac.core.numbers.seconds_at)
         self._names = np.array(self.episodes.automaton.location_names, dtype=object)
         n = self.num_envs
         self._autoreset = np.zeros(n, dtype=bool)  # ended in the last step: restarted in the next
@@ -111,7 +115,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     # ------------------------------------------------------------ what ScenarioEnv also offers
     @property
     def step_shield(self) -> StepShield | None:
-        """The shield behind :meth:`action_masks` (None: every action allowed)."""
+        """The shield behind :meth:`action_masks` (None: the masks are the model's ``allow when``)."""
         return self._step_shield
 
     @property
@@ -136,14 +140,45 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     def action_masks(self) -> np.ndarray:
         """``(num_envs, P)`` bool: each episode's :meth:`ScenarioEnv.action_masks
         <rac.learning.scenario_env.ScenarioEnv.action_masks>` (the shield's mask, never an all-False
-        row; all True without a shield). An episode that ended in the last step is restarted by the
-        next whatever its action: its row allows every action."""
+        row; the model's ``allow when`` without a shield). An episode that ended in the last step is
+        restarted by the next whatever its action: its row allows every action."""
         self._require()
-        masks = np.ones((self.num_envs, self.episodes.n_actions), dtype=bool)
+        masks = self.episodes.model_masks()
+        masks[self._autoreset] = True
         if self._step_shield is not None:
             for row in np.flatnonzero(~self._autoreset).tolist():
                 masks[row] = self._decision(row).mask
         return masks
+
+    #: What :meth:`get_attr` gives: the attributes every episode shares (the model's, the shield's).
+    SHARED = ("action_pairs", "reward_scale", "shield", "step_shield", "observation_space", "action_space",
+              "metadata", "render_mode", "scenarios", "observation")
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """SyncVectorEnv's ``call``, for what a batch of episodes answers per episode: ``"action_masks"``
+        (each episode's row of :meth:`action_masks`) and the shared attributes (:meth:`get_attr`; a
+        callable one is called). ``AttributeError`` for anything else: there is no ScenarioEnv per
+        episode here to ask."""
+        if name == "action_masks":
+            return tuple(self.action_masks())
+        values = self.get_attr(name)
+        return tuple(value(*args, **kwargs) if callable(value) else value for value in values)
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """SyncVectorEnv's ``get_attr`` for the attributes every episode shares (:data:`SHARED`), one per
+        episode; ``AttributeError`` for the others (an episode's own state is in ``info`` and the batch)."""
+        if name not in self.SHARED:
+            raise AttributeError(f"ScenarioVectorEnv steps its {self.num_envs} episodes as one batch: it has no "
+                                 f"ScenarioEnv per episode to give `{name}`; per episode it gives "
+                                 f"{', '.join(self.SHARED)} and call('action_masks'), and each step's info (a "
+                                 "SyncVectorEnv of ScenarioEnvs: gymnasium.make_vec(..., vectorization_mode='sync'))")
+        value = getattr(self._single, name)
+        return tuple(value for _ in range(self.num_envs))
+
+    def set_attr(self, name: str, values: Any) -> None:
+        """Not supported: the episodes share one model and shield (``AttributeError``, saying so)."""
+        raise AttributeError(f"ScenarioVectorEnv cannot set `{name}` per episode: its episodes share one model, "
+                             "shield and batch (a SyncVectorEnv of ScenarioEnvs can: vectorization_mode='sync')")
 
     # ------------------------------------------------------------ stepping
     def reset(self, *, seed: int | None = None,
@@ -222,9 +257,12 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         n = self.num_envs
         kind = np.full(n, None, dtype=object)
         kind[stepping] = "none"
-        until = np.where(stepping, self.episodes.k * self._period, 0.0)
+        until = np.where(stepping, seconds_at(self.episodes.k, self._period), 0.0)
         flags = {name: np.zeros(n, dtype=bool) for name in SHIELD_KEYS[2:]}
-        flags["shield_allowed"][stepping] = True
+        rows = np.flatnonzero(stepping)
+        model = self.episodes.model_masks()
+        flags["model_allowed"][rows] = model[rows, actions[rows]]
+        flags["shield_allowed"][rows] = flags["model_allowed"][rows]  # no shield: the mask was the model's
         if self._step_shield is not None:
             for row in np.flatnonzero(stepping).tolist():
                 try:
@@ -233,7 +271,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                     flags["no_safe_action"][row] = True
                     continue
                 kind[row] = decision.guarantee
-                until[row] = decision.until * self._period
+                until[row] = seconds_at(int(decision.until), self._period)
                 flags["shield_short"][row] = decision.short
                 flags["shield_timeout"][row] = decision.timed_out
                 flags["no_safe_action"][row] = decision.no_safe_action
@@ -241,6 +279,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self.shield_steps.update(kind[stepping].tolist())
         self.no_safe_action_steps += int(flags["no_safe_action"].sum())
         self.timeout_steps += int(flags["shield_timeout"].sum())
+        self.disallowed_steps += int((stepping & ~flags["model_allowed"]).sum())
         info: dict[str, np.ndarray] = {"shield": kind, "shield_until": until, **flags}
         return {**info, **{f"_{key}": stepping.copy() for key in info}}
 
@@ -257,7 +296,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         info = masked({"location": self._names[episodes.location],
                        "objective": np.asarray(episodes.objective, dtype=np.float64).copy(),
                        **{name: flags.copy() for name, flags in self._last.items()},
-                       "time": episodes.k * self._period,
+                       "time": seconds_at(episodes.k, self._period),
                        "scenario": np.full(self.num_envs, str(self._single.scenarios[0]), dtype=object),
                        "scale": np.full(self.num_envs, self._single.reward_scale)})
         info.update(masked({"rewards": masked(episodes.rewards), "inputs": masked(inputs)}))
@@ -271,8 +310,9 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
     :class:`ScenarioVectorEnv` of ``num_envs`` episodes, with ``kwargs`` those of
     :class:`rac.learning.scenario_env.ScenarioEnv`.
 
-    Two cases get a :class:`gymnasium.vector.SyncVectorEnv` of ScenarioEnvs instead (same autoreset,
-    spaces and info; one Python step per episode): a set of scenes (``scenarios=``, which ScenarioEnv
+    Two cases get a :class:`ScenarioSyncVectorEnv` (a :class:`gymnasium.vector.SyncVectorEnv` of
+    ScenarioEnvs) instead — the same autoreset, spaces, info, ``action_masks()`` and counters; one
+    Python step per episode: a set of scenes (``scenarios=``, which ScenarioEnv
     draws from per episode: one EpisodeBatch holds one scene) and a ``render_mode`` (each ScenarioEnv
     renders its own frames). The model is compiled once for all of them."""
     if kwargs.get("scenarios") is None and kwargs.get("render_mode") is None:
@@ -287,4 +327,43 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
     def single() -> gymnasium.Env:  # type: ignore[type-arg]
         return ScenarioEnv(model, **kwargs)
 
-    return gymnasium.vector.SyncVectorEnv([single for _ in range(num_envs)])
+    return ScenarioSyncVectorEnv([single for _ in range(num_envs)])
+
+
+class ScenarioSyncVectorEnv(gymnasium.vector.SyncVectorEnv):  # type: ignore[misc]
+    """The SyncVectorEnv of ScenarioEnvs :func:`make_vector_env` returns for a set of scenes or a
+    ``render_mode``, with :class:`ScenarioVectorEnv`'s ``action_masks()`` and counters, so that one
+    training loop serves both."""
+
+    def action_masks(self) -> np.ndarray:
+        """``(num_envs, P)`` bool: each ScenarioEnv's mask; all True for an episode waiting for its
+        restart (the next step restarts it whatever its action), as :meth:`ScenarioVectorEnv.action_masks`."""
+        width: int = self.envs[0].unwrapped.action_pairs.shape[0]  # type: ignore[attr-defined]
+        masks = np.ones((self.num_envs, width), dtype=bool)
+        for row, env in enumerate(self.envs):
+            if not self._autoreset_envs[row]:
+                masks[row] = env.unwrapped.action_masks()  # type: ignore[attr-defined]
+        return masks
+
+    def _total(self, name: str) -> Any:
+        return sum((getattr(env.unwrapped, name) for env in self.envs[1:]), start=getattr(self.envs[0].unwrapped, name))
+
+    @property
+    def shield_steps(self) -> Counter[str]:
+        """Steps per guarantee of their mask, over all episodes (:attr:`ScenarioVectorEnv.shield_steps`)."""
+        return Counter(self._total("shield_steps"))
+
+    @property
+    def no_safe_action_steps(self) -> int:
+        """Steps whose state had no action known to be safe, over all episodes."""
+        return int(self._total("no_safe_action_steps"))
+
+    @property
+    def timeout_steps(self) -> int:
+        """Steps whose runtime shield ran out of its budget, over all episodes."""
+        return int(self._total("timeout_steps"))
+
+    @property
+    def disallowed_steps(self) -> int:
+        """Steps that took an action the model's ``allow when`` forbids, over all episodes."""
+        return int(self._total("disallowed_steps"))

@@ -163,22 +163,25 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
 
 
 class _Timing:
-    """Warns once when the environment's step or episode differs from the automaton's period or horizon."""
+    """Warns when the environment's step or episode differs from the automaton's period or horizon:
+    checked at construction and at every reset, and said once per timing the environment has (an
+    environment reconfigured between episodes, as highway-env's ``configure()`` then ``reset()``,
+    is checked again)."""
 
     def __init__(self, automaton: object, dt: float | None) -> None:
         period, steps = getattr(automaton, "period", None), getattr(automaton, "steps", None)
         self.period = float(period) if isinstance(period, (int, float, Fraction)) else None
         self.steps = steps if isinstance(steps, int) else None
         self.dt = dt
-        self.done = self.period is None
+        self.checked: tuple[float, float | None] | None = None  # the timing last checked
 
     def check(self, env: object) -> None:
-        if self.done or self.period is None:
+        if self.period is None:
             return
         step, episode = env_timing(env, self.dt)
-        if step is None:
-            return  # not known yet: perhaps after the first reset
-        self.done = True
+        if step is None or (step, episode) == self.checked:
+            return  # not known yet (perhaps after the first reset), or said already
+        self.checked = (step, episode)
         horizon = (self.steps or 0) * self.period
         cover = (f"the priority proofs cover runs sampled every {self.period:g} s over a horizon of {horizon:g} s "
                  f"({self.steps} samples) only")
@@ -222,8 +225,9 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
             factor of your own (:func:`scale_factor`). The factor is :attr:`scale`.
         dt: the environment's seconds per step, when it does not say itself (:func:`env_timing`).
 
-    Timing: a ``UserWarning`` (at construction, or at the first reset when the environment only
-    knows then) when the environment's step differs from the automaton's ``sample every``, or its
+    Timing: a ``UserWarning`` (at construction, and at a reset when the environment's timing is
+    new: it only knows it then, or it was reconfigured) when the environment's step differs from
+    the automaton's ``sample every``, or its
     episode (``spec.max_episode_steps`` steps, or highway-env's ``duration``) from the automaton's
     horizon: the priority proofs cover runs of the automaton's period and horizon only. When
     neither ``dt``, ``env.unwrapped.dt`` nor highway-env's ``policy_frequency`` is there, nothing
