@@ -139,9 +139,15 @@ def test_horizon_in_seconds(tiny: CompileResult) -> None:
     assert env.observation_space.high[-1] == np.float32(1.5)
     env.reset()
     assert not env.step(4)[3] and env.step(4)[3]  # truncated on the second step, after 3 samples
-    for bad in (0.7, 0, -1):
-        with pytest.raises(ValueError, match="whole number"):
+    for bad in (0.7, 0, -1, 1e12):  # 1e12 s: beyond int32 samples, as the command line refuses it
+        with pytest.raises(ValueError, match="whole number|more than 2,147,483,647"):
             ScenarioEnv(tiny, horizon=bad)
+    # the tiny automaton's horizon is 4 s: a longer episode leaves what the priority proofs cover, and says so
+    with pytest.warns(UserWarning, match=r"episode's horizon is 4.5 s but the automaton's is 4 s \(8 samples\)"):
+        ScenarioEnv(tiny, horizon=4.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        ScenarioEnv(tiny, horizon=4)
 
 
 # ---------------------------------------------------------------- shield masks
@@ -617,3 +623,21 @@ def test_a_file_that_ends_its_episodes(tmp_path: Path) -> None:
     while not (terminated or truncated):
         _, _, terminated, truncated, info = env.step(fastest)
     assert terminated and not info["goal"] and info["inputs"] == {"near": True} and info["time"] < 4.0
+
+
+def test_an_environment_pickles_and_goes_on_alike(tiny: CompileResult, table: ShieldTable) -> None:
+    # a process pool (ProcessPoolExecutor.submit(f, env), multiprocessing) pickles what it sends; the
+    # compiled expressions are generated code in no module, and pickling them failed
+    import pickle
+
+    env = ScenarioEnv(tiny, shield=table)
+    env.reset(seed=3)
+    env.step(int(np.flatnonzero(env.action_masks())[0]))
+    other = pickle.loads(pickle.dumps(env))
+    for _ in range(3):
+        masks = env.action_masks()
+        assert (masks == other.action_masks()).all()
+        action = int(np.flatnonzero(masks)[-1])
+        mine, theirs = env.step(action), other.step(action)
+        assert (mine[0] == theirs[0]).all() and mine[1:4] == theirs[1:4]
+        assert mine[4]["objective"] == theirs[4]["objective"] and mine[4]["time"] == theirs[4]["time"]

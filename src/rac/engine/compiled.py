@@ -64,6 +64,11 @@ class CompiledExpressions:
         exec(compile(self.source, "<rac compiled expressions>", "exec"), namespace)  # noqa: S102
         self._function: Callable[[Frame, Evaluator], list[Any]] = namespace["compiled"]
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # the generated function lives in no module: a pickle (a process pool's, multiprocessing's)
+        # carries what it was made from and compiles it again
+        return (CompiledExpressions, (self.evaluator, self.expressions))
+
     def __call__(self, frame: Frame) -> list[np.ndarray]:
         n = frame.n
         return [np.broadcast_to(value, (n,)) if np.ndim(value) == 0 else value

@@ -26,6 +26,7 @@ from __future__ import annotations
 import functools
 import numbers
 import os
+import warnings
 from collections import Counter
 from fractions import Fraction
 from pathlib import Path
@@ -36,7 +37,7 @@ import numpy as np
 
 from rac.compiler import CompileResult, compile_file, compile_text
 from rac.core.diagnostics import CheckError, RacValueError
-from rac.core.numbers import seconds_at
+from rac.core.numbers import samples_of, seconds_at
 from rac.engine.explore import COLUMNS
 from rac.engine.lookahead import LookaheadSettings
 from rac.ir import expr as ie
@@ -247,11 +248,18 @@ class ScenarioEnv(gymnasium.Env):
         if horizon is not None:
             # a float through its shortest repr: 0.3 is 3/10, as written in a .ra file
             seconds = Fraction(str(horizon)) if isinstance(horizon, float) else Fraction(horizon)
-            exact = seconds / Fraction(automaton.period)
-            if exact.denominator != 1 or exact < 1:
+            try:  # the command line's rule (one owner), beyond int32 samples too
+                samples = samples_of(seconds, Fraction(automaton.period), what="horizon")
+            except ValueError as exc:
+                raise RacValueError(str(exc)) from None
+            if samples < 1:
                 raise RacValueError(f"horizon {horizon} s is not a positive whole number of samples of "
                                     f"{float(automaton.period):g} s")
-            samples = int(exact)
+            if samples > automaton.steps:  # a shorter episode is a prefix of the runs the checks covered
+                warnings.warn(f"the episode's horizon is {float(seconds):g} s but the automaton's is "
+                              f"{float(automaton.horizon):g} s ({automaton.steps} samples): the priority proofs "
+                              f"cover runs over a horizon of {float(automaton.horizon):g} s only", UserWarning,
+                              stacklevel=2)
         self._samples = samples
         #: Per scene, once checked: its episodes, observation and shield (:meth:`_scene`).
         self._scenes: dict[int, tuple[EpisodeBatch, Observation, StepShield | None]] = {}
