@@ -11,8 +11,7 @@ from typing import Any
 from rac.core.diagnostics import short_number
 
 __all__ = ["INT32_BOUND", "INT32_LOW", "INT32_MAX", "INT32_MIN", "MIN_SEED", "exact_decimal", "format_bytes",
-           "seconds_at",
-           "samples_of", "size_option"]
+           "samples_of", "seconds_at", "size_option"]
 
 INT32_MAX = 2**31 - 1
 #: The least seed rac takes (every command's --seed and --seeds, rac sweep's seed options): numpy's
