@@ -40,6 +40,8 @@ def _boolean(name: str, raw: object) -> bool:
 
 
 def _number(name: str, raw: object) -> float:
+    if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
+        return 1.0 if raw else 0.0
     if not isinstance(raw, numbers.Real):
         raise ValueError(f"input {name!r} = {raw!r} is not a number")  # noqa: TRY004
     try:

@@ -101,8 +101,8 @@ def test_gymnasiums_vector_layout_is_logged_as_the_per_env_infos(tmp_path: Path)
     from engine_files import ALLOW_WHEN, write_engine_file
 
     from rac.learning.scenario_env import ScenarioEnv
-    from rac.learning.training_log import split_vector_info
     from rac.learning.vector import ScenarioVectorEnv
+    from rac.learning.vector_info import split_vector_info
 
     path = write_engine_file(tmp_path, "avoidable_obstacle", queries={})
     path.write_text(path.read_text(encoding="utf-8").replace("        bind near =", ALLOW_WHEN + "        bind near =",

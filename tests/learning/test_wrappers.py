@@ -218,3 +218,78 @@ def test_the_vector_wrapper_refuses_other_autoreset_modes() -> None:
     env = SyncVectorEnv([HighwayLike], autoreset_mode=AutoresetMode.SAME_STEP)
     with pytest.raises(ValueError, match="NEXT_STEP"):
         RewardAutomatonVectorWrapper(env, follow(), vector_inputs)
+
+
+class Counting(Gap):
+    """Gap whose reset info says so and whose step info counts the steps (the two infos tell apart)."""
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        self.t = 0
+        obs, _ = super().reset(seed=seed)
+        return obs, {"collision": False, "reset": True}
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        self.t += 1
+        obs, reward, terminated, truncated, _ = super().step(action)
+        return obs, reward, terminated, truncated, {"collision": False, "t": self.t}
+
+
+def gap_inputs(obs: np.ndarray, infos: dict[str, Any]) -> dict[str, object]:
+    return {"headway": obs[:, 0].astype(np.float64), "collide": False}
+
+
+def test_a_forced_reset_reports_the_reset_info() -> None:
+    # the automaton ended env 0's episode (headway >= 9.5) while the env went on: the next step resets it,
+    # and its info is the reset's, as NEXT_STEP's autoreset gives (it was the discarded step's)
+    from rac.learning.vector_info import split_vector_info
+
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([Counting, Counting]), FOLLOW_ENDS, gap_inputs)
+    vector.reset(seed=0)
+    _, _, terminated, _, _ = vector.step(np.array([[9.5], [5.0]], dtype=np.float32))
+    assert terminated.tolist() == [True, False]
+    _, rewards, terminated, _, infos = vector.step(np.array([[5.0], [5.0]], dtype=np.float32))
+    first, second = split_vector_info(infos)
+    assert rewards[0] == 0.0 and not terminated[0]
+    assert first.get("reset") is True and "t" not in first
+    assert second["t"] == 2 and "reset" not in second
+
+
+def test_a_partial_reset_resets_those_automata_only() -> None:
+    # gymnasium >= 1.1: reset(options={"reset_mask": m}) resets the selected sub-environments; the
+    # wrapper reset every automaton, and the others' returns stopped matching their objectives
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([Counting, Counting]), follow(), gap_inputs)
+    vector.reset(seed=0)
+    for _ in range(3):
+        vector.step(np.array([[5.0], [5.0]], dtype=np.float32))
+    kept = vector.automaton.objective[1]
+    vector.reset(options={"reset_mask": np.array([True, False])})
+    assert vector.automaton.samples.tolist() == [0, 3] and vector.automaton.objective[1] == kept
+    vector.step(np.array([[5.0], [5.0]], dtype=np.float32))
+    assert vector.automaton.samples.tolist() == [1, 4]
+    with pytest.raises(ValueError, match="reset_mask"):
+        vector.reset(options={"reset_mask": np.array([True, False, True])})
+
+
+@pytest.mark.parametrize("scale", [None, "proven"])
+def test_an_episode_past_the_horizon_is_said_once(scale: str | None) -> None:
+    # an environment without a time step (nothing to compare) and longer episodes than the automaton's
+    # 30 samples: the 31st sample's reward is beyond the proofs (and the proven scale's bound)
+    env = RewardAutomatonWrapper(Gap(), follow(), inputs, scale=scale)
+    env.reset(seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        for _ in range(30):
+            env.step(np.array([5.0]))
+    also = "and the proven scale " if scale else ""
+    with pytest.warns(UserWarning, match=f"past the automaton's horizon of 30 samples: the priority proofs {also}"):
+        env.step(np.array([5.0]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        env.step(np.array([5.0]))  # said once
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([Counting, Counting]), follow(), gap_inputs, scale=scale)
+    vector.reset(seed=0)
+    for _ in range(30):
+        vector.step(np.array([[5.0], [5.0]], dtype=np.float32))
+    with pytest.warns(UserWarning, match="past the automaton's horizon of 30 samples"):
+        vector.step(np.array([[5.0], [5.0]], dtype=np.float32))

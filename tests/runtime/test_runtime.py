@@ -506,6 +506,28 @@ def test_batch_strategies_agree_with_scalars(n_flags: int, auto: str) -> None:
     assert moves == {"A", "B"}
 
 
+def test_the_batch_takes_what_the_scalar_runtimes_take(driving: ir.Automaton) -> None:
+    """A Fraction is a number (the batch refused object arrays of them), numpy's bool counts 0 or 1 for
+    a numeric input as Python's does (the scalar runtimes refused it, the batch took it): the same rule
+    in the interpreter, the generated module and the batch."""
+    import types
+
+    from rac.targets.python import generate_python
+
+    namespace = types.ModuleType("generated_driving")
+    exec(compile(generate_python(driving), "<generated>", "exec"), namespace.__dict__)  # noqa: S102
+    module = getattr(namespace, namespace.__all__[0])
+    for value, read in [(Fraction(1, 3), 1 / 3), (np.True_, 1.0), (True, 1.0), (np.float32(0.5), 0.5)]:
+        row = {**inputs(), "dgoal": value}
+        expected = {**inputs(), "dgoal": read}
+        ra, generated, reference = RewardAutomaton(driving), module(), RewardAutomaton(driving)
+        assert ra.step(row) == generated.step(row) == reference.step(expected)
+        batch = BatchRewardAutomaton(driving, 2)
+        column = np.array([value, value], dtype=object) if isinstance(value, Fraction) else np.array([value, value])
+        assert batch.step_batch({**{k: np.array([v, v]) for k, v in inputs().items()}, "dgoal": column}).tolist() \
+            == [reference.objective] * 2
+
+
 def test_the_batch_refuses_inputs_of_the_wrong_kind(driving: ir.Automaton) -> None:
     """Complex arrays lost their imaginary part, numeric strings were read, a NaN mask counted as
     True and batch(2.5) made two automata (issue 12): each is a ValueError now."""
@@ -515,7 +537,7 @@ def test_the_batch_refuses_inputs_of_the_wrong_kind(driving: ir.Automaton) -> No
     good = {name: np.array([value, value]) for name, value in inputs().items()}
     for name, value, message in [("dgoal", np.array([1 + 1j, 2]), "real numbers"),
                                  ("dgoal", np.array(["5", "6"]), "real numbers"),
-                                 ("dgoal", np.array([None, 1.0], dtype=object), "real numbers"),
+                                 ("dgoal", np.array([None, 1.0], dtype=object), "'dgoal' = None is not a number"),
                                  ("isClose", np.array([0.5, 1.0]), "booleans"),
                                  ("isClose", np.array([2, 0]), "booleans")]:
         with pytest.raises(ValueError, match=message):

@@ -3,7 +3,7 @@
 :class:`TrainingLog` is fed the ``infos`` of each vector step — a list of per-env info dicts, as
 stable-baselines3 hands them to callbacks, or one dict in gymnasium's vector layout, as
 :class:`~rac.learning.vector.ScenarioVectorEnv` and gymnasium's vector envs return it
-(:func:`split_vector_info`) — and aggregates, until :meth:`TrainingLog.record`:
+(:func:`rac.learning.vector_info.split_vector_info`) — and aggregates, until :meth:`TrainingLog.record`:
 
 - ``rac/reward/<name>``: each reward's mean change per step (``info["rac"]["reward_steps"]`` of the
   wrapper, ``info["reward_steps"]`` of ScenarioEnv);
@@ -27,29 +27,9 @@ from collections import Counter
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-__all__ = ["TrainingLog", "split_vector_info"]
+from rac.learning.vector_info import split_vector_info
 
-
-def split_vector_info(info: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """One info dict per sub-environment from gymnasium's vector layout: every key an array over
-    the environments, ``_key`` the mask of those that report it, nested dicts laid out alike. The
-    number of environments is read from the masks (``[]`` without any)."""
-    sizes = {len(value) for key, value in info.items() if key.startswith("_") and hasattr(value, "__len__")}
-    if not sizes:
-        return []
-    n = max(sizes)
-    out: list[dict[str, Any]] = [{} for _ in range(n)]
-    for key, value in info.items():
-        if key.startswith("_"):
-            continue
-        mask = info.get(f"_{key}")
-        parts = split_vector_info(value) if isinstance(value, Mapping) else None
-        for env in range(n):
-            if mask is not None and not mask[env]:
-                continue
-            item = (parts[env] if env < len(parts) else {}) if parts is not None else value[env]
-            out[env][key] = item.item() if hasattr(item, "item") and getattr(item, "ndim", 1) == 0 else item
-    return out
+__all__ = ["TrainingLog"]
 
 
 class TrainingLog:
@@ -72,7 +52,7 @@ class TrainingLog:
 
     def add(self, infos: Iterable[Mapping[str, Any]] | Mapping[str, Any]) -> None:
         """One vector step: the info dict of every sub-environment, or one dict in gymnasium's vector
-        layout (:func:`split_vector_info`)."""
+        layout (:func:`rac.learning.vector_info.split_vector_info`)."""
         if isinstance(infos, Mapping):
             infos = split_vector_info(infos)
         for info in infos:

@@ -47,6 +47,7 @@ from rac import ir
 from rac.check.analysis.scale import sample_change_bound
 from rac.compiler import compile_file
 from rac.core.diagnostics import CheckError, RacValueError
+from rac.learning.vector_info import merge_vector_info
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
@@ -195,6 +196,28 @@ class _Timing:
                               f"{cover}", UserWarning, stacklevel=3)
 
 
+class _PastHorizon:
+    """Warns once when an episode runs past the automaton's horizon: the priority proofs, and a proven
+    scale's bound on every reward, cover that many samples only (an environment without a time
+    step, whose timing :class:`_Timing` cannot check, is caught here at the latest)."""
+
+    def __init__(self, automaton: object, proven: bool) -> None:
+        steps = getattr(automaton, "steps", None)
+        self.steps = steps if isinstance(steps, int) else None
+        self.proven = proven
+        self.warned = False
+
+    def check(self, samples: Any) -> None:
+        if self.warned or self.steps is None or samples is None or not np.any(np.asarray(samples) > self.steps):
+            return
+        self.warned = True
+        also = " and the proven scale (every reward within [-1, 1])" if self.proven else ""
+        warnings.warn(f"an episode has run past the automaton's horizon of {self.steps} samples: the priority "
+                      f"proofs{also} cover {self.steps} samples only, and its rewards from here on are not covered; "
+                      f"end the episodes there (gymnasium.wrappers.TimeLimit(env, {self.steps}) for one step a "
+                      "sample)", UserWarning, stacklevel=3)
+
+
 def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
     if not clip:
         return None
@@ -260,6 +283,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self.clipped_total: dict[str, int] = {}
         self._timing = _Timing(self.automaton, dt)
         self._timing.check(env)
+        self._past = _PastHorizon(self.automaton, scale == "proven")
 
     def _snapshot(self) -> dict[str, Any]:
         ra = self.automaton
@@ -292,6 +316,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
                 self.clipped_total[name] = self.clipped_total.get(name, 0) + count
         before = dict(self.automaton.rewards)
         reward = self.automaton.step(values)
+        self._past.check(getattr(self.automaton, "samples", None))
         # `episode ends when`: the automaton ended the run itself, its end clauses applied in this step
         # (a class generated before the declaration existed has no `terminated`: it never ends a run)
         if getattr(self.automaton, "terminated", False):
@@ -357,6 +382,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         self._forced = np.zeros(self.num_envs, dtype=bool)
         self._timing = _Timing(self.automaton, dt)
         self._timing.check(self._first_env())
+        self._past = _PastHorizon(self.automaton, scale == "proven")
 
     def _first_env(self) -> object:
         """The first sub-environment when the vector environment holds them (SyncVectorEnv), for its timing."""
@@ -373,12 +399,18 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        """Reset every sub-environment and automaton."""
+        """Reset every sub-environment and automaton, or with ``options["reset_mask"]`` (gymnasium >= 1.1)
+        those the mask selects: the others go on, their automata untouched."""
+        # read before the environment resets: gymnasium's SyncVectorEnv pops the mask out of the options
+        mask = options.get("reset_mask") if options else None
+        rows = np.ones(self.num_envs, dtype=bool) if mask is None else np.array(mask, dtype=bool).reshape(-1)
+        if rows.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must hold {self.num_envs} booleans, not {rows.shape}")
         obs, infos = self.env.reset(seed=seed, options=options)
         self._timing.check(self._first_env())
-        self.automaton.reset()
-        self._resetting[:] = False
-        self._forced[:] = False
+        self.automaton.reset(rows)
+        self._resetting[rows] = False
+        self._forced[rows] = False
         return obs, self._info(infos, {})
 
     def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
@@ -387,7 +419,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         terminated, truncated = np.array(terminated, dtype=bool), np.array(truncated, dtype=bool)
         forced = self._forced
         if forced.any():  # the automaton ended these episodes, the environment did not: the reset step now
-            obs, _ = self.env.reset(options={"reset_mask": forced.copy()})
+            obs, reset_infos = self.env.reset(options={"reset_mask": forced.copy()})
+            infos = merge_vector_info(infos, reset_infos, forced)  # their info is the reset info, as NEXT_STEP's
             terminated[forced] = truncated[forced] = False
             self._forced = np.zeros(self.num_envs, dtype=bool)
         resetting = self._resetting
@@ -406,6 +439,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
                 self.clipped_total[name] = self.clipped_total.get(name, 0) + int(per_env.sum())
         previous = self.automaton.rewards
         rewards = self.automaton.step_batch(values, mask=active)
+        self._past.check(self.automaton.samples)
         ended = self.automaton.terminated & active  # `episode ends when`: end clauses applied in this step
         self._forced = ended & ~terminated & ~truncated
         terminated = (terminated | ended) & active

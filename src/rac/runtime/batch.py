@@ -32,6 +32,7 @@ from rac.runtime.semantics import (
     float_linear,
     input_specs,
     key_error,
+    number_input,
     range_error,
     to_float,
 )
@@ -402,9 +403,12 @@ class BatchRewardAutomaton(AutomatonDescription):
                                      "values")
                 out[spec.name] = raw.astype(bool, copy=False)
                 continue
-            if kind not in "biuf":  # not strings, complex numbers or Python objects
+            if kind == "O":  # Python objects: each by the scalar runtime's rule (a Fraction is a number, None not)
+                value = np.array([number_input(spec.name, item) for item in raw], dtype=np.float64)
+            elif kind not in "biuf":  # not strings or complex numbers
                 raise ValueError(f"input {spec.name!r} must hold real numbers, not {raw.dtype} values")
-            value = raw.astype(np.float64, copy=False)
+            else:
+                value = raw.astype(np.float64, copy=False)
             if spec.bounded:
                 ok = (value >= spec.low) & (value <= spec.high)
             else:

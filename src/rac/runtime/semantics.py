@@ -214,8 +214,11 @@ def boolean_input(name: str, raw: object) -> bool:
 
 
 def number_input(name: str, raw: object) -> float:
-    """A numeric input's value as a float: a real number (``int``, ``float``, a numpy number);
-    a string, ``None``, a complex number or a sequence is ``ValueError``, so is a number no float holds."""
+    """A numeric input's value as a float: a real number (``int``, ``float``, a ``Fraction``, a numpy
+    number; a boolean, Python's or numpy's, counts 0 or 1); a string, ``None``, a complex number or a
+    sequence is ``ValueError``, so is a number no float holds."""
+    if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
+        return 1.0 if raw else 0.0
     if not isinstance(raw, numbers.Real):
         raise ValueError(f"input {name!r} = {raw!r} is not a number")
     try:
