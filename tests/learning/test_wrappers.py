@@ -53,6 +53,35 @@ def test_the_inputs_may_read_the_environment() -> None:
     env.reset(seed=0)
     env.step(1)
     assert seen == ["the road"]
+    # a third parameter with a default is the caller's own (it was handed the environment)
+
+    def tuned(obs: Any, info: dict[str, Any], limit: float = 2.0) -> dict[str, object]:
+        return {"headway": float(obs[0]), "collide": bool(info["collision"]) and float(obs[0]) < limit}
+
+    def with_env(obs: Any, info: dict[str, Any], env: Any = None) -> dict[str, object]:
+        seen.append(env.unwrapped.road)
+        return inputs(obs, info)
+
+    for given in (tuned, with_env):
+        env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), given, clip=True)
+        env.reset(seed=0)
+        env.step(1)
+    assert seen == ["the road", "the road"]
+
+
+def test_a_generated_class_instead_of_an_instance_is_refused_at_once() -> None:
+    import types
+
+    from rac.targets.python import generate_python
+
+    module = types.ModuleType("follow_generated")
+    exec(compile(generate_python(follow()), "<generated>", "exec"), module.__dict__)  # noqa: S102
+    cls = getattr(module, module.__all__[0])
+    with pytest.raises(TypeError, match=rf"automaton is the class {cls.__name__}: pass an instance"):
+        RewardAutomatonWrapper(gymnasium.make(ENV_ID), cls, inputs)
+    env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), cls(), lambda obs, info: {"headway": 5.0, "collide": False})
+    env.reset(seed=0)
+    assert isinstance(env.step(1)[1], float)
 
 
 def test_out_of_range_inputs_are_clipped_and_counted_and_nan_refused() -> None:
