@@ -75,3 +75,21 @@ def test_clip_rows_counts_each_row_by_the_rule_of_clip_inputs() -> None:
     assert np.asarray(scalar["dgoal"]).tolist() == [500.0, 500.0, 600.0, 500.0, 500.0]
     with pytest.raises(ValueError, match=r"input 'dgoal'\[1\] is NaN"):
         clip_column(next(s for s in specs if s.name == "dgoal"), np.array([1.0, math.nan]))
+
+
+def test_a_step_that_raises_leaves_the_counts_of_the_last_one() -> None:
+    # "the automaton is left untouched" by a refused step: its clip counts too (they were the refused step's)
+    ra = RewardAutomaton(driving_automaton())
+    ra.step(inputs(dgoal=3.0), clip=True)
+    assert ra.clipped == {"dgoal": 0}
+    with pytest.raises(ValueError, match="isClose"):
+        ra.step({**inputs(dgoal=900.0), "isClose": "yes"}, clip=True)
+    assert ra.clipped == {"dgoal": 0} and ra.samples == 1
+    batch = RewardAutomaton(driving_automaton()).batch(2)
+    values = {k: np.array([v] * 2) for k, v in inputs().items()}
+    batch.step_batch(values, clip=True)
+    values["dgoal"] = np.array([900.0, 1.0])
+    values["isClose"] = np.array([0.5, 1.0])
+    with pytest.raises(ValueError, match="isClose"):
+        batch.step_batch(values, clip=True)
+    assert batch.clipped == {"dgoal": 0} and batch.samples.tolist() == [1, 1]

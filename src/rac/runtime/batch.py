@@ -448,12 +448,14 @@ class BatchRewardAutomaton(AutomatonDescription):
         R, index = self._R, self._index
         return _eval_np_linear(self._objective_form, lambda name: R[index[name]], self._n)
 
-    def _clip(self, inputs: Mapping[str, object], clip: bool, rows: np.ndarray | None) -> Mapping[str, object]:
+    def _clip(self, inputs: Mapping[str, object], clip: bool,
+              rows: np.ndarray | None) -> tuple[Mapping[str, object], dict[str, int] | None]:
+        """The inputs clipped (with ``clip``) and the counts, which the caller keeps in :attr:`clipped`
+        once the inputs are read: a call that raises leaves the automata untouched, the counts too."""
         if not clip:
-            return inputs
+            return inputs, None
         check_mapping(inputs)
-        inputs, self.clipped = clip_inputs(self._specs, inputs, rows)
-        return inputs
+        return clip_inputs(self._specs, inputs, rows)
 
     def _atom_code(self, x: Mapping[str, np.ndarray], n: int) -> np.ndarray:
         """Each row's guard atoms as the bits of one integer: the index into the edge tables."""
@@ -487,11 +489,13 @@ class BatchRewardAutomaton(AutomatonDescription):
         With ``episode ends when``, the automata whose inputs satisfy the condition end their run at this
         sample (end clauses applied, their increase in the reward): :attr:`terminated` marks them."""
         only = None if mask is None else self._mask(mask)
-        inputs = self._clip(inputs, clip, only)
+        inputs, counts = self._clip(inputs, clip, only)
         ended = self._ended if only is None else self._ended & only
         if self._n_ended and ended.any():
             raise RuntimeError(f"{ENDED_MESSAGE} (automata {np.flatnonzero(ended)[:10].tolist()} have ended)")
         x = self._read(inputs, only)
+        if counts is not None:
+            self.clipped = counts
         loc = self._loc
         with np.errstate(all="ignore"):
             # ---- choose edges (before anything changes: an assume violation leaves the state alone)
@@ -674,10 +678,12 @@ class BatchRewardAutomaton(AutomatonDescription):
         """
         m = np.ones(self._n, dtype=bool) if mask is None else self._mask(mask)
         m &= ~self._terminated
-        inputs = self._clip(inputs, clip, m)
+        inputs, counts = self._clip(inputs, clip, m)
         if (self._ended & m).any():
             raise RuntimeError(f"{ENDED_MESSAGE} (automata {np.flatnonzero(self._ended & m)[:10].tolist()})")
         x = self._read(inputs, m)
+        if counts is not None:
+            self.clipped = counts
         with np.errstate(all="ignore"):
             g = self._guards.evaluate(x)
             ok = g[self._end_assume] | ~m

@@ -271,12 +271,13 @@ class RewardAutomaton(AutomatonDescription):
         self._objective = objective
         return reward
 
-    def _clip(self, inputs: Mapping[str, object], clip: bool) -> Mapping[str, object]:
+    def _clip(self, inputs: Mapping[str, object], clip: bool) -> tuple[Mapping[str, object], dict[str, int] | None]:
+        """The inputs clipped (with ``clip``) and the counts, which the caller keeps in :attr:`clipped`
+        once the inputs are read: a call that raises leaves the automaton untouched, its counts too."""
         if not clip:
-            return inputs
+            return inputs, None
         check_mapping(inputs)
-        inputs, self.clipped = clip_inputs(self._specs, inputs)
-        return inputs
+        return clip_inputs(self._specs, inputs)
 
     def step(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
         """Take one sample with ``inputs``; return the objective's increase.
@@ -286,7 +287,10 @@ class RewardAutomaton(AutomatonDescription):
         """
         if self._ended:
             raise RuntimeError(ENDED_MESSAGE)
-        x = self._read(self._clip(inputs, clip))
+        inputs, counts = self._clip(inputs, clip)
+        x = self._read(inputs)
+        if counts is not None:
+            self.clipped = counts
         held = x if self._held is None else self._held
         r = self._r
         for i, rate in self._rates[self._loc]:
@@ -322,7 +326,10 @@ class RewardAutomaton(AutomatonDescription):
             return 0.0
         if self._ended:
             raise RuntimeError(ENDED_MESSAGE)
-        x = self._read(self._clip(inputs, clip))
+        inputs, counts = self._clip(inputs, clip)
+        x = self._read(inputs)
+        if counts is not None:
+            self.clipped = counts
         self._apply_end(x)
         return self._increase(x)
 
