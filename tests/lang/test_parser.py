@@ -155,3 +155,16 @@ def test_words_of_expressions_cannot_name_anything():
                 continue
             assert codes == ["E0013"], (word, slot)
             assert f"`{word}` is a word of the language" in result.diagnostics[0].message
+
+
+def test_an_empty_path_is_no_file_rather_than_the_working_folder(tmp_path: Path) -> None:
+    # Path("") is "."; rac.load("") said ". is a directory"
+    import rac
+    from rac.lang.parser import read_source
+
+    with pytest.raises(FileNotFoundError, match="the path is empty"):
+        read_source("")
+    with pytest.raises(FileNotFoundError, match="the path is empty"):
+        rac.load("")
+    with pytest.raises(IsADirectoryError, match="is a directory"):
+        read_source(tmp_path)

@@ -400,6 +400,8 @@ def read_source(path: str | Path) -> SourceFile:
     Unreadable files (missing, a directory, no permission) raise ``OSError`` so the
     CLI can exit with status 2; content problems become diagnostics.
     """
+    if os.fspath(path) == "":  # Path("") is ".", the working folder: say what was given
+        raise FileNotFoundError(errno.ENOENT, "the path is empty, not a .ra file", "")
     path = Path(path)
     name = str(path)
     if path.is_dir():
