@@ -322,3 +322,23 @@ def test_an_episode_past_the_horizon_is_said_once(scale: str | None) -> None:
         vector.step(np.array([[5.0], [5.0]], dtype=np.float32))
     with pytest.warns(UserWarning, match="past the automaton's horizon of 30 samples"):
         vector.step(np.array([[5.0], [5.0]], dtype=np.float32))
+
+
+def test_the_vector_wrapper_checks_the_timing_of_an_async_vector_env() -> None:
+    # AsyncVectorEnv keeps its sub-environments in worker processes (no .envs): the timing was not
+    # checked at all; it is read from one made from its first env_fns
+    from gymnasium.vector import AsyncVectorEnv
+
+    envs = AsyncVectorEnv([lambda: TimeLimit(HighwayLike(dt=0.5), 6) for _ in range(2)])
+    try:
+        with pytest.warns(UserWarning, match=r"time step is 0.5 s but the automaton samples every 0.1 s"):
+            RewardAutomatonVectorWrapper(envs, follow(), vector_inputs)
+    finally:
+        envs.close()
+    same = AsyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30) for _ in range(2)])
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", UserWarning)
+            RewardAutomatonVectorWrapper(same, follow(), vector_inputs).reset(seed=0)
+    finally:
+        same.close()

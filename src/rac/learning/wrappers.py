@@ -331,6 +331,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         return obs, reward / self.scale, terminated, truncated, info
 
 
+
 class RewardAutomatonVectorWrapper(VectorWrapper):
     """:class:`RewardAutomatonWrapper` for a vector environment: one
     :class:`~rac.runtime.batch.BatchRewardAutomaton` steps the ``num_envs`` automata together.
@@ -384,13 +385,28 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         #: Sub-environments whose episode the automaton ended while they went on: reset on the next step.
         self._forced = np.zeros(self.num_envs, dtype=bool)
         self._timing = _Timing(self.automaton, dt)
+        self._stand_in: object | None = None  # an AsyncVectorEnv's first sub-environment, made here for its timing
         self._timing.check(self._first_env())
         self._past = _PastHorizon(self.automaton, scale == "proven")
 
     def _first_env(self) -> object:
-        """The first sub-environment when the vector environment holds them (SyncVectorEnv), for its timing."""
+        """The first sub-environment when the vector environment holds them (SyncVectorEnv), for its
+        timing; for one whose sub-environments live in worker processes (AsyncVectorEnv), one made
+        here from its first ``env_fns`` and closed, as AsyncVectorEnv itself reads the spaces (asking
+        the workers for an attribute they lack breaks their pending-call state)."""
         envs = getattr(self.env.unwrapped, "envs", None)
-        return envs[0] if envs else self.env
+        if envs:
+            return envs[0]
+        if self._stand_in is None:
+            makers = getattr(self.env.unwrapped, "env_fns", None)
+            if not makers:
+                return self.env
+            self._stand_in = makers[0]()
+            close = getattr(self._stand_in, "close", None)
+            if callable(close):
+                close()
+        return self._stand_in
+
 
     def _info(self, infos: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
         ra, n = self.automaton, self.num_envs
