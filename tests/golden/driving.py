@@ -39,15 +39,23 @@ def _boolean(name: str, raw: object) -> bool:
     raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
 
 
-def _number(name: str, raw: object) -> float:
+def _number(name: str, raw: object, low: float, high: float) -> float:
     if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
         return 1.0 if raw else 0.0
     if not isinstance(raw, numbers.Real):
         raise ValueError(f"input {name!r} = {raw!r} is not a number")  # noqa: TRY004
     try:
-        return float(raw)
+        value = float(raw)
     except OverflowError:
         raise ValueError(f"input {name!r} = {raw!r} is too large for a float") from None
+    if not low <= value <= high and type(raw).__name__ in ("float32", "float16"):
+        # a narrower float (an env's float32) at a bound rounded to its precision is that bound
+        narrow = type(raw)
+        if narrow(low) == raw:
+            return low
+        if narrow(high) == raw:
+            return high
+    return value
 
 
 def _range_error(name: str, value: float, low: float, high: float) -> ValueError:
@@ -132,7 +140,7 @@ class Driving:
                 i_collide = _boolean("collide", i_collide)
             i_dgoal = inputs["dgoal"]
             if type(i_dgoal) is not float:
-                i_dgoal = _number("dgoal", i_dgoal)
+                i_dgoal = _number("dgoal", i_dgoal, 0.0, 500.0)
             if not 0.0 <= i_dgoal <= 500.0:
                 raise _range_error("dgoal", i_dgoal, 0.0, 500.0)
         except KeyError:
@@ -226,7 +234,7 @@ class Driving:
                 i_collide = _boolean("collide", i_collide)
             i_dgoal = inputs["dgoal"]
             if type(i_dgoal) is not float:
-                i_dgoal = _number("dgoal", i_dgoal)
+                i_dgoal = _number("dgoal", i_dgoal, 0.0, 500.0)
             if not 0.0 <= i_dgoal <= 500.0:
                 raise _range_error("dgoal", i_dgoal, 0.0, 500.0)
         except KeyError:

@@ -93,3 +93,30 @@ def test_a_step_that_raises_leaves_the_counts_of_the_last_one() -> None:
     with pytest.raises(ValueError, match="isClose"):
         batch.step_batch(values, clip=True)
     assert batch.clipped == {"dgoal": 0} and batch.samples.tolist() == [1, 1]
+
+
+def test_a_float32_at_a_bound_rounded_to_float32_is_that_bound() -> None:
+    """MountainCar observes its position as float32: at the left wall np.float32(-1.2), which is
+    -1.2000000476837158 as a float and was refused for `real in [-1.2, 0.6]` by every runtime."""
+    import types
+
+    from rac.compiler import compile_text
+    from rac.targets.python import generate_python
+
+    source = ("automaton Car {\n    input pos : real in [-1.2, 0.6]\n    reward r\n    objective r\n"
+              "    sample every 1\n    horizon 10\n    initial location A { r' == pos }\n}\n")
+    automaton = compile_text(source, "car.ra").raise_for_errors()
+    module = types.ModuleType("car_generated")
+    exec(compile(generate_python(automaton), "<generated>", "exec"), module.__dict__)  # noqa: S102
+    for value, read in [(np.float32(-1.2), -1.2), (np.float32(0.6), 0.6), (np.float16(0.6), 0.6),
+                        (np.float32(0.25), 0.25)]:
+        ra, generated = RewardAutomaton(automaton), module.Car()
+        assert ra.step({"pos": value}) == generated.step({"pos": value}) == read
+        batch = RewardAutomaton(automaton).batch(2)
+        assert batch.step_batch({"pos": np.array([value, value])}).tolist() == [read, read]
+    for outside in (np.float32(-1.3), -1.2000000476837158, np.float64(np.float32(-1.2))):  # not a float32 at the bound
+        for runtime in (RewardAutomaton(automaton), module.Car()):
+            with pytest.raises(ValueError, match=r"input 'pos' = -1.\d+ is outside \[-1.2, 0.6\]"):
+                runtime.step({"pos": outside})
+        with pytest.raises(ValueError, match=r"is outside \[-1.2, 0.6\]"):
+            RewardAutomaton(automaton).batch(1).step_batch({"pos": np.array([outside])})

@@ -23,6 +23,7 @@ import numpy as np
 from rac import ir
 from rac.runtime.semantics import (
     ENDED_MESSAGE,
+    NARROW_FLOATS,
     AutomatonDescription,
     FloatLinear,
     assume_checks,
@@ -409,6 +410,10 @@ class BatchRewardAutomaton(AutomatonDescription):
                 raise ValueError(f"input {spec.name!r} must hold real numbers, not {raw.dtype} values")
             else:
                 value = raw.astype(np.float64, copy=False)
+                if raw.dtype.name in NARROW_FLOATS:  # at a bound rounded to the column's precision: that bound
+                    narrow = raw.dtype.type
+                    value = np.where((value < spec.low) & (raw == narrow(spec.low)), spec.low,
+                                     np.where((value > spec.high) & (raw == narrow(spec.high)), spec.high, value))
             if spec.bounded:
                 ok = (value >= spec.low) & (value <= spec.high)
             else:

@@ -253,7 +253,7 @@ class RewardAutomaton(AutomatonDescription):
                 if spec.kind == "bool":
                     values[spec.name] = raw if raw is True or raw is False else boolean_input(spec.name, raw)
                     continue
-                value = raw if type(raw) is float else number_input(spec.name, raw)
+                value = raw if type(raw) is float else number_input(spec.name, raw, spec.low, spec.high)
                 if not spec.low <= value <= spec.high or not math.isfinite(value) or (
                         spec.kind == "int" and not value.is_integer()):
                     raise range_error(spec, value)

@@ -199,6 +199,11 @@ def check_automaton(automaton: ir.Automaton) -> None:
     check_linear(automaton.objective, rewards, "objective")
 
 
+#: The float types narrower than Python's whose value at a bound rounded to their precision is that
+#: bound (:func:`number_input`; the batch's columns of these dtypes alike).
+NARROW_FLOATS = ("float32", "float16")
+
+
 def check_mapping(inputs: object) -> None:
     """``ValueError`` unless ``inputs`` maps input names to values (``step(None)`` said TypeError)."""
     if not isinstance(inputs, Mapping):
@@ -213,18 +218,27 @@ def boolean_input(name: str, raw: object) -> bool:
     raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
 
 
-def number_input(name: str, raw: object) -> float:
+def number_input(name: str, raw: object, low: float = -math.inf, high: float = math.inf) -> float:
     """A numeric input's value as a float: a real number (``int``, ``float``, a ``Fraction``, a numpy
     number; a boolean, Python's or numpy's, counts 0 or 1); a string, ``None``, a complex number or a
-    sequence is ``ValueError``, so is a number no float holds."""
+    sequence is ``ValueError``, so is a number no float holds. A narrower float (numpy's float32 or
+    float16, as environments observe) equal to the bound ``low`` or ``high`` rounded to its precision
+    is that bound: MountainCar's ``np.float32(-1.2)`` is -1.2, not -1.2000000476837158."""
     if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
         return 1.0 if raw else 0.0
     if not isinstance(raw, numbers.Real):
         raise ValueError(f"input {name!r} = {raw!r} is not a number")
     try:
-        return float(raw)
+        value = float(raw)
     except OverflowError:
         raise ValueError(f"input {name!r} = {raw!r} is too large for a float") from None
+    if not low <= value <= high and type(raw).__name__ in NARROW_FLOATS:
+        narrow: Any = type(raw)
+        if narrow(low) == raw:
+            return low
+        if narrow(high) == raw:
+            return high
+    return value
 
 
 def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],

@@ -246,9 +246,9 @@ class _Generator:
                 lines += [f"    {var} = inputs[{name}]", f"    if {var} is not True and {var} is not False:",
                           f"        {var + ' = ' if used else ''}_boolean({name}, {var})"]
                 continue
-            lines += [f"    {var} = inputs[{name}]", f"    if type({var}) is not float:",
-                      f"        {var} = _number({name}, {var})"]
             low, high = _num_or_inf(spec.low), _num_or_inf(spec.high)
+            lines += [f"    {var} = inputs[{name}]", f"    if type({var}) is not float:",
+                      f"        {var} = _number({name}, {var}, {low}, {high})"]
             if spec.bounded:
                 bad = [f"not {low} <= {var} <= {high}"]
             else:
