@@ -120,3 +120,18 @@ def test_a_float32_at_a_bound_rounded_to_float32_is_that_bound() -> None:
                 runtime.step({"pos": outside})
         with pytest.raises(ValueError, match=r"is outside \[-1.2, 0.6\]"):
             RewardAutomaton(automaton).batch(1).step_batch({"pos": np.array([outside])})
+
+
+def test_clipping_leaves_a_float32_at_a_bound_uncounted() -> None:
+    # it is the bound (test above): clip=True neither moves nor counts it, in either runtime
+    from rac.compiler import compile_text
+
+    source = ("automaton Car {\n    input pos : real in [-1.2, 0.6]\n    reward r\n    objective r\n"
+              "    sample every 1\n    horizon 10\n    initial location A { r' == pos }\n}\n")
+    automaton = compile_text(source, "car.ra").raise_for_errors()
+    ra = RewardAutomaton(automaton)
+    assert ra.step({"pos": np.float32(-1.2)}, clip=True) == -1.2 and ra.clipped == {"pos": 0}
+    assert ra.step({"pos": np.float32(-1.3)}, clip=True) == -1.2 and ra.clipped == {"pos": 1}
+    batch = RewardAutomaton(automaton).batch(2)
+    assert batch.step_batch({"pos": np.array([-1.2, -1.3], dtype=np.float32)}, clip=True).tolist() == [-1.2, -1.2]
+    assert batch.clipped == {"pos": 1}

@@ -27,6 +27,7 @@ from rac.runtime.semantics import (
     AutomatonDescription,
     FloatLinear,
     assume_checks,
+    at_bounds,
     check_automaton,
     check_mapping,
     clip_inputs,
@@ -408,12 +409,10 @@ class BatchRewardAutomaton(AutomatonDescription):
                 value = np.array([number_input(spec.name, item) for item in raw], dtype=np.float64)
             elif kind not in "biuf":  # not strings or complex numbers
                 raise ValueError(f"input {spec.name!r} must hold real numbers, not {raw.dtype} values")
+            elif raw.dtype.name in NARROW_FLOATS:  # at a bound rounded to the column's precision: that bound
+                value = at_bounds(spec, raw)
             else:
                 value = raw.astype(np.float64, copy=False)
-                if raw.dtype.name in NARROW_FLOATS:  # at a bound rounded to the column's precision: that bound
-                    narrow = raw.dtype.type
-                    value = np.where((value < spec.low) & (raw == narrow(spec.low)), spec.low,
-                                     np.where((value > spec.high) & (raw == narrow(spec.high)), spec.high, value))
             if spec.bounded:
                 ok = (value >= spec.low) & (value <= spec.high)
             else:

@@ -257,9 +257,9 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
             continue
         raw = inputs[spec.name]
         if isinstance(raw, numbers.Real) and type(raw).__name__ not in ("bool", "bool_"):
-            try:
-                value = float(raw)
-            except OverflowError:
+            try:  # a float32 at a bound rounded to float32 is that bound: nothing to clip or count
+                value = number_input(spec.name, raw, spec.low, spec.high)
+            except ValueError:
                 continue  # validation says it is too large for a float
             if math.isnan(value):
                 raise ValueError(f"input {spec.name!r} is NaN, which is never clipped")
@@ -278,11 +278,23 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
     return out, counts
 
 
+def at_bounds(spec: InputSpec, raw: np.ndarray) -> np.ndarray:
+    """A numeric input's column as float64, where a narrower float (a float32 or float16 column) equal
+    to a bound rounded to its precision is that bound (:func:`number_input`'s rule for arrays)."""
+    value = raw.astype(np.float64)
+    if raw.dtype.name not in NARROW_FLOATS:
+        return value
+    narrow = raw.dtype.type
+    low = (value < spec.low) & (raw == narrow(spec.low))
+    high = (value > spec.high) & (raw == narrow(spec.high))
+    return np.where(low, spec.low, np.where(high, spec.high, value))
+
+
 def clip_column(spec: InputSpec, values: np.ndarray, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The numeric input ``spec``'s values (an array of numbers, any shape) clipped to its declared range
     as float64, and where each was clipped (bool, the same shape): the rule of :func:`clip_inputs`.
     ``rows`` (bool): only those are clipped and marked. ``ValueError`` naming the input for a NaN."""
-    column = np.asarray(values).astype(np.float64)
+    column = at_bounds(spec, np.asarray(values))
     nan = np.isnan(column) if rows is None else np.isnan(column) & rows
     if nan.any():
         where = "" if column.ndim == 0 else f"[{int(np.flatnonzero(nan)[0])}]"
