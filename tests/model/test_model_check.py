@@ -140,6 +140,21 @@ def test_missing_scenario_in_a_subfolder_names_the_resolved_path(tmp_path: Path)
     assert any("`scenario \"maps/left_turn.xml\"` is the file" in n.message for n in diagnostic.notes)
 
 
+def test_a_missing_scenario_from_a_relative_ra_path_names_where_it_led(tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    # `rac check rel.ra` with `scenario "../shared/x.xml"`: the resolved path is relative as written,
+    # so nothing said where rac looked (a user guessing the folder the path is relative to)
+    (tmp_path / "work").mkdir()
+    write(tmp_path / "work", source("../shared/left_turn.xml"))
+    monkeypatch.chdir(tmp_path / "work")
+    ra = next((tmp_path / "work").glob("*.ra")).name
+    (diagnostic,) = errors(compile_file(Path(ra)))
+    assert diagnostic.code == "E0712"
+    where = str(tmp_path / "shared" / "left_turn.xml")
+    assert [n.message for n in diagnostic.notes] == [
+        f"`scenario \"../shared/left_turn.xml\"` is the file `{where}` (relative to the folder of this file)"]
+
+
 @pytest.mark.parametrize(("xml", "message"), [
     (b"<commonRoad", "is not XML (line 1, column"),
     (b"<scenario/>", "is not a CommonRoad file (its root element is <scenario>"),

@@ -131,9 +131,12 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     scenario_span = automaton.spans.get("model:scenario", spec.span)
     written = spec.scenario
 
-    def cannot_load(message: str, hints: list[str]) -> ScenarioCheck:
+    def cannot_load(message: str, hints: list[str], missing: bool = False) -> ScenarioCheck:
         notes = [] if os.path.normpath(written) == spec.scenario_path else \
             [f"`scenario \"{written}\"` is the file `{spec.scenario_path}` (relative to the folder of this file)"]
+        if missing and not notes and os.path.dirname(written):  # a path through folders: where did it lead?
+            notes = [f"`scenario \"{written}\"` is the file `{os.path.abspath(spec.scenario_path)}` (relative to "
+                     "the folder of this file)"]
         result.diagnostics.append(error("E0712", f"cannot load the scenario: {message}", scenario_span,
                                         notes=notes, hints=hints))
         return result
@@ -147,7 +150,8 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
         result.diagnostics.append(_inconsistent(spec, scenario_span, failure))
         return result
     except ScenarioError as failure:
-        return cannot_load(str(failure), _load_hints(failure, written))
+        return cannot_load(str(failure), _load_hints(failure, written),
+                           missing=failure.element is None and failure.problem == "does not exist")
     # anything else (MemoryError: the budget or the machine, not the file) propagates: the loader
     # reports every fault of the file as a ScenarioError, so another failure is rac's own
     result.scenario = scenario
