@@ -287,6 +287,17 @@ def test_simulate_shield_without_safe_strategy_exits_1(capsys: pytest.CaptureFix
     assert not (tmp_path / "narrow_road.out").exists()
 
 
+@pytest.mark.parametrize("command", ["simulate", "render"])
+def test_a_shield_beyond_the_budget_is_a_resource_limit_exit_2(command: str, capsys: pytest.CaptureFixture[str],
+                                                              tmp_path: Path) -> None:
+    # a budget, not the file nor a failed query: exit 2, as `rac verify` leaves such a query undecided
+    # (it was exit 1, as if Qd did not hold)
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    assert main([command, str(path), "--shield", "--max-states", "10", "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rac {command}: resource limit: cannot compute the shield: ") and "10" in err
+
+
 @pytest.mark.parametrize(("expr", "message"), [
     ("mindist(", "`mindist(`: the expression is incomplete"),
     ("3 *", "`3 *`: the expression is incomplete"),

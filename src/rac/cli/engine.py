@@ -143,8 +143,8 @@ def _announcer(quiet: bool) -> Callable[[str], None]:
 
 
 def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int, n: int):
-    """``n`` simulated runs (under the safety shield with ``--shield``) and their seed, or None and
-    the reason when no shield can be used."""
+    """``n`` simulated runs (under the safety shield with ``--shield``) and their seed, or None, the
+    reason when no shield can be used and the exit code it calls for (:func:`_shield_policy`)."""
     import numpy as np  # numpy: only the command that uses it loads it
 
     # numpy (via rac.engine.simulate): only the command that uses it loads it
@@ -152,13 +152,13 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
 
     policy = None
     if args.shield:
-        policy, problem = _shield_policy(result, samples, args)
+        policy, problem, status = _shield_policy(result, samples, args)
         if policy is None:
-            return None, problem
+            return None, problem, status
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
     assert result.model_data is not None  # _load refused a file without one
     return simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
-                    max_bytes=args.max_memory or default_max_bytes()), seed
+                    max_bytes=args.max_memory or default_max_bytes()), seed, EXIT_OK
 
 
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
@@ -285,7 +285,9 @@ def verdict_status(results: Sequence[QueryResult]) -> int:
 
 
 def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.Namespace):
-    """The safety shield (Qd) at this horizon as a simulation policy, or an error message."""
+    """The safety shield (Qd) at this horizon as a simulation policy, or None, an error message and
+    the exit code: 2 when the shield is beyond the budget (a resource limit, as `rac verify`'s "not
+    decided" is no failed query), 1 when no safe strategy exists (Qd does not hold)."""
     # numpy, stormpy (via rac.engine.shield): only the command that uses it loads it
     from rac.engine import shield as shields
 
@@ -300,10 +302,10 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
                                                  max_bytes=args.max_memory or default_max_bytes(),
                                                  progress=callback)
     except BudgetExceeded as exc:
-        return None, f"cannot compute the shield: {over_budget(exc)}"
+        return None, f"resource limit: cannot compute the shield: {over_budget(exc)}", EXIT_USAGE
     if not computed.shield_exists:
-        return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)"
-    return table.masks_at, None
+        return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)", EXIT_ERRORS
+    return table.masks_at, None, EXIT_OK
 
 
 def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
@@ -349,10 +351,10 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(f"rac simulate: --expr: {problem}", file=sys.stderr)
         return EXIT_USAGE
     samples = _horizon_samples(result, args.horizon)
-    runs, seed = _shielded_runs(result, args, samples, args.runs)
+    runs, seed, status = _shielded_runs(result, args, samples, args.runs)
     if runs is None:
         print(f"rac simulate: {seed}", file=sys.stderr)
-        return EXIT_ERRORS
+        return status
     context = Context(result, VerifyOptions(seed=args.seed))
     try:
         values = context.values(runs, tuple(exprs))
@@ -396,12 +398,13 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     samples = _horizon_samples(result, args.horizon)
     if args.strategy:
         runs, seed = _strategy_run(result, args, samples)
+        status = EXIT_ERRORS if seed else EXIT_USAGE  # "": _strategy_run has said why (a usage error)
     else:
-        runs, seed = _shielded_runs(result, args, samples, 1)
+        runs, seed, status = _shielded_runs(result, args, samples, 1)
     if runs is None:
-        if seed:  # "": _strategy_run has said why (a usage error)
+        if seed:
             print(f"rac render: {seed}", file=sys.stderr)
-        return EXIT_ERRORS if seed else EXIT_USAGE
+        return status
     real = runs.sensed_real()[0]
     trajectory = real[:, [Ego.X, Ego.Y, Ego.HEAD]]
     out_dir = _out_dir(args)
