@@ -174,6 +174,16 @@ def test_broken_scenario(xml: bytes, message: str, tmp_path: Path) -> None:
     assert diagnostic.hints
 
 
+def test_a_value_that_is_no_number_says_so_and_how_to_fix_it(tmp_path: Path) -> None:
+    import re
+
+    xml = re.sub(rb"(<dynamicObstacle .*?<length>)[^<]*", rb"\1long", LEFT_TURN.read_bytes(), count=1, flags=re.S)
+    (diagnostic,) = errors(compile_file(write(tmp_path, source(), xml)))
+    assert diagnostic.code == "E0712" and re.search(r"cannot be read: `long` is not a number \(line \d+\)$",
+                                                    diagnostic.message), diagnostic.message
+    assert diagnostic.hints[0].startswith("correct that value in the file: CommonRoad's values are plain decimal")
+
+
 def test_a_directory_is_not_a_scenario(tmp_path: Path) -> None:
     (tmp_path / "left_turn.xml").mkdir()
     (diagnostic,) = errors(compile_file(write(tmp_path, source())))

@@ -354,8 +354,13 @@ def test_broken_elements_are_named(tmp_path: Path, example_xml: Path) -> None:
 
     path = edited(tmp_path, example_xml, "bad_number.xml", r'(<dynamicObstacle id="53">.*?<length>)4.5', r"\1long")
     error = error_of(path)
-    assert error.element == "dynamic obstacle 53" and "cannot be read: could not convert string to float" in str(
-        error)
+    # said in its own words, with the line the value is on (it was Python's: could not convert string to float)
+    line = next(n for n, text in enumerate(path.read_text(encoding="utf-8").splitlines(), 1) if ">long<" in text)
+    assert error.element == "dynamic obstacle 53"
+    assert str(error).endswith(f"dynamic obstacle 53 cannot be read: `long` is not a number (line {line})")
+    path = edited(tmp_path, example_xml, "bad_step.xml", r"(<dynamicObstacle id=\"53\">.*?<time>\s*<exact>)(\d+)",
+                  r"\g<1>3s")
+    assert "`3s` is not a whole number (line " in str(error_of(path))
 
     path = edited(tmp_path, example_xml, "no_start.xml",
                   r"(<planningProblem [^>]*>\s*)<initialState>.*?</initialState>", r"\1")

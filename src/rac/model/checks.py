@@ -329,6 +329,9 @@ def _load_hints(failure, written: str) -> list[str]:
                 "there, or correct the path"]
     if failure.element is None and failure.problem.startswith("is a directory"):
         return ["name the CommonRoad XML file, not its folder"]
+    if " is not a number" in failure.problem or " is not a whole number" in failure.problem:
+        return ["correct that value in the file: CommonRoad's values are plain decimal numbers (3.5, not 3.5s), "
+                "time steps whole ones"]
     return [_GENERIC_HINT]
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import threading
 import warnings
 from collections.abc import Iterator
@@ -465,8 +466,28 @@ def _number_text(text: str | None) -> float | None:
         return None
 
 
-def _describe(error: BaseException) -> str:
+#: Python's words for a text that is no number (commonroad-io converts element texts with float()/int()).
+_NOT_A_NUMBER = re.compile(r"(could not convert string to float|invalid literal for int\(\) with base 10): '(.*)'$")
+
+
+def _line_of(path: str | os.PathLike[str] | None, text: str) -> str:
+    """" (line N)" of the first element whose text is ``text`` in the file at ``path`` ("" if none)."""
+    if path is None:
+        return ""
+    try:
+        lines = Path(path).read_bytes().decode("utf-8", errors="replace").splitlines()
+    except OSError:
+        return ""
+    wanted = f">{text}<"
+    return next((f" (line {number})" for number, line in enumerate(lines, 1) if wanted in line), "")
+
+
+def _describe(error: BaseException, path: str | os.PathLike[str] | None = None) -> str:
     text = str(error).strip()
+    found = _NOT_A_NUMBER.search(text) if isinstance(error, ValueError) else None
+    if found:  # a value commonroad-io read with float() or int(): say which, and where
+        kind = "a whole number" if found.group(1).startswith("invalid literal for int") else "a number"
+        return f"`{found.group(2)}` is not {kind}{_line_of(path, found.group(2))}"
     if isinstance(error, AttributeError) and "NoneType" in text or isinstance(error, IndexError):
         return "an element it needs is missing or empty"
     if type(error) is Exception and not text:  # what commonroad-io raises for a value it cannot make out
@@ -533,7 +554,7 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
         except Exception as failure:  # commonroad-io's failures only (reader_failure)
             if not reader_failure(failure):
                 raise
-            return ScenarioError(path, element, f"cannot be read: {_describe(failure)}")
+            return ScenarioError(path, element, f"cannot be read: {_describe(failure, path)}")
     lanelet_ids = {node.get("id") for node in root.iter("lanelet")}
     for lanelet in root.iter("lanelet"):  # commonroad-io's shapely fails on a NaN with a GEOS message
         for bound in ("leftBound", "rightBound"):
@@ -582,21 +603,21 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
             except Exception as failure:  # commonroad-io's failures only (reader_failure)
                 if not reader_failure(failure):
                     raise
-                return ScenarioError(path, label(node), f"cannot be read: {_describe(failure)}")
+                return ScenarioError(path, label(node), f"cannot be read: {_describe(failure, path)}")
     try:
         network = factories.LaneletNetworkFactory.create_from_xml_node(ElementTree.ElementTree(root))
     except Exception as failure:  # commonroad-io's failures only (reader_failure)
         if not reader_failure(failure):
             raise
-        return ScenarioError(path, "lanelet network", f"cannot be read: {_describe(failure)}")
+        return ScenarioError(path, "lanelet network", f"cannot be read: {_describe(failure, path)}")
     for node in root.iter("planningProblem"):
         try:
             factories.PlanningProblemFactory.create_from_xml_node(node, network)
         except Exception as failure:  # commonroad-io's failures only (reader_failure)
             if not reader_failure(failure):
                 raise
-            return ScenarioError(path, label(node), f"cannot be read: {_describe(failure)}")
-    return ScenarioError(path, None, f"cannot be read by commonroad-io ({_describe(error)})")
+            return ScenarioError(path, label(node), f"cannot be read: {_describe(failure, path)}")
+    return ScenarioError(path, None, f"cannot be read by commonroad-io ({_describe(error, path)})")
 
 
 def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
