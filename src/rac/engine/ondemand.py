@@ -62,6 +62,9 @@ class OnDemandShield(ShieldTable):
     def __post_init__(self) -> None:
         super().__post_init__()
         object.__setattr__(self, "_memo", {})
+        # per state whose row is empty: the actions the search proved safe the longest (fewer decisions
+        # than the horizon), for consumers that must choose there anyway (:meth:`fallback_for`)
+        object.__setattr__(self, "_longest", {})
 
     def masks_for(self, states: np.ndarray) -> np.ndarray:
         """``(n, n_actions)`` bool: per state row, the actions proved to have a safe continuation up
@@ -105,10 +108,22 @@ class OnDemandShield(ShieldTable):
         found = self.lookahead.decide(row[:GraphColumn.CRASHED])
         full = found.depth >= found.target and found.depth > 0
         mask = found.mask.copy() if full else np.zeros(self.n_actions, dtype=bool)
+        if not full and found.depth > 0 and found.mask.any():
+            self._longest[row[:GraphColumn.CRASHED].tobytes()] = found.mask.copy()  # type: ignore[attr-defined]
         self.stats.states += 1
         self.stats.timed_out += int(not found.complete)
         self.stats.empty += int(not mask.any())
         return mask
+
+    def fallback_for(self, states: np.ndarray) -> np.ndarray:
+        """Where a row allows nothing (no action proved safe to the horizon within the budget): the
+        actions the search proved safe for the most decisions, if it proved any (all False else).
+        :meth:`masks_for` must have been asked about the rows first."""
+        rows = np.array(states, dtype=np.int64, ndmin=2)
+        longest: dict[bytes, np.ndarray] = self._longest  # type: ignore[attr-defined]
+        empty = np.zeros(self.n_actions, dtype=bool)
+        return np.array([longest.get(row[:GraphColumn.CRASHED].tobytes(), empty) for row in rows],
+                        dtype=bool).reshape(rows.shape[0], self.n_actions)
 
     def _fixed_proofs(self, egos: np.ndarray, k: int) -> np.ndarray:
         """``(n, P)``: the actions at sample ``k`` of the ego rows ``egos`` ``(n, 7)`` that a fixed

@@ -117,6 +117,12 @@ class ShieldTable:
         """Whether ``state`` is one of the shield's decision states."""
         return self._row(state) is not None
 
+    def fallback_for(self, states: np.ndarray) -> np.ndarray:
+        """``(n, n_actions)`` bool: where :meth:`masks_for` allows nothing, the actions known to stay
+        safe the longest, if the shield knows any (an exhaustive table knows none: all False). A
+        learner or a simulation that has to choose there chooses among these before all actions."""
+        return np.zeros((np.array(states, ndmin=2).shape[0], self.n_actions), dtype=bool)
+
     def masks_at(self, k: int, states: np.ndarray) -> np.ndarray:
         """:meth:`masks_for` of the ego rows ``states`` ``(n, 7)`` at sample ``k``: the
         ``policy(k, states)`` that :func:`rac.engine.simulate.simulate` takes."""

@@ -224,13 +224,19 @@ def uniform_allowed(rng: np.random.Generator, masks: np.ndarray) -> np.ndarray:
 
 def allowed_actions(batch: Episodes, shield: ShieldTable | None) -> tuple[np.ndarray, np.ndarray]:
     """The allowed actions of every episode — the model's ``allow when`` and the shield's mask —
-    and which rows fell back to the model's actions (the shield allowed none of them)."""
+    and which rows fell back (the shield allowed none of them): to the actions the shield knows to
+    stay safe the longest where it knows some (an on-demand shield whose search ran out of time:
+    :meth:`rac.engine.shield.ShieldTable.fallback_for`), else to the model's actions."""
     model = batch.model_masks()
     if shield is None:
         return model, np.zeros(batch.n, dtype=bool)
-    masks = np.array(shield.masks_for(batch.state_keys()), dtype=bool) & model
+    keys = batch.state_keys()
+    masks = np.array(shield.masks_for(keys), dtype=bool) & model
     empty = np.logical_not(masks.any(axis=1))
-    masks[empty] = model[empty]
+    if empty.any():
+        longest = np.array(shield.fallback_for(keys[empty]), dtype=bool) & model[empty]
+        known = longest.any(axis=1)
+        masks[empty] = np.where(known[:, None], longest, model[empty])
     return masks, empty
 
 

@@ -199,7 +199,8 @@ class LearningAnswerer:
                  f"{outcome.collisions_during_learning}, left the road: {outcome.offroad_during_learning}; "
                  f"{outcome.strategy.n_states:,} observations"]
         if outcome.fallbacks:
-            lines.append(f"{outcome.fallbacks} decisions where `{query.under}` allowed no action chose among all")
+            lines.append(f"{outcome.fallbacks} decisions where `{query.under}` allowed no action chose among the "
+                         "actions proved safe the longest where its search knew some, else among all")
         return "\n".join(lines)
 
     def _unreachable(self, query: iq.LearnStrategy) -> str | None:
