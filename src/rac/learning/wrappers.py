@@ -331,7 +331,6 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         return obs, reward / self.scale, terminated, truncated, info
 
 
-
 class RewardAutomatonVectorWrapper(VectorWrapper):
     """:class:`RewardAutomatonWrapper` for a vector environment: one
     :class:`~rac.runtime.batch.BatchRewardAutomaton` steps the ``num_envs`` automata together.
@@ -406,7 +405,6 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
             if callable(close):
                 close()
         return self._stand_in
-
 
     def _info(self, infos: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
         ra, n = self.automaton, self.num_envs
