@@ -283,8 +283,7 @@ class ScenarioEnv(gymnasium.Env):
         # one frame per step: a decision period
         self.metadata = {**self.metadata, "render_fps": 1.0 / (data.period * self.episodes.decide_every)}
         self._scale = float(data.scale)
-        self._period = float(data.period)
-        self._exact_period = Fraction(self.episodes.automaton.period)  # times as written: 7.1 s, not 7.1000000000000005
+        self._period = Fraction(self.episodes.automaton.period)
         self._names = automaton.location_names
         if reward != "automaton" and isinstance(scale, str):
             raise RacValueError(f"scale={scale!r} is proved for the automaton's reward; for a reward expression give "
@@ -363,6 +362,10 @@ class ScenarioEnv(gymnasium.Env):
         """``(P, 2)`` int32: action ``a`` is the (jerk, turn) significand pair ``action_pairs[a]``."""
         return self.episodes.action_pairs
 
+    def _seconds(self, sample: int | np.integer) -> float:
+        """The time of ``sample``, as written: 7.1 s, not 7.1000000000000005 (:func:`seconds_at`)."""
+        return float(seconds_at(int(sample), self._period))
+
     def _obs(self) -> np.ndarray:
         return self.observation.observe(self.episodes)[0]
 
@@ -373,7 +376,7 @@ class ScenarioEnv(gymnasium.Env):
         return {"location": self._names[int(episodes.location[0])],
                 "rewards": {name: float(values[0]) for name, values in episodes.rewards.items()},
                 "objective": float(episodes.objective[0]), "inputs": inputs, **self._last,
-                "time": float(seconds_at(int(episodes.k[0]), self._exact_period)),
+                "time": self._seconds(episodes.k[0]),
                 "scenario": str(self.scenarios[self._index]),
                 "scale": self.reward_scale}
 
@@ -423,7 +426,7 @@ class ScenarioEnv(gymnasium.Env):
         # stormpy (via rac.engine.shield): importing rac.learning.scenario_env stays light
         from rac.engine.shield import UnseenState
 
-        time = float(seconds_at(int(self.episodes.k[0]), self._exact_period))
+        time = self._seconds(self.episodes.k[0])
         try:
             decision = self.shield_step()  # the mask of the state this step leaves
             unseen = False
@@ -445,7 +448,7 @@ class ScenarioEnv(gymnasium.Env):
                       "no_safe_action": unseen, "shield_allowed": model_allowed}
         else:
             shield = {"shield": decision.guarantee,
-                      "shield_until": float(seconds_at(int(decision.until), self._exact_period)),
+                      "shield_until": self._seconds(decision.until),
                       "shield_short": decision.short, "shield_timeout": decision.timed_out,
                       "no_safe_action": decision.no_safe_action,
                       "shield_allowed": bool(decision.mask[int(action)])}
@@ -489,7 +492,7 @@ class ScenarioEnv(gymnasium.Env):
         if self.episodes.n != 1:
             return "(not reset)"
         x, y, v, acc, head, jerk, turn = (self.episodes.ego[0] / self._scale).tolist()
-        time = float(seconds_at(int(self.episodes.k[0]), self._exact_period))
+        time = self._seconds(self.episodes.k[0])
         info = self._info()
         return (f"t={time:.2f}s x={x:.2f} y={y:.2f} v={v:.2f} acc={acc:.2f} head={head:.3f} jerk={jerk:g} "
                 f"turn={turn:g} {info['location']} objective={info['objective']:.3f}")
@@ -503,7 +506,7 @@ class ScenarioEnv(gymnasium.Env):
         if frames is None:
             data = episodes.data
             scenario = episodes.result.scenario
-            frames = SceneFrames(self.scenarios[self._index], sample_period=self._period,
+            frames = SceneFrames(self.scenarios[self._index], sample_period=float(self._period),
                                  planning_problem=scenario.planning_problem_id if scenario is not None else None,
                                  length=data.length / self._scale, width=data.width / self._scale)
             self._frames[self._index] = frames

@@ -86,7 +86,7 @@ class TrainingLog:
             out.update({f"rac/shield/{k}": v / self.steps for k, v in self._shield.items()})
             out["rac/shield/no_safe_action"] = float(self._no_safe)
         out["rac/collisions"] = float(self._collisions)
-        if self._disallowed or "rac/disallowed" in self._recorded:
+        if self._disallowed:  # once recorded, a later call without any records 0 (below)
             out["rac/disallowed"] = float(self._disallowed)
         out = {**dict.fromkeys(self._recorded, 0.0), **out}  # nothing of a known key since: 0, not a blank
         self._recorded.update(out)

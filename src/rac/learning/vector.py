@@ -264,7 +264,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         flags["model_allowed"][rows] = model[rows, actions[rows]]
         flags["shield_allowed"][rows] = flags["model_allowed"][rows]  # no shield: the mask was the model's
         if self._step_shield is not None:
-            for row in np.flatnonzero(stepping).tolist():
+            for row in rows.tolist():
                 try:
                     decision = self._decision(row)
                 except UnseenState:  # unseen="error" raises from action_masks(); the step itself goes on

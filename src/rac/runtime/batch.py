@@ -23,7 +23,6 @@ import numpy as np
 from rac import ir
 from rac.runtime.semantics import (
     ENDED_MESSAGE,
-    NARROW_FLOATS,
     AutomatonDescription,
     FloatLinear,
     assume_checks,
@@ -409,10 +408,8 @@ class BatchRewardAutomaton(AutomatonDescription):
                 value = np.array([number_input(spec.name, item) for item in raw], dtype=np.float64)
             elif kind not in "biuf":  # not strings or complex numbers
                 raise ValueError(f"input {spec.name!r} must hold real numbers, not {raw.dtype} values")
-            elif raw.dtype.name in NARROW_FLOATS:  # at a bound rounded to the column's precision: that bound
+            else:  # a float32 at a bound rounded to float32 is that bound
                 value = at_bounds(spec, raw)
-            else:
-                value = raw.astype(np.float64, copy=False)
             if spec.bounded:
                 ok = (value >= spec.low) & (value <= spec.high)
             else:

@@ -281,7 +281,7 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
 def at_bounds(spec: InputSpec, raw: np.ndarray) -> np.ndarray:
     """A numeric input's column as float64, where a narrower float (a float32 or float16 column) equal
     to a bound rounded to its precision is that bound (:func:`number_input`'s rule for arrays)."""
-    value = raw.astype(np.float64)
+    value = raw.astype(np.float64, copy=False)
     if raw.dtype.name not in NARROW_FLOATS:
         return value
     narrow = raw.dtype.type

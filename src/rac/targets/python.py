@@ -38,6 +38,7 @@ from rac import ir
 from rac.core.printing import COMPARISONS, Associativity, Level, Operator, OperatorTable, Printed, number, signed_sum
 from rac.ir.text import GuardPrinter
 from rac.runtime.semantics import (
+    NARROW_FLOATS,
     FloatLinear,
     assume_checks,
     check_automaton,
@@ -513,6 +514,7 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
         period=to_float(period, "period"),
         horizon=float(automaton.horizon),
         steps=automaton.steps,
+        narrow_floats=NARROW_FLOATS,
         initial=automaton.initial,
         reward_slots=reward_slots,
         held_slots=held_slots,
