@@ -13,6 +13,9 @@ file's size, the wall time and what the check said (error and warning codes).
                guard adds thresholds, so the input classes grow as n^2.
   samples      stdlib/driving.ra sampled every 0.001 s, at horizons of 30 s to 359 s
                (30,000 to 359,000 samples; P2 fails and a reward overflows int32 there).
+  updates      five inputs (three numeric, read by the flows and updates), updates that scale and
+               copy rewards (not translations, so the int32 range check takes the exact generic
+               search), at horizons of 10 to 60 samples: hundreds of input classes per location.
 
 The results are written to ``benchmarks/results/check.md`` as well (``--output``).
 """
@@ -39,8 +42,9 @@ except ImportError:
     sys.path.insert(0, str(REPOSITORY / "src"))
     import rac
 
-SIZES = {"unreachable": (25, 50, 100, 200), "reachable": (25, 50, 100, 200), "samples": (30, 90, 180, 359)}
-QUICK_SIZES = {"unreachable": (25, 50), "reachable": (25, 50), "samples": (30,)}
+SIZES = {"unreachable": (25, 50, 100, 200), "reachable": (25, 50, 100, 200), "samples": (30, 90, 180, 359),
+         "updates": (10, 30, 60)}
+QUICK_SIZES = {"unreachable": (25, 50), "reachable": (25, 50), "samples": (30,), "updates": (10,)}
 
 
 def locations_text(n: int, *, reachable: bool) -> str:
@@ -78,10 +82,39 @@ def samples_text(horizon: int) -> str:
     return text
 
 
+def updates_text(samples: int) -> str:
+    """Rewards scaled and copied by updates that read numeric inputs, over ``samples`` samples of 0.1 s."""
+    return f"""automaton Scaled {{
+    input p, q : bool
+    input d    : real in [-1, 1]
+    input e    : real in [0, 0.3]
+    input n    : int in [-3, 3]
+    assume p imply n != 0
+    assume q imply d < 1/3
+    reward s, m, c
+    objective 1000 * s + 3 * m + c / 7
+    sample every 0.1
+    horizon {samples / 10:g}
+    initial location A {{ s' == 0.1; m' == d / 3 + e * 7 + 0.2; c' == n - d }}
+    location B {{ s' == -1; m' == 0; c' == e }}
+    location C {{ s' == 0.3; m' == -0.5 }}
+    edge A -> B when p || d > 1/3 do s -= 10, m = m / 3 + d, c = m
+    edge B -> C when !p && n >= 1 && e <= 0.1 do c = c + 2 * d - n
+    edge C -> A when !p && q
+    edge C -> B when p do s = s - 10 - e
+    edge B -> A when !p && n < 1 && d <= 1/3 && !q
+    at end when d > 0.5 do m += 0.7
+    at end when n == -3 do c = c * 3 + 1, m = m + c
+    episode ends when q && n == 3 && e > 0.25
+}}
+"""
+
+
 FAMILIES: dict[str, Callable[[int], str]] = {
     "unreachable": lambda n: locations_text(n, reachable=False),
     "reachable": lambda n: locations_text(n, reachable=True),
     "samples": samples_text,
+    "updates": updates_text,
 }
 
 
@@ -123,7 +156,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 path.write_text(make(size), encoding="utf-8")
                 elapsed, codes = run_check(path, args.timeout)
                 shown = f"> {args.timeout:g} s" if elapsed is None else f"{elapsed:.2f} s"
-                what = f"{size * 1000:,} samples" if family == "samples" else f"{size} locations"
+                what = (f"{size * 1000:,} samples" if family == "samples" else f"{size} samples" if family == "updates"
+                        else f"{size} locations")
                 row = f"| {family} | {what} | {path.stat().st_size / 1000:.1f} kB | {shown} | {codes} |"
                 rows.append(row)
                 print(row, flush=True)

@@ -144,6 +144,7 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
     for guard in grouping:
         bits = bits * 2 + space.evaluate(guard)[groups.classes]
     maps: dict[int, Affine] = {}  # per edge: its updates as one map (shared by the edge's outcomes)
+    stay = identity(len(rewards))  # no edge fires: one map for all such outcomes (searches key on it)
     result: list[list[Outcome]] = []
     for index, edges in enumerate(automaton.edges):
         if reachable is not None and index not in reachable:
@@ -157,7 +158,7 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
             k = label >> width
             edge = edges[k] if k < len(edges) else None
             if edge is None:
-                edge_map = identity(len(rewards))
+                edge_map = stay
             else:
                 edge_map = maps.get(id(edge)) or maps.setdefault(id(edge), from_assignments(edge.updates, rewards))
             truths = tuple(bool(label >> (width - 1 - j) & 1) for j in range(width))

@@ -23,8 +23,10 @@ one pass over the horizon.
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Callable
+import typing
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -175,23 +177,79 @@ def _image(affine: Affine, box: _Box, inputs: tuple) -> _Box:
     return result
 
 
+def _groups(outs: tuple[Outcome, ...]) -> list[list[int]]:
+    """The outcomes of one location grouped by what a functional pulled back through them depends on
+    (target, edge map, whether the run ends): they differ only in their input boxes. Groups and the
+    outcomes within them keep the order of their first outcome."""
+    by_key: dict[tuple[int, int, bool], list[int]] = {}
+    for oi, o in enumerate(outs):
+        by_key.setdefault((o.target, id(o.edge_map), o.ends_episode), []).append(oi)
+    return list(by_key.values())
+
+
+def _boxes_over(maps: Sequence[Affine], outs: tuple[Outcome, ...], group: list[int]) -> list[tuple]:
+    """The group's input boxes restricted to the inputs ``maps`` read, without repeats (their images
+    under the maps are then the same)."""
+    read = {name for affine in maps for offset in affine.offset for name, _ in offset.terms}
+    seen: dict[tuple, None] = {}
+    for oi in group:
+        seen.setdefault(tuple(item for item in outs[oi].box if item[0] in read), None)
+    return list(seen)
+
+
+class _ById:
+    """Hashes and compares by identity: a cache key for an IR object (hashing one deeply costs more
+    than the work the cache saves, and equal copies are rare)."""
+
+    def __init__(self, value: object) -> None:
+        self.value = value
+
+    def __hash__(self) -> int:
+        return id(self.value)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _ById) and other.value is self.value
+
+
 def _reachable_boxes(automaton: ir.Automaton, moves: Moves, accruals: list[Affine]) -> list[dict[int, _Box]]:
     """boxes[k][l]: an interval hull of the rewards "before the edge" of sample k in location l.
 
     For k = 1 it is the start (r = 0): the first accrual belongs to sample 1's functionals.
+    Independent of the target, so computed once per automaton and moves (the range check asks for
+    two targets per reward).
     """
+    return _cached_boxes(_ById(automaton), _ById(moves))
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_boxes(automaton_key: _ById, moves_key: _ById) -> list[dict[int, _Box]]:
+    automaton = typing.cast(ir.Automaton, automaton_key.value)
+    moves = typing.cast(Moves, moves_key.value)
+    accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
     size = len(automaton.rewards)
     boxes: list[dict[int, _Box]] = [{} for _ in range(automaton.steps + 2)]
     boxes[1] = {automaton.initial: [(ZERO, ZERO)] * size}
+    # Per location and group: the maps of a sample (after the first, and the first's) and the
+    # distinct input boxes those maps read.
+    plans: dict[int, list[tuple[int, Affine, Affine, list[tuple], list[tuple]]]] = {}
+    for here, outs in enumerate(moves.samples):
+        plans[here] = []
+        for group in _groups(outs):
+            o = outs[group[0]]
+            later = (o.edge_map, accruals[o.target])
+            plans[here].append((o.target, o.edge_map, accruals[o.target],
+                                _boxes_over(later, outs, group),
+                                _boxes_over((accruals[here], *later), outs, group)))
     for k in range(1, automaton.steps):
         following = boxes[k + 1]
         for here, box in boxes[k].items():
-            for o in moves.samples[here]:
-                start = _image(accruals[here], box, o.box) if k == 1 else box
-                after = _image(accruals[o.target], _image(o.edge_map, start, o.box), o.box)
-                old = following.get(o.target)
-                following[o.target] = after if old is None else [
-                    (min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(old, after)]
+            for target, edge_map, arrive, later_boxes, first_boxes in plans[here]:
+                for inputs in (first_boxes if k == 1 else later_boxes):
+                    start = _image(accruals[here], box, inputs) if k == 1 else box
+                    after = _image(arrive, _image(edge_map, start, inputs), inputs)
+                    old = following.get(target)
+                    following[target] = after if old is None else [
+                        (min(a[0], b[0]), max(a[1], b[1])) for a, b in zip(old, after)]
     return boxes
 
 
@@ -220,6 +278,8 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
     outs = moves.samples
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
     boxes = _reachable_boxes(automaton, moves, accruals)
+    groups = [_groups(os) for os in outs]
+    inputs = [[dict((name, (piece.low, piece.high)) for name, piece in o.box) for o in os] for os in outs]
     pull = _Puller()
     base: _Func = (target.weights, target.constant, {})
     ends = _end_functionals(moves, base, pull)
@@ -231,8 +291,11 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
     for k in range(steps, 0, -1):
         layer: list[dict] = [{} for _ in automaton.locations]
         for here in boxes[k]:  # only locations a run can be in at sample k
-            best = layer[here]
-            for oi, o in enumerate(outs[here]):
+            # coefficients -> (value, (outcome, candidate) rank, entry): the first outcome in order
+            # wins a tie, and within it the first candidate, as offering them one by one would do.
+            best: dict[tuple[Fraction, ...], tuple] = {}
+            for group in groups[here]:
+                o = outs[here][group[0]]
                 t = o.target
                 candidates: list[tuple[_Func, str, object]] = []
                 goes_on = k < steps and not o.ends_episode
@@ -245,14 +308,27 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
                 if goes_on:
                     for c_next, entry in tables[k + 1][t].items():
                         candidates.append((pull((c_next, entry[0], {}), accruals[t]), CONTINUE, c_next))
+                pulled = []
                 for func, instant, link in candidates:
                     func = pull(func, o.edge_map)
                     if k == 1:
                         func = pull(func, accruals[l0])
-                    _offer(best, func, o, oi, instant, link)
+                    pulled.append((func, instant, link))
                 if k == 1 and target.watched[l0]:
-                    _offer(best, pull(base, accruals[l0]), o, oi, BEFORE_EDGE, None)
-            _prune(best, boxes[k][here])
+                    pulled.append((pull(base, accruals[l0]), BEFORE_EDGE, None))
+                for ci, ((c, d, g), instant, link) in enumerate(pulled):
+                    top, top_oi = None, -1
+                    for oi in (group if g else group[:1]):  # without input terms every box gives d
+                        total = d + _sup_value(g, inputs[here][oi])
+                        if top is None or total > top:
+                            top, top_oi = total, oi
+                    held = best.get(c)
+                    if held is None or top > held[0] or (top == held[0] and (top_oi, ci) < held[1]):
+                        best[c] = (top, (top_oi, ci), (top_oi, instant, link, g))
+            table = layer[here]
+            for c, (total, _, (oi, instant, link, g)) in best.items():
+                table[c] = (total, oi, instant, link, sup_linear(g, outs[here][oi].box)[1])
+            _prune(table, boxes[k][here])
         tables[k] = layer
     start = _start(target, l0, {c: v for c, v in ends.items()})
     first = tables[1][l0]
@@ -275,6 +351,16 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
         k, here, c = k + 1, o.target, link
 
 
+def _sup_value(form: dict[str, Fraction], box: dict[str, tuple[Fraction, Fraction]]) -> Fraction:
+    """:func:`sup_linear`'s value alone (the search's inner loop; the point is found once, for the winner)."""
+    total = ZERO
+    for name, g in form.items():
+        if g:
+            low, high = box[name]
+            total += g * (high if g > 0 else low)
+    return total
+
+
 def _start(target: Target, l0: int, ends: dict[tuple[Fraction, ...], tuple]) -> Worst | None:
     """The best instant at t = 0: before any sample, or after ending there (r = 0)."""
     if not target.watched[l0]:
@@ -284,15 +370,6 @@ def _start(target: Target, l0: int, ends: dict[tuple[Fraction, ...], tuple]) -> 
         if d_end > best.value:
             best = Worst(d_end, [], AFTER_END, end, point)
     return best
-
-
-def _offer(best: dict, func: _Func, o: Outcome, oi: int, instant: str, link: object) -> None:
-    c, d, g = func
-    bonus, point = sup_linear(g, o.box)
-    total = d + bonus
-    entry = best.get(c)
-    if entry is None or total > entry[0]:
-        best[c] = (total, oi, instant, link, point)
 
 
 # ---------------------------------------------------------------- fast engine
