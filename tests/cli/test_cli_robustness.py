@@ -16,7 +16,7 @@ import pytest
 from engine_files import write_engine_file
 
 from rac.cli.arguments import MIN_SEED, build_parser
-from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, NotRegularFile, write_atomically
+from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE, NotRegularFile, write_atomically
 from rac.cli.main import main
 from rac.lang.resources import stdlib_dir
 
@@ -329,4 +329,5 @@ def test_runs_beyond_the_memory_budget_are_refused_before_anything_is_allocated(
     said = stdout + err
     assert "would need about" in said and "more than the memory budget of 512 MB" in said
     assert "out of memory" not in said  # refused by the estimate, not by the machine
-    assert code == (EXIT_OK if command == "preanalyse" else EXIT_USAGE)  # preanalyse: the row says it
+    # preanalyse: the row says it, and a setting without answers is undecided (exit 4)
+    assert code == (EXIT_UNDECIDED if command == "preanalyse" else EXIT_USAGE)

@@ -391,14 +391,17 @@ def test_preanalyse_table_json_and_plots(capsys: pytest.CaptureFixture[str], tmp
 def test_preanalyse_reports_a_decide_period_that_is_no_multiple(capsys: pytest.CaptureFixture[str],
                                                                 tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", {})
-    assert main(["preanalyse", str(path), "--decide", "0.75", "--runs", "2", "--out", str(tmp_path / "pre")]) == 0
-    assert capsys.readouterr().out == (
+    # a setting without answers is undecided: exit 4, never 0
+    assert main(["preanalyse", str(path), "--decide", "0.75", "--runs", "2", "--out", str(tmp_path / "pre")]) == 4
+    captured = capsys.readouterr()
+    assert captured.err == "rac preanalyse: 1 of 1 settings were not answered (their rows say why)\n"
+    assert captured.out == (
         "| exponent | C1 (s) | C2 (s) | Qa: Pr sensor error | Qb | Qc | Qd | states | time (s) | "
         "runs below threshold under the shield (true distance) |\n"
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
         "| 2 | 0.5 | 0.75 | the decision period is not a whole multiple of the sensing period | | | | | | |\n"
         f"\nplots in {tmp_path / 'pre'}\n")
-    assert main(["preanalyse", str(path), "--decide", "0.75", "--format", "json"]) == 0
+    assert main(["preanalyse", str(path), "--decide", "0.75", "--format", "json"]) == 4
     [row] = json.loads(capsys.readouterr().out)["settings"]
     assert row == {"exponent": 2, "sense": 0.5, "decide": 0.75,
                    "error": "the decision period is not a whole multiple of the sensing period"}

@@ -35,6 +35,7 @@ from rac.core.source import SourceFile
 from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.ir import query as iq
 from rac.lang.parser import ExpressionError
+from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.model.sample import Ego
 from rac.output.progress import Heartbeat, Progress
@@ -120,6 +121,12 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
                 return status
             try:
                 return command(args, result)
+            except ModelRangeError as exc:  # a run's sensed value, not the file's data (rac check has those)
+                print(f"rac {args.command}: a sensed value left the int32 range: {exc}\n"
+                      f"  = note: UPPAAL's model aborts there too; the run cannot go on\n"
+                      "  = hint: a coarser `exponent` in the model block (`rac preanalyse` compares them) or a shorter "
+                      "horizon keeps the sensed values within int32", file=sys.stderr)
+                return EXIT_ERRORS
             except RacError as exc:
                 if exc.diagnostic is None:
                     raise
@@ -455,6 +462,11 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     else:
         print(render_table(rows))
         print(f"\nplots in {out_dir}")
+    undecided = sum(1 for row in rows if "error" in row)
+    if undecided:  # a setting without answers is undecided, and an undecided answer never exits 0
+        print(f"rac preanalyse: {undecided} of {len(rows)} settings were not answered (their rows say why)",
+              file=sys.stderr)
+        return EXIT_UNDECIDED
     return EXIT_OK
 
 

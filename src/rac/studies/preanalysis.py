@@ -247,9 +247,13 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                 rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
                              "error": "the decision period is not a whole multiple of the sensing period"})
             else:
-                rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
-                                 max_bytes=max_bytes,
-                                 threshold_factor=threshold_factor, out_dir=out_dir))
+                try:
+                    rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
+                                     max_bytes=max_bytes,
+                                     threshold_factor=threshold_factor, out_dir=out_dir))
+                except ModelRangeError as exc:  # a run's sensed value: UPPAAL's model would abort there too
+                    rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
+                                 "error": f"a sensed value left the int32 range at this exponent: {exc}"})
                 rows[-1]["seed"] = seed
             bar.update()
     if out_dir is not None:

@@ -46,6 +46,7 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError
 from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
+from rac.model.data import ModelRangeError
 from rac.model.program import CheckedProgram
 from rac.verify.context import Context, NotApplicable, UnknownVerdict, VerifyOptions
 from rac.verify.learning import LearningAnswerer
@@ -124,6 +125,9 @@ class Verifier:
             result = self._dispatch(query, base)
         except UnknownVerdict as exc:
             result = dataclasses.replace(base, status="unknown", message=str(exc))
+        except ModelRangeError as exc:  # a run's sensed value (UPPAAL's model would abort there too)
+            result = dataclasses.replace(base, status="unknown",
+                                         message=f"a sensed value left the int32 range: {exc}")
         except NotApplicable as exc:
             result = dataclasses.replace(base, status=NOT_APPLICABLE, message=str(exc))
         except EvaluationError as exc:

@@ -1,0 +1,62 @@
+"""A run whose sensed state leaves int32 (the car drives off a road that ends just below the range
+at the file's exponent): every engine command says so as the model's limit, never as a crash.
+
+At exponent 6 the model's positions are micrometres, so int32 ends at x = 2147.48 m. The road
+ends at 2145 m; the ego starts at 2140 m at 10 m/s and passes the range within a second.
+"""
+
+from __future__ import annotations
+
+import json
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+from engine_files import engine_source
+from tiny_scenarios import EgoStart, GoalBox, StraightRoad, TinySettings, straight_road
+
+from rac.cli.main import main
+
+QUERIES = {"Reach": "Pr[<=2](<> offroad())", "Stays": "E[] !collide() && !offroad()"}
+
+
+def write_far_road(folder: Path) -> Path:
+    road = StraightRoad(2145.0, EgoStart(2140.0, 1.75, 0.0, 10.0), GoalBox(2143.0, 2145.0, 0.0, 4.0))
+    tiny = straight_road("far_road", road, settings=TinySettings(exponent=6))
+    tiny.write(folder / "far_road.xml")
+    path = folder / "far_road.ra"
+    path.write_text(engine_source(tiny, QUERIES), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("command", [["simulate", "--runs", "3"], ["render"]])
+def test_a_run_beyond_int32_is_the_models_limit(command: list[str], capsys: pytest.CaptureFixture[str],
+                                                tmp_path: Path) -> None:
+    path = write_far_road(tmp_path)
+    assert main([command[0], str(path), *command[1:], "--seed", "1", "-o", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert f"rac {command[0]}: a sensed value left the int32 range: sense(): x = 21" in err
+    assert "UPPAAL's model aborts there too" in err and "coarser `exponent`" in err
+    assert "internal error" not in err
+
+
+def test_a_probability_beyond_int32_is_unknown(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_far_road(tmp_path)
+    assert main(["verify", str(path), "--query", "Reach", "--seed", "1", "--format", "json",
+                 "-o", str(tmp_path / "out")]) == 4
+    (result,) = json.loads(capsys.readouterr().out)["results"]
+    assert result["status"] == "unknown"
+    assert result["message"].startswith("a sensed value left the int32 range: sense(): x = 21")
+
+
+def test_preanalyse_reports_the_row_and_never_exits_0_with_one_unanswered(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_far_road(tmp_path)
+    assert main(["preanalyse", str(path), "--exponent", "2,6", "--runs", "5", "--seed", "1", "-q",
+                 "--format", "json", "-o", str(tmp_path / "out")]) == 4
+    captured = capsys.readouterr()
+    rows = {row["exponent"]: row for row in json.loads(captured.out)["settings"]}
+    assert "error" not in rows[2] and rows[2]["qb"] is False  # centimetres: the car leaves the road, in range
+    assert rows[6]["error"].startswith("a sensed value left the int32 range at this exponent")
+    assert "1 of 2 settings were not answered" in captured.err
+    assert Fraction(rows[6]["sense"]) == Fraction(1, 2)
