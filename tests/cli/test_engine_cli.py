@@ -469,3 +469,21 @@ def test_verify_standard_keeps_a_query_of_the_same_name(capsys: pytest.CaptureFi
     assert f"wrote {out / 'standard' / 'Fig7.png'}" in printed and f"wrote {out / 'Fig7.png'}" in printed
     assert csv_rows(out / "Fig7.csv")[0] == ["run", "time", "v"]  # the file's own query
     assert csv_rows(out / "standard" / "Fig7.csv")[0][2] == "mindist()"  # the paper's Fig. 7
+
+
+@pytest.mark.parametrize("query", ["Pr[<=5](<> v >= 6)", "E[<=5; 4](max: v)", "simulate[<=5; 2]{v}",
+                                   "strategy fast = maxE(sa)[<=5]{Tiny.location}->{x}: <> time >= 4"])
+def test_a_time_bound_past_the_horizon_is_not_answered(query: str, capsys: pytest.CaptureFixture[str],
+                                                       tmp_path: Path) -> None:
+    # the horizon is 4 s: the emitted UPPAAL model takes no sample after it (its clocks flow on), and
+    # rac's runs went on sampling, so the two answered differently (W0604 in rac check)
+    path = write_engine_file(tmp_path, "goal_ahead", {"Late": query})
+    assert main(["check", str(path)]) == 0
+    assert "warning[W0604]: the time bound (5 s) is past the horizon (4 s)" in capsys.readouterr().out
+    assert main(["verify", str(path), "--seed", "1", "--format", "json", "-o", str(tmp_path / "out")]) == 4
+    (result,) = json.loads(capsys.readouterr().out)["results"]
+    assert result["status"] == "unsupported"
+    assert result["message"].startswith("the time bound (5 s) is past the horizon (4 s)")
+    assert main(["verify", str(path), "--seed", "1", "-o", str(tmp_path / "out")]) == 4
+    out = capsys.readouterr().out
+    assert out.count("the time bound (5 s) is past the horizon") == 1  # said once, also for simulate

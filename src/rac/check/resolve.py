@@ -106,7 +106,7 @@ class Resolver:
         goal = self._outcome(_single(singles, ast.GoalDecl), "goal when")
         collision = self._outcome(_single(singles, ast.CollisionDecl), "collision when")
         requirements = self._requirements(singles)
-        queries = self._check_queries()
+        queries = self._check_queries(horizon)
         if any(d.is_error for d in self.diagnostics):
             # Expressions with errors were not fully read: an "unused" input may be used there.
             return None
@@ -542,7 +542,7 @@ class Resolver:
                     hints=["remove it, or use it in a guard, a rate or an update"]))
 
     # ------------------------------------------------------------ queries
-    def _check_queries(self) -> tuple[iq.QueryDecl, ...]:
+    def _check_queries(self, horizon: Fraction | None) -> tuple[iq.QueryDecl, ...]:
         strategies: set[str] = set()
         names: dict[str, Span | None] = {}
         lowered = []
@@ -554,9 +554,25 @@ class Resolver:
             query = Lowering(self.scope).query(decl, strategies)
             if query is not None:
                 lowered.append(query)
+                self._bound_past_horizon(decl, query.query, horizon)
             if isinstance(decl.query, (ast.ControlStrategy, ast.LearnStrategy)):
                 strategies.add(decl.query.name)
         return tuple(lowered)
+
+
+    def _bound_past_horizon(self, decl: ast.QueryDecl, query: iq.Query, horizon: Fraction | None) -> None:
+        """W0604: a time bound past the horizon asks about runs the model does not have."""
+        bound = getattr(query, "bound", None)
+        if horizon is None or not isinstance(bound, iq.Bound) or bound.kind != "time" or bound.limit <= horizon:
+            return
+        node = getattr(decl.query, "bound", None)
+        span = node.limit.span if isinstance(node, ast.Bound) else decl.span
+        self.diagnostics.append(warning(
+            "W0604", f"the time bound ({short_number(bound.limit)} s) is past the horizon "
+            f"({short_number(horizon)} s)", span,
+            notes=["the model takes no sample after the horizon: in the emitted UPPAAL model nothing happens "
+                   "after it while its clocks flow on, so `rac verify` does not answer this query"],
+            hints=[f"bound the query by the horizon (`[<={short_number(horizon)}]`), or lengthen the horizon"]))
 
 
 #: Single declarations an automaton may leave out.

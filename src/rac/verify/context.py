@@ -23,7 +23,7 @@ import numpy as np
 
 from rac import ir
 from rac.compiler import CompileResult
-from rac.core.diagnostics import RacError, RacValueError
+from rac.core.diagnostics import RacError, RacValueError, short_number
 from rac.core.numbers import samples_of
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded, default_max_bytes
@@ -235,7 +235,15 @@ class Context:
         if bound.kind == "steps":
             raise EvaluationError("`[#<=K]` counts UPPAAL's transitions, not samples (a sample takes three or "
                                   "more): rac verify answers time bounds `[<=T]`")
-        return math.floor(bound.limit / self.period)
+        samples = math.floor(bound.limit / self.period)
+        horizon = Fraction(self.program.automaton.horizon)
+        if bound.limit > horizon:  # W0604 in rac check
+            raise EvaluationError(
+                f"the time bound ({short_number(bound.limit)} s) is past the horizon ({short_number(horizon)} s): "
+                "the model takes no sample after it (in the emitted UPPAAL model nothing happens after the horizon "
+                "while its clocks flow on), so runs beyond it have no answer both would give; bound the query by "
+                f"the horizon (`[<={short_number(horizon)}]`)")
+        return samples
 
     # ------------------------------------------------------------ the explored model
     def graph(self, prune: bool) -> ExploredGraph:
