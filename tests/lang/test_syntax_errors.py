@@ -56,3 +56,30 @@ def test_expression_rule_names_the_unexpected_token() -> None:
     assert diagnostic.message.startswith("unexpected")
     assert diagnostic.message == "unexpected `*`"
     assert [note.message for note in diagnostic.notes] == ["expected an expression"]
+
+
+@pytest.mark.parametrize(("text", "word"), [
+    ("automaton A { inputx : bool }", "inputx"),            # was read as `input x : bool`
+    ("automaton A { input x : boolean }", "boolean"),       # was `bool` and `ean`
+    ("automaton A { input x : integer in [0, 1] }", "integer"),
+    ("automaton A { input x : reals in [0, 1] }", "reals"),
+    ("automaton A { rewardr }", "rewardr"),
+    ("automaton A { horizon30 }", "horizon30"),
+])
+def test_a_word_that_begins_with_a_keyword_is_one_word(text: str, word: str) -> None:
+    # where no name may stand, the contextual lexer used to match the keyword at the start of a
+    # longer word and go on with the rest, so some such slips parsed as something else silently
+    diagnostic, source = diagnose(text)
+    assert diagnostic.code == "E0001"
+    assert diagnostic.message == f"unexpected `{word}`"
+    start = text.index(word)
+    assert (diagnostic.span.column, diagnostic.span.end_column) == (start + 1, start + 1 + len(word))
+    if word in ("boolean", "integer", "reals"):
+        assert "an input's type is `bool`, `int in [LOW, HIGH]` or `real in [LOW, HIGH]`" in diagnostic.hints
+
+
+@pytest.mark.parametrize("text", ["E[<=2; 20](max: v)", "E[<=2; 20](min: v)",
+                                  "strategy s = maxE(sa)[<=4]{A.location}->{x}: <> goal()",
+                                  "strategy s = minE(sa)[<=4]{A.location}->{x}: <> goal()"])
+def test_the_word_alternations_still_read_as_words(text: str) -> None:
+    lark_parser().parse(f"query Q: {text}\n", start="query_list")

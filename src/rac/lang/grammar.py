@@ -6,9 +6,11 @@ declarations are start rules of the same grammar, so they share one parse table 
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from functools import lru_cache
 
-from lark import Lark
+from lark import Lark, Token
+from lark.lark import PostLex
 
 from rac.lang.resources import grammar_path
 
@@ -21,6 +23,21 @@ QUERIES = "query_list"
 START_RULES = (MODULE, EXPRESSIONS, QUERIES)
 
 
+class _WholeWords(PostLex):
+    """Lets the lexer see a name wherever it looks for a word of the language.
+
+    The contextual lexer tries only the terminals the parser accepts next. Where no name may stand
+    (the start of a declaration, an input's type) it then matched a keyword at the start of a longer
+    word: `inputx : bool` declared the input `x`, and `boolean` became `bool` and `ean`. With names
+    always tried, lark reads the whole word and takes it as the keyword only when it is one.
+    """
+
+    always_accept = ("NAME",)
+
+    def process(self, stream: Iterator[Token]) -> Iterator[Token]:
+        return stream
+
+
 @lru_cache(maxsize=1)
 def lark_parser() -> Lark:
     """The LALR parser of the grammar, built once per process with every start rule."""
@@ -31,6 +48,7 @@ def lark_parser() -> Lark:
         start=list(START_RULES),
         propagate_positions=True,
         maybe_placeholders=True,
+        postlex=_WholeWords(),
         # The parse table is cached in the temp folder: saves ~0.1 s per `rac` start.
         cache=True,
     )

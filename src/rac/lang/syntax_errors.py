@@ -100,6 +100,8 @@ def _syntax_hints(found: str, expected: set[str], before: str = "") -> list[str]
     if _REQUIRE_CHECK.search(before) and "`<=`" in words and found != "}":
         hints.append("a requirement's bound is written `require risk <= BOUND`, with `<=`; "
                      "the other requirements take none")
+    if {"BOOL", "NUMERIC_TYPE"} <= expected:
+        hints.append("an input's type is `bool`, `int in [LOW, HIGH]` or `real in [LOW, HIGH]`")
     if found == "=" and "`==`" in words:
         hints.append("a flow is written `reward' == rate`, with `==`")
     if found == ":=":
@@ -192,7 +194,7 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
         return error("E0001", "unexpected end of file", _end_of_text(source), notes=notes, hints=hints)
     if isinstance(exc, UnexpectedToken):
         start = where
-        span = source.span(start, exc.token.end_pos or start + len(exc.token.value))
-        return error("E0001", f"unexpected {_token_text(exc.token)}", span, notes=notes,
+        end = exc.token.end_pos or start + len(exc.token.value)
+        return error("E0001", f"unexpected {_token_text(exc.token)}", source.span(start, end), notes=notes,
                      hints=_syntax_hints(str(exc.token.value), expected, source.text[:start]))
     return error("E0001", "syntax error", _end_of_text(source))
