@@ -9,7 +9,9 @@ light: gymnasium only, the environments are imported when one is made).
 Without importing it first: ``gymnasium.make("rac.gym:rac/Scenario-v0", model=...)``. No
 ``max_episode_steps``: the environment truncates its episodes at its own horizon (the ``horizon``
 keyword, default the automaton's), which a TimeLimit would duplicate, and contradict when the horizon
-is changed. Registering again (a reload) keeps the first registration.
+is changed; ``max_episode_steps=N`` given to ``make`` truncates outside the environment, where its
+``at end`` clauses cannot apply (the next reset warns): use ``horizon=``. Registering again (a
+reload) keeps the first registration.
 """
 
 from __future__ import annotations

@@ -342,3 +342,46 @@ def test_the_vector_wrapper_checks_the_timing_of_an_async_vector_env() -> None:
             RewardAutomatonVectorWrapper(same, follow(), vector_inputs).reset(seed=0)
     finally:
         same.close()
+
+
+def test_an_episode_cut_outside_the_wrapper_is_said_at_the_next_reset() -> None:
+    # TimeLimit outside rac's wrapper: the wrapper never saw `truncated`, so the `at end` bonus
+    # (pr + 5 at headway >= 5) was silently missing from the return
+    outside = TimeLimit(RewardAutomatonWrapper(Gap(), follow(), inputs), 4)
+    outside.reset(seed=0)
+    truncated = False
+    while not truncated:
+        _, _, _, truncated, info = outside.step(np.array([6.0]))
+    assert info["rac"]["rewards"]["pr"] == pytest.approx(0.4)  # no bonus: end() was never called
+    with pytest.warns(UserWarning, match=r"reset after 4 step\(s\) .*`at end` clauses were not applied.*"
+                                         r"put the limit inside the rac wrapper"):
+        outside.reset(seed=1)
+    for _ in range(4):
+        outside.step(np.array([6.0]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        outside.reset(seed=2)  # said once
+    inside = RewardAutomatonWrapper(TimeLimit(Gap(), 4), follow(), inputs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        for seed in range(2):
+            inside.reset(seed=seed)
+            for _ in range(4):
+                *_, info = inside.step(np.array([6.0]))
+        assert info["rac"]["rewards"]["pr"] == pytest.approx(5.4)
+        inside.reset(seed=3)  # an episode reset before its first step is no cut episode
+        inside.reset(seed=4)
+
+
+def test_the_past_horizon_advice_puts_the_limit_inside() -> None:
+    env = RewardAutomatonWrapper(Gap(), follow(), inputs)
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match=r"RewardAutomatonWrapper\(gymnasium.wrappers.TimeLimit\(env, 30\), ...\)"):
+        for _ in range(31):
+            env.step(np.array([5.0]))
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([Counting, Counting]), follow(), gap_inputs)
+    vector.reset(seed=0)
+    with pytest.warns(UserWarning, match=r"limit each sub-environment inside the vector environment.*"
+                                         r"TimeLimit\(make_env\(\), 30\)"):
+        for _ in range(31):
+            vector.step(np.array([[5.0], [5.0]], dtype=np.float32))

@@ -52,7 +52,8 @@ from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
 
-__all__ = ["AutomatonLike", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "env_timing", "scale_factor"]
+__all__ = ["AutomatonLike", "CutEpisodes", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "env_timing",
+           "scale_factor"]
 
 #: ``inputs(obs, info)`` or ``inputs(obs, info, env)``: the automaton's inputs.
 InputFn = Callable[..., Mapping[str, object]]
@@ -204,10 +205,11 @@ class _PastHorizon:
     scale's bound on every reward, cover that many samples only (an environment without a time
     step, whose timing :class:`_Timing` cannot check, is caught here at the latest)."""
 
-    def __init__(self, automaton: object, proven: bool) -> None:
+    def __init__(self, automaton: object, proven: bool, advice: str) -> None:
         steps = getattr(automaton, "steps", None)
         self.steps = steps if isinstance(steps, int) else None
         self.proven = proven
+        self.advice = advice.format(steps=self.steps)
         self.warned = False
 
     def check(self, samples: Any) -> None:
@@ -217,8 +219,45 @@ class _PastHorizon:
         also = " and the proven scale (every reward within [-1, 1])" if self.proven else ""
         warnings.warn(f"an episode has run past the automaton's horizon of {self.steps} samples: the priority "
                       f"proofs{also} cover {self.steps} samples only, and its rewards from here on are not covered; "
-                      f"end the episodes there (gymnasium.wrappers.TimeLimit(env, {self.steps}) for one step a "
-                      "sample)", UserWarning, stacklevel=3)
+                      f"end the episodes there: {self.advice}", UserWarning, stacklevel=3)
+
+
+#: How to end a single environment's episodes so the wrapper sees it (the limit inside, or it never
+#: sees ``truncated`` and the ``at end`` clauses are lost).
+SINGLE_LIMIT = ("put the limit inside the rac wrapper: RewardAutomatonWrapper(gymnasium.wrappers.TimeLimit(env, "
+                "{steps}), ...) or gymnasium.make(id, max_episode_steps={steps}) as the wrapped env, not "
+                "TimeLimit(RewardAutomatonWrapper(...), {steps})")
+#: The same for a vector environment: each sub-environment carries its own limit.
+VECTOR_LIMIT = ("limit each sub-environment inside the vector environment, e.g. "
+                "SyncVectorEnv([lambda: gymnasium.wrappers.TimeLimit(make_env(), {steps})] * n) or "
+                "gymnasium.make_vec(id, num_envs=n, max_episode_steps={steps}), then wrap that with "
+                "RewardAutomatonVectorWrapper")
+
+
+class CutEpisodes:
+    """Warns once when an episode that took steps is reset before it terminated or was truncated as
+    far as rac could see: a wrapper outside rac's (a ``TimeLimit``) cut it, so the automaton's ``at
+    end`` clauses were never applied and the episode's return lacks them. ``fix`` says how to end
+    the episodes where rac sees it."""
+
+    def __init__(self, fix: str) -> None:
+        self.fix = fix
+        self.warned = False
+        self.steps = 0  # steps of the episode now running; 0 once it has ended
+
+    def stepped(self, done: bool) -> None:
+        """One step taken; ``done``: the episode ended there, as rac saw it."""
+        self.steps = 0 if done else self.steps + 1
+
+    def reset(self) -> None:
+        """An episode starts: warn when the last one was cut after some steps."""
+        if self.steps and not self.warned:
+            self.warned = True
+            warnings.warn(f"an episode was reset after {self.steps} step(s) without rac seeing it end (terminated or "
+                          "truncated): the automaton's `at end` clauses were not applied and that episode's return "
+                          f"lacks them; if a TimeLimit or another wrapper outside ended it, {self.fix}",
+                          UserWarning, stacklevel=3)
+        self.steps = 0
 
 
 def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
@@ -259,6 +298,10 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
     neither ``dt``, ``env.unwrapped.dt`` nor highway-env's ``policy_frequency`` is there, nothing
     is checked.
 
+    Episode limits go inside: ``RewardAutomatonWrapper(TimeLimit(env, n), ...)``. A limit outside
+    truncates episodes this wrapper never sees end, so their ``at end`` clauses are lost; the next
+    :meth:`reset` after an episode that took steps without ending warns once (:class:`CutEpisodes`).
+
     ``info["rac"]`` holds ``location``, ``rewards`` (values), ``objective`` and ``scale`` after
     ``reset`` and ``step``; after ``step`` also ``reward_steps`` (each reward's change over the
     step, unscaled), ``env_reward`` (the environment's own reward) and ``clipped``.
@@ -286,7 +329,9 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self.clipped_total: dict[str, int] = {}
         self._timing = _Timing(self.automaton, dt)
         self._timing.check(env)
-        self._past = _PastHorizon(self.automaton, scale == "proven")
+        self._past = _PastHorizon(self.automaton, scale == "proven", SINGLE_LIMIT)
+        steps = getattr(self.automaton, "steps", None)
+        self._cut = CutEpisodes(SINGLE_LIMIT.format(steps=steps if isinstance(steps, int) else "N"))
 
     def _snapshot(self) -> dict[str, Any]:
         ra = self.automaton
@@ -297,6 +342,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         """Reset the environment and the automaton."""
         obs, info = self.env.reset(seed=seed, options=options)
         self._timing.check(self.env)
+        self._cut.reset()
         self.automaton.reset()
         info = dict(info)
         info["rac"] = self._snapshot()
@@ -326,6 +372,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
             terminated = True
         elif terminated or truncated:
             reward += self.automaton.end(values)
+        self._cut.stepped(bool(terminated or truncated))
         info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped,
                        "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
         return obs, reward / self.scale, terminated, truncated, info
@@ -386,7 +433,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         self._timing = _Timing(self.automaton, dt)
         self._stand_in: object | None = None  # an AsyncVectorEnv's first sub-environment, made here for its timing
         self._timing.check(self._first_env())
-        self._past = _PastHorizon(self.automaton, scale == "proven")
+        self._past = _PastHorizon(self.automaton, scale == "proven", VECTOR_LIMIT)
 
     def _first_env(self) -> object:
         """The first sub-environment when the vector environment holds them (SyncVectorEnv), for its
