@@ -124,3 +124,33 @@ def test_gymnasiums_vector_layout_is_logged_as_the_per_env_infos(tmp_path: Path)
     expected = by_env.record()
     assert expected["rac/disallowed"] >= 1.0 and by_vector.record() == pytest.approx(expected)
     assert split_vector_info({}) == []
+
+
+def test_the_vector_wrapper_infos_are_logged() -> None:
+    """RewardAutomatonVectorWrapper's ``infos["rac"]`` nests dicts of arrays without masks of their
+    own (``rewards``, ``reward_steps``): the log recorded nothing of them, as if no step had a reward."""
+    import numpy as np
+    from gymnasium.vector import SyncVectorEnv
+    from highway_like import vector_inputs
+
+    from rac.learning.vector_info import split_vector_info
+    from rac.learning.wrappers import RewardAutomatonVectorWrapper
+
+    env = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30)] * 3), follow(),
+                                       vector_inputs, clip=True)
+    env.reset(seed=0)
+    log, sums, locations = TrainingLog(), {"sa": 0.0, "pr": 0.0}, {}
+    for t in range(40):
+        *_, infos = env.step(np.array([t % 3, 1, 2]))
+        log.add(infos)
+        for name in sums:
+            sums[name] += float(infos["rac"]["reward_steps"][name].sum())
+        for location in infos["rac"]["location"]:
+            locations[location] = locations.get(location, 0) + 1
+    first = split_vector_info(infos)[0]["rac"]
+    assert set(first["reward_steps"]) == {"sa", "pr"} and isinstance(first["location"], str)
+    recorded = log.record()
+    for name, total in sums.items():
+        assert recorded[f"rac/reward/{name}"] == pytest.approx(total / 120)
+    for location, count in locations.items():
+        assert recorded[f"rac/location/{location}"] == pytest.approx(count / 120)

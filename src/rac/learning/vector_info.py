@@ -15,24 +15,27 @@ import numpy as np
 __all__ = ["merge_vector_info", "split_vector_info"]
 
 
-def split_vector_info(info: Mapping[str, Any]) -> list[dict[str, Any]]:
+def split_vector_info(info: Mapping[str, Any], n: int | None = None) -> list[dict[str, Any]]:
     """One info dict per sub-environment from gymnasium's vector layout: every key an array over
-    the environments, ``_key`` the mask of those that report it, nested dicts laid out alike. The
-    number of environments is read from the masks (``[]`` without any)."""
+    the environments, ``_key`` the mask of those that report it (a key without one: every
+    environment reports it), nested dicts laid out alike. The number of environments is ``n``, else
+    read from the masks (``[]`` without any); a nested dict without masks of its own (as
+    :class:`rac.learning.wrappers.RewardAutomatonVectorWrapper`'s ``rewards``) takes its parent's."""
     sizes = {len(value) for key, value in info.items() if key.startswith("_") and hasattr(value, "__len__")}
-    if not sizes:
+    if sizes:
+        n = max(sizes)
+    if n is None:
         return []
-    n = max(sizes)
     out: list[dict[str, Any]] = [{} for _ in range(n)]
     for key, value in info.items():
         if key.startswith("_"):
             continue
         mask = info.get(f"_{key}")
-        parts = split_vector_info(value) if isinstance(value, Mapping) else None
+        parts = split_vector_info(value, n) if isinstance(value, Mapping) else None
         for env in range(n):
             if mask is not None and not mask[env]:
                 continue
-            item = (parts[env] if env < len(parts) else {}) if parts is not None else value[env]
+            item = parts[env] if parts is not None else value[env]
             out[env][key] = item.item() if hasattr(item, "item") and getattr(item, "ndim", 1) == 0 else item
     return out
 
