@@ -136,8 +136,23 @@ def test_automaton_forms(kind: str) -> None:
     env = RewardAutomatonWrapper(Scripted(TRACE, truncate_at=len(TRACE)), automaton, from_info)
     env.reset()
     assert [r[1] for r in episode(env)] == expected_rewards(len(TRACE), end=True)
-    if kind in ("interpreter", "generated"):
-        assert env.automaton is automaton
+    if kind in ("interpreter", "generated"):  # the wrapper's own copy; the object passed in untouched
+        assert type(env.automaton) is type(automaton) and env.automaton is not automaton
+        assert automaton.objective == 0.0 and env.automaton.objective != 0.0
+
+
+def test_one_automaton_handed_to_several_environments_is_not_shared() -> None:
+    # one rac.load() object handed to every env: they shared one run state, each step of one env
+    # advancing the other's automaton too
+    ra = RewardAutomaton(driving_automaton())
+    one, two = (RewardAutomatonWrapper(Scripted(TRACE, truncate_at=len(TRACE)), ra, from_info) for _ in range(2))
+    alone = RewardAutomatonWrapper(Scripted(TRACE, truncate_at=len(TRACE)), driving_automaton(), from_info)
+    for env in (one, two, alone):
+        env.reset()
+    rewards = [(one.step(0)[1], two.step(0)[1], alone.step(0)[1]) for _ in range(3)]
+    assert all(a == b == c for a, b, c in rewards)
+    assert one.automaton.objective == two.automaton.objective == alone.automaton.objective
+    assert one.automaton is not two.automaton and ra.objective == 0.0
 
 
 def test_bad_automata_are_refused(tmp_path: Path) -> None:
