@@ -385,3 +385,23 @@ def test_the_past_horizon_advice_puts_the_limit_inside() -> None:
                                          r"TimeLimit\(make_env\(\), 30\)"):
         for _ in range(31):
             vector.step(np.array([[5.0], [5.0]], dtype=np.float32))
+
+
+def test_inputs_are_not_read_when_every_sub_environment_is_resetting() -> None:
+    # episodes of one fixed length: every sub-environment truncates on the same step, so the next step
+    # is everyone's reset step, whose infos lack the step-only key "t": inputs() was called anyway
+    def step_only(obs: np.ndarray, infos: dict[str, Any]) -> dict[str, object]:
+        assert "t" in infos, "a reset step's infos were read"
+        return gap_inputs(obs, infos)
+
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(Counting(), 3)] * 2), follow(), step_only)
+    vector.reset(seed=0)
+    action = np.array([[5.0], [5.0]], dtype=np.float32)
+    for _ in range(3):
+        *_, truncated, _ = vector.step(action)
+    assert truncated.all()
+    _, rewards, terminated, truncated, infos = vector.step(action)  # everyone's reset step
+    assert rewards.tolist() == [0.0, 0.0] and not terminated.any() and not truncated.any()
+    assert vector.automaton.samples.tolist() == [0, 0] and infos["rac"]["location"].tolist() == ["Safe", "Safe"]
+    _, rewards, *_ = vector.step(action)
+    assert vector.automaton.samples.tolist() == [1, 1] and (rewards != 0).all()

@@ -396,7 +396,9 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
             :class:`~rac.runtime.interpreter.RewardAutomaton` (its IR is batched).
         inputs: ``inputs(obs, infos) -> {input name: array of shape (num_envs,)}`` (scalars
             broadcast), or ``inputs(obs, infos, env)`` with the vector environment. Rows of
-            sub-environments being reset are not read.
+            sub-environments being reset are not read, and their infos are reset infos, which may
+            lack the keys only a step gives (read those with ``infos.get`` or under the mask
+            ``infos["_key"]``); when every sub-environment is being reset, ``inputs`` is not called.
         clip, scale, dt: as for :class:`RewardAutomatonWrapper` (``dt``: the sub-environments' step).
 
     ``infos["rac"]`` holds, per sub-environment (vector-info layout, ``infos["_rac"]`` the mask):
@@ -496,18 +498,22 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         if resetting.any():
             self.automaton.reset(resetting)
         active = ~resetting
-        try:
-            values = self.inputs(obs, infos, self.env) if self._with_env else self.inputs(obs, infos)
-        except Exception as exc:
-            raise RacValueError(f"inputs(obs, infos) raised {type(exc).__name__}: {exc}; the environments have taken "
-                                "this step and the automata have not: reset before the next step") from exc
         clipped: dict[str, np.ndarray] = {}
-        if self._specs is not None:  # per sub-environment, counted by the clip rule itself
-            values, clipped = clip_rows(self._specs, values, self.num_envs, active)
-            for name, per_env in clipped.items():
-                self.clipped_total[name] = self.clipped_total.get(name, 0) + int(per_env.sum())
         previous = self.automaton.rewards
-        rewards = self.automaton.step_batch(values, mask=active)
+        values: Mapping[str, object] = {}
+        if active.any():
+            try:
+                values = self.inputs(obs, infos, self.env) if self._with_env else self.inputs(obs, infos)
+            except Exception as exc:
+                raise RacValueError(f"inputs(obs, infos) raised {type(exc).__name__}: {exc}; the environments have "
+                                    "taken this step and the automata have not: reset before the next step") from exc
+            if self._specs is not None:  # per sub-environment, counted by the clip rule itself
+                values, clipped = clip_rows(self._specs, values, self.num_envs, active)
+                for name, per_env in clipped.items():
+                    self.clipped_total[name] = self.clipped_total.get(name, 0) + int(per_env.sum())
+            rewards = self.automaton.step_batch(values, mask=active)
+        else:  # every sub-environment is in its reset step: nothing to read (their infos are reset infos)
+            rewards = np.zeros(self.num_envs)
         self._past.check(self.automaton.samples)
         ended = self.automaton.terminated & active  # `episode ends when`: end clauses applied in this step
         self._forced = ended & ~terminated & ~truncated
