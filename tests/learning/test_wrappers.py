@@ -405,3 +405,21 @@ def test_inputs_are_not_read_when_every_sub_environment_is_resetting() -> None:
     assert vector.automaton.samples.tolist() == [0, 0] and infos["rac"]["location"].tolist() == ["Safe", "Safe"]
     _, rewards, *_ = vector.step(action)
     assert vector.automaton.samples.tolist() == [1, 1] and (rewards != 0).all()
+
+
+def test_a_monitor_inside_the_wrapper_is_said() -> None:
+    # make_vec_env(..., wrapper_class=<rac wrapper>) puts SB3's Monitor inside: ep_rew_mean then
+    # reported the environment's reward and missed the episodes the automaton ended
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.monitor import Monitor
+
+    with pytest.warns(UserWarning, match=r"Monitor sits inside rac's wrapper.*make_vec_env\(lambda: "):
+        venv = make_vec_env(ENV_ID, n_envs=1, wrapper_class=lambda env: RewardAutomatonWrapper(env, follow(), inputs))
+    venv.close()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        outside = make_vec_env(lambda: RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs), n_envs=1)
+        assert isinstance(outside.envs[0], Monitor)  # type: ignore[attr-defined]
+        outside.close()
+        Monitor(RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs)).close()

@@ -263,6 +263,18 @@ class CutEpisodes:
         self.steps = 0
 
 
+def _monitor_inside(env: object) -> bool:
+    """Whether stable-baselines3's ``Monitor`` wraps ``env`` somewhere (read by the class's module and
+    name, so stable-baselines3 need not be installed, nor is it imported)."""
+    seen = 0
+    while env is not None and seen < 100:  # a wrapper chain, not a cycle
+        kind = type(env)
+        if kind.__name__ == "Monitor" and kind.__module__.startswith("stable_baselines3"):
+            return True
+        env, seen = getattr(env, "env", None), seen + 1
+    return False
+
+
 def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
     if not clip:
         return None
@@ -303,6 +315,9 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
     neither ``dt``, ``env.unwrapped.dt`` nor highway-env's ``policy_frequency`` is there, nothing
     is checked.
 
+    stable-baselines3's ``Monitor`` goes outside (a ``UserWarning`` when ``env`` holds one): inside, it
+    records the environment's reward and misses the episodes the automaton ends.
+
     Episode limits go inside: ``RewardAutomatonWrapper(TimeLimit(env, n), ...)``. A limit outside
     truncates episodes this wrapper never sees end, so their ``at end`` clauses are lost; the next
     :meth:`reset` after an episode that took steps without ending warns once (:class:`CutEpisodes`).
@@ -332,6 +347,14 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self.scale: float = scale_factor(program, scale)
         #: Per numeric input, how many values were clipped since the wrapper was made.
         self.clipped_total: dict[str, int] = {}
+        if _monitor_inside(env):
+            warnings.warn("stable-baselines3's Monitor sits inside rac's wrapper (as make_vec_env(..., "
+                          "wrapper_class=...) builds it): it records the environment's own reward, so ep_rew_mean "
+                          "and evaluate_policy report that, not the automaton's, and it never sees an episode the "
+                          "automaton ends (`episode ends when`); wrap outside it instead: make_vec_env(lambda: "
+                          "RewardAutomatonWrapper(gymnasium.make(id), ...), n_envs=n) (make_vec_env's Monitor then "
+                          "sits outside), Monitor(RewardAutomatonWrapper(env, ...)), or VecMonitor on the vector "
+                          "environment", UserWarning, stacklevel=2)
         self._timing = _Timing(self.automaton, dt)
         self._timing.check(env)
         self._past = _PastHorizon(self.automaton, scale == "proven", SINGLE_LIMIT)
