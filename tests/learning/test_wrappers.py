@@ -160,6 +160,12 @@ def test_highway_env_timing_is_read_from_its_config() -> None:
 
     assert env_timing(Highway()) == (0.2, 40.0)
     assert env_timing(object()) == (None, None)
+    # gymnasium.make("highway-fast-v0", max_episode_steps=40): the episode ends at whichever limit comes
+    # first, here 40 steps of 0.2 s (8 s) before the 40 s duration; the spec won, whatever its length
+    for steps, seconds in ((40, 8.0), (1000, 40.0)):
+        limited = Highway()
+        limited.spec = gymnasium.envs.registration.EnvSpec("rac-test/Limited-v0", max_episode_steps=steps)  # type: ignore[attr-defined]
+        assert env_timing(limited) == (0.2, seconds)
 
 
 #: Follow whose episode ends when the gap closes below 3 m or opens to 9.5 m (where its end bonus applies).

@@ -146,9 +146,10 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
     """(seconds per step, seconds per episode) of ``env``, each None when unknown.
 
     The step: ``dt`` when given; else ``env.unwrapped.dt``; else highway-env's
-    ``1 / config["policy_frequency"]``. The episode: ``spec.max_episode_steps`` steps; else
-    highway-env's ``config["duration"]`` (seconds in highway-env: its clock advances by
-    ``1 / policy_frequency`` per step and the episode is truncated at ``time >= duration``).
+    ``1 / config["policy_frequency"]``. The episode: the shorter of ``spec.max_episode_steps`` steps
+    and highway-env's ``config["duration"]`` (seconds in highway-env: its clock advances by
+    ``1 / policy_frequency`` per step and the episode is truncated at ``time >= duration``), as
+    the episode ends at whichever comes first.
     """
     unwrapped = getattr(env, "unwrapped", env)
     config = getattr(unwrapped, "config", None)
@@ -162,12 +163,12 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
             step = 1.0 / config["policy_frequency"]
     spec = getattr(env, "spec", None)
     limit = getattr(spec, "max_episode_steps", None)
-    episode: float | None = None
+    ends: list[float] = []  # every limit the episode has: it ends at the first one reached
     if isinstance(limit, int) and step is not None:
-        episode = limit * step
-    elif isinstance(config.get("duration"), (int, float)):
-        episode = float(config["duration"])
-    return step, episode
+        ends.append(limit * step)
+    if isinstance(config.get("duration"), (int, float)):
+        ends.append(float(config["duration"]))
+    return step, min(ends, default=None)
 
 
 class _Timing:
@@ -309,11 +310,10 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
 
     Timing: a ``UserWarning`` (at construction, and at a reset when the environment's timing is
     new: it only knows it then, or it was reconfigured) when the environment's step differs from
-    the automaton's ``sample every``, or its
-    episode (``spec.max_episode_steps`` steps, or highway-env's ``duration``) from the automaton's
-    horizon: the priority proofs cover runs of the automaton's period and horizon only. When
-    neither ``dt``, ``env.unwrapped.dt`` nor highway-env's ``policy_frequency`` is there, nothing
-    is checked.
+    the automaton's ``sample every``, or its episode (the shorter of ``spec.max_episode_steps``
+    steps and highway-env's ``duration``) from the automaton's horizon: the priority proofs cover
+    runs of the automaton's period and horizon only. When neither ``dt``, ``env.unwrapped.dt`` nor
+    highway-env's ``policy_frequency`` is there, nothing is checked.
 
     stable-baselines3's ``Monitor`` goes outside (a ``UserWarning`` when ``env`` holds one): inside, it
     records the environment's reward and misses the episodes the automaton ends.
