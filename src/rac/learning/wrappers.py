@@ -239,28 +239,34 @@ VECTOR_LIMIT = ("limit each sub-environment inside the vector environment, e.g. 
 
 
 class CutEpisodes:
-    """Warns once when an episode that took steps is reset before it terminated or was truncated as
-    far as rac could see: a wrapper outside rac's (a ``TimeLimit``) cut it, so the automaton's ``at
-    end`` clauses were never applied and the episode's return lacks them. ``fix`` says how to end
-    the episodes where rac sees it."""
+    """Warns once when episodes are cut where rac cannot see it: reset before they terminated or were
+    truncated as far as rac saw, as a ``TimeLimit`` outside rac's wrapper does. Their ``at end``
+    clauses were never applied, and their returns lack them. A time limit cuts every episode after
+    the same number of steps, so the warning waits for a second cut episode of the same length,
+    three steps or more: a single reset in mid-episode (the end of a training run) is no limit, nor
+    are gymnasium's ``check_env`` probes (four steps in all, so no two cut episodes of three).
+    ``fix`` says how to end the episodes where rac sees it."""
 
     def __init__(self, fix: str) -> None:
         self.fix = fix
         self.warned = False
         self.steps = 0  # steps of the episode now running; 0 once it has ended
+        self.cut: set[int] = set()  # the lengths of the episodes cut so far
 
     def stepped(self, done: bool) -> None:
         """One step taken; ``done``: the episode ended there, as rac saw it."""
         self.steps = 0 if done else self.steps + 1
 
     def reset(self) -> None:
-        """An episode starts: warn when the last one was cut after some steps."""
-        if self.steps and not self.warned:
-            self.warned = True
-            warnings.warn(f"an episode was reset after {self.steps} step(s) without rac seeing it end (terminated or "
-                          "truncated): the automaton's `at end` clauses were not applied and that episode's return "
-                          f"lacks them; if a TimeLimit or another wrapper outside ended it, {self.fix}",
-                          UserWarning, stacklevel=3)
+        """An episode starts: warn when the last one was cut after as many steps as an earlier one."""
+        if self.steps > 2 and not self.warned:
+            if self.steps in self.cut:
+                self.warned = True
+                warnings.warn(f"episodes were reset after {self.steps} step(s) without rac seeing them end "
+                              "(terminated or truncated): the automaton's `at end` clauses were not applied and "
+                              f"their returns lack them; if a TimeLimit or another wrapper outside ends them, "
+                              f"{self.fix}", UserWarning, stacklevel=3)
+            self.cut.add(self.steps)
         self.steps = 0
 
 
@@ -319,8 +325,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
     records the environment's reward and misses the episodes the automaton ends.
 
     Episode limits go inside: ``RewardAutomatonWrapper(TimeLimit(env, n), ...)``. A limit outside
-    truncates episodes this wrapper never sees end, so their ``at end`` clauses are lost; the next
-    :meth:`reset` after an episode that took steps without ending warns once (:class:`CutEpisodes`).
+    truncates episodes this wrapper never sees end, so their ``at end`` clauses are lost; a
+    :meth:`reset` warns once when two episodes were cut so after as many steps (:class:`CutEpisodes`).
 
     ``info["rac"]`` holds ``location``, ``rewards`` (values), ``objective`` and ``scale`` after
     ``reset`` and ``step``; after ``step`` also ``reward_steps`` (each reward's change over the
