@@ -75,3 +75,11 @@ def test_the_table_keeps_its_horizon(tmp_path: Path) -> None:
     np.savez_compressed(old, format=np.array(shields.FORMAT), columns=np.array(table.columns), states=table.states,
                         masks=table.masks, forget_every=np.array(0))
     assert shields.load(old).horizon is None
+
+
+def test_too_few_actions_for_the_table_are_refused_by_name() -> None:
+    # the graph takes actions 0..2: n_actions=2 was a raw IndexError from the mask's fill
+    shield = safety_shield(layered_graph(), "safe")
+    with pytest.raises(ValueError, match=r"n_actions=2, but the shield's graph has choices of action index up to 2"):
+        shields.table(shield, n_actions=2)
+    assert shields.table(shield, n_actions=5).n_actions == 5  # wider masks: the extra actions never allowed

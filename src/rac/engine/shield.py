@@ -208,13 +208,21 @@ def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none",
           horizon: int | None = None) -> ShieldTable:
     """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads);
     ``forget_every``: the model's ``decide_every`` when the graph was explored with ``forget_actions``;
-    ``horizon``: the sample the graph was explored to (default: its last sample)."""
+    ``horizon``: the sample the graph was explored to (default: its last sample); ``n_actions``: the
+    masks' width (default: the largest action the graph takes, plus one), fewer than the graph's
+    actions is a :class:`~rac.core.diagnostics.RacValueError`."""
     graph = shield.graph
     if horizon is None and graph.n_states and "k" in graph.columns:
         horizon = int(graph.states[:, graph.columns.index("k")].max())
     actions = graph.choice_action
     decision = actions >= 0
-    n_actions = n_actions if n_actions is not None else (int(actions.max()) + 1 if decision.any() else 0)
+    largest = int(actions.max()) + 1 if decision.any() else 0  # the actions the graph's choices take
+    if n_actions is None:
+        n_actions = largest
+    elif n_actions < largest:  # the mask would have no column for them: say so, not an IndexError
+        raise RacValueError(f"n_actions={n_actions}, but the shield's graph has choices of action index up to "
+                            f"{largest - 1} ({largest} actions at least): pass the model's number of actions, "
+                            "len(action_pairs(data)), or leave n_actions out")
     owner = np.repeat(np.arange(graph.n_states), np.diff(graph.choice_offsets))
     states_with_decisions = np.unique(owner[decision])
     columns = tuple(graph.columns)
