@@ -120,6 +120,14 @@ def test_a_float32_at_a_bound_rounded_to_float32_is_that_bound() -> None:
                 runtime.step({"pos": outside})
         with pytest.raises(ValueError, match=r"is outside \[-1.2, 0.6\]"):
             RewardAutomaton(automaton).batch(1).step_batch({"pos": np.array([outside])})
+    # the float32 bound widened to a Python float: still refused, and the message says what happened
+    hint = r"is outside \[-1.2, 0.6\]: -1.2000000476837158 is the float32 nearest a bound.*numpy float32.*clip=True"
+    with pytest.raises(ValueError, match=hint):
+        RewardAutomaton(automaton).step({"pos": float(np.float32(-1.2))})
+    with pytest.raises(ValueError, match=hint):
+        RewardAutomaton(automaton).batch(1).step_batch({"pos": np.array([np.float32(-1.2)], dtype=np.float64)})
+    with pytest.raises(ValueError, match=r"is outside \[-1.2, 0.6\]$"):  # another value: no float32 hint
+        RewardAutomaton(automaton).step({"pos": -1.25})
 
 
 def test_clipping_leaves_a_float32_at_a_bound_uncounted() -> None:

@@ -347,7 +347,13 @@ def range_error(spec: InputSpec, value: object, where: str = "") -> ValueError:
     in_range = isinstance(value, float) and math.isfinite(value) and spec.low <= value <= spec.high
     if spec.kind == "int" and in_range:
         return ValueError(f"input {spec.name!r}{where} = {value!r} is not an integer")
-    return ValueError(f"input {spec.name!r}{where} = {value!r} is outside [{spec.low!r}, {spec.high!r}]")
+    message = f"input {spec.name!r}{where} = {value!r} is outside [{spec.low!r}, {spec.high!r}]"
+    if isinstance(value, float) and any(value == float(np.float32(bound)) for bound in (spec.low, spec.high)):
+        # a float32 bound made a Python float (float(np.float32(0.07)) == 0.07000000029802322): the float32
+        # itself is read as the bound it rounds, its float64 widening is not (the range is not widened)
+        message += (f": {value!r} is the float32 nearest a bound, widened to float64 (float(np.float32(...))); "
+                    "pass the numpy float32 value itself (a float32 array or scalar), or clip=True")
+    return ValueError(message)
 
 
 class AutomatonDescription:
