@@ -29,8 +29,13 @@ def test_the_log_aggregates_and_clears() -> None:
         "rac/reward/sa": (1.0 - 10.0 + 2.0) / 3, "rac/reward/pr": 1.0,
         "rac/location/Safe": 2 / 3, "rac/location/Unsafe": 1 / 3, "rac/clipped/x": 3.0,
         "rac/shield/exhaustive": 2 / 4, "rac/shield/lookahead 3": 1 / 4, "rac/shield/none": 1 / 4,
-        "rac/shield/no_safe_action": 1.0, "rac/collisions": 2.0}
+        "rac/shield/no_safe_action": 1 / 4, "rac/collisions": 2.0}
     assert log.record() == {}
+    # steps without a shield (a vector env's reset steps, which chose from no mask) are no share's steps
+    log.add([{"shield": "exhaustive", "no_safe_action": True}, {"shield": "none"}, {}, {"collided": False}])
+    recorded = log.record()
+    assert recorded["rac/shield/exhaustive"] == recorded["rac/shield/none"] == 1 / 2
+    assert recorded["rac/shield/no_safe_action"] == 1 / 2
 
 
 def test_the_callback_records_with_a_real_ppo(tmp_path: Path) -> None:

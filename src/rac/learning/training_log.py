@@ -10,7 +10,8 @@ stable-baselines3 hands them to callbacks, or one dict in gymnasium's vector lay
 - ``rac/location/<name>``: the share of steps that ended in each automaton location;
 - ``rac/shield/<guarantee>``: the share of steps per shield guarantee (``info["shield"]`` of
   :class:`~rac.learning.scenario_env.ScenarioEnv`: ``"exhaustive"``, ``"lookahead d"``, ``"none"``),
-  and ``rac/shield/no_safe_action`` (steps with ``info["no_safe_action"]``);
+  and ``rac/shield/no_safe_action``, the share of steps with ``info["no_safe_action"]``; both over
+  the steps that report a shield (a vector env's reset steps, which chose from no mask, do not);
 - ``rac/collisions``: steps with a collision (``info["collided"]`` in ScenarioEnv,
   ``info["crashed"]`` in highway-env);
 - ``rac/clipped/<input>``: values clipped (``info["rac"]["clipped"]``);
@@ -46,6 +47,7 @@ class TrainingLog:
         self._shield: Counter[str] = Counter()
         self._clipped: Counter[str] = Counter()
         self._no_safe = 0
+        self._shielded = 0  # steps that report a shield: the shield shares' denominator
         self._disallowed = 0
         self._collisions = 0
         self._rac_steps = 0
@@ -68,8 +70,9 @@ class TrainingLog:
                 for name, count in rac.get("clipped", {}).items():
                     self._clipped[name] += int(count)
             if "shield" in info:
+                self._shielded += 1
                 self._shield[str(info["shield"])] += 1
-            self._no_safe += bool(info.get("no_safe_action", False))
+                self._no_safe += bool(info.get("no_safe_action", False))
             self._disallowed += not info.get("model_allowed", True)
             self._collisions += bool(info.get("collided", False) or info.get("crashed", False))
 
@@ -82,9 +85,9 @@ class TrainingLog:
             out.update({f"rac/reward/{k}": v / self._rac_steps for k, v in self._reward.items()})
             out.update({f"rac/location/{k}": v / self._rac_steps for k, v in self._location.items()})
             out.update({f"rac/clipped/{k}": float(v) for k, v in self._clipped.items()})
-        if self._shield:
-            out.update({f"rac/shield/{k}": v / self.steps for k, v in self._shield.items()})
-            out["rac/shield/no_safe_action"] = float(self._no_safe)
+        if self._shielded:  # shares, as the guarantees' (a count would grow with the number of envs)
+            out.update({f"rac/shield/{k}": v / self._shielded for k, v in self._shield.items()})
+            out["rac/shield/no_safe_action"] = self._no_safe / self._shielded
         out["rac/collisions"] = float(self._collisions)
         if self._disallowed:  # once recorded, a later call without any records 0 (below)
             out["rac/disallowed"] = float(self._disallowed)
