@@ -341,12 +341,16 @@ def _positions(root, data: bytes) -> dict[int, tuple[int, int]]:
 
 
 def _check_time_step(path: str | os.PathLike[str], root, positions: dict[int, tuple[int, int]]) -> None:
-    """E0718: a ``timeStepSize`` outside [MIN_TIME_STEP, MAX_TIME_STEP]."""
+    """E0718: a ``timeStepSize`` outside [MIN_TIME_STEP, MAX_TIME_STEP] (zero, negative and infinite ones too)."""
     dt = float(root.get("timeStepSize"))
     if MIN_TIME_STEP <= dt <= MAX_TIME_STEP:
         return
-    why = ("shorter than 1 µs: rac holds times to 1 ns, so its time steps would collapse into each other"
-           if dt < MIN_TIME_STEP else "longer than 10^6 s: an obstacle's next state would lie beyond any horizon")
+    if dt <= 0:
+        why = "not positive: the scenario's time would not advance"
+    elif dt < MIN_TIME_STEP:
+        why = "shorter than 1 µs: rac holds times to 1 ns, so its time steps would collapse into each other"
+    else:
+        why = "longer than 10^6 s: an obstacle's next state would lie beyond any horizon"
     raise InconsistentScenarioError(
         path, "E0718", None, "timeStepSize", f"has timeStepSize=\"{root.get('timeStepSize')}\" s, {why}",
         "write the time step the trajectories were recorded at (CommonRoad's scenarios use 0.1 s); rac accepts "
@@ -447,13 +451,14 @@ def _parse_root(path: str | os.PathLike[str], data: bytes):
     version = root.get("commonRoadVersion")
     if version not in SUPPORTED_COMMONROAD_VERSIONS:
         supported = " and ".join(sorted(SUPPORTED_COMMONROAD_VERSIONS))
-        found = f"version {version!r}" if version is not None else "no commonRoadVersion"
-        raise ScenarioError(path, None, f"has CommonRoad {found}; commonroad-io reads the XML formats {supported}")
+        found = f"has CommonRoad version {version!r}" if version is not None else \
+            "has no commonRoadVersion attribute on its <commonRoad> element"
+        raise ScenarioError(path, None, f"{found}; commonroad-io reads the XML formats {supported}")
     try:
         dt = float(root.get("timeStepSize", "nan"))
     except ValueError:
         dt = math.nan
-    if not dt > 0 or math.isinf(dt):
+    if math.isnan(dt):  # a number outside the range is E0718 (_check_time_step), with its position
         raise ScenarioError(path, None, f"has no valid timeStepSize (got {root.get('timeStepSize')!r})")
     return root
 
@@ -546,6 +551,13 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
     def label(node) -> str:
         return f"{_LABELS[node.tag]} {node.get('id', '(without id)')}"
 
+    if root.get("commonRoadVersion") == "2018b" and root.get("tags") is None:
+        # commonroad-io reads a 2018b file's tags from this attribute (2020a has <scenarioTags> instead)
+        newer = [f"<{tag}>" for tag in ("location", "scenarioTags") if root.find(tag) is not None]
+        guess = (f"; its {' and '.join(newer)} belong to the 2020a format: is it a 2020a file labelled 2018b? "
+                 "Then write commonRoadVersion=\"2020a\"") if newer else ""
+        return ScenarioError(path, "<commonRoad>", "is labelled commonRoadVersion=\"2018b\" but has no `tags` "
+                                                   f"attribute, which commonroad-io reads in a 2018b file{guess}")
     header = [("scenario tags", lambda: factories.TagsFactory.create_from_xml_node(root)),
               ("location", lambda: factories.LocationFactory.create_from_xml_node(root))]
     for element, read in header if root.get("commonRoadVersion") != "2018b" else ():
