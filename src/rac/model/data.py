@@ -10,8 +10,9 @@ Times are counted in sense periods ``C1`` from the ego's start ``t0`` (the plann
 initial time, :attr:`rac.model.commonroad.EgoStart.time`): sample ``k`` is the time ``t0 + k * C1``. A dynamic
 obstacle is resampled at these times (:func:`_resample`): its waypoints lie on whole samples and
 each is the obstacle's state at that sample's time, so the model's projection from a waypoint is
-exact however the CommonRoad time step relates to ``C1``. The goal interval is
-``round((t - t0) / C1)``, exactly, ties to even.
+exact however the CommonRoad time step relates to ``C1``. The goal interval is the samples inside
+it: ``ceil((low - t0) / C1)`` to ``floor((high - t0) / C1)``, exactly (``goal_low > goal_high`` when
+no sample lies inside; ``rac check`` warns of it, W0722).
 
 Every significand must lie in ``[-2147483647, 2147483647]`` (int32 without ``INT32_MIN``, which has
 no literal in UPPAAL); :func:`build_model_data` raises :class:`ModelRangeError` naming the first
@@ -247,12 +248,13 @@ class _Converter:
         """A count of sense periods, checked (and recorded) like a significand."""
         return self._fit(what, value, count)
 
-    def periods(self, what: str, seconds: Number, unbounded: int = 0) -> int:
-        """``round((seconds - t0) / C1)``; with ``unbounded``, ``±inf`` (an open goal interval) becomes
-        ``±INT32_MAX``."""
+    def periods(self, what: str, seconds: Number, rounding: Callable[[Fraction], int], unbounded: int = 0) -> int:
+        """``rounding((seconds - t0) / C1)`` (``math.ceil`` for a window's first sample, ``math.floor`` for
+        its last: a window rounded outward would widen it); with ``unbounded``, ``±inf`` (an open goal
+        interval) becomes ``±INT32_MAX``."""
         if unbounded and isinstance(seconds, float) and math.isinf(seconds):
             return INT32_MAX if seconds > 0 else INT32_LOW
-        return self._fit(what, seconds, round((self._exact(what, seconds) - self.origin) / self.period))
+        return self._fit(what, seconds, rounding((self._exact(what, seconds) - self.origin) / self.period))
 
 
 def _converter(scenario: Scenario, spec: ModelSpec, strict: bool) -> _Converter:
@@ -405,8 +407,9 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
         ego_acc=sig("ego start acceleration", ego.acceleration),
         ego_head=sig("ego start heading", _start(spec.start_heading, ego.heading)),
         goal_x=goal_x, goal_y=goal_y, goal_start=goal_start,
-        goal_low=conv.periods("goal time low (sense periods)", goal.time_low, unbounded=1),
-        goal_high=conv.periods("goal time high (sense periods)", goal.time_high, unbounded=1),
+        # the samples inside the goal's window, never one outside it
+        goal_low=conv.periods("goal time low (sense periods)", goal.time_low, math.ceil, unbounded=1),
+        goal_high=conv.periods("goal time high (sense periods)", goal.time_high, math.floor, unbounded=1),
         goal_cx=sig("goal centre x", center[0]), goal_cy=sig("goal centre y", center[1]),
         length=sig("vehicle length", spec.length), width=sig("vehicle width", spec.width),
         max_acc=sig("max acceleration MA", spec.max_acceleration), max_turn=sig("max turn rate MT", spec.max_turn),
