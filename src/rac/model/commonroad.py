@@ -85,15 +85,57 @@ class Goal:
     time_low: float
     time_high: float
     #: What the planning problem also asks of the ego in the goal, as closed intervals (m/s,
-    #: radians), None when it asks nothing; ``goal()`` (model.md) reads only regions and time.
+    #: radians), None when it asks nothing; several goal states asking different ones give the
+    #: hull of theirs. ``goal()`` (model.md) reads only regions and time: ``rac check`` warns (W0723).
     velocity: tuple[float, float] | None = None
     orientation: tuple[float, float] | None = None
+    #: The loader's point for :attr:`center` when the first region is a lanelet: the midpoint of its
+    #: centre line by arc length (a curved lanelet's vertex mean may lie off the lanelet).
+    lane_point: tuple[float, float] | None = None
 
     @property
     def center(self) -> tuple[float, float]:
-        """Centroid of the first region's vertices (``dist_goal()`` measures to it)."""
-        points = self.regions[0].points
-        return (sum(p[0] for p in points) / len(points), sum(p[1] for p in points) / len(points))
+        """A point inside the first region, which ``dist_goal()`` measures to: ``lane_point`` for a
+        lanelet goal, else the mean of the region's vertices when it lies inside the region (a convex
+        region's always does), else :func:`inside_point`."""
+        if self.lane_point is not None:
+            return self.lane_point
+        return inside_point(self.regions[0])
+
+
+def inside_point(polygon: Polygon) -> tuple[float, float]:
+    """The mean of ``polygon``'s vertices when it lies inside the polygon, else a point inside it
+    (shapely's ``representative_point``): the vertex mean of a ring or an L lies in its hole."""
+    points = polygon.points
+    mean = (sum(p[0] for p in points) / len(points), sum(p[1] for p in points) / len(points))
+    if _inside(points, mean):
+        return mean
+    import shapely  # shapely (commonroad-io's): only for a region whose vertex mean lies outside it
+
+    point = shapely.Polygon(points).representative_point()
+    return (float(point.x), float(point.y))
+
+
+def _inside(points: tuple[tuple[float, float], ...], point: tuple[float, float]) -> bool:
+    """Ray casting (even-odd), as ``goal()`` tests the ego's centre."""
+    x, y = point
+    inside = False
+    for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1]):
+        if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+            inside = not inside
+    return inside
+
+
+def _midpoint(line: tuple[tuple[float, float], ...]) -> tuple[float, float]:
+    """The point halfway along ``line`` (a polyline) by arc length."""
+    lengths = [math.hypot(x1 - x0, y1 - y0) for (x0, y0), (x1, y1) in zip(line, line[1:])]
+    remaining = sum(lengths) / 2
+    for ((x0, y0), (x1, y1)), length in zip(zip(line, line[1:]), lengths):
+        if remaining <= length and length > 0:
+            share = remaining / length
+            return (x0 + share * (x1 - x0), y0 + share * (y1 - y0))
+        remaining -= length
+    return line[-1]
 
 
 @dataclass(frozen=True)
@@ -206,8 +248,10 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
       polygon, a circle (approximated by the inscribed regular 16-gon, whose vertices lie on the
       circle), a group of these (one region each) or lanelets (each lanelet's polygon) — and its
       time-step interval in seconds; velocity and orientation intervals, if any, are kept in
-      ``Goal.velocity`` / ``Goal.orientation``. Several goal states are merged (their regions
-      concatenated) when they ask for the same time, velocity and orientation.
+      ``Goal.velocity`` / ``Goal.orientation`` (the hull of the goal states'; the model does not
+      read them). Several goal states are merged (their regions concatenated) when they ask for the
+      same time interval. ``Goal.center`` is a point inside the first region (for a lanelet, the
+      midpoint of its centre line by arc length).
 
     ``planning_problem_id`` picks the planning problem; None picks the one with the smallest id, or,
     with ``require_choice``, raises :class:`PlanningProblemError` when the file has several (before
@@ -929,7 +973,10 @@ def _goal(path, element: str, goal, network, dt: float) -> Goal:
         raise ScenarioError(path, element, "has no goal state")
     by_lanelets = goal.lanelets_of_goal_position or {}
     regions: list[Polygon] = []
-    constraints = set()
+    lane_point: tuple[float, float] | None = None
+    times = set()
+    velocities: list[tuple[float, float]] = []
+    orientations: list[tuple[float, float]] = []
     for index, state in enumerate(states):
         if index in by_lanelets:
             for lanelet_id in by_lanelets[index]:
@@ -937,6 +984,8 @@ def _goal(path, element: str, goal, network, dt: float) -> Goal:
                 if lanelet is None:
                     raise ScenarioError(path, element,
                                         f"refers to lanelet {lanelet_id}, which the file does not define")
+                if not regions:  # the first region's point for dist_goal(): on the lanelet
+                    lane_point = _midpoint(_points(lanelet.center_vertices))
                 regions.append(_polygon(lanelet.polygon.vertices))
         elif getattr(state, "position", None) is None:
             raise ScenarioError(path, element, "has no position; rac needs a goal region (a shape or lanelets)")
@@ -945,14 +994,22 @@ def _goal(path, element: str, goal, network, dt: float) -> Goal:
         time = _interval(path, element, getattr(state, "time_step", None), "time")
         if time is None:
             raise ScenarioError(path, element, "has no time interval")
-        constraints.add((time, _interval(path, element, getattr(state, "velocity", None), "velocity"),
-                         _interval(path, element, getattr(state, "orientation", None), "orientation")))
-    if len(constraints) > 1:
-        raise ScenarioError(path, element, f"has {len(states)} goal states with different time, velocity or "
-                                           "orientation intervals; rac supports one set of intervals")
-    (low, high), velocity, orientation = constraints.pop()
-    return Goal(regions=tuple(regions), time_low=_seconds(low, dt), time_high=_seconds(high, dt), velocity=velocity,
-                orientation=orientation)
+        times.add(time)
+        for found, attribute in ((velocities, "velocity"), (orientations, "orientation")):
+            interval = _interval(path, element, getattr(state, attribute, None), attribute)
+            if interval is not None:
+                found.append(interval)
+    if len(times) > 1:  # the model has one goal window (velocity and orientation it does not model)
+        raise ScenarioError(path, element, f"has {len(states)} goal states with different time intervals; rac "
+                                           "supports one goal time interval")
+    low, high = times.pop()
+    return Goal(regions=tuple(regions), time_low=_seconds(low, dt), time_high=_seconds(high, dt),
+                velocity=_hull(velocities), orientation=_hull(orientations), lane_point=lane_point)
+
+
+def _hull(intervals: list[tuple[float, float]]) -> tuple[float, float] | None:
+    """The smallest interval holding every one of ``intervals`` (None for none)."""
+    return (min(i[0] for i in intervals), max(i[1] for i in intervals)) if intervals else None
 
 
 def _regions(path, element: str, position) -> list[Polygon]:

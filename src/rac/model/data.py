@@ -375,12 +375,8 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
     ego = scenario.ego
     goal = scenario.goal
     goal_x, goal_y, goal_start = _polygons(sig, "goal polygon", goal.regions)
-    if goal.regions:
-        points = goal.regions[0].points
-        center = (sum((exact(p[0]) for p in points), Fraction(0)) / len(points),
-                  sum((exact(p[1]) for p in points), Fraction(0)) / len(points))
-    else:
-        center = (Fraction(0), Fraction(0))
+    # Goal.center owns the point dist_goal() measures to (inside the first region)
+    center = tuple(exact(c) for c in goal.center) if goal.regions else (Fraction(0), Fraction(0))
 
     actions = tuple(
         ActionData(a.name, sig(f"action {a.name} low", a.low), sig(f"action {a.name} high", a.high),
