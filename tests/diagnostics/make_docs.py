@@ -301,6 +301,23 @@ GENERATED: tuple[Case, ...] = (
          "bound lies on its right bound, y = 0:",
          _edited("E0721_lanelet_without_width", "flat.xml", "a road without width", _one_lane,
                  r"<y>3\.0</y>", "<y>0.0</y>")),
+    Case("W0722_goal_window_closed", None,
+         "`W0722_goal_window_closed.ra` is the automaton of the E0712 example over `late.xml` (line 22), next "
+         "to it: one lane, the ego starting at 7 s (time step 70) while the goal's window is [0, 6] s "
+         "(`late_start()` of tests/support/tiny_scenarios.py):",
+         _scene("W0722_goal_window_closed", "late.xml", "a scenario whose goal window closes before the ego starts",
+                "late_start")),
+    Case("W0723_goal_direction", None,
+         "`W0723_goal_direction.ra` is the automaton of the E0712 example over `direction.xml` (line 22), next "
+         "to it: one lane whose goal also asks for a velocity in [0, 1] m/s and an orientation in [2.5, 3.5] rad "
+         "(`goal_with_direction()` of tests/support/tiny_scenarios.py):",
+         _scene("W0723_goal_direction", "direction.xml", "a goal that also asks for a velocity and a heading",
+                "goal_with_direction")),
+    Case("W0724_start_in_collision", None,
+         "`W0724_start_in_collision.ra` is the automaton of the E0712 example over `blocked.xml` (line 22), next "
+         "to it: one lane, the ego at x = 10 and a parked car at x = 13.5 on the same line "
+         "(`blocked_start()` of tests/support/tiny_scenarios.py):",
+         _scene("W0724_start_in_collision", "blocked.xml", "a start inside a parked car", "blocked_start")),
     Case("W1011_penalty_no_action_avoids", None,
          "`W1011_penalty_no_action_avoids.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: the highway of `rac.model.scenes` (`build_highway(truck=(40.0, 20.0))`), whose truck starts "

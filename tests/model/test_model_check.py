@@ -88,7 +88,7 @@ def test_left_turn_loads_and_is_summed_up(tmp_path: Path) -> None:
     result = compile_file(write(tmp_path, text, LEFT_TURN.read_bytes()))
     assert result.ok, [d.message for d in result.diagnostics]
     fact = result.proved[-1]
-    assert fact.startswith("scenario left_turn.xml: 20 lanelets, 3 obstacles, goal at t in [0, 10] s; "
+    assert fact.startswith("scenario left_turn.xml: 20 lanelets, 3 obstacles, goal at scenario time t in [0, 10] s; "
                            "every significand fits int32 at base 10, exponent 4")
     assert isinstance(result.scenario, Scenario) and len(result.scenario.road) == 20
     assert isinstance(result.model_data, ModelData)

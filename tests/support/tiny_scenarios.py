@@ -42,6 +42,7 @@ from __future__ import annotations
 import argparse
 import functools
 import math
+import re
 import sys
 import tempfile
 from collections.abc import Callable, Sequence
@@ -54,7 +55,7 @@ import shapely
 from commonroad.common.common_lanelet import LaneletType, LineMarking
 from commonroad.common.common_scenario import ScenarioID
 from commonroad.common.file_writer import CommonRoadFileWriter
-from commonroad.common.util import FileFormat, Interval
+from commonroad.common.util import AngleInterval, FileFormat, Interval
 from commonroad.common.writer.file_writer_interface import OverwriteExistingFile
 from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
 from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
@@ -97,6 +98,10 @@ __all__ = [
     "highway",
     "junction_with_two_problems",
     "narrow_road",
+    "blocked_start",
+    "curved_lane_goal",
+    "goal_with_direction",
+    "late_start",
     "ramp",
     "StraightRoad",
     "straight_road",
@@ -561,6 +566,76 @@ def ramp(start_x: float = 0.0) -> bytes:
     at 10 m/s; no obstacle; the goal 100 m to 150 m within 8 s. At the default x = 0 half of the
     ego lies before the road's start, as in CommonUppRoad's ZAM_Ramp (W0716)."""
     return StraightRoad(200.0, EgoStart(start_x, 1.75, 0.0, 10.0), GoalBox(100.0, 150.0, 0.0, 8.0)).xml("ramp")
+
+
+def blocked_start() -> bytes:
+    """:func:`ramp` with the ego at x = 10 and a parked car (static obstacle 31) at x = 13.5 on the same
+    line: the two rectangles overlap at the start (W0724)."""
+    return StraightRoad(200.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(100.0, 150.0, 0.0, 8.0),
+                        obstacles=(Block(31, x=13.5, y=1.75),)).xml("blocked")
+
+
+def late_start() -> bytes:
+    """:func:`ramp` with the ego starting at 7 s (time step 70) and the goal's window [0, 6] s: the
+    window has closed before the ego starts (W0722). CommonRoad's schema wants a planning problem to
+    start at step 0, so the step is written into the schema-checked file afterwards."""
+    text = StraightRoad(200.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(100.0, 150.0, 0.0, 6.0),
+                        steps=90).xml("late").decode("utf-8")
+    text, made = re.subn(r"(<planningProblem .*?<initialState>.*?<time>\s*<exact>)0(</exact>)", r"\g<1>70\2", text,
+                         count=1, flags=re.S)
+    assert made == 1, "late_start: no initial time step to move"
+    return text.encode("utf-8")
+
+
+def goal_with_direction(mixed: bool = False) -> bytes:
+    """:func:`ramp` whose goal also asks for a velocity in [0, 1] m/s and an orientation in [2.5, 3.5] rad
+    (W0723). With ``mixed``, two goal states with the same time interval: the first as before without
+    the orientation, the second a box at x in [160, 170] without either."""
+    scenario, problems = StraightRoad(200.0, EgoStart(10.0, 1.75, 0.0, 10.0),
+                                      GoalBox(100.0, 150.0, 0.0, 8.0)).build("goal_direction")
+    (problem,) = problems.planning_problem_dict.values()
+    (state,) = problem.goal.state_list
+    state.velocity = Interval(0.0, 1.0)
+    states = [state]
+    if mixed:
+        states.append(CustomState(time_step=state.time_step, position=RectOccupancy(
+            rect_center=shapely.Point(165.0, LANE_WIDTH / 2), length=10.0, width=LANE_WIDTH, orientation=0.0)))
+    else:
+        state.orientation = AngleInterval(2.5, 3.5)
+    goal = GoalRegion(states)
+    problems = PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, problem.initial_state, goal)])
+    return commonroad_xml(scenario, problems, "goal_direction", Tag.SINGLE_LANE)
+
+
+#: The ring of :func:`curved_lane_goal`: its centre line's radius (m) and the lane width.
+RING_RADIUS = 20.0
+
+
+def curved_lane_goal() -> bytes:
+    """A ring road of two lanelets (each half a circle of radius :data:`RING_RADIUS` on its centre line,
+    :data:`LANE_WIDTH` wide, centred at the origin, counter-clockwise): lanelet 1 the upper half,
+    lanelet 2 the lower half. The ego starts on lanelet 1 at (20, 0) heading north; the goal is
+    lanelet 2, whose vertices' mean lies in the ring's hole."""
+    def arc(radius: float, start: float) -> np.ndarray:
+        angles = np.linspace(start, start + math.pi, 17)
+        return _clean(np.column_stack([radius * np.cos(angles), radius * np.sin(angles)]))
+
+    inner, outer = RING_RADIUS - LANE_WIDTH / 2, RING_RADIUS + LANE_WIDTH / 2
+    scenario = CRScenario(DT, ScenarioID(country_id="ZAM", map_name="Ring", map_id=1, obstacle_behavior="T",
+                                         prediction_id=1))
+    for ident, start in ((1, 0.0), (2, math.pi)):
+        scenario.add_objects(Lanelet(arc(inner, start), arc(RING_RADIUS, start), arc(outer, start), ident,
+                                     predecessor=[3 - ident], successor=[3 - ident],
+                                     line_marking_left_vertices=LineMarking.SOLID,
+                                     line_marking_right_vertices=LineMarking.SOLID,
+                                     lanelet_type={LaneletType.URBAN}))
+    initial = InitialState(time_step=0, position=np.array([RING_RADIUS, 0.0]), orientation=float(_clean(math.pi / 2)),
+                           velocity=5.0, acceleration=0.0, yaw_rate=0.0, slip_angle=0.0)
+    goal = GoalRegion([CustomState(time_step=Interval(0, 80), position=RectOccupancy(
+        rect_center=shapely.Point(0.0, -RING_RADIUS), length=1.0, width=1.0, orientation=0.0))],
+        lanelets_of_goal_position={0: [2]})
+    problems = PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, initial, goal)])
+    return commonroad_xml(scenario, problems, "ring", Tag.URBAN)
 
 
 #: The named tiny scenarios, by name.

@@ -1,4 +1,4 @@
-"""The `model` block's scenario, checked against the model: E0712-E0715, W0716 and E0718-E0721.
+"""The `model` block's scenario, checked against the model: E0712-E0715, W0716 and E0718-W0724.
 
 :func:`check_scenario` loads the CommonRoad file of a checked automaton's `model` block once
 (:func:`load`, the one caller of :func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
@@ -23,6 +23,10 @@
 * W0716: the ego starts off the road: ``offroad()`` holds in the initial state, so no run is
   safe from the start. A warning, not an error: the model is consistent and answers every query
   (CommonUppRoad's ZAM_Ramp starts so, and its model does not check the start).
+* W0722: the goal's time window holds no sample of the model (it closes before the ego starts, or
+  lies between two samples): ``goal()`` never holds.
+* W0723: the goal also asks for a velocity or an orientation, which ``goal()`` does not read.
+* W0724: the ego starts in a collision (``collide()`` holds at the start), like W0716 a warning.
 
 The loaded :class:`~rac.model.commonroad.Scenario` and :class:`~rac.model.data.ModelData` are returned so
 that :class:`rac.compiler.CompileResult` can hand them on (:class:`rac.model.program.CheckedProgram`)
@@ -175,6 +179,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     result.diagnostics.extend(_start(automaton, spec, scenario, data))
     if any(d.is_error for d in result.diagnostics):
         return result  # a start the model would clamp: nothing to sum up
+    result.diagnostics.extend(_goal(automaton, spec, scenario, data))
     goal = scenario.goal
     obstacles = len(scenario.obstacles)
     detail = f" (the largest is {what}: {largest})" if what else ""
@@ -186,12 +191,54 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     result.facts.append(Fact(
         "scenario",
         f"scenario {written}{problem}: {len(scenario.road)} lanelet{'s' if len(scenario.road) != 1 else ''}, "
-        f"{counted}, goal at t in [{_number(goal.time_low)}, "
-        f"{_number(goal.time_high)}] s; every significand fits int32 at base {spec.base}, exponent "
-        f"{spec.exponent}{detail}",
+        f"{counted}, goal at scenario time t in [{_number(goal.time_low)}, "
+        f"{_number(goal.time_high)}] s{_model_time(scenario)}; every significand fits int32 at base {spec.base}, "
+        f"exponent {spec.exponent}{detail}",
         {"scenario": written, "lanelets": len(scenario.road), "obstacles": obstacles, "base": spec.base,
          "exponent": spec.exponent}))
     return result
+
+
+def _model_time(scenario: Scenario) -> str:
+    """Where the model's time (from the ego's start) differs from the scenario's, say so."""
+    start = scenario.ego.time
+    return f" (the model's time counts from the ego's start at {_number(start)} s)" if start else ""
+
+
+def _goal(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data: ModelData) -> list[Diagnostic]:
+    """W0722 for a goal window that holds no sample of the model, W0723 for goal constraints the model
+    does not read (velocity, orientation)."""
+    found = []
+    span = automaton.spans.get("model:scenario", spec.span)
+    goal = scenario.goal
+    window = f"[{_number(goal.time_low)}, {_number(goal.time_high)}] s"
+    period = short_number(spec.sense_period)
+    if data.goal_high < 0:
+        found.append(warning(
+            "W0722", f"the goal's time window {window} closes before the ego starts (at {_number(scenario.ego.time)} "
+            "s of the scenario): `goal()` never holds", span,
+            notes=[f"the scenario file is `{spec.scenario_path}`; the model's time counts from the ego's start, and "
+                   "`goal()` holds only at the samples inside the window"],
+            hints=["choose a planning problem whose goal lies after its start, or correct the goal's time interval"]))
+    elif data.goal_low > data.goal_high:
+        found.append(warning(
+            "W0722", f"the goal's time window {window} holds no sample of the model (every {period} s from the "
+            f"ego's start at {_number(scenario.ego.time)} s): `goal()` never holds", span,
+            notes=[f"the scenario file is `{spec.scenario_path}`; `goal()` holds only at the samples inside the "
+                   "window, and the window lies between two samples"],
+            hints=["sample more often (`sample every`), or widen the goal's time interval"]))
+    asked = [f"velocity in [{_number(goal.velocity[0])}, {_number(goal.velocity[1])}] m/s"] if goal.velocity else []
+    if goal.orientation:
+        asked.append(f"orientation in [{_number(goal.orientation[0])}, {_number(goal.orientation[1])}] rad")
+    if asked:
+        found.append(warning(
+            "W0723", f"the goal of `{spec.scenario}` also asks for {' and '.join(asked)}, which the model does not "
+            "read: `goal()` holds at any speed and heading inside the goal region", span,
+            notes=[f"`goal()` reads only the goal region and its time window (planning problem "
+                   f"{scenario.planning_problem_id} of `{spec.scenario_path}`)"],
+            hints=["add the condition to the query or the automaton (`v`, `head`), or read goal verdicts knowing "
+                   "that they ignore it"]))
+    return found
 
 
 def _inconsistent(spec: ir.ModelSpec, scenario_span, failure) -> Diagnostic:
@@ -292,7 +339,32 @@ def _start(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, data) -> list[
             hints=["move the ego's start onto the road (`start_x`, `start_y`, `start_heading`, or the scenario's "
                    "planning problem), or write `offroad_from 1` to leave the start unchecked, as CommonUppRoad's "
                    "model does"]))
+    found.extend(_start_collision(automaton, spec, scenario, data, model))
     return found
+
+
+def _start_collision(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data: ModelData,
+                     model: NativeModel) -> list[Diagnostic]:
+    """W0724: ``collide()`` holds at the start (sample 0): one ``mindist()`` over the obstacles, as cheap
+    as the off-road test."""
+    state = model.initial_state()
+    if not model.collide(state, 0):
+        return []
+    ex, ey = state.x / data.scale, state.y / data.scale
+    present = [(math.hypot(p[0] - ex, p[1] - ey), i, p) for i in range(data.obstacle_count)
+               if (p := model.obstacle_position(i, 0)) is not None]
+    _, nearest, (ox, oy, _) = min(present)
+    obstacle = next(o for o in scenario.obstacles if o.id == data.obs_id[nearest])
+    kind = f" ({obstacle.kind})" if obstacle.kind else ""
+    return [warning(
+        "W0724", f"the ego starts in a collision: `collide()` holds at the start (the nearest obstacle is "
+        f"{'static' if obstacle.static else 'dynamic'} obstacle {obstacle.id}{kind} at ({_number(ox)}, {_number(oy)}))",
+        automaton.spans.get("model:scenario", spec.span),
+        notes=[f"`mindist()` reads {_number(model.mindist(state, 0))} m at the start, below `collision_distance` "
+               f"({short_number(spec.collision_distance)} m), with the ego at ({_number(ex)}, {_number(ey)})",
+               "no run is safe from the start, so `E[] !collide()` and the safety shield fail there"],
+        hints=["move the ego's start away from the obstacle (`start_x`, `start_y`, or the scenario's planning "
+               "problem), or remove the obstacle from the scenario"])]
 
 
 def _limit(automaton: ir.Automaton, spec: ir.ModelSpec, setting: str, held: Fraction, unit: str, message: str,

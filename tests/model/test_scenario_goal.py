@@ -1,0 +1,185 @@
+"""The planning problem's goal and start as the model reads them (the sweep of new scenes, "sweepB").
+
+Each scene is built with commonroad-io (tests/support/tiny_scenarios.py):
+
+- a goal window [0, 0.7] s sampled every 0.2 s holds the samples 0 to 3 (0.6 s), not 4 (0.8 s):
+  the window is the samples inside it, in the model's data, ``goal()`` and the UPPAAL declarations;
+  a window between two samples holds none (W0722), and so does one that closes before the ego starts;
+- a goal that also asks for a velocity and an orientation: W0723 (the model reads neither), and two
+  goal states of which only one asks for a velocity are accepted with it;
+- a curved lanelet goal (half a ring): its centre, which ``dist_goal()`` measures to, lies on the
+  lanelet, not in the ring's hole; a region whose vertex mean lies outside it gets a point inside;
+- an ego that starts inside a parked car: W0724;
+- the loader's messages for a file without a version, a 2020a file labelled 2018b, and a time step
+  of 0 or below (E0718, with the position, like any step outside [1 µs, 10^6 s]).
+"""
+
+from __future__ import annotations
+
+import re
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+from engine_files import TEMPLATE
+from tiny_scenarios import (
+    RING_RADIUS,
+    GoalBox,
+    StraightRoad,
+    TinySettings,
+    blocked_start,
+    curved_lane_goal,
+    goal_with_direction,
+    late_start,
+    ramp,
+)
+
+from rac.compiler import compile_file
+from rac.model.commonroad import (
+    EgoStart,
+    Goal,
+    InconsistentScenarioError,
+    Polygon,
+    ScenarioError,
+    inside_point,
+    load_scenario,
+)
+from rac.model.data import build_model_data
+from rac.model.native import NativeModel
+from rac.targets.uppaal.declarations import emit_declarations
+
+MODEL = """\
+    model {{
+        scenario "{scenario}"
+{items}        bind near = mindist() < 3 * collision_distance
+    }}"""
+
+
+def write(folder: Path, scenario: str, xml: bytes, period: str = "0.1", items: str = "") -> Path:
+    """``folder/drive.ra`` (sampling every ``period`` s) over ``folder/<scenario>``, written from ``xml``."""
+    (folder / scenario).write_bytes(xml)
+    text = TEMPLATE.format(period=period, horizon="2", model=MODEL.format(scenario=scenario, items=items),
+                           queries="")
+    path = folder / "drive.ra"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def warnings_of(path: Path, code: str) -> list:
+    result = compile_file(path)
+    assert result.ok, [d.message for d in result.diagnostics]
+    return [d for d in result.diagnostics if d.code == code]
+
+
+def window(time_low: float, time_high: float) -> bytes:
+    return StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(17.9, 25.0, time_low, time_high)).xml("window")
+
+
+# ---------------------------------------------------------------- the goal's time window
+def test_the_goal_window_is_the_samples_inside_it(tmp_path: Path) -> None:
+    """[0, 0.7] s every 0.2 s: samples 0..3; rounding both ends to the nearest (ties to even) gave 0..4,
+    and `goal()` held at 0.8 s, after the window had closed."""
+    path = tmp_path / "window.xml"
+    path.write_bytes(window(0.0, 0.7))
+    settings = TinySettings(sense_period=Fraction(1, 5), decide_period=Fraction(1, 5))
+    data = build_model_data(load_scenario(path), settings.model_spec(path))
+    assert (data.goal_low, data.goal_high) == (0, 3)
+    declarations = emit_declarations(data)  # the UPPAAL model reads the same numbers
+    assert re.search(r"\bGOAL_LOW = 0;", declarations) and re.search(r"\bGOAL_HIGH = 3;", declarations)
+    model = NativeModel(data)
+    inside = model.initial_state()._replace(x=21 * data.scale)
+    assert model.goal(inside, 3) and not model.goal(inside, 4)
+
+    path.write_bytes(window(0.3, 0.7))  # [0.3, 0.7]: samples 2 (0.4 s) and 3, not 1 (0.2 s)
+    data = build_model_data(load_scenario(path), settings.model_spec(path))
+    assert (data.goal_low, data.goal_high) == (2, 3)
+
+
+def test_a_goal_window_without_a_sample_is_a_warning(tmp_path: Path) -> None:
+    items = "        sense_period 0.2\n        decide_period 0.2\n"
+    (warning,) = warnings_of(write(tmp_path, "window.xml", window(0.3, 0.3), "0.2", items), "W0722")
+    assert warning.message == ("the goal's time window [0.3, 0.3] s holds no sample of the model (every 0.2 s from "
+                               "the ego's start at 0 s): `goal()` never holds")
+    assert not warnings_of(write(tmp_path, "window.xml", window(0.2, 0.3), "0.2", items), "W0722")
+
+
+def test_a_goal_window_closed_before_the_start_is_a_warning(tmp_path: Path) -> None:
+    path = write(tmp_path, "late.xml", late_start())
+    (warning,) = warnings_of(path, "W0722")
+    assert warning.message == ("the goal's time window [0, 6] s closes before the ego starts (at 7 s of the "
+                               "scenario): `goal()` never holds")
+    fact = compile_file(path).proved[-1]
+    assert "goal at scenario time t in [0, 6] s (the model's time counts from the ego's start at 7 s)" in fact
+
+
+# ---------------------------------------------------------------- what the goal asks beyond position and time
+def test_goal_velocity_and_orientation_are_a_warning(tmp_path: Path) -> None:
+    (warning,) = warnings_of(write(tmp_path, "direction.xml", goal_with_direction()), "W0723")
+    assert warning.message == ("the goal of `direction.xml` also asks for velocity in [0, 1] m/s and orientation in "
+                               "[2.5, 3.5] rad, which the model does not read: `goal()` holds at any speed and heading "
+                               "inside the goal region")
+    assert not warnings_of(write(tmp_path, "ramp.xml", ramp(start_x=5.0)), "W0723")
+
+
+def test_goal_states_that_differ_only_in_velocity_are_accepted(tmp_path: Path) -> None:
+    path = tmp_path / "mixed.xml"
+    path.write_bytes(goal_with_direction(mixed=True))
+    goal = load_scenario(path).goal
+    assert len(goal.regions) == 2 and goal.velocity == (0.0, 1.0) and goal.orientation is None
+    (warning,) = warnings_of(write(tmp_path, "mixed.xml", goal_with_direction(mixed=True)), "W0723")
+    assert "velocity in [0, 1] m/s, which" in warning.message
+
+
+# ---------------------------------------------------------------- the goal's centre
+def test_the_centre_of_a_curved_lanelet_goal_lies_on_the_lanelet(tmp_path: Path) -> None:
+    path = tmp_path / "ring.xml"
+    path.write_bytes(curved_lane_goal())
+    scenario = load_scenario(path)
+    x, y = scenario.goal.center
+    assert (x, y) == pytest.approx((0.0, -RING_RADIUS), abs=1e-9)  # the centre line's midpoint
+    settings = TinySettings()
+    data = build_model_data(scenario, settings.model_spec(path))
+    assert (data.goal_cx, data.goal_cy) == (0, -round(RING_RADIUS * data.scale))
+    declarations = emit_declarations(data)
+    assert re.search(rf"\bGOAL_CY = {data.goal_cy};", declarations)
+
+
+def test_a_region_whose_vertex_mean_lies_outside_gets_a_point_inside() -> None:
+    ell = Polygon(((0.0, 0.0), (10.0, 0.0), (10.0, 1.0), (1.0, 1.0), (1.0, 10.0), (0.0, 10.0)))
+    point = inside_point(ell)
+    assert 0 < point[0] < 10 and 0 < point[1] < 10 and (point[0] < 1 or point[1] < 1)
+    square = Polygon(((0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)))
+    assert inside_point(square) == (1.0, 1.0)  # a convex region: its vertex mean, as before
+    assert Goal((ell,), 0.0, 1.0).center == point
+
+
+# ---------------------------------------------------------------- the start
+def test_a_start_inside_an_obstacle_is_a_warning(tmp_path: Path) -> None:
+    (warning,) = warnings_of(write(tmp_path, "blocked.xml", blocked_start()), "W0724")
+    assert warning.message == ("the ego starts in a collision: `collide()` holds at the start (the nearest obstacle is "
+                               "static obstacle 31 (parkedVehicle) at (13.5, 1.75))")
+    assert not warnings_of(write(tmp_path, "ramp.xml", ramp(start_x=5.0)), "W0724")
+
+
+# ---------------------------------------------------------------- the loader's messages
+def test_version_and_time_step_messages(tmp_path: Path) -> None:
+    text = ramp(start_x=5.0).decode("utf-8")
+    path = tmp_path / "scene.xml"
+    path.write_text(text.replace(' commonRoadVersion="2020a"', ""), encoding="utf-8")
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(path)
+    assert str(caught.value) == (f"{path}: has no commonRoadVersion attribute on its <commonRoad> element; "
+                                 "commonroad-io reads the XML formats 2018b and 2020a")
+
+    path.write_text(text.replace('commonRoadVersion="2020a"', 'commonRoadVersion="2018b"'), encoding="utf-8")
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(path)
+    assert "is labelled commonRoadVersion=\"2018b\" but has no `tags` attribute" in str(caught.value)
+    assert "is it a 2020a file labelled 2018b?" in str(caught.value)
+
+    for step in ("0", "-0.1"):
+        path.write_text(text.replace('timeStepSize="0.1"', f'timeStepSize="{step}"'), encoding="utf-8")
+        with pytest.raises(InconsistentScenarioError) as inconsistent:
+            load_scenario(path)
+        assert inconsistent.value.code == "E0718" and inconsistent.value.line == 2
+        assert f'has timeStepSize="{step}" s, not positive' in str(inconsistent.value)
