@@ -27,13 +27,15 @@ __all__ = ["CheckError", "CompileResult", "Diagnostic", "RacError", "compile_fil
 def load(path: str | Path) -> RewardAutomaton:
     """Check a `.ra` file and return its automaton, ready to ``reset``/``step``/``end``.
 
-    Raises :class:`CheckError` (with every diagnostic) if the file has errors.
+    Raises :class:`CheckError` (with every diagnostic) if the file has errors; its warnings (W
+    codes: an unreachable location, a loophole the reward leaves open, ...) become one
+    :class:`~rac.core.diagnostics.RacCheckWarning`.
     """
     # the compiler loads on first use: `import rac` (rac --version) stays light
     from rac.compiler import compile_file
     from rac.runtime.interpreter import RewardAutomaton  # the same: loaded on first use
 
-    return RewardAutomaton(compile_file(path).raise_for_errors())
+    return RewardAutomaton(compile_file(path).raise_for_errors(warn=True))
 
 
 def loads(text: str, name: str = "<string>") -> RewardAutomaton:
@@ -42,7 +44,7 @@ def loads(text: str, name: str = "<string>") -> RewardAutomaton:
     from rac.compiler import compile_text
     from rac.runtime.interpreter import RewardAutomaton  # the same: loaded on first use
 
-    return RewardAutomaton(compile_text(text, name).raise_for_errors())
+    return RewardAutomaton(compile_text(text, name).raise_for_errors(warn=True))
 
 
 #: The public names defined elsewhere, imported on first use (PEP 562): ``import rac`` and ``rac

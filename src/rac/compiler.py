@@ -7,6 +7,7 @@ next; the result is a :class:`CompileResult`."""
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -14,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.check.resolve import Resolver
-from rac.core.diagnostics import CheckError, Diagnostic, Fact, error
+from rac.core.diagnostics import CheckError, Diagnostic, Fact, RacCheckWarning, check_warning_text, error
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, read_source, text_source
@@ -55,10 +56,15 @@ class CompileResult(ProgramSource):
     def ok(self) -> bool:
         return self.automaton is not None and not any(d.is_error for d in self.diagnostics)
 
-    def raise_for_errors(self) -> ir.Automaton:
-        """The automaton, or :class:`CheckError` carrying the diagnostics."""
+    def raise_for_errors(self, *, warn: bool = False) -> ir.Automaton:
+        """The automaton, or :class:`CheckError` carrying the diagnostics. With ``warn`` (for a file
+        loaded from Python, where no report is printed) its warnings become one
+        :class:`~rac.core.diagnostics.RacCheckWarning`."""
         if not self.ok or self.automaton is None:
             raise CheckError(self.diagnostics, self.sources)
+        text = check_warning_text(self.diagnostics) if warn else None
+        if text is not None:
+            warnings.warn(text, RacCheckWarning, stacklevel=3)
         return self.automaton
 
     def checked(self) -> CheckedProgram:

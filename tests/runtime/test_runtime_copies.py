@@ -139,3 +139,23 @@ def test_loads_refuses_a_nul_byte_as_a_file_does(tmp_path: Path, where: str) -> 
     path.write_text(bad, encoding="utf-8")
     (from_file,) = rac.compile_file(path).diagnostics
     assert from_file.span is not None and (from_file.code, from_file.span.start) == ("E0004", at)
+
+
+def test_load_says_the_files_warnings() -> None:
+    # rac.load printed nothing: a user who only trains never learned that the reward leaves a
+    # loophole open (W1002) or reads an input never (W0303)
+    import warnings as python_warnings
+
+    from rac.core.diagnostics import RacCheckWarning
+
+    folder = Path(__file__).resolve().parents[1] / "diagnostics"
+    with pytest.warns(RacCheckWarning) as caught:
+        rac.load(folder / "W1002_ending_early.ra")
+    (message,) = [str(w.message) for w in caught]
+    assert message.startswith("rac check found 1 warning (`rac check FILE` prints them with their notes and hints):")
+    assert "W1002_ending_early.ra:18: W1002 ending early pays" in message
+    with pytest.warns(RacCheckWarning, match="W0303 input `comf` is never used"):
+        rac.loads((folder / "W0303_unused_input.ra").read_text(encoding="utf-8"), "unused.ra")
+    with python_warnings.catch_warnings():
+        python_warnings.simplefilter("error")  # a file without warnings loads silently
+        rac.load(Path(__file__).resolve().parents[2] / "stdlib" / "driving.ra")

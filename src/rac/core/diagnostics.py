@@ -167,6 +167,24 @@ class CheckError(RacError):
         return first.message + (f" ({first.hints[0]})" if first.hints else "")
 
 
+class RacCheckWarning(UserWarning):
+    """The warnings of ``rac check`` (W codes) about a file loaded from Python (:func:`rac.load`, the
+    wrappers given a path), where no report is printed; filter them by this category."""
+
+
+def check_warning_text(diagnostics: Iterable[Diagnostic]) -> str | None:
+    """One line per warning among ``diagnostics`` (``file:line: W0302 message``), None without any."""
+    found = [d for d in diagnostics if d.severity is Severity.WARNING]
+    if not found:
+        return None
+    lines = []
+    for d in sorted(found, key=sort_key):
+        where = f"{d.span.file}:{d.span.line}: " if d.span is not None else ""
+        lines.append(f"  {where}{d.code} {d.message}")
+    return (f"rac check found {len(found)} warning{'s' if len(found) != 1 else ''} "
+            "(`rac check FILE` prints them with their notes and hints):\n" + "\n".join(lines))
+
+
 def sort_key(d: Diagnostic) -> tuple[str, int, int, str]:
     if d.span is None:
         return ("", 0, 0, d.code)

@@ -47,7 +47,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv, VectorWrapper
 from rac import ir
 from rac.check.analysis.scale import sample_change_bound
 from rac.compiler import compile_file
-from rac.core.diagnostics import CheckError, RacValueError
+from rac.core.diagnostics import RacValueError
 from rac.learning.vector_info import merge_vector_info
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
@@ -84,10 +84,7 @@ class AutomatonLike(Protocol):
 
 def _load(automaton: str | os.PathLike[str] | ir.Automaton | AutomatonLike) -> AutomatonLike:
     if isinstance(automaton, (str, os.PathLike)):
-        result = compile_file(Path(automaton))
-        if not result.ok or result.automaton is None:
-            raise CheckError(result.diagnostics, result.sources)
-        return RewardAutomaton(result.automaton)
+        return RewardAutomaton(compile_file(Path(automaton)).raise_for_errors(warn=True))
     if isinstance(automaton, ir.Automaton):
         return RewardAutomaton(automaton)
     if isinstance(automaton, type):  # a generated class has reset/step/end too, unbound: it failed at reset
