@@ -16,6 +16,7 @@ from rac.cli.common import (
     check_writable,
     load_budget,
     locked,
+    not_generated,
     overwrites_source,
     same_file,
     unreadable,
@@ -119,6 +120,10 @@ def compile_command(args: argparse.Namespace) -> int:
     for output in outputs:
         if same_file(output, args.file):
             print(render_text([overwrites_source(output, args.file)], {}), file=sys.stderr)
+            return EXIT_USAGE
+        foreign = not_generated(output)
+        if foreign is not None:  # a hand-written module or model of the same name
+            print(render_text([foreign], {}), file=sys.stderr)
             return EXIT_USAGE
     if args.target == "uppaal":
         return _compile_uppaal(args, result)
