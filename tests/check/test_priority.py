@@ -20,7 +20,13 @@ from hypothesis import strategies as st
 
 from rac import ir
 from rac.check.analysis.affine import moves
-from rac.check.analysis.priority import _exists_neg_pos, check_priorities, check_ranges, check_rate_dominance, replay
+from rac.check.analysis.priority import (
+    _exists_neg_pos_in,
+    check_priorities,
+    check_ranges,
+    check_rate_dominance,
+    replay,
+)
 from rac.check.analysis.worst import AFTER_END, CONTINUE, Target, maximise
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import render_text
@@ -299,7 +305,7 @@ def test_p1_with_int_inputs_is_exact() -> None:
 
 
 class _Inputs:
-    """Just enough of an automaton for ``_exists_neg_pos``."""
+    """Just enough of an automaton for ``_exists_neg_pos_in``."""
 
     def __init__(self, items: list[ir.Input]):
         self.items = {i.name: i for i in items}
@@ -358,7 +364,47 @@ def rate_pairs(draw):
 @given(rate_pairs())
 def test_p1_minimax_matches_a_vertex_enumeration(case) -> None:
     f, g, inputs = case
-    assert _exists_neg_pos(f, g, _Inputs(inputs)) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
+    box = {i.name: (i.low, i.high) for i in inputs}
+    assert _exists_neg_pos_in(f, g, _Inputs(inputs), box) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
+
+
+ASSUMED = """automaton Assumed {{
+    input u : bool
+    input d : real in [0, 10]
+    {assume}
+    reward s, p
+    priority s > p
+    objective 10 * s + p
+    sample every 1
+    horizon 2
+    initial location L {{ {rates} }}
+    location M {{ }}
+    {edges}
+}}
+"""
+
+
+@pytest.mark.parametrize(("assume", "rates", "edges"), [
+    ("assume d >= 5", "s' == d - 5", ""),                                  # no allowed d makes s' negative
+    ("assume d >= 5", "s' == d - 5; p' == 6 - d", ""),                     # P1: s never decreases
+    ("assume u imply d >= 5", "", "edge L -> M when u do s = s + d - 5"),  # the edge never lowers s
+    ("assume d > 5", "s' == d - 5", ""),                                    # an open end: s' > 0
+])
+def test_assume_decides_where_a_reward_is_penalised(assume: str, rates: str, edges: str) -> None:
+    # `assume` was ignored: rac check reported E0402 (and E0401) for penalties no allowed input makes
+    result = compiled(ASSUMED.format(assume=assume, rates=rates, edges=edges))
+    assert not [d for d in result.diagnostics if d.is_error], render_text(list(result.diagnostics), result.sources)
+    assert "P2 holds trivially for `s`: no location penalises it" in result.proved
+
+
+@pytest.mark.parametrize(("assume", "rates", "edges"), [
+    ("assume d >= 4", "s' == d - 5", ""),                                   # d in [4, 5) lowers s
+    ("assume u imply d >= 4", "", "edge L -> M when u do s = s + d - 5"),
+    ("assume d >= 5", "s' == d - 5; p' == 6 - d", "edge L -> M when d > 9 do s = s + 5 - d"),
+])
+def test_an_allowed_penalty_is_still_found(assume: str, rates: str, edges: str) -> None:
+    result = compiled(ASSUMED.format(assume=assume, rates=rates, edges=edges))
+    assert not any("P2 holds trivially" in fact for fact in result.proved)
 
 
 # ---------------------------------------------------------------- int32 range

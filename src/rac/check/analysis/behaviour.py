@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import functools
+import math
+import typing
 from collections import deque
+from fractions import Fraction
 
 import numpy as np
 
@@ -10,6 +14,63 @@ from rac import ir
 from rac.core.diagnostics import Diagnostic, Note, error, warning
 from rac.core.source import Span
 from rac.ir.inputs import InputSpace, TooManyClasses, guard_inputs
+
+
+class ById:
+    """A cache key that hashes and compares an object by identity (the IR is immutable, and hashing
+    it deeply costs more than the work a cache saves)."""
+
+    def __init__(self, value: object) -> None:
+        self.value = value
+
+    def __hash__(self) -> int:
+        return id(self.value)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, ById) and other.value is self.value
+
+
+def allowed_boxes(automaton: ir.Automaton, names: tuple[str, ...], guard: ir.Guard | None = None
+                  ) -> list[dict[str, tuple[Fraction, Fraction]]] | None:
+    """The input classes ``assume`` allows (and ``guard`` holds in), as boxes over the numeric inputs
+    ``names``: each input's closed bounds within the class (an ``int`` input's whole values), without
+    repeats. A linear form's infimum over the allowed inputs is its least minimum over these boxes
+    (a real interval's open end is a limit of values inside it). None when the classes are too many
+    to list (E0306): callers then use the declared bounds."""
+    return _allowed_boxes(ById(automaton), names, ById(guard))
+
+
+@functools.lru_cache(maxsize=64)
+def _allowed_boxes(automaton_key: ById, names: tuple[str, ...], guard_key: ById
+                   ) -> list[dict[str, tuple[Fraction, Fraction]]] | None:
+    automaton = typing.cast(ir.Automaton, automaton_key.value)
+    guard = typing.cast("ir.Guard | None", guard_key.value)
+    space = _space(ById(automaton))
+    if space is None:
+        return None
+    chosen = space.valid if guard is None else space.valid & space.evaluate(guard)
+    if not names:
+        return [{}] if chosen.any() else []
+    columns = np.stack([space.columns[name][chosen] for name in names], axis=1)
+    integral = {item.name for item in automaton.numeric_inputs if item.kind == "int"}
+    boxes = []
+    for row in np.unique(columns, axis=0):
+        box = {}
+        for name, index in zip(names, row):
+            piece = space.pieces[name][int(index)]
+            low, high = piece.low, piece.high
+            if name in integral:  # the whole values inside the piece
+                low = Fraction(math.ceil(low)) if piece.low_closed else Fraction(math.floor(low) + 1)
+                high = Fraction(math.floor(high)) if piece.high_closed else Fraction(math.ceil(high) - 1)
+            box[name] = (low, high)
+        if all(low <= high for low, high in box.values()):  # an int piece without a whole value holds none
+            boxes.append(box)
+    return boxes
+
+
+@functools.lru_cache(maxsize=8)
+def _space(automaton_key: ById) -> InputSpace | None:
+    return input_space(typing.cast(ir.Automaton, automaton_key.value))[0]
 
 
 def input_space(automaton: ir.Automaton) -> tuple[InputSpace | None, list[Diagnostic]]:

@@ -10,7 +10,7 @@ from fractions import Fraction
 
 from rac import ir
 from rac.check.analysis.affine import Affine, Moves, Outcome, accrual, moves
-from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.behaviour import allowed_boxes, input_space
 from rac.check.analysis.worst import (
     AFTER_END,
     BEFORE_EDGE,
@@ -59,7 +59,21 @@ def _fix(linear: ir.Linear, values: dict[str, Fraction]) -> ir.Linear:
 
 
 def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool:
-    """Is there an input point with f < 0 and g > 0 (inputs within their bounds)?
+    """Is there an input point ``assume`` allows with f < 0 and g > 0?
+
+    Within each box of allowed inputs (:func:`~rac.check.analysis.behaviour.allowed_boxes`; the
+    declared bounds when the classes are too many to list) by :func:`_exists_neg_pos_in`.
+    """
+    names = tuple(sorted(set(f.variables()) | set(g.variables())))
+    boxes = allowed_boxes(automaton, names)
+    if boxes is None:
+        boxes = [{n: _bounds(automaton.input(n)) for n in names}]
+    return any(_exists_neg_pos_in(f, g, automaton, box) for box in boxes)
+
+
+def _exists_neg_pos_in(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton,
+                       box: dict[str, tuple[Fraction, Fraction]]) -> bool:
+    """Is there a point of ``box`` (closed bounds per input) with f < 0 and g > 0?
 
     ``min_x max(f, -g) < 0``; by the minimax theorem this is the max over λ ∈ [0, 1]
     of a separable minimum, which is piecewise linear in λ: check its breakpoints.
@@ -68,11 +82,11 @@ def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool
     names = sorted(set(f.variables()) | set(g.variables()))
     ints = [n for n in names if automaton.input(n).kind == "int"]
     if ints:
-        ranges = [range(int(low), int(high) + 1) for low, high in (_bounds(automaton.input(n)) for n in ints)]
+        ranges = [range(int(box[n][0]), int(box[n][1]) + 1) for n in ints]
         if math.prod(len(r) for r in ranges) <= MAX_INT_POINTS:
             for combo in itertools.product(*ranges):
                 values = {n: Fraction(v) for n, v in zip(ints, combo)}
-                if _exists_neg_pos(_fix(f, values), _fix(g, values), automaton):
+                if _exists_neg_pos_in(_fix(f, values), _fix(g, values), automaton, box):
                     return True
             return False
     lambdas = {Fraction(0), Fraction(1)}
@@ -83,9 +97,28 @@ def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool
     best = None
     for lam in lambdas:
         mix = f.scaled(lam) + g.scaled(-(1 - lam))
-        low, _ = _range_of(mix, automaton)
+        low, _ = _range_in(mix, box)
         best = low if best is None else max(best, low)
     return best is not None and best < 0
+
+
+def _range_in(linear: ir.Linear, box: dict[str, tuple[Fraction, Fraction]]) -> tuple[Fraction, Fraction]:
+    """[min, max] of a linear form over a box of closed bounds."""
+    low = high = linear.const
+    for name, coefficient in linear.terms:
+        a, b = coefficient * box[name][0], coefficient * box[name][1]
+        low += min(a, b)
+        high += max(a, b)
+    return low, high
+
+
+def _can_be_negative(linear: ir.Linear, automaton: ir.Automaton, guard: ir.Guard | None = None) -> bool:
+    """Whether ``linear`` is below 0 for some input ``assume`` allows (where ``guard`` holds)."""
+    names = tuple(sorted(set(linear.variables())))
+    boxes = allowed_boxes(automaton, names, guard)
+    if boxes is None:
+        return _range_of(linear, automaton)[0] < 0
+    return any(_range_in(linear, box)[0] < 0 for box in boxes)
 
 
 def check_rate_dominance(automaton: ir.Automaton) -> list[Diagnostic]:
@@ -123,15 +156,17 @@ def rate_conflicts(automaton: ir.Automaton, location: ir.Location, high: str, lo
 
 
 def _penalised(automaton: ir.Automaton, reward: str) -> tuple[bool, ...]:
-    """Locations that penalise a reward: a negative rate there, or an edge into it that lowers it."""
+    """Locations that penalise a reward: a rate there that some input ``assume`` allows makes
+    negative, or an edge into it that lowers it for some allowed input its guard lets through."""
     k = automaton.rewards.index(reward)
-    marks = [(_range_of(loc.rates[k], automaton)[0] < 0) for loc in automaton.locations]
+    marks = [_can_be_negative(loc.rates[k], automaton) for loc in automaton.locations]
     for edge in automaton.all_edges():
         for update in edge.updates:
             if update.reward != reward:
                 continue
             delta = update.value - ir.Linear.variable(reward)
-            if any(n in automaton.rewards for n in delta.variables()) or _range_of(delta, automaton)[0] < 0:
+            if any(n in automaton.rewards for n in delta.variables()) or \
+                    _can_be_negative(delta, automaton, edge.guard):
                 marks[edge.target] = True
     return tuple(marks)
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from rac import ir
 from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, sup_linear, sup_weighted
+from rac.check.analysis.behaviour import ById
 from rac.core.diagnostics import RacError
 
 ZERO = Fraction(0)
@@ -197,20 +198,6 @@ def _boxes_over(maps: Sequence[Affine], outs: tuple[Outcome, ...], group: list[i
     return list(seen)
 
 
-class _ById:
-    """Hashes and compares by identity: a cache key for an IR object (hashing one deeply costs more
-    than the work the cache saves, and equal copies are rare)."""
-
-    def __init__(self, value: object) -> None:
-        self.value = value
-
-    def __hash__(self) -> int:
-        return id(self.value)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, _ById) and other.value is self.value
-
-
 def _reachable_boxes(automaton: ir.Automaton, moves: Moves, accruals: list[Affine]) -> list[dict[int, _Box]]:
     """boxes[k][l]: an interval hull of the rewards "before the edge" of sample k in location l.
 
@@ -218,11 +205,11 @@ def _reachable_boxes(automaton: ir.Automaton, moves: Moves, accruals: list[Affin
     Independent of the target, so computed once per automaton and moves (the range check asks for
     two targets per reward).
     """
-    return _cached_boxes(_ById(automaton), _ById(moves))
+    return _cached_boxes(ById(automaton), ById(moves))
 
 
 @functools.lru_cache(maxsize=8)
-def _cached_boxes(automaton_key: _ById, moves_key: _ById) -> list[dict[int, _Box]]:
+def _cached_boxes(automaton_key: ById, moves_key: ById) -> list[dict[int, _Box]]:
     automaton = typing.cast(ir.Automaton, automaton_key.value)
     moves = typing.cast(Moves, moves_key.value)
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
