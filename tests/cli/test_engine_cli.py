@@ -487,3 +487,12 @@ def test_a_time_bound_past_the_horizon_is_not_answered(query: str, capsys: pytes
     assert main(["verify", str(path), "--seed", "1", "-o", str(tmp_path / "out")]) == 4
     out = capsys.readouterr().out
     assert out.count("the time bound (5 s) is past the horizon") == 1  # said once, also for simulate
+
+
+def test_a_longer_horizon_asked_for_admits_the_bound(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    # `--horizon 5` lengthens the runs the user asks about (the standard queries' MAXT follows it)
+    path = write_engine_file(tmp_path, "goal_ahead", {"Late": "Pr[<=5](<> v >= 6)"})
+    assert main(["verify", str(path), "--seed", "1", "--horizon", "5", "--format", "json",
+                 "-o", str(tmp_path / "out")]) == 0
+    (result,) = json.loads(capsys.readouterr().out)["results"]
+    assert result["status"] == "value" and result["horizon_samples"] == 10

@@ -236,7 +236,8 @@ class Context:
             raise EvaluationError("`[#<=K]` counts UPPAAL's transitions, not samples (a sample takes three or "
                                   "more): rac verify answers time bounds `[<=T]`")
         samples = math.floor(bound.limit / self.period)
-        horizon = Fraction(self.program.automaton.horizon)
+        # the file's horizon, or a longer --horizon the user asked for (the standard queries' MAXT)
+        horizon = max(Fraction(self.program.automaton.horizon), self.options.horizon or Fraction(0))
         if bound.limit > horizon:  # W0604 in rac check
             raise EvaluationError(
                 f"the time bound ({short_number(bound.limit)} s) is past the horizon ({short_number(horizon)} s): "
