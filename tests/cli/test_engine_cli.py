@@ -496,3 +496,24 @@ def test_a_longer_horizon_asked_for_admits_the_bound(capsys: pytest.CaptureFixtu
                  "-o", str(tmp_path / "out")]) == 0
     (result,) = json.loads(capsys.readouterr().out)["results"]
     assert result["status"] == "value" and result["horizon_samples"] == 10
+
+
+def test_runs_that_the_automaton_ends_early_are_answered_as_the_emitted_model_ends_them(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    # `episode ends when` ends a run in the emitted model (its Timer stops); the engines over the
+    # scenario model alone went on to the horizon and answered differently
+    queries = {"Crash": "E<> collide()", "Safe": "A[] !collide()", "Prob": "Pr[<=2](<> collide())",
+               "safe": "strategy safe = control: A[] !collide() && !offroad()"}
+    path = write_engine_file(tmp_path, "avoidable_obstacle", queries)
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace("    edge Close -> Normal when !near\n",
+                                 "    edge Close -> Normal when !near\n    episode ends when near\n"), encoding="utf-8")
+    assert main(["verify", str(path), "--seed", "1", "--format", "json", "-o", str(tmp_path / "out")]) == 1
+    results = {r["name"]: r for r in json.loads(capsys.readouterr().out)["results"]}
+    # decided on the product, whose runs end where the automaton ends them (a collision in the sample
+    # where the obstacle first comes near is still reached)
+    assert (results["Crash"]["status"], results["Safe"]["status"]) == ("satisfied", "not satisfied")
+    assert "product" in results["Crash"]["method"] and "product" in results["Safe"]["method"]
+    for name in ("Prob", "safe"):
+        assert results[name]["status"] == "unsupported"
+        assert results[name]["message"].startswith("the automaton ends runs early (`episode ends when`)")

@@ -379,6 +379,9 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(f"rac simulate: cannot write: {exc}", file=sys.stderr)
         return EXIT_USAGE
     print(f"simulated {args.runs} runs of {samples} samples (seed {seed}){' under the shield' if args.shield else ''}")
+    if result.automaton is not None and result.automaton.ending is not None:
+        print("rac simulate: note: the runs go on to the horizon; the automaton's `episode ends when`, which ends "
+              "them in the emitted model, is not applied here", file=sys.stderr)
     if len(values) == 2 and np.ptp(values[1]) == 0:
         below = int(np.any(values[0] < values[1], axis=1).sum())
         print(f"{below} of {args.runs} runs go below {texts[1]} = {float(values[1].flat[0]):g}")
@@ -433,6 +436,9 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(f"rac render: cannot write: {exc}", file=sys.stderr)
         return EXIT_USAGE
     print(f"rendered {_how(args)}: {samples} samples (seed {seed})")
+    if automaton.ending is not None and not args.strategy:
+        print("rac render: note: the run goes on to the horizon; the automaton's `episode ends when`, which ends "
+              "it in the emitted model, is not applied here", file=sys.stderr)
     print(f"wrote {written}")
     if gif is not None:
         print(f"wrote {gif}")

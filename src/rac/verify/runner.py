@@ -37,7 +37,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -147,6 +147,9 @@ class Verifier:
         return dataclasses.replace(result, seconds=time.perf_counter() - t0)
 
     def _dispatch(self, query: iq.Query, base: QueryResult) -> QueryResult:
+        refusal = _ending_refusal(self.context.program.automaton, query, self.context.learned)
+        if refusal is not None:
+            raise EvaluationError(refusal)
         if isinstance(query, iq.PathQuery) and query.under is not None and query.under in self.context.learned:
             # A learned strategy has one run (model and strategy are deterministic): answered on it.
             return self.learning.path_under_learned(query, query.under, base)
@@ -219,3 +222,20 @@ def _kind(query: iq.Query) -> str:
     return {iq.PathQuery: "symbolic", iq.LeadsToQuery: "symbolic", iq.ControlStrategy: "strategy",
             iq.ProbabilityQuery: "probability", iq.ExpectationQuery: "expectation",
             iq.SimulateQuery: "simulate"}.get(type(query), "learning")
+
+
+def _ending_refusal(automaton, query: iq.Query, learned: Mapping[str, object]) -> str | None:
+    """Why ``query`` is not answered for an automaton whose ``episode ends when`` ends runs early,
+    None when it is. The emitted UPPAAL model ends a run there (its Timer stops); the product of
+    model and automaton does too, and so do learning's episodes, but the engines over the scenario
+    model alone (shields, runs, ``-->``) go on to the horizon, so their answers would differ."""
+    if automaton.ending is None:
+        return None
+    if isinstance(query, iq.LearnStrategy):
+        return None  # learning's episodes end where the automaton ends them
+    if isinstance(query, iq.PathQuery) and (query.under is None or query.under in learned):
+        return None  # the product of model and automaton (SymbolicAnswerer.path), or a learned run
+    return ("the automaton ends runs early (`episode ends when`), as the emitted UPPAAL model does, but this "
+            "query is answered on the scenario model alone, whose runs go on to the horizon, so the two would "
+            "answer differently; rac answers path queries (A[], E<>, E[], A<>) without `under` here, on the "
+            "product of model and automaton")

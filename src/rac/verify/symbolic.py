@@ -57,7 +57,9 @@ class SymbolicAnswerer:
         (:class:`~rac.verify.reach.Reacher`: a cheap search, then a layered one that stops at the first
         witness), and only its absence needs the complete graph. ``E<> p`` is tried on the pruned model
         first (unsafe states end a run there): a run found there is a run of the model."""
-        if ie.reads_automaton(query.expr):
+        if ie.reads_automaton(query.expr) or (self.context.program.automaton.ending is not None
+                                               and query.under is None):
+            # `episode ends when` ends runs early, as in the emitted model: only the product ends them
             return self.path_in_product(query, base)
         if query.under is not None:
             return self._decided(query, base, self.under_shield(query.under, "a query"))
