@@ -167,7 +167,7 @@ class CheckError(RacError):
         return first.message + (f" ({first.hints[0]})" if first.hints else "")
 
 
-class RacCheckWarning(UserWarning):
+class RacCheckWarning(RacError, UserWarning):
     """The warnings of ``rac check`` (W codes) about a file loaded from Python (:func:`rac.load`, the
     wrappers given a path), where no report is printed; filter them by this category."""
 
