@@ -517,3 +517,14 @@ def test_runs_that_the_automaton_ends_early_are_answered_as_the_emitted_model_en
     for name in ("Prob", "safe"):
         assert results[name]["status"] == "unsupported"
         assert results[name]["message"].startswith("the automaton ends runs early (`episode ends when`)")
+
+
+def test_deadlock_with_allow_when_is_not_answered(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    # where `allow when` leaves no action the emitted model deadlocks; `deadlock` read false there
+    path = write_engine_file(tmp_path, "goal_ahead", {"Dead": "E<> deadlock"})
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace("    model {\n", "    model {\n        allow when v < 100\n", 1), encoding="utf-8")
+    assert main(["verify", str(path), "--seed", "1", "--format", "json", "-o", str(tmp_path / "out")]) == 4
+    (result,) = json.loads(capsys.readouterr().out)["results"]
+    assert result["status"] == "unsupported"
+    assert result["message"].startswith("`deadlock` is not answered for a model with `allow when` yet")
