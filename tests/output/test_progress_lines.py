@@ -55,3 +55,17 @@ def test_verify_off_a_terminal_says_what_it_does(tmp_path: Path, capsys: pytest.
     assert any("safe: strategy safe = control" in line for line in lines) or any("Stays" in line for line in lines)
     assert main(["verify", str(path), "-q", "--out", str(tmp_path / "o")]) == 0
     assert "rac verify:" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["abc", "inf", "0", "nan", "-1", "1e9"])
+def test_a_bad_progress_interval_is_said_and_the_default_used(value: str, monkeypatch: pytest.MonkeyPatch,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    # `abc` was an internal error in every command, `inf` a thread's traceback, `0` a flood of lines
+    from rac.output import progress
+
+    monkeypatch.setenv("RAC_PROGRESS_INTERVAL", value)
+    monkeypatch.setattr(progress, "_SAID_INTERVAL", False)
+    assert progress.Heartbeat("rac check").interval == progress.DEFAULT_INTERVAL
+    assert f"RAC_PROGRESS_INTERVAL={value!r} is not a positive number of seconds" in capsys.readouterr().err
+    progress.Heartbeat("rac check")
+    assert capsys.readouterr().err == ""  # said once

@@ -18,6 +18,7 @@ Example::
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import threading
@@ -124,6 +125,34 @@ def notice(command: str = "rac", file: TextIO | None = None) -> Callable[[str], 
     return say
 
 
+#: The seconds between heartbeat lines without ``RAC_PROGRESS_INTERVAL``, and the most it may set.
+DEFAULT_INTERVAL, MAX_INTERVAL = 10.0, 86400.0
+
+
+def progress_interval() -> float:
+    """``RAC_PROGRESS_INTERVAL`` in seconds, or the default when it is unset; a value that is not a
+    positive number of seconds up to a day is said once on standard error and the default used (a progress
+    setting never stops a command, nor floods its log)."""
+    text = os.environ.get("RAC_PROGRESS_INTERVAL", "").strip()
+    if not text:
+        return DEFAULT_INTERVAL
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 < value <= MAX_INTERVAL:  # NaN too; 0 would print without pause
+        global _SAID_INTERVAL
+        if not _SAID_INTERVAL:
+            _SAID_INTERVAL = True
+            print(f"rac: RAC_PROGRESS_INTERVAL={text!r} is not a positive number of seconds up to {MAX_INTERVAL:g}; "
+                  f"progress lines come every {DEFAULT_INTERVAL:g} s", file=sys.stderr)
+        return DEFAULT_INTERVAL
+    return value
+
+
+_SAID_INTERVAL = False
+
+
 class Heartbeat:
     """Plain progress lines for a stream that is not a terminal: every ``interval`` seconds (default
     ``RAC_PROGRESS_INTERVAL``, else 10) while the command runs, ``COMMAND: PHASE; COUNT UNIT (RATE/s); ELAPSED``.
@@ -144,7 +173,7 @@ class Heartbeat:
     def __init__(self, command: str, *, interval: float | None = None, enabled: bool | None = None,
                  file: TextIO | None = None) -> None:
         if interval is None:  # RAC_PROGRESS_INTERVAL: seconds between lines (default 10)
-            interval = float(os.environ.get("RAC_PROGRESS_INTERVAL", "") or 10.0)
+            interval = progress_interval()
         self.stream = sys.stderr if file is None else file
         if enabled is None:
             isatty = getattr(self.stream, "isatty", None)
