@@ -528,3 +528,14 @@ def test_deadlock_with_allow_when_is_not_answered(capsys: pytest.CaptureFixture[
     (result,) = json.loads(capsys.readouterr().out)["results"]
     assert result["status"] == "unsupported"
     assert result["message"].startswith("`deadlock` is not answered for a model with `allow when` yet")
+
+
+@pytest.mark.parametrize("query", ["E[<=2; 4](max: sa)", "Close --> Normal",
+                                   "strategy keep = control: A[] !Close"])
+def test_what_the_engine_does_not_answer_is_unsupported_not_unknown(query: str, capsys: pytest.CaptureFixture[str],
+                                                                    tmp_path: Path) -> None:
+    # UNKNOWN reads as "raise the budget"; no budget answers these
+    path = write_engine_file(tmp_path, "goal_ahead", {"Q": query})
+    assert main(["verify", str(path), "--seed", "1", "--format", "json", "-o", str(tmp_path / "out")]) == 4
+    (result,) = json.loads(capsys.readouterr().out)["results"]
+    assert result["status"] == "unsupported" and "not supported yet" in result["message"]

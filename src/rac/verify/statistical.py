@@ -198,8 +198,8 @@ def _runs_of(runs: int | None) -> int:
 
 
 def _refuse_automaton_names(exprs: Iterable[ie.Expr]) -> None:
-    """Unknown when an expression reads the automaton's state: simulated runs hold the model only."""
+    """Unsupported when an expression reads the automaton's state: simulated runs hold the model only."""
     for expr in exprs:
         if ie.reads_automaton(expr):
-            raise UnknownVerdict("statistical queries over the automaton's names are not supported yet "
+            raise EvaluationError("statistical queries over the automaton's names are not supported yet "
                                  "(the model's vocabulary is)")

@@ -169,7 +169,7 @@ class SymbolicAnswerer:
 
         ctx = self.context
         if query.under is not None:
-            raise UnknownVerdict("`under` a strategy is not supported on the product of model and automaton")
+            raise EvaluationError("`under` a strategy is not supported on the product of model and automaton")
         holds, meaning = compositional.decide(ctx, query.quantifier, query.expr)
         if holds is not None:
             return dataclasses.replace(base, status=SATISFIED if holds else NOT_SATISFIED, method="compositional",
@@ -239,7 +239,7 @@ class SymbolicAnswerer:
         """``p --> q``: every reachable ``p``-state is followed by ``q`` on every run."""
         ctx = self.context
         if ie.reads_automaton(query.left) or ie.reads_automaton(query.right):
-            raise UnknownVerdict("`-->` over the automaton's names is not supported yet")
+            raise EvaluationError("`-->` over the automaton's names is not supported yet")
         graph = self.under_shield(query.under, "`-->`") if query.under is not None else ctx.graph(False)
         p, q = ctx.label(graph, query.left), ctx.label(graph, query.right)
         # p --> q fails exactly when a reachable p-state has a run avoiding q forever (E[] !q there).
@@ -254,7 +254,7 @@ class SymbolicAnswerer:
         saved to ``OUT/S.shield.npz``; a reachability goal (``E<> p``) is decided, not saved."""
         ctx = self.context
         if ie.reads_automaton(query.expr):
-            raise UnknownVerdict("strategies over the automaton's names are not supported yet")
+            raise EvaluationError("strategies over the automaton's names are not supported yet")
         within = self.under_shield(query.under, "a strategy") if query.under is not None else None
         if query.goal != "A[]":
             saved = "reachability strategies are decided but not saved"
