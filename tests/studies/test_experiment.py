@@ -95,10 +95,11 @@ def test_the_default_reward_function_needs_the_papers_inputs(tmp_path: Path,
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)
     with pytest.raises(ExperimentError, match="isClose, prog and comf"):
         run_experiment(compile_file(path), seeds=(1,), episodes=4)
-    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--out", str(tmp_path / "o")]) == 1
+    # an option to give or to change: a usage error (2), not a failure of the file (1)
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--out", str(tmp_path / "o")]) == 2
     assert "--reward-function" in capsys.readouterr().err
     assert main(["experiment", str(path), "--seeds", "x"]) == 2
-    assert main(["experiment", str(path), "--reward-function", "10 *", "--out", str(tmp_path / "o")]) == 1
+    assert main(["experiment", str(path), "--reward-function", "10 *", "--out", str(tmp_path / "o")]) == 2
 
 
 @pytest.mark.parametrize(("option", "value", "said"), [
@@ -114,7 +115,7 @@ def test_bad_bins_and_reward_functions_are_refused_before_anything_is_computed(
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)
     out = tmp_path / "o"
     assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", REWARD_FUNCTION,
-                 option, value, "--out", str(out)]) == 1
+                 option, value, "--out", str(out)]) == 2  # an option to change: a usage error
     err = capsys.readouterr().err
     assert said in err and "internal error" not in err and "computing" not in err
     assert not out.exists()
@@ -181,3 +182,12 @@ def test_the_ablation_learns_every_row(tmp_path: Path, capsys: pytest.CaptureFix
     assert [variant["replay_best"] for variant in data["ablation"]] == [True] * 6 + [False, False]
     assert ablation[9].split(" | ")[6] == "no" and ablation[2].split(" | ")[6] == "yes"
     assert data["observation"]["discrete"][-1] == "time" and data["learner"]["alpha"] == 1.0
+
+
+def test_a_shield_beyond_the_state_budget_is_a_resource_limit(tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    # it exited 1, as if the file had failed; simulate and render say a resource limit with 2
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", REWARD_FUNCTION,
+                 "--max-states", "10", "--out", str(tmp_path / "o")]) == 2
+    assert "rac experiment: resource limit: the safety shield cannot be computed" in capsys.readouterr().err

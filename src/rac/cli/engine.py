@@ -508,8 +508,10 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                 max_bytes=args.max_memory or default_max_bytes(), progress=announce)
         files = write_outputs(report, out_dir)
     except ExperimentError as exc:
-        print(f"rac experiment: {exc}", file=sys.stderr)
-        return EXIT_ERRORS
+        limit = "resource limit: " if exc.kind == "limit" else ""
+        print(f"rac experiment: {limit}{exc}", file=sys.stderr)
+        # an option to change or a budget, as simulate's; the file's own failure (no safe strategy)
+        return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
     except OSError as exc:
         print(f"rac experiment: cannot write to {out_dir}: {exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -106,7 +106,15 @@ EARLIER: dict[str, Any] = {"alpha": 0.3, "epsilon": (1.0, 0.05), "pessimistic": 
 
 
 class ExperimentError(RacError, ValueError):
-    """The experiment cannot run on this file (no model, no goal, an unusable reward function)."""
+    """The experiment cannot run on this file (no model, no goal, an unusable reward function).
+
+    ``kind`` says whose it is, for the command's exit code: ``"usage"`` (an option to change:
+    ``--bins``, ``--reward-function``), ``"limit"`` (beyond ``--max-states`` or the memory budget),
+    ``"model"`` (the file: no ``model`` block, no safe strategy, learning that failed)."""
+
+    def __init__(self, message: str, kind: str = "model") -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -168,7 +176,7 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
         computed, table = shields.synthesise(data, horizon_samples, max_states=max_states, max_bytes=max_bytes)
     except MemoryError as exc:
         raise ExperimentError(f"the safety shield cannot be computed: {exc}; coarsen the model (actions, "
-                              "decide_period) or shorten the horizon") from None
+                              "decide_period) or shorten the horizon", "limit") from None
     if not computed.shield_exists and needed:
         raise ExperimentError("no safe strategy exists from the start: the shielded combinations cannot run")
     onward = shields.SafeOnward(computed, horizon_samples, forget_every=table.forget_every)
@@ -219,25 +227,25 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         names = {i.name for i in automaton.inputs}
         if not {"isClose", "prog", "comf"} <= names:
             raise ExperimentError("the default reward function (the paper's Eq. 9) reads the inputs isClose, prog "
-                                  "and comf; pass --reward-function EXPR for this automaton")
+                                  "and comf; pass --reward-function EXPR for this automaton", "usage")
     try:
         rf = parse_expr(text)
     except ValueError as exc:
-        raise ExperimentError(f"--reward-function: {exc}") from None
+        raise ExperimentError(f"--reward-function: {exc}", "usage") from None
     wanted = [c for c in COMBINATIONS if combinations is None or c[0] in combinations]
     discrete, continuous = _learning_spec(result)
     derived = derived_bins(result.model_data, [parse_expr(text) for text in continuous])
     widths = tuple(float(b) for b in bins) if bins is not None else derived
     if bins is not None and (len(widths) != len(continuous) or not all(w > 0 and math.isfinite(w) for w in widths)):
         raise ExperimentError(f"--bins: {len(continuous)} positive widths, one per continuous observation "
-                              f"({', '.join(continuous)}), not {','.join(f'{w:g}' for w in widths)}")
+                              f"({', '.join(continuous)}), not {','.join(f'{w:g}' for w in widths)}", "usage")
     bins_from = "--bins" if bins is not None else "derived from the model's action grid and goal"
     shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon,  # its onward: the shield's, below
                           counterfactuals=counterfactuals or ablation)
     try:  # checked before the shield and the learning, which would meet it only after them
         objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
     except CheckError as exc:
-        raise ExperimentError(f"--reward-function: `{text}`: {exc.brief()}") from None
+        raise ExperimentError(f"--reward-function: `{text}`: {exc.brief()}", "usage") from None
     count = (len(wanted) + (len(ABLATION) if ablation else 0)) * len(seeds)
     needed = learning_bytes(episodes=episodes, parallel=parallel, steps=shared.max_steps, runs=count,
                             observations=len(discrete) + len(continuous) + int(observe_time), actions=shared.n_actions)
@@ -245,7 +253,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         check_estimate(f"learning {count} runs together", needed, max_bytes,
                        f"lower the episodes per run ({episodes:,}, --episodes), the seeds or the combinations")
     except BudgetExceeded as exc:
-        raise ExperimentError(str(exc)) from None
+        raise ExperimentError(str(exc), "limit") from None
     # The shield also judges every combination's runs: a run is safe at the goal only if it can stay
     # safe from there to the horizon, the horizon the shield guarantees.
     if progress:
