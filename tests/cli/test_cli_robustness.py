@@ -315,6 +315,14 @@ def test_render_an_unknown_strategy_says_so_once(capsys: pytest.CaptureFixture[s
     assert err == f"rac render: no learned strategy `nosuch` in {engine_file} (learning queries: none)\n"
 
 
+def test_render_an_empty_strategy_name_says_so(capsys: pytest.CaptureFixture[str], engine_file: Path,
+                                               tmp_path: Path) -> None:
+    # `--strategy ""` rendered a random run, exit 0
+    code, _, err = run(capsys, "render", engine_file, "-q", "--seed", "1", "-o", tmp_path / "o", "--strategy", "")
+    assert code == EXIT_USAGE
+    assert err == f"rac render: no learned strategy `` in {engine_file} (learning queries: none)\n"
+
+
 @pytest.mark.parametrize("command", ["simulate", "render", "preanalyse"])
 def test_runs_beyond_the_memory_budget_are_refused_before_anything_is_allocated(
         capsys: pytest.CaptureFixture[str], engine_file: Path, tmp_path: Path, command: str) -> None:

@@ -114,21 +114,32 @@ def _seed_text(text: str) -> str:
     return str(seed_argument(text))
 
 
+#: What ``--horizon``, ``--max-states`` and ``--max-memory`` mean, per engine command: the verdicts
+#: are verify's; the other commands have runs to draw or learn, and stop with a resource limit.
+_HORIZON = {"verify": "horizon of exhaustive exploration, and MAXT of --standard",
+            "simulate": "length of the simulated runs", "render": "length of the drawn run",
+            "preanalyse": "horizon of every setting's runs and exploration",
+            "experiment": "length of the learning episodes and of the shield"}
+
+
 def _common(parser: argparse.ArgumentParser, outputs: str) -> None:
     """The options every engine command has; ``outputs`` says what goes into its output folder."""
+    command = parser.prog.split()[-1]
+    stop = "give up (verdict unknown)" if command == "verify" else \
+        "give up (a row without answers)" if command == "preanalyse" else "stop (a resource limit, exit 2)"
     parser.add_argument("file", type=Path, metavar="FILE", help="a .ra file with a `model` block")
     parser.add_argument("-o", "--out", type=Path, metavar="DIR",
                         help=f"where {outputs} go (default: FILE{OUTPUT_SUFFIX}/{parser.prog.split()[-1]}/ "
                              "beside the file)")
     parser.add_argument("--horizon", type=positive_fraction, metavar="SECONDS",
-                        help="horizon of exhaustive exploration (default: the automaton's `horizon`)")
+                        help=f"{_HORIZON.get(command, 'horizon')} (default: the automaton's `horizon`)")
     parser.add_argument("--seed", type=seed_argument, metavar="N",
                         help=f"seed of the simulations, a whole number of at least {MIN_SEED} (default: fresh, "
                              "printed)")
     parser.add_argument("--max-states", type=counting, default=5_000_000, metavar="N",
-                        help="give up (verdict unknown) beyond this many states (default 5,000,000)")
+                        help=f"{stop} beyond this many states (default 5,000,000)")
     parser.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
-                        help="give up (verdict unknown) before deciding would need more memory than this, "
+                        help=f"{stop} before the work would need more memory than this, "
                              "e.g. 4G (default: half the machine's memory)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
 

@@ -406,7 +406,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.output.render import RenderError, render_trajectory
 
     samples = _horizon_samples(result, args.horizon)
-    if args.strategy:
+    if args.strategy is not None:  # `--strategy ""` names no strategy: said, not a random run drawn
         runs, seed = _strategy_run(result, args, samples)
         status = EXIT_ERRORS if seed else EXIT_USAGE  # "": _strategy_run has said why (a usage error)
     else:
@@ -436,7 +436,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(f"rac render: cannot write: {exc}", file=sys.stderr)
         return EXIT_USAGE
     print(f"rendered {_how(args)}: {samples} samples (seed {seed})")
-    if automaton.ending is not None and not args.strategy:
+    if automaton.ending is not None and args.strategy is None:
         print("rac render: note: the run goes on to the horizon; the automaton's `episode ends when`, which ends "
               "it in the emitted model, is not applied here", file=sys.stderr)
     print(f"wrote {written}")
