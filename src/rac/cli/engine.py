@@ -66,6 +66,9 @@ def _load(path: Path, max_bytes: int | None, as_json: bool = False) -> tuple[Com
     if result.model_data is None:
         print(f"{path}: the scenario model could not be built (see `rac check {path}`)", file=sys.stderr)
         return None, EXIT_ERRORS
+    warned = [d for d in result.diagnostics if not d.is_error]
+    if warned and not as_json:  # rac check's warnings hold for the answers too (JSON: `rac check --format json`)
+        _print_diagnostics(warned, result.sources, False)
     return result, EXIT_OK
 
 
