@@ -542,3 +542,17 @@ def test_what_the_engine_does_not_answer_is_unsupported_not_unknown(query: str, 
     assert main(["verify", str(path), "--seed", "1", "--format", "json", "-o", str(tmp_path / "out")]) == 4
     (result,) = json.loads(capsys.readouterr().out)["results"]
     assert result["status"] == "unsupported" and "not supported yet" in result["message"]
+
+
+def test_statistical_runs_that_allow_when_stops_are_not_answered(capsys: pytest.CaptureFixture[str],
+                                                                  tmp_path: Path) -> None:
+    # where `allow when` leaves no action the emitted model deadlocks and the run ends; rac's runs went
+    # on with any action (Pr 0.77 where UPPAAL answers 0)
+    path = write_engine_file(tmp_path, "goal_ahead", {"Fast": "Pr[<=4](<> v >= 6)", "Top": "E[<=4; 20](max: v)"})
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace("    model {\n", "    model {\n        allow when v < 5.5\n", 1), encoding="utf-8")
+    assert main(["verify", str(path), "--seed", "1", "--format", "json", "-o", str(tmp_path / "out")]) == 4
+    results = json.loads(capsys.readouterr().out)["results"]
+    for result in results:
+        assert result["status"] == "unsupported"
+        assert "runs met a decision where the model's `allow when` allowed no action" in result["message"]

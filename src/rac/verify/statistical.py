@@ -189,7 +189,15 @@ class StatisticalAnswerer:
                                        truth=np.repeat(one.truth, n, axis=0),
                                        actions=np.repeat(one.actions, n, axis=0),
                                        left_policy=np.repeat(one.left_policy, n, axis=0))
-        return simulate(ctx.data, runs=n, horizon_samples=samples, seed=seed, policy=ctx.policy(under))
+        runs = simulate(ctx.data, runs=n, horizon_samples=samples, seed=seed, policy=ctx.policy(under))
+        stuck = int(runs.left_policy.sum())
+        if stuck:  # the emitted model deadlocks there, and its run ends: rac's runs would go on
+            who = " or ".join(([f"the strategy `{under}`"] if under is not None else [])
+                              + (["the model's `allow when`"] if ctx.data.allow is not None else []))
+            raise EvaluationError(f"{stuck:,} of {n:,} runs met a decision where {who or 'nothing'} allowed no "
+                                  "action; the emitted model deadlocks there and ends the run, while rac's runs "
+                                  "go on with any action, so the two would answer differently")
+        return runs
 
 
 def _runs_of(runs: int | None) -> int:
