@@ -146,8 +146,8 @@ def test_the_results_are_merged_summarised_and_plotted(swept: tuple[SweepResult,
                                             "not_applicable": 0}}
     assert summary.seconds["p50"] <= summary.seconds["p90"] <= summary.seconds["max"]
     text = render_summary(summary)
-    assert text.splitlines()[:3] == ["tasks  ok  failed  skipped  not run",
-                                     "    6   3       3        0        0",
+    assert text.splitlines()[:3] == ["tasks  ok  failed  undecided  skipped  not run",
+                                     "    6   3       3          0        0        0",
                                      "failed: 2 failed, 1 error"]
     assert "error: broken [template settings]: " in text and "failed: highway [template settings]: E0714" in text
     assert exit_status(result.rows) == EXIT_ERRORS  # a query not satisfied, a file with errors
@@ -161,7 +161,8 @@ def test_a_rerun_skips_the_stored_tasks_without_a_cluster(swept: tuple[SweepResu
     assert again.outcome.ran == 0 and again.outcome.skipped == 6
     assert again.rows == first.rows
     assert render_summary(again.summary).splitlines()[1:3] == [
-        "    6   3       3        6        0", "skipped: 6 stored by an earlier run (--force runs them again)"]
+        "    6   3       3          0        6        0",
+        "skipped: 6 stored by an earlier run (--force runs them again)"]
     # --force: every task again; a task whose file is gone: that one only
     store = Store(first.plan.out)
     assert len(pending(first.plan.specs, store, force=True)[1]) == 6
@@ -321,7 +322,7 @@ def test_ctrl_c_merges_what_is_done_and_exits_130(world: Path, tmp_path: Path, m
     assert time.monotonic() - start < 25  # the slow tasks (30 s each) were cancelled
     rows = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert [row["scenario_name"] for row in rows] == ["fast"]
-    assert captured.out.splitlines()[1] == "    3   1       0        0        2"
+    assert captured.out.splitlines()[1] == "    3   1       0          0        0        2"
     assert "rac sweep: interrupted: 2 tasks not run" in captured.err
 
 

@@ -424,3 +424,21 @@ def test_an_inconsistent_scenario_is_an_error_row(folder: Path, tmp_path: Path) 
     step.write_text(text.replace('timeStepSize="0.1"', 'timeStepSize="1e-308"'), encoding="utf-8")
     row = run_task(spec(folder, str(step), "check"))
     assert row["status"] == "error" and str(row["error"]).startswith("E0718 inconsistent scenario: "), row
+
+
+def test_an_undecided_query_makes_an_undecided_row(folder: Path, tmp_path: Path) -> None:
+    # it was an "error" row ("rac could not run it") and counted as failed; nothing failed, no answer came
+    from rac.cli.sweep import exit_status
+    from rac.sweep.report import render_summary, summarise
+
+    template = tmp_path / "late.ra"  # a bound past the horizon: not answered (unsupported)
+    template.write_text(engine_source(TINY_SCENARIOS["goal_ahead"](), {"Late": "Pr[<=5](<> v >= 6)"},
+                                      scenario_file="placeholder.xml"), encoding="utf-8")
+    row = run_task(TaskSpec(str(template), template.read_text(encoding="utf-8"),
+                            str(folder / "scenarios" / "goal_ahead.xml"), (), "verify"))
+    assert row["status"] == "undecided" and str(row["error"]).startswith("not decided: "), row
+    summary = summarise([row], tasks=1)
+    assert (summary.ok, summary.failed, summary.undecided) == (0, 0, 1)
+    assert render_summary(summary).splitlines()[:2] == ["tasks  ok  failed  undecided  skipped  not run",
+                                                        "    1   0       0          1        0        0"]
+    assert exit_status([row]) == 4

@@ -37,7 +37,8 @@ VERDICT_PLOT, TIME_PLOT = "verdicts.png", "time_vs_size.png"
 _FIELDS = ("key", "scenario", "scenario_name", "task", "status", "error", "seconds", "peak_memory", "states",
            "scenario_size")
 _COLOURS = {"satisfied": "#55a868", "not satisfied": "#c44e52", "unknown": "#8c8c8c", "unsupported": "#ccb974",
-            "ok": "#4c72b0", "failed": "#dd8452", "error": "#8172b3", "timeout": "#937860", "memory": "#da8bc3"}
+            "ok": "#4c72b0", "failed": "#dd8452", "undecided": "#ccb974", "error": "#8172b3", "timeout": "#937860",
+            "memory": "#da8bc3"}
 
 
 def grid_label(settings: Mapping[str, object]) -> str:
@@ -146,13 +147,18 @@ class Summary:
         return self.statuses.get("ok", 0)
 
     @property
+    def undecided(self) -> int:
+        """Tasks that finished without a failure but with a query not decided (unknown, unsupported)."""
+        return self.statuses.get("undecided", 0)
+
+    @property
     def failed(self) -> int:
-        """Tasks that finished but not ok (failed, error, timeout, memory)."""
-        return self.finished - self.ok
+        """Tasks that finished neither ok nor undecided (failed, error, timeout, memory)."""
+        return self.finished - self.ok - self.undecided
 
     def to_json(self) -> dict[str, object]:
         """The summary as JSON-serialisable data."""
-        return {**asdict(self), "ok": self.ok, "failed": self.failed,
+        return {**asdict(self), "ok": self.ok, "failed": self.failed, "undecided": self.undecided,
                 "problems": [dict(zip(("status", "scenario", "grid_point", "error"), p)) for p in self.problems]}
 
 
@@ -190,13 +196,14 @@ def _aligned(header: Sequence[str], lines: Sequence[Sequence[object]], *, names:
 def render_summary(summary: Summary, *, problems_shown: int = 10) -> str:
     """The summary as text: the task counts, each status, the verdicts per query, the seconds per task,
     and the first ``problems_shown`` tasks that did not end ok (with why)."""
-    out = _aligned(["tasks", "ok", "failed", "skipped", "not run"],
-                   [[summary.tasks, summary.ok, summary.failed, summary.skipped, summary.not_run]], names=False)
+    out = _aligned(["tasks", "ok", "failed", "undecided", "skipped", "not run"],
+                   [[summary.tasks, summary.ok, summary.failed, summary.undecided, summary.skipped,
+                     summary.not_run]], names=False)
     if summary.skipped:
         out.append(f"skipped: {summary.skipped} stored by an earlier run (--force runs them again)")
     if summary.failed:
         out.append("failed: " + ", ".join(f"{n} {status}" for status, n in summary.statuses.items()
-                                          if status != "ok"))
+                                          if status not in ("ok", "undecided")))
     if summary.queries:
         out.append("")
         out.extend(_aligned(["query", *VERDICTS],

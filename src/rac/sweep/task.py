@@ -37,8 +37,9 @@ __all__ = ["KILLING_SIGNALS", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "
 
 #: What a task runs: the command of the same name on one file.
 #: A row's ``status``: "ok" (no errors; every query decided), "failed" (errors in the file, a query
-#: not satisfied), "error" (rac could not run it), "timeout" and "memory" (the task's limits).
-STATUSES = ("ok", "failed", "error", "timeout", "memory")
+#: not satisfied), "undecided" (a query unknown beyond a budget, or unsupported: no failure, no
+#: answer), "error" (rac could not run it), "timeout" and "memory" (the task's limits).
+STATUSES = ("ok", "failed", "undecided", "error", "timeout", "memory")
 #: The verdicts a row's ``verdicts`` holds (a query whose answer is a value, ``Pr[<=T](<> p)`` or
 #: ``simulate``, has none and is not listed): rac verify's own (:data:`rac.verify.report.VERDICTS`).
 VERDICTS = report_verdicts

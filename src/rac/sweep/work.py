@@ -196,7 +196,7 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any])
     if failed:
         row.update(status="failed", error="not satisfied: " + ", ".join(failed))
     elif undecided:
-        row.update(status="error", error="not decided: " + "; ".join(undecided))
+        row.update(status="undecided", error="not decided: " + "; ".join(undecided))
 
 
 def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
