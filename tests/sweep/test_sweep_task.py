@@ -442,3 +442,21 @@ def test_an_undecided_query_makes_an_undecided_row(folder: Path, tmp_path: Path)
     assert render_summary(summary).splitlines()[:2] == ["tasks  ok  failed  undecided  skipped  not run",
                                                         "    1   0       0          1        0        0"]
     assert exit_status([row]) == 4
+
+
+def test_a_scenario_copied_under_another_name_keeps_its_own_name_in_the_rows(folder: Path, tmp_path: Path) -> None:
+    # the two files share a key (the same bytes) and were run once; the copy's row kept the other's name
+    from rac.sweep.run import Outcome, rows_in_order
+
+    original = folder / "scenarios" / "goal_ahead.xml"
+    copy = tmp_path / "copy.xml"
+    copy.write_bytes(original.read_bytes())
+    specs = [spec(folder, "goal_ahead.xml", "check"),
+             TaskSpec(spec(folder, "goal_ahead.xml").template, spec(folder, "goal_ahead.xml").template_text,
+                      str(copy), (), "check")]
+    assert specs[0].key() == specs[1].key()
+    row = run_task(specs[0])
+    outcome = Outcome(keys=[s.key() for s in specs], rows={row["key"]: row})
+    first, second = rows_in_order(specs, outcome)
+    assert (first["scenario"], first["scenario_name"]) == (str(original), "goal_ahead")
+    assert (second["scenario"], second["scenario_name"]) == (str(copy), "copy")

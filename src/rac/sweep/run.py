@@ -226,7 +226,8 @@ def rows_in_order(specs: Sequence[TaskSpec], outcome: Outcome) -> list[Row]:
     for spec, key in zip(specs, outcome.keys):
         row = outcome.rows.get(key)
         if row is not None:
-            rows.append(row if row.get("scenario") == spec.scenario else {**row, "scenario": spec.scenario})
+            rows.append(row if row.get("scenario") == spec.scenario else
+                        {**row, "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem})
     return rows
 
 
