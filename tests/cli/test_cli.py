@@ -328,6 +328,16 @@ def test_fmt_stdout(capsys: pytest.CaptureFixture[str], unformatted: Path) -> No
     assert unformatted.read_text(encoding="utf-8") == UNFORMATTED  # untouched
 
 
+def test_fmt_check_with_stdout_keeps_the_checks_verdict(capsys: pytest.CaptureFixture[str], unformatted: Path) -> None:
+    # `--check --stdout` printed the result and exited 0, the check forgotten
+    assert main(["fmt", "--check", "--stdout", str(unformatted)]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == GOLDEN_FMT.read_text(encoding="utf-8")
+    assert captured.err == f"{unformatted}: would be reformatted\n"
+    assert unformatted.read_text(encoding="utf-8") == UNFORMATTED
+    assert main(["fmt", "--check", "--stdout", str(DRIVING)]) == 0  # in the layout already
+
+
 def test_fmt_syntax_error_exits_1_and_leaves_the_file(capsys: pytest.CaptureFixture[str], syntax_error: Path) -> None:
     before = syntax_error.read_bytes()
     assert main(["fmt", str(syntax_error)]) == 1

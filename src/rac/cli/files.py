@@ -217,6 +217,9 @@ def _fmt_one(args: argparse.Namespace, path: Path) -> int:
         return EXIT_ERRORS
     if args.stdout:
         sys.stdout.write(formatted)
+        if args.check and not unchanged:  # both: the result printed, and the check's verdict kept
+            print(f"{path}: would be reformatted", file=sys.stderr)
+            return EXIT_ERRORS
     elif unchanged:
         pass
     elif args.check:
