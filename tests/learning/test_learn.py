@@ -416,7 +416,7 @@ def test_learning_beyond_the_memory_budget_is_refused_before_it_allocates(scenar
 def test_verify_and_experiment_refuse_learning_beyond_max_memory(tmp_path: Path,
                                                                  capsys: pytest.CaptureFixture[str]) -> None:
     """rac verify: the learning query is unknown (exit 4) and says what to change; rac experiment stops
-    with the estimate (exit 1); the same commands within the default budget learn."""
+    with the estimate as a resource limit (exit 2); the same commands within the default budget learn."""
     from rac.cli.main import main
 
     path = write_engine_file(tmp_path, "goal_ahead", VERIFY_QUERIES)
@@ -432,7 +432,8 @@ def test_verify_and_experiment_refuse_learning_beyond_max_memory(tmp_path: Path,
     assert main(["verify", str(path), "--query", "rush", "--seed", "1", "-q", "-o", str(tmp_path / "cli")]) == 0
     assert "learned in" in capsys.readouterr().out
     assert main(["experiment", str(path), "--seeds", "1,2", "--episodes", "16", "--runs", "2", "--reward-function",
-                 "v", "--max-memory", "64k", "-q", "-o", str(tmp_path / "exp")]) == 1
+                 "v", "--max-memory", "64k", "-q", "-o", str(tmp_path / "exp")]) == 2
     err = capsys.readouterr().err
+    assert err.startswith("rac experiment: resource limit: ")
     assert "learning 8 runs together would need about" in err and "--episodes" in err and "--max-memory" in err
     assert not (tmp_path / "exp" / "results.json").exists()
