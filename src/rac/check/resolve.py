@@ -559,7 +559,6 @@ class Resolver:
                 strategies.add(decl.query.name)
         return tuple(lowered)
 
-
     def _bound_past_horizon(self, decl: ast.QueryDecl, query: iq.Query, horizon: Fraction | None) -> None:
         """W0604: a time bound past the horizon asks about runs the model does not have."""
         bound = getattr(query, "bound", None)

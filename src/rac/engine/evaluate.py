@@ -119,7 +119,6 @@ class Evaluator:
         self.data = data
         self.automaton = automaton
         self.model = batch_model(data)  # shared: its kept cos/sin and trajectories too
-        self.allow = data.allow
         self.scale_d = float(data.scale)
         self.period_d = float(data.period)
         self.period = Fraction(automaton.period) if automaton is not None else Fraction(data.sense_period, data.scale)
@@ -186,7 +185,7 @@ class Evaluator:
                 return frame.location.astype(np.float64)
             return frame.location == ref.index
         if kind is ie.RefKind.DEADLOCK:
-            if self.allow is not None:  # the emitted model deadlocks where `allow when` leaves no action
+            if self.data.allow is not None:  # the emitted model deadlocks where `allow when` leaves no action
                 raise EvaluationError("`deadlock` is not answered for a model with `allow when` yet: where "
                                       "`allow when` leaves no action the emitted model deadlocks, and rac's "
                                       "engines stop the run there without telling it apart", ref.span)

@@ -106,24 +106,15 @@ class Goal:
 def inside_point(polygon: Polygon) -> tuple[float, float]:
     """The mean of ``polygon``'s vertices when it lies inside the polygon, else a point inside it
     (shapely's ``representative_point``): the vertex mean of a ring or an L lies in its hole."""
+    import shapely  # shapely (commonroad-io's, loaded with the scenario): importing this module stays light
+
     points = polygon.points
     mean = (sum(p[0] for p in points) / len(points), sum(p[1] for p in points) / len(points))
-    if _inside(points, mean):
+    shape = shapely.Polygon(points)
+    if shape.contains(shapely.Point(mean)):
         return mean
-    import shapely  # shapely (commonroad-io's): only for a region whose vertex mean lies outside it
-
-    point = shapely.Polygon(points).representative_point()
+    point = shape.representative_point()
     return (float(point.x), float(point.y))
-
-
-def _inside(points: tuple[tuple[float, float], ...], point: tuple[float, float]) -> bool:
-    """Ray casting (even-odd), as ``goal()`` tests the ego's centre."""
-    x, y = point
-    inside = False
-    for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1]):
-        if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
-            inside = not inside
-    return inside
 
 
 def _midpoint(line: tuple[tuple[float, float], ...]) -> tuple[float, float]:

@@ -23,7 +23,6 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from importlib.util import find_spec
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rac.core.diagnostics import RacError
@@ -69,7 +68,7 @@ def task_function() -> Callable[[TaskSpec], Row]:
 def error_row(spec: TaskSpec, key: str, status: str, message: str, *, retry: bool = False) -> Row:
     """The row of a task that produced none itself (its worker died, it raised, it could not be sent):
     ``status`` and ``message``, whether a resumed sweep runs it again (``retry``), every other measurement None."""
-    return {"key": key, "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem,
+    return {"key": key, **spec.names(),
             "settings": dict(spec.settings), "task": spec.task, "status": status, "error": message,
             "retry": retry, "seconds": 0.0, "peak_memory": None, "states": None, "scenario_size": None, "verdicts": {},
             "diagnostics": [], "details": None}
@@ -226,8 +225,7 @@ def rows_in_order(specs: Sequence[TaskSpec], outcome: Outcome) -> list[Row]:
     for spec, key in zip(specs, outcome.keys):
         row = outcome.rows.get(key)
         if row is not None:
-            rows.append(row if row.get("scenario") == spec.scenario else
-                        {**row, "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem})
+            rows.append(row if row.get("scenario") == spec.scenario else {**row, **spec.names()})
     return rows
 
 

@@ -83,6 +83,10 @@ class TaskSpec:
         if self.task not in TASKS:
             raise ValueError(f"unknown task `{self.task}`: the tasks are {', '.join(TASKS)}")
 
+    def names(self) -> dict[str, str]:
+        """The row fields that name the task's scenario: its path, and the file's stem."""
+        return {"scenario": self.scenario, "scenario_name": Path(self.scenario).stem}
+
     def key(self) -> str:
         """16 hex digits of the SHA-256 of the scenario file's bytes, the template's text, the settings,
         the task and its options (settings and options in name order): equal inputs, equal key, in
@@ -109,7 +113,7 @@ class TaskSpec:
 
 def _row(spec: TaskSpec) -> dict[str, Any]:
     """The row before the task ran: what the spec says, and an error nothing replaced yet."""
-    return {"key": spec.key(), "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem,
+    return {"key": spec.key(), **spec.names(),
             "settings": dict(spec.settings), "task": spec.task, "status": "error",
             "error": "the task gave no result", "retry": False, "seconds": 0.0, "peak_memory": None, "states": None,
             "scenario_size": None, "verdicts": {}, "diagnostics": [], "details": None}

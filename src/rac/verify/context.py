@@ -132,6 +132,12 @@ def over_budget(exc: BudgetExceeded) -> str:
             f"decide_period) or {change}")
 
 
+def left_int32(exc: ModelRangeError) -> str:
+    """What an undecided verdict says when a sensed value of a run left int32 (UPPAAL's model aborts
+    there too)."""
+    return f"a sensed value left the int32 range: {exc}"
+
+
 class Context:
     """One file's verification in progress: the checked file and its model, the options, and what
     the queries answered so far computed, which later ones reuse (the explored graphs) or name
@@ -261,7 +267,7 @@ class Context:
                 self.graph_failures[prune] = over_budget(exc)
                 raise UnknownVerdict(self.graph_failures[prune]) from None
             except ModelRangeError as exc:
-                raise UnknownVerdict(f"a sensed value left the int32 range: {exc}") from None
+                raise UnknownVerdict(left_int32(exc)) from None
         return self.graphs[prune]
 
     def stopped_note(self) -> str | None:

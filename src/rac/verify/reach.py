@@ -40,7 +40,7 @@ from rac.engine.witness import (
 )
 from rac.model.data import ModelRangeError
 from rac.model.sample import GRAPH_LAYER_ROW, GraphColumn
-from rac.verify.context import Context, UnknownVerdict, over_budget
+from rac.verify.context import Context, UnknownVerdict, left_int32, over_budget
 
 __all__ = ["Reached", "Reacher", "in_graph"]
 
@@ -100,7 +100,7 @@ class Reacher:
             found = search(ctx.data, target, horizon_samples=horizon, seed=ctx.search_seed(), bounds=bounds,
                            through=through, prune_unsafe=prune)
         except ModelRangeError as exc:
-            raise UnknownVerdict(f"a sensed value left the int32 range: {exc}") from None
+            raise UnknownVerdict(left_int32(exc)) from None
         if found.witness is not None:
             replay(ctx.data, found.witness, target, through=through, prune_unsafe=prune)
             return Reached(found.witness, "witness search", found.states, prune)
@@ -117,7 +117,7 @@ class Reacher:
         except BudgetExceeded as exc:
             raise UnknownVerdict(f"{over_budget(exc)}; {_searched(found, ctx.options.witness.runs)}") from None
         except ModelRangeError as exc:
-            raise UnknownVerdict(f"a sensed value left the int32 range: {exc}") from None
+            raise UnknownVerdict(left_int32(exc)) from None
         assert layered.graph is not None
         if layered.witness is not None:
             replay(ctx.data, layered.witness, target, prune_unsafe=prune)

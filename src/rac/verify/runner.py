@@ -41,6 +41,7 @@ from collections.abc import Callable, Iterable, Mapping
 from fractions import Fraction
 from typing import Any
 
+from rac import ir
 from rac.check.standard import STANDARD, at_horizon
 from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError
@@ -48,7 +49,7 @@ from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
 from rac.model.data import ModelRangeError
 from rac.model.program import CheckedProgram
-from rac.verify.context import Context, NotApplicable, UnknownVerdict, VerifyOptions
+from rac.verify.context import Context, NotApplicable, UnknownVerdict, VerifyOptions, left_int32
 from rac.verify.learning import LearningAnswerer
 from rac.verify.report import QueryResult, render_json, render_text
 from rac.verify.statistical import StatisticalAnswerer
@@ -126,8 +127,7 @@ class Verifier:
         except UnknownVerdict as exc:
             result = dataclasses.replace(base, status="unknown", message=str(exc))
         except ModelRangeError as exc:  # a run's sensed value (UPPAAL's model would abort there too)
-            result = dataclasses.replace(base, status="unknown",
-                                         message=f"a sensed value left the int32 range: {exc}")
+            result = dataclasses.replace(base, status="unknown", message=left_int32(exc))
         except NotApplicable as exc:
             result = dataclasses.replace(base, status=NOT_APPLICABLE, message=str(exc))
         except EvaluationError as exc:
@@ -224,7 +224,7 @@ def _kind(query: iq.Query) -> str:
             iq.SimulateQuery: "simulate"}.get(type(query), "learning")
 
 
-def _ending_refusal(automaton, query: iq.Query, learned: Mapping[str, object]) -> str | None:
+def _ending_refusal(automaton: ir.Automaton, query: iq.Query, learned: Mapping[str, object]) -> str | None:
     """Why ``query`` is not answered for an automaton whose ``episode ends when`` ends runs early,
     None when it is. The emitted UPPAAL model ends a run there (its Timer stops); the product of
     model and automaton does too, and so do learning's episodes, but the engines over the scenario

@@ -45,7 +45,7 @@ def _allowed_boxes(automaton_key: ById, names: tuple[str, ...], guard_key: ById
                    ) -> list[dict[str, tuple[Fraction, Fraction]]] | None:
     automaton = typing.cast(ir.Automaton, automaton_key.value)
     guard = typing.cast("ir.Guard | None", guard_key.value)
-    space = _space(ById(automaton))
+    space, _ = input_space(automaton)
     if space is None:
         return None
     chosen = space.valid if guard is None else space.valid & space.evaluate(guard)
@@ -68,20 +68,25 @@ def _allowed_boxes(automaton_key: ById, names: tuple[str, ...], guard_key: ById
     return boxes
 
 
-@functools.lru_cache(maxsize=8)
-def _space(automaton_key: ById) -> InputSpace | None:
-    return input_space(typing.cast(ir.Automaton, automaton_key.value))[0]
+@functools.lru_cache(maxsize=2)  # a space holds up to MAX_CACHED_BYTES of guard tables: keep few
+def _classes(automaton_key: ById) -> InputSpace | TooManyClasses:
+    """The automaton's input classes, built once (every analysis of one check and
+    :func:`allowed_boxes` share them), or why they cannot be."""
+    try:
+        return InputSpace(typing.cast(ir.Automaton, automaton_key.value))
+    except TooManyClasses as exc:
+        return exc
 
 
 def input_space(automaton: ir.Automaton) -> tuple[InputSpace | None, list[Diagnostic]]:
     """The input classes, or a diagnostic explaining why the exact checks cannot run."""
-    try:
-        return InputSpace(automaton), []
-    except TooManyClasses as exc:
-        return None, [error(
-            "E0306", f"too many input combinations for the exact checks ({exc.count:,} classes)",
-            automaton.source.name.span if automaton.source else None,
-            hints=["use fewer inputs, or fewer distinct thresholds on numeric inputs"])]
+    classes = _classes(ById(automaton))
+    if isinstance(classes, InputSpace):
+        return classes, []
+    return None, [error(
+        "E0306", f"too many input combinations for the exact checks ({classes.count:,} classes)",
+        automaton.source.name.span if automaton.source else None,
+        hints=["use fewer inputs, or fewer distinct thresholds on numeric inputs"])]
 
 
 def check_behaviour(automaton: ir.Automaton, space: InputSpace | None = None) -> list[Diagnostic]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections import deque
-from collections.abc import Collection
+from collections.abc import Collection, Iterable
 from fractions import Fraction
 
 from rac import ir
@@ -37,15 +37,9 @@ def _bounds(item: ir.Input) -> tuple[Fraction, Fraction]:
     return item.low, item.high
 
 
-def _range_of(linear: ir.Linear, automaton: ir.Automaton, sign: int = 1) -> tuple[Fraction, Fraction]:
-    """[min, max] of a linear form over the declared input bounds."""
-    low = high = linear.const
-    for name, coefficient in linear.terms:
-        item_low, item_high = _bounds(automaton.input(name))
-        a, b = coefficient * item_low, coefficient * item_high
-        low += min(a, b)
-        high += max(a, b)
-    return low, high
+def _declared_box(automaton: ir.Automaton, names: Iterable[str]) -> dict[str, tuple[Fraction, Fraction]]:
+    """The declared bounds of the numeric inputs ``names``, as a box for :func:`_range_in`."""
+    return {name: _bounds(automaton.input(name)) for name in names}
 
 
 #: Integer inputs in a rate pair are enumerated up to this many joint values (else relaxed to reals).
@@ -67,7 +61,7 @@ def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool
     names = tuple(sorted(set(f.variables()) | set(g.variables())))
     boxes = allowed_boxes(automaton, names)
     if boxes is None:
-        boxes = [{n: _bounds(automaton.input(n)) for n in names}]
+        boxes = [_declared_box(automaton, names)]
     return any(_exists_neg_pos_in(f, g, automaton, box) for box in boxes)
 
 
@@ -117,7 +111,7 @@ def _can_be_negative(linear: ir.Linear, automaton: ir.Automaton, guard: ir.Guard
     names = tuple(sorted(set(linear.variables())))
     boxes = allowed_boxes(automaton, names, guard)
     if boxes is None:
-        return _range_of(linear, automaton)[0] < 0
+        boxes = [_declared_box(automaton, names)]
     return any(_range_in(linear, box)[0] < 0 for box in boxes)
 
 

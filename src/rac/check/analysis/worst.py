@@ -198,7 +198,7 @@ def _boxes_over(maps: Sequence[Affine], outs: tuple[Outcome, ...], group: list[i
     return list(seen)
 
 
-def _reachable_boxes(automaton: ir.Automaton, moves: Moves, accruals: list[Affine]) -> list[dict[int, _Box]]:
+def _reachable_boxes(automaton: ir.Automaton, moves: Moves) -> list[dict[int, _Box]]:
     """boxes[k][l]: an interval hull of the rewards "before the edge" of sample k in location l.
 
     For k = 1 it is the start (r = 0): the first accrual belongs to sample 1's functionals.
@@ -264,7 +264,7 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
     steps = automaton.steps
     outs = moves.samples
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
-    boxes = _reachable_boxes(automaton, moves, accruals)
+    boxes = _reachable_boxes(automaton, moves)
     groups = [_groups(os) for os in outs]
     inputs = [[dict((name, (piece.low, piece.high)) for name, piece in o.box) for o in os] for os in outs]
     pull = _Puller()
