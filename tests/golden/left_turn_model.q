@@ -36,7 +36,7 @@ strategy reachSafe = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->
 simulate[<=MAXT;1]{i2d(x), i2d(y), i2d(v), i2d(head)} under reachSafe
 
 // reach: learning without the shield: the objective, maximised
-strategy reach = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), i2d(head)}: <> time >= MAXT
+strategy reach = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), i2d(head)}: <> count >= STEPS
 
 // reach_safe: the learned strategy is safe
 A[] !collide() && !offroad() under reach

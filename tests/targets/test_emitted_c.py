@@ -8,7 +8,7 @@ system C compiler and compare what it computes with the engine. They run on ever
 a ``model`` block under ``examples/`` and ``stdlib/`` (globbed, so new files are covered), the engine
 test files of the tiny scenarios (tests/support/engine_files.py) and three files of this module:
 :data:`SETTINGS_AUTOMATON` (bindings over settings held as significands), :data:`PROBE_AUTOMATON`
-(queries over most of the query printer's branches, four of which it must refuse) and
+(queries over most of the query printer's branches, three of which it must refuse) and
 :data:`TIME_UNIT_AUTOMATON` (a time unit finer than the sensing period).
 
 - **Bindings.** The C program plays the Controller — ``keep_sample()`` on the previous sample's
@@ -125,9 +125,10 @@ automaton Reader {{
 #: Queries over most branches of the query printer: conditions computed with doubles in
 #: symbolic queries (hoisted into functions), exact comparisons of significands and mirrors with
 #: thresholds that are not whole significands, negative leading coefficients, the location index,
-#: ``deadlock``, ``time`` as a clock and as a number, ``settled`` under ``[]`` and ``<>``, the true
-#: state, every math function, discrete observations of mirrors, significands and constants.
-#: The last four are refused by the printer (:data:`PROBE_REFUSED`); the model is emitted without them.
+#: ``deadlock``, ``time`` (the sample counter) compared, as a number and mixed with a reward,
+#: ``settled`` under ``[]`` and ``<>``, the true state, every math function, discrete observations
+#: of mirrors, significands and constants.
+#: The last three are refused by the printer (:data:`PROBE_REFUSED`); the model is emitted without them.
 PROBE_AUTOMATON = """\
 automaton Probe {{
     input near : bool
@@ -160,6 +161,7 @@ automaton Probe {{
     query Dead: A[] !deadlock
     query Lead: fast --> B && d > 20
     query Time: A<> time >= 2
+    query TimeMixed: A[] time + r > 1
     query TimeFn: E<> fmax(time, 1) > 2 && sqrt(fabs(v)) < 2
     query Abs: E[] abs(v - 5) < 3 && dist_goal() > length
     query Ctl: strategy T = control: E<> goal() && near
@@ -173,17 +175,16 @@ automaton Probe {{
     query Prev: A[] prev(v) <= v
     query Truth: E<> true_x > 20
     query LocationDouble: E<> sqrt(Probe.location) > 0.5
-    query TimeMixed: A[] time + r > 1
 }}
 """
 #: The probe's queries the printer refuses, and a word of the reason it gives.
-PROBE_REFUSED = {"Prev": "prev(...)", "Truth": "ground truth", "LocationDouble": "location",
-                 "TimeMixed": "clock cannot be mixed"}
+PROBE_REFUSED = {"Prev": "prev(...)", "Truth": "ground truth", "LocationDouble": "location"}
 
-#: A time unit finer than the sensing period: ``time >= 0.1`` makes the unit 0.1 s, so a sample
-#: period of 0.3 s is PERIOD = 3 time units and sample ``k`` is at ``time == 3k`` in the emitted
-#: model. The engine reads ``time`` at sample ``k`` as ``k * C1`` (``k * 0.3``); the statistical
-#: queries' ``time * 0.1`` (``3k * 0.1``) must be the same double.
+#: A time unit finer than the sensing period: the bound ``[<=2.9]`` makes the unit 0.1 s, so a sample
+#: period of 0.3 s is PERIOD = 3 time units in the emitted model. The queries read ``time`` as the
+#: sample counter whatever the unit: the engine reads it at sample ``k`` as ``k * C1`` (``k * 0.3``),
+#: the statistical queries' ``count * 0.3`` must be the same double, and ``time >= 0.1`` is
+#: ``count >= 1``.
 TIME_UNIT_AUTOMATON = """\
 automaton Slow {{
     input near : bool
@@ -205,7 +206,7 @@ automaton Slow {{
     }}
     query Early: A<> time >= 0.1
     query Clock: simulate[<=3; 1]{{time, r + time}}
-    query Late: Pr[<=3](<> time + r > 3.3)
+    query Late: Pr[<=2.9](<> time + r > 2.5)
 }}
 """
 
@@ -621,7 +622,7 @@ def compile_expressions(loaded: Loaded, printed: list[Printed], printer: UppaalP
     for reward in automaton.rewards:
         read += [f"{v.mirrors[reward]} = (int32_t)read_int();", f"{v.hybrids[reward]} = read_double();"]
     read += [f"{model.dynamics}.{name} = read_double();" for name in true_names]
-    read += [f"{v.time} = read_double();", f"{v.settled} = read_int() != 0;"]
+    read += ["time = read_double();", f"{v.settled} = read_int() != 0;"]  # the clock: no query reads it
     formats = {"bool": ('"%d "', "(int)"), "double": ('"%.17e "', ""), "int": ('"%lld "', "")}
     prints = [f"printf({formats[p.kind][0]}, {formats[p.kind][1]}e{i}());" for i, p in enumerate(printed)]
     main = (QUERY_MAIN.replace("READ", "\n".join(f"        {line}" for line in read))

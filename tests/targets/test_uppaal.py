@@ -293,13 +293,14 @@ def test_the_edge_cases_translate_as_documented() -> None:
     queries = dict(Parsed(emitted(automaton_of(EDGE_CASES)).xml).queries)
     assert queries["Q1"] == "A[] settled imply (E_ imply Sum.Bad)"
     assert queries["Q2"] == "A[] Sum.Bad imply cond0()"  # 2.0 * iSa + iPr <= 15000.0: 2*iSa may leave int32
-    assert queries["Q3"] == "E<> settled && (time >= 15 && sum_ > 20000)"  # time unit 0.1 s (gcd of 0.2, 2, 1.5, 1.9)
+    # `time` is the sample counter: 1.5 s is sample 7.5, so at least sample 8 (the engine's k * 0.2 >= 1.5)
+    assert queries["Q3"] == "E<> settled && (count >= 8 && sum_ > 20000)"
     assert queries["Q4"] == "Pr[<=20](<> Sum.Bad && sa < -0.5) >= 0.5"
     assert queries["Q5"] == "E[<=20;100](max: 2.0 * sa + pr)"  # doubles as the engine computes them
     assert queries["Q6"] == "simulate[<=20;5]{sa, pr, Sum.Bad, sum_ / 10000.0}"
     assert queries["Q7"] == "strategy S = control: A[] !Sum.Bad"
     assert queries["Q8"] == ("strategy L = maxE(2.0 * sa + pr)[<=20]{Sum.location, lane}->{sum_ / 10000.0, sa}: "
-                             "<> time >= 20 under S")
+                             "<> count >= STEPS under S")  # the last sample
     assert queries["Q9"] == "Pr[<=19](<> sa * pr > 1.0)"
     assert queries["Q10"] == "E<> cond1() && true"  # iSa - iPr == 2500 in doubles: the difference may leave int32
     assert queries["Q11"] == "settled && E_ --> Sum.Bad"
@@ -348,6 +349,25 @@ def _model_spec(base: int, exponent: int) -> ir.ModelSpec:
         bindings=())
 
 
+def test_time_is_the_sample_counter() -> None:
+    """A query reads `time` as the engine does, `k * C1` at sample `k`: the counter, not UPPAAL's clock.
+
+    The clock flows between samples and after the horizon, so `A[] time <= 5` was false in UPPAAL
+    (true in the engine), and `E<> time > 4.5` held between two samples where the engine's next
+    sample is at 5 s."""
+    text = NO_INPUTS.replace("sample every 1", "sample every 0.5")[:-2] + (
+        "    query Q1: A[] time <= 5\n    query Q2: E<> time > 4.2\n    query Q3: A[] time + up >= 0\n"
+        "    query Q4: E[<=5; 10](max: time)\n}\n")
+    model = emitted(automaton_of(text))
+    queries = dict(Parsed(model.xml).queries)
+    assert queries["Q1"] == "A[] count <= STEPS"  # the counter never passes the last sample
+    assert queries["Q2"] == "E<> count > 8"  # the first sample after 4.2 s: 4.5 s
+    # mixed with a reward (a clock could not be): 5000 * count + iUp may leave int32, so in doubles
+    assert queries["Q3"] == "A[] cond0()"
+    assert "return 5000.0 * count + iUp >= 0.0;" in Parsed(model.xml).declaration
+    assert queries["Q4"] == "E[<=10;10](max: count * 0.5)"  # the time unit is the period, 0.5 s
+
+
 # ---------------------------------------------------------------- diagnostics
 def codes(automaton: ir.Automaton) -> list[tuple[str, str]]:
     with pytest.raises(UppaalError) as failure:
@@ -375,16 +395,18 @@ def test_query_not_expressible() -> None:
                              "    query Q3: A[] up < 1000000\n    query Q4: Pr[<=5; 100](<> up > 1) >= 0.5\n"
                              "    query Q5: A[] time * up < 4\n}\n")
     found = codes(automaton_of(text))
-    assert [c for c, _ in found] == ["E0802", "E0801", "E0802", "E0802"]
+    assert [c for c, _ in found] == ["E0802", "E0801", "E0802"]
     assert "`>=` or `<=` only" in found[0][1]
     assert "10000000000 is beyond the 32-bit integer range" in found[1][1]
     assert "drop `;N`" in found[2][1]
-    assert "`time`" in found[3][1]
     # a symbolic query that computes with doubles calls a condition of the declarations
-    text = NO_INPUTS[:-2] + "    query Q1: A[] up * up < 4\n}\n"
+    text = NO_INPUTS[:-2] + "    query Q1: A[] up * up < 4\n    query Q2: A[] time * up < 4\n}\n"
     parsed = Parsed(emitted(automaton_of(text)).xml)
     assert dict(parsed.queries)["Q1"] == "A[] cond0()"
     assert "bool cond0() {\n    return iUp / 10000.0 * (iUp / 10000.0) < 4.0;\n}" in parsed.declaration
+    # `time` is the sample counter, an integer, so a condition may read it (UPPAAL's clock it could not)
+    assert dict(parsed.queries)["Q2"] == "A[] cond1()"
+    assert "return count * 1.0 * (iUp / 10000.0) < 4.0;" in parsed.declaration
 
 
 def test_model_functions_need_the_full_model() -> None:

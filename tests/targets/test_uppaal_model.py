@@ -161,7 +161,7 @@ def test_the_papers_queries(model) -> None:
         "i2d(head)}: <> goal() under safe",
         "simulate[<=MAXT;1]{i2d(x), i2d(y), i2d(v), i2d(head)} under reachSafe",
         "strategy reach = maxE(10.0 * sa + 5.0 * pr + co)[<=MAXT]{Driving.location}->{i2d(x), i2d(y), i2d(v), "
-        "i2d(head)}: <> time >= MAXT",
+        "i2d(head)}: <> count >= STEPS",
         "A[] !collide() && !offroad() under reach",
         "A<> goal() under reach",
     ]

@@ -62,7 +62,7 @@ from rac.targets.uppaal.labels import Labels
 from rac.targets.uppaal.layout import Ids, Template, environment
 from rac.targets.uppaal.names import Names, mirror_name
 from rac.targets.uppaal.processes import Processes
-from rac.targets.uppaal.query import UppaalPrinter, Vocabulary, time_constants
+from rac.targets.uppaal.query import UppaalPrinter, Vocabulary, time_bound
 from rac.targets.uppaal.significands import Accrual, NumericInput, Significands
 
 __all__ = ["AutomatonGenerator", "UppaalError", "UppaalModel", "generate_uppaal",
@@ -146,7 +146,9 @@ class AutomatonGenerator:
     def _time_unit(self) -> Fraction:
         durations = [Fraction(self.a.period), Fraction(self.a.horizon)]
         for decl in self.queries():
-            durations += [d for d in time_constants(decl.query) if d > 0]
+            bound = time_bound(decl.query)
+            if bound is not None and bound > 0:
+                durations.append(bound)
         unit = durations[0]
         for d in durations[1:]:
             unit = Fraction(math.gcd(unit.numerator * d.denominator, d.numerator * unit.denominator),
@@ -172,8 +174,9 @@ class AutomatonGenerator:
             bools={i.name: self.n[i.name] for i in a.bool_inputs},
             significands={i.name: self.n[i.name] for i in a.numeric_inputs},
             mirrors=dict(self.mirror), hybrids={r: self.n[r] for r in a.rewards},
-            strategies=strategies, scale=self.numbers.scale, unit=unit, time=self.g["time"], settled=self.g["settled"],
-            horizon=Fraction(a.horizon), period=Fraction(a.period), period_name=self.g["period"], no_model=no_model)
+            strategies=strategies, scale=self.numbers.scale, unit=unit, count=self.g["count"],
+            settled=self.g["settled"], horizon=Fraction(a.horizon), period=Fraction(a.period),
+            period_name=self.g["period"], steps_name=self.g["steps"], no_model=no_model)
 
     def _printer(self, unit: Fraction) -> UppaalPrinter:
         """The printer of this model's queries; conditions get fresh function names."""

@@ -5,8 +5,10 @@ and operators are written (the tables below):
 
 - ``SYMBOLIC`` (``A[]``, ``E<>``, ``E[]``, ``A<>``, ``-->``, ``control:``, discrete observations):
   UPPAAL's symbolic engine reads no double in a query, so rewards are their integer mirrors,
-  numbers their significands and ``time`` the global clock. A comparison whose sides are linear in
-  such integers is printed as one exact comparison of integers (``v > 30`` is ``v > 300000``). Any
+  numbers their significands and ``time`` the sample counter ``count`` (``count * C1`` seconds: the
+  engine's time, which stands still between samples and after the run, where UPPAAL's clock
+  ``time`` flows on). A comparison whose sides are linear in such integers is printed as one exact
+  comparison of integers (``v > 30`` is ``v > 300000``). Any
   other condition — one that computes with doubles, like ``mindist() < 3 * collision_distance`` —
   becomes a function of the declarations that returns a ``bool`` (:attr:`UppaalPrinter.conditions`):
   the query calls it, as it calls ``collide()``;
@@ -14,8 +16,8 @@ and operators are written (the tables below):
   hybrid clocks, the true state the ``Dynamics`` process's clocks;
 - ``FUNCTION`` (the body of such a condition, and the bindings, which the emitted model evaluates in
   functions): the subset of expressions valid in UPPAAL's functions and in C, so that the tests
-  compile it with the system C compiler and compare it with the engine. ``time`` is the sample
-  counter times the period there, and ``a imply b`` is ``!a || b``.
+  compile it with the system C compiler and compare it with the engine. ``a imply b`` is ``!a || b``
+  there.
 
 The printer extends :class:`rac.targets.uppaal.expr.UppaalSyntax`, whose operator table puts the
 parentheses. Numbers are printed the way the engine computes them: a double expression is printed as
@@ -39,7 +41,7 @@ from rac.ir import query as iq
 from rac.ir.vocabulary import Holding
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, UppaalSyntax, double_literal, int_literal, terms_text
 
-__all__ = ["FUNCTION", "STATISTICAL", "SYMBOLIC", "ModelNames", "UppaalPrinter", "Vocabulary", "time_constants"]
+__all__ = ["FUNCTION", "STATISTICAL", "SYMBOLIC", "ModelNames", "UppaalPrinter", "Vocabulary", "time_bound"]
 
 SYMBOLIC, STATISTICAL, FUNCTION = "symbolic", "statistical", "function"
 
@@ -52,8 +54,6 @@ class ModelNames:
 
     #: The process holding the true state's hybrid clocks (``Dynamics``).
     dynamics: str
-    #: The sample counter (``time`` in functions is ``count * C1``).
-    count: str
     #: The constant holding the horizon in time units (``MAXT``).
     maxt: str
 
@@ -64,8 +64,9 @@ class Vocabulary:
 
     ``mirrors`` and ``hybrids`` map each reward to its integer mirror and its hybrid clock;
     ``significands`` each numeric input to its ``int32_t`` global; ``bools`` each boolean input;
-    ``locations`` each location to its UPPAAL name inside ``process``. ``time`` is the global
-    clock (in time units of ``unit`` seconds); ``settled`` a global that is false exactly while the
+    ``locations`` each location to its UPPAAL name inside ``process``. ``count`` is the sample
+    counter, which every dialect reads as ``time`` (``count * C1`` seconds); ``unit`` the time unit of
+    the time bounds (``Pr[<=T]``) in seconds; ``settled`` a global that is false exactly while the
     inputs are newer than the location. ``model`` is None in the automaton-alone model.
     """
 
@@ -79,12 +80,14 @@ class Vocabulary:
     strategies: Mapping[str, str]
     scale: int
     unit: Fraction
-    time: str
+    count: str
     settled: str
     horizon: Fraction
     #: The sample period C1 in seconds, and the constant holding it in time units (``PERIOD``).
     period: Fraction = Fraction(1)
     period_name: str = "PERIOD"
+    #: The constant holding the samples of a run (``STEPS``): ``time`` at the horizon is ``count == STEPS``.
+    steps_name: str = "STEPS"
     model: ModelNames | None = None
     #: Why the scenario model's names are missing (the message of :class:`QueryError`).
     no_model: str = "the automaton-alone UPPAAL model has no scenario-model names"
@@ -235,8 +238,6 @@ class UppaalPrinter(UppaalSyntax):
                 return None
             name, unit = held
             terms.append((name, coefficient * unit))
-        if any(name == self.v.time for name, _ in terms):
-            return self._clock(terms, form.const, expr.op, dialect)
         multiplier = math.lcm(*(c.denominator for _, c in terms))
         coefficients = [(int(c * multiplier), name) for name, c in terms]
         bound = -form.const * multiplier
@@ -248,8 +249,9 @@ class UppaalPrinter(UppaalSyntax):
         if isinstance(result, bool):
             return self.literal(result)
         op, whole = result
-        largest = sum(abs(c) * (self._count_locations() if name.endswith(".location") else INT32_MAX)
-                      for c, name in coefficients)
+        if coefficients == [(1, self.v.count)] and whole * self.v.period == self.v.horizon:
+            return Printed(f"{self.v.count} {op} {self.v.steps_name}", Level.COMPARE)
+        largest = sum(abs(c) * self._largest(name) for c, name in coefficients)
         if largest <= INT32_MAX:
             return Printed(f"{terms_text(coefficients)} {op} {int_literal(whole)}", Level.COMPARE)
         # a sum of int32 values may leave int32 (10*iSa with iSa = -3e8): compute it in doubles, exact
@@ -265,29 +267,13 @@ class UppaalPrinter(UppaalSyntax):
         text = signed_sum(parts)
         return Printed(f"{text} {op} {double_literal(whole)}", Level.COMPARE)
 
-    def _count_locations(self) -> int:
-        return max(1, len(self.v.locations))
-
-    def _clock(self, terms: list[tuple[str, Fraction]], const: Fraction, op: str, dialect: str) -> Printed | None:
-        """``c * time + const op 0`` as UPPAAL's clock constraint ``time op' k`` (``k`` whole time units)."""
-        if len(terms) > 1:
-            if dialect == SYMBOLIC:
-                raise QueryError("a symbolic query cannot compare `time` with rewards, inputs or the ego state "
-                                 "(UPPAAL's clock cannot be mixed with integers)")
-            return None
-        (name, coefficient), = terms
-        bound = -const / coefficient
-        if coefficient < 0:
-            op = _FLIP[op]
-        if bound.denominator != 1:
-            if dialect == SYMBOLIC:
-                raise QueryError(f"`time` is compared with {_short(bound * self.v.unit)} s, which is not a whole "
-                                 f"number of time units ({_short(self.v.unit)} s)")
-            return Printed(f"{name} {op} {double_literal(bound)}", Level.COMPARE)
-        model = self.v.model
-        if model is not None and bound * self.v.unit == self.v.horizon:
-            return Printed(f"{name} {op} {model.maxt}", Level.COMPARE)
-        return Printed(f"{name} {op} {int_literal(bound)}", Level.COMPARE)
+    def _largest(self, name: str) -> int:
+        """The largest magnitude the integer ``name`` holds: a location index, the sample counter, or any int32."""
+        if name.endswith(".location"):
+            return max(1, len(self.v.locations))
+        if name == self.v.count:
+            return math.ceil(self.v.horizon / self.v.period)
+        return INT32_MAX
 
     def _integer(self, ref: ie.Ref, dialect: str) -> tuple[str, Fraction] | None:
         """The integer that holds ``ref`` in this dialect and the value of one of its units, or None."""
@@ -302,10 +288,8 @@ class UppaalPrinter(UppaalSyntax):
         if entry.holding is Holding.SIGNIFICAND and entry.kind == "ego":
             self._model(ref.name)
             return entry.uppaal, Fraction(1, v.scale)
-        if entry.holding is Holding.TIME:
-            if dialect == FUNCTION:
-                return self._model(ref.name).count, v.period
-            return v.time, v.unit
+        if entry.holding is Holding.TIME:  # the engine's k * C1 at sample k, in every dialect
+            return v.count, v.period
         return None
 
     # ------------------------------------------------------------ numbers (doubles)
@@ -342,20 +326,14 @@ class UppaalPrinter(UppaalSyntax):
         if ref.kind is not ie.RefKind.MODEL:
             raise QueryError(f"`{ref.name}` is not a number")
         entry = ref.model
-        model = self._model(ref.name) if entry.holding is not Holding.TIME or dialect == FUNCTION else None
+        model = self._model(ref.name) if entry.holding is not Holding.TIME else None
         if entry.holding is Holding.SIGNIFICAND:
             return Printed(f"i2d({entry.uppaal})", Level.ATOM)
         if entry.holding is Holding.EXACT:
             assert ref.value is not None
             return Printed(entry.uppaal, Level.ATOM) if entry.uppaal else number(double_literal(ref.value))
-        if entry.holding is Holding.TIME:
-            if dialect == FUNCTION:
-                assert model is not None  # looked up above: functions count samples
-                return Printed(f"{model.count} * {double_literal(v.period)}", Level.MUL)
-            # k * C1 at sample k, as the engine computes it: the clock counts PERIOD time units a sample
-            if v.period == v.unit:
-                return Printed(f"{v.time} * {double_literal(v.period)}", Level.MUL)
-            return Printed(f"{v.time} / {v.period_name} * {double_literal(v.period)}", Level.MUL)
+        if entry.holding is Holding.TIME:  # k * C1 at sample k, the double the engine computes
+            return Printed(f"{v.count} * {double_literal(v.period)}", Level.MUL)
         if dialect != STATISTICAL:
             raise QueryError(f"`{ref.name}` is the ground truth, which only statistical queries (Pr, E, simulate) "
                              "follow")
@@ -413,13 +391,13 @@ class UppaalPrinter(UppaalSyntax):
         terms = []
         for ref, coefficient in form.terms if form is not None else ():
             held = self._integer(ref, SYMBOLIC)
-            if held is None or held[0] == self.v.time:
+            if held is None:
                 form = None
                 break
             terms.append((held[0], coefficient * held[1]))
         if form is None:
-            raise QueryError("a discrete observation must be linear in rewards, inputs, the ego state and "
-                             "`Automaton.location` (it is observed as integers: mirrors and significands)")
+            raise QueryError("a discrete observation must be linear in rewards, inputs, the ego state, `time` "
+                             "and `Automaton.location` (it is observed as integers: mirrors and significands)")
         # observed as the smallest whole multiple: `x` is the significand, `sa + pr` the mirrors' sum
         multiplier = math.lcm(*(c.denominator for _, c in terms), form.const.denominator)
         whole = [(int(c * multiplier), name) for name, c in terms]
@@ -448,20 +426,12 @@ def _short(value: Fraction) -> str:
     return text if Fraction(text) == value else f"{value.numerator}/{value.denominator}"
 
 
-def time_constants(query: iq.Query) -> list[Fraction]:
-    """Durations in seconds a query needs as whole time units: its time bound, and the constant of
-    every comparison of ``time`` alone (``time >= 30`` needs 30 s)."""
-    found: list[Fraction] = []
+def time_bound(query: iq.Query) -> Fraction | None:
+    """The time bound of a query in seconds (``Pr[<=30]`` needs 30 s as whole time units), or None.
+
+    Comparisons of ``time`` need no time unit: they read the sample counter."""
     bound = getattr(query, "bound", None)
-    if bound is not None and bound.kind == "time":
-        found.append(bound.limit)
-    for expr in query_exprs(query):
-        for node in ie.walk(expr):
-            if isinstance(node, ie.Compare) and node.linear is not None and len(node.linear.terms) == 1:
-                ref, coefficient = node.linear.terms[0]
-                if ref.is_model and ref.model.holding is Holding.TIME:
-                    found.append(-node.linear.const / coefficient)
-    return found
+    return bound.limit if bound is not None and bound.kind == "time" else None
 
 
 def query_exprs(query: iq.Query) -> list[ie.Expr]:
