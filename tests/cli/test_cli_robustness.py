@@ -104,7 +104,7 @@ def test_preanalyse_cannot_write_its_folder(capsys: pytest.CaptureFixture[str], 
     out = blocked_folders(tmp_path)[which]
     code, _, err = run(capsys, "preanalyse", engine_file, "-q", "--seed", "1", "--runs", "2", "-o", out)
     assert code == EXIT_USAGE
-    assert err.startswith(f"rac preanalyse: cannot write to {out}: "), err
+    assert err.startswith(f"error[E0009]: cannot write `{out}`: "), err
     assert (tmp_path / "afile").read_text(encoding="utf-8") == "mine\n"
 
 
@@ -114,7 +114,8 @@ def test_preanalyse_default_folder_blocked_by_a_file(capsys: pytest.CaptureFixtu
     blocker.write_text("mine\n", encoding="utf-8")
     code, _, err = run(capsys, "preanalyse", engine_file, "-q", "--seed", "1", "--runs", "2")
     assert code == EXIT_USAGE
-    assert err == f"rac preanalyse: cannot write to {blocker / 'preanalyse'}: Not a directory\n"
+    assert err == (f"error[E0009]: cannot write `{blocker / 'preanalyse'}`: Not a directory\n"
+                   " = hint: a part of the path is a file, not a folder: choose another path; nothing was written\n")
     assert blocker.read_text(encoding="utf-8") == "mine\n"
 
 
@@ -135,7 +136,7 @@ def test_preanalyse_refuses_values_out_of_range(capsys: pytest.CaptureFixture[st
     code, stdout, err = run(capsys, "preanalyse", engine_file, "-q", "--seed", "1", "--runs", "2", "-o", out,
                             *option)
     assert code == EXIT_USAGE
-    assert stdout == "" and err == f"rac preanalyse: {message}\n"
+    assert stdout == "" and err == f"error[E0014]: {message}\n"
     assert not out.exists()
 
 
@@ -153,7 +154,7 @@ def test_a_horizon_of_too_many_samples_is_usage(capsys: pytest.CaptureFixture[st
     code, _, err = run(capsys, command[0], engine_file, "-q", "--seed", "1", "-o", tmp_path / "o", "--horizon",
                        "1e400", *command[1:])
     assert code == EXIT_USAGE
-    assert err == f"rac {command[0]}: --horizon 1e400 is 2e400 samples of 0.5 s: more than 2,147,483,647\n"
+    assert err == "error[E0014]: --horizon 1e400 is 2e400 samples of 0.5 s: more than 2,147,483,647\n"
 
 
 # ---------------------------------------------------------------- 4. compile: a folder as the output
@@ -211,7 +212,8 @@ def test_a_scheduler_address_dask_cannot_use_is_usage(capsys: pytest.CaptureFixt
     code, _, err = run(capsys, "sweep", engine_file, tmp_path / "goal_ahead.xml", "-q", "-o", tmp_path / "sweep",
                        "--scheduler", address)
     assert code == EXIT_USAGE
-    assert err.startswith(f"rac sweep: --scheduler: the scheduler address {address!r} is not one Dask can use ("), err
+    said = f"error[E0014]: --scheduler: the scheduler address {address!r} is not one Dask can use ("
+    assert err.startswith(said), err
     assert err.endswith("); give tcp://HOST:PORT\n")
 
 

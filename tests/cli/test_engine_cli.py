@@ -115,8 +115,9 @@ def test_verify_unknown_query_exits_2(capsys: pytest.CaptureFixture[str], tmp_pa
     assert main(["verify", str(path), "--query", "Stays", "--query", "Nope"]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert captured.err == (f"rac verify: no query named Nope in {path} (names: Stays, Sim; --standard adds Qa, Qb, "
-                            "Qc, Qd, Fig7, Fig7_safe, Unsafe_safe)\n")
+    assert captured.err == (f"error[E0014]: --query: no query named Nope in {path}\n"
+                            " = note: its queries: Stays, Sim; --standard adds Qa, Qb, Qc, Qd, Fig7, Fig7_safe, "
+                            "Unsafe_safe\n")
     assert not (tmp_path / "goal_ahead.out").exists()
 
 
@@ -202,8 +203,9 @@ def test_verify_file_without_model_block_exits_1(capsys: pytest.CaptureFixture[s
         assert main([command, str(path)]) == 1, command
         captured = capsys.readouterr()
         assert captured.out == ""
-        assert captured.err == (f"{path}: this automaton has no `model` block; the engine answers queries on a "
-                                "scenario model (docs/language.md, 'The model block')\n")
+        assert captured.err == (f"error[E0015]: `{path}` has no `model` block: the engine answers queries on a "
+                                "scenario model\n = hint: add a `model` block naming a CommonRoad scenario "
+                                "(docs/language.md, 'The model block')\n")
 
 
 def test_verify_file_with_errors_exits_1(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -231,7 +233,7 @@ def test_verify_usage_errors_exit_2(capsys: pytest.CaptureFixture[str], tmp_path
     capsys.readouterr()  # nothing to write for Stays
     strategy = write_engine_file(tmp_path, "goal_ahead", {"safe": QUERIES["safe"]}, ra_name="strategy")
     assert main(["verify", str(strategy), "--out", str(tmp_path / "taken")]) == 2
-    assert capsys.readouterr().err.startswith(f"rac verify: cannot write to {tmp_path / 'taken'}: ")
+    assert capsys.readouterr().err.startswith(f"error[E0009]: cannot write `{tmp_path / 'taken'}`: ")
 
 
 # ---------------------------------------------------------------- simulate
@@ -421,7 +423,7 @@ def test_preanalyse_bad_lists_exit_2(capsys: pytest.CaptureFixture[str], tmp_pat
     path = write_engine_file(tmp_path, "goal_ahead", {})
     assert main(["preanalyse", str(path), *option]) == 2
     captured = capsys.readouterr()
-    assert captured.out == "" and captured.err == f"rac preanalyse: {message}\n"
+    assert captured.out == "" and captured.err == f"error[E0014]: {message}\n"
 
 
 # ---------------------------------------------------------------- where outputs go

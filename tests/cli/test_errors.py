@@ -12,6 +12,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
+from engine_files import QUERIES, write_engine_file
 
 import rac
 from rac.cli.main import main
@@ -134,3 +135,133 @@ def test_engine_commands_print_load_errors_as_json_when_asked(command: str, tmp_
         found = json.loads(out)
         diagnostics = found["diagnostics"] if command == "tune" else found
         assert [d["code"] for d in diagnostics] == [code] and err == ""
+
+
+# ---------------------------------------------------------------- --format json: every error as JSON
+#: A checked automaton without a `model` block (nor `param`): 8 samples of 0.5 s.
+PLAIN = ("automaton Plain {\n    input near : bool\n    reward sa\n    objective sa\n    sample every 0.5\n"
+         "    horizon 4\n    initial location N { sa' == 1 }\n    edge N -> N when near\n    query Q: E<> N\n}\n")
+
+
+def json_run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> tuple[int, object]:
+    """``rac ARGS`` in-process: the exit code and standard output parsed as JSON (standard error must be
+    empty: nothing of the error is left as text)."""
+    status = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    assert err == "", err
+    return status, json.loads(out)
+
+
+def codes(found: object) -> list[str]:
+    assert isinstance(found, list)
+    return [d["code"] for d in found]
+
+
+@pytest.mark.parametrize("command", ["verify", "preanalyse", "experiment"])
+def test_a_file_without_a_model_block_is_json(command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "plain.ra"
+    path.write_text(PLAIN, encoding="utf-8")
+    status, found = json_run(capsys, command, path, "--format", "json", "-o", tmp_path / "out")
+    assert status == 1 and codes(found) == ["E0015"]
+    assert isinstance(found, list) and "has no `model` block" in found[0]["message"]
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["verify", "--query", "Nope"], "--query: no query named Nope"),
+    (["verify", "--horizon", "0.3"], "--horizon"),
+    (["preanalyse", "--exponent", "x"], "--exponent: 'x' is not a number"),
+    (["experiment", "--seed", "1", "--seeds", "1,2"], "not both"),
+    (["experiment", "--replay", "-1"], "--replay must be 0 or more"),
+    (["experiment", "--bins", "a,b"], "--bins: not a list of numbers"),
+])
+def test_an_option_the_command_cannot_use_is_json(args: list[str], message: str, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {"Stays": QUERIES["Stays"]})
+    status, found = json_run(capsys, args[0], path, *args[1:], "--format", "json", "-q", "-o", tmp_path / "out")
+    assert status == 2 and codes(found) == ["E0014"]
+    assert isinstance(found, list) and message in found[0]["message"]
+
+
+def test_an_output_folder_that_cannot_be_written_is_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    (tmp_path / "afile").write_text("mine\n", encoding="utf-8")
+    status, found = json_run(capsys, "preanalyse", path, "--format", "json", "-q", "--runs", "2", "--seed", "1",
+                             "-o", tmp_path / "afile")
+    assert status == 2 and codes(found) == ["E0009"]
+
+
+def test_tune_usage_errors_are_its_json_document(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "plain.ra"
+    path.write_text(PLAIN, encoding="utf-8")
+    status, found = json_run(capsys, "tune", path, "--format", "json")
+    assert isinstance(found, dict)
+    assert status == 2 and found["ok"] is False and found["written"] is None
+    assert [d["code"] for d in found["diagnostics"]] == ["E0014"]
+    assert "declares no `param`" in found["diagnostics"][0]["message"]
+    penalty = ROOT / "examples" / "tune" / "driving_penalty.ra"  # sample every 0.1 s
+    status, found = json_run(capsys, "tune", penalty, "--format", "json", "--horizon", "10,25.05")
+    assert isinstance(found, dict)
+    assert status == 2 and [d["code"] for d in found["diagnostics"]] == ["E0014"]
+    assert "not a whole number of sample periods" in found["diagnostics"][0]["message"]
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["{scenarios}", "--set", "bogus=1"], "unknown setting `bogus`"),
+    (["{missing}"], "no scenario file matched"),
+    (["{scenarios}", "--scheduler", "tcp://127.0.0.1:1", "--workers", "2"], "--workers sizes the local cluster"),
+    (["{scenarios}", "--scheduler", "notaurl"], "--scheduler: the scheduler address"),
+])
+def test_sweep_usage_errors_are_json(args: list[str], message: str, tmp_path: Path,
+                                     capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    names = {"{scenarios}": str(tmp_path / "goal_ahead.xml"), "{missing}": str(tmp_path / "none*.xml")}
+    status, found = json_run(capsys, "sweep", path, *[names.get(a, a) for a in args], "--format", "json", "-q",
+                             "-o", tmp_path / "sweep")
+    assert status == 2 and codes(found) == ["E0014"]
+    assert isinstance(found, list) and message in found[0]["message"]
+    status, found = json_run(capsys, "sweep", tmp_path / "missing.ra", tmp_path / "goal_ahead.xml", "--format",
+                             "json", "-q", "-o", tmp_path / "sweep")
+    assert status == 2 and codes(found) == ["E0008"]
+
+
+def test_a_scenario_beyond_max_memory_is_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    for args in (["check"], ["verify", "-o", str(tmp_path / "out")], ["compile", "--target", "python"]):
+        status, found = json_run(capsys, args[0], path, *args[1:], "--format", "json", "--max-memory", "1K")
+        assert status == 2 and codes(found) == ["E0016"], args
+        assert isinstance(found, list) and found[0]["message"].startswith("resource limit: the scenario")
+    tuned = tmp_path / "tuned.ra"  # a `param` in the engine file: rac tune loads its scenario
+    tuned.write_text(path.read_text(encoding="utf-8").replace("horizon", "param UNUSED in [0, 1]\n    horizon", 1),
+                     encoding="utf-8")
+    status, found = json_run(capsys, "tune", tuned, "--format", "json", "--max-memory", "1K")
+    assert status == 2 and isinstance(found, dict) and [d["code"] for d in found["diagnostics"]] == ["E0016"]
+
+
+def test_compile_json_summarises_what_it_wrote(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "plain.ra"
+    path.write_text(PLAIN.replace("edge N -> N when near", "edge N -> N when near\n    location M { sa' == 0 }"),
+                    encoding="utf-8")  # M is unreachable: a warning (W0302)
+    status, found = json_run(capsys, "compile", path, "--target", "python", "--format", "json", "-o",
+                             tmp_path / "plain.py")
+    assert isinstance(found, dict) and status == 0
+    assert found["ok"] is True and found["target"] == "python" and found["output"] is None
+    assert found["written"] == [str(tmp_path / "plain.py")] and (tmp_path / "plain.py").exists()
+    assert [d["code"] for d in found["diagnostics"]] == ["W0302"]
+    status, found = json_run(capsys, "compile", path, "--target", "uppaal", "--format", "json", "-o",
+                             tmp_path / "plain.xml")
+    assert isinstance(found, dict) and status == 0
+    assert found["written"] == [str(tmp_path / "plain.xml"), str(tmp_path / "plain.q")]
+    status, found = json_run(capsys, "compile", path, "--target", "python", "--format", "json")
+    assert isinstance(found, dict) and status == 0 and found["written"] == []
+    assert isinstance(found["output"], str) and "generated by rac" in found["output"].lower()
+
+
+@pytest.mark.parametrize(("output", "code"), [("{dir}", "E0009"), ("{source}", "E0009"), ("{mine}", "E0009")])
+def test_compile_write_errors_are_json(output: str, code: str, tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "plain.ra"
+    path.write_text(PLAIN, encoding="utf-8")
+    (tmp_path / "mine.py").write_text("print('mine')\n", encoding="utf-8")
+    target = {"{dir}": tmp_path, "{source}": path, "{mine}": tmp_path / "mine.py"}[output]
+    status, found = json_run(capsys, "compile", path, "--target", "python", "--format", "json", "-o", target)
+    assert status == 2 and codes(found) == [code]

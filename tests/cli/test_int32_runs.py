@@ -35,7 +35,7 @@ def test_a_run_beyond_int32_is_the_models_limit(command: list[str], capsys: pyte
     path = write_far_road(tmp_path)
     assert main([command[0], str(path), *command[1:], "--seed", "1", "-o", str(tmp_path / "out")]) == 1
     err = capsys.readouterr().err
-    assert f"rac {command[0]}: a sensed value left the int32 range: sense(): x = 21" in err
+    assert "error[E0015]: a sensed value left the int32 range: sense(): x = 21" in err
     assert "UPPAAL's model aborts there too" in err and "coarser `exponent`" in err
     assert "internal error" not in err
 

@@ -195,7 +195,8 @@ def test_tune_refuses_when_the_file_changed_while_it_worked(
     capsys.readouterr()
     assert main(["tune", str(path)]) == 2
     err = capsys.readouterr().err
-    assert f"rac tune: `{path}` changed since rac tune read it" in err and "nothing was written" in err
+    assert f"error[E0009]: cannot write `{path}`: it changed since rac tune read it" in err
+    assert "nothing was written" in err
     assert "param PENALTY in [0, 1000]" in path.read_text(encoding="utf-8")  # fmt's work is kept, not overwritten
 
 

@@ -434,6 +434,6 @@ def test_verify_and_experiment_refuse_learning_beyond_max_memory(tmp_path: Path,
     assert main(["experiment", str(path), "--seeds", "1,2", "--episodes", "16", "--runs", "2", "--reward-function",
                  "v", "--max-memory", "64k", "-q", "-o", str(tmp_path / "exp")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("rac experiment: resource limit: ")
+    assert err.startswith("error[E0016]: resource limit: ")
     assert "learning 8 runs together would need about" in err and "--episodes" in err and "--max-memory" in err
     assert not (tmp_path / "exp" / "results.json").exists()

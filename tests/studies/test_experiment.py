@@ -190,4 +190,4 @@ def test_a_shield_beyond_the_state_budget_is_a_resource_limit(tmp_path: Path,
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)
     assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", REWARD_FUNCTION,
                  "--max-states", "10", "--out", str(tmp_path / "o")]) == 2
-    assert "rac experiment: resource limit: the safety shield cannot be computed" in capsys.readouterr().err
+    assert "error[E0016]: resource limit: the safety shield cannot be computed" in capsys.readouterr().err

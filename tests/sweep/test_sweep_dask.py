@@ -397,7 +397,7 @@ def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytes
 
 def test_a_template_that_cannot_be_read_exits_2(world: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["sweep", str(world / "missing.ra"), str(world / "scenarios")]) == EXIT_USAGE
-    assert f"rac sweep: cannot read {world / 'missing.ra'}: No such file or directory" in capsys.readouterr().err
+    assert f"error[E0008]: cannot read `{world / 'missing.ra'}`: No such file or directory" in capsys.readouterr().err
 
 
 def test_the_exit_code_follows_the_worst_row() -> None:

@@ -14,20 +14,23 @@ import contextlib
 import errno
 import fcntl
 import os
+import sys
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 
-from rac.core.diagnostics import Diagnostic, RacError, error
+from rac.core.diagnostics import Diagnostic, RacError, error, render_json, render_text
+from rac.core.source import SourceFile
 from rac.engine.budget import default_max_bytes, parse_size
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
            "OUTPUT_SUFFIX", "SOURCE_SUFFIX", "STALE_SECONDS", "FileWriteError", "NotRegularFile", "StdoutError",
-           "check_writable", "held_source", "load_budget", "locked", "output_folder", "overwrites_source",
-           "overwrites_source_in", "same_file", "size_argument", "stdout_unwritable",
-           "unreadable", "unwritable", "write_all_atomically", "write_atomically"]
+           "as_json", "check_writable", "held_source", "load_budget", "locked", "output_folder", "overwrites_source",
+           "overwrites_source_in", "print_diagnostics", "resource_limit", "same_file", "size_argument",
+           "stdout_unwritable", "unreadable", "unusable_file", "unwritable", "usage_error", "write_all_atomically",
+           "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 
@@ -37,6 +40,40 @@ SOURCE_SUFFIX = ".ra"
 #: A writer's temporary file older than this (seconds) was left by a writer that was killed: the
 #: next write of the same file removes it. A live writer writes its text at once, in far less time.
 STALE_SECONDS = 3600
+
+
+def as_json(args: argparse.Namespace) -> bool:
+    """Whether the command was asked for ``--format json`` (commands without the option: no)."""
+    return getattr(args, "format", None) == "json"
+
+
+def print_diagnostics(diagnostics: Iterable[Diagnostic], sources: Mapping[str, SourceFile] | None = None,
+                      structured: bool = False) -> None:
+    """The one place a command prints diagnostics it does not fold into a document of its own: with
+    ``structured`` (``--format json``) a JSON array on standard output, what a script parses (never text
+    there), else text on standard error (with the source line when ``sources`` has the file)."""
+    if structured:
+        print(render_json(diagnostics))
+    else:
+        print(render_text(diagnostics, sources or {}), file=sys.stderr)
+
+
+def usage_error(message: str, *, notes: Iterable[str] = (), hints: Iterable[str] = ()) -> Diagnostic:
+    """E0014: an option's value (or a combination of options) the command cannot use, found after the
+    arguments were parsed (exit 2)."""
+    return error("E0014", message, None, notes=notes, hints=hints)
+
+
+def unusable_file(message: str, *, notes: Iterable[str] = (), hints: Iterable[str] = ()) -> Diagnostic:
+    """E0015: a file that passes ``rac check`` but that the command cannot run on (no ``model`` block,
+    a run that leaves the int32 range, an experiment without a safe strategy; exit 1)."""
+    return error("E0015", message, None, notes=notes, hints=hints)
+
+
+def resource_limit(message: str, *, hints: Iterable[str] = ()) -> Diagnostic:
+    """E0016: the work needs more than the memory or state budget (``--max-memory``, ``--max-states``)
+    or the machine allows; the input is not at fault (exit 2)."""
+    return error("E0016", message, None, hints=hints)
 
 
 def unreadable(path: Path, exc: OSError) -> Diagnostic:

@@ -22,13 +22,19 @@ from rac.cli.common import (
     EXIT_OK,
     EXIT_UNDECIDED,
     EXIT_USAGE,
+    as_json,
     held_source,
     output_folder,
     overwrites_source_in,
+    print_diagnostics,
+    resource_limit,
+    unusable_file,
+    unwritable,
+    usage_error,
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, Diagnostic, RacError, render_json
+from rac.core.diagnostics import CheckError, Diagnostic, RacError
 from rac.core.diagnostics import render_text as render_diagnostics
 from rac.core.numbers import samples_of
 from rac.core.source import SourceFile
@@ -49,26 +55,29 @@ Command = Callable[[argparse.Namespace], int]
 T = TypeVar("T")
 
 
-def _load(path: Path, max_bytes: int | None, as_json: bool = False) -> tuple[CompileResult | None, int]:
+def _load(path: Path, max_bytes: int | None, structured: bool = False) -> tuple[CompileResult | None, int]:
     result, problem = read_and_check(path, max_bytes)
     if result is None:
         assert problem is not None
-        _print_diagnostics([problem], {}, as_json)
+        print_diagnostics([problem], {}, structured)
         return None, EXIT_USAGE
     errors = [d for d in result.diagnostics if d.is_error]
     if errors:
-        _print_diagnostics(result.diagnostics, result.sources, as_json)
+        print_diagnostics(result.diagnostics, result.sources, structured)
         return None, EXIT_ERRORS
     if result.automaton is None or result.automaton.model is None:
-        print(f"{path}: this automaton has no `model` block; the engine answers queries on a scenario model "
-              "(docs/language.md, 'The model block')", file=sys.stderr)
+        print_diagnostics([unusable_file(
+            f"`{path}` has no `model` block: the engine answers queries on a scenario model",
+            hints=["add a `model` block naming a CommonRoad scenario (docs/language.md, 'The model block')"])],
+            {}, structured)
         return None, EXIT_ERRORS
     if result.model_data is None:
-        print(f"{path}: the scenario model could not be built (see `rac check {path}`)", file=sys.stderr)
+        print_diagnostics([unusable_file(f"`{path}`: the scenario model could not be built",
+                                         hints=[f"`rac check {path}` says why"])], {}, structured)
         return None, EXIT_ERRORS
     warned = [d for d in result.diagnostics if not d.is_error]
-    if warned and not as_json:  # rac check's warnings hold for the answers too (JSON: `rac check --format json`)
-        _print_diagnostics(warned, result.sources, False)
+    if warned and not structured:  # rac check's warnings hold for the answers too (JSON: `rac check --format json`)
+        print_diagnostics(warned, result.sources, False)
     return result, EXIT_OK
 
 
@@ -77,7 +86,7 @@ def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     must be a whole number of samples (preanalyse's sweep checks it against each sensing period of its
     grid instead)."""
 
-    result, status = _load(args.file, args.max_memory or default_max_bytes(), getattr(args, "format", None) == "json")
+    result, status = _load(args.file, args.max_memory or default_max_bytes(), as_json(args))
     if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
         return None, EXIT_USAGE
     return result, status
@@ -89,19 +98,9 @@ def _out_dir(args: argparse.Namespace) -> Path:
     return output_folder(args.file, args.command, args.out)
 
 
-def _print_diagnostics(diagnostics: Sequence[Diagnostic], sources: Mapping[str, SourceFile], as_json: bool) -> None:
-    """The one place the engine commands print diagnostics: with ``--format json`` a JSON array on
-    standard output (what a script parses: never text there), else text on standard error (with the
-    source line when ``sources`` has the file)."""
-    if as_json:
-        print(render_json(diagnostics))
-    else:
-        print(render_diagnostics(diagnostics, sources), file=sys.stderr)
-
-
-def _report(args: argparse.Namespace, diagnostic: Diagnostic, sources: Mapping[str, SourceFile]) -> None:
-    """Print ``diagnostic`` as the command's ``--format`` asks (:func:`_print_diagnostics`)."""
-    _print_diagnostics([diagnostic], sources, getattr(args, "format", None) == "json")
+def _report(args: argparse.Namespace, diagnostic: Diagnostic, sources: Mapping[str, SourceFile] | None = None) -> None:
+    """Print ``diagnostic`` as the command's ``--format`` asks (:func:`rac.cli.common.print_diagnostics`)."""
+    print_diagnostics([diagnostic], sources, as_json(args))
 
 
 def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]) -> Command:
@@ -125,10 +124,11 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
             try:
                 return command(args, result)
             except ModelRangeError as exc:  # a run's sensed value, not the file's data (rac check has those)
-                print(f"rac {args.command}: a sensed value left the int32 range: {exc}\n"
-                      f"  = note: UPPAAL's model aborts there too; the run cannot go on\n"
-                      "  = hint: a coarser `exponent` in the model block (`rac preanalyse` compares them) or a shorter "
-                      "horizon keeps the sensed values within int32", file=sys.stderr)
+                _report(args, unusable_file(
+                    f"a sensed value left the int32 range: {exc}",
+                    notes=["UPPAAL's model aborts there too; the run cannot go on"],
+                    hints=["a coarser `exponent` in the model block (`rac preanalyse` compares them) or a shorter "
+                           "horizon keeps the sensed values within int32"]))
                 return EXIT_ERRORS
             except RacError as exc:
                 if exc.diagnostic is None:
@@ -211,7 +211,7 @@ def _horizon_ok(result: CompileResult, args: argparse.Namespace) -> bool:
     try:
         _horizon_samples(result, args.horizon)
     except ValueError as exc:
-        print(f"rac {args.command}: {exc}", file=sys.stderr)
+        _report(args, usage_error(str(exc)))
         return False
     return True
 
@@ -262,11 +262,12 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
     except UnknownQuery as exc:
         assert result.automaton is not None  # _load refused a file without one
         names = ", ".join(d.name for d in result.automaton.queries)
-        print(f"rac verify: no query named {exc.args[0]} in {args.file} (names: {names or 'none'}; "
-              "--standard adds Qa, Qb, Qc, Qd, Fig7, Fig7_safe, Unsafe_safe)", file=sys.stderr)
+        _report(args, usage_error(f"--query: no query named {exc.args[0]} in {args.file}",
+                                  notes=[f"its queries: {names or 'none'}; --standard adds Qa, Qb, Qc, Qd, Fig7, "
+                                         "Fig7_safe, Unsafe_safe"]))
         return EXIT_USAGE
     except OSError as exc:
-        print(f"rac verify: cannot write to {out_dir}: {exc.strerror or exc}", file=sys.stderr)
+        _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
     if args.format == "json":
         print(json.dumps({"file": str(args.file), "results": render_json(results),
@@ -461,10 +462,10 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
                      threshold_factor=args.threshold_factor,
                      quiet=args.quiet or args.format == "json")
     except SweepError as exc:
-        print(f"rac preanalyse: {exc}", file=sys.stderr)
+        _report(args, usage_error(str(exc)))
         return EXIT_USAGE
     except OSError as exc:  # the plots' folder: a file, under a file, too long a name, no permission
-        print(f"rac preanalyse: cannot write to {out_dir}: {exc.strerror or exc}", file=sys.stderr)
+        _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
     if args.format == "json":
         print(json.dumps({"file": str(args.file), "settings": rows}, indent=2, default=str))
@@ -485,19 +486,19 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.studies.experiment import ExperimentError, render_ablation, render_markdown, run_experiment, write_outputs
 
     if args.seed is not None and args.seeds is not None:
-        print("rac experiment: give --seeds LIST or --seed N (one seed), not both", file=sys.stderr)
+        _report(args, usage_error("give --seeds LIST or --seed N (one seed), not both"))
         return EXIT_USAGE
     # --seed and --seeds are parsed as seeds (rac.cli.arguments.seed_argument)
     seeds = list(args.seeds) if args.seeds is not None else [args.seed] if args.seed is not None else [1, 2, 3, 4, 5]
     if args.replay < 0:
-        print(f"rac experiment: --replay must be 0 or more, not {args.replay}", file=sys.stderr)
+        _report(args, usage_error(f"--replay must be 0 or more, not {args.replay}"))
         return EXIT_USAGE
     bins = None
     if args.bins:
         try:
             bins = [float(b) for b in args.bins.split(",")]
         except ValueError:
-            print(f"rac experiment: --bins: not a list of numbers: {args.bins!r}", file=sys.stderr)
+            _report(args, usage_error(f"--bins: not a list of numbers: {args.bins!r}"))
             return EXIT_USAGE
     out_dir = _out_dir(args)
     announce = _announcer(args.quiet)
@@ -511,12 +512,12 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                 max_bytes=args.max_memory or default_max_bytes(), progress=announce)
         files = write_outputs(report, out_dir)
     except ExperimentError as exc:
-        limit = "resource limit: " if exc.kind == "limit" else ""
-        print(f"rac experiment: {limit}{exc}", file=sys.stderr)
         # an option to change or a budget, as simulate's; the file's own failure (no safe strategy)
+        _report(args, usage_error(str(exc)) if exc.kind == "usage" else
+                resource_limit(f"resource limit: {exc}") if exc.kind == "limit" else unusable_file(str(exc)))
         return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
     except OSError as exc:
-        print(f"rac experiment: cannot write to {out_dir}: {exc.strerror or exc}", file=sys.stderr)
+        _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
     if args.format == "json":
         print((out_dir / "results.json").read_text(encoding="utf-8"))

@@ -13,19 +13,22 @@ from rac.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     FileWriteError,
+    as_json,
     check_writable,
     load_budget,
     locked,
     not_generated,
     overwrites_source,
+    print_diagnostics,
     same_file,
     unreadable,
+    unusable_file,
     unwritable,
     write_all_atomically,
     write_atomically,
 )
 from rac.compiler import CompileResult, compile_file
-from rac.core.diagnostics import Diagnostic, render_json, render_text, sort_key
+from rac.core.diagnostics import Diagnostic, error, render_text, sort_key
 from rac.lang.format import format_module
 from rac.lang.parser import ParseFailure, parse_source, read_source
 from rac.model.commonroad import ScenarioError
@@ -93,14 +96,14 @@ def _check_files(args: argparse.Namespace) -> int:
 
 
 def compile_command(args: argparse.Namespace) -> int:
+    """``rac compile``: the target's code to ``-o FILE`` (or standard output). With ``--format json``
+    standard output is one JSON document: the diagnostics when it fails (:func:`print_diagnostics`),
+    else :func:`_compiled_json`'s summary of what was written."""
     result, failure = read_and_check(args.file, load_budget(args))
     diagnostics = [failure] if failure else list(result.diagnostics if result else [])
     failed = result is None or not result.ok
     if diagnostics and (failed or args.format == "text"):
-        if args.format == "json":
-            print(render_json(diagnostics))
-        else:
-            print(render_text(diagnostics, result.sources if result else {}), file=sys.stderr)
+        print_diagnostics(diagnostics, result.sources if result else {}, as_json(args))
     if result is None:
         return EXIT_USAGE
     if not result.ok or result.automaton is None:
@@ -110,7 +113,7 @@ def compile_command(args: argparse.Namespace) -> int:
         try:  # a folder (`-o ./`, `-o /`: no name to derive the .q file from), a FIFO, a device
             check_writable(args.output)
         except OSError as exc:
-            print(render_text([unwritable(args.output, exc)], {}), file=sys.stderr)
+            print_diagnostics([unwritable(args.output, exc)], {}, as_json(args))
             return EXIT_USAGE
     if args.output is not None and args.target == "uppaal":
         # jinja2, numpy (via rac.targets.uppaal.automaton): rac --help, fmt and a syntax error never load it
@@ -119,11 +122,11 @@ def compile_command(args: argparse.Namespace) -> int:
         outputs.append(Path(queries_path(str(args.output))))
     for output in outputs:
         if same_file(output, args.file):
-            print(render_text([overwrites_source(output, args.file)], {}), file=sys.stderr)
+            print_diagnostics([overwrites_source(output, args.file)], {}, as_json(args))
             return EXIT_USAGE
         foreign = not_generated(output)
         if foreign is not None:  # a hand-written module or model of the same name
-            print(render_text([foreign], {}), file=sys.stderr)
+            print_diagnostics([foreign], {}, as_json(args))
             return EXIT_USAGE
     if args.target == "uppaal":
         return _compile_uppaal(args, result)
@@ -136,15 +139,40 @@ def compile_command(args: argparse.Namespace) -> int:
         print(f"note: the class is `{python_class_name(name)}`: `{name}` is a Python keyword or a name the "
               "module itself uses", file=sys.stderr)
     if args.output is None:
-        sys.stdout.write(text)
-    else:
-        try:
-            write_atomically(args.output, text)
-        except OSError as exc:
-            print(render_text([unwritable(args.output, exc)], {}), file=sys.stderr)
-            return EXIT_USAGE
-        print(f"wrote {args.output}", file=sys.stderr)
+        _emit(args, result, text)
+        return EXIT_OK
+    try:
+        write_atomically(args.output, text)
+    except OSError as exc:
+        print_diagnostics([unwritable(args.output, exc)], {}, as_json(args))
+        return EXIT_USAGE
+    _wrote(args, result, [args.output])
     return EXIT_OK
+
+
+def _compiled_json(args: argparse.Namespace, result: CompileResult, written: list[Path], text: str | None) -> str:
+    """``rac compile --format json`` after it succeeded: the file, the target, the files written (``-o``),
+    the generated text when it went nowhere else (no ``-o``: it is in the document, not beside it) and
+    the file's diagnostics (its warnings), as ``rac check --format json`` has them."""
+    return json.dumps({"file": str(args.file), "target": args.target, "ok": True,
+                       "written": [str(path) for path in written], "output": text,
+                       "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)]}, indent=2)
+
+
+def _emit(args: argparse.Namespace, result: CompileResult, text: str) -> None:
+    """The generated ``text`` without ``-o``: on standard output, or in the JSON summary with ``--format json``."""
+    if as_json(args):
+        print(_compiled_json(args, result, [], text))
+    else:
+        sys.stdout.write(text)
+
+
+def _wrote(args: argparse.Namespace, result: CompileResult, written: list[Path]) -> None:
+    """Say what ``rac compile -o`` wrote: a line on standard error, or the JSON summary on standard output."""
+    if as_json(args):
+        print(_compiled_json(args, result, written, None))
+    else:
+        print(f"wrote {' and '.join(str(path) for path in written)}", file=sys.stderr)
 
 
 def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
@@ -155,8 +183,8 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
     output: Path | None = args.output
     queries = Path(queries_path(str(output))) if output is not None else None
     if output is not None and queries == output:
-        print(f"rac: `{output}` cannot hold the model: its queries go to a file of that name; "
-              "name the model FILE.xml", file=sys.stderr)
+        print_diagnostics([error("E0009", f"cannot write `{output}`: the model's queries go to a file of that name",
+                                 None, hints=["name the model FILE.xml; nothing was written"])], {}, as_json(args))
         return EXIT_USAGE
     assert result.automaton is not None
     try:
@@ -171,23 +199,22 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
             model = generate_uppaal(result.automaton, source_name=args.file.name,
                                     model_name=output.name if output is not None else "")
     except (ScenarioError, ModelRangeError) as failure:  # the checks load the scenario first; a safety net
-        print(f"rac: {args.file}: cannot build the scenario model: {failure}", file=sys.stderr)
+        print_diagnostics([unusable_file(f"`{args.file}`: cannot build the scenario model: {failure}")], {},
+                          as_json(args))
         return EXIT_ERRORS
-    except UppaalError as failure:
-        if args.format == "json":
-            print(render_json([*result.diagnostics, *failure.diagnostics]))
-        else:
-            print(render_text(failure.diagnostics, result.sources), file=sys.stderr)
+    except UppaalError as failure:  # JSON: with the file's warnings, as a failed check has them
+        shown = [*result.diagnostics, *failure.diagnostics] if as_json(args) else failure.diagnostics
+        print_diagnostics(shown, result.sources, as_json(args))
         return EXIT_ERRORS
     if output is None or queries is None:
-        sys.stdout.write(model.xml)
+        _emit(args, result, model.xml)
         return EXIT_OK
     try:
         write_all_atomically([(output, model.xml), (queries, model.queries)])
     except FileWriteError as exc:
-        print(render_text([unwritable(exc.path, exc.cause)], {}), file=sys.stderr)
+        print_diagnostics([unwritable(exc.path, exc.cause)], {}, as_json(args))
         return EXIT_USAGE
-    print(f"wrote {output} and {queries}", file=sys.stderr)
+    _wrote(args, result, [output, queries])
     return EXIT_OK
 
 

@@ -17,8 +17,17 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from rac.cli.arguments import COMMANDS, build_parser
-from rac.cli.common import EXIT_ERRORS, EXIT_INTERNAL, EXIT_USAGE, StdoutError, stdout_unwritable
-from rac.core.diagnostics import RacError, render_json, render_text
+from rac.cli.common import (
+    EXIT_ERRORS,
+    EXIT_INTERNAL,
+    EXIT_USAGE,
+    StdoutError,
+    as_json,
+    print_diagnostics,
+    resource_limit,
+    stdout_unwritable,
+)
+from rac.core.diagnostics import RacError, render_text
 from rac.core.resources import ScenarioTooLarge
 from rac.engine.budget import EstimateExceeded
 
@@ -54,24 +63,22 @@ def _main(argv: Sequence[str] | None) -> int:
         print("rac: interrupted", file=sys.stderr)
         return 130
     except (ScenarioTooLarge, EstimateExceeded) as exc:  # refused before it starts: the budget is at fault
-        print(f"rac: resource limit: {exc}", file=sys.stderr)
+        print_diagnostics([resource_limit(f"resource limit: {exc}")], structured=as_json(args))
         return EXIT_USAGE
     except MemoryError as exc:  # the machine or the process limit ran out, not a bug and not a broken input
         if os.environ.get("RAC_DEBUG"):
             raise
-        print(f"rac: out of memory{': ' + str(exc) if str(exc) else ''}: rac needed more memory than this process "
-              "may use (the machine's memory, or a limit such as `ulimit -v`); the input files are not at fault: "
-              "raise the limit, or lower --max-memory (where the command has it) so that rac stops before it",
-              file=sys.stderr)
+        print_diagnostics([resource_limit(
+            f"out of memory{': ' + str(exc) if str(exc) else ''}: rac needed more memory than this process "
+            "may use (the machine's memory, or a limit such as `ulimit -v`); the input files are not at fault",
+            hints=["raise the limit, or lower --max-memory (where the command has it) so that rac stops before "
+                   "it"])], structured=as_json(args))
         return EXIT_USAGE
     except RacError as exc:
         if exc.diagnostic is None:  # a failure rac handles itself reached the top: a bug, reported below
             return _internal_error(exc)
         # a failure in the user's words (after the checker): the one renderer, like rac check's findings
-        if getattr(args, "format", None) == "json":
-            print(render_json([exc.diagnostic]))
-        else:
-            print(render_text([exc.diagnostic], {}), file=sys.stderr)
+        print_diagnostics([exc.diagnostic], structured=as_json(args))
         return EXIT_ERRORS
     except Exception as exc:  # a bug in rac: say so plainly instead of a traceback
         return _internal_error(exc)

@@ -20,7 +20,12 @@ from rac.cli.common import (
     EXIT_OK,
     EXIT_UNDECIDED,
     EXIT_USAGE,
+    as_json,
     output_folder,
+    print_diagnostics,
+    unreadable,
+    unwritable,
+    usage_error,
 )
 from rac.sweep import execute, plan
 from rac.verify.status import UNDECIDED
@@ -58,8 +63,8 @@ def sweep_command(args: argparse.Namespace) -> int:
     from rac.sweep.run import BadSchedulerAddress
 
     if args.scheduler and args.workers:
-        print("rac sweep: --workers sizes the local cluster; the cluster at --scheduler has its own workers",
-              file=sys.stderr)
+        print_diagnostics([usage_error("--workers sizes the local cluster; the cluster at --scheduler has its own "
+                                       "workers")], {}, as_json(args))
         return EXIT_USAGE
     options = {"horizon": args.horizon, "seed": args.seed, "max_states": args.max_states}
     try:
@@ -68,10 +73,10 @@ def sweep_command(args: argparse.Namespace) -> int:
                        task_timeout=float(args.task_timeout) if args.task_timeout else None,
                        task_memory=args.task_memory, options={k: v for k, v in options.items() if v is not None})
     except OSError as exc:
-        print(f"rac sweep: cannot read {args.template}: {exc.strerror or exc}", file=sys.stderr)
+        print_diagnostics([unreadable(Path(args.template), exc)], {}, as_json(args))
         return EXIT_USAGE
     except ValueError as exc:
-        print(f"rac sweep: {exc}", file=sys.stderr)
+        print_diagnostics([usage_error(str(exc))], {}, as_json(args))
         return EXIT_USAGE
     quiet = args.quiet or args.format == "json"
     say = (lambda _: None) if args.quiet else (lambda line: print(f"rac sweep: {line}", file=sys.stderr))
@@ -82,10 +87,11 @@ def sweep_command(args: argparse.Namespace) -> int:
                          force=args.force, retry_failed=args.retry_failed, quiet=quiet, announce=say)
     except BadSchedulerAddress as exc:  # the address itself, before any connection: bad usage
         where = "--scheduler" if args.scheduler else "Dask's scheduler-address configuration"
-        print(f"rac sweep: {where}: {exc}", file=sys.stderr)
+        print_diagnostics([usage_error(f"{where}: {exc}")], {}, as_json(args))
         return EXIT_USAGE
-    except OSError as exc:
-        print(f"rac sweep: {exc}", file=sys.stderr)
+    except OSError as exc:  # a file of the output folder (E0009), or no connection to the scheduler
+        found = unwritable(Path(exc.filename), exc) if exc.filename else usage_error(str(exc))
+        print_diagnostics([found], {}, as_json(args))
         return EXIT_USAGE
     status = exit_status(result.rows)
     if args.format == "json":

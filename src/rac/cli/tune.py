@@ -29,13 +29,16 @@ from rac.cli.common import (
     EXIT_USAGE,
     load_budget,
     locked,
+    resource_limit,
     unreadable,
     unwritable,
+    usage_error,
     write_atomically,
 )
 from rac.compiler import CompileResult, compile_source
-from rac.core.diagnostics import Diagnostic, render_text, sort_key
+from rac.core.diagnostics import Diagnostic, error, render_text, sort_key
 from rac.core.numbers import exact_decimal, exact_text
+from rac.core.resources import ScenarioTooLarge
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.format import format_module
@@ -55,28 +58,42 @@ class _Row:
 
 
 def tune_command(args: argparse.Namespace) -> int:
-    """``rac tune``: see the module docstring. Exit 0, 1 when synthesis fails, 2 on bad usage."""
+    """``rac tune``: see the module docstring. Exit 0, 1 when synthesis fails, 2 on bad usage (or a
+    scenario beyond ``--max-memory``: a resource limit, in the command's JSON document too)."""
+    try:
+        return _tune(args)
+    except ScenarioTooLarge as exc:
+        return _refused(args, args.file, resource_limit(f"resource limit: {exc}"))
+
+
+def _refused(args: argparse.Namespace, path: Path, diagnostic: Diagnostic, status: int = EXIT_USAGE) -> int:
+    """The file cannot be tuned as asked (unreadable, no `param`, a bad ``--horizon``, not written):
+    ``diagnostic`` on standard error, or in the command's JSON document (:func:`_failed`); exit ``status``."""
+    if args.format == "json":  # a script parses standard output: the usual document, not text
+        return _failed(args, path, CompileResult(None, (diagnostic,), {}), status)
+    print(render_text([diagnostic], {}), file=sys.stderr)
+    return status
+
+
+def _tune(args: argparse.Namespace) -> int:
     path: Path = args.file
     source: SourceFile | None = None
     try:
         source = read_source(path)
         module = parse_source(source)
     except OSError as exc:
-        if args.format == "json":  # a script parses standard output: the usual document, not text
-            return _failed(args, path, CompileResult(None, (unreadable(path, exc),), {}), EXIT_USAGE)
-        print(render_text([unreadable(path, exc)], {}), file=sys.stderr)
-        return EXIT_USAGE
+        return _refused(args, path, unreadable(path, exc))
     except ParseFailure as failure:
         shown = source or failure.source
         return _failed(args, path, CompileResult(None, (failure.diagnostic,), {shown.name: shown} if shown else {}))
     node = module.automata[0] if module.automata else None
     if node is None or not node.of(ast.ParamDecl):
-        print(f"rac: {path} declares no `param`: there is nothing to tune.\n"
-              "  = note: `param NAME in [lo, hi]` declares a constant whose value rac synthesises: the least "
-              "value in the bounds for which every check holds\n"
-              "  = hint: write e.g. `param PENALTY in [0, 1000]` in place of `const PENALTY = 100` and run "
-              f"`rac tune {path}` again (`rac check` shows what it synthesises)", file=sys.stderr)
-        return EXIT_USAGE
+        return _refused(args, path, usage_error(
+            f"`{path}` declares no `param`: there is nothing to tune",
+            notes=["`param NAME in [lo, hi]` declares a constant whose value rac synthesises: the least value in "
+                   "the bounds for which every check holds"],
+            hints=["write e.g. `param PENALTY in [0, 1000]` in place of `const PENALTY = 100` and run "
+                   f"`rac tune {path}` again (`rac check` shows what it synthesises)"]))
     if args.horizon is not None:
         return _horizons(args, source, node)
     result = compile_source(source, max_bytes=load_budget(args))
@@ -94,13 +111,12 @@ def tune_command(args: argparse.Namespace) -> int:
                     write_atomically(path, text)
             except (OSError, ParseFailure) as exc:
                 cause = exc if isinstance(exc, OSError) else OSError(errno.EIO, "it can no longer be read")
-                print(render_text([unwritable(path, cause)], {}), file=sys.stderr)
-                return EXIT_USAGE
+                return _refused(args, path, unwritable(path, cause))
         if changed:
-            print(f"rac tune: `{path}` changed since rac tune read it (another program wrote it meanwhile); "
-                  f"nothing was written, so that its changes are kept\n"
-                  f"  = hint: run `rac tune {path}` again", file=sys.stderr)
-            return EXIT_USAGE
+            return _refused(args, path, error(
+                "E0009", f"cannot write `{path}`: it changed since rac tune read it (another program wrote it "
+                         "meanwhile); nothing was written, so that its changes are kept", None,
+                hints=[f"run `rac tune {path}` again"]))
         written = path
     changes = list(difflib.unified_diff(source.text.splitlines(), text.splitlines(), str(path),
                                         f"{path} (tuned)", n=0, lineterm=""))
@@ -215,9 +231,9 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
     period = plain.automaton.period
     for horizon in args.horizon:
         if (horizon / period).denominator != 1:
-            print(f"rac: --horizon: {exact_decimal(horizon)} s is not a whole number of sample periods of "
-                  f"{path} (sample every {exact_decimal(period) or period} s)", file=sys.stderr)
-            return EXIT_USAGE
+            return _refused(args, path, usage_error(
+                f"--horizon: {exact_decimal(horizon)} s is not a whole number of sample periods of {path} "
+                f"(sample every {exact_decimal(period) or period} s)"))
     names = [p.name for p in plain.automaton.parameters]
     text = args.format == "text"
     if text:
