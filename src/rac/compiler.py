@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rac import ir
+from rac.check.analysis.priority import UNFINISHED
 from rac.check.resolve import Resolver
 from rac.core.diagnostics import CheckError, Diagnostic, Fact, RacCheckWarning, check_warning_text, error
 from rac.core.source import SourceFile
@@ -55,6 +56,11 @@ class CompileResult(ProgramSource):
     @property
     def ok(self) -> bool:
         return self.automaton is not None and not any(d.is_error for d in self.diagnostics)
+
+    @property
+    def undecided(self) -> bool:
+        """A check stopped at its limit (W0405), neither proved nor refuted: no error, but not a verdict."""
+        return any(d.code == UNFINISHED for d in self.diagnostics)
 
     def raise_for_errors(self, *, warn: bool = False) -> ir.Automaton:
         """The automaton, or :class:`CheckError` carrying the diagnostics. With ``warn`` (for a file

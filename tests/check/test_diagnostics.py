@@ -77,7 +77,8 @@ def test_example_output(c, capsys, monkeypatch, tmp_path):
     severity = "warning" if c.code.startswith("W") else "error"
     assert f"{severity}[{c.code}]" in output
     assert status == make_docs.expected_status(c.expected)
-    assert status == (2 if c.code in ("E0008", "E0009", "E0014", "E0016") else 0 if c.code.startswith("W") else 1)
+    warned = 4 if c.code == "W0405" else 0  # a check stopped at its limit: undecided
+    assert status == (2 if c.code in ("E0008", "E0009", "E0014", "E0016") else warned if c.code.startswith("W") else 1)
     assert "Traceback" not in output and "internal error" not in output
     # No absolute paths: the expected text must not depend on where the checkout lives.
     assert str(ROOT) not in output and str(tmp_path) not in output

@@ -136,6 +136,23 @@ def test_check_multiple_clean_files(capsys: pytest.CaptureFixture[str], clean: P
     assert capsys.readouterr().out.count(": ok") == 2
 
 
+def test_check_that_stopped_at_its_limit_is_undecided(capsys: pytest.CaptureFixture[str], clean: Path,
+                                                      p2_fails: Path) -> None:
+    """A check that stopped at its limit (W0405) proved nothing: exit 4 (undecided), as rac verify for
+    an undecided query, unless another file has an error (exit 1)."""
+    unfinished = REPOSITORY / "tests" / "diagnostics" / "W0405_too_many_samples.ra"
+    assert main(["check", str(clean), str(unfinished)]) == 4
+    out = capsys.readouterr().out
+    assert f"{clean}: ok" in out
+    assert f"{unfinished}: undecided, 2 warnings (2 of them: a check stopped at its limit" in out
+    assert main(["check", "--format", "json", str(unfinished), str(clean)]) == 4
+    report = json.loads(capsys.readouterr().out)
+    assert [entry["undecided"] for entry in report] == [True, False]
+    assert [entry["ok"] for entry in report] == [True, True]
+    assert main(["check", str(unfinished), str(p2_fails)]) == 1  # an error outranks an undecided check
+    capsys.readouterr()
+
+
 def test_check_missing_file_exits_2(tmp_path: Path) -> None:
     missing = tmp_path / "nope.ra"
     done = run_rac("check", missing)

@@ -8,9 +8,11 @@ import json
 import sys
 from pathlib import Path
 
+from rac.check.analysis.priority import UNFINISHED
 from rac.cli.common import (
     EXIT_ERRORS,
     EXIT_OK,
+    EXIT_UNDECIDED,
     EXIT_USAGE,
     FileWriteError,
     as_json,
@@ -60,6 +62,7 @@ def check_command(args: argparse.Namespace) -> int:
 
 def _check_files(args: argparse.Namespace) -> int:
     status = EXIT_OK
+    undecided = False  # a check stopped at its limit: exit 4 unless something worse happened
     report: list[dict[str, object]] = []
     max_bytes = load_budget(args)
     for path in args.files:
@@ -75,10 +78,12 @@ def _check_files(args: argparse.Namespace) -> int:
         warnings = len(result.diagnostics) - errors
         if errors:
             status = max(status, EXIT_ERRORS)
+        undecided = undecided or result.undecided
         if args.format == "json":
             report.append({"file": str(path), "ok": errors == 0,
                            "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)],
-                           "proved": list(result.proved), "facts": [fact.to_json() for fact in result.facts]})
+                           "proved": list(result.proved), "facts": [fact.to_json() for fact in result.facts],
+                           "undecided": result.undecided})
             continue
         if result.diagnostics:
             print(render_text(result.diagnostics, result.sources))
@@ -86,13 +91,17 @@ def _check_files(args: argparse.Namespace) -> int:
         summary = "ok" if not errors else f"{errors} error{'s' * (errors != 1)}"
         if warnings:
             summary += f", {warnings} warning{'s' * (warnings != 1)}"
+        unfinished = sum(d.code == UNFINISHED for d in result.diagnostics)
+        if unfinished and not errors:  # no error, but not every verdict either
+            summary = summary.replace("ok", "undecided", 1) + (
+                f" ({unfinished} of them: a check stopped at its limit, neither proved nor refuted)")
         print(f"{path}: {summary}")
         if not args.quiet:
             for fact in result.proved:
                 print(f"  proved: {fact}")
     if args.format == "json":
         print(json.dumps(report, indent=2))
-    return status
+    return EXIT_UNDECIDED if status == EXIT_OK and undecided else status
 
 
 def compile_command(args: argparse.Namespace) -> int:

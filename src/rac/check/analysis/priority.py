@@ -245,10 +245,15 @@ def check_priorities(automaton: ir.Automaton, facts: list[Fact] | None = None,
     return diagnostics
 
 
+#: The code of a check that stopped at its limit, neither proved nor refuted: the file is undecided
+#: (``rac check`` exits 4 when no file has an error, as ``rac verify`` does for an undecided query).
+UNFINISHED = "W0405"
+
+
 def _unfinished(automaton: ir.Automaton, what: str, stop: Unfinished) -> Diagnostic:
     """W0405: an analysis stopped at its limit, neither proved nor refuted."""
     return warning(
-        "W0405", f"{what} not checked: {stop.reason}",
+        UNFINISHED, f"{what} not checked: {stop.reason}",
         automaton.spans.get("decl:horizon") or automaton.spans.get("decl:sample"),
         notes=[f"the horizon has {automaton.steps:,} samples (horizon / sample period); the worst-run search "
                f"stops at {MAX_SAMPLES:,} unless the worst values settle before"],
