@@ -198,3 +198,31 @@ def test_compile_reports_what_synthesise_finds():
     assert result.ok
     assert re.match(r"synthesised: P >= 5\.5 \(every check holds for P in \[5\.5, 50\]\); checked with P = 5\.5",
                     result.proved[0])
+
+
+def test_an_episode_ending_pays_only_the_end_clauses_of_its_own_inputs():
+    """A crash ends the episode and never happens at the goal, so the arrival bonus is never paid in
+    `Bad`: P2 needs 10 * (30 - PENALTY) + 30 <= 0 only. Regression: the end clauses took inputs of
+    their own at that ending, the bonus counted, and the set was too small (PENALTY >= 133)."""
+    text = """\
+automaton Arrival {
+    input collide : bool
+    input dgoal   : real in [0, 500]
+    assume collide imply dgoal >= 2
+    param PENALTY in [1, 1000]
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 0.1
+    horizon 30
+    initial location Ok { sa' == 1; pr' == 1 }
+    location Bad        { sa' == 0; pr' == 0 }
+    edge Ok -> Bad when collide do sa = sa - PENALTY
+    at end when dgoal < 2 do pr = pr + 1000
+    episode ends when collide || dgoal < 2
+}
+"""
+    result = compile_text(text, "arrival.ra")
+    assert [d.code for d in result.diagnostics if d.is_error] == []
+    assert result.proved[0] == ("synthesised: PENALTY >= 33 (every check holds for PENALTY in [33, 1000]); "
+                               "checked with PENALTY = 33")

@@ -17,6 +17,7 @@ from fractions import Fraction
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reference import reference_max
 
 from rac import ir
 from rac.check.analysis.affine import moves
@@ -25,9 +26,17 @@ from rac.check.analysis.priority import (
     check_priorities,
     check_ranges,
     check_rate_dominance,
+    p2_target,
     replay,
 )
-from rac.check.analysis.worst import AFTER_END, CONTINUE, Target, maximise
+from rac.check.analysis.worst import (
+    AFTER_END,
+    CONTINUE,
+    Target,
+    _maximise_generic,
+    _maximise_translations,
+    maximise,
+)
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import render_text
 from rac.ir.inputs import InputSpace
@@ -469,6 +478,120 @@ def test_end_inputs_are_free_like_the_runtime_end_call() -> None:
     assert diag.data["value"] == "80"
     assert diag.data["end"]["inputs"]["isClose"] is False
     assert diag.data["run"][-1]["inputs"]["isClose"] is True
+
+
+# A crash ends the episode and no crash happens at the goal: `Unsafe` is entered only by a crash,
+# which ends the run with the end clauses of the crash's own inputs, so the arrival bonus is never
+# paid there. Regression: the worst run took the `at end` clauses with inputs of their own at an
+# ending caused by `episode ends when` (the bonus with dgoal < 2 after a crash with dgoal >= 2), and
+# `rac check` reported a false E0402 (330 at 30 s).
+ARRIVAL = """\
+automaton Arrival {
+    input collide : bool
+    input dgoal   : real in [0, 500]
+
+    assume collide imply dgoal >= 2
+
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+
+    sample every 0.1
+    horizon 30
+
+    initial location Normal { sa' == 1; pr' == 1 }
+    location Unsafe         { sa' == 0; pr' == 0 }
+
+    edge Normal -> Unsafe when collide do sa = sa - 100
+
+    at end when dgoal < 2 do pr = pr + 1000
+
+    episode ends when collide || dgoal < 2
+}
+"""
+
+
+def _both_engines(automaton: ir.Automaton, target: Target) -> list[Fraction | None]:
+    outs = moves(automaton, InputSpace(automaton))
+    return [None if w is None else w.value
+            for w in (_maximise_translations(automaton, outs, target), _maximise_generic(automaton, outs, target))]
+
+
+def test_an_ending_by_episode_ends_when_applies_the_end_clauses_of_its_own_inputs() -> None:
+    """The reproducer: P2 holds (a crash at the last sample, no bonus: 10 * (30 - 100) + 30), and
+    both engines and the brute force agree on a short horizon that no run violates it."""
+    result = compiled(ARRIVAL)
+    assert errors(result, "E0402") == []
+    (fact,) = [f for f in result.facts if f.check == "P2"]
+    assert fact.data["bound"] == "-670"
+    short = compile_text(ARRIVAL.replace("horizon 30", "horizon 0.3"), analyse=False).automaton
+    assert short is not None
+    target = p2_target(short, 0)
+    expected = reference_max(short, target.weights, target.constant, target.watched)
+    assert expected == 10 * (Fraction(3, 10) - 100) + Fraction(3, 10)
+    assert _both_engines(short, target) == [expected, expected]
+
+
+def test_an_end_that_episode_ends_when_did_not_cause_still_has_inputs_of_its_own() -> None:
+    """Soundness: where the crash does not end the episode, the run can still end (at the horizon, or
+    earlier by `end(inputs)`) with inputs of its own, which may pay the bonus in `Unsafe`."""
+    text = ARRIVAL.replace("episode ends when collide || dgoal < 2", "episode ends when dgoal < 2")
+    (diag,) = errors(compiled(text), "E0402")
+    assert diag.data["value"] == "330"
+    assert diag.data["run"][-1]["inputs"]["collide"] is True
+    assert Fraction(diag.data["end"]["inputs"]["dgoal"]) < 2
+    short = compile_text(text.replace("horizon 30", "horizon 0.3"), analyse=False).automaton
+    assert short is not None
+    target = p2_target(short, 0)
+    expected = reference_max(short, target.weights, target.constant, target.watched)
+    assert expected == 10 * (Fraction(3, 10) - 100) + Fraction(3, 10) + 1000
+    assert _both_engines(short, target) == [expected, expected]
+
+
+def test_a_violation_at_an_episode_ending_shows_the_end_clauses_of_the_sample_that_ended_it() -> None:
+    """A bonus the crash itself pays is a real violation: the counterexample ends with the episode, and
+    its end reads the crash sample's inputs."""
+    text = ARRIVAL.replace("at end when dgoal < 2", "at end when collide")
+    result = compiled(text)
+    (diag,) = errors(result, "E0402")
+    assert diag.data["value"] == "330"
+    assert diag.data["end"]["inputs"] == diag.data["run"][-1]["inputs"]
+    assert diag.data["run"][-1]["inputs"]["collide"] is True
+    assert "the episode ends (`episode ends when` holds) at t = 30 s: `at end` (line 19)" in \
+        render_text(result.diagnostics, result.sources)
+
+
+JOINT = """\
+automaton Joint {
+    input collide : bool
+    input d       : real in [0, 10]
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 1
+    horizon 3
+    initial location Normal { sa' == 0; pr' == 1 }
+    location Unsafe         { sa' == 0; pr' == 0 }
+    edge Normal -> Unsafe when collide do sa = sa - 11 + d
+    at end when collide do pr = pr + 50 - 20 * d
+    episode ends when collide
+}
+"""
+
+
+def test_the_end_clauses_of_an_episode_ending_read_the_same_value_as_the_edge() -> None:
+    """One `d` feeds the edge and the end clauses of the sample that ends the run: the worst is one
+    value of it for both (a crash at sample 3, d = 10 right after the edge: 10 * (-11 + 10) + 3 = -7),
+    not the edge's worst d (10) with the end's (0), which would make the end reach 43 > 0."""
+    result = compiled(JOINT)
+    assert errors(result, "E0402") == []
+    (fact,) = [f for f in result.facts if f.check == "P2"]
+    assert fact.data["bound"] == "-7"
+    automaton = compile_text(JOINT, analyse=False).automaton
+    assert automaton is not None
+    target = p2_target(automaton, 0)
+    assert reference_max(automaton, target.weights, target.constant, target.watched) == -7
+    assert _both_engines(automaton, target) == [-7, -7]
 
 
 def test_a_run_may_end_before_its_first_sample() -> None:

@@ -38,15 +38,24 @@ def reference_outcomes(automaton: ir.Automaton, space: InputSpace) -> list[list[
         enabled = [space.evaluate(e.guard) for e in edges]
         ending = (space.evaluate(automaton.episode_ends) if automaton.episode_ends is not None
                   else [False] * space.count)
+        clauses = [space.evaluate(c.guard) for c in automaton.end_clauses]
         seen: dict[tuple, tuple] = {}
         for cls in map(int, space.valid.nonzero()[0]):
             taken = next((e for e, mask in zip(edges, enabled) if mask[cls]), None)
             box = tuple((name, space.piece(cls, name)) for name in relevant)
-            key = (id(taken), box, bool(ending[cls]))  # a sample that ends the run is an outcome of its own
+            # A sample that ends the run is an outcome of its own, one per set of end clauses its inputs enable.
+            ends = tuple(i for i, mask in enumerate(clauses) if mask[cls]) if ending[cls] else None
+            key = (id(taken), box, bool(ending[cls]), ends)
             if key in seen and _intervals(space, seen[key][1]) >= _intervals(space, cls):
                 continue
             edge_map = from_assignments(taken.updates, automaton.rewards) if taken else identity(len(automaton.rewards))
-            seen[key] = (index, cls, taken, taken.target if taken else index, box, edge_map, bool(ending[cls]))
+            end = None
+            if ends is not None:
+                end_map = identity(len(automaton.rewards))
+                for i in ends:
+                    end_map = then(end_map, from_assignments(automaton.end_clauses[i].updates, automaton.rewards))
+                end = (cls, ends, box, end_map)
+            seen[key] = (index, cls, taken, taken.target if taken else index, box, edge_map, bool(ending[cls]), end)
         result.append(list(seen.values()))
     return result
 
@@ -79,7 +88,8 @@ def test_grouped_outcomes_match_the_class_by_class_loop(case: Case) -> None:
         if index not in reachable:
             assert got == []  # no run is there: nothing to analyse
             continue
-        assert [(o.source, o.cls, o.edge, o.target, o.box, o.edge_map, o.ends_episode) for o in got] == want
+        assert [(o.source, o.cls, o.edge, o.target, o.box, o.edge_map, o.ends_episode,
+                 o.ending and (o.ending.cls, o.ending.ends, o.ending.box, o.ending.end_map)) for o in got] == want
     assert [(e.cls, e.ends, e.box, e.end_map) for e in end_outcomes(automaton, space)] == \
         reference_end_outcomes(automaton, space)
 

@@ -78,7 +78,8 @@ def numeric_inputs(draw):
 
 
 @st.composite
-def cases(draw, general: bool = False):
+def cases(draw, general: bool = False, ending: bool = False):
+    """A random tiny automaton and target; ``ending``: always with `at end` clauses and `episode ends when`."""
     n_loc = draw(st.integers(2, 3))
     bools = ["a", "b"][: draw(st.integers(1, 2))]
     rewards = ["p", "q"][: draw(st.integers(1, 2))]
@@ -176,12 +177,13 @@ def cases(draw, general: bool = False):
             chosen = [c for c in free if choice[c] == target]
             if chosen:
                 lines.append(f"    edge {name} -> {locs[target]} when {guard(chosen)}{updates()}")
-    for _ in range(draw(st.integers(0, 2))):
+    for _ in range(draw(st.integers(1 if ending else 0, 2))):
         chosen = draw(st.lists(st.integers(0, len(cells) - 1), min_size=1, max_size=len(cells), unique=True))
         items = [update() for _ in range(draw(st.integers(1, 2)))]
         when = "" if len(chosen) == len(cells) else f" when {guard(chosen)}"
         lines.append(f"    at end{when} do {', '.join(items)}")
-    if draw(st.integers(0, 2)) == 0:  # a third of the cases: runs end where `episode ends when` holds
+    # A third of the cases (every one with `ending`): runs end where `episode ends when` holds.
+    if ending or draw(st.integers(0, 2)) == 0:
         chosen = draw(st.lists(st.integers(0, len(cells) - 1), min_size=1, max_size=len(cells), unique=True))
         lines.append(f"    episode ends when {guard(chosen)}")
     lines.append("}")
@@ -241,6 +243,8 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
     assert not any(ends_episode(automaton, v) for v in run[:-1])
     if ends_episode(automaton, run[-1]):
         assert worst.instant != BEFORE_NEXT
+        if end is not None:  # the run ended at that sample: its end clauses read the sample's inputs
+            assert (end.guards, end.values) == (run[-1].guards, run[-1].values)
     where, rewards = simulate(automaton, run, worst.instant, end)
     assert where == (l0 if worst.instant == BEFORE_EDGE else here)
     assert target.watched[where]
@@ -290,6 +294,30 @@ def test_generic_engine_agrees_with_translation_engine(case: Case) -> None:
     for worst in (fast, slow):
         if worst is not None:
             check_counterexample(automaton, space, worst, target)
+
+
+@SETTINGS
+@given(cases(ending=True))
+def test_end_clauses_at_an_episode_ending_match_reference(case: Case) -> None:
+    """`at end` clauses with `episode ends when`: a run that the condition ends applies the clauses
+    enabled by that sample's inputs, on those inputs; any other end takes inputs of its own. Both
+    engines against the brute force (the fast one only where every update is a translation)."""
+    automaton, target = case.automaton, case.target
+    space = InputSpace(automaton)
+    outs = moves(automaton, space)
+    expected = reference_max(automaton, target.weights, target.constant, target.watched)
+    engines = [_maximise_generic] + ([_maximise_translations] if outs.translations_only else [])
+    for engine in engines:
+        worst = engine(automaton, outs, target)
+        assert value_of(worst) == expected, (engine.__name__, case.text)
+        if worst is not None:
+            check_counterexample(automaton, space, worst, target)
+
+
+@SETTINGS
+@given(cases(general=True, ending=True))
+def test_end_clauses_at_an_episode_ending_with_general_updates_match_reference(case: Case) -> None:
+    check_case(case)
 
 
 def test_reference_on_the_driving_automaton_by_hand() -> None:

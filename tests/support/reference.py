@@ -16,6 +16,9 @@ Semantics followed literally (language.md, and the analysis' reading of it):
 - sample k >= 2: the same without the first accrual.
 - A run may also end at t = 0, before any sample. The end's inputs are its own
   (``end(inputs)``), free over every valuation ``assume`` allows.
+- A sample whose inputs satisfy ``episode ends when`` ends the run there (the runtimes'
+  ``step``): the ``at end`` clauses enabled by THAT sample's inputs apply, reading them; no
+  ``end(inputs)`` with other inputs follows (the runtimes' ``end`` then changes nothing).
 
 Input valuations (built here, not with :class:`~rac.ir.inputs.InputSpace`): both values
 of every boolean input; for a real input every guard threshold and bound, and the midpoint of
@@ -205,8 +208,11 @@ def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fracti
                 instants, after = sample(automaton, location, r, v, first=k == 1)
                 for _, where, values in instants:
                     see(where, values)
+                if ends_episode(automaton, v):  # the run ends here, its end clauses on these inputs
+                    see(instants[-1][1], at_end(automaton, instants[-1][2], v))
+                    continue
                 see_end(*instants[-1][1:])
-                if k < steps and not ends_episode(automaton, v):
+                if k < steps:
                     see(*after)  # "just before the next sample"
                     following.add(after)
         if len(following) > MAX_FRONTIER:

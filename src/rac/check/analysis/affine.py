@@ -91,6 +91,10 @@ class Outcome:
     #: ``episode ends when`` holds (declared and true for this outcome's inputs): the run ends at this
     #: sample, so no run continues from it (:func:`outcomes` always tells these apart).
     ends_episode: bool = False
+    #: With :attr:`ends_episode`: how the run ends here, the ``at end`` clauses whose guards hold on
+    #: this outcome's own inputs (:func:`outcomes` tells them apart), as one map over those same inputs
+    #: (its class and box are the outcome's). None when the run does not end here.
+    ending: EndOutcome | None = None
 
 
 @dataclass(frozen=True)
@@ -98,7 +102,9 @@ class EndOutcome:
     """What one group of input classes does when a run ends (``at end`` clauses).
 
     A run may end right after any sample (or before the first), and ``end(inputs)`` takes
-    inputs of its own, so the end's inputs range over every valuation ``assume`` allows.
+    inputs of its own, so the end's inputs range over every valuation ``assume`` allows
+    (:attr:`Moves.ends`). A sample where ``episode ends when`` holds is different: the run ends
+    there, its clauses read that sample's inputs (:attr:`Outcome.ending`), and no ``end`` follows.
     """
 
     cls: int
@@ -130,7 +136,9 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
     that leaves the most numeric inputs as intervals (the first such), as witnesses read better so.
     ``split``: guards whose truth also tells outcomes apart (``episode ends when``, ``goal when``, the
     ``at end`` clauses of a sample that ends the run); each outcome's :attr:`Outcome.flags` holds it.
-    ``episode ends when`` always tells them apart (:attr:`Outcome.ends_episode`).
+    ``episode ends when`` always tells them apart (:attr:`Outcome.ends_episode`), and so does, among
+    the classes where it holds, each ``at end`` guard: the clauses applied when the run ends there
+    read that sample's inputs (:attr:`Outcome.ending`).
     """
     groups = _Grouping(automaton, space)
     rewards = automaton.rewards
@@ -139,10 +147,18 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
     if ends is not None and ends not in grouping:
         grouping.append(ends)
     ends_at = grouping.index(ends) if ends is not None else -1
-    width = len(grouping)
     bits = np.zeros(groups.size, dtype=np.int64)  # the guards' truths, the first guard the highest bit
     for guard in grouping:
         bits = bits * 2 + space.evaluate(guard)[groups.classes]
+    clauses = automaton.end_clauses if ends is not None else ()
+    if ends is not None and clauses:
+        # Where the run ends at the sample, which end clauses apply (on the same inputs); elsewhere
+        # no end follows the sample, so the clauses' guards tell nothing apart.
+        ending = space.evaluate(ends)[groups.classes]
+        for clause in clauses:
+            bits = bits * 2 + (space.evaluate(clause.guard)[groups.classes] & ending)
+    width = len(grouping) + len(clauses)
+    endings: dict[tuple[int, ...], Affine] = {}  # per set of enabled clauses: their map (shared)
     maps: dict[int, Affine] = {}  # per edge: its updates as one map (shared by the edge's outcomes)
     stay = identity(len(rewards))  # no edge fires: one map for all such outcomes (searches key on it)
     result: list[list[Outcome]] = []
@@ -162,8 +178,16 @@ def outcomes(automaton: ir.Automaton, space: InputSpace,
             else:
                 edge_map = maps.get(id(edge)) or maps.setdefault(id(edge), from_assignments(edge.updates, rewards))
             truths = tuple(bool(label >> (width - 1 - j) & 1) for j in range(width))
-            found.append(Outcome(index, cls, edge, edge.target if edge else index, groups.box(cls), edge_map,
-                                 truths[:len(split)], ends_at >= 0 and truths[ends_at]))
+            box = groups.box(cls)
+            end = None
+            if ends_at >= 0 and truths[ends_at]:
+                enabled = tuple(i for i, on in enumerate(truths[len(grouping):]) if on)
+                end_map = endings.get(enabled)
+                if end_map is None:
+                    end_map = endings[enabled] = _end_map(automaton, enabled)
+                end = EndOutcome(cls, enabled, box, end_map)
+            found.append(Outcome(index, cls, edge, edge.target if edge else index, box, edge_map,
+                                 truths[:len(split)], end is not None, end))
         result.append(found)
     return result
 
@@ -220,7 +244,6 @@ class _Grouping:
 def end_outcomes(automaton: ir.Automaton, space: InputSpace) -> list[EndOutcome]:
     """Distinct ways a run can end, over the classes allowed by ``assume``."""
     groups = _Grouping(automaton, space)
-    rewards = automaton.rewards
     enabled = [space.evaluate(c.guard)[groups.classes] for c in automaton.end_clauses]
     # Each class's set of enabled clauses, numbered densely in the order of first classes.
     if enabled:
@@ -231,11 +254,16 @@ def end_outcomes(automaton: ir.Automaton, space: InputSpace) -> list[EndOutcome]
     result = []
     for _, cls in groups.representatives(labels, int(labels.max()) + 1 if groups.size else 1):
         ends = tuple(i for i, clause in enumerate(automaton.end_clauses) if space.evaluate(clause.guard)[cls])
-        end_map = identity(len(rewards))
-        for i in ends:
-            end_map = then(end_map, from_assignments(automaton.end_clauses[i].updates, rewards))
-        result.append(EndOutcome(cls, ends, groups.box(cls), end_map))
+        result.append(EndOutcome(cls, ends, groups.box(cls), _end_map(automaton, ends)))
     return result
+
+
+def _end_map(automaton: ir.Automaton, enabled: tuple[int, ...]) -> Affine:
+    """The ``at end`` clauses ``enabled`` (indices), applied in order, as one map."""
+    end_map = identity(len(automaton.rewards))
+    for i in enabled:
+        end_map = then(end_map, from_assignments(automaton.end_clauses[i].updates, automaton.rewards))
+    return end_map
 
 
 @dataclass(frozen=True)
@@ -249,7 +277,8 @@ class Moves:
 
     @property
     def translations_only(self) -> bool:
-        return (all(o.edge_map.is_translation for os in self.samples for o in os)
+        return (all(o.edge_map.is_translation and (o.ending is None or o.ending.end_map.is_translation)
+                    for os in self.samples for o in os)
                 and all(e.end_map.is_translation for e in self.ends))
 
 

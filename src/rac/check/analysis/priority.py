@@ -383,11 +383,15 @@ def _outcome_inputs(automaton: ir.Automaton, o: Outcome) -> set[str]:
 
 
 def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, shown: Collection[str] = (),
-                 ending: str = "run ends") -> list[str]:
+                 ending: str | None = None) -> list[str]:
     """The worst run as readable lines: (location, samples spent), inputs, edges, end.
 
     Each sample shows the inputs its location's guards read, and those named in ``shown``;
-    ``ending`` starts the line of an end with ``at end`` (why the run ends there)."""
+    ``ending`` starts the line of an end with ``at end`` (why the run ends there; by default, that
+    ``episode ends when`` held at the last sample, or only that the run ends)."""
+    if ending is None:
+        ended = bool(worst.steps) and worst.steps[-1].outcome.ends_episode
+        ending = "the episode ends (`episode ends when` holds)" if ended else "run ends"
     names = automaton.location_names
     period = automaton.period
     lines: list[str] = []

@@ -19,7 +19,7 @@ from fractions import Fraction
 from functools import partial
 
 from rac import ir
-from rac.check.analysis.affine import Affine, from_assignments, identity, moves, then
+from rac.check.analysis.affine import Affine, EndOutcome, from_assignments, identity, moves, then
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.incentives import Incentives, analyse
 from rac.check.analysis.incentives import Unchecked as IncentivesUnchecked
@@ -327,14 +327,21 @@ def _transplant(worst: Worst, source: ir.Automaton, target: ir.Automaton) -> Wor
                 edge = target.edges[o.source][index]
                 moved = maps[id(o.edge)] = (edge, _maps(target, edge))
             o = dataclasses.replace(o, edge=moved[0], edge_map=moved[1])
+        if o.ending is not None:  # the end clauses of a sample that ends the run
+            o = dataclasses.replace(o, ending=_transplant_end(o.ending, target))
         steps.append(dataclasses.replace(step, outcome=o))
     end = worst.end
     if end is not None:
-        end_map = identity(len(target.rewards))
-        for i in end.ends:
-            end_map = then(end_map, _end_map(target, target.end_clauses[i].updates))
-        end = dataclasses.replace(end, end_map=end_map)
+        end = _transplant_end(end, target)
     return dataclasses.replace(worst, steps=steps, end=end)
+
+
+def _transplant_end(end: EndOutcome, target: ir.Automaton) -> EndOutcome:
+    """The same end clauses of ``target`` (the automaton at another value of the parameter)."""
+    end_map = identity(len(target.rewards))
+    for i in end.ends:
+        end_map = then(end_map, _end_map(target, target.end_clauses[i].updates))
+    return dataclasses.replace(end, end_map=end_map)
 
 
 def risk_values(resolve: Resolve, parameter: ir.Parameter, bound: Fraction) -> list[Interval]:

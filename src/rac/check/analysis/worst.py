@@ -12,7 +12,9 @@ just before an edge (the first sample's; later ones equal the previous
 before the first, with inputs of its own (``end(inputs)``), so the end's inputs
 range freely over what ``assume`` allows. A sample whose inputs satisfy ``episode
 ends when`` ends the run: no run continues from it (its instant "just before the
-next sample" is not one either).
+next sample" is not one either), no ``end(inputs)`` follows it, and its ``at end``
+clauses are those whose guards hold on that sample's inputs, reading those same
+inputs (:attr:`~rac.check.analysis.affine.Outcome.ending`, one map per outcome).
 
 The search is a backward dynamic programme over sets of affine functionals of
 the reward vector (exact for any affine updates, rational arithmetic). When
@@ -106,6 +108,8 @@ def maximise(automaton: ir.Automaton, moves: Moves, target: Target,
 
 # ---------------------------------------------------------------- generic engine
 _Func = tuple[tuple[Fraction, ...], Fraction, dict[str, Fraction]]
+#: The link of an AFTER_END entry whose run ``episode ends when`` ended: the end is the outcome's own.
+_EPISODE = "episode"
 
 
 class _Puller:
@@ -180,11 +184,11 @@ def _image(affine: Affine, box: _Box, inputs: tuple) -> _Box:
 
 def _groups(outs: tuple[Outcome, ...]) -> list[list[int]]:
     """The outcomes of one location grouped by what a functional pulled back through them depends on
-    (target, edge map, whether the run ends): they differ only in their input boxes. Groups and the
-    outcomes within them keep the order of their first outcome."""
-    by_key: dict[tuple[int, int, bool], list[int]] = {}
+    (target, edge map, whether the run ends and with which ``at end`` clauses): they differ only in
+    their input boxes. Groups and the outcomes within them keep the order of their first outcome."""
+    by_key: dict[tuple[int, int, tuple[int, ...] | None], list[int]] = {}
     for oi, o in enumerate(outs):
-        by_key.setdefault((o.target, id(o.edge_map), o.ends_episode), []).append(oi)
+        by_key.setdefault((o.target, id(o.edge_map), o.ending.ends if o.ending else None), []).append(oi)
     return list(by_key.values())
 
 
@@ -288,8 +292,14 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
                 goes_on = k < steps and not o.ends_episode
                 if target.watched[t]:
                     candidates.append((base, AFTER_EDGE, None))
-                    for c_end, (d_end, end, point) in ends.items():
-                        candidates.append(((c_end, d_end, {}), AFTER_END, (end, point)))
+                    if o.ending is not None:
+                        # The run ends here: its end clauses read this sample's inputs, not inputs of
+                        # their own (the functional keeps their input terms for the sample's box).
+                        if o.ending.ends:
+                            candidates.append((pull(base, o.ending.end_map), AFTER_END, _EPISODE))
+                    else:
+                        for c_end, (d_end, end, point) in ends.items():
+                            candidates.append(((c_end, d_end, {}), AFTER_END, (end, point)))
                     if goes_on:
                         candidates.append((pull(base, accruals[t]), BEFORE_NEXT, None))
                 if goes_on:
@@ -332,7 +342,9 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
         result.steps.append(Step(k, o, point, instant))
         if instant != CONTINUE:
             result.instant = instant
-            if instant == AFTER_END:
+            if link is _EPISODE:  # the end clauses of the sample that ended the run, on its inputs
+                result.end, result.end_inputs = o.ending, point
+            elif instant == AFTER_END:
                 result.end, result.end_inputs = link
             return result
         k, here, c = k + 1, o.target, link
@@ -367,7 +379,10 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     V_k(l) = max over outcomes o of l of
              max(watched(t)·(w0 + K_edge + max(0, K_end, K_next)), V_{k+1}(t) + K_next)
     where K_edge, K_next are sups over the outcome's input box of the weighted offsets of
-    one sample, and K_end the best weighted ``at end`` offset over the end's own inputs.
+    one sample, and K_end the best weighted ``at end`` offset over the end's own inputs. An
+    outcome where ``episode ends when`` holds stops there with watched(t)·(w0 + max(K_edge,
+    K_edge+end)), K_edge+end the sup over its box of the edge's and its own end clauses' offsets
+    together (they read the same inputs).
     """
     steps = automaton.steps
     l0 = automaton.initial
@@ -381,20 +396,29 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     if not any(outs):  # `assume` excludes every input: no sample ever happens
         return start
 
-    rows = []  # per (l, o): (l, oi, t, K_edge, K_next, whether the run ends there)
+    def ended(first: tuple[Affine, ...], o: Outcome) -> Fraction | None:
+        """With ``episode ends when`` holding: the sup of the sample's offsets and its end clauses'."""
+        if o.ending is None or not o.ending.ends:
+            return None
+        return sup_weighted(w, (*first, o.edge_map, o.ending.end_map), o.box)[0]
+
+    # per (l, o): (l, oi, t, K_edge, K_next, whether the run ends there, K_edge+end or None)
+    rows = []
     for here, os in enumerate(outs):
         for oi, o in enumerate(os):
             t = o.target
             rows.append((here, oi, t, sup_weighted(w, (o.edge_map,), o.box)[0],
-                         sup_weighted(w, (o.edge_map, accruals[t]), o.box)[0], o.ends_episode))
+                         sup_weighted(w, (o.edge_map, accruals[t]), o.box)[0], o.ends_episode, ended((), o)))
     first_rows = []  # sample 1 from l0: the accrual before the edge uses the same inputs
     for oi, o in enumerate(outs[l0]):
         t = o.target
         first_rows.append((oi, t,
                            sup_weighted(w, (accruals[l0], o.edge_map), o.box)[0],
                            sup_weighted(w, (accruals[l0], o.edge_map, accruals[t]), o.box)[0],
-                           sup_weighted(w, (accruals[l0],), o.box)[0], o.ends_episode))
-    values = ([v for r in rows for v in r[3:5]] + [v for r in first_rows for v in r[2:5]]
+                           sup_weighted(w, (accruals[l0],), o.box)[0], o.ends_episode,
+                           ended((accruals[l0],), o)))
+    values = ([v for r in rows for v in (*r[3:5], r[6]) if v is not None]
+              + [v for r in first_rows for v in (*r[2:5], r[6]) if v is not None]
               + [target.constant] + ([k_end] if k_end is not None else []))
     scale = math.lcm(*(v.denominator for v in values))
     n_loc = len(automaton.locations)
@@ -415,14 +439,18 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     stop_last = np.full((n_loc, width), neg_inf, dtype=dtype)
     k_next = np.full((n_loc, width), neg_inf, dtype=dtype)
     goes_on = np.zeros((n_loc, width), dtype=bool)  # the run may continue after this outcome
-    for here, oi, t, ke, kn, ending in rows:
+    for here, oi, t, ke, kn, ending, kee in rows:
         targets[here, oi] = t
         k_next[here, oi] = int(kn * scale)
         goes_on[here, oi] = not ending
         if target.watched[t]:
             edge_value = w0 + int(ke * scale)
-            stop[here, oi] = edge_value + end_bonus if ending else max(edge_value + end_bonus, w0 + int(kn * scale))
-            stop_last[here, oi] = edge_value + end_bonus
+            if ending:  # the run ends here, with this sample's own end clauses (no end of its own)
+                stop[here, oi] = stop_last[here, oi] = edge_value if kee is None else max(edge_value,
+                                                                                          w0 + int(kee * scale))
+            else:
+                stop[here, oi] = max(edge_value + end_bonus, w0 + int(kn * scale))
+                stop_last[here, oi] = edge_value + end_bonus
     value = np.full(n_loc, neg_inf, dtype=dtype)
     # choice[k], stopped[k] for k = steps down to `settled`; below it they equal those at `settled`.
     choice: dict[int, np.ndarray] = {}
@@ -450,10 +478,14 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
                              f"{MAX_SAMPLES:,} of them")
     # Sample 1, from the initial location only.
     best_value, best_choice = None, None
-    for oi, t, ke, kn, kb, ending in first_rows:
+    for oi, t, ke, kn, kb, ending, kee in first_rows:
         options = []
         if target.watched[t]:
-            options += [(w0 + int(ke * scale) + end_bonus, "stop")]
+            if ending:
+                options.append((w0 + int(ke * scale) if kee is None else max(w0 + int(ke * scale),
+                                                                              w0 + int(kee * scale)), "stop"))
+            else:
+                options.append((w0 + int(ke * scale) + end_bonus, "stop"))
             if steps > 1 and not ending:
                 options.append((w0 + int(kn * scale), BEFORE_NEXT))
         if target.watched[l0]:
@@ -474,24 +506,26 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     oi, instant = best_choice
     here, k = l0, 1
     points: dict[tuple[int, str, bool], dict[str, Fraction]] = {}  # a run repeats its samples: weigh each once
-    stops: dict[tuple[int, bool], str] = {}
+    stops: dict[tuple[int, bool, bool], str] = {}
     while True:
         if k > MAX_SAMPLES:
             raise Unfinished(f"the worst run is longer than {MAX_SAMPLES:,} samples")
         o = outs[here][oi]
         if instant == "stop":
             last = k == steps or o.ends_episode
-            if (id(o), last) not in stops:
-                stops[id(o), last] = _which_stop(w, o, accruals, k_end, last=last)
-            instant = stops[id(o), last]
-        if instant == AFTER_END:
-            assert best_end is not None
-            result.end = best_end
-            result.end_inputs = sup_weighted(w, (best_end.end_map,), best_end.box)[1]
+            if (id(o), last, k == 1) not in stops:
+                stops[id(o), last, k == 1] = _which_stop(w, o, accruals, k_end, last=last, first=k == 1, l0=l0)
+            instant = stops[id(o), last, k == 1]
         key = (id(o), instant, k == 1)
         point = points.get(key)
         if point is None:
             point = points[key] = sup_weighted(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0), o.box)[1]
+        if instant == AFTER_END and o.ending is not None:  # the run's own end, on the sample's inputs
+            result.end, result.end_inputs = o.ending, point
+        elif instant == AFTER_END:
+            assert best_end is not None
+            result.end = best_end
+            result.end_inputs = sup_weighted(w, (best_end.end_map,), best_end.box)[1]
         result.steps.append(Step(k, o, point, instant))
         if instant != CONTINUE:
             result.instant = instant
@@ -510,16 +544,23 @@ def _maps_for(instant: str, o: Outcome, accruals: list[Affine], *, first: bool, 
     maps += (o.edge_map,)
     if instant in (BEFORE_NEXT, CONTINUE):
         return maps + (accruals[o.target],)
+    if instant == AFTER_END and o.ending is not None:  # the end clauses read the sample's inputs
+        return maps + (o.ending.end_map,)
     return maps
 
 
 def _which_stop(w: tuple[Fraction, ...], o: Outcome, accruals: list[Affine], k_end: Fraction | None,
-                last: bool) -> str:
-    """Which instant of a sample attains the stop value found by the recurrence."""
-    edge = sup_weighted(w, (o.edge_map,), o.box)[0]
+                last: bool, first: bool, l0: int) -> str:
+    """Which instant of a sample attains the stop value found by the recurrence (the first of them)."""
+    before: tuple[Affine, ...] = (accruals[l0],) if first else ()
+    edge = sup_weighted(w, (*before, o.edge_map), o.box)[0]
     options = [(edge, AFTER_EDGE)]
+    if o.ending is not None:  # the run ends here: its own end clauses, nothing after
+        if o.ending.ends:
+            options.append((sup_weighted(w, (*before, o.edge_map, o.ending.end_map), o.box)[0], AFTER_END))
+        return max(options, key=lambda item: item[0])[1]
     if k_end is not None and k_end > 0:
         options.append((edge + k_end, AFTER_END))
     if not last:
-        options.append((sup_weighted(w, (o.edge_map, accruals[o.target]), o.box)[0], BEFORE_NEXT))
+        options.append((sup_weighted(w, (*before, o.edge_map, accruals[o.target]), o.box)[0], BEFORE_NEXT))
     return max(options, key=lambda item: item[0])[1]
