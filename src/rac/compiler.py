@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rac import ir
-from rac.check.analysis.priority import UNFINISHED
 from rac.check.resolve import Resolver
-from rac.core.diagnostics import CheckError, Diagnostic, Fact, RacCheckWarning, check_warning_text, error
+from rac.core.diagnostics import UNFINISHED, CheckError, Diagnostic, Fact, RacCheckWarning, check_warning_text, error
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, read_source, text_source

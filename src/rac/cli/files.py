@@ -8,7 +8,6 @@ import json
 import sys
 from pathlib import Path
 
-from rac.check.analysis.priority import UNFINISHED
 from rac.cli.common import (
     EXIT_ERRORS,
     EXIT_OK,
@@ -30,7 +29,7 @@ from rac.cli.common import (
     write_atomically,
 )
 from rac.compiler import CompileResult, compile_file
-from rac.core.diagnostics import Diagnostic, error, render_text, sort_key
+from rac.core.diagnostics import UNFINISHED, Diagnostic, error, render_text, sort_key
 from rac.lang.format import format_module
 from rac.lang.parser import ParseFailure, parse_source, read_source
 from rac.model.commonroad import ScenarioError

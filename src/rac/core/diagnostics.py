@@ -16,6 +16,10 @@ from fractions import Fraction
 
 from rac.core.source import SourceFile, Span
 
+#: The code of a check that stopped at its limit, neither proved nor refuted: the file is undecided
+#: (``rac check`` exits 4 when no file has an error, as ``rac verify`` does for an undecided query).
+UNFINISHED = "W0405"
+
 
 class Severity(str, Enum):
     ERROR = "error"

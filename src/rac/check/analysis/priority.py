@@ -22,7 +22,7 @@ from rac.check.analysis.worst import (
     Worst,
     maximise,
 )
-from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number, warning
+from rac.core.diagnostics import UNFINISHED, Diagnostic, Fact, Note, error, short_number, warning
 from rac.core.numbers import INT32_MAX, INT32_MIN
 from rac.ir.inputs import InputSpace, guard_inputs
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
@@ -243,11 +243,6 @@ def check_priorities(automaton: ir.Automaton, facts: list[Fact] | None = None,
             continue
         diagnostics.append(_p2_error(automaton, space, outs, worst, level, weights, constant))
     return diagnostics
-
-
-#: The code of a check that stopped at its limit, neither proved nor refuted: the file is undecided
-#: (``rac check`` exits 4 when no file has an error, as ``rac verify`` does for an undecided query).
-UNFINISHED = "W0405"
 
 
 def _unfinished(automaton: ir.Automaton, what: str, stop: Unfinished) -> Diagnostic:
