@@ -293,14 +293,23 @@ def test_simulate_shield_without_safe_strategy_exits_1(capsys: pytest.CaptureFix
 
 
 @pytest.mark.parametrize("command", ["simulate", "render"])
-def test_a_shield_beyond_the_budget_is_a_resource_limit_exit_2(command: str, capsys: pytest.CaptureFixture[str],
-                                                              tmp_path: Path) -> None:
-    # a budget, not the file nor a failed query: exit 2, as `rac verify` leaves such a query undecided
-    # (it was exit 1, as if Qd did not hold)
+def test_a_shield_beyond_the_budget_gives_way_to_the_runtime_shield(command: str, capsys: pytest.CaptureFixture[str],
+                                                                   tmp_path: Path) -> None:
+    # beyond the budget the runs choose under the runtime shield, as training does, and say so with the
+    # guarantee they had (it was a resource limit, exit 2, and no runs)
     path = write_engine_file(tmp_path, "avoidable_obstacle", {})
-    assert main([command, str(path), "--shield", "--max-states", "10", "-o", str(tmp_path / "out")]) == 2
+    out = tmp_path / "out"
+    assert main([command, str(path), "--shield", "--max-states", "10", "--runs" if command == "simulate" else "--seed",
+                 "3", "-o", str(out)]) == 0
     err = capsys.readouterr().err
-    assert err.startswith(f"rac {command}: resource limit: cannot compute the shield: ") and "10" in err
+    assert f"rac {command}: note: the exhaustive shield is beyond the budget (" in err and "10" in err
+    assert "the runs choose under the runtime shield instead" in err
+    assert re.search(rf"rac {command}: note: the runs' actions, [\d,]+ decisions: [\d,]+ by the runtime shield "
+                     r"\(a safe continuation for the next 5 decisions, or to the horizon", err), err
+    assert "no action known to be safe" not in err  # the obstacle is avoidable: every decision had a safe one
+    if command == "simulate":  # every run kept clear of the obstacle
+        rows = list(csv.DictReader((out / "runs.csv").open(encoding="utf-8")))
+        assert rows and all(float(r["mindist()"]) >= float(r["3 * collision_distance"]) / 3 for r in rows)
 
 
 @pytest.mark.parametrize(("expr", "message"), [

@@ -157,18 +157,24 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
     reason when no shield can be used and the exit code it calls for (:func:`_shield_policy`)."""
     import numpy as np  # numpy: only the command that uses it loads it
 
+    # numpy (via rac.engine.shield): only the command that uses it loads it
+    from rac.engine.shield import StepShieldPolicy
+
     # numpy (via rac.engine.simulate): only the command that uses it loads it
     from rac.engine.simulate import simulate
 
     policy = None
     if args.shield:
-        policy, problem, status = _shield_policy(result, samples, args)
+        policy, problem, status = _shield_policy(result, samples, args, n)
         if policy is None:
             return None, problem, status
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
     assert result.model_data is not None  # _load refused a file without one
-    return simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
-                    max_bytes=args.max_memory or default_max_bytes()), seed, EXIT_OK
+    runs = simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
+                    max_bytes=args.max_memory or default_max_bytes())
+    if isinstance(policy, StepShieldPolicy):  # the guarantee the runs had, said beside them
+        print(f"rac {args.command}: note: the runs' actions, {policy.summary()}", file=sys.stderr)
+    return runs, seed, EXIT_OK
 
 
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
@@ -295,12 +301,16 @@ def verdict_status(results: Sequence[QueryResult]) -> int:
     return EXIT_OK
 
 
-def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.Namespace):
+def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.Namespace, runs: int):
     """The safety shield (Qd) at this horizon as a simulation policy, or None, an error message and
-    the exit code: 2 when the shield is beyond the budget (a resource limit, as `rac verify`'s "not
-    decided" is no failed query), 1 when no safe strategy exists (Qd does not hold)."""
+    the exit code (1 when no safe strategy exists: Qd does not hold). When the exhaustive shield is
+    beyond the budget the runs choose under the runtime shield instead
+    (:class:`rac.engine.shield.StepShieldPolicy`, which says what it guaranteed), as training does."""
     # numpy, stormpy (via rac.engine.shield): only the command that uses it loads it
     from rac.engine import shield as shields
+
+    # numpy (via rac.engine.lookahead): only the command that uses it loads it
+    from rac.engine.lookahead import LookaheadSettings
 
     # numpy, stormpy (via rac.verify.context): only the command that uses it loads it
     from rac.verify.context import over_budget
@@ -313,7 +323,13 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
                                                  max_bytes=args.max_memory or default_max_bytes(),
                                                  progress=callback)
     except BudgetExceeded as exc:
-        return None, f"resource limit: cannot compute the shield: {over_budget(exc)}", EXIT_USAGE
+        fallback = shields.StepShield(result.model_data, horizon_samples, lookahead=LookaheadSettings(),
+                                      reason=over_budget(exc))
+        decisions = runs * len(range(0, horizon_samples, int(result.model_data.decide_every)))
+        print(f"rac {args.command}: note: the exhaustive shield is beyond the budget ({over_budget(exc)}); the runs "
+              f"choose under the runtime shield instead ({decisions:,} decisions, up to "
+              f"{LookaheadSettings().seconds:g} s each)", file=sys.stderr)
+        return shields.StepShieldPolicy(fallback), None, EXIT_OK
     if not computed.shield_exists:
         return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)", EXIT_ERRORS
     return table.masks_at, None, EXIT_OK

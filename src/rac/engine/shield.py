@@ -386,6 +386,43 @@ class StepShield:
         return ShieldStep(mask, "none", int(row[GraphColumn.K]), timed_out, no_safe_action=True, lookahead=found)
 
 
+class StepShieldPolicy:
+    """A :class:`StepShield` as a simulation policy (:data:`rac.engine.simulate.Policy`): at decision
+    sample ``k`` each run's mask is the step shield's at its state. It counts the guarantees the masks
+    carried, so a report can say how far the runs' safety was proved (:meth:`summary`)."""
+
+    def __init__(self, shield: StepShield) -> None:
+        self.shield = shield
+        #: Decisions by the guarantee their mask carried (``"exhaustive"``, ``"lookahead"``, ``"none"``).
+        self.kinds: dict[str, int] = {}
+        #: Runtime-shield decisions that proved fewer decisions than asked (``depth < target``).
+        self.short = 0
+        self.timed_out = 0
+
+    def __call__(self, k: int, states: np.ndarray) -> np.ndarray:
+        masks = np.zeros((len(states), self.shield.n_actions), dtype=bool)
+        for i, ego in enumerate(np.asarray(states, dtype=np.int64)):
+            step = self.shield.decide(np.concatenate(([k], ego)))
+            masks[i] = step.mask
+            self.kinds[step.kind] = self.kinds.get(step.kind, 0) + 1
+            self.timed_out += int(step.timed_out)
+            found = step.lookahead
+            self.short += int(step.kind == "lookahead" and found is not None and found.depth < found.target)
+        return masks
+
+    def summary(self) -> str:
+        """What the masks guaranteed over the decisions taken so far, in one sentence."""
+        runtime = self.shield.runtime
+        depth = runtime.settings.depth if runtime is not None else 0
+        said = {"exhaustive": "by the exhaustive shield (safe to the horizon)",
+                "lookahead": f"by the runtime shield (a safe continuation for the next {depth} decisions, or to "
+                             "the horizon" + (f"; {self.short:,} of them for fewer" if self.short else "") + ")",
+                "none": "with no action known to be safe (any action of the model)"}
+        parts = [f"{self.kinds[kind]:,} {text}" for kind, text in said.items() if self.kinds.get(kind)]
+        timed = f"; {self.timed_out:,} ran out of their time budget" if self.timed_out else ""
+        return f"{sum(self.kinds.values()):,} decisions: " + ", ".join(parts) + timed
+
+
 def step_shield(data: ModelData, horizon_samples: int, *, table_horizon: int | None = None,
                 lookahead: LookaheadSettings | None = None, max_states: int | None = None,
                 max_bytes: int | None = None) -> StepShield:
