@@ -61,7 +61,18 @@ def _number(name: str, raw: object, low: float, high: float) -> float:
 def _range_error(name: str, value: float, low: float, high: float) -> ValueError:
     if math.isfinite(value) and low <= value <= high:
         return ValueError(f"input {name!r} = {value!r} is not an integer")
-    return ValueError(f"input {name!r} = {value!r} is outside [{low!r}, {high!r}]")
+    message = f"input {name!r} = {value!r} is outside [{low!r}, {high!r}]"
+    import struct  # only on this error path: a bound rounded to float32 and back, as float(np.float32(bound))
+
+    for bound in (low, high):
+        try:
+            widened = struct.unpack("<f", struct.pack("<f", bound))[0]
+        except OverflowError:  # beyond float32: numpy rounds to an infinity
+            widened = math.copysign(math.inf, bound)
+        if value == widened:  # a float32 bound made a Python float; the float32 itself is read as the bound
+            return ValueError(f"{message}: {value!r} is the float32 nearest a bound, widened to float64 "
+                              "(float(np.float32(...))); pass the numpy float32 value itself, or clip it")
+    return ValueError(message)
 
 
 def _assume_error(clause: str, *values: tuple[str, object]) -> ValueError:

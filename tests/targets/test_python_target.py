@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import json
+import math
 import os
 import shutil
 import struct
@@ -301,3 +302,32 @@ def test_printer_keeps_the_exact_operation_order() -> None:
     assert print_expr(ir.BNot(ir.BOr((a, below))), names) == "not (r_a or i_x < 2.0)"
     assert print_expr(ir.BAnd((ir.BOr((a, b)), ir.BNot(a))), names) == "(r_a or r_b) and not r_a"
     assert print_expr(ir.BNot(ir.BNot(ir.BAnd((a, b)))), names, precedence=3) == "(r_a and r_b)"
+
+
+# ---------------------------------------------------------------- errors
+def test_a_float32_bound_widened_to_a_float_is_explained_like_the_interpreter() -> None:
+    """``float(np.float32(-1.2))`` (an environment's float32 observation at the edge of its space, made a
+    Python float) is outside ``[-1.2, 0.6]``: the interpreter's error says it is the float32 nearest a bound
+    and what to pass instead; the generated module said only "outside", leaving the user to guess why an
+    observation inside the space was refused."""
+    from rac.compiler import compile_text
+
+    source = ("automaton Car {\n    input pos : real in [-1.2, 0.6]\n    input far : real in [0, 1e39]\n"
+              "    reward r\n    objective r\n    sample every 1\n    horizon 10\n"
+              "    initial location A { r' == pos }\n}\n")
+    automaton = compile_text(source, "car.ra").raise_for_errors()
+    generated = load(generate_python(automaton)).Car()
+    ok = {"pos": 0.0, "far": 0.0}
+    for name, value in [("pos", float(np.float32(-1.2))), ("pos", float(np.float32(0.6))), ("far", math.inf)]:
+        with pytest.raises(ValueError) as expected:
+            RewardAutomaton(automaton).step({**ok, name: value})
+        common = str(expected.value).split("; pass ")[0]
+        assert "is the float32 nearest a bound, widened to float64" in common
+        for call in (generated.step, generated.end):
+            with pytest.raises(ValueError, match="is the float32 nearest a bound") as refused:
+                call({**ok, name: value})
+            assert str(refused.value) == common + "; pass the numpy float32 value itself, or clip it"
+    for value in (-1.25, math.nextafter(0.6, 1.0), math.nan):  # other values: no float32 hint
+        with pytest.raises(ValueError, match=r"is outside \[-1.2, 0.6\]$"):
+            generated.step({**ok, "pos": value})
+    assert generated.samples == 0 and not generated.ended
