@@ -11,22 +11,27 @@ its run is then ended again (``end``: 0.0, nothing changes) and reset before its
 
 from __future__ import annotations
 
+import copy
 import math
+import pickle
 import struct
+import sys
 import types
 from dataclasses import dataclass, replace
 from fractions import Fraction
 from typing import Any
 
+import fuzzgen
 import numpy as np
 import pytest
 from driving_ir import driving_automaton
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from rac import ir
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
+from rac.runtime.semantics import InputSpec, input_specs
 from rac.targets.python import generate_python
 
 Values = dict[str, object]
@@ -337,3 +342,90 @@ def test_assume_violations_read_the_same_everywhere(values: Values, column: int)
         batch = BatchRewardAutomaton(ASSUMING_IR, 4, strategy=strategy)
         assert message(batch.step_batch, stack(rows)) == f"{expected} (automata [{column}])"
         assert message(batch.end_batch, stack(rows)) == f"{expected} (automata [{column}])"
+
+
+# ---------------------------------------------------------------- compiled `.ra` programs, as users write them
+def _compiled(program: Any) -> ir.Automaton | None:
+    """The generated program checked in process (``rac.compile_text``), or None when it has errors."""
+    import warnings
+
+    from rac.compiler import compile_text
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = compile_text(program.text, "fuzz.ra")
+    return result.raise_for_errors() if result.ok else None
+
+
+@st.composite
+def typed_value(draw: st.DrawFn, spec: InputSpec) -> object:
+    """A value as environments hand it over: Python's and numpy's bools, ints and floats (float32
+    inside the range, or at a bound rounded to float32), at the bounds, at 0 and -0.0, in between;
+    now and then outside the range or of another kind, which both must refuse alike."""
+    if draw(st.integers(0, 19)) == 0:
+        return draw(st.sampled_from([None, "1", 2, 0.5, math.nan, math.inf, spec.high + 1, spec.low - 0.5]))
+    if spec.is_bool:
+        return draw(st.sampled_from([True, False, np.True_, np.False_, 0, 1, np.int8(1)]))
+    special = [spec.low, spec.high, (spec.low + spec.high) / 2]
+    if spec.low <= 0 <= spec.high:
+        special += [0.0, -0.0]
+    value = draw(st.one_of(st.sampled_from(special), st.floats(spec.low, spec.high)))
+    if spec.kind == "int":
+        whole = float(round(value))
+        return draw(st.sampled_from([whole, int(whole), np.int64(int(whole)), np.float32(whole)]))
+    narrow = [np.float32(value)] if spec.low <= float(np.float32(value)) <= spec.high else []
+    at_bound = [np.float32(spec.low), np.float32(spec.high)]
+    return draw(st.sampled_from([value, np.float64(value), *narrow, *at_bound]))
+
+
+def _outcome(call: Any, values: Values) -> tuple[str, object]:
+    try:
+        return "ok", bits(call(values))
+    except (ValueError, RuntimeError) as exc:  # both must refuse alike, in the same words
+        return type(exc).__name__, str(exc)
+
+
+def _state(ra: Any) -> Record:
+    return (ra.location, tuple((k, bits(v)) for k, v in ra.rewards.items()), bits(ra.objective), ra.samples,
+            bits(ra.time), ra.ended, ra.terminated)
+
+
+@settings(max_examples=80, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much])
+@given(program=fuzzgen.programs(), data=st.data())
+def test_compiled_programs_agree(program: Any, data: st.DataObject) -> None:
+    """Programs from the fuzzer's generator (tests/support/fuzzgen.py: inputs of each kind with ranges,
+    `assume`, rates reading inputs, translations and resets, `at end`, `episode ends when`, several
+    rewards and a weighted objective, names Python reserves) compiled by the checker, then run by the
+    generated module and the interpreter on the same random operations: steps, ends, resets mid-run,
+    and copies and pickles (a vector environment's workers) that go on from where the original was.
+    Every outcome (a reward's bits, or the error's type and words) and the state after it must agree."""
+    automaton = _compiled(program)
+    assume(automaton is not None)
+    assert automaton is not None
+    module = types.ModuleType("rac_agreement_generated")  # importable while it runs: pickle finds the class
+    exec(compile(generate_python(automaton), "<generated>", "exec"), module.__dict__)  # noqa: S102
+    sys.modules[module.__name__] = module
+    try:
+        _run_operations(getattr(module, module.__all__[0])(), automaton, data)
+    finally:
+        del sys.modules[module.__name__]
+
+
+def _run_operations(generated: Any, automaton: ir.Automaton, data: st.DataObject) -> None:
+    interpreted = RewardAutomaton(automaton)
+    specs = input_specs(automaton)
+    for _ in range(data.draw(st.integers(1, 40), label="operations")):
+        operation = data.draw(st.sampled_from(["step"] * 6 + ["end", "reset", "copy", "pickle"]))
+        if operation == "reset" or (operation == "step" and generated.ended and data.draw(st.booleans())):
+            generated.reset(), interpreted.reset()
+        elif operation == "copy":
+            generated, interpreted = copy.deepcopy(generated), copy.copy(interpreted)
+        elif operation == "pickle":
+            generated = pickle.loads(pickle.dumps(generated))  # noqa: S301 - our own object
+            interpreted = pickle.loads(pickle.dumps(interpreted))  # noqa: S301
+        else:
+            values = {spec.name: data.draw(typed_value(spec), label=spec.name) for spec in specs}
+            ours = _outcome(getattr(generated, operation), values)
+            assert ours == _outcome(getattr(interpreted, operation), values), (operation, values)
+        assert _state(generated) == _state(interpreted), operation
