@@ -303,6 +303,15 @@ class Driving:
         """Whether a sample's inputs ended the run (``episode ends when``), its ``at end`` clauses applied."""
         return self._terminated
 
+    def __getstate__(self) -> dict[str, object]:
+        """The run state, for ``pickle`` and ``copy`` (a class with ``__slots__`` and no ``__getstate__``
+        pickles from protocol 2 on only)."""
+        return {slot: object.__getattribute__(self, slot) for slot in self.__slots__}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        for slot in self.__slots__:
+            object.__setattr__(self, slot, state[slot])
+
     def __repr__(self) -> str:
         ending = ", terminated" if self._terminated else ", ended" if self._ended else ""
         return f"<Driving at {self.location}, samples={self._samples}, objective={self._objective!r}{ending}>"

@@ -422,8 +422,9 @@ def _run_operations(generated: Any, automaton: ir.Automaton, data: st.DataObject
         elif operation == "copy":
             generated, interpreted = copy.deepcopy(generated), copy.copy(interpreted)
         elif operation == "pickle":
-            generated = pickle.loads(pickle.dumps(generated))  # noqa: S301 - our own object
-            interpreted = pickle.loads(pickle.dumps(interpreted))  # noqa: S301
+            protocol = data.draw(st.integers(0, pickle.HIGHEST_PROTOCOL), label="protocol")
+            generated = pickle.loads(pickle.dumps(generated, protocol))  # noqa: S301 - our own object
+            interpreted = pickle.loads(pickle.dumps(interpreted, protocol))  # noqa: S301
         else:
             values = {spec.name: data.draw(typed_value(spec), label=spec.name) for spec in specs}
             ours = _outcome(getattr(generated, operation), values)

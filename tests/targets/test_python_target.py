@@ -6,6 +6,7 @@ import ast
 import json
 import math
 import os
+import pickle
 import shutil
 import struct
 import subprocess
@@ -302,6 +303,29 @@ def test_printer_keeps_the_exact_operation_order() -> None:
     assert print_expr(ir.BNot(ir.BOr((a, below))), names) == "not (r_a or i_x < 2.0)"
     assert print_expr(ir.BAnd((ir.BOr((a, b)), ir.BNot(a))), names) == "(r_a or r_b) and not r_a"
     assert print_expr(ir.BNot(ir.BNot(ir.BAnd((a, b)))), names, precedence=3) == "(r_a and r_b)"
+
+
+@pytest.mark.parametrize("protocol", range(pickle.HIGHEST_PROTOCOL + 1))
+def test_an_instance_pickles_at_every_protocol_and_goes_on_where_it_was(protocol: int) -> None:
+    """The class has ``__slots__``; without a ``__getstate__`` of its own, ``pickle.dumps(ra, 0)`` or ``1``
+    raised TypeError ("a class that defines __slots__ without defining __getstate__ cannot be pickled"),
+    while the interpreter's automaton pickles at every protocol."""
+    module = load(GOLDEN.read_text(encoding="utf-8"), "driving_pickled")
+    sys.modules[module.__name__] = module  # pickle finds the class by its module's name
+    try:
+        generated, interpreter = module.Driving(), RewardAutomaton(driving_automaton())
+        for ra in (generated, interpreter):
+            ra.step(inputs(dgoal=30.0))
+            ra.step(inputs(is_close=True))
+        copy = pickle.loads(pickle.dumps(generated, protocol))  # noqa: S301 - our own object
+        assert type(copy) is module.Driving and repr(copy) == repr(generated)
+        for x in (inputs(is_close=True, collide=True), inputs(prog=False)):
+            assert bits(copy.step(x)) == bits(interpreter.step(x))
+        assert (copy.location, copy.rewards, copy.samples) == (interpreter.location, interpreter.rewards, 4)
+        assert bits(copy.end(inputs(dgoal=1.0))) == bits(interpreter.end(inputs(dgoal=1.0))) and copy.ended
+        assert generated.samples == 2 and not generated.ended  # the original is left as it was
+    finally:
+        del sys.modules[module.__name__]
 
 
 # ---------------------------------------------------------------- errors
