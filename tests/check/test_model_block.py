@@ -594,6 +594,22 @@ def test_model_function_arity_and_types_in_queries() -> None:
     assert only(small("", extra="    query Q: A[] collide() + 1 > 0\n"), "E0201")
 
 
+@pytest.mark.parametrize(("extra", "bindings", "divisor"), [
+    ("    query Q: A[] mindist() / 0 > 1\n", MINIMAL_BINDINGS, "0"),
+    ("    query Q: Pr[<=30 / (K - 3)](<> goal())\n", MINIMAL_BINDINGS, "K - 3"),
+    ("    query Q: E[<=30; 10](max: 0 * (sa / (x - x)))\n", MINIMAL_BINDINGS, "x - x"),
+    ("", "        bind isClose = mindist() / (2 * collision_distance - 2 * collision_distance) < 1\n"
+         "        bind prog = goal()\n", "2 * collision_distance - 2 * collision_distance"),
+])
+def test_a_divisor_of_zero_in_a_query_or_binding_is_E0207(extra: str, bindings: str, divisor: str) -> None:
+    """The fuzzer: `A[] speed > 1/0` checked clean, and `rac verify` answered it (the engine divides by zero
+    as floats do); a constant divisor of zero is E0207 in a query or binding as in the automaton itself."""
+    text = small("", bindings, extra=extra)
+    diagnostic = only(text, "E0207")
+    assert diagnostic.message == "division by zero"
+    assert diagnostic.span is not None and text[diagnostic.span.start:diagnostic.span.end] == divisor
+
+
 def test_automaton_names_come_first_in_queries() -> None:
     text = small("", extra="    const v = true\n    query Q: A[] v\n")
     assert check(text).ok  # `v` is the boolean constant here, not the ego speed

@@ -123,6 +123,9 @@ class Lowering:
             left, right = self._expect(node.left, want), self._expect(node.right, want)
             if left is None or right is None:
                 return want, None
+            if node.op == "/" and _is_zero(right):  # as in the automaton's own expressions (rac.check.linear)
+                self.report("E0207", "division by zero", node.right.span)
+                return want, None
             return want, ie.Binary(node.op, left, right, node.span)
         (lt, left), (rt, right) = self.walk(node.left), self.walk(node.right)
         if lt is not None and rt is not None and lt != rt:
@@ -417,6 +420,12 @@ def _query_parts(query: ast.Query) -> Iterator[tuple[str, ast.Expr, str | None]]
         for i, expr in enumerate(query.continuous):
             yield f"continuous{i}", expr, None
         yield "expr", query.expr, "bool"
+
+
+def _is_zero(divisor: ie.Expr) -> bool:
+    """Whether a divisor is the constant zero (``1 / 0``, ``x / (TD - TD)``, ``x / (v - v)``)."""
+    form = ie.linear_form(divisor)
+    return form is not None and form.is_constant and form.const == 0
 
 
 def _arguments(count: int) -> str:
