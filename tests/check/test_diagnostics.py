@@ -375,6 +375,25 @@ def test_huge_numbers_do_not_crash(horizon, code, tmp_path, capsys, monkeypatch)
     assert status == 1 and f"error[{code}]" in output
 
 
+@pytest.mark.parametrize(("old", "new", "code", "shown"), [
+    ("horizon 30 ", "horizon 1e300 ", "E0206", "(1e301; at most 1,000,000)"),
+    ("horizon 30 ", "horizon 99999999999999999999 ", "E0206", "(1e21…; at most 1,000,000)"),
+    ("}\n", "    query Q: Pr[<=30](<> Unsafe) >= 1e308\n}\n", "E0603", "(found 1e308)"),
+    ("}\n", "    query Q: Pr[<=30; 1e-300](<> Unsafe)\n}\n", "E0603", "(found 1e-300)"),
+    ("}\n", "    model {\n        scenario \"x.xml\"\n        action jerk in [-1e308, 2] step 2\n    }\n}\n",
+     "E0901", "offers 5e307… values"),
+])
+def test_huge_numbers_print_short(old, new, code, shown, tmp_path, capsys, monkeypatch):
+    """The fuzzer: a horizon of 1e300 s was `1,000,000,...` over 400 characters, a probability threshold
+    of 1e308 its 309 digits, a run count of 1e-300 `1E-300`; messages print a huge or tiny number short."""
+    text = DRIVING.read_text()
+    text = text[:text.rindex("}\n")] + new if old == "}\n" else text.replace(old, new)
+    status, output = check_bytes(text.encode(), tmp_path, capsys, monkeypatch)
+    assert status == 1 and f"error[{code}]" in output
+    message = next(line for line in output.splitlines() if f"error[{code}]" in line)
+    assert shown in message and len(message) < 200, message
+
+
 #: The fuzzer's numbers (issue 12): each ends in a diagnostic for every command, none in exit 3.
 FUZZ_NUMBERS = [
     ("input d : real in [1e5000, 0]", "", "E0010"),

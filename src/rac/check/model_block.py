@@ -34,7 +34,7 @@ from fractions import Fraction
 from rac import ir
 from rac.check.queries import Lowering, model_settings_of, type_word
 from rac.check.symbols import ModelContext, Unresolvable
-from rac.core.diagnostics import Note, short_number
+from rac.core.diagnostics import Note, short_count, short_number
 from rac.core.source import Span
 from rac.ir import expr as ie
 from rac.ir.vocabulary import (
@@ -363,8 +363,8 @@ class _ModelResolver:
                        hints=[f"end the range at {_num(low + count * step)} or {_num(low + (count + 1) * step)}, "
                               "or choose a step that divides its width"])
         elif action.count > MAX_ACTION_VALUES:
-            self.error("E0901", f"action `{name}` in {shown} step {_num(step)} offers {action.count:,} values, "
-                       f"more than the limit of {MAX_ACTION_VALUES:,}", item.span,
+            self.error("E0901", f"action `{name}` in {shown} step {_num(step)} offers "
+                       f"{short_count(action.count)} values, more than the limit of {MAX_ACTION_VALUES:,}", item.span,
                        notes=["the controller chooses among every value at every decision: each one is a "
                               "column of the engine's tables and of the UPPAAL model"],
                        hints=[f"choose a coarser step or a narrower range, e.g. step "

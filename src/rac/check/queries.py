@@ -19,7 +19,7 @@ from fractions import Fraction
 
 from rac import ir
 from rac.check.symbols import Scope, Symbol
-from rac.core.diagnostics import CheckError
+from rac.core.diagnostics import CheckError, short_number
 from rac.core.source import SourceFile, Span
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -331,7 +331,7 @@ class Lowering:
         if (whole and number.denominator != 1) or (positive and number <= 0) or number < 0:
             need = "a positive whole number" if whole and positive else "a whole number" if whole else (
                 "a positive number" if positive else "a number >= 0")
-            self.s.error("E0603", f"{what} must be {need} (found {_fraction(number)})", node.span)
+            self.s.error("E0603", f"{what} must be {need} (found {short_number(number)})", node.span)
             return None
         return number
 
@@ -362,7 +362,7 @@ class Lowering:
             if query.compare is not None:
                 theta = self._constant(query.compare[1], p["compare"], "the probability threshold")
                 if theta is not None and theta > 1:
-                    self.s.error("E0603", f"the probability threshold must be at most 1 (found {_fraction(theta)})",
+                    self.s.error("E0603", f"the probability threshold must be at most 1 (found {short_number(theta)})",
                                  query.compare[1].span)
                 compare = None if theta is None else (query.compare[0], theta)
             if bound is not None:
@@ -432,8 +432,6 @@ def _arguments(count: int) -> str:
     return "no arguments" if count == 0 else "1 argument" if count == 1 else f"{count} arguments"
 
 
-def _fraction(value: Fraction) -> str:
-    return str(value.numerator) if value.denominator == 1 else f"{float(value):g}"
 
 
 # ---------------------------------------------------------------- against a checked automaton

@@ -21,7 +21,7 @@ from rac.check.model_block import resolve_model
 from rac.check.queries import Lowering, model_settings
 from rac.check.standard import standard_queries
 from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable
-from rac.core.diagnostics import Diagnostic, Note, short_number, warning
+from rac.core.diagnostics import Diagnostic, Note, short_count, short_number, warning
 from rac.core.source import Span
 from rac.ir import query as iq
 from rac.ir.significands import rate_diagnostics
@@ -86,7 +86,7 @@ class Resolver:
                                f"{_num(period * (int(horizon / period) + 1))}" if horizon > period
                                else f"use a horizon of {_num(period)} (one sample) or more"])
         elif period is not None and horizon is not None and horizon / period > MAX_SAMPLES:
-            self._error("E0206", f"the horizon has too many samples ({int(horizon / period):,}; at most "
+            self._error("E0206", f"the horizon has too many samples ({short_count(int(horizon / period))}; at most "
                         f"{MAX_SAMPLES:,})", singles[ast.HorizonDecl].span,
                         hints=["the exact checks follow every sample of a run: shorten the horizon "
                                "or sample less often"])

@@ -131,7 +131,14 @@ def short_number(value: Fraction, digits: int = 6) -> str:
         text = f"{float(value):.{digits}g}"
     else:  # beyond the range floats print well (or at all): decimal arithmetic never overflows
         text = str(Context(prec=digits).divide(Decimal(value.numerator), Decimal(value.denominator)).normalize())
+        text = text.replace("E+", "e").replace("E", "e")  # 1e-300, as the huge integers above and .ra files write it
     return text if Fraction(text) == value else f"{text}…"
+
+
+def short_count(count: int) -> str:
+    """A count for messages: with thousands separators (``150,000``), or as :func:`short_number` when
+    huge (``1e309``, not 103 groups of digits)."""
+    return f"{count:,}" if abs(count) < 10**16 else short_number(Fraction(count))
 
 
 class RacError(Exception):

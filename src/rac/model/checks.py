@@ -43,7 +43,7 @@ from fractions import Fraction
 from typing import TYPE_CHECKING
 
 from rac import ir
-from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number, warning
+from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_count, short_number, warning
 from rac.core.numbers import INT32_MAX, exact_decimal, format_bytes
 from rac.core.resources import (  # the load's budget (its owner; the CLI catches the refusal without loading this)
     LOAD_NOTICE_BYTES,
@@ -441,15 +441,15 @@ def _overflow(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, failure) ->
     if "(sense periods)" in failure.what:  # a count of sense periods: the exponent does not matter
         span = spans.get("model:sense_period", spans.get("decl:sample", spec.span))
         return error("E0713", f"the scenario's {failure.what.removesuffix(' (sense periods)')} = {shown} s is "
-                     f"{failure.significand} sense periods of {short_number(spec.sense_period)} s from the "
-                     "ego's start: that count overflows int32", span,
+                     f"{short_count(failure.significand)} sense periods of {short_number(spec.sense_period)} s "
+                     "from the ego's start: that count overflows int32", span,
                      notes=[f"the model counts times in sense periods, which must stay within ±{INT32_MAX}"],
                      hints=["use a longer sensing period, or a scenario whose times lie closer to its start"])
     span = spans.get("model:exponent", spans.get("model:base", spec.span))
     limit = Fraction(INT32_MAX, base ** exponent)
     notes: list[Note | str] = [
-        f"its significand trunc({shown} · {base}^{exponent}) = {failure.significand} is outside int32 "
-        f"[-{INT32_MAX}, {INT32_MAX}], i.e. every value must lie within ±{_decimal(limit)}",
+        f"its significand trunc({shown} · {base}^{exponent}) = {short_number(Fraction(failure.significand))} is "
+        f"outside int32 [-{INT32_MAX}, {INT32_MAX}], i.e. every value must lie within ±{_decimal(limit)}",
         Note(f"the scenario `{spec.scenario}` is named here", spans.get("model:scenario")),
     ]
     fitting = next((e for e in range(exponent - 1, 0, -1) if _fits(scenario, spec, e)), None)
