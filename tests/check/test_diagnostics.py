@@ -394,6 +394,72 @@ def test_huge_numbers_print_short(old, new, code, shown, tmp_path, capsys, monke
     assert shown in message and len(message) < 200, message
 
 
+MINIMAL = """automaton Minimal {
+    input near : bool
+    input d    : real in [0, 50]
+    const K = 2
+    reward safe, fast
+    priority safe > fast
+    objective 3 * safe + fast
+    sample every SAMPLE
+    horizon HORIZON
+    initial location Go { safe' == 1; fast' == d / 50 }
+    location Near       { safe' == -1 }
+    edge Go -> Near when near || d < 4   do safe -= 30
+    edge Near -> Go when !near && d >= 4
+    QUERY
+}
+"""
+#: Numbers at the edges: huge and tiny, whole and not, as a `.ra` file writes them.
+EXTREME = st.sampled_from(["1e308", "1e300", "99999999999999999999", "1" + "0" * 60, "1e-300", "1e-307",
+                           "123456789.123456789e250", "2147483648", "0.1", "30"])
+
+
+def minimal(sample: str = "1", horizon: str = "20", query: str = "") -> str:
+    return MINIMAL.replace("SAMPLE", sample).replace("HORIZON", horizon).replace("QUERY", query)
+
+
+@settings(max_examples=80, deadline=None, derandomize=True, database=None)
+@given(slot=st.sampled_from(["sample", "horizon", "bound", "runs", "threshold", "simulate", "steps"]), value=EXTREME)
+def test_messages_print_extreme_numbers_short(slot: str, value: str) -> None:
+    """Whatever number a slot of the file holds, no message, note or hint prints a run of 40 digits
+    (a count of samples, a bound, a threshold): they go through short_number and short_count."""
+    from rac.compiler import compile_text  # the checker alone, in process: fast enough for many examples
+
+    text = {"sample": lambda: minimal(sample=value), "horizon": lambda: minimal(horizon=value),
+            "bound": lambda: minimal(query=f"query Q: Pr[<={value}](<> Near)"),
+            "runs": lambda: minimal(query=f"query Q: Pr[<=10; {value}](<> Near)"),
+            "threshold": lambda: minimal(query=f"query Q: Pr[<=10](<> Near) >= {value}"),
+            "simulate": lambda: minimal(query=f"query Q: simulate[<=10; {value}]{{safe}}"),
+            "steps": lambda: minimal(query=f"query Q: Pr[#<={value}](<> Near)")}[slot]()
+    for d in compile_text(text, "minimal.ra", analyse=False).diagnostics:
+        for line in (d.message, *d.hints, *(n.message for n in d.notes)):
+            assert not re.search(r"\d[\d,]{40}", re.sub(r"`[^`]*`", "", line)), (slot, value, d.code, line)
+
+
+@settings(max_examples=80, deadline=None, derandomize=True, database=None)
+@given(terms=st.lists(st.tuples(st.sampled_from(["+", "-"]), st.integers(0, 3), st.sampled_from(["", "K", "d"])),
+                      min_size=1, max_size=4),
+       where=st.sampled_from(["A[] d / (DIV) > 1", "Pr[<=10 / (DIV)](<> Near)", "E[<=10; 5](max: safe / (DIV))"]))
+def test_a_divisor_is_E0207_exactly_when_it_is_zero(terms, where: str) -> None:
+    """A query's divisor built of numbers, a constant and an input (`2 * K - 4`, `d - d`): E0207
+    exactly when it is the constant zero; otherwise the query checks (E0603 aside, for a time bound
+    that is not a number >= 0)."""
+    from rac.compiler import compile_text  # the checker alone, in process: fast enough for many examples
+
+    divisor = " ".join(f"{sign} {count}" + (f" * {name}" if name else "") for sign, count, name in terms)
+    divisor = divisor.removeprefix("+ ")  # `- 1 + 2 * K`: no unary plus
+    constant = sum((1 if sign == "+" else -1) * count * (2 if name == "K" else 1) for sign, count, name in terms
+                   if name != "d")
+    varying = sum((1 if sign == "+" else -1) * count for sign, count, name in terms if name == "d")
+    codes = [d.code for d in compile_text(minimal(query="query Q: " + where.replace("DIV", divisor)), "m.ra",
+                                          analyse=False).diagnostics if d.is_error]
+    if constant == 0 and varying == 0:
+        assert codes == ["E0207"], (divisor, codes)
+    else:
+        assert "E0207" not in codes, (divisor, codes)
+
+
 #: The fuzzer's numbers (issue 12): each ends in a diagnostic for every command, none in exit 3.
 FUZZ_NUMBERS = [
     ("input d : real in [1e5000, 0]", "", "E0010"),
