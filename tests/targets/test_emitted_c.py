@@ -127,7 +127,7 @@ automaton Reader {{
 #: thresholds that are not whole significands, negative leading coefficients, the location index,
 #: ``deadlock``, ``time`` (the sample counter) compared, as a number and mixed with a reward,
 #: ``settled`` under ``[]`` and ``<>``, the true state, every math function, discrete observations
-#: of mirrors, significands and constants.
+#: of mirrors, significands, `time` and constants.
 #: The last three are refused by the printer (:data:`PROBE_REFUSED`); the model is emitted without them.
 PROBE_AUTOMATON = """\
 automaton Probe {{
@@ -171,7 +171,7 @@ automaton Probe {{
     query Exp2: E[<=4; 10](max: fmin(x, y) + fmax(time, dist_goal()))
     query Sim: simulate[<=4; 2]{{near, d, r, Probe.location, B, true_head - head, time, -gap / 3, true_acc * true_v}}
     query L: strategy S = minE(r - s)[<=4]{{B, Probe.location, x + 1.5}}->{{x, v}}: <> goal() && d <= 30
-    query L2: strategy S2 = maxE(r)[<=4]{{r / 2 + s, -d, near}}->{{true_v, mindist()}}: <> time >= 4
+    query L2: strategy S2 = maxE(r)[<=4]{{r / 2 + s, -d, near, time}}->{{true_v, mindist()}}: <> time >= 4
     query Prev: A[] prev(v) <= v
     query Truth: E<> true_x > 20
     query LocationDouble: E<> sqrt(Probe.location) > 0.5
@@ -753,26 +753,29 @@ def engine_frames(loaded: Loaded, states: QueryStates) -> dict[str, Frame]:
     return {SYMBOLIC: Frame(**common, mirrors=states.mirrors), STATISTICAL: Frame(**common)}
 
 
-def _held(ref: ie.Ref, frame: Frame, scale: int) -> tuple[np.ndarray, Fraction]:
-    """The integers holding ``ref`` in a discrete observation and the value of one unit."""
+def _held(ref: ie.Ref, frame: Frame, scale: int, period: Fraction) -> tuple[np.ndarray, Fraction]:
+    """The integers holding ``ref`` in a discrete observation and the value of one unit (``time``: the
+    sample counter, one unit a period)."""
     if ref.kind is ie.RefKind.INPUT:
         return frame.significands[ref.name], Fraction(1, scale)
     if ref.kind is ie.RefKind.REWARD:
         return frame.mirrors[ref.name], Fraction(1, scale)
     if ref.kind is ie.RefKind.LOCATION_INDEX:
         return frame.location, Fraction(1)
+    if ref.is_model and ref.model.kind == "time":
+        return frame.k, period
     assert ref.is_model and ref.model.kind == "ego", ref
     return frame.ego[:, ref.index], Fraction(1, scale)
 
 
-def discrete_value(expr: ie.Expr, frame: Frame, scale: int) -> tuple[np.ndarray, int]:
+def discrete_value(expr: ie.Expr, frame: Frame, scale: int, period: Fraction) -> tuple[np.ndarray, int]:
     """A numeric discrete observation as UPPAAL observes it: the smallest whole multiple of the
     expression's exact value over the integers that hold it (docs/uppaal.md: ``x`` is the significand),
     and that multiple."""
     form = ie.linear_form(expr)
     assert form is not None, expr
     terms = [(coefficient * unit, column) for ref, coefficient in form.terms
-             for column, unit in [_held(ref, frame, scale)]]
+             for column, unit in [_held(ref, frame, scale, period)]]
     multiple = math.lcm(form.const.denominator, *(c.denominator for c, _ in terms))
     total = np.full(frame.n, int(form.const * multiple), dtype=np.int64)
     for c, column in terms:
@@ -813,7 +816,7 @@ def test_every_query_expression_of_every_file(case: Case, tmp_path: Path) -> Non
         where = f"{p.query.name}: {p.query.text} ({p.role}) printed as `{p.c}`"
         if p.kind == "int":  # a numeric discrete observation: an integer in UPPAAL, the number in the engine
             emitted = np.asarray([int(t) for t in tokens], dtype=np.int64)
-            expected, multiple = discrete_value(p.expr, frame, data.scale)
+            expected, multiple = discrete_value(p.expr, frame, data.scale, loaded.vocabulary.period)
             differ = np.flatnonzero(emitted != expected)
             # the engine observes the number itself (a double): the same partition of the states
             engine = evaluator.evaluate(p.expr, frame)
