@@ -54,7 +54,7 @@ def _uppaal(entry: ModelName) -> str:
     if entry.holding is Holding.TRUTH:
         return f"`Dynamics.{entry.uppaal}` (a hybrid clock; queries only)"
     if entry.holding is Holding.TIME:
-        return "the clock `time` in queries; `count * C1` in bindings"
+        return "`count` (the sample counter) in queries, `count * C1` as a number and in bindings"
     return f"`{entry.uppaal}`" if entry.uppaal else "a double literal"
 
 

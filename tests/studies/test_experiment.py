@@ -127,9 +127,13 @@ def test_a_reward_function_that_is_not_a_number_stops_learning_with_a_message(
     # a NaN reward poisoned the table and the greedy choice crashed (numpy: high <= 0): exit 3
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)
     assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--runs", "2", "--reward-function",
-                 "0/0", "--combination", "RF", "--out", str(tmp_path / "o"), "-q"]) == 1
+                 "sqrt(-1 - v)", "--combination", "RF", "--out", str(tmp_path / "o"), "-q"]) == 1
     err = capsys.readouterr().err
-    assert "not a finite number" in err and "`0/0`" in err and "internal error" not in err
+    assert "not a finite number" in err and "`sqrt(-1 - v)`" in err and "internal error" not in err
+    # a constant division by zero is refused before learning, as an option the command cannot use
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", "0/0",
+                 "--combination", "RF", "--out", str(tmp_path / "o"), "-q"]) == 2
+    assert "error[E0014]: --reward-function: `0/0`: division by zero" in capsys.readouterr().err
 
 
 def test_seed_is_one_seed_and_not_ignored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

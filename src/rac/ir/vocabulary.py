@@ -14,8 +14,8 @@ its value in every target:
   its rational value, read as the nearest double.
 - ``TRUTH``: the ground truth (the ``Dynamics`` process's hybrid clocks in UPPAAL, the fine
   integrator in the engine): statistical queries only.
-- ``TIME``: the time of the current sample, ``k * C1``. In bindings the emitted model computes it
-  from the sample counter (``count * C1``); in queries it is UPPAAL's global clock ``time``.
+- ``TIME``: the time of the current sample, ``k * C1``. The emitted model reads it from the sample
+  counter ``count`` in bindings and queries alike (its global clock ``time`` flows between samples).
 
 The printers and evaluators of every target read this table, not their own copies.
 """
