@@ -91,6 +91,14 @@ def test_experiment_seeds_are_a_list_of_seeds() -> None:
     assert build_parser().parse_args(["experiment", "x.ra", "--seeds", "0,2,3"]).seeds == (0, 2, 3)
 
 
+def test_a_seed_given_twice_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    # it was learned twice and counted twice in the table's means and spreads
+    with pytest.raises(SystemExit) as stop:
+        build_parser().parse_args(["experiment", "x.ra", "--seeds", "1,2,1,2,3"])
+    assert stop.value.code == 2
+    assert "argument --seeds: seed 1, 2 given twice in '1,2,1,2,3'" in capsys.readouterr().err
+
+
 # ---------------------------------------------------------------- 2. preanalyse: a folder it cannot write
 def blocked_folders(tmp_path: Path) -> dict[str, Path]:
     afile = tmp_path / "afile"

@@ -426,6 +426,7 @@ def test_preanalyse_reports_a_decide_period_that_is_no_multiple(capsys: pytest.C
     (["--exponent", "x"], "--exponent: 'x' is not a number"),
     (["--exponent", "1.5"], "--exponent: '1.5' must be a positive whole number"),
     (["--sense", "0.5,"], "--sense: '' is not a number"),
+    (["--exponent", "2,3,2.0"], "--exponent: '2.0' is given twice (as 2)"),  # a row run and shown twice
 ])
 def test_preanalyse_bad_lists_exit_2(capsys: pytest.CaptureFixture[str], tmp_path: Path, option: list[str],
                                      message: str) -> None:

@@ -105,8 +105,13 @@ seed_argument = _argument(int, "a whole number", lambda value: value >= MIN_SEED
 
 
 def seeds_argument(text: str) -> tuple[int, ...]:
-    """An argparse ``type`` for ``--seeds 1,2,3``: seeds as :data:`seed_argument` takes each."""
-    return tuple(seed_argument(item) for item in text.split(","))
+    """An argparse ``type`` for ``--seeds 1,2,3``: seeds as :data:`seed_argument` takes each, each once
+    (a seed twice would be learned twice and counted twice in the means and spreads)."""
+    seeds = tuple(seed_argument(item) for item in text.split(","))
+    twice = sorted({seed for seed in seeds if seeds.count(seed) > 1})
+    if twice:
+        raise argparse.ArgumentTypeError(f"seed {', '.join(map(str, twice))} given twice in {text!r}")
+    return seeds
 
 
 def _seed_text(text: str) -> str:

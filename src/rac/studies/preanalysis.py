@@ -79,6 +79,8 @@ def _values(text: str | None, default: Fraction, what: str, *, whole: bool = Fal
             raise SweepError(f"{what}: {item.strip()!r} must be a positive {'whole ' if whole else ''}number")
         if at_most is not None and value > at_most:  # before any float(): 1e400 has none
             raise SweepError(f"{what}: {item.strip()!r} must be at most {bound or short_number(at_most)}")
+        if value in out:  # a row twice would be run twice and shown twice
+            raise SweepError(f"{what}: {item.strip()!r} is given twice (as {short_number(value)})")
         out.append(value)
     return out
 
