@@ -162,6 +162,7 @@ automaton Probe {{
     query Lead: fast --> B && d > 20
     query Time: A<> time >= 2
     query TimeMixed: A[] time + r > 1
+    query Chosen: A[] jerk > 0 imply turn >= 0 && acc > -1
     query TimeFn: E<> fmax(time, 1) > 2 && sqrt(fabs(v)) < 2
     query Abs: E[] abs(v - 5) < 3 && dist_goal() > length
     query Ctl: strategy T = control: E<> goal() && near
@@ -601,7 +602,10 @@ def compile_expressions(loaded: Loaded, printed: list[Printed], printer: UppaalP
     parts = [C_PRELUDE, _as_c(_declaration(loaded.xml)), "",
              "// ---- the processes' names that queries read",
              f"struct {{ {' '.join(f'bool {name};' for name in locations)} int32_t location; }} {v.process};",
-             f"struct {{ double {', '.join(true_names)}; }} {model.dynamics};"]
+             f"struct {{ double {', '.join(true_names)}; }} {model.dynamics};",
+             # the engine's states are never the period after a decision (the Timer waiting at a decision
+             # sample, where jerk and turn already show the new choice): its guard must let them all through
+             f"struct {{ bool {model.wait}; }} {model.timer} = {{ false }};"]
     if any(re.search(r"\bdeadlock\b", p.c) for p in printed):
         parts.append("bool deadlock = false;  // the model never deadlocks")
     parts.append("// ---- the conditions the printer hoisted")

@@ -274,6 +274,23 @@ def test_file_queries_may_use_the_models_conditions(tmp_path: Path) -> None:
     assert "// Qg\nE<> goal() && Driving.Normal\n" in model.queries
 
 
+def test_a_query_reading_the_action_skips_the_period_after_a_decision(tmp_path: Path) -> None:
+    """After `decide!` the Timer waits with jerk and turn already the new choice beside the decision
+    sample's state; rac's engine has no such state (it shows the choice from the next sample on), so
+    `E<> acc == 0 && jerk > 0` held at the start in UPPAAL only. A query reading them leaves it out."""
+    source = MODEL_RA.read_text(encoding="utf-8").replace(
+        "    query Qe:", "    query J1: E<> acc == 0 && jerk > 0\n    query J2: A[] turn >= 0 || isClose\n"
+        "    query J3: E<> x > 0\n    query Qe:")
+    ra = tmp_path / "model.ra"
+    ra.write_text(source.replace('"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"'), encoding="utf-8")
+    model = generate_uppaal_model(compile_file(ra).raise_for_errors())
+    assert "// J1\nE<> !(Timer.Wait && count % DECIDE_EVERY == 0) && (acc == 0 && jerk > 0)\n" in model.queries
+    assert ("// J2\nA[] settled && !(Timer.Wait && count % DECIDE_EVERY == 0) imply (turn >= 0 || isClose)\n"
+            in model.queries)
+    assert "// J3\nE<> x > 0\n" in model.queries  # the ego state is the same before and after the choice
+    assert '<location id="' in model.xml and ">Wait</name>" in model.xml
+
+
 # ---------------------------------------------------------------- C
 def c_declarations(parsed: Parsed) -> str:
     text = parsed.declaration

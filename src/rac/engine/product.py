@@ -43,8 +43,9 @@ globals, 0 before the first reading) and the mirrors; states also differ by the 
 bindings' ``prev(e)`` variables (:attr:`ProductGraph.prev_values`), as they do in UPPAAL. Each
 layer (one sample, one phase) is merged with ``np.unique``. Not states, as in ``explore()``: the
 period after a decision, in which the emitted model already shows the new jerk and turn beside
-the sample's other values (here they show from the next sample on), and the delays between
-samples (``time`` is read at sample instants only).
+the sample's other values (here they show from the next sample on; the emitted queries that read
+them leave that period out), and the delays between samples (``time`` is read at sample instants
+only, as the emitted queries read it: the sample counter).
 
 Every input needs a binding (a checked file with a ``model`` block has one for each, E0709):
 :class:`ValueError` otherwise. As in the emitted model, ``assume`` and the inputs' declared bounds

@@ -118,7 +118,7 @@ class _ModelGenerator(AutomatonGenerator):
     def _vocabulary(self, unit: Fraction) -> Vocabulary:
         vocabulary = super()._vocabulary(unit)
         g = self.g
-        model = ModelNames(dynamics=g["dynamics"], maxt="MAXT")
+        model = ModelNames(dynamics=g["dynamics"], maxt="MAXT", timer=g["timer"], wait=g["wait"])
         return Vocabulary(**{**vocabulary.__dict__, "model": model})
 
     def _bindings(self, printer: UppaalPrinter) -> str:

@@ -38,7 +38,7 @@ from rac.core.printing import Level, Printed, number, signed_sum
 from rac.ir import compare
 from rac.ir import expr as ie
 from rac.ir import query as iq
-from rac.ir.vocabulary import Holding
+from rac.ir.vocabulary import ACTIONS, Holding
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, UppaalSyntax, double_literal, int_literal, terms_text
 
 __all__ = ["FUNCTION", "STATISTICAL", "SYMBOLIC", "ModelNames", "UppaalPrinter", "Vocabulary", "time_bound"]
@@ -56,6 +56,11 @@ class ModelNames:
     dynamics: str
     #: The constant holding the horizon in time units (``MAXT``).
     maxt: str
+    #: The Timer process and its location between samples: waiting there at a decision sample, after
+    #: ``decide!``, ``jerk`` and ``turn`` already hold the newly chosen action beside the decision
+    #: sample's state (rac's engine shows it from the next sample on, and has no such state).
+    timer: str = "Timer"
+    wait: str = "Wait"
 
 
 @dataclass(frozen=True)
@@ -174,17 +179,28 @@ class UppaalPrinter(UppaalSyntax):
 
     # ------------------------------------------------------------ conditions
     def state(self, expr: ie.Expr, dialect: str, box: bool) -> Printed:
-        """A state formula; when it reads an input, states where the inputs are newer than the
-        location (``settled`` false) are left out: ``settled imply p`` under ``[]``, else ``settled && p``."""
+        """A state formula, over the states rac's engine has too. When it reads an input, states where
+        the inputs are newer than the location (``settled`` false) are left out; when it reads ``jerk``
+        or ``turn``, the period after a decision, where they already hold the new choice
+        (:attr:`ModelNames.wait`). ``g imply p`` under ``[]``, else ``g && p``."""
         text = self.condition(expr, dialect)
-        if not any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr)):
+        refs = ie.refs(expr)
+        guards = []
+        if any(r.kind is ie.RefKind.INPUT for r in refs):
+            guards.append(Printed(self.v.settled, Level.ATOM))
+        if self.v.model is not None and any(r.is_model and r.model.kind == "ego" and r.name in ACTIONS
+                                            for r in refs):
+            model = self.v.model
+            chosen = f"({model.timer}.{model.wait} && {self.v.count} % DECIDE_EVERY == 0)"
+            guards.append(self.prefix("!", Printed(chosen, Level.ATOM)))
+        if not guards:
             return text
-        settled = Printed(self.v.settled, Level.ATOM)
+        guard = guards[0] if len(guards) == 1 else self.infix("&&", guards[0], guards[1])
         if box and self.c_syntax:
-            return self.infix("||", self.prefix("!", settled), text)
+            return self.infix("||", self.prefix("!", guard), text)
         if box:
-            return self.infix("imply", settled, text)
-        return self.infix("&&", settled, text)
+            return self.infix("imply", guard, text)
+        return self.infix("&&", guard, text)
 
     def condition(self, expr: ie.Expr, dialect: str) -> Printed:
         """A boolean expression."""
