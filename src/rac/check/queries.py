@@ -432,8 +432,6 @@ def _arguments(count: int) -> str:
     return "no arguments" if count == 0 else "1 argument" if count == 1 else f"{count} arguments"
 
 
-
-
 # ---------------------------------------------------------------- against a checked automaton
 def scope_of(automaton: ir.Automaton) -> Scope:
     """The names a query of ``automaton`` may read (its inputs, rewards, locations, constants, model)."""

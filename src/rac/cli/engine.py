@@ -323,12 +323,12 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
                                                  max_bytes=args.max_memory or default_max_bytes(),
                                                  progress=callback)
     except BudgetExceeded as exc:
-        fallback = shields.StepShield(result.model_data, horizon_samples, lookahead=LookaheadSettings(),
-                                      reason=over_budget(exc))
+        settings = LookaheadSettings()
+        fallback = shields.StepShield(result.model_data, horizon_samples, lookahead=settings, reason=over_budget(exc))
         decisions = runs * len(range(0, horizon_samples, int(result.model_data.decide_every)))
-        print(f"rac {args.command}: note: the exhaustive shield is beyond the budget ({over_budget(exc)}); the runs "
-              f"choose under the runtime shield instead ({decisions:,} decisions, up to "
-              f"{LookaheadSettings().seconds:g} s each)", file=sys.stderr)
+        print(f"rac {args.command}: note: the exhaustive shield is beyond the budget ({fallback.reason}); the runs "
+              f"choose under the runtime shield instead ({decisions:,} decisions, up to {settings.seconds:g} s each)",
+              file=sys.stderr)
         return shields.StepShieldPolicy(fallback), None, EXIT_OK
     if not computed.shield_exists:
         return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)", EXIT_ERRORS

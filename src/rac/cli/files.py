@@ -87,13 +87,13 @@ def _check_files(args: argparse.Namespace) -> int:
         if result.diagnostics:
             print(render_text(result.diagnostics, result.sources))
             print()
-        summary = "ok" if not errors else f"{errors} error{'s' * (errors != 1)}"
+        unfinished = 0 if errors else sum(d.code == UNFINISHED for d in result.diagnostics)
+        # no error but a check that stopped at its limit: not every verdict either
+        summary = f"{errors} error{'s' * (errors != 1)}" if errors else "undecided" if unfinished else "ok"
         if warnings:
             summary += f", {warnings} warning{'s' * (warnings != 1)}"
-        unfinished = sum(d.code == UNFINISHED for d in result.diagnostics)
-        if unfinished and not errors:  # no error, but not every verdict either
-            summary = summary.replace("ok", "undecided", 1) + (
-                f" ({unfinished} of them: a check stopped at its limit, neither proved nor refuted)")
+        if unfinished:
+            summary += f" ({unfinished} of them: a check stopped at its limit, neither proved nor refuted)"
         print(f"{path}: {summary}")
         if not args.quiet:
             for fact in result.proved:

@@ -437,6 +437,11 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     targets = np.zeros((n_loc, width), dtype=np.int64)
     stop = np.full((n_loc, width), neg_inf, dtype=dtype)
     stop_last = np.full((n_loc, width), neg_inf, dtype=dtype)
+
+    def episode_stop(edge_value: int, kee: Fraction | None) -> int:
+        """The stop value where ``episode ends when`` ends the run: after the edge, or after its own end clauses."""
+        return edge_value if kee is None else max(edge_value, w0 + int(kee * scale))
+
     k_next = np.full((n_loc, width), neg_inf, dtype=dtype)
     goes_on = np.zeros((n_loc, width), dtype=bool)  # the run may continue after this outcome
     for here, oi, t, ke, kn, ending, kee in rows:
@@ -446,8 +451,7 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
         if target.watched[t]:
             edge_value = w0 + int(ke * scale)
             if ending:  # the run ends here, with this sample's own end clauses (no end of its own)
-                stop[here, oi] = stop_last[here, oi] = edge_value if kee is None else max(edge_value,
-                                                                                          w0 + int(kee * scale))
+                stop[here, oi] = stop_last[here, oi] = episode_stop(edge_value, kee)
             else:
                 stop[here, oi] = max(edge_value + end_bonus, w0 + int(kn * scale))
                 stop_last[here, oi] = edge_value + end_bonus
@@ -482,8 +486,7 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
         options = []
         if target.watched[t]:
             if ending:
-                options.append((w0 + int(ke * scale) if kee is None else max(w0 + int(ke * scale),
-                                                                              w0 + int(kee * scale)), "stop"))
+                options.append((episode_stop(w0 + int(ke * scale), kee), "stop"))
             else:
                 options.append((w0 + int(ke * scale) + end_bonus, "stop"))
             if steps > 1 and not ending:
