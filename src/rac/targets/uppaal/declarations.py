@@ -86,6 +86,11 @@ def _comment_text(text: str) -> str:
     return re.sub(r"[^\x20-\x7e]", "?", text).replace("*/", "* /")
 
 
+#: The constant holding the samples between two decisions (C2 / C1): declared here, read by the
+#: Timer's guards and by a query's guard on ``jerk``/``turn`` (through ``ModelNames.decide_every``).
+DECIDE_EVERY = "DECIDE_EVERY"
+
+
 def action_name(name: str) -> str:
     cleaned = re.sub(r"[^A-Za-z0-9_]", "_", name).upper()
     return cleaned if cleaned[:1].isalpha() else "A_" + cleaned
@@ -105,7 +110,7 @@ def emit_declarations(data: ModelData) -> str:
         _scalar("SENSE_PERIOD", data.sense_period, "C1"),
         _scalar("DECIDE_PERIOD", data.decide_period, "C2"),
         _scalar("OFFROAD_FROM", data.offroad_from, "offroad() is false before this sample"),
-        _scalar("DECIDE_EVERY", data.decide_every, "C2 / C1"),
+        _scalar(DECIDE_EVERY, data.decide_every, "C2 / C1"),
         f"const double NO_OBSTACLE = {double_literal(1.0e9)};  // mindist() without obstacles",
         "// ---- vehicle",
         _scalar("LENGTH", data.length),

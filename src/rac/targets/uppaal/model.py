@@ -42,7 +42,7 @@ from rac.ir.vocabulary import ACTIONS, EGO_STATE
 from rac.model.data import ModelData
 from rac.model.program import CheckedProgram
 from rac.targets.uppaal.automaton import AutomatonGenerator, UppaalError, UppaalModel
-from rac.targets.uppaal.declarations import action_name, declared_names, emit_declarations
+from rac.targets.uppaal.declarations import DECIDE_EVERY, action_name, declared_names, emit_declarations
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, double_literal
 from rac.targets.uppaal.layout import Ids, Location, Template, edge, environment
 from rac.targets.uppaal.query import ModelNames, UppaalPrinter, Vocabulary
@@ -87,7 +87,7 @@ class _ModelGenerator(AutomatonGenerator):
         deciding = Location(ids(), g["deciding"], 0, 340, committed=True)
         ending = Location(ids(), g["ending"], 544, 170, committed=True)
         done = Location(ids(), g["done"], 816, 170, f"{g['t']} <= {g['period']}")
-        more, decide = f"{g['count']} < {g['steps']}", f"{g['count']} % DECIDE_EVERY == 0"
+        more, decide = f"{g['count']} < {g['steps']}", f"{g['count']} % {DECIDE_EVERY} == 0"
         settle = f"{g['settled']} = true"
         goes_on, last, finish = self.processes.ending()  # `episode ends when`
         transitions = [
@@ -97,7 +97,7 @@ class _ModelGenerator(AutomatonGenerator):
                   sync=f"{ch['accrue']}!", assignment=f"{g['t']} = 0, {g['count']}++", anchor=(40, -60)),
             edge(ids, accrued, reading, sync=f"{ch['read']}?", assignment=f"{g['settled']} = false",
                   anchor=(282, 70)),
-            edge(ids, reading, wait, guard=f"{more} && {g['count']} % DECIDE_EVERY != 0{goes_on}",
+            edge(ids, reading, wait, guard=f"{more} && {g['count']} % {DECIDE_EVERY} != 0{goes_on}",
                   sync=f"{ch['sense']}!", assignment=settle, anchor=(60, 110)),
             edge(ids, reading, deciding, guard=f"{more} && {decide}{goes_on}", sync=f"{ch['sense']}!",
                   assignment=settle, anchor=(150, 280)),
@@ -118,7 +118,8 @@ class _ModelGenerator(AutomatonGenerator):
     def _vocabulary(self, unit: Fraction) -> Vocabulary:
         vocabulary = super()._vocabulary(unit)
         g = self.g
-        model = ModelNames(dynamics=g["dynamics"], maxt="MAXT", timer=g["timer"], wait=g["wait"])
+        model = ModelNames(dynamics=g["dynamics"], maxt="MAXT", timer=g["timer"], wait=g["wait"],
+                           decide_every=DECIDE_EVERY)
         return Vocabulary(**{**vocabulary.__dict__, "model": model})
 
     def _bindings(self, printer: UppaalPrinter) -> str:

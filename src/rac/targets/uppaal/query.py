@@ -59,8 +59,11 @@ class ModelNames:
     #: The Timer process and its location between samples: waiting there at a decision sample, after
     #: ``decide!``, ``jerk`` and ``turn`` already hold the newly chosen action beside the decision
     #: sample's state (rac's engine shows it from the next sample on, and has no such state).
-    timer: str = "Timer"
-    wait: str = "Wait"
+    timer: str
+    wait: str
+    #: The constant holding the samples between two decisions (C2 / C1; declared by
+    #: :mod:`rac.targets.uppaal.declarations`).
+    decide_every: str
 
 
 @dataclass(frozen=True)
@@ -191,7 +194,7 @@ class UppaalPrinter(UppaalSyntax):
         if self.v.model is not None and any(r.is_model and r.model.kind == "ego" and r.name in ACTIONS
                                             for r in refs):
             model = self.v.model
-            chosen = f"({model.timer}.{model.wait} && {self.v.count} % DECIDE_EVERY == 0)"
+            chosen = f"({model.timer}.{model.wait} && {self.v.count} % {model.decide_every} == 0)"
             guards.append(self.prefix("!", Printed(chosen, Level.ATOM)))
         if not guards:
             return text
