@@ -322,7 +322,8 @@ def test_render_an_unknown_strategy_says_so_once(capsys: pytest.CaptureFixture[s
     code, _, err = run(capsys, "render", engine_file, "-q", "--seed", "1", "-o", tmp_path / "o",
                        "--strategy", "nosuch")
     assert code == EXIT_USAGE
-    assert err == f"rac render: no learned strategy `nosuch` in {engine_file} (learning queries: none)\n"
+    assert err.startswith(f"error[E0014]: no learned strategy `nosuch` in {engine_file} (learning queries: none)\n")
+    assert err.count("error[") == 1 and "= hint: name a `strategy NAME" in err
 
 
 def test_render_an_empty_strategy_name_says_so(capsys: pytest.CaptureFixture[str], engine_file: Path,
@@ -330,7 +331,7 @@ def test_render_an_empty_strategy_name_says_so(capsys: pytest.CaptureFixture[str
     # `--strategy ""` rendered a random run, exit 0
     code, _, err = run(capsys, "render", engine_file, "-q", "--seed", "1", "-o", tmp_path / "o", "--strategy", "")
     assert code == EXIT_USAGE
-    assert err == f"rac render: no learned strategy `` in {engine_file} (learning queries: none)\n"
+    assert err.startswith(f"error[E0014]: no learned strategy `` in {engine_file} (learning queries: none)\n")
 
 
 @pytest.mark.parametrize("command", ["simulate", "render", "preanalyse"])

@@ -287,8 +287,8 @@ def test_simulate_shield_without_safe_strategy_exits_1(capsys: pytest.CaptureFix
     captured = capsys.readouterr()
     assert captured.out == ""
     assert "warning[W0716]: the ego starts off the road" in captured.err  # rac check's, first
-    assert captured.err.endswith("rac simulate: no safe strategy exists from the start within the horizon "
-                                 "(Qd is not satisfied)\n")
+    assert "error[E0015]: no safe strategy exists from the start within the horizon (Qd is not satisfied)\n" \
+        in captured.err
     assert not (tmp_path / "narrow_road.out").exists()
 
 
@@ -326,7 +326,7 @@ def test_simulate_bad_expression_exits_2(capsys: pytest.CaptureFixture[str], tmp
     assert main(["simulate", str(path), "--runs", "1", "--horizon", "0.5", "--expr", "v", "--expr", expr]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert captured.err == f"rac simulate: --expr: {message}\n"
+    assert captured.err == f"error[E0014]: --expr: {message}\n"
     assert not (tmp_path / "goal_ahead.out").exists()
 
 
@@ -568,3 +568,36 @@ def test_statistical_runs_that_allow_when_stops_are_not_answered(capsys: pytest.
     for result in results:
         assert result["status"] == "unsupported"
         assert "runs met a decision where the model's `allow when` allowed no action" in result["message"]
+
+
+# ---------------------------------------------------------------- --format json
+def test_simulate_and_render_json_summaries(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    # a script reads what was simulated and written from standard output, notes included, never text
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    out = tmp_path / "out"
+    assert main(["simulate", str(path), "--runs", "3", "--seed", "4", "--shield", "--max-states", "10",
+                 "-o", str(out), "--format", "json"]) == 0
+    captured = capsys.readouterr()
+    document = json.loads(captured.out)
+    assert document["runs"] == 3 and document["seed"] == 4 and document["shield"] is True
+    assert document["wrote"] == [str(out / "runs.csv"), str(out / "runs.png")]
+    assert all(Path(p).is_file() for p in document["wrote"])
+    rows = list(csv.DictReader((out / "runs.csv").open(encoding="utf-8")))
+    below = {r["run"] for r in rows if float(r["mindist()"]) < float(r["3 * collision_distance"])}
+    assert document["runs_below"] == len(below) and document["runs_left_policy"] == 0
+    # the runtime shield's fallback and the guarantee it gave are notes in the document, not on stderr
+    assert any(n.startswith("the exhaustive shield is beyond the budget") for n in document["notes"])
+    assert any(n.startswith("the runs' actions, ") for n in document["notes"])
+    assert "note:" not in captured.err
+    assert main(["render", str(path), "--seed", "4", "-o", str(out), "--format", "json", "-q"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["how"] == "one run" and document["seed"] == 4 and document["wrote"] == [str(out / "run.png")]
+
+
+@pytest.mark.parametrize("argv", [["simulate", "--expr", "mindist("], ["render", "--strategy", "nosuch"]])
+def test_simulate_and_render_json_errors(argv: list[str], capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main([argv[0], str(path), *argv[1:], "--horizon", "0.5", "--format", "json", "-q"]) == 2
+    captured = capsys.readouterr()
+    [diagnostic] = json.loads(captured.out)
+    assert diagnostic["code"] == "E0014" and captured.err == ""

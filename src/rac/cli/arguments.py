@@ -177,6 +177,8 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
                           help="what to record per sample (default: mindist() and 3 * collision_distance)")
     simulate.add_argument("--shield", action="store_true",
                           help="choose actions under the safety shield (computed first, like Qd)")
+    simulate.add_argument("--format", choices=("text", "json"), default="text",
+                          help="output format (json: a summary of the runs and the files written)")
 
     render = commands.add_parser("render", help="draw the scenario with a simulated trajectory (PNG, GIF)",
                                  epilog=OUTPUT_CONVENTION)
@@ -186,6 +188,8 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     how.add_argument("--strategy", metavar="NAME",
                      help="drive the file's learned strategy NAME (learned first, like rac verify does)")
     render.add_argument("--gif", action="store_true", help="also write an animated GIF, run.gif")
+    render.add_argument("--format", choices=("text", "json"), default="text",
+                        help="output format (json: the run drawn and the files written)")
 
     pre = commands.add_parser("preanalyse", help="sweep number representation and periods: Qa-Qd per setting",
                               epilog=OUTPUT_CONVENTION)

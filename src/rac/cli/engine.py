@@ -140,6 +140,24 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
     return run
 
 
+def _note(args: argparse.Namespace, notes: list[str], text: str) -> None:
+    """A note on what a command's outputs mean: on standard error as ``rac COMMAND: note: text``, or with
+    ``--format json`` kept in ``notes`` for the command's JSON document (standard output stays JSON)."""
+    if as_json(args):
+        notes.append(text)
+    else:
+        print(f"rac {args.command}: note: {text}", file=sys.stderr)
+
+
+def _print_summary(args: argparse.Namespace, document: dict[str, object], lines: Sequence[str]) -> None:
+    """A command's result: ``document`` as JSON with ``--format json``, else ``lines`` of text."""
+    if as_json(args):
+        print(json.dumps(document, indent=2))
+    else:
+        for line in lines:
+            print(line)
+
+
 def _announcer(quiet: bool) -> Callable[[str], None]:
     """``announce(message)``: a line on a terminal (unless ``quiet``), and the phase of the active heartbeat."""
 
@@ -152,9 +170,10 @@ def _announcer(quiet: bool) -> Callable[[str], None]:
     return announce
 
 
-def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int, n: int):
+def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int, n: int, notes: list[str]):
     """``n`` simulated runs (under the safety shield with ``--shield``) and their seed, or None, the
-    reason when no shield can be used and the exit code it calls for (:func:`_shield_policy`)."""
+    reason when no shield can be used and the exit code it calls for (:func:`_shield_policy`); what the
+    runs' guarantee was goes into ``notes`` (:func:`_note`)."""
     import numpy as np  # numpy: only the command that uses it loads it
 
     # numpy (via rac.engine.shield): only the command that uses it loads it
@@ -165,7 +184,7 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
 
     policy = None
     if args.shield:
-        policy, problem, status = _shield_policy(result, samples, args, n)
+        policy, problem, status = _shield_policy(result, samples, args, n, notes)
         if policy is None:
             return None, problem, status
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
@@ -173,8 +192,16 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
     runs = simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
                     max_bytes=args.max_memory or default_max_bytes())
     if isinstance(policy, StepShieldPolicy):  # the guarantee the runs had, said beside them
-        print(f"rac {args.command}: note: the runs' actions, {policy.summary()}", file=sys.stderr)
+        _note(args, notes, f"the runs' actions, {policy.summary()}")
     return runs, seed, EXIT_OK
+
+
+def _no_runs(reason: str, status: int) -> Diagnostic:
+    """Why no runs were drawn: the file's (no safe strategy, exit 1) or the options' (exit 2)."""
+    if status == EXIT_ERRORS:
+        return unusable_file(reason, hints=["without --shield the runs show how the ego fails; `rac verify --standard` "
+                                            "answers Qa-Qd, whose Qd is this shield's query"])
+    return usage_error(reason)
 
 
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
@@ -186,11 +213,12 @@ def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int)
     assert result.automaton is not None
     learned = {d.query.name: d for d in result.automaton.queries if isinstance(d.query, iq.LearnStrategy)}
     if args.strategy not in learned:
-        print(f"rac render: no learned strategy `{args.strategy}` in {args.file} (learning queries: "
-              f"{', '.join(learned) or 'none'})", file=sys.stderr)
+        _report(args, usage_error(f"no learned strategy `{args.strategy}` in {args.file} (learning queries: "
+                                  f"{', '.join(learned) or 'none'})",
+                                  hints=["name a `strategy NAME = maxE(...)` or `minE(...)` query of the file"]))
         return None, ""
     options = VerifyOptions(seed=args.seed, max_states=args.max_states, only=(learned[args.strategy].name,),
-                            max_bytes=args.max_memory or default_max_bytes(), bars=not args.quiet)
+                            max_bytes=args.max_memory or default_max_bytes(), bars=not (args.quiet or as_json(args)))
     context, results = run_queries(result, options)
     if args.strategy not in context.learned:
         reasons = "; ".join(f"{r.name}: {r.message}" for r in results if r.message)
@@ -301,7 +329,8 @@ def verdict_status(results: Sequence[QueryResult]) -> int:
     return EXIT_OK
 
 
-def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.Namespace, runs: int):
+def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.Namespace, runs: int,
+                   notes: list[str]):
     """The safety shield (Qd) at this horizon as a simulation policy, or None, an error message and
     the exit code (1 when no safe strategy exists: Qd does not hold). When the exhaustive shield is
     beyond the budget the runs choose under the runtime shield instead
@@ -316,7 +345,7 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
     from rac.verify.context import over_budget
 
     assert result.model_data is not None
-    bar, callback = _explore_bar(args.quiet)
+    bar, callback = _explore_bar(args.quiet or as_json(args))
     try:
         with bar:
             computed, table = shields.synthesise(result.model_data, horizon_samples, max_states=args.max_states,
@@ -326,9 +355,8 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
         settings = LookaheadSettings()
         fallback = shields.StepShield(result.model_data, horizon_samples, lookahead=settings, reason=over_budget(exc))
         decisions = runs * len(range(0, horizon_samples, int(result.model_data.decide_every)))
-        print(f"rac {args.command}: note: the exhaustive shield is beyond the budget ({fallback.reason}); the runs "
-              f"choose under the runtime shield instead ({decisions:,} decisions, up to {settings.seconds:g} s each)",
-              file=sys.stderr)
+        _note(args, notes, f"the exhaustive shield is beyond the budget ({fallback.reason}); the runs choose under "
+              f"the runtime shield instead ({decisions:,} decisions, up to {settings.seconds:g} s each)")
         return shields.StepShieldPolicy(fallback), None, EXIT_OK
     if not computed.shield_exists:
         return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)", EXIT_ERRORS
@@ -375,18 +403,19 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     texts = args.expr or ["mindist()", "3 * collision_distance"]
     exprs, problem = _parse_exprs(texts, result.automaton)
     if exprs is None:
-        print(f"rac simulate: --expr: {problem}", file=sys.stderr)
+        _report(args, usage_error(f"--expr: {problem}"))
         return EXIT_USAGE
     samples = _horizon_samples(result, args.horizon)
-    runs, seed, status = _shielded_runs(result, args, samples, args.runs)
+    notes: list[str] = []
+    runs, seed, status = _shielded_runs(result, args, samples, args.runs, notes)
     if runs is None:
-        print(f"rac simulate: {seed}", file=sys.stderr)
+        _report(args, _no_runs(seed, status))
         return status
     context = Context(result, VerifyOptions(seed=args.seed))
     try:
         values = context.values(runs, tuple(exprs))
     except EvaluationError as exc:
-        print(f"rac simulate: --expr: {exc}", file=sys.stderr)
+        _report(args, usage_error(f"--expr: {exc}"))
         return EXIT_USAGE
     out_dir = _out_dir(args)
     csv_path, png_path = out_dir / "runs.csv", out_dir / "runs.png"
@@ -396,27 +425,33 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
         title = f"{args.file.name}: {args.runs} runs{' under the shield' if args.shield else ''} (seed {seed})"
         plot_series(png_path, runs.times, texts, values, title, exprs)
     except OSError as exc:
-        print(f"rac simulate: cannot write: {exc}", file=sys.stderr)
+        _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
-    print(f"simulated {args.runs} runs of {samples} samples (seed {seed}){' under the shield' if args.shield else ''}")
+    under = " under the shield" if args.shield else ""
+    lines = [f"simulated {args.runs} runs of {samples} samples (seed {seed}){under}"]
+    document: dict[str, object] = {"file": str(args.file), "runs": args.runs, "samples": samples, "seed": seed,
+                                   "shield": bool(args.shield), "expressions": texts}
     if result.automaton is not None and result.automaton.ending is not None:
-        print("rac simulate: note: the runs go on to the horizon; the automaton's `episode ends when`, which ends "
-              "them in the emitted model, is not applied here", file=sys.stderr)
+        _note(args, notes, "the runs go on to the horizon; the automaton's `episode ends when`, which ends them in "
+                           "the emitted model, is not applied here")
     if len(values) == 2 and np.ptp(values[1]) == 0:
         below = int(np.any(values[0] < values[1], axis=1).sum())
-        print(f"{below} of {args.runs} runs go below {texts[1]} = {float(values[1].flat[0]):g}")
+        lines.append(f"{below} of {args.runs} runs go below {texts[1]} = {float(values[1].flat[0]):g}")
+        document["runs_below"] = below
     if np.all(values[0] == NO_OBSTACLE):  # mindist() without an obstacle: say so, not "1e9 m"
         assert result.model_data is not None
         none = "the scenario has none" if result.model_data.obstacle_count == 0 else "none within the horizon"
-        print(f"rac simulate: note: no obstacle at any sample ({none}): `{texts[0]}` reads {NO_OBSTACLE_TEXT}, "
-              "its value without one", file=sys.stderr)
+        _note(args, notes, f"no obstacle at any sample ({none}): `{texts[0]}` reads {NO_OBSTACLE_TEXT}, its value "
+                           "without one")
     left = int(runs.left_policy.sum())
+    document["runs_left_policy"] = left
     if left:
         guarded = result.model_data is not None and result.model_data.allow is not None
         who = "the shield or the model's `allow when`" if args.shield and guarded else \
             "the model's `allow when`" if guarded else "the shield"
-        print(f"{left} runs met a state where {who} allowed nothing and continued with every action")
-    print(f"wrote {csv_path}\nwrote {png_path}")
+        lines.append(f"{left} runs met a state where {who} allowed nothing and continued with every action")
+    document["notes"], document["wrote"] = notes, [str(csv_path), str(png_path)]
+    _print_summary(args, document, [*lines, f"wrote {csv_path}", f"wrote {png_path}"])
     return EXIT_OK
 
 
@@ -426,14 +461,15 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.output.render import RenderError, render_trajectory
 
     samples = _horizon_samples(result, args.horizon)
+    notes: list[str] = []
     if args.strategy is not None:  # `--strategy ""` names no strategy: said, not a random run drawn
         runs, seed = _strategy_run(result, args, samples)
         status = EXIT_ERRORS if seed else EXIT_USAGE  # "": _strategy_run has said why (a usage error)
     else:
-        runs, seed, status = _shielded_runs(result, args, samples, 1)
+        runs, seed, status = _shielded_runs(result, args, samples, 1, notes)
     if runs is None:
         if seed:
-            print(f"rac render: {seed}", file=sys.stderr)
+            _report(args, _no_runs(seed, status))
         return status
     real = runs.sensed_real()[0]
     trajectory = real[:, [Ego.X, Ego.Y, Ego.HEAD]]
@@ -450,18 +486,19 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
                                     length=float(spec.length), width=float(spec.width),
                                     title=f"{args.file.name}, {_short(args)}, seed {seed}")
     except RenderError as exc:
-        print(f"rac render: {exc}", file=sys.stderr)
+        _report(args, unusable_file(str(exc)))
         return EXIT_ERRORS
     except OSError as exc:
-        print(f"rac render: cannot write: {exc}", file=sys.stderr)
+        _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
-    print(f"rendered {_how(args)}: {samples} samples (seed {seed})")
     if automaton.ending is not None and args.strategy is None:
-        print("rac render: note: the run goes on to the horizon; the automaton's `episode ends when`, which ends "
-              "it in the emitted model, is not applied here", file=sys.stderr)
-    print(f"wrote {written}")
-    if gif is not None:
-        print(f"wrote {gif}")
+        _note(args, notes, "the run goes on to the horizon; the automaton's `episode ends when`, which ends it in "
+                           "the emitted model, is not applied here")
+    wrote = [str(written), *([str(gif)] if gif is not None else [])]
+    document: dict[str, object] = {"file": str(args.file), "how": _how(args), "samples": samples, "seed": seed,
+                                   "notes": notes, "wrote": wrote}
+    _print_summary(args, document, [f"rendered {_how(args)}: {samples} samples (seed {seed})",
+                                    *(f"wrote {path}" for path in wrote)])
     return EXIT_OK
 
 
