@@ -138,6 +138,20 @@ def test_timing_warnings_name_both_numbers() -> None:
         RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, dt=0.25)
 
 
+def test_a_time_limit_around_an_unregistered_environment_is_checked() -> None:
+    # the docs put the limit inside the wrapper as RewardAutomatonWrapper(TimeLimit(env, n), ...); around
+    # an environment made without an id the TimeLimit's spec is None, and an episode of 5 s against
+    # the automaton's 3 s went unsaid (so did the vector wrapper's own advice, SyncVectorEnv of TimeLimits)
+    assert HighwayLike(dt=0.1).spec is None
+    assert env_timing(TimeLimit(HighwayLike(dt=0.1), 50)) == (0.1, 5.0)
+    assert env_timing(TimeLimit(TimeLimit(HighwayLike(dt=0.1), 20), 50)) == (0.1, 2.0)  # the first limit reached
+    with pytest.warns(UserWarning, match=r"episode lasts 5 s \(50 steps of 0.1 s\) but the automaton's horizon is 3 s"):
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=0.1), 50), follow(), inputs)
+    with pytest.warns(UserWarning, match=r"episode lasts 5 s \(50 steps of 0.1 s\)"):
+        RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(dt=0.1), 50)] * 2), follow(),
+                                     vector_inputs)
+
+
 def test_timing_is_checked_again_when_the_environment_is_reconfigured() -> None:
     # highway-env's usual pattern: make, wrap, then env.unwrapped.configure({...}) and reset(); the
     # wrapper checked the timing at construction only, and the new one went unsaid

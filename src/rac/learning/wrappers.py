@@ -143,8 +143,9 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
     """(seconds per step, seconds per episode) of ``env``, each None when unknown.
 
     The step: ``dt`` when given; else ``env.unwrapped.dt``; else highway-env's
-    ``1 / config["policy_frequency"]``. The episode: the shorter of ``spec.max_episode_steps`` steps
-    and highway-env's ``config["duration"]`` (seconds in highway-env: its clock advances by
+    ``1 / config["policy_frequency"]``. The episode: the shortest of ``spec.max_episode_steps`` steps,
+    the limit of every ``TimeLimit`` in the wrapper chain (one around an unregistered environment
+    has no spec) and highway-env's ``config["duration"]`` (seconds in highway-env: its clock advances by
     ``1 / policy_frequency`` per step and the episode is truncated at ``time >= duration``), as
     the episode ends at whichever comes first.
     """
@@ -158,14 +159,31 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
             step = float(own)
         elif isinstance(config.get("policy_frequency"), (int, float)) and config["policy_frequency"] > 0:
             step = 1.0 / config["policy_frequency"]
-    spec = getattr(env, "spec", None)
-    limit = getattr(spec, "max_episode_steps", None)
     ends: list[float] = []  # every limit the episode has: it ends at the first one reached
-    if isinstance(limit, int) and step is not None:
-        ends.append(limit * step)
+    if step is not None:
+        ends.extend(limit * step for limit in _step_limits(env))
     if isinstance(config.get("duration"), (int, float)):
         ends.append(float(config["duration"]))
     return step, min(ends, default=None)
+
+
+def _step_limits(env: object) -> list[int]:
+    """The step limits of ``env``'s episodes: its spec's ``max_episode_steps`` and that of every
+    gymnasium ``TimeLimit`` in its wrapper chain. The spec alone misses a ``TimeLimit(env, n)`` put
+    around an environment that was not made from a registered id (its spec is None), which is how
+    the docs tell a limit to go inside the wrapper."""
+    limits: list[int] = []
+    spec_limit = getattr(getattr(env, "spec", None), "max_episode_steps", None)
+    if isinstance(spec_limit, int):
+        limits.append(spec_limit)
+    seen = 0
+    while env is not None and seen < 100:  # a wrapper chain, not a cycle
+        if isinstance(env, gymnasium.wrappers.TimeLimit):
+            own = getattr(env, "_max_episode_steps", None)  # gymnasium keeps it there, with no public name
+            if isinstance(own, int):
+                limits.append(own)
+        env, seen = getattr(env, "env", None), seen + 1
+    return limits
 
 
 class _Timing:
@@ -313,10 +331,11 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
 
     Timing: a ``UserWarning`` (at construction, and at a reset when the environment's timing is
     new: it only knows it then, or it was reconfigured) when the environment's step differs from
-    the automaton's ``sample every``, or its episode (the shorter of ``spec.max_episode_steps``
-    steps and highway-env's ``duration``) from the automaton's horizon: the priority proofs cover
-    runs of the automaton's period and horizon only. When neither ``dt``, ``env.unwrapped.dt`` nor
-    highway-env's ``policy_frequency`` is there, nothing is checked.
+    the automaton's ``sample every``, or its episode (the shortest of ``spec.max_episode_steps``
+    steps, a ``TimeLimit``'s in the wrapper chain and highway-env's ``duration``) from the
+    automaton's horizon: the priority proofs cover runs of the automaton's period and horizon only.
+    When neither ``dt``, ``env.unwrapped.dt`` nor highway-env's ``policy_frequency`` is there,
+    nothing is checked.
 
     stable-baselines3's ``Monitor`` goes outside (a ``UserWarning`` when ``env`` holds one): inside, it
     records the environment's reward and misses the episodes the automaton ends.
