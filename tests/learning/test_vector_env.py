@@ -318,6 +318,19 @@ def test_seeded_runs_repeat(goal: CompileResult) -> None:
     assert not all((x == y).all() for x, y in zip(first, other))
 
 
+def test_a_list_of_seeds_as_sync_vector_env_takes_it(goal: CompileResult) -> None:
+    # gymnasium's vector API takes a seed per sub-environment (SyncVectorEnv: seed=s is [s, s+1, ...]);
+    # ScenarioVectorEnv, which stands in for a SyncVectorEnv, failed on a list inside gymnasium's seeding
+    envs, listed = ScenarioVectorEnv(goal, num_envs=3), ScenarioVectorEnv(goal, num_envs=3)
+    first, _ = envs.reset(seed=5)
+    again, _ = listed.reset(seed=[5, 6, 7])
+    assert (first == again).all()
+    assert (envs.np_random.integers(1000, size=4) == listed.np_random.integers(1000, size=4)).all()
+    listed.reset(seed=[None, None, None])
+    with pytest.raises(ValueError, match="num_envs=3 seeds, not 2"):
+        listed.reset(seed=[1, 2])
+
+
 def test_errors(tiny: CompileResult) -> None:
     with pytest.raises(ValueError, match="num_envs"):
         ScenarioVectorEnv(tiny, num_envs=0)

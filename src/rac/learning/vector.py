@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 from collections import Counter
+from collections.abc import Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -181,13 +182,20 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                              "shield and batch (a SyncVectorEnv of ScenarioEnvs can: vectorization_mode='sync')")
 
     # ------------------------------------------------------------ stepping
-    def reset(self, *, seed: int | None = None,
+    def reset(self, *, seed: int | Sequence[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Start every episode at the ego's start (the seed only seeds ``np_random``: the model is
-        deterministic). ``options["reset_mask"]`` is not supported (it belongs to the other autoreset modes)."""
+        deterministic). ``seed`` may also be SyncVectorEnv's list of ``num_envs`` seeds (None for
+        unseeded): its first seeds ``np_random``, so ``seed=s`` and ``seed=[s, s + 1, ...]`` (what
+        SyncVectorEnv makes of ``s``) agree. ``options["reset_mask"]`` is not supported (it belongs to
+        the other autoreset modes)."""
         if options and "reset_mask" in options:
             raise ValueError("options['reset_mask'] is for gymnasium's same-step and disabled autoreset modes; "
                              "this environment resets an ended episode in the next step")
+        if isinstance(seed, Sequence):  # SyncVectorEnv's per-environment seeds: one np_random here
+            if len(seed) != self.num_envs:
+                raise ValueError(f"a list of seeds must hold num_envs={self.num_envs} seeds, not {len(seed)}")
+            seed = seed[0]
         super().reset(seed=seed)
         episodes = self.episodes
         episodes.reset(self.num_envs)
