@@ -159,6 +159,18 @@ def test_make_vec_uses_the_native_vector_env(files: dict[str, Path]) -> None:
     assert isinstance(sync, gymnasium.vector.SyncVectorEnv) and checked(sync.envs[0]) == []
 
 
+def test_make_vec_refuses_max_episode_steps_naming_the_horizon(files: dict[str, Path], tiny: CompileResult) -> None:
+    # gymnasium.make_vec hands max_episode_steps to the vector entry point: it failed with "unexpected
+    # keyword argument" (a TypeError saying nothing of horizon=, the environment's own limit)
+    period = float(tiny.automaton.model.decide_period)  # type: ignore[union-attr]
+    for model in (files["avoidable_obstacle"], tiny):
+        with pytest.raises(ValueError, match=rf"max_episode_steps=3 .*horizon={3 * period:g} \(3 decisions"):
+            gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=model, max_episode_steps=3)
+    with pytest.raises(ValueError, match=r"give horizon=<seconds> \(a whole number"):
+        make_vector_env(2, model=files["avoidable_obstacle"], max_episode_steps=0)
+    assert make_vector_env(2, model=tiny, max_episode_steps=None).num_envs == 2  # no limit: nothing to refuse
+
+
 def test_make_vec_with_a_set_of_scenes_steps_scenario_envs(files: dict[str, Path]) -> None:
     """A set of scenes cannot share one batch: the entry point hands ``scenarios`` to ScenarioEnvs,
     each drawing its scene per episode."""

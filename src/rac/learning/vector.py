@@ -32,7 +32,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from rac.compiler import compile_file
+from rac.compiler import CompileResult, compile_file
+from rac.core.diagnostics import RacValueError
 from rac.core.numbers import seconds_at
 from rac.ir import expr as ie
 from rac.lang import ast
@@ -40,7 +41,6 @@ from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.wrappers import Scale
 
 if TYPE_CHECKING:
-    from rac.compiler import CompileResult
     from rac.engine.lookahead import LookaheadSettings
     from rac.engine.shield import ShieldStep, ShieldTable, StepShield
 
@@ -322,7 +322,14 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
     ScenarioEnvs) instead — the same autoreset, spaces, info, ``action_masks()`` and counters; one
     Python step per episode: a set of scenes (``scenarios=``, which ScenarioEnv
     draws from per episode: one EpisodeBatch holds one scene) and a ``render_mode`` (each ScenarioEnv
-    renders its own frames). The model is compiled once for all of them."""
+    renders its own frames). The model is compiled once for all of them.
+
+    ``max_episode_steps`` (which ``gymnasium.make_vec`` hands to a vector entry point) is refused,
+    naming the ``horizon`` that gives episodes of that many steps: a step limit outside the
+    episodes would cut them where their ``at end`` clauses cannot apply."""
+    steps = kwargs.pop("max_episode_steps", None)
+    if steps is not None:
+        raise RacValueError(_step_limit_refused(steps, kwargs.get("model")))
     if kwargs.get("scenarios") is None and kwargs.get("render_mode") is None:
         kwargs.pop("scenarios", None)
         return ScenarioVectorEnv(num_envs=num_envs, **kwargs)
@@ -336,6 +343,20 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
         return ScenarioEnv(model, **kwargs)
 
     return ScenarioSyncVectorEnv([single for _ in range(num_envs)])
+
+
+def _step_limit_refused(steps: object, model: object) -> str:
+    """Why ``max_episode_steps=steps`` is refused, with the ``horizon`` in seconds that gives
+    episodes of ``steps`` decisions when ``model`` is a checked model or a readable file."""
+    if isinstance(model, (str, os.PathLike)) and Path(model).is_file():
+        model = compile_file(Path(model))
+    spec = model.automaton.model if isinstance(model, CompileResult) and model.automaton is not None else None
+    advice = "give horizon=<seconds> (a whole number of decision periods)"
+    if spec is not None and isinstance(steps, int) and not isinstance(steps, bool) and steps > 0:
+        period = Fraction(spec.decide_period)
+        advice = f"give horizon={float(steps * period):g} ({steps} decisions of {float(period):g} s)"
+    return (f"rac/Scenario-v0 truncates its episodes at its own horizon, where it applies the `at end` clauses; "
+            f"max_episode_steps={steps!r} would cut them outside the environment, without them: {advice}")
 
 
 class ScenarioSyncVectorEnv(gymnasium.vector.SyncVectorEnv):  # type: ignore[misc]
