@@ -105,6 +105,28 @@ def test_out_of_range_inputs_are_clipped_and_counted_and_nan_refused() -> None:
         nan.step(1)
 
 
+def test_a_refused_input_names_clip_and_the_state_things_are_in() -> None:
+    # an input outside its range (a gap to an empty lane) is the usual first error: the message named
+    # the value only, not clip=True (the fix), nor that the environment had stepped and the automaton not
+    env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs)
+    env.reset(seed=1)
+    env.unwrapped.gap = 40.0  # type: ignore[attr-defined]
+    with pytest.raises(ValueError, match=r"is outside \[0.0, 10.0\] \(clip=True clips headway .*; the environment "
+                                         r"has taken this step and the automaton has not: reset"):
+        env.step(1)
+    missing = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), lambda o, i: {"headway": 3.0})
+    missing.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^missing input\(s\): collide; the environment has taken") as raised:
+        missing.step(1)
+    assert "clip" not in str(raised.value)  # clipping would not have helped
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30)] * 2), follow(),
+                                          lambda o, i: {**vector_inputs(o, i), "headway": np.array([1.0, 40.0])})
+    vector.reset(seed=0)
+    with pytest.raises(ValueError, match=r"'headway'\[1\] = 40.0 is outside .*clip=True clips headway.*the "
+                                         r"environments have taken this step"):
+        vector.step(np.ones(2, dtype=int))
+
+
 def test_proven_scale_keeps_every_reward_within_one_and_reports_the_steps() -> None:
     bound = sample_change_bound(follow())
     env, raw = wrapped(scale="proven"), wrapped()

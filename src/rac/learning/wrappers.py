@@ -306,6 +306,25 @@ def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | N
     return input_specs(automaton)
 
 
+def _refused(exc: ValueError, program: ir.Automaton | None, clipping: bool, values: Mapping[str, object],
+             rows: np.ndarray | None, state: str) -> RacValueError:
+    """The automaton's refusal of the inputs ``values`` (``exc``), saying what state the environment and
+    the automaton are in (``state``) and, where ``clip=True`` would have clipped a value the
+    automaton refused, that it would: the usual cause is an input whose range the environment leaves
+    (highway-env's gap to an empty lane), and the fix is one keyword away."""
+    hint = ""
+    if not clipping and program is not None:
+        try:
+            _, counts = clip_inputs(input_specs(program), values, rows)
+        except ValueError:  # NaN: no clipping helps
+            counts = {}
+        names = sorted(name for name, count in counts.items() if count)
+        if names:
+            hint = (f" (clip=True clips {', '.join(names)} to the declared range and counts every value clipped, "
+                    "info['rac']['clipped'])")
+    return RacValueError(f"{exc}{hint}; {state}")
+
+
 class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
     """Hand out a reward automaton's reward instead of the environment's.
 
@@ -364,6 +383,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self.automaton: AutomatonLike = _load(automaton)
         self.inputs = inputs
         program = _ir_of(self.automaton)
+        self._program = program
         self._specs = _clipping(program, clip)
         #: The positive factor every reward is divided by (1.0 when unscaled).
         self.scale: float = scale_factor(program, scale)
@@ -414,7 +434,12 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
             for name, count in clipped.items():
                 self.clipped_total[name] = self.clipped_total.get(name, 0) + count
         before = dict(self.automaton.rewards)
-        reward = self.automaton.step(values)
+        try:
+            reward = self.automaton.step(values)
+        except ValueError as exc:  # the inputs refused (the automaton is unchanged): say where things stand
+            raise _refused(exc, self._program, self._specs is not None, values, None,
+                           "the environment has taken this step and the automaton has not: reset before the "
+                           "next step") from exc
         self._past.check(getattr(self.automaton, "samples", None))
         # `episode ends when`: the automaton ended the run itself, its end clauses applied in this step
         # (a class generated before the declaration existed has no `terminated`: it never ends a run)
@@ -473,6 +498,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
             raise TypeError("the vector wrapper batches the automaton's IR: pass a .ra path, an ir.Automaton or "
                             "a RewardAutomaton")
         self.automaton: BatchRewardAutomaton = RewardAutomaton(program).batch(self.num_envs)
+        self._program = program
         self.inputs = inputs
         self._specs = _clipping(program, clip)
         #: The positive factor every reward is divided by (1.0 when unscaled).
@@ -556,7 +582,12 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
                 values, clipped = clip_rows(self._specs, values, self.num_envs, active)
                 for name, per_env in clipped.items():
                     self.clipped_total[name] = self.clipped_total.get(name, 0) + int(per_env.sum())
-            rewards = self.automaton.step_batch(values, mask=active)
+            try:
+                rewards = self.automaton.step_batch(values, mask=active)
+            except ValueError as exc:  # the inputs refused (the automata are unchanged): say where things stand
+                raise _refused(exc, self._program, self._specs is not None, values, active,
+                               "the environments have taken this step and the automata have not: reset before "
+                               "the next step") from exc
         else:  # every sub-environment is in its reset step: nothing to read (their infos are reset infos)
             rewards = np.zeros(self.num_envs)
         self._past.check(self.automaton.samples)
