@@ -370,6 +370,46 @@ def test_shield_for_another_model(tiny: CompileResult, table: ShieldTable) -> No
         ScenarioEnv(tiny, shield=42)  # type: ignore[arg-type]
 
 
+def test_a_shield_of_another_scene_is_refused(tiny: CompileResult, tmp_path: Path) -> None:
+    # a saved shield records the model it was computed for: the same states and actions of another
+    # scene (here the van 2 m longer) would have had its masks called exhaustive with no proof behind them
+    data = tiny.model_data
+    assert data is not None
+    computed, table = shield_file.synthesise(data, 8)
+    assert computed.shield_exists and table.model == data.digest
+    path = shield_file.save(table, tmp_path / "safe.shield.npz")
+    assert shield_file.load(path).model == data.digest
+    ScenarioEnv(tiny, shield=path).reset()  # its own model: used
+    longer = dataclasses.replace(data, obs_length=tuple(n + 2 * data.scale for n in data.obs_length))
+    assert longer.digest != data.digest
+    other = dataclasses.replace(tiny, model_data=longer)
+    with pytest.raises(ValueError, match=r"the shield .*safe\.shield\.npz was computed for another model"):
+        ScenarioEnv(other, shield=path).reset()
+    # a file without the record (written before rac kept one) is still read, as before
+    with np.load(path) as npz:
+        np.savez(tmp_path / "old.npz", **{k: npz[k] for k in npz.files if k != "model"})
+    assert shield_file.load(tmp_path / "old.npz").model is None
+    ScenarioEnv(other, shield=tmp_path / "old.npz").reset()
+
+
+def test_the_model_digest_ignores_layout_and_sees_allow_when(tiny: CompileResult, tmp_path: Path) -> None:
+    source = Path(next(iter(tiny.sources))).read_text(encoding="utf-8")
+    (tmp_path / "avoidable_obstacle.xml").write_bytes((Path(next(iter(tiny.sources))).parent
+                                                      / "avoidable_obstacle.xml").read_bytes())
+    digests = []
+    for name, text in (("a", source.replace("        bind near =", ALLOW_WHEN + "        bind near =", 1)),
+                       ("b", "// moved down a line\n\n" + source.replace(
+                           "        bind near =", ALLOW_WHEN.replace("<= 0.25", "<=  0.25") + "        bind near =",
+                           1)),
+                       ("c", source.replace("        bind near =", ALLOW_WHEN.replace("0.25", "0.3")
+                                            + "        bind near =", 1))):
+        (tmp_path / f"{name}.ra").write_text(text, encoding="utf-8")
+        result = compile_file(tmp_path / f"{name}.ra")
+        assert result.ok and result.model_data is not None
+        digests.append(result.model_data.digest)
+    assert digests[0] == digests[1] != digests[2] != tiny.model_data.digest  # type: ignore[union-attr]
+
+
 # ---------------------------------------------------------------- errors
 def test_errors(tiny: CompileResult) -> None:
     with pytest.raises(CheckError):

@@ -75,6 +75,11 @@ class ShieldTable:
     #: The sample the shield was computed to: an allowed action has a safe continuation up to it
     #: (None: not recorded, e.g. a file written before it was; then taken to cover every run).
     horizon: int | None = None
+    #: :attr:`rac.model.data.ModelData.digest` of the model it was computed for (None: not recorded,
+    #: a file written before it was); :class:`StepShield` refuses a table of another model.
+    model: str | None = None
+    #: Where it was read from (:func:`load`), for messages.
+    origin: str | None = None
 
     def __post_init__(self) -> None:
         if self.unseen not in UNSEEN_POLICIES:
@@ -201,12 +206,13 @@ def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None 
                     max_bytes=max_bytes, progress=progress, forget_actions=True)
     computed = safety_shield(graph, "safe")
     return computed, table(computed, n_actions=len(action_pairs(data)), forget_every=data.decide_every,
-                           horizon=horizon_samples)
+                           horizon=horizon_samples, model=data)
 
 
 def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none", forget_every: int = 0,
-          horizon: int | None = None) -> ShieldTable:
+          horizon: int | None = None, model: ModelData | None = None) -> ShieldTable:
     """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads);
+    ``model``: the model it was computed for (its digest is recorded: :attr:`ShieldTable.model`);
     ``forget_every``: the model's ``decide_every`` when the graph was explored with ``forget_actions``;
     ``horizon``: the sample the graph was explored to (default: its last sample); ``n_actions``: the
     masks' width (default: the largest action the graph takes, plus one), fewer than the graph's
@@ -238,7 +244,8 @@ def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none",
     picked = decision & shield.allowed_choices
     masks[row_of[owner[picked]], actions[picked]] = True
     states = graph.states[states_with_decisions][:, kept].astype(np.int32)
-    return ShieldTable(columns, states, masks, unseen, forget_every, horizon)
+    return ShieldTable(columns, states, masks, unseen, forget_every, horizon,
+                       model=None if model is None else model.digest)
 
 
 def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | None = None) -> Path:
@@ -254,7 +261,8 @@ def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | Non
             np.savez_compressed(handle, format=np.array(FORMAT), columns=np.array(shield_table.columns),
                                 states=shield_table.states.astype(np.int32), masks=shield_table.masks,
                                 forget_every=np.array(shield_table.forget_every),
-                                horizon=np.array(-1 if shield_table.horizon is None else shield_table.horizon))
+                                horizon=np.array(-1 if shield_table.horizon is None else shield_table.horizon),
+                                model=np.array("" if shield_table.model is None else shield_table.model))
         os.replace(partial, path)
     finally:
         partial.unlink(missing_ok=True)
@@ -270,8 +278,10 @@ def load(path: str | Path, *, unseen: str = "none") -> ShieldTable:
                 raise RacValueError(f"{path}: not a rac shield (format {str(data['format'])!r})")
             forget_every = int(data["forget_every"]) if "forget_every" in data.files else 0
             horizon = int(data["horizon"]) if "horizon" in data.files else -1
+            model = str(data["model"]) if "model" in data.files else ""
             return ShieldTable(tuple(str(c) for c in data["columns"]), data["states"].astype(np.int32),
-                               data["masks"].astype(bool), unseen, forget_every, None if horizon < 0 else horizon)
+                               data["masks"].astype(bool), unseen, forget_every, None if horizon < 0 else horizon,
+                               model=model or None, origin=str(path))
     except (OSError, KeyError, ValueError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
@@ -345,6 +355,12 @@ class StepShield:
         self.n_actions = len(action_pairs(data))
         if table is not None and table.n_actions != self.n_actions:
             raise RacValueError(f"the shield table has {table.n_actions} actions, the model {self.n_actions}")
+        if table is not None and table.model is not None and table.model != data.digest:
+            # its masks would be called exhaustive where they prove nothing: a stale file, another scene
+            where = f"the shield {table.origin}" if table.origin else "the shield table"
+            raise RacValueError(f"{where} was computed for another model (digest {table.model}, this model's "
+                                f"{data.digest}): another scene, or the model block or its scenario changed since; "
+                                "compute it again for this model (rac verify writes NAME.shield.npz)")
         self.runtime = Lookahead(data, self.horizon, lookahead) if lookahead is not None else None
         self.reason = reason
         self._guard = ActionGuard(data)

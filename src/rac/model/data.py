@@ -25,6 +25,9 @@ largest. Example::
 
 from __future__ import annotations
 
+import dataclasses
+import enum
+import hashlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -191,6 +194,27 @@ class ModelData:
     def waypoints(self, i: int) -> range:
         """Indices into ``wp_*`` of obstacle ``i``'s waypoints."""
         return range(self.wp_start[i], self.wp_start[i + 1])
+
+    @property
+    def digest(self) -> str:
+        """A fingerprint of everything the model's runs depend on (the scenario's data at this scale,
+        the periods, the vehicle, the actions, the modelling choices; not where in the .ra file the
+        ``allow when`` condition is written): what a saved shield records, so that a shield computed
+        for another scene or setting is refused rather than trusted."""
+        return hashlib.sha256(_canonical(self).encode("utf-8")).hexdigest()[:32]
+
+
+def _canonical(value: object) -> str:
+    """``value`` as text that two equal models share: dataclasses field by field, without source spans."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        inner = ",".join(f"{f.name}={_canonical(getattr(value, f.name))}" for f in dataclasses.fields(value)
+                         if f.name != "span")
+        return f"{type(value).__name__}({inner})"
+    if isinstance(value, (tuple, list)):
+        return "(" + ",".join(_canonical(item) for item in value) + ")"
+    if isinstance(value, enum.Enum):
+        return f"{type(value).__name__}.{value.name}"
+    return repr(value)
 
 
 # ---------------------------------------------------------------- conversion

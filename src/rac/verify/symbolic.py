@@ -276,7 +276,7 @@ class SymbolicAnswerer:
             return self._on_demand(query, base, str(exc))
         labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
         computed = storm.safety_shield(labelled, "query")
-        table = shield.table(computed, n_actions=len(ctx.pairs))
+        table = shield.table(computed, n_actions=len(ctx.pairs), model=ctx.data)
         ctx.strategies[query.name] = (computed, table)
         ctx.strategy_goals[query.name] = format_checked(query.expr)
         files: tuple[str, ...] = ()
