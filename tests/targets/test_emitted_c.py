@@ -72,6 +72,7 @@ from rac.engine.explore import action_pairs
 from rac.engine.simulate import simulate
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.ir.query import query_exprs
 from rac.ir.vocabulary import MODEL_NAMES, TRUE_STATE
 from rac.lang import ast
 from rac.lang.parser import parse_source, read_source
@@ -80,7 +81,7 @@ from rac.model.data import ModelData
 from rac.targets.uppaal.declarations import C_PRELUDE
 from rac.targets.uppaal.expr import QueryError
 from rac.targets.uppaal.model import generate_uppaal_model, model_vocabulary
-from rac.targets.uppaal.query import STATISTICAL, SYMBOLIC, UppaalPrinter, Vocabulary, query_exprs
+from rac.targets.uppaal.query import STATISTICAL, SYMBOLIC, UppaalPrinter, Vocabulary
 
 COMPILER = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")

@@ -23,6 +23,7 @@ from rac.check.standard import standard_queries
 from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable
 from rac.core.diagnostics import Diagnostic, Note, short_count, short_number, warning
 from rac.core.source import Span
+from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.significands import rate_diagnostics
 from rac.lang import ast
@@ -110,7 +111,7 @@ class Resolver:
         if any(d.is_error for d in self.diagnostics):
             # Expressions with errors were not fully read: an "unused" input may be used there.
             return None
-        self._unused_inputs(inputs)
+        self._unused_inputs(inputs, queries)
         self._unused_parameters()
         assert period is not None and horizon is not None and objective is not None
         automaton = ir.Automaton(
@@ -534,9 +535,13 @@ class Resolver:
             return None
         return value
 
-    def _unused_inputs(self, inputs: tuple[ir.Input, ...]) -> None:
+    def _unused_inputs(self, inputs: tuple[ir.Input, ...], queries: tuple[iq.QueryDecl, ...]) -> None:
+        # A query reads an input too: removing it, as W0303 suggests, would break the query.
+        used = set(self.typer.used_inputs) | {
+            ref.name for decl in queries for e in iq.query_exprs(decl.query) for ref in ie.refs(e)
+            if ref.kind is ie.RefKind.INPUT}
         for item in inputs:
-            if item.name not in self.typer.used_inputs:
+            if item.name not in used:
                 self.diagnostics.append(warning(
                     "W0303", f"input `{item.name}` is never used", item.span,
                     hints=["remove it, or use it in a guard, a rate or an update"]))

@@ -17,7 +17,7 @@ from rac.core.source import Span
 from rac.ir.expr import Expr
 
 __all__ = ["Bound", "ControlStrategy", "ExpectationQuery", "LeadsToQuery", "LearnStrategy", "PathQuery",
-           "ProbabilityQuery", "Query", "QueryDecl", "SimulateQuery", "STRATEGY_QUERIES"]
+           "ProbabilityQuery", "Query", "QueryDecl", "SimulateQuery", "STRATEGY_QUERIES", "query_exprs"]
 
 
 @dataclass(frozen=True)
@@ -113,6 +113,18 @@ Query = Union[PathQuery, LeadsToQuery, ProbabilityQuery, ExpectationQuery, Simul
               LearnStrategy]
 #: The query forms that define a strategy (usable by later queries ``under`` its name).
 STRATEGY_QUERIES = (ControlStrategy, LearnStrategy)
+
+
+def query_exprs(query: Query) -> list[Expr]:
+    """Every expression of a query: its formula(s), objective and observations."""
+    found: list[Expr] = []
+    for name in ("expr", "left", "right", "objective"):
+        value = getattr(query, name, None)
+        if value is not None:
+            found.append(value)
+    for name in ("exprs", "discrete", "continuous"):
+        found.extend(getattr(query, name, ()))
+    return found
 
 
 @dataclass(frozen=True)

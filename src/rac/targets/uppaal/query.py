@@ -451,15 +451,3 @@ def time_bound(query: iq.Query) -> Fraction | None:
     Comparisons of ``time`` need no time unit: they read the sample counter."""
     bound = getattr(query, "bound", None)
     return bound.limit if bound is not None and bound.kind == "time" else None
-
-
-def query_exprs(query: iq.Query) -> list[ie.Expr]:
-    """Every expression of a query."""
-    found: list[ie.Expr] = []
-    for name in ("expr", "left", "right", "objective"):
-        value = getattr(query, name, None)
-        if value is not None:
-            found.append(value)
-    for name in ("exprs", "discrete", "continuous"):
-        found.extend(getattr(query, name, ()))
-    return found
