@@ -83,3 +83,35 @@ def test_a_word_that_begins_with_a_keyword_is_one_word(text: str, word: str) -> 
                                   "strategy s = minE(sa)[<=4]{A.location}->{x}: <> goal()"])
 def test_the_word_alternations_still_read_as_words(text: str) -> None:
     lark_parser().parse(f"query Q: {text}\n", start="query_list")
+
+
+CHAIN = "comparisons do not chain: `0 < d < 5` is written `0 < d && d < 5`"
+
+
+@pytest.mark.parametrize("text", [
+    "automaton A { input d : real in [0, 9]  edge * -> L when 0 < d < 5 }",
+    "automaton A { input d : real in [0, 9]  edge * -> L when p && 2 <= d >= 1 do r += 1 }",
+    "automaton A { input d : real in [0, 9]  assume (1 < d < 5) }",
+    "automaton A { query Q: E<> 0 < sa <= 5 }",
+])
+def test_a_chained_comparison_gets_the_hint(text: str) -> None:
+    """language.md: comparisons do not chain, `0 < d < 5` is a syntax error; the error says how to write it."""
+    diagnostic, _ = diagnose(text)
+    assert diagnostic.code == "E0001"
+    assert CHAIN in diagnostic.hints
+
+
+@pytest.mark.parametrize("text", [
+    "automaton A { edge A -> B < 3 }",
+    "automaton A { sample every < 3 }",
+    "automaton A { edge * -> L when d < 5 && < 3 }",
+])
+def test_no_chain_hint_without_a_comparison_before(text: str) -> None:
+    diagnostic, _ = diagnose(text)
+    assert CHAIN not in diagnostic.hints
+
+
+def test_a_non_ascii_letter_in_a_name_gets_the_hint() -> None:
+    diagnostic, _ = diagnose("automaton Straße { }")
+    assert (diagnostic.code, diagnostic.message) == ("E0002", "unexpected character `ß`")
+    assert "names are ASCII identifiers: letters A-Z and a-z, digits and `_`" in diagnostic.hints

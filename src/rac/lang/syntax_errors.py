@@ -86,10 +86,22 @@ def _token_text(token: Token) -> str:
 _DECLARATION_FORMS = {"goal": "goal when CONDITION", "collision": "collision when CONDITION",
                       "episode": "episode ends when CONDITION", "ends": "episode ends when CONDITION"}
 _REQUIRE_CHECK = re.compile(r"\brequire\s+[A-Za-z_][A-Za-z0-9_]*\s*$")
+#: The operand of ``&&``, ``||`` or a guard that the unexpected token continues: the text after the last of them.
+_OPERAND_START = re.compile(r".*(?:&&|\|\||[({}:\n]|\b(?:when|and|or|not|imply|assume)\b)", re.DOTALL)
+#: A comparison operator (not the arrow of an edge or of ``-->``).
+_COMPARISON = re.compile(r"(?<!-)(?:<=|>=|==|!=|<|>)")
 
 
-def _syntax_hints(found: str, expected: set[str], before: str = "") -> list[str]:
-    """Hints for the usual slips; ``before`` is the text before the unexpected token."""
+def _chained_comparison(found_type: str, expected: set[str], before: str) -> bool:
+    """Whether a comparison operator follows a comparison, as in ``0 < d < 5``."""
+    if found_type != "CMP_OP" or "CMP_OP" in expected:
+        return False
+    start = _OPERAND_START.match(before)
+    return _COMPARISON.search(before[start.end() if start else 0:]) is not None
+
+
+def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: str = "") -> list[str]:
+    """Hints for the usual slips; ``before`` is the text before the unexpected token, ``found_type`` its terminal."""
     hints = []
     words = {_describe_terminal(t) for t in expected}
     previous = before.split()[-1] if before.split() else ""
@@ -110,6 +122,8 @@ def _syntax_hints(found: str, expected: set[str], before: str = "") -> list[str]
         hints.append("check that every `{` has a matching `}`")
     if found == ";" and "RBRACE" not in expected:
         hints.append("`;` only separates flows inside a location; declarations need no terminator")
+    if _chained_comparison(found_type, expected, before):
+        hints.append("comparisons do not chain: `0 < d < 5` is written `0 < d && d < 5`")
     return hints
 
 
@@ -187,6 +201,8 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
         char = source.text[start]
         shown = repr(char)[1:-1] if not char.isprintable() or char == " " else char
         hints = [_CHARACTER_HINTS[char]] if char in _CHARACTER_HINTS else []
+        if not char.isascii() and (char.isalnum() or char == "_"):
+            hints.append("names are ASCII identifiers: letters A-Z and a-z, digits and `_`")
         return error("E0002", f"unexpected character `{shown}`", source.span(start, start + 1),
                      notes=notes, hints=hints)
     if at_end:
@@ -196,5 +212,5 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
         start = where
         end = exc.token.end_pos or start + len(exc.token.value)
         return error("E0001", f"unexpected {_token_text(exc.token)}", source.span(start, end), notes=notes,
-                     hints=_syntax_hints(str(exc.token.value), expected, source.text[:start]))
+                     hints=_syntax_hints(str(exc.token.value), expected, source.text[:start], exc.token.type))
     return error("E0001", "syntax error", _end_of_text(source))
