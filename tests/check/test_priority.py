@@ -122,6 +122,45 @@ def test_p2_fails_at_penalty_90_with_the_expected_counterexample() -> None:
     assert "penalise `sa` by at least 8 more (80 / weight 10)" in text
 
 
+RATE_READS_AN_INPUT = """\
+automaton Rates {{
+    input c : bool
+    input d : real in [0, 10]
+    reward sa, pr
+    priority sa > pr
+    objective 3 * sa + pr
+    sample every 1
+    horizon 5
+    initial location N {{ sa' == 1; pr' == d / 5 }}
+    location U          {{ sa' == -1 }}
+    location F          {{ sa' == 1 }}
+    edge * -> U when c do sa -= 4
+    {edges}
+    at end when c do pr += d
+}}
+"""
+
+
+def test_a_counterexample_names_the_values_its_rates_and_updates_read() -> None:
+    """The text run shows the input values that make its value (`d = 10`, read by a rate and by `at end`
+    only), as the JSON does: without them the run could not be replayed to the value printed."""
+    result = compiled(RATE_READS_AN_INPUT.format(edges=""))
+    (diag,) = errors(result, "E0402")
+    assert diag.data["value"] == "23"  # 3 * (5 - 4) + 5 * 2 + 10
+    assert [s["inputs"]["d"] for s in diag.data["run"]][0] == "10" and diag.data["end"]["inputs"]["d"] == "10"
+    text = render_text(result.diagnostics, result.sources)
+    assert "samples 1-4 (t = 1..4 s): stays in `N`, 4 samples; inputs c=false, d = 10" in text
+    assert "run ends at t = 5 s: `at end` (line 14); inputs c=true, d = 10" in text
+
+
+def test_a_counterexample_value_a_guard_excludes_is_approached() -> None:
+    """`d >= 10` leaves `N`: the supremum of `pr' == d / 5` over `d < 10` is approached, not taken."""
+    result = compiled(RATE_READS_AN_INPUT.format(edges="edge N -> F when !c && d >= 10"))
+    (diag,) = errors(result, "E0402")
+    text = render_text(result.diagnostics, result.sources)
+    assert "stays in `N`, 4 samples; inputs c=false, d in (0, 10), tending to 10" in text
+
+
 @pytest.mark.parametrize(("penalty", "horizon", "period"), [
     (100, "30", "0.1"),
     (100, "31", "0.1"),     # -4: still holds

@@ -12,6 +12,7 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -113,7 +114,11 @@ class InputSpace:
         self.numerics = list(automaton.numeric_inputs)
         self.pieces = {i.name: _pieces(i, {a.threshold for a in atoms if a.input == i.name})
                        for i in self.numerics}
+        self._guards = [*all_guards(automaton), *(extra_guards or [])]
         sizes = [2] * len(self.bools) + [len(self.pieces[i.name]) for i in self.numerics]
+        # A class's index is its pieces' indices in row-major order (itertools.product): each column's stride.
+        self._strides = {item.name: math.prod(sizes[len(self.bools) + k + 1:])
+                         for k, item in enumerate(self.numerics)}
         count = math.prod(sizes)
         if count > MAX_CLASSES:
             raise TooManyClasses(count)
@@ -188,13 +193,40 @@ class InputSpace:
             values[item.name] = self.piece(cls, item.name).representative(item.kind == "int")
         return values
 
-    def describe(self, cls: int, only: set[str] | None = None) -> str:
-        """``isClose=true, prog=false, dgoal in [0, 2)`` for messages."""
+    def describe(self, cls: int, only: set[str] | None = None,
+                 values: Mapping[str, Fraction] | None = None) -> str:
+        """``isClose=true, prog=false, dgoal in [0, 2)`` for messages.
+
+        ``values`` are numeric inputs' values within the class's pieces' closures (those a worst run's
+        rates and updates read): each is shown as ``d = 10``, and named even when ``only`` leaves it out.
+        """
+        values = values or {}
         parts = []
         for name in self.bools:
             if only is None or name in only:
                 parts.append(f"{name}={'true' if self.columns[name][cls] else 'false'}")
         for item in self.numerics:
-            if only is None or item.name in only:
+            if item.name in values:
+                parts.append(self._value_text(cls, item.name, values[item.name]))
+            elif only is None or item.name in only:
                 parts.append(self.piece(cls, item.name).describe(item.name))
         return ", ".join(parts) if parts else "(no inputs)"
+
+    def _value_text(self, cls: int, name: str, value: Fraction) -> str:
+        """``d = 10`` for a value a run can take with the class's guards; else the piece and the value approached.
+
+        A supremum over an open piece sits at its end (a threshold or a bound, itself a point piece):
+        the run takes it when every guard and ``assume`` read the same there as in the piece.
+        """
+        piece = self.piece(cls, name)
+        inside = (piece.low < value < piece.high or (value == piece.low and piece.low_closed)
+                  or (value == piece.high and piece.high_closed))
+        if not inside:
+            index = int(self.columns[name][cls])
+            point = next((j for j, q in enumerate(self.pieces[name]) if q.is_point and q.low == value), None)
+            other = None if point is None else cls + (point - index) * self._strides[name]
+            inside = other is not None and bool(self.valid[other]) and all(
+                self.evaluate(g)[cls] == self.evaluate(g)[other] for g in self._guards)
+        if inside:
+            return f"{name} = {_num(value)}"
+        return f"{piece.describe(name)}, tending to {_num(value)}"

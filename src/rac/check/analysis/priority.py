@@ -393,12 +393,14 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
     if not worst.steps and worst.instant != AFTER_END:
         return [f"  t = 0 s: in `{names[automaton.initial]}` before any sample"]
     groups: list[list] = []
-    labels: dict[int, str] = {}
+    labels: dict[tuple[int, int], str] = {}
     for step in worst.steps:
         o = step.outcome
-        label = labels.get(id(o))
+        label = labels.get((id(o), id(step.inputs)))
         if label is None:
-            label = labels[id(o)] = space.describe(o.cls, _outcome_inputs(automaton, o) | set(shown))
+            # The values the run's arithmetic reads (rates, updates) too: the run reaches its value with them.
+            label = labels[id(o), id(step.inputs)] = space.describe(
+                o.cls, _outcome_inputs(automaton, o) | set(shown), step.inputs)
         key = (o.source, id(o.edge), label)
         if groups and groups[-1][0] == key and groups[-1][1][-1].instant == CONTINUE:
             groups[-1][1].append(step)
@@ -434,7 +436,7 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
             read |= guard_inputs(clause.guard)
         when = _num(worst.steps[-1].sample * period) if worst.steps else "0"
         lines.append(f"  {ending} at t = {when} s: `at end` ({clauses or 'no clause enabled'}); "
-                     f"inputs {space.describe(end.cls, read)}")
+                     f"inputs {space.describe(end.cls, read, worst.end_inputs)}")
     return lines
 
 
