@@ -56,12 +56,27 @@ def value(node: ie.Expr, location: int, inputs: dict[str, object], rewards: tupl
     return {"+": lambda: a + b, "-": lambda: a - b, "*": lambda: a * b, "/": lambda: a / b}[node.op]()  # type: ignore[operator]
 
 
+def compared_constants(node: ie.Expr) -> set[Fraction]:
+    """The constants ``node`` compares an input with (``x < 0``: 0): the oracle tries the input there too."""
+    if isinstance(node, ie.Compare):
+        sides = (node.left, node.right)
+        if any(isinstance(s, ie.Ref) and s.kind is ie.RefKind.INPUT for s in sides):
+            constant = [s for s in sides if not ie.refs(s)]  # `1 / 2` is a division of constants
+            return {Fraction(value(s, 0, {}, ())) for s in constant}  # type: ignore[arg-type]
+        return set()
+    if isinstance(node, ie.Unary):
+        return compared_constants(node.operand)
+    if isinstance(node, ie.Binary):
+        return compared_constants(node.left) | compared_constants(node.right)
+    return set()
+
+
 def violated(automaton: ir.Automaton, expr: ie.Expr) -> bool:
     """Whether some instant of some run of exactly the horizon's samples (or fewer, ended by ``episode
     ends when``) violates ``expr``."""
     settled_only = any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr))
     zero_inputs: dict[str, object] = {i.name: False if i.is_bool else ZERO for i in automaton.inputs}
-    xs = valuations(automaton)
+    xs = valuations(automaton, compared_constants(expr))
     steps = automaton.steps
     l0, r0 = automaton.initial, tuple(ZERO for _ in automaton.rewards)
 

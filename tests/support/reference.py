@@ -34,6 +34,7 @@ follows a sample depends on nothing else. Exponential in the horizon otherwise.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -78,8 +79,10 @@ def _thresholds(guard: ir.Guard, name: str, out: set[Fraction]) -> None:
             _thresholds(g, name, out)
 
 
-def _choices(automaton: ir.Automaton, item: ir.Input, arithmetic: bool) -> list[tuple[Fraction, list[Fraction]]]:
-    """(value deciding the guards, values tried in the arithmetic) for one numeric input.
+def _choices(automaton: ir.Automaton, item: ir.Input, arithmetic: bool,
+             extra: Iterable[Fraction] = ()) -> list[tuple[Fraction, list[Fraction]]]:
+    """(value deciding the guards, values tried in the arithmetic) for one numeric input; ``extra``:
+    more thresholds (those a query compares the input with, which no guard of the automaton has).
 
     Every guard compares the input with a constant, so guards are constant between consecutive
     thresholds: try each threshold, and the midpoint of each open interval between them (with
@@ -88,7 +91,7 @@ def _choices(automaton: ir.Automaton, item: ir.Input, arithmetic: bool) -> list[
     assert item.low is not None and item.high is not None
     if item.kind == "int":
         return [(Fraction(v), [Fraction(v)]) for v in range(int(item.low), int(item.high) + 1)]
-    cuts: set[Fraction] = {item.low, item.high}
+    cuts: set[Fraction] = {item.low, item.high, *extra}
     named = (automaton.episode_ends, automaton.goal, automaton.collision)
     guards = [automaton.assume, *(e.guard for e in automaton.all_edges()),
               *(c.guard for c in automaton.end_clauses), *(g for g in named if g is not None)]
@@ -102,8 +105,9 @@ def _choices(automaton: ir.Automaton, item: ir.Input, arithmetic: bool) -> list[
     return result
 
 
-def valuations(automaton: ir.Automaton) -> list[Valuation]:
-    """Every concrete valuation the reference tries at one sample (those ``assume`` allows)."""
+def valuations(automaton: ir.Automaton, extra: Iterable[Fraction] = ()) -> list[Valuation]:
+    """Every concrete valuation the reference tries at one sample (those ``assume`` allows); ``extra``:
+    thresholds of a query, tried for every numeric input besides the guards' own."""
     arithmetic = set(arithmetic_inputs(automaton))
     names, options = [], []
     for item in automaton.inputs:
@@ -111,7 +115,7 @@ def valuations(automaton: ir.Automaton) -> list[Valuation]:
         if item.is_bool:
             options.append([(False, [False]), (True, [True])])
         else:
-            options.append(_choices(automaton, item, item.name in arithmetic))
+            options.append(_choices(automaton, item, item.name in arithmetic, extra))
     result = []
     for combo in itertools.product(*options):
         guards = {name: choice[0] for name, choice in zip(names, combo)}
