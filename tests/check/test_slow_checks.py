@@ -206,3 +206,30 @@ def test_unreachable_locations_have_no_outcomes() -> None:
     everywhere = tuple(True for _ in automaton.locations)
     worst = maximise(automaton, outs, Target((Fraction(1),), Fraction(0), everywhere))
     assert worst is not None and worst.value == 30
+
+
+def test_a_violation_within_the_limit_is_reported_past_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    # With the limit at 100 samples and a horizon of 300, the searches stop (the worst values keep
+    # changing), but a run of 100 samples is a run of the horizon: a violation among them is an
+    # error, with a note saying where it was found, never "not checked" (W0405).
+    monkeypatch.setattr(worst_module, "MAX_SAMPLES", 100)
+    facts: list[Fact] = []
+    # P2: 10 s of progress (110) outweigh a penalty of 5 (50).
+    (p2,) = check_priorities(compiled(GROWING.replace("sa = sa - 100", "sa = sa - 5")), facts)
+    assert p2.code == "E0402" and p2.severity.value == "error"
+    assert any("first 100 samples (of 300)" in note.message for note in p2.notes)
+    # int32: re-entering Unsafe costs 10,000 every other sample, beyond ±214,748 within 100 samples.
+    (rng,) = check_ranges(compiled(GROWING.replace("sa = sa - 100", "sa = sa - 10000")), facts=facts)
+    assert rng.code == "E0501" and "`sa` overflows int32" in rng.message
+    assert any("first 100 samples (of 300)" in note.message for note in rng.notes)
+    assert not any(f.message.startswith(("P2 holds", "int32 range holds")) for f in facts)
+
+
+def test_past_the_limit_a_range_that_holds_there_stays_unchecked(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Rewards grow by 1 a second: nothing overflows within the first 100 samples, so the range
+    # check past the limit stays W0405 (one warning, however many rewards stopped).
+    automaton = compiled(GROWING)
+    monkeypatch.setattr(worst_module, "MAX_SAMPLES", 100)
+    facts: list[Fact] = []
+    assert [d.code for d in check_ranges(automaton, facts=facts)] == ["W0405"]
+    assert not any(f.message.startswith("int32 range holds") for f in facts)

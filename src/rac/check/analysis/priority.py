@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections import deque
-from collections.abc import Collection, Iterable
+from collections.abc import Callable, Collection, Iterable
 from fractions import Fraction
 
 from rac import ir
@@ -21,6 +22,7 @@ from rac.check.analysis.worst import (
     Unfinished,
     Worst,
     maximise,
+    within_limit,
 )
 from rac.core.diagnostics import UNFINISHED, Diagnostic, Fact, Note, error, short_number, warning
 from rac.core.numbers import INT32_MAX, INT32_MIN
@@ -225,11 +227,18 @@ def check_priorities(automaton: ir.Automaton, facts: list[Fact] | None = None,
         if not any(watched):
             facts.append(Fact("P2", f"P2 holds trivially for `{reward}`: no location penalises it", {"reward": reward}))
             continue
+        def violates(value: Fraction) -> bool:
+            return value > 0
+
+        prefix = False
         try:
-            worst = maximise(automaton, outs, target, run=lambda value: value > 0)
+            worst = maximise(automaton, outs, target, run=violates)
         except Unfinished as stop:
-            diagnostics.append(_unfinished(automaton, f"P2 for `{reward}`", stop))
-            continue
+            worst = _refuted_within_limit(automaton, outs, target, violates)
+            if worst is None:
+                diagnostics.append(_unfinished(automaton, f"P2 for `{reward}`", stop))
+                continue
+            prefix = True
         if worst is None or worst.value <= 0:
             places = ", ".join(f"`{n}`" for n, w in zip(automaton.location_names, watched) if w)
             what = "the objective" if level == 0 else f"the weighted sum from `{reward}` down"
@@ -241,8 +250,29 @@ def check_priorities(automaton: ir.Automaton, facts: list[Fact] | None = None,
                                   f"<= {_num(worst.value)} over every run of {_num(automaton.horizon)} s",
                                   {"reward": reward, "bound": str(worst.value), "level": level}))
             continue
-        diagnostics.append(_p2_error(automaton, space, outs, worst, level, weights, constant))
+        found = _p2_error(automaton, space, outs, worst, level, weights, constant)
+        diagnostics.append(_cut_short(found, automaton) if prefix else found)
     return diagnostics
+
+
+def _refuted_within_limit(automaton: ir.Automaton, outs: Moves, target: Target,
+                          violates: Callable[[Fraction], bool]) -> Worst | None:
+    """After the worst-run search stopped at :data:`MAX_SAMPLES`: the worst run over the horizon's first
+    :data:`MAX_SAMPLES` samples when it already violates (a run of the horizon too, so a refutation),
+    else None (the check stays unfinished, W0405)."""
+    try:
+        worst = maximise(within_limit(automaton), outs, target, run=violates)
+    except Unfinished:
+        return None
+    return worst if worst is not None and violates(worst.value) else None
+
+
+def _cut_short(found: Diagnostic, automaton: ir.Automaton) -> Diagnostic:
+    """``found`` (a violation :func:`_refuted_within_limit` found) with a note that says where it was searched."""
+    return dataclasses.replace(found, notes=(*found.notes, Note(
+        f"found among the runs of the horizon's first {within_limit(automaton).steps:,} samples (of "
+        f"{automaton.steps:,}), where the worst-run search stops: every such run is a run of the horizon, "
+        "so the check fails; over the whole horizon the value can be larger still")))
 
 
 def _unfinished(automaton: ir.Automaton, what: str, stop: Unfinished) -> Diagnostic:
@@ -499,6 +529,7 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
     if space is None or outs is None:
         return problems
     factor = Fraction(base) ** exponent
+    unfinished: Unfinished | None = None  # a search stopped at its limit: no proof, unless another refutes
     for k, reward in enumerate(automaton.rewards):
         for sign in (1, -1):
             limit = range_limit(sign)
@@ -506,10 +537,15 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
             def overflows(value: Fraction, limit: int = limit) -> bool:
                 return value * factor >= limit
 
+            prefix = False
             try:
                 worst = maximise(automaton, outs, range_target(automaton, k, sign), run=overflows)
             except Unfinished as stop:
-                return [_unfinished(automaton, f"the int32 range at base {base}, exponent {exponent}", stop)]
+                worst = _refuted_within_limit(automaton, outs, range_target(automaton, k, sign), overflows)
+                if worst is None:
+                    unfinished = unfinished or stop
+                    continue
+                prefix = True
             if worst is None or worst.value * factor < limit:
                 if worst is not None:
                     extremes.append(sign * worst.value)
@@ -537,14 +573,17 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
                     hints = [_exponent_hint(_largest_magnitude(automaton, outs), base, exponent)]
                 except Unfinished:
                     pass  # the general hint stays
-            return [error(
+            found = error(
                 "E0501",
                 f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}: "
                 f"it can reach {_num(sign * worst.value)}",
                 span,
                 notes=notes,
                 hints=hints,
-                data={"reward": reward, "value": str(sign * worst.value), "base": base, "exponent": exponent})]
+                data={"reward": reward, "value": str(sign * worst.value), "base": base, "exponent": exponent})
+            return [_cut_short(found, automaton) if prefix else found]
+    if unfinished is not None:
+        return [_unfinished(automaton, f"the int32 range at base {base}, exponent {exponent}", unfinished)]
     if extremes:
         facts.append(Fact("range", f"int32 range holds at base {base}, exponent {exponent}: rewards stay within "
                                f"[{_num(min(extremes))}, {_num(max(extremes))}]",

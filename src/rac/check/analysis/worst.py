@@ -25,6 +25,7 @@ one pass over the horizon.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import typing
@@ -104,6 +105,16 @@ def maximise(automaton: ir.Automaton, moves: Moves, target: Target,
         raise Unfinished(f"the horizon has {automaton.steps:,} samples, more than the {MAX_SAMPLES:,} the "
                          "search goes through when updates scale rewards")
     return _maximise_generic(automaton, moves, target)
+
+
+def within_limit(automaton: ir.Automaton) -> ir.Automaton:
+    """``automaton`` with its horizon cut to :data:`MAX_SAMPLES` samples, for a search that stopped there.
+
+    A run of the cut automaton is a run of ``automaton`` (runs of at most that many samples, ending
+    after any of them), so the supremum over it is a lower bound of ``automaton``'s: a violation
+    found there refutes the check over the whole horizon, while a bound found there proves nothing.
+    """
+    return dataclasses.replace(automaton, horizon=automaton.period * MAX_SAMPLES)
 
 
 # ---------------------------------------------------------------- generic engine
