@@ -69,3 +69,30 @@ def test_a_bad_progress_interval_is_said_and_the_default_used(value: str, monkey
     assert f"RAC_PROGRESS_INTERVAL={value!r} is not a positive number of seconds" in capsys.readouterr().err
     progress.Heartbeat("rac check")
     assert capsys.readouterr().err == ""  # said once
+
+
+@pytest.mark.parametrize("command", ["simulate", "render"])
+def test_simulate_and_render_count_the_samples_they_simulate(command: str, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str],
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    # One run of a long horizon takes minutes (900,000 samples of 1 ms: over 3 minutes); the
+    # heartbeat said only "working; 200 s", without how far the run had come.
+    from rac.engine import simulate
+
+    integrate = simulate.integrate_truth
+
+    def slow(*args, **kwargs):
+        time.sleep(0.003)
+        return integrate(*args, **kwargs)
+
+    monkeypatch.setattr(simulate, "integrate_truth", slow)
+    monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.001")
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    assert main([command, str(path), "--seed", "1", "--out", str(tmp_path / "o")]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith(f"rac {command}:")]
+    counted = [line for line in lines
+               if re.fullmatch(rf"rac {command}: simulating; [\d.]+(?: [kMG])? samples \([\d.]+(?: [kMG])?/s\); \d+ s",
+                               line)]
+    assert counted, lines
+    assert main([command, str(path), "-q", "--seed", "1", "--out", str(tmp_path / "o")]) == 0
+    assert f"rac {command}: simulating" not in capsys.readouterr().err

@@ -189,8 +189,13 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
             return None, problem, status
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
     assert result.model_data is not None  # _load refused a file without one
-    runs = simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
-                    max_bytes=args.max_memory or default_max_bytes())
+    # a run of many samples takes minutes (900,000 at 1 ms): a bar on a terminal, the count in the heartbeat
+    with Progress(total=samples, desc="simulating", unit="samples", enabled=False if args.quiet else None) as bar:
+        def advance(sample: int, horizon: int) -> None:
+            bar.update(sample - bar.n)
+
+        runs = simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
+                        max_bytes=args.max_memory or default_max_bytes(), progress=advance)
     if isinstance(policy, StepShieldPolicy):  # the guarantee the runs had, said beside them
         _note(args, notes, f"the runs' actions, {policy.summary()}")
     return runs, seed, EXIT_OK
