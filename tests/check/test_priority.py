@@ -653,3 +653,24 @@ def test_a_run_may_end_before_its_first_sample() -> None:
     (diag,) = errors(compiled(text), "E0402")
     assert diag.data["value"] == "5"
     assert diag.data["run"] == [] and diag.data["end"]["inputs"]["b"] is True
+
+
+def test_a_long_decimal_value_is_said_as_a_decimal() -> None:
+    # A value with more than 10 significant digits was said as a fraction, "-123456781001/20000".
+    text = """\
+automaton Driving {
+    input isClose : bool
+    reward sa, pr
+    objective 10*sa + pr
+    sample every 0.001
+    horizon 1
+    initial location Normal { sa' == 1;  pr' == 1 }
+    location Unsafe         { sa' == -1.0001; pr' == 0 }
+    edge Normal -> Unsafe when isClose  do sa = sa - 12345.6781
+    edge Unsafe -> Normal when !isClose
+}
+"""
+    result = compile_text(text, "decimal.ra")
+    (overflow,) = [d for d in result.diagnostics if d.code == "E0501"]
+    assert overflow.message.endswith("it can reach -6172839.05005"), overflow.message
+    assert Fraction("-6172839.05005") == Fraction(overflow.data["value"])

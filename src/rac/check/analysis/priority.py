@@ -25,7 +25,7 @@ from rac.check.analysis.worst import (
     within_limit,
 )
 from rac.core.diagnostics import UNFINISHED, Diagnostic, Fact, Note, error, short_number, warning
-from rac.core.numbers import INT32_MAX, INT32_MIN
+from rac.core.numbers import INT32_MAX, INT32_MIN, exact_decimal
 from rac.ir.inputs import InputSpace, guard_inputs
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 
@@ -637,4 +637,7 @@ def _num(value: Fraction) -> str:
     if not Fraction(1, 10**300) < abs(value) < 10**300:  # beyond a float: no float() of it
         return short_number(value)
     text = f"{float(value):.10g}"
-    return text if Fraction(text) == value else f"{value.numerator}/{value.denominator}"
+    if Fraction(text) == value:
+        return text
+    # a long decimal (-10000099.998 after 100,000 samples of 1 ms), not -5000049999/500
+    return exact_decimal(value, max_places=12) or f"{value.numerator}/{value.denominator}"
