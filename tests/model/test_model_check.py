@@ -133,6 +133,17 @@ def test_missing_scenario(tmp_path: Path) -> None:
     assert result.scenario is None and result.model_data is None and result.automaton is None
 
 
+def test_a_dangling_link_as_scenario_says_so(tmp_path: Path) -> None:
+    # "does not exist" with the hint "put `left_turn.xml` there": it is there, a link to a moved file
+    (tmp_path / "left_turn.xml").symlink_to(tmp_path / "maps" / "left_turn.xml")
+    result = compile_file(write(tmp_path, source()))
+    (diagnostic,) = errors(result)
+    assert diagnostic.code == "E0712"
+    assert diagnostic.message.endswith(f"left_turn.xml: is a symbolic link to {tmp_path / 'maps' / 'left_turn.xml'}, "
+                                       "which does not exist")
+    assert diagnostic.hints == ("restore the file the link points to, or name the scenario file itself",)
+
+
 def test_missing_scenario_in_a_subfolder_names_the_resolved_path(tmp_path: Path) -> None:
     result = compile_file(write(tmp_path, source("maps/left_turn.xml")))
     (diagnostic,) = errors(result)

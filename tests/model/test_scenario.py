@@ -279,6 +279,11 @@ def test_missing_file(tmp_path: Path) -> None:
     error = error_of(tmp_path / "nowhere.xml")
     assert error.element is None and str(error).endswith("nowhere.xml: does not exist")
     assert "is a directory" in str(error_of(tmp_path))
+    # a dangling link is there: its target is what is missing
+    (tmp_path / "link.xml").symlink_to(tmp_path / "moved.xml")
+    error = error_of(tmp_path / "link.xml")
+    assert error.element is None and str(error).endswith(f"link.xml: is a symbolic link to {tmp_path / 'moved.xml'}, "
+                                                         "which does not exist")
 
 
 def test_not_xml(tmp_path: Path) -> None:

@@ -399,6 +399,8 @@ def _load_hints(failure, written: str) -> list[str]:
     if failure.element is None and failure.problem == "does not exist":
         return [f"the path is relative to the folder of this `.ra` file: put `{os.path.basename(written)}` "
                 "there, or correct the path"]
+    if failure.element is None and failure.problem.startswith("is a symbolic link to"):
+        return ["restore the file the link points to, or name the scenario file itself"]
     if failure.element is None and failure.problem.startswith("is a directory"):
         return ["name the CommonRoad XML file, not its folder"]
     if " is not a number" in failure.problem or " is not a whole number" in failure.problem:

@@ -463,6 +463,9 @@ def _read_bytes(path: str | os.PathLike[str]) -> bytes:
             raise ScenarioError(path, None, "is not a regular file (a pipe or a device?), not a CommonRoad XML file")
         return Path(path).read_bytes()
     except FileNotFoundError:
+        if Path(path).is_symlink():  # the link is there, its target is not: "does not exist" sent users looking for it
+            target = os.readlink(path)
+            raise ScenarioError(path, None, f"is a symbolic link to {target}, which does not exist") from None
         raise ScenarioError(path, None, "does not exist") from None
     except IsADirectoryError:
         raise ScenarioError(path, None, "is a directory, not a CommonRoad XML file") from None
