@@ -190,7 +190,8 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
     assert result.model_data is not None  # _load refused a file without one
     # a run of many samples takes minutes (900,000 at 1 ms): a bar on a terminal, the count in the heartbeat
-    with Progress(total=samples, desc="simulating", unit="samples", enabled=False if args.quiet else None) as bar:
+    with Progress(total=samples, desc="simulating", unit="samples",
+                  enabled=False if args.quiet or as_json(args) else None) as bar:
         def advance(sample: int, horizon: int) -> None:
             bar.update(sample - bar.n)
 
