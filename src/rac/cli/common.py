@@ -25,14 +25,16 @@ from rac.core.source import SourceFile
 from rac.engine.budget import default_max_bytes, parse_size
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
-__all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE", "OUTPUT_CONVENTION",
-           "OUTPUT_SUFFIX", "SOURCE_SUFFIX", "STALE_SECONDS", "FileWriteError", "NotRegularFile", "StdoutError",
-           "as_json", "check_writable", "held_source", "load_budget", "locked", "output_folder", "overwrites_source",
-           "overwrites_source_in", "print_diagnostics", "resource_limit", "same_file", "size_argument",
-           "stdout_unwritable", "unreadable", "unusable_file", "unwritable", "usage_error", "write_all_atomically",
-           "write_atomically"]
+__all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE",
+           "OUTPUT_CONVENTION", "OUTPUT_SUFFIX", "SOURCE_SUFFIX", "STALE_SECONDS", "FileWriteError", "NotRegularFile",
+           "StdoutError", "as_json", "check_writable", "held_source", "load_budget", "locked", "output_folder",
+           "overwrites_source", "overwrites_source_in", "print_diagnostics", "resource_limit", "same_file",
+           "size_argument", "stdout_unwritable", "unreadable", "unusable_file", "unwritable", "usage_error",
+           "write_all_atomically", "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
+#: The exit code after Ctrl-C (128 + SIGINT), as the shell reports it.
+EXIT_INTERRUPTED = 130
 
 #: The suffix of the files rac reads: no output of an engine command (verify, simulate, render,
 #: preanalyse, experiment) has it, so their output folder may hold the input file under it.

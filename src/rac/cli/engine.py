@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, TypeVar
 from rac.check.queries import lower_expression
 from rac.cli.common import (
     EXIT_ERRORS,
+    EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_UNDECIDED,
     EXIT_USAGE,
@@ -283,22 +284,32 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
     out_dir = _out_dir(args)
     quiet = args.quiet or args.format == "json"
     bar, callback = _explore_bar(quiet)
-    announce = _announcer(quiet)
+    shown = _announcer(quiet)
+    doing: list[str] = []  # what runs now: said when Ctrl-C stops it
+
+    def announce(message: str) -> None:
+        doing[:] = [message]
+        shown(message)
+
     options = VerifyOptions(horizon=args.horizon, max_states=args.max_states, seed=args.seed, epsilon=args.epsilon,
                             max_bytes=args.max_memory or default_max_bytes(),
                             confidence=args.confidence, out_dir=out_dir, standard=args.standard,
                             only=tuple(args.query) if args.query else None, plots=not args.no_plots,
                             progress=announce, explore_progress=callback, learn_episodes=args.learn_episodes,
                             bars=not quiet, exact=args.exact)
+    results: list[QueryResult] = []  # filled as each query is answered: Ctrl-C still shows those
+    penalties = None
+    stopped: str | None = None
     try:
         with bar:
-            context, results = run_queries(result, options)
+            context, results = run_queries(result, options, answered=results)
             # The check explores a product of its own (seconds on a real scene): a run of chosen
             # queries (--query) asks for those answers only.
-            penalties = None
             if not args.query:
                 announce("penalties that no action avoids")
                 penalties = check_penalties(context)
+    except KeyboardInterrupt:  # the answers found stand (their files are written): shown, then exit 130
+        stopped = doing[0] if doing else "the queries"
     except UnknownQuery as exc:
         assert result.automaton is not None  # _load refused a file without one
         names = ", ".join(d.name for d in result.automaton.queries)
@@ -310,8 +321,11 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
     if args.format == "json":
-        print(json.dumps({"file": str(args.file), "results": render_json(results),
-                          "penalties": penalties.to_json() if penalties is not None else None}, indent=2))
+        document: dict[str, object] = {"file": str(args.file), "results": render_json(results),
+                                       "penalties": penalties.to_json() if penalties is not None else None}
+        if stopped is not None:
+            document["interrupted"] = stopped
+        print(json.dumps(document, indent=2))
     else:
         if results:
             print(render_text(results, traces=args.trace))
@@ -319,6 +333,12 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
             print(render_diagnostics(penalties.diagnostics, result.sources))
         if penalties is not None:
             print(render_penalties(penalties))
+    if stopped is not None:
+        n = len(results)
+        answered = f"{n} {'query' if n == 1 else 'queries'} answered before it {'is' if n == 1 else 'are'} above" \
+            if n else "no query was answered"
+        print(f"rac verify: interrupted during {stopped}; {answered}", file=sys.stderr)
+        return EXIT_INTERRUPTED
     if not results:
         print(f"{args.file}: no queries (add `query NAME: ...` lines, or pass --standard)", file=sys.stderr)
     return verdict_status(results)

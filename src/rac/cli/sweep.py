@@ -17,6 +17,7 @@ from pathlib import Path
 
 from rac.cli.common import (
     EXIT_ERRORS,
+    EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_UNDECIDED,
     EXIT_USAGE,
@@ -31,9 +32,6 @@ from rac.sweep import execute, plan
 from rac.verify.status import UNDECIDED
 
 __all__ = ["exit_status", "sweep_command"]
-
-#: The exit code after Ctrl-C (128 + SIGINT), as the shell reports it.
-EXIT_INTERRUPTED = 130
 
 
 def exit_status(rows: Sequence[Mapping[str, object]]) -> int:

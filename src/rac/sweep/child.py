@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     if spec.memory is not None:
         _limit_memory(spec.memory)
     row = work.execute(spec)
-    if spec.memory is not None and (row["status"] == "memory" or row["status"] in ("failed", "error") and
+    if spec.memory is not None and (row["status"] == "memory" or row["status"] in ("failed", "error", "undecided") and
                                     any(sign in str(row["error"]) for sign in OUT_OF_MEMORY)):
         row.update(status="memory", error=memory_error(spec.memory, str(row["error"])))
     row["peak_memory"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux

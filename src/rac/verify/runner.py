@@ -56,8 +56,8 @@ from rac.verify.statistical import StatisticalAnswerer
 from rac.verify.status import NOT_APPLICABLE, NOT_SATISFIED, UNKNOWN, UNSUPPORTED
 from rac.verify.symbolic import SymbolicAnswerer
 
-__all__ = ["QueryResult", "UnknownQuery", "Verifier", "VerifyOptions", "render_json", "render_text", "run_queries",
-           "standard_queries", "verify"]
+__all__ = ["QueryResult", "UnknownQuery", "Verifier", "VerifyOptions", "out_of_memory", "render_json",
+           "render_text", "run_queries", "standard_queries", "verify"]
 
 #: An answerer's method: ``answer(query, base)`` completes the result ``base`` (name, formula, kind)
 #: of a query of the type it is registered for in :attr:`Verifier.answers`.
@@ -84,11 +84,21 @@ class UnknownQuery(RacError, KeyError):
     lists the missing names."""
 
 
+def out_of_memory(exc: MemoryError) -> str:
+    """The message of a query whose answer ran out of memory (the machine's, or ``ulimit -v``) before the
+    budget's estimate stopped it."""
+    what = f" ({exc})" if str(exc) else ""
+    return (f"out of memory{what}: answering it needed more memory than this process may use (the machine's "
+            "memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower --max-memory "
+            "stops the exploration within what the process has and says how far it got")
+
+
 class Verifier:
     """Answers one file's queries in order: each query goes to the answerer of its kind, all sharing
     :attr:`context` (so that a query ``under S`` finds the strategy ``S`` an earlier one computed).
     A verdict that cannot be reached becomes *unknown* (:class:`~rac.verify.context.UnknownVerdict`)
-    or *unsupported* (:class:`~rac.engine.evaluate.EvaluationError`), never an exception."""
+    or *unsupported* (:class:`~rac.engine.evaluate.EvaluationError`), never an exception; so does a query
+    whose answer ran out of memory before its budget said so (the queries after it are still answered)."""
 
     def __init__(self, context: Context) -> None:
         self.context = context
@@ -106,9 +116,11 @@ class Verifier:
             iq.LearnStrategy: self.learning.learn,
         }
 
-    def run(self, decls: Iterable[tuple[iq.QueryDecl, str | None]]) -> list[QueryResult]:
-        """Answer each query (with the title printed under its name) in order."""
-        results = []
+    def run(self, decls: Iterable[tuple[iq.QueryDecl, str | None]], *,
+            answered: list[QueryResult] | None = None) -> list[QueryResult]:
+        """Answer each query (with the title printed under its name) in order; the results are appended to
+        ``answered`` (returned) as they come, so that a caller stopped midway (Ctrl-C) still has them."""
+        results: list[QueryResult] = [] if answered is None else answered
         for decl, title in decls:
             if self.context.options.progress is not None:
                 self.context.options.progress(f"{decl.name}: {decl.text}")
@@ -132,6 +144,11 @@ class Verifier:
             result = dataclasses.replace(base, status=NOT_APPLICABLE, message=str(exc))
         except EvaluationError as exc:
             result = dataclasses.replace(base, status="unsupported", message=str(exc))
+        except MemoryError as exc:
+            if isinstance(exc, RacError):  # a budget's refusal: its callers say it in their terms
+                raise
+            # the machine's memory or `ulimit -v` ran out first: this query is undecided, the others stand
+            result = dataclasses.replace(base, status=UNKNOWN, message=out_of_memory(exc))
         defined = _defines(query)
         if defined is not None and result.status in (NOT_SATISFIED, NOT_APPLICABLE) and \
                 not (defined in self.context.learned or self.context.strategy_exists(defined)):
@@ -166,11 +183,12 @@ def verify(result: CompileResult | CheckedProgram, options: VerifyOptions | None
     return run_queries(result, options)[1]
 
 
-def run_queries(result: CompileResult | CheckedProgram, options: VerifyOptions | None = None
-                ) -> tuple[Context, list[QueryResult]]:
+def run_queries(result: CompileResult | CheckedProgram, options: VerifyOptions | None = None, *,
+                answered: list[QueryResult] | None = None) -> tuple[Context, list[QueryResult]]:
     """:func:`verify`, also returning the context, which keeps the strategies the queries computed
     (:attr:`~Context.strategies` for shields, :attr:`~Context.learned` and :meth:`~Context.learned_run`
-    for learned ones)."""
+    for learned ones). Each result is appended to ``answered`` (when given) as soon as it is found: after
+    Ctrl-C (``KeyboardInterrupt``) it holds the queries answered before."""
     options = options or VerifyOptions()
     context = Context(result, options)
     decls: list[tuple[iq.QueryDecl, str | None]] = []
@@ -179,7 +197,7 @@ def run_queries(result: CompileResult | CheckedProgram, options: VerifyOptions |
     decls += [(d, None) for d in context.automaton.queries]
     if options.only is not None:
         decls = _selected(decls, options.only)
-    return context, Verifier(context).run(decls)
+    return context, Verifier(context).run(decls, answered=answered)
 
 
 def _selected(decls: list[tuple[iq.QueryDecl, str | None]], only: tuple[str, ...]

@@ -1,0 +1,62 @@
+"""Long commands stopped midway (Ctrl-C, memory that runs out) keep the work done before: `rac verify`
+shows the queries it answered, `rac preanalyse` the settings it finished, with the exit code that says
+they were stopped, never a bare "interrupted" that drops minutes of answers."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from engine_files import write_engine_file
+
+from rac.cli.common import EXIT_INTERRUPTED, EXIT_UNDECIDED
+from rac.cli.main import main
+from rac.verify.statistical import StatisticalAnswerer
+
+QUERIES = {"Stays": "E[] !collide() && !offroad()", "Sim": "simulate[<=2; 4]{mindist(), 3 * collision_distance}",
+           "Later": "E<> !collide() && !offroad() && goal()"}
+
+
+def run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> tuple[int, str, str]:
+    capsys.readouterr()
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _raises(exc: BaseException):
+    def answer(self: object, query: object, base: object) -> object:
+        raise exc
+
+    return answer
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_verify_interrupted_shows_the_queries_answered(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch, form: str) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", QUERIES)
+    monkeypatch.setattr(StatisticalAnswerer, "simulate", _raises(KeyboardInterrupt()))  # Ctrl-C during Sim
+    code, out, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", form)
+    assert code == EXIT_INTERRUPTED
+    assert "rac verify: interrupted during Sim: simulate[<=2;4]" in err
+    assert "1 query answered before it is above" in err
+    if form == "json":
+        document = json.loads(out)  # standard output stays one JSON document
+        assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
+    else:
+        assert "Verifying Stays" in out and "Formula is satisfied" in out and "Later" not in out
+
+
+def test_verify_out_of_memory_in_one_query_keeps_the_others(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    # the machine's memory (or `ulimit -v`) ran out in Sim before any budget said so: Sim is undecided, the
+    # queries before and after it are answered; before, the whole command ended in E0016 and showed none
+    path = write_engine_file(tmp_path, "goal_ahead", QUERIES)
+    monkeypatch.setattr(StatisticalAnswerer, "simulate", _raises(MemoryError("std::bad_alloc")))
+    code, out, _ = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", "json")
+    assert code == EXIT_UNDECIDED
+    results = {r["name"]: r for r in json.loads(out)["results"]}
+    assert list(results) == ["Stays", "Sim", "Later"]
+    assert results["Sim"]["status"] == "unknown" and "out of memory (std::bad_alloc)" in results["Sim"]["message"]
+    assert results["Stays"]["status"] == "satisfied" and results["Later"]["status"] in ("satisfied", "not satisfied")
