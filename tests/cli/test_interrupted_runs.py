@@ -60,3 +60,51 @@ def test_verify_out_of_memory_in_one_query_keeps_the_others(capsys: pytest.Captu
     assert list(results) == ["Stays", "Sim", "Later"]
     assert results["Sim"]["status"] == "unknown" and "out of memory (std::bad_alloc)" in results["Sim"]["message"]
     assert results["Stays"]["status"] == "satisfied" and results["Later"]["status"] in ("satisfied", "not satisfied")
+
+
+def _row_failing_on_the_second(monkeypatch: pytest.MonkeyPatch, exc: BaseException) -> None:
+    """``rac.studies.preanalysis._row`` raising ``exc`` on its second setting (the first is answered)."""
+    from rac.studies import preanalysis
+
+    calls = []
+    real = preanalysis._row
+
+    def row(*args: object, **kwargs: object) -> object:
+        calls.append(1)
+        if len(calls) == 2:
+            raise exc
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(preanalysis, "_row", row)
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_preanalyse_interrupted_shows_the_settings_finished(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch, form: str) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    _row_failing_on_the_second(monkeypatch, KeyboardInterrupt())
+    code, out, err = run(capsys, "preanalyse", path, "-q", "--exponent", "1,2,3", "--runs", "2", "--seed", "1",
+                         "-o", tmp_path / "pre", "--format", form)
+    assert code == EXIT_INTERRUPTED
+    assert "rac preanalyse: interrupted; 1 setting finished before it (above)" in err
+    if form == "json":
+        document = json.loads(out)
+        assert [s["exponent"] for s in document["settings"]] == [1] and document["interrupted"] is True
+    else:
+        assert "| 1 | " in out and "| 2 | " not in out
+
+
+def test_preanalyse_out_of_memory_in_one_setting_keeps_the_others(capsys: pytest.CaptureFixture[str],
+                                                                  tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    # before, the machine's MemoryError in one setting ended the command in E0016 with no row shown
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    _row_failing_on_the_second(monkeypatch, MemoryError("std::bad_alloc"))
+    code, out, err = run(capsys, "preanalyse", path, "-q", "--exponent", "1,2,3", "--runs", "2", "--seed", "1",
+                         "-o", tmp_path / "pre", "--format", "json")
+    assert code == EXIT_UNDECIDED
+    settings = {s["exponent"]: s for s in json.loads(out)["settings"] if "exponent" in s}
+    assert settings[1]["qb"] is True and settings[3]["qb"] is True
+    assert settings[2]["error"].startswith("out of memory (std::bad_alloc): this setting needed more memory")
+    # three settings, not four: the sweep plot's entry is no setting
+    assert "rac preanalyse: 1 of 3 settings were not answered" in err

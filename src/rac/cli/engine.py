@@ -534,12 +534,16 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.studies.preanalysis import SweepError, render_table, sweep
 
     out_dir = _out_dir(args)
+    done: list[dict[str, object]] = []  # each setting's row as it is found: Ctrl-C still shows those
+    interrupted = False
     try:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
                      horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
                      max_bytes=args.max_memory or default_max_bytes(),
                      threshold_factor=args.threshold_factor,
-                     quiet=args.quiet or args.format == "json")
+                     quiet=args.quiet or args.format == "json", done=done)
+    except KeyboardInterrupt:  # the settings finished stand (their plots are written): shown, then exit 130
+        rows, interrupted = done, True
     except SweepError as exc:
         _report(args, usage_error(str(exc)))
         return EXIT_USAGE
@@ -547,13 +551,22 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
     if args.format == "json":
-        print(json.dumps({"file": str(args.file), "settings": rows}, indent=2, default=str))
-    else:
+        document: dict[str, object] = {"file": str(args.file), "settings": rows}
+        if interrupted:
+            document["interrupted"] = True
+        print(json.dumps(document, indent=2, default=str))
+    elif rows or not interrupted:
         print(render_table(rows))
         print(f"\nplots in {out_dir}")
+    if interrupted:
+        n = len(rows)
+        print(f"rac preanalyse: interrupted; {n} setting{'' if n == 1 else 's'} finished before it "
+              f"({'above' if n else 'none'})", file=sys.stderr)
+        return EXIT_INTERRUPTED
     undecided = sum(1 for row in rows if "error" in row)
     if undecided:  # a setting without answers is undecided, and an undecided answer never exits 0
-        print(f"rac preanalyse: {undecided} of {len(rows)} settings were not answered (their rows say why)",
+        settings = sum(1 for row in rows if "exponent" in row)  # not the sweep plot's entry
+        print(f"rac preanalyse: {undecided} of {settings} settings were not answered (their rows say why)",
               file=sys.stderr)
         return EXIT_UNDECIDED
     return EXIT_OK

@@ -152,8 +152,8 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     # Qa: sensor error, unshielded runs (UPPAAL's SMC semantics: uniform actions).
     try:
         plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed, max_bytes=max_bytes)
-    except MemoryError as exc:  # the budget's estimate, refused before anything is allocated
-        row["error"] = f"{exc}"
+    except MemoryError as exc:  # the budget's estimate, refused before anything is allocated (or the machine's)
+        row["error"] = _memory_error(exc)
         return row
     drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, Ego.X] / data.scale) >= float(spec.sensor_error)
     hits = int(drift.any(axis=1).sum())
@@ -162,8 +162,8 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     t0 = time.perf_counter()
     try:
         shield, masks = synthesise(data, samples, max_states=max_states, max_bytes=max_bytes)
-    except MemoryError as exc:
-        row["error"] = f"{exc}"
+    except MemoryError as exc:  # the budget (it says how far the exploration got), or the machine's memory
+        row["error"] = _memory_error(exc)
         row["seconds"] = time.perf_counter() - t0
         return row
     graph = shield.graph
@@ -208,8 +208,10 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
           decides: str | None = None, runs: int = 100, horizon: Fraction | None = None, seed: int | None = None,
           max_states: int = 5_000_000, max_bytes: int | None = None, out_dir: Path | None = None,
           quiet: bool = True,
-          threshold_factor: int = 1) -> list[Row]:
+          threshold_factor: int = 1, done: list[Row] | None = None) -> list[Row]:
     """Answer Qa–Qd and the shielded Fig. 7 runs for every setting of the grid; one dict per setting.
+    Each setting's dict is also appended to ``done`` (when given) as soon as it is found: after Ctrl-C
+    (``KeyboardInterrupt``) it holds the settings finished before.
 
     ``exponents``, ``senses``, ``decides``: comma-separated lists (None: the file's own value).
     A decision period that is not a whole multiple of the sensing period is skipped with an
@@ -256,7 +258,16 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                 except ModelRangeError as exc:  # a run's sensed value: UPPAAL's model would abort there too
                     rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
                                  "error": f"a sensed value left the int32 range at this exponent: {exc}"})
+                except MemoryError as exc:
+                    if isinstance(exc, RacError):  # a budget's refusal the row does not say: its callers do
+                        raise
+                    # the machine's memory (or `ulimit -v`) ran out before the budget said so: this setting
+                    # has no answers, the others do
+                    rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
+                                 "error": _memory_error(exc)})
                 rows[-1]["seed"] = seed
+            if done is not None:
+                done.append(_jsonable(rows[-1]))
             bar.update()
     if out_dir is not None:
         plotted = [r for r in rows if "true_min" in r]
@@ -273,6 +284,17 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                               title="pre-analysis: runs under the shield")
             rows.append({"sweep_plot": str(path)})
     return [_jsonable(r) for r in rows]
+
+
+def _memory_error(exc: MemoryError) -> str:
+    """A setting's error for ``exc``: a budget's own words (:class:`~rac.engine.budget.BudgetExceeded`), or
+    what running out of the machine's memory (or ``ulimit -v``) before the budget said so means."""
+    if isinstance(exc, RacError):
+        return str(exc)
+    what = f" ({exc})" if str(exc) else ""
+    return (f"out of memory{what}: this setting needed more memory than this process may use (the machine's "
+            "memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower --max-memory "
+            "stops it within what the process has")
 
 
 def _smallest(distances: np.ndarray) -> np.ndarray:
