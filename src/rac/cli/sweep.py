@@ -4,15 +4,18 @@
 Exit codes (:mod:`rac.cli.common`): 0 every task ok, 1 a task failed (errors in the file, a query not
 satisfied), 2 bad usage (no scenario matched, a bad ``--set``; before any cluster starts) or an output
 folder that cannot be written, 4 none failed but a task could not run (error, timeout, memory) or a verdict
-is unknown, 130 Ctrl-C (what was done is merged first).
+is unknown, 130 Ctrl-C, 143 SIGTERM (a batch system's time limit, ``kill``): in both, what was done is
+merged first.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import signal
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 
 from rac.cli.common import (
@@ -31,7 +34,32 @@ from rac.cli.common import (
 from rac.sweep import execute, plan
 from rac.verify.status import UNDECIDED
 
-__all__ = ["exit_status", "sweep_command"]
+__all__ = ["EXIT_TERMINATED", "exit_status", "sweep_command", "terminate_as_interrupt"]
+
+#: The exit code after SIGTERM (128 + 15), as the shell reports a process it ended.
+EXIT_TERMINATED = 128 + signal.SIGTERM
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt() -> Iterator[list[int]]:
+    """In here SIGTERM stops the sweep as Ctrl-C does (``KeyboardInterrupt``): the tasks left are cancelled,
+    the rows done merged and the summary printed, where Python's default ended the process on the spot.
+    Yields a list that receives the signal's number when it came."""
+    came: list[int] = []
+
+    def stop(number: int, frame: object) -> None:
+        came.append(number)
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, stop)
+    except ValueError:  # not the main thread: signals cannot be handled here
+        yield came
+        return
+    try:
+        yield came
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def exit_status(rows: Sequence[Mapping[str, object]]) -> int:
@@ -81,8 +109,9 @@ def sweep_command(args: argparse.Namespace) -> int:
     say(f"{_count(len(planned.specs), 'task')}: {_count(planned.scenarios, 'scenario')} × "
         f"{_count(planned.points, 'grid point')}, task {args.task}; outputs in {planned.out}")
     try:
-        result = execute(planned, scheduler=args.scheduler, workers=int(args.workers) if args.workers else None,
-                         force=args.force, retry_failed=args.retry_failed, quiet=quiet, announce=say)
+        with terminate_as_interrupt() as terminated:
+            result = execute(planned, scheduler=args.scheduler, workers=int(args.workers) if args.workers else None,
+                             force=args.force, retry_failed=args.retry_failed, quiet=quiet, announce=say)
     except BadSchedulerAddress as exc:  # the address itself, before any connection: bad usage
         where = "--scheduler" if args.scheduler else "Dask's scheduler-address configuration"
         print_diagnostics([usage_error(f"{where}: {exc}")], {}, as_json(args))
@@ -104,7 +133,8 @@ def sweep_command(args: argparse.Namespace) -> int:
     for note in result.notes:
         print(f"rac sweep: note: {note}", file=sys.stderr)
     if result.outcome.interrupted:
-        print(f"rac sweep: interrupted: {result.summary.not_run} tasks not run (run the same command again to "
+        how = "terminated (SIGTERM)" if terminated else "interrupted"
+        print(f"rac sweep: {how}: {result.summary.not_run} tasks not run (run the same command again to "
               "run only those)", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     return status
