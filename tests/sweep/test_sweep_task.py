@@ -167,6 +167,14 @@ def test_preanalyse_row_holds_the_preanalysis_row(rows: dict[str, dict[str, obje
     assert row["states"] == details[0]["states"]
 
 
+def test_a_preanalyse_setting_beyond_the_state_budget_is_undecided(folder: Path) -> None:
+    # `rac preanalyse` exits 4 on it (no answer, none failed); the sweep's row said "failed" (exit 1)
+    row = run_task(spec(folder, "goal_ahead.xml", "preanalyse",
+                        options=(("runs", "2"), ("seed", "1"), ("max_states", "10")), timeout=60))
+    assert row["status"] == "undecided", row
+    assert "more than 10 states" in str(row["error"])
+
+
 def test_experiment_row_holds_the_summary_table(rows: dict[str, dict[str, object]]) -> None:
     row = rows["experiment"]
     assert row["status"] == "ok", row

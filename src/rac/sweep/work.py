@@ -216,8 +216,9 @@ def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, A
     states = [r["states"] for r in answered if r.get("states") is not None]
     row["states"] = max(states) if states else None
     problems = [r["error"] for r in answered if r.get("error")]
-    if problems:
-        row.update(status="failed", error=problems[0])
+    if problems:  # a setting without answers (beyond a budget, a period that does not fit) is undecided, as in
+        # `rac preanalyse` (exit 4): no answer failed
+        row.update(status="undecided", error=problems[0])
 
 
 def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
