@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +27,14 @@ import rac.engine.explore as explore_module
 from rac.cli.common import EXIT_ERRORS, EXIT_UNDECIDED
 from rac.cli.main import main
 from rac.compiler import compile_file
-from rac.engine.budget import BudgetExceeded, default_max_bytes, machine_memory, parse_size, projected_states
+from rac.engine.budget import (
+    BudgetExceeded,
+    cgroup_limit,
+    default_max_bytes,
+    machine_memory,
+    parse_size,
+    projected_states,
+)
 from rac.engine.explore import explore
 from rac.model.batch import BatchModel
 from rac.model.data import ModelData
@@ -288,3 +297,29 @@ def test_the_experiment_counts_a_goal_only_when_the_run_can_stay_safe_to_the_hor
     assert records and all(r.greedy_success is False and r.first_success_episode is None for r in records)
     assert all(r.evaluation_successes == 0 and not r.succeeded.any() for r in records)
     assert "safe at the goal and to the horizon" in render_markdown(report)
+
+
+@pytest.mark.parametrize(("files", "membership", "limit"), [
+    ({"memory.max": "max\n"}, "0::/\n", None),                                  # cgroup v2, no limit
+    ({"job/memory.max": "2147483648\n"}, "0::/job\n", 2 * 2**30),             # v2, the process's own cgroup
+    ({"memory/memory.limit_in_bytes": "9223372036854771712\n"}, "4:memory:/x\n", None),  # v1, no limit
+    ({"memory/memory.limit_in_bytes": "1073741824\n"}, "4:memory:/docker/abc\n", 2**30),  # v1 at the mount
+    ({}, "", None),                                                                # no cgroup file at all
+])
+def test_a_containers_memory_limit_is_read(files: dict[str, str], membership: str, limit: int | None,
+                                           tmp_path: Path) -> None:
+    # a container is killed at its limit, never swapping first: half the host's memory would be no budget
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text, encoding="ascii")
+    assert cgroup_limit(tmp_path, membership) == limit
+
+
+def test_the_default_budget_keeps_within_ulimit_v() -> None:
+    # `ulimit -v 3G` in the shell: the default budget is half of that, not half the machine's memory
+    script = ("import resource; resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, resource.RLIM_INFINITY)); "
+              "from rac.engine.budget import default_max_bytes, physical_memory; "
+              "print(default_max_bytes(), physical_memory())")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
+    budget, physical = int(out[0]), int(out[1])
+    assert budget == min(3 * 2**30, physical) // 2

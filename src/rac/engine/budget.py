@@ -1,9 +1,10 @@
 """What an exhaustive exploration may use, and the error that stops it before it uses more.
 
 A :class:`Budget` holds a state limit (``--max-states``) and a memory limit (``--max-memory``,
-default :func:`default_max_bytes`: half the machine's memory). The explorations check it before
-each layer is expanded and while a layer is being merged, so they stop *before* they allocate
-what exceeds it, with a :class:`BudgetExceeded` (a ``MemoryError``) that says, in the user's
+default :func:`default_max_bytes`: half the memory available, the machine's or a container's or
+``ulimit -v``'s limit). The explorations check it before each layer is expanded and while a layer
+is being merged, so they stop *before* they allocate what exceeds it, with a :class:`BudgetExceeded`
+(a ``MemoryError``) that says, in the user's
 terms, how far the exploration got and what to change.
 
 Memory is estimated, not measured: the explored graph costs :data:`GRAPH_BYTES_PER_STATE` and
@@ -26,6 +27,7 @@ import os
 import re
 from dataclasses import dataclass
 from fractions import Fraction
+from pathlib import Path
 
 from rac.core.diagnostics import RacError
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
@@ -33,9 +35,9 @@ from rac.core.numbers import format_bytes  # re-exported: the budgets' messages 
 __all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
            "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW", "REPLAY_BYTES_PER_DECISION", "RUN_BYTES_PER_SAMPLE",
            "PROJECTION_FROM", "PROJECTION_MARGIN", "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded",
-           "EstimateExceeded", "ProjectionExceeded",
-           "check_estimate", "default_max_bytes", "format_bytes", "learning_bytes", "machine_memory", "parse_size",
-           "projected_states", "runs_within", "simulation_bytes"]
+           "EstimateExceeded", "ProjectionExceeded", "cgroup_limit", "check_estimate", "default_max_bytes",
+           "format_bytes", "learning_bytes", "machine_memory", "parse_size", "physical_memory", "projected_states",
+           "runs_within", "simulation_bytes"]
 
 #: An explored state: 8 int32 columns (32 B), its choice offset (8 B) and 4 labels (4 B).
 GRAPH_BYTES_PER_STATE = 44
@@ -83,7 +85,7 @@ DEFAULT_FRACTION = 0.5
 _UNITS = {"": 1, "k": 2**10, "m": 2**20, "g": 2**30, "t": 2**40}
 
 
-def machine_memory() -> int:
+def physical_memory() -> int:
     """The machine's physical memory in bytes."""
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
@@ -91,8 +93,63 @@ def machine_memory() -> int:
         return 4 * 2**30
 
 
+#: Where a Linux container's memory limit is read (cgroup v2, then v1): the process's own cgroup
+#: below the mount point, and the mount point itself (what a container sees as its own).
+CGROUP_ROOT = Path("/sys/fs/cgroup")
+
+
+def cgroup_limit(root: Path = CGROUP_ROOT, membership: str | None = None) -> int | None:
+    """The memory limit of the process's cgroup in bytes (v2 ``memory.max``, v1
+    ``memory.limit_in_bytes``), or None where there is none: a container killed at its limit never
+    swaps first, so a budget of half the host's memory would be no budget there. ``membership``: the
+    text of ``/proc/self/cgroup`` (read when None)."""
+    if membership is None:
+        try:
+            membership = Path("/proc/self/cgroup").read_text(encoding="utf-8")
+        except OSError:
+            membership = ""
+    own = {"v2": "/", "v1": "/"}
+    for line in membership.splitlines():
+        parts = line.split(":", 2)
+        if len(parts) == 3 and parts[0] == "0" and parts[1] == "":
+            own["v2"] = parts[2]
+        elif len(parts) == 3 and "memory" in parts[1].split(","):
+            own["v1"] = parts[2]
+    candidates = [root / own["v2"].lstrip("/") / "memory.max", root / "memory.max",
+                  root / "memory" / own["v1"].lstrip("/") / "memory.limit_in_bytes",
+                  root / "memory" / "memory.limit_in_bytes"]
+    limits = []
+    for path in candidates:
+        try:
+            text = path.read_text(encoding="ascii").strip()
+        except (OSError, UnicodeDecodeError):
+            continue
+        if text.isdigit() and int(text) < 2**60:  # "max", or v1's "no limit" (2**63 rounded to pages)
+            limits.append(int(text))
+    return min(limits) if limits else None
+
+
+def machine_memory() -> int:
+    """The memory this process may use, in bytes: the machine's physical memory, or less where a
+    container's cgroup limit or the address-space limit (``ulimit -v``) says so."""
+    limits = [physical_memory()]
+    cgroup = cgroup_limit()
+    if cgroup is not None:
+        limits.append(cgroup)
+    try:
+        import resource  # Unix only
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY and soft > 0:
+            limits.append(soft)
+    except (ImportError, ValueError, OSError):  # no such limit on this platform
+        pass
+    return min(limits)
+
+
 def default_max_bytes() -> int:
-    """The default memory budget: :data:`DEFAULT_FRACTION` of the machine's memory."""
+    """The default memory budget: :data:`DEFAULT_FRACTION` of the machine's memory (:func:`machine_memory`:
+    within a container's limit and ``ulimit -v``)."""
     return int(machine_memory() * DEFAULT_FRACTION)
 
 
