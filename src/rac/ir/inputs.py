@@ -212,21 +212,26 @@ class InputSpace:
                 parts.append(self.piece(cls, item.name).describe(item.name))
         return ", ".join(parts) if parts else "(no inputs)"
 
-    def _value_text(self, cls: int, name: str, value: Fraction) -> str:
-        """``d = 10`` for a value a run can take with the class's guards; else the piece and the value approached.
+    def attains(self, cls: int, name: str, value: Fraction) -> bool:
+        """Whether a run in class ``cls`` can give the numeric input ``name`` the value ``value`` (a worst
+        run's value, within the closure of the class's piece).
 
         A supremum over an open piece sits at its end (a threshold or a bound, itself a point piece):
         the run takes it when every guard and ``assume`` read the same there as in the piece.
         """
         piece = self.piece(cls, name)
-        inside = (piece.low < value < piece.high or (value == piece.low and piece.low_closed)
-                  or (value == piece.high and piece.high_closed))
-        if not inside:
-            index = int(self.columns[name][cls])
-            point = next((j for j, q in enumerate(self.pieces[name]) if q.is_point and q.low == value), None)
-            other = None if point is None else cls + (point - index) * self._strides[name]
-            inside = other is not None and bool(self.valid[other]) and all(
-                self.evaluate(g)[cls] == self.evaluate(g)[other] for g in self._guards)
-        if inside:
+        if (piece.low < value < piece.high or (value == piece.low and piece.low_closed)
+                or (value == piece.high and piece.high_closed)):
+            return True
+        index = int(self.columns[name][cls])
+        point = next((j for j, q in enumerate(self.pieces[name]) if q.is_point and q.low == value), None)
+        other = None if point is None else cls + (point - index) * self._strides[name]
+        return other is not None and bool(self.valid[other]) and all(
+            self.evaluate(g)[cls] == self.evaluate(g)[other] for g in self._guards)
+
+    def _value_text(self, cls: int, name: str, value: Fraction) -> str:
+        """``d = 10`` for a value a run can take with the class's guards; else the piece and the value
+        approached (:meth:`attains`)."""
+        if self.attains(cls, name, value):
             return f"{name} = {_num(value)}"
-        return f"{piece.describe(name)}, tending to {_num(value)}"
+        return f"{self.piece(cls, name).describe(name)}, tending to {_num(value)}"

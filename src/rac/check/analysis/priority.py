@@ -6,7 +6,7 @@ import dataclasses
 import itertools
 import math
 from collections import deque
-from collections.abc import Callable, Collection, Iterable
+from collections.abc import Callable, Collection, Iterable, Mapping
 from fractions import Fraction
 
 from rac import ir
@@ -476,16 +476,15 @@ def run_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> list[d
     for a single sample). A run of the full horizon mostly repeats one sample: at 90,000 samples, one
     entry per sample made a check's JSON 170 MB."""
     result: list[dict[str, object]] = []
-    shown: dict[tuple[int, int], dict[str, object]] = {}  # a run repeats its samples: build each once
+    # a run repeats its samples: build each once
+    shown: dict[tuple[int, int], tuple[dict[str, object], dict[str, str]]] = {}
     previous: tuple[object, ...] | None = None
     for step in worst.steps:
         o = step.outcome
-        inputs = shown.get((o.cls, id(step.inputs)))
-        if inputs is None:
-            values = space.valuation(o.cls)
-            values.update(step.inputs)
-            inputs = shown[o.cls, id(step.inputs)] = {k: (v if isinstance(v, bool) else str(v))
-                                                       for k, v in values.items()}
+        known = shown.get((o.cls, id(step.inputs)))
+        if known is None:
+            known = shown[o.cls, id(step.inputs)] = _json_inputs(space, o.cls, step.inputs)
+        inputs, approached = known
         edge_line = o.edge.span.line if o.edge and o.edge.span else None
         alike = (o.source, o.target, edge_line, step.instant, inputs)  # what the entry shows
         if alike == previous and result[-1]["last_sample"] == step.sample - 1:
@@ -500,22 +499,39 @@ def run_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> list[d
             "to": automaton.location_names[o.target],
             "edge_line": edge_line,
             "inputs": dict(inputs),
+            "approached": dict(approached),
             "instant": step.instant,
         })
     return result
+
+
+def _json_inputs(space: InputSpace, cls: int, values: Mapping[str, Fraction]
+                 ) -> tuple[dict[str, object], dict[str, str]]:
+    """A sample's inputs for JSON, each a value the run takes there (replayed, they drive the same
+    run), and the values the worst run only approaches (``approached``: a guard cuts at the value
+    its arithmetic needs, so the run's value is a supremum; the input is then the class's own
+    representative)."""
+    chosen = space.valuation(cls)
+    approached: dict[str, str] = {}
+    for name, value in values.items():
+        if space.attains(cls, name, value):
+            chosen[name] = value
+        else:
+            approached[name] = str(value)
+    return {k: (v if isinstance(v, bool) else str(v)) for k, v in chosen.items()}, approached
 
 
 def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[str, object] | None:
     """How the worst run ends (``at end`` clauses and the end's inputs), or None."""
     if worst.instant != AFTER_END or worst.end is None:
         return None
-    values = space.valuation(worst.end.cls)
-    values.update(worst.end_inputs)
+    inputs, approached = _json_inputs(space, worst.end.cls, worst.end_inputs)
     return {
         "time": str(worst.steps[-1].sample * automaton.period if worst.steps else 0),
         "clause_lines": [span.line if span else None
                          for span in (automaton.end_clauses[i].span for i in worst.end.ends)],
-        "inputs": {k: (v if isinstance(v, bool) else str(v)) for k, v in values.items()},
+        "inputs": inputs,
+        "approached": approached,
     }
 
 
