@@ -472,3 +472,28 @@ def test_a_monitor_inside_the_wrapper_is_said() -> None:
         assert isinstance(outside.envs[0], Monitor)  # type: ignore[attr-defined]
         outside.close()
         Monitor(RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs)).close()
+
+
+class NumpyBools(Counting):
+    """Counting whose step info holds a numpy bool (``action > 9``, as numpy comparisons give): gymnasium's
+    vector info stores it in an object array, None in the rows of sub-environments being reset."""
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = super().step(action)
+        return obs, reward, terminated or self.t >= 2, truncated, {**info, "collision": np.asarray(action)[0] > 9}
+
+
+def test_numpy_bools_in_the_vector_info_are_booleans() -> None:
+    # the batch refused the object column ("must hold booleans ..., not object values") on the first step
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([NumpyBools, NumpyBools]), follow(),
+                                          lambda obs, infos: {"headway": obs[:, 0].astype(np.float64),
+                                                              "collide": infos["collision"]})
+    single = RewardAutomaton(follow())
+    vector.reset(seed=0)
+    rewards = vector.step(np.array([[5.0], [5.0]], dtype=np.float32))[1]
+    assert rewards.tolist() == [single.step({"headway": 5.0, "collide": False})] * 2
+    # env 1 is reset first (its own limit), env 0's row of that reset step holds None in the info's column
+    vector.reset(options={"reset_mask": np.array([False, True])})
+    _, rewards, terminated, _, infos = vector.step(np.array([[5.0], [5.0]], dtype=np.float32))
+    assert infos["collision"].dtype == object and terminated.tolist() == [True, False]
+    vector.step(np.array([[5.0], [5.0]], dtype=np.float32))  # env 0 in its reset step: its row (None) is not read

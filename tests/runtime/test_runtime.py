@@ -537,7 +537,7 @@ def test_the_batch_refuses_inputs_of_the_wrong_kind(driving: ir.Automaton) -> No
     good = {name: np.array([value, value]) for name, value in inputs().items()}
     for name, value, message in [("dgoal", np.array([1 + 1j, 2]), "real numbers"),
                                  ("dgoal", np.array(["5", "6"]), "real numbers"),
-                                 ("dgoal", np.array([None, 1.0], dtype=object), "'dgoal' = None is not a number"),
+                                 ("dgoal", np.array([None, 1.0], dtype=object), r"'dgoal'\[0\] = None is not a number"),
                                  ("isClose", np.array([0.5, 1.0]), "booleans"),
                                  ("isClose", np.array([2, 0]), "booleans")]:
         with pytest.raises(ValueError, match=message):
@@ -550,3 +550,30 @@ def test_the_batch_refuses_inputs_of_the_wrong_kind(driving: ir.Automaton) -> No
         with pytest.raises(ValueError, match="whole number of automata"):
             BatchRewardAutomaton(driving, n)  # type: ignore[arg-type]
     batch.step_batch(good, mask=np.array([1, 0]))  # 0/1 masks and inputs of the right kinds still work
+
+
+def test_object_columns_are_read_row_by_row_as_the_scalar_runtime_reads_them(driving: ir.Automaton) -> None:
+    """gymnasium's vector info holds numpy bools (``action == 1``) in an object array, None in the rows of
+    sub-environments that did not report the key: the batch refused every such column ("not object
+    values") although ``step`` takes np.True_, and it read the float32 at a bound of an object column
+    widened (refusing what ``step`` takes as the bound). Now each row read follows the scalar rule."""
+    batch = BatchRewardAutomaton(driving, 3)
+    reference = [RewardAutomaton(driving) for _ in range(3)]
+    row = {"isClose": np.array([np.True_, np.False_, None], dtype=object), "prog": True, "comf": True,
+           "collide": np.array([np.False_, np.False_, None], dtype=object),
+           "dgoal": np.array([np.float32(500.0), Fraction(1, 2), None], dtype=object)}
+    got = batch.step_batch(row, mask=np.array([True, True, False]))
+    expected = [reference[0].step(inputs(is_close=True, dgoal=np.float32(500.0))),
+                reference[1].step(inputs(dgoal=0.5)), 0.0]
+    assert got.tolist() == expected and batch.location_names()[:2] == [reference[0].location, reference[1].location]
+    assert batch.samples.tolist() == [1, 1, 0]
+    for name, value, message in [("isClose", None, r"input 'isClose'\[2\] = None is not a boolean"),
+                                 ("isClose", 0.5, r"input 'isClose'\[2\] = 0.5 is not a boolean"),
+                                 ("dgoal", "5", r"input 'dgoal'\[2\] = '5' is not a number")]:
+        full = {**row, "isClose": np.array([True, False, False], dtype=object),
+                "collide": np.array([False, False, False], dtype=object),
+                "dgoal": np.array([1.0, 1.0, 1.0], dtype=object)}
+        full[name][2] = value
+        with pytest.raises(ValueError, match=message):
+            batch.step_batch(full)  # every row read: the third is refused, by name
+    assert batch.samples.tolist() == [1, 1, 0]  # and nothing changed

@@ -25,8 +25,10 @@ from rac.runtime.semantics import (
     ENDED_MESSAGE,
     AutomatonDescription,
     FloatLinear,
+    InputSpec,
     assume_checks,
     at_bounds,
+    boolean_input,
     check_automaton,
     check_mapping,
     clip_inputs,
@@ -76,6 +78,22 @@ def _spread_inputs(inputs: Mapping[str, object], repeat: int) -> dict[str, objec
         array = np.asarray(value)
         spread[name] = value if array.ndim == 0 else np.repeat(array, repeat)
     return spread
+
+
+def _objects(spec: InputSpec, raw: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    """An object column of ``spec``'s values (bool, or float64 for a numeric input), each row read by the
+    scalar runtime's rule: np.True_ is a boolean, a Fraction or a float32 at a bound a number, None
+    neither (``ValueError`` naming the row). gymnasium's vector info holds numpy bools so, with None in
+    the rows of sub-environments that did not report the key: rows outside ``rows`` are not read."""
+    column = np.zeros(len(raw), dtype=bool if spec.is_bool else np.float64)
+    for i in range(len(raw)) if rows is None else np.flatnonzero(rows).tolist():
+        try:
+            column[i] = (boolean_input(spec.name, raw[i]) if spec.is_bool
+                         else number_input(spec.name, raw[i], spec.low, spec.high))
+        except ValueError as exc:
+            where = f"input {spec.name!r}"
+            raise ValueError(str(exc).replace(where, f"{where}[{i}]", 1)) from None
+    return column
 
 
 class _Guards:
@@ -398,14 +416,18 @@ class BatchRewardAutomaton(AutomatonDescription):
                     raise ValueError(f"input {spec.name!r} must have shape ({n},), not {raw.shape}")
                 raw = np.broadcast_to(raw, (n,))
             kind = raw.dtype.kind
-            if spec.is_bool:
+            if kind == "O":  # Python objects: each row read by the scalar runtime's rule
+                column = _objects(spec, raw, rows)
+                if spec.is_bool:
+                    out[spec.name] = column
+                    continue
+                value = column
+            elif spec.is_bool:
                 if kind not in "biu" or (kind in "iu" and not np.isin(raw, (0, 1)).all()):
                     raise ValueError(f"input {spec.name!r} must hold booleans (True/False or 0/1), not {raw.dtype} "
                                      "values")
                 out[spec.name] = raw.astype(bool, copy=False)
                 continue
-            if kind == "O":  # Python objects: each by the scalar runtime's rule (a Fraction is a number, None not)
-                value = np.array([number_input(spec.name, item) for item in raw], dtype=np.float64)
             elif kind not in "biuf":  # not strings or complex numbers
                 raise ValueError(f"input {spec.name!r} must hold real numbers, not {raw.dtype} values")
             else:  # a float32 at a bound rounded to float32 is that bound
