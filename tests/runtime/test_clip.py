@@ -143,3 +143,21 @@ def test_clipping_leaves_a_float32_at_a_bound_uncounted() -> None:
     batch = RewardAutomaton(automaton).batch(2)
     assert batch.step_batch({"pos": np.array([-1.2, -1.3], dtype=np.float32)}, clip=True).tolist() == [-1.2, -1.2]
     assert batch.clipped == {"pos": 1}
+
+
+def test_an_object_column_is_clipped_as_the_batch_reads_it() -> None:
+    """A vector info's object column (numbers of types gymnasium does not batch, None where a sub-environment
+    did not report): the batch reads it row by row, and clip=True left it unclipped, so a value out of
+    range was refused as if clip had not been asked for."""
+    from fractions import Fraction
+
+    batch = RewardAutomaton(driving_automaton()).batch(3)
+    column = np.array([Fraction(1001, 2), np.float32(600.0), None], dtype=object)
+    rows = np.array([True, True, False])
+    got = batch.step_batch({**inputs(), "dgoal": column}, mask=rows, clip=True)
+    assert got.tolist() == [RewardAutomaton(driving_automaton()).step(inputs(dgoal=500.0))] * 2 + [0.0]
+    assert batch.clipped == {"dgoal": 2}
+    _, per_row = clip_rows(input_specs(driving_automaton()), {**inputs(), "dgoal": column}, 3, rows)
+    assert per_row["dgoal"].tolist() == [1, 1, 0]
+    with pytest.raises(ValueError, match=r"input 'dgoal'\[2\] = None is not a number"):
+        batch.step_batch({**inputs(), "dgoal": column}, clip=True)  # every row read: None is refused by name

@@ -25,17 +25,15 @@ from rac.runtime.semantics import (
     ENDED_MESSAGE,
     AutomatonDescription,
     FloatLinear,
-    InputSpec,
     assume_checks,
     at_bounds,
-    boolean_input,
     check_automaton,
     check_mapping,
     clip_inputs,
     float_linear,
     input_specs,
     key_error,
-    number_input,
+    object_column,
     range_error,
     to_float,
 )
@@ -78,22 +76,6 @@ def _spread_inputs(inputs: Mapping[str, object], repeat: int) -> dict[str, objec
         array = np.asarray(value)
         spread[name] = value if array.ndim == 0 else np.repeat(array, repeat)
     return spread
-
-
-def _objects(spec: InputSpec, raw: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-    """An object column of ``spec``'s values (bool, or float64 for a numeric input), each row read by the
-    scalar runtime's rule: np.True_ is a boolean, a Fraction or a float32 at a bound a number, None
-    neither (``ValueError`` naming the row). gymnasium's vector info holds numpy bools so, with None in
-    the rows of sub-environments that did not report the key: rows outside ``rows`` are not read."""
-    column = np.zeros(len(raw), dtype=bool if spec.is_bool else np.float64)
-    for i in range(len(raw)) if rows is None else np.flatnonzero(rows).tolist():
-        try:
-            column[i] = (boolean_input(spec.name, raw[i]) if spec.is_bool
-                         else number_input(spec.name, raw[i], spec.low, spec.high))
-        except ValueError as exc:
-            where = f"input {spec.name!r}"
-            raise ValueError(str(exc).replace(where, f"{where}[{i}]", 1)) from None
-    return column
 
 
 class _Guards:
@@ -417,7 +399,7 @@ class BatchRewardAutomaton(AutomatonDescription):
                 raw = np.broadcast_to(raw, (n,))
             kind = raw.dtype.kind
             if kind == "O":  # Python objects: each row read by the scalar runtime's rule
-                column = _objects(spec, raw, rows)
+                column = object_column(spec, raw, rows)
                 if spec.is_bool:
                     out[spec.name] = column
                     continue

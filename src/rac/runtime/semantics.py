@@ -241,6 +241,22 @@ def number_input(name: str, raw: object, low: float = -math.inf, high: float = m
     return value
 
 
+def object_column(spec: InputSpec, raw: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    """An object column of ``spec``'s values (bool, or float64 for a numeric input), each row read by the
+    scalar runtime's rule: np.True_ is a boolean, a Fraction or a float32 at a bound a number, None
+    neither (``ValueError`` naming the row). gymnasium's vector info holds numpy bools so, with None in
+    the rows of sub-environments that did not report the key: rows outside ``rows`` are not read."""
+    column = np.zeros(len(raw), dtype=bool if spec.is_bool else np.float64)
+    for i in range(len(raw)) if rows is None else np.flatnonzero(rows).tolist():
+        try:
+            column[i] = (boolean_input(spec.name, raw[i]) if spec.is_bool
+                         else number_input(spec.name, raw[i], spec.low, spec.high))
+        except ValueError as exc:
+            where = f"input {spec.name!r}"
+            raise ValueError(str(exc).replace(where, f"{where}[{i}]", 1)) from None
+    return column
+
+
 def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
                 rows: np.ndarray | None = None) -> tuple[dict[str, object], dict[str, int]]:
     """``inputs`` with every numeric value outside its declared range clipped to it, and how many
@@ -268,14 +284,27 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
             if clipped != value:
                 out[spec.name] = clipped
             continue
-        array = np.asarray(raw)
-        if array.dtype.kind not in "iuf":
+        array = _numbers(spec, np.asarray(raw), rows)
+        if array is None:
             continue
         bounded, moved = clip_column(spec, array, rows)
         counts[spec.name] = int(moved.sum())
         if counts[spec.name]:
             out[spec.name] = bounded
     return out, counts
+
+
+def _numbers(spec: InputSpec, array: np.ndarray, rows: np.ndarray | None) -> np.ndarray | None:
+    """A numeric input's array as :func:`clip_column` takes it: numbers as they are, an object column (a
+    vector info's) read row by row (:func:`object_column`); None for what validation is left to report."""
+    if array.dtype.kind in "iuf":
+        return array
+    if array.dtype.kind != "O" or array.ndim != 1:
+        return None
+    try:
+        return object_column(spec, array, rows)
+    except ValueError:
+        return None
 
 
 def at_bounds(spec: InputSpec, raw: np.ndarray) -> np.ndarray:
@@ -321,10 +350,10 @@ def clip_rows(specs: Sequence[InputSpec], inputs: Mapping[str, object], n: int,
         raw = inputs[spec.name]
         if type(raw).__name__ in ("bool", "bool_"):
             continue  # left for validation to report
-        array = np.asarray(raw)
-        if array.dtype.kind not in "iuf":
+        array = _numbers(spec, np.broadcast_to(np.asarray(raw), (n,)), rows)
+        if array is None:
             continue
-        bounded, moved = clip_column(spec, np.broadcast_to(array, (n,)), rows)
+        bounded, moved = clip_column(spec, array, rows)
         counts[spec.name] = moved.astype(np.int64)
         if moved.any():
             out[spec.name] = bounded
