@@ -33,17 +33,29 @@ def _mapping(inputs: object) -> None:
         raise ValueError(message)  # noqa: TRY004
 
 
+def _array_hint(raw: object) -> str:
+    # an array (numpy's, 0-d too, or a torch tensor) is refused with the interpreter's words
+    shape = getattr(raw, "shape", None)
+    if shape is None or not callable(getattr(raw, "item", None)):
+        return ""
+    try:
+        dims = tuple(int(d) for d in shape)
+    except (TypeError, ValueError):
+        return ""
+    return f": an array of shape {dims}, not one value (pass obs[i] rather than obs[i:i+1], or value.item())"
+
+
 def _boolean(name: str, raw: object) -> bool:
     if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
         return bool(raw)
-    raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
+    raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False){_array_hint(raw)}")
 
 
 def _number(name: str, raw: object, low: float, high: float) -> float:
     if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
         return 1.0 if raw else 0.0
     if not isinstance(raw, numbers.Real):
-        raise ValueError(f"input {name!r} = {raw!r} is not a number")  # noqa: TRY004
+        raise ValueError(f"input {name!r} = {raw!r} is not a number{_array_hint(raw)}")  # noqa: TRY004
     try:
         value = float(raw)
     except OverflowError:

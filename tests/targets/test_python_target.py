@@ -7,6 +7,7 @@ import json
 import math
 import os
 import pickle
+import re
 import shutil
 import struct
 import subprocess
@@ -355,3 +356,22 @@ def test_a_float32_bound_widened_to_a_float_is_explained_like_the_interpreter() 
         with pytest.raises(ValueError, match=r"is outside \[-1.2, 0.6\]$"):
             generated.step({**ok, "pos": value})
     assert generated.samples == 0 and not generated.ended
+
+
+def test_an_array_for_one_value_is_refused_saying_so() -> None:
+    """``obs[0:1]`` or a 0-d array (numpy's, a torch tensor) where one value goes was refused as
+    "input 'dgoal' = array(40.) is not a number", which a number it holds contradicts: the message says it is an
+    array, its shape, and how to pass the value; the interpreter and the generated module say the same."""
+    for name, value, shape in [("dgoal", np.array(40.0), "()"), ("dgoal", np.array([40.0], dtype=np.float32), "(1,)"),
+                               ("isClose", np.array(True), "()")]:
+        messages = []
+        for ra in (RewardAutomaton(driving_automaton()), load(generate_python(driving_automaton())).Driving()):
+            hint = re.escape(f": an array of shape {shape}, not one value (pass obs[i] rather than obs[i:i+1], or")
+            with pytest.raises(ValueError, match=rf"is not a (number|boolean).*{hint}"):
+                ra.step({**inputs(), name: value})
+            try:
+                ra.step({**inputs(), name: value})
+            except ValueError as error:
+                messages.append(str(error))
+            assert ra.samples == 0
+        assert messages[0] == messages[1]

@@ -215,7 +215,20 @@ def boolean_input(name: str, raw: object) -> bool:
     anything else (``"x"``, ``None``, ``0.5``) is ``ValueError``, not read by its truth."""
     if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
         return bool(raw)
-    raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False)")
+    raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False){array_hint(raw)}")
+
+
+def array_hint(raw: object) -> str:
+    """What the refusal of an array (numpy's, a 0-d one too, or a torch tensor) adds: one value is read, not
+    an array of them (``obs[0]``, not ``obs[0:1]``; ``value.item()``). The generated module says the same."""
+    shape = getattr(raw, "shape", None)
+    if shape is None or not callable(getattr(raw, "item", None)):
+        return ""
+    try:
+        dims = tuple(int(d) for d in shape)
+    except (TypeError, ValueError):
+        return ""
+    return f": an array of shape {dims}, not one value (pass obs[i] rather than obs[i:i+1], or value.item())"
 
 
 def number_input(name: str, raw: object, low: float = -math.inf, high: float = math.inf) -> float:
@@ -227,7 +240,7 @@ def number_input(name: str, raw: object, low: float = -math.inf, high: float = m
     if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
         return 1.0 if raw else 0.0
     if not isinstance(raw, numbers.Real):
-        raise ValueError(f"input {name!r} = {raw!r} is not a number")
+        raise ValueError(f"input {name!r} = {raw!r} is not a number{array_hint(raw)}")
     try:
         value = float(raw)
     except OverflowError:
