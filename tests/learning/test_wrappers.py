@@ -160,6 +160,29 @@ def test_timing_warnings_name_both_numbers() -> None:
         RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, dt=0.25)
 
 
+@pytest.mark.parametrize("dt", [0, 0.0, -0.1, math.nan, math.inf, "0.1", True])
+def test_a_time_step_that_is_no_positive_number_is_refused(dt: object) -> None:
+    # 0 ended the construction in ZeroDivisionError, "0.1" in TypeError; NaN, -0.1, inf and True gave warnings
+    # of nonsense ("the environment's episode lasts -2 s")
+    with pytest.raises(ValueError, match="dt must be the environment's seconds per step, a positive number"):
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, dt=dt)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="dt must be"):
+        RewardAutomatonVectorWrapper(SyncVectorEnv([HighwayLike]), follow(), vector_inputs, dt=dt)  # type: ignore[arg-type]
+
+
+def test_a_float32_time_step_equal_to_the_period_is_no_mismatch() -> None:
+    # np.float32(0.1) (a configuration read as float32) warned "time step is 0.1 s but the automaton samples every
+    # 0.1 s"; an environment's own float32 dt was not read at all (no timing checked)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, dt=np.float32(0.1))  # type: ignore[arg-type]
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=np.float32(0.1)), 30), follow(), inputs)  # type: ignore[arg-type]
+    with pytest.warns(UserWarning, match="time step is 0.2 s"):
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=np.float32(0.2)), 30), follow(), inputs)  # type: ignore[arg-type]
+    with pytest.warns(UserWarning, match=r"episode lasts 3.1 s \(31 steps"):
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(), 31), follow(), inputs, dt=np.float32(0.1))  # type: ignore[arg-type]
+
+
 def test_a_time_limit_around_an_unregistered_environment_is_checked() -> None:
     # the docs put the limit inside the wrapper as RewardAutomatonWrapper(TimeLimit(env, n), ...); around
     # an environment made without an id the TimeLimit's spec is None, and an episode of 5 s against

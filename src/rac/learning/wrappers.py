@@ -32,6 +32,7 @@ from __future__ import annotations
 import copy
 import inspect
 import math
+import numbers
 import os
 import warnings
 from collections.abc import Callable, Mapping
@@ -152,11 +153,11 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
     unwrapped = getattr(env, "unwrapped", env)
     config = getattr(unwrapped, "config", None)
     config = config if isinstance(config, Mapping) else {}
-    step = dt
+    step = _seconds(dt)
     if step is None:
         own = getattr(unwrapped, "dt", None)
-        if isinstance(own, (int, float)) and not isinstance(own, bool):
-            step = float(own)
+        if _is_seconds(own):
+            step = own
         elif isinstance(config.get("policy_frequency"), (int, float)) and config["policy_frequency"] > 0:
             step = 1.0 / config["policy_frequency"]
     ends: list[float] = []  # every limit the episode has: it ends at the first one reached
@@ -165,6 +166,30 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
     if isinstance(config.get("duration"), (int, float)):
         ends.append(float(config["duration"]))
     return step, min(ends, default=None)
+
+
+def _is_seconds(value: object) -> bool:
+    """Whether ``value`` is a time step: a positive finite real number (numpy's too), not a bool."""
+    return (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+            and math.isfinite(value) and float(value) > 0)
+
+
+def _seconds(dt: object) -> float | None:
+    """The ``dt=`` given to a wrapper or :func:`env_timing`, checked: None, or a positive finite number of seconds
+    (``RacValueError`` otherwise; 0 ended construction in ZeroDivisionError, a string in TypeError, and a NaN,
+    negative or infinite step gave warnings of nonsense). A numpy float keeps its type: its precision is the
+    tolerance of the timing check."""
+    if dt is None:
+        return None
+    if not _is_seconds(dt):
+        raise RacValueError(f"dt must be the environment's seconds per step, a positive number, not {dt!r}")
+    return dt  # type: ignore[return-value]
+
+
+def _tolerance(step: float) -> float:
+    """The relative tolerance of comparing ``step`` with the automaton's period: a float32 step (``np.float32(0.1)``,
+    a configuration read as float32) is its period to float32 precision, not a mismatch."""
+    return max(1e-9, 4 * float(np.finfo(step).eps)) if isinstance(step, np.floating) else 1e-9
 
 
 def _step_limits(env: object) -> list[int]:
@@ -196,7 +221,7 @@ class _Timing:
         period, steps = getattr(automaton, "period", None), getattr(automaton, "steps", None)
         self.period = float(period) if isinstance(period, (int, float, Fraction)) else None
         self.steps = steps if isinstance(steps, int) else None
-        self.dt = dt
+        self.dt = _seconds(dt)
         self.checked: tuple[float, float | None] | None = None  # the timing last checked
 
     def check(self, env: object) -> None:
@@ -209,11 +234,12 @@ class _Timing:
         horizon = (self.steps or 0) * self.period
         cover = (f"the priority proofs cover runs sampled every {self.period:g} s over a horizon of {horizon:g} s "
                  f"({self.steps} samples) only")
-        if not math.isclose(step, self.period, rel_tol=1e-9):
+        tolerance = _tolerance(step)
+        if not math.isclose(step, self.period, rel_tol=tolerance):
             warnings.warn(f"the environment's time step is {step:g} s but the automaton samples every "
                           f"{self.period:g} s (one step is one sample); {cover}", UserWarning, stacklevel=3)
         if episode is not None and self.steps is not None:
-            if not math.isclose(episode, horizon, rel_tol=1e-9):
+            if not math.isclose(episode, horizon, rel_tol=tolerance):
                 warnings.warn(f"the environment's episode lasts {episode:g} s ({episode / step:g} steps of "
                               f"{step:g} s) but the automaton's horizon is {horizon:g} s ({self.steps} samples); "
                               f"{cover}", UserWarning, stacklevel=3)
