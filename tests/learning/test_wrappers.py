@@ -160,6 +160,15 @@ def test_timing_warnings_name_both_numbers() -> None:
         RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, dt=0.25)
 
 
+def test_inputs_taking_too_few_arguments_are_refused_at_construction() -> None:
+    # inputs(obs) was taken, and the first step raised after the environment had stepped
+    with pytest.raises(TypeError, match=r"inputs must take \(obs, info\) or \(obs, info, env\), not 1 positional"):
+        RewardAutomatonWrapper(HighwayLike(), follow(), lambda obs: {})
+    with pytest.raises(TypeError, match=r"inputs must take \(obs, infos\) or \(obs, infos, env\), not 0 positional"):
+        RewardAutomatonVectorWrapper(SyncVectorEnv([HighwayLike]), follow(), lambda: {})
+    RewardAutomatonWrapper(HighwayLike(), follow(), lambda *args: inputs(*args[:2]))  # *args takes them all
+
+
 @pytest.mark.parametrize("dt", [0, 0.0, -0.1, math.nan, math.inf, "0.1", True])
 def test_a_time_step_that_is_no_positive_number_is_refused(dt: object) -> None:
     # 0 ended the construction in ZeroDivisionError, "0.1" in TypeError; NaN, -0.1, inf and True gave warnings

@@ -115,6 +115,8 @@ def _takes_env(inputs: Callable[..., object], what: str) -> bool:
     if any(p.kind is p.VAR_POSITIONAL for p in parameters):
         return True
     positional = [p for p in parameters if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    if len(positional) < 2:  # said here, not after the environment's first step
+        raise TypeError(f"inputs must take {what}, not {len(positional)} positional argument(s)")
     return len(positional) >= 3 and (positional[2].default is inspect.Parameter.empty or positional[2].name == "env")
 
 
