@@ -186,3 +186,12 @@ def test_an_inputs_callable_that_fails_says_where_things_stand() -> None:
                                          "taken this step and the automaton has not"):
         env.step(0)
     assert env.automaton.samples == 0
+
+
+def test_the_vector_wrapper_is_one_import_away_too() -> None:
+    # docs/python.md shows both signatures under `rac.learning.gym`; only the single wrapper was there
+    import rac.learning.gym as gym
+    from rac.learning.wrappers import RewardAutomatonVectorWrapper
+
+    assert gym.RewardAutomatonVectorWrapper is RewardAutomatonVectorWrapper
+    assert "RewardAutomatonVectorWrapper" in gym.__all__

@@ -1,5 +1,6 @@
 """Gymnasium integration, one import away: :class:`RewardAutomatonWrapper` (a reward automaton's
-reward on any environment, :mod:`rac.learning.wrappers`) and :class:`ScenarioEnv` (the scenario
+reward on any environment, :mod:`rac.learning.wrappers`), :class:`RewardAutomatonVectorWrapper` (the
+same on a gymnasium vector environment) and :class:`ScenarioEnv` (the scenario
 model of a ``.ra`` file's ``model`` block as an environment, :mod:`rac.learning.scenario_env`).
 
 The registered ids (``gymnasium.make("rac/Scenario-v0", model=...)``) come with ``import rac.gym``.
@@ -8,6 +9,6 @@ The registered ids (``gymnasium.make("rac/Scenario-v0", model=...)``) come with 
 from __future__ import annotations
 
 from rac.learning.scenario_env import ScenarioEnv
-from rac.learning.wrappers import AutomatonLike, RewardAutomatonWrapper
+from rac.learning.wrappers import AutomatonLike, RewardAutomatonVectorWrapper, RewardAutomatonWrapper
 
-__all__ = ["AutomatonLike", "RewardAutomatonWrapper", "ScenarioEnv"]
+__all__ = ["AutomatonLike", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "ScenarioEnv"]
