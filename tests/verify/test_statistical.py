@@ -9,7 +9,7 @@ from engine_files import write_engine_file
 
 from rac.compiler import CompileResult, compile_file
 from rac.verify.context import Context
-from rac.verify.runner import QueryResult, VerifyOptions, verify
+from rac.verify.runner import SEEDED, QueryResult, VerifyOptions, verify
 from rac.verify.statistical import StatisticalAnswerer
 
 
@@ -21,9 +21,12 @@ def compiled(tmp_path_factory: pytest.TempPathFactory) -> CompileResult:
 
 
 def answer(result: CompileResult, name: str, method: str) -> QueryResult:
-    """Query ``name`` answered by ``StatisticalAnswerer.<method>`` in a fresh context (seed 1)."""
+    """Query ``name`` answered by ``StatisticalAnswerer.<method>`` in a fresh context (seed 1), with the
+    seed ``rac verify`` gives it: the one of its place among the file's seeded queries."""
     [decl] = [d for d in result.automaton.queries if d.name == name]
-    answerer = StatisticalAnswerer(Context(result, VerifyOptions(seed=1, plots=False)))
+    context = Context(result, VerifyOptions(seed=1, plots=False))
+    context.seed_slot = [d.name for d in result.automaton.queries if isinstance(d.query, SEEDED)].index(name)
+    answerer = StatisticalAnswerer(context)
     base = QueryResult(decl.name, decl.text, "statistical", "unknown")
     return getattr(answerer, method)(decl.query, base)
 

@@ -477,3 +477,20 @@ def test_simulate_beyond_the_memory_budget_stops_before_allocating(tmp_path: Pat
                                                          max_bytes=300 * 2**20))
     assert answer.status == "unknown"
     assert answer.message is not None and "--max-memory" in answer.message and "1,000,000 runs" in answer.message
+
+
+def test_a_query_has_its_seed_whichever_queries_are_selected(compiled: Callable[[str], Compiled]) -> None:
+    """`--query Learn` (and `rac render --strategy`, which runs the learning query alone) learns with the
+    seed the whole file gives it: the k-th statistical or learning query of the file gets the k-th seed
+    derived from --seed, whether or not the queries before it run. Before, the seed was the k-th of those
+    *run*, so `rac verify --seed 1 --query Learn` learned another strategy than `rac verify --seed 1`
+    (and `A<> p under Learn` could get another verdict)."""
+    item = compiled("avoidable_obstacle")
+    seeded = ("Prob", "ProbRuns", "Certain", "Impossible", "Speed", "Sim", "Learn")  # in the file's order
+    together = run(item, *seeded, learn_episodes=64)
+    alone = run(item, "Learn", learn_episodes=64)
+    expected = [int(np.random.SeedSequence(1).spawn(len(seeded))[k].generate_state(1)[0]) for k in range(len(seeded))]
+    assert [together[name].seed for name in seeded] == expected  # the whole file's seeds are what they were
+    assert alone["Learn"].seed == together["Learn"].seed
+    assert alone["Learn"].estimate == together["Learn"].estimate
+    assert run(item, "Sim", "Speed")["Speed"].seed == together["Speed"].seed

@@ -188,6 +188,9 @@ class Context:
         # The witness searches draw from a stream of their own, so that a reachability query does not
         # change the seeds of the statistical and learning queries after it.
         self._search_seeds = np.random.SeedSequence((self.seed, 1))
+        #: The position of the query being answered among the seeded queries (statistical and learning)
+        #: of the whole file, selected or not (:meth:`next_seed`); None: seeds are spawned in turn.
+        self.seed_slot: int | None = None
 
     # ------------------------------------------------------------ the program, read through
     @property
@@ -226,7 +229,14 @@ class Context:
             self.out_dir = saved
 
     def next_seed(self) -> int:
-        """A fresh seed per query, all derived from the options' seed (reproducible as a whole)."""
+        """The query's seed, derived from the options' seed: the ``k``-th seed spawned from it for the
+        ``k``-th seeded query of the whole file (:attr:`seed_slot`, set by
+        :func:`rac.verify.runner.run_queries`), so that a query learns or simulates alike whether the
+        queries before it run or not (``--query S``, ``rac render --strategy S``); without a slot, a
+        fresh seed spawned in turn (reproducible as a whole)."""
+        if self.seed_slot is not None:
+            entropy = self._seeds.entropy
+            return int(np.random.SeedSequence(entropy, spawn_key=(self.seed_slot,)).generate_state(1)[0])
         return int(self._seeds.spawn(1)[0].generate_state(1)[0])
 
     def search_seed(self) -> int:

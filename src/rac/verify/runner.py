@@ -65,6 +65,8 @@ Answer = Callable[[Any, QueryResult], QueryResult]
 #: What each standard query asks, in words (printed under its name); the queries themselves:
 #: :data:`rac.check.standard.STANDARD`.
 STANDARD_TITLES = {q.name: q.title for q in STANDARD if q.verify}
+#: The queries that draw a seed (:meth:`Context.next_seed`): each gets the one of its place among them.
+SEEDED = (iq.ProbabilityQuery, iq.ExpectationQuery, iq.SimulateQuery, iq.LearnStrategy)
 
 
 def standard_queries(result: CompileResult | CheckedProgram, horizon_seconds: Fraction | None = None
@@ -100,8 +102,11 @@ class Verifier:
     or *unsupported* (:class:`~rac.engine.evaluate.EvaluationError`), never an exception; so does a query
     whose answer ran out of memory before its budget said so (the queries after it are still answered)."""
 
-    def __init__(self, context: Context) -> None:
+    def __init__(self, context: Context, seed_slots: Mapping[int, int] | None = None) -> None:
         self.context = context
+        #: Each seeded query's place among the whole file's (by ``id`` of its declaration): its seed
+        #: (:meth:`Context.next_seed`); a query not in it draws the next seed in turn.
+        self.seed_slots: Mapping[int, int] = seed_slots or {}
         self.symbolic = SymbolicAnswerer(context)
         self.statistical = StatisticalAnswerer(context)
         self.learning = LearningAnswerer(context)
@@ -134,6 +139,7 @@ class Verifier:
         query = decl.query
         base = QueryResult(decl.name, decl.text, _kind(query), "unknown", title=title, span=decl.span)
         t0 = time.perf_counter()
+        self.context.seed_slot = self.seed_slots.get(id(decl))
         try:
             result = self._dispatch(query, base)
         except UnknownVerdict as exc:
@@ -195,9 +201,11 @@ def run_queries(result: CompileResult | CheckedProgram, options: VerifyOptions |
     if options.standard:
         decls += [(d, d.title or None) for d in standard_queries(context.program, options.horizon)]
     decls += [(d, None) for d in context.automaton.queries]
+    # each seeded query's seed by its place in the whole list, before --query selects (Context.next_seed)
+    slots = {id(d): k for k, d in enumerate(d for d, _ in decls if isinstance(d.query, SEEDED))}
     if options.only is not None:
         decls = _selected(decls, options.only)
-    return context, Verifier(context).run(decls, answered=answered)
+    return context, Verifier(context, slots).run(decls, answered=answered)
 
 
 def _selected(decls: list[tuple[iq.QueryDecl, str | None]], only: tuple[str, ...]
