@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import pytest
 from engine_files import write_engine_file
@@ -65,3 +66,23 @@ def test_learning_needs_the_shield_and_refuses_a_learned_one(compiled: CompileRe
     learn(context, query)
     with pytest.raises(EvaluationError, match="learned strategy `fast`"):
         learn(context, dataclasses.replace(query, under="fast"))
+
+
+def test_an_objective_not_zero_at_the_start_has_its_value_at_the_end_said(tmp_path: Path) -> None:
+    """`maxE(sa + 10)`: the return is the objective's increase (4, as for `maxE(sa)`), which is its value at
+    the end (14) only when it is 0 at the start; the report said "return 4" alone (and `maxE(-dist_goal())`
+    on the highway a positive "return 141.5" for an objective never above 0) and called it the value at
+    the end."""
+    queries = {"safe": "strategy safe = control: A[] !collide() && !offroad()",
+               "Learn": "strategy fast = maxE(sa + 10)[<=4]{Tiny.location}->{x}: <> time >= 4 under safe"}
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries))
+    assert result.ok, result.diagnostics
+    for exact in (False, True):
+        answer = learn(shielded_context(result, exact=exact), decl(result, "Learn").query)
+        assert answer.estimate == 4.0 and answer.optimum["value"] == 4.0
+        assert answer.optimum["objective_at_start"] == 10.0
+        assert "return 4 (the increase of sa + 10 from 10 at the start: 14 at the end)" in (answer.message or "")
+    (tmp_path / "plain").mkdir()
+    plain_file = compile_file(write_engine_file(tmp_path / "plain", "avoidable_obstacle"))
+    plain = learn(shielded_context(plain_file), decl(plain_file, "Learn").query)
+    assert "at the start" not in (plain.message or "")  # `maxE(sa)` starts at 0: its return is its value

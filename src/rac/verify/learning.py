@@ -60,7 +60,8 @@ class LearningAnswerer:
             raise UnknownVerdict("the time bound is shorter than one sample")
         meta = {"query": base.formula, "objective": format_checked(query.objective),
                 "goal": format_checked(query.expr), "under": query.under, "horizon_samples": samples,
-                "reward": "the objective's increase per step (its value at the episode's end)"}
+                "reward": "the objective's increase per step (summed: its value at the episode's end minus its "
+                "value at the start)"}
         if ctx.options.exact:
             return self._exact(query, base, table, samples, meta)
         batch = ctx.episodes("automaton", query.expr, samples)
@@ -93,14 +94,15 @@ class LearningAnswerer:
             files = (str(outcome.strategy.save(ctx.out(f"{query.name}.strategy.npz"))),)
         learned = float(outcome.greedy.returns[0])
         optimum = self._optimum(query, table, samples, meta)
-        message = self._message(outcome, query) + "\n" + self._beside(learned, optimum, query)
+        start = self._start_value(query, samples)
+        message = self._message(outcome, query, start) + "\n" + self._beside(learned, optimum, query)
         if not isinstance(optimum, str) and optimum.run.success[0] and not outcome.greedy.success[0]:
             # learning missed what the shield allows: say how to get the strategy that does not
             message += (f"; the optimal run reaches {format_checked(query.expr)} safely: `rac verify --exact` "
                         "emits that strategy instead of learning one")
         return dataclasses.replace(base, status="value", estimate=learned,
                                    runs=outcome.episodes, horizon_samples=samples, seed=seed, files=files,
-                                   message=message, optimum=self._optimum_fields(optimum, learned, query))
+                                   message=message, optimum=self._optimum_fields(optimum, learned, query, start))
 
     def _optimum(self, query: iq.LearnStrategy, table: ShieldTable | None, samples: int,
                  meta: Mapping[str, object]) -> Optimum | str:
@@ -136,18 +138,19 @@ class LearningAnswerer:
         return text + f"\n{optimum.exploration}"
 
     @staticmethod
-    def _optimum_fields(optimum: Optimum | str, learned: float | None, query: iq.LearnStrategy
+    def _optimum_fields(optimum: Optimum | str, learned: float | None, query: iq.LearnStrategy, start: float
                         ) -> dict[str, object]:
-        """The optimum as ``--format json`` writes it."""
+        """The optimum as ``--format json`` writes it, with the objective's value at the start (a return
+        is its increase from there)."""
 
         if isinstance(optimum, str):
-            return {"out_of_reach": optimum}
+            return {"out_of_reach": optimum, "objective_at_start": start}
         fields: dict[str, object] = {
             "value": optimum.value, "backward_pass": optimum.backward, "states": optimum.states,
             "edges": optimum.edges, "additive": optimum.additive, "why_not_additive": optimum.why,
             "method": optimum.method, "arithmetic": "float64, as learning's rewards",
             "reaches_goal_safely": bool(optimum.run.success[0]), "actions": optimum.run.actions[0].tolist(),
-            "seconds": optimum.seconds, "uniform_success": optimum.uniform_success}
+            "seconds": optimum.seconds, "uniform_success": optimum.uniform_success, "objective_at_start": start}
         if learned is not None:
             fields["learned"] = learned
             fields["shortfall"] = shortfall(learned, optimum.value, optimum.optimise)
@@ -166,11 +169,29 @@ class LearningAnswerer:
         files: tuple[str, ...] = ()
         if ctx.out_dir is not None:
             files = (str(optimum.strategy.save(ctx.out(f"{query.name}.strategy.npz"))),)
+        start = self._start_value(query, samples)
         message = (f"the optimal strategy ({optimum.method}; {optimum.edges:,} choices, {optimum.seconds:.2f} s): "
-                   f"its run {self._run_text(optimum.run, query)}, return {format_number(optimum.value)}")
+                   f"its run {self._run_text(optimum.run, query)}, return {format_number(optimum.value)}"
+                   f"{self._from_start(optimum.value, start, query)}")
         return dataclasses.replace(base, status="value", estimate=optimum.value, states=optimum.states,
                                    horizon_samples=samples, files=files, message=message, method="exact optimum",
-                                   optimum=self._optimum_fields(optimum, None, query))
+                                   optimum=self._optimum_fields(optimum, None, query, start))
+
+    def _start_value(self, query: iq.LearnStrategy, samples: int) -> float:
+        """The objective's value at the episodes' start: a return (the sum of its increases) is its value
+        at the end minus this."""
+        batch = self.context.episodes("automaton", query.expr, samples)
+        batch.reset(1)
+        return float(batch.observe([batch.expression(query.objective)])[0, 0])
+
+    @staticmethod
+    def _from_start(value: float, start: float, query: iq.LearnStrategy) -> str:
+        """After a return: the objective's value at the start and at the end, when it is not 0 at the
+        start (then the return, its increase, is not its value at the end)."""
+        if start == 0:
+            return ""
+        return (f" (the increase of {format_checked(query.objective)} from {format_number(start)} at the start: "
+                f"{format_number(start + value)} at the end)")
 
     def _run_text(self, run: StrategyRun, query: iq.LearnStrategy) -> str:
         """What a strategy's one run does: reaches the goal safely at some time, or not."""
@@ -183,8 +204,9 @@ class LearningAnswerer:
             return f"reaches {goal} at {at} but {unsafe}"
         return f"does not reach {goal}"
 
-    def _message(self, outcome: LearningResult, query: iq.LearnStrategy) -> str:
-        """What learning found: the greedy run, when learning first succeeded, what went wrong on the way."""
+    def _message(self, outcome: LearningResult, query: iq.LearnStrategy, start: float = 0.0) -> str:
+        """What learning found: the greedy run (its return, and the objective's value at the end when it
+        was not 0 at the ``start``), when learning first succeeded, what went wrong on the way."""
         run = self._run_text(outcome.greedy, query)
         first = (f"first after {outcome.first_success_episode} episodes" if outcome.first_success_episode is not None
                  else "never")
@@ -193,8 +215,9 @@ class LearningAnswerer:
             if proof is not None:
                 first = f"never: {proof}"
         stop = ", stopped early" if outcome.stopped_early else ""
+        learned = float(outcome.greedy.returns[0])
         lines = [f"learned in {outcome.episodes} episodes{stop}: the greedy run {run}, return "
-                 f"{format_number(float(outcome.greedy.returns[0]))}",
+                 f"{format_number(learned)}{self._from_start(learned, start, query)}",
                  f"greedy run safe until the goal: {first}; learning episodes that collided: "
                  f"{outcome.collisions_during_learning}, left the road: {outcome.offroad_during_learning}; "
                  f"{outcome.strategy.n_states:,} observations"]
