@@ -74,6 +74,21 @@ def test_the_shielded_rows_say_what_uniform_exploration_can_expect(report: dict[
             assert f"{1 / chance:.3g} episodes on average until the first" in line
 
 
+def test_a_goal_no_shielded_run_reaches_is_said_plainly(report: dict[str, object]) -> None:
+    """On the tiny road the goal lies behind the obstacle: no run the shield allows reaches it safely, and
+    the optimum's run does not. The note said only that no *uniformly random* episode does, "what a
+    learner exploring at epsilon near 1 can expect", beside an optimum cell "4.0 (0 % below; 2 of 2 within
+    5 %)", as if learning could do better and the optimum reached the goal (rac verify says both)."""
+    table = render_markdown(report)
+    for label, optimum in report["optima"].items():
+        assert optimum["uniform_success"] == 0 and not optimum["reaches_goal_safely"]
+        line = next(line for line in table.splitlines() if line.startswith(f"Exact optimum of {label} "))
+        assert "a run that does not reach the goal safely" in line
+        assert ("nor does any run the shield allows (exact, over all of them within the horizon): no episode "
+                "can succeed, whatever the learner") in line
+        assert "what a learner exploring at epsilon near 1 can expect" not in line
+
+
 def test_cli_writes_table_json_and_curves(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)
     out = tmp_path / "out"

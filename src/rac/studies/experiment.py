@@ -475,6 +475,7 @@ def render_markdown(report: Report) -> str:
         *(f"Exact optimum of {label} under the shield: "
           + (f"out of reach ({optimum['out_of_reach']})" if "out_of_reach" in optimum else
              f"{optimum['value']:.1f} ({optimum['method']}, {optimum['seconds']:.2f} s)"
+             + ("" if optimum.get("reaches_goal_safely", True) else ", a run that does not reach the goal safely")
              + _exploration(optimum))
           + "." for label, optimum in report.get("optima", {}).items()),
         f"Safety shield: {report['shield_states']:,} states, {report['shield_seconds']:.2f} s (computed once, "
@@ -510,6 +511,10 @@ def _exploration(optimum: Report) -> str:
 
     if "uniform_success" not in optimum:
         return ""
+    if not optimum["uniform_success"] > 0:  # exact over the complete graph: no allowed run reaches the goal
+        return ("; under the shield " + exploration_text(optimum["uniform_success"])
+                + ", nor does any run the shield allows (exact, over all of them within the horizon): no episode "
+                "can succeed, whatever the learner")
     return ("; under the shield " + exploration_text(optimum["uniform_success"])
             + ", what a learner exploring at epsilon near 1 can expect before it has learned anything")
 
