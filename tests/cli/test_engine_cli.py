@@ -601,3 +601,24 @@ def test_simulate_and_render_json_errors(argv: list[str], capsys: pytest.Capture
     captured = capsys.readouterr()
     [diagnostic] = json.loads(captured.out)
     assert diagnostic["code"] == "E0014" and captured.err == ""
+
+
+def test_verify_without_a_seed_says_the_seed_that_reproduces_it(capsys: pytest.CaptureFixture[str],
+                                                                 tmp_path: Path) -> None:
+    # each query printed a seed derived from a fresh one that appeared nowhere: nothing reproduced the run
+    path = write_engine_file(tmp_path, "goal_ahead", {"Prob": "Pr[<=2](<> v >= 6)"})
+    assert main(["verify", str(path), "-q", "--no-plots", "-o", str(tmp_path / "a")]) == 0
+    first = capsys.readouterr()
+    found = re.search(r"the random queries drew seed (\d+); `--seed \1` reproduces their answers", first.err)
+    assert found, first.err
+    assert main(["verify", str(path), "-q", "--no-plots", "-o", str(tmp_path / "b"), "--seed", found.group(1)]) == 0
+    again = capsys.readouterr()
+    def answers(out: str, folder: str) -> str:  # the time each answer took differs
+        return re.sub(r"\d+\.\d+ s,", "", out.replace(folder, ""))
+
+    assert answers(again.out, str(tmp_path / "b")) == answers(first.out, str(tmp_path / "a"))
+    assert re.search(r"seed \d+", again.out)
+    assert "drew seed" not in again.err  # given, not drawn
+    assert main(["verify", str(path), "-q", "--no-plots", "-o", str(tmp_path / "c"), "--seed", found.group(1),
+                 "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["seed"] == int(found.group(1))

@@ -159,6 +159,16 @@ def _print_summary(args: argparse.Namespace, document: dict[str, object], lines:
             print(line)
 
 
+def _seed(args: argparse.Namespace) -> int:
+    """``--seed``, or a fresh seed drawn now: short, so that a run printing it is reproduced by
+    ``--seed N``."""
+    if args.seed is not None:
+        return int(args.seed)
+    import numpy as np  # numpy: only the commands that draw runs load it
+
+    return int(np.random.SeedSequence().generate_state(1)[0])
+
+
 def _announcer(quiet: bool) -> Callable[[str], None]:
     """``announce(message)``: a line on a terminal (unless ``quiet``), and the phase of the active heartbeat."""
 
@@ -175,8 +185,6 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
     """``n`` simulated runs (under the safety shield with ``--shield``) and their seed, or None, the
     reason when no shield can be used and the exit code it calls for (:func:`_shield_policy`); what the
     runs' guarantee was goes into ``notes`` (:func:`_note`)."""
-    import numpy as np  # numpy: only the command that uses it loads it
-
     # numpy (via rac.engine.shield): only the command that uses it loads it
     from rac.engine.shield import StepShieldPolicy
 
@@ -188,7 +196,7 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
         policy, problem, status = _shield_policy(result, samples, args, n, notes)
         if policy is None:
             return None, problem, status
-    seed = args.seed if args.seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
+    seed = _seed(args)
     assert result.model_data is not None  # _load refused a file without one
     # a run of many samples takes minutes (900,000 at 1 ms): a bar on a terminal, the count in the heartbeat
     with Progress(total=samples, desc="simulating", unit="samples",
@@ -224,7 +232,7 @@ def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int)
                                   f"{', '.join(learned) or 'none'})",
                                   hints=["name a `strategy NAME = maxE(...)` or `minE(...)` query of the file"]))
         return None, ""
-    options = VerifyOptions(seed=args.seed, max_states=args.max_states, only=(learned[args.strategy].name,),
+    options = VerifyOptions(seed=_seed(args), max_states=args.max_states, only=(learned[args.strategy].name,),
                             max_bytes=args.max_memory or default_max_bytes(), bars=not (args.quiet or as_json(args)))
     context, results = run_queries(result, options)
     if args.strategy not in context.learned:
@@ -291,7 +299,8 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
         doing[:] = [message]
         shown(message)
 
-    options = VerifyOptions(horizon=args.horizon, max_states=args.max_states, seed=args.seed, epsilon=args.epsilon,
+    seed = _seed(args)
+    options = VerifyOptions(horizon=args.horizon, max_states=args.max_states, seed=seed, epsilon=args.epsilon,
                             max_bytes=args.max_memory or default_max_bytes(),
                             confidence=args.confidence, out_dir=out_dir, standard=args.standard,
                             only=tuple(args.query) if args.query else None, plots=not args.no_plots,
@@ -321,7 +330,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
     if args.format == "json":
-        document: dict[str, object] = {"file": str(args.file), "results": render_json(results),
+        document: dict[str, object] = {"file": str(args.file), "seed": seed, "results": render_json(results),
                                        "penalties": penalties.to_json() if penalties is not None else None}
         if stopped is not None:
             document["interrupted"] = stopped
@@ -333,6 +342,10 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
             print(render_diagnostics(penalties.diagnostics, result.sources))
         if penalties is not None:
             print(render_penalties(penalties))
+        if args.seed is None and any(r.seed is not None for r in results):
+            # each query prints its own seed, derived from this one: this one reproduces them all
+            print(f"rac verify: the random queries drew seed {seed}; `--seed {seed}` reproduces their answers",
+                  file=sys.stderr)
     if stopped is not None:
         n = len(results)
         answered = f"{n} {'query' if n == 1 else 'queries'} answered before it {'is' if n == 1 else 'are'} above" \
