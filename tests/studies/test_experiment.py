@@ -30,7 +30,7 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
 def test_every_combination_runs_for_every_seed(report: dict[str, object]) -> None:
     records = report["records"]
     assert [(r.combination, r.seed) for r in records] == [(c, s) for c, _, _ in COMBINATIONS for s in (1, 2)]
-    assert report["observation"] == {"discrete": ["Tiny.location", "time"], "continuous": ["x", "v"]}
+    assert report["observation"] == {"discrete": ["Tiny.location", "time"], "continuous": ["x", "v"], "query": "reach"}
     assert report["shield_states"] > 0
 
 
@@ -56,6 +56,9 @@ def test_the_table_reports_mean_and_spread(report: dict[str, object]) -> None:
     assert f"reward function `{REWARD_FUNCTION}`" in table
     rows = summary(report)
     assert [row["seeds"] for row in rows] == [2, 2, 2, 2]
+    # only the query's observation is taken: said, with what is learned instead of its maxE(sa)[<=4]
+    assert "{Tiny.location, time}->{x, v}" in table and "the lists of query `reach`, and only those" in table
+    assert "`rac verify --query reach` answers it as written" in table
 
 
 def test_the_shielded_rows_say_what_uniform_exploration_can_expect(report: dict[str, object]) -> None:

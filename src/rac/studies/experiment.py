@@ -42,7 +42,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -150,15 +150,26 @@ def _with_time(discrete: Sequence[str]) -> list[str]:
     return [*discrete] if "time" in discrete else [*discrete, "time"]
 
 
-def _learning_spec(result: CompileResult) -> tuple[list[str], list[str]]:
-    """The observation lists (as text) of the file's first learning query, or the paper's defaults."""
+def _observed_from(report: Mapping[str, Any]) -> str:
+    """Where the observation comes from, and that the rest of the file's learning query is not used."""
+    query = report["observation"].get("query")
+    if query is None:
+        return "the file has no learning query: the paper's observation."
+    return (f"the lists of query `{query}`, and only those: every combination learns its own reward towards "
+            f"`goal()` over this horizon, whatever that query's objective, goal and bound (`rac verify --query "
+            f"{query}` answers it as written).")
+
+
+def _learning_spec(result: CompileResult) -> tuple[list[str], list[str], str | None]:
+    """The observation lists (as text) of the file's first learning query and its name, or the
+    paper's defaults and None."""
     automaton = result.automaton
     assert automaton is not None
     for decl in automaton.queries:
         if isinstance(decl.query, iq.LearnStrategy):
             count = len(decl.query.discrete)
-            return list(decl.query.labels[:count]), list(decl.query.labels[count:])
-    return [f"{automaton.name}.location"], ["x", "y", "v", "head"]
+            return list(decl.query.labels[:count]), list(decl.query.labels[count:]), decl.name
+    return [f"{automaton.name}.location"], ["x", "y", "v", "head"], None
 
 
 def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed: bool,
@@ -233,7 +244,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     except ValueError as exc:
         raise ExperimentError(f"--reward-function: {exc}", "usage") from None
     wanted = [c for c in COMBINATIONS if combinations is None or c[0] in combinations]
-    discrete, continuous = _learning_spec(result)
+    discrete, continuous, source_query = _learning_spec(result)
     derived = derived_bins(result.model_data, [parse_expr(text) for text in continuous])
     widths = tuple(float(b) for b in bins) if bins is not None else derived
     if bins is not None and (len(widths) != len(continuous) or not all(w > 0 and math.isfinite(w) for w in widths)):
@@ -329,7 +340,8 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
             "shield_states": shield_states, "records": records, "bins": list(widths), "bins_from": bins_from,
             "derived_bins": list(derived), "replay": replay, "counterfactuals": counterfactuals, "growth": growth,
             "parallel": parallel, "optima": optima,
-            "observation": {"discrete": _with_time(discrete) if observe_time else discrete, "continuous": continuous},
+            "observation": {"discrete": _with_time(discrete) if observe_time else discrete, "continuous": continuous,
+                            "query": source_query},
             "learner": {key: list(v) if isinstance(v, tuple) else v for key, v in LEARNER.items()},
             "ablation": [{"bins": list(options.bins), "counterfactuals": options.counterfactuals,
                           "replay": options.replay, "time": options.time, "pessimistic": options.pessimistic,
@@ -483,7 +495,7 @@ def render_markdown(report: Report) -> str:
         f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} episodes per run; horizon "
         f"{report['horizon_samples']} samples; reward function `{report['reward_function']}`; observation "
         f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}} "
-        f"in bins of {_widths(report['bins'])} ({report['bins_from']}).",
+        f"in bins of {_widths(report['bins'])} ({report['bins_from']}); {_observed_from(report)}",
         "Learning: tabular Q-learning"
         + (", alpha 1, untried actions never preferred to tried ones (the greedy strategy is the best run seen), "
            "the best episode seen replayed after each batch, epsilon 1 down to 0.2 over the budget, learning to "
