@@ -60,9 +60,10 @@ _LINE = 110
 RESERVED_NAMES = frozenset({
     # imports and helpers of the template
     "annotations", "math", "numbers", "Mapping",
-    "_key_error", "_mapping", "_boolean", "_number", "_range_error", "_assume_error",
+    "_key_error", "_mapping", "_boolean", "_number", "_range_error", "_assume_error", "_array_hint",
     # builtins called, raised or named in annotations (typing.get_type_hints evaluates those)
     "bool", "float", "int", "str", "object", "dict", "tuple", "len", "isinstance", "type", "repr", "sorted",
+    "getattr", "callable",
     "property", "super", "ValueError", "KeyError", "RuntimeError", "OverflowError", "TypeError",
     # (every dunder, `__all__` among them, is renamed too: see python_class_name)
 })
