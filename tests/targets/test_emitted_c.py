@@ -171,6 +171,7 @@ automaton Probe {{
     query P2: Pr[<=4]([] r >= -10 && (near imply B) && d < 20.0005)
     query Exp: E[<=4; 10](min: sqrt(true_v * true_v + 1) - floor(r) + ceil(s) * round(d) - trunc(gap))
     query Exp2: E[<=4; 10](max: fmin(x, y) + fmax(time, dist_goal()))
+    query Exp3: E[<=2; 10](max: jerk * v - fabs(turn))
     query Sim: simulate[<=4; 2]{{near, d, r, Probe.location, B, true_head - head, time, -gap / 3, true_acc * true_v}}
     query L: strategy S = minE(r - s)[<=4]{{B, Probe.location, x + 1.5}}->{{x, v}}: <> goal() && d <= 30
     query L2: strategy S2 = maxE(r)[<=4]{{r / 2 + s, -d, near, time}}->{{true_v, mindist()}}: <> time >= 4
@@ -520,7 +521,7 @@ def _roles(query: iq.Query) -> list[tuple[str, ie.Expr, str, str, bool | None]]:
     if isinstance(query, iq.ProbabilityQuery):
         return [(f"Pr {query.path}", query.expr, "state", STATISTICAL, query.path == "[]")]
     if isinstance(query, iq.ExpectationQuery):
-        return [(query.aggregate, query.expr, "number", STATISTICAL, None)]
+        return [(query.aggregate, query.expr, "extreme", STATISTICAL, None)]
     if isinstance(query, iq.SimulateQuery):
         return [("simulate", e, "any", STATISTICAL, None) for e in query.exprs]
     assert isinstance(query, iq.LearnStrategy), query
@@ -548,6 +549,8 @@ def print_expressions(automaton: ir.Automaton, vocabulary: Vocabulary
                     text = printer.state(expr, dialect, box)[0]
                 elif how == "number":
                     text = printer.number(expr, STATISTICAL)[0]
+                elif how == "extreme":  # E[..](max: e): the period after a decision left out
+                    text = printer.extreme(expr, role)[0]
                 elif how == "any":
                     text = printer.any(expr)
                 else:

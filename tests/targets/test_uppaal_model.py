@@ -277,10 +277,12 @@ def test_file_queries_may_use_the_models_conditions(tmp_path: Path) -> None:
 def test_a_query_reading_the_action_skips_the_period_after_a_decision(tmp_path: Path) -> None:
     """After `decide!` the Timer waits with jerk and turn already the new choice beside the decision
     sample's state; rac's engine has no such state (it shows the choice from the next sample on), so
-    `E<> acc == 0 && jerk > 0` held at the start in UPPAAL only. A query reading them leaves it out."""
+    `E<> acc == 0 && jerk > 0` held at the start in UPPAAL only, and `E[<=2](max: jerk)` counted the
+    choice of the decision at 2 s. A query reading them leaves that period out."""
     source = MODEL_RA.read_text(encoding="utf-8").replace(
         "    query Qe:", "    query J1: E<> acc == 0 && jerk > 0\n    query J2: A[] turn >= 0 || isClose\n"
-        "    query J3: E<> x > 0\n    query Qe:")
+        "    query J3: E<> x > 0\n    query J4: E[<=2; 10](max: jerk)\n    query J5: E[<=2; 10](min: fabs(turn) - v)\n"
+        "    query J6: E[<=2; 10](max: v)\n    query Qe:")
     ra = tmp_path / "model.ra"
     ra.write_text(source.replace('"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"'), encoding="utf-8")
     model = generate_uppaal_model(compile_file(ra).raise_for_errors())
@@ -288,6 +290,14 @@ def test_a_query_reading_the_action_skips_the_period_after_a_decision(tmp_path: 
     assert ("// J2\nA[] settled && !(Timer.Wait && count % DECIDE_EVERY == 0) imply (turn >= 0 || isClose)\n"
             in model.queries)
     assert "// J3\nE<> x > 0\n" in model.queries  # the ego state is the same before and after the choice
+    # E[..](max: e) over the run: a decision at the bound's last sample (here at 2 s) would bring its
+    # choice in, which rac's engine shows from the next sample on, past the bound; the period after a
+    # decision counts as -DBL_MAX (DBL_MAX for min), the replaced action still counted before `decide!`
+    assert ("// J4\nE[<=20;10](max: (!(Timer.Wait && count % DECIDE_EVERY == 0) ? i2d(jerk) : -DBL_MAX))\n"
+            in model.queries)
+    assert ("// J5\nE[<=20;10](min: (!(Timer.Wait && count % DECIDE_EVERY == 0) ? fabs(i2d(turn)) - i2d(v) "
+            ": DBL_MAX))\n" in model.queries)
+    assert "// J6\nE[<=20;10](max: i2d(v))\n" in model.queries
     assert '<location id="' in model.xml and ">Wait</name>" in model.xml
 
 

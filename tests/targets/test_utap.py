@@ -220,7 +220,7 @@ AUTOMATON_QUERIES = (
 #: Queries over the model's vocabulary: ego state, settings, mindist(), the true state.
 MODEL_QUERIES = (
     "Pr[<=4](<> mindist() < 3 * collision_distance)", "Pr[<=4](<> fabs(true_x - x) >= 0.5) >= 0.1",
-    "E[<=4; 100](max: v)", "E[<=4; 100](min: dist_goal() + fabs(head))",
+    "E[<=4; 100](max: v)", "E[<=4; 100](min: dist_goal() + fabs(head))", "E[<=2; 100](max: jerk + fabs(turn))",
     "simulate[<=4; 10]{x, y, v, acc, head, true_x, mindist()}",
     "Pr[<=4](<> v > max_speed - 1 || fabs(acc) > comfort_acceleration * max_acceleration)",
     "strategy shield = control: A[] !collide() && !offroad()",

@@ -46,6 +46,7 @@ __all__ = ["C_PRELUDE", "declared_names", "emit_declarations"]
 
 #: What a C compiler needs before the declarations (UPPAAL predeclares all of it).
 C_PRELUDE = """\
+#include <float.h>
 #include <math.h>
 #include <stdbool.h>
 #include <stdint.h>

@@ -145,7 +145,7 @@ class UppaalPrinter(UppaalSyntax):
                 text += f" {op} {double_literal(threshold)}"
         elif isinstance(query, iq.ExpectationQuery):
             text = (f"E[{self._bound(query.bound, query.runs)}]"
-                    f"({query.aggregate}: {self.number(query.expr, STATISTICAL).text})")
+                    f"({query.aggregate}: {self.extreme(query.expr, query.aggregate).text})")
         elif isinstance(query, iq.SimulateQuery):
             exprs = ", ".join(self.any(e) for e in query.exprs)
             text = f"simulate[{self._bound(query.bound, query.runs)}]{{{exprs}}}"
@@ -187,15 +187,12 @@ class UppaalPrinter(UppaalSyntax):
         or ``turn``, the period after a decision, where they already hold the new choice
         (:attr:`ModelNames.wait`). ``g imply p`` under ``[]``, else ``g && p``."""
         text = self.condition(expr, dialect)
-        refs = ie.refs(expr)
         guards = []
-        if any(r.kind is ie.RefKind.INPUT for r in refs):
+        if any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr)):
             guards.append(Printed(self.v.settled, Level.ATOM))
-        if self.v.model is not None and any(r.is_model and r.model.kind == "ego" and r.name in ACTIONS
-                                            for r in refs):
-            model = self.v.model
-            chosen = f"({model.timer}.{model.wait} && {self.v.count} % {model.decide_every} == 0)"
-            guards.append(self.prefix("!", Printed(chosen, Level.ATOM)))
+        decided = self._not_after_decision(expr)
+        if decided is not None:
+            guards.append(decided)
         if not guards:
             return text
         guard = guards[0] if len(guards) == 1 else self.infix("&&", guards[0], guards[1])
@@ -204,6 +201,31 @@ class UppaalPrinter(UppaalSyntax):
         if box:
             return self.infix("imply", guard, text)
         return self.infix("&&", guard, text)
+
+    def _not_after_decision(self, expr: ie.Expr) -> Printed | None:
+        """``!(Timer.Wait && count % DECIDE_EVERY == 0)`` when ``expr`` reads ``jerk`` or ``turn`` in the
+        whole model: false in the period after a decision, where they already hold the new choice
+        beside the decision sample's state (rac's engine shows it from the next sample on); else None."""
+        if self.v.model is None or not any(r.is_model and r.model.kind == "ego" and r.name in ACTIONS
+                                           for r in ie.refs(expr)):
+            return None
+        model = self.v.model
+        chosen = f"({model.timer}.{model.wait} && {self.v.count} % {model.decide_every} == 0)"
+        return self.prefix("!", Printed(chosen, Level.ATOM))
+
+    def extreme(self, expr: ie.Expr, aggregate: str) -> Printed:
+        """The expression of ``E[..](max: e)`` (``aggregate`` ``max`` or ``min``), a double. Where ``e``
+        reads ``jerk`` or ``turn``, the period after a decision counts as ``-DBL_MAX`` (``DBL_MAX`` for
+        ``min``): a decision at the bound's last sample would otherwise bring a choice into the run's
+        extreme that rac's engine, which shows a choice from the next sample on, never reaches. The
+        action the decision replaced is still counted: the states before ``decide!`` hold it, at the
+        same instant."""
+        value = self.number(expr, STATISTICAL)
+        decided = self._not_after_decision(expr)
+        if decided is None:
+            return value
+        neutral = "-DBL_MAX" if aggregate == "max" else "DBL_MAX"
+        return Printed(f"({decided.text} ? {value.text} : {neutral})", Level.ATOM)
 
     def condition(self, expr: ie.Expr, dialect: str) -> Printed:
         """A boolean expression."""
