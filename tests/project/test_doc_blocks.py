@@ -309,6 +309,38 @@ def test_page_blocks_hold(page: Path, tmp_path: Path) -> None:
     assert not reader.problems, "\n\n".join(reader.problems)
 
 
+# ---------------------------------------------------------------- fences
+_ANY_FENCE = re.compile(r"^\s*(`{3,})")
+
+
+def unclosed_fence(text: str) -> int | None:
+    """The 1-based line of a code fence that nothing closes (the rest of the page would render as
+    code, and :func:`code_blocks` would not see a block opened there), or None."""
+    opened: tuple[int, str] | None = None
+    for number, line in enumerate(text.splitlines(), 1):
+        if not (found := _ANY_FENCE.match(line)):
+            continue
+        if opened is None:
+            opened = number, found.group(1)
+        elif found.group(1).startswith(opened[1]) and not line.strip().strip("`"):
+            opened = None
+    return None if opened is None else opened[0]
+
+
+@pytest.mark.parametrize("page", [*PAGES, *sorted((REPO / "examples").glob("*/README.md"))],
+                         ids=lambda p: str(p.relative_to(REPO)))
+def test_every_fence_is_closed(page: Path) -> None:
+    line = unclosed_fence(page.read_text(encoding="utf-8"))
+    assert line is None, f"{page.relative_to(REPO)}:{line}: this code fence is never closed"
+
+
+def test_an_unclosed_fence_is_found() -> None:
+    assert unclosed_fence("a\n```sh\nrac check x.ra\n```\nb\n") is None
+    assert unclosed_fence("```\nout\n```\n```\n\n## Next\n") == 4  # a stray closing fence opens a block
+    assert unclosed_fence("```python\nx = 1\n") == 1
+    assert unclosed_fence("````md\n```sh\n```\n````\n") is None  # a longer fence holds shorter ones
+
+
 # ---------------------------------------------------------------- links between the pages
 #: A markdown link to a page of the checkout (not a URL), with its anchor if any.
 _LOCAL_LINK = re.compile(r"\]\((?![a-z]+:)(?P<path>[^)#\s]*)(?:#(?P<anchor>[^)\s]+))?\)")
