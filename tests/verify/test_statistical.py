@@ -4,6 +4,9 @@ as ``rac verify`` gives under the same seed."""
 
 from __future__ import annotations
 
+from fractions import Fraction
+from pathlib import Path
+
 import pytest
 from engine_files import write_engine_file
 
@@ -55,3 +58,15 @@ def test_same_answer_as_rac_verify(compiled: CompileResult, name: str, method: s
 def test_simulate_draws_the_asked_runs(compiled: CompileResult) -> None:
     result = answer(compiled, "Sim", "simulate")
     assert result.status == "value" and result.runs == 4
+
+
+def test_a_bound_past_the_horizon_of_its_shield_says_so() -> None:
+    """``simulate[<=3] under safe`` with ``--horizon 2``: the shield ends at 2 s, so every run meets
+    a decision it allows nothing at; the verdict says that the bound is past the shield's horizon, not
+    that the strategy allows no action."""
+    left_turn = compile_file(Path(__file__).resolve().parents[2] / "examples" / "left_turn" / "preanalysis.ra")
+    results = verify(left_turn, VerifyOptions(seed=1, plots=False, horizon=Fraction(2), only=("Qd", "Fig7")))
+    fig7 = next(r for r in results if r.name == "Fig7")
+    assert fig7.status == "unsupported" and fig7.message is not None
+    assert fig7.message.startswith("the query's bound (3 s) is past the horizon the strategy `safe` was "
+                                   "computed to (2 s)"), fig7.message
