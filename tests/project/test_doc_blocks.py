@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+import test_examples
 from test_examples import Block, code_blocks
 
 import rac
@@ -307,6 +308,19 @@ def test_page_blocks_hold(page: Path, tmp_path: Path) -> None:
     reader = Reader(page, tmp_path)
     reader.read()
     assert not reader.problems, "\n\n".join(reader.problems)
+
+
+def test_a_block_without_a_language_is_checked_too(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # a fence without a language was not seen at all: about 40 blocks were checked by nothing
+    monkeypatch.setattr(test_examples, "REPO", tmp_path)  # where a block's place is named from
+    page = tmp_path / "page.md"
+    page.write_text("Text.\n\n```\nsome output\n```\n\n<!-- not run: shown only -->\n```\nmore\n```\n",
+                    encoding="utf-8")
+    assert [(b.line, b.language) for b in code_blocks(page)] == [(3, ""), (8, "")]
+    reader = Reader(page, tmp_path)
+    reader.read()
+    assert len(reader.problems) == 1 and "page.md:3" in reader.problems[0]
+    assert "nothing checks" in reader.problems[0]
 
 
 # ---------------------------------------------------------------- fences

@@ -69,7 +69,7 @@ def code_blocks(path: Path) -> list[Block]:
     i = 0
     while i < len(lines):
         match = _FENCE.match(lines[i])
-        if not match or not match.group(2):
+        if not match:  # an opening fence without a language is a block too (language ""): checked like any
             i += 1
             continue
         start, indent, language = i, len(match.group(1)), match.group(2)
