@@ -542,8 +542,10 @@ def test_the_batch_refuses_inputs_of_the_wrong_kind(driving: ir.Automaton) -> No
                                  ("isClose", np.array([2, 0]), "booleans")]:
         with pytest.raises(ValueError, match=message):
             batch.step_batch({**good, name: value})
-    with pytest.raises(ValueError, match="mask must hold booleans"):
+    with pytest.raises(ValueError, match=r"mask must hold booleans \(True/False or 0/1\), not float64 values"):
         batch.step_batch(good, mask=np.array([np.nan, 1.0]))
+    with pytest.raises(ValueError, match=r"mask must hold booleans \(True/False or 0/1\), not the value 2$"):
+        batch.step_batch(good, mask=np.array([2, 0]))  # 0/1 ints are masks: say which value is not
     with pytest.raises(ValueError, match="must map input names"):
         batch.step_batch(None)  # type: ignore[arg-type]
     for n in (2.5, True, 0):

@@ -338,7 +338,9 @@ class BatchRewardAutomaton(AutomatonDescription):
     def _mask(self, mask: object) -> np.ndarray:
         raw = np.asarray(mask)
         if raw.dtype.kind not in "biu" or (raw.dtype.kind in "iu" and not np.isin(raw, (0, 1)).all()):
-            raise ValueError(f"mask must hold booleans, not {raw.dtype} values")
+            found = f"{raw.dtype} values" if raw.dtype.kind not in "iu" else \
+                f"the value {raw[~np.isin(raw, (0, 1))].flat[0]}"
+            raise ValueError(f"mask must hold booleans (True/False or 0/1), not {found}")
         m = raw.astype(bool)
         if m.shape != (self._n,):
             raise ValueError(f"mask must have shape ({self._n},), not {m.shape}")
