@@ -14,6 +14,7 @@ same as alone.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
@@ -383,6 +384,14 @@ def test_render_draws_the_learned_strategys_run(tmp_path: Path, capsys: pytest.C
     assert main(["render", str(path), "--strategy", "nope", "-o", str(tmp_path)]) == 2
     assert "learning queries: reach, rush" in capsys.readouterr().err
     assert main(["render", str(path), "--strategy", "reach", "--shield", "-o", str(tmp_path)]) == 2  # one or the other
+    # --exact draws the optimal strategy's run (rac verify --exact's), and needs --strategy
+    capsys.readouterr()
+    assert main(["render", str(path), "--strategy", "reach", "--exact", "--seed", "1", "-o", str(tmp_path / "x"),
+                 "-q", "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["how"] == "the run under the optimal strategy reach"
+    assert (tmp_path / "x" / "run.png").is_file()
+    assert main(["render", str(path), "--exact", "-o", str(tmp_path / "y"), "-q"]) == 2
+    assert "--exact draws a file's learning query's optimal strategy: give --strategy NAME" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------- learning within --max-memory (issue 22)

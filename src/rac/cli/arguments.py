@@ -188,6 +188,9 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     how.add_argument("--strategy", metavar="NAME",
                      help="drive the file's learned strategy NAME (learned first, like rac verify does)")
     render.add_argument("--gif", action="store_true", help="also write an animated GIF, run.gif")
+    render.add_argument("--exact", action="store_true",
+                        help="with --strategy: draw the exact optimal strategy under the shield instead of a "
+                             "learned one (as rac verify --exact)")
     render.add_argument("--format", choices=("text", "json"), default="text",
                         help="output format (json: the run drawn and the files written)")
 

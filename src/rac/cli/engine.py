@@ -221,7 +221,8 @@ def _no_runs(reason: str, status: int) -> Diagnostic:
 
 def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int):
     """The one run of the file's learned strategy ``args.strategy`` (learned now, with the shield it
-    is learned under), and the seed; or None and why (None and "" after printing a usage error)."""
+    is learned under; with ``--exact`` the optimal strategy under that shield, as ``rac verify --exact``
+    computes it), and the seed; or None and why (None and "" after printing a usage error)."""
     # numpy, rac.check.analysis, stormpy (via rac.verify.runner): only the command that uses it loads it
     from rac.verify.runner import VerifyOptions, run_queries
 
@@ -233,25 +234,27 @@ def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int)
                                   hints=["name a `strategy NAME = maxE(...)` or `minE(...)` query of the file"]))
         return None, ""
     options = VerifyOptions(seed=_seed(args), max_states=args.max_states, only=(learned[args.strategy].name,),
-                            max_bytes=args.max_memory or default_max_bytes(), bars=not (args.quiet or as_json(args)))
+                            max_bytes=args.max_memory or default_max_bytes(), bars=not (args.quiet or as_json(args)),
+                            exact=args.exact)
     context, results = run_queries(result, options)
     if args.strategy not in context.learned:
         reasons = "; ".join(f"{r.name}: {r.message}" for r in results if r.message)
-        return None, f"the strategy `{args.strategy}` could not be learned ({reasons})"
+        how = "computed exactly" if args.exact else "learned"
+        return None, f"the strategy `{args.strategy}` could not be {how} ({reasons})"
     _, runs = context.learned_run(args.strategy, samples)
     return runs, context.seed  # what --seed reproduces (the learning query's own seed derives from it)
 
 
 def _how(args: argparse.Namespace) -> str:
     if args.strategy:
-        return f"the run under the learned strategy {args.strategy}"
+        return f"the run under the {'optimal' if args.exact else 'learned'} strategy {args.strategy}"
     return "one run under the shield" if args.shield else "one run"
 
 
 def _short(args: argparse.Namespace) -> str:
     """:func:`_how` in a few words, for a plot's title."""
     if args.strategy:
-        return f"strategy {args.strategy}"
+        return f"{'optimal ' if args.exact else ''}strategy {args.strategy}"
     return "shielded" if args.shield else "random actions"
 
 
@@ -501,6 +504,9 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
 
     samples = _horizon_samples(result, args.horizon)
     notes: list[str] = []
+    if args.exact and args.strategy is None:
+        _report(args, usage_error("--exact draws a file's learning query's optimal strategy: give --strategy NAME"))
+        return EXIT_USAGE
     if args.strategy is not None:  # `--strategy ""` names no strategy: said, not a random run drawn
         runs, seed = _strategy_run(result, args, samples)
         status = EXIT_ERRORS if seed else EXIT_USAGE  # "": _strategy_run has said why (a usage error)
