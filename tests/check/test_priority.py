@@ -159,6 +159,8 @@ def test_a_counterexample_value_a_guard_excludes_is_approached() -> None:
     (diag,) = errors(result, "E0402")
     text = render_text(result.diagnostics, result.sources)
     assert "stays in `N`, 4 samples; inputs c=false, d in (0, 10), tending to 10" in text
+    # the value is a supremum, said as one (runs close enough to it violate all the same)
+    assert diag.message.endswith("the objective comes arbitrarily close to 23")
     # the JSON run replays: each input is a value the run takes (d = 10 would take the edge to `F`),
     # and the value the worst run approaches is said beside it
     first = diag.data["run"][0]
@@ -170,6 +172,7 @@ def test_an_attained_value_is_the_json_input_and_nothing_is_approached() -> None
     result = compiled(RATE_READS_AN_INPUT.format(edges=""))
     (diag,) = errors(result, "E0402")
     assert all(step["approached"] == {} for step in diag.data["run"]) and diag.data["end"]["approached"] == {}
+    assert diag.message.endswith("the objective can reach 23")
 
 
 @pytest.mark.parametrize(("penalty", "horizon", "period"), [

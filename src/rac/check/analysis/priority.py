@@ -307,7 +307,8 @@ def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, le
     strict = "strict " if automaton.strict else ""
     return error(
         "E0402",
-        f"P2 no compensation fails: while `{reward}` is penalised, {scope} can reach {_num(worst.value)}",
+        f"P2 no compensation fails: while `{reward}` is penalised, {scope} {_reaches(space, worst)} "
+        f"{_num(worst.value)}",
         span,
         notes=notes,
         hints=hints,
@@ -505,6 +506,18 @@ def run_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> list[d
     return result
 
 
+def _reaches(space: InputSpace, worst: Worst) -> str:
+    """``can reach`` when the worst run takes every input value its value needs; else ``comes arbitrarily
+    close to`` (a guard cuts at a value it needs: the worst value is a supremum, approached by runs, and
+    a violation all the same, since runs close enough to it violate too)."""
+    attained = all(space.attains(step.outcome.cls, name, value)
+                   for step in worst.steps for name, value in step.inputs.items())
+    if worst.end is not None:
+        attained = attained and all(space.attains(worst.end.cls, name, value)
+                                    for name, value in worst.end_inputs.items())
+    return "can reach" if attained else "comes arbitrarily close to"
+
+
 def _json_inputs(space: InputSpace, cls: int, values: Mapping[str, Fraction]
                  ) -> tuple[dict[str, object], dict[str, str]]:
     """A sample's inputs for JSON, each a value the run takes there (replayed, they drive the same
@@ -592,7 +605,7 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
             found = error(
                 "E0501",
                 f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}: "
-                f"it can reach {_num(sign * worst.value)}",
+                f"it {_reaches(space, worst)} {_num(sign * worst.value)}",
                 span,
                 notes=notes,
                 hints=hints,
