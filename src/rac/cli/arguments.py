@@ -39,6 +39,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
 TARGETS = ("python", "uppaal")
 #: The standard-library file ``rac new`` copies when ``--from`` is not given.
 DEFAULT_TEMPLATE = "driving.ra"
+#: ``--max-memory``'s default, as every command's help says it (rac.engine.budget.default_max_bytes).
+MEMORY_DEFAULT = "(default: half the memory available: machine, container or ulimit -v)"
 _DECIMAL = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
 
 
@@ -59,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("-q", "--quiet", action="store_true", help="print diagnostics only, not what was proved")
     check.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
                        help="refuse, before loading it, a scenario whose load would need more memory than this, "
-                            "e.g. 4G (default: half the memory available (machine, container or ulimit -v))")
+                            "e.g. 4G " + MEMORY_DEFAULT)
 
     compile_ = commands.add_parser("compile", help="generate code for a target")
     compile_.add_argument("file", type=Path, metavar="FILE")
@@ -67,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     compile_.add_argument("-o", "--output", type=Path, help="output file (default: standard output)")
     compile_.add_argument("--format", choices=("text", "json"), default="text", help="diagnostics format")
     compile_.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
-                          help="as for `rac check` (default: half the memory available: machine, container, ulimit -v)")
+                          help="as for `rac check` " + MEMORY_DEFAULT)
 
     fmt = commands.add_parser("fmt", help="rewrite files in canonical layout (comments are kept)")
     fmt.add_argument("files", nargs="+", type=Path, metavar="FILE")
@@ -145,7 +147,7 @@ def _common(parser: argparse.ArgumentParser, outputs: str) -> None:
                         help=f"{stop} beyond this many states (default 5,000,000)")
     parser.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
                         help=f"{stop} before the work would need more memory than this, "
-                             "e.g. 4G (default: half the memory available (machine, container or ulimit -v))")
+                             "e.g. 4G " + MEMORY_DEFAULT)
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
 
 
@@ -249,7 +251,7 @@ def _add_tune(commands: argparse._SubParsersAction) -> None:
                            "table and the formula in the horizon where it is linear (implies --print)")
     tune.add_argument("--format", choices=("text", "json"), default="text", help="output format")
     tune.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
-                      help="as for `rac check` (default: half the memory available (machine, container or ulimit -v))")
+                      help="as for `rac check` " + MEMORY_DEFAULT)
 
 
 def horizons_argument(text: str) -> tuple[Fraction, ...]:

@@ -4,7 +4,8 @@ atomically.
 Exit codes: 0 clean (warnings allowed), 1 errors in the input (or a query not satisfied), 2 bad
 usage or a file that cannot be read or written (standard output too: full, or closed), 3 an internal
 error (a bug in rac), 4 a query that was not decided (``rac verify``: an *unknown* or *unsupported*
-verdict and none that fails).
+verdict and none that fails), 130 stopped by Ctrl-C and 143 by SIGTERM (``rac sweep``; what was
+answered before is shown).
 """
 
 from __future__ import annotations
@@ -25,16 +26,18 @@ from rac.core.source import SourceFile
 from rac.engine.budget import default_max_bytes, parse_size
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
-__all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_UNDECIDED", "EXIT_USAGE",
-           "OUTPUT_CONVENTION", "OUTPUT_SUFFIX", "SOURCE_SUFFIX", "STALE_SECONDS", "FileWriteError", "NotRegularFile",
-           "StdoutError", "as_json", "check_writable", "held_source", "load_budget", "locked", "output_folder",
-           "overwrites_source", "overwrites_source_in", "print_diagnostics", "resource_limit", "same_file",
-           "size_argument", "stdout_unwritable", "unreadable", "unusable_file", "unwritable", "usage_error",
-           "write_all_atomically", "write_atomically"]
+__all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_TERMINATED", "EXIT_UNDECIDED",
+           "EXIT_USAGE", "OUTPUT_CONVENTION", "OUTPUT_SUFFIX", "SOURCE_SUFFIX", "STALE_SECONDS", "FileWriteError",
+           "NotRegularFile", "StdoutError", "as_json", "check_writable", "held_source", "load_budget", "locked",
+           "output_folder", "overwrites_source", "overwrites_source_in", "print_diagnostics", "resource_limit",
+           "same_file", "size_argument", "stdout_unwritable", "unreadable", "unusable_file", "unwritable",
+           "usage_error", "write_all_atomically", "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 #: The exit code after Ctrl-C (128 + SIGINT), as the shell reports it.
 EXIT_INTERRUPTED = 130
+#: The exit code after SIGTERM (128 + 15), as the shell reports a process it ended (``rac sweep``).
+EXIT_TERMINATED = 143
 
 #: The suffix of the files rac reads: no output of an engine command (verify, simulate, render,
 #: preanalyse, experiment) has it, so their output folder may hold the input file under it.

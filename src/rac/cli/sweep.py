@@ -22,6 +22,7 @@ from rac.cli.common import (
     EXIT_ERRORS,
     EXIT_INTERRUPTED,
     EXIT_OK,
+    EXIT_TERMINATED,
     EXIT_UNDECIDED,
     EXIT_USAGE,
     as_json,
@@ -34,11 +35,7 @@ from rac.cli.common import (
 from rac.sweep import execute, plan
 from rac.verify.status import UNDECIDED
 
-__all__ = ["EXIT_TERMINATED", "exit_status", "sweep_command", "terminate_as_interrupt"]
-
-#: The exit code after SIGTERM (128 + 15), as the shell reports a process it ended.
-EXIT_TERMINATED = 128 + signal.SIGTERM
-
+__all__ = ["exit_status", "sweep_command", "terminate_as_interrupt"]
 
 @contextlib.contextmanager
 def terminate_as_interrupt() -> Iterator[list[int]]:

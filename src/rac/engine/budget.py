@@ -36,8 +36,8 @@ __all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "LEARNING_BYTES_PE
            "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW", "REPLAY_BYTES_PER_DECISION", "RUN_BYTES_PER_SAMPLE",
            "PROJECTION_FROM", "PROJECTION_MARGIN", "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded",
            "EstimateExceeded", "ProjectionExceeded", "cgroup_limit", "check_estimate", "default_max_bytes",
-           "format_bytes", "learning_bytes", "machine_memory", "parse_size", "physical_memory", "projected_states",
-           "runs_within", "simulation_bytes"]
+           "format_bytes", "learning_bytes", "machine_memory", "out_of_memory", "parse_size", "physical_memory",
+           "projected_states", "runs_within", "simulation_bytes"]
 
 #: An explored state: 8 int32 columns (32 B), its choice offset (8 B) and 4 labels (4 B).
 GRAPH_BYTES_PER_STATE = 44
@@ -145,6 +145,16 @@ def machine_memory() -> int:
     except (ImportError, ValueError, OSError):  # no such limit on this platform
         pass
     return min(limits)
+
+
+def out_of_memory(exc: MemoryError, needing: str) -> str:
+    """The words for running out of the machine's memory (or ``ulimit -v``) before the budget's estimate
+    stopped the work: ``needing`` is what needed it (``"answering it"``, ``"this setting"``); the work it
+    belongs to is undecided, the rest stands."""
+    what = f" ({exc})" if str(exc) else ""
+    return (f"out of memory{what}: {needing} needed more memory than this process may use (the machine's "
+            "memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower --max-memory "
+            "stops the exploration within what the process has and says how far it got")
 
 
 def default_max_bytes() -> int:

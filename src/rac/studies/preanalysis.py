@@ -39,6 +39,7 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, short_number
 from rac.core.numbers import samples_of
 from rac.engine import storm
+from rac.engine.budget import out_of_memory
 from rac.engine.shield import synthesise
 from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
@@ -289,12 +290,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
 def _memory_error(exc: MemoryError) -> str:
     """A setting's error for ``exc``: a budget's own words (:class:`~rac.engine.budget.BudgetExceeded`), or
     what running out of the machine's memory (or ``ulimit -v``) before the budget said so means."""
-    if isinstance(exc, RacError):
-        return str(exc)
-    what = f" ({exc})" if str(exc) else ""
-    return (f"out of memory{what}: this setting needed more memory than this process may use (the machine's "
-            "memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower --max-memory "
-            "stops it within what the process has")
+    return str(exc) if isinstance(exc, RacError) else out_of_memory(exc, "this setting")
 
 
 def _smallest(distances: np.ndarray) -> np.ndarray:

@@ -45,6 +45,7 @@ from rac import ir
 from rac.check.standard import STANDARD, at_horizon
 from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError
+from rac.engine.budget import out_of_memory
 from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
 from rac.model.data import ModelRangeError
@@ -56,8 +57,8 @@ from rac.verify.statistical import StatisticalAnswerer
 from rac.verify.status import NOT_APPLICABLE, NOT_SATISFIED, UNKNOWN, UNSUPPORTED
 from rac.verify.symbolic import SymbolicAnswerer
 
-__all__ = ["QueryResult", "UnknownQuery", "Verifier", "VerifyOptions", "out_of_memory", "render_json",
-           "render_text", "run_queries", "standard_queries", "verify"]
+__all__ = ["QueryResult", "UnknownQuery", "Verifier", "VerifyOptions", "render_json", "render_text", "run_queries",
+           "standard_queries", "verify"]
 
 #: An answerer's method: ``answer(query, base)`` completes the result ``base`` (name, formula, kind)
 #: of a query of the type it is registered for in :attr:`Verifier.answers`.
@@ -84,15 +85,6 @@ def standard_queries(result: CompileResult | CheckedProgram, horizon_seconds: Fr
 class UnknownQuery(RacError, KeyError):
     """``VerifyOptions.only`` names a query the file (and ``--standard``) does not have; ``args[0]``
     lists the missing names."""
-
-
-def out_of_memory(exc: MemoryError) -> str:
-    """The message of a query whose answer ran out of memory (the machine's, or ``ulimit -v``) before the
-    budget's estimate stopped it."""
-    what = f" ({exc})" if str(exc) else ""
-    return (f"out of memory{what}: answering it needed more memory than this process may use (the machine's "
-            "memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower --max-memory "
-            "stops the exploration within what the process has and says how far it got")
 
 
 class Verifier:
@@ -154,7 +146,7 @@ class Verifier:
             if isinstance(exc, RacError):  # a budget's refusal: its callers say it in their terms
                 raise
             # the machine's memory or `ulimit -v` ran out first: this query is undecided, the others stand
-            result = dataclasses.replace(base, status=UNKNOWN, message=out_of_memory(exc))
+            result = dataclasses.replace(base, status=UNKNOWN, message=out_of_memory(exc, "answering it"))
         defined = _defines(query)
         if defined is not None and result.status in (NOT_SATISFIED, NOT_APPLICABLE) and \
                 not (defined in self.context.learned or self.context.strategy_exists(defined)):
