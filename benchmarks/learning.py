@@ -1,12 +1,13 @@
 """The learning benchmark (issues 5, 11 and 23): ``python benchmarks/learning.py [--quick]``.
 
-Three tables:
+Four tables:
 
 1. **Samples per second against batch size** (issues 11 and 23): :class:`rac.learning.episodes.EpisodeBatch`
    on examples/paper/model.ra (the experiment's model: 140 samples an episode, 3 obstacles, 20
    Euler sub-steps a sample), random actions, 1 to 1024 episodes stepped together, with the
    bindings, reward and goal walked by the evaluator (``compiled=False``, before issue 23) and
-   compiled (:mod:`rac.engine.compiled`, the default). A *sample* is one sense period of every
+   compiled (:mod:`rac.engine.compiled`, the default), both without the memo of steps taken (every
+   sample calls the model). A *sample* is one sense period of every
    episode of the batch; episode-samples per second is what learning gets done.
 2. **Learning episodes per minute** (issue 5; target at least 1,000 for 30-step episodes):
 
@@ -21,6 +22,9 @@ Three tables:
    4,4,2,0.4`` as docs/learning.md runs it (goal: under 60 s; ``--quick``: 50 episodes, seed 1), and the
    replay of a learned run on the paper's model (``StrategyRun.samples``, what every ``A[] p under
    S`` query on a learned ``S`` does).
+4. **The memo of steps taken** (issue 23): the CPU time of ``rac experiment``'s learning with its
+   defaults (``run_experiment``, in this process) without and with
+   ``EpisodeBatch(memo=...)``, checked to give the same results (``--quick``: seed 1, 50 episodes).
 
 Each row is the best of ``--repeat`` runs (default 3; the experiment runs once). ``--quick``: one
 run per row, fewer episodes (tests/benchmarks/test_benchmarks_quick.py runs it so).
@@ -71,7 +75,8 @@ def samples_by_batch_size(repeat: int, quick: bool) -> list[tuple[int, dict[bool
     from rac.learning.episodes import EpisodeBatch
 
     result = compile_file(PAPER)
-    batches = {compiled: EpisodeBatch(result, compiled=compiled) for compiled in (False, True)}
+    # without the memo of steps taken: every run repeats the same actions, which it would recall
+    batches = {compiled: EpisodeBatch(result, compiled=compiled, memo=False) for compiled in (False, True)}
 
     def episodes(batch: EpisodeBatch, n: int, count: int) -> int:
         rng = np.random.default_rng(1)
@@ -189,6 +194,27 @@ def replay_seconds(repeat: int) -> float:
     return best
 
 
+def experiment_cpu(quick: bool) -> dict[bool, float]:
+    """CPU seconds of ``rac experiment examples/paper/model.ra``'s learning (its defaults: seeds 1-5,
+    500 episodes; ``quick``: seed 1, 50 episodes) without and with the memo of steps taken
+    (``run_experiment(..., memo=...)``), in this process: the same results, the time it saves."""
+    from rac.compiler import compile_file
+    from rac.studies.experiment import run_experiment
+
+    paper = compile_file(PAPER)
+    options: dict = {"seeds": (1,), "episodes": 50, "evaluation_runs": 10} if quick else {}
+    seconds, tables = {}, {}
+    for memo in (False, True):
+        t0 = time.process_time()
+        report = run_experiment(paper, memo=memo, **options)
+        seconds[memo] = time.process_time() - t0
+        tables[memo] = [(r.combination, r.seed, r.first_success_episode, r.greedy_return, r.returns.tolist())
+                        for r in report["records"]]
+    if tables[False] != tables[True]:
+        raise AssertionError("the memo changed the experiment's results")
+    return seconds
+
+
 def experiment_seconds(episodes: int, more: tuple[str, ...] = ()) -> float:
     """``rac experiment examples/paper/model.ra --episodes N --bins 4,4,2,0.4 [more]``, in a fresh process."""
     with tempfile.TemporaryDirectory() as out:
@@ -236,6 +262,15 @@ def main(argv: list[str] | None = None) -> int:
           f"{experiment:.1f} | "
           f"{'yes' if experiment < EXPERIMENT_GOAL else 'no'} |")
     print(f"| replay of a learned run (StrategyRun.samples, 140 samples) | {replay:.3f} | |")
+
+    cpu = experiment_cpu(args.quick)
+    what = "seed 1, 50 episodes" if args.quick else "its defaults: seeds 1-5, 500 episodes"
+    print(f"\nThe memo of steps taken (EpisodeBatch(memo=...)): run_experiment on examples/paper/model.ra ({what}), "
+          "CPU seconds in this process, the same results\n")
+    print("| memo | CPU seconds | saved |")
+    print("| --- | --- | --- |")
+    print(f"| off | {cpu[False]:.2f} | |")
+    print(f"| on | {cpu[True]:.2f} | {100 * (1 - cpu[True] / cpu[False]):.0f} % |")
     return 0
 
 

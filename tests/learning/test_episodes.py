@@ -496,3 +496,113 @@ def test_reset_rows_errors(probe: CompileResult) -> None:
         batch.reset_rows(np.array([2]))
     batch.reset_rows(np.array([], dtype=np.int64))  # nothing to restart
     assert batch.n == 2
+
+
+# ---------------------------------------------------------------- the memo of steps taken
+def test_steps_taken_again_are_recalled(probe: CompileResult) -> None:
+    """The same plans played again on one batch: every step's model part is recalled from the memo,
+    and every episode still equals the scalar reference, bit for bit."""
+    batch = EpisodeBatch(probe, horizon_samples=12)
+    plans = [[speed_up(batch)] * batch.max_steps, [0, 4, 8, 4, 0, 4], [0, 4, 8, 4, 8, 8]]
+    compare(batch, probe, plans)
+    computed, recalled = batch.steps_computed, batch.steps_recalled
+    compare(batch, probe, plans)
+    assert batch.steps_computed == computed and batch.steps_recalled == recalled + computed > 0
+    off = EpisodeBatch(probe, horizon_samples=12, memo=False)
+    compare(off, probe, plans)
+    assert off.steps_recalled == 0 and off.steps_computed == computed + recalled
+
+
+def test_a_reward_or_goal_reading_the_automaton_is_not_memoised(probe: CompileResult) -> None:
+    """The memo's key holds the model's state only: a reward or goal that reads a location, a reward
+    or an earlier sample's input is computed at every step."""
+    for reward, goal in ((PREV_REWARD, "goal()"), ("automaton", "Close || sa >= 1"), ("prev(near) + 1", "goal()")):
+        batch = EpisodeBatch(probe, reward=reward, goal=goal)
+        batch.reset(2)
+        for _ in range(2):
+            batch.step(np.zeros(2, dtype=int))
+        batch.reset(2)
+        batch.step(np.zeros(2, dtype=int))
+        assert batch.steps_recalled == 0, (reward, goal)
+    memoised = EpisodeBatch(probe, reward=EQ9)
+    for _ in range(2):
+        memoised.reset(2)
+        memoised.step(np.zeros(2, dtype=int))
+    assert memoised.steps_recalled == 2  # the second reset's episodes took the first one's step
+
+
+def everything(batch: EpisodeBatch, out: StepResult, cf: object) -> list:
+    """All a step shows: its result, every episode's state, rewards and inputs, and the counterfactuals."""
+    def plain(values: tuple) -> list:
+        return [value.tolist() if isinstance(value, np.ndarray)
+                else {name: column.tolist() for name, column in value.items()} if isinstance(value, dict) else value
+                for value in values]
+
+    return [plain(dataclasses.astuple(out)), batch.k.tolist(), batch.ego.tolist(), batch.location.tolist(),
+            {name: values.tolist() for name, values in batch.rewards.items()},
+            {name: values.tolist() for name, values in batch.inputs.items()}, batch.done.tolist(),
+            batch.clipped_inputs, plain(dataclasses.astuple(cf)) if cf is not None else None]
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data(), reward=st.sampled_from(["automaton", EQ9]), ends=st.booleans())
+def test_the_memo_changes_nothing(probe: CompileResult, data: st.DataObject, reward: str, ends: bool) -> None:
+    """With and without the memo, batches driven alike — steps, restarted rows, selected rows, whole
+    resets, an automaton that ends runs early — show the same values at every step, bit for bit."""
+    program = CheckedProgram(dataclasses.replace(probe.automaton, episode_ends=PROBE_ENDS), probe.model_data) \
+        if ends else probe
+    horizon = data.draw(st.integers(1, 12))
+    batches = [EpisodeBatch(program, reward=reward, horizon_samples=horizon, counterfactuals=True, memo=memo)
+               for memo in (True, False)]
+    n = data.draw(st.integers(1, 4))
+    for batch in batches:
+        batch.reset(n)
+    for _ in range(data.draw(st.integers(1, 16))):
+        n = batches[0].n
+        move = data.draw(st.sampled_from(["step", "step", "step", "reset_rows", "select", "reset"]))
+        if move == "reset":
+            width = data.draw(st.integers(1, 4))
+            for batch in batches:
+                batch.reset(width)
+        elif move == "reset_rows":
+            rows = data.draw(st.lists(st.integers(0, n - 1), max_size=n))
+            for batch in batches:
+                batch.reset_rows(rows)
+        elif move == "select":
+            rows = data.draw(st.lists(st.integers(0, n - 1), min_size=1, max_size=5))
+            for batch in batches:
+                batch.select(rows)
+        else:
+            actions = np.array(data.draw(st.lists(st.integers(0, batches[0].n_actions - 1), min_size=n, max_size=n)))
+            seen = []
+            for batch in batches:
+                out = batch.step(actions)
+                seen.append(everything(batch, out, batch.counterfactual() if reward == "automaton" else None))
+            assert seen[0] == seen[1]
+    assert batches[0].steps_recalled + batches[0].steps_computed == batches[1].steps_computed
+
+
+def test_the_memos_share_one_budget(probe: CompileResult, monkeypatch: pytest.MonkeyPatch) -> None:
+    """All batches of a process keep at most EPISODE_MEMO_BYTES of steps together (a scene set has a
+    batch per scene); a full memo stops growing and the batch goes on computing, with the same
+    values; a batch that is gone hands its bytes back."""
+    import gc
+
+    from rac.learning import episodes
+
+    cap = 16_000
+    monkeypatch.setattr(episodes, "EPISODE_MEMO_BYTES", cap)
+    rng = np.random.default_rng(3)
+    plans = [rng.integers(9, size=6).tolist() for _ in range(6)]
+    first = EpisodeBatch(probe, horizon_samples=12)
+    compare(first, probe, plans)
+    assert 0 < first.memo_bytes <= cap
+    second = EpisodeBatch(probe, horizon_samples=12)
+    compare(second, probe, [rng.integers(9, size=6).tolist() for _ in range(6)])
+    compare(second, probe, plans)  # beyond the budget: computed again, the same values
+    assert cap - 1_000 < first.memo_bytes + second.memo_bytes <= cap  # full: a step more would not fit
+    full = second.memo_bytes
+    del first
+    gc.collect()
+    compare(second, probe, [rng.integers(9, size=6).tolist() for _ in range(6)])
+    assert full < second.memo_bytes <= cap

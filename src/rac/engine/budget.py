@@ -32,7 +32,8 @@ from pathlib import Path
 from rac.core.diagnostics import RacError
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
 
-__all__ = ["GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE", "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
+__all__ = ["EPISODE_MEMO_BYTES", "MEMO_BYTES_PER_STEP", "GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE",
+           "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
            "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW", "REPLAY_BYTES_PER_DECISION", "RUN_BYTES_PER_SAMPLE",
            "PROJECTION_FROM", "PROJECTION_MARGIN", "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded",
            "EstimateExceeded", "ProjectionExceeded", "cgroup_limit", "check_estimate", "default_max_bytes",
@@ -71,6 +72,12 @@ REPLAY_BYTES_PER_DECISION = 5 * 8 + 1
 #: One learning episode's record in the history (its return, four flags, its fallbacks), held twice: per
 #: batch and concatenated at the end.
 LEARNING_BYTES_PER_EPISODE = 2 * (8 + 4 + 8)
+#: The most bytes the batches of episodes of one process keep together of the steps they have taken,
+#: to recall them instead of calling the model again (:class:`rac.learning.episodes.EpisodeBatch`'s
+#: memo; then the memos stop growing).
+EPISODE_MEMO_BYTES = 32 * 2**20
+#: A generous estimate of one step kept in that memo (the paper's model: 20 samples, about 0.9 kB).
+MEMO_BYTES_PER_STEP = 2048
 #: An exploration that may give up on a projection (:meth:`Budget.check_projection`) does so when the
 #: horizon would have this many times the state budget at the growth seen: far enough over it that a
 #: slowing growth would not bring it back within, and early enough that the layers before the budget,
@@ -184,12 +191,15 @@ def learning_bytes(*, episodes: int, parallel: int, steps: int, observations: in
     and choosing among ``actions``: the Q-table (each decision adds at most one row, the start one more:
     ``1 + episodes * steps`` rows of ``observations + actions`` float64 entries, times
     :data:`QTABLE_COPIES`, and their index), a batch's decisions kept for the replay and the episodes'
-    history. The episodes' own arrays (``parallel`` rows of the model's state) are small beside these."""
+    history; and the batch's memo of the steps taken (at most one per decision, and all memos at most
+    :data:`EPISODE_MEMO_BYTES`). The episodes' own arrays (``parallel`` rows of the model's state) are
+    small beside these."""
     rows = 1 + episodes * steps
     table = rows * ((observations + actions) * VALUE_BYTES * QTABLE_COPIES + QTABLE_INDEX_BYTES_PER_ROW
                     + observations * VALUE_BYTES)
     replay = (parallel + 1) * steps * (REPLAY_BYTES_PER_DECISION + actions)
-    return runs * (table + replay + episodes * LEARNING_BYTES_PER_EPISODE)
+    memo = min(EPISODE_MEMO_BYTES, runs * rows * MEMO_BYTES_PER_STEP)
+    return runs * (table + replay + episodes * LEARNING_BYTES_PER_EPISODE) + memo
 
 
 def runs_within(max_bytes: int | None, samples: int, columns: int) -> int:

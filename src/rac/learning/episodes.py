@@ -54,6 +54,7 @@ Example::
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -65,6 +66,7 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacValueError
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
+from rac.engine.budget import EPISODE_MEMO_BYTES
 from rac.engine.compiled import compile_expressions
 from rac.engine.evaluate import Evaluator, Frame
 from rac.ir import expr as ie
@@ -145,8 +147,10 @@ class _Inputs:
             dataclasses.replace(spec, low=float(np.ceil(spec.low)), high=float(np.floor(spec.high)))
             if spec.kind == "int" else spec for spec in input_specs(automaton)]
 
-    def read(self, frame: Frame, clipped: dict[str, int] | None = None) -> dict[str, np.ndarray]:
-        """Input name -> ``(n,)`` values (bool, or float64 reals); counts clipped values into ``clipped``."""
+    def read(self, frame: Frame, clipped: dict[str, int] | None = None,
+             changes: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        """Input name -> ``(n,)`` values (bool, or float64 reals); counts clipped values into ``clipped``
+        and, with ``changes``, puts each numeric input's ``(n,)`` clipped-or-truncated mask there."""
         out: dict[str, np.ndarray] = {}
         for spec, column in zip(self.specs, self.bindings.columns(frame)):
             if spec.is_bool:
@@ -162,6 +166,8 @@ class _Inputs:
             changed |= outside
             if clipped is not None:
                 clipped[spec.name] += int(changed.sum())
+            if changes is not None:
+                changes[spec.name] = changed
             out[spec.name] = real
         return out
 
@@ -211,6 +217,171 @@ class _State:
             values[rows] = other.inputs[name][rows]
 
 
+@dataclass
+class _ModelSample:
+    """The model's part of one sample for some episodes (``(m,)`` / ``(m, 7)`` arrays): the sensed
+    state after it, the inputs read on it (and, per numeric input, which values were clipped or
+    truncated), the labels, and — once known — the reward expression's value and the goal. ``frame``
+    is the sample's frame when it was computed (None when it was recalled, :class:`_Transitions`)."""
+
+    after: np.ndarray
+    values: dict[str, np.ndarray]
+    changes: dict[str, np.ndarray]
+    collided: np.ndarray
+    offroad: np.ndarray
+    frame: Frame | None = None
+    reward: np.ndarray | None = None
+    reached: np.ndarray | None = None
+
+    def late(self, values: list[np.ndarray], has_reward: bool, has_goal: bool) -> None:
+        """Take the values of the reward expression (first, if ``has_reward``) and the goal (last, if ``has_goal``)."""
+        m = self.after.shape[0]
+        if has_reward:
+            self.reward = np.broadcast_to(np.asarray(values[0], dtype=np.float64), (m,))
+        goal = values[-1] if has_goal else np.zeros(m, dtype=bool)
+        self.reached = np.broadcast_to(np.asarray(goal if goal.dtype == bool else goal != 0, dtype=bool), (m,))
+
+
+class _Transitions:
+    """The model's part of every step taken so far, by the step's key: the sample, the sensed state,
+    whether ``collide()`` held before and the chosen pair. The model is deterministic and that part
+    of a sample reads nothing else (:meth:`EpisodeBatch.__init__` keeps this memo only when the
+    bindings, the goal and the reward expression read no location, reward or held input), so a step
+    taken again — episodes of one learner, and of learners sharing a batch, repeat most — recalls its
+    samples instead of calling the model: the same values, bit for bit. A step is kept only when it
+    ran to its model's end (the decision period, the goal or the horizon), and at most
+    :data:`rac.engine.budget.EPISODE_MEMO_BYTES` are kept by all memos of the process together (then
+    they stop growing; a memo hands its bytes back when its batch is gone)."""
+
+    #: The bytes held by every memo of this process together: they share EPISODE_MEMO_BYTES (a
+    #: gymnasium environment over a set of scenes has one batch per scene).
+    held_by_all = 0
+    #: The bytes of one step's key in the index (the key, the slot, the dictionary's entry).
+    INDEX_BYTES = 200
+
+    def __init__(self, inputs: Sequence[InputSpec], has_reward: bool, samples: int) -> None:
+        fields: list[tuple] = [("ego", np.int32, (7,)), ("collided", bool), ("offroad", bool), ("reached", bool)]
+        if has_reward:
+            fields.append(("reward", np.float64))
+        self.inputs = [(f"v{i}", spec.name) for i, spec in enumerate(inputs)]
+        self.numeric = [(f"c{i}", spec.name) for i, spec in enumerate(inputs) if not spec.is_bool]
+        fields += [(field, bool if spec.is_bool else np.float64) for (field, _), spec in zip(self.inputs, inputs)]
+        fields += [(field, bool) for field, _ in self.numeric]
+        self.dtype = np.dtype(fields)
+        self.has_reward = has_reward
+        self.samples = samples
+        self.index: dict[bytes, int] = {}
+        self.store = np.zeros((0, samples), dtype=self.dtype)
+        self.held = [0]  # this memo's bytes, in a list: handed back when the memo is collected
+        weakref.finalize(self, _Transitions._release, self.held)
+
+    @staticmethod
+    def _release(held: list[int]) -> None:
+        _Transitions.held_by_all -= held[0]
+        held[0] = 0
+
+    def _charge(self, size: int) -> None:
+        _Transitions.held_by_all += size
+        self.held[0] += size
+
+    @staticmethod
+    def keys(k: np.ndarray, ego: np.ndarray, crashed: np.ndarray, pairs: np.ndarray) -> list[bytes]:
+        """Each row's key (``k``, the sensed state, ``crashed``, the pair), as bytes."""
+        table = np.ascontiguousarray(np.column_stack([k, ego, crashed, pairs]), dtype=np.int32)
+        width = table.shape[1] * 4
+        raw = table.tobytes()
+        return [raw[i:i + width] for i in range(0, len(raw), width)]
+
+    def find(self, keys: list[bytes]) -> np.ndarray:
+        """Each key's slot in the store, -1 for a step not kept."""
+        index = self.index
+        return np.fromiter((index.get(key, -1) for key in keys), dtype=np.int64, count=len(keys))
+
+    def record(self, sampled: _ModelSample) -> np.ndarray:
+        """``sampled`` (with its goal known) as ``(m,)`` records."""
+        out = np.zeros(sampled.after.shape[0], dtype=self.dtype)
+        out["ego"] = sampled.after
+        out["collided"] = sampled.collided
+        out["offroad"] = sampled.offroad
+        out["reached"] = sampled.reached
+        if self.has_reward:
+            out["reward"] = sampled.reward
+        for field, name in self.inputs:
+            out[field] = sampled.values[name]
+        for field, name in self.numeric:
+            out[field] = sampled.changes[name]
+        return out
+
+    def recall(self, slots: np.ndarray, j: int) -> _ModelSample:
+        """Sample ``j`` of the steps in ``slots``."""
+        records = self.store[slots, j]
+        sampled = _ModelSample(records["ego"].copy(), {name: records[field].copy() for field, name in self.inputs},
+                               {name: records[field].copy() for field, name in self.numeric},
+                               records["collided"].copy(), records["offroad"].copy())
+        sampled.reward = records["reward"].copy() if self.has_reward else None
+        sampled.reached = records["reached"].copy()
+        return sampled
+
+    def add(self, keys: list[bytes], records: np.ndarray) -> None:
+        """Keep the steps ``keys`` with their samples' ``records`` ``(m, samples)``, as far as the
+        bytes left of :data:`rac.engine.budget.EPISODE_MEMO_BYTES` allow."""
+        fresh: dict[bytes, int] = {}  # episodes that took the same step: kept once
+        for row, key in enumerate(keys):
+            if key not in self.index:
+                fresh.setdefault(key, row)
+        if not fresh:
+            return
+        size, capacity = len(self.index), self.store.shape[0]
+        row_bytes = self.dtype.itemsize * self.samples
+        if size + len(fresh) > capacity:  # amortised doubling, within the bytes left
+            left = EPISODE_MEMO_BYTES - _Transitions.held_by_all - len(fresh) * self.INDEX_BYTES
+            wanted = min(max(2 * capacity, size + len(fresh), 16), capacity + max(0, left) // row_bytes)
+            if wanted > capacity:
+                grown = np.zeros((wanted, self.samples), dtype=self.dtype)
+                grown[:size] = self.store[:size]
+                self.store = grown
+                self._charge((wanted - capacity) * row_bytes)
+        room = min(self.store.shape[0] - size,
+                   max(0, EPISODE_MEMO_BYTES - _Transitions.held_by_all) // self.INDEX_BYTES)
+        chosen = list(fresh.items())[:room]
+        if not chosen:
+            return
+        self.store[size:size + len(chosen)] = records[[row for _, row in chosen]]
+        for offset, (key, _) in enumerate(chosen):
+            self.index[key] = size + offset
+        self._charge(len(chosen) * self.INDEX_BYTES)
+
+
+def _merged(rows: np.ndarray, parts: Sequence[tuple[np.ndarray, _ModelSample]]) -> _ModelSample:
+    """The samples of ``parts`` (each for some of ``rows``, together all of them) in ``rows``' order."""
+    if len(parts) == 1:
+        return parts[0][1]
+    first = parts[0][1]
+    m = rows.size
+
+    def like(column: np.ndarray) -> np.ndarray:
+        return np.empty((m, *column.shape[1:]), dtype=column.dtype)
+
+    out = _ModelSample(like(first.after), {name: like(v) for name, v in first.values.items()},
+                       {name: like(v) for name, v in first.changes.items()}, like(first.collided),
+                       like(first.offroad), reward=None if first.reward is None else like(first.reward),
+                       reached=None if first.reached is None else like(first.reached))
+    for part_rows, part in parts:
+        at = np.searchsorted(rows, part_rows)
+        out.after[at] = part.after
+        out.collided[at] = part.collided
+        out.offroad[at] = part.offroad
+        for name, values in part.values.items():
+            out.values[name][at] = values
+        for name, values in part.changes.items():
+            out.changes[name][at] = values
+        if out.reward is not None and part.reward is not None:
+            out.reward[at] = part.reward
+        if out.reached is not None and part.reached is not None:
+            out.reached[at] = part.reached
+    return out
+
+
 class EpisodeBatch:
     """``n`` episodes of the scenario model with the automaton's reward, stepped together (one step =
     one decision period). See the module docstring for the semantics.
@@ -229,20 +400,26 @@ class EpisodeBatch:
         compiled: read the bindings, the reward expression, the goal and observed expressions with
             compiled code (:mod:`rac.engine.compiled`, the default), or with the evaluator's walk
             (the reference: the same values, slower; benchmarks/learning.py compares them).
+        memo: recall the model's part of a step taken before (:class:`_Transitions`; all batches of
+            the process keep at most :data:`rac.engine.budget.EPISODE_MEMO_BYTES` together) instead
+            of computing it again, where that part is a function of the step's state and pair (the
+            default; the same values). False: every step calls the model.
 
     Attributes: ``n_actions``, ``action_pairs`` ``(P, 2)`` (jerk, turn significands; action ``a``
     is row ``a``), ``decide_every``, ``horizon_samples``, ``max_steps`` (steps in an episode that
-    reaches the horizon); after :meth:`reset`: ``n``, ``k`` ``(n,)`` the current sample, ``ego``
-    ``(n, 7)`` int32 the sensed significands, ``done`` ``(n,)`` terminated or truncated. ``clipped``:
-    the number of binding values clipped to their input's bounds (or truncated to whole numbers for
-    ``int`` inputs) since construction, over all episodes; ``clipped_inputs`` the same per input.
+    reaches the horizon), ``steps_recalled`` and ``steps_computed`` (episode-steps whose model part
+    the memo recalled, and that called the model); after :meth:`reset`: ``n``, ``k`` ``(n,)`` the
+    current sample, ``ego`` ``(n, 7)`` int32 the sensed significands, ``done`` ``(n,)`` terminated
+    or truncated. ``clipped``: the number of binding values clipped to their input's bounds (or
+    truncated to whole numbers for ``int`` inputs) since construction, over all episodes;
+    ``clipped_inputs`` the same per input.
     """
 
     def __init__(self, result: CompileResult | CheckedProgram, *, reward: Expression = "automaton",
                  goal: Expression | None = GOAL, horizon_samples: int | None = None,
                  data: ModelData | None = None,
                  onward: Callable[[np.ndarray], np.ndarray] | None = None, counterfactuals: bool = False,
-                 compiled: bool = True) -> None:
+                 compiled: bool = True, memo: bool = True) -> None:
         automaton = result.automaton
         if automaton is None:
             raise RacValueError("the file has errors: there is no automaton to run")
@@ -297,12 +474,29 @@ class EpisodeBatch:
         #: the rows of the last sample and the model functions computed on it (:data:`_OF_THE_STATE`):
         #: the next sample's prev(e) reads them instead of calling the model again
         self._carried: tuple[np.ndarray, dict[str, np.ndarray]] | None = None
+        #: the model's part of the steps taken so far (None: every step calls the model)
+        self._transitions = _Transitions(self._bindings.specs, self.reward_expr is not None, self.decide_every) \
+            if memo and self._memoisable() else None
+        #: Episode-steps whose model part was recalled from the memo, and computed (since construction).
+        self.steps_recalled = 0
+        self.steps_computed = 0
         # Evaluate the expressions once on the start, so that a name the engine cannot read fails here.
         start = self._start_state(1)
         self._first = start  # one episode's start, read by reset_rows (never written)
         for expr in (self.reward_expr, self.goal):
             if expr is not None:
                 self.evaluator.evaluate(expr, start.frame(slice(None)))
+
+    def _memoisable(self) -> bool:
+        """Whether a sample's model part is a function of its step's key (:class:`_Transitions`): the
+        bindings read the model alone, the goal and the reward expression no location or reward, and
+        no input of an earlier sample (which the key does not hold)."""
+        bindings = [expr for _, _, expr in self._bindings.bindings.items]
+        late = [expr for expr in (self.reward_expr, self.goal) if expr is not None]
+        automaton = (ie.RefKind.REWARD, ie.RefKind.LOCATION, ie.RefKind.LOCATION_INDEX)
+        return not (any(ie.reads_automaton(expr) or ie.reads_truth(expr) for expr in bindings)
+                    or any(ie.reads_truth(expr) or any(r.kind in automaton for r in ie.refs(expr)) for expr in late)
+                    or any(ie.reads_automaton(operand) for operand in ie.prev_operands(late)))
 
     def _compile(self, exprs: Sequence[ie.Expr]) -> Callable[[Frame], list[np.ndarray]]:
         """One function of a frame giving each expression's value (``Evaluator.evaluate``'s): compiled,
@@ -433,6 +627,12 @@ class EpisodeBatch:
         return masks
 
     @property
+    def memo_bytes(self) -> int:
+        """The bytes this batch's memo of steps taken holds (0 without one); all memos of the process
+        hold at most :data:`rac.engine.budget.EPISODE_MEMO_BYTES` together."""
+        return self._transitions.held[0] if self._transitions is not None else 0
+
+    @property
     def location(self) -> np.ndarray:
         """``(n,)`` the automaton's location index per episode (into ``automaton.location_names``)."""
         return self._require()[0].location.copy()
@@ -509,11 +709,15 @@ class EpisodeBatch:
         pairs[live] = self.action_pairs[chosen]
         if self.counterfactuals:
             self._before, self._record = now.copy(), []
-        for _ in range(self.decide_every):
-            rows = np.flatnonzero(~self.done)
-            if rows.size == 0:
-                break
-            self._sample(rows, pairs, reward, flags)
+        if self._transitions is not None:
+            self._recalling(self._transitions, pairs, reward, flags)
+        else:
+            self.steps_computed += int((~self.done).sum())
+            for _ in range(self.decide_every):
+                rows = np.flatnonzero(~self.done)
+                if rows.size == 0:
+                    break
+                self._sample(rows, pairs, reward, flags)
         self._last_reward = reward.copy()
         return StepResult(reward=reward, **flags)
 
@@ -560,10 +764,62 @@ class EpisodeBatch:
             return dataclasses.replace(cf, reward=reward)
         return cf
 
+    def _recalling(self, memo: _Transitions, pairs: np.ndarray, reward: np.ndarray,
+                   flags: dict[str, np.ndarray]) -> None:
+        """One step's samples: the model's part recalled for the episodes whose step is kept in
+        ``memo``, computed (and then kept) for the others; the automaton's part for all."""
+        now = self._require()[0]
+        live = np.flatnonzero(~self.done)
+        keys = memo.keys(now.k[live], now.ego[live], now.crashed[live], pairs[live])
+        slots = memo.find(keys)
+        kept = slots >= 0
+        hits, hit_slots = live[kept], slots[kept]
+        misses = live[~kept]
+        self.steps_recalled += int(hits.size)
+        self.steps_computed += int(misses.size)
+        records = np.zeros((misses.size, self.decide_every), dtype=memo.dtype)
+        taken = np.zeros(misses.size, dtype=np.int64)
+        for j in range(self.decide_every):
+            rows = np.flatnonzero(~self.done)
+            if rows.size == 0:
+                break
+            going = ~self.done[misses]
+            computing = misses[going]
+            parts: list[tuple[np.ndarray, _ModelSample]] = []
+            if computing.size:
+                computed = self._model_sample(computing, pairs)
+                records[going, j] = memo.record(computed)
+                taken[going] = j + 1
+                parts.append((computing, computed))
+            recalling = ~self.done[hits]
+            if recalling.any():
+                parts.append((hits[recalling], memo.recall(hit_slots[recalling], j)))
+            self._apply(rows, _merged(rows, parts), reward, flags)
+            # prev(e)'s model functions are handed on for the computed rows only: a recalled row's are not known
+            if computing.size:
+                assert computed.frame is not None
+                self._carry(computing, computed.frame)
+            else:
+                self._carried = None
+        if misses.size:  # a step the automaton ended early did not run to its model's end: not kept
+            last = records[np.arange(misses.size), np.maximum(taken - 1, 0)]
+            whole = (taken == self.decide_every) | ((taken > 0) & last["reached"]) \
+                | (now.k[misses] >= self.horizon_samples)
+            memo.add([keys[i] for i in np.flatnonzero(~kept)[whole]], records[whole])
+
     def _sample(self, rows: np.ndarray, pairs: np.ndarray, reward: np.ndarray, flags: dict[str, np.ndarray]) -> None:
         """One sample ``k -> k + 1`` of the episodes ``rows``, each at its own ``k`` (the model's
         functions and the evaluator read ``k`` per row; after :meth:`reset_rows` the rows differ)."""
-        now, prev, automata = self._require()
+        sampled = self._model_sample(rows, pairs)
+        self._apply(rows, sampled, reward, flags)
+        assert sampled.frame is not None
+        self._carry(rows, sampled.frame)
+
+    def _model_sample(self, rows: np.ndarray, pairs: np.ndarray) -> _ModelSample:
+        """The model's part of one sample of the episodes ``rows`` (steps 1 and 2 of the module
+        docstring, the labels, and the goal and reward expression when they read the model and the
+        inputs only): a function of each row's :meth:`_Transitions.keys`, nothing else."""
+        now = self._require()[0]
         evaluator = self.evaluator
         before = now.frame(rows)  # the state at k, before the choice: what prev(e) reads
         if self._carried is not None:  # computed on these states at the last sample (or the start)
@@ -576,46 +832,58 @@ class EpisodeBatch:
         moved[:, ACTION] = pairs[rows]
         after = evaluator.model.sense(moved)
         frame = Frame(k=before.k + 1, ego=after, prev=before, crashed=before.crashed)
-        counts = dict.fromkeys(self.clipped_inputs, 0)
-        values = self._bindings.read(frame, counts)
+        changes: dict[str, np.ndarray] = {}
+        values = self._bindings.read(frame, changes=changes)
+        # the labels through the evaluator: the frame's one mindist() and offroad(), shared with the bindings
+        collided = collides(evaluator.function("mindist", frame), self._td)
+        offroad = np.asarray(evaluator.function("offroad", frame), dtype=bool)
+        sampled = _ModelSample(after, values, changes, collided, offroad, frame)
+        if self._transitions is not None:  # the goal and reward read no location, reward or held input
+            sampled.late(self._after_edge(dataclasses.replace(frame, inputs=values)), self.reward_expr is not None,
+                         self.goal is not None)
+        return sampled
+
+    def _apply(self, rows: np.ndarray, sampled: _ModelSample, reward: np.ndarray,
+               flags: dict[str, np.ndarray]) -> None:
+        """The automaton's part of one sample of the episodes ``rows`` (steps 3 and 4 of the module
+        docstring), with the model's part ``sampled``."""
+        now, prev, automata = self._require()
         active = np.zeros(self.n, dtype=bool)
         active[rows] = True
         fed = {name: held.copy() for name, held in now.inputs.items()}  # frozen episodes: their last inputs
-        for name, column in values.items():
+        for name, column in sampled.values.items():
             fed[name][rows] = column
         try:
             gain = automata.step_batch(fed, mask=active)
         except ValueError as exc:
-            raise RacValueError(f"sample {int(before.k.min()) + 1}: the bindings' values are not valid inputs of "
+            raise RacValueError(f"sample {int(now.k[rows].min()) + 1}: the bindings' values are not valid inputs of "
                                 f"`{self.automaton.name}`: {exc}") from None
-        self.clipped += sum(counts.values())
-        for name, count in counts.items():
+        for name, changed in sampled.changes.items():
+            count = int(changed.sum())
+            self.clipped += count
             self.clipped_inputs[name] += count
         # the new sample becomes the current state; the old one prev(e)'s
         prev.put(rows, now)
         now.k[rows] += 1
-        now.ego[rows] = after
+        now.ego[rows] = sampled.after
         now.inputs = fed
         self._sync(now, automata)
-        sampled = dataclasses.replace(frame, location=now.location[rows],
-                                      rewards={name: values[rows] for name, values in now.rewards.items()},
-                                      inputs=values)
-        # the labels through the evaluator: the frame's one mindist() and offroad(), shared with the bindings
-        collided = collides(evaluator.function("mindist", sampled), self._td)
-        now.crashed[rows] |= collided
-        flags["collided"][rows] |= collided
-        flags["offroad"][rows] |= np.asarray(evaluator.function("offroad", sampled), dtype=bool)
-        after_edge = self._after_edge(sampled)
+        now.crashed[rows] |= sampled.collided
+        flags["collided"][rows] |= sampled.collided
+        flags["offroad"][rows] |= sampled.offroad
+        if sampled.reached is None:  # the goal or the reward reads the automaton: after its edge
+            assert sampled.frame is not None
+            late = self._after_edge(dataclasses.replace(
+                sampled.frame, location=now.location[rows], inputs=sampled.values,
+                rewards={name: values[rows] for name, values in now.rewards.items()}))
+            sampled.late(late, self.reward_expr is not None, self.goal is not None)
+        assert sampled.reached is not None
         if self.reward_expr is None:
             reward[rows] += gain[rows]
         else:
-            reward[rows] += np.asarray(after_edge[0], dtype=np.float64)
-        if self.goal is not None:
-            reached = after_edge[-1]
-            reached = np.asarray(reached if reached.dtype == bool else reached != 0, dtype=bool)
-        else:
-            reached = np.zeros(rows.size, dtype=bool)
-        self._carry(rows, sampled)
+            assert sampled.reward is not None
+            reward[rows] += sampled.reward
+        reached = sampled.reached
         last = now.k[rows] >= self.horizon_samples
         ended = automata.terminated[rows]  # `episode ends when`: the automaton ended the run (end clauses applied)
         ending = reached | last | ended

@@ -199,7 +199,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                    parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
                    bins: Sequence[float] | None = None, counterfactuals: bool = True, replay: int = 1,
                    growth: float | None = GROWTH, ablation: bool = False, observe_time: bool = True,
-                   max_bytes: int | None = None,
+                   max_bytes: int | None = None, memo: bool = True,
                    progress: Callable[[str], None] | None = None) -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
     ``bins``: the widths of the continuous observations (default: derived from the model and its
@@ -210,7 +210,9 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     SS&RA without each of these (:data:`ABLATION`), in ``report["ablation"]``; ``observe_time``: the
     decision time is added to the discrete observations (:func:`_with_time`); ``max_bytes``: the
     memory budget of the shield and the learning (None: none), checked before either starts
-    (:func:`rac.engine.budget.learning_bytes` for all runs together). Every combination
+    (:func:`rac.engine.budget.learning_bytes` for all runs together); ``memo``: the episodes recall
+    the steps taken before (:class:`rac.learning.episodes.EpisodeBatch`'s ``memo``; the same results,
+    benchmarks/learning.py compares the time). Every combination
     learns with :data:`LEARNER` and learns to the budget (the greedy strategy kept is the best
     evaluated: its return keeps improving late, after 90 to 490 of 500 episodes on examples/paper).
 
@@ -252,7 +254,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                               f"({', '.join(continuous)}), not {','.join(f'{w:g}' for w in widths)}", "usage")
     bins_from = "--bins" if bins is not None else "derived from the model's action grid and goal"
     shared = EpisodeBatch(result, reward="automaton", horizon_samples=horizon,  # its onward: the shield's, below
-                          counterfactuals=counterfactuals or ablation)
+                          counterfactuals=counterfactuals or ablation, memo=memo)
     try:  # checked before the shield and the learning, which would meet it only after them
         objective = shared.expression(rf) if any(kind == "function" for _, _, kind in wanted) else None
     except CheckError as exc:
@@ -340,6 +342,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
             "shield_states": shield_states, "records": records, "bins": list(widths), "bins_from": bins_from,
             "derived_bins": list(derived), "replay": replay, "counterfactuals": counterfactuals, "growth": growth,
             "parallel": parallel, "optima": optima,
+            "model_steps": {"recalled": shared.steps_recalled, "computed": shared.steps_computed},
             "observation": {"discrete": _with_time(discrete) if observe_time else discrete, "continuous": continuous,
                             "query": source_query},
             "learner": {key: list(v) if isinstance(v, tuple) else v for key, v in LEARNER.items()},
@@ -398,12 +401,14 @@ def _optima(result: CompileResult, wanted: Sequence[tuple[str, bool, str]], tabl
     from rac.learning.optimum import solve
 
     optima: dict[str, Report] = {}
+    # one batch for every combination: they search the same shielded graph, whose steps the memo
+    # recalls for the second (its bytes are handed back when the batch is gone, before the learning)
+    batch = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward)
     for label, shielded, kind in wanted:
         if not shielded or table is None:
             continue
         if progress:
             progress(f"the exact optimum of {label} under the shield")
-        batch = EpisodeBatch(result, reward="automaton", horizon_samples=horizon, onward=onward)
         try:
             best = solve(batch, objective=None if kind == "automaton" else rf, shield=table, max_states=max_states)
         except (MemoryError, ValueError) as exc:  # the budget (BudgetExceeded is a MemoryError), an unusable model
@@ -492,6 +497,7 @@ def render_markdown(report: Report) -> str:
           + "." for label, optimum in report.get("optima", {}).items()),
         f"Safety shield: {report['shield_states']:,} states, {report['shield_seconds']:.2f} s (computed once, "
         "used by SS&RA and SS&RF).",
+        *_model_steps(report),
         f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} episodes per run; horizon "
         f"{report['horizon_samples']} samples; reward function `{report['reward_function']}`; observation "
         f"{{{', '.join(report['observation']['discrete'])}}}->{{{', '.join(report['observation']['continuous'])}}} "
@@ -514,6 +520,20 @@ def render_markdown(report: Report) -> str:
         "shield's): a run that reaches the goal only to leave the road after it does not count.",
     ]
     return "\n".join(lines + notes)
+
+
+def _model_steps(report: Report) -> list[str]:
+    """How many episode-steps called the model and how many were recalled (reports written before
+    the memo have neither)."""
+    steps = report.get("model_steps")
+    if not steps:
+        return []
+    total = steps["recalled"] + steps["computed"]
+    if not total:
+        return []
+    return [f"Model: {total:,} episode-steps (learning and evaluation), {100 * steps['recalled'] / total:.0f} % "
+            "recalled from an earlier episode's same step (the same state and action: the model is deterministic), "
+            "the rest computed."]
 
 
 def _exploration(optimum: Report) -> str:
