@@ -134,10 +134,14 @@ def update(values: np.ndarray, step: Transition, alpha: float, gamma: float, unt
     active = step.active
     if active.size == 0:
         return
+    if active.size == 1:  # one episode (the best episode's replay, a batch of one): no array work
+        _update_in_order(values, step, alpha, gamma, untried)
+        return
     rows, actions = step.rows[active], step.actions[active]
     going = ~step.ends[active]
     next_rows = step.next_rows[active][going]
-    if next_rows.size and np.isin(next_rows, rows).any():
+    # a few dozen rows: sets decide it faster than np.isin's sorting
+    if next_rows.size and not set(rows.tolist()).isdisjoint(next_rows.tolist()):
         _update_in_order(values, step, alpha, gamma, untried)
         return
     targets = np.array(step.reward[active], dtype=np.float64)
@@ -147,7 +151,7 @@ def update(values: np.ndarray, step: Transition, alpha: float, gamma: float, unt
     flat = rows * values.shape[1] + actions
     order = np.argsort(flat, kind="stable")
     ordered = flat[order]
-    first = np.r_[True, ordered[1:] != ordered[:-1]]
+    first = np.concatenate(([True], ordered[1:] != ordered[:-1]))
     rank = np.empty(flat.size, dtype=np.int64)  # each entry's occurrence before this one, in episode order
     rank[order] = np.arange(flat.size) - np.maximum.accumulate(np.where(first, np.arange(flat.size), 0))
     for k in range(int(rank.max()) + 1):
@@ -165,7 +169,7 @@ def _update_in_order(values: np.ndarray, step: Transition, alpha: float, gamma: 
     for i in step.active:
         target = step.reward[i]
         if not step.ends[i]:
-            target += gamma * values[step.next_rows[i]][step.next_masks[i]].max()
+            target += gamma * np.where(step.next_masks[i], values[step.next_rows[i]], -np.inf).max()
         old = values[rows[i], actions[i]]
         values[rows[i], actions[i]] = target if old == untried else old + alpha * (target - old)
 
