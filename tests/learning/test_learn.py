@@ -38,7 +38,7 @@ from rac.learning.qlearning import (
     observation_keys,
     run_strategy,
 )
-from rac.learning.runs import evaluation_steps
+from rac.learning.runs import Reset, Steps, evaluation_steps
 from rac.verify.runner import VerifyOptions, render_text, verify
 
 X, V, LOCATION = parse_expr("x"), parse_expr("v"), parse_expr("Tiny.location")
@@ -267,6 +267,55 @@ def test_runs_learned_together_are_the_runs_learned_alone(scenario: Callable[[st
     batch = EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON)
     for (table, _, _, _), (outcome, _), runs_, (evaluation, _) in zip(runs, together, (10, 1, 7, 30), evaluations):
         assert evaluation == evaluate(batch, outcome.strategy, runs=runs_, shield=table, seed=4, epsilon=0.3)
+
+
+def test_ctrl_c_stops_runs_together_after_the_step_with_what_they_learned(
+        scenario: Callable[[str], Scenario]) -> None:
+    """With ``interruptible``, Ctrl-C (SIGINT) is noted, not raised halfway into a generator: after the
+    step under way every learning run returns the strategy of its last evaluation (the same as the
+    uninterrupted run had then), a job finished before keeps its result, a run not evaluated yet and
+    a generator that cannot stop give None, and the previous SIGINT handler is back."""
+    import signal
+
+    from rac.learning.lockstep import Interrupted
+
+    item = scenario("avoidable_obstacle")
+    shared = EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON)
+    evaluations: list[int] = []
+
+    def ctrl_c_at_the_third(after: int, budget: int, mean: float) -> None:
+        evaluations.append(after)
+        if len(evaluations) == 3:
+            signal.raise_signal(signal.SIGINT)
+
+    options: dict[str, object] = dict(discrete=[LOCATION], continuous=[X, V], shield=item.table, episodes=400,
+                                      parallel=4, seed=5, stop_after=1000)
+    full = learn(EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON), **options)
+    before = signal.getsignal(signal.SIGINT)
+    jobs = [Job(learning(shared, **options, progress=ctrl_c_at_the_third)),  # type: ignore[arg-type]
+            Job(evaluation_steps(full.strategy, runs=10_000, shield=item.table, seed=1))]
+    with pytest.raises(Interrupted) as info:
+        run_together(jobs, shared, interruptible=True)
+    assert signal.getsignal(signal.SIGINT) is before
+    (stopped, seconds), (evaluation, _) = info.value.results
+    assert evaluation.runs == 10_000 and seconds > 0  # finished in the first round: its result stands
+    assert isinstance(stopped, LearningResult) and stopped.interrupted
+    assert evaluations[2] <= stopped.episodes < 400  # the batch under way was dropped
+    assert len(stopped.history.returns) == stopped.episodes
+    assert stopped.history.eval_episodes.tolist() == full.history.eval_episodes.tolist()[:len(evaluations)]
+    assert stopped.history.returns.tolist() == full.history.returns.tolist()[:stopped.episodes]
+    assert not full.interrupted
+
+    def ctrl_c_at_once() -> Steps[None]:
+        yield Reset(1)
+        signal.raise_signal(signal.SIGINT)
+        while True:
+            yield np.zeros(1, dtype=np.int64)
+
+    with pytest.raises(Interrupted) as info:  # a learning run not evaluated yet has nothing to give
+        run_together([Job(learning(shared, **options)), Job(ctrl_c_at_once())], shared, interruptible=True)
+    assert [result for result, _ in info.value.results] == [None, None]
+    assert signal.getsignal(signal.SIGINT) is before
 
 
 def test_a_lane_is_some_rows_of_the_shared_batch(scenario: Callable[[str], Scenario]) -> None:

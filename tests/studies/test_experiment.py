@@ -213,3 +213,43 @@ def test_a_shield_beyond_the_state_budget_is_a_resource_limit(tmp_path: Path,
     assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", REWARD_FUNCTION,
                  "--max-states", "10", "--out", str(tmp_path / "o")]) == 2
     assert "error[E0016]: resource limit: the safety shield cannot be computed" in capsys.readouterr().err
+
+
+def test_ctrl_c_while_learning_keeps_what_was_learned(tmp_path: Path) -> None:
+    """Ctrl-C during the learning: every run's strategy of its last evaluation is shown and written
+    (the table, results.json with "interrupted"), the note says so, and the exit code is 130."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import threading
+    import time
+
+    repository = Path(__file__).resolve().parents[2]
+    command = [sys.executable, "-m", "rac", "experiment", str(repository / "examples" / "paper" / "model.ra"),
+               "--episodes", "100000", "--seeds", "1", "--runs", "5", "-o", str(tmp_path / "out")]
+    child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             env=dict(os.environ, PYTHONUNBUFFERED="1", RAC_PROGRESS_INTERVAL="0.5"))
+    assert child.stderr is not None
+    seen = ""
+    while "runs together" not in seen:  # the learning has begun: the heartbeat (off a terminal) says so
+        line = child.stderr.readline()
+        assert line, f"the experiment ended before learning: {seen}"
+        seen += line
+    time.sleep(3.0)  # a few batches learned and evaluated
+    rest: list[str] = []
+    reader = threading.Thread(target=lambda: rest.append(child.stderr.read() if child.stderr else ""), daemon=True)
+    reader.start()  # the heartbeat goes on: its pipe is read to the end
+    child.send_signal(signal.SIGINT)
+    try:
+        out = child.stdout.read() if child.stdout is not None else ""
+        child.wait(timeout=120)
+    finally:
+        child.kill()
+    reader.join(timeout=10)
+    assert child.returncode == 130, out
+    assert "Interrupted (Ctrl-C) while learning" in out and "| SS&RA |" in out
+    assert rest and "Traceback" not in seen + rest[0]
+    results = json.loads((tmp_path / "out" / "results.json").read_text(encoding="utf-8"))
+    assert results["interrupted"] == "learning"
+    assert all(0 < run["episodes"] < 100_000 and run["evaluation_runs"] == 0 for run in results["runs"])

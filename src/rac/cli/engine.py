@@ -640,6 +640,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
             print()
         for path in files:
             print(f"wrote {path}")
-    return EXIT_OK
+    # Ctrl-C: what was learned is shown and written, and the exit code says it was cut short
+    return EXIT_INTERRUPTED if report.get("interrupted") else EXIT_OK
 
 

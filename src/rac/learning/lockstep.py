@@ -14,6 +14,11 @@ random numbers only for its own rows, so each result is the one the generator ha
 (:func:`rac.learning.runs.drive`); only the time changes. Each run is charged its own computing
 time plus, for every step of the batch, a share of that step by its episodes still running.
 
+With ``interruptible``, Ctrl-C (SIGINT) does not break into a generator halfway through its
+computation: it is noted, and after the step under way every live generator is sent
+:class:`rac.learning.runs.Stop`, so that it can return what it has (learning: the strategy of its
+last evaluation); :class:`Interrupted` then carries all results so far.
+
 Example::
 
     shared = EpisodeBatch(result, reward="automaton")
@@ -23,20 +28,24 @@ Example::
 
 from __future__ import annotations
 
+import signal
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from rac.core.diagnostics import RacError
 from rac.ir import expr as ie
 from rac.learning.counterfactual import Counterfactuals
 from rac.learning.episodes import EpisodeBatch, Expression, StepResult
-from rac.learning.runs import Reset, Steps
+from rac.learning.runs import Reset, Steps, Stop
 from rac.learning.strategy import Forwarding
 
-__all__ = ["Job", "Lane", "run_together"]
+__all__ = ["Interrupted", "Job", "Lane", "run_together"]
 
 
 @dataclass
@@ -117,10 +126,68 @@ class _Running:
         return not self.finished and not isinstance(self.request, Reset)
 
 
-def run_together(jobs: Sequence[Job], shared: EpisodeBatch) -> list[tuple[Any, float]]:
+class Interrupted(RacError):
+    """Ctrl-C stopped :func:`run_together` (``interruptible``): per job, in order, ``results`` holds
+    what its generator returned, finished or stopped (None when it could not return anything), and
+    the seconds charged to it. Only a caller that asks for ``interruptible`` meets it."""
+
+    def __init__(self, results: list[tuple[Any, float]]) -> None:
+        super().__init__("interrupted")
+        self.results = results
+
+
+@contextmanager
+def _deferred_interrupts(wanted: bool) -> Iterator[Callable[[], bool]]:
+    """While inside, SIGINT is only noted (outside the main thread, or unless ``wanted``, it is left
+    alone); yields whether one came."""
+    if not wanted or threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    came: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: came.append(signum))
+    try:
+        yield lambda: bool(came)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _stop(running: Sequence[_Running]) -> list[tuple[Any, float]]:
+    """Send :class:`Stop` to every generator not finished; every job's result (None: nothing) and seconds."""
+    for run in running:
+        if run.finished:
+            continue
+        t0 = time.perf_counter()
+        try:
+            run.job.steps.throw(Stop())
+        except StopIteration as stop:
+            run.result = stop.value
+        except Stop:
+            run.result = None
+        else:  # it went on asking for steps: it cannot stop early, so it has nothing to give
+            run.job.steps.close()
+            run.result = None
+        run.finished = True
+        run.seconds += time.perf_counter() - t0
+    return [(run.result, run.seconds) for run in running]
+
+
+def run_together(jobs: Sequence[Job], shared: EpisodeBatch, *, interruptible: bool = False) -> list[tuple[Any, float]]:
     """Run every job's generator to its end on the one batch ``shared`` (see the module docstring);
-    per job, in order: its result and the seconds charged to it."""
+    per job, in order: its result and the seconds charged to it. ``interruptible``: Ctrl-C stops
+    every job after the step under way, raising :class:`Interrupted` with what they returned."""
     running = [_Running(job) for job in jobs]
+    with _deferred_interrupts(interruptible) as interrupted:
+        try:
+            return _run(running, shared, interrupted)
+        except _Stopping:
+            raise Interrupted(_stop(running)) from None
+
+
+class _Stopping(RacError):
+    """Raised between two steps of :func:`_run` when a Ctrl-C was noted."""
+
+
+def _run(running: list[_Running], shared: EpisodeBatch, interrupted: Callable[[], bool]) -> list[tuple[Any, float]]:
     for run in running:
         run.send(None)
     while True:
@@ -143,6 +210,8 @@ def run_together(jobs: Sequence[Job], shared: EpisodeBatch) -> list[tuple[Any, f
         for run in live:
             run.send(Lane(shared, run.lane, run.job.objective))
         while any(run.stepping for run in live):
+            if interrupted():
+                raise _Stopping
             _step(shared, [run for run in live if run.stepping])
 
 

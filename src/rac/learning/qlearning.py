@@ -90,7 +90,7 @@ from rac.learning.episodes import Expression
 # The strategy itself (observation keys, table) lives in rac.learning.strategy, its runs and evaluation
 # in rac.learning.runs; their public names stay importable from here, where callers and the docs
 # have always found them.
-from rac.learning.runs import Steps, StrategyEvaluation, StrategyRun, alone, evaluate, run_strategy
+from rac.learning.runs import Steps, Stop, StrategyEvaluation, StrategyRun, alone, evaluate, run_strategy
 from rac.learning.strategy import (
     DEFAULT_BINS,
     Episodes,
@@ -198,7 +198,8 @@ class LearningResult:
     ``greedy`` run, the ``history``, ``first_success_episode`` (episodes learned when the greedy
     run first succeeded; None: never), ``collisions_during_learning`` / ``offroad_during_learning``
     (learning episodes with at least one), ``fallbacks`` (decisions where the shield allowed
-    nothing), ``episodes`` learned, whether learning ``stopped_early``, ``seconds`` and ``seed``."""
+    nothing), ``episodes`` learned, whether learning ``stopped_early``, ``seconds``, ``seed`` and whether it
+    was ``interrupted``."""
 
     strategy: LearnedStrategy
     greedy: StrategyRun
@@ -211,6 +212,9 @@ class LearningResult:
     stopped_early: bool
     seconds: float
     seed: int
+    #: Learning was stopped from outside (:class:`rac.learning.runs.Stop`, e.g. Ctrl-C in
+    #: ``rac experiment``) after ``episodes``: the strategy is the best evaluated until then.
+    interrupted: bool = False
 
 
 def _fresh_seed() -> int:
@@ -352,24 +356,30 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     # (Frozen): the next batch is learned before the verdict on this one, and when the verdict
     # stops learning that batch is discarded (its episodes are not counted, its table not kept).
     pending: tuple[Frozen, int, float] | None = None  # the table, episodes learned, mean return
-    while learned < episodes:
-        n = min(batch_size(learned), episodes - learned)
-        riding, pending = pending, None
-        log, run = yield from learner.run(n, schedule(learned + np.arange(n, dtype=np.float64)),
-                                          None if riding is None else riding[0])
-        if riding is not None and run is not None and judge(*riding, run):
-            stopped_early = True
-            break
-        learned += n
-        logs.append(log)
-        pending = (table.freeze(), learned, float(log.returns.mean()))
-        if not evaluate_in_batch:
-            evaluated, pending = pending, None
-            if judge(*evaluated, (yield from learner.greedy_run())):
+    interrupted = False
+    try:
+        while learned < episodes:
+            n = min(batch_size(learned), episodes - learned)
+            riding, pending = pending, None
+            log, run = yield from learner.run(n, schedule(learned + np.arange(n, dtype=np.float64)),
+                                              None if riding is None else riding[0])
+            if riding is not None and run is not None and judge(*riding, run):
                 stopped_early = True
                 break
-    if pending is not None:  # the last batch's evaluation: no batch follows to carry it
-        judge(*pending, (yield from learner.greedy_run()))
+            learned += n
+            logs.append(log)
+            pending = (table.freeze(), learned, float(log.returns.mean()))
+            if not evaluate_in_batch:
+                evaluated, pending = pending, None
+                if judge(*evaluated, (yield from learner.greedy_run())):
+                    stopped_early = True
+                    break
+        if pending is not None:  # the last batch's evaluation: no batch follows to carry it
+            judge(*pending, (yield from learner.greedy_run()))
+    except Stop:  # the caller was interrupted: the batch under way is dropped, the best evaluated stands
+        if best_strategy is None:
+            raise
+        interrupted = True
     assert best_strategy is not None and best_run is not None
     history = History(returns=np.concatenate([log.returns for log in logs]),
                       reached=np.concatenate([log.reached for log in logs]),
@@ -382,7 +392,7 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
                       eval_success=np.array([e[2] for e in evaluations], dtype=bool))
     return LearningResult(best_strategy, best_run, history, first_success, int(history.collided.sum()),
                           int(history.offroad.sum()), int(history.fallbacks.sum()), learned, stopped_early,
-                          time.perf_counter() - t0, seed)
+                          time.perf_counter() - t0, seed, interrupted)
 
 
 #: :func:`learning` on one batch alone (same arguments): ``learn(batch, discrete=..., continuous=..., ...)``.

@@ -24,6 +24,7 @@ from typing import Any, Concatenate, ParamSpec, TypeVar
 
 import numpy as np
 
+from rac.core.diagnostics import RacError
 from rac.engine.shield import ShieldTable
 from rac.learning.episodes import Expression
 from rac.learning.strategy import (
@@ -36,7 +37,7 @@ from rac.learning.strategy import (
     uniform_allowed,
 )
 
-__all__ = ["Request", "Reset", "RunRecorder", "Steps", "StrategyEvaluation", "alone", "drive", "evaluate",
+__all__ = ["Request", "Reset", "RunRecorder", "Steps", "Stop", "StrategyEvaluation", "alone", "drive", "evaluate",
            "evaluation_steps", "rollout", "rollout_steps", "run_strategy"]
 
 T = TypeVar("T")
@@ -48,6 +49,11 @@ class Reset:
     """A request for ``width`` fresh episodes (answered with the episodes to read them through)."""
 
     width: int
+
+
+class Stop(RacError):
+    """Thrown into a generator of steps to end it now (its caller was interrupted): it returns what it
+    has so far if it can (learning: the strategy of its last evaluation), or lets this propagate."""
 
 
 #: What a generator of steps yields: a :class:`Reset`, or the ``(n,)`` actions of one step.

@@ -220,7 +220,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     then all evaluations run together: each result is the one the run has alone, and a run's
     learning time is its own computation plus its share of the batch's steps."""
     # stormpy (via rac.learning.lockstep): importing rac.studies.experiment stays light
-    from rac.learning.lockstep import Job, run_together
+    from rac.learning.lockstep import Interrupted, Job, run_together
 
     # stormpy (via rac.learning.qlearning): importing rac.studies.experiment stays light
     from rac.learning.qlearning import LearningResult, learning
@@ -303,6 +303,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                 progress(f"{what}: {sum(done):,} of {len(runs) * episodes:,} episodes")
         return report
 
+    stopped: str | None = None  # where Ctrl-C stopped the runs: "learning", "evaluation" or nowhere
     try:  # a reward that is not a number, met while learning: the user's reward, not a bug
         learned = run_together([Job(learning(shared, discrete=_with_time(discrete) if options.time else discrete,
                                              continuous=continuous, shield=table, episodes=episodes,
@@ -313,16 +314,29 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                                              **({**LEARNER, "replay_best": options.replay_best} if options.pessimistic
                                                 else EARLIER)),
                                     None if kind == "automaton" else objective)
-                                for run, (_, seed, table, kind, options) in enumerate(runs)], shared)
+                                for run, (_, seed, table, kind, options) in enumerate(runs)], shared,
+                               interruptible=True)
+    except Interrupted as stop:  # each run's strategy of its last evaluation; none before its first
+        learned, stopped = stop.results, "learning"
+        if all(outcome is None for outcome, _ in learned):
+            raise KeyboardInterrupt from None
     except RacValueError as exc:
         raise ExperimentError(f"learning stopped: {exc} (the reward function `{text}` or the automaton's "
                               "objective)") from None
+    kept = [i for i, (outcome, _) in enumerate(learned) if outcome is not None]
+    runs, learned = [runs[i] for i in kept], [learned[i] for i in kept]
     outcomes: list[LearningResult] = [outcome for outcome, _ in learned]
-    if progress:
-        progress(f"evaluating {len(runs)} strategies over {evaluation_runs} runs each")
-    evaluations = run_together([Job(evaluation_steps(outcome.strategy, runs=evaluation_runs, shield=table, seed=seed,
-                                                     epsilon=EVALUATION_NOISE))
-                                for outcome, (_, seed, table, _, _) in zip(outcomes, runs)], shared)
+    evaluations: list[tuple[Any, float]] = [(None, 0.0)] * len(runs)
+    if stopped is None:
+        if progress:
+            progress(f"evaluating {len(runs)} strategies over {evaluation_runs} runs each")
+        try:
+            evaluations = run_together([Job(evaluation_steps(outcome.strategy, runs=evaluation_runs, shield=table,
+                                                             seed=seed, epsilon=EVALUATION_NOISE))
+                                        for outcome, (_, seed, table, _, _) in zip(outcomes, runs)], shared,
+                                       interruptible=True)
+        except Interrupted as stop:  # the strategies stand, and the evaluations finished
+            evaluations, stopped = stop.results, "evaluation"
     records: list[RunRecord] = []
     for (label, seed, _, _, options), (outcome, seconds), (evaluation, _) in zip(runs, learned, evaluations):
         history = outcome.history
@@ -330,7 +344,9 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                      & ~np.asarray(history.stranded))
         records.append(RunRecord(label, seed, seconds, outcome.episodes, outcome.first_success_episode,
                                  outcome.collisions_during_learning, outcome.offroad_during_learning,
-                                 bool(outcome.greedy.success[0]), evaluation.successes, evaluation.runs,
+                                 bool(outcome.greedy.success[0]),
+                                 0 if evaluation is None else evaluation.successes,
+                                 0 if evaluation is None else evaluation.runs,
                                  np.asarray(history.returns, dtype=float), succeeded,
                                  float(outcome.greedy.returns[0]),
                                  _value(optima.get("SS&RA" if label.startswith("ablation ") else label)),
@@ -343,6 +359,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
             "derived_bins": list(derived), "replay": replay, "counterfactuals": counterfactuals, "growth": growth,
             "parallel": parallel, "optima": optima,
             "model_steps": {"recalled": shared.steps_recalled, "computed": shared.steps_computed},
+            "interrupted": stopped, "evaluation_runs": evaluation_runs,
             "observation": {"discrete": _with_time(discrete) if observe_time else discrete, "continuous": continuous,
                             "query": source_query},
             "learner": {key: list(v) if isinstance(v, tuple) else v for key, v in LEARNER.items()},
@@ -448,7 +465,7 @@ def summary(report: Report, records: Sequence[RunRecord] | None = None) -> list[
             "collisions": [r.collisions_during_learning for r in runs],
             "offroad": [r.offroad_during_learning for r in runs],
             "greedy_success": sum(r.greedy_success for r in runs),
-            "evaluation": [r.evaluation_successes / r.evaluation_runs for r in runs],
+            "evaluation": [r.evaluation_successes / r.evaluation_runs for r in runs if r.evaluation_runs],
             "episodes": [r.episodes for r in runs],
             "greedy_returns": [r.greedy_return for r in runs],
             "optimum": runs[0].optimum,
@@ -485,10 +502,12 @@ def render_markdown(report: Report) -> str:
         lines.append(
             f"| {row['combination']} | {_mean_sd(row['seconds'])} | {first} | {_mean_sd(row['episodes'])} | "
             f"{_mean_sd(row['collisions'])} | {row['greedy_success']} of {n} seeds | "
-            f"{_mean_sd([100 * v for v in row['evaluation']])} % | {_mean_sd(row['greedy_returns'])} | "
+            f"{_mean_sd([100 * v for v in row['evaluation']]) + ' %' if row['evaluation'] else '—'} | "
+            f"{_mean_sd(row['greedy_returns'])} | "
             f"{_optimum_cell(row)} | {'yes' if row['counterfactuals'] else 'no'} |")
     notes = [
         "",
+        *_interrupted(report),
         *(f"Exact optimum of {label} under the shield: "
           + (f"out of reach ({optimum['out_of_reach']})" if "out_of_reach" in optimum else
              f"{optimum['value']:.1f} ({optimum['method']}, {optimum['seconds']:.2f} s)"
@@ -520,6 +539,22 @@ def render_markdown(report: Report) -> str:
         "shield's): a run that reaches the goal only to leave the road after it does not count.",
     ]
     return "\n".join(lines + notes)
+
+
+def _interrupted(report: Report) -> list[str]:
+    """What Ctrl-C left of the runs, when it stopped them."""
+    stopped = report.get("interrupted")
+    if not stopped:
+        return []
+    records: list[RunRecord] = report["records"]
+    low, high = min(r.episodes for r in records), max(r.episodes for r in records)
+    learned = f"{low:,}" if low == high else f"{low:,} to {high:,}"
+    if stopped == "evaluation":
+        return [f"Interrupted (Ctrl-C) while evaluating: every run learned its {report['episodes']:,} episodes; "
+                "evaluations not finished are left out (a row of none shows '—')."]
+    return [f"Interrupted (Ctrl-C) while learning: each run shows the strategy of its last evaluation, after "
+            f"{learned} of {report['episodes']:,} episodes learned; a run not evaluated yet is left out (the "
+            "rows' seeds are those shown); no evaluation runs ('—')."]
 
 
 def _model_steps(report: Report) -> list[str]:
@@ -591,6 +626,9 @@ def render_ablation(report: Report) -> str:
 
 
 def _evaluation_runs(report: Report) -> int:
+    """The evaluation runs asked for (reports written before it was kept: those of the first run)."""
+    if "evaluation_runs" in report:
+        return int(report["evaluation_runs"])
     records: list[RunRecord] = report["records"]
     return records[0].evaluation_runs if records else 0
 
