@@ -9,6 +9,7 @@ Each scene is built with commonroad-io (tests/support/tiny_scenarios.py):
   goal states of which only one asks for a velocity are accepted with it;
 - a curved lanelet goal (half a ring): its centre, which ``dist_goal()`` measures to, lies on the
   lanelet, not in the ring's hole; a region whose vertex mean lies outside it gets a point inside;
+- a goal region without area (a polygon on one line, a rectangle 0 m long): refused (E0712);
 - an ego that starts inside a parked car: W0724;
 - the loader's messages for a file without a version, a 2020a file labelled 2018b, and a time step
   of 0 or below (E0718, with the position, like any step outside [1 µs, 10^6 s]).
@@ -21,13 +22,22 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
+import shapely
+from commonroad.common.util import Interval
+from commonroad.geometry.occupancy.polygon_occupancy import PolygonOccupancy
+from commonroad.planning.goal import GoalRegion
+from commonroad.planning.planning_problem import PlanningProblem, PlanningProblemSet
+from commonroad.scenario.scenario import Tag
+from commonroad.scenario.state import CustomState
 from engine_files import TEMPLATE
 from tiny_scenarios import (
+    PLANNING_PROBLEM_ID,
     RING_RADIUS,
     GoalBox,
     StraightRoad,
     TinySettings,
     blocked_start,
+    commonroad_xml,
     curved_lane_goal,
     goal_with_direction,
     late_start,
@@ -151,6 +161,37 @@ def test_a_region_whose_vertex_mean_lies_outside_gets_a_point_inside() -> None:
     square = Polygon(((0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)))
     assert inside_point(square) == (1.0, 1.0)  # a convex region: its vertex mean, as before
     assert Goal((ell,), 0.0, 1.0).center == point
+
+
+def flat_goal(shape) -> bytes:
+    """:func:`window`'s road with the goal region ``shape`` (a commonroad-io occupancy)."""
+    scenario, problems = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(40.0, 50.0)).build("flat")
+    (problem,) = problems.planning_problem_dict.values()
+    goal = GoalRegion([CustomState(time_step=Interval(0, 40), position=shape)])
+    problems = PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, problem.initial_state, goal)])
+    return commonroad_xml(scenario, problems, "flat", Tag.SINGLE_LANE)
+
+
+def test_a_goal_region_without_area_is_refused(tmp_path: Path) -> None:
+    """A polygon on one line (valid CommonRoad) was taken silently, and `goal()` never held; a rectangle
+    of length 0 (commonroad-io reads it) ended ``rac check`` in an internal error (shapely, finding a
+    point inside it). Both are E0712 now, naming the shape."""
+    line = flat_goal(PolygonOccupancy(shapely.Polygon([(40.0, 1.0), (50.0, 1.0), (45.0, 1.0)])))
+    path = write(tmp_path, "line.xml", line)
+    (error,) = [d for d in compile_file(path).diagnostics if d.is_error]
+    assert error.code == "E0712"
+    assert error.message == (f"cannot load the scenario: {tmp_path / 'line.xml'}: goal of planning problem 100 has a "
+                             "goal region without area (a polygon whose vertices lie on one line): `goal()` could "
+                             "never hold in it")
+    flat = window(0.0, 4.0).decode("utf-8")
+    flat, changed = re.subn(r"(<goalState>.*?<length>)[^<]*", r"\g<1>0", flat, count=1, flags=re.S)
+    assert changed
+    path = write(tmp_path, "flat.xml", flat.encode("utf-8"))
+    (error,) = [d for d in compile_file(path).diagnostics if d.is_error]
+    assert error.code == "E0712" and "has a goal region without area (a 0 m × 3.5 m rectangle)" in error.message
+    # a bowtie's signed area is 0, but its two triangles hold the goal: accepted
+    bowtie = flat_goal(PolygonOccupancy(shapely.Polygon([(40.0, 0.0), (50.0, 3.5), (50.0, 0.0), (40.0, 3.5)])))
+    assert compile_file(write(tmp_path, "bowtie.xml", bowtie)).ok
 
 
 # ---------------------------------------------------------------- the start

@@ -1006,6 +1006,18 @@ def _hull(intervals: list[tuple[float, float]]) -> tuple[float, float] | None:
     return (min(i[0] for i in intervals), max(i[1] for i in intervals)) if intervals else None
 
 
+def _region(path, element: str, polygon: Polygon, shape: str) -> Polygon:
+    """``polygon``, a goal region; a :class:`ScenarioError` naming ``shape`` when it has no area: ``goal()``
+    could never hold in it (and a point inside it, :attr:`Goal.center`, does not exist)."""
+    points = polygon.points
+    (x0, y0), rest = (points[0], points[1:]) if points else ((0.0, 0.0), ())
+    # all on one line (a bowtie's signed area may be 0, yet its two triangles hold the goal)
+    if not any((x1 - x0) * (y2 - y0) != (x2 - x0) * (y1 - y0) for (x1, y1), (x2, y2) in zip(rest, rest[1:])):
+        raise ScenarioError(path, element, f"has a goal region without area ({shape}): `goal()` could never hold "
+                                           "in it")
+    return polygon
+
+
 def _regions(path, element: str, position) -> list[Polygon]:
     import numpy as np  # numpy: only when this runs; importing rac.model.commonroad stays light
 
@@ -1029,19 +1041,21 @@ def _regions(path, element: str, position) -> list[Polygon]:
                                 ("orientation", position.orientation), ("centre x", position.rect_center.x),
                                 ("centre y", position.rect_center.y)):
             _finite(path, element, quantity, value, "its rectangle")
-        return [_polygon(position.vertices)]
+        return [_region(path, element, _polygon(position.vertices),
+                        f"a {position.length:g} m × {position.width:g} m rectangle")]
     if isinstance(position, PolygonOccupancy):
         points = _points(position.vertices)
         unfinite = _unfinite_point(path, element, points, "its polygon")
         if unfinite is not None:
             raise unfinite
-        return [_polygon(points)]
+        return [_region(path, element, _polygon(points), "a polygon whose vertices lie on one line")]
     if isinstance(position, CircleOccupancy):
         x, y, r = (_finite(path, element, quantity, value, "its circle") for quantity, value in (
             ("centre x", position.circle_center.x), ("centre y", position.circle_center.y),
             ("radius", position.radius)))
-        return [_polygon([(x + r * math.cos(2 * math.pi * i / CIRCLE_VERTICES),
-                           y + r * math.sin(2 * math.pi * i / CIRCLE_VERTICES)) for i in range(CIRCLE_VERTICES)])]
+        return [_region(path, element, _polygon([(x + r * math.cos(2 * math.pi * i / CIRCLE_VERTICES),
+                                                  y + r * math.sin(2 * math.pi * i / CIRCLE_VERTICES))
+                                                 for i in range(CIRCLE_VERTICES)]), f"a circle of radius {r:g} m")]
     kind = "a point" if isinstance(position, (np.ndarray, list, tuple)) else type(position).__name__
     raise ScenarioError(path, element, f"has an unsupported shape ({kind}); rac supports rectangles, polygons, "
                                        "circles, groups of these and lanelets")
