@@ -24,10 +24,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from engine_files import TEMPLATE, write_engine_file
-from tiny_scenarios import SECOND_PROBLEM_ID, highway, junction_with_two_problems, ramp
+from tiny_scenarios import SECOND_PROBLEM_ID, GoalBox, StraightRoad, highway, junction_with_two_problems, ramp
 
 from rac.cli.main import main
 from rac.compiler import compile_file
+from rac.model.commonroad import EgoStart
 from rac.model.native import NO_OBSTACLE
 
 #: The engine tests' automaton (one input from `mindist()`, one reward) over a `model` block.
@@ -200,6 +201,11 @@ def test_a_start_off_the_road_is_a_warning(tmp_path: Path, capsys: pytest.Captur
     assert main(["check", "drive.ra"]) == 0
     out = capsys.readouterr().out
     assert "warning[W0716]" in out and "drive.ra: ok, 1 warning" in out
+    # one corner off the road: named alone (it read "its  and front-left corner lies")
+    tilted = StraightRoad(100.0, EgoStart(10.0, 2.5, 0.05, 5.0), GoalBox(40.0, 50.0)).xml("tilted")
+    path, _ = write(tmp_path, "tilted.xml", tilted)
+    (warning,) = [d for d in compile_file(path).diagnostics if d.code == "W0716"]
+    assert warning.message == "the ego starts off the road: its front-left corner lies outside every lanelet"
     # on the road: no warning
     path, _ = write(tmp_path, "ramp.xml", ramp(start_x=5.0))
     assert not compile_file(path).diagnostics

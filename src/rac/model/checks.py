@@ -326,9 +326,9 @@ def _start(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, data) -> list[
     where = ("the `start_*` settings start" if written else f"planning problem {scenario.planning_problem_id} starts")
     start = tuple(_number(value / data.scale) for value in (data.ego_x, data.ego_y, data.ego_head))
     if off and data.offroad_from == 0:
+        listed = off[0] if len(off) == 1 else ", ".join(off[:-1]) + " and " + off[-1]
         corners = "all four of its corners lie" if len(off) == 4 else \
-            f"its {' and '.join(off) if len(off) == 2 else ', '.join(off[:-1]) + ' and ' + off[-1]} " \
-            f"corner{'s lie' if len(off) > 1 else ' lies'}"
+            f"its {listed} corner{'s lie' if len(off) > 1 else ' lies'}"
         found.append(warning(
             "W0716", f"the ego starts off the road: {corners} outside every lanelet",
             automaton.spans.get("model:scenario", spec.span),
