@@ -614,6 +614,10 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
                                        ((x, y) for x, y in pairs if x is not None and y is not None), f"its <{bound}>")
             if unfinite is not None:
                 return unfinite
+    for lanelet in root.iterfind("lanelet"):  # the road's (a goal's <lanelet ref=...> has no bounds)
+        bounds = _bound_points(path, lanelet)
+        if bounds is not None:
+            return bounds
     for node in root.iter():
         low, high = node.find("intervalStart"), node.find("intervalEnd")
         if low is None or high is None:
@@ -668,6 +672,22 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
                 raise
             return ScenarioError(path, label(node), f"cannot be read: {_describe(failure, path)}")
     return ScenarioError(path, None, f"cannot be read by commonroad-io ({_describe(error, path)})")
+
+
+def _bound_points(path: str | os.PathLike[str], lanelet) -> ScenarioError | None:
+    """A lanelet whose bounds commonroad-io cannot pair (it fails with numpy's "operands could not be
+    broadcast" or a bare assert): fewer than 2 points in a bound, or not as many on the left as on the right."""
+    counts = {bound: len(lanelet.findall(f"{bound}/point")) for bound in ("leftBound", "rightBound")}
+    element = f"lanelet {lanelet.get('id', '(without id)')}"
+    for bound, count in counts.items():
+        if count < 2:
+            return ScenarioError(path, element, f"has {count} point{'' if count == 1 else 's'} in its <{bound}>: a "
+                                                 "bound is a polyline of at least 2 points")
+    if counts["leftBound"] != counts["rightBound"]:
+        return ScenarioError(path, element, f"has {counts['leftBound']} points in its <leftBound> and "
+                                            f"{counts['rightBound']} in its <rightBound>: CommonRoad pairs them, one "
+                                            "left and one right point per cross-section")
+    return None
 
 
 def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,

@@ -1,0 +1,50 @@
+"""The loader's messages for CommonRoad files edited by hand into shapes commonroad-io fails on.
+
+Each file is a tiny straight road (tests/support/tiny_scenarios.py, written with commonroad-io) with
+one edit to its XML text. commonroad-io's own failure said what went wrong in numpy's or Python's
+words ("operands could not be broadcast together with shapes (2,2) (3,2)", "an element it needs is
+missing or empty", ...); rac's message names the element and what it lacks.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from tiny_scenarios import Block, GoalBox, StraightRoad
+
+from rac.model.commonroad import EgoStart, ScenarioError, load_scenario
+
+
+def road_xml() -> str:
+    """A 100 m lane with a car driving ahead of the ego (a trajectory of 40 states)."""
+    road = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0),
+                        obstacles=(Block(11, 30.0, 1.75, velocity=3.0),))
+    return road.xml("messages").decode("utf-8")
+
+
+def edit(text: str, pattern: str, replacement: str) -> str:
+    """``text`` with the first match of ``pattern`` (DOTALL) replaced; the pattern must match."""
+    edited, made = re.subn(pattern, replacement, text, count=1, flags=re.S)
+    assert made, pattern
+    return edited
+
+
+POINT = r"<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>\s*</point>\s*"
+
+
+@pytest.mark.parametrize(("name", "pattern", "replacement", "message"), [
+    ("uneven_bounds", r"(<rightBound>\s*" + POINT + ")", r"\1<point><x>50.0</x><y>0.0</y></point>",
+     "lanelet 1 has 2 points in its <leftBound> and 3 in its <rightBound>: CommonRoad pairs them, one left and one "
+     "right point per cross-section"),
+    ("one_point_bound", r"(<leftBound>\s*" + POINT + ")" + POINT, r"\1",
+     "lanelet 1 has 1 point in its <leftBound>: a bound is a polyline of at least 2 points"),
+])
+def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: str, pattern: str, replacement: str,
+                                                        message: str) -> None:
+    path = tmp_path / f"{name}.xml"
+    path.write_text(edit(road_xml(), pattern, replacement), encoding="utf-8")
+    with pytest.raises(ScenarioError) as failure:
+        load_scenario(path)
+    assert str(failure.value) == f"{path}: {message}"
