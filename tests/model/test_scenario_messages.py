@@ -3,7 +3,8 @@
 Each file is a tiny straight road (tests/support/tiny_scenarios.py, written with commonroad-io) with
 one edit to its XML text. commonroad-io's own failure said what went wrong in numpy's or Python's
 words ("operands could not be broadcast together with shapes (2,2) (3,2)", "an element it needs is
-missing or empty", ...); rac's message names the element and what it lacks.
+missing or empty", "attributes must be instances of <class 'commonroad.common.util.Interval'> only");
+rac's message names the element and what it lacks.
 """
 
 from __future__ import annotations
@@ -40,6 +41,14 @@ POINT = r"<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>\s*</point>\s*"
      "right point per cross-section"),
     ("one_point_bound", r"(<leftBound>\s*" + POINT + ")" + POINT, r"\1",
      "lanelet 1 has 1 point in its <leftBound>: a bound is a polyline of at least 2 points"),
+    ("goal_without_time", r"<goalState>\s*<time>.*?</time>", "<goalState>",
+     "goal of planning problem 100 has no <time> in its <goalState>: CommonRoad's goal states give the time "
+     "interval in which to reach the goal"),
+    ("exact_goal_time", r"(<goalState>\s*<time>).*?(</time>)", r"\1<exact>20</exact>\2",
+     "goal of planning problem 100 has a <time> without <intervalStart> and <intervalEnd> in its <goalState>: a "
+     "goal's time is an interval (for one time step N, write N as both ends)"),
+    ("empty_trajectory", r"<trajectory>.*?</trajectory>", "<trajectory></trajectory>",
+     "dynamic obstacle 11 has an empty <trajectory>: a trajectory has at least one <state>"),
 ])
 def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: str, pattern: str, replacement: str,
                                                         message: str) -> None:

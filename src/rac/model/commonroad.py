@@ -575,6 +575,21 @@ def _check_structure(path: str | os.PathLike[str], root) -> None:
                 where = f" in its <{parent}>" if parent else ""
                 raise ScenarioError(path, f"{_LABELS[node.tag]} {node.get('id', '(without id)')}",
                                     f"has no <{name}>{where}")
+        if node.tag == "dynamicObstacle" and (trajectory := node.find("trajectory")) is not None \
+                and trajectory.find("state") is None:
+            raise ScenarioError(path, f"dynamic obstacle {node.get('id', '(without id)')}",
+                                "has an empty <trajectory>: a trajectory has at least one <state>")
+        for goal in node.iterfind("goalState") if node.tag == "planningProblem" else ():
+            # commonroad-io fails on either with "an element it needs is missing" or its own GoalRegion assert
+            element = f"goal of planning problem {node.get('id', '(without id)')}"
+            time = goal.find("time")
+            if time is None:
+                raise ScenarioError(path, element, "has no <time> in its <goalState>: CommonRoad's goal states "
+                                                   "give the time interval in which to reach the goal")
+            if time.find("intervalStart") is None or time.find("intervalEnd") is None:
+                raise ScenarioError(path, element, "has a <time> without <intervalStart> and <intervalEnd> in its "
+                                                   "<goalState>: a goal's time is an interval (for one time step "
+                                                   "N, write N as both ends)")
 
 
 def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> ScenarioError:
