@@ -49,6 +49,10 @@ POINT = r"<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>\s*</point>\s*"
      "goal's time is an interval (for one time step N, write N as both ends)"),
     ("empty_trajectory", r"<trajectory>.*?</trajectory>", "<trajectory></trajectory>",
      "dynamic obstacle 11 has an empty <trajectory>: a trajectory has at least one <state>"),
+    ("negative_problem_id", r'<planningProblem id="100"', '<planningProblem id="-5"',
+     "planning problem -5 has a negative id: CommonRoad ids are positive whole numbers"),
+    ("negative_lanelet_id", r'<lanelet id="1"', '<lanelet id="-1"',
+     "lanelet -1 has a negative id: CommonRoad ids are positive whole numbers"),
 ])
 def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: str, pattern: str, replacement: str,
                                                         message: str) -> None:

@@ -620,6 +620,10 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
             if not reader_failure(failure):
                 raise
             return ScenarioError(path, element, f"cannot be read: {_describe(failure, path)}")
+    for node in root:  # commonroad-io asserts on a negative id, in words that do not say so
+        ident = _number_text(node.get("id")) if node.tag in _LABELS else None
+        if ident is not None and ident < 0:
+            return ScenarioError(path, label(node), "has a negative id: CommonRoad ids are positive whole numbers")
     lanelet_ids = {node.get("id") for node in root.iter("lanelet")}
     for lanelet in root.iter("lanelet"):  # commonroad-io's shapely fails on a NaN with a GEOS message
         for bound in ("leftBound", "rightBound"):
