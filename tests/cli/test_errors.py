@@ -265,3 +265,16 @@ def test_compile_write_errors_are_json(output: str, code: str, tmp_path: Path,
     target = {"{dir}": tmp_path, "{source}": path, "{mine}": tmp_path / "mine.py"}[output]
     status, found = json_run(capsys, "compile", path, "--target", "python", "--format", "json", "-o", target)
     assert status == 2 and codes(found) == [code]
+
+
+def test_control_characters_in_a_message_are_escaped(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A message, note or hint quoting the user's text (a scenario's file name with an escape character)
+    printed the character raw, and a terminal would act on it; the source line showed it as U+FFFD."""
+    path = write_engine_file(tmp_path, "goal_ahead")
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace('scenario "goal_ahead.xml"', 'scenario "scene\x1b[2J.xml"'), encoding="utf-8")
+    assert main(["check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "\x1b" not in out
+    assert "scene\\x1b[2J.xml: does not exist" in out
+    assert "put `scene\\x1b[2J.xml` there" in out

@@ -207,9 +207,18 @@ def sort_key(d: Diagnostic) -> tuple[str, int, int, str]:
 MAX_SHOWN_LINE = 120
 
 
+def _printable(text: str) -> str:
+    """``text`` with its control characters (but newlines and tabs) written as escapes (``\\x1b``): a
+    message may quote the user's text, e.g. a file name, and a raw escape character would garble or
+    drive the terminal."""
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() or ch in "\n\t" else repr(ch)[1:-1] for ch in text)
+
+
 def _render_one(d: Diagnostic, sources: Mapping[str, SourceFile]) -> str:
     where = f"{d.span}: " if d.span else ""
-    lines = [f"{where}{d.severity.value}[{d.code}]: {d.message}"]
+    lines = [_printable(f"{where}{d.severity.value}[{d.code}]: {d.message}")]
     source = sources.get(d.span.file) if d.span else None
     gutter = 0
     if d.span is not None and source is not None:
@@ -236,11 +245,11 @@ def _render_one(d: Diagnostic, sources: Mapping[str, SourceFile]) -> str:
         ]
     pad = " " * gutter
     for note in d.notes:
-        body = note.message.replace("\n", "\n" + pad + "         ")
-        where = f" (at {note.span})" if note.span else ""
+        body = _printable(note.message).replace("\n", "\n" + pad + "         ")
+        where = _printable(f" (at {note.span})") if note.span else ""
         lines.append(f"{pad} = note: {body}{where}")
     for hint in d.hints:
-        lines.append(f"{pad} = hint: " + hint.replace("\n", "\n" + pad + "         "))
+        lines.append(f"{pad} = hint: " + _printable(hint).replace("\n", "\n" + pad + "         "))
     return "\n".join(lines)
 
 
