@@ -1,7 +1,8 @@
 """The loader's messages for CommonRoad files edited by hand into shapes commonroad-io fails on.
 
 Each file is a tiny straight road (tests/support/tiny_scenarios.py, written with commonroad-io) with
-one edit to its XML text. commonroad-io's own failure said what went wrong in numpy's or Python's
+one edit to its XML text (or to its 2018b variant, whose obstacles are ``<obstacle>`` elements with a
+``<role>``). commonroad-io's own failure said what went wrong in numpy's or Python's
 words ("operands could not be broadcast together with shapes (2,2) (3,2)", "an element it needs is
 missing or empty", "attributes must be instances of <class 'commonroad.common.util.Interval'> only");
 rac's message names the element and what it lacks.
@@ -19,10 +20,19 @@ from rac.model.commonroad import EgoStart, ScenarioError, load_scenario
 
 
 def road_xml() -> str:
-    """A 100 m lane with a car driving ahead of the ego (a trajectory of 40 states)."""
+    """A 100 m lane with a car driving ahead of the ego (a trajectory of 40 states) and a parked one."""
     road = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0),
-                        obstacles=(Block(11, 30.0, 1.75, velocity=3.0),))
+                        obstacles=(Block(11, 30.0, 1.75, velocity=3.0), Block(12, 60.0, 1.75)))
     return road.xml("messages").decode("utf-8")
+
+
+def road_2018b() -> str:
+    """:func:`road_xml` in the 2018b format (commonroad-io writes 2020a only): the tags an attribute,
+    no location, each obstacle an ``<obstacle>`` with its ``<role>``."""
+    text = road_xml().replace('commonRoadVersion="2020a"', 'commonRoadVersion="2018b" tags="single_lane"')
+    text = edit(text, r"\s*<location>.*?</location>\s*<scenarioTags>.*?</scenarioTags>", "")
+    text = re.sub(r'<(dynamic|static)Obstacle (id="\d+")>', r"<obstacle \2><role>\1</role>", text)
+    return re.sub(r"</(dynamic|static)Obstacle>", "</obstacle>", text)
 
 
 def edit(text: str, pattern: str, replacement: str) -> str:
@@ -61,3 +71,33 @@ def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: st
     with pytest.raises(ScenarioError) as failure:
         load_scenario(path)
     assert str(failure.value) == f"{path}: {message}"
+
+
+def test_the_2018b_road_reads(tmp_path: Path) -> None:
+    """The 2018b variant the tests below edit reads as the 2020a file does."""
+    path = tmp_path / "old.xml"
+    path.write_text(road_2018b(), encoding="utf-8")
+    scenario = load_scenario(path)
+    assert [(o.id, o.static, len(o.waypoints)) for o in scenario.obstacles] == [(11, False, 41), (12, True, 1)]
+
+
+@pytest.mark.parametrize(("name", "pattern", "replacement", "message"), [
+    ("no_role", r"<role>dynamic</role>", "", "obstacle 11 has no <role>"),
+    ("unknown_role", r"<role>dynamic</role>", "<role>parked</role>",
+     "obstacle 11 has the <role> `parked`: a 2018b obstacle's role is `static` or `dynamic`"),
+    ("no_shape", r'(<obstacle id="12">.*?)<shape>.*?</shape>', r"\1", "obstacle 12 has no <shape>"),
+    ("no_initial_state", r'(<obstacle id="11">.*?)<initialState>.*?</initialState>', r"\1",
+     "obstacle 11 has no <initialState>"),
+    ("empty_trajectory", r"<trajectory>.*?</trajectory>", "<trajectory></trajectory>",
+     "obstacle 11 has an empty <trajectory>: a trajectory has at least one <state>"),
+    ("bad_length", r'(<obstacle id="12">.*?<length>)[^<]*', r"\1long",
+     "obstacle 12 cannot be read: `long` is not a number"),
+])
+def test_a_2018b_obstacle_is_named(tmp_path: Path, name: str, pattern: str, replacement: str, message: str) -> None:
+    """A 2018b ``<obstacle>`` without its role, shape or initial state was "cannot be read by commonroad-io
+    ('NoneType' object is not iterable)" or "... an element it needs is missing or empty", without the obstacle."""
+    path = tmp_path / f"{name}.xml"
+    path.write_text(edit(road_2018b(), pattern, replacement), encoding="utf-8")
+    with pytest.raises(ScenarioError) as failure:
+        load_scenario(path)
+    assert str(failure.value).startswith(f"{path}: {message}")

@@ -547,7 +547,10 @@ _REQUIRED = {
     "staticObstacle": ("type", "shape", *_STATE),
     "dynamicObstacle": ("type", "shape", *_STATE, "initialState/velocity"),
     "planningProblem": (*_STATE, "initialState/velocity", "goalState"),
+    "obstacle": ("role", "type", "shape", "initialState"),  # the 2018b format's, static or dynamic by its <role>
 }
+#: The roles of a 2018b ``<obstacle>`` (commonroad-io fails on another without naming it).
+_ROLES_2018B = ("static", "dynamic")
 _LABELS = {
     "lanelet": "lanelet",
     "staticObstacle": "static obstacle",
@@ -575,9 +578,12 @@ def _check_structure(path: str | os.PathLike[str], root) -> None:
                 where = f" in its <{parent}>" if parent else ""
                 raise ScenarioError(path, f"{_LABELS[node.tag]} {node.get('id', '(without id)')}",
                                     f"has no <{name}>{where}")
-        if node.tag == "dynamicObstacle" and (trajectory := node.find("trajectory")) is not None \
+        if node.tag == "obstacle" and (role := (node.findtext("role") or "").strip()) not in _ROLES_2018B:
+            raise ScenarioError(path, f"obstacle {node.get('id', '(without id)')}",
+                                f"has the <role> `{role}`: a 2018b obstacle's role is `static` or `dynamic`")
+        if node.tag in ("dynamicObstacle", "obstacle") and (trajectory := node.find("trajectory")) is not None \
                 and trajectory.find("state") is None:
-            raise ScenarioError(path, f"dynamic obstacle {node.get('id', '(without id)')}",
+            raise ScenarioError(path, f"{_LABELS[node.tag]} {node.get('id', '(without id)')}",
                                 "has an empty <trajectory>: a trajectory has at least one <state>")
         for goal in node.iterfind("goalState") if node.tag == "planningProblem" else ():
             # commonroad-io fails on either with "an element it needs is missing" or its own GoalRegion assert
@@ -666,6 +672,8 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
         "lanelet": lambda node: factories.LaneletFactory.create_from_xml_node(node),
         "staticObstacle": lambda node: factories.StaticObstacleFactory.create_from_xml_node(node, network, False),
         "dynamicObstacle": lambda node: factories.DynamicObstacleFactory.create_from_xml_node(node, network, False),
+        "obstacle": lambda node: (factories.StaticObstacleFactory if node.findtext("role").strip() == "static" else
+                                  factories.DynamicObstacleFactory).create_from_xml_node(node, network, False),
         "environmentObstacle": lambda node: factories.EnvironmentObstacleFactory.create_from_xml_node(node),
         "phantomObstacle": lambda node: factories.PhantomObstacleFactory.create_from_xml_node(node),
     }
