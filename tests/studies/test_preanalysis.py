@@ -10,8 +10,10 @@ from pathlib import Path
 
 import pytest
 from engine_files import write_engine_file
+from tiny_scenarios import GoalBox, StraightRoad
 
 from rac.compiler import compile_file
+from rac.model.commonroad import EgoStart
 from rac.studies.preanalysis import render_table, sweep
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "left_turn" / "preanalysis.ra"
@@ -65,3 +67,18 @@ def test_a_sensing_period_that_does_not_divide_the_files_horizon_is_a_row_that_s
                      "error": "the horizon, 4 s, is not a whole number of sensing periods (its runs would stop "
                               "short of it)"}
     assert "error" not in whole and whole["samples"] == 8
+
+
+def test_a_scenario_too_large_for_the_ground_truth_says_so(tmp_path: Path) -> None:
+    """A road 300 km long fits int32 at the file's exponent 2 but not at exponent 4, where the ground
+    truth is measured: each row said "does not fit int32 at this exponent" (exponent 1 or 2) and
+    quoted a significand at scale 10000."""
+    path = write_engine_file(tmp_path, "goal_ahead", {})  # exponent 2
+    road = StraightRoad(300_100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0))
+    (tmp_path / "goal_ahead.xml").write_bytes(road.xml("long_road"))
+    result = compile_file(path)
+    assert result.ok, result.diagnostics
+    [row] = sweep(result, exponents="2", runs=2, seed=1)
+    assert row["error"].startswith(  # type: ignore[union-attr]
+        "the scenario does not fit int32 at exponent 4, where the pre-analysis measures the ground truth of Qa and "
+        "Qd: road polygon 0 vertex 0 x = 300100.0 needs the significand 3001000000 at scale 10000")

@@ -141,9 +141,14 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     assert scenario is not None  # sweep() refuses a model without one
     try:
         data = build_model_data(scenario, spec)
-        build_model_data(scenario, dataclasses.replace(spec, exponent=TRUTH_EXPONENT))
     except ModelRangeError as exc:
         row["error"] = f"the scenario does not fit int32 at this exponent: {exc}"
+        return row
+    try:  # the ground truth of Qa and Qd: at its own exponent, whatever the row's (say so, or the row misleads)
+        build_model_data(scenario, dataclasses.replace(spec, exponent=TRUTH_EXPONENT))
+    except ModelRangeError as exc:
+        row["error"] = (f"the scenario does not fit int32 at exponent {TRUTH_EXPONENT}, where the pre-analysis "
+                        f"measures the ground truth of Qa and Qd: {exc}")
         return row
     samples = int(horizon / spec.sense_period)
     row["samples"] = samples
