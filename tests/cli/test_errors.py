@@ -278,3 +278,18 @@ def test_control_characters_in_a_message_are_escaped(tmp_path: Path, capsys: pyt
     assert "\x1b" not in out
     assert "scene\\x1b[2J.xml: does not exist" in out
     assert "put `scene\\x1b[2J.xml` there" in out
+
+
+@pytest.mark.parametrize("command", ["check", "simulate"])
+def test_a_scenario_given_for_the_automaton_gets_a_hint(command: str, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac simulate scenario.xml` said only "unexpected `<`, expected `automaton`", without a hint."""
+    path = write_engine_file(tmp_path, "goal_ahead")
+    scenario = path.with_suffix(".xml")
+    assert scenario.read_bytes().startswith(b"<?xml")
+    assert main([command, str(scenario)]) == 1
+    captured = capsys.readouterr()
+    out = captured.out + captured.err  # the engine commands print diagnostics on standard error
+    assert f"{scenario}:1:1: error[E0001]: unexpected `<`" in out
+    assert ("hint: this looks like an XML file (a CommonRoad scenario?): rac reads a `.ra` file, whose `model` block "
+            "names the scenario with `scenario \"FILE.xml\"`") in out

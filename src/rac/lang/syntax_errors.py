@@ -124,6 +124,9 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
         hints.append("`;` only separates flows inside a location; declarations need no terminator")
     if _chained_comparison(found_type, expected, before):
         hints.append("comparisons do not chain: `0 < d < 5` is written `0 < d && d < 5`")
+    if found == "<" and not before.strip():  # `rac simulate scenario.xml`: the scenario given for the automaton
+        hints.append("this looks like an XML file (a CommonRoad scenario?): rac reads a `.ra` file, whose `model` "
+                     "block names the scenario with `scenario \"FILE.xml\"`")
     return hints
 
 
