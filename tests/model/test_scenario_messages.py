@@ -101,3 +101,52 @@ def test_a_2018b_obstacle_is_named(tmp_path: Path, name: str, pattern: str, repl
     with pytest.raises(ScenarioError) as failure:
         load_scenario(path)
     assert str(failure.value).startswith(f"{path}: {message}")
+
+
+#: The second state of the car's trajectory (time step 2).
+SECOND_STATE = r"(<trajectory>\s*<state>.*?</state>\s*<state>)(.*?)(</state>)"
+
+
+@pytest.mark.parametrize(("name", "pattern", "replacement", "message"), [
+    ("point_without_y", r"(<trajectory>.*?<point>\s*<x>[^<]*</x>)\s*<y>[^<]*</y>", r"\1",
+     "dynamic obstacle 11 has a <point> without <y>"),
+    ("empty_velocity", r"(<trajectory>.*?<velocity>\s*<exact>)[^<]*", r"\1",
+     "dynamic obstacle 11 has an empty <exact> in its <velocity>"),
+    ("velocity_without_exact", r"(<trajectory>.*?<velocity>)\s*<exact>[^<]*</exact>", r"\1",
+     "dynamic obstacle 11 has a <velocity> without <exact> (or <intervalStart> and <intervalEnd>) in its <state>"),
+    ("state_without_velocity", SECOND_STATE, lambda m: m[1] + re.sub(r"(?s)<velocity>.*?</velocity>", "", m[2]) + m[3],
+     "dynamic obstacle 11 has a <trajectory> whose state at time step 2 has no <velocity>, unlike its first state"),
+    ("state_without_time", SECOND_STATE, lambda m: m[1] + re.sub(r"(?s)<time>.*?</time>", "", m[2]) + m[3],
+     "dynamic obstacle 11 has a <state> without <time> in its <trajectory>"),
+    ("empty_position", r"(<trajectory>.*?<position>).*?(</position>)", r"\1\2",
+     "dynamic obstacle 11 has an empty <position>"),
+    ("rectangle_without_width", r'(<staticObstacle id="12">.*?)<width>[^<]*</width>', r"\1",
+     "static obstacle 12 has a <rectangle> without <width>"),
+    ("goal_without_length", r"(<goalState>.*?)<length>.*?</length>", r"\1",
+     "planning problem 100 has a <rectangle> without <length>"),
+])
+def test_a_malformed_element_is_named_with_its_line(tmp_path: Path, name: str, pattern: str, replacement,
+                                                     message: str) -> None:
+    """commonroad-io fails on each with words that name neither the part nor the line: "an element it
+    needs is missing or empty", "float() argument must be a string or a real number, not 'NoneType'",
+    "a value is neither <exact> nor ...", "all states must have the same attributes"."""
+    text = edit(road_xml(), pattern, replacement) if isinstance(replacement, str) else \
+        re.sub(pattern, replacement, road_xml(), count=1, flags=re.S)
+    path = tmp_path / f"{name}.xml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ScenarioError) as failure:
+        load_scenario(path)
+    found = re.fullmatch(rf"{re.escape(f'{path}: {message}')} \(line (\d+)\)(: .*)?", str(failure.value))
+    assert found, str(failure.value)
+    assert 1 < int(found[1]) <= len(text.splitlines())
+
+
+def test_the_line_is_the_malformed_parts(tmp_path: Path) -> None:
+    text = edit(road_xml(), r"(<trajectory>.*?<point>\s*<x>[^<]*</x>)\s*<y>[^<]*</y>", r"\1")
+    path = tmp_path / "point.xml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ScenarioError) as failure:
+        load_scenario(path)
+    trajectory = text.index("<trajectory>")
+    line = text[:text.index("<point>", trajectory)].count("\n") + 1
+    assert str(failure.value) == f"{path}: dynamic obstacle 11 has a <point> without <y> (line {line})"

@@ -271,7 +271,7 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
         except Exception as error:  # commonroad-io raises a bare Exception too: reader_failure sorts
             if not reader_failure(error):
                 raise
-            diagnosis: ScenarioError | None = _diagnose(path, root, error)
+            diagnosis: ScenarioError | None = _diagnose(path, root, error, positions)
         else:
             diagnosis = None
         if diagnosis is not None:
@@ -598,8 +598,11 @@ def _check_structure(path: str | os.PathLike[str], root) -> None:
                                                    "N, write N as both ends)")
 
 
-def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> ScenarioError:
-    """Find the element commonroad-io failed on by reading the elements one at a time."""
+def _diagnose(path: str | os.PathLike[str], root, error: BaseException,
+              positions: dict[int, tuple[int, int]] | None = None) -> ScenarioError:
+    """Find the element commonroad-io failed on by reading the elements one at a time; ``positions``
+    (:func:`_positions`) give the line of a malformed part of it (:func:`_malformed`)."""
+    positions = positions or {}
 
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.common.reader import file_reader_xml as factories
@@ -684,7 +687,8 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
             except Exception as failure:  # commonroad-io's failures only (reader_failure)
                 if not reader_failure(failure):
                     raise
-                return ScenarioError(path, label(node), f"cannot be read: {_describe(failure, path)}")
+                return _malformed(path, label(node), node, positions) or \
+                    ScenarioError(path, label(node), f"cannot be read: {_describe(failure, path)}")
     try:
         network = factories.LaneletNetworkFactory.create_from_xml_node(ElementTree.ElementTree(root))
     except Exception as failure:  # commonroad-io's failures only (reader_failure)
@@ -697,8 +701,70 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException) -> Scena
         except Exception as failure:  # commonroad-io's failures only (reader_failure)
             if not reader_failure(failure):
                 raise
-            return ScenarioError(path, label(node), f"cannot be read: {_describe(failure, path)}")
+            return _malformed(path, label(node), node, positions) or \
+                ScenarioError(path, label(node), f"cannot be read: {_describe(failure, path)}")
     return ScenarioError(path, None, f"cannot be read by commonroad-io ({_describe(error, path)})")
+
+
+#: What a part of an element needs (commonroad-io fails without it, in words that do not name it).
+_NEEDS = {"point": ("x", "y"), "center": ("x", "y"), "rectangle": ("length", "width"), "circle": ("radius",)}
+#: The elements that hold one number (commonroad-io fails on an empty one with "float() argument must be ...").
+_NUMBERS = ("x", "y", "exact", "intervalStart", "intervalEnd", "length", "width", "radius", "orientation",
+            "originXShift")
+#: The elements that hold a state's values (each an ``<exact>`` or an ``<intervalStart>``/``<intervalEnd>``
+#: pair, its ``<position>`` a point or shapes).
+_STATES = ("initialState", "state", "goalState")
+
+
+def _malformed(path: str | os.PathLike[str], element: str, node,
+               positions: dict[int, tuple[int, int]]) -> ScenarioError | None:
+    """What is malformed in ``node`` (a top-level element commonroad-io failed on), in the file's words,
+    where commonroad-io's own failure does not say: a part without what it needs (:data:`_NEEDS`: a
+    ``<point>`` without ``<y>``, say), an empty ``<position>``, ``<shape>`` or number, a state's value
+    without ``<exact>`` (or an interval), a trajectory state without ``<time>`` or ``<position>``, or one
+    whose values differ from the first state's (commonroad-io: "an element it needs is missing or empty",
+    "all states must have the same attributes", "a value is neither <exact> nor ..."). None if none of these."""
+    def line(part) -> str:
+        where = positions.get(id(part))
+        return f" (line {where[0]})" if where else ""
+
+    parents = {child: parent for parent in node.iter() for child in parent}
+    for part in node.iter():
+        for child in _NEEDS.get(part.tag, ()):  # (a shape's <center> is optional: the origin)
+            if part.find(child) is None:
+                return ScenarioError(path, element, f"has a <{part.tag}> without <{child}>{line(part)}")
+        if part.tag in ("position", "shape") and len(part) == 0:  # a point or shapes / one kind of shape
+            return ScenarioError(path, element, f"has an empty <{part.tag}>{line(part)}")
+        if part.tag in _NUMBERS and len(part) == 0 and not (part.text or "").strip():
+            where = f" in its <{parents[part].tag}>" if part in parents else ""
+            return ScenarioError(path, element, f"has an empty <{part.tag}>{where}{line(part)}")
+    for state in (part for part in node.iter() if part.tag in _STATES):
+        for value in state:
+            if value.tag == "position" or value.find("exact") is not None or \
+                    (value.find("intervalStart") is not None and value.find("intervalEnd") is not None):
+                continue
+            return ScenarioError(path, element, f"has a <{value.tag}> without <exact> (or <intervalStart> and "
+                                                f"<intervalEnd>) in its <{state.tag}>{line(value)}")
+    for trajectory in node.iterfind("trajectory"):
+        states = trajectory.findall("state")
+        first = {child.tag for child in states[0]} if states else set()
+        for state in states:
+            for needed in ("time", "position"):
+                if state.find(needed) is None:
+                    return ScenarioError(path, element, f"has a <state> without <{needed}> in its "
+                                                        f"<trajectory>{line(state)}")
+            if state.find("time/exact") is None:
+                return ScenarioError(path, element, f"has a <state> whose <time> is an interval in its <trajectory>"
+                                                    f"{line(state)}: a trajectory's states are at exact time steps")
+            tags = {child.tag for child in state}
+            if tags != first:
+                step = (state.findtext("time/exact") or "?").strip()
+                differ = [f"no <{tag}>" for tag in sorted(first - tags)] + \
+                    [f"a <{tag}>" for tag in sorted(tags - first)]
+                return ScenarioError(path, element, f"has a <trajectory> whose state at time step {step} has "
+                                                    f"{' and '.join(differ)}, unlike its first state{line(state)}: "
+                                                    "commonroad-io needs the same values in every state")
+    return None
 
 
 def _bound_points(path: str | os.PathLike[str], lanelet) -> ScenarioError | None:
