@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 from conftest import rac_env, run_rac
+from engine_files import write_engine_file
 
 from rac.cli.common import write_atomically
 from rac.cli.main import main
@@ -100,6 +101,21 @@ def test_an_output_folder_that_cannot_be_written_is_e0009(clean: Path, target: s
     assert done.returncode == 2, done.stderr
     assert "error[E0009]: cannot write" in done.stderr and "Not a directory" in done.stderr
     assert "a part of the path is a file, not a folder" in done.stderr
+
+
+def test_an_engine_output_folder_that_is_a_file_is_e0009(tmp_path: Path) -> None:
+    """`rac simulate -o runs.txt` over an existing file said "File exists" and sent the user to check that
+    the folder is writable."""
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    blocker = tmp_path / "runs.txt"
+    blocker.write_text("keep", encoding="utf-8")
+    done = run_rac("simulate", "--runs", "1", "-o", blocker, path)
+    assert done.returncode == 2, done.stderr
+    assert f"error[E0009]: cannot write `{blocker}`: File exists" in done.stderr
+    assert "hint: a file stands where a folder is needed (an engine command's -o names a folder, not a file)" \
+        in done.stderr
+    assert "check that the folder exists" not in done.stderr
+    assert blocker.read_text(encoding="utf-8") == "keep"
 
 
 def test_new_under_a_regular_file_is_e0009(tmp_path: Path) -> None:

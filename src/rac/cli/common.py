@@ -174,6 +174,9 @@ def unwritable(path: Path, exc: OSError) -> Diagnostic:
     hint = {errno.ENAMETOOLONG: "use a shorter name (a file system allows about 255 bytes per name)",
             errno.ENOTDIR: "a part of the path is a file, not a folder: choose another path",
             errno.EISDIR: "name a file, not a folder",
+            # mkdir of the output folder (-o DIR) over a file: "File exists" alone sent users to the permissions
+            errno.EEXIST: "a file stands where a folder is needed (an engine command's -o names a folder, not a "
+                          "file): choose another path",
             errno.ENOSPC: "free some space on the disk or write elsewhere",
             errno.EROFS: "the file system is read-only: write elsewhere"}.get(
         exc.errno or 0, "check that the folder exists and is writable")
