@@ -127,6 +127,21 @@ def test_several_planning_problems_need_a_choice(tmp_path: Path) -> None:
     assert any("its planning problems are 100, 101" in note.message for note in diagnostic.notes)
 
 
+def test_a_planning_problem_the_setting_cannot_name_is_not_offered(tmp_path: Path) -> None:
+    """commonroad-io reads a planning problem with id 0 (CommonRoad's schema wants positive ids); E0715
+    offered `planning_problem 0`, which E0702 then refused."""
+    xml = junction_with_two_problems().replace(b'<planningProblem id="100"', b'<planningProblem id="0"', 1)
+    assert xml != junction_with_two_problems()
+    path, _ = write(tmp_path, "junction.xml", xml)
+    (diagnostic,) = errors(compile_file(path))
+    assert diagnostic.message == "the scenario has 2 planning problems (0, 101) and the `model` block chooses none"
+    assert list(diagnostic.hints) == ["choose one with `planning_problem 101` in the `model` block"]
+    assert "planning problem 0 cannot be chosen: `planning_problem` is a whole number >= 1" in \
+        diagnostic.notes[-1].message
+    path, _ = write(tmp_path, "junction.xml", xml, "        planning_problem 101\n")
+    assert compile_file(path).ok
+
+
 def test_planning_problem_is_a_setting(tmp_path: Path) -> None:
     from rac.ir.vocabulary import SETTINGS
 

@@ -277,17 +277,27 @@ def _planning_problem(automaton: ir.Automaton, spec: ir.ModelSpec, failure) -> D
     spans = automaton.spans
     scenario_span = spans.get("model:scenario", spec.span)
     ids = failure.ids
-    choices = [f"`planning_problem {i}`" for i in ids]
+    # an id the setting cannot name (commonroad-io reads id 0, which CommonRoad's schema does not allow, and
+    # `planning_problem 0` is the setting left out): hinting at it would contradict E0702
+    choosable = [i for i in ids if i > NO_PLANNING_PROBLEM]
+    choices = [f"`planning_problem {i}`" for i in choosable]
     if failure.chosen is None:
-        listed = ", ".join(choices[:-1]) + f" or {choices[-1]}" if len(ids) <= 4 else \
-            f"{choices[0]} (or another id above)"
+        listed = choices[0] if len(choices) == 1 else ", ".join(choices[:-1]) + f" or {choices[-1]}" \
+            if len(choices) <= 4 else f"{choices[0]} (or another id above)"
+        notes = ["each planning problem has its own start and goal; the model is built for one"]
+        unnamed = [i for i in ids if i <= NO_PLANNING_PROBLEM]
+        if unnamed:
+            notes.append(f"planning problem {_ids(tuple(unnamed))} cannot be chosen: `planning_problem` is a whole "
+                         "number >= 1 (CommonRoad's ids are positive); renumber it in the file to use it")
         return error("E0715", f"the scenario has {len(ids)} planning problems ({_ids(ids)}) and the `model` block "
-                     "chooses none", scenario_span,
-                     notes=["each planning problem has its own start and goal; the model is built for one"],
+                     "chooses none", scenario_span, notes=notes,
                      hints=[f"choose one with {listed} in the `model` block"])
     which = f"its only planning problem is {ids[0]}" if len(ids) == 1 else f"its planning problems are {_ids(ids)}"
-    hint = (f"write `planning_problem {ids[0]}`, or leave the setting out (the file has one planning problem)"
-            if len(ids) == 1 else f"write one of its ids, e.g. {choices[0]}")
+    if len(ids) == 1:
+        hint = "leave the setting out (the file has one planning problem)"
+        hint = f"write `planning_problem {ids[0]}`, or {hint}" if choices else hint
+    else:
+        hint = f"write one of its ids, e.g. {choices[0]}"
     return error("E0715", f"the scenario has no planning problem {failure.chosen}",
                  spans.get("model:planning_problem", scenario_span),
                  notes=[which, Note(f"the scenario `{spec.scenario}` is named here", scenario_span)], hints=[hint])
