@@ -8,6 +8,7 @@ the source line and a caret) or as JSON with the same fields.
 from __future__ import annotations
 
 import json
+import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from decimal import Context, Decimal
@@ -207,6 +208,13 @@ def sort_key(d: Diagnostic) -> tuple[str, int, int, str]:
 MAX_SHOWN_LINE = 120
 
 
+def _cells(text: str) -> int:
+    """The terminal columns ``text`` takes: two for a wide character (CJK), none for a combining mark, so
+    that the caret stands under its span on a line whose comment holds such characters."""
+    return sum(0 if unicodedata.combining(ch) else 2 if unicodedata.east_asian_width(ch) in "WF" else 1
+               for ch in text)
+
+
 def _printable(text: str) -> str:
     """``text`` with its control characters (but newlines and tabs) written as escapes (``\\x1b``): a
     message may quote the user's text, e.g. a file name, and a raw escape character would garble or
@@ -236,8 +244,8 @@ def _render_one(d: Diagnostic, sources: Mapping[str, SourceFile]) -> str:
             text = head + text[start:end] + tail
             first = first - start + len(head)
             last = min(last - start + len(head), len(head) + (end - start) + 1)
-        width = max(1, last - first)
-        prefix = "".join(ch if ch == "\t" else " " for ch in text[: first - 1])
+        width = max(1, _cells(text[first - 1:last - 1]))
+        prefix = "".join(ch if ch == "\t" else " " * _cells(ch) for ch in text[: first - 1])
         lines += [
             f"{pad} |",
             f"{d.span.line} | {text}",
