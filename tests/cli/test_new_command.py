@@ -55,6 +55,15 @@ def test_new_command_writes_a_checked_copy(tmp_path: Path, monkeypatch: pytest.M
     assert "E0009" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("name", "shown"), [("my limit", "'my limit.ra'"), ("-x", "./-x.ra")])
+def test_the_next_command_can_be_pasted(name: str, shown: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """`next: rac check my limit.ra` checks two files; `next: rac check -x.ra` is an unknown option."""
+    monkeypatch.chdir(tmp_path)
+    assert new_command(argparse.Namespace(name=name, template="speed_limit")) == EXIT_OK
+    assert f"next: rac check {shown}\n" in capsys.readouterr().out
+
+
 def test_new_command_refuses_names_of_no_file(capsys: pytest.CaptureFixture[str]) -> None:
     assert new_command(argparse.Namespace(name="..", template="speed_limit")) == EXIT_USAGE
     assert "names no file" in capsys.readouterr().err

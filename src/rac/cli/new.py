@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shlex
 import sys
 from pathlib import Path
 
@@ -112,5 +113,7 @@ def new_command(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     how = f", automaton {automaton}" if written != text else ""
     print(f"wrote {target} (from {source}{how})")
-    print(f"next: rac check {target}")
+    # a command the user can paste: quoted (a space), and not taken for an option (a leading `-`)
+    command = str(target)
+    print(f"next: rac check {shlex.quote(f'./{command}' if command.startswith('-') else command)}")
     return EXIT_OK
