@@ -67,3 +67,15 @@ def test_the_next_command_can_be_pasted(name: str, shown: str, tmp_path: Path, m
 def test_new_command_refuses_names_of_no_file(capsys: pytest.CaptureFixture[str]) -> None:
     assert new_command(argparse.Namespace(name="..", template="speed_limit")) == EXIT_USAGE
     assert "names no file" in capsys.readouterr().err
+
+
+def test_renamed_leaves_strings_and_comments_that_read_alike() -> None:
+    """Only the parser's references are renamed: `Old.xml` in a scenario path or a comment is a file's
+    name, and `Old . L` with spaces is a reference too."""
+    text = ("automaton Old {  // see Old.md\n  input p : bool\n  reward r\n  objective r\n"
+            "  initial location L { r' == 1 }\n  query Q: E<> Old . L\n"
+            "  model {\n    scenario \"Old.xml\"\n  }\n}\n")
+    new = renamed(text, "Fresh")
+    assert "automaton Fresh {" in new and "E<> Fresh . L" in new
+    assert 'scenario "Old.xml"' in new and "// see Old.md" in new
+

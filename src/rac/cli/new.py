@@ -9,6 +9,7 @@ identifier. An existing file is never overwritten (E0009, exit 2). The ``--from`
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import re
 import shlex
@@ -17,6 +18,7 @@ from pathlib import Path
 
 from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
 from rac.core.diagnostics import Diagnostic, error, render_text
+from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_text, read_source
 from rac.lang.resources import stdlib_file
 
@@ -55,13 +57,29 @@ def renamed(text: str, name: str) -> str:
     if not automata or automata[0].name.span is None:
         return text
     old, span = automata[0].name.name, automata[0].name.span
-    rest = re.sub(rf"(?<![A-Za-z0-9_.]){re.escape(old)}(?=\.[A-Za-z_])", name, text[span.end:])
-    result = text[:span.start] + name + rest
+    # the declaration and the references `Old.member` the parser found, never a comment's or a
+    # scenario path's text that merely reads alike (`scenario "Old.xml"`)
+    starts = [span.start, *(q.span.start for q in _qualified(automata) if q.scope == old and q.span is not None)]
+    result = text
+    for start in sorted(set(starts), reverse=True):
+        if result[start:start + len(old)] == old:  # the name itself, where the parser saw it
+            result = result[:start] + name + result[start + len(old):]
     try:
         parse_text(result)
     except ParseFailure:  # the name is a word the grammar reserves (e.g. a query's `A`)
         return text
     return result
+
+
+def _qualified(node: object) -> list[ast.Qualified]:
+    """Every ``Scope.member`` reference in an AST node (a walk over the frozen dataclasses' fields)."""
+    if isinstance(node, ast.Qualified):
+        return [node]
+    if isinstance(node, (tuple, list)):
+        return [q for item in node for q in _qualified(item)]
+    if dataclasses.is_dataclass(node) and not isinstance(node, type):
+        return [q for f in dataclasses.fields(node) for q in _qualified(getattr(node, f.name))]
+    return []
 
 
 def _exists(path: Path) -> Diagnostic:
