@@ -79,3 +79,20 @@ def test_renamed_leaves_strings_and_comments_that_read_alike() -> None:
     assert "automaton Fresh {" in new and "E<> Fresh . L" in new
     assert 'scenario "Old.xml"' in new and "// see Old.md" in new
 
+
+def test_new_command_repoints_a_relative_scenario(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """A copy into another folder names the same scenario file: the checker resolves the path from
+    the folder of the file that writes it."""
+    scene = STDLIB.parent / "examples" / "left_turn"
+    (tmp_path / "left_turn.xml").write_bytes((scene / "left_turn.xml").read_bytes())
+    (tmp_path / "model.ra").write_text((scene / "model.ra").read_text(encoding="utf-8"), encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    assert new_command(argparse.Namespace(name="sub/turn", template="model.ra")) == EXIT_OK
+    text = (tmp_path / "sub" / "turn.ra").read_text(encoding="utf-8")
+    assert 'scenario "../left_turn.xml"  // the paper' in text
+    assert compile_file(tmp_path / "sub" / "turn.ra").ok
+    capsys.readouterr()
+    # in the same folder, nothing to rewrite
+    assert new_command(argparse.Namespace(name="turn", template="model.ra")) == EXIT_OK
+    assert 'scenario "left_turn.xml"' in (tmp_path / "turn.ra").read_text(encoding="utf-8")

@@ -2,7 +2,8 @@
 
 The file (default ``driving.ra``; a bare name such as ``speed_limit`` is looked up in the standard
 library) is copied to ``NAME.ra``, its automaton renamed to the CamelCase of NAME when NAME is an
-identifier. An existing file is never overwritten (E0009, exit 2). The ``--from`` file is read as
+identifier; a relative ``scenario`` path of its ``model`` block is rewritten to name the same file
+from NAME's folder. An existing file is never overwritten (E0009, exit 2). The ``--from`` file is read as
 ``rac check`` reads one: no UTF-8 text is E0004 (exit 1), a folder, a FIFO or a device E0008 (exit 2).
 """
 
@@ -22,7 +23,7 @@ from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_text, read_source
 from rac.lang.resources import stdlib_file
 
-__all__ = ["camel_case", "new_command", "renamed", "template_path"]
+__all__ = ["camel_case", "new_command", "renamed", "repointed", "template_path"]
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -82,6 +83,30 @@ def _qualified(node: object) -> list[ast.Qualified]:
     return []
 
 
+def repointed(text: str, source: Path, target: Path) -> str:
+    """``text`` (the file ``source``) as the file ``target``: each relative ``scenario "PATH"`` of a
+    ``model`` block rewritten to name the same file from ``target``'s folder (the checker resolves it
+    from the folder of the file that writes it). ``text`` unchanged when it does not parse."""
+    folder, moved_to = os.path.dirname(source) or ".", os.path.dirname(target) or "."
+    if os.path.abspath(folder) == os.path.abspath(moved_to):
+        return text
+    try:
+        automata = parse_text(text).automata
+    except ParseFailure:
+        return text
+    scenarios = [item for automaton in automata for block in automaton.of(ast.ModelDecl)
+                 for item in block.of(ast.ModelScenario)]
+    for item in sorted(scenarios, key=lambda i: i.span.start if i.span else -1, reverse=True):
+        if item.span is None or os.path.isabs(item.path):
+            continue
+        moved = os.path.relpath(os.path.join(folder, item.path), moved_to)
+        written = text[item.span.start:item.span.end]
+        quote = written.rindex('"', 0, -1)  # `scenario "PATH"`: the string is the item's last token
+        if not {'"', "\n"} & set(moved):  # a string holds neither
+            text = text[:item.span.start] + written[:quote] + f'"{moved}"' + text[item.span.end:]
+    return text
+
+
 def _exists(path: Path) -> Diagnostic:
     """E0009: ``rac new`` never overwrites a file."""
     return error("E0009", f"cannot write `{path}`: the file exists", None,
@@ -122,14 +147,15 @@ def new_command(args: argparse.Namespace) -> int:
         print(render_text([_exists(target)], {}), file=sys.stderr)
         return EXIT_USAGE
     automaton = camel_case(target.name[:-len(".ra")])
-    written = renamed(text, automaton) if automaton else text
+    renamed_text = renamed(text, automaton) if automaton else text
+    written = repointed(renamed_text, source, target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         write_atomically(target, written)
     except OSError as exc:
         print(render_text([unwritable(target, exc)], {}), file=sys.stderr)
         return EXIT_USAGE
-    how = f", automaton {automaton}" if written != text else ""
+    how = f", automaton {automaton}" if renamed_text != text else ""
     print(f"wrote {target} (from {source}{how})")
     # a command the user can paste: quoted (a space), and not taken for an option (a leading `-`)
     command = str(target)
