@@ -299,15 +299,10 @@ def test_a_task_past_its_timeout_is_a_timeout_row(client, world: Path, tmp_path:
 
 
 # ---------------------------------------------------------------- Ctrl-C
-@pytest.mark.parametrize(("stop", "code_after", "said"), [
-    ("ctrl-c", 130, "rac sweep: interrupted: 2 tasks not run"),
-    # a batch system's time limit, `kill PID`: Python's default ended the process on the spot, with no
-    # summary, no results.* merged and a leaked-semaphore warning
-    ("sigterm", 143, "rac sweep: terminated (SIGTERM): 2 tasks not run"),
-])
-def test_ctrl_c_merges_what_is_done_and_exits_130(world: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                  capsys: pytest.CaptureFixture[str], stop: str, code_after: int,
-                                                  said: str) -> None:
+def interrupted_sweep(world: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, stop: str,
+                      *options: str) -> tuple[int, Path]:
+    """``rac sweep`` of one fast and two slow stand-in tasks, stopped by ``stop`` (``ctrl-c`` or ``sigterm``)
+    as soon as the fast task's row is stored: the exit code and the output folder."""
     stand_in(monkeypatch, sweep_helpers.slow)
     files = []
     for name in ("fast.xml", "slow_1.xml", "slow_2.xml"):
@@ -332,17 +327,45 @@ def test_ctrl_c_merges_what_is_done_and_exits_130(world: Path, tmp_path: Path, m
     watcher = threading.Thread(target=press_ctrl_c, daemon=True)
     watcher.start()
     start = time.monotonic()
-    code = main(["sweep", str(world / "sweep.ra"), *files, "--workers", "2", "-o", str(out), "-q"])
+    code = main(["sweep", str(world / "sweep.ra"), *files, "--workers", "2", "-o", str(out), "-q", *options])
     watcher.join()
-    captured = capsys.readouterr()
     assert not unhandled, "SIGTERM is not handled while the sweep runs"
-    assert code == code_after, captured.err
     assert time.monotonic() - start < 25  # the slow tasks (30 s each) were cancelled
+    assert signal.getsignal(signal.SIGTERM) == before  # the handler lasts the sweep only
+    return code, out
+
+
+@pytest.mark.parametrize(("stop", "code_after", "said"), [
+    ("ctrl-c", 130, "rac sweep: interrupted: 2 tasks not run"),
+    # a batch system's time limit, `kill PID`: Python's default ended the process on the spot, with no
+    # summary, no results.* merged and a leaked-semaphore warning
+    ("sigterm", 143, "rac sweep: terminated (SIGTERM): 2 tasks not run"),
+])
+def test_ctrl_c_merges_what_is_done_and_exits_130(world: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                  capsys: pytest.CaptureFixture[str], stop: str, code_after: int,
+                                                  said: str) -> None:
+    code, out = interrupted_sweep(world, tmp_path, monkeypatch, stop)
+    captured = capsys.readouterr()
+    assert code == code_after, captured.err
     rows = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert [row["scenario_name"] for row in rows] == ["fast"]
     assert captured.out.splitlines()[1] == "    3   1       0          0        0        2"
     assert said in captured.err
-    assert signal.getsignal(signal.SIGTERM) == before  # the handler lasts the sweep only
+    assert "run the same command again to run only those" in captured.err
+
+
+def test_an_interrupted_json_sweep_says_the_exit_code_it_ends_with(world: Path, tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The document's ``exit_code`` was the rows' (4: tasks not run) while the process exited 130; and under
+    --force "run the same command again to run only those" is untrue: it runs every task again."""
+    code, _ = interrupted_sweep(world, tmp_path, monkeypatch, "ctrl-c", "--format", "json", "--force")
+    captured = capsys.readouterr()
+    document = json.loads(captured.out)
+    assert code == 130 and document["interrupted"] is True
+    assert document["exit_code"] == code
+    assert "with --force the same command runs every task again" in captured.err
+    assert "to run only those" not in captured.err
 
 
 # ---------------------------------------------------------------- an existing cluster

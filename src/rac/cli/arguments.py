@@ -297,7 +297,8 @@ def _add_sweep(commands: argparse._SubParsersAction) -> None:
                     "cluster at --scheduler. Rows already stored in the output folder are reused.",
         epilog=f"{OUTPUT_CONVENTION} The sweep keeps one file per task in tasks/ and merges them into "
                "results.parquet (results.csv without pyarrow) and results.json. Exit codes: 0 every task ok, "
-               "1 a task failed, 2 bad usage, 4 a task could not run or a verdict is unknown, 130 interrupted.")
+               "1 a task failed, 2 bad usage, 4 a task could not run or a verdict is unknown, 130 interrupted, "
+               "143 terminated (SIGTERM).")
     sweep.add_argument("template", metavar="TEMPLATE.ra", help="a .ra file with a `model` block")
     sweep.add_argument("scenarios", nargs="+", metavar="SCENARIOS",
                        help="CommonRoad files, folders (searched for *.xml) or globs")

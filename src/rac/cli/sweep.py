@@ -118,6 +118,8 @@ def sweep_command(args: argparse.Namespace) -> int:
         print_diagnostics([found], {}, as_json(args))
         return EXIT_USAGE
     status = exit_status(result.rows)
+    if result.outcome.interrupted:  # the exit code the process ends with, which the JSON document says too
+        status = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     if args.format == "json":
         print(json.dumps({"template": str(planned.template), "out": str(planned.out),
                           "interrupted": result.outcome.interrupted, "exit_code": status,
@@ -131,7 +133,9 @@ def sweep_command(args: argparse.Namespace) -> int:
         print(f"rac sweep: note: {note}", file=sys.stderr)
     if result.outcome.interrupted:
         how = "terminated (SIGTERM)" if terminated else "interrupted"
-        print(f"rac sweep: {how}: {result.summary.not_run} tasks not run (run the same command again to "
-              "run only those)", file=sys.stderr)
-        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+        # under --force the store holds rows of before this run for the tasks left: no command runs only those
+        again = ("with --force the same command runs every task again; without it, it reuses every stored row, "
+                 "those of earlier runs included" if args.force else
+                 "run the same command again to run only those")
+        print(f"rac sweep: {how}: {result.summary.not_run} tasks not run ({again})", file=sys.stderr)
     return status
