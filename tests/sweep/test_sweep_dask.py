@@ -476,3 +476,43 @@ def test_import_rac_does_not_import_dask() -> None:
             f"print(sorted(m for m in sys.modules if m.split('.')[0] in {heavy!r}))")
     done = subprocess.run([sys.executable, "-c", code], env=rac_env(), capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
+
+
+class TermWhileStarting:
+    """A stand-in for Dask's ``LocalCluster`` that receives SIGTERM in the middle of its start (as a batch
+    system's `kill` may send it while rac's cluster starts), and records that it was started and closed."""
+
+    events: list[str] = []
+
+    def __init__(self, **kw: object) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.2)  # a Python handler runs here, in the middle of the start
+        self.events.append("started")
+
+    def __enter__(self) -> TermWhileStarting:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.events.append("closed")
+
+
+def test_sigterm_while_the_cluster_starts_closes_it_and_exits_143(world: Path, tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """The handler's KeyboardInterrupt came out of LocalCluster's start: a half-started cluster (Dask's exit
+    hook then failed to close it, with a traceback), and exit 130 "rac: interrupted" with nothing merged. Now
+    SIGTERM is held back until the cluster is up, which is then closed, and the sweep ends as after SIGTERM."""
+    import distributed
+
+    monkeypatch.setattr(distributed, "LocalCluster", TermWhileStarting)
+    TermWhileStarting.events = []
+    before = signal.getsignal(signal.SIGTERM)
+    out = tmp_path / "out"
+    code = main(["sweep", str(world / "sweep.ra"), str(world / "scenarios" / "goal_ahead.xml"), "--workers", "1",
+                 "-o", str(out), "-q"])
+    captured = capsys.readouterr()
+    assert code == 143, captured.err
+    assert TermWhileStarting.events == ["started", "closed"]
+    assert "rac sweep: terminated (SIGTERM): 1 task not run" in captured.err
+    assert json.loads((out / "results.json").read_text(encoding="utf-8")) == []
+    assert signal.getsignal(signal.SIGTERM) == before

@@ -137,5 +137,5 @@ def sweep_command(args: argparse.Namespace) -> int:
         again = ("with --force the same command runs every task again; without it, it reuses every stored row, "
                  "those of earlier runs included" if args.force else
                  "run the same command again to run only those")
-        print(f"rac sweep: {how}: {result.summary.not_run} tasks not run ({again})", file=sys.stderr)
+        print(f"rac sweep: {how}: {_count(result.summary.not_run, 'task')} not run ({again})", file=sys.stderr)
     return status

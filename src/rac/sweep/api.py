@@ -135,9 +135,12 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
         if count:
             say(f"rerunning {count} task{'s' * (count != 1)} {why}")
     if todo:  # everything stored already: no cluster
-        with Tracker(quiet=quiet) as tracker, connect(scheduler, workers, announce=announce) as client:
-            tracker.start(len(todo), outcome.skipped)
-            run_tasks(client, plan.specs, todo, outcome, store, on_row=tracker.row)
+        try:
+            with Tracker(quiet=quiet) as tracker, connect(scheduler, workers, announce=announce) as client:
+                tracker.start(len(todo), outcome.skipped)
+                run_tasks(client, plan.specs, todo, outcome, store, on_row=tracker.row)
+        except KeyboardInterrupt:  # while the cluster started or closed: the rows stored are still merged
+            outcome.interrupted = True
     rows = rows_in_order(plan.specs, outcome)
     files, notes = report.write_results(rows, plan.out)
     files += report.write_plots(rows, plan.out)

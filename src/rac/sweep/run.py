@@ -119,14 +119,17 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
                 yield client
             return
         n_workers = workers or os.cpu_count() or 1
-        with _workers_ignore_sigint(), warnings.catch_warnings():
+        with _workers_ignore_sigint() as held, warnings.catch_warnings():
             # another cluster holds the dashboard's usual port 8787: Dask takes another and says so
             warnings.filterwarnings("ignore", message=".*already in use.*")
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                    silence_logs=logging.ERROR)
-        with cluster, Client(cluster) as client:
-            say(f"dashboard: {client.dashboard_link} (a local cluster, {n_workers} workers{_bokeh()})")
-            yield client
+        with cluster:
+            for number in held:  # a SIGTERM held back while the cluster started: now it can be closed
+                signal.raise_signal(number)
+            with Client(cluster) as client:
+                say(f"dashboard: {client.dashboard_link} (a local cluster, {n_workers} workers{_bokeh()})")
+                yield client
 
 
 def _bokeh() -> str:
@@ -135,18 +138,27 @@ def _bokeh() -> str:
 
 
 @contextlib.contextmanager
-def _workers_ignore_sigint() -> Iterator[None]:
+def _workers_ignore_sigint() -> Iterator[list[int]]:
     """Worker processes started in here ignore SIGINT: Ctrl-C on a terminal reaches the whole process group,
-    and rac (not each worker) is the one that stops the sweep and closes the cluster."""
+    and rac (not each worker) is the one that stops the sweep and closes the cluster. SIGTERM is held back
+    in here (the list yielded receives its number): raised in the middle of ``LocalCluster``'s start, its
+    ``KeyboardInterrupt`` (``rac sweep``'s handler) left a half-started cluster, which Dask's exit hook then
+    failed to close, with a traceback."""
+    held: list[int] = []
     try:
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:  # not the main thread: signals cannot be changed, nor can Ctrl-C arrive here
-        yield
+        yield held
         return
+    terminate = signal.getsignal(signal.SIGTERM)
+    if callable(terminate):  # a handler of rac's (or the caller's): it runs once the cluster is up
+        signal.signal(signal.SIGTERM, lambda number, frame: held.append(number))
     try:
-        yield
+        yield held
     finally:
         signal.signal(signal.SIGINT, previous)
+        if callable(terminate):
+            signal.signal(signal.SIGTERM, terminate)
 
 
 def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
