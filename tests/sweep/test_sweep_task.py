@@ -357,6 +357,23 @@ def test_check_template_refuses_a_template_without_a_model_block(tmp_path: Path)
         check_template(tmp_path / "missing.ra")
 
 
+def test_check_template_reads_the_template_as_rac_check_does(tmp_path: Path) -> None:
+    """A byte-order mark (which `rac check` drops) was an `unexpected character` and refused the template;
+    a Latin-1 file was Python's bare codec message, not E0004; a FIFO blocked the sweep for ever."""
+    text = (Path(__file__).resolve().parents[2] / "examples" / "left_turn" / "model.ra").read_text(encoding="utf-8")
+    marked = tmp_path / "marked.ra"
+    marked.write_bytes(b"\xef\xbb\xbf" + text.replace("\n", "\r\n").encode("utf-8"))
+    assert check_template(marked) == text  # the mark dropped, the line ends as \n (the task keys stay)
+    latin = tmp_path / "latin.ra"
+    latin.write_bytes(text.encode("utf-8") + b"// caf\xe9\n")
+    with pytest.raises(ValueError, match="E0004"):
+        check_template(latin)
+    fifo = tmp_path / "fifo.ra"
+    os.mkfifo(fifo)
+    with pytest.raises(OSError, match="not a regular file"):
+        check_template(fifo)
+
+
 # ---------------------------------------------------------------- grid and scenarios
 def test_scenario_files_expand_folders_and_globs(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     scenarios = folder / "scenarios"

@@ -18,8 +18,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TypeVar
 
+from rac.core.diagnostics import render_text
 from rac.ir.vocabulary import MODELLING, SETTINGS, WORD_SETTINGS
 from rac.lang.edit import model_block, parse_file_text, setting_value, with_model
+from rac.lang.parser import ParseFailure, read_source
 
 __all__ = ["SETTING_NAMES", "check_template", "instantiate", "setting_value"]
 
@@ -30,10 +32,16 @@ SETTING_NAMES: tuple[str, ...] = (*SETTINGS, *MODELLING, *WORD_SETTINGS)
 
 
 def check_template(path: str | Path) -> str:
-    """The template's text, read once; ``ValueError`` (with a message for the user) when it does not
-    parse or has no ``model`` block, ``OSError`` when it cannot be read. Its scenario need not exist:
-    each task replaces it."""
-    text = Path(path).read_text(encoding="utf-8")
+    """The template's text, read once as ``rac check`` reads a file (a byte-order mark dropped, CR line
+    ends as LF; a FIFO or a device refused, never read to its end); ``ValueError`` (with a message for
+    the user) when it is no UTF-8 text, does not parse or has no ``model`` block, ``OSError`` when it
+    cannot be read. Its scenario need not exist: each task replaces it."""
+    try:  # Windows line ends as \n: they make no new task key (nor did they before)
+        text = read_source(path).text.replace("\r\n", "\n")
+    except ParseFailure as failure:  # not UTF-8, NUL bytes, too large: E0004/E0005 as rac check says them
+        shown = failure.source
+        rendered = render_text([failure.diagnostic], {shown.name: shown} if shown is not None else {})
+        raise ValueError(f"the template {path} is not a .ra file rac can read:\n{rendered}") from None
     module = _template(lambda: parse_file_text(text, str(path)))
     try:
         model_block(module, str(path))
