@@ -8,6 +8,7 @@ FIFOs are made with ``os.mkfifo`` in ``tmp_path``; nothing here opens one (that 
 
 from __future__ import annotations
 
+import fcntl
 import os
 import stat
 from pathlib import Path
@@ -16,7 +17,15 @@ import pytest
 from engine_files import write_engine_file
 
 from rac.cli.arguments import MIN_SEED, build_parser
-from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE, NotRegularFile, write_atomically
+from rac.cli.common import (
+    EXIT_ERRORS,
+    EXIT_OK,
+    EXIT_UNDECIDED,
+    EXIT_USAGE,
+    NotRegularFile,
+    locked,
+    write_atomically,
+)
 from rac.cli.main import main
 from rac.lang.resources import stdlib_dir
 
@@ -350,3 +359,21 @@ def test_runs_beyond_the_memory_budget_are_refused_before_anything_is_allocated(
     assert "out of memory" not in said  # refused by the estimate, not by the machine
     # preanalyse: the row says it, and a setting without answers is undecided (exit 4)
     assert code == (EXIT_UNDECIDED if command == "preanalyse" else EXIT_USAGE)
+
+
+def test_the_lock_of_a_linked_file_is_its_targets_folder(tmp_path: Path) -> None:
+    """`rac fmt link.ra` locked the link's folder while it rewrote the target elsewhere: `rac tune` on
+    the target itself (which locks the target's folder) did not wait for it."""
+    real = tmp_path / "real"
+    real.mkdir()
+    (real / "a.ra").write_text("automaton A { }\n", encoding="utf-8")
+    links = tmp_path / "links"
+    links.mkdir()
+    (links / "a.ra").symlink_to(real / "a.ra")
+    with locked(links / "a.ra"):
+        fd = os.open(real, os.O_RDONLY)
+        try:
+            with pytest.raises(BlockingIOError):
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        finally:
+            os.close(fd)

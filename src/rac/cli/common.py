@@ -207,10 +207,12 @@ def locked(path: Path) -> Iterator[None]:
     """Hold an advisory lock (``flock``) on the folder of ``path`` while rac reads and rewrites it:
     ``rac fmt`` and ``rac tune`` on one file at once take turns instead of losing each other's work.
     The folder, not a lock file beside ``path``: nothing is left behind, and the lock survives the
-    rename that replaces the file. Without a folder that can be opened there is no lock (nor a write)."""
+    rename that replaces the file. Without a folder that can be opened there is no lock (nor a write).
+    A symbolic link's target's folder: that is where the file is rewritten (:func:`write_all_atomically`),
+    so rac on the link and rac on the file itself take turns too."""
     fd: int | None = None
     with contextlib.suppress(OSError):
-        fd = os.open(path.parent if str(path.parent) else ".", os.O_RDONLY)
+        fd = os.open(Path(os.path.realpath(path)).parent, os.O_RDONLY)
         fcntl.flock(fd, fcntl.LOCK_EX)
     try:
         yield
