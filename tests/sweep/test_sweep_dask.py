@@ -516,3 +516,18 @@ def test_sigterm_while_the_cluster_starts_closes_it_and_exits_143(world: Path, t
     assert "rac sweep: terminated (SIGTERM): 1 task not run" in captured.err
     assert json.loads((out / "results.json").read_text(encoding="utf-8")) == []
     assert signal.getsignal(signal.SIGTERM) == before
+
+
+def test_the_cli_runs_an_experiment_with_its_reward_function(world: Path, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac sweep --task experiment` on an automaton without the paper's inputs failed every task with "pass
+    --reward-function EXPR", an option rac sweep did not have (nor --episodes and --runs, which the Python
+    API's options have)."""
+    out = tmp_path / "out"
+    code = main(["sweep", str(world / "sweep.ra"), str(world / "scenarios" / "goal_ahead.xml"), "--task",
+                 "experiment", "--reward-function=-sa", "--episodes", "3", "--runs", "2", "--seed", "1",
+                 "--horizon", "2", "--workers", "1", "-o", str(out), "-q"])
+    assert code == EXIT_OK, capsys.readouterr()
+    (row,) = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert row["status"] == "ok" and row["details"]
+    assert {entry["episodes"][0] for entry in row["details"]} == {3}

@@ -325,6 +325,12 @@ def _add_sweep(commands: argparse._SubParsersAction) -> None:
                        help=f"seed of each task's simulations, a whole number of at least {MIN_SEED}")
     sweep.add_argument("--max-states", type=_checked(lambda t: int(t) >= 1, "a whole number of at least 1"),
                        metavar="N", help="each task gives up (verdict unknown) beyond this many states")
+    sweep.add_argument("--episodes", type=counting, metavar="N",
+                       help="experiment: the episode budget per run (default 500)")
+    sweep.add_argument("--runs", type=counting, metavar="N",
+                       help="preanalyse: simulated runs per setting; experiment: evaluation runs (default 100)")
+    sweep.add_argument("--reward-function", metavar="EXPR",
+                       help="experiment: the per-sample reward of the RF combinations (default: the paper's Eq. 9)")
     sweep.add_argument("-q", "--quiet", action="store_true", help="no progress, no dashboard address")
     sweep.add_argument("--format", choices=("text", "json"), default="text", help="the summary's format")
 

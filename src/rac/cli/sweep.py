@@ -89,7 +89,8 @@ def sweep_command(args: argparse.Namespace) -> int:
         print_diagnostics([usage_error("--workers sizes the local cluster; the cluster at --scheduler has its own "
                                        "workers")], {}, as_json(args))
         return EXIT_USAGE
-    options = {"horizon": args.horizon, "seed": args.seed, "max_states": args.max_states}
+    options = {"horizon": args.horizon, "seed": args.seed, "max_states": args.max_states, "episodes": args.episodes,
+               "runs": args.runs, "reward_function": args.reward_function}
     try:
         planned = plan(args.template, args.scenarios, sets=args.sets, task=args.task,
                        out=output_folder(Path(args.template), "sweep", Path(args.out) if args.out else None),
