@@ -437,6 +437,19 @@ def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytes
     assert message.format(scenarios=scenarios) in capsys.readouterr().err
 
 
+def test_workers_with_a_configured_scheduler_is_bad_usage(world: Path, monkeypatch: pytest.MonkeyPatch,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """With Dask's scheduler-address configuration (DASK_SCHEDULER_ADDRESS) the sweep goes to that cluster:
+    --workers was silently ignored there, where --scheduler with --workers is refused."""
+    import dask
+
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    with dask.config.set({"scheduler-address": "tcp://127.0.0.1:1"}):
+        assert main(["sweep", str(world / "sweep.ra"), str(world / "scenarios"), "--workers", "2"]) == EXIT_USAGE
+    assert ("--workers sizes the local cluster; the cluster at Dask's scheduler-address configuration has its "
+            "own workers") in capsys.readouterr().err
+
+
 def test_a_template_that_cannot_be_read_exits_2(world: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["sweep", str(world / "missing.ra"), str(world / "scenarios")]) == EXIT_USAGE
     assert f"error[E0008]: cannot read `{world / 'missing.ra'}`: No such file or directory" in capsys.readouterr().err

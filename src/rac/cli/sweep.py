@@ -85,10 +85,16 @@ def sweep_command(args: argparse.Namespace) -> int:
     # matplotlib, numpy (via rac.sweep.run): only the command that uses it loads it
     from rac.sweep.run import BadSchedulerAddress
 
-    if args.scheduler and args.workers:
-        print_diagnostics([usage_error("--workers sizes the local cluster; the cluster at --scheduler has its own "
-                                       "workers")], {}, as_json(args))
-        return EXIT_USAGE
+    if args.workers:
+        import dask  # dask: only the command that uses it loads it
+
+        # the cluster that connect() would use instead of a local one: --workers would be ignored there
+        where = "--scheduler" if args.scheduler else (
+            "Dask's scheduler-address configuration" if dask.config.get("scheduler-address", None) else None)
+        if where is not None:
+            print_diagnostics([usage_error(f"--workers sizes the local cluster; the cluster at {where} has its own "
+                                           "workers")], {}, as_json(args))
+            return EXIT_USAGE
     options = {"horizon": args.horizon, "seed": args.seed, "max_states": args.max_states, "episodes": args.episodes,
                "runs": args.runs, "reward_function": args.reward_function}
     try:
