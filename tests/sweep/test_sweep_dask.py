@@ -286,6 +286,21 @@ def test_retry_failed_reruns_the_stored_rows_that_are_not_ok(world: Path, tmp_pa
     assert len(pending(specs + specs, store)[1]) == 1  # a key given twice runs once
 
 
+def test_a_timeout_or_memory_row_of_another_limit_runs_again(world: Path, tmp_path: Path) -> None:
+    """The limits are not part of the key: a re-run with a larger --task-timeout reused the stored timeout
+    row, "ran past the task timeout of 0.3 s", as the answer of the new command."""
+    specs = specs_for(tmp_path, world / "sweep.ra", ["slow.xml", "same.xml", "fine.xml", "big.xml"],
+                      timeout=60.0, memory=2**30)
+    store = Store(tmp_path / "out")
+    slow, same, fine, big = (spec.key() for spec in specs)
+    store.put(slow, sweep_helpers.row(specs[0], "timeout", task_timeout=0.3, task_memory=2**30))
+    store.put(same, sweep_helpers.row(specs[1], "timeout", task_timeout=60.0, task_memory=2**30))
+    store.put(fine, sweep_helpers.row(specs[2], "ok", task_timeout=0.3, task_memory=None))  # a result
+    store.put(big, sweep_helpers.row(specs[3], "memory", task_timeout=60.0, task_memory=2**20))
+    outcome, todo = pending(specs, store)
+    assert list(todo) == [slow, big] and (outcome.skipped, outcome.rerun_limits) == (2, 2)
+
+
 def test_a_task_past_its_timeout_is_a_timeout_row(client, world: Path, tmp_path: Path) -> None:
     # the real run_task: its child process takes longer than 0.2 s only to start
     planned = plan(world / "sweep.ra", [str(world / "scenarios" / "goal_ahead.xml")], options=OPTIONS,
@@ -295,6 +310,7 @@ def test_a_task_past_its_timeout_is_a_timeout_row(client, world: Path, tmp_path:
     run_tasks(client, planned.specs, todo, outcome, store)
     row = outcome.rows[outcome.keys[0]]
     assert row["status"] == "timeout" and "0.2 s" in str(row["error"]), row
+    assert (row["task_timeout"], row["task_memory"]) == (0.2, None)  # the limit it met, for a resumed sweep
     assert exit_status([row]) == EXIT_UNDECIDED
 
 

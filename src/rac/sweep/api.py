@@ -131,6 +131,7 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     outcome, todo = pending(plan.specs, store, force=force, retry_failed=retry_failed)
     say = announce or (lambda _: None)
     for count, why in ((outcome.rerun_killed, "whose process was killed"),
+                       (outcome.rerun_limits, "stopped by another --task-timeout or --task-memory"),
                        (outcome.rerun_failed, "that failed (--retry-failed)")):
         if count:
             say(f"rerunning {count} task{'s' * (count != 1)} {why}")

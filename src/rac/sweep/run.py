@@ -71,7 +71,7 @@ def error_row(spec: TaskSpec, key: str, status: str, message: str, *, retry: boo
     return {"key": key, **spec.names(),
             "settings": dict(spec.settings), "task": spec.task, "status": status, "error": message,
             "retry": retry, "seconds": 0.0, "peak_memory": None, "states": None, "scenario_size": None, "verdicts": {},
-            "diagnostics": [], "details": None}
+            "diagnostics": [], "details": None, **spec.limits()}
 
 
 @dataclass
@@ -87,6 +87,8 @@ class Outcome:
     skipped: int = 0
     rerun_killed: int = 0  #: stored rows marked ``retry`` (the task's process was killed), run again
     rerun_failed: int = 0  #: other stored rows not ok, run again under ``retry_failed``
+    #: stored ``timeout`` (``memory``) rows of another task timeout (memory limit) than this run's, run again
+    rerun_limits: int = 0
     interrupted: bool = False
 
 
@@ -166,7 +168,8 @@ def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
     """What is done and what is left: an :class:`Outcome` holding each spec's key and the rows ``store``
     has (none with ``force``), and the specs to run by key (specs with equal keys, the same scenario file
     under two paths, run once). A stored row marked ``retry`` (its task's process was killed: no verdict)
-    is run again; with ``retry_failed`` every stored row that is not ok is."""
+    is run again, and so is a ``timeout`` or ``memory`` row of another limit than the spec's; with
+    ``retry_failed`` every stored row that is not ok is."""
     outcome = Outcome()
     todo: dict[str, TaskSpec] = {}
     for spec in specs:
@@ -178,6 +181,9 @@ def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
         if stored is not None and stored.get("retry") is True:
             outcome.rerun_killed += 1
             stored = None
+        elif stored is not None and _other_limit(stored, spec):
+            outcome.rerun_limits += 1
+            stored = None
         elif stored is not None and retry_failed and stored.get("status") != "ok":
             outcome.rerun_failed += 1
             stored = None
@@ -187,6 +193,15 @@ def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
             todo[key] = spec
     outcome.skipped = sum(1 for key in outcome.keys if key in outcome.rows)
     return outcome, todo
+
+
+def _other_limit(row: Row, spec: TaskSpec) -> bool:
+    """Whether ``row`` is a ``timeout`` or ``memory`` row of a limit other than ``spec``'s: the limit is not
+    part of the key, and the row answers the old limit, not the task (a row stored before rows held their
+    limits counts as of no limit)."""
+    limits = spec.limits()
+    field = {"timeout": "task_timeout", "memory": "task_memory"}.get(str(row.get("status")))
+    return field is not None and row.get(field) != limits[field]
 
 
 def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpec], outcome: Outcome,

@@ -99,6 +99,11 @@ class TaskSpec:
                               sorted(map(list, self.options))], ensure_ascii=True)
         return hashlib.sha256(payload.encode("ascii")).hexdigest()[:16]
 
+    def limits(self) -> dict[str, Any]:
+        """The task's limits as its row holds them (``task_timeout`` in seconds, ``task_memory`` in bytes;
+        None: none): not part of the key, so a stored ``timeout`` or ``memory`` row says which limit it met."""
+        return {"task_timeout": self.timeout, "task_memory": self.memory}
+
     def to_json(self) -> dict[str, Any]:
         """The spec as JSON data (what :func:`run_task` sends the child)."""
         return asdict(self)
@@ -116,7 +121,7 @@ def _row(spec: TaskSpec) -> dict[str, Any]:
     return {"key": spec.key(), **spec.names(),
             "settings": dict(spec.settings), "task": spec.task, "status": "error",
             "error": "the task gave no result", "retry": False, "seconds": 0.0, "peak_memory": None, "states": None,
-            "scenario_size": None, "verdicts": {}, "diagnostics": [], "details": None}
+            "scenario_size": None, "verdicts": {}, "diagnostics": [], "details": None, **spec.limits()}
 
 
 def run_task(spec: TaskSpec) -> dict[str, object]:
@@ -127,7 +132,8 @@ def run_task(spec: TaskSpec) -> dict[str, object]:
     Keys (always present, JSON-serialisable): key, scenario (path), scenario_name (the file's stem),
     settings (dict name -> value text), task, status (:data:`STATUSES`), error (str or None), retry (bool:
     the task's process was killed from outside, :data:`KILLING_SIGNALS`, so the row is no verdict and a
-    resumed sweep runs the task again), seconds
+    resumed sweep runs the task again), task_timeout and task_memory (the limits it ran under,
+    :meth:`TaskSpec.limits`), seconds
     (the task's own time in the child; the whole time when the child gave no result), peak_memory
     (bytes, the child's largest resident size, or None), states (int or None), scenario_size (int:
     lanelets + obstacles, or None), verdicts (dict query name -> :data:`VERDICTS`; {} for check),
