@@ -442,6 +442,9 @@ def test_the_cli_on_a_separate_dask_scheduler_and_worker(world: Path, tmp_path: 
     (["{scenarios}", "--set", "exponent"], "`--set exponent`: write NAME=V1,V2,..."),
     (["{scenarios}", "--scheduler", "tcp://127.0.0.1:1", "--workers", "2"], "--workers sizes the local cluster"),
     (["{scenarios}", "--task-memory", "lots"], "`lots` is not a size"),
+    # every task failed with the same syntax error (exit 1) after the cluster started
+    (["{scenarios}", "--task", "experiment", "--reward-function", "sa +"],
+     "--reward-function: `sa +`: the expression is incomplete"),
 ])
 def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytest.MonkeyPatch,
                                                  capsys: pytest.CaptureFixture[str], args: list[str],

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rac.engine.budget import parse_size
+from rac.lang.parser import parse_expression
 from rac.output.paths import output_folder
 from rac.sweep.grid import grid_points, parse_set, scenario_files
 from rac.sweep.kinds import TASKS
@@ -71,8 +72,9 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
          task_timeout: float | None = None, task_memory: int | str | None = None,
          options: Mapping[str, object] | None = None) -> Plan:
     """The tasks of a sweep (nothing runs). ``ValueError`` with a message for the user on a bad
-    argument (no scenario matched, a bad ``sets``, an unknown task or option, a template that does not
-    parse or has no ``model`` block); ``OSError`` when the template cannot be read."""
+    argument (no scenario matched, a bad ``sets``, an unknown task or option, a ``reward_function`` that
+    is not one expression, a template that does not parse or has no ``model`` block); ``OSError`` when
+    the template cannot be read."""
 
     if task not in TASKS:
         raise ValueError(f"unknown task `{task}`: choose one of {', '.join(TASKS)}")
@@ -82,6 +84,12 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     if task_timeout is not None and not task_timeout > 0:
         raise ValueError(f"the task timeout must be more than 0 seconds, not {task_timeout}")
     memory = _bytes(task_memory)
+    function = (options or {}).get("reward_function")
+    if function is not None:  # its syntax is the same for every task: a typo fails here, not in each
+        try:
+            parse_expression(str(function), name="<--reward-function>")
+        except ValueError as exc:
+            raise ValueError(f"--reward-function: {exc}") from None  # the message starts with the text
     items = [scenarios] if isinstance(scenarios, str | Path) else list(scenarios)
     files = scenario_files([str(item) for item in items])
     points = grid_points(parse_set(_set_texts(sets)))
