@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from rac.cli.common import EXIT_OK, EXIT_USAGE
+from rac.cli.main import main
 from rac.cli.new import camel_case, new_command, renamed, template_path
 from rac.compiler import compile_file
 
@@ -96,3 +97,18 @@ def test_new_command_repoints_a_relative_scenario(tmp_path: Path, monkeypatch: p
     # in the same folder, nothing to rewrite
     assert new_command(argparse.Namespace(name="turn", template="model.ra")) == EXIT_OK
     assert 'scenario "left_turn.xml"' in (tmp_path / "turn.ra").read_text(encoding="utf-8")
+
+
+def test_without_from_the_stdlib_file_even_beside_a_file_of_its_name(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac new foo` copied the user's own driving.ra of the working folder, not the standard library's."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "driving.ra").write_text("automaton Mine {\n    reward r\n    objective r\n    sample every 1\n"
+                                         "    horizon 2\n    initial location A { r' == 1 }\n}\n", encoding="utf-8")
+    assert main(["new", "foo"]) == EXIT_OK
+    copied = (tmp_path / "foo.ra").read_text(encoding="utf-8")
+    assert copied == renamed((STDLIB / "driving.ra").read_text(encoding="utf-8"), "Foo")
+    assert f"(from {STDLIB / 'driving.ra'}, automaton Foo)" in capsys.readouterr().out
+    # --from names a file: the one in the working folder
+    assert main(["new", "bar", "--from", "driving.ra"]) == EXIT_OK
+    assert "automaton Bar {\n    reward r\n" in (tmp_path / "bar.ra").read_text(encoding="utf-8")

@@ -341,7 +341,8 @@ def _add_new(commands: argparse._SubParsersAction) -> None:
     """Register ``rac new`` on the ``rac`` command's subparsers."""
     new = commands.add_parser("new", help="start a new .ra file from a standard-library automaton")
     new.add_argument("name", metavar="NAME", help="the file to write, NAME.ra (may include a folder)")
-    new.add_argument("--from", dest="template", default=DEFAULT_TEMPLATE, metavar="FILE",
-                     help="a .ra file, or a standard-library name such as speed_limit (default: driving.ra)")
+    new.add_argument("--from", dest="template", default=None, metavar="FILE",
+                     help=f"a .ra file, or a standard-library name such as speed_limit (default: the standard "
+                          f"library's {DEFAULT_TEMPLATE}, whatever file of that name the folder holds)")
 
 

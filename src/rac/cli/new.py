@@ -1,8 +1,8 @@
 """``rac new NAME [--from FILE]``: start a reward automaton from a standard-library file.
 
-The file (default ``driving.ra``; a bare name such as ``speed_limit`` is looked up in the standard
-library) is copied to ``NAME.ra``, its automaton renamed to the CamelCase of NAME when NAME is an
-identifier; a relative ``scenario`` path of its ``model`` block is rewritten to name the same file
+The file (default: the standard library's ``driving.ra``; a bare name such as ``speed_limit`` is looked
+up in the standard library) is copied to ``NAME.ra``, its automaton renamed to the CamelCase of NAME
+when NAME is an identifier; a relative ``scenario`` path of its ``model`` block is rewritten to name the same file
 from NAME's folder. An existing file is never overwritten (E0009, exit 2). The ``--from`` file is read as
 ``rac check`` reads one: no UTF-8 text is E0004 (exit 1), a folder, a FIFO or a device E0008 (exit 2).
 """
@@ -17,6 +17,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from rac.cli.arguments import DEFAULT_TEMPLATE
 from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
 from rac.core.diagnostics import Diagnostic, error, render_text
 from rac.lang import ast
@@ -121,8 +122,8 @@ def new_command(args: argparse.Namespace) -> int:
               "(writes my_reward.ra)", file=sys.stderr)
         return EXIT_USAGE
     target = Path(args.name if args.name.endswith(".ra") else f"{args.name}.ra")
-    try:
-        source = template_path(args.template)
+    try:  # without --from the standard library's file, never a file of that name in the working folder
+        source = stdlib_file(DEFAULT_TEMPLATE) if args.template is None else template_path(args.template)
     except FileNotFoundError as exc:
         print(render_text([error("E0008", f"cannot read `{args.template}`: {exc.args[0]}", None,
                                  hints=["pass a .ra file or a standard-library name"])], {}), file=sys.stderr)
@@ -130,7 +131,7 @@ def new_command(args: argparse.Namespace) -> int:
     try:  # as rac check, fmt and tune read a file: a FIFO or a device is refused, never read to its end
         read = read_source(source)
     except OSError as exc:
-        print(render_text([unreadable(Path(args.template), exc)], {}), file=sys.stderr)
+        print(render_text([unreadable(source, exc)], {}), file=sys.stderr)
         return EXIT_USAGE
     except ParseFailure as failure:  # not UTF-8 text, NUL bytes, too large: E0004/E0005, as rac fmt says
         shown = failure.source
