@@ -563,3 +563,28 @@ def test_the_cli_runs_an_experiment_with_its_reward_function(world: Path, tmp_pa
     (row,) = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert row["status"] == "ok" and row["details"]
     assert {entry["episodes"][0] for entry in row["details"]} == {3}
+
+
+def test_sigterm_while_the_results_are_written_exits_143(world: Path, tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """SIGTERM while the rows were merged and plotted (after the tasks) ended as Ctrl-C does: exit 130 and
+    "rac: interrupted". The task's row is stored, so no cluster starts here."""
+    planned = plan(world / "sweep.ra", [str(world / "scenarios" / "goal_ahead.xml")], options=OPTIONS,
+                   out=tmp_path / "out")
+    (spec,) = planned.specs
+    Store(planned.out).put(spec.key(), sweep_helpers.row(spec))
+
+    def terminated_meanwhile(rows: object, folder: Path) -> list[Path]:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(1)  # the handler runs here
+        return []
+
+    monkeypatch.setattr("rac.sweep.report.write_plots", terminated_meanwhile)
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    before = signal.getsignal(signal.SIGTERM)
+    code = main(["sweep", str(world / "sweep.ra"), str(world / "scenarios" / "goal_ahead.xml"), "--horizon", "2",
+                 "-o", str(tmp_path / "out"), "-q"])
+    assert code == 143, capsys.readouterr().err
+    assert "rac sweep: terminated (SIGTERM) while writing results.*" in capsys.readouterr().err
+    assert signal.getsignal(signal.SIGTERM) == before

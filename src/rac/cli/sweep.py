@@ -112,6 +112,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     say = (lambda _: None) if args.quiet else (lambda line: print(f"rac sweep: {line}", file=sys.stderr))
     say(f"{_count(len(planned.specs), 'task')}: {_count(planned.scenarios, 'scenario')} × "
         f"{_count(planned.points, 'grid point')}, task {args.task}; outputs in {planned.out}")
+    terminated: list[int] = []
     try:
         with terminate_as_interrupt() as terminated:
             result = execute(planned, scheduler=args.scheduler, workers=int(args.workers) if args.workers else None,
@@ -124,6 +125,11 @@ def sweep_command(args: argparse.Namespace) -> int:
         found = unwritable(Path(exc.filename), exc) if exc.filename else usage_error(str(exc))
         print_diagnostics([found], {}, as_json(args))
         return EXIT_USAGE
+    except KeyboardInterrupt:  # while the rows were merged and plotted: each is stored in tasks/ already
+        how = "terminated (SIGTERM)" if terminated else "interrupted"
+        print(f"rac sweep: {how} while writing results.* and the plots (run the same command again to write "
+              "them: the tasks that ran are stored)", file=sys.stderr)
+        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     status = exit_status(result.rows)
     if result.outcome.interrupted:  # the exit code the process ends with, which the JSON document says too
         status = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
