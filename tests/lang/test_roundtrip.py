@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import re
+import time
 from fractions import Fraction
 from pathlib import Path
 
@@ -393,3 +394,18 @@ def test_numbers_of_any_size_print_and_read_back(digits: int, exponent: int) -> 
     assert len(text) <= 60
     assert parse_expression(text) == ast.Number(value)
 
+
+
+def test_a_large_commented_file_formats_in_linear_time() -> None:
+    """Each comment was placed by a scan of every declaration: 6,000 commented edges took 9 s to format
+    (quadratic in the file's size; a file may have 1 MB). Now a bisection: well under a second."""
+    lines = ["automaton Big {", "    input x : real in [0, 100]", "    reward r", "    objective r",
+             "    sample every 1", "    horizon 10", "    initial location L0 { r' == 1 }  // the start",
+             *(f"    location L{i} {{ r' == {i % 3 - 1} }}  // location {i}" for i in range(1, 300)),
+             *(f"    edge L{i % 300} -> L{(i + 1) % 300} when x > {i % 100} do r += {i % 7}  // edge {i}"
+               for i in range(6000)), "}"]
+    module = parse_text("\n".join(lines) + "\n")
+    start = time.process_time()
+    text = format_module(module)
+    assert time.process_time() - start < 2
+    assert text.count("// edge ") == 6000 and text.count("// location ") == 299
