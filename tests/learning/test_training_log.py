@@ -159,3 +159,26 @@ def test_the_vector_wrapper_infos_are_logged() -> None:
         assert recorded[f"rac/reward/{name}"] == pytest.approx(total / 120)
     for location, count in locations.items():
         assert recorded[f"rac/location/{location}"] == pytest.approx(count / 120)
+
+
+def test_same_step_autoreset_logs_the_step_that_ended_the_episode() -> None:
+    """Under gymnasium's SAME_STEP autoreset a sub-environment whose episode ended reports its reset info
+    and the step's own under ``final_info``: the log read the reset info, so the step that ended an
+    episode (a crash, the end bonus) was logged as a fresh start (highway-env: 9 crashes, 0 logged)."""
+    import numpy as np
+    from gymnasium.vector import AutoresetMode, SyncVectorEnv
+
+    env = SyncVectorEnv([lambda: RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)] * 2,
+                        autoreset_mode=AutoresetMode.SAME_STEP)
+    env.reset(seed=0)
+    log, total, ended = TrainingLog(), 0.0, 0
+    for t in range(40):
+        _, rewards, terminated, truncated, infos = env.step(np.array([2, t % 3]))  # 2: faster, into the lead car
+        log.add(infos)
+        total += float(rewards.sum())
+        ended += int((terminated | truncated).sum())
+    assert ended >= 2
+    recorded = log.record()
+    # every step's reward is the objective's increase 10 * sa + pr over it (the end bonus included)
+    assert 10 * recorded["rac/reward/sa"] + recorded["rac/reward/pr"] == pytest.approx(total / 80)
+    assert recorded["rac/location/Unsafe"] > 0

@@ -3,7 +3,10 @@
 :class:`TrainingLog` is fed the ``infos`` of each vector step — a list of per-env info dicts, as
 stable-baselines3 hands them to callbacks, or one dict in gymnasium's vector layout, as
 :class:`~rac.learning.vector.ScenarioVectorEnv` and gymnasium's vector envs return it
-(:func:`rac.learning.vector_info.split_vector_info`) — and aggregates, until :meth:`TrainingLog.record`:
+(:func:`rac.learning.vector_info.split_vector_info`) — and aggregates, until :meth:`TrainingLog.record`.
+Under gymnasium's same-step autoreset a sub-environment whose episode ended reports its reset info,
+and the info of the step that ended it under ``final_info``: that one is the step's, and is read.
+
 
 - ``rac/reward/<name>``: each reward's mean change per step (``info["rac"]["reward_steps"]`` of the
   wrapper, ``info["reward_steps"]`` of ScenarioEnv);
@@ -58,6 +61,11 @@ class TrainingLog:
         if isinstance(infos, Mapping):
             infos = split_vector_info(infos)
         for info in infos:
+            # gymnasium's SAME_STEP autoreset: the step's own info (its crash, its location, its reward
+            # changes) is under final_info, beside the reset info of the next episode
+            final = info.get("final_info")
+            if isinstance(final, Mapping):
+                info = final
             self.steps += 1
             # the wrapper's keys are under info["rac"]; ScenarioEnv's (the same names) in info itself
             rac = info.get("rac", info if "reward_steps" in info else None)
