@@ -182,3 +182,26 @@ def test_same_step_autoreset_logs_the_step_that_ended_the_episode() -> None:
     # every step's reward is the objective's increase 10 * sa + pr over it (the end bonus included)
     assert 10 * recorded["rac/reward/sa"] + recorded["rac/reward/pr"] == pytest.approx(total / 80)
     assert recorded["rac/location/Unsafe"] > 0
+
+
+def test_steps_whose_action_the_mask_did_not_allow_are_said(tmp_path: Path) -> None:
+    """A learner that ignores the masks (plain PPO, DQN) on a shielded ScenarioEnv: the guarantee shares
+    say what the masks offered, and ``rac/shield/outside_mask`` how often the action was not among them
+    (the log said 'lookahead 2' for every step, as if the learner had been shielded)."""
+    import numpy as np
+    from engine_files import write_engine_file
+
+    from rac.learning.scenario_env import ScenarioEnv
+
+    env = ScenarioEnv(write_engine_file(tmp_path, "avoidable_obstacle", queries={}), lookahead=2)
+    masked, ignoring = TrainingLog(), TrainingLog()
+    for log, obey in ((masked, True), (ignoring, False)):
+        env.reset(seed=0)
+        for _ in range(3):
+            mask = env.action_masks()
+            action = int(np.flatnonzero(mask if obey else ~mask)[0]) if obey or not mask.all() else 0
+            log.add([env.step(action)[4]])
+    assert "rac/shield/outside_mask" not in masked.record()
+    recorded = ignoring.record()
+    assert recorded["rac/shield/outside_mask"] > 0  # at least the start, where only braking is safe
+    assert recorded["rac/shield/outside_mask"] <= 1.0

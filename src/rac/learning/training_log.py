@@ -15,6 +15,9 @@ and the info of the step that ended it under ``final_info``: that one is the ste
   :class:`~rac.learning.scenario_env.ScenarioEnv`: ``"exhaustive"``, ``"lookahead d"``, ``"none"``),
   and ``rac/shield/no_safe_action``, the share of steps with ``info["no_safe_action"]``; both over
   the steps that report a shield (a vector env's reset steps, which chose from no mask, do not);
+- ``rac/shield/outside_mask``: the share of those steps whose action the mask did not allow
+  (``info["shield_allowed"]`` False: a learner that ignores the masks, plain PPO or DQN, where no
+  guarantee covers the step; recorded once such a step happened);
 - ``rac/collisions``: steps with a collision (``info["collided"]`` in ScenarioEnv,
   ``info["crashed"]`` in highway-env);
 - ``rac/clipped/<input>``: values clipped (``info["rac"]["clipped"]``);
@@ -50,6 +53,7 @@ class TrainingLog:
         self._shield: Counter[str] = Counter()
         self._clipped: Counter[str] = Counter()
         self._no_safe = 0
+        self._outside = 0  # shielded steps whose action the mask did not allow
         self._shielded = 0  # steps that report a shield: the shield shares' denominator
         self._disallowed = 0
         self._collisions = 0
@@ -81,6 +85,7 @@ class TrainingLog:
                 self._shielded += 1
                 self._shield[str(info["shield"])] += 1
                 self._no_safe += bool(info.get("no_safe_action", False))
+                self._outside += not info.get("shield_allowed", True)
             self._disallowed += not info.get("model_allowed", True)
             self._collisions += bool(info.get("collided", False) or info.get("crashed", False))
 
@@ -96,6 +101,8 @@ class TrainingLog:
         if self._shielded:  # shares, as the guarantees' (a count would grow with the number of envs)
             out.update({f"rac/shield/{k}": v / self._shielded for k, v in self._shield.items()})
             out["rac/shield/no_safe_action"] = self._no_safe / self._shielded
+            if self._outside:  # the shares above say what the masks offered, this how often they were ignored
+                out["rac/shield/outside_mask"] = self._outside / self._shielded
         out["rac/collisions"] = float(self._collisions)
         if self._disallowed:  # once recorded, a later call without any records 0 (below)
             out["rac/disallowed"] = float(self._disallowed)
