@@ -391,3 +391,21 @@ def test_the_vector_env_scales_as_scenario_env(near: CompileResult) -> None:
         assert np.allclose(reward, raw / 4.0)
         nonzero += int((raw != 0).sum())
     assert nonzero > 0
+
+
+def test_make_vec_refuses_another_autoreset_mode_naming_the_sync_vector_env(files: dict[str, Path]) -> None:
+    # gymnasium.make_vec refuses vector_kwargs for a vector entry point, so the mode comes as a keyword: it
+    # failed with "ScenarioVectorEnv.__init__() got an unexpected keyword argument 'autoreset_mode'"
+    from gymnasium.vector import AutoresetMode
+
+    for mode in (AutoresetMode.SAME_STEP, "Disabled"):
+        for extra in ({}, {"render_mode": "ansi"}):  # the native batch, and the SyncVectorEnv of frames
+            with pytest.raises(ValueError, match=r"NEXT_STEP.*vectorization_mode='sync', vector_kwargs="):
+                gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["goal_ahead"], autoreset_mode=mode,
+                                   **extra)
+    same = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["goal_ahead"],
+                              autoreset_mode=AutoresetMode.NEXT_STEP)
+    assert isinstance(same, ScenarioVectorEnv)
+    sync = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["goal_ahead"], vectorization_mode="sync",
+                              vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP})
+    assert sync.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP  # what the message says to do works

@@ -326,10 +326,19 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
 
     ``max_episode_steps`` (which ``gymnasium.make_vec`` hands to a vector entry point) is refused,
     naming the ``horizon`` that gives episodes of that many steps: a step limit outside the
-    episodes would cut them where their ``at end`` clauses cannot apply."""
+    episodes would cut them where their ``at end`` clauses cannot apply. ``autoreset_mode`` may be
+    ``NEXT_STEP`` only, what both environments do (another mode is refused, naming the
+    SyncVectorEnv of ScenarioEnvs that takes it)."""
     steps = kwargs.pop("max_episode_steps", None)
     if steps is not None:
         raise RacValueError(_step_limit_refused(steps, kwargs.get("model")))
+    mode = kwargs.pop("autoreset_mode", AutoresetMode.NEXT_STEP)
+    if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.NEXT_STEP.value):
+        # ScenarioSyncVectorEnv's masks assume NEXT_STEP: a restarted episode's row allows every action
+        raise RacValueError(f"rac/Scenario-v0's vector environment restarts an ended episode in the next step "
+                            f"(AutoresetMode.NEXT_STEP), not {mode!r}; for another mode make gymnasium's own "
+                            "SyncVectorEnv of ScenarioEnvs: gymnasium.make_vec(..., vectorization_mode='sync', "
+                            "vector_kwargs={'autoreset_mode': ...}), masks through envs.call('action_masks')")
     if kwargs.get("scenarios") is None and kwargs.get("render_mode") is None:
         kwargs.pop("scenarios", None)
         return ScenarioVectorEnv(num_envs=num_envs, **kwargs)
