@@ -205,3 +205,48 @@ def test_steps_whose_action_the_mask_did_not_allow_are_said(tmp_path: Path) -> N
     recorded = ignoring.record()
     assert recorded["rac/shield/outside_mask"] > 0  # at least the start, where only braking is safe
     assert recorded["rac/shield/outside_mask"] <= 1.0
+
+
+def test_the_callback_logs_every_step_since_the_last_dump_of_an_off_policy_algorithm(tmp_path: Path) -> None:
+    """DQN collects rollouts of ``train_freq`` steps and writes its log at an episode's end, within a
+    rollout: recording at the rollout's end, each table held the last few steps (4 collisions of 10)."""
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    import gymnasium
+    import numpy as np
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.logger import configure
+
+    from rac.learning.sb3 import RacCallback
+
+    class Crashing(gymnasium.Env):  # type: ignore[type-arg]
+        """Every step is a collision (highway-env's info["crashed"]); episodes of 10 steps."""
+
+        observation_space = gymnasium.spaces.Box(0.0, 1.0, shape=(1,))
+        action_space = gymnasium.spaces.Discrete(2)
+
+        def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+            super().reset(seed=seed)
+            self.t = 0
+            return np.zeros(1, dtype=np.float32), {}
+
+        def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict]:
+            self.t += 1
+            return np.zeros(1, dtype=np.float32), 0.0, False, self.t >= 10, {"crashed": True}
+
+    model = DQN("MlpPolicy", Crashing(), learning_starts=0, train_freq=4, seed=0, device="cpu")
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    model.learn(40, callback=RacCallback(), log_interval=1)  # a dump at every episode's end
+    with open(tmp_path / "progress.csv", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [float(row["rac/collisions"]) for row in rows] == [10.0] * 4
+
+    # PPO's table follows each rollout, whatever an evaluation writes within it (in the same step here)
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import EvalCallback
+
+    model = PPO("MlpPolicy", Crashing(), n_steps=10, batch_size=10, n_epochs=1, seed=0, device="cpu")
+    model.set_logger(configure(str(tmp_path / "ppo"), ["csv"]))
+    model.learn(30, callback=[RacCallback(), EvalCallback(Crashing(), eval_freq=10, n_eval_episodes=1)])
+    with open(tmp_path / "ppo" / "progress.csv", encoding="utf-8") as handle:
+        rows = [row for row in csv.DictReader(handle) if row["time/iterations"]]
+    assert [float(row["rac/collisions"]) for row in rows] == [10.0] * 3

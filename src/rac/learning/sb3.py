@@ -8,6 +8,7 @@ from __future__ import annotations
 
 try:
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
@@ -18,8 +19,11 @@ __all__ = ["RacCallback"]
 
 class RacCallback(BaseCallback):
     """Records :class:`~rac.learning.training_log.TrainingLog`'s values with ``self.logger.record``
-    at the end of every rollout (``rac/reward/<name>``, ``rac/location/<name>``, ``rac/shield/...``,
-    ``rac/collisions``). Needs stable-baselines3 (an optional dependency: ``pip install 'rac[rl]'``).
+    (``rac/reward/<name>``, ``rac/location/<name>``, ``rac/shield/...``, ``rac/collisions``) over
+    the steps since SB3's logger last wrote its table: at every rollout's end for an on-policy
+    algorithm (PPO, A2C, MaskablePPO: its table follows each rollout), at every step for an
+    off-policy one (DQN, SAC, ...: its table is written at an episode's end, within a rollout of a
+    few steps). Needs stable-baselines3 (an optional dependency: ``pip install 'rac[rl]'``).
 
     Example::
 
@@ -30,11 +34,27 @@ class RacCallback(BaseCallback):
     def __init__(self, verbose: int = 0) -> None:
         super().__init__(verbose)
         self.log = TrainingLog()
+        self._per_step = False  # an off-policy algorithm: record the running values at every step
+        self._logged: dict[str, float] = {}  # what the logger was last given (per step)
+
+    def _init_callback(self) -> None:
+        self._per_step = isinstance(self.model, OffPolicyAlgorithm)
 
     def _on_step(self) -> bool:
+        # Recorded at the rollout's end only, an off-policy algorithm's table showed the last few steps
+        # (the collisions before them lost): its running values are recorded at every step, and a new
+        # window starts once the logger has written them out (a dump clears its values).
+        dumped = any(self.logger.name_to_value.get(key) != value for key, value in self._logged.items())
+        if dumped:
+            self.log.record()  # written out: what follows is the next window's
         self.log.add(self.locals.get("infos", ()))
+        if self._per_step:
+            self._logged = self.log.values()
+            for key, value in self._logged.items():
+                self.logger.record(key, value)
         return True
 
     def _on_rollout_end(self) -> None:
-        for key, value in self.log.record().items():
-            self.logger.record(key, value)
+        if not self._per_step:  # the table follows the rollout (another callback's, e.g. an evaluation's, comes within)
+            for key, value in self.log.record().items():
+                self.logger.record(key, value)

@@ -91,6 +91,13 @@ class TrainingLog:
 
     def record(self) -> dict[str, float]:
         """The values to log since the last call (then cleared); ``{}`` when no step was added."""
+        out = self.values()
+        self._recorded.update(out)
+        self._clear()
+        return out
+
+    def values(self) -> dict[str, float]:
+        """What :meth:`record` would return now, without clearing (a running view of the window)."""
         if not self.steps:
             return {}
         out: dict[str, float] = {}
@@ -106,7 +113,4 @@ class TrainingLog:
         out["rac/collisions"] = float(self._collisions)
         if self._disallowed:  # once recorded, a later call without any records 0 (below)
             out["rac/disallowed"] = float(self._disallowed)
-        out = {**dict.fromkeys(self._recorded, 0.0), **out}  # nothing of a known key since: 0, not a blank
-        self._recorded.update(out)
-        self._clear()
-        return out
+        return {**dict.fromkeys(self._recorded, 0.0), **out}  # nothing of a known key since: 0, not a blank
