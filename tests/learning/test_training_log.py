@@ -144,21 +144,62 @@ def test_the_vector_wrapper_infos_are_logged() -> None:
     env = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30)] * 3), follow(),
                                        vector_inputs, clip=True)
     env.reset(seed=0)
-    log, sums, locations = TrainingLog(), {"sa": 0.0, "pr": 0.0}, {}
+    log, sums, locations, steps = TrainingLog(), {"sa": 0.0, "pr": 0.0}, {}, 0
     for t in range(40):
         *_, infos = env.step(np.array([t % 3, 1, 2]))
         log.add(infos)
+        stepped = infos["rac"]["_reward_steps"]  # the others are in their reset step: no sample
+        steps += int(stepped.sum())
         for name in sums:
             sums[name] += float(infos["rac"]["reward_steps"][name].sum())
-        for location in infos["rac"]["location"]:
+        for location in infos["rac"]["location"][stepped]:
             locations[location] = locations.get(location, 0) + 1
     first = split_vector_info(infos)[0]["rac"]
     assert set(first["reward_steps"]) == {"sa", "pr"} and isinstance(first["location"], str)
+    assert 100 < steps < 120  # some episodes ended, and the next step restarted them
     recorded = log.record()
     for name, total in sums.items():
-        assert recorded[f"rac/reward/{name}"] == pytest.approx(total / 120)
+        assert recorded[f"rac/reward/{name}"] == pytest.approx(total / steps)
     for location, count in locations.items():
-        assert recorded[f"rac/location/{location}"] == pytest.approx(count / 120)
+        assert recorded[f"rac/location/{location}"] == pytest.approx(count / steps)
+
+
+def test_reset_steps_are_no_steps_whatever_the_vector_form() -> None:
+    """The same 24 steps (two episodes of 5 twice over, plus the first 2) through SB3's DummyVecEnv, gymnasium's
+    SyncVectorEnv of wrappers and the vector wrapper log the same: the vector forms counted their reset steps
+    (a reset info, no sample taken) as steps in the initial location with no reward, diluting every mean."""
+    import numpy as np
+    from gymnasium.vector import SyncVectorEnv
+    from highway_like import vector_inputs
+
+    from rac.learning.wrappers import RewardAutomatonVectorWrapper
+
+    def single() -> RewardAutomatonWrapper:
+        return RewardAutomatonWrapper(TimeLimit(HighwayLike(), 5), follow(), inputs, clip=True)
+
+    actions = [2, 1, 0, 1, 2, 2, 0]
+    logs = {}
+    stable_baselines3 = pytest.importorskip("stable_baselines3.common.vec_env")
+    dummy = stable_baselines3.DummyVecEnv([single] * 2)
+    dummy.seed(0)
+    dummy.reset()
+    logs["dummy"] = TrainingLog()
+    for t in range(12):
+        logs["dummy"].add(dummy.step(np.array([actions[t % 7]] * 2))[3])
+    with pytest.warns(UserWarning, match="episode lasts"):
+        vector = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 5)] * 2), follow(),
+                                              vector_inputs, clip=True)
+    for name, env in (("sync", SyncVectorEnv([single] * 2)), ("vector wrapper", vector)):
+        env.reset(seed=0)
+        logs[name] = TrainingLog()
+        t = 0
+        for step in range(14):  # two more: the steps that restart the episodes
+            restarting = step in (5, 11)
+            logs[name].add(env.step(np.array([0 if restarting else actions[t % 7]] * 2))[4])
+            t += not restarting
+    recorded = {name: log.record() for name, log in logs.items()}
+    assert recorded["sync"] == pytest.approx(recorded["dummy"])
+    assert recorded["vector wrapper"] == pytest.approx(recorded["dummy"])
 
 
 def test_same_step_autoreset_logs_the_step_that_ended_the_episode() -> None:

@@ -10,7 +10,8 @@ and the info of the step that ended it under ``final_info``: that one is the ste
 
 - ``rac/reward/<name>``: each reward's mean change per step (``info["rac"]["reward_steps"]`` of the
   wrapper, ``info["reward_steps"]`` of ScenarioEnv);
-- ``rac/location/<name>``: the share of steps that ended in each automaton location;
+- ``rac/location/<name>``: the share of steps that ended in each automaton location (both over the
+  steps that report ``reward_steps``: a vector env's reset steps, whose info is a reset info, do not);
 - ``rac/shield/<guarantee>``: the share of steps per shield guarantee (``info["shield"]`` of
   :class:`~rac.learning.scenario_env.ScenarioEnv`: ``"exhaustive"``, ``"lookahead d"``, ``"none"``),
   and ``rac/shield/no_safe_action``, the share of steps with ``info["no_safe_action"]``; both over
@@ -73,7 +74,9 @@ class TrainingLog:
             self.steps += 1
             # the wrapper's keys are under info["rac"]; ScenarioEnv's (the same names) in info itself
             rac = info.get("rac", info if "reward_steps" in info else None)
-            if isinstance(rac, Mapping):
+            # a step's info has reward_steps; a reset info (a vector env's reset step) has none: it is
+            # no sample of the automaton, and counted it would dilute the means and the initial location
+            if isinstance(rac, Mapping) and "reward_steps" in rac:
                 self._rac_steps += 1
                 for name, change in rac.get("reward_steps", {}).items():
                     self._reward[name] = self._reward.get(name, 0.0) + float(change)

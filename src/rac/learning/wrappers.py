@@ -501,8 +501,9 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
 
     ``infos["rac"]`` holds, per sub-environment (vector-info layout, ``infos["_rac"]`` the mask):
     ``location``, ``objective``, ``scale``, ``env_reward``, and dicts ``rewards``,
-    ``reward_steps`` and ``clipped`` of arrays. The ``at end`` clauses apply where a
-    sub-environment terminated or was truncated.
+    ``reward_steps`` and ``clipped`` of arrays; ``infos["rac"]["_reward_steps"]`` masks off the
+    sub-environments in their reset step (no sample taken: as a reset info, they have no
+    ``reward_steps``). The ``at end`` clauses apply where a sub-environment terminated or was truncated.
 
     With ``episode ends when COND``: where a step's inputs satisfy COND, that sub-environment is
     reported ``terminated`` (its automaton applied the ``at end`` clauses in the step). When the
@@ -630,5 +631,5 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         now = self.automaton.rewards
         steps = {k: np.where(active, v - previous[k], 0.0) for k, v in now.items()}
         infos = self._info(infos, {"env_reward": np.asarray(env_rewards, dtype=np.float64), "clipped": clipped,
-                                   "reward_steps": steps})
+                                   "reward_steps": steps, "_reward_steps": active.copy()})
         return obs, rewards / self.scale, terminated, truncated, infos
