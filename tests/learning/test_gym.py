@@ -195,3 +195,21 @@ def test_the_vector_wrapper_is_one_import_away_too() -> None:
 
     assert gym.RewardAutomatonVectorWrapper is RewardAutomatonVectorWrapper
     assert "RewardAutomatonVectorWrapper" in gym.__all__
+
+
+def test_the_declared_gymnasium_has_what_rac_learning_imports() -> None:
+    """rac.learning imports gymnasium.vector.AutoresetMode and resets sub-environments with
+    ``options={"reset_mask": ...}``, both new in gymnasium 1.1: the extras allowed gymnasium 1.0, with
+    which ``import rac.learning.gym`` fails."""
+    import re
+    import tomllib
+
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    extras = tomllib.loads(pyproject.read_text(encoding="utf-8"))["project"]["optional-dependencies"]
+    floors = [requirement for requirements in extras.values() for requirement in requirements
+              if re.match(r"gymnasium\b", requirement)]
+    assert floors
+    for requirement in floors:
+        found = re.search(r">=\s*(\d+)\.(\d+)", requirement)
+        assert found and (int(found.group(1)), int(found.group(2))) >= (1, 1), requirement
+    assert hasattr(gymnasium.vector, "AutoresetMode")  # what the floor provides, here installed
