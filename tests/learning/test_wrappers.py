@@ -127,6 +127,25 @@ def test_a_refused_input_names_clip_and_the_state_things_are_in() -> None:
         vector.step(np.ones(2, dtype=int))
 
 
+def test_a_nan_under_clip_says_the_state_things_are_in_too() -> None:
+    # clip=True refuses a NaN before the automaton sees it: that refusal was a bare "input 'headway' is NaN,
+    # which is never clipped", without what every other refusal says (the environment stepped, reset next)
+    env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), lambda o, i: {"headway": float("nan"),
+                                                                                  "collide": False}, clip=True)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"'headway' is NaN, which is never clipped; the environment has taken this "
+                                         r"step and the automaton has not: reset"):
+        env.step(1)
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30)] * 2), follow(),
+                                          lambda o, i: {**vector_inputs(o, i), "headway": np.array([1.0, np.nan])},
+                                          clip=True)
+    vector.reset(seed=0)
+    with pytest.raises(ValueError, match=r"'headway'\[1\] is NaN, which is never clipped; the environments have "
+                                         r"taken this step and the automata have not"):
+        vector.step(np.ones(2, dtype=int))
+    assert vector.clipped_total == {} and env.clipped_total == {}  # nothing counted for a refused step
+
+
 def test_proven_scale_keeps_every_reward_within_one_and_reports_the_steps() -> None:
     bound = sample_change_bound(follow())
     env, raw = wrapped(scale="proven"), wrapped()

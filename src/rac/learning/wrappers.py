@@ -457,12 +457,12 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
             raise RacValueError(f"inputs(obs, info) raised {type(exc).__name__}: {exc}; the environment has taken "
                                 "this step and the automaton has not: reset before the next step") from exc
         clipped: dict[str, int] = {}
-        if self._specs is not None:
-            values, clipped = clip_inputs(self._specs, values)
-            for name, count in clipped.items():
-                self.clipped_total[name] = self.clipped_total.get(name, 0) + count
         before = dict(self.automaton.rewards)
         try:
+            if self._specs is not None:  # a NaN is refused here, not clipped: said as any refusal
+                values, clipped = clip_inputs(self._specs, values)
+                for name, count in clipped.items():
+                    self.clipped_total[name] = self.clipped_total.get(name, 0) + count
             reward = self.automaton.step(values)
         except ValueError as exc:  # the inputs refused (the automaton is unchanged): say where things stand
             raise _refused(exc, self._program, self._specs is not None, values, None,
@@ -607,11 +607,11 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
             except Exception as exc:
                 raise RacValueError(f"inputs(obs, infos) raised {type(exc).__name__}: {exc}; the environments have "
                                     "taken this step and the automata have not: reset before the next step") from exc
-            if self._specs is not None:  # per sub-environment, counted by the clip rule itself
-                values, clipped = clip_rows(self._specs, values, self.num_envs, active)
-                for name, per_env in clipped.items():
-                    self.clipped_total[name] = self.clipped_total.get(name, 0) + int(per_env.sum())
             try:
+                if self._specs is not None:  # per sub-environment, counted by the clip rule itself; NaN refused
+                    values, clipped = clip_rows(self._specs, values, self.num_envs, active)
+                    for name, per_env in clipped.items():
+                        self.clipped_total[name] = self.clipped_total.get(name, 0) + int(per_env.sum())
                 rewards = self.automaton.step_batch(values, mask=active)
             except ValueError as exc:  # the inputs refused (the automata are unchanged): say where things stand
                 raise _refused(exc, self._program, self._specs is not None, values, active,
