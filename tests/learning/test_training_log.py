@@ -248,9 +248,10 @@ def test_steps_whose_action_the_mask_did_not_allow_are_said(tmp_path: Path) -> N
     assert recorded["rac/shield/outside_mask"] <= 1.0
 
 
-def test_the_callback_logs_every_step_since_the_last_dump_of_an_off_policy_algorithm(tmp_path: Path) -> None:
+def test_the_callback_logs_every_step_since_the_logger_last_wrote(tmp_path: Path) -> None:
     """DQN collects rollouts of ``train_freq`` steps and writes its log at an episode's end, within a
-    rollout: recording at the rollout's end, each table held the last few steps (4 collisions of 10)."""
+    rollout; A2C writes it every ``log_interval`` rollouts: recording each rollout alone, each table held
+    the last few steps (4 collisions of 10; 5 of 15)."""
     pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
     import gymnasium
     import numpy as np
@@ -291,3 +292,13 @@ def test_the_callback_logs_every_step_since_the_last_dump_of_an_off_policy_algor
     with open(tmp_path / "ppo" / "progress.csv", encoding="utf-8") as handle:
         rows = [row for row in csv.DictReader(handle) if row["time/iterations"]]
     assert [float(row["rac/collisions"]) for row in rows] == [10.0] * 3
+
+    # A2C writes its table every log_interval rollouts (100 by default): each table holds them all
+    from stable_baselines3 import A2C
+
+    model = A2C("MlpPolicy", Crashing(), n_steps=5, seed=0, device="cpu")
+    model.set_logger(configure(str(tmp_path / "a2c"), ["csv"]))
+    model.learn(30, callback=RacCallback(), log_interval=3)
+    with open(tmp_path / "a2c" / "progress.csv", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [float(row["rac/collisions"]) for row in rows] == [15.0] * 2
