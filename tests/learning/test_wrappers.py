@@ -473,6 +473,28 @@ def test_an_episode_cut_outside_the_wrapper_is_said_at_the_next_reset() -> None:
         inside.reset(seed=4)
 
 
+def test_training_runs_cut_between_complete_episodes_are_no_limit() -> None:
+    """stable-baselines3's ``learn()`` resets its environment when it starts: called again and again
+    (``for chunk in ...: model.learn(16)``), it cuts an episode at the same step of every chunk when the
+    episodes have one length, with complete episodes between the cuts. That warned as a limit outside
+    the wrapper, which cuts every episode; it is no limit, and the at end clauses of the complete ones applied."""
+    env = RewardAutomatonWrapper(TimeLimit(Gap(), 6), follow(), inputs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        for chunk in range(4):  # 16 steps a chunk: two complete episodes of 6, then 4 steps of the third
+            env.reset(seed=chunk)
+            for _ in range(16):
+                *_, terminated, truncated, _ = env.step(np.array([6.0]))
+                if terminated or truncated:
+                    env.reset()
+    outside = TimeLimit(RewardAutomatonWrapper(Gap(), follow(), inputs), 4)  # a limit outside still warns
+    with pytest.warns(UserWarning, match=r"reset after 4 step\(s\)"):
+        for seed in range(3):
+            outside.reset(seed=seed)
+            for _ in range(4):
+                outside.step(np.array([6.0]))
+
+
 def test_the_past_horizon_advice_puts_the_limit_inside() -> None:
     env = RewardAutomatonWrapper(Gap(), follow(), inputs)
     env.reset(seed=0)

@@ -286,22 +286,27 @@ class CutEpisodes:
     truncated as far as rac saw, as a ``TimeLimit`` outside rac's wrapper does. Their ``at end``
     clauses were never applied, and their returns lack them. A time limit cuts every episode after
     the same number of steps, so the warning waits for a second cut episode of the same length,
-    three steps or more: a single reset in mid-episode (the end of a training run) is no limit, nor
-    are gymnasium's ``check_env`` probes (four steps in all, so no two cut episodes of three).
-    ``fix`` says how to end the episodes where rac sees it."""
+    three steps or more, with no episode between the two that ended as rac saw it: a single reset in
+    mid-episode (the end of a training run) is no limit, nor are stable-baselines3's ``learn()``
+    called again and again (each resets the episode running, between complete ones) and gymnasium's
+    ``check_env`` probes (four steps in all, so no two cut episodes of three). ``fix`` says how to
+    end the episodes where rac sees it."""
 
     def __init__(self, fix: str) -> None:
         self.fix = fix
         self.warned = False
         self.steps = 0  # steps of the episode now running; 0 once it has ended
-        self.cut: set[int] = set()  # the lengths of the episodes cut so far
+        self.cut: set[int] = set()  # the lengths of the episodes cut since the last one that ended
 
     def stepped(self, done: bool) -> None:
         """One step taken; ``done``: the episode ended there, as rac saw it."""
         self.steps = 0 if done else self.steps + 1
+        if done:  # an episode rac saw end: the cuts before it were no limit's (a limit cuts them all)
+            self.cut.clear()
 
     def reset(self) -> None:
-        """An episode starts: warn when the last one was cut after as many steps as an earlier one."""
+        """An episode starts: warn when the last one was cut after as many steps as an earlier one
+        since the last episode that ended."""
         if self.steps > 2 and not self.warned:
             if self.steps in self.cut:
                 self.warned = True
