@@ -302,3 +302,18 @@ def test_the_callback_logs_every_step_since_the_logger_last_wrote(tmp_path: Path
     with open(tmp_path / "a2c" / "progress.csv", encoding="utf-8") as handle:
         rows = list(csv.DictReader(handle))
     assert [float(row["rac/collisions"]) for row in rows] == [15.0] * 2
+
+
+def test_a_single_environments_info_is_one_step() -> None:
+    """``log.add(info)`` in a loop over one environment: the dict was read as a vector layout without
+    masks, i.e. of no environment, and the log stayed empty (``record()`` gave ``{}``)."""
+    env = RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)
+    env.reset(seed=0)
+    single, listed = TrainingLog(), TrainingLog()
+    for _ in range(5):
+        info = env.step(1)[4]
+        single.add(info)
+        listed.add([info])
+    assert single.steps == 5 and single.record() == listed.record() != {}
+    single.add({})  # an empty vector info is still no step
+    assert single.steps == 0

@@ -3,7 +3,8 @@
 :class:`TrainingLog` is fed the ``infos`` of each vector step — a list of per-env info dicts, as
 stable-baselines3 hands them to callbacks, or one dict in gymnasium's vector layout, as
 :class:`~rac.learning.vector.ScenarioVectorEnv` and gymnasium's vector envs return it
-(:func:`rac.learning.vector_info.split_vector_info`) — and aggregates, until :meth:`TrainingLog.record`.
+(:func:`rac.learning.vector_info.split_vector_info`), or a single environment's info dict — and
+aggregates, until :meth:`TrainingLog.record`.
 Under gymnasium's same-step autoreset a sub-environment whose episode ended reports its reset info,
 and the info of the step that ended it under ``final_info``: that one is the step's, and is read.
 
@@ -62,9 +63,13 @@ class TrainingLog:
 
     def add(self, infos: Iterable[Mapping[str, Any]] | Mapping[str, Any]) -> None:
         """One vector step: the info dict of every sub-environment, or one dict in gymnasium's vector
-        layout (:func:`rac.learning.vector_info.split_vector_info`)."""
+        layout (:func:`rac.learning.vector_info.split_vector_info`); or one step of a single
+        environment, its info dict."""
         if isinstance(infos, Mapping):
-            infos = split_vector_info(infos)
+            # gymnasium's vector layout carries a mask `_key` beside a key; a single environment's info
+            # has none (read as a vector layout, it was no environment's: nothing was logged)
+            vector = any(key.startswith("_") and key[1:] in infos for key in infos)
+            infos = split_vector_info(infos) if vector or not infos else [infos]
         for info in infos:
             # gymnasium's SAME_STEP autoreset: the step's own info (its crash, its location, its reward
             # changes) is under final_info, beside the reset info of the next episode
