@@ -167,6 +167,19 @@ def test_horizon_in_seconds(tiny: CompileResult) -> None:
         ScenarioEnv(tiny, horizon=4)
 
 
+def test_a_horizon_of_numpy_numbers_is_taken_and_no_number_refused(tiny: CompileResult) -> None:
+    # a horizon from a numpy array (a sweep's settings): np.float32(1.5) raised "argument should be a string or
+    # a Rational instance"; True was taken as 1 s, and NaN said "Invalid literal for Fraction: 'nan'"
+    for horizon in (np.float32(1.5), np.float64(1.5), np.int64(3) / 2):
+        assert ScenarioEnv(tiny, horizon=horizon, lookahead=None).episodes.horizon_samples == 3
+    assert ScenarioEnv(tiny, horizon=np.float32(0.5), lookahead=None).episodes.horizon_samples == 1  # not 0.50000001
+    with pytest.raises(TypeError, match="horizon must be a number of seconds, not True"):
+        ScenarioEnv(tiny, horizon=True)
+    for bad in (float("nan"), np.float32("inf")):
+        with pytest.raises(ValueError, match="horizon must be a finite number of seconds"):
+            ScenarioEnv(tiny, horizon=bad)
+
+
 # ---------------------------------------------------------------- shield masks
 def test_shielded_random_walks_never_collide(tiny: CompileResult, table: ShieldTable) -> None:
     env = ScenarioEnv(tiny, shield=table)

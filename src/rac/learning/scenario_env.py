@@ -246,8 +246,13 @@ class ScenarioEnv(gymnasium.Env):
         assert automaton is not None
         samples = None
         if horizon is not None:
-            # a float through its shortest repr: 0.3 is 3/10, as written in a .ra file
-            seconds = Fraction(str(horizon)) if isinstance(horizon, float) else Fraction(horizon)
+            if isinstance(horizon, (bool, np.bool_)) or not isinstance(horizon, (numbers.Real, str)):
+                raise TypeError(f"horizon must be a number of seconds, not {horizon!r}")
+            try:
+                # a float (numpy's too) through its shortest repr: 0.3 is 3/10, as written in a .ra file
+                seconds = Fraction(str(horizon)) if isinstance(horizon, (float, np.floating)) else Fraction(horizon)
+            except ValueError:  # NaN, infinity, text that is no number
+                raise RacValueError(f"horizon must be a finite number of seconds, not {horizon!r}") from None
             try:  # the command line's rule (one owner), beyond int32 samples too
                 samples = samples_of(seconds, Fraction(automaton.period), what="horizon")
             except ValueError as exc:
