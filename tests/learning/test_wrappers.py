@@ -165,7 +165,9 @@ def test_proven_scale_keeps_every_reward_within_one_and_reports_the_steps() -> N
             assert sum(c * steps[r] for r, c in (("sa", 10), ("pr", 1))) == pytest.approx(unscaled)
             done = terminated or truncated
     assert wrapped(scale=20.0).scale == 20.0
-    for bad in (0, -1.0, "big", math.inf):
+    # a factor from a numpy array: np.float32 and np.int64 were refused as "not a positive number"
+    assert wrapped(scale=np.float32(20.0)).scale == wrapped(scale=np.int64(20)).scale == 20.0
+    for bad in (0, -1.0, "big", math.inf, True, np.float32("nan")):
         with pytest.raises(ValueError, match="scale"):
             wrapped(scale=bad)
 

@@ -137,7 +137,8 @@ def scale_factor(automaton: ir.Automaton | None, scale: Scale, samples: int = 1)
         if bound == 0:
             raise RacValueError("scale='proven': the objective never changes, so there is nothing to scale")
         return float(bound)
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) or scale <= 0:
+    # numpy's numbers too (np.float32(20.0), np.int64(20): a factor read from an array), not a bool
+    if not _positive_real(scale):
         raise ValueError(f"scale must be None, 'proven' or a positive number, not {scale!r}")
     return float(scale)
 
@@ -158,7 +159,7 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
     step = _seconds(dt)
     if step is None:
         own = getattr(unwrapped, "dt", None)
-        if _is_seconds(own):
+        if _positive_real(own):
             step = own
         elif isinstance(config.get("policy_frequency"), (int, float)) and config["policy_frequency"] > 0:
             step = 1.0 / config["policy_frequency"]
@@ -170,8 +171,8 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
     return step, min(ends, default=None)
 
 
-def _is_seconds(value: object) -> bool:
-    """Whether ``value`` is a time step: a positive finite real number (numpy's too), not a bool."""
+def _positive_real(value: object) -> bool:
+    """Whether ``value`` is a positive finite real number (numpy's too), not a bool: a time step, a scale."""
     return (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
             and math.isfinite(value) and float(value) > 0)
 
@@ -183,7 +184,7 @@ def _seconds(dt: object) -> float | None:
     tolerance of the timing check."""
     if dt is None:
         return None
-    if not _is_seconds(dt):
+    if not _positive_real(dt):
         raise RacValueError(f"dt must be the environment's seconds per step, a positive number, not {dt!r}")
     return dt  # type: ignore[return-value]
 
