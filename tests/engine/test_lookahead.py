@@ -208,9 +208,12 @@ def test_a_held_continuation_stops_at_the_deadline(tmp_path: Path, monkeypatch: 
 
 
 def test_settings_are_checked() -> None:
-    for bad in ({"depth": 0}, {"depth": 1.5}, {"seconds": -1.0}, {"nodes": -1}):
+    for bad in ({"depth": 0}, {"depth": 1.5}, {"seconds": -1.0}, {"nodes": -1}, {"nodes": 2.5}, {"depth": True}):
         with pytest.raises(ValueError):
             LookaheadSettings(**bad)  # type: ignore[arg-type]
+    # numpy's integers (a depth swept over np.arange): depth=np.int64(6) was refused as no whole number
+    settings = LookaheadSettings(depth=np.int64(6), nodes=np.int32(1000))  # type: ignore[arg-type]
+    assert settings == LookaheadSettings(depth=6, nodes=1000) and type(settings.depth) is type(settings.nodes) is int
 
 
 # ---------------------------------------------------------------- the exhaustive shield at its horizon

@@ -52,6 +52,7 @@ Example::
 
 from __future__ import annotations
 
+import numbers
 import time
 from dataclasses import dataclass
 
@@ -86,12 +87,21 @@ class LookaheadSettings:
     nodes: int | None = None
 
     def __post_init__(self) -> None:
-        if isinstance(self.depth, bool) or not isinstance(self.depth, int) or self.depth < 1:
+        # numpy's integers are whole numbers too (a depth or budget from a sweep's array): kept as int
+        if not _whole(self.depth) or self.depth < 1:
             raise ValueError(f"depth must be a whole number of decisions >= 1, not {self.depth!r}")
+        object.__setattr__(self, "depth", int(self.depth))
         if self.seconds is not None and not self.seconds >= 0:
             raise ValueError(f"seconds must be >= 0 or None, not {self.seconds!r}")
-        if self.nodes is not None and (isinstance(self.nodes, bool) or self.nodes < 0):
-            raise ValueError(f"nodes must be >= 0 or None, not {self.nodes!r}")
+        if self.nodes is not None:
+            if not _whole(self.nodes) or self.nodes < 0:
+                raise ValueError(f"nodes must be a whole number >= 0 or None, not {self.nodes!r}")
+            object.__setattr__(self, "nodes", int(self.nodes))
+
+
+def _whole(value: object) -> bool:
+    """Whether ``value`` is an integer (numpy's too), not a bool."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
 
 
 @dataclass(frozen=True)
