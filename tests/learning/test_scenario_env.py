@@ -423,6 +423,25 @@ def test_the_model_digest_ignores_layout_and_sees_allow_when(tiny: CompileResult
     assert digests[0] == digests[1] != digests[2] != tiny.model_data.digest  # type: ignore[union-attr]
 
 
+def test_a_wrapper_around_the_environment_sees_its_time_step(tiny: CompileResult) -> None:
+    """RewardAutomatonWrapper around ScenarioEnv takes one sample per step, a decision period: with an
+    automaton sampling every sense period it silently took one sample where ScenarioEnv takes two (the
+    wrapper's objective half of the environment's); ScenarioEnv's ``dt`` lets the wrapper say so."""
+    from rac.learning.wrappers import RewardAutomatonWrapper
+
+    env = ScenarioEnv(tiny, lookahead=None)
+    assert env.dt == 1.0 == float(env.episodes.decide_every * tiny.automaton.period)  # type: ignore[union-attr]
+    with pytest.warns(UserWarning, match=r"time step is 1 s but the automaton samples every 0.5 s"):
+        RewardAutomatonWrapper(env, tiny.automaton, lambda obs, info: info["inputs"])  # type: ignore[arg-type]
+    from rac.learning.vector import ScenarioVectorEnv
+    from rac.learning.wrappers import RewardAutomatonVectorWrapper
+
+    vector = ScenarioVectorEnv(tiny, num_envs=2, lookahead=None)
+    assert vector.dt == 1.0 and vector.get_attr("dt") == (1.0, 1.0)
+    with pytest.warns(UserWarning, match=r"time step is 1 s but the automaton samples every 0.5 s"):
+        RewardAutomatonVectorWrapper(vector, tiny.automaton, lambda obs, infos: infos["inputs"])  # type: ignore[arg-type]
+
+
 # ---------------------------------------------------------------- errors
 def test_errors(tiny: CompileResult) -> None:
     with pytest.raises(CheckError):

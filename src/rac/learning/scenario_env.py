@@ -366,6 +366,13 @@ class ScenarioEnv(gymnasium.Env):
         return self._decision
 
     @property
+    def dt(self) -> float:
+        """Seconds per step: one decision period (gymnasium's convention, as MuJoCo's environments give
+        it), which :class:`rac.learning.wrappers.RewardAutomatonWrapper` compares with its automaton's
+        ``sample every`` (one wrapper step is one sample of it)."""
+        return float(self._period * self.episodes.decide_every)
+
+    @property
     def action_pairs(self) -> np.ndarray:
         """``(P, 2)`` int32: action ``a`` is the (jerk, turn) significand pair ``action_pairs[a]``."""
         return self.episodes.action_pairs

@@ -124,6 +124,11 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         """``(P, 2)`` int32: action ``a`` is the (jerk, turn) significand pair ``action_pairs[a]``."""
         return self.episodes.action_pairs
 
+    @property
+    def dt(self) -> float:
+        """Seconds per step of every episode (:attr:`ScenarioEnv.dt <rac.learning.scenario_env.ScenarioEnv.dt>`)."""
+        return self._single.dt
+
     def _require(self) -> None:
         if self.episodes.n != self.num_envs:
             raise RuntimeError("call reset() first")
@@ -153,7 +158,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
 
     #: What :meth:`get_attr` gives: the attributes every episode shares (the model's, the shield's).
     SHARED = ("action_pairs", "reward_scale", "shield", "step_shield", "observation_space", "action_space",
-              "metadata", "render_mode", "scenarios", "observation")
+              "metadata", "render_mode", "scenarios", "observation", "dt")
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
         """SyncVectorEnv's ``call``, for what a batch of episodes answers per episode: ``"action_masks"``
