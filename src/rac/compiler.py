@@ -15,7 +15,15 @@ from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.check.resolve import Resolver
-from rac.core.diagnostics import UNFINISHED, CheckError, Diagnostic, Fact, RacCheckWarning, check_warning_text, error
+from rac.core.diagnostics import (
+    CheckError,
+    Diagnostic,
+    Fact,
+    RacCheckWarning,
+    check_warning_text,
+    error,
+    leaves_undecided,
+)
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, read_source, text_source
@@ -58,8 +66,9 @@ class CompileResult(ProgramSource):
 
     @property
     def undecided(self) -> bool:
-        """A check stopped at its limit (W0405), neither proved nor refuted: no error, but not a verdict."""
-        return any(d.code == UNFINISHED for d in self.diagnostics)
+        """A check stopped at its limit (W0405), or a required check could not be made (W1008), neither
+        proved nor refuted: no error, but not a verdict."""
+        return any(leaves_undecided(d) for d in self.diagnostics)
 
     def raise_for_errors(self, *, warn: bool = False) -> ir.Automaton:
         """The automaton, or :class:`CheckError` carrying the diagnostics. With ``warn`` (for a file

@@ -153,6 +153,39 @@ def test_check_that_stopped_at_its_limit_is_undecided(capsys: pytest.CaptureFixt
     capsys.readouterr()
 
 
+REQUIRED_NOT_MADE = """automaton Req {
+    input g : bool
+    reward p
+    objective p
+    sample every 1
+    horizon 5
+    initial location L0 { p' == 1 }
+    edge L0 -> L0 when g do p = p / 2
+    goal when g
+    REQUIRE
+}
+"""
+
+
+@pytest.mark.parametrize("require", ["require stalling_never_pays", "collision when !g\n    require risk <= 0.5"])
+def test_a_required_check_that_cannot_be_made_is_undecided(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                           require: str) -> None:
+    """A `require`d incentive check left undone (W1008: an update that scales a reward) is neither proved
+    nor refuted: exit 4 and `undecided`, never 0 and `ok`; without the `require`, W1008 stays a warning."""
+    path = tmp_path / "req.ra"
+    path.write_text(REQUIRED_NOT_MADE.replace("REQUIRE", require), encoding="utf-8")
+    assert main(["check", str(path)]) == 4
+    out = capsys.readouterr().out
+    assert f"{path}: undecided, 1 warning (1 of them: a required check not made" in out
+    assert f"`require {'risk' if 'risk' in require else 'stalling_never_pays'}` is neither proved nor refuted" in out
+    assert main(["check", "--format", "json", str(path)]) == 4
+    [entry] = json.loads(capsys.readouterr().out)
+    assert entry["undecided"] is True and entry["ok"] is True
+    path.write_text(REQUIRED_NOT_MADE.replace("REQUIRE", ""), encoding="utf-8")
+    assert main(["check", str(path)]) == 0
+    assert f"{path}: ok, 1 warning" in capsys.readouterr().out
+
+
 def test_check_missing_file_exits_2(tmp_path: Path) -> None:
     missing = tmp_path / "nope.ra"
     done = run_rac("check", missing)

@@ -29,7 +29,7 @@ from rac.cli.common import (
     write_atomically,
 )
 from rac.compiler import CompileResult, compile_file
-from rac.core.diagnostics import UNFINISHED, Diagnostic, error, render_text, sort_key
+from rac.core.diagnostics import UNFINISHED, Diagnostic, error, leaves_undecided, render_text, sort_key
 from rac.lang.format import format_module
 from rac.lang.parser import ParseFailure, parse_source, read_source
 from rac.model.commonroad import ScenarioError
@@ -87,13 +87,17 @@ def _check_files(args: argparse.Namespace) -> int:
         if result.diagnostics:
             print(render_text(result.diagnostics, result.sources))
             print()
-        unfinished = 0 if errors else sum(d.code == UNFINISHED for d in result.diagnostics)
+        left_open = [] if errors else [d for d in result.diagnostics if leaves_undecided(d)]
+        unfinished = sum(d.code == UNFINISHED for d in left_open)
+        undone = len(left_open) - unfinished  # required checks that could not be made (W1008)
         # no error but a check that stopped at its limit: not every verdict either
-        summary = f"{errors} error{'s' * (errors != 1)}" if errors else "undecided" if unfinished else "ok"
+        summary = f"{errors} error{'s' * (errors != 1)}" if errors else "undecided" if left_open else "ok"
         if warnings:
             summary += f", {warnings} warning{'s' * (warnings != 1)}"
         if unfinished:
             summary += f" ({unfinished} of them: a check stopped at its limit, neither proved nor refuted)"
+        if undone:
+            summary += f" ({undone} of them: a required check not made, neither proved nor refuted)"
         print(f"{path}: {summary}")
         if not args.quiet:
             for fact in result.proved:

@@ -20,6 +20,9 @@ from rac.core.source import SourceFile, Span
 #: The code of a check that stopped at its limit, neither proved nor refuted: the file is undecided
 #: (``rac check`` exits 4 when no file has an error, as ``rac verify`` does for an undecided query).
 UNFINISHED = "W0405"
+#: The code of the incentive checks left undone (an update that is not a translation, or too long a
+#: horizon); its ``data["required"]`` lists those a ``require`` asks for, which it leaves undecided.
+INCENTIVES_UNDONE = "W1008"
 
 
 class Severity(str, Enum):
@@ -182,6 +185,14 @@ class CheckError(RacError):
 class RacCheckWarning(RacError, UserWarning):
     """The warnings of ``rac check`` (W codes) about a file loaded from Python (:func:`rac.load`, the
     wrappers given a path), where no report is printed; filter them by this category."""
+
+
+def leaves_undecided(diagnostic: Diagnostic) -> bool:
+    """Whether ``diagnostic`` leaves a verdict open: a check stopped at its limit (W0405), or a check a
+    ``require`` asks for that could not be made (W1008 naming it). Such a file without errors is
+    undecided: ``rac check`` exits 4, never 0."""
+    return diagnostic.code == UNFINISHED or (
+        diagnostic.code == INCENTIVES_UNDONE and bool(diagnostic.data.get("required")))
 
 
 def check_warning_text(diagnostics: Iterable[Diagnostic]) -> str | None:

@@ -49,7 +49,7 @@ from rac.check.analysis.affine import (
 )
 from rac.check.analysis.priority import describe_run, end_json, replay, run_json
 from rac.check.analysis.worst import AFTER_EDGE, AFTER_END, CONTINUE, MAX_SAMPLES, Step, Worst
-from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number, warning
+from rac.core.diagnostics import INCENTIVES_UNDONE, Diagnostic, Fact, Note, error, short_number, warning
 from rac.core.numbers import exact_decimal
 from rac.core.source import Span
 from rac.ir.inputs import InputSpace, guard_inputs
@@ -556,14 +556,20 @@ def _unchecked(automaton: ir.Automaton, stop: Unchecked) -> Diagnostic:
                                        ("goal_earlier_never_pays_less", automaton.goal),
                                        ("stalling_never_pays", automaton.goal)) if needs is not None]
     scaling = "scales" in stop.reason
+    # a check a `require` asks for is then neither proved nor refuted: the file is undecided
+    required = [r.check for r in automaton.requirements if r.check in checks]
+    notes = ["they sum a run's return from its samples, exactly, when every update is a translation "
+             f"(`r = r + c`) and the horizon has at most {MAX_SAMPLES:,} samples"]
+    if required:
+        notes.append(f"so {', '.join(f'`require {name}`' for name in required)} "
+                     f"{'is' if len(required) == 1 else 'are'} neither proved nor refuted: the file is undecided")
     return warning(
-        "W1008", f"the incentive checks ({', '.join(checks)}) not done: {stop.reason}",
+        INCENTIVES_UNDONE, f"the incentive checks ({', '.join(checks)}) not done: {stop.reason}",
         _declared(automaton, "goal", "episode_ends") if scaling else _declared(automaton, "horizon"),
-        notes=["they sum a run's return from its samples, exactly, when every update is a translation "
-               f"(`r = r + c`) and the horizon has at most {MAX_SAMPLES:,} samples"],
+        notes=notes,
         hints=["write the updates as translations to have them checked" if scaling
                else "shorten the horizon or sample less often to have them checked"],
-        data={"checks": checks, "reason": stop.reason})
+        data={"checks": checks, "reason": stop.reason, "required": required})
 
 
 def _num(value: Fraction) -> str:
