@@ -614,6 +614,19 @@ def test_a_violation_at_an_episode_ending_shows_the_end_clauses_of_the_sample_th
         render_text(result.diagnostics, result.sources)
 
 
+def test_a_counterexample_shows_the_inputs_that_keep_the_episode_going() -> None:
+    """An input only `episode ends when` reads decides whether the run goes on: the text names its value
+    at every sample (`stop=false`), or replaying the run as printed could end it at the first sample."""
+    ending = "    input stop : bool\n    episode ends when stop\n    horizon 30"
+    text = driving_text(penalty=90).replace("    horizon 30", ending)
+    result = compiled(text)
+    (diag,) = errors(result, "E0402")
+    (note,) = [n.message for n in diag.notes if n.message.startswith("counterexample")]
+    samples = [line for line in note.splitlines()[1:] if line.lstrip().startswith("sample")]
+    assert samples and all(line.endswith("stop=false") or "stop=false," in line for line in samples), note
+    assert all(entry["inputs"]["stop"] is False for entry in diag.data["run"])
+
+
 JOINT = """\
 automaton Joint {
     input collide : bool

@@ -401,10 +401,13 @@ def _inputs(space: InputSpace, step) -> dict[str, Fraction]:
 
 
 def _outcome_inputs(automaton: ir.Automaton, o: Outcome) -> set[str]:
-    """The inputs worth showing for a sample: those the location's guards read."""
+    """The inputs worth showing for a sample: those the location's guards read, and those `episode ends
+    when` reads (they decide whether the run goes on: a replay must give them the run's values)."""
     names: set[str] = set()
     for edge in automaton.edges[o.source]:
         names |= guard_inputs(edge.guard)
+    if automaton.ending is not None:
+        names |= guard_inputs(automaton.ending)
     return names
 
 
