@@ -627,6 +627,32 @@ def test_a_counterexample_shows_the_inputs_that_keep_the_episode_going() -> None
     assert all(entry["inputs"]["stop"] is False for entry in diag.data["run"])
 
 
+def test_a_violation_between_the_edge_and_the_end_of_an_episode_says_so() -> None:
+    """The state right after the edge of a sample that ends the episode is an instant P2 watches, but the
+    runtimes' `step` applies the `at end` updates in the same call: the note names the instant as before
+    them, or a replay that reads the rewards after `step` sees another value (here p = -3, q = 0)."""
+    text = """
+    automaton A {
+        input a : bool
+        reward p, q
+        priority p > q
+        objective 2 * p + 3 * q
+        sample every 1
+        horizon 2
+        initial location L0 { p' == 2; q' == 2 }
+        location L2 { p' == -1 }
+        edge L0 -> L2 when a do p -= 1, q -= 1
+        at end do p = 0, p -= 3, q = 0
+        episode ends when true
+    }
+    """
+    result = compiled(text)
+    (diag,) = errors(result, "E0402")
+    assert diag.data["value"] == "5" and diag.data["run"][-1]["instant"] == "after-edge"
+    assert any("in `L2` right after the sample's edge, before the `at end` updates of the episode's end): "
+               "p = 1, q = 1" in note.message for note in diag.notes)
+
+
 JOINT = """\
 automaton Joint {
     input collide : bool

@@ -365,7 +365,10 @@ def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
                 return
         r = apply(o.edge_map, r, x)
         name = names[o.target]
-        yield _When(time, f"in `{name}` right after the sample"), r
+        # a sample that ends the episode applies its `at end` updates next, in the same step of the runtimes
+        after = "right after the sample's edge, before the `at end` updates of the episode's end" \
+            if o.ends_episode else "right after the sample"
+        yield _When(time, f"in `{name}` {after}"), r
         if step.instant not in (CONTINUE, BEFORE_NEXT):
             break
         r = apply(accruals[o.target], r, x)
