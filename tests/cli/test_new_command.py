@@ -11,6 +11,7 @@ from rac.cli.common import EXIT_OK, EXIT_USAGE
 from rac.cli.main import main
 from rac.cli.new import camel_case, new_command, renamed, template_path
 from rac.compiler import compile_file
+from rac.lang.resources import stdlib_file
 
 STDLIB = Path(__file__).resolve().parents[2] / "stdlib"
 
@@ -107,8 +108,9 @@ def test_without_from_the_stdlib_file_even_beside_a_file_of_its_name(
                                          "    horizon 2\n    initial location A { r' == 1 }\n}\n", encoding="utf-8")
     assert main(["new", "foo"]) == EXIT_OK
     copied = (tmp_path / "foo.ra").read_text(encoding="utf-8")
-    assert copied == renamed((STDLIB / "driving.ra").read_text(encoding="utf-8"), "Foo")
-    assert f"(from {STDLIB / 'driving.ra'}, automaton Foo)" in capsys.readouterr().out
+    installed = stdlib_file("driving.ra")  # the checkout's stdlib/, or the installed package's copy
+    assert copied == renamed(installed.read_text(encoding="utf-8"), "Foo")
+    assert f"(from {installed}, automaton Foo)" in capsys.readouterr().out
     # --from names a file: the one in the working folder
     assert main(["new", "bar", "--from", "driving.ra"]) == EXIT_OK
     assert "automaton Bar {\n    reward r\n" in (tmp_path / "bar.ra").read_text(encoding="utf-8")
