@@ -287,30 +287,31 @@ class _Transitions:
     @staticmethod
     def keys(k: np.ndarray, ego: np.ndarray, crashed: np.ndarray, pairs: np.ndarray) -> list[bytes]:
         """Each row's key (``k``, the sensed state, ``crashed``, the pair), as bytes."""
-        table = np.ascontiguousarray(np.column_stack([k, ego, crashed, pairs]), dtype=np.int32)
-        width = table.shape[1] * 4
+        table = np.empty((k.shape[0], 11), dtype=np.int32)
+        table[:, 0] = k
+        table[:, 1:8] = ego
+        table[:, 8] = crashed
+        table[:, 9:] = pairs
         raw = table.tobytes()
-        return [raw[i:i + width] for i in range(0, len(raw), width)]
+        return [raw[i:i + 44] for i in range(0, len(raw), 44)]
 
     def find(self, keys: list[bytes]) -> np.ndarray:
         """Each key's slot in the store, -1 for a step not kept."""
         index = self.index
         return np.fromiter((index.get(key, -1) for key in keys), dtype=np.int64, count=len(keys))
 
-    def record(self, sampled: _ModelSample) -> np.ndarray:
-        """``sampled`` (with its goal known) as ``(m,)`` records."""
-        out = np.zeros(sampled.after.shape[0], dtype=self.dtype)
-        out["ego"] = sampled.after
-        out["collided"] = sampled.collided
-        out["offroad"] = sampled.offroad
-        out["reached"] = sampled.reached
+    def record(self, records: np.ndarray, rows: np.ndarray, j: int, sampled: _ModelSample) -> None:
+        """Write ``sampled`` (with its goal known) into ``records[rows, j]``, field by field (in place)."""
+        records["ego"][rows, j] = sampled.after
+        records["collided"][rows, j] = sampled.collided
+        records["offroad"][rows, j] = sampled.offroad
+        records["reached"][rows, j] = sampled.reached
         if self.has_reward:
-            out["reward"] = sampled.reward
+            records["reward"][rows, j] = sampled.reward
         for field, name in self.inputs:
-            out[field] = sampled.values[name]
+            records[field][rows, j] = sampled.values[name]
         for field, name in self.numeric:
-            out[field] = sampled.changes[name]
-        return out
+            records[field][rows, j] = sampled.changes[name]
 
     def recall(self, slots: np.ndarray, j: int) -> _ModelSample:
         """Sample ``j`` of the steps in ``slots``."""
@@ -788,7 +789,7 @@ class EpisodeBatch:
             parts: list[tuple[np.ndarray, _ModelSample]] = []
             if computing.size:
                 computed = self._model_sample(computing, pairs)
-                records[going, j] = memo.record(computed)
+                memo.record(records, going, j, computed)
                 taken[going] = j + 1
                 parts.append((computing, computed))
             recalling = ~self.done[hits]
