@@ -546,8 +546,9 @@ def _interrupted(report: Report) -> list[str]:
     stopped = report.get("interrupted")
     if not stopped:
         return []
-    records: list[RunRecord] = report["records"]
-    low, high = min(r.episodes for r in records), max(r.episodes for r in records)
+    records: list[RunRecord] = report["records"] or [r for variant in report.get("ablation", [])
+                                                      for r in variant["records"]]
+    low, high = min((r.episodes for r in records), default=0), max((r.episodes for r in records), default=0)
     learned = f"{low:,}" if low == high else f"{low:,} to {high:,}"
     if stopped == "evaluation":
         return [f"Interrupted (Ctrl-C) while evaluating: every run learned its {report['episodes']:,} episodes; "
