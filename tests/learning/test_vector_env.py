@@ -217,6 +217,22 @@ def test_both_vector_envs_offer_the_same_masks_and_calls(files: dict[str, Path],
         native.set_attr("reward_scale", [2.0, 2.0])
 
 
+def test_the_action_space_samples_within_the_masks_as_the_module_says(files: dict[str, Path],
+                                                                     table: ShieldTable) -> None:
+    """The module docstring's loop: ``action_space.sample(mask=tuple(masks.astype(np.int8)))`` draws
+    allowed actions only (gymnasium's MultiDiscrete refuses the bool masks themselves)."""
+    envs = ScenarioVectorEnv(files["avoidable_obstacle"], num_envs=3, shield=table)
+    envs.reset(seed=0)
+    envs.action_space.seed(2)
+    for _ in range(6):
+        masks = envs.action_masks()
+        with pytest.raises(AssertionError, match="int8"):
+            envs.action_space.sample(mask=tuple(masks))
+        actions = envs.action_space.sample(mask=tuple(masks.astype(np.int8)))
+        assert masks[np.arange(3), actions].all()
+        envs.step(actions)
+
+
 # ---------------------------------------------------------------- sb3-contrib
 @pytest.mark.parametrize("extra", [{}, {"render_mode": None}])  # make_vec_env asks for rgb_array first
 def test_maskable_ppo_on_make_vec_env(files: dict[str, Path], table: ShieldTable, extra: dict[str, Any]) -> None:

@@ -11,7 +11,9 @@ observation with reward 0, ``terminated`` and ``truncated`` False, and its reset
     envs = ScenarioVectorEnv("examples/left_turn/model.ra", num_envs=64)
     obs, info = envs.reset(seed=0)                  # (64, dim) float32
     masks = envs.action_masks()                     # (64, P) bool, never an all-False row
-    obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample(mask=...))
+    # gymnasium's MultiDiscrete.sample takes one int8 mask per episode (bool is refused)
+    actions = envs.action_space.sample(mask=tuple(masks.astype(np.int8)))
+    obs, reward, terminated, truncated, info = envs.step(actions)
 
 :func:`make_vector_env` is the registered id's vector entry point (``gymnasium.make_vec("rac/Scenario-v0",
 num_envs=N, model=...)``, :mod:`rac.gym`): this class, or a SyncVectorEnv of ScenarioEnvs where one
