@@ -317,6 +317,16 @@ def test_ctrl_c_stops_runs_together_after_the_step_with_what_they_learned(
     assert [result for result, _ in info.value.results] == [None, None]
     assert signal.getsignal(signal.SIGINT) is before
 
+    def ctrl_c_at_the_last_step() -> Steps[str]:
+        yield Reset(1)
+        yield np.zeros(1, dtype=np.int64)
+        signal.raise_signal(signal.SIGINT)
+        return "done"
+
+    with pytest.raises(Interrupted) as info:  # every job finished in that step: all results, and told so
+        run_together([Job(ctrl_c_at_the_last_step())], shared, interruptible=True)
+    assert [result for result, _ in info.value.results] == ["done"]
+
 
 def test_a_lane_is_some_rows_of_the_shared_batch(scenario: Callable[[str], Scenario]) -> None:
     batch = EpisodeBatch(scenario("avoidable_obstacle").result, horizon_samples=HORIZON)

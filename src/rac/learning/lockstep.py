@@ -178,9 +178,12 @@ def run_together(jobs: Sequence[Job], shared: EpisodeBatch, *, interruptible: bo
     running = [_Running(job) for job in jobs]
     with _deferred_interrupts(interruptible) as interrupted:
         try:
-            return _run(running, shared, interrupted)
+            results = _run(running, shared, interrupted)
         except _Stopping:
             raise Interrupted(_stop(running)) from None
+        if interrupted():  # in the last step: every job finished, and the caller is told to stop too
+            raise Interrupted(results)
+        return results
 
 
 class _Stopping(RacError):
