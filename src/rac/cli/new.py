@@ -10,7 +10,6 @@ from NAME's folder. An existing file is never overwritten (E0009, exit 2). The `
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import re
 import shlex
@@ -61,7 +60,8 @@ def renamed(text: str, name: str) -> str:
     old, span = automata[0].name.name, automata[0].name.span
     # the declaration and the references `Old.member` the parser found, never a comment's or a
     # scenario path's text that merely reads alike (`scenario "Old.xml"`)
-    starts = [span.start, *(q.span.start for q in _qualified(automata) if q.scope == old and q.span is not None)]
+    references = ast.nodes_in(automata, ast.Qualified)
+    starts = [span.start, *(q.span.start for q in references if q.scope == old and q.span is not None)]
     result = text
     for start in sorted(set(starts), reverse=True):
         if result[start:start + len(old)] == old:  # the name itself, where the parser saw it
@@ -71,17 +71,6 @@ def renamed(text: str, name: str) -> str:
     except ParseFailure:  # the name is a word the grammar reserves (e.g. a query's `A`)
         return text
     return result
-
-
-def _qualified(node: object) -> list[ast.Qualified]:
-    """Every ``Scope.member`` reference in an AST node (a walk over the frozen dataclasses' fields)."""
-    if isinstance(node, ast.Qualified):
-        return [node]
-    if isinstance(node, (tuple, list)):
-        return [q for item in node for q in _qualified(item)]
-    if dataclasses.is_dataclass(node) and not isinstance(node, type):
-        return [q for f in dataclasses.fields(node) for q in _qualified(getattr(node, f.name))]
-    return []
 
 
 def repointed(text: str, source: Path, target: Path) -> str:

@@ -11,9 +11,11 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Union
+from typing import TypeVar, Union
 
 from rac.core.source import Span
+
+T = TypeVar("T")
 
 
 def _span() -> Span | None:
@@ -442,12 +444,18 @@ class Module:
     span: Span | None = _span()
 
 
-def names_in(node: object) -> list[Name]:
-    """Every name an AST node mentions (a walk over the frozen dataclasses' fields)."""
-    if isinstance(node, Name):
+def nodes_in(node: object, kind: type[T]) -> list[T]:
+    """Every node of ``kind`` in an AST node, in field order (a walk over the frozen dataclasses'
+    fields; a node of ``kind`` is not looked into)."""
+    if isinstance(node, kind):
         return [node]
     if isinstance(node, (tuple, list)):
-        return [n for item in node for n in names_in(item)]
+        return [n for item in node for n in nodes_in(item, kind)]
     if dataclasses.is_dataclass(node) and not isinstance(node, type):
-        return [n for f in dataclasses.fields(node) for n in names_in(getattr(node, f.name))]
+        return [n for f in dataclasses.fields(node) for n in nodes_in(getattr(node, f.name), kind)]
     return []
+
+
+def names_in(node: object) -> list[Name]:
+    """Every name an AST node mentions."""
+    return nodes_in(node, Name)

@@ -36,7 +36,7 @@ from collections import Counter
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from rac.learning.vector_info import split_vector_info
+from rac.learning.vector_info import is_vector_info, split_vector_info
 
 __all__ = ["TrainingLog"]
 
@@ -66,10 +66,8 @@ class TrainingLog:
         layout (:func:`rac.learning.vector_info.split_vector_info`); or one step of a single
         environment, its info dict."""
         if isinstance(infos, Mapping):
-            # gymnasium's vector layout carries a mask `_key` beside a key; a single environment's info
-            # has none (read as a vector layout, it was no environment's: nothing was logged)
-            vector = any(key.startswith("_") and key[1:] in infos for key in infos)
-            infos = split_vector_info(infos) if vector or not infos else [infos]
+            # a single environment's info, read as a vector layout, was no environment's: nothing was logged
+            infos = split_vector_info(infos) if is_vector_info(infos) or not infos else [infos]
         for info in infos:
             # gymnasium's SAME_STEP autoreset: the step's own info (its crash, its location, its reward
             # changes) is under final_info, beside the reset info of the next episode

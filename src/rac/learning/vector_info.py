@@ -12,7 +12,13 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["merge_vector_info", "split_vector_info"]
+__all__ = ["is_vector_info", "merge_vector_info", "split_vector_info"]
+
+
+def is_vector_info(info: Mapping[str, Any]) -> bool:
+    """Whether ``info`` is in the vector layout: some key has its mask ``_key`` beside it (a single
+    environment's info dict has none)."""
+    return any(key.startswith("_") and key[1:] in info for key in info)
 
 
 def split_vector_info(info: Mapping[str, Any], n: int | None = None) -> list[dict[str, Any]]:
