@@ -271,6 +271,19 @@ def test_compile_uppaal_never_replaces_a_fifo_queries_file(capsys: pytest.Captur
     assert is_fifo(tmp_path / "model.q") and not (tmp_path / "model.xml").exists()
 
 
+@pytest.mark.parametrize("name", ["model", "model.XML", "model.txt"])
+def test_compile_uppaal_says_when_the_name_is_not_read_as_xml(capsys: pytest.CaptureFixture[str], clean: Path,
+                                                              tmp_path: Path, name: str) -> None:
+    # UPPAAL's tools read a model as XML only by the `.xml` ending: any other name is parsed as XTA text
+    code, _, err = run(capsys, "compile", "--target", "uppaal", clean, "-o", tmp_path / name)
+    assert code == EXIT_OK
+    assert (tmp_path / name).read_text().startswith("<?xml")
+    assert (f"note: `{tmp_path / name}` holds an XML model, but UPPAAL reads a file as XML only when its name ends "
+            f"in `.xml`") in err and f"name it `{name}.xml`" in err
+    code, _, err = run(capsys, "compile", "--target", "uppaal", clean, "-o", tmp_path / "model.xml")
+    assert code == EXIT_OK and "note:" not in err
+
+
 def test_write_atomically_refuses_a_fifo(tmp_path: Path) -> None:
     os.mkfifo(tmp_path / "fifo")
     with pytest.raises(NotRegularFile):

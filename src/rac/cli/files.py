@@ -227,6 +227,10 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
         print_diagnostics([unwritable(exc.path, exc.cause)], {}, as_json(args))
         return EXIT_USAGE
     _wrote(args, result, [output, queries])
+    if output.suffix != ".xml":  # UPPAAL's tools (verifyta, the GUI, UTAP) read any other name as XTA text
+        print(f"note: `{output}` holds an XML model, but UPPAAL reads a file as XML only when its name ends in "
+              f"`.xml` (any other as the textual XTA format, which this is not): name it `{output.name}.xml`",
+              file=sys.stderr)
     return EXIT_OK
 
 
