@@ -4,6 +4,9 @@ emitted for UPPAAL like any user's scenario (benchmarks/queries.py runs every qu
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +15,7 @@ from engine_files import safety_source
 from test_utap import compile_cli
 from utap import Utap
 
+import rac
 from rac.compiler import compile_file
 from rac.model import NativeModel
 from rac.model.commonroad import load_scenario
@@ -158,6 +162,35 @@ def test_a_scene_set_is_seeded_and_keeps_the_ego_and_goal(kind: str, tmp_path: P
     with pytest.raises(ValueError, match="no variants"):
         variant_bytes("left_turn", 0)
 
+
+
+#: Rewrites a scene set in a child process whose files cannot grow past 1000 bytes (as a full disk):
+#: every write fails partway through.
+_FULL_DISK = """
+import resource, signal, sys
+import rac.model.scenes as scenes
+made = {seed: scenes.variant_bytes("highway", seed) for seed in range(2)}  # made before the limit (a temporary file)
+scenes.variant_bytes = lambda kind, seed: made[seed]
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG, the process goes on
+resource.setrlimit(resource.RLIMIT_FSIZE, (1000, 1000))
+scenes.scene_set("highway", 2, 0, sys.argv[1])
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="RLIMIT_FSIZE is POSIX")
+def test_an_interrupted_scene_set_leaves_the_complete_files(tmp_path: Path) -> None:
+    """A write that fails partway (a full disk, a kill) left a truncated scene where the set was,
+    which the next run read: each file is now written to a temporary file and moved into place."""
+    from rac.model.scenes import scene_set
+
+    folder = tmp_path / "set"
+    complete = [path.read_bytes() for path in scene_set("highway", 2, 0, folder)]
+    source = Path(rac.__file__).resolve().parents[1]
+    run = subprocess.run([sys.executable, "-c", _FULL_DISK, str(folder)], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(source)}, timeout=300)
+    assert run.returncode != 0 and "File too large" in run.stderr, run.stderr
+    assert [(folder / f"highway_{i}.xml").read_bytes() for i in range(2)] == complete
+    assert sorted(path.name for path in folder.iterdir()) == ["highway_0.xml", "highway_1.xml"]  # no temporaries
 
 def _set_model(folder: Path, scenario: Path) -> Path:
     source = folder / f"{scenario.stem}.ra"

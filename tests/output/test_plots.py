@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from rac.core.files import atomic_write
 from rac.output.plots import (
-    atomic_write,
     below_summary,
     plot_first_success,
     plot_learning_curves,

@@ -56,6 +56,7 @@ from commonroad.scenario.obstacle import ObstacleType, StaticObstacle
 from commonroad.scenario.scenario import Scenario, Tag
 from commonroad.scenario.state import CustomState, InitialState
 
+from rac.core.files import atomic_write
 from rac.model.intersection import left_turn_bytes, t_junction_bytes
 from rac.model.scenario_xml import DT, clean, recorded_car, scenario_bytes, straight_car
 
@@ -350,17 +351,13 @@ def variant_bytes(kind: str, seed: int) -> bytes:
 def scene_set(kind: str, count: int, seed: int, folder: str | Path) -> list[Path]:
     """Write ``count`` variants of the scene ``kind`` (:data:`VARIANTS`) into ``folder`` (created if
     missing) as ``{kind}_{seed + i}.xml``, variant ``seed + i`` for ``i < count``; return their paths
-    in that order. The same arguments give the same files, byte for byte."""
+    in that order. The same arguments give the same files, byte for byte; each is written atomically
+    (:func:`rac.core.files.atomic_write`), so an interrupted run never leaves a truncated scene."""
     if count < 1:
         raise ValueError(f"a scene set needs at least one scene, not {count}")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for i in range(count):
-        path = folder / f"{kind}_{seed + i}.xml"
-        path.write_bytes(variant_bytes(kind, seed + i))
-        paths.append(path)
-    return paths
+    return [_write(folder / f"{kind}_{seed + i}.xml", variant_bytes(kind, seed + i)) for i in range(count)]
 
 
 def scene_bytes(name: str) -> bytes:
@@ -371,10 +368,14 @@ def scene_bytes(name: str) -> bytes:
 
 
 def write_scene(name: str, path: str | Path) -> Path:
-    """Write the scene ``name`` to ``path`` and return the path."""
-    path = Path(path)
-    path.write_bytes(scene_bytes(name))
-    return path
+    """Write the scene ``name`` to ``path`` (atomically, :func:`rac.core.files.atomic_write`) and return the path."""
+    return _write(Path(path), scene_bytes(name))
+
+
+def _write(path: Path, data: bytes) -> Path:
+    """``data`` into ``path`` atomically: an interrupted write left a truncated scene there, which the next
+    run read."""
+    return atomic_write(path, lambda file: file.write(data))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

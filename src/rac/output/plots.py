@@ -2,8 +2,8 @@
 
 Every function draws on a standalone :class:`matplotlib.figure.Figure` rendered by the Agg canvas:
 pyplot is never imported here, so no GUI window can open and the caller's matplotlib backend is
-left alone. Files are written atomically (a temporary file in the same folder, then
-:func:`os.replace`), so a reader never sees half a PNG, and each function returns the path.
+left alone. Files are written atomically (:func:`rac.core.files.atomic_write`: a temporary file in
+the same folder, then :func:`os.replace`), so a reader never sees half a PNG, and each function returns the path.
 
 Example::
 
@@ -19,12 +19,11 @@ Example::
 from __future__ import annotations
 
 import os
-import secrets
 import textwrap
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import IO, Any, Literal
+from typing import Any, Literal
 
 import matplotlib
 import numpy as np
@@ -37,10 +36,11 @@ from matplotlib.patches import Patch
 from matplotlib.text import Text
 from matplotlib.transforms import blended_transform_factory
 
+from rac.core.files import atomic_write
 from rac.model.native import NO_OBSTACLE
 
 __all__ = [
-    "ABOVE_COLOUR", "BELOW_COLOUR", "CURVE_STYLES", "THRESHOLD_COLOUR", "atomic_write", "below_summary", "curve_style",
+    "ABOVE_COLOUR", "BELOW_COLOUR", "CURVE_STYLES", "THRESHOLD_COLOUR", "below_summary", "curve_style",
     "fit_title", "new_figure", "plot_first_success", "plot_learning_curves", "plot_runs", "plot_sweep",
     "quantity_label", "runs_below", "save_figure", "wrap_text",
 ]
@@ -63,31 +63,7 @@ _NEGATIVE_TINT = "#fdeeee"
 _SMALLEST_TITLE = 7.0
 
 
-# ---------------------------------------------------------------- files
-def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], None]) -> Path:
-    """Call ``write(file)`` on a new temporary file next to ``path``, then move it onto ``path``.
-
-    On any error the temporary file is removed and ``path`` is left as it was. Used for every
-    PNG and GIF rac writes.
-
-    Example::
-
-        atomic_write("out.png", lambda f: figure.savefig(f, format="png"))
-    """
-    target = Path(path)
-    # open(..., "xb") rather than tempfile.mkstemp: mkstemp creates the file 0600, and os.replace
-    # would carry that mode over to the picture; "xb" honours the umask like any ordinary file
-    temporary = target.with_name(f".{target.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    try:
-        with open(temporary, "xb") as file:
-            write(file)
-        os.replace(temporary, target)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
-    return target
-
-
+# ---------------------------------------------------------------- figures
 def new_figure(width: float, height: float) -> Figure:
     """A figure of ``width`` × ``height`` inches on an Agg canvas, independent of pyplot."""
     figure = Figure(figsize=(width, height), layout="constrained")

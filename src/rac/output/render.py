@@ -31,8 +31,9 @@ from matplotlib.patches import Patch, Polygon
 from PIL import Image
 
 from rac.core.diagnostics import RacError
+from rac.core.files import atomic_write
 from rac.model.commonroad import PlanningProblemError, ScenarioError, reader_failure
-from rac.output.plots import atomic_write, fit_title, new_figure, save_figure, wrap_text
+from rac.output.plots import fit_title, new_figure, save_figure, wrap_text
 
 __all__ = ["EGO_COLOUR", "RenderError", "SceneFrames", "render_trajectory"]
 

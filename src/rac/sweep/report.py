@@ -24,7 +24,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rac.output.plots import atomic_write, fit_title, new_figure, save_figure
+from rac.core.files import atomic_write
+from rac.output.plots import fit_title, new_figure, save_figure
 from rac.sweep.store import write_text
 from rac.sweep.task import STATUSES, VERDICTS  # in the order tables and plots show them
 

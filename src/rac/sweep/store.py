@@ -17,7 +17,7 @@ import json
 from pathlib import Path
 from typing import IO
 
-from rac.output.plots import atomic_write
+from rac.core.files import atomic_write
 
 __all__ = ["TASKS_FOLDER", "Store", "write_text"]
 
@@ -26,7 +26,7 @@ TASKS_FOLDER = "tasks"
 
 
 def write_text(path: Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically (:func:`rac.output.plots.atomic_write`); return the path."""
+    """Write ``text`` (UTF-8) to ``path`` atomically (:func:`rac.core.files.atomic_write`); return the path."""
 
     def write(file: IO[bytes]) -> None:
         file.write(text.encode("utf-8"))
