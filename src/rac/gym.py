@@ -10,7 +10,7 @@ Without importing it first: ``gymnasium.make("rac.gym:rac/Scenario-v0", model=..
 ``max_episode_steps``: the environment truncates its episodes at its own horizon (the ``horizon``
 keyword, default the automaton's), which a TimeLimit would duplicate, and contradict when the horizon
 is changed; ``max_episode_steps=N`` given to ``make`` truncates outside the environment, where its
-``at end`` clauses cannot apply (a reset warns once): use ``horizon=``. Registering again (a
+``at end`` clauses cannot apply (the first episode it cuts warns): use ``horizon=``. Registering again (a
 reload) keeps the first registration.
 """
 

@@ -133,15 +133,23 @@ def test_seed_only_seeds_np_random(tiny: CompileResult) -> None:
     assert env.np_random.integers(1000, size=4).tolist() == draw.tolist()
 
 
-def test_max_episode_steps_outside_is_said_at_the_next_reset(tiny: CompileResult) -> None:
+def test_max_episode_steps_outside_is_said_at_the_first_cut(tiny: CompileResult) -> None:
     # gymnasium.make(..., max_episode_steps=N) puts a TimeLimit outside ScenarioEnv: the episode is
-    # truncated where the environment cannot see it, and its `at end` clauses are lost
+    # truncated where the environment cannot see it, and its `at end` clauses are lost; the limit is in
+    # the spec, so the first cut is said, at the step it happens (it was said at the second cut's reset)
     env = gymnasium.make("rac.gym:rac/Scenario-v0", model=tiny, max_episode_steps=3)
-    for seed in range(2):
-        env.reset(seed=seed)
-        assert [env.step(4)[3] for _ in range(3)] == [False, False, True]
-    with pytest.warns(UserWarning, match=r"`at end` clauses were not applied.*horizon=<seconds>"):
-        env.reset(seed=2)  # the second episode cut after 3 steps: a limit
+    env.reset(seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        assert [env.step(4)[3] for _ in range(2)] == [False, False]
+    with pytest.warns(UserWarning, match=r"\(max_episode_steps=3\) cuts episodes.*`at end` clauses were not "
+                                         r"applied.*horizon=<seconds>"):
+        assert env.step(4)[3]  # the first episode cut after 3 steps by the limit
+    with warnings.catch_warnings():  # said once
+        warnings.simplefilter("error", UserWarning)
+        for seed in range(1, 3):
+            env.reset(seed=seed)
+            assert [env.step(4)[3] for _ in range(3)] == [False, False, True]
     own = gymnasium.make("rac.gym:rac/Scenario-v0", model=tiny, horizon=2.5)
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)

@@ -439,10 +439,48 @@ def test_the_vector_wrapper_checks_the_timing_of_an_async_vector_env() -> None:
         same.close()
 
 
-def test_an_episode_cut_outside_the_wrapper_is_said_at_the_next_reset() -> None:
-    # TimeLimit outside rac's wrapper: the wrapper never saw `truncated`, so the `at end` bonus
-    # (pr + 5 at headway >= 5) was silently missing from the return
+class Cutting(gymnasium.Wrapper):  # type: ignore[type-arg]
+    """A step limit that is no gymnasium ``TimeLimit``: rac cannot read its limit, only see its cuts."""
+
+    def __init__(self, env: gymnasium.Env, steps: int) -> None:  # type: ignore[type-arg]
+        super().__init__(env)
+        self.steps, self.taken = steps, 0
+
+    def reset(self, **kwargs: Any) -> Any:
+        self.taken = 0
+        return self.env.reset(**kwargs)
+
+    def step(self, action: Any) -> Any:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.taken += 1
+        return obs, reward, terminated, truncated or self.taken >= self.steps, info
+
+
+def test_a_time_limit_outside_the_wrapper_is_said_at_its_first_cut() -> None:
+    """TimeLimit(RewardAutomatonWrapper(...), N), as gymnasium.make(id, max_episode_steps=N) around
+    ScenarioEnv: the limit is read from the TimeLimit calling reset, and its first cut warns at that
+    step (the warning waited for a second cut, at the reset after it)."""
     outside = TimeLimit(RewardAutomatonWrapper(Gap(), follow(), inputs), 4)
+    outside.reset(seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        for _ in range(3):
+            outside.step(np.array([6.0]))
+    with pytest.warns(UserWarning, match=r"a TimeLimit outside rac \(max_episode_steps=4\) cuts episodes after 4 "
+                                         r"step\(s\).*`at end` clauses were not applied.*put the limit inside"):
+        assert outside.step(np.array([6.0]))[3]
+    with warnings.catch_warnings():  # said once
+        warnings.simplefilter("error", UserWarning)
+        for seed in range(1, 3):
+            outside.reset(seed=seed)
+            for _ in range(4):
+                outside.step(np.array([6.0]))
+
+
+def test_an_episode_cut_outside_the_wrapper_is_said_at_the_next_reset() -> None:
+    # a limit outside rac's wrapper: the wrapper never saw `truncated`, so the `at end` bonus
+    # (pr + 5 at headway >= 5) was silently missing from the return
+    outside = Cutting(RewardAutomatonWrapper(Gap(), follow(), inputs), 4)
     outside.reset(seed=0)
     truncated = False
     while not truncated:
@@ -489,7 +527,7 @@ def test_training_runs_cut_between_complete_episodes_are_no_limit() -> None:
                 *_, terminated, truncated, _ = env.step(np.array([6.0]))
                 if terminated or truncated:
                     env.reset()
-    outside = TimeLimit(RewardAutomatonWrapper(Gap(), follow(), inputs), 4)  # a limit outside still warns
+    outside = Cutting(RewardAutomatonWrapper(Gap(), follow(), inputs), 4)  # a limit outside still warns
     with pytest.warns(UserWarning, match=r"reset after 4 step\(s\)"):
         for seed in range(3):
             outside.reset(seed=seed)

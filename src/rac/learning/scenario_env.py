@@ -45,7 +45,7 @@ from rac.lang import ast
 from rac.lang.edit import with_model
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.observation import Observation, make_observation
-from rac.learning.wrappers import CutEpisodes, Scale, scale_factor
+from rac.learning.wrappers import CutEpisodes, Scale, outside_step_limit, scale_factor
 from rac.model.sample import MOTION
 
 if TYPE_CHECKING:
@@ -299,6 +299,9 @@ class ScenarioEnv(gymnasium.Env):
         self.observation_space = self.observation.space
         self.action_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(self.episodes.n_actions)
         self._last: dict[str, bool] = {}
+        #: The step limit of a ``TimeLimit`` outside (``gymnasium.make(..., max_episode_steps=N)``), found at a
+        #: reset it called: the first episode it cuts is warned of at that step. None: none known.
+        self.outside_step_limit: int | None = None
         # gymnasium.make(..., max_episode_steps=N) puts a TimeLimit outside, which this environment cannot see
         self._cut = CutEpisodes("end the episodes with ScenarioEnv's own horizon=<seconds> (it truncates there and "
                                 "applies them), not with max_episode_steps= or a TimeLimit")
@@ -402,6 +405,8 @@ class ScenarioEnv(gymnasium.Env):
         scene: that one; the seed only seeds ``np_random``, the model is deterministic)."""
         super().reset(seed=seed)
         self._cut.reset()
+        if self.outside_step_limit is None:
+            self.outside_step_limit = outside_step_limit(self)
         self._index = self._pick((options or {}).get("scenario"))
         self.episodes, self.observation, self._step_shield = self._scene(self._index)
         episodes = self.episodes
@@ -453,7 +458,7 @@ class ScenarioEnv(gymnasium.Env):
         out = self.episodes.step(np.array([int(action)]))
         # terminated: the goal, or the automaton's `episode ends when` (its end clauses already applied)
         terminated, truncated = bool(out.terminated[0] or out.ended[0]), bool(out.truncated[0])
-        self._cut.stepped(terminated or truncated)
+        self._cut.stepped(terminated or truncated, self.outside_step_limit)
         self._last = {"collided": bool(out.collided[0]), "offroad": bool(out.offroad[0]),
                       "goal": bool(out.terminated[0])}
         self._crashed = self._crashed or bool(out.collided[0])

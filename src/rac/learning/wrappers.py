@@ -55,7 +55,7 @@ from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
 
 __all__ = ["AutomatonLike", "CutEpisodes", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "env_timing",
-           "scale_factor"]
+           "outside_step_limit", "scale_factor"]
 
 #: ``inputs(obs, info)`` or ``inputs(obs, info, env)``: the automaton's inputs.
 InputFn = Callable[..., Mapping[str, object]]
@@ -214,6 +214,42 @@ def _step_limits(env: object) -> list[int]:
     return limits
 
 
+def _inside(wrapper: object, env: object) -> bool:
+    """Whether ``env`` is in ``wrapper``'s chain of wrapped environments (below it)."""
+    for _ in range(100):  # a wrapper chain, not a cycle
+        wrapper = getattr(wrapper, "env", None)
+        if wrapper is None:
+            return False
+        if wrapper is env:
+            return True
+    return False
+
+
+#: The code of gymnasium's ``TimeLimit.reset`` and ``TimeLimit.step``, whose frames :func:`outside_step_limit` reads.
+_TIME_LIMIT_CODE = {gymnasium.wrappers.TimeLimit.reset.__code__, gymnasium.wrappers.TimeLimit.step.__code__}
+
+
+def outside_step_limit(env: object, frames: int = 12) -> int | None:
+    """The step limit of a gymnasium ``TimeLimit`` outside ``env`` whose ``reset`` or ``step`` is
+    calling ``env``'s now (one of the ``frames`` innermost callers), else None.
+
+    ``gymnasium.make(id, max_episode_steps=N)`` puts that ``TimeLimit`` outside the environment it
+    makes, and the spec it gives the environment itself has no limit: the callers are the only
+    place the environment can learn that its episodes are cut after N steps, where it cannot see."""
+    frame = inspect.currentframe()
+    for _ in range(frames):
+        frame = frame.f_back if frame is not None else None
+        if frame is None:
+            return None
+        if frame.f_code not in _TIME_LIMIT_CODE:  # only a TimeLimit's own frames are read
+            continue
+        owner = frame.f_locals.get("self")
+        if isinstance(owner, gymnasium.wrappers.TimeLimit) and _inside(owner, env):
+            limit = getattr(owner, "_max_episode_steps", None)  # gymnasium keeps it there, with no public name
+            return limit if isinstance(limit, int) else None
+    return None
+
+
 class _Timing:
     """Warns when the environment's step or episode differs from the automaton's period or horizon:
     checked at construction and at every reset, and said once per timing the environment has (an
@@ -291,7 +327,11 @@ class CutEpisodes:
     mid-episode (the end of a training run) is no limit, nor are stable-baselines3's ``learn()``
     called again and again (each resets the episode running, between complete ones) and gymnasium's
     ``check_env`` probes (four steps in all, so no two cut episodes of three). ``fix`` says how to
-    end the episodes where rac sees it."""
+    end the episodes where rac sees it.
+
+    Where the limit is known (``limit`` of :meth:`stepped`: a ``TimeLimit`` outside, as
+    ``gymnasium.make(..., max_episode_steps=N)`` puts one, read by :func:`outside_step_limit`), the
+    first episode that reaches it without ending is cut there: the warning comes at that step."""
 
     def __init__(self, fix: str) -> None:
         self.fix = fix
@@ -299,22 +339,29 @@ class CutEpisodes:
         self.steps = 0  # steps of the episode now running; 0 once it has ended
         self.cut: set[int] = set()  # the lengths of the episodes cut since the last one that ended
 
-    def stepped(self, done: bool) -> None:
-        """One step taken; ``done``: the episode ended there, as rac saw it."""
+    def stepped(self, done: bool, limit: int | None = None) -> None:
+        """One step taken; ``done``: the episode ended there, as rac saw it; ``limit``: the step limit
+        known to be enforced outside (None: none known)."""
         self.steps = 0 if done else self.steps + 1
         if done:  # an episode rac saw end: the cuts before it were no limit's (a limit cuts them all)
             self.cut.clear()
+        elif limit is not None and self.steps == limit and not self.warned:
+            # the limit cuts this episode now: said at its first cut, not at the reset after a second
+            self._warn(f"a TimeLimit outside rac (max_episode_steps={limit}) cuts episodes after {limit} step(s), "
+                       "before rac sees them end (terminated or truncated)", "")
+
+    def _warn(self, what: str, cause: str = "if a TimeLimit or another wrapper outside ends them, ") -> None:
+        self.warned = True
+        warnings.warn(f"{what}: the automaton's `at end` clauses were not applied and their returns lack them; "
+                      f"{cause}{self.fix}", UserWarning, stacklevel=4)
 
     def reset(self) -> None:
         """An episode starts: warn when the last one was cut after as many steps as an earlier one
         since the last episode that ended."""
         if self.steps > 2 and not self.warned:
             if self.steps in self.cut:
-                self.warned = True
-                warnings.warn(f"episodes were reset after {self.steps} step(s) without rac seeing them end "
-                              "(terminated or truncated): the automaton's `at end` clauses were not applied and "
-                              f"their returns lack them; if a TimeLimit or another wrapper outside ends them, "
-                              f"{self.fix}", UserWarning, stacklevel=3)
+                self._warn(f"episodes were reset after {self.steps} step(s) without rac seeing them end (terminated "
+                           "or truncated)")
             self.cut.add(self.steps)
         self.steps = 0
 
@@ -436,6 +483,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self._past = _PastHorizon(self.automaton, scale == "proven", SINGLE_LIMIT)
         steps = getattr(self.automaton, "steps", None)
         self._cut = CutEpisodes(SINGLE_LIMIT.format(steps=steps if isinstance(steps, int) else "N"))
+        self._outside: int | None = None  # the limit of a TimeLimit outside, found at a reset it called
 
     def _snapshot(self) -> dict[str, Any]:
         ra = self.automaton
@@ -447,6 +495,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         obs, info = self.env.reset(seed=seed, options=options)
         self._timing.check(self.env)
         self._cut.reset()
+        if self._outside is None:  # TimeLimit(RewardAutomatonWrapper(...), N): said at its first cut
+            self._outside = outside_step_limit(self)
         self.automaton.reset()
         info = dict(info)
         info["rac"] = self._snapshot()
@@ -481,7 +531,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
             terminated = True
         elif terminated or truncated:
             reward += self.automaton.end(values)
-        self._cut.stepped(bool(terminated or truncated))
+        self._cut.stepped(bool(terminated or truncated), self._outside)
         info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped,
                        "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
         return obs, reward / self.scale, terminated, truncated, info
