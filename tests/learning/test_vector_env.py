@@ -34,6 +34,7 @@ from rac.engine.storm import safety_shield
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.vector import ScenarioSyncVectorEnv, ScenarioVectorEnv, make_vector_env
+from rac.learning.wrappers import RewardAutomatonVectorWrapper
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
@@ -373,7 +374,40 @@ def test_errors(tiny: CompileResult) -> None:
     with pytest.raises(ValueError, match="in \\[0, 9\\)"):
         envs.step(np.array([0, 9]))
     with pytest.raises(ValueError, match="reset_mask"):
-        envs.reset(options={"reset_mask": np.array([True, False])})
+        envs.reset(options={"reset_mask": np.array([True, False, True])})
+    with pytest.raises(RuntimeError, match="call reset"):
+        ScenarioVectorEnv(tiny, num_envs=2).reset(options={"reset_mask": np.array([True, False])})
+
+
+def test_the_vector_wrapper_ends_episodes_on_the_native_vector_env(tiny: CompileResult,
+                                                                     tiny_ends: CompileResult) -> None:
+    """RewardAutomatonVectorWrapper with `episode ends when` restarts an episode its automaton ended
+    while the environment goes on with ``reset(options={"reset_mask": ...})``: ScenarioVectorEnv
+    refused the option (a ValueError at the first such episode); it restarts the rows selected."""
+    assert tiny_ends.automaton is not None
+    envs = ScenarioVectorEnv(tiny, num_envs=3, lookahead=None)
+    with warnings.catch_warnings():  # one step of the environment is one sample: the timing warns
+        warnings.simplefilter("ignore", UserWarning)
+        vector = RewardAutomatonVectorWrapper(envs, tiny_ends.automaton,
+                                              lambda obs, infos: {"near": infos["inputs"]["near"]})
+    start, _ = vector.reset(seed=0)
+    ended, restart = 0, np.zeros(3, dtype=bool)
+    for _ in range(8):
+        obs, rewards, terminated, truncated, infos = vector.step(np.array([4, 0, 8]))
+        if restart.any():  # the rows the automaton ended in the last step: restarted now, as NEXT_STEP does
+            assert obs[restart].tolist() == start[restart].tolist() and not rewards[restart].any()
+            assert (infos["time"][restart] == 0.0).all() and not terminated[restart].any()
+            assert set(infos["rac"]["location"][restart]) == {"Normal"}
+            assert not infos["_shield"][restart].any()  # their info is a reset info
+        restart = terminated & ~truncated & infos["inputs"]["near"]  # the automaton's end, not the model's
+        ended += int(restart.sum())
+    assert ended >= 4  # the van comes near in episodes 0 and 2 again and again
+    partial = ScenarioVectorEnv(tiny, num_envs=2, lookahead=None)
+    first, _ = partial.reset(seed=0)
+    partial.step(np.array([4, 4]))
+    obs, info = partial.reset(options={"reset_mask": np.array([False, True])})
+    assert obs[1].tolist() == first[1].tolist() and obs[0].tolist() != first[0].tolist()
+    assert info["_time"].tolist() == [False, True] and info["time"][1] == 0.0
 
 
 # ---------------------------------------------------------------- the benchmark

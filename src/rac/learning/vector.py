@@ -194,15 +194,20 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         """Start every episode at the ego's start (the seed only seeds ``np_random``: the model is
         deterministic). ``seed`` may also be SyncVectorEnv's list of ``num_envs`` seeds (None for
         unseeded): its first seeds ``np_random``, so ``seed=s`` and ``seed=[s, s + 1, ...]`` (what
-        SyncVectorEnv makes of ``s``) agree. ``options["reset_mask"]`` is not supported (it belongs to
-        the other autoreset modes)."""
-        if options and "reset_mask" in options:
-            raise ValueError("options['reset_mask'] is for gymnasium's same-step and disabled autoreset modes; "
-                             "this environment resets an ended episode in the next step")
+        SyncVectorEnv makes of ``s``) agree.
+
+        ``options["reset_mask"]`` (``num_envs`` booleans, gymnasium >= 1.1, after a first reset)
+        restarts the episodes it selects only, as SyncVectorEnv does: the observation is every
+        episode's, the info the restarted ones' (what
+        :class:`~rac.learning.wrappers.RewardAutomatonVectorWrapper` asks for when its automaton's
+        ``episode ends when`` ends an episode this environment goes on with)."""
+        mask = options.get("reset_mask") if options else None
         if isinstance(seed, Sequence):  # SyncVectorEnv's per-environment seeds: one np_random here
             if len(seed) != self.num_envs:
                 raise ValueError(f"a list of seeds must hold num_envs={self.num_envs} seeds, not {len(seed)}")
             seed = seed[0]
+        if mask is not None:
+            return self._reset_rows(mask, seed)
         super().reset(seed=seed)
         episodes = self.episodes
         episodes.reset(self.num_envs)
@@ -212,6 +217,21 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self._restarted(everyone)
         self._autoreset[:] = False
         return self.observation.observe(episodes), self._info(everyone, None)
+
+    def _reset_rows(self, mask: Any, seed: int | None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Restart the episodes ``mask`` selects (``options["reset_mask"]``), the others untouched."""
+        rows = np.asarray(mask)
+        if rows.dtype != bool or rows.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), not "
+                             f"{rows.dtype} {rows.shape}")
+        if self.episodes.n != self.num_envs:
+            raise RuntimeError("options['reset_mask'] restarts some episodes of a running batch: call reset() first")
+        if seed is not None:
+            super().reset(seed=seed)
+        self.episodes.reset_rows(np.flatnonzero(rows))
+        self._restarted(rows)
+        self._autoreset[rows] = False  # restarted now: the next step steps them
+        return self.observation.observe(self.episodes), self._info(rows.copy(), None)
 
     def _restarted(self, rows: np.ndarray) -> None:
         """The flags of the episodes ``rows`` (a mask) just started."""
