@@ -33,7 +33,7 @@ from rac.engine.shield import ShieldTable
 from rac.engine.storm import safety_shield
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.scenario_env import ScenarioEnv
-from rac.learning.vector import ScenarioSyncVectorEnv, ScenarioVectorEnv, make_vector_env
+from rac.learning.vector import ScenarioSyncVectorEnv, ScenarioVectorEnv, action_masks, make_vector_env
 from rac.learning.wrappers import RewardAutomatonVectorWrapper
 
 SRC = Path(__file__).resolve().parents[2] / "src"
@@ -216,6 +216,39 @@ def test_both_vector_envs_offer_the_same_masks_and_calls(files: dict[str, Path],
         native.get_attr("episodes")
     with pytest.raises(AttributeError, match="cannot set `reward_scale` per episode"):
         native.set_attr("reward_scale", [2.0, 2.0])
+
+
+def test_masks_reach_through_stock_vector_wrappers(files: dict[str, Path], table: ShieldTable) -> None:
+    """gymnasium 1.4's vector wrappers have no ``call``, ``get_attr`` or ``action_masks``: the advice
+    ``envs.call("action_masks")`` failed on ``RecordEpisodeStatistics(envs)``; ``action_masks(envs)``
+    asks the unwrapped environment, whichever make_vec returned."""
+    from gymnasium.wrappers.vector import RecordEpisodeStatistics
+
+    model = files["avoidable_obstacle"]
+    made = {"native": gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=model, shield=table),
+            "frames": gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=model, shield=table, render_mode="ansi"),
+            "sync": gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=model, shield=table,
+                                       vectorization_mode="sync")}
+    reference = made["native"]
+    assert isinstance(reference, ScenarioVectorEnv)
+    wrapped = {name: RecordEpisodeStatistics(envs) for name, envs in made.items()}
+    with warnings.catch_warnings():  # one step of the environment is one sample: the timing warns
+        warnings.simplefilter("ignore", UserWarning)
+        wrapped["rac"] = RecordEpisodeStatistics(RewardAutomatonVectorWrapper(
+            ScenarioVectorEnv(model, num_envs=2, shield=table), compile_file(model).automaton,  # type: ignore[arg-type]
+            lambda obs, infos: {"near": infos["inputs"]["near"]}))
+    for envs in wrapped.values():
+        assert not hasattr(envs, "call")  # what the advice relied on
+        envs.reset(seed=0)
+    for actions in ([4, 0], [0, 4]):
+        masks = reference.unwrapped.action_masks()
+        for name, envs in wrapped.items():
+            assert action_masks(envs).tolist() == masks.tolist(), name
+            envs.step(np.array(actions))
+        reference.step(np.array(actions))
+    with pytest.raises(AttributeError, match="neither action_masks"):
+        action_masks(RecordEpisodeStatistics(gymnasium.make_vec("CartPole-v1", num_envs=2,
+                                                                vectorization_mode="vector_entry_point")))
 
 
 def test_the_action_space_samples_within_the_masks_as_the_module_says(files: dict[str, Path],

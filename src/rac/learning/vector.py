@@ -46,7 +46,7 @@ if TYPE_CHECKING:
     from rac.engine.lookahead import LookaheadSettings
     from rac.engine.shield import ShieldStep, ShieldTable, StepShield
 
-__all__ = ["ScenarioSyncVectorEnv", "ScenarioVectorEnv", "make_vector_env"]
+__all__ = ["ScenarioSyncVectorEnv", "ScenarioVectorEnv", "action_masks", "make_vector_env"]
 
 #: The ``info`` keys a step adds to the reset ones: what the mask of the state the step left carried.
 SHIELD_KEYS = ("shield", "shield_until", "shield_short", "shield_timeout", "no_safe_action", "shield_allowed",
@@ -340,6 +340,28 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         return info
 
 
+def action_masks(envs: gymnasium.vector.VectorEnv) -> np.ndarray:  # type: ignore[type-arg]
+    """``(num_envs, P)`` bool: the action masks of a vector environment of rac's scenario model, through
+    any vector wrappers around it (gymnasium's ``RecordEpisodeStatistics``, rac's
+    :class:`~rac.learning.wrappers.RewardAutomatonVectorWrapper`, ...).
+
+    gymnasium's vector wrappers have no ``action_masks``, ``call`` or ``get_attr`` (1.4): those are
+    the unwrapped environment's, so ``envs.call("action_masks")`` fails on a wrapped one. This asks
+    ``envs.unwrapped``: :meth:`ScenarioVectorEnv.action_masks` and
+    :meth:`ScenarioSyncVectorEnv.action_masks` (every action allowed for an episode awaiting its
+    restart), else a ``SyncVectorEnv`` or ``AsyncVectorEnv``'s ``call("action_masks")`` of its
+    ScenarioEnvs."""
+    base = envs.unwrapped
+    own = getattr(base, "action_masks", None)
+    if callable(own):
+        return np.asarray(own(), dtype=bool)
+    call = getattr(base, "call", None)
+    if not callable(call):
+        raise AttributeError(f"{type(base).__name__} has neither action_masks() nor call(): not a vector "
+                             "environment of ScenarioEnvs")
+    return np.stack([np.asarray(mask, dtype=bool) for mask in call("action_masks")])
+
+
 def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.VectorEnv:  # type: ignore[type-arg]
     """The vector entry point of ``rac/Scenario-v0`` (``gymnasium.make_vec``): a
     :class:`ScenarioVectorEnv` of ``num_envs`` episodes, with ``kwargs`` those of
@@ -365,7 +387,8 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
         raise RacValueError(f"rac/Scenario-v0's vector environment restarts an ended episode in the next step "
                             f"(AutoresetMode.NEXT_STEP), not {mode!r}; for another mode make gymnasium's own "
                             "SyncVectorEnv of ScenarioEnvs: gymnasium.make_vec(..., vectorization_mode='sync', "
-                            "vector_kwargs={'autoreset_mode': ...}), masks through envs.call('action_masks')")
+                            "vector_kwargs={'autoreset_mode': ...}), masks through "
+                            "rac.learning.vector.action_masks(envs)")
     if kwargs.get("scenarios") is None and kwargs.get("render_mode") is None:
         kwargs.pop("scenarios", None)
         return ScenarioVectorEnv(num_envs=num_envs, **kwargs)
