@@ -317,3 +317,43 @@ def test_a_single_environments_info_is_one_step() -> None:
     assert single.steps == 5 and single.record() == listed.record() != {}
     single.add({})  # an empty vector info is still no step
     assert single.steps == 0
+
+
+def test_a_crash_at_the_start_is_counted_once_per_episode_not_at_the_reset_rows(tmp_path: Path) -> None:
+    """A start in a collision (W0724): ScenarioVectorEnv's reset step (NEXT_STEP) reports the new
+    episode's start, ``collided`` True, and its first step the crash again; the log counted both, so
+    every episode after the first had its crash counted twice (8 for 4 crashing steps)."""
+    import numpy as np
+    from engine_files import engine_source
+    from tiny_scenarios import avoidable_obstacle, blocked_start
+
+    from rac.compiler import compile_file
+    from rac.learning.vector import ScenarioVectorEnv
+    from rac.learning.vector_info import split_vector_info
+
+    (tmp_path / "blocked.xml").write_bytes(blocked_start())  # the ego starts inside a parked car
+    path = tmp_path / "blocked.ra"
+    path.write_text(engine_source(avoidable_obstacle(), {}, scenario_file="blocked.xml"), encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok and [d.code for d in result.diagnostics] == ["W0724"]
+    envs = ScenarioVectorEnv(result, num_envs=2, lookahead=None)
+    _, start = envs.reset(seed=0)
+    assert start["collided"].all()
+    log, crashing_steps, reset_rows = TrainingLog(), 0, 0
+    for _ in range(10):  # two episodes of 4 steps and their reset steps
+        *_, info = envs.step(np.array([4, 4]))
+        for row in split_vector_info(info):
+            if "reward_steps" in row:
+                crashing_steps += row["collided"]
+            else:
+                reset_rows += 1
+                assert row["collided"]  # the start's flag, in the reset info
+        log.add(info)
+    assert reset_rows == 4 and crashing_steps == 4  # each episode's first step passes through the car
+    assert log.record()["rac/collisions"] == crashing_steps
+    wrapped = TrainingLog()  # the vector wrapper's reset rows (info["rac"] without reward_steps) alike
+    snapshot = {"location": "Safe", "rewards": {"sa": 0.0}, "objective": 0.0}
+    wrapped.add([{"crashed": True, "rac": snapshot},
+                 {"crashed": True, "rac": {**snapshot, "reward_steps": {"sa": 1.0}}},
+                 {"crashed": True, "objective": 3.0}])  # another environment's info, with a key of that name
+    assert wrapped.record()["rac/collisions"] == 2.0

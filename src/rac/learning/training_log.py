@@ -21,7 +21,8 @@ and the info of the step that ended it under ``final_info``: that one is the ste
   (``info["shield_allowed"]`` False: a learner that ignores the masks, plain PPO or DQN, where no
   guarantee covers the step; recorded once such a step happened);
 - ``rac/collisions``: steps with a collision (``info["collided"]`` in ScenarioEnv,
-  ``info["crashed"]`` in highway-env);
+  ``info["crashed"]`` in highway-env), not counting the reset infos of a vector env's reset steps
+  (rac's, which say so: no ``reward_steps``), whose flags are the new episode's start;
 - ``rac/clipped/<input>``: values clipped (``info["rac"]["clipped"]``);
 - ``rac/disallowed``: steps whose action the model's ``allow when`` forbids
   (``info["model_allowed"]`` False: a learner that ignores the masks).
@@ -93,7 +94,8 @@ class TrainingLog:
                 self._no_safe += bool(info.get("no_safe_action", False))
                 self._outside += not info.get("shield_allowed", True)
             self._disallowed += not info.get("model_allowed", True)
-            self._collisions += bool(info.get("collided", False) or info.get("crashed", False))
+            if not _is_reset(info):  # a reset info's flags are the new episode's start, not a step's
+                self._collisions += bool(info.get("collided", False) or info.get("crashed", False))
 
     def record(self) -> dict[str, float]:
         """The values to log since the last call (then cleared); ``{}`` when no step was added."""
@@ -120,3 +122,15 @@ class TrainingLog:
         if self._disallowed:  # once recorded, a later call without any records 0 (below)
             out["rac/disallowed"] = float(self._disallowed)
         return {**dict.fromkeys(self._recorded, 0.0), **out}  # nothing of a known key since: 0, not a blank
+
+
+def _is_reset(info: Mapping[str, Any]) -> bool:
+    """Whether ``info`` is a reset info of rac's: the wrapper's ``info["rac"]`` or ScenarioEnv's info, a
+    snapshot of the automaton (``location``, ``rewards``, ``objective``) without the ``reward_steps``
+    every step adds. A vector env's autoreset step (NEXT_STEP's reset step, the vector wrapper's reset
+    of an episode its automaton ended) hands it out: its ``collided`` is the start's (a start in a
+    collision, W0724), which the episode's first step reports again: counted at both, one crash was two."""
+    rac = info.get("rac")
+    snapshot = rac if isinstance(rac, Mapping) else info
+    # all three of the snapshot's keys: another environment's info may well have an "objective"
+    return all(key in snapshot for key in ("location", "rewards", "objective")) and "reward_steps" not in snapshot
