@@ -34,7 +34,7 @@ from rac.engine.storm import safety_shield
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.vector import ScenarioSyncVectorEnv, ScenarioVectorEnv, action_masks, make_vector_env
-from rac.learning.wrappers import RewardAutomatonVectorWrapper
+from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
@@ -492,3 +492,51 @@ def test_make_vec_refuses_another_autoreset_mode_naming_the_sync_vector_env(file
     sync = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["goal_ahead"], vectorization_mode="sync",
                               vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP})
     assert sync.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP  # what the message says to do works
+
+
+def test_episodes_a_wrappers_automaton_ends_are_no_cuts_of_the_scenario_env(files: dict[str, Path],
+                                                                            tiny: CompileResult,
+                                                                            tiny_ends: CompileResult) -> None:
+    """A rac reward wrapper whose automaton ends episodes (`episode ends when`) resets ScenarioEnvs before
+    they ended them: each ScenarioEnv took those resets for a step limit outside it and warned that its
+    `at end` clauses were lost — of a reward the wrapper replaces. The wrapper's own check stays."""
+    assert tiny_ends.automaton is not None
+    sync = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["avoidable_obstacle"], lookahead=None,
+                              render_mode="ansi")
+    assert isinstance(sync, ScenarioSyncVectorEnv)
+    with warnings.catch_warnings():  # one step of the environment is one sample: the timing warns
+        warnings.simplefilter("ignore", UserWarning)
+        vector = RewardAutomatonVectorWrapper(sync, tiny_ends.automaton,
+                                              lambda obs, infos: {"near": infos["inputs"]["near"]})
+        single = RewardAutomatonWrapper(ScenarioEnv(tiny, lookahead=None), tiny_ends.automaton,
+                                        lambda obs, info: {"near": info["inputs"]["near"]})
+    ended = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        vector.reset(seed=0)
+        single.reset(seed=0)
+        for _ in range(12):
+            ended += int(vector.step(np.array([4, 4]))[2].sum())
+            if single.step(4)[2]:
+                single.reset()
+    assert ended >= 6  # the van comes near after the same steps in every episode: cut alike, again and again
+
+
+def test_an_async_vector_env_of_scenario_envs_is_told_too(files: dict[str, Path], tiny_ends: CompileResult,
+                                                          capfd: pytest.CaptureFixture[str]) -> None:
+    """The ScenarioEnvs of an AsyncVectorEnv live in its workers: they warned there, on stderr, of the
+    episodes the wrapper's automaton ended as if a limit cut them."""
+    assert tiny_ends.automaton is not None
+    envs = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["avoidable_obstacle"], lookahead=None,
+                              vectorization_mode="async")
+    with warnings.catch_warnings():  # one step of the environment is one sample: the timing warns
+        warnings.simplefilter("ignore", UserWarning)
+        vector = RewardAutomatonVectorWrapper(envs, tiny_ends.automaton,
+                                              lambda obs, infos: {"near": infos["inputs"]["near"]})
+    try:
+        vector.reset(seed=0)
+        ended = sum(int(vector.step(np.array([4, 4]))[2].sum()) for _ in range(12))
+    finally:
+        vector.close()
+    assert ended >= 6
+    assert "without rac seeing them end" not in capfd.readouterr().err

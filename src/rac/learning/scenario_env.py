@@ -302,6 +302,10 @@ class ScenarioEnv(gymnasium.Env):
         #: The step limit of a ``TimeLimit`` outside (``gymnasium.make(..., max_episode_steps=N)``), found at a
         #: reset it called: the first episode it cuts is warned of at that step. None: none known.
         self.outside_step_limit: int | None = None
+        #: Set by rac's reward wrappers around this environment (:data:`rac.learning.wrappers.REPLACED`):
+        #: their automaton's reward replaces this one's, and an episode they end (`episode ends when`) is
+        #: reset before this environment ended it, so it does not warn of episodes cut outside it.
+        self.reward_replaced = False
         # gymnasium.make(..., max_episode_steps=N) puts a TimeLimit outside, which this environment cannot see
         self._cut = CutEpisodes("end the episodes with ScenarioEnv's own horizon=<seconds> (it truncates there and "
                                 "applies them), not with max_episode_steps= or a TimeLimit")
@@ -404,9 +408,10 @@ class ScenarioEnv(gymnasium.Env):
         :attr:`scenarios` or one of its paths), else of one drawn from ``np_random`` (with one
         scene: that one; the seed only seeds ``np_random``, the model is deterministic)."""
         super().reset(seed=seed)
-        self._cut.reset()
-        if self.outside_step_limit is None:
-            self.outside_step_limit = outside_step_limit(self)
+        if not self.reward_replaced:
+            self._cut.reset()
+            if self.outside_step_limit is None:
+                self.outside_step_limit = outside_step_limit(self)
         self._index = self._pick((options or {}).get("scenario"))
         self.episodes, self.observation, self._step_shield = self._scene(self._index)
         episodes = self.episodes
@@ -458,7 +463,8 @@ class ScenarioEnv(gymnasium.Env):
         out = self.episodes.step(np.array([int(action)]))
         # terminated: the goal, or the automaton's `episode ends when` (its end clauses already applied)
         terminated, truncated = bool(out.terminated[0] or out.ended[0]), bool(out.truncated[0])
-        self._cut.stepped(terminated or truncated, self.outside_step_limit)
+        if not self.reward_replaced:
+            self._cut.stepped(terminated or truncated, self.outside_step_limit)
         self._last = {"collided": bool(out.collided[0]), "offroad": bool(out.offroad[0]),
                       "goal": bool(out.terminated[0])}
         self._crashed = self._crashed or bool(out.collided[0])

@@ -35,7 +35,7 @@ import math
 import numbers
 import os
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from fractions import Fraction
 from pathlib import Path
 from typing import Any, Protocol, SupportsFloat, runtime_checkable
@@ -248,6 +248,21 @@ def outside_step_limit(env: object, frames: int = 12) -> int | None:
             limit = getattr(owner, "_max_episode_steps", None)  # gymnasium keeps it there, with no public name
             return limit if isinstance(limit, int) else None
     return None
+
+
+#: The attribute of an environment whose own reward a rac reward wrapper replaces (ScenarioEnv's
+#: ``reward_replaced``): set True by the wrapper, it stops that environment's warning of cut episodes,
+#: which would take the wrapper's resets after its own `episode ends when` for a limit's cuts.
+REPLACED = "reward_replaced"
+
+
+def _replaces_reward_of(envs: Iterable[object]) -> None:
+    """Tell each of ``envs`` (single environments, wrapped or not) that has :data:`REPLACED` that a rac
+    wrapper replaces its reward."""
+    for env in envs:
+        inner = getattr(env, "unwrapped", env)
+        if hasattr(inner, REPLACED):
+            setattr(inner, REPLACED, True)
 
 
 class _Timing:
@@ -480,6 +495,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
                           "environment", UserWarning, stacklevel=2)
         self._timing = _Timing(self.automaton, dt)
         self._timing.check(env)
+        _replaces_reward_of([env])
         self._past = _PastHorizon(self.automaton, scale == "proven", SINGLE_LIMIT)
         steps = getattr(self.automaton, "steps", None)
         self._cut = CutEpisodes(SINGLE_LIMIT.format(steps=steps if isinstance(steps, int) else "N"))
@@ -596,6 +612,14 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         self._timing = _Timing(self.automaton, dt)
         self._stand_in: object | None = None  # an AsyncVectorEnv's first sub-environment, made here for its timing
         self._timing.check(self._first_env())
+        subs = getattr(self.env.unwrapped, "envs", None)  # a SyncVectorEnv's sub-environments
+        if subs:
+            _replaces_reward_of(subs)
+        elif hasattr(getattr(self._stand_in, "unwrapped", None), REPLACED):
+            # an AsyncVectorEnv's live in its workers: told there when its first one (made here) has the attribute
+            set_attr = getattr(self.env.unwrapped, "set_attr", None)
+            if callable(set_attr):
+                set_attr(REPLACED, True)
         self._past = _PastHorizon(self.automaton, scale == "proven", VECTOR_LIMIT)
 
     def _first_env(self) -> object:
