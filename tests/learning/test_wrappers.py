@@ -587,6 +587,39 @@ def test_a_monitor_inside_the_wrapper_is_said() -> None:
         Monitor(RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs)).close()
 
 
+def test_episode_statistics_inside_the_wrapper_are_said() -> None:
+    """gymnasium's RecordEpisodeStatistics inside rac's wrapper (a CleanRL-style make_env) sums the
+    environment's own rewards: info['episode']['r'] was the environment's return, silently; outside it
+    is the automaton's."""
+    from gymnasium.wrappers import RecordEpisodeStatistics
+    from gymnasium.wrappers.vector import RecordEpisodeStatistics as VectorStatistics
+
+    with pytest.warns(UserWarning, match=r"RecordEpisodeStatistics sits inside rac's wrapper.*"
+                                         r"RecordEpisodeStatistics\(RewardAutomatonWrapper\(env"):
+        inside = RewardAutomatonWrapper(RecordEpisodeStatistics(TimeLimit(HighwayLike(), 3)), follow(), inputs,
+                                        clip=True)
+    inside.reset(seed=0)
+    for _ in range(3):
+        *_, info = inside.step(1)
+    assert info["episode"]["r"] == 3.0 != info["rac"]["objective"]  # the environment's return, 1 a step
+    with pytest.warns(UserWarning, match=r"RecordEpisodeStatistics sits inside.*vector.RecordEpisodeStatistics\("):
+        RewardAutomatonVectorWrapper(VectorStatistics(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 3)] * 2)),
+                                     follow(), vector_inputs)
+    for kind in (SyncVectorEnv, gymnasium.vector.AsyncVectorEnv):  # in the sub-environments
+        with pytest.warns(UserWarning, match=r"RecordEpisodeStatistics sits inside"):
+            RewardAutomatonVectorWrapper(kind([lambda: RecordEpisodeStatistics(HighwayLike())] * 2),
+                                         follow(), vector_inputs).close()
+    with warnings.catch_warnings():  # (the 3 steps are not the automaton's horizon: the timing warns)
+        warnings.filterwarnings("error", message=".*RecordEpisodeStatistics")
+        outside = RecordEpisodeStatistics(RewardAutomatonWrapper(TimeLimit(HighwayLike(), 3), follow(), inputs,
+                                                                  clip=True))
+        outside.reset(seed=0)
+        for _ in range(3):
+            *_, info = outside.step(1)
+        assert info["episode"]["r"] == pytest.approx(info["rac"]["objective"])
+        VectorStatistics(RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 3)] * 2),
+                                                      follow(), vector_inputs))
+
 class NumpyBools(Counting):
     """Counting whose step info holds a numpy bool (``action > 9``, as numpy comparisons give): gymnasium's
     vector info stores it in an object array, None in the rows of sub-environments being reset."""

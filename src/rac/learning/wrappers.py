@@ -393,6 +393,23 @@ def _monitor_inside(env: object) -> bool:
     return False
 
 
+def _statistics_inside(env: object, kind: type) -> bool:
+    """Whether a gymnasium ``RecordEpisodeStatistics`` (``kind``: the single or the vector one) wraps
+    ``env`` somewhere: it sums the environment's own rewards, not the automaton's."""
+    seen = 0
+    while env is not None and seen < 100:  # a wrapper chain, not a cycle
+        if isinstance(env, kind):
+            return True
+        env, seen = getattr(env, "env", None), seen + 1
+    return False
+
+
+#: What :func:`_statistics_inside` finding one inside rac's wrapper means, and the fix (``{outside}``).
+STATISTICS_INSIDE = ("gymnasium's RecordEpisodeStatistics sits inside rac's wrapper: info['episode']['r'] is the "
+                     "environment's own return, not the automaton's, and it never sees an episode the automaton "
+                     "ends (`episode ends when`); wrap outside instead: {outside}")
+
+
 def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
     if not clip:
         return None
@@ -493,6 +510,9 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
                           "RewardAutomatonWrapper(gymnasium.make(id), ...), n_envs=n) (make_vec_env's Monitor then "
                           "sits outside), Monitor(RewardAutomatonWrapper(env, ...)), or VecMonitor on the vector "
                           "environment", UserWarning, stacklevel=2)
+        if _statistics_inside(env, gymnasium.wrappers.RecordEpisodeStatistics):
+            warnings.warn(STATISTICS_INSIDE.format(outside="RecordEpisodeStatistics(RewardAutomatonWrapper(env, ...))"),
+                          UserWarning, stacklevel=2)
         self._timing = _Timing(self.automaton, dt)
         self._timing.check(env)
         _replaces_reward_of([env])
@@ -613,6 +633,13 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         self._stand_in: object | None = None  # an AsyncVectorEnv's first sub-environment, made here for its timing
         self._timing.check(self._first_env())
         subs = getattr(self.env.unwrapped, "envs", None)  # a SyncVectorEnv's sub-environments
+        # (an AsyncVectorEnv's live in its workers: its first one, made here, stands in for them)
+        singles = subs or ([self._stand_in] if self._stand_in is not None else [])
+        if _statistics_inside(env, gymnasium.wrappers.vector.RecordEpisodeStatistics) or any(
+                _statistics_inside(single, gymnasium.wrappers.RecordEpisodeStatistics) for single in singles):
+            warnings.warn(STATISTICS_INSIDE.format(outside="gymnasium.wrappers.vector.RecordEpisodeStatistics("
+                                                           "RewardAutomatonVectorWrapper(envs, ...))"),
+                          UserWarning, stacklevel=2)
         if subs:
             _replaces_reward_of(subs)
         elif hasattr(getattr(self._stand_in, "unwrapped", None), REPLACED):
