@@ -192,6 +192,22 @@ def test_an_interrupted_scene_set_leaves_the_complete_files(tmp_path: Path) -> N
     assert [(folder / f"highway_{i}.xml").read_bytes() for i in range(2)] == complete
     assert sorted(path.name for path in folder.iterdir()) == ["highway_0.xml", "highway_1.xml"]  # no temporaries
 
+def test_the_command_says_what_it_cannot_write(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``python -m rac.model.scenes`` ended in a traceback on a missing folder, a file where the set's
+    folder goes or ``--count 0``; the atomic write named its temporary file, not the one asked for."""
+    from rac.model.scenes import main
+
+    (tmp_path / "a_file").write_text("", encoding="utf-8")
+    missing = tmp_path / "missing" / "x.xml"
+    for argv, said in ((["highway", str(missing)], f"No such file or directory: '{missing}'"),
+                       (["highway", str(tmp_path / "a_file"), "--count", "2"], "File exists"),
+                       (["highway", str(tmp_path / "set"), "--count", "0"], "at least one scene, not 0")):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code == 2
+        error = capsys.readouterr().err
+        assert said in error and "Traceback" not in error and ".tmp" not in error, error
+
 def _set_model(folder: Path, scenario: Path) -> Path:
     source = folder / f"{scenario.stem}.ra"
     model = MODEL.format(name=scenario.stem, settings=SETTINGS["highway"]).replace(

@@ -34,7 +34,11 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
     # would carry that mode over to the file; "xb" honours the umask like any ordinary file
     temporary = target.with_name(f".{target.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     try:
-        with open(temporary, "xb") as file:
+        try:
+            file = open(temporary, "xb")
+        except OSError as exc:  # a missing folder, no permission: said of the file asked for, not the temporary
+            raise type(exc)(exc.errno, exc.strerror, os.fspath(target)) from exc
+        with file:
             write(file)
         os.replace(temporary, target)
     except BaseException:

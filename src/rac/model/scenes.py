@@ -386,12 +386,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--count", type=int, help="write a set of this many seeded variants instead")
     parser.add_argument("--seed", type=int, default=0, help="the set's first variant (default 0)")
     args = parser.parse_args(argv)
-    if args.count is None:
-        print(f"wrote {write_scene(args.name, args.out)}")
-        return 0
-    if args.name not in VARIANTS:
+    if args.count is not None and args.name not in VARIANTS:
         parser.error(f"{args.name} has no variants; --count works with {', '.join(VARIANTS)}")
-    paths = scene_set(args.name, args.count, args.seed, args.out)
+    try:
+        if args.count is None:
+            print(f"wrote {write_scene(args.name, args.out)}")
+            return 0
+        paths = scene_set(args.name, args.count, args.seed, args.out)
+    except (OSError, ValueError) as exc:  # a folder that is a file, a missing one, --count 0: said, no traceback
+        parser.error(str(exc))
     print(f"wrote {len(paths)} scenes to {args.out}")
     return 0
 
