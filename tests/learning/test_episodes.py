@@ -590,19 +590,22 @@ def test_the_memos_share_one_budget(probe: CompileResult, monkeypatch: pytest.Mo
 
     from rac.learning import episodes
 
-    cap = 16_000
+    gc.collect()
+    # batches of earlier tests that are still alive hold their share: the budget is counted above it
+    held = episodes._Transitions.held_by_all
+    cap = held + 16_000
     monkeypatch.setattr(episodes, "EPISODE_MEMO_BYTES", cap)
     rng = np.random.default_rng(3)
     plans = [rng.integers(9, size=6).tolist() for _ in range(6)]
     first = EpisodeBatch(probe, horizon_samples=12)
     compare(first, probe, plans)
-    assert 0 < first.memo_bytes <= cap
+    assert 0 < first.memo_bytes <= cap - held
     second = EpisodeBatch(probe, horizon_samples=12)
     compare(second, probe, [rng.integers(9, size=6).tolist() for _ in range(6)])
     compare(second, probe, plans)  # beyond the budget: computed again, the same values
-    assert cap - 1_000 < first.memo_bytes + second.memo_bytes <= cap  # full: a step more would not fit
+    assert cap - 1_000 < held + first.memo_bytes + second.memo_bytes <= cap  # full: a step more would not fit
     full = second.memo_bytes
     del first
     gc.collect()
     compare(second, probe, [rng.integers(9, size=6).tolist() for _ in range(6)])
-    assert full < second.memo_bytes <= cap
+    assert full < second.memo_bytes <= cap - held
