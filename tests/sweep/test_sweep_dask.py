@@ -28,6 +28,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
+import psutil
 import pytest
 import sweep_helpers
 from conftest import rac_env
@@ -548,6 +549,44 @@ def test_sigterm_while_the_cluster_starts_closes_it_and_exits_143(world: Path, t
     assert "rac sweep: terminated (SIGTERM): 1 task not run" in captured.err
     assert json.loads((out / "results.json").read_text(encoding="utf-8")) == []
     assert signal.getsignal(signal.SIGTERM) == before
+
+
+def spawned_workers(rac: psutil.Process) -> list[psutil.Process]:
+    """The Dask worker processes ``rac`` has spawned so far (multiprocessing's spawn children)."""
+    found = []
+    for child in rac.children():
+        with contextlib.suppress(psutil.Error):  # gone, or not yet readable
+            if "spawn_main" in " ".join(child.cmdline()):
+                found.append(child)
+    return found
+
+
+def test_ctrl_c_while_the_cluster_starts_stops_the_sweep(world: Path, tmp_path: Path) -> None:
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) while the local cluster started was
+    lost: rac ignored SIGINT then, so that the workers it spawned would ignore it too, and the sweep went on to
+    its end. Now the workers still never see it, rac holds it back until the cluster is up, then closes the
+    cluster, merges what is done and exits 130."""
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-m", "rac", "sweep", str(world / "sweep.ra"),
+                                str(world / "scenarios" / "goal_ahead.xml"), "--horizon", "2", "--workers", "1",
+                                "-o", str(out)], env=rac_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    try:
+        rac = psutil.Process(process.pid)
+        deadline = time.monotonic() + 60
+        while not (workers := spawned_workers(rac)) and process.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert workers, "no worker process was spawned"
+        os.killpg(process.pid, signal.SIGINT)  # the worker is starting: the cluster is not up yet
+        _, err = process.communicate(timeout=60)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 130, err
+    assert "rac sweep: interrupted: 1 task not run" in err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err  # the workers did not see it
+    assert json.loads((out / "results.json").read_text(encoding="utf-8")) == []
+    assert not psutil.wait_procs(workers, timeout=10)[1], "a worker outlived the sweep"
 
 
 def test_the_cli_runs_an_experiment_with_its_reward_function(world: Path, tmp_path: Path,

@@ -23,6 +23,7 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from importlib.util import find_spec
+from multiprocessing import resource_tracker
 from typing import TYPE_CHECKING, Any
 
 from rac.core.diagnostics import RacError
@@ -127,7 +128,7 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                    silence_logs=logging.ERROR)
         with cluster:
-            for number in held:  # a SIGTERM held back while the cluster started: now it can be closed
+            for number in held:  # a signal held back while the cluster started: now it can be closed
                 signal.raise_signal(number)
             with Client(cluster) as client:
                 say(f"dashboard: {client.dashboard_link} (a local cluster, {n_workers} workers{_bokeh()})")
@@ -141,24 +142,36 @@ def _bokeh() -> str:
 
 @contextlib.contextmanager
 def _workers_ignore_sigint() -> Iterator[list[int]]:
-    """Worker processes started in here ignore SIGINT: Ctrl-C on a terminal reaches the whole process group,
-    and rac (not each worker) is the one that stops the sweep and closes the cluster. SIGTERM is held back
-    in here (the list yielded receives its number): raised in the middle of ``LocalCluster``'s start, its
-    ``KeyboardInterrupt`` (``rac sweep``'s handler) left a half-started cluster, which Dask's exit hook then
-    failed to close, with a traceback."""
+    """Worker processes started in here never see SIGINT: Ctrl-C on a terminal reaches the whole process
+    group, and rac (not each worker) is the one that stops the sweep and closes the cluster. SIGINT is
+    blocked in this thread, so the threads the cluster starts here and the workers they spawn (also those
+    Dask starts later in place of a dead one) inherit the blocked signal; SIGINT and SIGTERM that reach rac
+    in here are held back (the list yielded receives their numbers), to be raised once the cluster is up:
+    raised in the middle of ``LocalCluster``'s start, a ``KeyboardInterrupt`` left a half-started cluster,
+    which Dask's exit hook then failed to close, with a traceback. (Ignoring SIGINT instead, as rac did,
+    lost a Ctrl-C pressed during the start: the sweep went on.)"""
     held: list[int] = []
+
+    def hold(number: int, frame: object) -> None:
+        held.append(number)
+
     try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        interrupt = signal.signal(signal.SIGINT, hold)
     except ValueError:  # not the main thread: signals cannot be changed, nor can Ctrl-C arrive here
         yield held
         return
     terminate = signal.getsignal(signal.SIGTERM)
     if callable(terminate):  # a handler of rac's (or the caller's): it runs once the cluster is up
-        signal.signal(signal.SIGTERM, lambda number, frame: held.append(number))
+        signal.signal(signal.SIGTERM, hold)
+    # multiprocessing's resource tracker, started with a worker's first spawn, unblocks SIGINT in the thread
+    # that starts it, which would then spawn that worker: started here first, it never starts in there
+    resource_tracker.ensure_running()
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield held
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a SIGINT that came meanwhile reaches hold() here
+        signal.signal(signal.SIGINT, interrupt)
         if callable(terminate):
             signal.signal(signal.SIGTERM, terminate)
 
