@@ -17,6 +17,7 @@ from pathlib import Path
 
 import psutil
 
+import rac
 from rac.sweep.task import TaskSpec, run_task
 
 
@@ -26,7 +27,7 @@ def row(spec: TaskSpec, status: str = "ok", **fields: object) -> dict[str, objec
     return {"key": spec.key(), "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem,
             "settings": dict(spec.settings), "task": spec.task, "status": status, "error": None, "seconds": 0.01,
             "peak_memory": None, "states": 1, "scenario_size": 2, "verdicts": {"Stays": "satisfied"},
-            "diagnostics": [], "details": {"pid": os.getpid()}, **fields}
+            "diagnostics": [], "details": {"pid": os.getpid()}, "rac_version": rac.__version__, **fields}
 
 
 def marker(spec: TaskSpec, what: str) -> Path:

@@ -36,11 +36,12 @@ from engine_files import engine_source
 from PIL import Image
 from tiny_scenarios import TINY_SCENARIOS
 
+import rac
 from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE, output_folder
 from rac.cli.main import main
 from rac.cli.sweep import exit_status
 from rac.model.scenes import write_scene
-from rac.sweep import SweepResult, execute, plan, sweep
+from rac.sweep import Plan, SweepResult, execute, plan, sweep
 from rac.sweep.report import render_summary, summarise
 from rac.sweep.run import KILLED, Tracker, connect, pending, run_tasks
 from rac.sweep.store import Store
@@ -300,6 +301,28 @@ def test_a_timeout_or_memory_row_of_another_limit_runs_again(world: Path, tmp_pa
     store.put(big, sweep_helpers.row(specs[3], "memory", task_timeout=60.0, task_memory=2**20))
     outcome, todo = pending(specs, store)
     assert list(todo) == [slow, big] and (outcome.skipped, outcome.rerun_limits) == (2, 2)
+
+
+def test_a_row_of_another_rac_version_runs_again(swept: tuple[SweepResult, list[str]], world: Path,
+                                                tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """rac's version was not part of a task's key: after an upgrade a sweep silently reused the rows the old
+    rac had computed. Each row holds the version that made it now, and a row of another (or no) version runs
+    again, with a line that says so."""
+    assert {row["rac_version"] for row in swept[0].rows} == {rac.__version__}  # the real task's rows hold it
+    specs = specs_for(tmp_path, world / "sweep.ra", ["same.xml", "older.xml", "unrecorded.xml"])
+    store = Store(tmp_path / "out")
+    same, older, unrecorded = (spec.key() for spec in specs)
+    store.put(same, sweep_helpers.row(specs[0]))
+    store.put(older, sweep_helpers.row(specs[1], rac_version="0.0.1"))
+    store.put(unrecorded, {k: v for k, v in sweep_helpers.row(specs[2]).items() if k != "rac_version"})
+    ran: list[str] = []
+    monkeypatch.setattr("rac.sweep.run.connect", lambda *args, **kwargs: contextlib.nullcontext(None))
+    monkeypatch.setattr("rac.sweep.run.run_tasks", lambda client, specs, todo, *args, **kwargs: ran.extend(todo))
+    said: list[str] = []
+    result = execute(Plan(world / "sweep.ra", tmp_path / "out", tuple(specs), 3, 1), quiet=True, announce=said.append)
+    assert ran == [older, unrecorded]
+    assert (result.outcome.skipped, result.outcome.rerun_version) == (1, 2)
+    assert f"rerunning 2 tasks stored by another version of rac (0.0.1, unknown; this is {rac.__version__})" in said
 
 
 def test_a_task_past_its_timeout_is_a_timeout_row(client, world: Path, tmp_path: Path) -> None:

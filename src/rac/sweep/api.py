@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import rac
 from rac.engine.budget import parse_size
 from rac.lang.parser import parse_expression
 from rac.output.paths import output_folder
@@ -123,8 +124,9 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
             retry_failed: bool = False, quiet: bool = False, announce: Any = None) -> SweepResult:
     """Run ``plan`` on Dask (:func:`rac.sweep.run.connect`), store each row as it arrives, then merge the
     rows into ``results.parquet`` (or CSV) and ``results.json`` and draw the plots in ``plan.out``.
-    Stored rows are reused, except those whose task's process was killed (run again, and ``announce`` says
-    how many), every row not ok with ``retry_failed``, and all of them with ``force``.
+    Stored rows are reused, except those of another version of rac and those whose task's process was killed
+    (run again, and ``announce`` says how many), every row not ok with ``retry_failed``, and all of them with
+    ``force``.
     ``announce(line)`` receives the dashboard's address; ``quiet`` turns the progress off. Ctrl-C stops the
     sweep: what is done is merged, and the result says ``outcome.interrupted``. Raises ``OSError`` when the
     scheduler cannot be reached or the output folder cannot be written."""
@@ -138,7 +140,10 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     store.folder.mkdir(parents=True, exist_ok=True)  # an unwritable folder fails before the cluster starts
     outcome, todo = pending(plan.specs, store, force=force, retry_failed=retry_failed)
     say = announce or (lambda _: None)
-    for count, why in ((outcome.rerun_killed, "whose process was killed"),
+    versions = ", ".join(sorted(outcome.other_versions))
+    for count, why in ((outcome.rerun_version, f"stored by another version of rac ({versions}; this is "
+                                               f"{rac.__version__})"),
+                       (outcome.rerun_killed, "whose process was killed"),
                        (outcome.rerun_limits, "stopped by another --task-timeout or --task-memory"),
                        (outcome.rerun_failed, "that failed (--retry-failed)")):
         if count:

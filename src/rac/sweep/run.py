@@ -26,6 +26,7 @@ from importlib.util import find_spec
 from multiprocessing import resource_tracker
 from typing import TYPE_CHECKING, Any
 
+import rac
 from rac.core.diagnostics import RacError
 from rac.output.progress import Heartbeat, Progress
 from rac.sweep.store import Store
@@ -72,7 +73,7 @@ def error_row(spec: TaskSpec, key: str, status: str, message: str, *, retry: boo
     return {"key": key, **spec.names(),
             "settings": dict(spec.settings), "task": spec.task, "status": status, "error": message,
             "retry": retry, "seconds": 0.0, "peak_memory": None, "states": None, "scenario_size": None, "verdicts": {},
-            "diagnostics": [], "details": None, **spec.limits()}
+            "diagnostics": [], "details": None, **spec.limits(), "rac_version": rac.__version__}
 
 
 @dataclass
@@ -90,6 +91,10 @@ class Outcome:
     rerun_failed: int = 0  #: other stored rows not ok, run again under ``retry_failed``
     #: stored ``timeout`` (``memory``) rows of another task timeout (memory limit) than this run's, run again
     rerun_limits: int = 0
+    #: stored rows of another version of rac than this one (``rac_version``), run again
+    rerun_version: int = 0
+    #: the versions those rows name (``unknown``: a row of before rows held it)
+    other_versions: set[str] = field(default_factory=set)
     interrupted: bool = False
 
 
@@ -181,7 +186,8 @@ def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
     """What is done and what is left: an :class:`Outcome` holding each spec's key and the rows ``store``
     has (none with ``force``), and the specs to run by key (specs with equal keys, the same scenario file
     under two paths, run once). A stored row marked ``retry`` (its task's process was killed: no verdict)
-    is run again, and so is a ``timeout`` or ``memory`` row of another limit than the spec's; with
+    is run again, and so is a row of another version of rac and a ``timeout`` or ``memory`` row of another
+    limit than the spec's; with
     ``retry_failed`` every stored row that is not ok is."""
     outcome = Outcome()
     todo: dict[str, TaskSpec] = {}
@@ -191,7 +197,12 @@ def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
         if key in todo or key in outcome.rows:  # the same scenario file under another path: decided once
             continue
         stored = None if force else store.get(key)
-        if stored is not None and stored.get("retry") is True:
+        if stored is not None and stored.get("rac_version") != rac.__version__:
+            # the version is not part of the key: a row of another rac answers that rac, not this one
+            outcome.rerun_version += 1
+            outcome.other_versions.add(str(stored.get("rac_version") or "unknown"))
+            stored = None
+        elif stored is not None and stored.get("retry") is True:
             outcome.rerun_killed += 1
             stored = None
         elif stored is not None and _other_limit(stored, spec):

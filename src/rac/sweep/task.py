@@ -121,7 +121,8 @@ def _row(spec: TaskSpec) -> dict[str, Any]:
     return {"key": spec.key(), **spec.names(),
             "settings": dict(spec.settings), "task": spec.task, "status": "error",
             "error": "the task gave no result", "retry": False, "seconds": 0.0, "peak_memory": None, "states": None,
-            "scenario_size": None, "verdicts": {}, "diagnostics": [], "details": None, **spec.limits()}
+            "scenario_size": None, "verdicts": {}, "diagnostics": [], "details": None, **spec.limits(),
+            "rac_version": rac.__version__}
 
 
 def run_task(spec: TaskSpec) -> dict[str, object]:
@@ -133,7 +134,8 @@ def run_task(spec: TaskSpec) -> dict[str, object]:
     settings (dict name -> value text), task, status (:data:`STATUSES`), error (str or None), retry (bool:
     the task's process was killed from outside, :data:`KILLING_SIGNALS`, so the row is no verdict and a
     resumed sweep runs the task again), task_timeout and task_memory (the limits it ran under,
-    :meth:`TaskSpec.limits`), seconds
+    :meth:`TaskSpec.limits`), rac_version (the version of rac that ran it: a resumed sweep runs a row of another
+    version again), seconds
     (the task's own time in the child; the whole time when the child gave no result), peak_memory
     (bytes, the child's largest resident size, or None), states (int or None), scenario_size (int:
     lanelets + obstacles, or None), verdicts (dict query name -> :data:`VERDICTS`; {} for check),
