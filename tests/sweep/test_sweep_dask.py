@@ -650,3 +650,42 @@ def test_sigterm_while_the_results_are_written_exits_143(world: Path, tmp_path: 
     assert code == 143, capsys.readouterr().err
     assert "rac sweep: terminated (SIGTERM) while writing results.*" in capsys.readouterr().err
     assert signal.getsignal(signal.SIGTERM) == before
+
+
+@pytest.mark.parametrize("where", ["plots", "pending"])
+@pytest.mark.parametrize(("number", "exit_code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_interrupt_outside_the_run_still_prints_the_json_document(world: Path, tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch,
+                                                                     capsys: pytest.CaptureFixture[str],
+                                                                     where: str, number: int,
+                                                                     exit_code: int) -> None:
+    """Under --format json, Ctrl-C or SIGTERM while results.* and the plots were written (or before the tasks
+    ran) printed no JSON at all, only a line on standard error. Now standard output is the document still:
+    interrupted, the exit code the process ends with, what was kept (the summary of the stored rows, the
+    files written), and that not all files were written."""
+    planned = plan(world / "sweep.ra", [str(world / "scenarios" / "goal_ahead.xml")], options=OPTIONS,
+                   out=tmp_path / "out")
+    (spec,) = planned.specs
+    Store(planned.out).put(spec.key(), sweep_helpers.row(spec))
+
+    def signalled(*args: object, **kwargs: object) -> list[Path]:
+        os.kill(os.getpid(), number)
+        time.sleep(1)  # the handler runs here
+        return []
+
+    monkeypatch.setattr("rac.sweep.report.write_plots" if where == "plots" else "rac.sweep.run.pending", signalled)
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    code = main(["sweep", str(world / "sweep.ra"), str(world / "scenarios" / "goal_ahead.xml"), "--horizon", "2",
+                 "-o", str(tmp_path / "out"), "--format", "json"])
+    captured = capsys.readouterr()
+    document = json.loads(captured.out)
+    assert code == exit_code == document["exit_code"], captured.err
+    assert document["interrupted"] is True and document["written"] is False
+    if where == "plots":  # the rows were merged into results.*; the plots were not drawn
+        assert document["summary"]["finished"] == 1
+        assert document["files"] == [str(tmp_path / "out" / name) for name in ("results.parquet", "results.json")]
+        assert "while writing results.* and the plots" in captured.err
+    else:
+        assert document["summary"] is None and document["files"] == []
+        assert f"results.* not written (run the same command again: the rows of the tasks that ran are stored in " \
+               f"{tmp_path / 'out' / 'tasks'})" in captured.err

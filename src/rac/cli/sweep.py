@@ -77,6 +77,15 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}{'s' * (n != 1)}"
 
 
+def _document(template: Path, out: Path, status: int, summary: Mapping[str, object] | None,
+              files: Sequence[Path], *, interrupted: bool, written: bool) -> str:
+    """The JSON document of ``--format json``: ``summary`` None when Ctrl-C came before there was one, and
+    ``written`` whether ``results.*`` and the plots were all written (``files`` holds those that were)."""
+    return json.dumps({"template": str(template), "out": str(out), "interrupted": interrupted,
+                       "exit_code": status, "summary": summary, "files": [str(f) for f in files],
+                       "written": written}, indent=2)
+
+
 def sweep_command(args: argparse.Namespace) -> int:
     """``rac sweep``: plan (bad arguments exit 2 before any cluster starts), run, merge, summarise."""
     # matplotlib, numpy (via rac.sweep.report): only the command that uses it loads it
@@ -125,18 +134,22 @@ def sweep_command(args: argparse.Namespace) -> int:
         found = unwritable(Path(exc.filename), exc) if exc.filename else usage_error(str(exc))
         print_diagnostics([found], {}, as_json(args))
         return EXIT_USAGE
-    except KeyboardInterrupt:  # while the rows were merged and plotted: each is stored in tasks/ already
+    except KeyboardInterrupt:  # outside the run and the writing (execute's own): before them, or between
+        from rac.sweep.store import TASKS_FOLDER  # matplotlib (via rac.sweep.store): only when this runs
+
+        status = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+        if args.format == "json":  # standard output stays one JSON document, whenever the interrupt came
+            print(_document(planned.template, planned.out, status, None, [], interrupted=True, written=False))
         how = "terminated (SIGTERM)" if terminated else "interrupted"
-        print(f"rac sweep: {how} while writing results.* and the plots (run the same command again to write "
-              "them: the tasks that ran are stored)", file=sys.stderr)
-        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+        print(f"rac sweep: {how}; results.* not written (run the same command again: the rows of the tasks that "
+              f"ran are stored in {planned.out / TASKS_FOLDER})", file=sys.stderr)
+        return status
     status = exit_status(result.rows)
     if result.outcome.interrupted:  # the exit code the process ends with, which the JSON document says too
         status = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     if args.format == "json":
-        print(json.dumps({"template": str(planned.template), "out": str(planned.out),
-                          "interrupted": result.outcome.interrupted, "exit_code": status,
-                          "summary": result.summary.to_json(), "files": [str(f) for f in result.files]}, indent=2))
+        print(_document(planned.template, planned.out, status, result.summary.to_json(), result.files,
+                        interrupted=result.outcome.interrupted, written=result.written))
     else:
         print(render_summary(result.summary))
         print()
@@ -144,8 +157,11 @@ def sweep_command(args: argparse.Namespace) -> int:
             print(f"wrote {path}")
     for note in result.notes:
         print(f"rac sweep: note: {note}", file=sys.stderr)
-    if result.outcome.interrupted:
-        how = "terminated (SIGTERM)" if terminated else "interrupted"
+    how = "terminated (SIGTERM)" if terminated else "interrupted"
+    if not result.written:
+        print(f"rac sweep: {how} while writing results.* and the plots (run the same command again to write "
+              "them: the tasks that ran are stored)", file=sys.stderr)
+    if result.outcome.interrupted and (result.written or result.summary.not_run):
         # under --force the store holds rows of before this run for the tasks left: no command runs only those
         again = ("with --force the same command runs every task again; without it, it reuses every stored row, "
                  "those of earlier runs included" if args.force else

@@ -43,7 +43,8 @@ class Plan:
 @dataclass
 class SweepResult:
     """A finished (or interrupted) sweep: its plan, what ran, the rows in the plan's order, the summary,
-    the files written and notes for the user."""
+    the files written, notes for the user, and whether ``results.*`` and the plots were all written (not when
+    Ctrl-C came while they were: the rows are stored in ``tasks/`` all the same)."""
 
     plan: Plan
     outcome: Outcome
@@ -51,6 +52,7 @@ class SweepResult:
     summary: Summary
     files: list[Path] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    written: bool = True
 
 
 def _set_texts(sets: Mapping[str, object] | Sequence[str] | None) -> list[str]:
@@ -128,7 +130,8 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     (run again, and ``announce`` says how many), every row not ok with ``retry_failed``, and all of them with
     ``force``.
     ``announce(line)`` receives the dashboard's address; ``quiet`` turns the progress off. Ctrl-C stops the
-    sweep: what is done is merged, and the result says ``outcome.interrupted``. Raises ``OSError`` when the
+    sweep: what is done is merged, and the result says ``outcome.interrupted`` (and ``written`` whether the
+    merged files were all written: Ctrl-C may come while they are). Raises ``OSError`` when the
     scheduler cannot be reached or the output folder cannot be written."""
     from rac.sweep import report  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
 
@@ -156,10 +159,15 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
         except KeyboardInterrupt:  # while the cluster started or closed: the rows stored are still merged
             outcome.interrupted = True
     rows = rows_in_order(plan.specs, outcome)
-    files, notes = report.write_results(rows, plan.out)
-    files += report.write_plots(rows, plan.out)
-    summary = report.summarise(rows, tasks=len(plan.specs), skipped=outcome.skipped)
-    return SweepResult(plan=plan, outcome=outcome, rows=rows, summary=summary, files=files, notes=notes)
+    result = SweepResult(plan=plan, outcome=outcome, rows=rows,
+                         summary=report.summarise(rows, tasks=len(plan.specs), skipped=outcome.skipped))
+    try:
+        files, result.notes = report.write_results(rows, plan.out)
+        result.files += files
+        result.files += report.write_plots(rows, plan.out)
+    except KeyboardInterrupt:  # each row is stored in tasks/ already: the same command writes these files again
+        outcome.interrupted, result.written = True, False
+    return result
 
 
 def sweep(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
