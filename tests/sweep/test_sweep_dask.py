@@ -526,6 +526,12 @@ def test_off_a_terminal_the_progress_is_plain_lines(monkeypatch: pytest.MonkeyPa
     assert capsys.readouterr().err == ""
 
 
+def test_the_progress_before_the_cluster_answers_says_so() -> None:
+    """While the cluster started (or an unreachable --scheduler was tried for 10 s) the line said "0 of 0 tasks
+    done, 0 failed", as if the sweep had nothing to do."""
+    assert re.fullmatch(r"waiting for the Dask cluster, no task sent yet; \d+ s", Tracker(quiet=True).line())
+
+
 def test_import_rac_does_not_import_dask() -> None:
     heavy = ("dask", "distributed", "pandas", "pyarrow")
     code = ("import sys, rac, rac.sweep, rac.cli.arguments; rac.cli.arguments.build_parser(); "

@@ -321,8 +321,11 @@ class Tracker:
             self._bar.update()
 
     def line(self) -> str:
-        """The progress in words: ``12 of 40 tasks done, 1 failed, 9.5 tasks/min, ETA 3 min``."""
+        """The progress in words: ``12 of 40 tasks done, 1 failed, 9.5 tasks/min, ETA 3 min``; before
+        :meth:`start`, that the cluster is awaited."""
         elapsed = time.monotonic() - self._started
+        if self._bar is None:  # no cluster yet (it starts, or its scheduler does not answer): no task was sent
+            return f"waiting for the Dask cluster, no task sent yet; {_duration(elapsed)}"
         text = f"{self.done} of {self.total} tasks done, {self.failed} failed"
         if self.done:
             rate = self.done / max(elapsed, 1e-9)
