@@ -526,6 +526,35 @@ def test_off_a_terminal_the_progress_is_plain_lines(monkeypatch: pytest.MonkeyPa
     assert capsys.readouterr().err == ""
 
 
+class QuietCluster:
+    """A stand-in for Dask's ``LocalCluster`` and ``Client`` that starts nothing."""
+
+    dashboard_link = "http://127.0.0.1:8787/status"
+
+    def __init__(self, *args: object, **kw: object) -> None:
+        pass
+
+    def __enter__(self) -> QuietCluster:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        pass
+
+
+def test_the_dashboard_line_counts_one_worker(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`--workers 1` announced "a local cluster, 1 workers"."""
+    import distributed
+
+    monkeypatch.setattr(distributed, "LocalCluster", QuietCluster)
+    monkeypatch.setattr(distributed, "Client", QuietCluster)
+    said: list[str] = []
+    for workers in (1, 2):
+        with connect(workers=workers, announce=said.append):
+            pass
+    assert [line.split("(")[1].split(";")[0].rstrip(")") for line in said] == ["a local cluster, 1 worker",
+                                                                               "a local cluster, 2 workers"]
+
+
 def test_the_progress_before_the_cluster_answers_says_so() -> None:
     """While the cluster started (or an unreachable --scheduler was tried for 10 s) the line said "0 of 0 tasks
     done, 0 failed", as if the sweep had nothing to do."""

@@ -123,7 +123,7 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
                 raise BadSchedulerAddress(str(address), str(exc)) from exc
             with client:
                 workers = len(client.scheduler_info().get("workers", {}))
-                say(f"dashboard: {client.dashboard_link} (the cluster at {address}, {workers} workers{_bokeh()})")
+                say(f"dashboard: {client.dashboard_link} (the cluster at {address}, {_workers(workers)}{_bokeh()})")
                 yield client
             return
         n_workers = workers or os.cpu_count() or 1
@@ -136,8 +136,13 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
             for number in held:  # a signal held back while the cluster started: now it can be closed
                 signal.raise_signal(number)
             with Client(cluster) as client:
-                say(f"dashboard: {client.dashboard_link} (a local cluster, {n_workers} workers{_bokeh()})")
+                say(f"dashboard: {client.dashboard_link} (a local cluster, {_workers(n_workers)}{_bokeh()})")
                 yield client
+
+
+def _workers(n: int) -> str:
+    """``1 worker``, ``2 workers``."""
+    return f"{n} worker{'s' * (n != 1)}"
 
 
 def _bokeh() -> str:
