@@ -534,11 +534,14 @@ class QuietCluster:
     def __init__(self, *args: object, **kw: object) -> None:
         pass
 
+    def close(self) -> None:
+        pass
+
     def __enter__(self) -> QuietCluster:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        pass
+    def __exit__(self, *exc: object) -> None:  # the close, as `with cluster:` calls it
+        self.close()
 
 
 def test_the_dashboard_line_counts_one_worker(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -580,10 +583,7 @@ class TermWhileStarting:
         time.sleep(0.2)  # a Python handler runs here, in the middle of the start
         self.events.append("started")
 
-    def __enter__(self) -> TermWhileStarting:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
+    def close(self) -> None:
         self.events.append("closed")
 
 
@@ -645,6 +645,38 @@ def test_ctrl_c_while_the_cluster_starts_stops_the_sweep(world: Path, tmp_path: 
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err  # the workers did not see it
     assert json.loads((out / "results.json").read_text(encoding="utf-8")) == []
     assert not psutil.wait_procs(workers, timeout=10)[1], "a worker outlived the sweep"
+
+
+class IntWhileClosing(QuietCluster):
+    """A stand-in for Dask's ``LocalCluster`` that receives SIGINT in the middle of its close (a second Ctrl-C,
+    or one as the sweep ends), and records that it was closed."""
+
+    events: list[str] = []
+
+    def close(self) -> None:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.2)  # Python's handler runs here, in the middle of the close
+        self.events.append("closed")
+
+
+def test_ctrl_c_while_the_cluster_closes_closes_it_all_the_same(world: Path, tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """A second Ctrl-C (or one as the sweep ended) while the local cluster closed left it half closed: Dask's
+    exit hook then waited some 10 s on it before the process ended. Now the signal is held until the cluster
+    is closed, and the sweep ends as after Ctrl-C."""
+    import distributed
+
+    monkeypatch.setattr(distributed, "LocalCluster", IntWhileClosing)
+    monkeypatch.setattr(distributed, "Client", QuietCluster)
+    monkeypatch.setattr("rac.sweep.run.run_tasks", lambda *args, **kwargs: None)  # no task runs: none needs to
+    IntWhileClosing.events = []
+    code = main(["sweep", str(world / "sweep.ra"), str(world / "scenarios" / "goal_ahead.xml"), "--workers", "1",
+                 "-o", str(tmp_path / "out"), "-q"])
+    captured = capsys.readouterr()
+    assert IntWhileClosing.events == ["closed"]
+    assert code == 130, captured.err
+    assert "rac sweep: interrupted: 1 task not run" in captured.err
 
 
 def test_the_cli_runs_an_experiment_with_its_reward_function(world: Path, tmp_path: Path,

@@ -127,17 +127,27 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
                 yield client
             return
         n_workers = workers or os.cpu_count() or 1
-        with _workers_ignore_sigint() as held, warnings.catch_warnings():
+        with _held_signals() as held, warnings.catch_warnings():
             # another cluster holds the dashboard's usual port 8787: Dask takes another and says so
             warnings.filterwarnings("ignore", message=".*already in use.*")
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                    silence_logs=logging.ERROR)
-        with cluster:
+        local: Client | None = None
+        try:
             for number in held:  # a signal held back while the cluster started: now it can be closed
                 signal.raise_signal(number)
-            with Client(cluster) as client:
-                say(f"dashboard: {client.dashboard_link} (a local cluster, {_workers(n_workers)}{_bokeh()})")
-                yield client
+            local = Client(cluster)
+            say(f"dashboard: {local.dashboard_link} (a local cluster, {_workers(n_workers)}{_bokeh()})")
+            yield local
+        finally:
+            # held while they close too: a second Ctrl-C in there left the cluster half closed, and Dask's exit
+            # hook then waited some 10 s on it before the process could end
+            with _held_signals() as held:
+                if local is not None:
+                    local.close()
+                cluster.close()
+            for number in held:  # the process was stopped meanwhile: as if just after
+                signal.raise_signal(number)
 
 
 def _workers(n: int) -> str:
@@ -151,15 +161,15 @@ def _bokeh() -> str:
 
 
 @contextlib.contextmanager
-def _workers_ignore_sigint() -> Iterator[list[int]]:
-    """Worker processes started in here never see SIGINT: Ctrl-C on a terminal reaches the whole process
-    group, and rac (not each worker) is the one that stops the sweep and closes the cluster. SIGINT is
-    blocked in this thread, so the threads the cluster starts here and the workers they spawn (also those
-    Dask starts later in place of a dead one) inherit the blocked signal; SIGINT and SIGTERM that reach rac
-    in here are held back (the list yielded receives their numbers), to be raised once the cluster is up:
-    raised in the middle of ``LocalCluster``'s start, a ``KeyboardInterrupt`` left a half-started cluster,
-    which Dask's exit hook then failed to close, with a traceback. (Ignoring SIGINT instead, as rac did,
-    lost a Ctrl-C pressed during the start: the sweep went on.)"""
+def _held_signals() -> Iterator[list[int]]:
+    """SIGINT and SIGTERM that reach rac in here are held back (the list yielded receives their numbers), for
+    the caller to raise once a local cluster is up, or closed: raised in the middle of ``LocalCluster``'s start
+    (or close), a ``KeyboardInterrupt`` left a half-started cluster, which Dask's exit hook then failed to
+    close, with a traceback. And worker processes started in here never see SIGINT: Ctrl-C on a terminal
+    reaches the whole process group, and rac (not each worker) is the one that stops the sweep and closes
+    the cluster. SIGINT is blocked in this thread, so the threads the cluster starts here and the workers
+    they spawn (also those Dask starts later in place of a dead one) inherit the blocked signal. (Ignoring
+    SIGINT instead, as rac did, lost a Ctrl-C pressed during the start: the sweep went on.)"""
     held: list[int] = []
 
     def hold(number: int, frame: object) -> None:
