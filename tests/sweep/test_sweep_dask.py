@@ -558,6 +558,18 @@ def test_the_dashboard_line_counts_one_worker(monkeypatch: pytest.MonkeyPatch) -
                                                                                "a local cluster, 2 workers"]
 
 
+def test_the_progress_counts_failed_tasks_as_the_summary_does() -> None:
+    """The progress counted every task not ok as failed: a sweep of undecided tasks said "4 of 4 tasks done,
+    4 failed", then its summary "failed 0, undecided 4"."""
+    rows = [{"status": status} for status in ("ok", "undecided", "timeout", "failed")]
+    with Tracker(quiet=True) as tracker:
+        tracker.start(len(rows), 0)
+        for row in rows:
+            tracker.row(None, row)  # type: ignore[arg-type]
+    assert tracker.line().startswith("4 of 4 tasks done, 2 failed")
+    assert summarise(rows, tasks=len(rows)).failed == tracker.failed == 2
+
+
 def test_the_progress_before_the_cluster_answers_says_so() -> None:
     """While the cluster started (or an unreachable --scheduler was tried for 10 s) the line said "0 of 0 tasks
     done, 0 failed", as if the sweep had nothing to do."""

@@ -27,7 +27,7 @@ from typing import Any
 from rac.core.files import atomic_write
 from rac.output.plots import fit_title, new_figure, save_figure
 from rac.sweep.store import write_text
-from rac.sweep.task import STATUSES, VERDICTS  # in the order tables and plots show them
+from rac.sweep.task import NOT_FAILED, STATUSES, VERDICTS  # STATUSES, VERDICTS: in the order tables and plots show them
 
 __all__ = ["RESULTS_CSV", "RESULTS_JSON", "RESULTS_PARQUET", "Summary", "frame", "grid_label", "render_summary",
            "summarise", "table", "write_plots", "write_results"]
@@ -155,7 +155,7 @@ class Summary:
     @property
     def failed(self) -> int:
         """Tasks that finished neither ok nor undecided (failed, error, timeout, memory)."""
-        return self.finished - self.ok - self.undecided
+        return sum(n for status, n in self.statuses.items() if status not in NOT_FAILED)
 
     def to_json(self) -> dict[str, object]:
         """The summary as JSON-serialisable data."""

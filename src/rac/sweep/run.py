@@ -30,7 +30,7 @@ import rac
 from rac.core.diagnostics import RacError
 from rac.output.progress import Heartbeat, Progress
 from rac.sweep.store import Store
-from rac.sweep.task import run_task
+from rac.sweep.task import NOT_FAILED, run_task
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -330,7 +330,7 @@ class Tracker:
     def row(self, spec: TaskSpec, row: Row) -> None:
         """A task's row arrived."""
         self.done += 1
-        self.failed += row.get("status") != "ok"
+        self.failed += row.get("status") not in NOT_FAILED  # as the summary counts them: undecided is no failure
         if self._bar is not None:
             self._bar.set_postfix(failed=self.failed)
             self._bar.update()

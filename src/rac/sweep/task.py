@@ -32,14 +32,17 @@ from rac.engine.budget import format_bytes
 from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
 
-__all__ = ["KILLING_SIGNALS", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec", "memory_error",
-           "run_task"]
+__all__ = ["KILLING_SIGNALS", "NOT_FAILED", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec",
+           "memory_error", "run_task"]
 
 #: What a task runs: the command of the same name on one file.
 #: A row's ``status``: "ok" (no errors; every query decided), "failed" (errors in the file, a query
 #: not satisfied), "undecided" (a query unknown beyond a budget, or unsupported: no failure, no
 #: answer), "error" (rac could not run it), "timeout" and "memory" (the task's limits).
 STATUSES = ("ok", "failed", "undecided", "error", "timeout", "memory")
+#: The statuses that are no failure: the tasks "failed" so far (the progress) and in all (the summary) are the
+#: others.
+NOT_FAILED = ("ok", "undecided")
 #: The verdicts a row's ``verdicts`` holds (a query whose answer is a value, ``Pr[<=T](<> p)`` or
 #: ``simulate``, has none and is not listed): rac verify's own (:data:`rac.verify.report.VERDICTS`).
 VERDICTS = report_verdicts
