@@ -96,3 +96,15 @@ def test_simulate_and_render_count_the_samples_they_simulate(command: str, tmp_p
     assert counted, lines
     assert main([command, str(path), "-q", "--seed", "1", "--out", str(tmp_path / "o")]) == 0
     assert f"rac {command}: simulating" not in capsys.readouterr().err
+
+
+def test_a_bar_of_a_few_counts_whole_numbers() -> None:
+    """tqdm's scaled counts ("13.3k states") showed the 3rd of a sweep's 8 tasks as "3.00/8.00 tasks"."""
+    few, many = io.StringIO(), io.StringIO()
+    with Progress(total=8, desc="sweep", unit="tasks", enabled=True, file=few) as bar, \
+            Progress(desc="exploring", unit="states", enabled=True, file=many) as states:
+        time.sleep(0.2)  # past tqdm's least interval between two refreshes
+        bar.update(3)
+        states.update(13300)
+    assert "3/8" in few.getvalue() and ".00" not in few.getvalue(), few.getvalue()
+    assert "13.3k states" in many.getvalue(), many.getvalue()

@@ -61,9 +61,10 @@ class Progress:
         # a disabled bar never touches tqdm: no output, no monitor thread, no cost per update
         self._bar: tqdm | None = None
         if enabled:
-            # tqdm glues the unit to the number ("13.3kstates"); the leading space reads "13.3k states/s"
-            self._bar = tqdm(total=total, desc=desc, unit=f" {unit}", unit_scale=True, file=stream,
-                             dynamic_ncols=True, leave=False)
+            # tqdm glues the unit to the number ("13.3kstates"); the leading space reads "13.3k states/s".
+            # Scaled counts ("13.3k") only where they run large: tqdm shows a scaled 3 of 8 tasks as "3.00/8.00"
+            self._bar = tqdm(total=total, desc=desc, unit=f" {unit}", unit_scale=total is None or total >= 1000,
+                             file=stream, dynamic_ncols=True, leave=False)
 
     def update(self, n: int = 1) -> None:
         """Advance the bar by ``n`` (and tell the active :class:`Heartbeat`, if any)."""
