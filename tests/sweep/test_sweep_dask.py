@@ -466,6 +466,9 @@ def test_the_cli_on_a_separate_dask_scheduler_and_worker(world: Path, tmp_path: 
     (["{scenarios}", "--set", "exponent"], "`--set exponent`: write NAME=V1,V2,..."),
     (["{scenarios}", "--scheduler", "tcp://127.0.0.1:1", "--workers", "2"], "--workers sizes the local cluster"),
     (["{scenarios}", "--task-memory", "lots"], "`lots` is not a size"),
+    # an infinite timeout was stored as `Infinity` in tasks/*.json and results.json, which no JSON reader takes
+    (["{scenarios}", "--task-timeout", "inf"], "--task-timeout: not a positive number of seconds: 'inf'"),
+    (["{scenarios}", "--task-timeout", "1e400"], "--task-timeout: not a positive number of seconds: '1e400'"),
     # every task failed with the same syntax error (exit 1) after the cluster started
     (["{scenarios}", "--task", "experiment", "--reward-function", "sa +"],
      "--reward-function: `sa +`: the expression is incomplete"),
@@ -478,6 +481,11 @@ def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytes
     given = [arg.format(scenarios=scenarios) for arg in args]
     assert main(["sweep", str(world / "sweep.ra"), *given]) == EXIT_USAGE
     assert message.format(scenarios=scenarios) in capsys.readouterr().err
+
+
+def test_the_api_refuses_an_infinite_task_timeout(world: Path) -> None:
+    with pytest.raises(ValueError, match="the task timeout must be a finite number of seconds more than 0, not inf"):
+        plan(world / "sweep.ra", [str(world / "scenarios")], task_timeout=float("inf"))
 
 
 def test_workers_with_a_configured_scheduler_is_bad_usage(world: Path, monkeypatch: pytest.MonkeyPatch,

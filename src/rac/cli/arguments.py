@@ -9,6 +9,7 @@ command module it runs.
 from __future__ import annotations
 
 import argparse
+import math
 import re
 from collections.abc import Callable
 from fractions import Fraction
@@ -310,7 +311,8 @@ def _add_sweep(commands: argparse._SubParsersAction) -> None:
                             "configuration, else a local cluster)")
     sweep.add_argument("--workers", type=_checked(lambda t: int(t) >= 1, "a whole number of at least 1"),
                        metavar="N", help="worker processes of the local cluster (default: one per core)")
-    sweep.add_argument("--task-timeout", type=_checked(lambda t: float(t) > 0, "a positive number of seconds"),
+    sweep.add_argument("--task-timeout",
+                       type=_checked(lambda t: 0 < float(t) < math.inf, "a positive number of seconds"),
                        metavar="S", help="seconds per task; past them the task is a timeout row")
     sweep.add_argument("--task-memory", type=size_argument, metavar="SIZE",
                        help="memory per task, e.g. 2G; past it the task is a memory row")

@@ -7,6 +7,7 @@ May import: rac, rac.compiler, core, lang, ir, check, model, runtime, engine, ou
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -84,8 +85,8 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     unknown = sorted(set(options or {}) - set(OPTIONS))
     if unknown:
         raise ValueError(f"unknown option {', '.join(unknown)}: the options are {', '.join(OPTIONS)}")
-    if task_timeout is not None and not task_timeout > 0:
-        raise ValueError(f"the task timeout must be more than 0 seconds, not {task_timeout}")
+    if task_timeout is not None and not 0 < task_timeout < math.inf:  # inf: no JSON number holds it
+        raise ValueError(f"the task timeout must be a finite number of seconds more than 0, not {task_timeout}")
     memory = _bytes(task_memory)
     function = (options or {}).get("reward_function")
     if function is not None:  # its syntax is the same for every task: a typo fails here, not in each
