@@ -472,6 +472,9 @@ def test_the_cli_on_a_separate_dask_scheduler_and_worker(world: Path, tmp_path: 
     # every task failed with the same syntax error (exit 1) after the cluster started
     (["{scenarios}", "--task", "experiment", "--reward-function", "sa +"],
      "--reward-function: `sa +`: the expression is incomplete"),
+    # the same: every task failed with "pass --reward-function EXPR" after the cluster started
+    (["{scenarios}", "--task", "experiment"], "--task experiment: the default reward function (the paper's Eq. 9) "
+                                              "reads the inputs isClose, prog and comf; pass --reward-function EXPR"),
 ])
 def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytest.MonkeyPatch,
                                                  capsys: pytest.CaptureFixture[str], args: list[str],

@@ -42,7 +42,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -55,14 +55,27 @@ from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
 
-__all__ = ["ABLATION", "COMBINATIONS", "GROWTH", "PAPER_REWARD_FUNCTION", "ExperimentError", "Options", "Report",
-           "default_widths", "render_ablation", "render_markdown", "run_experiment"]
+__all__ = ["ABLATION", "COMBINATIONS", "GROWTH", "PAPER_INPUTS", "PAPER_REWARD_FUNCTION", "ExperimentError", "Options",
+           "Report", "default_reward_problem", "default_widths", "render_ablation", "render_markdown", "run_experiment"]
 
 #: The experiment's report and its summary rows (JSON-shaped: written as JSON and as Markdown).
 Report = dict[str, Any]
 
 #: The paper's Eq. 9 with its ``safe`` written as ``!isClose``.
 PAPER_REWARD_FUNCTION = "10 * !isClose + (5 + 100 * goal()) * prog + comf"
+#: The inputs :data:`PAPER_REWARD_FUNCTION` reads.
+PAPER_INPUTS = ("isClose", "prog", "comf")
+
+
+def default_reward_problem(inputs: Iterable[str]) -> str | None:
+    """Why the paper's reward function (the default of ``--reward-function``) cannot serve an automaton
+    with these inputs, for the user; None when it can."""
+    if set(PAPER_INPUTS) <= set(inputs):
+        return None
+    return (f"the default reward function (the paper's Eq. 9) reads the inputs {', '.join(PAPER_INPUTS[:-1])} "
+            f"and {PAPER_INPUTS[-1]}; pass --reward-function EXPR for this automaton")
+
+
 #: (label, shielded, reward kind) in the paper's order.
 COMBINATIONS: tuple[tuple[str, bool, str], ...] = (
     ("SS&RA", True, "automaton"), ("SS&RF", True, "function"), ("RA", False, "automaton"), ("RF", False, "function"))
@@ -237,10 +250,9 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     horizon = horizon_samples if horizon_samples is not None else automaton.steps
     text = reward_function if reward_function is not None else PAPER_REWARD_FUNCTION
     if reward_function is None:
-        names = {i.name for i in automaton.inputs}
-        if not {"isClose", "prog", "comf"} <= names:
-            raise ExperimentError("the default reward function (the paper's Eq. 9) reads the inputs isClose, prog "
-                                  "and comf; pass --reward-function EXPR for this automaton", "usage")
+        problem = default_reward_problem(i.name for i in automaton.inputs)
+        if problem is not None:
+            raise ExperimentError(problem, "usage")
     try:
         rf = parse_expr(text)
     except ValueError as exc:

@@ -20,7 +20,7 @@ from rac.output.paths import output_folder
 from rac.sweep.grid import grid_points, parse_set, scenario_files
 from rac.sweep.kinds import TASKS
 from rac.sweep.task import OPTIONS, TaskSpec
-from rac.sweep.template import check_template
+from rac.sweep.template import check_template, template_inputs
 
 if TYPE_CHECKING:
     from rac.sweep.report import Summary
@@ -77,8 +77,8 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
          options: Mapping[str, object] | None = None) -> Plan:
     """The tasks of a sweep (nothing runs). ``ValueError`` with a message for the user on a bad
     argument (no scenario matched, a bad ``sets``, an unknown task or option, a ``reward_function`` that
-    is not one expression, a template that does not parse or has no ``model`` block); ``OSError`` when
-    the template cannot be read."""
+    is not one expression, or none for an ``experiment`` of an automaton without the paper's inputs, a
+    template that does not parse or has no ``model`` block); ``OSError`` when the template cannot be read."""
 
     if task not in TASKS:
         raise ValueError(f"unknown task `{task}`: choose one of {', '.join(TASKS)}")
@@ -99,6 +99,13 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     points = grid_points(parse_set(_set_texts(sets)))
     path = Path(template).absolute()
     text = check_template(path)
+    if task == "experiment" and function is None:  # the same for every task: said here, not in a failed row each
+        # numpy (via rac.studies.experiment): only an experiment sweep loads it
+        from rac.studies.experiment import default_reward_problem
+
+        problem = default_reward_problem(template_inputs(text, path))
+        if problem is not None:
+            raise ValueError(f"--task experiment: {problem}")
     given = tuple(sorted((name, str(value)) for name, value in (options or {}).items() if value is not None))
     specs = tuple(TaskSpec(template=str(path), template_text=text, scenario=str(scenario), settings=point,
                            task=task, options=given, timeout=task_timeout, memory=memory)

@@ -20,10 +20,11 @@ from typing import TypeVar
 
 from rac.core.diagnostics import render_text
 from rac.ir.vocabulary import MODELLING, SETTINGS, WORD_SETTINGS
+from rac.lang import ast
 from rac.lang.edit import model_block, parse_file_text, setting_value, with_model
 from rac.lang.parser import ParseFailure, read_source
 
-__all__ = ["SETTING_NAMES", "check_template", "instantiate", "setting_value"]
+__all__ = ["SETTING_NAMES", "check_template", "instantiate", "setting_value", "template_inputs"]
 
 T = TypeVar("T")
 
@@ -49,6 +50,13 @@ def check_template(path: str | Path) -> str:
         raise ValueError(f"the template {path} has no `model` block: rac sweep replaces the block's scenario "
                          "and settings, so the template needs one (docs/language.md, 'The model block')") from None
     return text
+
+
+def template_inputs(text: str, path: str | Path) -> list[str]:
+    """The names of the inputs the template's automaton declares (its text as :func:`check_template`
+    returned it: it parses)."""
+    automaton = parse_file_text(text, str(path)).automata[0]
+    return [ident.name for decl in automaton.of(ast.InputDecl) for ident in decl.names]
 
 
 def instantiate(template_text: str, template: str | Path, scenario: str | Path,
