@@ -288,6 +288,19 @@ def test_retry_failed_reruns_the_stored_rows_that_are_not_ok(world: Path, tmp_pa
     assert len(pending(specs + specs, store)[1]) == 1  # a key given twice runs once
 
 
+def test_retry_failed_says_which_rows_it_reruns(world: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """--retry-failed announced "rerunning 1 task that failed" for an undecided row, which the summary counts as
+    no failure."""
+    (spec,) = specs_for(tmp_path, world / "sweep.ra", ["undecided.xml"])
+    Store(tmp_path / "out").put(spec.key(), sweep_helpers.row(spec, "undecided", error="not decided: Stays"))
+    monkeypatch.setattr("rac.sweep.run.connect", lambda *args, **kwargs: contextlib.nullcontext(None))
+    monkeypatch.setattr("rac.sweep.run.run_tasks", lambda *args, **kwargs: None)
+    said: list[str] = []
+    execute(Plan(world / "sweep.ra", tmp_path / "out", (spec,), 1, 1), retry_failed=True, quiet=True,
+            announce=said.append)
+    assert said == ["rerunning 1 task stored as not ok (--retry-failed)"]
+
+
 def test_a_timeout_or_memory_row_of_another_limit_runs_again(world: Path, tmp_path: Path) -> None:
     """The limits are not part of the key: a re-run with a larger --task-timeout reused the stored timeout
     row, "ran past the task timeout of 0.3 s", as the answer of the new command."""

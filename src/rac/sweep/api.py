@@ -156,7 +156,7 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
                                                f"{rac.__version__})"),
                        (outcome.rerun_killed, "whose process was killed"),
                        (outcome.rerun_limits, "stopped by another --task-timeout or --task-memory"),
-                       (outcome.rerun_failed, "that failed (--retry-failed)")):
+                       (outcome.rerun_failed, "stored as not ok (--retry-failed)")):  # undecided too
         if count:
             say(f"rerunning {count} task{'s' * (count != 1)} {why}")
     if todo:  # everything stored already: no cluster
