@@ -594,6 +594,26 @@ def test_the_progress_counts_failed_tasks_as_the_summary_does() -> None:
     assert summarise(rows, tasks=len(rows)).failed == tracker.failed == 2
 
 
+def test_the_local_cluster_has_a_worker_per_core_rac_may_use(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The default was os.cpu_count(), the machine's cores: on 1 core of a 64-core node (a batch system's
+    allocation, `taskset`) rac started 64 workers."""
+    import distributed
+
+    started: list[object] = []
+
+    class Counted(QuietCluster):
+        def __init__(self, *args: object, **kw: object) -> None:
+            started.append(kw["n_workers"])
+
+    monkeypatch.setattr(distributed, "LocalCluster", Counted)
+    monkeypatch.setattr(distributed, "Client", QuietCluster)
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    with connect():
+        pass
+    assert started == [1]
+
+
 def test_the_progress_before_the_cluster_answers_says_so() -> None:
     """While the cluster started (or an unreachable --scheduler was tried for 10 s) the line said "0 of 0 tasks
     done, 0 failed", as if the sweep had nothing to do."""

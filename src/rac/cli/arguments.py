@@ -310,7 +310,7 @@ def _add_sweep(commands: argparse._SubParsersAction) -> None:
                        help="an existing Dask cluster, tcp://HOST:PORT (default: Dask's `scheduler-address` "
                             "configuration, else a local cluster)")
     sweep.add_argument("--workers", type=_checked(lambda t: int(t) >= 1, "a whole number of at least 1"),
-                       metavar="N", help="worker processes of the local cluster (default: one per core)")
+                       metavar="N", help="worker processes of the local cluster (default: one per core rac may use)")
     sweep.add_argument("--task-timeout",
                        type=_checked(lambda t: 0 < float(t) < math.inf, "a positive number of seconds"),
                        metavar="S", help="seconds per task; past them the task is a timeout row")

@@ -37,7 +37,8 @@ if TYPE_CHECKING:
 
     from rac.sweep.task import TaskSpec
 
-__all__ = ["ALLOWED_FAILURES", "BadSchedulerAddress", "Outcome", "connect", "error_row", "run_tasks", "task_function"]
+__all__ = ["ALLOWED_FAILURES", "BadSchedulerAddress", "Outcome", "connect", "error_row", "run_tasks", "task_function",
+           "usable_cores"]
 
 #: Dask's ``distributed.scheduler.allowed-failures`` for the clusters rac starts: a task whose worker dies
 #: is retried once on another worker, then reported as an error row (``KilledWorker``).
@@ -126,7 +127,7 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
                 say(f"dashboard: {client.dashboard_link} (the cluster at {address}, {_workers(workers)}{_bokeh()})")
                 yield client
             return
-        n_workers = workers or os.cpu_count() or 1
+        n_workers = workers or usable_cores()
         with _held_signals() as held, warnings.catch_warnings():
             # another cluster holds the dashboard's usual port 8787: Dask takes another and says so
             warnings.filterwarnings("ignore", message=".*already in use.*")
@@ -148,6 +149,15 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
                 cluster.close()
             for number in held:  # the process was stopped meanwhile: as if just after
                 signal.raise_signal(number)
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity: a batch system's allocation, ``taskset``), not
+    the machine's: on 4 cores of a 64-core node, 4 workers, not 64."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except (AttributeError, OSError):  # no affinity on this platform (macOS, Windows)
+        return os.cpu_count() or 1
 
 
 def _workers(n: int) -> str:
