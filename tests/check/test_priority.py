@@ -12,6 +12,7 @@ Any other run pays the penalty at least once and gains less, so this is the supr
 from __future__ import annotations
 
 import itertools
+import json
 from fractions import Fraction
 
 import pytest
@@ -518,6 +519,86 @@ automaton R {
     assert diag.code == "E0501"
     negative = compile_text(text.replace("GROWTH", f"-{Fraction(2**31, 10**4) / 2}"), analyse=False).automaton
     assert negative is not None and check_ranges(negative) == []  # -2^31 itself is representable
+
+
+# An edge whose updates go up and back down: the edge's result stays small, the values in between
+# do not. UPPAAL runs the assignments left to right and stores each in the reward's int32 mirror.
+IN_BETWEEN = """\
+automaton InBetween {
+    input a : bool
+    reward p
+    objective p
+    sample every 1
+    horizon 3
+    initial location L { p' == 1 }
+    edge L -> L when a do p = p + STEP, p = p + STEP, p = p - STEP, p = p - STEP
+}
+"""
+
+
+def test_int32_range_covers_the_values_in_between_an_edges_updates(tmp_path, capsys) -> None:
+    """Regression: the range check saw only each edge's result ([0, 3] here) and passed a file whose
+    UPPAAL model overflows: after the second update p is 400003, 4000030000 as a significand."""
+    from rac.cli.main import main
+
+    source = tmp_path / "in_between.ra"
+    source.write_text(IN_BETWEEN.replace("STEP", "200000"), encoding="utf-8")
+    assert main(["check", str(source)]) == 1
+    out = capsys.readouterr().out
+    assert "error[E0501]: reward `p` overflows int32 at base 10, exponent 4 in between an edge's updates: " \
+           "it can reach 400003" in out
+    # the caret is on the second update, the one that leaves the value
+    assert f"{source}:8:43: error[E0501]" in out
+    assert "an intermediate value, right after this update (update 2 of its sequence): UPPAAL runs" in out
+    assert "first overflow on the worst run: t = 3 s, during the edge `L` -> `L`, right after its update 2 of 4 " \
+           "(line 8): an intermediate value, which UPPAAL stores too (p = 400003)" in out
+    assert "int32 range holds" not in out
+    assert main(["check", "--format", "json", str(source)]) == 1
+    (diag,) = [d for d in json.loads(capsys.readouterr().out)[0]["diagnostics"] if d["code"] == "E0501"]
+    assert (diag["data"]["value"], diag["data"]["applied"], diag["data"]["update_line"]) == ("400003", 2, 8)
+
+
+def test_int32_range_in_between_updates_at_the_representations_scale() -> None:
+    """The values in between are scaled like every other: 200003 fits at exponent 4 and not at 5,
+    while the edge's results ([0, 3]) would fit even at exponent 8."""
+    automaton = compile_text(IN_BETWEEN.replace("STEP", "100000"), analyse=False).automaton
+    assert automaton is not None
+    facts: list = []
+    assert check_ranges(automaton, 10, 4, facts) == []
+    assert [f.message for f in facts] == ["int32 range holds at base 10, exponent 4: rewards stay within [0, 200003]"]
+    (diag,) = check_ranges(automaton, 10, 5)
+    assert diag.code == "E0501" and diag.data["value"] == "200003" and diag.data["applied"] == 2
+    # a sequence whose values in between stay put changes nothing: the edge's results decide
+    steady = compile_text(IN_BETWEEN.replace("STEP", "0"), analyse=False).automaton
+    assert steady is not None and check_ranges(steady, 10, 8) == []
+
+
+def test_int32_range_covers_the_values_in_between_the_at_end_updates() -> None:
+    """The enabled `at end` clauses run as one sequence on the UPPAAL model's `finish?` edge: a
+    value in between them is stored too, whether the run ends at the horizon or by `episode ends when`."""
+    text = """\
+automaton Ends {
+    input a : bool
+    input stop : bool
+    reward p
+    objective p
+    sample every 1
+    horizon 3
+    initial location L { p' == 1 }
+    EPISODE
+    at end when a do p += 150000
+    at end do p -= 150000
+}
+"""
+    for episode in ("", "episode ends when stop"):
+        automaton = compile_text(text.replace("EPISODE", episode), analyse=False).automaton
+        assert automaton is not None
+        assert check_ranges(automaton, 10, 4) == []
+        (diag,) = check_ranges(automaton, 10, 5)
+        assert diag.data["value"] == "150003" and diag.data["applied"] == 1 and diag.data["update_line"] == 10
+        assert "in between the `at end` updates" in diag.message
+        assert "during the `at end` updates, right after its update 1 of 2 (line 10)" in \
+            "\n".join(n.message for n in diag.notes)
 
 
 def test_end_inputs_are_free_like_the_runtime_end_call() -> None:

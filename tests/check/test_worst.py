@@ -27,6 +27,8 @@ from rac.check.analysis.worst import (
     BEFORE_EDGE,
     BEFORE_NEXT,
     CONTINUE,
+    MID_EDGE,
+    MID_END,
     Target,
     Worst,
     _maximise_generic,
@@ -79,7 +81,9 @@ def numeric_inputs(draw):
 
 @st.composite
 def cases(draw, general: bool = False, ending: bool = False):
-    """A random tiny automaton and target; ``ending``: always with `at end` clauses and `episode ends when`."""
+    """A random tiny automaton and target; ``ending``: always with `at end` clauses and `episode ends when`.
+    Half the targets also watch the values in between a sequence of updates (the int32 range check's)."""
+    intermediates = draw(st.booleans())
     n_loc = draw(st.integers(2, 3))
     bools = ["a", "b"][: draw(st.integers(1, 2))]
     rewards = ["p", "q"][: draw(st.integers(1, 2))]
@@ -140,7 +144,7 @@ def cases(draw, general: bool = False, ending: bool = False):
         return f"{r} = {other} + 1"
 
     def updates() -> str:
-        items = [update() for _ in range(draw(st.integers(0, 2)))]
+        items = [update() for _ in range(draw(st.integers(0, 3 if intermediates else 2)))]
         return f" do {', '.join(items)}" if items else ""
 
     lines = ["automaton Random {"]
@@ -197,7 +201,7 @@ def cases(draw, general: bool = False, ending: bool = False):
     if not any(watched):  # mostly watch something (an unwatched automaton is a one-liner)
         watched[draw(st.integers(-1, n_loc - 1))] = True
     watched = tuple(watched)
-    return Case(text, automaton, Target(weights, constant, watched))
+    return Case(text, automaton, Target(weights, constant, watched, intermediates))
 
 
 # ---------------------------------------------------------------- helpers
@@ -212,9 +216,11 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
 
     values, _ = replay(automaton, space, worst)
     assert functional(values) == worst.value
+    assert (worst.applied is not None) == (worst.instant in (MID_EDGE, MID_END))
+    assert target.intermediates or worst.applied is None
     l0 = automaton.initial
     end = None
-    if worst.instant == AFTER_END:
+    if worst.instant in (AFTER_END, MID_END):
         assert worst.end is not None
         guards = space.valuation(worst.end.cls)
         end = Valuation(guards, {**guards, **worst.end_inputs})
@@ -223,7 +229,7 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
         if end is None:
             assert worst.value == target.constant
         else:
-            assert functional(simulate(automaton, [], AFTER_END, end)[1]) == worst.value
+            assert functional(simulate(automaton, [], worst.instant, end, worst.applied)[1]) == worst.value
         return
     here = l0
     for i, step in enumerate(worst.steps, start=1):
@@ -233,7 +239,7 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
         here = step.outcome.target
     assert len(worst.steps) <= automaton.steps
     assert worst.instant == worst.steps[-1].instant or (
-        worst.instant == AFTER_END and worst.steps[-1].instant == AFTER_EDGE)
+        worst.instant in (AFTER_END, MID_END) and worst.steps[-1].instant == AFTER_EDGE)
     # Replay independently: the reference simulator on the concrete inputs of each step.
     run = []
     for step in worst.steps:
@@ -245,7 +251,7 @@ def check_counterexample(automaton: ir.Automaton, space: InputSpace, worst: Wors
         assert worst.instant != BEFORE_NEXT
         if end is not None:  # the run ended at that sample: its end clauses read the sample's inputs
             assert (end.guards, end.values) == (run[-1].guards, run[-1].values)
-    where, rewards = simulate(automaton, run, worst.instant, end)
+    where, rewards = simulate(automaton, run, worst.instant, end, worst.applied)
     assert where == (l0 if worst.instant == BEFORE_EDGE else here)
     assert target.watched[where]
     assert functional(rewards) == worst.value
@@ -257,7 +263,7 @@ def check_case(case: Case) -> None:
     space = InputSpace(automaton)
     outs = moves(automaton, space)
     worst = maximise(automaton, outs, target)
-    expected = reference_max(automaton, target.weights, target.constant, target.watched)
+    expected = reference_max(automaton, target.weights, target.constant, target.watched, target.intermediates)
     assert value_of(worst) == expected, case.text
     if worst is not None:
         check_counterexample(automaton, space, worst, target)
@@ -305,7 +311,7 @@ def test_end_clauses_at_an_episode_ending_match_reference(case: Case) -> None:
     automaton, target = case.automaton, case.target
     space = InputSpace(automaton)
     outs = moves(automaton, space)
-    expected = reference_max(automaton, target.weights, target.constant, target.watched)
+    expected = reference_max(automaton, target.weights, target.constant, target.watched, target.intermediates)
     engines = [_maximise_generic] + ([_maximise_translations] if outs.translations_only else [])
     for engine in engines:
         worst = engine(automaton, outs, target)

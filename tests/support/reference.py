@@ -19,6 +19,10 @@ Semantics followed literally (language.md, and the analysis' reading of it):
 - A sample whose inputs satisfy ``episode ends when`` ends the run there (the runtimes'
   ``step``): the ``at end`` clauses enabled by THAT sample's inputs apply, reading them; no
   ``end(inputs)`` with other inputs follows (the runtimes' ``end`` then changes nothing).
+- With ``intermediates`` (the int32 range check's targets): also the values in between a
+  sequence of updates, after each assignment but the last of an edge's updates ("mid-edge", in
+  the edge's target) and of the enabled ``at end`` clauses' updates taken as one sequence
+  ("mid-end"): the UPPAAL model stores each assignment.
 
 Input valuations (built here, not with :class:`~rac.ir.inputs.InputSpace`): both values
 of every boolean input; for a real input every guard threshold and bound, and the midpoint of
@@ -134,12 +138,15 @@ def accrue(automaton: ir.Automaton, location: int, r: tuple[Fraction, ...],
 
 
 def assign(automaton: ir.Automaton, updates: tuple[ir.Assignment, ...], r: tuple[Fraction, ...],
-           x: dict[str, object]) -> tuple[Fraction, ...]:
-    """Apply updates left to right; each sees the values the previous ones left."""
+           x: dict[str, object], between: list[tuple[Fraction, ...]] | None = None) -> tuple[Fraction, ...]:
+    """Apply updates left to right; each sees the values the previous ones left. ``between``
+    collects the values after each assignment but the last."""
     env: dict[str, object] = dict(x)
     env.update(zip(automaton.rewards, r))
-    for update in updates:
+    for i, update in enumerate(updates, start=1):
         env[update.reward] = update.value.evaluate(env)  # type: ignore[arg-type]
+        if between is not None and i < len(updates):
+            between.append(tuple(env[name] for name in automaton.rewards))  # type: ignore[misc]
     return tuple(env[name] for name in automaton.rewards)  # type: ignore[misc]
 
 
@@ -149,18 +156,22 @@ def edge_for(automaton: ir.Automaton, location: int, x: dict[str, object]) -> ir
     return enabled[0] if enabled else None
 
 
-def at_end(automaton: ir.Automaton, r: tuple[Fraction, ...], v: Valuation) -> tuple[Fraction, ...]:
-    for clause in automaton.end_clauses:
-        if ir.evaluate_guard(clause.guard, v.guards):
-            r = assign(automaton, clause.updates, r, v.values)
-    return r
+def at_end(automaton: ir.Automaton, r: tuple[Fraction, ...], v: Valuation,
+           between: list[tuple[Fraction, ...]] | None = None, applied: int | None = None) -> tuple[Fraction, ...]:
+    """The enabled clauses' updates in order, as one sequence (``between``: see :func:`assign`);
+    ``applied``: only its first so many."""
+    updates = tuple(u for clause in automaton.end_clauses if ir.evaluate_guard(clause.guard, v.guards)
+                    for u in clause.updates)
+    return assign(automaton, updates[:applied] if applied is not None else updates, r, v.values, between)
 
 
-def sample(automaton: ir.Automaton, location: int, r: tuple[Fraction, ...], v: Valuation, first: bool):
+def sample(automaton: ir.Automaton, location: int, r: tuple[Fraction, ...], v: Valuation, first: bool,
+           intermediates: bool = False):
     """One sample from "before the edge" (or from t = 0 when ``first``).
 
     Returns the instants it passes through, as (name, location, rewards), and the state
-    at "before the next sample" (the run's continuation).
+    at "before the next sample" (the run's continuation). ``intermediates``: also "mid-edge",
+    after each assignment of the edge but the last (in the edge's target).
     """
     instants = []
     if first:
@@ -168,8 +179,11 @@ def sample(automaton: ir.Automaton, location: int, r: tuple[Fraction, ...], v: V
         instants.append(("before-edge", location, r))
     edge = edge_for(automaton, location, v.guards)
     if edge is not None:
-        r = assign(automaton, edge.updates, r, v.values)
+        between: list[tuple[Fraction, ...]] = []
+        r = assign(automaton, edge.updates, r, v.values, between)
         location = edge.target
+        if intermediates:
+            instants += [("mid-edge", location, values) for values in between]
     instants.append(("after-edge", location, r))
     after = accrue(automaton, location, r, v.values)
     return instants, (location, after)
@@ -181,9 +195,10 @@ def ends_episode(automaton: ir.Automaton, v: Valuation) -> bool:
 
 
 # ---------------------------------------------------------------- the brute force
-def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fraction | None:
+def reference_max(automaton: ir.Automaton, weights, constant, watched, intermediates: bool = False) -> Fraction | None:
     """Max of ``weights·r + constant`` over every watched instant of every run (None: never watched); a
-    run ends at the first sample whose inputs satisfy ``episode ends when``."""
+    run ends at the first sample whose inputs satisfy ``episode ends when``. ``intermediates``: the
+    values in between each sequence of updates count too."""
     weights = tuple(Fraction(w) for w in weights)
     constant = Fraction(constant)
     steps = automaton.steps
@@ -196,9 +211,16 @@ def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fracti
             if best[0] is None or value > best[0]:
                 best[0] = value
 
+    def see_ending(location: int, r: tuple[Fraction, ...], v: Valuation) -> None:
+        between: list[tuple[Fraction, ...]] = []
+        see(location, at_end(automaton, r, v, between))
+        if intermediates:
+            for values in between:
+                see(location, values)
+
     def see_end(location: int, r: tuple[Fraction, ...]) -> None:
         for end in xs:  # the end's own inputs
-            see(location, at_end(automaton, r, end))
+            see_ending(location, r, end)
 
     l0 = automaton.initial
     zero = tuple(ZERO for _ in automaton.rewards)
@@ -209,11 +231,11 @@ def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fracti
         following = set()
         for location, r in frontier:
             for v in xs:
-                instants, after = sample(automaton, location, r, v, first=k == 1)
+                instants, after = sample(automaton, location, r, v, first=k == 1, intermediates=intermediates)
                 for _, where, values in instants:
                     see(where, values)
                 if ends_episode(automaton, v):  # the run ends here, its end clauses on these inputs
-                    see(instants[-1][1], at_end(automaton, instants[-1][2], v))
+                    see_ending(instants[-1][1], instants[-1][2], v)
                     continue
                 see_end(*instants[-1][1:])
                 if k < steps:
@@ -226,21 +248,29 @@ def reference_max(automaton: ir.Automaton, weights, constant, watched) -> Fracti
 
 
 def simulate(automaton: ir.Automaton, run: list[Valuation], instant: str,
-             end: Valuation | None = None) -> tuple[int, tuple[Fraction, ...]]:
+             end: Valuation | None = None, applied: int | None = None) -> tuple[int, tuple[Fraction, ...]]:
     """Location and rewards at ``instant`` of the run's last sample (a counterexample replay).
 
     ``instant`` is one of before-edge (first sample only), after-edge, after-end (with the
-    ``end`` inputs), before-next (or continue, the same point).
+    ``end`` inputs), before-next (or continue, the same point), and, after ``applied`` assignments
+    of a sequence of updates, mid-edge (the last sample's edge's) or mid-end (the ``at end`` ones).
     """
     location, r = automaton.initial, tuple(ZERO for _ in automaton.rewards)
-    if instant == "after-end":
-        assert end is not None
+    if instant in ("after-end", "mid-end"):
+        assert end is not None and (instant == "after-end" or applied is not None)
         if run:
             location, r = simulate(automaton, run, "after-edge")
-        return location, at_end(automaton, r, end)
+        return location, at_end(automaton, r, end, applied=applied if instant == "mid-end" else None)
     if not run:
         return location, r
     for k, v in enumerate(run, start=1):
+        if k == len(run) and instant == "mid-edge":
+            assert applied is not None
+            if k == 1:
+                r = accrue(automaton, location, r, v.values)
+            edge = edge_for(automaton, location, v.guards)
+            assert edge is not None and 0 < applied < len(edge.updates)
+            return edge.target, assign(automaton, edge.updates[:applied], r, v.values)
         instants, after = sample(automaton, location, r, v, first=k == 1)
         if k < len(run):
             location, r = after

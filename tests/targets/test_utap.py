@@ -197,6 +197,35 @@ def test_time_in_queries_with_a_coarse_period(utap: Utap, tmp_path: Path,
     utap.validate_files(*compile_cli(source, tmp_path / "coarse.xml", capsys))
 
 
+def test_updates_whose_values_in_between_fit(utap: Utap, tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """An edge and `at end` clauses whose updates go up and back down, with every value in between
+    within int32 at exponent 4 (200003 at most): `rac check` passes it, and the model it compiles to
+    is one UPPAAL accepts, the assignments in the order written (UPPAAL stores each of them)."""
+    source = tmp_path / "in_between.ra"
+    source.write_text("""\
+automaton InBetween {
+    input a : bool
+    reward p
+    objective p
+    sample every 1
+    horizon 3
+    initial location L { p' == 1 }
+    edge L -> L when a do p = p + 100000, p = p + 100000, p = p - 100000, p = p - 100000
+    at end when a do p += 100000
+    at end do p -= 100000
+}
+""", encoding="utf-8")
+    assert main(["check", str(source)]) == 0
+    assert "rewards stay within [-100000, 200003]" in capsys.readouterr().out
+    xml, queries = compile_cli(source, tmp_path / "in_between.xml", capsys)
+    model = xml.read_text(encoding="utf-8")
+    # the mirror's assignments, in the order written: up by 10^9 (100000 at exponent 4) twice, then down
+    assert model.count(" + 1000000000") == 3 and model.count(" - 1000000000") == 3
+    assert model.index(" + 1000000000") < model.index(" - 1000000000")
+    utap.validate_files(xml, queries)
+
+
 # ---------------------------------------------------------------- the tiny scenarios' whole models
 #: The bindings of examples/left_turn/model.ra.
 BINDINGS = ("isClose = mindist() < 3 * collision_distance",

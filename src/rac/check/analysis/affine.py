@@ -54,6 +54,27 @@ def from_assignments(assignments: tuple[ir.Assignment, ...], rewards: tuple[str,
     return Affine(None if is_identity else matrix, offsets)
 
 
+def stored_prefixes(assignments: Sequence[ir.Assignment], rewards: tuple[str, ...],
+                    weights: Sequence[Fraction]) -> tuple[tuple[int, Affine], ...]:
+    """The values a sequence of assignments leaves *inside* it: ``(i, map after its first i
+    assignments)`` for each ``i`` short of the whole sequence (the whole one is the edge's, or the
+    end's, own instant), where assignment ``i`` sets a reward that ``weights`` weighs, or is the first
+    (any other leaves ``weights·r`` as the previous prefix did; the first one's value is the one in
+    between, which the value before the sequence need not stand for: it may be watched elsewhere).
+    UPPAAL runs an edge's assignments in order and stores each one in the reward's 32-bit mirror, so
+    the int32 range check must bound these too."""
+    index = {r: i for i, r in enumerate(rewards)}
+    return tuple((i, from_assignments(tuple(assignments[:i]), rewards))
+                 for i in range(1, len(assignments)) if i == 1 or weights[index[assignments[i - 1].reward]])
+
+
+def end_assignments(automaton: ir.Automaton, ends: Sequence[int]) -> tuple[ir.Assignment, ...]:
+    """The assignments the ``at end`` clauses ``ends`` (indices, enabled ones) run, in order: one
+    sequence, as the UPPAAL model's ``finish?`` edge runs it (a disabled clause's assignments keep
+    their values)."""
+    return tuple(u for i in ends for u in automaton.end_clauses[i].updates)
+
+
 def accrual(location: ir.Location, period: Fraction) -> Affine:
     return Affine(None, tuple(rate.scaled(period) for rate in location.rates))
 

@@ -10,7 +10,7 @@ from collections.abc import Callable, Collection, Iterable, Mapping
 from fractions import Fraction
 
 from rac import ir
-from rac.check.analysis.affine import Affine, Moves, Outcome, accrual, moves
+from rac.check.analysis.affine import Affine, Moves, Outcome, accrual, end_assignments, from_assignments, moves
 from rac.check.analysis.behaviour import allowed_boxes, input_space
 from rac.check.analysis.worst import (
     AFTER_END,
@@ -18,6 +18,8 @@ from rac.check.analysis.worst import (
     BEFORE_NEXT,
     CONTINUE,
     MAX_SAMPLES,
+    MID_EDGE,
+    MID_END,
     Target,
     Unfinished,
     Worst,
@@ -183,11 +185,13 @@ def p2_target(automaton: ir.Automaton, level: int) -> Target:
     return Target(weights, constant, _penalised(automaton, automaton.priority[level]))
 
 
-def range_target(automaton: ir.Automaton, k: int, sign: int) -> Target:
-    """What the int32 range check maximises for reward ``k``: ``sign``·r_k over every instant."""
+def range_target(automaton: ir.Automaton, k: int, sign: int, intermediates: bool = True) -> Target:
+    """What the int32 range check maximises for reward ``k``: ``sign``·r_k over every instant, and
+    (``intermediates``) inside every sequence of updates: UPPAAL stores the value after each
+    assignment of an edge's (and the ``at end`` clauses') updates in the reward's 32-bit mirror."""
     size = len(automaton.rewards)
     weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
-    return Target(weights, ZERO, tuple(True for _ in automaton.locations))
+    return Target(weights, ZERO, tuple(True for _ in automaton.locations), intermediates)
 
 
 def range_limit(sign: int) -> int:
@@ -331,8 +335,12 @@ class _When:
         return f"t = {_num(self.time)} s, {self.what}"
 
 
-def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
-    """Exact reward values along the worst run: yields (the instant, whose str() is a phrase naming it, values)."""
+def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst, inside: bool = False):
+    """Exact reward values along the worst run: yields (the instant, whose str() is a phrase naming it, values).
+
+    ``inside``: also the values in between each sequence of updates, after each assignment (those
+    UPPAAL stores: :attr:`~rac.check.analysis.worst.Target.intermediates`); a run whose value is
+    taken in between (MID_EDGE, MID_END) ends there either way."""
     r = [ZERO] * len(automaton.rewards)
     yield _When(ZERO, "before any sample"), r
     l0 = automaton.initial
@@ -343,6 +351,21 @@ def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
     accruals = [accrual(loc, period) for loc in automaton.locations]
     inputs: dict[tuple[int, int], dict[str, Fraction]] = {}  # a run repeats its samples: build each once
     offsets: dict[tuple[int, int], list[Fraction]] = {}
+    # per sequence of updates (kept alive: its id is the key): the map after its first i assignments
+    prefixes: dict[int, tuple[tuple[ir.Assignment, ...], list[Affine]]] = {}
+
+    def between(updates: tuple[ir.Assignment, ...], stop: int | None, r: list[Fraction], x: dict[str, Fraction],
+                place: str):
+        """The values in between ``updates`` (up to after ``stop`` of them, else all but the last)."""
+        known = prefixes.get(id(updates))
+        if known is None:
+            known = prefixes[id(updates)] = (updates, [from_assignments(updates[:i], automaton.rewards)
+                                                       for i in range(len(updates))])
+        maps = known[1]
+        last = stop if stop is not None else len(updates) - 1
+        for applied in range(1 if inside else last, last + 1):
+            yield _When(time, f"{place}, {_inside(updates, applied)}: an intermediate value, which UPPAAL "
+                              "stores too"), _apply(maps[applied], r, x)
 
     def apply(affine: Affine, r: list[Fraction], x: dict[str, Fraction]) -> list[Fraction]:
         if affine.matrix is not None:
@@ -363,6 +386,11 @@ def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
             yield _When(time, f"in `{name}` before the sample's edge"), r
             if step.instant == BEFORE_EDGE:
                 return
+        stop = worst.applied if step.instant == MID_EDGE else None
+        if o.edge is not None and (inside or stop is not None):
+            yield from between(o.edge.updates, stop, r, x, f"during the edge `{name}` -> `{names[o.target]}`")
+            if stop is not None:
+                return
         r = apply(o.edge_map, r, x)
         name = names[o.target]
         # a sample that ends the episode applies its `at end` updates next, in the same step of the runtimes
@@ -375,10 +403,36 @@ def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst):
         yield _When(time + period, f"in `{name}` just before the next sample"), r
         if step.instant != CONTINUE:
             return
-    if worst.instant == AFTER_END and worst.end is not None:
+    if worst.instant in (AFTER_END, MID_END) and worst.end is not None:
         x = {n: v for n, v in space.valuation(worst.end.cls).items() if not isinstance(v, bool)}
         x.update(worst.end_inputs)
+        stop = worst.applied if worst.instant == MID_END else None
+        if inside or stop is not None:
+            yield from between(end_assignments(automaton, worst.end.ends), stop, r, x,
+                               f"in `{name}` during the `at end` updates")
+            if stop is not None:
+                return
         yield _When(time, f"in `{name}` after the `at end` updates"), _apply(worst.end.end_map, r, x)
+
+
+def _inside(updates: tuple[ir.Assignment, ...], applied: int) -> str:
+    """Where inside a sequence of updates a MID_EDGE or MID_END instant is: after which assignment."""
+    line = updates[applied - 1].span
+    where = f" (line {line.line})" if line is not None else ""
+    return f"right after its update {applied} of {len(updates)}{where}"
+
+
+def offending_update(automaton: ir.Automaton, worst: Worst) -> ir.Assignment | None:
+    """At a MID_EDGE or MID_END instant: the assignment of the sequence the worst run's value is
+    taken after (what the UPPAAL model stores there); None at any other instant."""
+    if worst.applied is None:
+        return None
+    if worst.instant == MID_EDGE:
+        edge = worst.steps[-1].outcome.edge
+        assert edge is not None
+        return edge.updates[worst.applied - 1]
+    assert worst.instant == MID_END and worst.end is not None
+    return end_assignments(automaton, worst.end.ends)[worst.applied - 1]
 
 
 def replay(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> tuple[list[Fraction], str]:
@@ -464,7 +518,11 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
             what = f"`{names[source]}` -> `{names[o.target]}` (edge at line {line})"
         count = f", {len(steps)} samples" if len(steps) > 1 else ""
         lines.append(f"  {when}: {what}{count}; inputs {label}")
-    if worst.instant == AFTER_END and worst.end is not None:
+    if worst.instant == MID_EDGE and worst.applied is not None and worst.steps:
+        edge = worst.steps[-1].outcome.edge
+        assert edge is not None
+        lines.append(f"  stops during that edge's updates, {_inside(edge.updates, worst.applied)}")
+    if worst.instant in (AFTER_END, MID_END) and worst.end is not None:
         end = worst.end
         spans = [(i, automaton.end_clauses[i].span) for i in end.ends]
         clauses = ", ".join(f"line {span.line}" if span else str(i) for i, span in spans)
@@ -474,6 +532,9 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
         when = _num(worst.steps[-1].sample * period) if worst.steps else "0"
         lines.append(f"  {ending} at t = {when} s: `at end` ({clauses or 'no clause enabled'}); "
                      f"inputs {space.describe(end.cls, read, worst.end_inputs)}")
+        if worst.instant == MID_END and worst.applied is not None:
+            lines.append(f"  stops during the `at end` updates, "
+                         f"{_inside(end_assignments(automaton, end.ends), worst.applied)}")
     return lines
 
 
@@ -544,7 +605,7 @@ def _json_inputs(space: InputSpace, cls: int, values: Mapping[str, Fraction]
 
 def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[str, object] | None:
     """How the worst run ends (``at end`` clauses and the end's inputs), or None."""
-    if worst.instant != AFTER_END or worst.end is None:
+    if worst.instant not in (AFTER_END, MID_END) or worst.end is None:
         return None
     inputs, approached = _json_inputs(space, worst.end.cls, worst.end_inputs)
     return {
@@ -598,6 +659,8 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
                 "run:\n" + "\n".join(describe_run(automaton, space, worst))]
             hints = ["lower the exponent of the number representation, shorten the horizon, "
                      "or bound the reward's growth"]
+            data: dict[str, object] = {"reward": reward, "value": str(sign * worst.value), "base": base,
+                                       "exponent": exponent}
             span = declared
             model = automaton.model
             if model is not None and (model.base, model.exponent) == (base, exponent):
@@ -605,19 +668,36 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
                 setting = automaton.spans.get("model:exponent") or automaton.spans.get("model:base")
                 if setting is not None:
                     span = setting
-                    notes.insert(0, Note(f"`{reward}` is declared here", declared))
                 try:
                     hints = [_exponent_hint(_largest_magnitude(automaton, outs), base, exponent)]
                 except Unfinished:
                     pass  # the general hint stays
+            where = ""
+            update = offending_update(automaton, worst)
+            if update is not None and update.span is not None:
+                # Not an instant of the semantics but a value inside a sequence of updates, which UPPAAL
+                # stores: point at the assignment that leaves it.
+                span = update.span
+                sequence = "an edge's updates" if worst.instant == MID_EDGE else "the `at end` updates"
+                where = f" in between {sequence}"
+                notes.insert(0, Note(
+                    f"an intermediate value, right after this update (update {worst.applied} of its sequence): "
+                    f"UPPAAL runs a sequence of updates left to right and stores each assignment in `{reward}`'s "
+                    "32-bit integer, so every value in between must fit, not only the sequence's result"))
+                hints.insert(0, "reorder or merge the updates so that no value in between leaves the range "
+                             "(e.g. `r += a - b` instead of `r += a, r -= b`)")
+                data["update_line"] = update.span.line
+                data["applied"] = worst.applied
+            if span is not declared:
+                notes.insert(1 if where else 0, Note(f"`{reward}` is declared here", declared))
             found = error(
                 "E0501",
-                f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}: "
+                f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}{where}: "
                 f"it {_reaches(space, worst)} {_num(sign * worst.value)}",
                 span,
                 notes=notes,
                 hints=hints,
-                data={"reward": reward, "value": str(sign * worst.value), "base": base, "exponent": exponent})
+                data=data)
             return [_cut_short(found, automaton) if prefix else found]
     if unfinished is not None:
         return [_unfinished(automaton, f"the int32 range at base {base}, exponent {exponent}", unfinished)]
@@ -629,14 +709,12 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
 
 
 def _largest_magnitude(automaton: ir.Automaton, outs) -> Fraction:
-    """The largest |value| any reward reaches over every run (both directions of every reward)."""
-    everywhere = tuple(True for _ in automaton.locations)
-    size = len(automaton.rewards)
+    """The largest |value| any reward reaches over every run (both directions of every reward), in
+    between an edge's updates too (what the range check bounds)."""
     largest = ZERO
-    for k in range(size):
+    for k in range(len(automaton.rewards)):
         for sign in (1, -1):
-            weights = tuple(Fraction(sign) if j == k else ZERO for j in range(size))
-            worst = maximise(automaton, outs, Target(weights, ZERO, everywhere), run=False)
+            worst = maximise(automaton, outs, range_target(automaton, k, sign), run=False)
             if worst is not None:
                 largest = max(largest, worst.value)
     return largest
@@ -655,7 +733,7 @@ def _exponent_hint(magnitude: Fraction, base: int, exponent: int) -> str:
 def _first_overflow(automaton: ir.Automaton, space: InputSpace, worst: Worst, k: int, sign: int,
                     bound: Fraction) -> str:
     """The first instant of the worst run at which the reward leaves the int32 range."""
-    for where, values in trace(automaton, space, worst):
+    for where, values in trace(automaton, space, worst, inside=True):
         if sign * values[k] > bound:
             return f"{where} ({automaton.rewards[k]} = {_num(values[k])})"
     return f"at the end of the run ({automaton.rewards[k]} = {_num(sign * worst.value)})"

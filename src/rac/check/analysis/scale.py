@@ -95,7 +95,9 @@ class _Ranges:
                 ends = []
                 for sign in (1, -1):
                     try:
-                        worst = maximise(self._automaton, self._outs, range_target(self._automaton, k, sign), run=False)
+                        # the values a map starts from: instants of the semantics, none inside an update sequence
+                        worst = maximise(self._automaton, self._outs,
+                                         range_target(self._automaton, k, sign, intermediates=False), run=False)
                     except Unfinished as stop:
                         raise ScaleUnproven(f"an update scales or resets reward `{reward}`, so its change depends on "
                                             f"the reward's value, and its range could not be proved: {stop.reason}"

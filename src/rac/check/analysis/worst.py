@@ -21,6 +21,12 @@ the reward vector (exact for any affine updates, rational arithmetic). When
 every update is a translation (``r = r + c``) the set collapses to one
 functional and a vectorised max-plus recurrence in scaled integers answers in
 one pass over the horizon.
+
+A target with :attr:`Target.intermediates` also watches the values inside a sequence of updates: after
+each assignment of an edge's updates but the last (``mid-edge``), and of the ``at end`` clauses'
+(``mid-end``). No instant of the semantics sees them, but the UPPAAL model stores each assignment in
+a reward's 32-bit mirror, so the int32 range check must bound them (:attr:`Worst.applied` says how
+many assignments of the sequence the run's value is taken after).
 """
 
 from __future__ import annotations
@@ -36,7 +42,17 @@ from fractions import Fraction
 import numpy as np
 
 from rac import ir
-from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, sup_linear, sup_weighted
+from rac.check.analysis.affine import (
+    Affine,
+    EndOutcome,
+    Moves,
+    Outcome,
+    accrual,
+    end_assignments,
+    stored_prefixes,
+    sup_linear,
+    sup_weighted,
+)
 from rac.check.analysis.behaviour import ById
 from rac.core.diagnostics import RacError
 
@@ -44,6 +60,9 @@ ZERO = Fraction(0)
 #: Instants of one sample, in time order; START is t = 0 before any sample.
 BEFORE_EDGE, AFTER_EDGE, AFTER_END, BEFORE_NEXT, CONTINUE, START = (
     "before-edge", "after-edge", "after-end", "before-next", "continue", "start")
+#: Inside a sequence of updates (only for a target with :attr:`Target.intermediates`): after some of
+#: the edge's assignments (MID_EDGE, in the sample's edge) or of the ``at end`` clauses' (MID_END).
+MID_EDGE, MID_END = "mid-edge", "mid-end"
 
 
 #: The most samples the worst-run search goes through. Beyond it the search goes on only while the
@@ -68,6 +87,10 @@ class Target:
     weights: tuple[Fraction, ...]
     constant: Fraction
     watched: tuple[bool, ...]
+    #: Also the values inside a sequence of updates, after each of its assignments (MID_EDGE,
+    #: MID_END; counted where the edge's target is watched): what UPPAAL stores, which the int32
+    #: range check bounds. No instant of the semantics sees them, so other checks leave this off.
+    intermediates: bool = False
 
 
 @dataclass(frozen=True)
@@ -89,6 +112,9 @@ class Worst:
     instant: str = START
     end: EndOutcome | None = None
     end_inputs: dict[str, Fraction] = field(default_factory=dict)
+    #: At MID_EDGE or MID_END: after how many assignments of the sequence (the last step's edge's
+    #: updates, or the enabled ``at end`` clauses' in order, :func:`end_assignments`) the value is taken.
+    applied: int | None = None
 
 
 def maximise(automaton: ir.Automaton, moves: Moves, target: Target,
@@ -158,14 +184,44 @@ class _Puller:
         return (c2, d + d_add, g)
 
 
-def _end_functionals(moves: Moves, base: _Func, pull: _Puller) -> dict[tuple[Fraction, ...], tuple]:
-    """The target after ``at end``, maximised over the end's own inputs: coefficients -> (d, end, point)."""
+class _Prefixes:
+    """The values inside the update sequences a target watches (:attr:`Target.intermediates`): per edge
+    and per set of enabled ``at end`` clauses, :func:`stored_prefixes` (none without intermediates)."""
+
+    def __init__(self, automaton: ir.Automaton, target: Target) -> None:
+        self.automaton, self.target = automaton, target
+        self.edges: dict[int, tuple[tuple[int, Affine], ...]] = {}
+        self.ends: dict[tuple[int, ...], tuple[tuple[int, Affine], ...]] = {}
+
+    def edge(self, edge: ir.Edge | None) -> tuple[tuple[int, Affine], ...]:
+        if edge is None or not self.target.intermediates:
+            return ()
+        found = self.edges.get(id(edge))
+        if found is None:
+            found = self.edges[id(edge)] = stored_prefixes(edge.updates, self.automaton.rewards, self.target.weights)
+        return found
+
+    def end(self, end: EndOutcome | None) -> tuple[tuple[int, Affine], ...]:
+        if end is None or not self.target.intermediates:
+            return ()
+        found = self.ends.get(end.ends)
+        if found is None:
+            found = self.ends[end.ends] = stored_prefixes(end_assignments(self.automaton, end.ends),
+                                                          self.automaton.rewards, self.target.weights)
+        return found
+
+
+def _end_functionals(moves: Moves, base: _Func, pull: _Puller, prefixes: _Prefixes
+                     ) -> dict[tuple[Fraction, ...], tuple]:
+    """The target after ``at end`` (and inside its updates, with intermediates), maximised over the
+    end's own inputs: coefficients -> (d, end, point, applied), applied None after every update."""
     best: dict[tuple[Fraction, ...], tuple] = {}
     for end in moves.ends:
-        c, d, g = pull(base, end.end_map)
-        bonus, point = sup_linear(g, end.box)
-        if c not in best or d + bonus > best[c][0]:
-            best[c] = (d + bonus, end, point)
+        for applied, end_map in ((None, end.end_map), *prefixes.end(end)):
+            c, d, g = pull(base, end_map)
+            bonus, point = sup_linear(g, end.box)
+            if c not in best or d + bonus > best[c][0]:
+                best[c] = (d + bonus, end, point, applied)
     return best
 
 
@@ -284,10 +340,12 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
     inputs = [[dict((name, (piece.low, piece.high)) for name, piece in o.box) for o in os] for os in outs]
     pull = _Puller()
     base: _Func = (target.weights, target.constant, {})
-    ends = _end_functionals(moves, base, pull)
+    prefixes = _Prefixes(automaton, target)
+    ends = _end_functionals(moves, base, pull, prefixes)
     l0 = automaton.initial
     # tables[k][l]: coefficients -> (d, outcome index, instant, link, x point), where link is the
-    # next sample's coefficients (CONTINUE) or (end outcome, its x point) (AFTER_END).
+    # next sample's coefficients (CONTINUE), (end outcome, its x point, applied) (AFTER_END, MID_END),
+    # (_EPISODE, applied) for the outcome's own end, or applied (MID_EDGE).
     tables: list[list[dict]] = [[] for _ in range(steps + 2)]
     tables[steps + 1] = [{} for _ in automaton.locations]
     for k in range(steps, 0, -1):
@@ -307,10 +365,13 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
                         # The run ends here: its end clauses read this sample's inputs, not inputs of
                         # their own (the functional keeps their input terms for the sample's box).
                         if o.ending.ends:
-                            candidates.append((pull(base, o.ending.end_map), AFTER_END, _EPISODE))
+                            candidates.append((pull(base, o.ending.end_map), AFTER_END, (_EPISODE, None)))
+                        for applied, end_map in prefixes.end(o.ending):
+                            candidates.append((pull(base, end_map), MID_END, (_EPISODE, applied)))
                     else:
-                        for c_end, (d_end, end, point) in ends.items():
-                            candidates.append(((c_end, d_end, {}), AFTER_END, (end, point)))
+                        for c_end, (d_end, end, point, applied) in ends.items():
+                            candidates.append(((c_end, d_end, {}), AFTER_END if applied is None else MID_END,
+                                               (end, point, applied)))
                     if goes_on:
                         candidates.append((pull(base, accruals[t]), BEFORE_NEXT, None))
                 if goes_on:
@@ -324,6 +385,10 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
                     pulled.append((func, instant, link))
                 if k == 1 and target.watched[l0]:
                     pulled.append((pull(base, accruals[l0]), BEFORE_EDGE, None))
+                if target.watched[t]:  # inside the edge's updates, after the first `applied` of them
+                    for applied, prefix in prefixes.edge(o.edge):
+                        func = pull(base, prefix)
+                        pulled.append((pull(func, accruals[l0]) if k == 1 else func, MID_EDGE, applied))
                 for ci, ((c, d, g), instant, link) in enumerate(pulled):
                     top, top_oi = None, -1
                     for oi in (group if g else group[:1]):  # without input terms every box gives d
@@ -338,7 +403,7 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
                 table[c] = (total, oi, instant, link, sup_linear(g, outs[here][oi].box)[1])
             _prune(table, boxes[k][here])
         tables[k] = layer
-    start = _start(target, l0, {c: v for c, v in ends.items()})
+    start = _start(target, l0, ends)
     first = tables[1][l0]
     if not first:
         return start
@@ -353,10 +418,13 @@ def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> 
         result.steps.append(Step(k, o, point, instant))
         if instant != CONTINUE:
             result.instant = instant
-            if link is _EPISODE:  # the end clauses of the sample that ended the run, on its inputs
-                result.end, result.end_inputs = o.ending, point
-            elif instant == AFTER_END:
-                result.end, result.end_inputs = link
+            if instant == MID_EDGE:
+                result.applied = link
+            elif instant in (AFTER_END, MID_END):
+                if link[0] is _EPISODE:  # the end clauses of the sample that ended the run, on its inputs
+                    result.end, result.end_inputs, result.applied = o.ending, point, link[1]
+                else:
+                    result.end, result.end_inputs, result.applied = link
             return result
         k, here, c = k + 1, o.target, link
 
@@ -376,9 +444,9 @@ def _start(target: Target, l0: int, ends: dict[tuple[Fraction, ...], tuple]) -> 
     if not target.watched[l0]:
         return None
     best = Worst(target.constant)
-    for d_end, end, point in ends.values():
+    for d_end, end, point, applied in ends.values():
         if d_end > best.value:
-            best = Worst(d_end, [], AFTER_END, end, point)
+            best = Worst(d_end, [], AFTER_END if applied is None else MID_END, end, point, applied)
     return best
 
 
@@ -393,33 +461,47 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
     one sample, and K_end the best weighted ``at end`` offset over the end's own inputs. An
     outcome where ``episode ends when`` holds stops there with watched(t)·(w0 + max(K_edge,
     K_edge+end)), K_edge+end the sup over its box of the edge's and its own end clauses' offsets
-    together (they read the same inputs).
+    together (they read the same inputs). With :attr:`Target.intermediates`, a stop may also be
+    inside the edge's updates (K_mid, the best of their prefixes), K_end and K_edge+end include the
+    prefixes of the end clauses' updates.
     """
     steps = automaton.steps
     l0 = automaton.initial
     w = target.weights
     outs = moves.samples
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
-    end_options = [(sup_weighted(w, (e.end_map,), e.box)[0], e) for e in moves.ends]
-    k_end, best_end = max(end_options, key=lambda item: item[0]) if end_options else (None, None)
-    start = _start(target, l0, {} if k_end is None or best_end is None else
-                   {(): (target.constant + k_end, best_end, sup_weighted(w, (best_end.end_map,), best_end.box)[1])})
+    prefixes = _Prefixes(automaton, target)
+    # Each way to end on inputs of its own: (value, end, applied, the map up to there).
+    end_options = [(sup_weighted(w, (end_map,), e.box)[0], e, applied, end_map)
+                   for e in moves.ends for applied, end_map in ((None, e.end_map), *prefixes.end(e))]
+    k_end, best_end, end_applied, best_end_map = (max(end_options, key=lambda item: item[0]) if end_options
+                                                  else (None, None, None, None))
+    start = _start(target, l0, {} if k_end is None or best_end is None or best_end_map is None else
+                   {(): (target.constant + k_end, best_end, sup_weighted(w, (best_end_map,), best_end.box)[1],
+                         end_applied)})
     if not any(outs):  # `assume` excludes every input: no sample ever happens
         return start
 
     def ended(first: tuple[Affine, ...], o: Outcome) -> Fraction | None:
-        """With ``episode ends when`` holding: the sup of the sample's offsets and its end clauses'."""
-        if o.ending is None or not o.ending.ends:
+        """With ``episode ends when`` holding: the sup of the sample's offsets and its end clauses'
+        (and of those inside the clauses' updates, with intermediates)."""
+        if o.ending is None:
             return None
-        return sup_weighted(w, (*first, o.edge_map, o.ending.end_map), o.box)[0]
+        maps = ([o.ending.end_map] if o.ending.ends else []) + [m for _, m in prefixes.end(o.ending)]
+        return max((sup_weighted(w, (*first, o.edge_map, m), o.box)[0] for m in maps), default=None)
 
-    # per (l, o): (l, oi, t, K_edge, K_next, whether the run ends there, K_edge+end or None)
+    def inside(first: tuple[Affine, ...], o: Outcome) -> Fraction | None:
+        """With intermediates: the sup of the values inside the edge's updates (None: none watched)."""
+        return max((sup_weighted(w, (*first, m), o.box)[0] for _, m in prefixes.edge(o.edge)), default=None)
+
+    # per (l, o): (l, oi, t, K_edge, K_next, whether the run ends there, K_edge+end or None, K_mid or None)
     rows = []
     for here, os in enumerate(outs):
         for oi, o in enumerate(os):
             t = o.target
             rows.append((here, oi, t, sup_weighted(w, (o.edge_map,), o.box)[0],
-                         sup_weighted(w, (o.edge_map, accruals[t]), o.box)[0], o.ends_episode, ended((), o)))
+                         sup_weighted(w, (o.edge_map, accruals[t]), o.box)[0], o.ends_episode, ended((), o),
+                         inside((), o)))
     first_rows = []  # sample 1 from l0: the accrual before the edge uses the same inputs
     for oi, o in enumerate(outs[l0]):
         t = o.target
@@ -427,9 +509,9 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
                            sup_weighted(w, (accruals[l0], o.edge_map), o.box)[0],
                            sup_weighted(w, (accruals[l0], o.edge_map, accruals[t]), o.box)[0],
                            sup_weighted(w, (accruals[l0],), o.box)[0], o.ends_episode,
-                           ended((accruals[l0],), o)))
-    values = ([v for r in rows for v in (*r[3:5], r[6]) if v is not None]
-              + [v for r in first_rows for v in (*r[2:5], r[6]) if v is not None]
+                           ended((accruals[l0],), o), inside((accruals[l0],), o)))
+    values = ([v for r in rows for v in (*r[3:5], *r[6:]) if v is not None]
+              + [v for r in first_rows for v in (*r[2:5], *r[6:]) if v is not None]
               + [target.constant] + ([k_end] if k_end is not None else []))
     scale = math.lcm(*(v.denominator for v in values))
     n_loc = len(automaton.locations)
@@ -455,17 +537,18 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
 
     k_next = np.full((n_loc, width), neg_inf, dtype=dtype)
     goes_on = np.zeros((n_loc, width), dtype=bool)  # the run may continue after this outcome
-    for here, oi, t, ke, kn, ending, kee in rows:
+    for here, oi, t, ke, kn, ending, kee, kmid in rows:
         targets[here, oi] = t
         k_next[here, oi] = int(kn * scale)
         goes_on[here, oi] = not ending
         if target.watched[t]:
             edge_value = w0 + int(ke * scale)
+            mid = neg_inf if kmid is None else w0 + int(kmid * scale)
             if ending:  # the run ends here, with this sample's own end clauses (no end of its own)
-                stop[here, oi] = stop_last[here, oi] = episode_stop(edge_value, kee)
+                stop[here, oi] = stop_last[here, oi] = max(episode_stop(edge_value, kee), mid)
             else:
-                stop[here, oi] = max(edge_value + end_bonus, w0 + int(kn * scale))
-                stop_last[here, oi] = edge_value + end_bonus
+                stop[here, oi] = max(edge_value + end_bonus, w0 + int(kn * scale), mid)
+                stop_last[here, oi] = max(edge_value + end_bonus, mid)
     value = np.full(n_loc, neg_inf, dtype=dtype)
     # choice[k], stopped[k] for k = steps down to `settled`; below it they equal those at `settled`.
     choice: dict[int, np.ndarray] = {}
@@ -493,13 +576,15 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
                              f"{MAX_SAMPLES:,} of them")
     # Sample 1, from the initial location only.
     best_value, best_choice = None, None
-    for oi, t, ke, kn, kb, ending, kee in first_rows:
+    for oi, t, ke, kn, kb, ending, kee, kmid in first_rows:
         options = []
         if target.watched[t]:
             if ending:
                 options.append((episode_stop(w0 + int(ke * scale), kee), "stop"))
             else:
                 options.append((w0 + int(ke * scale) + end_bonus, "stop"))
+            if kmid is not None:
+                options.append((w0 + int(kmid * scale), "stop"))
             if steps > 1 and not ending:
                 options.append((w0 + int(kn * scale), BEFORE_NEXT))
         if target.watched[l0]:
@@ -519,27 +604,33 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
         return result
     oi, instant = best_choice
     here, k = l0, 1
-    points: dict[tuple[int, str, bool], dict[str, Fraction]] = {}  # a run repeats its samples: weigh each once
-    stops: dict[tuple[int, bool, bool], str] = {}
+    # a run repeats its samples: weigh each once
+    points: dict[tuple[int, str, int | None, bool], dict[str, Fraction]] = {}
+    stops: dict[tuple[int, bool, bool], tuple[str, int | None]] = {}
     while True:
         if k > MAX_SAMPLES:
             raise Unfinished(f"the worst run is longer than {MAX_SAMPLES:,} samples")
         o = outs[here][oi]
+        applied = None
         if instant == "stop":
             last = k == steps or o.ends_episode
             if (id(o), last, k == 1) not in stops:
-                stops[id(o), last, k == 1] = _which_stop(w, o, accruals, k_end, last=last, first=k == 1, l0=l0)
-            instant = stops[id(o), last, k == 1]
-        key = (id(o), instant, k == 1)
+                stops[id(o), last, k == 1] = _which_stop(w, o, accruals, (k_end, end_applied), prefixes,
+                                                         last=last, first=k == 1, l0=l0)
+            instant, applied = stops[id(o), last, k == 1]
+        key = (id(o), instant, applied, k == 1)
         point = points.get(key)
         if point is None:
-            point = points[key] = sup_weighted(w, _maps_for(instant, o, accruals, first=k == 1, l0=l0), o.box)[1]
-        if instant == AFTER_END and o.ending is not None:  # the run's own end, on the sample's inputs
+            maps = _maps_for(instant, o, accruals, _prefix(prefixes, instant, o, applied), first=k == 1, l0=l0)
+            point = points[key] = sup_weighted(w, maps, o.box)[1]
+        if instant in (AFTER_END, MID_END) and o.ending is not None:  # the run's own end, on the sample's inputs
             result.end, result.end_inputs = o.ending, point
-        elif instant == AFTER_END:
-            assert best_end is not None
+        elif instant in (AFTER_END, MID_END):
+            assert best_end is not None and best_end_map is not None
             result.end = best_end
-            result.end_inputs = sup_weighted(w, (best_end.end_map,), best_end.box)[1]
+            result.end_inputs = sup_weighted(w, (best_end_map,), best_end.box)[1]
+        if instant in (MID_EDGE, MID_END):
+            result.applied = applied
         result.steps.append(Step(k, o, point, instant))
         if instant != CONTINUE:
             result.instant = instant
@@ -550,31 +641,57 @@ def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target
         instant = "stop" if stopped[at][here] else CONTINUE
 
 
-def _maps_for(instant: str, o: Outcome, accruals: list[Affine], *, first: bool, l0: int) -> tuple[Affine, ...]:
-    """The maps of one sample up to ``instant`` (their weighted offsets pick the inputs)."""
+def _prefix(prefixes: _Prefixes, instant: str, o: Outcome, applied: int | None) -> Affine | None:
+    """The map inside a sequence of updates that a MID_EDGE or MID_END instant of ``o`` stops at
+    (None at any other instant, and at the end of a run on inputs of its own: :func:`_maps_for`)."""
+    if applied is None:
+        return None
+    if instant == MID_EDGE:
+        return dict(prefixes.edge(o.edge))[applied]
+    if instant == MID_END and o.ending is not None:
+        return dict(prefixes.end(o.ending))[applied]
+    return None
+
+
+def _maps_for(instant: str, o: Outcome, accruals: list[Affine], inside: Affine | None, *, first: bool,
+              l0: int) -> tuple[Affine, ...]:
+    """The maps of one sample up to ``instant`` (their weighted offsets pick the inputs); ``inside``:
+    the map of the edge's or the end clauses' first updates a MID_EDGE or MID_END instant stops at."""
     maps: tuple[Affine, ...] = (accruals[l0],) if first else ()
     if instant == BEFORE_EDGE:
         return maps
+    if instant == MID_EDGE:
+        assert inside is not None
+        return maps + (inside,)
     maps += (o.edge_map,)
     if instant in (BEFORE_NEXT, CONTINUE):
         return maps + (accruals[o.target],)
-    if instant == AFTER_END and o.ending is not None:  # the end clauses read the sample's inputs
-        return maps + (o.ending.end_map,)
+    if instant in (AFTER_END, MID_END) and o.ending is not None:  # the end clauses read the sample's inputs
+        return maps + (inside if instant == MID_END and inside is not None else o.ending.end_map,)
     return maps
 
 
-def _which_stop(w: tuple[Fraction, ...], o: Outcome, accruals: list[Affine], k_end: Fraction | None,
-                last: bool, first: bool, l0: int) -> str:
-    """Which instant of a sample attains the stop value found by the recurrence (the first of them)."""
+def _which_stop(w: tuple[Fraction, ...], o: Outcome, accruals: list[Affine],
+                end: tuple[Fraction | None, int | None], prefixes: _Prefixes,
+                last: bool, first: bool, l0: int) -> tuple[str, int | None]:
+    """Which instant of a sample attains the stop value found by the recurrence (the first of them),
+    and after how many updates of its sequence for MID_EDGE and MID_END; ``end``: the best end on
+    inputs of its own (K_end) and where in its updates it is."""
+    k_end, end_applied = end
     before: tuple[Affine, ...] = (accruals[l0],) if first else ()
     edge = sup_weighted(w, (*before, o.edge_map), o.box)[0]
-    options = [(edge, AFTER_EDGE)]
+    options: list[tuple[Fraction, str, int | None]] = [(edge, AFTER_EDGE, None)]
+    inside: list[tuple[Fraction, str, int | None]] = [
+        (sup_weighted(w, (*before, m), o.box)[0], MID_EDGE, applied) for applied, m in prefixes.edge(o.edge)]
     if o.ending is not None:  # the run ends here: its own end clauses, nothing after
         if o.ending.ends:
-            options.append((sup_weighted(w, (*before, o.edge_map, o.ending.end_map), o.box)[0], AFTER_END))
-        return max(options, key=lambda item: item[0])[1]
-    if k_end is not None and k_end > 0:
-        options.append((edge + k_end, AFTER_END))
-    if not last:
-        options.append((sup_weighted(w, (*before, o.edge_map, accruals[o.target]), o.box)[0], BEFORE_NEXT))
-    return max(options, key=lambda item: item[0])[1]
+            options.append((sup_weighted(w, (*before, o.edge_map, o.ending.end_map), o.box)[0], AFTER_END, None))
+        options += [(sup_weighted(w, (*before, o.edge_map, m), o.box)[0], MID_END, applied)
+                    for applied, m in prefixes.end(o.ending)]
+    else:
+        if k_end is not None and k_end > 0:
+            options.append((edge + k_end, AFTER_END if end_applied is None else MID_END, end_applied))
+        if not last:
+            options.append((sup_weighted(w, (*before, o.edge_map, accruals[o.target]), o.box)[0], BEFORE_NEXT, None))
+    _, instant, applied = max(options + inside, key=lambda item: item[0])
+    return instant, applied
