@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from fractions import Fraction
+from unittest import mock
 
 import pytest
 from hypothesis import given, settings
@@ -429,6 +431,33 @@ def test_p1_minimax_matches_a_vertex_enumeration(case) -> None:
     f, g, inputs = case
     box = {i.name: (i.low, i.high) for i in inputs}
     assert _exists_neg_pos_in(f, g, _Inputs(inputs), box) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(rate_pairs())
+def test_p1_beyond_the_enumeration_searches_the_widest_int_input_exactly(case) -> None:
+    """With more joint whole values than MAX_INT_POINTS, every int input but the widest is enumerated
+    and the widest searched (lowered here so that the search runs on tiny boxes): still exact."""
+    f, g, inputs = case
+    box = {i.name: (i.low, i.high) for i in inputs}
+    sizes = sorted(int(i.high - i.low) + 1 for i in inputs if i.kind == "int")
+    with mock.patch("rac.check.analysis.priority.MAX_INT_POINTS", math.prod(sizes[:-1])):
+        assert _exists_neg_pos_in(f, g, _Inputs(inputs), box) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
+
+
+def test_p1_with_many_int_values_is_exact() -> None:
+    """Regression: beyond 4096 joint whole values the int inputs were relaxed to reals, and P1 failed
+    (E0401) where no whole values make `a` fall while `b` grows: a < 0 needs n + m <= 2, b > 0 n + m >= 3."""
+    ints = "input n : int in [0, 99]\n    input m : int in [0, 99]"
+
+    def failures(hi: str, lo: str) -> list:
+        text = P1_TEXT.replace("HI", hi).replace("LO", lo).replace("WEIGHT", "1").replace("INPUTS", ints)
+        automaton = compile_text(text, "p1.ra", analyse=False).automaton
+        assert automaton is not None
+        return check_rate_dominance(automaton)
+
+    assert failures("n + m - 5/2", "n + m - 9/4") == []
+    assert len(failures("n + m - 5/2", "n + m - 7/4")) == 1  # n + m = 2 does both
 
 
 ASSUMED = """automaton Assumed {{

@@ -6,7 +6,7 @@ import dataclasses
 import itertools
 import math
 from collections import deque
-from collections.abc import Callable, Collection, Iterable, Mapping
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from fractions import Fraction
 
 from rac import ir
@@ -46,14 +46,9 @@ def _declared_box(automaton: ir.Automaton, names: Iterable[str]) -> dict[str, tu
     return {name: _bounds(automaton.input(name)) for name in names}
 
 
-#: Integer inputs in a rate pair are enumerated up to this many joint values (else relaxed to reals).
+#: Integer inputs in a rate pair are enumerated up to this many joint values; beyond, all but the
+#: widest are (and the widest is searched exactly), else they are relaxed to reals.
 MAX_INT_POINTS = 4096
-
-
-def _fix(linear: ir.Linear, values: dict[str, Fraction]) -> ir.Linear:
-    """Substitute the given inputs' values into a linear form."""
-    const = linear.const + sum((c * values[n] for n, c in linear.terms if n in values), ZERO)
-    return ir.Linear(const, tuple((n, c) for n, c in linear.terms if n not in values))
 
 
 def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool:
@@ -73,31 +68,63 @@ def _exists_neg_pos_in(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton,
                        box: dict[str, tuple[Fraction, Fraction]]) -> bool:
     """Is there a point of ``box`` (closed bounds per input) with f < 0 and g > 0?
 
-    ``min_x max(f, -g) < 0``; by the minimax theorem this is the max over λ ∈ [0, 1]
-    of a separable minimum, which is piecewise linear in λ: check its breakpoints.
-    The theorem needs convex ranges: ``int`` inputs are enumerated first (when few).
+    ``min_x max(f, -g) < 0`` (:class:`_MinMax`). The minimax theorem behind it needs convex ranges:
+    ``int`` inputs take whole values, so they are enumerated, when few. When their joint values are
+    too many, every one but the widest is enumerated and the widest searched exactly (the minimum
+    over the real inputs is convex in it); only when even those are too many are the ``int`` inputs
+    relaxed to reals (which may report a point that no whole values reach).
     """
     names = sorted(set(f.variables()) | set(g.variables()))
     ints = [n for n in names if automaton.input(n).kind == "int"]
-    if ints:
-        ranges = [range(int(box[n][0]), int(box[n][1]) + 1) for n in ints]
-        if math.prod(len(r) for r in ranges) <= MAX_INT_POINTS:
-            for combo in itertools.product(*ranges):
-                values = {n: Fraction(v) for n, v in zip(ints, combo)}
-                if _exists_neg_pos_in(_fix(f, values), _fix(g, values), automaton, box):
-                    return True
-            return False
-    lambdas = {Fraction(0), Fraction(1)}
-    for name in names:
-        a, b = f.coefficient(name), -g.coefficient(name)
-        if a != b and 0 <= -b / (a - b) <= 1:
-            lambdas.add(-b / (a - b))
-    best = None
-    for lam in lambdas:
-        mix = f.scaled(lam) + g.scaled(-(1 - lam))
-        low, _ = _range_in(mix, box)
-        best = low if best is None else max(best, low)
-    return best is not None and best < 0
+    ranges = [range(int(box[n][0]), int(box[n][1]) + 1) for n in ints]
+    if not ints or math.prod(len(r) for r in ranges) <= MAX_INT_POINTS:
+        least = _MinMax(f, g, ints, box)
+        return any(least(combo) < 0 for combo in itertools.product(*ranges))
+    widest = max(range(len(ints)), key=lambda i: len(ranges[i]))
+    others = ranges[:widest] + ranges[widest + 1:]
+    if math.prod(len(r) for r in others) > MAX_INT_POINTS:
+        return _MinMax(f, g, [], box)(()) < 0  # relaxed to reals
+    least = _MinMax(f, g, ints, box)
+    for combo in itertools.product(*others):
+        def at(v: int, combo: tuple[int, ...] = combo) -> Fraction:
+            return least((*combo[:widest], v, *combo[widest:]))
+
+        # convex in the widest input's value: its differences grow; a binary search on their sign
+        low, high = ranges[widest][0], ranges[widest][-1]
+        while low < high:
+            middle = (low + high) // 2
+            if at(middle + 1) < at(middle):
+                low = middle + 1
+            else:
+                high = middle
+        if at(low) < 0:
+            return True
+    return False
+
+
+class _MinMax:
+    """``min`` over the real inputs of ``box`` of ``max(f, -g)``, as a function of the whole values of
+    the inputs ``ints`` (in that order; ``[]``: every input real). By the minimax theorem it is the
+    max over λ ∈ [0, 1] of a separable minimum, piecewise linear in λ: its breakpoints decide, each
+    an affine function of the ``int`` values (a max of affine functions: convex in them)."""
+
+    def __init__(self, f: ir.Linear, g: ir.Linear, ints: Sequence[str],
+                 box: dict[str, tuple[Fraction, Fraction]]) -> None:
+        reals = sorted((set(f.variables()) | set(g.variables())) - set(ints))
+        lambdas = {Fraction(0), Fraction(1)}
+        for name in reals:
+            a, b = f.coefficient(name), -g.coefficient(name)
+            if a != b and 0 <= -b / (a - b) <= 1:
+                lambdas.add(-b / (a - b))
+        self.rows: list[tuple[Fraction, tuple[Fraction, ...]]] = []
+        for lam in lambdas:
+            mix = f.scaled(lam) + g.scaled(-(1 - lam))
+            real_part = ir.Linear(mix.const, tuple((n, c) for n, c in mix.terms if n not in ints))
+            self.rows.append((_range_in(real_part, box)[0], tuple(mix.coefficient(n) for n in ints)))
+
+    def __call__(self, values: Sequence[int]) -> Fraction:
+        return max(const + sum((c * v for c, v in zip(coefficients, values)), ZERO)
+                   for const, coefficients in self.rows)
 
 
 def _range_in(linear: ir.Linear, box: dict[str, tuple[Fraction, Fraction]]) -> tuple[Fraction, Fraction]:
