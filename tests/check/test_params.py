@@ -226,3 +226,33 @@ automaton Arrival {
     assert [d.code for d in result.diagnostics if d.is_error] == []
     assert result.proved[0] == ("synthesised: PENALTY >= 33 (every check holds for PENALTY in [33, 1000]); "
                                "checked with PENALTY = 33")
+
+
+def test_the_range_of_the_values_in_between_updates_bounds_a_parameter():
+    """The int32 range check bounds the values in between an edge's and the `at end` clauses' updates
+    (UPPAAL stores each assignment), and so does the set synthesised for a parameter there: the edge
+    leaves `p` where it was, but after its first update `p` is 3 + B at most (sample 3)."""
+    from rac.check.analysis.synthesis import End, synthesise
+
+    text = """\
+automaton P {
+    input a : bool
+    param B in [0, 300000]
+    reward p
+    objective p
+    sample every 1
+    horizon 3
+    initial location L { p' == 1 }
+    edge L -> L when a do p = p + B, p = p - B
+    at end when a do p += B, p -= B
+}
+"""
+    node = parse_text(text, "p.ra").automata[0]
+    automaton = Resolver(node).run()
+    assert automaton is not None
+    result = synthesise(lambda value: Resolver(node, {"B": value}).run(), automaton.parameters[0])
+    limit = Fraction(2**31, 10**4) - 3  # trunc((3 + B)·10^4) <= 2^31 - 1
+    assert (result.low, result.high) == (End(Fraction(0)), End(limit, open=True))
+    for value, ok in ((limit - Fraction(1, 10**4), True), (limit, False)):
+        constant = text.replace("param B in [0, 300000]", f"const B = {value.numerator}/{value.denominator}")
+        assert compile_text(constant, "p.ra").ok is ok
