@@ -16,6 +16,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
+from rac.core.files import GENERATED_MARK, head
 from rac.ir.vocabulary import ACTIONS
 from rac.sweep.template import SETTING_NAMES, setting_value
 
@@ -25,6 +26,13 @@ __all__ = ["grid_points", "parse_set", "scenario_files"]
 GridPoint = tuple[tuple[str, str], ...]
 
 
+def _rac_output(path: Path) -> bool:
+    """Whether ``path`` is a file rac wrote that is no CommonRoad scenario (a UPPAAL model of ``rac
+    compile``; the scenes of :mod:`rac.model.scenes` carry the mark too, and are scenarios)."""
+    start = head(path).lower()
+    return GENERATED_MARK in start and b"<commonroad" not in start
+
+
 def _xml_below(folder: Path) -> list[Path]:
     return [Path(root) / name for root, _, names in os.walk(folder) for name in names if name.endswith(".xml")]
 
@@ -32,7 +40,9 @@ def _xml_below(folder: Path) -> list[Path]:
 def scenario_files(items: Sequence[str]) -> list[Path]:
     """The scenario files ``items`` name: files (of any name), folders (searched recursively for
     ``*.xml``) and globs (``**`` crosses folders; a folder a glob matches is searched too); absolute,
-    sorted, each once. ``ValueError`` naming every item that matched no file (or when there are no
+    sorted, each once. A folder or a glob never yields a file rac wrote (a UPPAAL model of ``rac
+    compile`` in ``TEMPLATE.out/``, not a scene of :mod:`rac.model.scenes`); a file named outright is
+    taken as it is. ``ValueError`` naming every item that matched no file (or when there are no
     items)."""
     if not items:
         raise ValueError("no scenarios: name CommonRoad files, folders holding them, or globs")
@@ -41,8 +51,11 @@ def scenario_files(items: Sequence[str]) -> list[Path]:
     for item in items:
         matches = glob.glob(item, recursive=True) if glob.has_magic(item) else [item] if os.path.exists(item) else []
         files: list[Path] = []
+        named = not glob.has_magic(item) and not os.path.isdir(item)
         for match in map(Path, matches):
             files.extend(_xml_below(match) if match.is_dir() else [match])
+        if not named:  # searched, not named: rac's own outputs beside the scenarios are no scenarios
+            files = [f for f in files if not _rac_output(f)]
         if not files:
             empty.append(item)
         found.update(Path(os.path.abspath(f)) for f in files)
