@@ -60,3 +60,21 @@ def test_a_threshold_finer_than_one_unit_is_e0801() -> None:
     g.numbers.inputs(g.n, g.array, g.select)
     assert [d.code for d in g.diagnostics] == ["E0801"]
     assert "2.50001" in g.diagnostics[0].message and "exponent 4" in g.diagnostics[0].message
+
+
+def test_a_rate_term_whose_product_overflows_int32_is_e0801() -> None:
+    # the accrual `iP = iP + 3*x / 10`: 3 times x's significand (10^9 at x = 100000) is 3e9, beyond int32,
+    # though each sample's gain (3e8) and the reward's range fit: UPPAAL computes the product in 32 bits
+    text = ("automaton Ov {\n    input x : real in [0, 100000]\n    reward p\n    objective p\n"
+            "    sample every 0.1\n    horizon 0.2\n    initial location A { p' == 3 * x }\n}\n")
+    g = generator(text)
+    assert g.diagnostics == []
+    g.numbers.accruals(g.numbers.inputs(g.n, g.array, g.select), g.n)
+    [diagnostic] = g.diagnostics
+    assert diagnostic.code == "E0801"
+    assert "computes 3*x / 10 per sample, and 3 times the significand of `x` = 100000 is 3000000000" \
+        in diagnostic.message
+    # within the range: the same rate over x in [0, 10000] (3e8) is emitted
+    g = generator(text.replace("100000]", "10000]"))
+    g.numbers.accruals(g.numbers.inputs(g.n, g.array, g.select), g.n)
+    assert g.diagnostics == []

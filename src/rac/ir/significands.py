@@ -73,6 +73,23 @@ def rate_diagnostic(automaton: ir.Automaton, location: ir.Location, reward: str,
             f"{short_number(max([abs(const), *(abs(coef) for coef, _ in terms)]))} significand units "
             "per sample (per unit of its inputs), beyond the 32-bit integer range",
             location.span, hints=["lower the rate, or the exponent of the number representation"])
+    # The emitted accrual prints a term as `p*input / q` in int32 arithmetic: the product p * significand
+    # is an intermediate value UPPAAL holds in 32 bits, even where the term itself fits.
+    products = [(abs(coef.numerator * v), coef, name, v) for coef, name in terms
+                for v in (values or {}).get(name, [])]
+    if not bad and products and max(products)[0] > INT32_MAX:
+        product, coef, name, v = max(products)
+        divided = f" / {coef.denominator}" if coef.denominator != 1 else ""
+        return unrepresentable(
+            automaton,
+            f"reward rate `{reward}' == {linear_text(rate)}` in location `{location.name}`: the UPPAAL model "
+            f"computes {abs(coef.numerator)}*{name}{divided} per sample, and {abs(coef.numerator)} times "
+            f"the significand of `{name}` = {decimal_text(Fraction(v, scale))} is {short_number(Fraction(product))}, "
+            "beyond the 32-bit integer range", location.span,
+            notes=[f"`{name}` is held as its significand ({v}, at base {base}, exponent {exponent}); the model "
+                   "computes the product in 32-bit integers"],
+            hints=["narrow the input's range, lower the exponent of the number representation, or choose a "
+                   "rate and sample period whose product has a smaller numerator"])
     if not bad:
         return None
     if terms:
