@@ -213,6 +213,22 @@ def test_the_horizon_table_as_json(param_file: Path, capsys: pytest.CaptureFixtu
     assert Fraction(formula["slope"]["exact"]) == Fraction(8, 5) and report["written"] is None
 
 
+def test_horizon_tabulates_a_file_that_declares_no_horizon(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """--horizon gives the horizon: a file without a `horizon` line is tabulated (the line written after
+    `sample every` in each row's text), not refused with E0105; the file itself is left as it was."""
+    text = re.sub(r"\n *horizon 30[^\n]*", "", DRIVING.replace(CONST, PARAM))
+    assert "horizon" not in re.sub(r"//[^\n]*", "", text)
+    path = write(tmp_path / "no_horizon.ra", text)
+    capsys.readouterr()
+    assert main(["tune", "--horizon", "10,30,60", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "| 30 | 98 | PENALTY >= 98 |" in out and "PENALTY >= 1.6 * H + 50" in out
+    assert path.read_text(encoding="utf-8") == text
+    assert main(["tune", "--horizon", "10,25.05", str(path)]) == 2  # the period is still read
+    assert "25.05 s is not a whole number of sample periods" in capsys.readouterr().err
+
+
 def test_two_horizons_give_no_formula(param_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
     capsys.readouterr()
     assert main(["tune", "--horizon", "10,30", str(param_file)]) == 0

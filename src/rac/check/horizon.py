@@ -20,18 +20,33 @@ from rac.lang import ast
 __all__ = ["Fit", "at_horizon", "fit_line", "formula_text"]
 
 
-def at_horizon(source: SourceFile, node: ast.Automaton, horizon: Fraction) -> str:
+def at_horizon(source: SourceFile, node: ast.Automaton, horizon: Fraction | None) -> str:
     """The text of ``source`` with the expression of ``node``'s ``horizon`` declaration replaced by
     ``horizon`` (an exact decimal): every other character, comments included, stays as it was.
-    Raises ``ValueError`` when the automaton has no ``horizon`` declaration or it has no place."""
+    When the automaton declares no horizon (``--horizon`` gives it), ``horizon H`` is written right
+    after its ``sample every`` declaration, on the same line, so that every other line keeps its number
+    for diagnostics. ``horizon=None`` means one sample period (the ``sample every`` expression's
+    text): a file without a horizon then resolves, and its period can be read. Raises ``ValueError``
+    when the automaton declares neither a horizon nor a period, or ``horizon`` is not a finite decimal."""
     declarations = node.of(ast.HorizonDecl)
-    if not declarations or declarations[0].length.span is None:
-        raise ValueError(f"automaton `{node.name.name}` has no `horizon` declaration to replace")
-    literal = exact_decimal(horizon)
-    if literal is None:
-        raise ValueError(f"the horizon {horizon} is not a finite decimal")
-    span = declarations[0].length.span
-    return source.text[:span.start] + literal + source.text[span.end:]
+    samples = node.of(ast.SampleDecl)
+    period = samples[0].period.span if samples else None
+    if horizon is not None:
+        literal = exact_decimal(horizon)
+        if literal is None:
+            raise ValueError(f"the horizon {horizon} is not a finite decimal")
+    elif period is not None:
+        literal = source.text[period.start:period.end]
+    else:
+        raise ValueError(f"automaton `{node.name.name}` has no `sample every` declaration")
+    if declarations and declarations[0].length.span is not None:
+        span = declarations[0].length.span
+        return source.text[:span.start] + literal + source.text[span.end:]
+    after = samples[0].span.end if samples and samples[0].span is not None else None
+    if after is None:
+        raise ValueError(f"automaton `{node.name.name}` has no `horizon` declaration to replace "
+                         "and no `sample every` to write one after")
+    return source.text[:after] + f" horizon {literal}" + source.text[after:]
 
 
 @dataclass(frozen=True)

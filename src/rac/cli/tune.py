@@ -226,6 +226,11 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
     when no horizon has a value."""
     path: Path = args.file
     plain = compile_source(source, analyse=False)  # the sample period, without running any check
+    if plain.automaton is None and not node.of(ast.HorizonDecl) and node.of(ast.SampleDecl):
+        # --horizon gives the horizon the file leaves out (each row writes it after `sample every`):
+        # read the period at a horizon of one period; on other errors, show the file's own.
+        inserted = compile_source(SourceFile(source.name, at_horizon(source, node, None)), analyse=False)
+        plain = inserted if inserted.automaton is not None else plain
     if plain.automaton is None:
         return _failed(args, path, plain)
     period = plain.automaton.period
