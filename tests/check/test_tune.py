@@ -166,6 +166,21 @@ def test_a_file_without_param_is_a_usage_error(tmp_path: Path, capsys: pytest.Ca
     assert path.read_text(encoding="utf-8") == DRIVING
 
 
+@pytest.mark.parametrize("horizon", [[], ["--horizon", "10,30"]])
+def test_a_param_in_a_second_automaton_is_e0107(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                horizon: list[str]) -> None:
+    """The second automaton is the file's error (E0107, as `rac check` reports it), not a missing `param`."""
+    second = DRIVING.replace("automaton Driving", "automaton Second").replace(CONST, PARAM)
+    path = write(tmp_path / "two.ra", DRIVING + "\n" + second)
+    line = (DRIVING + "\n").count("\n") + second[:second.index("automaton Second")].count("\n") + 1
+    capsys.readouterr()
+    assert main(["tune", *horizon, str(path)]) == 1
+    out = capsys.readouterr().out
+    assert f"two.ra:{line}:11: error[E0107]: a file holds one automaton; this is a second one" in out
+    assert "^^^^^^" in out and "= hint: move it to a file of its own" in out and "declares no `param`" not in out
+    assert path.read_text(encoding="utf-8") == DRIVING + "\n" + second
+
+
 @pytest.mark.parametrize(("option", "message"), [
     ("--horizon=10,25.05", "25.05 s is not a whole number of sample periods"),
     ("--horizon=-30", "the horizon `-30` must be more than 0 s"),

@@ -86,6 +86,8 @@ def _tune(args: argparse.Namespace) -> int:
     except ParseFailure as failure:
         shown = source or failure.source
         return _failed(args, path, CompileResult(None, (failure.diagnostic,), {shown.name: shown} if shown else {}))
+    if len(module.automata) > 1:  # E0107 (a param of the second one is no reason to say "no param")
+        return _failed(args, path, compile_source(source, analyse=False))
     node = module.automata[0] if module.automata else None
     if node is None or not node.of(ast.ParamDecl):
         return _refused(args, path, usage_error(
