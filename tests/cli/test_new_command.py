@@ -114,3 +114,24 @@ def test_without_from_the_stdlib_file_even_beside_a_file_of_its_name(
     # --from names a file: the one in the working folder
     assert main(["new", "bar", "--from", "driving.ra"]) == EXIT_OK
     assert "automaton Bar {\n    reward r\n" in (tmp_path / "bar.ra").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize(("text", "where", "code"), [
+    ("automaton Old {\n  input a : bool\n  reward r r\n}\n", "bad.ra:3:12: error[E0001]", "E0001"),
+    ("// nothing here\n", "bad.ra:1:1: error[E0007]", "E0007"),
+])
+def test_a_from_file_that_does_not_parse_is_its_syntax_error_and_writes_nothing(
+        text: str, where: str, code: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac new --from` a file with a syntax error: the error as rac check prints it (place, code,
+    caret), exit 1, and no NAME.ra: a copy of a broken file is no start (it was copied, exit 0)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.ra").write_text(text, encoding="utf-8")
+    capsys.readouterr()
+    assert main(["new", "fresh", "--from", "bad.ra"]) == 1
+    captured = capsys.readouterr()
+    assert captured.err.startswith(where) and "^" in captured.err and "Traceback" not in captured.err
+    assert captured.out == "" and not (tmp_path / "fresh.ra").exists()
+    assert list(tmp_path.iterdir()) == [tmp_path / "bad.ra"]  # no temporary file left either
+    main(["check", "bad.ra"])
+    assert f"error[{code}]" in capsys.readouterr().out

@@ -4,7 +4,8 @@ The file (default: the standard library's ``driving.ra``; a bare name such as ``
 up in the standard library) is copied to ``NAME.ra``, its automaton renamed to the CamelCase of NAME
 when NAME is an identifier; a relative ``scenario`` path of its ``model`` block is rewritten to name the same file
 from NAME's folder. An existing file is never overwritten (E0009, exit 2). The ``--from`` file is read as
-``rac check`` reads one: no UTF-8 text is E0004 (exit 1), a folder, a FIFO or a device E0008 (exit 2).
+``rac check`` reads one: no UTF-8 text is E0004 and a syntax error its diagnostic (exit 1, nothing
+written), a folder, a FIFO or a device E0008 (exit 2).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from rac.cli.arguments import DEFAULT_TEMPLATE
 from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
 from rac.core.diagnostics import Diagnostic, error, render_text
 from rac.lang import ast
-from rac.lang.parser import ParseFailure, parse_text, read_source
+from rac.lang.parser import ParseFailure, parse_source, parse_text, read_source
 from rac.lang.resources import stdlib_file
 
 __all__ = ["camel_case", "new_command", "renamed", "repointed", "template_path"]
@@ -117,13 +118,16 @@ def new_command(args: argparse.Namespace) -> int:
         print(render_text([error("E0008", f"cannot read `{args.template}`: {exc.args[0]}", None,
                                  hints=["pass a .ra file or a standard-library name"])], {}), file=sys.stderr)
         return EXIT_USAGE
+    read = None
     try:  # as rac check, fmt and tune read a file: a FIFO or a device is refused, never read to its end
         read = read_source(source)
+        # a file that does not parse is no start: its syntax error, as rac check prints it, and no copy
+        parse_source(read)
     except OSError as exc:
         print(render_text([unreadable(source, exc)], {}), file=sys.stderr)
         return EXIT_USAGE
-    except ParseFailure as failure:  # not UTF-8 text, NUL bytes, too large: E0004/E0005, as rac fmt says
-        shown = failure.source
+    except ParseFailure as failure:  # not UTF-8 text, NUL bytes, too large (E0004/E0005), a syntax error
+        shown = read or failure.source  # the text read, for the caret under a syntax error
         print(render_text([failure.diagnostic], {shown.name: shown} if shown else {}), file=sys.stderr)
         return EXIT_ERRORS
     # Windows line ends as \n, as in every file rac writes (read_source keeps them for rac fmt)
