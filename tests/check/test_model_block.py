@@ -416,6 +416,19 @@ def test_model_does_not_change_the_checks_or_runtime() -> None:
     ("        base 2\n", "E0706",
      "the default action `turn` in [-0.4, 0.4] step 0.1 does not fall on whole significands at base 2, "
      "exponent 4", "use a range and step that are multiples of 0.0625, or raise the exponent"),
+    # a positive setting whose significand truncates to 0: the model would use 0, not the value written
+    ("        width 0.00001\n", "E0702",
+     "`width` 0.00001 m truncates to 0 at base 10, exponent 4: the model would use 0, and `width` must be positive",
+     "the smallest positive `width` at base 10, exponent 4 is 0.0001 m: set `width` to at least that, or raise "
+     "the exponent (`exponent 5` holds 0.00001)"),
+    ("        collision_distance 1e-9\n", "E0702",
+     "`collision_distance` 0.000000001 m truncates to 0 at base 10, exponent 4: the model would use 0, and "
+     "`collision_distance` must be positive",
+     "the smallest positive `collision_distance` at base 10, exponent 4 is 0.0001 m: set `collision_distance` to "
+     "at least that"),
+    ("        base 2\n        action turn in [-0.5, 0.5] step 0.5\n        exponent 1\n", "E0702",
+     "the default `max_turn` 0.4 rad/s truncates to 0 at base 2, exponent 1: the model would use 0, and `max_turn` "
+     "must be positive", "the smallest positive `max_turn` at base 2, exponent 1 is 0.5 rad/s"),
     ("        action steer in [0, 1] step 1\n", "E0707", "unknown action `steer`",
      "the vehicle has two actions, `jerk` (m/s³) and `turn` (rad/s)"),
     ("        action trun in [0, 1] step 1\n", "E0707", "unknown action `trun`", "did you mean `turn`?"),

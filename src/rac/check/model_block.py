@@ -37,6 +37,7 @@ from rac.check.symbols import ModelContext, Unresolvable
 from rac.core.diagnostics import Note, short_count, short_number
 from rac.core.source import Span
 from rac.ir import expr as ie
+from rac.ir.significands import decimal_text
 from rac.ir.vocabulary import (
     ACTIONS,
     MAX_ACTION_PAIRS,
@@ -46,6 +47,7 @@ from rac.ir.vocabulary import (
     SETTINGS,
     WORD_SETTINGS,
     Setting,
+    held_value,
 )
 from rac.lang import ast
 
@@ -193,7 +195,33 @@ class _ModelResolver:
             self._check_timing(values)
         if not self.rejected & {"min_speed", "max_speed"}:
             self._check_speeds(values)
+        if not self.rejected & {"base", "exponent"}:
+            self._check_held(values)
         return values
+
+    def _check_held(self, values: dict[str, _Value]) -> None:
+        """E0702 for a positive setting that the model holds as 0: its significand truncates to 0 at
+        this base and exponent (``width 0.00001`` at exponent 4), so the model would use 0, not it."""
+        base, exponent = int(values["base"].value), int(values["exponent"].value)
+        scale = base ** exponent
+        for name, setting in SETTINGS.items():
+            item = values.get(name)
+            if (item is None or name in self.rejected or not setting.exclusive or setting.minimum != 0
+                    or item.value <= 0 or held_value(name, item.value, scale) != 0):
+                continue
+            unit = f" {setting.unit}" if setting.unit else ""
+            value = decimal_text(item.value)
+            which = f"`{name}` {value}{unit}" if item.span is not None else f"the default `{name}` {value}{unit}"
+            needed = next((e for e in range(exponent + 1, int(SETTINGS["exponent"].maximum or exponent) + 1)
+                           if held_value(name, item.value, base ** e) != 0), None)
+            self.error("E0702", f"{which} truncates to 0 at base {base}, exponent {exponent}: the model would use "
+                       f"0, and `{name}` must be positive", item.span or values["exponent"].span or values["base"].span,
+                       notes=[f"its significand is trunc({value} · {base}^{exponent}) = "
+                              f"trunc({decimal_text(item.value * scale)}) = 0",
+                              f"`{name}`: {setting.description}"],
+                       hints=[f"the smallest positive `{name}` at base {base}, exponent {exponent} is "
+                              f"{_fraction_text(Fraction(1, scale))}{unit}: set `{name}` to at least that"
+                              + (f", or raise the exponent (`exponent {needed}` holds {value})" if needed else "")])
 
     def _word(self, item: ast.ModelSetting) -> None:
         """A setting whose value is one of a few words (:data:`WORD_SETTINGS`), e.g. ``dynamics increments``."""
