@@ -6,6 +6,7 @@ distance to a car drop below the collision distance; exponent 4 with a 0.1 s per
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -82,3 +83,62 @@ def test_a_scenario_too_large_for_the_ground_truth_says_so(tmp_path: Path) -> No
     assert row["error"].startswith(  # type: ignore[union-attr]
         "the scenario does not fit int32 at exponent 4, where the pre-analysis measures the ground truth of Qa and "
         "Qd: road polygon 0 vertex 0 x = 300100.0 needs the significand 3001000000 at scale 10000")
+
+
+def test_a_short_time_step_is_refused_up_front_when_its_true_distances_exceed_the_memory_budget(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The true distances are measured at every CommonRoad time step: a timeStepSize of 1 µs makes
+    500,000 of them per sensing period of 0.5 s, and the row ran for many minutes with no word. Their
+    memory is estimated before the setting's work: beyond --max-memory the row says so, and nothing
+    of the ground truth is integrated."""
+    import rac.studies.preanalysis as preanalysis
+
+    path = write_engine_file(tmp_path, "goal_ahead", {})  # horizon 4 s, sensing period 0.5 s
+    scenario = tmp_path / "goal_ahead.xml"
+    text = scenario.read_text(encoding="utf-8")
+    step = re.search(r'timeStepSize="([^"]+)"', text)
+    assert step is not None
+    scenario.write_text(text.replace(step.group(0), 'timeStepSize="1e-06"'), encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok, result.diagnostics
+
+    def integrated(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the ground truth was integrated, not refused up front")
+
+    monkeypatch.setattr(preanalysis, "integrate_truth", integrated)
+    [row] = sweep(result, runs=2, seed=1, max_bytes=64 * 2**20)
+    assert row["error"] == (  # 2 copies of 2 runs x (8 samples x 500,000 steps + 1) float64
+        "measuring the true distances of 2 runs at every CommonRoad time step (4,000,000 steps per run: 500,000 "
+        "per sensing period, the scenario's timeStepSize being 1e-06 s) would need about 122 MB, more than the "
+        "memory budget of 64 MB (--max-memory): use fewer --runs, a shorter --horizon, or a scenario whose "
+        "timeStepSize is not that short, or raise --max-memory if the machine has that much memory free")
+    assert "qb" not in row
+    assert row["error"] in render_table([row])  # the table shows why the row has no answers
+
+
+def test_the_true_distances_count_their_time_steps_off_a_terminal(tmp_path: Path) -> None:
+    """A long measurement of the true distances is seen: off a terminal the progress lines name the
+    setting, then the time steps to integrate (their number up front) and count them."""
+    from rac.output.progress import Heartbeat
+
+    class Recorder(Heartbeat):
+        def __init__(self) -> None:
+            super().__init__("rac preanalyse", enabled=False)
+            self.phases: list[str] = []
+            self.counts: list[tuple[int, str]] = []
+
+        def phase(self, text: str) -> None:
+            self.phases.append(text)
+            super().phase(text)
+
+        def count(self, n: int, unit: str, what: str = "") -> None:
+            self.counts.append((n, unit))
+            super().count(n, unit, what)
+
+    path = write_engine_file(tmp_path, "goal_ahead", {})  # horizon 4 s, C1 0.5 s over CommonRoad steps of 0.1 s
+    with Recorder() as beat:
+        [row] = sweep(compile_file(path), runs=2, seed=1)
+    assert "qb" in row and "true_min" in row
+    assert beat.phases == ["setting 1 of 1 (exponent 2, C1 0.5 s, C2 1 s)", "true distances, 40 time steps of 2 runs"]
+    steps = [n for n, unit in beat.counts if unit == "time steps"]
+    assert steps == list(range(1, 41))  # 8 samples of 5 time steps each

@@ -39,7 +39,7 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, short_number
 from rac.core.numbers import samples_of
 from rac.engine import storm
-from rac.engine.budget import out_of_memory
+from rac.engine.budget import VALUE_BYTES, check_estimate, out_of_memory
 from rac.engine.shield import synthesise
 from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
@@ -103,10 +103,21 @@ def _substeps_per_sample(spec: ir.ModelSpec, dt: float) -> int:
     return ratio.numerator if ratio.denominator == 1 and ratio >= 1 else 1
 
 
-def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: ModelData) -> np.ndarray:
+def _truth_bytes(runs: int, samples: int, substeps: int) -> int:
+    """The estimated peak bytes of :func:`_true_distances`: its ``(N, T*m+1)`` float64 distances and
+    the copy of them that :func:`_smallest` masks (the model's own tables are small beside them)."""
+    return 2 * runs * (samples * substeps + 1) * VALUE_BYTES
+
+
+def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: ModelData,
+                    quiet: bool = True) -> np.ndarray:
     """``(N, T*m+1)`` distances of the ground truth to the nearest obstacle at every CommonRoad
     time step (``m`` per sensing period), measured on a model at exponent :data:`TRUTH_EXPONENT`
-    whose sensing period is one time step — so a long period cannot hide a close encounter."""
+    whose sensing period is one time step — so a long period cannot hide a close encounter. A
+    short ``timeStepSize`` makes that many steps: a bar counts them (``quiet``: none)."""
+    # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
+    from rac.output.progress import Heartbeat, Progress
+
     scenario = result.scenario
     assert scenario is not None  # sweep() refuses a model without one
     m = _substeps_per_sample(spec, scenario.dt)
@@ -125,16 +136,23 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
 
     truth = runs.truth[:, 0].T.copy()  # (5, n), as the integrator holds it
     out[:, 0] = distance(truth, 0)
-    for k in range(samples - 1):
-        jerk, turn = runs.states[:, k + 1, Ego.JERK] / data.scale, runs.states[:, k + 1, Ego.TURN] / data.scale
-        for j in range(1, m + 1):
-            truth = integrate_truth(truth, jerk, turn, data.period / m, max(1, 100 // m), limits)
-            out[:, k * m + j] = distance(truth, k * m + j)
+    steps = (samples - 1) * m
+    what = f"true distances, {steps:,} time steps of {n:,} runs"
+    if Heartbeat.active is not None:  # off a terminal, the progress lines name the work and its size
+        Heartbeat.active.phase(what)
+    with Progress(total=steps, desc=what, unit="time steps", enabled=False if quiet else None) as bar:
+        for k in range(samples - 1):
+            jerk, turn = runs.states[:, k + 1, Ego.JERK] / data.scale, runs.states[:, k + 1, Ego.TURN] / data.scale
+            for j in range(1, m + 1):
+                truth = integrate_truth(truth, jerk, turn, data.period / m, max(1, 100 // m), limits)
+                out[:, k * m + j] = distance(truth, k * m + j)
+                bar.update()
     return out
 
 
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
-         max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None) -> Row:
+         max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None,
+         quiet: bool = True) -> Row:
     row: Row = {"exponent": spec.exponent, "sense": float(spec.sense_period),
                               "decide": float(spec.decide_period)}
     scenario = result.scenario
@@ -155,6 +173,19 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     row["obstacles"] = data.obstacle_count
     threshold = threshold_factor * data.td / data.scale
     row["threshold"] = threshold
+    # The true distances are measured at every CommonRoad time step: a short timeStepSize makes
+    # millions of them per run. Their memory is refused up front, before any of the setting's work.
+    substeps = _substeps_per_sample(spec, scenario.dt)
+    try:  # (at one step per sample the runs' own estimate, below, is the larger: it speaks)
+        if substeps > 1:
+            check_estimate(
+                f"measuring the true distances of {runs:,} runs at every CommonRoad time step ({samples * substeps:,} "
+                f"steps per run: {substeps:,} per sensing period, the scenario's timeStepSize being {scenario.dt:g} s)",
+                _truth_bytes(runs, samples, substeps), max_bytes,
+                "use fewer --runs, a shorter --horizon, or a scenario whose timeStepSize is not that short")
+    except MemoryError as exc:
+        row["error"] = _memory_error(exc)
+        return row
     # Qa: sensor error, unshielded runs (UPPAAL's SMC semantics: uniform actions).
     try:
         plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed, max_bytes=max_bytes)
@@ -187,7 +218,7 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
                         max_bytes=max_bytes)  # the unshielded runs' estimate, which passed above
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
-    true = _true_distances(result, spec, shielded, data)
+    true = _true_distances(result, spec, shielded, data, quiet)
     row["sensed_min"] = _smallest(sensed)
     row["true_min"] = _smallest(true)
     below = int((row["true_min"] < threshold).sum())
@@ -244,10 +275,13 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
     grid = list(itertools.product(*axes))
     rows: list[Row] = []
     # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
-    from rac.output.progress import Progress
+    from rac.output.progress import Heartbeat, Progress
 
     with Progress(total=len(grid), desc="settings", unit="settings", enabled=False if quiet else None) as bar:
         for exponent, sense, decide in grid:
+            if Heartbeat.active is not None:  # off a terminal, the progress lines say which setting runs
+                Heartbeat.active.phase(f"setting {bar.n + 1} of {len(grid)} (exponent {exponent}, "
+                                       f"C1 {short_number(sense)} s, C2 {short_number(decide)} s)")
             variant = dataclasses.replace(spec, exponent=int(exponent), sense_period=sense, decide_period=decide)
             if (horizon / sense).denominator != 1:  # the file's own horizon (a given one was checked above)
                 rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
@@ -260,7 +294,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                 try:
                     rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
                                      max_bytes=max_bytes,
-                                     threshold_factor=threshold_factor, out_dir=out_dir))
+                                     threshold_factor=threshold_factor, out_dir=out_dir, quiet=quiet))
                 except ModelRangeError as exc:  # a run's sensed value: UPPAAL's model would abort there too
                     rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
                                  "error": f"a sensed value left the int32 range at this exponent: {exc}"})
