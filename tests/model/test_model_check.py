@@ -263,6 +263,22 @@ def test_no_exponent_fits(tmp_path: Path) -> None:
     assert diagnostic.code == "E0713" and diagnostic.hints[0].startswith("no exponent from 1 to 1 fits")
 
 
+@pytest.mark.parametrize(("item", "message", "hint"), [
+    ("width 1e30", "`width` 1e30 m overflows int32 at base 10, exponent 4", "write a `width` within ±214748.3647 m"),
+    ("start_x 300000", "`start_x` 300000 m overflows int32 at base 10, exponent 4",
+     "write a `start_x` within ±214748.3647 m, or set `exponent 3` in the `model` block"),
+])
+def test_an_overflowing_setting_of_the_block_is_pointed_at(tmp_path: Path, item: str, message: str,
+                                                           hint: str) -> None:
+    """The block's own number overflows, not the scenario's: E0713 said "the scenario's vehicle width" at
+    the `model` line, with a hint to use a scenario whose coordinates are smaller."""
+    text = source(items=f"        {item}\n")
+    (diagnostic,) = errors(compile_file(write(tmp_path, text, LEFT_TURN.read_bytes())))
+    assert diagnostic.code == "E0713" and diagnostic.message == message
+    assert diagnostic.span is not None and diagnostic.span.line == line_of(text, item)
+    assert list(diagnostic.hints) == [hint] and "scenario" not in " ".join(n.message for n in diagnostic.notes)
+
+
 # ---------------------------------------------------------------- order
 def test_other_errors_come_first(tmp_path: Path) -> None:
     """The scenario is checked only when the file has no other error (the missing file is not reported)."""

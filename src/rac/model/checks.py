@@ -9,7 +9,8 @@
   and the element. Anything else the loader or the builder raises becomes E0712 as well, except
   a ``MemoryError``: the file is not at fault, so it propagates (``rac`` reports a resource error).
 * E0713: a value of the scenario (a position, a speed, an obstacle's size, ...) whose
-  significand ``trunc(v · base^exponent)`` overflows int32, with the largest exponent that fits.
+  significand ``trunc(v · base^exponent)`` overflows int32, with the largest exponent that fits;
+  at the setting, when the value is one the ``model`` block writes (``width 1e30``).
 * E0714: the ego starts outside the model's limits (a speed outside [`min_speed`, `max_speed`],
   an acceleration beyond ±`max_acceleration`), which ``sense()`` would clamp at the first
   sample; the hint names the setting to change and the value that holds the start.
@@ -50,7 +51,8 @@ from rac.core.resources import (  # the load's budget (its owner; the CLI catche
     ScenarioTooLarge,
     estimate_load,
 )
-from rac.ir.vocabulary import NO_PLANNING_PROBLEM
+from rac.core.source import Span
+from rac.ir.vocabulary import MODELLING, NO_PLANNING_PROBLEM, SETTINGS, Setting
 from rac.model.commonroad import InconsistentScenarioError, PlanningProblemError, ScenarioError
 from rac.model.data import ModelDataError, ModelRangeError, check_significands
 from rac.model.native import CORNER_NAMES, NO_OBSTACLE_TEXT, NativeModel
@@ -443,6 +445,15 @@ def _fits(scenario, spec: ir.ModelSpec, exponent: int) -> bool:
         return False
 
 
+def _written_setting(spec: ir.ModelSpec, spans: dict[str, Span], value: object) -> Setting | None:
+    """The setting the ``model`` block writes whose value is ``value`` (a ``Fraction``: the block's
+    numbers are exact, the scenario's are floats), or None."""
+    if not isinstance(value, Fraction):
+        return None
+    return next((setting for name, setting in (*SETTINGS.items(), *MODELLING.items())
+                 if f"model:{name}" in spans and getattr(spec, name, None) == value), None)
+
+
 def _overflow(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, failure) -> Diagnostic:
     """E0713 for a significand that overflows int32, with the largest exponent that fits."""
 
@@ -465,6 +476,13 @@ def _overflow(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, failure) ->
         Note(f"the scenario `{spec.scenario}` is named here", spans.get("model:scenario")),
     ]
     fitting = next((e for e in range(exponent - 1, 0, -1) if _fits(scenario, spec, e)), None)
+    setting = _written_setting(spec, spans, value)
+    if setting is not None:  # the block's own number (`width 1e30`), not the scenario's: said, and pointed at
+        unit = f" {setting.unit}" if setting.unit else ""
+        return error("E0713", f"`{setting.name}` {shown}{unit} overflows int32 at base {base}, exponent {exponent}",
+                     spans[f"model:{setting.name}"], notes=notes[:1],
+                     hints=[f"write a `{setting.name}` within ±{_decimal(limit)}{unit}"
+                            + (f", or set `exponent {fitting}` in the `model` block" if fitting is not None else "")])
     if fitting is None:
         hint = (f"no exponent from 1 to {exponent - 1} fits at base {base}: use a smaller `base`, or a "
                 "scenario whose coordinates are smaller")
