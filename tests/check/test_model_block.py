@@ -416,6 +416,10 @@ def test_model_does_not_change_the_checks_or_runtime() -> None:
     ("        base 2\n", "E0706",
      "the default action `turn` in [-0.4, 0.4] step 0.1 does not fall on whole significands at base 2, "
      "exponent 4", "use a range and step that are multiples of 0.0625, or raise the exponent"),
+    # a sample number beyond int32: `rac compile --target uppaal` stopped with an internal error
+    ("        offroad_from 99999999999999999999\n", "E0702",
+     "`offroad_from` must be a whole number from 0 to 2147483647 (found 1e20… samples)",
+     "use a whole number from 0 to 2147483647; the default is `offroad_from 0`"),
     # a positive setting whose significand truncates to 0: the model would use 0, not the value written
     ("        width 0.00001\n", "E0702",
      "`width` 0.00001 m truncates to 0 at base 10, exponent 4: the model would use 0, and `width` must be positive",

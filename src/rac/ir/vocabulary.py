@@ -27,6 +27,8 @@ from dataclasses import dataclass
 from enum import Enum
 from fractions import Fraction
 
+from rac.core.numbers import INT32_MAX
+
 __all__ = [
     "DEFAULT_BASE",
     "DEFAULT_EXPONENT",
@@ -123,8 +125,9 @@ MODELLING: dict[str, Setting] = {s.name: s for s in (
     Setting("start_heading", None, "rad", "the ego's start heading", derived="the planning problem's initial state"),
     Setting("start_speed", None, "m/s", "the ego's start speed", _f("0"),
             derived="the planning problem's initial state"),
+    # a sample number: the model (and UPPAAL's `OFFROAD_FROM`) holds it in int32
     Setting("offroad_from", _f("0"), "samples", "`offroad()` is false before this sample (1: the start is "
-            "not checked)", _f("0"), whole=True),
+            "not checked)", _f("0"), maximum=Fraction(INT32_MAX), whole=True),
 )}
 #: Settings whose value is a word: name -> the words, the default first.
 WORD_SETTINGS: dict[str, tuple[str, ...]] = {
