@@ -187,6 +187,7 @@ def test_a_param_in_a_second_automaton_is_e0107(tmp_path: Path, capsys: pytest.C
     ("--horizon=0", "the horizon `0` must be more than 0 s"),
     ("--horizon=10,abc", "`abc` is not a horizon"),
     ("--horizon=30,,60", "`` is not a horizon"),
+    ("--horizon=30,60,30.0", "the horizon `30.0` is given twice"),  # it was synthesised twice, two equal rows
 ])
 def test_bad_horizons_are_usage_errors_naming_them(param_file: Path, capsys: pytest.CaptureFixture[str],
                                                    option: str, message: str) -> None:

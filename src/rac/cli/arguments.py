@@ -256,7 +256,7 @@ def _add_tune(commands: argparse._SubParsersAction) -> None:
 
 
 def horizons_argument(text: str) -> tuple[Fraction, ...]:
-    """An argparse ``type`` for ``--horizon 30,60,120``: positive decimal numbers of seconds."""
+    """An argparse ``type`` for ``--horizon 30,60,120``: positive decimal numbers of seconds, each once."""
     values = []
     for item in text.split(","):
         item = item.strip()
@@ -266,6 +266,8 @@ def horizons_argument(text: str) -> tuple[Fraction, ...]:
         value = Fraction(item)
         if value <= 0:
             raise argparse.ArgumentTypeError(f"the horizon `{item}` must be more than 0 s")
+        if value in values:  # a row twice would be synthesised twice (as rac preanalyse refuses a value twice)
+            raise argparse.ArgumentTypeError(f"the horizon `{item}` is given twice")
         values.append(value)
     return tuple(values)
 
