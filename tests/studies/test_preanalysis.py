@@ -15,9 +15,27 @@ from tiny_scenarios import GoalBox, StraightRoad
 
 from rac.compiler import compile_file
 from rac.model.commonroad import EgoStart
+from rac.output.progress import Heartbeat
 from rac.studies.preanalysis import render_table, sweep
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "left_turn" / "preanalysis.ra"
+
+
+class Recorder(Heartbeat):
+    """A heartbeat that prints nothing and keeps the phases and counts it hears."""
+
+    def __init__(self) -> None:
+        super().__init__("rac preanalyse", enabled=False)
+        self.phases: list[str] = []
+        self.counts: list[tuple[int, str]] = []
+
+    def phase(self, text: str) -> None:
+        self.phases.append(text)
+        super().phase(text)
+
+    def count(self, n: int, unit: str, what: str = "") -> None:
+        self.counts.append((n, unit))
+        super().count(n, unit, what)
 
 
 @pytest.fixture(scope="module")
@@ -119,26 +137,29 @@ def test_a_short_time_step_is_refused_up_front_when_its_true_distances_exceed_th
 def test_the_true_distances_count_their_time_steps_off_a_terminal(tmp_path: Path) -> None:
     """A long measurement of the true distances is seen: off a terminal the progress lines name the
     setting, then the time steps to integrate (their number up front) and count them."""
-    from rac.output.progress import Heartbeat
-
-    class Recorder(Heartbeat):
-        def __init__(self) -> None:
-            super().__init__("rac preanalyse", enabled=False)
-            self.phases: list[str] = []
-            self.counts: list[tuple[int, str]] = []
-
-        def phase(self, text: str) -> None:
-            self.phases.append(text)
-            super().phase(text)
-
-        def count(self, n: int, unit: str, what: str = "") -> None:
-            self.counts.append((n, unit))
-            super().count(n, unit, what)
-
     path = write_engine_file(tmp_path, "goal_ahead", {})  # horizon 4 s, C1 0.5 s over CommonRoad steps of 0.1 s
     with Recorder() as beat:
         [row] = sweep(compile_file(path), runs=2, seed=1)
     assert "qb" in row and "true_min" in row
-    assert beat.phases == ["setting 1 of 1 (exponent 2, C1 0.5 s, C2 1 s)", "true distances, 40 time steps of 2 runs"]
-    steps = [n for n, unit in beat.counts if unit == "time steps"]
+    assert beat.phases == ["setting 1 of 1 (exponent 2, C1 0.5 s, C2 1 s)", "true distances, 40 steps of 2 runs"]
+    steps = [n for n, unit in beat.counts if unit == "steps"]
     assert steps == list(range(1, 41))  # 8 samples of 5 time steps each
+
+
+def test_a_time_step_that_does_not_divide_the_sensing_period_still_measures_at_least_as_often(
+        tmp_path: Path) -> None:
+    """A 0.5 s period over CommonRoad steps of 0.2 s: the true distances were measured at the samples
+    only (one step per period: 0.5 / 0.2 is not whole), so a long period hid a close encounter, the
+    very thing Fig. 7 measures. Now ceil(0.5 / 0.2) = 3 steps per period."""
+    path = write_engine_file(tmp_path, "goal_ahead", {})  # horizon 4 s, C1 0.5 s
+    scenario = tmp_path / "goal_ahead.xml"
+    text = scenario.read_text(encoding="utf-8")
+    step = re.search(r'timeStepSize="([^"]+)"', text)
+    assert step is not None and float(step.group(1)) == 0.1
+    scenario.write_text(text.replace(step.group(0), 'timeStepSize="0.2"'), encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok, result.diagnostics
+    with Recorder() as beat:
+        [row] = sweep(result, runs=2, seed=1)
+    assert "true_min" in row
+    assert "true distances, 24 steps of 2 runs" in beat.phases  # 8 samples of 3 steps each

@@ -14,7 +14,8 @@ period C2 the sweep answers, on the model built at that setting:
 - Fig. 7 — N runs under the shield; per run the smallest distance to an obstacle, *sensed*
   (``mindist()`` on the model's significands, what the shield sees) and *true* (the same
   distance for the ground truth, integrated finely and measured at exponent 4 at every CommonRoad
-  time step, also between samples). A run that meets no obstacle (``mindist()`` reads
+  time step, also between samples; more often where the time steps do not divide the sensing
+  period). A run that meets no obstacle (``mindist()`` reads
   :data:`~rac.model.native.NO_OBSTACLE` at every sample) has no smallest distance: NaN in the row,
   null in the JSON, "no obstacle" in the table and the plots; ``obstacles`` counts the scenario's.
 
@@ -98,9 +99,12 @@ def _check_horizon(horizon: Fraction, senses: list[Fraction]) -> None:
 
 
 def _substeps_per_sample(spec: ir.ModelSpec, dt: float) -> int:
-    """How many CommonRoad time steps one sensing period spans (1 when it is not a whole number)."""
+    """How many steps the true distances take per sensing period: one per CommonRoad time step it
+    spans, ``ceil(C1 / dt)`` where that is not a whole number (a 0.5 s period over steps of 0.04 s:
+    13), so that they are never measured less often than the scenario's states change; 1 when a
+    time step is longer than the period."""
     ratio = Fraction(spec.sense_period) / Fraction(dt).limit_denominator(10**6)
-    return ratio.numerator if ratio.denominator == 1 and ratio >= 1 else 1
+    return max(1, math.ceil(ratio))
 
 
 def _truth_bytes(runs: int, samples: int, substeps: int) -> int:
@@ -112,9 +116,10 @@ def _truth_bytes(runs: int, samples: int, substeps: int) -> int:
 def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: ModelData,
                     quiet: bool = True) -> np.ndarray:
     """``(N, T*m+1)`` distances of the ground truth to the nearest obstacle at every CommonRoad
-    time step (``m`` per sensing period), measured on a model at exponent :data:`TRUTH_EXPONENT`
-    whose sensing period is one time step — so a long period cannot hide a close encounter. A
-    short ``timeStepSize`` makes that many steps: a bar counts them (``quiet``: none)."""
+    time step (``m`` per sensing period, :func:`_substeps_per_sample`), measured on a model at
+    exponent :data:`TRUTH_EXPONENT` whose sensing period is one such step — so a long period cannot
+    hide a close encounter. A short ``timeStepSize`` makes that many steps: a bar counts them
+    (``quiet``: none)."""
     # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
     from rac.output.progress import Heartbeat, Progress
 
@@ -137,10 +142,10 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
     truth = runs.truth[:, 0].T.copy()  # (5, n), as the integrator holds it
     out[:, 0] = distance(truth, 0)
     steps = (samples - 1) * m
-    what = f"true distances, {steps:,} time steps of {n:,} runs"
+    what = f"true distances, {steps:,} steps of {n:,} runs"
     if Heartbeat.active is not None:  # off a terminal, the progress lines name the work and its size
         Heartbeat.active.phase(what)
-    with Progress(total=steps, desc=what, unit="time steps", enabled=False if quiet else None) as bar:
+    with Progress(total=steps, desc=what, unit="steps", enabled=False if quiet else None) as bar:
         for k in range(samples - 1):
             jerk, turn = runs.states[:, k + 1, Ego.JERK] / data.scale, runs.states[:, k + 1, Ego.TURN] / data.scale
             for j in range(1, m + 1):
