@@ -163,3 +163,27 @@ def test_a_time_step_that_does_not_divide_the_sensing_period_still_measures_at_l
         [row] = sweep(result, runs=2, seed=1)
     assert "true_min" in row
     assert "true distances, 24 steps of 2 runs" in beat.phases  # 8 samples of 3 steps each
+
+
+@pytest.mark.parametrize(("old", "new", "error"), [
+    ("collision_distance 0.5", "collision_distance 0.05",
+     "at base 10, exponent 1, `collision_distance` 0.05 truncates to 0: the model would use 0, not the file's value "
+     "(rac check: E0702 at this exponent)"),
+    ("action turn in [-0.2, 0.2] step 0.2", "action turn in [-0.25, 0.25] step 0.25",
+     "at base 10, exponent 1, action `turn` in [-0.25, 0.25] step 0.25 does not fall on whole significands (rac "
+     "check: E0706 at this exponent)"),
+])
+def test_an_exponent_of_the_grid_at_which_the_model_is_not_the_files_is_a_row_that_says_so(
+        tmp_path: Path, old: str, new: str, error: str) -> None:
+    """`--exponent` rebuilt the model at each exponent without the `model` block's checks: at exponent 1
+    a collision distance of 0.05 m was 0 (the row compared the true distances with 0 m) and a turn step
+    of 0.25 rad/s was truncated, answering for another model than the file's, silently."""
+    path = write_engine_file(tmp_path, "goal_ahead", {})  # exponent 2
+    text = path.read_text(encoding="utf-8")
+    assert old in text
+    path.write_text(text.replace(old, new), encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok, result.diagnostics  # at the file's own exponent, every check holds
+    coarse, own = sweep(result, exponents="1,2", runs=2, seed=1)
+    assert coarse == {"exponent": 1, "sense": 0.5, "decide": 1.0, "error": error, "seed": 1}
+    assert "error" not in own and own["qd"] is True

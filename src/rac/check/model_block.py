@@ -37,7 +37,7 @@ from rac.check.symbols import ModelContext, Unresolvable
 from rac.core.diagnostics import Note, short_count, short_number
 from rac.core.source import Span
 from rac.ir import expr as ie
-from rac.ir.significands import decimal_text
+from rac.ir.significands import decimal_text, off_grid, vanishing
 from rac.ir.vocabulary import (
     ACTIONS,
     MAX_ACTION_PAIRS,
@@ -204,11 +204,8 @@ class _ModelResolver:
         this base and exponent (``width 0.00001`` at exponent 4), so the model would use 0, not it."""
         base, exponent = int(values["base"].value), int(values["exponent"].value)
         scale = base ** exponent
-        for name, setting in SETTINGS.items():
-            item = values.get(name)
-            if (item is None or name in self.rejected or not setting.exclusive or setting.minimum != 0
-                    or item.value <= 0 or held_value(name, item.value, scale) != 0):
-                continue
+        for name in vanishing({n: v.value for n, v in values.items() if n not in self.rejected}, scale):
+            setting, item = SETTINGS[name], values[name]
             unit = f" {setting.unit}" if setting.unit else ""
             value = decimal_text(item.value)
             which = f"`{name}` {value}{unit}" if item.span is not None else f"the default `{name}` {value}{unit}"
@@ -421,7 +418,7 @@ class _ModelResolver:
         base, exponent = int(values["base"].value), int(values["exponent"].value)
         scale = Fraction(base) ** exponent
         for name, action in actions.items():
-            bad = next((v for v in (action.low, action.step) if (v * scale).denominator != 1), None)
+            bad = off_grid(action, scale)
             if bad is None:
                 continue
             item = written.get(name)

@@ -17,10 +17,10 @@ from rac import ir
 from rac.core.diagnostics import Diagnostic, RacError, error, short_number
 from rac.core.numbers import INT32_MAX, exact_decimal
 from rac.core.source import Span
-from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
+from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT, SETTINGS, held_value
 
-__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "decimal_text", "linear_text", "rate_diagnostic",
-           "rate_diagnostics", "representation", "unrepresentable"]
+__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "decimal_text", "linear_text", "off_grid", "rate_diagnostic",
+           "rate_diagnostics", "representation", "unrepresentable", "vanishing"]
 
 #: The hint of an E0801 without one of its own (``scale``: ``base**exponent``).
 HINT_REPRESENTATION = ("add a `model` block with a larger `exponent`, or change the number so that it "
@@ -38,6 +38,21 @@ def representation(automaton: ir.Automaton) -> tuple[int, int]:
     """The automaton's ``(base, exponent)``: its ``model`` block's, else the defaults."""
     model = automaton.model
     return (model.base, model.exponent) if model is not None else (DEFAULT_BASE, DEFAULT_EXPONENT)
+
+
+def vanishing(values: Mapping[str, Fraction], scale: int) -> list[str]:
+    """The settings of ``values`` (the ``model`` block's, by name) that must be positive but that the
+    model holds as 0 at ``scale``: a significand setting truncated to 0 (``width 0.00001`` at scale
+    10,000 would be 0, not what the file says)."""
+    return [name for name, setting in SETTINGS.items()
+            if name in values and setting.exclusive and setting.minimum == 0 and values[name] > 0
+            and held_value(name, values[name], scale) == 0]
+
+
+def off_grid(action: ir.Action, scale: int | Fraction) -> Fraction | None:
+    """The first of ``action``'s low end and step that is no whole number of significands at ``scale``
+    (the controller chooses among significands), or None when both are."""
+    return next((v for v in (action.low, action.step) if (v * scale).denominator != 1), None)
 
 
 def unrepresentable(automaton: ir.Automaton, message: str, span: Span | None, notes: Iterable[str] = (),

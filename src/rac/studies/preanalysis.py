@@ -44,6 +44,7 @@ from rac.engine.budget import VALUE_BYTES, check_estimate, out_of_memory
 from rac.engine.shield import synthesise
 from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
+from rac.ir.significands import off_grid, vanishing
 from rac.ir.vocabulary import SETTINGS
 from rac.model.batch import BatchModel
 from rac.model.data import ModelData, ModelRangeError, build_model_data
@@ -107,6 +108,25 @@ def _substeps_per_sample(spec: ir.ModelSpec, dt: float) -> int:
     return max(1, math.ceil(ratio))
 
 
+def _unheld(spec: ir.ModelSpec) -> str | None:
+    """Why the model at ``spec``'s exponent is not the file's (what ``rac check`` reports at that
+    exponent as E0702 and E0706): a positive setting truncated to 0, or an action off the significands;
+    None when it is the file's model."""
+    where = f"at base {spec.base}, exponent {spec.exponent}"
+    values = {name: value for name in SETTINGS if isinstance(value := getattr(spec, name, None), Fraction)}
+    lost = vanishing(values, spec.scale)
+    if lost:
+        return (f"{where}, " + ", ".join(f"`{name}` {short_number(values[name])}" for name in lost)
+                + f" truncate{'s' * (len(lost) == 1)} to 0: the model would use 0, not the file's value "
+                  "(rac check: E0702 at this exponent)")
+    for action in spec.actions:
+        if off_grid(action, spec.scale) is not None:
+            return (f"{where}, action `{action.name}` in [{short_number(action.low)}, {short_number(action.high)}] "
+                    f"step {short_number(action.step)} does not fall on whole significands (rac check: E0706 at "
+                    "this exponent)")
+    return None
+
+
 def _truth_bytes(runs: int, samples: int, substeps: int) -> int:
     """The estimated peak bytes of :func:`_true_distances`: its ``(N, T*m+1)`` float64 distances and
     the copy of them that :func:`_smallest` masks (the model's own tables are small beside them)."""
@@ -162,6 +182,10 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
                               "decide": float(spec.decide_period)}
     scenario = result.scenario
     assert scenario is not None  # sweep() refuses a model without one
+    unheld = _unheld(spec)
+    if unheld is not None:  # the file's model-block checks hold at its own exponent, not the grid's
+        row["error"] = unheld
+        return row
     try:
         data = build_model_data(scenario, spec)
     except ModelRangeError as exc:
