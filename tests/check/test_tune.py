@@ -276,6 +276,18 @@ def test_no_horizon_with_a_value_exits_1(param_file: Path, capsys: pytest.Captur
     assert out.count("| none |") == 3 and "PENALTY: no horizon has a value (no formula)" in out
 
 
+def test_a_row_that_cannot_be_synthesised_says_which_parameter_and_why(tmp_path: Path,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """Each row's reason is the error's message up to its details: for E0407 that was `not yet`, which
+    named neither the parameter nor what stops its synthesis."""
+    text = DRIVING.replace(CONST, PARAM + "\n    param BONUS in [0, 10]")
+    path = write(tmp_path / "two_params.ra", text)
+    capsys.readouterr()
+    assert main(["tune", "--horizon", "10,30", str(path)]) == 1
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| 10 ")]
+    assert rows == ["| 10 | none | none | E0407: not yet: parameter `PENALTY` cannot be synthesised here |"]
+
+
 # ---------------------------------------------------------------- the pieces
 def test_several_names_become_one_const_line_each() -> None:
     text = DRIVING.replace(CONST, "param PENALTY, BONUS in [0, 1000]").replace("pr = pr + 100", "pr = pr + BONUS")

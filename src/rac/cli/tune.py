@@ -295,8 +295,12 @@ def _reason(row: _Row) -> str:
 
 
 def _headline(diagnostic: Diagnostic) -> str:
-    """``CODE: message`` without the details after the message's first colon."""
-    return f"{diagnostic.code}: {diagnostic.message.split(': ')[0]}"
+    """``CODE: message`` without the details after the message's first colon, unless what precedes it
+    is too short to say anything (E0407's ``not yet: parameter `P` cannot be synthesised here: ...``
+    keeps its second part: ``not yet`` alone named neither the parameter nor the reason)."""
+    parts = diagnostic.message.split(": ")
+    head = parts[0] if len(parts[0].split()) > 2 else ": ".join(parts[:2])
+    return f"{diagnostic.code}: {head}"
 
 
 def _fit_text(name: str, relation: str, fit: Fit) -> str:
