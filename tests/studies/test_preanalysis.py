@@ -187,3 +187,27 @@ def test_an_exponent_of_the_grid_at_which_the_model_is_not_the_files_is_a_row_th
     coarse, own = sweep(result, exponents="1,2", runs=2, seed=1)
     assert coarse == {"exponent": 1, "sense": 0.5, "decide": 1.0, "error": error, "seed": 1}
     assert "error" not in own and own["qd"] is True
+
+
+def test_a_fig7_plot_of_many_time_steps_draws_each_runs_lowest_points_only(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """CommonRoad steps of 1 ms give 4,001 true distances per run over 4 s: the plot drew every one
+    (millions for a shorter step, which matplotlib drew for over ten minutes after the bar was done).
+    It now draws at most PLOT_POINTS per run, each the smallest of its stretch: the lowest stays."""
+    import rac.output.plots as plots
+    from rac.studies.preanalysis import PLOT_POINTS
+
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})  # horizon 4 s, C1 0.5 s, a van ahead
+    scenario = tmp_path / "avoidable_obstacle.xml"
+    text = scenario.read_text(encoding="utf-8")
+    step = re.search(r'timeStepSize="([^"]+)"', text)
+    assert step is not None
+    scenario.write_text(text.replace(step.group(0), 'timeStepSize="0.001"'), encoding="utf-8")
+    drawn: list[tuple[object, object]] = []
+    monkeypatch.setattr(plots, "plot_runs", lambda times, values, path, **kw: drawn.append((times, values)) or path)
+    [row, _] = sweep(compile_file(path), runs=2, seed=1, out_dir=tmp_path / "plots")
+    ((times, values),) = drawn
+    assert values.shape[0] == 2 and 1000 < values.shape[1] <= PLOT_POINTS  # type: ignore[attr-defined]
+    assert times.shape == (values.shape[1],)  # type: ignore[attr-defined]
+    assert row["true_min"] is not None and None not in row["true_min"]  # type: ignore[operator]
+    assert list(values.min(axis=1)) == pytest.approx(row["true_min"], abs=1e-4)  # type: ignore[attr-defined]
