@@ -34,9 +34,11 @@ def _mapping(inputs: object) -> None:
 
 
 def _array_hint(raw: object) -> str:
-    # an array (numpy's, 0-d too, or a torch tensor) is refused with the interpreter's words
+    # an array (numpy's, 0-d too, or a torch tensor) is refused with the interpreter's words; a numpy
+    # scalar (np.float64(1.0): shape () as well) is one value, so it gets no hint
     shape = getattr(raw, "shape", None)
-    if shape is None or not callable(getattr(raw, "item", None)):
+    numpy_scalar = type(raw).__module__ == "numpy" and type(raw).__name__ != "ndarray"
+    if shape is None or not callable(getattr(raw, "item", None)) or numpy_scalar:
         return ""
     try:
         dims = tuple(int(d) for d in shape)

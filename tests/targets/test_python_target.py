@@ -358,6 +358,21 @@ def test_a_float32_bound_widened_to_a_float_is_explained_like_the_interpreter() 
     assert generated.samples == 0 and not generated.ended
 
 
+def test_a_numpy_scalar_is_not_called_an_array() -> None:
+    """A numpy scalar has ``shape == ()`` and ``.item()`` like a 0-d array, and was refused as
+    "input 'isClose' = np.float64(1.0) is not a boolean (True or False): an array of shape (), not one
+    value", which it is: the refusal says what it is not, without the array hint, in both runtimes."""
+    for name, value, words in [("isClose", np.float64(1.0), "is not a boolean (True or False)"),
+                               ("dgoal", np.complex128(1.0), "is not a number"),
+                               ("dgoal", np.str_("4"), "is not a number")]:
+        messages = []
+        for ra in (RewardAutomaton(driving_automaton()), load(generate_python(driving_automaton())).Driving()):
+            with pytest.raises(ValueError) as refused:
+                ra.step({**inputs(), name: value})
+            messages.append(str(refused.value))
+        assert messages[0] == messages[1] == f"input {name!r} = {value!r} {words}"
+
+
 def test_an_array_for_one_value_is_refused_saying_so() -> None:
     """``obs[0:1]`` or a 0-d array (numpy's, a torch tensor) where one value goes was refused as
     "input 'dgoal' = array(40.) is not a number", which a number it holds contradicts: the message says it is an

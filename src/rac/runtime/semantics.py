@@ -220,15 +220,23 @@ def boolean_input(name: str, raw: object) -> bool:
 
 def array_hint(raw: object) -> str:
     """What the refusal of an array (numpy's, a 0-d one too, or a torch tensor) adds: one value is read, not
-    an array of them (``obs[0]``, not ``obs[0:1]``; ``value.item()``). The generated module says the same."""
+    an array of them (``obs[0]``, not ``obs[0:1]``; ``value.item()``). A numpy scalar (``np.float64(1.0)``)
+    has a shape ``()`` too but is one value, so it gets no hint. The generated module says the same."""
     shape = getattr(raw, "shape", None)
-    if shape is None or not callable(getattr(raw, "item", None)):
+    if shape is None or not callable(getattr(raw, "item", None)) or numpy_scalar(raw):
         return ""
     try:
         dims = tuple(int(d) for d in shape)
     except (TypeError, ValueError):
         return ""
     return f": an array of shape {dims}, not one value (pass obs[i] rather than obs[i:i+1], or value.item())"
+
+
+def numpy_scalar(raw: object) -> bool:
+    """Whether ``raw`` is a numpy scalar (``np.float64``, ``np.int8``, ``np.str_``, ...), not an array; told by
+    its type alone, so that the generated module, which has no numpy, tells it the same way."""
+    kind = type(raw)
+    return kind.__module__ == "numpy" and kind.__name__ != "ndarray"
 
 
 def number_input(name: str, raw: object, low: float = -math.inf, high: float = math.inf) -> float:
