@@ -29,6 +29,7 @@ Any other block fails the test: a new block must say how it is checked.
 from __future__ import annotations
 
 import html
+import importlib
 import os
 import re
 import shlex
@@ -394,6 +395,44 @@ def test_links_reach_their_anchor(page: Path) -> None:
         elif match["anchor"] and target.suffix == ".md" and match["anchor"] not in anchors(target):
             broken.append(f"{match['path'] or page.name}#{match['anchor']}: no such anchor")
     assert not broken, f"{page.relative_to(REPO)}: broken links:\n" + "\n".join(broken)
+
+
+#: A dotted name of rac's API in inline code: `rac.check.params.synthesise_parameters`, `rac.load(path)`.
+_API_NAME = re.compile(r"`(rac(?:\.[A-Za-z_]\w*)+)")
+
+
+def resolves(dotted: str) -> bool | None:
+    """Whether ``dotted`` names a module of rac or an attribute of one (the longest importable module,
+    then attributes); None when a module needs a package that is not installed (an optional extra)."""
+    parts = dotted.split(".")
+    for k in range(len(parts), 0, -1):
+        try:
+            found: object = importlib.import_module(".".join(parts[:k]))
+        except ModuleNotFoundError as exc:
+            if exc.name and not exc.name.split(".")[0] == "rac":
+                return None
+            continue
+        for attribute in parts[k:]:
+            if not hasattr(found, attribute):
+                return False
+            found = getattr(found, attribute)
+        return True
+    return False
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(REPO)))
+def test_api_names_exist(page: Path) -> None:
+    """Every `rac.x.y` a page names in its prose is a module of rac or an attribute of one
+    (docs/benchmarks.md named `rac.compiler.synthesise_parameters` after it moved to rac.check.params)."""
+    text = re.sub(r"^\s*```.*?^\s*```", "", page.read_text(encoding="utf-8"), flags=re.S | re.M)
+    missing = sorted({name for name in _API_NAME.findall(text) if resolves(name) is False})
+    assert not missing, f"{page.relative_to(REPO)} names what rac does not have: {', '.join(missing)}"
+
+
+def test_api_names_are_resolved() -> None:
+    assert resolves("rac.check.params.synthesise_parameters") is True
+    assert resolves("rac.compiler.synthesise_parameters") is False
+    assert resolves("rac.no_such_module") is False
 
 
 def test_anchors_follow_github() -> None:
