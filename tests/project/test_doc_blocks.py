@@ -435,6 +435,34 @@ def test_api_names_are_resolved() -> None:
     assert resolves("rac.no_such_module") is False
 
 
+def glance_codes(table: str) -> set[int]:
+    """The code numbers the first column of a "Code | Meaning" table covers: ``E0401, E0402``, and
+    ranges ``E0712–W0724`` (every number from the first to the last, whatever its letter)."""
+    covered: set[int] = set()
+    for row in table.splitlines():
+        cells = row.strip("|").split("|")
+        for part in cells[0].split(","):
+            ends = [int(code[1:]) for code in re.findall(r"[EW]\d{4}", part)]
+            if len(ends) == 1 or len(ends) == 2 and "–" in part:
+                covered.update(range(ends[0], ends[-1] + 1))
+    return covered
+
+
+def test_language_glance_covers_every_code() -> None:
+    """docs/language.md's "Diagnostics at a glance" has a row for every code of docs/diagnostics.md
+    (it stopped at E0016's neighbours, E0603, E0713 and skipped the parameters, incentives and targets)."""
+    page = (REPO / "docs" / "language.md").read_text(encoding="utf-8")
+    table = page.split("## Diagnostics at a glance", 1)[1].split("\n## ", 1)[0]
+    codes = re.findall(r"^## ([EW]\d{4}) ", (REPO / "docs" / "diagnostics.md").read_text(encoding="utf-8"), re.M)
+    assert codes
+    missing = [code for code in codes if int(code[1:]) not in glance_codes(table)]
+    assert not missing, f"docs/language.md's diagnostics at a glance leave out {', '.join(missing)}"
+
+
+def test_glance_ranges_are_read() -> None:
+    assert glance_codes("| E0001–E0003 | x |\n| W0108, W0109 | y |\n| E0501 | z |") == {1, 2, 3, 108, 109, 501}
+
+
 def test_anchors_follow_github() -> None:
     assert slug("E0714 — ego start outside the model's limits") == "e0714--ego-start-outside-the-models-limits"
     assert slug("Input classes: why the checks are exact") == "input-classes-why-the-checks-are-exact"
