@@ -20,6 +20,7 @@ from rac.cli.arguments import COMMANDS, build_parser
 from rac.cli.common import (
     EXIT_ERRORS,
     EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
     EXIT_USAGE,
     StdoutError,
     as_json,
@@ -61,7 +62,7 @@ def _main(argv: Sequence[str] | None) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("rac: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except (ScenarioTooLarge, EstimateExceeded) as exc:  # refused before it starts: the budget is at fault
         print_diagnostics([resource_limit(f"resource limit: {exc}")], structured=as_json(args))
         return EXIT_USAGE
