@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import dataclasses
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -86,3 +87,15 @@ def test_an_objective_not_zero_at_the_start_has_its_value_at_the_end_said(tmp_pa
     plain_file = compile_file(write_engine_file(tmp_path / "plain", "avoidable_obstacle"))
     plain = learn(shielded_context(plain_file), decl(plain_file, "Learn").query)
     assert "at the start" not in (plain.message or "")  # `maxE(sa)` starts at 0: its return is its value
+
+
+@pytest.mark.parametrize("exact", [False, True])
+def test_a_bound_past_the_shields_horizon_is_not_learned(compiled: CompileResult, exact: bool) -> None:
+    """`--horizon 2` computes the shield to 2 s; learning `[<=4] ... under safe` went on past it, where the
+    table allows no action and learning (and the exact optimum) chose among all of them: on ZAM_Ramp 22
+    learning episodes "under safe" left the road and the optimum was reported as the shield's. The
+    query is not answered, as a simulation under the shield past its horizon is not."""
+    context = shielded_context(compiled, horizon=Fraction(2), exact=exact)
+    with pytest.raises(EvaluationError, match=r"past the horizon the strategy `safe` was computed to \(2 s\)"):
+        learn(context, decl(compiled, "Learn").query)
+    assert "fast" not in context.learned

@@ -348,6 +348,20 @@ class Context:
         """The simulation policy of the shield ``under`` (None: every action)."""
         return None if under is None else self.shield_table(under).masks_at
 
+    def past_shield(self, under: str, samples: int) -> str | None:
+        """Why runs of ``samples`` samples under the shield ``under`` would leave it: a decision at or
+        after the horizon it was computed to, where its table allows no action (an on-demand shield
+        every action), so the choices there would not be the shield's; None when every decision of
+        the runs lies before that horizon."""
+        every = int(self.data.decide_every)
+        first = -(-self.horizon_samples // every) * every  # the first decision at or after the horizon
+        if first >= samples:
+            return None
+        return (f"the query's bound ({short_number(samples * self.period)} s) is past the horizon the strategy "
+                f"`{under}` was computed to ({short_number(self.horizon_samples * self.period)} s), beyond which it "
+                "does not choose the actions; bound the query by that horizon, or give a --horizon that covers "
+                "the bound")
+
     def episodes(self, reward: str | ie.Expr, goal: ie.Expr | None, samples: int) -> EpisodeBatch:
         """Episodes of the model with the automaton (:class:`rac.learning.episodes.EpisodeBatch`);
         unknown when the episodes cannot be set up (an expression the engine cannot read stays an

@@ -56,6 +56,9 @@ class LearningAnswerer:
                                       "(only under a shield: `strategy S = control: A[] ...`)")
             table = ctx.shield_table(query.under)
         samples = ctx.bound_samples(query.bound)
+        past = None if query.under is None else ctx.past_shield(query.under, samples)
+        if past is not None:  # there learning (and the optimum) would choose among all actions, unshielded
+            raise EvaluationError(past)
         if samples < 1:
             raise UnknownVerdict("the time bound is shorter than one sample")
         meta = {"query": base.formula, "objective": format_checked(query.objective),

@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rac.core.diagnostics import short_number
 from rac.engine import storm
 from rac.engine.budget import format_bytes, runs_within, simulation_bytes
 from rac.engine.evaluate import EvaluationError
@@ -190,14 +189,11 @@ class StatisticalAnswerer:
                                        truth=np.repeat(one.truth, n, axis=0),
                                        actions=np.repeat(one.actions, n, axis=0),
                                        left_policy=np.repeat(one.left_policy, n, axis=0))
+        past = None if under is None else ctx.past_shield(under, samples)
+        if past is not None:  # a shield ends at the horizon: said before any run is drawn
+            raise EvaluationError(past)
         runs = simulate(ctx.data, runs=n, horizon_samples=samples, seed=seed, policy=ctx.policy(under))
         stuck = int(runs.left_policy.sum())
-        if stuck and under is not None and samples > ctx.horizon_samples:  # a shield ends at the horizon
-            raise EvaluationError(
-                f"the query's bound ({short_number(samples * ctx.period)} s) is past the horizon the strategy "
-                f"`{under}` was computed to ({short_number(ctx.horizon_samples * ctx.period)} s), beyond which it "
-                f"allows no action ({stuck:,} of {n:,} runs got there); bound the query by that horizon, or give "
-                "a --horizon that covers the bound")
         if stuck:  # the emitted model deadlocks there, and its run ends: rac's runs would go on
             who = " or ".join(([f"the strategy `{under}`"] if under is not None else [])
                               + (["the model's `allow when`"] if ctx.data.allow is not None else []))
