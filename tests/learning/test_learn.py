@@ -453,6 +453,32 @@ def test_render_draws_the_learned_strategys_run(tmp_path: Path, capsys: pytest.C
     assert "--exact draws a file's learning query's optimal strategy: give --strategy NAME" in capsys.readouterr().err
 
 
+def test_render_draws_the_learned_strategy_under_its_shield_past_the_files_horizon(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`rac render --strategy reach --horizon 8` (the file's: 4 s) learned under a shield computed to 4 s and
+    drew 8 s: past 4 s the shield allowed nothing and the run chose among all actions, silently (on ZAM_Ramp
+    the drawn run "under safe" left the road). The shield now covers the drawn run, as under `rac verify
+    --horizon 8`: the shield chooses at every decision of it."""
+    from rac.cli.main import main
+    from rac.verify import runner
+
+    contexts = []
+    answer = runner.run_queries
+
+    def keep(*args, **kwargs):
+        context, results = answer(*args, **kwargs)
+        contexts.append(context)
+        return context, results
+
+    monkeypatch.setattr(runner, "run_queries", keep)
+    path = write_engine_file(tmp_path, "goal_ahead", VERIFY_QUERIES)
+    assert main(["render", str(path), "--strategy", "reach", "--horizon", "8", "--seed", "1", "-o", str(tmp_path),
+                 "-q"]) == 0
+    [context] = contexts
+    run, _ = context.learned_run("reach", 2 * HORIZON)
+    assert int(run.fallbacks[0]) == 0
+
+
 # ---------------------------------------------------------------- learning within --max-memory (issue 22)
 def test_learning_beyond_the_memory_budget_is_refused_before_it_allocates(scenario: Callable[[str], Scenario],
                                                                           monkeypatch: pytest.MonkeyPatch) -> None:

@@ -233,7 +233,11 @@ def _strategy_run(result: CompileResult, args: argparse.Namespace, samples: int)
                                   f"{', '.join(learned) or 'none'})",
                                   hints=["name a `strategy NAME = maxE(...)` or `minE(...)` query of the file"]))
         return None, ""
+    # the shield the strategy is learned under covers the drawn run: a --horizon past the file's is its
+    # horizon too (as `rac verify --horizon`), else past the file's horizon the run chose among all actions
+    longer = args.horizon if args.horizon is not None and args.horizon > Fraction(result.automaton.horizon) else None
     options = VerifyOptions(seed=_seed(args), max_states=args.max_states, only=(learned[args.strategy].name,),
+                            horizon=longer,
                             max_bytes=args.max_memory or default_max_bytes(), bars=not (args.quiet or as_json(args)),
                             exact=args.exact)
     context, results = run_queries(result, options)
