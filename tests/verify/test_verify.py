@@ -428,6 +428,13 @@ Verifying U: A[] !collide()
     assert render_text(results[:1], traces=True).count("\n      t=") == 8
 
 
+def test_render_text_says_why_a_query_is_not_answered_once() -> None:
+    """`E<> prev(v) > v` printed its reason after "Not answered:" and again under the timing line."""
+    why = "`prev(...)` in an exhaustive query is not supported: a merged state has no single previous sample"
+    result = QueryResult("T", "E<> prev(v) > v", "symbolic", "unsupported", message=why)
+    assert render_text([result]) == f"Verifying T: E<> prev(v) > v\n -- Not answered: {why}\n    0.00 s"
+
+
 def test_render_json_is_strict_json(compiled: Callable[[str], Compiled], tmp_path: Path) -> None:
     item = compiled("avoidable_obstacle")
     path = item.folder / "one.ra"

@@ -19,7 +19,7 @@ from rac.engine.graph import LABELS
 from rac.ir import expr as ie
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.native import NEGATIVE_DISTANCE_TEXT
-from rac.verify.status import METHODS, NOT_APPLICABLE, NOT_SATISFIED, SATISFIED, UNKNOWN
+from rac.verify.status import METHODS, NOT_APPLICABLE, NOT_SATISFIED, SATISFIED, UNKNOWN, UNSUPPORTED
 
 __all__ = ["TRACE_FLAGS", "QueryResult", "TraceRow", "count_noun", "format_number", "plot_series", "render_json",
            "render_text", "write_csv"]
@@ -177,7 +177,8 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
         lines.append("    " + ", ".join(details))
         if r.method is not None and r.status in (SATISFIED, NOT_SATISFIED):
             lines.append(f"    {METHODS[r.method]}")
-        if r.kind in ("strategy", "symbolic") and r.message and r.status not in (UNKNOWN, NOT_APPLICABLE):
+        if r.kind in ("strategy", "symbolic") and r.message and r.status not in (UNKNOWN, UNSUPPORTED, NOT_APPLICABLE):
+            # (an undecided or inapplicable status has said its message on its own line)
             lines.append(f"    {r.message}")
         for file in r.files:
             lines.append(f"    wrote {file}")
