@@ -339,6 +339,9 @@ def test_the_render_legend_names_everything_and_lies_above_the_map(figures: list
     labels = [text.get_text() for text in legend.get_texts()]
     assert labels[0] == "ego path" and any(label.startswith("ego (4.5 m") for label in labels)
     assert "obstacles" in labels and "goal region" in labels
+    # the marker commonroad-io draws is the planning problem's initial state, not where the ego's path
+    # begins (a `model` block's start_x, start_y move that): it was labelled "start"
+    assert "planning problem's start" in labels and "start" not in labels
     figure.draw_without_rendering()
     renderer = figure.canvas.get_renderer()
     box = legend.get_window_extent(renderer)

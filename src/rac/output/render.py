@@ -163,8 +163,10 @@ class _Scene:
             goal = params.planning_problem.goal_region.shape
             handles.append(Patch(facecolor=goal.facecolor, edgecolor=goal.edgecolor, label="goal region"))
         start = params.planning_problem.initial_state.state
+        # the problem's, which the ego's path leaves from only when the `model` block keeps it (no start_x,
+        # start_y, start_heading): on benchmarks/zam_ramp.ra the ego starts 5 m beside it
         handles.append(Line2D([], [], color=start.facecolor, marker="o", linestyle="", markersize=7,
-                              label="start"))
+                              label="planning problem's start"))
         return handles
 
     def show_obstacles(self, time_step: int) -> None:
@@ -278,7 +280,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
     The PNG shows the road, the goal, the obstacles at ``time_step`` (default: the last sample's)
     with their remaining trajectories, the ego's path as a line and the ego as a ``length`` ×
     ``width`` rectangle at the sample nearest ``time_step``; a legend below the map names the ego's
-    path, the ego, the obstacles, the goal region and the start. A long title is wrapped to fit.
+    path, the ego, the obstacles, the goal region and the planning problem's start. A long title is
+    wrapped to fit.
     The GIF has one frame per sample, or per k-th sample to keep at most ``max_frames`` frames
     (the last sample always included), played in real time, with obstacles and ego moving.
     ``plot_limits`` (xmin, xmax, ymin, ymax) defaults to the path and the goal with a 15 m margin;
