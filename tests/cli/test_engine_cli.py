@@ -622,3 +622,19 @@ def test_verify_without_a_seed_says_the_seed_that_reproduces_it(capsys: pytest.C
     assert main(["verify", str(path), "-q", "--no-plots", "-o", str(tmp_path / "c"), "--seed", found.group(1),
                  "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out)["seed"] == int(found.group(1))
+
+
+@pytest.mark.parametrize("argv", [["verify", "--query", "safe"], ["simulate", "--runs", "2"], ["render"],
+                                  ["preanalyse", "--exponent", "2", "--sense", "0.5", "--decide", "1"]])
+def test_json_documents_hold_the_files_warnings(argv: list[str], capsys: pytest.CaptureFixture[str],
+                                                tmp_path: Path) -> None:
+    """A road narrower than the ego: `rac check` warns that the ego starts off the road (W0716), which is why
+    the shield does not exist. Text prints it on standard error; `--format json` dropped it, stderr stayed
+    empty and the document said nothing, so a script saw Qd fail without the reason."""
+    path = write_engine_file(tmp_path, "narrow_road", {"safe": QUERIES["safe"]})
+    main([argv[0], str(path), *argv[1:], "--seed", "1", "-o", str(tmp_path / "out"), "--format", "json", "-q"])
+    captured = capsys.readouterr()
+    document = json.loads(captured.out)
+    assert [w["code"] for w in document["warnings"]] == ["W0716"]
+    assert document["warnings"][0]["span"]["file"] == str(path)
+    assert "W0716" not in captured.err  # standard output holds it, once

@@ -35,7 +35,7 @@ from rac.cli.common import (
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, Diagnostic, RacError
+from rac.core.diagnostics import CheckError, Diagnostic, RacError, sort_key
 from rac.core.diagnostics import render_text as render_diagnostics
 from rac.core.numbers import samples_of
 from rac.core.source import SourceFile
@@ -77,9 +77,15 @@ def _load(path: Path, max_bytes: int | None, structured: bool = False) -> tuple[
                                          hints=[f"`rac check {path}` says why"])], {}, structured)
         return None, EXIT_ERRORS
     warned = [d for d in result.diagnostics if not d.is_error]
-    if warned and not structured:  # rac check's warnings hold for the answers too (JSON: `rac check --format json`)
+    if warned and not structured:  # rac check's warnings hold for the answers too (JSON: the document's `warnings`)
         print_diagnostics(warned, result.sources, False)
     return result, EXIT_OK
+
+
+def _warnings(result: CompileResult) -> list[dict[str, object]]:
+    """``rac check``'s warnings of the file, as a command's ``--format json`` document holds them: they bear
+    on its answers (an ego that starts off the road fails Qd), and text prints them on standard error."""
+    return [d.to_json() for d in sorted((d for d in result.diagnostics if not d.is_error), key=sort_key)]
 
 
 def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
@@ -337,7 +343,8 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
     if args.format == "json":
-        document: dict[str, object] = {"file": str(args.file), "seed": seed, "results": render_json(results),
+        document: dict[str, object] = {"file": str(args.file), "seed": seed, "warnings": _warnings(result),
+                                       "results": render_json(results),
                                        "penalties": penalties.to_json() if penalties is not None else None}
         if stopped is not None:
             document["interrupted"] = stopped
@@ -475,8 +482,8 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
         return EXIT_USAGE
     under = " under the shield" if args.shield else ""
     lines = [f"simulated {args.runs} runs of {samples} samples (seed {seed}){under}"]
-    document: dict[str, object] = {"file": str(args.file), "runs": args.runs, "samples": samples, "seed": seed,
-                                   "shield": bool(args.shield), "expressions": texts}
+    document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "runs": args.runs,
+                                   "samples": samples, "seed": seed, "shield": bool(args.shield), "expressions": texts}
     if result.automaton is not None and result.automaton.ending is not None:
         _note(args, notes, "the runs go on to the horizon; the automaton's `episode ends when`, which ends them in "
                            "the emitted model, is not applied here")
@@ -544,8 +551,8 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
         _note(args, notes, "the run goes on to the horizon; the automaton's `episode ends when`, which ends it in "
                            "the emitted model, is not applied here")
     wrote = [str(written), *([str(gif)] if gif is not None else [])]
-    document: dict[str, object] = {"file": str(args.file), "how": _how(args), "samples": samples, "seed": seed,
-                                   "notes": notes, "wrote": wrote}
+    document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "how": _how(args),
+                                   "samples": samples, "seed": seed, "notes": notes, "wrote": wrote}
     _print_summary(args, document, [f"rendered {_how(args)}: {samples} samples (seed {seed})",
                                     *(f"wrote {path}" for path in wrote)])
     return EXIT_OK
@@ -574,7 +581,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, unwritable(out_dir, exc))
         return EXIT_USAGE
     if args.format == "json":
-        document: dict[str, object] = {"file": str(args.file), "settings": rows}
+        document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "settings": rows}
         if interrupted:
             document["interrupted"] = True
         print(json.dumps(document, indent=2, default=str))
