@@ -60,3 +60,22 @@ def test_alone_a_not_applicable_query_does_not_fail(tmp_path: Path, capsys: pyte
     out = capsys.readouterr().out
     assert "Not applicable" in out
     assert code == 1  # the defining query ran for it, and failed
+
+
+def test_queries_under_a_reachability_strategy_say_it_is_not_kept(tmp_path: Path) -> None:
+    """`strategy reach = control: E<> goal() && !offroad()` is decided, not kept: a query `under reach` said
+    the strategy "has not been computed (it is defined by a query that was skipped or failed; run it
+    first)", though its query had just run and held. It is not answered and says why; one that fails (the
+    narrow road: never on it) is not applicable."""
+    queries = {"reach": "strategy reach = control: E<> goal() && !offroad()", "Under": "E<> goal() under reach",
+               "ProbUnder": "Pr[<=2](<> goal()) under reach"}
+    results = {r.name: r for r in verify(compile_file(write_engine_file(tmp_path, "goal_ahead", queries)),
+                                         VerifyOptions(seed=1, out_dir=tmp_path / "out"))}
+    assert results["reach"].status == "satisfied"
+    for name in ("Under", "ProbUnder"):
+        assert results[name].status == "unsupported", results[name]
+        assert "`reach` is a reachability strategy" in (results[name].message or "")
+        assert "skipped or failed" not in (results[name].message or "")
+    failed = {r.name: r for r in verify(compile_file(write_engine_file(tmp_path, "narrow_road", queries)),
+                                        VerifyOptions(seed=1, out_dir=tmp_path / "out2"))}
+    assert failed["reach"].status == "not satisfied" and failed["Under"].status == "not_applicable"

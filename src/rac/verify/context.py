@@ -173,6 +173,8 @@ class Context:
         self.learned: dict[str, Learned] = {}
         #: Strategies that provably do not exist, by name: why (the defining query and its failure).
         self.missing: dict[str, str] = {}
+        #: Reachability strategies (``strategy S = control: E<> p``) that hold, by name: decided, not kept.
+        self.reachability: set[str] = set()
         #: Safety shields computed state by state (the model was too large to explore), by name.
         self.on_demand: dict[str, OnDemandShield] = {}
         #: Why exploring the model failed, by ``prune`` (the budget): said again, not tried again.
@@ -321,6 +323,10 @@ class Context:
         """The shield ``name`` computed by an earlier query; unknown when there is none to use."""
         if name in self.missing:
             raise NotApplicable(self.missing[name])
+        if name in self.reachability:
+            raise EvaluationError(f"the strategy `{name}` is a reachability strategy (`control: E<> p`): rac verify "
+                                  "decides whether it exists but does not keep it, so queries under it are not "
+                                  "answered; a safety strategy (`control: A[] p`) is kept for them")
         if name in self.on_demand:
             raise UnknownVerdict(f"the shield `{name}` was computed state by state (the model is too large to "
                                  "explore), so exhaustive queries under it are not decided; simulations and "

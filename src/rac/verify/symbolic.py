@@ -258,6 +258,7 @@ class SymbolicAnswerer:
         within = self.under_shield(query.under, "a strategy") if query.under is not None else None
         if query.goal != "A[]":
             saved = "reachability strategies are decided but not saved"
+            ctx.reachability.add(query.name)  # a query `under` it says so (a failed one: not applicable)
             if within is None:  # a run reaching p: the strategy that follows it exists
                 found = self._reaches(ctx.predicate(query.expr))
                 return dataclasses.replace(base, status="not satisfied" if found.witness is None else "satisfied",
