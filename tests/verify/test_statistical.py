@@ -70,3 +70,19 @@ def test_a_bound_past_the_horizon_of_its_shield_says_so() -> None:
     assert fig7.status == "unsupported" and fig7.message is not None
     assert fig7.message.startswith("the query's bound (3 s) is past the horizon the strategy `safe` was "
                                    "computed to (2 s)"), fig7.message
+
+
+def test_an_expectation_that_is_not_a_number_is_not_answered(tmp_path: Path) -> None:
+    """`E[<=2;5](max: sqrt(v - 100))` (the ego never reaches 100 m/s): every run's maximum is NaN, and
+    the answer was a value, `E = nan ± nan`, exit 0, though nothing was estimated. It is not answered,
+    saying why; so is an infinite extreme, and a finite one is still estimated."""
+    queries = {"Nan": "E[<=2;5](max: sqrt(v - 100))", "Inf": "E[<=2;5](min: -1 / (v - 100 + fabs(v - 100)))",
+               "Fine": "E[<=2;5](max: sqrt(v))"}
+    results = {r.name: r for r in verify(compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries)),
+                                         VerifyOptions(seed=1, plots=False))}
+    assert results["Nan"].status == "unsupported" and results["Nan"].estimate is None
+    assert ("the max of `sqrt(v - 100)` over a run is not a number in 5 of 5 runs"
+            in (results["Nan"].message or "")), results["Nan"].message
+    assert results["Inf"].status == "unsupported"
+    assert "is infinite in 5 of 5 runs" in (results["Inf"].message or ""), results["Inf"].message
+    assert results["Fine"].status == "value" and results["Fine"].estimate is not None

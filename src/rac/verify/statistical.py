@@ -18,6 +18,7 @@ from rac.engine.explore import explore
 from rac.engine.simulate import simulate
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.ir.text import format_checked
 from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.verify.context import Context, UnknownVerdict
@@ -120,7 +121,15 @@ class StatisticalAnswerer:
             count = min(chunk, n - start)
             chunk_seed = seed if count == n else int(seeds.spawn(1)[0].generate_state(1)[0])
             values = ctx.values(self.runs(count, samples, query.under, chunk_seed), (query.expr,))[0]
-            running.add(values.max(axis=1) if query.aggregate == "max" else values.min(axis=1))
+            extremes = values.max(axis=1) if query.aggregate == "max" else values.min(axis=1)
+            if not np.isfinite(extremes).all():  # a mean of them would be `nan ± nan`, printed as a value
+                nan = int(np.isnan(extremes).sum())
+                where = " and ".join(f"{what} in {k:,} of {count:,} runs" for what, k in
+                                     (("not a number", nan), ("infinite", extremes.size - nan)) if k)
+                raise EvaluationError(
+                    f"the {query.aggregate} of `{format_checked(query.expr)}` over a run is {where} (a square root "
+                    "of a negative number, a division by zero at some sample), so their mean has no value")
+            running.add(extremes)
         if n >= 2:
             mean, half = running.interval(ctx.options.confidence)
         else:
