@@ -86,3 +86,26 @@ def test_an_expectation_that_is_not_a_number_is_not_answered(tmp_path: Path) -> 
     assert results["Inf"].status == "unsupported"
     assert "is infinite in 5 of 5 runs" in (results["Inf"].message or ""), results["Inf"].message
     assert results["Fine"].status == "value" and results["Fine"].estimate is not None
+
+
+def test_a_run_budget_that_runs_out_is_said(compiled: CompileResult, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With the run budget spent before a sequential test decides (a probability near its threshold;
+    100,000 runs in rac, 20 here), the test's verdict was the estimate's side of the threshold, reported
+    as satisfied or not, exit 0 or 1, its message shown nowhere in the text: it is UNKNOWN. An estimate
+    whose interval is still wider than ±epsilon says so (it was a value like any other)."""
+    import functools
+
+    from rac.engine import stats
+    from rac.verify.report import render_text
+
+    monkeypatch.setattr(stats, "sequential_test", functools.partial(stats.sequential_test, max_runs=20))
+    monkeypatch.setattr(stats, "estimate_probability", functools.partial(stats.estimate_probability, max_runs=20))
+    # v >= 0 always, against 0.99 ± 0.01: accepting takes 146 runs (each success moves the ratio by 0.02)
+    [result] = verify(compiled, VerifyOptions(seed=1, plots=False, only=("Certain",)))
+    assert result.status == "unknown" and result.runs == 20, result
+    assert (result.message or "").startswith("the sequential test did not decide within 20 runs")
+    assert f"Formula is UNKNOWN: {result.message}" in render_text([result])
+    [wide] = verify(compiled, VerifyOptions(seed=1, plots=False, only=("Prob",)))
+    assert wide.status == "value" and wide.runs == 20
+    assert (wide.message or "").startswith("the run budget (20 runs) ran out before the interval was ±0.05 wide")
+    assert wide.message in render_text([wide])

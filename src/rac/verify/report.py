@@ -19,7 +19,7 @@ from rac.engine.graph import LABELS
 from rac.ir import expr as ie
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.native import NEGATIVE_DISTANCE_TEXT
-from rac.verify.status import METHODS, NOT_APPLICABLE, NOT_SATISFIED, SATISFIED, UNKNOWN, UNSUPPORTED
+from rac.verify.status import METHODS, NOT_APPLICABLE, NOT_SATISFIED, SATISFIED, UNKNOWN, UNSUPPORTED, VALUE
 
 __all__ = ["TRACE_FLAGS", "QueryResult", "TraceRow", "count_noun", "format_number", "plot_series", "render_json",
            "render_text", "write_csv"]
@@ -156,6 +156,8 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
                 lines.append(f" -- exact (Storm, actions drawn uniformly): {r.exact:.4f}")
         elif r.kind == "probability" and r.runs is not None:
             lines.append(f" -- {r.runs} runs, {int(round((r.estimate or 0) * r.runs))} satisfied the formula")
+        if r.kind == "probability" and r.message and r.status in (SATISFIED, NOT_SATISFIED, VALUE):
+            lines.append(f"    {r.message}")  # what limits the answer (an undecided status has said it)
         elif r.kind == "expectation" and r.estimate is not None and r.interval is not None:
             half = (r.interval[1] - r.interval[0]) / 2
             lines.append(f" -- ({r.runs} runs) E = {format_number(r.estimate)} ± {format_number(half)} "

@@ -66,8 +66,13 @@ class StatisticalAnswerer:
             test = stats.sequential_test(sample, theta, alpha=ctx.options.alpha, beta=ctx.options.beta,
                                          delta=ctx.options.delta, batch=min(stats.DEFAULT_BATCH, chunk))
             accepted = test.accepted if op in (">=", ">") else not test.accepted
-            message = None if test.decided else "the run budget ran out before the test decided"
-            return dataclasses.replace(base, status="satisfied" if accepted else "not satisfied", runs=test.runs,
+            status, message = ("satisfied" if accepted else "not satisfied"), None
+            if not test.decided:  # the estimate's side of theta carries no error bound: not a verdict
+                status = "unknown"
+                message = (f"the sequential test did not decide within {test.runs:,} runs (its budget): the "
+                           f"probability, about {test.successes / test.runs:.4f}, lies too near {theta:g} (within "
+                           f"±{ctx.options.delta:g}, where either answer may come)")
+            return dataclasses.replace(base, status=status, runs=test.runs,
                                        estimate=test.successes / test.runs if test.runs else None,
                                        horizon_samples=samples, seed=seed, message=message)
         if query.runs is not None:
@@ -77,9 +82,12 @@ class StatisticalAnswerer:
             estimate = stats.estimate_probability(sample, epsilon=ctx.options.epsilon,
                                                   confidence=ctx.options.confidence,
                                                   batch=min(stats.DEFAULT_BATCH, chunk))
+        wider = None if estimate.converged else (
+            f"the run budget ({estimate.runs:,} runs) ran out before the interval was ±{ctx.options.epsilon:g} "
+            f"wide: it is ±{estimate.half_width:.4f} (--epsilon)")
         return dataclasses.replace(base, status="value", interval=(estimate.lo, estimate.hi),
                                    estimate=estimate.estimate, runs=estimate.runs, horizon_samples=samples,
-                                   seed=seed, confidence=ctx.options.confidence,
+                                   seed=seed, confidence=ctx.options.confidence, message=wider,
                                    exact=self.exact_probability(query, samples))
 
     def exact_probability(self, query: iq.ProbabilityQuery, samples: int) -> float | None:
