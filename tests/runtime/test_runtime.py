@@ -579,3 +579,25 @@ def test_object_columns_are_read_row_by_row_as_the_scalar_runtime_reads_them(dri
         with pytest.raises(ValueError, match=message):
             batch.step_batch(full)  # every row read: the third is refused, by name
     assert batch.samples.tolist() == [1, 1, 0]  # and nothing changed
+
+
+def test_take_and_resume_refuse_a_mask_or_floats_for_indices(driving: ir.Automaton) -> None:
+    """``take(mask)`` cast the mask [True, False, True] to the rows [1, 0, 1] and copied those, floats were
+    truncated and negative rows wrapped round, all silently; ``resume`` read the locations [0.5, ...] as 0 and
+    an unknown reward name was a KeyError. Both now take indices only, and say what they got otherwise."""
+    batch = BatchRewardAutomaton(driving, 3)
+    batch.step_batch(columns([inputs(), inputs(is_close=True), inputs()]))
+    assert batch.take([1, 1, 0]).location_names() == ["Unsafe", "Unsafe", "Normal"]
+    assert batch.take(np.array([2], dtype=np.uint8)).location_names() == ["Normal"]
+    for rows in (np.array([True, False, True]), [0.7], [-1], [3], [[0, 1]]):
+        with pytest.raises(ValueError, match=r"rows must be a sequence of row indices in \[0, 3\) \(not a mask\)"):
+            batch.take(rows)
+    before = batch.location_names()
+    for locations in ([0.5, 0, 0], [True, False, False], [0, 0, 9], [0, 0]):
+        with pytest.raises(ValueError, match=r"locations must be 3 location indices"):
+            batch.resume(locations)
+    with pytest.raises(ValueError, match=r"unknown reward\(s\): 'zz' \(the rewards are sa, pr, co\)"):
+        batch.resume([0, 1, 2], {"zz": [1.0, 2.0, 3.0]})
+    assert batch.location_names() == before  # refused before anything changed
+    batch.resume(np.array([0, 1, 2]), {"pr": [1.0, 2.0, 3.0]})
+    assert batch.rewards["pr"].tolist() == [1.0, 2.0, 3.0] and batch.locations.tolist() == [0, 1, 2]

@@ -375,9 +375,16 @@ class BatchRewardAutomaton(AutomatonDescription):
         sequence of inputs from every location (counterfactual experiences,
         :mod:`rac.learning.counterfactual`). Input-dependent rates hold the next sample's inputs, as
         after :meth:`reset`."""
-        loc = np.asarray(locations, dtype=np.intp)
-        if loc.shape != (self._n,) or (loc.size and (loc.min() < 0 or loc.max() >= len(self._ir.locations))):
-            raise ValueError(f"locations must be {self._n} location indices in [0, {len(self._ir.locations)})")
+        raw = np.asarray(locations)
+        # floats or booleans cast to indices would resume from other locations than meant, silently
+        if raw.shape != (self._n,) or (raw.size and (raw.dtype.kind not in "iu" or raw.min() < 0
+                                                      or raw.max() >= len(self._ir.locations))):
+            raise ValueError(f"locations must be {self._n} location indices in [0, {len(self._ir.locations)}), "
+                             f"not {raw.dtype} values of shape {raw.shape}")
+        unknown = sorted(repr(name) for name in (rewards or {}) if name not in self._index)
+        if unknown:
+            raise ValueError(f"unknown reward(s): {', '.join(unknown)} (the rewards are {', '.join(self._ir.rewards)})")
+        loc = raw.astype(np.intp)
         self.reset()
         self._loc = loc.copy()
         for name, values in (rewards or {}).items():
@@ -724,9 +731,14 @@ class BatchRewardAutomaton(AutomatonDescription):
         """A new batch of ``len(rows)`` automata, each a copy of row ``rows[i]`` of this one (a row may
         repeat): every automaton's state goes on from there as its row's would. For exhaustive searches
         that branch every run over its choices (:mod:`rac.learning.optimum`)."""
-        where = np.asarray(rows, dtype=np.intp).reshape(-1)
-        if where.size == 0:
+        raw = np.asarray(rows)
+        if raw.size == 0:
             raise ValueError("a batch holds at least one automaton: take() needs rows")
+        # a boolean mask or floats cast to indices would copy other rows than meant, silently
+        if raw.dtype.kind not in "iu" or raw.ndim != 1 or raw.min() < 0 or raw.max() >= self._n:
+            raise ValueError(f"rows must be a sequence of row indices in [0, {self._n}) (not a mask), not "
+                             f"{raw.dtype} values of shape {raw.shape}: {raw.reshape(-1).tolist()[:10]}")
+        where = raw.astype(np.intp)
         twin = BatchRewardAutomaton(self._ir, int(where.size), strategy=self.strategy)
         twin._loc = self._loc[where].copy()
         twin._R = self._R[:, where].copy()
