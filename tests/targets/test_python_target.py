@@ -144,6 +144,10 @@ def test_generated_class_behaves_like_the_interpreter() -> None:
     interpreter = RewardAutomaton(driving_automaton())
     assert generated.name == interpreter.name and generated.inputs == interpreter.inputs
     assert generated.reward_names == interpreter.reward_names and generated.locations == interpreter.locations
+    # the horizon too: `ra.horizon`, which code written for the generated class reads, was an AttributeError
+    batch = interpreter.batch(2)
+    for description in ("name", "inputs", "reward_names", "period", "horizon", "steps"):
+        assert getattr(generated, description) == getattr(interpreter, description) == getattr(batch, description)
     trace = ([inputs()] * 5 + [inputs(is_close=True), inputs(is_close=True, collide=True),
                                inputs(is_close=True), inputs(comf=False), inputs(prog=False, dgoal=0.0),
                                inputs()] * 3)

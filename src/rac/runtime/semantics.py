@@ -438,6 +438,11 @@ class AutomatonDescription:
         return float(self._ir.period)
 
     @property
+    def horizon(self) -> float:
+        """The horizon in seconds (as the generated module's class attribute; not enforced either)."""
+        return float(self._ir.horizon)
+
+    @property
     def steps(self) -> int:
         """Samples in a run of the full horizon (not enforced: the caller ends runs)."""
         return self._ir.steps
