@@ -27,10 +27,12 @@ def _key_error(inputs: Mapping[str, object], names: tuple[str, ...]) -> ValueErr
     return ValueError("; ".join(parts) or "the inputs do not match the declared inputs")
 
 
-def _mapping(inputs: object) -> None:
+def _mapping(inputs: object, names: tuple[str, ...]) -> None:
     if not isinstance(inputs, Mapping):  # the documented error of bad inputs is ValueError
         message = f"inputs must map input names to values, not {type(inputs).__name__}"
         raise ValueError(message)  # noqa: TRY004
+    if any(name not in inputs for name in names):  # a defaultdict would invent a missing input when read
+        raise _key_error(inputs, names)
 
 
 def _array_hint(raw: object) -> str:
@@ -147,7 +149,7 @@ class Driving:
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
         if type(inputs) is not dict:
-            _mapping(inputs)
+            _mapping(inputs, self.inputs)
         try:
             if len(inputs) != 5:
                 raise KeyError
@@ -241,7 +243,7 @@ class Driving:
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
         if type(inputs) is not dict:
-            _mapping(inputs)
+            _mapping(inputs, self.inputs)
         try:
             if len(inputs) != 5:
                 raise KeyError

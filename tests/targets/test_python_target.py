@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import collections
 import json
 import math
 import os
@@ -394,3 +395,20 @@ def test_an_array_for_one_value_is_refused_saying_so() -> None:
                 messages.append(str(error))
             assert ra.samples == 0
         assert messages[0] == messages[1]
+
+
+def test_a_defaultdict_does_not_invent_a_missing_input() -> None:
+    """A defaultdict of inputs with a misspelt name (``dgol``) has the right length, and reading ``dgoal``
+    from it invented the default: the interpreter and the generated module stepped with dgoal = 0.0 and
+    added the key to the caller's mapping, while the batch refused it. All three refuse it now, alike."""
+    wrong = {**{k: v for k, v in inputs().items() if k != "dgoal"}, "dgol": 40.0}
+    runtimes = (RewardAutomaton(driving_automaton()), load(generate_python(driving_automaton())).Driving())
+    for ra in runtimes:
+        for call in (ra.step, ra.end):
+            given = collections.defaultdict(float, wrong)
+            with pytest.raises(ValueError, match=r"^missing input\(s\): dgoal; unknown input\(s\): 'dgol'$"):
+                call(given)
+            assert dict(given) == wrong and ra.samples == 0 and not ra.ended
+    with pytest.raises(ValueError, match=r"^missing input\(s\): dgoal; unknown input\(s\): 'dgol'$"):
+        runtimes[0].batch(2).step_batch(collections.defaultdict(float, wrong))
+    assert runtimes[0].step(collections.defaultdict(float, inputs())) == runtimes[1].step(inputs())  # complete: read

@@ -242,8 +242,8 @@ class RewardAutomaton(AutomatonDescription):
     def _read(self, inputs: Mapping[str, object]) -> _Values:
         # A dict, True/False and a float are taken by identity tests: the abstract-class checks of
         # check_mapping, boolean_input and number_input cost more than the rest of a sample.
-        if type(inputs) is not dict:
-            check_mapping(inputs)
+        if type(inputs) is not dict:  # a dict subclass too: a defaultdict must not invent a missing input
+            check_mapping(inputs, self._names)
         values: _Values = {}
         try:
             if len(inputs) != len(self._specs):

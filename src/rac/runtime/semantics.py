@@ -204,10 +204,14 @@ def check_automaton(automaton: ir.Automaton) -> None:
 NARROW_FLOATS = ("float32", "float16")
 
 
-def check_mapping(inputs: object) -> None:
-    """``ValueError`` unless ``inputs`` maps input names to values (``step(None)`` said TypeError)."""
+def check_mapping(inputs: object, names: Sequence[str] = ()) -> None:
+    """``ValueError`` unless ``inputs`` maps input names to values (``step(None)`` said TypeError) and
+    holds each of ``names``: a ``defaultdict`` (or a ``Counter``) invents a missing one when it is read,
+    so a misspelt name would be read as the default, and added to the caller's mapping."""
     if not isinstance(inputs, Mapping):
         raise ValueError(f"inputs must map input names to values, not {type(inputs).__name__}")
+    if any(name not in inputs for name in names):
+        raise key_error(inputs, names)
 
 
 def boolean_input(name: str, raw: object) -> bool:

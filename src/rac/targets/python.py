@@ -62,8 +62,8 @@ RESERVED_NAMES = frozenset({
     "annotations", "math", "numbers", "Mapping",
     "_key_error", "_mapping", "_boolean", "_number", "_range_error", "_assume_error", "_array_hint",
     # builtins called, raised or named in annotations (typing.get_type_hints evaluates those)
-    "bool", "float", "int", "str", "object", "dict", "tuple", "len", "isinstance", "type", "repr", "sorted",
-    "getattr", "callable",
+    "bool", "float", "int", "str", "bytes", "object", "dict", "tuple", "len", "isinstance", "type", "repr", "sorted",
+    "getattr", "callable", "any",
     "property", "super", "ValueError", "KeyError", "RuntimeError", "OverflowError", "TypeError",
     # (every dunder, `__all__` among them, is renamed too: see python_class_name)
 })
@@ -238,7 +238,7 @@ class _Generator:
         # The common values (a dict, True/False, a float) are taken as they are, by identity tests;
         # only others go through the helpers, whose abstract-class checks (Mapping, numbers.Real)
         # cost more than the rest of a sample (benchmarks/run.py's step rows).
-        lines = ["if type(inputs) is not dict:", "    _mapping(inputs)",
+        lines = ["if type(inputs) is not dict:", "    _mapping(inputs, self.inputs)",
                  "try:", f"    if len(inputs) != {len(self.specs)}:", "        raise KeyError"]
         for spec in self.specs:
             var = self.inputs[spec.name]
