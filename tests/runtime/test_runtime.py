@@ -539,7 +539,7 @@ def test_the_batch_refuses_inputs_of_the_wrong_kind(driving: ir.Automaton) -> No
                                  ("dgoal", np.array(["5", "6"]), "real numbers"),
                                  ("dgoal", np.array([None, 1.0], dtype=object), r"'dgoal'\[0\] = None is not a number"),
                                  ("isClose", np.array([0.5, 1.0]), "booleans"),
-                                 ("isClose", np.array([2, 0]), "booleans")]:
+                                 ("isClose", np.array([2, 0]), r"'isClose'\[0\] = 2 is not a boolean")]:
         with pytest.raises(ValueError, match=message):
             batch.step_batch({**good, name: value})
     with pytest.raises(ValueError, match=r"mask must hold booleans \(True/False or 0/1\), not float64 values"):
@@ -601,3 +601,21 @@ def test_take_and_resume_refuse_a_mask_or_floats_for_indices(driving: ir.Automat
     assert batch.location_names() == before  # refused before anything changed
     batch.resume(np.array([0, 1, 2]), {"pr": [1.0, 2.0, 3.0]})
     assert batch.rewards["pr"].tolist() == [1.0, 2.0, 3.0] and batch.locations.tolist() == [0, 1, 2]
+
+
+def test_an_int_column_of_booleans_is_read_on_the_masked_rows_only(driving: ir.Automaton) -> None:
+    """A mask leaves the other rows' inputs unread (a NaN there is fine), but an int column for a boolean
+    input was checked on every row: a 2 in an unmasked row refused the whole call, saying "must hold booleans
+    ..., not int64 values" of a column whose read rows were 0/1. Now only the read rows count, and a
+    wrong one is named with its value, as an object column's is."""
+    batch = BatchRewardAutomaton(driving, 3)
+    reference = RewardAutomaton(driving)
+    good = {name: np.array([value] * 3) for name, value in inputs().items()}
+    got = batch.step_batch({**good, "isClose": np.array([1, 2, 0]), "collide": np.array([0, 7, 0]),
+                            "dgoal": np.array([1.0, np.nan, 1.0])}, mask=np.array([True, False, True]))
+    assert got.tolist() == [reference.step(inputs(is_close=True, dgoal=1.0)), 0.0, RewardAutomaton(driving).step(
+        inputs(dgoal=1.0))]
+    assert batch.samples.tolist() == [1, 0, 1]
+    with pytest.raises(ValueError, match=r"^input 'isClose'\[2\] = 5 is not a boolean \(True or False\)$"):
+        batch.step_batch({**good, "isClose": np.array([1, 2, 5], dtype=np.uint8)}, mask=np.array([True, False, True]))
+    assert batch.samples.tolist() == [1, 0, 1]

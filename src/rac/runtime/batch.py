@@ -414,9 +414,15 @@ class BatchRewardAutomaton(AutomatonDescription):
                     continue
                 value = column
             elif spec.is_bool:
-                if kind not in "biu" or (kind in "iu" and not np.isin(raw, (0, 1)).all()):
+                if kind not in "biu":
                     raise ValueError(f"input {spec.name!r} must hold booleans (True/False or 0/1), not {raw.dtype} "
                                      "values")
+                if kind in "iu":  # 0/1, on the rows read only: an unmasked row's value is not read
+                    wrong = ~np.isin(raw, (0, 1)) if rows is None else ~np.isin(raw, (0, 1)) & rows
+                    if wrong.any():
+                        row = int(np.flatnonzero(wrong)[0])
+                        raise ValueError(f"input {spec.name!r}[{row}] = {raw[row].item()!r} is not a boolean "
+                                         "(True or False)")
                 out[spec.name] = raw.astype(bool, copy=False)
                 continue
             elif kind not in "biuf":  # not strings or complex numbers
