@@ -97,6 +97,23 @@ def test_a_batch_pickles_copies_and_steps_in_another_process() -> None:
     assert remote.tobytes() == local.tobytes()
 
 
+def test_a_check_error_pickles_and_crosses_processes() -> None:
+    """CheckError's ``args`` hold the rendered text only, so pickle rebuilt it as ``CheckError(text)`` and
+    failed (AttributeError: 'str' object has no attribute 'span'); copy.copy too. A file that fails its
+    checks in a worker (a wrapper given a path in SubprocVecEnv, a process pool) broke the pool instead
+    of raising the error there. It is rebuilt from its diagnostics and sources now."""
+    naive = DRIVING.parents[1] / "examples" / "naive_driving.ra"
+    with pytest.raises(rac.CheckError) as raised:
+        rac.load(naive)
+    for twin in (pickle.loads(pickle.dumps(raised.value)), copy.copy(raised.value)):  # noqa: S301 - our own
+        assert isinstance(twin, rac.CheckError) and str(twin) == str(raised.value)
+        assert [d.code for d in twin.diagnostics] == ["E0402"]
+    with ProcessPoolExecutor(max_workers=1, mp_context=SPAWN) as pool:
+        with pytest.raises(rac.CheckError, match="E0402") as remote:
+            pool.submit(rac.load, naive).result(timeout=120)
+    assert str(remote.value) == str(raised.value)
+
+
 @pytest.mark.parametrize(("args", "message"), [
     ((DRIVING.read_text(encoding="utf-8"), None), r"name must be a str, not NoneType"),
     ((None,), r"text must be a str, not NoneType"),

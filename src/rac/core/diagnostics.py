@@ -175,6 +175,11 @@ class CheckError(RacError):
         self.sources = dict(sources or {})
         super().__init__(render_text(self.diagnostics, self.sources))
 
+    def __reduce__(self) -> tuple[type[CheckError], tuple[tuple[Diagnostic, ...], dict[str, SourceFile]]]:
+        """For pickle and copy: rebuilt from its diagnostics and sources (``args`` holds only the rendered
+        text), so a check failing in a worker process (``SubprocVecEnv``, a process pool) reaches the parent."""
+        return type(self), (self.diagnostics, self.sources)
+
     def brief(self) -> str:
         """The first diagnostic's message and first hint on one line, for an option's value (an
         expression given on the command line has no file to show it in)."""
