@@ -21,7 +21,8 @@ if TYPE_CHECKING:
     from rac.runtime.interpreter import RewardAutomaton  # the same: loaded on first use
 
 __version__ = "0.1.0"
-__all__ = ["CheckError", "CompileResult", "Diagnostic", "RacError", "compile_file", "compile_text", "load", "loads"]
+__all__ = ["CheckError", "CompileResult", "Diagnostic", "RacError", "RewardAutomaton", "compile_file", "compile_text",
+           "load", "loads"]
 
 
 def load(path: str | Path) -> RewardAutomaton:
@@ -50,7 +51,8 @@ def loads(text: str, name: str = "<string>") -> RewardAutomaton:
 #: The public names defined elsewhere, imported on first use (PEP 562): ``import rac`` and ``rac
 #: --version`` then load neither the checker nor numpy.
 _LAZY = {"CheckError": "rac.core.diagnostics", "Diagnostic": "rac.core.diagnostics", "RacError": "rac.core.diagnostics",
-         "CompileResult": "rac.compiler", "compile_file": "rac.compiler", "compile_text": "rac.compiler"}
+         "CompileResult": "rac.compiler", "compile_file": "rac.compiler", "compile_text": "rac.compiler",
+         "RewardAutomaton": "rac.runtime.interpreter"}  # what load() returns: annotations and isinstance name it
 
 
 def __getattr__(name: str) -> Any:

@@ -176,3 +176,10 @@ def test_load_says_the_files_warnings() -> None:
     with python_warnings.catch_warnings():
         python_warnings.simplefilter("error")  # a file without warnings loads silently
         rac.load(Path(__file__).resolve().parents[2] / "stdlib" / "driving.ra")
+
+
+def test_the_type_load_returns_is_public() -> None:
+    """``rac.load`` is annotated as returning ``rac.RewardAutomaton`` (a name type checkers see), but the
+    name was missing at run time: ``isinstance(ra, rac.RewardAutomaton)`` raised AttributeError."""
+    assert "RewardAutomaton" in rac.__all__ and "RewardAutomaton" in dir(rac)
+    assert rac.RewardAutomaton is RewardAutomaton and isinstance(rac.load(DRIVING), rac.RewardAutomaton)
