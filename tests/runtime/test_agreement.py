@@ -7,11 +7,14 @@ strategies), ended columns restarted with ``reset(mask)``. After every operation
 reward, the location, every reward value, the objective, the sample count and whether the run
 ended and was terminated must be identical. With ``episode ends when``, a column whose sample ends
 its run is then ended again (``end``: 0.0, nothing changes) and reset before its next sample.
+The fuzzer's compiled programs run on the generated module and the interpreter with values of every
+kind, and on the batch against one interpreter per row (masks, ``clip``, refused inputs).
 """
 
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import pickle
 import struct
@@ -430,3 +433,62 @@ def _run_operations(generated: Any, automaton: ir.Automaton, data: st.DataObject
             ours = _outcome(getattr(generated, operation), values)
             assert ours == _outcome(getattr(interpreted, operation), values), (operation, values)
         assert _state(generated) == _state(interpreted), operation
+
+
+def _column(values: list[object]) -> object:
+    """One input's values for a batch as an environment hands them over: an array of their own dtype when
+    they share one (a float32 column keeps its float32 bounds), else an object column read row by row."""
+    kinds = {np.asarray(v).dtype for v in values}
+    return np.array(values, dtype=kinds.pop() if len(kinds) == 1 else object)
+
+
+def _batch_row(batch: BatchRewardAutomaton, j: int) -> Record:
+    return (batch.location_names()[j], tuple((k, bits(float(v[j]))) for k, v in batch.rewards.items()),
+            bits(float(batch.objective[j])), int(batch.samples[j]), bits(float(batch.time[j])), bool(batch.ended[j]),
+            bool(batch.terminated[j]))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much])
+@given(program=fuzzgen.programs(), data=st.data())
+def test_compiled_programs_agree_in_a_batch(program: Any, data: st.DataObject) -> None:
+    """The batch on the fuzzer's compiled programs, against one interpreter per row: values of every kind an
+    environment hands over (numpy's and Python's, float32 columns at the bounds, now and then one outside its
+    range or of another kind), with and without ``clip``, under random masks, with ends and masked resets. A
+    call the interpreters take on every masked row gives their rewards to the bit; one that any masked row
+    refuses is refused by the batch with the same kind of error, and changes nothing."""
+    automaton = _compiled(program)
+    assume(automaton is not None)
+    assert automaton is not None
+    specs, n = input_specs(automaton), 3
+    rows = [RewardAutomaton(automaton) for _ in range(n)]
+    batch = BatchRewardAutomaton(automaton, n, strategy=data.draw(st.sampled_from(["table", "direct"])))
+    for _ in range(data.draw(st.integers(1, 25), label="operations")):
+        operation = data.draw(st.sampled_from(["step"] * 5 + ["end", "reset"]))
+        mask = np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n), label="mask"))
+        if operation == "reset":
+            for j in np.flatnonzero(mask):
+                rows[j].reset()
+            batch.reset(mask=mask)
+        else:
+            mask &= ~batch.ended if operation == "step" else ~batch.ended | batch.terminated
+            if not mask.any():  # nothing read: a column no row could hold (strings) is still refused by its dtype
+                continue
+            clip = data.draw(st.booleans(), label="clip")
+            values = [{spec.name: data.draw(typed_value(spec), label=spec.name) for spec in specs} for _ in rows]
+            trial = [copy.copy(ra) for ra in rows]
+            outcomes = [_outcome(functools.partial(getattr(ra, operation), clip=clip), values[j]) if mask[j]
+                        else ("ok", bits(0.0)) for j, ra in enumerate(trial)]
+            call = batch.step_batch if operation == "step" else batch.end_batch
+            columns = {spec.name: _column([v[spec.name] for v in values]) for spec in specs}
+            refused = [kind for kind, _ in outcomes if kind != "ok"]
+            if refused:
+                with pytest.raises((ValueError, RuntimeError)) as error:
+                    call(columns, mask=mask, clip=clip)
+                assert type(error.value).__name__ in refused, (operation, values, outcomes, error.value)
+            else:
+                got = call(columns, mask=mask, clip=clip)
+                assert [("ok", bits(float(r))) for r in got] == outcomes, (operation, values)
+                rows = trial
+        for j, ra in enumerate(rows):
+            assert _batch_row(batch, j) == _state(ra), (operation, j)
