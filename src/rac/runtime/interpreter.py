@@ -235,7 +235,8 @@ class RewardAutomaton(AutomatonDescription):
         self._objective = self._initial_objective
 
     def batch(self, n: int) -> BatchRewardAutomaton:
-        """``n`` independent copies of this automaton, stepped together with numpy."""
+        """``n`` independent copies of this automaton, stepped together with numpy, each at the start of a
+        run (this automaton's run state is not copied)."""
 
         return BatchRewardAutomaton(self._ir, n)
 
