@@ -619,3 +619,20 @@ def test_an_int_column_of_booleans_is_read_on_the_masked_rows_only(driving: ir.A
     with pytest.raises(ValueError, match=r"^input 'isClose'\[2\] = 5 is not a boolean \(True or False\)$"):
         batch.step_batch({**good, "isClose": np.array([1, 2, 5], dtype=np.uint8)}, mask=np.array([True, False, True]))
     assert batch.samples.tolist() == [1, 0, 1]
+
+
+def test_run_samples_reads_its_masks_and_repeat_as_step_batch_does(driving: ir.Automaton) -> None:
+    """``run_samples`` copied its ``active``/``ending`` rows into bool arrays, so [1.0, 0.5] was read as two
+    True rows, and it refused ``repeat=np.int64(2)``, a whole number (``batch(np.int64(n))`` takes one).
+    Its masks are now read by step_batch's rule (True/False or 0/1) and a numpy integer repeats."""
+    row = columns([inputs(), inputs(is_close=True)])
+    expected = BatchRewardAutomaton(driving, 4).run_samples([(row, np.array([True, True]), np.array([False, True]))],
+                                                            repeat=2)
+    batch = BatchRewardAutomaton(driving, 4)
+    got = batch.run_samples([(row, [1, 1], [0, 1])], repeat=np.int64(2))
+    assert got.tobytes() == expected.tobytes() and batch.ended.tolist() == [False, False, True, True]
+    for active, ending, message in [([1.0, 0.5], [False, False], "active must hold booleans"),
+                                    ([True, True], [2, 0], "ending must hold booleans .* not the value 2"),
+                                    ([True], [False, False], r"active must have shape \(2,\)")]:
+        with pytest.raises(ValueError, match=message):
+            BatchRewardAutomaton(driving, 4).run_samples([(row, active, ending)], repeat=2)

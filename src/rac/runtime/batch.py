@@ -335,15 +335,17 @@ class BatchRewardAutomaton(AutomatonDescription):
         return self._terminated.copy()
 
     # -------------------------------------------------------- running
-    def _mask(self, mask: object) -> np.ndarray:
+    def _mask(self, mask: object, n: int | None = None, what: str = "mask") -> np.ndarray:
+        """``mask`` as ``n`` booleans (default the batch's size): True/False or 0/1, nothing else."""
+        n = self._n if n is None else n
         raw = np.asarray(mask)
         if raw.dtype.kind not in "biu" or (raw.dtype.kind in "iu" and not np.isin(raw, (0, 1)).all()):
             found = f"{raw.dtype} values" if raw.dtype.kind not in "iu" else \
                 f"the value {raw[~np.isin(raw, (0, 1))].flat[0]}"
-            raise ValueError(f"mask must hold booleans (True/False or 0/1), not {found}")
+            raise ValueError(f"{what} must hold booleans (True/False or 0/1), not {found}")
         m = raw.astype(bool)
-        if m.shape != (self._n,):
-            raise ValueError(f"mask must have shape ({self._n},), not {m.shape}")
+        if m.shape != (n,):
+            raise ValueError(f"{what} must have shape ({n},), not {m.shape}")
         return m
 
     def reset(self, mask: np.ndarray | Sequence[bool] | None = None) -> None:
@@ -616,17 +618,17 @@ class BatchRewardAutomaton(AutomatonDescription):
         Bit for bit what those calls on the repeated inputs give. For an automaton whose edges are a
         table and whose rates are constants, a sample is a few array operations: inputs are read and
         the guard atoms coded on the rows, not on every copy, which makes replaying a transition cheap."""
-        if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1 or self._n % repeat:
+        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1 or self._n % repeat:
             raise ValueError(f"repeat must be a whole number >= 1 dividing n = {self._n}, not {repeat!r}")
+        repeat = int(repeat)
         rows = self._n // repeat
         total = np.zeros(self._n)
         active = np.zeros((len(samples), rows), dtype=bool)
         ending = np.zeros((len(samples), rows), dtype=bool)
         for j, (_, active_rows, ending_rows) in enumerate(samples):
-            a, e = np.asarray(active_rows), np.asarray(ending_rows)
-            if a.shape != (rows,) or e.shape != (rows,):
-                raise ValueError(f"active and ending must have shape ({rows},)")
-            active[j], ending[j] = a, e
+            # as step_batch's masks: a float 0.5 is no boolean (a bool array's assignment made it True)
+            active[j] = self._mask(active_rows, rows, "active")
+            ending[j] = self._mask(ending_rows, rows, "ending")
         with np.errstate(all="ignore"):
             if not self._run_lean(samples, active, ending, repeat, total):
                 for (inputs, _, _), a, e in zip(samples, active, ending, strict=True):
