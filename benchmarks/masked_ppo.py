@@ -17,8 +17,8 @@ seed, over whole episodes, on :class:`rac.learning.gym.ScenarioEnv` three ways:
 For each: the fraction of training steps per guarantee their mask carried (``info["shield"]``),
 the steps whose runtime shield ran out of its budget, the collisions during training (steps, and
 episodes with one), episodes off the road and at the goal, and the greedy (deterministic, masked)
-run after training. Needs the ``rl`` extra: ``pip install torch==2.13.0`` (the CPU build on this
-machine's disk), then ``pip install '.[rl]'``.
+run after training. Needs the ``rl`` extra: torch's CPU build (``pip install torch==2.13.0 --index-url
+https://download.pytorch.org/whl/cpu``), then ``pip install '.[rl]'``.
 """
 
 from __future__ import annotations

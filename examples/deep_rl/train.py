@@ -16,7 +16,8 @@ without a collision), the collisions during training and the success (goal witho
 over the evaluation episodes on the held-out scenes. ``benchmarks/deep_rl.py`` runs this over
 several seeds and writes the table. The scenes are written by the script into ``--out`` (default
 ``examples/deep_rl/out/``), never read from elsewhere. Needs the ``rl`` extra: ``pip install
-torch==2.13.0`` (the CPU build), then ``pip install '.[rl]'``.
+torch==2.13.0 --index-url https://download.pytorch.org/whl/cpu`` (the CPU build), then ``pip install
+'.[rl]'``.
 """
 
 from __future__ import annotations
