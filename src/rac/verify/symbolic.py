@@ -334,7 +334,8 @@ class SymbolicAnswerer:
             message=(f"{too_large.split(':')[0]}, so the shield is computed state by state: at the start "
                      f"{allowed} of {found.mask.size} actions have a safe continuation to the horizon; later "
                      f"states when runs reach them ({computed.seconds:g} s each at most; an action not proved "
-                     "within it is not allowed). Not saved."))
+                     "within it is not allowed, so on a loaded machine runs under it may differ at the same "
+                     "seed). Not saved."))
 
     # ------------------------------------------------------------ pieces
     def under_shield(self, name: str, what: str) -> ExploredGraph:
