@@ -90,10 +90,10 @@ def rate_diagnostic(automaton: ir.Automaton, location: ir.Location, reward: str,
             location.span, hints=["lower the rate, or the exponent of the number representation"])
     # The emitted accrual prints a term as `p*input / q` in int32 arithmetic: the product p * significand
     # is an intermediate value UPPAAL holds in 32 bits, even where the term itself fits.
-    products = [(abs(coef.numerator * v), coef, name, v) for coef, name in terms
-                for v in (values or {}).get(name, [])]
-    if not bad and products and max(products)[0] > INT32_MAX:
-        product, coef, name, v = max(products)
+    worst = None if bad else max(((abs(coef.numerator * v), coef, name, v) for coef, name in terms
+                                  for v in (values or {}).get(name, [])), default=None)
+    if worst is not None and worst[0] > INT32_MAX:
+        product, coef, name, v = worst
         divided = f" / {coef.denominator}" if coef.denominator != 1 else ""
         return unrepresentable(
             automaton,
