@@ -277,3 +277,27 @@ def test_a_generated_class_names_its_locations() -> None:
     assert env.locations == ("Want", "Wait")
     env.reset()
     assert env.step(1)[0].tolist() == [0.0, 0.0, 1.0]
+
+
+def test_the_infos_inputs_replay_to_the_real_transition() -> None:
+    """What a counterfactual replay buffer does with the wrapper's info: the row of the real location
+    is the real transition (reward and next location); the others are the automaton's from there."""
+    env = LocationObservation(RewardAutomatonWrapper(HighwayLike(), follow(), inputs, clip=True))
+    env.reset(seed=3)
+    names, visited = env.locations, set()
+    for _ in range(30):
+        before = env.get_wrapper_attr("automaton").location
+        visited.add(before)
+        obs, reward, terminated, truncated, info = env.step(2)
+        rac = info["rac"]
+        visited.add(rac["location"])
+        prior = {name: np.array([value - rac["reward_steps"][name]]) for name, value in rac["rewards"].items()}
+        cf = counterfactual_transitions(follow(), {k: np.array([v]) for k, v in rac["inputs"].items()},
+                                        rewards=prior, ended=np.array([terminated or truncated]))
+        real = names.index(before)
+        assert cf.reward[real] == pytest.approx(float(reward) * rac["scale"], abs=1e-9)
+        assert names[cf.next_location[real]] == rac["location"]
+        assert env.with_locations(obs[None, :], cf.next_location[real:real + 1]).tolist() == [obs.tolist()]
+        if terminated or truncated:
+            break
+    assert visited == {"Safe", "Unsafe"}

@@ -95,6 +95,7 @@ def test_out_of_range_inputs_are_clipped_and_counted_and_nan_refused() -> None:
     env.unwrapped.gap = 40.0  # type: ignore[attr-defined]
     info = env.step(1)[4]
     assert info["rac"]["clipped"] == {"headway": 1} and env.clipped_total == {"headway": 1}
+    assert info["rac"]["inputs"] == {"headway": 10.0, "collide": False}  # what the automaton read: clipped
     env.unwrapped.gap = 5.0  # type: ignore[attr-defined]
     info = env.step(1)[4]
     assert info["rac"]["clipped"] == {"headway": 0} and env.clipped_total == {"headway": 1}
@@ -286,7 +287,7 @@ def test_the_vector_wrapper_equals_single_wrappers_over_whole_episodes(automaton
         for i, single in enumerate(singles):
             if resetting[i]:
                 single_obs, _ = single.reset()
-                assert rewards[i] == 0.0 and infos["rac"]["location"][i] == "Safe"
+                assert rewards[i] == 0.0 and infos["rac"]["location"][i] == "Safe" and not infos["rac"]["_inputs"][i]
                 assert obs[i].tolist() == single_obs.tolist() and not terminated[i] and not truncated[i]
                 resetting[i] = False
                 continue
@@ -298,6 +299,8 @@ def test_the_vector_wrapper_equals_single_wrappers_over_whole_episodes(automaton
             assert infos["rac"]["location"][i] == info["rac"]["location"]
             assert infos["rac"]["reward_steps"]["sa"][i] == info["rac"]["reward_steps"]["sa"]
             assert infos["rac"]["clipped"]["headway"][i] == info["rac"]["clipped"]["headway"]
+            assert infos["rac"]["_inputs"][i]
+            assert {k: v[i] for k, v in infos["rac"]["inputs"].items()} == info["rac"]["inputs"]
             if term or trunc:
                 resetting[i] = True
                 episodes += 1

@@ -478,7 +478,9 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
 
     ``info["rac"]`` holds ``location``, ``rewards`` (values), ``objective`` and ``scale`` after
     ``reset`` and ``step``; after ``step`` also ``reward_steps`` (each reward's change over the
-    step, unscaled), ``env_reward`` (the environment's own reward) and ``clipped``.
+    step, unscaled), ``env_reward`` (the environment's own reward), ``clipped`` and ``inputs`` (the
+    values the automaton read, after clipping: what
+    :func:`rac.learning.counterfactual.counterfactual_transitions` replays).
 
     Example::
 
@@ -568,7 +570,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         elif terminated or truncated:
             reward += self.automaton.end(values)
         self._cut.stepped(bool(terminated or truncated), self._outside)
-        info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped,
+        info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped, "inputs": dict(values),
                        "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
         return obs, reward / self.scale, terminated, truncated, info
 
@@ -593,9 +595,10 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
 
     ``infos["rac"]`` holds, per sub-environment (vector-info layout, ``infos["_rac"]`` the mask):
     ``location``, ``objective``, ``scale``, ``env_reward``, and dicts ``rewards``,
-    ``reward_steps`` and ``clipped`` of arrays; ``infos["rac"]["_reward_steps"]`` masks off the
-    sub-environments in their reset step (no sample taken: as a reset info, they have no
-    ``reward_steps``). The ``at end`` clauses apply where a sub-environment terminated or was truncated.
+    ``reward_steps``, ``clipped`` and ``inputs`` of arrays; ``infos["rac"]["_reward_steps"]`` (and
+    ``["_inputs"]``) masks off the sub-environments in their reset step (no sample taken: as a reset
+    info, they have no ``reward_steps``; ``inputs`` is empty when all are). The ``at end`` clauses
+    apply where a sub-environment terminated or was truncated.
 
     With ``episode ends when COND``: where a step's inputs satisfy COND, that sub-environment is
     reported ``terminated`` (its automaton applied the ``at end`` clauses in the step). When the
@@ -737,6 +740,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         self._resetting = done
         now = self.automaton.rewards
         steps = {k: np.where(active, v - previous[k], 0.0) for k, v in now.items()}
+        read = {name: np.broadcast_to(np.asarray(column), (self.num_envs,)).copy() for name, column in values.items()}
         infos = self._info(infos, {"env_reward": np.asarray(env_rewards, dtype=np.float64), "clipped": clipped,
-                                   "reward_steps": steps, "_reward_steps": active.copy()})
+                                   "reward_steps": steps, "_reward_steps": active.copy(),
+                                   "inputs": read, "_inputs": active.copy()})
         return obs, rewards / self.scale, terminated, truncated, infos
