@@ -43,7 +43,8 @@ from rac.learning.vector import ScenarioVectorEnv
 from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper
 from rac.runtime.semantics import AutomatonDescription
 
-__all__ = ["LOCATION_KEY", "Layout", "LocationObservation", "LocationVectorObservation", "location_names"]
+__all__ = ["LOCATION_KEY", "Layout", "LocationObservation", "LocationVectorObservation", "location_names",
+           "one_hot_index", "replace_one_hot"]
 
 #: The key of the location in the ``"dict"`` layout.
 LOCATION_KEY = "location"
@@ -124,6 +125,28 @@ def _reported(info: Mapping[str, Any], what: str) -> Any:
     return found
 
 
+def replace_one_hot(obs: np.ndarray, locations: np.ndarray, count: int) -> np.ndarray:
+    """A batch of ``"concat"``-layout observations (``(B, D)``) with their last ``count`` columns (the
+    location's one-hot vector) set to ``locations`` (``B`` indices, checked by the caller)."""
+    batch = np.array(obs)  # a copy: the caller's batch stays as it was
+    if batch.ndim != 2 or batch.shape[0] != locations.shape[0] or batch.shape[1] <= count:
+        raise ValueError(f"obs must be a batch of {locations.shape[0]} observations ending in a one-hot vector of "
+                         f"{count} locations, not of shape {batch.shape}")
+    batch[:, -count:] = 0
+    batch[np.arange(batch.shape[0]), batch.shape[1] - count + locations] = 1
+    return batch
+
+
+def one_hot_index(obs: np.ndarray, count: int) -> np.ndarray:
+    """The location indices of a batch of ``"concat"``-layout observations (``(B, D)``); ``ValueError``
+    when a row's last ``count`` columns are not a one-hot vector."""
+    hot = np.asarray(obs)[:, -count:]
+    if not (np.isin(hot, (0, 1)).all() and (hot.sum(axis=1) == 1).all()):
+        raise ValueError(f"the observations' last {count} columns are not one-hot location vectors (is the "
+                         "observation LocationObservation's, with layout 'concat', and not normalised?)")
+    return np.argmax(hot, axis=1)
+
+
 class _Locations:
     """The location part of observations: one owner for both wrappers."""
 
@@ -162,11 +185,7 @@ class _Locations:
             raise ValueError(f"locations must be a 1-D array of location indices in [0, {len(self.names)}), "
                              f"not {locations!r}")
         if self.layout == "concat":
-            batch = np.asarray(obs)
-            if batch.ndim != 2 or batch.shape[0] != rows.shape[0]:
-                raise ValueError(f"obs must be a batch of {rows.shape[0]} observations with the location part, "
-                                 f"not of shape {batch.shape}")
-            return self.add(batch[:, :-len(self.names)], rows, batched=True)
+            return replace_one_hot(obs, rows, len(self.names))
         if not isinstance(obs, Mapping) or LOCATION_KEY not in obs:
             raise ValueError(f"obs must be a batch of Dict observations with the key {LOCATION_KEY!r}")
         return {**obs, LOCATION_KEY: rows.astype(np.int64)}

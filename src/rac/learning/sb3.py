@@ -1,4 +1,5 @@
-"""A stable-baselines3 callback logging the reward automaton (:class:`RacCallback`).
+"""stable-baselines3 helpers: a callback logging the reward automaton (:class:`RacCallback`) and a
+replay buffer storing counterfactual transitions (:class:`CounterfactualReplayBuffer`).
 
 stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this module needs it,
 :mod:`rac.learning.training_log` (what is recorded) does not.
@@ -6,15 +7,21 @@ stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this mo
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
+
 try:
+    from stable_baselines3.common.buffers import ReplayBuffer
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
+from rac.learning.replay import CounterfactualRows
 from rac.learning.training_log import TrainingLog
 
-__all__ = ["RacCallback"]
+__all__ = ["CounterfactualReplayBuffer", "RacCallback"]
 
 
 class RacCallback(BaseCallback):
@@ -62,3 +69,44 @@ class RacCallback(BaseCallback):
         self._logged = self.log.values()
         for key, value in self._logged.items():
             self.logger.record(key, value)
+
+
+class CounterfactualReplayBuffer(ReplayBuffer):
+    """A ``ReplayBuffer`` that stores, beside each real transition, its counterfactual ones: the same
+    environment transition from every other location of the reward automaton
+    (:class:`rac.learning.replay.CounterfactualRows`; Toro Icarte et al.'s CRM). For an off-policy
+    algorithm (DQN, SAC, ...) on environments wrapped ``LocationObservation(RewardAutomatonWrapper(env,
+    automaton, inputs))`` (the ``"concat"`` layout): pass the same automaton in
+    ``replay_buffer_kwargs``. Each step fills ``L`` rows per environment (``L`` locations), so the
+    buffer holds ``buffer_size / L`` steps' worth of real transitions.
+
+    Example::
+
+        env = LocationObservation(RewardAutomatonWrapper(gymnasium.make(id), "driving.ra", inputs))
+        model = DQN("MlpPolicy", env, replay_buffer_class=CounterfactualReplayBuffer,
+                    replay_buffer_kwargs={"automaton": "driving.ra"})
+    """
+
+    def __init__(self, buffer_size: int, observation_space: Any, action_space: Any, device: Any = "auto",
+                 n_envs: int = 1, optimize_memory_usage: bool = False, handle_timeout_termination: bool = True,
+                 *, automaton: Any) -> None:
+        if optimize_memory_usage:  # it reads a row's next observation from the row after: not so here
+            raise ValueError("CounterfactualReplayBuffer stores several rows per step: optimize_memory_usage=True "
+                             "reads a row's next observation from the next row, which would be another location's")
+        super().__init__(buffer_size, observation_space, action_space, device=device, n_envs=n_envs,
+                         optimize_memory_usage=False, handle_timeout_termination=handle_timeout_termination)
+        #: Builds the counterfactual rows; ``rows.locations`` the one-hot vector's order.
+        self.rows = CounterfactualRows(automaton)
+        shape = getattr(observation_space, "shape", None)
+        if shape is None or len(shape) != 1 or shape[0] <= len(self.rows.locations):
+            raise ValueError(f"CounterfactualReplayBuffer needs a one-dimensional Box observation ending in the "
+                             f"location's one-hot vector (LocationObservation's 'concat' layout), not "
+                             f"{observation_space}")
+
+    def add(self, obs: np.ndarray, next_obs: np.ndarray, action: np.ndarray, reward: np.ndarray, done: np.ndarray,
+            infos: list[dict[str, Any]]) -> None:
+        """Store the real transitions, then one counterfactual transition per environment for each
+        location the automaton was not in."""
+        super().add(obs, next_obs, action, reward, done, infos)
+        for batch in self.rows.step(obs, next_obs, done, infos):
+            super().add(batch.obs, batch.next_obs, action, batch.reward, done, infos)

@@ -1,0 +1,121 @@
+"""Counterfactual transitions for a deep learner's replay buffer, from rac's wrappers' infos.
+
+One vector step of ``n`` environments, each a :class:`~rac.learning.wrappers.RewardAutomatonWrapper`
+under :class:`~rac.learning.location_observation.LocationObservation` (``"concat"`` layout), as an
+off-policy algorithm stores it (stable-baselines3's ``ReplayBuffer.add``: observations ``(n, D)``,
+one info dict per environment): :class:`CounterfactualRows` gives the ``L - 1`` other batches of
+``n`` transitions, one per location the automaton was not in — the same environment transitions,
+with the observation's location, the reward and the next location the automaton would have had
+(:mod:`rac.learning.counterfactual`). :class:`rac.learning.sb3.CounterfactualReplayBuffer` stores
+them beside the real ones.
+
+Exact when the observation shows the automaton only through its location and the episode's end does
+not depend on the automaton (no ``episode ends when``), as for :mod:`rac.learning.counterfactual`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rac import ir
+from rac.compiler import compile_file
+from rac.learning.counterfactual import Replayer, counterfactual_transitions
+from rac.learning.location_observation import one_hot_index, replace_one_hot
+from rac.runtime.semantics import AutomatonDescription
+
+__all__ = ["CounterfactualRows", "CounterfactualStep"]
+
+#: The keys of ``info["rac"]`` a counterfactual replay reads (RewardAutomatonWrapper's step info).
+NEEDED = ("inputs", "rewards", "reward_steps", "scale", "location")
+
+
+@dataclass(frozen=True, eq=False)
+class CounterfactualStep:
+    """``n`` counterfactual transitions (one per environment) from locations the automaton was not in:
+    ``obs`` and ``next_obs`` (``(n, D)``, the location columns replaced), the ``reward`` (``(n,)``,
+    scaled as the wrapper scales) and the ``location`` and ``next_location`` indices."""
+
+    obs: np.ndarray
+    next_obs: np.ndarray
+    reward: np.ndarray
+    location: np.ndarray
+    next_location: np.ndarray
+
+
+def _automaton(automaton: str | os.PathLike[str] | ir.Automaton | AutomatonDescription) -> ir.Automaton:
+    if isinstance(automaton, ir.Automaton):
+        return automaton
+    if isinstance(automaton, AutomatonDescription):
+        return automaton.ir
+    if isinstance(automaton, (str, os.PathLike)):
+        return compile_file(Path(automaton)).raise_for_errors(warn=True)
+    raise TypeError(f"automaton must be a .ra path, an ir.Automaton or a RewardAutomaton, not {automaton!r}")
+
+
+class CounterfactualRows:
+    """Builds the counterfactual transitions of vector steps (see the module docstring).
+
+    Args:
+        automaton: the automaton the wrappers run (a ``.ra`` path, an :class:`rac.ir.Automaton`, or a
+            runtime from :func:`rac.load`); its location order is the one-hot vector's.
+    """
+
+    def __init__(self, automaton: str | os.PathLike[str] | ir.Automaton | AutomatonDescription) -> None:
+        program = _automaton(automaton)
+        self._replayer = Replayer(program)
+        #: The location names, index ``i`` the one-hot column ``i``.
+        self.locations: tuple[str, ...] = program.location_names
+        self._index = {name: i for i, name in enumerate(self.locations)}
+
+    def _infos(self, infos: Sequence[Mapping[str, Any]], n: int) -> list[Mapping[str, Any]]:
+        if len(infos) != n:
+            raise ValueError(f"infos must hold one dict per environment ({n}), not {len(infos)}")
+        found: list[Mapping[str, Any]] = []
+        for i, info in enumerate(infos):
+            rac = info.get("rac") if isinstance(info, Mapping) else None
+            missing = [key for key in NEEDED if not isinstance(rac, Mapping) or key not in rac]
+            if missing or not isinstance(rac, Mapping):
+                raise ValueError(f"infos[{i}] has no info['rac'][{missing[0]!r}]: counterfactual transitions need "
+                                 "the step info of rac.learning.wrappers.RewardAutomatonWrapper (inputs, rewards, "
+                                 "reward_steps, scale, location), around each environment")
+            found.append(rac)
+        return found
+
+    def step(self, obs: np.ndarray, next_obs: np.ndarray, done: np.ndarray,
+             infos: Sequence[Mapping[str, Any]]) -> list[CounterfactualStep]:
+        """The ``L - 1`` batches of counterfactual transitions of one vector step: ``obs`` before and
+        ``next_obs`` after it (``(n, D)``, the location's one-hot vector in the last ``L`` columns),
+        ``done`` where the episode ended (the ``at end`` clauses apply), ``infos`` the wrappers' step
+        infos. Batch ``k`` starts each environment ``k`` locations after the one it was in."""
+        obs, next_obs = np.asarray(obs), np.asarray(next_obs)
+        count = len(self.locations)
+        n = int(obs.shape[0])
+        racs = self._infos(infos, n)
+        real = one_hot_index(obs, count)
+        after = np.array([self._index[str(rac["location"])] for rac in racs], dtype=np.int64)
+        if not np.array_equal(one_hot_index(next_obs, count), after):
+            raise ValueError("next_obs's location columns differ from info['rac']['location']: the observation's "
+                             "one-hot vector is not this automaton's (another automaton, or another location order)")
+        names = list(racs[0]["inputs"])
+        inputs = {name: np.array([rac["inputs"][name] for rac in racs]) for name in names}
+        prior = {name: np.array([float(rac["rewards"][name]) - float(rac["reward_steps"][name]) for rac in racs])
+                 for name in racs[0]["rewards"]}
+        scale = np.array([float(rac["scale"]) for rac in racs])
+        cf = counterfactual_transitions(self._replayer, inputs, rewards=prior,
+                                        ended=np.asarray(done, dtype=bool).reshape(n))
+        rows = np.arange(n)
+        batches = []
+        for k in range(1, count):
+            location = (real + k) % count
+            pick = rows * count + location
+            next_location = cf.next_location[pick]
+            batches.append(CounterfactualStep(replace_one_hot(obs, location, count),
+                                              replace_one_hot(next_obs, next_location, count),
+                                              cf.reward[pick] / scale, location, next_location))
+        return batches

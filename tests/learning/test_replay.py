@@ -1,0 +1,98 @@
+"""Counterfactual transitions for a replay buffer (rac.learning.replay) and stable-baselines3's
+buffer built on them (rac.learning.sb3.CounterfactualReplayBuffer; skipped without SB3)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from highway_like import HighwayLike, follow, inputs
+from test_location_observation import Blank, alternate, took
+
+from rac.learning.location_observation import LocationObservation
+from rac.learning.replay import CounterfactualRows
+from rac.learning.wrappers import RewardAutomatonWrapper
+from rac.runtime.interpreter import RewardAutomaton
+
+
+def steps(seed: int, actions: list[int]) -> list[tuple[np.ndarray, np.ndarray, bool, dict[str, Any]]]:
+    """(obs, next_obs, done, info) of each step of one episode on the highway-like environment."""
+    env = LocationObservation(RewardAutomatonWrapper(HighwayLike(), follow(), inputs, clip=True, scale=3.0))
+    obs, _ = env.reset(seed=seed)
+    found = []
+    for action in actions:
+        after, _, terminated, truncated, info = env.step(action)
+        found.append((obs, after, terminated or truncated, info))
+        obs = after
+        if terminated or truncated:
+            break
+    return found
+
+
+def test_each_other_location_replayed_as_the_automaton_would() -> None:
+    rows = CounterfactualRows(follow())
+    names = rows.locations
+    oracle = RewardAutomaton(follow()).batch(1)
+    seen = set()
+    for before, after, done, info in steps(1, [2] * 3 + [0] * 20):  # Unsafe, then a crash
+        [batch] = rows.step(before[None, :], after[None, :], np.array([done]), [info])  # two locations: one other
+        rac = info["rac"]
+        real = names.index("Safe") if before[-2] == 1 else names.index("Unsafe")
+        other = 1 - real
+        assert batch.location.tolist() == [other] and batch.obs[0, -2:].tolist() == [float(other == 0),
+                                                                                      float(other == 1)]
+        assert batch.obs[0, :-2].tolist() == before[:-2].tolist()  # the environment's part is the real one
+        # the oracle: one automaton put in the other location with the rewards before the step
+        prior = {name: np.array([rac["rewards"][name] - rac["reward_steps"][name]]) for name in rac["rewards"]}
+        oracle.resume(np.array([other]), prior)
+        values = {name: np.array([value]) for name, value in rac["inputs"].items()}
+        expected = oracle.step_batch(values)
+        if done:
+            expected = expected + oracle.end_batch(values)
+        assert batch.reward[0] == pytest.approx(expected[0] / 3.0)
+        assert batch.next_location.tolist() == oracle.locations.tolist()
+        assert batch.next_obs[0, -2:].tolist() == [float(oracle.locations[0] == 0), float(oracle.locations[0] == 1)]
+        seen.add((names[real], done))
+    assert {name for name, _ in seen} == {"Safe", "Unsafe"} and any(done for _, done in seen)
+
+
+def test_what_is_refused_is_said() -> None:
+    rows = CounterfactualRows(follow())
+    [(before, after, done, info)] = steps(3, [1])
+    with pytest.raises(ValueError, match=r"infos\[0\] has no info\['rac'\]\['inputs'\].*RewardAutomatonWrapper"):
+        rows.step(before[None, :], after[None, :], np.array([done]), [{"rac": {"location": "Safe"}}])
+    with pytest.raises(ValueError, match="one dict per environment"):
+        rows.step(before[None, :], after[None, :], np.array([done]), [info, info])
+    squashed = before[None, :].copy()
+    squashed[0, -2:] = [0.5, 0.5]  # a normalised observation
+    with pytest.raises(ValueError, match="not one-hot location vectors"):
+        rows.step(squashed, after[None, :], np.array([done]), [info])
+    swapped = after[None, :].copy()
+    swapped[0, -2:] = swapped[0, -2:][::-1]
+    with pytest.raises(ValueError, match="differ from info\\['rac'\\]\\['location'\\]"):
+        rows.step(before[None, :], swapped, np.array([done]), [info])
+
+
+def test_stable_baselines3_buffer_stores_every_location() -> None:
+    pytest.importorskip("stable_baselines3", reason="needs stable-baselines3 (the rl extra)")
+    from stable_baselines3 import DQN
+
+    from rac.learning.sb3 import CounterfactualReplayBuffer
+
+    env = LocationObservation(RewardAutomatonWrapper(Blank(), alternate(), took))
+    model = DQN("MlpPolicy", env, learning_starts=1000, buffer_size=1000, seed=0,
+                replay_buffer_class=CounterfactualReplayBuffer, replay_buffer_kwargs={"automaton": alternate()})
+    model.learn(40)
+    buffer = model.replay_buffer
+    assert isinstance(buffer, CounterfactualReplayBuffer) and buffer.pos == 80  # two rows per step
+    obs, rewards = buffer.observations[:80, 0], buffer.rewards[:80, 0]
+    real, counterfactual = obs[0::2], obs[1::2]
+    assert (real[:, 1:] != counterfactual[:, 1:]).any(axis=1).all()  # the other location, each time
+    # exactly one of the two locations pays for any action: Want pays for a, Wait for !a
+    assert (rewards[0::2] + rewards[1::2]).tolist() == [1.0] * 40
+    with pytest.raises(ValueError, match="optimize_memory_usage"):
+        CounterfactualReplayBuffer(10, env.observation_space, env.action_space, optimize_memory_usage=True,
+                                   automaton=alternate())
+    with pytest.raises(ValueError, match="one-hot vector"):
+        CounterfactualReplayBuffer(10, Blank.observation_space, env.action_space, automaton=alternate())
