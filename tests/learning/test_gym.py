@@ -87,7 +87,8 @@ def test_rewards_are_the_automatons_and_end_is_applied(mode: str) -> None:
         assert info["k"] == obs
         assert info["rac"] == {"location": reference.location, "rewards": reference.rewards,
                                "objective": reference.objective, "env_reward": 7.0, "scale": 1.0, "clipped": {},
-                               "inputs": values, "reward_steps": {k: v - before[k] for k, v in reference.rewards.items()}}
+                               "inputs": values,
+                               "reward_steps": {k: v - before[k] for k, v in reference.rewards.items()}}
     assert run[-1][1] == pytest.approx(run[-1][4]["rac"]["objective"] - run[-2][4]["rac"]["objective"])
     assert run[-1][4]["rac"]["rewards"]["pr"] > 100  # the end bonus (dgoal < 2)
     assert sum(r[1] for r in run) == pytest.approx(run[-1][4]["rac"]["objective"])
