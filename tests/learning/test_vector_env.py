@@ -32,6 +32,7 @@ from rac.engine.explore import explore
 from rac.engine.shield import ShieldTable
 from rac.engine.storm import safety_shield
 from rac.learning.episodes import EpisodeBatch
+from rac.learning.location_observation import LocationObservation
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.vector import ScenarioSyncVectorEnv, ScenarioVectorEnv, action_masks, make_vector_env
 from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper
@@ -289,6 +290,25 @@ def test_maskable_ppo_on_make_vec_env(files: dict[str, Path], table: ShieldTable
     assert sum(sum(counter.values()) for counter in steps) >= 256
     allowed = [env.unwrapped.no_safe_action_steps for env in venv.envs]  # type: ignore[attr-defined]
     assert allowed == [0, 0]  # every state the learner met had a safe action in the table
+
+
+def test_maskable_ppo_with_the_location_observed(files: dict[str, Path], table: ShieldTable) -> None:
+    """LocationObservation as make_vec_env's wrapper_class: outside SB3's Monitor, masks through it."""
+    pytest.importorskip("sb3_contrib", reason="sb3-contrib is not installed")
+    from sb3_contrib import MaskablePPO
+    from sb3_contrib.common.maskable.utils import get_action_masks
+    from stable_baselines3.common.env_util import make_vec_env
+
+    venv = make_vec_env(rac.gym.SCENARIO, n_envs=2, seed=0, wrapper_class=LocationObservation,
+                        env_kwargs={"model": files["avoidable_obstacle"], "shield": table, "lookahead": None})
+    names = venv.get_attr("locations")[0]
+    assert venv.observation_space.shape == (29 + len(names),)
+    obs = venv.reset()
+    assert obs[:, 29:].tolist() == [[float(name == names[0]) for name in names]] * 2  # the initial location
+    assert not get_action_masks(venv).all()
+    model = MaskablePPO("MlpPolicy", venv, n_steps=64, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.learn(128)
+    assert [env.unwrapped.no_safe_action_steps for env in venv.envs] == [0, 0]  # type: ignore[attr-defined]
 
 
 # ---------------------------------------------------------------- equivalence with SyncVectorEnv
