@@ -66,7 +66,7 @@ def _number(name: str, raw: object, low: float, high: float) -> float:
         raise ValueError(f"input {name!r} = {raw!r} is too large for a float") from None
     if not low <= value <= high and type(raw).__name__ in ("float32", "float16"):
         # a narrower float (an env's float32) at a bound rounded to its precision is that bound
-        narrow = type(raw)
+        narrow: type = type(raw)  # numpy's float32: called with a float (numbers.Real takes no argument)
         if narrow(low) == raw:
             return low
         if narrow(high) == raw:
