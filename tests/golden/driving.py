@@ -91,6 +91,32 @@ def _range_error(name: str, value: float, low: float, high: float) -> ValueError
     return ValueError(message)
 
 
+def _clip(inputs: Mapping[str, object],
+          bounds: tuple[tuple[str, float, float], ...]) -> tuple[dict[str, object], dict[str, int]]:
+    # the interpreter's `clip=True`: each numeric value outside its range (``bounds``: name, low, high)
+    # clipped to it and counted; NaN is refused; what is not a number (a bool too) is left to validation
+    _mapping(inputs, ())  # not a mapping: ValueError, whatever the annotation says
+    out = dict(inputs)
+    counts: dict[str, int] = {}
+    for name, low, high in bounds:
+        if name not in inputs:
+            continue
+        raw = inputs[name]
+        if not isinstance(raw, numbers.Real) or type(raw).__name__ in ("bool", "bool_"):
+            continue
+        try:  # a float32 at a bound rounded to float32 is that bound: nothing to clip or count
+            value = _number(name, raw, low, high)
+        except ValueError:
+            continue  # validation says it is too large for a float
+        if math.isnan(value):
+            raise ValueError(f"input {name!r} is NaN, which is never clipped")
+        clipped = min(max(value, low), high)
+        counts[name] = int(clipped != value)
+        if clipped != value:
+            out[name] = clipped
+    return out, counts
+
+
 def _assume_error(clause: str, *values: tuple[str, object]) -> ValueError:
     # the interpreter's words: the clause violated, then the values of the inputs it reads
     read = ", ".join(f"{name}={value!r}" for name, value in values)
@@ -117,7 +143,17 @@ class Driving:
     ``at end`` clauses once; ``reset()`` starts a new run.
     """
 
-    __slots__ = ("_ended", "_loc", "_objective", "_r_co", "_r_pr", "_r_sa", "_samples", "_terminated")
+    __slots__ = (
+        "_ended",
+        "_loc",
+        "_objective",
+        "_r_co",
+        "_r_pr",
+        "_r_sa",
+        "_samples",
+        "_terminated",
+        "clipped",
+    )
 
     name = "Driving"
     #: Input names, in declaration order.
@@ -131,6 +167,8 @@ class Driving:
     steps = 300
 
     def __init__(self) -> None:
+        #: Per numeric input, how many values the last ``step``/``end`` with ``clip=True`` clipped.
+        self.clipped: dict[str, int] = {}
         self.reset()
 
     def reset(self) -> None:
@@ -144,10 +182,16 @@ class Driving:
         self._terminated = False
         self._objective = 0.0
 
-    def step(self, inputs: Mapping[str, object]) -> float:
-        """Take one sample with ``inputs``; return the objective's increase."""
+    def step(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
+        """Take one sample with ``inputs``; return the objective's increase.
+
+        ``clip``: numeric values outside their declared range are clipped to it first (NaN is
+        refused), and ``clipped`` counts them."""
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
+        counts: dict[str, int] | None = None
+        if clip:
+            inputs, counts = _clip(inputs, (("dgoal", 0.0, 500.0),))
         if type(inputs) is not dict:
             _mapping(inputs, self.inputs)
         try:
@@ -178,6 +222,8 @@ class Driving:
                 ("collide", i_collide),
                 ("isClose", i_isClose),
             )
+        if counts is not None:
+            self.clipped = counts
         r_sa = self._r_sa
         r_pr = self._r_pr
         r_co = self._r_co
@@ -234,14 +280,18 @@ class Driving:
         self._objective = objective
         return reward
 
-    def end(self, inputs: Mapping[str, object]) -> float:
+    def end(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
         """End the run with the final ``inputs`` (applies ``at end``); return the objective's increase.
 
-        After a sample that ended the run (``terminated``): 0.0, nothing read or changed."""
+        ``clip`` as in ``step``. After a sample that ended the run (``terminated``): 0.0, nothing
+        read or changed."""
         if self._terminated:
             return 0.0
         if self._ended:
             raise RuntimeError("the run has ended; call reset() first")
+        counts: dict[str, int] | None = None
+        if clip:
+            inputs, counts = _clip(inputs, (("dgoal", 0.0, 500.0),))
         if type(inputs) is not dict:
             _mapping(inputs, self.inputs)
         try:
@@ -272,6 +322,8 @@ class Driving:
                 ("collide", i_collide),
                 ("isClose", i_isClose),
             )
+        if counts is not None:
+            self.clipped = counts
         r_sa = self._r_sa
         r_pr = self._r_pr
         r_co = self._r_co
@@ -327,6 +379,7 @@ class Driving:
     def __setstate__(self, state: dict[str, object]) -> None:
         for slot in self.__slots__:
             object.__setattr__(self, slot, state[slot])
+        self.clipped = dict(self.clipped)  # a copy counts on its own, as the interpreter's does
 
     def __repr__(self) -> str:
         ending = ", terminated" if self._terminated else ", ended" if self._ended else ""

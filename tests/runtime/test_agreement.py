@@ -400,7 +400,8 @@ def test_compiled_programs_agree(program: Any, data: st.DataObject) -> None:
     """Programs from the fuzzer's generator (tests/support/fuzzgen.py: inputs of each kind with ranges,
     `assume`, rates reading inputs, translations and resets, `at end`, `episode ends when`, several
     rewards and a weighted objective, names Python reserves) compiled by the checker, then run by the
-    generated module and the interpreter on the same random operations: steps, ends, resets mid-run,
+    generated module and the interpreter on the same random operations: steps, ends (with and without
+    ``clip``, whose counts must agree too), resets mid-run,
     and copies and pickles (a vector environment's workers) that go on from where the original was.
     Every outcome (a reward's bits, or the error's type and words) and the state after it must agree."""
     automaton = _compiled(program)
@@ -430,9 +431,12 @@ def _run_operations(generated: Any, automaton: ir.Automaton, data: st.DataObject
             interpreted = pickle.loads(pickle.dumps(interpreted, protocol))  # noqa: S301
         else:
             values = {spec.name: data.draw(typed_value(spec), label=spec.name) for spec in specs}
-            ours = _outcome(getattr(generated, operation), values)
-            assert ours == _outcome(getattr(interpreted, operation), values), (operation, values)
+            clip = data.draw(st.booleans(), label="clip")
+            ours = _outcome(functools.partial(getattr(generated, operation), clip=clip), values)
+            theirs = _outcome(functools.partial(getattr(interpreted, operation), clip=clip), values)
+            assert ours == theirs, (operation, clip, values)
         assert _state(generated) == _state(interpreted), operation
+        assert generated.clipped == interpreted.clipped, operation
 
 
 def _column(values: list[object]) -> object:

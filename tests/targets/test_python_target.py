@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import collections
+import copy
 import json
 import math
 import os
@@ -414,6 +415,30 @@ def test_an_array_for_one_value_is_refused_saying_so() -> None:
                 messages.append(str(error))
             assert ra.samples == 0
         assert messages[0] == messages[1]
+
+
+def test_clip_clips_counts_and_refuses_like_the_interpreter() -> None:
+    """``step``/``end`` take ``clip=`` as the interpreter's do (the module had no such option): the same
+    rewards, the same ``clipped`` counts, the same refusals (NaN; a call that raises keeps the last counts)."""
+    generated, interpreter = load(generate_python(driving_automaton())).Driving(), RewardAutomaton(driving_automaton())
+    for dgoal in (600.0, -math.inf, 3, np.float32(700.0), True, Fraction(-1, 3)):
+        values = {**inputs(), "dgoal": dgoal}
+        assert bits(generated.step(values, clip=True)) == bits(interpreter.step(values, clip=True))
+        assert generated.clipped == interpreter.clipped
+    assert generated.clipped == {"dgoal": 1}
+    for bad in ({**inputs(), "dgoal": math.nan}, {**inputs(), "dgoal": "far"}, [1.0], {**inputs(), "extra": 1}):
+        with pytest.raises(ValueError) as ours:
+            generated.step(bad, clip=True)
+        with pytest.raises(ValueError) as theirs:
+            interpreter.step(bad, clip=True)
+        assert str(ours.value) == str(theirs.value)
+        assert generated.clipped == interpreter.clipped == {"dgoal": 1}
+    with pytest.raises(ValueError, match="outside"):
+        generated.step(inputs(dgoal=600.0))  # without clip, as before
+    assert bits(generated.end(inputs(dgoal=-1.0), clip=True)) == bits(interpreter.end(inputs(dgoal=-1.0), clip=True))
+    assert generated.clipped == interpreter.clipped == {"dgoal": 1}
+    twin = copy.deepcopy(generated)  # through __getstate__/__setstate__, as pickle goes
+    assert twin.clipped == {"dgoal": 1} and twin.clipped is not generated.clipped
 
 
 def test_a_defaultdict_does_not_invent_a_missing_input() -> None:

@@ -60,10 +60,10 @@ _LINE = 110
 RESERVED_NAMES = frozenset({
     # imports and helpers of the template
     "annotations", "math", "numbers", "Mapping",
-    "_key_error", "_mapping", "_boolean", "_number", "_range_error", "_assume_error", "_array_hint",
+    "_key_error", "_mapping", "_boolean", "_number", "_range_error", "_assume_error", "_array_hint", "_clip",
     # builtins called, raised or named in annotations (typing.get_type_hints evaluates those)
     "bool", "float", "int", "str", "bytes", "object", "dict", "tuple", "len", "isinstance", "type", "repr", "sorted",
-    "getattr", "callable", "any",
+    "getattr", "min", "max", "callable", "any",
     "property", "super", "ValueError", "KeyError", "RuntimeError", "OverflowError", "TypeError",
     # (every dunder, `__all__` among them, is renamed too: see python_class_name)
 })
@@ -170,9 +170,12 @@ def _py(value: object) -> str:
     return text
 
 
-def _pytuple(items: Iterable[object], column: int = 0) -> str:
-    """A tuple literal; wrapped one item per line when it would not fit after ``column``."""
-    parts = [_py(item) for item in items]
+def _pytuple(items: Iterable[object], column: int = 0, *, printed: bool = False) -> str:
+    """A tuple literal (of already ``printed`` items, or of values); wrapped one item per line when it
+    would not fit after ``column``."""
+    parts = [str(item) if printed else _py(item) for item in items]
+    if not parts:
+        return "()"
     if len(parts) == 1:
         return f"({parts[0]},)"
     flat = "(" + ", ".join(parts) + ")"
@@ -272,7 +275,9 @@ class _Generator:
                  if re.search(rf"\b{var}\b", text)]
         stores = [f"self.{self.slots[r]} = {var}" for r, var in self.rewards.items()
                   if re.search(rf"^\s*{var} = ", "\n".join(body), re.MULTILINE)]
-        return self.read(text) + loads + body + stores + tail
+        # the counts of `clip=True` are kept once the inputs are read: a call that raises changes nothing
+        kept = ["if counts is not None:", "    self.clipped = counts"]
+        return self.read(text) + kept + loads + body + stores + tail
 
     def step(self) -> list[str]:
         a = self.a
@@ -508,7 +513,8 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
         name=automaton.name,
         class_name=class_name,
         docstring=gen.docstring(class_name),
-        slots=sorted(("_loc", *reward_slots, *held_slots, "_samples", "_ended", "_terminated", "_objective")),
+        slots=sorted(("_loc", *reward_slots, *held_slots, "_samples", "_ended", "_terminated", "_objective",
+                      "clipped")),
         inputs=tuple(i.name for i in automaton.inputs),
         reward_names=tuple(automaton.rewards),
         locations=automaton.location_names,
@@ -524,4 +530,6 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
         end_body=_indent(gen.end()),
         rewards_dict=_pydict([(_py(r), f"self.{gen.slots[r]}") for r in automaton.rewards], 15),
         time_expr=time_expr,
+        bounds=_pytuple([f"({_py(s.name)}, {_num_or_inf(s.low)}, {_num_or_inf(s.high)})"
+                         for s in gen.specs if not s.is_bool], 40, printed=True),
     )
