@@ -13,6 +13,7 @@ automaton gives 0.0 and changes nothing, as ``end`` does on the scalar runtime.
 
 from __future__ import annotations
 
+import functools
 import operator
 from collections.abc import Callable, Mapping, Sequence
 from fractions import Fraction
@@ -24,18 +25,20 @@ from rac import ir
 from rac.runtime.semantics import (
     ENDED_MESSAGE,
     AutomatonDescription,
+    FloatAtom,
+    FloatAtoms,
     FloatLinear,
     assume_checks,
     at_bounds,
     check_automaton,
     check_mapping,
     clip_inputs,
+    float_atoms,
     float_linear,
     input_specs,
     key_error,
     object_column,
     range_error,
-    to_float,
 )
 
 __all__ = ["BatchRewardAutomaton"]
@@ -78,11 +81,24 @@ def _spread_inputs(inputs: Mapping[str, object], repeat: int) -> dict[str, objec
     return spread
 
 
+def _constant_truth(truth: bool, values: np.ndarray, threshold: float) -> np.ndarray:
+    return np.full(np.shape(values), truth)
+
+
+def _np_atom(compared: FloatAtom) -> tuple[Callable[[np.ndarray, float], np.ndarray], float]:
+    """An atom as :func:`rac.runtime.semantics.float_atoms` compares it: a numpy comparison with a float,
+    or a constant truth as one (a partial: a batch is copied and pickled)."""
+    if isinstance(compared, bool):
+        return functools.partial(_constant_truth, compared), 0.0
+    return _NP_OPS[compared[0]], compared[1]
+
+
 class _Guards:
     """Every distinct guard sub-expression of an automaton, evaluated once per call over all n."""
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n: int, atoms: FloatAtoms) -> None:
         self._n = n
+        self._atoms = atoms
         self._ids: dict[ir.Guard, int] = {}
         self.program: list[tuple[str, Any]] = []
 
@@ -96,7 +112,7 @@ class _Guards:
         fold: ir.GuardFold[int] = ir.GuardFold(  # built per call: no closures kept on the instance
             const=lambda value: self._step("const", np.full(self._n, bool(value))),
             boolean=lambda leaf: self._step("input", leaf.name),
-            atom=lambda leaf: self._step("atom", (leaf.input, _NP_OPS[leaf.op], to_float(leaf.threshold, "threshold"))),
+            atom=lambda leaf: self._step("atom", (leaf.input, *_np_atom(self._atoms(leaf)))),
             negate=lambda inner: self._step("not", inner),
             conjoin=lambda parts: self._step("and", parts),
             disjoin=lambda parts: self._step("or", parts))
@@ -170,7 +186,8 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._period = Fraction(automaton.period)
         self._index = {name: i for i, name in enumerate(automaton.rewards)}
         k, n_loc = len(automaton.rewards), len(automaton.locations)
-        self._guards = _Guards(self._n)
+        self._float_atoms = float_atoms(automaton)
+        self._guards = _Guards(self._n, self._float_atoms)
 
         # ---- rates: constant tables, plus per-slot coefficient tables for input-dependent rates
         forms = [[float_linear(loc.rates[i].scaled(self._period), "rate") for loc in automaton.locations]
@@ -262,7 +279,7 @@ class BatchRewardAutomaton(AutomatonDescription):
                 self._atom_list.append((atom.name, None, 0.0))
             else:
                 assert isinstance(atom, ir.BAtom)
-                self._atom_list.append((atom.input, _NP_OPS[atom.op], to_float(atom.threshold, "threshold")))
+                self._atom_list.append((atom.input, *_np_atom(self._float_atoms(atom))))
         self._atom_bits = a
         self._code_dtype = np.uint8 if a <= 8 else np.uint16
         combos = [{atom: bool(code >> bit & 1) for atom, bit in atoms.items()} for code in range(1 << a)]

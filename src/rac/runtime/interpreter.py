@@ -26,7 +26,8 @@ One ``step(inputs)`` (one sample):
 
 A linear form ``c0 + c1*v1 + ... + ck*vk`` is always evaluated as
 ``((float(c0) + float(c1)*v1) + ...) + float(ck)*vk``; guard atoms compare the input with
-``float(threshold)``. ``end(inputs)`` validates, checks ``assume``, applies every end clause
+``float(threshold)``, exactly for the number the float stands for (:func:`rac.runtime.semantics.float_atoms`).
+``end(inputs)`` validates, checks ``assume``, applies every end clause
 whose guard holds (in order), ends the run and returns the objective's increase; ``step`` and
 ``end`` then raise :class:`RuntimeError` until :meth:`~RewardAutomaton.reset`. After a run that
 its condition ended (``terminated``), ``step`` raises the same, while ``end`` returns 0.0 and
@@ -45,18 +46,19 @@ from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.semantics import (
     ENDED_MESSAGE,
     AutomatonDescription,
+    FloatAtom,
     FloatLinear,
     assume_checks,
     boolean_input,
     check_automaton,
     check_mapping,
     clip_inputs,
+    float_atoms,
     float_linear,
     input_specs,
     key_error,
     number_input,
     range_error,
-    to_float,
 )
 
 if TYPE_CHECKING:
@@ -105,8 +107,10 @@ def _guard_input(leaf: ir.BInput) -> _GuardFn:
     return lambda x: x[name]
 
 
-def _guard_atom(leaf: ir.BAtom) -> _GuardFn:
-    op, name, threshold = _OPS[leaf.op], leaf.input, to_float(leaf.threshold, "threshold")
+def _guard_atom(compared: FloatAtom, name: str) -> _GuardFn:
+    if isinstance(compared, bool):  # `x == 1/3`: no float stands for 1/3 unless it is a number of x
+        return _guard_const(compared)
+    op, threshold = _OPS[compared[0]], compared[1]
     return lambda x: op(x[name], threshold)
 
 
@@ -128,9 +132,13 @@ def _guard_or(parts: tuple[_GuardFn, ...]) -> _GuardFn:
     return lambda x: any(p(x) for p in parts)
 
 
-#: A guard compiled into one closure over the inputs (Python's ``and``/``or``: the first deciding operand).
-_compile_guard: ir.GuardFold[_GuardFn] = ir.GuardFold(const=_guard_const, boolean=_guard_input, atom=_guard_atom,
-                                                     negate=_guard_not, conjoin=_guard_and, disjoin=_guard_or)
+def _guard_compiler(automaton: ir.Automaton) -> ir.GuardFold[_GuardFn]:
+    """Compiles a guard of ``automaton`` into one closure over the inputs (Python's ``and``/``or``: the first
+    deciding operand); an atom compares as :func:`rac.runtime.semantics.float_atoms` says."""
+    atoms = float_atoms(automaton)
+    return ir.GuardFold(const=_guard_const, boolean=_guard_input,
+                        atom=lambda leaf: _guard_atom(atoms(leaf), leaf.input),
+                        negate=_guard_not, conjoin=_guard_and, disjoin=_guard_or)
 
 
 class RewardAutomaton(AutomatonDescription):
@@ -164,6 +172,7 @@ class RewardAutomaton(AutomatonDescription):
                   for i, rate in enumerate(location.rates))
             for location in automaton.locations
         )
+        _compile_guard = _guard_compiler(automaton)
         self._edges = tuple(
             tuple((_compile_guard(e.guard), updates(e.updates, "update"), e.target) for e in group)
             for group in automaton.edges

@@ -45,6 +45,72 @@ def float_linear(linear: ir.Linear, what: str) -> FloatLinear:
             tuple((to_float(c, f"{what} (coefficient of {n})"), n) for n, c in linear.terms))
 
 
+#: An atom ``input op threshold`` as the runtimes evaluate it on a validated float: ``(op, float)``, a
+#: comparison of the float with a float, or a constant truth (see :func:`float_atoms`).
+FloatAtom = tuple[str, float] | bool
+
+#: What ``x op t`` is, as a comparison with ``f = float(t)``, when the input at ``x == f`` stands for a
+#: number below ``t`` (first) or above it (second); elsewhere ``x`` and ``f`` compare as ``x`` and ``t`` do.
+_STANDS_BELOW: dict[str, FloatAtom] = {"<": ("<=", 0.0), "<=": ("<=", 0.0), ">": (">", 0.0), ">=": (">", 0.0),
+                                      "==": False, "!=": True}
+_STANDS_ABOVE: dict[str, FloatAtom] = {"<": ("<", 0.0), "<=": ("<", 0.0), ">": (">=", 0.0), ">=": (">=", 0.0),
+                                      "==": False, "!=": True}
+
+
+@dataclass(frozen=True)
+class FloatAtoms:
+    """:func:`float_atoms` of one automaton: call it on an atom (a plain object: batches pickle it)."""
+
+    #: ``(input, double) -> number``: the number a float input equal to that double stands for.
+    stands: Mapping[tuple[str, float], Fraction]
+
+    def __call__(self, leaf: ir.BAtom) -> FloatAtom:
+        near = to_float(leaf.threshold, f"threshold of {leaf.input}")
+        stand = self.stands.get((leaf.input, near), Fraction(near))
+        if stand == leaf.threshold:
+            return leaf.op, near
+        changed = (_STANDS_BELOW if stand < leaf.threshold else _STANDS_ABOVE)[leaf.op]
+        return changed if isinstance(changed, bool) else (changed[0], near)
+
+
+def float_atoms(automaton: ir.Automaton) -> FloatAtoms:
+    """How every runtime compares a numeric input with a threshold: exactly, for one number the float stands for.
+
+    The checker proves its facts for exact values, the runtimes read floats. A float input ``x`` stands
+    for itself, except that a float which is the double nearest to some of the input's numbers (its
+    bounds and the thresholds it is compared with, within its range; whole ones for an ``int`` input)
+    stands for the nearest of them (the lower on a tie): ``x <= 0.1`` holds at ``x = 0.1`` (the float
+    is a hair above 1/10), as the range check ``x <= high`` does at a bound. Every comparison then holds
+    of one value within the range, so no guard sees a valuation the checker did not explore: with
+    ``x <= 0.3333333333333333`` and ``x >= 1/3`` (one double), the float nearest 1/3 stands for 1/3,
+    and only the second holds there, as exactly. The result is a comparison with ``float(threshold)``
+    (the operator changed where the float stands for another number) or a constant truth.
+    """
+    numbers: dict[str, set[Fraction]] = {}
+    for item in automaton.inputs:
+        if item.kind != "bool":
+            numbers[item.name] = {bound for bound in (item.low, item.high) if bound is not None}
+    guards = [edge.guard for group in automaton.edges for edge in group]
+    guards += [clause.guard for clause in automaton.end_clauses]
+    guards += [assumption.guard for assumption in automaton.assumptions]
+    guards += [guard for guard in (automaton.episode_ends, automaton.ending) if guard is not None]
+    for guard in guards:
+        for leaf in ir.guard_leaves(guard):
+            if isinstance(leaf, ir.BAtom) and leaf.input in numbers:
+                numbers[leaf.input].add(leaf.threshold)
+    stands: dict[tuple[str, float], Fraction] = {}
+    for item in automaton.inputs:
+        for value in sorted(numbers.get(item.name, ())):
+            if ((item.low is not None and value < item.low) or (item.high is not None and value > item.high)
+                    or (item.kind == "int" and value.denominator != 1)):
+                continue  # no value the input takes
+            key = (item.name, to_float(value, f"a number of {item.name}"))
+            best = stands.get(key)
+            if best is None or abs(value - Fraction(key[1])) < abs(best - Fraction(key[1])):
+                stands[key] = value
+    return FloatAtoms(stands)
+
+
 @dataclass(frozen=True)
 class InputSpec:
     """One declared input as the runtimes validate it (bounds as floats, ±inf when absent)."""

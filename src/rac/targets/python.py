@@ -39,9 +39,11 @@ from rac.core.printing import COMPARISONS, Associativity, Level, Operator, Opera
 from rac.ir.text import GuardPrinter
 from rac.runtime.semantics import (
     NARROW_FLOATS,
+    FloatAtoms,
     FloatLinear,
     assume_checks,
     check_automaton,
+    float_atoms,
     float_linear,
     input_specs,
     to_float,
@@ -92,13 +94,20 @@ def _num(value: float) -> str:
 
 
 class PythonGuards(GuardPrinter):
-    """Prints guards as Python (:data:`PYTHON`); a numeric input is compared with its threshold as a float."""
+    """Prints guards as Python (:data:`PYTHON`); a numeric input is compared with a float as ``atoms`` (the
+    automaton's :func:`rac.runtime.semantics.float_atoms`) says, else with ``float(threshold)``."""
 
     table = PYTHON
 
+    def __init__(self, names: Mapping[str, str], atoms: FloatAtoms | None = None) -> None:
+        super().__init__(names)
+        self.atoms = atoms
+
     def print_BAtom(self, guard: ir.BAtom) -> Printed:
-        threshold = number(_num(to_float(guard.threshold, "threshold")))
-        return self.infix(guard.op, Printed(self.names[guard.input], Level.ATOM), threshold)
+        compared = (guard.op, to_float(guard.threshold, "threshold")) if self.atoms is None else self.atoms(guard)
+        if isinstance(compared, bool):
+            return self.literal(compared)
+        return self.infix(compared[0], Printed(self.names[guard.input], Level.ATOM), number(_num(compared[1])))
 
     def print_BNot(self, guard: ir.BNot) -> Printed:
         if isinstance(guard.operand, ir.BNot):  # every guard value is a bool: not not g == g
@@ -107,17 +116,18 @@ class PythonGuards(GuardPrinter):
 
 
 def print_expr(node: FloatLinear | ir.Guard, names: Mapping[str, str],
-               never_negative_zero: Iterable[str] = (), *, precedence: int = Level.TOP) -> str:
+               never_negative_zero: Iterable[str] = (), *, precedence: int = Level.TOP,
+               atoms: FloatAtoms | None = None) -> str:
     """Print a linear form (in float form, see :func:`rac.runtime.semantics.float_linear`) or a guard as Python.
 
     ``names`` maps each variable to the Python expression that holds it; ``never_negative_zero``
     lists the variables that can never hold ``-0.0`` (rewards). Guards print with ``not``/``and``/
     ``or``; ``precedence`` (a :class:`rac.core.printing.Level`: 0 none, 1 or, 2 and, 3 not) is the
-    binding strength the context needs.
+    binding strength the context needs; ``atoms`` how numeric inputs compare (:class:`PythonGuards`).
     """
     if isinstance(node, tuple):
         return _linear(node, names, frozenset(never_negative_zero))
-    printer = PythonGuards(names)
+    printer = PythonGuards(names, atoms)
     return printer.operand(printer.print(node), precedence)
 
 
@@ -222,9 +232,10 @@ class _Generator:
         held = {name for row in self.rates for form in row for _, name in form[1]}
         self.held = [s.name for s in self.specs if s.name in held]
         self.held_names = {name: f"h_{name}" for name in self.held}
+        self.atoms = float_atoms(automaton)
 
     def expr(self, node: FloatLinear | ir.Guard, names: Mapping[str, str] | None = None) -> str:
-        return print_expr(node, names or self.names, self.rewards.keys())
+        return print_expr(node, names or self.names, self.rewards.keys(), atoms=self.atoms)
 
     def updates(self, updates: Iterable[ir.Assignment]) -> list[str]:
         return [f"{self.rewards[u.reward]} = {self.expr(float_linear(u.value, 'update'))}" for u in updates]
