@@ -378,8 +378,11 @@ class Driving:
 
     def __setstate__(self, state: dict[str, object]) -> None:
         for slot in self.__slots__:
-            object.__setattr__(self, slot, state[slot])
-        self.clipped = dict(self.clipped)  # a copy counts on its own, as the interpreter's does
+            if slot != "clipped":
+                object.__setattr__(self, slot, state[slot])
+        # a copy counts on its own, as the interpreter's does; a pickle from before `clip=` holds no counts
+        counts = state.get("clipped")
+        self.clipped = dict(counts) if isinstance(counts, dict) else {}
 
     def __repr__(self) -> str:
         ending = ", terminated" if self._terminated else ", ended" if self._ended else ""

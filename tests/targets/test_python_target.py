@@ -439,6 +439,10 @@ def test_clip_clips_counts_and_refuses_like_the_interpreter() -> None:
     assert generated.clipped == interpreter.clipped == {"dgoal": 1}
     twin = copy.deepcopy(generated)  # through __getstate__/__setstate__, as pickle goes
     assert twin.clipped == {"dgoal": 1} and twin.clipped is not generated.clipped
+    # the state of a module generated before `clip=` (no counts) still loads, counting nothing yet
+    old = {key: value for key, value in generated.__getstate__().items() if key != "clipped"}
+    twin.__setstate__(old)
+    assert twin.clipped == {} and twin.objective == generated.objective
 
 
 def test_a_defaultdict_does_not_invent_a_missing_input() -> None:
