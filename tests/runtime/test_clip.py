@@ -161,3 +161,15 @@ def test_an_object_column_is_clipped_as_the_batch_reads_it() -> None:
     assert per_row["dgoal"].tolist() == [1, 1, 0]
     with pytest.raises(ValueError, match=r"input 'dgoal'\[2\] = None is not a number"):
         batch.step_batch({**inputs(), "dgoal": column}, clip=True)  # every row read: None is refused by name
+
+
+def test_clip_leaves_an_array_for_one_value_as_given() -> None:
+    """``step(x, clip=True)`` with an array (or a list) for one input refuses it as it was given: it clipped the
+    array first and then named the clipped value (``array([500.])`` for a given ``array([700.])``), and a list
+    holding NaN was "input 'dgoal'[0] is NaN" (an index into a value that is no column)."""
+    ra = RewardAutomaton(driving_automaton())
+    with pytest.raises(ValueError, match=r"input 'dgoal' = array\(\[700\.\]\) is not a number: an array of shape"):
+        ra.step(inputs(dgoal=np.array([700.0])), clip=True)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"input 'dgoal' = \[nan\] is not a number"):
+        ra.step(inputs(dgoal=[math.nan]), clip=True)  # type: ignore[arg-type]
+    assert ra.samples == 0 and ra.clipped == {}

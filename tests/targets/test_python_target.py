@@ -426,7 +426,8 @@ def test_clip_clips_counts_and_refuses_like_the_interpreter() -> None:
         assert bits(generated.step(values, clip=True)) == bits(interpreter.step(values, clip=True))
         assert generated.clipped == interpreter.clipped
     assert generated.clipped == {"dgoal": 1}
-    for bad in ({**inputs(), "dgoal": math.nan}, {**inputs(), "dgoal": "far"}, [1.0], {**inputs(), "extra": 1}):
+    odd = (math.nan, "far", np.array([700.0]), [700.0], [math.nan])
+    for bad in ([1.0], {**inputs(), "extra": 1}, *({**inputs(), "dgoal": dgoal} for dgoal in odd)):
         with pytest.raises(ValueError) as ours:
             generated.step(bad, clip=True)
         with pytest.raises(ValueError) as theirs:

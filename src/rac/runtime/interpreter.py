@@ -287,7 +287,7 @@ class RewardAutomaton(AutomatonDescription):
         if not clip:
             return inputs, None
         check_mapping(inputs)
-        return clip_inputs(self._specs, inputs)
+        return clip_inputs(self._specs, inputs, scalars=True)  # an array is refused as given, not clipped
 
     def step(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
         """Take one sample with ``inputs``; return the objective's increase.

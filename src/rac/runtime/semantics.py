@@ -349,13 +349,15 @@ def object_column(spec: InputSpec, raw: np.ndarray, rows: np.ndarray | None) -> 
 
 
 def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
-                rows: np.ndarray | None = None) -> tuple[dict[str, object], dict[str, int]]:
+                rows: np.ndarray | None = None, *, scalars: bool = False) -> tuple[dict[str, object], dict[str, int]]:
     """``inputs`` with every numeric value outside its declared range clipped to it, and how many
     values of each numeric input were clipped.
 
-    Works on scalars and on arrays (a batch's columns; ``rows``: only those are clipped and counted).
-    NaN is never clipped (it is no value on either side of a range): ``ValueError`` naming the input.
-    What is not a real number, and booleans, are left for validation to report.
+    Works on scalars and on arrays (a batch's columns; ``rows``: only those are clipped and counted);
+    with ``scalars`` (a runtime reading one value per input) on scalars only: an array or a list is left
+    as it was given, for validation to refuse in its own words. NaN is never clipped (it is no value
+    on either side of a range): ``ValueError`` naming the input. What is not a real number, and
+    booleans, are left for validation to report.
     """
     out = dict(inputs)
     counts: dict[str, int] = {}
@@ -374,6 +376,8 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
             counts[spec.name] = int(clipped != value)
             if clipped != value:
                 out[spec.name] = clipped
+            continue
+        if scalars:
             continue
         array = _numbers(spec, np.asarray(raw), rows)
         if array is None:
