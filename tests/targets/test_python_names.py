@@ -25,8 +25,9 @@ from rac.targets.python import RESERVED_NAMES, generate_python, python_class_nam
 
 #: The module's own top-level names (imports, helpers) and the names Python gives every module.
 MODULE_NAMES = ("annotations", "math", "numbers", "Mapping", "_key_error", "_mapping", "_boolean", "_number",
-                "_range_error", "_assume_error", "__all__", "__name__", "__doc__", "__builtins__", "__file__",
-                "__spec__", "__loader__", "__package__", "__annotations__", "__dict__", "__class__")
+                "_range_error", "_assume_error", "_clip", "_array_hint", "__all__", "__name__", "__doc__",
+                "__builtins__", "__file__", "__spec__", "__loader__", "__package__", "__annotations__", "__dict__",
+                "__class__")
 #: `.ra` operator words: the grammar rejects them as names (E0013), so they are not cases.
 RA_OPERATORS = {"and", "not", "or"}
 NAMES = sorted((set(dir(builtins)) | set(keyword.kwlist) | set(keyword.softkwlist) | set(MODULE_NAMES))
@@ -81,6 +82,9 @@ def run_both(text: str, rename: dict[str, str] | None = None) -> None:
         for ra in (generated, interpreter):
             with pytest.raises(ValueError, match=message):
                 ra.step(bad)  # type: ignore[arg-type]
+    clipped = {inp: 12.0, "b": False, "k": 1}  # the clipping helper calls min and max: no class shadows them
+    assert bits(generated.step(clipped, clip=True)) == bits(interpreter.step(clipped, clip=True))
+    assert generated.clipped == interpreter.clipped == {inp: 1, "k": 0}
     last = {inp: 0.5, "b": True, "k": 1}
     assert bits(generated.end(last)) == bits(interpreter.end(last))
     assert generated.rewards == interpreter.rewards and generated.ended
