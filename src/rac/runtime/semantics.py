@@ -82,8 +82,9 @@ def float_atoms(automaton: ir.Automaton) -> FloatAtoms:
     stands for the nearest of them (the lower on a tie): ``x <= 0.1`` holds at ``x = 0.1`` (the float
     is a hair above 1/10), as the range check ``x <= high`` does at a bound. Every comparison then holds
     of one value within the range, so no guard sees a valuation the checker did not explore: with
-    ``x <= 0.3333333333333333`` and ``x >= 1/3`` (one double), the float nearest 1/3 stands for 1/3,
-    and only the second holds there, as exactly. The result is a comparison with ``float(threshold)``
+    ``x <= 0.3333333333333333`` and ``x >= 1/3`` (one double, between the two), that float stands for
+    the nearer, 0.3333333333333333, and only the first holds there (each compared with the double on its
+    own, both held). The result is a comparison with ``float(threshold)``
     (the operator changed where the float stands for another number) or a constant truth.
     """
     numbers: dict[str, set[Fraction]] = {}
