@@ -89,6 +89,7 @@ def test_generated_module_runs_without_rac(tmp_path: Path) -> None:
         "ra = Driving()\n"
         f"trace = json.loads({json.dumps(json.dumps(trace))})\n"
         "out = [ra.step(x).hex() for x in trace]\n"
+        "out.append(ra.step(dict(trace[-1], dgoal=900.0), clip=True).hex())\n"
         "out.append(ra.end(dict(trace[-1], dgoal=0.5)).hex())\n"
         "print(json.dumps({'rewards': out, 'location': ra.location, 'objective': ra.objective.hex(),\n"
         "                  'modules': sorted(m.split('.')[0] for m, v in sys.modules.items() if v)}))\n"
@@ -99,7 +100,8 @@ def test_generated_module_runs_without_rac(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     ra = RewardAutomaton(driving_automaton())
-    expected = [ra.step(x).hex() for x in trace] + [ra.end(dict(trace[-1], dgoal=0.5)).hex()]
+    expected = [ra.step(x).hex() for x in trace] + [ra.step(dict(trace[-1], dgoal=900.0), clip=True).hex(),
+                                                     ra.end(dict(trace[-1], dgoal=0.5)).hex()]
     assert result["rewards"] == expected
     assert result["location"] == ra.location == "Stalled"
     assert result["objective"] == ra.objective.hex()
