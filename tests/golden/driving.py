@@ -165,6 +165,8 @@ class Driving:
     period = 0.1
     horizon = 30.0
     steps = 300
+    #: ``(name, low, high)`` of each numeric input: the range ``clip=True`` clips its values to.
+    _bounds: tuple[tuple[str, float, float], ...] = (("dgoal", 0.0, 500.0),)
 
     def __init__(self) -> None:
         #: Per numeric input, how many values the last ``step``/``end`` with ``clip=True`` clipped.
@@ -191,7 +193,7 @@ class Driving:
             raise RuntimeError("the run has ended; call reset() first")
         counts: dict[str, int] | None = None
         if clip:
-            inputs, counts = _clip(inputs, (("dgoal", 0.0, 500.0),))
+            inputs, counts = _clip(inputs, self._bounds)
         if type(inputs) is not dict:
             _mapping(inputs, self.inputs)
         try:
@@ -291,7 +293,7 @@ class Driving:
             raise RuntimeError("the run has ended; call reset() first")
         counts: dict[str, int] | None = None
         if clip:
-            inputs, counts = _clip(inputs, (("dgoal", 0.0, 500.0),))
+            inputs, counts = _clip(inputs, self._bounds)
         if type(inputs) is not dict:
             _mapping(inputs, self.inputs)
         try:

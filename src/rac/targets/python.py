@@ -542,5 +542,5 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
         rewards_dict=_pydict([(_py(r), f"self.{gen.slots[r]}") for r in automaton.rewards], 15),
         time_expr=time_expr,
         bounds=_pytuple([f"({_py(s.name)}, {_num_or_inf(s.low)}, {_num_or_inf(s.high)})"
-                         for s in gen.specs if not s.is_bool], 40, printed=True),
+                         for s in gen.specs if not s.is_bool], 52, printed=True),
     )
