@@ -18,7 +18,7 @@ from pathlib import Path
 import psutil
 
 import rac
-from rac.sweep.task import TaskSpec, run_task
+from rac.sweep.task import TaskSpec, run_task, source_digest
 
 
 def row(spec: TaskSpec, status: str = "ok", **fields: object) -> dict[str, object]:
@@ -27,7 +27,8 @@ def row(spec: TaskSpec, status: str = "ok", **fields: object) -> dict[str, objec
     return {"key": spec.key(), "scenario": spec.scenario, "scenario_name": Path(spec.scenario).stem,
             "settings": dict(spec.settings), "task": spec.task, "status": status, "error": None, "seconds": 0.01,
             "peak_memory": None, "states": 1, "scenario_size": 2, "verdicts": {"Stays": "satisfied"},
-            "diagnostics": [], "details": {"pid": os.getpid()}, "rac_version": rac.__version__, **fields}
+            "diagnostics": [], "details": {"pid": os.getpid()}, "rac_version": rac.__version__,
+            "rac_source": source_digest(), **fields}
 
 
 def marker(spec: TaskSpec, what: str) -> Path:

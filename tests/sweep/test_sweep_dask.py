@@ -45,7 +45,7 @@ from rac.sweep import Plan, SweepResult, execute, plan, sweep
 from rac.sweep.report import render_summary, summarise
 from rac.sweep.run import KILLED, Tracker, connect, pending, run_tasks
 from rac.sweep.store import Store
-from rac.sweep.task import TaskSpec
+from rac.sweep.task import TaskSpec, source_digest
 
 #: The scenarios of the sweep and the status each task ends in (the template's query is Qb).
 EXPECTED = {"avoidable_obstacle": "ok", "broken": "error", "goal_ahead": "ok", "goal_behind_wall": "ok",
@@ -336,6 +336,29 @@ def test_a_row_of_another_rac_version_runs_again(swept: tuple[SweepResult, list[
     assert ran == [older, unrecorded]
     assert (result.outcome.skipped, result.outcome.rerun_version) == (1, 2)
     assert f"rerunning 2 tasks stored by another version of rac (0.0.1, unknown; this is {rac.__version__})" in said
+
+
+def test_a_row_of_other_rac_source_files_runs_again(swept: tuple[SweepResult, list[str]], world: Path,
+                                                   tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """rac's version stays 0.1.0 from commit to commit of a development checkout: a sweep reused the rows that
+    older code had computed. Each row holds the digest of rac's source files that made it, and a row of other
+    (or no) source files runs again, with a line that says so."""
+    assert {row["rac_source"] for row in swept[0].rows} == {source_digest()}  # the real task's rows hold it
+    specs = specs_for(tmp_path, world / "sweep.ra", ["same.xml", "older.xml", "unrecorded.xml"])
+    store = Store(tmp_path / "out")
+    same, older, unrecorded = (spec.key() for spec in specs)
+    store.put(same, sweep_helpers.row(specs[0]))
+    store.put(older, sweep_helpers.row(specs[1], rac_source="0123456789abcdef"))
+    store.put(unrecorded, {k: v for k, v in sweep_helpers.row(specs[2]).items() if k != "rac_source"})
+    ran: list[str] = []
+    monkeypatch.setattr("rac.sweep.run.connect", lambda *args, **kwargs: contextlib.nullcontext(None))
+    monkeypatch.setattr("rac.sweep.run.run_tasks", lambda client, specs, todo, *args, **kwargs: ran.extend(todo))
+    said: list[str] = []
+    result = execute(Plan(world / "sweep.ra", tmp_path / "out", tuple(specs), 3, 1), quiet=True, announce=said.append)
+    assert ran == [older, unrecorded]
+    assert (result.outcome.skipped, result.outcome.rerun_source) == (1, 2)
+    assert f"rerunning 2 tasks stored by rac {rac.__version__} of other source files (rac's files changed since)" \
+        in said
 
 
 def test_a_task_past_its_timeout_is_a_timeout_row(client, world: Path, tmp_path: Path) -> None:

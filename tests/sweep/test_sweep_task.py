@@ -25,11 +25,12 @@ from conftest import rac_env
 from engine_files import engine_source
 from tiny_scenarios import TINY_SCENARIOS
 
+import rac
 from rac.compiler import compile_file, compile_text
 from rac.core.numbers import MIN_SEED
 from rac.model.scenes import write_scene
 from rac.sweep.grid import grid_points, parse_set, scenario_files
-from rac.sweep.task import TASKS, TaskSpec, run_task
+from rac.sweep.task import TASKS, TaskSpec, run_task, source_digest
 from rac.sweep.template import check_template, instantiate
 
 QUERIES = {"Stays": "E[] !collide() && !offroad()", "Reaches": "E<> !collide() && !offroad() && goal()"}
@@ -304,6 +305,36 @@ def test_the_key_depends_on_the_inputs_only(folder: Path, tmp_path: Path) -> Non
     assert moved.key() != base.key()
     # an unreadable scenario still has a key (its row is an error row)
     assert spec(folder, "no_such_file.xml").key() != spec(folder, "other_missing.xml").key()
+
+
+def test_the_source_digest_changes_with_any_file_of_rac(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The digest a row records: the same for the same files, another after an edit, a new file or a rename;
+    compiled files (``__pycache__``) aside."""
+    package = tmp_path / "rac"
+    (package / "sub").mkdir(parents=True)
+    (package / "__init__.py").write_text("x = 1\n", encoding="utf-8")
+    (package / "sub" / "a.py").write_text("y = 2\n", encoding="utf-8")
+    monkeypatch.setattr(rac, "__file__", str(package / "__init__.py"))
+
+    def digest() -> str:
+        source_digest.cache_clear()
+        return source_digest()
+
+    first = digest()
+    assert len(first) == 16 and digest() == first
+    (package / "__pycache__").mkdir()
+    (package / "__pycache__" / "x.pyc").write_bytes(b"compiled")
+    assert digest() == first
+    seen = {first}
+    for change in (lambda: (package / "sub" / "a.py").write_text("y = 3\n", encoding="utf-8"),
+                   lambda: (package / "sub" / "b.py").write_text("", encoding="utf-8"),
+                   lambda: (package / "sub" / "b.py").rename(package / "sub" / "c.py")):
+        change()
+        seen.add(digest())
+    assert len(seen) == 4
+    monkeypatch.undo()
+    source_digest.cache_clear()
+    assert source_digest() != first  # rac's own files again
 
 
 # ---------------------------------------------------------------- the template

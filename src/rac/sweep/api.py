@@ -134,9 +134,9 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
             retry_failed: bool = False, quiet: bool = False, announce: Any = None) -> SweepResult:
     """Run ``plan`` on Dask (:func:`rac.sweep.run.connect`), store each row as it arrives, then merge the
     rows into ``results.parquet`` (or CSV) and ``results.json`` and draw the plots in ``plan.out``.
-    Stored rows are reused, except those of another version of rac and those whose task's process was killed
-    (run again, and ``announce`` says how many), every row not ok with ``retry_failed``, and all of them with
-    ``force``.
+    Stored rows are reused, except those of another version (or other source files) of rac and those whose
+    task's process was killed (run again, and ``announce`` says how many), every row not ok with
+    ``retry_failed``, and all of them with ``force``.
     ``announce(line)`` receives the dashboard's address; ``quiet`` turns the progress off. Ctrl-C stops the
     sweep: what is done is merged, and the result says ``outcome.interrupted`` (and ``written`` whether the
     merged files were all written: Ctrl-C may come while they are). Raises ``OSError`` when the
@@ -154,6 +154,8 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     versions = ", ".join(sorted(outcome.other_versions))
     for count, why in ((outcome.rerun_version, f"stored by another version of rac ({versions}; this is "
                                                f"{rac.__version__})"),
+                       (outcome.rerun_source, f"stored by rac {rac.__version__} of other source files (rac's "
+                                              "files changed since)"),
                        (outcome.rerun_killed, "whose process was killed"),
                        (outcome.rerun_limits, "stopped by another --task-timeout or --task-memory"),
                        (outcome.rerun_failed, "stored as not ok (--retry-failed)")):  # undecided too

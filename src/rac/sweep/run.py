@@ -30,7 +30,7 @@ import rac
 from rac.core.diagnostics import RacError
 from rac.output.progress import Heartbeat, Progress
 from rac.sweep.store import Store
-from rac.sweep.task import NOT_FAILED, run_task
+from rac.sweep.task import NOT_FAILED, run_task, source_digest
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -74,7 +74,8 @@ def error_row(spec: TaskSpec, key: str, status: str, message: str, *, retry: boo
     return {"key": key, **spec.names(),
             "settings": dict(spec.settings), "task": spec.task, "status": status, "error": message,
             "retry": retry, "seconds": 0.0, "peak_memory": None, "states": None, "scenario_size": None, "verdicts": {},
-            "diagnostics": [], "details": None, **spec.limits(), "rac_version": rac.__version__}
+            "diagnostics": [], "details": None, **spec.limits(), "rac_version": rac.__version__,
+            "rac_source": source_digest()}
 
 
 @dataclass
@@ -96,6 +97,9 @@ class Outcome:
     rerun_version: int = 0
     #: the versions those rows name (``unknown``: a row of before rows held it)
     other_versions: set[str] = field(default_factory=set)
+    #: stored rows of this version of rac but of other source files (``rac_source``: a development checkout
+    #: changed since), run again
+    rerun_source: int = 0
     interrupted: bool = False
 
 
@@ -211,7 +215,8 @@ def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
     """What is done and what is left: an :class:`Outcome` holding each spec's key and the rows ``store``
     has (none with ``force``), and the specs to run by key (specs with equal keys, the same scenario file
     under two paths, run once). A stored row marked ``retry`` (its task's process was killed: no verdict)
-    is run again, and so is a row of another version of rac and a ``timeout`` or ``memory`` row of another
+    is run again, and so is a row of another version of rac or of other source files of rac
+    (:func:`rac.sweep.task.source_digest`) and a ``timeout`` or ``memory`` row of another
     limit than the spec's; with
     ``retry_failed`` every stored row that is not ok is."""
     outcome = Outcome()
@@ -226,6 +231,10 @@ def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
             # the version is not part of the key: a row of another rac answers that rac, not this one
             outcome.rerun_version += 1
             outcome.other_versions.add(str(stored.get("rac_version") or "unknown"))
+            stored = None
+        elif stored is not None and stored.get("rac_source") != source_digest():
+            # nor is the code: a development checkout keeps its version from commit to commit
+            outcome.rerun_source += 1
             stored = None
         elif stored is not None and stored.get("retry") is True:
             outcome.rerun_killed += 1

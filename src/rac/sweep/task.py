@@ -16,6 +16,7 @@ happens becomes its ``status`` and ``error``.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -33,7 +34,7 @@ from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
 
 __all__ = ["KILLING_SIGNALS", "NOT_FAILED", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec",
-           "memory_error", "run_task"]
+           "memory_error", "run_task", "source_digest"]
 
 #: What a task runs: the command of the same name on one file.
 #: A row's ``status``: "ok" (no errors; every query decided), "failed" (errors in the file, a query
@@ -119,13 +120,29 @@ class TaskSpec:
                    pairs["options"], data.get("timeout"), data.get("memory"))
 
 
+@functools.cache
+def source_digest() -> str:
+    """16 hex digits of the SHA-256 of rac's own files as this process imports them (each file's path below the
+    package and its bytes; ``__pycache__`` aside), computed once per process. rac's version stays the same
+    between the commits of a development checkout: this changes with every edit, so a row computed by other
+    code (its ``rac_source``) is not reused."""
+    package = Path(rac.__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(package.rglob("*")):
+        if "__pycache__" in path.parts or not path.is_file():
+            continue
+        digest.update(path.relative_to(package).as_posix().encode("utf-8") + b"\0")
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
+    return digest.hexdigest()[:16]
+
+
 def _row(spec: TaskSpec) -> dict[str, Any]:
     """The row before the task ran: what the spec says, and an error nothing replaced yet."""
     return {"key": spec.key(), **spec.names(),
             "settings": dict(spec.settings), "task": spec.task, "status": "error",
             "error": "the task gave no result", "retry": False, "seconds": 0.0, "peak_memory": None, "states": None,
             "scenario_size": None, "verdicts": {}, "diagnostics": [], "details": None, **spec.limits(),
-            "rac_version": rac.__version__}
+            "rac_version": rac.__version__, "rac_source": source_digest()}
 
 
 def run_task(spec: TaskSpec) -> dict[str, object]:
@@ -138,7 +155,8 @@ def run_task(spec: TaskSpec) -> dict[str, object]:
     the task's process was killed from outside, :data:`KILLING_SIGNALS`, so the row is no verdict and a
     resumed sweep runs the task again), task_timeout and task_memory (the limits it ran under,
     :meth:`TaskSpec.limits`), rac_version (the version of rac that ran it: a resumed sweep runs a row of another
-    version again), seconds
+    version again), rac_source (:func:`source_digest` of the rac that ran it: the same, for a row of other code
+    under the same version), seconds
     (the task's own time in the child; the whole time when the child gave no result), peak_memory
     (bytes, the child's largest resident size, or None), states (int or None), scenario_size (int:
     lanelets + obstacles, or None), verdicts (dict query name -> :data:`VERDICTS`; {} for check),
