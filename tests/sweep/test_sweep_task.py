@@ -29,7 +29,10 @@ import rac
 from rac.compiler import compile_file, compile_text
 from rac.core.numbers import MIN_SEED
 from rac.model.scenes import write_scene
+from rac.sweep.api import plan
 from rac.sweep.grid import grid_points, parse_set, scenario_files
+from rac.sweep.run import pending
+from rac.sweep.store import Store
 from rac.sweep.task import TASKS, TaskSpec, run_task, source_digest
 from rac.sweep.template import check_template, instantiate
 
@@ -305,6 +308,26 @@ def test_the_key_depends_on_the_inputs_only(folder: Path, tmp_path: Path) -> Non
     assert moved.key() != base.key()
     # an unreadable scenario still has a key (its row is an error row)
     assert spec(folder, "no_such_file.xml").key() != spec(folder, "other_missing.xml").key()
+
+
+def test_a_sweep_reads_each_scenario_once_for_its_keys(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The keys of a sweep read each scenario file once per grid point (a sweep of 1000 points over a large
+    scenario read it 1000 times before any task ran); now once per sweep, with the same keys as before."""
+    reads: list[Path] = []
+    read_bytes = Path.read_bytes
+
+    def counted(self: Path) -> bytes:
+        reads.append(self)
+        return read_bytes(self)
+
+    scenario = folder / "scenarios" / "goal_ahead.xml"
+    monkeypatch.setattr(Path, "read_bytes", counted)
+    planned = plan(folder / "template" / "sweep.ra", [str(scenario)], sets=["exponent=1,2,3"])
+    outcome, todo = pending(planned.specs, Store(folder / "unused"))
+    assert len(todo) == 3 and reads.count(scenario) == 1
+    # the key is the same as that of a spec that reads the file itself
+    assert TaskSpec.from_json(planned.specs[0].to_json()).key() == outcome.keys[0] == dataclasses.replace(
+        planned.specs[0], scenario_digest=None).key()
 
 
 def test_the_source_digest_changes_with_any_file_of_rac(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

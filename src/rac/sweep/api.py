@@ -19,7 +19,7 @@ from rac.lang.parser import parse_expression
 from rac.output.paths import output_folder
 from rac.sweep.grid import grid_points, parse_set, scenario_files
 from rac.sweep.kinds import TASKS
-from rac.sweep.task import OPTIONS, TaskSpec
+from rac.sweep.task import OPTIONS, TaskSpec, scenario_digest
 from rac.sweep.template import check_template, template_inputs
 
 if TYPE_CHECKING:
@@ -107,8 +107,10 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
         if problem is not None:
             raise ValueError(f"--task experiment: {problem}")
     given = tuple(sorted((name, str(value)) for name, value in (options or {}).items() if value is not None))
+    digests = {scenario: scenario_digest(scenario) for scenario in files}  # each file read once, not per point
     specs = tuple(TaskSpec(template=str(path), template_text=text, scenario=str(scenario), settings=point,
-                           task=task, options=given, timeout=task_timeout, memory=memory)
+                           task=task, options=given, timeout=task_timeout, memory=memory,
+                           scenario_digest=digests[scenario])
                   for scenario in files for point in points)
     folder = Path(out) if out is not None else default_folder(Path(template))
     return Plan(template=path, out=folder, specs=specs, scenarios=len(files), points=len(points))

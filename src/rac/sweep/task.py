@@ -34,7 +34,7 @@ from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
 
 __all__ = ["KILLING_SIGNALS", "NOT_FAILED", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec",
-           "memory_error", "run_task", "source_digest"]
+           "memory_error", "run_task", "scenario_digest", "source_digest"]
 
 #: What a task runs: the command of the same name on one file.
 #: A row's ``status``: "ok" (no errors; every query decided), "failed" (errors in the file, a query
@@ -82,6 +82,9 @@ class TaskSpec:
     options: tuple[tuple[str, str], ...] = ()  #: e.g. ("horizon", "2"), ("seed", "1"); see OPTIONS
     timeout: float | None = None  #: seconds; past it the task is a "timeout" row
     memory: int | None = None  #: bytes of address space; past it the task is a "memory" row
+    #: :func:`scenario_digest` of the scenario, when the caller hashed it already (:func:`rac.sweep.api.plan`
+    #: hashes each file once, not once per grid point); None: :meth:`key` reads the file
+    scenario_digest: str | None = None
 
     def __post_init__(self) -> None:
         if self.task not in TASKS:
@@ -95,10 +98,7 @@ class TaskSpec:
         """16 hex digits of the SHA-256 of the scenario file's bytes, the template's text, the settings,
         the task and its options (settings and options in name order): equal inputs, equal key, in
         any process. A scenario that cannot be read is keyed by its absolute path."""
-        try:
-            scenario = hashlib.sha256(Path(self.scenario).read_bytes()).hexdigest()
-        except OSError:
-            scenario = "unreadable:" + os.path.abspath(self.scenario)
+        scenario = self.scenario_digest or scenario_digest(self.scenario)
         payload = json.dumps([scenario, self.template_text, sorted(map(list, self.settings)), self.task,
                               sorted(map(list, self.options))], ensure_ascii=True)
         return hashlib.sha256(payload.encode("ascii")).hexdigest()[:16]
@@ -117,7 +117,16 @@ class TaskSpec:
         """The spec :meth:`to_json` gave."""
         pairs = {name: tuple((str(a), str(b)) for a, b in data.get(name, ())) for name in ("settings", "options")}
         return cls(data["template"], data["template_text"], data["scenario"], pairs["settings"], data["task"],
-                   pairs["options"], data.get("timeout"), data.get("memory"))
+                   pairs["options"], data.get("timeout"), data.get("memory"), data.get("scenario_digest"))
+
+
+def scenario_digest(path: str | os.PathLike[str]) -> str:
+    """What a task's key holds of its scenario file: the SHA-256 of its bytes, or ``unreadable:`` and its absolute
+    path when it cannot be read."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return "unreadable:" + os.path.abspath(path)
 
 
 @functools.cache
