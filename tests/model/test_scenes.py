@@ -164,6 +164,29 @@ def test_a_scene_set_is_seeded_and_keeps_the_ego_and_goal(kind: str, tmp_path: P
 
 
 
+def test_a_smaller_scene_set_removes_the_variants_of_the_larger_one(tmp_path: Path) -> None:
+    """A set of 2 written over a set of 4 left variants 2 and 3, which a ScenarioEnv given the folder then
+    trained on: the set's stale variants are removed, never a file rac did not write, nor another kind's set."""
+    from rac.model.scenes import scene_set
+
+    folder = tmp_path / "set"
+    scene_set("highway", 4, 0, folder)
+    tutorial = scene_set("tutorial", 1, 0, folder)  # another kind's set in the same folder stays
+    (folder / "highway_9.xml").write_text("<commonRoad/> my own", encoding="utf-8")  # the user's: stays
+    (folder / "highway_3.xml").rename(folder / "highway_10.xml")  # rac's variant 3 under another number: stays
+    (folder / "highway_x.xml").write_text("", encoding="utf-8")
+    written = scene_set("highway", 2, 0, folder)
+    assert sorted(path.name for path in folder.iterdir()) == sorted(
+        [*(path.name for path in written + tutorial), "highway_9.xml", "highway_10.xml", "highway_x.xml"])
+    (folder / "highway_10.xml").unlink()
+    kept = scene_set("highway", 1, 7, tmp_path / "kept")[0]
+    (folder / "highway_7.xml").symlink_to(kept)  # the user's link to a variant kept elsewhere: stays
+    scene_set("highway", 1, 1, folder)  # another seed: variant 0 is no longer the set's
+    assert sorted(path.name for path in folder.glob("highway_*.xml")) == ["highway_1.xml", "highway_7.xml",
+                                                                          "highway_9.xml", "highway_x.xml"]
+    assert kept.is_file()
+
+
 #: Rewrites a scene set in a child process whose files cannot grow past 1000 bytes (as a full disk):
 #: every write fails partway through.
 _FULL_DISK = """
