@@ -421,6 +421,23 @@ def test_preanalyse_reports_a_decide_period_that_is_no_multiple(capsys: pytest.C
                    "error": "the decision period is not a whole multiple of the sensing period"}
 
 
+def test_preanalyse_past_max_seconds_exits_4_and_says_so(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """rac preanalyse had no time limit. --max-seconds gives each setting up past it (here at once: after
+    Qa), a row without all its answers: exit 4, and the command says how many rows the limit cut."""
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["preanalyse", str(path), "--exponent", "1,2", "--runs", "2", "--max-seconds", "1e-9", "--format",
+                 "json", "--out", str(tmp_path / "pre")]) == 4
+    captured = capsys.readouterr()
+    assert captured.err == ("rac preanalyse: 2 of 2 settings were not answered (their rows say why; 2 given up past "
+                            "--max-seconds 1e-09)\n")
+    for row in json.loads(captured.out)["settings"]:
+        assert re.fullmatch(r"this setting: given up after \S+ s, past the time limit of 1e-09 s \(--max-seconds\)",
+                            row["error"]), row
+        assert "qa" in row and "qb" not in row and row["time_limit"] == 1e-9
+    assert main(["preanalyse", str(path), "--max-seconds", "0"]) == 2
+    assert "--max-seconds: must be positive and finite: '0'" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(("option", "message"), [
     (["--exponent", "0"], "--exponent: '0' must be a positive whole number"),
     (["--exponent", "x"], "--exponent: 'x' is not a number"),

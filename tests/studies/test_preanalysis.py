@@ -14,6 +14,7 @@ from engine_files import write_engine_file
 from tiny_scenarios import GoalBox, StraightRoad
 
 from rac.compiler import compile_file
+from rac.engine.budget import TimeExceeded, TimeLimit
 from rac.model.commonroad import EgoStart
 from rac.output.progress import Heartbeat
 from rac.studies.preanalysis import render_table, sweep
@@ -86,6 +87,41 @@ def test_a_sensing_period_that_does_not_divide_the_files_horizon_is_a_row_that_s
                      "error": "the horizon, 4 s, is not a whole number of sensing periods (its runs would stop "
                               "short of it)"}
     assert "error" not in whole and whole["samples"] == 8
+
+
+def stop_at(kind: str, n: int = 0) -> type[TimeLimit]:
+    """A time limit that passes at a chosen check: in the exploration (``exploring``, at its first layer), or
+    at the ``n``-th check between the setting's steps (``between``)."""
+
+    class StopAt(TimeLimit):
+        steps = 0
+
+        def check(self, *progress: int) -> None:
+            if not progress:
+                self.steps += 1
+            if (kind == "exploring" and progress) or (kind == "between" and not progress and self.steps == n):
+                raise TimeExceeded(what=self.what, limit=1.0, seconds=1.5)
+
+    return StopAt
+
+
+@pytest.mark.parametrize(("kind", "n", "answered"), [("exploring", 0, ["qa"]),
+                                                     ("between", 3, ["qa", "qb", "qc", "qd", "states"])])
+def test_a_setting_past_its_time_limit_keeps_its_answers_and_says_so(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kind: str, n: int, answered: list[str]) -> None:
+    """rac preanalyse had a memory limit but no time limit: a setting whose exploration took hours could
+    only be killed, losing every row. Past --max-seconds a setting is given up between its steps or
+    between two layers of its exploration; its row keeps the answers found and says why the rest is
+    missing (the table too)."""
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    monkeypatch.setattr("rac.studies.preanalysis.TimeLimit", stop_at(kind, n))
+    [row] = sweep(compile_file(path), runs=2, seed=1, max_seconds=1.0)
+    assert row["error"] == "this setting: given up after 1.5 s, past the time limit of 1 s (--max-seconds)"
+    assert row["time_limit"] == 1.0
+    assert [key for key in ("qa", "qb", "qc", "qd", "states", "below") if key in row] == answered
+    if "qb" in row:  # the table shows the answers, and why the rest is missing
+        line = render_table([row]).splitlines()[2]
+        assert "| true | true (safe to the horizon) | true |" in line and line.endswith(f"| {row['error']} |")
 
 
 def test_a_scenario_too_large_for_the_ground_truth_says_so(tmp_path: Path) -> None:

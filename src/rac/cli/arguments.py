@@ -103,6 +103,8 @@ def _argument(convert: Callable[[str], T], kind: str, accepts: Callable[[T], boo
 positive_fraction = _argument(Fraction, "a number", lambda value: value > 0, "must be positive")
 counting = _argument(int, "a whole number", lambda value: value >= 1, "must be at least 1")
 probability = _argument(float, "a number", lambda value: 0 < value < 1, "must lie strictly between 0 and 1")
+positive_seconds = _argument(float, "a number of seconds", lambda value: 0 < value < math.inf,
+                             "must be positive and finite")
 seed_argument = _argument(int, "a whole number", lambda value: value >= MIN_SEED,
                           f"a seed must be a whole number of at least {MIN_SEED}")
 
@@ -204,6 +206,9 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     pre.add_argument("--sense", default=None, metavar="LIST", help="sensing periods C1 in seconds, e.g. 0.1,0.2")
     pre.add_argument("--decide", default=None, metavar="LIST", help="decision periods C2 in seconds, e.g. 0.2,0.4")
     pre.add_argument("--runs", type=counting, default=100, help="simulated runs per setting (default 100)")
+    pre.add_argument("--max-seconds", type=positive_seconds, default=None, metavar="S",
+                     help="give up (a row without all its answers) on a setting after this many seconds, checked "
+                          "between its steps and per explored layer (default: no limit)")
     pre.add_argument("--threshold-factor", type=counting, default=1, metavar="K",
                      help="a run is unsafe when its true distance drops below K * collision_distance (default 1)")
     pre.add_argument("--format", choices=("text", "json"), default="text", help="output format")

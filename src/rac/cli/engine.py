@@ -570,7 +570,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
                      horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
                      max_bytes=args.max_memory or default_max_bytes(),
-                     threshold_factor=args.threshold_factor,
+                     threshold_factor=args.threshold_factor, max_seconds=args.max_seconds,
                      quiet=args.quiet or args.format == "json", done=done)
     except KeyboardInterrupt:  # the settings finished stand (their plots are written): shown, then exit 130
         rows, interrupted = done, True
@@ -596,7 +596,9 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     undecided = sum(1 for row in rows if "error" in row)
     if undecided:  # a setting without answers is undecided, and an undecided answer never exits 0
         settings = sum(1 for row in rows if "exponent" in row)  # not the sweep plot's entry
-        print(f"rac preanalyse: {undecided} of {settings} settings were not answered (their rows say why)",
+        late = sum(1 for row in rows if "time_limit" in row)
+        why = f"; {late} given up past --max-seconds {args.max_seconds:g}" if late else ""
+        print(f"rac preanalyse: {undecided} of {settings} settings were not answered (their rows say why{why})",
               file=sys.stderr)
         return EXIT_UNDECIDED
     return EXIT_OK

@@ -14,6 +14,9 @@ factor is measured by ``benchmarks/engine.py``: 3.7 on the paper's model at 39 M
 Simulating runs is estimated by :func:`simulation_bytes`, learning a Q-table by :func:`learning_bytes`;
 a computation refused on such an estimate, before it starts, raises :class:`EstimateExceeded`.
 
+A :class:`TimeLimit` (``rac preanalyse --max-seconds``) is checked between steps of work and as an
+exploration's per-layer ``progress``; past it, :class:`TimeExceeded`.
+
 Example::
 
     budget = Budget(max_states=5_000_000, max_bytes=parse_size("8G"))
@@ -25,7 +28,8 @@ from __future__ import annotations
 import math
 import os
 import re
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 
@@ -36,7 +40,8 @@ __all__ = ["EPISODE_MEMO_BYTES", "MEMO_BYTES_PER_STEP", "GRAPH_BYTES_PER_CHOICE"
            "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
            "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW", "REPLAY_BYTES_PER_DECISION", "RUN_BYTES_PER_SAMPLE",
            "PROJECTION_FROM", "PROJECTION_MARGIN", "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded",
-           "EstimateExceeded", "ProjectionExceeded", "cgroup_limit", "check_estimate", "default_max_bytes",
+           "EstimateExceeded", "ProjectionExceeded", "TimeExceeded", "TimeLimit", "cgroup_limit", "check_estimate",
+           "default_max_bytes",
            "format_bytes", "learning_bytes", "machine_memory", "out_of_memory", "parse_size", "physical_memory",
            "projected_states", "runs_within", "simulation_bytes"]
 
@@ -355,3 +360,30 @@ class Budget:
     def seconds(self, sample: int) -> float:
         """The time of ``sample``, rounded for messages."""
         return round(sample * self.period, 9) if math.isfinite(self.period) else float(sample)
+
+
+class TimeExceeded(RacError):
+    """Work given up past its time limit (:class:`TimeLimit`): ``what`` it was, the ``limit`` and the
+    ``seconds`` it had run."""
+
+    def __init__(self, *, what: str, limit: float, seconds: float) -> None:
+        super().__init__(f"{what}: given up after {seconds:.3g} s, past the time limit of {limit:g} s")
+        self.what, self.limit, self.seconds = what, limit, seconds
+
+
+@dataclass
+class TimeLimit:
+    """A time limit of ``seconds`` from its creation (None: none), checked where the work can stop: between
+    its steps, and as an exploration's ``progress`` (once per layer). Not preemptive: a step already
+    running (a vectorised simulation, Storm's decision) ends first."""
+
+    seconds: float | None
+    #: What is limited, for the message.
+    what: str = "the work"
+    started: float = field(default_factory=time.perf_counter)
+
+    def check(self, *progress: int) -> None:
+        """:class:`TimeExceeded` once the limit has passed (``progress``: an exploration's arguments, unused)."""
+        elapsed = time.perf_counter() - self.started
+        if self.seconds is not None and elapsed > self.seconds:
+            raise TimeExceeded(what=self.what, limit=self.seconds, seconds=elapsed)

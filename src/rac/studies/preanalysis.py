@@ -29,6 +29,7 @@ import dataclasses
 import itertools
 import math
 import time
+from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -40,7 +41,7 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, short_number
 from rac.core.numbers import samples_of
 from rac.engine import storm
-from rac.engine.budget import VALUE_BYTES, check_estimate, out_of_memory
+from rac.engine.budget import VALUE_BYTES, TimeExceeded, TimeLimit, check_estimate, out_of_memory
 from rac.engine.shield import synthesise
 from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
@@ -137,12 +138,12 @@ def _truth_bytes(runs: int, samples: int, substeps: int) -> int:
 
 
 def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: ModelData,
-                    quiet: bool = True) -> np.ndarray:
+                    quiet: bool = True, check: Callable[[], None] | None = None) -> np.ndarray:
     """``(N, T*m+1)`` distances of the ground truth to the nearest obstacle at every CommonRoad
     time step (``m`` per sensing period, :func:`_substeps_per_sample`), measured on a model at
     exponent :data:`TRUTH_EXPONENT` whose sensing period is one such step — so a long period cannot
     hide a close encounter. A short ``timeStepSize`` makes that many steps: a bar counts them
-    (``quiet``: none)."""
+    (``quiet``: none); ``check()`` is called after each sensing period's steps (a time limit's)."""
     # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
     from rac.output.progress import Heartbeat, Progress
 
@@ -175,14 +176,33 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
                 truth = integrate_truth(truth, jerk, turn, data.period / m, max(1, 100 // m), limits)
                 out[:, k * m + j] = distance(truth, k * m + j)
                 bar.update()
+            if check is not None:
+                check()
     return out
 
 
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
          max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None,
-         quiet: bool = True) -> Row:
+         quiet: bool = True, max_seconds: float | None = None) -> Row:
     row: Row = {"exponent": spec.exponent, "sense": float(spec.sense_period),
                               "decide": float(spec.decide_period)}
+    limit = TimeLimit(max_seconds, what="this setting")
+    try:
+        return _answer(row, result, spec, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
+                       max_bytes=max_bytes, threshold_factor=threshold_factor, out_dir=out_dir, quiet=quiet,
+                       limit=limit)
+    except TimeExceeded as exc:  # the answers found before stay in the row; it is one without all its answers
+        row["error"] = f"{exc} (--max-seconds)"
+        row["time_limit"] = exc.limit  # what the command counts: the rows given up on time
+        row.setdefault("seconds", time.perf_counter() - limit.started)
+        return row
+
+
+def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
+            max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None,
+            quiet: bool, limit: TimeLimit) -> Row:
+    """Fill ``row`` with the setting's answers; :class:`TimeExceeded` between its steps once ``limit`` has
+    passed (the answers found so far are in ``row`` then)."""
     scenario = result.scenario
     assert scenario is not None  # sweep() refuses a model without one
     unheld = _unheld(spec)
@@ -227,10 +247,11 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, Ego.X] / data.scale) >= float(spec.sensor_error)
     hits = int(drift.any(axis=1).sum())
     row["qa"] = clopper_pearson(hits, runs)
+    limit.check()
     # Qb-Qd on the explored model (unsafe states end a run): the shield's own graph.
     t0 = time.perf_counter()
     try:
-        shield, masks = synthesise(data, samples, max_states=max_states, max_bytes=max_bytes)
+        shield, masks = synthesise(data, samples, max_states=max_states, max_bytes=max_bytes, progress=limit.check)
     except MemoryError as exc:  # the budget (it says how far the exploration got), or the machine's memory
         row["error"] = _memory_error(exc)
         row["seconds"] = time.perf_counter() - t0
@@ -245,12 +266,14 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
     row["seconds"] = time.perf_counter() - t0
     if not shield.shield_exists:
         return row
+    limit.check()
     # Fig. 7 under the shield: sensed and true distances.
     shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at,
                         max_bytes=max_bytes)  # the unshielded runs' estimate, which passed above
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
-    true = _true_distances(result, spec, shielded, data, quiet)
+    limit.check()
+    true = _true_distances(result, spec, shielded, data, quiet, limit.check)
     row["sensed_min"] = _smallest(sensed)
     row["true_min"] = _smallest(true)
     below = int((row["true_min"] < threshold).sum())
@@ -277,15 +300,17 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
 def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | None = None,
           decides: str | None = None, runs: int = 100, horizon: Fraction | None = None, seed: int | None = None,
           max_states: int = 5_000_000, max_bytes: int | None = None, out_dir: Path | None = None,
-          quiet: bool = True,
-          threshold_factor: int = 1, done: list[Row] | None = None) -> list[Row]:
+          quiet: bool = True, threshold_factor: int = 1, done: list[Row] | None = None,
+          max_seconds: float | None = None) -> list[Row]:
     """Answer Qa–Qd and the shielded Fig. 7 runs for every setting of the grid; one dict per setting.
     Each setting's dict is also appended to ``done`` (when given) as soon as it is found: after Ctrl-C
     (``KeyboardInterrupt``) it holds the settings finished before.
 
     ``exponents``, ``senses``, ``decides``: comma-separated lists (None: the file's own value).
     A decision period that is not a whole multiple of the sensing period is skipped with an
-    ``error`` entry. ``out_dir`` receives one Fig. 7 plot per setting and ``sweep.png``.
+    ``error`` entry. ``out_dir`` receives one Fig. 7 plot per setting and ``sweep.png``. ``max_seconds``
+    limits each setting's time: past it (checked between its steps and per explored layer) the setting is
+    given up, its row keeping the answers found, an ``error`` that says so and ``time_limit`` (the seconds).
     :class:`SweepError` before any setting runs: a list that does not parse, an exponent outside the
     model's range, a period longer than the horizon, or a ``horizon`` given that is not a whole number
     of samples of every sensing period (or is more than :data:`~rac.core.numbers.INT32_MAX` of them)."""
@@ -326,8 +351,8 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
             else:
                 try:
                     rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
-                                     max_bytes=max_bytes,
-                                     threshold_factor=threshold_factor, out_dir=out_dir, quiet=quiet))
+                                     max_bytes=max_bytes, threshold_factor=threshold_factor, out_dir=out_dir,
+                                     quiet=quiet, max_seconds=max_seconds))
                 except ModelRangeError as exc:  # a run's sensed value: UPPAAL's model would abort there too
                     rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
                                  "error": f"a sensed value left the int32 range at this exponent: {exc}"})
@@ -427,7 +452,7 @@ def render_table(rows: list[Row]) -> str:
             continue
         qa = row.get("qa")
         qa_text = f"[{qa[0]:.3f}, {qa[1]:.3f}]" if qa else "—"
-        below = "—"
+        below = str(row["error"]) if "error" in row else "—"  # given up after some answers (a time limit)
         measured = [v for v in row.get("true_min", ()) if v is not None and math.isfinite(v)]
         if "below" in row and not measured:
             below = f"no obstacle at any sample of the {len(row['true_min'])} runs: no distance to measure"
