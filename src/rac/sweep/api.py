@@ -166,7 +166,8 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     if todo:  # everything stored already: no cluster
         try:
             with Tracker(quiet=quiet) as tracker, connect(scheduler, workers, announce=announce) as client:
-                tracker.start(len(todo), outcome.skipped)
+                # per spec, as the tracker hears of rows: a key shared by two specs (one file under two paths) is two
+                tracker.start(sum(1 for key in outcome.keys if key in todo), outcome.skipped)
                 run_tasks(client, plan.specs, todo, outcome, store, on_row=tracker.row)
         except KeyboardInterrupt:  # while the cluster started or closed: the rows stored are still merged
             outcome.interrupted = True

@@ -274,6 +274,9 @@ def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpe
     from distributed.scheduler import KilledWorker
 
     function = task_function()
+    sharing: dict[str, list[TaskSpec]] = {}  # the specs of each key, found once: not a walk of them all per row
+    for other, other_key in zip(specs, outcome.keys):
+        sharing.setdefault(other_key, []).append(other)
     token = uuid.uuid4().hex[:8]  # a key of this run only: a shared scheduler may still hold an earlier run's
     futures: dict[Any, tuple[TaskSpec, str]] = {}
     try:
@@ -293,9 +296,8 @@ def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpe
             outcome.ran += 1
             store.put(key, row)
             if on_row is not None:
-                for other, other_key in zip(specs, outcome.keys):
-                    if other_key == key:
-                        on_row(other, row)
+                for other in sharing.get(key, ()):
+                    on_row(other, row)
     except KeyboardInterrupt:
         outcome.interrupted = True
         with contextlib.suppress(Exception):  # the cluster may already be going away
