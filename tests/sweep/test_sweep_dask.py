@@ -593,6 +593,17 @@ def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytes
     assert message.format(scenarios=scenarios) in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("workers", [0, -1, 1.5, True])
+def test_the_api_refuses_a_local_cluster_without_workers(world: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                         workers: object) -> None:
+    """sweep(..., workers=-1) started a local cluster of no workers and waited for ever; workers=0 meant one
+    per core. Both are refused before anything runs, as --workers refuses them."""
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    planned = plan(world / "sweep.ra", [str(world / "scenarios" / "goal_ahead.xml")], out=tmp_path / "out")
+    with pytest.raises(ValueError, match="workers must be a whole number of at least 1, not "):
+        execute(planned, workers=workers, quiet=True)  # type: ignore[arg-type]
+
+
 def test_the_api_refuses_an_infinite_task_timeout(world: Path) -> None:
     with pytest.raises(ValueError, match="the task timeout must be a finite number of seconds more than 0, not inf"):
         plan(world / "sweep.ra", [str(world / "scenarios")], task_timeout=float("inf"))

@@ -142,13 +142,17 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     ``announce(line)`` receives the dashboard's address; ``quiet`` turns the progress off. Ctrl-C stops the
     sweep: what is done is merged, and the result says ``outcome.interrupted`` (and ``written`` whether the
     merged files were all written: Ctrl-C may come while they are). Raises ``OSError`` when the
-    scheduler cannot be reached or the output folder cannot be written."""
+    scheduler cannot be reached or the output folder cannot be written, ``ValueError`` (before anything
+    runs) when ``workers`` is not a whole number of at least 1."""
     from rac.sweep import report  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
 
     # matplotlib, numpy, tqdm (via rac.sweep.run): importing rac.sweep stays light
     from rac.sweep.run import Tracker, connect, pending, rows_in_order, run_tasks
     from rac.sweep.store import Store  # matplotlib, numpy (via rac.sweep.store): importing rac.sweep stays light
 
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        # 0 was taken as "one per core", and fewer as a cluster without workers, which waited for ever
+        raise ValueError(f"workers must be a whole number of at least 1, not {workers!r}")
     store = Store(plan.out)
     store.folder.mkdir(parents=True, exist_ok=True)  # an unwritable folder fails before the cluster starts
     outcome, todo = pending(plan.specs, store, force=force, retry_failed=retry_failed)
