@@ -593,6 +593,19 @@ def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytes
     assert message.format(scenarios=scenarios) in capsys.readouterr().err
 
 
+def test_the_api_takes_any_iterable_of_values_as_a_grid_axis(world: Path) -> None:
+    """sets={"exponent": range(1, 3)} (or a numpy array) was refused: its text `range(1, 3)` is no value."""
+    import numpy as np
+
+    scenario = [str(world / "scenarios" / "goal_ahead.xml")]
+    for values in (range(1, 3), np.array([1, 2]), (v for v in (1, 2)), [1, 2]):
+        planned = plan(world / "sweep.ra", scenario, sets={"exponent": values, "max_speed": 10})
+        assert [spec.settings for spec in planned.specs] == [(("exponent", "1"), ("max_speed", "10")),
+                                                             (("exponent", "2"), ("max_speed", "10"))]
+    assert plan(world / "sweep.ra", scenario, sets={"dynamics": "increments"}).specs[0].settings == (
+        ("dynamics", "increments"),)  # a word is one value, not its letters
+
+
 @pytest.mark.parametrize("workers", [0, -1, 1.5, True])
 def test_the_api_refuses_a_local_cluster_without_workers(world: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                          workers: object) -> None:

@@ -8,7 +8,7 @@ May import: rac, rac.compiler, core, lang, ir, check, model, runtime, engine, ou
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -57,13 +57,15 @@ class SweepResult:
 
 
 def _set_texts(sets: Mapping[str, object] | Sequence[str] | None) -> list[str]:
-    """``--set`` texts from ``{"exponent": [1, 2]}`` or ``["exponent=1,2"]``."""
+    """``--set`` texts from ``{"exponent": [1, 2]}`` (any iterable of values: a range, a numpy array; or one
+    value) or ``["exponent=1,2"]``."""
     if sets is None:
         return []
     if isinstance(sets, Mapping):
         texts = []
         for name, values in sets.items():
-            listed = values if isinstance(values, list | tuple) else [values]
+            # a range or an array is a list of values too: its text, "range(1, 3)", was refused as one value
+            listed = [values] if isinstance(values, str | bytes) or not isinstance(values, Iterable) else values
             texts.append(f"{name}={','.join(map(str, listed))}")
         return texts
     if isinstance(sets, str):
