@@ -397,6 +397,17 @@ def test_instantiate_keeps_everything_but_the_scenario(example: str) -> None:
     assert dataclasses.replace(after.automaton, model=same, source=before.automaton.source) == before.automaton
 
 
+def test_a_scenario_path_a_ra_file_cannot_hold_is_an_error_row_that_says_so(folder: Path, tmp_path: Path) -> None:
+    """A scenario named `a"b.xml` gave the error "the template a scenario path cannot hold a quote ...": the
+    words of the path's rule, garbled behind "the template"."""
+    weird = tmp_path / 'a"b.xml'
+    weird.write_bytes((folder / "scenarios" / "goal_ahead.xml").read_bytes())
+    row = run_task(dataclasses.replace(spec(folder, "goal_ahead.xml", task="check"), scenario=str(weird)))
+    assert row["status"] == "error"
+    assert row["error"] == (f"cannot instantiate the template {folder / 'template' / 'sweep.ra'} with the scenario "
+                            f"{weird}: a scenario path cannot hold a quote or a line break: {str(weird)!r}")
+
+
 def test_check_template_refuses_a_template_without_a_model_block(tmp_path: Path) -> None:
     bare = tmp_path / "bare.ra"
     bare.write_text("automaton Bare {\n    reward r\n    objective r\n    sample every 1\n    horizon 2\n"

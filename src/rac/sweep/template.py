@@ -64,8 +64,12 @@ def instantiate(template_text: str, template: str | Path, scenario: str | Path,
     """The template's text for one task (:func:`rac.lang.edit.with_model`): its ``model`` block's
     ``scenario`` is ``scenario`` (made absolute) and each ``(name, value text)`` of ``settings``
     replaces the block's item for ``name`` or is added after the block's last setting.
-    ``ValueError`` when the template has no ``model`` block or a value is not one expression."""
-    return _template(lambda: with_model(template_text, str(template), scenario, settings))
+    ``ValueError`` when the template has no ``model`` block, a value is not one expression or the scenario's
+    path cannot be written in a ``.ra`` file (a quote, a line break)."""
+    try:
+        return with_model(template_text, str(template), scenario, settings)
+    except ValueError as exc:  # its words name what is wrong (the template, a value, the path): said of this task
+        raise ValueError(f"cannot instantiate the template {template} with the scenario {scenario}: {exc}") from None
 
 
 def _template(edit: Callable[[], T]) -> T:
