@@ -178,6 +178,16 @@ def test_the_verdict_plot_of_a_large_grid_stays_drawable(tmp_path: Path, monkeyp
         assert image.size[0] < 1000
 
 
+def test_a_sweep_without_rows_leaves_no_plots_of_an_earlier_one(tmp_path: Path) -> None:
+    """A sweep stopped before any row (Ctrl-C at once, nothing stored) wrote empty results.* but left the plots
+    of the earlier sweep in the folder, which then showed rows the results did not hold."""
+    rows = [{"settings": {}, "status": "ok", "verdicts": {"Stays": "satisfied"}, "seconds": 0.1, "scenario_size": 3}]
+    assert all(path.is_file() for path in write_plots(rows, tmp_path))
+    (tmp_path / "mine.png").write_bytes(b"")  # not the sweep's: stays
+    assert write_plots([], tmp_path) == []
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["mine.png"]
+
+
 def test_a_rerun_skips_the_stored_tasks_without_a_cluster(swept: tuple[SweepResult, list[str]], world: Path,
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     first, _ = swept

@@ -236,8 +236,11 @@ def _outcomes(row: Mapping[str, object]) -> list[str]:
 def write_plots(rows: Sequence[Mapping[str, object]], folder: Path) -> list[Path]:
     """``verdicts.png`` (the verdict mix per grid point, stacked bars; a task without verdicts counts as
     its status) and ``time_vs_size.png`` (seconds per task against the scenario's size, lanelets plus
-    obstacles, one colour per status) in ``folder``; nothing without rows. Returns the files written."""
+    obstacles, one colour per status) in ``folder``; without rows none, and those an earlier sweep wrote there
+    are removed (they would show its rows beside this sweep's empty results). Returns the files written."""
     if not rows:
+        for name in (VERDICT_PLOT, TIME_PLOT):
+            (folder / name).unlink(missing_ok=True)
         return []
     folder.mkdir(parents=True, exist_ok=True)
     return [_plot_verdicts(rows, folder / VERDICT_PLOT), _plot_times(rows, folder / TIME_PLOT)]
