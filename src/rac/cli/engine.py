@@ -587,7 +587,8 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(json.dumps(document, indent=2, default=str))
     elif rows or not interrupted:
         print(render_table(rows))
-        print(f"\nplots in {out_dir}")
+        if any("plot" in row or "sweep_plot" in row for row in rows):  # no setting answered: no plot, maybe no folder
+            print(f"\nplots in {out_dir}")
     if interrupted:
         n = len(rows)
         print(f"rac preanalyse: interrupted; {n} setting{'' if n == 1 else 's'} finished before it "
