@@ -589,6 +589,11 @@ def test_the_cli_on_a_separate_dask_scheduler_and_worker(world: Path, tmp_path: 
     # every task failed with the same syntax error (exit 1) after the cluster started
     (["{scenarios}", "--task", "experiment", "--reward-function", "sa +"],
      "--reward-function: `sa +`: the expression is incomplete"),
+    # an option the task would run without, as if it had not been given
+    (["{scenarios}", "--runs", "5"], "--task verify does not use the option `runs` (its options: horizon, seed, "
+                                     "max_states, episodes)"),
+    (["{scenarios}", "--task", "check", "--horizon", "2", "--seed", "1"],
+     "--task check does not use the options `horizon`, `seed` (its options: none)"),
     # the same: every task failed with "pass --reward-function EXPR" after the cluster started
     (["{scenarios}", "--task", "experiment"], "--task experiment: the default reward function (the paper's Eq. 9) "
                                               "reads the inputs isClose, prog and comf; pass --reward-function EXPR"),

@@ -19,7 +19,7 @@ from rac.lang.parser import parse_expression
 from rac.output.paths import output_folder
 from rac.sweep.grid import grid_points, parse_set, scenario_files
 from rac.sweep.kinds import TASKS
-from rac.sweep.task import OPTIONS, TaskSpec, scenario_digest
+from rac.sweep.task import OPTIONS, TASK_OPTIONS, TaskSpec, scenario_digest
 from rac.sweep.template import check_template, template_inputs
 
 if TYPE_CHECKING:
@@ -78,7 +78,8 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
          task_timeout: float | None = None, task_memory: int | str | None = None,
          options: Mapping[str, object] | None = None) -> Plan:
     """The tasks of a sweep (nothing runs). ``ValueError`` with a message for the user on a bad
-    argument (no scenario matched, a bad ``sets``, an unknown task or option, a ``reward_function`` that
+    argument (no scenario matched, a bad ``sets``, an unknown task or option, an option the task does not use
+    (:data:`rac.sweep.task.TASK_OPTIONS`), a ``reward_function`` that
     is not one expression, or none for an ``experiment`` of an automaton without the paper's inputs, a
     template that does not parse or has no ``model`` block); ``OSError`` when the template cannot be read."""
 
@@ -87,6 +88,11 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     unknown = sorted(set(options or {}) - set(OPTIONS))
     if unknown:
         raise ValueError(f"unknown option {', '.join(unknown)}: the options are {', '.join(OPTIONS)}")
+    unused = [name for name, value in (options or {}).items() if value is not None and name not in TASK_OPTIONS[task]]
+    if unused:  # the task would run without it, as if it had not been given
+        takes = ", ".join(TASK_OPTIONS[task]) or "none"
+        raise ValueError(f"--task {task} does not use the option{'s' * (len(unused) > 1)} "
+                         f"{', '.join(f'`{name}`' for name in unused)} (its options: {takes})")
     if task_timeout is not None and not 0 < task_timeout < math.inf:  # inf: no JSON number holds it
         raise ValueError(f"the task timeout must be a finite number of seconds more than 0, not {task_timeout}")
     memory = _bytes(task_memory)

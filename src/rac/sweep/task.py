@@ -33,8 +33,8 @@ from rac.engine.budget import format_bytes
 from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
 
-__all__ = ["KILLING_SIGNALS", "NOT_FAILED", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "VERDICTS", "TaskSpec",
-           "memory_error", "run_task", "scenario_digest", "source_digest"]
+__all__ = ["KILLING_SIGNALS", "NOT_FAILED", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "TASK_OPTIONS", "VERDICTS",
+           "TaskSpec", "memory_error", "run_task", "scenario_digest", "source_digest"]
 
 #: What a task runs: the command of the same name on one file.
 #: A row's ``status``: "ok" (no errors; every query decided), "failed" (errors in the file, a query
@@ -56,6 +56,14 @@ OPTIONS: dict[str, str] = {
     "seeds": "experiment: the seeds, e.g. 1,2,3 (default 1..5)",
     "runs": "preanalyse: simulated runs per setting (default 100); experiment: evaluation runs (default 100)",
     "reward_function": "experiment: the reward function of the RF combinations (default: the paper's Eq. 9)",
+}
+#: The options each task uses (:mod:`rac.sweep.work`): another is refused by :func:`rac.sweep.api.plan`, where it
+#: was ignored, silently.
+TASK_OPTIONS: dict[str, tuple[str, ...]] = {
+    "check": (),
+    "verify": ("horizon", "seed", "max_states", "episodes"),
+    "preanalyse": ("horizon", "seed", "max_states", "runs"),
+    "experiment": ("horizon", "seed", "max_states", "episodes", "seeds", "runs", "reward_function"),
 }
 #: What an error says when the task ran out of memory under its limit (Python, numpy, C++, the loader;
 #: CPython's SystemError "returned NULL without setting an exception" when even the MemoryError failed).
