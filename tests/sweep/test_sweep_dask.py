@@ -44,7 +44,7 @@ from rac.cli.sweep import exit_status
 from rac.model.scenes import write_scene
 from rac.sweep import Plan, SweepResult, execute, plan, sweep
 from rac.sweep.report import render_summary, summarise, write_plots
-from rac.sweep.run import KILLED, Tracker, connect, pending, run_tasks
+from rac.sweep.run import KILLED, Outcome, Tracker, connect, pending, rows_in_order, run_tasks
 from rac.sweep.store import Store
 from rac.sweep.task import TaskSpec, source_digest
 
@@ -306,6 +306,23 @@ def test_rows_reach_on_row_without_a_walk_of_every_spec_each(client, tmp_path: P
     run_tasks(client, Walked(specs), todo, outcome, store, on_row=lambda spec, row: heard.append(spec.scenario))
     assert sorted(heard) == sorted(spec.scenario for spec in specs) and outcome.ran == 6
     assert Walked.walks == 1
+
+
+def test_a_file_under_two_names_gets_its_own_name_in_the_error_too(world: Path, tmp_path: Path) -> None:
+    """Two copies of a broken scenario are one task; the second's row said "E0712 cannot load the scenario:
+    .../first.xml", naming the other file."""
+    specs = specs_for(tmp_path, world / "sweep.ra", ["first.xml"])
+    (tmp_path / "second.xml").write_text("first.xml", encoding="utf-8")
+    specs.append(dataclasses.replace(specs[0], scenario=str(tmp_path / "second.xml")))
+    first = specs[0].scenario
+    outcome = Outcome(keys=[spec.key() for spec in specs])
+    outcome.rows[outcome.keys[0]] = sweep_helpers.row(specs[0], "error", error=f"E0712 cannot load {first}: broken",
+                                                      diagnostics=[f"E0712 cannot load {first}: broken"])
+    one, two = rows_in_order(specs, outcome)
+    assert (one["scenario"], one["error"]) == (first, f"E0712 cannot load {first}: broken")
+    assert (two["scenario"], two["scenario_name"]) == (specs[1].scenario, "second")
+    assert two["error"] == f"E0712 cannot load {specs[1].scenario}: broken"
+    assert two["diagnostics"] == [f"E0712 cannot load {specs[1].scenario}: broken"]
 
 
 def test_the_progress_counts_a_file_under_two_names_as_two_tasks(client, tmp_path: Path, world: Path,

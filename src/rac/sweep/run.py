@@ -307,13 +307,27 @@ def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpe
 
 def rows_in_order(specs: Sequence[TaskSpec], outcome: Outcome) -> list[Row]:
     """One row per spec that has one, in the order of ``specs`` (those :func:`run_tasks` ran); a spec
-    sharing its key with another (the same scenario file under two paths) gets that row with its own path."""
+    sharing its key with another (the same scenario file under two paths) gets that row with its own path, also
+    where its ``error`` and ``diagnostics`` quote the other's path."""
     rows: list[Row] = []
     for spec, key in zip(specs, outcome.keys):
         row = outcome.rows.get(key)
         if row is not None:
-            rows.append(row if row.get("scenario") == spec.scenario else {**row, **spec.names()})
+            rows.append(row if row.get("scenario") == spec.scenario else _renamed(row, spec))
     return rows
+
+
+def _renamed(row: Row, spec: TaskSpec) -> Row:
+    """``row`` (of the same scenario file under another path) as the row of ``spec``: its names, and its path
+    in the texts that quote the other's (a load error names the file it read)."""
+    other = row.get("scenario")
+
+    def said(text: object) -> object:
+        return text.replace(other, spec.scenario) if isinstance(text, str) and isinstance(other, str) else text
+
+    diagnostics = row.get("diagnostics")
+    return {**row, **spec.names(), "error": said(row.get("error")),
+            "diagnostics": [said(d) for d in diagnostics] if isinstance(diagnostics, list) else diagnostics}
 
 
 def _duration(seconds: float) -> str:
