@@ -485,6 +485,13 @@ def test_parse_set_and_grid_points() -> None:
     assert parse_set(["start_x=-2"]) == [("start_x", ["-2"])]
 
 
+def test_a_value_written_twice_another_way_is_one_grid_point() -> None:
+    """`--set exponent=1,1.0` made two grid points, two tasks with one answer (the repeated text was kept once,
+    the same value written another way was not)."""
+    assert parse_set(["exponent=1,1.0,2", "max_speed=0.5,0.50,1/2"]) == [("exponent", ["1", "2"]),
+                                                                         ("max_speed", ["0.5", "1/2"])]
+
+
 @pytest.mark.parametrize("text, message", [
     ("exponent", "NAME=V1,V2"), ("exponent=", "no value"), ("=1,2", "NAME=V1,V2"), ("exponent=1,,2", "empty"),
     ("exponent=1 2", "exponent"), ("expnent=1", "did you mean `exponent`"), ("scenario=a.xml", "SCENARIOS"),

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from rac.core.files import GENERATED_MARK, head
 from rac.ir.vocabulary import ACTIONS
+from rac.lang.format import format_expr
 from rac.sweep.template import SETTING_NAMES, setting_value
 
 __all__ = ["grid_points", "parse_set", "scenario_files"]
@@ -80,9 +81,10 @@ def _setting_name(name: str) -> str:
 
 def parse_set(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
     """Each ``--set NAME=V1,V2,...`` as ``(NAME, [V1, V2, ...])`` (spaces around names and values
-    dropped, a repeated value kept once). ``ValueError`` on bad syntax, a value that is not a number
-    or a word, an unknown setting name, or a setting given twice. Values are checked against the
-    setting's range by each task's ``rac check`` (a value it refuses fails that task)."""
+    dropped, a repeated value kept once, also when written another way: ``1`` and ``1.0``).
+    ``ValueError`` on bad syntax, a value that is not a number or a word, an unknown setting name, or
+    a setting given twice. Values are checked against the setting's range by each task's ``rac
+    check`` (a value it refuses fails that task)."""
     result: list[tuple[str, list[str]]] = []
     for text in texts:
         name, equals, values = (part.strip() for part in text.partition("="))
@@ -96,9 +98,11 @@ def parse_set(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
         parts = [value.strip() for value in values.split(",")]
         if not all(parts):
             raise ValueError(f"`--set {text}`: an empty value between commas")
+        kept: dict[str, str] = {}  # by the value as the block would print it: `1` and `1.0` are one value
         for part in parts:
-            setting_value(name, part)  # a number or a word: a typo fails here, not in every task
-        result.append((name, list(dict.fromkeys(parts))))
+            # a number or a word: a typo fails here, not in every task
+            kept.setdefault(format_expr(setting_value(name, part)), part)
+        result.append((name, list(kept.values())))
     return result
 
 
