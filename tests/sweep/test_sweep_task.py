@@ -310,6 +310,24 @@ def test_the_key_depends_on_the_inputs_only(folder: Path, tmp_path: Path) -> Non
     assert spec(folder, "no_such_file.xml").key() != spec(folder, "other_missing.xml").key()
 
 
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs are POSIX")
+def test_a_fifo_among_the_scenarios_is_an_error_row_not_a_hang(folder: Path, tmp_path: Path) -> None:
+    """A FIFO named *.xml in a scenario folder hung the sweep before any task ran (its key read it, waiting for
+    a writer for ever), and its task's process until the task timeout. It is keyed by its path now, and its
+    row says what it is."""
+    fifo = tmp_path / "pipe.xml"
+    os.mkfifo(fifo)
+    code = ("import sys; from rac.sweep.api import plan; "
+            "print(plan(sys.argv[1], [sys.argv[2]], task='check').specs[0].key())")
+    keyed = subprocess.run([sys.executable, "-c", code, str(folder / "template" / "sweep.ra"), str(tmp_path)],
+                           env=rac_env(), capture_output=True, text=True, timeout=20)
+    assert keyed.returncode == 0 and len(keyed.stdout.strip()) == 16, keyed.stderr
+    started = time.perf_counter()
+    row = run_task(dataclasses.replace(spec(folder, "goal_ahead.xml", task="check"), scenario=str(fifo), timeout=8))
+    assert row["status"] == "error" and "is not a regular file" in str(row["error"]), row
+    assert time.perf_counter() - started < 8
+
+
 def test_a_sweep_reads_each_scenario_once_for_its_keys(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The keys of a sweep read each scenario file once per grid point (a sweep of 1000 points over a large
     scenario read it 1000 times before any task ran); now once per sweep, with the same keys as before."""

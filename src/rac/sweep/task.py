@@ -130,8 +130,11 @@ class TaskSpec:
 
 def scenario_digest(path: str | os.PathLike[str]) -> str:
     """What a task's key holds of its scenario file: the SHA-256 of its bytes, or ``unreadable:`` and its absolute
-    path when it cannot be read."""
+    path when it cannot be read or is no regular file (a FIFO's read would wait for a writer for ever, a
+    device's never end; the task's check then says what it is)."""
     try:
+        if not Path(path).is_file():
+            raise OSError(f"not a regular file: {path}")
         return hashlib.sha256(Path(path).read_bytes()).hexdigest()
     except OSError:
         return "unreadable:" + os.path.abspath(path)
