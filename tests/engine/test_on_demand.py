@@ -34,7 +34,7 @@ def test_the_on_demand_shield_allows_only_what_the_table_allows(tmp_path: Path, 
     assert data is not None and result.automaton is not None
     horizon = result.automaton.steps
     computed, table = shields.synthesise(data, horizon)
-    lazy = on_demand(data, horizon, seconds=None)  # unbounded: exactly the table's masks
+    lazy = on_demand(data, horizon, seconds=None, nodes=None)  # unbounded: exactly the table's masks
     budgeted = on_demand(data, horizon)  # fixed continuations tried first, then a budgeted search
     runs = simulate(data, runs=30, horizon_samples=horizon, seed=3, policy=table.masks_at)
     for k in range(0, horizon, data.decide_every):
@@ -138,3 +138,59 @@ def test_where_no_action_is_proved_in_time_learning_chooses_among_the_longest_sa
     assert empty.tolist() == [True] and (masks == longest).all()  # not every action of the model
     table = shields.synthesise(data, horizon)[1]
     assert not table.fallback_for(row).any()  # an exhaustive table knows nothing beyond its rows
+
+
+def _searched_rows(tmp_path: Path, scene: str):  # type: ignore[no-untyped-def]
+    """The scene's data, horizon and the state rows of 30 runs at each decision sample."""
+    path = write_engine_file(tmp_path, scene, {"safe": QUERIES["safe"]})
+    result = compile_file(path)
+    data = result.model_data
+    assert data is not None and result.automaton is not None
+    horizon = result.automaton.steps
+    runs = simulate(data, runs=30, horizon_samples=horizon, seed=3)
+    rows = [np.column_stack([np.full(30, k), runs.states[:, k, :7]]).astype(np.int32)
+            for k in range(0, horizon, data.decide_every)]
+    return data, horizon, rows
+
+
+def test_the_on_demand_shields_masks_do_not_depend_on_the_clock(tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Its budget per state is search nodes, the same on every machine: on a machine so loaded that
+    each reading of the clock is 15 ms after the last, the masks and the states whose budget ran out
+    are those of an idle one (the old budget, 0.02 s a state, cut the searches there)."""
+    from types import SimpleNamespace
+
+    from rac.engine import lookahead
+
+    data, horizon, rows = _searched_rows(tmp_path, "goal_behind_wall")
+    # every row searched on its own (the fixed continuations tried first would prove most of them)
+    monkeypatch.setattr(ondemand.OnDemandShield, "_fixed_proofs",
+                        lambda self, egos, k: np.zeros((egos.shape[0], self.n_actions), dtype=bool))
+    idle = on_demand(data, horizon)
+    expected = [idle.masks_for(part) for part in rows]
+    assert idle.stats.states > 0 and any(mask.any() for mask in expected)
+    ticks = iter(range(10**9))
+    monkeypatch.setattr(lookahead, "time", SimpleNamespace(perf_counter=lambda: next(ticks) * 0.015))
+    loaded = on_demand(data, horizon)
+    for part, mask in zip(rows, expected):
+        assert (loaded.masks_for(part) == mask).all()
+    assert loaded.stats == idle.stats and loaded.stats.clock == 0
+
+
+def test_an_answer_the_shields_time_guard_cut_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The time guard is a safety net; where it cuts a search the mask depends on the machine, and the
+    answers that used such masks say so (they said nothing)."""
+    from rac.verify import symbolic
+
+    path = write_engine_file(tmp_path, "goal_behind_wall", UNDER)
+    monkeypatch.setattr(symbolic, "on_demand", lambda data, horizon: on_demand(data, horizon, seconds=0.0))
+    monkeypatch.setattr(ondemand.OnDemandShield, "_fixed_proofs",
+                        lambda self, egos, k: np.zeros((egos.shape[0], self.n_actions), dtype=bool))
+    context, results = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path, plots=False,
+                                                                     max_states=3))
+    found = {r.name: r for r in results}
+    assert found["safe"].method == "on demand" and found["safe"].status == "satisfied"
+    assert context.on_demand["safe"].stats.clock > 0
+    for name in ("Prob", "Learn"):  # (Prob: the runs met the empty masks the guard left; that too depended on it)
+        assert "time guard (0 s a state) cut short" in (found[name].message or ""), found[name].message
+    assert "time guard" not in (found["safe"].message or "")

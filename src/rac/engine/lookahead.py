@@ -32,7 +32,9 @@ budget runs out below it, the search stops where it is: every depth found so far
 so the mask stays sound — each allowed action has a safe continuation of :attr:`LookaheadMask.depth`
 decisions — but it may allow fewer actions than a complete search, or reach less deep.
 :attr:`LookaheadMask.complete` is then False, and every consumer reports it (ScenarioEnv's
-``info["shield_timeout"]``), never silently.
+``info["shield_timeout"]``), never silently. The node budget gives the same answer on every machine;
+where the time budget stopped the search, :attr:`LookaheadMask.clock` says the answer depended on the
+machine's speed.
 
 The search (all of it numpy over :class:`rac.model.batch.BatchModel`, the functions the exploration
 uses) goes layer by layer, all open actions at once: a layer holds the states that have survived
@@ -124,6 +126,9 @@ class LookaheadMask:
     #: Search nodes expanded (the root's children count as one).
     nodes: int
     seconds: float
+    #: The *time* budget stopped the search (not the node budget, nor its end): then the answer depends
+    #: on the machine's speed and load, and consumers that promise reproducible answers say so.
+    clock: bool = False
 
     @property
     def timed_out(self) -> bool:
@@ -217,6 +222,7 @@ class Lookahead:
         target = self.decisions_left(k)
         self._deadline = None if self.settings.seconds is None else started + self.settings.seconds
         self._nodes = 0
+        self._clock = False
         depths = np.zeros(self.n_actions, dtype=np.int64)
         complete = True
         if not (self.sticky and crashed):
@@ -233,7 +239,8 @@ class Lookahead:
         best = int(depths.max())
         mask = depths == best if best > 0 else np.zeros(self.n_actions, dtype=bool)
         return LookaheadMask(mask=mask, depths=depths, depth=best, target=target, until=self.sample_after(k, best),
-                             complete=complete, nodes=self._nodes, seconds=time.perf_counter() - started)
+                             complete=complete, nodes=self._nodes, seconds=time.perf_counter() - started,
+                             clock=self._clock and not complete)  # a complete search is exact, whatever the clock
 
     def decisions_left(self, k: int) -> int:
         """The decisions asked for from sample ``k``: the setting's depth, or fewer up to the horizon."""
@@ -261,6 +268,7 @@ class Lookahead:
         if settings.nodes is not None and self._nodes + nodes > settings.nodes:
             raise _OutOfBudget
         if self._deadline is not None and time.perf_counter() >= self._deadline:
+            self._clock = True
             raise _OutOfBudget
         self._nodes += nodes
 
@@ -357,6 +365,7 @@ class Lookahead:
                 reached[alive] = remaining
                 break
             if self._deadline is not None and time.perf_counter() >= self._deadline:
+                self._clock = True  # the answer is cut by the clock, whichever budget then stops the search
                 break  # what is proved so far stands; the search's next _spend stops it (a long horizon held)
             live = np.flatnonzero(alive)
             if live.size == 0:

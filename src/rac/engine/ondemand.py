@@ -7,11 +7,16 @@ run reaches it: an action is allowed when the runtime shield (:class:`rac.engine
 proves a safe continuation from it **up to the horizon** (every remaining decision). That is the
 exhaustive shield's own condition, so every allowed action is one the table would allow.
 
-The search per state has a time budget (:attr:`OnDemandShield.seconds`). When it runs out before an
-action is proved, that action is not allowed: the mask stays sound (nothing unsafe is allowed) but
-may allow fewer actions than the table would; :attr:`OnDemandShield.stats` counts those states, and
-the states where no action was proved (a mask of all False, the table's answer for a losing state),
-so that every consumer can say how far the guarantee reached.
+The search per state has a budget of search nodes (:attr:`OnDemandShield.nodes`, the runtime shield's
+:attr:`~rac.engine.lookahead.LookaheadSettings.nodes`): the same on every machine, so the same inputs
+give the same masks anywhere. When it runs out before an action is proved, that action is not
+allowed: the mask stays sound (nothing unsafe is allowed) but may allow fewer actions than the
+table would. A time guard per state (:attr:`OnDemandShield.seconds`) is only a safety net against a
+search far slower than its nodes suggest; a mask it cut depends on the machine's speed and load.
+:attr:`OnDemandShield.stats` counts the states whose budget ran out, those of them the time guard
+cut, and the states where no action was proved (a mask of all False, the table's answer for a
+losing state), so that every consumer can say how far the guarantee reached and whether it was
+reproducible.
 
 It is a :class:`~rac.engine.shield.ShieldTable` without rows: :meth:`masks_for` computes a row
 when it is asked for (and keeps it), so simulations and learning use it as they use a table.
@@ -31,8 +36,13 @@ from rac.model.sample import GRAPH_EGO, GraphColumn
 
 __all__ = ["OnDemandShield", "OnDemandStats", "on_demand"]
 
-#: The default time budget per state, in seconds (simulations and learning ask for thousands).
-DEFAULT_SECONDS = 0.02
+#: The default node budget per state (simulations and learning ask for thousands): the searches the
+#: fixed continuations leave to it take up to ~0.2 s on the paper's model with 45 actions, a few ms each
+#: mostly. The same masks on every machine.
+DEFAULT_NODES = 64
+#: The default time guard per state, in seconds: a safety net far above what the node budget takes,
+#: reported where it fires (:attr:`OnDemandStats.clock`).
+DEFAULT_SECONDS = 2.0
 #: The (state, action) pairs whose fixed continuations are tried at once (their arrays, ~100 bytes a
 #: pair and continuation, two continuations a pair, stay near 50 MB however many states are asked
 #: about together).
@@ -47,7 +57,9 @@ class OnDemandStats:
 
     states: int = 0  # distinct states asked about
     timed_out: int = 0  # of them, where the budget ran out (the mask may allow fewer actions)
-    empty: int = 0  # of them, where no action was proved safe to the horizon
+    clock: int = 0  # of those, where the time guard cut the search (the mask depends on the machine)
+    empty: int = 0  # of the states, where no action was proved safe to the horizon
+    clocked_answers: int = 0  # masks handed out (a state asked again counts again) that the time guard cut
 
 
 @dataclass(frozen=True)
@@ -56,7 +68,10 @@ class OnDemandShield(ShieldTable):
     when asked for (see the module docstring). Build it with :func:`on_demand`."""
 
     lookahead: Lookahead | None = field(default=None, compare=False, repr=False)
+    #: The time guard per state (None: none).
     seconds: float | None = DEFAULT_SECONDS
+    #: The node budget per state (None: none; with no time guard either, every row is searched exactly).
+    nodes: int | None = DEFAULT_NODES
     stats: OnDemandStats = field(default_factory=OnDemandStats, compare=False)
 
     def __post_init__(self) -> None:
@@ -65,12 +80,14 @@ class OnDemandShield(ShieldTable):
         # per state whose row is empty: the actions the search proved safe the longest (fewer decisions
         # than the horizon), for consumers that must choose there anyway (:meth:`fallback_for`)
         object.__setattr__(self, "_longest", {})
+        # the states whose search the time guard cut: every answer from them is counted (stats.clocked_answers)
+        object.__setattr__(self, "_clocked", set())
 
     def masks_for(self, states: np.ndarray) -> np.ndarray:
         """``(n, n_actions)`` bool: per state row, the actions proved to have a safe continuation up
         to the horizon (all False: none proved; at or after the horizon: every action).
 
-        With a budget per state, the rows asked for together at one sample are first tried at once:
+        With a budget per state (nodes or time), the rows asked for together at one sample are first tried at once:
         every action of every row, followed by two fixed continuations to the horizon (holding the
         action; braking straight on), in one vectorised pass. A row where that proves some action
         keeps the actions it proved (sound; it may allow fewer than a full search); the others are
@@ -80,7 +97,7 @@ class OnDemandShield(ShieldTable):
         memo: dict[bytes, np.ndarray] = self._memo  # type: ignore[attr-defined]
         keys = [row[:GraphColumn.CRASHED].tobytes() for row in rows]
         todo = [i for i, key in enumerate(keys) if key not in memo]
-        if todo and self.seconds is not None:
+        if todo and (self.seconds is not None or self.nodes is not None):
             for k in np.unique(rows[todo, GraphColumn.K]).tolist():
                 group = [i for i in todo if rows[i, GraphColumn.K] == k and keys[i] not in memo]
                 if k >= self.lookahead.horizon or not group:
@@ -98,6 +115,9 @@ class OnDemandShield(ShieldTable):
         for i, key in enumerate(keys):
             if key not in memo:
                 memo[key] = self._searched(rows[i])
+        clocked: set[bytes] = self._clocked  # type: ignore[attr-defined]
+        if clocked:
+            self.stats.clocked_answers += sum(key in clocked for key in keys)
         return np.array([memo[key] for key in keys], dtype=bool).reshape(rows.shape[0], self.n_actions)
 
     def _searched(self, row: np.ndarray) -> np.ndarray:
@@ -112,6 +132,9 @@ class OnDemandShield(ShieldTable):
             self._longest[row[:GraphColumn.CRASHED].tobytes()] = found.mask.copy()  # type: ignore[attr-defined]
         self.stats.states += 1
         self.stats.timed_out += int(not found.complete)
+        self.stats.clock += int(found.clock)
+        if found.clock:
+            self._clocked.add(row[:GraphColumn.CRASHED].tobytes())  # type: ignore[attr-defined]
         self.stats.empty += int(not mask.any())
         return mask
 
@@ -156,9 +179,13 @@ class OnDemandShield(ShieldTable):
         return True
 
 
-def on_demand(data: ModelData, horizon_samples: int, seconds: float | None = DEFAULT_SECONDS) -> OnDemandShield:
-    """The on-demand safety shield of ``data`` up to ``horizon_samples`` (``seconds`` per state)."""
+def on_demand(data: ModelData, horizon_samples: int, seconds: float | None = DEFAULT_SECONDS,
+              nodes: int | None = DEFAULT_NODES) -> OnDemandShield:
+    """The on-demand safety shield of ``data`` up to ``horizon_samples``: ``nodes`` search nodes per
+    state (reproducible), ``seconds`` per state as a time guard (None: none; both None: exact)."""
     n_actions = len(action_pairs(data))
-    lookahead = Lookahead(data, horizon_samples, LookaheadSettings(depth=horizon_samples + 1, seconds=seconds))
+    settings = LookaheadSettings(depth=horizon_samples + 1, seconds=seconds, nodes=nodes)
+    lookahead = Lookahead(data, horizon_samples, settings)
     return OnDemandShield(COLUMNS, np.zeros((0, len(COLUMNS)), dtype=np.int32), np.zeros((0, n_actions), dtype=bool),
-                          horizon=horizon_samples, lookahead=lookahead, seconds=seconds)
+                          horizon=horizon_samples, lookahead=lookahead, seconds=settings.seconds,
+                          nodes=settings.nodes)

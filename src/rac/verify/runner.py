@@ -132,6 +132,7 @@ class Verifier:
         base = QueryResult(decl.name, decl.text, _kind(query), "unknown", title=title, span=decl.span)
         t0 = time.perf_counter()
         self.context.seed_slot = self.seed_slots.get(id(decl))
+        clocked = {name: computed.stats.clocked_answers for name, computed in self.context.on_demand.items()}
         try:
             result = self._dispatch(query, base)
         except UnknownVerdict as exc:
@@ -159,7 +160,21 @@ class Verifier:
         note = self.context.stopped_note() if result.states is not None else None
         if note is not None and result.status in ("satisfied", "not satisfied"):
             result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
+        for note in self._clock_notes(clocked):
+            result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
         return dataclasses.replace(result, seconds=time.perf_counter() - t0)
+
+    def _clock_notes(self, before: dict[str, int]) -> list[str]:
+        """Per on-demand shield that handed out masks its time guard cut while this query ran (``before``:
+        each one's count of such masks before it): that the answer depends on the machine's speed."""
+        notes = []
+        for name, computed in self.context.on_demand.items():
+            cut = computed.stats.clocked_answers - before.get(name, 0)
+            if cut > 0:
+                notes.append(f"{cut:,} {'mask' if cut == 1 else 'masks'} of the shield `{name}` came from searches "
+                             f"its time guard ({computed.seconds:g} s a state) cut short, so this answer depends on "
+                             "the machine's speed and load and may differ on another run at the same seed")
+        return notes
 
     def _dispatch(self, query: iq.Query, base: QueryResult) -> QueryResult:
         refusal = _ending_refusal(self.context.program.automaton, query, self.context.learned)

@@ -333,9 +333,8 @@ class SymbolicAnswerer:
             base, status=SATISFIED, method="on demand", horizon_samples=ctx.horizon_samples,
             message=(f"{too_large.split(':')[0]}, so the shield is computed state by state: at the start "
                      f"{allowed} of {found.mask.size} actions have a safe continuation to the horizon; later "
-                     f"states when runs reach them ({computed.seconds:g} s each at most; an action not proved "
-                     "within it is not allowed, so on a loaded machine runs under it may differ at the same "
-                     "seed). Not saved."))
+                     f"states when runs reach them ({computed.nodes:,} search nodes each at most, the same on "
+                     "every machine; an action not proved within them is not allowed). Not saved."))
 
     # ------------------------------------------------------------ pieces
     def under_shield(self, name: str, what: str) -> ExploredGraph:
