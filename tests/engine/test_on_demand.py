@@ -194,3 +194,28 @@ def test_an_answer_the_shields_time_guard_cut_says_so(tmp_path: Path, monkeypatc
     for name in ("Prob", "Learn"):  # (Prob: the runs met the empty masks the guard left; that too depended on it)
         assert "time guard (0 s a state) cut short" in (found[name].message or ""), found[name].message
     assert "time guard" not in (found["safe"].message or "")
+
+
+def test_a_start_search_stopped_by_its_time_limit_counts_its_actions_as_at_least(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Qd beyond the budget is decided by a search from the start with a time limit; where the limit
+    stopped it after proving some actions, the others were not searched to the end, so the count of
+    actions with a safe continuation is a lower bound that depends on the machine (it read as exact)."""
+    import dataclasses
+
+    from rac.engine.lookahead import Lookahead
+    from rac.verify import symbolic
+
+    class Stopped(Lookahead):
+        def decide(self, state: np.ndarray, crashed: bool = False):  # type: ignore[no-untyped-def]
+            return dataclasses.replace(super().decide(state, crashed), complete=False)
+
+    path = write_engine_file(tmp_path, "goal_behind_wall", {"safe": QUERIES["safe"]})
+    _, complete = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path / "a", plots=False,
+                                                                max_states=3))
+    monkeypatch.setattr(symbolic, "Lookahead", Stopped)
+    _, stopped = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path / "b", plots=False,
+                                                               max_states=3))
+    assert complete[0].status == stopped[0].status == "satisfied"
+    assert "at the start 1 of 9 actions have" in (complete[0].message or ""), complete[0].message
+    assert "at the start at least 1 of 9 actions (the search stopped at its 20 s limit" in (stopped[0].message or "")

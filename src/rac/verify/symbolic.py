@@ -329,10 +329,14 @@ class SymbolicAnswerer:
         computed = on_demand(ctx.data, ctx.horizon_samples)
         ctx.on_demand[query.name] = computed
         allowed = int(found.mask.sum())
+        # a search its time limit stopped proved these and may have missed others: the count is the machine's
+        count = (f"{allowed} of {found.mask.size} actions have" if found.complete else
+                 f"at least {allowed} of {found.mask.size} actions (the search stopped at its {START_SECONDS:g} s "
+                 "limit, so the count depends on the machine's speed) have")
         return dataclasses.replace(
             base, status=SATISFIED, method="on demand", horizon_samples=ctx.horizon_samples,
             message=(f"{too_large.split(':')[0]}, so the shield is computed state by state: at the start "
-                     f"{allowed} of {found.mask.size} actions have a safe continuation to the horizon; later "
+                     f"{count} a safe continuation to the horizon; later "
                      f"states when runs reach them ({computed.nodes:,} search nodes each at most, the same on "
                      "every machine; an action not proved within them is not allowed). Not saved."))
 
