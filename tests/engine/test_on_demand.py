@@ -219,3 +219,14 @@ def test_a_start_search_stopped_by_its_time_limit_counts_its_actions_as_at_least
     assert complete[0].status == stopped[0].status == "satisfied"
     assert "at the start 1 of 9 actions have" in (complete[0].message or ""), complete[0].message
     assert "at the start at least 1 of 9 actions (the search stopped at its 20 s limit" in (stopped[0].message or "")
+
+
+def test_a_state_asked_twice_at_once_is_counted_once(tmp_path: Path) -> None:
+    """``stats.states`` counts distinct states (what a report cites as the shield's reach): runs that
+    meet the same state at one sample asked about it together, and it was counted once per run."""
+    data, horizon, rows = _searched_rows(tmp_path, "avoidable_obstacle")
+    shield = on_demand(data, horizon)
+    start = rows[0][:1]
+    twice = shield.masks_for(np.concatenate([start, start, start]))
+    assert twice.any() and (twice == twice[0]).all()
+    assert shield.stats.states == 1

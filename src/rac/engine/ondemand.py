@@ -109,7 +109,7 @@ class OnDemandShield(ShieldTable):
                 proved = np.concatenate([self._fixed_proofs(egos[start:start + step], int(k))
                                          for start in range(0, len(group), step)])
                 for i, mask in zip(group, proved):
-                    if mask.any():
+                    if mask.any() and keys[i] not in memo:  # a state asked twice at once is one state
                         memo[keys[i]] = mask
                         self.stats.states += 1
         for i, key in enumerate(keys):
