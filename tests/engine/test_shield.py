@@ -83,3 +83,30 @@ def test_too_few_actions_for_the_table_are_refused_by_name() -> None:
     with pytest.raises(ValueError, match=r"n_actions=2, but the shield's graph has choices of action index up to 2"):
         shields.table(shield, n_actions=2)
     assert shields.table(shield, n_actions=5).n_actions == 5  # wider masks: the extra actions never allowed
+
+
+def test_a_synthesised_shield_saved_as_computed_keeps_its_masks(tmp_path: Path) -> None:
+    """``synthesise`` explores with ``forget_actions`` (jerk and turn held as 0 at decision samples): the
+    computed shield saved as such (``save(computed, path)``, as the module documents) and its
+    ``SafeOnward`` look states up that way too. They looked up a run's own jerk and turn, found no
+    decision state after the start, and allowed nothing there (every action with ``unseen="all"``)."""
+    from engine_files import QUERIES, write_engine_file
+
+    from rac.compiler import compile_file
+    from rac.engine.simulate import simulate
+
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", {"safe": QUERIES["safe"]}))
+    data = result.model_data
+    assert data is not None and result.automaton is not None
+    horizon = result.automaton.steps
+    computed, table = shields.synthesise(data, horizon)
+    saved = shields.load(shields.save(computed, tmp_path / "computed.shield.npz"))
+    assert saved.forget_every == table.forget_every == data.decide_every
+    runs = simulate(data, runs=30, horizon_samples=horizon, seed=3, policy=table.masks_at)
+    later = range(data.decide_every, horizon, data.decide_every)
+    for k in later:
+        expected = table.masks_at(k, runs.states[:, k])
+        assert expected.any(axis=1).all() and (saved.masks_at(k, runs.states[:, k]) == expected).all(), k
+    onward = shields.SafeOnward(computed, horizon)
+    keys = np.column_stack([np.full(30, later[0]), runs.states[:, later[0]]]).astype(np.int32)
+    assert onward(keys).all()

@@ -39,6 +39,10 @@ class ExploredGraph:
     initial: int = 0
     labels: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (n,) bool
     complete: bool = True
+    #: > 0: explored with ``forget_actions`` (:func:`rac.engine.explore.explore`) for a decision every
+    #: ``forget_every`` samples, so its states hold jerk and turn as 0 where
+    #: :func:`rac.engine.explore.forgets_actions` says; a lookup by a run's state must do the same.
+    forget_every: int = 0
 
     @property
     def n_states(self) -> int:

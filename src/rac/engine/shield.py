@@ -156,13 +156,14 @@ class SafeOnward:
     its graph. Called with ``(m, 8)`` state keys ``k, x, y, v, acc, head, jerk, turn``; a state the
     graph does not hold (none a safe run reaches) is not. ``forget_every``: the graph was explored
     with ``forget_actions`` (:func:`rac.engine.explore.forgets_actions`), so such keys are looked up
-    with jerk and turn at 0 where it holds them so. Used by ``rac experiment`` to judge a run that
+    with jerk and turn at 0 where it holds them so (default: as the graph records,
+    :attr:`rac.engine.graph.ExploredGraph.forget_every`). Used by ``rac experiment`` to judge a run that
     reaches the goal: "safe at the goal" means it can also stay safe to the horizon."""
 
-    def __init__(self, shield: Shield, horizon_samples: int, forget_every: int = 0) -> None:
+    def __init__(self, shield: Shield, horizon_samples: int, forget_every: int | None = None) -> None:
         graph = shield.graph
         self.horizon = horizon_samples
-        self.forget_every = forget_every
+        self.forget_every = graph.forget_every if forget_every is None else forget_every
         k = graph.states[:, GraphColumn.K]
         order = np.argsort(k, kind="stable")
         bounds = np.searchsorted(k[order], np.arange(horizon_samples + 2))
@@ -209,15 +210,18 @@ def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None 
                            horizon=horizon_samples, model=data)
 
 
-def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none", forget_every: int = 0,
+def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none", forget_every: int | None = None,
           horizon: int | None = None, model: ModelData | None = None) -> ShieldTable:
     """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads);
     ``model``: the model it was computed for (its digest is recorded: :attr:`ShieldTable.model`);
-    ``forget_every``: the model's ``decide_every`` when the graph was explored with ``forget_actions``;
+    ``forget_every``: the model's ``decide_every`` when the graph was explored with ``forget_actions``
+    (default: as the graph records it, :attr:`rac.engine.graph.ExploredGraph.forget_every`);
     ``horizon``: the sample the graph was explored to (default: its last sample); ``n_actions``: the
     masks' width (default: the largest action the graph takes, plus one), fewer than the graph's
     actions is a :class:`~rac.core.diagnostics.RacValueError`."""
     graph = shield.graph
+    if forget_every is None:  # a graph explored with forget_actions holds its decision states without the action
+        forget_every = graph.forget_every
     if horizon is None and graph.n_states and "k" in graph.columns:
         horizon = int(graph.states[:, graph.columns.index("k")].max())
     actions = graph.choice_action
