@@ -312,6 +312,32 @@ def test_a_shield_beyond_the_budget_gives_way_to_the_runtime_shield(command: str
         assert rows and all(float(r["mindist()"]) >= float(r["3 * collision_distance"]) / 3 for r in rows)
 
 
+def test_runs_under_the_runtime_shield_do_not_depend_on_the_clock(capsys: pytest.CaptureFixture[str],
+                                                                   tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Beyond the budget the runtime shield searches with a node budget: on a machine so loaded that each
+    reading of the clock is 40 ms after the last, the runs at a seed are those of an idle one (its time
+    budget, 0.1 s a decision, cut the searches there, and the runs drew from other masks)."""
+    from types import SimpleNamespace
+
+    from rac.engine import lookahead
+
+    path = write_engine_file(tmp_path, "goal_behind_wall", {})
+
+    def runs(folder: str) -> tuple[str, str]:
+        out = tmp_path / folder
+        assert main(["simulate", str(path), "--shield", "--max-states", "10", "--runs", "20", "--seed", "3",
+                     "-o", str(out)]) == 0
+        return (out / "runs.csv").read_text(encoding="utf-8"), capsys.readouterr().err
+
+    idle, said = runs("idle")
+    assert "up to 64 search nodes each" in said and "ran out of" not in said
+    ticks = iter(range(10**9))
+    monkeypatch.setattr(lookahead, "time", SimpleNamespace(perf_counter=lambda: next(ticks) * 0.04))
+    loaded, said = runs("loaded")
+    assert loaded == idle and "ran out of" not in said
+
+
 @pytest.mark.parametrize(("expr", "message"), [
     ("mindist(", "`mindist(`: the expression is incomplete"),
     ("3 *", "`3 *`: the expression is incomplete"),

@@ -110,3 +110,27 @@ def test_a_synthesised_shield_saved_as_computed_keeps_its_masks(tmp_path: Path) 
     onward = shields.SafeOnward(computed, horizon)
     keys = np.column_stack([np.full(30, later[0]), runs.states[:, later[0]]]).astype(np.int32)
     assert onward(keys).all()
+
+
+def test_the_step_shield_policy_says_which_budget_stopped_its_searches(tmp_path: Path) -> None:
+    """A search stopped by its node budget is reproducible, one stopped by its time budget is not: the
+    summary told them apart by neither (every one "ran out of their time budget")."""
+    from engine_files import QUERIES, write_engine_file
+
+    from rac.compiler import compile_file
+    from rac.engine.lookahead import LookaheadSettings
+    from rac.engine.simulate import simulate
+
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", {"safe": QUERIES["safe"]}))
+    data = result.model_data
+    assert data is not None and result.automaton is not None
+    horizon = result.automaton.steps
+    summaries = {}
+    for name, settings in {"nodes": LookaheadSettings(depth=4, seconds=None, nodes=0),
+                           "clock": LookaheadSettings(depth=4, seconds=0.0)}.items():
+        policy = shields.StepShieldPolicy(shields.StepShield(data, horizon, lookahead=settings))
+        simulate(data, runs=3, horizon_samples=horizon, seed=1, policy=policy)
+        assert policy.timed_out > 0
+        summaries[name] = policy.summary()
+    assert "ran out of their search budget" in summaries["nodes"] and "time limit" not in summaries["nodes"]
+    assert "by its time limit, so the runs depend on the machine's speed" in summaries["clock"]

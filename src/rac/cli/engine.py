@@ -392,7 +392,7 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
     from rac.engine import shield as shields
 
     # numpy (via rac.engine.lookahead): only the command that uses it loads it
-    from rac.engine.lookahead import LookaheadSettings
+    from rac.engine.lookahead import GUARD_SECONDS, NODE_BUDGET, LookaheadSettings
 
     # numpy, stormpy (via rac.verify.context): only the command that uses it loads it
     from rac.verify.context import over_budget
@@ -405,11 +405,12 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
                                                  max_bytes=args.max_memory or default_max_bytes(),
                                                  progress=callback)
     except BudgetExceeded as exc:
-        settings = LookaheadSettings()
+        # a node budget: the same runs at the same seed on every machine (the time limit only a safety net)
+        settings = LookaheadSettings(seconds=GUARD_SECONDS, nodes=NODE_BUDGET)
         fallback = shields.StepShield(result.model_data, horizon_samples, lookahead=settings, reason=over_budget(exc))
         decisions = runs * len(range(0, horizon_samples, int(result.model_data.decide_every)))
         _note(args, notes, f"the exhaustive shield is beyond the budget ({fallback.reason}); the runs choose under "
-              f"the runtime shield instead ({decisions:,} decisions, up to {settings.seconds:g} s each)")
+              f"the runtime shield instead ({decisions:,} decisions, up to {NODE_BUDGET} search nodes each)")
         return shields.StepShieldPolicy(fallback), None, EXIT_OK
     if not computed.shield_exists:
         return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)", EXIT_ERRORS

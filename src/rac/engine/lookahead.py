@@ -66,12 +66,20 @@ from rac.model.batch import BatchModel, batch_model
 from rac.model.data import ModelData
 from rac.model.sample import ACTION, Ego, collides
 
-__all__ = ["DEFAULT_DEPTH", "DEFAULT_SECONDS", "Lookahead", "LookaheadMask", "LookaheadSettings"]
+__all__ = ["DEFAULT_DEPTH", "DEFAULT_SECONDS", "GUARD_SECONDS", "NODE_BUDGET", "Lookahead", "LookaheadMask",
+           "LookaheadSettings"]
 
 #: The default number of decisions a continuation must survive.
 DEFAULT_DEPTH = 5
 #: The default time budget per decision, in seconds.
 DEFAULT_SECONDS = 0.1
+#: A node budget per decision for searches whose answers must not depend on the machine (the on-demand
+#: shield's per state, ``rac simulate --shield``'s runtime shield): the searches the fixed continuations
+#: leave to it take up to ~0.2 s on the paper's model with 45 actions, a few ms mostly.
+NODE_BUDGET = 64
+#: The time guard beside :data:`NODE_BUDGET`, in seconds: a safety net far above what the nodes take;
+#: where it fires the answer says so (:attr:`LookaheadMask.clock`).
+GUARD_SECONDS = 2.0
 #: How many successor rows one call computes (states of a layer times actions).
 CHUNK_ROWS = 1 << 12
 

@@ -29,20 +29,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rac.engine.allow import action_pairs
-from rac.engine.lookahead import Lookahead, LookaheadSettings
+from rac.engine.lookahead import GUARD_SECONDS, NODE_BUDGET, Lookahead, LookaheadSettings
 from rac.engine.shield import ShieldTable
 from rac.model.data import ModelData
 from rac.model.sample import GRAPH_EGO, GraphColumn
 
 __all__ = ["OnDemandShield", "OnDemandStats", "on_demand"]
 
-#: The default node budget per state (simulations and learning ask for thousands): the searches the
-#: fixed continuations leave to it take up to ~0.2 s on the paper's model with 45 actions, a few ms each
-#: mostly. The same masks on every machine.
-DEFAULT_NODES = 64
-#: The default time guard per state, in seconds: a safety net far above what the node budget takes,
-#: reported where it fires (:attr:`OnDemandStats.clock`).
-DEFAULT_SECONDS = 2.0
+#: The default node budget per state (simulations and learning ask for thousands): the same masks on
+#: every machine.
+DEFAULT_NODES = NODE_BUDGET
+#: The default time guard per state, in seconds, reported where it fires (:attr:`OnDemandStats.clock`).
+DEFAULT_SECONDS = GUARD_SECONDS
 #: The (state, action) pairs whose fixed continuations are tried at once (their arrays, ~100 bytes a
 #: pair and continuation, two continuations a pair, stay near 50 MB however many states are asked
 #: about together).

@@ -417,7 +417,10 @@ class StepShieldPolicy:
         self.kinds: dict[str, int] = {}
         #: Runtime-shield decisions that proved fewer decisions than asked (``depth < target``).
         self.short = 0
+        #: Runtime-shield decisions whose search ran out of its budget (nodes or time) ...
         self.timed_out = 0
+        #: ... of them, those its time budget stopped (their masks depend on the machine's speed).
+        self.clocked = 0
 
     def __call__(self, k: int, states: np.ndarray) -> np.ndarray:
         masks = np.zeros((len(states), self.shield.n_actions), dtype=bool)
@@ -427,6 +430,7 @@ class StepShieldPolicy:
             self.kinds[step.kind] = self.kinds.get(step.kind, 0) + 1
             self.timed_out += int(step.timed_out)
             found = step.lookahead
+            self.clocked += int(found is not None and found.clock)
             self.short += int(step.kind == "lookahead" and found is not None and found.depth < found.target)
         return masks
 
@@ -439,7 +443,10 @@ class StepShieldPolicy:
                              "the horizon" + (f"; {self.short:,} of them for fewer" if self.short else "") + ")",
                 "none": "with no action known to be safe (any action of the model)"}
         parts = [f"{self.kinds[kind]:,} {text}" for kind, text in said.items() if self.kinds.get(kind)]
-        timed = f"; {self.timed_out:,} ran out of their time budget" if self.timed_out else ""
+        timed = f"; {self.timed_out:,} ran out of their search budget" if self.timed_out else ""
+        if self.clocked:
+            timed += (f" ({self.clocked:,} by its time limit, so the runs depend on the machine's speed and may "
+                      "differ at the same seed)")
         return f"{sum(self.kinds.values()):,} decisions: " + ", ".join(parts) + timed
 
 
