@@ -484,6 +484,21 @@ def test_a_step_shield_as_the_shield(tiny: CompileResult) -> None:
         ScenarioEnv(tiny, shield=step_shield(data, 8), lookahead=3)
 
 
+def test_a_step_shield_of_another_scene_is_refused(tiny: CompileResult) -> None:
+    """A StepShield searches its own model's obstacles (and its table is that model's): in another
+    scene's environment its masks were handed out, exhaustive and lookahead guarantees and all."""
+    from rac.engine.shield import StepShield
+
+    data = tiny.model_data
+    assert data is not None
+    longer = dataclasses.replace(data, obs_length=tuple(n + 2 * data.scale for n in data.obs_length))
+    other = dataclasses.replace(tiny, model_data=longer)
+    runtime = LookaheadSettings(depth=2, seconds=None)
+    ScenarioEnv(other, shield=StepShield(longer, 8, lookahead=runtime)).reset()  # its own model: used
+    with pytest.raises(ValueError, match="StepShield was made for another model"):
+        ScenarioEnv(other, shield=StepShield(data, 8, lookahead=runtime))
+
+
 # ---------------------------------------------------------------- scene sets, the relative observation, frames
 #: The model block of the highway scene the tests below share (9 actions every 0.5 s).
 HIGHWAY_BLOCK = """\

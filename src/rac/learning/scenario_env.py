@@ -349,6 +349,10 @@ class ScenarioEnv(gymnasium.Env):
                 raise RacValueError(f"the shield is for runs of {shield.horizon} samples and {shield.n_actions} "
                                     f"actions; this environment's have {episodes.horizon_samples} and "
                                     f"{episodes.n_actions}")
+            if shield.data.digest != episodes.data.digest:  # its masks would speak of another scene's obstacles
+                raise RacValueError(f"the StepShield was made for another model (digest {shield.data.digest}, this "
+                                    f"environment's {episodes.data.digest}): another scene, or the model block or "
+                                    "its scenario changed since; make it from this model's data")
             return shield
         table = _shield(shield, columns, episodes.n_actions)
         settings = _lookahead(lookahead, table)
