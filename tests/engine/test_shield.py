@@ -134,3 +134,24 @@ def test_the_step_shield_policy_says_which_budget_stopped_its_searches(tmp_path:
         summaries[name] = policy.summary()
     assert "ran out of their search budget" in summaries["nodes"] and "time limit" not in summaries["nodes"]
     assert "by its time limit, so the runs depend on the machine's speed" in summaries["clock"]
+
+
+def test_the_step_shields_table_gives_way_within_the_machines_memory(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """``step_shield`` computes the table "if it can be had": by default within the memory budget rac's
+    commands use (half the memory the process may use), so a table too large for the machine gives
+    way to the runtime shield and says why, instead of exploring into swap (it had no limit)."""
+    from engine_files import QUERIES, write_engine_file
+
+    from rac.compiler import compile_file
+    from rac.engine.lookahead import LookaheadSettings
+
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", {"safe": QUERIES["safe"]}))
+    data = result.model_data
+    assert data is not None and result.automaton is not None
+    runtime = LookaheadSettings(depth=2, seconds=None)
+    assert shields.step_shield(data, result.automaton.steps, lookahead=runtime).table is not None
+    monkeypatch.setattr(shields, "default_max_bytes", lambda: 4096)  # a machine far too small for the table
+    small = shields.step_shield(data, result.automaton.steps, lookahead=runtime)
+    assert small.table is None and "memory budget of 4 kB" in (small.reason or ""), small.reason
+    assert shields.step_shield(data, result.automaton.steps, lookahead=runtime, max_bytes=None).table is not None

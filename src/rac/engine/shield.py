@@ -37,13 +37,13 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from rac.core.diagnostics import RacError, RacValueError
 from rac.engine.allow import ActionGuard, action_pairs
-from rac.engine.budget import BudgetExceeded
+from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.engine.explore import explore, forgets_actions
 from rac.engine.lookahead import Lookahead, LookaheadMask, LookaheadSettings
 from rac.engine.storm import Shield, safety_shield
@@ -452,13 +452,17 @@ class StepShieldPolicy:
 
 def step_shield(data: ModelData, horizon_samples: int, *, table_horizon: int | None = None,
                 lookahead: LookaheadSettings | None = None, max_states: int | None = None,
-                max_bytes: int | None = None) -> StepShield:
+                max_bytes: int | Literal["machine"] | None = "machine") -> StepShield:
     """A :class:`StepShield` for runs of ``horizon_samples`` samples: the exhaustive shield
     (:func:`synthesise`) up to ``table_horizon`` (default: the whole run; 0: none) if it can be
-    computed within ``max_states`` and ``max_bytes``, the runtime shield with ``lookahead`` (default
+    computed within ``max_states`` and ``max_bytes`` (default ``"machine"``:
+    :func:`~rac.engine.budget.default_max_bytes`, half the memory the process may use, as ``rac``'s
+    ``--max-memory``; None: no limit), the runtime shield with ``lookahead`` (default
     :class:`~rac.engine.lookahead.LookaheadSettings`) everywhere else. When the exhaustive shield
     exceeds its budget, the result has no table and says why (:attr:`StepShield.reason`)."""
 
+    if max_bytes == "machine":  # a table too large for the machine gives way before it swaps, not after
+        max_bytes = default_max_bytes()
     until = horizon_samples if table_horizon is None else min(int(table_horizon), horizon_samples)
     settings = lookahead if lookahead is not None else LookaheadSettings()
     if until <= 0:
