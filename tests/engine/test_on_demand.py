@@ -230,3 +230,14 @@ def test_a_state_asked_twice_at_once_is_counted_once(tmp_path: Path) -> None:
     twice = shield.masks_for(np.concatenate([start, start, start]))
     assert twice.any() and (twice == twice[0]).all()
     assert shield.stats.states == 1
+
+
+def test_an_on_demand_shield_is_not_saved_as_an_empty_table(tmp_path: Path) -> None:
+    """Its rows are computed when asked, so a file of it held no state, and every mask read back from
+    it was empty (or every action, with ``unseen="all"``): refused, naming what to save instead."""
+    data, horizon, rows = _searched_rows(tmp_path, "avoidable_obstacle")
+    shield = on_demand(data, horizon)
+    assert shield.masks_for(rows[0]).any()
+    with pytest.raises(ValueError, match="computes its masks state by state when asked and has no table to save"):
+        shields.save(shield, tmp_path / "safe.shield.npz")
+    assert not (tmp_path / "safe.shield.npz").exists()

@@ -25,6 +25,7 @@ when it is asked for (and keeps it), so simulations and learning use it as they 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -71,6 +72,7 @@ class OnDemandShield(ShieldTable):
     #: The node budget per state (None: none; with no time guard either, every row is searched exactly).
     nodes: int | None = DEFAULT_NODES
     stats: OnDemandStats = field(default_factory=OnDemandStats, compare=False)
+    savable: ClassVar[bool] = False  # its rows are computed when asked: a saved file would hold none
 
     def __post_init__(self) -> None:
         super().__post_init__()

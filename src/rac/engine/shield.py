@@ -37,7 +37,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 
@@ -80,6 +80,9 @@ class ShieldTable:
     model: str | None = None
     #: Where it was read from (:func:`load`), for messages.
     origin: str | None = None
+    #: Its rows are all it knows, so :func:`save` can write it (a shield that computes its rows when
+    #: asked, :class:`rac.engine.ondemand.OnDemandShield`, has none to write).
+    savable: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         if self.unseen not in UNSEEN_POLICIES:
@@ -258,6 +261,10 @@ def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | Non
     The file is written to a temporary name beside ``path`` and renamed, so an interrupted
     write never leaves a half shield behind."""
     shield_table = shield if isinstance(shield, ShieldTable) else table(shield, n_actions=n_actions)
+    if not shield_table.savable:  # its file would hold no state: every mask read back would be empty
+        raise RacValueError(f"a {type(shield_table).__name__} computes its masks state by state when asked and has "
+                            "no table to save; save an exhaustive shield (synthesise, or rac verify within its "
+                            "budget)")
     path = Path(path)
     partial = path.with_name(path.name + ".partial")
     try:
