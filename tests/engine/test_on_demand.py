@@ -241,3 +241,17 @@ def test_an_on_demand_shield_is_not_saved_as_an_empty_table(tmp_path: Path) -> N
     with pytest.raises(ValueError, match="computes its masks state by state when asked and has no table to save"):
         shields.save(shield, tmp_path / "safe.shield.npz")
     assert not (tmp_path / "safe.shield.npz").exists()
+
+
+def test_an_on_demand_shield_records_its_model(tmp_path: Path) -> None:
+    """Its masks are searches against its own model's obstacles: like a table it records the model, so
+    a StepShield of another scene refuses it (it took it, and called its masks exhaustive there)."""
+    import dataclasses
+
+    data, horizon, _ = _searched_rows(tmp_path, "avoidable_obstacle")
+    shield = on_demand(data, horizon)
+    assert shield.model == data.digest
+    shields.StepShield(data, horizon, table=shield)  # its own model: used
+    longer = dataclasses.replace(data, obs_length=tuple(n + 2 * data.scale for n in data.obs_length))
+    with pytest.raises(ValueError, match="computed for another model"):
+        shields.StepShield(longer, horizon, table=shield)

@@ -187,5 +187,5 @@ def on_demand(data: ModelData, horizon_samples: int, seconds: float | None = DEF
     settings = LookaheadSettings(depth=horizon_samples + 1, seconds=seconds, nodes=nodes)
     lookahead = Lookahead(data, horizon_samples, settings)
     return OnDemandShield(COLUMNS, np.zeros((0, len(COLUMNS)), dtype=np.int32), np.zeros((0, n_actions), dtype=bool),
-                          horizon=horizon_samples, lookahead=lookahead, seconds=settings.seconds,
+                          horizon=horizon_samples, model=data.digest, lookahead=lookahead, seconds=settings.seconds,
                           nodes=settings.nodes)
