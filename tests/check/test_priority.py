@@ -543,7 +543,9 @@ automaton R {
     ok = compile_text(text.replace("GROWTH", str(limit / 2)), analyse=False).automaton
     bad = compile_text(text.replace("GROWTH", str(limit / 2 + Fraction(1, 10**4) / 2)), analyse=False).automaton
     assert ok is not None and bad is not None
-    assert check_ranges(ok) == []
+    # r's values fit (no E0501); the significand of limit / 2 is not whole, so the model computes
+    # `(2*iR + 2147483647) / 2`, and `2*iR` does not fit (E0801)
+    assert [d.code for d in check_ranges(ok)] == ["E0801"]
     (diag,) = check_ranges(bad)
     assert diag.code == "E0501"
     negative = compile_text(text.replace("GROWTH", f"-{Fraction(2**31, 10**4) / 2}"), analyse=False).automaton
@@ -600,6 +602,71 @@ def test_int32_range_in_between_updates_at_the_representations_scale() -> None:
     # a sequence whose values in between stay put changes nothing: the edge's results decide
     steady = compile_text(IN_BETWEEN.replace("STEP", "0"), analyse=False).automaton
     assert steady is not None and check_ranges(steady, 10, 8) == []
+
+
+# An update with a fractional coefficient: UPPAAL computes `iP = 2*iP / 3`, and `2*iP` is an int32 too.
+FRACTIONAL = """\
+automaton Frac {
+    input go : bool
+    input d : real in [0, HIGH]
+    reward p
+    objective p
+    sample every 1
+    horizon 3
+    initial location L { p' == RATE }
+    edge L -> L when go do UPDATE
+}
+"""
+
+
+def _fractional(rate: str, update: str, high: str = "100000") -> ir.Automaton:
+    text = FRACTIONAL.replace("RATE", rate).replace("UPDATE", update).replace("HIGH", high)
+    automaton = compile_text(text, analyse=False).automaton
+    assert automaton is not None
+    return automaton
+
+
+def test_int32_range_covers_the_products_of_a_fractional_update(tmp_path, capsys) -> None:
+    """Regression: `p = 2*p/3` is emitted as `iP = 2*iP / 3`; with p up to 150000 (1.5e9 as a
+    significand) `2*iP` leaves int32, UPPAAL computes garbage while rac's engine is exact. The
+    check passed it; now E0801 points at the update."""
+    from rac.cli.main import main
+
+    # p reaches 3 * rate: 100000 keeps 2*iP within int32 (2e9), 150000 does not (3e9), either sign
+    assert check_ranges(_fractional("33333", "p = 2*p/3")) == []
+    for rate in ("50000", "-50000"):
+        (diag,) = check_ranges(_fractional(rate, "p = 2*p/3"))
+        assert diag.code == "E0801"
+        assert "`2*p` may reach " + ("3000000000" if rate[0] != "-" else "-3000000000") in diag.message
+    source = tmp_path / "frac.ra"
+    source.write_text(FRACTIONAL.replace("RATE", "50000").replace("UPDATE", "p = 2*p/3").replace("HIGH", "1"),
+                      encoding="utf-8")
+    for command in (["check"], ["compile", "--target", "uppaal"]):
+        assert main([*command, str(source)]) == 1
+        out = "".join(capsys.readouterr())  # compile reports on standard error
+        assert f"{source}:9:28: error[E0801]: update `p = 2/3*p`: the UPPAAL model computes it as `(2*p) / 3` " \
+               "over 32-bit significands, and `2*p` may reach 3000000000, beyond the 32-bit integer range" in out
+        assert "`p` within [0, 150000]" in out
+        assert "int32 range holds" not in out
+
+
+def test_int32_range_covers_the_partial_sums_of_an_update() -> None:
+    """An input's product and a partial sum before the division are int32 values too; an integer
+    update's own result is the range check's (E0501), not an intermediate."""
+    (diag,) = check_ranges(_fractional("1", "p = 3*d/4", high="150000"))  # 3*d up to 4.5e9, the result fits
+    assert diag.code == "E0801" and "as `(3*d) / 4` over 32-bit significands, and `3*d` may reach 4500000000" \
+        in diag.message
+    (diag,) = check_ranges(_fractional("40000", "p = (p + d)/2"))  # p up to 150000, d up to 100000
+    assert diag.code == "E0801" and "`p + d` may reach 2500000000" in diag.message
+    assert check_ranges(_fractional("1", "p = (p + d)/2")) == []  # p stays below 100002: the sum fits
+    # an integer coefficient is multiplied by the common denominator too: (2*iP + d) / 2
+    (diag,) = check_ranges(_fractional("1", "p = p + d/2"))
+    assert diag.code == "E0801" and "as `(2*p + d) / 2`" in diag.message
+    assert "`2*p` may reach 3000060000" in diag.message
+    assert check_ranges(_fractional("1", "p = d - 100000")) == []  # the sum is the result: it fits
+    assert check_ranges(_fractional("1", "p = 2*d - 100000")) == []  # and so is the product of one term
+    (diag,) = check_ranges(_fractional("1", "p = 3*d - 100000", high="100000"))  # 3*d: 3e9, the result fits
+    assert diag.code == "E0801" and "as `3*d - 1000000000`" in diag.message
 
 
 def test_int32_range_covers_the_values_in_between_the_at_end_updates() -> None:

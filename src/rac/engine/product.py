@@ -84,7 +84,7 @@ from rac.engine.graph import LABELS, ExploredGraph
 from rac.engine.storm import Verdict, decide
 from rac.ir import expr as ie
 from rac.ir import query as iq
-from rac.ir.significands import Unrepresentable, rate_diagnostic, unrepresentable
+from rac.ir.significands import Unrepresentable, common_denominator, rate_diagnostic, unrepresentable
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.data import ModelData, ModelRangeError
 from rac.model.program import CheckedProgram, ProgramSource, program_of
@@ -182,14 +182,13 @@ class _Arithmetic:
         n = mirrors.shape[0]
         for assignment in updates:
             const, terms = mirror_update(assignment.value, self.scale)
-            terms = [(c, name) for c, name in terms if c != 0]
-            if not terms:
+            q, k, ints = common_denominator(const, terms)
+            if not ints:
                 value = np.full(n, math.trunc(const), dtype=np.int64)
             else:  # print_int_linear: everything over the common denominator q, one truncating division
-                q = math.lcm(const.denominator, *(c.denominator for c, _ in terms))
-                columns = [(int(c * q), mirrors[:, self.reward[name]] if name in self.reward
-                            else inputs[:, self.input[name]]) for c, name in terms]
-                value = _tdiv(int_sum(int(const * q), columns, n), q)
+                columns = [(c, mirrors[:, self.reward[name]] if name in self.reward
+                            else inputs[:, self.input[name]]) for c, name in ints]
+                value = _tdiv(int_sum(k, columns, n), q)
             mirrors[:, self.reward[assignment.reward]] = _int32(
                 value, f"the mirror of `{assignment.reward}`", self.scale)
 

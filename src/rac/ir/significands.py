@@ -10,17 +10,23 @@ base and exponent are known then), ``rac compile --target uppaal``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from fractions import Fraction
+from typing import TypeVar
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic, RacError, error, short_number
-from rac.core.numbers import INT32_MAX, exact_decimal
+from rac.core.numbers import INT32_MAX, INT32_MIN, exact_decimal
+from rac.core.printing import signed_sum
 from rac.core.source import Span
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT, SETTINGS, held_value
 
-__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "decimal_text", "linear_text", "off_grid", "rate_diagnostic",
-           "rate_diagnostics", "representation", "unrepresentable", "vanishing"]
+__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "common_denominator", "decimal_text", "linear_text", "off_grid",
+           "rate_diagnostic", "rate_diagnostics", "representation", "unrepresentable", "update_diagnostics",
+           "vanishing"]
+
+_Name = TypeVar("_Name")
 
 #: The hint of an E0801 without one of its own (``scale``: ``base**exponent``).
 HINT_REPRESENTATION = ("add a `model` block with a larger `exponent`, or change the number so that it "
@@ -149,3 +155,105 @@ def linear_text(linear: ir.Linear) -> str:
     for name, coefficient in linear.terms:
         parts.append(name if coefficient == 1 else f"{decimal_text(coefficient)}*{name}")
     return " + ".join(parts)
+
+
+# ---------------------------------------------------------------- the mirrors' updates in int32
+def common_denominator(const: Fraction, terms: Sequence[tuple[Fraction, _Name]]
+                       ) -> tuple[int, int, list[tuple[int, _Name]]]:
+    """A mirror update ``const + Σ coefficient*name`` as the UPPAAL model computes it:
+    ``(q, k, [(k_i, name)])`` with everything over the least common denominator ``q``, the new
+    mirror being ``(Σ k_i*name + k) / q`` in C's integer arithmetic (one division, truncating
+    towards zero; no division when ``q`` is 1). Zero coefficients are left out."""
+    kept = [(Fraction(c), n) for c, n in terms if c != 0]
+    q = math.lcm(const.denominator, *(c.denominator for c, _ in kept))
+    return q, int(const * q), [(int(c * q), n) for c, n in kept]
+
+
+def update_diagnostics(automaton: ir.Automaton, bounds: Mapping[str, tuple[Fraction, Fraction]]
+                       ) -> list[Diagnostic]:
+    """E0801 for every update (of an edge, or of an ``at end`` clause) whose emitted integer arithmetic
+    has an intermediate value that can leave int32: a product ``k*iP`` or a partial sum computed
+    before the division by the common denominator (``p = 2*p/3`` is ``iP = 2*iP / 3``, and ``2*iP``
+    leaves int32 once ``p`` can exceed half the range). ``bounds``: each reward's least and greatest
+    value over every instant, in between updates too (the int32 range check's); a numeric input
+    ranges over its declared bounds. The final value itself is the range check's (E0501)."""
+    found = []
+    clauses = [*(edge.updates for group in automaton.edges for edge in group),
+               *(clause.updates for clause in automaton.end_clauses)]
+    seen: set[int] = set()
+    for updates in clauses:
+        for assignment in updates:
+            if id(assignment) in seen:
+                continue
+            seen.add(id(assignment))
+            diagnostic = _update_diagnostic(automaton, assignment, bounds)
+            if diagnostic is not None:
+                found.append(diagnostic)
+    return found
+
+
+def _update_diagnostic(automaton: ir.Automaton, assignment: ir.Assignment,
+                       bounds: Mapping[str, tuple[Fraction, Fraction]]) -> Diagnostic | None:
+    base, exponent = representation(automaton)
+    scale = base ** exponent
+    ranges = dict(bounds)
+    for item in automaton.numeric_inputs:
+        if item.low is None or item.high is None:
+            return None  # no bound to reason with (the UPPAAL target needs one anyway)
+        ranges[item.name] = (item.low, item.high)
+    # runtime.semantics.mirror_update's numbers (the checker may not import the runtime)
+    q, k, ints = common_denominator(assignment.value.const * scale, [(c, n) for n, c in assignment.value.terms])
+    if not ints:
+        return None
+    steps: list[tuple[str, Fraction, Fraction]] = []  # (the emitted text, least, greatest), in C's order
+    low = high = Fraction(0)
+    text = ""
+    for index, (coefficient, name) in enumerate(ints):
+        if name not in ranges:
+            return None
+        lo, hi = (v * scale for v in ranges[name])
+        product = (coefficient * lo, coefficient * hi)
+        term = name if abs(coefficient) == 1 else f"{abs(coefficient)}*{name}"
+        if abs(coefficient) != 1:
+            steps.append((term, min(product), max(product)))
+        if index == 0:
+            text, low, high = ("-" if coefficient < 0 else "") + term, min(product), max(product)
+        else:
+            text += f" {'-' if coefficient < 0 else '+'} {term}"
+            low, high = low + min(product), high + max(product)
+            steps.append((text, low, high))
+    if k:
+        text += f" {'-' if k < 0 else '+'} {abs(k)}"
+        low, high = low + k, high + k
+        steps.append((text, low, high))
+    if q == 1:
+        steps = steps[:-1]  # the last value computed is the whole sum, the result itself: E0501's
+    for shown, lo, hi in steps:
+        if lo < INT32_MIN or hi > INT32_MAX:
+            worst = hi if hi > INT32_MAX else lo
+            emitted = f"({text}) / {q}" if q != 1 else text
+            within = ", ".join(f"`{name}` within [{decimal_text(ranges[name][0])}, {decimal_text(ranges[name][1])}]"
+                               for name in dict.fromkeys(name for _, name in ints))
+            return unrepresentable(
+                automaton,
+                f"update `{assignment.reward} = {_exact_text(assignment.value)}`: the UPPAAL model computes it as "
+                f"`{emitted}` over 32-bit significands, and `{shown}` may reach {short_number(worst)}, "
+                "beyond the 32-bit integer range", assignment.span,
+                notes=[f"{within} (the int32 range check's bounds over every run), held as significands at base "
+                       f"{base}, exponent {exponent}: UPPAAL computes every product and partial sum of an update in "
+                       "32-bit integers, before it divides, where rac's engine computes exactly"],
+                hints=["bound the reward's growth (a shorter horizon, a smaller rate), narrow the input's range, "
+                       "or lower the exponent of the number representation"])
+    return None
+
+
+def _exact_text(linear: ir.Linear) -> str:
+    """An update's value for messages, every number exact: ``2/3*p + 1``."""
+    def number(value: Fraction) -> str:
+        return exact_decimal(value, max_places=12) or f"{value.numerator}/{value.denominator}"
+
+    parts = [(coefficient < 0, name if abs(coefficient) == 1 else f"{number(abs(coefficient))}*{name}")
+             for name, coefficient in linear.terms]
+    if linear.const or not parts:
+        parts.append((linear.const < 0, number(abs(linear.const))))
+    return signed_sum(parts)

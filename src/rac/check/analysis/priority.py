@@ -29,6 +29,7 @@ from rac.check.analysis.worst import (
 from rac.core.diagnostics import UNFINISHED, Diagnostic, Fact, Note, error, short_number, warning
 from rac.core.numbers import INT32_MAX, INT32_MIN, exact_decimal
 from rac.ir.inputs import InputSpace, guard_inputs
+from rac.ir.significands import update_diagnostics
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 
 ZERO = Fraction(0)
@@ -655,6 +656,8 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
         return problems
     factor = Fraction(base) ** exponent
     unfinished: Unfinished | None = None  # a search stopped at its limit: no proof, unless another refutes
+    # each reward's least and greatest value over every instant, in between updates too
+    bounds: dict[str, list[Fraction]] = {reward: [ZERO, ZERO] for reward in automaton.rewards}
     for k, reward in enumerate(automaton.rewards):
         for sign in (1, -1):
             limit = range_limit(sign)
@@ -674,6 +677,7 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
             if worst is None or worst.value * factor < limit:
                 if worst is not None:
                     extremes.append(sign * worst.value)
+                    bounds[reward][0 if sign < 0 else 1] = sign * worst.value
                 continue
             bound = Fraction(limit - 1) / factor
             first = _first_overflow(automaton, space, worst, k, sign, bound)
@@ -728,6 +732,10 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
             return [_cut_short(found, automaton) if prefix else found]
     if unfinished is not None:
         return [_unfinished(automaton, f"the int32 range at base {base}, exponent {exponent}", unfinished)]
+    # Every value fits: so must what the UPPAAL model computes on the way to an update's value.
+    inside = update_diagnostics(automaton, {reward: (low, high) for reward, (low, high) in bounds.items()})
+    if inside:
+        return inside
     if extremes:
         facts.append(Fact("range", f"int32 range holds at base {base}, exponent {exponent}: rewards stay within "
                                f"[{_num(min(extremes))}, {_num(max(extremes))}]",

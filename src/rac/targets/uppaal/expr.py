@@ -32,6 +32,7 @@ from rac.core.diagnostics import RacError
 from rac.core.numbers import INT32_MAX
 from rac.core.printing import C_BINARY, Associativity, Level, Operator, OperatorTable, Printed, Printer, signed_sum
 from rac.ir.expr import integer_bound
+from rac.ir.significands import common_denominator
 from rac.ir.text import GuardPrinter
 
 __all__ = [
@@ -164,10 +165,7 @@ def print_int_linear(const: Fraction, terms: Sequence[tuple[Fraction, str]]) -> 
     the least common denominator ``q`` and divided: ``(2*iSa + iPr) / 3``. UPPAAL's integer
     division truncates towards zero, so the result is the exact value truncated — once.
     """
-    terms = [(Fraction(c), n) for c, n in terms if c != 0]
-    q = math.lcm(const.denominator, *(c.denominator for c, _ in terms))
-    ints = [(int(c * q), n) for c, n in terms]
-    k = int(const * q)
+    q, k, ints = common_denominator(const, terms)
     if not ints:
         return int_literal(math.trunc(const))
     parts = _term_parts(ints)
