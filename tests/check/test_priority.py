@@ -667,6 +667,10 @@ def test_int32_range_covers_the_partial_sums_of_an_update() -> None:
     assert check_ranges(_fractional("1", "p = 2*d - 100000")) == []  # and so is the product of one term
     (diag,) = check_ranges(_fractional("1", "p = 3*d - 100000", high="100000"))  # 3*d: 3e9, the result fits
     assert diag.code == "E0801" and "as `3*d - 1000000000`" in diag.message
+    # a number of the emitted sum is an int32 literal too: 100000 * 10^4 * 3 is not
+    (diag,) = check_ranges(_fractional("1", "p = p/3 + 100000"))
+    assert diag.code == "E0801" and "as `(p + 3000000000) / 3` over 32-bit significands, and its number " \
+        "3000000000 is beyond the 32-bit integer range" in diag.message
 
 
 def test_int32_range_covers_the_values_in_between_the_at_end_updates() -> None:

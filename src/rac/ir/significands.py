@@ -205,7 +205,8 @@ def _update_diagnostic(automaton: ir.Automaton, assignment: ir.Assignment,
     q, k, ints = common_denominator(assignment.value.const * scale, [(c, n) for n, c in assignment.value.terms])
     if not ints:
         return None
-    steps: list[tuple[str, Fraction, Fraction]] = []  # (the emitted text, least, greatest), in C's order
+    # (the emitted text, "" for a literal; its least and greatest value), in C's order
+    steps: list[tuple[str, Fraction, Fraction]] = []
     low = high = Fraction(0)
     text = ""
     for index, (coefficient, name) in enumerate(ints):
@@ -215,6 +216,7 @@ def _update_diagnostic(automaton: ir.Automaton, assignment: ir.Assignment,
         product = (coefficient * lo, coefficient * hi)
         term = name if abs(coefficient) == 1 else f"{abs(coefficient)}*{name}"
         if abs(coefficient) != 1:
+            steps.append(("", Fraction(abs(coefficient)), Fraction(abs(coefficient))))  # a literal, an int32 too
             steps.append((term, min(product), max(product)))
         if index == 0:
             text, low, high = ("-" if coefficient < 0 else "") + term, min(product), max(product)
@@ -223,11 +225,14 @@ def _update_diagnostic(automaton: ir.Automaton, assignment: ir.Assignment,
             low, high = low + min(product), high + max(product)
             steps.append((text, low, high))
     if k:
+        steps.append(("", Fraction(abs(k)), Fraction(abs(k))))
         text += f" {'-' if k < 0 else '+'} {abs(k)}"
         low, high = low + k, high + k
         steps.append((text, low, high))
     if q == 1:
         steps = steps[:-1]  # the last value computed is the whole sum, the result itself: E0501's
+    else:
+        steps.append(("", Fraction(q), Fraction(q)))
     for shown, lo, hi in steps:
         if lo < INT32_MIN or hi > INT32_MAX:
             worst = hi if hi > INT32_MAX else lo
@@ -237,8 +242,9 @@ def _update_diagnostic(automaton: ir.Automaton, assignment: ir.Assignment,
             return unrepresentable(
                 automaton,
                 f"update `{assignment.reward} = {_exact_text(assignment.value)}`: the UPPAAL model computes it as "
-                f"`{emitted}` over 32-bit significands, and `{shown}` may reach {short_number(worst)}, "
-                "beyond the 32-bit integer range", assignment.span,
+                f"`{emitted}` over 32-bit significands, and "
+                + (f"`{shown}` may reach {short_number(worst)}," if shown else f"its number {worst} is")
+                + " beyond the 32-bit integer range", assignment.span,
                 notes=[f"{within} (the int32 range check's bounds over every run), held as significands at base "
                        f"{base}, exponent {exponent}: UPPAAL computes every product and partial sum of an update in "
                        "32-bit integers, before it divides, where rac's engine computes exactly"],
