@@ -673,6 +673,39 @@ def test_int32_range_covers_the_partial_sums_of_an_update() -> None:
         "3000000000 is beyond the 32-bit integer range" in diag.message
 
 
+def test_int32_range_covers_a_learning_querys_discrete_observation() -> None:
+    """Regression: `{p/3 + r/7}` is observed in the UPPAAL model as the integer `7*iP + 3*iR`, which
+    left int32 (UPPAAL learns on garbage, rac's engine on the exact value); now E0801 at the query."""
+    text = """\
+automaton Obs {
+    input go : bool
+    reward p, r
+    objective p
+    sample every 1
+    horizon 3
+    initial location L { p' == RATE; r' == -1 }
+    edge L -> L when go do p = p - 1
+    query obs: strategy S = minE(p)[<=3]{OBS}->{p}: <> time >= 3
+}
+"""
+    def ranges(rate: str, observation: str) -> list:
+        automaton = compile_text(text.replace("RATE", rate).replace("OBS", observation), analyse=False).automaton
+        assert automaton is not None
+        return check_ranges(automaton)
+
+    # p reaches 3 * rate: 7 * 30000 * 10^4 fits int32, 7 * 120000 * 10^4 does not
+    assert ranges("10000", "p/3 + r/7") == []
+    (diag,) = ranges("40000", "p/3 + r/7")
+    assert diag.code == "E0801" and diag.span is not None and diag.span.line == 9
+    assert "query `obs`: the discrete observation `p / 3 + r / 7` is observed in the UPPAAL model as the " \
+           "integer `7*p + 3*r`" in diag.message and "`7*p` may reach 8400000000" in diag.message
+    # `time` is the sample counter (period 1 s): time/7 + p is observed as 10000*count + 7*iP
+    (diag,) = ranges("10300", "time/7 + p")
+    assert diag.code == "E0801" and "as the integer `10000*count + 7*p`" in diag.message
+    assert "`7*p` may reach 2163000000" in diag.message
+    assert ranges("1", "10*p + time + Obs.location") == []  # observed as iP + 1000*count + 1000*Obs.location
+
+
 def test_int32_range_covers_the_values_in_between_the_at_end_updates() -> None:
     """The enabled `at end` clauses run as one sequence on the UPPAAL model's `finish?` edge: a
     value in between them is stored too, whether the run ends at the horizon or by `episode ends when`."""

@@ -20,11 +20,13 @@ from rac.core.diagnostics import Diagnostic, RacError, error, short_number
 from rac.core.numbers import INT32_MAX, INT32_MIN, exact_decimal
 from rac.core.printing import signed_sum
 from rac.core.source import Span
-from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT, SETTINGS, held_value
+from rac.ir import expr as ie
+from rac.ir import query as iq
+from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT, SETTINGS, Holding, held_value
 
-__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "common_denominator", "decimal_text", "linear_text", "off_grid",
-           "rate_diagnostic", "rate_diagnostics", "representation", "unrepresentable", "update_diagnostics",
-           "vanishing"]
+__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "common_denominator", "decimal_text", "emitted_sum",
+           "linear_text", "observation_diagnostics", "off_grid", "rate_diagnostic", "rate_diagnostics",
+           "representation", "unrepresentable", "update_diagnostics", "vanishing"]
 
 _Name = TypeVar("_Name")
 
@@ -205,30 +207,11 @@ def _update_diagnostic(automaton: ir.Automaton, assignment: ir.Assignment,
     q, k, ints = common_denominator(assignment.value.const * scale, [(c, n) for n, c in assignment.value.terms])
     if not ints:
         return None
-    # (the emitted text, "" for a literal; its least and greatest value), in C's order
-    steps: list[tuple[str, Fraction, Fraction]] = []
-    low = high = Fraction(0)
-    text = ""
-    for index, (coefficient, name) in enumerate(ints):
-        if name not in ranges:
-            return None
-        lo, hi = (v * scale for v in ranges[name])
-        product = (coefficient * lo, coefficient * hi)
-        term = name if abs(coefficient) == 1 else f"{abs(coefficient)}*{name}"
-        if abs(coefficient) != 1:
-            steps.append(("", Fraction(abs(coefficient)), Fraction(abs(coefficient))))  # a literal, an int32 too
-            steps.append((term, min(product), max(product)))
-        if index == 0:
-            text, low, high = ("-" if coefficient < 0 else "") + term, min(product), max(product)
-        else:
-            text += f" {'-' if coefficient < 0 else '+'} {term}"
-            low, high = low + min(product), high + max(product)
-            steps.append((text, low, high))
-    if k:
-        steps.append(("", Fraction(abs(k)), Fraction(abs(k))))
-        text += f" {'-' if k < 0 else '+'} {abs(k)}"
-        low, high = low + k, high + k
-        steps.append((text, low, high))
+    held = {name: (lo * scale, hi * scale) for name, (lo, hi) in ranges.items()}
+    found = emitted_sum(k, ints, held)
+    if found is None:
+        return None
+    text, steps = found
     if q == 1:
         steps = steps[:-1]  # the last value computed is the whole sum, the result itself: E0501's
     else:
@@ -251,6 +234,104 @@ def _update_diagnostic(automaton: ir.Automaton, assignment: ir.Assignment,
                 hints=["bound the reward's growth (a shorter horizon, a smaller rate), narrow the input's range, "
                        "or lower the exponent of the number representation"])
     return None
+
+
+def observation_diagnostics(automaton: ir.Automaton, bounds: Mapping[str, tuple[Fraction, Fraction]]
+                            ) -> list[Diagnostic]:
+    """E0801 for every discrete observation of a learning query (``{10*sa + pr}->{...}``) whose integer
+    form in the UPPAAL model (mirrors and significands over their least common denominator: ``10*iSa +
+    iPr``) can leave int32 on the way. ``bounds``: each reward's least and greatest value (the int32
+    range check's). An observation reading a name without a known range (the ego state) is left alone."""
+    base, exponent = representation(automaton)
+    scale = base ** exponent
+    # each name an observation reads: the integer the model holds it in, its value per unit, its range
+    held: dict[tuple[ie.RefKind, str], tuple[str, Fraction, tuple[Fraction, Fraction]]] = {}
+    for reward, (low, high) in bounds.items():
+        held[ie.RefKind.REWARD, reward] = (reward, Fraction(1, scale), (low * scale, high * scale))
+    for item in automaton.numeric_inputs:
+        if item.low is not None and item.high is not None:
+            held[ie.RefKind.INPUT, item.name] = (item.name, Fraction(1, scale), (item.low * scale, item.high * scale))
+    held[ie.RefKind.LOCATION_INDEX, f"{automaton.name}.location"] = (
+        f"{automaton.name}.location", Fraction(1), (Fraction(0), Fraction(len(automaton.locations) - 1)))
+    found = []
+    for decl in automaton.queries:
+        query = decl.query
+        if not isinstance(query, iq.LearnStrategy):
+            continue
+        for index, expr in enumerate(query.discrete):
+            form = ie.linear_form(expr) if expr.type == ie.NUM else None
+            if form is None or form.is_constant:
+                continue
+            terms, ranges = [], {}
+            for ref, coefficient in form.terms:
+                key = (ref.kind, ref.name)
+                if ref.kind is ie.RefKind.MODEL and ref.model.holding is Holding.TIME:
+                    # the sample counter: `time` is count * period, count in [0, steps]
+                    entry = ("count", Fraction(automaton.period), (Fraction(0), Fraction(automaton.steps)))
+                elif key in held:
+                    entry = held[key]
+                else:
+                    break
+                name, unit, ranges[name] = entry
+                terms.append((coefficient * unit, name))
+            else:
+                _, k, ints = common_denominator(form.const, terms)
+                emitted = emitted_sum(k, ints, ranges)
+                if emitted is None:
+                    continue
+                text, steps = emitted
+                for shown, lo, hi in steps:
+                    if INT32_MIN <= lo and hi <= INT32_MAX:
+                        continue
+                    worst = hi if hi > INT32_MAX else lo
+                    label = query.labels[index] if index < len(query.labels) else text
+                    within = ", ".join(f"`{n}` within [{decimal_text(ranges[n][0])}, {decimal_text(ranges[n][1])}]"
+                                       for n in dict.fromkeys(n for _, n in ints))
+                    found.append(unrepresentable(
+                        automaton,
+                        f"query `{decl.name}`: the discrete observation `{label}` is observed in the UPPAAL model "
+                        f"as the integer `{text}` (mirrors and significands, a whole multiple of it), and "
+                        + (f"`{shown}` may reach {short_number(worst)}," if shown else f"its number {worst} is")
+                        + " beyond the 32-bit integer range", decl.span,
+                        notes=[f"{within} as the model holds them (the int32 range check's bounds for rewards, at "
+                               f"base {base}, exponent {exponent}): UPPAAL computes the observation in 32-bit "
+                               "integers, where rac's engine computes exactly"],
+                        hints=["observe fewer or smaller multiples (`{sa}` rather than `{10*sa + pr}`), bound the "
+                               "rewards' growth, or lower the exponent of the number representation"]))
+                    break
+    return found
+
+
+def emitted_sum(k: int, ints: Sequence[tuple[int, str]], ranges: Mapping[str, tuple[Fraction, Fraction]]
+                ) -> tuple[str, list[tuple[str, Fraction, Fraction]]] | None:
+    """The integer sum ``Σ k_i*name + k`` as the UPPAAL model prints it (``2*p + d - 5``) and every value
+    C computes on the way, in its order: ``(text, [(shown, least, greatest)])``, ``shown`` being the
+    partial expression, or "" for a literal (an int32 too). ``ranges``: each name's least and greatest
+    value as the integer the model holds; None when a name has none."""
+    steps: list[tuple[str, Fraction, Fraction]] = []
+    low = high = Fraction(0)
+    text = ""
+    for index, (coefficient, name) in enumerate(ints):
+        if name not in ranges:
+            return None
+        lo, hi = ranges[name]
+        product = (coefficient * lo, coefficient * hi)
+        term = name if abs(coefficient) == 1 else f"{abs(coefficient)}*{name}"
+        if abs(coefficient) != 1:
+            steps.append(("", Fraction(abs(coefficient)), Fraction(abs(coefficient))))
+            steps.append((term, min(product), max(product)))
+        if index == 0:
+            text, low, high = ("-" if coefficient < 0 else "") + term, min(product), max(product)
+        else:
+            text += f" {'-' if coefficient < 0 else '+'} {term}"
+            low, high = low + min(product), high + max(product)
+            steps.append((text, low, high))
+    if k:
+        steps.append(("", Fraction(abs(k)), Fraction(abs(k))))
+        text += f" {'-' if k < 0 else '+'} {abs(k)}"
+        low, high = low + k, high + k
+        steps.append((text, low, high))
+    return text, steps
 
 
 def _exact_text(linear: ir.Linear) -> str:

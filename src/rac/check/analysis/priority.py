@@ -29,7 +29,7 @@ from rac.check.analysis.worst import (
 from rac.core.diagnostics import UNFINISHED, Diagnostic, Fact, Note, error, short_number, warning
 from rac.core.numbers import INT32_MAX, INT32_MIN, exact_decimal
 from rac.ir.inputs import InputSpace, guard_inputs
-from rac.ir.significands import update_diagnostics
+from rac.ir.significands import observation_diagnostics, update_diagnostics
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 
 ZERO = Fraction(0)
@@ -733,7 +733,8 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
     if unfinished is not None:
         return [_unfinished(automaton, f"the int32 range at base {base}, exponent {exponent}", unfinished)]
     # Every value fits: so must what the UPPAAL model computes on the way to an update's value.
-    inside = update_diagnostics(automaton, {reward: (low, high) for reward, (low, high) in bounds.items()})
+    ranges = {reward: (low, high) for reward, (low, high) in bounds.items()}
+    inside = update_diagnostics(automaton, ranges) + observation_diagnostics(automaton, ranges)
     if inside:
         return inside
     if extremes:

@@ -38,6 +38,7 @@ from rac.core.printing import Level, Printed, number, signed_sum
 from rac.ir import compare
 from rac.ir import expr as ie
 from rac.ir import query as iq
+from rac.ir.significands import common_denominator
 from rac.ir.vocabulary import ACTIONS, Holding
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, UppaalSyntax, double_literal, int_literal, terms_text
 
@@ -440,9 +441,7 @@ class UppaalPrinter(UppaalSyntax):
             raise QueryError("a discrete observation must be linear in rewards, inputs, the ego state, `time` "
                              "and `Automaton.location` (it is observed as integers: mirrors and significands)")
         # observed as the smallest whole multiple: `x` is the significand, `sa + pr` the mirrors' sum
-        multiplier = math.lcm(*(c.denominator for _, c in terms), form.const.denominator)
-        whole = [(int(c * multiplier), name) for name, c in terms]
-        constant = int(form.const * multiplier)
+        _, constant, whole = common_denominator(form.const, [(c, name) for name, c in terms])
         if not whole:
             return int_literal(constant)
         text = terms_text(whole)
