@@ -91,7 +91,9 @@ BINDINGS = ("isClose = mindist() < 3 * collision_distance",
 
 #: What driving.ra does not exercise: rates and updates that read a numeric input (the first
 #: sample accrues on read?, the hybrid clock corrected), an update reading a reward updated
-#: before it, two `at end` clauses (conditional updates), prev() of a condition and of the ego.
+#: before it, a fractional update of a negative reward (`(7*iPen - 3*iDist) / 21`: C's division
+#: truncates towards zero, Python's `//` floors), two `at end` clauses (conditional updates),
+#: prev() of a condition and of the ego.
 METER = """\
 automaton Meter {{
     input near : bool
@@ -108,7 +110,7 @@ automaton Meter {{
     location Near        {{ dist' == 20 - d; pen' == -1 }}
 
     edge Far -> Near when near && d < 29 do pen = pen - d, dist = dist + 3*pen
-    edge Near -> Far when !near          do dist = dist - 2
+    edge Near -> Far when !near          do dist = dist - 2, pen = pen/3 - dist/7
 
     at end when gain do pen = pen + 10
     at end when d < 10 do dist = dist * 2
