@@ -43,7 +43,7 @@ from rac.engine.product import (
 )
 from rac.ir import Action
 from rac.ir import query as iq
-from rac.model import ModelData, NativeModel, build_model_data
+from rac.model import ModelData, ModelRangeError, NativeModel, build_model_data
 from rac.model.commonroad import load_scenario
 from rac.runtime.interpreter import RewardAutomaton
 
@@ -380,6 +380,31 @@ def test_mirror_arithmetic_truncates_towards_zero_like_c() -> None:
     expected = [int(F(3 * m + 2 * x + 15000, 6)) for m, x in ((-9000, -7), (9001, 7), (-1, -13), (2, 3333))]
     assert after[:, 0].tolist() == [*expected, 0] and loc2.tolist() == [0] * 5
     assert expected[0] == -2002 and expected[2] == 2495  # -2002.33 and 2495.17: truncated towards zero
+
+
+def test_mirror_arithmetic_keeps_every_value_on_the_way_within_int32() -> None:
+    """Regression: the engine summed an update's and an accrual's terms in int64, where the emitted
+    model computes each product and partial sum in int32. A bound input beyond its declared range
+    (bindings are not clipped) made `100000*d / 7` leave int32 in UPPAAL while the engine went on
+    with the exact value; now the engine raises ModelRangeError, as for a mirror leaving int32."""
+    loc = ir.Location("L", (ir.Linear(F(-1000), (("d", F(1)),)),))  # iR + d - 10000000 per sample (period 1)
+    update = ir.Assignment("r", ir.Linear(F(0), (("d", F(100000, 7)),)))  # (100000*d) / 7
+    automaton = ir.Automaton(
+        name="A", inputs=(ir.Input("d", "real", F(0), F(1)),), rewards=("r",), locations=(loc,), initial=0,
+        edges=((ir.Edge(0, 0, ir.BConst(True), (update,)),),), end_clauses=(), assumptions=(),
+        objective=ir.Linear.variable("r"), priority=(), strict=False, period=F(1), horizon=F(2))
+    arithmetic = _Arithmetic(automaton, 10_000)
+    at = np.zeros(1, dtype=np.int64)
+    inside = np.array([[10_000]], dtype=np.int64)  # d = 1: 100000*d is 1e9
+    assert arithmetic.edges(at, inside, np.zeros((1, 1), dtype=np.int64))[1].tolist() == [[142857142]]
+    beyond = np.array([[100_000]], dtype=np.int64)  # d = 10: 1e10, though 1e10 / 7 would fit
+    with pytest.raises(ModelRangeError, match="a value inside the update of `r`"):
+        arithmetic.edges(at, beyond, np.zeros((1, 1), dtype=np.int64))
+    # the accrual's `iR + d` before `- 10000000`: the result fits, the partial sum does not
+    near = np.array([[2_140_000_000]], dtype=np.int64)
+    assert arithmetic.accrue(at, inside, near).tolist() == [[2_130_010_000]]
+    with pytest.raises(ModelRangeError, match="a value inside the accrual of `r`"):
+        arithmetic.accrue(at, np.array([[9_000_000]], dtype=np.int64), near)
 
 
 def test_one_edge_per_sample() -> None:

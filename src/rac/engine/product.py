@@ -49,8 +49,9 @@ only, as the emitted queries read it: the sample counter).
 
 Every input needs a binding (a checked file with a ``model`` block has one for each, E0709):
 :class:`ValueError` otherwise. As in the emitted model, ``assume`` and the inputs' declared bounds
-are not enforced on the values the bindings give. A mirror leaving int32 (UPPAAL aborts there)
-raises :class:`rac.model.ModelRangeError`.
+are not enforced on the values the bindings give. A mirror leaving int32 (UPPAAL aborts there), or
+a product or partial sum on the way to one (the emitted arithmetic is int32 throughout), raises
+:class:`rac.model.ModelRangeError`.
 
 The model's own states rarely merge (centimetre positions are unique per action history), so product
 state spaces grow fast: pass ``max_states`` and ``max_bytes`` for a
@@ -79,7 +80,7 @@ from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
 from rac.engine.budget import GRAPH_BYTES_PER_CHOICE, Budget
-from rac.engine.evaluate import EvaluationError, Evaluator, Frame, int_sum
+from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.graph import LABELS, ExploredGraph
 from rac.engine.storm import Verdict, decide
 from rac.ir import expr as ie
@@ -152,9 +153,13 @@ class _Arithmetic:
             for r, (const, terms) in enumerate(row):
                 if const == 0 and not terms:
                     continue
-                gain = int_sum(const, [(sign, _tdiv(int_sum(0, [(p, inputs[rows, i])], rows.size), q))
-                                        for sign, p, q, i in terms], rows.size)
-                out[rows, r] = _int32(out[rows, r] + gain, f"the mirror of `{self.a.rewards[r]}`", self.scale)
+                # print_exact_sum's `iR + p*x / q + ... + const`, every value on the way an int32 as in UPPAAL
+                inside = f"a value inside the accrual of `{self.a.rewards[r]}`"
+                total = out[rows, r].astype(np.int64)
+                for sign, p, q, i in terms:
+                    product = _int32(p * inputs[rows, i].astype(np.int64), inside, self.scale)
+                    total = _int32(total + sign * _tdiv(product, q), inside, self.scale)
+                out[rows, r] = _int32(total + const, f"the mirror of `{self.a.rewards[r]}`", self.scale)
         return out
 
     def guard(self, guard: ir.Guard, inputs: np.ndarray) -> np.ndarray:
@@ -185,10 +190,14 @@ class _Arithmetic:
             q, k, ints = common_denominator(const, terms)
             if not ints:
                 value = np.full(n, math.trunc(const), dtype=np.int64)
-            else:  # print_int_linear: everything over the common denominator q, one truncating division
-                columns = [(c, mirrors[:, self.reward[name]] if name in self.reward
-                            else inputs[:, self.input[name]]) for c, name in ints]
-                value = _tdiv(int_sum(k, columns, n), q)
+            else:  # print_int_linear's `(k1*x1 + ... + k) / q`, every value on the way an int32 as in UPPAAL
+                inside = f"a value inside the update of `{assignment.reward}`"
+                total = np.zeros(n, dtype=np.int64)
+                for c, name in ints:
+                    column = mirrors[:, self.reward[name]] if name in self.reward else inputs[:, self.input[name]]
+                    total = _int32(total + _int32(c * column.astype(np.int64), inside, self.scale), inside,
+                                   self.scale)
+                value = _tdiv(_int32(total + k, inside, self.scale) if k else total, q)
             mirrors[:, self.reward[assignment.reward]] = _int32(
                 value, f"the mirror of `{assignment.reward}`", self.scale)
 
