@@ -147,6 +147,35 @@ def test_a_nan_under_clip_says_the_state_things_are_in_too() -> None:
     assert vector.clipped_total == {} and env.clipped_total == {}  # nothing counted for a refused step
 
 
+@pytest.mark.parametrize("clip", [False, True])
+@pytest.mark.parametrize("returned", [None, (3.0, False)], ids=["none", "tuple"])
+def test_inputs_that_return_no_mapping_are_said_so(clip: bool, returned: object) -> None:
+    # an inputs() that forgot its `return` gave "TypeError: 'NoneType' object is not iterable" from the
+    # clip rule (or from the refusal's clip hint), naming neither inputs() nor the state things are in
+    env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), lambda o, i: returned, clip=clip)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=rf"^inputs must map input names to values, not {type(returned).__name__}; "
+                                         "the environment has taken this step"):
+        env.step(1)
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30)] * 2), follow(),
+                                          lambda o, i: returned, clip=clip)
+    vector.reset(seed=0)
+    with pytest.raises(ValueError, match=rf"^inputs must map input names to values, not {type(returned).__name__}; "
+                                         "the environments have taken this step"):
+        vector.step(np.ones(2, dtype=int))
+
+
+def test_a_column_of_the_wrong_shape_is_named_under_clip_too() -> None:
+    # obs[:, 0:1] is (n, 1): without clip the message named the shape, with clip it was numpy's own
+    # "input operand has more dimensions than allowed by the axis remapping"
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30)] * 2), follow(),
+                                          lambda o, i: {**vector_inputs(o, i), "headway": np.array([[1.0], [40.0]])},
+                                          clip=True)
+    vector.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^input 'headway' must have shape \(2,\), not \(2, 1\); the environments"):
+        vector.step(np.ones(2, dtype=int))
+
+
 def test_proven_scale_keeps_every_reward_within_one_and_reports_the_steps() -> None:
     bound = sample_change_bound(follow())
     env, raw = wrapped(scale="proven"), wrapped()

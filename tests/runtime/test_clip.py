@@ -53,6 +53,18 @@ def test_the_batch_clips_like_the_interpreter() -> None:
     assert rewards[0] == rewards[3] == 0.0 and rewards[2] > 0 == rewards[1]  # the bonus needs dgoal < 2
 
 
+def test_a_masked_batch_names_a_column_of_the_wrong_shape_under_clip() -> None:
+    # with a mask, clipping broadcast a (3, 1) column against the (3,) mask: numpy's "non-broadcastable
+    # output operand" instead of the shape the batch names without clip
+    batch = RewardAutomaton(driving_automaton()).batch(3)
+    values = {k: np.array([v] * 3) for k, v in inputs().items()}
+    values["dgoal"] = np.array([[1.0], [700.0], [2.0]])
+    for mask in (None, np.array([True, False, True])):
+        with pytest.raises(ValueError, match=r"input 'dgoal' must have shape \(3,\), not \(3, 1\)"):
+            batch.step_batch(values, mask=mask, clip=True)
+    assert batch.samples.tolist() == [0, 0, 0]
+
+
 def test_clip_inputs_leaves_what_is_not_a_number_to_validation() -> None:
     specs = input_specs(driving_automaton())
     raw = {**inputs(), "dgoal": "far", "isClose": 2}

@@ -357,9 +357,11 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
     Works on scalars and on arrays (a batch's columns; ``rows``: only those are clipped and counted);
     with ``scalars`` (a runtime reading one value per input) on scalars only: an array or a list is left
     as it was given, for validation to refuse in its own words. NaN is never clipped (it is no value
-    on either side of a range): ``ValueError`` naming the input. What is not a real number, and
-    booleans, are left for validation to report.
+    on either side of a range): ``ValueError`` naming the input. What is not a real number, booleans,
+    and an array that does not have ``rows``' shape are left for validation to report (it names the
+    input and the shape); what is not a mapping is ``ValueError``.
     """
+    check_mapping(inputs)  # an inputs() that forgot its `return`: said as the runtime says it, not TypeError
     out = dict(inputs)
     counts: dict[str, int] = {}
     for spec in specs:
@@ -380,7 +382,10 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
             continue
         if scalars:
             continue
-        array = _numbers(spec, np.asarray(raw), rows)
+        given = np.asarray(raw)
+        if rows is not None and given.shape not in ((), np.shape(rows)):
+            continue  # a column of another shape (obs[:, i:i+1]): validation names its shape
+        array = _numbers(spec, given, rows)
         if array is None:
             continue
         bounded, moved = clip_column(spec, array, rows)
@@ -437,7 +442,9 @@ def clip_rows(specs: Sequence[InputSpec], inputs: Mapping[str, object], n: int,
     """:func:`clip_inputs` on a batch of ``n`` rows, with its counts per row: ``inputs`` with every numeric
     value clipped (a column, or a scalar that stands for every row, then a column when it was clipped),
     and per numeric input an ``(n,)`` int64 array, 1 where the row's value was clipped (``rows``: only
-    those rows are clipped and counted). The counts sum to :func:`clip_inputs`' for columns."""
+    those rows are clipped and counted). The counts sum to :func:`clip_inputs`' for columns. A value of
+    another shape than ``()`` or ``(n,)`` is left for validation to report."""
+    check_mapping(inputs)
     out = dict(inputs)
     counts: dict[str, np.ndarray] = {}
     for spec in specs:
@@ -446,7 +453,10 @@ def clip_rows(specs: Sequence[InputSpec], inputs: Mapping[str, object], n: int,
         raw = inputs[spec.name]
         if type(raw).__name__ in ("bool", "bool_"):
             continue  # left for validation to report
-        array = _numbers(spec, np.broadcast_to(np.asarray(raw), (n,)), rows)
+        given = np.asarray(raw)
+        if given.shape not in ((), (n,)):
+            continue  # validation names the shape (broadcast_to said numpy's own words)
+        array = _numbers(spec, np.broadcast_to(given, (n,)), rows)
         if array is None:
             continue
         bounded, moved = clip_column(spec, array, rows)
