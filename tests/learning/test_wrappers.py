@@ -353,6 +353,22 @@ class Gap(gymnasium.Env):
         return np.asarray(action, dtype=np.float32).reshape(1), 0.0, False, False, {"collision": False}
 
 
+class Goal(Gap):
+    """Gap as a goal environment: its own reward is compute_reward's, as highway-env's parking-v0."""
+
+    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> float:
+        return -1.0
+
+
+def test_hindsight_relabelling_cannot_reach_the_wrapped_environments_reward() -> None:
+    # stable-baselines3's HerReplayBuffer relabels with env_method("compute_reward"), which resolves it
+    # through the wrappers (get_wrapper_attr): it found the goal environment's and mixed its reward,
+    # silently, into the automaton's
+    env = RewardAutomatonWrapper(Goal(), follow(), inputs)
+    with pytest.raises(NotImplementedError, match="depends on the run so far.*HerReplayBuffer"):
+        env.get_wrapper_attr("compute_reward")(np.zeros(1), np.zeros(1), {})
+
+
 def test_the_automaton_ends_the_episode_with_its_end_clauses() -> None:
     env = RewardAutomatonWrapper(Gap(), FOLLOW_ENDS, inputs)
     reference = RewardAutomaton(FOLLOW_ENDS)

@@ -38,7 +38,7 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping
 from fractions import Fraction
 from pathlib import Path
-from typing import Any, Protocol, SupportsFloat, runtime_checkable
+from typing import Any, NoReturn, Protocol, SupportsFloat, runtime_checkable
 
 import gymnasium
 import numpy as np
@@ -573,6 +573,18 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped, "inputs": dict(values),
                        "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
         return obs, reward / self.scale, terminated, truncated, info
+
+    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> NoReturn:
+        """Refused (``NotImplementedError``): the automaton's reward of a step depends on the run so far (its
+        location and rewards), not on a goal, so it cannot be computed again for another goal. Without this,
+        stable-baselines3's ``HerReplayBuffer`` (``env_method("compute_reward", ...)``, which gymnasium's
+        ``get_wrapper_attr`` resolves to the wrapped goal environment's) relabelled the stored transitions with
+        the environment's own reward, mixed silently into the automaton's."""
+        raise NotImplementedError(
+            "RewardAutomatonWrapper has no compute_reward: the automaton's reward depends on the run so far, not "
+            "on a goal, so relabelled transitions (stable-baselines3's HerReplayBuffer) cannot be given it, and "
+            "the wrapped environment's compute_reward would mix its own reward into the automaton's; train "
+            "without hindsight relabelling")
 
 
 class RewardAutomatonVectorWrapper(VectorWrapper):
