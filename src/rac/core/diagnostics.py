@@ -145,19 +145,61 @@ def short_count(count: int) -> str:
     return f"{count:,}" if abs(count) < 10**16 else short_number(Fraction(count))
 
 
+def _restored(kind: type[RacError], args: tuple[object, ...], state: dict[str, object]) -> RacError:
+    """An exception of rac's rebuilt from its ``args`` and attributes without calling its ``__init__``,
+    whose parameters are the failure's parts, not its message (what :meth:`RacError.__reduce__` hands pickle)."""
+    error = kind.__new__(kind, *args)
+    Exception.__init__(error, *args)
+    error.__dict__.update(state)
+    return error
+
+
+def _copy_into(error: BaseException, original: BaseException) -> None:
+    """``error`` made the same failure as ``original``: its ``args`` and attributes."""
+    Exception.__init__(error, *original.args)
+    error.__dict__.update(original.__dict__)
+
+
 class RacError(Exception):
     """The root of rac's own exceptions. ``diagnostic``, when set, is the failure in the user's words
     (a code of docs/checks.md, where, and what to do): the ``rac`` command renders it through the one
     renderer, like the checker's findings. Subclasses keep a builtin base where callers expect one
-    (``class ScenarioError(RacError, ValueError)``)."""
+    (``class ScenarioError(RacError, ValueError)``).
+
+    Every one of them survives another process: ``pickle`` rebuilds it from its ``args`` and attributes
+    (not through an ``__init__`` that takes the failure's parts), and ``type(error)(error)`` is the same
+    failure again, which is how gymnasium's ``AsyncVectorEnv`` re-raises a worker's exception (a
+    ``CheckError`` of a scene checked in a worker said ``TypeError: 'CheckError' object is not iterable``)."""
 
     #: The failure as the user reads it; None for a failure that only rac itself handles.
     diagnostic: Diagnostic | None = None
 
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        own = cls.__dict__.get("__init__")
+        if own is None:
+            return
+
+        def __init__(self: RacError, *args: object, **named: object) -> None:
+            if len(args) == 1 and not named and type(args[0]) is type(self):
+                _copy_into(self, args[0])  # type(error)(error): the same failure
+            else:
+                own(self, *args, **named)
+
+        __init__.__doc__, __init__.__wrapped__ = own.__doc__, own  # type: ignore[attr-defined]
+        cls.__init__ = __init__  # type: ignore[method-assign]
+
     def __init__(self, *args: object, diagnostic: Diagnostic | None = None) -> None:
+        if len(args) == 1 and diagnostic is None and type(args[0]) is type(self):
+            _copy_into(self, args[0])  # type: ignore[arg-type]
+            return
         super().__init__(*(args or ((diagnostic.message,) if diagnostic is not None else ())))
         if diagnostic is not None:
             self.diagnostic = diagnostic
+
+    def __reduce__(self) -> tuple[object, ...]:
+        """For pickle and copy: rebuilt from ``args`` and the attributes (:func:`_restored`)."""
+        return _restored, (type(self), self.args, dict(self.__dict__))
 
 
 class RacValueError(RacError, ValueError):
