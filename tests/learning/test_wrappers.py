@@ -165,6 +165,18 @@ def test_inputs_that_return_no_mapping_are_said_so(clip: bool, returned: object)
         vector.step(np.ones(2, dtype=int))
 
 
+def test_a_0d_array_input_is_refused_with_clip_as_without() -> None:
+    # the wrapper clipped an out-of-range 0-d array to a float and took it (one in range was refused), and
+    # without clip its refusal advised clip=True
+    for clip in (False, True):
+        env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(),
+                                     lambda o, i: {"headway": np.array(40.0), "collide": False}, clip=clip)
+        env.reset(seed=0)
+        with pytest.raises(ValueError, match=r"an array of shape \(\), not one value") as raised:
+            env.step(1)
+        assert "clip=True" not in str(raised.value) and env.clipped_total == {}
+
+
 def test_a_column_of_the_wrong_shape_is_named_under_clip_too() -> None:
     # obs[:, 0:1] is (n, 1): without clip the message named the shape, with clip it was numpy's own
     # "input operand has more dimensions than allowed by the axis remapping"

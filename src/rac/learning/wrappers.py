@@ -428,7 +428,7 @@ def _refused(exc: ValueError, program: ir.Automaton | None, clipping: bool, valu
     hint = ""
     if not clipping and program is not None:
         try:
-            _, counts = clip_inputs(input_specs(program), values, rows)
+            _, counts = clip_inputs(input_specs(program), values, rows, scalars=rows is None)
         except ValueError:  # NaN: no clipping helps
             counts = {}
         names = sorted(name for name, count in counts.items() if count)
@@ -554,7 +554,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         before = dict(self.automaton.rewards)
         try:
             if self._specs is not None:  # a NaN is refused here, not clipped: said as any refusal
-                values, clipped = clip_inputs(self._specs, values)
+                values, clipped = clip_inputs(self._specs, values, scalars=True)
                 for name, count in clipped.items():
                     self.clipped_total[name] = self.clipped_total.get(name, 0) + count
             reward = self.automaton.step(values)

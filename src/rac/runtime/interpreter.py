@@ -286,8 +286,8 @@ class RewardAutomaton(AutomatonDescription):
         once the inputs are read: a call that raises leaves the automaton untouched, its counts too."""
         if not clip:
             return inputs, None
-        check_mapping(inputs)
-        return clip_inputs(self._specs, inputs, scalars=True)  # an array is refused as given, not clipped
+        # an array (a 0-d one too) is refused as given, not clipped; what is no mapping is refused too
+        return clip_inputs(self._specs, inputs, scalars=True)
 
     def step(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:
         """Take one sample with ``inputs``; return the objective's increase.

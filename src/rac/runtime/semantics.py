@@ -355,11 +355,11 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
     values of each numeric input were clipped.
 
     Works on scalars and on arrays (a batch's columns; ``rows``: only those are clipped and counted);
-    with ``scalars`` (a runtime reading one value per input) on scalars only: an array or a list is left
-    as it was given, for validation to refuse in its own words. NaN is never clipped (it is no value
-    on either side of a range): ``ValueError`` naming the input. What is not a real number, booleans,
-    and an array that does not have ``rows``' shape are left for validation to report (it names the
-    input and the shape); what is not a mapping is ``ValueError``.
+    with ``scalars`` (a runtime reading one value per input) on scalars only: an array (a 0-d one too)
+    or a list is left as it was given, in range or not, for validation to refuse in its own words.
+    NaN is never clipped (it is no value on either side of a range): ``ValueError`` naming the input.
+    What is not a real number, booleans, and an array that does not have ``rows``' shape are left for
+    validation to report (it names the input and the shape); what is not a mapping is ``ValueError``.
     """
     check_mapping(inputs)  # an inputs() that forgot its `return`: said as the runtime says it, not TypeError
     out = dict(inputs)
@@ -381,7 +381,7 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
                 out[spec.name] = clipped
             continue
         if scalars:
-            continue
+            continue  # one run's input: validation refuses an array, whatever its value
         given = np.asarray(raw)
         if rows is not None and given.shape not in ((), np.shape(rows)):
             continue  # a column of another shape (obs[:, i:i+1]): validation names its shape
