@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import importlib.util
 import subprocess
 import sys
 import warnings
@@ -250,6 +251,34 @@ def test_masks_reach_through_stock_vector_wrappers(files: dict[str, Path], table
     with pytest.raises(AttributeError, match="neither action_masks"):
         action_masks(RecordEpisodeStatistics(gymnasium.make_vec("CartPole-v1", num_envs=2,
                                                                 vectorization_mode="vector_entry_point")))
+
+
+class Sb3Like:
+    """What stable-baselines3's DummyVecEnv offers here (no SB3 in CI): ``unwrapped`` and ``env_method``, which
+    resolves the name through each environment's wrappers."""
+
+    def __init__(self, envs: list[gymnasium.Env]) -> None:  # type: ignore[type-arg]
+        self.envs = envs
+        self.unwrapped = self
+
+    def env_method(self, name: str) -> list[Any]:
+        return [env.get_wrapper_attr(name)() for env in self.envs]
+
+
+def test_masks_of_a_stable_baselines3_vec_env(files: dict[str, Path], table: ShieldTable) -> None:
+    # action_masks(venv) of SB3's VecEnv said "has neither action_masks() nor call(): not a vector environment
+    # of ScenarioEnvs", although it was one
+    envs = [gymnasium.make(rac.gym.SCENARIO, model=files["avoidable_obstacle"], shield=table) for _ in range(2)]
+    for env in envs:
+        env.reset(seed=0)
+    envs[1].step(4)
+    masks = action_masks(Sb3Like(envs))  # type: ignore[arg-type]
+    assert masks.tolist() == [env.unwrapped.action_masks().tolist() for env in envs]  # type: ignore[attr-defined]
+    if importlib.util.find_spec("stable_baselines3") is not None:  # the real one, where it is installed
+        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+        venv = VecNormalize(DummyVecEnv([lambda: envs[0], lambda: envs[1]]))
+        assert action_masks(venv).tolist() == masks.tolist()  # type: ignore[arg-type]
 
 
 def test_the_action_space_samples_within_the_masks_as_the_module_says(files: dict[str, Path],

@@ -350,15 +350,20 @@ def action_masks(envs: gymnasium.vector.VectorEnv) -> np.ndarray:  # type: ignor
     ``envs.unwrapped``: :meth:`ScenarioVectorEnv.action_masks` and
     :meth:`ScenarioSyncVectorEnv.action_masks` (every action allowed for an episode awaiting its
     restart), else a ``SyncVectorEnv`` or ``AsyncVectorEnv``'s ``call("action_masks")`` of its
-    ScenarioEnvs."""
+    ScenarioEnvs, or a stable-baselines3 ``VecEnv``'s ``env_method("action_masks")`` (also under
+    ``VecNormalize`` and SB3's other vector wrappers: their ``unwrapped`` is the ``VecEnv``)."""
     base = envs.unwrapped
     own = getattr(base, "action_masks", None)
     if callable(own):
         return np.asarray(own(), dtype=bool)
     call = getattr(base, "call", None)
     if not callable(call):
-        raise AttributeError(f"{type(base).__name__} has neither action_masks() nor call(): not a vector "
-                             "environment of ScenarioEnvs")
+        # stable-baselines3's VecEnv (DummyVecEnv, SubprocVecEnv, under VecNormalize, ...): its env_method, which
+        # resolves the name through each environment's wrappers, as sb3-contrib's get_action_masks does
+        call = getattr(base, "env_method", None)
+    if not callable(call):
+        raise AttributeError(f"{type(base).__name__} has neither action_masks(), call() nor env_method(): not a "
+                             "vector environment of ScenarioEnvs")
     return np.stack([np.asarray(mask, dtype=bool) for mask in call("action_masks")])
 
 
