@@ -79,3 +79,18 @@ def test_queries_under_a_reachability_strategy_say_it_is_not_kept(tmp_path: Path
     failed = {r.name: r for r in verify(compile_file(write_engine_file(tmp_path, "narrow_road", queries)),
                                         VerifyOptions(seed=1, out_dir=tmp_path / "out2"))}
     assert failed["reach"].status == "not satisfied" and failed["Under"].status == "not_applicable"
+
+
+
+def test_rac_check_warns_of_a_query_under_a_reachability_strategy(tmp_path: Path) -> None:
+    """`rac check` accepted `E<> goal() under reach` silently, though rac verify never answers it: it now
+    warns (W0605) at each query under `reach`, and not at one under a safety strategy (kept)."""
+    queries = {"reach": "strategy reach = control: E<> goal() && !offroad()", "Under": "E<> goal() under reach",
+               "ProbUnder": "Pr[<=2](<> goal()) under reach", "safe": QUERIES["safe"], "Shielded": QUERIES["Shielded"],
+               "fast": "strategy fast = maxE(sa)[<=4]{Tiny.location}->{x}: <> time >= 4 under reach"}
+    path = write_engine_file(tmp_path, "goal_ahead", queries)
+    lines = path.read_text(encoding="utf-8").splitlines()
+    flagged = [d for d in compile_file(path).diagnostics if d.code == "W0605"]
+    assert [lines[d.span.line - 1].split()[1] for d in flagged if d.span is not None] == ["Under:", "ProbUnder:",
+                                                                                         "fast:"]
+    assert all("`under reach` names a reachability strategy" in d.message for d in flagged)

@@ -549,6 +549,8 @@ class Resolver:
     # ------------------------------------------------------------ queries
     def _check_queries(self, horizon: Fraction | None) -> tuple[iq.QueryDecl, ...]:
         strategies: set[str] = set()
+        #: Reachability strategies (``control: E<> p``) by name, with their query's span.
+        reaching: dict[str, Span | None] = {}
         names: dict[str, Span | None] = {}
         lowered = []
         for decl in self.node.of(ast.QueryDecl):
@@ -560,9 +562,27 @@ class Resolver:
             if query is not None:
                 lowered.append(query)
                 self._bound_past_horizon(decl, query.query, horizon)
+                self._under_reachability(decl, reaching)
             if isinstance(decl.query, (ast.ControlStrategy, ast.LearnStrategy)):
                 strategies.add(decl.query.name)
+                # a later strategy of the same name replaces it
+                reaching.pop(decl.query.name, None)
+                if isinstance(decl.query, ast.ControlStrategy) and decl.query.goal != "A[]":
+                    reaching[decl.query.name] = decl.query.span
         return tuple(lowered)
+
+    def _under_reachability(self, decl: ast.QueryDecl, reaching: dict[str, Span | None]) -> None:
+        """W0605: a query ``under`` a reachability strategy, which rac verify decides but does not keep."""
+        under = getattr(decl.query, "under", None)
+        if under not in reaching:
+            return
+        self.diagnostics.append(warning(
+            "W0605", f"`under {under}` names a reachability strategy (`control: E<> ...`), which `rac verify` "
+            "does not keep", decl.query.span,
+            notes=[Note(f"`{under}` is defined here", reaching[under]),
+                   "rac verify decides whether a reachability strategy exists but keeps no strategy to follow, "
+                   "so it does not answer this query; UPPAAL does"],
+            hints=[f"to ask rac verify, define `{under}` as a safety strategy (`control: A[] p`)"]))
 
     def _bound_past_horizon(self, decl: ast.QueryDecl, query: iq.Query, horizon: Fraction | None) -> None:
         """W0604: a time bound past the horizon asks about runs the model does not have."""
