@@ -120,10 +120,11 @@ def codes(text: str) -> list[str]:
 
 
 def only(text: str, code: str):
-    """The one diagnostic of ``text``, which must have ``code``."""
-    result = check(text)
-    assert [d.code for d in result.diagnostics] == [code], [(d.code, d.message) for d in result.diagnostics]
-    return result.diagnostics[0]
+    """The one diagnostic of ``text``, which must have ``code``; besides it, a `base 2` warns that the
+    defaults are truncated (W0725, tested on its own below)."""
+    found = [d for d in check(text).diagnostics if d.code != "W0725" or code == "W0725"]
+    assert [d.code for d in found] == [code], [(d.code, d.message) for d in found]
+    return found[0]
 
 
 def line_of(text: str, needle: str) -> int:
@@ -726,3 +727,33 @@ def test_a_large_scenario_load_is_announced(monkeypatch: pytest.MonkeyPatch, tmp
     (tmp_path / scenario.group(1)).write_bytes(b"<x/>")
     compile_file(tmp_path / "big.ra", progress=said.append)
     assert said == []
+
+
+# ---------------------------------------------------------------- truncated settings (W0725)
+def test_a_setting_truncated_to_a_nonzero_significand_warns_with_the_value_used() -> None:
+    """`width 4.55555` at exponent 2 became 4.55 silently: the model, and every check, used 4.55."""
+    text = small("        exponent 2\n        width 2.55555\n")
+    diagnostic = only(text, "W0725")
+    assert diagnostic.severity == "warning"
+    assert diagnostic.message == ("`width` 2.55555 m is truncated to whole significands at base 10, exponent 2: "
+                                  "the model uses 2.55 m")
+    assert diagnostic.span is not None and diagnostic.span.line == line_of(text, "width 2.55555")
+    assert diagnostic.hints == ("write `width 2.55` to say what the model uses, or raise the exponent "
+                                "(`exponent 5` holds 2.55555)",)
+    assert check(text).ok  # a warning: the file still checks
+    # a value the representation holds exactly, or that E0702 rejects (truncated to 0), does not warn
+    assert "W0725" not in codes(small("        exponent 2\n        width 2.55\n"))
+    assert codes(small("        exponent 2\n        width 0.001\n")) == ["E0702"]
+
+
+def test_defaults_truncated_at_another_base_warn_once() -> None:
+    text = small("        base 2\n        action turn in [-0.5, 0.5] step 0.5\n"
+                 "        action jerk in [-2, 2] step 0.5\n")
+    found = [d for d in check(text).diagnostics if d.code == "W0725"]
+    assert len(found) == 1
+    diagnostic = found[0]
+    assert diagnostic.span is not None and diagnostic.span.line == line_of(text, "base 2")
+    assert diagnostic.message.startswith("at base 2, exponent 4 the model holds default settings truncated to "
+                                         "whole significands: `width` 1.8 m as 1.75 m, ")
+    assert "`max_turn` 0.4 rad/s as 0.375 rad/s" in diagnostic.message
+

@@ -159,6 +159,20 @@ def _scene_file(name: str) -> Callable[[Path], None]:
     return make
 
 
+#: The automaton of the E0712 example with a width its model block's exponent truncates (W0725).
+TRUNCATED = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
+    .replace("// A model whose scenario file is not next to this one", "// A width finer than the exponent holds") \
+    .replace('        scenario "left_turn.xml"  // the CommonRoad file, next to this one\n',
+             '        scenario "left_turn.xml"  // the CommonRoad file, next to this one\n'
+             '        exponent 2                // significands in hundredths\n'
+             '        width 1.855               // the ego\'s width (m)\n')
+
+
+def _truncated(folder: Path) -> None:
+    (folder / "W0725_setting_truncated.ra").write_text(TRUNCATED, encoding="utf-8")
+    (folder / "left_turn.xml").write_bytes(_left_turn())
+
+
 def _left_turn() -> bytes:
     return (ROOT / "examples" / "left_turn" / "left_turn.xml").read_bytes()
 
@@ -342,6 +356,10 @@ GENERATED: tuple[Case, ...] = (
          "to it: one lane, the ego at x = 10 and a parked car at x = 13.5 on the same line "
          "(`blocked_start()` of tests/support/tiny_scenarios.py):",
          _scene("W0724_start_in_collision", "blocked.xml", "a start inside a parked car", "blocked_start")),
+    Case("W0725_setting_truncated", TRUNCATED,
+         "`W0725_setting_truncated.ra` is the automaton of the E0712 example with `exponent 2` and `width 1.855`, "
+         "next to its `left_turn.xml` (the scenario of examples/left_turn):",
+         _truncated),
     Case("W1011_penalty_no_action_avoids", None,
          "`W1011_penalty_no_action_avoids.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: the highway of `rac.model.scenes` (`build_highway(truck=(40.0, 20.0))`), whose truck starts "

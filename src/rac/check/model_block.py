@@ -34,7 +34,7 @@ from fractions import Fraction
 from rac import ir
 from rac.check.queries import Lowering, model_settings_of, type_word
 from rac.check.symbols import ModelContext, Unresolvable
-from rac.core.diagnostics import Note, short_count, short_number
+from rac.core.diagnostics import Note, short_count, short_number, warning
 from rac.core.source import Span
 from rac.ir import expr as ie
 from rac.ir.significands import decimal_text, off_grid, vanishing
@@ -204,6 +204,7 @@ class _ModelResolver:
         this base and exponent (``width 0.00001`` at exponent 4), so the model would use 0, not it."""
         base, exponent = int(values["base"].value), int(values["exponent"].value)
         scale = base ** exponent
+        self._check_truncated(values, base, exponent)
         for name in vanishing({n: v.value for n, v in values.items() if n not in self.rejected}, scale):
             setting, item = SETTINGS[name], values[name]
             unit = f" {setting.unit}" if setting.unit else ""
@@ -219,6 +220,42 @@ class _ModelResolver:
                        hints=[f"the smallest positive `{name}` at base {base}, exponent {exponent} is "
                               f"{_fraction_text(Fraction(1, scale))}{unit}: set `{name}` to at least that"
                               + (f", or raise the exponent (`exponent {needed}` holds {value})" if needed else "")])
+
+    def _check_truncated(self, values: dict[str, _Value], base: int, exponent: int) -> None:
+        """W0725 for a setting the model holds truncated to a smaller nonzero value (``width 4.55555`` at
+        exponent 2 is 4.55): the model, and every check of it, uses that value, not the one written. One
+        warning per written setting, one for the defaults together (they change with ``base`` and
+        ``exponent``). One truncated to 0 is E0702 (:meth:`_check_held`)."""
+        scale = base ** exponent
+        defaults: list[str] = []
+        for name, item in values.items():
+            if name in self.rejected or name not in SETTINGS:
+                continue
+            held = held_value(name, item.value, scale)
+            if held == item.value or held == 0:
+                continue
+            setting = SETTINGS[name]
+            unit = f" {setting.unit}" if setting.unit else ""
+            value = decimal_text(item.value)
+            if item.span is None:
+                defaults.append(f"`{name}` {value}{unit} as {decimal_text(held)}{unit}")
+                continue
+            needed = next((e for e in range(exponent + 1, int(SETTINGS["exponent"].maximum or exponent) + 1)
+                           if held_value(name, item.value, base ** e) == item.value), None)
+            self.r.scope.diagnostics.append(warning(
+                "W0725", f"`{name}` {value}{unit} is truncated to whole significands at base {base}, exponent "
+                f"{exponent}: the model uses {decimal_text(held)}{unit}", item.span,
+                notes=[f"its significand is trunc({value} · {base}^{exponent}) = "
+                       f"{math.trunc(item.value * scale)}, whole units of {_fraction_text(Fraction(1, scale))}",
+                       f"`{name}`: {setting.description}"],
+                hints=[f"write `{name} {_fraction_text(held)}` to say what the model uses"
+                       + (f", or raise the exponent (`exponent {needed}` holds {value})" if needed else "")]))
+        if defaults:
+            self.r.scope.diagnostics.append(warning(
+                "W0725", f"at base {base}, exponent {exponent} the model holds default settings truncated to whole "
+                f"significands: {', '.join(defaults)}", values["base"].span or values["exponent"].span,
+                hints=["set them to values that are whole multiples of "
+                       f"{_fraction_text(Fraction(1, scale))}, or choose a base and exponent that hold them"]))
 
     def _word(self, item: ast.ModelSetting) -> None:
         """A setting whose value is one of a few words (:data:`WORD_SETTINGS`), e.g. ``dynamics increments``."""
