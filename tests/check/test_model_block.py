@@ -374,6 +374,13 @@ def test_model_does_not_change_the_checks_or_runtime() -> None:
     ("        exponent 0\n", "E0702", "`exponent` must be a whole number from 1 to 6 (found 0)", None),
     ("        exponent 2.5\n", "E0702", "`exponent` must be a whole number from 1 to 6 (found 2.5)", None),
     ("        base 1\n", "E0702", "`base` must be a whole number >= 2 (found 1)", None),
+    # a scale beyond int32 (the number 1 has no significand) was accepted, and left to later overflows
+    ("        exponent 6\n        base 36\n", "E0702", "base 36 at exponent 6 is beyond the 32-bit integer range: "
+     "the model holds a real v as the 32-bit significand trunc(v · base^exponent), and even v = 1 would not fit",
+     "`exponent 5` is the largest that fits at this base"),
+    ("        base 1e300\n", "E0702", "base 1e300 at exponent 4 is beyond the 32-bit integer range: the model "
+     "holds a real v as the 32-bit significand trunc(v · base^exponent), and even v = 1 would not fit",
+     "use a smaller base (the default is `base 10`)"),
     ("        decide_period 0\n", "E0702", "`decide_period` must be a number > 0 (found 0 s)",
      "use a number > 0; without it, `decide_period` is 2 × `sense_period`"),
     ("        sense_period -0.1\n", "E0702", "`sense_period` must be a number > 0 (found -0.1 s)", None),

@@ -35,6 +35,7 @@ from rac import ir
 from rac.check.queries import Lowering, model_settings_of, type_word
 from rac.check.symbols import ModelContext, Unresolvable
 from rac.core.diagnostics import Note, short_count, short_number, warning
+from rac.core.numbers import INT32_MAX
 from rac.core.source import Span
 from rac.ir import expr as ie
 from rac.ir.significands import decimal_text, off_grid, vanishing
@@ -196,8 +197,28 @@ class _ModelResolver:
         if not self.rejected & {"min_speed", "max_speed"}:
             self._check_speeds(values)
         if not self.rejected & {"base", "exponent"}:
+            self._check_scale(values)
+        if not self.rejected & {"base", "exponent"}:
             self._check_held(values)
         return values
+
+    def _check_scale(self, values: dict[str, _Value]) -> None:
+        """E0702 for a ``base`` and ``exponent`` whose scale base^exponent is beyond ``int32``: the model
+        holds every real as a 32-bit significand, and the number 1 would not have one (``SCALE``, a 32-bit
+        constant of the emitted model, would overflow)."""
+        base, exponent = values["base"], values["exponent"]
+        if base.value ** int(exponent.value) <= INT32_MAX:
+            return
+        self.rejected |= {"base", "exponent"}
+        fits = next((e for e in range(int(exponent.value) - 1, 0, -1) if base.value ** e <= INT32_MAX), None)
+        self.error("E0702", f"base {short_number(base.value)} at exponent {int(exponent.value)} is beyond the 32-bit "
+                   "integer range: the model holds a real v as the 32-bit significand trunc(v · base^exponent), "
+                   "and even v = 1 would not fit", base.span or exponent.span,
+                   notes=[f"base^exponent is {short_number(base.value ** int(exponent.value))}, more than "
+                          f"{INT32_MAX}"],
+                   hints=[f"`exponent {fits}` is the largest that fits at this base"
+                          if fits is not None and exponent.span is not None
+                          else "use a smaller base (the default is `base 10`)"])
 
     def _check_held(self, values: dict[str, _Value]) -> None:
         """E0702 for a positive setting that the model holds as 0: its significand truncates to 0 at
