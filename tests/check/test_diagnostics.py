@@ -380,6 +380,12 @@ def test_huge_numbers_do_not_crash(horizon, code, tmp_path, capsys, monkeypatch)
     ("horizon 30 ", "horizon 99999999999999999999 ", "E0206", "(1e21…; at most 1,000,000)"),
     ("}\n", "    query Q: Pr[<=30](<> Unsafe) >= 1e308\n}\n", "E0603", "(found 1e308)"),
     ("}\n", "    query Q: Pr[<=30; 1e-300](<> Unsafe)\n}\n", "E0603", "(found 1e-300)"),
+    # a run count or step bound beyond int32 checked, then `rac compile --target uppaal` refused it (E0801)
+    # with a hint about significands, which neither is
+    ("}\n", "    query Q: Pr[<=30; 99999999999999999999](<> Unsafe)\n}\n", "E0603",
+     "the number of runs must be at most 2147483647 (found 1e20…)"),
+    ("}\n", "    query Q: simulate[#<=2147483648]{sa}\n}\n", "E0603",
+     "the step bound must be at most 2147483647 (found 2147483648)"),
     ("}\n", "    model {\n        scenario \"x.xml\"\n        action jerk in [-1e308, 2] step 2\n    }\n}\n",
      "E0901", "offers 5e307… values"),
 ])

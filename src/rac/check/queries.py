@@ -20,6 +20,7 @@ from fractions import Fraction
 from rac import ir
 from rac.check.symbols import Scope, Symbol
 from rac.core.diagnostics import CheckError, short_number
+from rac.core.numbers import INT32_MAX
 from rac.core.source import SourceFile, Span
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -332,6 +333,10 @@ class Lowering:
             need = "a positive whole number" if whole and positive else "a whole number" if whole else (
                 "a positive number" if positive else "a number >= 0")
             self.s.error("E0603", f"{what} must be {need} (found {short_number(number)})", node.span)
+            return None
+        if whole and number > INT32_MAX:  # UPPAAL's queries hold a step bound and a run count as int32
+            self.s.error("E0603", f"{what} must be at most {INT32_MAX} (found {short_number(number)})", node.span,
+                         hints=["UPPAAL holds it as a 32-bit integer"])
             return None
         return number
 
