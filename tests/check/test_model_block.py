@@ -751,6 +751,9 @@ def test_a_setting_truncated_to_a_nonzero_significand_warns_with_the_value_used(
     # a value the representation holds exactly, or that E0702 rejects (truncated to 0), does not warn
     assert "W0725" not in codes(small("        exponent 2\n        width 2.55\n"))
     assert codes(small("        exponent 2\n        width 0.001\n")) == ["E0702"]
+    # a setting that may be 0 and truncates to it warns too: the model's lowest speed is 0, not 0.00001
+    assert only(small("        min_speed 0.00001\n"), "W0725").message == (
+        "`min_speed` 0.00001 m/s is truncated to whole significands at base 10, exponent 4: the model uses 0 m/s")
 
 
 def test_defaults_truncated_at_another_base_warn_once() -> None:

@@ -243,17 +243,19 @@ class _ModelResolver:
                               + (f", or raise the exponent (`exponent {needed}` holds {value})" if needed else "")])
 
     def _check_truncated(self, values: dict[str, _Value], base: int, exponent: int) -> None:
-        """W0725 for a setting the model holds truncated to a smaller nonzero value (``width 4.55555`` at
-        exponent 2 is 4.55): the model, and every check of it, uses that value, not the one written. One
-        warning per written setting, one for the defaults together (they change with ``base`` and
-        ``exponent``). One truncated to 0 is E0702 (:meth:`_check_held`)."""
+        """W0725 for a setting the model holds truncated to a smaller value (``width 4.55555`` at exponent 2
+        is 4.55, ``min_speed 0.00001`` at exponent 4 is 0): the model, and every check of it, uses that
+        value, not the one written. One warning per written setting, one for the defaults together (they
+        change with ``base`` and ``exponent``). A positive setting truncated to 0 is E0702
+        (:meth:`_check_held`)."""
         scale = base ** exponent
         defaults: list[str] = []
+        vanished = set(vanishing({n: v.value for n, v in values.items() if n not in self.rejected}, scale))
         for name, item in values.items():
-            if name in self.rejected or name not in SETTINGS:
+            if name in self.rejected or name not in SETTINGS or name in vanished:
                 continue
             held = held_value(name, item.value, scale)
-            if held == item.value or held == 0:
+            if held == item.value:
                 continue
             setting = SETTINGS[name]
             unit = f" {setting.unit}" if setting.unit else ""
