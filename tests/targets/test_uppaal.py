@@ -390,6 +390,14 @@ def test_threshold_and_interval_not_representable() -> None:
     assert "has no representable value in (0, 0.00005)" in found[0][1]
 
 
+def test_a_huge_query_number_prints_short() -> None:
+    """`A[] up < 1e300` printed its significand in full, a 305-digit E0801 message."""
+    text = NO_INPUTS[:-2] + "    query Q: A[] up < 1e300\n}\n"
+    (code, message), = codes(automaton_of(text))
+    assert code == "E0801"
+    assert "1e304 is beyond the 32-bit integer range" in message and len(message) < 200, message
+
+
 def test_query_not_expressible() -> None:
     text = NO_INPUTS[:-2] + ("    query Q1: A[] up * up < 4\n    query Q2: Pr[<=5](<> up > 1) > 0.5\n"
                              "    query Q3: A[] up < 1000000\n    query Q4: Pr[<=5; 100](<> up > 1) >= 0.5\n"

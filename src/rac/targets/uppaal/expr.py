@@ -28,7 +28,7 @@ from collections.abc import Mapping, Sequence
 from fractions import Fraction
 
 from rac import ir
-from rac.core.diagnostics import RacError
+from rac.core.diagnostics import RacError, short_number
 from rac.core.numbers import INT32_MAX
 from rac.core.printing import C_BINARY, Associativity, Level, Operator, OperatorTable, Printed, Printer, signed_sum
 from rac.ir.expr import integer_bound
@@ -68,7 +68,8 @@ def int_literal(value: int | Fraction) -> str:
             raise NotRepresentable(f"{value} is not an integer")
         value = value.numerator
     if abs(value) > INT32_MAX:
-        raise NotRepresentable(f"{value} is beyond the 32-bit integer range (at most {INT32_MAX} in magnitude)")
+        raise NotRepresentable(f"{short_number(Fraction(value))} is beyond the 32-bit integer range (at most "
+                               f"{INT32_MAX} in magnitude)")
     return str(value)
 
 
