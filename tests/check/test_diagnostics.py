@@ -380,6 +380,11 @@ def test_huge_numbers_do_not_crash(horizon, code, tmp_path, capsys, monkeypatch)
     ("horizon 30 ", "horizon 99999999999999999999 ", "E0206", "(1e21…; at most 1,000,000)"),
     ("}\n", "    query Q: Pr[<=30](<> Unsafe) >= 1e308\n}\n", "E0603", "(found 1e308)"),
     ("}\n", "    query Q: Pr[<=30; 1e-300](<> Unsafe)\n}\n", "E0603", "(found 1e-300)"),
+    # a rate of 1e300 printed the reward's reach (E0501) and the objective's (E0402) with 300 digits
+    ("initial location Normal { sa' == 1;", "initial location Normal { sa' == 1e300;", "E0501",
+     "it can reach 3e301"),
+    ("initial location Normal { sa' == 1;", "initial location Normal { sa' == 1e300;", "E0402",
+     "the objective can reach 3e302…"),
     # a run count or step bound beyond int32 checked, then `rac compile --target uppaal` refused it (E0801)
     # with a hint about significands, which neither is
     ("}\n", "    query Q: Pr[<=30; 99999999999999999999](<> Unsafe)\n}\n", "E0603",

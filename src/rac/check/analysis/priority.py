@@ -783,9 +783,11 @@ def _linear_text(linear: ir.Linear) -> str:
 
 
 def _num(value: Fraction) -> str:
-    if value.denominator == 1:  # exact, however long
+    # exact up to 30 digits (a proved bound is read as written); beyond, 3e302… (`…` marks the
+    # rounding) rather than 303 digits nobody reads
+    if value.denominator == 1 and abs(value.numerator) < 10**30:
         return str(value.numerator)
-    if not Fraction(1, 10**300) < abs(value) < 10**300:  # beyond a float: no float() of it
+    if value.denominator == 1 or not Fraction(1, 10**300) < abs(value) < 10**300:
         return short_number(value)
     text = f"{float(value):.10g}"
     if Fraction(text) == value:
