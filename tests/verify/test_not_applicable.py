@@ -94,3 +94,17 @@ def test_rac_check_warns_of_a_query_under_a_reachability_strategy(tmp_path: Path
     assert [lines[d.span.line - 1].split()[1] for d in flagged if d.span is not None] == ["Under:", "ProbUnder:",
                                                                                          "fast:"]
     assert all("`under reach` names a reachability strategy" in d.message for d in flagged)
+
+
+def test_a_strategy_defined_again_replaces_the_earlier_one(tmp_path: Path) -> None:
+    """`S` defined as a reachability strategy, then again as a shield: a query `under S` was refused as
+    "a reachability strategy" (the first definition's record stayed); it is answered under the shield,
+    and rac check warns of nothing (W0605 follows the latest definition too)."""
+    queries = {"r": "strategy S = control: E<> goal() && !offroad()",
+               "s": "strategy S = control: A[] !collide() && !offroad()", "U": "A[] !collide() under S"}
+    compiled = compile_file(write_engine_file(tmp_path, "goal_ahead", queries))
+    assert not [d for d in compiled.diagnostics if d.code == "W0605"]
+    results = {r.name: r for r in verify(compiled, VerifyOptions(seed=1, out_dir=tmp_path / "out"))}
+    assert results["s"].status == "satisfied"
+    assert results["U"].status == "satisfied", results["U"]
+

@@ -340,6 +340,12 @@ class Context:
             raise NotApplicable(f"the strategy `{name}` does not exist: no strategy keeps `{goal}` from the start")
         return self.strategies[name]
 
+    def forget_strategy(self, name: str) -> None:
+        """Drop every record of the strategy ``name`` (a later query defines it again)."""
+        for registry in (self.strategies, self.strategy_goals, self.learned, self.missing, self.on_demand):
+            registry.pop(name, None)
+        self.reachability.discard(name)
+
     def strategy_exists(self, name: str) -> bool:
         """Whether the shield ``name`` was computed and exists."""
         return name in self.on_demand or (name in self.strategies and self.strategies[name][0].shield_exists)

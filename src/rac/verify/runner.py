@@ -133,6 +133,10 @@ class Verifier:
         t0 = time.perf_counter()
         self.context.seed_slot = self.seed_slots.get(id(decl))
         clocked = {name: computed.stats.clocked_answers for name, computed in self.context.on_demand.items()}
+        redefined = _defines(query)
+        if redefined is not None and getattr(query, "under", None) != redefined:
+            # a strategy defined again replaces the earlier one of that name (whatever its kind)
+            self.context.forget_strategy(redefined)
         try:
             result = self._dispatch(query, base)
         except UnknownVerdict as exc:
