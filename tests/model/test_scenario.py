@@ -244,6 +244,27 @@ def test_obstacle_shapes_become_rectangles(tmp_path: Path, example_xml: Path) ->
     assert (car.length, car.width, car.waypoints[0].x, car.waypoints[0].y) == (4.5, 1.8, -29.0, -1.75)
 
 
+def test_a_shape_placed_off_the_obstacle_position_stays_there(tmp_path: Path, example_xml: Path) -> None:
+    """A CommonRoad 2020a rectangle or circle may carry its own <center> and <orientation> in the obstacle's
+    frame. commonroad-io reads past both: the obstacle stood at its position, unturned, silently."""
+    shape = r'(<dynamicObstacle id="51">.*?<shape>).*?(</shape>)'  # heading east from (-30, -1.75)
+    turned = (r"\1<rectangle><length>4</length><width>2</width><orientation>1.5707963267948966</orientation>"
+              r"<center><x>3</x><y>1</y></center></rectangle>\2")
+    car = load_scenario(edited(tmp_path, example_xml, "turned.xml", shape, turned)).obstacles[0]
+    assert (car.length, car.width) == pytest.approx((2.0, 4.0))
+    assert (car.waypoints[0].x, car.waypoints[0].y) == pytest.approx((-27.0, -0.75))
+    circle = r"\1<circle><radius>1</radius><center><x>-2</x><y>0</y></center></circle>\2"
+    ball = load_scenario(edited(tmp_path, example_xml, "circle.xml", shape, circle)).obstacles[0]
+    assert (ball.length, ball.width, ball.waypoints[0].x, ball.waypoints[0].y) == (2.0, 2.0, -32.0, -1.75)
+    at_origin = r"\1<rectangle><length>4</length><width>2</width><orientation>0</orientation>" \
+                r"<center><x>0</x><y>0</y></center></rectangle>\2"  # CommonRoad's files write these zeros
+    plain = load_scenario(edited(tmp_path, example_xml, "plain.xml", shape, at_origin)).obstacles[0]
+    assert (plain.length, plain.width, plain.waypoints[0].x, plain.waypoints[0].y) == (4.0, 2.0, -30.0, -1.75)
+    broken = r"\1<rectangle><length>4</length><width>2</width><center><x>far</x><y>0</y></center></rectangle>\2"
+    error = error_of(edited(tmp_path, example_xml, "broken.xml", shape, broken))
+    assert error.element == "dynamic obstacle 51" and "`far` as its shape's <center> <x>, not a number" in str(error)
+
+
 def test_missing_velocity_and_orientation_come_from_the_motion(tmp_path: Path, example_xml: Path) -> None:
     def strip(match: re.Match[str]) -> str:
         body = re.sub(r"<trajectory>.*</trajectory>", lambda m: re.sub(

@@ -224,15 +224,16 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
     - ``road``: one polygon per lanelet (its right bound, then its left bound reversed), in lanelet
       id order; the road is their union.
     - ``obstacles``: static and dynamic obstacles in id order. Each is a ``length`` × ``width``
-      rectangle: a rectangle shape as it is (an ``originXShift`` moves the waypoints to the
-      rectangle's centre); a circle becomes its bounding square; a polygon, truck or semi-trailer
-      truck becomes its bounding rectangle in the obstacle's own frame (a semi-trailer at hitch
-      angle 0). A static obstacle has one waypoint (velocity 0). A dynamic obstacle needs a
-      trajectory prediction: its waypoints are the initial state followed by every trajectory
-      state, ``time = time_step * dt`` (rounded to 1e-9 s); a state without orientation or
-      velocity takes them from the move to the next state (a point-mass state from its velocity
-      components). CommonRoad regards the obstacle as gone after its last time step. Environment
-      and phantom obstacles are ignored.
+      rectangle: a rectangle shape as it is (an ``originXShift`` or a ``<center>`` moves the waypoints
+      to the rectangle's centre; a rectangle turned by its own ``<orientation>`` becomes its bounding
+      rectangle in the obstacle's frame); a circle becomes its bounding square (moved by its
+      ``<center>``); a polygon, truck or semi-trailer truck becomes its bounding rectangle in the
+      obstacle's own frame (a semi-trailer at hitch angle 0). A static obstacle has one waypoint
+      (velocity 0). A dynamic obstacle needs a trajectory prediction: its waypoints are the initial
+      state followed by every trajectory state, ``time = time_step * dt`` (rounded to 1e-9 s); a
+      state without orientation or velocity takes them from the move to the next state (a
+      point-mass state from its velocity components). CommonRoad regards the obstacle as gone after
+      its last time step. Environment and phantom obstacles are ignored.
     - ``ego``: the planning problem's initial state (position, orientation, velocity,
       acceleration, time).
     - ``goal``: the planning problem's goal position as polygons — a rectangle (its 4 corners), a
@@ -812,7 +813,9 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
         static = isinstance(obstacle, StaticObstacle)
         name = f"{'static' if static else 'dynamic'} obstacle {obstacle.obstacle_id}"
         tag = "staticObstacle" if static else "dynamicObstacle"
-        obstacles.append(_obstacle(path, name, obstacle, static, dt, where(tag, obstacle.obstacle_id)))
+        node = nodes.get((tag, str(obstacle.obstacle_id))) or nodes.get(("obstacle", str(obstacle.obstacle_id)))
+        placement = _shape_placement(path, name, node)
+        obstacles.append(_obstacle(path, name, obstacle, static, dt, where(tag, obstacle.obstacle_id), placement))
 
     ids = tuple(sorted(problems.planning_problem_dict))
     if not ids:
@@ -930,8 +933,37 @@ def _time_step(path, element: str, state, what: str) -> int:
     return step
 
 
-def _box(path, element: str, shape) -> tuple[float, float, float, float]:
-    """length, width and the offset (forward, left) of the box centre from the obstacle's position."""
+def _shape_placement(path, element: str, node) -> tuple[float, float, float]:
+    """The ``<center>`` (x forward, y left) and ``<orientation>`` of the rectangle or circle that is the
+    obstacle ``node``'s shape, in the obstacle's own frame; (0, 0, 0) when the file gives none.
+
+    Why from the XML: commonroad-io (2026.1) reads an obstacle's rectangle as its length, width and
+    ``originXShift`` only, and a circle as its radius, so a shape the file places off the obstacle's
+    position (CommonRoad 2020a allows both) would stand at the position, turned with the obstacle."""
+    shape = node.find("shape") if node is not None else None
+    part = next(iter(shape), None) if shape is not None else None
+    if part is None or part.tag not in ("rectangle", "circle"):
+        return 0.0, 0.0, 0.0
+    values = []
+    for child, quantity in (("center/x", "centre x"), ("center/y", "centre y"), ("orientation", "orientation")):
+        text = part.findtext(child)
+        if text is None or child == "orientation" and part.tag == "circle":
+            values.append(0.0)
+            continue
+        number = _number_text(text)
+        if number is None:
+            raise ScenarioError(path, element, f"has `{text.strip()}` as its shape's <{child.replace('/', '> <')}>, "
+                                               "not a number")
+        values.append(_finite(path, element, quantity, number, "its shape"))
+    return values[0], values[1], values[2]
+
+
+def _box(path, element: str, shape, placement: tuple[float, float, float] = (0.0, 0.0, 0.0)
+         ) -> tuple[float, float, float, float]:
+    """length, width and the offset (forward, left) of the box centre from the obstacle's position;
+    ``placement`` is the shape's centre and orientation in the obstacle's frame (:func:`_shape_placement`):
+    a turned rectangle becomes its bounding rectangle in that frame."""
+    ahead, aside, turned = placement
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.geometry.obstacle_shapes.circle_obstacle_shape import CircleObstacleShape
 
@@ -939,12 +971,16 @@ def _box(path, element: str, shape) -> tuple[float, float, float, float]:
     from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
 
     if isinstance(shape, RectObstacleShape):
-        return (_finite(path, element, "length", shape.length, "its shape"),
-                _finite(path, element, "width", shape.width, "its shape"),
-                -_finite(path, element, "originXShift", shape.origin_x_shift, "its shape"), 0.0)
+        length = _finite(path, element, "length", shape.length, "its shape")
+        width = _finite(path, element, "width", shape.width, "its shape")
+        shift = _finite(path, element, "originXShift", shape.origin_x_shift, "its shape")
+        if turned:
+            cos, sin = abs(math.cos(turned)), abs(math.sin(turned))
+            length, width = length * cos + width * sin, length * sin + width * cos
+        return length, width, ahead - shift, aside
     if isinstance(shape, CircleObstacleShape):  # (its occupancy's shapely polygon has half the radius)
         radius = _finite(path, element, "radius", shape.radius, "its shape")
-        return 2.0 * radius, 2.0 * radius, 0.0, 0.0
+        return 2.0 * radius, 2.0 * radius, ahead, aside
     import numpy as np  # numpy: only when this runs; importing rac.model.commonroad stays light
 
     # commonroad: only when this runs; importing rac.model.commonroad stays light
@@ -963,12 +999,12 @@ def _box(path, element: str, shape) -> tuple[float, float, float, float]:
     return max_x - min_x, max_y - min_y, (min_x + max_x) / 2, (min_y + max_y) / 2
 
 
-def _obstacle(path, element: str, obstacle, static: bool, dt: float,
-              position: tuple[int, int] | None = None) -> Obstacle:
+def _obstacle(path, element: str, obstacle, static: bool, dt: float, position: tuple[int, int] | None = None,
+              placement: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Obstacle:
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.prediction.prediction import SetBasedPrediction, TrajectoryPrediction
 
-    length, width, forward, left = _box(path, element, obstacle.obstacle_shape)
+    length, width, forward, left = _box(path, element, obstacle.obstacle_shape, placement)
     if not (length > 0 and width > 0):  # a point or a line: mindist() would treat it as nothing there
         raise ScenarioError(path, element, f"has a {length:g} m × {width:g} m shape: an obstacle needs a positive "
                                            "length and width")
