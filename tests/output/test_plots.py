@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import numpy as np
@@ -350,6 +351,27 @@ def test_the_render_legend_names_everything_and_lies_above_the_map(figures: list
     if legend in ax.get_children():  # an axes legend must also be drawn after every map artist
         assert legend.get_zorder() > max(a.get_zorder() for a in ax.get_children() if a is not legend)
     assert _inside_figure(figure, legend)
+
+
+def test_the_planning_problems_start_is_drawn_over_a_goal_around_it(figures: list, tmp_path: Path) -> None:
+    """commonroad-io layers the goal region over the start: a goal the ego starts in (a lanelet goal the
+    ego starts on, as in CommonRoad's tutorial scenario) hid the marker the legend names."""
+    text = LEFT_TURN.read_text(encoding="utf-8")
+    goal = re.compile(r"(<goalState>.*?<position>).*?(</position>)", re.S)
+    assert goal.search(text)
+    around = r"\1<rectangle><length>12</length><width>12</width><center><x>1.75</x><y>-18</y></center></rectangle>\2"
+    scene = tmp_path / "start_in_goal.xml"
+    scene.write_text(goal.sub(around, text, count=1), encoding="utf-8")
+    away = _straight(5)
+    away[:, 1] += 30  # the drawn run starts elsewhere, so only the marker is at the problem's start
+    render_trajectory(scene, away, tmp_path / "r.png")
+    (figure,) = figures
+    ax = figure.axes[0]
+    figure.canvas.draw()
+    pixels = np.asarray(figure.canvas.buffer_rgba())[..., :3]
+    x, y = ax.transData.transform((1.75, -18.0))
+    colour = pixels[int(round(pixels.shape[0] - y)), int(round(x))]
+    assert tuple(int(c) for c in colour) == (0, 128, 0), colour  # commonroad-io's start marker ("g"), not the goal
 
 
 def test_the_fig7_legend_goes_where_no_run_is(figures: list, tmp_path: Path) -> None:

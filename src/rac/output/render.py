@@ -141,7 +141,12 @@ class _Scene:
         params.dynamic_obstacle.draw_icon = False
         params.dynamic_obstacle.show_label = False
         scenario.lanelet_network.draw(self.renderer)
-        problems.draw(self.renderer)
+        # commonroad-io layers a goal region (zorder 15) over the start (11): a goal around the start (a
+        # lanelet goal the ego starts on, as in CommonRoad's tutorial scenario) hid the marker the legend names
+        start = params.planning_problem.initial_state.state
+        start.zorder = max(start.zorder or 0, params.planning_problem.goal_region.shape.zorder + 1)
+        for problem in problems.planning_problem_dict.values():
+            self.renderer.draw_planning_problem(problem, params.planning_problem)
         self.renderer.render_static()
         self.renderer.render_dynamic()  # the goal region lands among the "dynamic" patches...
         self.renderer.dynamic_artists = []  # ...but must survive remove_dynamic() of every later instant
