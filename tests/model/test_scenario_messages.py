@@ -63,6 +63,12 @@ POINT = r"<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>\s*</point>\s*"
      "planning problem -5 has a negative id: CommonRoad ids are positive whole numbers"),
     ("negative_lanelet_id", r'<lanelet id="1"', '<lanelet id="-1"',
      "lanelet -1 has a negative id: CommonRoad ids are positive whole numbers"),
+    # the 2020a schema allows it; commonroad-io read it as no shape: "an element it needs is missing or empty"
+    ("shape_group", r'(<staticObstacle id="12">.*?<shape>)(.*?)(</shape>)',
+     r"\1<shapeGroup><shape>\2</shape></shapeGroup>\3",
+     "static obstacle 12 has a <shapeGroup> as its shape, which commonroad-io does not read: give the obstacle one "
+     "rectangle, circle, polygon, truck or semi-trailer truck (rac bounds any shape by a rectangle, so the group's "
+     "bounding rectangle loses nothing)"),
 ])
 def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: str, pattern: str, replacement: str,
                                                         message: str) -> None:

@@ -550,6 +550,8 @@ _REQUIRED = {
     "planningProblem": (*_STATE, "initialState/velocity", "goalState"),
     "obstacle": ("role", "type", "shape", "initialState"),  # the 2018b format's, static or dynamic by its <role>
 }
+#: The elements whose ``<shape>`` commonroad-io reads as one obstacle shape (:func:`_check_structure`).
+_SHAPED = ("staticObstacle", "dynamicObstacle", "obstacle")
 #: The roles of a 2018b ``<obstacle>`` (commonroad-io fails on another without naming it).
 _ROLES_2018B = ("static", "dynamic")
 _LABELS = {
@@ -579,6 +581,13 @@ def _check_structure(path: str | os.PathLike[str], root) -> None:
                 where = f" in its <{parent}>" if parent else ""
                 raise ScenarioError(path, f"{_LABELS[node.tag]} {node.get('id', '(without id)')}",
                                     f"has no <{name}>{where}")
+        if node.tag in _SHAPED and node.find("shape/shapeGroup") is not None:
+            # valid in the 2020a schema, but commonroad-io (2026.1) reads it as no shape at all and fails
+            # on that with "an element it needs is missing", which sent users looking for a missing element
+            raise ScenarioError(path, f"{_LABELS[node.tag]} {node.get('id', '(without id)')}",
+                                "has a <shapeGroup> as its shape, which commonroad-io does not read: give the "
+                                "obstacle one rectangle, circle, polygon, truck or semi-trailer truck (rac bounds "
+                                "any shape by a rectangle, so the group's bounding rectangle loses nothing)")
         if node.tag == "obstacle" and (role := (node.findtext("role") or "").strip()) not in _ROLES_2018B:
             raise ScenarioError(path, f"obstacle {node.get('id', '(without id)')}",
                                 f"has the <role> `{role}`: a 2018b obstacle's role is `static` or `dynamic`")
