@@ -6,8 +6,10 @@ import io
 import re
 from pathlib import Path
 
+import matplotlib.colors
 import numpy as np
 import pytest
+from matplotlib.patches import Patch
 from PIL import Image
 
 from rac.core.files import atomic_write
@@ -372,6 +374,28 @@ def test_the_planning_problems_start_is_drawn_over_a_goal_around_it(figures: lis
     x, y = ax.transData.transform((1.75, -18.0))
     colour = pixels[int(round(pixels.shape[0] - y)), int(round(x))]
     assert tuple(int(c) for c in colour) == (0, 128, 0), colour  # commonroad-io's start marker ("g"), not the goal
+
+
+def test_the_render_legend_names_static_obstacles_in_their_colour(figures: list, tmp_path: Path) -> None:
+    """commonroad-io draws a static obstacle red, a moving one blue: the legend named only the blue ones."""
+    parked = ('<staticObstacle id="900"><type>parkedVehicle</type><shape><rectangle><length>4</length>'
+              "<width>2</width></rectangle></shape><initialState><position><point><x>5</x><y>-10</y></point>"
+              "</position><orientation><exact>0</exact></orientation><time><exact>0</exact></time></initialState>"
+              "</staticObstacle>\n  <planningProblem")
+    scene = tmp_path / "parked.xml"
+    scene.write_text(LEFT_TURN.read_text(encoding="utf-8").replace("<planningProblem", parked, 1), encoding="utf-8")
+    render_trajectory(scene, _straight(5), tmp_path / "r.png")
+    render_trajectory(LEFT_TURN, _straight(5), tmp_path / "s.png")
+    parked_figure, plain_figure = figures
+
+    def entries(figure) -> dict[str, str]:  # type: ignore[no-untyped-def]
+        legend = figure.legends[0] if figure.legends else figure.axes[0].get_legend()
+        return {text.get_text(): matplotlib.colors.to_hex(handle.get_facecolor())
+                for text, handle in zip(legend.get_texts(), legend.legend_handles) if isinstance(handle, Patch)}
+
+    colours = entries(parked_figure)
+    assert colours["static obstacles"] == "#d95558" and colours["moving obstacles"] == "#1d7eea", colours
+    assert "obstacles" in entries(plain_figure) and "static obstacles" not in entries(plain_figure)
 
 
 def test_the_fig7_legend_goes_where_no_run_is(figures: list, tmp_path: Path) -> None:

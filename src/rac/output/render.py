@@ -153,13 +153,17 @@ class _Scene:
         self.renderer.clear()
 
     def legend_handles(self, problems: Any) -> list[Any]:
-        """Legend entries for what commonroad-io drew, in its colours: the obstacles (if the scenario
-        has any), the goal region (if a goal has a shape) and the planning problem's start."""
+        """Legend entries for what commonroad-io drew, in its colours: the static and the moving obstacles
+        (those the scenario has), the goal region (if a goal has a shape) and the planning problem's start."""
         params = self.renderer.draw_params
         handles: list[Any] = []
-        if self.scenario.obstacles:
+        if self.scenario.static_obstacles:  # commonroad-io draws them in a colour of their own (red)
+            shape = params.static_obstacle.occupancy.shape
+            handles.append(Patch(facecolor=shape.facecolor, edgecolor=shape.edgecolor, label="static obstacles"))
+        if self.scenario.dynamic_obstacles:
             shape = params.dynamic_obstacle.vehicle_shape.occupancy.shape
-            handles.append(Patch(facecolor=shape.facecolor, edgecolor=shape.edgecolor, label="obstacles"))
+            label = "moving obstacles" if self.scenario.static_obstacles else "obstacles"
+            handles.append(Patch(facecolor=shape.facecolor, edgecolor=shape.edgecolor, label=label))
             path = params.dynamic_obstacle.trajectory
             if path.draw_trajectory:  # commonroad-io dots each obstacle's positions still to come
                 handles.append(Line2D([], [], color=path.facecolor, linestyle=":", linewidth=1.2,
