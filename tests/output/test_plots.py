@@ -87,6 +87,18 @@ def test_atomic_write_replaces_or_leaves_the_old_file(tmp_path: Path) -> None:
     assert target.read_bytes() == b"new"
 
 
+def test_atomic_write_onto_a_folder_names_the_file_asked_for(tmp_path: Path) -> None:
+    """os.replace's error named the temporary file too: `python -m rac.model.scenes highway out.xml` with a
+    folder out.xml said "Is a directory: '.out.xml.1234.abcd.tmp' -> 'out.xml'"."""
+    folder = tmp_path / "out.xml"
+    folder.mkdir()
+    with pytest.raises(IsADirectoryError) as caught:
+        atomic_write(folder, lambda file: file.write(b"new"))
+    assert caught.value.filename == str(folder) and caught.value.filename2 is None
+    assert ".tmp" not in str(caught.value) and str(folder) in str(caught.value)
+    assert [path.name for path in tmp_path.iterdir()] == ["out.xml"]  # no temporary left
+
+
 # ---------------------------------------------------------------- sweep and learning curves
 def test_plot_sweep_writes_a_png(tmp_path: Path) -> None:
     rng = np.random.default_rng(1)

@@ -63,7 +63,10 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
             raise type(exc)(exc.errno, exc.strerror, os.fspath(target)) from exc
         with file:
             write(file)
-        os.replace(temporary, target)
+        try:
+            os.replace(temporary, target)
+        except OSError as exc:  # a folder in the way: said of the file asked for, not of the temporary
+            raise type(exc)(exc.errno, exc.strerror, os.fspath(target)) from exc
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
