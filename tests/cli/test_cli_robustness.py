@@ -136,6 +136,17 @@ def test_preanalyse_default_folder_blocked_by_a_file(capsys: pytest.CaptureFixtu
     assert blocker.read_text(encoding="utf-8") == "mine\n"
 
 
+def test_a_folder_where_an_output_file_goes_is_named(capsys: pytest.CaptureFixture[str], engine_file: Path,
+                                                     tmp_path: Path) -> None:
+    """The message named the -o folder ("cannot write `out`: Is a directory", hint "name a file, not a
+    folder"), which is a folder as it should be; the folder in the way is the file's."""
+    out = tmp_path / "out"
+    (out / "runs.csv").mkdir(parents=True)
+    code, _, err = run(capsys, "simulate", engine_file, "--seed", "1", "--runs", "2", "-o", out)
+    assert code == EXIT_USAGE
+    assert err.startswith(f"error[E0009]: cannot write `{out / 'runs.csv'}`: "), err
+
+
 # ---------------------------------------------------------------- 3. preanalyse: values out of range
 @pytest.mark.parametrize(("option", "message"), [
     (["--sense", "1e400"], "--sense: '1e400' must be at most the horizon, 4 s"),

@@ -105,6 +105,13 @@ def _out_dir(args: argparse.Namespace) -> Path:
     return output_folder(args.file, args.command, args.out)
 
 
+def _written(out_dir: Path, exc: OSError) -> Path:
+    """The path a write into ``out_dir`` failed on: the file the error names (a folder where ``run.png``
+    goes), else the folder (naming the folder alone, with the hint "name a file, not a folder", sent
+    users to the ``-o`` they gave)."""
+    return Path(exc.filename) if isinstance(exc.filename, str) and exc.filename else out_dir
+
+
 def _report(args: argparse.Namespace, diagnostic: Diagnostic, sources: Mapping[str, SourceFile] | None = None) -> None:
     """Print ``diagnostic`` as the command's ``--format`` asks (:func:`rac.cli.common.print_diagnostics`)."""
     print_diagnostics([diagnostic], sources, as_json(args))
@@ -340,7 +347,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
                                          "Fig7_safe, Unsafe_safe"]))
         return EXIT_USAGE
     except OSError as exc:
-        _report(args, unwritable(out_dir, exc))
+        _report(args, unwritable(_written(out_dir, exc), exc))
         return EXIT_USAGE
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "seed": seed, "warnings": _warnings(result),
@@ -479,7 +486,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
         title = f"{args.file.name}: {args.runs} runs{' under the shield' if args.shield else ''} (seed {seed})"
         plot_series(png_path, runs.times, texts, values, title, exprs)
     except OSError as exc:
-        _report(args, unwritable(out_dir, exc))
+        _report(args, unwritable(_written(out_dir, exc), exc))
         return EXIT_USAGE
     under = " under the shield" if args.shield else ""
     lines = [f"simulated {args.runs} runs of {samples} samples (seed {seed}){under}"]
@@ -546,7 +553,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, unusable_file(str(exc)))
         return EXIT_ERRORS
     except OSError as exc:
-        _report(args, unwritable(out_dir, exc))
+        _report(args, unwritable(_written(out_dir, exc), exc))
         return EXIT_USAGE
     if automaton.ending is not None and args.strategy is None:
         _note(args, notes, "the run goes on to the horizon; the automaton's `episode ends when`, which ends it in "
@@ -579,7 +586,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, usage_error(str(exc)))
         return EXIT_USAGE
     except OSError as exc:  # the plots' folder: a file, under a file, too long a name, no permission
-        _report(args, unwritable(out_dir, exc))
+        _report(args, unwritable(_written(out_dir, exc), exc))
         return EXIT_USAGE
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "settings": rows}
@@ -643,7 +650,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                 resource_limit(f"resource limit: {exc}") if exc.kind == "limit" else unusable_file(str(exc)))
         return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
     except OSError as exc:
-        _report(args, unwritable(out_dir, exc))
+        _report(args, unwritable(_written(out_dir, exc), exc))
         return EXIT_USAGE
     if args.format == "json":
         print((out_dir / "results.json").read_text(encoding="utf-8"))

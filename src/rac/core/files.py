@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO
 
-__all__ = ["GENERATED_MARK", "atomic_write", "head", "written_by_rac"]
+__all__ = ["GENERATED_MARK", "atomic_write", "head", "replace_onto", "written_by_rac"]
 
 #: What every file ``rac compile`` writes says near its start (the Python module's first line, the
 #: UPPAAL model's declaration, the query file's first comment), case aside.
@@ -41,6 +41,16 @@ def written_by_rac(path: str | os.PathLike[str]) -> bool:
     return GENERATED_MARK in head(path).lower()
 
 
+def replace_onto(temporary: str | os.PathLike[str], target: str | os.PathLike[str]) -> None:
+    """:func:`os.replace` of a finished ``temporary`` file onto ``target``; its error (a folder where
+    ``target`` goes, say) names ``target`` alone: os.replace's named the temporary as well
+    ("Is a directory: '.out.xml.1234.abcd.tmp' -> 'out.xml'"), a file the user never asked for."""
+    try:
+        os.replace(temporary, target)
+    except OSError as exc:
+        raise type(exc)(exc.errno, exc.strerror, os.fspath(target)) from exc
+
+
 def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], object]) -> Path:
     """Call ``write(file)`` on a new temporary file next to ``path``, then move it onto ``path``
     (:func:`os.replace`): an interrupted write leaves ``path`` as it was, never truncated.
@@ -63,10 +73,7 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
             raise type(exc)(exc.errno, exc.strerror, os.fspath(target)) from exc
         with file:
             write(file)
-        try:
-            os.replace(temporary, target)
-        except OSError as exc:  # a folder in the way: said of the file asked for, not of the temporary
-            raise type(exc)(exc.errno, exc.strerror, os.fspath(target)) from exc
+        replace_onto(temporary, target)
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise

@@ -33,7 +33,6 @@ its mask carries, and is never an all-False mask::
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +41,7 @@ from typing import TYPE_CHECKING, ClassVar, Literal
 import numpy as np
 
 from rac.core.diagnostics import RacError, RacValueError
+from rac.core.files import replace_onto
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.engine.explore import explore, forgets_actions
@@ -274,7 +274,7 @@ def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | Non
                                 forget_every=np.array(shield_table.forget_every),
                                 horizon=np.array(-1 if shield_table.horizon is None else shield_table.horizon),
                                 model=np.array("" if shield_table.model is None else shield_table.model))
-        os.replace(partial, path)
+        replace_onto(partial, path)
     finally:
         partial.unlink(missing_ok=True)
     return path

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from rac.core.diagnostics import RacValueError
+from rac.core.files import replace_onto
 from rac.core.source import SourceFile
 from rac.engine.explore import action_pairs
 from rac.engine.shield import ShieldTable
@@ -324,7 +324,7 @@ class LearnedStrategy:
             with partial.open("wb") as handle:
                 np.savez_compressed(handle, header=np.array(json.dumps(header)), keys=self.keys, values=self.values,
                                     action_pairs=pairs)
-            os.replace(partial, path)
+            replace_onto(partial, path)
         finally:
             partial.unlink(missing_ok=True)
         return path

@@ -40,7 +40,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -51,6 +50,7 @@ import numpy as np
 
 from rac.compiler import CompileResult
 from rac.core.diagnostics import CheckError, RacError, RacValueError
+from rac.core.files import replace_onto
 from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
@@ -702,7 +702,7 @@ def _write_text(path: Path, text: str) -> None:
     partial = path.with_name(path.name + ".partial")
     try:
         partial.write_text(text, encoding="utf-8")
-        os.replace(partial, path)
+        replace_onto(partial, path)
     except BaseException:  # a full disk, an interrupt: no half file left behind
         partial.unlink(missing_ok=True)
         raise

@@ -7,13 +7,13 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from rac.core.files import replace_onto
 from rac.core.source import Span
 from rac.engine.graph import LABELS
 from rac.ir import expr as ie
@@ -91,7 +91,7 @@ def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.n
             for run in range(values[0].shape[0] if values else 0):
                 for k, t in enumerate(times):
                     writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
-        os.replace(partial, path)
+        replace_onto(partial, path)
     except BaseException:  # a full disk, an interrupt: no half file left behind
         partial.unlink(missing_ok=True)
         raise
