@@ -69,6 +69,10 @@ POINT = r"<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>\s*</point>\s*"
      "static obstacle 12 has a <shapeGroup> as its shape, which commonroad-io does not read: give the obstacle one "
      "rectangle, circle, polygon, truck or semi-trailer truck (rac bounds any shape by a rectangle, so the group's "
      "bounding rectangle loses nothing)"),
+    # the message went on "rac supports ... groups of these": it read as if a <shapeGroup> were supported
+    ("goal_shape_group", r"(<goalState>.*?<position>)(.*?)(</position>)", r"\1<shapeGroup>\2</shapeGroup>\3",
+     "goal of planning problem 100 has an unsupported shape (<shapeGroup>); rac supports rectangles, polygons, "
+     "circles and lanelets, several of them side by side in the <position> (each a goal region)"),
 ])
 def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: str, pattern: str, replacement: str,
                                                         message: str) -> None:

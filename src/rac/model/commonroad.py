@@ -213,6 +213,10 @@ class PlanningProblemError(ScenarioError):
             super().__init__(path, f"planning problem {chosen}", f"does not exist (the file has {listed})")
 
 
+#: The goal positions rac reads, as its messages say (a ``<shapeGroup>`` is not one: the goal's
+#: ``<position>`` lists its shapes side by side, and "groups of these" read as if it were).
+GOAL_SHAPES = ("rac supports rectangles, polygons, circles and lanelets, several of them side by side in the "
+               "<position> (each a goal region)")
 #: Vertices of the regular polygon that stands for a circular goal region.
 CIRCLE_VERTICES = 16
 
@@ -675,7 +679,7 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException,
             if unsupported or not shapes:
                 found = f"<{unsupported[0]}>" if unsupported else "an empty <position>"
                 return ScenarioError(path, f"goal of {label(problem)}", f"has an unsupported shape ({found}); "
-                                     "rac supports rectangles, polygons, circles, groups of these and lanelets")
+                                     f"{GOAL_SHAPES}")
         for ref in problem.iterfind("goalState/position/lanelet"):
             if ref.get("ref") not in lanelet_ids:
                 return ScenarioError(path, f"goal of {label(problem)}",
@@ -1215,5 +1219,4 @@ def _regions(path, element: str, position) -> list[Polygon]:
                                                   y + r * math.sin(2 * math.pi * i / CIRCLE_VERTICES))
                                                  for i in range(CIRCLE_VERTICES)]), f"a circle of radius {r:g} m")]
     kind = "a point" if isinstance(position, (np.ndarray, list, tuple)) else type(position).__name__
-    raise ScenarioError(path, element, f"has an unsupported shape ({kind}); rac supports rectangles, polygons, "
-                                       "circles, groups of these and lanelets")
+    raise ScenarioError(path, element, f"has an unsupported shape ({kind}); {GOAL_SHAPES}")
