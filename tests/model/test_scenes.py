@@ -224,7 +224,11 @@ def test_the_command_says_what_it_cannot_write(tmp_path: Path, capsys: pytest.Ca
     missing = tmp_path / "missing" / "x.xml"
     for argv, said in ((["highway", str(missing)], f"No such file or directory: '{missing}'"),
                        (["highway", str(tmp_path / "a_file"), "--count", "2"], "File exists"),
-                       (["highway", str(tmp_path / "set"), "--count", "0"], "at least one scene, not 0")):
+                       (["highway", str(tmp_path / "set"), "--count", "0"], "at least one scene, not 0"),
+                       # numpy's "expected non-negative integer" named no seed
+                       (["highway", str(tmp_path / "set"), "--count", "1", "--seed", "-5"], "from 0 on, not -5"),
+                       # os.replace named the temporary file too
+                       (["highway", str(tmp_path)], f"Is a directory: '{tmp_path}'")):
         with pytest.raises(SystemExit) as exit_:
             main(argv)
         assert exit_.value.code == 2

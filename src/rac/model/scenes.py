@@ -342,6 +342,8 @@ def variant_bytes(kind: str, seed: int) -> bytes:
     """The variant ``seed`` of the scene ``kind`` (:data:`VARIANTS`) as CommonRoad XML (byte-stable)."""
     if kind not in VARIANTS:
         raise ValueError(f"no variants of scene {kind!r}; the kinds with variants are {', '.join(VARIANTS)}")
+    if seed < 0:  # numpy's own refusal, "expected non-negative integer", named no seed
+        raise ValueError(f"a variant's seed is a whole number from 0 on, not {seed}")
     build, tags = VARIANTS[kind]
     scenario, problems = build(seed)
     return scenario_bytes(scenario, problems, tags=tags, source=_variant_source(kind, seed))
