@@ -160,3 +160,27 @@ def test_the_line_is_the_malformed_parts(tmp_path: Path) -> None:
     trajectory = text.index("<trajectory>")
     line = text[:text.index("<point>", trajectory)].count("\n") + 1
     assert str(failure.value) == f"{path}: dynamic obstacle 11 has a <point> without <y> (line {line})"
+
+
+def test_commonroad_io_says_nothing_of_what_it_makes_of_a_file(tmp_path: Path, capfd: pytest.CaptureFixture[str],
+                                                               caplog: pytest.LogCaptureFixture) -> None:
+    """commonroad-io logs a warning for every intersection of a 2020a file ("successorStraight 1 is of
+    deprecated format ...") and for a traffic sign id it does not know; Python's last-resort handler printed
+    them to standard error among rac's diagnostics, on every command that read the file."""
+    import logging
+
+    extra = ('<trafficSign id="500"><trafficSignElement><trafficSignID>99999</trafficSignID></trafficSignElement>'
+             "<position><point><x>10</x><y>-1</y></point></position></trafficSign>\n"
+             '  <intersection id="900"><incoming id="901"><incomingLanelet ref="1"/><successorsStraight ref="1"/>'
+             "</incoming></intersection>\n  <planningProblem")
+    path = tmp_path / "intersection.xml"
+    text = edit(road_xml(), r'(<lanelet id="1">.*?)(</lanelet>)', r'\1<trafficSignRef ref="500"/>\2')
+    path.write_text(text.replace("<planningProblem", extra, 1), encoding="utf-8")
+    logger = logging.getLogger("commonroad")
+    before = logger.level
+    with caplog.at_level(logging.WARNING):  # (pytest's handler takes the records the last-resort one printed)
+        scenario = load_scenario(path)
+    assert [o.id for o in scenario.obstacles] == [11, 12]
+    assert [record.getMessage() for record in caplog.records] == []
+    assert capfd.readouterr() == ("", "")
+    assert logger.level == before  # the user's own setting is back

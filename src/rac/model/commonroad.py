@@ -7,6 +7,7 @@ Units: metres, seconds, radians, m/s.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import re
@@ -268,8 +269,7 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.common.file_reader import CommonRoadFileReader
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # commonroad-io warns about e.g. benchmark ids it finds irregular
+    with quiet_reader():
         try:
             with linear_ids():
                 cr_scenario, problems = CommonRoadFileReader(data).open()
@@ -297,6 +297,37 @@ def reader_failure(error: BaseException) -> bool:
     return type(error) is Exception or isinstance(error, (
         AssertionError, ArithmeticError, AttributeError, LookupError, TypeError, ValueError, NotImplementedError,
         SyntaxError, ExpatError, etree.Error, ShapelyError))  # ElementTree's ParseError is a SyntaxError
+
+
+#: Serialises :func:`quiet_reader`'s count of the blocks running and its change of commonroad-io's log level.
+_QUIET_LOCK = threading.Lock()
+_quiet = {"blocks": 0, "level": logging.NOTSET}
+
+
+@contextmanager
+def quiet_reader() -> Iterator[None]:
+    """While the block runs, commonroad-io's warnings and its log records below ERROR are dropped.
+
+    Why: its reader reports what it makes of a file on the warnings module (benchmark ids it finds
+    irregular) and on its loggers (every intersection of a 2020a file, "successorStraight 3 is of
+    deprecated format, thus mapped to outgoingStraight"; a traffic sign id it does not know). Python's
+    last-resort handler printed the log records to standard error, among rac's diagnostics, once per
+    read of the file, for parts rac does not use. The logger's own level is back when the last block ends."""
+    logger = logging.getLogger("commonroad")
+    with _QUIET_LOCK:
+        if _quiet["blocks"] == 0:
+            _quiet["level"] = logger.level
+            logger.setLevel(logging.ERROR)
+        _quiet["blocks"] += 1
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        with _QUIET_LOCK:
+            _quiet["blocks"] -= 1
+            if _quiet["blocks"] == 0:
+                logger.setLevel(_quiet["level"])
 
 
 #: Serialises :func:`linear_ids`: it swaps a name of commonroad-io's reader module while a file is read.

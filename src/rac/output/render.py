@@ -32,7 +32,7 @@ from PIL import Image
 
 from rac.core.diagnostics import RacError
 from rac.core.files import atomic_write
-from rac.model.commonroad import PlanningProblemError, ScenarioError, reader_failure
+from rac.model.commonroad import PlanningProblemError, ScenarioError, quiet_reader, reader_failure
 from rac.output.plots import fit_title, new_figure, save_figure, wrap_text
 
 __all__ = ["EGO_COLOUR", "RenderError", "SceneFrames", "render_trajectory"]
@@ -64,8 +64,7 @@ def _read(path: Path) -> tuple[Any, Any]:
     # commonroad: only when this runs; importing rac.output.render stays light
     from commonroad.common.file_reader import CommonRoadFileReader
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # commonroad-io warns about e.g. benchmark ids it finds irregular
+    with quiet_reader():  # commonroad-io's warnings and log lines about the file
         try:
             return CommonRoadFileReader(data).open()
         except Exception as error:  # commonroad-io raises a bare Exception, lxml errors, KeyError...
