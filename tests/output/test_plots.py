@@ -410,6 +410,30 @@ def test_the_render_legend_names_static_obstacles_in_their_colour(figures: list,
     assert "obstacles" in entries(plain_figure) and "static obstacles" not in entries(plain_figure)
 
 
+def test_an_obstacle_is_drawn_where_its_shape_is_placed(figures: list, tmp_path: Path) -> None:
+    """A rectangle placed by its own <center> in the obstacle's frame: the model has it there (load_scenario),
+    commonroad-io's drawing stood it at the obstacle's position."""
+    parked = ('<staticObstacle id="900"><type>parkedVehicle</type><shape><rectangle><length>4</length>'
+              "<width>2</width><orientation>0</orientation><center><x>8</x><y>0</y></center></rectangle></shape>"
+              "<initialState><position><point><x>-10</x><y>-10</y></point></position><orientation><exact>0</exact>"
+              "</orientation><time><exact>0</exact></time></initialState></staticObstacle>\n  <planningProblem")
+    scene = tmp_path / "placed.xml"
+    scene.write_text(LEFT_TURN.read_text(encoding="utf-8").replace("<planningProblem", parked, 1), encoding="utf-8")
+    render_trajectory(scene, _straight(5), tmp_path / "r.png")
+    (figure,) = figures
+    ax = figure.axes[0]
+    figure.canvas.draw()
+    pixels = np.asarray(figure.canvas.buffer_rgba())[..., :3]
+
+    def colour(x: float, y: float) -> tuple[int, ...]:
+        column, row = ax.transData.transform((x, y))
+        return tuple(int(c) for c in pixels[int(round(pixels.shape[0] - row)), int(round(column))])
+
+    static = tuple(int(round(255 * c)) for c in matplotlib.colors.to_rgb("#d95558"))  # commonroad-io's
+    assert colour(-2.0, -10.0) == static  # where the file places it (8 m ahead of its position)
+    assert colour(-10.0, -10.0) != static
+
+
 def test_the_fig7_legend_goes_where_no_run_is(figures: list, tmp_path: Path) -> None:
     """matplotlib's loc="best" ignores LineCollections: the legend takes the corner with fewest samples."""
     times = np.arange(20.0)

@@ -858,7 +858,7 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
         name = f"{'static' if static else 'dynamic'} obstacle {obstacle.obstacle_id}"
         tag = "staticObstacle" if static else "dynamicObstacle"
         node = nodes.get((tag, str(obstacle.obstacle_id))) or nodes.get(("obstacle", str(obstacle.obstacle_id)))
-        placement = _shape_placement(path, name, node)
+        placement = shape_placement(path, name, node)
         obstacles.append(_obstacle(path, name, obstacle, static, dt, where(tag, obstacle.obstacle_id), placement))
 
     ids = tuple(sorted(problems.planning_problem_dict))
@@ -977,13 +977,14 @@ def _time_step(path, element: str, state, what: str) -> int:
     return step
 
 
-def _shape_placement(path, element: str, node) -> tuple[float, float, float]:
+def shape_placement(path, element: str, node) -> tuple[float, float, float]:
     """The ``<center>`` (x forward, y left) and ``<orientation>`` of the rectangle or circle that is the
     obstacle ``node``'s shape, in the obstacle's own frame; (0, 0, 0) when the file gives none.
 
     Why from the XML: commonroad-io (2026.1) reads an obstacle's rectangle as its length, width and
     ``originXShift`` only, and a circle as its radius, so a shape the file places off the obstacle's
-    position (CommonRoad 2020a allows both) would stand at the position, turned with the obstacle."""
+    position (CommonRoad 2020a allows both) would stand at the position, turned with the obstacle.
+    ``element`` names the obstacle in a :class:`ScenarioError` for a number that is not one."""
     shape = node.find("shape") if node is not None else None
     part = next(iter(shape), None) if shape is not None else None
     if part is None or part.tag not in ("rectangle", "circle"):
@@ -1000,6 +1001,34 @@ def _shape_placement(path, element: str, node) -> tuple[float, float, float]:
                                                "not a number")
         values.append(_finite(path, element, quantity, number, "its shape"))
     return values[0], values[1], values[2]
+
+
+def placed_outline(shape, placement: tuple[float, float, float]) -> tuple[tuple[float, float], ...] | None:
+    """The outline, in the obstacle's own frame, of commonroad-io's rectangle or circle ``shape`` placed by
+    ``placement`` (:func:`shape_placement`): the turned rectangle's 4 corners, the circle's inscribed
+    :data:`CIRCLE_VERTICES`-gon; None when the placement moves nothing or the shape is of another kind.
+    What :func:`rac.output.render.render_trajectory` draws, so that the picture shows the obstacle where
+    the model has it (commonroad-io's own drawing stands it at its position)."""
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
+    from commonroad.geometry.obstacle_shapes.circle_obstacle_shape import CircleObstacleShape
+
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
+    from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
+
+    ahead, aside, turned = placement
+    if placement == (0.0, 0.0, 0.0):
+        return None
+    if isinstance(shape, RectObstacleShape):
+        cos, sin = math.cos(turned), math.sin(turned)
+        centre = (ahead - shape.origin_x_shift, aside)
+        return tuple((centre[0] + a * shape.length / 2 * cos - b * shape.width / 2 * sin,
+                      centre[1] + a * shape.length / 2 * sin + b * shape.width / 2 * cos)
+                     for a, b in ((1, 1), (-1, 1), (-1, -1), (1, -1)))
+    if isinstance(shape, CircleObstacleShape):
+        return tuple((ahead + shape.radius * math.cos(2 * math.pi * i / CIRCLE_VERTICES),
+                      aside + shape.radius * math.sin(2 * math.pi * i / CIRCLE_VERTICES))
+                     for i in range(CIRCLE_VERTICES))
+    return None
 
 
 def _box(path, element: str, shape, placement: tuple[float, float, float] = (0.0, 0.0, 0.0)

@@ -22,6 +22,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+from xml.etree import ElementTree
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -32,7 +33,14 @@ from PIL import Image
 
 from rac.core.diagnostics import RacError
 from rac.core.files import atomic_write
-from rac.model.commonroad import PlanningProblemError, ScenarioError, quiet_reader, reader_failure
+from rac.model.commonroad import (
+    PlanningProblemError,
+    ScenarioError,
+    placed_outline,
+    quiet_reader,
+    reader_failure,
+    shape_placement,
+)
 from rac.output.plots import fit_title, new_figure, save_figure, wrap_text
 
 __all__ = ["EGO_COLOUR", "RenderError", "SceneFrames", "render_trajectory"]
@@ -66,7 +74,9 @@ def _read(path: Path) -> tuple[Any, Any]:
 
     with quiet_reader():  # commonroad-io's warnings and log lines about the file
         try:
-            return CommonRoadFileReader(data).open()
+            scenario, problems = CommonRoadFileReader(data).open()
+            _place_shapes(path, data, scenario)
+            return scenario, problems
         except Exception as error:  # commonroad-io raises a bare Exception, lxml errors, KeyError...
             if not reader_failure(error):
                 raise
@@ -82,6 +92,43 @@ def _read(path: Path) -> tuple[Any, Any]:
     except ScenarioError as diagnosis:
         problem = f"{diagnosis.element} {diagnosis.problem}" if diagnosis.element else diagnosis.problem
     raise RenderError(path, problem)
+
+
+def _place_shapes(path: Path, data: bytes, scenario: Any) -> None:
+    """Redraw each obstacle whose rectangle or circle the file places by its own ``<center>`` or
+    ``<orientation>`` with that placed outline (:func:`rac.model.commonroad.placed_outline`): commonroad-io
+    reads past both, and drew the obstacle at its position while the model has it where the file puts it.
+    (commonroad-io's obstacle shapes are immutable: such an obstacle is replaced by a copy.)"""
+    # commonroad: only when this runs; importing rac.output.render stays light
+    from commonroad.geometry.obstacle_shapes.polygon_obstacle_shape import PolygonObstacleShape
+
+    # commonroad: only when this runs; importing rac.output.render stays light
+    from commonroad.prediction.prediction import TrajectoryPrediction
+
+    # commonroad: only when this runs; importing rac.output.render stays light
+    from commonroad.scenario.obstacle import DynamicObstacle, StaticObstacle
+
+    for node in ElementTree.fromstring(data):
+        if node.tag not in ("staticObstacle", "dynamicObstacle", "obstacle") or node.find("shape") is None:
+            continue
+        obstacle = scenario.obstacle_by_id(int(node.get("id", "-1")))
+        if not isinstance(obstacle, (StaticObstacle, DynamicObstacle)):
+            continue
+        outline = placed_outline(obstacle.obstacle_shape, shape_placement(path, f"obstacle {obstacle.obstacle_id}",
+                                                                            node))
+        if outline is None:
+            continue
+        shape = PolygonObstacleShape(vertices=outline)
+        if isinstance(obstacle, StaticObstacle):
+            placed = StaticObstacle(obstacle.obstacle_id, obstacle.obstacle_type, shape, obstacle.initial_state)
+        else:
+            prediction = obstacle.prediction
+            if isinstance(prediction, TrajectoryPrediction):
+                prediction = TrajectoryPrediction(prediction.trajectory, shape)
+            placed = DynamicObstacle(obstacle.obstacle_id, obstacle.obstacle_type, shape, obstacle.initial_state,
+                                     prediction)
+        scenario.remove_obstacle(obstacle)
+        scenario.add_objects(placed)
 
 
 def _corners(x: float, y: float, head: float, length: float, width: float) -> np.ndarray:
