@@ -315,6 +315,20 @@ def test_scenario_declarations_are_emitted_verbatim(parsed: Parsed) -> None:
     assert c_declarations(parsed) == emit_declarations(data) + "\n"
 
 
+def test_an_obstacle_id_beyond_int32_is_no_internal_error() -> None:
+    """CommonRoad ids are whole numbers of any size; OBS_ID is int32_t and no function reads it. An id past
+    2^31 (a converted dataset's) ended `rac compile --target uppaal` in "internal error: ... does not fit int32"."""
+    import dataclasses
+
+    spec = automaton().model
+    data = build_model_data(load_scenario(spec.scenario_path), spec)
+    huge = dataclasses.replace(data, obs_id=(5_000_000_000, *data.obs_id[1:]))
+    line = next(line for line in emit_declarations(huge).splitlines() if line.startswith("const int32_t OBS_ID["))
+    rest = ", ".join(map(str, data.obs_id[1:]))
+    assert line == f"const int32_t OBS_ID[{len(data.obs_id)}] = {{-1, {rest}}};  // CommonRoad ids (-1: 5000000000, " \
+                   "beyond int32)"
+
+
 @pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")
 def test_declarations_compile_as_c(parsed: Parsed, tmp_path: Path) -> None:
     """The whole declaration section (channels left out, clocks as doubles: C has neither) and

@@ -79,6 +79,21 @@ def _array(name: str, values: Sequence[int], comment: str = "") -> str:
     return "\n".join(lines)
 
 
+#: What ``OBS_ID`` holds for a CommonRoad id beyond int32 (no function of the model reads the ids).
+UNREPRESENTED_ID = -1
+
+
+def _obstacle_ids(ids: Sequence[int]) -> str:
+    """``OBS_ID``: the obstacles' CommonRoad ids, labels that no function of the model reads. CommonRoad ids
+    are whole numbers of any size (a converted dataset's may pass 2^31): one beyond int32 is
+    :data:`UNREPRESENTED_ID` there, and the comment gives it (the compile failed with an internal error)."""
+    beyond = [i for i in ids if not INT32_LOW <= i <= INT32_MAX]
+    comment = "CommonRoad ids"
+    if beyond:
+        comment += f" ({UNREPRESENTED_ID}: {', '.join(map(str, beyond))}, beyond int32)"
+    return _array("OBS_ID", [i if INT32_LOW <= i <= INT32_MAX else UNREPRESENTED_ID for i in ids], comment)
+
+
 def _scalar(name: str, value: int, comment: str = "") -> str:
     return f"const int32_t {name} = {_int(value)};" + (f"  // {comment}" if comment else "")
 
@@ -149,7 +164,7 @@ def emit_declarations(data: ModelData) -> str:
         "// ---- obstacles: obstacle i exists at OBS_FROM[i] <= count <= OBS_UNTIL[i];",
         "//      its waypoints are WP_START[i] .. WP_START[i + 1] - 1, times WP_T in sense periods",
         _scalar("OBS_N", data.obstacle_count),
-        _array("OBS_ID", data.obs_id, "CommonRoad ids"),
+        _obstacle_ids(data.obs_id),
         _array("OBS_LENGTH", data.obs_length),
         _array("OBS_WIDTH", data.obs_width),
         _array("OBS_FROM", data.obs_from),
