@@ -171,6 +171,26 @@ def test_the_command_writes_the_example_and_a_picture(tmp_path: Path, example_xm
     assert png.read_bytes().startswith(b"\x89PNG") and png.stat().st_size > 10_000
 
 
+def test_the_command_says_what_it_cannot_write_and_titles_the_files_trajectories(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """A folder or a missing one where the file goes ended in a traceback; the picture's title said the
+    default's "trajectories to 10 s" whatever --steps wrote."""
+    from matplotlib.figure import Figure
+
+    from rac.model.intersection import main
+
+    for out, said in ((tmp_path, "Is a directory"), (tmp_path / "missing" / "x.xml", "No such file or directory")):
+        with pytest.raises(SystemExit) as stop:
+            main([str(out)])
+        assert stop.value.code == 2
+        error = capsys.readouterr().err
+        assert said in error and str(out) in error and "Traceback" not in error, error
+    titles: list[str] = []
+    monkeypatch.setattr(Figure, "savefig", lambda figure, *args, **options: titles.append(figure.axes[0].get_title()))
+    assert main([str(tmp_path / "short.xml"), "--steps", "50", "--png", str(tmp_path / "short.png")]) == 0
+    assert titles == ["ZAM_LeftTurn-1_1_T-1: left turn, t = 0 s (trajectories to 5 s)"]
+
+
 # ---------------------------------------------------------------- what the loader accepts
 def test_goal_shapes_circle_group_polygon_and_lanelets(tmp_path: Path, example_xml: Path) -> None:
     circle = "<position><circle><radius>2.0</radius><center><x>-22.0</x><y>1.75</y></center></circle></position>"

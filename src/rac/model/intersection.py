@@ -54,6 +54,7 @@ from commonroad.scenario.scenario import Scenario, Tag
 from commonroad.scenario.state import CustomState, ExtendedPMState, InitialState
 from commonroad.scenario.trajectory import Trajectory
 
+from rac.core.files import atomic_write
 from rac.model.scenario_xml import DECIMALS, DT, clean, scenario_bytes
 
 __all__ = [
@@ -277,9 +278,9 @@ def left_turn_bytes(seed: int = 0, steps: int = STEPS) -> bytes:
 
 def write_left_turn(path: str | Path, seed: int = 0, steps: int = STEPS) -> Path:
     """Write the left-turn scenario as a CommonRoad 2020a XML file (schema-checked) and return its path."""
-    path = Path(path)
-    path.write_bytes(left_turn_bytes(seed, steps))
-    return path
+    data = left_turn_bytes(seed, steps)
+    # atomically, as rac.model.scenes writes: an interrupted write left a truncated scenario there
+    return atomic_write(path, lambda file: file.write(data))
 
 
 def render_left_turn(xml_path: str | Path, png_path: str | Path) -> Path:
@@ -330,7 +331,9 @@ def render_left_turn(xml_path: str | Path, png_path: str | Path) -> Path:
             ax.text(x0 + 7.0 * math.sin(first.orientation), y0 - 7.0 * math.cos(first.orientation),
                     f"car {obstacle.obstacle_id}\n{first.velocity:g} m/s", fontsize=9, zorder=41, color="#1d4f91",
                     ha="center", va="center")
-        ax.set_title(f"{scenario.scenario_id}: left turn, t = 0 s (trajectories to {STEPS * DT:g} s)")
+        # the file's own trajectories (--steps): the title said the default's 10 s whatever they were
+        last = max((o.prediction.trajectory.final_state.time_step for o in scenario.dynamic_obstacles), default=0)
+        ax.set_title(f"{scenario.scenario_id}: left turn, t = 0 s (trajectories to {last * scenario.dt:g} s)")
         ax.legend(loc="upper right")
         ax.set_aspect("equal")
         fig.tight_layout()
@@ -352,10 +355,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--seed must be >= 0")
     if args.steps < 1:
         parser.error("--steps must be >= 1")
-    path = write_left_turn(args.out, args.seed, args.steps)
-    print(f"wrote {path}")
-    if args.png:
-        print(f"wrote {render_left_turn(path, args.png)}")
+    try:  # a missing folder, a folder where the file goes: said, no traceback (as python -m rac.model.scenes)
+        path = write_left_turn(args.out, args.seed, args.steps)
+        print(f"wrote {path}")
+        if args.png:
+            print(f"wrote {render_left_turn(path, args.png)}")
+    except OSError as exc:
+        parser.error(str(exc))
     return 0
 
 
