@@ -184,3 +184,31 @@ def test_commonroad_io_says_nothing_of_what_it_makes_of_a_file(tmp_path: Path, c
     assert [record.getMessage() for record in caplog.records] == []
     assert capfd.readouterr() == ("", "")
     assert logger.level == before  # the user's own setting is back
+
+
+def test_an_obstacle_of_the_other_format_is_refused(tmp_path: Path) -> None:
+    """commonroad-io reads a 2020a file's obstacles from <staticObstacle>, <dynamicObstacle>, ... and a 2018b
+    file's from <obstacle>, passing over the other format's: the model had no obstacle, every safety query held."""
+    old_in_new = road_2018b().replace('commonRoadVersion="2018b" tags="single_lane"', 'commonRoadVersion="2020a"')
+    header = re.search(r"<location>.*?</location>\s*<scenarioTags>.*?</scenarioTags>", road_xml(), re.S)
+    assert header is not None
+    old_in_new = old_in_new.replace("<lanelet ", header.group(0) + "\n  <lanelet ", 1)
+    new_in_old = road_xml().replace('commonRoadVersion="2020a"', 'commonRoadVersion="2018b" tags="single_lane"')
+    new_in_old = edit(new_in_old, r"\s*<location>.*?</location>\s*<scenarioTags>.*?</scenarioTags>", "")
+    for name, text, message in (
+            ("old_in_new", old_in_new,
+             'obstacle 12 is written as <obstacle>, the 2018b format\'s obstacle element, in a file labelled '
+             'commonRoadVersion="2020a": commonroad-io reads a 2020a file\'s obstacles from <staticObstacle>, '
+             "<dynamicObstacle>, <environmentObstacle>, <phantomObstacle> only and passes over it, so the model "
+             'would lack this obstacle; write it in the 2020a format, or label the file commonRoadVersion="2018b" '
+             "if it is one"),
+            ("new_in_old", new_in_old,
+             'static obstacle 12 is written as <staticObstacle>, the 2020a format\'s obstacle element, in a file '
+             'labelled commonRoadVersion="2018b": commonroad-io reads a 2018b file\'s obstacles from <obstacle> '
+             "only and passes over it, so the model would lack this obstacle; write it in the 2018b format, or "
+             'label the file commonRoadVersion="2020a" if it is one')):
+        path = tmp_path / f"{name}.xml"
+        path.write_text(text, encoding="utf-8")
+        with pytest.raises(ScenarioError) as failure:
+            load_scenario(path)
+        assert str(failure.value) == f"{path}: {message}"

@@ -831,6 +831,7 @@ def _bound_points(path: str | os.PathLike[str], lanelet) -> ScenarioError | None
 def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
              require_choice: bool = False, positions: dict[int, tuple[int, int]] | None = None) -> Scenario:
     positions = positions or {}
+    _check_obstacle_format(path, root)
     nodes = {(node.tag, node.get("id")): node for node in root}
 
     def where(tag: str, ident: int) -> tuple[int, int] | None:
@@ -877,6 +878,29 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     return Scenario(name=name, path=os.fspath(path), dt=dt, road=road, obstacles=tuple(obstacles), ego=ego,
                     goal=goal, planning_problem_id=planning_problem_id, planning_problem_ids=ids,
                     lanes=lanes)
+
+
+#: The obstacle elements commonroad-io reads in each format; it passes over the other format's without a word.
+_OBSTACLES_OF_FORMAT = {"2018b": ("obstacle",),
+                        "2020a": ("staticObstacle", "dynamicObstacle", "environmentObstacle", "phantomObstacle")}
+
+
+def _check_obstacle_format(path, root) -> None:
+    """Refuse an obstacle element of the other format than the file's ``commonRoadVersion`` (a 2018b
+    ``<obstacle>`` in a 2020a file, a ``<dynamicObstacle>`` in a 2018b one): commonroad-io reads the
+    file without it, and the model had no such obstacle, so that every safety query held, silently."""
+    version = root.get("commonRoadVersion")
+    read = _OBSTACLES_OF_FORMAT.get(version, ())
+    for node in root:
+        other = next((v for v, tags in _OBSTACLES_OF_FORMAT.items() if v != version and node.tag in tags), None)
+        if other is None or node.tag in read:
+            continue
+        raise ScenarioError(
+            path, f"{_LABELS[node.tag]} {node.get('id', '(without id)')}",
+            f"is written as <{node.tag}>, the {other} format's obstacle element, in a file labelled "
+            f"commonRoadVersion=\"{version}\": commonroad-io reads a {version} file's obstacles from "
+            f"{', '.join(f'<{tag}>' for tag in read)} only and passes over it, so the model would lack this "
+            f"obstacle; write it in the {version} format, or label the file commonRoadVersion=\"{other}\" if it is one")
 
 
 def _check_width(path, lanelet, position: tuple[int, int] | None) -> None:
