@@ -69,6 +69,11 @@ POINT = r"<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>\s*</point>\s*"
      "static obstacle 12 has a <shapeGroup> as its shape, which commonroad-io does not read: give the obstacle one "
      "rectangle, circle, polygon, truck or semi-trailer truck (rac bounds any shape by a rectangle, so the group's "
      "bounding rectangle loses nothing)"),
+    # commonroad-io passed over it without a word: the model lacked the car
+    ("misspelt_obstacle", r'<dynamicObstacle id="11">(.*?)</dynamicObstacle>',
+     r'<dynamicObstacles id="11">\1</dynamicObstacles>',
+     "<dynamicObstacles> is not a CommonRoad element (is it <dynamicObstacle>?): commonroad-io passes over it, so "
+     "the model would lack it"),
     # the message went on "rac supports ... groups of these": it read as if a <shapeGroup> were supported
     ("goal_shape_group", r"(<goalState>.*?<position>)(.*?)(</position>)", r"\1<shapeGroup>\2</shapeGroup>\3",
      "goal of planning problem 100 has an unsupported shape (<shapeGroup>); rac supports rectangles, polygons, "
@@ -212,3 +217,12 @@ def test_an_obstacle_of_the_other_format_is_refused(tmp_path: Path) -> None:
         with pytest.raises(ScenarioError) as failure:
             load_scenario(path)
         assert str(failure.value) == f"{path}: {message}"
+
+
+def test_an_element_of_an_extension_is_left_alone(tmp_path: Path) -> None:
+    """Only a misspelt CommonRoad element is refused (test_a_hand_edited_file_is_refused_in_its_own_words): an
+    element of no likeness to one (a tool's own annotation) is passed over, as commonroad-io does."""
+    path = tmp_path / "annotated.xml"
+    path.write_text(road_xml().replace("<planningProblem", "<toolAnnotation>ok</toolAnnotation>\n  <planningProblem",
+                                       1), encoding="utf-8")
+    assert [o.id for o in load_scenario(path).obstacles] == [11, 12]

@@ -7,6 +7,7 @@ Units: metres, seconds, radians, m/s.
 
 from __future__ import annotations
 
+import difflib
 import logging
 import math
 import os
@@ -585,6 +586,9 @@ _REQUIRED = {
     "planningProblem": (*_STATE, "initialState/velocity", "goalState"),
     "obstacle": ("role", "type", "shape", "initialState"),  # the 2018b format's, static or dynamic by its <role>
 }
+#: The elements a ``<commonRoad>`` holds, in either format (2018b's obstacles are ``<obstacle>``).
+_TOP_LEVEL = ("location", "scenarioTags", "lanelet", "trafficSign", "trafficLight", "intersection", "staticObstacle",
+              "dynamicObstacle", "phantomObstacle", "environmentObstacle", "obstacle", "planningProblem")
 #: The elements whose ``<shape>`` commonroad-io reads as one obstacle shape (:func:`_check_structure`).
 _SHAPED = ("staticObstacle", "dynamicObstacle", "obstacle")
 #: The roles of a 2018b ``<obstacle>`` (commonroad-io fails on another without naming it).
@@ -603,6 +607,13 @@ _LABELS = {
 def _check_structure(path: str | os.PathLike[str], root) -> None:
     seen: dict[str, str] = {}  # CommonRoad ids are unique within a file (commonroad-io keeps the last)
     for node in root:
+        # a misspelt element (<dynamicObstacles>, <staticobstacle>) is one commonroad-io passes over without a
+        # word: the model lacked that obstacle or lanelet; another unknown element is left alone (an extension)
+        close = difflib.get_close_matches(node.tag, _TOP_LEVEL, n=1, cutoff=0.8) if node.tag not in _TOP_LEVEL \
+            else []
+        if close:
+            raise ScenarioError(path, f"<{node.tag}>", f"is not a CommonRoad element (is it <{close[0]}>?): "
+                                                        "commonroad-io passes over it, so the model would lack it")
         ident = node.get("id")
         if node.tag in _LABELS and ident is not None:
             here = f"{_LABELS[node.tag]} {ident}"
