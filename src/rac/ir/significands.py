@@ -216,23 +216,20 @@ def _update_diagnostic(automaton: ir.Automaton, assignment: ir.Assignment,
         steps = steps[:-1]  # the last value computed is the whole sum, the result itself: E0501's
     else:
         steps.append(("", Fraction(q), Fraction(q)))
-    for shown, lo, hi in steps:
-        if lo < INT32_MIN or hi > INT32_MAX:
-            worst = hi if hi > INT32_MAX else lo
-            emitted = f"({text}) / {q}" if q != 1 else text
-            within = ", ".join(f"`{name}` within [{decimal_text(ranges[name][0])}, {decimal_text(ranges[name][1])}]"
-                               for name in dict.fromkeys(name for _, name in ints))
-            return unrepresentable(
-                automaton,
-                f"update `{assignment.reward} = {_exact_text(assignment.value)}`: the UPPAAL model computes it as "
-                f"`{emitted}` over 32-bit significands, and "
-                + (f"`{shown}` may reach {short_number(worst)}," if shown else f"its number {worst} is")
-                + " beyond the 32-bit integer range", assignment.span,
-                notes=[f"{within} (the int32 range check's bounds over every run), held as significands at base "
-                       f"{base}, exponent {exponent}: UPPAAL computes every product and partial sum of an update in "
-                       "32-bit integers, before it divides, where rac's engine computes exactly"],
-                hints=["bound the reward's growth (a shorter horizon, a smaller rate), narrow the input's range, "
-                       "or lower the exponent of the number representation"])
+    overflow = _first_overflow(steps)
+    if overflow is not None:
+        emitted = f"({text}) / {q}" if q != 1 else text
+        within = _within(ranges, ints)
+        return unrepresentable(
+            automaton,
+            f"update `{assignment.reward} = {_exact_text(assignment.value)}`: the UPPAAL model computes it as "
+            f"`{emitted}` over 32-bit significands, and {overflow} beyond the 32-bit integer range",
+            assignment.span,
+            notes=[f"{within} (the int32 range check's bounds over every run), held as significands at base "
+                   f"{base}, exponent {exponent}: UPPAAL computes every product and partial sum of an update in "
+                   "32-bit integers, before it divides, where rac's engine computes exactly"],
+            hints=["bound the reward's growth (a shorter horizon, a smaller rate), narrow the input's range, "
+                   "or lower the exponent of the number representation"])
     return None
 
 
@@ -280,26 +277,37 @@ def observation_diagnostics(automaton: ir.Automaton, bounds: Mapping[str, tuple[
                 if emitted is None:
                     continue
                 text, steps = emitted
-                for shown, lo, hi in steps:
-                    if INT32_MIN <= lo and hi <= INT32_MAX:
-                        continue
-                    worst = hi if hi > INT32_MAX else lo
+                overflow = _first_overflow(steps)
+                if overflow is not None:
                     label = query.labels[index] if index < len(query.labels) else text
-                    within = ", ".join(f"`{n}` within [{decimal_text(ranges[n][0])}, {decimal_text(ranges[n][1])}]"
-                                       for n in dict.fromkeys(n for _, n in ints))
+                    within = _within(ranges, ints)
                     found.append(unrepresentable(
                         automaton,
                         f"query `{decl.name}`: the discrete observation `{label}` is observed in the UPPAAL model "
                         f"as the integer `{text}` (mirrors and significands, a whole multiple of it), and "
-                        + (f"`{shown}` may reach {short_number(worst)}," if shown else f"its number {worst} is")
-                        + " beyond the 32-bit integer range", decl.span,
+                        f"{overflow} beyond the 32-bit integer range", decl.span,
                         notes=[f"{within} as the model holds them (the int32 range check's bounds for rewards, at "
                                f"base {base}, exponent {exponent}): UPPAAL computes the observation in 32-bit "
                                "integers, where rac's engine computes exactly"],
                         hints=["observe fewer or smaller multiples (`{sa}` rather than `{10*sa + pr}`), bound the "
                                "rewards' growth, or lower the exponent of the number representation"]))
-                    break
     return found
+
+
+def _first_overflow(steps: Sequence[tuple[str, Fraction, Fraction]]) -> str | None:
+    """What leaves int32 first among an emitted sum's ``steps`` (each a value shown, its least and its
+    greatest), said for a message (`` `2*p` may reach 3e9,``), or ``None``."""
+    for shown, lo, hi in steps:
+        if lo < INT32_MIN or hi > INT32_MAX:
+            worst = hi if hi > INT32_MAX else lo
+            return f"`{shown}` may reach {short_number(worst)}," if shown else f"its number {worst} is"
+    return None
+
+
+def _within(ranges: Mapping[str, tuple[Fraction, Fraction]], ints: Sequence[tuple[int, str]]) -> str:
+    """The ranges of the names an emitted sum reads, for a note."""
+    return ", ".join(f"`{name}` within [{decimal_text(ranges[name][0])}, {decimal_text(ranges[name][1])}]"
+                     for name in dict.fromkeys(name for _, name in ints))
 
 
 def emitted_sum(k: int, ints: Sequence[tuple[int, str]], ranges: Mapping[str, tuple[Fraction, Fraction]]
