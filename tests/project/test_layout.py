@@ -524,3 +524,13 @@ def test_function_local_imports_say_why() -> None:
     found = list(uncommented_local_imports())
     assert not found, ("imports inside functions without a reason (move them to the top, or say why on "
                        "the line or the line above):\n" + "\n".join(found))
+
+
+def test_test_modules_have_distinct_names() -> None:
+    """pytest imports test files by their base name (the folders have no __init__.py): two files of one
+    name in different folders stop the whole run at collection."""
+    tests = SRC.parents[1] / "tests"
+    seen: dict[str, list[str]] = {}
+    for path in sorted(tests.rglob("test_*.py")):
+        seen.setdefault(path.name, []).append(str(path.relative_to(tests)))
+    assert not {name: paths for name, paths in seen.items() if len(paths) > 1}
