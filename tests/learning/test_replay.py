@@ -96,3 +96,7 @@ def test_stable_baselines3_buffer_stores_every_location() -> None:
                                    automaton=alternate())
     with pytest.raises(ValueError, match="one-hot vector"):
         CounterfactualReplayBuffer(10, Blank.observation_space, env.action_space, automaton=alternate())
+    dict_env = LocationObservation(RewardAutomatonWrapper(Blank(), alternate(), took), layout="dict")
+    dict_space = dict_env.observation_space
+    with pytest.raises(ValueError, match="'concat' layout"):  # not ReplayBuffer's TypeError on a Dict space
+        CounterfactualReplayBuffer(10, dict_space, env.action_space, automaton=alternate())

@@ -93,15 +93,17 @@ class CounterfactualReplayBuffer(ReplayBuffer):
         if optimize_memory_usage:  # it reads a row's next observation from the row after: not so here
             raise ValueError("CounterfactualReplayBuffer stores several rows per step: optimize_memory_usage=True "
                              "reads a row's next observation from the next row, which would be another location's")
-        super().__init__(buffer_size, observation_space, action_space, device=device, n_envs=n_envs,
-                         optimize_memory_usage=False, handle_timeout_termination=handle_timeout_termination)
-        #: Builds the counterfactual rows; ``rows.locations`` the one-hot vector's order.
-        self.rows = CounterfactualRows(automaton)
+        rows = CounterfactualRows(automaton)
+        # checked before ReplayBuffer sizes its arrays by the space (a Dict ended there in a TypeError)
         shape = getattr(observation_space, "shape", None)
-        if shape is None or len(shape) != 1 or shape[0] <= len(self.rows.locations):
+        if shape is None or len(shape) != 1 or shape[0] <= len(rows.locations):
             raise ValueError(f"CounterfactualReplayBuffer needs a one-dimensional Box observation ending in the "
                              f"location's one-hot vector (LocationObservation's 'concat' layout), not "
                              f"{observation_space}")
+        super().__init__(buffer_size, observation_space, action_space, device=device, n_envs=n_envs,
+                         optimize_memory_usage=False, handle_timeout_termination=handle_timeout_termination)
+        #: Builds the counterfactual rows; ``rows.locations`` the one-hot vector's order.
+        self.rows = rows
 
     def add(self, obs: np.ndarray, next_obs: np.ndarray, action: np.ndarray, reward: np.ndarray, done: np.ndarray,
             infos: list[dict[str, Any]]) -> None:
