@@ -64,6 +64,12 @@ def test_what_is_refused_is_said() -> None:
         rows.step(before[None, :], after[None, :], np.array([done]), [{"rac": {"location": "Safe"}}])
     with pytest.raises(ValueError, match="one dict per environment"):
         rows.step(before[None, :], after[None, :], np.array([done]), [info, info])
+    # a gymnasium vector environment's infos (one dict of arrays) and a scenario environment's info
+    with pytest.raises(ValueError, match="one info dict per environment.*VecEnv"):
+        rows.step(before[None, :], after[None, :], np.array([done]), {"rac": {}, "_rac": np.ones(1, dtype=bool)})
+    scenario = {"location": "Safe", "rewards": {"sa": 0.0, "pr": 0.0}, "inputs": {"headway": 3.0, "collide": False}}
+    with pytest.raises(ValueError, match="infos\\[0\\].*scenario environments.*several samples"):
+        rows.step(before[None, :], after[None, :], np.array([done]), [scenario])
     squashed = before[None, :].copy()
     squashed[0, -2:] = [0.5, 0.5]  # a normalised observation
     with pytest.raises(ValueError, match="not one-hot location vectors"):

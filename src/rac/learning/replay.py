@@ -74,11 +74,21 @@ class CounterfactualRows:
         self._index = {name: i for i, name in enumerate(self.locations)}
 
     def _infos(self, infos: Sequence[Mapping[str, Any]], n: int) -> list[Mapping[str, Any]]:
+        if isinstance(infos, Mapping):  # its length is its number of keys: "not 4 dicts" said nothing useful
+            raise ValueError("infos is one dict (a gymnasium vector environment's, e.g. RewardAutomatonVectorWrapper's "
+                             "arrays): counterfactual transitions take one info dict per environment, as "
+                             "stable-baselines3's VecEnv gives them, each environment a RewardAutomatonWrapper")
         if len(infos) != n:
             raise ValueError(f"infos must hold one dict per environment ({n}), not {len(infos)}")
         found: list[Mapping[str, Any]] = []
         for i, info in enumerate(infos):
             rac = info.get("rac") if isinstance(info, Mapping) else None
+            if rac is None and isinstance(info, Mapping) and "location" in info:
+                raise ValueError(f"infos[{i}] carries the automaton's location at its top level, as rac's scenario "
+                                 "environments (ScenarioEnv, ScenarioVectorEnv) do: their step is several samples of "
+                                 "the automaton, which counterfactual transitions from one info do not replay (rac."
+                                 "learning.episodes.EpisodeBatch.counterfactual replays them); these need each "
+                                 "environment wrapped in rac.learning.wrappers.RewardAutomatonWrapper")
             missing = [key for key in NEEDED if not isinstance(rac, Mapping) or key not in rac]
             if missing or not isinstance(rac, Mapping):
                 raise ValueError(f"infos[{i}] has no info['rac'][{missing[0]!r}]: counterfactual transitions need "
