@@ -79,6 +79,7 @@ def test_rewards_are_the_automatons_and_end_is_applied(mode: str) -> None:
     run = episode(env)
     assert [r[1] for r in run] == expected_rewards(steps, end=True)
     reference = RewardAutomaton(driving_automaton())
+    held = TRACE[0]  # the first step's rates read its own inputs, each later one the step before's
     for (obs, _, terminated, truncated, info), values in zip(run, TRACE):
         before = reference.rewards
         reference.step(values)
@@ -87,8 +88,9 @@ def test_rewards_are_the_automatons_and_end_is_applied(mode: str) -> None:
         assert info["k"] == obs
         assert info["rac"] == {"location": reference.location, "rewards": reference.rewards,
                                "objective": reference.objective, "env_reward": 7.0, "scale": 1.0, "clipped": {},
-                               "inputs": values,
+                               "inputs": values, "held": held,
                                "reward_steps": {k: v - before[k] for k, v in reference.rewards.items()}}
+        held = values
     assert run[-1][1] == pytest.approx(run[-1][4]["rac"]["objective"] - run[-2][4]["rac"]["objective"])
     assert run[-1][4]["rac"]["rewards"]["pr"] > 100  # the end bonus (dgoal < 2)
     assert sum(r[1] for r in run) == pytest.approx(run[-1][4]["rac"]["objective"])

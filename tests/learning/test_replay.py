@@ -10,6 +10,8 @@ import pytest
 from highway_like import HighwayLike, follow, inputs
 from test_location_observation import Blank, alternate, took
 
+from rac.compiler import compile_text
+from rac.learning.counterfactual import counterfactual_transitions
 from rac.learning.location_observation import LocationObservation
 from rac.learning.replay import CounterfactualRows
 from rac.learning.wrappers import RewardAutomatonWrapper
@@ -106,3 +108,53 @@ def test_stable_baselines3_buffer_stores_every_location() -> None:
     dict_space = dict_env.observation_space
     with pytest.raises(ValueError, match="'concat' layout"):  # not ReplayBuffer's TypeError on a Dict space
         CounterfactualReplayBuffer(10, dict_space, env.action_space, automaton=alternate())
+
+
+RATED = """automaton Rated {
+    input headway : real in [0, 10]
+    input collide : bool
+    reward sa
+    objective sa
+    sample every 0.1
+    horizon 3
+    initial location Safe { sa' == headway }
+    location Unsafe       { sa' == -headway }
+    edge Safe -> Unsafe   when headway < 5
+    edge Unsafe -> Safe   when headway >= 5 do sa = sa * 2
+}
+"""
+
+
+def test_rates_that_read_inputs_read_the_previous_steps_inputs() -> None:
+    # A rate reads the inputs held from the previous sample (language.md, semantics): replayed with the
+    # step's own inputs, every counterfactual reward of such an automaton was wrong after the first step.
+    rated = compile_text(RATED, "rated.ra").raise_for_errors()
+    rows = CounterfactualRows(rated)
+    env = LocationObservation(RewardAutomatonWrapper(HighwayLike(), rated, inputs, clip=True))
+    before, _ = env.reset(seed=0)
+    previous = None
+    checked = 0
+    for action in [2] * 5 + [0] * 10:
+        after, reward, terminated, truncated, info = env.step(action)
+        rac = info["rac"]
+        held = rac["inputs"]["headway"] if previous is None else previous
+        assert rac["held"]["headway"] == held
+        real = int(np.argmax(before[-2:]))
+        # the real step, replayed from its own location, pays what the wrapper paid
+        prior = {name: np.array([rac["rewards"][name] - rac["reward_steps"][name]]) for name in rac["rewards"]}
+        cf = counterfactual_transitions(rated, {name: np.array([v]) for name, v in rac["inputs"].items()},
+                                        rewards=prior, held={"headway": np.array([held])},
+                                        ended=np.array([terminated or truncated]))
+        assert cf.reward[real] == pytest.approx(float(reward))
+        # the other location accrues its rate on the held headway; the edge into Safe doubles sa
+        [batch] = rows.step(before[None, :], after[None, :], np.array([terminated or truncated]), [info])
+        accrued = prior["sa"][0] + (-held if real == 0 else held) * 0.1
+        doubled = real == 0 and rac["inputs"]["headway"] >= 5  # from Unsafe, the edge back to Safe
+        expected = (2 * accrued if doubled else accrued) - prior["sa"][0]
+        assert batch.reward[0] == pytest.approx(expected)
+        checked += 1
+        previous = rac["inputs"]["headway"]
+        before = after
+        if terminated or truncated:
+            break
+    assert checked > 2

@@ -17,6 +17,7 @@ import pytest
 from driving_ir import compiled_driving, driving_automaton, inputs
 
 from rac import ir
+from rac.compiler import compile_text
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import check_automaton
@@ -636,3 +637,31 @@ def test_run_samples_reads_its_masks_and_repeat_as_step_batch_does(driving: ir.A
                                     ([True], [False, False], r"active must have shape \(2,\)")]:
         with pytest.raises(ValueError, match=message):
             BatchRewardAutomaton(driving, 4).run_samples([(row, active, ending)], repeat=2)
+
+
+def test_a_resumed_run_reads_the_held_inputs_it_is_given() -> None:
+    """A rate reads the inputs held from the previous sample; ``resume`` had no way to give them, so a run
+    resumed mid-way (a counterfactual replay of a step) accrued on the step's own inputs instead."""
+    rated = compile_text("""automaton Rated {
+        input v : real in [0, 10]
+        input b : bool
+        reward r
+        objective r
+        sample every 0.5
+        horizon 10
+        initial location A { r' == v }
+        location B { r' == -2 * v }
+        edge A -> B when b do r = r * 3
+    }""", "rated.ra").raise_for_errors()
+    first, second = {"v": np.array([4.0]), "b": np.array([True])}, {"v": np.array([1.0]), "b": np.array([False])}
+    run = BatchRewardAutomaton(rated, 1)
+    run.step_batch(first)
+    rewards, where = run.rewards, run.locations
+    paid = run.step_batch(second)
+    resumed = BatchRewardAutomaton(rated, 1)
+    resumed.resume(where, rewards, held={"v": first["v"], "b": first["b"]})
+    assert resumed.step_batch(second).tolist() == paid.tolist() == [-4.0]  # B's rate on the held v = 4
+    resumed.resume(where, rewards)  # no held inputs: a first sample, which holds its own
+    assert resumed.step_batch(second).tolist() == [-1.0]
+    with pytest.raises(ValueError, match="held must give the inputs the rates read: v missing"):
+        resumed.resume(where, rewards, held={"b": first["b"]})

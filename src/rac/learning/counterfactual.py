@@ -25,9 +25,11 @@ Exact when the observation sees the automaton only through its location and the 
 not depend on the automaton (the default goal, ``goal()``, reads the model only): then the
 counterfactual transitions are transitions the environment could really have produced.
 
-Example (a deep learner's replay buffer; ``inputs`` the automaton's inputs of each transition)::
+Example (a deep learner's replay buffer; ``inputs`` the automaton's inputs of each transition, ``held``
+those of the step before it, which input-dependent rates read)::
 
-    cf = counterfactual_transitions(automaton, inputs, rewards=rewards_before, ended=terminated | truncated)
+    cf = counterfactual_transitions(automaton, inputs, rewards=rewards_before, ended=terminated | truncated,
+                                    held=held)
     obs_cf = np.concatenate([obs[cf.source], one_hot(cf.location)], axis=1)
     next_cf = np.concatenate([next_obs[cf.source], one_hot(cf.next_location)], axis=1)
     buffer.add(obs_cf, actions[cf.source], cf.reward, next_cf, ended[cf.source])
@@ -82,17 +84,21 @@ class Replayer:
         self.n_locations = len(automaton.locations)
         self._batches: dict[int, BatchRewardAutomaton] = {}
 
-    def replay(self, samples: Sequence[Sample], n: int,
-               rewards: Mapping[str, np.ndarray] | None = None) -> Counterfactuals:
+    def replay(self, samples: Sequence[Sample], n: int, rewards: Mapping[str, np.ndarray] | None = None,
+               held: Mapping[str, np.ndarray] | None = None) -> Counterfactuals:
         """The :class:`Counterfactuals` of ``n`` transitions made of ``samples`` (in order), each
-        starting with the reward values ``rewards`` (name -> ``(n,)``; default 0) in every location."""
+        starting with the reward values ``rewards`` (name -> ``(n,)``; default 0) in every location
+        and the inputs ``held`` from the sample before (name -> ``(n,)``, which input-dependent rates
+        read at the first sample; default none, as at a run's first sample)."""
         size = n * self.n_locations
         batch = self._batches.get(size)
         if batch is None:
             batch = self._batches[size] = BatchRewardAutomaton(self.automaton, size)
         spread = {name: np.repeat(np.asarray(values, dtype=np.float64), self.n_locations)
                   for name, values in (rewards or {}).items()}
-        batch.resume(np.tile(np.arange(self.n_locations), n), spread)
+        kept = None if held is None else {name: np.repeat(np.asarray(values, dtype=np.float64), self.n_locations)
+                                          for name, values in held.items() if np.asarray(values).dtype != bool}
+        batch.resume(np.tile(np.arange(self.n_locations), n), spread, kept)
         total = batch.run_samples([(sample.inputs, sample.active, sample.ending) for sample in samples],
                                   repeat=self.n_locations)
         shape = (n, self.n_locations)
@@ -116,12 +122,17 @@ class CounterfactualBatch:
 
 def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mapping[str, np.ndarray], *,
                                rewards: Mapping[str, np.ndarray] | None = None,
-                               ended: np.ndarray | None = None) -> CounterfactualBatch:
+                               ended: np.ndarray | None = None,
+                               held: Mapping[str, np.ndarray] | None = None) -> CounterfactualBatch:
     """The counterfactual transitions of a batch of ``B`` one-sample transitions (one environment
     step = one sample, as :class:`rac.learning.wrappers.RewardAutomatonWrapper` steps the automaton):
     ``inputs`` the automaton's inputs each transition produced (name -> ``(B,)``), ``rewards`` the
     reward values before it (name -> ``(B,)``; default 0: exact for automata whose updates add
-    constants), ``ended`` which transitions ended their episode (the ``at end`` clauses apply).
+    constants), ``ended`` which transitions ended their episode (the ``at end`` clauses apply),
+    ``held`` the inputs of the step before each transition (name -> ``(B,)``; the rates of the
+    transition's sample read them: :class:`~rac.learning.wrappers.RewardAutomatonWrapper`'s
+    ``info["rac"]["held"]``; default none, as at an episode's first step: exact for automata whose
+    rates read no inputs).
     Pass a :class:`Replayer` instead of the automaton to reuse its batches across calls."""
     replayer = automaton if isinstance(automaton, Replayer) else Replayer(automaton)
     columns = {name: np.asarray(values) for name, values in inputs.items()}
@@ -131,7 +142,7 @@ def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mappi
     done = np.zeros(n, dtype=bool) if ended is None else np.asarray(ended, dtype=bool)
     if done.shape != (n,):
         raise ValueError(f"ended must have shape ({n},), not {done.shape}")
-    cf = replayer.replay([Sample(columns, np.ones(n, dtype=bool), done)], n, rewards)
+    cf = replayer.replay([Sample(columns, np.ones(n, dtype=bool), done)], n, rewards, held)
     size = replayer.n_locations
     return CounterfactualBatch(np.repeat(np.arange(n), size), np.tile(np.arange(size), n),
                                cf.next_location.reshape(-1), cf.reward.reshape(-1), np.repeat(done, size))

@@ -32,7 +32,7 @@ from rac.runtime.semantics import AutomatonDescription
 __all__ = ["CounterfactualRows", "CounterfactualStep"]
 
 #: The keys of ``info["rac"]`` a counterfactual replay reads (RewardAutomatonWrapper's step info).
-NEEDED = ("inputs", "rewards", "reward_steps", "scale", "location")
+NEEDED = ("inputs", "held", "rewards", "reward_steps", "scale", "location")
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,8 +92,8 @@ class CounterfactualRows:
             missing = [key for key in NEEDED if not isinstance(rac, Mapping) or key not in rac]
             if missing or not isinstance(rac, Mapping):
                 raise ValueError(f"infos[{i}] has no info['rac'][{missing[0]!r}]: counterfactual transitions need "
-                                 "the step info of rac.learning.wrappers.RewardAutomatonWrapper (inputs, rewards, "
-                                 "reward_steps, scale, location), around each environment")
+                                 "the step info of rac.learning.wrappers.RewardAutomatonWrapper (inputs, held, "
+                                 "rewards, reward_steps, scale, location), around each environment")
             found.append(rac)
         return found
 
@@ -117,7 +117,8 @@ class CounterfactualRows:
         prior = {name: np.array([float(rac["rewards"][name]) - float(rac["reward_steps"][name]) for rac in racs])
                  for name in racs[0]["rewards"]}
         scale = np.array([float(rac["scale"]) for rac in racs])
-        cf = counterfactual_transitions(self._replayer, inputs, rewards=prior,
+        held = {name: np.array([rac["held"][name] for rac in racs]) for name in racs[0]["held"]}
+        cf = counterfactual_transitions(self._replayer, inputs, rewards=prior, held=held,
                                         ended=np.asarray(done, dtype=bool).reshape(n))
         rows = np.arange(n)
         batches = []

@@ -480,7 +480,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
     ``reset`` and ``step``; after ``step`` also ``reward_steps`` (each reward's change over the
     step, unscaled), ``env_reward`` (the environment's own reward), ``clipped`` and ``inputs`` (the
     values the automaton read, after clipping: what
-    :func:`rac.learning.counterfactual.counterfactual_transitions` replays).
+    :func:`rac.learning.counterfactual.counterfactual_transitions` replays) and ``held`` (the inputs
+    its rates read in the step: the previous step's ``inputs``, this step's at an episode's first).
 
     Example::
 
@@ -522,6 +523,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         steps = getattr(self.automaton, "steps", None)
         self._cut = CutEpisodes(SINGLE_LIMIT.format(steps=steps if isinstance(steps, int) else "N"))
         self._outside: int | None = None  # the limit of a TimeLimit outside, found at a reset it called
+        self._last_inputs: dict[str, Any] | None = None  # the inputs the next step's rates read (none at a reset)
 
     def _snapshot(self) -> dict[str, Any]:
         ra = self.automaton
@@ -536,6 +538,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         if self._outside is None:  # TimeLimit(RewardAutomatonWrapper(...), N): said at its first cut
             self._outside = outside_step_limit(self)
         self.automaton.reset()
+        self._last_inputs = None
         info = dict(info)
         info["rac"] = self._snapshot()
         return obs, info
@@ -562,6 +565,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
             raise _refused(exc, self._program, self._specs is not None, values, None,
                            "the environment has taken this step and the automaton has not: reset before the "
                            "next step") from exc
+        # the rates of this sample read the previous one's inputs (its own at the first: the language's hold)
+        held, self._last_inputs = (self._last_inputs or dict(values)), dict(values)
         self._past.check(getattr(self.automaton, "samples", None))
         # `episode ends when`: the automaton ended the run itself, its end clauses applied in this step
         # (a class generated before the declaration existed has no `terminated`: it never ends a run)
@@ -571,7 +576,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
             reward += self.automaton.end(values)
         self._cut.stepped(bool(terminated or truncated), self._outside)
         info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped, "inputs": dict(values),
-                       "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
+                       "held": held, "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
         return obs, reward / self.scale, terminated, truncated, info
 
     def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> NoReturn:

@@ -388,12 +388,14 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._n_ended = int(self._ended.sum())
         self._any_first = bool(self._first.any())
 
-    def resume(self, locations: np.ndarray | Sequence[int], rewards: Mapping[str, np.ndarray] | None = None) -> None:
+    def resume(self, locations: np.ndarray | Sequence[int], rewards: Mapping[str, np.ndarray] | None = None,
+               held: Mapping[str, np.ndarray] | None = None) -> None:
         """Reset every automaton, then put automaton ``i`` in location ``locations[i]`` with the reward
         values ``rewards[name][i]`` (default 0): a run resumed from another state, e.g. to replay one
         sequence of inputs from every location (counterfactual experiences,
-        :mod:`rac.learning.counterfactual`). Input-dependent rates hold the next sample's inputs, as
-        after :meth:`reset`."""
+        :mod:`rac.learning.counterfactual`). ``held`` gives the inputs held from the previous sample
+        (name -> values; at least the numeric inputs a rate reads), which the next sample's rates read;
+        without it, they hold the next sample's own inputs, as after :meth:`reset` (a run's first sample)."""
         raw = np.asarray(locations)
         # floats or booleans cast to indices would resume from other locations than meant, silently
         if raw.shape != (self._n,) or (raw.size and (raw.dtype.kind not in "iu" or raw.min() < 0
@@ -403,12 +405,20 @@ class BatchRewardAutomaton(AutomatonDescription):
         unknown = sorted(repr(name) for name in (rewards or {}) if name not in self._index)
         if unknown:
             raise ValueError(f"unknown reward(s): {', '.join(unknown)} (the rewards are {', '.join(self._ir.rewards)})")
+        missing = [name for name in self._held_names if held is not None and name not in held]
+        if missing:
+            raise ValueError(f"held must give the inputs the rates read: {', '.join(missing)} missing")
         loc = raw.astype(np.intp)
         self.reset()
         self._loc = loc.copy()
         for name, values in (rewards or {}).items():
             self._R[self._index[name]] = np.broadcast_to(np.asarray(values, dtype=np.float64), (self._n,))
         self._obj = np.array(self._objective_now(), dtype=np.float64).reshape(self._n)
+        if held is not None:
+            for name in self._held_names:
+                self._held[name] = np.broadcast_to(np.asarray(held[name], dtype=np.float64), (self._n,)).copy()
+            self._first[:] = False  # a resumed run's next sample is not its first: its rates read `held`
+            self._any_first = False
 
     def _read(self, inputs: Mapping[str, object], rows: np.ndarray | None,
               n: int | None = None) -> dict[str, np.ndarray]:
