@@ -103,6 +103,29 @@ def test_the_episodes_step_replayed_at_its_own_location_is_the_step() -> None:
         assert np.array_equal(part.reward, cf.reward[2:4])
 
 
+def test_a_rate_reading_an_input_replays_on_the_inputs_held_before_the_step() -> None:
+    """A rate reads the inputs of the sample before (zero-order hold): the step's first sample reads the
+    previous step's last inputs. Replayed with none held, it read its own, and the step replayed at its
+    own location paid other than the step (by 0.1 here)."""
+    paper = ROOT / "examples" / "paper" / "model.ra"
+    text = (paper.read_text()
+            .replace("input atGoal  : bool", "input atGoal  : bool\n    input clock : real in [0, 10]")
+            .replace("initial location Normal { sa' == 1;  pr' == 1;  co' == 1 }",
+                     "initial location Normal { sa' == 1;  pr' == 1;  co' == clock }")
+            .replace("location Stalled        { sa' == 1;  pr' == -1; co' == 0 }",
+                     "location Stalled        { sa' == 1;  pr' == -1; co' == -100 * clock }")
+            .replace("bind atGoal  = goal()", "bind atGoal  = goal()\n        bind clock = time / 10"))
+    assert text.count("clock") == 5
+    batch = EpisodeBatch(compile_text(text, str(paper)), horizon_samples=60, counterfactuals=True)
+    batch.reset(6)
+    rng = np.random.default_rng(1)
+    for _ in range(4):
+        where = batch.location
+        out = batch.step(rng.integers(batch.n_actions, size=6))
+        cf = batch.counterfactual()
+        assert np.allclose(cf.reward[np.arange(6), where], out.reward, rtol=0, atol=1e-9)
+
+
 def test_counterfactuals_need_the_location_in_the_observation() -> None:
     result = compile_file(ROOT / "examples" / "paper" / "model.ra")
     batch = EpisodeBatch(result, horizon_samples=20)

@@ -743,7 +743,14 @@ class EpisodeBatch:
         n = int(now.k[where].shape[0])
         samples = [Sample({name: values[where] for name, values in s.inputs.items()}, s.active[where],
                           s.ending[where]) for s in self._record]
-        cf = self._replayer.replay(samples, n, {name: values[where] for name, values in before.rewards.items()})
+        # the first sample's rates read the inputs held from the sample before the step (its own at an
+        # episode's first sample, k = 0): replayed with none held, they read that first sample's inputs
+        started = before.k[where] > 0
+        held = None if not samples else {
+            name: np.where(started, before.inputs[name][where], values)
+            for name, values in samples[0].inputs.items() if name in before.inputs and values.dtype != bool}
+        cf = self._replayer.replay(samples, n, {name: values[where] for name, values in before.rewards.items()},
+                                   held)
         if objective is not None:
             expr = self.expression(objective)
             size = cf.n_locations
