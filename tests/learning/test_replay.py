@@ -76,6 +76,9 @@ def test_what_is_refused_is_said() -> None:
     squashed[0, -2:] = [0.5, 0.5]  # a normalised observation
     with pytest.raises(ValueError, match="not one-hot location vectors"):
         rows.step(squashed, after[None, :], np.array([done]), [info])
+    # only next_obs not one-hot: a terminal observation that went through VecNormalize and back
+    with pytest.raises(ValueError, match=r"in next_obs, while obs's are.*VecNormalize\(norm_obs=False\)"):
+        rows.step(before[None, :], squashed, np.array([done]), [info])
     swapped = after[None, :].copy()
     swapped[0, -2:] = swapped[0, -2:][::-1]
     with pytest.raises(ValueError, match="differ from info\\['rac'\\]\\['location'\\]"):

@@ -109,7 +109,13 @@ class CounterfactualRows:
         racs = self._infos(infos, n)
         real = one_hot_index(obs, count)
         after = np.array([self._index[str(rac["location"])] for rac in racs], dtype=np.int64)
-        if not np.array_equal(one_hot_index(next_obs, count), after):
+        try:
+            shown = one_hot_index(next_obs, count)
+        except ValueError as exc:  # obs was one-hot: only an episode's last next_obs went through a normaliser
+            raise ValueError(f"{exc}: in next_obs, while obs's are; where an episode ended, stable-baselines3 "
+                             "stores the terminal observation VecNormalize normalised, unnormalised again (inexactly, "
+                             "and clipped): use VecNormalize(norm_obs=False)") from None
+        if not np.array_equal(shown, after):
             raise ValueError("next_obs's location columns differ from info['rac']['location']: the observation's "
                              "one-hot vector is not this automaton's (another automaton, or another location order)")
         names = list(racs[0]["inputs"])
