@@ -161,3 +161,23 @@ def test_rates_that_read_inputs_read_the_previous_steps_inputs() -> None:
         if terminated or truncated:
             break
     assert checked > 2
+
+
+def test_an_automaton_without_inputs_is_replayed() -> None:
+    # Its steps read no input, so no input column said how many transitions there were: every step
+    # was refused with "inputs must name the automaton's inputs".
+    clockwork = compile_text("""automaton Clockwork {
+        reward r
+        objective r
+        sample every 1
+        horizon 10
+        initial location Up { r' == 1 }
+        location Down       { r' == -1 }
+    }""", "clockwork.ra").raise_for_errors(warn=False)
+    env = LocationObservation(RewardAutomatonWrapper(Blank(), clockwork, lambda obs, info: {}))
+    before, _ = env.reset(seed=0)
+    after, _, _, _, info = env.step(0)
+    [batch] = CounterfactualRows(clockwork).step(before[None, :], after[None, :], np.array([False]), [info])
+    assert batch.location.tolist() == batch.next_location.tolist() == [1] and batch.reward.tolist() == [-1.0]
+    with pytest.raises(ValueError, match="inputs name no input: pass ended="):
+        counterfactual_transitions(clockwork, {})

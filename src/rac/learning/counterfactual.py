@@ -136,9 +136,9 @@ def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mappi
     Pass a :class:`Replayer` instead of the automaton to reuse its batches across calls."""
     replayer = automaton if isinstance(automaton, Replayer) else Replayer(automaton)
     columns = {name: np.asarray(values) for name, values in inputs.items()}
-    if not columns:
-        raise ValueError("inputs must name the automaton's inputs")
-    n = int(next(iter(columns.values())).shape[0])
+    if not columns and ended is None:  # an automaton without inputs: only `ended` says how many transitions
+        raise ValueError("inputs name no input: pass ended= (one flag per transition) to give their number")
+    n = int(next(iter(columns.values())).shape[0]) if columns else int(np.asarray(ended).reshape(-1).shape[0])
     done = np.zeros(n, dtype=bool) if ended is None else np.asarray(ended, dtype=bool)
     if done.shape != (n,):
         raise ValueError(f"ended must have shape ({n},), not {done.shape}")
