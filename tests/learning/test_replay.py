@@ -5,16 +5,17 @@ from __future__ import annotations
 
 from typing import Any
 
+import gymnasium
 import numpy as np
 import pytest
-from highway_like import HighwayLike, follow, inputs
+from highway_like import HighwayLike, follow, inputs, vector_inputs
 from test_location_observation import Blank, alternate, took
 
 from rac.compiler import compile_text
 from rac.learning.counterfactual import counterfactual_transitions
-from rac.learning.location_observation import LocationObservation
+from rac.learning.location_observation import LocationObservation, LocationVectorObservation
 from rac.learning.replay import CounterfactualRows
-from rac.learning.wrappers import RewardAutomatonWrapper
+from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper
 from rac.runtime.interpreter import RewardAutomaton
 
 
@@ -181,3 +182,27 @@ def test_an_automaton_without_inputs_is_replayed() -> None:
     assert batch.location.tolist() == batch.next_location.tolist() == [1] and batch.reward.tolist() == [-1.0]
     with pytest.raises(ValueError, match="inputs name no input: pass ended="):
         counterfactual_transitions(clockwork, {})
+
+
+def test_the_vector_wrapper_says_which_inputs_its_rates_read() -> None:
+    # Each sub-environment's step replayed from its own location with the inputs held from its step
+    # before (its own after a reset, NEXT_STEP's reset rows masked off) pays what the wrapper paid.
+    rated = compile_text(RATED, "rated.ra").raise_for_errors()
+    envs = gymnasium.vector.SyncVectorEnv([lambda: gymnasium.wrappers.TimeLimit(HighwayLike(), 4)] * 2)
+    env = LocationVectorObservation(RewardAutomatonVectorWrapper(envs, rated, vector_inputs, clip=True))
+    before, _ = env.reset(seed=0)
+    replayed = 0
+    for _ in range(12):
+        after, rewards, terminated, truncated, infos = env.step(np.array([2, 1]))
+        rac = infos["rac"]
+        active = rac["_inputs"]
+        if active.any():  # (no inputs read when every sub-environment is in its reset step)
+            real = np.argmax(before[:, -2:], axis=1)
+            prior = {name: values - rac["reward_steps"][name] for name, values in rac["rewards"].items()}
+            cf = counterfactual_transitions(rated, rac["inputs"], rewards=prior, held=rac["held"],
+                                            ended=terminated | truncated)
+            paid = cf.reward.reshape(2, 2)[np.arange(2), real]
+            assert np.allclose(paid[active], rewards[active], rtol=0, atol=1e-9)
+            replayed += int(active.sum())
+        before = after
+    assert replayed > 12  # steps of both sub-environments, over several episodes

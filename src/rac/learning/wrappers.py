@@ -612,9 +612,11 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
 
     ``infos["rac"]`` holds, per sub-environment (vector-info layout, ``infos["_rac"]`` the mask):
     ``location``, ``objective``, ``scale``, ``env_reward``, and dicts ``rewards``,
-    ``reward_steps``, ``clipped`` and ``inputs`` of arrays; ``infos["rac"]["_reward_steps"]`` (and
-    ``["_inputs"]``) masks off the sub-environments in their reset step (no sample taken: as a reset
-    info, they have no ``reward_steps``; ``inputs`` is empty when all are). The ``at end`` clauses
+    ``reward_steps``, ``clipped``, ``inputs`` and ``held`` (the inputs the rates read: each
+    sub-environment's previous step's, its own at an episode's first) of arrays;
+    ``infos["rac"]["_reward_steps"]`` (and ``["_inputs"]``, for both) masks off the sub-environments
+    in their reset step (no sample taken: as a reset info, they have no ``reward_steps``; ``inputs``
+    and ``held`` are empty when all are). The ``at end`` clauses
     apply where a sub-environment terminated or was truncated.
 
     With ``episode ends when COND``: where a step's inputs satisfy COND, that sub-environment is
@@ -647,6 +649,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         #: Per numeric input, how many values were clipped since the wrapper was made.
         self.clipped_total: dict[str, int] = {}
         self._resetting = np.zeros(self.num_envs, dtype=bool)
+        self._last_inputs: dict[str, np.ndarray] = {}  # per input, each row's last step's (the next one's held)
+        self._fresh = np.ones(self.num_envs, dtype=bool)  # rows whose next sample is their episode's first
         #: Sub-environments whose episode the automaton ended while they went on: reset on the next step.
         self._forced = np.zeros(self.num_envs, dtype=bool)
         self._timing = _Timing(self.automaton, dt)
@@ -707,6 +711,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         obs, infos = self.env.reset(seed=seed, options=options)
         self._timing.check(self._first_env())
         self.automaton.reset(rows)
+        self._fresh[rows] = True
         self._resetting[rows] = False
         self._forced[rows] = False
         return obs, self._info(infos, {})
@@ -724,6 +729,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         resetting = self._resetting
         if resetting.any():
             self.automaton.reset(resetting)
+            self._fresh[resetting] = True
         active = ~resetting
         clipped: dict[str, np.ndarray] = {}
         previous = self.automaton.rewards
@@ -758,7 +764,13 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         now = self.automaton.rewards
         steps = {k: np.where(active, v - previous[k], 0.0) for k, v in now.items()}
         read = {name: np.broadcast_to(np.asarray(column), (self.num_envs,)).copy() for name, column in values.items()}
+        # the rates of this sample read each row's previous one's inputs (its own at an episode's first)
+        held = {name: np.where(self._fresh, column, self._last_inputs.get(name, column))
+                for name, column in read.items()}
+        for name, column in read.items():
+            self._last_inputs[name] = np.where(active, column, self._last_inputs.get(name, column))
+        self._fresh &= ~active
         infos = self._info(infos, {"env_reward": np.asarray(env_rewards, dtype=np.float64), "clipped": clipped,
                                    "reward_steps": steps, "_reward_steps": active.copy(),
-                                   "inputs": read, "_inputs": active.copy()})
+                                   "inputs": read, "held": held, "_inputs": active.copy()})
         return obs, rewards / self.scale, terminated, truncated, infos
