@@ -8,7 +8,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 import pytest
-from highway_like import HighwayLike, follow, inputs, vector_inputs
+from highway_like import FOLLOW, HighwayLike, follow, inputs, vector_inputs
 from test_location_observation import Blank, alternate, took
 
 from rac.compiler import compile_text
@@ -206,3 +206,28 @@ def test_the_vector_wrapper_says_which_inputs_its_rates_read() -> None:
             replayed += int(active.sum())
         before = after
     assert replayed > 12  # steps of both sub-environments, over several episodes
+
+
+def test_an_episode_the_automaton_ends_is_replayed_exactly() -> None:
+    # `episode ends when` reads the inputs only, so the step that ends the episode ends it from every
+    # location: the docs called the rows of such an automaton inexact. Replayed at its own location,
+    # every step pays what the wrapper paid, the ending one (its `at end` clauses) included.
+    ending = compile_text(FOLLOW.replace("at end when", "episode ends when headway < 1\n    at end when"),
+                          "ending.ra").raise_for_errors()
+    env = LocationObservation(RewardAutomatonWrapper(HighwayLike(), ending, inputs, clip=True))
+    ended = 0
+    for seed in range(3):
+        before, _ = env.reset(seed=seed)
+        for _ in range(40):
+            after, reward, terminated, truncated, info = env.step(2)
+            rac = info["rac"]
+            prior = {name: np.array([rac["rewards"][name] - rac["reward_steps"][name]]) for name in rac["rewards"]}
+            read, held = ({name: np.array([v]) for name, v in rac[key].items()} for key in ("inputs", "held"))
+            cf = counterfactual_transitions(ending, read, rewards=prior, held=held,
+                                            ended=np.array([terminated or truncated]))
+            assert cf.reward[int(np.argmax(before[-2:]))] == pytest.approx(float(reward))
+            before = after
+            if terminated or truncated:
+                ended += int(env.get_wrapper_attr("automaton").terminated)
+                break
+    assert ended == 3

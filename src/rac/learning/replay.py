@@ -9,8 +9,10 @@ with the observation's location, the reward and the next location the automaton 
 (:mod:`rac.learning.counterfactual`). :class:`rac.learning.sb3.CounterfactualReplayBuffer` stores
 them beside the real ones.
 
-Exact when the observation shows the automaton only through its location and the episode's end does
-not depend on the automaton (no ``episode ends when``), as for :mod:`rac.learning.counterfactual`.
+Exact when the observation shows the automaton only through its location, as for
+:mod:`rac.learning.counterfactual`: the episode's end does not depend on the automaton's location
+(``episode ends when`` reads the inputs only, so it ends the episode from every location alike, its
+``at end`` clauses in the step).
 """
 
 from __future__ import annotations
