@@ -78,7 +78,8 @@ class CounterfactualReplayBuffer(ReplayBuffer):
     algorithm (DQN, SAC, ...) on environments wrapped ``LocationObservation(RewardAutomatonWrapper(env,
     automaton, inputs))`` (the ``"concat"`` layout): pass the same automaton in
     ``replay_buffer_kwargs``. Each step fills ``L`` rows per environment (``L`` locations), so the
-    buffer holds ``buffer_size / L`` steps' worth of real transitions.
+    buffer holds ``buffer_size / L`` steps' worth of real transitions. Only the last ``L`` columns
+    are replaced: under ``VecFrameStack`` the earlier frames would show the real locations.
 
     Example::
 
