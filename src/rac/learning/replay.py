@@ -106,6 +106,9 @@ class CounterfactualRows:
         ``done`` where the episode ended (the ``at end`` clauses apply), ``infos`` the wrappers' step
         infos. Batch ``k`` starts each environment ``k`` locations after the one it was in."""
         obs, next_obs = np.asarray(obs), np.asarray(next_obs)
+        if obs.ndim != 2 or next_obs.shape != obs.shape:  # one environment's (D,) was read as D environments
+            raise ValueError(f"obs and next_obs must be batches (n environments, D columns) of the same shape, not "
+                             f"{obs.shape} and {next_obs.shape}: one environment's observation is obs[None, :]")
         count = len(self.locations)
         n = int(obs.shape[0])
         racs = self._infos(infos, n)
