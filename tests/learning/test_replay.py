@@ -69,6 +69,8 @@ def test_what_is_refused_is_said() -> None:
         rows.step(before[None, :], after[None, :], np.array([done]), [info, info])
     with pytest.raises(ValueError, match=r"batches \(n environments, D columns\).*not \(4,\) and \(4,\)"):
         rows.step(before, after, np.array([done]), [info])  # one environment's, unbatched
+    with pytest.raises(ValueError, match=r"'Safe', which this automaton does not have \(its locations: Want, Wait\)"):
+        CounterfactualRows(alternate()).step(before[None, :], after[None, :], np.array([done]), [info])
     # a gymnasium vector environment's infos (one dict of arrays) and a scenario environment's info
     with pytest.raises(ValueError, match="one info dict per environment.*VecEnv"):
         rows.step(before[None, :], after[None, :], np.array([done]), {"rac": {}, "_rac": np.ones(1, dtype=bool)})

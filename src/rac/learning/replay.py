@@ -113,6 +113,10 @@ class CounterfactualRows:
         n = int(obs.shape[0])
         racs = self._infos(infos, n)
         real = one_hot_index(obs, count)
+        unknown = sorted({str(rac["location"]) for rac in racs} - set(self._index))
+        if unknown:  # the wrappers run another automaton than the one given here
+            raise ValueError(f"info['rac']['location'] is {unknown[0]!r}, which this automaton does not have (its "
+                             f"locations: {', '.join(self.locations)}): pass the automaton the wrappers run")
         after = np.array([self._index[str(rac["location"])] for rac in racs], dtype=np.int64)
         try:
             shown = one_hot_index(next_obs, count)
