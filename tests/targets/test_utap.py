@@ -187,6 +187,28 @@ def test_an_automaton_named_like_one_of_its_names(utap: Utap, kind: str, whole_m
     utap.validate_files(*compile_cli(source, tmp_path / "namesake.xml", capsys))
 
 
+def test_inputs_named_like_the_actions_select_variables(utap: Utap, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """Inputs `j` and `u`: the Action's select variables (the jerk's and the turn's index) were always
+    `j` and `u`, which then shadowed the inputs (UTAP: `j $shadows_a_variable`); they are fresh names
+    now, like every name the target adds, also in the guard `allow when` puts on them."""
+    text = MODEL_RA.read_text(encoding="utf-8")
+    text = text.replace("    input collide : bool", "    input collide : bool\n    input j : bool\n    input u : bool")
+    text = text.replace("edge Unsafe -> Unsafe   when collide ", "edge Unsafe -> Unsafe   when collide && j && u ")
+    text = text.replace("        bind collide = collide()", "        bind collide = collide()\n        bind j = v > 1\n"
+                        "        bind u = acc > 0\n        allow when v < 15")
+    assert text.count("input j") == text.count("bind u") == text.count("&& j && u") == 1
+    source = tmp_path / "indices.ra"
+    source.write_text(text, encoding="utf-8")
+    (tmp_path / "left_turn.xml").write_bytes((MODEL_RA.parent / "left_turn.xml").read_bytes())
+    xml, queries = compile_cli(source, tmp_path / "indices.xml", capsys)
+    emitted = xml.read_text(encoding="utf-8")
+    assert ">j_ : int[0,JERK_COUNT-1], u_ : int[0,TURN_COUNT-1]<" in emitted
+    assert ">ALLOWED[j_ * TURN_COUNT + u_]<" in emitted
+    output = utap.validate_files(xml, queries)
+    assert "shadows" not in output, output
+
+
 def test_time_in_queries_with_a_coarse_period(utap: Utap, tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     """A time unit (here the period, 1.5 s) that is not a whole fraction of a second."""

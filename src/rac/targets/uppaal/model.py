@@ -72,7 +72,8 @@ class _ModelGenerator(AutomatonGenerator):
                           ("obstacle", "Obstacle"), ("start", "Start"), ("deciding", "Deciding"),
                           ("sensing", "Sensing"), ("init", "Init"), ("driving", "Running"), ("moving", "Moving"),
                           ("read_inputs", "read_inputs"), ("keep_sample", "keep_sample"),
-                          ("allowed", "ALLOWED"), ("allow_actions", "allow_actions")):
+                          ("allowed", "ALLOWED"), ("allow_actions", "allow_actions"),
+                          ("jerk_index", "j"), ("turn_index", "u")):  # the Action's select variables
             g[key] = n.fresh(base)
 
     # ------------------------------------------------------------ processes
@@ -236,7 +237,9 @@ class _ModelGenerator(AutomatonGenerator):
         idle = Location(ids(), g["idle"], 0, 0)
         choosing = Location(ids(), g["choosing"], 340, 0, committed=True)
         selects, assigns = [], []
-        for action, var in zip(self.data.actions, ("j", "u")):
+        # fresh select variables: one named like a .ra input would shadow it (UTAP warns)
+        jerk_index, turn_index = g["jerk_index"], g["turn_index"]
+        for action, var in zip(self.data.actions, (jerk_index, turn_index)):
             name = action_name(action.name)
             selects.append(f"{var} : int[0,{name}_COUNT-1]")
             assigns.append(f"{action.name} = {name}_VALUES[{var}]")
@@ -246,7 +249,7 @@ class _ModelGenerator(AutomatonGenerator):
             edge(ids, idle, choosing, sync=f"{ch['decide']}?", nails=[(170, -50)], anchor=(140, -80),
                   assignment=f"{g['allow_actions']}()" if guarded else ""),
             edge(ids, choosing, idle, select=", ".join(selects), assignment=", ".join(assigns), nails=[(170, 60)],
-                  guard=f"{g['allowed']}[j * {turn}_COUNT + u]" if guarded else "",
+                  guard=f"{g['allowed']}[{jerk_index} * {turn}_COUNT + {turn_index}]" if guarded else "",
                   anchor=(20, 80), controllable=True),
         ]
         return Template(g["action"], idle.id, [idle, choosing], transitions, name_x=-40, name_y=-100)
