@@ -863,10 +863,13 @@ def left_turn_source(folder: Path) -> Path:
     return path
 
 
-def tiny_block(folder: Path, name: str, bindings: tuple[str, ...]) -> str:
+def tiny_block(folder: Path, name: str, bindings: tuple[str, ...], choices: tuple[str, ...] = ()) -> str:
+    """The model block of the tiny scenario ``name`` (written into ``folder``) with ``bindings`` and the
+    modelling choices ``choices`` (lines of the block)."""
     tiny = TINY_SCENARIOS[name]()
     tiny.write(folder)
     block = tiny.settings.model_block(f"{tiny.name}.xml", bindings)
+    block = block[:block.rindex("}")] + "".join(f"    {line}\n" for line in choices) + "}\n"
     return "".join(f"    {line}\n" for line in block.splitlines())
 
 
@@ -926,10 +929,11 @@ def edge_case_source(folder: Path) -> Path:
     return driving_source(folder, "edges", dataclasses.replace(SCENE_SETTINGS, max_speed=Fraction(3)))
 
 
-def meter_source(folder: Path, bindings: tuple[str, ...] = METER_BINDINGS) -> Path:
-    """:data:`METER` in the tiny scenario ``goal_ahead``."""
+def meter_source(folder: Path, bindings: tuple[str, ...] = METER_BINDINGS, scene: str = "goal_ahead",
+                 choices: tuple[str, ...] = ()) -> Path:
+    """:data:`METER` in the tiny scenario ``scene`` (default ``goal_ahead``)."""
     path = folder / "meter.ra"
-    path.write_text(METER.format(block=tiny_block(folder, "goal_ahead", bindings)), encoding="utf-8")
+    path.write_text(METER.format(block=tiny_block(folder, scene, bindings, choices)), encoding="utf-8")
     return path
 
 
@@ -1012,3 +1016,21 @@ def test_the_comparison_notices_a_choice_allowed_where_the_run_ends(tmp_path: Pa
     scenario.xml = scenario.xml.replace(condition, "ALLOWED[j * TURN_COUNT + u] = true;")
     with pytest.raises(AssertionError, match="the emitted model allows"):
         Comparison(scenario, tmp_path).run_many(seed=17, runs=60)
+
+
+def test_prev_of_a_sticky_collision_reads_the_previous_sample(tmp_path: Path) -> None:
+    """`collision sticky` and a binding that reads ``prev(collide())``: the emitted read_inputs() ran
+    after keep_collision() had set `crashed` for the current sample and evaluated the previous
+    sample's collide() with it, so at the first colliding sample it read true where the previous
+    sample did not collide (and the engine reads false). It now keeps `crashed` with the previous
+    sample's state."""
+    bindings = ("near = acc > 0", "gain = prev(collide())", "d    = dist_goal()")
+    scenario = build(meter_source(tmp_path, bindings, "avoidable_obstacle", ("collision sticky",)))
+    g = scenario.graph
+    first = np.flatnonzero((g.phase == SAMPLED) & g.labels["collide"] & (scenario.graph.inputs["gain"] == 0))
+    assert first.size  # samples at which the run collides for the first time
+    comparison = Comparison(scenario, tmp_path)
+    rng = np.random.default_rng(19)
+    for node in first[:20]:
+        comparison.run(decisions_to(g, int(node)) + walk(g, int(node), rng))
+    assert comparison.run_many(seed=19, runs=20) >= 20

@@ -132,20 +132,25 @@ class _ModelGenerator(AutomatonGenerator):
         operands = ie.prev_operands([b.expr for b in spec.bindings])
         read = {r.name for e in operands for r in ie.refs(e) if r.is_model}
         kept = [c for c in (*_KEPT, "jerk", "turn") if c in _KEPT or c in read] if operands else []
-        previous = {c: n.fresh(f"prev_{c}") for c in kept}
-        now = {c: n.fresh(f"now_{c}") for c in kept}
+        # collision sticky: collide() reads `crashed`, which keep_collision() has already set for this
+        # sample when read_inputs() runs, so prev(collide()) needs the previous sample's `crashed` too
+        crashed = ["crashed"] if self.data.sticky and any(
+            isinstance(node, ie.Call) and node.name == "collide" for e in operands for node in ie.walk(e)) else []
+        previous = {c: n.fresh(f"prev_{c}") for c in kept + crashed}
+        now = {c: n.fresh(f"now_{c}") for c in kept + crashed}
         values = {operand: n.fresh(f"prev{i}") for i, operand in enumerate(operands)}
         printer.prevs = dict(values)
         numeric = {i.name for i in self.a.numeric_inputs}
         statements, locals_ = [], []
         if operands:
-            locals_ += [f"int32_t {now[c]};" for c in kept]
+            locals_ += [f"int32_t {now[c]};" for c in kept] + [f"bool {now[c]};" for c in crashed]
             locals_ += [f"{'bool' if e.type == ie.BOOL else 'double'} {name};" for e, name in values.items()]
-            statements += [f"{now[c]} = {c};" for c in kept] + [f"{c} = {previous[c]};" for c in kept]
+            statements += [f"{now[c]} = {c};" for c in kept + crashed]
+            statements += [f"{c} = {previous[c]};" for c in kept + crashed]
             statements.append(f"{g['count']} = {g['count']} - 1;")
             statements += [self._bound(f"{name} = {{}};", e, printer, "prev(...) in a binding") for e, name in
                            values.items()]
-            statements += [f"{c} = {now[c]};" for c in kept] + [f"{g['count']} = {g['count']} + 1;"]
+            statements += [f"{c} = {now[c]};" for c in kept + crashed] + [f"{g['count']} = {g['count']} + 1;"]
         for binding in spec.bindings:
             target = self.n[binding.input]
             template = f"{target} = d2i({{}});" if binding.input in numeric else f"{target} = {{}};"
@@ -158,9 +163,11 @@ class _ModelGenerator(AutomatonGenerator):
         if operands:
             lines += ["// prev(e) is e on the previous sample's state, which "
                       f"{g['keep_sample']}() keeps in integers (the symbolic engine reads no double)",
-                      f"int32_t {', '.join(previous.values())};",
+                      f"int32_t {', '.join(previous[c] for c in kept)};",
+                      *(f"bool {previous[c]};" for c in crashed),
                       "",
-                      f"void {g['keep_sample']}() {{", *(f"    {previous[c]} = {c};" for c in kept), "}", ""]
+                      f"void {g['keep_sample']}() {{", *(f"    {previous[c]} = {c};" for c in kept + crashed), "}",
+                      ""]
         lines += [f"void {g['read_inputs']}() {{", *(f"    {line}" for line in locals_ + statements), "}"]
         return "\n".join(lines)
 
