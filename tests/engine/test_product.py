@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tiny_scenarios import avoidable_obstacle
 
 from rac import ir
 from rac.check.analysis.priority import check_priorities
@@ -417,6 +418,45 @@ def test_one_edge_per_sample() -> None:
     runtime = RewardAutomaton(automaton)
     runtime.step({"isClose": True, "prog": True, "comf": False, "collide": True, "dgoal": 0.0})
     assert runtime.location == "Unsafe" and runtime.rewards["sa"] == pytest.approx(-100 + 0.1)
+
+
+def test_two_edges_enabled_where_the_bindings_break_assume_are_refused() -> None:
+    """stdlib/driving.ra's `assume collide imply isClose` makes it deterministic; the bindings may
+    break it (under `collision sticky` collide() stays true once the obstacle is far). In Unsafe with
+    collide and !isClose both `Unsafe -> Unsafe when collide` and a `*` edge are enabled: the emitted
+    model takes either, the product took the first alone and answered, e.g., `E<> Unsafe && !isClose
+    && collide` false where UPPAAL finds it. It now refuses with the edges and the inputs."""
+    automaton = compile_file(REPO / "stdlib" / "driving.ra").raise_for_errors()
+    unsafe = automaton.location_names.index("Unsafe")
+    inputs = np.array([[1, 1, 1, 1, 0], [0, 1, 1, 1, 250]], dtype=np.int64)  # isClose prog comf collide dgoal
+    arithmetic = _Arithmetic(automaton, 10_000)
+    loc, _ = arithmetic.edges(np.array([unsafe]), inputs[:1], np.zeros((1, 3), dtype=np.int64))  # assume holds
+    assert automaton.location_names[int(loc[0])] == "Unsafe"
+    with pytest.raises(EvaluationError, match=r"the edges `Unsafe -> Normal` and `Unsafe -> Unsafe` are both "
+                                              r"enabled .* \(isClose = false, prog = true, comf = true, collide = "
+                                              r"true, dgoal = 0.025\) that `assume` excludes"):
+        arithmetic.edges(np.array([unsafe, unsafe]), inputs, np.zeros((2, 3), dtype=np.int64))
+
+
+def test_a_sticky_collision_that_breaks_assume_is_not_answered(tmp_path: Path) -> None:
+    """The same in a whole run: the driving automaton in the tiny scenario avoidable_obstacle under
+    `collision sticky`, where a run collides with the van and leaves it behind still colliding."""
+    tiny = avoidable_obstacle()
+    tiny.write(tmp_path)
+    text = (REPO / "stdlib" / "driving.ra").read_text(encoding="utf-8")
+    text = text[:text.index("    query ")].replace("sample every 0.1", "sample every 0.5")
+    text = text.replace("horizon 30", "horizon 4")
+    block = tiny.settings.model_block(f"{tiny.name}.xml", (
+        "isClose = mindist() < 3 * collision_distance", "prog = dist_goal() < prev(dist_goal())",
+        "comf = fabs(acc) < comfort_acceleration * max_acceleration", "collide = collide()", "dgoal = dist_goal()"))
+    text += block[:block.rindex("}")] + "collision sticky\n}\n}\n"
+    path = tmp_path / "sticky.ra"
+    path.write_text(text, encoding="utf-8")
+    result = compile_file(path)
+    automaton = result.raise_for_errors()
+    assert result.model_data is not None and result.model_data.sticky
+    with pytest.raises(EvaluationError, match="`Unsafe -> .*` are both enabled"):
+        explore_product(result.model_data, automaton)
 
 
 def test_query_comparisons_are_exact_on_the_integers(driving) -> None:

@@ -14,6 +14,7 @@ import pytest
 from tiny_scenarios import TINY_SCENARIOS
 
 from rac.compiler import compile_file
+from rac.engine.evaluate import EvaluationError
 from rac.engine.product import decide_in_model
 from rac.ir import expr as ie
 from rac.ir import query as iq
@@ -96,10 +97,20 @@ def test_a_binding_that_breaks_the_assume_is_not_proved(tmp_path: Path) -> None:
     carried = transfer(ctx, query.expr)
     # not proved from the definitions, and the model has collisions that are not close
     assert not carried.holds and "fails in" in carried.why_not, carried
+    assert_nondeterministic_where_assume_breaks(path)
+
+
+def assert_nondeterministic_where_assume_breaks(path: Path) -> None:
+    """In Unsafe with collide and !close (what `assume` excludes) both `Unsafe -> Unsafe when collide` and
+    `* -> Normal when !close` are enabled: the emitted model takes either, the product does not follow
+    both, so the queries whose exploration meets such a state are not answered (rac once answered on
+    the first edge alone); Qx's counterexample, a run that meets none, still stands."""
     found = verdicts(path)
-    assert found["Qe"][1] == "exhaustive" and found["Qx"][1] == "product search", found
-    for name, (status, _) in found.items():
-        assert status == brute_force(path, name), (name, found[name])
+    assert found["Qx"] == ("not satisfied", "product search"), found
+    assert {name: status for name, (status, _) in found.items() if name != "Qx"} == dict.fromkeys(
+        ("Qe", "Qh", "Qn"), "unsupported"), found
+    with pytest.raises(EvaluationError, match="`Unsafe -> Normal` and `Unsafe -> Unsafe` are both enabled"):
+        brute_force(path, "Qe")
 
 
 def test_sticky_collisions_are_not_proved_from_the_definitions(tmp_path: Path) -> None:
@@ -110,9 +121,7 @@ def test_sticky_collisions_are_not_proved_from_the_definitions(tmp_path: Path) -
     carried = transfer(ctx, query.expr)
     # a sticky collision holds after the ego moved away, and here it does: the model refutes `assume`
     assert not carried.holds and "fails in" in carried.why_not, carried
-    found = verdicts(path)
-    for name, (status, _) in found.items():
-        assert status == brute_force(path, name), (name, found[name])
+    assert_nondeterministic_where_assume_breaks(path)
 
 
 def test_a_numeric_input_the_automaton_can_tell_beyond_its_range_is_checked(tmp_path: Path) -> None:

@@ -202,24 +202,46 @@ class _Arithmetic:
                 value, f"the mirror of `{assignment.reward}`", self.scale)
 
     def edges(self, loc: np.ndarray, inputs: np.ndarray, mirrors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Location and mirrors after ``sense!``: the first enabled edge of each state's location
-        (checked automata are deterministic, so it is the only one), or none."""
+        """Location and mirrors after ``sense!``: the enabled edge of each state's location, or none.
+
+        Checked automata are deterministic under ``assume``, but the bindings may give inputs that
+        ``assume`` excludes (it is not enforced, as in the emitted model). Where two edges are then
+        enabled at once, the emitted model takes either and the product cannot follow it: an
+        :class:`EvaluationError` says so, rather than an answer on the first edge alone."""
         before, loc, mirrors = loc, loc.copy(), mirrors.copy()
         for source, group in enumerate(self.a.edges):
             # by the location before the sample: a state that enters `source` now takes no second edge
-            pending = np.flatnonzero(before == source)
-            for edge in group:
-                if pending.size == 0:
-                    break
-                enabled = self.guard(edge.guard, inputs[pending])
-                taken = pending[enabled]
+            rows = np.flatnonzero(before == source)
+            if rows.size == 0:
+                continue
+            taken_by = np.full(rows.size, -1)
+            for e, edge in enumerate(group):
+                enabled = self.guard(edge.guard, inputs[rows])
+                both = enabled & (taken_by >= 0)
+                if both.any():
+                    first = int(np.flatnonzero(both)[0])
+                    raise EvaluationError(self._nondeterministic(group[taken_by[first]], edge, inputs[rows[first]]),
+                                          edge.span)
+                taken_by[enabled] = e
+            for e, edge in enumerate(group):
+                taken = rows[taken_by == e]
                 if taken.size:
                     block = mirrors[taken]
                     self.update(edge.updates, inputs[taken], block)
                     mirrors[taken] = block
                     loc[taken] = edge.target
-                pending = pending[~enabled]
         return loc, mirrors
+
+    def _nondeterministic(self, first: ir.Edge, second: ir.Edge, inputs: np.ndarray) -> str:
+        """Why the product stops where two edges are enabled at once, on one state's ``inputs``."""
+        names = self.a.location_names
+        values = ", ".join(f"{item.name} = {'true' if inputs[i] else 'false'}" if item.is_bool
+                           else f"{item.name} = {int(inputs[i]) / self.scale}"
+                           for i, item in enumerate(self.a.inputs))
+        return (f"the edges `{names[first.source]} -> {names[first.target]}` and `{names[second.source]} -> "
+                f"{names[second.target]}` are both enabled in a state the model reaches, on inputs the bindings "
+                f"give ({values}) that `assume` excludes (rac check proves determinism under `assume` only): the "
+                "emitted UPPAAL model may take either edge there, and rac's engine does not follow both")
 
     def end(self, inputs: np.ndarray, mirrors: np.ndarray) -> np.ndarray:
         """The mirrors after ``finish!``: every ``at end`` clause whose guard holds, in order."""
