@@ -115,3 +115,33 @@ def test_a_non_ascii_letter_in_a_name_gets_the_hint() -> None:
     diagnostic, _ = diagnose("automaton Straße { }")
     assert (diagnostic.code, diagnostic.message) == ("E0002", "unexpected character `ß`")
     assert "names are ASCII identifiers: letters A-Z and a-z, digits and `_`" in diagnostic.hints
+
+
+@pytest.mark.parametrize(("query", "hint"), [
+    ("sup: sa", "rac has no `sup`, `inf` or `bounds` queries"),
+    ("inf{Unsafe}: sa, pr", "rac has no `sup`, `inf` or `bounds` queries"),
+    ("bounds: sa", "rac has no `sup`, `inf` or `bounds` queries"),
+    ('saveStrategy("s.json", S)', "rac has no `saveStrategy` or `loadStrategy` queries"),
+    ('strategy S = loadStrategy{p}->{d}("s.json")', "rac has no `saveStrategy` or `loadStrategy` queries"),
+    ("strategy S = maxPr[<=3]{p}->{d}: <> p", "rac learns `minE` and `maxE` strategies only"),
+    ("strategy S = control: A<> p", "a reachability objective is written `control: E<> p`"),
+    ("E<> control: A[] p", "`control:` defines a strategy"),
+    ("strategy S = {p} control: A[] p", "rac has no partially observed"),
+    ("strategy S = control_t*(2, 1): A[] p", "rac has no time-optimal"),
+    ("Pr[<=3](<> p) >= Pr[<=3](<> q)", "rac compares a probability with a constant only"),
+    ("simulate 3 [<=3]{sa}", "a simulation is written `simulate[<=T; N]{e1, e2}`"),
+    ("simulate[<=3; 3]{sa} : 2 : p", "rac keeps every simulated run"),
+])
+def test_an_uppaal_query_form_rac_lacks_gets_a_hint(query: str, hint: str) -> None:
+    """UPPAAL accepts these queries; rac has no syntax for them, and the syntax error says what to write."""
+    diagnostic, _ = diagnose(f"automaton A {{ query Q: {query}\n}}")
+    assert diagnostic.code == "E0001"
+    assert [h for h in diagnostic.hints if h.startswith(hint)], diagnostic.hints
+
+
+@pytest.mark.parametrize("text", ["automaton A { query Q: E<> sup < 3 < 4\n}",
+                                  "automaton A { query Q: A[] control < 1 < 2\n}",
+                                  "automaton A { input sup : bool edge * -> L when sup : }"])
+def test_a_name_that_is_an_uppaal_word_gets_no_query_hint(text: str) -> None:
+    diagnostic, _ = diagnose(text)
+    assert not [h for h in diagnostic.hints if h.startswith("rac has no") or "control:" in h], diagnostic.hints

@@ -100,6 +100,53 @@ def _chained_comparison(found_type: str, expected: set[str], before: str) -> boo
     return _COMPARISON.search(before[start.end() if start else 0:]) is not None
 
 
+#: The query a syntax error interrupts: the text after its ``query NAME:``, up to the unexpected token.
+_QUERY_SO_FAR = re.compile(r"\bquery\s+[A-Za-z_][A-Za-z0-9_]*\s*:(?P<text>[^\n]*)$")
+_NO_SAVE_LOAD = ("rac has no `saveStrategy` or `loadStrategy` queries: `rac verify` saves every strategy it "
+                 "computes in its output folder (`S.shield.npz`, `S.strategy.npz`)")
+#: UPPAAL query forms rac has no syntax for: (the text of the query before the unexpected token, the
+#: token; regular expressions matched in full) and what to write instead.
+_UPPAAL_ONLY_QUERIES = (
+    (r"\s*(?:sup|inf|bounds)\s*(?:\{.*\})?\s*", r"[:{]",
+     "rac has no `sup`, `inf` or `bounds` queries: check a bound with `A[] e <= c`, or estimate the "
+     "expected extreme with `E[<=T; N](max: e)`"),
+    (r"\s*(?:strategy\s+[A-Za-z_][A-Za-z0-9_]*\s*=\s*)?", r"saveStrategy|loadStrategy",
+     _NO_SAVE_LOAD),
+    (r"\s*saveStrategy\s*\(.*", r".*",
+     _NO_SAVE_LOAD),
+    (r"\s*strategy\s+[A-Za-z_][A-Za-z0-9_]*\s*=\s*", r"minPr|maxPr",
+     "rac learns `minE` and `maxE` strategies only"),
+    (r"\s*strategy\s+[A-Za-z_][A-Za-z0-9_]*\s*=\s*", r"control_t",
+     "rac has no time-optimal `control_t*` strategies: write `control: A[] p` or `control: E<> p`"),
+    (r"\s*(?:strategy\s+[A-Za-z_][A-Za-z0-9_]*\s*=\s*)?", r"\{",
+     "rac has no partially observed `{obs} control:` strategies: write `strategy S = control: A[] p`"),
+    (r".*\bcontrol\s*:\s*", r"A",
+     "a reachability objective is written `control: E<> p` (the UPPAAL target prints it as UPPAAL 5's "
+     "`control: A<> p`)"),
+    (r"(?!\s*strategy\b).*\bcontrol\s*", r":",
+     "`control:` defines a strategy: `strategy S = control: A[] p` (rac has no collaborative "
+     "`E<> control:` queries)"),
+    (r"\s*Pr\s*\[.*\)\s*(?:<=|>=)\s*Pr\s*", r"\[",
+     "rac compares a probability with a constant only: ask for each probability in a query of its own"),
+    (r"\s*simulate\s*", r"[0-9].*",
+     "a simulation is written `simulate[<=T; N]{e1, e2}` (UPPAAL 5 rejects the old form `simulate N [<=T]`)"),
+    (r"\s*simulate\s*\[.*\}\s*", r":",
+     "rac keeps every simulated run: it has no `: K : condition` filter; simulate `N` runs and select them "
+     "from the CSV file"),
+)
+
+
+def _uppaal_query_hint(found: str, before: str) -> str | None:
+    """The hint for a query form UPPAAL accepts and rac does not, when ``before`` ends inside one."""
+    query = _QUERY_SO_FAR.search(before)
+    if query is None:
+        return None
+    for text, token, hint in _UPPAAL_ONLY_QUERIES:
+        if re.fullmatch(text, query["text"]) and re.fullmatch(token, found):
+            return hint
+    return None
+
+
 def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: str = "") -> list[str]:
     """Hints for the usual slips; ``before`` is the text before the unexpected token, ``found_type`` its terminal."""
     hints = []
@@ -124,6 +171,9 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
         hints.append("`;` only separates flows inside a location; declarations need no terminator")
     if _chained_comparison(found_type, expected, before):
         hints.append("comparisons do not chain: `0 < d < 5` is written `0 < d && d < 5`")
+    uppaal = _uppaal_query_hint(found, before)
+    if uppaal is not None:
+        hints.append(uppaal)
     if found == "<" and not before.strip():  # `rac simulate scenario.xml`: the scenario given for the automaton
         hints.append("this looks like an XML file (a CommonRoad scenario?): rac reads a `.ra` file, whose `model` "
                      "block names the scenario with `scenario \"FILE.xml\"`")
