@@ -417,6 +417,21 @@ def test_query_not_expressible() -> None:
     assert "return count * 1.0 * (iUp / 10000.0) < 4.0;" in parsed.declaration
 
 
+def test_a_time_bound_too_fine_for_int32_is_refused() -> None:
+    """`Pr[<=0.123456789]` made the time unit 1e-9 s and the period 1e9 units (with a horizon of 5 s,
+    5e9 units), past int32 where UPPAAL's lexer says $Overflow. Now the query gets E0802 and the unit
+    stays the one the other durations need."""
+    queries = "    query Q1: Pr[<=0.5](<> up > 1)\n    query Q2: Pr[<=0.123456789](<> up > 1)\n"
+    found = codes(automaton_of(NO_INPUTS[:-2] + queries + "    query Q3: Pr[<=2e9](<> up > 1)\n}\n"))
+    assert [c for c, _ in found] == ["E0802", "E0802"], found
+    assert "the time bound 0.123456789 s needs a time unit so fine" in found[0][1]
+    assert "the time bound 2000000000 s is 4000000000 time units of 0.5 s, beyond the 32-bit" in found[1][1]
+    # the unit divides the bounds that fit: 0.5 s, so the period is 2 units
+    parsed = Parsed(emitted(automaton_of(NO_INPUTS[:-2] + "    query Q1: Pr[<=0.5](<> up > 1)\n}\n")).xml)
+    assert dict(parsed.queries)["Q1"] == "Pr[<=1](<> up > 1.0)"
+    assert "const int PERIOD = 2;" in parsed.declaration
+
+
 def test_model_functions_need_the_full_model() -> None:
     automaton = dataclasses.replace(driving(), model=_model_spec(10, 4))
     collide = iq.QueryDecl("Qc", iq.PathQuery("E<>", ie.call("collide")), "E<> collide()")

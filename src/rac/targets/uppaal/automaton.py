@@ -144,15 +144,18 @@ class AutomatonGenerator:
 
     # ------------------------------------------------------------ time
     def _time_unit(self) -> Fraction:
-        durations = [Fraction(self.a.period), Fraction(self.a.horizon)]
+        """The model's time unit: the largest duration dividing the period, the horizon and the queries'
+        time bounds, except a bound that would make the unit so fine that a duration in units leaves
+        int32 (``Pr[<=0.123456789]`` with a horizon of 3 s): that query gets E0802 (:meth:`UppaalPrinter.formula`)."""
+        unit = _divisor(Fraction(self.a.period), Fraction(self.a.horizon))
+        longest = max(Fraction(self.a.period), Fraction(self.a.horizon))
         for decl in self.queries():
             bound = time_bound(decl.query)
-            if bound is not None and bound > 0:
-                durations.append(bound)
-        unit = durations[0]
-        for d in durations[1:]:
-            unit = Fraction(math.gcd(unit.numerator * d.denominator, d.numerator * unit.denominator),
-                            unit.denominator * d.denominator)
+            if bound is None or bound <= 0:
+                continue
+            finer = _divisor(unit, bound)
+            if max(longest, bound) / finer <= INT32_MAX:
+                unit, longest = finer, max(longest, bound)
         return unit
 
     # ------------------------------------------------------------ vocabulary and queries
@@ -298,6 +301,10 @@ def _query_hints(message: str) -> list[str]:
     if "scenario model" in message:
         return ["`--target uppaal` emits the automaton alone, without its scenario model: leave the query out, "
                 "or bind the condition to an input of the automaton"]
+    if "time unit so fine" in message:
+        return ["write a bound with fewer decimals, such as a multiple of the sample period"]
+    if "time units of" in message:
+        return ["bound the query by the horizon"]
     if "symbolic" in message or "time" in message:
         return ["symbolic queries (A[], E<>, E[], A<>, -->, control:) read integer mirrors and significands; "
                 "use Pr, E[..](max: ..) or simulate for other expressions"]
@@ -324,3 +331,7 @@ def generate_uppaal(automaton: ir.Automaton, *, source_name: str = "", model_nam
     """
     return AutomatonGenerator(automaton, source_name, model_name).run()
 
+
+def _divisor(a: Fraction, b: Fraction) -> Fraction:
+    """The largest duration of which both ``a`` and ``b`` are whole multiples."""
+    return Fraction(math.gcd(a.numerator * b.denominator, b.numerator * a.denominator), a.denominator * b.denominator)

@@ -33,6 +33,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 
+from rac.core.diagnostics import short_number
 from rac.core.numbers import INT32_MAX
 from rac.core.printing import Level, Printed, number, signed_sum
 from rac.ir import compare
@@ -172,9 +173,15 @@ class UppaalPrinter(UppaalSyntax):
     def _bound(self, bound: iq.Bound, runs: int | None) -> str:
         if bound.kind == "time":
             units = bound.limit / self.v.unit
+            # the model's time unit divides every bound it can (automaton.py), all but one whose unit would
+            # put a duration of the model beyond int32 (UPPAAL's lexer: `$Overflow`)
             if units.denominator != 1:
-                raise QueryError(f"the time bound {_short(bound.limit)} s is not a whole number of time units "
-                                 f"({_short(self.v.unit)} s)")
+                raise QueryError(f"the time bound {short_number(bound.limit, 12)} s needs a time unit so fine that "
+                                 f"the model's durations in it leave the 32-bit integer range (the model's unit is "
+                                 f"{_short(self.v.unit)} s)")
+            if units > INT32_MAX:
+                raise QueryError(f"the time bound {short_number(bound.limit, 12)} s is {short_number(units)} time "
+                                 f"units of {_short(self.v.unit)} s, beyond the 32-bit integer range")
             text = "<=" + (self.v.model.maxt if self.v.model is not None and bound.limit == self.v.horizon
                            else int_literal(units))
         else:
