@@ -109,3 +109,30 @@ def test_a_run_budget_that_runs_out_is_said(compiled: CompileResult, monkeypatch
     assert wide.status == "value" and wide.runs == 20
     assert (wide.message or "").startswith("the run budget (20 runs) ran out before the interval was ±0.05 wide")
     assert wide.message in render_text([wide])
+
+
+def test_a_threshold_at_0_or_1_is_answered(tmp_path: Path) -> None:
+    """`Pr[..](..) >= 0` (or `>= 1`, `<= 0`, `<= 1`) crashed `rac verify` with an internal error: the
+    sequential test's indifference region [θ - 0.01, θ + 0.01] left [0, 1]. Every probability is
+    within [0, 1], so `>= 0` and `<= 1` hold without a run; at 1 (and 0) the region is moved inward."""
+    queries = {"AtLeast0": "Pr[<=1](<> v < 0) >= 0", "AtMost1": "Pr[<=1](<> v >= 0) <= 1",
+               "Above1": "Pr[<=1](<> v >= 0) > 1", "Below0": "Pr[<=1](<> v < 0) < 0",
+               "AtLeast1": "Pr[<=1](<> v >= 0) >= 1", "Never1": "Pr[<=1](<> v < 0) >= 1",
+               "AtMost0": "Pr[<=1](<> v < 0) <= 0", "Sometimes0": "Pr[<=1](<> v >= 0) <= 0",
+               "Near0": "Pr[<=1](<> v >= 0) >= 0.005"}
+    results = {r.name: r for r in verify(compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries)),
+                                         VerifyOptions(seed=1, plots=False))}
+    status = {name: r.status for name, r in results.items()}
+    assert status == {"AtLeast0": "satisfied", "AtMost1": "satisfied", "Above1": "not satisfied",
+                      "Below0": "not satisfied", "AtLeast1": "satisfied", "Never1": "not satisfied",
+                      "AtMost0": "satisfied", "Sometimes0": "not satisfied", "Near0": "satisfied"}, results
+    assert results["AtLeast0"].runs is None and "needs no run" in (results["AtLeast0"].message or "")
+
+
+def test_a_probability_equal_to_a_threshold_is_not_answered(tmp_path: Path) -> None:
+    """`Pr[..](..) == 0.5` was answered as `<= 0.5` (and `!=` too): a sequential test cannot decide it."""
+    queries = {"Equal": "Pr[<=1](<> v < 0) == 0.5", "Unequal": "Pr[<=1](<> v < 0) != 0.5"}
+    results = verify(compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries)),
+                     VerifyOptions(seed=1, plots=False))
+    assert [r.status for r in results] == ["unsupported", "unsupported"], results
+    assert "cannot decide `==`" in (results[0].message or ""), results[0].message

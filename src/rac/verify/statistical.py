@@ -7,10 +7,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable
+from fractions import Fraction
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rac.core.diagnostics import short_number
 from rac.engine import storm
 from rac.engine.budget import format_bytes, runs_within, simulation_bytes
 from rac.engine.evaluate import EvaluationError
@@ -23,12 +25,17 @@ from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.verify.context import Context, UnknownVerdict
 from rac.verify.report import QueryResult, count_noun, plot_series, write_csv
+from rac.verify.status import NOT_SATISFIED, SATISFIED
 
 if TYPE_CHECKING:
     from rac.engine.simulate import Runs
 
 __all__ = ["StatisticalAnswerer"]
 
+
+#: ``Pr[..](..) op θ`` that holds (or fails) for every probability: decided without a run.
+_TRIVIAL: dict[tuple[str, Fraction], bool] = {(">=", Fraction(0)): True, ("<=", Fraction(1)): True,
+                                              (">", Fraction(1)): False, ("<", Fraction(0)): False}
 
 class StatisticalAnswerer:
     """Answers probability, expectation and ``simulate`` queries; each draws its own seed from the
@@ -63,7 +70,19 @@ class StatisticalAnswerer:
             if query.runs is not None:
                 raise EvaluationError("a probability compared with a threshold is tested sequentially, which "
                                       "chooses the number of runs (as UPPAAL does): drop `;N` from the bound")
-            test = stats.sequential_test(sample, theta, alpha=ctx.options.alpha, beta=ctx.options.beta,
+            if op not in (">=", "<=", ">", "<"):
+                raise EvaluationError(f"a sequential test tells a probability above a threshold from one below it, "
+                                      f"so it cannot decide `{op}`: ask for the probability itself (drop "
+                                      f"`{op} {short_number(threshold)}`)")
+            if (op, threshold) in _TRIVIAL:  # `Pr[..](..) >= 0` holds of every probability: no run decides it
+                return dataclasses.replace(base, status=SATISFIED if _TRIVIAL[op, threshold] else NOT_SATISFIED,
+                                           method="probability bounds", horizon_samples=samples,
+                                           message=f"every probability lies in [0, 1], so `{op} "
+                                                   f"{short_number(threshold)}` needs no run")
+            # the indifference region [theta - delta, theta + delta] must lie within [0, 1]: at a threshold
+            # nearer to 0 or 1 than delta it is moved inward, still holding the threshold
+            centre = min(max(theta, ctx.options.delta), 1.0 - ctx.options.delta)
+            test = stats.sequential_test(sample, centre, alpha=ctx.options.alpha, beta=ctx.options.beta,
                                          delta=ctx.options.delta, batch=min(stats.DEFAULT_BATCH, chunk))
             accepted = test.accepted if op in (">=", ">") else not test.accepted
             status, message = ("satisfied" if accepted else "not satisfied"), None

@@ -33,6 +33,8 @@ METHODS: dict[str, str] = {
     # the runtime shield searching the whole horizon from the start; the shield then computed state by state
     "on demand": "decided by a search of the whole horizon from the start (the model is too large to explore)",
     "simulation": "estimated by simulation",
+    # `Pr[..](..) >= 0` (or `<= 1`, `> 1`, `< 0`): true or false of every probability
+    "probability bounds": "decided by the bounds of every probability, 0 and 1",
     "learning": "learned",
     # the best strategy under the shield, by a backward pass over its decision graph (rac verify --exact)
     "exact optimum": "computed exactly by a backward pass over the shielded decision graph",
