@@ -405,6 +405,19 @@ def test_huge_numbers_print_short(old, new, code, shown, tmp_path, capsys, monke
     assert shown in message and len(message) < 200, message
 
 
+
+@pytest.mark.parametrize(("query", "shown"), [
+    # the threshold printed rounded, `(found 1…)`, which reads as allowed
+    ("Pr[<=30](<> Unsafe) >= 1.0000001", "the probability threshold must be at most 1 (found 1.0000001)"),
+    # `must be a whole number (found -1)`: -1 is one; the bound must not be negative
+    ("Pr[#<=-1](<> Unsafe)", "the step bound must be a whole number >= 0 (found -1)"),
+])
+def test_a_query_bound_says_what_it_must_be(query, shown, tmp_path, capsys, monkeypatch):
+    text = DRIVING.read_text()
+    text = text[:text.rindex("}\n")] + f"    query Q: {query}\n}}\n"
+    status, output = check_bytes(text.encode(), tmp_path, capsys, monkeypatch)
+    assert status == 1 and f"error[E0603]: {shown}" in output, output
+
 MINIMAL = """automaton Minimal {
     input near : bool
     input d    : real in [0, 50]

@@ -330,9 +330,9 @@ class Lowering:
             return None
         number = form.const
         if (whole and number.denominator != 1) or (positive and number <= 0) or number < 0:
-            need = "a positive whole number" if whole and positive else "a whole number" if whole else (
+            need = "a positive whole number" if whole and positive else "a whole number >= 0" if whole else (
                 "a positive number" if positive else "a number >= 0")
-            self.s.error("E0603", f"{what} must be {need} (found {short_number(number)})", node.span)
+            self.s.error("E0603", f"{what} must be {need} (found {short_number(number, 12)})", node.span)
             return None
         if whole and number > INT32_MAX:  # UPPAAL's queries hold a step bound and a run count as int32
             self.s.error("E0603", f"{what} must be at most {INT32_MAX} (found {short_number(number)})", node.span,
@@ -367,8 +367,8 @@ class Lowering:
             if query.compare is not None:
                 theta = self._constant(query.compare[1], p["compare"], "the probability threshold")
                 if theta is not None and theta > 1:
-                    self.s.error("E0603", f"the probability threshold must be at most 1 (found {short_number(theta)})",
-                                 query.compare[1].span)
+                    self.s.error("E0603", "the probability threshold must be at most 1 "
+                                 f"(found {short_number(theta, 12)})", query.compare[1].span)
                 compare = None if theta is None else (query.compare[0], theta)
             if bound is not None:
                 result = iq.ProbabilityQuery(bound, runs, query.path, p["expr"], compare, query.under)
