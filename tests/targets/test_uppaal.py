@@ -432,6 +432,23 @@ def test_a_time_bound_too_fine_for_int32_is_refused() -> None:
     assert "const int PERIOD = 2;" in parsed.declaration
 
 
+@pytest.mark.parametrize("query", ["E[] !deadlock", "A<> deadlock", "deadlock --> Only", "Pr[<=2]([] !deadlock)",
+                                   "simulate[<=2; 2]{deadlock}", "strategy S = control: A[] !deadlock",
+                                   "strategy S = maxE(up)[<=2]{deadlock}->{}: <> time >= 2"])
+def test_deadlock_outside_a_box_or_a_diamond_is_refused(query: str) -> None:
+    """UTAP accepts `deadlock` in `A[] p` and `E<> p` only (`$Cannot_handle_this_deadlock_predicate`
+    elsewhere); rac emitted such queries, which UPPAAL rejected. Now they get E0802."""
+    (code, message), = codes(automaton_of(NO_INPUTS[:-2] + f"    query Q: {query}\n}}\n"))
+    assert (code, message) == ("E0802", "query `Q` cannot be written over the UPPAAL model: UPPAAL reads "
+                                        "`deadlock` only in `A[] p` and `E<> p` queries")
+
+
+def test_deadlock_in_a_box_or_a_diamond_is_emitted() -> None:
+    text = NO_INPUTS[:-2] + "    query Q1: A[] !deadlock\n    query Q2: E<> deadlock || up > 1\n}\n"
+    queries = dict(Parsed(emitted(automaton_of(text)).xml).queries)
+    assert queries == {"Q1": "A[] !deadlock", "Q2": "E<> deadlock || iUp > 10000"}, queries
+
+
 def test_model_functions_need_the_full_model() -> None:
     automaton = dataclasses.replace(driving(), model=_model_spec(10, 4))
     collide = iq.QueryDecl("Qc", iq.PathQuery("E<>", ie.call("collide")), "E<> collide()")

@@ -124,6 +124,10 @@ class UppaalPrinter(UppaalSyntax):
     # ------------------------------------------------------------ whole queries
     def formula(self, query: iq.Query) -> str:
         """The query as one line of UPPAAL property syntax (:class:`QueryError` when it cannot be written)."""
+        if not (isinstance(query, iq.PathQuery) and query.quantifier in ("A[]", "E<>")) and any(
+                r.kind is ie.RefKind.DEADLOCK for e in iq.query_exprs(query) for r in ie.refs(e)):
+            # UTAP's PropertyBuilder: `$Cannot_handle_this_deadlock_predicate` in any other query
+            raise QueryError("UPPAAL reads `deadlock` only in `A[] p` and `E<> p` queries")
         if isinstance(query, iq.PathQuery):
             text = f"{query.quantifier} {self.state(query.expr, SYMBOLIC, query.quantifier in ('A[]', 'E[]')).text}"
         elif isinstance(query, iq.LeadsToQuery):
