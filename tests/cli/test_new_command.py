@@ -135,3 +135,17 @@ def test_a_from_file_that_does_not_parse_is_its_syntax_error_and_writes_nothing(
     assert list(tmp_path.iterdir()) == [tmp_path / "bad.ra"]  # no temporary file left either
     main(["check", "bad.ra"])
     assert f"error[{code}]" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", ["notes/fresh", "notes/deeper/fresh"])
+def test_a_file_where_the_folder_goes_is_named_as_such(name: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac new notes/fresh` with `notes` a file said "cannot write `notes/fresh.ra`: File exists" (a file
+    that does not exist) and sent the user to an engine command's -o: now the path's part that is a file."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "notes").write_text("mine\n", encoding="utf-8")
+    assert main(["new", name]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert f"error[E0009]: cannot write `{name}.ra`: Not a directory" in err
+    assert "a part of the path is a file, not a folder" in err and "File exists" not in err and "-o" not in err
+    assert (tmp_path / "notes").read_text(encoding="utf-8") == "mine\n"

@@ -11,6 +11,7 @@ written), a folder, a FIFO or a device E0008 (exit 2).
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import re
 import shlex
@@ -144,7 +145,10 @@ def new_command(args: argparse.Namespace) -> int:
     renamed_text = renamed(text, automaton) if automaton else text
     written = repointed(renamed_text, source, target)
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:  # a file where NAME's folder goes: not "File exists" of a file that does not
+            raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(target.parent)) from None
         write_atomically(target, written)
     except OSError as exc:
         print(render_text([unwritable(target, exc)], {}), file=sys.stderr)
