@@ -16,6 +16,7 @@ import pytest
 from engine_files import QUERIES, write_engine_file
 from PIL import Image
 
+from rac.cli.common import EXIT_ERRORS, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE
 from rac.cli.main import main
 from rac.engine import shield
 
@@ -681,3 +682,14 @@ def test_json_documents_hold_the_files_warnings(argv: list[str], capsys: pytest.
     assert [w["code"] for w in document["warnings"]] == ["W0716"]
     assert document["warnings"][0]["span"]["file"] == str(path)
     assert "W0716" not in captured.err  # standard output holds it, once
+
+
+def test_help_names_every_exit_code(capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac --help` listed 0-4 but not 130 (Ctrl-C), and 4 as "a query not decided" only, though
+    `rac check` exits 4 for a check stopped at its limit (W0405, W1008)."""
+    assert main(["--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps the epilog
+    listed = text.split("Exit codes: ", 1)[1]
+    for code in (EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED, EXIT_INTERRUPTED):
+        assert f" {code} " in f" {listed}"
+    assert "a check stopped at its limit" in listed

@@ -2,9 +2,8 @@
 (:mod:`rac.cli.tune`), start one from the standard library (:mod:`rac.cli.new`); verify, simulate, render and
 pre-analyse them with the native engine (:mod:`rac.cli.engine`).
 
-Exit codes: 0 clean (warnings allowed), 1 errors in the input, 2 bad usage, a file that cannot be
-read or written (standard output too), or memory that ran out (a resource, not the input), 3 an
-internal error (a bug in rac; set RAC_DEBUG=1 for the traceback).
+Exit codes: :mod:`rac.cli.common` has them (``EXIT_*``); memory that ran out is 2 (a resource, not the
+input), and an internal error 3 (a bug in rac; set RAC_DEBUG=1 for the traceback).
 """
 
 from __future__ import annotations
