@@ -1,0 +1,29 @@
+"""Every option of every ``rac`` sub-command is documented: one of its spellings (``-q`` or ``--quiet``)
+appears in docs/*.md or the README. ``rac experiment --combination`` was in ``--help`` only."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+from rac.cli.arguments import build_parser
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _documented_text() -> str:
+    pages = sorted((ROOT / "docs").glob("*.md"))
+    return "\n".join(page.read_text(encoding="utf-8") for page in [*pages, ROOT / "README.md"])
+
+
+def test_every_option_is_documented() -> None:
+    text = _documented_text()
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    missing = []
+    for name, parser in commands.choices.items():
+        for action in parser._actions:
+            spellings = [s for s in action.option_strings if s not in ("-h", "--help")]
+            if spellings and not any(re.search(rf"(?<![\w-]){re.escape(s)}(?![\w-])", text) for s in spellings):
+                missing.append(f"rac {name} {'/'.join(spellings)}")
+    assert not missing, f"options in --help but in no page of docs/ nor the README: {missing}"
