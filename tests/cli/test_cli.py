@@ -400,6 +400,25 @@ def test_fmt_missing_file_exits_2(capsys: pytest.CaptureFixture[str], tmp_path: 
     assert main(["fmt", str(tmp_path)]) == 2
 
 
+def test_fmt_never_writes_a_file_too_large_to_read_back(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """A 138 KB file whose runs the layout pads to one 400-character name grew to 1.2 MB: `rac fmt`
+    wrote it, and then `rac check` and `rac fmt` itself refused it (E0005). Now it is left as it is."""
+    count, long = 2600, "M" * 400
+    lines = ["automaton Big {", "input a : bool", "reward r", "objective r", "sample every 1", "horizon 10",
+             "initial location L0 { r' == 1 }", f"location {long} {{ r' == 1 }}",
+             *(f"location L{i} {{ r' == 1 }}" for i in range(1, count)),
+             *(f"edge L{i} -> L{(i + 1) % count} when a" for i in range(count)), "}"]
+    path = tmp_path / "big.ra"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    before = path.read_bytes()
+    for options in ([], ["--check"], ["--stdout"]):
+        assert main(["fmt", *options, str(path)]) == 1
+        captured = capsys.readouterr()
+        assert captured.out == ""
+        assert f"error[E0005]: `{path}` formatted is too large (1,188,730 bytes; at most 1,000,000)" in captured.err
+    assert path.read_bytes() == before
+
+
 # ---------------------------------------------------------------- usage
 def test_version() -> None:
     done = run_rac("--version")

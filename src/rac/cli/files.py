@@ -30,6 +30,7 @@ from rac.cli.common import (
 )
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import UNFINISHED, Diagnostic, error, leaves_undecided, render_text, sort_key
+from rac.core.source import MAX_SOURCE_BYTES
 from rac.lang.format import format_module
 from rac.lang.parser import ParseFailure, parse_source, read_source
 from rac.model.commonroad import ScenarioError
@@ -257,6 +258,14 @@ def _fmt_one(args: argparse.Namespace, path: Path) -> int:
     except ParseFailure as failure:
         shown = source or failure.source
         print(render_text([failure.diagnostic], {shown.name: shown} if shown else {}), file=sys.stderr)
+        return EXIT_ERRORS
+    size = len(formatted.encode("utf-8"))
+    if size > MAX_SOURCE_BYTES:  # the aligned columns' padding grew it past what rac reads back (E0005)
+        print(render_text([error(
+            "E0005", f"`{path}` formatted is too large ({size:,} bytes; at most {MAX_SOURCE_BYTES:,}): rac could "
+                     "not read it back, so it is left as it is", None,
+            hints=["the layout pads runs of declarations to their longest line: shorter names in long runs keep "
+                   "the file within the limit"])], {}), file=sys.stderr)
         return EXIT_ERRORS
     if args.stdout:
         sys.stdout.write(formatted)
