@@ -290,3 +290,27 @@ def test_a_closed_or_full_standard_error_keeps_the_exit_code(tmp_path: Path, how
     done = run_with_stderr(how, "compile", "--target", "python", clean, "-o", tmp_path / "clean.py")
     assert done.returncode == 0 and (tmp_path / "clean.py").exists()
     assert run_with_stderr(how, "check").returncode == 2  # usage: argparse's message is lost too
+
+
+@pytest.mark.parametrize("command", [["fmt"], ["compile", "--target", "python", "-o", "{out}"]])
+def test_a_read_only_file_is_not_replaced(command: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """A rename needs only the folder's permission: `rac fmt` replaced a `chmod a-w` file that open()
+    (every editor and formatter) refuses to write. The tests run as root, for whom every file is
+    writable: `os.access` answers as it does for a user who may not write the file."""
+    source = tmp_path / "x.ra"
+    source.write_text((stdlib_dir() / "driving.ra").read_text(encoding="utf-8").replace("\n", "\n\n"),
+                      encoding="utf-8")
+    out = tmp_path / "x.py"
+    main(["compile", "--target", "python", "-o", str(out), str(source)])
+    target = source if command == ["fmt"] else out
+    before = target.read_bytes()
+    writable = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: (
+        False if Path(path) == target and mode == os.W_OK else writable(path, mode, **kw)))
+    capsys.readouterr()
+    assert main([*(part.format(out=out) for part in command), str(source)]) == 2
+    err = capsys.readouterr().err
+    assert f"error[E0009]: cannot write `{target}`: the file is read-only" in err
+    assert "chmod u+w" in err
+    assert target.read_bytes() == before

@@ -46,6 +46,8 @@ SOURCE_SUFFIX = ".ra"
 #: A writer's temporary file older than this (seconds) was left by a writer that was killed: the
 #: next write of the same file removes it. A live writer writes its text at once, in far less time.
 STALE_SECONDS = 3600
+#: Why :func:`check_writable` refuses an existing file that may not be written (its E0009 has its own hint).
+READ_ONLY = "the file is read-only"
 
 
 def as_json(args: argparse.Namespace) -> bool:
@@ -155,12 +157,16 @@ class NotRegularFile(RacError, OSError):
 
 def check_writable(path: Path) -> None:
     """Raise the ``OSError`` that writing ``path`` is bound to meet, known before anything is written:
-    ``path`` is a folder (``IsADirectoryError``), or exists and is no regular file (:class:`NotRegularFile`),
-    or its name is too long (the file system's own error)."""
+    ``path`` is a folder (``IsADirectoryError``), or exists and is no regular file (:class:`NotRegularFile`)
+    or read-only (``PermissionError``), or its name is too long (the file system's own error)."""
     if not path.name or path.is_dir():  # `-o /`, `-o .`: os.replace would fail, or name no file
         raise IsADirectoryError(errno.EISDIR, "it is a directory", str(path))
     if path.exists() and not path.is_file():  # is_file follows a link: a link to a FIFO is refused too
         raise NotRegularFile(path)
+    # a rename needs only the folder's permission: without this a read-only file was replaced where
+    # writing it (open) is refused, as every editor and formatter refuses it
+    if path.exists() and not os.access(path, os.W_OK):
+        raise PermissionError(errno.EACCES, READ_ONLY, str(path))
 
 
 def unwritable(path: Path, exc: OSError) -> Diagnostic:
@@ -178,6 +184,8 @@ def unwritable(path: Path, exc: OSError) -> Diagnostic:
         exc.errno or 0, "check that the folder exists and is writable")
     if isinstance(exc, NotRegularFile):
         hint = "rac replaces only regular files: choose the path of a file, or a new one"
+    elif exc.errno == errno.EACCES and reason == READ_ONLY:
+        hint = "make it writable (`chmod u+w`) if it may change"
     return error("E0009", f"cannot write `{path}`: {reason}", None, hints=[f"{hint}; nothing was written"])
 
 
