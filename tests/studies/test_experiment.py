@@ -253,3 +253,28 @@ def test_ctrl_c_while_learning_keeps_what_was_learned(tmp_path: Path) -> None:
     results = json.loads((tmp_path / "out" / "results.json").read_text(encoding="utf-8"))
     assert results["interrupted"] == "learning"
     assert all(0 < run["episodes"] < 100_000 and run["evaluation_runs"] == 0 for run in results["runs"])
+
+
+@pytest.mark.parametrize(("observation", "column", "said"), [
+    ("{}->{x}", 5, "add `Tiny.location` to its discrete list, or pass --no-counterfactuals"),
+    ("{near}->{x}", 5, "add `Tiny.location` to its discrete list"),
+    ("{Tiny.location}->{sa, x}", 66, "leave `sa` out of its lists"),
+])
+def test_an_observation_counterfactuals_cannot_use_is_the_querys_fault_said_at_once(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], observation: str, column: int, said: str) -> None:
+    """The RA combinations learn from counterfactual experiences, which need the automaton's location
+    among the query's discrete observations. A query without it went through the shield and the optimum,
+    then stopped with "learning stopped: ... (the reward function `...` or the automaton's objective)",
+    blaming the reward, with no line of the file and no way out."""
+    path = write_engine_file(tmp_path, "goal_ahead", {
+        "safe": LEARN["safe"], "reach": f"strategy reach = maxE(sa)[<=4]{observation}: <> goal() under safe"})
+    out = tmp_path / "o"
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--runs", "2", "--reward-function",
+                 REWARD_FUNCTION, "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"{path.name}:" in err and f":{column}: error[E0015]: the observation of query `reach`" in err
+    assert said in err and "reward function" not in err and "computing" not in err
+    assert not out.exists()
+    # without counterfactual experiences (or with the reward function's combinations alone) it learns
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--runs", "2", "--reward-function",
+                 REWARD_FUNCTION, "--no-counterfactuals", "--combination", "SS&RA", "--out", str(out), "-q"]) == 0

@@ -645,9 +645,11 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                 max_bytes=args.max_memory or default_max_bytes(), progress=announce)
         files = write_outputs(report, out_dir)
     except ExperimentError as exc:
-        # an option to change or a budget, as simulate's; the file's own failure (no safe strategy)
-        _report(args, usage_error(str(exc)) if exc.kind == "usage" else
-                resource_limit(f"resource limit: {exc}") if exc.kind == "limit" else unusable_file(str(exc)))
+        # an option to change or a budget, as simulate's; the file's own failure (no safe strategy), with
+        # its source line when it points into the file
+        _report(args, exc.diagnostic if exc.diagnostic is not None else usage_error(str(exc)) if exc.kind == "usage"
+                else resource_limit(f"resource limit: {exc}") if exc.kind == "limit" else unusable_file(str(exc)),
+                result.sources)
         return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
     except OSError as exc:
         _report(args, unwritable(_written(out_dir, exc), exc))

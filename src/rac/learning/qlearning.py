@@ -103,8 +103,9 @@ from rac.learning.strategy import (
 )
 from rac.learning.tabular import UNTRIED, BatchLog, Frozen, Learner, QTable
 
-__all__ = ["DEFAULT_BINS", "Episodes", "LearnedStrategy", "LearningResult", "ObjectiveIncrease", "StrategyEvaluation",
-           "StrategyRun", "default_bin", "evaluate", "learn", "learning", "observation_keys", "run_strategy"]
+__all__ = ["DEFAULT_BINS", "Episodes", "LearnedStrategy", "LearningResult", "ObjectiveIncrease", "ObservationError",
+           "StrategyEvaluation", "StrategyRun", "default_bin", "evaluate", "learn", "learning", "location_column",
+           "observation_keys", "run_strategy"]
 
 #: ``progress(episodes_done, budget, mean_return)``: after every batch, with the batch's mean return.
 Progress = Callable[[int, int, float], None]
@@ -224,20 +225,29 @@ def _fresh_seed() -> int:
     return entropy
 
 
+class ObservationError(RacValueError):
+    """An observation that cannot serve counterfactual experiences (:func:`location_column`); ``index``
+    is the observation at fault (discrete ones first), None when the location is missing."""
+
+    def __init__(self, message: str, index: int | None = None) -> None:
+        super().__init__(message)
+        self.index = index
+
+
 def location_column(discrete: Sequence[ie.Expr], continuous: Sequence[ie.Expr] = ()) -> int:
     """The column of the observation holding the automaton's location (``A.location`` among the
-    discrete expressions), for counterfactual experiences; ``ValueError`` when there is none, or when
-    another observation reads the automaton's locations or rewards (its counterfactual value would
-    be unknown)."""
+    discrete expressions), for counterfactual experiences; :class:`ObservationError` (a ``ValueError``)
+    when there is none, or when another observation reads the automaton's locations or rewards (its
+    counterfactual value would be unknown)."""
     found = [i for i, e in enumerate(discrete) if isinstance(e, ie.Ref) and e.kind is ie.RefKind.LOCATION_INDEX]
     if not found:
-        raise RacValueError("counterfactual experiences need the automaton's location in the discrete observations "
-                            "(e.g. {Driving.location})")
+        raise ObservationError("counterfactual experiences need the automaton's location in the discrete observations "
+                               "(e.g. {Driving.location})")
     automaton_state = (ie.RefKind.REWARD, ie.RefKind.LOCATION, ie.RefKind.LOCATION_INDEX)
     for i, e in enumerate((*discrete, *continuous)):
         if i != found[0] and any(r.kind in automaton_state for r in ie.refs(e)):
-            raise RacValueError("counterfactual experiences need an observation that sees the automaton only through "
-                                "its location: another observation reads its locations or rewards")
+            raise ObservationError("counterfactual experiences need an observation that sees the automaton only "
+                                   "through its location: another observation reads its locations or rewards", i)
     return found[0]
 
 

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, RacError, RacValueError
+from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, error
 from rac.core.files import replace_onto
 from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
 from rac.ir import query as iq
@@ -125,9 +125,11 @@ class ExperimentError(RacError, ValueError):
     ``--bins``, ``--reward-function``), ``"limit"`` (beyond ``--max-states`` or the memory budget),
     ``"model"`` (the file: no ``model`` block, no safe strategy, learning that failed)."""
 
-    def __init__(self, message: str, kind: str = "model") -> None:
+    def __init__(self, message: str, kind: str = "model", diagnostic: Diagnostic | None = None) -> None:
         super().__init__(message)
         self.kind = kind
+        if diagnostic is not None:  # the failure points into the file (a query's observation)
+            self.diagnostic = diagnostic
 
 
 @dataclass(frozen=True)
@@ -173,16 +175,49 @@ def _observed_from(report: Mapping[str, Any]) -> str:
             f"{query}` answers it as written).")
 
 
+def _learning_query(result: CompileResult) -> iq.QueryDecl | None:
+    """The file's first learning query, whose observation lists the experiment takes (None: none)."""
+    assert result.automaton is not None
+    return next((decl for decl in result.automaton.queries if isinstance(decl.query, iq.LearnStrategy)), None)
+
+
 def _learning_spec(result: CompileResult) -> tuple[list[str], list[str], str | None]:
     """The observation lists (as text) of the file's first learning query and its name, or the
     paper's defaults and None."""
     automaton = result.automaton
     assert automaton is not None
-    for decl in automaton.queries:
-        if isinstance(decl.query, iq.LearnStrategy):
-            count = len(decl.query.discrete)
-            return list(decl.query.labels[:count]), list(decl.query.labels[count:]), decl.name
+    decl = _learning_query(result)
+    if decl is not None:
+        assert isinstance(decl.query, iq.LearnStrategy)
+        count = len(decl.query.discrete)
+        return list(decl.query.labels[:count]), list(decl.query.labels[count:]), decl.name
     return [f"{automaton.name}.location"], ["x", "y", "v", "head"], None
+
+
+def _check_counterfactual_observation(result: CompileResult, ablation: bool) -> None:
+    """ExperimentError, pointing at the file's learning query, when its observation cannot serve
+    counterfactual experiences (:func:`rac.learning.qlearning.location_column`): said before the shield
+    and the optimum are computed, not by the learning after them, and as the query's fault."""
+    # stormpy (via rac.learning.qlearning): importing rac.studies.experiment stays light
+    from rac.learning.qlearning import ObservationError, location_column
+
+    decl = _learning_query(result)
+    if decl is None:  # the paper's observation: the location and x, y, v, head
+        return
+    query = decl.query
+    assert isinstance(query, iq.LearnStrategy)
+    try:
+        location_column(query.discrete, query.continuous)
+    except ObservationError as exc:
+        observations = (*query.discrete, *query.continuous)
+        span = decl.span if exc.index is None else observations[exc.index].span or decl.span
+        assert result.automaton is not None
+        fix = (f"add `{result.automaton.name}.location` to its discrete list" if exc.index is None else
+               f"leave `{query.labels[exc.index]}` out of its lists")
+        hint = (f"{fix} (--ablation learns SS&RA with counterfactual experiences and without)" if ablation else
+                f"{fix}, or pass --no-counterfactuals (the automaton's combinations then learn without them)")
+        message = f"the observation of query `{decl.name}`, which rac experiment learns on: {exc}"
+        raise ExperimentError(message, diagnostic=error("E0015", message, span, hints=[hint])) from None
 
 
 def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed: bool,
@@ -259,6 +294,8 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         raise ExperimentError(f"--reward-function: {exc}", "usage") from None
     wanted = [c for c in COMBINATIONS if combinations is None or c[0] in combinations]
     discrete, continuous, source_query = _learning_spec(result)
+    if ablation or (counterfactuals and any(kind == "automaton" for _, _, kind in wanted)):
+        _check_counterfactual_observation(result, ablation)
     derived = derived_bins(result.model_data, [parse_expr(text) for text in continuous])
     widths = tuple(float(b) for b in bins) if bins is not None else derived
     if bins is not None and (len(widths) != len(continuous) or not all(w > 0 and math.isfinite(w) for w in widths)):
