@@ -278,3 +278,19 @@ def test_an_observation_counterfactuals_cannot_use_is_the_querys_fault_said_at_o
     # without counterfactual experiences (or with the reward function's combinations alone) it learns
     assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--runs", "2", "--reward-function",
                  REWARD_FUNCTION, "--no-counterfactuals", "--combination", "SS&RA", "--out", str(out), "-q"]) == 0
+
+
+def test_the_ablation_is_measured_against_the_optimum_whichever_combinations_the_table_shows(
+        tmp_path: Path) -> None:
+    """--ablation learns SS&RA's variants; with --combination RF the SS&RA optimum was not computed, so
+    every ablation row said "—" for "within 5 % of the optimum" and results.json had no optimum for them."""
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "out"
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--runs", "2", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "RF", "--ablation", "--out", str(out), "-q"]) == 0
+    data = json.loads((out / "results.json").read_text())
+    assert [run["combination"] for run in data["runs"]] == ["RF"] and data["runs"][0]["optimum"] is None
+    optimum = data["optima"]["SS&RA"]["value"]
+    assert all(r["optimum"] == optimum for variant in data["ablation"] for r in variant["records"])
+    rows = (out / "ablation.md").read_text().splitlines()[2:10]
+    assert all(row.endswith(" of 1 seeds |") for row in rows), rows
