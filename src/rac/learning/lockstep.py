@@ -239,7 +239,8 @@ def _step(shared: EpisodeBatch, stepping: list[_Running]) -> None:
         if run.job.objective is not None:
             assert before is not None and after is not None
             column = objectives.index(run.job.objective)
-            reward = np.where(running[lane], after[lane, column] - before[lane, column], 0.0)
+            with np.errstate(invalid="ignore"):  # inf - inf: a reward that is not a number, which its job refuses
+                reward = np.where(running[lane], after[lane, column] - before[lane, column], 0.0)
         run.seconds += spent * weight / total
         run.send(StepResult(reward=reward, terminated=outcome.terminated[lane], truncated=outcome.truncated[lane],
                             collided=outcome.collided[lane], offroad=outcome.offroad[lane],

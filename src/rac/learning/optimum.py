@@ -68,6 +68,7 @@ from rac.learning.episodes import EpisodeBatch, Expression
 from rac.learning.qlearning import ObjectiveIncrease
 from rac.learning.runs import run_strategy
 from rac.learning.strategy import Episodes, LearnedStrategy, StrategyRun, allowed_actions, check_shield
+from rac.learning.tabular import check_finite
 
 __all__ = ["Optimum", "exploration_text", "observed_state", "shortfall", "solve", "why_not_additive"]
 
@@ -267,7 +268,9 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
                                         horizon_sample=batch.horizon_samples)
             stored += parent.size * EDGE_BYTES + unique.shape[0] * 8 * (keys.shape[1] + len(exprs))
             budget.check_bytes(stored, states, sample + batch.decide_every)
-        layers.append(_Layer(parent, action, np.asarray(outcome.reward, dtype=np.float64), target, observed,
+        reward = np.asarray(outcome.reward, dtype=np.float64)
+        check_finite(reward)  # learning refuses it too; the backward pass would compute on NaN
+        layers.append(_Layer(parent, action, reward, target, observed,
                              ~(np.asarray(outcome.collided, dtype=bool) | np.asarray(outcome.offroad, dtype=bool)),
                              np.asarray(outcome.terminated, dtype=bool) & ~np.asarray(outcome.stranded, dtype=bool)))
         if not live.any():

@@ -171,8 +171,10 @@ class ObjectiveIncrease(Forwarding):
         before = self.batch.observe([self.expr])[:, 0]
         outcome = self.batch.step(actions)
         after = self.batch.observe([self.expr])[:, 0]
+        with np.errstate(invalid="ignore"):  # inf - inf: a reward that is not a number, which its user refuses
+            increase = np.where(active, after - before, 0.0)
         # the batch's own result type with another reward (StepOutcome, a protocol, is not a dataclass type)
-        return dataclasses.replace(outcome, reward=np.where(active, after - before, 0.0))  # type: ignore[type-var]
+        return dataclasses.replace(outcome, reward=increase)  # type: ignore[type-var]
 
 
 # ---------------------------------------------------------------- learning

@@ -34,7 +34,7 @@ from rac.learning.strategy import (
     uniform_allowed,
 )
 
-__all__ = ["UNTRIED", "BatchLog", "Frozen", "Learner", "QTable", "Transition", "update"]
+__all__ = ["UNTRIED", "BatchLog", "Frozen", "Learner", "QTable", "Transition", "check_finite", "update"]
 
 #: The pessimistic initial value (:func:`rac.learning.qlearning.learning`'s ``pessimistic``): below
 #: any return a run can have (learning refuses episodes whose return comes within a factor 10 of it),
@@ -119,6 +119,16 @@ class Transition(NamedTuple):
     next_rows: np.ndarray
     next_masks: np.ndarray
     ends: np.ndarray
+
+
+def check_finite(rewards: np.ndarray) -> None:
+    """RacValueError when a step's reward is not a finite number (the reward divides by zero or overflows
+    on the episodes' samples): the user's reward, said in the user's words, not a table or a backward
+    pass computed on NaN."""
+    bad = rewards[~np.isfinite(rewards)]
+    if bad.size:
+        raise RacValueError(f"a step's reward is {bad[0]:g}, not a finite number: the reward divides by "
+                            "zero or overflows on the episodes' samples")
 
 
 def update(values: np.ndarray, step: Transition, alpha: float, gamma: float, untried: float | None = None) -> None:
@@ -326,10 +336,7 @@ class Learner:
             next_masks, next_empty = allowed_actions(batch, shield)
             if learning.any():
                 reward = np.asarray(outcome.reward, dtype=np.float64)[:n]
-                if not np.isfinite(reward[learning]).all():  # a NaN would poison the table silently
-                    bad = reward[learning][~np.isfinite(reward[learning])][0]
-                    raise RacValueError(f"a step's reward is {bad:g}, not a finite number: the reward divides by "
-                                        "zero or overflows on the episodes' samples")
+                check_finite(reward[learning])  # a NaN would poison the table silently
                 ends = (np.asarray(outcome.terminated, dtype=bool) | np.asarray(outcome.truncated, dtype=bool)
                         | np.asarray(outcome.ended, dtype=bool))[:n]
                 next_keys = self.keys(observed[:n])
