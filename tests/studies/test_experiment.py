@@ -124,6 +124,7 @@ def test_the_default_reward_function_needs_the_papers_inputs(tmp_path: Path,
     ("--bins", "1", "--bins: 2 positive widths, one per continuous observation (x, v), not 1"),
     ("--bins", "1,-2", "not 1,-2"),
     ("--bins", "nan,1", "not nan,1"),
+    ("--bins", "", "--bins: not a list of numbers: ''"),  # it learned with the derived bins, without a word
     ("--reward-function", "foo", "--reward-function: `foo`: unknown name `foo`"),
 ])
 def test_bad_bins_and_reward_functions_are_refused_before_anything_is_computed(

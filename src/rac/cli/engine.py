@@ -627,7 +627,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, usage_error(f"--replay must be 0 or more, not {args.replay}"))
         return EXIT_USAGE
     bins = None
-    if args.bins:
+    if args.bins is not None:  # `--bins ""` is a list of no widths: refused, not the derived bins learned
         try:
             bins = [float(b) for b in args.bins.split(",")]
         except ValueError:
