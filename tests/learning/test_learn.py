@@ -98,8 +98,14 @@ def test_greedy_ties_masks_and_unseen_keys(tmp_path: Path) -> None:
     assert loaded.action(keys, masks).tolist() == [1, 0, 2, 0] and loaded.optimise == "max"
     assert not list(tmp_path.glob("*.partial"))
     (tmp_path / "bad.npz").write_bytes(b"not a strategy")
-    with pytest.raises(ValueError, match="cannot read the strategy"):
+    # numpy's own words advised loading the file "unsafely using the `allow_pickle=` keyword argument"
+    with pytest.raises(ValueError, match="cannot read the strategy: not a NumPy .npz archive$"):
         LearnedStrategy.load(tmp_path / "bad.npz")
+    # a shield file said "cannot read the strategy: 'header is not a file in the archive'"
+    shield.save(shield.ShieldTable(("k",), np.zeros((1, 1), dtype=np.int32), np.ones((1, 4), dtype=bool)),
+                 tmp_path / "safe.shield.npz")
+    with pytest.raises(ValueError, match=r"not a rac strategy: a rac shield \(rac.engine.shield.load reads it\)"):
+        LearnedStrategy.load(tmp_path / "safe.shield.npz")
 
 
 def test_learn_rejects_bad_arguments(scenario: Callable[[str], Scenario]) -> None:

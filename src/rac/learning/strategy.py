@@ -335,18 +335,24 @@ class LearnedStrategy:
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as data:
+                if "header" not in data.files:  # another .npz: a shield (rac.engine.shield.save), a user's arrays
+                    other = "a rac shield (rac.engine.shield.load reads it)" if "masks" in data.files else "no header"
+                    raise RacValueError(f"{path}: not a rac strategy: {other}")
                 header = json.loads(str(data["header"]))
                 if header.get("format") != FORMAT:
-                    raise RacValueError(f"not a rac strategy (format {header.get('format')!r})")
+                    raise RacValueError(f"{path}: not a rac strategy (format {header.get('format')!r})")
                 pairs = data["action_pairs"]
                 return cls(tuple(header["discrete"]), tuple(header["continuous"]),
                            tuple(float(b) for b in header["bins"]), header["optimise"],
                            data["keys"].astype(np.float64), data["values"].astype(np.float64),
                            pairs if pairs.size else None, header.get("meta", {}))
-        except FileNotFoundError:
+        except (FileNotFoundError, RacValueError):
             raise
         except (OSError, KeyError, ValueError, TypeError) as exc:
-            raise RacValueError(f"{path}: cannot read the strategy: {exc}") from None
+            # numpy reads a file that is no .npz archive as a pickle, which it refuses with advice to trust
+            # the file: not advice for a strategy file
+            why = "not a NumPy .npz archive" if "pickled" in str(exc) else str(exc)
+            raise RacValueError(f"{path}: cannot read the strategy: {why}") from None
 
 
 # ---------------------------------------------------------------- runs
