@@ -102,6 +102,7 @@ def test_cli_writes_table_json_and_curves(tmp_path: Path, capsys: pytest.Capture
     assert "| SS&RA |" in printed and "| RF |" in printed and "| RA |" not in printed
     data = json.loads((out / "results.json").read_text())
     assert [run["combination"] for run in data["runs"]] == ["SS&RA", "RF"]
+    assert "(computed once, used by SS&RA)." in printed  # it said "used by SS&RA and SS&RF"
     assert (out / "experiment.md").read_text().startswith("| combination |")
     for name in ("returns.png", "first_success.png"):
         with Image.open(out / name) as image:
@@ -291,6 +292,8 @@ def test_the_ablation_is_measured_against_the_optimum_whichever_combinations_the
                  REWARD_FUNCTION, "--combination", "RF", "--ablation", "--out", str(out), "-q"]) == 0
     data = json.loads((out / "results.json").read_text())
     assert [run["combination"] for run in data["runs"]] == ["RF"] and data["runs"][0]["optimum"] is None
+    assert "(computed once, used only to judge whether a run can stay safe from the goal to the horizon)." in \
+        (out / "experiment.md").read_text()
     optimum = data["optima"]["SS&RA"]["value"]
     assert all(r["optimum"] == optimum for variant in data["ablation"] for r in variant["records"])
     rows = (out / "ablation.md").read_text().splitlines()[2:10]

@@ -567,7 +567,7 @@ def render_markdown(report: Report) -> str:
              + _exploration(optimum))
           + "." for label, optimum in report.get("optima", {}).items()),
         f"Safety shield: {report['shield_states']:,} states, {report['shield_seconds']:.2f} s (computed once, "
-        "used by SS&RA and SS&RF).",
+        + _shield_use([row["combination"] for row in rows]) + ").",
         *_model_steps(report),
         f"Seeds {', '.join(map(str, report['seeds']))}; budget {report['episodes']} episodes per run; horizon "
         f"{report['horizon_samples']} samples; reward function `{report['reward_function']}`; observation "
@@ -591,6 +591,15 @@ def render_markdown(report: Report) -> str:
         "shield's): a run that reaches the goal only to leave the road after it does not count.",
     ]
     return "\n".join(lines + notes)
+
+
+def _shield_use(labels: Sequence[str]) -> str:
+    """Whom the shield served: the shielded combinations in the table, and in any case the judge of a run's
+    safety after the goal (the note said "used by SS&RA and SS&RF" under a table of RA or RF alone)."""
+    shielded = [label for label, is_shielded, _ in COMBINATIONS if is_shielded and label in labels]
+    if not shielded:
+        return "used only to judge whether a run can stay safe from the goal to the horizon"
+    return f"used by {' and '.join(shielded)}"
 
 
 def _interrupted(report: Report) -> list[str]:
