@@ -316,3 +316,18 @@ def test_a_reward_function_that_is_not_a_number_is_said_without_numpys_warnings(
     err = capsys.readouterr().err
     assert err.startswith("error[E0015]: learning stopped: a step's reward is nan, not a finite number"), err
     assert "Warning" not in err
+
+
+def test_the_evaluation_runs_are_held_to_the_memory_budget_before_anything_is_computed(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--max-memory bounded the learning only: `--runs 3000000` learned, then evaluated every strategy's
+    runs together until an allocation failed ("out of memory ... lower --max-memory so that rac stops
+    before it", which it did not), or the machine ran out of memory."""
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "o"
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--runs", "100000", "--max-memory",
+                 "400M", "--reward-function", REWARD_FUNCTION, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "error[E0016]: resource limit: evaluating 4 strategies over 100,000 runs each together would need" in err
+    assert "lower the evaluation runs (100,000, --runs)" in err and "computing" not in err
+    assert not out.exists()

@@ -36,13 +36,14 @@ from pathlib import Path
 from rac.core.diagnostics import RacError
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
 
-__all__ = ["EPISODE_MEMO_BYTES", "MEMO_BYTES_PER_STEP", "GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE",
+__all__ = ["EPISODE_MEMO_BYTES", "EVALUATION_BYTES_PER_RUN", "EVALUATION_BYTES_PER_SAMPLE",
+           "EVALUATION_BYTES_PER_STEP", "MEMO_BYTES_PER_STEP", "GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE",
            "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
            "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW", "REPLAY_BYTES_PER_DECISION", "RUN_BYTES_PER_SAMPLE",
            "PROJECTION_FROM", "PROJECTION_MARGIN", "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded",
            "EstimateExceeded", "ProjectionExceeded", "TimeExceeded", "TimeLimit", "cgroup_limit", "check_estimate",
-           "default_max_bytes",
-           "format_bytes", "learning_bytes", "machine_memory", "out_of_memory", "parse_size", "physical_memory",
+           "default_max_bytes", "evaluation_bytes", "format_bytes", "learning_bytes", "machine_memory", "out_of_memory",
+           "parse_size", "physical_memory",
            "projected_states", "runs_within", "simulation_bytes"]
 
 #: An explored state: 8 int32 columns (32 B), its choice offset (8 B) and 4 labels (4 B).
@@ -83,6 +84,14 @@ LEARNING_BYTES_PER_EPISODE = 2 * (8 + 4 + 8)
 EPISODE_MEMO_BYTES = 32 * 2**20
 #: A generous estimate of one step kept in that memo (the paper's model: 20 samples, about 0.9 kB).
 MEMO_BYTES_PER_STEP = 2048
+#: One evaluation run of a learned strategy (:func:`rac.learning.runs.evaluation_steps`: its episode's row of
+#: the batch, its recorded run and their temporaries): a fixed part, a part per decision and one per sample.
+#: Measured as the peak RSS over 20,000 to 80,000 runs (tests' tiny road: 8 samples, 4 decisions, 1.4-1.8 kB;
+#: the highway scene: 100 samples, 5 decisions, 2.8 kB; examples/paper: 140 samples, 7 decisions, 3.2-3.6 kB);
+#: these constants give about twice as much, an upper bound.
+EVALUATION_BYTES_PER_RUN = 2048
+EVALUATION_BYTES_PER_STEP = 512
+EVALUATION_BYTES_PER_SAMPLE = 16
 #: An exploration that may give up on a projection (:meth:`Budget.check_projection`) does so when the
 #: horizon would have this many times the state budget at the growth seen: far enough over it that a
 #: slowing growth would not bring it back within, and early enough that the layers before the budget,
@@ -205,6 +214,12 @@ def learning_bytes(*, episodes: int, parallel: int, steps: int, observations: in
     replay = (parallel + 1) * steps * (REPLAY_BYTES_PER_DECISION + actions)
     memo = min(EPISODE_MEMO_BYTES, runs * rows * MEMO_BYTES_PER_STEP)
     return runs * (table + replay + episodes * LEARNING_BYTES_PER_EPISODE) + memo
+
+
+def evaluation_bytes(*, runs: int, steps: int, samples: int) -> int:
+    """The estimated peak bytes of ``runs`` evaluation runs of learned strategies stepped together, of at
+    most ``steps`` decisions over ``samples`` samples (:data:`EVALUATION_BYTES_PER_RUN`)."""
+    return runs * (EVALUATION_BYTES_PER_RUN + steps * EVALUATION_BYTES_PER_STEP + samples * EVALUATION_BYTES_PER_SAMPLE)
 
 
 def runs_within(max_bytes: int | None, samples: int, columns: int) -> int:

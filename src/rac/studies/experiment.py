@@ -51,7 +51,7 @@ import numpy as np
 from rac.compiler import CompileResult
 from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, error
 from rac.core.files import replace_onto
-from rac.engine.budget import BudgetExceeded, check_estimate, learning_bytes
+from rac.engine.budget import BudgetExceeded, check_estimate, evaluation_bytes, learning_bytes
 from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
 
@@ -314,6 +314,11 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     try:  # before the shield and the learning: the runs learn together, so their tables add up
         check_estimate(f"learning {count} runs together", needed, max_bytes,
                        f"lower the episodes per run ({episodes:,}, --episodes), the seeds or the combinations")
+        # and every strategy's evaluation runs together afterwards: it met the budget only as a MemoryError
+        check_estimate(f"evaluating {count} strategies over {evaluation_runs:,} runs each together",
+                       evaluation_bytes(runs=count * evaluation_runs, steps=shared.max_steps, samples=horizon),
+                       max_bytes, f"lower the evaluation runs ({evaluation_runs:,}, --runs), the seeds or the "
+                       "combinations")
     except BudgetExceeded as exc:
         raise ExperimentError(str(exc), "limit") from None
     # The shield also judges every combination's runs: a run is safe at the goal only if it can stay
