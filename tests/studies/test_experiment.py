@@ -331,3 +331,17 @@ def test_the_evaluation_runs_are_held_to_the_memory_budget_before_anything_is_co
     assert "error[E0016]: resource limit: evaluating 4 strategies over 100,000 runs each together would need" in err
     assert "lower the evaluation runs (100,000, --runs)" in err and "computing" not in err
     assert not out.exists()
+
+
+def test_a_folder_in_the_way_of_an_output_leaves_the_others_as_they_were(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A folder named returns.png in the output folder: experiment.md and results.json were replaced
+    before the plot failed, beside the previous run's first_success.png, under "nothing was written"."""
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "out"
+    (out / "returns.png").mkdir(parents=True)
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "2", "--runs", "1", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "RF", "--out", str(out), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert f"error[E0009]: cannot write `{out / 'returns.png'}`" in err and "nothing was written" in err
+    assert sorted(p.name for p in out.iterdir()) == ["returns.png"]

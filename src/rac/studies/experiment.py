@@ -38,8 +38,10 @@ share of the batch's steps (by its episodes still running).
 from __future__ import annotations
 
 import dataclasses
+import errno
 import json
 import math
+import os
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -706,6 +708,11 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
     from rac.output.plots import plot_first_success, plot_learning_curves
 
     out_dir.mkdir(parents=True, exist_ok=True)
+    names = ("experiment.md", *(("ablation.md",) if report.get("ablation") else ()), "results.json", "returns.png",
+             "first_success.png")
+    for name in names:  # before any is written: a folder in the way of the last left the first ones replaced
+        if (out_dir / name).is_dir():
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(out_dir / name))
     records: list[RunRecord] = report["records"]
     written = []
     markdown = out_dir / "experiment.md"
