@@ -537,3 +537,18 @@ def test_verify_and_experiment_refuse_learning_beyond_max_memory(tmp_path: Path,
     assert err.startswith("error[E0016]: resource limit: ")
     assert "learning 8 runs together would need about" in err and "--episodes" in err and "--max-memory" in err
     assert not (tmp_path / "exp" / "results.json").exists()
+
+
+def test_learn_refuses_what_it_used_to_read_otherwise(scenario: Callable[[str], Scenario]) -> None:
+    """A seed of 1.5 or "1" learned with seed 1, growth 0 or NaN gave batches of one episode or a bare
+    "cannot convert float NaN to integer", an optimism of NaN filled the table with NaN, epsilon=(1.0,)
+    said "not enough values to unpack"; a NumPy integer budget was refused as not an integer."""
+    batch = EpisodeBatch(scenario("goal_ahead").result, horizon_samples=HORIZON)
+    for options, said in (({"seed": 1.5}, "seed must be a whole number"), ({"seed": "1"}, "seed must be a whole"),
+                          ({"growth": 0}, "growth must be a positive number"),
+                          ({"growth": float("nan")}, "growth must be a positive number"),
+                          ({"optimism": float("nan")}, "optimism must be a finite number"),
+                          ({"epsilon": (1.0,)}, r"epsilon must be a number or a pair \(first, last\)")):
+        with pytest.raises(ValueError, match=said):
+            learn(batch, discrete=[], continuous=[X], episodes=2, **options)
+    assert learn(batch, discrete=[], continuous=[X], episodes=np.int64(2), seed=np.int64(1)).episodes == 2

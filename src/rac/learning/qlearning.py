@@ -71,6 +71,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -254,7 +255,12 @@ def location_column(discrete: Sequence[ie.Expr], continuous: Sequence[ie.Expr] =
 
 
 def _epsilon_schedule(epsilon: float | tuple[float, float], episodes: int) -> Callable[[np.ndarray], np.ndarray]:
-    start, end = (epsilon, epsilon) if isinstance(epsilon, int | float) else epsilon
+    if isinstance(epsilon, numbers.Real):
+        start = end = epsilon
+    elif isinstance(epsilon, tuple | list) and len(epsilon) == 2:
+        start, end = epsilon
+    else:
+        raise ValueError(f"epsilon must be a number or a pair (first, last), not {epsilon!r}")
     if not (0.0 <= start <= 1.0 and 0.0 <= end <= 1.0):
         raise ValueError(f"epsilon must lie in [0, 1], not {epsilon}")
     return lambda index: start + (end - start) * np.minimum(1.0, index / max(1, episodes - 1))
@@ -293,8 +299,15 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
     for name, value in (("episodes", episodes), ("parallel", parallel), ("stop_after", stop_after)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
             raise ValueError(f"{name} must be a positive integer, not {value!r}")
+    episodes, parallel, stop_after = int(episodes), int(parallel), int(stop_after)  # a NumPy integer as well
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0):
+        raise ValueError(f"seed must be a whole number >= 0, not {seed!r}")  # 1.5 and "1" were read as 1
+    if growth is not None and not (isinstance(growth, numbers.Real) and 0 < growth < math.inf):
+        raise ValueError(f"growth must be a positive number (or None), not {growth!r}")  # NaN, 0: batches of 1
+    if not (isinstance(optimism, numbers.Real) and math.isfinite(optimism)):
+        raise ValueError(f"optimism must be a finite number, not {optimism!r}")  # NaN or inf in every entry
     if isinstance(replay, bool) or not isinstance(replay, int) or replay < 0:
         raise ValueError(f"replay must be a whole number >= 0, not {replay!r}")
     if not (0.0 < alpha <= 1.0 and 0.0 <= gamma <= 1.0):
