@@ -552,3 +552,7 @@ def test_learn_refuses_what_it_used_to_read_otherwise(scenario: Callable[[str], 
         with pytest.raises(ValueError, match=said):
             learn(batch, discrete=[], continuous=[X], episodes=2, **options)
     assert learn(batch, discrete=[], continuous=[X], episodes=np.int64(2), seed=np.int64(1)).episodes == 2
+    for samples in (1.5, True):  # episodes of 1 sample
+        with pytest.raises(ValueError, match="horizon_samples must be a whole number of samples"):
+            EpisodeBatch(scenario("goal_ahead").result, horizon_samples=samples)  # type: ignore[arg-type]
+    assert EpisodeBatch(scenario("goal_ahead").result, horizon_samples=np.int64(4)).horizon_samples == 4

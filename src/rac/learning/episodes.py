@@ -54,6 +54,7 @@ Example::
 from __future__ import annotations
 
 import dataclasses
+import numbers
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -444,6 +445,10 @@ class EpisodeBatch:
         # what every sample reads after the automaton's edge: the reward expression and the goal, in one function
         self._after_edge = self._compile([expr for expr in (self.reward_expr, self.goal) if expr is not None])
         self._observers: dict[tuple, Callable[[Frame], list[np.ndarray]]] = {}
+        if horizon_samples is not None and (isinstance(horizon_samples, bool)
+                                            or not isinstance(horizon_samples, numbers.Integral)):
+            # 1.5 was read as 1 sample, True as 1
+            raise ValueError(f"horizon_samples must be a whole number of samples, not {horizon_samples!r}")
         horizon = automaton.steps if horizon_samples is None else int(horizon_samples)
         if horizon < 1:
             raise ValueError(f"horizon_samples must be at least 1, not {horizon}")
