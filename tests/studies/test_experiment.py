@@ -218,7 +218,7 @@ def test_a_shield_beyond_the_state_budget_is_a_resource_limit(tmp_path: Path,
 
 
 def test_ctrl_c_while_learning_keeps_what_was_learned(tmp_path: Path) -> None:
-    """Ctrl-C during the learning: every run's strategy of its last evaluation is shown and written
+    """Ctrl-C during the learning: every run's best evaluated strategy is shown and written
     (the table, results.json with "interrupted"), the note says so, and the exit code is 130."""
     import os
     import signal
@@ -345,3 +345,11 @@ def test_a_folder_in_the_way_of_an_output_leaves_the_others_as_they_were(
     err = capsys.readouterr().err
     assert f"error[E0009]: cannot write `{out / 'returns.png'}`" in err and "nothing was written" in err
     assert sorted(p.name for p in out.iterdir()) == ["returns.png"]
+
+
+def test_an_interrupted_run_is_said_to_show_the_best_strategy_it_evaluated(report: dict[str, object]) -> None:
+    """Every combination keeps its best evaluated strategy (LEARNER: learning to the budget), also when
+    Ctrl-C stops it; the note said "the strategy of its last evaluation", which may be a worse one."""
+    note = next(line for line in render_markdown(dict(report, interrupted="learning")).splitlines()
+                if line.startswith("Interrupted (Ctrl-C) while learning"))
+    assert "each run shows the best strategy it had evaluated" in note and "last evaluation" not in note

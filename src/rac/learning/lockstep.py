@@ -16,8 +16,8 @@ time plus, for every step of the batch, a share of that step by its episodes sti
 
 With ``interruptible``, Ctrl-C (SIGINT) does not break into a generator halfway through its
 computation: it is noted, and after the step under way every live generator is sent
-:class:`rac.learning.runs.Stop`, so that it can return what it has (learning: the strategy of its
-last evaluation); :class:`Interrupted` then carries all results so far.
+:class:`rac.learning.runs.Stop`, so that it can return what it has (learning: the best strategy it
+evaluated); :class:`Interrupted` then carries all results so far.
 
 Example::
 

@@ -53,7 +53,7 @@ class Reset:
 
 class Stop(RacError):
     """Thrown into a generator of steps to end it now (its caller was interrupted): it returns what it
-    has so far if it can (learning: the strategy of its last evaluation), or lets this propagate."""
+    has so far if it can (learning: the best strategy it evaluated), or lets this propagate."""
 
 
 #: What a generator of steps yields: a :class:`Reset`, or the ``(n,)`` actions of one step.

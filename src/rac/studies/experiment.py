@@ -375,7 +375,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                                     None if kind == "automaton" else objective)
                                 for run, (_, seed, table, kind, options) in enumerate(runs)], shared,
                                interruptible=True)
-    except Interrupted as stop:  # each run's strategy of its last evaluation; none before its first
+    except Interrupted as stop:  # each run's best evaluated strategy; none before its first evaluation
         learned, stopped = stop.results, "learning"
         if all(outcome is None for outcome, _ in learned):
             raise KeyboardInterrupt from None
@@ -621,7 +621,8 @@ def _interrupted(report: Report) -> list[str]:
     if stopped == "evaluation":
         return [f"Interrupted (Ctrl-C) while evaluating: every run learned its {report['episodes']:,} episodes; "
                 "evaluations not finished are left out (a row of none shows '—')."]
-    return [f"Interrupted (Ctrl-C) while learning: each run shows the strategy of its last evaluation, after "
+    return [f"Interrupted (Ctrl-C) while learning: each run shows the best strategy it had evaluated (the one it "
+            f"keeps, as at the budget's end), after "
             f"{learned} of {report['episodes']:,} episodes learned; a run not evaluated yet is left out (the "
             "rows' seeds are those shown); no evaluation runs ('—')."]
 
