@@ -585,3 +585,24 @@ def test_a_scenario_copied_under_another_name_keeps_its_own_name_in_the_rows(fol
     first, second = rows_in_order(specs, outcome)
     assert (first["scenario"], first["scenario_name"]) == (str(original), "goal_ahead")
     assert (second["scenario"], second["scenario_name"]) == (str(copy), "copy")
+
+
+def test_the_source_digest_is_the_same_installed_or_checked_out(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                                                ) -> None:
+    """A wheel carries the grammar and the standard library inside the package, a checkout keeps them beside
+    it: the same code gives the same digest either way (a Dask worker may import the other copy: CI's test
+    process ran the installed rac while its workers imported the checkout's, and every stored row was
+    rerun as 'of other source files')."""
+    package = tmp_path / "rac"
+    package.mkdir()
+    (package / "__init__.py").write_text("x = 1\n", encoding="utf-8")
+    monkeypatch.setattr(rac, "__file__", str(package / "__init__.py"))
+    source_digest.cache_clear()
+    checked_out = source_digest()
+    for folder, name in (("grammar", "rac.lark"), ("stdlib", "driving.ra")):  # where a wheel puts them
+        (package / folder).mkdir()
+        (package / folder / name).write_text("copied by the wheel\n", encoding="utf-8")
+    source_digest.cache_clear()
+    assert source_digest() == checked_out
+    monkeypatch.undo()
+    source_digest.cache_clear()

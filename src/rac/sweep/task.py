@@ -30,6 +30,7 @@ from typing import Any
 
 import rac
 from rac.engine.budget import format_bytes
+from rac.lang.resources import grammar_path, stdlib_dir
 from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
 
@@ -143,15 +144,21 @@ def scenario_digest(path: str | os.PathLike[str]) -> str:
 @functools.cache
 def source_digest() -> str:
     """16 hex digits of the SHA-256 of rac's own files as this process imports them (each file's path below the
-    package and its bytes; ``__pycache__`` aside), computed once per process. rac's version stays the same
-    between the commits of a development checkout: this changes with every edit, so a row computed by other
-    code (its ``rac_source``) is not reused."""
+    package and its bytes; ``__pycache__`` aside), with the grammar and the standard library wherever rac reads
+    them (:mod:`rac.lang.resources`: inside an installed wheel, at the top of a checkout), computed once per
+    process. rac's version stays the same between the commits of a development checkout: this changes with
+    every edit, so a row computed by other code (its ``rac_source``) is not reused; the same code installed
+    or checked out gives the same digest (a Dask worker may import the other copy)."""
     package = Path(rac.__file__).resolve().parent
+    shipped = {"grammar": grammar_path().parent, "stdlib": stdlib_dir()}
+    files = [(path.relative_to(package).as_posix(), path) for path in package.rglob("*")
+             if path.is_file() and "__pycache__" not in path.parts
+             and path.relative_to(package).parts[0] not in shipped]
+    files += [(f"{name}/{path.relative_to(folder).as_posix()}", path) for name, folder in shipped.items()
+              for path in folder.rglob("*") if path.is_file() and "__pycache__" not in path.parts]
     digest = hashlib.sha256()
-    for path in sorted(package.rglob("*")):
-        if "__pycache__" in path.parts or not path.is_file():
-            continue
-        digest.update(path.relative_to(package).as_posix().encode("utf-8") + b"\0")
+    for name, path in sorted(files):
+        digest.update(name.encode("utf-8") + b"\0")
         digest.update(hashlib.sha256(path.read_bytes()).digest())
     return digest.hexdigest()[:16]
 
