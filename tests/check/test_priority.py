@@ -25,10 +25,10 @@ from reference import reference_max
 from rac import ir
 from rac.check.analysis.affine import moves
 from rac.check.analysis.priority import (
-    _exists_neg_pos_in,
     check_priorities,
     check_ranges,
     check_rate_dominance,
+    exists_neg_pos_in,
     p2_target,
     replay,
 )
@@ -36,9 +36,9 @@ from rac.check.analysis.worst import (
     AFTER_END,
     CONTINUE,
     Target,
-    _maximise_generic,
-    _maximise_translations,
     maximise,
+    maximise_generic,
+    maximise_translations,
 )
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import render_text
@@ -370,7 +370,7 @@ def test_p1_with_int_inputs_is_exact() -> None:
 
 
 class _Inputs:
-    """Just enough of an automaton for ``_exists_neg_pos_in``."""
+    """Just enough of an automaton for ``exists_neg_pos_in``."""
 
     def __init__(self, items: list[ir.Input]):
         self.items = {i.name: i for i in items}
@@ -430,7 +430,7 @@ def rate_pairs(draw):
 def test_p1_minimax_matches_a_vertex_enumeration(case) -> None:
     f, g, inputs = case
     box = {i.name: (i.low, i.high) for i in inputs}
-    assert _exists_neg_pos_in(f, g, _Inputs(inputs), box) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
+    assert exists_neg_pos_in(f, g, _Inputs(inputs), box) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
 
 
 @settings(max_examples=300, deadline=None, derandomize=True)
@@ -442,7 +442,7 @@ def test_p1_beyond_the_enumeration_searches_the_widest_int_input_exactly(case) -
     box = {i.name: (i.low, i.high) for i in inputs}
     sizes = sorted(int(i.high - i.low) + 1 for i in inputs if i.kind == "int")
     with mock.patch("rac.check.analysis.priority.MAX_INT_POINTS", math.prod(sizes[:-1])):
-        assert _exists_neg_pos_in(f, g, _Inputs(inputs), box) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
+        assert exists_neg_pos_in(f, g, _Inputs(inputs), box) == _min_max_reference(f, g, inputs)  # type: ignore[arg-type]
 
 
 def test_p1_with_many_int_values_is_exact() -> None:
@@ -781,7 +781,7 @@ automaton Arrival {
 def _both_engines(automaton: ir.Automaton, target: Target) -> list[Fraction | None]:
     outs = moves(automaton, InputSpace(automaton))
     return [None if w is None else w.value
-            for w in (_maximise_translations(automaton, outs, target), _maximise_generic(automaton, outs, target))]
+            for w in (maximise_translations(automaton, outs, target), maximise_generic(automaton, outs, target))]
 
 
 def test_an_ending_by_episode_ends_when_applies_the_end_clauses_of_its_own_inputs() -> None:

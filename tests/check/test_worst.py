@@ -31,9 +31,9 @@ from rac.check.analysis.worst import (
     MID_END,
     Target,
     Worst,
-    _maximise_generic,
-    _maximise_translations,
     maximise,
+    maximise_generic,
+    maximise_translations,
 )
 from rac.compiler import compile_text
 from rac.ir.inputs import InputSpace
@@ -294,8 +294,8 @@ def test_generic_engine_agrees_with_translation_engine(case: Case) -> None:
     automaton, target = case.automaton, case.target
     space = InputSpace(automaton)
     outs = moves(automaton, space)
-    fast = _maximise_translations(automaton, outs, target)
-    slow = _maximise_generic(automaton, outs, target)
+    fast = maximise_translations(automaton, outs, target)
+    slow = maximise_generic(automaton, outs, target)
     assert value_of(fast) == value_of(slow), case.text
     for worst in (fast, slow):
         if worst is not None:
@@ -312,7 +312,7 @@ def test_end_clauses_at_an_episode_ending_match_reference(case: Case) -> None:
     space = InputSpace(automaton)
     outs = moves(automaton, space)
     expected = reference_max(automaton, target.weights, target.constant, target.watched, target.intermediates)
-    engines = [_maximise_generic] + ([_maximise_translations] if outs.translations_only else [])
+    engines = [maximise_generic] + ([maximise_translations] if outs.translations_only else [])
     for engine in engines:
         worst = engine(automaton, outs, target)
         assert value_of(worst) == expected, (engine.__name__, case.text)
@@ -376,7 +376,7 @@ def test_huge_values_are_exact(target: Target) -> None:
     space = InputSpace(automaton)
     outs = moves(automaton, space)
     expected = reference_max(automaton, target.weights, target.constant, target.watched)
-    for engine in (maximise, _maximise_translations, _maximise_generic):
+    for engine in (maximise, maximise_translations, maximise_generic):
         worst = engine(automaton, outs, target)
         assert worst is not None and worst.value == expected
         check_counterexample(automaton, space, worst, target)
@@ -387,7 +387,7 @@ def test_assume_excluding_everything_leaves_only_the_start() -> None:
     automaton = compile_ir(HUGE.replace("reward p", "assume a && !a\n    reward p"))
     outs = moves(automaton, InputSpace(automaton))
     assert not any(outs.samples)
-    for engine in (maximise, _maximise_translations, _maximise_generic):
+    for engine in (maximise, maximise_translations, maximise_generic):
         assert engine(automaton, outs, Target((Fraction(1),), Fraction(3), (True, True))) == Worst(Fraction(3))
         assert engine(automaton, outs, Target((Fraction(1),), Fraction(3), (False, True))) is None
     assert reference_max(automaton, (1,), 3, (True, True)) == 3

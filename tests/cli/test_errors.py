@@ -72,7 +72,7 @@ def test_the_product_raises_the_checkers_diagnostic() -> None:
                                                   *fine.locations[1:]))
     (expected,) = rate_diagnostics(broken)
     with pytest.raises(ValueError) as caught:  # a ValueError as before
-        product._Arithmetic(broken, fine.model.base ** fine.model.exponent)
+        product.MirrorArithmetic(broken, fine.model.base ** fine.model.exponent)
     assert isinstance(caught.value, Unrepresentable) and caught.value.diagnostic == expected
 
 

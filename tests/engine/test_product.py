@@ -36,8 +36,8 @@ from rac.engine.product import (
     ENDED,
     READ,
     SAMPLED,
+    MirrorArithmetic,
     ProductGraph,
-    _Arithmetic,
     decide_in_model,
     decide_product,
     explore_product,
@@ -371,7 +371,7 @@ def test_mirror_arithmetic_truncates_towards_zero_like_c() -> None:
         name="A", inputs=(ir.Input("d", "real", F(-10), F(10)),), rewards=("r",), locations=(loc,), initial=0,
         edges=((ir.Edge(0, 0, ir.BAtom("d", "<", F(1, 3)), (halve,)),),), end_clauses=(), assumptions=(),
         objective=ir.Linear.variable("r"), priority=(), strict=False, period=F(1, 10), horizon=F(1))
-    arithmetic = _Arithmetic(automaton, 10_000)
+    arithmetic = MirrorArithmetic(automaton, 10_000)
     d = np.array([[-7], [7], [-13], [3333], [3334]], dtype=np.int64)
     r = np.array([[5], [5], [-4], [1], [0]], dtype=np.int64)
     grown = arithmetic.accrue(np.zeros(5, dtype=np.int64), d, r)
@@ -394,7 +394,7 @@ def test_mirror_arithmetic_keeps_every_value_on_the_way_within_int32() -> None:
         name="A", inputs=(ir.Input("d", "real", F(0), F(1)),), rewards=("r",), locations=(loc,), initial=0,
         edges=((ir.Edge(0, 0, ir.BConst(True), (update,)),),), end_clauses=(), assumptions=(),
         objective=ir.Linear.variable("r"), priority=(), strict=False, period=F(1), horizon=F(2))
-    arithmetic = _Arithmetic(automaton, 10_000)
+    arithmetic = MirrorArithmetic(automaton, 10_000)
     at = np.zeros(1, dtype=np.int64)
     inside = np.array([[10_000]], dtype=np.int64)  # d = 1: 100000*d is 1e9
     assert arithmetic.edges(at, inside, np.zeros((1, 1), dtype=np.int64))[1].tolist() == [[142857142]]
@@ -413,7 +413,7 @@ def test_one_edge_per_sample() -> None:
     same sample: the penalty is subtracted once, as in the emitted model and rac.runtime.interpreter."""
     automaton = compile_file(REPO / "stdlib" / "driving.ra").raise_for_errors()
     inputs = np.array([[1, 1, 0, 1, 0]], dtype=np.int64)  # isClose prog comf collide dgoal
-    loc, mirrors = _Arithmetic(automaton, 10_000).edges(np.array([0]), inputs, np.zeros((1, 3), dtype=np.int64))
+    loc, mirrors = MirrorArithmetic(automaton, 10_000).edges(np.array([0]), inputs, np.zeros((1, 3), dtype=np.int64))
     assert automaton.location_names[int(loc[0])] == "Unsafe" and mirrors[0].tolist() == [-1_000_000, 0, 0]
     runtime = RewardAutomaton(automaton)
     runtime.step({"isClose": True, "prog": True, "comf": False, "collide": True, "dgoal": 0.0})
@@ -429,7 +429,7 @@ def test_two_edges_enabled_where_the_bindings_break_assume_are_refused() -> None
     automaton = compile_file(REPO / "stdlib" / "driving.ra").raise_for_errors()
     unsafe = automaton.location_names.index("Unsafe")
     inputs = np.array([[1, 1, 1, 1, 0], [0, 1, 1, 1, 250]], dtype=np.int64)  # isClose prog comf collide dgoal
-    arithmetic = _Arithmetic(automaton, 10_000)
+    arithmetic = MirrorArithmetic(automaton, 10_000)
     loc, _ = arithmetic.edges(np.array([unsafe]), inputs[:1], np.zeros((1, 3), dtype=np.int64))  # assume holds
     assert automaton.location_names[int(loc[0])] == "Unsafe"
     with pytest.raises(EvaluationError, match=r"the edges `Unsafe -> Normal` and `Unsafe -> Unsafe` are both "

@@ -22,7 +22,7 @@ from test_uppaal import Parsed, run_network
 from utap import Utap
 
 from rac.compiler import CompileResult, compile_text
-from rac.engine.product import _Arithmetic
+from rac.engine.product import MirrorArithmetic
 from rac.lang import ast
 from rac.lang.format import format_source
 from rac.lang.parser import ParseFailure, parse_text
@@ -288,6 +288,6 @@ def test_the_engine_does_not_leave_an_excluded_location() -> None:
     names = automaton.location_names
     loc = np.array([names.index("Driving"), names.index("Parked")])
     inputs = np.array([[1, 0], [1, 0]], dtype=np.int64)  # close, not arrived
-    after, mirrors = _Arithmetic(automaton, 10_000).edges(loc, inputs, np.zeros((2, 2), dtype=np.int64))
+    after, mirrors = MirrorArithmetic(automaton, 10_000).edges(loc, inputs, np.zeros((2, 2), dtype=np.int64))
     assert [names[int(i)] for i in after] == ["Unsafe", "Parked"]
     assert mirrors[:, 0].tolist() == [-1_000_000, 0]

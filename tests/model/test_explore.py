@@ -212,8 +212,8 @@ def test_explore_horizon_defaults_to_the_goal_interval() -> None:
 def test_point_in_polygons_on_vertices_and_edges() -> None:
     """The bounding-box shortcut of the vectorised crossing test changes no answer, also on
     vertices, on edges and just beside them."""
-    from rac.model.batch import _inside
     from rac.model.native import point_in_polygons
+    from rac.model.polygons import Polygons
 
     data = left_turn_data()
     model = NativeModel(data)
@@ -224,7 +224,7 @@ def test_point_in_polygons_on_vertices_and_edges() -> None:
     share = rng.choice([0.0, 0.5, 1.0, 1e-12, 1 - 1e-12], 4000)
     px = xs[pick] + (xs[other] - xs[pick]) * share + rng.choice([0.0, 1e-9, -1e-9, 1e-3], 4000)
     py = ys[pick] + (ys[other] - ys[pick]) * share + rng.choice([0.0, 1e-9, -1e-9, 1e-3], 4000)
-    found = _inside(model.road_xd, model.road_yd, data.road_start, px, py)
+    found = Polygons(model.road_xd, model.road_yd, data.road_start).inside(px, py)
     expected = [point_in_polygons(model.road_xd, model.road_yd, data.road_start, a, b)
                 for a, b in zip(px.tolist(), py.tolist())]
     assert found.tolist() == expected

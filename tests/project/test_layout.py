@@ -534,3 +534,16 @@ def test_test_modules_have_distinct_names() -> None:
     for path in sorted(tests.rglob("test_*.py")):
         seen.setdefault(path.name, []).append(str(path.relative_to(tests)))
     assert not {name: paths for name, paths in seen.items() if len(paths) > 1}
+
+
+def test_tests_import_no_private_names_of_rac() -> None:
+    """The house rule holds for the tests too: what a test needs of rac is public (a ``_name`` may change
+    without notice)."""
+    tests = SRC.parents[1] / "tests"
+    found = []
+    for path in sorted(tests.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "rac":
+                found += [f"{path.relative_to(tests)}:{node.lineno}: {node.module}.{alias.name}" for alias in node.names
+                          if alias.name.startswith("_") and not alias.name.startswith("__")]
+    assert not found, "\n".join(found)

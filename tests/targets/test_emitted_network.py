@@ -71,7 +71,7 @@ from tiny_scenarios import TINY_SCENARIOS, Block, GoalBox, StraightRoad, TinySet
 from rac import ir
 from rac.compiler import compile_file
 from rac.engine.explore import action_pairs
-from rac.engine.product import ACCRUED, ENDED, READ, SAMPLED, ProductGraph, _Arithmetic, explore_product
+from rac.engine.product import ACCRUED, ENDED, READ, SAMPLED, MirrorArithmetic, ProductGraph, explore_product
 from rac.model import ModelData, NativeModel
 from rac.model.commonroad import EgoStart
 from rac.model.scenes import write_scene
@@ -658,7 +658,7 @@ class Comparison:
                            **{(SAMPLED, label): g.labels[label] for label in ("collide", "offroad", "goal")}}
         if a.end_clauses:
             held = np.column_stack([self.inputs[i.name] for i in a.inputs]).astype(np.int64)
-            arithmetic = _Arithmetic(a, data.scale)
+            arithmetic = MirrorArithmetic(a, data.scale)
             for i, clause in enumerate(a.end_clauses):
                 self.conditions[(ENDED, f"at end #{i + 1}")] = arithmetic.guard(clause.guard, held)
         self.covered: set[tuple[int, str, int]] = set()

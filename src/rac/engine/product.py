@@ -93,8 +93,8 @@ from rac.model.sample import ACTION, CRASHED, EGO, PRODUCT_EGO, ProductColumn, c
 from rac.model.sample import labels as label_states
 from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
 
-__all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "ProductGraph", "decide_in_model", "decide_product",
-           "explore_product", "trace_to"]
+__all__ = ["ACCRUED", "ENDED", "PHASES", "READ", "SAMPLED", "MirrorArithmetic", "ProductGraph", "decide_in_model",
+           "decide_product", "explore_product", "trace_to"]
 
 #: The ``phase`` column: which instant of its sample a state is (see the module docstring).
 PHASES: tuple[str, ...] = ("accrued", "read", "sampled", "ended")
@@ -119,8 +119,9 @@ def _int32(values: np.ndarray, what: str, scale: int) -> np.ndarray:
     return values.astype(np.int64)
 
 
-class _Arithmetic:
-    """The automaton's integer side exactly as emitted: mirror accruals, guards, edges, ``at end``."""
+class MirrorArithmetic:
+    """The automaton's integer side exactly as emitted: mirror accruals, guards, edges, ``at end``
+    (public for the tests that compare it with the emitted C functions and the UPPAAL network)."""
 
     def __init__(self, automaton: ir.Automaton, scale: int) -> None:
         self.a = automaton
@@ -463,7 +464,7 @@ def explore_product(data: ModelData, automaton: ir.Automaton, *, horizon_samples
         raise ValueError(f"horizon_samples must be >= 0, not {horizon}")
     evaluator = Evaluator(data, automaton)
     model = evaluator.model
-    arithmetic = _Arithmetic(automaton, data.scale)
+    arithmetic = MirrorArithmetic(automaton, data.scale)
     bindings = Bindings(evaluator, automaton, "the product")
     first_reads = first_sample_reads(automaton)
     pairs = action_pairs(data).astype(np.int64)

@@ -56,18 +56,6 @@ def _pair_keys(head: np.ndarray, turn: np.ndarray) -> np.ndarray:
     return (np.asarray(head, dtype=np.int64) << 32) | (np.asarray(turn, dtype=np.int64) & 0xFFFFFFFF)
 
 
-def _inside(xs: list[float], ys: list[float], start: tuple[int, ...], px: np.ndarray,
-            py: np.ndarray) -> np.ndarray:
-    """:func:`rac.model.native.point_in_polygons` for arrays of points (same crossing test).
-
-    Only the points in a polygon's bounding box are tested against it; that changes no answer:
-    below ``min(y)`` or at/above ``max(y)`` no edge passes the test ``(yi > py) != (yj > py)``;
-    left of the box every crossing edge counts, and there is an even number of them; right of
-    the box (beyond a margin far larger than rounding) none counts. Within the box a point tests
-    only the edges that pass that test for it (:class:`Polygons`)."""
-    return Polygons(xs, ys, start).inside(px, py)
-
-
 class BatchModel:
     """:class:`NativeModel`'s functions over arrays of states (see the module docstring)."""
 

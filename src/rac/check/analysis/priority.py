@@ -56,17 +56,17 @@ def _exists_neg_pos(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton) -> bool
     """Is there an input point ``assume`` allows with f < 0 and g > 0?
 
     Within each box of allowed inputs (:func:`~rac.check.analysis.behaviour.allowed_boxes`; the
-    declared bounds when the classes are too many to list) by :func:`_exists_neg_pos_in`.
+    declared bounds when the classes are too many to list) by :func:`exists_neg_pos_in`.
     """
     names = tuple(sorted(set(f.variables()) | set(g.variables())))
     boxes = allowed_boxes(automaton, names)
     if boxes is None:
         boxes = [_declared_box(automaton, names)]
-    return any(_exists_neg_pos_in(f, g, automaton, box) for box in boxes)
+    return any(exists_neg_pos_in(f, g, automaton, box) for box in boxes)
 
 
-def _exists_neg_pos_in(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton,
-                       box: dict[str, tuple[Fraction, Fraction]]) -> bool:
+def exists_neg_pos_in(f: ir.Linear, g: ir.Linear, automaton: ir.Automaton,
+                      box: dict[str, tuple[Fraction, Fraction]]) -> bool:
     """Is there a point of ``box`` (closed bounds per input) with f < 0 and g > 0?
 
     ``min_x max(f, -g) < 0`` (:class:`_MinMax`). The minimax theorem behind it needs convex ranges:

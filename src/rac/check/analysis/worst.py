@@ -126,11 +126,11 @@ def maximise(automaton: ir.Automaton, moves: Moves, target: Target,
     Raises :class:`Unfinished` beyond :data:`MAX_SAMPLES` (see there).
     """
     if moves.translations_only:
-        return _maximise_translations(automaton, moves, target, run)
+        return maximise_translations(automaton, moves, target, run)
     if automaton.steps > MAX_SAMPLES:
         raise Unfinished(f"the horizon has {automaton.steps:,} samples, more than the {MAX_SAMPLES:,} the "
                          "search goes through when updates scale rewards")
-    return _maximise_generic(automaton, moves, target)
+    return maximise_generic(automaton, moves, target)
 
 
 def within_limit(automaton: ir.Automaton) -> ir.Automaton:
@@ -331,7 +331,8 @@ def _prune(table: dict, box: _Box) -> None:
             kept.append(c)
 
 
-def _maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
+def maximise_generic(automaton: ir.Automaton, moves: Moves, target: Target) -> Worst | None:
+    """:func:`maximise` for any updates (the general search; the tests compare the fast engine with it)."""
     steps = automaton.steps
     outs = moves.samples
     accruals = [accrual(loc, automaton.period) for loc in automaton.locations]
@@ -451,8 +452,8 @@ def _start(target: Target, l0: int, ends: dict[tuple[Fraction, ...], tuple]) -> 
 
 
 # ---------------------------------------------------------------- fast engine
-def _maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target,
-                           run: bool | Callable[[Fraction], bool] = True) -> Worst | None:
+def maximise_translations(automaton: ir.Automaton, moves: Moves, target: Target,
+                          run: bool | Callable[[Fraction], bool] = True) -> Worst | None:
     """Every map is a translation: the functional stays ``w``; a max-plus recurrence on scalars.
 
     V_k(l) = max over outcomes o of l of
