@@ -136,3 +136,16 @@ def test_a_probability_equal_to_a_threshold_is_not_answered(tmp_path: Path) -> N
                      VerifyOptions(seed=1, plots=False))
     assert [r.status for r in results] == ["unsupported", "unsupported"], results
     assert "cannot decide `==`" in (results[0].message or ""), results[0].message
+
+
+def test_rac_check_warns_of_a_probability_compared_for_equality() -> None:
+    """W0606 at check time for what rac verify leaves unanswered (above); `>=` gets no warning."""
+    from rac.compiler import compile_text
+
+    text = ("automaton A { input b : bool\n reward r\n objective r\n sample every 1\n horizon 5\n"
+            " initial location L { r' == 1 }\n location M { r' == 0 }\n edge L -> M when b\n"
+            " query Qe: Pr[<=5](<> M) {op} 0.5\n}}\n")
+    for op, warned in (("==", True), ("!=", True), (">=", False)):
+        result = compile_text(text.replace("{op}", op).replace("}}", "}"))
+        assert result.ok
+        assert ("W0606" in [d.code for d in result.diagnostics]) == warned, op

@@ -563,6 +563,7 @@ class Resolver:
                 lowered.append(query)
                 self._bound_past_horizon(decl, query.query, horizon)
                 self._under_reachability(decl, reaching)
+                self._probability_equality(decl, query.query)
             if isinstance(decl.query, (ast.ControlStrategy, ast.LearnStrategy)):
                 strategies.add(decl.query.name)
                 # a later strategy of the same name replaces it
@@ -570,6 +571,20 @@ class Resolver:
                 if isinstance(decl.query, ast.ControlStrategy) and decl.query.goal != "A[]":
                     reaching[decl.query.name] = decl.query.span
         return tuple(lowered)
+
+    def _probability_equality(self, decl: ast.QueryDecl, query: iq.Query) -> None:
+        """W0606: ``Pr[...](...) == θ`` (or ``!=``), which rac verify's sequential test cannot decide."""
+        if not isinstance(query, iq.ProbabilityQuery) or query.compare is None or query.compare[0] not in ("==", "!="):
+            return
+        op, threshold = query.compare
+        self.diagnostics.append(warning(
+            "W0606", f"`Pr[...] {op} {short_number(threshold)}` compares a probability for equality, which "
+            "`rac verify` does not answer", decl.query.span,
+            notes=["rac verify tests a probability against a threshold sequentially (as UPPAAL does): the test "
+                   "tells a probability above the threshold from one below it, never one equal to it; the UPPAAL "
+                   "target emits the query as written"],
+            hints=[f"ask for the probability itself (drop `{op} {short_number(threshold)}`), or compare with "
+                   "`>=` or `<=`"]))
 
     def _under_reachability(self, decl: ast.QueryDecl, reaching: dict[str, Span | None]) -> None:
         """W0605: a query ``under`` a reachability strategy, which rac verify decides but does not keep."""
