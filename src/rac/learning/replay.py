@@ -20,16 +20,14 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rac import ir
-from rac.compiler import compile_file
 from rac.learning.counterfactual import Replayer, counterfactual_transitions
 from rac.learning.location_observation import one_hot_index, replace_one_hot
-from rac.runtime.semantics import AutomatonDescription
+from rac.learning.wrappers import AutomatonLike, automaton_ir
 
 __all__ = ["CounterfactualRows", "CounterfactualStep"]
 
@@ -50,14 +48,9 @@ class CounterfactualStep:
     next_location: np.ndarray
 
 
-def _automaton(automaton: str | os.PathLike[str] | ir.Automaton | AutomatonDescription) -> ir.Automaton:
-    if isinstance(automaton, ir.Automaton):
-        return automaton
-    if isinstance(automaton, AutomatonDescription):
-        return automaton.ir
-    if isinstance(automaton, (str, os.PathLike)):
-        return compile_file(Path(automaton)).raise_for_errors(warn=True)
-    raise TypeError(f"automaton must be a .ra path, an ir.Automaton or a RewardAutomaton, not {automaton!r}")
+def _column(racs: Sequence[Mapping[str, Any]], key: str) -> dict[str, np.ndarray]:
+    """The per-environment values of the mapping ``info["rac"][key]`` as one array per name."""
+    return {name: np.array([rac[key][name] for rac in racs]) for name in racs[0][key]}
 
 
 class CounterfactualRows:
@@ -68,8 +61,10 @@ class CounterfactualRows:
             runtime from :func:`rac.load`); its location order is the one-hot vector's.
     """
 
-    def __init__(self, automaton: str | os.PathLike[str] | ir.Automaton | AutomatonDescription) -> None:
-        program = _automaton(automaton)
+    def __init__(self, automaton: str | os.PathLike[str] | ir.Automaton | AutomatonLike) -> None:
+        program = automaton_ir(automaton)
+        if program is None:  # a generated class's instance: no IR to replay
+            raise TypeError(f"automaton must be a .ra path, an ir.Automaton or a RewardAutomaton, not {automaton!r}")
         self._replayer = Replayer(program)
         #: The location names, index ``i`` the one-hot column ``i``.
         self.locations: tuple[str, ...] = program.location_names
@@ -127,12 +122,11 @@ class CounterfactualRows:
         if not np.array_equal(shown, after):
             raise ValueError("next_obs's location columns differ from info['rac']['location']: the observation's "
                              "one-hot vector is not this automaton's (another automaton, or another location order)")
-        names = list(racs[0]["inputs"])
-        inputs = {name: np.array([rac["inputs"][name] for rac in racs]) for name in names}
+        inputs = _column(racs, "inputs")
         prior = {name: np.array([float(rac["rewards"][name]) - float(rac["reward_steps"][name]) for rac in racs])
                  for name in racs[0]["rewards"]}
         scale = np.array([float(rac["scale"]) for rac in racs])
-        held = {name: np.array([rac["held"][name] for rac in racs]) for name in racs[0]["held"]}
+        held = _column(racs, "held")
         cf = counterfactual_transitions(self._replayer, inputs, rewards=prior, held=held,
                                         ended=np.asarray(done, dtype=bool).reshape(n))
         rows = np.arange(n)

@@ -103,6 +103,13 @@ def _ir_of(automaton: object) -> ir.Automaton | None:
     return found if isinstance(found, ir.Automaton) else None
 
 
+def automaton_ir(automaton: str | os.PathLike[str] | ir.Automaton | AutomatonLike) -> ir.Automaton | None:
+    """The checked automaton behind what the wrappers take (a ``.ra`` path, compiled, ``CheckError`` on
+    errors; an :class:`rac.ir.Automaton`; a runtime from :func:`rac.load`), or ``None`` for an object
+    without one (an instance of a generated class)."""
+    return _ir_of(_load(automaton))
+
+
 def _takes_env(inputs: Callable[..., object], what: str) -> bool:
     """Whether ``inputs`` takes a third positional argument (the environment): one without a default,
     or named ``env`` (``inputs(obs, info, limit=0.1)`` keeps its ``limit``); read once."""
@@ -635,8 +642,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
             raise RacValueError(f"RewardAutomatonVectorWrapper supports the autoreset mode NEXT_STEP only, not "
                                 f"{mode!r}: make the vector environment with autoreset_mode=AutoresetMode.NEXT_STEP")
         self._with_env = _takes_env(inputs, "(obs, infos) or (obs, infos, env)")
-        loaded = _load(automaton)
-        program = _ir_of(loaded)
+        program = automaton_ir(automaton)
         if program is None:
             raise TypeError("the vector wrapper batches the automaton's IR: pass a .ra path, an ir.Automaton or "
                             "a RewardAutomaton")
