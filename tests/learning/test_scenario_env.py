@@ -753,3 +753,47 @@ def test_an_environment_pickles_and_goes_on_alike(tiny: CompileResult, table: Sh
         mine, theirs = env.step(action), other.step(action)
         assert (mine[0] == theirs[0]).all() and mine[1:4] == theirs[1:4]
         assert mine[4]["objective"] == theirs[4]["objective"] and mine[4]["time"] == theirs[4]["time"]
+
+
+def _masks_of_a_run(env: ScenarioEnv, seed: int) -> tuple[list[list[bool]], list[dict[str, object]]]:
+    """The masks and the shield's info of one seeded masked random walk."""
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    masks, infos, done = [], [], False
+    while not done:
+        mask = env.action_masks()
+        masks.append(mask.tolist())
+        _, _, terminated, truncated, info = env.step(int(rng.choice(np.flatnonzero(mask))))
+        infos.append({key: info[key] for key in ("shield", "shield_timeout", "shield_clock")})
+        done = terminated or truncated
+    return masks, infos
+
+
+def test_the_default_runtime_shield_does_not_depend_on_the_machines_speed(
+        tiny: CompileResult, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The default runtime shield (lookahead=<depth>, or "auto" beside a table) had a time budget of
+    # 0.1 s a decision and no node budget: on a loaded machine its searches were cut earlier, so the
+    # same seed gave other masks, and other trajectories, than on an idle one. Its default budget is
+    # now a number of search nodes; the clock is only a guard far above it, reported where it fires.
+    fast = _masks_of_a_run(ScenarioEnv(tiny, lookahead=4), seed=3)
+    assert not any(info["shield_clock"] for info in fast[1])
+    clock = iter(range(10**7))
+    # a slow or loaded machine: every reading of the clock 50 ms after the one before
+    monkeypatch.setattr("rac.engine.lookahead.time.perf_counter", lambda: next(clock) * 0.05)
+    slow = _masks_of_a_run(ScenarioEnv(tiny, lookahead=4), seed=3)
+    assert slow == fast
+    settings = ScenarioEnv(tiny, lookahead=4).step_shield.runtime.settings  # type: ignore[union-attr]
+    assert settings.nodes is not None and settings.seconds is not None
+
+
+def test_the_time_guard_says_where_it_cut_the_search(tiny: CompileResult, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Where the time guard does cut a search, the mask depended on the machine: info says so, the
+    # environment counts it, and it warns once (the run at this seed may not be repeated).
+    clock = iter(range(10**7))
+    monkeypatch.setattr("rac.engine.lookahead.time.perf_counter", lambda: float(next(clock)) * 1000)
+    env = ScenarioEnv(tiny, lookahead=4)
+    with pytest.warns(RuntimeWarning, match="time limit .* stopped its search") as caught:
+        _, infos = _masks_of_a_run(env, seed=0)
+    assert len([w for w in caught if "stopped its search" in str(w.message)]) == 1
+    assert all(info["shield_clock"] and info["shield_timeout"] for info in infos if info["shield"] != "none")
+    assert env.clock_steps == sum(bool(info["shield_clock"]) for info in infos) > 0

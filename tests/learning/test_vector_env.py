@@ -589,3 +589,16 @@ def test_an_async_vector_env_of_scenario_envs_is_told_too(files: dict[str, Path]
         vector.close()
     assert ended >= 6
     assert "without rac seeing them end" not in capfd.readouterr().err
+
+
+def test_the_vector_env_says_where_the_time_guard_cut_the_search(tiny: CompileResult,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    # As ScenarioEnv: info["shield_clock"] per episode, clock_steps counted, one warning.
+    clock = iter(range(10**7))
+    monkeypatch.setattr("rac.engine.lookahead.time.perf_counter", lambda: float(next(clock)) * 1000)
+    envs = ScenarioVectorEnv(tiny, num_envs=2, lookahead=3)
+    envs.reset(seed=0)
+    with pytest.warns(RuntimeWarning, match="stopped its search at t = 0 s"):
+        _, _, _, _, info = envs.step(np.array([np.flatnonzero(row)[0] for row in envs.action_masks()]))
+    assert info["shield_clock"].tolist() == [True, True] and info["_shield_clock"].all()
+    assert envs.clock_steps == 2 == envs.timeout_steps

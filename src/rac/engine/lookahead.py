@@ -26,7 +26,10 @@ fewer when none does (then the mask allows the actions that stay safe longest, a
 0 when every action is unsafe within one decision period (the mask is all False: no action is
 known to be safe).
 
-**The budget.** ``seconds`` and ``nodes`` bound the search per decision (:class:`LookaheadSettings`).
+**The budget.** ``nodes`` and ``seconds`` bound the search per decision (:class:`LookaheadSettings`).
+By default the budget is :data:`NODE_BUDGET` search nodes, which gives the same masks on every machine
+(so a training run at a seed is the same anywhere), with a time guard of :data:`GUARD_SECONDS` far
+above what they take.
 The first decision period of every action is always computed (one vectorised call); when the
 budget runs out below it, the search stops where it is: every depth found so far is a proved one,
 so the mask stays sound — each allowed action has a safe continuation of :attr:`LookaheadMask.depth`
@@ -47,7 +50,7 @@ equal) form the next layer; an action whose states all die out has the depth of 
 
 Example::
 
-    shield = Lookahead(data, horizon_samples=40, settings=LookaheadSettings(depth=5, seconds=0.05))
+    shield = Lookahead(data, horizon_samples=40, settings=LookaheadSettings(depth=5, nodes=200))
     result = shield.decide(np.array([k, *ego]))       # k a decision sample, ego the 7 significands
     result.mask, result.depth, result.complete
 """
@@ -71,15 +74,17 @@ __all__ = ["DEFAULT_DEPTH", "DEFAULT_SECONDS", "GUARD_SECONDS", "NODE_BUDGET", "
 
 #: The default number of decisions a continuation must survive.
 DEFAULT_DEPTH = 5
-#: The default time budget per decision, in seconds.
-DEFAULT_SECONDS = 0.1
-#: A node budget per decision for searches whose answers must not depend on the machine (the on-demand
-#: shield's per state, ``rac simulate --shield``'s runtime shield): the searches the fixed continuations
-#: leave to it take up to ~0.2 s on the paper's model with 45 actions, a few ms mostly.
+#: The default node budget per decision (:class:`LookaheadSettings`), so that answers do not depend on
+#: the machine (ScenarioEnv's masks, the on-demand shield's per state, ``rac simulate --shield``'s
+#: runtime shield): the searches the fixed continuations leave to it take up to ~0.2 s on the paper's
+#: model with 45 actions, a few ms mostly.
 NODE_BUDGET = 64
 #: The time guard beside :data:`NODE_BUDGET`, in seconds: a safety net far above what the nodes take;
 #: where it fires the answer says so (:attr:`LookaheadMask.clock`).
 GUARD_SECONDS = 2.0
+#: The default time limit per decision, in seconds: the guard :data:`GUARD_SECONDS` (until the node
+#: budget became the default it was a budget of 0.1 s, which made the masks depend on the machine's load).
+DEFAULT_SECONDS = GUARD_SECONDS
 #: How many successor rows one call computes (states of a layer times actions).
 CHUNK_ROWS = 1 << 12
 
@@ -88,13 +93,16 @@ CHUNK_ROWS = 1 << 12
 class LookaheadSettings:
     """How far and how long the runtime shield searches at one decision.
 
-    ``depth``: the decisions a safe continuation must cover (>= 1); ``seconds``: the time budget per
-    decision (None: unbounded); ``nodes``: a budget of expanded search nodes per decision (None:
-    unbounded) — the same on every machine, for reproducible runs and tests."""
+    ``depth``: the decisions a safe continuation must cover (>= 1); ``nodes``: a budget of expanded
+    search nodes per decision (default :data:`NODE_BUDGET`; None: unbounded) — the same on every
+    machine, for reproducible runs and tests; ``seconds``: a time limit per decision (default
+    :data:`GUARD_SECONDS`, a guard far above what the default nodes take; None: unbounded). Where the
+    time limit stops a search, the answer depends on the machine's speed and load, and says so
+    (:attr:`LookaheadMask.clock`); ``nodes=None`` with a small ``seconds`` makes that the rule."""
 
     depth: int = DEFAULT_DEPTH
     seconds: float | None = DEFAULT_SECONDS
-    nodes: int | None = None
+    nodes: int | None = NODE_BUDGET
 
     def __post_init__(self) -> None:
         # numpy's integers are whole numbers too (a depth or budget from a sweep's array): kept as int

@@ -336,6 +336,12 @@ class ShieldStep:
         return self.guarantee.split(" ", 1)[0]
 
     @property
+    def clock(self) -> bool:
+        """The runtime shield's *time* limit stopped its search (:attr:`LookaheadMask.clock`): this mask
+        depends on the machine's speed and load, so a run at the same seed may get another one."""
+        return self.lookahead is not None and self.lookahead.clock
+
+    @property
     def short(self) -> bool:
         """The runtime shield's mask reaches fewer decisions than were asked for at this state (no
         action survives all of them, or its budget ran out first)."""
@@ -437,7 +443,7 @@ class StepShieldPolicy:
             self.kinds[step.kind] = self.kinds.get(step.kind, 0) + 1
             self.timed_out += int(step.timed_out)
             found = step.lookahead
-            self.clocked += int(found is not None and found.clock)
+            self.clocked += int(step.clock)
             self.short += int(step.kind == "lookahead" and found is not None and found.depth < found.target)
         return masks
 

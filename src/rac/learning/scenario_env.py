@@ -142,6 +142,18 @@ def _lookahead(lookahead: LookaheadSettings | int | Literal["auto"] | None,
     raise TypeError(f"lookahead must be LookaheadSettings, a depth, 'auto' or None, not {lookahead!r}")
 
 
+def clock_warning(settings: LookaheadSettings | None, time: float) -> str:
+    """The warning of the first step whose runtime shield's search the time limit stopped (at ``time``, s)."""
+    limit = f"{settings.seconds:g} s" if settings is not None and settings.seconds is not None else "its time"
+    nodes = settings.nodes if settings is not None else None
+    how = (f"its node budget ({nodes} a decision) is the same on every machine, the time limit ({limit}) is not; "
+           "raise seconds= or lower nodes= of LookaheadSettings") if nodes is not None else (
+        f"it has no node budget, only the time limit ({limit}): give it one, LookaheadSettings(nodes=...)")
+    return (f"the runtime shield's time limit ({limit} a decision) stopped its search at t = {time:g} s: that mask "
+            "(sound for the depth it states) depends on the machine's speed and load, so a run at the same seed may "
+            f"get other masks elsewhere; info['shield_clock'] marks such steps, clock_steps counts them ({how})")
+
+
 class ScenarioEnv(gymnasium.Env):
     """The scenario model of a ``.ra`` file's ``model`` block as a gymnasium environment.
 
@@ -196,12 +208,18 @@ class ScenarioEnv(gymnasium.Env):
     continuation), ``shield_short`` (the runtime shield reached fewer decisions than asked for at
     that state: no action survived them all, or its budget ran out), ``shield_timeout`` (the
     runtime shield's budget ran out: the mask was sound for its depth but may have allowed fewer
-    actions), ``no_safe_action`` (the shield knew no safe
+    actions), ``shield_clock`` (of those, the time limit stopped the search, not the node budget:
+    the mask depended on the machine's speed and load; warned once), ``no_safe_action`` (the shield knew no safe
     action: the mask allowed every action of the model), ``shield_allowed`` (the action taken
     was in the mask) and ``model_allowed`` (the action taken was one the model's ``allow when``
     permits: a learner that ignores the masks can take another, and that step is no step of the
     model, which no proof covers). Counted since construction: :attr:`shield_steps` (steps per
-    ``shield`` value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`, :attr:`disallowed_steps`.
+    ``shield`` value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`, :attr:`clock_steps`,
+    :attr:`disallowed_steps`.
+
+    The runtime shield's default budget is a number of search nodes
+    (:class:`rac.engine.lookahead.LookaheadSettings`), so the masks, and a masked learner's run at a
+    seed, are the same on every machine; its time limit is a guard far above what the nodes take.
 
     ``info["scenario"]``: the scene's file; ``info["scale"]``: :attr:`reward_scale`. After :meth:`step`,
     ``info["reward_steps"]``: each reward's change over the step (unscaled), as
@@ -279,6 +297,9 @@ class ScenarioEnv(gymnasium.Env):
         self.no_safe_action_steps = 0
         #: Steps whose runtime shield ran out of its budget (``info["shield_timeout"]``).
         self.timeout_steps = 0
+        #: Of those, steps whose search the time limit stopped (``info["shield_clock"]``): their masks
+        #: depended on the machine's speed and load.
+        self.clock_steps = 0
         #: Steps that took an action the model's ``allow when`` forbids (``info["model_allowed"]`` False).
         self.disallowed_steps = 0
         self._decision: ShieldStep | None = None
@@ -477,17 +498,23 @@ class ScenarioEnv(gymnasium.Env):
         if decision is None:
             # no shield: the mask handed out was the model's own
             shield = {"shield": "none", "shield_until": time, "shield_short": False, "shield_timeout": False,
-                      "no_safe_action": unseen, "shield_allowed": model_allowed}
+                      "shield_clock": False, "no_safe_action": unseen, "shield_allowed": model_allowed}
         else:
             shield = {"shield": decision.guarantee,
                       "shield_until": self._seconds(decision.until),
                       "shield_short": decision.short, "shield_timeout": decision.timed_out,
-                      "no_safe_action": decision.no_safe_action,
+                      "shield_clock": decision.clock, "no_safe_action": decision.no_safe_action,
                       "shield_allowed": bool(decision.mask[int(action)])}
         shield["model_allowed"] = model_allowed
         self.shield_steps[shield["shield"]] += 1
         self.no_safe_action_steps += shield["no_safe_action"]
         self.timeout_steps += shield["shield_timeout"]
+        if shield["shield_clock"]:
+            if not self.clock_steps:  # never silently: a reproducible run is what the node budget promises
+                runtime = self._step_shield.runtime if self._step_shield is not None else None
+                warnings.warn(clock_warning(runtime.settings if runtime is not None else None, time),
+                              RuntimeWarning, stacklevel=2)
+            self.clock_steps += 1
         self.disallowed_steps += not model_allowed
         info = self._info()
         # each reward's change over the step, unscaled (what a training log averages per objective)

@@ -23,6 +23,7 @@ batch cannot hold the episodes (a set of scenes) or where frames are rendered.
 from __future__ import annotations
 
 import os
+import warnings
 from collections import Counter
 from collections.abc import Sequence
 from fractions import Fraction
@@ -39,7 +40,7 @@ from rac.core.diagnostics import RacValueError
 from rac.core.numbers import seconds_at
 from rac.ir import expr as ie
 from rac.lang import ast
-from rac.learning.scenario_env import ScenarioEnv
+from rac.learning.scenario_env import ScenarioEnv, clock_warning
 from rac.learning.wrappers import Scale
 
 if TYPE_CHECKING:
@@ -49,8 +50,8 @@ if TYPE_CHECKING:
 __all__ = ["ScenarioSyncVectorEnv", "ScenarioVectorEnv", "action_masks", "make_vector_env"]
 
 #: The ``info`` keys a step adds to the reset ones: what the mask of the state the step left carried.
-SHIELD_KEYS = ("shield", "shield_until", "shield_short", "shield_timeout", "no_safe_action", "shield_allowed",
-               "model_allowed")
+SHIELD_KEYS = ("shield", "shield_until", "shield_short", "shield_timeout", "shield_clock", "no_safe_action",
+               "shield_allowed", "model_allowed")
 
 
 class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
@@ -68,7 +69,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     ``_key`` of the episodes that report it — the shield's keys are missing for an episode that was
     restarted in this step (its info is the reset info). Counted since construction over all
     episodes, as ScenarioEnv counts: :attr:`shield_steps`, :attr:`no_safe_action_steps`, :attr:`timeout_steps`,
-    :attr:`disallowed_steps`.
+    :attr:`clock_steps`, :attr:`disallowed_steps`.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -104,6 +105,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self.no_safe_action_steps = 0
         #: Steps whose runtime shield ran out of its budget (``info["shield_timeout"]``).
         self.timeout_steps = 0
+        #: Of those, steps whose search the time limit stopped (``info["shield_clock"]``).
+        self.clock_steps = 0
         #: Steps that took an action the model's ``allow when`` forbids (``info["model_allowed"]`` False).
         self.disallowed_steps = 0
         self._period = Fraction(self.episodes.automaton.period)  # times as written (rac.core.numbers.seconds_at)
@@ -309,11 +312,20 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                 until[row] = seconds_at(int(decision.until), self._period)
                 flags["shield_short"][row] = decision.short
                 flags["shield_timeout"][row] = decision.timed_out
+                flags["shield_clock"][row] = decision.clock
                 flags["no_safe_action"][row] = decision.no_safe_action
                 flags["shield_allowed"][row] = bool(decision.mask[int(actions[row])])
         self.shield_steps.update(kind[stepping].tolist())
         self.no_safe_action_steps += int(flags["no_safe_action"].sum())
         self.timeout_steps += int(flags["shield_timeout"].sum())
+        clocked = int(flags["shield_clock"].sum())
+        if clocked and not self.clock_steps:  # never silently: the node budget promises reproducible runs
+            runtime = self._step_shield.runtime if self._step_shield is not None else None
+            first = int(np.flatnonzero(flags["shield_clock"])[0])
+            time = float(seconds_at(int(self.episodes.k[first]), self._period))
+            warnings.warn(clock_warning(runtime.settings if runtime is not None else None, time),
+                          RuntimeWarning, stacklevel=3)
+        self.clock_steps += clocked
         self.disallowed_steps += int((stepping & ~flags["model_allowed"]).sum())
         info: dict[str, np.ndarray] = {"shield": kind, "shield_until": until, **flags}
         return {**info, **{f"_{key}": stepping.copy() for key in info}}
@@ -455,6 +467,11 @@ class ScenarioSyncVectorEnv(gymnasium.vector.SyncVectorEnv):  # type: ignore[mis
     def timeout_steps(self) -> int:
         """Steps whose runtime shield ran out of its budget, over all episodes."""
         return int(self._total("timeout_steps"))
+
+    @property
+    def clock_steps(self) -> int:
+        """Steps whose runtime shield's search its time limit stopped, over all episodes."""
+        return int(self._total("clock_steps"))
 
     @property
     def disallowed_steps(self) -> int:
