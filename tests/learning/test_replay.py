@@ -168,6 +168,23 @@ def test_rates_that_read_inputs_read_the_previous_steps_inputs() -> None:
     assert checked > 2
 
 
+def test_rates_that_read_inputs_need_the_held_inputs() -> None:
+    # Without held=, a transition was replayed as an episode's first sample, its rates reading its own
+    # inputs: every counterfactual reward after the first step of such an automaton was wrong, silently.
+    rated = compile_text(RATED, "rated.ra").raise_for_errors()
+    inputs = {"headway": np.array([2.0, 8.0]), "collide": np.array([False, False])}
+    with pytest.raises(ValueError, match=r"rates of `Rated` read the input\(s\) headway.*held="):
+        counterfactual_transitions(rated, inputs)
+    # at an episode's first step the held inputs are the step's own, as the wrapper's info["rac"]["held"] says
+    first = counterfactual_transitions(rated, inputs, held={"headway": inputs["headway"]})
+    assert first.reward.reshape(2, 2)[:, 0].tolist() == pytest.approx([0.2, 0.8])
+    # an automaton whose rates read no input is replayed exactly without them, as before
+    constant = follow()
+    assert not constant.rates_read_inputs
+    plain = counterfactual_transitions(constant, {"headway": np.array([8.0]), "collide": np.array([False])})
+    assert plain.reward.tolist() == pytest.approx([1.1, -1.0])  # objective 10 * sa + pr: Safe 1 + 0.1, Unsafe -1
+
+
 def test_an_automaton_without_inputs_is_replayed() -> None:
     # Its steps read no input, so no input column said how many transitions there were: every step
     # was refused with "inputs must name the automaton's inputs".

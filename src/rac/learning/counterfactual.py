@@ -26,7 +26,7 @@ not depend on the automaton (the default goal, ``goal()``, reads the model only)
 counterfactual transitions are transitions the environment could really have produced.
 
 Example (a deep learner's replay buffer; ``inputs`` the automaton's inputs of each transition, ``held``
-those of the step before it, which input-dependent rates read)::
+those of the step before it, which input-dependent rates read: required for such an automaton)::
 
     cf = counterfactual_transitions(automaton, inputs, rewards=rewards_before, ended=terminated | truncated,
                                     held=held)
@@ -131,10 +131,18 @@ def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mappi
     constants), ``ended`` which transitions ended their episode (the ``at end`` clauses apply),
     ``held`` the inputs of the step before each transition (name -> ``(B,)``; the rates of the
     transition's sample read them: :class:`~rac.learning.wrappers.RewardAutomatonWrapper`'s
-    ``info["rac"]["held"]``; default none, as at an episode's first step: exact for automata whose
-    rates read no inputs).
+    ``info["rac"]["held"]``; required when a rate reads an input — at an episode's first step they are
+    the step's own inputs — and a ``ValueError`` without it: replayed as a first sample, every later
+    transition's rewards would be wrong, silently; not needed for automata whose rates read no inputs).
     Pass a :class:`Replayer` instead of the automaton to reuse its batches across calls."""
     replayer = automaton if isinstance(automaton, Replayer) else Replayer(automaton)
+    program = replayer.automaton
+    if held is None and program.rates_read_inputs:
+        read = sorted({name for location in program.locations for rate in location.rates
+                       for name in rate.variables()})
+        raise ValueError(f"the rates of `{program.name}` read the input(s) {', '.join(read)} held from the step "
+                         "before each transition: pass held= (RewardAutomatonWrapper's info['rac']['held']; at an "
+                         "episode's first step, the step's own inputs)")
     columns = {name: np.asarray(values) for name, values in inputs.items()}
     if not columns and ended is None:  # an automaton without inputs: only `ended` says how many transitions
         raise ValueError("inputs name no input: pass ended= (one flag per transition) to give their number")
