@@ -176,13 +176,27 @@ def test_rates_that_read_inputs_need_the_held_inputs() -> None:
     with pytest.raises(ValueError, match=r"rates of `Rated` read the input\(s\) headway.*held="):
         counterfactual_transitions(rated, inputs)
     # at an episode's first step the held inputs are the step's own, as the wrapper's info["rac"]["held"] says
-    first = counterfactual_transitions(rated, inputs, held={"headway": inputs["headway"]})
+    first = counterfactual_transitions(rated, inputs, held={"headway": inputs["headway"]},
+                                       rewards={"sa": np.zeros(2)})
     assert first.reward.reshape(2, 2)[:, 0].tolist() == pytest.approx([0.2, 0.8])
     # an automaton whose rates read no input is replayed exactly without them, as before
     constant = follow()
     assert not constant.rates_read_inputs
     plain = counterfactual_transitions(constant, {"headway": np.array([8.0]), "collide": np.array([False])})
     assert plain.reward.tolist() == pytest.approx([1.1, -1.0])  # objective 10 * sa + pr: Safe 1 + 0.1, Unsafe -1
+
+
+def test_updates_that_read_rewards_need_the_rewards_before() -> None:
+    # Without rewards=, every transition was replayed from rewards of 0: for an update that reads a
+    # reward (`sa = sa * 2`) the counterfactual reward was wrong after the first step, silently.
+    rated = compile_text(RATED, "rated.ra").raise_for_errors()
+    inputs = {"headway": np.array([8.0]), "collide": np.array([False])}
+    with pytest.raises(ValueError, match=r"update of `sa` on the edge Unsafe -> Safe reads the rewards'.*rewards="):
+        counterfactual_transitions(rated, inputs, held={"headway": np.array([8.0])})
+    cf = counterfactual_transitions(rated, inputs, held={"headway": np.array([8.0])}, rewards={"sa": np.array([3.0])})
+    assert cf.reward.tolist() == pytest.approx([0.8, 1.4])  # Safe: +0.8; Unsafe: (3 - 0.8) * 2 - 3
+    # constant updates (FOLLOW's `sa = sa - 10`) pay the same from any value: no rewards= needed
+    assert len(counterfactual_transitions(follow(), inputs).reward) == 2
 
 
 def test_an_automaton_without_inputs_is_replayed() -> None:

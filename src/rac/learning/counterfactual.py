@@ -120,6 +120,22 @@ class CounterfactualBatch:
     ended: np.ndarray
 
 
+def _update_reading_rewards(automaton: ir.Automaton) -> str | None:
+    """Where an update of ``automaton`` reads a reward's value (``sa = sa * 2``, ``sa = 0``, ``pr = sa``):
+    its change then depends on the values before it (None: every update adds a constant or inputs)."""
+    names = automaton.location_names
+    places = [(f"the edge {names[edge.source]} -> {names[edge.target]}", edge.updates)
+              for edges in automaton.edges for edge in edges]
+    places += [("an `at end` clause", clause.updates) for clause in automaton.end_clauses]
+    for where, updates in places:
+        for update in updates:
+            others = {name: coefficient for name, coefficient in update.value.terms
+                      if name in automaton.rewards and name != update.reward}
+            if update.value.coefficient(update.reward) != 1 or any(others.values()):
+                return f"the update of `{update.reward}` on {where}"
+    return None
+
+
 def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mapping[str, np.ndarray], *,
                                rewards: Mapping[str, np.ndarray] | None = None,
                                ended: np.ndarray | None = None,
@@ -127,8 +143,9 @@ def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mappi
     """The counterfactual transitions of a batch of ``B`` one-sample transitions (one environment
     step = one sample, as :class:`rac.learning.wrappers.RewardAutomatonWrapper` steps the automaton):
     ``inputs`` the automaton's inputs each transition produced (name -> ``(B,)``), ``rewards`` the
-    reward values before it (name -> ``(B,)``; default 0: exact for automata whose updates add
-    constants), ``ended`` which transitions ended their episode (the ``at end`` clauses apply),
+    reward values before it (name -> ``(B,)``; default 0, exact for automata whose updates add
+    constants or inputs; required — a ``ValueError`` without it — where an update reads a reward's
+    value, as ``sa = sa * 2``), ``ended`` which transitions ended their episode (the ``at end`` clauses apply),
     ``held`` the inputs of the step before each transition (name -> ``(B,)``; the rates of the
     transition's sample read them: :class:`~rac.learning.wrappers.RewardAutomatonWrapper`'s
     ``info["rac"]["held"]``; required when a rate reads an input — at an episode's first step they are
@@ -143,6 +160,11 @@ def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mappi
         raise ValueError(f"the rates of `{program.name}` read the input(s) {', '.join(read)} held from the step "
                          "before each transition: pass held= (RewardAutomatonWrapper's info['rac']['held']; at an "
                          "episode's first step, the step's own inputs)")
+    reading = _update_reading_rewards(program)
+    if rewards is None and reading is not None:
+        raise ValueError(f"in `{program.name}`, {reading} reads the rewards' values, so a transition's reward depends "
+                         "on them: pass rewards= (each reward's value before the transition: RewardAutomatonWrapper's "
+                         "info['rac']['rewards'] minus info['rac']['reward_steps'])")
     columns = {name: np.asarray(values) for name, values in inputs.items()}
     if not columns and ended is None:  # an automaton without inputs: only `ended` says how many transitions
         raise ValueError("inputs name no input: pass ended= (one flag per transition) to give their number")
