@@ -15,6 +15,7 @@ from rac.compiler import compile_text
 from rac.learning.counterfactual import counterfactual_transitions
 from rac.learning.location_observation import LocationObservation, LocationVectorObservation
 from rac.learning.replay import CounterfactualRows
+from rac.learning.vector_info import split_vector_info
 from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper
 from rac.runtime.interpreter import RewardAutomaton
 
@@ -71,9 +72,13 @@ def test_what_is_refused_is_said() -> None:
         rows.step(before, after, np.array([done]), [info])  # one environment's, unbatched
     with pytest.raises(ValueError, match=r"'Safe', which this automaton does not have \(its locations: Want, Wait\)"):
         CounterfactualRows(alternate()).step(before[None, :], after[None, :], np.array([done]), [info])
-    # a gymnasium vector environment's infos (one dict of arrays) and a scenario environment's info
-    with pytest.raises(ValueError, match="one info dict per environment.*VecEnv"):
-        rows.step(before[None, :], after[None, :], np.array([done]), {"rac": {}, "_rac": np.ones(1, dtype=bool)})
+    # one environment's info dict (no vector layout), gymnasium's SAME_STEP autoreset, a scenario environment's info
+    with pytest.raises(ValueError, match="one environment's info.*vector layout"):
+        rows.step(before[None, :], after[None, :], np.array([done]), info)
+    same_step = {"rac": {}, "_rac": np.ones(1, dtype=bool), "final_obs": np.array([None]),
+                 "_final_obs": np.zeros(1, dtype=bool)}
+    with pytest.raises(ValueError, match="SAME_STEP.*NEXT_STEP"):
+        rows.step(before[None, :], after[None, :], np.array([done]), same_step)
     scenario = {"location": "Safe", "rewards": {"sa": 0.0, "pr": 0.0}, "inputs": {"headway": 3.0, "collide": False}}
     with pytest.raises(ValueError, match="infos\\[0\\].*scenario environments.*several samples"):
         rows.step(before[None, :], after[None, :], np.array([done]), [scenario])
@@ -88,6 +93,44 @@ def test_what_is_refused_is_said() -> None:
     swapped[0, -2:] = swapped[0, -2:][::-1]
     with pytest.raises(ValueError, match="differ from info\\['rac'\\]\\['location'\\]"):
         rows.step(before[None, :], swapped, np.array([done]), [info])
+
+
+def _single_follow() -> gymnasium.Env:
+    return LocationObservation(RewardAutomatonWrapper(gymnasium.wrappers.TimeLimit(HighwayLike(), 4), follow(), inputs,
+                                                      clip=True))
+
+
+def test_a_gymnasium_vector_environments_infos_are_replayed() -> None:
+    # gymnasium's vector environments (SyncVectorEnv, AsyncVectorEnv, rac's RewardAutomatonVectorWrapper)
+    # give one info dict of arrays: CounterfactualRows refused it, so their users had no counterfactual
+    # rows. Now they are those of the per-environment dicts, without the sub-environments gymnasium
+    # restarted in the step (NEXT_STEP: their obs -> next_obs is no transition), which `source` leaves out.
+    rows = CounterfactualRows(follow())
+    sync = gymnasium.vector.SyncVectorEnv([_single_follow] * 2)
+    limited = gymnasium.vector.SyncVectorEnv([lambda: gymnasium.wrappers.TimeLimit(HighwayLike(), 4)] * 2)
+    wrapped = LocationVectorObservation(RewardAutomatonVectorWrapper(limited, follow(), vector_inputs, clip=True))
+    for envs in (sync, wrapped):
+        before, _ = envs.reset(seed=0)
+        restarted = np.zeros(2, dtype=bool)
+        compared = skipped = 0
+        for _ in range(11):
+            after, _, terminated, truncated, infos = envs.step(np.array([2, 0]))
+            done = terminated | truncated
+            got = rows.step(before, after, done, infos)
+            stepping = np.flatnonzero(~restarted)
+            split = split_vector_info(infos, 2)
+            expected = (rows.step(before[stepping], after[stepping], done[stepping], [split[i] for i in stepping])
+                        if stepping.size else None)
+            [batch] = got
+            assert batch.source.tolist() == stepping.tolist() and batch.obs.shape == (stepping.size, 4)
+            if expected is not None:
+                [want] = expected
+                for name in ("obs", "next_obs", "reward", "location", "next_location"):
+                    assert np.array_equal(getattr(batch, name), getattr(want, name)), name
+            compared += stepping.size
+            skipped += int(restarted.sum())
+            restarted, before = done, after
+        assert compared > 12 and skipped >= 2
 
 
 def test_stable_baselines3_buffer_stores_every_location() -> None:

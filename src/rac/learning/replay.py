@@ -3,11 +3,12 @@
 One vector step of ``n`` environments, each a :class:`~rac.learning.wrappers.RewardAutomatonWrapper`
 under :class:`~rac.learning.location_observation.LocationObservation` (``"concat"`` layout), as an
 off-policy algorithm stores it (stable-baselines3's ``ReplayBuffer.add``: observations ``(n, D)``,
-one info dict per environment): :class:`CounterfactualRows` gives the ``L - 1`` other batches of
-``n`` transitions, one per location the automaton was not in — the same environment transitions,
-with the observation's location, the reward and the next location the automaton would have had
-(:mod:`rac.learning.counterfactual`). :class:`rac.learning.sb3.CounterfactualReplayBuffer` stores
-them beside the real ones.
+one info dict per environment; or gymnasium's vector layout, one dict of arrays, as ``SyncVectorEnv``,
+``AsyncVectorEnv`` and :class:`~rac.learning.wrappers.RewardAutomatonVectorWrapper` give it):
+:class:`CounterfactualRows` gives the ``L - 1`` other batches of ``n`` transitions, one per location
+the automaton was not in — the same environment transitions, with the observation's location, the
+reward and the next location the automaton would have had (:mod:`rac.learning.counterfactual`).
+:class:`rac.learning.sb3.CounterfactualReplayBuffer` stores them beside the real ones.
 
 Exact when the observation shows the automaton only through its location, as for
 :mod:`rac.learning.counterfactual`: the episode's end does not depend on the automaton's location
@@ -27,6 +28,7 @@ import numpy as np
 from rac import ir
 from rac.learning.counterfactual import Replayer, counterfactual_transitions
 from rac.learning.location_observation import one_hot_index, replace_one_hot
+from rac.learning.vector_info import is_vector_info, split_vector_info
 from rac.learning.wrappers import AutomatonLike, automaton_ir
 
 __all__ = ["CounterfactualRows", "CounterfactualStep"]
@@ -37,15 +39,19 @@ NEEDED = ("inputs", "held", "rewards", "reward_steps", "scale", "location")
 
 @dataclass(frozen=True, eq=False)
 class CounterfactualStep:
-    """``n`` counterfactual transitions (one per environment) from locations the automaton was not in:
-    ``obs`` and ``next_obs`` (``(n, D)``, the location columns replaced), the ``reward`` (``(n,)``,
-    scaled as the wrapper scales) and the ``location`` and ``next_location`` indices."""
+    """``m`` counterfactual transitions (one per environment that took a step) from locations the
+    automaton was not in: ``obs`` and ``next_obs`` (``(m, D)``, the location columns replaced), the
+    ``reward`` (``(m,)``, scaled as the wrapper scales), the ``location`` and ``next_location``
+    indices, and the environments they are of (``source``, indices into the step's batch: all ``n``,
+    except in gymnasium's vector layout the sub-environments it restarted in this step, whose
+    ``obs`` -> ``next_obs`` is no transition)."""
 
     obs: np.ndarray
     next_obs: np.ndarray
     reward: np.ndarray
     location: np.ndarray
     next_location: np.ndarray
+    source: np.ndarray
 
 
 def _column(racs: Sequence[Mapping[str, Any]], key: str) -> dict[str, np.ndarray]:
@@ -70,15 +76,16 @@ class CounterfactualRows:
         self.locations: tuple[str, ...] = program.location_names
         self._index = {name: i for i, name in enumerate(self.locations)}
 
-    def _infos(self, infos: Sequence[Mapping[str, Any]], n: int) -> list[Mapping[str, Any]]:
-        if isinstance(infos, Mapping):  # its length is its number of keys: "not 4 dicts" said nothing useful
-            raise ValueError("infos is one dict (a gymnasium vector environment's, e.g. RewardAutomatonVectorWrapper's "
-                             "arrays): counterfactual transitions take one info dict per environment, as "
-                             "stable-baselines3's VecEnv gives them, each environment a RewardAutomatonWrapper")
-        if len(infos) != n:
+    def _infos(self, infos: Sequence[Mapping[str, Any]] | Mapping[str, Any],
+               n: int) -> tuple[list[Mapping[str, Any]], np.ndarray]:
+        """Each stepping environment's ``info["rac"]``, and which environments step (see :meth:`step`)."""
+        stepping = np.arange(n)
+        if isinstance(infos, Mapping):  # gymnasium's vector layout: split per sub-environment
+            infos, stepping = _split(infos, n)
+        elif len(infos) != n:
             raise ValueError(f"infos must hold one dict per environment ({n}), not {len(infos)}")
         found: list[Mapping[str, Any]] = []
-        for i, info in enumerate(infos):
+        for i, info in zip(stepping.tolist(), infos):
             rac = info.get("rac") if isinstance(info, Mapping) else None
             if rac is None and isinstance(info, Mapping) and "location" in info:
                 raise ValueError(f"infos[{i}] carries the automaton's location at its top level, as rac's scenario "
@@ -92,21 +99,29 @@ class CounterfactualRows:
                                  "the step info of rac.learning.wrappers.RewardAutomatonWrapper (inputs, held, "
                                  "rewards, reward_steps, scale, location), around each environment")
             found.append(rac)
-        return found
+        return found, stepping
 
     def step(self, obs: np.ndarray, next_obs: np.ndarray, done: np.ndarray,
-             infos: Sequence[Mapping[str, Any]]) -> list[CounterfactualStep]:
+             infos: Sequence[Mapping[str, Any]] | Mapping[str, Any]) -> list[CounterfactualStep]:
         """The ``L - 1`` batches of counterfactual transitions of one vector step: ``obs`` before and
         ``next_obs`` after it (``(n, D)``, the location's one-hot vector in the last ``L`` columns),
         ``done`` where the episode ended (the ``at end`` clauses apply), ``infos`` the wrappers' step
-        infos. Batch ``k`` starts each environment ``k`` locations after the one it was in."""
+        infos: one dict per environment (stable-baselines3's ``VecEnv``), or gymnasium's vector layout
+        (one dict of arrays; gymnasium's default ``NEXT_STEP`` autoreset: a sub-environment restarted
+        in this step took no step, and its rows are left out, :attr:`CounterfactualStep.source`). Batch
+        ``k`` starts each environment ``k`` locations after the one it was in."""
         obs, next_obs = np.asarray(obs), np.asarray(next_obs)
         if obs.ndim != 2 or next_obs.shape != obs.shape:  # one environment's (D,) was read as D environments
             raise ValueError(f"obs and next_obs must be batches (n environments, D columns) of the same shape, not "
                              f"{obs.shape} and {next_obs.shape}: one environment's observation is obs[None, :]")
         count = len(self.locations)
-        n = int(obs.shape[0])
-        racs = self._infos(infos, n)
+        racs, source = self._infos(infos, int(obs.shape[0]))
+        done = np.asarray(done, dtype=bool).reshape(int(obs.shape[0]))[source]
+        obs, next_obs = obs[source], next_obs[source]
+        n = int(source.size)
+        if n == 0:  # every sub-environment restarted: no transition
+            empty = np.zeros(0, dtype=np.int64)
+            return [CounterfactualStep(obs, next_obs, np.zeros(0), empty, empty, source) for _ in range(1, count)]
         real = one_hot_index(obs, count)
         unknown = sorted({str(rac["location"]) for rac in racs} - set(self._index))
         if unknown:  # the wrappers run another automaton than the one given here
@@ -128,7 +143,7 @@ class CounterfactualRows:
         scale = np.array([float(rac["scale"]) for rac in racs])
         held = _column(racs, "held")
         cf = counterfactual_transitions(self._replayer, inputs, rewards=prior, held=held,
-                                        ended=np.asarray(done, dtype=bool).reshape(n))
+                                        ended=done)
         rows = np.arange(n)
         batches = []
         for k in range(1, count):
@@ -137,5 +152,28 @@ class CounterfactualRows:
             next_location = cf.next_location[pick]
             batches.append(CounterfactualStep(replace_one_hot(obs, location, count),
                                               replace_one_hot(next_obs, next_location, count),
-                                              cf.reward[pick] / scale, location, next_location))
+                                              cf.reward[pick] / scale, location, next_location, source))
         return batches
+
+
+#: The ``info["rac"]`` keys only a step gives (a reset's snapshot has location, rewards, objective, scale;
+#: RewardAutomatonVectorWrapper's reset rows carry its unmasked columns, held among them, too).
+STEP_ONLY = ("inputs", "reward_steps")
+
+
+def _split(infos: Mapping[str, Any], n: int) -> tuple[list[Mapping[str, Any]], np.ndarray]:
+    """The per-environment infos of gymnasium's vector layout, without the sub-environments it restarted
+    in this step (their ``info["rac"]`` is the reset's snapshot), and which environments remain."""
+    if "final_obs" in infos or "final_info" in infos:  # SAME_STEP: next_obs is the next episode's first
+        raise ValueError("infos come from a vector environment with gymnasium's SAME_STEP autoreset: where an episode "
+                         "ended, next_obs is the next episode's first observation (the last is in info['final_obs']), "
+                         "so obs -> next_obs is no transition there; use the default NEXT_STEP autoreset")
+    if not is_vector_info(infos):  # its length is its number of keys: "not 4 dicts" said nothing useful
+        raise ValueError("infos is one environment's info dict, not in gymnasium's vector layout (arrays with _key "
+                         "masks): pass a list of one info dict per environment (as stable-baselines3's VecEnv gives "
+                         "them) or a gymnasium vector environment's info, each environment a RewardAutomatonWrapper")
+    split = split_vector_info(infos, n)
+    restarted = [isinstance(info.get("rac"), Mapping) and "location" in info["rac"]
+                 and not any(key in info["rac"] for key in STEP_ONLY) for info in split]
+    stepping = np.flatnonzero(~np.array(restarted, dtype=bool).reshape(n))
+    return [split[i] for i in stepping.tolist()], stepping
