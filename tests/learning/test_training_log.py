@@ -57,6 +57,35 @@ def test_the_callback_records_with_a_real_ppo(tmp_path: Path) -> None:
     assert all(0.0 <= float(row["rac/location/Safe"] or 0) <= 1.0 for row in rows)
 
 
+def test_the_callback_warns_of_a_reward_normaliser() -> None:
+    # VecNormalize(norm_reward=True) divides every reward by a running spread of the returns and clips
+    # it at clip_reward (10): FOLLOW's collision, -200 in its objective, then counts as little as -10
+    # times that spread, so the learner's reward is no longer the automaton's up to a fixed factor and
+    # the priority proofs cover nothing it learns from. Nothing said so.
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    import warnings
+
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from rac.learning.sb3 import RacCallback
+
+    def make() -> RewardAutomatonWrapper:
+        return RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)
+
+    for norm_reward in (True, False):
+        envs = VecNormalize(DummyVecEnv([make]), norm_obs=False, norm_reward=norm_reward)
+        model = PPO("MlpPolicy", envs, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model.learn(32, callback=RacCallback())
+        said = [str(w.message) for w in caught if "norm_reward" in str(w.message)]
+        if norm_reward:
+            assert len(said) == 1 and "clip_reward=10" in said[0] and "priority" in said[0], said
+        else:
+            assert said == []
+
+
 def test_without_stable_baselines3_the_import_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "stable_baselines3.common.callbacks", None)  # as if not installed
     monkeypatch.delitem(sys.modules, "rac.learning.sb3", raising=False)

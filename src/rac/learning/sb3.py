@@ -7,6 +7,7 @@ stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this mo
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -15,13 +16,14 @@ try:
     from stable_baselines3.common.buffers import ReplayBuffer
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+    from stable_baselines3.common.vec_env import VecNormalize
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
 from rac.learning.replay import CounterfactualRows
 from rac.learning.training_log import TrainingLog
 
-__all__ = ["CounterfactualReplayBuffer", "RacCallback"]
+__all__ = ["CounterfactualReplayBuffer", "RacCallback", "reward_normaliser"]
 
 
 class RacCallback(BaseCallback):
@@ -31,7 +33,9 @@ class RacCallback(BaseCallback):
     rollout's end for an on-policy algorithm (PPO, A2C, MaskablePPO: its table follows a rollout,
     every ``log_interval`` rollouts), at every step for an off-policy one (DQN, SAC, ...: its table
     is written at an episode's end, within a rollout of a few steps). Needs stable-baselines3 (an
-    optional dependency: ``pip install 'rac[rl]'``).
+    optional dependency: ``pip install 'rac[rl]'``). Warns, once, when the training environment is
+    under ``VecNormalize(norm_reward=True)`` (:func:`reward_normaliser`): the learner's reward is then
+    no longer the automaton's.
 
     Example::
 
@@ -44,9 +48,21 @@ class RacCallback(BaseCallback):
         self.log = TrainingLog()
         self._per_step = False  # an off-policy algorithm: record the values at every step
         self._logged: dict[str, float] = {}  # what the logger was last given, until it writes them out
+        self._warned = False
 
     def _init_callback(self) -> None:
         self._per_step = isinstance(self.model, OffPolicyAlgorithm)
+        normaliser = reward_normaliser(self.training_env)
+        if normaliser is not None and not self._warned:  # learn() called again: said once
+            self._warned = True
+            warnings.warn(
+                f"VecNormalize(norm_reward=True, clip_reward={normaliser.clip_reward:g}) divides every reward by a "
+                "running estimate of the returns' spread, which changes as training goes on, and clips it: the "
+                "learner's reward is no longer the automaton's up to one positive factor, so the priority proofs "
+                "of rac check (no penalty compensated by lower objectives' gains) do not cover what it learns "
+                "from, and a large penalty may count for less than a few steps' gains; scale the automaton's reward "
+                "with scale='proven' (every reward in [-1, 1], the proofs intact) and use "
+                "VecNormalize(norm_reward=False)", UserWarning, stacklevel=2)
 
     def _on_step(self) -> bool:
         # The logger's table is written when the algorithm says (A2C: every 100 rollouts; DQN: at an
@@ -69,6 +85,18 @@ class RacCallback(BaseCallback):
         self._logged = self.log.values()
         for key, value in self._logged.items():
             self.logger.record(key, value)
+
+
+def reward_normaliser(venv: Any) -> VecNormalize | None:
+    """The ``VecNormalize`` with ``norm_reward=True`` in stable-baselines3's chain of vector wrappers
+    ``venv`` (each one's ``venv`` the next), or None."""
+    for _ in range(100):  # a wrapper chain, not a cycle
+        if venv is None:
+            return None
+        if isinstance(venv, VecNormalize) and venv.norm_reward:
+            return venv
+        venv = getattr(venv, "venv", None)
+    return None
 
 
 class CounterfactualReplayBuffer(ReplayBuffer):
