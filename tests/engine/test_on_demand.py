@@ -221,6 +221,28 @@ def test_a_start_search_stopped_by_its_time_limit_counts_its_actions_as_at_least
     assert "at the start at least 1 of 9 actions (the search stopped at its 20 s limit" in (stopped[0].message or "")
 
 
+def test_the_start_search_is_bounded_by_its_time_limit_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Qd beyond the budget is decided by a search of the whole horizon from the start, bounded by its
+    20 s (docs/verify.md): since the runtime shield's settings have a node budget by default, it must
+    ask for none, or a scene whose proof needs more than 64 nodes would be UNKNOWN (or its count of
+    actions cut) where 20 s decide it."""
+    from rac.engine.lookahead import Lookahead
+    from rac.verify import symbolic
+
+    asked = []
+
+    class Recorded(Lookahead):
+        def decide(self, state: np.ndarray, crashed: bool = False):  # type: ignore[no-untyped-def]
+            asked.append(self.settings)
+            return super().decide(state, crashed)
+
+    monkeypatch.setattr(symbolic, "Lookahead", Recorded)
+    path = write_engine_file(tmp_path, "goal_behind_wall", {"safe": QUERIES["safe"]})
+    [result] = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path, plots=False, max_states=3))[1]
+    assert result.status == "satisfied" and asked
+    assert all(settings.nodes is None and settings.seconds == symbolic.START_SECONDS for settings in asked)
+
+
 def test_a_state_asked_twice_at_once_is_counted_once(tmp_path: Path) -> None:
     """``stats.states`` counts distinct states (what a report cites as the shield's reach): runs that
     meet the same state at one sample asked about it together, and it was counted once per run."""

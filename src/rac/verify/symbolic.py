@@ -314,7 +314,7 @@ class SymbolicAnswerer:
                                        horizon_samples=ctx.horizon_samples,
                                        message=f"no strategy keeps `{goal}` from the start: it is false at the start")
         search = Lookahead(ctx.data, ctx.horizon_samples,
-                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=START_SECONDS))
+                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=START_SECONDS, nodes=None))
         found = search.decide(row)
         proved = found.depth >= found.target and found.depth > 0
         reach = f"t = {found.until * float(at):g} s"
