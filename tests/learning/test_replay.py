@@ -309,3 +309,30 @@ def test_an_episode_the_automaton_ends_is_replayed_exactly() -> None:
                 ended += int(env.get_wrapper_attr("automaton").terminated)
                 break
     assert ended == 3
+
+
+def test_the_callback_warns_of_counterfactual_rows_under_frame_stacking() -> None:
+    # Under VecFrameStack the counterfactual rows replace the newest frame's location only: the earlier
+    # frames still show the real locations, so the rows are no transitions the environment could have
+    # produced. The docs said so, but nothing told a user who stacked frames around the buffer.
+    pytest.importorskip("stable_baselines3", reason="needs stable-baselines3 (the rl extra)")
+    import warnings
+
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack
+
+    from rac.learning.sb3 import CounterfactualReplayBuffer, RacCallback
+
+    def make() -> gymnasium.Env:
+        return LocationObservation(RewardAutomatonWrapper(Blank(), alternate(), took))
+
+    for stacked in (True, False):
+        envs = DummyVecEnv([make])
+        model = DQN("MlpPolicy", VecFrameStack(envs, 2) if stacked else envs, learning_starts=1000,
+                    buffer_size=1000, seed=0, device="cpu", replay_buffer_class=CounterfactualReplayBuffer,
+                    replay_buffer_kwargs={"automaton": alternate()})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model.learn(4, callback=RacCallback())
+        said = [str(w.message) for w in caught if "VecFrameStack" in str(w.message)]
+        assert len(said) == (1 if stacked else 0), said

@@ -16,7 +16,7 @@ try:
     from stable_baselines3.common.buffers import ReplayBuffer
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-    from stable_baselines3.common.vec_env import VecNormalize
+    from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
@@ -35,7 +35,8 @@ class RacCallback(BaseCallback):
     is written at an episode's end, within a rollout of a few steps). Needs stable-baselines3 (an
     optional dependency: ``pip install 'rac[rl]'``). Warns, once, when the training environment is
     under ``VecNormalize(norm_reward=True)`` (:func:`reward_normaliser`): the learner's reward is then
-    no longer the automaton's.
+    no longer the automaton's; and when a :class:`CounterfactualReplayBuffer` is filled under
+    ``VecFrameStack``: its rows are then inexact.
 
     Example::
 
@@ -63,6 +64,15 @@ class RacCallback(BaseCallback):
                 "from, and a large penalty may count for less than a few steps' gains; scale the automaton's reward "
                 "with scale='proven' (every reward in [-1, 1], the proofs intact) and use "
                 "VecNormalize(norm_reward=False)", UserWarning, stacklevel=2)
+        buffer = getattr(self.model, "replay_buffer", None)
+        if isinstance(buffer, CounterfactualReplayBuffer) and _wrapper(self.training_env, VecFrameStack) is not None:
+            if not buffer.warned_stacked:  # learn() called again, or several callbacks: said once
+                buffer.warned_stacked = True
+                warnings.warn(
+                    "CounterfactualReplayBuffer under VecFrameStack: each counterfactual row replaces the location of "
+                    "the newest frame only, the earlier frames still show the real locations, so the rows are no "
+                    "transitions the environment could have produced; stack no frames, or use the plain ReplayBuffer",
+                    UserWarning, stacklevel=2)
 
     def _on_step(self) -> bool:
         # The logger's table is written when the algorithm says (A2C: every 100 rollouts; DQN: at an
@@ -90,10 +100,14 @@ class RacCallback(BaseCallback):
 def reward_normaliser(venv: Any) -> VecNormalize | None:
     """The ``VecNormalize`` with ``norm_reward=True`` in stable-baselines3's chain of vector wrappers
     ``venv`` (each one's ``venv`` the next), or None."""
+    found = _wrapper(venv, VecNormalize)
+    return found if isinstance(found, VecNormalize) and found.norm_reward else None
+
+
+def _wrapper(venv: Any, kind: type) -> Any:
+    """The outermost ``kind`` in stable-baselines3's chain of vector wrappers ``venv``, or None."""
     for _ in range(100):  # a wrapper chain, not a cycle
-        if venv is None:
-            return None
-        if isinstance(venv, VecNormalize) and venv.norm_reward:
+        if venv is None or isinstance(venv, kind):
             return venv
         venv = getattr(venv, "venv", None)
     return None
@@ -107,7 +121,8 @@ class CounterfactualReplayBuffer(ReplayBuffer):
     automaton, inputs))`` (the ``"concat"`` layout): pass the same automaton in
     ``replay_buffer_kwargs``. Each step fills ``L`` rows per environment (``L`` locations), so the
     buffer holds ``buffer_size / L`` steps' worth of real transitions. Only the last ``L`` columns
-    are replaced: under ``VecFrameStack`` the earlier frames would show the real locations.
+    are replaced: under ``VecFrameStack`` the earlier frames would show the real locations (the
+    buffer cannot see the vector wrappers; :class:`RacCallback` warns of it).
 
     Example::
 
@@ -133,6 +148,8 @@ class CounterfactualReplayBuffer(ReplayBuffer):
                          optimize_memory_usage=False, handle_timeout_termination=handle_timeout_termination)
         #: Builds the counterfactual rows; ``rows.locations`` the one-hot vector's order.
         self.rows = rows
+        #: :class:`RacCallback` has warned that this buffer is filled under ``VecFrameStack``.
+        self.warned_stacked = False
 
     def add(self, obs: np.ndarray, next_obs: np.ndarray, action: np.ndarray, reward: np.ndarray, done: np.ndarray,
             infos: list[dict[str, Any]]) -> None:
