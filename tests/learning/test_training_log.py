@@ -38,6 +38,21 @@ def test_the_log_aggregates_and_clears() -> None:
     assert recorded["rac/shield/no_safe_action"] == 1 / 2
 
 
+def test_masks_the_clock_cut_are_logged() -> None:
+    # ScenarioEnv says in info["shield_clock"] that a step's mask depended on the machine's speed (the
+    # runtime shield's time limit cut its search); the log, where a training run's numbers are read,
+    # did not show it.
+    log = TrainingLog()
+    log.add([{"shield": "lookahead 3", "shield_clock": True}, {"shield": "lookahead 3", "shield_clock": False},
+             {"shield": "lookahead 2"}, {"shield": "exhaustive"}])
+    assert log.record()["rac/shield/clock"] == 1 / 4
+    log.add([{"shield": "lookahead 3", "shield_clock": False}])
+    assert log.record()["rac/shield/clock"] == 0.0  # once recorded, recorded (no blank cell)
+    log = TrainingLog()
+    log.add([{"shield": "lookahead 3", "shield_clock": False}])
+    assert "rac/shield/clock" not in log.record()
+
+
 def test_the_callback_records_with_a_real_ppo(tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
     from stable_baselines3 import PPO

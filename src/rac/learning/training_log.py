@@ -20,6 +20,9 @@ and the info of the step that ended it under ``final_info``: that one is the ste
 - ``rac/shield/outside_mask``: the share of those steps whose action the mask did not allow
   (``info["shield_allowed"]`` False: a learner that ignores the masks, plain PPO or DQN, where no
   guarantee covers the step; recorded once such a step happened);
+- ``rac/shield/clock``: the share of those steps whose mask the runtime shield's time limit cut
+  (``info["shield_clock"]``: it depended on the machine's speed and load, so the run at its seed may
+  not repeat; recorded once such a step happened);
 - ``rac/collisions``: steps with a collision (``info["collided"]`` in ScenarioEnv,
   ``info["crashed"]`` in highway-env), not counting the reset infos of a vector env's reset steps
   (rac's, which say so: no ``reward_steps``), whose flags are the new episode's start;
@@ -57,6 +60,7 @@ class TrainingLog:
         self._clipped: Counter[str] = Counter()
         self._no_safe = 0
         self._outside = 0  # shielded steps whose action the mask did not allow
+        self._clock = 0  # shielded steps whose mask the runtime shield's time limit cut
         self._shielded = 0  # steps that report a shield: the shield shares' denominator
         self._disallowed = 0
         self._collisions = 0
@@ -93,6 +97,7 @@ class TrainingLog:
                 self._shield[str(info["shield"])] += 1
                 self._no_safe += bool(info.get("no_safe_action", False))
                 self._outside += not info.get("shield_allowed", True)
+                self._clock += bool(info.get("shield_clock", False))
             self._disallowed += not info.get("model_allowed", True)
             if not _is_reset(info):  # a reset info's flags are the new episode's start, not a step's
                 self._collisions += bool(info.get("collided", False) or info.get("crashed", False))
@@ -118,6 +123,8 @@ class TrainingLog:
             out["rac/shield/no_safe_action"] = self._no_safe / self._shielded
             if self._outside:  # the shares above say what the masks offered, this how often they were ignored
                 out["rac/shield/outside_mask"] = self._outside / self._shielded
+            if self._clock:  # a run that may not repeat at its seed: said where the learner's numbers are
+                out["rac/shield/clock"] = self._clock / self._shielded
         out["rac/collisions"] = float(self._collisions)
         if self._disallowed:  # once recorded, a later call without any records 0 (below)
             out["rac/disallowed"] = float(self._disallowed)
