@@ -130,6 +130,22 @@ def test_concat_layout_one_hot_matches_the_info() -> None:
     assert seen == {"Safe", "Unsafe"}
 
 
+def test_a_chain_made_by_gymnasium_make_passes_check_env_and_is_remade_from_its_spec() -> None:
+    """gymnasium's check_env remakes an environment made by ``gymnasium.make`` from its spec, wrappers
+    included: a wrapper that does not record its arguments ended it in "cannot be recreated"."""
+    env_id = "rac-test/LocationHighwayLike-v0"
+    if env_id not in gymnasium.registry:
+        gymnasium.register(env_id, entry_point=HighwayLike, max_episode_steps=30)
+    env = LocationObservation(RewardAutomatonWrapper(gymnasium.make(env_id), follow(), inputs, clip=True),
+                              layout="dict", locations=["Safe", "Unsafe"])
+    check_env(env, skip_render_check=True)
+    remade = gymnasium.make(env.spec)
+    assert isinstance(remade, LocationObservation) and remade.layout == "dict"
+    assert remade.locations == ("Safe", "Unsafe")
+    a, b = env.reset(seed=4)[0], remade.reset(seed=4)[0]
+    assert a[LOCATION_KEY] == b[LOCATION_KEY] and a["observation"].tolist() == b["observation"].tolist()
+
+
 def test_dict_layout_for_other_spaces_and_on_request() -> None:
     env = LocationObservation(RewardAutomatonWrapper(HighwayLike(), follow(), inputs, clip=True), layout="dict")
     assert isinstance(env.observation_space, gymnasium.spaces.Dict)
@@ -259,6 +275,7 @@ def test_scenario_envs_and_their_masks(scene_file: Path) -> None:
     obs, *_, info = env.step(int(np.flatnonzero(masks)[0]))
     assert obs[29:].tolist() == [float(name == info["location"]) for name in names]
     assert env.observation_space.contains(obs)
+    check_env(env, skip_render_check=True)  # made by gymnasium.make: remade from its spec, this wrapper too
 
     envs = LocationVectorObservation(gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=scene_file,
                                                         shield=table))

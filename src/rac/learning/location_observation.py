@@ -35,6 +35,7 @@ from typing import Any, Literal, SupportsFloat
 import gymnasium
 import numpy as np
 from gymnasium import spaces
+from gymnasium.utils import RecordConstructorArgs
 from gymnasium.vector import VectorEnv, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
@@ -191,7 +192,7 @@ class _Locations:
         return {**obs, LOCATION_KEY: rows.astype(np.int64)}
 
 
-class LocationObservation(gymnasium.Wrapper[Any, Any, Any, Any]):
+class LocationObservation(gymnasium.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     """Add the reward automaton's location to each observation (see the module's docstring).
 
     Args:
@@ -206,7 +207,10 @@ class LocationObservation(gymnasium.Wrapper[Any, Any, Any, Any]):
 
     def __init__(self, env: gymnasium.Env[Any, Any], *, layout: Layout = "auto",
                  locations: Sequence[str] | None = None) -> None:
-        super().__init__(env)
+        # recorded, so that env.spec remakes it: gymnasium's check_env and make(env.spec) refused a chain
+        # made by gymnasium.make with this wrapper in it ("the wrapper cannot be recreated")
+        RecordConstructorArgs.__init__(self, layout=layout, locations=None if locations is None else tuple(locations))
+        gymnasium.Wrapper.__init__(self, env)
         self._parts = _Locations(_names_given(env, locations), env.observation_space, layout)
         self.observation_space = self._parts.space
         #: The location names; the one-hot column (or the ``Discrete`` value) ``i`` is ``locations[i]``.
