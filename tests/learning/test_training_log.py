@@ -401,3 +401,33 @@ def test_a_crash_at_the_start_is_counted_once_per_episode_not_at_the_reset_rows(
                  {"crashed": True, "rac": {**snapshot, "reward_steps": {"sa": 1.0}}},
                  {"crashed": True, "objective": 3.0}])  # another environment's info, with a key of that name
     assert wrapped.record()["rac/collisions"] == 2.0
+
+
+def test_steps_whose_shield_ran_out_of_its_budget_are_said(tmp_path: Path) -> None:
+    """A runtime shield whose budget runs out hands out a mask that may allow fewer actions (and, with a
+    time budget, other masks on another run or machine): ``rac/shield/timeout`` says how often, where the
+    log said only the guarantee, as for a complete search."""
+    import numpy as np
+    from engine_files import write_engine_file
+
+    from rac.engine.lookahead import LookaheadSettings
+    from rac.learning.scenario_env import ScenarioEnv
+
+    model = write_engine_file(tmp_path, "avoidable_obstacle", queries={})
+    logs = {}
+    for nodes in (None, 1):  # unbounded, then one node a decision: cut short at every decision
+        env = ScenarioEnv(model, lookahead=LookaheadSettings(depth=3, seconds=None, nodes=nodes))
+        log = TrainingLog()
+        env.reset(seed=0)
+        for _ in range(3):
+            log.add([env.step(int(np.flatnonzero(env.action_masks())[0]))[4]])
+        logs[nodes] = (log.record(), env.timeout_steps)
+    assert "rac/shield/timeout" not in logs[None][0] and logs[None][1] == 0
+    recorded, timeouts = logs[1]
+    assert timeouts == 3 and recorded["rac/shield/timeout"] == 1.0
+    log = TrainingLog()
+    log.add([{"shield": "lookahead 2", "shield_timeout": True}, {"shield": "lookahead 3"}])
+    assert log.record()["rac/shield/timeout"] == 1 / 2
+    assert log.record() == {}  # a window without steps: nothing to record
+    log.add([{"shield": "lookahead 3"}])
+    assert log.record()["rac/shield/timeout"] == 0.0  # once recorded, 0 rather than a blank cell

@@ -23,6 +23,9 @@ and the info of the step that ended it under ``final_info``: that one is the ste
 - ``rac/shield/clock``: the share of those steps whose mask the runtime shield's time limit cut
   (``info["shield_clock"]``: it depended on the machine's speed and load, so the run at its seed may
   not repeat; recorded once such a step happened);
+- ``rac/shield/timeout``: the share of those steps whose runtime shield ran out of its search budget
+  (``info["shield_timeout"]``: the mask sound for its depth, but perhaps allowing fewer actions;
+  recorded once such a step happened);
 - ``rac/collisions``: steps with a collision (``info["collided"]`` in ScenarioEnv,
   ``info["crashed"]`` in highway-env), not counting the reset infos of a vector env's reset steps
   (rac's, which say so: no ``reward_steps``), whose flags are the new episode's start;
@@ -61,6 +64,7 @@ class TrainingLog:
         self._no_safe = 0
         self._outside = 0  # shielded steps whose action the mask did not allow
         self._clock = 0  # shielded steps whose mask the runtime shield's time limit cut
+        self._timeout = 0  # shielded steps whose runtime shield ran out of its budget
         self._shielded = 0  # steps that report a shield: the shield shares' denominator
         self._disallowed = 0
         self._collisions = 0
@@ -98,6 +102,7 @@ class TrainingLog:
                 self._no_safe += bool(info.get("no_safe_action", False))
                 self._outside += not info.get("shield_allowed", True)
                 self._clock += bool(info.get("shield_clock", False))
+                self._timeout += bool(info.get("shield_timeout", False))
             self._disallowed += not info.get("model_allowed", True)
             if not _is_reset(info):  # a reset info's flags are the new episode's start, not a step's
                 self._collisions += bool(info.get("collided", False) or info.get("crashed", False))
@@ -125,6 +130,8 @@ class TrainingLog:
                 out["rac/shield/outside_mask"] = self._outside / self._shielded
             if self._clock:  # a run that may not repeat at its seed: said where the learner's numbers are
                 out["rac/shield/clock"] = self._clock / self._shielded
+            if self._timeout:  # masks cut short by the budget: sound, perhaps less permissive
+                out["rac/shield/timeout"] = self._timeout / self._shielded
         out["rac/collisions"] = float(self._collisions)
         if self._disallowed:  # once recorded, a later call without any records 0 (below)
             out["rac/disallowed"] = float(self._disallowed)
