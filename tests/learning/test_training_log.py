@@ -6,6 +6,7 @@ import csv
 import importlib
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 from gymnasium.wrappers import TimeLimit
@@ -431,3 +432,36 @@ def test_steps_whose_shield_ran_out_of_its_budget_are_said(tmp_path: Path) -> No
     assert log.record() == {}  # a window without steps: nothing to record
     log.add([{"shield": "lookahead 3"}])
     assert log.record()["rac/shield/timeout"] == 0.0  # once recorded, 0 rather than a blank cell
+
+
+def test_the_callback_says_when_it_sees_no_reward_automaton(tmp_path: Path) -> None:
+    """RacCallback on steps whose infos carry no automaton (an environment without rac's wrapper, or a
+    wrapper between that drops the info) logged rac/collisions alone, 0 whatever happened, and on an
+    algorithm that hands its callbacks no infos (sb3-contrib's ARS) nothing at all: neither said why."""
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    import warnings
+
+    import gymnasium
+    from stable_baselines3 import PPO
+
+    from rac.learning.sb3 import RacCallback
+
+    def warned(model: Any, steps: int = 64) -> list[str]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model.learn(steps, callback=RacCallback())
+        return [str(w.message) for w in caught if "RacCallback" in str(w.message)]
+
+    def ppo(env: gymnasium.Env) -> PPO:  # type: ignore[type-arg]
+        return PPO("MlpPolicy", env, n_steps=32, batch_size=32, n_epochs=1, seed=0, device="cpu")
+
+    assert warned(ppo(RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True))) == []
+    plain = warned(ppo(TimeLimit(HighwayLike(), 30)))
+    assert len(plain) == 1 and "carry no reward automaton" in plain[0] and "RewardAutomatonWrapper" in plain[0]
+    try:
+        from sb3_contrib import ARS
+    except ImportError:
+        return
+    env = RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)
+    silent = warned(ARS("MlpPolicy", env, n_delta=1, seed=0, device="cpu"), steps=60)
+    assert len(silent) == 1 and "ARS hands its callbacks no step infos" in silent[0]

@@ -49,7 +49,9 @@ class RacCallback(BaseCallback):
         self.log = TrainingLog()
         self._per_step = False  # an off-policy algorithm: record the values at every step
         self._logged: dict[str, float] = {}  # what the logger was last given, until it writes them out
-        self._warned = False
+        self._handed = 0  # steps whose infos the algorithm handed over (self.locals["infos"])
+        self._warned = False  # the reward normaliser's warning, said once
+        self._warned_unseen = False  # the warning that no automaton was seen, said once
 
     def _init_callback(self) -> None:
         self._per_step = isinstance(self.model, OffPolicyAlgorithm)
@@ -82,7 +84,10 @@ class RacCallback(BaseCallback):
         if any(self.logger.name_to_value.get(key) != value for key, value in self._logged.items()):
             self.log.record()  # written out: what follows is the next window's
             self._logged = {}
-        self.log.add(self.locals.get("infos", ()))
+        infos = self.locals.get("infos")
+        if infos is not None:
+            self._handed += 1
+            self.log.add(infos)
         if self._per_step:
             self._write()
         return True
@@ -90,6 +95,26 @@ class RacCallback(BaseCallback):
     def _on_rollout_end(self) -> None:
         if not self._per_step:  # an on-policy table follows a rollout (an evaluation's may come within one)
             self._write()
+        self._check_seen()
+
+    def _check_seen(self) -> None:
+        """Warn once when a rollout has ended and nothing of a reward automaton was seen: the log then held
+        ``rac/collisions`` alone (0, whatever happened), or nothing at all, without saying why."""
+        if self._warned_unseen or self.log.reported:
+            return
+        self._warned_unseen = True
+        algorithm = type(self.model).__name__
+        if not self._handed:
+            warnings.warn(f"RacCallback: {algorithm} hands its callbacks no step infos (sb3-contrib's ARS evaluates "
+                          "its candidates with evaluate_policy, without them), so nothing of the reward automaton "
+                          "is logged; rac.learning.training_log.TrainingLog logs it from a loop of your own",
+                          UserWarning, stacklevel=2)
+        else:
+            warnings.warn(f"RacCallback: the infos of {self.log.steps} step(s) of {algorithm} carry no reward "
+                          "automaton (info['rac'] of rac.learning.wrappers.RewardAutomatonWrapper, or ScenarioEnv's "
+                          "reward_steps and shield): only rac/collisions (info['collided'] or info['crashed']) is "
+                          "logged; wrap each environment in RewardAutomatonWrapper (or train on ScenarioEnv), with "
+                          "no wrapper between that drops the info", UserWarning, stacklevel=2)
 
     def _write(self) -> None:
         self._logged = self.log.values()

@@ -54,6 +54,9 @@ class TrainingLog:
     def __init__(self) -> None:
         self._clear()
         self._recorded: set[str] = set()  # every key recorded so far
+        #: Steps added since construction (not cleared by :meth:`record`) whose info reported a step of a
+        #: reward automaton or a shield: 0 after many steps means the infos are no rac environment's.
+        self.reported = 0
 
     def _clear(self) -> None:
         self.steps = 0
@@ -88,6 +91,7 @@ class TrainingLog:
             rac = info.get("rac", info if "reward_steps" in info else None)
             # a step's info has reward_steps; a reset info (a vector env's reset step) has none: it is
             # no sample of the automaton, and counted it would dilute the means and the initial location
+            self.reported += (isinstance(rac, Mapping) and "reward_steps" in rac) or "shield" in info
             if isinstance(rac, Mapping) and "reward_steps" in rac:
                 self._rac_steps += 1
                 for name, change in rac.get("reward_steps", {}).items():
