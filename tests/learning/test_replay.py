@@ -86,9 +86,9 @@ def test_what_is_refused_is_said() -> None:
     squashed[0, -2:] = [0.5, 0.5]  # a normalised observation
     with pytest.raises(ValueError, match="not one-hot location vectors"):
         rows.step(squashed, after[None, :], np.array([done]), [info])
-    # only next_obs not one-hot: a terminal observation that went through VecNormalize and back
-    with pytest.raises(ValueError, match=r"in next_obs, while obs's are.*VecNormalize\(norm_obs=False\)"):
-        rows.step(before[None, :], squashed, np.array([done]), [info])
+    # only next_obs not one-hot, in an episode going on: nothing of stable-baselines3 stores one so
+    with pytest.raises(ValueError, match=r"in next_obs of an episode going on, while obs's are"):
+        rows.step(before[None, :], squashed, np.array([False]), [info])
     swapped = after[None, :].copy()
     swapped[0, -2:] = swapped[0, -2:][::-1]
     with pytest.raises(ValueError, match="differ from info\\['rac'\\]\\['location'\\]"):
@@ -131,6 +131,81 @@ def test_a_gymnasium_vector_environments_infos_are_replayed() -> None:
             skipped += int(restarted.sum())
             restarted, before = done, after
         assert compared > 12 and skipped >= 2
+
+
+def test_an_ended_episodes_terminal_observation_gets_its_location_from_the_info() -> None:
+    """stable-baselines3 stores an ended episode's terminal observation as VecNormalize normalised it,
+    unnormalised again: a location not seen so far comes back clipped (0.001, not 1). The location is in
+    the info: it is taken from there, for the real row and the counterfactual ones."""
+    rows = CounterfactualRows(follow())
+    [*_, (before, after, done, info)] = steps(1, [2] * 3 + [0] * 20)  # ends in a crash, in Unsafe
+    assert done and info["rac"]["location"] == "Unsafe" and after[-2:].tolist() == [0.0, 1.0]
+    squashed = after[None, :].copy()
+    squashed[0, -2:] = [0.0, 0.001]
+    mended = rows.terminal_located(squashed, np.array([True]), [info])
+    assert mended[0].tolist() == after.tolist() and squashed[0, -1] == 0.001  # a copy
+    assert rows.terminal_located(after[None, :], np.array([True]), [info]).tolist() == [after.tolist()]
+    assert rows.terminal_located(squashed, np.array([False]), [info]).tolist() == squashed.tolist()  # going on
+    [batch] = rows.step(before[None, :], squashed, np.array([True]), [info])
+    [exact] = rows.step(before[None, :], after[None, :], np.array([True]), [info])
+    assert batch.next_obs.tolist() == exact.next_obs.tolist() and batch.reward.tolist() == exact.reward.tolist()
+    swapped = after[None, :].copy()
+    swapped[0, -2:] = [1.0, 0.0]  # one-hot, but not the info's location: another automaton's, said
+    with pytest.raises(ValueError, match="differ from info\\['rac'\\]\\['location'\\]"):
+        rows.step(before[None, :], swapped, np.array([True]), [info])
+
+
+LATE = """automaton Late {
+    input last : bool
+    reward r
+    objective r
+    sample every 1
+    horizon 5
+    initial location Going { r' == 0 }
+    location Arrived       { r' == 0 }
+    edge Going -> Arrived when last do r = r + 1
+}
+"""
+
+
+class Five(gymnasium.Env):  # type: ignore[type-arg]
+    """Episodes of five steps; ``info["last"]`` at the fifth, the only step that ends in ``Arrived``."""
+
+    observation_space = gymnasium.spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)
+    action_space = gymnasium.spaces.Discrete(2)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.t = 0
+        return np.zeros(1, dtype=np.float32), {}
+
+    def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        self.t += 1
+        return np.full(1, self.t / 5, dtype=np.float32), 0.0, self.t >= 5, False, {"last": self.t >= 5}
+
+
+def test_stable_baselines3_buffer_under_vec_normalize() -> None:
+    """DQN on VecNormalize (its default, norm_obs=True) with the counterfactual buffer: the first episode
+    ended in a location not seen before, whose terminal observation came back from VecNormalize clipped,
+    and the buffer refused it, ending training there."""
+    pytest.importorskip("stable_baselines3", reason="needs stable-baselines3 (the rl extra)")
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from rac.learning.sb3 import CounterfactualReplayBuffer
+
+    late = compile_text(LATE, "late.ra").raise_for_errors()
+    envs = VecNormalize(DummyVecEnv([lambda: LocationObservation(RewardAutomatonWrapper(
+        Five(), late, lambda obs, info: {"last": info["last"]}))]))
+    model = DQN("MlpPolicy", envs, learning_starts=100, buffer_size=100, seed=0, device="cpu",
+                replay_buffer_class=CounterfactualReplayBuffer, replay_buffer_kwargs={"automaton": late})
+    model.learn(12)  # two episodes, and two steps of a third
+    buffer = model.replay_buffer
+    assert buffer.pos == 24  # a real row and a counterfactual one per step
+    # Going (the real row), Arrived (the counterfactual one); at the episode's end both in Arrived
+    episode = [[1.0, 0.0], [0.0, 1.0]] * 4 + [[0.0, 1.0]] * 2
+    assert buffer.next_observations[:24, 0, -2:].tolist() == episode * 2 + [[1.0, 0.0], [0.0, 1.0]] * 2
+    assert buffer.rewards[:24, 0].tolist() == ([0.0] * 8 + [1.0, 0.0]) * 2 + [0.0] * 4
 
 
 def test_stable_baselines3_buffer_stores_every_location() -> None:

@@ -101,6 +101,52 @@ class CounterfactualRows:
             found.append(rac)
         return found, stepping
 
+    def _after(self, racs: Sequence[Mapping[str, Any]]) -> np.ndarray:
+        """The location indices after the step, as the wrappers' infos report them."""
+        unknown = sorted({str(rac["location"]) for rac in racs} - set(self._index))
+        if unknown:  # the wrappers run another automaton than the one given here
+            raise ValueError(f"info['rac']['location'] is {unknown[0]!r}, which this automaton does not have (its "
+                             f"locations: {', '.join(self.locations)}): pass the automaton the wrappers run")
+        return np.array([self._index[str(rac["location"])] for rac in racs], dtype=np.int64)
+
+    def terminal_located(self, next_obs: np.ndarray, done: np.ndarray,
+                         infos: Sequence[Mapping[str, Any]] | Mapping[str, Any]) -> np.ndarray:
+        """``next_obs`` (``(n, D)``) with the location columns of each row whose episode ended (``done``) and
+        whose columns are not a one-hot vector set from ``info["rac"]["location"]`` (a copy; ``next_obs`` as
+        it is when no row needs it). stable-baselines3 stores an ended episode's terminal observation as
+        ``VecNormalize`` normalised it, unnormalised again: inexact, and clipped (a location seen rarely so
+        far, such as the one a crash ends in, comes back as 0.3 or 0.001, not 1); the location itself is
+        known exactly from the info. Every other row is left for :meth:`step` to check; so are the rows of
+        sub-environments a gymnasium vector environment restarted in the step (``infos`` in its layout)."""
+        next_obs = np.asarray(next_obs)
+        if next_obs.ndim != 2:
+            return next_obs  # not a batch of observations: step() says what is wrong
+        racs, source = self._infos(infos, int(next_obs.shape[0]))
+        ended = np.asarray(done, dtype=bool).reshape(-1)
+        if ended.shape != next_obs.shape[:1]:
+            return next_obs
+        stepping = next_obs[source]
+        fixed = self._located(stepping, ended[source], self._after(racs))
+        if fixed is stepping:
+            return next_obs
+        whole = np.array(next_obs)
+        whole[source] = fixed
+        return whole
+
+    def _located(self, next_obs: np.ndarray, ended: np.ndarray, after: np.ndarray) -> np.ndarray:
+        """:meth:`terminal_located` on the stepping rows, ``after`` their locations after the step."""
+        count = len(self.locations)
+        if next_obs.shape[1] <= count:
+            return next_obs
+        hot = next_obs[:, -count:]
+        broken = ended & ~(np.isin(hot, (0, 1)).all(axis=1) & (hot.sum(axis=1) == 1))
+        if not broken.any():
+            return next_obs
+        fixed = np.array(next_obs)
+        rows = np.flatnonzero(broken)
+        fixed[rows] = replace_one_hot(fixed[rows], after[rows], count)
+        return fixed
+
     def step(self, obs: np.ndarray, next_obs: np.ndarray, done: np.ndarray,
              infos: Sequence[Mapping[str, Any]] | Mapping[str, Any]) -> list[CounterfactualStep]:
         """The ``L - 1`` batches of counterfactual transitions of one vector step: ``obs`` before and
@@ -123,17 +169,12 @@ class CounterfactualRows:
             empty = np.zeros(0, dtype=np.int64)
             return [CounterfactualStep(obs, next_obs, np.zeros(0), empty, empty, source) for _ in range(1, count)]
         real = one_hot_index(obs, count)
-        unknown = sorted({str(rac["location"]) for rac in racs} - set(self._index))
-        if unknown:  # the wrappers run another automaton than the one given here
-            raise ValueError(f"info['rac']['location'] is {unknown[0]!r}, which this automaton does not have (its "
-                             f"locations: {', '.join(self.locations)}): pass the automaton the wrappers run")
-        after = np.array([self._index[str(rac["location"])] for rac in racs], dtype=np.int64)
+        after = self._after(racs)
+        next_obs = self._located(next_obs, done, after)  # VecNormalize's terminal observations
         try:
             shown = one_hot_index(next_obs, count)
-        except ValueError as exc:  # obs was one-hot: only an episode's last next_obs went through a normaliser
-            raise ValueError(f"{exc}: in next_obs, while obs's are; where an episode ended, stable-baselines3 "
-                             "stores the terminal observation VecNormalize normalised, unnormalised again (inexactly, "
-                             "and clipped): use VecNormalize(norm_obs=False)") from None
+        except ValueError as exc:  # obs was one-hot, and an ended episode's next_obs is mended above
+            raise ValueError(f"{exc}: in next_obs of an episode going on, while obs's are") from None
         if not np.array_equal(shown, after):
             raise ValueError("next_obs's location columns differ from info['rac']['location']: the observation's "
                              "one-hot vector is not this automaton's (another automaton, or another location order)")

@@ -147,7 +147,9 @@ class CounterfactualReplayBuffer(ReplayBuffer):
     ``replay_buffer_kwargs``. Each step fills ``L`` rows per environment (``L`` locations), so the
     buffer holds ``buffer_size / L`` steps' worth of real transitions. Only the last ``L`` columns
     are replaced: under ``VecFrameStack`` the earlier frames would show the real locations (the
-    buffer cannot see the vector wrappers; :class:`RacCallback` warns of it).
+    buffer cannot see the vector wrappers; :class:`RacCallback` warns of it). Under ``VecNormalize`` an
+    ended episode's terminal observation comes back inexact and clipped: its location is taken from the
+    info (:meth:`~rac.learning.replay.CounterfactualRows.terminal_located`).
 
     Example::
 
@@ -180,6 +182,8 @@ class CounterfactualReplayBuffer(ReplayBuffer):
             infos: list[dict[str, Any]]) -> None:
         """Store the real transitions, then one counterfactual transition per environment for each
         location the automaton was not in."""
+        # an ended episode's location from its info: VecNormalize's terminal observation comes back inexact
+        next_obs = self.rows.terminal_located(next_obs, done, infos)
         super().add(obs, next_obs, action, reward, done, infos)
         for batch in self.rows.step(obs, next_obs, done, infos):
             super().add(batch.obs, batch.next_obs, action, batch.reward, done, infos)
