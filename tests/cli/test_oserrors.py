@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -314,3 +315,69 @@ def test_a_read_only_file_is_not_replaced(command: list[str], tmp_path: Path, mo
     assert f"error[E0009]: cannot write `{target}`: the file is read-only" in err
     assert "chmod u+w" in err
     assert target.read_bytes() == before
+
+
+# ---------------------------------------------------------------- two writers of one output folder
+def second_writer_at_first_rename(monkeypatch: pytest.MonkeyPatch, second: Callable[[], object]) -> None:
+    """``os.replace`` that, when the first writer renames its finished temporary file, runs ``second`` (another
+    rac writing the same file: two ``rac verify`` of one file, or `make -j`) to its end first."""
+    real, calls = os.replace, []
+
+    def replace(source: object, target: object) -> None:
+        if not calls:
+            calls.append(source)
+            second()
+        real(source, target)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "replace", replace)
+
+
+def _csv(path: Path, run: int) -> None:
+    import numpy as np
+
+    from rac.verify.report import write_csv
+
+    write_csv(path, np.arange(3.0), ["x"], [np.full((run, 3), float(run))])
+
+
+def _shield(path: Path, run: int) -> None:
+    import numpy as np
+
+    from rac.engine import shield
+
+    shield.save(shield.ShieldTable(("k",), np.arange(run, dtype=np.int32).reshape(run, 1),
+                                   np.ones((run, 4), dtype=bool)), path)
+
+
+def _strategy(path: Path, run: int) -> None:
+    import numpy as np
+
+    from rac.learning.strategy import LearnedStrategy
+
+    LearnedStrategy((), ("x",), (1.0,), "max", np.zeros((run, 1)), np.full((run, 2), float(run))).save(path)
+
+
+def _read(writer: Callable[[Path, int], None], path: Path) -> int:
+    """Which run's version ``path`` holds (an error when it is no whole one)."""
+    if writer is _csv:
+        return int(float(path.read_text(encoding="utf-8").splitlines()[-1].split(",")[-1]))
+    if writer is _shield:
+        from rac.engine import shield
+
+        return len(shield.load(path).states)
+    from rac.learning.strategy import LearnedStrategy
+
+    return LearnedStrategy.load(path).n_states
+
+
+@pytest.mark.parametrize("writer", [_csv, _shield, _strategy], ids=["runs.csv", "shield", "strategy"])
+def test_two_writers_of_one_file_both_finish_and_leave_a_whole_one(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, writer: Callable[[Path, int], None]) -> None:
+    # every writer used one temporary name, `NAME.partial`: the second truncated and renamed the first's
+    # temporary file, so the first failed (FileNotFoundError, an exit 3 or E0009 for a write that was fine)
+    # and its unflushed rest could go into the file the second had just put in place
+    path = tmp_path / "out.bin"
+    second_writer_at_first_rename(monkeypatch, lambda: writer(path, 500))
+    writer(path, 2)
+    assert _read(writer, path) == 2  # the last rename wins, whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.bin"]

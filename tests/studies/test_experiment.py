@@ -353,3 +353,27 @@ def test_an_interrupted_run_is_said_to_show_the_best_strategy_it_evaluated(repor
     note = next(line for line in render_markdown(dict(report, interrupted="learning")).splitlines()
                 if line.startswith("Interrupted (Ctrl-C) while learning"))
     assert "each run shows the best strategy it had evaluated" in note and "last evaluation" not in note
+
+
+def test_two_experiments_writing_one_folder_both_finish(report: dict[str, object], tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """experiment.md and results.json went through one temporary name each (`NAME.partial`): a second
+    `rac experiment` into the same folder truncated and renamed the first's, which then failed with
+    FileNotFoundError (an internal error) and could leave the second's file overwritten in part."""
+    import os
+
+    from rac.studies.experiment import write_outputs
+
+    real, calls = os.replace, []
+
+    def replace(source: object, target: object) -> None:
+        if not calls:  # the first rename of the first writer: the second runs to its end before it
+            calls.append(source)
+            write_outputs(report, tmp_path)
+        real(source, target)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "replace", replace)
+    write_outputs(report, tmp_path)
+    assert json.loads((tmp_path / "results.json").read_text(encoding="utf-8"))["seeds"] == [1, 2]
+    assert (tmp_path / "experiment.md").read_text(encoding="utf-8") == render_markdown(report) + "\n"
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".") or p.suffix in (".partial", ".tmp")]

@@ -55,8 +55,10 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
     """Call ``write(file)`` on a new temporary file next to ``path``, then move it onto ``path``
     (:func:`os.replace`): an interrupted write leaves ``path`` as it was, never truncated.
 
-    On any error the temporary file is removed and ``path`` is left as it was. Used for every
-    PNG, GIF and generated scene rac writes.
+    On any error the temporary file is removed and ``path`` is left as it was. Each call has a
+    temporary file of its own (its process id and a random part), so two writers of one ``path`` (two
+    commands into one output folder) never write into each other's: the last rename wins, whole. Used
+    for every PNG, GIF, CSV, shield, strategy, experiment table and generated scene rac writes.
 
     Example::
 

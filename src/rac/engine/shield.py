@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, ClassVar, Literal
 import numpy as np
 
 from rac.core.diagnostics import RacError, RacValueError
-from rac.core.files import replace_onto
+from rac.core.files import atomic_write
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.engine.explore import explore, forgets_actions
@@ -258,26 +258,20 @@ def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none",
 def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | None = None) -> Path:
     """Write a shield's decision states and their allowed actions to ``path`` (compressed .npz).
 
-    The file is written to a temporary name beside ``path`` and renamed, so an interrupted
-    write never leaves a half shield behind."""
+    The file is written to a temporary name of its own beside ``path`` and renamed
+    (:func:`rac.core.files.atomic_write`), so an interrupted write never leaves a half shield behind,
+    and two writers of one path never share a temporary file."""
     shield_table = shield if isinstance(shield, ShieldTable) else table(shield, n_actions=n_actions)
     if not shield_table.savable:  # its file would hold no state: every mask read back would be empty
         raise RacValueError(f"a {type(shield_table).__name__} computes its masks state by state when asked and has "
                             "no table to save; save an exhaustive shield (synthesise, or rac verify within its "
                             "budget)")
-    path = Path(path)
-    partial = path.with_name(path.name + ".partial")
-    try:
-        with partial.open("wb") as handle:
-            np.savez_compressed(handle, format=np.array(FORMAT), columns=np.array(shield_table.columns),
-                                states=shield_table.states.astype(np.int32), masks=shield_table.masks,
-                                forget_every=np.array(shield_table.forget_every),
-                                horizon=np.array(-1 if shield_table.horizon is None else shield_table.horizon),
-                                model=np.array("" if shield_table.model is None else shield_table.model))
-        replace_onto(partial, path)
-    finally:
-        partial.unlink(missing_ok=True)
-    return path
+    return atomic_write(path, lambda handle: np.savez_compressed(
+        handle, format=np.array(FORMAT), columns=np.array(shield_table.columns),
+        states=shield_table.states.astype(np.int32), masks=shield_table.masks,
+        forget_every=np.array(shield_table.forget_every),
+        horizon=np.array(-1 if shield_table.horizon is None else shield_table.horizon),
+        model=np.array("" if shield_table.model is None else shield_table.model)))
 
 
 def load(path: str | Path, *, unseen: str = "none") -> ShieldTable:

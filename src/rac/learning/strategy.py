@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from rac.core.diagnostics import RacValueError
-from rac.core.files import replace_onto
+from rac.core.files import atomic_write
 from rac.core.source import SourceFile
 from rac.engine.explore import action_pairs
 from rac.engine.shield import ShieldTable
@@ -314,20 +314,14 @@ class LearnedStrategy:
     def save(self, path: str | Path) -> Path:
         """Write the strategy to ``path`` (compressed .npz: ``keys``, ``values``, ``action_pairs`` and
         a JSON ``meta`` with the format, the expressions, bins and ``optimise``). The file is written
-        under a temporary name and renamed, so an interrupted write leaves no half strategy."""
+        under a temporary name of its own and renamed (:func:`rac.core.files.atomic_write`), so an interrupted
+        write leaves no half strategy, and two writers of one path never share a temporary file."""
         path = Path(path)
         header = {"format": FORMAT, "discrete": list(self.discrete), "continuous": list(self.continuous),
                   "bins": list(self.bins), "optimise": self.optimise, "meta": dict(self.meta)}
         pairs = self.action_pairs if self.action_pairs is not None else np.zeros((0, 2), dtype=np.int64)
-        partial = path.with_name(path.name + ".partial")
-        try:
-            with partial.open("wb") as handle:
-                np.savez_compressed(handle, header=np.array(json.dumps(header)), keys=self.keys, values=self.values,
-                                    action_pairs=pairs)
-            replace_onto(partial, path)
-        finally:
-            partial.unlink(missing_ok=True)
-        return path
+        return atomic_write(path, lambda handle: np.savez_compressed(
+            handle, header=np.array(json.dumps(header)), keys=self.keys, values=self.values, action_pairs=pairs))
 
     @classmethod
     def load(cls, path: str | Path) -> LearnedStrategy:

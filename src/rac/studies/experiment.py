@@ -52,7 +52,7 @@ import numpy as np
 
 from rac.compiler import CompileResult
 from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, error
-from rac.core.files import replace_onto
+from rac.core.files import atomic_write
 from rac.engine.budget import BudgetExceeded, check_estimate, evaluation_bytes, learning_bytes
 from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
@@ -761,11 +761,7 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
 
 
 def _write_text(path: Path, text: str) -> None:
-    partial = path.with_name(path.name + ".partial")
-    try:
-        partial.write_text(text, encoding="utf-8")
-        replace_onto(partial, path)
-    except BaseException:  # a full disk, an interrupt: no half file left behind
-        partial.unlink(missing_ok=True)
-        raise
+    # a temporary file of its own, renamed (a full disk, an interrupt: no half file left behind; a second
+    # experiment into the same folder has its own temporary file)
+    atomic_write(path, lambda handle: handle.write(text.encode("utf-8")))
 

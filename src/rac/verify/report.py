@@ -6,14 +6,16 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
-from rac.core.files import replace_onto
+from rac.core.files import atomic_write
 from rac.core.source import Span
 from rac.engine.graph import LABELS
 from rac.ir import expr as ie
@@ -82,20 +84,20 @@ class QueryResult:
 
 def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray]) -> Path:
     """``run,time,expr...`` rows of simulated runs (``values``: one ``(N, T+1)`` array per name),
-    written to a temporary file and renamed (never half a file); returns ``path``."""
-    partial = path.with_name(path.name + ".partial")
-    try:
-        with partial.open("w", newline="", encoding="utf-8") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(["run", "time", *names])
-            for run in range(values[0].shape[0] if values else 0):
-                for k, t in enumerate(times):
-                    writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
-        replace_onto(partial, path)
-    except BaseException:  # a full disk, an interrupt: no half file left behind
-        partial.unlink(missing_ok=True)
-        raise
-    return path
+    written to a temporary file of its own and renamed (:func:`rac.core.files.atomic_write`: never half a
+    file, and a second writer of ``path`` has its own temporary file); returns ``path``."""
+
+    def write(binary: IO[bytes]) -> None:
+        handle = io.TextIOWrapper(binary, encoding="utf-8", newline="")
+        writer = csv.writer(handle)
+        writer.writerow(["run", "time", *names])
+        for run in range(values[0].shape[0] if values else 0):
+            for k, t in enumerate(times):
+                writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
+        handle.flush()
+        handle.detach()  # atomic_write closes the file itself
+
+    return atomic_write(path, write)
 
 
 def plot_series(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray], title: str,
