@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import re
@@ -498,3 +499,27 @@ def test_a_scenario_rac_cannot_use_is_refused_in_its_own_words(tmp_path: Path, n
         load_scenario(path)
     assert message in str(failure.value) and str(path) in str(failure.value)
     assert "Assertion" not in str(failure.value)
+
+
+def test_a_picture_that_fails_halfway_leaves_the_old_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The picture was drawn straight onto its path: a full disk halfway left a truncated PNG in place of the
+    good one (every other picture rac draws goes through rac.core.files.atomic_write)."""
+    import errno
+
+    from matplotlib.figure import Figure
+
+    from rac.model.intersection import render_left_turn
+
+    xml, png = write_left_turn(tmp_path / "x.xml"), tmp_path / "x.png"
+    png.write_bytes(b"\x89PNG the good picture")
+
+    def full_disk(figure: object, target: object, **options: object) -> None:
+        with (open(target, "wb") if isinstance(target, (str, Path)) else contextlib.nullcontext(target)) as out:
+            out.write(b"\x89PNG half")  # type: ignore[union-attr]
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Figure, "savefig", full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        render_left_turn(xml, png)
+    assert png.read_bytes() == b"\x89PNG the good picture"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.png", "x.xml"]

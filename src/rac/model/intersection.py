@@ -337,7 +337,8 @@ def render_left_turn(xml_path: str | Path, png_path: str | Path) -> Path:
         ax.legend(loc="upper right")
         ax.set_aspect("equal")
         fig.tight_layout()
-        fig.savefig(png_path, dpi=110)
+        # a temporary file, renamed: a full disk halfway leaves the old picture, not half of a new one
+        atomic_write(png_path, lambda file: fig.savefig(file, format="png", dpi=110))
         plt.close(fig)
     return Path(png_path)
 
