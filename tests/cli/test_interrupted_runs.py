@@ -5,12 +5,16 @@ they were stopped, never a bare "interrupted" that drops minutes of answers."""
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
+from conftest import rac_env
 from engine_files import write_engine_file
 
-from rac.cli.common import EXIT_INTERRUPTED, EXIT_UNDECIDED
+from rac.cli.common import EXIT_INTERRUPTED, EXIT_TERMINATED, EXIT_UNDECIDED
 from rac.cli.main import main
 from rac.verify.statistical import StatisticalAnswerer
 
@@ -108,3 +112,35 @@ def test_preanalyse_out_of_memory_in_one_setting_keeps_the_others(capsys: pytest
     assert settings[2]["error"].startswith("out of memory (std::bad_alloc): this setting needed more memory")
     # three settings, not four: the sweep plot's entry is no setting
     assert "rac preanalyse: 1 of 3 settings were not answered" in err
+
+
+#: A child rac whose statistical answerer sends the process SIGTERM (`timeout`, a batch system's limit, `kill`),
+#: as it would arrive in the middle of a long query.
+TERMINATED_CHILD = """
+import os, signal, sys, time
+from rac.verify.statistical import StatisticalAnswerer
+def simulate(self, query, base):
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(30)  # the signal arrives in here
+StatisticalAnswerer.simulate = simulate
+from rac.cli.main import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_verify_terminated_shows_the_queries_answered(tmp_path: Path, form: str) -> None:
+    # SIGTERM ended the process on the spot: `timeout 600 rac verify ...` printed nothing of the queries it
+    # had answered (Ctrl-C showed them), and a --format json reader got no document at all
+    path = write_engine_file(tmp_path, "goal_ahead", QUERIES)
+    done = subprocess.run([sys.executable, "-c", TERMINATED_CHILD, "verify", str(path), "-q", "--seed", "1",
+                           "-o", str(tmp_path / "o"), "--format", form], env=rac_env(), capture_output=True,
+                          text=True, timeout=120, check=False)
+    assert done.returncode == EXIT_TERMINATED == 128 + signal.SIGTERM, done.stderr
+    assert "rac verify: terminated (SIGTERM) during Sim: simulate[<=2;4]" in done.stderr
+    assert "1 query answered before it is above" in done.stderr and "Traceback" not in done.stderr
+    if form == "json":
+        document = json.loads(done.stdout)
+        assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
+    else:
+        assert "Verifying Stays" in done.stdout and "Formula is satisfied" in done.stdout

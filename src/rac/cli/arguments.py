@@ -53,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=f"{OUTPUT_CONVENTION} Exit codes: 0 ok, 1 errors in the input or a query not satisfied, 2 bad "
                "usage or a file that cannot be read or written (standard output too), 3 an internal error (a "
                "bug in rac), 4 something left undecided (a query, a check stopped at its limit, a setting or "
-               "task without an answer), 130 interrupted (Ctrl-C).")
+               "task without an answer), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, taken as Ctrl-C).")
     parser.add_argument("--version", action="version", version=f"rac {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 

@@ -4,8 +4,8 @@ atomically.
 Exit codes: 0 clean (warnings allowed), 1 errors in the input (or a query not satisfied), 2 bad
 usage or a file that cannot be read or written (standard output too: full, or closed), 3 an internal
 error (a bug in rac), 4 a query that was not decided (``rac verify``: an *unknown* or *unsupported*
-verdict and none that fails), 130 stopped by Ctrl-C and 143 by SIGTERM (``rac sweep``; what was
-answered before is shown).
+verdict and none that fails), 130 stopped by Ctrl-C and 143 by SIGTERM (every command takes SIGTERM as it
+takes Ctrl-C, :func:`terminate_as_interrupt`: what was answered before is shown).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import contextlib
 import errno
 import fcntl
 import os
+import signal
 import sys
 import tempfile
 import time
@@ -29,15 +30,16 @@ from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_TERMINATED", "EXIT_UNDECIDED",
            "EXIT_USAGE", "OUTPUT_CONVENTION", "OUTPUT_SUFFIX", "SOURCE_SUFFIX", "STALE_SECONDS", "FileWriteError",
-           "NotRegularFile", "StdoutError", "as_json", "check_writable", "held_source", "load_budget", "locked",
+           "NotRegularFile", "StdoutError", "as_json", "check_writable", "held_source", "how_stopped", "load_budget",
+           "locked",
            "output_folder", "overwrites_source", "overwrites_source_in", "print_diagnostics", "resource_limit",
-           "same_file", "size_argument", "stdout_unwritable", "unreadable", "unusable_file", "unwritable",
-           "usage_error", "write_all_atomically", "write_atomically"]
+           "same_file", "size_argument", "stdout_unwritable", "terminate_as_interrupt", "unreadable",
+           "unusable_file", "unwritable", "usage_error", "write_all_atomically", "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
 #: The exit code after Ctrl-C (128 + SIGINT), as the shell reports it.
 EXIT_INTERRUPTED = 130
-#: The exit code after SIGTERM (128 + 15), as the shell reports a process it ended (``rac sweep``).
+#: The exit code after SIGTERM (128 + 15), as the shell reports a process it ended.
 EXIT_TERMINATED = 143
 
 #: The suffix of the files rac reads: no output of an engine command (verify, simulate, render,
@@ -48,6 +50,42 @@ SOURCE_SUFFIX = ".ra"
 STALE_SECONDS = 3600
 #: Why :func:`check_writable` refuses an existing file that may not be written (its E0009 has its own hint).
 READ_ONLY = "the file is read-only"
+
+
+#: The signals :func:`terminate_as_interrupt` turned into ``KeyboardInterrupt`` in this command (what
+#: :func:`how_stopped` says); emptied each time it is entered.
+_STOPPED_BY: list[int] = []
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt() -> Iterator[list[int]]:
+    """In here SIGTERM (``timeout``, a batch system's time limit, ``kill``) stops the command as Ctrl-C does
+    (``KeyboardInterrupt``): what was answered before is shown and the files finished stay, where Python's
+    default ended the process on the spot, printing nothing. Yields a list that receives the signal's number
+    when it came (the exit code is then :data:`EXIT_TERMINATED`)."""
+    came: list[int] = []
+    _STOPPED_BY.clear()
+
+    def stop(number: int, frame: object) -> None:
+        came.append(number)
+        _STOPPED_BY.append(number)
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, stop)
+    except ValueError:  # not the main thread: signals cannot be handled here
+        yield came
+        return
+    try:
+        yield came
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def how_stopped() -> str:
+    """How a command that met ``KeyboardInterrupt`` was stopped, for its message: ``"terminated (SIGTERM)"``
+    when SIGTERM came (:func:`terminate_as_interrupt`), else ``"interrupted"`` (Ctrl-C)."""
+    return "terminated (SIGTERM)" if _STOPPED_BY else "interrupted"
 
 
 def as_json(args: argparse.Namespace) -> bool:

@@ -25,6 +25,7 @@ from rac.cli.common import (
     EXIT_USAGE,
     as_json,
     held_source,
+    how_stopped,
     output_folder,
     overwrites_source_in,
     print_diagnostics,
@@ -371,7 +372,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
         n = len(results)
         answered = f"{n} {'query' if n == 1 else 'queries'} answered before it {'is' if n == 1 else 'are'} above" \
             if n else "no query was answered"
-        print(f"rac verify: interrupted during {stopped}; {answered}", file=sys.stderr)
+        print(f"rac verify: {how_stopped()} during {stopped}; {answered}", file=sys.stderr)
         return EXIT_INTERRUPTED
     if not results:
         print(f"{args.file}: no queries (add `query NAME: ...` lines, or pass --standard)", file=sys.stderr)
@@ -599,7 +600,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
             print(f"\nplots in {out_dir}")
     if interrupted:
         n = len(rows)
-        print(f"rac preanalyse: interrupted; {n} setting{'' if n == 1 else 's'} finished before it "
+        print(f"rac preanalyse: {how_stopped()}; {n} setting{'' if n == 1 else 's'} finished before it "
               f"({'above' if n else 'none'})", file=sys.stderr)
         return EXIT_INTERRUPTED
     undecided = sum(1 for row in rows if "error" in row)

@@ -3,7 +3,8 @@
 pre-analyse them with the native engine (:mod:`rac.cli.engine`).
 
 Exit codes: :mod:`rac.cli.common` has them (``EXIT_*``); memory that ran out is 2 (a resource, not the
-input), and an internal error 3 (a bug in rac; set RAC_DEBUG=1 for the traceback).
+input), an internal error 3 (a bug in rac; set RAC_DEBUG=1 for the traceback), Ctrl-C 130 and SIGTERM 143
+(taken as Ctrl-C is: what was answered before it is shown).
 """
 
 from __future__ import annotations
@@ -20,12 +21,15 @@ from rac.cli.common import (
     EXIT_ERRORS,
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
+    EXIT_TERMINATED,
     EXIT_USAGE,
     StdoutError,
     as_json,
+    how_stopped,
     print_diagnostics,
     resource_limit,
     stdout_unwritable,
+    terminate_as_interrupt,
 )
 from rac.core.diagnostics import RacError, render_text
 from rac.core.resources import ScenarioTooLarge
@@ -51,17 +55,20 @@ def _main(argv: Sequence[str] | None) -> int:
     module, function = COMMANDS[args.command]
     stdout = sys.stdout
     sys.stdout = ReaderSafe(stdout)  # `rac check ... | head`: the command still ends with its own status
+    terminated: list[int] = []  # SIGTERM came: the exit code says so (143, not Ctrl-C's 130)
     try:
-        # only the command that runs is imported (rac --version and a usage error load none)
-        status = getattr(importlib.import_module(module), function)(args)
-        sys.stdout.flush()  # here, not at exit: a full disk is reported like any other write
-        return status
+        # SIGTERM (`timeout`, a batch system's limit) as Ctrl-C: the command shows what it answered before it
+        with terminate_as_interrupt() as terminated:
+            # only the command that runs is imported (rac --version and a usage error load none)
+            status = getattr(importlib.import_module(module), function)(args)
+            sys.stdout.flush()  # here, not at exit: a full disk is reported like any other write
+        return EXIT_TERMINATED if terminated and status == EXIT_INTERRUPTED else status
     except StdoutError as exc:  # the environment's, not a bug: say what failed, exit 2
         print(render_text([stdout_unwritable(exc.cause)], {}), file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        print("rac: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        print(f"rac: {how_stopped()}", file=sys.stderr)
+        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     except (ScenarioTooLarge, EstimateExceeded) as exc:  # refused before it starts: the budget is at fault
         print_diagnostics([resource_limit(f"resource limit: {exc}")], structured=as_json(args))
         return EXIT_USAGE

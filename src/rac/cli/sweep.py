@@ -11,11 +11,9 @@ merged first.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
-import signal
 import sys
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from rac.cli.common import (
@@ -28,6 +26,7 @@ from rac.cli.common import (
     as_json,
     output_folder,
     print_diagnostics,
+    terminate_as_interrupt,
     unreadable,
     unwritable,
     usage_error,
@@ -35,29 +34,7 @@ from rac.cli.common import (
 from rac.sweep import execute, plan
 from rac.verify.status import UNDECIDED
 
-__all__ = ["exit_status", "sweep_command", "terminate_as_interrupt"]
-
-@contextlib.contextmanager
-def terminate_as_interrupt() -> Iterator[list[int]]:
-    """In here SIGTERM stops the sweep as Ctrl-C does (``KeyboardInterrupt``): the tasks left are cancelled,
-    the rows done merged and the summary printed, where Python's default ended the process on the spot.
-    Yields a list that receives the signal's number when it came."""
-    came: list[int] = []
-
-    def stop(number: int, frame: object) -> None:
-        came.append(number)
-        raise KeyboardInterrupt
-
-    try:
-        previous = signal.signal(signal.SIGTERM, stop)
-    except ValueError:  # not the main thread: signals cannot be handled here
-        yield came
-        return
-    try:
-        yield came
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
+__all__ = ["exit_status", "sweep_command"]
 
 def exit_status(rows: Sequence[Mapping[str, object]]) -> int:
     """The exit code of a sweep's rows: 1 when a task failed (errors in the file, a query not satisfied),
