@@ -312,3 +312,20 @@ def test_the_fit_is_exact_and_says_when_it_is_not_a_line() -> None:
     assert formula_text(Fit((), Fraction(-1), Fraction(-5, 2))) == "-H - 2.5"
     assert formula_text(Fit((), Fraction(0), Fraction(7))) == "7"
     assert re.fullmatch(r"2 \* H \+ 1", formula_text(Fit((), Fraction(2), Fraction(1))))
+
+
+def test_the_tuned_value_passes_e0801(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """With weight 9 on `sa` the least penalty is 950/9, and `sa -= 950/9` is `(9*sa - 9500000) / 9` in the
+    UPPAAL model's 32-bit significands, which leaves int32 (E0801): `rac check` failed at the value it chose
+    and `rac tune` wrote nothing, though every significand above it passes. The value is now the least
+    whole number of significands above it (1/10000), and the tuned file passes `rac check` and compiles."""
+    text = DRIVING.replace(CONST, PARAM).replace("objective 10 * sa", "objective 9 * sa")
+    path = write(tmp_path / "weight9.ra", text)
+    assert main(["tune", "--format", "json", str(path)]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert [v["exact"] for v in document["values"]] == ["263889/2500"]  # 105.5556, the next significand
+    assert Fraction(263889, 2500) - Fraction(950, 9) < Fraction(1, 10_000)
+    assert "the least value the significands hold exactly" in document["sentence"]
+    assert "const PENALTY = 263889 / 2500" in path.read_text(encoding="utf-8")
+    assert main(["check", str(path)]) == 0
+    assert main(["compile", "--target", "uppaal", str(path), "-o", str(tmp_path / "weight9.xml")]) == 0

@@ -12,6 +12,8 @@
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import get_args
@@ -24,8 +26,9 @@ from rac.check.analysis.synthesis import Synthesised, Unfinished, risk_values, s
 from rac.check.analysis.weights import Unsupported, synthesise_region
 from rac.check.resolve import Resolver
 from rac.core.diagnostics import Diagnostic, Fact, error, short_number
-from rac.core.numbers import exact_text
+from rac.core.numbers import exact_decimal, exact_text
 from rac.core.source import Span
+from rac.ir.significands import representation
 from rac.lang import ast
 
 __all__ = ["ParameterOutcome", "nonlinear_use", "synthesise_parameters"]
@@ -183,21 +186,47 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
                             notes=notes,
                             hints=["widen the parameter's bounds, or change what it cannot compensate"]),
                       *failing], None
+    assert result.low is not None and result.high is not None  # a least value: the set is not empty
+    top = allowed[0] if allowed is not None else Interval(result.low.value, result.high.value,
+                                                          high_open=result.high.open)
+    least, held = _held_exactly(resolve, name, least, top)
     if allowed is not None:
         sentence = (f"synthesised: every check holds for {name} in {result.interval()}, and {required_text}; "
-                    f"checked with {name} = {short_number(least)}")
+                    f"checked with {name} = {short_number(least)}{held}")
         inequalities = tuple(_interval_inequality(name, i) for i in allowed)
         facts.append(Fact("synthesis", sentence))
         return resolve(least), [], Synthesised(((name, least),), (" or ".join(inequalities),), sentence)
     if result.whole:
         sentence = (f"synthesised: every check holds for every value of {name} in {result.interval()}; "
-                    f"checked with {name} = {short_number(least)}")
+                    f"checked with {name} = {short_number(least)}{held}")
     else:
         sentence = (f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
-                    f"checked with {name} = {short_number(least)}")
+                    f"checked with {name} = {short_number(least)}{held}")
     facts.append(Fact("synthesis", sentence))
     return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
                                            sentence)
+
+
+def _held_exactly(resolve: Callable[[Fraction], ir.Automaton | None], name: str, least: Fraction, top: Interval
+                  ) -> tuple[Fraction, str]:
+    """``least``, or, when the automaton at ``least`` fails E0801 (the UPPAAL model and rac's engine compute
+    an update over the value's denominator, ``(9*sa - 9500000) / 9`` for ``sa -= 950/9``, and the product
+    leaves int32), the least value above it that is a whole number of significands (``1/base^exponent``),
+    when ``top`` (the set's interval that holds ``least``) holds it too; and the words saying why (or "").
+    The synthesised set is exact for the checks it searches, but E0801 depends on the value's denominator,
+    not on its size: without this, `rac check` refuted the least value and `rac tune` wrote nothing while
+    every significand above it passes."""
+    automaton = resolve(least)
+    assert automaton is not None, "the file resolved at its least value"
+    base, exponent = representation(automaton)
+    scale = base ** exponent
+    if (least * scale).denominator == 1 or not any(d.code == "E0801" for d in analyse_automaton(automaton, [])):
+        return least, ""
+    rounded = Fraction(math.ceil(least * scale), scale)
+    if rounded not in top:
+        return least, ""
+    return rounded, (f" (= {exact_decimal(rounded)}), the least value the significands hold exactly (1/{scale}; at "
+                     f"{name} = {exact_text(least)} the UPPAAL model's integer arithmetic leaves int32, E0801)")
 
 
 def _requirement_text(requirement: ir.Requirement) -> str:
