@@ -15,6 +15,7 @@ import pytest
 from engine_files import QUERIES, write_engine_file
 
 import rac
+import rac.cli.tune
 from rac.cli.main import main
 from rac.compiler import compile_file, compile_text
 from rac.core.diagnostics import CheckError, RacError, RacValueError, error
@@ -104,6 +105,39 @@ def test_a_rac_error_without_a_diagnostic_is_an_internal_error(monkeypatch, caps
     monkeypatch.delenv("RAC_DEBUG", raising=False)
     status = main(["check", str(tmp_path / "x.ra")])
     assert status == 3 and "internal error: RacValueError: nobody handled this" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("raised", "status"), [(RuntimeError("boom"), 3), (RacValueError("nobody handled this"), 3),
+                                               (KeyboardInterrupt(), 130)])
+@pytest.mark.parametrize("command", [["check"], ["compile", "--target", "python"], ["tune"]])
+def test_json_after_an_internal_error_or_ctrl_c_is_still_one_document(
+        monkeypatch, capsys, tmp_path, raised: BaseException, status: int, command: list[str]) -> None:
+    """`--format json` promises a JSON document on standard output; an internal error or Ctrl-C before the
+    command printed one left standard output empty (`json.loads` of it failed), the message on standard
+    error only."""
+    import rac.cli.files
+
+    def failing(path: object, *args: object, **kwargs: object) -> None:
+        raise raised
+
+    monkeypatch.setattr(rac.cli.files, "compile_file", failing)
+    monkeypatch.setattr(rac.cli.tune, "compile_source", failing)
+    monkeypatch.delenv("RAC_DEBUG", raising=False)
+    path = tmp_path / "x.ra"
+    path.write_text(MODEL_RATE.read_text(encoding="utf-8").replace("0.00001", "1"), encoding="utf-8")
+    text = path.read_text(encoding="utf-8").replace("do sa = sa - 100", "do sa = sa - P").replace(
+        "reward sa, pr", "param P in [0, 1000]\n    reward sa, pr")
+    path.write_text(text, encoding="utf-8")
+    assert main([*command, "--format", "json", str(path)]) == status
+    out, err = capsys.readouterr()
+    document = json.loads(out)
+    assert document == {"command": command[0], "ok": False, "exit_code": status,
+                        "interrupted": status == 130,
+                        "error": None if status == 130 else f"internal error: {type(raised).__name__}: {raised}"}
+    assert ("internal error" in err) == (status == 3) and ("interrupted" in err) == (status == 130)
+    # without the option, standard output stays empty: the message is on standard error
+    assert main([*command, str(path)]) == status
+    assert capsys.readouterr().out == ""
 
 
 def test_an_unknown_loader_failure_is_an_internal_error(monkeypatch, capsys, tmp_path) -> None:

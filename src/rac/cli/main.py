@@ -9,8 +9,11 @@ input), an internal error 3 (a bug in rac; set RAC_DEBUG=1 for the traceback), C
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import errno
 import importlib
+import json
 import os
 import sys
 from collections.abc import Sequence
@@ -54,7 +57,8 @@ def _main(argv: Sequence[str] | None) -> int:
         return int(exc.code or 0)
     module, function = COMMANDS[args.command]
     stdout = sys.stdout
-    sys.stdout = ReaderSafe(stdout)  # `rac check ... | head`: the command still ends with its own status
+    safe = ReaderSafe(stdout)
+    sys.stdout = safe  # `rac check ... | head`: the command still ends with its own status
     terminated: list[int] = []  # SIGTERM came: the exit code says so (143, not Ctrl-C's 130)
     try:
         # SIGTERM (`timeout`, a batch system's limit) as Ctrl-C: the command shows what it answered before it
@@ -68,7 +72,9 @@ def _main(argv: Sequence[str] | None) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt:
         print(f"rac: {how_stopped()}", file=sys.stderr)
-        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+        status = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+        _last_document(args, safe, status, interrupted=True)
+        return status
     except (ScenarioTooLarge, EstimateExceeded) as exc:  # refused before it starts: the budget is at fault
         print_diagnostics([resource_limit(f"resource limit: {exc}")], structured=as_json(args))
         return EXIT_USAGE
@@ -83,14 +89,29 @@ def _main(argv: Sequence[str] | None) -> int:
         return EXIT_USAGE
     except RacError as exc:
         if exc.diagnostic is None:  # a failure rac handles itself reached the top: a bug, reported below
-            return _internal_error(exc)
+            return _last_document(args, safe, _internal_error(exc), error=exc)
         # a failure in the user's words (after the checker): the one renderer, like rac check's findings
         print_diagnostics([exc.diagnostic], structured=as_json(args))
         return EXIT_ERRORS
     except Exception as exc:  # a bug in rac: say so plainly instead of a traceback
-        return _internal_error(exc)
+        return _last_document(args, safe, _internal_error(exc), error=exc)
     finally:
         sys.stdout = stdout
+
+
+def _last_document(args: argparse.Namespace, stdout: ReaderSafe, status: int, *, interrupted: bool = False,
+                   error: Exception | None = None) -> int:
+    """With ``--format json``, when the command stopped (Ctrl-C, SIGTERM, an internal error) before it printed
+    anything: a JSON document on standard output all the same, ``{"command", "ok": false, "exit_code",
+    "interrupted", "error"}``, so that a script reading it finds one document, as after any other outcome (the
+    message stays on standard error). Returns ``status``."""
+    if as_json(args) and not stdout.written:
+        document = {"command": args.command, "ok": False, "exit_code": status, "interrupted": interrupted,
+                    "error": None if error is None else f"internal error: {type(error).__name__}: {error}"}
+        with contextlib.suppress(StdoutError):  # nowhere to print it: the message on standard error stands
+            print(json.dumps(document, indent=2))
+            stdout.flush()
+    return status
 
 
 def _internal_error(exc: Exception) -> int:
@@ -114,8 +135,11 @@ class ReaderSafe:
     def __init__(self, stream: TextIO | None) -> None:
         self._stream = stream
         self.gone = False
+        #: Whether the command printed anything (a JSON document, in part or whole).
+        self.written = False
 
     def write(self, text: str) -> int:
+        self.written = self.written or bool(text)
         if not self.gone:
             try:
                 if self._stream is None:  # started with standard output closed (`rac ... >&-`)
