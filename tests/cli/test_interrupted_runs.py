@@ -4,6 +4,7 @@ they were stopped, never a bare "interrupted" that drops minutes of answers."""
 
 from __future__ import annotations
 
+import errno
 import json
 import signal
 import subprocess
@@ -14,7 +15,7 @@ import pytest
 from conftest import rac_env
 from engine_files import write_engine_file
 
-from rac.cli.common import EXIT_INTERRUPTED, EXIT_TERMINATED, EXIT_UNDECIDED
+from rac.cli.common import EXIT_INTERRUPTED, EXIT_TERMINATED, EXIT_UNDECIDED, EXIT_USAGE
 from rac.cli.main import main
 from rac.verify.statistical import StatisticalAnswerer
 
@@ -50,6 +51,27 @@ def test_verify_interrupted_shows_the_queries_answered(capsys: pytest.CaptureFix
         assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
     else:
         assert "Verifying Stays" in out and "Formula is satisfied" in out and "Later" not in out
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_verify_with_a_full_disk_shows_the_queries_answered(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch, form: str) -> None:
+    # the disk filled up at Sim's CSV: only E0009 was printed, and the answers of the queries before it (minutes,
+    # on a real scene) were dropped with it, where Ctrl-C at the same moment shows them
+    path = write_engine_file(tmp_path, "goal_ahead", QUERIES)
+    csv = tmp_path / "o" / "Sim.csv"
+    monkeypatch.setattr(StatisticalAnswerer, "simulate",
+                        _raises(OSError(errno.ENOSPC, "No space left on device", str(csv))))
+    code, out, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", form)
+    assert code == EXIT_USAGE
+    assert "rac verify: stopped during Sim: simulate[<=2;4]" in err and "1 query answered before it is above" in err
+    if form == "json":
+        document = json.loads(out)  # one document: the answers and the error
+        assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
+        assert document["error"]["code"] == "E0009" and str(csv) in document["error"]["message"]
+    else:
+        assert "Verifying Stays" in out and "Formula is satisfied" in out and "Later" not in out
+        assert f"error[E0009]: cannot write `{csv}`: No space left on device" in err
 
 
 def test_verify_out_of_memory_in_one_query_keeps_the_others(capsys: pytest.CaptureFixture[str], tmp_path: Path,

@@ -330,6 +330,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
     results: list[QueryResult] = []  # filled as each query is answered: Ctrl-C still shows those
     penalties = None
     stopped: str | None = None
+    write_failed: Diagnostic | None = None  # E0009 of a query's file: the queries before it are shown
     try:
         with bar:
             context, results = run_queries(result, options, answered=results)
@@ -348,14 +349,21 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
                                          "Fig7_safe, Unsafe_safe"]))
         return EXIT_USAGE
     except OSError as exc:
-        _report(args, unwritable(_written(out_dir, exc), exc))
-        return EXIT_USAGE
+        failed = unwritable(_written(out_dir, exc), exc)
+        if not results:  # nothing answered to show: the error alone
+            _report(args, failed)
+            return EXIT_USAGE
+        # a full disk at a later query's files: the answers found before stand (their files are written),
+        # shown as after Ctrl-C, then the error (exit 2); they were dropped with it
+        write_failed, stopped = failed, doing[0] if doing else "the queries"
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "seed": seed, "warnings": _warnings(result),
                                        "results": render_json(results),
                                        "penalties": penalties.to_json() if penalties is not None else None}
         if stopped is not None:
             document["interrupted"] = stopped
+        if write_failed is not None:  # one document: the error in it, not a second one beside it
+            document["error"] = write_failed.to_json()
         print(json.dumps(document, indent=2))
     else:
         if results:
@@ -372,6 +380,11 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
         n = len(results)
         answered = f"{n} {'query' if n == 1 else 'queries'} answered before it {'is' if n == 1 else 'are'} above" \
             if n else "no query was answered"
+        if write_failed is not None:
+            if args.format == "text":
+                print_diagnostics([write_failed])
+            print(f"rac verify: stopped during {stopped} by the error above; {answered}", file=sys.stderr)
+            return EXIT_USAGE
         print(f"rac verify: {how_stopped()} during {stopped}; {answered}", file=sys.stderr)
         return EXIT_INTERRUPTED
     if not results:
