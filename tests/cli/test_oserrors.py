@@ -381,3 +381,23 @@ def test_two_writers_of_one_file_both_finish_and_leave_a_whole_one(
     writer(path, 2)
     assert _read(writer, path) == 2  # the last rename wins, whole
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.bin"]
+
+
+def test_a_full_disk_while_writing_names_the_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    # a write's ENOSPC carries no file name: E0009 named the output folder ("cannot write `out`: No space left
+    # on device"), which sent the user looking for a folder at fault, not at the file that failed
+    import errno
+
+    from rac.verify import report
+
+    def full(*args: object, **kwargs: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(report.csv, "writer", lambda handle: type("W", (), {"writerow": full})())
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["simulate", str(path), "--runs", "2", "--seed", "1", "-q", "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"error[E0009]: cannot write `{tmp_path / 'out' / 'runs.csv'}`: No space left on device" in err
+    assert "free some space on the disk" in err
+    assert [p.name for p in (tmp_path / "out").iterdir()] == []

@@ -73,8 +73,15 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
             file = open(temporary, "xb")
         except OSError as exc:  # a missing folder, no permission: said of the file asked for, not the temporary
             raise type(exc)(exc.errno, exc.strerror, os.fspath(target)) from exc
-        with file:
-            write(file)
+        try:
+            with file:  # closing flushes the last of it: a full disk may show only there
+                write(file)
+        except OSError as exc:
+            if exc.filename is not None:  # a file the writer read (a font, say) names itself
+                raise
+            # a write's own error names no file: said of the file asked for, so that the report ("cannot
+            # write ...: No space left on device") names it, not its folder
+            raise type(exc)(exc.errno, exc.strerror, os.fspath(target)) from exc
         replace_onto(temporary, target)
     except BaseException:
         temporary.unlink(missing_ok=True)
