@@ -120,6 +120,26 @@ def test_preanalyse_interrupted_shows_the_settings_finished(capsys: pytest.Captu
         assert "| 1 | " in out and "| 2 | " not in out
 
 
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_preanalyse_with_a_full_disk_shows_the_settings_finished(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch, form: str) -> None:
+    # the disk filled up at the second setting's plot: only E0009 was printed, the first setting's answers
+    # (written, with its plot) were dropped with it, where Ctrl-C at the same moment shows them
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    plot = tmp_path / "pre" / "exponent_2.png"
+    _row_failing_on_the_second(monkeypatch, OSError(errno.ENOSPC, "No space left on device", str(plot)))
+    code, out, err = run(capsys, "preanalyse", path, "-q", "--exponent", "1,2,3", "--runs", "2", "--seed", "1",
+                         "-o", tmp_path / "pre", "--format", form)
+    assert code == EXIT_USAGE
+    assert "rac preanalyse: stopped by the error above; 1 setting finished before it (above)" in err
+    if form == "json":
+        document = json.loads(out)
+        assert [s["exponent"] for s in document["settings"]] == [1] and document["error"]["code"] == "E0009"
+    else:
+        assert "| 1 | " in out and "| 2 | " not in out
+        assert f"error[E0009]: cannot write `{plot}`: No space left on device" in err
+
+
 def test_preanalyse_out_of_memory_in_one_setting_keeps_the_others(capsys: pytest.CaptureFixture[str],
                                                                   tmp_path: Path,
                                                                   monkeypatch: pytest.MonkeyPatch) -> None:

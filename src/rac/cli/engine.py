@@ -588,6 +588,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     out_dir = _out_dir(args)
     done: list[dict[str, object]] = []  # each setting's row as it is found: Ctrl-C still shows those
     interrupted = False
+    write_failed: Diagnostic | None = None  # E0009 of a plot: the settings finished before it are shown
     try:
         rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
                      horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
@@ -599,18 +600,31 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     except SweepError as exc:
         _report(args, usage_error(str(exc)))
         return EXIT_USAGE
-    except OSError as exc:  # the plots' folder: a file, under a file, too long a name, no permission
-        _report(args, unwritable(_written(out_dir, exc), exc))
-        return EXIT_USAGE
+    except OSError as exc:  # the plots' folder: a file, under a file, too long a name, no permission, a full disk
+        failed = unwritable(_written(out_dir, exc), exc)
+        if not done:  # no setting finished: the error alone
+            _report(args, failed)
+            return EXIT_USAGE
+        # the settings finished before it stand (their plots are written): shown as after Ctrl-C, then the error
+        rows, write_failed = done, failed
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "settings": rows}
         if interrupted:
             document["interrupted"] = True
+        if write_failed is not None:  # one document: the error in it
+            document["error"] = write_failed.to_json()
         print(json.dumps(document, indent=2, default=str))
     elif rows or not interrupted:
         print(render_table(rows))
         if any("plot" in row or "sweep_plot" in row for row in rows):  # no setting answered: no plot, maybe no folder
             print(f"\nplots in {out_dir}")
+    if write_failed is not None:
+        if args.format == "text":
+            print_diagnostics([write_failed])
+        n = len(rows)
+        print(f"rac preanalyse: stopped by the error above; {n} setting{'' if n == 1 else 's'} finished before it "
+              "(above)", file=sys.stderr)
+        return EXIT_USAGE
     if interrupted:
         n = len(rows)
         print(f"rac preanalyse: {how_stopped()}; {n} setting{'' if n == 1 else 's'} finished before it "
