@@ -377,3 +377,32 @@ def test_two_experiments_writing_one_folder_both_finish(report: dict[str, object
     assert json.loads((tmp_path / "results.json").read_text(encoding="utf-8"))["seeds"] == [1, 2]
     assert (tmp_path / "experiment.md").read_text(encoding="utf-8") == render_markdown(report) + "\n"
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".") or p.suffix in (".partial", ".tmp")]
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_a_full_disk_at_the_plots_still_shows_what_was_learned(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                               monkeypatch: pytest.MonkeyPatch, form: str) -> None:
+    """The learning (minutes to hours) is done when the outputs are written: a full disk there printed only
+    E0009 and the table and the results were never shown."""
+    import errno
+
+    import rac.output.plots as plots
+
+    out = tmp_path / "out"
+
+    def full(figure: object, path: object, **options: object) -> Path:
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(plots, "save_figure", full)
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    code = main(["experiment", str(path), "--seeds", "1", "--episodes", "8", "--runs", "2", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "RF", "--out", str(out), "-q", "--format", form])
+    assert code == 2
+    printed, err = capsys.readouterr()
+    if form == "json":
+        document = json.loads(printed)  # one document: the results, and the error in it
+        assert [run["combination"] for run in document["runs"]] == ["RF"] and document["error"]["code"] == "E0009"
+    else:
+        assert "| RF |" in printed
+        assert f"error[E0009]: cannot write `{out / 'returns.png'}`: No space left on device" in err
+    assert "the results above were not all written" in err

@@ -644,7 +644,14 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
 @_on_checked_file
 def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     # numpy (via rac.studies.experiment): only the command that uses it loads it
-    from rac.studies.experiment import ExperimentError, render_ablation, render_markdown, run_experiment, write_outputs
+    from rac.studies.experiment import (
+        ExperimentError,
+        render_ablation,
+        render_markdown,
+        results_json,
+        run_experiment,
+        write_outputs,
+    )
 
     if args.seed is not None and args.seeds is not None:
         _report(args, usage_error("give --seeds LIST or --seed N (one seed), not both"))
@@ -671,7 +678,6 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                 counterfactuals=not args.no_counterfactuals, replay=args.replay,
                                 ablation=args.ablation, observe_time=not args.no_time,
                                 max_bytes=args.max_memory or default_max_bytes(), progress=announce)
-        files = write_outputs(report, out_dir)
     except ExperimentError as exc:
         # an option to change or a budget, as simulate's; the file's own failure (no safe strategy), with
         # its source line when it points into the file
@@ -679,8 +685,21 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                 else resource_limit(f"resource limit: {exc}") if exc.kind == "limit" else unusable_file(str(exc)),
                 result.sources)
         return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
+    try:
+        files = write_outputs(report, out_dir)
     except OSError as exc:
-        _report(args, unwritable(_written(out_dir, exc), exc))
+        # a full disk, a folder in the way: what was learned (minutes to hours) is shown all the same, then
+        # the error; it was dropped with it
+        failed = unwritable(_written(out_dir, exc), exc)
+        if args.format == "json":  # one document: the results and the error in it
+            print(json.dumps({**json.loads(results_json(report)), "error": failed.to_json()}, indent=1))
+        else:
+            print(render_markdown(report))
+            if report.get("ablation"):
+                print()
+                print(render_ablation(report))
+            print_diagnostics([failed])
+        print("rac experiment: the results above were not all written (the error above)", file=sys.stderr)
         return EXIT_USAGE
     if args.format == "json":
         print((out_dir / "results.json").read_text(encoding="utf-8"))

@@ -58,7 +58,8 @@ from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
 
 __all__ = ["ABLATION", "COMBINATIONS", "GROWTH", "PAPER_INPUTS", "PAPER_REWARD_FUNCTION", "ExperimentError", "Options",
-           "Report", "default_reward_problem", "default_widths", "render_ablation", "render_markdown", "run_experiment"]
+           "Report", "default_reward_problem", "default_widths", "render_ablation", "render_markdown", "results_json",
+           "run_experiment", "write_outputs"]
 
 #: The experiment's report and its summary rows (JSON-shaped: written as JSON and as Markdown).
 Report = dict[str, Any]
@@ -723,24 +724,8 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
         ablation = out_dir / "ablation.md"
         _write_text(ablation, render_ablation(report) + "\n")
         written.append(ablation)
-
-    def as_json(r: RunRecord) -> Report:
-        return {"combination": r.combination, "seed": r.seed, "seconds": r.seconds, "episodes": r.episodes,
-                "first_success_episode": r.first_success_episode,
-                "collisions_during_learning": r.collisions_during_learning,
-                "offroad_during_learning": r.offroad_during_learning, "greedy_success": r.greedy_success,
-                "greedy_return": round(r.greedy_return, 4), "counterfactuals": r.counterfactuals,
-                "optimum": r.optimum, "shortfall": None if r.optimum is None else _shortfall(r),
-                "evaluation_successes": r.evaluation_successes, "evaluation_runs": r.evaluation_runs,
-                "returns": [round(float(v), 4) for v in r.returns],
-                "succeeded": [bool(v) for v in r.succeeded]}
-
-    data = {key: value for key, value in report.items() if key not in ("records", "ablation")}
-    data["runs"] = [as_json(r) for r in records]
-    data["ablation"] = [dict(variant, name=name, records=[as_json(r) for r in variant["records"]])
-                        for name, variant in zip(ABLATION, report.get("ablation", []))]
     results = out_dir / "results.json"
-    _write_text(results, json.dumps(data, indent=1) + "\n")
+    _write_text(results, results_json(report))
     written.append(results)
 
     def curves(field: str) -> dict[str, np.ndarray]:
@@ -758,6 +743,27 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
         firsts.setdefault(r.combination, []).append(r.first_success_episode)
     written.append(plot_first_success(firsts, int(report["episodes"]), out_dir / "first_success.png"))
     return written
+
+
+def results_json(report: Report) -> str:
+    """``results.json``'s text: the report with every run's record (what ``rac experiment --format json`` prints)."""
+
+    def as_json(r: RunRecord) -> Report:
+        return {"combination": r.combination, "seed": r.seed, "seconds": r.seconds, "episodes": r.episodes,
+                "first_success_episode": r.first_success_episode,
+                "collisions_during_learning": r.collisions_during_learning,
+                "offroad_during_learning": r.offroad_during_learning, "greedy_success": r.greedy_success,
+                "greedy_return": round(r.greedy_return, 4), "counterfactuals": r.counterfactuals,
+                "optimum": r.optimum, "shortfall": None if r.optimum is None else _shortfall(r),
+                "evaluation_successes": r.evaluation_successes, "evaluation_runs": r.evaluation_runs,
+                "returns": [round(float(v), 4) for v in r.returns],
+                "succeeded": [bool(v) for v in r.succeeded]}
+
+    data = {key: value for key, value in report.items() if key not in ("records", "ablation")}
+    data["runs"] = [as_json(r) for r in report["records"]]
+    data["ablation"] = [dict(variant, name=name, records=[as_json(r) for r in variant["records"]])
+                        for name, variant in zip(ABLATION, report.get("ablation", []))]
+    return json.dumps(data, indent=1) + "\n"
 
 
 def _write_text(path: Path, text: str) -> None:
