@@ -522,3 +522,15 @@ def test_written_files_get_the_usual_mode_links_stay_links_and_the_source_is_nev
     assert main(["compile", "--target", "uppaal", str(messy), "-o", str(messy)]) == 2
     assert "error[E0009]: cannot write" in capsys.readouterr().err
     assert messy.read_bytes() == before
+
+
+@pytest.mark.parametrize("command", [["check"], ["verify"], ["compile", "--target", "python"], ["tune"]])
+def test_an_unknown_option_is_refused_with_the_commands_usage(capsys: pytest.CaptureFixture[str], clean: Path,
+                                                              command: list[str]) -> None:
+    # it was `rac`'s usage, "usage: rac [-h] [--version] COMMAND ...", which shows none of the command's options,
+    # where a missing value or a bad choice shows the command's
+    assert main([*command, str(clean), "--bogus"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: rac {command[0]} [-h]")
+    assert err.rstrip().endswith(f"rac {command[0]}: error: unrecognized arguments: --bogus")
+    assert clean.read_text(encoding="utf-8") == DRIVING_TEXT

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import TypeVar
@@ -55,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
                "bug in rac), 4 something left undecided (a query, a check stopped at its limit, a setting or "
                "task without an answer), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, taken as Ctrl-C).")
     parser.add_argument("--version", action="version", version=f"rac {__version__}")
-    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_CommandParser)
 
     check = commands.add_parser("check", help="type-check files and prove or refute their priority order")
     check.add_argument("files", nargs="+", type=Path, metavar="FILE")
@@ -83,6 +83,19 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(commands)
     _add_new(commands)
     return parser
+
+
+class _CommandParser(argparse.ArgumentParser):
+    """A sub-command's parser that refuses an option it does not know itself, with its own usage: argparse
+    leaves that to ``rac``'s parser, whose usage (``rac [-h] [--version] COMMAND ...``) shows none of the
+    command's options, where every other mistake in them (a missing value, a bad choice) shows the command's."""
+
+    def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]  # argparse's overloads
+                         namespace: argparse.Namespace | None = None) -> tuple[argparse.Namespace, list[str]]:
+        parsed, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return parsed, extras
 
 
 def _argument(convert: Callable[[str], T], kind: str, accepts: Callable[[T], bool], need: str) -> Callable[[str], T]:
