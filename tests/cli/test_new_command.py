@@ -149,3 +149,46 @@ def test_a_file_where_the_folder_goes_is_named_as_such(name: str, tmp_path: Path
     assert f"error[E0009]: cannot write `{name}.ra`: Not a directory" in err
     assert "a part of the path is a file, not a folder" in err and "File exists" not in err and "-o" not in err
     assert (tmp_path / "notes").read_text(encoding="utf-8") == "mine\n"
+
+
+def test_a_file_made_while_new_works_is_never_replaced(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    # `rac new` looked whether NAME.ra existed, then wrote it by a rename, which replaces whatever was made
+    # there in between (a second `rac new x` of a script, an editor saving): the user's file was lost
+    import rac.cli.new
+
+    target = tmp_path / "mine.ra"
+    real = rac.cli.new.repointed
+
+    def meanwhile(*args: object) -> str:
+        target.write_text("// the user's own file\n", encoding="utf-8")
+        return real(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rac.cli.new, "repointed", meanwhile)
+    assert main(["new", str(tmp_path / "mine")]) == EXIT_USAGE
+    assert f"error[E0009]: cannot write `{target}`: the file exists" in capsys.readouterr().err
+    assert target.read_text(encoding="utf-8") == "// the user's own file\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.ra"]
+
+
+def test_a_full_disk_leaves_no_half_new_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    import contextlib
+    import errno
+    import os
+
+    real = os.fdopen
+
+    @contextlib.contextmanager
+    def full(fd: int, *args: object, **kwargs: object):  # type: ignore[no-untyped-def]
+        with real(fd, *args, **kwargs) as handle:  # type: ignore[call-overload]
+            handle.write("// half")
+            handle.flush()
+            raise OSError(errno.ENOSPC, "No space left on device")
+        yield handle
+
+    monkeypatch.setattr(os, "fdopen", full)
+    code = main(["new", str(tmp_path / "mine")])
+    monkeypatch.undo()
+    assert code == EXIT_USAGE
+    assert "No space left on device" in capsys.readouterr().err and list(tmp_path.iterdir()) == []

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from rac.cli.arguments import DEFAULT_TEMPLATE
-from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable, write_atomically
+from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_USAGE, unreadable, unwritable
 from rac.core.diagnostics import Diagnostic, error, render_text
 from rac.lang import ast
 from rac.lang.parser import ParseFailure, parse_source, parse_text, read_source
@@ -105,6 +105,20 @@ def _exists(path: Path) -> Diagnostic:
                  hints=["choose another NAME or remove the file; `rac new` never overwrites one"])
 
 
+def _create(path: Path, text: str) -> None:
+    """Write ``text`` to ``path``, a file that must not exist: created exclusively (``O_EXCL``), so that a file
+    made there after :func:`new_command` looked (another ``rac new``, an editor saving) is never replaced, as a
+    rename would replace it; removed again when the write fails (a full disk, an interrupt): it was this
+    command's. ``FileExistsError`` when ``path`` exists."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+            handle.write(text)
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+
+
 def new_command(args: argparse.Namespace) -> int:
     """``rac new NAME --from FILE``: copy, rename, write atomically, say what to run next."""
     stem = Path(args.name).name.removesuffix(".ra")
@@ -149,7 +163,10 @@ def new_command(args: argparse.Namespace) -> int:
             target.parent.mkdir(parents=True, exist_ok=True)
         except FileExistsError:  # a file where NAME's folder goes: not "File exists" of a file that does not
             raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(target.parent)) from None
-        write_atomically(target, written)
+        _create(target, written)
+    except FileExistsError:  # made meanwhile (another rac new, an editor): it is someone's, and stays
+        print(render_text([_exists(target)], {}), file=sys.stderr)
+        return EXIT_USAGE
     except OSError as exc:
         print(render_text([unwritable(target, exc)], {}), file=sys.stderr)
         return EXIT_USAGE
