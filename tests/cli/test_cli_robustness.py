@@ -401,3 +401,24 @@ def test_the_lock_of_a_linked_file_is_its_targets_folder(tmp_path: Path) -> None
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         finally:
             os.close(fd)
+
+
+def test_a_huge_file_is_refused_without_being_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A file of gigabytes named .ra (a log, a disk image) was read whole into memory before E0005 said it is too
+    large: 5 GB of resident memory for `rac check`, swapping a small machine. At most one byte past the limit
+    is read now; the message still gives the file's whole size."""
+    import tracemalloc
+
+    from rac.core.source import MAX_SOURCE_BYTES
+
+    path = tmp_path / "huge.ra"
+    with path.open("wb") as handle:  # sparse: no disk space taken
+        handle.truncate(60 * MAX_SOURCE_BYTES)
+    tracemalloc.start()
+    try:
+        assert main(["check", str(path)]) == 1
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert f"error[E0005]: file is too large ({60 * MAX_SOURCE_BYTES:,} bytes" in capsys.readouterr().out
+    assert peak < 10 * MAX_SOURCE_BYTES  # the file is 60 times the limit

@@ -408,8 +408,12 @@ def read_source(path: str | Path) -> SourceFile:
         raise IsADirectoryError(f"{name} is a directory, not a .ra file")
     if path.exists() and not path.is_file():  # a FIFO or a device: reading it would block
         raise OSError(errno.EINVAL, "not a regular file (a pipe or a device?)", name)
-    data = path.read_bytes()
-    _check_size(name, len(data), "file")
+    # at most one byte past the limit: a file of gigabytes (a log, a disk image named .ra) is refused
+    # without being read into memory, which swapped the machine before E0005 could say so
+    with path.open("rb") as handle:
+        data = handle.read(MAX_SOURCE_BYTES + 1)
+        size = max(len(data), os.fstat(handle.fileno()).st_size)
+    _check_size(name, size, "file")
     return decode_source(name, data)
 
 
