@@ -21,10 +21,12 @@ import re
 from fractions import Fraction
 from pathlib import Path
 
+import numpy as np
 import pytest
 import shapely
 from commonroad.common.util import Interval
 from commonroad.geometry.occupancy.polygon_occupancy import PolygonOccupancy
+from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
 from commonroad.planning.goal import GoalRegion
 from commonroad.planning.planning_problem import PlanningProblem, PlanningProblemSet
 from commonroad.scenario.scenario import Tag
@@ -45,6 +47,7 @@ from tiny_scenarios import (
 )
 
 from rac.compiler import compile_file
+from rac.model.batch import batch_model
 from rac.model.commonroad import (
     EgoStart,
     Goal,
@@ -138,6 +141,62 @@ def test_goal_states_that_differ_only_in_velocity_are_accepted(tmp_path: Path) -
     assert len(goal.regions) == 2 and goal.velocity == (0.0, 1.0) and goal.orientation is None
     (warning,) = warnings_of(write(tmp_path, "mixed.xml", goal_with_direction(mixed=True)), "W0723")
     assert "velocity in [0, 1] m/s, which" in warning.message
+
+
+# ---------------------------------------------------------------- a goal of time alone
+def time_goal(*states: CustomState) -> bytes:
+    """:func:`window`'s road whose planning problem's goal is ``states`` (default: the time steps 20
+    to 30 alone, a velocity in [0, 15] m/s and no position: CommonRoad's "be anywhere in [2, 3] s")."""
+    scenario, problems = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(40.0, 50.0)).build("timed")
+    (problem,) = problems.planning_problem_dict.values()
+    goal = GoalRegion(list(states) or [CustomState(time_step=Interval(20, 30), velocity=Interval(0.0, 15.0))])
+    problems = PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, problem.initial_state, goal)])
+    return commonroad_xml(scenario, problems, "timed", Tag.SINGLE_LANE)
+
+
+def test_a_goal_without_a_position_holds_anywhere_in_its_window(tmp_path: Path) -> None:
+    """A goal state of time alone (common in real files: "survive until T") was refused (E0712, "has no
+    position"). CommonRoad reaches such a goal at any position inside the window: `goal()` reads the
+    window alone and `dist_goal()` is 0, in the model's data, the native and batch models and the
+    UPPAAL declarations."""
+    path = tmp_path / "timed.xml"
+    path.write_bytes(time_goal())
+    goal = load_scenario(path).goal
+    assert goal.anywhere and goal.regions == () and (goal.time_low, goal.time_high) == (2.0, 3.0)
+    assert goal.velocity == (0.0, 15.0)
+    data = build_model_data(load_scenario(path), TinySettings().model_spec(path))
+    assert data.goal_anywhere and data.goal_count == 0 and (data.goal_low, data.goal_high) == (4, 6)
+    assert re.search(r"\bGOAL_ANYWHERE = true;", emit_declarations(data))
+    model = NativeModel(data)
+    far = model.initial_state()._replace(x=-500 * data.scale, y=300 * data.scale)  # off the road, far away
+    assert [model.goal(far, k) for k in (3, 4, 6, 7)] == [False, True, True, False]
+    assert model.dist_goal(far) == 0.0
+    rows = np.array([far, model.initial_state()], dtype=np.int64)
+    batch = batch_model(data)
+    assert batch.goal(rows, 5).tolist() == [True, True] and batch.goal(rows, 7).tolist() == [False, False]
+    assert batch.goal(rows, np.array([3, 4])).tolist() == [False, True]
+    assert batch.dist_goal(rows).tolist() == [0.0, 0.0]
+
+    source = write(tmp_path, "timed.xml", time_goal())
+    result = compile_file(source)
+    assert result.ok, [d.message for d in result.diagnostics]
+    assert ("goal at any position (the file's goal has no position; `dist_goal()` reads 0) at scenario time t in "
+            "[2, 3] s") in result.proved[-1]
+    (warning,) = [d for d in result.diagnostics if d.code == "W0723"]
+    assert warning.message.endswith("`goal()` holds at any speed and heading in the window")
+
+
+def test_a_goal_state_without_a_position_makes_the_whole_goal_anywhere(tmp_path: Path) -> None:
+    """CommonRoad's goal is reached when one of its states is: one of them of time alone holds anywhere,
+    whatever region the others name."""
+    box = RectOccupancy(rect_center=shapely.Point(45.0, 1.75), length=10.0, width=3.5, orientation=0.0)
+    path = tmp_path / "mixed.xml"
+    path.write_bytes(time_goal(CustomState(time_step=Interval(20, 30), position=box),
+                               CustomState(time_step=Interval(20, 30))))
+    goal = load_scenario(path).goal
+    assert goal.anywhere and goal.regions == ()
+    path.write_bytes(time_goal(CustomState(time_step=Interval(20, 30), position=box)))
+    assert not load_scenario(path).goal.anywhere
 
 
 # ---------------------------------------------------------------- the goal's centre

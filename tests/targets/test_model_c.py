@@ -64,12 +64,19 @@ int main(void) {
 }
 """
 
+def anywhere_scenario():
+    """:func:`goal_scenario` with a goal of time alone (no position: ``Goal.anywhere``), 2 to 4.5 s."""
+    scenario = goal_scenario()
+    return replace(scenario, name="anywhere", goal=replace(scenario.goal, regions=(), anywhere=True))
+
+
 #: (name, scenario builder, spec)
 CASES = [
     ("straight", straight_scenario, make_spec(3)),
     ("crossing", crossing_scenario, make_spec(4, granularity=F(1, 5), decide=F(3, 10))),
     ("goal", goal_scenario, make_spec(2, granularity=F(1, 4), sense=F(1, 5), decide=F(2, 5))),
     ("goal-coarse", goal_scenario, make_spec(1, min_speed=F(-2), max_speed=F(15))),
+    ("goal-anywhere", anywhere_scenario, make_spec(2)),
     # the modelling choices: integer increments (each sub-step adds truncated increments) and a
     # start whose off-road state is not checked
     ("straight-increments", straight_scenario, replace(make_spec(3), dynamics="increments", offroad_from=3)),
@@ -178,6 +185,10 @@ def test_c_agrees_with_native(name, build, spec, tmp_path):
         assert {f[0] for f in flags} == {"0", "1"}
     if name.startswith("goal"):
         assert "1" in {f[2] for f in flags}
+    if data.goal_anywhere:  # the window alone: goal() at every state inside it, and dist_goal() 0
+        assert {f[2] for f in flags} == {"0", "1"}
+        assert all(f[2] == str(int(data.goal_low <= k <= data.goal_high)) for f, (_, k) in zip(flags, states))
+        assert {line.split()[4] for line in lines} == {"0.00000000000000000e+00"}
 
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "left_turn" / "left_turn.xml"

@@ -31,6 +31,7 @@ col    name            bounds              meaning
                                            first crossing of the road's edge (50: none within 50 m)
 5      ``edge_right``  0 .. 50 m           the same to the right
 6      ``goal_ahead``  ±500 m              the goal's centre (``goal_cx, goal_cy``) ahead of the ego
+                                           (0 for a goal of time alone, ``goal_anywhere``)
 7      ``goal_left``   ±500 m              ... and left of it
 8      ``time_left``   0 .. 3600 s         the time to the episode's horizon
 9+5j   ``present``     0 .. 1              1: obstacle slot ``j`` holds an obstacle (the ``j``-th
@@ -192,6 +193,7 @@ class RelativeObservation:
         self._horizon = episodes.horizon_samples
         self._model = batch_model(data)
         self._goal = np.array([data.goal_cx, data.goal_cy]) / self._scale
+        self._anywhere = data.goal_anywhere
         starts, ends, half = [], [], []
         for lane in scenario.lanes:
             centre = np.asarray(lane.centre, dtype=np.float64)
@@ -234,7 +236,8 @@ class RelativeObservation:
         normal = np.column_stack([-direction[:, 1], direction[:, 0]])  # the lane's left
         out[:, 4] = _ray_hits(position, normal, self._edge_start, self._edge_end)
         out[:, 5] = _ray_hits(position, -normal, self._edge_start, self._edge_end)
-        goal = self._goal[None] - position
+        # a goal of time alone (GOAL_ANYWHERE) holds where the ego is: no direction to it
+        goal = np.zeros_like(position) if self._anywhere else self._goal[None] - position
         out[:, 6] = goal[:, 0] * cos + goal[:, 1] * sin
         out[:, 7] = -goal[:, 0] * sin + goal[:, 1] * cos
         out[:, 8] = (self._horizon - episodes.k) * self._period

@@ -437,10 +437,12 @@ class BatchModel:
         if np.ndim(k) == 0:  # one sample for all rows: no array of samples
             if not data.goal_low <= int(k) <= data.goal_high:
                 return np.zeros(states.shape[0], dtype=bool)
+            if data.goal_anywhere:
+                return np.ones(states.shape[0], dtype=bool)
             return self._goal.inside(states[:, Ego.X] / scale, states[:, Ego.Y] / scale)
         samples = self._samples(k, states.shape[0])
         due = (samples >= data.goal_low) & (samples <= data.goal_high)
-        if not due.any():  # outside the goal's time interval nothing is tested
+        if not due.any() or data.goal_anywhere:  # outside the window nothing is tested; anywhere: the window alone
             return due
         if due.all():
             return self._goal.inside(states[:, Ego.X] / scale, states[:, Ego.Y] / scale)
@@ -451,6 +453,8 @@ class BatchModel:
     def dist_goal(self, states: np.ndarray) -> np.ndarray:
         """:meth:`NativeModel.dist_goal` per row: ``(n,)`` float64."""
         states = self._ego(states)
+        if self.data.goal_anywhere:
+            return np.zeros(states.shape[0], dtype=np.float64)
         native = self.native
         scale = native.scale_d
         dx = states[:, Ego.X] / scale - native.goal_cx_d

@@ -193,12 +193,16 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     result.facts.append(Fact(
         "scenario",
         f"scenario {written}{problem}: {len(scenario.road)} lanelet{'s' if len(scenario.road) != 1 else ''}, "
-        f"{counted}, goal at scenario time t in [{_number(goal.time_low)}, "
+        f"{counted}, goal{_ANYWHERE if goal.anywhere else ''} at scenario time t in [{_number(goal.time_low)}, "
         f"{_number(goal.time_high)}] s{_model_time(scenario)}; every significand fits int32 at base {spec.base}, "
         f"exponent {spec.exponent}{detail}",
         {"scenario": written, "lanelets": len(scenario.road), "obstacles": obstacles, "base": spec.base,
          "exponent": spec.exponent}))
     return result
+
+
+#: The `proved:` line's words for a goal of time alone (a goal state without a position).
+_ANYWHERE = " at any position (the file's goal has no position; `dist_goal()` reads 0)"
 
 
 def _model_time(scenario: Scenario) -> str:
@@ -233,9 +237,10 @@ def _goal(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data:
     if goal.orientation:
         asked.append(f"orientation in [{_number(goal.orientation[0])}, {_number(goal.orientation[1])}] rad")
     if asked:
+        where = "in the window" if goal.anywhere else "inside the goal region"
         found.append(warning(
             "W0723", f"the goal of `{spec.scenario}` also asks for {' and '.join(asked)}, which the model does not "
-            "read: `goal()` holds at any speed and heading inside the goal region", span,
+            f"read: `goal()` holds at any speed and heading {where}", span,
             notes=[f"`goal()` reads only the goal region and its time window (planning problem "
                    f"{scenario.planning_problem_id} of `{spec.scenario_path}`)"],
             hints=["add the condition to the query or the automaton (`v`, `head`), or read goal verdicts knowing "

@@ -81,7 +81,8 @@ class EgoStart:
 @dataclass(frozen=True)
 class Goal:
     """The planning problem's goal: the ego's position inside one of ``regions`` while
-    ``time_low <= time <= time_high`` (seconds)."""
+    ``time_low <= time <= time_high`` (seconds); with ``anywhere``, the time alone (a goal state
+    without a position: "be there, on any spot, in the window")."""
 
     regions: tuple[Polygon, ...]
     time_low: float
@@ -94,12 +95,17 @@ class Goal:
     #: The loader's point for :attr:`center` when the first region is a lanelet: the midpoint of its
     #: centre line by arc length (a curved lanelet's vertex mean may lie off the lanelet).
     lane_point: tuple[float, float] | None = None
+    #: A goal state has no position (CommonRoad's goal of time alone, "survive until T"): the goal
+    #: holds at every position inside the time window, ``regions`` is empty and ``goal()`` reads
+    #: the time only; ``dist_goal()`` is 0 (model.md).
+    anywhere: bool = False
 
     @property
     def center(self) -> tuple[float, float]:
         """A point inside the first region, which ``dist_goal()`` measures to: ``lane_point`` for a
         lanelet goal, else the mean of the region's vertices when it lies inside the region (a convex
-        region's always does), else :func:`inside_point`."""
+        region's always does), else :func:`inside_point`. A goal without regions (``anywhere``, or
+        one built without any) has none: an ``IndexError``."""
         if self.lane_point is not None:
             return self.lane_point
         return inside_point(self.regions[0])
@@ -249,7 +255,8 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
       ``Goal.velocity`` / ``Goal.orientation`` (the hull of the goal states'; the model does not
       read them). Several goal states are merged (their regions concatenated) when they ask for the
       same time interval. ``Goal.center`` is a point inside the first region (for a lanelet, the
-      midpoint of its centre line by arc length).
+      midpoint of its centre line by arc length). A goal state without a position makes the goal
+      ``anywhere`` (no regions: the time window alone).
 
     ``planning_problem_id`` picks the planning problem; None picks the one with the smallest id, or,
     with ``require_choice``, raises :class:`PlanningProblemError` when the file has several (before
@@ -1228,6 +1235,7 @@ def _goal(path, element: str, goal, network, dt: float) -> Goal:
     times = set()
     velocities: list[tuple[float, float]] = []
     orientations: list[tuple[float, float]] = []
+    anywhere = False
     for index, state in enumerate(states):
         if index in by_lanelets:
             for lanelet_id in by_lanelets[index]:
@@ -1239,7 +1247,7 @@ def _goal(path, element: str, goal, network, dt: float) -> Goal:
                     lane_point = _midpoint(_points(lanelet.center_vertices))
                 regions.append(_polygon(lanelet.polygon.vertices))
         elif getattr(state, "position", None) is None:
-            raise ScenarioError(path, element, "has no position; rac needs a goal region (a shape or lanelets)")
+            anywhere = True  # CommonRoad: this goal state holds at any position (a goal of time alone)
         else:
             regions.extend(_regions(path, element, state.position))
         time = _interval(path, element, getattr(state, "time_step", None), "time")
@@ -1254,8 +1262,11 @@ def _goal(path, element: str, goal, network, dt: float) -> Goal:
         raise ScenarioError(path, element, f"has {len(states)} goal states with different time intervals; rac "
                                            "supports one goal time interval")
     low, high = times.pop()
+    if anywhere:  # one goal state reached anywhere: the others' regions add nothing (one time window)
+        regions, lane_point = [], None
     return Goal(regions=tuple(regions), time_low=_seconds(low, dt), time_high=_seconds(high, dt),
-                velocity=_hull(velocities), orientation=_hull(orientations), lane_point=lane_point)
+                velocity=_hull(velocities), orientation=_hull(orientations), lane_point=lane_point,
+                anywhere=anywhere)
 
 
 def _hull(intervals: list[tuple[float, float]]) -> tuple[float, float] | None:

@@ -175,6 +175,9 @@ class ModelData:
     allow: Expr | None = None
     #: ``collision sticky``: ``collide()`` holds from the first sample it held at to the end of the run.
     sticky: bool = False
+    #: The goal holds at any position inside its window (:attr:`rac.model.commonroad.Goal.anywhere`, a
+    #: goal of time alone): ``goal()`` reads the time only, ``dist_goal()`` is 0 (``GOAL_ANYWHERE``).
+    goal_anywhere: bool = False
 
     @property
     def road_count(self) -> int:
@@ -438,7 +441,7 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
         p1=sig("comfort fraction p1", spec.comfort_acceleration), p2=sig("comfort fraction p2", spec.comfort_turn),
         actions=actions,
         increments=spec.dynamics == "increments", offroad_from=spec.offroad_from, allow=spec.allow,
-        sticky=spec.collision == "sticky",
+        sticky=spec.collision == "sticky", goal_anywhere=goal.anywhere,
     )
 
 

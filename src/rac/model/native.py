@@ -331,15 +331,21 @@ class NativeModel:
         return tuple(off)
 
     def goal(self, state: State, k: int) -> bool:
-        """``GOAL_LOW <= k <= GOAL_HIGH`` and the ego's centre inside a goal polygon."""
+        """``GOAL_LOW <= k <= GOAL_HIGH`` and the ego's centre inside a goal polygon (any position
+        with ``GOAL_ANYWHERE``)."""
         data = self.data
         if not data.goal_low <= k <= data.goal_high:
             return False
+        if data.goal_anywhere:
+            return True
         scale = self.scale_d
         return point_in_polygons(self.goal_xd, self.goal_yd, data.goal_start, state.x / scale, state.y / scale)
 
     def dist_goal(self, state: State) -> float:
-        """``sqrt(dx * dx + dy * dy)`` with ``dx = x / SCALE_D - GOAL_CX / SCALE_D`` (and ``dy`` alike)."""
+        """``sqrt(dx * dx + dy * dy)`` with ``dx = x / SCALE_D - GOAL_CX / SCALE_D`` (and ``dy`` alike);
+        0 with ``GOAL_ANYWHERE`` (every position is in the goal)."""
+        if self.data.goal_anywhere:
+            return 0.0
         scale = self.scale_d
         dx = state.x / scale - self.goal_cx_d
         dy = state.y / scale - self.goal_cy_d

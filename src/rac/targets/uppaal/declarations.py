@@ -184,6 +184,8 @@ def emit_declarations(data: ModelData) -> str:
         _scalar("GOAL_HIGH", data.goal_high),
         _scalar("GOAL_CX", data.goal_cx),
         _scalar("GOAL_CY", data.goal_cy),
+        "// a goal of time alone (a goal state without a position): goal() reads the window only",
+        f"const bool GOAL_ANYWHERE = {'true' if data.goal_anywhere else 'false'};",
         "// ---- the ego rectangle's corners as (along, across) signs",
         _array("CORNER_A", (1, 1, -1, -1)),
         _array("CORNER_B", (1, -1, -1, 1)),
