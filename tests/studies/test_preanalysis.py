@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from engine_files import write_engine_file
-from tiny_scenarios import GoalBox, StraightRoad
+from tiny_scenarios import Block, GoalBox, StraightRoad
 
 from rac.compiler import compile_file
 from rac.engine.budget import TimeExceeded, TimeLimit
@@ -124,19 +124,27 @@ def test_a_setting_past_its_time_limit_keeps_its_answers_and_says_so(
         assert "| true | true (safe to the horizon) | true |" in line and line.endswith(f"| {row['error']} |")
 
 
-def test_a_scenario_too_large_for_the_ground_truth_says_so(tmp_path: Path) -> None:
-    """A road 300 km long fits int32 at the file's exponent 2 but not at exponent 4, where the ground
-    truth is measured: each row said "does not fit int32 at this exponent" (exponent 1 or 2) and
-    quoted a significand at scale 10000."""
+def test_a_scenario_too_large_for_the_ground_truth_is_measured_coarser(tmp_path: Path) -> None:
+    """A road 300 km long (like a real map's UTM coordinates, x ≈ 5e5 m) fits int32 at the file's
+    exponent 2 but not at exponent 4, where the true distances are measured: every row was refused,
+    Qa-Qd included, which do not need them, so `rac preanalyse` answered nothing on such a map. The
+    true distances are now measured at the finest exponent that fits, and the row says which."""
     path = write_engine_file(tmp_path, "goal_ahead", {})  # exponent 2
-    road = StraightRoad(300_100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0))
+    car = (Block(31, 30.0, 1.75, velocity=5.0),)  # ahead at the ego's speed: a distance to measure
+    road = StraightRoad(300_100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0), obstacles=car)
     (tmp_path / "goal_ahead.xml").write_bytes(road.xml("long_road"))
     result = compile_file(path)
     assert result.ok, result.diagnostics
     [row] = sweep(result, exponents="2", runs=2, seed=1)
-    assert row["error"].startswith(  # type: ignore[union-attr]
-        "the scenario does not fit int32 at exponent 4, where the pre-analysis measures the ground truth of Qa and "
-        "Qd: road polygon 0 vertex 0 x = 300100.0 needs the significand 3001000000 at scale 10000")
+    assert "error" not in row, row.get("error")
+    assert row["truth_exponent"] == 3 and row["qb"] is True and row["qd"] is True and len(row["true_min"]) == 2
+    assert render_table([row]).splitlines()[2].endswith(
+        "(measured at exponent 3: the scenario overflows int32 at exponent 4) |")
+    path.write_text(path.read_text(encoding="utf-8").replace("goal_ahead.xml", "short.xml"), encoding="utf-8")
+    (tmp_path / "short.xml").write_bytes(StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0),
+                                                      obstacles=car).xml("short_road"))
+    [row] = sweep(compile_file(path), exponents="2", runs=2, seed=1)
+    assert row["truth_exponent"] == 4 and "measured at exponent" not in render_table([row])
 
 
 def test_a_short_time_step_is_refused_up_front_when_its_true_distances_exceed_the_memory_budget(

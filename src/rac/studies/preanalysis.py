@@ -48,6 +48,7 @@ from rac.engine.stats import clopper_pearson
 from rac.ir.significands import off_grid, vanishing
 from rac.ir.vocabulary import SETTINGS
 from rac.model.batch import BatchModel
+from rac.model.commonroad import Scenario
 from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.model.native import NEGATIVE_DISTANCE_TEXT, NO_OBSTACLE
 from rac.model.sample import MOTION, Ego
@@ -137,11 +138,26 @@ def _truth_bytes(runs: int, samples: int, substeps: int) -> int:
     return 2 * runs * (samples * substeps + 1) * VALUE_BYTES
 
 
+def _truth_exponent(scenario: Scenario, spec: ir.ModelSpec) -> int:
+    """The exponent at which the true distances are measured: :data:`TRUTH_EXPONENT`, or, where the
+    scenario overflows int32 there (coordinates of a real map in UTM, x ≈ 5e5 m, overflow beyond
+    exponent 2), the finest below it at which the scenario fits: the row's own exponent at worst,
+    which fits. Refusing the row instead withheld Qa-Qd, which do not need it."""
+    for exponent in range(TRUTH_EXPONENT, spec.exponent, -1):
+        try:
+            build_model_data(scenario, dataclasses.replace(spec, exponent=exponent))
+        except ModelRangeError:
+            continue
+        return exponent
+    return min(TRUTH_EXPONENT, spec.exponent)
+
+
 def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: ModelData,
-                    quiet: bool = True, check: Callable[[], None] | None = None) -> np.ndarray:
+                    quiet: bool = True, check: Callable[[], None] | None = None,
+                    exponent: int = TRUTH_EXPONENT) -> np.ndarray:
     """``(N, T*m+1)`` distances of the ground truth to the nearest obstacle at every CommonRoad
     time step (``m`` per sensing period, :func:`_substeps_per_sample`), measured on a model at
-    exponent :data:`TRUTH_EXPONENT` whose sensing period is one such step — so a long period cannot
+    ``exponent`` (:func:`_truth_exponent`) whose sensing period is one such step — so a long period cannot
     hide a close encounter. A short ``timeStepSize`` makes that many steps: a bar counts them
     (``quiet``: none); ``check()`` is called after each sensing period's steps (a time limit's)."""
     # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
@@ -151,7 +167,7 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
     assert scenario is not None  # sweep() refuses a model without one
     m = _substeps_per_sample(spec, scenario.dt)
     fine = build_model_data(scenario, dataclasses.replace(
-        spec, exponent=TRUTH_EXPONENT, sense_period=spec.sense_period / m, decide_period=spec.sense_period / m))
+        spec, exponent=exponent, sense_period=spec.sense_period / m, decide_period=spec.sense_period / m))
     model = BatchModel(fine)
     scale = float(fine.scale)
     limits = Limits.of(data)
@@ -214,12 +230,9 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     except ModelRangeError as exc:
         row["error"] = f"the scenario does not fit int32 at this exponent: {exc}"
         return row
-    try:  # the ground truth of Qa and Qd: at its own exponent, whatever the row's (say so, or the row misleads)
-        build_model_data(scenario, dataclasses.replace(spec, exponent=TRUTH_EXPONENT))
-    except ModelRangeError as exc:
-        row["error"] = (f"the scenario does not fit int32 at exponent {TRUTH_EXPONENT}, where the pre-analysis "
-                        f"measures the ground truth of Qa and Qd: {exc}")
-        return row
+    # the true distances: at their own exponent, whatever the row's; coarser only where the scenario's
+    # coordinates overflow it (a map in UTM coordinates), and the row says so
+    row["truth_exponent"] = _truth_exponent(scenario, spec)
     samples = int(horizon / spec.sense_period)
     row["samples"] = samples
     row["obstacles"] = data.obstacle_count
@@ -273,7 +286,7 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
     limit.check()
-    true = _true_distances(result, spec, shielded, data, quiet, limit.check)
+    true = _true_distances(result, spec, shielded, data, quiet, limit.check, row["truth_exponent"])
     row["sensed_min"] = _smallest(sensed)
     row["true_min"] = _smallest(true)
     below = int((row["true_min"] < threshold).sum())
@@ -460,6 +473,9 @@ def render_table(rows: list[Row]) -> str:
             interval = row["below_interval"]
             below = (f"{row['below']} of {len(row['true_min'])} (Pr in [{interval[0]:.3f}, {interval[1]:.3f}]); "
                      f"min {min(measured):.2f} m vs {row['threshold']:g} m")
+            if row.get("truth_exponent", TRUTH_EXPONENT) < TRUTH_EXPONENT:
+                below += (f" (measured at exponent {row['truth_exponent']}: the scenario overflows int32 at "
+                          f"exponent {TRUTH_EXPONENT})")
         lines.append(f"{head} {qa_text} | {_yes(row.get('qb'))} | {_qc(row)} | {_yes(row.get('qd'))} | "
                      f"{row.get('states', 0):,} | {row.get('seconds', 0):.2f} | {below} |")
     return "\n".join(lines + ([""] + notes if notes else []))
