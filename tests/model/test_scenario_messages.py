@@ -43,6 +43,19 @@ def edit(text: str, pattern: str, replacement: str) -> str:
 
 
 POINT = r"<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>\s*</point>\s*"
+#: The end of the file's last lanelet, where traffic signs and lights follow.
+LAST_LANELET = r"(</lanelet>)(?!.*</lanelet>)"
+TRAFFIC_SIGN = ("<trafficSign id=\"800\"><trafficSignElement><trafficSignID>274</trafficSignID><additionalValue>120"
+                "</additionalValue></trafficSignElement><position><point><x>50.0</x><y>-1.0</y></point></position>"
+                "</trafficSign>")
+
+
+def traffic_light(*colours: str) -> str:
+    """A traffic light (id 900) cycling through ``colours``, 20 time steps each."""
+    cycle = "".join(f"<cycleElement><duration>20</duration><color>{colour}</color></cycleElement>"
+                    for colour in colours)
+    return (f"<trafficLight id=\"900\"><cycle>{cycle}</cycle><position><point><x>50.0</x><y>-1.0</y></point>"
+            "</position><active>true</active></trafficLight>")
 
 
 @pytest.mark.parametrize(("name", "pattern", "replacement", "message"), [
@@ -78,6 +91,15 @@ POINT = r"<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>\s*</point>\s*"
     ("goal_shape_group", r"(<goalState>.*?<position>)(.*?)(</position>)", r"\1<shapeGroup>\2</shapeGroup>\3",
      "goal of planning problem 100 has an unsupported shape (<shapeGroup>); rac supports rectangles, polygons, "
      "circles and lanelets, several of them side by side in the <position> (each a goal region)"),
+    # commonroad-io failed with "lanelet network cannot be read: 'off' is not a valid TrafficLightState"
+    ("light_colour", LAST_LANELET, r"\1" + traffic_light("off"),
+     "traffic light 900 has the colour `off`, which commonroad-io does not read (it reads red, yellow, redYellow, "
+     "green, inactive): rac does not use traffic lights, but commonroad-io refuses the file; write one of those "
+     "colours"),
+    # commonroad-io failed with an assert: "<CommonRoadFileReader/TrafficSignFactory...>: CommonRoad file is invalid!"
+    ("unreferenced_sign", LAST_LANELET, r"\1" + TRAFFIC_SIGN,
+     "traffic sign 800 is referenced by no lanelet's <trafficSignRef>: rac does not use traffic signs, but "
+     "commonroad-io refuses the file; reference it from the lanelet it applies to, or remove it"),
 ])
 def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: str, pattern: str, replacement: str,
                                                         message: str) -> None:
@@ -86,6 +108,16 @@ def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: st
     with pytest.raises(ScenarioError) as failure:
         load_scenario(path)
     assert str(failure.value) == f"{path}: {message}"
+
+
+def test_traffic_lights_of_every_colour_and_referenced_signs_read(tmp_path: Path) -> None:
+    """The refusals above are commonroad-io's alone: CommonRoad's five colours read, and so does a
+    referenced sign."""
+    path = tmp_path / "lights.xml"
+    text = edit(road_xml(), LAST_LANELET, r"\1" + TRAFFIC_SIGN + traffic_light("red", "redYellow", "green", "yellow",
+                                                                                   "inactive"))
+    path.write_text(edit(text, r"(</lanelet>)", r'<trafficSignRef ref="800"/>\1'), encoding="utf-8")
+    assert [o.id for o in load_scenario(path).obstacles] == [11, 12]
 
 
 def test_the_2018b_road_reads(tmp_path: Path) -> None:

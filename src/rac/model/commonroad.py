@@ -733,6 +733,9 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException,
             if ref.get("ref") not in lanelet_ids:
                 return ScenarioError(path, f"goal of {label(problem)}",
                                      f"refers to lanelet {ref.get('ref')}, which the file does not define")
+    unread = _traffic_rules(path, root)
+    if unread is not None:
+        return unread
     network = LaneletNetwork()
     readers = {
         "lanelet": lambda node: factories.LaneletFactory.create_from_xml_node(node),
@@ -767,6 +770,31 @@ def _diagnose(path: str | os.PathLike[str], root, error: BaseException,
             return _malformed(path, label(node), node, positions) or \
                 ScenarioError(path, label(node), f"cannot be read: {_describe(failure, path)}")
     return ScenarioError(path, None, f"cannot be read by commonroad-io ({_describe(error, path)})")
+
+
+def _traffic_rules(path: str | os.PathLike[str], root) -> ScenarioError | None:
+    """A traffic light or sign commonroad-io refuses the whole file for, though rac reads neither: a
+    light's colour it does not know (it failed with "'off' is not a valid TrafficLightState", blaming
+    the lanelet network), a sign no lanelet references (an assert in its own words)."""
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
+    from commonroad.scenario.traffic_light import TrafficLightState
+
+    colours = [state.value for state in TrafficLightState]
+    for light in root.iterfind("trafficLight"):
+        for colour in light.iterfind("cycle/cycleElement/color"):
+            if colour.text not in colours:
+                return ScenarioError(path, f"traffic light {light.get('id', '(without id)')}",
+                                     f"has the colour `{colour.text}`, which commonroad-io does not read (it reads "
+                                     f"{', '.join(colours)}): rac does not use traffic lights, but commonroad-io "
+                                     "refuses the file; write one of those colours")
+    referenced = {ref.get("ref") for ref in root.iter("trafficSignRef")}
+    for sign in root.iterfind("trafficSign"):
+        if sign.get("id") not in referenced:
+            return ScenarioError(path, f"traffic sign {sign.get('id', '(without id)')}",
+                                 "is referenced by no lanelet's <trafficSignRef>: rac does not use traffic signs, "
+                                 "but commonroad-io refuses the file; reference it from the lanelet it applies to, "
+                                 "or remove it")
+    return None
 
 
 #: What a part of an element needs (commonroad-io fails without it, in words that do not name it).
