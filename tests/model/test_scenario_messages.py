@@ -120,6 +120,23 @@ def test_traffic_lights_of_every_colour_and_referenced_signs_read(tmp_path: Path
     assert [o.id for o in load_scenario(path).obstacles] == [11, 12]
 
 
+def test_a_dynamic_obstacle_without_an_initial_velocity_takes_it_from_its_motion(tmp_path: Path) -> None:
+    """The schema leaves an obstacle's initial <velocity> out at will, and commonroad-io reads 0 then:
+    rac refused the file ("has no <velocity> in its <initialState>"). The speed now comes from the move
+    to the next state, as for a trajectory state without one (car 11: 3 m/s); an initial state without
+    <orientation>, which the schema requires, is still refused."""
+    path = tmp_path / "no_speed.xml"
+    path.write_text(edit(road_xml(), r'(<dynamicObstacle id="11">.*?<initialState>.*?)<velocity>.*?</velocity>', r"\1"),
+                    encoding="utf-8")
+    (car,) = [o for o in load_scenario(path).obstacles if o.id == 11]
+    assert car.waypoints[0].velocity == pytest.approx(3.0) and car.waypoints[0].heading == 0.0
+    assert car.waypoints[1].velocity == 3.0
+    path.write_text(edit(road_xml(), r'(<dynamicObstacle id="11">.*?<initialState>.*?)<orientation>.*?</orientation>',
+                         r"\1"), encoding="utf-8")
+    with pytest.raises(ScenarioError, match="dynamic obstacle 11 has no <orientation> in its <initialState>"):
+        load_scenario(path)
+
+
 def test_the_2018b_road_reads(tmp_path: Path) -> None:
     """The 2018b variant the tests below edit reads as the 2020a file does."""
     path = tmp_path / "old.xml"

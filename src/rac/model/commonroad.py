@@ -589,7 +589,9 @@ _STATE = ("initialState", "initialState/position", "initialState/orientation", "
 _REQUIRED = {
     "lanelet": ("leftBound", "rightBound"),
     "staticObstacle": ("type", "shape", *_STATE),
-    "dynamicObstacle": ("type", "shape", *_STATE, "initialState/velocity"),
+    # a dynamic obstacle's initial <velocity> may be absent (the schema's choice): rac takes it from the
+    # motion (:func:`_obstacle`), as for a trajectory state, not commonroad-io's 0
+    "dynamicObstacle": ("type", "shape", *_STATE),
     "planningProblem": (*_STATE, "initialState/velocity", "goalState"),
     "obstacle": ("role", "type", "shape", "initialState"),  # the 2018b format's, static or dynamic by its <role>
 }
@@ -906,7 +908,9 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
         tag = "staticObstacle" if static else "dynamicObstacle"
         node = nodes.get((tag, str(obstacle.obstacle_id))) or nodes.get(("obstacle", str(obstacle.obstacle_id)))
         placement = shape_placement(path, name, node)
-        obstacles.append(_obstacle(path, name, obstacle, static, dt, where(tag, obstacle.obstacle_id), placement))
+        given = node is None or static or node.find("initialState/velocity") is not None
+        obstacles.append(_obstacle(path, name, obstacle, static, dt, where(tag, obstacle.obstacle_id), placement,
+                                   initial_velocity=given))
 
     ids = tuple(sorted(problems.planning_problem_dict))
     if not ids:
@@ -1143,7 +1147,9 @@ def _box(path, element: str, shape, placement: tuple[float, float, float] = (0.0
 
 
 def _obstacle(path, element: str, obstacle, static: bool, dt: float, position: tuple[int, int] | None = None,
-              placement: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Obstacle:
+              placement: tuple[float, float, float] = (0.0, 0.0, 0.0), initial_velocity: bool = True) -> Obstacle:
+    """``initial_velocity`` False: the file's initial state has no ``<velocity>`` (commonroad-io reads 0
+    then); it comes from the move to the next state, like a trajectory state's."""
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.prediction.prediction import SetBasedPrediction, TrajectoryPrediction
 
@@ -1177,7 +1183,7 @@ def _obstacle(path, element: str, obstacle, static: bool, dt: float, position: t
         steps.append(step)
         points.append(_exact_position(path, element, state, what))
         heading = _exact_number(path, element, state, "orientation", what)
-        speed = _exact_number(path, element, state, "velocity", what)
+        speed = _exact_number(path, element, state, "velocity", what) if index or initial_velocity else None
         lateral = _exact_number(path, element, state, "velocity_y", what)
         if heading is None and speed is not None and lateral is not None:  # point mass: velocity components
             heading, speed = math.atan2(lateral, speed), math.hypot(speed, lateral)
