@@ -554,6 +554,21 @@ def test_the_relative_observation_by_hand(highway_set: tuple[Path, list[Path]]) 
     assert obs[2] > 0 and obs[3] > 0 and obs[4] < 5.25 < obs[5] and obs[8] == pytest.approx(1.5)
 
 
+def test_the_relative_observation_of_a_goal_of_time_alone(highway_set: tuple[Path, list[Path]],
+                                                          tmp_path: Path) -> None:
+    """A goal state without a position holds wherever the ego is: no direction to the goal (0, 0),
+    not the direction to the model's placeholder centre (0, 0) of the map, 30 m behind the ego."""
+    import re
+
+    text = (highway_set[0].parent / "highway.xml").read_text(encoding="utf-8")
+    text, made = re.subn(r"(<goalState>.*?</time>)\s*<position>.*?</position>", r"\1", text, flags=re.S)
+    assert made == 1
+    (tmp_path / "highway.xml").write_text(text, encoding="utf-8")
+    (tmp_path / "drive.ra").write_text(HIGHWAY_MODEL, encoding="utf-8")
+    obs, _ = ScenarioEnv(tmp_path / "drive.ra").reset()
+    assert obs[6] == 0.0 and obs[7] == 0.0 and obs[0] == pytest.approx(20.0)
+
+
 def test_every_observation_lies_in_the_bounds(highway_set: tuple[Path, list[Path]]) -> None:
     env = ScenarioEnv(highway_set[0], scenarios=highway_set[1])
     space = env.observation_space
