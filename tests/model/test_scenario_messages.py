@@ -10,6 +10,7 @@ rac's message names the element and what it lacks.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -135,6 +136,21 @@ def test_a_dynamic_obstacle_without_an_initial_velocity_takes_it_from_its_motion
                          r"\1"), encoding="utf-8")
     with pytest.raises(ScenarioError, match="dynamic obstacle 11 has no <orientation> in its <initialState>"):
         load_scenario(path)
+
+
+def test_lanelet_points_with_an_elevation_read_as_the_planar_road(tmp_path: Path) -> None:
+    """The schema gives a <point> an optional <z> (maps with elevation; commonroad-io reads lanelet
+    bounds of three columns): rac's loader unpacked two and ended `rac check` in an internal error
+    ("too many values to unpack"). The model is planar: the same road as without the <z>."""
+    def raised(match: re.Match[str]) -> str:
+        return re.sub(r"(<point>\s*<x>[^<]*</x>\s*<y>[^<]*</y>)", r"\1<z>1.5</z>", match.group(0))
+
+    flat = tmp_path / "flat.xml"
+    flat.write_text(road_xml(), encoding="utf-8")
+    hilly = tmp_path / "hilly.xml"
+    hilly.write_text(re.sub(r"<lanelet .*?</lanelet>", raised, road_xml(), flags=re.S), encoding="utf-8")
+    assert "<z>1.5</z>" in hilly.read_text(encoding="utf-8")
+    assert load_scenario(hilly) == dataclasses.replace(load_scenario(flat), path=str(hilly))
 
 
 def test_the_2018b_road_reads(tmp_path: Path) -> None:

@@ -1000,13 +1000,14 @@ def _seconds(step: float, dt: float) -> float:
 
 
 def _points(vertices) -> tuple[tuple[float, float], ...]:
-    return tuple((float(x), float(y)) for x, y in vertices)
+    """``(x, y)`` of each vertex; a ``<z>`` (the schema allows an elevation) is left out: the model is planar."""
+    return tuple((float(point[0]), float(point[1])) for point in vertices)
 
 
 def _polygon(points) -> Polygon:
     """A counter-clockwise polygon without repeated points from CommonRoad vertices."""
     result: list[tuple[float, float]] = []
-    for x, y in points:
+    for x, y, *_ in points:  # a <z> (elevation) left out: the model is planar
         point = (float(x), float(y))
         if not result or point != result[-1]:
             result.append(point)
