@@ -204,6 +204,9 @@ SECOND_STATE = r"(<trajectory>\s*<state>.*?</state>\s*<state>)(.*?)(</state>)"
      "static obstacle 12 has a <rectangle> without <width>"),
     ("goal_without_length", r"(<goalState>.*?)<length>.*?</length>", r"\1",
      "planning problem 100 has a <rectangle> without <length>"),
+    # the schema allows a <z> in every <point>; commonroad-io failed on a state's: "too many values to unpack"
+    ("state_elevation", r'(<dynamicObstacle id="11">.*?<initialState>.*?<y>[^<]*</y>)', r"\1<z>1.5</z>",
+     "dynamic obstacle 11 has a <z> in the <point> of its <initialState>"),
 ])
 def test_a_malformed_element_is_named_with_its_line(tmp_path: Path, name: str, pattern: str, replacement,
                                                      message: str) -> None:

@@ -838,6 +838,12 @@ def _malformed(path: str | os.PathLike[str], element: str, node,
                 continue
             return ScenarioError(path, element, f"has a <{value.tag}> without <exact> (or <intervalStart> and "
                                                 f"<intervalEnd>) in its <{state.tag}>{line(value)}")
+    for state in (part for part in node.iter() if part.tag in _STATES):
+        point = state.find("position/point")
+        if point is not None and point.find("z") is not None:  # commonroad-io: "too many values to unpack"
+            return ScenarioError(path, element, f"has a <z> in the <point> of its <{state.tag}>{line(point)}: "
+                                                "commonroad-io reads a state's position in the plane only (a "
+                                                "lanelet's points may have one); remove the <z>")
     for trajectory in node.iterfind("trajectory"):
         states = trajectory.findall("state")
         first = {child.tag for child in states[0]} if states else set()
