@@ -153,6 +153,21 @@ def test_lanelet_points_with_an_elevation_read_as_the_planar_road(tmp_path: Path
     assert load_scenario(hilly) == dataclasses.replace(load_scenario(flat), path=str(hilly))
 
 
+@pytest.mark.parametrize(("time_of_day", "weather"), [("day", "sunny"), ("night", "light_rain")])
+def test_an_environment_commonroad_io_does_not_know_is_passed_over(tmp_path: Path, time_of_day: str,
+                                                                   weather: str) -> None:
+    """The 2020a schema's <environment> of a <location> allows the time of day `day` and the weather
+    `sunny`, which commonroad-io's enums lack: it refused the whole file ("location cannot be read:
+    'sunny' is not a valid Weather") for metadata rac never reads. The file now reads as without it."""
+    environment = (f"<environment><time>08:30:00</time><timeOfDay>{time_of_day}</timeOfDay><weather>{weather}"
+                   "</weather><underground>clean</underground></environment>")
+    flat = tmp_path / "flat.xml"
+    flat.write_text(road_xml(), encoding="utf-8")
+    path = tmp_path / "environment.xml"
+    path.write_text(edit(road_xml(), r"(</location>)", environment + r"\1"), encoding="utf-8")
+    assert load_scenario(path) == dataclasses.replace(load_scenario(flat), path=str(path))
+
+
 def test_the_2018b_road_reads(tmp_path: Path) -> None:
     """The 2018b variant the tests below edit reads as the 2020a file does."""
     path = tmp_path / "old.xml"

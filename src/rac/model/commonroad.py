@@ -273,6 +273,7 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
     _check_structure(path, root)
     _check_references(path, root, positions)
     _check_orientations(path, root, positions)  # before commonroad-io: it loops forever on a huge one
+    data = _without_environment(root, data)
 
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.common.file_reader import CommonRoadFileReader
@@ -290,6 +291,30 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
         if diagnosis is not None:
             raise diagnosis
         return _convert(path, root, cr_scenario, problems, planning_problem_id, require_choice, positions)
+
+
+#: The values of a ``<location>``'s ``<environment>`` commonroad-io reads, by element (its enums' names).
+_ENVIRONMENT = {"timeOfDay": "TimeOfDay", "weather": "Weather", "underground": "Underground"}
+
+
+def _without_environment(root, data: bytes) -> bytes:
+    """``data`` without its ``<location>``'s ``<environment>`` when that holds a value commonroad-io does
+    not know: the 2020a schema's ``day`` and ``sunny`` are not in commonroad-io's enums, and it refused the
+    whole file ("location cannot be read: 'sunny' is not a valid Weather") for metadata rac never reads.
+    The element's lines stay as empty lines, so every later line keeps its number."""
+    environment = root.find("location/environment")
+    if environment is None:
+        return data
+    # commonroad: only when this runs; importing rac.model.commonroad stays light
+    from commonroad.common import common_scenario
+
+    known = {tag: {str(e.value) for e in getattr(common_scenario, name)} for tag, name in _ENVIRONMENT.items()}
+    if all(child.text in known[child.tag] for child in environment if child.tag in known):
+        return data
+    match = re.search(rb"<environment\b.*?</environment>", data, flags=re.S)
+    if match is None:  # written as <environment/>: nothing in it to refuse
+        return data
+    return data[:match.start()] + b"\n" * data.count(b"\n", match.start(), match.end()) + data[match.end():]
 
 
 def reader_failure(error: BaseException) -> bool:
