@@ -168,6 +168,37 @@ def test_an_environment_commonroad_io_does_not_know_is_passed_over(tmp_path: Pat
     assert load_scenario(path) == dataclasses.replace(load_scenario(flat), path=str(path))
 
 
+def test_a_planning_problem_may_share_an_obstacles_id(tmp_path: Path) -> None:
+    """commonroad-io keeps planning problems apart from the scenario's elements, and CommonRoad's own
+    converters give a planning problem its vehicle's obstacle id (OSC_Overtake-1_1_T-1: planning problem
+    and dynamic obstacle 256): rac refused such files ("planning problem 100 has the id of dynamic obstacle
+    100: ids must be unique in a file"). Two planning problems, or two obstacles, of one id still are."""
+    path = tmp_path / "shared_id.xml"
+    path.write_text(road_xml().replace('<dynamicObstacle id="11">', '<dynamicObstacle id="100">'), encoding="utf-8")
+    scenario = load_scenario(path)
+    assert [o.id for o in scenario.obstacles] == [12, 100] and scenario.planning_problem_id == 100
+    assert scenario.recorded_ego is None  # car 100 starts 20 m ahead of the ego: another road user
+    path.write_text(road_xml().replace('<dynamicObstacle id="11">', '<dynamicObstacle id="12">'), encoding="utf-8")
+    with pytest.raises(ScenarioError, match="dynamic obstacle 12 has the id of static obstacle 12"):
+        load_scenario(path)
+
+
+def test_the_ego_recorded_as_an_obstacle_is_left_out(tmp_path: Path) -> None:
+    """Files converted from OpenSCENARIO (and CommonRoad-CriMe's) hold the ego's own recorded run as a
+    dynamic obstacle starting at the planning problem's time, position and heading: rac kept it, and
+    `collide()` held from the start (W0724), every safety query false. It is left out now, and said."""
+    road = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0),
+                        obstacles=(Block(11, 10.0, 1.75, velocity=5.0), Block(12, 60.0, 1.75)))
+    path = tmp_path / "recorded.xml"
+    path.write_bytes(road.xml("recorded"))
+    scenario = load_scenario(path)
+    assert [o.id for o in scenario.obstacles] == [12] and scenario.recorded_ego == 11
+    moved = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0),
+                         obstacles=(Block(11, 10.0, 1.75, velocity=5.0, heading=0.1), Block(12, 60.0, 1.75)))
+    path.write_bytes(moved.xml("recorded"))  # another heading: a road user in a collision, kept (W0724 says so)
+    assert [o.id for o in load_scenario(path).obstacles] == [11, 12] and load_scenario(path).recorded_ego is None
+
+
 def test_the_2018b_road_reads(tmp_path: Path) -> None:
     """The 2018b variant the tests below edit reads as the 2020a file does."""
     path = tmp_path / "old.xml"

@@ -190,6 +190,9 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
 
     counted = (f"{obstacles} obstacle{'s' if obstacles != 1 else ''}" if obstacles else
                f"no obstacle (`mindist()` reads {NO_OBSTACLE_TEXT} and `collide()` never holds)")
+    if scenario.recorded_ego is not None:  # said, or the file's obstacle count would not match
+        counted += (f" (obstacle {scenario.recorded_ego} left out: the planning problem's own vehicle, recorded "
+                    "from its start)")
     result.facts.append(Fact(
         "scenario",
         f"scenario {written}{problem}: {len(scenario.road)} lanelet{'s' if len(scenario.road) != 1 else ''}, "

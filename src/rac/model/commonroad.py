@@ -149,6 +149,9 @@ class Scenario:
     planning_problem_id: int | None = None  # the CommonRoad planning problem ego and goal come from
     planning_problem_ids: tuple[int, ...] = ()  # every planning problem of the file, in id order
     lanes: tuple[Lane, ...] = ()  # the lanelets as lanes, in lanelet id order (like ``road``)
+    #: The dynamic obstacle left out as the planning problem's own recorded vehicle (it starts at the
+    #: planning problem's time, position and orientation), or None.
+    recorded_ego: int | None = None
 
 
 # ---------------------------------------------------------------- reading CommonRoad files
@@ -651,9 +654,13 @@ def _check_structure(path: str | os.PathLike[str], root) -> None:
         ident = node.get("id")
         if node.tag in _LABELS and ident is not None:
             here = f"{_LABELS[node.tag]} {ident}"
-            if ident in seen:
-                raise ScenarioError(path, here, f"has the id of {seen[ident]}: ids must be unique in a file")
-            seen[ident] = here
+            # a planning problem's id has a namespace of its own: commonroad-io keeps planning problems
+            # apart from the scenario's elements (nothing is lost), and CommonRoad's own converters give
+            # a planning problem the id of its vehicle's recorded obstacle (OpenSCENARIO's, say)
+            key = f"planningProblem {ident}" if node.tag == "planningProblem" else ident
+            if key in seen:
+                raise ScenarioError(path, here, f"has the id of {seen[key]}: ids must be unique in a file")
+            seen[key] = here
     for node in root:
         for child in _REQUIRED.get(node.tag, ()):
             if node.find(child) is None:
@@ -931,18 +938,6 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad.scenario.obstacle import StaticObstacle
 
-    obstacles = []
-    for obstacle in sorted([*cr_scenario.static_obstacles, *cr_scenario.dynamic_obstacles],
-                           key=lambda obstacle: obstacle.obstacle_id):
-        static = isinstance(obstacle, StaticObstacle)
-        name = f"{'static' if static else 'dynamic'} obstacle {obstacle.obstacle_id}"
-        tag = "staticObstacle" if static else "dynamicObstacle"
-        node = nodes.get((tag, str(obstacle.obstacle_id))) or nodes.get(("obstacle", str(obstacle.obstacle_id)))
-        placement = shape_placement(path, name, node)
-        given = node is None or static or node.find("initialState/velocity") is not None
-        obstacles.append(_obstacle(path, name, obstacle, static, dt, where(tag, obstacle.obstacle_id), placement,
-                                   initial_velocity=given))
-
     ids = tuple(sorted(problems.planning_problem_dict))
     if not ids:
         raise ScenarioError(path, None, "has no planning problem (rac needs one for the ego's start and goal)")
@@ -953,12 +948,50 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     elif planning_problem_id not in problems.planning_problem_dict:
         raise PlanningProblemError(path, planning_problem_id, ids)
     problem = problems.planning_problem_dict[planning_problem_id]
+
+    obstacles = []
+    # the ego's own recorded run, not another road user: the one with the planning problem's id first
+    recorded = sorted((o for o in cr_scenario.dynamic_obstacles if _recorded_ego(o, problem)),
+                      key=lambda o: (o.obstacle_id != problem.planning_problem_id, o.obstacle_id))
+    recorded_ego = int(recorded[0].obstacle_id) if recorded else None
+    for obstacle in sorted([*cr_scenario.static_obstacles, *cr_scenario.dynamic_obstacles],
+                           key=lambda obstacle: obstacle.obstacle_id):
+        if obstacle.obstacle_id == recorded_ego:
+            continue
+        static = isinstance(obstacle, StaticObstacle)
+        name = f"{'static' if static else 'dynamic'} obstacle {obstacle.obstacle_id}"
+        tag = "staticObstacle" if static else "dynamicObstacle"
+        node = nodes.get((tag, str(obstacle.obstacle_id))) or nodes.get(("obstacle", str(obstacle.obstacle_id)))
+        placement = shape_placement(path, name, node)
+        given = node is None or static or node.find("initialState/velocity") is not None
+        obstacles.append(_obstacle(path, name, obstacle, static, dt, where(tag, obstacle.obstacle_id), placement,
+                                   initial_velocity=given))
+
     ego = _ego(path, f"planning problem {planning_problem_id}", problem.initial_state, dt)
     goal = _goal(path, f"goal of planning problem {planning_problem_id}", problem.goal, cr_scenario.lanelet_network, dt)
     name = root.get("benchmarkID") or Path(path).stem
     return Scenario(name=name, path=os.fspath(path), dt=dt, road=road, obstacles=tuple(obstacles), ego=ego,
                     goal=goal, planning_problem_id=planning_problem_id, planning_problem_ids=ids,
-                    lanes=lanes)
+                    lanes=lanes, recorded_ego=recorded_ego)
+
+
+def _recorded_ego(obstacle, problem) -> bool:
+    """Whether the dynamic ``obstacle`` is the planning problem's own vehicle as recorded: its initial
+    time step, position and orientation are exactly the planning problem's (CommonRoad's OpenSCENARIO
+    converter writes the ego so, under the planning problem's id; CommonRoad-CriMe's scenarios under
+    another). Two road users cannot start on one spot with one heading; as an obstacle it would sit
+    on the ego, and ``collide()`` hold from the start."""
+    import numpy as np  # numpy: only when this runs; importing rac.model.commonroad stays light
+
+    start, own = problem.initial_state, obstacle.initial_state
+    for attribute in ("time_step", "orientation"):
+        mine, theirs = getattr(start, attribute, None), getattr(own, attribute, None)
+        if not isinstance(mine, (int, float)) or not isinstance(theirs, (int, float)) or mine != theirs:
+            return False
+    here, there = getattr(start, "position", None), getattr(own, "position", None)
+    if not isinstance(here, np.ndarray) or not isinstance(there, np.ndarray) or here.shape != there.shape:
+        return False  # an uncertain position (a shape) is not a recorded run
+    return bool(np.array_equal(here, there))
 
 
 #: The obstacle elements commonroad-io reads in each format; it passes over the other format's without a word.
