@@ -35,6 +35,7 @@ from engine_files import TEMPLATE
 from tiny_scenarios import (
     PLANNING_PROBLEM_ID,
     RING_RADIUS,
+    Block,
     GoalBox,
     StraightRoad,
     TinySettings,
@@ -259,6 +260,17 @@ def test_a_start_inside_an_obstacle_is_a_warning(tmp_path: Path) -> None:
     assert warning.message == ("the ego starts in a collision: `collide()` holds at the start (the nearest obstacle is "
                                "static obstacle 31 (parkedVehicle) at (13.5, 1.75))")
     assert not warnings_of(write(tmp_path, "ramp.xml", ramp(start_x=5.0)), "W0724")
+
+
+def test_the_ego_recorded_as_an_obstacle_is_said_and_not_a_collision(tmp_path: Path) -> None:
+    """The ego's own recorded run (an obstacle starting at the planning problem's time, position and
+    heading) is left out: no W0724 (`collide()` at the start), and the `proved:` line names it."""
+    road = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 5.0), GoalBox(40.0, 50.0),
+                        obstacles=(Block(11, 10.0, 1.75, velocity=5.0), Block(12, 60.0, 1.75)))
+    path = write(tmp_path, "recorded.xml", road.xml("recorded"))
+    assert not warnings_of(path, "W0724")
+    assert ("1 obstacle (obstacle 11 left out: the planning problem's own vehicle, recorded from its start)"
+            in compile_file(path).proved[-1])
 
 
 # ---------------------------------------------------------------- the loader's messages
