@@ -3,7 +3,9 @@
 Both the product of model and automaton (:mod:`rac.engine.product`) and the training-side
 episodes (:mod:`rac.learning.episodes`) compute every input from its binding on a frame: a
 condition as a ``bool``, a number as its significand ``d2i(e) = trunc(e * SCALE_D)`` (a value
-beyond int32 is :class:`rac.model.data.ModelRangeError`, as the emitted model would abort).
+beyond int32 is :class:`rac.model.data.ModelRangeError`: the emitted model's ``d2i()`` has no int32 for
+it, so no verdict can rest on it; ``rac check`` refuses the bindings that leave int32 wherever no obstacle
+exists, E0801).
 
 The bindings are compiled once into one function of a frame (:mod:`rac.engine.compiled`, issue 23):
 a sample reads every input without walking the expressions' trees. ``compiled=False`` reads them

@@ -1,4 +1,4 @@
-"""The `model` block's scenario, checked against the model: E0712-E0715, W0716 and E0718-W0724.
+"""The `model` block's scenario, checked against the model: E0712-E0715, W0716, E0718-W0724 and E0801.
 
 :func:`check_scenario` loads the CommonRoad file of a checked automaton's `model` block once
 (:func:`load`, the one caller of :func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
@@ -28,6 +28,9 @@
   lies between two samples): ``goal()`` never holds.
 * W0723: the goal also asks for a velocity or an orientation, which ``goal()`` does not read.
 * W0724: the ego starts in a collision (``collide()`` holds at the start), like W0716 a warning.
+* E0801: a numeric binding whose value leaves int32 wherever no obstacle exists (``bind d =
+  mindist()``: ``mindist()`` reads 1e9 there), when some sample of the horizon has none; the hint
+  bounds it (``fmin(mindist(), 100)``).
 
 The loaded :class:`~rac.model.commonroad.Scenario` and :class:`~rac.model.data.ModelData` are returned so
 that :class:`rac.compiler.CompileResult` can hand them on (:class:`rac.model.program.CheckedProgram`)
@@ -45,17 +48,19 @@ from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_count, short_number, warning
-from rac.core.numbers import INT32_MAX, exact_decimal, format_bytes
+from rac.core.numbers import INT32_BOUND, INT32_LOW, INT32_MAX, exact_decimal, format_bytes
 from rac.core.resources import (  # the load's budget (its owner; the CLI catches the refusal without loading this)
     LOAD_NOTICE_BYTES,
     ScenarioTooLarge,
     estimate_load,
 )
 from rac.core.source import Span
+from rac.ir import expr as ie
+from rac.ir.text import format_checked
 from rac.ir.vocabulary import MODELLING, NO_PLANNING_PROBLEM, SETTINGS, Setting
 from rac.model.commonroad import InconsistentScenarioError, PlanningProblemError, ScenarioError
 from rac.model.data import ModelDataError, ModelRangeError, check_significands
-from rac.model.native import CORNER_NAMES, NO_OBSTACLE_TEXT, NativeModel
+from rac.model.native import CORNER_NAMES, NO_OBSTACLE, NO_OBSTACLE_TEXT, NativeModel
 
 if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
@@ -182,6 +187,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     if any(d.is_error for d in result.diagnostics):
         return result  # a start the model would clamp: nothing to sum up
     result.diagnostics.extend(_goal(automaton, spec, scenario, data))
+    result.diagnostics.extend(_sentinel_bindings(automaton, spec, data))
     goal = scenario.goal
     obstacles = len(scenario.obstacles)
     detail = f" (the largest is {what}: {largest})" if what else ""
@@ -363,6 +369,110 @@ def _start(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, data) -> list[
     return found
 
 
+#: An interval of doubles a binding's value lies in (its ends may be infinite).
+_Interval = tuple[float, float]
+_ANY: _Interval = (-math.inf, math.inf)
+
+
+def _absent(data: ModelData, k: int) -> bool:
+    """Whether no obstacle exists at sample ``k`` (``mindist()`` reads :data:`NO_OBSTACLE` there)."""
+    return not any(start <= k <= until for start, until in zip(data.obs_from, data.obs_until))
+
+
+def _without_obstacle(automaton: ir.Automaton, data: ModelData) -> int | None:
+    """The first sample the bindings are read at (1 up to the horizon; only 1 when `episode ends when`
+    may end runs earlier) at which no obstacle exists, or None."""
+    last = automaton.steps if automaton.ending is None else min(automaton.steps, 1)
+    return next((k for k in range(1, last + 1) if _absent(data, k)), None)
+
+
+def _interval(expr: ie.Expr, mindist: float, before: float | None, held: float) -> _Interval:
+    """Where the double a binding computes lies, whatever the state, when ``mindist()`` reads ``mindist``
+    and ``prev(mindist())`` reads ``before`` (None: anything), the ego state being significands (within
+    ``±held``, int32 over the scale): interval arithmetic, sound, not tight; a value it cannot bound is
+    :data:`_ANY`."""
+    if isinstance(expr, ie.Const) and not isinstance(expr.value, bool):
+        return float(expr.value), float(expr.value)
+    if isinstance(expr, ie.Ref) and expr.value is not None:  # a setting, as the model holds it
+        return float(expr.value), float(expr.value)
+    if isinstance(expr, ie.Ref) and expr.is_model and expr.model.kind == "ego":
+        return -held, held
+    if isinstance(expr, ie.Unary) and expr.op == "-":
+        low, high = _interval(expr.operand, mindist, before, held)
+        return -high, -low
+    if isinstance(expr, ie.Binary) and expr.op in ("+", "-", "*", "/"):
+        left, right = _interval(expr.left, mindist, before, held), _interval(expr.right, mindist, before, held)
+        if expr.op == "+":
+            return left[0] + right[0], left[1] + right[1]
+        if expr.op == "-":
+            return left[0] - right[1], left[1] - right[0]
+        if expr.op == "/":
+            if right[0] <= 0.0 <= right[1]:
+                return _ANY
+            right = (1.0 / right[1], 1.0 / right[0])
+        ends = [a * b for a in left for b in right]
+        return _ANY if any(math.isnan(end) for end in ends) else (min(ends), max(ends))
+    if isinstance(expr, ie.Prev) and before is not None:
+        return _interval(expr.operand, before, before, held)
+    if isinstance(expr, ie.Call):
+        args = [_interval(arg, mindist, before, held) for arg in expr.args if arg.type == ie.NUM]
+        if expr.name == "mindist":
+            return mindist, mindist
+        if expr.name == "dist_goal":
+            return 0.0, math.inf
+        if expr.name in ("fabs", "abs") and args:
+            low, high = args[0]
+            return (0.0 if low <= 0.0 <= high else min(abs(low), abs(high))), max(abs(low), abs(high))
+        if expr.name == "sqrt" and args and args[0][1] >= 0.0:
+            return math.sqrt(max(args[0][0], 0.0)), math.sqrt(args[0][1])
+        if expr.name in ("fmin", "fmax") and len(args) == 2:
+            pick = min if expr.name == "fmin" else max
+            return pick(args[0][0], args[1][0]), pick(args[0][1], args[1][1])
+    return _ANY  # the ego state, time, prev(e) when an obstacle exists at the sample before, ...
+
+
+def _sentinel_bindings(automaton: ir.Automaton, spec: ir.ModelSpec, data: ModelData) -> list[Diagnostic]:
+    """E0801 for a numeric binding that has no int32 significand wherever no obstacle exists: there
+    ``mindist()`` reads :data:`NO_OBSTACLE` (1e9), and ``bind d = mindist()`` needs the significand
+    ``1e9 · 10^4``. rac's engine refuses such a reading (the verdicts are unknown); the emitted model's
+    ``d2i()`` would truncate it out of int32 (a C compiler gives -2147483648, which the guards then read),
+    so the file is refused before either runs."""
+    found: list[Diagnostic] = []
+    numeric = {item.name: item for item in automaton.inputs if not item.is_bool}
+    bindings = [b for b in spec.bindings if b.input in numeric
+                and any(isinstance(node, ie.Call) and node.name == "mindist" for node in ie.walk(b.expr))]
+    sample = _without_obstacle(automaton, data) if bindings else None
+    if sample is None:
+        return found
+    where = ("the scenario has no obstacle" if not data.obs_from else
+             f"no obstacle exists at t = {short_number(sample * automaton.period)} s (sample {sample})")
+    limit = INT32_BOUND / data.scale
+    before = NO_OBSTACLE if _absent(data, sample - 1) else None  # prev(e) at sample 1 is e at the start
+    for binding in bindings:
+        low, high = _interval(binding.expr, NO_OBSTACLE, before, INT32_MAX / data.scale)
+        if not (low >= limit or high <= -limit):
+            continue  # it may fit: the engine checks every value it reads
+        bound = low if low >= limit else high
+        item = numeric[binding.input]
+        text = format_checked(binding.expr)
+        cap = (f"`bind {binding.input} = fmin({text}, {short_number(item.high)})` (the upper bound of "
+               f"`{binding.input}`)" if item.high is not None and low >= limit else
+               f"`bind {binding.input} = fmin({text}, 1000)`" if low >= limit else
+               f"`bind {binding.input} = fmax({text}, -1000)`")
+        words = "at least" if low >= limit else "at most"
+        found.append(error(
+            "E0801", f"binding `{binding.input} = {text}` leaves int32 at base {spec.base}, exponent "
+                     f"{spec.exponent} where no obstacle exists",
+            binding.span or spec.span,
+            notes=[f"{where}; there `mindist()` reads {NO_OBSTACLE_TEXT}, its value without one, and `{binding.input}` "
+                   f"is {words} {_magnitude(bound)}: its significand (· {data.scale}) is {words} "
+                   f"{_magnitude(bound * data.scale)}, beyond int32 [{INT32_LOW}, {INT32_MAX}]",
+                   "rac's engine cannot read the input there, and the emitted UPPAAL model's `d2i()` would leave "
+                   "int32 (compiled as C it reads -2147483648, which the guards then compare)"],
+            hints=[f"bound the distance, e.g. {cap}"]))
+    return found
+
+
 def _start_collision(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data: ModelData,
                      model: NativeModel) -> list[Diagnostic]:
     """W0724: ``collide()`` holds at the start (sample 0): one ``mindist()`` over the obstacles, as cheap
@@ -439,6 +549,14 @@ def _number(value: float) -> str:
     if math.isinf(value):
         return "∞" if value > 0 else "-∞"
     return short_number(Fraction(repr(float(value))))
+
+
+def _magnitude(value: float) -> str:
+    """A large double as messages write it: ``1e9``, ``-2.5e13`` (a smaller one as :func:`_number`)."""
+    if math.isfinite(value) and abs(value) >= 1e6:
+        mantissa, exponent = f"{value:.6e}".split("e")
+        return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
+    return _number(value)
 
 
 def _decimal(value: Fraction) -> str:

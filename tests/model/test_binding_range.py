@@ -1,0 +1,112 @@
+"""A numeric binding that reads `mindist()` where no obstacle exists: `rac check` refuses it (E0801).
+
+There `mindist()` reads 1e9, its value without an obstacle, and `bind d = mindist()` needs the
+significand 1e9 · 10^4, beyond int32. rac's engine refused to read it (every verdict unknown), the
+emitted UPPAAL model's `d2i()` truncated it out of int32 (compiled as C: -2147483648, so the guard
+`d < 5` held with no obstacle anywhere), and `rac check` said nothing. Scenes built with
+commonroad-io (tests/support/tiny_scenarios.py).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from tiny_scenarios import WALL_EGO, WALL_GOAL, Block, StraightRoad
+
+from rac.cli.main import main
+from rac.compiler import compile_file
+
+AUTOMATON = """\
+automaton Far {{
+    input d : real in [0, 100]
+
+    reward r
+    objective r
+
+    sample every 0.5
+    horizon 4
+
+    initial location Clear {{ r' == 1 }}
+    location Near          {{ r' == -1 }}
+
+    edge * -> Near  when d < 5 do r = r - 100
+    edge * -> Clear when d >= 5
+
+    model {{
+        scenario "road.xml"
+        exponent {exponent}
+        action jerk in [-2, 2] step 2
+        action turn in [0, 0] step 1
+        bind d = {binding}
+    }}
+
+    query Seen: E<> Near
+}}
+"""
+
+
+def write(folder: Path, binding: str, obstacles: tuple[Block, ...] = (), steps: int | None = None,
+          exponent: int = 4) -> tuple[Path, str]:
+    """``folder/far.ra`` over a straight road with ``obstacles`` (driving for ``steps`` time steps of 0.1 s)."""
+    (folder / "road.xml").write_bytes(StraightRoad(80.0, WALL_EGO, WALL_GOAL, obstacles=obstacles, steps=steps)
+                                      .xml("road"))
+    text = AUTOMATON.format(binding=binding, exponent=exponent)
+    path = folder / "far.ra"
+    path.write_text(text, encoding="utf-8")
+    return path, text
+
+
+def e0801(path: Path) -> list:
+    return [d for d in compile_file(path).diagnostics if d.is_error and d.code == "E0801"]
+
+
+def test_a_distance_bound_to_an_input_without_obstacles_is_refused(tmp_path: Path) -> None:
+    path, text = write(tmp_path, "mindist()")
+    (diagnostic,) = e0801(path)
+    line = next(i for i, row in enumerate(text.splitlines(), 1) if "bind d = mindist()" in row)
+    assert diagnostic.span is not None and (diagnostic.span.line, diagnostic.span.column) == (line, 9)
+    assert diagnostic.message == ("binding `d = mindist()` leaves int32 at base 10, exponent 4 where no "
+                                  "obstacle exists")
+    assert diagnostic.notes[0].message.startswith("the scenario has no obstacle; there `mindist()` reads 1e9")
+    assert "at least 1e13, beyond int32" in diagnostic.notes[0].message
+    assert list(diagnostic.hints) == ["bound the distance, e.g. `bind d = fmin(mindist(), 100)` (the upper bound "
+                                      "of `d`)"]
+
+
+@pytest.mark.parametrize("binding", ["mindist() - 3 * collision_distance", "fabs(mindist()) * 2", "-mindist()",
+                                     "prev(mindist())", "mindist() / 2 + v"])
+def test_every_binding_that_must_leave_int32_is_refused(tmp_path: Path, binding: str) -> None:
+    path, _ = write(tmp_path, binding)
+    assert len(e0801(path)) == 1, binding
+
+
+@pytest.mark.parametrize("binding", ["fmin(mindist(), 100)", "fmin(mindist(), dist_goal())", "sqrt(mindist())",
+                                     "mindist() / 1000000", "fmax(fmin(mindist(), 100), -mindist())"])
+def test_a_binding_that_may_fit_is_left_to_the_engine(tmp_path: Path, binding: str) -> None:
+    path, _ = write(tmp_path, binding)
+    result = compile_file(path)
+    assert result.ok, [d.message for d in result.diagnostics]
+
+
+def test_the_sample_at_which_an_obstacle_is_gone_is_named(tmp_path: Path) -> None:
+    """A car that drives for 2 s (20 time steps): from sample 5 (2.5 s) on no obstacle exists."""
+    car = Block(11, x=40.0, y=1.75, velocity=5.0)
+    path, _ = write(tmp_path, "mindist()", (car,), steps=20)
+    (diagnostic,) = e0801(path)
+    assert diagnostic.notes[0].message.startswith("no obstacle exists at t = 2.5 s (sample 5); there `mindist()`")
+    # a car that stays for the whole horizon: the distance fits, whatever the ego does
+    path, _ = write(tmp_path, "mindist()", (car,))
+    assert compile_file(path).ok
+    # a coarser representation holds 1e9 (exponent 1: 1e10 does not fit, there is no exponent 0)
+    path, _ = write(tmp_path, "mindist() / 100", exponent=1)
+    assert compile_file(path).ok
+
+
+def test_compile_and_verify_refuse_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The UPPAAL model is not written, and `rac verify` does not exit 0."""
+    path, _ = write(tmp_path, "mindist()")
+    assert main(["compile", "--target", "uppaal", str(path), "-o", str(tmp_path / "far.xml")]) == 1
+    assert not (tmp_path / "far.xml").exists()
+    assert main(["verify", str(path), "-o", str(tmp_path / "out")]) == 1
+    assert "error[E0801]" in capsys.readouterr().err
