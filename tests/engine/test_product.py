@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from tiny_scenarios import avoidable_obstacle
 
 from rac import ir
-from rac.check.analysis.priority import check_priorities
+from rac.check.analysis.priority import check_priorities, check_ranges
 from rac.check.queries import lower_expression
 from rac.compiler import compile_file
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
@@ -406,6 +406,25 @@ def test_mirror_arithmetic_keeps_every_value_on_the_way_within_int32() -> None:
     assert arithmetic.accrue(at, inside, near).tolist() == [[2_130_010_000]]
     with pytest.raises(ModelRangeError, match="a value inside the accrual of `r`"):
         arithmetic.accrue(at, np.array([[9_000_000]], dtype=np.int64), near)
+
+
+def test_a_mirror_may_reach_the_least_int32_as_the_range_check_allows() -> None:
+    """Regression: `rac check` proved the int32 range (E0501 allows -2147483648, which UPPAAL's `int32_t`
+    holds) for two updates that take `r` to -214748.3648, but the product refused that mirror, so every
+    query of the file was unknown (exit 4) where the emitted model goes on. One less still leaves int32."""
+    twice = (ir.Assignment("r", ir.Linear(F(-1073741824, 10_000), (("r", F(1)),))),) * 2
+    automaton = ir.Automaton(
+        name="A", inputs=(ir.Input("near", "bool"),), rewards=("r",),
+        locations=(ir.Location("L", (ir.Linear(F(0)),)),), initial=0,
+        edges=((ir.Edge(0, 0, ir.BConst(True), twice),),), end_clauses=(), assumptions=(),
+        objective=ir.Linear.variable("r"), priority=(), strict=False, period=F(1, 2), horizon=F(1, 2))
+    facts: list = []
+    assert check_ranges(automaton, facts=facts) == [] and "[-214748.3648, 0]" in facts[0].message
+    at, inputs = np.zeros(1, dtype=np.int64), np.zeros((1, 1), dtype=np.int64)
+    _, mirrors = MirrorArithmetic(automaton, 10_000).edges(at, inputs, np.zeros((1, 1), dtype=np.int64))
+    assert mirrors.tolist() == [[-(2**31)]]
+    with pytest.raises(ModelRangeError, match=r"outside int32 \[-2147483648, 2147483647\]"):
+        MirrorArithmetic(automaton, 10_000).edges(at, inputs, np.full((1, 1), -1, dtype=np.int64))
 
 
 def test_one_edge_per_sample() -> None:

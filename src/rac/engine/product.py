@@ -76,7 +76,7 @@ import numpy as np
 
 from rac import ir
 from rac.core.diagnostics import RacValueError
-from rac.core.numbers import INT32_LOW, INT32_MAX
+from rac.core.numbers import INT32_MAX, INT32_MIN
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
 from rac.engine.budget import GRAPH_BYTES_PER_CHOICE, Budget
@@ -111,11 +111,13 @@ def _tdiv(a: np.ndarray, q: int) -> np.ndarray:
 
 
 def _int32(values: np.ndarray, what: str, scale: int) -> np.ndarray:
-    """``values`` as int64 after checking that each fits the emitted ``int32_t``."""
-    bad = (values < INT32_LOW) | (values > INT32_MAX)
+    """``values`` as int64 after checking that each fits the emitted ``int32_t``: ``INT32_MIN`` too, which
+    a mirror may hold though no literal can write it (UPPAAL's ``int32_t`` is ``int[-2147483648, ...]``),
+    as the int32 range check (E0501) and the update check (E0801) allow it."""
+    bad = (values < INT32_MIN) | (values > INT32_MAX)
     if np.any(bad):
         value = int(values[np.flatnonzero(bad)[0]])
-        raise ModelRangeError(what, Fraction(value, scale), value, scale)
+        raise ModelRangeError(what, Fraction(value, scale), value, scale, INT32_MIN)
     return values.astype(np.int64)
 
 

@@ -67,10 +67,11 @@ class ModelRangeError(RacError, ValueError):
     """A value whose significand (or count of sense periods) does not fit int32 at this scale.
 
     ``what`` names it (e.g. ``"obstacle 3 waypoint 2 x"``), ``value`` is the real value and
-    ``significand`` the integer it would need (``None`` when the value is not finite).
+    ``significand`` the integer it would need (``None`` when the value is not finite); ``low`` the least
+    value allowed (:data:`INT32_LOW` for what rac writes or reads, ``INT32_MIN`` for a computed mirror).
     """
 
-    def __init__(self, what: str, value: Number, significand: int | None, scale: int) -> None:
+    def __init__(self, what: str, value: Number, significand: int | None, scale: int, low: int = INT32_LOW) -> None:
         self.what = what
         self.value = value
         self.significand = significand
@@ -79,7 +80,7 @@ class ModelRangeError(RacError, ValueError):
             text = f"{what} is {value}, which has no significand"
         else:
             text = (f"{what} = {_show(value)} needs the significand {significand} at scale {scale}, "
-                    f"outside int32 [{INT32_LOW}, {INT32_MAX}]")
+                    f"outside int32 [{low}, {INT32_MAX}]")
         super().__init__(text)
 
 
