@@ -110,3 +110,11 @@ def test_compile_and_verify_refuse_it(tmp_path: Path, capsys: pytest.CaptureFixt
     assert not (tmp_path / "far.xml").exists()
     assert main(["verify", str(path), "-o", str(tmp_path / "out")]) == 1
     assert "error[E0801]" in capsys.readouterr().err
+
+
+def test_the_hint_bounds_by_a_value_that_fits(tmp_path: Path) -> None:
+    """An input whose upper bound has no significand itself (1e6 at exponent 4) is not the hint's bound."""
+    path, text = write(tmp_path, "fmin(mindist(), 1000000)")
+    path.write_text(text.replace("input d : real in [0, 100]", "input d : real in [0, 1000000]"), encoding="utf-8")
+    (diagnostic,) = e0801(path)
+    assert list(diagnostic.hints) == ["bound the distance, e.g. `bind d = fmin(fmin(mindist(), 1000000), 1000)`"]

@@ -455,10 +455,11 @@ def _sentinel_bindings(automaton: ir.Automaton, spec: ir.ModelSpec, data: ModelD
         bound = low if low >= limit else high
         item = numeric[binding.input]
         text = format_checked(binding.expr)
+        fits = INT32_MAX // data.scale  # the largest whole number whose significand fits
         cap = (f"`bind {binding.input} = fmin({text}, {short_number(item.high)})` (the upper bound of "
-               f"`{binding.input}`)" if item.high is not None and low >= limit else
-               f"`bind {binding.input} = fmin({text}, 1000)`" if low >= limit else
-               f"`bind {binding.input} = fmax({text}, -1000)`")
+               f"`{binding.input}`)" if item.high is not None and low >= limit and item.high <= fits else
+               f"`bind {binding.input} = fmin({text}, {min(1000, fits)})`" if low >= limit else
+               f"`bind {binding.input} = fmax({text}, -{min(1000, fits)})`")
         words = "at least" if low >= limit else "at most"
         found.append(error(
             "E0801", f"binding `{binding.input} = {text}` leaves int32 at base {spec.base}, exponent "
