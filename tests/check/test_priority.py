@@ -673,6 +673,36 @@ def test_int32_range_covers_the_partial_sums_of_an_update() -> None:
         "3000000000 is beyond the 32-bit integer range" in diag.message
 
 
+def test_int32_range_covers_the_negation_of_an_updates_first_term() -> None:
+    """Regression: `p = -p - 5` is emitted as `iP = -iP - 50000`; p reaches -214748.3648 (the significand
+    -2147483648, which the range check allows), where `-iP` leaves int32 though the result fits. The
+    check passed it, the UPPAAL model overflowed and rac's engine left the verdicts unknown."""
+    text = """\
+automaton Neg {
+    input go : bool
+    reward p
+    objective p
+    sample every 1
+    horizon 4
+    initial location L { p' == -53687.0912 }
+    edge L -> L when go do UPDATE
+}
+"""
+    def ranges(update: str) -> list:
+        automaton = compile_text(text.replace("UPDATE", update), analyse=False).automaton
+        assert automaton is not None
+        return check_ranges(automaton)
+
+    (diag,) = ranges("p = -p - 5")
+    assert diag.code == "E0801" and diag.span is not None and diag.span.line == 8
+    assert "as `-p - 50000` over 32-bit significands, and `-p` may reach 2147483648" in diag.message
+    (diag,) = ranges("p = 5 - p")  # `-iP + 50000`: the result itself leaves int32 first, E0501's
+    assert diag.code == "E0501"
+    # one significand unit less per sample: p stops at -2147483644 units, whose negation fits
+    text = text.replace("-53687.0912", "-53687.0911")
+    assert ranges("p = -p - 5") == []
+
+
 def test_int32_range_covers_a_learning_querys_discrete_observation() -> None:
     """Regression: `{p/3 + r/7}` is observed in the UPPAAL model as the integer `7*iP + 3*iR`, which
     left int32 (UPPAAL learns on garbage, rac's engine on the exact value); now E0801 at the query."""

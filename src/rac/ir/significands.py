@@ -328,6 +328,8 @@ def emitted_sum(k: int, ints: Sequence[tuple[int, str]], ranges: Mapping[str, tu
         if abs(coefficient) != 1:
             steps.append(("", Fraction(abs(coefficient)), Fraction(abs(coefficient))))
             steps.append((term, min(product), max(product)))
+        if index == 0 and coefficient == -1:  # `-iP` is computed too: -(-2147483648) leaves int32
+            steps.append((f"-{term}", min(product), max(product)))
         if index == 0:
             text, low, high = ("-" if coefficient < 0 else "") + term, min(product), max(product)
         else:
