@@ -244,6 +244,20 @@ def test_literals_keep_to_the_lexer(parsed: Parsed) -> None:
             assert int(number) <= INT32_MAX, code
 
 
+def test_no_16_bit_int_holds_a_count_beyond_its_range() -> None:
+    """UPPAAL's `int` is int[-32768, 32767]; the automaton-alone model declared `const int STEPS` and
+    `const int PERIOD`, so a run of 3600 s at 0.1 s (36,000 samples) or a time unit finer than the
+    period by more than 32767 held numbers its type cannot (the whole model declared them `int32_t`)."""
+    long = NO_INPUTS.replace("sample every 1\n    horizon 5", "sample every 0.1\n    horizon 3600")
+    assert long != NO_INPUTS
+    fine = NO_INPUTS[:-2] + "    query Q: Pr[<=0.00001](<> up > 1)\n}\n"
+    for text in (long, fine):
+        declaration = Parsed(emitted(automaton_of(text)).xml).declaration
+        values = {name: int(value) for name, value in re.findall(r"\bint\s+(\w+)\s*=\s*(-?\d+)", declaration)}
+        assert all(-32768 <= v <= 32767 for v in values.values()), values
+        assert re.search(r"const int32_t (STEPS = 36000|PERIOD = 100000);", declaration), declaration
+
+
 def test_formulas_are_single_lines(parsed: Parsed) -> None:
     for _, formula in parsed.queries:
         assert "\n" not in formula and formula == formula.strip()
@@ -429,7 +443,7 @@ def test_a_time_bound_too_fine_for_int32_is_refused() -> None:
     # the unit divides the bounds that fit: 0.5 s, so the period is 2 units
     parsed = Parsed(emitted(automaton_of(NO_INPUTS[:-2] + "    query Q1: Pr[<=0.5](<> up > 1)\n}\n")).xml)
     assert dict(parsed.queries)["Q1"] == "Pr[<=1](<> up > 1.0)"
-    assert "const int PERIOD = 2;" in parsed.declaration
+    assert "const int32_t PERIOD = 2;" in parsed.declaration
 
 
 @pytest.mark.parametrize("query", ["E[] !deadlock", "A<> deadlock", "deadlock --> Only", "Pr[<=2]([] !deadlock)",
@@ -608,7 +622,7 @@ class Network:
                 self.values[name] = {"bool": False, "hybrid clock": 0.0, "clock": 0.0}.get(match.group(1), C(0))
         self.int32 = set(re.findall(r"\w+", " ".join(re.findall(r"int32_t ([^;=]*);", code))))
         declaration = parsed.declaration
-        self.period = re.search(r"const int (\w+) = \d+;  // time units per sample", declaration).group(1)
+        self.period = re.search(r"const int32_t (\w+) = \d+;  // time units per sample", declaration).group(1)
         self.scale = re.search(r"const int32_t (\w+) = \d+;  // the significand", declaration).group(1)
         self.time = re.search(r"clock (\w+);  // global time", declaration).group(1)
         self.processes = []
