@@ -9,6 +9,7 @@ commonroad-io (tests/support/tiny_scenarios.py).
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -118,3 +119,15 @@ def test_the_hint_bounds_by_a_value_that_fits(tmp_path: Path) -> None:
     path.write_text(text.replace("input d : real in [0, 100]", "input d : real in [0, 1000000]"), encoding="utf-8")
     (diagnostic,) = e0801(path)
     assert list(diagnostic.hints) == ["bound the distance, e.g. `bind d = fmin(fmin(mindist(), 1000000), 1000)`"]
+
+
+def test_a_binding_beyond_int32_in_a_run_leaves_the_verdict_unknown(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """What the check cannot settle (`dist_goal()` is unbounded) the engine checks at every sample: the
+    verdict is unknown (exit 4), and the message says which value, not "a sensed value"."""
+    path, _ = write(tmp_path, "dist_goal() * 100", exponent=6)  # about 39 m from the goal: 3.9e9 micrometres
+    assert compile_file(path).ok
+    assert main(["verify", str(path), "--format", "json", "-o", str(tmp_path / "out")]) == 4
+    (result,) = json.loads(capsys.readouterr().out)["results"]
+    assert result["status"] == "unknown"
+    assert result["message"].startswith("a value of a run left the int32 range: the binding of `d` = ")

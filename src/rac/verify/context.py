@@ -133,9 +133,10 @@ def over_budget(exc: BudgetExceeded) -> str:
 
 
 def left_int32(exc: ModelRangeError) -> str:
-    """What an undecided verdict says when a sensed value of a run left int32 (UPPAAL's model aborts
-    there too)."""
-    return f"a sensed value left the int32 range: {exc}"
+    """What an undecided verdict says when a value of a run left int32 (UPPAAL's model aborts there
+    too): a sensed value (``sense()``), or an input's binding or a reward's mirror."""
+    what = "a sensed value" if exc.what.startswith("sense()") else "a value of a run"
+    return f"{what} left the int32 range: {exc}"
 
 
 class Context:
