@@ -300,7 +300,7 @@ def _first_overflow(steps: Sequence[tuple[str, Fraction, Fraction]]) -> str | No
     for shown, lo, hi in steps:
         if lo < INT32_MIN or hi > INT32_MAX:
             worst = hi if hi > INT32_MAX else lo
-            return f"`{shown}` may reach {short_number(worst)}," if shown else f"its number {worst} is"
+            return f"`{shown}` may reach {short_number(worst)}," if shown else f"its number {short_number(worst)} is"
     return None
 
 
@@ -324,7 +324,7 @@ def emitted_sum(k: int, ints: Sequence[tuple[int, str]], ranges: Mapping[str, tu
             return None
         lo, hi = ranges[name]
         product = (coefficient * lo, coefficient * hi)
-        term = name if abs(coefficient) == 1 else f"{abs(coefficient)}*{name}"
+        term = name if abs(coefficient) == 1 else f"{short_number(Fraction(abs(coefficient)))}*{name}"
         if abs(coefficient) != 1:
             steps.append(("", Fraction(abs(coefficient)), Fraction(abs(coefficient))))
             steps.append((term, min(product), max(product)))
@@ -338,7 +338,7 @@ def emitted_sum(k: int, ints: Sequence[tuple[int, str]], ranges: Mapping[str, tu
             steps.append((text, low, high))
     if k:
         steps.append(("", Fraction(abs(k)), Fraction(abs(k))))
-        text += f" {'-' if k < 0 else '+'} {abs(k)}"
+        text += f" {'-' if k < 0 else '+'} {short_number(Fraction(abs(k)))}"
         low, high = low + k, high + k
         steps.append((text, low, high))
     return text, steps

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac.core.diagnostics import short_number
-from rac.core.numbers import INT32_MAX
+from rac.core.numbers import INT32_MAX, INT32_MIN
 from rac.core.printing import Level, Printed, number, signed_sum
 from rac.ir import compare
 from rac.ir import expr as ie
@@ -304,6 +304,9 @@ class UppaalPrinter(UppaalSyntax):
         op, whole = result
         if coefficients == [(1, self.v.count)] and whole * self.v.period == self.v.horizon:
             return Printed(f"{self.v.count} {op} {self.v.steps_name}", Level.COMPARE)
+        truth = self._beyond(coefficients, op, whole) if abs(whole) > INT32_MAX else None
+        if truth is not None:  # no int32 literal holds the threshold, and no value of the sum reaches it
+            return self.literal(truth)
         largest = sum(abs(c) * self._largest(name) for c, name in coefficients)
         if largest <= INT32_MAX:
             return Printed(f"{terms_text(coefficients)} {op} {int_literal(whole)}", Level.COMPARE)
@@ -311,7 +314,7 @@ class UppaalPrinter(UppaalSyntax):
         # for integers below 2**53, in a condition of the declarations when the query is symbolic
         if largest + abs(whole) >= 2**53:
             raise NotRepresentable(f"the comparison's coefficients are too large to be computed exactly "
-                                   f"({largest + abs(whole)} >= 2**53)")
+                                   f"({short_number(Fraction(largest + abs(whole)))} >= 2**53)")
         if dialect == SYMBOLIC:
             return Printed(self._hoisted(expr), Level.ATOM)
         (first, name), *rest = coefficients  # the first coefficient is positive (flipped above)
@@ -319,6 +322,29 @@ class UppaalPrinter(UppaalSyntax):
         parts += [(c < 0, name if abs(c) == 1 else f"{double_literal(abs(c))} * {name}") for c, name in rest]
         text = signed_sum(parts)
         return Printed(f"{text} {op} {double_literal(whole)}", Level.COMPARE)
+
+    def _beyond(self, coefficients: list[tuple[int, str]], op: str, whole: int) -> bool | None:
+        """``Σ c*name op whole`` where ``whole`` lies beyond every value the sum takes (each name within
+        the range its integer holds: ``x > 1000000`` is ``x > 10000000000`` on an int32, never true),
+        or None when some value reaches it. The engine compares exactly and gives the same truth."""
+        low = high = 0
+        for c, name in coefficients:
+            ends = [c * end for end in self._range(name)]
+            low, high = low + min(ends), high + max(ends)
+        if whole > high:
+            return op in ("<", "<=", "!=")
+        if whole < low:
+            return op in (">", ">=", "!=")
+        return None
+
+    def _range(self, name: str) -> tuple[int, int]:
+        """The least and greatest value the integer ``name`` holds: a location index, the sample counter,
+        or any int32 (a mirror may hold ``INT32_MIN``)."""
+        if name.endswith(".location"):
+            return 0, max(0, len(self.v.locations) - 1)
+        if name == self.v.count:
+            return 0, math.ceil(self.v.horizon / self.v.period)
+        return INT32_MIN, INT32_MAX
 
     def _largest(self, name: str) -> int:
         """The largest magnitude the integer ``name`` holds: a location index, the sample counter, or any int32."""
