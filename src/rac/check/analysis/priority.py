@@ -685,7 +685,8 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
             declared = automaton.spans.get(reward) or (automaton.source.name.span if automaton.source else None)
             notes: list[Note | str] = [
                 f"its significand trunc({reward}·{base}^{exponent}) must stay {word} "
-                f"{sign * (limit - 1)}, i.e. {reward} within ±{_num(bound)}",
+                f"{sign * (limit - 1)}, i.e. {reward} within [{_num(Fraction(INT32_MIN) / factor)}, "
+                f"{_num(Fraction(INT32_MAX) / factor)}]",
                 f"first overflow on the worst run: {first}",
                 "run:\n" + "\n".join(describe_run(automaton, space, worst))]
             hints = ["lower the exponent of the number representation, shorten the horizon, "
