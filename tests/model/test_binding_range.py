@@ -96,6 +96,7 @@ def test_the_sample_at_which_an_obstacle_is_gone_is_named(tmp_path: Path) -> Non
     path, _ = write(tmp_path, "mindist()", (car,), steps=20)
     (diagnostic,) = e0801(path)
     assert diagnostic.notes[0].message.startswith("no obstacle exists at t = 2.5 s (sample 5); there `mindist()`")
+    assert diagnostic.data == {"base": 10, "exponent": 4, "input": "d", "sample": 5}
     # a car that stays for the whole horizon: the distance fits, whatever the ego does
     path, _ = write(tmp_path, "mindist()", (car,))
     assert compile_file(path).ok

@@ -470,7 +470,8 @@ def _sentinel_bindings(automaton: ir.Automaton, spec: ir.ModelSpec, data: ModelD
                    f"{_magnitude(bound * data.scale)}, beyond int32 [{INT32_LOW}, {INT32_MAX}]",
                    "rac's engine cannot read the input there, and the emitted UPPAAL model's `d2i()` would leave "
                    "int32 (compiled as C it reads -2147483648, which the guards then compare)"],
-            hints=[f"bound the distance, e.g. {cap}"]))
+            hints=[f"bound the distance, e.g. {cap}"],
+            data={"base": spec.base, "exponent": spec.exponent, "input": binding.input, "sample": sample}))
     return found
 
 
