@@ -132,3 +132,14 @@ def test_a_binding_beyond_int32_in_a_run_leaves_the_verdict_unknown(tmp_path: Pa
     (result,) = json.loads(capsys.readouterr().out)["results"]
     assert result["status"] == "unknown"
     assert result["message"].startswith("a value of a run left the int32 range: the binding of `d` = ")
+
+
+def test_a_learning_run_beyond_int32_names_the_binding(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac experiment` stops where a binding leaves int32 (exit 1) and says which value and how to bound
+    it, not "a sensed value" with a hint about the ego's state only."""
+    path, _ = write(tmp_path, "dist_goal() * 100", exponent=6)
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "5", "--runs", "1", "-q",
+                 "--reward-function", "r", "-o", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert "error[E0015]: a value of a run left the int32 range: the binding of `d` = " in err
+    assert "bound the binding (`fmin(e, 1000)`, `fmax(e, -1000)`)" in err

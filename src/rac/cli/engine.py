@@ -138,12 +138,19 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
                 return status
             try:
                 return command(args, result)
-            except ModelRangeError as exc:  # a run's sensed value, not the file's data (rac check has those)
+            except ModelRangeError as exc:  # a run's value, not the file's data (rac check has those)
+                from rac.verify.context import left_int32  # the verdicts' wording (loaded only here)
+
+                sensed = exc.what.startswith("sense()")
+                hints = [] if sensed else ["bound the binding (`fmin(e, 1000)`, `fmax(e, -1000)`) so that its value "
+                                           "keeps a significand"]
                 _report(args, unusable_file(
-                    f"a sensed value left the int32 range: {exc}",
-                    notes=["UPPAAL's model aborts there too; the run cannot go on"],
-                    hints=["a coarser `exponent` in the model block (`rac preanalyse` compares them) or a shorter "
-                           "horizon keeps the sensed values within int32"]))
+                    left_int32(exc),
+                    notes=["UPPAAL's model aborts there too; the run cannot go on" if sensed else
+                           "the emitted model has no int32 for it either (UPPAAL does not document what `fint()` "
+                           "gives beyond int32); the run cannot go on"],
+                    hints=[*hints, "a coarser `exponent` in the model block (`rac preanalyse` compares them) or a "
+                                   f"shorter horizon keeps the {'sensed ' if sensed else ''}values within int32"]))
                 return EXIT_ERRORS
             except RacError as exc:
                 if exc.diagnostic is None:
