@@ -10,6 +10,7 @@ commonroad-io (tests/support/tiny_scenarios.py).
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -143,3 +144,25 @@ def test_a_learning_run_beyond_int32_names_the_binding(tmp_path: Path, capsys: p
     err = capsys.readouterr().err
     assert "error[E0015]: a value of a run left the int32 range: the binding of `d` = " in err
     assert "bound the binding (`fmin(e, 1000)`, `fmax(e, -1000)`)" in err
+
+
+def test_prev_reads_the_start_without_an_obstacle(tmp_path: Path) -> None:
+    """A car that enters at 0.5 s (sample 1) and stays: `mindist()` is a distance at every sample the
+    bindings read, but `prev(mindist())` at the first sample reads the start, where no obstacle exists.
+    (CommonRoad's schema wants an obstacle's initial state at time step 0, so the file is edited after it.)"""
+    road = StraightRoad(80.0, WALL_EGO, WALL_GOAL, obstacles=(Block(11, x=40.0, y=1.75, velocity=0.5),), steps=60)
+    text = road.xml("road").decode("utf-8")
+    # the initial state at time step 5, its trajectory from 6: the car exists from sample 1 (0.5 s) on
+    text, made = re.subn(r"(<initialState>\s*<time>\s*<exact>)0(</exact>)", r"\g<1>5\2", text, count=1)
+    assert made == 1
+    text, dropped = re.subn(r"<state>\s*<time>\s*<exact>[1-5]</exact>.*?</state>\s*", "", text, flags=re.S)
+    assert dropped == 5
+    path, source = write(tmp_path, "prev(mindist())")
+    (tmp_path / "road.xml").write_text(text, encoding="utf-8")
+    (diagnostic,) = e0801(path)
+    assert diagnostic.notes[0].message.startswith("no obstacle exists at the start (t = 0 s), which `prev(...)` "
+                                                  "reads at the first sample; there `mindist()` reads 1e9")
+    assert diagnostic.data["sample"] == 1
+    path.write_text(source.replace("bind d = prev(mindist())", "bind d = mindist()"), encoding="utf-8")
+    result = compile_file(path)
+    assert result.ok, [d.message for d in result.diagnostics]  # the car exists at every sample read

@@ -379,16 +379,24 @@ def _absent(data: ModelData, k: int) -> bool:
     return not any(start <= k <= until for start, until in zip(data.obs_from, data.obs_until))
 
 
-def _without_obstacle(automaton: ir.Automaton, data: ModelData) -> int | None:
-    """The first sample the bindings are read at (1 up to the horizon; only 1 when `episode ends when`
-    may end runs earlier) at which no obstacle exists, or None."""
+def _without_obstacle(automaton: ir.Automaton, data: ModelData) -> list[tuple[int, float | None, float | None]]:
+    """Where the bindings read `mindist()` without an obstacle: ``(sample, mindist(), prev(mindist()))``
+    with :data:`NO_OBSTACLE` where it is known to read it (None: some distance). The first sample the
+    bindings are read at (1 up to the horizon; only 1 when `episode ends when` may end runs earlier) at
+    which no obstacle exists, and sample 1 when none exists at the start (``prev(e)`` reads it there)."""
     last = automaton.steps if automaton.ending is None else min(automaton.steps, 1)
-    return next((k for k in range(1, last + 1) if _absent(data, k)), None)
+    first = next((k for k in range(1, last + 1) if _absent(data, k)), None)
+    found: list[tuple[int, float | None, float | None]] = []
+    if first is not None:
+        found.append((first, NO_OBSTACLE, NO_OBSTACLE if _absent(data, first - 1) else None))
+    if _absent(data, 0) and first != 1 and last >= 1:
+        found.append((1, None, NO_OBSTACLE))
+    return found
 
 
-def _interval(expr: ie.Expr, mindist: float, before: float | None, held: float) -> _Interval:
+def _interval(expr: ie.Expr, mindist: float | None, before: float | None, held: float) -> _Interval:
     """Where the double a binding computes lies, whatever the state, when ``mindist()`` reads ``mindist``
-    and ``prev(mindist())`` reads ``before`` (None: anything), the ego state being significands (within
+    and ``prev(mindist())`` reads ``before`` (None: any distance), the ego state being significands (within
     ``±held``, int32 over the scale): interval arithmetic, sound, not tight; a value it cannot bound is
     :data:`_ANY`."""
     if isinstance(expr, ie.Const) and not isinstance(expr.value, bool):
@@ -412,12 +420,12 @@ def _interval(expr: ie.Expr, mindist: float, before: float | None, held: float) 
             right = (1.0 / right[1], 1.0 / right[0])
         ends = [a * b for a in left for b in right]
         return _ANY if any(math.isnan(end) for end in ends) else (min(ends), max(ends))
-    if isinstance(expr, ie.Prev) and before is not None:
-        return _interval(expr.operand, before, before, held)
+    if isinstance(expr, ie.Prev):
+        return _interval(expr.operand, before, None, held)  # no prev(prev(e)) (E0711)
     if isinstance(expr, ie.Call):
         args = [_interval(arg, mindist, before, held) for arg in expr.args if arg.type == ie.NUM]
         if expr.name == "mindist":
-            return mindist, mindist
+            return (mindist, mindist) if mindist is not None else (-math.inf, math.inf)
         if expr.name == "dist_goal":
             return 0.0, math.inf
         if expr.name in ("fabs", "abs") and args:
@@ -441,17 +449,20 @@ def _sentinel_bindings(automaton: ir.Automaton, spec: ir.ModelSpec, data: ModelD
     numeric = {item.name: item for item in automaton.inputs if not item.is_bool}
     bindings = [b for b in spec.bindings if b.input in numeric
                 and any(isinstance(node, ie.Call) and node.name == "mindist" for node in ie.walk(b.expr))]
-    sample = _without_obstacle(automaton, data) if bindings else None
-    if sample is None:
-        return found
-    where = ("the scenario has no obstacle" if not data.obs_from else
-             f"no obstacle exists at t = {short_number(sample * automaton.period)} s (sample {sample})")
     limit = INT32_BOUND / data.scale
-    before = NO_OBSTACLE if _absent(data, sample - 1) else None  # prev(e) at sample 1 is e at the start
+    cases = _without_obstacle(automaton, data) if bindings else []
     for binding in bindings:
-        low, high = _interval(binding.expr, NO_OBSTACLE, before, INT32_MAX / data.scale)
-        if not (low >= limit or high <= -limit):
+        overflows = [(case, _interval(binding.expr, case[1], case[2], INT32_MAX / data.scale)) for case in cases]
+        leaving = next(((case, ends) for case, ends in overflows if ends[0] >= limit or ends[1] <= -limit), None)
+        if leaving is None:
             continue  # it may fit: the engine checks every value it reads
+        (sample, now, _), (low, high) = leaving
+        if not data.obs_from:
+            where = "the scenario has no obstacle"
+        elif now is None:
+            where = "no obstacle exists at the start (t = 0 s), which `prev(...)` reads at the first sample"
+        else:
+            where = f"no obstacle exists at t = {short_number(sample * automaton.period)} s (sample {sample})"
         bound = low if low >= limit else high
         item = numeric[binding.input]
         text = format_checked(binding.expr)
