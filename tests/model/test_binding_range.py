@@ -146,10 +146,8 @@ def test_a_learning_run_beyond_int32_names_the_binding(tmp_path: Path, capsys: p
     assert "bound the binding (`fmin(e, 1000)`, `fmax(e, -1000)`)" in err
 
 
-def test_prev_reads_the_start_without_an_obstacle(tmp_path: Path) -> None:
-    """A car that enters at 0.5 s (sample 1) and stays: `mindist()` is a distance at every sample the
-    bindings read, but `prev(mindist())` at the first sample reads the start, where no obstacle exists.
-    (CommonRoad's schema wants an obstacle's initial state at time step 0, so the file is edited after it.)"""
+def write_late_car(path: Path) -> None:
+    """The road of :func:`write` with a car that enters at 0.5 s (sample 1) and stays, at x = 40."""
     road = StraightRoad(80.0, WALL_EGO, WALL_GOAL, obstacles=(Block(11, x=40.0, y=1.75, velocity=0.5),), steps=60)
     text = road.xml("road").decode("utf-8")
     # the initial state at time step 5, its trajectory from 6: the car exists from sample 1 (0.5 s) on
@@ -157,8 +155,15 @@ def test_prev_reads_the_start_without_an_obstacle(tmp_path: Path) -> None:
     assert made == 1
     text, dropped = re.subn(r"<state>\s*<time>\s*<exact>[1-5]</exact>.*?</state>\s*", "", text, flags=re.S)
     assert dropped == 5
+    path.write_text(text, encoding="utf-8")
+
+
+def test_prev_reads_the_start_without_an_obstacle(tmp_path: Path) -> None:
+    """A car that enters at 0.5 s (sample 1) and stays: `mindist()` is a distance at every sample the
+    bindings read, but `prev(mindist())` at the first sample reads the start, where no obstacle exists.
+    (CommonRoad's schema wants an obstacle's initial state at time step 0, so the file is edited after it.)"""
     path, source = write(tmp_path, "prev(mindist())")
-    (tmp_path / "road.xml").write_text(text, encoding="utf-8")
+    write_late_car(tmp_path / "road.xml")
     (diagnostic,) = e0801(path)
     assert diagnostic.notes[0].message.startswith("no obstacle exists at the start (t = 0 s), which `prev(...)` "
                                                   "reads at the first sample; there `mindist()` reads 1e9")
@@ -166,3 +171,20 @@ def test_prev_reads_the_start_without_an_obstacle(tmp_path: Path) -> None:
     path.write_text(source.replace("bind d = prev(mindist())", "bind d = mindist()"), encoding="utf-8")
     result = compile_file(path)
     assert result.ok, [d.message for d in result.diagnostics]  # the car exists at every sample read
+
+
+def test_learning_shows_the_start_without_refusing_it(tmp_path: Path) -> None:
+    """Regression: the learning episodes read every binding at the start (sample 0) to show it, where the
+    emitted model and the product read none; with no obstacle there, `bind d = mindist()` (a distance at
+    every sample read) made ScenarioEnv and every learning query fail with "needs the significand 1e13".
+    The value shown at the start is clipped to the input's range like any other; the run goes on."""
+    from rac.learning.scenario_env import ScenarioEnv
+
+    path, _ = write(tmp_path, "mindist()")
+    write_late_car(tmp_path / "road.xml")
+    assert compile_file(path).ok
+    env = ScenarioEnv(path)
+    _, info = env.reset(seed=0)
+    assert info["inputs"] == {"d": 100.0}  # 1e9, clipped to `d`'s upper bound
+    _, _, _, _, info = env.step(0)
+    assert 0 <= info["inputs"]["d"] < 100  # the car at x = 40 from sample 1 on

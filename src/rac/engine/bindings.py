@@ -21,7 +21,7 @@ import numpy as np
 
 from rac import ir
 from rac.core.diagnostics import RacValueError
-from rac.core.numbers import INT32_BOUND
+from rac.core.numbers import INT32_BOUND, INT32_MAX
 from rac.engine.compiled import compile_expressions
 from rac.engine.evaluate import Evaluator, Frame
 from rac.ir import expr as ie
@@ -57,19 +57,25 @@ class Bindings:
         """Input ``index`` on every state of ``frame``: bool, or int64 significands."""
         return self._held(index, self.evaluator.evaluate(self.items[index][2], frame))
 
-    def columns(self, frame: Frame) -> list[np.ndarray]:
-        """Every input on every state of ``frame`` (:meth:`column` of each, in the input order)."""
+    def columns(self, frame: Frame, *, saturate: bool = False) -> list[np.ndarray]:
+        """Every input on every state of ``frame`` (:meth:`column` of each, in the input order).
+        ``saturate``: a number beyond int32 is held as the nearest int32 instead of refused, for a reading
+        no model makes (the learning episodes' inputs shown at sample 0, before the first reading)."""
         if self._bindings is None:
-            return [self.column(index, frame) for index in range(len(self.items))]
-        return [self._held(index, value) for index, value in enumerate(self._bindings(frame))]
+            values = [self.evaluator.evaluate(expr, frame) for _, _, expr in self.items]
+        else:
+            values = self._bindings(frame)
+        return [self._held(index, value, saturate) for index, value in enumerate(values)]
 
-    def _held(self, index: int, value: np.ndarray) -> np.ndarray:
+    def _held(self, index: int, value: np.ndarray, saturate: bool = False) -> np.ndarray:
         """A binding's value as the model holds the input: bool, or int64 significands."""
         name, is_bool, _ = self.items[index]
         if is_bool:
             return np.asarray(value if value.dtype == bool else value != 0, dtype=bool)
         value = np.asarray(value, dtype=np.float64)
         scaled = value * self.evaluator.scale_d
+        if saturate:  # NaN still has no significand
+            scaled = np.clip(scaled, -INT32_MAX, INT32_MAX)
         bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))  # also NaN
         if bad.any():
             row = int(np.flatnonzero(bad)[0])

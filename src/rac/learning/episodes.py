@@ -149,11 +149,13 @@ class _Inputs:
             if spec.kind == "int" else spec for spec in input_specs(automaton)]
 
     def read(self, frame: Frame, clipped: dict[str, int] | None = None,
-             changes: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+             changes: dict[str, np.ndarray] | None = None, *, shown: bool = False) -> dict[str, np.ndarray]:
         """Input name -> ``(n,)`` values (bool, or float64 reals); counts clipped values into ``clipped``
-        and, with ``changes``, puts each numeric input's ``(n,)`` clipped-or-truncated mask there."""
+        and, with ``changes``, puts each numeric input's ``(n,)`` clipped-or-truncated mask there.
+        ``shown``: only shown, never fed to the automaton (sample 0): a number beyond int32 is clipped like
+        any other, not refused (the emitted model reads no binding there)."""
         out: dict[str, np.ndarray] = {}
-        for spec, column in zip(self.specs, self.bindings.columns(frame)):
+        for spec, column in zip(self.specs, self.bindings.columns(frame, saturate=shown)):
             if spec.is_bool:
                 out[spec.name] = column
                 continue
@@ -522,7 +524,7 @@ class EpisodeBatch:
         start = Frame(k, ego, crashed=crashed)
         crashed = collides(self.evaluator.function("mindist", start), self._td)  # collide() at the start
         # the same frame's mindist() (its cache is shared), with collide() so far
-        inputs = self._bindings.read(dataclasses.replace(start, crashed=crashed))
+        inputs = self._bindings.read(dataclasses.replace(start, crashed=crashed), shown=True)
         location = np.full(n, self.automaton.initial, dtype=np.int64)
         rewards = {name: np.zeros(n) for name in self.automaton.rewards}
         self._carry(np.arange(n), start)
