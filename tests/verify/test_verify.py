@@ -501,3 +501,12 @@ def test_a_query_has_its_seed_whichever_queries_are_selected(compiled: Callable[
     assert alone["Learn"].seed == together["Learn"].seed
     assert alone["Learn"].estimate == together["Learn"].estimate
     assert run(item, "Sim", "Speed")["Speed"].seed == together["Speed"].seed
+
+
+def test_a_trace_shows_the_values_the_model_holds() -> None:
+    """Regression: trace rows printed numbers with `:g` (6 significant digits), so a mirror at the int32
+    limit, sa = -214748.3648, read `sa=-214748`, and a position at exponent 6 lost its last digits."""
+    row = {"time": 0.5, "x": 2140.123456, "y": 1.75, "v": 8.1562, "acc": 0.0, "head": 0.0, "jerk": 0.0,
+           "turn": 0.0, "location": "B", "sa": -214748.3648}
+    text = render_text([QueryResult("Q", "E<> B", "symbolic", "satisfied", trace=(row,))], traces=True)
+    assert "t=0.5s x=2140.123456 y=1.75 v=8.1562 acc=0 head=0 jerk=0 turn=0 B sa=-214748.3648" in text

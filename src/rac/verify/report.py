@@ -199,17 +199,24 @@ def _confidence(result: QueryResult) -> str:
     return f"{(result.confidence or 0.95) * 100:g}%"
 
 
+def _held(value: float | int | str) -> str:
+    """A trace's number as the model holds it: a significand over the scale has at most 10 digits and
+    ``exponent`` decimals, so 15 significant digits show it exactly (``sa=-214748.3648``, where ``:g``
+    rounded it to ``-214748``, hiding which value is at the int32 limit)."""
+    return f"{value:.15g}" if isinstance(value, (int, float)) else str(value)
+
+
 def _trace_row(row: TraceRow) -> str:
-    parts = [f"t={row['time']:g}s"]
+    parts = [f"t={_held(row['time'])}s"]
     for name in EGO_STATE:
-        parts.append(f"{name}={row[name]:g}")
+        parts.append(f"{name}={_held(row[name])}")
     if "location" in row:
         parts.append(str(row["location"]))
     if row.get("phase", "sampled") != "sampled":  # product states before the edge, after `at end`
         parts.append(f"({row['phase']})")
     # What is left are the product's rewards.
     known = {"time", *EGO_STATE, "location", "phase", *TRACE_FLAGS}
-    parts.extend(f"{name}={value:g}" for name, value in row.items() if name not in known)
+    parts.extend(f"{name}={_held(value)}" for name, value in row.items() if name not in known)
     flags = [name for name in TRACE_FLAGS if row.get(name)]
     if flags:
         parts.append("[" + ",".join(flags) + "]")
