@@ -413,6 +413,22 @@ def test_a_threshold_beyond_every_held_integer_is_a_constant_truth(tmp_path: Pat
     assert statuses == {"Far": "satisfied", "Beyond": "not satisfied"}
 
 
+def test_a_mirror_compared_with_the_least_int32() -> None:
+    """Regression: a mirror may hold -2147483648 (the int32 range check allows it), but no literal writes
+    it, so `A[] sa >= -214748.3648` was E0801. The comparison is now made with its neighbour, exactly on
+    integers; a sum of several integers is compared in doubles as before."""
+    expected = {"A[] sa >= -214748.3648": "A[] true", "E<> sa < -214748.3648": "E<> false",
+                "E<> sa <= -214748.3648": "E<> iSa < -2147483647", "E<> sa == -214748.3648": "E<> iSa < -2147483647",
+                "E<> sa > -214748.3648": "E<> iSa >= -2147483647", "E<> sa != -214748.3648": "E<> iSa >= -2147483647",
+                "E<> -sa >= 214748.3648": "E<> iSa < -2147483647"}
+    for query, formula in expected.items():
+        text = EDGE_CASES.replace("    query Q11: E --> Bad\n", f"    query T: {query}\n")
+        assert dict(Parsed(emitted(automaton_of(text)).xml).queries)["T"] == formula, query
+    text = EDGE_CASES.replace("    query Q11: E --> Bad\n", "    query T: E<> sa + pr == -214748.3648\n")
+    model = emitted(automaton_of(text)).xml
+    assert "return 1.0 * iSa + iPr == -2147483648.0;" in model  # the sum may be below: not rewritten
+
+
 def test_rate_not_representable() -> None:
     text = NO_INPUTS.replace("up' == 2", "up' == 0.00001")
     (code, message), = codes(automaton_of(text))

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from rac.core.diagnostics import short_number
-from rac.core.numbers import INT32_MAX, INT32_MIN
+from rac.core.numbers import INT32_LOW, INT32_MAX, INT32_MIN
 from rac.core.printing import Level, Printed, number, signed_sum
 from rac.ir import compare
 from rac.ir import expr as ie
@@ -309,6 +309,14 @@ class UppaalPrinter(UppaalSyntax):
             return self.literal(truth)
         largest = sum(abs(c) * self._largest(name) for c, name in coefficients)
         if largest <= INT32_MAX:
+            if whole == INT32_MIN:  # one mirror, which may hold it, but no literal writes it: its neighbour
+                least: dict[str, bool | tuple[str, int]] = {
+                    "<": False, ">=": True, ">": (">=", INT32_LOW), "<=": ("<", INT32_LOW), "==": ("<", INT32_LOW),
+                    "!=": (">=", INT32_LOW)}  # the mirror is never below it
+                rewritten = least[op]
+                if isinstance(rewritten, bool):
+                    return self.literal(rewritten)
+                op, whole = rewritten
             return Printed(f"{terms_text(coefficients)} {op} {int_literal(whole)}", Level.COMPARE)
         # a sum of int32 values may leave int32 (10*iSa with iSa = -3e8): compute it in doubles, exact
         # for integers below 2**53, in a condition of the declarations when the query is symbolic
