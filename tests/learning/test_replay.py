@@ -184,6 +184,32 @@ class Five(gymnasium.Env):  # type: ignore[type-arg]
         return np.full(1, self.t / 5, dtype=np.float32), 0.0, self.t >= 5, False, {"last": self.t >= 5}
 
 
+def test_terminal_locations_are_mended_in_gymnasiums_vector_layout() -> None:
+    """terminal_located takes gymnasium's vector layout too (one dict of arrays): an ended episode's
+    squashed location columns are set from its info, the rows of sub-environments restarted in the step
+    (which report no automaton step) are left as they are."""
+    rows = CounterfactualRows(follow())
+    sync = gymnasium.vector.SyncVectorEnv([_single_follow] * 2)
+    sync.reset(seed=0)
+    mended = restarted_seen = 0
+    restarted = np.zeros(2, dtype=bool)
+    for _ in range(11):
+        after, _, terminated, truncated, infos = sync.step(np.array([2, 0]))
+        done = terminated | truncated
+        squashed = after.copy()
+        squashed[:, -2:] = 0.25  # what VecNormalize's round trip may leave, on every row
+        got = rows.terminal_located(squashed, done, infos)
+        for i in range(2):
+            if restarted[i] or not done[i]:  # not an ended episode's terminal observation: as it was
+                assert got[i].tolist() == squashed[i].tolist()
+            else:
+                assert got[i].tolist() == after[i].tolist()
+                mended += 1
+        restarted_seen += int(restarted.sum())
+        restarted = done
+    assert mended >= 2 and restarted_seen >= 2
+
+
 def test_stable_baselines3_buffer_under_vec_normalize() -> None:
     """DQN on VecNormalize (its default, norm_obs=True) with the counterfactual buffer: the first episode
     ended in a location not seen before, whose terminal observation came back from VecNormalize clipped,
