@@ -1,0 +1,359 @@
+"""The emitted automaton-alone UPPAAL model, run as C, against the engine's mirrors and the Python target.
+
+``rac compile --target uppaal`` writes, for a file without a ``model`` block, the network
+``Timer, AUTOMATON, Environment`` (docs/uppaal.md, "The model"). tests/targets/test_emitted_network.py
+runs the whole model of a few fixed automata against the engine's product; here random automata
+run alone, sample by sample, in three implementations that must agree:
+
+- the emitted network, every guard, update, invariant and select compiled as C and played by
+  test_emitted_network's :class:`Network` (broadcasts, committed locations, time to the Timer's
+  deadline, hybrid clocks at their rates). The Environment's ``select`` is the one thing the model
+  leaves open: its edge is made controllable here, so that the test chooses the inputs (one tuple
+  per sample, among those its ``assume`` guard allows);
+- the engine's integer side, :class:`rac.engine.product.MirrorArithmetic` (what ``rac verify``'s
+  product computes), stepped in the emitted order: accrual with the held inputs (at the first
+  sample with the new ones when a rate reads an input), the edge, ``episode ends when``, ``at end``;
+- the Python target's module (``rac compile --target python``), stepped with the same inputs
+  (numbers as the significand's exact value), ``end()`` with the last inputs at the horizon.
+
+After every sample and after the run's end: the same location in all three, the same sample
+count, the network's mirrors equal to the engine's, its hybrid clocks equal to the module's
+rewards (within rounding), and where no mirror truncates the mirrors equal to the rewards times
+the scale; the run ends at the same sample in all three. Every model is also validated with
+UPPAAL's parser when it is available (tests/support/utap.py; without it the comparison still runs).
+
+Automata: test_agreement's IR strategy (``automata()``: up to four locations, rates reading a real
+and an int input, updates with rational coefficients over rewards and inputs, negative ones among
+them, guards over partitions of the inputs, ``at end`` clauses, ``episode ends when``, ``assume``),
+at periods whose rates the significands can represent, and the fuzzer's generated programs
+(tests/support/fuzzgen.py: ``*`` edges, constants, several ``at end`` clauses, extreme names).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import random
+import re
+import shutil
+import tempfile
+import warnings
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import fuzzgen
+import numpy as np
+import pytest
+import utap as utap_module
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+from lxml import etree
+from test_agreement import automata, load_class
+from test_emitted_network import Network
+
+from rac import ir
+from rac.compiler import compile_text
+from rac.engine.evaluate import EvaluationError
+from rac.engine.product import MirrorArithmetic
+from rac.ir.significands import Unrepresentable
+from rac.model.data import ModelRangeError
+from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
+from rac.targets.uppaal.automaton import UppaalError, generate_uppaal, vocabulary
+
+COMPILER = shutil.which("cc") or shutil.which("gcc")
+pytestmark = pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")
+
+SCALE = 10_000  #: the automaton-alone model's significands (base 10, exponent 4)
+#: Periods whose rates (test_agreement's fractions, denominators up to 10) mostly stay whole significands.
+PERIODS = (Fraction(1, 10), Fraction(1, 2), Fraction(1), Fraction(2), Fraction(1, 4))
+
+
+@dataclasses.dataclass
+class Sample:
+    """What one implementation shows after a sample (or after the run's end, ``k`` then the last sample)."""
+
+    k: int
+    location: str
+    ended: bool
+    mirrors: tuple[int, ...] = ()
+    rewards: tuple[float, ...] = ()
+
+
+def controllable_environment(xml: str) -> str:
+    """``xml`` with the Environment's choosing edge (the one with a ``select``) controllable, so that
+    :class:`Network` takes its values from the test's choices instead of enumerating them."""
+    root = etree.fromstring(xml.encode("utf-8"))
+    found = 0
+    for transition in root.iter("transition"):
+        kinds = {label.get("kind"): label.text for label in transition.findall("label")}
+        if kinds.get("select"):
+            transition.set("controllable", "true")
+            found += 1
+    assert found == 1, found
+    # the declarations in the C subset test_emitted_network's interpreter reads: a bounded integer
+    # (`int[0,STEPS] count`, UPPAAL checks its range) and UPPAAL's `int` (32 bits) as int32_t
+    declaration = root.find("declaration")
+    declaration.text = re.sub(r"\bint\s*\[[^\]]*\]", "int32_t", declaration.text)
+    declaration.text = re.sub(r"\bint\b", "int32_t", declaration.text)
+    return etree.tostring(root, encoding="unicode")
+
+
+def validator(folder: Path) -> utap_module.Utap | None:
+    located = utap_module.locate()
+    return None if located.path is None else utap_module.Utap(located.path, folder)
+
+
+def truncates(automaton: ir.Automaton) -> bool:
+    """Whether a mirror may be truncated (then it drifts from reward * SCALE)."""
+    accruals = [mirror_accrual(rate, automaton.period, SCALE) for loc in automaton.locations for rate in loc.rates]
+    updates = [mirror_update(u.value, SCALE)
+               for e in [*automaton.all_edges(), *automaton.end_clauses] for u in e.updates]
+    return any(c.denominator != 1 for _, terms in [*accruals, *updates] for c, _ in terms)
+
+
+class Alone:
+    """One automaton's emitted model, compiled, with the engine's and the module's sides."""
+
+    def __init__(self, automaton: ir.Automaton, folder: Path):
+        self.a = automaton
+        model = generate_uppaal(automaton, source_name="random.ra", model_name="random.xml")
+        self.xml = model.xml
+        self.queries = model.queries
+        self.names = vocabulary(automaton)
+        self.net = Network(controllable_environment(model.xml), folder)
+        self.process = self.net.index[self.names.process]
+        # `system Timer, AUTOMATON, Environment;` (each renamed where a .ra name takes its name)
+        assert len(self.net.processes) == 3
+        self.timer = 0
+        #: the Timer's last location (`Done`, renamed where the automaton has one): only a silent self-loop
+        self.done = {loc for loc, edges in self.net.processes[0].edges.items()
+                     if edges and all(e.target == loc and e.sync is None for e in edges)}
+        assert len(self.done) == 1, self.done
+        environment = [e for es in self.net.processes[2].edges.values() for e in es if e.selects]
+        assert len(environment) == 1
+        edge = environment[0]
+        #: every select tuple the Environment's `assume` guard allows, with the inputs its update writes
+        self.valuations: dict[tuple[int, ...], dict[str, object]] = {}
+        for chosen in itertools.product(*[range(lo, hi + 1) for lo, hi in edge.bounds]):
+            if edge.guard is None or edge.guard(*chosen):
+                if edge.assign is not None:
+                    edge.assign(*chosen)
+                self.valuations[chosen] = self.read_inputs()
+        self.net.restore(self.net.initial())
+        assert self.valuations, "the emitted Environment allows no input"
+        self.arithmetic = MirrorArithmetic(automaton, SCALE)
+        self.module = load_class(automaton)
+        self.location_of = {uppaal: name for name, uppaal in self.names.locations.items()}
+
+    # ------------------------------------------------------------ the network
+    def read_inputs(self) -> dict[str, object]:
+        """The input globals of the network: booleans, numbers as significands."""
+        v = self.net.value
+        return {item.name: bool(v(self.names.bools[item.name])) if item.is_bool
+                else int(v(self.names.significands[item.name])) for item in self.a.inputs}
+
+    def network(self, choices: list[tuple[int, ...]]) -> tuple[list[Sample], list[dict[str, object]]]:
+        """The network's samples along ``choices``, and the inputs it read at each."""
+        net, v = self.net, self.net.value
+        state = net.initial()
+        net.restore(state)
+        state = net.instant(state, choices, lambda *_: None)
+        samples, inputs = [], []
+        for _ in range(len(choices) + 2):
+            if state[0][self.timer] in self.done:
+                break
+            state = net.delay(state)
+            state = net.instant(state, choices, lambda *_: None)
+            inputs.append(self.read_inputs())
+            samples.append(Sample(int(v(self.names.count)), self.location_of[state[0][self.process]],
+                                  state[0][self.timer] in self.done,
+                                  tuple(int(v(self.names.mirrors[r])) for r in self.a.rewards),
+                                  tuple(float(v(self.names.hybrids[r])) for r in self.a.rewards)))
+        else:
+            raise AssertionError("the network's run did not end")
+        assert state[2] == len(samples), "the Environment chose once per sample"
+        return samples, inputs
+
+    # ------------------------------------------------------------ the engine
+    def engine(self, inputs: list[dict[str, object]]) -> list[Sample]:
+        a, arithmetic = self.a, self.arithmetic
+        loc = np.array([a.initial], dtype=np.int64)
+        mirrors = np.zeros((1, len(a.rewards)), dtype=np.int64)
+        held = np.zeros((1, len(a.inputs)), dtype=np.int64)
+        first_reads = first_sample_reads(a)
+        out = []
+        for k, values in enumerate(inputs, start=1):
+            new = np.array([[int(values[item.name]) for item in a.inputs]], dtype=np.int64)
+            if k > 1 or not first_reads:
+                mirrors = arithmetic.accrue(loc, held, mirrors)
+            else:
+                mirrors = arithmetic.accrue(loc, new, mirrors)
+            loc, mirrors = arithmetic.edges(loc, new, mirrors)
+            ends = k == a.steps or (a.ending is not None and bool(arithmetic.guard(a.ending, new)[0]))
+            if ends:
+                mirrors = arithmetic.end(new, mirrors)
+            out.append(Sample(k, a.location_names[int(loc[0])], ends, tuple(int(m) for m in mirrors[0])))
+            held = new
+            if ends:
+                break
+        return out
+
+    # ------------------------------------------------------------ the Python target
+    def python(self, inputs: list[dict[str, object]]) -> list[Sample]:
+        ra = self.module()
+        ra.reset()
+        out = []
+        for k, read in enumerate(inputs, start=1):
+            values = {item.name: read[item.name] if item.is_bool else self.number(item, int(read[item.name]))
+                      for item in self.a.inputs}
+            ra.step(values)
+            ends = bool(ra.terminated)
+            if k == self.a.steps and not ends:
+                ra.end(values)
+                ends = True
+            out.append(Sample(ra.samples, ra.location, ends, (),
+                              tuple(float(ra.rewards[r]) for r in self.a.rewards)))
+            if ends:
+                break
+        return out
+
+    @staticmethod
+    def number(item: ir.Input, significand: int) -> float | int:
+        value = Fraction(significand, SCALE)
+        return int(value) if item.kind == "int" else float(value)
+
+    # ------------------------------------------------------------ one run
+    def compare(self, seed: int) -> list[Sample]:
+        rng = random.Random(seed)
+        choices = [rng.choice(sorted(self.valuations)) for _ in range(self.a.steps)]
+        inputs = [self.valuations[chosen] for chosen in choices]
+        engine = self.engine(inputs)  # first: it refuses where two edges are enabled at once
+        python = self.python(inputs)
+        network, read = self.network(choices)
+        assert read == inputs[:len(read)]
+        assert len(network) == len(engine) == len(python), (len(network), len(engine), len(python))
+        exact = not truncates(self.a)
+        for n, e, p in zip(network, engine, python):
+            where = f"sample {n.k} (inputs {inputs[n.k - 1]})"
+            assert (n.k, n.location, n.ended) == (e.k, e.location, e.ended) == (p.k, p.location, p.ended), where
+            assert n.mirrors == e.mirrors, f"{where}: mirrors emitted {n.mirrors} / engine {e.mirrors}"
+            for reward, hybrid, value, mirror in zip(self.a.rewards, n.rewards, p.rewards, n.mirrors):
+                assert hybrid == pytest.approx(value, rel=1e-9, abs=1e-9), \
+                    f"{where}: `{reward}` hybrid clock {hybrid} / Python target {value}"
+                if exact:
+                    assert mirror == pytest.approx(value * SCALE, rel=1e-9, abs=1e-6), \
+                        f"{where}: `{reward}` mirror {mirror} / Python target {value} * {SCALE}"
+        return network
+
+
+def build(automaton: ir.Automaton) -> Alone | None:
+    """The compiled comparison of ``automaton``, None where the emitted model does not exist (E0801)."""
+    folder = Path(tempfile.mkdtemp(prefix="rac-alone-"))
+    try:
+        alone = Alone(automaton, folder)
+    except UppaalError as failure:
+        assert re.search(r"\bE0801\b", str(failure)), str(failure)
+        return None
+    except Unrepresentable:
+        return None
+    check = validator(folder)
+    if check is not None:
+        check.validate(alone.xml, alone.queries, automaton.name)
+    return alone
+
+
+def run(automaton: ir.Automaton, seeds: list[int]) -> int:
+    """Every seed's run compared; how many samples were compared (0 where the model does not exist,
+    or where the engine refuses: two edges enabled at once, an int32 overflow)."""
+    alone = build(automaton)
+    if alone is None:
+        return 0
+    compared = 0
+    for seed in seeds:
+        try:
+            compared += len(alone.compare(seed))
+        except (EvaluationError, ModelRangeError):
+            continue
+    return compared
+
+
+def shortened(automaton: ir.Automaton, period: Fraction, samples: int) -> ir.Automaton:
+    return dataclasses.replace(automaton, period=period, horizon=period * samples)
+
+
+# ---------------------------------------------------------------- tests
+@settings(max_examples=40, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
+@given(automaton=automata(), period=st.sampled_from(PERIODS), samples=st.integers(1, 8),
+       seeds=st.lists(st.integers(0, 2**16), min_size=1, max_size=3))
+def test_random_automata_run_alike_in_uppaal_engine_and_python(automaton: ir.Automaton, period: Fraction,
+                                                               samples: int, seeds: list[int]) -> None:
+    assume(run(shortened(automaton, period, samples), seeds) > 0)
+
+
+#: C's keywords, which UPPAAL allows as names (the fuzzer's Python names include `float`, `long`...):
+#: a model that uses one is valid UPPAAL, but this test cannot compile it as C.
+C_KEYWORDS = frozenset((
+    "auto break case char const continue default do double else enum extern float for goto if inline int long "
+    "register restrict return short signed sizeof static struct switch typedef union unsigned void volatile while "
+    "_Bool _Complex _Imaginary").split())
+
+
+def c_compatible(automaton: ir.Automaton) -> bool:
+    names = [automaton.name, *automaton.location_names, *automaton.rewards, *(i.name for i in automaton.inputs)]
+    return not C_KEYWORDS.intersection(names)
+
+
+def _checked(program: Any) -> ir.Automaton | None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = compile_text(program.text, "fuzz.ra")
+    return result.raise_for_errors() if result.ok else None
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
+@given(program=fuzzgen.programs(), seed=st.integers(0, 2**16))
+def test_generated_programs_run_alike_in_uppaal_engine_and_python(program: Any, seed: int) -> None:
+    automaton = _checked(program)
+    assume(automaton is not None and automaton.steps <= 40)
+    assert automaton is not None
+    assume(c_compatible(automaton))
+    assume(run(automaton, [seed]) > 0)
+
+
+#: What the random automata rarely combine: a rate reading a real input (the first sample accrues on
+#: read?), an update reading a reward updated before it, fractional updates of negative rewards
+#: (C's division truncates towards zero), an int input with a negative range, `assume`, two `at end`
+#: clauses, `episode ends when`, and locations named like the Timer's (`Done`, `Timer`: renamed).
+METER = """\
+automaton Meter {
+    input near : bool
+    input gain : bool
+    input d    : real in [0, 1000]
+    input m    : int in [-3, 3]
+    assume near imply m >= 0
+    reward dist, pen
+    objective dist + pen
+    sample every 0.5
+    horizon 4
+    initial location Done { dist' == 2*d;    pen' == 0 }
+    location Timer        { dist' == 20 - d; pen' == -1 }
+    edge Done -> Timer when near && d < 29 do pen = pen - d, dist = dist + 3*pen
+    edge Timer -> Done when !near          do dist = dist - 2, pen = pen/3 - dist/7
+    at end when gain do pen = pen + 10
+    at end when d < 10 do dist = dist * 2
+    episode ends when m == -3 && !gain
+}
+"""
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_meter_runs_alike_in_uppaal_engine_and_python(seed: int) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        automaton = compile_text(METER, "meter.ra").raise_for_errors()
+    alone = build(automaton)
+    assert alone is not None
+    assert len(alone.compare(seed)) >= 1
