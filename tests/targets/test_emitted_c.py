@@ -310,7 +310,7 @@ def _compile(source_text: str, folder: Path, name: str) -> Path:
     return binary
 
 
-def _run(binary: Path, stdin: str) -> list[str]:
+def run_binary(binary: Path, stdin: str) -> list[str]:
     return subprocess.run([str(binary)], input=stdin, capture_output=True, text=True, check=True,
                           timeout=60).stdout.splitlines()
 
@@ -428,7 +428,7 @@ def check_bindings(automaton, data: ModelData, xml: str, folder: Path, before: n
     took both values (unless it reads a function the scenario pins)."""
     binary = compile_reader(xml, automaton, folder, model_vocabulary(automaton, data=data))
     lines = "".join(" ".join(map(str, [*b, kk - 1, *c, kk])) + "\n" for b, c, kk in zip(before, now, k))
-    emitted = np.asarray([[int(v) for v in line.split()] for line in _run(binary, lines)], dtype=np.int64)
+    emitted = np.asarray([[int(v) for v in line.split()] for line in run_binary(binary, lines)], dtype=np.int64)
     frame = Frame(k=k, ego=now, prev=Frame(k=k - 1, ego=before))
     engine = Bindings(Evaluator(data, automaton), automaton, "the test").read(frame)
     assert emitted.shape == engine.shape
@@ -797,22 +797,17 @@ def _same_doubles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return (a.view(np.int64) == b.view(np.int64)) | (np.isnan(a) & np.isnan(b))
 
 
-@needs_cc
-@pytest.mark.parametrize("case", CASES, ids=CASE_IDS)
-def test_every_query_expression_of_every_file(case: Case, tmp_path: Path) -> None:
-    """Every expression of the file's and the standard queries, printed as C, equals the engine's value."""
-    loaded = load(case, tmp_path)
-    printed, refused, printer = print_expressions(loaded.automaton, loaded.vocabulary)
-    # the printer refuses exactly what it should, for the reason it should (one expression each)
-    assert set(refused) == set(case.refused), refused
-    assert all(len(reasons) == 1 and case.refused[name] in reasons[0] for name, reasons in refused.items()), refused
-    assert printed
-    binary = compile_expressions(loaded, printed, printer, tmp_path)
+def compare_expressions(loaded: Loaded, printed: list[Printed], printer: UppaalPrinter, folder: Path,
+                        rng: random.Random, pinned: set[str], count: int = 300) -> tuple[list[str], list[str]]:
+    """``printed`` compiled as C and evaluated on ``count`` random states (:func:`query_states`) against
+    the engine: the expressions that differ (with the first state where they do) and the conditions
+    that kept one value over the states (unless they may: a pinned function, ``deadlock``)."""
+    binary = compile_expressions(loaded, printed, printer, folder)
     data, automaton = loaded.data, loaded.emitted
-    states = query_states(loaded, printed, random.Random(f"queries {case.id}"), 300)
+    states = query_states(loaded, printed, rng, count)
     period_units = loaded.vocabulary.period / loaded.vocabulary.unit
     assert period_units.denominator == 1
-    lines = _run(binary, _state_lines(states, automaton, data.scale, int(period_units)))
+    lines = run_binary(binary, _state_lines(states, automaton, data.scale, int(period_units)))
     rows = [line.split() for line in lines]
     assert len(rows) == states.n and all(len(row) == len(printed) for row in rows)
     frames = engine_frames(loaded, states)
@@ -837,7 +832,7 @@ def test_every_query_expression_of_every_file(case: Case, tmp_path: Path) -> Non
             if p.settled:
                 engine = (~states.settled | engine) if p.box else (states.settled & engine)
             differ = np.flatnonzero(emitted != engine)
-            if not _may_be_constant(p.expr, _pinned(case, data)) and len(set(engine.tolist())) < 2:
+            if not _may_be_constant(p.expr, pinned) and len(set(engine.tolist())) < 2:
                 constant.append(where)
         else:
             emitted = np.asarray([float(t) for t in tokens])
@@ -852,9 +847,24 @@ def test_every_query_expression_of_every_file(case: Case, tmp_path: Path) -> Non
                          truth=states.truth[row].tolist(), settled=bool(states.settled[row]))
             mismatches.append(f"{where}: the emitted model computes {tokens[row]}, the engine "
                               f"{engine_value.item()!r} in {differ.size} of {states.n} states; first: {state}")
+    return mismatches, constant
+
+
+@needs_cc
+@pytest.mark.parametrize("case", CASES, ids=CASE_IDS)
+def test_every_query_expression_of_every_file(case: Case, tmp_path: Path) -> None:
+    """Every expression of the file's and the standard queries, printed as C, equals the engine's value."""
+    loaded = load(case, tmp_path)
+    printed, refused, printer = print_expressions(loaded.automaton, loaded.vocabulary)
+    # the printer refuses exactly what it should, for the reason it should (one expression each)
+    assert set(refused) == set(case.refused), refused
+    assert all(len(reasons) == 1 and case.refused[name] in reasons[0] for name, reasons in refused.items()), refused
+    assert printed
+    mismatches, constant = compare_expressions(loaded, printed, printer, tmp_path, random.Random(f"queries {case.id}"),
+                                               _pinned(case, loaded.data))
     assert not mismatches, (f"{len(mismatches)} of {len(printed)} expressions differ:\n" + "\n".join(mismatches))
     # the states exercised both outcomes of every condition the scenario lets vary
-    assert not constant, f"conditions that kept one value over {states.n} states:\n" + "\n".join(constant)
+    assert not constant, "conditions that kept one value over the states:\n" + "\n".join(constant)
 
 
 # ---------------------------------------------------------------- 3. the ground truth
@@ -1020,7 +1030,7 @@ def test_the_ground_truth_is_the_emitted_ode(case: Case, tmp_path: Path) -> None
     actions = engine.states[:, 1:, 5:7].reshape(-1, 2)  # the jerk and turn in force over each period
     stdin = f"{TRUTH_STEPS}\n" + "".join(f"{' '.join(map(repr, state.tolist()))} {j} {u}\n"
                                          for state, (j, u) in zip(before, actions))
-    lines = _run(binary, stdin)
+    lines = run_binary(binary, stdin)
     start = np.asarray([float(v) for v in lines[0].split()])
     assert (start == truth[:, 0]).all(), (start, truth[0, 0])  # the same doubles: i2d(EGO_X0) ...
     emitted = np.asarray([[float(v) for v in line.split()] for line in lines[1:]])

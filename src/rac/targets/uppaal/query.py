@@ -409,7 +409,9 @@ class UppaalPrinter(UppaalSyntax):
         if ref.kind is ie.RefKind.LOCATION_INDEX:
             if dialect == FUNCTION:
                 raise QueryError("a location cannot be read in a condition computed with doubles")
-            return Printed(f"{v.process}.location", Level.ATOM)
+            # a double, as the engine reads it: UPPAAL's integer `-P.location` is 0 where the engine's
+            # -(0.0) is -0.0, so `1 / -P.location` would be inf in one and -inf in the other
+            return Printed(f"{v.process}.location * 1.0", Level.MUL)
         if ref.kind is not ie.RefKind.MODEL:
             raise QueryError(f"`{ref.name}` is not a number")
         entry = ref.model
