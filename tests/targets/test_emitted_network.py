@@ -47,17 +47,21 @@ the network must deadlock at the same decision (no choice of the Action enabled)
 under a keep-away rule exercises. Two more tests: a changed label of
 the emitted model makes the comparison fail (it is live), and a binding that reads ``prev(turn)``
 and ``prev(jerk)`` reads the same value at the first sample whichever order UPPAAL takes the
-committed edges at time 0 in.
+committed edges at time 0 in. Last, test_agreement's random automata (several locations, rates reading a
+real and an int input, rational and negative update coefficients, `at end`, `episode ends when`) with
+bindings in ``avoidable_obstacle`` (:data:`RANDOM_BINDINGS`), a few runs each.
 """
 
 from __future__ import annotations
 
 import ctypes
 import dataclasses
+import functools
 import math
 import re
 import shutil
 import subprocess
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -65,17 +69,24 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
 from lxml import etree
+from test_agreement import automata
 from tiny_scenarios import TINY_SCENARIOS, Block, GoalBox, StraightRoad, TinySettings
 
 from rac import ir
 from rac.compiler import compile_file
+from rac.engine.evaluate import EvaluationError
 from rac.engine.explore import action_pairs
 from rac.engine.product import ACCRUED, ENDED, READ, SAMPLED, MirrorArithmetic, ProductGraph, explore_product
+from rac.ir.significands import Unrepresentable
 from rac.model import ModelData, NativeModel
 from rac.model.commonroad import EgoStart
+from rac.model.data import ModelRangeError
 from rac.model.scenes import write_scene
 from rac.runtime.semantics import mirror_accrual, mirror_update
+from rac.targets.uppaal.automaton import UppaalError
 from rac.targets.uppaal.declarations import C_PRELUDE
 from rac.targets.uppaal.model import generate_uppaal_model, model_vocabulary
 
@@ -1034,3 +1045,78 @@ def test_prev_of_a_sticky_collision_reads_the_previous_sample(tmp_path: Path) ->
     for node in first[:20]:
         comparison.run(decisions_to(g, int(node)) + walk(g, int(node), rng))
     assert comparison.run_many(seed=19, runs=20) >= 20
+
+
+# ---------------------------------------------------------------- random automata in a scenario
+#: Bindings for test_agreement's random automata (inputs b, c: bool; x: real in [-5, 5]; m: int in
+#: [0, 3]): values that vary along the runs of the tiny scenario avoidable_obstacle, numbers beyond
+#: their declared ranges now and then (bindings are not clipped) and not whole for the int input.
+RANDOM_BINDINGS = ("b = acc > 0 || collide()",
+                   "c = v > prev(v) || goal()",
+                   "x = fmax(-6, fmin(6, dist_goal() / 4 - 5))",
+                   "m = fmin(3.5, v / 2)")
+RANDOM_HEAD = """\
+automaton Random {{
+    input b : bool
+    input c : bool
+    input x : real in [-5, 5]
+    input m : int in [0, 3]
+    reward r0
+    objective r0
+    sample every 0.5
+    horizon {horizon}
+    initial location L0 {{ r0' == 1 }}
+    edge L0 -> L0 when b && c && x < 0 && m > 1
+{block}}}
+"""
+
+
+@functools.cache
+def random_base(folder: Path, horizon: int) -> tuple[ir.Automaton, ModelData]:
+    """The model block every random automaton is put into (its inputs as test_agreement's)."""
+    text = RANDOM_HEAD.format(horizon=horizon, block=tiny_block(folder, "avoidable_obstacle", RANDOM_BINDINGS))
+    path = folder / "random.ra"
+    path.write_text(text, encoding="utf-8")
+    result = compile_file(path)
+    automaton = result.raise_for_errors()
+    assert result.model_data is not None
+    return automaton, result.model_data
+
+
+class RandomComparison(Comparison):
+    """:class:`Comparison` for automata whose updates may scale a reward by more than 1 (``r = 8/3 * r``):
+    there a mirror's truncation grows with the reward, so its hybrid clock may drift from it by more
+    than a unit per sample (as documented); the mirrors are still compared with the engine's exactly."""
+
+    def __init__(self, scenario: Scenario, folder: Path):
+        super().__init__(scenario, folder)
+        a = scenario.automaton
+        self.amplifies = any(sum(abs(c) for name, c in u.value.terms if name in a.rewards) > 1
+                             for e in [*a.all_edges(), *a.end_clauses] for u in e.updates)
+
+    def check_rewards(self, where: str) -> None:
+        if not (self.amplifies and self.truncates):
+            super().check_rewards(where)
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
+@given(random=automata(), horizon=st.sampled_from([2, 3]), seed=st.integers(0, 2**16))
+def test_random_automata_run_alike_in_the_emitted_network_and_the_product(
+        random: ir.Automaton, horizon: int, seed: int, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """test_agreement's random automata (rates reading inputs, rational and negative update coefficients,
+    several locations, `at end`, `episode ends when`) with bindings in the tiny scenario avoidable_obstacle:
+    the emitted network and the engine's product along random action sequences, as above."""
+    folder = tmp_path_factory.getbasetemp() / "random-network"  # the session's (hypothesis runs many examples)
+    folder.mkdir(exist_ok=True)
+    base, data = random_base(folder, horizon)
+    automaton = dataclasses.replace(random, name=base.name, inputs=base.inputs, model=base.model, period=base.period,
+                                    horizon=base.horizon, queries=(), standard_queries=(), priority=random.rewards)
+    try:
+        xml = generate_uppaal_model(automaton, data=data).xml
+        graph = explore_product(data, automaton)
+    except (UppaalError, Unrepresentable, EvaluationError, ModelRangeError):
+        assume(False)  # E0801, two edges enabled where the bindings break `assume`, a mirror beyond int32
+        return
+    case = Path(tempfile.mkdtemp(dir=folder))
+    assert RandomComparison(Scenario(automaton, data, xml, graph), case).run_many(seed, runs=6) >= 6
