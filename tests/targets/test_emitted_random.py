@@ -12,9 +12,10 @@ by ``generate_uppaal_model`` (and validated with UPPAAL's parser when it is avai
 inputs compared: the same bit for every boolean input, the same significand for every numeric one.
 
 The queries likewise: random conditions and numbers over the automaton's names (inputs, rewards,
-locations, ``Probe.location``) mixed with the model's, written as ``E<>``, ``A[]`` (symbolic: integer
-mirrors and significands, doubles hoisted into functions), ``Pr`` and ``simulate`` (statistical:
-rewards as hybrid clocks), printed by the UPPAAL target's query printer as C and compared with the
+locations, ``Probe.location``) mixed with the model's, written as ``E<>``, ``A[]``, ``E[]``, ``A<>``,
+``-->`` (symbolic: integer mirrors and significands, doubles hoisted into functions), ``Pr``,
+``E[..](max:/min:)``, ``simulate`` and learning objectives (statistical: rewards as hybrid clocks) and
+discrete observations (integers), printed by the UPPAAL target's query printer as C and compared with the
 engine's :class:`rac.engine.evaluate.Evaluator` on random states, bit for bit
 (test_emitted_c's :func:`compare_expressions`, whose states put comparisons next to their thresholds).
 """
@@ -248,12 +249,20 @@ automaton Probe {{{{
 @st.composite
 def queries(draw: st.DrawFn) -> tuple[str, ...]:
     lines = []
-    for i, form in enumerate(draw(st.lists(st.sampled_from(["E<>", "A[]", "Pr<>", "Pr[]", "simulate"]),
-                                           min_size=1, max_size=4))):
-        if form in ("E<>", "A[]"):
+    forms = ["E<>", "A[]", "E[]", "A<>", "-->", "Pr<>", "Pr[]", "simulate", "max", "min", "learn"]
+    for i, form in enumerate(draw(st.lists(st.sampled_from(forms), min_size=1, max_size=4))):
+        if form in ("E<>", "A[]", "E[]", "A<>"):
             lines.append(f"query Q{i}: {form} {draw(_query_conditions())}")
+        elif form == "-->":
+            lines.append(f"query Q{i}: {draw(_query_conditions())} --> {draw(_query_conditions())}")
         elif form.startswith("Pr"):
             lines.append(f"query Q{i}: Pr[<=4]({form[2:]} {draw(_query_conditions())})")
+        elif form in ("max", "min"):
+            lines.append(f"query Q{i}: E[<=4; 10]({form}: {draw(_query_numbers(False))})")
+        elif form == "learn":  # discrete observations: integers (linear in values held as integers)
+            discrete = draw(st.lists(_query_numbers(True), min_size=1, max_size=2))
+            lines.append(f"query Q{i}: strategy S{i} = maxE({draw(_query_numbers(False))})[<=4]"
+                         f"{{{{{', '.join(discrete)}}}}}->{{{{x, v}}}}: <> {draw(_query_conditions())}")
         else:
             lines.append(f"query Q{i}: simulate[<=4; 1]{{{{{draw(_query_numbers(False))}}}}}")
     return tuple(lines)
