@@ -25,13 +25,15 @@ UPPAAL's parser when it is available (tests/support/utap.py; without it the comp
 Automata: test_agreement's IR strategy (``automata()``: up to four locations, rates reading a real
 and an int input, updates with rational coefficients over rewards and inputs, negative ones among
 them, guards over partitions of the inputs, ``at end`` clauses, ``episode ends when``, ``assume``),
-at periods whose rates the significands can represent, and the fuzzer's generated programs
+at periods whose rates the significands can represent and at other representations than 10^4 (a `model`
+block's base and exponent: 10^2, 10^6, 2^12, 3^5), and the fuzzer's generated programs
 (tests/support/fuzzgen.py: ``*`` edges, constants, several ``at end`` clauses, extreme names).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import random
 import re
@@ -53,7 +55,7 @@ from test_agreement import automata, load_class
 from test_emitted_network import Network
 
 from rac import ir
-from rac.compiler import compile_text
+from rac.compiler import compile_file, compile_text
 from rac.engine.evaluate import EvaluationError
 from rac.engine.product import MirrorArithmetic
 from rac.ir.significands import Unrepresentable
@@ -64,7 +66,6 @@ from rac.targets.uppaal.automaton import UppaalError, generate_uppaal, vocabular
 COMPILER = shutil.which("cc") or shutil.which("gcc")
 pytestmark = pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc or gcc) on PATH")
 
-SCALE = 10_000  #: the automaton-alone model's significands (base 10, exponent 4)
 #: Periods whose rates (test_agreement's fractions, denominators up to 10) mostly stay whole significands.
 PERIODS = (Fraction(1, 10), Fraction(1, 2), Fraction(1), Fraction(2), Fraction(1, 4))
 
@@ -104,10 +105,10 @@ def validator(folder: Path) -> utap_module.Utap | None:
     return None if located.path is None else utap_module.Utap(located.path, folder)
 
 
-def truncates(automaton: ir.Automaton) -> bool:
-    """Whether a mirror may be truncated (then it drifts from reward * SCALE)."""
-    accruals = [mirror_accrual(rate, automaton.period, SCALE) for loc in automaton.locations for rate in loc.rates]
-    updates = [mirror_update(u.value, SCALE)
+def truncates(automaton: ir.Automaton, scale: int) -> bool:
+    """Whether a mirror may be truncated (then it drifts from reward * scale)."""
+    accruals = [mirror_accrual(rate, automaton.period, scale) for loc in automaton.locations for rate in loc.rates]
+    updates = [mirror_update(u.value, scale)
                for e in [*automaton.all_edges(), *automaton.end_clauses] for u in e.updates]
     return any(c.denominator != 1 for _, terms in [*accruals, *updates] for c, _ in terms)
 
@@ -142,7 +143,9 @@ class Alone:
                 self.valuations[chosen] = self.read_inputs()
         self.net.restore(self.net.initial())
         assert self.valuations, "the emitted Environment allows no input"
-        self.arithmetic = MirrorArithmetic(automaton, SCALE)
+        #: the significands' scale: 10^4, or a `model` block's base^exponent
+        self.scale = self.names.scale
+        self.arithmetic = MirrorArithmetic(automaton, self.scale)
         self.module = load_class(automaton)
         self.location_of = {uppaal: name for name, uppaal in self.names.locations.items()}
 
@@ -218,9 +221,8 @@ class Alone:
                 break
         return out
 
-    @staticmethod
-    def number(item: ir.Input, significand: int) -> float | int:
-        value = Fraction(significand, SCALE)
+    def number(self, item: ir.Input, significand: int) -> float | int:
+        value = Fraction(significand, self.scale)
         return int(value) if item.kind == "int" else float(value)
 
     # ------------------------------------------------------------ one run
@@ -233,7 +235,7 @@ class Alone:
         network, read = self.network(choices)
         assert read == inputs[:len(read)]
         assert len(network) == len(engine) == len(python), (len(network), len(engine), len(python))
-        exact = not truncates(self.a)
+        exact = not truncates(self.a, self.scale)
         for n, e, p in zip(network, engine, python):
             where = f"sample {n.k} (inputs {inputs[n.k - 1]})"
             assert (n.k, n.location, n.ended) == (e.k, e.location, e.ended) == (p.k, p.location, p.ended), where
@@ -242,8 +244,8 @@ class Alone:
                 assert hybrid == pytest.approx(value, rel=1e-9, abs=1e-9), \
                     f"{where}: `{reward}` hybrid clock {hybrid} / Python target {value}"
                 if exact:
-                    assert mirror == pytest.approx(value * SCALE, rel=1e-9, abs=1e-6), \
-                        f"{where}: `{reward}` mirror {mirror} / Python target {value} * {SCALE}"
+                    assert mirror == pytest.approx(value * self.scale, rel=1e-9, abs=1e-6), \
+                        f"{where}: `{reward}` mirror {mirror} / Python target {value} * {self.scale}"
         return network
 
 
@@ -278,18 +280,36 @@ def run(automaton: ir.Automaton, seeds: list[int]) -> int:
     return compared
 
 
-def shortened(automaton: ir.Automaton, period: Fraction, samples: int) -> ir.Automaton:
-    return dataclasses.replace(automaton, period=period, horizon=period * samples)
+def shortened(automaton: ir.Automaton, period: Fraction, samples: int,
+              representation: tuple[int, int] | None = None) -> ir.Automaton:
+    """``automaton`` over ``samples`` samples of ``period``; with ``representation``, its significands at
+    that (base, exponent), as a `model` block would set them (the automaton alone reads nothing else of it)."""
+    shorter = dataclasses.replace(automaton, period=period, horizon=period * samples)
+    if representation is None:
+        return shorter
+    base, exponent = representation
+    return dataclasses.replace(shorter, model=dataclasses.replace(model_spec(), base=base, exponent=exponent))
+
+
+@functools.cache
+def model_spec() -> ir.ModelSpec:
+    """A checked `model` block (examples/paper/model.ra's)."""
+    paper = Path(__file__).resolve().parents[2] / "examples" / "paper" / "model.ra"
+    spec = compile_file(paper).raise_for_errors().model
+    assert spec is not None
+    return spec
 
 
 # ---------------------------------------------------------------- tests
 @settings(max_examples=40, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
 @given(automaton=automata(), period=st.sampled_from(PERIODS), samples=st.integers(1, 8),
+       representation=st.sampled_from([None, None, (10, 2), (10, 6), (2, 12), (3, 5)]),
        seeds=st.lists(st.integers(0, 2**16), min_size=1, max_size=3))
 def test_random_automata_run_alike_in_uppaal_engine_and_python(automaton: ir.Automaton, period: Fraction,
-                                                               samples: int, seeds: list[int]) -> None:
-    assume(run(shortened(automaton, period, samples), seeds) > 0)
+                                                               samples: int, representation: tuple[int, int] | None,
+                                                               seeds: list[int]) -> None:
+    assume(run(shortened(automaton, period, samples, representation), seeds) > 0)
 
 
 #: C's keywords, which UPPAAL allows as names (the fuzzer's Python names include `float`, `long`...):
