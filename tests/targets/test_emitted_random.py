@@ -173,11 +173,13 @@ def test_random_bindings_read_alike_in_the_emitted_model_and_the_engine(lines: t
 QUERY_LITERALS = ("0", "1", "2", "0.5", "0.0015", "20.0005", "3", "-4", "1000", "0.25")
 
 
-def _query_numbers(integers: bool) -> st.SearchStrategy[str]:
+def _query_numbers(integers: bool, truth: bool = False) -> st.SearchStrategy[str]:
     """Numbers of a query; ``integers``: only values the model holds as integers (inputs' significands,
-    mirrors, the ego, ``time``) and constants, so that symbolic comparisons stay exact."""
+    mirrors, the ego, ``time``) and constants, so that symbolic comparisons stay exact; ``truth``: the
+    true state too (statistical queries only)."""
     held = ("d", "gap", "r", "s", "x", "v", "acc", "head", "time", "Probe.location")
-    doubles = ("mindist()", "dist_goal()", "collision_distance", "length")
+    doubles = ("mindist()", "dist_goal()", "collision_distance", "length", "sensor_error", "max_speed",
+               *(("true_x", "true_v", "true_head") if truth else ()))
     leaves = st.one_of(st.sampled_from(held), st.sampled_from(QUERY_LITERALS),
                        *(() if integers else (st.sampled_from(doubles),)))
 
@@ -200,9 +202,9 @@ def _query_numbers(integers: bool) -> st.SearchStrategy[str]:
     return st.recursive(leaves, extend, max_leaves=4)
 
 
-def _query_conditions() -> st.SearchStrategy[str]:
+def _query_conditions(truth: bool = False) -> st.SearchStrategy[str]:
     def compare(integers: bool) -> st.SearchStrategy[str]:
-        numbers = _query_numbers(integers)
+        numbers = _query_numbers(integers, truth and not integers)
         return st.builds(lambda a, op, b: f"{a} {op} {b}", numbers,
                          st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), numbers)
 
@@ -256,15 +258,15 @@ def queries(draw: st.DrawFn) -> tuple[str, ...]:
         elif form == "-->":
             lines.append(f"query Q{i}: {draw(_query_conditions())} --> {draw(_query_conditions())}")
         elif form.startswith("Pr"):
-            lines.append(f"query Q{i}: Pr[<=4]({form[2:]} {draw(_query_conditions())})")
+            lines.append(f"query Q{i}: Pr[<=4]({form[2:]} {draw(_query_conditions(truth=True))})")
         elif form in ("max", "min"):
-            lines.append(f"query Q{i}: E[<=4; 10]({form}: {draw(_query_numbers(False))})")
+            lines.append(f"query Q{i}: E[<=4; 10]({form}: {draw(_query_numbers(False, truth=True))})")
         elif form == "learn":  # discrete observations: integers (linear in values held as integers)
             discrete = draw(st.lists(_query_numbers(True), min_size=1, max_size=2))
             lines.append(f"query Q{i}: strategy S{i} = maxE({draw(_query_numbers(False))})[<=4]"
                          f"{{{{{', '.join(discrete)}}}}}->{{{{x, v}}}}: <> {draw(_query_conditions())}")
         else:
-            lines.append(f"query Q{i}: simulate[<=4; 1]{{{{{draw(_query_numbers(False))}}}}}")
+            lines.append(f"query Q{i}: simulate[<=4; 1]{{{{{draw(_query_numbers(False, truth=True))}}}}}")
     return tuple(lines)
 
 
