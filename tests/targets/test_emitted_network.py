@@ -49,7 +49,9 @@ the emitted model makes the comparison fail (it is live), and a binding that rea
 and ``prev(jerk)`` reads the same value at the first sample whichever order UPPAAL takes the
 committed edges at time 0 in. Last, test_agreement's random automata (several locations, rates reading a
 real and an int input, rational and negative update coefficients, `at end`, `episode ends when`) with
-bindings in ``avoidable_obstacle`` (:data:`RANDOM_BINDINGS`), a few runs each.
+bindings in ``avoidable_obstacle`` (:data:`RANDOM_BINDINGS`), a few runs each; and with bindings within
+the inputs' ranges (:data:`IN_RANGE_BINDINGS`), the learning episodes (the batch runtime's rewards, what a
+learner gets) along the product's runs.
 """
 
 from __future__ import annotations
@@ -81,9 +83,11 @@ from rac.engine.evaluate import EvaluationError
 from rac.engine.explore import action_pairs
 from rac.engine.product import ACCRUED, ENDED, READ, SAMPLED, MirrorArithmetic, ProductGraph, explore_product
 from rac.ir.significands import Unrepresentable
+from rac.learning.episodes import EpisodeBatch
 from rac.model import ModelData, NativeModel
 from rac.model.commonroad import EgoStart
 from rac.model.data import ModelRangeError
+from rac.model.program import CheckedProgram
 from rac.model.scenes import write_scene
 from rac.runtime.semantics import mirror_accrual, mirror_update
 from rac.targets.uppaal.automaton import UppaalError
@@ -1072,9 +1076,10 @@ automaton Random {{
 
 
 @functools.cache
-def random_base(folder: Path, horizon: int) -> tuple[ir.Automaton, ModelData]:
+def random_base(folder: Path, horizon: int, bindings: tuple[str, ...] = RANDOM_BINDINGS
+                ) -> tuple[ir.Automaton, ModelData]:
     """The model block every random automaton is put into (its inputs as test_agreement's)."""
-    text = RANDOM_HEAD.format(horizon=horizon, block=tiny_block(folder, "avoidable_obstacle", RANDOM_BINDINGS))
+    text = RANDOM_HEAD.format(horizon=horizon, block=tiny_block(folder, "avoidable_obstacle", bindings))
     path = folder / "random.ra"
     path.write_text(text, encoding="utf-8")
     result = compile_file(path)
@@ -1120,3 +1125,60 @@ def test_random_automata_run_alike_in_the_emitted_network_and_the_product(
         return
     case = Path(tempfile.mkdtemp(dir=folder))
     assert RandomComparison(Scenario(automaton, data, xml, graph), case).run_many(seed, runs=6) >= 6
+
+
+#: :data:`RANDOM_BINDINGS` kept within the inputs' declared ranges (whole for the int input): there the
+#: learning episodes (rac.learning.episodes, on the Python runtime's floats) clip nothing, so they must
+#: follow the product's runs exactly.
+IN_RANGE_BINDINGS = ("b = acc > 0 || collide()",
+                     "c = v > prev(v) || goal()",
+                     "x = fmax(-5, fmin(5, dist_goal() / 4 - 5))",
+                     "m = 2")
+
+
+@settings(max_examples=15, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
+@given(random=automata(), seed=st.integers(0, 2**16))
+def test_random_automata_learn_on_the_products_runs(random: ir.Automaton, seed: int,
+                                                    tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The learning episodes (:class:`rac.learning.episodes.EpisodeBatch`: the batch runtime, the reward a
+    learner gets) along random action sequences against the product (rac verify's, the emitted model's
+    integer arithmetic): the same location at every decision, the rewards equal to the mirrors over the
+    scale (where no mirror truncates), and the run's end at the same sample."""
+    folder = tmp_path_factory.getbasetemp() / "random-episodes"
+    folder.mkdir(exist_ok=True)
+    base, data = random_base(folder, 2, IN_RANGE_BINDINGS)
+    automaton = dataclasses.replace(random, name=base.name, inputs=base.inputs, model=base.model, period=base.period,
+                                    horizon=base.horizon, queries=(), standard_queries=(), priority=random.rewards,
+                                    assumptions=())
+    try:
+        graph = explore_product(data, automaton)
+        generate_uppaal_model(automaton, data=data)
+    except (UppaalError, Unrepresentable, EvaluationError, ModelRangeError):
+        assume(False)
+        return
+    exact = not any(c.denominator != 1 for _, terms in
+                    [*(mirror_accrual(rate, automaton.period, data.scale) for loc in automaton.locations
+                       for rate in loc.rates),
+                     *(mirror_update(u.value, data.scale) for e in [*automaton.all_edges(), *automaton.end_clauses]
+                       for u in e.updates)] for c, _ in terms)
+    episodes = EpisodeBatch(CheckedProgram(automaton, data), goal=None)
+    rng = np.random.default_rng(seed)
+    for _ in range(5):
+        actions = walk(graph, graph.initial, rng)
+        nodes = engine_path(graph, data.decide_every, actions)
+        episodes.reset(1)
+        for step, action in enumerate(actions):
+            result = episodes.step(np.array([action]))
+            k = int(episodes.k[0])
+            node = nodes.get((k, ENDED), nodes[(k, SAMPLED)])
+            where = f"actions {actions[:step + 1]}, sample {k}"
+            assert automaton.location_names[int(episodes.location[0])] == \
+                automaton.location_names[int(graph.location[node])], where
+            if exact:
+                for reward in automaton.rewards:
+                    assert float(episodes.rewards[reward][0]) * data.scale == pytest.approx(
+                        int(graph.mirrors[reward][node]), rel=1e-9, abs=1e-6), (where, reward)
+            assert bool(result.ended[0] or result.truncated[0]) == bool(graph.terminal()[node]), where
+        assert episodes.done[0]
+        assert episodes.clipped == 0
