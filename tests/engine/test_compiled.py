@@ -10,6 +10,7 @@ compiled code against the same with the walk (``compiled=False``).
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 from functools import cache
 from pathlib import Path
@@ -23,7 +24,7 @@ from rac import ir
 from rac.compiler import compile_file
 from rac.engine.bindings import Bindings
 from rac.engine.compiled import compile_expressions
-from rac.engine.evaluate import Evaluator, Frame
+from rac.engine.evaluate import Evaluator, Frame, c_round
 from rac.ir import expr as ie
 from rac.ir.vocabulary import EGO_STATE, MODEL_FUNCTIONS, TRUE_STATE
 
@@ -262,3 +263,23 @@ def test_a_sample_calls_each_model_function_once(monkeypatch: pytest.MonkeyPatch
         samples += int(batch.k.max()) - before
     assert samples > 0
     assert calls == dict.fromkeys(("sense", "mindist", "offroad", "goal", "dist_goal"), samples)
+
+
+def test_round_is_cs_round_in_the_walk_and_the_compiled_code() -> None:
+    """C's round(), which the emitted model calls: half away from zero, exact just below a half and
+    beyond 2**52, the sign of zero kept (the engine computed ``sign(x) * floor(|x| + 0.5)``)."""
+    _, evaluator = paper()
+    values = [0.5, -0.5, 2.5, -2.5, 0.49999999999999994, -0.49999999999999994, 2.0**52 + 1, -(2.0**52 + 1), -0.0,
+              -0.3, 0.3, 1.5, float("inf"), -float("inf")]
+    expected = [1.0, -1.0, 3.0, -3.0, 0.0, -0.0, 2.0**52 + 1, -(2.0**52 + 1), -0.0, -0.0, 0.0, 2.0, float("inf"),
+                -float("inf")]
+    exprs = [ie.call("round", ie.Const(Fraction(value) if math.isfinite(value) else Fraction(0))) for value in values]
+    frame = Frame(k=np.array([1]), ego=np.zeros((1, 7), dtype=np.int64))
+    finite = [i for i, value in enumerate(values) if math.isfinite(value) and value != 0]
+    compiled = compile_expressions(evaluator, [exprs[i] for i in finite])(frame)
+    for j, i in enumerate(finite):
+        walked = np.asarray(evaluator.evaluate(exprs[i], frame), dtype=np.float64)
+        assert walked.tobytes() == np.float64(expected[i]).tobytes(), (values[i], walked)
+        assert np.asarray(compiled[j], dtype=np.float64).reshape(-1)[:1].tobytes() == \
+            np.float64(expected[i]).tobytes(), (values[i], compiled[j])
+    assert np.asarray(c_round(np.array(values))).tobytes() == np.array(expected).tobytes()

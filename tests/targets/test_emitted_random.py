@@ -323,3 +323,12 @@ def test_a_negated_location_index_is_the_engines_double(tmp_path: Path) -> None:
     assert compare_queries(lines, tmp_path, seed=3) == 4
     text = PROBE.format(queries="".join(f"    {line}\n" for line in lines)).format(scenario="unused.xml")
     assert "1 / -Probe.location" in text
+
+
+def test_round_is_cs_round(tmp_path: Path) -> None:
+    """Found by the random queries' neighbourhood: the engine's `round()` was ``sign(x) * floor(|x| + 0.5)``,
+    not C's (the emitted model's): 0.49999999999999994 became 1 (``|x| + 0.5`` rounds up to 1.0), 2**52 + 1
+    became 2**52 + 2, and a negative zero lost its sign. The C functions and the engine now agree."""
+    lines = ("query Q0: simulate[<=4; 1]{{round(time * 0 + 0.49999999999999994), round(-r * 0), "
+             "round(time * 0 + 4503599627370497), round(-(time * 0 + 0.49999999999999994))}}",)
+    assert compare_queries(lines, tmp_path, seed=3) == 4

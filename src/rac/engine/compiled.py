@@ -35,12 +35,14 @@ from typing import Any
 import numpy as np
 
 from rac.core.numbers import INT32_BOUND
-from rac.engine.evaluate import Evaluator, Frame, int_sum
+from rac.engine.evaluate import Evaluator, Frame, c_round, int_sum
 from rac.ir import expr as ie
 from rac.ir.vocabulary import Holding
 
 __all__ = ["CompiledExpressions", "compile_expressions"]
 
+#: The names the compiled code calls besides its constants (folding a constant calls the same).
+_NAMES: dict[str, Any] = {"np": np, "int_sum": int_sum, "c_round": c_round}
 _SAFE_INT64 = 2**62  # as int_sum: below it, no partial sum of an exact form overflows int64
 _MATH_1 = {"abs": "np.abs", "fabs": "np.abs", "sqrt": "np.sqrt", "floor": "np.floor", "ceil": "np.ceil",
            "trunc": "np.trunc"}
@@ -60,7 +62,7 @@ class CompiledExpressions:
         writer = _Writer(evaluator)
         results = [writer.node(expr, 0) for expr in self.expressions]
         self.source = writer.function(results)
-        namespace: dict[str, Any] = {"np": np, "int_sum": int_sum, **writer.constants}
+        namespace: dict[str, Any] = {**_NAMES, **writer.constants}
         exec(compile(self.source, "<rac compiled expressions>", "exec"), namespace)  # noqa: S102
         self._function: Callable[[Frame, Evaluator], list[Any]] = namespace["compiled"]
 
@@ -105,7 +107,7 @@ class _Writer:
         more constant (the same numpy call, made once now: folding changes no value)."""
         if operands and all(operand in self.constants for operand in operands):
             with np.errstate(divide="ignore", invalid="ignore"):
-                return self.constant(eval(text, {"np": np, **self.constants}))  # noqa: S307
+                return self.constant(eval(text, {**_NAMES, **self.constants}))  # noqa: S307
         name = f"t{len(self.lines)}"
         self.lines.append(f"{name} = {text}")
         return name
@@ -198,8 +200,8 @@ class _Writer:
             args.append(self.emit(f"np.asarray({operand}, dtype=np.float64)", operand))
         if name in _MATH_1:
             return self.emit(f"{_MATH_1[name]}({args[0]})", *args)
-        if name == "round":  # C's round: half away from zero, as the evaluator
-            return self.emit(f"np.sign({args[0]}) * np.floor(np.abs({args[0]}) + 0.5)", *args)
+        if name == "round":  # C's round, the evaluator's own function
+            return self.emit(f"c_round({args[0]})", *args)
         return self.emit(f"np.{name}({args[0]}, {args[1]})", *args)
 
     # ------------------------------------------------------------ comparisons

@@ -41,7 +41,7 @@ from rac.model.batch import batch_model
 from rac.model.data import ModelData
 from rac.model.sample import collides
 
-__all__ = ["EvaluationError", "Evaluator", "Frame", "int_sum"]
+__all__ = ["EvaluationError", "Evaluator", "Frame", "c_round", "int_sum"]
 
 _MATH_1 = {"abs": np.abs, "fabs": np.abs, "sqrt": np.sqrt, "floor": np.floor, "ceil": np.ceil, "trunc": np.trunc}
 _COMPARE = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal, "==": np.equal,
@@ -110,6 +110,18 @@ def int_sum(const: int, terms: Sequence[tuple[int, np.ndarray]], n: int) -> np.n
     for c, column in terms:
         total = total + c * column.astype(dtype)
     return total
+
+
+def c_round(x: np.ndarray) -> np.ndarray:
+    """C's ``round()`` (the emitted model's): half away from zero, the sign of zero kept, exact.
+
+    numpy rounds half to even; ``sign(x) * floor(|x| + 0.5)`` is not C's either: ``|x| + 0.5`` rounds
+    0.49999999999999994 up to 1 and 2**52 + 1 to an even number, and ``sign(-0.0)`` loses the minus.
+    ``x - trunc(x)`` is exact, so the comparison with 0.5 decides the half exactly."""
+    whole = np.trunc(x)
+    with np.errstate(invalid="ignore"):  # inf - inf: no fraction, the whole value stays
+        away = np.abs(x - whole) >= 0.5
+    return np.where(away, whole + np.copysign(1.0, x), whole)
 
 
 class Evaluator:
@@ -241,8 +253,8 @@ class Evaluator:
         if name in _MATH_1:
             with np.errstate(invalid="ignore"):
                 return _MATH_1[name](args[0])
-        if name == "round":  # C's round: half away from zero (numpy rounds half to even)
-            return np.sign(args[0]) * np.floor(np.abs(args[0]) + 0.5)
+        if name == "round":  # C's round (numpy rounds half to even)
+            return c_round(args[0])
         if name == "fmin":
             return np.fmin(args[0], args[1])
         if name == "fmax":
