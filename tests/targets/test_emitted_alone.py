@@ -249,9 +249,9 @@ class Alone:
         return network
 
 
-def build(automaton: ir.Automaton) -> Alone | None:
-    """The compiled comparison of ``automaton``, None where the emitted model does not exist (E0801)."""
-    folder = Path(tempfile.mkdtemp(prefix="rac-alone-"))
+def build(automaton: ir.Automaton, folder: Path) -> Alone | None:
+    """The compiled comparison of ``automaton`` (its files in ``folder``), None where the emitted model
+    does not exist (E0801)."""
     try:
         alone = Alone(automaton, folder)
     except UppaalError as failure:
@@ -268,16 +268,17 @@ def build(automaton: ir.Automaton) -> Alone | None:
 def run(automaton: ir.Automaton, seeds: list[int]) -> int:
     """Every seed's run compared; how many samples were compared (0 where the model does not exist,
     or where the engine refuses: two edges enabled at once, an int32 overflow)."""
-    alone = build(automaton)
-    if alone is None:
-        return 0
-    compared = 0
-    for seed in seeds:
-        try:
-            compared += len(alone.compare(seed))
-        except (EvaluationError, ModelRangeError):
-            continue
-    return compared
+    with tempfile.TemporaryDirectory(prefix="rac-alone-") as folder:
+        alone = build(automaton, Path(folder))
+        if alone is None:
+            return 0
+        compared = 0
+        for seed in seeds:
+            try:
+                compared += len(alone.compare(seed))
+            except (EvaluationError, ModelRangeError):
+                continue
+        return compared
 
 
 def shortened(automaton: ir.Automaton, period: Fraction, samples: int,
@@ -370,10 +371,10 @@ automaton Meter {
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_a_meter_runs_alike_in_uppaal_engine_and_python(seed: int) -> None:
+def test_a_meter_runs_alike_in_uppaal_engine_and_python(seed: int, tmp_path: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         automaton = compile_text(METER, "meter.ra").raise_for_errors()
-    alone = build(automaton)
+    alone = build(automaton, tmp_path)
     assert alone is not None
     assert len(alone.compare(seed)) >= 1

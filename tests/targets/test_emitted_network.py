@@ -1123,8 +1123,8 @@ def test_random_automata_run_alike_in_the_emitted_network_and_the_product(
     except (UppaalError, Unrepresentable, EvaluationError, ModelRangeError):
         assume(False)  # E0801, two edges enabled where the bindings break `assume`, a mirror beyond int32
         return
-    case = Path(tempfile.mkdtemp(dir=folder))
-    assert RandomComparison(Scenario(automaton, data, xml, graph), case).run_many(seed, runs=6) >= 6
+    with tempfile.TemporaryDirectory(dir=folder) as case:
+        assert RandomComparison(Scenario(automaton, data, xml, graph), Path(case)).run_many(seed, runs=6) >= 6
 
 
 #: :data:`RANDOM_BINDINGS` kept within the inputs' declared ranges (whole for the int input): there the

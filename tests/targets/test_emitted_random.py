@@ -165,8 +165,8 @@ def compare(lines: tuple[str, ...], folder: Path, seed: int) -> int:
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
 @given(lines=bindings(), seed=st.integers(0, 2**16))
 def test_random_bindings_read_alike_in_the_emitted_model_and_the_engine(lines: tuple[str, ...], seed: int) -> None:
-    folder = Path(tempfile.mkdtemp(prefix="rac-bindings-"))
-    assume(compare(lines, folder, seed) > 0)
+    with tempfile.TemporaryDirectory(prefix="rac-bindings-") as folder:
+        assume(compare(lines, Path(folder), seed) > 0)
 
 
 # ---------------------------------------------------------------- queries
@@ -309,8 +309,8 @@ def compare_queries(lines: tuple[str, ...], folder: Path, seed: int) -> int:
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
 @given(lines=queries(), seed=st.integers(0, 2**16))
 def test_random_queries_read_alike_in_the_emitted_model_and_the_engine(lines: tuple[str, ...], seed: int) -> None:
-    folder = Path(tempfile.mkdtemp(prefix="rac-queries-"))
-    assume(compare_queries(lines, folder, seed) > 0)
+    with tempfile.TemporaryDirectory(prefix="rac-queries-") as folder:
+        assume(compare_queries(lines, Path(folder), seed) > 0)
 
 
 def test_a_negated_location_index_is_the_engines_double(tmp_path: Path) -> None:
