@@ -767,3 +767,34 @@ def test_defaults_truncated_at_another_base_warn_once() -> None:
                                          "whole significands: `width` 1.8 m as 1.75 m, ")
     assert "`max_turn` 0.4 rad/s as 0.375 rad/s" in diagnostic.message
 
+
+
+# ---------------------------------------------------------------- int inputs bound to numbers (W0726)
+def int_bound(binding: str, sample: str = "0.1") -> str:
+    """:func:`small` with an ``int`` input ``n`` in [0, 20] bound to ``binding``, read by one edge."""
+    text = small("", MINIMAL_BINDINGS + f"        bind n = {binding}\n", sample=sample)
+    return text.replace("    input prog    : bool\n", "    input prog    : bool\n    input n : int in [0, 20]\n") \
+        .replace("when !isClose && prog\n", "when !isClose && prog && n > 8\n")
+
+
+def test_an_int_input_bound_to_a_number_that_need_not_be_whole_warns() -> None:
+    """`input n : int` with `bind n = v` checked silently: the model fed `n` 8.1562 (bindings cannot round),
+    `rac verify` and the UPPAAL model read it so, while `rac check` took `n` to be whole (W0304 said
+    `n > 8 && n < 9` never fires) and the Python runtime refuses it."""
+    text = int_bound("v")
+    diagnostic = only(text, "W0726")
+    assert diagnostic.severity == "warning" and check(text).ok
+    assert diagnostic.message == "input `n` is an `int`, but its binding need not be a whole number"
+    assert diagnostic.span is not None and diagnostic.span.line == line_of(text, "bind n = v")
+    assert diagnostic.hints == ("declare the input `real`: `input n : real in [0, 20]`",)
+    for binding in ("fmin(3.5, v / 2)", "dist_goal()", "mindist()", "sqrt(4)", "4 / 2", "time", "x + 1",
+                    "prev(v)", "collision_distance"):
+        assert "W0726" in codes(int_bound(binding)), binding
+
+
+def test_an_int_input_bound_to_a_whole_number_does_not_warn() -> None:
+    for binding in ("2", "K", "fmin(K, fmax(0, -3 * K + 20))", "fabs(-K)", "max_speed - 10", "prev(K)"):
+        assert "W0726" not in codes(int_bound(binding)), binding
+    assert "W0726" not in codes(int_bound("time", sample="1"))
+    # a real input bound to the same number is what the hint asks for
+    assert "W0726" not in codes(int_bound("v").replace("input n : int", "input n : real"))

@@ -207,6 +207,25 @@ def _truncated(folder: Path) -> None:
     (folder / "left_turn.xml").write_bytes(_left_turn())
 
 
+#: The automaton of the E0712 example whose progress is an `int` input bound to the ego's speed (W0726).
+INT_SPEED = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
+    .replace("// A model whose scenario file is not next to this one", "// An int input bound to the ego's speed") \
+    .replace("    input prog    : bool  // the distance to the goal shrank since the last sample\n",
+             "    input speed   : int in [0, 20]\n") \
+    .replace("    edge * -> Unsafe  when isClose           do sa = sa - 100\n"
+             "    edge * -> Stalled when !isClose && !prog\n"
+             "    edge * -> Normal  when !isClose && prog\n",
+             "    edge * -> Unsafe  when isClose                do sa = sa - 100\n"
+             "    edge * -> Stalled when !isClose && speed < 1\n"
+             "    edge * -> Normal  when !isClose && speed >= 1\n") \
+    .replace("        bind prog    = dist_goal() < prev(dist_goal())\n", "        bind speed   = v\n")
+
+
+def _int_speed(folder: Path) -> None:
+    (folder / "W0726_int_input_not_whole.ra").write_text(INT_SPEED, encoding="utf-8")
+    (folder / "left_turn.xml").write_bytes(_left_turn())
+
+
 def _left_turn() -> bytes:
     return (ROOT / "examples" / "left_turn" / "left_turn.xml").read_bytes()
 
@@ -398,6 +417,10 @@ GENERATED: tuple[Case, ...] = (
          "`W0725_setting_truncated.ra` is the automaton of the E0712 example with `exponent 2` and `width 1.855`, "
          "next to its `left_turn.xml` (the scenario of examples/left_turn):",
          _truncated),
+    Case("W0726_int_input_not_whole", INT_SPEED,
+         "`W0726_int_input_not_whole.ra` is the automaton of the E0712 example whose second input is the ego's "
+         "speed as an `int`, next to its `left_turn.xml` (the scenario of examples/left_turn):",
+         _int_speed),
     Case("W1011_penalty_no_action_avoids", None,
          "`W1011_penalty_no_action_avoids.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: the highway of `rac.model.scenes` (`build_highway(truck=(40.0, 20.0))`), whose truck starts "

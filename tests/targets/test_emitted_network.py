@@ -1055,6 +1055,8 @@ def test_prev_of_a_sticky_collision_reads_the_previous_sample(tmp_path: Path) ->
 #: Bindings for test_agreement's random automata (inputs b, c: bool; x: real in [-5, 5]; m: int in
 #: [0, 3]): values that vary along the runs of the tiny scenario avoidable_obstacle, numbers beyond
 #: their declared ranges now and then (bindings are not clipped) and not whole for the int input.
+#: `m` is an `int` bound to numbers that are not whole, on purpose (`rac check` warns, W0726): the emitted
+#: network and the product must read the same significands between whole numbers.
 RANDOM_BINDINGS = ("b = acc > 0 || collide()",
                    "c = v > prev(v) || goal()",
                    "x = fmax(-6, fmin(6, dist_goal() / 4 - 5))",

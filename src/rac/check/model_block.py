@@ -14,7 +14,7 @@ diagnostic with a span:
 * E0708 a binding for something that is not an input, E0709 an input without a binding,
   E0710 a binding whose type differs from its input's, E0711 an unknown model function (or a
   known one with the wrong arguments); E0717 an ``allow when`` that is not a condition or reads
-  ``prev``;
+  ``prev``; W0726 an ``int`` input bound to a number that need not be whole (bindings cannot round);
 * the modelling choices (:data:`MODELLING`, :data:`WORD_SETTINGS`): ``start_*``, ``offroad_from``,
   ``dynamics`` (a word, E0702 for another), and ``allow when`` (:attr:`rac.ir.ModelSpec.allow`);
 * the generic codes where they fit: E0102 an item written twice, E0105 no ``scenario``, E0106
@@ -493,6 +493,31 @@ class _ModelResolver:
                               f"{_fraction_text(1 / scale)}, or raise the exponent"])
 
     # ------------------------------------------------------------ bindings
+    def _check_whole(self, item: ast.ModelBinding, expr: ie.Expr, values: dict[str, _Value]) -> None:
+        """W0726 for an ``int`` input bound to a number that need not be whole (``bind n = v``): bindings
+        cannot round, so the model feeds the input significands between whole numbers, which ``rac verify``
+        and the emitted UPPAAL model read as they are, while ``rac check``'s analysis of the automaton takes
+        the input to be whole (``n > 8 && n < 9`` never holds there) and the Python runtime refuses them.
+        A warning, as a binding beyond the input's declared range is not an error: the model's answers
+        stay right, the automaton's analysis does not describe them."""
+        declared = next((i for i in self.inputs if i.name == item.input.name), None)
+        if declared is None or declared.kind != "int" or _whole(expr, values["sense_period"].value):
+            return
+        base, exponent = int(values["base"].value), int(values["exponent"].value)
+        bounds = f" in [{_num(declared.low)}, {_num(declared.high)}]" \
+            if declared.low is not None and declared.high is not None else ""
+        self.r.scope.diagnostics.append(warning(
+            "W0726", f"input `{declared.name}` is an `int`, but its binding need not be a whole number",
+            item.expr.span,
+            notes=[Note(f"`{declared.name}` is declared here", declared.span),
+                   f"bindings cannot round: the model feeds `{declared.name}` its value in whole significands at "
+                   f"base {base}, exponent {exponent} (steps of {_fraction_text(Fraction(1, base ** exponent))}), "
+                   "which `rac verify` and the emitted UPPAAL model read as it is",
+                   f"`rac check` analyses `{declared.name}` as a whole number, so its verdicts over the automaton "
+                   "(reachable locations, edges that fire) may not hold in the model, and the Python runtime "
+                   "refuses a value that is not whole"],
+            hints=[f"declare the input `real`: `input {declared.name} : real{bounds}`"]))
+
     def _bindings(self, values: dict[str, _Value]) -> tuple[ir.Binding, ...]:
         bound: dict[str, ast.ModelBinding] = {}
         lowered: dict[str, ir.Binding] = {}
@@ -532,6 +557,7 @@ class _ModelResolver:
                                   "a numeric input needs a number, e.g. `dist_goal()`"])
             elif expr is not None:
                 lowered[name] = ir.Binding(name, expr, item.span)
+                self._check_whole(item, expr, values)
         for item in self.inputs:
             if item.name not in bound and item.name not in suggested:
                 example = "mindist() < 3 * collision_distance" if item.is_bool else "dist_goal()"
@@ -540,6 +566,28 @@ class _ModelResolver:
                            hints=["with a model, every input is computed from it: add "
                                   f"`bind {item.name} = ...` to the block, e.g. `bind {item.name} = {example}`"])
         return tuple(lowered[i.name] for i in self.inputs if i.name in lowered)
+
+
+def _whole(expr: ie.Expr, period: Fraction) -> bool:
+    """Whether a numeric binding's value is a whole number at every sample, whatever the model's state:
+    whole constants and settings, ``time`` when the sensing period is whole, and what ``+``, ``-``, ``*``,
+    ``prev``, ``fabs``/``abs``, ``fmin`` and ``fmax`` make of whole numbers. Sound, not complete: anything
+    else (the ego's state, ``mindist()``, ``dist_goal()``, ``/``, ``sqrt``) may not be."""
+    if isinstance(expr, ie.Const):
+        return not isinstance(expr.value, bool) and expr.value.denominator == 1
+    if isinstance(expr, ie.Ref):
+        if expr.value is not None:  # a setting, as the model holds it
+            return expr.value.denominator == 1
+        return expr.is_model and expr.model.kind == "time" and period.denominator == 1
+    if isinstance(expr, ie.Unary):
+        return expr.op == "-" and _whole(expr.operand, period)
+    if isinstance(expr, ie.Binary):
+        return expr.op in ("+", "-", "*") and _whole(expr.left, period) and _whole(expr.right, period)
+    if isinstance(expr, ie.Prev):
+        return _whole(expr.operand, period)
+    if isinstance(expr, ie.Call):
+        return expr.name in ("fabs", "abs", "fmin", "fmax") and all(_whole(arg, period) for arg in expr.args)
+    return False
 
 
 def resolve_model(r: ModelContext, inputs: tuple[ir.Input, ...], period: Fraction | None) -> ir.ModelSpec | None:
