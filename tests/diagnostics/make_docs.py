@@ -421,6 +421,11 @@ GENERATED: tuple[Case, ...] = (
          "`W0726_int_input_not_whole.ra` is the automaton of the E0712 example whose second input is the ego's "
          "speed as an `int`, next to its `left_turn.xml` (the scenario of examples/left_turn):",
          _int_speed),
+    Case("W0727_dist_goal_anywhere", None,
+         "`W0727_dist_goal_anywhere.ra` is the automaton of the E0712 example over `survive.xml` (line 22), next "
+         "to it: one lane whose goal has no position, only the time window [0, 8] s "
+         "(`goal_anywhere()` of tests/support/tiny_scenarios.py):",
+         _scene("W0727_dist_goal_anywhere", "survive.xml", "a goal of time alone", "goal_anywhere")),
     Case("W1011_penalty_no_action_avoids", None,
          "`W1011_penalty_no_action_avoids.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: the highway of `rac.model.scenes` (`build_highway(truck=(40.0, 20.0))`), whose truck starts "

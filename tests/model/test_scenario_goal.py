@@ -9,6 +9,7 @@ Each scene is built with commonroad-io (tests/support/tiny_scenarios.py):
   goal states of which only one asks for a velocity are accepted with it;
 - a curved lanelet goal (half a ring): its centre, which ``dist_goal()`` measures to, lies on the
   lanelet, not in the ring's hole; a region whose vertex mean lies outside it gets a point inside;
+- a goal of time alone (no position): ``dist_goal()`` reads 0, so a binding reading it warns (W0727);
 - a goal region without area (a polygon on one line, a rectangle 0 m long): refused (E0712);
 - an ego that starts inside a parked car: W0724;
 - the loader's messages for a file without a version, a 2020a file labelled 2018b, and a time step
@@ -42,6 +43,7 @@ from tiny_scenarios import (
     blocked_start,
     commonroad_xml,
     curved_lane_goal,
+    goal_anywhere,
     goal_with_direction,
     late_start,
     ramp,
@@ -185,6 +187,50 @@ def test_a_goal_without_a_position_holds_anywhere_in_its_window(tmp_path: Path) 
             "[2, 3] s") in result.proved[-1]
     (warning,) = [d for d in result.diagnostics if d.code == "W0723"]
     assert warning.message.endswith("`goal()` holds at any speed and heading in the window")
+
+
+#: The progress automaton of stdlib/driving.ra, cut down: its progress reads `dist_goal()`, and so does `d`.
+PROGRESS = """\
+automaton Progress {
+    input near : bool
+    input prog : bool
+    input d    : real in [0, 500]
+    reward sa
+    objective sa
+    sample every 0.1
+    horizon 2
+    initial location Normal { sa' == 1 }
+    location Stalled        { sa' == -1 }
+    edge Normal -> Stalled when !prog || near || d > 100
+    edge Stalled -> Normal when prog && !near && d <= 100
+    model {
+        scenario "%s"
+        bind near = mindist() < 3 * collision_distance
+        bind prog = dist_goal() < prev(dist_goal())
+        bind d    = fmin(dist_goal(), 500)
+    }
+}
+"""
+
+
+def test_a_binding_that_reads_dist_goal_of_a_goal_anywhere_warns(tmp_path: Path) -> None:
+    """A goal of time alone makes `dist_goal()` 0 everywhere, so stdlib/driving.ra's progress `prog =
+    dist_goal() < prev(dist_goal())` never held, and only the `proved:` line said `dist_goal()` reads 0:
+    W0727 at each binding that reads it, none at the one that does not, none when the goal has a position."""
+    (tmp_path / "survive.xml").write_bytes(goal_anywhere())
+    (tmp_path / "ramp.xml").write_bytes(ramp(10.0))
+    source = tmp_path / "progress.ra"
+    source.write_text(PROGRESS % "survive.xml", encoding="utf-8")
+    found = warnings_of(source, "W0727")
+    text = PROGRESS % "survive.xml"
+    assert [d.span.line for d in found] == [i for i, line in enumerate(text.splitlines(), 1)
+                                            if line.startswith(("        bind prog", "        bind d "))]
+    assert found[0].message == ("binding `prog = dist_goal() < prev(dist_goal())` reads `dist_goal()`, which is 0 "
+                                "everywhere: the goal of `survive.xml` has no position")
+    assert "anywhere at scenario time t in [0, 8] s" in found[0].notes[0].message
+    assert "`x > prev(x)`" in found[0].hints[0]
+    source.write_text(PROGRESS % "ramp.xml", encoding="utf-8")
+    assert warnings_of(source, "W0727") == []
 
 
 def test_a_goal_state_without_a_position_makes_the_whole_goal_anywhere(tmp_path: Path) -> None:

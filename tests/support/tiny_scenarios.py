@@ -607,6 +607,17 @@ def goal_with_direction(mixed: bool = False) -> bytes:
     return commonroad_xml(scenario, problems, "goal_direction", Tag.SINGLE_LANE)
 
 
+def goal_anywhere() -> bytes:
+    """:func:`ramp` whose goal has no position, only the time window [0, 8] s (time steps 0 to 80): a goal
+    of time alone, reached anywhere ("survive until 8 s"), so ``dist_goal()`` reads 0 everywhere (W0727)."""
+    scenario, problems = StraightRoad(200.0, EgoStart(10.0, 1.75, 0.0, 10.0),
+                                      GoalBox(100.0, 150.0, 0.0, 8.0)).build("survive")
+    (problem,) = problems.planning_problem_dict.values()
+    goal = GoalRegion([CustomState(time_step=Interval(0, 80))])
+    problems = PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, problem.initial_state, goal)])
+    return commonroad_xml(scenario, problems, "survive", Tag.SINGLE_LANE)
+
+
 #: The ring of :func:`curved_lane_goal`: its centre line's radius (m) and the lane width.
 RING_RADIUS = 20.0
 

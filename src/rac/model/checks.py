@@ -1,4 +1,4 @@
-"""The `model` block's scenario, checked against the model: E0712-E0715, W0716, E0718-W0724 and E0801.
+"""The `model` block's scenario, checked against the model: E0712-E0715, W0716, E0718-W0724, W0727 and E0801.
 
 :func:`check_scenario` loads the CommonRoad file of a checked automaton's `model` block once
 (:func:`load`, the one caller of :func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
@@ -28,6 +28,8 @@
   lies between two samples): ``goal()`` never holds.
 * W0723: the goal also asks for a velocity or an orientation, which ``goal()`` does not read.
 * W0724: the ego starts in a collision (``collide()`` holds at the start), like W0716 a warning.
+* W0727: a binding reads ``dist_goal()`` while the goal has no position (a goal of time alone): it reads 0
+  everywhere, so the binding never changes with it.
 * E0801: a numeric binding whose value leaves int32 wherever no obstacle exists (``bind d =
   mindist()``: ``mindist()`` reads 1e9 there), when some sample of the horizon has none; the hint
   bounds it (``fmin(mindist(), 100)``).
@@ -187,6 +189,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     if any(d.is_error for d in result.diagnostics):
         return result  # a start the model would clamp: nothing to sum up
     result.diagnostics.extend(_goal(automaton, spec, scenario, data))
+    result.diagnostics.extend(_distance_to_anywhere(spec, scenario))
     result.diagnostics.extend(_sentinel_bindings(automaton, spec, data))
     goal = scenario.goal
     obstacles = len(scenario.obstacles)
@@ -255,6 +258,25 @@ def _goal(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data:
             hints=["add the condition to the query or the automaton (`v`, `head`), or read goal verdicts knowing "
                    "that they ignore it"]))
     return found
+
+
+def _distance_to_anywhere(spec: ir.ModelSpec, scenario: Scenario) -> list[Diagnostic]:
+    """W0727 for each binding that reads ``dist_goal()`` when the goal has no position (a goal of time
+    alone, :attr:`~rac.model.commonroad.Goal.anywhere`): ``dist_goal()`` reads 0 everywhere, so what the
+    binding makes of it never changes (``dist_goal() < prev(dist_goal())`` is ``0 < 0`` at every sample)."""
+    goal = scenario.goal
+    if not goal.anywhere:
+        return []
+    return [warning(
+        "W0727", f"binding `{binding.input} = {format_checked(binding.expr)}` reads `dist_goal()`, which is 0 "
+        f"everywhere: the goal of `{spec.scenario}` has no position", binding.span or spec.span,
+        notes=[f"planning problem {scenario.planning_problem_id} of `{spec.scenario_path}` asks only that the ego "
+               f"be anywhere at scenario time t in [{_number(goal.time_low)}, {_number(goal.time_high)}] s, so there "
+               f"is no distance to the goal: `{binding.input}` reads `dist_goal()` as 0 at every sample"],
+        hints=["measure progress by the ego's state instead (e.g. `x > prev(x)` or `v > 0`), or choose a planning "
+               "problem whose goal has a position"])
+        for binding in spec.bindings
+        if any(isinstance(node, ie.Call) and node.name == "dist_goal" for node in ie.walk(binding.expr))]
 
 
 def _inconsistent(spec: ir.ModelSpec, scenario_span, failure) -> Diagnostic:
