@@ -128,8 +128,9 @@ automaton Reader {{
 #: thresholds that are not whole significands, negative leading coefficients, the location index,
 #: ``deadlock``, ``time`` (the sample counter) compared, as a number and mixed with a reward,
 #: ``settled`` under ``[]`` and ``<>``, the true state, every math function, discrete observations
-#: of mirrors, significands, `time` and constants.
-#: The last three are refused by the printer (:data:`PROBE_REFUSED`); the model is emitted without them.
+#: of mirrors, significands, `time` and constants, the location index in conditions computed with
+#: doubles (passed to them as a parameter).
+#: The last two are refused by the printer (:data:`PROBE_REFUSED`); the model is emitted without them.
 PROBE_AUTOMATON = """\
 automaton Probe {{
     input near : bool
@@ -175,13 +176,14 @@ automaton Probe {{
     query Sim: simulate[<=4; 2]{{near, d, r, Probe.location, B, true_head - head, time, -gap / 3, true_acc * true_v}}
     query L: strategy S = minE(r - s)[<=4]{{B, Probe.location, x + 1.5}}->{{x, v}}: <> goal() && d <= 30
     query L2: strategy S2 = maxE(r)[<=4]{{r / 2 + s, -d, near, time}}->{{true_v, mindist()}}: <> time >= 4
+    query LocationDouble: E<> sqrt(Probe.location) > 0.5
+    query LocationSum: A[] 3 * r - Probe.location >= d / 4 || -Probe.location * 1000 + s * 7 < 2 * x
     query Prev: A[] prev(v) <= v
     query Truth: E<> true_x > 20
-    query LocationDouble: E<> sqrt(Probe.location) > 0.5
 }}
 """
 #: The probe's queries the printer refuses, and a word of the reason it gives.
-PROBE_REFUSED = {"Prev": "prev(...)", "Truth": "ground truth", "LocationDouble": "location"}
+PROBE_REFUSED = {"Prev": "prev(...)", "Truth": "ground truth"}
 
 #: A time unit finer than the sensing period: the bound ``[<=2.9]`` makes the unit 0.1 s, so a sample
 #: period of 0.3 s is PERIOD = 3 time units in the emitted model. The queries read ``time`` as the
@@ -613,7 +615,7 @@ def compile_expressions(loaded: Loaded, printed: list[Printed], printer: UppaalP
     if any(re.search(r"\bdeadlock\b", p.c) for p in printed):
         parts.append("bool deadlock = false;  // the model never deadlocks")
     parts.append("// ---- the conditions the printer hoisted")
-    parts += [f"bool {name}(void) {{ return {body}; }}" for body, name in printer.conditions.items()]
+    parts += [f"bool {c.name}({c.signature or 'void'}) {{ return {c.body}; }}" for c in printer.conditions.values()]
     parts.append("// ---- one function per expression")
     ctype = {"bool": "bool", "double": "double", "int": "long long"}
     for i, p in enumerate(printed):

@@ -143,6 +143,9 @@ QUERY_FORMS: dict[str, tuple[str, ...]] = {
     "deadlock": ("A[] !deadlock",),
     "constants-and-qualified": ("A[] Driving.Unsafe imply sa <= PENALTY && 10*sa + 5*pr + co <= 0",),
     "numeric-input": ("E<> dgoal < 2 && Normal",),
+    # a condition computed in doubles (10 * sa could leave int32) that reads the location index: the
+    # function receives it as a parameter
+    "location-in-doubles": ("A[] 10 * sa - Driving.location >= dgoal / 4", "E<> sqrt(Driving.location) > 1"),
     "word-operators": ("A[] not isClose or Unsafe and true",),
 }
 

@@ -62,7 +62,7 @@ from rac.targets.uppaal.labels import Labels
 from rac.targets.uppaal.layout import Ids, Template, environment
 from rac.targets.uppaal.names import Names, mirror_name
 from rac.targets.uppaal.processes import Processes
-from rac.targets.uppaal.query import UppaalPrinter, Vocabulary, time_bound
+from rac.targets.uppaal.query import Condition, UppaalPrinter, Vocabulary, time_bound
 from rac.targets.uppaal.significands import Accrual, NumericInput, Significands
 
 __all__ = ["AutomatonGenerator", "UppaalError", "UppaalModel", "generate_uppaal",
@@ -128,7 +128,8 @@ class AutomatonGenerator:
             ("period", "PERIOD"), ("steps", "STEPS"), ("scale", "SCALE"), ("count", "count"),
             ("settled", "settled"), ("time", "time"), ("timer", "Timer"), ("environment", "Environment"),
             ("t", "t"), ("wait", "Wait"), ("accrued", "Accrued"), ("reading", "Reading"), ("ending", "Ending"),
-            ("done", "Done"), ("idle", "Idle"), ("choosing", "Choosing"))} | ended
+            ("done", "Done"), ("idle", "Idle"), ("choosing", "Choosing"),
+            ("location", "loc"))} | ended  # location: the parameter of a condition that reads the location index
         self.select = {}
         self.array = {}
         for item in a.inputs:
@@ -179,7 +180,8 @@ class AutomatonGenerator:
             mirrors=dict(self.mirror), hybrids={r: self.n[r] for r in a.rewards},
             strategies=strategies, scale=self.numbers.scale, unit=unit, count=self.g["count"],
             settled=self.g["settled"], horizon=Fraction(a.horizon), period=Fraction(a.period),
-            period_name=self.g["period"], steps_name=self.g["steps"], no_model=no_model)
+            period_name=self.g["period"], steps_name=self.g["steps"], no_model=no_model,
+            location_parameter=self.g["location"])
 
     def _printer(self, unit: Fraction) -> UppaalPrinter:
         """The printer of this model's queries; conditions get fresh function names."""
@@ -212,9 +214,9 @@ class AutomatonGenerator:
         return result
 
     @staticmethod
-    def _conditions(printer: UppaalPrinter) -> list[dict[str, str]]:
+    def _conditions(printer: UppaalPrinter) -> list[Condition]:
         """The conditions the symbolic queries call (functions returning bool), in order of appearance."""
-        return [{"name": name, "body": body} for body, name in printer.conditions.items()]
+        return list(printer.conditions.values())
 
     # ------------------------------------------------------------ templates
     def run(self) -> UppaalModel:

@@ -11,7 +11,8 @@ and operators are written (the tables below):
   comparison of integers (``v > 30`` is ``v > 300000``). Any
   other condition — one that computes with doubles, like ``mindist() < 3 * collision_distance`` —
   becomes a function of the declarations that returns a ``bool`` (:attr:`UppaalPrinter.conditions`):
-  the query calls it, as it calls ``collide()``;
+  the query calls it, as it calls ``collide()``, passing ``Process.location`` when the condition reads
+  the location index (a function of the declarations cannot name a process's location);
 - ``STATISTICAL`` (``Pr``, ``E``, ``simulate``, learning): doubles are allowed; rewards are their
   hybrid clocks, the true state the ``Dynamics`` process's clocks;
 - ``FUNCTION`` (the body of such a condition, and the bindings, which the emitted model evaluates in
@@ -43,7 +44,8 @@ from rac.ir.significands import common_denominator
 from rac.ir.vocabulary import ACTIONS, Holding
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, UppaalSyntax, double_literal, int_literal, terms_text
 
-__all__ = ["FUNCTION", "STATISTICAL", "SYMBOLIC", "ModelNames", "UppaalPrinter", "Vocabulary", "time_bound"]
+__all__ = ["FUNCTION", "STATISTICAL", "SYMBOLIC", "Condition", "ModelNames", "UppaalPrinter", "Vocabulary",
+           "time_bound"]
 
 SYMBOLIC, STATISTICAL, FUNCTION = "symbolic", "statistical", "function"
 
@@ -101,6 +103,32 @@ class Vocabulary:
     model: ModelNames | None = None
     #: Why the scenario model's names are missing (the message of :class:`QueryError`).
     no_model: str = "the automaton-alone UPPAAL model has no scenario-model names"
+    #: The parameter through which a condition of a symbolic query receives ``process.location`` (a
+    #: fresh name, so that it hides none of the globals the condition reads).
+    location_parameter: str = "loc"
+
+
+@dataclass(frozen=True)
+class Condition:
+    """A condition of a symbolic query that computes with doubles, declared as
+    ``bool name(int32_t parameter) { return body; }`` (no parameter: ``name()``) and called by the
+    query as ``name(argument)``: the argument is ``process.location`` where the body reads the location
+    index, which only a query (not a function of the declarations) can name."""
+
+    name: str
+    body: str
+    parameter: str | None = None
+    argument: str = ""
+
+    @property
+    def call(self) -> str:
+        """The call in the query."""
+        return f"{self.name}({self.argument})"
+
+    @property
+    def signature(self) -> str:
+        """The function's parameter list (empty, or ``int32_t loc``)."""
+        return "" if self.parameter is None else f"int32_t {self.parameter}"
 
 
 @dataclass
@@ -108,18 +136,20 @@ class UppaalPrinter(UppaalSyntax):
     """Print checked queries and bindings over one emitted model.
 
     ``fresh(base)`` names a new function of the declarations; :attr:`conditions` collects the
-    conditions of symbolic queries that compute with doubles: ``(name, body)``, each to be
-    declared as ``bool name() { return body; }`` (identical bodies share one function).
+    conditions of symbolic queries that compute with doubles, by body, each to be declared as a
+    function returning ``bool`` (:class:`Condition`; identical bodies share one function).
     """
 
     v: Vocabulary
     fresh: Callable[[str], str] = str
-    conditions: dict[str, str] = field(default_factory=dict)  # body -> name
+    conditions: dict[str, Condition] = field(default_factory=dict)  # by body
     #: In the bindings' function: the local variable holding each ``prev(e)``'s value, by ``e``.
     prevs: dict[ie.Expr, str] = field(default_factory=dict)
     #: Write ``a imply b`` as ``!a || b`` in every dialect (C has no ``imply``; the tests compile
     #: query expressions printed so against the engine's values).
     c_syntax: bool = False
+    #: While a condition of a symbolic query is printed: the parameter holding the location index.
+    located: str | None = None
 
     # ------------------------------------------------------------ whole queries
     def formula(self, query: iq.Query) -> str:
@@ -267,14 +297,23 @@ class UppaalPrinter(UppaalSyntax):
         return self.infix(expr.op, self.number(expr.left, dialect), self.number(expr.right, dialect))
 
     def _hoisted(self, expr: ie.Compare) -> str:
-        """A condition of a symbolic query that computes with doubles, as a call of a function."""
+        """A condition of a symbolic query that computes with doubles, as a call of a function. A function
+        of the declarations cannot name a process's location, so one that reads the location index gets
+        it as a parameter, and the query passes ``process.location`` (as rac's engine reads it: the
+        integer of the current location)."""
+        reads_location = any(r.kind is ie.RefKind.LOCATION_INDEX for r in ie.refs(expr))
+        self.located = self.v.location_parameter if reads_location else None
         try:
             body = self.condition(expr, FUNCTION).text
         except QueryError as exc:
             raise QueryError(f"a symbolic query cannot compute this comparison: {exc}") from None
+        finally:
+            self.located = None
         if body not in self.conditions:
-            self.conditions[body] = self.fresh("cond")
-        return f"{self.conditions[body]}()"
+            parameter = self.v.location_parameter if reads_location else None
+            argument = f"{self.v.process}.location" if reads_location else ""
+            self.conditions[body] = Condition(self.fresh("cond"), body, parameter, argument)
+        return self.conditions[body].call
 
     def _exact(self, expr: ie.Compare, dialect: str) -> Printed | None:
         """``left op right`` as an exact comparison of integers, when both sides are linear in values
@@ -345,10 +384,14 @@ class UppaalPrinter(UppaalSyntax):
             return op in (">", ">=", "!=")
         return None
 
+    def _is_location(self, name: str) -> bool:
+        """Whether the integer ``name`` is the location index (in a query, or a condition's parameter)."""
+        return name == f"{self.v.process}.location" or (self.located is not None and name == self.located)
+
     def _range(self, name: str) -> tuple[int, int]:
         """The least and greatest value the integer ``name`` holds: a location index, the sample counter,
         or any int32 (a mirror may hold ``INT32_MIN``)."""
-        if name.endswith(".location"):
+        if self._is_location(name):
             return 0, max(0, len(self.v.locations) - 1)
         if name == self.v.count:
             return 0, math.ceil(self.v.horizon / self.v.period)
@@ -356,7 +399,7 @@ class UppaalPrinter(UppaalSyntax):
 
     def _largest(self, name: str) -> int:
         """The largest magnitude the integer ``name`` holds: a location index, the sample counter, or any int32."""
-        if name.endswith(".location"):
+        if self._is_location(name):
             return max(1, len(self.v.locations))
         if name == self.v.count:
             return math.ceil(self.v.horizon / self.v.period)
@@ -370,7 +413,9 @@ class UppaalPrinter(UppaalSyntax):
         if ref.kind is ie.RefKind.REWARD:
             return (v.mirrors[ref.name], Fraction(1, v.scale)) if dialect != STATISTICAL else None
         if ref.kind is ie.RefKind.LOCATION_INDEX:
-            return (f"{v.process}.location", Fraction(1)) if dialect != FUNCTION else None
+            if dialect == FUNCTION:  # only a condition of a symbolic query receives it (a parameter)
+                return (self.located, Fraction(1)) if self.located is not None else None
+            return f"{v.process}.location", Fraction(1)
         entry = ref.model
         if entry.holding is Holding.SIGNIFICAND and entry.kind == "ego":
             self._model(ref.name)
@@ -407,11 +452,12 @@ class UppaalPrinter(UppaalSyntax):
                 return Printed(v.hybrids[ref.name], Level.ATOM)
             return Printed(f"{v.mirrors[ref.name]} / {scale}", Level.MUL)
         if ref.kind is ie.RefKind.LOCATION_INDEX:
-            if dialect == FUNCTION:
+            if dialect == FUNCTION and self.located is None:
                 raise QueryError("a location cannot be read in a condition computed with doubles")
             # a double, as the engine reads it: UPPAAL's integer `-P.location` is 0 where the engine's
             # -(0.0) is -0.0, so `1 / -P.location` would be inf in one and -inf in the other
-            return Printed(f"{v.process}.location * 1.0", Level.MUL)
+            held = self.located if dialect == FUNCTION else f"{v.process}.location"
+            return Printed(f"{held} * 1.0", Level.MUL)
         if ref.kind is not ie.RefKind.MODEL:
             raise QueryError(f"`{ref.name}` is not a number")
         entry = ref.model
