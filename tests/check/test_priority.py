@@ -734,6 +734,17 @@ automaton Obs {
     assert diag.code == "E0801" and "as the integer `10000*count + 7*p`" in diag.message
     assert "`7*p` may reach 2163000000" in diag.message
     assert ranges("1", "10*p + time + Obs.location") == []  # observed as iP + 1000*count + 1000*Obs.location
+    # a number of the observed sum beyond int32, whatever the ranges: `rac check` accepted these and
+    # `rac compile --target uppaal` refused them (E0801: no int32 literal writes it); now rac check refuses
+    for observation, number in (("4503599627370497", "4503599627370497"), ("0.5 * 8589934592", "4294967296"),
+                                ("r - r + 3000000", None), ("p + 4503599627370497", "4.5036e19")):
+        found = ranges("1", observation)
+        if number is None:
+            assert found == []
+            continue
+        (diag,) = found
+        assert diag.code == "E0801" and diag.span is not None and diag.span.line == 9
+        assert f"with the number {number}" in diag.message and "beyond the 32-bit integer range" in diag.message
 
 
 def test_int32_range_covers_the_values_in_between_the_at_end_updates() -> None:

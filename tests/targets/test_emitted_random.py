@@ -41,7 +41,6 @@ from rac.compiler import compile_text
 from rac.engine.bindings import Bindings
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.model.data import ModelRangeError
-from rac.targets.uppaal.automaton import UppaalError
 from rac.targets.uppaal.model import generate_uppaal_model, model_vocabulary
 
 COMPILER = shutil.which("cc") or shutil.which("gcc")
@@ -287,11 +286,8 @@ def compare_queries(lines: tuple[str, ...], folder: Path, seed: int) -> int:
         result = compile_text(write(folder).read_text(encoding="utf-8"), str(folder / "probe.ra"))
     if not result.ok:
         return 0
-    try:
-        loaded = load(Case("random", write), folder)
-    except UppaalError as refused:  # E0801: a constant the integers of a discrete observation cannot hold
-        assert re.search(r"\bE0801\b", str(refused)), str(refused)
-        return 0
+    # every query `rac check` accepts compiles (a discrete observation beyond int32 is refused by both)
+    loaded = load(Case("random", write), folder)
     printed, _, printer = print_expressions(loaded.automaton, loaded.vocabulary)
     printed = [p for p in printed if re.fullmatch(r"Q\d+", p.query.name)]  # the file's, not the standard queries
     if not printed:

@@ -257,8 +257,9 @@ def observation_diagnostics(automaton: ir.Automaton, bounds: Mapping[str, tuple[
             continue
         for index, expr in enumerate(query.discrete):
             form = ie.linear_form(expr) if expr.type == ie.NUM else None
-            if form is None or form.is_constant:
+            if form is None:
                 continue
+            label = query.labels[index] if index < len(query.labels) else None
             terms, ranges = [], {}
             for ref, coefficient in form.terms:
                 key = (ref.kind, ref.name)
@@ -267,24 +268,40 @@ def observation_diagnostics(automaton: ir.Automaton, bounds: Mapping[str, tuple[
                     entry = ("count", Fraction(automaton.period), (Fraction(0), Fraction(automaton.steps)))
                 elif key in held:
                     entry = held[key]
+                elif ref.kind is ie.RefKind.MODEL and ref.model.kind == "ego":  # a significand, range unknown
+                    name = ref.model.uppaal or ref.name
+                    terms.append((coefficient * Fraction(1, scale), name))
+                    continue
                 else:
                     break
                 name, unit, ranges[name] = entry
                 terms.append((coefficient * unit, name))
             else:
                 _, k, ints = common_denominator(form.const, terms)
+                literal = max([abs(k), *(abs(c) for c, _ in ints)])
+                if literal > INT32_MAX:  # a number of the printed sum: no int32 literal writes it
+                    found.append(unrepresentable(
+                        automaton,
+                        f"query `{decl.name}`: the discrete observation `{label or decimal_text(form.const)}` is "
+                        "observed in the UPPAAL model as an integer (mirrors and significands, a whole multiple of "
+                        f"it) with the number {short_number(Fraction(literal))}, beyond the 32-bit integer range",
+                        decl.span,
+                        hints=["a constant observation tells no two states apart: leave it out" if not ints else
+                               "observe a smaller multiple, or lower the exponent of the number representation"]))
+                    continue
+                if not ints:
+                    continue
                 emitted = emitted_sum(k, ints, ranges)
                 if emitted is None:
                     continue
                 text, steps = emitted
                 overflow = _first_overflow(steps)
                 if overflow is not None:
-                    label = query.labels[index] if index < len(query.labels) else text
                     within = _within(ranges, ints)
                     found.append(unrepresentable(
                         automaton,
-                        f"query `{decl.name}`: the discrete observation `{label}` is observed in the UPPAAL model "
-                        f"as the integer `{text}` (mirrors and significands, a whole multiple of it), and "
+                        f"query `{decl.name}`: the discrete observation `{label or text}` is observed in the UPPAAL "
+                        f"model as the integer `{text}` (mirrors and significands, a whole multiple of it), and "
                         f"{overflow} beyond the 32-bit integer range", decl.span,
                         notes=[f"{within} as the model holds them (the int32 range check's bounds for rewards, at "
                                f"base {base}, exponent {exponent}): UPPAAL computes the observation in 32-bit "
