@@ -278,8 +278,10 @@ def observation_diagnostics(automaton: ir.Automaton, bounds: Mapping[str, tuple[
                 terms.append((coefficient * unit, name))
             else:
                 _, k, ints = common_denominator(form.const, terms)
+                emitted = emitted_sum(k, ints, ranges) if ints else None
                 literal = max([abs(k), *(abs(c) for c, _ in ints)])
-                if literal > INT32_MAX:  # a number of the printed sum: no int32 literal writes it
+                if emitted is None and literal > INT32_MAX:  # a constant, or a sum over names of unknown
+                    # ranges (the ego state), with a number no int32 literal writes
                     found.append(unrepresentable(
                         automaton,
                         f"query `{decl.name}`: the discrete observation `{label or decimal_text(form.const)}` is "
@@ -289,9 +291,6 @@ def observation_diagnostics(automaton: ir.Automaton, bounds: Mapping[str, tuple[
                         hints=["a constant observation tells no two states apart: leave it out" if not ints else
                                "observe a smaller multiple, or lower the exponent of the number representation"]))
                     continue
-                if not ints:
-                    continue
-                emitted = emitted_sum(k, ints, ranges)
                 if emitted is None:
                     continue
                 text, steps = emitted
