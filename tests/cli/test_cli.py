@@ -441,6 +441,19 @@ def test_bad_usage_exits_2(capsys: pytest.CaptureFixture[str], argv: list[str]) 
     assert "usage:" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("argv", [["--bogus"], ["-x"], ["--bogus", "--other"]])
+def test_an_unknown_option_without_a_command_is_named(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
+    # it said "the following arguments are required: COMMAND" and never named the option
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.rstrip().endswith(f"rac: error: unrecognized arguments: {' '.join(argv)}") and "COMMAND" in err
+
+
+def test_no_command_still_asks_for_one(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([]) == 2
+    assert capsys.readouterr().err.rstrip().endswith("rac: error: the following arguments are required: COMMAND")
+
+
 def test_bad_usage_as_a_command() -> None:
     done = run_rac("check")
     assert done.returncode == 2

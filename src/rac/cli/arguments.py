@@ -47,7 +47,7 @@ _DECIMAL = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)")
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``rac`` command's argument parser: every sub-command and option (no command code loaded)."""
-    parser = argparse.ArgumentParser(
+    parser = _RacParser(
         prog="rac", description="The reward-automata compiler: check, compile and format .ra files; verify "
                     "their queries, simulate and pre-analyse them on a CommonRoad scenario.",
         epilog=f"{OUTPUT_CONVENTION} Exit codes: 0 ok, 1 errors in the input or a query not satisfied, 2 bad "
@@ -55,7 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
                "bug in rac), 4 something left undecided (a query, a check stopped at its limit, a setting or "
                "task without an answer), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, taken as Ctrl-C).")
     parser.add_argument("--version", action="version", version=f"rac {__version__}")
-    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_CommandParser)
+    # not required here: _RacParser says so itself, after an unknown option (`rac --bogus`) was named
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_CommandParser)
 
     check = commands.add_parser("check", help="type-check files and prove or refute their priority order")
     check.add_argument("files", nargs="+", type=Path, metavar="FILE")
@@ -83,6 +84,18 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(commands)
     _add_new(commands)
     return parser
+
+
+class _RacParser(argparse.ArgumentParser):
+    """``rac``'s own parser: an unknown option before the command (``rac --bogus``) is named as such. With the
+    sub-command required by argparse, the missing COMMAND was reported first, and the option not at all."""
+
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]  # argparse's overloads
+                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
+        parsed = super().parse_args(args, namespace)  # unknown arguments: "unrecognized arguments: ...", exit 2
+        if parsed.command is None:
+            self.error("the following arguments are required: COMMAND")
+        return parsed
 
 
 class _CommandParser(argparse.ArgumentParser):
