@@ -454,6 +454,33 @@ def test_no_command_still_asks_for_one(capsys: pytest.CaptureFixture[str]) -> No
     assert capsys.readouterr().err.rstrip().endswith("rac: error: the following arguments are required: COMMAND")
 
 
+@pytest.mark.parametrize(("argv", "option"), [
+    (["compile", "--target", "python", "--target", "uppaal"], "--target"),
+    (["compile", "--target", "python", "-o", "a.py", "--output", "b.py"], "-o/--output"),
+    (["check", "--format", "json", "--format", "text"], "--format"),
+    (["verify", "--horizon", "10", "--horizon", "20"], "--horizon"),
+    (["render", "--strategy", "a", "--strategy", "b"], "--strategy"),
+])
+def test_an_option_of_one_value_given_twice_is_refused(capsys: pytest.CaptureFixture[str], clean: Path,
+                                                       tmp_path: Path, argv: list[str], option: str) -> None:
+    # the last one won silently: `--target python --target uppaal` wrote UPPAAL, `-o a.py -o b.py` wrote b.py only
+    assert main([*argv, str(clean)]) == 2
+    out, err = capsys.readouterr()
+    assert f"error: argument {option}: given twice with different values" in err and out == ""
+    assert not (tmp_path / "a.py").exists() and not (tmp_path / "b.py").exists()
+
+
+def test_an_option_given_twice_with_one_value_and_a_repeatable_one_are_fine(capsys: pytest.CaptureFixture[str],
+                                                                           clean: Path) -> None:
+    assert main(["check", "-q", "--format", "json", "--format", "json", str(clean)]) == 0
+    assert json.loads(capsys.readouterr().out)[0]["ok"] is True
+    from rac.cli.arguments import build_parser
+
+    args = build_parser().parse_args(["verify", "x.ra", "--query", "a", "--query", "b", "--horizon", "30",
+                                      "--horizon", "30.0"])
+    assert args.query == ["a", "b"] and args.horizon == 30  # the same number twice is that number
+
+
 def test_bad_usage_as_a_command() -> None:
     done = run_rac("check")
     assert done.returncode == 2

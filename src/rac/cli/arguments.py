@@ -98,13 +98,38 @@ class _RacParser(argparse.ArgumentParser):
         return parsed
 
 
+class _Once(argparse.Action):
+    """argparse's ``store`` for an option that takes one value: given twice with different values
+    (``--target python --target uppaal``, ``-o a.py -o b.py``) it is refused (exit 2, naming the option),
+    where argparse kept the last silently and the command did something else than one of the two asked
+    for. The same value twice is that value. Options that may be repeated say so with ``action="append"``."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: str | Sequence[object] | None, option_string: str | None = None) -> None:
+        given = parser.given if isinstance(parser, _CommandParser) and self.option_strings else {}
+        if self.dest in given and given[self.dest] != values:  # compared as converted: `30` and `30.0` agree
+            raise argparse.ArgumentError(self, f"given twice with different values, `{given[self.dest]}` and "
+                                               f"`{values}`: it takes one value")
+        given[self.dest] = values
+        setattr(namespace, self.dest, values)  # argparse's `store`
+
+
 class _CommandParser(argparse.ArgumentParser):
     """A sub-command's parser that refuses an option it does not know itself, with its own usage: argparse
     leaves that to ``rac``'s parser, whose usage (``rac [-h] [--version] COMMAND ...``) shows none of the
-    command's options, where every other mistake in them (a missing value, a bad choice) shows the command's."""
+    command's options, where every other mistake in them (a missing value, a bad choice) shows the command's.
+    An option of one value given twice with different values is refused too (:class:`_Once`)."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        self.register("action", None, _Once)  # argparse's default action, `store`, in this parser and its groups
+        self.register("action", "store", _Once)
+        #: The values of the :class:`_Once` options given in the parse under way.
+        self.given: dict[str, object] = {}
 
     def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]  # argparse's overloads
                          namespace: argparse.Namespace | None = None) -> tuple[argparse.Namespace, list[str]]:
+        self.given = {}
         parsed, extras = super().parse_known_args(args, namespace)
         if extras:
             self.error(f"unrecognized arguments: {' '.join(extras)}")
