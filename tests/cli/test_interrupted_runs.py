@@ -186,3 +186,72 @@ def test_verify_terminated_shows_the_queries_answered(tmp_path: Path, form: str)
         assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
     else:
         assert "Verifying Stays" in done.stdout and "Formula is satisfied" in done.stdout
+
+
+def _check_stopped_at(monkeypatch: pytest.MonkeyPatch, name: str, exc: BaseException) -> None:
+    """``rac check``'s ``compile_file`` raising ``exc`` on the file called ``name`` (the others are checked)."""
+    import rac.cli.files
+
+    real = rac.cli.files.compile_file
+
+    def compile_file(path: Path, *args: object, **kwargs: object) -> object:
+        if Path(path).name == name:
+            raise exc
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(rac.cli.files, "compile_file", compile_file)
+
+
+def _three_files(tmp_path: Path) -> list[Path]:
+    from rac.lang.resources import stdlib_file
+
+    text = stdlib_file("driving.ra").read_text(encoding="utf-8")
+    paths = [tmp_path / f"{name}.ra" for name in ("a", "b", "c")]
+    for path in paths:
+        path.write_text(text, encoding="utf-8")
+    return paths
+
+
+def test_check_interrupted_keeps_the_files_checked(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    # Ctrl-C in the second file printed only {"command": "check", "ok": false, ...}: the first file's results
+    # (minutes of checks on a large scenario) were dropped
+    a, b, c = _three_files(tmp_path)
+    _check_stopped_at(monkeypatch, "b.ra", KeyboardInterrupt())
+    code, out, err = run(capsys, "check", "--format", "json", a, b, c)
+    assert code == EXIT_INTERRUPTED and "rac: interrupted" in err
+    document = json.loads(out)  # one document, rac check's own: an entry per file
+    assert [entry["file"] for entry in document] == [str(a), str(b)]
+    assert document[0]["ok"] is True and document[0]["proved"] and "interrupted" not in document[0]
+    assert document[1] == {"file": str(b), "ok": False, "diagnostics": [], "proved": [], "facts": [],
+                           "undecided": True, "interrupted": True}
+    # as text the first file's summary was printed before
+    code, out, _ = run(capsys, "check", a, b, c)
+    assert code == EXIT_INTERRUPTED and f"{a}: ok" in out and str(b) not in out
+
+
+#: A child ``rac check`` that sends itself SIGTERM while it checks the file ``b.ra``.
+TERMINATED_CHECK = """
+import os, signal, sys, time
+from pathlib import Path
+import rac.cli.files
+real = rac.cli.files.compile_file
+def compile_file(path, *args, **kwargs):
+    if Path(path).name == "b.ra":
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(30)  # the signal arrives in here
+    return real(path, *args, **kwargs)
+rac.cli.files.compile_file = compile_file
+from rac.cli.main import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_check_terminated_keeps_the_files_checked(tmp_path: Path) -> None:
+    a, b, c = _three_files(tmp_path)
+    done = subprocess.run([sys.executable, "-c", TERMINATED_CHECK, "check", "--format", "json", str(a), str(b),
+                           str(c)], env=rac_env(), capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == EXIT_TERMINATED, done.stderr
+    document = json.loads(done.stdout)
+    assert [(entry["file"], entry["ok"], entry.get("interrupted")) for entry in document] == [
+        (str(a), True, None), (str(b), False, True)]

@@ -66,7 +66,14 @@ def _check_files(args: argparse.Namespace) -> int:
     report: list[dict[str, object]] = []
     max_bytes = load_budget(args)
     for path in args.files:
-        result, failure = read_and_check(path, max_bytes)
+        try:
+            result, failure = read_and_check(path, max_bytes)
+        except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the files checked before stay in the one document
+            if args.format == "json":
+                report.append({"file": str(path), "ok": False, "diagnostics": [], "proved": [], "facts": [],
+                               "undecided": True, "interrupted": True})
+                print(json.dumps(report, indent=2))
+            raise  # rac.cli.main says how it stopped and exits 130 or 143
         if result is None:
             assert failure is not None
             status = max(status, EXIT_USAGE)
