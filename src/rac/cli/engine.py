@@ -36,7 +36,7 @@ from rac.cli.common import (
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, Diagnostic, RacError, sort_key
+from rac.core.diagnostics import CheckError, Diagnostic, RacError, json_text, sort_key
 from rac.core.diagnostics import render_text as render_diagnostics
 from rac.core.numbers import samples_of
 from rac.core.source import SourceFile
@@ -174,7 +174,7 @@ def _note(args: argparse.Namespace, notes: list[str], text: str) -> None:
 def _print_summary(args: argparse.Namespace, document: dict[str, object], lines: Sequence[str]) -> None:
     """A command's result: ``document`` as JSON with ``--format json``, else ``lines`` of text."""
     if as_json(args):
-        print(json.dumps(document, indent=2))
+        print(json_text(document, indent=2))
     else:
         for line in lines:
             print(line)
@@ -371,7 +371,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
             document["interrupted"] = stopped
         if write_failed is not None:  # one document: the error in it, not a second one beside it
             document["error"] = write_failed.to_json()
-        print(json.dumps(document, indent=2))
+        print(json_text(document, indent=2))
     else:
         if results:
             print(render_text(results, traces=args.trace))
@@ -620,7 +620,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
             document["interrupted"] = True
         if write_failed is not None:  # one document: the error in it
             document["error"] = write_failed.to_json()
-        print(json.dumps(document, indent=2, default=str))
+        print(json_text(document, indent=2, default=str))
     elif rows or not interrupted:
         print(render_table(rows))
         if any("plot" in row or "sweep_plot" in row for row in rows):  # no setting answered: no plot, maybe no folder
@@ -699,7 +699,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
         # the error; it was dropped with it
         failed = unwritable(_written(out_dir, exc), exc)
         if args.format == "json":  # one document: the results and the error in it
-            print(json.dumps({**json.loads(results_json(report)), "error": failed.to_json()}, indent=1))
+            print(json_text({**json.loads(results_json(report)), "error": failed.to_json()}, indent=1))
         else:
             print(render_markdown(report))
             if report.get("ablation"):

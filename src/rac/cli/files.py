@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -29,7 +28,16 @@ from rac.cli.common import (
     write_atomically,
 )
 from rac.compiler import CompileResult, compile_file
-from rac.core.diagnostics import UNFINISHED, Diagnostic, error, leaves_undecided, render_text, sort_key
+from rac.core.diagnostics import (
+    UNFINISHED,
+    Diagnostic,
+    display_text,
+    error,
+    json_text,
+    leaves_undecided,
+    render_text,
+    sort_key,
+)
 from rac.core.source import MAX_SOURCE_BYTES
 from rac.lang.format import format_module
 from rac.lang.parser import ParseFailure, parse_source, read_source
@@ -72,7 +80,7 @@ def _check_files(args: argparse.Namespace) -> int:
             if args.format == "json":
                 report.append({"file": str(path), "ok": False, "diagnostics": [], "proved": [], "facts": [],
                                "undecided": True, "interrupted": True})
-                print(json.dumps(report, indent=2))
+                print(json_text(report, indent=2))
             raise  # rac.cli.main says how it stopped and exits 130 or 143
         if result is None:
             assert failure is not None
@@ -111,7 +119,7 @@ def _check_files(args: argparse.Namespace) -> int:
             for fact in result.proved:
                 print(f"  proved: {fact}")
     if args.format == "json":
-        print(json.dumps(report, indent=2))
+        print(json_text(report, indent=2))
     return EXIT_UNDECIDED if status == EXIT_OK and undecided else status
 
 
@@ -153,7 +161,7 @@ def compile_command(args: argparse.Namespace) -> int:
     # jinja2, numpy (via rac.targets.python): rac --help, fmt and a syntax error never load it
     from rac.targets.python import generate_python, python_class_name
 
-    text = generate_python(result.automaton, source_name=args.file.name)
+    text = generate_python(result.automaton, source_name=display_text(args.file.name))
     name = result.automaton.name
     if python_class_name(name) != name:  # whoever imports the class must know what it is called
         print(f"note: the class is `{python_class_name(name)}`: `{name}` is a Python keyword or a name the "
@@ -174,9 +182,9 @@ def _compiled_json(args: argparse.Namespace, result: CompileResult, written: lis
     """``rac compile --format json`` after it succeeded: the file, the target, the files written (``-o``),
     the generated text when it went nowhere else (no ``-o``: it is in the document, not beside it) and
     the file's diagnostics (its warnings), as ``rac check --format json`` has them."""
-    return json.dumps({"file": str(args.file), "target": args.target, "ok": True,
-                       "written": [str(path) for path in written], "output": text,
-                       "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)]}, indent=2)
+    return json_text({"file": str(args.file), "target": args.target, "ok": True,
+                      "written": [str(path) for path in written], "output": text,
+                      "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)]}, indent=2)
 
 
 def _emit(args: argparse.Namespace, result: CompileResult, text: str) -> None:
@@ -213,11 +221,11 @@ def _compile_uppaal(args: argparse.Namespace, result: CompileResult) -> int:
             from rac.targets.uppaal.model import generate_uppaal_model
 
             # With a `model` block: the whole model in its scenario (docs/uppaal.md).
-            model = generate_uppaal_model(result.checked(), source_name=args.file.name,
-                                          model_name=output.name if output is not None else "")
+            model = generate_uppaal_model(result.checked(), source_name=display_text(args.file.name),
+                                          model_name=display_text(output.name) if output is not None else "")
         else:
-            model = generate_uppaal(result.automaton, source_name=args.file.name,
-                                    model_name=output.name if output is not None else "")
+            model = generate_uppaal(result.automaton, source_name=display_text(args.file.name),
+                                    model_name=display_text(output.name) if output is not None else "")
     except (ScenarioError, ModelRangeError) as failure:  # the checks load the scenario first; a safety net
         print_diagnostics([unusable_file(f"`{args.file}`: cannot build the scenario model: {failure}")], {},
                           as_json(args))

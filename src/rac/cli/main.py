@@ -13,7 +13,6 @@ import argparse
 import contextlib
 import errno
 import importlib
-import json
 import os
 import sys
 from collections.abc import Sequence
@@ -34,7 +33,7 @@ from rac.cli.common import (
     stdout_unwritable,
     terminate_as_interrupt,
 )
-from rac.core.diagnostics import RacError, render_text
+from rac.core.diagnostics import RacError, display_text, json_text, render_text
 from rac.core.resources import ScenarioTooLarge
 from rac.engine.budget import EstimateExceeded
 
@@ -109,7 +108,7 @@ def _last_document(args: argparse.Namespace, stdout: ReaderSafe, status: int, *,
         document = {"command": args.command, "ok": False, "exit_code": status, "interrupted": interrupted,
                     "error": None if error is None else f"internal error: {type(error).__name__}: {error}"}
         with contextlib.suppress(StdoutError):  # nowhere to print it: the message on standard error stands
-            print(json.dumps(document, indent=2))
+            print(json_text(document, indent=2))
             stdout.flush()
     return status
 
@@ -144,7 +143,9 @@ class ReaderSafe:
             try:
                 if self._stream is None:  # started with standard output closed (`rac ... >&-`)
                     raise OSError(errno.EBADF, "standard output is closed")
-                return self._stream.write(text)
+                # a file name that is not UTF-8 (`rac check $'bad\xff.ra'`) as the renderer shows it: a strict
+                # UTF-8 standard output refused its surrogate escapes (an internal error, exit 3)
+                return self._stream.write(display_text(text))
             except BrokenPipeError:
                 self._reader_left()
             except OSError as exc:
@@ -190,7 +191,7 @@ class StderrSafe:
     def write(self, text: str) -> int:
         if not self.gone and self._stream is not None:
             try:
-                return self._stream.write(text)
+                return self._stream.write(display_text(text))  # as standard output's (ReaderSafe)
             except (OSError, ValueError):  # ValueError: the stream itself was closed
                 self._drop()
         return len(text)

@@ -11,7 +11,6 @@ merged first.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -31,6 +30,7 @@ from rac.cli.common import (
     unwritable,
     usage_error,
 )
+from rac.core.diagnostics import json_text
 from rac.sweep import execute, plan
 from rac.verify.status import UNDECIDED
 
@@ -58,9 +58,9 @@ def _document(template: Path, out: Path, status: int, summary: Mapping[str, obje
               files: Sequence[Path], *, interrupted: bool, written: bool) -> str:
     """The JSON document of ``--format json``: ``summary`` None when Ctrl-C came before there was one, and
     ``written`` whether ``results.*`` and the plots were all written (``files`` holds those that were)."""
-    return json.dumps({"template": str(template), "out": str(out), "interrupted": interrupted,
-                       "exit_code": status, "summary": summary, "files": [str(f) for f in files],
-                       "written": written}, indent=2)
+    return json_text({"template": str(template), "out": str(out), "interrupted": interrupted,
+                      "exit_code": status, "summary": summary, "files": [str(f) for f in files],
+                      "written": written}, indent=2)
 
 
 def sweep_command(args: argparse.Namespace) -> int:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import difflib
 import errno
-import json
 import re
 import sys
 from dataclasses import dataclass
@@ -36,7 +35,7 @@ from rac.cli.common import (
     write_atomically,
 )
 from rac.compiler import CompileResult, compile_source
-from rac.core.diagnostics import Diagnostic, error, render_text, sort_key
+from rac.core.diagnostics import Diagnostic, error, json_text, render_text, sort_key
 from rac.core.numbers import exact_decimal, exact_text
 from rac.core.resources import ScenarioTooLarge
 from rac.core.source import SourceFile
@@ -123,9 +122,9 @@ def _tune(args: argparse.Namespace) -> int:
     changes = list(difflib.unified_diff(source.text.splitlines(), text.splitlines(), str(path),
                                         f"{path} (tuned)", n=0, lineterm=""))
     if args.format == "json":
-        print(json.dumps({"file": str(path), "ok": True, **_values_json(synthesis),
-                          "sentence": synthesis.sentence, "written": None if written is None else str(written),
-                          "diff": changes, "diagnostics": _diagnostics_json(result.diagnostics)}, indent=2))
+        print(json_text({"file": str(path), "ok": True, **_values_json(synthesis),
+                         "sentence": synthesis.sentence, "written": None if written is None else str(written),
+                         "diff": changes, "diagnostics": _diagnostics_json(result.diagnostics)}, indent=2))
         return EXIT_OK
     if result.diagnostics:  # warnings: they hold for the tuned file too
         print(render_text(result.diagnostics, result.sources))
@@ -213,9 +212,9 @@ def _failed(args: argparse.Namespace, path: Path, result: CompileResult, status:
     (1: the file's errors; 2: it could not be read, in JSON, where standard output carries it)."""
     errors = sum(d.is_error for d in result.diagnostics)
     if args.format == "json":
-        print(json.dumps({"file": str(path), "ok": False, "values": None, "inequalities": None, "sentence": None,
-                          "written": None, "diff": [], "diagnostics": _diagnostics_json(result.diagnostics)},
-                         indent=2))
+        print(json_text({"file": str(path), "ok": False, "values": None, "inequalities": None, "sentence": None,
+                         "written": None, "diff": [], "diagnostics": _diagnostics_json(result.diagnostics)},
+                        indent=2))
         return status
     print(render_text(result.diagnostics, result.sources))
     print()
@@ -267,8 +266,8 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
     # No horizon with a value is a failed synthesis, like `rac tune` on the file itself: exit 1.
     found = any(r.synthesis is not None for r in rows)
     if not text:
-        print(json.dumps({"file": str(path), "ok": found, "written": None, "horizons": [_row_json(r) for r in rows],
-                          "formulas": [_fit_json(name, relation, fit) for name, fit in fits.items()]}, indent=2))
+        print(json_text({"file": str(path), "ok": found, "written": None, "horizons": [_row_json(r) for r in rows],
+                         "formulas": [_fit_json(name, relation, fit) for name, fit in fits.items()]}, indent=2))
         return EXIT_OK if found else EXIT_ERRORS
     for name, fit in fits.items():
         print(_fit_text(name, relation, fit))

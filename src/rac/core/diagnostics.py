@@ -8,8 +8,9 @@ the source line and a caret) or as JSON with the same fields.
 from __future__ import annotations
 
 import json
+import re
 import unicodedata
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from decimal import Context, Decimal
 from enum import Enum
@@ -273,10 +274,50 @@ def _cells(text: str) -> int:
                for ch in text)
 
 
+#: A lone surrogate: in a file name that is not UTF-8, an undecodable byte (U+DC80..U+DCFF, ``os.fsdecode``).
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def display_text(text: str) -> str:
+    """``text`` as rac shows it, in text and in JSON: valid Unicode. A file name that is not UTF-8 reaches
+    rac (``os.fsdecode``) with each undecodable byte as a lone surrogate, which a strict UTF-8 stream
+    refuses (an internal error) and strict JSON readers reject (``"\\udcff"``); it is shown as that byte's
+    escape, ``\\xff``, as ``os.fsencode`` then ``backslashreplace`` writes it. Any other lone surrogate is
+    shown as ``\\uXXXX``."""
+    if text.isascii():
+        return text
+    return _SURROGATE.sub(lambda match: _escape(match.group()), text)
+
+
+def _escape(surrogate: str) -> str:
+    code = ord(surrogate)
+    return f"\\x{code - 0xDC00:02x}" if 0xDC80 <= code <= 0xDCFF else f"\\u{code:04x}"
+
+
+def json_text(document: object, *, indent: int | None = 2, default: Callable[[object], object] | None = None) -> str:
+    """``document`` as the JSON text a command prints (``json.dumps`` with ``indent`` and ``default``), every
+    string (keys too) shown by :func:`display_text`, so that the output is valid UTF-8 JSON whatever the
+    file names."""
+
+    def shown(value: object) -> object:
+        if isinstance(value, str):
+            return display_text(value)
+        if value is None or isinstance(value, bool | int | float):
+            return value
+        if isinstance(value, Mapping):
+            return {shown(key) if isinstance(key, str) else key: shown(item) for key, item in value.items()}
+        if isinstance(value, list | tuple):
+            return [shown(item) for item in value]
+        return value if default is None else shown(default(value))
+
+    return json.dumps(shown(document), indent=indent)
+
+
 def _printable(text: str) -> str:
     """``text`` with its control characters (but newlines and tabs) written as escapes (``\\x1b``): a
     message may quote the user's text, e.g. a file name, and a raw escape character would garble or
-    drive the terminal."""
+    drive the terminal. A file name's undecodable bytes are shown as :func:`display_text` shows them."""
+    text = display_text(text)
     if text.isprintable():
         return text
     return "".join(ch if ch.isprintable() or ch in "\n\t" else repr(ch)[1:-1] for ch in text)
@@ -326,4 +367,4 @@ def render_text(diagnostics: Iterable[Diagnostic], sources: Mapping[str, SourceF
 
 def render_json(diagnostics: Iterable[Diagnostic]) -> str:
     """Render diagnostics as a JSON array with the same data as :func:`render_text`."""
-    return json.dumps([d.to_json() for d in sorted(diagnostics, key=sort_key)], indent=2)
+    return json_text([d.to_json() for d in sorted(diagnostics, key=sort_key)])
