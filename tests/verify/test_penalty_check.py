@@ -101,3 +101,15 @@ def test_rac_verify_prints_the_check_and_its_json(tmp_path: Path, truck: tuple[f
     assert penalties["done"] and penalties["samples"] == 4
     assert [d["code"] for d in penalties["diagnostics"]] == (["W1011"] if truck == SPAWNED else [])
     assert (penalties["unavoidable"] != {}) == (truck == SPAWNED)
+
+
+def test_a_check_cut_short_by_max_states_leaves_the_exit_code_to_the_queries(tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    # decided (docs/verify.md): the check is advice, not a query; finding W1011 exits 0, so not finishing
+    # the search cannot exit 4, which says a query was left undecided (rac check: W1008 only when required)
+    path = write_spawn(tmp_path, SPAWNED)
+    assert main(["verify", str(path), "--max-states", "3", "--format", "json"]) == 0
+    penalties = json.loads(capsys.readouterr().out)["penalties"]
+    assert penalties["done"] is False and penalties["message"].startswith("not checked: ")
+    assert main(["verify", str(path), "--max-states", "3"]) == 0
+    assert " -- not checked: by sample 1 the product has more than 3 states, --max-states" in capsys.readouterr().out
