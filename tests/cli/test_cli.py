@@ -462,8 +462,10 @@ def test_no_command_still_asks_for_one(capsys: pytest.CaptureFixture[str]) -> No
     (["render", "--strategy", "a", "--strategy", "b"], "--strategy"),
 ])
 def test_an_option_of_one_value_given_twice_is_refused(capsys: pytest.CaptureFixture[str], clean: Path,
-                                                       tmp_path: Path, argv: list[str], option: str) -> None:
+                                                       tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                       argv: list[str], option: str) -> None:
     # the last one won silently: `--target python --target uppaal` wrote UPPAAL, `-o a.py -o b.py` wrote b.py only
+    monkeypatch.chdir(tmp_path)  # where the relative a.py and b.py would go
     assert main([*argv, str(clean)]) == 2
     out, err = capsys.readouterr()
     assert f"error: argument {option}: given twice with different values" in err and out == ""

@@ -547,3 +547,23 @@ def test_tests_import_no_private_names_of_rac() -> None:
                 found += [f"{path.relative_to(tests)}:{node.lineno}: {node.module}.{alias.name}" for alias in node.names
                           if alias.name.startswith("_") and not alias.name.startswith("__")]
     assert not found, "\n".join(found)
+
+
+#: What the repository's top level holds (the brief's layout, the CI script and the project's own files).
+TOP_LEVEL = {".ci", ".gitignore", "README.md", "pyproject.toml", "benchmarks", "docs", "examples", "grammar", "src",
+             "stdlib", "tests"}
+
+
+def test_nothing_stray_at_the_top_level() -> None:
+    """A file a test or a command left in the checkout and a commit took along (a generated ``b.py`` was
+    committed once) is not part of the project: the tracked top level is the layout's."""
+    import shutil  # only here: the rule reads git's index, not the working tree
+    import subprocess  # only here: as above
+
+    root = SRC.parents[1]
+    git = shutil.which("git")
+    if git is None or not (root / ".git").exists():
+        pytest.skip("not a git checkout: the tracked files are not known")
+    listed = subprocess.run([git, "ls-files"], cwd=root, capture_output=True, text=True, check=True).stdout
+    tracked = {line.split("/", 1)[0] for line in listed.splitlines() if line}
+    assert tracked <= TOP_LEVEL, sorted(tracked - TOP_LEVEL)
