@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import sys
 from collections.abc import Callable, Sequence
 from fractions import Fraction
 from pathlib import Path
@@ -99,17 +100,19 @@ class _RacParser(argparse.ArgumentParser):
 
 
 class _Once(argparse.Action):
-    """argparse's ``store`` for an option that takes one value: given twice with different values
-    (``--target python --target uppaal``, ``-o a.py -o b.py``) it is refused (exit 2, naming the option),
-    where argparse kept the last silently and the command did something else than one of the two asked
-    for. The same value twice is that value. Options that may be repeated say so with ``action="append"``."""
+    """argparse's ``store`` for an option that takes one value, which says when it is given twice with
+    different values (``--target python --target uppaal``, ``-o a.py -o b.py``): argparse kept the last
+    silently, so the command did something else than one of the two asked for, without a word. The last
+    still counts — a script that appends an override to its defaults is a common way to call a command —
+    and a warning on standard error names the option and both values. Options that may be repeated say
+    so with ``action="append"``."""
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
                  values: str | Sequence[object] | None, option_string: str | None = None) -> None:
         given = parser.given if isinstance(parser, _CommandParser) and self.option_strings else {}
         if self.dest in given and given[self.dest] != values:  # compared as converted: `30` and `30.0` agree
-            raise argparse.ArgumentError(self, f"given twice with different values, `{given[self.dest]}` and "
-                                               f"`{values}`: it takes one value")
+            sys.stderr.write(f"{parser.prog}: warning: argument {'/'.join(self.option_strings)}: given twice with "
+                             f"different values, `{given[self.dest]}` and `{values}`: the last one counts\n")
         given[self.dest] = values
         setattr(namespace, self.dest, values)  # argparse's `store`
 
@@ -118,7 +121,7 @@ class _CommandParser(argparse.ArgumentParser):
     """A sub-command's parser that refuses an option it does not know itself, with its own usage: argparse
     leaves that to ``rac``'s parser, whose usage (``rac [-h] [--version] COMMAND ...``) shows none of the
     command's options, where every other mistake in them (a missing value, a bad choice) shows the command's.
-    An option of one value given twice with different values is refused too (:class:`_Once`)."""
+    An option of one value given twice with different values is warned of (:class:`_Once`)."""
 
     def __init__(self, *args: object, **kwargs: object) -> None:
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
