@@ -425,6 +425,20 @@ class Automaton:
     def all_edges(self) -> tuple[Edge, ...]:
         return tuple(e for group in self.edges for e in group)
 
+    def first_non_translation(self) -> tuple[str, str] | None:
+        """The first update that is not a translation ``r = r + c`` (``c`` free of rewards: ``sa = sa * 2``,
+        ``sa = 0``, ``pr = sa`` are not), as its reward and where it is (``"the edge A -> B"``, ``"an `at end`
+        clause"``); None when every update is one, so that a reward's change never depends on the values."""
+        names = self.location_names
+        places = [(f"the edge {names[edge.source]} -> {names[edge.target]}", edge.updates) for edge in self.all_edges()]
+        places += [("an `at end` clause", clause.updates) for clause in self.end_clauses]
+        for where, updates in places:
+            for update in updates:
+                read = [name for name in update.value.variables() if name in self.rewards]
+                if update.value.coefficient(update.reward) != 1 or any(name != update.reward for name in read):
+                    return update.reward, where
+        return None
+
 
 def guard_leaves(guard: Guard) -> list[BInput | BAtom]:
     """The input reads of a guard (boolean inputs and numeric atoms), first occurrence order."""

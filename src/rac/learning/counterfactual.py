@@ -120,22 +120,6 @@ class CounterfactualBatch:
     ended: np.ndarray
 
 
-def _update_reading_rewards(automaton: ir.Automaton) -> str | None:
-    """Where an update of ``automaton`` reads a reward's value (``sa = sa * 2``, ``sa = 0``, ``pr = sa``):
-    its change then depends on the values before it (None: every update adds a constant or inputs)."""
-    names = automaton.location_names
-    places = [(f"the edge {names[edge.source]} -> {names[edge.target]}", edge.updates)
-              for edges in automaton.edges for edge in edges]
-    places += [("an `at end` clause", clause.updates) for clause in automaton.end_clauses]
-    for where, updates in places:
-        for update in updates:
-            others = {name: coefficient for name, coefficient in update.value.terms
-                      if name in automaton.rewards and name != update.reward}
-            if update.value.coefficient(update.reward) != 1 or any(others.values()):
-                return f"the update of `{update.reward}` on {where}"
-    return None
-
-
 def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mapping[str, np.ndarray], *,
                                rewards: Mapping[str, np.ndarray] | None = None,
                                ended: np.ndarray | None = None,
@@ -160,11 +144,12 @@ def counterfactual_transitions(automaton: ir.Automaton | Replayer, inputs: Mappi
         raise ValueError(f"the rates of `{program.name}` read the input(s) {', '.join(read)} held from the step "
                          "before each transition: pass held= (RewardAutomatonWrapper's info['rac']['held']; at an "
                          "episode's first step, the step's own inputs)")
-    reading = _update_reading_rewards(program)
+    reading = program.first_non_translation()
     if rewards is None and reading is not None:
-        raise ValueError(f"in `{program.name}`, {reading} reads the rewards' values, so a transition's reward depends "
-                         "on them: pass rewards= (each reward's value before the transition: RewardAutomatonWrapper's "
-                         "info['rac']['rewards'] minus info['rac']['reward_steps'])")
+        raise ValueError(f"in `{program.name}`, the update of `{reading[0]}` on {reading[1]} reads the rewards' "
+                         "values, so a transition's reward depends on them: pass rewards= (each reward's value before "
+                         "the transition: RewardAutomatonWrapper's info['rac']['rewards'] minus "
+                         "info['rac']['reward_steps'])")
     columns = {name: np.asarray(values) for name, values in inputs.items()}
     if not columns and ended is None:  # an automaton without inputs: only `ended` says how many transitions
         raise ValueError("inputs name no input: pass ended= (one flag per transition) to give their number")

@@ -172,12 +172,9 @@ def why_not_additive(automaton: ir.Automaton, *, objective: ie.Expr | None = Non
     docstring): an update that is not a translation, an objective not affine in the rewards, a goal
     or reward function that reads them. ``objective`` None: the automaton's own (linear)."""
     rewards = set(automaton.rewards)
-    updates = [a for edge in automaton.all_edges() for a in edge.updates]
-    updates += [a for clause in automaton.end_clauses for a in clause.updates]
-    for update in updates:
-        read = [name for name in update.value.variables() if name in rewards]
-        if update.value.coefficient(update.reward) != 1 or any(name != update.reward for name in read):
-            return f"the update of `{update.reward}` is not `{update.reward} = {update.reward} + c`"
+    found = automaton.first_non_translation()
+    if found is not None:
+        return f"the update of `{found[0]}` is not `{found[0]} = {found[0]} + c`"
     if any(name in rewards for location in automaton.locations for rate in location.rates
            for name in rate.variables()):
         return "a rate reads the rewards"

@@ -142,8 +142,11 @@ def _lookahead(lookahead: LookaheadSettings | int | Literal["auto"] | None,
     raise TypeError(f"lookahead must be LookaheadSettings, a depth, 'auto' or None, not {lookahead!r}")
 
 
-def clock_warning(settings: LookaheadSettings | None, time: float) -> str:
-    """The warning of the first step whose runtime shield's search the time limit stopped (at ``time``, s)."""
+def clock_warning(step_shield: StepShield | None, time: float) -> str:
+    """The warning of the first step whose runtime shield (of ``step_shield``) the time limit stopped (at
+    ``time``, s)."""
+    runtime = step_shield.runtime if step_shield is not None else None
+    settings = runtime.settings if runtime is not None else None
     limit = f"{settings.seconds:g} s" if settings is not None and settings.seconds is not None else "its time"
     nodes = settings.nodes if settings is not None else None
     how = (f"its node budget ({nodes} a decision) is the same on every machine, the time limit ({limit}) is not; "
@@ -511,9 +514,7 @@ class ScenarioEnv(gymnasium.Env):
         self.timeout_steps += shield["shield_timeout"]
         if shield["shield_clock"]:
             if not self.clock_steps:  # never silently: a reproducible run is what the node budget promises
-                runtime = self._step_shield.runtime if self._step_shield is not None else None
-                warnings.warn(clock_warning(runtime.settings if runtime is not None else None, time),
-                              RuntimeWarning, stacklevel=2)
+                warnings.warn(clock_warning(self._step_shield, time), RuntimeWarning, stacklevel=2)
             self.clock_steps += 1
         self.disallowed_steps += not model_allowed
         info = self._info()

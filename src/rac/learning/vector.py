@@ -320,11 +320,9 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self.timeout_steps += int(flags["shield_timeout"].sum())
         clocked = int(flags["shield_clock"].sum())
         if clocked and not self.clock_steps:  # never silently: the node budget promises reproducible runs
-            runtime = self._step_shield.runtime if self._step_shield is not None else None
             first = int(np.flatnonzero(flags["shield_clock"])[0])
             time = float(seconds_at(int(self.episodes.k[first]), self._period))
-            warnings.warn(clock_warning(runtime.settings if runtime is not None else None, time),
-                          RuntimeWarning, stacklevel=3)
+            warnings.warn(clock_warning(self._step_shield, time), RuntimeWarning, stacklevel=3)
         self.clock_steps += clocked
         self.disallowed_steps += int((stepping & ~flags["model_allowed"]).sum())
         info: dict[str, np.ndarray] = {"shield": kind, "shield_until": until, **flags}
