@@ -10,10 +10,12 @@ module names stay unique across the folders)."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -64,6 +66,18 @@ def utap(tmp_path_factory: pytest.TempPathFactory) -> utap_module.Utap:
     if located.path is None:
         utap_module.unavailable(located.reason)
     return utap_module.Utap(located.path, tmp_path_factory.mktemp("utap"))
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """Under pytest-xdist a worker hands its validation counts to the controller, which prints them."""
+    workeroutput = getattr(session.config, "workeroutput", None)
+    if workeroutput is not None:
+        workeroutput["utap_counts"] = dataclasses.asdict(utap_module.COUNTS)
+
+
+@pytest.hookimpl(optionalhook=True)  # pytest-xdist's hook: the controller hears of each worker ending
+def pytest_testnodedown(node: Any, error: object) -> None:
+    utap_module.add_counts(getattr(node, "workeroutput", {}).get("utap_counts", {}))
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:

@@ -49,6 +49,13 @@ class Counts:
 COUNTS = Counts()
 
 
+def add_counts(other: dict[str, int]) -> None:
+    """Add a pytest-xdist worker's counts (sent as a dict) to this process's :data:`COUNTS`."""
+    COUNTS.models += other.get("models", 0)
+    COUNTS.query_files += other.get("query_files", 0)
+    COUNTS.rejected += other.get("rejected", 0)
+
+
 @dataclass(frozen=True)
 class Located:
     """The validator's path, or why there is none (``path is None``)."""
