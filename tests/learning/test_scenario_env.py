@@ -410,7 +410,8 @@ def test_a_shield_of_another_scene_is_refused(tiny: CompileResult, tmp_path: Pat
     with np.load(path) as npz:
         np.savez(tmp_path / "old.npz", **{k: npz[k] for k in npz.files if k != "model"})
     assert shield_file.load(tmp_path / "old.npz").model is None
-    ScenarioEnv(other, shield=tmp_path / "old.npz").reset()
+    with pytest.warns(UserWarning, match="does not record the model"):
+        ScenarioEnv(other, shield=tmp_path / "old.npz").reset()
 
 
 def test_the_model_digest_ignores_layout_and_sees_allow_when(tiny: CompileResult, tmp_path: Path) -> None:
@@ -533,6 +534,30 @@ def highway_set(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Pa
     write_scene("highway", folder / "highway.xml")
     (folder / "drive.ra").write_text(HIGHWAY_MODEL, encoding="utf-8")
     return folder / "drive.ra", scene_set("highway", 3, 0, folder / "scenes")
+
+
+def test_a_table_made_from_a_graph_is_refused_on_another_scene(highway_set: tuple[Path, list[Path]]) -> None:
+    # docs/python.md makes a table with shield.table(safety_shield(explore(data, ...), "safe"), n_actions=P),
+    # without model=: it recorded no model, so the table of one highway variant passed on another (the
+    # same ego start, other cars) had its masks called "exhaustive" there, without a word
+    from rac.lang.edit import with_model
+
+    model, scenes = highway_set
+    text = model.read_text(encoding="utf-8")
+    first, second = (compile_text(with_model(text, model, scene), name=str(model)) for scene in scenes[:2])
+    data = first.model_data
+    assert data is not None and second.model_data is not None and second.model_data.digest != data.digest
+    table = shield_file.table(safety_shield(explore(data, horizon_samples=20, prune_unsafe=True), "safe"),
+                              n_actions=EpisodeBatch(first).n_actions)
+    assert table.model == data.digest  # the graph knows the model it explored
+    env = ScenarioEnv(first, shield=table)
+    env.reset()
+    assert env.shield_step() is not None and env.shield_step().guarantee == "exhaustive"
+    with pytest.raises(ValueError, match="computed for another model"):
+        ScenarioEnv(second, shield=table)
+    # a table that records none (built by hand, an old file) is still used, but not without a word
+    with pytest.warns(UserWarning, match="does not record the model it was computed for"):
+        ScenarioEnv(second, shield=dataclasses.replace(table, model=None))
 
 
 def test_the_relative_observation_by_hand(highway_set: tuple[Path, list[Path]]) -> None:

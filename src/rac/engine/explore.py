@@ -471,4 +471,4 @@ def explore(data: ModelData, *, horizon_samples: int | None = None, prune_unsafe
         choice_action=np.concatenate(actions) if actions else np.zeros(0, dtype=np.int64),
         choice_target=np.concatenate(targets) if targets else np.zeros(0, dtype=np.int64),
         initial=0, labels={name: np.concatenate(masks) for name, masks in labels.items()}, complete=complete,
-        forget_every=int(data.decide_every) if forget_actions else 0)
+        forget_every=int(data.decide_every) if forget_actions else 0, model=data.digest)

@@ -43,6 +43,9 @@ class ExploredGraph:
     #: ``forget_every`` samples, so its states hold jerk and turn as 0 where
     #: :func:`rac.engine.explore.forgets_actions` says; a lookup by a run's state must do the same.
     forget_every: int = 0
+    #: :attr:`rac.model.data.ModelData.digest` of the model explored (None: a graph built otherwise): the
+    #: model a shield table made from this graph records (:func:`rac.engine.shield.table`).
+    model: str | None = None
 
     @property
     def n_states(self) -> int:

@@ -33,6 +33,7 @@ its mask carries, and is never an all-False mask::
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -76,7 +77,8 @@ class ShieldTable:
     #: (None: not recorded, e.g. a file written before it was; then taken to cover every run).
     horizon: int | None = None
     #: :attr:`rac.model.data.ModelData.digest` of the model it was computed for (None: not recorded,
-    #: a file written before it was); :class:`StepShield` refuses a table of another model.
+    #: a file written before it was, a table built by hand); :class:`StepShield` refuses a table of
+    #: another model, and warns of one that records none.
     model: str | None = None
     #: Where it was read from (:func:`load`), for messages.
     origin: str | None = None
@@ -216,7 +218,8 @@ def synthesise(data: ModelData, horizon_samples: int, *, max_states: int | None 
 def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none", forget_every: int | None = None,
           horizon: int | None = None, model: ModelData | None = None) -> ShieldTable:
     """The :class:`ShieldTable` of a computed shield (what :func:`save` writes and :func:`load` reads);
-    ``model``: the model it was computed for (its digest is recorded: :attr:`ShieldTable.model`);
+    ``model``: the model it was computed for (its digest is recorded: :attr:`ShieldTable.model`; default:
+    the model the graph was explored for, :attr:`rac.engine.graph.ExploredGraph.model`);
     ``forget_every``: the model's ``decide_every`` when the graph was explored with ``forget_actions``
     (default: as the graph records it, :attr:`rac.engine.graph.ExploredGraph.forget_every`);
     ``horizon``: the sample the graph was explored to (default: its last sample); ``n_actions``: the
@@ -251,8 +254,9 @@ def table(shield: Shield, *, n_actions: int | None = None, unseen: str = "none",
     picked = decision & shield.allowed_choices
     masks[row_of[owner[picked]], actions[picked]] = True
     states = graph.states[states_with_decisions][:, kept].astype(np.int32)
+    # the graph knows its model: a table made without model= was trusted on any other scene, unchecked
     return ShieldTable(columns, states, masks, unseen, forget_every, horizon,
-                       model=None if model is None else model.digest)
+                       model=graph.model if model is None else model.digest)
 
 
 def save(shield: Shield | ShieldTable, path: str | Path, *, n_actions: int | None = None) -> Path:
@@ -372,6 +376,15 @@ class StepShield:
             raise RacValueError(f"{where} was computed for another model (digest {table.model}, this model's "
                                 f"{data.digest}): another scene, or the model block or its scenario changed since; "
                                 "compute it again for this model (rac verify writes NAME.shield.npz)")
+        if table is not None and table.model is None:
+            # nothing to compare: its masks would be called exhaustive here whatever scene it was computed for
+            where = f"the shield {table.origin}" if table.origin else "the shield table"
+            warnings.warn(f"{where} does not record the model it was computed for (a table built without "
+                          "rac.engine.shield.table's graph or model=, or a file written before rac recorded it), so "
+                          "it cannot be checked against this one: its masks are called exhaustive here unchecked, "
+                          "and a table of another scene or setting would be trusted alike; compute it again for "
+                          "this model (rac.engine.shield.synthesise, or rac verify's NAME.shield.npz)", UserWarning,
+                          stacklevel=2)
         self.runtime = Lookahead(data, self.horizon, lookahead) if lookahead is not None else None
         self.reason = reason
         self._guard = ActionGuard(data)
