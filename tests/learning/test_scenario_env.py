@@ -57,11 +57,12 @@ def table(tiny: CompileResult) -> ShieldTable:
 
 
 def checked(env: gymnasium.Env) -> list[str]:
-    """check_env's warnings, except the one that only says the env was not made with gymnasium.make."""
+    """check_env's warnings, except the one that only says the env was not made with gymnasium.make, and
+    the one of its random actions, which a shield's mask may not allow (true, and tested on its own)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(env)
-    return [str(w.message) for w in caught if "spec" not in str(w.message)]
+    return [str(w.message) for w in caught if "spec" not in str(w.message) and "not in the mask" not in str(w.message)]
 
 
 # ---------------------------------------------------------------- the gymnasium API
@@ -355,6 +356,39 @@ def test_the_step_info_without_a_shield(tiny: CompileResult) -> None:
     _, _, _, _, info = env.step(4)
     assert info["shield"] == "none" and not info["no_safe_action"] and not info["shield_timeout"]
     assert env.no_safe_action_steps == 0 and env.shield_steps == {"none": 1}
+
+
+class Reversed(gymnasium.ActionWrapper):  # type: ignore[type-arg]
+    """A user's action wrapper: the learner's action a is the environment's P - 1 - a (the masks, read
+    through it with get_wrapper_attr, are still the environment's own)."""
+
+    def action(self, action: int) -> int:
+        return int(self.action_space.n) - 1 - int(action)  # type: ignore[attr-defined]
+
+
+def test_an_action_outside_the_mask_is_warned_of_once_and_counted(tiny: CompileResult) -> None:
+    # a learner that chose from the mask behind an action wrapper (or MaskablePPO.predict without
+    # action_masks=, evaluate_policy(use_masking=False), DQN) took unshielded steps; only
+    # info["shield_allowed"] said so, which an evaluation loop drops: no warning, no counter
+    env = Reversed(ScenarioEnv(tiny, shield=shield_table(tiny, 8, "none")))  # the runtime shield off the table
+    outside = 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(2):  # the first step of two episodes: the table allows one action, the wrapper takes another
+            env.reset()
+            mask = env.get_wrapper_attr("action_masks")()
+            chosen = int(np.flatnonzero(mask)[0])  # what a masked learner picks
+            _, _, _, _, info = env.step(chosen)
+            outside += not mask[env.action(chosen)]
+            assert info["shield"] == "exhaustive" and info["shield_allowed"] == bool(mask[env.action(chosen)])
+    assert outside == 2  # the wrapper took both steps out of the mask
+    said = [str(w.message) for w in caught if "not in the mask" in str(w.message)]
+    assert len(said) == 1 and "action wrapper" in said[0] and "t = 0 s" in said[0], said
+    assert env.get_wrapper_attr("outside_mask_steps") == outside
+    inner = env.unwrapped
+    inner.reset()
+    _, _, _, _, info = inner.step(int(np.flatnonzero(inner.action_masks())[0]))  # within the mask: not counted
+    assert info["shield_allowed"] and inner.outside_mask_steps == outside
 
 
 def test_without_a_shield_the_mask_is_the_models_allow_when(tiny: CompileResult, tmp_path: Path) -> None:

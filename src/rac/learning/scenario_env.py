@@ -157,6 +157,18 @@ def clock_warning(step_shield: StepShield | None, time: float) -> str:
             f"get other masks elsewhere; info['shield_clock'] marks such steps, clock_steps counts them ({how})")
 
 
+def outside_mask_warning(action: int, time: float, guarantee: str) -> str:
+    """The warning of the first step that took an action (``action``, at ``time`` s) the mask of its state
+    did not allow (the mask carried ``guarantee``: ``info["shield"]``)."""
+    mask = ("the model's own (`allow when`)" if guarantee == "none" else f"the shield's ({guarantee})")
+    return (f"the action {action} taken at t = {time:g} s was not in the mask of its state, {mask}: the mask only "
+            "offers actions, it does not change the one taken, so no guarantee covers this step. A learner that "
+            "ignores the masks takes such actions: plain PPO or DQN, MaskablePPO.predict(obs) without "
+            "action_masks=, sb3-contrib's evaluate_policy(..., use_masking=False), or an action wrapper that changes "
+            "the action after it was chosen from the mask; info['shield_allowed'] marks such steps, "
+            "outside_mask_steps counts them")
+
+
 class ScenarioEnv(gymnasium.Env):
     """The scenario model of a ``.ra`` file's ``model`` block as a gymnasium environment.
 
@@ -218,7 +230,7 @@ class ScenarioEnv(gymnasium.Env):
     permits: a learner that ignores the masks can take another, and that step is no step of the
     model, which no proof covers). Counted since construction: :attr:`shield_steps` (steps per
     ``shield`` value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`, :attr:`clock_steps`,
-    :attr:`disallowed_steps`.
+    :attr:`disallowed_steps`, :attr:`outside_mask_steps` (``shield_allowed`` False; the first is warned of).
 
     The runtime shield's default budget is a number of search nodes
     (:class:`rac.engine.lookahead.LookaheadSettings`), so the masks, and a masked learner's run at a
@@ -305,6 +317,9 @@ class ScenarioEnv(gymnasium.Env):
         self.clock_steps = 0
         #: Steps that took an action the model's ``allow when`` forbids (``info["model_allowed"]`` False).
         self.disallowed_steps = 0
+        #: Steps that took an action the mask of their state did not allow (``info["shield_allowed"]`` False;
+        #: the first one is warned of): no guarantee covers them.
+        self.outside_mask_steps = 0
         self._decision: ShieldStep | None = None
         self._crashed = False
         self.render_mode = render_mode
@@ -517,6 +532,10 @@ class ScenarioEnv(gymnasium.Env):
                 warnings.warn(clock_warning(self._step_shield, time), RuntimeWarning, stacklevel=2)
             self.clock_steps += 1
         self.disallowed_steps += not model_allowed
+        if not shield["shield_allowed"]:
+            if not self.outside_mask_steps:  # the info key alone went unread: an evaluation loop drops it
+                warnings.warn(outside_mask_warning(int(action), time, shield["shield"]), UserWarning, stacklevel=2)
+            self.outside_mask_steps += 1
         info = self._info()
         # each reward's change over the step, unscaled (what a training log averages per objective)
         info["reward_steps"] = {name: value - float(before[name][0]) for name, value in info["rewards"].items()}

@@ -40,7 +40,7 @@ from rac.core.diagnostics import RacValueError
 from rac.core.numbers import seconds_at
 from rac.ir import expr as ie
 from rac.lang import ast
-from rac.learning.scenario_env import ScenarioEnv, clock_warning
+from rac.learning.scenario_env import ScenarioEnv, clock_warning, outside_mask_warning
 from rac.learning.wrappers import Scale
 
 if TYPE_CHECKING:
@@ -69,7 +69,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     ``_key`` of the episodes that report it — the shield's keys are missing for an episode that was
     restarted in this step (its info is the reset info). Counted since construction over all
     episodes, as ScenarioEnv counts: :attr:`shield_steps`, :attr:`no_safe_action_steps`, :attr:`timeout_steps`,
-    :attr:`clock_steps`, :attr:`disallowed_steps`.
+    :attr:`clock_steps`, :attr:`disallowed_steps`, :attr:`outside_mask_steps` (the first warned of).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -109,6 +109,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self.clock_steps = 0
         #: Steps that took an action the model's ``allow when`` forbids (``info["model_allowed"]`` False).
         self.disallowed_steps = 0
+        #: Steps that took an action the mask of their state did not allow (``info["shield_allowed"]`` False).
+        self.outside_mask_steps = 0
         self._period = Fraction(self.episodes.automaton.period)  # times as written (rac.core.numbers.seconds_at)
         self._names = np.array(self.episodes.automaton.location_names, dtype=object)
         n = self.num_envs
@@ -325,6 +327,13 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
             warnings.warn(clock_warning(self._step_shield, time), RuntimeWarning, stacklevel=3)
         self.clock_steps += clocked
         self.disallowed_steps += int((stepping & ~flags["model_allowed"]).sum())
+        outside = stepping & ~flags["shield_allowed"]
+        if outside.any() and not self.outside_mask_steps:  # as ScenarioEnv: the info key alone goes unread
+            first = int(np.flatnonzero(outside)[0])
+            time = float(seconds_at(int(self.episodes.k[first]), self._period))
+            warnings.warn(outside_mask_warning(int(actions[first]), time, str(kind[first])), UserWarning,
+                          stacklevel=3)
+        self.outside_mask_steps += int(outside.sum())
         info: dict[str, np.ndarray] = {"shield": kind, "shield_until": until, **flags}
         return {**info, **{f"_{key}": stepping.copy() for key in info}}
 
@@ -475,3 +484,8 @@ class ScenarioSyncVectorEnv(gymnasium.vector.SyncVectorEnv):  # type: ignore[mis
     def disallowed_steps(self) -> int:
         """Steps that took an action the model's ``allow when`` forbids, over all episodes."""
         return int(self._total("disallowed_steps"))
+
+    @property
+    def outside_mask_steps(self) -> int:
+        """Steps that took an action the mask of their state did not allow, over all episodes."""
+        return int(self._total("outside_mask_steps"))
