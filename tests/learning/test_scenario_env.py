@@ -282,6 +282,30 @@ def test_past_the_exhaustive_horizon_the_masks_are_the_runtime_shields(tiny: Com
     assert env.shield_steps["lookahead 1"] == kinds.count("lookahead 1")
 
 
+def test_an_on_demand_shield_past_its_horizon_claims_nothing(tiny: CompileResult) -> None:
+    # an on-demand shield (rac.engine.ondemand) "knows" every state and allows every action at and past its
+    # horizon; in a longer episode without a runtime shield those masks were called exhaustive, their
+    # shield_until already past, while the run collided under them
+    from rac.engine.ondemand import on_demand
+
+    data = tiny.model_data
+    assert data is not None
+    env = ScenarioEnv(tiny, shield=on_demand(data, 4), lookahead=None)  # 2 s of the episode's 4 s
+    _, info = env.reset()
+    done, seen = False, []
+    while not done:
+        at = info["time"]  # the state's time, s
+        mask = env.action_masks()
+        _, _, terminated, truncated, info = env.step(int(np.flatnonzero(mask)[-1]))
+        seen.append(info["shield"])
+        if info["shield"] == "exhaustive":  # a guarantee that reaches beyond the state it was handed out in
+            assert info["shield_until"] > at
+        else:
+            assert at >= 2.0 and info["shield"] == "none" and info["no_safe_action"] and mask.all()
+        done = terminated or truncated
+    assert seen == ["exhaustive", "exhaustive", "none", "none"]
+
+
 def test_a_runtime_shield_alone_keeps_random_walks_safe(tiny: CompileResult) -> None:
     """Without any table, a lookahead over the rest of the episode is the exhaustive shield computed at
     run time: shielded random walks never collide nor leave the road."""

@@ -401,7 +401,8 @@ class StepShield:
         if table is not None and not doomed:
             if table.knows(row):
                 mask = table.mask(row)
-                if mask.any():
+                # at or past its horizon a table proves nothing (an on-demand shield answers every action there)
+                if mask.any() and (table.horizon is None or k < table.horizon):
                     exhaustive = ShieldStep(mask, "exhaustive", self.horizon if table.horizon is None
                                             else min(table.horizon, self.horizon))
             elif table.unseen == "error":
