@@ -102,6 +102,43 @@ def test_the_callback_warns_of_a_reward_normaliser() -> None:
             assert said == []
 
 
+def test_the_callback_warns_of_gymnasiums_reward_wrappers_outside_the_automaton() -> None:
+    # gymnasium's NormalizeReward (the CleanRL way of VecNormalize's norm_reward), ClipReward and
+    # TransformReward put around the automaton's reward change what the learner learns from, as
+    # VecNormalize(norm_reward=True) does, and nothing said so; one inside the automaton's wrapper changes
+    # a reward the automaton's replaces, and is no matter
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    import warnings
+
+    from gymnasium.wrappers import ClipReward, NormalizeReward
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+
+    from rac.learning.sb3 import RacCallback, reward_changers
+
+    def outside() -> Any:
+        return ClipReward(NormalizeReward(RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs,
+                                                                 clip=True)), -1.0, 1.0)
+
+    def inside() -> RewardAutomatonWrapper:
+        return RewardAutomatonWrapper(NormalizeReward(TimeLimit(HighwayLike(), 30)), follow(), inputs, clip=True)
+
+    for make, expected in ((outside, ["ClipReward", "NormalizeReward"]), (inside, [])):
+        envs = VecMonitor(DummyVecEnv([make]))
+        assert reward_changers(envs) == expected
+        model = PPO("MlpPolicy", envs, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
+        callback = RacCallback()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model.learn(16, callback=callback)
+            model.learn(16, callback=callback, reset_num_timesteps=False)  # said once
+        said = [str(w.message) for w in caught if "around the reward automaton's reward" in str(w.message)]
+        if expected:
+            assert len(said) == 1 and "ClipReward, NormalizeReward" in said[0] and "priority" in said[0], said
+        else:
+            assert said == []
+
+
 def test_without_stable_baselines3_the_import_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "stable_baselines3.common.callbacks", None)  # as if not installed
     monkeypatch.delitem(sys.modules, "rac.learning.sb3", raising=False)

@@ -11,19 +11,25 @@ import warnings
 from typing import Any
 
 import numpy as np
+from gymnasium.wrappers import ClipReward, NormalizeReward, TransformReward
 
 try:
     from stable_baselines3.common.buffers import ReplayBuffer
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-    from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack, VecNormalize
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
 from rac.learning.replay import CounterfactualRows
+from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
+from rac.learning.wrappers import RewardAutomatonWrapper
 
-__all__ = ["CounterfactualReplayBuffer", "RacCallback", "reward_normaliser"]
+__all__ = ["CounterfactualReplayBuffer", "RacCallback", "reward_changers", "reward_normaliser"]
+
+#: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor.
+REWARD_CHANGERS = (NormalizeReward, ClipReward, TransformReward)
 
 
 class RacCallback(BaseCallback):
@@ -34,8 +40,9 @@ class RacCallback(BaseCallback):
     every ``log_interval`` rollouts), at every step for an off-policy one (DQN, SAC, ...: its table
     is written at an episode's end, within a rollout of a few steps). Needs stable-baselines3 (an
     optional dependency: ``pip install 'rac[rl]'``). Warns, once, when the training environment is
-    under ``VecNormalize(norm_reward=True)`` (:func:`reward_normaliser`): the learner's reward is then
-    no longer the automaton's; and when a :class:`CounterfactualReplayBuffer` is filled under
+    under ``VecNormalize(norm_reward=True)`` (:func:`reward_normaliser`) or gymnasium's ``NormalizeReward``,
+    ``ClipReward`` or ``TransformReward`` around the automaton's reward (:func:`reward_changers`): the learner's
+    reward is then no longer the automaton's; and when a :class:`CounterfactualReplayBuffer` is filled under
     ``VecFrameStack``: its rows are then inexact.
 
     Example::
@@ -51,6 +58,7 @@ class RacCallback(BaseCallback):
         self._logged: dict[str, float] = {}  # what the logger was last given, until it writes them out
         self._handed = 0  # steps whose infos the algorithm handed over (self.locals["infos"])
         self._warned = False  # the reward normaliser's warning, said once
+        self._warned_changers = False  # the warning of gymnasium's reward wrappers, said once
         self._warned_unseen = False  # the warning that no automaton was seen, said once
 
     def _init_callback(self) -> None:
@@ -66,6 +74,17 @@ class RacCallback(BaseCallback):
                 "from, and a large penalty may count for less than a few steps' gains; scale the automaton's reward "
                 "with scale='proven' (every reward in [-1, 1], the proofs intact) and use "
                 "VecNormalize(norm_reward=False)", UserWarning, stacklevel=2)
+        changers = reward_changers(self.training_env)
+        if changers and not self._warned_changers:  # learn() called again: said once
+            self._warned_changers = True
+            warnings.warn(
+                f"gymnasium's {', '.join(changers)} around the reward automaton's reward changes every reward the "
+                "learner sees (NormalizeReward divides it by a running estimate of the returns' spread, which "
+                "changes as training goes on; ClipReward clips it; TransformReward applies a function of its own): "
+                "the learner's reward is no longer the automaton's up to one positive factor, so the priority proofs "
+                "of rac check (no penalty compensated by lower objectives' gains) do not cover what it learns from; "
+                "scale the automaton's reward with scale='proven' (every reward in [-1, 1], the proofs intact) "
+                "instead", UserWarning, stacklevel=2)
         buffer = getattr(self.model, "replay_buffer", None)
         if isinstance(buffer, CounterfactualReplayBuffer) and _wrapper(self.training_env, VecFrameStack) is not None:
             if not buffer.warned_stacked:  # learn() called again, or several callbacks: said once
@@ -127,6 +146,34 @@ def reward_normaliser(venv: Any) -> VecNormalize | None:
     ``venv`` (each one's ``venv`` the next), or None."""
     found = _wrapper(venv, VecNormalize)
     return found if isinstance(found, VecNormalize) and found.norm_reward else None
+
+
+def reward_changers(venv: Any) -> list[str]:
+    """The names of gymnasium's reward wrappers (:data:`REWARD_CHANGERS`) that change the reward automaton's
+    reward on its way to the learner in some environment of stable-baselines3's vector environment ``venv``:
+    outside :class:`~rac.learning.wrappers.RewardAutomatonWrapper` or :class:`~rac.learning.scenario_env.ScenarioEnv`
+    (one inside the automaton's wrapper changes a reward that the automaton's replaces). The environments of a
+    ``DummyVecEnv`` are walked; another vector environment's (``SubprocVecEnv``: in other processes) are asked
+    ``env_is_wrapped``, which cannot tell inside from outside, so a changer there counts unless the
+    automaton's wrapper is there too."""
+    base = _wrapper(venv, DummyVecEnv)
+    if isinstance(base, DummyVecEnv):
+        found: set[str] = set()
+        for first in base.envs:
+            env: Any = first
+            for _ in range(100):  # a wrapper chain, not a cycle
+                if env is None or isinstance(env, (RewardAutomatonWrapper, ScenarioEnv)):
+                    break
+                if isinstance(env, REWARD_CHANGERS):
+                    found.add(type(env).__name__)
+                env = getattr(env, "env", None)
+        return sorted(found)
+    try:  # any of stable-baselines3's VecEnvs answers env_is_wrapped; anything else is no such environment
+        if any(venv.env_is_wrapped(RewardAutomatonWrapper)):
+            return []
+        return sorted(kind.__name__ for kind in REWARD_CHANGERS if any(venv.env_is_wrapped(kind)))
+    except (AttributeError, TypeError):
+        return []
 
 
 def _wrapper(venv: Any, kind: type) -> Any:
