@@ -375,16 +375,30 @@ class Driving:
 
     def __getstate__(self) -> dict[str, object]:
         """The run state, for ``pickle`` and ``copy`` (a class with ``__slots__`` and no ``__getstate__``
-        pickles from protocol 2 on only)."""
-        return {slot: object.__getattribute__(self, slot) for slot in self.__slots__}
+        pickles from protocol 2 on only), and what a subclass adds: its own ``__slots__`` and the
+        attributes in its ``__dict__``."""
+        state: dict[str, object] = {}
+        for klass in type(self).__mro__:
+            names = klass.__dict__.get("__slots__", ())
+            for name in (names,) if isinstance(names, str) else names:
+                if name in ("__dict__", "__weakref__"):
+                    continue
+                if name.startswith("__") and not name.endswith("__"):  # stored mangled: `__x` is `_Sub__x`
+                    name = "_" + klass.__name__.lstrip("_") + name
+                try:
+                    state[name] = object.__getattribute__(self, name)
+                except AttributeError:  # a subclass's slot never set
+                    pass
+        state.update(getattr(self, "__dict__", {}))
+        return state
 
     def __setstate__(self, state: dict[str, object]) -> None:
-        for slot in self.__slots__:
-            if slot != "clipped":
-                object.__setattr__(self, slot, state[slot])
         # a copy counts on its own, as the interpreter's does; a pickle from before `clip=` holds no counts
         counts = state.get("clipped")
         self.clipped = dict(counts) if isinstance(counts, dict) else {}
+        for name, value in state.items():
+            if name != "clipped":
+                object.__setattr__(self, name, value)
 
     def __repr__(self) -> str:
         ending = ", terminated" if self._terminated else ", ended" if self._ended else ""

@@ -356,6 +356,38 @@ def test_an_instance_pickles_at_every_protocol_and_goes_on_where_it_was(protocol
         del sys.modules[module.__name__]
 
 
+def test_a_subclass_keeps_its_own_attributes_through_copy_and_pickle() -> None:
+    """A client subclasses the generated class to keep its own numbers beside the run (a return, a
+    log). ``__getstate__`` gave only the generated class's slots, so every copy lost them: rac's wrapper
+    (which deep-copies the automaton it is given), ``copy.deepcopy`` and a ``SubprocVecEnv`` worker's pickle
+    raised AttributeError at the next step; a subclass with ``__slots__`` of its own lost the run state."""
+    module = load(GOLDEN.read_text(encoding="utf-8"), "driving_subclassed")
+    sys.modules[module.__name__] = module  # pickle finds the classes by their module's name
+    try:
+        def step(self: object, values: dict[str, object]) -> float:
+            reward = module.Driving.step(self, values)
+            self.total += reward  # type: ignore[attr-defined]
+            return reward
+
+        with_dict = type("Logged", (module.Driving,), {"__module__": module.__name__, "step": step})
+        with_slots = type("Slotted", (module.Driving,), {"__module__": module.__name__, "step": step,
+                                                         "__slots__": ("total", "__private")})
+        module.Logged, module.Slotted = with_dict, with_slots
+        for cls in (with_dict, with_slots):
+            ra = cls()
+            ra.total, ra._Slotted__private = 0.0, [1]
+            ra.step(inputs(dgoal=30.0))
+            ra.step(inputs(is_close=True))
+            for twin in (copy.copy(ra), copy.deepcopy(ra), pickle.loads(pickle.dumps(ra))):  # noqa: S301
+                assert type(twin) is cls and repr(twin) == repr(ra)
+                assert twin.total == ra.total and twin._Slotted__private == [1]
+                reference = copy.copy(ra)
+                assert bits(twin.step(inputs(prog=False))) == bits(reference.step(inputs(prog=False)))
+                assert bits(twin.total) == bits(reference.total) != bits(ra.total) and ra.samples == 2
+    finally:
+        del sys.modules[module.__name__]
+
+
 # ---------------------------------------------------------------- errors
 def test_a_float32_bound_widened_to_a_float_is_explained_like_the_interpreter() -> None:
     """``float(np.float32(-1.2))`` (an environment's float32 observation at the edge of its space, made a

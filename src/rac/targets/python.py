@@ -66,7 +66,7 @@ RESERVED_NAMES = frozenset({
     # builtins called, raised or named in annotations (typing.get_type_hints evaluates those)
     "bool", "float", "int", "str", "bytes", "object", "dict", "tuple", "len", "isinstance", "type", "repr", "sorted",
     "getattr", "min", "max", "callable", "any",
-    "property", "super", "ValueError", "KeyError", "RuntimeError", "OverflowError", "TypeError",
+    "property", "super", "ValueError", "KeyError", "RuntimeError", "OverflowError", "TypeError", "AttributeError",
     # (every dunder, `__all__` among them, is renamed too: see python_class_name)
 })
 
