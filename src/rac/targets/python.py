@@ -173,11 +173,22 @@ def python_class_name(name: str) -> str:
 
 
 def _py(value: object) -> str:
-    """``repr``, with double-quoted strings (the house style) when that needs no escaping."""
-    text = repr(value)
-    if isinstance(value, str) and text == f"'{value}'" and '"' not in value:
-        return f'"{value}"'
+    """``repr``, with double-quoted strings (the house style) when they hold no quote; a string in ASCII
+    (``ascii``: ``\\xfc`` for ``ü``, the same string once read), so that the module is ASCII (:func:`_ascii`)."""
+    if not isinstance(value, str):
+        return repr(value)
+    text = ascii(value)
+    if text.startswith("'") and "'" not in value and '"' not in value:
+        return f'"{text[1:-1]}"'
     return text
+
+
+def _ascii(text: str) -> str:
+    """``text`` with every non-ASCII character escaped (``\\xfc``), for the module's comments. A module of
+    ASCII alone reads the same in every encoding: written through standard output in Windows' cp1252
+    (``rac compile ... > m.py``), a file name's ``ü`` was a byte Python refuses in a source file (it
+    reads UTF-8), and a ``限`` one that cp1252 cannot encode."""
+    return text.encode("ascii", "backslashreplace").decode("ascii")
 
 
 def _pytuple(items: Iterable[object], column: int = 0, *, printed: bool = False) -> str:
@@ -518,7 +529,7 @@ def generate_python(automaton: ir.Automaton, *, source_name: str = "") -> str:
         time_expr = f"self._samples * {period.numerator} / {period.denominator}"
     reward_slots = [gen.slots[r] for r in automaton.rewards]
     held_slots = [f"_h_{name}" for name in gen.held]
-    source = " ".join(source_name.split()) or "<unnamed>"
+    source = _ascii(" ".join(source_name.split())) or "<unnamed>"
     return _template().render(
         source_name=source,
         name=automaton.name,
