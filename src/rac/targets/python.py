@@ -2,8 +2,8 @@
 
 The generated class has the API of :class:`rac.runtime.interpreter.RewardAutomaton` (``reset``, ``step``,
 ``end``, ``location``, ``rewards``, ``objective``, ``samples``, ``time``, ``ended``, ``terminated``) and its exact
-float semantics; it is straight-line code: one branch per location, guards inlined, rewards in
-locals while a sample is processed.
+float semantics; it is straight-line code: one branch per location (found by halves past :data:`_CHAIN`),
+guards inlined, rewards in locals while a sample is processed.
 
 Example::
 
@@ -53,6 +53,8 @@ __all__ = ["PYTHON", "RESERVED_NAMES", "PythonGuards", "generate_python", "print
 
 _TEMPLATE = "python_module.py.j2"
 _LINE = 110
+#: The most locations a step tells apart by a chain of ``loc == k`` tests (:func:`_dispatch`).
+_CHAIN = 8
 #: The module-level names the generated module binds or reads: its imports and helpers, the builtins
 #: its code and annotations use, and the dunders Python and tools look up on a module. The automaton's
 #: class is the one module-level name a `.ra` file chooses (the grammar allows any ASCII identifier,
@@ -333,9 +335,7 @@ class _Generator:
                 branches.append((index, lines))
         if branches:
             body.append("loc = self._loc")
-            for k, (index, lines) in enumerate(branches):
-                body.append(f"{'if' if k == 0 else 'elif'} loc == {index}:")
-                body += ["    " + line for line in lines]
+            body += _dispatch(branches)
             if moves:
                 body.append("self._loc = loc")
         ends = a.ending
@@ -408,6 +408,25 @@ class _Generator:
                 "``terminated`` is true, and ``end`` returns 0.0.",
             ]
         return "\n".join(lines)
+
+
+def _dispatch(branches: list[tuple[int, list[str]]]) -> list[str]:
+    """The ``lines`` of each location (``(index, lines)``, by index) run when ``loc`` is its index: an
+    ``if``/``elif`` chain of at most :data:`_CHAIN` tests, else the two halves under ``if loc < k``/``else``.
+
+    Python's syntax tree nests every ``elif`` in the one before, and a chain of about 2,500 (an automaton
+    of that many locations, which rac checks in seconds) exceeded the compiler's recursion limit: the module
+    could not be imported (RecursionError during compilation). Split, it nests log2(n) deep, and a step
+    makes that many tests rather than up to n."""
+    if len(branches) <= _CHAIN:
+        chain: list[str] = []
+        for k, (index, lines) in enumerate(branches):
+            chain.append(f"{'if' if k == 0 else 'elif'} loc == {index}:")
+            chain += ["    " + line for line in lines]
+        return chain
+    half = len(branches) // 2
+    return [f"if loc < {branches[half][0]}:", *("    " + line for line in _dispatch(branches[:half])),
+            "else:", *("    " + line for line in _dispatch(branches[half:]))]
 
 
 def _num_or_inf(value: float) -> str:
