@@ -541,3 +541,27 @@ def test_an_automaton_of_thousands_of_locations_imports_and_steps_like_the_inter
         assert bits(generated.step(x)) == bits(interpreter.step(x))
         assert generated.location == interpreter.location
     assert generated.location == f"L{n - 1}" and bits(generated.objective) == bits(interpreter.objective)
+
+
+def test_a_location_of_thousands_of_edges_imports_and_takes_the_first_enabled_edge() -> None:
+    """A fan-out on an ``int`` input, one edge per value: its ``if``/``elif`` chain nested one ``elif`` inside
+    the one before, and from about 2,500 edges importing the module raised RecursionError during compilation.
+    The edges are now tried in chains of a few hundred, each only while none before it held; the last edge,
+    enabled for every value, is taken only where no earlier one was, as in the interpreter."""
+    n = 4000
+    up = ir.Assignment("r", ir.Linear(Fraction(1), (("r", Fraction(1)),)))
+    fan = [ir.Edge(0, i + 1, ir.BAtom("k", "==", Fraction(i)), (up,) if i % 2 else ()) for i in range(n)]
+    fan.append(ir.Edge(0, n + 1, ir.BAtom("k", ">=", Fraction(0)), ()))
+    locations = (ir.Location("S", (ir.Linear(Fraction(1)),)),
+                 *(ir.Location(f"L{i}", (ir.Linear(),)) for i in range(n)), ir.Location("Other", (ir.Linear(),)))
+    automaton = ir.Automaton(
+        name="Fan", inputs=(ir.Input("k", "int", Fraction(0), Fraction(n + 5)),), rewards=("r",),
+        locations=locations, initial=0, edges=(tuple(fan), *(() for _ in range(n + 1))), end_clauses=(),
+        assumptions=(), objective=ir.Linear(Fraction(0), (("r", Fraction(1)),)), priority=("r",), strict=False,
+        period=Fraction(1, 10), horizon=Fraction(1))
+    module = load(generate_python(automaton))
+    for k in (0, 1, 255, 256, 257, 511, 512, 2501, n - 1, n, n + 5):
+        generated, interpreter = module.Fan(), RewardAutomaton(automaton)
+        assert bits(generated.step({"k": k})) == bits(interpreter.step({"k": k}))
+        assert generated.location == interpreter.location == (f"L{k}" if k < n else "Other")
+        assert generated.rewards == interpreter.rewards

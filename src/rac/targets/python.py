@@ -55,6 +55,8 @@ _TEMPLATE = "python_module.py.j2"
 _LINE = 110
 #: The most locations a step tells apart by a chain of ``loc == k`` tests (:func:`_dispatch`).
 _CHAIN = 8
+#: The most edges of a location one ``if``/``elif`` chain tests (:func:`_first_enabled`).
+_EDGES = 256
 #: The module-level names the generated module binds or reads: its imports and helpers, the builtins
 #: its code and annotations use, and the dunders Python and tools look up on a module. The automaton's
 #: class is the one module-level name a `.ra` file chooses (the grammar allows any ASCII identifier,
@@ -324,13 +326,14 @@ class _Generator:
                         lines.append(f"{var} = {var} {'-' if const < 0 else '+'} {_num(abs(const))}")
                 else:
                     lines.append(f"{var} = {var} + ({self.expr(form, held_names)})")
-            for k, edge in enumerate(a.edges[index]):
-                lines.append(f"{'if' if k == 0 else 'elif'} {self.expr(edge.guard)}:")
+            cases = []
+            for edge in a.edges[index]:
                 inner = self.updates(edge.updates)
                 if edge.target != index:
                     inner.append(f"loc = {edge.target}")
                     moves = True
-                lines += ["    " + line for line in inner or ["pass"]]
+                cases.append((self.expr(edge.guard), inner))
+            lines += _first_enabled(cases)
             if lines:
                 branches.append((index, lines))
         if branches:
@@ -427,6 +430,28 @@ def _dispatch(branches: list[tuple[int, list[str]]]) -> list[str]:
     half = len(branches) // 2
     return [f"if loc < {branches[half][0]}:", *("    " + line for line in _dispatch(branches[:half])),
             "else:", *("    " + line for line in _dispatch(branches[half:]))]
+
+
+def _first_enabled(cases: list[tuple[str, list[str]]]) -> list[str]:
+    """The lines of the first of ``cases`` (a condition, its lines) whose condition holds, in order: an
+    ``if``/``elif`` chain; past :data:`_EDGES` cases, chains of that many, each tried only while no case
+    before it held (``fired``). Python nests every ``elif`` in the one before, and a location of about 2,500
+    edges (a fan-out on an ``int`` input) made a module whose import raised RecursionError."""
+
+    def chain(part: list[tuple[str, list[str]]]) -> list[str]:
+        lines: list[str] = []
+        for k, (condition, inner) in enumerate(part):
+            lines.append(f"{'if' if k == 0 else 'elif'} {condition}:")
+            lines += ["    " + line for line in inner or ["pass"]]
+        return lines
+
+    if len(cases) <= _EDGES:
+        return chain(cases)
+    out = ["fired = True"]
+    for start in range(0, len(cases), _EDGES):
+        tried = [*chain(cases[start:start + _EDGES]), "else:", "    fired = False"]
+        out += tried if start == 0 else ["if not fired:", "    fired = True", *("    " + line for line in tried)]
+    return out
 
 
 def _num_or_inf(value: float) -> str:
