@@ -132,11 +132,11 @@ class Driving:
         comf: bool
         collide: bool
         dgoal: real in [0, 500]
-    Assumed of every input valuation: not collide or isClose
+    Assumed of every input valuation: collide imply isClose
     Rewards: sa, pr, co (each starts at 0)
     Objective: 10*sa + 5*pr + co
     Locations: Normal (initial), Uncomfortable, Stalled, Unsafe
-    Sample period: 1/10 s; horizon: 30 s (300 samples).
+    Sample period: 0.1 s; horizon: 30 s (300 samples).
 
     ``step(inputs)`` processes one sample and returns the objective's increase, so the
     rewards of a run sum to the objective's final value; ``end(inputs)`` applies the

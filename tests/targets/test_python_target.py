@@ -24,6 +24,7 @@ import pytest
 from driving_ir import compiled_driving, driving_automaton, inputs
 
 from rac import ir
+from rac.compiler import compile_text
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import float_linear
 from rac.targets.python import generate_python, print_expr
@@ -565,3 +566,33 @@ def test_a_location_of_thousands_of_edges_imports_and_takes_the_first_enabled_ed
         assert bits(generated.step({"k": k})) == bits(interpreter.step({"k": k}))
         assert generated.location == interpreter.location == (f"L{k}" if k < n else "Other")
         assert generated.rewards == interpreter.rewards
+
+
+def test_the_class_docstring_says_the_numbers_and_conditions_as_the_ra_file_does() -> None:
+    """``help(Class)`` showed the IR's fractions and Python: ``real in [-1/10, 5/2]``, ``Sample period: 1/10
+    s``, an objective weight ``1/2*pr``, the assumption ``not collide or near`` for ``collide imply near``, and
+    nothing of a parameter's value, which the module runs with (the one ``rac check`` checked)."""
+    text = """automaton Doc {
+    input near    : bool
+    input collide : bool
+    input gap     : real in [-0.1, 2.5]
+    assume collide imply near
+    param PENALTY in [0, 1000]
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + 0.5 * pr
+    sample every 0.1
+    horizon 3
+    initial location Go { sa' == 1; pr' == 1 }
+    location Close      { sa' == -1; pr' == 0 }
+    edge Go -> Close when near do sa = sa - PENALTY
+    edge Close -> Go when !near
+    episode ends when collide && gap < 0.25
+}"""
+    automaton = compile_text(text, "doc.ra").raise_for_errors()
+    doc = load(generate_python(automaton)).Doc.__doc__
+    for said in ("gap: real in [-0.1, 2.5]", "Sample period: 0.1 s; horizon: 3 s (30 samples).",
+                 "Objective: 10*sa + 0.5*pr", "Assumed of every input valuation: collide imply near",
+                 "Parameters, as checked: PENALTY = 3.15 (declared in [0, 1000])",
+                 "The run ends after a sample whose inputs satisfy: collide && gap < 0.25"):
+        assert said in " ".join(doc.split()), said

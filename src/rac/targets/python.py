@@ -35,8 +35,9 @@ from importlib import resources
 import jinja2
 
 from rac import ir
+from rac.core.numbers import exact_decimal, exact_text
 from rac.core.printing import COMPARISONS, Associativity, Level, Operator, OperatorTable, Printed, number, signed_sum
-from rac.ir.text import GuardPrinter
+from rac.ir.text import GuardPrinter, format_guard
 from rac.runtime.semantics import (
     NARROW_FLOATS,
     FloatAtoms,
@@ -228,10 +229,15 @@ def _call(head: str, arguments: list[str], column: int) -> list[str]:
 
 def _ra_linear(linear: ir.Linear) -> str:
     """A linear form in `.ra` syntax, for documentation."""
-    parts = [(coef < 0, name if abs(coef) == 1 else f"{abs(coef)}*{name}") for name, coef in linear.terms]
+    parts = [(coef < 0, name if abs(coef) == 1 else f"{_decimal(abs(coef))}*{name}") for name, coef in linear.terms]
     if linear.const or not parts:
-        parts.append((linear.const < 0, str(abs(linear.const))))
+        parts.append((linear.const < 0, _decimal(abs(linear.const))))
     return signed_sum(parts)
+
+
+def _decimal(value: Fraction) -> str:
+    """A number of the docstring as a `.ra` file writes it: ``0.1``, not ``1/10`` (``1 / 3``: no exact decimal)."""
+    return exact_decimal(Fraction(value)) or exact_text(Fraction(value))
 
 
 class _Generator:
@@ -378,24 +384,26 @@ class _Generator:
         for item in a.inputs:
             bounds = ""
             if item.low is not None or item.high is not None:
-                low = "-inf" if item.low is None else str(item.low)
-                high = "inf" if item.high is None else str(item.high)
+                low = "-inf" if item.low is None else _decimal(item.low)
+                high = "inf" if item.high is None else _decimal(item.high)
                 bounds = f" in [{low}, {high}]"
             lines.append(f"    {item.name}: {item.kind}{bounds}")
         facts = []
-        if a.assume != ir.TRUE:
-            plain = {i.name: i.name for i in a.inputs}
-            facts.append(f"Assumed of every input valuation: {print_expr(a.assume, plain)}")
+        if a.parameters:  # the module runs one value of each: the one `rac check` checked
+            facts.append("Parameters, as checked: " + ", ".join(
+                f"{q.name} = {_decimal(q.value)} (declared in [{_decimal(q.low)}, {_decimal(q.high)}])"
+                for q in a.parameters))
+        if a.assumptions:  # as written in the .ra file, as the errors quote them
+            facts.append("Assumed of every input valuation: " + "; ".join(q.text for q in a.assumptions))
         ends = a.ending
         if ends is not None:
-            plain = {i.name: i.name for i in a.inputs}
-            facts.append(f"The run ends after a sample whose inputs satisfy: {print_expr(ends, plain)}")
+            facts.append(f"The run ends after a sample whose inputs satisfy: {format_guard(ends)}")
         facts += [
             f"Rewards: {', '.join(a.rewards)} (each starts at 0)",
             f"Objective: {_ra_linear(a.objective)}",
             "Locations: " + ", ".join(loc.name + (" (initial)" if i == a.initial else "")
                                       for i, loc in enumerate(a.locations)),
-            f"Sample period: {a.period} s; horizon: {a.horizon} s ({a.steps} samples).",
+            f"Sample period: {_decimal(a.period)} s; horizon: {_decimal(a.horizon)} s ({a.steps} samples).",
         ]
         for fact in facts:  # the docstring is indented by 4 in the class
             lines += textwrap.wrap(fact, _LINE - 4, subsequent_indent="    ", break_on_hyphens=False)
