@@ -165,6 +165,8 @@ class Driving:
     period = 0.1
     horizon = 30.0
     steps = 300
+    #: What a saved run state (``__setstate__``) must agree with: the names behind its slots and ``_loc``.
+    _identity = (name, inputs, reward_names, locations)
     #: ``(name, low, high)`` of each numeric input: the range ``clip=True`` clips its values to.
     _bounds: tuple[tuple[str, float, float], ...] = (("dgoal", 0.0, 500.0),)
 
@@ -390,14 +392,23 @@ class Driving:
                 except AttributeError:  # a subclass's slot never set
                     pass
         state.update(getattr(self, "__dict__", {}))
+        state["__rac_automaton__"] = self._identity
         return state
 
     def __setstate__(self, state: dict[str, object]) -> None:
+        # a state saved by a module generated from another version of the .ra file would put its location
+        # index and rewards into this automaton's: said here, rather than a wrong location or an
+        # AttributeError in the next step
+        made = state.get("__rac_automaton__")
+        if made is not None and made != self._identity:
+            raise ValueError(f"this state was saved by a module generated for another automaton, {made!r}; "
+                             f"this module's is {self._identity!r} (regenerated from a changed .ra file): "
+                             "restore it with the module that saved it, or start new runs")
         # a copy counts on its own, as the interpreter's does; a pickle from before `clip=` holds no counts
         counts = state.get("clipped")
         self.clipped = dict(counts) if isinstance(counts, dict) else {}
         for name, value in state.items():
-            if name != "clipped":
+            if name not in ("clipped", "__rac_automaton__"):
                 object.__setattr__(self, name, value)
 
     def __repr__(self) -> str:

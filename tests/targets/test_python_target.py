@@ -596,3 +596,35 @@ def test_the_class_docstring_says_the_numbers_and_conditions_as_the_ra_file_does
                  "Parameters, as checked: PENALTY = 3.15 (declared in [0, 1000])",
                  "The run ends after a sample whose inputs satisfy: collide && gap < 0.25"):
         assert said in " ".join(doc.split()), said
+
+
+def test_a_state_saved_by_the_module_of_another_version_of_the_file_is_refused_saying_so() -> None:
+    """A run saved mid-episode (a checkpoint, a worker's pickle) and restored after the module was regenerated
+    from a changed `.ra` file put its location index and rewards into the new automaton's: with a location
+    declared before the others, the run went on silently from another location. The state now names the
+    automaton it is of; a module of the same inputs, rewards and locations (a constant changed) restores it."""
+    text = (Path(__file__).parents[2] / "stdlib" / "driving.ra").read_text(encoding="utf-8")
+    changed = {
+        "moved": text.replace("    initial location Normal", "    location Parked { sa' == 0; pr' == 0; co' == 0 }\n"
+                              "    initial location Normal"),
+        "penalty": text.replace("const PENALTY = 100", "const PENALTY = 120"),
+    }
+    name = "driving_regenerated"
+    old = load(generate_python(compile_text(text, "driving.ra").raise_for_errors()), name)
+    sys.modules[name] = old  # pickle finds the class by its module's name
+    try:
+        ra = old.Driving()
+        ra.step(inputs())
+        ra.step(inputs(is_close=True))
+        saved = pickle.dumps(ra)
+        for version, source in changed.items():
+            sys.modules[name] = load(generate_python(compile_text(source, "driving.ra").raise_for_errors()), name)
+            if version == "moved":
+                with pytest.raises(ValueError, match=r"saved by a module generated for another automaton.*"
+                                                     r"'Parked'.*restore it with the module that saved it"):
+                    pickle.loads(saved)  # noqa: S301 - our own object
+            else:
+                restored = pickle.loads(saved)  # noqa: S301 - our own object
+                assert (restored.location, restored.rewards, restored.samples) == ("Unsafe", ra.rewards, 2)
+    finally:
+        del sys.modules[name]
