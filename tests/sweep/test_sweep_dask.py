@@ -683,6 +683,25 @@ def test_the_exit_code_follows_the_worst_row() -> None:
     assert summarise([row("ok"), row("error")], tasks=3).not_run == 1
 
 
+def test_the_summary_tells_apart_files_of_one_name_in_other_folders(world: Path, tmp_path: Path) -> None:
+    # a database keeps a scenario per folder under one file name: the summary named both `s`
+    template = world / "sweep.ra"
+    folders = [tmp_path / "db" / "a", tmp_path / "db" / "b", tmp_path / "other" / "a"]
+    specs = []
+    for folder in folders:
+        folder.mkdir(parents=True)
+        specs += specs_for(folder, template, ["s.xml"])
+    specs += specs_for(tmp_path / "db" / "b", template, ["t.xml"])
+    rows = [sweep_helpers.row(spec, "failed", error="not satisfied: Stays") for spec in specs]
+    text = render_summary(summarise(rows, tasks=len(rows)))
+    assert "failed: db/a/s [template settings]: not satisfied: Stays" in text
+    assert "failed: db/b/s [template settings]" in text
+    assert "failed: other/a/s [template settings]" in text
+    assert "failed: t [template settings]" in text  # a name no other file has stays the stem
+    assert [p["scenario"] for p in summarise(rows, tasks=4).to_json()["problems"]] == [  # type: ignore[index]
+        "db/a/s", "db/b/s", "other/a/s", "t"]
+
+
 def test_off_a_terminal_the_progress_is_plain_lines(monkeypatch: pytest.MonkeyPatch,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.05")  # captured stderr is not a terminal

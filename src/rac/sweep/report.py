@@ -30,7 +30,7 @@ from rac.sweep.store import write_text
 from rac.sweep.task import NOT_FAILED, STATUSES, VERDICTS  # STATUSES, VERDICTS: in the order tables and plots show them
 
 __all__ = ["RESULTS_CSV", "RESULTS_JSON", "RESULTS_PARQUET", "Summary", "frame", "grid_label", "render_summary",
-           "summarise", "table", "write_plots", "write_results"]
+           "scenario_labels", "summarise", "table", "write_plots", "write_results"]
 
 RESULTS_PARQUET, RESULTS_CSV, RESULTS_JSON = "results.parquet", "results.csv", "results.json"
 VERDICT_PLOT, TIME_PLOT = "verdicts.png", "time_vs_size.png"
@@ -166,6 +166,24 @@ class Summary:
                 "problems": [dict(zip(("status", "scenario", "grid_point", "error"), p)) for p in self.problems]}
 
 
+def scenario_labels(rows: Sequence[Mapping[str, object]]) -> dict[str, str]:
+    """The name the summary gives each row's scenario, by its path: the file's stem (``scenario_name``), or,
+    where files of the same name in other folders are swept together (``a/s.xml``, ``b/s.xml``), as many of
+    the folders above it as tell them apart (``a/s``, ``b/s``): the stem alone named two files alike."""
+    paths = list(dict.fromkeys(str(row.get("scenario")) for row in rows))
+    by_stem: dict[str, list[str]] = {}
+    for path in paths:
+        by_stem.setdefault(Path(path).stem, []).append(path)
+    labels = {}
+    for stem, alike in by_stem.items():
+        parts = {path: Path(path).with_suffix("").parts for path in alike}
+        depth = 1
+        while len({part[-depth:] for part in parts.values()}) < len(alike) and depth < max(map(len, parts.values())):
+            depth += 1
+        labels.update({path: "/".join(part[-depth:]) if len(alike) > 1 else stem for path, part in parts.items()})
+    return labels
+
+
 def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int = 0) -> Summary:
     """The :class:`Summary` of ``rows`` out of ``tasks`` tasks, ``skipped`` of them reused from the store."""
     statuses = Counter(str(row.get("status")) for row in rows)
@@ -180,7 +198,8 @@ def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int 
 
         percentiles = {"p50": float(np.percentile(seconds, 50)), "p90": float(np.percentile(seconds, 90)),
                        "max": seconds[-1]}
-    problems = [(str(row.get("status")), str(row.get("scenario_name")), grid_label(_mapping(row, "settings")),
+    shown = scenario_labels(rows)
+    problems = [(str(row.get("status")), shown[str(row.get("scenario"))], grid_label(_mapping(row, "settings")),
                  str(row.get("error") or "")) for row in rows if row.get("status") != "ok"]
     order = {status: i for i, status in enumerate(STATUSES)}
     return Summary(tasks=tasks, finished=len(rows), skipped=skipped, not_run=tasks - len(rows),
