@@ -325,6 +325,77 @@ def test_a_file_under_two_names_gets_its_own_name_in_the_error_too(world: Path, 
     assert two["diagnostics"] == [f"E0712 cannot load {specs[1].scenario}: broken"]
 
 
+def test_a_full_disk_mid_sweep_keeps_the_rows_stored_and_says_so(client, tmp_path: Path, world: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The disk filled while the third row was stored: the sweep ended with E0009 "...; nothing was written"
+    and no summary, while two rows stood in tasks/ (and a re-run reused them). Now it stops there as after
+    Ctrl-C, summarises the rows stored, and says what stands and that the same command runs only the rest."""
+    scenarios = tmp_path / "scenarios"
+    scenarios.mkdir()
+    for i in range(4):
+        (scenarios / f"fast{i}.xml").write_text(f"<commonRoad>{i}</commonRoad>", encoding="utf-8")
+    stand_in(monkeypatch, sweep_helpers.slow)
+
+    @contextlib.contextmanager
+    def the_client(*args: object, **kwargs: object) -> Iterator[object]:
+        yield client
+
+    monkeypatch.setattr("rac.sweep.run.connect", the_client)
+    put = Store.put
+    puts: list[str] = []
+
+    def fills_the_disk(store: Store, key: str, row: dict[str, object]) -> Path:
+        puts.append(key)
+        if len(puts) == 3:
+            raise OSError(28, "No space left on device", str(store.path(key)))
+        return put(store, key, row)
+
+    monkeypatch.setattr(Store, "put", fills_the_disk)
+    out = tmp_path / "out"
+    code = main(["sweep", str(world / "sweep.ra"), str(scenarios), "-o", str(out), "-q"])
+    captured = capsys.readouterr()
+    assert code == EXIT_USAGE, captured.err
+    assert re.search(r"^\s+4\s+2\s+0\s+0\s+0\s+2$", captured.out, re.MULTILINE), captured.out  # 2 done, 2 not run
+    assert f"error[E0009]: cannot write `{out / 'tasks' / puts[2]}.json`: No space left on device" in captured.err
+    assert f"the rows of 2 tasks are stored in {out / 'tasks'}: the same command, once it can write there, runs " \
+           "only the 2 tasks left" in captured.err
+    assert "nothing was written" not in captured.err
+    assert len(list((out / "tasks").glob("*.json"))) == 2
+    monkeypatch.setattr(Store, "put", put)
+    planned = plan(world / "sweep.ra", [str(scenarios)], out=out)
+    assert len(pending(planned.specs, Store(out))[1]) == 2  # the re-run runs the two left only
+
+
+def test_results_that_cannot_be_written_leave_the_summary_and_the_rows(world: Path, tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """Every row stored, then the disk full at results.parquet: E0009 said "nothing was written" and the
+    summary was lost; now the summary is printed (and in --format json's document, with the error) and the
+    hint says the rows stand."""
+    planned = plan(world / "sweep.ra", [str(world / "scenarios" / "goal_ahead.xml")], options=OPTIONS,
+                   out=tmp_path / "out")
+    (spec,) = planned.specs
+    Store(planned.out).put(spec.key(), sweep_helpers.row(spec))
+
+    def full(rows: object, folder: Path) -> object:
+        raise OSError(28, "No space left on device", str(folder / "results.parquet"))
+
+    monkeypatch.setattr("rac.sweep.report.write_results", full)
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    args = ["sweep", str(world / "sweep.ra"), str(world / "scenarios" / "goal_ahead.xml"), "--horizon", "2",
+            "-o", str(tmp_path / "out")]
+    assert main([*args, "-q"]) == EXIT_USAGE
+    captured = capsys.readouterr()
+    assert "query  satisfied" in captured.out and "Stays          1" in captured.out
+    assert f"the rows of 1 task are stored in {tmp_path / 'out' / 'tasks'}: the same command, once it can write " \
+           "there, writes results.* and the plots" in captured.err
+    assert main([*args, "--format", "json"]) == EXIT_USAGE
+    document = json.loads(capsys.readouterr().out)
+    assert document["exit_code"] == EXIT_USAGE and document["written"] is False
+    assert document["summary"]["finished"] == 1 and document["error"]["code"] == "E0009"
+
+
 def test_the_progress_counts_a_file_under_two_names_as_two_tasks(client, tmp_path: Path, world: Path,
                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     """The progress's total counted keys, its done count specs: a scenario file under two names (one task,

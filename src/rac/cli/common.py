@@ -207,8 +207,9 @@ def check_writable(path: Path) -> None:
         raise PermissionError(errno.EACCES, READ_ONLY, str(path))
 
 
-def unwritable(path: Path, exc: OSError) -> Diagnostic:
-    """E0009: ``path`` cannot be written (nothing was)."""
+def unwritable(path: Path, exc: OSError, *, kept: str | None = None) -> Diagnostic:
+    """E0009: ``path`` cannot be written (nothing was; or, when work was written before it, ``kept`` says what
+    stands)."""
     reason = exc.strerror or str(exc)
     # the hint names the remedy of the condition: a folder is not the problem with a long name
     hint = {errno.ENAMETOOLONG: "use a shorter name (a file system allows about 255 bytes per name)",
@@ -224,7 +225,7 @@ def unwritable(path: Path, exc: OSError) -> Diagnostic:
         hint = "rac replaces only regular files: choose the path of a file, or a new one"
     elif exc.errno == errno.EACCES and reason == READ_ONLY:
         hint = "make it writable (`chmod u+w`) if it may change"
-    return error("E0009", f"cannot write `{path}`: {reason}", None, hints=[f"{hint}; nothing was written"])
+    return error("E0009", f"cannot write `{path}`: {reason}", None, hints=[f"{hint}; {kept or 'nothing was written'}"])
 
 
 class StdoutError(RacError):

@@ -30,8 +30,8 @@ from rac.cli.common import (
     unwritable,
     usage_error,
 )
-from rac.core.diagnostics import json_text
-from rac.sweep import execute, plan
+from rac.core.diagnostics import Diagnostic, json_text
+from rac.sweep import SweepResult, execute, plan
 from rac.verify.status import UNDECIDED
 
 __all__ = ["exit_status", "sweep_command"]
@@ -55,12 +55,30 @@ def _count(n: int, noun: str) -> str:
 
 
 def _document(template: Path, out: Path, status: int, summary: Mapping[str, object] | None,
-              files: Sequence[Path], *, interrupted: bool, written: bool) -> str:
-    """The JSON document of ``--format json``: ``summary`` None when Ctrl-C came before there was one, and
-    ``written`` whether ``results.*`` and the plots were all written (``files`` holds those that were)."""
-    return json_text({"template": str(template), "out": str(out), "interrupted": interrupted,
-                      "exit_code": status, "summary": summary, "files": [str(f) for f in files],
-                      "written": written}, indent=2)
+              files: Sequence[Path], *, interrupted: bool, written: bool, error: Diagnostic | None = None) -> str:
+    """The JSON document of ``--format json``: ``summary`` None when Ctrl-C came before there was one,
+    ``written`` whether ``results.*`` and the plots were all written (``files`` holds those that were), and
+    ``error`` (only when there is one) the file of the output folder that could not be written."""
+    document = {"template": str(template), "out": str(out), "interrupted": interrupted,
+                "exit_code": status, "summary": summary, "files": [str(f) for f in files], "written": written}
+    if error is not None:  # one document: the error in it, not a second one beside it (as rac verify's)
+        document["error"] = error.to_json()
+    return json_text(document, indent=2)
+
+
+def _write_failed(result: SweepResult, out: Path) -> Diagnostic | None:
+    """E0009 of the file the sweep could not write (a row, results.* or a plot), saying what stands: the rows
+    stored in ``tasks/`` are kept, and the same command reuses them; None when every file was written."""
+    from rac.sweep.store import TASKS_FOLDER  # matplotlib (via rac.sweep.store): only when this runs
+
+    exc = result.outcome.write_error
+    if exc is None:
+        return None
+    summary = result.summary
+    stored = f"the rows of {_count(summary.finished, 'task')} are stored in {out / TASKS_FOLDER}"
+    again = (f"the same command, once it can write there, runs only the {_count(summary.not_run, 'task')} left"
+             if summary.not_run else "the same command, once it can write there, writes results.* and the plots")
+    return unwritable(Path(exc.filename) if exc.filename else out, exc, kept=f"{stored}: {again}")
 
 
 def sweep_command(args: argparse.Namespace) -> int:
@@ -124,18 +142,23 @@ def sweep_command(args: argparse.Namespace) -> int:
     status = exit_status(result.rows)
     if result.outcome.interrupted:  # the exit code the process ends with, which the JSON document says too
         status = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+    failed = _write_failed(result, planned.out)
+    if failed is not None:  # the rows stored before stand, and are summarised: the output folder is the user's to fix
+        status = EXIT_USAGE
     if args.format == "json":
         print(_document(planned.template, planned.out, status, result.summary.to_json(), result.files,
-                        interrupted=result.outcome.interrupted, written=result.written))
+                        interrupted=result.outcome.interrupted, written=result.written, error=failed))
     else:
         print(render_summary(result.summary))
         print()
         for path in result.files:
             print(f"wrote {path}")
+        if failed is not None:
+            print_diagnostics([failed])
     for note in result.notes:
         print(f"rac sweep: note: {note}", file=sys.stderr)
     how = "terminated (SIGTERM)" if terminated else "interrupted"
-    if not result.written:
+    if not result.written and result.outcome.interrupted:
         print(f"rac sweep: {how} while writing results.* and the plots (run the same command again to write "
               "them: the tasks that ran are stored)", file=sys.stderr)
     if result.outcome.interrupted and (result.written or result.summary.not_run):

@@ -149,9 +149,10 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     ``retry_failed``, and all of them with ``force``.
     ``announce(line)`` receives the dashboard's address; ``quiet`` turns the progress off. Ctrl-C stops the
     sweep: what is done is merged, and the result says ``outcome.interrupted`` (and ``written`` whether the
-    merged files were all written: Ctrl-C may come while they are). Raises ``OSError`` when the
-    scheduler cannot be reached or the output folder cannot be written, ``ValueError`` (before anything
-    runs) when ``workers`` is not a whole number of at least 1."""
+    merged files were all written: Ctrl-C may come while they are). A file of the output folder that cannot be
+    written (a full disk) stops the sweep as Ctrl-C does, ``outcome.write_error`` saying why (the rows stored
+    before stand). Raises ``OSError`` when the scheduler cannot be reached or the output folder cannot be
+    created, ``ValueError`` (before anything runs) when ``workers`` is not a whole number of at least 1."""
     from rac.sweep import report  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
 
     # matplotlib, numpy, tqdm (via rac.sweep.run): importing rac.sweep stays light
@@ -186,12 +187,17 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     rows = rows_in_order(plan.specs, outcome)
     result = SweepResult(plan=plan, outcome=outcome, rows=rows,
                          summary=report.summarise(rows, tasks=len(plan.specs), skipped=outcome.skipped))
+    if outcome.write_error is not None:  # a row could not be stored: nor could these files, most likely
+        result.written = False
+        return result
     try:
         files, result.notes = report.write_results(rows, plan.out)
         result.files += files
         result.files += report.write_plots(rows, plan.out)
     except KeyboardInterrupt:  # each row is stored in tasks/ already: the same command writes these files again
         outcome.interrupted, result.written = True, False
+    except OSError as exc:  # a full disk: each row is stored already, and the summary of them is still said
+        outcome.write_error, result.written = exc, False
     return result
 
 
@@ -219,6 +225,8 @@ def sweep(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
     result = execute(plan(template, scenarios, sets=sets, task=task, out=out, task_timeout=task_timeout,
                           task_memory=task_memory, options=options),
                      scheduler=scheduler, workers=workers, force=force, retry_failed=retry_failed, quiet=quiet)
+    if result.outcome.write_error is not None:  # the rows stored before it stand: the same call runs the rest
+        raise result.outcome.write_error
     if result.outcome.interrupted:
         raise KeyboardInterrupt
     return frame(result.rows)

@@ -101,6 +101,9 @@ class Outcome:
     #: changed since), run again
     rerun_source: int = 0
     interrupted: bool = False
+    #: why a file of the output folder could not be written (a full disk, a read-only folder): a row (the sweep
+    #: stopped there, as after Ctrl-C; the rows stored before stand) or results.* and the plots
+    write_error: OSError | None = None
 
 
 @contextlib.contextmanager
@@ -267,7 +270,8 @@ def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpe
     """Run each spec of ``todo`` (by key, from :func:`pending`) as one Dask task and store its row as it
     arrives, adding it to ``outcome``; ``on_row(spec, row)`` is called for each spec of ``specs`` with that
     key. Ctrl-C (``KeyboardInterrupt``) cancels the tasks not finished and returns what is done, with
-    :attr:`Outcome.interrupted` set. Raises ``OSError`` when a row cannot be stored."""
+    :attr:`Outcome.interrupted` set. A row that cannot be stored (a full disk) stops it the same way, with
+    :attr:`Outcome.write_error` set."""
     from distributed import as_completed  # distributed: only when a sweep runs; `import rac.sweep` never loads it
 
     # distributed: only when a sweep runs; `import rac.sweep` never loads it
@@ -294,7 +298,16 @@ def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpe
             row["key"] = key
             outcome.rows[key] = row  # first: a Ctrl-C while it is being stored still merges it
             outcome.ran += 1
-            store.put(key, row)
+            try:
+                store.put(key, row)
+            except OSError as exc:  # a full disk: the tasks left would be lost too, so the sweep stops here,
+                # and the rows stored so far stand (the error escaped, and the summary of them with it)
+                del outcome.rows[key]  # not stored: the same command runs it again
+                outcome.ran -= 1
+                outcome.write_error = exc
+                with contextlib.suppress(Exception):
+                    client.cancel(list(futures), force=True)
+                return outcome
             if on_row is not None:
                 for other in sharing.get(key, ()):
                     on_row(other, row)
