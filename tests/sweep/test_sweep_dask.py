@@ -44,7 +44,7 @@ from rac.cli.sweep import exit_status
 from rac.model.scenes import write_scene
 from rac.sweep import Plan, SweepResult, execute, plan, sweep
 from rac.sweep.report import render_summary, summarise, write_plots
-from rac.sweep.run import KILLED, Outcome, Tracker, connect, pending, rows_in_order, run_tasks
+from rac.sweep.run import KILLED, Outcome, Tracker, connect, pending, rows_in_order, run_tasks, workers_of
 from rac.sweep.store import Store
 from rac.sweep.task import TaskSpec, source_digest
 
@@ -858,6 +858,28 @@ def test_the_progress_before_the_cluster_answers_says_so() -> None:
     """While the cluster started (or an unreachable --scheduler was tried for 10 s) the line said "0 of 0 tasks
     done, 0 failed", as if the sweep had nothing to do."""
     assert re.fullmatch(r"waiting for the Dask cluster, no task sent yet; \d+ s", Tracker(quiet=True).line())
+
+
+def test_a_cluster_without_workers_is_said_not_waited_on_in_silence() -> None:
+    """A scheduler whose workers were never started (or all died) holds the tasks: the sweep printed "0 of 3
+    tasks done" every 10 s, as if a task were slow, and the user waited. Now the start says the cluster has
+    no worker yet, and so does each progress line while it has none."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
+        said: list[str] = []
+        with connect(cluster.scheduler_address, announce=said.append) as client:
+            assert f"the cluster at {cluster.scheduler_address} has no worker yet: the tasks wait until one joins " \
+                   f"(dask worker {cluster.scheduler_address})" in said
+            tracker = Tracker(quiet=True)
+            tracker.start(3, 0)
+            tracker.workers = lambda: workers_of(client)
+            assert "0 of 3 tasks done, 0 failed; the cluster has no worker: the tasks wait until one joins; " \
+                   in tracker.line()
+            cluster.scale(1)
+            client.wait_for_workers(1, timeout=30)
+            assert workers_of(client) == 1 and "no worker" not in tracker.line()
+        assert workers_of(client) is None  # closed: the progress's thread is not stopped by it
 
 
 def test_import_rac_does_not_import_dask() -> None:

@@ -156,7 +156,7 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     from rac.sweep import report  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
 
     # matplotlib, numpy, tqdm (via rac.sweep.run): importing rac.sweep stays light
-    from rac.sweep.run import Tracker, connect, pending, rows_in_order, run_tasks
+    from rac.sweep.run import Tracker, connect, pending, rows_in_order, run_tasks, workers_of
     from rac.sweep.store import Store  # matplotlib, numpy (via rac.sweep.store): importing rac.sweep stays light
 
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
@@ -181,6 +181,7 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
             with Tracker(quiet=quiet) as tracker, connect(scheduler, workers, announce=announce) as client:
                 # per spec, as the tracker hears of rows: a key shared by two specs (one file under two paths) is two
                 tracker.start(sum(1 for key in outcome.keys if key in todo), outcome.skipped)
+                tracker.workers = lambda: workers_of(client)
                 run_tasks(client, plan.specs, todo, outcome, store, on_row=tracker.row)
         except KeyboardInterrupt:  # while the cluster started or closed: the rows stored are still merged
             outcome.interrupted = True

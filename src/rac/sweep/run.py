@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from rac.sweep.task import TaskSpec
 
 __all__ = ["ALLOWED_FAILURES", "BadSchedulerAddress", "Outcome", "connect", "error_row", "run_tasks", "task_function",
-           "usable_cores"]
+           "usable_cores", "workers_of"]
 
 #: Dask's ``distributed.scheduler.allowed-failures`` for the clusters rac starts: a task whose worker dies
 #: is retried once on another worker, then reported as an error row (``KilledWorker``).
@@ -132,6 +132,9 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
             with client:
                 workers = len(client.scheduler_info().get("workers", {}))
                 say(f"dashboard: {client.dashboard_link} (the cluster at {address}, {_workers(workers)}{_bokeh()})")
+                if not workers:  # Dask holds the tasks until a worker joins: without a word, the sweep seemed hung
+                    say(f"the cluster at {address} has no worker yet: the tasks wait until one joins "
+                        f"(dask worker {address})")
                 yield client
             return
         n_workers = workers or usable_cores()
@@ -156,6 +159,18 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
                 cluster.close()
             for number in held:  # the process was stopped meanwhile: as if just after
                 signal.raise_signal(number)
+
+
+def workers_of(client: Client) -> int | None:
+    """How many workers the client's cluster has now; None when its scheduler does not answer within 5 s
+    (or the client is closed): asked from the progress's thread, which must not hang on it."""
+    try:
+        identity = client.sync(client.scheduler.identity, n_workers=0, callback_timeout=5)
+    except (AttributeError, OSError, RuntimeError):  # closed (no scheduler: AttributeError; its loop closing:
+        # RuntimeError), the scheduler gone (CommClosedError) or slow (TimeoutError): nothing said of workers
+        return None
+    count = identity.get("n_workers") if isinstance(identity, dict) else None
+    return count if isinstance(count, int) else None
 
 
 def usable_cores() -> int:
@@ -360,6 +375,8 @@ class Tracker:
         self._beat = _Lines(self, enabled=False if quiet else None)
         self._bar: Progress | None = None
         self._started = time.monotonic()
+        #: the cluster's worker count now (:func:`workers_of`), when known: a line of tasks left and no worker says so
+        self.workers: Callable[[], int | None] | None = None
 
     def __enter__(self) -> Tracker:
         self._beat.__enter__()
@@ -395,6 +412,9 @@ class Tracker:
             per_minute = rate * 60
             text += f", {per_minute:.{1 if per_minute < 100 else 0}f} tasks/min, " \
                     f"ETA {_duration((self.total - self.done) / rate)}"
+        if self.done < self.total and self.workers is not None and self.workers() == 0:
+            # every worker gone (or none joined): Dask holds the tasks, and "0 of 40 tasks done" alone looked hung
+            text += "; the cluster has no worker: the tasks wait until one joins"
         return f"{text}; {_duration(elapsed)}"
 
 
