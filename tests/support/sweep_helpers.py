@@ -59,6 +59,13 @@ def slow(spec: TaskSpec) -> dict[str, object]:
     return row(spec)
 
 
+def waits(spec: TaskSpec) -> dict[str, object]:
+    """A row at once on a scenario named ``fast*``, after 3 s on any other (a task still to come when the
+    first row arrives, yet one that does not hold a worker for long)."""
+    time.sleep(0 if Path(spec.scenario).name.startswith("fast") else 3)
+    return row(spec)
+
+
 def raises(spec: TaskSpec) -> dict[str, object]:
     """A stand-in that breaks the promise of :func:`rac.sweep.task.run_task` never to raise."""
     raise RuntimeError(f"no row for {Path(spec.scenario).name}")

@@ -282,6 +282,57 @@ def test_a_worker_that_dies_twice_or_a_task_that_raises_is_an_error_row(client, 
     client.wait_for_workers(2, timeout=60)  # type: ignore[attr-defined]
 
 
+def test_a_task_the_cluster_cancelled_has_no_row_and_runs_again(client, tmp_path: Path, world: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """When the scheduler of a cluster at --scheduler went away, Dask cancelled every task left
+    ("scheduler-connection-lost"), and each became a stored error row, FutureCancelledError: a row no later run
+    ran again, for a task that never ran. Now a cancelled task has no row, is counted, and runs next time."""
+    from distributed import Future
+
+    specs = specs_for(tmp_path, world / "sweep.ra", ["fast0.xml", "wait1.xml", "wait2.xml", "wait3.xml"])
+    stand_in(monkeypatch, sweep_helpers.waits)
+    store = Store(tmp_path / "out")
+    outcome, todo = pending(specs, store)
+
+    def cancel_the_rest(spec: TaskSpec, row: dict[str, object]) -> None:  # as a scheduler gone cancels them
+        left = [key for key in list(client.futures) if any(f"-{other}-" in str(key) for other in outcome.keys[1:])]
+        client.cancel([Future(key, client) for key in left])
+
+    run_tasks(client, specs, todo, outcome, store, on_row=cancel_the_rest)
+    assert [path.stem for path in store.folder.glob("*.json")] == [outcome.keys[0]]
+    assert list(pending(specs, store)[1]) == outcome.keys[1:]  # the same command runs them
+    assert set(outcome.rows) == {outcome.keys[0]} and outcome.cancelled == 3 and outcome.ran == 1
+
+
+def test_a_sweep_with_tasks_the_cluster_cancelled_says_so_and_is_not_ok(world: Path, tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """Every row there ok, one task cancelled by the cluster: not exit 0 as if the sweep were complete."""
+    scenarios = [str(world / "scenarios" / f"{name}.xml") for name in ("goal_ahead", "avoidable_obstacle")]
+    planned = plan(world / "sweep.ra", scenarios, options=OPTIONS, out=tmp_path / "out")
+    Store(planned.out).put(planned.specs[1].key(), sweep_helpers.row(planned.specs[1]))
+
+    @contextlib.contextmanager
+    def no_client(*args: object, **kwargs: object) -> Iterator[None]:
+        yield None
+
+    def cancelled(client: object, specs: object, todo: object, outcome: Outcome, *args: object,
+                  **kwargs: object) -> Outcome:
+        outcome.cancelled, outcome.cancelled_why = 1, "scheduler-connection-lost"
+        return outcome
+
+    monkeypatch.setattr("rac.sweep.run.connect", no_client)
+    monkeypatch.setattr("rac.sweep.run.run_tasks", cancelled)
+    code = main(["sweep", str(world / "sweep.ra"), *scenarios, "--horizon", "2", "-o", str(planned.out), "-q"])
+    captured = capsys.readouterr()
+    assert code == EXIT_UNDECIDED, captured.err
+    assert "rac sweep: the Dask cluster cancelled 1 task before it ran (Dask's reason: scheduler-connection-lost); " \
+           "no row is stored for it: run the same command again, once the cluster is back, to run only those" \
+           in captured.err
+    with pytest.warns(RuntimeWarning, match="cancelled 1 task before running it"):
+        assert len(sweep(world / "sweep.ra", scenarios, options=OPTIONS, out=planned.out, quiet=True)) == 1
+
+
 def test_rows_reach_on_row_without_a_walk_of_every_spec_each(client, tmp_path: Path, world: Path,
                                                             monkeypatch: pytest.MonkeyPatch) -> None:
     """Each row arriving walked every spec of the sweep to find those of its key: quadratic in the tasks, minutes

@@ -142,6 +142,9 @@ def sweep_command(args: argparse.Namespace) -> int:
     status = exit_status(result.rows)
     if result.outcome.interrupted:  # the exit code the process ends with, which the JSON document says too
         status = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+    cancelled = result.outcome.cancelled
+    if cancelled and status == EXIT_OK:  # tasks that could not run: no sweep of them all is ok
+        status = EXIT_UNDECIDED
     failed = _write_failed(result, planned.out)
     if failed is not None:  # the rows stored before stand, and are summarised: the output folder is the user's to fix
         status = EXIT_USAGE
@@ -157,6 +160,11 @@ def sweep_command(args: argparse.Namespace) -> int:
             print_diagnostics([failed])
     for note in result.notes:
         print(f"rac sweep: note: {note}", file=sys.stderr)
+    if cancelled:
+        they, them = ("it", "it") if cancelled == 1 else ("they", "them")
+        print(f"rac sweep: the Dask cluster cancelled {_count(cancelled, 'task')} before {they} ran "
+              f"(Dask's reason: {result.outcome.cancelled_why}); no row is stored for {them}: run the same command "
+              "again, once the cluster is back, to run only those", file=sys.stderr)
     how = "terminated (SIGTERM)" if terminated else "interrupted"
     if not result.written and result.outcome.interrupted:
         print(f"rac sweep: {how} while writing results.* and the plots (run the same command again to write "

@@ -8,6 +8,7 @@ May import: rac, rac.compiler, core, lang, ir, check, model, runtime, engine, ou
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -230,4 +231,10 @@ def sweep(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
         raise result.outcome.write_error
     if result.outcome.interrupted:
         raise KeyboardInterrupt
+    if result.outcome.cancelled:  # their rows are missing from the frame: said, not left to be noticed
+        n = result.outcome.cancelled
+        them = "it" if n == 1 else "them"
+        warnings.warn(f"the Dask cluster cancelled {n} task{'s' * (n != 1)} before running {them} "
+                      f"({result.outcome.cancelled_why}): the result lacks their rows, and the same call runs {them}",
+                      RuntimeWarning, stacklevel=2)
     return frame(result.rows)

@@ -21,6 +21,7 @@ import time
 import uuid
 import warnings
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import CancelledError  # what Dask's FutureCancelledError is
 from dataclasses import dataclass, field
 from importlib.util import find_spec
 from multiprocessing import resource_tracker
@@ -101,6 +102,10 @@ class Outcome:
     #: changed since), run again
     rerun_source: int = 0
     interrupted: bool = False
+    #: tasks the cluster cancelled before they gave a row, and Dask's reason (its scheduler gone:
+    #: ``scheduler-connection-lost``): they never ran, so they have no row and the same command runs them again
+    cancelled: int = 0
+    cancelled_why: str = ""
     #: why a file of the output folder could not be written (a full disk, a read-only folder): a row (the sweep
     #: stopped there, as after Ctrl-C; the rows stored before stand) or results.* and the plots
     write_error: OSError | None = None
@@ -308,6 +313,11 @@ def run_tasks(client: Client, specs: Sequence[TaskSpec], todo: dict[str, TaskSpe
                 row = dict(future.result())
             except KilledWorker:
                 row = error_row(spec, key, "error", KILLED, retry=True)  # killed, most likely from outside
+            except CancelledError as exc:  # the scheduler went away (or someone cancelled it): the task never
+                # ran, and an error row stored for it was reused by every later run as if it were the task's
+                outcome.cancelled += 1
+                outcome.cancelled_why = outcome.cancelled_why or str(getattr(exc, "reason", "") or "unknown")
+                continue
             except Exception as exc:  # run_task never raises; a stand-in may, and so may unpickling
                 row = error_row(spec, key, "error", f"{type(exc).__name__}: {exc}")
             row["key"] = key
