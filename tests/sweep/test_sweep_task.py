@@ -606,3 +606,26 @@ def test_the_source_digest_is_the_same_installed_or_checked_out(tmp_path: Path, 
     assert source_digest() == checked_out
     monkeypatch.undo()
     source_digest.cache_clear()
+
+
+def test_a_verify_task_whose_queries_draw_runs_says_its_seed(tmp_path: Path) -> None:
+    """Without --seed each task drew a fresh seed and the row kept none: a statistical query's verdict that no
+    one could reproduce, nor check with `rac verify --seed N` on the file. The row now says the seed, and the
+    task given it answers alike; a task whose queries draw nothing has no seed."""
+    from rac.sweep import work  # the task's own half, run here in process
+
+    tiny = TINY_SCENARIOS["avoidable_obstacle"]()
+    tiny.write(tmp_path / "road.xml")
+    queries = {"Stays": "E[] !collide() && !offroad()", "Near": "Pr[<=2](<> mindist() < 14) >= 0.5"}
+    template = tmp_path / "sweep.ra"
+    template.write_text(engine_source(tiny, queries, scenario_file="placeholder.xml"), encoding="utf-8")
+    drawn = TaskSpec(str(template), template.read_text(encoding="utf-8"), str(tmp_path / "road.xml"), (), "verify",
+                     (("horizon", "2"),))
+    row = work.execute(drawn)
+    assert row["status"] in ("ok", "failed") and set(row["verdicts"]) == {"Stays", "Near"}, row
+    assert isinstance(row["seed"], int) and row["seed"] >= MIN_SEED
+    again = work.execute(dataclasses.replace(drawn, options=(("horizon", "2"), ("seed", str(row["seed"])))))
+    assert (again["seed"], again["verdicts"]) == (row["seed"], row["verdicts"])
+    plain = dataclasses.replace(drawn, template_text=engine_source(tiny, {"Stays": queries["Stays"]},
+                                                                   scenario_file="placeholder.xml"))
+    assert "seed" not in work.execute(plain)

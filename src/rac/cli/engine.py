@@ -38,7 +38,7 @@ from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
 from rac.core.diagnostics import CheckError, Diagnostic, RacError, json_text, sort_key
 from rac.core.diagnostics import render_text as render_diagnostics
-from rac.core.numbers import samples_of
+from rac.core.numbers import fresh_seed, samples_of
 from rac.core.source import SourceFile
 from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.ir import query as iq
@@ -185,9 +185,7 @@ def _seed(args: argparse.Namespace) -> int:
     ``--seed N``."""
     if args.seed is not None:
         return int(args.seed)
-    import numpy as np  # numpy: only the commands that draw runs load it
-
-    return int(np.random.SeedSequence().generate_state(1)[0])
+    return fresh_seed()
 
 
 def _announcer(quiet: bool) -> Callable[[str], None]:

@@ -4,6 +4,7 @@ them (:func:`format_bytes`: the engine's budgets and the scenario's load estimat
 
 from __future__ import annotations
 
+import secrets
 from decimal import Decimal
 from fractions import Fraction
 from typing import Any
@@ -11,7 +12,7 @@ from typing import Any
 from rac.core.diagnostics import short_number
 
 __all__ = ["INT32_BOUND", "INT32_LOW", "INT32_MAX", "INT32_MIN", "MIN_SEED", "exact_decimal", "format_bytes",
-           "samples_of", "seconds_at", "size_option"]
+           "fresh_seed", "samples_of", "seconds_at", "size_option"]
 
 INT32_MAX = 2**31 - 1
 #: The least seed rac takes (every command's --seed and --seeds, rac sweep's seed options): numpy's
@@ -24,6 +25,12 @@ INT32_BOUND = 2**31
 #: The most negative value rac writes or stores: ``-INT32_MAX``, because UPPAAL's lexer reads
 #: ``-2147483648`` as the negation of a literal that does not fit.
 INT32_LOW = -INT32_MAX
+
+
+def fresh_seed() -> int:
+    """A seed drawn now, for a command given none: 32 bits, short enough to print and give back as ``--seed N``
+    (numpy's ``SeedSequence().generate_state(1)[0]``, which rac verify drew before this owner)."""
+    return secrets.randbits(32)
 
 
 def exact_text(value: Fraction) -> str:

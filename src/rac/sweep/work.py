@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import RacError, Severity
-from rac.core.numbers import MIN_SEED, format_bytes, samples_of
+from rac.core.numbers import MIN_SEED, format_bytes, fresh_seed, samples_of
 from rac.core.resources import ScenarioTooLarge
 from rac.engine.budget import BudgetExceeded
 from rac.model.checks import UNUSABLE_SCENARIO
@@ -180,8 +180,10 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any])
     # numpy, rac.check.analysis, stormpy (via rac.verify.runner): importing rac.sweep.work stays light
     from rac.verify.runner import VerifyOptions, verify
 
-    chosen: dict[str, Any] = {"horizon": options.get("horizon"), "seed": options.get("seed"), "plots": False,
-                              **_budget(options)}
+    # drawn here when not given, as rac verify draws it, so that the row can say it: a statistical or learning
+    # query's verdict that no seed reproduces could not be checked with `rac verify --seed N` on the file
+    seed = options["seed"] if "seed" in options else fresh_seed()
+    chosen: dict[str, Any] = {"horizon": options.get("horizon"), "seed": seed, "plots": False, **_budget(options)}
     if "episodes" in options:
         chosen["learn_episodes"] = options["episodes"]
     with tempfile.TemporaryDirectory(prefix="rac-sweep-") as out:  # strategies and CSV files are not kept
@@ -190,6 +192,8 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any])
         except ValueError as exc:  # the horizon is not a whole number of samples
             raise TaskError(str(exc)) from None
     row["verdicts"] = {r.name: r.status for r in results if r.status in VERDICTS}
+    if any(r.seed is not None for r in results):  # a query drew runs: `rac verify --seed N` reproduces them
+        row["seed"] = seed
     states = [r.states for r in results if r.states is not None]
     row["states"] = max(states) if states else None
     failed = [r.name for r in results if r.status == "not satisfied"]
