@@ -188,7 +188,8 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
             outcome.interrupted = True
     rows = rows_in_order(plan.specs, outcome)
     result = SweepResult(plan=plan, outcome=outcome, rows=rows,
-                         summary=report.summarise(rows, tasks=len(plan.specs), skipped=outcome.skipped))
+                         summary=report.summarise(rows, tasks=len(plan.specs), skipped=outcome.skipped,
+                                                           skipped_not_ok=outcome.skipped_not_ok))
     if outcome.write_error is not None:  # a row could not be stored: nor could these files, most likely
         result.written = False
         return result

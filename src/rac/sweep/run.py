@@ -90,6 +90,8 @@ class Outcome:
     keys: list[str] = field(default_factory=list)  #: the key of each spec, in the order given
     ran: int = 0
     skipped: int = 0
+    #: of those skipped, the rows not ok (an error of an environment since fixed among them): --retry-failed reruns
+    skipped_not_ok: int = 0
     rerun_killed: int = 0  #: stored rows marked ``retry`` (the task's process was killed), run again
     rerun_failed: int = 0  #: other stored rows not ok, run again under ``retry_failed``
     #: stored ``timeout`` (``memory``) rows of another task timeout (memory limit) than this run's, run again
@@ -273,6 +275,8 @@ def pending(specs: Sequence[TaskSpec], store: Store, *, force: bool = False,
         else:
             todo[key] = spec
     outcome.skipped = sum(1 for key in outcome.keys if key in outcome.rows)
+    outcome.skipped_not_ok = sum(1 for key in outcome.keys if key in outcome.rows
+                                 and outcome.rows[key].get("status") != "ok")
     return outcome, todo
 
 
