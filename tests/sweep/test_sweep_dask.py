@@ -25,6 +25,7 @@ import subprocess
 import sys
 import threading
 import time
+import types
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -935,6 +936,20 @@ def test_a_cluster_without_workers_is_said_not_waited_on_in_silence() -> None:
             client.wait_for_workers(1, timeout=30)
             assert workers_of(client) == 1 and "no worker" not in tracker.line()
         assert workers_of(client) is None  # closed: the progress's thread is not stopped by it
+
+
+def test_the_worker_count_of_a_closing_client_is_none_not_an_error() -> None:
+    """The progress's thread asks the worker count every 10 s; a client whose loop is closing answers with
+    concurrent.futures' CancelledError, which ended that thread with a traceback on standard error."""
+    from concurrent.futures import CancelledError
+
+    class Closing:
+        scheduler = types.SimpleNamespace(identity=None)  # there, until its loop answers
+
+        def sync(self, *args: object, **kwargs: object) -> object:
+            raise CancelledError
+
+    assert workers_of(Closing()) is None  # type: ignore[arg-type]
 
 
 def test_import_rac_does_not_import_dask() -> None:

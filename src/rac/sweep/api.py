@@ -183,7 +183,10 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
                 # per spec, as the tracker hears of rows: a key shared by two specs (one file under two paths) is two
                 tracker.start(sum(1 for key in outcome.keys if key in todo), outcome.skipped)
                 tracker.workers = lambda: workers_of(client)
-                run_tasks(client, plan.specs, todo, outcome, store, on_row=tracker.row)
+                try:
+                    run_tasks(client, plan.specs, todo, outcome, store, on_row=tracker.row)
+                finally:  # the client closes next: the progress's thread no longer asks it
+                    tracker.workers = None
         except KeyboardInterrupt:  # while the cluster started or closed: the rows stored are still merged
             outcome.interrupted = True
     rows = rows_in_order(plan.specs, outcome)

@@ -173,8 +173,9 @@ def workers_of(client: Client) -> int | None:
     (or the client is closed): asked from the progress's thread, which must not hang on it."""
     try:
         identity = client.sync(client.scheduler.identity, n_workers=0, callback_timeout=5)
-    except (AttributeError, OSError, RuntimeError):  # closed (no scheduler: AttributeError; its loop closing:
-        # RuntimeError), the scheduler gone (CommClosedError) or slow (TimeoutError): nothing said of workers
+    except (AttributeError, OSError, RuntimeError, CancelledError):  # closed (no scheduler: AttributeError; its
+        # loop closing: RuntimeError, CancelledError), the scheduler gone (CommClosedError) or slow (TimeoutError):
+        # nothing is said of workers
         return None
     count = identity.get("n_workers") if isinstance(identity, dict) else None
     return count if isinstance(count, int) else None
