@@ -595,6 +595,20 @@ def not_utf8(tmp_path: Path) -> Path:
     return path
 
 
+def test_a_name_its_output_cannot_encode_is_escaped_not_an_internal_error(tmp_path: Path) -> None:
+    # PYTHONIOENCODING=ascii (a C locale, a Windows code page): `rac check ü.ra` ended in an internal error
+    # (exit 3, UnicodeEncodeError) after its diagnostics were computed
+    source = tmp_path / "ü.ra"
+    source.write_text(DRIVING_TEXT, encoding="utf-8")
+    env = {**rac_env(), "PYTHONIOENCODING": "ascii"}
+    done = subprocess.run([sys.executable, "-m", "rac", "check", "-q", str(source)], env=env, capture_output=True,
+                          check=False)
+    assert done.returncode == 0 and done.stdout == f"{tmp_path}/\\xfc.ra: ok\n".encode("ascii"), done.stderr
+    done = subprocess.run([sys.executable, "-m", "rac", "check", str(tmp_path / "gone-ü.ra")], env=env,
+                          capture_output=True, check=False)
+    assert done.returncode == 2 and b"gone-\\xfc.ra" in done.stderr and b"internal error" not in done.stderr
+
+
 def test_a_file_name_not_utf8_is_shown_with_its_byte_escaped(not_utf8: Path, tmp_path: Path) -> None:
     # the text summary died of a UnicodeEncodeError on a UTF-8 standard output (exit 3), JSON held the lone
     # surrogate "bad\udcffname.ra", which strict UTF-8 and JSON readers reject, and rac compile -o could not

@@ -220,6 +220,13 @@ class StderrSafe:
 
 
 def entry() -> None:
+    """The console script (and ``python -m rac``): :func:`main` on streams that cannot fail to encode."""
+    # a stream whose encoding cannot say a character (PYTHONIOENCODING=ascii, a C locale, a Windows code
+    # page) would end `rac check ü.ra` in an internal error: such a character is written as its escape
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None and getattr(stream, "errors", "strict") == "strict":
+            reconfigure(errors="backslashreplace")
     sys.exit(main())
 
 
