@@ -81,6 +81,34 @@ def test_a_pickled_automaton_steps_in_another_process() -> None:
     assert back.ended and back.samples == len(TRACE) and not ra.ended
 
 
+class Counting(RewardAutomaton):
+    """A user's subclass with an attribute of its own (module level: pickle finds the class by name)."""
+
+    def __init__(self, automaton: object) -> None:
+        super().__init__(automaton)  # type: ignore[arg-type]
+        self.episodes = 0
+
+    def reset(self) -> None:
+        super().reset()
+        if hasattr(self, "episodes"):
+            self.episodes += 1
+
+
+def test_a_subclass_keeps_its_own_attributes_through_pickle_and_copies() -> None:
+    # pickle rebuilt the automaton with RewardAutomaton.__init__ and its run state alone, so a SubprocVecEnv
+    # worker's copy of a subclass had no `episodes` (AttributeError at its next reset)
+    ra = Counting(rac.load(DRIVING).ir)
+    ra.reset()
+    ra.step(TRACE[0])
+    ra.note = "mine"
+    for twin in (pickle.loads(pickle.dumps(ra)), copy.copy(ra), copy.deepcopy(ra)):
+        assert type(twin) is Counting and twin.episodes == 1 and twin.note == "mine"
+        assert state(twin) == state(ra)
+        twin.reset()
+        assert twin.episodes == 2
+    assert RewardAutomaton(rac.load(DRIVING).ir).__getstate__()["own"] == {}  # nothing built travels
+
+
 def _batch_in_worker(batch: BatchRewardAutomaton) -> np.ndarray:
     return batch.step_batch({k: np.full(len(batch), v) for k, v in inputs(is_close=True).items()})
 

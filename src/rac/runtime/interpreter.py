@@ -78,6 +78,10 @@ _OPS: dict[str, Callable[[Any, Any], Any]] = {
 
 #: What a run changes (pickled with the IR; everything else is compiled from the IR).
 _RUN_STATE = ("_loc", "_r", "_held", "_samples", "_ended", "_terminated", "_objective", "clipped")
+# what RewardAutomaton.__init__ builds from the IR (closures pickle cannot carry): rebuilt on load, not pickled;
+# any other attribute is a subclass's own and travels with the pickle
+_BUILT = ("_ir", "_specs", "_names", "_period", "_rates", "_edges", "_end_clauses", "_episode_ends", "_assume",
+          "_objective_fn", "_initial_objective")
 
 _Values = dict[str, Any]
 _LinearFn = Callable[[list[float], _Values], float]
@@ -364,13 +368,17 @@ class RewardAutomaton(AutomatonDescription):
         """For pickle: the IR and the run state; the compiled closures are rebuilt from the IR on load
         (they are local functions, which pickle cannot carry, and this lets SubprocVecEnv or Dask ship
         an automaton to a worker)."""
-        return {"ir": self._ir, **{key: getattr(self, key) for key in _RUN_STATE}}
+        own = {key: value for key, value in self.__dict__.items() if key not in _BUILT and key not in _RUN_STATE}
+        return {"ir": self._ir, **{key: getattr(self, key) for key in _RUN_STATE}, "own": own}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         RewardAutomaton.__init__(self, state["ir"])
         for key in _RUN_STATE:
             # a pickle from before `episode ends when` has no `_terminated`: such a run never ended itself
             setattr(self, key, state.get(key, False) if key == "_terminated" else state[key])
+        # a subclass's own attributes (a pickle from before they were kept has none): SubprocVecEnv and Dask
+        # ship the automaton by pickle, and a worker's copy lost them (AttributeError at its next use)
+        self.__dict__.update(state.get("own", {}))
 
     def __repr__(self) -> str:
         ending = ", terminated" if self._terminated else ", ended" if self._ended else ""
