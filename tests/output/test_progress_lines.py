@@ -98,6 +98,50 @@ def test_simulate_and_render_count_the_samples_they_simulate(command: str, tmp_p
     assert f"rac {command}: simulating" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("query", ["Prob", "ProbRuns", "Speed", "Sim"])
+def test_verify_counts_the_samples_its_statistical_queries_simulate(query: str, tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture[str],
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    # `Pr[<=100000](<> collide())` at 0.1 s simulated for over five minutes with the heartbeat saying
+    # only "rac verify: P: Pr[<=100000](<> collide()); 270 s", and no bar on a terminal either
+    from rac.engine import simulate
+
+    integrate = simulate.integrate_truth
+
+    def slow(*args, **kwargs):
+        time.sleep(0.003)
+        return integrate(*args, **kwargs)
+
+    monkeypatch.setattr(simulate, "integrate_truth", slow)
+    monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.001")
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {query: QUERIES[query]})
+    assert main(["verify", str(path), "--seed", "1", "--no-plots", "--query", query,
+                 "--out", str(tmp_path / "o")]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("rac verify:")]
+    pattern = rf"rac verify: {query}: .+; [\d.]+(?: [kMG])? samples \([\d.]+(?: [kMG])?/s\); \d+ s"
+    assert any(re.fullmatch(pattern, line) for line in lines), lines
+
+
+def test_a_count_that_starts_again_has_a_rate_of_its_own() -> None:
+    """A query simulates its runs in batches, each counting its samples from 0: the rate of a later batch
+    was its count over the time since the first batch began."""
+
+    def rate(line: str) -> float:
+        match = re.search(r"\(([\d.]+)(?: ([kMG]))?/s\)", line)
+        assert match is not None, line
+        return float(match.group(1)) * {None: 1, "k": 1e3, "M": 1e6, "G": 1e9}[match.group(2)]
+
+    beat = Heartbeat("rac test", enabled=False)
+    beat.phase("P")
+    beat.count(0, "samples")
+    time.sleep(0.5)
+    beat.count(1000, "samples")
+    assert rate(beat.line()) < 2100  # 1,000 samples in 0.5 s
+    beat.count(0, "samples")  # the next batch, just begun
+    beat.count(1000, "samples")
+    assert rate(beat.line()) > 10_000, beat.line()  # 1,000 samples in no time, not in 0.5 s
+
+
 def test_a_bar_of_a_few_counts_whole_numbers() -> None:
     """tqdm's scaled counts ("13.3k states") showed the 3rd of a sweep's 8 tasks as "3.00/8.00 tasks"."""
     few, many = io.StringIO(), io.StringIO()

@@ -194,7 +194,9 @@ class Heartbeat:
 
     def count(self, n: int, unit: str, what: str = "") -> None:
         """How much of the phase is done (``n`` states, episodes, runs; ``what`` names the work)."""
-        since = self._count[2] if self._count is not None and self._count[1] == unit else time.monotonic()
+        # a count that starts again (the next batch of a query's runs) has a rate of its own
+        going_on = self._count is not None and self._count[1] == unit and n >= self._count[0]
+        since = self._count[2] if going_on and self._count is not None else time.monotonic()
         self._count = (n, unit, since)
         if what and not self._phase:
             self._phase = what
