@@ -217,6 +217,26 @@ def test_a_shield_beyond_the_state_budget_is_a_resource_limit(tmp_path: Path,
     assert "error[E0016]: resource limit: the safety shield cannot be computed" in capsys.readouterr().err
 
 
+def test_a_shield_out_of_the_process_memory_says_which_limit(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    # under `prlimit --as=4G` with --max-memory 100G the shield's exploration ran out of the process's memory
+    # first, and the error said only numpy's "Unable to allocate 80.0 MiB ...; coarsen the model": no word
+    # of the process's limit, nor of the lower --max-memory that stops rac within it
+    from rac.engine import shield
+
+    def exhausted(*args: object, **kwargs: object) -> object:
+        raise MemoryError("Unable to allocate 80.0 MiB for an array with shape (10485241,) and data type int64")
+
+    monkeypatch.setattr(shield, "synthesise", exhausted)
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", REWARD_FUNCTION,
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert ("error[E0016]: resource limit: the safety shield cannot be computed: out of memory (Unable to "
+            "allocate") in err
+    assert "more memory than this process may use" in err and "a lower --max-memory" in err
+
+
 def test_ctrl_c_while_learning_keeps_what_was_learned(tmp_path: Path) -> None:
     """Ctrl-C during the learning: every run's best evaluated strategy is shown and written
     (the table, results.json with "interrupted"), the note says so, and the exit code is 130."""

@@ -53,7 +53,7 @@ import numpy as np
 from rac.compiler import CompileResult
 from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, error
 from rac.core.files import atomic_write
-from rac.engine.budget import BudgetExceeded, check_estimate, evaluation_bytes, learning_bytes
+from rac.engine.budget import BudgetExceeded, check_estimate, evaluation_bytes, learning_bytes, out_of_memory
 from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
 
@@ -237,7 +237,10 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
     try:
         computed, table = shields.synthesise(data, horizon_samples, max_states=max_states, max_bytes=max_bytes)
     except MemoryError as exc:
-        raise ExperimentError(f"the safety shield cannot be computed: {exc}; coarsen the model (actions, "
+        # the budget's own refusal says which limit stopped it; the process's memory running out first (a
+        # `ulimit -v`, a container) said only numpy's "Unable to allocate 80.0 MiB", with no limit named
+        why = str(exc) if isinstance(exc, RacError) else out_of_memory(exc, "computing it")
+        raise ExperimentError(f"the safety shield cannot be computed: {why}; coarsen the model (actions, "
                               "decide_period) or shorten the horizon", "limit") from None
     if not computed.shield_exists and needed:
         raise ExperimentError("no safe strategy exists from the start: the shielded combinations cannot run")
