@@ -163,14 +163,24 @@ def slow_load(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.02")
 
 
-@pytest.mark.parametrize("command", ["check", "verify"])
+#: The arguments after the file: verify answers nothing (the load is what is watched), compile writes a
+#: file, tune only prints.
+AFTER_FILE = {"check": [], "verify": ["--query", "nothing", "--out", "{out}"],
+              "compile": ["--target", "uppaal", "-o", "{out}.xml"], "tune": ["--print"]}
+
+
+# compile and tune: silent off a terminal through the load and the checks (no heartbeat, and tune's load
+# not announced either), where rac check says what it does
+@pytest.mark.parametrize("command", ["check", "verify", "compile", "tune"])
 def test_a_long_load_is_a_phase_of_the_heartbeat(command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     model = grid_model(tmp_path, 40)
+    if command == "tune":
+        model.write_text(model.read_text(encoding="utf-8").replace("const PENALTY = 100",
+                                                                   "param PENALTY in [0, 1000]"), encoding="utf-8")
     slow_load(monkeypatch)
-    arguments = [command, str(model)] + (["--query", "nothing", "--out", str(tmp_path / "out")]
-                                         if command == "verify" else [])
-    main(arguments)
+    out = str(tmp_path / "out")
+    main([command, str(model)] + [argument.format(out=out) for argument in AFTER_FILE[command]])
     err = capsys.readouterr().err.splitlines()
     announced = [line for line in err if line.startswith("rac: loading the scenario")]
     assert announced and "MB" in announced[0] and "of memory" in announced[0]

@@ -42,6 +42,7 @@ from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.format import format_module
 from rac.lang.parser import ParseFailure, parse_source, parse_text, read_source
+from rac.output.progress import Heartbeat, notice
 
 __all__ = ["tune_command", "tuned_text"]
 
@@ -60,7 +61,10 @@ def tune_command(args: argparse.Namespace) -> int:
     """``rac tune``: see the module docstring. Exit 0, 1 when synthesis fails, 2 on bad usage (or a
     scenario beyond ``--max-memory``: a resource limit, in the command's JSON document too)."""
     try:
-        return _tune(args)
+        # off a terminal the synthesis (every check, at each --horizon) and a large scenario's load say what
+        # they do, as under rac check; rac tune was silent through both
+        with Heartbeat("rac tune"):
+            return _tune(args)
     except ScenarioTooLarge as exc:
         return _refused(args, args.file, resource_limit(f"resource limit: {exc}"))
 
@@ -97,7 +101,7 @@ def _tune(args: argparse.Namespace) -> int:
                    f"`rac tune {path}` again (`rac check` shows what it synthesises)"]))
     if args.horizon is not None:
         return _horizons(args, source, node)
-    result = compile_source(source, max_bytes=load_budget(args))
+    result = _synthesised(source, args)
     if not result.ok or result.synthesis is None:
         return _failed(args, path, result)
     synthesis = result.synthesis
@@ -135,6 +139,18 @@ def _tune(args: argparse.Namespace) -> int:
     for line in changes:
         print(line)
     return EXIT_OK
+
+
+def _synthesised(source: SourceFile, args: argparse.Namespace, phase: str = "synthesising") -> CompileResult:
+    """``source`` checked, its parameters synthesised: a large scenario's load announced (as ``rac check``
+    announces it); off a terminal the heartbeat says ``phase``, or the load's while it lasts."""
+    if Heartbeat.active is not None:
+        Heartbeat.active.phase(phase)
+    try:
+        return compile_source(source, max_bytes=load_budget(args), progress=notice())
+    finally:  # the load's phases are over: the synthesis goes on under its own
+        if Heartbeat.active is not None:
+            Heartbeat.active.phase(phase)
 
 
 def tuned_text(source: SourceFile, module: ast.Module, synthesis: Synthesised) -> str:
@@ -251,7 +267,8 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
         if text and sys.stderr.isatty():
             print(f"\rsynthesising at H = {exact_decimal(horizon)} s ({k + 1}/{len(args.horizon)}) ...",
                   end="", file=sys.stderr, flush=True)
-        result = compile_source(SourceFile(source.name, at_horizon(source, node, horizon)), max_bytes=load_budget(args))
+        result = _synthesised(SourceFile(source.name, at_horizon(source, node, horizon)), args,
+                              f"synthesising at H = {exact_decimal(horizon)} s ({k + 1}/{len(args.horizon)})")
         row = _Row(horizon, result.synthesis if result.ok else None,
                    tuple(sorted((d for d in result.diagnostics if d.is_error), key=sort_key)))
         rows.append(row)
