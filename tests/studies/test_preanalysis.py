@@ -90,8 +90,10 @@ def test_a_sensing_period_that_does_not_divide_the_files_horizon_is_a_row_that_s
 
 
 def stop_at(kind: str, n: int = 0) -> type[TimeLimit]:
-    """A time limit that passes at a chosen check: in the exploration (``exploring``, at its first layer), or
-    at the ``n``-th check between the setting's steps (``between``)."""
+    """A time limit that passes at a chosen check: in the exploration (``exploring``, at its first layer: an
+    exploration's progress has three numbers), in a simulation (``simulating``, at its ``n``-th sample of Qa's
+    runs or, past them, of Fig. 7's: a simulation's has two), or at the ``n``-th check between the setting's
+    steps (``between``)."""
 
     class StopAt(TimeLimit):
         steps = 0
@@ -99,14 +101,19 @@ def stop_at(kind: str, n: int = 0) -> type[TimeLimit]:
         def check(self, *progress: int) -> None:
             if not progress:
                 self.steps += 1
-            if (kind == "exploring" and progress) or (kind == "between" and not progress and self.steps == n):
+            if (kind == "exploring" and len(progress) == 3) \
+                    or (kind == "between" and not progress and self.steps == n) \
+                    or (kind == "simulating" and len(progress) == 2 and progress[0] == n):
                 raise TimeExceeded(what=self.what, limit=1.0, seconds=1.5)
 
     return StopAt
 
 
+# simulating: a setting's simulations did not check the limit, so a long horizon's runs went on past it (with
+# --max-seconds 5, 20 runs of 50,000 samples for five minutes, until `timeout` killed the command)
 @pytest.mark.parametrize(("kind", "n", "answered"), [("exploring", 0, ["qa"]),
-                                                     ("between", 3, ["qa", "qb", "qc", "qd", "states"])])
+                                                     ("between", 3, ["qa", "qb", "qc", "qd", "states"]),
+                                                     ("simulating", 1, [])])
 def test_a_setting_past_its_time_limit_keeps_its_answers_and_says_so(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kind: str, n: int, answered: list[str]) -> None:
     """rac preanalyse had a memory limit but no time limit: a setting whose exploration took hours could
@@ -188,6 +195,8 @@ def test_the_true_distances_count_their_time_steps_off_a_terminal(tmp_path: Path
     assert beat.phases == ["setting 1 of 1 (exponent 2, C1 0.5 s, C2 1 s)", "true distances, 40 steps of 2 runs"]
     steps = [n for n, unit in beat.counts if unit == "steps"]
     assert steps == list(range(1, 41))  # 8 samples of 5 time steps each
+    # the simulations count their samples too (Qa's runs, then Fig. 7's): a long horizon's take minutes
+    assert [n for n, unit in beat.counts if unit == "samples"] == [*range(1, 9), *range(1, 9)]
 
 
 def test_a_time_step_that_does_not_divide_the_sensing_period_still_measures_at_least_as_often(

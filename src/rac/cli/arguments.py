@@ -263,7 +263,7 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     pre.add_argument("--runs", type=counting, default=100, help="simulated runs per setting (default 100)")
     pre.add_argument("--max-seconds", type=positive_seconds, default=None, metavar="S",
                      help="give up (a row without all its answers) on a setting after this many seconds, checked "
-                          "between its steps and per explored layer (default: no limit)")
+                          "between its steps, per explored layer and per simulated sample (default: no limit)")
     pre.add_argument("--threshold-factor", type=counting, default=1, metavar="K",
                      help="a run is unsafe when its true distance drops below K * collision_distance (default 1)")
     pre.add_argument("--format", choices=("text", "json"), default="text", help="output format")

@@ -389,8 +389,8 @@ class TimeExceeded(RacError):
 @dataclass
 class TimeLimit:
     """A time limit of ``seconds`` from its creation (None: none), checked where the work can stop: between
-    its steps, and as an exploration's ``progress`` (once per layer). Not preemptive: a step already
-    running (a vectorised simulation, Storm's decision) ends first."""
+    its steps, and as an exploration's ``progress`` (once per layer) or a simulation's (once per sample). Not
+    preemptive: a step already running (Storm's decision) ends first."""
 
     seconds: float | None
     #: What is limited, for the message.

@@ -25,11 +25,12 @@ representation or a long period lets the *true* distance drop below the threshol
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -197,6 +198,22 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
     return out
 
 
+@contextlib.contextmanager
+def _simulating(what: str, samples: int, quiet: bool, limit: TimeLimit) -> Iterator[Callable[[int, int], None]]:
+    """The ``progress`` of a setting's simulation (:func:`rac.engine.simulate.simulate`): a bar of its samples
+    (``quiet``: none; off a terminal the heartbeat's count) and ``limit`` checked after each sample. A long
+    horizon's runs take minutes: --max-seconds 5 let one run on for five minutes, without a count."""
+    # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
+    from rac.output.progress import Progress
+
+    with Progress(total=samples, desc=what, unit="samples", enabled=False if quiet else None) as bar:
+        def advance(sample: int, horizon: int) -> None:
+            bar.update(sample - bar.n)
+            limit.check(sample, horizon)
+
+        yield advance
+
+
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
          max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None,
          quiet: bool = True, max_seconds: float | None = None) -> Row:
@@ -253,7 +270,9 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
         return row
     # Qa: sensor error, unshielded runs (UPPAAL's SMC semantics: uniform actions).
     try:
-        plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed, max_bytes=max_bytes)
+        with _simulating(f"Qa: {runs:,} runs", samples, quiet, limit) as progress:
+            plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed, max_bytes=max_bytes,
+                             progress=progress)
     except MemoryError as exc:  # the budget's estimate, refused before anything is allocated (or the machine's)
         row["error"] = _memory_error(exc)
         return row
@@ -281,8 +300,9 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
         return row
     limit.check()
     # Fig. 7 under the shield: sensed and true distances.
-    shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at,
-                        max_bytes=max_bytes)  # the unshielded runs' estimate, which passed above
+    with _simulating(f"Fig. 7: {runs:,} runs under the shield", samples, quiet, limit) as progress:
+        shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at,
+                            max_bytes=max_bytes, progress=progress)  # the unshielded runs' estimate passed above
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
     limit.check()
@@ -322,7 +342,8 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
     ``exponents``, ``senses``, ``decides``: comma-separated lists (None: the file's own value).
     A decision period that is not a whole multiple of the sensing period is skipped with an
     ``error`` entry. ``out_dir`` receives one Fig. 7 plot per setting and ``sweep.png``. ``max_seconds``
-    limits each setting's time: past it (checked between its steps and per explored layer) the setting is
+    limits each setting's time: past it (checked between its steps, per explored layer and per simulated
+    sample) the setting is
     given up, its row keeping the answers found, an ``error`` that says so and ``time_limit`` (the seconds).
     :class:`SweepError` before any setting runs: a list that does not parse, an exponent outside the
     model's range, a period longer than the horizon, or a ``horizon`` given that is not a whole number
