@@ -88,6 +88,32 @@ def test_verify_out_of_memory_in_one_query_keeps_the_others(capsys: pytest.Captu
     assert results["Stays"]["status"] == "satisfied" and results["Later"]["status"] in ("satisfied", "not satisfied")
 
 
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_verify_out_of_memory_after_the_queries_shows_their_answers(capsys: pytest.CaptureFixture[str],
+                                                                    tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                    form: str) -> None:
+    # the penalty check after the queries explores a product of its own while their graphs are still held: the
+    # memory that ran out there ended the command in E0016 alone, every answer (minutes of them) dropped
+    from rac.verify import penalties
+
+    def exhausted(context: object) -> object:
+        raise MemoryError("Unable to allocate 1.00 GiB for an array with shape (134217728,) and data type int64")
+
+    monkeypatch.setattr(penalties, "check_penalties", exhausted)
+    path = write_engine_file(tmp_path, "goal_ahead", QUERIES)
+    code, out, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", form)
+    assert code == EXIT_USAGE
+    assert "rac verify: stopped during penalties that no action avoids by the error above; 3 queries answered" in err
+    if form == "json":
+        document = json.loads(out)  # one document: the answers and the error
+        assert [r["name"] for r in document["results"]] == ["Stays", "Sim", "Later"]
+        assert document["error"]["code"] == "E0016" and "out of memory (Unable to allocate" in \
+            document["error"]["message"]
+    else:
+        assert "Verifying Stays" in out and "Verifying Later" in out
+        assert "error[E0016]: out of memory (Unable to allocate" in err and "a lower --max-memory" in err
+
+
 def _row_failing_on_the_second(monkeypatch: pytest.MonkeyPatch, exc: BaseException) -> None:
     """``rac.studies.preanalysis._row`` raising ``exc`` on its second setting (the first is answered)."""
     from rac.studies import preanalysis

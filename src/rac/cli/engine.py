@@ -40,7 +40,7 @@ from rac.core.diagnostics import CheckError, Diagnostic, RacError, json_text, so
 from rac.core.diagnostics import render_text as render_diagnostics
 from rac.core.numbers import fresh_seed, samples_of
 from rac.core.source import SourceFile
-from rac.engine.budget import BudgetExceeded, default_max_bytes
+from rac.engine.budget import BudgetExceeded, default_max_bytes, out_of_memory
 from rac.ir import query as iq
 from rac.lang.parser import ExpressionError
 from rac.model.data import ModelRangeError
@@ -360,6 +360,16 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
             return EXIT_USAGE
         # a full disk at a later query's files: the answers found before stand (their files are written),
         # shown as after Ctrl-C, then the error (exit 2); they were dropped with it
+        write_failed, stopped = failed, doing[0] if doing else "the queries"
+    except MemoryError as exc:
+        # memory that ran out outside a query's own answer (the penalty check after them, with the queries'
+        # graphs still held) or a budget's refusal: the answers found stand, shown before the error (exit 2,
+        # as rac's other resource limits); rac.cli.main's report of it dropped them all
+        failed = resource_limit(f"resource limit: {exc}" if isinstance(exc, RacError)
+                                else out_of_memory(exc, "rac verify"))
+        if not results:
+            _report(args, failed)
+            return EXIT_USAGE
         write_failed, stopped = failed, doing[0] if doing else "the queries"
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "seed": seed, "warnings": _warnings(result),
