@@ -32,7 +32,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from typing import Any
 
@@ -138,17 +138,30 @@ class Interrupted(RacError):
 
 @contextmanager
 def _deferred_interrupts(wanted: bool) -> Iterator[Callable[[], bool]]:
-    """While inside, SIGINT is only noted (outside the main thread, or unless ``wanted``, it is left
-    alone); yields whether one came."""
+    """While inside, SIGINT is only noted, and so is SIGTERM where a handler of the program's takes it as an
+    interrupt (rac's command line: ``timeout``, a batch system's limit) (outside the main thread, or unless
+    ``wanted``, both are left alone); yields whether one came. A SIGTERM noted is handed to that handler on
+    the way out, the interrupt it raises left out (the stop is already under way), so that it knows."""
     if not wanted or threading.current_thread() is not threading.main_thread():
         yield lambda: False
         return
     came: list[int] = []
     previous = signal.signal(signal.SIGINT, lambda signum, frame: came.append(signum))
+    # SIGTERM's default ends the process: only a handler of the program's is deferred. Before, that handler's
+    # KeyboardInterrupt came in the middle of a step, and rac experiment dropped everything it had learned
+    terminate = signal.getsignal(signal.SIGTERM)
+    deferred = callable(terminate)
+    if deferred:
+        signal.signal(signal.SIGTERM, lambda signum, frame: came.append(signum))
     try:
         yield lambda: bool(came)
     finally:
         signal.signal(signal.SIGINT, previous)
+        if deferred:
+            signal.signal(signal.SIGTERM, terminate)
+            if signal.SIGTERM in came and callable(terminate):
+                with suppress(KeyboardInterrupt):
+                    terminate(signal.SIGTERM, None)
 
 
 def _stop(running: Sequence[_Running]) -> list[tuple[Any, float]]:
