@@ -28,6 +28,7 @@ from rac.core.diagnostics import CheckError
 from rac.engine import shield
 from rac.engine.explore import action_pairs
 from rac.model import NativeModel
+from rac.verify.context import Context, UnknownVerdict
 from rac.verify.runner import (
     QueryResult,
     UnknownQuery,
@@ -510,3 +511,30 @@ def test_a_trace_shows_the_values_the_model_holds() -> None:
            "turn": 0.0, "location": "B", "sa": -214748.3648}
     text = render_text([QueryResult("Q", "E<> B", "symbolic", "satisfied", trace=(row,))], traces=True)
     assert "t=0.5s x=2140.123456 y=1.75 v=8.1562 acc=0 head=0 jerk=0 turn=0 B sa=-214748.3648" in text
+
+
+def test_a_graph_kept_for_later_queries_counts_against_the_memory_limit(tmp_path: Path) -> None:
+    """Each exploration was held to --max-memory alone while the graphs of earlier queries stayed in memory
+    for later ones, so two graphs within the limit each could together fill the machine: the unpruned
+    graph that fits the limit alone is refused beside the pruned one, saying what holds the rest."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle")
+    result = compile_file(path)
+
+    def fits_alone(limit: int) -> bool:
+        try:
+            Context(result, VerifyOptions(seed=1, max_bytes=limit)).graph(False)
+        except UnknownVerdict:
+            return False
+        return True
+
+    low, high = 1, 2**30  # the least limit the unpruned graph fits alone (bisection: estimates, not measures)
+    while low < high:
+        middle = (low + high) // 2
+        low, high = (low, middle) if fits_alone(middle) else (middle + 1, high)
+    ctx = Context(result, VerifyOptions(seed=1, max_bytes=low))
+    kept = ctx.graph(True)  # the pruned graph, smaller, fits
+    assert 0 < kept.nbytes < low and ctx.memory_left() == low - kept.nbytes
+    with pytest.raises(UnknownVerdict, match="holds the model explored for earlier queries"):
+        ctx.graph(False)
+    roomy = Context(result, VerifyOptions(seed=1, max_bytes=low + kept.nbytes))  # room for both: both explored
+    assert roomy.graph(True).nbytes == kept.nbytes and roomy.graph(False).n_states > kept.n_states

@@ -48,6 +48,12 @@ class ExploredGraph:
     model: str | None = None
 
     @property
+    def nbytes(self) -> int:
+        """The bytes its arrays hold (states, choices, labels): what keeping it for later queries costs."""
+        arrays = (self.states, self.choice_offsets, self.choice_action, self.choice_target, *self.labels.values())
+        return sum(int(array.nbytes) for array in arrays)
+
+    @property
     def n_states(self) -> int:
         return int(self.states.shape[0])
 

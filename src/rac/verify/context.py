@@ -26,7 +26,7 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, RacValueError, short_number
 from rac.core.numbers import samples_of
 from rac.engine import shield, storm
-from rac.engine.budget import BudgetExceeded, default_max_bytes
+from rac.engine.budget import BudgetExceeded, default_max_bytes, format_bytes
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
 from rac.engine.graph import ExploredGraph
@@ -275,13 +275,30 @@ class Context:
             try:
                 self.graphs[prune] = explore(self.data, horizon_samples=self.horizon_samples, prune_unsafe=prune,
                                              progress=self.options.explore_progress,
-                                             max_states=self.options.max_states, max_bytes=self.options.max_bytes)
+                                             max_states=self.options.max_states, max_bytes=self.memory_left())
             except BudgetExceeded as exc:
-                self.graph_failures[prune] = over_budget(exc)
+                self.graph_failures[prune] = over_budget(exc) + self.kept_note()
                 raise UnknownVerdict(self.graph_failures[prune]) from None
             except ModelRangeError as exc:
                 raise UnknownVerdict(left_int32(exc)) from None
         return self.graphs[prune]
+
+    def memory_left(self) -> int | None:
+        """``--max-memory`` less the explored graphs kept for later queries (None: no limit): a new
+        exploration or search must fit beside them, or two graphs within the limit each could together
+        fill the machine."""
+        if self.options.max_bytes is None:
+            return None
+        return max(1, self.options.max_bytes - sum(graph.nbytes for graph in self.graphs.values()))
+
+    def kept_note(self) -> str:
+        """What a refusal on :meth:`memory_left` adds: how much of the limit the kept graphs hold ('' for none)."""
+        kept = sum(graph.nbytes for graph in self.graphs.values())
+        if not kept or self.options.max_bytes is None:
+            return ""
+        return (f" ({format_bytes(kept)} of --max-memory {format_bytes(self.options.max_bytes)} holds the model "
+                "explored for earlier queries, kept for the later ones; verify this query in a run of its own to "
+                "give it the whole limit)")
 
     def stopped_note(self) -> str | None:
         """What the exhaustive verdicts should say when the model's ``allow when`` leaves no action in

@@ -110,12 +110,13 @@ class Reacher:
             return Reached(None, "exhaustive", found.graph.n_states, prune, found.graph)
         if not exhaustive or through is not None:
             return None
-        budget = Budget(ctx.options.max_states, ctx.options.max_bytes, "the model", float(ctx.period))
+        budget = Budget(ctx.options.max_states, ctx.memory_left(), "the model", float(ctx.period))
         try:
             layered = layered_search(ctx.data, target, horizon_samples=horizon, prune_unsafe=prune, budget=budget,
                                      progress=ctx.options.explore_progress)
         except BudgetExceeded as exc:
-            raise UnknownVerdict(f"{over_budget(exc)}; {_searched(found, ctx.options.witness.runs)}") from None
+            raise UnknownVerdict(f"{over_budget(exc)}{ctx.kept_note()}; {_searched(found, ctx.options.witness.runs)}"
+                                 ) from None
         except ModelRangeError as exc:
             raise UnknownVerdict(left_int32(exc)) from None
         assert layered.graph is not None

@@ -193,9 +193,10 @@ class SymbolicAnswerer:
         try:
             graph = explore_product(ctx.data, ctx.automaton, horizon_samples=ctx.horizon_samples,
                                     progress=ctx.options.explore_progress, max_states=ctx.options.max_states,
-                                    max_bytes=ctx.options.max_bytes, stop_at=stop)
+                                    max_bytes=ctx.memory_left(), stop_at=stop)
         except BudgetExceeded as exc:
-            raise UnknownVerdict(f"{over_budget(exc)} (the automaton alone does not decide it: {meaning})") from None
+            raise UnknownVerdict(f"{over_budget(exc)}{ctx.kept_note()} (the automaton alone does not decide it: "
+                                 f"{meaning})") from None
         if graph.stopped_at >= 0:
             return dataclasses.replace(base, status=NOT_SATISFIED if query.quantifier == "A[]" else SATISFIED,
                                        method="on the fly", states=graph.n_states, horizon_samples=ctx.horizon_samples,
@@ -230,7 +231,7 @@ class SymbolicAnswerer:
         try:
             graph = explore_product(ctx.data, automaton, horizon_samples=ctx.horizon_samples,
                                     max_states=min(ctx.options.max_states, GUIDED_STATES),
-                                    max_bytes=ctx.options.max_bytes, stop_at=stop, beam=(width, score))
+                                    max_bytes=ctx.memory_left(), stop_at=stop, beam=(width, score))
         except BudgetExceeded:
             return None
         return graph if graph.stopped_at >= 0 else None
