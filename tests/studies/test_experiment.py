@@ -273,7 +273,10 @@ def test_ctrl_c_while_learning_keeps_what_was_learned(tmp_path: Path, stop: str,
         child.kill()
     reader.join(timeout=10)
     assert child.returncode == status, out
-    assert "Interrupted (Ctrl-C) while learning" in out and "| SS&RA |" in out
+    # the note said "Interrupted (Ctrl-C)" after SIGTERM too
+    said = "Interrupted (Ctrl-C)" if stop == "SIGINT" else "Terminated (SIGTERM)"
+    assert f"{said} while learning" in out and "| SS&RA |" in out
+    assert f"{said} while learning" in (tmp_path / "out" / "experiment.md").read_text(encoding="utf-8")
     assert rest and "Traceback" not in seen + rest[0]
     results = json.loads((tmp_path / "out" / "results.json").read_text(encoding="utf-8"))
     assert results["interrupted"] == "learning"

@@ -700,6 +700,8 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                 else resource_limit(f"resource limit: {exc}") if exc.kind == "limit" else unusable_file(str(exc)),
                 result.sources)
         return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
+    if report.get("interrupted"):  # the study sees a KeyboardInterrupt either way; which signal it was, the CLI knows
+        report = {**report, "stopped_by": how_stopped()}
     try:
         files = write_outputs(report, out_dir)
     except OSError as exc:

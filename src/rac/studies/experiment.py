@@ -622,10 +622,12 @@ def _interrupted(report: Report) -> list[str]:
                                                       for r in variant["records"]]
     low, high = min((r.episodes for r in records), default=0), max((r.episodes for r in records), default=0)
     learned = f"{low:,}" if low == high else f"{low:,} to {high:,}"
+    # "stopped_by": how the command was stopped, as rac.cli.common.how_stopped says (absent: Ctrl-C)
+    how = "Terminated (SIGTERM)" if report.get("stopped_by", "").startswith("terminated") else "Interrupted (Ctrl-C)"
     if stopped == "evaluation":
-        return [f"Interrupted (Ctrl-C) while evaluating: every run learned its {report['episodes']:,} episodes; "
+        return [f"{how} while evaluating: every run learned its {report['episodes']:,} episodes; "
                 "evaluations not finished are left out (a row of none shows '—')."]
-    return [f"Interrupted (Ctrl-C) while learning: each run shows the best strategy it had evaluated (the one it "
+    return [f"{how} while learning: each run shows the best strategy it had evaluated (the one it "
             f"keeps, as at the budget's end), after "
             f"{learned} of {report['episodes']:,} episodes learned; a run not evaluated yet is left out (the "
             "rows' seeds are those shown); no evaluation runs ('—')."]
