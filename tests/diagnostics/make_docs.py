@@ -426,6 +426,11 @@ GENERATED: tuple[Case, ...] = (
          "to it: one lane whose goal has no position, only the time window [0, 8] s "
          "(`goal_anywhere()` of tests/support/tiny_scenarios.py):",
          _scene("W0727_dist_goal_anywhere", "survive.xml", "a goal of time alone", "goal_anywhere")),
+    Case("W0728_traffic_ends", None,
+         "`W0728_traffic_ends.ra` is the automaton of the E0712 example (horizon 30 s) over `short.xml` (line 22), "
+         "next to it: one lane with a car ahead whose recorded trajectory ends at 8 s "
+         "(`short_traffic()` of tests/support/tiny_scenarios.py):",
+         _scene("W0728_traffic_ends", "short.xml", "traffic recorded for 8 s", "short_traffic")),
     Case("W1011_penalty_no_action_avoids", None,
          "`W1011_penalty_no_action_avoids.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: the highway of `rac.model.scenes` (`build_highway(truck=(40.0, 20.0))`), whose truck starts "

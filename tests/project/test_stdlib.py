@@ -99,7 +99,8 @@ def test_model_example_checks_on_its_scene(name: str, capsys: pytest.CaptureFixt
     assert (EXAMPLES / f"{scene.group(1)}.xml").read_bytes() == scene_bytes(scene.group(1))
     status, out = _check(path, capsys)
     assert status == 0, out
-    assert f"{path}: ok\n" in out
+    # the scenes of rac.model.scenes record 12 s of traffic, the stdlib automata's horizon is 30 s: W0728 says so
+    assert f"{path}: ok, 1 warning\n" in out and re.findall(r"warning\[(\w+)\]", out) == ["W0728"], out
     assert f"proved: scenario {scene.group(1)}.xml: " in out
     # every binding in the stdlib header is the one the example uses
     bindings = re.findall(r"^        (bind \w+ += .*?)(?:\s+//.*)?$", example, re.M)

@@ -618,6 +618,15 @@ def goal_anywhere() -> bytes:
     return commonroad_xml(scenario, problems, "survive", Tag.SINGLE_LANE)
 
 
+def short_traffic() -> bytes:
+    """One lane 200 m long, the ego at x = 10 at 10 m/s, a car ahead at x = 40 driving at 8 m/s whose recorded
+    trajectory ends at 8 s (time step 80), the goal x in [150, 190] within [0, 30] s: under a 30 s horizon the
+    road holds no moving obstacle for the last 22 s (W0728)."""
+    road = StraightRoad(200.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(150.0, 190.0, 0.0, 30.0),
+                        obstacles=(Block(11, x=40.0, y=1.75, velocity=8.0),), steps=80)
+    return road.xml("short_traffic")
+
+
 #: The ring of :func:`curved_lane_goal`: its centre line's radius (m) and the lane width.
 RING_RADIUS = 20.0
 
