@@ -604,6 +604,43 @@ def test_int32_range_in_between_updates_at_the_representations_scale() -> None:
     assert steady is not None and check_ranges(steady, 10, 8) == []
 
 
+# Each sequence reflects p twice, so the edge leaves p where it was (a translation), but the value in
+# between, OFFSET - p, is not p plus a constant.
+REFLECTED = """\
+automaton Reflected {
+    input b : bool
+    reward p
+    objective p
+    sample every 1
+    horizon 2
+    initial location L { p' == -RATE }
+    edge L -> L when b do p = OFFSET - p, p = OFFSET - p
+    at end when !b do p = OFFSET - p, p = OFFSET - p
+}
+"""
+
+
+@pytest.mark.parametrize("where", ["edge", "at end"])
+def test_int32_range_covers_a_reflection_in_between_updates_whose_sequence_is_a_translation(where: str) -> None:
+    """Regression: a sequence of updates whose whole is a translation sent the range check to the
+    translation engine, which reads only the offsets of the maps in between: it took `100000 - p` for
+    `p + 100000` and proved [-300000, 0], while p = -300000 makes the value in between 400000, which
+    overflows int32 at exponent 4. Either sequence alone (the other line dropped) shows it."""
+    def automaton(rate: str, offset: str) -> ir.Automaton:
+        text = REFLECTED.replace("RATE", rate).replace("OFFSET", offset)
+        dropped = next(line for line in text.splitlines(keepends=True)
+                       if line.strip().startswith("edge" if where == "at end" else "at end"))
+        compiled = compile_text(text.replace(dropped, ""), analyse=False).automaton
+        assert compiled is not None
+        return compiled
+
+    facts: list = []
+    assert check_ranges(automaton("15", "10"), 10, 4, facts) == []
+    assert [f.message for f in facts] == ["int32 range holds at base 10, exponent 4: rewards stay within [-30, 40]"]
+    (diag,) = check_ranges(automaton("150000", "100000"), 10, 4)
+    assert diag.code == "E0501" and diag.data["value"] == "400000" and diag.data["applied"] == 1
+
+
 # An update with a fractional coefficient: UPPAAL computes `iP = 2*iP / 3`, and `2*iP` is an int32 too.
 FRACTIONAL = """\
 automaton Frac {

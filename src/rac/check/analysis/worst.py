@@ -125,12 +125,25 @@ def maximise(automaton: ir.Automaton, moves: Moves, target: Target,
     only, and a run can be as long as the horizon); when not, its steps are left empty.
     Raises :class:`Unfinished` beyond :data:`MAX_SAMPLES` (see there).
     """
-    if moves.translations_only:
+    if moves.translations_only and not _scales_inside(automaton, moves, target):
         return maximise_translations(automaton, moves, target, run)
     if automaton.steps > MAX_SAMPLES:
         raise Unfinished(f"the horizon has {automaton.steps:,} samples, more than the {MAX_SAMPLES:,} the "
                          "search goes through when updates scale rewards")
     return maximise_generic(automaton, moves, target)
+
+
+def _scales_inside(automaton: ir.Automaton, moves: Moves, target: Target) -> bool:
+    """Whether a value the target watches inside a sequence of updates comes from a map that is not a
+    translation, although the whole sequence is one (``p = c - p, p = c - p``): the translation engine
+    reads only a map's offsets, so it would take ``c - p`` for ``p + c``."""
+    if not target.intermediates:
+        return False
+    prefixes = _Prefixes(automaton, target)
+    inside = [m for os in moves.samples for o in os
+              for _, m in (*prefixes.edge(o.edge), *prefixes.end(o.ending))]
+    inside += [m for end in moves.ends for _, m in prefixes.end(end)]
+    return not all(m.is_translation for m in inside)
 
 
 def within_limit(automaton: ir.Automaton) -> ir.Automaton:
