@@ -489,10 +489,23 @@ def test_assume_decides_where_a_reward_is_penalised(assume: str, rates: str, edg
     assert "P2 holds trivially for `s`: no location penalises it" in result.proved
 
 
+@pytest.mark.parametrize("updates", ["s += 5, s -= 1", "s -= 5, s += d + 5", "s = s - 2 * p, s = s + 2 * p + 1",
+                                     "s -= 1, p = s, s = p + 1"])
+def test_an_edge_penalises_by_what_its_updates_do_together(updates: str) -> None:
+    """Regression: each update was looked at alone, so `s += 5, s -= 1` (which raises s by 4) made `M`
+    penalise s, and P2 failed with E0402 at 10 * 4 > 0 in a location where s is never lowered."""
+    result = compiled(ASSUMED.format(assume="", rates="", edges=f"edge L -> M when u do {updates}"))
+    assert not [d for d in result.diagnostics if d.is_error], render_text(list(result.diagnostics), result.sources)
+    assert "P2 holds trivially for `s`: no location penalises it" in result.proved
+
+
 @pytest.mark.parametrize(("assume", "rates", "edges"), [
     ("assume d >= 4", "s' == d - 5", ""),                                   # d in [4, 5) lowers s
     ("assume u imply d >= 4", "", "edge L -> M when u do s = s + d - 5"),
     ("assume d >= 5", "s' == d - 5; p' == 6 - d", "edge L -> M when d > 9 do s = s + 5 - d"),
+    ("", "", "edge L -> M when u do s += 1, s -= 5"),                      # lowers s by 4 in all
+    ("", "", "edge L -> M when u do s += 5, s = s / 2"),                   # lowers s where s > 5
+    ("", "", "edge L -> M when u do p = s, s = p - 1"),                    # through another reward
 ])
 def test_an_allowed_penalty_is_still_found(assume: str, rates: str, edges: str) -> None:
     result = compiled(ASSUMED.format(assume=assume, rates=rates, edges=edges))

@@ -183,17 +183,21 @@ def rate_conflicts(automaton: ir.Automaton, location: ir.Location, high: str, lo
 
 def _penalised(automaton: ir.Automaton, reward: str) -> tuple[bool, ...]:
     """Locations that penalise a reward: a rate there that some input ``assume`` allows makes
-    negative, or an edge into it that lowers it for some allowed input its guard lets through."""
+    negative, or an edge into it that lowers it for some allowed input its guard lets through.
+
+    What an edge does is its whole sequence of updates (``p += 5, p -= 1`` raises p by 4, and lowers
+    it nowhere); a change that depends on the rewards (``p = 0``, ``p = p / 2``) may lower it."""
     k = automaton.rewards.index(reward)
     marks = [_can_be_negative(loc.rates[k], automaton) for loc in automaton.locations]
     for edge in automaton.all_edges():
-        for update in edge.updates:
-            if update.reward != reward:
-                continue
-            delta = update.value - ir.Linear.variable(reward)
-            if any(n in automaton.rewards for n in delta.variables()) or \
-                    _can_be_negative(delta, automaton, edge.guard):
-                marks[edge.target] = True
+        if marks[edge.target] or all(update.reward != reward for update in edge.updates):
+            continue
+        whole = from_assignments(edge.updates, automaton.rewards)
+        row = None if whole.matrix is None else whole.matrix[k]
+        if row is not None and any(c != (1 if j == k else 0) for j, c in enumerate(row)):
+            marks[edge.target] = True
+        elif _can_be_negative(whole.offset[k], automaton, edge.guard):
+            marks[edge.target] = True
     return tuple(marks)
 
 
