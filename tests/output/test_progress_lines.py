@@ -71,12 +71,9 @@ def test_a_bad_progress_interval_is_said_and_the_default_used(value: str, monkey
     assert capsys.readouterr().err == ""  # said once
 
 
-@pytest.mark.parametrize("command", ["simulate", "render"])
-def test_simulate_and_render_count_the_samples_they_simulate(command: str, tmp_path: Path,
-                                                              capsys: pytest.CaptureFixture[str],
-                                                              monkeypatch: pytest.MonkeyPatch) -> None:
-    # One run of a long horizon takes minutes (900,000 samples of 1 ms: over 3 minutes); the
-    # heartbeat said only "working; 200 s", without how far the run had come.
+@pytest.fixture
+def slow_simulation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every simulated sample takes 3 ms more, and the heartbeat speaks every millisecond: a long run in brief."""
     from rac.engine import simulate
 
     integrate = simulate.integrate_truth
@@ -87,6 +84,14 @@ def test_simulate_and_render_count_the_samples_they_simulate(command: str, tmp_p
 
     monkeypatch.setattr(simulate, "integrate_truth", slow)
     monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.001")
+
+
+@pytest.mark.parametrize("command", ["simulate", "render"])
+def test_simulate_and_render_count_the_samples_they_simulate(command: str, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str],
+                                                              slow_simulation: None) -> None:
+    # One run of a long horizon takes minutes (900,000 samples of 1 ms: over 3 minutes); the
+    # heartbeat said only "working; 200 s", without how far the run had come.
     path = write_engine_file(tmp_path, "avoidable_obstacle", {})
     assert main([command, str(path), "--seed", "1", "--out", str(tmp_path / "o")]) == 0
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith(f"rac {command}:")]
@@ -101,19 +106,9 @@ def test_simulate_and_render_count_the_samples_they_simulate(command: str, tmp_p
 @pytest.mark.parametrize("query", ["Prob", "ProbRuns", "Speed", "Sim"])
 def test_verify_counts_the_samples_its_statistical_queries_simulate(query: str, tmp_path: Path,
                                                                     capsys: pytest.CaptureFixture[str],
-                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+                                                                    slow_simulation: None) -> None:
     # `Pr[<=100000](<> collide())` at 0.1 s simulated for over five minutes with the heartbeat saying
     # only "rac verify: P: Pr[<=100000](<> collide()); 270 s", and no bar on a terminal either
-    from rac.engine import simulate
-
-    integrate = simulate.integrate_truth
-
-    def slow(*args, **kwargs):
-        time.sleep(0.003)
-        return integrate(*args, **kwargs)
-
-    monkeypatch.setattr(simulate, "integrate_truth", slow)
-    monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.001")
     path = write_engine_file(tmp_path, "avoidable_obstacle", {query: QUERIES[query]})
     assert main(["verify", str(path), "--seed", "1", "--no-plots", "--query", query,
                  "--out", str(tmp_path / "o")]) == 0
