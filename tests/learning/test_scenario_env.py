@@ -683,6 +683,13 @@ def test_a_scene_set_draws_from_np_random_and_picks_on_request(highway_set: tupl
     assert info["scenario"] == str(scenes[1]) and first.tolist() == again.tolist()
     other, _ = env.reset(options={"scenario": 2})
     assert other[9:].tolist() != first[9:].tolist()  # other obstacles
+    # a misspelt option drew a scene at random without a word
+    with pytest.warns(UserWarning, match=r"reset\(options=\.\.\.\) ignores 'scene': ScenarioEnv reads only"):
+        env.reset(seed=0, options={"scene": 1})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env.reset(seed=0, options={"scene": 1})  # said once
+        env.reset(options={"scenario": 1, "reset_mask": None})
     with pytest.raises(ValueError, match="3 scenes"):
         env.reset(options={"scenario": 3})
     with pytest.raises(ValueError, match="not one of the scenes"):

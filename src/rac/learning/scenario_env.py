@@ -57,7 +57,7 @@ if TYPE_CHECKING:
     from rac.learning.episodes import EpisodeBatch
     from rac.output.render import SceneFrames
 
-__all__ = ["ScenarioEnv"]
+__all__ = ["RESET_OPTIONS", "ScenarioEnv"]
 
 #: The render modes of :class:`ScenarioEnv`.
 RENDER_MODES = ["ansi", "rgb_array"]
@@ -167,6 +167,11 @@ def outside_mask_warning(action: int, time: float, guarantee: str) -> str:
             "action_masks=, sb3-contrib's evaluate_policy(..., use_masking=False), or an action wrapper that changes "
             "the action after it was chosen from the mask; info['shield_allowed'] marks such steps, "
             "outside_mask_steps counts them")
+
+
+#: The keys of ``reset(options=...)`` that :class:`ScenarioEnv` reads (``reset_mask``: gymnasium's vector
+#: environments' own, which they may pass on); another is warned of once.
+RESET_OPTIONS = frozenset({"scenario", "reset_mask"})
 
 
 class ScenarioEnv(gymnasium.Env):
@@ -320,6 +325,7 @@ class ScenarioEnv(gymnasium.Env):
         #: Steps that took an action the mask of their state did not allow (``info["shield_allowed"]`` False;
         #: the first one is warned of): no guarantee covers them.
         self.outside_mask_steps = 0
+        self._said_options = False  # an option reset() does not read was warned of
         self._decision: ShieldStep | None = None
         self._crashed = False
         self.render_mode = render_mode
@@ -455,6 +461,12 @@ class ScenarioEnv(gymnasium.Env):
             self._cut.reset()
             if self.outside_step_limit is None:
                 self.outside_step_limit = outside_step_limit(self)
+        unknown = sorted(map(str, set(options or {}) - RESET_OPTIONS))
+        if unknown and not self._said_options:  # a typo (`{"scene": 1}`) drew a scene at random without a word
+            self._said_options = True
+            warnings.warn(f"reset(options=...) ignores {', '.join(map(repr, unknown))}: ScenarioEnv reads only "
+                          f"{', '.join(map(repr, sorted(RESET_OPTIONS)))} (the scene to start in, else one drawn "
+                          "from np_random)", UserWarning, stacklevel=2)
         self._index = self._pick((options or {}).get("scenario"))
         self.episodes, self.observation, self._step_shield = self._scene(self._index)
         episodes = self.episodes
