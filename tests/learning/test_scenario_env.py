@@ -902,3 +902,24 @@ def test_the_time_guard_says_where_it_cut_the_search(tiny: CompileResult, monkey
     assert len([w for w in caught if "stopped its search" in str(w.message)]) == 1
     assert all(info["shield_clock"] and info["shield_timeout"] for info in infos if info["shield"] != "none")
     assert env.clock_steps == sum(bool(info["shield_clock"]) for info in infos) > 0
+
+
+def test_episodes_past_the_recorded_traffic_are_warned_of_once(tmp_path: Path) -> None:
+    # ScenarioEnv(horizon=...) past the scene's recorded traffic ran episodes on a road whose cars had vanished,
+    # with shield masks and rewards for that empty road, and said nothing (W0728 speaks of the file's horizon)
+    from engine_files import TEMPLATE
+    from tiny_scenarios import Block, EgoStart, GoalBox, StraightRoad
+
+    road = StraightRoad(300.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(250.0, 290.0, 0.0, 40.0),
+                        obstacles=(Block(11, x=40.0, y=1.75, velocity=8.0),), steps=20)  # 2 s of traffic
+    (tmp_path / "road.xml").write_bytes(road.xml("road"))
+    model = '    model {\n        scenario "road.xml"\n        bind near = mindist() < 3 * collision_distance\n    }'
+    path = tmp_path / "drive.ra"
+    path.write_text(TEMPLATE.format(period="0.5", horizon="4", model=model, queries=""), encoding="utf-8")
+    with pytest.warns(UserWarning, match=r"run past its recorded traffic: its moving obstacles are gone after "
+                                         r"scenario time t = 2 s, an episode ends at t = 3 s"):
+        env = ScenarioEnv(path, horizon=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env.reset(seed=0)  # said once
+        ScenarioEnv(path, horizon=2)  # the episodes end with the traffic: nothing to say

@@ -308,6 +308,7 @@ class ScenarioEnv(gymnasium.Env):
         self._scenes: dict[int, tuple[EpisodeBatch, Observation, StepShield | None]] = {}
         self._frames: dict[int, SceneFrames] = {}
         self._index = 0
+        self._said_traffic = False  # a scene whose episodes run past its traffic was warned of (once)
         self.episodes, self.observation, self._step_shield = self._scene(0, result)
         #: The exhaustive shield's table (None without one).
         self.shield = self._step_shield.table if self._step_shield is not None else None
@@ -379,7 +380,27 @@ class ScenarioEnv(gymnasium.Env):
                                     f"{first_observation.space}: a set's scenes must agree")
         scene = (episodes, observation, self._shields(episodes, *self._shield_args, COLUMNS))
         self._scenes[index] = scene
+        self._warn_past_traffic(result, index, episodes.horizon_samples)
         return scene
+
+    def _warn_past_traffic(self, result: CompileResult, index: int, samples: int) -> None:
+        """Warn once when this scene's episodes run past its recorded traffic (``rac check``'s W0728 for the
+        file's horizon; here for the episode's, ``horizon=`` included): after it the road holds no moving
+        obstacle, and neither the shield's masks nor the rewards there speak of the traffic."""
+        scenario = result.scenario
+        if self._said_traffic or scenario is None or scenario.traffic_ends is None:
+            return
+        period = Fraction(result.automaton.period) if result.automaton is not None else None
+        if period is None:
+            return
+        episode_ends = scenario.ego.time + float(samples * period)
+        if scenario.traffic_ends < episode_ends - 1e-9:
+            self._said_traffic = True
+            warnings.warn(f"the episodes of {self.scenarios[index]} run past its recorded traffic: its moving "
+                          f"obstacles are gone after scenario time t = {scenario.traffic_ends:g} s, an episode ends at "
+                          f"t = {episode_ends:g} s, so from then on the road holds no moving obstacle, and the "
+                          "shield's masks and the rewards speak of a road without the traffic (W0728 in rac check; "
+                          "a shorter horizon= ends the episodes with the traffic)", UserWarning, stacklevel=3)
 
     def _shields(self, episodes: EpisodeBatch, shield: str | os.PathLike[str] | ShieldTable | StepShield | None,
                  lookahead: LookaheadSettings | int | Literal["auto"] | None,

@@ -285,10 +285,10 @@ def _traffic_ends(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenari
     after its last time step, and so does the model, so once the last one ends the road holds only static
     obstacles and every verdict, shield and learned strategy after it covers a road without moving traffic
     (a recording cut off at 8 s under a 30 s horizon said nothing of it)."""
-    moving = [obstacle for obstacle in scenario.obstacles if not obstacle.static]
-    if not moving:
+    ends = scenario.traffic_ends
+    if ends is None:
         return []
-    ends = max(obstacle.waypoints[-1].time for obstacle in moving)
+    moving = [obstacle for obstacle in scenario.obstacles if not obstacle.static]
     horizon_ends = scenario.ego.time + float(automaton.horizon)
     if ends >= horizon_ends - 1e-9:
         return []

@@ -153,6 +153,14 @@ class Scenario:
     #: planning problem's time, position and orientation), or None.
     recorded_ego: int | None = None
 
+    @property
+    def traffic_ends(self) -> float | None:
+        """The scenario time (s) after which no moving obstacle is recorded (CommonRoad, and the model, take an
+        obstacle as gone after its last time step): the last waypoint of the last moving obstacle; None
+        without moving obstacles. A horizon past it covers a road without the traffic (W0728)."""
+        ends = [obstacle.waypoints[-1].time for obstacle in self.obstacles if not obstacle.static]
+        return max(ends) if ends else None
+
 
 # ---------------------------------------------------------------- reading CommonRoad files
 class ScenarioError(RacError):
