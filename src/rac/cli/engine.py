@@ -8,6 +8,7 @@ was not decided (``verify``: *unknown* or *unsupported*, and none not satisfied)
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import json
 import sys
@@ -43,6 +44,7 @@ from rac.core.source import SourceFile
 from rac.engine.budget import BudgetExceeded, default_max_bytes, out_of_memory
 from rac.ir import query as iq
 from rac.lang.parser import ExpressionError
+from rac.model.checks import traffic_ends
 from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.model.sample import Ego
@@ -97,6 +99,14 @@ def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     result, status = _load(args.file, args.max_memory or default_max_bytes(), as_json(args))
     if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
         return None, EXIT_USAGE
+    if result is not None and result.automaton is not None and result.scenario is not None \
+            and getattr(args, "horizon", None) is not None \
+            and not any(d.code == "W0728" for d in result.diagnostics):  # the file's own horizon was said already
+        past = traffic_ends(result.automaton, result.scenario, args.horizon)
+        if past:  # --horizon past the recorded traffic: its answers after it are for an empty road
+            if not as_json(args):
+                print_diagnostics(past, result.sources, False)
+            result = dataclasses.replace(result, diagnostics=(*result.diagnostics, *past))
     return result, status
 
 

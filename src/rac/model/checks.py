@@ -190,7 +190,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
         return result  # a start the model would clamp: nothing to sum up
     result.diagnostics.extend(_goal(automaton, spec, scenario, data))
     result.diagnostics.extend(_distance_to_anywhere(spec, scenario))
-    result.diagnostics.extend(_traffic_ends(automaton, spec, scenario))
+    result.diagnostics.extend(traffic_ends(automaton, scenario))
     result.diagnostics.extend(_sentinel_bindings(automaton, spec, data))
     goal = scenario.goal
     obstacles = len(scenario.obstacles)
@@ -280,28 +280,31 @@ def _distance_to_anywhere(spec: ir.ModelSpec, scenario: Scenario) -> list[Diagno
         if any(isinstance(node, ie.Call) and node.name == "dist_goal" for node in ie.walk(binding.expr))]
 
 
-def _traffic_ends(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario) -> list[Diagnostic]:
-    """W0728 when the horizon runs past the recorded traffic: CommonRoad regards a dynamic obstacle as gone
-    after its last time step, and so does the model, so once the last one ends the road holds only static
-    obstacles and every verdict, shield and learned strategy after it covers a road without moving traffic
-    (a recording cut off at 8 s under a 30 s horizon said nothing of it)."""
+def traffic_ends(automaton: ir.Automaton, scenario: Scenario, horizon: Fraction | None = None) -> list[Diagnostic]:
+    """W0728 when the horizon (``horizon`` s, a command's ``--horizon``; default the automaton's) runs past the
+    recorded traffic: CommonRoad regards a moving obstacle as gone after its last time step, and so does the
+    model, so once the last one ends the road holds only static obstacles and every verdict, shield and learned
+    strategy after it covers a road without moving traffic (a recording cut off at 8 s under a 30 s horizon said
+    nothing of it)."""
+    spec = automaton.model
     ends = scenario.traffic_ends
-    if ends is None:
+    if ends is None or spec is None:
         return []
     moving = [obstacle for obstacle in scenario.obstacles if not obstacle.static]
-    horizon_ends = scenario.ego.time + float(automaton.horizon)
+    horizon_ends = scenario.ego.time + float(automaton.horizon if horizon is None else horizon)
     if ends >= horizon_ends - 1e-9:
         return []
     count = f"{len(moving)} moving obstacle{'s are' if len(moving) != 1 else ' is'}"
     left = f" and {len(scenario.obstacles) - len(moving)} static" if len(scenario.obstacles) > len(moving) else ""
     span = automaton.spans.get("model:scenario", spec.span)
+    which, where = ("the horizon", "`horizon`") if horizon is None else (f"--horizon {_decimal(horizon)}", "--horizon")
     return [warning(
-        "W0728", f"the horizon runs past the recorded traffic of `{spec.scenario}`: its {count} gone after "
+        "W0728", f"{which} runs past the recorded traffic of `{spec.scenario}`: its {count} gone after "
         f"scenario time t = {_number(ends)} s, the horizon ends at t = {_number(horizon_ends)} s", span,
         notes=[f"CommonRoad regards an obstacle as gone after its last time step, and so does the model: from "
                f"t = {_number(ends)} s the road holds no moving obstacle{left}, so what rac proves, shields or "
                "learns after it covers a road without the traffic"],
-        hints=[f"shorten the horizon to {_number(ends - scenario.ego.time)} s (`horizon`), or use a scenario whose "
+        hints=[f"shorten the horizon to {_number(ends - scenario.ego.time)} s ({where}), or use a scenario whose "
                "obstacles' trajectories reach the horizon"])]
 
 
