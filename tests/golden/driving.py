@@ -78,6 +78,10 @@ def _range_error(name: str, value: float, low: float, high: float) -> ValueError
     if math.isfinite(value) and low <= value <= high:
         return ValueError(f"input {name!r} = {value!r} is not an integer")
     message = f"input {name!r} = {value!r} is outside [{low!r}, {high!r}]"
+    if math.isnan(value):
+        return ValueError(f"{message}: NaN (not a number) is in no range, and clip=True refuses it "
+                          "too; replace it before the step (a sensor's missing value, a division by zero "
+                          "upstream)")
     import struct  # only on this error path: a bound rounded to float32 and back, as float(np.float32(bound))
 
     for bound in (low, high):

@@ -483,6 +483,9 @@ def range_error(spec: InputSpec, value: object, where: str = "") -> ValueError:
     if spec.kind == "int" and in_range:
         return ValueError(f"input {spec.name!r}{where} = {value!r} is not an integer")
     message = f"input {spec.name!r}{where} = {value!r} is outside [{spec.low!r}, {spec.high!r}]"
+    if isinstance(value, float) and math.isnan(value):  # "nan is outside [0, 10]" left the reader to see why
+        return ValueError(f"{message}: NaN (not a number) is in no range, and clip=True refuses it too; replace "
+                          "it before the step (a sensor's missing value, a division by zero upstream)")
     if isinstance(value, float) and any(value == float(np.float32(bound)) for bound in (spec.low, spec.high)):
         # a float32 bound made a Python float (float(np.float32(0.07)) == 0.07000000029802322): the float32
         # itself is read as the bound it rounds, its float64 widening is not (the range is not widened)
