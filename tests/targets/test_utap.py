@@ -525,3 +525,25 @@ def test_what_check_accepts_compiles(utap: Utap, row: str, whole: bool, tmp_path
         assert got.startswith(f"target {code}: query `Q0`") and words in got, got
     else:
         assert got == expected, got
+
+
+@pytest.mark.parametrize("update", ["r0 = r0 - r1", "r0 = r1 - r0", "r1 = -r0 + 2", "r0 = r0 - r1 - r1"])
+def test_an_update_less_another_reward_is_a_double_uppaal_assigns(update: str, utap: Utap) -> None:
+    """`r0 = r0 - r1` was emitted as the hybrid clocks' `r0 = r0 - r1`, a clock difference that UPPAAL refuses to
+    assign to a clock ($Incompatible_types): a random automaton of test_random_automata_alone found it."""
+    text = f"""automaton Less {{
+    input b : bool
+    reward r0, r1
+    priority r0 > r1
+    objective 2*r0 + r1
+    sample every 1
+    horizon 10
+    initial location L0 {{ r0' == 1; r1' == 1 }}
+    edge L0 -> L0 when b do {update}
+}}
+"""
+    result = compile_text(text, "less.ra", analyse=False)
+    assert result.automaton is not None, result.diagnostics
+    model = generate_uppaal(result.automaton, source_name="less.ra", model_name="less.xml")
+    assert "r0 = r0 - r1," not in model.xml and "r0 = r1 - r0," not in model.xml
+    utap.validate(model.xml, model.queries, "less")

@@ -219,7 +219,9 @@ def print_real_linear(const: Fraction, terms: Sequence[tuple[Fraction, str, int]
             continue
         magnitude = abs(coef)
         if divisor == 1:
-            text = name if magnitude == 1 else f"{real_literal(magnitude)}*{name}"
+            # a hybrid clock less a bare clock (`r0 - r1`) is a clock difference, which UPPAAL refuses to
+            # assign to a clock ($Incompatible_types); `r0 - 1.0*r1` is a double
+            text = name if magnitude == 1 and coef > 0 else f"{real_literal(magnitude)}*{name}"
         else:
             text = f"{name} / {double_literal(divisor)}" if magnitude == 1 else (
                 f"{double_literal(magnitude)}*{name} / {double_literal(divisor)}")
