@@ -700,15 +700,9 @@ def test_a_horizon_option_past_the_recorded_traffic_is_warned_of(tmp_path: Path,
                                                                   capsys: pytest.CaptureFixture[str]) -> None:
     # the file's horizon ends with the traffic (no W0728 from rac check), but `--horizon 3` ran a second past it,
     # on a road whose car had vanished, without a word
-    from engine_files import TEMPLATE
-    from tiny_scenarios import Block, EgoStart, GoalBox, StraightRoad
+    from engine_files import write_short_traffic
 
-    road = StraightRoad(300.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(250.0, 290.0, 0.0, 40.0),
-                        obstacles=(Block(11, x=40.0, y=1.75, velocity=8.0),), steps=20)  # 2 s of traffic
-    (tmp_path / "road.xml").write_bytes(road.xml("road"))
-    model = '    model {\n        scenario "road.xml"\n        bind near = mindist() < 3 * collision_distance\n    }'
-    path = tmp_path / "drive.ra"
-    path.write_text(TEMPLATE.format(period="0.5", horizon="2", model=model, queries=""), encoding="utf-8")
+    path = write_short_traffic(tmp_path, horizon="2")  # 2 s of traffic
     assert main(["simulate", str(path), "--seed", "1", "-q", "--out", str(tmp_path / "a")]) == 0
     assert "W0728" not in capsys.readouterr().err
     assert main(["simulate", str(path), "--seed", "1", "-q", "--horizon", "3", "--out", str(tmp_path / "b")]) == 0

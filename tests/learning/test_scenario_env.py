@@ -907,15 +907,9 @@ def test_the_time_guard_says_where_it_cut_the_search(tiny: CompileResult, monkey
 def test_episodes_past_the_recorded_traffic_are_warned_of_once(tmp_path: Path) -> None:
     # ScenarioEnv(horizon=...) past the scene's recorded traffic ran episodes on a road whose cars had vanished,
     # with shield masks and rewards for that empty road, and said nothing (W0728 speaks of the file's horizon)
-    from engine_files import TEMPLATE
-    from tiny_scenarios import Block, EgoStart, GoalBox, StraightRoad
+    from engine_files import write_short_traffic
 
-    road = StraightRoad(300.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(250.0, 290.0, 0.0, 40.0),
-                        obstacles=(Block(11, x=40.0, y=1.75, velocity=8.0),), steps=20)  # 2 s of traffic
-    (tmp_path / "road.xml").write_bytes(road.xml("road"))
-    model = '    model {\n        scenario "road.xml"\n        bind near = mindist() < 3 * collision_distance\n    }'
-    path = tmp_path / "drive.ra"
-    path.write_text(TEMPLATE.format(period="0.5", horizon="4", model=model, queries=""), encoding="utf-8")
+    path = write_short_traffic(tmp_path, horizon="4")  # 2 s of traffic
     with pytest.warns(UserWarning, match=r"run past its recorded traffic: its moving obstacles are gone after "
                                          r"scenario time t = 2 s, an episode ends at t = 3 s"):
         env = ScenarioEnv(path, horizon=3)

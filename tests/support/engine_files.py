@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from tiny_scenarios import TINY_SCENARIOS, TinyScenario
+from tiny_scenarios import TINY_SCENARIOS, Block, EgoStart, GoalBox, StraightRoad, TinyScenario
 
 #: The queries of the engine test file, by name, in the order written (every form of the language).
 QUERIES: dict[str, str] = {
@@ -70,6 +70,19 @@ def engine_source(tiny: TinyScenario, queries: Mapping[str, str] | None = None, 
     return TEMPLATE.format(period=_decimal(settings.sense_period), horizon=_decimal(settings.horizon),
                            model="".join(f"    {line}\n" for line in block.splitlines()),
                            queries="".join(f"    query {name}: {text}\n" for name, text in queries.items()))
+
+
+def write_short_traffic(folder: Path, horizon: str, period: str = "0.5", seconds: float = 2.0) -> Path:
+    """``folder/drive.ra`` (the engine test file's automaton, ``horizon`` s, a sample every ``period`` s) over
+    ``folder/road.xml``: one lane 300 m long, the ego at x = 10 at 10 m/s, a car ahead at x = 40 driving at 8 m/s
+    whose trajectory is recorded for ``seconds`` s (W0728 past it); return the ``.ra`` file's path."""
+    road = StraightRoad(300.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(250.0, 290.0, 0.0, 40.0),
+                        obstacles=(Block(11, x=40.0, y=1.75, velocity=8.0),), steps=round(seconds * 10))
+    (folder / "road.xml").write_bytes(road.xml("road"))
+    model = '    model {\n        scenario "road.xml"\n        bind near = mindist() < 3 * collision_distance\n    }'
+    path = folder / "drive.ra"
+    path.write_text(TEMPLATE.format(period=period, horizon=horizon, model=model, queries=""), encoding="utf-8")
+    return path
 
 
 def write_engine_file(folder: Path, name: str, queries: Mapping[str, str] | None = None, *,
