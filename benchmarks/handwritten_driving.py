@@ -97,8 +97,12 @@ class HandwrittenDriving:
             if unknown:
                 parts.append("unknown input(s): " + ", ".join(unknown))
             raise ValueError("; ".join(parts) or "the inputs do not match the declared inputs") from None
-        if not DGOAL_MIN <= dgoal <= DGOAL_MAX:  # also false for NaN
-            raise ValueError(f"input 'dgoal' = {dgoal!r} is outside [{DGOAL_MIN!r}, {DGOAL_MAX!r}]")
+        if not DGOAL_MIN <= dgoal <= DGOAL_MAX:  # also false for NaN, which the message names (the module's words)
+            message = f"input 'dgoal' = {dgoal!r} is outside [{DGOAL_MIN!r}, {DGOAL_MAX!r}]"
+            if dgoal != dgoal:
+                message += (": NaN (not a number) is in no range, and clip=True refuses it too; replace it before "
+                            "the step (a sensor's missing value, a division by zero upstream)")
+            raise ValueError(message)
         if collide and not is_close:  # the generated module's words: the clause, its line, what it reads
             raise ValueError(f"inputs violate `assume collide imply isClose` (driving.ra:9): collide={collide!r}, "
                              f"isClose={is_close!r}")
