@@ -33,7 +33,7 @@ __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_
            "NotRegularFile", "StdoutError", "as_json", "check_writable", "held_source", "how_stopped", "load_budget",
            "locked",
            "output_folder", "overwrites_source", "overwrites_source_in", "print_diagnostics", "resource_limit",
-           "same_file", "size_argument", "stdout_unwritable", "terminate_as_interrupt", "unreadable",
+           "same_file", "size_argument", "stdout_unwritable", "stopping_signal", "terminate_as_interrupt", "unreadable",
            "unusable_file", "unwritable", "usage_error", "write_all_atomically", "write_atomically"]
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERNAL, EXIT_UNDECIDED = 0, 1, 2, 3, 4
@@ -80,6 +80,12 @@ def terminate_as_interrupt() -> Iterator[list[int]]:
         yield came
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def stopping_signal() -> str:
+    """The signal that stopped a command which met ``KeyboardInterrupt``: ``"SIGTERM"`` when SIGTERM came
+    (:func:`terminate_as_interrupt`), else ``"SIGINT"`` (Ctrl-C)."""
+    return "SIGTERM" if _STOPPED_BY else "SIGINT"
 
 
 def how_stopped() -> str:

@@ -31,6 +31,7 @@ from rac.cli.common import (
     overwrites_source_in,
     print_diagnostics,
     resource_limit,
+    stopping_signal,
     unusable_file,
     unwritable,
     usage_error,
@@ -48,7 +49,7 @@ from rac.model.checks import traffic_ends
 from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.model.sample import Ego
-from rac.output.progress import Heartbeat, Progress
+from rac.output.progress import Heartbeat, Progress, simulate_callback
 from rac.verify.status import NOT_SATISFIED, UNDECIDED
 
 if TYPE_CHECKING:
@@ -230,11 +231,8 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
     # a run of many samples takes minutes (900,000 at 1 ms): a bar on a terminal, the count in the heartbeat
     with Progress(total=samples, desc="simulating", unit="samples",
                   enabled=False if args.quiet or as_json(args) else None) as bar:
-        def advance(sample: int, horizon: int) -> None:
-            bar.update(sample - bar.n)
-
         runs = simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
-                        max_bytes=args.max_memory or default_max_bytes(), progress=advance)
+                        max_bytes=args.max_memory or default_max_bytes(), progress=simulate_callback(bar))
     if isinstance(policy, StepShieldPolicy):  # the guarantee the runs had, said beside them
         _note(args, notes, f"the runs' actions, {policy.summary()}")
     return runs, seed, EXIT_OK
@@ -711,7 +709,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                 result.sources)
         return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
     if report.get("interrupted"):  # the study sees a KeyboardInterrupt either way; which signal it was, the CLI knows
-        report = {**report, "stopped_by": how_stopped()}
+        report = {**report, "stopped_by": stopping_signal()}
     try:
         files = write_outputs(report, out_dir)
     except OSError as exc:

@@ -150,16 +150,15 @@ def _deferred_interrupts(wanted: bool) -> Iterator[Callable[[], bool]]:
     # SIGTERM's default ends the process: only a handler of the program's is deferred. Before, that handler's
     # KeyboardInterrupt came in the middle of a step, and rac experiment dropped everything it had learned
     terminate = signal.getsignal(signal.SIGTERM)
-    deferred = callable(terminate)
-    if deferred:
+    if callable(terminate):
         signal.signal(signal.SIGTERM, lambda signum, frame: came.append(signum))
     try:
         yield lambda: bool(came)
     finally:
         signal.signal(signal.SIGINT, previous)
-        if deferred:
+        if callable(terminate):
             signal.signal(signal.SIGTERM, terminate)
-            if signal.SIGTERM in came and callable(terminate):
+            if signal.SIGTERM in came:
                 with suppress(KeyboardInterrupt):
                     terminate(signal.SIGTERM, None)
 

@@ -387,15 +387,13 @@ class ScenarioEnv(gymnasium.Env):
         """Warn once when this scene's episodes run past its recorded traffic (``rac check``'s W0728 for the
         file's horizon; here for the episode's, ``horizon=`` included): after it the road holds no moving
         obstacle, and neither the shield's masks nor the rewards there speak of the traffic."""
-        scenario = result.scenario
-        if self._said_traffic or scenario is None or scenario.traffic_ends is None:
+        scenario, automaton = result.scenario, result.automaton
+        if self._said_traffic or scenario is None or automaton is None:
             return
-        period = Fraction(result.automaton.period) if result.automaton is not None else None
-        if period is None:
-            return
-        episode_ends = scenario.ego.time + float(samples * period)
-        if scenario.traffic_ends < episode_ends - 1e-9:
+        seconds = float(samples * Fraction(automaton.period))
+        if scenario.outruns_traffic(seconds):
             self._said_traffic = True
+            episode_ends = scenario.ego.time + seconds
             warnings.warn(f"the episodes of {self.scenarios[index]} run past its recorded traffic: its moving "
                           f"obstacles are gone after scenario time t = {scenario.traffic_ends:g} s, an episode ends at "
                           f"t = {episode_ends:g} s, so from then on the road holds no moving obstacle, and the "

@@ -287,13 +287,12 @@ def traffic_ends(automaton: ir.Automaton, scenario: Scenario, horizon: Fraction 
     strategy after it covers a road without moving traffic (a recording cut off at 8 s under a 30 s horizon said
     nothing of it)."""
     spec = automaton.model
+    seconds = float(automaton.horizon if horizon is None else horizon)
     ends = scenario.traffic_ends
-    if ends is None or spec is None:
+    if spec is None or ends is None or not scenario.outruns_traffic(seconds):
         return []
     moving = [obstacle for obstacle in scenario.obstacles if not obstacle.static]
-    horizon_ends = scenario.ego.time + float(automaton.horizon if horizon is None else horizon)
-    if ends >= horizon_ends - 1e-9:
-        return []
+    horizon_ends = scenario.ego.time + seconds
     count = f"{len(moving)} moving obstacle{'s are' if len(moving) != 1 else ' is'}"
     left = f" and {len(scenario.obstacles) - len(moving)} static" if len(scenario.obstacles) > len(moving) else ""
     span = automaton.spans.get("model:scenario", spec.span)

@@ -161,6 +161,11 @@ class Scenario:
         ends = [obstacle.waypoints[-1].time for obstacle in self.obstacles if not obstacle.static]
         return max(ends) if ends else None
 
+    def outruns_traffic(self, horizon: float) -> bool:
+        """Whether runs of ``horizon`` s from the ego's start go on after :attr:`traffic_ends` (W0728)."""
+        ends = self.traffic_ends
+        return ends is not None and ends < self.ego.time + horizon - 1e-9
+
 
 # ---------------------------------------------------------------- reading CommonRoad files
 class ScenarioError(RacError):

@@ -29,7 +29,7 @@ from typing import Any, TextIO
 
 from tqdm import tqdm
 
-__all__ = ["Heartbeat", "Progress", "explore_callback", "notice"]
+__all__ = ["Heartbeat", "Progress", "explore_callback", "notice", "simulate_callback"]
 
 
 class Progress:
@@ -108,6 +108,24 @@ def explore_callback(bar: Progress) -> Callable[[int, int, int], None]:
     def progress(layer: int, frontier_size: int, total_states: int) -> None:
         bar.set_postfix(layer=layer, frontier=frontier_size)
         bar.update(total_states - bar.n)  # explore reports a running total, the bar wants increments
+
+    return progress
+
+
+def simulate_callback(bar: Progress, check: Callable[[int, int], None] | None = None) -> Callable[[int, int], None]:
+    """The ``progress(sample, horizon)`` callback of :func:`rac.engine.simulate.simulate` that advances ``bar``
+    to the samples simulated so far, then calls ``check(sample, horizon)`` (a time limit's, which may raise).
+
+    Example::
+
+        with Progress(total=samples, desc="simulating", unit="samples") as bar:
+            runs = simulate(data, runs=100, horizon_samples=samples, progress=simulate_callback(bar))
+    """
+
+    def progress(sample: int, horizon: int) -> None:
+        bar.update(sample - bar.n)  # simulate reports the sample reached, the bar wants increments
+        if check is not None:
+            check(sample, horizon)
 
     return progress
 

@@ -622,8 +622,8 @@ def _interrupted(report: Report) -> list[str]:
                                                       for r in variant["records"]]
     low, high = min((r.episodes for r in records), default=0), max((r.episodes for r in records), default=0)
     learned = f"{low:,}" if low == high else f"{low:,} to {high:,}"
-    # "stopped_by": how the command was stopped, as rac.cli.common.how_stopped says (absent: Ctrl-C)
-    how = "Terminated (SIGTERM)" if report.get("stopped_by", "").startswith("terminated") else "Interrupted (Ctrl-C)"
+    # "stopped_by": the signal that stopped the command (rac.cli.common.stopping_signal; absent: Ctrl-C)
+    how = "Terminated (SIGTERM)" if report.get("stopped_by") == "SIGTERM" else "Interrupted (Ctrl-C)"
     if stopped == "evaluation":
         return [f"{how} while evaluating: every run learned its {report['episodes']:,} episodes; "
                 "evaluations not finished are left out (a row of none shows '—')."]

@@ -204,14 +204,10 @@ def _simulating(what: str, samples: int, quiet: bool, limit: TimeLimit) -> Itera
     (``quiet``: none; off a terminal the heartbeat's count) and ``limit`` checked after each sample. A long
     horizon's runs take minutes: --max-seconds 5 let one run on for five minutes, without a count."""
     # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
-    from rac.output.progress import Progress
+    from rac.output.progress import Progress, simulate_callback
 
     with Progress(total=samples, desc=what, unit="samples", enabled=False if quiet else None) as bar:
-        def advance(sample: int, horizon: int) -> None:
-            bar.update(sample - bar.n)
-            limit.check(sample, horizon)
-
-        yield advance
+        yield simulate_callback(bar, limit.check)
 
 
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,

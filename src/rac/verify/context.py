@@ -289,16 +289,19 @@ class Context:
         fill the machine."""
         if self.options.max_bytes is None:
             return None
-        return max(1, self.options.max_bytes - sum(graph.nbytes for graph in self.graphs.values()))
+        return max(1, self.options.max_bytes - self._kept_bytes())
 
     def kept_note(self) -> str:
         """What a refusal on :meth:`memory_left` adds: how much of the limit the kept graphs hold ('' for none)."""
-        kept = sum(graph.nbytes for graph in self.graphs.values())
+        kept = self._kept_bytes()
         if not kept or self.options.max_bytes is None:
             return ""
         return (f" ({format_bytes(kept)} of --max-memory {format_bytes(self.options.max_bytes)} holds the model "
                 "explored for earlier queries, kept for the later ones; verify this query in a run of its own to "
                 "give it the whole limit)")
+
+    def _kept_bytes(self) -> int:
+        return sum(graph.nbytes for graph in self.graphs.values())
 
     def stopped_note(self) -> str | None:
         """What the exhaustive verdicts should say when the model's ``allow when`` leaves no action in

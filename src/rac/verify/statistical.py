@@ -229,17 +229,14 @@ class StatisticalAnswerer:
         if past is not None:  # a shield ends at the horizon: said before any run is drawn
             raise EvaluationError(past)
         # tqdm (via rac.output.progress): importing rac.verify.statistical stays light
-        from rac.output.progress import Progress
+        from rac.output.progress import Progress, simulate_callback
 
         # a long time bound takes minutes per batch (a million samples of 0.1 s: over five): a bar on a
         # terminal, the samples in the heartbeat's line; the query said only its elapsed time before
         with Progress(total=samples, desc=f"simulating {count_noun(n, 'run')}", unit="samples",
                       enabled=None if ctx.options.bars else False) as bar:
-            def advance(sample: int, horizon: int) -> None:
-                bar.update(sample - bar.n)
-
             runs = simulate(ctx.data, runs=n, horizon_samples=samples, seed=seed, policy=ctx.policy(under),
-                            progress=advance)
+                            progress=simulate_callback(bar))
         stuck = int(runs.left_policy.sum())
         if stuck:  # the emitted model deadlocks there, and its run ends: rac's runs would go on
             who = " or ".join(([f"the strategy `{under}`"] if under is not None else [])
