@@ -100,8 +100,9 @@ def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     result, status = _load(args.file, args.max_memory or default_max_bytes(), as_json(args))
     if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
         return None, EXIT_USAGE
+    # preanalyse checks its --horizon per setting later: an unchecked 1e400 must not reach a float here
     if result is not None and result.automaton is not None and result.scenario is not None \
-            and getattr(args, "horizon", None) is not None \
+            and args.command != "preanalyse" and getattr(args, "horizon", None) is not None \
             and not any(d.code == "W0728" for d in result.diagnostics):  # the file's own horizon was said already
         past = traffic_ends(result.automaton, result.scenario, args.horizon)
         if past:  # --horizon past the recorded traffic: its answers after it are for an empty road

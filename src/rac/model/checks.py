@@ -287,9 +287,11 @@ def traffic_ends(automaton: ir.Automaton, scenario: Scenario, horizon: Fraction 
     strategy after it covers a road without moving traffic (a recording cut off at 8 s under a 30 s horizon said
     nothing of it)."""
     spec = automaton.model
-    seconds = float(automaton.horizon if horizon is None else horizon)
     ends = scenario.traffic_ends
-    if spec is None or ends is None or not scenario.outruns_traffic(seconds):
+    if spec is None or ends is None:
+        return []
+    seconds = float(automaton.horizon if horizon is None else horizon)
+    if not scenario.outruns_traffic(seconds):
         return []
     moving = [obstacle for obstacle in scenario.obstacles if not obstacle.static]
     horizon_ends = scenario.ego.time + seconds
