@@ -63,6 +63,18 @@ def test_beyond_the_budget_the_check_says_how_far_it_went(tmp_path: Path) -> Non
     assert none.message == "not checked: by sample 1 the product has more than 3 states, --max-states"
 
 
+def test_the_check_fits_beside_the_kept_graphs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Regression: the check's product was held to --max-memory alone, not to what the graphs kept for
+    later queries leave of it (:meth:`Context.memory_left`), and its reason did not say what holds the rest."""
+    program = spawn_program(tmp_path, SPAWNED)
+    assert check_penalties(Context(program, VerifyOptions())).done
+    monkeypatch.setattr(Context, "memory_left", lambda self: 1)
+    monkeypatch.setattr(Context, "kept_note", lambda self: " (KEPT GRAPHS)")
+    refused = check_penalties(Context(program, VerifyOptions()))
+    assert not refused.done and refused.message.startswith("not checked: ")
+    assert refused.message.endswith("(KEPT GRAPHS)")
+
+
 def test_the_budget_is_the_checks_own_or_max_states_when_smaller(tmp_path: Path) -> None:
     program = spawn_program(tmp_path, SPAWNED)
     assert not check_penalties(Context(program, VerifyOptions(max_states=3))).done

@@ -26,6 +26,7 @@ from tiny_scenarios import TINY_SCENARIOS, TinyScenario
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import CheckError
 from rac.engine import shield
+from rac.engine.budget import runs_within, simulation_bytes
 from rac.engine.explore import action_pairs
 from rac.model import NativeModel
 from rac.verify.context import Context, UnknownVerdict
@@ -38,6 +39,7 @@ from rac.verify.runner import (
     standard_queries,
     verify,
 )
+from rac.verify.statistical import StatisticalAnswerer
 
 NAMES = tuple(TINY_SCENARIOS)
 #: Qc as `rac verify` reads it (UPPAAL's literal reading: a collision does not end a run, so a run
@@ -538,3 +540,48 @@ def test_a_graph_kept_for_later_queries_counts_against_the_memory_limit(tmp_path
         ctx.graph(False)
     roomy = Context(result, VerifyOptions(seed=1, max_bytes=low + kept.nbytes))  # room for both: both explored
     assert roomy.graph(True).nbytes == kept.nbytes and roomy.graph(False).n_states > kept.n_states
+
+
+def test_simulated_runs_fit_beside_the_kept_graphs(tmp_path: Path) -> None:
+    """Regression: the statistical queries (and learning, the optimum, the penalty check) were held to
+    --max-memory alone while an earlier query's graph stayed in memory: runs that fit the limit alone are
+    now refused beside the graph, and the refusal says what holds the rest."""
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle"))
+
+    def fits(limit: int) -> bool:
+        try:
+            Context(result, VerifyOptions(seed=1, max_bytes=limit)).graph(True)
+        except UnknownVerdict:
+            return False
+        return True
+
+    low, high = 1, 2**30  # the least limit the pruned graph fits (bisection: estimates, not measures)
+    while low < high:
+        middle = (low + high) // 2
+        low, high = (low, middle) if fits(middle) else (middle + 1, high)
+    kept = Context(result, VerifyOptions(seed=1, max_bytes=low)).graph(True).nbytes
+    samples = 1
+    while simulation_bytes(1, samples, 1) < low:  # one run as large as the graph's whole limit
+        samples *= 2
+    limit = simulation_bytes(1, samples, 1) + kept // 2  # one run fits the whole limit, not what the graph leaves
+    assert runs_within(limit, samples, 1) >= 1 and runs_within(limit - kept, samples, 1) == 0
+    ctx = Context(result, VerifyOptions(seed=1, max_bytes=limit))
+    assert StatisticalAnswerer(ctx).chunk(1, samples, "`Q`") >= 1  # nothing kept yet: the whole limit
+    ctx.graph(True)
+    with pytest.raises(UnknownVerdict, match="what --max-memory leaves beside the kept graphs.*holds the model "
+                                             "explored for earlier queries"):
+        StatisticalAnswerer(ctx).chunk(1, samples, "`Q`")
+
+
+def test_learning_fits_beside_the_kept_graphs(compiled: Callable[[str], Compiled],
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """Regression: learning and the optimum beside it were held to --max-memory alone, not to what the
+    graphs kept for later queries leave of it (:meth:`Context.memory_left`), and a refusal did not say
+    what holds the rest."""
+    item = compiled("avoidable_obstacle")
+    roomy = run(item, "Learn")["Learn"]
+    assert roomy.status == "value", roomy.message
+    monkeypatch.setattr(Context, "memory_left", lambda self: 1)
+    monkeypatch.setattr(Context, "kept_note", lambda self: " (KEPT GRAPHS)")
+    refused = run(item, "Learn")["Learn"]
+    assert refused.status == "unknown" and "(KEPT GRAPHS); the episode budget is --learn-episodes" in refused.message

@@ -83,11 +83,11 @@ class LearningAnswerer:
                                          optimise="max" if query.optimise == "maxE" else "min", shield=table,
                                          episodes=ctx.options.learn_episodes, parallel=ctx.options.learn_parallel,
                                          seed=seed, stop_after=ctx.options.learn_stop_after, meta=meta,
-                                         labels=query.labels, max_bytes=ctx.options.max_bytes)
+                                         labels=query.labels, max_bytes=ctx.memory_left())
         except EvaluationError:
             raise
         except BudgetExceeded as exc:  # refused on the estimate, before learning allocated it
-            raise UnknownVerdict(f"{exc}; the episode budget is --learn-episodes") from None
+            raise UnknownVerdict(f"{exc}{ctx.kept_note()}; the episode budget is --learn-episodes") from None
         except ValueError as exc:  # a sensed value out of range, bindings breaking `assume`
             raise UnknownVerdict(str(exc)) from None
         ctx.strategies.pop(query.name, None)  # the name now means the learned strategy
@@ -118,10 +118,10 @@ class LearningAnswerer:
         try:
             batch = ctx.episodes("automaton", query.expr, samples)
             return solve(batch, objective=query.objective, optimise="max" if query.optimise == "maxE" else "min",
-                         shield=table, max_states=ctx.options.max_states, max_bytes=ctx.options.max_bytes,
+                         shield=table, max_states=ctx.options.max_states, max_bytes=ctx.memory_left(),
                          meta=meta, project=not ctx.options.exact)
         except BudgetExceeded as exc:
-            return str(exc)
+            return f"{exc}{ctx.kept_note()}"
         except (UnknownVerdict, ValueError) as exc:  # a sensed value out of range, bindings breaking `assume`
             return str(exc)
 

@@ -127,14 +127,14 @@ def _explore(context: Context, horizon: int, budget: int) -> tuple[ProductGraph 
     while samples > 0:
         try:
             return explore_product(context.data, context.automaton, horizon_samples=samples, max_states=budget,
-                                   max_bytes=context.options.max_bytes,
+                                   max_bytes=context.memory_left(),
                                    progress=context.options.explore_progress), samples, reason
         except BudgetExceeded as exc:
             if exc.kind == "states":
                 limit = "--max-states" if budget < PENALTY_STATES else "the check's own budget"
                 reason = f"by sample {exc.sample} the product has more than {budget:,} states, {limit}"
             else:
-                reason = str(exc)
+                reason = f"{exc}{context.kept_note()}"
             samples = min(samples - 1, exc.sample - 1)
         except (ModelRangeError, EvaluationError, Unrepresentable) as exc:
             return None, 0, f"the product cannot be explored: {exc}"

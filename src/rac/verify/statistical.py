@@ -173,12 +173,11 @@ class StatisticalAnswerer:
         n = _runs_of(query.runs)
         seed = ctx.next_seed()
         if n > self.chunk(len(query.exprs), samples, f"`{base.name}`"):
-            fit = runs_within(ctx.options.max_bytes, samples, len(query.exprs))
+            fit = runs_within(ctx.memory_left(), samples, len(query.exprs))
             raise UnknownVerdict(
                 f"simulate keeps every run's trace: {n:,} runs of {samples + 1} samples would need about "
                 f"{format_bytes(simulation_bytes(n, samples, len(query.exprs)))}, more than the memory budget of "
-                f"{format_bytes(ctx.options.max_bytes or 0)} (--max-memory): ask for at most {fit:,} runs, or "
-                "raise --max-memory")
+                f"{self.budget_text()}: ask for at most {fit:,} runs, or raise --max-memory{ctx.kept_note()}")
         runs = self.runs(n, samples, query.under, seed)
         values = ctx.values(runs, query.exprs)
         files: list[str] = []
@@ -205,14 +204,22 @@ class StatisticalAnswerer:
         """The most runs of ``samples`` samples, with ``columns`` expressions evaluated on them, that fit
         the memory budget at once (:func:`rac.engine.budget.runs_within`); unknown when not even one does."""
 
-        limit = self.context.options.max_bytes
-        fit = runs_within(limit, samples, columns)
+        fit = runs_within(self.context.memory_left(), samples, columns)
         if fit < 1:
             raise UnknownVerdict(f"one run of {what} ({samples + 1} samples) would need about "
                                  f"{format_bytes(simulation_bytes(1, samples, columns))}, more than the memory "
-                                 f"budget of {format_bytes(limit or 0)} (--max-memory): raise it, or shorten the "
-                                 "time bound")
+                                 f"budget of {self.budget_text()}: raise it, or shorten the time bound"
+                                 f"{self.context.kept_note()}")
         return fit
+
+    def budget_text(self) -> str:
+        """The memory budget runs get, as a refusal names it: ``--max-memory``, less what the graphs
+        kept for later queries hold."""
+        ctx = self.context
+        left = ctx.memory_left()
+        if left == ctx.options.max_bytes:
+            return f"{format_bytes(left or 0)} (--max-memory)"
+        return f"{format_bytes(left or 0)} (what --max-memory leaves beside the kept graphs)"
 
     def runs(self, n: int, samples: int, under: str | None, seed: int) -> Runs:
         """``n`` runs of ``samples`` samples: actions drawn uniformly (among a shield's with
