@@ -21,7 +21,7 @@ import pytest
 from rac.cli.main import main
 from rac.compiler import compile_text
 from rac.runtime.interpreter import RewardAutomaton
-from rac.targets.python import RESERVED_NAMES, generate_python, python_class_name
+from rac.targets.python import MODULE_IMPORTS, RESERVED_NAMES, generate_python, python_class_name
 
 #: The module's own top-level names (imports, helpers) and the names Python gives every module.
 MODULE_NAMES = ("annotations", "math", "numbers", "Mapping", "_key_error", "_mapping", "_boolean", "_number",
@@ -149,3 +149,39 @@ def test_compile_says_when_the_class_is_renamed(tmp_path: Path, capsys: pytest.C
         assert (said in err) if said else "class" not in err, err
         assert python_class_name(name) == (name + "_" if said else name)
     assert python_class_name("__init__") == "init" and python_class_name("__") == "Automaton"
+
+
+def test_the_module_imports_exactly_the_standard_modules_it_says() -> None:
+    """MODULE_IMPORTS, which the output-name note reads, is the generated module's own imports."""
+    code = generate_python(compile_text(source()).raise_for_errors())
+    imported = set()
+    for line in code.splitlines():
+        words = line.split()
+        if words[:1] == ["import"]:
+            imported.add(words[1].split(".")[0])
+        elif words[:1] == ["from"] and words[2:3] == ["import"]:
+            imported.add(words[1].split(".")[0])
+    assert imported == set(MODULE_IMPORTS)
+
+
+@pytest.mark.parametrize(("file_name", "said"), [
+    ("numbers.py", "`import numbers` gives this file instead, in your code and in every library that imports it, "
+                   "the generated module included"),
+    ("math.py", "the generated module included"),
+    ("random.py", "`import random` gives this file instead, in your code and in every library that imports it; "),
+    ("reward-fn.py", "`reward-fn.py` cannot be imported by name"),
+    ("class.py", "`class.py` cannot be imported by name"),
+    ("reward.txt", "`reward.txt` cannot be imported by name"),
+    ("reward.py", None),
+    ("Driving_2.py", None),
+])
+def test_compile_says_when_the_module_cannot_be_imported_by_its_name(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], file_name: str, said: str | None) -> None:
+    """Regression: `rac compile -o numbers.py` wrote a module that, imported from its folder, imported
+    itself (it imports `numbers`), and `-o reward-fn.py` one that `import` cannot name; both silently."""
+    path = tmp_path / "a.ra"
+    path.write_text(source(), encoding="utf-8")
+    assert main(["compile", str(path), "--target", "python", "-o", str(tmp_path / file_name)]) == 0
+    err = capsys.readouterr().err
+    assert (said in err) if said else "note:" not in err, err
+    assert (tmp_path / file_name).exists()  # a note, not a refusal

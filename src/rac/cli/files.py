@@ -166,7 +166,7 @@ def _compile(args: argparse.Namespace) -> int:
     if args.target == "uppaal":
         return _compile_uppaal(args, result)
     # jinja2, numpy (via rac.targets.python): rac --help, fmt and a syntax error never load it
-    from rac.targets.python import generate_python, python_class_name
+    from rac.targets.python import generate_python, module_name_note, python_class_name
 
     text = generate_python(result.automaton, source_name=display_text(args.file.name))
     name = result.automaton.name
@@ -176,6 +176,9 @@ def _compile(args: argparse.Namespace) -> int:
     if args.output is None:
         _emit(args, result, text)
         return EXIT_OK
+    note = module_name_note(args.output)  # whoever imports the module must be able to name it
+    if note is not None:
+        print(f"note: {display_text(note)}", file=sys.stderr)
     try:
         write_atomically(args.output, text)
     except OSError as exc:

@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import keyword
 import re
+import sys
 import textwrap
 from collections.abc import Iterable, Mapping
 from fractions import Fraction
 from functools import lru_cache
 from importlib import resources
+from pathlib import PurePath
 
 import jinja2
 
@@ -157,6 +159,27 @@ def _linear(form: FloatLinear, names: Mapping[str, str], safe: frozenset[str]) -
     else:
         first = [term(coef, name), (const < 0, _num(abs(const)))]
     return signed_sum([*first, *(term(coef, name) for coef, name in rest)])
+
+
+#: The standard library's modules the generated module imports (tests/targets compare it with the text).
+MODULE_IMPORTS = ("__future__", "math", "numbers", "collections", "struct")
+
+
+def module_name_note(output: PurePath) -> str | None:
+    """Why ``import NAME`` will not give the module written to ``output`` (None when it will): a file
+    name that is no Python identifier, or the name of a standard-library module, which the file shadows
+    for code run in its folder (``numbers.py``: the generated module, importing ``numbers``, imports itself,
+    and so do ``fractions`` and ``decimal``)."""
+    stem = output.stem
+    if output.suffix != ".py" or not stem.isidentifier() or keyword.iskeyword(stem):
+        return (f"`{output.name}` cannot be imported by name (`import` needs a `.py` file named by a Python "
+                "identifier): name it e.g. `reward.py`, or load it with importlib")
+    if stem in sys.stdlib_module_names:
+        itself = ", the generated module included" if stem in MODULE_IMPORTS else ""
+        return (f"`{output.name}` has the name of the standard library's `{stem}`: run from its folder, "
+                f"`import {stem}` gives this file instead, in your code and in every library that imports it"
+                f"{itself}; choose another name")
+    return None
 
 
 # ---------------------------------------------------------------- generation
