@@ -417,4 +417,5 @@ class Driving:
 
     def __repr__(self) -> str:
         ending = ", terminated" if self._terminated else ", ended" if self._ended else ""
-        return f"<Driving at {self.location}, samples={self._samples}, objective={self._objective!r}{ending}>"
+        return (f"<{type(self).__name__} at {self.location}, samples={self._samples}, "
+                f"objective={self._objective!r}{ending}>")

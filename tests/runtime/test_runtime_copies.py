@@ -103,6 +103,7 @@ def test_a_subclass_keeps_its_own_attributes_through_pickle_and_copies() -> None
     ra.note = "mine"
     for twin in (pickle.loads(pickle.dumps(ra)), copy.copy(ra), copy.deepcopy(ra)):
         assert type(twin) is Counting and twin.episodes == 1 and twin.note == "mine"
+        assert repr(twin).startswith("<Counting Driving at ")  # its own class's name
         assert state(twin) == state(ra)
         twin.reset()
         assert twin.episodes == 2

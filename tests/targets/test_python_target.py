@@ -381,6 +381,7 @@ def test_a_subclass_keeps_its_own_attributes_through_copy_and_pickle() -> None:
             ra.step(inputs(is_close=True))
             for twin in (copy.copy(ra), copy.deepcopy(ra), pickle.loads(pickle.dumps(ra))):  # noqa: S301
                 assert type(twin) is cls and repr(twin) == repr(ra)
+                assert repr(twin).startswith(f"<{cls.__name__} at Unsafe, samples=2")  # its own class, not Driving
                 assert twin.total == ra.total and twin._Slotted__private == [1]
                 reference = copy.copy(ra)
                 assert bits(twin.step(inputs(prog=False))) == bits(reference.step(inputs(prog=False)))

@@ -382,5 +382,5 @@ class RewardAutomaton(AutomatonDescription):
 
     def __repr__(self) -> str:
         ending = ", terminated" if self._terminated else ", ended" if self._ended else ""
-        return (f"<RewardAutomaton {self.name} at {self.location}, samples={self._samples}, "
+        return (f"<{type(self).__name__} {self.name} at {self.location}, samples={self._samples}, "
                 f"objective={self._objective!r}{ending}>")
