@@ -502,3 +502,65 @@ def test_the_callback_says_when_it_sees_no_reward_automaton(tmp_path: Path) -> N
     env = RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)
     silent = warned(ARS("MlpPolicy", env, n_delta=1, seed=0, device="cpu"), steps=60)
     assert len(silent) == 1 and "ARS hands its callbacks no step infos" in silent[0]
+
+
+LONG_NAMES = """automaton Turn {
+    input a : bool
+    reward r
+    objective r
+    sample every 1
+    horizon 10
+    initial location WaitingForTheOncomingTrafficLeft { r' == 0 }
+    location WaitingForTheOncomingTrafficRight        { r' == 0 }
+    edge WaitingForTheOncomingTrafficLeft -> WaitingForTheOncomingTrafficRight when a do r = r + 1
+    edge WaitingForTheOncomingTrafficRight -> WaitingForTheOncomingTrafficLeft when !a do r = r + 1
+}
+"""
+
+
+def test_location_names_that_the_text_table_cuts_alike_do_not_end_training(tmp_path: Path) -> None:
+    # SB3's stdout table cuts a key to 36 characters and raises ValueError in dump when two keys come out the
+    # same: two locations of 22 or more characters sharing their first 21 ended PPO's learn() at its first table
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    import io
+    import warnings
+
+    import gymnasium
+    import numpy as np
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import CSVOutputFormat, HumanOutputFormat, Logger
+
+    import rac
+    from rac.learning import sb3
+
+    class Blank(gymnasium.Env[Any, Any]):
+        observation_space = gymnasium.spaces.Box(0.0, 1.0, shape=(1,))
+        action_space = gymnasium.spaces.Discrete(2)
+
+        def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> Any:
+            super().reset(seed=seed)
+            self.t = 0
+            return np.zeros(1, dtype=np.float32), {}
+
+        def step(self, action: Any) -> Any:
+            self.t += 1
+            return np.zeros(1, dtype=np.float32), 0.0, False, self.t >= 10, {"a": bool(action)}
+
+    env = RewardAutomatonWrapper(Blank(), rac.loads(LONG_NAMES, "turn.ra"), lambda obs, info: {"a": info["a"]})
+    text = io.StringIO()
+    model = PPO("MlpPolicy", env, n_steps=32, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.set_logger(Logger(None, [HumanOutputFormat(text), CSVOutputFormat(str(tmp_path / "progress.csv"))]))
+    left, right = "rac/location/WaitingForTheOncomingTrafficLeft", "rac/location/WaitingForTheOncomingTrafficRight"
+    callback = sb3.RacCallback()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model.learn(64, callback=callback)
+        model.learn(32, callback=callback, reset_num_timesteps=False)
+    said = [str(w.message) for w in caught if "text table" in str(w.message)]
+    assert len(said) == 1 and left in said[0] and right in said[0], said
+    assert "reward/r" in text.getvalue() and "WaitingFor" not in text.getvalue()
+    with open(tmp_path / "progress.csv", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 3 and {left, right} <= set(rows[0])
+    assert all(abs(float(row[left]) + float(row[right]) - 1.0) < 1e-9 for row in rows)
+    assert sb3.text_table_clashes(model.logger, [left, right, "rac/reward/r"]) == {left, right}

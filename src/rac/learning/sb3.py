@@ -16,6 +16,7 @@ from gymnasium.wrappers import ClipReward, NormalizeReward, TransformReward
 try:
     from stable_baselines3.common.buffers import ReplayBuffer
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.logger import HumanOutputFormat, Logger
     from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
     from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack, VecNormalize
 except ImportError as exc:  # pragma: no cover - depends on the environment
@@ -26,7 +27,8 @@ from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
 from rac.learning.wrappers import RewardAutomatonWrapper
 
-__all__ = ["CounterfactualReplayBuffer", "RacCallback", "reward_changers", "reward_normaliser"]
+__all__ = ["CounterfactualReplayBuffer", "RacCallback", "reward_changers", "reward_normaliser",
+           "text_table_clashes"]
 
 #: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor.
 REWARD_CHANGERS = (NormalizeReward, ClipReward, TransformReward)
@@ -60,6 +62,7 @@ class RacCallback(BaseCallback):
         self._warned = False  # the reward normaliser's warning, said once
         self._warned_changers = False  # the warning of gymnasium's reward wrappers, said once
         self._warned_unseen = False  # the warning that no automaton was seen, said once
+        self._warned_clashes: set[str] = set()  # keys left out of the text table, each said once
 
     def _init_callback(self) -> None:
         self._per_step = isinstance(self.model, OffPolicyAlgorithm)
@@ -137,8 +140,43 @@ class RacCallback(BaseCallback):
 
     def _write(self) -> None:
         self._logged = self.log.values()
+        # SB3's text table cuts keys to its width and raises ValueError when two cut keys are the same (two
+        # long location names sharing a prefix): such keys go to the other outputs only, said once
+        clashing = text_table_clashes(self.logger, self._logged)
+        if clashing - self._warned_clashes:
+            self._warned_clashes |= clashing
+            warnings.warn(
+                f"RacCallback: stable-baselines3's text table (stdout, log) cuts its keys to "
+                f"{_text_width(self.logger)} characters, which makes {', '.join(sorted(clashing))} the same key "
+                "there (its dump would raise ValueError and end training): they are left out of that table and "
+                "written in full to the logger's other outputs (csv, tensorboard); shorter location or reward "
+                "names in the .ra file put them in the table", UserWarning, stacklevel=2)
         for key, value in self._logged.items():
-            self.logger.record(key, value)
+            self.logger.record(key, value, exclude=("stdout", "log") if key in clashing else None)
+
+
+def _text_width(logger: Logger) -> int | None:
+    """The narrowest key width of the text outputs (stdout, log) of stable-baselines3's ``logger``, or None."""
+    widths = [output.max_length for output in logger.output_formats if isinstance(output, HumanOutputFormat)]
+    return min(widths, default=None)
+
+
+def text_table_clashes(logger: Logger, keys: Any) -> set[str]:
+    """The ``keys`` that stable-baselines3's text table (``HumanOutputFormat``, stdout and log) would cut to
+    the same shown key as another of them: it shows a key's part after its tag (``rac/``), indented three
+    spaces, cut to ``max_length`` characters (36 by default) ending in ``...``, and raises ``ValueError`` in
+    ``dump`` when two keys come out the same."""
+    width = _text_width(logger)
+    if width is None:
+        return set()
+    shown: dict[tuple[str, str], list[str]] = {}
+    for key in keys:
+        tag = key[: key.find("/") + 1] if key.find("/") > 0 else ""
+        name = f"{'':3}{key[len(tag):]}" if tag else key
+        if len(name) > width:  # as HumanOutputFormat._truncate cuts it
+            name = name[: width - 3] + "..."
+        shown.setdefault((tag, name), []).append(key)
+    return {key for same in shown.values() if len(same) > 1 for key in same}
 
 
 def reward_normaliser(venv: Any) -> VecNormalize | None:
