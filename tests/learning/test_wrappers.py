@@ -381,6 +381,52 @@ def test_hindsight_relabelling_cannot_reach_the_wrapped_environments_reward() ->
         env.get_wrapper_attr("compute_reward")(np.zeros(1), np.zeros(1), {})
 
 
+class Reach(gymnasium.Env[Any, Any]):
+    """A goal environment as stable-baselines3's HerReplayBuffer takes it: move a point towards a goal in 10 steps."""
+
+    observation_space = gymnasium.spaces.Dict({key: gymnasium.spaces.Box(0.0, 10.0, (1,), dtype=np.float32)
+                                               for key in ("observation", "achieved_goal", "desired_goal")})
+    action_space = gymnasium.spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
+
+    def _obs(self) -> dict[str, np.ndarray]:
+        here = np.array([self.x], dtype=np.float32)
+        return {"observation": here, "achieved_goal": here, "desired_goal": np.array([8.0], dtype=np.float32)}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> Any:
+        super().reset(seed=seed)
+        self.x, self.t = 5.0, 0
+        return self._obs(), {"collision": False}
+
+    def step(self, action: Any) -> Any:
+        self.x, self.t = float(np.clip(self.x + float(np.asarray(action).reshape(-1)[0]), 0.0, 10.0)), self.t + 1
+        return self._obs(), 0.0, False, self.t >= 10, {"collision": False}
+
+    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        return -np.abs(np.asarray(achieved_goal) - np.asarray(desired_goal)).sum(axis=-1)
+
+
+def test_the_callback_refuses_hindsight_relabelling_before_the_first_step() -> None:
+    # the wrapper refuses compute_reward, but HerReplayBuffer asks for it only when it first samples: after
+    # learning_starts steps and a complete episode SAC ended there, minutes into a run with large settings
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    from stable_baselines3 import SAC, HerReplayBuffer
+
+    from rac.learning.sb3 import RacCallback
+
+    def automaton_inputs(obs: Any, info: dict[str, Any]) -> dict[str, object]:
+        return {"headway": float(obs["observation"][0]), "collide": False}
+
+    env = RewardAutomatonWrapper(Reach(), follow(), automaton_inputs)
+    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer, learning_starts=20, buffer_size=200,
+                seed=0, device="cpu")
+    with pytest.raises(NotImplementedError, match="depends on the run so far.*start of learn"):
+        model.learn(60, callback=RacCallback())
+    assert model.num_timesteps == 0
+    # the plain replay buffer is no matter
+    SAC("MultiInputPolicy", env, learning_starts=20, buffer_size=200, seed=0, device="cpu").learn(
+        30, callback=RacCallback())
+
+
 def test_the_automaton_ends_the_episode_with_its_end_clauses() -> None:
     env = RewardAutomatonWrapper(Gap(), FOLLOW_ENDS, inputs)
     reference = RewardAutomaton(FOLLOW_ENDS)

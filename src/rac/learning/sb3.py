@@ -19,13 +19,14 @@ try:
     from stable_baselines3.common.logger import HumanOutputFormat, Logger
     from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
     from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack, VecNormalize
+    from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
 from rac.learning.replay import CounterfactualRows
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
-from rac.learning.wrappers import RewardAutomatonWrapper
+from rac.learning.wrappers import NO_RELABELLING, RewardAutomatonWrapper
 
 __all__ = ["CounterfactualReplayBuffer", "RacCallback", "reward_changers", "reward_normaliser",
            "text_table_clashes"]
@@ -45,7 +46,9 @@ class RacCallback(BaseCallback):
     under ``VecNormalize(norm_reward=True)`` (:func:`reward_normaliser`) or gymnasium's ``NormalizeReward``,
     ``ClipReward`` or ``TransformReward`` around the automaton's reward (:func:`reward_changers`): the learner's
     reward is then no longer the automaton's; and when a :class:`CounterfactualReplayBuffer` is filled under
-    ``VecFrameStack``: its rows are then inexact.
+    ``VecFrameStack``: its rows are then inexact. Refuses (``NotImplementedError``, at the start of ``learn()``)
+    stable-baselines3's ``HerReplayBuffer`` on environments in ``RewardAutomatonWrapper``, whose
+    ``compute_reward`` is refused: the buffer would first ask for it after ``learning_starts`` steps.
 
     Example::
 
@@ -66,6 +69,12 @@ class RacCallback(BaseCallback):
 
     def _init_callback(self) -> None:
         self._per_step = isinstance(self.model, OffPolicyAlgorithm)
+        if isinstance(getattr(self.model, "replay_buffer", None), HerReplayBuffer) and _wraps_automaton(
+                self.training_env):
+            # the wrapper refuses compute_reward, but HerReplayBuffer first asks for it when it samples, after
+            # learning_starts steps and a complete episode: said before any step is taken
+            raise NotImplementedError(f"{NO_RELABELLING} (said at the start of learn(): HerReplayBuffer asks for "
+                                      "it only when it first samples, after learning_starts steps)")
         normaliser = reward_normaliser(self.training_env)
         if normaliser is not None and not self._warned:  # learn() called again: said once
             self._warned = True
@@ -212,6 +221,16 @@ def reward_changers(venv: Any) -> list[str]:
         return sorted(kind.__name__ for kind in REWARD_CHANGERS if any(venv.env_is_wrapped(kind)))
     except (AttributeError, TypeError):
         return []
+
+
+def _wraps_automaton(venv: Any) -> bool:
+    """Whether some environment of stable-baselines3's vector environment ``venv`` is wrapped in
+    :class:`~rac.learning.wrappers.RewardAutomatonWrapper` (``env_is_wrapped``, which a ``SubprocVecEnv`` asks its
+    workers)."""
+    try:
+        return any(venv.env_is_wrapped(RewardAutomatonWrapper))
+    except (AttributeError, TypeError):  # no VecEnv of stable-baselines3's
+        return False
 
 
 def _wrapper(venv: Any, kind: type) -> Any:

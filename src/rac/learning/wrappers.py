@@ -412,6 +412,11 @@ def _statistics_inside(env: object, kind: type) -> bool:
 
 
 #: What :func:`_statistics_inside` finding one inside rac's wrapper means, and the fix (``{outside}``).
+#: Why :meth:`RewardAutomatonWrapper.compute_reward` is refused (and ``RacCallback`` refuses ``HerReplayBuffer``).
+NO_RELABELLING = ("RewardAutomatonWrapper has no compute_reward: the automaton's reward depends on the run so far, "
+                  "not on a goal, so relabelled transitions (stable-baselines3's HerReplayBuffer) cannot be given it, "
+                  "and the wrapped environment's compute_reward would mix its own reward into the automaton's; train "
+                  "without hindsight relabelling")
 STATISTICS_INSIDE = ("gymnasium's RecordEpisodeStatistics sits inside rac's wrapper: info['episode']['r'] is the "
                      "environment's own return, not the automaton's, and it never sees an episode the automaton "
                      "ends (`episode ends when`); wrap outside instead: {outside}")
@@ -592,11 +597,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         stable-baselines3's ``HerReplayBuffer`` (``env_method("compute_reward", ...)``, which gymnasium's
         ``get_wrapper_attr`` resolves to the wrapped goal environment's) relabelled the stored transitions with
         the environment's own reward, mixed silently into the automaton's."""
-        raise NotImplementedError(
-            "RewardAutomatonWrapper has no compute_reward: the automaton's reward depends on the run so far, not "
-            "on a goal, so relabelled transitions (stable-baselines3's HerReplayBuffer) cannot be given it, and "
-            "the wrapped environment's compute_reward would mix its own reward into the automaton's; train "
-            "without hindsight relabelling")
+        raise NotImplementedError(NO_RELABELLING)
 
 
 class RewardAutomatonVectorWrapper(VectorWrapper):
