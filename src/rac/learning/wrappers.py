@@ -411,12 +411,13 @@ def _statistics_inside(env: object, kind: type) -> bool:
     return False
 
 
-#: What :func:`_statistics_inside` finding one inside rac's wrapper means, and the fix (``{outside}``).
 #: Why :meth:`RewardAutomatonWrapper.compute_reward` is refused (and ``RacCallback`` refuses ``HerReplayBuffer``).
 NO_RELABELLING = ("RewardAutomatonWrapper has no compute_reward: the automaton's reward depends on the run so far, "
                   "not on a goal, so relabelled transitions (stable-baselines3's HerReplayBuffer) cannot be given it, "
                   "and the wrapped environment's compute_reward would mix its own reward into the automaton's; train "
                   "without hindsight relabelling")
+
+#: What :func:`_statistics_inside` finding one inside rac's wrapper means, and the fix (``{outside}``).
 STATISTICS_INSIDE = ("gymnasium's RecordEpisodeStatistics sits inside rac's wrapper: info['episode']['r'] is the "
                      "environment's own return, not the automaton's, and it never sees an episode the automaton "
                      "ends (`episode ends when`); wrap outside instead: {outside}")
