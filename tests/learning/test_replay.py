@@ -437,3 +437,36 @@ def test_the_callback_warns_of_counterfactual_rows_under_frame_stacking() -> Non
             model.learn(4, callback=RacCallback())
         said = [str(w.message) for w in caught if "VecFrameStack" in str(w.message)]
         assert len(said) == (1 if stacked else 0), said
+
+
+def test_the_callback_warns_of_gymnasiums_frame_stacking_outside_the_location() -> None:
+    # gymnasium's FrameStackObservation outside LocationObservation (flattened for an MLP) stacks the location's
+    # one-hot vectors as VecFrameStack does, and the rows were as inexact; the callback looked for VecFrameStack
+    # alone. Inside it the frames are stacked before the location is added, once, and the rows are exact.
+    pytest.importorskip("stable_baselines3", reason="needs stable-baselines3 (the rl extra)")
+    import warnings
+
+    from gymnasium.wrappers import FlattenObservation, FrameStackObservation
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from rac.learning import sb3
+
+    def outside() -> gymnasium.Env:
+        return FlattenObservation(FrameStackObservation(LocationObservation(RewardAutomatonWrapper(
+            Blank(), alternate(), took)), 2))
+
+    def inside() -> gymnasium.Env:
+        return LocationObservation(RewardAutomatonWrapper(FlattenObservation(FrameStackObservation(Blank(), 2)),
+                                                          alternate(), took))
+
+    for make, stacked in ((outside, True), (inside, False)):
+        envs = DummyVecEnv([make])
+        model = DQN("MlpPolicy", envs, learning_starts=1000, buffer_size=1000, seed=0, device="cpu",
+                    replay_buffer_class=sb3.CounterfactualReplayBuffer, replay_buffer_kwargs={"automaton": alternate()})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model.learn(4, callback=sb3.RacCallback())
+        said = [str(w.message) for w in caught if "under FrameStackObservation" in str(w.message)]
+        assert len(said) == (1 if stacked else 0), said
+        assert sb3.frame_stacker(envs) == ("FrameStackObservation" if stacked else None)

@@ -11,7 +11,7 @@ import warnings
 from typing import Any
 
 import numpy as np
-from gymnasium.wrappers import ClipReward, NormalizeReward, TransformReward
+from gymnasium.wrappers import ClipReward, FrameStackObservation, NormalizeReward, TransformReward
 
 try:
     from stable_baselines3.common.buffers import ReplayBuffer
@@ -23,12 +23,13 @@ try:
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
+from rac.learning.location_observation import LocationObservation
 from rac.learning.replay import CounterfactualRows
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
 from rac.learning.wrappers import NO_RELABELLING, RewardAutomatonWrapper
 
-__all__ = ["CounterfactualReplayBuffer", "RacCallback", "reward_changers", "reward_normaliser",
+__all__ = ["CounterfactualReplayBuffer", "RacCallback", "frame_stacker", "reward_changers", "reward_normaliser",
            "text_table_clashes"]
 
 #: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor.
@@ -46,7 +47,8 @@ class RacCallback(BaseCallback):
     under ``VecNormalize(norm_reward=True)`` (:func:`reward_normaliser`) or gymnasium's ``NormalizeReward``,
     ``ClipReward`` or ``TransformReward`` around the automaton's reward (:func:`reward_changers`): the learner's
     reward is then no longer the automaton's; and when a :class:`CounterfactualReplayBuffer` is filled under
-    ``VecFrameStack``: its rows are then inexact. Refuses (``NotImplementedError``, at the start of ``learn()``)
+    ``VecFrameStack`` or gymnasium's ``FrameStackObservation`` outside ``LocationObservation``
+    (:func:`frame_stacker`): its rows are then inexact. Refuses (``NotImplementedError``, at the start of ``learn()``)
     stable-baselines3's ``HerReplayBuffer`` on environments in ``RewardAutomatonWrapper``, whose
     ``compute_reward`` is refused: the buffer would first ask for it after ``learning_starts`` steps.
 
@@ -98,11 +100,12 @@ class RacCallback(BaseCallback):
                 "scale the automaton's reward with scale='proven' (every reward in [-1, 1], the proofs intact) "
                 "instead", UserWarning, stacklevel=2)
         buffer = getattr(self.model, "replay_buffer", None)
-        if isinstance(buffer, CounterfactualReplayBuffer) and _wrapper(self.training_env, VecFrameStack) is not None:
+        stacking = frame_stacker(self.training_env)
+        if isinstance(buffer, CounterfactualReplayBuffer) and stacking is not None:
             if not buffer.warned_stacked:  # learn() called again, or several callbacks: said once
                 buffer.warned_stacked = True
                 warnings.warn(
-                    "CounterfactualReplayBuffer under VecFrameStack: each counterfactual row replaces the location of "
+                    f"CounterfactualReplayBuffer under {stacking}: each counterfactual row replaces the location of "
                     "the newest frame only, the earlier frames still show the real locations, so the rows are no "
                     "transitions the environment could have produced; stack no frames, or use the plain ReplayBuffer",
                     UserWarning, stacklevel=2)
@@ -221,6 +224,26 @@ def reward_changers(venv: Any) -> list[str]:
         return sorted(kind.__name__ for kind in REWARD_CHANGERS if any(venv.env_is_wrapped(kind)))
     except (AttributeError, TypeError):
         return []
+
+
+def frame_stacker(venv: Any) -> str | None:
+    """What stacks the location's frames in stable-baselines3's vector environment ``venv``: ``"VecFrameStack"``
+    in its chain of vector wrappers, ``"FrameStackObservation"`` where gymnasium's sits outside a
+    :class:`~rac.learning.location_observation.LocationObservation` in an environment of a ``DummyVecEnv`` (inside
+    it, the frames are stacked before the location is added, once), or None. Another vector environment's
+    environments (``SubprocVecEnv``: in other processes) are not walked."""
+    if _wrapper(venv, VecFrameStack) is not None:
+        return "VecFrameStack"
+    base = _wrapper(venv, DummyVecEnv)
+    for first in base.envs if isinstance(base, DummyVecEnv) else ():
+        env: Any = first
+        for _ in range(100):  # a wrapper chain, not a cycle
+            if env is None or isinstance(env, LocationObservation):
+                break
+            if isinstance(env, FrameStackObservation):
+                return "FrameStackObservation"
+            env = getattr(env, "env", None)
+    return None
 
 
 def _wraps_automaton(venv: Any) -> bool:
