@@ -423,8 +423,19 @@ def test_the_callback_refuses_hindsight_relabelling_before_the_first_step() -> N
         model.learn(60, callback=RacCallback())
     assert model.num_timesteps == 0
     # the plain replay buffer is no matter
-    SAC("MultiInputPolicy", env, learning_starts=20, buffer_size=200, seed=0, device="cpu").learn(
-        30, callback=RacCallback())
+    SAC("MultiInputPolicy", env, learning_starts=10, buffer_size=200, batch_size=16, seed=0, device="cpu").learn(
+        15, callback=RacCallback())
+
+    class Relabel(gymnasium.Wrapper[Any, Any, Any, Any]):
+        """A wrapper outside rac's that answers compute_reward itself: HerReplayBuffer asks it, not rac's."""
+
+        def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+            return np.zeros(np.shape(achieved_goal)[:-1])
+
+    answered = SAC("MultiInputPolicy", Relabel(env), replay_buffer_class=HerReplayBuffer, learning_starts=10,
+                   buffer_size=200, batch_size=16, seed=0, device="cpu")
+    answered.learn(15, callback=RacCallback())  # a complete episode (10 steps), then relabelled samples
+    assert answered.num_timesteps == 15
 
 
 def test_the_automaton_ends_the_episode_with_its_end_clauses() -> None:

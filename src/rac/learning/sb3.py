@@ -71,7 +71,7 @@ class RacCallback(BaseCallback):
 
     def _init_callback(self) -> None:
         self._per_step = isinstance(self.model, OffPolicyAlgorithm)
-        if isinstance(getattr(self.model, "replay_buffer", None), HerReplayBuffer) and _wraps_automaton(
+        if isinstance(getattr(self.model, "replay_buffer", None), HerReplayBuffer) and _relabels_with_automaton(
                 self.training_env):
             # the wrapper refuses compute_reward, but HerReplayBuffer first asks for it when it samples, after
             # learning_starts steps and a complete episode: said before any step is taken
@@ -246,10 +246,21 @@ def frame_stacker(venv: Any) -> str | None:
     return None
 
 
-def _wraps_automaton(venv: Any) -> bool:
-    """Whether some environment of stable-baselines3's vector environment ``venv`` is wrapped in
-    :class:`~rac.learning.wrappers.RewardAutomatonWrapper` (``env_is_wrapped``, which a ``SubprocVecEnv`` asks its
-    workers)."""
+def _relabels_with_automaton(venv: Any) -> bool:
+    """Whether ``HerReplayBuffer`` would ask :class:`~rac.learning.wrappers.RewardAutomatonWrapper` for
+    ``compute_reward`` in stable-baselines3's vector environment ``venv``: a ``DummyVecEnv``'s environments resolve it
+    as ``env_method`` does (``get_wrapper_attr``: a wrapper outside rac's may answer it itself); another vector
+    environment's (``SubprocVecEnv``: in other processes) are asked ``env_is_wrapped``."""
+    base = _wrapper(venv, DummyVecEnv)
+    if isinstance(base, DummyVecEnv):
+        for env in base.envs:
+            try:
+                method = env.get_wrapper_attr("compute_reward")
+            except AttributeError:
+                continue
+            if isinstance(getattr(method, "__self__", None), RewardAutomatonWrapper):
+                return True
+        return False
     try:
         return any(venv.env_is_wrapped(RewardAutomatonWrapper))
     except (AttributeError, TypeError):  # no VecEnv of stable-baselines3's
