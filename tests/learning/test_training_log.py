@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 from gymnasium.wrappers import TimeLimit
 from highway_like import HighwayLike, follow, inputs
+from test_location_observation import Blank, took
 
 from rac.learning.training_log import TrainingLog
 from rac.learning.wrappers import RewardAutomatonWrapper
@@ -525,28 +526,13 @@ def test_location_names_that_the_text_table_cuts_alike_do_not_end_training(tmp_p
     import io
     import warnings
 
-    import gymnasium
-    import numpy as np
     from stable_baselines3 import PPO
     from stable_baselines3.common.logger import CSVOutputFormat, HumanOutputFormat, Logger
 
     import rac
     from rac.learning import sb3
 
-    class Blank(gymnasium.Env[Any, Any]):
-        observation_space = gymnasium.spaces.Box(0.0, 1.0, shape=(1,))
-        action_space = gymnasium.spaces.Discrete(2)
-
-        def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> Any:
-            super().reset(seed=seed)
-            self.t = 0
-            return np.zeros(1, dtype=np.float32), {}
-
-        def step(self, action: Any) -> Any:
-            self.t += 1
-            return np.zeros(1, dtype=np.float32), 0.0, False, self.t >= 10, {"a": bool(action)}
-
-    env = RewardAutomatonWrapper(Blank(), rac.loads(LONG_NAMES, "turn.ra"), lambda obs, info: {"a": info["a"]})
+    env = RewardAutomatonWrapper(Blank(), rac.loads(LONG_NAMES, "turn.ra"), took)
     text = io.StringIO()
     model = PPO("MlpPolicy", env, n_steps=32, batch_size=32, n_epochs=1, seed=0, device="cpu")
     model.set_logger(Logger(None, [HumanOutputFormat(text), CSVOutputFormat(str(tmp_path / "progress.csv"))]))
