@@ -652,6 +652,19 @@ def test_training_runs_cut_between_complete_episodes_are_no_limit() -> None:
                 outside.step(np.array([6.0]))
 
 
+def test_training_runs_shorter_than_an_episode_are_said_with_their_cause() -> None:
+    """``for _ in range(5): model.learn(32)`` on episodes of more than 32 steps: each call resets the episode
+    running, so none ever ends and no `at end` clause applies. The warning is right, but it named only a
+    TimeLimit outside the wrapper; it now names SB3's ``learn()`` and ``reset_num_timesteps=False`` too."""
+    env = RewardAutomatonWrapper(TimeLimit(Gap(), 50), follow(), inputs)
+    with pytest.warns(UserWarning, match=r"reset after 4 step\(s\).*learn\(\) is called again and again.*"
+                                         r"reset_num_timesteps=False"):
+        for chunk in range(3):  # learn(4) three times: every chunk resets the episode at its 4th step
+            env.reset(seed=chunk)
+            for _ in range(4):
+                env.step(np.array([6.0]))
+
+
 def test_the_past_horizon_advice_puts_the_limit_inside() -> None:
     env = RewardAutomatonWrapper(Gap(), follow(), inputs)
     env.reset(seed=0)

@@ -372,7 +372,10 @@ class CutEpisodes:
             self._warn(f"a TimeLimit outside rac (max_episode_steps={limit}) cuts episodes after {limit} step(s), "
                        "before rac sees them end (terminated or truncated)", "")
 
-    def _warn(self, what: str, cause: str = "if a TimeLimit or another wrapper outside ends them, ") -> None:
+    def _warn(self, what: str, cause: str = ("if stable-baselines3's learn() is called again and again with "
+                                             "fewer steps than an episode, pass reset_num_timesteps=False (each "
+                                             "call resets the episode running, so none ends); if a TimeLimit or "
+                                             "another wrapper outside ends them, ")) -> None:
         self.warned = True
         warnings.warn(f"{what}: the automaton's `at end` clauses were not applied and their returns lack them; "
                       f"{cause}{self.fix}", UserWarning, stacklevel=4)
