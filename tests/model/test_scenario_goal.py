@@ -25,11 +25,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import shapely
+from commonroad.common.common_lanelet import LaneletType
 from commonroad.common.util import Interval
 from commonroad.geometry.occupancy.polygon_occupancy import PolygonOccupancy
 from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
 from commonroad.planning.goal import GoalRegion
 from commonroad.planning.planning_problem import PlanningProblem, PlanningProblemSet
+from commonroad.scenario.lanelet import Lanelet
 from commonroad.scenario.scenario import Tag
 from commonroad.scenario.state import CustomState
 from engine_files import TEMPLATE
@@ -298,6 +300,26 @@ def test_a_goal_region_without_area_is_refused(tmp_path: Path) -> None:
     # a bowtie's signed area is 0, but its two triangles hold the goal: accepted
     bowtie = flat_goal(PolygonOccupancy(shapely.Polygon([(40.0, 0.0), (50.0, 3.5), (50.0, 0.0), (40.0, 3.5)])))
     assert compile_file(write(tmp_path, "bowtie.xml", bowtie)).ok
+
+
+def test_a_goal_lanelet_without_area_is_refused(tmp_path: Path) -> None:
+    """A goal lanelet 0 m long (both bounds a single point twice over, as map converters write stubs)
+    was taken as a goal region without a word although `goal()` could never hold in it, while the same
+    region given as a rectangle or polygon is refused: it is E0712 now, naming the lanelet."""
+    scenario, problems = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(40.0, 50.0)).build("stub")
+    stub = np.array([[100.0, 0.0], [100.0, 0.0]]), np.array([[100.0, 3.5], [100.0, 3.5]])
+    scenario.add_objects(Lanelet(stub[1], (stub[0] + stub[1]) / 2, stub[0], 7, lanelet_type={LaneletType.URBAN}))
+    (problem,) = problems.planning_problem_dict.values()
+    goal = GoalRegion([CustomState(time_step=Interval(0, 40), position=RectOccupancy(
+        rect_center=shapely.Point(100.0, 1.75), length=1.0, width=1.0, orientation=0.0))],
+        lanelets_of_goal_position={0: [7]})
+    problems = PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, problem.initial_state, goal)])
+    path = write(tmp_path, "stub.xml", commonroad_xml(scenario, problems, "stub", Tag.SINGLE_LANE))
+    (error,) = [d for d in compile_file(path).diagnostics if d.is_error]
+    assert error.code == "E0712"
+    assert error.message == (f"cannot load the scenario: {tmp_path / 'stub.xml'}: goal of planning problem 100 has a "
+                             "goal region without area (lanelet 7, whose bounds enclose no area): `goal()` could "
+                             "never hold in it")
 
 
 # ---------------------------------------------------------------- the start

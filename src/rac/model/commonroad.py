@@ -1357,7 +1357,9 @@ def _goal(path, element: str, goal, network, dt: float) -> Goal:
                                         f"refers to lanelet {lanelet_id}, which the file does not define")
                 if not regions:  # the first region's point for dist_goal(): on the lanelet
                     lane_point = _midpoint(_points(lanelet.center_vertices))
-                regions.append(_polygon(lanelet.polygon.vertices))
+                # a lanelet 0 m long (converters write such stubs) encloses nothing: goal() could never hold
+                regions.append(_region(path, element, _polygon(lanelet.polygon.vertices),
+                                       f"lanelet {lanelet_id}, whose bounds enclose no area"))
         elif getattr(state, "position", None) is None:
             anywhere = True  # CommonRoad: this goal state holds at any position (a goal of time alone)
         else:
