@@ -111,6 +111,24 @@ def test_a_hand_edited_file_is_refused_in_its_own_words(tmp_path: Path, name: st
     assert str(failure.value) == f"{path}: {message}"
 
 
+@pytest.mark.parametrize(("tag", "label"), [("lanelet", "lanelet"), ("staticObstacle", "static obstacle"),
+                                          ("dynamicObstacle", "dynamic obstacle"),
+                                          ("planningProblem", "planning problem")])
+def test_an_element_without_an_id_is_named_with_its_line(tmp_path: Path, tag: str, label: str) -> None:
+    """An element without its `id` attribute failed in commonroad-io with Python's own words: "static
+    obstacle (without id) cannot be read: int() argument must be a string, a bytes-like object or a
+    real number, not 'NoneType'". The message now says the attribute is missing, and where."""
+    text = edit(road_xml(), rf'<{tag} id="\d+">', f"<{tag}>")
+    line = text[:text.index(f"<{tag}>")].count("\n") + 1
+    path = tmp_path / "without_id.xml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ScenarioError) as failure:
+        load_scenario(path)
+    assert str(failure.value) == (f"{path}: {label} (without id) has no `id` attribute (line {line}): every "
+                                  "CommonRoad lanelet, obstacle and planning problem has a unique positive "
+                                  "whole-number id")
+
+
 def test_traffic_lights_of_every_colour_and_referenced_signs_read(tmp_path: Path) -> None:
     """The refusals above are commonroad-io's alone: CommonRoad's five colours read, and so does a
     referenced sign."""

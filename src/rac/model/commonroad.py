@@ -286,7 +286,7 @@ def load_scenario(path: str | os.PathLike[str], planning_problem_id: int | None 
     root = _parse_root(path, data)
     positions = _positions(root, data)
     _check_time_step(path, root, positions)
-    _check_structure(path, root)
+    _check_structure(path, root, positions)
     _check_references(path, root, positions)
     _check_orientations(path, root, positions)  # before commonroad-io: it loops forever on a huge one
     data = _without_environment(root, data)
@@ -654,9 +654,15 @@ _LABELS = {
 }
 
 
-def _check_structure(path: str | os.PathLike[str], root) -> None:
+def _check_structure(path: str | os.PathLike[str], root, positions: dict[int, tuple[int, int]]) -> None:
     seen: dict[str, str] = {}  # CommonRoad ids are unique within a file (commonroad-io keeps the last)
     for node in root:
+        if node.tag in _LABELS and node.get("id") is None:
+            # commonroad-io fails on it with Python's own int(None) message, which named no attribute
+            where = f" (line {positions[id(node)][0]})" if id(node) in positions else ""
+            raise ScenarioError(path, f"{_LABELS[node.tag]} (without id)",
+                                f"has no `id` attribute{where}: every CommonRoad lanelet, obstacle and planning "
+                                "problem has a unique positive whole-number id")
         # a misspelt element (<dynamicObstacles>, <staticobstacle>) is one commonroad-io passes over without a
         # word: the model lacked that obstacle or lanelet; another unknown element is left alone (an extension)
         close = difflib.get_close_matches(node.tag, _TOP_LEVEL, n=1, cutoff=0.8) if node.tag not in _TOP_LEVEL \
