@@ -458,8 +458,24 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
               f"the runtime shield instead ({decisions:,} decisions, up to {NODE_BUDGET} search nodes each)")
         return shields.StepShieldPolicy(fallback), None, EXIT_OK
     if not computed.shield_exists:
-        return None, "no safe strategy exists from the start within the horizon (Qd is not satisfied)", EXIT_ERRORS
+        return None, _no_shield(args.file, computed.graph, float(result.model_data.period), horizon_samples), \
+            EXIT_ERRORS
     return table.masks_at, None, EXIT_OK
+
+
+def _no_shield(file: str, graph, period: float, horizon_samples: int) -> str:
+    """Why the safety shield (Qd) does not exist, naming the file: the ego unsafe at the start (off the road,
+    in a collision), or the last sample some run stays safe until; ``graph``: the shield's pruned graph,
+    where a state reached is reached safely."""
+    head = (f"no safe strategy exists from the start within the horizon of `{file}` "
+            f"({horizon_samples * period:g} s; Qd is not satisfied)")
+    start = [what for what, label in (("off the road", "offroad"), ("in a collision", "collide"))
+             if graph.labels[label][graph.initial]]
+    if start:
+        return f"{head}: the ego starts {' and '.join(start)}"
+    safe = graph.labels["safe"]
+    last = int(graph.states[safe, graph.columns.index("k")].max())
+    return f"{head}: the longest any run stays safe is until t = {last * period:g} s"
 
 
 def _horizon_samples(result: CompileResult, horizon: Fraction | None) -> int:
