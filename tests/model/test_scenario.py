@@ -337,6 +337,24 @@ def test_not_xml(tmp_path: Path) -> None:
     assert "is not XML" in str(error_of(path))
 
 
+def test_a_compressed_scenario_says_so(tmp_path: Path) -> None:
+    """CommonRoad's scenarios are downloaded as zip archives: a zip or a gzip-compressed file was "not XML
+    (line 1, column 1: not well-formed (invalid token))", which did not say what the file is or what to do."""
+    import gzip
+    import zipfile
+
+    xml = intersection.left_turn_bytes()
+    archive = tmp_path / "scenario.zip"
+    with zipfile.ZipFile(archive, "w") as bundle:
+        bundle.writestr("left_turn.xml", xml)
+    assert str(error_of(archive)) == (f"{archive}: is a zip archive, not a CommonRoad XML file: unpack it and name "
+                                      "the .xml file")
+    packed = tmp_path / "left_turn.xml.gz"
+    packed.write_bytes(gzip.compress(xml))
+    assert str(error_of(packed)) == (f"{packed}: is gzip-compressed, not a CommonRoad XML file: decompress it "
+                                     "(gunzip) and name the .xml file")
+
+
 def test_not_commonroad(tmp_path: Path, example_xml: Path) -> None:
     path = tmp_path / "other.xml"
     path.write_text("<?xml version='1.0'?><osm version='0.6'/>", encoding="utf-8")

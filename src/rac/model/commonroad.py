@@ -565,6 +565,13 @@ def _parse_root(path: str | os.PathLike[str], data: bytes):
     try:
         root = ElementTree.fromstring(data)
     except ElementTree.ParseError as error:
+        # CommonRoad's scenarios are downloaded as zip archives: the parser's "not well-formed (invalid
+        # token)" at line 1 did not say that the file is one, or what to do
+        for magic, what, fix in ((b"PK\x03\x04", "a zip archive", "unpack it"),
+                                 (b"\x1f\x8b", "gzip-compressed", "decompress it (gunzip)")):
+            if data.startswith(magic):
+                raise ScenarioError(path, None, f"is {what}, not a CommonRoad XML file: {fix} and name the "
+                                                ".xml file") from None
         line, column = error.position
         raise ScenarioError(path, None, f"is not XML (line {line}, column {column + 1}: "
                                         f"{str(error).split(':')[0]})") from None
