@@ -167,9 +167,13 @@ def test_a_missing_scenario_from_a_relative_ra_path_names_where_it_led(tmp_path:
 
 
 @pytest.mark.parametrize(("xml", "message"), [
-    (b"<commonRoad", "is not XML (line 1, column"),
+    # expat's "no element found" for a file cut short: it is said to be truncated, and where it ends
+    (b"<commonRoad", "ends at line 1 before its elements are closed: is it truncated (a download or copy cut "
+                     "short)?"),
     (b"<scenario/>", "is not a CommonRoad file (its root element is <scenario>"),
-    (LEFT_TURN.read_bytes()[:5000], "is not XML"),
+    (LEFT_TURN.read_bytes()[:5000], "before its elements are closed: is it truncated"),
+    (b"<?xml version='1.0'?>\n", "is empty: it holds no XML element, not a CommonRoad scenario"),
+    (b"<commonRoad><lanelet id='1'/></commonroad>", "is not XML (line 1, column"),
     (LEFT_TURN.read_bytes().replace(b"<trajectory>", b"<trajectory_>", 1).replace(b"</trajectory>",
                                                                                    b"</trajectory_>", 1),
      "dynamic obstacle"),

@@ -334,7 +334,7 @@ def test_not_xml(tmp_path: Path) -> None:
     error = error_of(path)
     assert error.element is None and "notes.xml: is not XML (line 1" in str(error)
     path.write_bytes(b"")
-    assert "is not XML" in str(error_of(path))
+    assert str(error_of(path)) == f"{path}: is empty: it holds no XML element, not a CommonRoad scenario"
 
 
 def test_a_compressed_scenario_says_so(tmp_path: Path) -> None:

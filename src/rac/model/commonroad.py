@@ -558,6 +558,11 @@ def _read_bytes(path: str | os.PathLike[str]) -> bytes:
         raise ScenarioError(path, None, f"cannot be read ({error.strerror or error})") from None
 
 
+#: expat's errors for input that ends too soon (:func:`_parse_root`).
+_CUT_SHORT = frozenset(expat.errors.codes[name] for name in (
+    expat.errors.XML_ERROR_NO_ELEMENTS, expat.errors.XML_ERROR_UNCLOSED_TOKEN, expat.errors.XML_ERROR_PARTIAL_CHAR))
+
+
 def _parse_root(path: str | os.PathLike[str], data: bytes):
     # commonroad: only when this runs; importing rac.model.commonroad stays light
     from commonroad import SUPPORTED_COMMONROAD_VERSIONS
@@ -573,6 +578,15 @@ def _parse_root(path: str | os.PathLike[str], data: bytes):
                 raise ScenarioError(path, None, f"is {what}, not a CommonRoad XML file: {fix} and name the "
                                                 ".xml file") from None
         line, column = error.position
+        if error.code in _CUT_SHORT:
+            # expat's "no element found", "unclosed token" are its words for a file that ends too soon: an
+            # empty one, or one whose download or copy was cut short, which the message did not say
+            if re.search(rb"<[A-Za-z_]", data) is None:
+                raise ScenarioError(path, None, "is empty: it holds no XML element, not a CommonRoad scenario") \
+                    from None
+            last = data.count(b"\n") + 1
+            raise ScenarioError(path, None, f"ends at line {last} before its elements are closed: is it truncated "
+                                            "(a download or copy cut short)?") from None
         raise ScenarioError(path, None, f"is not XML (line {line}, column {column + 1}: "
                                         f"{str(error).split(':')[0]})") from None
     if root.tag != "commonRoad":
