@@ -485,6 +485,12 @@ def test_the_paper_example_is_the_left_turn_with_15_s_of_traffic(tmp_path: Path,
 
 
 # ---------------------------------------------------------------- files rac refuses plainly (issue 12)
+def _committed_line(marker: str) -> int:
+    """The line of ``marker``'s first occurrence in the committed example intersection."""
+    text = COMMITTED.read_text(encoding="utf-8")
+    return text[:text.index(marker)].count("\n") + 1
+
+
 def _variant(tmp_path: Path, name: str, change) -> Path:
     """The example intersection with one change to its XML text."""
     text = change(COMMITTED.read_text(encoding="utf-8"))
@@ -498,8 +504,10 @@ def _variant(tmp_path: Path, name: str, change) -> Path:
                                             "<intervalStart>100</intervalStart><intervalEnd>0</intervalEnd>", t,
                                             count=1),
      "planning problem 100's <time> has the interval [100, 0], which ends before it starts"),
+    # with both lines: in a file of hundreds of elements the id alone did not say where they are
     ("duplicate_id", lambda t: t.replace('<lanelet id="2">', '<lanelet id="1">', 1),
-     "lanelet 1 has the id of lanelet 1: ids must be unique in a file"),
+     "lanelet 1 has the id of lanelet 1 (lines {} and {}): ids must be unique in a file".format(
+         _committed_line('<lanelet id="1">'), _committed_line('<lanelet id="2">'))),
     ("zero_length", lambda t: re.sub(r"<length>4.5</length>", "<length>0.0</length>", t, count=1),
      "dynamic obstacle 51 has a 0 m × 1.8 m shape: an obstacle needs a positive length and width"),
     ("negative_start", lambda t: re.sub(r"(<planningProblem id=\"100\">\s*<initialState>.*?<exact>)0(</exact>)",

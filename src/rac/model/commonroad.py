@@ -676,7 +676,8 @@ _LABELS = {
 
 
 def _check_structure(path: str | os.PathLike[str], root, positions: dict[int, tuple[int, int]]) -> None:
-    seen: dict[str, str] = {}  # CommonRoad ids are unique within a file (commonroad-io keeps the last)
+    # CommonRoad ids are unique within a file (commonroad-io keeps the last): each id's element and its line
+    seen: dict[str, tuple[str, int | None]] = {}
     for node in root:
         if node.tag in _LABELS and node.get("id") is None:
             # commonroad-io fails on it with Python's own int(None) message, which named no attribute
@@ -699,8 +700,12 @@ def _check_structure(path: str | os.PathLike[str], root, positions: dict[int, tu
             # a planning problem the id of its vehicle's recorded obstacle (OpenSCENARIO's, say)
             key = f"planningProblem {ident}" if node.tag == "planningProblem" else ident
             if key in seen:
-                raise ScenarioError(path, here, f"has the id of {seen[key]}: ids must be unique in a file")
-            seen[key] = here
+                # both lines: in a file of hundreds of obstacles (two files merged, say) the id alone
+                # did not say where the two elements are
+                first, line = seen[key][1], positions.get(id(node), (None,))[0]
+                lines = f" (lines {first} and {line})" if first is not None and line is not None else ""
+                raise ScenarioError(path, here, f"has the id of {seen[key][0]}{lines}: ids must be unique in a file")
+            seen[key] = (here, positions.get(id(node), (None,))[0])
     for node in root:
         for child in _REQUIRED.get(node.tag, ()):
             if node.find(child) is None:
