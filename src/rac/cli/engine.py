@@ -53,6 +53,7 @@ from rac.output.progress import Heartbeat, Progress, simulate_callback
 from rac.verify.status import NOT_SATISFIED, UNDECIDED
 
 if TYPE_CHECKING:
+    from rac.engine.graph import ExploredGraph
     from rac.verify.report import QueryResult
 
 #: A sub-command: its parsed arguments -> the exit code.
@@ -463,7 +464,7 @@ def _shield_policy(result: CompileResult, horizon_samples: int, args: argparse.N
     return table.masks_at, None, EXIT_OK
 
 
-def _no_shield(file: str, graph, period: float, horizon_samples: int) -> str:
+def _no_shield(file: str, graph: ExploredGraph, period: float, horizon_samples: int) -> str:
     """Why the safety shield (Qd) does not exist, naming the file: the ego unsafe at the start (off the road,
     in a collision), or the last sample some run stays safe until; ``graph``: the shield's pruned graph,
     where a state reached is reached safely."""
