@@ -380,6 +380,28 @@ def test_render_default_path_and_shield(capsys: pytest.CaptureFixture[str], tmp_
     assert "no safe strategy exists from the start" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("time_step", "noted"), [("0.1", False), ("0.2", True)])
+def test_render_says_when_the_obstacles_are_drawn_off_the_sample(time_step: str, noted: bool,
+                                                                  capsys: pytest.CaptureFixture[str],
+                                                                  tmp_path: Path) -> None:
+    """commonroad-io draws an obstacle at a time step only, so where the scenario's time step does not
+    divide the sampling period (0.2 s steps, a sample every 0.5 s) the picture showed each obstacle at
+    the nearest step, up to 0.1 s from where the model has it (a car at 8 m/s 0.8 m off, more than the
+    collision distance), and the title's time was that step's: nothing said so. A note says it now."""
+    from engine_files import write_short_traffic
+
+    path = write_short_traffic(tmp_path, horizon="1")
+    road = tmp_path / "road.xml"
+    road.write_text(road.read_text(encoding="utf-8").replace('timeStepSize="0.1"', f'timeStepSize="{time_step}"'),
+                    encoding="utf-8")
+    assert main(["render", str(path), "--seed", "1", "--format", "json"]) == 0
+    notes = json.loads(capsys.readouterr().out)["notes"]
+    expected = ([f"the scenario's time step ({time_step} s) does not divide the sampling period (0.5 s): the picture "
+                 "draws the obstacles at the nearest CommonRoad time step, up to 0.1 s from the ego's sample (the "
+                 "model moves them on in a straight line between steps: docs/model.md)"] if noted else [])
+    assert notes == expected
+
+
 def test_render_draws_the_model_blocks_vehicle(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
                                                tmp_path: Path) -> None:
     import rac.output.render

@@ -613,6 +613,13 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     if automaton.ending is not None and args.strategy is None:
         _note(args, notes, "the run goes on to the horizon; the automaton's `episode ends when`, which ends it in "
                            "the emitted model, is not applied here")
+    dt = Fraction(repr(result.scenario.dt)) if result.scenario is not None else None
+    if dt is not None and (Fraction(automaton.period) / dt).denominator != 1:
+        # commonroad-io draws an obstacle at a time step only: the picture and the model part by up to dt/2
+        _note(args, notes, f"the scenario's time step ({float(dt):g} s) does not divide the sampling period "
+                           f"({float(automaton.period):g} s): the picture draws the obstacles at the nearest "
+                           f"CommonRoad time step, up to {float(dt / 2):g} s from the ego's sample (the model "
+                           "moves them on in a straight line between steps: docs/model.md)")
     wrote = [str(written), *([str(gif)] if gif is not None else [])]
     document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "how": _how(args),
                                    "samples": samples, "seed": seed, "notes": notes, "wrote": wrote}

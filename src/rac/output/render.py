@@ -407,7 +407,9 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
             driven.set_data(ego[: sample + 1, 0], ego[: sample + 1, 1])
             x, y, head = ego[sample]
             body.set_xy(_corners(x, y, head, length, width))
-            text = f"{name}: t = {step * dt:.1f} s (step {step}, sample {sample + 1} of {n_samples})"
+            # the sample's own time: the obstacles' step is the nearest one when dt does not divide the period
+            at = round(start * dt + sample * period, 9)
+            text = f"{name}: t = {at:g} s (step {step}, sample {sample + 1} of {n_samples})"
             ax.title.set_text(text if wrap_at[0] is None else wrap_text(text, wrap_at[0]))
 
         if time_step is None:
