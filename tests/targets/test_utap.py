@@ -216,6 +216,28 @@ def test_inputs_named_like_the_actions_select_variables(utap: Utap, tmp_path: Pa
     assert "shadows" not in output, output
 
 
+def test_names_of_the_obstacle_processes(utap: Utap, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """An input `Obstacle0` and an automaton `Obstacle1`: the whole model's obstacle processes were always
+    `Obstacle0 = Obstacle(0);` ..., which then defined those names twice (UTAP: `$Duplicate_definition_of
+    Obstacle0`, and `$Not_a_template: Obstacle1` in the `system` line); they are fresh names now, like
+    every name the target adds."""
+    text = MODEL_RA.read_text(encoding="utf-8").replace("automaton Driving {", "automaton Obstacle1 {")
+    text = text.replace("    input collide : bool", "    input collide : bool\n    input Obstacle0 : bool")
+    text = text.replace("edge Unsafe -> Unsafe   when collide ", "edge Unsafe -> Unsafe   when collide && Obstacle0 ")
+    text = text.replace("        bind collide = collide()",
+                        "        bind collide = collide()\n        bind Obstacle0 = v > 1")
+    assert text.count("Obstacle0") == 3 and text.count("Obstacle1") == 1
+    source = tmp_path / "obstacles.ra"
+    source.write_text(text, encoding="utf-8")
+    (tmp_path / "left_turn.xml").write_bytes((MODEL_RA.parent / "left_turn.xml").read_bytes())
+    xml, queries = compile_cli(source, tmp_path / "obstacles.xml", capsys)
+    emitted = xml.read_text(encoding="utf-8")
+    assert "Obstacle0_ = Obstacle(0);" in emitted and "Obstacle1_ = Obstacle(1);" in emitted
+    assert "Obstacle2 = Obstacle(2);" in emitted
+    assert "system Timer, Controller, Action, Dynamics, Obstacle0_, Obstacle1_, Obstacle2, Obstacle1;" in emitted
+    utap.validate_files(xml, queries)
+
+
 def test_time_in_queries_with_a_coarse_period(utap: Utap, tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     """A time unit (here the period, 1.5 s) that is not a whole fraction of a second."""

@@ -75,6 +75,8 @@ class _ModelGenerator(AutomatonGenerator):
                           ("allowed", "ALLOWED"), ("allow_actions", "allow_actions"),
                           ("jerk_index", "j"), ("turn_index", "u")):  # the Action's select variables
             g[key] = n.fresh(base)
+        # the processes `Obstacle0 = Obstacle(0);` ...: as global as the .ra names, so fresh like them
+        self.obstacles = [n.fresh(f"{g['obstacle']}{i}") for i in range(self.data.obstacle_count)]
 
     # ------------------------------------------------------------ processes
     def _model_timer(self, ids: Ids, keeps: bool) -> Template:
@@ -345,10 +347,9 @@ class _ModelGenerator(AutomatonGenerator):
             writer=g["controller"], value_arrays=False,
             thd=double_literal(spec.sensor_error), maxt=a.steps * period_units,
             bindings=bindings, conditions=self._conditions(printer))
-        obstacles = [f"{g['obstacle']}{i}" for i in range(data.obstacle_count)]
         system = env.get_template("model_system.j2").render(
-            channels=self.channels, names=g, obstacles=obstacles,
-            processes=[g["timer"], g["controller"], g["action"], g["dynamics"], *obstacles, self.process])
+            channels=self.channels, names=g, obstacles=self.obstacles,
+            processes=[g["timer"], g["controller"], g["action"], g["dynamics"], *self.obstacles, self.process])
         return self._files(declaration, templates, system, queries)
 
 
