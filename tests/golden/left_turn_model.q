@@ -9,7 +9,7 @@ A[] settled imply (isClose imply Driving.Unsafe)
 A[] Driving.Unsafe imply cond0()
 
 // Qa: sensor error: Pr of the sensed x drifting sensor_error from the true x
-Pr[<=MAXT](<> fabs(Dynamics.true_x - i2d(x)) >= THD)
+Pr[<=MAXT](<> Dynamics.Running && fabs(Dynamics.true_x - i2d(x)) >= THD)
 
 // Qb: a run that is never unsafe exists
 E[] !collide() && !offroad()

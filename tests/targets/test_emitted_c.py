@@ -608,7 +608,9 @@ def compile_expressions(loaded: Loaded, printed: list[Printed], printer: UppaalP
     parts = [C_PRELUDE, _as_c(_declaration(loaded.xml)), "",
              "// ---- the processes' names that queries read",
              f"struct {{ {' '.join(f'bool {name};' for name in locations)} int32_t location; }} {v.process};",
-             f"struct {{ double {', '.join(true_names)}; }} {model.dynamics};",
+             # the engine's states are never the model's initial state, before the Dynamics sets the truth
+             f"struct {{ double {', '.join(true_names)}; bool {model.running}; }} {model.dynamics}"
+             f" = {{ .{model.running} = true }};",
              # the engine's states are never the period after a decision (the Timer waiting at a decision
              # sample, where jerk and turn already show the new choice): its guard must let them all through
              f"struct {{ bool {model.wait}; }} {model.timer} = {{ false }};"]
@@ -867,6 +869,96 @@ def test_every_query_expression_of_every_file(case: Case, tmp_path: Path) -> Non
     assert not mismatches, (f"{len(mismatches)} of {len(printed)} expressions differ:\n" + "\n".join(mismatches))
     # the states exercised both outcomes of every condition the scenario lets vary
     assert not constant, "conditions that kept one value over the states:\n" + "\n".join(constant)
+
+
+#: Statistical queries over the true state, whose hybrid clocks are 0 in the emitted model's initial state.
+TRUTH_QUERIES_AUTOMATON = """\
+automaton Truth {{
+    input near : bool
+    reward r
+    objective r
+    sample every 0.5
+    horizon 4
+    initial location A {{ r' == 1 }}
+    location B {{ r' == -1 }}
+    edge A -> B when near
+    edge B -> A when !near
+    model {{
+        scenario "{scenario}"
+        exponent 3
+        decide_period 1
+        action jerk in [-2, 2] step 2
+        action turn in [-0.2, 0.2] step 0.2
+        bind near = mindist() < 3 * collision_distance
+    }}
+    query Drift: Pr[<=4](<> fabs(true_x - x) >= sensor_error)
+    query Close: Pr[<=4]([] fabs(true_x - x) + fabs(true_v - v) < sensor_error)
+    query Slowest: E[<=4; 10](min: true_v)
+    query Widest: E[<=4; 10](max: fabs(true_head - head) - true_x)
+}}
+"""
+
+
+@needs_cc
+def test_the_true_state_counts_from_the_start_the_engine_has(tmp_path: Path) -> None:
+    """The emitted model's initial state, before the Dynamics' first (committed) edge sets the true state
+    to the ego's start, holds every true-state clock at 0, while the ego is already at its start: the
+    paper's Qa, `Pr[<=T](<> fabs(true_x - x) >= sensor_error)`, held there in every run (1.75 m apart in
+    the left turn), and `E[..](min: true_v)` read 0. rac's engine starts the truth at the ego's start. At
+    time 0 the emitted formulas, over both states (the initial one and the one after the Dynamics' edge),
+    must give what the engine gives at sample 0: `<>` their disjunction, `[]` their conjunction, `max:`
+    and `min:` their extreme."""
+    loaded = load(Case("truth", _in_scenario(TRUTH_QUERIES_AUTOMATON)), tmp_path)
+    v, data = loaded.vocabulary, loaded.data
+    counter = itertools.count()
+    printer = UppaalPrinter(v, fresh=lambda base: f"rac_test_{base}{next(counter)}", c_syntax=True)
+    printed: list[tuple[str, str, ie.Expr, str]] = []  # (query name, how a run combines states, expr, C)
+    for decl in loaded.automaton.queries:
+        query = decl.query
+        if isinstance(query, iq.ProbabilityQuery):
+            printed.append((decl.name, query.path, query.expr, printer.state(query.expr, STATISTICAL,
+                                                                             query.path == "[]").text))
+        else:
+            assert isinstance(query, iq.ExpectationQuery)
+            printed.append((decl.name, query.aggregate, query.expr, printer.extreme(query.expr, query.aggregate).text))
+    _, start = dynamics_of(loaded.xml, v.model.dynamics)
+    import xml.etree.ElementTree as ElementTree  # as in dynamics_of: `xml` names a string in this module
+
+    dynamics = next(t for t in ElementTree.fromstring(loaded.xml).iter("template")
+                    if t.findtext("name") == v.model.dynamics)
+    first = dynamics.find("init").get("ref")
+    assert [loc.find("committed") is not None for loc in dynamics.iter("location") if loc.get("id") == first] == [True]
+    # the location the Dynamics' first edge enters, from which on the true state is the engine's
+    (running,) = [loc.findtext("name") for loc in dynamics.iter("location") if loc.get("id") != first]
+    names = [MODEL_NAMES[name].uppaal for name in TRUE_STATE]
+    locations = [v.locations[loc.name] for loc in loaded.automaton.locations]
+    program = [C_PRELUDE, _as_c(_declaration(loaded.xml)), "#include <stdio.h>",
+               f"struct {{ {' '.join(f'bool {name};' for name in locations)} int32_t location; }} {v.process};",
+               # the initial state: every clock 0, every process in its initial location
+               f"struct {{ double {', '.join(names)}; bool {running}; }} {v.model.dynamics};",
+               f"struct {{ bool {v.model.wait}; }} {v.model.timer};",
+               "static void print_all(void) {",
+               *(f'    printf("%.17e ", (double)({c}));' for _, _, _, c in printed),
+               '    printf("\\n");', "}",
+               "int main(void) {",
+               f"    {v.process}.{locations[0]} = true;",
+               "    print_all();",
+               *(f"    {v.model.dynamics}.{name} = {start[name]};" for name in names),  # the Dynamics' first edge
+               f"    {v.model.dynamics}.{running} = true;",
+               "    print_all();", "    return 0;", "}"]
+    binary = _compile("\n".join(program) + "\n", tmp_path, "start")
+    initial, started = ([float(t) for t in line.split()] for line in run_binary(binary, ""))
+    runs = simulate(data, runs=1, horizon_samples=1, seed=0)
+    frame = Frame(k=np.zeros(1, dtype=np.int64), ego=np.ascontiguousarray(runs.states[:, 0]),
+                  truth=np.ascontiguousarray(runs.truth[:, 0]))
+    evaluator = Evaluator(data, loaded.automaton)
+    combine = {"<>": any, "[]": all, "max": max, "min": min}
+    for (name, how, expr, text), first, second in zip(printed, initial, started, strict=True):
+        engine = float(np.asarray(evaluator.evaluate(expr, frame), dtype=np.float64)[0])
+        emitted = float(combine[how]([first, second]))
+        assert emitted == engine, (f"{name} ({text}) at time 0: the emitted model gives {first!r} in its initial "
+                                   f"state and {second!r} once the Dynamics started, {emitted!r} in all; the engine "
+                                   f"{engine!r} at sample 0")
 
 
 # ---------------------------------------------------------------- 3. the ground truth

@@ -150,7 +150,7 @@ def test_the_papers_queries(model) -> None:
     assert queries == [
         "A[] settled imply (isClose imply Driving.Unsafe)",
         "A[] Driving.Unsafe imply cond0()",  # 10.0 * iSa + 5.0 * iPr + iCo <= 0.0: 10*iSa may leave int32
-        "Pr[<=MAXT](<> fabs(Dynamics.true_x - i2d(x)) >= THD)",
+        "Pr[<=MAXT](<> Dynamics.Running && fabs(Dynamics.true_x - i2d(x)) >= THD)",
         "E[] !collide() && !offroad()",
         "E<> !collide() && !offroad() && goal()",
         "strategy safe = control: A[] !collide() && !offroad()",

@@ -122,7 +122,7 @@ class _ModelGenerator(AutomatonGenerator):
         vocabulary = super()._vocabulary(unit)
         g = self.g
         model = ModelNames(dynamics=g["dynamics"], maxt="MAXT", timer=g["timer"], wait=g["wait"],
-                           decide_every=DECIDE_EVERY)
+                           decide_every=DECIDE_EVERY, running=g["driving"])
         return Vocabulary(**{**vocabulary.__dict__, "model": model})
 
     def _bindings(self, printer: UppaalPrinter) -> str:

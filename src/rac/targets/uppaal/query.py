@@ -68,6 +68,9 @@ class ModelNames:
     #: The constant holding the samples between two decisions (C2 / C1; declared by
     #: :mod:`rac.targets.uppaal.declarations`).
     decide_every: str
+    #: The location of :attr:`dynamics` once its start edge has set the true state: before it, in the
+    #: model's initial state, the true state's hybrid clocks are 0 (rac's engine has no such state).
+    running: str
 
 
 @dataclass(frozen=True)
@@ -235,9 +238,14 @@ class UppaalPrinter(UppaalSyntax):
         decided = self._not_after_decision(expr)
         if decided is not None:
             guards.append(decided)
+        started = self._truth_started(expr)
+        if started is not None:
+            guards.append(started)
         if not guards:
             return text
-        guard = guards[0] if len(guards) == 1 else self.infix("&&", guards[0], guards[1])
+        guard = guards[0]
+        for more in guards[1:]:
+            guard = self.infix("&&", guard, more)
         if box and self.c_syntax:
             return self.infix("||", self.prefix("!", guard), text)
         if box:
@@ -255,6 +263,16 @@ class UppaalPrinter(UppaalSyntax):
         chosen = f"({model.timer}.{model.wait} && {self.v.count} % {model.decide_every} == 0)"
         return self.prefix("!", Printed(chosen, Level.ATOM))
 
+    def _truth_started(self, expr: ie.Expr) -> Printed | None:
+        """``Dynamics.Running`` when ``expr`` reads the true state in the whole model: false only in the
+        model's initial state, where the true state's hybrid clocks are still 0 (``Dynamics`` sets them
+        to the ego's start on its first, committed edge, at time 0). rac's engine starts the truth at the
+        ego's start, so without the guard `Pr[<=T](<> fabs(true_x - x) >= sensor_error)` held in every run
+        of the emitted model, at its first state; else None."""
+        if self.v.model is None or not ie.reads_truth(expr):
+            return None
+        return Printed(f"{self.v.model.dynamics}.{self.v.model.running}", Level.ATOM)
+
     def extreme(self, expr: ie.Expr, aggregate: str) -> Printed:
         """The expression of ``E[..](max: e)`` (``aggregate`` ``max`` or ``min``), a double. Where ``e``
         reads ``jerk`` or ``turn``, the period after a decision counts as ``-DBL_MAX`` (``DBL_MAX`` for
@@ -263,11 +281,12 @@ class UppaalPrinter(UppaalSyntax):
         action the decision replaced is still counted: the states before ``decide!`` hold it, at the
         same instant."""
         value = self.number(expr, STATISTICAL)
-        decided = self._not_after_decision(expr)
-        if decided is None:
+        guards = [g for g in (self._not_after_decision(expr), self._truth_started(expr)) if g is not None]
+        if not guards:
             return value
+        guard = guards[0] if len(guards) == 1 else self.infix("&&", guards[0], guards[1])
         neutral = "-DBL_MAX" if aggregate == "max" else "DBL_MAX"
-        return Printed(f"({decided.text} ? {value.text} : {neutral})", Level.ATOM)
+        return Printed(f"({guard.text} ? {value.text} : {neutral})", Level.ATOM)
 
     def condition(self, expr: ie.Expr, dialect: str) -> Printed:
         """A boolean expression."""
