@@ -232,25 +232,30 @@ class UppaalPrinter(UppaalSyntax):
         or ``turn``, the period after a decision, where they already hold the new choice
         (:attr:`ModelNames.wait`). ``g imply p`` under ``[]``, else ``g && p``."""
         text = self.condition(expr, dialect)
-        guards = []
-        if any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr)):
-            guards.append(Printed(self.v.settled, Level.ATOM))
-        decided = self._not_after_decision(expr)
-        if decided is not None:
-            guards.append(decided)
-        started = self._truth_started(expr)
-        if started is not None:
-            guards.append(started)
-        if not guards:
+        reads_inputs = any(r.kind is ie.RefKind.INPUT for r in ie.refs(expr))
+        settled = [Printed(self.v.settled, Level.ATOM)] if reads_inputs else []
+        guard = self._all_of([*settled, *self._model_guards(expr)])
+        if guard is None:
             return text
-        guard = guards[0]
-        for more in guards[1:]:
-            guard = self.infix("&&", guard, more)
         if box and self.c_syntax:
             return self.infix("||", self.prefix("!", guard), text)
         if box:
             return self.infix("imply", guard, text)
         return self.infix("&&", guard, text)
+
+    def _model_guards(self, expr: ie.Expr) -> list[Printed]:
+        """The whole model's states that ``expr`` is not read in, as conditions to hold: not the period
+        after a decision (:meth:`_not_after_decision`), not before the true state is set (:meth:`_truth_started`)."""
+        return [g for g in (self._not_after_decision(expr), self._truth_started(expr)) if g is not None]
+
+    def _all_of(self, guards: list[Printed]) -> Printed | None:
+        """``guards`` joined by ``&&`` (None for none)."""
+        if not guards:
+            return None
+        guard = guards[0]
+        for more in guards[1:]:
+            guard = self.infix("&&", guard, more)
+        return guard
 
     def _not_after_decision(self, expr: ie.Expr) -> Printed | None:
         """``!(Timer.Wait && count % DECIDE_EVERY == 0)`` when ``expr`` reads ``jerk`` or ``turn`` in the
@@ -281,10 +286,9 @@ class UppaalPrinter(UppaalSyntax):
         action the decision replaced is still counted: the states before ``decide!`` hold it, at the
         same instant."""
         value = self.number(expr, STATISTICAL)
-        guards = [g for g in (self._not_after_decision(expr), self._truth_started(expr)) if g is not None]
-        if not guards:
+        guard = self._all_of(self._model_guards(expr))
+        if guard is None:
             return value
-        guard = guards[0] if len(guards) == 1 else self.infix("&&", guards[0], guards[1])
         neutral = "-DBL_MAX" if aggregate == "max" else "DBL_MAX"
         return Printed(f"({guard.text} ? {value.text} : {neutral})", Level.ATOM)
 
