@@ -167,8 +167,9 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
         hints.append("assignments are written `reward = expr` (UPPAAL's `:=` is old syntax)")
     if found in ("{", "}") and "RBRACE" in expected:
         hints.append("check that every `{` has a matching `}`")
-    if found == ";" and "RBRACE" not in expected:
-        hints.append("`;` only separates flows inside a location; declarations need no terminator")
+    if found == ";":  # UPPAAL's declarations end in `;`, rac's do not (a `}` may follow either way)
+        hints.append("declarations need no `;` at their end: `;` only separates the flows of a location "
+                     "(and a query's bound from its number of runs)")
     if _chained_comparison(found_type, expected, before):
         hints.append("comparisons do not chain: `0 < d < 5` is written `0 < d && d < 5`")
     uppaal = _uppaal_query_hint(found, before)
