@@ -597,6 +597,41 @@ def test_a_file_with_cr_line_endings_checks_like_one_with_lf(tmp_path, capsys):
         assert f"{name}.ra:{line}:" in out
 
 
+@pytest.mark.parametrize("ending", ["\n", "\r", "\r\n"])
+@pytest.mark.parametrize(("bad", "message"), [(b"\xe4", "invalid byte 0xe4"), (b"\x00", "NUL byte")])
+def test_a_file_that_is_not_text_is_refused_at_the_line_of_its_bad_byte(ending, bad, message, tmp_path, capsys):
+    """E0004 names the line and column of the byte that is not UTF-8 text in a file with CR line endings
+    (Latin-1 or Mac Roman with old Mac line ends) as in one with LF, and after a byte-order mark: both
+    were counted on the raw text, all on line 1."""
+    from rac.cli.main import main
+
+    lines = DRIVING.read_text(encoding="utf-8").split("\n")
+    at = next(i for i, line in enumerate(lines) if line.startswith("    horizon 30"))
+    data = b"\xef\xbb\xbf" + ending.join(lines[:at]).encode("utf-8") + ending.encode() + b"    horizon 30" + bad
+    path = tmp_path / "bad.ra"
+    path.write_bytes(data + ending.join(lines[at:]).encode("utf-8"))
+    assert main(["check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert f"bad.ra:{at + 1}:15: error[E0004]" in out and message in out, out
+    if bad != b"\x00":  # the source line is shown up to the bad byte (a NUL's file may be UTF-16: none)
+        assert f"{at + 1} |     horizon 30\n" in out, out
+
+
+@pytest.mark.parametrize(("prefix", "ending"), [("\ufeff", "\n"), ("", "\r"), ("\ufeff", "\r\n")])
+def test_source_text_checks_like_the_file_it_was_read_from(prefix, ending):
+    """``rac.compile_text`` (``rac.loads``) reads text as ``rac check`` reads a file: a byte-order mark (which
+    ``Path.read_text(encoding="utf-8")`` keeps) was E0002 at 1:1, and CR line endings put every diagnostic
+    on line 1."""
+    from rac.compiler import compile_text
+
+    text = DRIVING.read_text(encoding="utf-8")
+    assert compile_text(prefix + text.replace("\n", ending)).ok
+    result = compile_text(prefix + text.replace("horizon 30 ", "horizon 30 q ").replace("\n", ending))
+    (diagnostic,) = result.diagnostics
+    line = text[:text.index("horizon 30 ")].count("\n") + 1
+    assert (diagnostic.code, diagnostic.span.line, diagnostic.span.column) == ("E0001", line, 16)
+
+
 # ---------------------------------------------------------------- every finding inside one expression
 MIXED = """\
 automaton Mixed {

@@ -438,16 +438,24 @@ def text_source(text: str, name: str | os.PathLike[str]) -> SourceFile:
         raise TypeError(f"name must be a str, not {type(name).__name__}")
     if len(text) > MAX_SOURCE_BYTES // 4:  # only then can it be too large: a character is 1 to 4 bytes
         _check_size(name, len(text.encode("utf-8", "surrogatepass")), "source text")
-    _reject_nul(name, text, "source text", "`.ra` source is text; is this binary data?")
-    return SourceFile(name, text)
+    source = _as_source(name, text)
+    _reject_nul(source, "source text", "`.ra` source is text; is this binary data?")
+    return source
 
 
-def _reject_nul(name: str, text: str, what: str, hint: str) -> None:
-    """E0004 (:class:`ParseFailure`) at the first NUL character of ``text``: a file's or a string's
+def _as_source(name: str, text: str) -> SourceFile:
+    """``text`` as the source rac reads, whether it came from a file or a string: a leading byte-order
+    mark dropped (Python's ``utf-8`` codec keeps it, so a file saved with one read by
+    ``Path.read_text`` starts with it) and a lone CR (old Mac line endings) a line break, as LF, one
+    character for one, so that lines and columns are an editor's (they were all on line 1)."""
+    return SourceFile(name, re.sub(r"\r(?!\n)", "\n", text.removeprefix("\ufeff")))
+
+
+def _reject_nul(source: SourceFile, what: str, hint: str) -> None:
+    """E0004 (:class:`ParseFailure`) at the first NUL character of ``source``: a file's or a string's
     source alike is text, never binary data."""
-    if "\x00" in text:
-        offset = text.index("\x00")
-        source = SourceFile(name, text)
+    if "\x00" in source.text:
+        offset = source.text.index("\x00")
         raise ParseFailure(error("E0004", f"{what} contains a NUL byte: it is not a text file" if what == "file"
                                  else f"{what} contains a NUL byte: it is not text", source.span(offset, offset + 1),
                                  hints=[hint]))
@@ -467,17 +475,17 @@ def decode_source(name: str, data: bytes) -> SourceFile:
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        partial = SourceFile(name, data[: exc.start].decode("utf-8", "replace"))
+        partial = _as_source(name, data[: exc.start].decode("utf-8", "replace"))
         raise ParseFailure(error(
             "E0004", f"file is not UTF-8 text (invalid byte 0x{data[exc.start]:02x} at offset {exc.start})",
             partial.end_span, hints=[f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
                                      "`.ra` files are UTF-8 text: save it as UTF-8 (it may be in Latin-1 or "
                                      "another legacy encoding), or check that this is the right file"]),
             partial) from None
-    _reject_nul(name, text, "file", f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
+    source = _as_source(name, text)
+    _reject_nul(source, "file", f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
                 "`.ra` files are UTF-8 text; is this a binary file?")
-    # A lone CR (old Mac line endings) is a line break: as LF, one character for one, so offsets stay.
-    return SourceFile(name, re.sub(r"\r(?!\n)", "\n", text.removeprefix("\ufeff")))
+    return source
 
 
 #: Deepest expression accepted: operators nested in one another, each link of a chain like
