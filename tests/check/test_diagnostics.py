@@ -502,7 +502,13 @@ FUZZ_NUMBERS = [
 
 def _one_reward(path, declaration: str = "", more: str = ""):
     """A one-reward automaton with ``declaration`` before its initial location and ``more`` after it."""
-    path.write_text(f"""automaton A {{
+    path.write_text(_one_reward_text(declaration, more), encoding="utf-8")
+    return path
+
+
+def _one_reward_text(declaration: str = "", more: str = "") -> str:
+    """The text of :func:`_one_reward`."""
+    return f"""automaton A {{
     input d : real in [0, 1]
     reward r
     priority r
@@ -513,8 +519,7 @@ def _one_reward(path, declaration: str = "", more: str = ""):
     initial location L {{ r' == 1 }}
     {more}
 }}
-""", encoding="utf-8")
-    return path
+"""
 
 
 @pytest.mark.parametrize(("declaration", "more", "code"), FUZZ_NUMBERS)
@@ -529,6 +534,19 @@ def test_numbers_beyond_a_double_are_diagnosed_by_every_command(declaration, mor
         assert status in (1, 2), (command, output)
         if command == ["check"]:
             assert f"error[{code}]" in output.out
+
+
+@pytest.mark.parametrize(("product", "about"), [("1e-300 * 1e-300", "1.0e-600"), ("1e200 * 1e200", "1.0e400"),
+                                                ("-1e300 * 1e300", "-1.0e600"), ("9.96e200 * 1e200", "1.0e401"),
+                                                ("2.5e-200 * 1e-200", "2.5e-400")])
+def test_a_value_out_of_range_is_shown_with_one_digit_before_the_point(product, about):
+    """E0011 says about how large the value is, as ``1.0e-600``: log10's rounding of an exact power of ten
+    printed 1e-600 as ``10.0e-601``."""
+    from rac.compiler import compile_text
+
+    text = _one_reward_text(f"const C = {product}")
+    (diagnostic,) = compile_text(text, "numbers.ra", analyse=False).diagnostics
+    assert diagnostic.code == "E0011" and f"(about {about})" in diagnostic.message, diagnostic.message
 
 
 def test_a_rate_beyond_int32_in_an_unreachable_location_is_e0801(tmp_path, capsys):

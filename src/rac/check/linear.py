@@ -257,7 +257,10 @@ def _about(value: Fraction) -> str:
     """A rational of any size as ``1.2e400`` (no float conversion, which would overflow)."""
     exponent = math.log10(abs(value.numerator)) - math.log10(value.denominator)
     whole = math.floor(exponent)
-    return f"{'-' if value < 0 else ''}{10 ** (exponent - whole):.1f}e{whole}"
+    mantissa = round(10 ** (exponent - whole), 1)
+    if mantissa >= 10:  # log10's rounding put an exact power of ten below it: 1.0e-600, not 10.0e-601
+        mantissa, whole = mantissa / 10, whole + 1
+    return f"{'-' if value < 0 else ''}{mantissa:.1f}e{whole}"
 
 
 def _not(guard: ir.Guard) -> ir.Guard:
