@@ -549,6 +549,28 @@ def test_a_value_out_of_range_is_shown_with_one_digit_before_the_point(product, 
     assert diagnostic.code == "E0011" and f"(about {about})" in diagnostic.message, diagnostic.message
 
 
+def test_a_chain_of_constants_whose_digits_double_is_refused_at_once():
+    """Each constant squares the one before (`C2 = C1 / 7 + C1 * C1 / 11`): its value stays small, but its
+    exact numerator and denominator double their digits, and forty such lines checked for hours (twenty
+    for 40 s). E0011 stops the chain at the first value of more than 1,000 digits, and the constants
+    that read it say nothing more."""
+    from fuzz import Hang, time_limit
+
+    from rac.compiler import compile_text
+
+    chain = "\n    ".join(["const C0 = 3"] + [f"const C{i} = C{i - 1} / 7 + C{i - 1} * C{i - 1} / 11"
+                                            for i in range(1, 40)])
+    with time_limit(20):
+        try:
+            diagnostics = compile_text(_one_reward_text(chain, "location U { r' == C39 }"), "chain.ra",
+                                       analyse=False).diagnostics
+        except Hang:
+            raise AssertionError("the chain of constants was still being computed after 20 s") from None
+    (diagnostic,) = diagnostics
+    assert diagnostic.code == "E0011" and "more than 1,000 digits" in diagnostic.message, diagnostic.message
+    assert (diagnostic.span.line, diagnostic.span.column) == (8 + 10, 26)  # C10's `C9 * C9`
+
+
 def test_a_rate_beyond_int32_in_an_unreachable_location_is_e0801(tmp_path, capsys):
     """The UPPAAL target reports it (its mirror cannot hold it) instead of failing on it."""
     from rac.cli.main import main

@@ -20,7 +20,7 @@ from rac import ir
 from rac.check.queries import type_word
 from rac.check.symbols import Scope, Unresolvable
 from rac.lang import ast
-from rac.lang.parser import MAX_MAGNITUDE, MIN_MAGNITUDE
+from rac.lang.parser import MAX_EXACT_DIGITS, MAX_MAGNITUDE, MIN_MAGNITUDE
 
 __all__ = ["CONSTANT", "GUARD", "OBJECTIVE", "RATE", "UPDATE", "Bool", "Context", "ExpressionTyper", "Num", "Typed"]
 
@@ -148,8 +148,17 @@ class ExpressionTyper:
 
     def _in_range(self, value: ir.Linear, node: ast.Expr) -> Num:
         """``value`` as a number, or E0011 (and :class:`Unresolvable`) when a constant or coefficient of
-        it lies beyond what a double holds: the targets compute with doubles."""
+        it lies beyond what a double holds (the targets compute with doubles), or needs more than
+        :data:`MAX_EXACT_DIGITS` digits to hold exactly."""
         for number in (value.const, *(coefficient for _, coefficient in value.terms)):
+            if max(abs(number.numerator), number.denominator) >= _EXACT_LIMIT:
+                self.scope.error("E0011", f"this computes a number whose exact value needs more than "
+                                 f"{MAX_EXACT_DIGITS:,} digits (about {_about(number)})", node.span,
+                                 notes=["the checks compute exactly, and each product of constants may double "
+                                        "the digits an exact value needs, while every target computes with "
+                                        "doubles, which hold 17"],
+                                 hints=["round a constant this reads to the digits the model needs"])
+                raise Unresolvable
             size = abs(number)
             if size > MAX_MAGNITUDE or 0 < size < MIN_MAGNITUDE:
                 which = "large" if size > MAX_MAGNITUDE else "small"
@@ -251,6 +260,10 @@ class ExpressionTyper:
         """The value of a constant expression (``what`` names it in messages)."""
         value = self.linear(node, Context(what, inputs=False))
         return value.const
+
+
+#: The bound :data:`MAX_EXACT_DIGITS` puts on a numerator and a denominator.
+_EXACT_LIMIT = 10 ** MAX_EXACT_DIGITS
 
 
 def _about(value: Fraction) -> str:

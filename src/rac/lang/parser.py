@@ -31,6 +31,10 @@ MAX_MAGNITUDE = 1e308
 MIN_MAGNITUDE = 1e-307
 #: ... with at most this many digits (more cannot matter to a double, and cost time to hold exactly).
 MAX_DIGITS = 100
+#: A computed value's numerator and denominator have at most this many digits: each product of constants
+#: may double them (``const G2 = G1 * G1``), so that a chain of twenty such constants held millions of
+#: digits and the check ran for minutes; a double holds 17.
+MAX_EXACT_DIGITS = 1000
 #: The longest name: UPPAAL's parser refuses identifiers of 4,000 characters, and the UPPAAL target
 #: derives names from the user's (a select variable, a mirror) a few characters longer.
 MAX_NAME = 3900
