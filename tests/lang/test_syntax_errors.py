@@ -111,6 +111,22 @@ def test_no_chain_hint_without_a_comparison_before(text: str) -> None:
     assert CHAIN not in diagnostic.hints
 
 
+@pytest.mark.parametrize(("text", "char", "hint"), [
+    ("automaton A { edge * -> L when d \u2264 3 }", "≤", "U+2264 (less-than or equal to) is not `<=`: write `<=`"),
+    ("automaton A { edge L \u2192 M }", "→", "U+2192 (rightwards arrow) is not `->`: write `->`"),
+    ("automaton A { edge L \u2013> M }", "–", "U+2013 (en dash) is not `-`: write `-`"),
+    ("automaton A { horizon\u00a030 }", "\\xa0", "U+00A0 (no-break space) is not an ordinary space"),
+    ("automaton A { horizon \u200b30 }", "\\u200b", "U+200B (zero width space) is invisible: delete it"),
+    ('automaton A { model { scenario \u201cx.xml\u201d } }', "“", 'U+201C (left double quotation mark) is not `"`'),
+])
+def test_a_character_copied_from_a_pdf_or_a_web_page_gets_the_ascii_to_write(text: str, char: str, hint: str) -> None:
+    """A no-break space, `≤`, `→`, a dash or a curly quote that looks like the ASCII the language needs (text
+    copied from the paper, a web page or a word processor) was only "unexpected character"."""
+    diagnostic, _ = diagnose(text)
+    assert (diagnostic.code, diagnostic.message) == ("E0002", f"unexpected character `{char}`")
+    assert any(h.startswith(hint) for h in diagnostic.hints), diagnostic.hints
+
+
 def test_a_non_ascii_letter_in_a_name_gets_the_hint() -> None:
     diagnostic, _ = diagnose("automaton Straße { }")
     assert (diagnostic.code, diagnostic.message) == ("E0002", "unexpected character `ß`")

@@ -8,6 +8,7 @@ a few common slips get a hint. The same translation serves every start rule of t
 from __future__ import annotations
 
 import re
+import unicodedata
 
 from lark import Token
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
@@ -232,6 +233,32 @@ _CHARACTER_HINTS = {
     "|": "logical or is written `||` (or `or`)",
     '"': 'a file name is written in double quotes on one line: `scenario "left_turn.xml"`',
 }
+#: Characters that look like the ASCII a `.ra` file needs, as a copy from a paper, a web page or a word
+#: processor brings them (``≤`` from a PDF, a no-break space from a browser): what to write instead.
+_LOOKALIKES = {
+    **dict.fromkeys("\u00a0\u1680\u2000\u2001\u2002\u2003\u2004\u2005\u2006\u2007\u2008\u2009\u200a"
+                    "\u202f\u205f\u3000", "an ordinary space"),
+    **dict.fromkeys("\u200b\u200c\u200d\u2060\ufeff", "nothing (it is invisible)"),
+    **dict.fromkeys("\u2028\u2029\u0085", "an ordinary line break"),
+    "≤": "`<=`", "≦": "`<=`", "⩽": "`<=`", "≥": "`>=`", "≧": "`>=`", "⩾": "`>=`", "≠": "`!=`",
+    "→": "`->`", "⟶": "`->`", "⇒": "`imply`", "⟹": "`imply`", "∧": "`&&`", "∨": "`||`", "¬": "`!`",
+    "×": "`*`", "·": "`*`", "∙": "`*`", "÷": "`/`", "∕": "`/`",
+    **dict.fromkeys("\u2010\u2011\u2012\u2013\u2014\u2212", "`-`"),
+    **dict.fromkeys("\u2018\u2019\u2032", "`'`"),
+    **dict.fromkeys("\u201c\u201d\u201e\u2033", '`"`'),
+}
+
+
+def _lookalike_hint(char: str) -> str | None:
+    """The hint for a character that looks like ASCII the language has (a no-break space, `≤`), or None."""
+    instead = _LOOKALIKES.get(char)
+    if instead is None:
+        return None
+    return (f"U+{ord(char):04X} ({unicodedata.name(char, 'a Unicode character').lower()}) is not {instead}: "
+            f"write {instead} (such characters come with text copied from a PDF, a web page or a word processor)"
+            if not instead.startswith("nothing") else
+            f"U+{ord(char):04X} ({unicodedata.name(char, 'a Unicode character').lower()}) is invisible: delete it "
+            "(such characters come with text copied from a web page or a word processor)")
 
 
 def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -> Diagnostic:
@@ -255,6 +282,9 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
         char = source.text[start]
         shown = repr(char)[1:-1] if not char.isprintable() or char == " " else char
         hints = [_CHARACTER_HINTS[char]] if char in _CHARACTER_HINTS else []
+        lookalike = _lookalike_hint(char)
+        if lookalike is not None:
+            hints.append(lookalike)
         if not char.isascii() and (char.isalnum() or char == "_"):
             hints.append("names are ASCII identifiers: letters A-Z and a-z, digits and `_`")
         return error("E0002", f"unexpected character `{shown}`", source.span(start, start + 1),
