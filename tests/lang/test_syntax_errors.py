@@ -127,6 +127,30 @@ def test_a_character_copied_from_a_pdf_or_a_web_page_gets_the_ascii_to_write(tex
     assert any(h.startswith(hint) for h in diagnostic.hints), diagnostic.hints
 
 
+IMPLY = "implication is written `imply`: `a imply b` (or `!a || b`)"
+
+
+@pytest.mark.parametrize(("text", "found"), [
+    ("automaton A { query Q: A[] Near => sa < 0 }", "="),
+    ("automaton A { query Q: A[] Near ==> sa < 0 }", ">"),
+    ("automaton A { query Q: A[] Near -> sa < 0 }", ">"),
+    ("automaton A { assume collide -> isClose }", ">"),
+    ("automaton A { edge L -> M when p => q }", "="),
+])
+def test_an_arrow_for_implication_gets_the_hint(text: str, found: str) -> None:
+    """`=>`, `==>` and `->` between conditions (logic's arrows) were only "unexpected `=`" or "unexpected `>`"."""
+    diagnostic, _ = diagnose(text)
+    assert (diagnostic.code, diagnostic.message) == ("E0001", f"unexpected `{found}`")
+    assert IMPLY in diagnostic.hints
+
+
+@pytest.mark.parametrize("text", ["automaton A { edge L -> M when d - > 3 }", "automaton A { edge L -> M when d = 3 }",
+                                  "automaton A { edge L -> M when d >> 3 }"])
+def test_no_implication_hint_without_an_arrow(text: str) -> None:
+    diagnostic, _ = diagnose(text)
+    assert IMPLY not in diagnostic.hints
+
+
 def test_a_non_ascii_letter_in_a_name_gets_the_hint() -> None:
     diagnostic, _ = diagnose("automaton Straße { }")
     assert (diagnostic.code, diagnostic.message) == ("E0002", "unexpected character `ß`")

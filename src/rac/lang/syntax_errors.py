@@ -148,9 +148,14 @@ def _uppaal_query_hint(found: str, before: str) -> str | None:
     return None
 
 
-def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: str = "") -> list[str]:
-    """Hints for the usual slips; ``before`` is the text before the unexpected token, ``found_type`` its terminal."""
+def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: str = "", after: str = "") -> list[str]:
+    """Hints for the usual slips; ``before`` is the text before the unexpected token, ``after`` the text from
+    it on, ``found_type`` its terminal."""
     hints = []
+    # `a => b`, `a ==> b`, `a -> b` (logic's and other languages' arrows; `->` is only an edge's): the lexer
+    # reads `=` then `>`, `==` then `>`, or `-` then `>`
+    if (found == "=" and after.startswith("=>")) or (found == ">" and before.endswith(("-", "=="))):
+        hints.append("implication is written `imply`: `a imply b` (or `!a || b`)")
     words = {_describe_terminal(t) for t in expected}
     previous = before.split()[-1] if before.split() else ""
     if previous in _DECLARATION_FORMS and words & {"`when`", "`ends`"}:
@@ -296,5 +301,6 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
         start = where
         end = exc.token.end_pos or start + len(exc.token.value)
         return error("E0001", f"unexpected {_token_text(exc.token)}", source.span(start, end), notes=notes,
-                     hints=_syntax_hints(str(exc.token.value), expected, source.text[:start], exc.token.type))
+                     hints=_syntax_hints(str(exc.token.value), expected, source.text[:start], exc.token.type,
+                                         source.text[start:start + 2]))
     return error("E0001", "syntax error", _end_of_text(source))
