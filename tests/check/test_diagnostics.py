@@ -443,6 +443,18 @@ def minimal(sample: str = "1", horizon: str = "20", query: str = "") -> str:
     return MINIMAL.replace("SAMPLE", sample).replace("HORIZON", horizon).replace("QUERY", query)
 
 
+@pytest.mark.parametrize(("query", "process"), [
+    ("A[] Near.safe < 0", "Near"), ("A[] Other.Near imply safe <= 0", "Other"), ("E<> Other.Near", "Other"),
+    ("A[] Other.location == 1", "Other"), ("A[] !Other.Near", "Other")])
+def test_an_unknown_process_in_a_query_is_one_error(query: str, process: str) -> None:
+    """`P.x` with a process `P` that is not the automaton is E0101 and nothing more: it was taken for a
+    location (a boolean), so `Near.safe < 0` also said "`<` compares a boolean with a number"."""
+    from rac.compiler import compile_text
+
+    diagnostics = compile_text(minimal(query=f"query Q: {query}"), "minimal.ra", analyse=False).diagnostics
+    assert [(d.code, d.message) for d in diagnostics] == [("E0101", f"unknown process `{process}`")]
+
+
 @settings(max_examples=80, deadline=None, derandomize=True, database=None)
 @given(slot=st.sampled_from(["sample", "horizon", "bound", "runs", "threshold", "simulate", "steps"]), value=EXTREME)
 def test_messages_print_extreme_numbers_short(slot: str, value: str) -> None:

@@ -210,7 +210,8 @@ class Lowering:
         if node.scope != self.s.automaton:
             self.s.error("E0101", f"unknown process `{node.scope}`", node.span,
                          hints=[f"this automaton is `{self.s.automaton}`"])
-        elif node.id == "location":
+            return None, None  # what `P.x` is, nobody knows: no type error on top (`A[] P.r < 0`)
+        if node.id == "location":
             return "num", ie.Ref(ie.RefKind.LOCATION_INDEX, f"{node.scope}.location", "num", span=node.span)
         elif symbol is None or symbol.kind != "location":
             self.s.unknown(node.id, node.span, "location")
