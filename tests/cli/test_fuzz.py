@@ -54,6 +54,7 @@ def test_mutants_of_the_shipped_files_never_fail_internally(seed: int, utap_bina
     assert report.counts["inputs"] == 300
     assert not report.failures, first_failure(report)
     assert report.counts["check exit 0"] > 0  # some mutants still check, and went through fmt and both targets
+    assert report.counts["json checked"] >= 50  # and --format json's document checked against the text's verdict
 
 
 def test_generated_programs_check_compile_and_satisfy_uppaal(utap_binary: Path | None) -> None:
@@ -103,6 +104,23 @@ def test_a_model_uppaal_rejects_is_a_finding(tmp_path: Path, utap_binary: Path |
                                                            1), encoding="utf-8")
     complaint = fuzz.utap_problem(utap_binary, tmp_path)
     assert complaint is not None and "undeclared" in complaint
+
+
+def test_a_json_document_unlike_the_text_is_a_finding(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The --format json oracle is not vacuous: a document that is no JSON, a diagnostic without a code or
+    with a span outside the file, and a verdict unlike the text format's are each reported."""
+    source = tmp_path / "fuzz.ra"
+    text = (ROOT / "examples" / "naive_driving.ra").read_text(encoding="utf-8")
+    source.write_text(text, encoding="utf-8")
+    assert fuzz.json_problem(source, text, 1) is None  # E0402: an error, exit 1, in both formats
+    assert "exits 0, with --format json 1" in str(fuzz.json_problem(source, text, 0))
+    honest = fuzz.run_apart(["check", "--format", "json", str(source)])
+    for broken, said in [(honest[1][:-20], "is not JSON"),
+                         (honest[1].replace('"E0402"', '"oops"'), "without a code"),
+                         (honest[1].replace('"line": 28', '"line": 2800', 1), "has span"),
+                         (honest[1].replace('"severity": "error"', '"severity": "warning"', 1), "severity")]:
+        monkeypatch.setattr(fuzz, "run_apart", lambda argv, out=broken: (1, out, ""))
+        assert said in str(fuzz.json_problem(source, text, 1))
 
 
 def test_fmt_changing_the_meaning_or_losing_a_comment_is_a_finding(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -55,6 +55,7 @@ import argparse
 import contextlib
 import importlib.util
 import io
+import json
 import math
 import os
 import random
@@ -92,12 +93,15 @@ TOKENS = ("1e5000", "1e-5000", "1e308", "1e-307", "0e10000000", "9" * 120, "1e40
           "action jerk in [-20000000, 20000000] step 0.01", "step 1e-9", "float", "ValueError", "class", "None")
 #: Seconds a command may take before it counts as a hang.
 TIME_LIMIT = 20
-SCENARIOS = (ROOT / "examples" / "left_turn" / "left_turn.xml", ROOT / "examples" / "paper" / "left_turn_15s.xml")
+SCENARIOS = (ROOT / "examples" / "left_turn" / "left_turn.xml", ROOT / "examples" / "paper" / "left_turn_15s.xml",
+             ROOT / "examples" / "stdlib" / "highway.xml", ROOT / "examples" / "stdlib" / "overtaking.xml")
 #: Where the inputs come from (``--source``): mutants, generated programs, or the two in turn.
 SOURCES = ("both", "mutate", "generate")
 #: The OS-conditions phase runs on every this many checked inputs, concurrent writers on every
 #: this many (each costs a few subprocesses).
 OS_EVERY, WRITERS_EVERY = 20, 50
+#: Every this many inputs, ``rac check --format json`` too (:func:`json_problem`).
+JSON_EVERY = 3
 #: The commands that write to stdout, run with stdout full and closed.
 STDOUT_COMMANDS = (["check"], ["fmt", "--stdout"], ["compile", "--target", "python"])
 
@@ -157,10 +161,56 @@ def time_limit(seconds: int) -> Iterator[None]:
 
 def run(argv: list[str]) -> tuple[int, str]:
     """``rac ARGV`` in process: its exit status and its output (stdout and stderr)."""
+    status, out, err = run_apart(argv)
+    return status, out + err
+
+
+def run_apart(argv: list[str]) -> tuple[int, str, str]:
+    """``rac ARGV`` in process: its exit status, its stdout and its stderr."""
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), time_limit(TIME_LIMIT):
         status = main(argv)
-    return status, out.getvalue() + err.getvalue()
+    return status, out.getvalue(), err.getvalue()
+
+
+#: A diagnostic's code: E (error) or W (warning) and four digits.
+CODE = re.compile(r"[EW]\d{4}")
+
+
+def json_problem(source: Path, text: str, status: int) -> str | None:
+    """What is wrong with ``rac check --format json``'s document for ``source`` (whose text is ``text``
+    and whose text-format check exited with ``status``), or None: it must be one JSON document whose
+    diagnostics each have a code, a severity that agrees with the code's letter, a message and a span
+    inside the file, and the same exit status, with an error among them exactly when the status is 1."""
+    code, out, _ = run_apart(["check", "--format", "json", str(source)])
+    if code != status:
+        return f"rac check exits {status}, with --format json {code}"
+    try:
+        document = json.loads(out)
+    except ValueError as exc:
+        return f"--format json is not JSON ({exc}): {out[:300]!r}"
+    lines = text.splitlines() or [""]
+    errors = 0
+    for entry in document:
+        for diagnostic in entry.get("diagnostics", ()):
+            label = f"{diagnostic.get('code')}: {str(diagnostic.get('message'))[:120]}"
+            if not isinstance(diagnostic.get("code"), str) or not CODE.fullmatch(diagnostic["code"]):
+                return f"a diagnostic without a code: {label}"
+            severity = {"E": "error", "W": "warning"}[diagnostic["code"][0]]
+            if diagnostic.get("severity") != severity:
+                return f"{label} has severity {diagnostic.get('severity')!r}"
+            if not isinstance(diagnostic.get("message"), str) or not diagnostic["message"].strip():
+                return f"{label} has no message"
+            errors += severity == "error"
+            span = diagnostic.get("span")
+            if span is None or Path(span["file"]).name != source.name:
+                continue  # a diagnostic of the file as a whole, or of another file (a scenario)
+            start, end = (span["line"], span["column"]), (span["end_line"], span["end_column"])
+            if not 1 <= span["line"] <= len(lines) + 1 or start > end or span["column"] < 1:
+                return f"{label} has span {span} in a file of {len(lines)} lines"
+    if (errors > 0) != (status == 1):
+        return f"rac check exits {status} with {errors} error(s) in its JSON document"
+    return None
 
 
 @dataclass
@@ -319,6 +369,11 @@ def fuzz_one(text: str, folder: Path, report: Report, utap_binary: Path | None =
             return None
         checked = status
         report.counts[f"check exit {status}"] += 1
+        if status in (0, 1) and report.counts["inputs"] % JSON_EVERY == 0:
+            problem = json_problem(source, text, status)
+            report.counts["json checked"] += 1
+            if problem is not None:
+                report.fail("json", text, problem)
         if status != 0:
             return checked
         problem = fmt_problem(text)
