@@ -11,7 +11,14 @@ from PIL import Image
 
 from rac.cli.main import main
 from rac.compiler import compile_file
-from rac.studies.experiment import COMBINATIONS, ExperimentError, render_markdown, run_experiment, summary
+from rac.studies.experiment import (
+    COMBINATIONS,
+    ExperimentError,
+    render_markdown,
+    results_json,
+    run_experiment,
+    summary,
+)
 
 #: Episodes reach the goal region of `goal_ahead` by speeding up; the learning query's goal.
 LEARN = {"safe": "strategy safe = control: A[] !collide() && !offroad()",
@@ -432,3 +439,12 @@ def test_a_full_disk_at_the_plots_still_shows_what_was_learned(tmp_path: Path, c
         assert "| RF |" in printed
         assert f"error[E0009]: cannot write `{out / 'returns.png'}`: No space left on device" in err
     assert "the results above were not all written" in err
+
+
+def test_results_json_is_strict_json_whatever_the_file_name() -> None:
+    """Regression: results.json (and `rac experiment --format json`) wrote a file name's undecodable byte
+    as the lone surrogate `\\udce9`, which strict JSON readers (jq, serde) refuse; every string is now shown
+    as the other commands' JSON shows it (`\\xe9`)."""
+    text = results_json({"file": "caf\udce9.ra", "records": [], "reward_function": "10 * !isClose"})
+    assert "udce9" not in text and json.loads(text)["file"] == "caf\\xe9.ra"
+    text.encode("utf-8")  # strict UTF-8: no lone surrogate

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import dataclasses
 import errno
-import json
 import math
 import os
 import time
@@ -51,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, error
+from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, error, json_text
 from rac.core.files import atomic_write
 from rac.engine.budget import BudgetExceeded, check_estimate, evaluation_bytes, learning_bytes, out_of_memory
 from rac.ir import query as iq
@@ -768,7 +767,9 @@ def results_json(report: Report) -> str:
     data["runs"] = [as_json(r) for r in report["records"]]
     data["ablation"] = [dict(variant, name=name, records=[as_json(r) for r in variant["records"]])
                         for name, variant in zip(ABLATION, report.get("ablation", []))]
-    return json.dumps(data, indent=1) + "\n"
+    # every string as rac shows it: a file name's undecodable byte is no lone surrogate, which strict JSON
+    # readers refuse
+    return json_text(data, indent=1) + "\n"
 
 
 def _write_text(path: Path, text: str) -> None:
