@@ -361,6 +361,18 @@ def reads_truth(expr: Expr) -> bool:
     return any(r.is_model and r.model.holding is Holding.TRUTH for r in refs(expr))
 
 
+def state_independent(expr: Expr) -> bool:
+    """Whether ``expr`` has one value in every state of the model: it reads constants, the model's settings,
+    math functions of them and ``deadlock`` only (no state, no time, no model function, no ``prev``)."""
+    for node in walk(expr):
+        if isinstance(node, Prev) or (isinstance(node, Call) and node.function.kind != "math"):
+            return False
+        if isinstance(node, Ref) and not (node.kind is RefKind.DEADLOCK
+                                          or (node.is_model and node.model.kind == "setting")):
+            return False
+    return True
+
+
 def uses_prev(expr: Expr) -> bool:
     return any(isinstance(node, Prev) for node in walk(expr))
 

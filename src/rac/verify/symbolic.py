@@ -15,7 +15,7 @@ import numpy as np
 from rac import ir
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded
-from rac.engine.evaluate import EvaluationError
+from rac.engine.evaluate import EvaluationError, Frame
 from rac.engine.graph import ExploredGraph
 from rac.engine.lookahead import Lookahead, LookaheadSettings
 from rac.engine.ondemand import on_demand
@@ -57,6 +57,8 @@ class SymbolicAnswerer:
         (:class:`~rac.verify.reach.Reacher`: a cheap search, then a layered one that stops at the first
         witness), and only its absence needs the complete graph. ``E<> p`` is tried on the pruned model
         first (unsafe states end a run there): a run found there is a run of the model."""
+        if query.under is None and ie.state_independent(query.expr):
+            return self._constant(query, base)
         if ie.reads_automaton(query.expr) or (self.context.program.automaton.ending is not None
                                                and query.under is None):
             # `episode ends when` ends runs early, as in the emitted model: only the product ends them
@@ -68,6 +70,18 @@ class SymbolicAnswerer:
         if query.quantifier == "A[]":
             return self._invariant(query.expr, base)
         return self._stays(query, base)
+
+    def _constant(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
+        """A formula that reads no state (:func:`rac.ir.expr.state_independent`: ``A[] !deadlock``, ``A[] true``)
+        has one value in every state, and every state lies on a run to the horizon: ``A[] p``, ``E<> p``,
+        ``E[] p`` and ``A<> p`` each hold exactly when ``p`` does, decided without exploring (a search for a
+        state where ``A[] true`` fails has none to find, and only the complete graph would prove that)."""
+        ctx = self.context
+        start = np.asarray(NativeModel(ctx.data).initial_state(), dtype=np.int32)[None, :]
+        value = ctx.evaluator.evaluate_bool(query.expr, Frame(k=np.zeros(1, dtype=np.int64), ego=start))
+        holds = bool(np.all(value))
+        return dataclasses.replace(base, status=SATISFIED if holds else NOT_SATISFIED,
+                                   horizon_samples=ctx.horizon_samples, method="constant")
 
     def _reach(self, expr: ie.Expr, base: QueryResult) -> QueryResult:
         """``E<> p``: a safe run reaching ``p`` (the pruned model), else any run (the whole model)."""
