@@ -515,24 +515,31 @@ def test_a_trace_shows_the_values_the_model_holds() -> None:
     assert "t=0.5s x=2140.123456 y=1.75 v=8.1562 acc=0 head=0 jerk=0 turn=0 B sa=-214748.3648" in text
 
 
+def least_limit(result: CompileResult, *, prune: bool) -> int:
+    """The least --max-memory the model's graph (pruned or not) fits alone (bisection: the budget checks
+    estimates, not measures)."""
+
+    def fits(limit: int) -> bool:
+        try:
+            Context(result, VerifyOptions(seed=1, max_bytes=limit)).graph(prune)
+        except UnknownVerdict:
+            return False
+        return True
+
+    low, high = 1, 2**30
+    while low < high:
+        middle = (low + high) // 2
+        low, high = (low, middle) if fits(middle) else (middle + 1, high)
+    return low
+
+
 def test_a_graph_kept_for_later_queries_counts_against_the_memory_limit(tmp_path: Path) -> None:
     """Each exploration was held to --max-memory alone while the graphs of earlier queries stayed in memory
     for later ones, so two graphs within the limit each could together fill the machine: the unpruned
     graph that fits the limit alone is refused beside the pruned one, saying what holds the rest."""
     path = write_engine_file(tmp_path, "avoidable_obstacle")
     result = compile_file(path)
-
-    def fits_alone(limit: int) -> bool:
-        try:
-            Context(result, VerifyOptions(seed=1, max_bytes=limit)).graph(False)
-        except UnknownVerdict:
-            return False
-        return True
-
-    low, high = 1, 2**30  # the least limit the unpruned graph fits alone (bisection: estimates, not measures)
-    while low < high:
-        middle = (low + high) // 2
-        low, high = (low, middle) if fits_alone(middle) else (middle + 1, high)
+    low = least_limit(result, prune=False)  # the unpruned graph fits it alone
     ctx = Context(result, VerifyOptions(seed=1, max_bytes=low))
     kept = ctx.graph(True)  # the pruned graph, smaller, fits
     assert 0 < kept.nbytes < low and ctx.memory_left() == low - kept.nbytes
@@ -547,18 +554,7 @@ def test_simulated_runs_fit_beside_the_kept_graphs(tmp_path: Path) -> None:
     --max-memory alone while an earlier query's graph stayed in memory: runs that fit the limit alone are
     now refused beside the graph, and the refusal says what holds the rest."""
     result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle"))
-
-    def fits(limit: int) -> bool:
-        try:
-            Context(result, VerifyOptions(seed=1, max_bytes=limit)).graph(True)
-        except UnknownVerdict:
-            return False
-        return True
-
-    low, high = 1, 2**30  # the least limit the pruned graph fits (bisection: estimates, not measures)
-    while low < high:
-        middle = (low + high) // 2
-        low, high = (low, middle) if fits(middle) else (middle + 1, high)
+    low = least_limit(result, prune=True)
     kept = Context(result, VerifyOptions(seed=1, max_bytes=low)).graph(True).nbytes
     samples = 1
     while simulation_bytes(1, samples, 1) < low:  # one run as large as the graph's whole limit
