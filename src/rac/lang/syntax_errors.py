@@ -259,11 +259,12 @@ def _lookalike_hint(char: str) -> str | None:
     instead = _LOOKALIKES.get(char)
     if instead is None:
         return None
-    return (f"U+{ord(char):04X} ({unicodedata.name(char, 'a Unicode character').lower()}) is not {instead}: "
-            f"write {instead} (such characters come with text copied from a PDF, a web page or a word processor)"
-            if not instead.startswith("nothing") else
-            f"U+{ord(char):04X} ({unicodedata.name(char, 'a Unicode character').lower()}) is invisible: delete it "
-            "(such characters come with text copied from a web page or a word processor)")
+    which = f"U+{ord(char):04X} ({unicodedata.name(char, 'a Unicode character').lower()})"
+    if instead.startswith("nothing"):
+        return (f"{which} is invisible: delete it (such characters come with text copied from a web page or a word "
+                "processor)")
+    return (f"{which} is not {instead}: write {instead} (such characters come with text copied from a PDF, a web "
+            "page or a word processor)")
 
 
 def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -> Diagnostic:
