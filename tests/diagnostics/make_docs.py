@@ -307,6 +307,29 @@ def _nothing(folder: Path) -> None:
     """The file is missing on purpose."""
 
 
+#: P2 holds for the plain return (at worst 10*(3-10) + 3 = -67 when unsafe), not for the return
+#: discounted by 0.9 per sample: the safe samples' gains come early, the penalty late.
+DISCOUNTED = """\
+// Keep a distance: safety first, then progress
+automaton Keep {
+    input isClose : bool   // another car within the safety distance
+
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+
+    sample every 0.1
+    horizon 3
+
+    initial location Normal { sa' == 1;  pr' == 1 }
+    location Close          { sa' == -1; pr' == 0 }
+
+    edge * -> Close  when isClose  do sa = sa - 10
+    edge * -> Normal when !isClose
+}
+"""
+
+
 GENERATED: tuple[Case, ...] = (
     Case("E0004_latin1_comment", LATIN1,
          "The file below, saved in Latin-1 instead of UTF-8 (`ä` is the single byte 0xE4):",
@@ -343,6 +366,11 @@ GENERATED: tuple[Case, ...] = (
          "`E0016_scenario_too_large.ra` is the automaton of the E0712 example next to its `left_turn.xml` (the "
          "scenario of examples/left_turn), checked with a memory budget of 1 MB:",
          _scene_file("E0016_scenario_too_large"), ("check", "--max-memory", "1M", "{file}")),
+    Case("E0410_discounted_compensation", DISCOUNTED,
+         "`E0410_discounted_compensation.ra`, whose priority order holds for the plain return, checked for a "
+         "learner that discounts by 0.9 per step:",
+         _write("E0410_discounted_compensation.ra", DISCOUNTED.encode()),
+         ("check", "--discount", "0.9", "{file}")),
     Case("E0801_rate_not_representable", None,
          "`E0801_rate_not_representable.ra` is the minimal automaton of the E0004 example, with the "
          "rate `sa' == 0.00001` in `Normal`:",

@@ -123,6 +123,14 @@ def test_reward_expression(tiny: CompileResult) -> None:
     assert reward == pytest.approx(2 * (10 + 5))
 
 
+def test_the_proofs_subject_is_the_automaton_over_a_decision(tiny: CompileResult) -> None:
+    # RacCallback checks P2 of the discounted return on it: one step spans a decision period's samples,
+    # and a reward expression has no proof to check
+    automaton, samples = ScenarioEnv(tiny).proof_subject
+    assert automaton is tiny.automaton and samples == ScenarioEnv(tiny).episodes.decide_every > 1
+    assert ScenarioEnv(tiny, reward="10 * !near + v").proof_subject is None
+
+
 def test_seed_only_seeds_np_random(tiny: CompileResult) -> None:
     env = ScenarioEnv(tiny)
     first, _ = env.reset(seed=1)

@@ -103,6 +103,39 @@ def test_the_callback_warns_of_a_reward_normaliser() -> None:
             assert said == []
 
 
+def test_the_callback_warns_when_the_discount_breaks_the_priority_order() -> None:
+    # rac check proves FOLLOW's priority order of the plain return; PPO maximises the return discounted
+    # by its gamma, for which the order may fail (gains early outweighing a penalty late). At gamma 0.9
+    # it fails for FOLLOW (rac check --discount 0.9), at 0.99 it holds: the callback says the one, not the other.
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    import warnings
+
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from rac.learning.sb3 import RacCallback, proof_subjects
+
+    def make() -> RewardAutomatonWrapper:
+        return RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)
+
+    envs = DummyVecEnv([make, make])
+    assert [(a.name, n) for a, n in proof_subjects(envs)] == [("Follow", 1)]  # two copies of one automaton
+    for gamma in (0.9, 0.99):
+        model = PPO("MlpPolicy", envs, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu", gamma=gamma)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            callback = RacCallback()
+            model.learn(32, callback=callback)
+            model.learn(32, callback=callback, reset_num_timesteps=False)  # said once
+        said = [str(w.message) for w in caught if "discounted" in str(w.message)]
+        if gamma == 0.9:
+            assert len(said) == 1, said
+            assert "gamma=0.9" in said[0] and "`Follow`" in said[0] and "rac check --discount 0.9" in said[0]
+            assert "P2 no compensation fails for the discounted return" in said[0]
+        else:
+            assert said == []
+
+
 def test_the_callback_warns_of_gymnasiums_reward_wrappers_outside_the_automaton() -> None:
     # gymnasium's NormalizeReward (the CleanRL way of VecNormalize's norm_reward), ClipReward and
     # TransformReward put around the automaton's reward change what the learner learns from, as

@@ -66,6 +66,13 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--max-memory", type=size_argument, default=None, metavar="SIZE",
                        help="refuse, before loading it, a scenario whose load would need more memory than this, "
                             "e.g. 4G " + MEMORY_DEFAULT)
+    check.add_argument("--discount", type=discount_argument, default=None, metavar="GAMMA",
+                       help="also prove or refute the priority order (P2) for the return discounted by GAMMA "
+                            "per learner step, what stable-baselines3 maximises (its gamma, 0.99 by default); "
+                            "a number in (0, 1], read exactly")
+    check.add_argument("--samples-per-step", type=positive_int, default=None, metavar="N",
+                       help="with --discount: the samples one learner step spans (1, as RewardAutomatonWrapper "
+                            "steps; a ScenarioEnv step is a decision period of several)")
 
     compile_ = commands.add_parser("compile", help="generate code for a target")
     compile_.add_argument("file", type=Path, metavar="FILE")
@@ -332,6 +339,28 @@ def horizons_argument(text: str) -> tuple[Fraction, ...]:
     return tuple(values)
 
 
+
+
+def discount_argument(text: str) -> Fraction:
+    """An argparse ``type`` for ``--discount``: an exact number in (0, 1] (``0.99`` is 99/100)."""
+    try:
+        value = Fraction(text.strip())
+    except (ValueError, ZeroDivisionError):
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0 < value <= 1:
+        raise argparse.ArgumentTypeError(f"a discount lies in (0, 1]: {text!r} does not")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """An argparse ``type`` for a count of at least 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1: {text!r}")
+    return value
 
 
 def _checked(check, kind: str):

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -24,6 +25,7 @@ from rac.cli.common import (
     unreadable,
     unusable_file,
     unwritable,
+    usage_error,
     write_all_atomically,
     write_atomically,
 )
@@ -68,14 +70,34 @@ def check_command(args: argparse.Namespace) -> int:
         return _check_files(args)
 
 
+def _discounted(result: CompileResult, args: argparse.Namespace) -> CompileResult:
+    """With ``--discount``: ``result`` with P2 of the discounted return checked too (on a file without
+    errors; :func:`rac.check.analysis.discount.check_discounted`)."""
+    if args.discount is None or not result.ok or result.automaton is None:
+        return result
+    from rac.check.analysis.discount import Discount, check_discounted  # numpy: only when asked
+
+    facts = list(result.facts)
+    found = check_discounted(result.automaton, Discount(args.discount, args.samples_per_step or 1), facts)
+    return dataclasses.replace(result, diagnostics=(*result.diagnostics, *found), facts=tuple(facts))
+
+
 def _check_files(args: argparse.Namespace) -> int:
     status = EXIT_OK
     undecided = False  # a check stopped at its limit: exit 4 unless something worse happened
     report: list[dict[str, object]] = []
     max_bytes = load_budget(args)
+    if args.samples_per_step is not None and args.discount is None:
+        print_diagnostics([usage_error("--samples-per-step says how many samples a discounted step spans; it "
+                                       "needs --discount", hints=["add --discount GAMMA (0.99: stable-baselines3's "
+                                                                  "default gamma)"])],
+                          structured=args.format == "json")
+        return EXIT_USAGE
     for path in args.files:
         try:
             result, failure = read_and_check(path, max_bytes)
+            if result is not None:
+                result = _discounted(result, args)
         except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the files checked before stay in the one document
             if args.format == "json":
                 report.append({"file": str(path), "ok": False, "diagnostics": [], "proved": [], "facts": [],

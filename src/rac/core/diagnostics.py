@@ -94,8 +94,9 @@ class Fact:
 
 #: The checks that state facts: determinism, the priority order's P1 and P2 (``priority``: none declared),
 #: the int32 range of the rewards, the parameters' synthesis, the scenario's load, and issue 25's
-#: incentives: the risk tolerance p* and the three loophole checks (``rac.ir.REQUIREMENT_CHECKS``).
-FACT_CHECKS = ("determinism", "priority", "P1", "P2", "range", "synthesis", "scenario", "risk",
+#: incentives: the risk tolerance p* and the three loophole checks (``rac.ir.REQUIREMENT_CHECKS``);
+#: ``P2-discounted``: P2 of the discounted return (``rac check --discount``).
+FACT_CHECKS = ("determinism", "priority", "P1", "P2", "P2-discounted", "range", "synthesis", "scenario", "risk",
                "ending_early_never_pays", "goal_earlier_never_pays_less", "stalling_never_pays")
 
 

@@ -8,6 +8,7 @@ stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this mo
 from __future__ import annotations
 
 import warnings
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -23,14 +24,15 @@ try:
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
+from rac import ir
 from rac.learning.location_observation import LocationObservation
 from rac.learning.replay import CounterfactualRows
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
 from rac.learning.wrappers import NO_RELABELLING, RewardAutomatonWrapper
 
-__all__ = ["CounterfactualReplayBuffer", "RacCallback", "frame_stacker", "reward_changers", "reward_normaliser",
-           "text_table_clashes"]
+__all__ = ["CounterfactualReplayBuffer", "RacCallback", "discount_warnings", "frame_stacker", "proof_subjects",
+           "reward_changers", "reward_normaliser", "text_table_clashes"]
 
 #: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor.
 REWARD_CHANGERS = (NormalizeReward, ClipReward, TransformReward)
@@ -48,9 +50,12 @@ class RacCallback(BaseCallback):
     ``ClipReward`` or ``TransformReward`` around the automaton's reward (:func:`reward_changers`): the learner's
     reward is then no longer the automaton's; and when a :class:`CounterfactualReplayBuffer` is filled under
     ``VecFrameStack`` or gymnasium's ``FrameStackObservation`` outside ``LocationObservation``
-    (:func:`frame_stacker`): its rows are then inexact. Refuses (``NotImplementedError``, at the start of ``learn()``)
-    stable-baselines3's ``HerReplayBuffer`` on environments in ``RewardAutomatonWrapper``, whose
-    ``compute_reward`` is refused: the buffer would first ask for it after ``learning_starts`` steps.
+    (:func:`frame_stacker`): its rows are then inexact; and when the algorithm's ``gamma`` is below 1 and
+    the priority order fails (or cannot be checked) for the return discounted by it
+    (:func:`discount_warnings`: rac check's proofs are of the plain return). Refuses (``NotImplementedError``,
+    at the start of ``learn()``) stable-baselines3's ``HerReplayBuffer`` on environments in
+    ``RewardAutomatonWrapper``, whose ``compute_reward`` is refused: the buffer would first ask for it after
+    ``learning_starts`` steps.
 
     Example::
 
@@ -67,6 +72,7 @@ class RacCallback(BaseCallback):
         self._warned = False  # the reward normaliser's warning, said once
         self._warned_changers = False  # the warning of gymnasium's reward wrappers, said once
         self._warned_unseen = False  # the warning that no automaton was seen, said once
+        self._warned_discount = False  # the discounted P2 check, made and said once
         self._warned_clashes: set[str] = set()  # keys left out of the text table, each said once
 
     def _init_callback(self) -> None:
@@ -99,6 +105,11 @@ class RacCallback(BaseCallback):
                 "of rac check (no penalty compensated by lower objectives' gains) do not cover what it learns from; "
                 "scale the automaton's reward with scale='proven' (every reward in [-1, 1], the proofs intact) "
                 "instead", UserWarning, stacklevel=2)
+        gamma = getattr(self.model, "gamma", None)
+        if not self._warned_discount and isinstance(gamma, (int, float)) and 0 < gamma < 1:
+            self._warned_discount = True  # learn() called again: said once
+            for message in discount_warnings(self.training_env, gamma, type(self.model).__name__):
+                warnings.warn(message, UserWarning, stacklevel=2)
         buffer = getattr(self.model, "replay_buffer", None)
         stacking = frame_stacker(self.training_env)
         if isinstance(buffer, CounterfactualReplayBuffer) and stacking is not None:
@@ -244,6 +255,44 @@ def frame_stacker(venv: Any) -> str | None:
                 return "FrameStackObservation"
             env = getattr(env, "env", None)
     return None
+
+
+def proof_subjects(venv: Any) -> list[tuple[ir.Automaton, int]]:
+    """The automata whose rewards the environments of stable-baselines3's vector environment ``venv``
+    hand out, each with the samples one step spans (``proof_subject`` of
+    :class:`~rac.learning.wrappers.RewardAutomatonWrapper` and
+    :class:`~rac.learning.scenario_env.ScenarioEnv`), each once; empty when none is known."""
+    try:
+        found = venv.get_attr("proof_subject")
+    except (AttributeError, TypeError):  # an environment without rac's wrapper, or no VecEnv of SB3's
+        return []
+    subjects: list[tuple[ir.Automaton, int]] = []
+    for subject in found:
+        if subject is not None and not any(subject[1] == n and (subject[0] is a or subject[0] == a)
+                                           for a, n in subjects):
+            subjects.append(subject)
+    return subjects
+
+
+def discount_warnings(venv: Any, gamma: float, algorithm: str = "the learner") -> list[str]:
+    """What :class:`RacCallback` warns of, once, when its algorithm discounts (``gamma < 1``): for each
+    automaton of :func:`proof_subjects`, P2 of the return discounted by ``gamma`` per step checked
+    (:func:`rac.check.analysis.discount.check_discounted`), and where it fails or is not checked, why."""
+    from rac.check.analysis.discount import Discount, check_discounted  # numpy and the analyses: only when asked
+
+    exact = Fraction(str(gamma))  # 0.99 as written: 99/100
+    messages = []
+    for automaton, samples in proof_subjects(venv):
+        for found in check_discounted(automaton, Discount(exact, samples)):
+            option = f" --samples-per-step {samples}" if samples > 1 else ""
+            what = ("fails" if found.is_error else "is not checked")
+            hint = f"; {found.hints[0]}" if found.hints else ""
+            messages.append(
+                f"RacCallback: {algorithm} maximises the return discounted by gamma={gamma:g} per step, and the "
+                f"priority order of `{automaton.name}` {what} for that return: {found.message}; rac check proves "
+                f"the order of the plain return only; `rac check --discount {gamma:g}{option} FILE` shows the "
+                f"run{hint}")
+    return messages
 
 
 def _relabels_with_automaton(venv: Any) -> bool:

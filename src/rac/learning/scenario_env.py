@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Literal, SupportsFloat
 import gymnasium
 import numpy as np
 
+from rac import ir
 from rac.compiler import CompileResult, compile_file, compile_text
 from rac.core.diagnostics import CheckError, RacValueError
 from rac.core.numbers import samples_of, seconds_at
@@ -439,6 +440,16 @@ class ScenarioEnv(gymnasium.Env):
         if self._decision is None:
             self._decision = self._step_shield.decide(self.episodes.state_keys()[0], crashed=self._crashed)
         return self._decision
+
+    @property
+    def proof_subject(self) -> tuple[ir.Automaton, int] | None:
+        """What ``rac check``'s priority proofs of this environment's reward are about: the automaton and
+        the samples one step spans (a decision period), which :class:`rac.learning.sb3.RacCallback` checks
+        P2 of the discounted return on (:mod:`rac.check.analysis.discount`); None for a reward expression,
+        which no proof covers."""
+        if self._reward != "automaton":
+            return None
+        return self.episodes.automaton, self.episodes.decide_every
 
     @property
     def dt(self) -> float:

@@ -541,6 +541,14 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self._outside: int | None = None  # the limit of a TimeLimit outside, found at a reset it called
         self._last_inputs: dict[str, Any] | None = None  # the inputs the next step's rates read (none at a reset)
 
+    @property
+    def proof_subject(self) -> tuple[ir.Automaton, int] | None:
+        """What ``rac check``'s priority proofs of this wrapper's reward are about: the automaton and the
+        samples one step spans (1), which :class:`rac.learning.sb3.RacCallback` checks P2 of the
+        discounted return on (:mod:`rac.check.analysis.discount`); None for an automaton without its
+        checked form (an instance of a generated class)."""
+        return None if self._program is None else (self._program, 1)
+
     def _snapshot(self) -> dict[str, Any]:
         ra = self.automaton
         return {"location": ra.location, "rewards": dict(ra.rewards), "objective": ra.objective, "scale": self.scale}

@@ -279,11 +279,11 @@ def check_priorities(automaton: ir.Automaton, facts: list[Fact] | None = None,
             places = ", ".join(f"`{n}`" for n, w in zip(automaton.location_names, watched) if w)
             what = "the objective" if level == 0 else f"the weighted sum from `{reward}` down"
             if worst is None:
-                facts.append(Fact("P2", f"P2 holds for `{reward}`: no run of {_num(automaton.horizon)} s reaches "
-                                  f"a location that penalises it ({places})", {"reward": reward}))
+                facts.append(Fact("P2", f"P2 holds for `{reward}`: no run of {show_number(automaton.horizon)} s "
+                                  f"reaches a location that penalises it ({places})", {"reward": reward}))
             else:
                 facts.append(Fact("P2", f"P2 holds for `{reward}` (penalised in {places}): {what} stays "
-                                  f"<= {_num(worst.value)} over every run of {_num(automaton.horizon)} s",
+                                  f"<= {show_number(worst.value)} over every run of {show_number(automaton.horizon)} s",
                                   {"reward": reward, "bound": str(worst.value), "level": level}))
             continue
         found = _p2_error(automaton, space, outs, worst, level, weights, constant)
@@ -331,20 +331,21 @@ def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, le
     weight = automaton.objective.coefficient(reward)
     span = automaton.spans.get("decl:priority")
     run = describe_run(automaton, space, worst)
-    listing = ", ".join(f"{r} = {_num(v)}" for r, v in zip(automaton.rewards, values))
+    listing = ", ".join(f"{r} = {show_number(v)}" for r, v in zip(automaton.rewards, values))
     total = sum((w * v for w, v in zip(weights, values)), constant)
-    notes = [Note("counterexample (" + f"sample every {_num(automaton.period)} s, horizon "
-                  f"{_num(automaton.horizon)} s):\n" + "\n".join(run)),
-             Note(f"at the violating instant ({where}): {listing}; {scope} = {_num(total)} > 0")]
+    notes = [Note("counterexample (" + f"sample every {show_number(automaton.period)} s, horizon "
+                  f"{show_number(automaton.horizon)} s):\n" + "\n".join(run)),
+             Note(f"at the violating instant ({where}): {listing}; {scope} = {show_number(total)} > 0")]
     hints = []
     if weight > 0:
-        hints.append(f"penalise `{reward}` by at least {_num(worst.value / weight)} more "
-                     f"({_num(worst.value)} / weight {_num(weight)}), or shrink what lower objectives can gain")
+        hints.append(f"penalise `{reward}` by at least {show_number(worst.value / weight)} more "
+                     f"({show_number(worst.value)} / weight {show_number(weight)}), or shrink what lower objectives "
+                     "can gain")
     strict = "strict " if automaton.strict else ""
     return error(
         "E0402",
         f"P2 no compensation fails: while `{reward}` is penalised, {scope} {_reaches(space, worst)} "
-        f"{_num(worst.value)}",
+        f"{show_number(worst.value)}",
         span,
         notes=notes,
         hints=hints,
@@ -364,7 +365,7 @@ class _When:
         self.time, self.what = time, what
 
     def __str__(self) -> str:
-        return f"t = {_num(self.time)} s, {self.what}"
+        return f"t = {show_number(self.time)} s, {self.what}"
 
 
 def trace(automaton: ir.Automaton, space: InputSpace, worst: Worst, inside: bool = False):
@@ -540,8 +541,8 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
         source, _, label = key
         no_edge = steps[-1].outcome.edge is None
         first, last = steps[0].sample, steps[-1].sample
-        when = (f"samples {first}-{last} (t = {_num(first * period)}..{_num(last * period)} s)"
-                if first != last else f"sample {first} (t = {_num(first * period)} s)")
+        when = (f"samples {first}-{last} (t = {show_number(first * period)}..{show_number(last * period)} s)"
+                if first != last else f"sample {first} (t = {show_number(first * period)} s)")
         o = steps[-1].outcome
         if no_edge:
             what = f"stays in `{names[source]}`"
@@ -561,7 +562,7 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
         read: set[str] = set()
         for clause in automaton.end_clauses:
             read |= guard_inputs(clause.guard)
-        when = _num(worst.steps[-1].sample * period) if worst.steps else "0"
+        when = show_number(worst.steps[-1].sample * period) if worst.steps else "0"
         lines.append(f"  {ending} at t = {when} s: `at end` ({clauses or 'no clause enabled'}); "
                      f"inputs {space.describe(end.cls, read, worst.end_inputs)}")
         if worst.instant == MID_END and worst.applied is not None:
@@ -689,8 +690,8 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
             declared = automaton.spans.get(reward) or (automaton.source.name.span if automaton.source else None)
             notes: list[Note | str] = [
                 f"its significand trunc({reward}·{base}^{exponent}) must stay {word} "
-                f"{sign * (limit - 1)}, i.e. {reward} within [{_num(Fraction(INT32_MIN) / factor)}, "
-                f"{_num(Fraction(INT32_MAX) / factor)}]",
+                f"{sign * (limit - 1)}, i.e. {reward} within [{show_number(Fraction(INT32_MIN) / factor)}, "
+                f"{show_number(Fraction(INT32_MAX) / factor)}]",
                 f"first overflow on the worst run: {first}",
                 "run:\n" + "\n".join(describe_run(automaton, space, worst))]
             hints = ["lower the exponent of the number representation, shorten the horizon, "
@@ -729,7 +730,7 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
             found = error(
                 "E0501",
                 f"reward `{reward}` overflows int32 at base {base}, exponent {exponent}{where}: "
-                f"it {_reaches(space, worst)} {_num(sign * worst.value)}",
+                f"it {_reaches(space, worst)} {show_number(sign * worst.value)}",
                 span,
                 notes=notes,
                 hints=hints,
@@ -744,7 +745,7 @@ def check_ranges(automaton: ir.Automaton, base: int = DEFAULT_BASE, exponent: in
         return inside
     if extremes:
         facts.append(Fact("range", f"int32 range holds at base {base}, exponent {exponent}: rewards stay within "
-                               f"[{_num(min(extremes))}, {_num(max(extremes))}]",
+                               f"[{show_number(min(extremes))}, {show_number(max(extremes))}]",
                           {"base": base, "exponent": exponent, "low": str(min(extremes)), "high": str(max(extremes))}))
     return []
 
@@ -776,18 +777,19 @@ def _first_overflow(automaton: ir.Automaton, space: InputSpace, worst: Worst, k:
     """The first instant of the worst run at which the reward leaves the int32 range."""
     for where, values in trace(automaton, space, worst, inside=True):
         if sign * values[k] > bound:
-            return f"{where} ({automaton.rewards[k]} = {_num(values[k])})"
-    return f"at the end of the run ({automaton.rewards[k]} = {_num(sign * worst.value)})"
+            return f"{where} ({automaton.rewards[k]} = {show_number(values[k])})"
+    return f"at the end of the run ({automaton.rewards[k]} = {show_number(sign * worst.value)})"
 
 
 def _linear_text(linear: ir.Linear) -> str:
-    parts = [_num(linear.const)] if linear.const or not linear.terms else []
+    parts = [show_number(linear.const)] if linear.const or not linear.terms else []
     for name, coefficient in linear.terms:
-        parts.append(f"{_num(coefficient)}*{name}")
+        parts.append(f"{show_number(coefficient)}*{name}")
     return " + ".join(parts)
 
 
-def _num(value: Fraction) -> str:
+def show_number(value: Fraction) -> str:
+    """A value as a check's message shows it: exact where that is short, else rounded (marked ``…``)."""
     # exact up to 30 digits (a proved bound is read as written); beyond, 3e302… (`…` marks the
     # rounding) rather than 303 digits nobody reads
     if value.denominator == 1 and abs(value.numerator) < 10**30:
