@@ -13,6 +13,10 @@ file's size, the wall time and what the check said (error and warning codes).
                guard adds thresholds, so the input classes grow as n^2.
   samples      stdlib/driving.ra sampled every 0.001 s, at horizons of 30 s to 359 s
                (30,000 to 359,000 samples; P2 fails and a reward overflows int32 there).
+  discounted   stdlib/driving.ra (every 0.1 s) at horizons of 300 to 20,000 samples, with PENALTY raised
+               to 2 * horizon + 100, `Unsafe` absorbing and no collision loop (so P2 and the int32 range
+               hold), checked with
+               ``--discount 0.99``: P2 of the discounted return, E0410 at every size.
   updates      five inputs (three numeric, read by the flows and updates), updates that scale and
                copy rewards (not translations, so the int32 range check takes the exact generic
                search), at horizons of 10 to 60 samples: hundreds of input classes per location.
@@ -43,8 +47,11 @@ except ImportError:
     import rac
 
 SIZES = {"unreachable": (25, 50, 100, 200), "reachable": (25, 50, 100, 200), "samples": (30, 90, 180, 359),
-         "updates": (10, 30, 60)}
-QUICK_SIZES = {"unreachable": (25, 50), "reachable": (25, 50), "samples": (30,), "updates": (10,)}
+         "discounted": (300, 3000, 10000, 20000), "updates": (10, 30, 60)}
+QUICK_SIZES = {"unreachable": (25, 50), "reachable": (25, 50), "samples": (30,), "discounted": (300,),
+               "updates": (10,)}
+#: The options of ``rac check`` per family (none: the plain check).
+OPTIONS = {"discounted": ("--discount", "0.99")}
 
 
 def locations_text(n: int, *, reachable: bool) -> str:
@@ -82,6 +89,25 @@ def samples_text(horizon: int) -> str:
     return text
 
 
+def discounted_text(samples: int) -> str:
+    """stdlib/driving.ra over ``samples`` samples of 0.1 s, its penalty raised so that P2 holds, `Unsafe`
+    absorbing and without the collision loop (so that the rewards stay within int32)."""
+    from rac.lang.resources import stdlib_file
+
+    seconds = samples // 10
+    text = stdlib_file("driving.ra").read_text(encoding="utf-8")
+    text, one = re.subn(r"(?m)^(\s*horizon\s+)30\b", rf"\g<1>{seconds}", text)
+    text, two = re.subn(r"(?m)^(\s*const PENALTY = )100\b", rf"\g<1>{2 * seconds + 100}", text)
+    text, three = re.subn(r"(?m)^\s*edge Unsafe -> Unsafe .*\n", "", text)
+    # Unsafe absorbing: a penalty every other sample would leave int32 at 3,000 samples (E0501)
+    text, four = re.subn(r"(?m)^(\s*edge \*) (-> (?:Stalled|Uncomfortable|Normal)\b)", r"\g<1> except Unsafe \g<2>",
+                         text)
+    if (one, two, three, four) != (1, 1, 1, 3):
+        raise SystemExit("benchmarks/check.py: cannot find `horizon 30`, `const PENALTY = 100`, the collision "
+                         "loop and the three `*` edges out of Unsafe in stdlib/driving.ra")
+    return text
+
+
 def updates_text(samples: int) -> str:
     """Rewards scaled and copied by updates that read numeric inputs, over ``samples`` samples of 0.1 s."""
     return f"""automaton Scaled {{
@@ -114,15 +140,16 @@ FAMILIES: dict[str, Callable[[int], str]] = {
     "unreachable": lambda n: locations_text(n, reachable=False),
     "reachable": lambda n: locations_text(n, reachable=True),
     "samples": samples_text,
+    "discounted": discounted_text,
     "updates": updates_text,
 }
 
 
-def run_check(path: Path, timeout: float) -> tuple[float | None, str]:
-    """Wall time of ``python -m rac check -q path`` (None past ``timeout``) and the codes it reported."""
+def run_check(path: Path, timeout: float, options: Sequence[str] = ()) -> tuple[float | None, str]:
+    """Wall time of ``python -m rac check -q [options] path`` (None past ``timeout``) and the codes it reported."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [str(Path(rac.__file__).resolve().parent.parent), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    command = [sys.executable, "-m", "rac", "check", "--format", "json", str(path)]
+    command = [sys.executable, "-m", "rac", "check", "--format", "json", *options, str(path)]
     start = time.perf_counter()
     try:
         done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=timeout)
@@ -154,10 +181,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             for size in sizes[family]:
                 path = Path(folder) / f"{family}_{size}.ra"
                 path.write_text(make(size), encoding="utf-8")
-                elapsed, codes = run_check(path, args.timeout)
+                elapsed, codes = run_check(path, args.timeout, OPTIONS.get(family, ()))
                 shown = f"> {args.timeout:g} s" if elapsed is None else f"{elapsed:.2f} s"
-                what = (f"{size * 1000:,} samples" if family == "samples" else f"{size} samples" if family == "updates"
-                        else f"{size} locations")
+                what = (f"{size * 1000:,} samples" if family == "samples"
+                        else f"{size:,} samples" if family in ("updates", "discounted") else f"{size} locations")
                 row = f"| {family} | {what} | {path.stat().st_size / 1000:.1f} kB | {shown} | {codes} |"
                 rows.append(row)
                 print(row, flush=True)

@@ -250,3 +250,29 @@ def check_target(automaton: ir.Automaton) -> Target:
     from rac.check.analysis.priority import p2_target
 
     return p2_target(automaton, 0)
+
+
+KEEP = """automaton Keep {
+    input isClose : bool
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 0.1
+    horizon 300
+    initial location Normal { sa' == 1;  pr' == 1 }
+    location Close          { sa' == -1; pr' == 0 }
+    edge Normal -> Close when isClose do sa = sa - 400
+}
+"""
+
+
+def test_a_long_horizons_values_reach_json(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """3,000 samples at 0.99: the discounted value's denominator has 6,000 digits, more than Python
+    writes out as text, and the JSON report was an internal error (exit 3). Now rounded, and marked."""
+    path = tmp_path / "keep.ra"
+    path.write_text(KEEP)
+    assert main(["check", "--format", "json", "--discount", "0.99", str(path)]) == 1
+    found = json.loads(capsys.readouterr().out)[0]["diagnostics"][-1]
+    assert found["code"] == DISCOUNTED_P2
+    assert found["data"]["value"].endswith("…") and 100 < float(found["data"]["value"][:-1]) < 120
+    assert found["data"]["undiscounted"] == "-700"  # 10 * (300 - 400) + 300

@@ -25,6 +25,7 @@ are reported as a check not made (W0405), never as a proof.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -56,7 +57,8 @@ from rac.check.analysis.worst import (
 from rac.core.diagnostics import UNFINISHED, Diagnostic, Fact, Note, error, short_number, warning
 from rac.ir.inputs import InputSpace
 
-__all__ = ["DISCOUNTED_P2", "Discount", "MAX_DISCOUNTED_SAMPLES", "check_discounted", "discounted_worst"]
+__all__ = ["DISCOUNTED_P2", "Discount", "MAX_DISCOUNTED_SAMPLES", "check_discounted", "discounted_value",
+           "discounted_worst", "exact_text"]
 
 #: The diagnostic of a discounted return that compensates a penalty (P2 fails for it).
 DISCOUNTED_P2 = "E0410"
@@ -65,6 +67,11 @@ DISCOUNTED_P2 = "E0410"
 #: denominators grow with ``gamma``'s powers (0.99 over 10,000 samples: 20,000 digits), and, unlike
 #: the undiscounted search, it cannot stop early when the values settle (each sample weighs less).
 MAX_DISCOUNTED_SAMPLES = 20_000
+
+#: The discounts the hint of E0410 tries, nearest first (the first above the one asked that holds is
+#: named), on horizons of at most MAX_HINTED_SAMPLES samples.
+HINTED = (Fraction(99, 100), Fraction(995, 1000), Fraction(999, 1000), Fraction(9999, 10000))
+MAX_HINTED_SAMPLES = 5_000
 
 ZERO = Fraction(0)
 ONE = Fraction(1)
@@ -87,10 +94,24 @@ class Discount:
         """What the objective's change at ``sample`` (1-based) counts in the discounted return."""
         return self.gamma ** ((sample - 1) // self.samples_per_step)
 
+    def ratio(self, sample: int) -> Fraction:
+        """``weight(sample + 1) / weight(sample)``: gamma where the next sample begins a step, else 1."""
+        return self.gamma if sample % self.samples_per_step == 0 else ONE
+
     def describe(self) -> str:
         """``gamma = 0.99 per step of 1 sample``: how the messages name it."""
         samples = "1 sample" if self.samples_per_step == 1 else f"{self.samples_per_step} samples"
         return f"gamma = {short_number(self.gamma, 12)} per step of {samples}"
+
+
+def exact_text(value: Fraction) -> str:
+    """``value`` for ``--format json``: exact (``numerator/denominator``) where Python writes it out, else
+    rounded to 40 digits and marked ``…`` (gamma's powers make denominators of thousands of digits,
+    beyond what Python converts to text)."""
+    try:
+        return str(value)
+    except ValueError:  # more than sys.get_int_max_str_digits() digits
+        return short_number(value, 40)
 
 
 def _sup(w: tuple[Fraction, ...], parts: Sequence[tuple[Fraction, Affine]],
@@ -183,57 +204,80 @@ def discounted_worst(automaton: ir.Automaton, moves: Moves, target: Target, disc
     if target.watched[l0]:  # t = 0, before any sample: the constant, or the end there
         start = Worst(w0)
         if end is not None and w0 + end[0] > w0:
-            start = Worst(w0 + end[0], [], AFTER_END, end[1], end[2])  # type: ignore[arg-type]
+            start = Worst(w0 + end[0], [], AFTER_END, end[1], end[2])
+    # Exact and fast: every value times S = L * q**J (gamma = p/q, J the last step's index, L the
+    # common denominator of the rows) is an integer, and sample k's weight gamma**j times S is
+    # L * p**j * q**(J-j); Fractions of gamma's powers cost a gcd per operation (3,000 samples: 34 s).
+    p, q = discount.gamma.numerator, discount.gamma.denominator
+    ratios = {ONE, discount.gamma}
+    table = {(id(o), rho, first, last): rows.row(o, rho, first, last)
+             for here, os in enumerate(outs) for o in os for rho in ratios
+             for first in ((False, True) if here == l0 else (False,)) for last in (False, True)}
+    before = [_sup(w, ((ONE, rows.accruals[l0]),), o.box)[0] for o in outs[l0]]
+    fractions = [w0, *before] + [v for row in table.values() for v in (row.stop, row.next) if v is not None]
+    scale = math.lcm(*(v.denominator for v in fractions))
+    scaled = {key: (None if row.stop is None else int(row.stop * scale), int(row.next * scale))
+              for key, row in table.items()}
+    last_step = (steps - 1) // discount.samples_per_step
     # value[l]: the most a run adds from just before sample k's edge in l (None: no watched instant ahead)
-    value: list[Fraction | None] = [None] * len(automaton.locations)
+    value: list[int | None] = [None] * len(automaton.locations)
     choice: dict[int, list[tuple[int, bool]]] = {}
+    step, weight = last_step, p ** last_step  # L * p**j * q**(J-j) / L, for the step j of sample k
     for k in range(steps, 1, -1):
-        d = discount.weight(k)
-        rho = discount.weight(k + 1) / d
-        new: list[Fraction | None] = []
+        j = (k - 1) // discount.samples_per_step
+        while step > j:  # one step back: a factor p less, a factor q more (exact: p**step divides it)
+            step, weight = step - 1, weight // p * q
+        rho = discount.ratio(k)
+        new: list[int | None] = []
         picks: list[tuple[int, bool]] = []
         for os in outs:
-            best: Fraction | None = None
+            best: int | None = None
             pick = (-1, False)
             for oi, o in enumerate(os):
-                row = rows.row(o, rho, False, k == steps)
-                if row.stop is not None and (best is None or d * row.stop > best):
-                    best, pick = d * row.stop, (oi, True)
+                stop_value, next_value = scaled[id(o), rho, False, k == steps]
+                if stop_value is not None and (best is None or weight * stop_value > best):
+                    best, pick = weight * stop_value, (oi, True)
                 ahead = value[o.target]
                 if k < steps and not o.ends_episode and ahead is not None:
-                    cont = d * row.next + ahead
+                    cont = weight * next_value + ahead
                     if best is None or cont > best:
                         best, pick = cont, (oi, False)
             new.append(best)
             picks.append(pick)
         value = new
         choice[k] = picks
-    # Sample 1, from the initial location only (weight 1): the accrual before its edge reads its inputs.
-    rho = discount.weight(2)
-    best_value: Fraction | None = None
+    # Sample 1, from the initial location only (weight 1, q**J scaled): the accrual before its edge reads
+    # its inputs.
+    while step > 0:
+        step, weight = step - 1, weight // p * q
+    rho = discount.ratio(1)
+    base = int(w0 * scale) * weight
+    best_scaled: int | None = None
     first: tuple[int, str] | None = None
     for oi, o in enumerate(outs[l0]):
-        row = rows.row(o, rho, True, steps == 1)
-        options: list[tuple[Fraction, str]] = []
-        if row.stop is not None:
-            options.append((w0 + row.stop, "stop"))
+        stop_value, next_value = scaled[id(o), rho, True, steps == 1]
+        options: list[tuple[int, str]] = []
+        if stop_value is not None:
+            options.append((base + weight * stop_value, "stop"))
         if target.watched[l0]:
-            options.append((w0 + _sup(w, ((ONE, rows.accruals[l0]),), o.box)[0], BEFORE_EDGE))
+            options.append((base + weight * int(before[oi] * scale), BEFORE_EDGE))
         ahead = value[o.target]
         if steps > 1 and not o.ends_episode and ahead is not None:
-            options.append((w0 + row.next + ahead, CONTINUE))
+            options.append((base + weight * next_value + ahead, CONTINUE))
         for v, instant in options:
-            if best_value is None or v > best_value:
-                best_value, first = v, (oi, instant)
-    if best_value is None or first is None or (start is not None and start.value >= best_value):
+            if best_scaled is None or v > best_scaled:
+                best_scaled, first = v, (oi, instant)
+    if best_scaled is None or first is None:
+        return start
+    best_value = Fraction(best_scaled, scale * weight)
+    if start is not None and start.value >= best_value:
         return start
     result = Worst(best_value)
     oi, instant = first
     here, k = l0, 1
     while True:
         o = outs[here][oi]
-        rho = discount.weight(k + 1) / discount.weight(k)
-        row = rows.row(o, rho, k == 1, k == steps)
+        row = rows.row(o, discount.ratio(k), k == 1, k == steps)
         if instant == BEFORE_EDGE:
             point = _sup(w, ((ONE, rows.accruals[l0]),), o.box)[1]
         elif instant == "stop":
@@ -259,13 +303,16 @@ def discounted_value(automaton: ir.Automaton, space: InputSpace, worst: Worst, t
                      discount: Discount) -> Fraction:
     """The discounted value of ``target`` at the instant ``worst`` ends, by replaying its run exactly
     (the search's answer, recomputed the long way: the tests compare the two)."""
-    total, previous, sample = target.constant, [ZERO] * len(automaton.rewards), 1
+    total, previous = target.constant, [ZERO] * len(automaton.rewards)
     weights = target.weights
+    step, weight = 0, ONE  # the step of the instant's sample, and its discount (the instants come in time order)
     for when, values in trace(automaton, space, worst):
         # an instant at time t belongs to the sample at or after t: the accrual before a sample is its step's
-        sample = max(1, -(-when.time // automaton.period))  # type: ignore[attr-defined]
+        sample = max(1, math.ceil(when.time / automaton.period))  # type: ignore[attr-defined]
+        while step < (sample - 1) // discount.samples_per_step:
+            step, weight = step + 1, weight * discount.gamma
         change = sum((wk * (v - p) for wk, v, p in zip(weights, values, previous)), ZERO)
-        total += discount.weight(int(sample)) * change
+        total += weight * change
         previous = list(values)
     return total
 
@@ -297,15 +344,15 @@ def check_discounted(automaton: ir.Automaton, discount: Discount, facts: list[Fa
                 automaton.spans.get("decl:priority"),
                 notes=["rac check proves P2 of the undiscounted return; what a learner with this discount "
                        "maximises is not covered"],
-                data={"property": "P2", "discount": str(discount.gamma), "reward": reward}))
+                data={"property": "P2", "discount": exact_text(discount.gamma), "reward": reward}))
             continue
         if worst is None or worst.value <= 0:
             bound = "" if worst is None else f": the discounted value stays <= {short_number(worst.value)}"
             facts.append(Fact("P2-discounted", f"P2 holds for `{reward}` under the discount "
                               f"({discount.describe()}){bound} over every run of {show_number(automaton.horizon)} s",
-                              {"reward": reward, "gamma": str(discount.gamma),
+                              {"reward": reward, "gamma": exact_text(discount.gamma),
                                "samples_per_step": discount.samples_per_step,
-                               "bound": None if worst is None else str(worst.value)}))
+                               "bound": None if worst is None else exact_text(worst.value)}))
             continue
         found.append(_error(automaton, prepared, worst, level, target, discount))
     return found
@@ -330,12 +377,15 @@ def _error(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves], worst: W
              "at that step): gains early outweigh the penalty late, which the priority order rules out for the "
              "plain return only"),
     ]
-    better = [g for g in (Fraction(99, 100), Fraction(995, 1000), Fraction(999, 1000), Fraction(9999, 10000))
-              if g > discount.gamma and _holds(automaton, outs, target, dataclasses.replace(discount, gamma=g))]
+    # the nearest usual gamma above that would do, where a search costs little (5,000 samples: about 0.5 s)
+    candidates = HINTED if automaton.steps <= MAX_HINTED_SAMPLES else ()
+    better = next((g for g in candidates
+                   if g > discount.gamma and _holds(automaton, outs, target, dataclasses.replace(discount, gamma=g))),
+                  None)
     hints = []
-    if better:
-        hints.append(f"with gamma = {short_number(better[0])} it holds (rac check --discount "
-                     f"{short_number(better[0])}); or penalise `{reward}` more, or earlier")
+    if better is not None:
+        hints.append(f"with gamma = {short_number(better)} it holds (rac check --discount "
+                     f"{short_number(better)}); or penalise `{reward}` more, or earlier")
     else:
         hints.append(f"train with a gamma nearer 1, or penalise `{reward}` more, or earlier (a penalty at the "
                      "end counts gamma**steps of one at the start)")
@@ -346,8 +396,8 @@ def _error(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves], worst: W
         automaton.spans.get("decl:priority"),
         notes=notes,
         hints=hints,
-        data={"property": "P2-discounted", "level": level, "reward": reward, "value": str(worst.value),
-              "undiscounted": str(plain), "gamma": str(discount.gamma),
+        data={"property": "P2-discounted", "level": level, "reward": reward, "value": exact_text(worst.value),
+              "undiscounted": exact_text(plain), "gamma": exact_text(discount.gamma),
               "samples_per_step": discount.samples_per_step,
               "run": run_json(automaton, space, worst), "end": end_json(automaton, space, worst)})
 
