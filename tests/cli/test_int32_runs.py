@@ -20,12 +20,12 @@ from rac.cli.main import main
 QUERIES = {"Reach": "Pr[<=2](<> offroad())", "Stays": "E[] !collide() && !offroad()"}
 
 
-def write_far_road(folder: Path) -> Path:
+def write_far_road(folder: Path, queries: dict[str, str] | None = None) -> Path:
     road = StraightRoad(2145.0, EgoStart(2140.0, 1.75, 0.0, 10.0), GoalBox(2143.0, 2145.0, 0.0, 4.0))
     tiny = straight_road("far_road", road, settings=TinySettings(exponent=6))
     tiny.write(folder / "far_road.xml")
     path = folder / "far_road.ra"
-    path.write_text(engine_source(tiny, QUERIES), encoding="utf-8")
+    path.write_text(engine_source(tiny, QUERIES if queries is None else queries), encoding="utf-8")
     return path
 
 
@@ -40,13 +40,25 @@ def test_a_run_beyond_int32_is_the_models_limit(command: list[str], capsys: pyte
     assert "internal error" not in err
 
 
-def test_a_probability_beyond_int32_is_unknown(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    path = write_far_road(tmp_path)
-    assert main(["verify", str(path), "--query", "Reach", "--seed", "1", "--format", "json",
-                 "-o", str(tmp_path / "out")]) == 4
-    (result,) = json.loads(capsys.readouterr().out)["results"]
-    assert result["status"] == "unknown"
-    assert result["message"].startswith("a sensed value left the int32 range: sense(): x = 21")
+def test_a_probability_decided_before_int32_ends_is_answered(capsys: pytest.CaptureFixture[str],
+                                                              tmp_path: Path) -> None:
+    """Regression: every run leaves the road (sample 1) before its x leaves int32 (sample 2), and UPPAAL
+    stops checking `<> offroad()` at the first state that satisfies it; the whole batch raised at the
+    overflow, so `Pr[<=2](<> offroad())` and its `>= 0.9` were UNKNOWN (exit 4). `[] !offroad()` is
+    decided (false) there too. Where the overflow comes first (`<> collide()`: no obstacle) the query
+    stays unknown, and says that the overflow came before the formula was decided."""
+    queries = {"Reach": "Pr[<=2](<> offroad())", "Likely": "Pr[<=2](<> offroad()) >= 0.9",
+               "Kept": "Pr[<=2]([] !offroad())", "Hit": "Pr[<=2](<> collide())"}
+    path = write_far_road(tmp_path, queries)
+    assert main(["verify", str(path), "--seed", "1", "--format", "json", "-o", str(tmp_path / "out")]) == 4
+    results = {result["name"]: result for result in json.loads(capsys.readouterr().out)["results"]}
+    assert results["Reach"]["status"] == "value" and results["Reach"]["estimate"] == 1.0
+    assert results["Reach"]["interval"][0] > 0.9
+    assert results["Likely"]["status"] == "satisfied"
+    assert results["Kept"]["status"] == "value" and results["Kept"]["estimate"] == 0.0
+    assert results["Hit"]["status"] == "unknown"
+    assert results["Hit"]["message"].startswith("a sensed value left the int32 range: sense(): x = 21")
+    assert "came before `<> collide()` was decided" in results["Hit"]["message"]
 
 
 def test_preanalyse_reports_the_row_and_never_exits_0_with_one_unanswered(

@@ -26,7 +26,7 @@ from rac.engine.graph import ExploredGraph
 from rac.engine.simulate import Runs, event_sampler, label_runs, simulate
 from rac.engine.stats import estimate_probability, estimate_probability_fixed
 from rac.engine.storm import safety_shield, uniform_reach_probability
-from rac.model import ModelData, NativeModel, State, build_model_data
+from rac.model import ModelData, ModelRangeError, NativeModel, State, build_model_data
 from rac.model.commonroad import EgoStart
 
 
@@ -156,6 +156,42 @@ def test_a_policy_of_the_wrong_shape_is_an_error() -> None:
 def test_bad_arguments(kwargs: dict) -> None:
     with pytest.raises(ValueError):
         simulate(tiny_data(), **{"horizon_samples": 3, **kwargs})
+
+
+def test_a_run_leaving_int32_stops_there_and_the_others_go_on() -> None:
+    """With `stop_at_overflow`, each run stops at the first sample whose sensed state leaves int32 (x past
+    214.7 m at exponent 7, reached at different samples by different runs): its states up to there are the
+    native replay, the native model raises at that sample, no action is drawn for it afterwards and the
+    policy is asked about live runs only; a run that never leaves int32 is a whole replay. Without it the
+    batch raises, as every other caller (rac simulate, render) wants."""
+    data = straight_data(7, x=185.0)
+    with pytest.raises(ModelRangeError):
+        simulate(data, runs=60, horizon_samples=40, seed=3, truth_substeps=1)
+    asked: dict[int, int] = {}
+
+    def everything(k: int, states: np.ndarray) -> np.ndarray:
+        asked[k] = states.shape[0]
+        return np.ones((states.shape[0], len(action_pairs(data))), dtype=bool)
+
+    runs = simulate(data, runs=60, horizon_samples=40, seed=3, truth_substeps=1, policy=everything,
+                    stop_at_overflow=True)
+    assert runs.overflow is not None and not runs.left_policy.any()
+    assert len(set(runs.overflow.tolist())) > 3 and (runs.overflow == 41).any()  # some runs never leave it
+    assert sorted(runs.overflow_errors) == np.flatnonzero(runs.overflow <= 40).tolist()
+    assert asked == {k: int((runs.overflow > k).sum()) for k in range(0, 40, data.decide_every)}
+    model, pairs = NativeModel(data), action_pairs(data).tolist()
+    for n in range(runs.n_runs):
+        stop = int(runs.overflow[n])
+        assert [tuple(row) for row in runs.states[n, :stop].tolist()] == replay(data, runs.actions[n, :stop - 1])
+        assert (runs.actions[n, stop:] == -1).all()
+        if stop <= 40:
+            state = State(*runs.states[n, stop - 1].tolist())
+            action = int(runs.actions[n, stop - 1])
+            if action >= 0:
+                state = state._replace(jerk=pairs[action][0], turn=pairs[action][1])
+            with pytest.raises(ModelRangeError) as raised:
+                model.sense(state)
+            assert str(raised.value) == str(runs.overflow_errors[n])
 
 
 def test_horizon_defaults_to_the_goal_interval() -> None:

@@ -35,7 +35,7 @@ Example::
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,8 +44,8 @@ from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.budget import check_estimate, simulation_bytes
 from rac.engine.graph import LABELS
 from rac.ir.vocabulary import EGO_STATE, TRUE_STATE
-from rac.model.batch import batch_model
-from rac.model.data import ModelData
+from rac.model.batch import BatchModel, batch_model
+from rac.model.data import ModelData, ModelRangeError
 from rac.model.sample import ACTION, Ego, safe
 
 __all__ = ["LABELS", "TRUTH_COLUMNS", "Policy", "Runs", "collided_so_far", "event_sampler", "integrate_one",
@@ -77,6 +77,11 @@ class Runs:
       lets the caller discard or count them).
     - ``seed``: the seed that reproduces the runs; ``period``: ``C1`` in seconds; ``scale``: the
       significands' scale.
+    - ``overflow (N,) int64`` (only from ``simulate(..., stop_at_overflow=True)``, else None): the
+      first sample whose sensed state left int32, ``T + 1`` for a run that never did. A run stops
+      there (UPPAAL's model aborts): from that sample on its states repeat its last one, which are
+      not the model's, and a caller reads only the samples before it. ``overflow_errors`` holds
+      each such run's :class:`~rac.model.data.ModelRangeError`, by run.
 
     The arrays are read-only.
     """
@@ -88,6 +93,8 @@ class Runs:
     seed: int
     period: float
     scale: int
+    overflow: np.ndarray | None = None
+    overflow_errors: dict[int, ModelRangeError] = field(default_factory=dict)
 
     @property
     def n_runs(self) -> int:
@@ -208,6 +215,20 @@ def integrate_one(truth: np.ndarray, jerk: float, turn: float, period: float, su
     return np.array([[x], [y], [v], [acc], [head]], dtype=np.float64)
 
 
+def _sense_rows(model: BatchModel, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[ModelRangeError]]:
+    """``model.sense`` of each row that stays within int32: the next states (a row that leaves it kept
+    as it was), which rows left it, and their errors in row order. The batch raises for its first bad
+    row only, so a failing batch is halved until each bad row stands alone (rows are independent)."""
+    try:
+        return model.sense(states), np.zeros(states.shape[0], dtype=bool), []
+    except ModelRangeError as error:
+        if states.shape[0] == 1:
+            return states.copy(), np.ones(1, dtype=bool), [error]
+        half = states.shape[0] // 2
+        head, tail = _sense_rows(model, states[:half]), _sense_rows(model, states[half:])
+        return np.concatenate([head[0], tail[0]]), np.concatenate([head[1], tail[1]]), head[2] + tail[2]
+
+
 def _horizon(data: ModelData, horizon_samples: int | None) -> int:
     if horizon_samples is None:
         if data.goal_high >= INT32_MAX:
@@ -220,7 +241,7 @@ def _horizon(data: ModelData, horizon_samples: int | None) -> int:
 
 def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, seed: int | None = None,
              policy: Policy | None = None, truth_substeps: int = 100, progress: Progress | None = None,
-             max_bytes: int | None = None) -> Runs:
+             max_bytes: int | None = None, stop_at_overflow: bool = False) -> Runs:
     """Simulate ``runs`` runs of ``horizon_samples`` sense periods with uniformly drawn actions.
 
     See the module docstring for the semantics. ``horizon_samples`` defaults to the goal
@@ -234,7 +255,9 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     further (:class:`rac.engine.allow.ActionGuard`). A run whose row allows nothing chooses
     among all actions there and is flagged in :attr:`Runs.left_policy`.
 
-    :class:`rac.model.data.ModelRangeError` when a sensed value overflows int32 (as explore()).
+    :class:`rac.model.data.ModelRangeError` when a sensed value overflows int32 (as explore()); with
+    ``stop_at_overflow`` that run stops there instead and the others go on (:attr:`Runs.overflow`), for
+    a caller that can use a run's samples before it (``<> p`` satisfied earlier, as UPPAAL stops there).
     :class:`rac.engine.budget.EstimateExceeded`, before anything is allocated, when the runs would
     need more than ``max_bytes`` (None: no limit; :func:`rac.engine.budget.simulation_bytes`).
     """
@@ -269,31 +292,55 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     truth[:, 0] = true_now.T
     everything = np.ones((runs, n_pairs), dtype=bool)
     limits = Limits.of(data)
+    overflow = np.full(runs, horizon + 1, dtype=np.int64)
+    errors: dict[int, ModelRangeError] = {}
+
+    def allowed_at(k: int, rows: np.ndarray, every: np.ndarray) -> np.ndarray:
+        """The actions allowed to ``rows`` at the decision sample ``k`` (``every``: all of them)."""
+        allowed = every if policy is None else _check_policy(policy(k, rows.copy()), rows.shape[0], n_pairs)
+        if guard.restricts:  # the model's own `allow when`, under any policy
+            allowed = allowed & guard.masks(rows, k)
+        return allowed
+
     for k in range(horizon):
+        live = overflow > k  # runs whose state is still the model's (every run without stop_at_overflow)
         if k % data.decide_every == 0:
-            allowed = everything if policy is None else _check_policy(policy(k, current.copy()), runs, n_pairs)
-            if guard.restricts:  # the model's own `allow when`, under any policy
-                allowed = allowed & guard.masks(current, k)
+            if live.all():
+                allowed = allowed_at(k, current, everything)
+            else:  # a stopped run is neither asked about nor flagged: its state is no longer the model's
+                allowed = everything.copy()
+                allowed[live] = allowed_at(k, current[live], everything[live])
             empty = ~np.any(allowed, axis=1)
             if empty.any():
                 left_policy |= empty
                 allowed = allowed | empty[:, None]
-            chosen = _choose(rng, allowed)
-            actions[:, k] = chosen
+            chosen = _choose(rng, allowed)  # every run draws, so the others' draws do not depend on stops
+            actions[:, k] = np.where(live, chosen, -1)
             current = current.copy()
-            current[:, ACTION] = pairs[chosen]
+            current[live, ACTION] = pairs[chosen[live]]
         # the truth uses the same reals as the emitted ODE: jerk / SCALE_D, turn / SCALE_D
         true_now = integrate_truth(true_now, current[:, Ego.JERK] / scale, current[:, Ego.TURN] / scale, period,
                                    truth_substeps, limits)
-        current = model.sense(current)
+        if not stop_at_overflow:
+            current = model.sense(current)
+        elif live.any():
+            sensed, bad, failures = _sense_rows(model, current[live])
+            current = current.copy()
+            current[live] = sensed
+            runs_bad = np.flatnonzero(live)[bad]
+            overflow[runs_bad] = k + 1
+            errors.update(zip(runs_bad.tolist(), failures))
         states[:, k + 1] = current
         truth[:, k + 1] = true_now.T
         if progress is not None:
             progress(k + 1, horizon)
     for array in (states, truth, actions, left_policy):
         array.setflags(write=False)
+    if stop_at_overflow:
+        overflow.setflags(write=False)
     return Runs(states=states, truth=truth, actions=actions, left_policy=left_policy, seed=int(seed),
-                period=period, scale=int(data.scale))
+                period=period, scale=int(data.scale), overflow=overflow if stop_at_overflow else None,
+                overflow_errors=errors)
 
 
 def label_runs(data: ModelData, runs: Runs, label: str) -> np.ndarray:

@@ -23,7 +23,7 @@ from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
-from rac.verify.context import Context, UnknownVerdict
+from rac.verify.context import Context, UnknownVerdict, left_int32
 from rac.verify.report import QueryResult, count_noun, plot_series, write_csv
 from rac.verify.status import NOT_SATISFIED, SATISFIED
 
@@ -60,9 +60,10 @@ class StatisticalAnswerer:
         chunk = self.chunk(1, samples, "this probability")
 
         def sample(n: int) -> np.ndarray:
-            runs = self.runs(n, samples, query.under, int(batch_seeds.spawn(1)[0].generate_state(1)[0]))
+            runs = self.runs(n, samples, query.under, int(batch_seeds.spawn(1)[0].generate_state(1)[0]),
+                             stop_at_overflow=True)
             holds = ctx.values(runs, (query.expr,))[0] != 0
-            return holds.all(axis=1) if every else holds.any(axis=1)
+            return _path_outcomes(holds, every, runs, query)
 
         if query.compare is not None:
             op, threshold = query.compare
@@ -221,9 +222,11 @@ class StatisticalAnswerer:
             return f"{format_bytes(left or 0)} (--max-memory)"
         return f"{format_bytes(left or 0)} (what --max-memory leaves beside the kept graphs)"
 
-    def runs(self, n: int, samples: int, under: str | None, seed: int) -> Runs:
+    def runs(self, n: int, samples: int, under: str | None, seed: int, *, stop_at_overflow: bool = False) -> Runs:
         """``n`` runs of ``samples`` samples: actions drawn uniformly (among a shield's with
-        ``under``), or, under a learned strategy, its one deterministic run ``n`` times."""
+        ``under``), or, under a learned strategy, its one deterministic run ``n`` times. With
+        ``stop_at_overflow`` a run whose sensed state leaves int32 stops there (:attr:`Runs.overflow`)
+        instead of the whole batch raising :class:`ModelRangeError`."""
 
         ctx = self.context
         if under is not None and under in ctx.learned:
@@ -243,7 +246,7 @@ class StatisticalAnswerer:
         with Progress(total=samples, desc=f"simulating {count_noun(n, 'run')}", unit="samples",
                       enabled=None if ctx.options.bars else False) as bar:
             runs = simulate(ctx.data, runs=n, horizon_samples=samples, seed=seed, policy=ctx.policy(under),
-                            progress=simulate_callback(bar))
+                            progress=simulate_callback(bar), stop_at_overflow=stop_at_overflow)
         stuck = int(runs.left_policy.sum())
         if stuck:  # the emitted model deadlocks there, and its run ends: rac's runs would go on
             who = " or ".join(([f"the strategy `{under}`"] if under is not None else [])
@@ -252,6 +255,28 @@ class StatisticalAnswerer:
                                   "action; the emitted model deadlocks there and ends the run, while rac's runs "
                                   "go on with any action, so the two would answer differently")
         return runs
+
+
+def _path_outcomes(holds: np.ndarray, every: bool, runs: Runs, query: iq.ProbabilityQuery) -> np.ndarray:
+    """Whether each run satisfies ``<> p`` (``[] p`` with ``every``), ``holds`` being ``p`` per run and
+    sample. UPPAAL stops checking a run at the first sample that decides the path formula (``p`` for
+    ``<> p``, ``!p`` for ``[] p``), so a run that stopped later because a sensed value left int32
+    (:attr:`Runs.overflow`) is decided by its samples before that; one that stopped first has no
+    outcome (UPPAAL's model aborts there), which leaves the query unknown, as every such run did."""
+    if runs.overflow is None or not runs.overflow_errors:
+        return np.asarray(holds.all(axis=1) if every else holds.any(axis=1))
+    model_states = np.arange(holds.shape[1])[None, :] < runs.overflow[:, None]  # the samples before the stop
+    decided = ((~holds if every else holds) & model_states).any(axis=1)  # !p for [] p, p for <> p, before it
+    undecided = ~decided & (runs.overflow < holds.shape[1])
+    if undecided.any():
+        first = int(np.argmax(undecided))
+        path = "[]" if every else "<>"
+        count = int(undecided.sum())
+        raise UnknownVerdict(
+            f"{left_int32(runs.overflow_errors[first])} (sample {runs.overflow[first]}); in {count:,} of a batch "
+            f"of {undecided.size:,} runs this came before `{path} {format_checked(query.expr)}` was decided, so "
+            "whether they satisfy it is not known (UPPAAL's model aborts there too)")
+    return np.asarray(~decided if every else decided)
 
 
 def _runs_of(runs: int | None) -> int:
