@@ -36,6 +36,7 @@ from rac.verify.runner import (
     VerifyOptions,
     render_json,
     render_text,
+    run_queries,
     standard_queries,
     verify,
 )
@@ -601,3 +602,56 @@ def test_a_formula_that_reads_no_state_is_decided_without_exploring(tmp_path: Pa
     assert alone.status == ("satisfied" if holds else "not satisfied") and alone.method == "constant"
     read = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, only=["Read"]))}["Read"]
     assert read.status == alone.status and read.method != "constant"
+
+
+@pytest.mark.parametrize(("alone", "read", "holds"), [
+    ("strategy s = control: A[] true", "strategy r = control: A[] true || time < 0", True),
+    ("strategy s = control: A[] !deadlock", "strategy r = control: A[] !deadlock || time < 0", True),
+    ("strategy s = control: A[] 1 > 2", "strategy r = control: A[] 1 > 2 || time < 0", False),
+    ("strategy s = control: E<> true", "strategy r = control: E<> true || time < 0", True),
+    ("strategy s = control: E<> collision_distance > 1000", "strategy r = control: E<> false || time < 0", False),
+    ("goal() --> true", "goal() --> true || time < 0", True),
+    ("false --> goal()", "false || time < 0 --> goal()", True),
+    ("true --> 1 > 2", "true || time < 0 --> false || time < 0", False),
+])
+def test_a_strategy_or_leads_to_decided_by_constants_needs_no_exploring(tmp_path: Path, alone: str, read: str,
+                                                                          holds: bool) -> None:
+    """Regression: `control: A[] true` (or `false`, `E<> false`) and `p --> true`, `false --> q`, `true -->
+    false` explored the whole model to find what their constants decide: UNKNOWN beyond the state budget.
+    Each is now decided at once, as the same formula made to read the state (`|| time < 0`, never true) is
+    on the complete graph. (`true --> q` with `q` reading the state is not constant, and is still explored.)"""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"Alone": alone, "Read": read,
+                                                               "Explored": "true --> goal()"})
+    result = compile_file(path)
+    answers = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, max_states=1,
+                                                               only=["Alone", "Explored"]))}
+    assert answers["Alone"].status == ("satisfied" if holds else "not satisfied")
+    assert answers["Alone"].method == "constant"
+    assert answers["Explored"].status == "unknown"  # reads goal() in every reachable state: not decided by constants
+    read_answer = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, only=["Read"]))}["Read"]
+    assert read_answer.status == answers["Alone"].status and read_answer.method != "constant"
+
+
+def test_a_strategy_of_every_action_is_computed_when_a_query_under_it_needs_it(tmp_path: Path) -> None:
+    """`control: A[] true` is decided without exploring, and its table (every action) is computed only for a
+    query under it: the same table as the same goal made to read the state, and the same verdicts under it.
+    Beyond the budget a query under it is unknown and says why; under `control: A[] false` not applicable."""
+    queries = {"Every": "strategy every = control: A[] true", "Under": "A[] !collide() under every",
+               "Read": "strategy read = control: A[] true || time < 0", "UnderRead": "A[] !collide() under read",
+               "Sim": "Pr[<=2](<> collide()) under every", "SimRead": "Pr[<=2](<> collide()) under read",
+               "Never": "strategy never = control: A[] false", "UnderNever": "A[] !collide() under never"}
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries))
+    tight = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, max_states=1))}
+    assert tight["Every"].status == "satisfied" and tight["Every"].method == "constant"
+    assert tight["Under"].status == "unknown"
+    assert tight["Under"].message.startswith("the strategy `every` allows every action (its goal reads no state), "
+                                             "but a query under it needs its table")
+    assert tight["Never"].status == "not satisfied" and tight["Never"].method == "constant"
+    assert tight["UnderNever"].status == "not_applicable"
+    context, results = run_queries(result, VerifyOptions(seed=1, plots=False))
+    answers = {r.name: r for r in results}
+    assert answers["Under"].status == answers["UnderRead"].status and answers["Under"].method == "exhaustive"
+    assert answers["Sim"].status == answers["SimRead"].status == "value"  # runs under the table computed for them
+    every, read = context.strategy("every"), context.strategy("read")
+    assert np.array_equal(every[0].allowed_choices, read[0].allowed_choices)
+    assert np.array_equal(every[0].winning, read[0].winning)

@@ -178,6 +178,9 @@ class Context:
         self.reachability: set[str] = set()
         #: Safety shields computed state by state (the model was too large to explore), by name.
         self.on_demand: dict[str, OnDemandShield] = {}
+        #: Shields decided without exploring (``control: A[] true``: a goal that reads no state and holds, so
+        #: every action keeps it), by name: how to compute the table, done when a query under one first needs it.
+        self.deferred: dict[str, Callable[[], tuple[storm.Shield, shield.ShieldTable]]] = {}
         #: Why exploring the model failed, by ``prune`` (the budget): said again, not tried again.
         self.graph_failures: dict[bool, str] = {}
         #: The model's (jerk, turn) action pairs; a shield's masks index them.
@@ -352,6 +355,13 @@ class Context:
             raise UnknownVerdict(f"the shield `{name}` was computed state by state (the model is too large to "
                                  "explore), so exhaustive queries under it are not decided; simulations and "
                                  "learning under it are")
+        if name in self.deferred and name not in self.strategies:
+            try:
+                self.strategies[name] = self.deferred[name]()
+            except UnknownVerdict as exc:
+                raise UnknownVerdict(f"the strategy `{name}` allows every action (its goal reads no state), but a "
+                                     f"query under it needs its table, which needs the whole model explored: {exc}"
+                                     ) from None
         if name not in self.strategies:
             raise UnknownVerdict(f"the strategy `{name}` has not been computed (it is defined by a query that "
                                  "was skipped or failed; run it first)")
@@ -363,13 +373,15 @@ class Context:
 
     def forget_strategy(self, name: str) -> None:
         """Drop every record of the strategy ``name`` (a later query defines it again)."""
-        for registry in (self.strategies, self.strategy_goals, self.learned, self.missing, self.on_demand):
+        for registry in (self.strategies, self.strategy_goals, self.learned, self.missing, self.on_demand,
+                         self.deferred):
             registry.pop(name, None)
         self.reachability.discard(name)
 
     def strategy_exists(self, name: str) -> bool:
-        """Whether the shield ``name`` was computed and exists."""
-        return name in self.on_demand or (name in self.strategies and self.strategies[name][0].shield_exists)
+        """Whether the shield ``name`` was computed (or decided, its table deferred) and exists."""
+        return name in self.on_demand or name in self.deferred or (
+            name in self.strategies and self.strategies[name][0].shield_exists)
 
     def shield_table(self, name: str) -> shield.ShieldTable:
         """The masks of the shield ``name``: its table, or the on-demand shield computed state by state."""

@@ -91,6 +91,7 @@ class LearningAnswerer:
         except ValueError as exc:  # a sensed value out of range, bindings breaking `assume`
             raise UnknownVerdict(str(exc)) from None
         ctx.strategies.pop(query.name, None)  # the name now means the learned strategy
+        ctx.deferred.pop(query.name, None)
         ctx.learned[query.name] = Learned(outcome.strategy, table, (*query.discrete, *query.continuous))
         files: tuple[str, ...] = ()
         if ctx.out_dir is not None:
@@ -168,6 +169,7 @@ class LearningAnswerer:
         if isinstance(optimum, str):
             raise UnknownVerdict(f"the exact optimum is out of reach: {optimum}")
         ctx.strategies.pop(query.name, None)  # the name now means the optimal strategy
+        ctx.deferred.pop(query.name, None)
         ctx.learned[query.name] = Learned(optimum.strategy, table, optimum.observed)
         files: tuple[str, ...] = ()
         if ctx.out_dir is not None:

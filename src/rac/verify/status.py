@@ -28,8 +28,10 @@ METHODS: dict[str, str] = {
     "witness search": "found by a bounded witness search and replayed",
     # a beam search of the product of model and automaton toward where the automaton alone fails
     "product search": "found by a bounded search of the product, guided by the automaton's own counterexample",
-    # a formula that reads no state (constants, settings, `deadlock` without `allow when`): its one value
-    "constant": "decided without exploring: the formula reads no state, so it has the same value in every state",
+    # a formula that reads no state (constants, settings, `deadlock` without `allow when`): its one value; or
+    # `p --> q` decided by a side that reads none (`p --> true`, `false --> q`)
+    "constant": "decided without exploring: what decides the formula reads no state, so it has the same value in "
+                "every state",
     # the complete graph up to the horizon
     "exhaustive": "decided on the complete graph up to the horizon",
     # the runtime shield searching the whole horizon from the start; the shield then computed state by state

@@ -76,12 +76,48 @@ class SymbolicAnswerer:
         has one value in every state, and every state lies on a run to the horizon: ``A[] p``, ``E<> p``,
         ``E[] p`` and ``A<> p`` each hold exactly when ``p`` does, decided without exploring (a search for a
         state where ``A[] true`` fails has none to find, and only the complete graph would prove that)."""
+        return dataclasses.replace(base, status=SATISFIED if self._value(query.expr) else NOT_SATISFIED,
+                                   horizon_samples=self.context.horizon_samples, method="constant")
+
+    def _value(self, expr: ie.Expr) -> bool:
+        """The one value of a formula that reads no state (:func:`rac.ir.expr.state_independent`), read at
+        the start."""
         ctx = self.context
         start = np.asarray(NativeModel(ctx.data).initial_state(), dtype=np.int32)[None, :]
-        value = ctx.evaluator.evaluate_bool(query.expr, Frame(k=np.zeros(1, dtype=np.int64), ego=start))
-        holds = bool(np.all(value))
-        return dataclasses.replace(base, status=SATISFIED if holds else NOT_SATISFIED,
-                                   horizon_samples=ctx.horizon_samples, method="constant")
+        return bool(np.all(ctx.evaluator.evaluate_bool(expr, Frame(k=np.zeros(1, dtype=np.int64), ego=start))))
+
+    def _constant_control(self, query: iq.ControlStrategy, base: QueryResult) -> QueryResult:
+        """``control: A[] p`` or ``control: E<> p`` whose ``p`` reads no state: the start satisfies ``p`` exactly
+        when every state does, so a strategy exists exactly when ``p`` holds (``A[] true``: every action keeps
+        it; ``E<> true``: the start reaches it; ``false``: the start already fails). Decided without exploring;
+        a safety strategy that exists is computed (every action allowed) when a query under it needs it."""
+        ctx = self.context
+        holds = self._value(query.expr)
+        decided = dataclasses.replace(base, status=SATISFIED if holds else NOT_SATISFIED, method="constant",
+                                      horizon_samples=ctx.horizon_samples)
+        if query.goal != "A[]":
+            ctx.reachability.add(query.name)  # as a searched one: decided, not kept
+            return dataclasses.replace(decided, message="reachability strategies are decided but not saved")
+        goal = format_checked(query.expr)
+        ctx.strategy_goals[query.name] = goal
+        if not holds:
+            return dataclasses.replace(decided, message=f"no strategy keeps `{goal}` from the start: it is false at "
+                                                        "the start")
+
+        def every_action() -> tuple[storm.Shield, shield.ShieldTable]:
+            graph = ctx.graph(False)
+            return self._shield(graph, np.ones(graph.n_states, dtype=bool))
+
+        ctx.deferred[query.name] = every_action
+        return dataclasses.replace(decided, message="every action keeps it, in every state; the strategy's table is "
+                                                    "computed (on the whole model) when a query under it needs it, "
+                                                    "and not saved")
+
+    def _shield(self, graph: ExploredGraph, keep: np.ndarray) -> tuple[storm.Shield, shield.ShieldTable]:
+        """The most permissive shield keeping the states ``keep`` on ``graph``, and its table."""
+        ctx = self.context
+        computed = storm.safety_shield(dataclasses.replace(graph, labels={**graph.labels, "query": keep}), "query")
+        return computed, shield.table(computed, n_actions=len(ctx.pairs), model=ctx.data)
 
     def _reach(self, expr: ie.Expr, base: QueryResult) -> QueryResult:
         """``E<> p``: a safe run reaching ``p`` (the pruned model), else any run (the whole model)."""
@@ -255,6 +291,11 @@ class SymbolicAnswerer:
         ctx = self.context
         if ie.reads_automaton(query.left) or ie.reads_automaton(query.right):
             raise EvaluationError("`-->` over the automaton's names is not supported yet")
+        if query.under is None:
+            decided = self._constant_leads_to(query)
+            if decided is not None:
+                return dataclasses.replace(base, status=SATISFIED if decided[0] else NOT_SATISFIED, method="constant",
+                                           horizon_samples=ctx.horizon_samples, message=decided[1])
         graph = self.under_shield(query.under, "`-->`") if query.under is not None else ctx.graph(False)
         p, q = ctx.label(graph, query.left), ctx.label(graph, query.right)
         # p --> q fails exactly when a reachable p-state has a run avoiding q forever (E[] !q there).
@@ -264,12 +305,30 @@ class SymbolicAnswerer:
         return dataclasses.replace(base, status="satisfied" if holds else "not satisfied", states=graph.n_states,
                                    horizon_samples=ctx.horizon_samples, method="exhaustive")
 
+    def _constant_leads_to(self, query: iq.LeadsToQuery) -> tuple[bool, str] | None:
+        """``p --> q`` where a side that reads no state decides it, with why: ``q`` true (every ``p``-state
+        is a ``q``-state), ``p`` false (no ``p``-state), or ``p`` true and ``q`` false (the start is a
+        ``p``-state and no state is a ``q``-state); None otherwise (``true --> q`` reads ``q`` in every
+        reachable state, ``p --> false`` asks whether a ``p``-state is reachable)."""
+        left = self._value(query.left) if ie.state_independent(query.left) else None
+        right = self._value(query.right) if ie.state_independent(query.right) else None
+        p, q = format_checked(query.left), format_checked(query.right)
+        if right is True:
+            return True, f"`{q}` holds in every state, so every `{p}`-state is followed by it at once"
+        if left is False:
+            return True, f"`{p}` holds in no state, so no state has to be followed by `{q}`"
+        if left is True and right is False:
+            return False, f"`{p}` holds at the start, and `{q}` in no state"
+        return None
+
     def control(self, query: iq.ControlStrategy, base: QueryResult) -> QueryResult:
         """``strategy S = control: A[] p``: the most permissive shield keeping ``p``, kept as ``S`` and
         saved to ``OUT/S.shield.npz``; a reachability goal (``E<> p``) is decided, not saved."""
         ctx = self.context
         if ie.reads_automaton(query.expr):
             raise EvaluationError("strategies over the automaton's names are not supported yet")
+        if query.under is None and ie.state_independent(query.expr):
+            return self._constant_control(query, base)
         within = self.under_shield(query.under, "a strategy") if query.under is not None else None
         if query.goal != "A[]":
             saved = "reachability strategies are decided but not saved"
@@ -290,9 +349,8 @@ class SymbolicAnswerer:
             if within is not None or not _is_safety(query.expr):
                 raise
             return self._on_demand(query, base, str(exc))
-        labelled = dataclasses.replace(graph, labels={**graph.labels, "query": ctx.label(graph, query.expr)})
-        computed = storm.safety_shield(labelled, "query")
-        table = shield.table(computed, n_actions=len(ctx.pairs), model=ctx.data)
+        keep = ctx.label(graph, query.expr)
+        computed, table = self._shield(graph, keep)
         ctx.strategies[query.name] = (computed, table)
         ctx.strategy_goals[query.name] = format_checked(query.expr)
         files: tuple[str, ...] = ()
@@ -302,7 +360,7 @@ class SymbolicAnswerer:
         if computed.shield_exists:
             message = f"{int(computed.winning.sum()):,} winning states, {allowed:,} allowed choices"
         else:
-            kept = _longest_kept(graph, labelled.labels["query"])
+            kept = _longest_kept(graph, keep)
             message = (f"no strategy keeps `{format_checked(query.expr)}` from the start: "
                        + ("it is false at the start" if kept < 0 else
                           f"the longest any run keeps it is until t = {kept * float(ctx.period):g} s, before the "
