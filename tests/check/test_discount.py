@@ -276,3 +276,13 @@ def test_a_long_horizons_values_reach_json(capsys: pytest.CaptureFixture[str], t
     assert found["code"] == DISCOUNTED_P2
     assert found["data"]["value"].endswith("…") and 100 < float(found["data"]["value"][:-1]) < 120
     assert found["data"]["undiscounted"] == "-700"  # 10 * (300 - 400) + 300
+
+
+def test_the_hints_command_checks_steps_of_as_many_samples(capsys: pytest.CaptureFixture[str]) -> None:
+    """stdlib/driving.ra at 0.9 per step of 5 samples holds at 0.999 per step of 5, not per sample: the
+    hint's command said `rac check --discount 0.999`, which checks steps of 1 sample and fails (E0410)."""
+    assert main(["check", "-q", "--discount", "0.9", "--samples-per-step", "5", str(DRIVING)]) == 1
+    hint = next(line for line in capsys.readouterr().out.splitlines() if "hint: with gamma" in line)
+    assert "(rac check --discount 0.999 --samples-per-step 5)" in hint
+    assert main(["check", "-q", "--discount", "0.999", "--samples-per-step", "5", str(DRIVING)]) == 0
+    assert main(["check", "-q", "--discount", "0.999", str(DRIVING)]) == 1  # what the hint said before

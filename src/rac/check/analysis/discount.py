@@ -384,8 +384,10 @@ def _error(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves], worst: W
                   None)
     hints = []
     if better is not None:
+        # the command checks what this error is about: the same steps (per sample, it may fail again)
+        option = f" --samples-per-step {discount.samples_per_step}" if discount.samples_per_step > 1 else ""
         hints.append(f"with gamma = {short_number(better)} it holds (rac check --discount "
-                     f"{short_number(better)}); or penalise `{reward}` more, or earlier")
+                     f"{short_number(better)}{option}); or penalise `{reward}` more, or earlier")
     else:
         hints.append(f"train with a gamma nearer 1, or penalise `{reward}` more, or earlier (a penalty at the "
                      "end counts gamma**steps of one at the start)")
