@@ -136,6 +136,41 @@ def test_the_callback_warns_when_the_discount_breaks_the_priority_order() -> Non
             assert said == []
 
 
+def test_the_discount_check_asks_subprocess_environments_without_killing_them() -> None:
+    # SubprocVecEnv's get_attr of an attribute its environments lack raises in the worker, which dies,
+    # and the learner saw EOFError: RacCallback crashed PPO (gamma 0.99) at the start of learn() on plain
+    # environments, which it should only warn of; with rac's wrapper the automaton comes across the pipe
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    import warnings
+
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import SubprocVecEnv, VecMonitor
+
+    from rac.learning.sb3 import RacCallback, proof_subjects
+
+    def plain() -> Any:
+        return TimeLimit(HighwayLike(), 30)
+
+    def wrapped() -> RewardAutomatonWrapper:
+        return RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)
+
+    envs = VecMonitor(SubprocVecEnv([plain, plain], start_method="fork"))
+    try:
+        assert proof_subjects(envs) == []
+        model = PPO("MlpPolicy", envs, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # no automaton seen: said, and not what this test is about
+            model.learn(32, callback=RacCallback())
+        assert model.num_timesteps == 32
+    finally:
+        envs.close()
+    envs = SubprocVecEnv([wrapped, wrapped], start_method="fork")
+    try:
+        assert [(a.name, n) for a, n in proof_subjects(envs)] == [("Follow", 1)]
+    finally:
+        envs.close()
+
+
 def test_the_callback_warns_of_gymnasiums_reward_wrappers_outside_the_automaton() -> None:
     # gymnasium's NormalizeReward (the CleanRL way of VecNormalize's norm_reward), ClipReward and
     # TransformReward put around the automaton's reward change what the learner learns from, as

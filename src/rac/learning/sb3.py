@@ -263,8 +263,12 @@ def proof_subjects(venv: Any) -> list[tuple[ir.Automaton, int]]:
     :class:`~rac.learning.wrappers.RewardAutomatonWrapper` and
     :class:`~rac.learning.scenario_env.ScenarioEnv`), each once; empty when none is known."""
     try:
+        # asked first: SubprocVecEnv's get_attr of an attribute an environment lacks kills its worker (an
+        # AttributeError there, EOFError here), where has_attr asks without raising
+        if not venv.has_attr("proof_subject"):
+            return []
         found = venv.get_attr("proof_subject")
-    except (AttributeError, TypeError):  # an environment without rac's wrapper, or no VecEnv of SB3's
+    except (AttributeError, TypeError):  # no VecEnv of SB3's
         return []
     subjects: list[tuple[ir.Automaton, int]] = []
     for subject in found:
