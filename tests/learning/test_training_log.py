@@ -110,6 +110,7 @@ def test_the_callback_warns_when_the_discount_breaks_the_priority_order() -> Non
     pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
     import warnings
 
+    import numpy as np
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv
 
@@ -120,7 +121,8 @@ def test_the_callback_warns_when_the_discount_breaks_the_priority_order() -> Non
 
     envs = DummyVecEnv([make, make])
     assert [(a.name, n) for a, n in proof_subjects(envs)] == [("Follow", 1)]  # two copies of one automaton
-    for gamma in (0.9, 0.99):
+    # a numpy gamma (float32 is no Python float) is checked as well: it was skipped, nothing said
+    for gamma in (0.9, 0.99, np.float32(0.9)):
         model = PPO("MlpPolicy", envs, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu", gamma=gamma)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -128,8 +130,8 @@ def test_the_callback_warns_when_the_discount_breaks_the_priority_order() -> Non
             model.learn(32, callback=callback)
             model.learn(32, callback=callback, reset_num_timesteps=False)  # said once
         said = [str(w.message) for w in caught if "discounted" in str(w.message)]
-        if gamma == 0.9:
-            assert len(said) == 1, said
+        if gamma < 0.95:
+            assert len(said) == 1, (gamma, said)
             assert "gamma=0.9" in said[0] and "`Follow`" in said[0] and "rac check --discount 0.9" in said[0]
             assert "P2 no compensation fails for the discounted return" in said[0]
         else:

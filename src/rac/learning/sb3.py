@@ -7,6 +7,7 @@ stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this mo
 
 from __future__ import annotations
 
+import numbers
 import warnings
 from fractions import Fraction
 from typing import Any
@@ -106,7 +107,9 @@ class RacCallback(BaseCallback):
                 "scale the automaton's reward with scale='proven' (every reward in [-1, 1], the proofs intact) "
                 "instead", UserWarning, stacklevel=2)
         gamma = getattr(self.model, "gamma", None)
-        if not self._warned_discount and isinstance(gamma, (int, float)) and 0 < gamma < 1:
+        # numbers.Real: a numpy float32 gamma (np.float32(0.99)) is no float, and was never checked
+        if (not self._warned_discount and isinstance(gamma, numbers.Real) and not isinstance(gamma, bool)
+                and 0 < gamma < 1):
             self._warned_discount = True  # learn() called again: said once
             for message in discount_warnings(self.training_env, gamma, type(self.model).__name__):
                 warnings.warn(message, UserWarning, stacklevel=2)
