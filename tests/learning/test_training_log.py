@@ -138,6 +138,20 @@ def test_the_callback_warns_when_the_discount_breaks_the_priority_order() -> Non
             assert said == []
 
 
+def test_the_discount_warning_names_the_gamma_to_the_last_digit() -> None:
+    # the warning wrote gamma with `:g`, six digits: 0.123456789 became 0.123457 and 0.9999999 became 1,
+    # so the command it gave (`rac check --discount 1`) checked the plain return, not the learner's
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from rac.learning.sb3 import discount_warnings
+
+    envs = DummyVecEnv([lambda: RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)])
+    said = discount_warnings(envs, 0.123456789, "PPO")
+    assert len(said) == 1 and "gamma=0.123456789 per step" in said[0], said
+    assert "`rac check --discount 0.123456789 FILE`" in said[0]
+
+
 def test_the_discount_check_asks_subprocess_environments_without_killing_them() -> None:
     # SubprocVecEnv's get_attr of an attribute its environments lack raises in the worker, which dies,
     # and the learner saw EOFError: RacCallback crashed PPO (gamma 0.99) at the start of learn() on plain

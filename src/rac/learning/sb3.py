@@ -287,7 +287,8 @@ def discount_warnings(venv: Any, gamma: float, algorithm: str = "the learner") -
     (:func:`rac.check.analysis.discount.check_discounted`), and where it fails or is not checked, why."""
     from rac.check.analysis.discount import Discount, check_discounted  # numpy and the analyses: only when asked
 
-    exact = Fraction(str(gamma))  # 0.99 as written: 99/100
+    text = str(gamma)  # as written, to the last digit (`:g` made 0.9999999 "1", another return to check)
+    exact = Fraction(text)  # 0.99 as written: 99/100
     messages = []
     for automaton, samples in proof_subjects(venv):
         for found in check_discounted(automaton, Discount(exact, samples)):
@@ -295,9 +296,9 @@ def discount_warnings(venv: Any, gamma: float, algorithm: str = "the learner") -
             what = ("fails" if found.is_error else "is not checked")
             hint = f"; {found.hints[0]}" if found.hints else ""
             messages.append(
-                f"RacCallback: {algorithm} maximises the return discounted by gamma={gamma:g} per step, and the "
+                f"RacCallback: {algorithm} maximises the return discounted by gamma={text} per step, and the "
                 f"priority order of `{automaton.name}` {what} for that return: {found.message}; rac check proves "
-                f"the order of the plain return only; `rac check --discount {gamma:g}{option} FILE` shows the "
+                f"the order of the plain return only; `rac check --discount {text}{option} FILE` shows the "
                 f"run{hint}")
     return messages
 
