@@ -13,6 +13,7 @@ from gymnasium.wrappers import TimeLimit
 from highway_like import HighwayLike, follow, inputs
 from test_location_observation import Blank, took
 
+from rac.compiler import compile_text
 from rac.learning.training_log import TrainingLog
 from rac.learning.wrappers import RewardAutomatonWrapper
 
@@ -149,7 +150,37 @@ def test_the_discount_warning_names_the_gamma_to_the_last_digit() -> None:
     envs = DummyVecEnv([lambda: RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)])
     said = discount_warnings(envs, 0.123456789, "PPO")
     assert len(said) == 1 and "gamma=0.123456789 per step" in said[0], said
-    assert "`rac check --discount 0.123456789 FILE`" in said[0]
+    assert "`rac check --discount 0.123456789 FILE` shows the run" in said[0]
+
+
+SCALING = """automaton Doubling {
+    input hit : bool
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 1
+    horizon 5
+    initial location Fine { sa' == 0; pr' == 1 }
+    location Hit { sa' == -1; pr' == 0 }
+    edge Fine -> Hit when hit do sa = sa * 2 - 10
+}
+"""
+
+
+def test_the_discount_warning_of_a_check_not_made_promises_no_run() -> None:
+    # an automaton whose update scales a reward is not checked under a discount (W0405): there is no run,
+    # and the warning said `rac check --discount 0.99 FILE` "shows the run"
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from rac.learning.sb3 import discount_warnings
+
+    scaling = compile_text(SCALING, "scaling.ra").raise_for_errors()
+    envs = DummyVecEnv([lambda: RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=1), 5), scaling,
+                                                       lambda obs, info: {"hit": bool(obs[0] < 2)})])
+    said = discount_warnings(envs, 0.99, "PPO")
+    assert len(said) == 1 and "is not checked for that return" in said[0] and "scales a reward" in said[0], said
+    assert said[0].endswith("`rac check --discount 0.99 FILE` says why"), said
 
 
 def test_the_discount_check_asks_subprocess_environments_without_killing_them() -> None:
