@@ -218,6 +218,15 @@ def test_the_discount_check_asks_subprocess_environments_without_killing_them() 
         envs.close()
 
 
+    class Older:
+        """A vector environment with get_attr and no has_attr (stable-baselines3 before 2.6)."""
+
+        def get_attr(self, name: str) -> list[Any]:
+            return [getattr(wrapped(), name)]
+
+    assert [(a.name, n) for a, n in proof_subjects(Older())] == [("Follow", 1)]
+
+
 def test_the_callback_warns_of_gymnasiums_reward_wrappers_outside_the_automaton() -> None:
     # gymnasium's NormalizeReward (the CleanRL way of VecNormalize's norm_reward), ClipReward and
     # TransformReward put around the automaton's reward change what the learner learns from, as

@@ -267,8 +267,10 @@ def proof_subjects(venv: Any) -> list[tuple[ir.Automaton, int]]:
     :class:`~rac.learning.scenario_env.ScenarioEnv`), each once; empty when none is known."""
     try:
         # asked first: SubprocVecEnv's get_attr of an attribute an environment lacks kills its worker (an
-        # AttributeError there, EOFError here), where has_attr asks without raising
-        if not venv.has_attr("proof_subject"):
+        # AttributeError there, EOFError here), where has_attr asks without raising (a VecEnv without
+        # has_attr, older than stable-baselines3 2.6, is asked get_attr alone)
+        has_attr = getattr(venv, "has_attr", None)
+        if has_attr is not None and not has_attr("proof_subject"):
             return []
         found = venv.get_attr("proof_subject")
     except (AttributeError, TypeError):  # no VecEnv of SB3's
