@@ -286,3 +286,32 @@ def test_the_hints_command_checks_steps_of_as_many_samples(capsys: pytest.Captur
     assert "(rac check --discount 0.999 --samples-per-step 5)" in hint
     assert main(["check", "-q", "--discount", "0.999", "--samples-per-step", "5", str(DRIVING)]) == 0
     assert main(["check", "-q", "--discount", "0.999", str(DRIVING)]) == 1  # what the hint said before
+
+
+ACCRUING = """automaton Accruing {
+    input isClose : bool
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 1
+    horizon 4
+    initial location Normal { sa' == 0; pr' == 1 }
+    location Close          { sa' == 0; pr' == 3 }
+    edge Normal -> Close when isClose do sa = sa - 0.35
+}
+"""
+
+
+def test_an_instant_before_the_next_sample_is_in_that_samples_step() -> None:
+    """At 0.9 the worst instant is t = 4 s just before the next sample: the accrual since sample 3 is
+    step 4's reward (weighed 0.9**3 = 0.729), and the note named step 3 and its weight 0.81."""
+    automaton = compile_text(ACCRUING, "accruing.ra", analyse=False).automaton
+    assert automaton is not None
+    found = check_discounted(automaton, Discount(Fraction(9, 10)))
+    assert [d.code for d in found] == [DISCOUNTED_P2]
+    assert "just before the next sample" in found[0].notes[1].message
+    assert "in the learner's step 4:" in found[0].notes[1].message, found[0].notes[1].message
+    assert "(here 0.729 at that step)" in found[0].notes[2].message
+    # the value is what the learner's steps 1-4 earn, the fourth of them the accrual alone
+    rewards = [1 - Fraction(35, 10), 3, 3, 3]  # step 1: Normal accrues pr, the edge costs 10 * 0.35; then Close
+    assert Fraction(found[0].data["value"]) == sum(Fraction(9, 10) ** j * r for j, r in enumerate(rewards))

@@ -366,14 +366,16 @@ def _error(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves], worst: W
     plain = sum((wk * v for wk, v in zip(target.weights, values)), target.constant)
     scope = "the objective" if level == 0 else "the weighted sum from `" + reward + "` down"
     last = worst.steps[-1].sample if worst.steps else 0
-    step = (last - 1) // discount.samples_per_step + 1 if last else 0
+    # just before the next sample, the accrual since the last is the next sample's step's reward
+    at = last + 1 if worst.instant == BEFORE_NEXT else last
+    step = (at - 1) // discount.samples_per_step + 1 if at else 0
     notes = [
         Note(f"counterexample (sample every {show_number(automaton.period)} s, horizon "
              f"{show_number(automaton.horizon)} s):\n" + "\n".join(describe_run(automaton, space, worst))),
         Note(f"at the violating instant ({where}), in the learner's step {step}: {scope} is "
              f"{show_number(plain)} undiscounted, {short_number(worst.value)} discounted"),
         Note("a learner maximising the discounted return (stable-baselines3's `gamma`, 0.99 by default) "
-             f"counts the reward of its step j by gamma**(j-1) (here {short_number(discount.weight(last or 1))} "
+             f"counts the reward of its step j by gamma**(j-1) (here {short_number(discount.weight(at or 1))} "
              "at that step): gains early outweigh the penalty late, which the priority order rules out for the "
              "plain return only"),
     ]
