@@ -228,6 +228,11 @@ def test_rac_check_discount_from_the_command_line(capsys: pytest.CaptureFixture[
     scaling.write_text(SCALING)
     assert main(["check", "--discount", "0.9", str(scaling)]) == 4  # not checked: undecided, never ok
     capsys.readouterr()
+    # in JSON, named as E0410 and the fact name it (it said "property": "P2", E0402's, and "discount")
+    assert main(["check", "--format", "json", "--discount", "0.9", "--samples-per-step", "2", str(scaling)]) == 4
+    unfinished = json.loads(capsys.readouterr().out)[0]["diagnostics"][-1]
+    assert unfinished["code"] == UNFINISHED
+    assert unfinished["data"] == {"property": "P2-discounted", "reward": "sa", "gamma": "9/10", "samples_per_step": 2}
     assert main(["check", "--samples-per-step", "5", str(DRIVING)]) == 2
     assert "needs --discount" in capsys.readouterr().err
     assert main(["check", "--discount", "1.5", str(DRIVING)]) == 2

@@ -344,7 +344,9 @@ def check_discounted(automaton: ir.Automaton, discount: Discount, facts: list[Fa
                 automaton.spans.get("decl:priority"),
                 notes=["rac check proves P2 of the undiscounted return; what a learner with this discount "
                        "maximises is not covered"],
-                data={"property": "P2", "discount": exact_text(discount.gamma), "reward": reward}))
+                # named as E0410's and the fact's: "P2" alone is E0402's, the undiscounted check
+                data={"property": "P2-discounted", "reward": reward, "gamma": exact_text(discount.gamma),
+                      "samples_per_step": discount.samples_per_step}))
             continue
         if worst is None or worst.value <= 0:
             bound = "" if worst is None else f": the discounted value stays <= {short_number(worst.value)}"
