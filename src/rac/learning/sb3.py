@@ -7,7 +7,6 @@ stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this mo
 
 from __future__ import annotations
 
-import numbers
 import warnings
 from fractions import Fraction
 from typing import Any
@@ -107,9 +106,8 @@ class RacCallback(BaseCallback):
                 "scale the automaton's reward with scale='proven' (every reward in [-1, 1], the proofs intact) "
                 "instead", UserWarning, stacklevel=2)
         gamma = getattr(self.model, "gamma", None)
-        # numbers.Real: a numpy float32 gamma (np.float32(0.99)) is no float, and was never checked
-        if (not self._warned_discount and isinstance(gamma, numbers.Real) and not isinstance(gamma, bool)
-                and 0 < gamma < 1):
+        # np.floating too: a numpy float32 gamma (np.float32(0.99)) is no float, and was never checked
+        if not self._warned_discount and isinstance(gamma, (float, np.floating)) and 0 < gamma < 1:
             self._warned_discount = True  # learn() called again: said once
             for message in discount_warnings(self.training_env, gamma, type(self.model).__name__):
                 warnings.warn(message, UserWarning, stacklevel=2)
@@ -283,7 +281,7 @@ def proof_subjects(venv: Any) -> list[tuple[ir.Automaton, int]]:
     return subjects
 
 
-def discount_warnings(venv: Any, gamma: float, algorithm: str = "the learner") -> list[str]:
+def discount_warnings(venv: Any, gamma: float | np.floating[Any], algorithm: str = "the learner") -> list[str]:
     """What :class:`RacCallback` warns of, once, when its algorithm discounts (``gamma < 1``): for each
     automaton of :func:`proof_subjects`, P2 of the return discounted by ``gamma`` per step checked
     (:func:`rac.check.analysis.discount.check_discounted`), and where it fails or is not checked, why."""
