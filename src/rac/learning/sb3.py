@@ -8,6 +8,7 @@ stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this mo
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator
 from fractions import Fraction
 from typing import Any
 
@@ -214,26 +215,25 @@ def reward_changers(venv: Any) -> list[str]:
     """The names of gymnasium's reward wrappers (:data:`REWARD_CHANGERS`) that change the reward automaton's
     reward on its way to the learner in some environment of stable-baselines3's vector environment ``venv``:
     outside :class:`~rac.learning.wrappers.RewardAutomatonWrapper` or :class:`~rac.learning.scenario_env.ScenarioEnv`
-    (one inside the automaton's wrapper changes a reward that the automaton's replaces). The environments of a
-    ``DummyVecEnv`` are walked; another vector environment's (``SubprocVecEnv``: in other processes) are asked
-    ``env_is_wrapped``, which cannot tell inside from outside, so a changer there counts unless the
-    automaton's wrapper is there too."""
+    (one inside the automaton's wrapper changes a reward that the automaton's replaces; one in an environment without
+    an automaton changes no automaton's reward). The environments of a ``DummyVecEnv`` are walked; another vector
+    environment's (``SubprocVecEnv``: in other processes) are asked where they are, with :class:`_Probe`s: there a
+    changer is named by the gymnasium class it derives from, and one between two automaton wrappers counts too (a
+    probe sees a wrapper and what lies below it, not what lies above)."""
     base = _wrapper(venv, DummyVecEnv)
     if isinstance(base, DummyVecEnv):
         found: set[str] = set()
         for first in base.envs:
-            env: Any = first
-            for _ in range(100):  # a wrapper chain, not a cycle
-                if env is None or isinstance(env, (RewardAutomatonWrapper, ScenarioEnv)):
+            if not any(isinstance(env, _AUTOMATA) for env in _chain(first)):
+                continue  # no automaton's reward to change
+            for env in _chain(first):
+                if isinstance(env, _AUTOMATA):
                     break
                 if isinstance(env, REWARD_CHANGERS):
                     found.add(type(env).__name__)
-                env = getattr(env, "env", None)
         return sorted(found)
     try:  # any of stable-baselines3's VecEnvs answers env_is_wrapped; anything else is no such environment
-        if any(venv.env_is_wrapped(RewardAutomatonWrapper)):
-            return []
-        return sorted(kind.__name__ for kind in REWARD_CHANGERS if any(venv.env_is_wrapped(kind)))
+        return sorted(probe.kind.__name__ for probe in _AROUND_AUTOMATON if any(venv.env_is_wrapped(probe)))
     except (AttributeError, TypeError):
         return []
 
@@ -322,6 +322,63 @@ def _relabels_with_automaton(venv: Any) -> bool:
         return any(venv.env_is_wrapped(RewardAutomatonWrapper))
     except (AttributeError, TypeError):  # no VecEnv of stable-baselines3's
         return False
+
+
+def _chain(env: Any) -> Iterator[Any]:
+    """``env`` and the environments it wraps (each wrapper's ``env``), outermost first."""
+    for _ in range(100):  # a wrapper chain, not a cycle
+        if env is None:
+            return
+        yield env
+        env = getattr(env, "env", None)
+
+
+#: The environments whose rewards are a reward automaton's.
+_AUTOMATA = (RewardAutomatonWrapper, ScenarioEnv)
+
+
+class _Probe(type):
+    """The metaclass of the questions :func:`reward_changers` puts to environments in other processes
+    (``SubprocVecEnv``), which cannot be walked from here: stable-baselines3's ``env_is_wrapped(probe)`` sends
+    the probe (a class: pickled by its name, so each is a class of this module) to where each environment lives
+    and asks ``isinstance(wrapper, probe)`` of each of its wrappers, from the outermost in; the probe's
+    ``holds(wrapper)`` answers, and only the answer comes back. A wrapper sees the environments below it, not
+    the ones above: the questions are put that way."""
+
+    def __instancecheck__(cls, env: object) -> bool:
+        return bool(cls.holds(env))
+
+    def holds(cls, env: object) -> bool:
+        """Whether the wrapper ``env`` is what the probe asks for (each probe's own classmethod answers)."""
+        return False
+
+
+class _AroundAutomaton(metaclass=_Probe):
+    """A wrapper of the gymnasium reward wrapper ``kind`` (the first of :data:`REWARD_CHANGERS` it is one of:
+    ``ClipReward`` is a ``TransformReward``) with a reward automaton below it."""
+
+    kind: type = object
+
+    @classmethod
+    def holds(cls, env: object) -> bool:
+        kind = next((kind for kind in REWARD_CHANGERS if isinstance(env, kind)), None)
+        return kind is cls.kind and any(isinstance(inner, _AUTOMATA) for inner in _chain(getattr(env, "env", None)))
+
+
+class _NormalizeRewardAround(_AroundAutomaton):
+    kind = NormalizeReward
+
+
+class _ClipRewardAround(_AroundAutomaton):
+    kind = ClipReward
+
+
+class _TransformRewardAround(_AroundAutomaton):
+    kind = TransformReward
+
+
+#: One probe per reward changer, as :func:`reward_changers` asks them.
+_AROUND_AUTOMATON = (_NormalizeRewardAround, _ClipRewardAround, _TransformRewardAround)
 
 
 def _wrapper(venv: Any, kind: type) -> Any:

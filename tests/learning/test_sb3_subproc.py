@@ -1,0 +1,82 @@
+"""RacCallback's checks of the training environment where its environments live in other processes
+(stable-baselines3's ``SubprocVecEnv``, as ``make_vec_env(..., vec_env_cls=SubprocVecEnv)`` builds it): they
+cannot be walked from the learner's process, and the checks that walked a ``DummyVecEnv``'s ``envs`` saw nothing
+there. ``start_method="fork"`` keeps each run to a second or two."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium
+import pytest
+from gymnasium.wrappers import TimeLimit
+from highway_like import HighwayLike, follow, inputs
+
+from rac.learning.wrappers import RewardAutomatonWrapper
+
+pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+
+from stable_baselines3 import PPO  # noqa: E402 - only where stable-baselines3 is installed
+from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv  # noqa: E402
+
+from rac.learning import sb3  # noqa: E402
+
+
+def automaton() -> RewardAutomatonWrapper:
+    return RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)
+
+
+def subproc(make: Callable[[], gymnasium.Env[Any, Any]]) -> VecEnv:
+    """Two environments ``make`` builds, each in a process of its own, under ``make_vec_env``'s ``Monitor``."""
+    return make_vec_env(make, n_envs=2, seed=0, vec_env_cls=SubprocVecEnv, vec_env_kwargs={"start_method": "fork"})
+
+
+def learned(model: Any, marker: str, steps: int = 16) -> list[str]:
+    """The warnings whose text holds ``marker`` that ``model`` gives learning ``steps`` steps twice with one
+    ``RacCallback`` (each of its warnings is said once)."""
+    callback = sb3.RacCallback()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model.learn(steps, callback=callback)
+        model.learn(steps, callback=callback, reset_num_timesteps=False)
+    return [str(w.message) for w in caught if marker in str(w.message)]
+
+
+def test_reward_changers_outside_the_automaton_are_seen_in_other_processes() -> None:
+    # Asked env_is_wrapped(RewardAutomatonWrapper) first, SubprocVecEnv's environments with rac's wrapper answered
+    # "no changer" whether NormalizeReward sat outside it (the learner's reward no longer the automaton's) or inside:
+    # RacCallback's warning lapsed for every make_vec_env(..., vec_env_cls=SubprocVecEnv) run
+    from gymnasium.wrappers import ClipReward, NormalizeReward, TransformReward
+
+    def outside() -> gymnasium.Env[Any, Any]:
+        return ClipReward(NormalizeReward(automaton()), -1.0, 1.0)
+
+    def transformed() -> gymnasium.Env[Any, Any]:
+        return TransformReward(automaton(), lambda reward: 2 * reward)
+
+    def inside() -> gymnasium.Env[Any, Any]:
+        return RewardAutomatonWrapper(NormalizeReward(TimeLimit(HighwayLike(), 30)), follow(), inputs, clip=True)
+
+    def no_automaton() -> gymnasium.Env[Any, Any]:  # no automaton's reward to change
+        return NormalizeReward(TimeLimit(HighwayLike(), 30))
+
+    cases = ((outside, ["ClipReward", "NormalizeReward"]), (transformed, ["TransformReward"]), (inside, []),
+             (no_automaton, []))
+    for make, expected in cases:
+        assert sb3.reward_changers(DummyVecEnv([make])) == expected  # the walk and the probes agree
+        envs = subproc(make)
+        try:
+            assert sb3.reward_changers(envs) == expected, make.__name__
+            if make is no_automaton:
+                continue
+            model = PPO("MlpPolicy", envs, n_steps=8, batch_size=16, n_epochs=1, seed=0, device="cpu")
+            said = learned(model, "around the reward automaton's reward")
+            if expected:
+                assert len(said) == 1 and ", ".join(expected) in said[0], said
+            else:
+                assert said == []
+        finally:
+            envs.close()
