@@ -13,12 +13,14 @@ import gymnasium
 import pytest
 from gymnasium.wrappers import TimeLimit
 from highway_like import HighwayLike, follow, inputs
+from test_location_observation import Blank, alternate, took
 
+from rac.learning.location_observation import LocationObservation
 from rac.learning.wrappers import RewardAutomatonWrapper
 
 pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
 
-from stable_baselines3 import PPO  # noqa: E402 - only where stable-baselines3 is installed
+from stable_baselines3 import DQN, PPO  # noqa: E402 - only where stable-baselines3 is installed
 from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv  # noqa: E402
 
@@ -78,5 +80,39 @@ def test_reward_changers_outside_the_automaton_are_seen_in_other_processes() -> 
                 assert len(said) == 1 and ", ".join(expected) in said[0], said
             else:
                 assert said == []
+        finally:
+            envs.close()
+
+
+def test_frame_stacking_outside_the_location_is_seen_in_other_processes() -> None:
+    # gymnasium's FrameStackObservation outside LocationObservation stacks the location's one-hot vectors, so
+    # CounterfactualReplayBuffer's rows are no transitions the environment could have produced; frame_stacker
+    # walked a DummyVecEnv's environments only, and under SubprocVecEnv RacCallback's warning never came
+    from gymnasium.wrappers import FlattenObservation, FrameStackObservation
+
+    def outside() -> gymnasium.Env[Any, Any]:
+        return FlattenObservation(FrameStackObservation(LocationObservation(RewardAutomatonWrapper(
+            Blank(), alternate(), took)), 2))
+
+    def inside() -> gymnasium.Env[Any, Any]:
+        return LocationObservation(RewardAutomatonWrapper(FlattenObservation(FrameStackObservation(Blank(), 2)),
+                                                          alternate(), took))
+
+    def no_location() -> gymnasium.Env[Any, Any]:  # stacked with no LocationObservation: counted, as in the walk
+        return FlattenObservation(FrameStackObservation(RewardAutomatonWrapper(Blank(), alternate(), took), 2))
+
+    for make, stacked in ((outside, True), (inside, False), (no_location, True)):
+        expected = "FrameStackObservation" if stacked else None
+        assert sb3.frame_stacker(DummyVecEnv([make])) == expected  # the walk and the probes agree
+        envs = subproc(make)
+        try:
+            assert sb3.frame_stacker(envs) == expected, make.__name__
+            if make is no_location:
+                continue
+            model = DQN("MlpPolicy", envs, learning_starts=1000, buffer_size=1000, seed=0, device="cpu",
+                        replay_buffer_class=sb3.CounterfactualReplayBuffer,
+                        replay_buffer_kwargs={"automaton": alternate()})
+            said = learned(model, "under FrameStackObservation", steps=4)
+            assert len(said) == (1 if stacked else 0), said
         finally:
             envs.close()

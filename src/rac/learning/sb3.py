@@ -241,20 +241,31 @@ def reward_changers(venv: Any) -> list[str]:
 def frame_stacker(venv: Any) -> str | None:
     """What stacks the location's frames in stable-baselines3's vector environment ``venv``: ``"VecFrameStack"``
     in its chain of vector wrappers, ``"FrameStackObservation"`` where gymnasium's sits outside a
-    :class:`~rac.learning.location_observation.LocationObservation` in an environment of a ``DummyVecEnv`` (inside
-    it, the frames are stacked before the location is added, once), or None. Another vector environment's
-    environments (``SubprocVecEnv``: in other processes) are not walked."""
+    :class:`~rac.learning.location_observation.LocationObservation` (or in an environment without one) in an
+    environment of ``venv`` (inside it, the frames are stacked before the location is added, once), or None. The
+    environments of a ``DummyVecEnv`` are walked; another vector environment's (``SubprocVecEnv``: in other
+    processes) are asked where they are, with :class:`_Probe`s (there, one between two ``LocationObservation``
+    counts too)."""
     if _wrapper(venv, VecFrameStack) is not None:
         return "VecFrameStack"
     base = _wrapper(venv, DummyVecEnv)
-    for first in base.envs if isinstance(base, DummyVecEnv) else ():
-        env: Any = first
-        for _ in range(100):  # a wrapper chain, not a cycle
-            if env is None or isinstance(env, LocationObservation):
-                break
-            if isinstance(env, FrameStackObservation):
-                return "FrameStackObservation"
-            env = getattr(env, "env", None)
+    if isinstance(base, DummyVecEnv):
+        for first in base.envs:
+            for env in _chain(first):
+                if isinstance(env, LocationObservation):
+                    break
+                if isinstance(env, FrameStackObservation):
+                    return "FrameStackObservation"
+        return None
+    try:  # any of stable-baselines3's VecEnvs answers env_is_wrapped; anything else is no such environment
+        located = venv.env_is_wrapped(LocationObservation)
+        around = venv.env_is_wrapped(_StacksAroundLocation)
+        stacked = venv.env_is_wrapped(FrameStackObservation)
+    except (AttributeError, TypeError):
+        return None
+    # with a LocationObservation, a stack counts around it; without one, anywhere (as the walk above)
+    if any(a if loc else s for loc, a, s in zip(located, around, stacked, strict=True)):
+        return "FrameStackObservation"
     return None
 
 
@@ -338,12 +349,12 @@ _AUTOMATA = (RewardAutomatonWrapper, ScenarioEnv)
 
 
 class _Probe(type):
-    """The metaclass of the questions :func:`reward_changers` puts to environments in other processes
-    (``SubprocVecEnv``), which cannot be walked from here: stable-baselines3's ``env_is_wrapped(probe)`` sends
-    the probe (a class: pickled by its name, so each is a class of this module) to where each environment lives
-    and asks ``isinstance(wrapper, probe)`` of each of its wrappers, from the outermost in; the probe's
-    ``holds(wrapper)`` answers, and only the answer comes back. A wrapper sees the environments below it, not
-    the ones above: the questions are put that way."""
+    """The metaclass of the questions :func:`reward_changers` and :func:`frame_stacker` put to environments in
+    other processes (``SubprocVecEnv``), which cannot be walked from here: stable-baselines3's
+    ``env_is_wrapped(probe)`` sends the probe (a class: pickled by its name, so each is a class of this module) to
+    where each environment lives and asks ``isinstance(wrapper, probe)`` of each of its wrappers, from the
+    outermost in; the probe's ``holds(wrapper)`` answers, and only the answer comes back. A wrapper sees the
+    environments below it, not the ones above: the questions are put that way."""
 
     def __instancecheck__(cls, env: object) -> bool:
         return bool(cls.holds(env))
@@ -379,6 +390,15 @@ class _TransformRewardAround(_AroundAutomaton):
 
 #: One probe per reward changer, as :func:`reward_changers` asks them.
 _AROUND_AUTOMATON = (_NormalizeRewardAround, _ClipRewardAround, _TransformRewardAround)
+
+
+class _StacksAroundLocation(metaclass=_Probe):
+    """A gymnasium ``FrameStackObservation`` with a ``LocationObservation`` below it."""
+
+    @classmethod
+    def holds(cls, env: object) -> bool:
+        return isinstance(env, FrameStackObservation) and any(
+            isinstance(inner, LocationObservation) for inner in _chain(getattr(env, "env", None)))
 
 
 def _wrapper(venv: Any, kind: type) -> Any:
