@@ -10,17 +10,19 @@ from collections.abc import Callable
 from typing import Any
 
 import gymnasium
+import numpy as np
 import pytest
 from gymnasium.wrappers import TimeLimit
 from highway_like import HighwayLike, follow, inputs
 from test_location_observation import Blank, alternate, took
+from test_wrappers import Reach
 
 from rac.learning.location_observation import LocationObservation
 from rac.learning.wrappers import RewardAutomatonWrapper
 
 pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
 
-from stable_baselines3 import DQN, PPO  # noqa: E402 - only where stable-baselines3 is installed
+from stable_baselines3 import DQN, PPO, SAC, HerReplayBuffer  # noqa: E402 - only where stable-baselines3 is installed
 from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv  # noqa: E402
 
@@ -114,5 +116,42 @@ def test_frame_stacking_outside_the_location_is_seen_in_other_processes() -> Non
                         replay_buffer_kwargs={"automaton": alternate()})
             said = learned(model, "under FrameStackObservation", steps=4)
             assert len(said) == (1 if stacked else 0), said
+        finally:
+            envs.close()
+
+
+class Relabel(gymnasium.Wrapper[Any, Any, Any, Any]):
+    """A wrapper outside rac's that answers compute_reward itself: HerReplayBuffer asks it, not rac's."""
+
+    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        return np.zeros(np.shape(achieved_goal)[:-1])
+
+
+def reach_inputs(obs: Any, info: dict[str, Any]) -> dict[str, object]:
+    return {"headway": float(obs["observation"][0]), "collide": False}
+
+
+def test_hindsight_relabelling_answered_outside_rac_is_not_refused_in_other_processes() -> None:
+    # Under SubprocVecEnv, RacCallback refused HerReplayBuffer (NotImplementedError at the start of learn())
+    # wherever rac's wrapper was, also where a wrapper outside it answers compute_reward itself and
+    # HerReplayBuffer never asks rac's: a run that trains under DummyVecEnv could not start in other processes
+    def answered() -> gymnasium.Env[Any, Any]:
+        return Relabel(RewardAutomatonWrapper(Reach(), follow(), reach_inputs))
+
+    def refused() -> gymnasium.Env[Any, Any]:
+        return RewardAutomatonWrapper(Reach(), follow(), reach_inputs)
+
+    for make in (answered, refused):
+        envs = subproc(make)
+        try:
+            model = SAC("MultiInputPolicy", envs, replay_buffer_class=HerReplayBuffer, learning_starts=20,
+                        buffer_size=200, batch_size=16, seed=0, device="cpu")
+            if make is refused:
+                with pytest.raises(NotImplementedError, match="depends on the run so far.*start of learn"):
+                    model.learn(30, callback=sb3.RacCallback())
+                assert model.num_timesteps == 0
+            else:  # an episode (10 steps) in each process, then relabelled samples
+                model.learn(30, callback=sb3.RacCallback())
+                assert model.num_timesteps == 30
         finally:
             envs.close()

@@ -318,7 +318,9 @@ def _relabels_with_automaton(venv: Any) -> bool:
     """Whether ``HerReplayBuffer`` would ask :class:`~rac.learning.wrappers.RewardAutomatonWrapper` for
     ``compute_reward`` in stable-baselines3's vector environment ``venv``: a ``DummyVecEnv``'s environments resolve it
     as ``env_method`` does (``get_wrapper_attr``: a wrapper outside rac's may answer it itself); another vector
-    environment's (``SubprocVecEnv``: in other processes) are asked ``env_is_wrapped``."""
+    environment's (``SubprocVecEnv``: in other processes) are asked with :class:`_Probe`s whether they hold rac's
+    wrapper with no wrapper above it answering ``compute_reward`` (one between two of rac's wrappers is taken to
+    answer it: ``HerReplayBuffer`` then meets the refusal when it first samples)."""
     base = _wrapper(venv, DummyVecEnv)
     if isinstance(base, DummyVecEnv):
         for env in base.envs:
@@ -330,9 +332,11 @@ def _relabels_with_automaton(venv: Any) -> bool:
                 return True
         return False
     try:
-        return any(venv.env_is_wrapped(RewardAutomatonWrapper))
+        wrapped = venv.env_is_wrapped(RewardAutomatonWrapper)
+        answered = venv.env_is_wrapped(_AnswersRelabelling)
     except (AttributeError, TypeError):  # no VecEnv of stable-baselines3's
         return False
+    return any(w and not a for w, a in zip(wrapped, answered, strict=True))
 
 
 def _chain(env: Any) -> Iterator[Any]:
@@ -349,12 +353,12 @@ _AUTOMATA = (RewardAutomatonWrapper, ScenarioEnv)
 
 
 class _Probe(type):
-    """The metaclass of the questions :func:`reward_changers` and :func:`frame_stacker` put to environments in
-    other processes (``SubprocVecEnv``), which cannot be walked from here: stable-baselines3's
-    ``env_is_wrapped(probe)`` sends the probe (a class: pickled by its name, so each is a class of this module) to
-    where each environment lives and asks ``isinstance(wrapper, probe)`` of each of its wrappers, from the
-    outermost in; the probe's ``holds(wrapper)`` answers, and only the answer comes back. A wrapper sees the
-    environments below it, not the ones above: the questions are put that way."""
+    """The metaclass of the questions :func:`reward_changers`, :func:`frame_stacker` and
+    :func:`_relabels_with_automaton` put to environments in other processes (``SubprocVecEnv``), which cannot be
+    walked from here: stable-baselines3's ``env_is_wrapped(probe)`` sends the probe (a class: pickled by its name,
+    so each is a class of this module) to where each environment lives and asks ``isinstance(wrapper, probe)``
+    of each of its wrappers, from the outermost in; the probe's ``holds(wrapper)`` answers, and only the answer
+    comes back. A wrapper sees the environments below it, not the ones above: the questions are put that way."""
 
     def __instancecheck__(cls, env: object) -> bool:
         return bool(cls.holds(env))
@@ -399,6 +403,16 @@ class _StacksAroundLocation(metaclass=_Probe):
     def holds(cls, env: object) -> bool:
         return isinstance(env, FrameStackObservation) and any(
             isinstance(inner, LocationObservation) for inner in _chain(getattr(env, "env", None)))
+
+
+class _AnswersRelabelling(metaclass=_Probe):
+    """A wrapper other than rac's with a ``compute_reward`` of its own (as ``get_wrapper_attr`` finds it) and
+    rac's wrapper below it: ``HerReplayBuffer`` asks it, not rac's."""
+
+    @classmethod
+    def holds(cls, env: object) -> bool:
+        return (not isinstance(env, RewardAutomatonWrapper) and hasattr(env, "compute_reward")
+                and any(isinstance(inner, RewardAutomatonWrapper) for inner in _chain(getattr(env, "env", None))))
 
 
 def _wrapper(venv: Any, kind: type) -> Any:
