@@ -155,3 +155,34 @@ def test_hindsight_relabelling_answered_outside_rac_is_not_refused_in_other_proc
                 assert model.num_timesteps == 30
         finally:
             envs.close()
+
+
+def test_an_environment_without_an_automaton_ends_no_process() -> None:
+    # RacCallback asks every environment for its automaton's proof_subject at the start of learn() (the discounted
+    # P2 check, gamma < 1: PPO's default 0.99); SubprocVecEnv's process for an environment without rac's wrapper
+    # ended on the AttributeError, and learn() with EOFError, where the callback would have warned that no step's
+    # info carries a reward automaton
+    from stable_baselines3.common.monitor import Monitor
+
+    def plain() -> gymnasium.Env[Any, Any]:
+        return TimeLimit(HighwayLike(), 30)
+
+    for make, seen in ((automaton, True), (plain, False)):
+        envs = subproc(make)
+        try:
+            model = PPO("MlpPolicy", envs, n_steps=8, batch_size=16, n_epochs=1, seed=0, device="cpu")
+            said = learned(model, "carry no reward automaton")
+            assert len(said) == (0 if seen else 1), said
+            if not seen:
+                assert "step(s) of PPO" in said[0] and "RewardAutomatonWrapper" in said[0]
+        finally:
+            envs.close()
+    # one process with the automaton, one without: the one that has it is asked, the other is not
+    envs = SubprocVecEnv([lambda: Monitor(automaton()), lambda: Monitor(plain())], start_method="fork")
+    try:
+        assert [(a.name, n) for a, n in sb3.proof_subjects(envs)] == [("Follow", 1)]
+        model = PPO("MlpPolicy", envs, n_steps=8, batch_size=16, n_epochs=1, seed=0, device="cpu", gamma=0.9)
+        said = learned(model, "discounted by gamma=0.9")
+        assert len(said) == 1 and "`Follow`" in said[0], said
+    finally:
+        envs.close()

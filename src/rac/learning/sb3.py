@@ -273,15 +273,22 @@ def proof_subjects(venv: Any) -> list[tuple[ir.Automaton, int]]:
     """The automata whose rewards the environments of stable-baselines3's vector environment ``venv``
     hand out, each with the samples one step spans (``proof_subject`` of
     :class:`~rac.learning.wrappers.RewardAutomatonWrapper` and
-    :class:`~rac.learning.scenario_env.ScenarioEnv`), each once; empty when none is known."""
+    :class:`~rac.learning.scenario_env.ScenarioEnv`), each once; empty when none is known. Only the environments
+    that have one are asked for it: ``SubprocVecEnv``'s process for an environment without one ends on the
+    ``AttributeError`` (stable-baselines3's worker lets it through), and training with it. Where some have one and
+    some not, those in other processes are told apart with a :class:`_Probe`, which sees wrapped environments
+    only (an unwrapped environment's automaton is then not found)."""
     try:
-        # asked first: SubprocVecEnv's get_attr of an attribute an environment lacks kills its worker (an
-        # AttributeError there, EOFError here), where has_attr asks without raising (a VecEnv without
-        # has_attr, older than stable-baselines3 2.6, is asked get_attr alone)
+        # has_attr first: SubprocVecEnv's get_attr of an attribute an environment lacks kills its worker (an
+        # AttributeError there, EOFError here); a VecEnv without has_attr (older stable-baselines3) is asked
+        # get_attr alone
         has_attr = getattr(venv, "has_attr", None)
-        if has_attr is not None and not has_attr("proof_subject"):
-            return []
-        found = venv.get_attr("proof_subject")
+        if has_attr is None or has_attr("proof_subject"):
+            found = venv.get_attr("proof_subject")
+        else:
+            held = venv.env_is_wrapped(_HasProofSubject)
+            indices = [i for i, has in enumerate(held) if has]
+            found = venv.get_attr("proof_subject", indices) if indices else []
     except (AttributeError, TypeError):  # no VecEnv of SB3's
         return []
     subjects: list[tuple[ir.Automaton, int]] = []
@@ -353,7 +360,7 @@ _AUTOMATA = (RewardAutomatonWrapper, ScenarioEnv)
 
 
 class _Probe(type):
-    """The metaclass of the questions :func:`reward_changers`, :func:`frame_stacker` and
+    """The metaclass of the questions :func:`reward_changers`, :func:`frame_stacker`, :func:`proof_subjects` and
     :func:`_relabels_with_automaton` put to environments in other processes (``SubprocVecEnv``), which cannot be
     walked from here: stable-baselines3's ``env_is_wrapped(probe)`` sends the probe (a class: pickled by its name,
     so each is a class of this module) to where each environment lives and asks ``isinstance(wrapper, probe)``
@@ -413,6 +420,14 @@ class _AnswersRelabelling(metaclass=_Probe):
     def holds(cls, env: object) -> bool:
         return (not isinstance(env, RewardAutomatonWrapper) and hasattr(env, "compute_reward")
                 and any(isinstance(inner, RewardAutomatonWrapper) for inner in _chain(getattr(env, "env", None))))
+
+
+class _HasProofSubject(metaclass=_Probe):
+    """A wrapper with ``proof_subject`` on it or below it, as ``get_wrapper_attr`` finds it."""
+
+    @classmethod
+    def holds(cls, env: object) -> bool:
+        return any(hasattr(inner, "proof_subject") for inner in _chain(env))
 
 
 def _wrapper(venv: Any, kind: type) -> Any:
