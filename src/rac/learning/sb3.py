@@ -35,7 +35,8 @@ from rac.learning.wrappers import NO_RELABELLING, RewardAutomatonWrapper
 __all__ = ["CounterfactualReplayBuffer", "RacCallback", "discount_warnings", "frame_stacker", "proof_subjects",
            "reward_changers", "reward_normaliser", "text_table_clashes"]
 
-#: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor.
+#: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor (a subclass
+#: before its base, ClipReward before TransformReward: a probe names a wrapper by the first it is one of).
 REWARD_CHANGERS = (NormalizeReward, ClipReward, TransformReward)
 
 
