@@ -55,10 +55,11 @@ from rac.check.analysis.worst import (
     Worst,
 )
 from rac.core.diagnostics import UNFINISHED, Diagnostic, Fact, Note, error, short_number, warning
+from rac.core.numbers import exact_decimal
 from rac.ir.inputs import InputSpace
 
-__all__ = ["DISCOUNTED_P2", "Discount", "MAX_DISCOUNTED_SAMPLES", "check_discounted", "discounted_value",
-           "discounted_worst", "exact_text"]
+__all__ = ["DISCOUNTED_P2", "Discount", "MAX_DISCOUNTED_SAMPLES", "MAX_DISCOUNT_DIGITS", "check_discounted",
+           "discounted_value", "discounted_worst", "exact_text", "gamma_text"]
 
 #: The diagnostic of a discounted return that compensates a penalty (P2 fails for it).
 DISCOUNTED_P2 = "E0410"
@@ -67,6 +68,11 @@ DISCOUNTED_P2 = "E0410"
 #: denominators grow with ``gamma``'s powers (0.99 over 10,000 samples: 20,000 digits), and, unlike
 #: the undiscounted search, it cannot stop early when the values settle (each sample weighs less).
 MAX_DISCOUNTED_SAMPLES = 20_000
+
+#: The most digits gamma's powers may carry over the horizon's steps (the denominator's digits times the
+#: steps): each sample's arithmetic is on numbers that long (20,000 samples of 0.99: 40,000 digits, 1.3 s;
+#: of 0.9966666666666667, a float's 1 - 1/300: 320,000 digits, 19 s).
+MAX_DISCOUNT_DIGITS = 200_000
 
 #: The discounts the hint of E0410 tries, nearest first (the first above the one asked that holds is
 #: named), on horizons of at most MAX_HINTED_SAMPLES samples.
@@ -101,7 +107,13 @@ class Discount:
     def describe(self) -> str:
         """``gamma = 0.99 per step of 1 sample``: how the messages name it."""
         samples = "1 sample" if self.samples_per_step == 1 else f"{self.samples_per_step} samples"
-        return f"gamma = {short_number(self.gamma, 12)} per step of {samples}"
+        return f"gamma = {gamma_text(self.gamma)} per step of {samples}"
+
+
+def gamma_text(gamma: Fraction) -> str:
+    """A discount as a message writes it: exactly where it is a decimal of up to 20 places (0.9, and a
+    float's 0.9966666666666667), else rounded and marked (1/3: 0.333333333333…)."""
+    return exact_decimal(gamma, max_places=20) or short_number(gamma, 12)
 
 
 def exact_text(value: Fraction) -> str:
@@ -192,6 +204,13 @@ def discounted_worst(automaton: ir.Automaton, moves: Moves, target: Target, disc
     if steps > MAX_DISCOUNTED_SAMPLES:
         raise Unfinished(f"the horizon has {steps:,} samples, more than the {MAX_DISCOUNTED_SAMPLES:,} the "
                          "discounted search goes through")
+    last_step = (steps - 1) // discount.samples_per_step
+    digits = int(last_step * math.log10(discount.gamma.denominator)) if last_step else 0
+    if digits > MAX_DISCOUNT_DIGITS:
+        raise Unfinished(f"gamma = {gamma_text(discount.gamma)} is a fraction whose denominator has "
+                         f"{len(str(discount.gamma.denominator))} digits: its powers over the {last_step:,} steps "
+                         f"would carry {digits:,} digits, more than the {MAX_DISCOUNT_DIGITS:,} the exact search "
+                         "works with (a gamma of fewer digits, as 0.997 for 0.9966666666666667, is checked)")
     w, w0, l0 = target.weights, target.constant, automaton.initial
     outs = moves.samples
     ends = [(_sup(w, ((ONE, e.end_map),), e.box), e) for e in moves.ends]
@@ -218,7 +237,6 @@ def discounted_worst(automaton: ir.Automaton, moves: Moves, target: Target, disc
     scale = math.lcm(*(v.denominator for v in fractions))
     scaled = {key: (None if row.stop is None else int(row.stop * scale), int(row.next * scale))
               for key, row in table.items()}
-    last_step = (steps - 1) // discount.samples_per_step
     # value[l]: the most a run adds from just before sample k's edge in l (None: no watched instant ahead)
     value: list[int | None] = [None] * len(automaton.locations)
     choice: dict[int, list[tuple[int, bool]]] = {}
@@ -390,8 +408,8 @@ def _error(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves], worst: W
     if better is not None:
         # the command checks what this error is about: the same steps (per sample, it may fail again)
         option = f" --samples-per-step {discount.samples_per_step}" if discount.samples_per_step > 1 else ""
-        hints.append(f"with gamma = {short_number(better)} it holds (rac check --discount "
-                     f"{short_number(better)}{option}); or penalise `{reward}` more, or earlier")
+        hints.append(f"with gamma = {gamma_text(better)} it holds (rac check --discount "
+                     f"{gamma_text(better)}{option}); or penalise `{reward}` more, or earlier")
     else:
         hints.append(f"train with a gamma nearer 1, or penalise `{reward}` more, or earlier (a penalty at the "
                      "end counts gamma**steps of one at the start)")
