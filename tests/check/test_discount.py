@@ -9,6 +9,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
+from highway_like import SCALING
 from hypothesis import given
 from hypothesis import strategies as st
 from reference import MAX_FRONTIER, Valuation, at_end, ends_episode, sample, simulate, valuations
@@ -189,20 +190,6 @@ def test_the_drivings_discounted_counterexample_is_what_the_runtime_pays() -> No
     facts: list = []
     assert check_discounted(automaton, Discount(Fraction(9999, 10000)), facts) == []
     assert any(f.check == "P2-discounted" and Fraction(f.data["bound"]) <= 0 for f in facts)
-
-
-SCALING = """automaton Doubling {
-    input hit : bool
-    reward sa, pr
-    priority sa > pr
-    objective 10 * sa + pr
-    sample every 1
-    horizon 5
-    initial location Fine { sa' == 0; pr' == 1 }
-    location Hit { sa' == -1; pr' == 0 }
-    edge Fine -> Hit when hit do sa = sa * 2 - 10
-}
-"""
 
 
 def test_updates_that_scale_a_reward_are_not_checked_and_say_so() -> None:

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 from gymnasium.wrappers import TimeLimit
-from highway_like import HighwayLike, follow, inputs
+from highway_like import SCALING, HighwayLike, follow, inputs
 from test_location_observation import Blank, took
 
 from rac.compiler import compile_text
@@ -151,20 +151,6 @@ def test_the_discount_warning_names_the_gamma_to_the_last_digit() -> None:
     said = discount_warnings(envs, 0.123456789, "PPO")
     assert len(said) == 1 and "gamma=0.123456789 per step" in said[0], said
     assert "`rac check --discount 0.123456789 FILE` shows the run" in said[0]
-
-
-SCALING = """automaton Doubling {
-    input hit : bool
-    reward sa, pr
-    priority sa > pr
-    objective 10 * sa + pr
-    sample every 1
-    horizon 5
-    initial location Fine { sa' == 0; pr' == 1 }
-    location Hit { sa' == -1; pr' == 0 }
-    edge Fine -> Hit when hit do sa = sa * 2 - 10
-}
-"""
 
 
 def test_the_discount_warning_of_a_check_not_made_promises_no_run() -> None:

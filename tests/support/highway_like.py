@@ -29,6 +29,22 @@ FOLLOW = """automaton Follow {
 """
 
 
+#: An automaton whose update scales a reward (`sa = sa * 2 - 10`): the discounted P2 check covers
+#: translations only, so it is not made there (W0405).
+SCALING = """automaton Doubling {
+    input hit : bool
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 1
+    horizon 5
+    initial location Fine { sa' == 0; pr' == 1 }
+    location Hit { sa' == -1; pr' == 0 }
+    edge Fine -> Hit when hit do sa = sa * 2 - 10
+}
+"""
+
+
 def follow() -> ir.Automaton:
     return compile_text(FOLLOW, "follow.ra").raise_for_errors()
 
