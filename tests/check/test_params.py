@@ -81,6 +81,15 @@ def test_reversed_bounds_unused_and_second_parameter():
     assert "`P` cannot be synthesised here: with several parameters" in two.diagnostics[0].message
 
 
+def test_a_parameter_declared_twice_is_named_a_parameter():
+    # E0102 called the first `param P` "a constant" (the checker's kind for it), which the file never declares
+    twice = compile_text(driving("param PENALTY in [0, 500]\n    param PENALTY in [0, 900]"), "twice.ra")
+    assert codes(twice) == ["E0102"]
+    assert twice.diagnostics[0].message == "`PENALTY` is already declared (as a parameter)"
+    constant = compile_text(driving("const PENALTY = 100\n    param PENALTY in [0, 900]"), "mixed.ra")
+    assert constant.diagnostics[0].message == "`PENALTY` is already declared (as a constant)"
+
+
 def test_parameter_in_a_guard_is_refused():
     text = SMALL.format(param="param P in [1, 50]", penalty="P", weight="1").replace(
         "input bad : bool", "input bad : bool\n    input d : real in [0, 100]").replace(

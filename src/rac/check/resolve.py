@@ -44,6 +44,8 @@ class Resolver:
         self.parameters: list[ir.Parameter] = []
         self.diagnostics: list[Diagnostic] = []
         self.symbols: dict[str, Symbol] = {}
+        #: The names ``param`` declared: constants to the checker, but named as parameters in its messages.
+        self.parameter_names: set[str] = set()
         #: What queries and bindings may name; shares the symbols and the diagnostics.
         self.scope = Scope(automaton.name.name, self.symbols, self.has_model, automaton.name.span,
                            diagnostics=self.diagnostics)
@@ -63,7 +65,8 @@ class Resolver:
     def _declare(self, ident: ast.Ident, symbol: Symbol) -> bool:
         previous = self.symbols.get(ident.name)
         if previous is not None:
-            self._error("E0102", f"`{ident.name}` is already declared (as {_kind_word(previous.kind)})",
+            kind = "a parameter" if ident.name in self.parameter_names else _kind_word(previous.kind)
+            self._error("E0102", f"`{ident.name}` is already declared (as {kind})",
                         ident.span, notes=[Note("first declared here", previous.span)])
             return False
         self.symbols[ident.name] = symbol
@@ -221,7 +224,8 @@ class Resolver:
                 self._declare(member.name, symbol)
             elif isinstance(member, ast.ParamDecl):
                 for name, symbol in zip(member.names, self._parameters(member)):
-                    self._declare(name, symbol)
+                    if self._declare(name, symbol):
+                        self.parameter_names.add(name.name)
 
     def _parameters(self, member: ast.ParamDecl) -> list[Symbol]:
         """Parameters are constants whose values the caller chose (by default their low bound)."""
