@@ -319,3 +319,33 @@ def test_a_gamma_of_many_digits_over_a_long_horizon_is_not_searched() -> None:
     assert [d.code for d in found] == [UNFINISHED]
     assert "denominator has 17 digits" in found[0].message and "would carry 319,984 digits" in found[0].message
     assert [d.code for d in check_discounted(automaton, Discount(Fraction("0.997")))] == [DISCOUNTED_P2]
+
+
+TWO_LEVELS = """automaton Two {
+    input close : bool
+    input stall : bool
+    assume !(close && stall)
+    reward sa, pr
+    priority strict sa > pr
+    objective 10 * sa + pr
+    sample every 0.1
+    horizon 30
+    initial location Normal { sa' == 1; pr' == 1 }
+    location Unsafe { sa' == -1; pr' == 0 }
+    location Stalled { sa' == 0; pr' == -1 }
+    edge * -> Unsafe when close do sa = sa - 200
+    edge * -> Stalled when stall && !close do pr = pr - 30
+    edge * -> Normal when !close && !stall
+}
+"""
+
+
+def test_a_hints_gamma_holds_at_every_level() -> None:
+    """Under `priority strict`, `sa`'s E0410 at 0.9 named 0.995, at which `sa`'s level holds but `pr`'s
+    fails (30 s of progress, then a stall's -30, discounted: the penalty counts less than the gains at any
+    gamma below 1): rac check --discount 0.995 then failed again. A hint's gamma holds at every level."""
+    automaton = compile_text(TWO_LEVELS, "two.ra").raise_for_errors()
+    found = check_discounted(automaton, Discount(Fraction(9, 10)))
+    assert [d.data["reward"] for d in found] == ["sa", "pr"]
+    assert all("it holds" not in d.hints[0] for d in found), [d.hints for d in found]
+    assert [d.data["reward"] for d in check_discounted(automaton, Discount(Fraction(995, 1000)))] == ["pr"]

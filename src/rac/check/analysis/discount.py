@@ -402,7 +402,7 @@ def _error(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves], worst: W
     # the nearest usual gamma above that would do, where a search costs little (5,000 samples: about 0.5 s)
     candidates = HINTED if automaton.steps <= MAX_HINTED_SAMPLES else ()
     better = next((g for g in candidates
-                   if g > discount.gamma and _holds(automaton, outs, target, dataclasses.replace(discount, gamma=g))),
+                   if g > discount.gamma and _holds(automaton, outs, dataclasses.replace(discount, gamma=g))),
                   None)
     hints = []
     if better is not None:
@@ -426,10 +426,18 @@ def _error(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves], worst: W
               "run": run_json(automaton, space, worst), "end": end_json(automaton, space, worst)})
 
 
-def _holds(automaton: ir.Automaton, outs: Moves, target: Target, discount: Discount) -> bool:
-    """Whether P2 of ``target`` holds under ``discount`` (False where the search does not go)."""
-    try:
-        worst = discounted_worst(automaton, outs, target, discount)
-    except Unfinished:
-        return False
-    return worst is None or worst.value <= 0
+def _holds(automaton: ir.Automaton, outs: Moves, discount: Discount) -> bool:
+    """Whether P2 holds under ``discount`` at every level it checks (False where the search does not go):
+    a hint's gamma must not fail another level (under ``priority strict``; the check is not monotone in
+    gamma)."""
+    for level in p2_levels(automaton):
+        target = p2_target(automaton, level)
+        if not any(target.watched):
+            continue
+        try:
+            worst = discounted_worst(automaton, outs, target, discount)
+        except Unfinished:
+            return False
+        if worst is not None and worst.value > 0:
+            return False
+    return True
