@@ -665,8 +665,10 @@ def test_a_file_that_is_not_text_is_refused_at_the_line_of_its_bad_byte(ending, 
     assert main(["check", str(path)]) == 1
     out = capsys.readouterr().out
     assert f"bad.ra:{at + 1}:15: error[E0004]" in out and message in out, out
-    if bad != b"\x00":  # the source line is shown up to the bad byte (a NUL's file may be UTF-16: none)
+    if bad != b"\x00":  # the source line is shown up to the bad byte
         assert f"{at + 1} |     horizon 30\n" in out, out
+    else:  # the whole line, the NUL shown as U+FFFD under a caret (it showed no line: the brief's source line)
+        assert f"{at + 1} |     horizon 30\ufffd" in out and "\n   |               ^\n" in out, out
 
 
 @pytest.mark.parametrize(("prefix", "ending"), [("\ufeff", "\n"), ("", "\r"), ("\ufeff", "\r\n")])

@@ -455,14 +455,15 @@ def _as_source(name: str, text: str) -> SourceFile:
     return SourceFile(name, re.sub(r"\r(?!\n)", "\n", text.removeprefix("\ufeff")))
 
 
-def _reject_nul(source: SourceFile, what: str, hint: str) -> None:
+def _reject_nul(source: SourceFile, what: str, hint: str, show: bool = True) -> None:
     """E0004 (:class:`ParseFailure`) at the first NUL character of ``source``: a file's or a string's
-    source alike is text, never binary data."""
+    source alike is text, never binary data. ``show``: with its line, the NUL shown as U+FFFD (not for a
+    file that looks like UTF-16, whose every other character is a NUL)."""
     if "\x00" in source.text:
         offset = source.text.index("\x00")
         raise ParseFailure(error("E0004", f"{what} contains a NUL byte: it is not a text file" if what == "file"
                                  else f"{what} contains a NUL byte: it is not text", source.span(offset, offset + 1),
-                                 hints=[hint]))
+                                 hints=[hint]), source if show else None)
 
 
 def _looks_like_utf16(data: bytes) -> bool:
@@ -487,8 +488,9 @@ def decode_source(name: str, data: bytes) -> SourceFile:
                                      "another legacy encoding), or check that this is the right file"]),
             partial) from None
     source = _as_source(name, text)
-    _reject_nul(source, "file", f"`.ra` files are UTF-8 text; {utf16}" if _looks_like_utf16(data) else
-                "`.ra` files are UTF-8 text; is this a binary file?")
+    wide = _looks_like_utf16(data)
+    _reject_nul(source, "file", f"`.ra` files are UTF-8 text; {utf16}" if wide else
+                "`.ra` files are UTF-8 text; is this a binary file?", show=not wide)
     return source
 
 
