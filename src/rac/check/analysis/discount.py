@@ -16,10 +16,12 @@ after a sample's edge, after the ``at end`` updates of a run that ends there, ju
 sample), so with ``gamma = 1`` the check is P2 itself, to the last digit (the tests compare them).
 
 The search is :func:`rac.check.analysis.worst.maximise_translations`' backward max-plus recurrence
-with each sample's offsets weighted by its step's discount, in exact rationals; automata whose
-updates scale a reward (``sa = sa * 2``) are not covered (the discounted value is then no function of
-the rewards alone), and horizons beyond :data:`MAX_DISCOUNTED_SAMPLES` samples are not searched: both
-are reported as a check not made (W0405), never as a proof.
+with each sample's offsets weighted by its step's discount, exact (integers scaled by the powers of
+gamma's denominator); automata whose updates scale a reward (``sa = sa * 2``) are not covered (the
+discounted value is then no function of the rewards alone), and horizons beyond
+:data:`MAX_DISCOUNTED_SAMPLES` samples or gammas whose powers would carry more than
+:data:`MAX_DISCOUNT_DIGITS` digits are not searched: each is reported as a check not made (W0405), never
+as a proof.
 """
 
 from __future__ import annotations
