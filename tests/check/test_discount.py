@@ -349,3 +349,15 @@ def test_a_hints_gamma_holds_at_every_level() -> None:
     assert [d.data["reward"] for d in found] == ["sa", "pr"]
     assert all("it holds" not in d.hints[0] for d in found), [d.hints for d in found]
     assert [d.data["reward"] for d in check_discounted(automaton, Discount(Fraction(995, 1000)))] == ["pr"]
+
+
+@given(st.fractions(), st.integers(0, 400))
+def test_a_bound_is_written_rounded_up(value: Fraction, scale: int) -> None:
+    """A proved bound that is rounded for the fact is rounded up: to nearest, -184.9466 read -184.947, a
+    bound below the value it bounds (the discounted values have denominators of thousands of digits)."""
+    from rac.check.analysis.discount import upper_text
+
+    value = value / Fraction(3) ** scale
+    text = upper_text(value)
+    shown = Fraction(text.removesuffix("…"))
+    assert shown >= value and (text.endswith("…") or shown == value)

@@ -30,6 +30,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from decimal import ROUND_CEILING, Context, Decimal
 from fractions import Fraction
 
 from rac import ir
@@ -61,7 +62,7 @@ from rac.core.numbers import exact_decimal
 from rac.ir.inputs import InputSpace
 
 __all__ = ["DISCOUNTED_P2", "Discount", "MAX_DISCOUNTED_SAMPLES", "MAX_DISCOUNT_DIGITS", "check_discounted",
-           "discounted_value", "discounted_worst", "exact_text", "gamma_text"]
+           "discounted_value", "discounted_worst", "exact_text", "gamma_text", "upper_text"]
 
 #: The diagnostic of a discounted return that compensates a penalty (P2 fails for it).
 DISCOUNTED_P2 = "E0410"
@@ -110,6 +111,16 @@ class Discount:
         """``gamma = 0.99 per step of 1 sample``: how the messages name it."""
         samples = "1 sample" if self.samples_per_step == 1 else f"{self.samples_per_step} samples"
         return f"gamma = {gamma_text(self.gamma)} per step of {samples}"
+
+
+def upper_text(value: Fraction) -> str:
+    """A proved upper bound as a fact writes it: exact where short, else rounded *up* to 6 digits and
+    marked ``…`` (rounded to nearest, -184.9466 would read -184.947, below the value it bounds)."""
+    text = short_number(value)
+    if not text.endswith("…"):
+        return text
+    up = Context(prec=6, rounding=ROUND_CEILING).divide(Decimal(value.numerator), Decimal(value.denominator))
+    return str(up.normalize()).replace("E+", "e").replace("E", "e") + "…"
 
 
 def gamma_text(gamma: Fraction) -> str:
@@ -369,7 +380,7 @@ def check_discounted(automaton: ir.Automaton, discount: Discount, facts: list[Fa
                       "samples_per_step": discount.samples_per_step}))
             continue
         if worst is None or worst.value <= 0:
-            bound = "" if worst is None else f": the discounted value stays <= {short_number(worst.value)}"
+            bound = "" if worst is None else f": the discounted value stays <= {upper_text(worst.value)}"
             facts.append(Fact("P2-discounted", f"P2 holds for `{reward}` under the discount "
                               f"({discount.describe()}){bound} over every run of {show_number(automaton.horizon)} s",
                               {"reward": reward, "gamma": exact_text(discount.gamma),
