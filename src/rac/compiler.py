@@ -30,6 +30,7 @@ from rac.lang.parser import ParseFailure, parse_source, read_source, text_source
 from rac.model.program import CheckedProgram, ProgramSource
 
 if TYPE_CHECKING:
+    from rac.check.analysis.discount import Discount
     from rac.check.analysis.synthesis import Synthesised
     from rac.model.commonroad import Scenario
     from rac.model.data import ModelData
@@ -95,12 +96,14 @@ class CompileResult(ProgramSource):
 @dataclass(frozen=True)
 class Settings:
     """How a file is compiled: ``analyse`` (False: parse and resolve only), ``progress`` (hears of a
-    scenario whose load takes a while, :func:`rac.model.checks.check_scenario`) and ``max_bytes``
-    (the scenario load's memory budget; None: no limit)."""
+    scenario whose load takes a while, :func:`rac.model.checks.check_scenario`), ``max_bytes``
+    (the scenario load's memory budget; None: no limit) and ``discount`` (P2 of the return discounted
+    by it checked too, ``rac check --discount``; None: not)."""
 
     analyse: bool = True
     progress: Callable[[str], None] | None = None
     max_bytes: int | None = None
+    discount: Discount | None = None
 
 
 @dataclass(frozen=True)
@@ -148,7 +151,7 @@ def analysis_stage(state: Compilation, settings: Settings) -> Compilation:
     from rac.check.analysis import analyse_automaton  # numpy and sympy: a syntax error never needs them
 
     facts: list[Fact] = []
-    found = analyse_automaton(state.automaton, facts)
+    found = analyse_automaton(state.automaton, facts, discount=settings.discount)
     return replace(state, diagnostics=(*state.diagnostics, *found), facts=(*state.facts, *facts))
 
 
@@ -173,18 +176,18 @@ STAGES: tuple[tuple[str, Callable[[Compilation, Settings], Compilation]], ...] =
 
 
 def compile_source(source: SourceFile, *, analyse: bool = True, progress: Callable[[str], None] | None = None,
-                   max_bytes: int | None = None) -> CompileResult:
+                   max_bytes: int | None = None, discount: Discount | None = None) -> CompileResult:
     """Parse one source, then run the :data:`STAGES` on it (only ``resolve`` when ``analyse=False``);
     ``progress`` hears of a scenario whose load takes a while (:func:`rac.model.checks.check_scenario`).
     ``max_bytes`` is the memory budget of loading the scenario (None: no limit): a scenario estimated
     to need more is refused before it loads (:class:`rac.core.resources.ScenarioTooLarge`, a
-    ``MemoryError``)."""
+    ``MemoryError``). ``discount``: P2 of the discounted return checked too (:class:`Settings`)."""
     sources = {source.name: source}
     try:
         module = parse_source(source)
     except ParseFailure as failure:
         return CompileResult(None, (failure.diagnostic,), sources)
-    settings = Settings(analyse, progress, max_bytes)
+    settings = Settings(analyse, progress, max_bytes, discount)
     state = Compilation(module)
     for _, stage in STAGES:
         state = stage(state, settings)
@@ -207,14 +210,14 @@ def compile_text(text: str, name: str | os.PathLike[str] = "<string>", *, analys
 
 
 def compile_file(path: str | Path, *, analyse: bool = True, progress: Callable[[str], None] | None = None,
-                 max_bytes: int | None = None) -> CompileResult:
-    """Check one `.ra` file (``progress`` and ``max_bytes`` as in :func:`compile_source`). ``OSError``
-    propagates for files that cannot be read at all."""
+                 max_bytes: int | None = None, discount: Discount | None = None) -> CompileResult:
+    """Check one `.ra` file (``progress``, ``max_bytes`` and ``discount`` as in :func:`compile_source`).
+    ``OSError`` propagates for files that cannot be read at all."""
     try:
         source = read_source(path)
     except ParseFailure as failure:
         return CompileResult(None, (failure.diagnostic,), _sources_of(failure))
-    return compile_source(source, analyse=analyse, progress=progress, max_bytes=max_bytes)
+    return compile_source(source, analyse=analyse, progress=progress, max_bytes=max_bytes, discount=discount)
 
 
 def _sources_of(failure: ParseFailure) -> dict[str, SourceFile]:

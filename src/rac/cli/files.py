@@ -4,9 +4,9 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rac.cli.common import (
     EXIT_ERRORS,
@@ -47,15 +47,20 @@ from rac.model.commonroad import ScenarioError
 from rac.model.data import ModelRangeError
 from rac.output.progress import Heartbeat, notice
 
+if TYPE_CHECKING:
+    from rac.check.analysis.discount import Discount
+
 __all__ = ["check_command", "compile_command", "fmt_command", "read_and_check"]
 
 
-def read_and_check(path: Path, max_bytes: int | None = None) -> tuple[CompileResult | None, Diagnostic | None]:
+def read_and_check(path: Path, max_bytes: int | None = None, discount: Discount | None = None
+                   ) -> tuple[CompileResult | None, Diagnostic | None]:
     """``rac check`` of one file, or the E0008 diagnostic when it cannot be read at all. ``max_bytes``:
     the memory budget of the scenario's load (``--max-memory``; None: no limit); a scenario estimated
-    to need more raises :class:`rac.core.resources.ScenarioTooLarge` before it loads."""
+    to need more raises :class:`rac.core.resources.ScenarioTooLarge` before it loads. ``discount``: P2
+    of the discounted return checked too (``--discount``)."""
     try:
-        return compile_file(path, progress=notice(), max_bytes=max_bytes), None
+        return compile_file(path, progress=notice(), max_bytes=max_bytes, discount=discount), None
     except OSError as exc:
         return None, unreadable(path, exc)
     finally:  # the load's phases are over: the command names its next
@@ -64,22 +69,19 @@ def read_and_check(path: Path, max_bytes: int | None = None) -> tuple[CompileRes
 
 
 
+def _discount_of(args: argparse.Namespace) -> Discount | None:
+    """``--discount`` and ``--samples-per-step`` as one :class:`~rac.check.analysis.discount.Discount`, or None."""
+    if args.discount is None:
+        return None
+    from rac.check.analysis.discount import Discount  # numpy and the analyses: only when asked
+
+    return Discount(args.discount, args.samples_per_step or 1)
+
+
 def check_command(args: argparse.Namespace) -> int:
     # off a terminal (CI logs, pipes) a long check (a large scenario's load) says what it does
     with Heartbeat("rac check"):
         return _check_files(args)
-
-
-def _discounted(result: CompileResult, args: argparse.Namespace) -> CompileResult:
-    """With ``--discount``: ``result`` with P2 of the discounted return checked too (on a file without
-    errors; :func:`rac.check.analysis.discount.check_discounted`)."""
-    if args.discount is None or not result.ok or result.automaton is None:
-        return result
-    from rac.check.analysis.discount import Discount, check_discounted  # numpy: only when asked
-
-    facts = list(result.facts)
-    found = check_discounted(result.automaton, Discount(args.discount, args.samples_per_step or 1), facts)
-    return dataclasses.replace(result, diagnostics=(*result.diagnostics, *found), facts=tuple(facts))
 
 
 def _check_files(args: argparse.Namespace) -> int:
@@ -93,11 +95,10 @@ def _check_files(args: argparse.Namespace) -> int:
                                                                   "default gamma)"])],
                           structured=args.format == "json")
         return EXIT_USAGE
+    discount = _discount_of(args)
     for path in args.files:
         try:
-            result, failure = read_and_check(path, max_bytes)
-            if result is not None:
-                result = _discounted(result, args)
+            result, failure = read_and_check(path, max_bytes, discount)
         except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the files checked before stay in the one document
             if args.format == "json":
                 report.append({"file": str(path), "ok": False, "diagnostics": [], "proved": [], "facts": [],

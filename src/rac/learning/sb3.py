@@ -8,7 +8,6 @@ stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this mo
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterator
 from fractions import Fraction
 from typing import Any
 
@@ -30,7 +29,7 @@ from rac.learning.location_observation import LocationObservation
 from rac.learning.replay import CounterfactualRows
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
-from rac.learning.wrappers import NO_RELABELLING, RewardAutomatonWrapper
+from rac.learning.wrappers import NO_RELABELLING, RewardAutomatonWrapper, wrapper_chain
 
 __all__ = ["CounterfactualReplayBuffer", "RacCallback", "discount_warnings", "frame_stacker", "proof_subjects",
            "reward_changers", "reward_normaliser", "text_table_clashes"]
@@ -225,13 +224,13 @@ def reward_changers(venv: Any) -> list[str]:
     if isinstance(base, DummyVecEnv):
         found: set[str] = set()
         for first in base.envs:
-            if not any(isinstance(env, _AUTOMATA) for env in _chain(first)):
-                continue  # no automaton's reward to change
-            for env in _chain(first):
+            above: list[str] = []  # the changers met before the automaton (none counts without one)
+            for env in wrapper_chain(first):
                 if isinstance(env, _AUTOMATA):
+                    found.update(above)
                     break
                 if isinstance(env, REWARD_CHANGERS):
-                    found.add(type(env).__name__)
+                    above.append(type(env).__name__)
         return sorted(found)
     try:  # any of stable-baselines3's VecEnvs answers env_is_wrapped; anything else is no such environment
         return sorted(probe.kind.__name__ for probe in _AROUND_AUTOMATON if any(venv.env_is_wrapped(probe)))
@@ -252,7 +251,7 @@ def frame_stacker(venv: Any) -> str | None:
     base = _wrapper(venv, DummyVecEnv)
     if isinstance(base, DummyVecEnv):
         for first in base.envs:
-            for env in _chain(first):
+            for env in wrapper_chain(first):
                 if isinstance(env, LocationObservation):
                     break
                 if isinstance(env, FrameStackObservation):
@@ -347,13 +346,9 @@ def _relabels_with_automaton(venv: Any) -> bool:
     return any(w and not a for w, a in zip(wrapped, answered, strict=True))
 
 
-def _chain(env: Any) -> Iterator[Any]:
-    """``env`` and the environments it wraps (each wrapper's ``env``), outermost first."""
-    for _ in range(100):  # a wrapper chain, not a cycle
-        if env is None:
-            return
-        yield env
-        env = getattr(env, "env", None)
+def _below(env: object, kind: type | tuple[type, ...]) -> bool:
+    """Whether an environment ``env`` wraps (not ``env`` itself) is a ``kind``."""
+    return any(isinstance(inner, kind) for inner in wrapper_chain(getattr(env, "env", None)))
 
 
 #: The environments whose rewards are a reward automaton's.
@@ -385,7 +380,7 @@ class _AroundAutomaton(metaclass=_Probe):
     @classmethod
     def holds(cls, env: object) -> bool:
         kind = next((kind for kind in REWARD_CHANGERS if isinstance(env, kind)), None)
-        return kind is cls.kind and any(isinstance(inner, _AUTOMATA) for inner in _chain(getattr(env, "env", None)))
+        return kind is cls.kind and _below(env, _AUTOMATA)
 
 
 class _NormalizeRewardAround(_AroundAutomaton):
@@ -409,8 +404,7 @@ class _StacksAroundLocation(metaclass=_Probe):
 
     @classmethod
     def holds(cls, env: object) -> bool:
-        return isinstance(env, FrameStackObservation) and any(
-            isinstance(inner, LocationObservation) for inner in _chain(getattr(env, "env", None)))
+        return isinstance(env, FrameStackObservation) and _below(env, LocationObservation)
 
 
 class _AnswersRelabelling(metaclass=_Probe):
@@ -420,7 +414,7 @@ class _AnswersRelabelling(metaclass=_Probe):
     @classmethod
     def holds(cls, env: object) -> bool:
         return (not isinstance(env, RewardAutomatonWrapper) and hasattr(env, "compute_reward")
-                and any(isinstance(inner, RewardAutomatonWrapper) for inner in _chain(getattr(env, "env", None))))
+                and _below(env, RewardAutomatonWrapper))
 
 
 class _HasProofSubject(metaclass=_Probe):
@@ -428,7 +422,7 @@ class _HasProofSubject(metaclass=_Probe):
 
     @classmethod
     def holds(cls, env: object) -> bool:
-        return any(hasattr(inner, "proof_subject") for inner in _chain(env))
+        return any(hasattr(inner, "proof_subject") for inner in wrapper_chain(env))
 
 
 def _wrapper(venv: Any, kind: type) -> Any:

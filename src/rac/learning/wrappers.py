@@ -35,7 +35,7 @@ import math
 import numbers
 import os
 import warnings
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from fractions import Fraction
 from pathlib import Path
 from typing import Any, NoReturn, Protocol, SupportsFloat, runtime_checkable
@@ -55,7 +55,7 @@ from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
 
 __all__ = ["AutomatonLike", "CutEpisodes", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "env_timing",
-           "outside_step_limit", "scale_factor"]
+           "outside_step_limit", "scale_factor", "wrapper_chain"]
 
 #: ``inputs(obs, info)`` or ``inputs(obs, info, env)``: the automaton's inputs.
 InputFn = Callable[..., Mapping[str, object]]
@@ -211,25 +211,27 @@ def _step_limits(env: object) -> list[int]:
     spec_limit = getattr(getattr(env, "spec", None), "max_episode_steps", None)
     if isinstance(spec_limit, int):
         limits.append(spec_limit)
-    seen = 0
-    while env is not None and seen < 100:  # a wrapper chain, not a cycle
-        if isinstance(env, gymnasium.wrappers.TimeLimit):
-            own = getattr(env, "_max_episode_steps", None)  # gymnasium keeps it there, with no public name
+    for wrapper in wrapper_chain(env):
+        if isinstance(wrapper, gymnasium.wrappers.TimeLimit):
+            own = getattr(wrapper, "_max_episode_steps", None)  # gymnasium keeps it there, with no public name
             if isinstance(own, int):
                 limits.append(own)
-        env, seen = getattr(env, "env", None), seen + 1
     return limits
+
+
+def wrapper_chain(env: object) -> Iterator[Any]:
+    """``env`` and the environments it wraps (each wrapper's ``env``), outermost first; at most 100 (a
+    wrapper chain, not a cycle)."""
+    for _ in range(100):
+        if env is None:
+            return
+        yield env
+        env = getattr(env, "env", None)
 
 
 def _inside(wrapper: object, env: object) -> bool:
     """Whether ``env`` is in ``wrapper``'s chain of wrapped environments (below it)."""
-    for _ in range(100):  # a wrapper chain, not a cycle
-        wrapper = getattr(wrapper, "env", None)
-        if wrapper is None:
-            return False
-        if wrapper is env:
-            return True
-    return False
+    return any(inner is env for inner in wrapper_chain(getattr(wrapper, "env", None)))
 
 
 #: The code of gymnasium's ``TimeLimit.reset`` and ``TimeLimit.step``, whose frames :func:`outside_step_limit` reads.
@@ -394,24 +396,14 @@ class CutEpisodes:
 def _monitor_inside(env: object) -> bool:
     """Whether stable-baselines3's ``Monitor`` wraps ``env`` somewhere (read by the class's module and
     name, so stable-baselines3 need not be installed, nor is it imported)."""
-    seen = 0
-    while env is not None and seen < 100:  # a wrapper chain, not a cycle
-        kind = type(env)
-        if kind.__name__ == "Monitor" and kind.__module__.startswith("stable_baselines3"):
-            return True
-        env, seen = getattr(env, "env", None), seen + 1
-    return False
+    return any(type(wrapper).__name__ == "Monitor" and type(wrapper).__module__.startswith("stable_baselines3")
+               for wrapper in wrapper_chain(env))
 
 
 def _statistics_inside(env: object, kind: type) -> bool:
     """Whether a gymnasium ``RecordEpisodeStatistics`` (``kind``: the single or the vector one) wraps
     ``env`` somewhere: it sums the environment's own rewards, not the automaton's."""
-    seen = 0
-    while env is not None and seen < 100:  # a wrapper chain, not a cycle
-        if isinstance(env, kind):
-            return True
-        env, seen = getattr(env, "env", None), seen + 1
-    return False
+    return any(isinstance(wrapper, kind) for wrapper in wrapper_chain(env))
 
 
 #: Why :meth:`RewardAutomatonWrapper.compute_reward` is refused (and ``RacCallback`` refuses ``HerReplayBuffer``).

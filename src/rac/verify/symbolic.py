@@ -38,6 +38,10 @@ if TYPE_CHECKING:  # the product is imported when a query needs it (a sweep task
 __all__ = ["SymbolicAnswerer"]
 
 
+#: What a reachability strategy's result says: decided, and kept under no name (no table to save).
+REACH_NOT_SAVED = "reachability strategies are decided but not saved"
+
+
 class SymbolicAnswerer:
     """Answers path, leads-to and control queries on the explored model; a shield computed by a
     control query is kept in the context for later queries ``under`` it."""
@@ -97,7 +101,7 @@ class SymbolicAnswerer:
                                       horizon_samples=ctx.horizon_samples)
         if query.goal != "A[]":
             ctx.reachability.add(query.name)  # as a searched one: decided, not kept
-            return dataclasses.replace(decided, message="reachability strategies are decided but not saved")
+            return dataclasses.replace(decided, message=REACH_NOT_SAVED)
         goal = format_checked(query.expr)
         ctx.strategy_goals[query.name] = goal
         if not holds:
@@ -331,7 +335,7 @@ class SymbolicAnswerer:
             return self._constant_control(query, base)
         within = self.under_shield(query.under, "a strategy") if query.under is not None else None
         if query.goal != "A[]":
-            saved = "reachability strategies are decided but not saved"
+            saved = REACH_NOT_SAVED
             ctx.reachability.add(query.name)  # a query `under` it says so (a failed one: not applicable)
             if within is None:  # a run reaching p: the strategy that follows it exists
                 found = self._reaches(ctx.predicate(query.expr))

@@ -3,14 +3,21 @@ range, and the incentives (issue 25: p* and the loophole checks, with `goal when
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from rac import ir
 from rac.core.diagnostics import Diagnostic, Fact
 
+if TYPE_CHECKING:
+    from rac.check.analysis.discount import Discount
 
-def analyse_automaton(automaton: ir.Automaton, facts: list[Fact] | None = None) -> list[Diagnostic]:
+
+def analyse_automaton(automaton: ir.Automaton, facts: list[Fact] | None = None, *,
+                      discount: Discount | None = None) -> list[Diagnostic]:
     """Run every analysis; later ones run only when earlier ones found no error.
 
-    What was proved is appended to ``facts`` as sentences (the CLI prints them).
+    What was proved is appended to ``facts`` as sentences (the CLI prints them). ``discount``: last, on an
+    automaton without errors, P2 of the return discounted by it too (``rac check --discount``).
     """
     # numpy: importing any submodule loads this package first; these load only when the analyses run
     from rac.check.analysis.affine import moves
@@ -38,4 +45,8 @@ def analyse_automaton(automaton: ir.Automaton, facts: list[Fact] | None = None) 
         from rac.check.analysis.incentives import check_incentives  # numpy: as above
 
         diagnostics += check_incentives(automaton, space, facts)
+    if discount is not None and not any(d.is_error for d in diagnostics):
+        from rac.check.analysis.discount import check_discounted  # numpy: as above
+
+        diagnostics += check_discounted(automaton, discount, facts, prepared)
     return diagnostics

@@ -327,16 +327,20 @@ def sup_linear(form: dict[str, Fraction], box: tuple[tuple[str, Piece], ...]) ->
 
 
 def sup_weighted(w: tuple[Fraction, ...], maps: Collection[Affine],
-                 box: tuple[tuple[str, Piece], ...]) -> tuple[Fraction, dict[str, Fraction]]:
+                 box: tuple[tuple[str, Piece], ...], factors: Sequence[Fraction] | None = None
+                 ) -> tuple[Fraction, dict[str, Fraction]]:
     """Supremum of ``w·(sum of the maps' offsets)`` over the closure of ``box``, and a point attaining
-    it (translations only: what a sample adds to a weighted sum of the rewards)."""
+    it (translations only: what a sample adds to a weighted sum of the rewards). ``factors``: one per
+    map, each map's offsets weighed by it (a discount: a sample's edge and the accrual after it read the
+    same inputs but count in different steps)."""
     const = ZERO
     form: dict[str, Fraction] = {}
-    for affine in maps:
+    for i, affine in enumerate(maps):
         for k, offset in enumerate(affine.offset):
             if w[k]:
-                const += w[k] * offset.const
+                weight = w[k] if factors is None else factors[i] * w[k]
+                const += weight * offset.const
                 for name, coefficient in offset.terms:
-                    form[name] = form.get(name, ZERO) + w[k] * coefficient
+                    form[name] = form.get(name, ZERO) + weight * coefficient
     bonus, point = sup_linear(form, box)
     return const + bonus, point

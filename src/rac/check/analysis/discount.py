@@ -34,7 +34,7 @@ from decimal import ROUND_CEILING, Context, Decimal
 from fractions import Fraction
 
 from rac import ir
-from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, moves, sup_linear
+from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrual, moves, sup_weighted
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.priority import (
     describe_run,
@@ -141,18 +141,8 @@ def exact_text(value: Fraction) -> str:
 
 def _sup(w: tuple[Fraction, ...], parts: Sequence[tuple[Fraction, Affine]],
          box: tuple) -> tuple[Fraction, dict[str, Fraction]]:
-    """Supremum over ``box`` of ``sum of factor * w·offset`` over ``parts`` (translations), and a point
-    attaining it: a sample's edge and the accrual after it read the same inputs but may weigh differently."""
-    const = ZERO
-    form: dict[str, Fraction] = {}
-    for factor, affine in parts:
-        for k, offset in enumerate(affine.offset):
-            if w[k]:
-                const += factor * w[k] * offset.const
-                for name, coefficient in offset.terms:
-                    form[name] = form.get(name, ZERO) + factor * w[k] * coefficient
-    bonus, point = sup_linear(form, box)
-    return const + bonus, point
+    """:func:`~rac.check.analysis.affine.sup_weighted` of ``parts``' maps, each weighed by its factor."""
+    return sup_weighted(w, [affine for _, affine in parts], box, [factor for factor, _ in parts])
 
 
 @dataclass
