@@ -156,6 +156,31 @@ def test_a_counterexample_names_the_values_its_rates_and_updates_read() -> None:
     assert "run ends at t = 5 s: `at end` (line 14); inputs c=true, d = 10" in text
 
 
+SINK = """
+automaton Sink {
+    input isClose : bool
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 1
+    horizon 5
+    initial location Normal { sa' == 0; pr' == 0 }
+    location Unsafe { sa' == -1; pr' == 30 }
+    edge Normal -> Unsafe when isClose do sa = sa - 1
+}
+"""
+
+
+def test_a_run_through_a_location_without_edges_says_no_input_is_read() -> None:
+    """`Unsafe` has no edges: its samples read no input, said so, not as `inputs (no inputs)` of an automaton
+    that has inputs."""
+    result = compiled(SINK)
+    errors(result, "E0402")
+    text = render_text(result.diagnostics, result.sources)
+    assert "samples 2-4 (t = 2..4 s): stays in `Unsafe`, 3 samples; no input is read" in text
+    assert "(no inputs)" not in text
+
+
 def test_a_counterexample_value_a_guard_excludes_is_approached() -> None:
     """`d >= 10` leaves `N`: the supremum of `pr' == d / 5` over `d < 10` is approached, not taken."""
     result = compiled(RATE_READS_AN_INPUT.format(edges="edge N -> F when !c && d >= 10"))

@@ -194,11 +194,12 @@ class InputSpace:
         return values
 
     def describe(self, cls: int, only: set[str] | None = None,
-                 values: Mapping[str, Fraction] | None = None) -> str:
+                 values: Mapping[str, Fraction] | None = None, none: str = "(no inputs)") -> str:
         """``isClose=true, prog=false, dgoal in [0, 2)`` for messages.
 
         ``values`` are numeric inputs' values within the class's pieces' closures (those a worst run's
         rates and updates read): each is shown as ``d = 10``, and named even when ``only`` leaves it out.
+        ``none`` is the text where nothing is shown.
         """
         values = values or {}
         parts = []
@@ -210,7 +211,7 @@ class InputSpace:
                 parts.append(self._value_text(cls, item.name, values[item.name]))
             elif only is None or item.name in only:
                 parts.append(self.piece(cls, item.name).describe(item.name))
-        return ", ".join(parts) if parts else "(no inputs)"
+        return ", ".join(parts) if parts else none
 
     def attains(self, cls: int, name: str, value: Fraction) -> bool:
         """Whether a run in class ``cls`` can give the numeric input ``name`` the value ``value`` (a worst

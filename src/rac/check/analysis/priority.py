@@ -490,6 +490,11 @@ def _inputs(space: InputSpace, step) -> dict[str, Fraction]:
     return values
 
 
+def _inputs_text(label: str) -> str:
+    """``inputs isClose=true`` for a run's line, or that no input is read there (a location without edges)."""
+    return f"inputs {label}" if label else "no input is read"
+
+
 def _outcome_inputs(automaton: ir.Automaton, o: Outcome) -> set[str]:
     """The inputs worth showing for a sample: those the location's guards read, and those `episode ends
     when` reads (they decide whether the run goes on: a replay must give them the run's values)."""
@@ -523,8 +528,8 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
         label = labels.get((id(o), id(step.inputs)))
         if label is None:
             # The values the run's arithmetic reads (rates, updates) too: the run reaches its value with them.
-            label = labels[id(o), id(step.inputs)] = space.describe(
-                o.cls, _outcome_inputs(automaton, o) | set(shown), step.inputs)
+            label = labels[id(o), id(step.inputs)] = _inputs_text(space.describe(
+                o.cls, _outcome_inputs(automaton, o) | set(shown), step.inputs, none=""))
         key = (o.source, id(o.edge), label)
         if groups and groups[-1][0] == key and groups[-1][1][-1].instant == CONTINUE:
             groups[-1][1].append(step)
@@ -550,7 +555,7 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
             line = o.edge.span.line if o.edge and o.edge.span else "?"
             what = f"`{names[source]}` -> `{names[o.target]}` (edge at line {line})"
         count = f", {len(steps)} samples" if len(steps) > 1 else ""
-        lines.append(f"  {when}: {what}{count}; inputs {label}")
+        lines.append(f"  {when}: {what}{count}; {label}")
     if worst.instant == MID_EDGE and worst.applied is not None and worst.steps:
         edge = worst.steps[-1].outcome.edge
         assert edge is not None
@@ -564,7 +569,7 @@ def describe_run(automaton: ir.Automaton, space: InputSpace, worst: Worst, *, sh
             read |= guard_inputs(clause.guard)
         when = show_number(worst.steps[-1].sample * period) if worst.steps else "0"
         lines.append(f"  {ending} at t = {when} s: `at end` ({clauses or 'no clause enabled'}); "
-                     f"inputs {space.describe(end.cls, read, worst.end_inputs)}")
+                     f"{_inputs_text(space.describe(end.cls, read, worst.end_inputs, none=''))}")
         if worst.instant == MID_END and worst.applied is not None:
             lines.append(f"  stops during the `at end` updates, "
                          f"{_inside(end_assignments(automaton, end.ends), worst.applied)}")
