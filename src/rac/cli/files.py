@@ -134,7 +134,8 @@ def _check_files(args: argparse.Namespace) -> int:
         if warnings:
             summary += f", {warnings} warning{'s' * (warnings != 1)}"
         if unfinished:
-            summary += f" ({unfinished} of them: a check stopped at its limit, neither proved nor refuted)"
+            summary += (f" ({unfinished} of them: a check stopped at its limit or outside what it covers, "
+                        "neither proved nor refuted)")
         if undone:
             summary += f" ({undone} of them: a required check not made, neither proved nor refuted)"
         print(f"{path}: {summary}")
