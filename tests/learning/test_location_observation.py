@@ -239,6 +239,39 @@ def test_vector_wrapper_follows_each_automaton_through_autoreset() -> None:
     assert restarted and all(row == [1.0, 0.0] for row in restarted)  # a new episode starts in Safe
 
 
+def blank_with_alternate() -> RewardAutomatonWrapper:
+    """A sub-environment for a vector environment: Blank under the wrapper (a module function: picklable)."""
+    return RewardAutomatonWrapper(Blank(), alternate(), took)
+
+
+@pytest.mark.parametrize("vector", [gymnasium.vector.SyncVectorEnv, gymnasium.vector.AsyncVectorEnv])
+def test_a_vector_env_of_wrapped_sub_environments_names_their_locations(vector: Any) -> None:
+    """gymnasium's own vector environments of rac's wrappers (a SyncVectorEnv; an AsyncVectorEnv, its
+    sub-environments in workers) report the locations per sub-environment: the names were not found, a
+    TypeError at construction (the wrapper around each sub-environment, not around the vector env)."""
+    # through a vector wrapper of gymnasium's (it forwards `envs` to the base)
+    envs = LocationVectorObservation(gymnasium.wrappers.vector.RecordEpisodeStatistics(
+        vector([blank_with_alternate] * 2)))
+    try:
+        assert envs.locations == ("Want", "Wait")
+        obs, _ = envs.reset(seed=0)
+        assert obs.tolist() == [[0.0, 1.0, 0.0]] * 2
+        obs, *_, infos = envs.step(np.array([1, 0]))
+        assert infos["rac"]["location"].tolist() == ["Wait", "Want"]
+        assert obs.tolist() == [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]
+    finally:
+        envs.close()
+
+
+def test_sub_environments_of_other_automata_are_refused() -> None:
+    switch = compile_text(ALTERNATE.replace("Wait", "Hold"), "hold.ra").raise_for_errors()
+    envs = SyncVectorEnv([blank_with_alternate, lambda: RewardAutomatonWrapper(Blank(), switch, took)])
+    with pytest.raises(ValueError, match="different locations"):
+        LocationVectorObservation(envs)
+    with pytest.raises(TypeError, match="found no reward automaton"):
+        LocationVectorObservation(SyncVectorEnv([Blank, Blank]))
+
+
 def test_with_locations_builds_counterfactual_observations() -> None:
     env = LocationObservation(RewardAutomatonWrapper(Blank(), alternate(), took))
     obs, _ = env.reset()
@@ -283,6 +316,14 @@ def test_scenario_envs_and_their_masks(scene_file: Path) -> None:
     assert obs.shape == (2, 29 + len(names)) and envs.observation_space.contains(obs)
     masks = action_masks(envs)
     obs, *_, infos = envs.step(np.array([int(np.flatnonzero(row)[0]) for row in masks]))
+    assert obs[:, 29:].tolist() == [[float(name == n) for n in names] for name in infos["location"]]
+
+    # a SyncVectorEnv of ScenarioEnvs (what make_vec gives for a set of scenes, or asked for): its names were
+    # not found (TypeError), so a set of scenes could not be trained on with the location observed
+    synced = LocationVectorObservation(gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=scene_file,
+                                                          shield=table, vectorization_mode="sync"))
+    assert synced.locations == names
+    obs, infos = synced.reset(seed=0)
     assert obs[:, 29:].tolist() == [[float(name == n) for n in names] for name in infos["location"]]
 
 

@@ -70,10 +70,48 @@ def location_names(env: object) -> tuple[str, ...]:
                 return names
         if isinstance(seen, (ScenarioEnv, ScenarioVectorEnv)):
             return seen.episodes.automaton.location_names
+        # a SyncVectorEnv or AsyncVectorEnv of rac's environments (asked at the base: a vector wrapper forwards
+        # `envs` and `env_fns` to it, and one of rac's may lie between)
+        if isinstance(seen, VectorEnv) and not isinstance(seen, VectorWrapper):
+            found = _sub_environment_names(seen)
+            if found is not None:
+                return found
         seen = getattr(seen, "env", None)
     raise TypeError(f"found no reward automaton in {env!r}: wrap a rac.learning.wrappers.RewardAutomatonWrapper "
                     "(RewardAutomatonVectorWrapper for a vector environment), a ScenarioEnv or a ScenarioVectorEnv, "
                     "or pass locations=[...] (the automaton's location names in its order)")
+
+
+def _sub_environment_names(envs: VectorEnv[Any, Any, Any]) -> tuple[str, ...] | None:
+    """The location names of the automata a vector environment's sub-environments step, or None when it holds
+    none: a ``SyncVectorEnv``'s own (``gymnasium.make_vec("rac/Scenario-v0", ..., scenarios=...)`` returns one of
+    ``ScenarioEnv``s), or for an ``AsyncVectorEnv``, whose sub-environments live in its workers, those of its
+    first made here from its first ``env_fns`` and closed (as :class:`RewardAutomatonVectorWrapper` reads its
+    timing: asking the workers for what they may lack breaks their pending-call state)."""
+    subs = getattr(envs, "envs", None)
+    stand_in = None
+    if not isinstance(subs, (list, tuple)) or not subs:
+        makers = getattr(envs, "env_fns", None)
+        if not isinstance(makers, (list, tuple)) or not makers or not callable(makers[0]):
+            return None
+        stand_in = makers[0]()
+        subs = [stand_in]
+    try:
+        found = set()
+        for sub in subs:
+            try:
+                found.add(location_names(sub))
+            except TypeError:  # a sub-environment without an automaton: none to name
+                return None
+    finally:
+        close = getattr(stand_in, "close", None)
+        if callable(close):
+            close()
+    if len(found) != 1:
+        raise ValueError(f"the sub-environments of {envs!r} step automata with different locations "
+                         f"({'; '.join(', '.join(names) for names in sorted(found))}): one location observation "
+                         "needs one automaton")
+    return found.pop()
 
 
 def _names_given(env: object, locations: Sequence[str] | None) -> tuple[str, ...]:
