@@ -16,9 +16,10 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.wrappers import TimeLimit
 from highway_like import HighwayLike, follow, inputs, vector_inputs
 
+import rac
 from rac import ir
 from rac.check.analysis.scale import sample_change_bound
-from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper, env_timing
+from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper, env_timing, within_proven
 from rac.runtime.interpreter import RewardAutomaton
 
 ENV_ID = "rac-test/HighwayLike-v0"
@@ -212,6 +213,70 @@ def test_proven_scale_keeps_every_reward_within_one_and_reports_the_steps() -> N
     for bad in (0, -1.0, "big", math.inf, True, np.float32("nan")):
         with pytest.raises(ValueError, match="scale"):
             wrapped(scale=bad)
+
+
+# Its bound, 50, is reached by each entry into Wild (sa -= 5, weighted 10): the objective's increase is a
+# difference of float sums, a rounding off -50.
+SWING = """automaton Swing {
+    input speed : real in [-8, 8]
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 0.05
+    horizon 10
+    initial location Calm { sa' == 0; pr' == 0 }
+    location Wild         { sa' == -1; pr' == 0 }
+    location Fast         { sa' == 0; pr' == 1 }
+    edge * -> Wild when speed > 6 do sa = sa - 5
+    edge * -> Calm when speed <= 6 && speed >= 1
+    edge * -> Fast when speed < 1
+}
+"""
+
+
+class Swinging(gymnasium.Env[np.ndarray, int]):
+    """Observes the speed it plays back: wild four samples, calm one, then wild again."""
+
+    observation_space = gymnasium.spaces.Box(-8.0, 8.0, shape=(1,), dtype=np.float64)
+    action_space = gymnasium.spaces.Discrete(1)
+    SPEEDS = (7.0, 7.0, 7.0, 7.0, 2.0, 7.0)
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        self.t = 0
+        return np.zeros(1), {}
+
+    def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        self.t += 1
+        return np.array([self.SPEEDS[self.t - 1]]), 0.0, False, self.t >= len(self.SPEEDS), {}
+
+
+def test_a_proven_scale_keeps_a_reward_at_the_bound_within_one_despite_rounding() -> None:
+    """The last step's increase is -50.00000000000001 in floats, the bound 50: the reward was
+    -1.0000000000000002, outside the [-1, 1] the proof and the docs promise (both wrappers)."""
+    swing = rac.loads(SWING, "swing.ra")
+    raw = RewardAutomatonWrapper(Swinging(), swing, lambda obs, info: {"speed": float(obs[0])})
+    env = RewardAutomatonWrapper(Swinging(), swing, lambda obs, info: {"speed": float(obs[0])}, scale="proven")
+    assert env.scale == 50.0
+    raw.reset()
+    env.reset()
+    unscaled = [float(raw.step(0)[1]) for _ in Swinging.SPEEDS]
+    assert abs(unscaled[-1]) > 50.0  # the rounding this test is about
+    rewards = [float(env.step(0)[1]) for _ in Swinging.SPEEDS]
+    assert rewards[-1] == -1.0 and all(-1.0 <= r <= 1.0 for r in rewards)
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([Swinging] * 2), swing,
+                                          lambda obs, infos: {"speed": obs[:, 0]}, scale="proven")
+    vector.reset(seed=0)
+    batched = [vector.step(np.zeros(2, dtype=int))[1] for _ in Swinging.SPEEDS]
+    assert batched[-1].tolist() == [-1.0, -1.0] and all(np.abs(b).max() <= 1.0 for b in batched)
+
+
+def test_within_proven_leaves_rewards_past_a_rounding_as_they_are() -> None:
+    # a value further out than a rounding is no rounding: it shows, not hidden on the bound
+    assert within_proven(1.5, True) == 1.5 and within_proven(-1.0000000000000002, True) == -1.0
+    assert within_proven(-1.0000000000000002, False) == -1.0000000000000002
+    assert within_proven(np.array([1.0000000000000002, -2.0, 0.5]), True).tolist() == [1.0, -2.0, 0.5]
 
 
 def test_timing_warnings_name_both_numbers() -> None:

@@ -46,7 +46,7 @@ from rac.lang import ast
 from rac.lang.edit import with_model
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.observation import Observation, make_observation
-from rac.learning.wrappers import CutEpisodes, Scale, outside_step_limit, scale_factor
+from rac.learning.wrappers import CutEpisodes, Scale, outside_step_limit, scale_factor, within_proven
 from rac.model.sample import MOTION
 
 if TYPE_CHECKING:
@@ -343,6 +343,8 @@ class ScenarioEnv(gymnasium.Env):
         #: What every reward is divided by (1.0 unscaled; ``info["scale"]``): with ``scale="proven"``
         #: the largest change of the objective over one step (:func:`rac.learning.wrappers.scale_factor`).
         self.reward_scale = scale_factor(automaton, scale, samples=self.episodes.decide_every)
+        #: ``scale="proven"``: every reward within [-1, 1], a rounding past it put back (wrappers.within_proven).
+        self.reward_proven: bool = scale == "proven"
         self.observation_space = self.observation.space
         self.action_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(self.episodes.n_actions)
         self._last: dict[str, bool] = {}
@@ -581,7 +583,8 @@ class ScenarioEnv(gymnasium.Env):
         info = self._info()
         # each reward's change over the step, unscaled (what a training log averages per objective)
         info["reward_steps"] = {name: value - float(before[name][0]) for name, value in info["rewards"].items()}
-        return self._obs(), float(out.reward[0]) / self.reward_scale, terminated, truncated, {**info, **shield}
+        reward = within_proven(float(out.reward[0]) / self.reward_scale, self.reward_proven)
+        return self._obs(), reward, terminated, truncated, {**info, **shield}
 
     def action_masks(self) -> np.ndarray:
         """``(P,)`` bool: the actions the shield allows in the current state (without a shield, those

@@ -41,7 +41,7 @@ from rac.core.numbers import seconds_at
 from rac.ir import expr as ie
 from rac.lang import ast
 from rac.learning.scenario_env import ScenarioEnv, clock_warning, outside_mask_warning
-from rac.learning.wrappers import Scale
+from rac.learning.wrappers import Scale, within_proven
 
 if TYPE_CHECKING:
     from rac.engine.lookahead import LookaheadSettings
@@ -283,8 +283,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
             changes = {name: np.where(stepping, after[name] - before[name], 0.0) for name in after}
             info["reward_steps"] = {**changes, **{f"_{name}": stepping.copy() for name in changes}}
             info["_reward_steps"] = stepping.copy()
-        return (self.observation.observe(episodes), out.reward / self._single.reward_scale, terminated,
-                out.truncated.copy(), info)
+        rewards = within_proven(out.reward / self._single.reward_scale, self._single.reward_proven)
+        return self.observation.observe(episodes), rewards, terminated, out.truncated.copy(), info
 
     def _shield_info(self, stepping: np.ndarray, actions: np.ndarray) -> dict[str, np.ndarray] | None:
         """The shield's ``info`` keys for the episodes ``stepping`` (a mask), as ScenarioEnv sets

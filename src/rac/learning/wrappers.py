@@ -55,7 +55,7 @@ from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
 
 __all__ = ["AutomatonLike", "CutEpisodes", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "env_timing",
-           "outside_step_limit", "scale_factor", "wrapper_chain"]
+           "outside_step_limit", "scale_factor", "within_proven", "wrapper_chain"]
 
 #: ``inputs(obs, info)`` or ``inputs(obs, info, env)``: the automaton's inputs.
 InputFn = Callable[..., Mapping[str, object]]
@@ -148,6 +148,24 @@ def scale_factor(automaton: ir.Automaton | None, scale: Scale, samples: int = 1)
     if not _positive_real(scale):
         raise ValueError(f"scale must be None, 'proven' or a positive number, not {scale!r}")
     return float(scale)
+
+
+#: How far past 1 a reward divided by the proven bound may come out by the floats' rounding alone: the bound is
+#: exact, the objective's increase a difference of float sums, a few units in the last place off (pend.ra's
+#: -5 on `sa` weighted 10, over a bound of 50, gave -1.000000000000001).
+PROVEN_ROUNDING = 1e-9
+
+
+def within_proven(reward: Any, proven: bool) -> Any:
+    """``reward`` (a float, or an array of them) divided by the scale: with the proven scale (``proven``) its
+    values a rounding past [-1, 1] (:data:`PROVEN_ROUNDING`) put back on the bound, as proved; any other left as
+    it is (a value further out is no rounding: it shows, rather than being hidden)."""
+    if not proven:
+        return reward
+    if isinstance(reward, np.ndarray):
+        rounded = np.abs(reward) <= 1.0 + PROVEN_ROUNDING
+        return np.where(rounded, np.clip(reward, -1.0, 1.0), reward)
+    return max(-1.0, min(1.0, reward)) if abs(reward) <= 1.0 + PROVEN_ROUNDING else reward
 
 
 def env_timing(env: object, dt: float | None = None) -> tuple[float | None, float | None]:
@@ -511,6 +529,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self._specs = _clipping(program, clip)
         #: The positive factor every reward is divided by (1.0 when unscaled).
         self.scale: float = scale_factor(program, scale)
+        self._proven = scale == "proven"
         #: Per numeric input, how many values were clipped since the wrapper was made.
         self.clipped_total: dict[str, int] = {}
         if _monitor_inside(env):
@@ -593,7 +612,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self._cut.stepped(bool(terminated or truncated), self._outside)
         info["rac"] = {**self._snapshot(), "env_reward": env_reward, "clipped": clipped, "inputs": dict(values),
                        "held": held, "reward_steps": {k: v - before[k] for k, v in self.automaton.rewards.items()}}
-        return obs, reward / self.scale, terminated, truncated, info
+        return obs, within_proven(reward / self.scale, self._proven), terminated, truncated, info
 
     def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> NoReturn:
         """Refused (``NotImplementedError``): the automaton's reward of a step depends on the run so far (its
@@ -657,6 +676,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         self._specs = _clipping(program, clip)
         #: The positive factor every reward is divided by (1.0 when unscaled).
         self.scale: float = scale_factor(program, scale)
+        self._proven = scale == "proven"
         #: Per numeric input, how many values were clipped since the wrapper was made.
         self.clipped_total: dict[str, int] = {}
         self._resetting = np.zeros(self.num_envs, dtype=bool)
@@ -784,4 +804,4 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         infos = self._info(infos, {"env_reward": np.asarray(env_rewards, dtype=np.float64), "clipped": clipped,
                                    "reward_steps": steps, "_reward_steps": active.copy(),
                                    "inputs": read, "held": held, "_inputs": active.copy()})
-        return obs, rewards / self.scale, terminated, truncated, infos
+        return obs, within_proven(rewards / self.scale, self._proven), terminated, truncated, infos
