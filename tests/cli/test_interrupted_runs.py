@@ -281,3 +281,72 @@ def test_check_terminated_keeps_the_files_checked(tmp_path: Path) -> None:
     document = json.loads(done.stdout)
     assert [(entry["file"], entry["ok"], entry.get("interrupted")) for entry in document] == [
         (str(a), True, None), (str(b), False, True)]
+
+
+def _import_stopped() -> ImportError:
+    """What Ctrl-C raises when it stops the import of a pybind11 extension (stormpy, matplotlib's): an
+    ``ImportError`` from the ``KeyboardInterrupt``, not the ``KeyboardInterrupt`` itself."""
+    exc = ImportError("initialization failed")
+    exc.__cause__ = KeyboardInterrupt()
+    return exc
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_verify_interrupted_in_an_import_shows_the_queries_answered(capsys: pytest.CaptureFixture[str],
+                                                                    tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                    form: str) -> None:
+    # Ctrl-C while matplotlib's extensions loaded for Sim's plot (or stormpy's): "rac: internal error: ImportError:
+    # initialization failed ... This is a bug in rac", exit 3, and the answers before it were dropped
+    path = write_engine_file(tmp_path, "goal_ahead", QUERIES)
+    monkeypatch.setattr(StatisticalAnswerer, "simulate", _raises(_import_stopped()))
+    code, out, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", form)
+    assert code == EXIT_INTERRUPTED, err
+    assert "internal error" not in err and "rac verify: interrupted during Sim: simulate[<=2;4]" in err
+    assert "1 query answered before it is above" in err
+    if form == "json":
+        document = json.loads(out)
+        assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
+    else:
+        assert "Verifying Stays" in out and "Later" not in out
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_a_command_interrupted_in_an_import_exits_as_interrupted(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch, form: str) -> None:
+    # the same at the start of the command (verify imports stormpy first): exit 3 and "a bug in rac"
+    import rac.cli.engine
+
+    def stopped(args: object) -> int:
+        raise _import_stopped()
+
+    monkeypatch.setattr(rac.cli.engine, "simulate_command", stopped)
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    code, out, err = run(capsys, "simulate", path, "-q", "--runs", "2", "-o", tmp_path / "o", "--format", form)
+    assert code == EXIT_INTERRUPTED, err
+    assert "internal error" not in err and "rac: interrupted" in err
+    if form == "json":
+        document = json.loads(out)
+        assert document["interrupted"] is True and document["exit_code"] == EXIT_INTERRUPTED
+        assert document["error"] is None
+
+
+def test_preanalyse_interrupted_in_an_import_shows_the_settings_finished(capsys: pytest.CaptureFixture[str],
+                                                                         tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    _row_failing_on_the_second(monkeypatch, _import_stopped())
+    code, out, err = run(capsys, "preanalyse", path, "-q", "--exponent", "1,2,3", "--runs", "2", "--seed", "1",
+                         "-o", tmp_path / "pre")
+    assert code == EXIT_INTERRUPTED, err
+    assert "rac preanalyse: interrupted; 1 setting finished before it (above)" in err and "| 1 | " in out
+
+
+def test_an_error_that_ctrl_c_did_not_cause_is_still_a_bug() -> None:
+    from rac.cli.common import interrupted_by
+
+    plain = ImportError("initialization failed")
+    looped = ValueError("x")
+    looped.__context__ = ValueError("y")
+    looped.__context__.__context__ = looped  # a chain that loops back must not hang the check
+    assert interrupted_by(_import_stopped()) and interrupted_by(KeyboardInterrupt())
+    assert not interrupted_by(plain) and not interrupted_by(looped)

@@ -30,7 +30,8 @@ from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
 __all__ = ["EXIT_ERRORS", "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_TERMINATED", "EXIT_UNDECIDED",
            "EXIT_USAGE", "OUTPUT_CONVENTION", "OUTPUT_SUFFIX", "SOURCE_SUFFIX", "STALE_SECONDS", "FileWriteError",
-           "NotRegularFile", "StdoutError", "as_json", "check_writable", "held_source", "how_stopped", "load_budget",
+           "NotRegularFile", "StdoutError", "as_json", "check_writable", "held_source", "how_stopped",
+           "interrupted_by", "interrupts_as_such", "load_budget",
            "locked",
            "output_folder", "overwrites_source", "overwrites_source_in", "print_diagnostics", "resource_limit",
            "same_file", "size_argument", "stdout_unwritable", "stopping_signal", "terminate_as_interrupt", "unreadable",
@@ -92,6 +93,33 @@ def how_stopped() -> str:
     """How a command that met ``KeyboardInterrupt`` was stopped, for its message: ``"terminated (SIGTERM)"``
     when SIGTERM came (:func:`terminate_as_interrupt`), else ``"interrupted"`` (Ctrl-C)."""
     return "terminated (SIGTERM)" if _STOPPED_BY else "interrupted"
+
+
+def interrupted_by(exc: BaseException) -> bool:
+    """Whether ``exc`` is Ctrl-C (or SIGTERM, :func:`terminate_as_interrupt`) or was raised because of it: a C
+    extension whose import it stopped (stormpy's, matplotlib's: pybind11 modules) raises ``ImportError:
+    initialization failed`` from the ``KeyboardInterrupt``, which is no bug in rac."""
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:  # a chain may loop back on itself
+        if isinstance(current, KeyboardInterrupt):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False
+
+
+@contextlib.contextmanager
+def interrupts_as_such() -> Iterator[None]:
+    """In here an exception raised because of Ctrl-C or SIGTERM (:func:`interrupted_by`) is re-raised as the
+    ``KeyboardInterrupt`` it was, so that the command shows what it answered before and exits 130 or 143 instead
+    of reporting an internal error (exit 3) and dropping those answers."""
+    try:
+        yield
+    except Exception as exc:
+        if interrupted_by(exc):
+            raise KeyboardInterrupt from exc
+        raise
 
 
 def as_json(args: argparse.Namespace) -> bool:

@@ -27,6 +27,7 @@ from rac.cli.common import (
     as_json,
     held_source,
     how_stopped,
+    interrupts_as_such,
     output_folder,
     overwrites_source_in,
     print_diagnostics,
@@ -347,7 +348,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
     stopped: str | None = None
     write_failed: Diagnostic | None = None  # E0009 of a query's file: the queries before it are shown
     try:
-        with bar:
+        with bar, interrupts_as_such():
             context, results = run_queries(result, options, answered=results)
             # The check explores a product of its own (seconds on a real scene): a run of chosen
             # queries (--query) asks for those answers only.
@@ -638,11 +639,12 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     interrupted = False
     write_failed: Diagnostic | None = None  # E0009 of a plot: the settings finished before it are shown
     try:
-        rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
-                     horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
-                     max_bytes=args.max_memory or default_max_bytes(),
-                     threshold_factor=args.threshold_factor, max_seconds=args.max_seconds,
-                     quiet=args.quiet or args.format == "json", done=done)
+        with interrupts_as_such():
+            rows = sweep(result, exponents=args.exponent, senses=args.sense, decides=args.decide, runs=args.runs,
+                         horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
+                         max_bytes=args.max_memory or default_max_bytes(),
+                         threshold_factor=args.threshold_factor, max_seconds=args.max_seconds,
+                         quiet=args.quiet or args.format == "json", done=done)
     except KeyboardInterrupt:  # the settings finished stand (their plots are written): shown, then exit 130
         rows, interrupted = done, True
     except SweepError as exc:

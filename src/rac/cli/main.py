@@ -28,6 +28,7 @@ from rac.cli.common import (
     StdoutError,
     as_json,
     how_stopped,
+    interrupts_as_such,
     print_diagnostics,
     resource_limit,
     stdout_unwritable,
@@ -61,7 +62,7 @@ def _main(argv: Sequence[str] | None) -> int:
     terminated: list[int] = []  # SIGTERM came: the exit code says so (143, not Ctrl-C's 130)
     try:
         # SIGTERM (`timeout`, a batch system's limit) as Ctrl-C: the command shows what it answered before it
-        with terminate_as_interrupt() as terminated:
+        with terminate_as_interrupt() as terminated, interrupts_as_such():
             # only the command that runs is imported (rac --version and a usage error load none)
             status = getattr(importlib.import_module(module), function)(args)
             sys.stdout.flush()  # here, not at exit: a full disk is reported like any other write
