@@ -149,3 +149,15 @@ def test_rac_check_warns_of_a_probability_compared_for_equality() -> None:
         result = compile_text(text.replace("{op}", op).replace("}}", "}"))
         assert result.ok
         assert ("W0606" in [d.code for d in result.diagnostics]) == warned, op
+
+
+def test_the_exact_probability_stays_within_the_memory_budget(tmp_path: Path) -> None:
+    # Storm's exact value beside a Pr[...] estimate explored the model with no memory limit (up to 2 million
+    # states and Storm's matrix): `--max-memory 150M` on the left turn ran to 370 MB. Within the budget it is
+    # computed; beyond it the estimate stands alone.
+    path = write_engine_file(tmp_path, "goal_ahead", {"Prob": "Pr[<=2](<> v >= 6)"})
+    result = compile_file(path)
+    roomy = verify(result, VerifyOptions(seed=1))[0]
+    tight = verify(result, VerifyOptions(seed=1, max_bytes=10_000))[0]  # the runs fit, the graph (181 states) not
+    assert roomy.exact == 1.0 and roomy.status == tight.status == "value"
+    assert tight.exact is None and tight.runs == roomy.runs and tight.interval == roomy.interval

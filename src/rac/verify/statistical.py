@@ -120,8 +120,9 @@ class StatisticalAnswerer:
             graph = ctx.graphs[False]  # the exhaustive queries' graph: the same model, the same horizon
         else:
             try:
+                # within --max-memory as every exploration (with Storm's share): beyond it the value is left out
                 graph = explore(ctx.data, horizon_samples=samples,
-                                max_states=min(ctx.options.max_states, 2_000_000))
+                                max_states=min(ctx.options.max_states, 2_000_000), max_bytes=ctx.memory_left())
             except (MemoryError, ModelRangeError):
                 return None
         p = ctx.label(graph, query.expr)
