@@ -350,3 +350,47 @@ def test_an_error_that_ctrl_c_did_not_cause_is_still_a_bug() -> None:
     looped.__context__.__context__ = looped  # a chain that loops back must not hang the check
     assert interrupted_by(_import_stopped()) and interrupted_by(KeyboardInterrupt())
     assert not interrupted_by(plain) and not interrupted_by(looped)
+
+
+def test_simulate_interrupted_while_plotting_keeps_the_previous_pair(capsys: pytest.CaptureFixture[str],
+                                                                     tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    # runs.csv was renamed into place before the plot was drawn (a second): Ctrl-C then left the new runs' CSV
+    # beside the previous run's plot, a pair that disagrees with nothing to say so
+    from rac.verify import report
+
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    out = tmp_path / "o"
+    code, _, err = run(capsys, "simulate", path, "-q", "--runs", "3", "--seed", "1", "-o", out)
+    assert code == 0, err
+    before = {name: (out / name).read_bytes() for name in ("runs.csv", "runs.png")}
+    monkeypatch.setattr(report, "plot_series", _raises_any(KeyboardInterrupt()))
+    code, _, err = run(capsys, "simulate", path, "-q", "--runs", "5", "--seed", "2", "-o", out)
+    assert code == EXIT_INTERRUPTED, err
+    assert {name: (out / name).read_bytes() for name in before} == before
+    assert sorted(p.name for p in out.iterdir()) == ["runs.csv", "runs.png"]  # no temporary left
+
+
+def test_verify_interrupted_while_plotting_keeps_the_previous_pair(capsys: pytest.CaptureFixture[str],
+                                                                   tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    from rac.verify import statistical
+
+    path = write_engine_file(tmp_path, "goal_ahead", {"Sim": QUERIES["Sim"]})
+    out = tmp_path / "o"
+    code, _, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", out, "--query", "Sim")
+    assert code == 0, err
+    before = {name: (out / name).read_bytes() for name in ("Sim.csv", "Sim.png")}
+    monkeypatch.setattr(statistical, "plot_series", _raises_any(KeyboardInterrupt()))
+    path = write_engine_file(tmp_path, "goal_ahead", {"Sim": QUERIES["Sim"].replace("4]", "6]")})  # other runs
+    code, _, err = run(capsys, "verify", path, "-q", "--seed", "2", "-o", out, "--query", "Sim")
+    assert code == EXIT_INTERRUPTED, err
+    assert {name: (out / name).read_bytes() for name in before} == before
+    assert sorted(p.name for p in out.iterdir()) == ["Sim.csv", "Sim.png"]
+
+
+def _raises_any(exc: BaseException):
+    def raiser(*args: object, **kwargs: object) -> object:
+        raise exc
+
+    return raiser

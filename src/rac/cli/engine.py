@@ -515,7 +515,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     from rac.verify.context import Context, VerifyOptions
 
     # numpy (via rac.verify.report): only the command that uses it loads it
-    from rac.verify.report import plot_series, write_csv
+    from rac.verify.report import plot_series, write_runs
 
     texts = args.expr or ["mindist()", "3 * collision_distance"]
     exprs, problem = _parse_exprs(texts, result.automaton)
@@ -538,9 +538,10 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     csv_path, png_path = out_dir / "runs.csv", out_dir / "runs.png"
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
-        write_csv(csv_path, runs.times, texts, values)
         title = f"{args.file.name}: {args.runs} runs{' under the shield' if args.shield else ''} (seed {seed})"
-        plot_series(png_path, runs.times, texts, values, title, exprs)
+        # the pair renamed together at the end: Ctrl-C while plotting keeps the previous run's pair
+        write_runs(csv_path, runs.times, texts, values, lambda: plot_series(png_path, runs.times, texts, values,
+                                                                            title, exprs))
     except OSError as exc:
         _report(args, unwritable(_written(out_dir, exc), exc))
         return EXIT_USAGE

@@ -8,7 +8,7 @@ import csv
 import dataclasses
 import io
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
@@ -24,7 +24,7 @@ from rac.model.native import NEGATIVE_DISTANCE_TEXT
 from rac.verify.status import METHODS, NOT_APPLICABLE, NOT_SATISFIED, SATISFIED, UNKNOWN, UNSUPPORTED, VALUE
 
 __all__ = ["TRACE_FLAGS", "QueryResult", "TraceRow", "count_noun", "format_number", "plot_series", "render_json",
-           "render_text", "write_csv"]
+           "render_text", "write_csv", "write_runs"]
 
 
 #: One state of a witness trace: ``time`` (s) and the sensed ego state (:data:`EGO_STATE`, reals); where
@@ -86,6 +86,17 @@ def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.n
     """``run,time,expr...`` rows of simulated runs (``values``: one ``(N, T+1)`` array per name),
     written to a temporary file of its own and renamed (:func:`rac.core.files.atomic_write`: never half a
     file, and a second writer of ``path`` has its own temporary file); returns ``path``."""
+    return write_runs(path, times, names, values)[0]
+
+
+def write_runs(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray],
+               plot: Callable[[], Path] | None = None) -> list[Path]:
+    """:func:`write_csv`, and with ``plot`` (which writes the runs' plot, atomically, and returns its path) the
+    CSV and its plot as a pair: the plot is drawn while the CSV's temporary file is open and the two are
+    renamed one after the other at the end, so that Ctrl-C or an error while either is made (drawing takes
+    a second) leaves the previous pair as it was, never a new CSV beside the plot of another run. Returns
+    the paths written, the CSV first."""
+    plotted: list[Path] = []
 
     def write(binary: IO[bytes]) -> None:
         handle = io.TextIOWrapper(binary, encoding="utf-8", newline="")
@@ -96,8 +107,10 @@ def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.n
                 writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
         handle.flush()
         handle.detach()  # atomic_write closes the file itself
+        if plot is not None:
+            plotted.append(plot())
 
-    return atomic_write(path, write)
+    return [atomic_write(path, write), *plotted]
 
 
 def plot_series(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray], title: str,

@@ -24,7 +24,7 @@ from rac.ir.text import format_checked
 from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.verify.context import Context, UnknownVerdict, left_int32
-from rac.verify.report import QueryResult, count_noun, plot_series, write_csv
+from rac.verify.report import QueryResult, count_noun, plot_series, write_runs
 from rac.verify.status import NOT_SATISFIED, SATISFIED
 
 if TYPE_CHECKING:
@@ -185,10 +185,10 @@ class StatisticalAnswerer:
         files: list[str] = []
         names = list(query.labels)
         if ctx.out_dir is not None:
-            files.append(str(write_csv(ctx.out(f"{base.name}.csv"), runs.times, names, values)))
-            if ctx.options.plots:
-                files.append(str(plot_series(ctx.out(f"{base.name}.png"), runs.times, names, values, base.formula,
-                                             query.exprs)))
+            png = ctx.out(f"{base.name}.png")
+            plot = (lambda: plot_series(png, runs.times, names, values, base.formula, query.exprs)) \
+                if ctx.options.plots else None
+            files += [str(path) for path in write_runs(ctx.out(f"{base.name}.csv"), runs.times, names, values, plot)]
         message = f"{count_noun(n, 'run')} of {samples} samples"
         if len(values) == 2 and np.ptp(values[1]) == 0:
             below = int(np.any(values[0] < values[1], axis=1).sum())
