@@ -277,8 +277,15 @@ def test_probability_with_runs_and_sequential_tests(compiled: Callable[[str], Co
     assert runs.interval[0] <= runs.estimate <= runs.interval[1]
     assert runs.estimate > 0  # full speed into the parked van: some uniform runs collide
     certain, impossible = results["Certain"], results["Impossible"]
-    assert certain.status == "satisfied" and certain.estimate == 1 and certain.message is None
+    assert certain.status == "satisfied" and certain.estimate == 1
     assert impossible.status == "not satisfied" and impossible.estimate == 0  # the speed never drops below 0
+    # a statistical verdict says so, with its error bound and the region where it has none: "Formula is satisfied"
+    # with "estimated by simulation" read as a proof
+    assert certain.message == ("decided by Wald's sequential test: wrong with probability at most 0.05 if the "
+                               "probability lies outside [0.98, 1] (within it either answer may come)")
+    assert impossible.message == ("decided by Wald's sequential test: wrong with probability at most 0.05 if the "
+                                  "probability lies outside [0, 0.02] (within it either answer may come)")
+    assert f"    {certain.message}\n" in render_text([certain])
     assert certain.runs is not None and certain.runs >= 1 and impossible.runs is not None
 
 

@@ -86,7 +86,12 @@ class StatisticalAnswerer:
             test = stats.sequential_test(sample, centre, alpha=ctx.options.alpha, beta=ctx.options.beta,
                                          delta=ctx.options.delta, batch=min(stats.DEFAULT_BATCH, chunk))
             accepted = test.accepted if op in (">=", ">") else not test.accepted
-            status, message = ("satisfied" if accepted else "not satisfied"), None
+            status = "satisfied" if accepted else "not satisfied"
+            # a statistical verdict, not a proof: its error bound, and where it has none (UPPAAL's -a, -B, -u)
+            wrong = ctx.options.beta if test.accepted else ctx.options.alpha
+            message = (f"decided by Wald's sequential test: wrong with probability at most {wrong:g} if the "
+                       f"probability lies outside [{centre - ctx.options.delta:g}, {centre + ctx.options.delta:g}] "
+                       "(within it either answer may come)")
             if not test.decided:  # the estimate's side of theta carries no error bound: not a verdict
                 status = "unknown"
                 message = (f"the sequential test did not decide within {test.runs:,} runs (its budget): the "
