@@ -394,3 +394,22 @@ def _raises_any(exc: BaseException):
         raise exc
 
     return raiser
+
+
+def test_render_interrupted_while_drawing_the_gif_keeps_the_previous_pair(capsys: pytest.CaptureFixture[str],
+                                                                          tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    # run.png was written before the GIF's frames were drawn (seconds): Ctrl-C there left the new run's picture
+    # beside the previous run's animation
+    from rac.output import render
+
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    out = tmp_path / "o"
+    code, _, err = run(capsys, "render", path, "-q", "--gif", "--seed", "1", "-o", out)
+    assert code == 0, err
+    before = {name: (out / name).read_bytes() for name in ("run.png", "run.gif")}
+    monkeypatch.setattr(render.Image, "fromarray", _raises_any(KeyboardInterrupt()))  # in the GIF's frames
+    code, _, err = run(capsys, "render", path, "-q", "--gif", "--seed", "2", "-o", out)
+    assert code == EXIT_INTERRUPTED, err
+    assert {name: (out / name).read_bytes() for name in before} == before
+    assert sorted(p.name for p in out.iterdir()) == ["run.gif", "run.png"]

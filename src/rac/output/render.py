@@ -16,12 +16,13 @@ Example::
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 from xml.etree import ElementTree
 
 import numpy as np
@@ -419,21 +420,29 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
             shown_sample = min(max(round((shown_step - start) * dt / period), 0), n_samples - 1)
         show(shown_sample, shown_step)
         wrap_at[0] = fit_title(figure, ax.title)
-        png = save_figure(figure, png_path, dpi=dpi)
+        if gif_path is None:
+            return save_figure(figure, png_path, dpi=dpi)
+        # with a GIF the PNG is kept in memory and the two are renamed together at the end: Ctrl-C while the
+        # frames are drawn (seconds) leaves the previous run's pair, not a new picture beside an old animation
+        picture = io.BytesIO()
+        figure.savefig(picture, format="png", dpi=dpi)
+        # the layout is settled by the PNG; re-solving it per frame would take half the frame time
+        figure.set_layout_engine("none")
+        samples = _frame_samples(n_samples, max_frames)
+        frames: list[Image.Image] = []
+        for sample in samples:
+            show(int(sample), step_of(int(sample)))
+            figure.canvas.draw()
+            canvas = figure.canvas
+            assert isinstance(canvas, FigureCanvasAgg)  # new_figure's
+            frames.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
+        frame_ms = period * 1000 * (samples[1] - samples[0] if len(samples) > 1 else 1)
 
-        if gif_path is not None:
-            # the layout is settled by the PNG; re-solving it per frame would take half the frame time
-            figure.set_layout_engine("none")
-            samples = _frame_samples(n_samples, max_frames)
-            frames: list[Image.Image] = []
-            for sample in samples:
-                show(int(sample), step_of(int(sample)))
-                figure.canvas.draw()
-                canvas = figure.canvas
-                assert isinstance(canvas, FigureCanvasAgg)  # new_figure's
-                frames.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
-            _write_gif(frames, gif_path, frame_ms=period * 1000 * (samples[1] - samples[0] if len(samples) > 1 else 1))
-    return png
+        def write(file: IO[bytes]) -> None:
+            file.write(picture.getvalue())
+            _write_gif(frames, gif_path, frame_ms=frame_ms)
+
+        return atomic_write(png_path, write)
 
 
 def _place_legend(figure: Any, handles: list[Any]) -> None:
