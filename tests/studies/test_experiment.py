@@ -448,3 +448,35 @@ def test_results_json_is_strict_json_whatever_the_file_name() -> None:
     text = results_json({"file": "caf\udce9.ra", "records": [], "reward_function": "10 * !isClose"})
     assert "udce9" not in text and json.loads(text)["file"] == "caf\\xe9.ra"
     text.encode("utf-8")  # strict UTF-8: no lone surrogate
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_ctrl_c_while_writing_keeps_the_previous_files_and_shows_what_was_learned(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, form: str) -> None:
+    """experiment.md and results.json were renamed into place before the plots were drawn (seconds): Ctrl-C there
+    left the new table beside the previous run's plots, printed a bare "rac: interrupted" and dropped what was
+    learned."""
+    import rac.output.plots as plots
+
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "out"
+    args = ["experiment", str(path), "--episodes", "8", "--runs", "2", "--reward-function", REWARD_FUNCTION,
+            "--combination", "RF", "--out", str(out), "-q"]
+    assert main([*args, "--seeds", "1"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert sorted(before) == ["experiment.md", "first_success.png", "results.json", "returns.png"]
+    capsys.readouterr()
+
+    def stopped(figure: object, path: object, **options: object) -> Path:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plots, "save_figure", stopped)
+    assert main([*args, "--seeds", "2", "--format", form]) == 130
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # no new file beside an old one, no temporary
+    printed, err = capsys.readouterr()
+    assert f"rac experiment: interrupted while writing the results above; none of the files in {out} changed" in err
+    if form == "json":
+        document = json.loads(printed)
+        assert document["seeds"] == [2] and document["interrupted"] == "writing"
+    else:
+        assert "| RF |" in printed

@@ -738,19 +738,31 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
         return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
     if report.get("interrupted"):  # the study sees a KeyboardInterrupt either way; which signal it was, the CLI knows
         report = {**report, "stopped_by": stopping_signal()}
-    try:
-        files = write_outputs(report, out_dir)
-    except OSError as exc:
-        # a full disk, a folder in the way: what was learned (minutes to hours) is shown all the same, then
-        # the error; it was dropped with it
-        failed = unwritable(_written(out_dir, exc), exc)
-        if args.format == "json":  # one document: the results and the error in it
-            print(json_text({**json.loads(results_json(report)), "error": failed.to_json()}, indent=1))
+    def unwritten(extra: dict[str, object]) -> None:
+        """The results that were not written, shown: one JSON document with ``extra`` in it, or the tables."""
+        if args.format == "json":
+            print(json_text({**json.loads(results_json(report)), **extra}, indent=1))
         else:
             print(render_markdown(report))
             if report.get("ablation"):
                 print()
                 print(render_ablation(report))
+
+    try:
+        files = write_outputs(report, out_dir)
+    except KeyboardInterrupt:
+        # Ctrl-C or SIGTERM while the files were made (the plots take seconds): none of them changed, and what
+        # was learned (minutes to hours) is shown all the same; it was dropped with a bare "rac: interrupted"
+        unwritten({"interrupted": report.get("interrupted") or "writing"})
+        print(f"rac experiment: {how_stopped()} while writing the results above; none of the files in {out_dir} "
+              "changed", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except OSError as exc:
+        # a full disk, a folder in the way: what was learned (minutes to hours) is shown all the same, then
+        # the error; it was dropped with it
+        failed = unwritable(_written(out_dir, exc), exc)
+        unwritten({"error": failed.to_json()})  # with --format json one document: the results and the error
+        if args.format != "json":
             print_diagnostics([failed])
         print("rac experiment: the results above were not all written (the error above)", file=sys.stderr)
         return EXIT_USAGE

@@ -45,7 +45,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
@@ -720,17 +720,10 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
         if (out_dir / name).is_dir():
             raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(out_dir / name))
     records: list[RunRecord] = report["records"]
-    written = []
-    markdown = out_dir / "experiment.md"
-    _write_text(markdown, render_markdown(report) + "\n")
-    written.append(markdown)
+    texts = [(out_dir / "experiment.md", render_markdown(report) + "\n")]
     if report.get("ablation"):
-        ablation = out_dir / "ablation.md"
-        _write_text(ablation, render_ablation(report) + "\n")
-        written.append(ablation)
-    results = out_dir / "results.json"
-    _write_text(results, results_json(report))
-    written.append(results)
+        texts.append((out_dir / "ablation.md", render_ablation(report) + "\n"))
+    texts.append((out_dir / "results.json", results_json(report)))
 
     def curves(field: str) -> dict[str, np.ndarray]:
         out = {}
@@ -740,13 +733,30 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
             out[label] = np.array([np.pad(row, (0, width - len(row)), constant_values=np.nan) for row in rows])
         return out
 
-    written.append(plot_learning_curves(curves("returns"), out_dir / "returns.png", ylabel="episode return",
-                                        title="learning curves", smooth=10))
-    firsts: dict[str, list[int | None]] = {}
-    for r in records:
-        firsts.setdefault(r.combination, []).append(r.first_success_episode)
-    written.append(plot_first_success(firsts, int(report["episodes"]), out_dir / "first_success.png"))
-    return written
+    def plots() -> list[Path]:
+        firsts: dict[str, list[int | None]] = {}
+        for r in records:
+            firsts.setdefault(r.combination, []).append(r.first_success_episode)
+        return [plot_learning_curves(curves("returns"), out_dir / "returns.png", ylabel="episode return",
+                                     title="learning curves", smooth=10),
+                plot_first_success(firsts, int(report["episodes"]), out_dir / "first_success.png")]
+
+    def nested(k: int) -> list[Path]:
+        # each text's temporary file stays open while the rest (the plots last: seconds) are made; the renames
+        # come together at the end, so Ctrl-C or an error before leaves the previous run's files as they were,
+        # never a new table beside the plots of another run
+        if k == len(texts):
+            return plots()
+        path, text = texts[k]
+        inner: list[Path] = []
+
+        def write(handle: IO[bytes]) -> None:
+            handle.write(text.encode("utf-8"))
+            inner.extend(nested(k + 1))
+
+        return [atomic_write(path, write), *inner]
+
+    return nested(0)
 
 
 def results_json(report: Report) -> str:
@@ -770,10 +780,3 @@ def results_json(report: Report) -> str:
     # every string as rac shows it: a file name's undecodable byte is no lone surrogate, which strict JSON
     # readers refuse
     return json_text(data, indent=1) + "\n"
-
-
-def _write_text(path: Path, text: str) -> None:
-    # a temporary file of its own, renamed (a full disk, an interrupt: no half file left behind; a second
-    # experiment into the same folder has its own temporary file)
-    atomic_write(path, lambda handle: handle.write(text.encode("utf-8")))
-
