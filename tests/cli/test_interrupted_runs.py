@@ -413,3 +413,13 @@ def test_render_interrupted_while_drawing_the_gif_keeps_the_previous_pair(capsys
     assert code == EXIT_INTERRUPTED, err
     assert {name: (out / name).read_bytes() for name in before} == before
     assert sorted(p.name for p in out.iterdir()) == ["run.gif", "run.png"]
+
+
+def test_check_interrupted_in_an_import_keeps_the_files_checked(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    # Ctrl-C in numpy's import while the second file was checked: the JSON document of the first was dropped
+    a, b, c = _three_files(tmp_path)
+    _check_stopped_at(monkeypatch, "b.ra", _import_stopped())
+    code, out, err = run(capsys, "check", "--format", "json", a, b, c)
+    assert code == EXIT_INTERRUPTED and "rac: interrupted" in err
+    assert [entry["file"] for entry in json.loads(out)] == [str(a), str(b)]

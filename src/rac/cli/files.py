@@ -16,6 +16,7 @@ from rac.cli.common import (
     FileWriteError,
     as_json,
     check_writable,
+    interrupts_as_such,
     load_budget,
     locked,
     not_generated,
@@ -98,7 +99,8 @@ def _check_files(args: argparse.Namespace) -> int:
     discount = _discount_of(args)
     for path in args.files:
         try:
-            result, failure = read_and_check(path, max_bytes, discount)
+            with interrupts_as_such():  # Ctrl-C in an extension's import (numpy's) is one too
+                result, failure = read_and_check(path, max_bytes, discount)
         except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the files checked before stay in the one document
             if args.format == "json":
                 report.append({"file": str(path), "ok": False, "diagnostics": [], "proved": [], "facts": [],
