@@ -27,3 +27,15 @@ def test_every_option_is_documented() -> None:
             if spellings and not any(re.search(rf"(?<![\w-]){re.escape(s)}(?![\w-])", text) for s in spellings):
                 missing.append(f"rac {name} {'/'.join(spellings)}")
     assert not missing, f"options in --help but in no page of docs/ nor the README: {missing}"
+
+
+def test_every_verdict_method_is_documented() -> None:
+    """``rac verify``'s JSON ``method`` can take every value of ``METHODS``; docs/verify.md named four of them
+    (``on demand``, ``product search``, ``strategy run``, ... were in the output only)."""
+    from rac.verify.status import METHODS
+
+    text = (ROOT / "docs" / "verify.md").read_text(encoding="utf-8")
+    paragraph = text[text.index("**How a verdict was reached**"):]
+    paragraph = paragraph[:paragraph.index("\n\n")]
+    missing = [method for method in METHODS if f"`{method}`" not in paragraph]
+    assert not missing, f"methods rac verify reports that docs/verify.md does not explain: {missing}"
