@@ -143,6 +143,20 @@ def test_a_run_that_stays_in_a_set_to_the_horizon() -> None:
     assert (found.witness.states[:, 3] < 10.2 * data.scale).all()
 
 
+def test_a_start_outside_the_set_to_stay_in_has_no_run_staying_in_it() -> None:
+    """Regression: the beam never tested the start against ``through`` (explore's beam chooses among new layers):
+    `E[] v < 10` from a start at 10 m/s found a run braking below 10 from the second sample on, and its replay
+    then failed at sample 0 (ReplayMismatch: rac verify's internal error, losing the answers before it)."""
+    data, _ = data_and_graph()
+    below = lambda k, rows: rows[:, 2] < 10 * data.scale  # noqa: E731 (the start is at 10 m/s exactly)
+    to_end = lambda k, rows: below(k, rows) & (k == HORIZON)  # noqa: E731
+    assert not below(0, np.asarray([batch_model(data).native.initial_state()]))[0]
+    beam = beam_search(data, to_end, horizon_samples=HORIZON, width=10**6, seed=1, through=below)
+    assert beam.witness is None and not beam.proves_absence
+    assert search(data, to_end, horizon_samples=HORIZON, seed=2, through=below).witness is None
+    # from a start inside the set the same search still finds one (below 10.2 m/s: the test above)
+
+
 def test_a_tampered_witness_does_not_replay() -> None:
     data, _ = data_and_graph()
     target = fast(data, 10.6)

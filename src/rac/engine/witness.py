@@ -127,8 +127,9 @@ def _columns(data: ModelData) -> tuple[str, ...]:
     return STICKY_COLUMNS if data.sticky else COLUMNS
 
 
-def _start(data: ModelData, model: BatchModel) -> np.ndarray:
-    """The start's row (without ``k``)."""
+def start_row(data: ModelData, model: BatchModel) -> np.ndarray:
+    """The start's row (without ``k``), as exploration and the witness searches begin: the ego, and under
+    ``collision sticky`` whether ``collide()`` holds there."""
     start = np.asarray([model.native.initial_state()], dtype=np.int32)
     if data.sticky:
         start = np.column_stack([start, model.collide(start, 0)]).astype(np.int32)
@@ -164,7 +165,7 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
     guard = ActionGuard(data)
     pairs = action_pairs(data)
     rng = np.random.default_rng(seed)
-    first_k, first = start if start is not None else (0, _start(data, model))
+    first_k, first = start if start is not None else (0, start_row(data, model))
     length = horizon_samples - first_k + 1
     columns = _columns(data)
     generated = done = 0
@@ -248,6 +249,12 @@ def beam_search(data: ModelData, target: Predicate, *, horizon_samples: int, wid
     only states satisfying it; it stops at the first layer with a target state. When no layer had to
     be cut (and none was filtered by ``through``), the graph it returns is the whole exploration
     (``complete``)."""
+    if through is not None:
+        # explore's beam chooses among each new layer's states, never the start's: a start outside ``through``
+        # (and not a target) ends every run there, as in random_runs and the replay
+        start = start_row(data, batch_model(data))[None, :]
+        if not bool(np.asarray(target(0, start))[0]) and not bool(np.asarray(through(0, start))[0]):
+            return Found(None, 1)
     rng = np.random.default_rng(seed)
     rank = score if score is not None else goal_distance(data)
     generated = [0]
