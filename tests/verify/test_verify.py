@@ -41,6 +41,7 @@ from rac.verify.runner import (
     verify,
 )
 from rac.verify.statistical import StatisticalAnswerer
+from rac.verify.symbolic import SymbolicAnswerer
 
 NAMES = tuple(TINY_SCENARIOS)
 #: Qc as `rac verify` reads it (UPPAAL's literal reading: a collision does not end a run, so a run
@@ -609,6 +610,27 @@ def test_a_formula_that_reads_no_state_is_decided_without_exploring(tmp_path: Pa
     assert alone.status == ("satisfied" if holds else "not satisfied") and alone.method == "constant"
     read = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, only=["Read"]))}["Read"]
     assert read.status == alone.status and read.method != "constant"
+
+
+@pytest.mark.parametrize(("formula", "holds"), [
+    ("A<> !offroad()", True), ("A<> time <= 0", True), ("A<> !collide() && !goal()", True),
+    ("E[] offroad()", False), ("E[] time > 0", False), ("E[] goal()", False),
+])
+def test_a_formula_the_start_decides_needs_no_exploring(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                        formula: str, holds: bool) -> None:
+    """Regression: `A<> p` with `p` true at the start and `E[] p` with `p` false there searched for a run that
+    never meets `p` (or keeps it), found none, and needed the complete graph to say so: UNKNOWN beyond the state
+    budget. Every run begins in the start, which decides them; the same query decided on the complete graph
+    (the shortcut switched off) gives the same verdict. The other cases are still explored."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"Start": formula, "Other": "A<> goal()"})
+    result = compile_file(path)
+    tight = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, max_states=1))}
+    assert tight["Start"].status == ("satisfied" if holds else "not satisfied")
+    assert tight["Start"].method == "initial state" and tight["Start"].states == 1
+    assert tight["Other"].method != "initial state"  # goal() is false at the start: the start does not decide it
+    monkeypatch.setattr(SymbolicAnswerer, "_at_start", lambda self, query, base: None)
+    explored = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, only=["Start"]))}["Start"]
+    assert explored.status == tight["Start"].status and explored.method != "initial state"
 
 
 @pytest.mark.parametrize(("alone", "read", "holds"), [

@@ -32,6 +32,8 @@ METHODS: dict[str, str] = {
     # `p --> q` decided by a side that reads none (`p --> true`, `false --> q`)
     "constant": "decided without exploring: what decides the formula reads no state, so it has the same value in "
                 "every state",
+    # `A<> p` with `p` true at the start, `E[] p` with `p` false there: every run begins in the initial state
+    "initial state": "decided in the initial state, where every run begins",
     # the complete graph up to the horizon
     "exhaustive": "decided on the complete graph up to the horizon",
     # the runtime shield searching the whole horizon from the start; the shield then computed state by state

@@ -20,11 +20,12 @@ from rac.engine.graph import ExploredGraph
 from rac.engine.lookahead import Lookahead, LookaheadSettings
 from rac.engine.ondemand import on_demand
 from rac.engine.product import PHASES, ProductGraph, decide_product, explore_product, trace_to
-from rac.engine.witness import Predicate, Witness, witness_graph
+from rac.engine.witness import Predicate, Witness, start_row, witness_graph
 from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
+from rac.model.batch import batch_model
 from rac.model.native import NativeModel
 from rac.verify import compositional
 from rac.verify.context import Context, UnknownVerdict, over_budget, restricted
@@ -63,6 +64,10 @@ class SymbolicAnswerer:
         first (unsafe states end a run there): a run found there is a run of the model."""
         if query.under is None and ie.state_independent(query.expr):
             return self._constant(query, base)
+        if query.under is None and query.quantifier in ("A<>", "E[]") and not ie.reads_automaton(query.expr):
+            at_start = self._at_start(query, base)
+            if at_start is not None:
+                return at_start
         if ie.reads_automaton(query.expr) or (self.context.program.automaton.ending is not None
                                                and query.under is None):
             # `episode ends when` ends runs early, as in the emitted model: only the product ends them
@@ -82,6 +87,20 @@ class SymbolicAnswerer:
         state where ``A[] true`` fails has none to find, and only the complete graph would prove that)."""
         return dataclasses.replace(base, status=SATISFIED if self._value(query.expr) else NOT_SATISFIED,
                                    horizon_samples=self.context.horizon_samples, method="constant")
+
+    def _at_start(self, query: iq.PathQuery, base: QueryResult) -> QueryResult | None:
+        """``A<> p`` where ``p`` holds at the start, and ``E[] p`` where it does not, are decided there: every
+        run begins in that state (a search for a run that never meets ``p`` has none to find, and only the
+        complete graph would prove that). None when the start does not decide the query."""
+        ctx = self.context
+        start = start_row(ctx.data, batch_model(ctx.data))[None, :]
+        holds = bool(ctx.predicate(query.expr)(0, start)[0])
+        if holds != (query.quantifier == "A<>"):
+            return None
+        status, said = (SATISFIED, "holds") if holds else (NOT_SATISFIED, "fails")
+        return dataclasses.replace(base, status=status, states=1, horizon_samples=ctx.horizon_samples,
+                                   method="initial state",
+                                   message=f"`{format_checked(query.expr)}` {said} at t = 0")
 
     def _value(self, expr: ie.Expr) -> bool:
         """The one value of a formula that reads no state (:func:`rac.ir.expr.state_independent`), read at
