@@ -10,15 +10,18 @@ from __future__ import annotations
 import csv
 import json
 import re
+import textwrap
 from pathlib import Path
 
 import pytest
-from engine_files import QUERIES, write_engine_file
+from engine_files import QUERIES, TEMPLATE, write_engine_file
 from PIL import Image
+from tiny_scenarios import Block, GoalBox, StraightRoad, TinySettings
 
 from rac.cli.common import EXIT_ERRORS, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE
 from rac.cli.main import main
 from rac.engine import shield
+from rac.model.commonroad import EgoStart
 
 #: The engine's timings vary: ``0.03 s`` becomes ``T s`` before texts are compared.
 SECONDS = re.compile(r"\b\d+\.\d\d s\b")
@@ -737,3 +740,57 @@ def test_a_horizon_option_past_the_recorded_traffic_is_warned_of(tmp_path: Path,
                  "json", "--out", str(tmp_path / "c")]) in (0, 1, 4)
     document = json.loads(capsys.readouterr().out)
     assert [w["code"] for w in document["warnings"]] == ["W0728"]
+
+
+def _late_goal(folder: Path) -> Path:
+    """``folder/drive.ra`` (a sample every 0.5 s, horizon 4 s, the tiny scenarios' coarse model) over
+    ``folder/late_goal.xml``: one lane, the ego at x = 10 at 10 m/s, a car ahead whose trajectory is recorded for
+    4 s, the goal x in [40, 60] in the window [3, 5] s."""
+    road = StraightRoad(300.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(40.0, 60.0, 3.0, 5.0),
+                        obstacles=(Block(11, x=40.0, y=1.75, velocity=8.0),), steps=40)
+    (folder / "late_goal.xml").write_bytes(road.xml("late_goal"))
+    block = TinySettings().model_block("late_goal.xml", ["near = mindist() < 3 * collision_distance"])
+    path = folder / "drive.ra"
+    path.write_text(TEMPLATE.format(period="0.5", horizon="4", model=textwrap.indent(block, "    "), queries=""),
+                    encoding="utf-8")
+    return path
+
+
+def test_a_horizon_option_before_the_goal_window_is_warned_of(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """`--horizon 2` ends the runs before the goal's window [3, 5] s opens: no run can reach the goal, and the
+    engine commands said nothing of it (the file's own horizon of 4 s holds the window's first samples)."""
+    path = _late_goal(tmp_path)
+    assert main(["simulate", str(path), "--seed", "1", "-q", "--out", str(tmp_path / "a")]) == 0
+    assert "W0722" not in capsys.readouterr().err
+    assert main(["simulate", str(path), "--seed", "1", "-q", "--horizon", "2", "--out", str(tmp_path / "b")]) == 0
+    err = capsys.readouterr().err
+    assert ("warning[W0722]: the goal's time window [3, 5] s opens after --horizon 2 ends (scenario time t = 2 s): "
+            "`goal()` never holds") in err
+    assert "lengthen the horizon to at least 3 s (--horizon)" in err
+    assert main(["verify", str(path), "--seed", "1", "--horizon", "2", "--standard", "--query", "Qc", "--format",
+                 "json", "--out", str(tmp_path / "c")]) in (0, 1, 4)
+    document = json.loads(capsys.readouterr().out)
+    assert [w["code"] for w in document["warnings"]] == ["W0722"]
+
+
+def test_preanalyse_says_where_its_horizon_leaves_no_goal_or_traffic(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac preanalyse --horizon 6` ran past the 4 s of recorded traffic without W0728 (the other engine
+    commands warn of it), and at `--horizon 2` the runs end before the goal's window [3, 5] s opens, yet Qc
+    read a bare "false", as if the traffic or the road kept the ego from the goal; the row says why now."""
+    path = _late_goal(tmp_path)
+    argv = ["preanalyse", str(path), "--seed", "1", "-q", "--runs", "3"]
+    assert main([*argv, "--horizon", "6", "--out", str(tmp_path / "a")]) == 0
+    assert "warning[W0728]: --horizon 6 runs past the recorded traffic of `late_goal.xml`" in capsys.readouterr().err
+    assert main([*argv, "--horizon", "6", "--format", "json", "--out", str(tmp_path / "b")]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert [w["code"] for w in document["warnings"]] == ["W0728"]
+    assert "goal_never" not in document["settings"][0]
+
+    assert main([*argv, "--horizon", "2", "--format", "json", "--out", str(tmp_path / "c")]) == 0
+    row = json.loads(capsys.readouterr().out)["settings"][0]
+    assert row["qc"] is False and row["goal_never"] == "the goal's window opens after the horizon"
+    assert main([*argv, "--horizon", "2", "--out", str(tmp_path / "d")]) == 0
+    table = capsys.readouterr().out
+    assert "| false (`goal()` holds at no sample: the goal's window opens after the horizon) |" in table

@@ -4,7 +4,8 @@ Each scene is built with commonroad-io (tests/support/tiny_scenarios.py):
 
 - a goal window [0, 0.7] s sampled every 0.2 s holds the samples 0 to 3 (0.6 s), not 4 (0.8 s):
   the window is the samples inside it, in the model's data, ``goal()`` and the UPPAAL declarations;
-  a window between two samples holds none (W0722), and so does one that closes before the ego starts;
+  a window between two samples holds none (W0722), and so does one that closes before the ego starts or
+  opens after the horizon;
 - a goal that also asks for a velocity and an orientation: W0723 (the model reads neither), and two
   goal states of which only one asks for a velocity are accepted with it;
 - a curved lanelet goal (half a ring): its centre, which ``dist_goal()`` measures to, lies on the
@@ -128,6 +129,17 @@ def test_a_goal_window_closed_before_the_start_is_a_warning(tmp_path: Path) -> N
                                "scenario): `goal()` never holds")
     fact = compile_file(path).proved[-1]
     assert "goal at scenario time t in [0, 6] s (the model's time counts from the ego's start at 7 s)" in fact
+
+
+def test_a_goal_window_after_the_horizon_is_a_warning(tmp_path: Path) -> None:
+    """Runs of 2 s end before the window [3, 5] s opens: `goal()` holds at no sample of any run, so every goal
+    query is "no" for that reason alone, and `rac check` said nothing of it. A window that opens at the
+    horizon's last sample holds that sample."""
+    (warning,) = warnings_of(write(tmp_path, "window.xml", window(3.0, 5.0)), "W0722")
+    assert warning.message == ("the goal's time window [3, 5] s opens after the horizon ends (scenario time t = 2 s): "
+                               "`goal()` never holds")
+    assert warning.hints[0].startswith("lengthen the horizon to at least 3 s (`horizon`)")
+    assert not warnings_of(write(tmp_path, "window.xml", window(2.0, 5.0)), "W0722")
 
 
 # ---------------------------------------------------------------- what the goal asks beyond position and time

@@ -46,7 +46,7 @@ from rac.core.source import SourceFile
 from rac.engine.budget import BudgetExceeded, default_max_bytes, out_of_memory
 from rac.ir import query as iq
 from rac.lang.parser import ExpressionError
-from rac.model.checks import traffic_ends
+from rac.model.checks import goal_window, traffic_ends
 from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.model.sample import Ego
@@ -103,15 +103,29 @@ def _prepare(args: argparse.Namespace) -> tuple[CompileResult | None, int]:
     if result is not None and args.command != "preanalyse" and not _horizon_ok(result, args):
         return None, EXIT_USAGE
     # preanalyse checks its --horizon per setting later: an unchecked 1e400 must not reach a float here
-    if result is not None and result.automaton is not None and result.scenario is not None \
-            and args.command != "preanalyse" and getattr(args, "horizon", None) is not None \
-            and not any(d.code == "W0728" for d in result.diagnostics):  # the file's own horizon was said already
-        past = traffic_ends(result.automaton, result.scenario, args.horizon)
-        if past:  # --horizon past the recorded traffic: its answers after it are for an empty road
-            if not as_json(args):
-                print_diagnostics(past, result.sources, False)
-            result = dataclasses.replace(result, diagnostics=(*result.diagnostics, *past))
+    if result is not None and args.command != "preanalyse":
+        result = _horizon_warnings(result, args)
     return result, status
+
+
+def _horizon_warnings(result: CompileResult, args: argparse.Namespace, *, goal: bool = True) -> CompileResult:
+    """``result`` with the warnings of a ``--horizon`` other than the file's, printed unless the output is
+    JSON: W0728 (it runs past the recorded traffic: its answers after it are for an empty road) and W0722
+    (it ends before the goal's window opens: every goal query is "no" for that reason alone). A code the
+    file's own horizon drew already is not said again. ``--horizon`` must have been checked (a whole number
+    of samples). Without ``goal``, W0728 only (preanalyse says per setting where its goal never holds)."""
+    horizon = getattr(args, "horizon", None)
+    if result.automaton is None or result.scenario is None or horizon is None:
+        return result
+    said = {d.code for d in result.diagnostics}
+    found = [] if "W0728" in said else traffic_ends(result.automaton, result.scenario, horizon)
+    if goal and "W0722" not in said and result.model_data is not None:
+        found += goal_window(result.automaton, result.scenario, result.model_data, horizon)
+    if not found:
+        return result
+    if not as_json(args):
+        print_diagnostics(found, result.sources, False)
+    return dataclasses.replace(result, diagnostics=(*result.diagnostics, *found))
 
 
 def _out_dir(args: argparse.Namespace) -> Path:
@@ -658,6 +672,8 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
             return EXIT_USAGE
         # the settings finished before it stand (their plots are written): shown as after Ctrl-C, then the error
         rows, write_failed = done, failed
+    if rows:  # a setting ran, so the sweep checked --horizon: past the recorded traffic, its runs end on an empty road
+        result = _horizon_warnings(result, args, goal=False)
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "settings": rows}
         if interrupted:

@@ -24,8 +24,9 @@
 * W0716: the ego starts off the road: ``offroad()`` holds in the initial state, so no run is
   safe from the start. A warning, not an error: the model is consistent and answers every query
   (CommonUppRoad's ZAM_Ramp starts so, and its model does not check the start).
-* W0722: the goal's time window holds no sample of the model (it closes before the ego starts, or
-  lies between two samples): ``goal()`` never holds.
+* W0722: the goal's time window holds no sample of the model (it closes before the ego starts,
+  lies between two samples, or opens after the horizon ends; :func:`goal_window` for a command's
+  ``--horizon`` too): ``goal()`` never holds.
 * W0723: the goal also asks for a velocity or an orientation, which ``goal()`` does not read.
 * W0724: the ego starts in a collision (``collide()`` holds at the start), like W0716 a warning.
 * W0727: a binding reads ``dist_goal()`` while the goal has no position (a goal of time alone): it reads 0
@@ -227,25 +228,9 @@ def _model_time(scenario: Scenario) -> str:
 def _goal(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data: ModelData) -> list[Diagnostic]:
     """W0722 for a goal window that holds no sample of the model, W0723 for goal constraints the model
     does not read (velocity, orientation)."""
-    found = []
     span = automaton.spans.get("model:scenario", spec.span)
     goal = scenario.goal
-    window = f"[{_number(goal.time_low)}, {_number(goal.time_high)}] s"
-    period = short_number(spec.sense_period)
-    if data.goal_high < 0:
-        found.append(warning(
-            "W0722", f"the goal's time window {window} closes before the ego starts (at {_number(scenario.ego.time)} "
-            "s of the scenario): `goal()` never holds", span,
-            notes=[f"the scenario file is `{spec.scenario_path}`; the model's time counts from the ego's start, and "
-                   "`goal()` holds only at the samples inside the window"],
-            hints=["choose a planning problem whose goal lies after its start, or correct the goal's time interval"]))
-    elif data.goal_low > data.goal_high:
-        found.append(warning(
-            "W0722", f"the goal's time window {window} holds no sample of the model (every {period} s from the "
-            f"ego's start at {_number(scenario.ego.time)} s): `goal()` never holds", span,
-            notes=[f"the scenario file is `{spec.scenario_path}`; `goal()` holds only at the samples inside the "
-                   "window, and the window lies between two samples"],
-            hints=["sample more often (`sample every`), or widen the goal's time interval"]))
+    found = goal_window(automaton, scenario, data)
     asked = [f"velocity in [{_number(goal.velocity[0])}, {_number(goal.velocity[1])}] m/s"] if goal.velocity else []
     if goal.orientation:
         asked.append(f"orientation in [{_number(goal.orientation[0])}, {_number(goal.orientation[1])}] rad")
@@ -259,6 +244,49 @@ def _goal(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data:
             hints=["add the condition to the query or the automaton (`v`, `head`), or read goal verdicts knowing "
                    "that they ignore it"]))
     return found
+
+
+def goal_window(automaton: ir.Automaton, scenario: Scenario, data: ModelData,
+                horizon: Fraction | None = None) -> list[Diagnostic]:
+    """W0722 when the goal's window holds no sample of the runs (``horizon`` s long, a command's ``--horizon``;
+    default the automaton's): it closes before the ego starts, lies between two samples, or opens only after
+    the runs end, so ``goal()`` holds at no sample of any run and every goal query is "no" for that reason
+    alone (a horizon of 3 s before a window of [4, 10] s passed ``rac check`` without a word, and ``rac
+    verify`` then proved that no run reaches the goal)."""
+    spec = automaton.model
+    if spec is None:
+        return []
+    span = automaton.spans.get("model:scenario", spec.span)
+    goal = scenario.goal
+    window = f"[{_number(goal.time_low)}, {_number(goal.time_high)}] s"
+    period = Fraction(spec.sense_period)
+    if data.goal_high < 0:
+        return [warning(
+            "W0722", f"the goal's time window {window} closes before the ego starts (at {_number(scenario.ego.time)} "
+            "s of the scenario): `goal()` never holds", span,
+            notes=[f"the scenario file is `{spec.scenario_path}`; the model's time counts from the ego's start, and "
+                   "`goal()` holds only at the samples inside the window"],
+            hints=["choose a planning problem whose goal lies after its start, or correct the goal's time interval"])]
+    if data.goal_low > data.goal_high:
+        return [warning(
+            "W0722", f"the goal's time window {window} holds no sample of the model (every {short_number(period)} s "
+            f"from the ego's start at {_number(scenario.ego.time)} s): `goal()` never holds", span,
+            notes=[f"the scenario file is `{spec.scenario_path}`; `goal()` holds only at the samples inside the "
+                   "window, and the window lies between two samples"],
+            hints=["sample more often (`sample every`), or widen the goal's time interval"])]
+    seconds = Fraction(automaton.horizon if horizon is None else horizon)
+    if data.goal_low <= seconds / period:
+        return []
+    which, where = ("the horizon", "`horizon`") if horizon is None else (f"--horizon {_decimal(horizon)}", "--horizon")
+    first = data.goal_low * period  # the window's first sample, in the model's time
+    return [warning(
+        "W0722", f"the goal's time window {window} opens after {which} ends (scenario time t = "
+        f"{_number(scenario.ego.time + float(seconds))} s): `goal()` never holds", span,
+        notes=[f"the scenario file is `{spec.scenario_path}`; the runs end {_decimal(seconds)} s after the ego's "
+               f"start at {_number(scenario.ego.time)} s, and the first sample inside the window is {_decimal(first)} "
+               "s after it, so every query that asks for the goal is answered for a goal no run can reach in time"],
+        hints=[f"lengthen the horizon to at least {_decimal(first)} s ({where}), or choose a planning problem whose "
+               "goal window opens within it"])]
 
 
 def _distance_to_anywhere(spec: ir.ModelSpec, scenario: Scenario) -> list[Diagnostic]:

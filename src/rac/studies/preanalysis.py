@@ -248,6 +248,9 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     row["truth_exponent"] = _truth_exponent(scenario, spec)
     samples = int(horizon / spec.sense_period)
     row["samples"] = samples
+    never = _goal_never(data, samples)
+    if never is not None:  # Qc is "no" for this reason alone, not for the traffic or the road
+        row["goal_never"] = never
     row["obstacles"] = data.obstacle_count
     threshold = threshold_factor * data.td / data.scale
     row["threshold"] = threshold
@@ -414,6 +417,18 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
     return [_jsonable(r) for r in rows]
 
 
+def _goal_never(data: ModelData, samples: int) -> str | None:
+    """Why ``goal()`` holds at no sample ``0..samples`` of the setting's model (``rac check``'s W0722, at the
+    setting's sensing period and horizon rather than the file's), or None when some sample lies in the window."""
+    if data.goal_high < 0:
+        return "the goal's window closes before the ego starts"
+    if data.goal_low > data.goal_high:
+        return "the goal's window lies between two samples"
+    if data.goal_low > samples:
+        return "the goal's window opens after the horizon"
+    return None
+
+
 def _memory_error(exc: MemoryError) -> str:
     """A setting's error for ``exc``: a budget's own words (:class:`~rac.engine.budget.BudgetExceeded`), or
     what running out of the machine's memory (or ``ulimit -v``) before the budget said so means."""
@@ -461,6 +476,8 @@ def _yes(value: object) -> str:
 def _qc(row: Row) -> str:
     """Qc and what it means: safe until the goal only, or safe to the horizon too."""
     if not row.get("qc"):
+        if row.get("qc") is not None and "goal_never" in row:  # W0722 at this setting: no run could reach it
+            return f"false (`goal()` holds at no sample: {row['goal_never']})"
         return _yes(row.get("qc"))
     return "true (safe to the horizon)" if row.get("qc_horizon") else "true (safe until the goal only)"
 
