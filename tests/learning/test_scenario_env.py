@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from engine_files import ALLOW_WHEN, write_engine_file
 from gymnasium.utils.env_checker import check_env
+from tiny_scenarios import TINY_SCENARIOS, GoalBox, StraightRoad
 
 from rac import ir
 from rac.compiler import CompileResult, compile_file, compile_text
@@ -29,6 +30,7 @@ from rac.engine.shield import ShieldTable, UnseenState
 from rac.engine.storm import safety_shield
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.gym import ScenarioEnv
+from rac.model.commonroad import EgoStart
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -925,3 +927,38 @@ def test_episodes_past_the_recorded_traffic_are_warned_of_once(tmp_path: Path) -
         warnings.simplefilter("error")
         env.reset(seed=0)  # said once
         ScenarioEnv(path, horizon=2)  # the episodes end with the traffic: nothing to say
+
+
+def test_a_scene_of_a_set_that_rac_check_would_warn_of_is_warned_of(tmp_path: Path) -> None:
+    """A scene of a set is checked with the template's model block, never by `rac check`: a scene whose ego starts
+    off the road (W0716: every episode unsafe from its first sample) or whose goal window opens after the episodes
+    end (W0722: no episode can reach the goal) trained without a word. Each is warned of, naming the scene, on its
+    first draw, and so is a goal window after an episode `horizon=` of its own; a scene fit for the model is not,
+    and neither is the template's own scene with its own horizon."""
+    template = write_engine_file(tmp_path, "goal_ahead", {})
+    narrow = TINY_SCENARIOS["narrow_road"]()
+    narrow.write(tmp_path / "narrow_road.xml")
+    late = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 8.0), GoalBox(44.0, 54.0, 5.0, 6.0))  # the episodes: 4 s
+    (tmp_path / "late.xml").write_bytes(late.xml("late"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ScenarioEnv(template)
+        env = ScenarioEnv(template, scenarios=[tmp_path / "goal_ahead.xml", tmp_path / "narrow_road.xml",
+                                               tmp_path / "late.xml"], lookahead=None)
+    with pytest.warns(UserWarning, match=r"the scene .*narrow_road.xml: the ego starts off the road: .* \(W0716 in rac "
+                                         r"check\)"):
+        env.reset(options={"scenario": 1})
+    with pytest.warns(UserWarning, match=r"the scene .*late.xml: the goal's time window \[5, 6\] s opens after the "
+                                         r"horizon ends \(scenario time t = 4 s\): `goal\(\)` never holds \(W0722"):
+        env.reset(options={"scenario": 2})
+    soon = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 8.0), GoalBox(44.0, 54.0, 3.0, 6.0))  # fine for 4 s
+    (tmp_path / "soon.xml").write_bytes(soon.xml("soon"))
+    env = ScenarioEnv(template, scenarios=[tmp_path / "goal_ahead.xml", tmp_path / "soon.xml"], lookahead=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env.reset(options={"scenario": 1})
+    env = ScenarioEnv(template, scenarios=[tmp_path / "goal_ahead.xml", tmp_path / "soon.xml"], lookahead=None,
+                      horizon=2)
+    with pytest.warns(UserWarning, match=r"the scene .*soon.xml: the goal's time window \[3, 6\] s opens after "
+                                         r"horizon=2 ends \(scenario time t = 2 s\)"):
+        env.reset(options={"scenario": 1})

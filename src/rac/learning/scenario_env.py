@@ -47,6 +47,7 @@ from rac.lang.edit import with_model
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.observation import Observation, make_observation
 from rac.learning.wrappers import CutEpisodes, Scale, outside_step_limit, scale_factor, within_proven
+from rac.model.checks import goal_window
 from rac.model.sample import MOTION
 
 if TYPE_CHECKING:
@@ -212,7 +213,9 @@ class ScenarioEnv(gymnasium.Env):
             folder whose ``*.xml`` files are the set. ``model`` must then be a ``.ra`` file; its
             ``model`` block is the template (:func:`rac.lang.edit.with_model`), checked with each scene
             on the scene's first draw (a scene that does not check raises
-            :class:`rac.core.diagnostics.CheckError` naming it). Every scene must give the same
+            :class:`rac.core.diagnostics.CheckError` naming it; one whose ego starts off the road or in a
+            collision, or whose goal window holds no sample of an episode, is a ``UserWarning`` naming it).
+            Every scene must give the same
             number of actions and the same observation space. Only the runtime shield
             (``lookahead``) works with a set: a shield table is computed for one scene.
 
@@ -384,7 +387,25 @@ class ScenarioEnv(gymnasium.Env):
         scene = (episodes, observation, self._shields(episodes, *self._shield_args, COLUMNS))
         self._scenes[index] = scene
         self._warn_past_traffic(result, index, episodes.horizon_samples)
+        self._warn_unfit_scene(result, index, episodes.horizon_samples)
         return scene
+
+    def _warn_unfit_scene(self, result: CompileResult, index: int, samples: int) -> None:
+        """Warn of what ``rac check`` would have said of this scene's episodes and nobody has seen: for a scene
+        of a set (checked here with the template's model block, never by ``rac check``), a start off the road
+        (W0716) or in a collision (W0724), where every episode is unsafe from its first sample; and, for a set
+        or an episode ``horizon=`` of its own, a goal window that holds no sample of an episode (W0722), where
+        no episode can reach the goal. A set's scene of either kind trained without a word."""
+        scenario, automaton, data = result.scenario, result.automaton, result.model_data
+        if scenario is None or automaton is None or data is None or (self._template is None and self._samples is None):
+            return
+        found = [d for d in result.diagnostics if d.code in ("W0716", "W0724")] if self._template is not None else []
+        if self._template is not None or not any(d.code == "W0722" for d in result.diagnostics):
+            horizon = None if self._samples is None else samples * Fraction(automaton.period)  # None: the file's
+            found += goal_window(automaton, scenario, data, horizon, option="horizon=")
+        for diagnostic in found:
+            warnings.warn(f"the scene {self.scenarios[index]}: {diagnostic.message} ({diagnostic.code} in rac check)",
+                          UserWarning, stacklevel=3)
 
     def _warn_past_traffic(self, result: CompileResult, index: int, samples: int) -> None:
         """Warn once when this scene's episodes run past its recorded traffic (``rac check``'s W0728 for the

@@ -247,12 +247,13 @@ def _goal(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data:
 
 
 def goal_window(automaton: ir.Automaton, scenario: Scenario, data: ModelData,
-                horizon: Fraction | None = None) -> list[Diagnostic]:
+                horizon: Fraction | None = None, option: str = "--horizon") -> list[Diagnostic]:
     """W0722 when the goal's window holds no sample of the runs (``horizon`` s long, a command's ``--horizon``;
     default the automaton's): it closes before the ego starts, lies between two samples, or opens only after
     the runs end, so ``goal()`` holds at no sample of any run and every goal query is "no" for that reason
     alone (a horizon of 3 s before a window of [4, 10] s passed ``rac check`` without a word, and ``rac
-    verify`` then proved that no run reaches the goal)."""
+    verify`` then proved that no run reaches the goal). ``option`` names where ``horizon`` came from
+    (``horizon=`` in Python)."""
     spec = automaton.model
     if spec is None:
         return []
@@ -277,7 +278,8 @@ def goal_window(automaton: ir.Automaton, scenario: Scenario, data: ModelData,
     seconds = Fraction(automaton.horizon if horizon is None else horizon)
     if data.goal_low <= seconds / period:
         return []
-    which, where = ("the horizon", "`horizon`") if horizon is None else (f"--horizon {_decimal(horizon)}", "--horizon")
+    which, where = ("the horizon", "`horizon`") if horizon is None else (
+        f"{option}{'' if option.endswith('=') else ' '}{_decimal(horizon)}", option)
     first = data.goal_low * period  # the window's first sample, in the model's time
     return [warning(
         "W0722", f"the goal's time window {window} opens after {which} ends (scenario time t = "
