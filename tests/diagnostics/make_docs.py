@@ -459,6 +459,13 @@ GENERATED: tuple[Case, ...] = (
          "next to it: one lane with a car ahead whose recorded trajectory ends at 8 s "
          "(`short_traffic()` of tests/support/tiny_scenarios.py):",
          _scene("W0728_traffic_ends", "short.xml", "traffic recorded for 8 s", "short_traffic")),
+    Case("E0729_lanelet_bounds_reversed", None,
+         "`E0729_lanelet_bounds_reversed.ra` is the automaton of the E0712 example over `reversed.xml` (line 22), "
+         "next to it: one straight lanelet (`avoidable_obstacle()` of tests/support/tiny_scenarios.py) whose left "
+         "bound is written from x = 100 back to x = 0:",
+         _edited("E0729_lanelet_bounds_reversed", "reversed.xml", "a lanelet whose bounds run opposite ways",
+                 _one_lane, r"<x>0\.0</x>(\s*)<y>3\.0</y>(.*?)<x>100\.0</x>(\s*)<y>3\.0</y>",
+                 r"<x>100.0</x>\1<y>3.0</y>\2<x>0.0</x>\3<y>3.0</y>")),
     Case("W1011_penalty_no_action_avoids", None,
          "`W1011_penalty_no_action_avoids.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: the highway of `rac.model.scenes` (`build_highway(truck=(40.0, 20.0))`), whose truck starts "

@@ -1,6 +1,7 @@
 """Scenario files that read but contradict themselves (issue 22): a time step that makes the model's
 times meaningless (E0718), an obstacle's trajectory whose time steps repeat or skip (E0719), a lanelet
-pointing at a lanelet the file lacks (E0720), a lanelet without width (E0721). Each is a written
+pointing at a lanelet the file lacks (E0720), a lanelet without width (E0721), a lanelet whose bounds run
+in opposite directions (E0729). Each is a written
 scenario (the left-turn junction of :mod:`rac.model.intersection`, or a tiny road) edited as text; the
 loader's error names the code, the element, the attribute and the file with line:column, and
 ``rac check`` reports it as a diagnostic at the `scenario` item.
@@ -90,6 +91,30 @@ def test_a_lanelet_without_width_is_E0721(tmp_path: Path) -> None:
     assert (error.code, error.attribute, error.element) == ("E0721", "leftBound", "lanelet 1")
     assert error.line == line_of(path, '<lanelet id="1"') and error.column == 3
     assert "coincide at every point" in str(error)
+
+
+#: The left bound of the one lanelet of ``avoidable_obstacle`` (y = 3, from x = 0 to 100), and the same points
+#: the other way round: the bound written from the lane's end to its start.
+FORWARD = r"<x>0\.0</x>(\s*)<y>3\.0</y>(.*?)<x>100\.0</x>(\s*)<y>3\.0</y>"
+BACKWARD = r"<x>100.0</x>\1<y>3.0</y>\2<x>0.0</x>\3<y>3.0</y>"
+
+
+def test_a_lanelet_whose_bounds_run_opposite_ways_is_E0729(junction: Path, tmp_path: Path) -> None:
+    """A left bound written from the lane's end to its start made the lanelet's outline cross itself (a bow
+    tie): `offroad()` held across most of the lane, and `rac check` blamed the ego's start (W0716) or, with a
+    start elsewhere, said nothing. A lane whose bounds run alike, straight or round a bend, is read."""
+    road = TINY_SCENARIOS["avoidable_obstacle"]().write(tmp_path / "road.xml")  # one lanelet, y in [0, 3]
+    path = edited(road, tmp_path / "reversed.xml", FORWARD, BACKWARD)
+    error = inconsistency(path)
+    assert (error.code, error.attribute, error.element) == ("E0729", "leftBound", "lanelet 1")
+    assert error.line == line_of(path, '<lanelet id="1"') and error.column == 3
+    assert ("has its <leftBound> and <rightBound> running in opposite directions: the left one from (100, 3) to "
+            "(0, 3), the right one from (0, 0) to (100, 0)") in str(error)
+    ra = tmp_path / "driving.ra"
+    ra.write_text(engine_source(TINY_SCENARIOS["goal_ahead"](), {}, scenario_file=path.name), encoding="utf-8")
+    assert [d.code for d in compile_file(str(ra)).diagnostics if d.is_error] == ["E0729"]
+    load_scenario(road)
+    load_scenario(junction)  # lanelets that turn left and right, lanes towards -x and -y
 
 
 def test_rac_check_reports_each_at_the_scenario_item(junction: Path, tmp_path: Path) -> None:

@@ -14,10 +14,11 @@
 * E0714: the ego starts outside the model's limits (a speed outside [`min_speed`, `max_speed`],
   an acceleration beyond ±`max_acceleration`), which ``sense()`` would clamp at the first
   sample; the hint names the setting to change and the value that holds the start.
-* E0718-E0721: the file reads but is inconsistent (:class:`~rac.model.commonroad.InconsistentScenarioError`):
+* E0718-E0721, E0729: the file reads but is inconsistent (:class:`~rac.model.commonroad.InconsistentScenarioError`):
   a time step that makes the model's times meaningless (E0718), an obstacle's trajectory whose time
   steps repeat, go back or skip (E0719), a lanelet's predecessor, successor or neighbour that the file
-  lacks (E0720), a lanelet without width (E0721); the message names the file with the element's
+  lacks (E0720), a lanelet without width (E0721), a lanelet whose bounds run in opposite directions
+  (E0729); the message names the file with the element's
   line:column, the element and the attribute.
 * E0715: the planning problem is not clear: the file has several and the block writes no
   `planning_problem`, or the one it writes is not in the file; the message lists the ids.
@@ -69,9 +70,9 @@ if TYPE_CHECKING:
     from rac.model.commonroad import Scenario
     from rac.model.data import ModelData
 
-#: The codes of a scenario rac cannot build a model from: unreadable (E0712) or inconsistent (E0718-E0721).
-#: ``rac sweep`` counts a task that ends in one as an error of its input, not a verdict ("error", not "failed").
-UNUSABLE_SCENARIO = ("E0712", "E0718", "E0719", "E0720", "E0721")
+#: The codes of a scenario rac cannot build a model from: unreadable (E0712) or inconsistent (E0718-E0721,
+#: E0729). ``rac sweep`` counts a task that ends in one as an error of its input, not a verdict ("error", not "failed").
+UNUSABLE_SCENARIO = ("E0712", "E0718", "E0719", "E0720", "E0721", "E0729")
 
 #: Loaded scenarios by (path, modification time, size, planning problem): checking several files
 #: that share a scenario, or the same file again, reads it once.
@@ -340,7 +341,7 @@ def traffic_ends(automaton: ir.Automaton, scenario: Scenario, horizon: Fraction 
 
 
 def _inconsistent(spec: ir.ModelSpec, scenario_span, failure) -> Diagnostic:
-    """E0718-E0721: the file reads, but contradicts itself or the model; the message names the file with
+    """E0718-E0721, E0729: the file reads, but contradicts itself or the model; the message names the file with
     the element's line:column, the element and the attribute."""
     notes: list[Note | str] = [f"the scenario file is `{spec.scenario_path}`; the attribute at fault is "
                                f"`{failure.attribute}`"]

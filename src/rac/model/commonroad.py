@@ -186,7 +186,7 @@ class ScenarioError(RacError):
 
 class InconsistentScenarioError(ScenarioError):
     """A CommonRoad file that reads, but whose parts contradict each other or the model: its own
-    diagnostic ``code`` (E0718-E0721, docs/diagnostics.md), the ``attribute`` at fault, the position
+    diagnostic ``code`` (E0718-E0721, E0729, docs/diagnostics.md), the ``attribute`` at fault, the position
     ``line``:``column`` (1-based) of the element in the file when known, and a ``hint`` for the fix.
 
     ``str(error)`` is ``"<path>:<line>:<column>: <element> <problem>"`` (without the position when
@@ -976,6 +976,7 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     for lanelet in lanelets:
         _check_finite_bounds(path, lanelet)
         _check_width(path, lanelet, where("lanelet", lanelet.lanelet_id))
+        _check_direction(path, lanelet, where("lanelet", lanelet.lanelet_id))
     road = tuple(_polygon(lanelet.polygon.vertices) for lanelet in lanelets)
     lanes = tuple(Lane(lanelet.lanelet_id, _points(lanelet.center_vertices), _points(lanelet.left_vertices),
                        _points(lanelet.right_vertices)) for lanelet in lanelets)
@@ -1071,6 +1072,34 @@ def _check_width(path, lanelet, position: tuple[int, int] | None) -> None:
             path, "E0721", f"lanelet {lanelet.lanelet_id}", "leftBound",
             "has no width: its <leftBound> and <rightBound> coincide at every point",
             "give the lanelet its two bounds (a lane's width apart, e.g. 3.5 m), or remove it", position)
+
+
+def _check_direction(path, lanelet, position: tuple[int, int] | None) -> None:
+    """E0729: a lanelet whose left and right bounds run in opposite directions (one written from the lane's
+    end to its start, as a converter or a hand edit leaves it). Its polygon, the right bound then the left one
+    reversed, crosses itself: most of the lane lies outside it, so ``offroad()`` held across the lane and
+    ``rac check`` blamed the ego's start (W0716), or said nothing where the ego only drove onto it later.
+    The bounds run opposite when pairing each one's start with the other's end brings them closer than
+    pairing start with start and end with end (for bounds that run alike, those pairs are the diagonals of
+    the lane's outline, longer than its two ends)."""
+    left, right = _points(lanelet.left_vertices), _points(lanelet.right_vertices)
+    if len(left) < 2 or len(right) < 2:
+        return
+    along = math.dist(left[0], right[0]) + math.dist(left[-1], right[-1])
+    across = math.dist(left[0], right[-1]) + math.dist(left[-1], right[0])
+    if across < along:
+        raise InconsistentScenarioError(
+            path, "E0729", f"lanelet {lanelet.lanelet_id}", "leftBound",
+            f"has its <leftBound> and <rightBound> running in opposite directions: the left one from "
+            f"({_short(left[0])}) to ({_short(left[-1])}), the right one from ({_short(right[0])}) to "
+            f"({_short(right[-1])}), so the lanelet's outline crosses itself and most of the lane would be off "
+            "the road", "write both bounds in the driving direction (reverse the points of the one that runs "
+            "backwards)", position)
+
+
+def _short(point: tuple[float, float]) -> str:
+    """A bound's point as a message writes it: ``12.5, -3``."""
+    return ", ".join(f"{value:.6g}" for value in point)
 
 
 def _check_finite_bounds(path, lanelet) -> None:
