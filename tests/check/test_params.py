@@ -99,6 +99,23 @@ def test_parameter_in_a_guard_is_refused():
     assert "guard" in result.diagnostics[0].message
 
 
+def test_a_parameter_at_whose_bound_the_file_does_not_check_is_e0407():
+    # `sample every P` with P in [1, 100]: at P = 100 the horizon is no whole number of periods, and an
+    # input bound `5 - P` is reversed at P = 10; both ended `rac check` with an internal error (exit 3)
+    period = SMALL.format(param="param P in [1, 100]", penalty="10", weight="1").replace(
+        "sample every 1", "sample every P")
+    result = compile_text(period, "period.ra")
+    assert codes(result) == ["E0407"]
+    assert result.diagnostics[0].message.endswith("the file does not check at P = 100, the high end of its bounds")
+    assert [n.message for n in result.diagnostics[0].notes] == [
+        "at P = 100: error[E0206]: the horizon (5 s) is not a whole number of sample periods (100 s)"]
+    bound = SMALL.format(param="param P in [0, 10]", penalty="P", weight="1").replace(
+        "input bad : bool", "input bad : bool\n    input d : real in [0, 5 - P]")
+    result = compile_text(bound, "bound.ra")
+    assert codes(result) == ["W0303", "E0407"]  # `d` is unused: the bound is the point
+    assert "error[E0205]: empty range [0, -5] for `d`" in result.diagnostics[1].notes[0].message
+
+
 SMALL = """automaton Small {{
     input bad : bool
     {param}

@@ -25,7 +25,7 @@ from rac.check.analysis.piecewise import Interval, intersect
 from rac.check.analysis.synthesis import Synthesised, Unfinished, risk_values, synthesise, unsupported
 from rac.check.analysis.weights import Unsupported, synthesise_region
 from rac.check.resolve import Resolver
-from rac.core.diagnostics import Diagnostic, Fact, error, short_number
+from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number
 from rac.core.numbers import exact_decimal, exact_text
 from rac.core.source import Span
 from rac.ir.significands import representation
@@ -129,7 +129,8 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
         return Resolver(node, {name: value}).run()
 
     low, high = resolve(parameter.low), resolve(parameter.high)
-    assert low is not None and high is not None, "the file resolved at the low bound"
+    if low is None or high is None:
+        return None, [_fails_at_bound(node, parameter, parameter.low if low is None else parameter.high)], None
     reason = unsupported(low, high)
     searched = [r for r in low.requirements if (r.check == "risk" and r.bound is not None) or r.check in LOOPHOLES]
     #: each searched requirement with the values where it holds (in the order the file gives them)
@@ -205,6 +206,25 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     facts.append(Fact("synthesis", sentence))
     return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
                                            sentence)
+
+
+def _fails_at_bound(node: ast.Automaton, parameter: ir.Parameter, value: Fraction) -> Diagnostic:
+    """E0407 for a parameter at one of whose bounds the file does not check (``sample every P`` with a
+    horizon that is no whole number of ``P`` there, an input bound ``50 - P`` reversed there): the
+    errors the file has at that value, as notes. The search reads the automaton at both bounds, so
+    there is nothing to search; before this, such a file ended ``rac check`` with an internal error."""
+    name = parameter.name
+    resolver = Resolver(node, {name: value})
+    resolver.run()
+    errors = [d for d in resolver.diagnostics if d.is_error]
+    which = "low" if value == parameter.low else "high"
+    return error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: the file does not check at "
+                 f"{name} = {short_number(value)}, the {which} end of its bounds",
+                 parameter.span,
+                 notes=[Note(f"at {name} = {short_number(value)}: error[{d.code}]: {d.message}", d.span)
+                        for d in errors[:3]],
+                 hints=[f"narrow the bounds of `{name}` to values at which the file checks, "
+                        f"or write `const {name} = ...`"])
 
 
 def _held_exactly(resolve: Callable[[Fraction], ir.Automaton | None], name: str, least: Fraction, top: Interval
