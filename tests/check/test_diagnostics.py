@@ -455,6 +455,21 @@ def test_an_unknown_process_in_a_query_is_one_error(query: str, process: str) ->
     assert [(d.code, d.message) for d in diagnostics] == [("E0101", f"unknown process `{process}`")]
 
 
+@pytest.mark.parametrize(("query", "name", "kind"), [
+    ("A[] Minimal.safe <= 1000", "safe", "a reward"), ("A[] Minimal.near imply Near", "near", "an input"),
+    ("E<> Minimal.K > 1", "K", "a constant")])
+def test_a_qualified_name_that_is_not_a_location_says_what_it_is(query: str, name: str, kind: str) -> None:
+    """`Minimal.safe` (a reward qualified as a UPPAAL process's variable would be) said "unknown location
+    `safe`" with the hint "did you mean `safe`?", the name written, and then "`<=` compares a boolean
+    with a number": it is E0103 alone, saying what the name is, with the hint to write it unqualified."""
+    from rac.compiler import compile_text
+
+    diagnostics = compile_text(minimal(query=f"query Q: {query}"), "minimal.ra", analyse=False).diagnostics
+    assert [(d.code, d.message, d.hints) for d in diagnostics] == [
+        ("E0103", f"`{name}` is {kind}, not a location: only locations (and `Minimal.location`) are qualified "
+         "by the automaton's name", (f"write `{name}`",))]
+
+
 @settings(max_examples=80, deadline=None, derandomize=True, database=None)
 @given(slot=st.sampled_from(["sample", "horizon", "bound", "runs", "threshold", "simulate", "steps"]), value=EXTREME)
 def test_messages_print_extreme_numbers_short(slot: str, value: str) -> None:

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from fractions import Fraction
 
 from rac import ir
-from rac.check.symbols import Scope, Symbol
+from rac.check.symbols import Scope, Symbol, kind_word
 from rac.core.diagnostics import CheckError, short_number
 from rac.core.numbers import INT32_MAX
 from rac.core.source import SourceFile, Span
@@ -213,7 +213,15 @@ class Lowering:
             return None, None  # what `P.x` is, nobody knows: no type error on top (`A[] P.r < 0`)
         if node.id == "location":
             return "num", ie.Ref(ie.RefKind.LOCATION_INDEX, f"{node.scope}.location", "num", span=node.span)
-        elif symbol is None or symbol.kind != "location":
+        elif symbol is not None and symbol.kind != "location":
+            # `Q.s` for a reward `s`, as a UPPAAL process's own variable would be written: say what `s`
+            # is (the scope's "unknown location `s`, did you mean `s`?" named the name written), and
+            # give no type, so that `Q.s <= 10` gets no second error comparing a boolean with a number
+            self.s.error("E0103", f"`{node.id}` is {kind_word(symbol.kind)}, not a location: only locations "
+                         f"(and `{node.scope}.location`) are qualified by the automaton's name", node.span,
+                         hints=[f"write `{node.id}`"])
+            return None, None
+        elif symbol is None:
             self.s.unknown(node.id, node.span, "location")
         else:
             return "bool", ie.Ref(ie.RefKind.LOCATION, node.id, "bool", symbol.index, span=node.span)

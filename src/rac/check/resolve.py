@@ -20,7 +20,7 @@ from rac.check.linear import CONSTANT, OBJECTIVE, RATE, UPDATE, Bool, Context, E
 from rac.check.model_block import resolve_model
 from rac.check.queries import Lowering, model_settings
 from rac.check.standard import standard_queries
-from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable
+from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable, kind_word
 from rac.core.diagnostics import Diagnostic, Note, short_count, short_number, warning
 from rac.core.source import Span
 from rac.ir import expr as ie
@@ -65,7 +65,7 @@ class Resolver:
     def _declare(self, ident: ast.Ident, symbol: Symbol) -> bool:
         previous = self.symbols.get(ident.name)
         if previous is not None:
-            kind = "a parameter" if ident.name in self.parameter_names else _kind_word(previous.kind)
+            kind = "a parameter" if ident.name in self.parameter_names else kind_word(previous.kind)
             self._error("E0102", f"`{ident.name}` is already declared (as {kind})",
                         ident.span, notes=[Note("first declared here", previous.span)])
             return False
@@ -310,7 +310,7 @@ class Resolver:
                     self._unknown(name, flow.reward.span, "reward")
                     continue
                 if symbol.kind != "reward":
-                    self._error("E0103", f"`{name}` is {_kind_word(symbol.kind)}, not a reward: "
+                    self._error("E0103", f"`{name}` is {kind_word(symbol.kind)}, not a reward: "
                                 "only rewards have flows", flow.reward.span)
                     continue
                 if name in rates:
@@ -343,7 +343,7 @@ class Resolver:
             return names.index(ident.name)
         symbol = self.symbols.get(ident.name)
         if symbol is not None:
-            self._error("E0103", f"`{ident.name}` is {_kind_word(symbol.kind)}, not a location", ident.span)
+            self._error("E0103", f"`{ident.name}` is {kind_word(symbol.kind)}, not a location", ident.span)
         else:
             candidates = difflib.get_close_matches(ident.name, names, n=1)
             self._error("E0101", f"unknown location `{ident.name}`", ident.span,
@@ -359,7 +359,7 @@ class Resolver:
                 self._unknown(name, update.target.span, "reward")
                 continue
             if symbol.kind != "reward":
-                self._error("E0210", f"cannot assign to {_kind_word(symbol.kind)} `{name}`", update.target.span,
+                self._error("E0210", f"cannot assign to {kind_word(symbol.kind)} `{name}`", update.target.span,
                             hints=["updates change rewards only"])
                 continue
             try:
@@ -457,7 +457,7 @@ class Resolver:
             if symbol is None:
                 self._unknown(ident.name, ident.span, "reward")
             elif symbol.kind != "reward":
-                self._error("E0103", f"`{ident.name}` is {_kind_word(symbol.kind)}, not a reward: "
+                self._error("E0103", f"`{ident.name}` is {kind_word(symbol.kind)}, not a reward: "
                             "priorities order rewards", ident.span)
             elif ident.name in seen:
                 self._error("E0102", f"`{ident.name}` appears twice in the priority order", ident.span,
@@ -643,10 +643,6 @@ def _single(singles: dict[type, ast.Member], kind: type[_M]) -> _M | None:
     """The declaration of ``kind`` among :meth:`Resolver._singletons`, if the automaton has one."""
     member = singles.get(kind)
     return member if isinstance(member, kind) else None
-
-
-def _kind_word(kind: str) -> str:
-    return {"input": "an input", "const": "a constant", "reward": "a reward", "location": "a location"}[kind]
 
 
 def _num(value: Fraction) -> str:

@@ -17,7 +17,7 @@ from rac.core.diagnostics import Diagnostic, RacError, error
 from rac.core.source import Span
 from rac.lang import ast
 
-__all__ = ["ModelContext", "Scope", "Symbol", "Unresolvable"]
+__all__ = ["ModelContext", "Scope", "Symbol", "Unresolvable", "kind_word"]
 
 
 class Unresolvable(RacError):
@@ -70,3 +70,8 @@ class ModelContext:
     constant: Callable[[ast.Expr, str], Fraction]
     #: Spans of the block's settings the analyses point at ("model:exponent", "model:scenario").
     spans: dict[str, Span]
+
+
+def kind_word(kind: str) -> str:
+    """A symbol's kind as a message names it: ``"reward"`` is "a reward"."""
+    return {"input": "an input", "const": "a constant", "reward": "a reward", "location": "a location"}[kind]
