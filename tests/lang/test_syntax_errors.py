@@ -185,3 +185,30 @@ def test_an_uppaal_query_form_rac_lacks_gets_a_hint(query: str, hint: str) -> No
 def test_a_name_that_is_an_uppaal_word_gets_no_query_hint(text: str) -> None:
     diagnostic, _ = diagnose(text)
     assert not [h for h in diagnostic.hints if h.startswith("rac has no") or "control:" in h], diagnostic.hints
+
+
+@pytest.mark.parametrize(("text", "found", "keyword"), [
+    ("automaton A { inital location L { } }", "inital", "initial"),
+    ("automaton A { rewards r }", "rewards", "reward"),
+    ("automaton A { Location L { } }", "Location", "location"),
+    ("automaton A { egde * -> L when p }", "egde", "edge"),
+    ("automaton A { edge * -> L wehn p }", "wehn", "when"),
+    ("automaton A { sample evry 1 }", "evry", "every"),
+    ("automaton A { objectve r }", "objectve", "objective"),
+    ("automaton A { gaol when p }", "gaol", "goal"),
+    ("automaton A { query Q: E<> L undr s\n}", "undr", "under"),
+])
+def test_a_misspelt_keyword_gets_the_word_meant(text: str, found: str, keyword: str) -> None:
+    """A newcomer's most common slip: the message said only "unexpected `inital`" and listed what may
+    follow, without saying which word was meant."""
+    diagnostic, _ = diagnose(text)
+    assert diagnostic.message == f"unexpected `{found}`"
+    assert f"did you mean `{keyword}`?" in diagnostic.hints
+
+
+@pytest.mark.parametrize("text", ["automaton A { var r }", "automaton A { at ned do r += 1 }",
+                                  "automaton A { episode end when p }"])
+def test_a_word_unlike_any_keyword_gets_no_guess(text: str) -> None:
+    """No guess for a word far from every keyword, nor beside the hint showing a declaration's form."""
+    diagnostic, _ = diagnose(text)
+    assert not [h for h in diagnostic.hints if h.startswith("did you mean")], diagnostic.hints

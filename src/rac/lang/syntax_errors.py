@@ -7,6 +7,7 @@ a few common slips get a hint. The same translation serves every start rule of t
 
 from __future__ import annotations
 
+import difflib
 import re
 import unicodedata
 
@@ -148,6 +149,23 @@ def _uppaal_query_hint(found: str, before: str) -> str | None:
     return None
 
 
+def _misspelt_keyword(found: str, expected: set[str]) -> str | None:
+    """The keyword the parser expects that the word ``found`` misspells (`inital`, `Location`, `rewards`,
+    `wehn`), or None: a name where a keyword must stand is a newcomer's most common slip, and the list of
+    what may follow does not say which word was meant."""
+    if not found.isidentifier():
+        return None
+    words = [w for w in (literal_terminal(t) for t in expected) if w is not None and w.isidentifier()]
+    # the keywords the grammar reads as names in some places (`goal`, `step`, `ends`) count too
+    words += [w for w in _DECLARATION_WORDS if "NAME" in expected and f"`{w}`" not in words]
+    words = [w for w in words if w != found]
+    for word in words:  # a capital or a plural: `Location`, `rewards`, `inputs`
+        if found.lower() in (word, word + "s"):
+            return word
+    close = difflib.get_close_matches(found.lower(), words, n=1, cutoff=0.75)
+    return close[0] if close else None
+
+
 def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: str = "", after: str = "") -> list[str]:
     """Hints for the usual slips; ``before`` is the text before the unexpected token, ``after`` the text from
     it on, ``found_type`` its terminal."""
@@ -158,7 +176,8 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
         hints.append("implication is written `imply`: `a imply b` (or `!a || b`)")
     words = {_describe_terminal(t) for t in expected}
     previous = before.split()[-1] if before.split() else ""
-    if previous in _DECLARATION_FORMS and words & {"`when`", "`ends`"}:
+    form = previous in _DECLARATION_FORMS and bool(words & {"`when`", "`ends`"})
+    if form:
         hints.append(f"the declaration is written `{_DECLARATION_FORMS[previous]}`")
     if previous == "require" and "a name" in words:
         hints.append("write `require CHECK` (e.g. `require ending_early_never_pays`) or `require risk <= BOUND`")
@@ -176,6 +195,9 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
     if found == ";":  # UPPAAL's declarations end in `;`, rac's do not (a `}` may follow either way)
         hints.append("declarations need no `;` at their end: `;` only separates the flows of a location "
                      "(and a query's bound from its number of runs)")
+    keyword = None if form else _misspelt_keyword(found, expected)  # the form shows the word already
+    if keyword is not None:
+        hints.append(f"did you mean `{keyword}`?")
     if _chained_comparison(found_type, expected, before):
         hints.append("comparisons do not chain: `0 < d < 5` is written `0 < d && d < 5`")
     uppaal = _uppaal_query_hint(found, before)
