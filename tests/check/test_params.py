@@ -116,6 +116,17 @@ def test_a_parameter_at_whose_bound_the_file_does_not_check_is_e0407():
     assert "error[E0205]: empty range [0, -5] for `d`" in result.diagnostics[1].notes[0].message
 
 
+def test_a_parameter_in_a_file_with_too_many_input_classes_is_e0306():
+    # The searches read the input classes: with more than the checks take (E0306), `rac check` ended with
+    # an internal error (AssertionError in the synthesis) instead of E0306, which the file has without `param`
+    many = "\n    ".join(f"input b{i} : bool" for i in range(21))
+    text = SMALL.format(param="param P in [0, 100]", penalty="P", weight="1").replace("input bad : bool", many)
+    text = text.replace("when bad", "when " + " && ".join(f"b{i}" for i in range(21))).replace(
+        "when !bad", "when !(" + " && ".join(f"b{i}" for i in range(21)) + ")")
+    assert codes(compile_text(text, "many.ra")) == ["E0306"]
+    assert codes(compile_text(text.replace("param P in [0, 100]", "const P = 0"), "many.ra")) == ["E0306"]
+
+
 SMALL = """automaton Small {{
     input bad : bool
     {param}

@@ -20,6 +20,7 @@ from typing import get_args
 
 from rac import ir
 from rac.check.analysis import analyse_automaton
+from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.parametric import LOOPHOLES, loophole_values
 from rac.check.analysis.piecewise import Interval, intersect
 from rac.check.analysis.synthesis import Synthesised, Unfinished, risk_values, synthesise, unsupported
@@ -52,6 +53,11 @@ def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, .
     what was found (:class:`ParameterOutcome`)."""
     facts: list[Fact] = []
     place = nonlinear_use(node, {p.name for p in parameters})
+    at_low = Resolver(node).run()
+    if place is None and at_low is not None and input_space(at_low)[0] is None:
+        # Too many input classes (E0306): the searches need the classes, so there is nothing to search;
+        # the analysis stage reports E0306 on the file at the low bounds, as it does without a `param`.
+        return ParameterOutcome(at_low, (), None, ())
     if place is not None:
         name, span, how = place
         found: tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None] = (
