@@ -240,3 +240,15 @@ def test_the_benchmark_runs(tmp_path):
     table = output.read_text(encoding="utf-8")
     assert "| PENALTY | 30 s | 300 |" in table and "PENALTY = 98 |" in table
     assert "| w1, w2, w3 | 30 s | 300 |" in table and "7 * w1 >= 13 * w2 + 3 * w3; w1 = 3, w2 = 1, w3 = 1 |" in table
+
+
+def test_a_parameter_in_the_bounds_of_another_is_e0407():
+    # `param w3 in [0, -w1]` checks at w1's low bound 0, not one unit above it (reversed bounds, E0409), where
+    # the weights' search measures each weight: `rac check` ended with an internal error (AssertionError)
+    text = weighted().replace("param w1, w2, w3 in [1, 100]",
+                              "param w1 in [0, 100]\n    param w2 in [1, 100]\n    param w3 in [0, -w1]")
+    result = compile_text(text, "w.ra")
+    assert [d.code for d in result.diagnostics] == ["E0407"]
+    assert result.diagnostics[0].message.endswith(
+        "it appears in a declaration the file does not check with at w1 = 1 (a bound, a constant)")
+

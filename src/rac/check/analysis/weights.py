@@ -120,7 +120,9 @@ class Weights:
         for i in range(size):
             point = tuple(x + (1 if j == i else 0) for j, x in enumerate(origin))
             moved = resolve(point)
-            assert moved is not None
+            if moved is None:  # a weight of the objective alone resolves anywhere: this one sets more
+                raise Unsupported(base.parameters[i].name, "a declaration the file does not check with at "
+                                  f"{base.parameters[i].name} = {short_number(point[i])} (a bound, a constant)")
             if _without_objective(moved) != _without_objective(base):
                 raise Unsupported(base.parameters[i].name, _where(base, moved))
             steps.append(moved.objective)
