@@ -116,6 +116,20 @@ def test_a_parameter_at_whose_bound_the_file_does_not_check_is_e0407():
     assert "error[E0205]: empty range [0, -5] for `d`" in result.diagnostics[1].notes[0].message
 
 
+def test_a_parameter_of_one_value_where_the_search_cannot_go_is_e0406():
+    # `param P in [2, 2]` with `sample every P`: the file at its two bounds is one file, so nothing showed that P
+    # sets the period, and where a check fails the search measures it one unit above (P = 3: 4 s is no whole
+    # number of 3 s periods): `rac check` ended with an internal error (AssertionError). One value: it fails.
+    text = SMALL.format(param="param P in [2, 2]", penalty="1", weight="1").replace(
+        "sample every 1", "sample every P").replace("horizon 5", "horizon 4")
+    result = compile_text(text, "one.ra")
+    assert codes(result) == ["E0406", "E0402"]
+    assert "at P = 2, P2 for `sa` fails" in [n.message for n in result.diagnostics[0].notes]
+    # where every check holds, the one value passes, as before
+    passing = compile_text(text.replace("sa - 1", "sa - 100"), "one.ra")
+    assert passing.ok and passing.proved[0].startswith("synthesised: every check holds for every value of P in [2, 2]")
+
+
 def test_a_parameter_in_a_file_with_too_many_input_classes_is_e0306():
     # The searches read the input classes: with more than the checks take (E0306), `rac check` ended with
     # an internal error (AssertionError in the synthesis) instead of E0306, which the file has without `param`

@@ -282,7 +282,13 @@ def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences:
             continue
         if other is None:
             other = resolve(value + 1)
-            assert other is not None
+        if other is None and parameter.low == parameter.high:
+            # `param P in [2, 2]` where the file does not check one unit above (P sets the period there): one
+            # value, so no slope is needed: the check fails, and with it the only value
+            found.append((True, None, False))
+            sentences.append(f"at {parameter.name} = {_num(value)}, {check.what} fails")
+            continue
+        assert other is not None, "an affine parameter's file resolves one unit above a value of its bounds"
         # The same run one unit further: its value is affine in the parameter, so two values fix it.
         here = _value(automaton, space, worst, check.target(automaton))
         there = _value(other, space, _transplant(worst, automaton, other), check.target(other))
