@@ -60,6 +60,19 @@ def test_where_matches_the_sign_at_every_point(first, second, a, b):
         assert any(p in i for i in nonpositive) == (value <= 0)
 
 
+@settings(max_examples=100, deadline=None)
+@given(lines, lines, st.integers(-3, 3), st.integers(-3, 3), st.integers(-10, 10))
+def test_a_domain_of_one_value_keeps_its_sign(first, second, a, b, at):
+    """`param P in [5, 5]`: the two functions on the one value combined had no piece, so the sum was
+    positive nowhere and at most 0 nowhere (`require risk` refused where it holds)."""
+    p = F(at)
+    f = convex(oracle_of(first), p, p).combine(convex(oracle_of(second), p, p), F(a), F(b))
+    value = a * oracle_of(first)(p)[0] + b * oracle_of(second)(p)[0]
+    assert f(p) == value
+    assert f.where(value > 0) == [Interval(p, p)]
+    assert f.where(value <= 0) == []
+
+
 def test_a_crossing_is_an_open_end_of_the_positive_set():
     f = Piecewise.affine(F(0), F(10), F(1), F(-4))  # p - 4
     assert f.where(True) == [Interval(F(4), F(10), low_open=True)]

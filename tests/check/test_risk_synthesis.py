@@ -91,3 +91,15 @@ def test_no_value_within_the_int32_range_reaches_a_risk_of_one_in_a_hundred():
     assert "no value of parameter `PENALTY`" in e0406.message
     assert any("`require risk <= 0.01` holds for none of them" in str(n) for n in e0406.notes)
     assert any("the checks at PENALTY = 98 follow" in str(n) for n in e0406.notes)
+
+
+def test_a_parameter_of_one_value_meets_the_requirement_as_its_constant_does():
+    # `param PENALTY in [1000, 1000]`: the returns on the one value combined had no piece, so `require risk`
+    # "holds for none of them" (E0406) where `const PENALTY = 1000` passes it
+    driving = (ROOT / "stdlib" / "driving.ra").read_text(encoding="utf-8").replace(
+        "\n}", "\n    require risk <= 0.5\n}")
+    constant = compile_text(driving.replace("const PENALTY = 100", "const PENALTY = 1000"), "driving.ra")
+    assert constant.ok
+    one = compile_text(driving.replace("const PENALTY = 100", "param PENALTY in [1000, 1000]"), "driving.ra")
+    assert one.ok, [d.message for d in one.diagnostics]
+    assert one.proved[1:] == constant.proved

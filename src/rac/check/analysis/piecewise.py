@@ -68,6 +68,10 @@ class Piecewise:
         if (self.points[0], self.points[-1]) != (other.points[0], other.points[-1]):
             raise ValueError("piecewise functions over different intervals")
         points = sorted(set(self.points) | set(other.points))
+        if len(points) == 1:
+            # a domain of one value (`param P in [5, 5]`) is one piece there: without it the sum had no
+            # piece, held nowhere, and `require risk` was refused at a value where it holds
+            points = [points[0], points[0]]
         slopes, intercepts = [], []
         for left, right in zip(points, points[1:]):
             middle = (left + right) / 2
