@@ -103,3 +103,14 @@ def test_a_parameter_of_one_value_meets_the_requirement_as_its_constant_does():
     one = compile_text(driving.replace("const PENALTY = 100", "param PENALTY in [1000, 1000]"), "driving.ra")
     assert one.ok, [d.message for d in one.diagnostics]
     assert one.proved[1:] == constant.proved
+
+
+def test_a_parameter_of_one_value_may_be_the_bound_of_the_requirement():
+    # `param B in [0.5, 0.5]` with `require risk <= B`: the search takes each return's slope one unit above,
+    # where the bound (1.5) is no probability and the file does not check: an internal error (AssertionError)
+    driving = (ROOT / "stdlib" / "driving.ra").read_text(encoding="utf-8").replace(
+        "const PENALTY = 100", "const PENALTY = 1000\n    BOUND").replace("\n}", "\n    require risk <= B\n}")
+    constant = compile_text(driving.replace("BOUND", "const B = 0.5"), "driving.ra")
+    one = compile_text(driving.replace("BOUND", "param B in [0.5, 0.5]"), "driving.ra")
+    assert constant.ok and one.ok, [d.message for d in one.diagnostics]
+    assert one.proved[1:] == constant.proved
