@@ -61,7 +61,8 @@ def test_verify_not_satisfied_exits_1(capsys: pytest.CaptureFixture[str], tmp_pa
 Verifying Stays: E[] !collide() && !offroad()  ({path}:{line_of(path, "Stays")})
  -- Formula is NOT satisfied.
     1 state, horizon 8 samples, T s
-    decided on the complete graph up to the horizon
+    decided in the initial state, where every run begins
+    `!collide() && !offroad()` fails at t = 0
 Verifying safe: strategy safe = control: A[] !collide() && !offroad()  ({path}:{line_of(path, "safe")})
  -- Formula is NOT satisfied.
     1 state, horizon 8 samples, T s
