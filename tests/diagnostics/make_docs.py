@@ -466,6 +466,11 @@ GENERATED: tuple[Case, ...] = (
          _edited("E0729_lanelet_bounds_reversed", "reversed.xml", "a lanelet whose bounds run opposite ways",
                  _one_lane, r"<x>0\.0</x>(\s*)<y>3\.0</y>(.*?)<x>100\.0</x>(\s*)<y>3\.0</y>",
                  r"<x>100.0</x>\1<y>3.0</y>\2<x>0.0</x>\3<y>3.0</y>")),
+    Case("W0730_traffic_rules", None,
+         "`W0730_traffic_rules.ra` is the automaton of the E0712 example over `lights.xml` (line 22), next to it: "
+         "one lane with a traffic light at x = 60 m, a stop sign and their stop line (`traffic_rules()` of "
+         "tests/support/tiny_scenarios.py):",
+         _scene("W0730_traffic_rules", "lights.xml", "a lane with a traffic light", "traffic_rules")),
     Case("W1011_penalty_no_action_avoids", None,
          "`W1011_penalty_no_action_avoids.ra` is the automaton of the E0712 example over `highway.xml` (line 22), "
          "next to it: the highway of `rac.model.scenes` (`build_highway(truck=(40.0, 20.0))`), whose truck starts "

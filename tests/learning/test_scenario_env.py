@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from engine_files import ALLOW_WHEN, write_engine_file
 from gymnasium.utils.env_checker import check_env
-from tiny_scenarios import TINY_SCENARIOS, GoalBox, StraightRoad
+from tiny_scenarios import TINY_SCENARIOS, GoalBox, StraightRoad, traffic_rules
 
 from rac import ir
 from rac.compiler import CompileResult, compile_file, compile_text
@@ -951,6 +951,12 @@ def test_a_scene_of_a_set_that_rac_check_would_warn_of_is_warned_of(tmp_path: Pa
     with pytest.warns(UserWarning, match=r"the scene .*late.xml: the goal's time window \[5, 6\] s opens after the "
                                          r"horizon ends \(scenario time t = 4 s\): `goal\(\)` never holds \(W0722"):
         env.reset(options={"scenario": 2})
+    # a scene with a traffic light the model does not read (W0730): the shield's masks let a run pass it at red
+    (tmp_path / "lights.xml").write_bytes(traffic_rules())
+    env = ScenarioEnv(template, scenarios=[tmp_path / "goal_ahead.xml", tmp_path / "lights.xml"], lookahead=None)
+    with pytest.warns(UserWarning, match=r"the scene .*lights.xml: `.*lights.xml` has 1 traffic light, 1 traffic sign "
+                                         r"and 1 stop line, which the model does not read: .* \(W0730 in rac check\)"):
+        env.reset(options={"scenario": 1})
     soon = StraightRoad(100.0, EgoStart(10.0, 1.75, 0.0, 8.0), GoalBox(44.0, 54.0, 3.0, 6.0))  # fine for 4 s
     (tmp_path / "soon.xml").write_bytes(soon.xml("soon"))
     env = ScenarioEnv(template, scenarios=[tmp_path / "goal_ahead.xml", tmp_path / "soon.xml"], lookahead=None)

@@ -11,6 +11,7 @@ Each scene is built with commonroad-io (tests/support/tiny_scenarios.py):
 - a curved lanelet goal (half a ring): its centre, which ``dist_goal()`` measures to, lies on the
   lanelet, not in the ring's hole; a region whose vertex mean lies outside it gets a point inside;
 - a goal of time alone (no position): ``dist_goal()`` reads 0, so a binding reading it warns (W0727);
+- traffic lights, signs and stop lines, which the model does not read: W0730;
 - a goal region without area (a polygon on one line, a rectangle 0 m long): refused (E0712);
 - an ego that starts inside a parked car: W0724;
 - the loader's messages for a file without a version, a 2020a file labelled 2018b, and a time step
@@ -50,6 +51,7 @@ from tiny_scenarios import (
     goal_with_direction,
     late_start,
     ramp,
+    traffic_rules,
 )
 
 from rac.compiler import compile_file
@@ -375,3 +377,24 @@ def test_version_and_time_step_messages(tmp_path: Path) -> None:
             load_scenario(path)
         assert inconsistent.value.code == "E0718" and inconsistent.value.line == 2
         assert f'has timeStepSize="{step}" s, not positive' in str(inconsistent.value)
+
+
+def test_traffic_rules_the_model_does_not_read_are_w0730(tmp_path: Path) -> None:
+    """Regression: a traffic light, a stop sign and their stop line (an urban scene's) were read by commonroad-io
+    and ignored without a word, so a shield or a proof said nothing of running the red light. W0730 counts them;
+    signs that are all speed limits are said so, with `max_speed` as the hint; a file without any has none."""
+    (tmp_path / "lights.xml").write_bytes(traffic_rules())
+    (tmp_path / "limits.xml").write_bytes(traffic_rules("limits"))
+    (tmp_path / "ramp.xml").write_bytes(ramp(10.0))
+    source = tmp_path / "rules.ra"
+    source.write_text(PROGRESS % "lights.xml", encoding="utf-8")
+    (found,) = warnings_of(source, "W0730")
+    assert found.message == ("`lights.xml` has 1 traffic light, 1 traffic sign and 1 stop line, which the model "
+                             "does not read: runs ignore them")
+    assert "`bind pastStop" in found.hints[0] and "max_speed" not in found.hints[0]
+    source.write_text(PROGRESS % "limits.xml", encoding="utf-8")
+    (limits,) = warnings_of(source, "W0730")
+    assert limits.message.startswith("`limits.xml` has 2 speed-limit signs, which the model does not read")
+    assert limits.hints[0].startswith("set the model's `max_speed` to the limit")
+    source.write_text(PROGRESS % "ramp.xml", encoding="utf-8")
+    assert warnings_of(source, "W0730") == []

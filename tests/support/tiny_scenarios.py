@@ -62,11 +62,18 @@ from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
 from commonroad.planning.goal import GoalRegion
 from commonroad.planning.planning_problem import PlanningProblem, PlanningProblemSet
 from commonroad.prediction.prediction import TrajectoryPrediction
-from commonroad.scenario.lanelet import Lanelet
+from commonroad.scenario.lanelet import Lanelet, StopLine
 from commonroad.scenario.obstacle import DynamicObstacle, ObstacleType, StaticObstacle
 from commonroad.scenario.scenario import Scenario as CRScenario
 from commonroad.scenario.scenario import Tag
 from commonroad.scenario.state import CustomState, ExtendedPMState, InitialState
+from commonroad.scenario.traffic_light import (
+    TrafficLight,
+    TrafficLightCycle,
+    TrafficLightCycleElement,
+    TrafficLightState,
+)
+from commonroad.scenario.traffic_sign import TrafficSign, TrafficSignElement, TrafficSignIDGermany
 from commonroad.scenario.trajectory import Trajectory
 from lxml import etree
 
@@ -625,6 +632,28 @@ def short_traffic() -> bytes:
     road = StraightRoad(200.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(150.0, 190.0, 0.0, 30.0),
                         obstacles=(Block(11, x=40.0, y=1.75, velocity=8.0),), steps=80)
     return road.xml("short_traffic")
+
+
+def traffic_rules(signs: str = "stop") -> bytes:
+    """:func:`ramp`'s lane with a traffic light at x = 60 (red for the first 5 s, then green) and its stop line
+    (W0730). ``signs="limits"``: two 50 km/h speed-limit signs instead; ``"stop"`` adds a stop sign to the light."""
+    scenario, problems = StraightRoad(200.0, EgoStart(10.0, 1.75, 0.0, 10.0),
+                                      GoalBox(100.0, 150.0, 0.0, 8.0)).build("lights")
+    network = scenario.lanelet_network
+    (lanelet,) = network.lanelets
+    if signs == "limits":
+        for ident, x in ((801, 20.0), (802, 120.0)):
+            network.add_traffic_sign(TrafficSign(ident, [TrafficSignElement(TrafficSignIDGermany.MAX_SPEED, ["13.89"])],
+                                                 {lanelet.lanelet_id}, np.array([x, 4.0])), {lanelet.lanelet_id})
+        return commonroad_xml(scenario, problems, "limits", Tag.SINGLE_LANE)
+    cycle = TrafficLightCycle([TrafficLightCycleElement(TrafficLightState.RED, 50),
+                               TrafficLightCycleElement(TrafficLightState.GREEN, 100)])
+    network.add_traffic_light(TrafficLight(900, np.array([60.0, 4.0]), cycle), {lanelet.lanelet_id})
+    network.add_traffic_sign(TrafficSign(800, [TrafficSignElement(TrafficSignIDGermany.STOP, [])],
+                                         {lanelet.lanelet_id}, np.array([60.0, 4.5])), {lanelet.lanelet_id})
+    lanelet.stop_line = StopLine(np.array([60.0, 0.0]), np.array([60.0, LANE_WIDTH]), LineMarking.SOLID,
+                                 traffic_light_ref={900}, traffic_sign_ref={800})
+    return commonroad_xml(scenario, problems, "lights", Tag.URBAN)
 
 
 #: The ring of :func:`curved_lane_goal`: its centre line's radius (m) and the lane width.

@@ -393,13 +393,15 @@ class ScenarioEnv(gymnasium.Env):
     def _warn_unfit_scene(self, result: CompileResult, index: int, samples: int) -> None:
         """Warn of what ``rac check`` would have said of this scene's episodes and nobody has seen: for a scene
         of a set (checked here with the template's model block, never by ``rac check``), a start off the road
-        (W0716) or in a collision (W0724), where every episode is unsafe from its first sample; and, for a set
+        (W0716) or in a collision (W0724), where every episode is unsafe from its first sample, and traffic rules
+        the model does not read (W0730: the shield's masks let a run pass a red light); and, for a set
         or an episode ``horizon=`` of its own, a goal window that holds no sample of an episode (W0722), where
         no episode can reach the goal. A set's scene of either kind trained without a word."""
         scenario, automaton, data = result.scenario, result.automaton, result.model_data
         if scenario is None or automaton is None or data is None or (self._template is None and self._samples is None):
             return
-        found = [d for d in result.diagnostics if d.code in ("W0716", "W0724")] if self._template is not None else []
+        found = [d for d in result.diagnostics if d.code in ("W0716", "W0724", "W0730")] \
+            if self._template is not None else []
         if self._template is not None or not any(d.code == "W0722" for d in result.diagnostics):
             horizon = None if self._samples is None else samples * Fraction(automaton.period)  # None: the file's
             found += goal_window(automaton, scenario, data, horizon, option="horizon=")

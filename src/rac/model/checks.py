@@ -30,6 +30,7 @@
   ``--horizon`` too): ``goal()`` never holds.
 * W0723: the goal also asks for a velocity or an orientation, which ``goal()`` does not read.
 * W0724: the ego starts in a collision (``collide()`` holds at the start), like W0716 a warning.
+* W0730: the scenario has traffic lights, traffic signs or stop lines, which the model does not read.
 * W0727: a binding reads ``dist_goal()`` while the goal has no position (a goal of time alone): it reads 0
   everywhere, so the binding never changes with it.
 * E0801: a numeric binding whose value leaves int32 wherever no obstacle exists (``bind d =
@@ -193,6 +194,7 @@ def check_scenario(automaton: ir.Automaton, progress: Callable[[str], None] | No
     result.diagnostics.extend(_goal(automaton, spec, scenario, data))
     result.diagnostics.extend(_distance_to_anywhere(spec, scenario))
     result.diagnostics.extend(traffic_ends(automaton, scenario))
+    result.diagnostics.extend(traffic_rules(automaton, scenario))
     result.diagnostics.extend(_sentinel_bindings(automaton, spec, data))
     goal = scenario.goal
     obstacles = len(scenario.obstacles)
@@ -338,6 +340,35 @@ def traffic_ends(automaton: ir.Automaton, scenario: Scenario, horizon: Fraction 
                "learns after it covers a road without the traffic"],
         hints=[f"shorten the horizon to {_number(ends - scenario.ego.time)} s ({where}), or use a scenario whose "
                "obstacles' trajectories reach the horizon"])]
+
+
+def traffic_rules(automaton: ir.Automaton, scenario: Scenario) -> list[Diagnostic]:
+    """W0730 when the scenario has traffic lights, traffic signs or stop lines: the model reads the road, the
+    obstacles and the goal only, so a run may pass a red light or a stop line, and what rac proves, shields or
+    learns says nothing of them (an urban scene's lights were ignored without a word)."""
+    spec = automaton.model
+    if spec is None or not scenario.traffic_rules:
+        return []
+    rules = scenario.traffic_rules
+    listed = rules[0] if len(rules) == 1 else f"{', '.join(rules[:-1])} and {rules[-1]}"
+    return [warning(
+        "W0730", f"`{spec.scenario}` has {listed}, which the model does not read: runs ignore them",
+        automaton.spans.get("model:scenario", spec.span),
+        notes=[f"the model of `{spec.scenario_path}` reads the road, the obstacles and the goal; a red light, a "
+               "stop sign or a stop line stops no run, so a safety shield, a verdict or a learned strategy covers "
+               "collisions and leaving the road, not the traffic rules"],
+        hints=[_rules_hint(rules)])]
+
+
+def _rules_hint(rules: tuple[str, ...]) -> str:
+    """W0730's hint: how to make the model or the automaton read the rules (a speed limit: ``max_speed``)."""
+    limits = any("speed-limit" in rule for rule in rules)
+    if limits and len(rules) == 1:
+        return ("set the model's `max_speed` to the limit (the ego then never drives faster), or bind an input such "
+                "as `bind fast = v > 13.9` and penalise it; or read verdicts knowing that they ignore the limit")
+    return ("write a rule into the automaton as an input bound from the ego's state and `time` (e.g. `bind pastStop "
+            "= x > 40 && time < 12`, penalised like `isClose`)" + (", a speed limit as `max_speed`" if limits else "") +
+            ", or read verdicts knowing that they ignore the rules")
 
 
 def _inconsistent(spec: ir.ModelSpec, scenario_span, failure) -> Diagnostic:

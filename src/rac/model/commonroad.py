@@ -152,6 +152,9 @@ class Scenario:
     #: The dynamic obstacle left out as the planning problem's own recorded vehicle (it starts at the
     #: planning problem's time, position and orientation), or None.
     recorded_ego: int | None = None
+    #: What the file regulates that the model does not read, counted: ``("2 traffic lights", "1 stop line")``
+    #: (W0730); empty when it has none.
+    traffic_rules: tuple[str, ...] = ()
 
     @property
     def traffic_ends(self) -> float | None:
@@ -1018,7 +1021,19 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
     name = root.get("benchmarkID") or Path(path).stem
     return Scenario(name=name, path=os.fspath(path), dt=dt, road=road, obstacles=tuple(obstacles), ego=ego,
                     goal=goal, planning_problem_id=planning_problem_id, planning_problem_ids=ids,
-                    lanes=lanes, recorded_ego=recorded_ego)
+                    lanes=lanes, recorded_ego=recorded_ego, traffic_rules=_rules_counted(cr_scenario.lanelet_network))
+
+
+def _rules_counted(network) -> tuple[str, ...]:
+    """The traffic lights, traffic signs and stop lines of ``network``, counted (:attr:`Scenario.traffic_rules`);
+    signs that are all speed limits are said so (``max_speed`` in the model block can keep one)."""
+    signs = network.traffic_signs
+    limits = all(element.traffic_sign_element_id.name == "MAX_SPEED"
+                 for sign in signs for element in sign.traffic_sign_elements)
+    counts = [(len(network.traffic_lights), "traffic light"),
+              (len(signs), "speed-limit sign" if limits else "traffic sign"),
+              (sum(lanelet.stop_line is not None for lanelet in network.lanelets), "stop line")]
+    return tuple(f"{count} {what}{'s' * (count != 1)}" for count, what in counts if count)
 
 
 def _recorded_ego(obstacle, problem) -> bool:
