@@ -52,6 +52,16 @@ def image_size(path: Path) -> tuple[int, int]:
 
 
 # ---------------------------------------------------------------- verify
+def test_verify_past_max_seconds_is_undecided(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """`rac verify --max-seconds S`: a query given up is UNKNOWN (exit 4, never 0), and so is the penalty check
+    after the queries, each saying the limit stopped it."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"Explore": "E<> goal() && v > 100"})
+    assert main(["verify", str(path), "--max-seconds", "1e-9", "--out", str(tmp_path / "out")]) == 4
+    out = capsys.readouterr().out
+    assert " -- Formula is UNKNOWN: query Explore: given up after " in out
+    assert " -- not checked: the penalty check: given up after " in out and out.count("(--max-seconds)") == 2
+
+
 def test_verify_not_satisfied_exits_1(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "narrow_road")
     out = tmp_path / "out"

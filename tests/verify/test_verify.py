@@ -633,6 +633,28 @@ def test_a_formula_the_start_decides_needs_no_exploring(tmp_path: Path, monkeypa
     assert explored.status == tight["Start"].status and explored.method != "initial state"
 
 
+def test_a_query_past_max_seconds_is_unknown_and_the_next_is_answered(tmp_path: Path) -> None:
+    """`--max-seconds`: `E[<=4;100000000](max: v)` (memory allows tens of millions of runs at once) ran 5 minutes
+    with no limit but Ctrl-C. Each query now has the limit, checked per explored layer, simulated sample and chunk
+    of runs: past it the query is UNKNOWN saying so; the queries after it have their own time, and one decided
+    without exploring is decided; `v` reads the sensed state, so no truth is integrated for it."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {
+        "Long": "E[<=4;100000000](max: v)", "Explore": "E<> goal() && v > 100", "Constant": "A[] true",
+        "Quick": "E[<=4;20](max: v)"})
+    result = compile_file(path)
+    answers = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, max_seconds=1e-9))}
+    for name in ("Long", "Explore", "Quick"):
+        assert answers[name].status == "unknown"
+        assert answers[name].message.startswith(f"query {name}: given up after ")
+        assert answers[name].message.endswith("past the time limit of 1e-09 s (--max-seconds)")
+    assert answers["Constant"].status == "satisfied"
+    roomy = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, max_seconds=600,
+                                                             only=("Explore", "Quick")))}
+    unlimited = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, only=("Explore", "Quick")))}
+    assert roomy["Explore"].status == unlimited["Explore"].status == "not satisfied"
+    assert roomy["Quick"].estimate == unlimited["Quick"].estimate  # the limit changes no answer it lets through
+
+
 @pytest.mark.parametrize(("alone", "read", "holds"), [
     ("strategy s = control: A[] true", "strategy r = control: A[] true || time < 0", True),
     ("strategy s = control: A[] !deadlock", "strategy r = control: A[] !deadlock || time < 0", True),

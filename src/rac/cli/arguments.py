@@ -234,6 +234,10 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     verify.add_argument("--exact", action="store_true",
                         help="learning queries: emit the exact optimal strategy under the shield instead of "
                              "learning one (a backward pass over the shielded decision graph)")
+    verify.add_argument("--max-seconds", type=positive_seconds, default=None, metavar="S",
+                        help="give up a query (verdict unknown) after this many seconds, checked per explored layer, "
+                             "simulated sample and learned batch of episodes; a Storm decision under way ends first "
+                             "(default: no limit)")
     verify.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
     simulate = commands.add_parser("simulate", help="simulate runs; write CSV and the paper's Fig. 7 plot",

@@ -356,7 +356,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
                             confidence=args.confidence, out_dir=out_dir, standard=args.standard,
                             only=tuple(args.query) if args.query else None, plots=not args.no_plots,
                             progress=announce, explore_progress=callback, learn_episodes=args.learn_episodes,
-                            bars=not quiet, exact=args.exact)
+                            bars=not quiet, exact=args.exact, max_seconds=args.max_seconds)
     results: list[QueryResult] = []  # filled as each query is answered: Ctrl-C still shows those
     penalties = None
     stopped: str | None = None

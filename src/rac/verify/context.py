@@ -26,7 +26,7 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, RacValueError, short_number
 from rac.core.numbers import samples_of
 from rac.engine import shield, storm
-from rac.engine.budget import BudgetExceeded, default_max_bytes, format_bytes
+from rac.engine.budget import BudgetExceeded, TimeLimit, default_max_bytes, format_bytes
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
 from rac.engine.explore import action_pairs, explore
 from rac.engine.graph import ExploredGraph
@@ -90,6 +90,9 @@ class VerifyOptions:
     progress: Callable[[str], None] | None = None
     #: Exploration callback ``(layer, frontier, total)`` (the CLI's progress bar).
     explore_progress: Callable[[int, int, int], None] | None = None
+    #: Each query is given up (*unknown*) past this many seconds (None: no limit), checked once per explored
+    #: layer, simulated sample and learned batch of episodes; a Storm decision already running ends first.
+    max_seconds: float | None = None
     #: Learning queries (``maxE``/``minE``, :func:`rac.learning.qlearning.learn`): the episode budget,
     #: the episodes stepped together, and the early stop after this many greedy evaluations
     #: without improvement once the greedy run succeeded.
@@ -181,6 +184,8 @@ class Context:
         #: Shields decided without exploring (``control: A[] true``: a goal that reads no state and holds, so
         #: every action keeps it), by name: how to compute the table, done when a query under one first needs it.
         self.deferred: dict[str, Callable[[], tuple[storm.Shield, shield.ShieldTable]]] = {}
+        #: The time limit of the query being answered (``--max-seconds``; set per query by the runner).
+        self.limit = TimeLimit(None)
         #: Why exploring the model failed, by ``prune`` (the budget): said again, not tried again.
         self.graph_failures: dict[bool, str] = {}
         #: The model's (jerk, turn) action pairs; a shield's masks index them.
@@ -269,6 +274,13 @@ class Context:
         return samples
 
     # ------------------------------------------------------------ the explored model
+    def explore_progress(self, layer: int, frontier: int, total: int) -> None:
+        """An exploration's per-layer ``progress``: the query's time limit (:class:`TimeExceeded` past it), then
+        the options' callback (the CLI's bar)."""
+        self.limit.check()
+        if self.options.explore_progress is not None:
+            self.options.explore_progress(layer, frontier, total)
+
     def graph(self, prune: bool) -> ExploredGraph:
         """The explored model up to the horizon (pruned: unsafe states are not expanded), explored
         once and kept for later queries."""
@@ -277,7 +289,7 @@ class Context:
         if prune not in self.graphs:
             try:
                 self.graphs[prune] = explore(self.data, horizon_samples=self.horizon_samples, prune_unsafe=prune,
-                                             progress=self.options.explore_progress,
+                                             progress=self.explore_progress,
                                              max_states=self.options.max_states, max_bytes=self.memory_left())
             except BudgetExceeded as exc:
                 self.graph_failures[prune] = over_budget(exc) + self.kept_note()

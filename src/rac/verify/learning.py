@@ -75,6 +75,7 @@ class LearningAnswerer:
         def report(done: int, budget: int, mean_return: float) -> None:
             bar.set_postfix(mean_return=f"{mean_return:.1f}")
             bar.update(done - bar.n)
+            ctx.limit.check()  # --max-seconds, once per batch of episodes
 
         try:
             with bar:

@@ -34,7 +34,7 @@ from fractions import Fraction
 from rac import ir
 from rac.check.analysis.priority import p2_target
 from rac.core.diagnostics import Diagnostic, Note, warning
-from rac.engine.budget import BudgetExceeded
+from rac.engine.budget import BudgetExceeded, TimeExceeded, TimeLimit
 from rac.engine.evaluate import EvaluationError
 from rac.engine.penalties import Unavoidable, choice_penalties, unavoidable
 from rac.engine.product import ProductGraph, explore_product
@@ -124,11 +124,13 @@ def _explore(context: Context, horizon: int, budget: int) -> tuple[ProductGraph 
     """The complete product up to ``horizon``, or, beyond the budget, up to the last sample within
     it; the samples explored and why fewer than the horizon (None and the reason: none explored)."""
     samples, reason = horizon, ""
+    # --max-seconds holds for this check as for a query (the last query's limit, maybe passed, is not its own)
+    context.limit = TimeLimit(context.options.max_seconds, what="the penalty check")
     while samples > 0:
         try:
             return explore_product(context.data, context.automaton, horizon_samples=samples, max_states=budget,
                                    max_bytes=context.memory_left(),
-                                   progress=context.options.explore_progress), samples, reason
+                                   progress=context.explore_progress), samples, reason
         except BudgetExceeded as exc:
             if exc.kind == "states":
                 limit = "--max-states" if budget < PENALTY_STATES else "the check's own budget"
@@ -136,6 +138,8 @@ def _explore(context: Context, horizon: int, budget: int) -> tuple[ProductGraph 
             else:
                 reason = f"{exc}{context.kept_note()}"
             samples = min(samples - 1, exc.sample - 1)
+        except TimeExceeded as exc:
+            return None, 0, f"{exc} (--max-seconds)"
         except (ModelRangeError, EvaluationError, Unrepresentable) as exc:
             return None, 0, f"the product cannot be explored: {exc}"
     return None, 0, reason or "the horizon has no sample"

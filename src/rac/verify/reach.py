@@ -113,7 +113,7 @@ class Reacher:
         budget = Budget(ctx.options.max_states, ctx.memory_left(), "the model", float(ctx.period))
         try:
             layered = layered_search(ctx.data, target, horizon_samples=horizon, prune_unsafe=prune, budget=budget,
-                                     progress=ctx.options.explore_progress)
+                                     progress=ctx.explore_progress)
         except BudgetExceeded as exc:
             raise UnknownVerdict(f"{over_budget(exc)}{ctx.kept_note()}; {_searched(found, ctx.options.witness.runs)}"
                                  ) from None

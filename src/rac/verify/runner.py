@@ -45,7 +45,7 @@ from rac import ir
 from rac.check.standard import STANDARD, at_horizon
 from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError
-from rac.engine.budget import out_of_memory
+from rac.engine.budget import TimeExceeded, TimeLimit, out_of_memory
 from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
 from rac.model.data import ModelRangeError
@@ -137,8 +137,11 @@ class Verifier:
         if redefined is not None and getattr(query, "under", None) != redefined:
             # a strategy defined again replaces the earlier one of that name (whatever its kind)
             self.context.forget_strategy(redefined)
+        self.context.limit = TimeLimit(self.context.options.max_seconds, what=f"query {decl.name}")
         try:
             result = self._dispatch(query, base)
+        except TimeExceeded as exc:  # --max-seconds: undecided, never a verdict; the queries after it go on
+            result = dataclasses.replace(base, status=UNKNOWN, message=f"{exc} (--max-seconds)")
         except UnknownVerdict as exc:
             result = dataclasses.replace(base, status="unknown", message=str(exc))
         except ModelRangeError as exc:  # a run's sensed value (UPPAAL's model would abort there too)
@@ -152,6 +155,8 @@ class Verifier:
                 raise
             # the machine's memory or `ulimit -v` ran out first: this query is undecided, the others stand
             result = dataclasses.replace(base, status=UNKNOWN, message=out_of_memory(exc, "answering it"))
+        finally:
+            self.context.limit = TimeLimit(None)  # what runs between queries (or after them) has no query's limit
         defined = _defines(query)
         if defined is not None and result.status in (NOT_SATISFIED, NOT_APPLICABLE) and \
                 not (defined in self.context.learned or self.context.strategy_exists(defined)):

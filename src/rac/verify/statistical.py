@@ -37,6 +37,10 @@ __all__ = ["StatisticalAnswerer"]
 _TRIVIAL: dict[tuple[str, Fraction], bool] = {(">=", Fraction(0)): True, ("<=", Fraction(1)): True,
                                               (">", Fraction(1)): False, ("<", Fraction(0)): False}
 
+#: The most runs ``E[<=T;N](max: e)`` simulates at once (its chunks), whatever the memory budget allows.
+EXPECTATION_CHUNK = 1_000_000
+
+
 class StatisticalAnswerer:
     """Answers probability, expectation and ``simulate`` queries; each draws its own seed from the
     context (reported with the result)."""
@@ -61,7 +65,7 @@ class StatisticalAnswerer:
 
         def sample(n: int) -> np.ndarray:
             runs = self.runs(n, samples, query.under, int(batch_seeds.spawn(1)[0].generate_state(1)[0]),
-                             stop_at_overflow=True)
+                             stop_at_overflow=True, truth=ie.reads_truth(query.expr))
             holds = ctx.values(runs, (query.expr,))[0] != 0
             return _path_outcomes(holds, every, runs, query)
 
@@ -146,15 +150,19 @@ class StatisticalAnswerer:
         samples = ctx.bound_samples(query.bound)
         n = _runs_of(query.runs)
         seed = ctx.next_seed()
-        chunk = self.chunk(1, samples, f"`{base.name}`")
+        # at most EXPECTATION_CHUNK runs at once even where memory allows more: half the machine's memory held
+        # tens of millions of runs whose every sample took half a minute, past any --max-seconds and Ctrl-C
+        chunk = min(self.chunk(1, samples, f"`{base.name}`"), EXPECTATION_CHUNK)
         # Runs in chunks that fit the memory budget, the mean aggregated as they come; the chunks' seeds
         # derive from the query's, so the answer depends on the seed and the budget only.
         seeds = np.random.SeedSequence(seed)
         running = stats.RunningMean()
         for start in range(0, n, chunk):
+            ctx.limit.check()  # --max-seconds, between chunks as within them
             count = min(chunk, n - start)
             chunk_seed = seed if count == n else int(seeds.spawn(1)[0].generate_state(1)[0])
-            values = ctx.values(self.runs(count, samples, query.under, chunk_seed), (query.expr,))[0]
+            values = ctx.values(self.runs(count, samples, query.under, chunk_seed, truth=ie.reads_truth(query.expr)),
+                                (query.expr,))[0]
             extremes = values.max(axis=1) if query.aggregate == "max" else values.min(axis=1)
             if not np.isfinite(extremes).all():  # a mean of them would be `nan ± nan`, printed as a value
                 nan = int(np.isnan(extremes).sum())
@@ -185,7 +193,7 @@ class StatisticalAnswerer:
                 f"simulate keeps every run's trace: {n:,} runs of {samples + 1} samples would need about "
                 f"{format_bytes(simulation_bytes(n, samples, len(query.exprs)))}, more than the memory budget of "
                 f"{self.budget_text()}: ask for at most {fit:,} runs, or raise --max-memory{ctx.kept_note()}")
-        runs = self.runs(n, samples, query.under, seed)
+        runs = self.runs(n, samples, query.under, seed, truth=any(ie.reads_truth(e) for e in query.exprs))
         values = ctx.values(runs, query.exprs)
         files: list[str] = []
         names = list(query.labels)
@@ -228,11 +236,13 @@ class StatisticalAnswerer:
             return f"{format_bytes(left or 0)} (--max-memory)"
         return f"{format_bytes(left or 0)} (what --max-memory leaves beside the kept graphs)"
 
-    def runs(self, n: int, samples: int, under: str | None, seed: int, *, stop_at_overflow: bool = False) -> Runs:
+    def runs(self, n: int, samples: int, under: str | None, seed: int, *, stop_at_overflow: bool = False,
+             truth: bool = True) -> Runs:
         """``n`` runs of ``samples`` samples: actions drawn uniformly (among a shield's with
         ``under``), or, under a learned strategy, its one deterministic run ``n`` times. With
         ``stop_at_overflow`` a run whose sensed state leaves int32 stops there (:attr:`Runs.overflow`)
-        instead of the whole batch raising :class:`ModelRangeError`."""
+        instead of the whole batch raising :class:`ModelRangeError`. ``truth`` False: the ground truth is
+        not integrated (for expressions that read the sensed state only; :func:`rac.ir.expr.reads_truth`)."""
 
         ctx = self.context
         if under is not None and under in ctx.learned:
@@ -252,7 +262,8 @@ class StatisticalAnswerer:
         with Progress(total=samples, desc=f"simulating {count_noun(n, 'run')}", unit="samples",
                       enabled=None if ctx.options.bars else False) as bar:
             runs = simulate(ctx.data, runs=n, horizon_samples=samples, seed=seed, policy=ctx.policy(under),
-                            progress=simulate_callback(bar), stop_at_overflow=stop_at_overflow)
+                            progress=simulate_callback(bar, ctx.limit.check), stop_at_overflow=stop_at_overflow,
+                            truth=truth)
         stuck = int(runs.left_policy.sum())
         if stuck:  # the emitted model deadlocks there, and its run ends: rac's runs would go on
             who = " or ".join(([f"the strategy `{under}`"] if under is not None else [])

@@ -265,7 +265,7 @@ class SymbolicAnswerer:
                                            trace=self.trace_rows(guided, trace_to(guided, guided.stopped_at)))
         try:
             graph = explore_product(ctx.data, ctx.automaton, horizon_samples=ctx.horizon_samples,
-                                    progress=ctx.options.explore_progress, max_states=ctx.options.max_states,
+                                    progress=ctx.explore_progress, max_states=ctx.options.max_states,
                                     max_bytes=ctx.memory_left(), stop_at=stop)
         except BudgetExceeded as exc:
             raise UnknownVerdict(f"{over_budget(exc)}{ctx.kept_note()} (the automaton alone does not decide it: "
