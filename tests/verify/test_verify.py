@@ -28,7 +28,9 @@ from rac.core.diagnostics import CheckError
 from rac.engine import shield
 from rac.engine.budget import runs_within, simulation_bytes
 from rac.engine.explore import action_pairs
+from rac.engine.witness import Bounds
 from rac.model import NativeModel
+from rac.verify import reach
 from rac.verify.context import Context, UnknownVerdict
 from rac.verify.runner import (
     QueryResult,
@@ -653,6 +655,26 @@ def test_a_query_past_max_seconds_is_unknown_and_the_next_is_answered(tmp_path: 
     unlimited = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, only=("Explore", "Quick")))}
     assert roomy["Explore"].status == unlimited["Explore"].status == "not satisfied"
     assert roomy["Quick"].estimate == unlimited["Quick"].estimate  # the limit changes no answer it lets through
+
+
+def test_the_witness_search_keeps_within_max_seconds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The witness search has its own time bound (20 s): under `--max-seconds` it gets at most what is left of the
+    query's time, or a query given 1 s could search for 20."""
+    seen: list[float] = []
+    real = reach.search
+
+    def spy(*args: object, **kwargs: object) -> object:
+        seen.append(kwargs["bounds"].seconds)  # type: ignore[attr-defined]
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(reach, "search", spy)
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", {"Explore": "E<> goal() && v > 100"}))
+    verify(result, VerifyOptions(seed=1, plots=False, max_seconds=1.5))
+    limited = list(seen)
+    seen.clear()
+    verify(result, VerifyOptions(seed=1, plots=False))
+    assert limited and all(0 <= seconds <= 1.5 for seconds in limited)
+    assert seen and all(seconds == Bounds().seconds for seconds in seen)
 
 
 @pytest.mark.parametrize(("alone", "read", "holds"), [

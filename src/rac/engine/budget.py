@@ -397,6 +397,12 @@ class TimeLimit:
     what: str = "the work"
     started: float = field(default_factory=time.perf_counter)
 
+    def remaining(self) -> float | None:
+        """The seconds left (0 past the limit; None: no limit), for work with a deadline of its own."""
+        if self.seconds is None:
+            return None
+        return max(0.0, self.seconds - (time.perf_counter() - self.started))
+
     def check(self, *progress: int) -> None:
         """:class:`TimeExceeded` once the limit has passed (``progress``: an exploration's arguments, unused)."""
         elapsed = time.perf_counter() - self.started

@@ -97,6 +97,9 @@ class Reacher:
         try:
             bounds = ctx.options.witness
             bounds = dataclasses.replace(bounds, max_states=min(bounds.max_states, ctx.options.max_states))
+            left = ctx.limit.remaining()  # the search's own time bound within --max-seconds
+            if left is not None and left < bounds.seconds:
+                bounds = dataclasses.replace(bounds, seconds=left)
             found = search(ctx.data, target, horizon_samples=horizon, seed=ctx.search_seed(), bounds=bounds,
                            through=through, prune_unsafe=prune)
         except ModelRangeError as exc:
