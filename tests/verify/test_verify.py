@@ -677,6 +677,18 @@ def test_the_witness_search_keeps_within_max_seconds(tmp_path: Path, monkeypatch
     assert seen and all(seconds == Bounds().seconds for seconds in seen)
 
 
+def test_no_plots_removes_the_plot_of_an_earlier_run(tmp_path: Path) -> None:
+    """`--no-plots` wrote a new `NAME.csv` and left the earlier run's `NAME.png` beside it: a plot of other runs
+    read as this run's. The stale plot is removed as the new CSV takes the old one's place."""
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", {"Sim": "simulate[<=2;5]{v}"}))
+    out = tmp_path / "out"
+    verify(result, VerifyOptions(seed=1, out_dir=out))
+    assert (out / "Sim.csv").exists() and (out / "Sim.png").exists()
+    first = (out / "Sim.csv").read_text()
+    verify(result, VerifyOptions(seed=2, plots=False, out_dir=out))
+    assert (out / "Sim.csv").read_text() != first and not (out / "Sim.png").exists()
+
+
 @pytest.mark.parametrize(("alone", "read", "holds"), [
     ("strategy s = control: A[] true", "strategy r = control: A[] true || time < 0", True),
     ("strategy s = control: A[] !deadlock", "strategy r = control: A[] !deadlock || time < 0", True),

@@ -90,12 +90,13 @@ def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.n
 
 
 def write_runs(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray],
-               plot: Callable[[], Path] | None = None) -> list[Path]:
+               plot: Callable[[], Path] | None = None, stale: Path | None = None) -> list[Path]:
     """:func:`write_csv`, and with ``plot`` (which writes the runs' plot, atomically, and returns its path) the
     CSV and its plot as a pair: the plot is drawn while the CSV's temporary file is open and the two are
     renamed one after the other at the end, so that Ctrl-C or an error while either is made (drawing takes
-    a second) leaves the previous pair as it was, never a new CSV beside the plot of another run. Returns
-    the paths written, the CSV first."""
+    a second) leaves the previous pair as it was, never a new CSV beside the plot of another run. Without
+    ``plot``, ``stale`` (the plot an earlier run wrote beside the CSV: ``--no-plots``) is removed before the
+    new CSV takes the old one's place, for the same reason. Returns the paths written, the CSV first."""
     plotted: list[Path] = []
 
     def write(binary: IO[bytes]) -> None:
@@ -109,6 +110,8 @@ def write_runs(path: Path, times: np.ndarray, names: list[str], values: list[np.
         handle.detach()  # atomic_write closes the file itself
         if plot is not None:
             plotted.append(plot())
+        elif stale is not None:
+            stale.unlink(missing_ok=True)
 
     return [atomic_write(path, write), *plotted]
 

@@ -201,7 +201,8 @@ class StatisticalAnswerer:
             png = ctx.out(f"{base.name}.png")
             plot = (lambda: plot_series(png, runs.times, names, values, base.formula, query.exprs)) \
                 if ctx.options.plots else None
-            files += [str(path) for path in write_runs(ctx.out(f"{base.name}.csv"), runs.times, names, values, plot)]
+            files += [str(path) for path in write_runs(ctx.out(f"{base.name}.csv"), runs.times, names, values, plot,
+                                                       stale=png)]
         message = f"{count_noun(n, 'run')} of {samples} samples"
         if len(values) == 2 and np.ptp(values[1]) == 0:
             below = int(np.any(values[0] < values[1], axis=1).sum())
