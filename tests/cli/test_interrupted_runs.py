@@ -45,7 +45,8 @@ def test_verify_interrupted_shows_the_queries_answered(capsys: pytest.CaptureFix
     code, out, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", form)
     assert code == EXIT_INTERRUPTED
     assert "rac verify: interrupted during Sim: simulate[<=2;4]" in err
-    assert "1 query answered before it is above" in err
+    # under JSON the answers are in the document, not above (it said "above" there too)
+    assert f"1 query answered before it is {'above' if form == 'text' else 'in the JSON document'}" in err
     if form == "json":
         document = json.loads(out)  # standard output stays one JSON document
         assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
@@ -64,7 +65,9 @@ def test_verify_with_a_full_disk_shows_the_queries_answered(capsys: pytest.Captu
                         _raises(OSError(errno.ENOSPC, "No space left on device", str(csv))))
     code, out, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", form)
     assert code == EXIT_USAGE
-    assert "rac verify: stopped during Sim: simulate[<=2;4]" in err and "1 query answered before it is above" in err
+    where = "above" if form == "text" else "in the JSON document"
+    assert "rac verify: stopped during Sim: simulate[<=2;4]" in err and f"by the error {where}; " in err
+    assert f"1 query answered before it is {where}" in err
     if form == "json":
         document = json.loads(out)  # one document: the answers and the error
         assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
@@ -103,7 +106,8 @@ def test_verify_out_of_memory_after_the_queries_shows_their_answers(capsys: pyte
     path = write_engine_file(tmp_path, "goal_ahead", QUERIES)
     code, out, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", form)
     assert code == EXIT_USAGE
-    assert "rac verify: stopped during penalties that no action avoids by the error above; 3 queries answered" in err
+    where = "above" if form == "text" else "in the JSON document"
+    assert f"rac verify: stopped during penalties that no action avoids by the error {where}; 3 queries answered" in err
     if form == "json":
         document = json.loads(out)  # one document: the answers and the error
         assert [r["name"] for r in document["results"]] == ["Stays", "Sim", "Later"]
@@ -206,7 +210,8 @@ def test_verify_terminated_shows_the_queries_answered(tmp_path: Path, form: str)
                           text=True, timeout=120, check=False)
     assert done.returncode == EXIT_TERMINATED == 128 + signal.SIGTERM, done.stderr
     assert "rac verify: terminated (SIGTERM) during Sim: simulate[<=2;4]" in done.stderr
-    assert "1 query answered before it is above" in done.stderr and "Traceback" not in done.stderr
+    assert f"1 query answered before it is {'above' if form == 'text' else 'in the JSON document'}" in done.stderr
+    assert "Traceback" not in done.stderr
     if form == "json":
         document = json.loads(done.stdout)
         assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")
@@ -302,7 +307,7 @@ def test_verify_interrupted_in_an_import_shows_the_queries_answered(capsys: pyte
     code, out, err = run(capsys, "verify", path, "-q", "--seed", "1", "-o", tmp_path / "o", "--format", form)
     assert code == EXIT_INTERRUPTED, err
     assert "internal error" not in err and "rac verify: interrupted during Sim: simulate[<=2;4]" in err
-    assert "1 query answered before it is above" in err
+    assert f"1 query answered before it is {'above' if form == 'text' else 'in the JSON document'}" in err
     if form == "json":
         document = json.loads(out)
         assert [r["name"] for r in document["results"]] == ["Stays"] and document["interrupted"].startswith("Sim: ")

@@ -418,12 +418,14 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
                   file=sys.stderr)
     if stopped is not None:
         n = len(results)
-        answered = f"{n} {'query' if n == 1 else 'queries'} answered before it {'is' if n == 1 else 'are'} above" \
+        # under --format json the answers and the error are in the document on standard output, not above
+        where = "above" if args.format == "text" else "in the JSON document"
+        answered = f"{n} {'query' if n == 1 else 'queries'} answered before it {'is' if n == 1 else 'are'} {where}" \
             if n else "no query was answered"
         if write_failed is not None:
             if args.format == "text":
                 print_diagnostics([write_failed])
-            print(f"rac verify: stopped during {stopped} by the error above; {answered}", file=sys.stderr)
+            print(f"rac verify: stopped during {stopped} by the error {where}; {answered}", file=sys.stderr)
             return EXIT_USAGE
         print(f"rac verify: {how_stopped()} during {stopped}; {answered}", file=sys.stderr)
         return EXIT_INTERRUPTED
