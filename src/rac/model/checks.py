@@ -1,4 +1,4 @@
-"""The `model` block's scenario, checked against the model: E0712-E0715, W0716, E0718-W0724, W0727 and E0801.
+"""The `model` block's scenario, checked against the model: E0712-E0715, W0716, E0718-W0724, W0727, W0730 and E0801.
 
 :func:`check_scenario` loads the CommonRoad file of a checked automaton's `model` block once
 (:func:`load`, the one caller of :func:`rac.model.commonroad.load_scenario`) and builds the model's data from it
@@ -30,9 +30,9 @@
   ``--horizon`` too): ``goal()`` never holds.
 * W0723: the goal also asks for a velocity or an orientation, which ``goal()`` does not read.
 * W0724: the ego starts in a collision (``collide()`` holds at the start), like W0716 a warning.
-* W0730: the scenario has traffic lights, traffic signs or stop lines, which the model does not read.
 * W0727: a binding reads ``dist_goal()`` while the goal has no position (a goal of time alone): it reads 0
   everywhere, so the binding never changes with it.
+* W0730: the scenario has traffic lights, traffic signs or stop lines, which the model does not read.
 * E0801: a numeric binding whose value leaves int32 wherever no obstacle exists (``bind d =
   mindist()``: ``mindist()`` reads 1e9 there), when some sample of the horizon has none; the hint
   bounds it (``fmin(mindist(), 100)``).
@@ -44,6 +44,7 @@ without reloading.
 
 from __future__ import annotations
 
+import enum
 import math
 import os
 from collections.abc import Callable
@@ -63,7 +64,7 @@ from rac.core.source import Span
 from rac.ir import expr as ie
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import MODELLING, NO_PLANNING_PROBLEM, SETTINGS, Setting
-from rac.model.commonroad import InconsistentScenarioError, PlanningProblemError, ScenarioError
+from rac.model.commonroad import InconsistentScenarioError, PlanningProblemError, ScenarioError, TrafficRules
 from rac.model.data import ModelDataError, ModelRangeError, check_significands
 from rac.model.native import CORNER_NAMES, NO_OBSTACLE, NO_OBSTACLE_TEXT, NativeModel
 
@@ -249,6 +250,26 @@ def _goal(automaton: ir.Automaton, spec: ir.ModelSpec, scenario: Scenario, data:
     return found
 
 
+class GoalNever(enum.Enum):
+    """Why ``goal()`` holds at no sample of a run (W0722), its value the reason in a few words."""
+
+    BEFORE_START = "the goal's window closes before the ego starts"
+    BETWEEN_SAMPLES = "the goal's window lies between two samples"
+    AFTER_HORIZON = "the goal's window opens after the horizon"
+
+
+def goal_never(data: ModelData, samples: Fraction | int) -> GoalNever | None:
+    """Why ``goal()`` holds at none of the samples ``0..samples`` of ``data``'s model, or None when one lies in
+    the goal's window (W0722's cases; ``rac preanalyse`` says it per setting)."""
+    if data.goal_high < 0:
+        return GoalNever.BEFORE_START
+    if data.goal_low > data.goal_high:
+        return GoalNever.BETWEEN_SAMPLES
+    if data.goal_low > samples:
+        return GoalNever.AFTER_HORIZON
+    return None
+
+
 def goal_window(automaton: ir.Automaton, scenario: Scenario, data: ModelData,
                 horizon: Fraction | None = None, option: str = "--horizon") -> list[Diagnostic]:
     """W0722 when the goal's window holds no sample of the runs (``horizon`` s long, a command's ``--horizon``;
@@ -264,23 +285,24 @@ def goal_window(automaton: ir.Automaton, scenario: Scenario, data: ModelData,
     goal = scenario.goal
     window = f"[{_number(goal.time_low)}, {_number(goal.time_high)}] s"
     period = Fraction(spec.sense_period)
-    if data.goal_high < 0:
+    seconds = Fraction(automaton.horizon if horizon is None else horizon)
+    never = goal_never(data, seconds / period)
+    if never is None:
+        return []
+    if never is GoalNever.BEFORE_START:
         return [warning(
             "W0722", f"the goal's time window {window} closes before the ego starts (at {_number(scenario.ego.time)} "
             "s of the scenario): `goal()` never holds", span,
             notes=[f"the scenario file is `{spec.scenario_path}`; the model's time counts from the ego's start, and "
                    "`goal()` holds only at the samples inside the window"],
             hints=["choose a planning problem whose goal lies after its start, or correct the goal's time interval"])]
-    if data.goal_low > data.goal_high:
+    if never is GoalNever.BETWEEN_SAMPLES:
         return [warning(
             "W0722", f"the goal's time window {window} holds no sample of the model (every {short_number(period)} s "
             f"from the ego's start at {_number(scenario.ego.time)} s): `goal()` never holds", span,
             notes=[f"the scenario file is `{spec.scenario_path}`; `goal()` holds only at the samples inside the "
                    "window, and the window lies between two samples"],
             hints=["sample more often (`sample every`), or widen the goal's time interval"])]
-    seconds = Fraction(automaton.horizon if horizon is None else horizon)
-    if data.goal_low <= seconds / period:
-        return []
     which, where = ("the horizon", "`horizon`") if horizon is None else (
         f"{option}{'' if option.endswith('=') else ' '}{_decimal(horizon)}", option)
     first = data.goal_low * period  # the window's first sample, in the model's time
@@ -347,23 +369,23 @@ def traffic_rules(automaton: ir.Automaton, scenario: Scenario) -> list[Diagnosti
     obstacles and the goal only, so a run may pass a red light or a stop line, and what rac proves, shields or
     learns says nothing of them (an urban scene's lights were ignored without a word)."""
     spec = automaton.model
-    if spec is None or not scenario.traffic_rules:
+    counted = scenario.traffic_rules.counted()
+    if spec is None or not counted:
         return []
-    rules = scenario.traffic_rules
-    listed = rules[0] if len(rules) == 1 else f"{', '.join(rules[:-1])} and {rules[-1]}"
+    listed = counted[0] if len(counted) == 1 else f"{', '.join(counted[:-1])} and {counted[-1]}"
     return [warning(
         "W0730", f"`{spec.scenario}` has {listed}, which the model does not read: runs ignore them",
         automaton.spans.get("model:scenario", spec.span),
         notes=[f"the model of `{spec.scenario_path}` reads the road, the obstacles and the goal; a red light, a "
                "stop sign or a stop line stops no run, so a safety shield, a verdict or a learned strategy covers "
                "collisions and leaving the road, not the traffic rules"],
-        hints=[_rules_hint(rules)])]
+        hints=[_rules_hint(scenario.traffic_rules)])]
 
 
-def _rules_hint(rules: tuple[str, ...]) -> str:
+def _rules_hint(rules: TrafficRules) -> str:
     """W0730's hint: how to make the model or the automaton read the rules (a speed limit: ``max_speed``)."""
-    limits = any("speed-limit" in rule for rule in rules)
-    if limits and len(rules) == 1:
+    limits = rules.speed_limits
+    if limits and not rules.lights and not rules.stop_lines:
         return ("set the model's `max_speed` to the limit (the ego then never drives faster), or bind an input such "
                 "as `bind fast = v > 13.9` and penalise it; or read verdicts knowing that they ignore the limit")
     return ("write a rule into the automaton as an input bound from the ego's state and `time` (e.g. `bind pastStop "

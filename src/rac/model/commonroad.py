@@ -138,6 +138,23 @@ def _midpoint(line: tuple[tuple[float, float], ...]) -> tuple[float, float]:
 
 
 @dataclass(frozen=True)
+class TrafficRules:
+    """A scenario's traffic lights, traffic signs and stop lines, counted: CommonRoad's rules, which the model
+    does not read (W0730). ``speed_limits``: every sign is a speed limit (``max_speed`` can keep one)."""
+
+    lights: int = 0
+    signs: int = 0
+    stop_lines: int = 0
+    speed_limits: bool = False
+
+    def counted(self) -> tuple[str, ...]:
+        """``("1 traffic light", "2 speed-limit signs")``: each kind the scenario has, counted."""
+        kinds = ((self.lights, "traffic light"), (self.signs, "speed-limit sign" if self.speed_limits else
+                                                               "traffic sign"), (self.stop_lines, "stop line"))
+        return tuple(f"{count} {what}{'s' * (count != 1)}" for count, what in kinds if count)
+
+
+@dataclass(frozen=True)
 class Scenario:
     name: str
     path: str
@@ -152,9 +169,8 @@ class Scenario:
     #: The dynamic obstacle left out as the planning problem's own recorded vehicle (it starts at the
     #: planning problem's time, position and orientation), or None.
     recorded_ego: int | None = None
-    #: What the file regulates that the model does not read, counted: ``("2 traffic lights", "1 stop line")``
-    #: (W0730); empty when it has none.
-    traffic_rules: tuple[str, ...] = ()
+    #: What the file regulates that the model does not read (W0730).
+    traffic_rules: TrafficRules = TrafficRules()
 
     @property
     def traffic_ends(self) -> float | None:
@@ -1024,16 +1040,13 @@ def _convert(path, root, cr_scenario, problems, planning_problem_id: int | None,
                     lanes=lanes, recorded_ego=recorded_ego, traffic_rules=_rules_counted(cr_scenario.lanelet_network))
 
 
-def _rules_counted(network) -> tuple[str, ...]:
-    """The traffic lights, traffic signs and stop lines of ``network``, counted (:attr:`Scenario.traffic_rules`);
-    signs that are all speed limits are said so (``max_speed`` in the model block can keep one)."""
+def _rules_counted(network) -> TrafficRules:
+    """The traffic lights, traffic signs and stop lines of ``network`` (:attr:`Scenario.traffic_rules`)."""
     signs = network.traffic_signs
-    limits = all(element.traffic_sign_element_id.name == "MAX_SPEED"
-                 for sign in signs for element in sign.traffic_sign_elements)
-    counts = [(len(network.traffic_lights), "traffic light"),
-              (len(signs), "speed-limit sign" if limits else "traffic sign"),
-              (sum(lanelet.stop_line is not None for lanelet in network.lanelets), "stop line")]
-    return tuple(f"{count} {what}{'s' * (count != 1)}" for count, what in counts if count)
+    return TrafficRules(lights=len(network.traffic_lights), signs=len(signs),
+                        stop_lines=sum(lanelet.stop_line is not None for lanelet in network.lanelets),
+                        speed_limits=bool(signs) and all(element.traffic_sign_element_id.name == "MAX_SPEED"
+                                                         for sign in signs for element in sign.traffic_sign_elements))
 
 
 def _recorded_ego(obstacle, problem) -> bool:

@@ -49,6 +49,7 @@ from rac.engine.stats import clopper_pearson
 from rac.ir.significands import off_grid, vanishing
 from rac.ir.vocabulary import SETTINGS
 from rac.model.batch import BatchModel
+from rac.model.checks import goal_never
 from rac.model.commonroad import Scenario
 from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.model.native import NEGATIVE_DISTANCE_TEXT, NO_OBSTACLE
@@ -248,9 +249,9 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     row["truth_exponent"] = _truth_exponent(scenario, spec)
     samples = int(horizon / spec.sense_period)
     row["samples"] = samples
-    never = _goal_never(data, samples)
+    never = goal_never(data, samples)
     if never is not None:  # Qc is "no" for this reason alone, not for the traffic or the road
-        row["goal_never"] = never
+        row["goal_never"] = never.value
     row["obstacles"] = data.obstacle_count
     threshold = threshold_factor * data.td / data.scale
     row["threshold"] = threshold
@@ -415,18 +416,6 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                               title="pre-analysis: runs under the shield")
             rows.append({"sweep_plot": str(path)})
     return [_jsonable(r) for r in rows]
-
-
-def _goal_never(data: ModelData, samples: int) -> str | None:
-    """Why ``goal()`` holds at no sample ``0..samples`` of the setting's model (``rac check``'s W0722, at the
-    setting's sensing period and horizon rather than the file's), or None when some sample lies in the window."""
-    if data.goal_high < 0:
-        return "the goal's window closes before the ego starts"
-    if data.goal_low > data.goal_high:
-        return "the goal's window lies between two samples"
-    if data.goal_low > samples:
-        return "the goal's window opens after the horizon"
-    return None
 
 
 def _memory_error(exc: MemoryError) -> str:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from fractions import Fraction
 from typing import TYPE_CHECKING
 
@@ -65,7 +65,7 @@ class StatisticalAnswerer:
 
         def sample(n: int) -> np.ndarray:
             runs = self.runs(n, samples, query.under, int(batch_seeds.spawn(1)[0].generate_state(1)[0]),
-                             stop_at_overflow=True, truth=ie.reads_truth(query.expr))
+                             (query.expr,), stop_at_overflow=True)
             holds = ctx.values(runs, (query.expr,))[0] != 0
             return _path_outcomes(holds, every, runs, query)
 
@@ -161,8 +161,7 @@ class StatisticalAnswerer:
             ctx.limit.check()  # --max-seconds, between chunks as within them
             count = min(chunk, n - start)
             chunk_seed = seed if count == n else int(seeds.spawn(1)[0].generate_state(1)[0])
-            values = ctx.values(self.runs(count, samples, query.under, chunk_seed, truth=ie.reads_truth(query.expr)),
-                                (query.expr,))[0]
+            values = ctx.values(self.runs(count, samples, query.under, chunk_seed, (query.expr,)), (query.expr,))[0]
             extremes = values.max(axis=1) if query.aggregate == "max" else values.min(axis=1)
             if not np.isfinite(extremes).all():  # a mean of them would be `nan ± nan`, printed as a value
                 nan = int(np.isnan(extremes).sum())
@@ -193,7 +192,7 @@ class StatisticalAnswerer:
                 f"simulate keeps every run's trace: {n:,} runs of {samples + 1} samples would need about "
                 f"{format_bytes(simulation_bytes(n, samples, len(query.exprs)))}, more than the memory budget of "
                 f"{self.budget_text()}: ask for at most {fit:,} runs, or raise --max-memory{ctx.kept_note()}")
-        runs = self.runs(n, samples, query.under, seed, truth=any(ie.reads_truth(e) for e in query.exprs))
+        runs = self.runs(n, samples, query.under, seed, query.exprs)
         values = ctx.values(runs, query.exprs)
         files: list[str] = []
         names = list(query.labels)
@@ -237,13 +236,13 @@ class StatisticalAnswerer:
             return f"{format_bytes(left or 0)} (--max-memory)"
         return f"{format_bytes(left or 0)} (what --max-memory leaves beside the kept graphs)"
 
-    def runs(self, n: int, samples: int, under: str | None, seed: int, *, stop_at_overflow: bool = False,
-             truth: bool = True) -> Runs:
+    def runs(self, n: int, samples: int, under: str | None, seed: int, read: Sequence[ie.Expr], *,
+             stop_at_overflow: bool = False) -> Runs:
         """``n`` runs of ``samples`` samples: actions drawn uniformly (among a shield's with
         ``under``), or, under a learned strategy, its one deterministic run ``n`` times. With
         ``stop_at_overflow`` a run whose sensed state leaves int32 stops there (:attr:`Runs.overflow`)
-        instead of the whole batch raising :class:`ModelRangeError`. ``truth`` False: the ground truth is
-        not integrated (for expressions that read the sensed state only; :func:`rac.ir.expr.reads_truth`)."""
+        instead of the whole batch raising :class:`ModelRangeError`. ``read``: the expressions the runs are read by;
+        the ground truth is integrated only when one reads it (:func:`rac.ir.expr.reads_truth`)."""
 
         ctx = self.context
         if under is not None and under in ctx.learned:
@@ -264,7 +263,7 @@ class StatisticalAnswerer:
                       enabled=None if ctx.options.bars else False) as bar:
             runs = simulate(ctx.data, runs=n, horizon_samples=samples, seed=seed, policy=ctx.policy(under),
                             progress=simulate_callback(bar, ctx.limit.check), stop_at_overflow=stop_at_overflow,
-                            truth=truth)
+                            truth=any(ie.reads_truth(expr) for expr in read))
         stuck = int(runs.left_policy.sum())
         if stuck:  # the emitted model deadlocks there, and its run ends: rac's runs would go on
             who = " or ".join(([f"the strategy `{under}`"] if under is not None else [])
