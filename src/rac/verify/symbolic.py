@@ -15,7 +15,7 @@ import numpy as np
 from rac import ir
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded
-from rac.engine.evaluate import EvaluationError, Frame
+from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
 from rac.engine.lookahead import Lookahead, LookaheadSettings
 from rac.engine.ondemand import on_demand
@@ -93,8 +93,7 @@ class SymbolicAnswerer:
         run begins in that state (a search for a run that never meets ``p`` has none to find, and only the
         complete graph would prove that). None when the start does not decide the query."""
         ctx = self.context
-        start = start_row(ctx.data, batch_model(ctx.data))[None, :]
-        holds = bool(ctx.predicate(query.expr)(0, start)[0])
+        holds = self._value(query.expr)
         if holds != (query.quantifier == "A<>"):
             return None
         status, said = (SATISFIED, "holds") if holds else (NOT_SATISFIED, "fails")
@@ -103,11 +102,10 @@ class SymbolicAnswerer:
                                    message=f"`{format_checked(query.expr)}` {said} at t = 0")
 
     def _value(self, expr: ie.Expr) -> bool:
-        """The one value of a formula that reads no state (:func:`rac.ir.expr.state_independent`), read at
-        the start."""
+        """The value of the state formula ``expr`` at the start (the one value of a formula that reads no state,
+        :func:`rac.ir.expr.state_independent`)."""
         ctx = self.context
-        start = np.asarray(NativeModel(ctx.data).initial_state(), dtype=np.int32)[None, :]
-        return bool(np.all(ctx.evaluator.evaluate_bool(expr, Frame(k=np.zeros(1, dtype=np.int64), ego=start))))
+        return bool(np.all(ctx.predicate(expr)(0, start_row(ctx.data, batch_model(ctx.data))[None, :])))
 
     def _constant_control(self, query: iq.ControlStrategy, base: QueryResult) -> QueryResult:
         """``control: A[] p`` or ``control: E<> p`` whose ``p`` reads no state: the start satisfies ``p`` exactly
