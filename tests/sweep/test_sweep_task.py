@@ -56,6 +56,9 @@ def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     for name in ("goal_ahead", "narrow_road"):
         TINY_SCENARIOS[name]().write(scenarios / f"{name}.xml")
     TINY_SCENARIOS["avoidable_obstacle"]().write(scenarios / "more" / "avoidable_obstacle.xml")
+    # also at the top, for preanalyse (a path of its own); written here, not by the `rows` fixture, so that
+    # what the folder holds does not depend on which tests ran before in this process (it did under -n 2)
+    TINY_SCENARIOS["avoidable_obstacle"]().write(scenarios / "avoidable_obstacle.xml")
     write_scene("highway", scenarios / "highway.xml")
     (scenarios / "broken.xml").write_text("<commonRoad><lanelet id='1'>", encoding="utf-8")
     (scenarios / "notes.txt").write_text("not a scenario", encoding="utf-8")
@@ -91,8 +94,6 @@ OPTIONS = {"preanalyse": (("runs", "5"), ("seed", "3")),
 
 @pytest.fixture(scope="module")
 def rows(folder: Path) -> dict[str, dict[str, object]]:
-    # avoidable_obstacle.xml is also written at the top for preanalyse (a path of its own)
-    TINY_SCENARIOS["avoidable_obstacle"]().write(folder / "scenarios" / "avoidable_obstacle.xml")
     specs = {name: spec(folder, scenario, task, settings, options=OPTIONS.get(task, ()), timeout=120)
              for name, (scenario, task, settings) in BATCH.items()}
     with ThreadPoolExecutor(2) as pool:  # two at a time, as two Dask workers would
