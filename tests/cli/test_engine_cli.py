@@ -270,6 +270,13 @@ def test_simulate_writes_csv_and_png(capsys: pytest.CaptureFixture[str], tmp_pat
     assert csv_path.read_text() == first  # same seed, same runs
 
 
+def test_simulate_says_one_run_in_the_singular(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["simulate", str(path), "--runs", "1", "--seed", "5", "-o", str(tmp_path / "one")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[:2] == ["simulated 1 run of 8 samples (seed 5)", "0 of 1 run goes below 3 * collision_distance = 1.5"]
+
+
 def test_simulate_default_paths_and_expressions(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "avoidable_obstacle", {})
     assert main(["simulate", str(path), "--runs", "2", "--horizon", "1", "--expr", "v", "--expr", "prev(x)",

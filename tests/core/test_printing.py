@@ -130,3 +130,12 @@ def test_signed_sum() -> None:
     assert signed_sum([]) == ""
     assert signed_sum([(True, "a"), (False, "b"), (True, "2 * c")]) == "-a + b - 2 * c"
     assert signed_sum([(False, "x")]) == "x"
+
+
+def test_counted_says_one_in_the_singular_and_groups_thousands() -> None:
+    from rac.core.diagnostics import counted
+
+    assert [counted(n, "run") for n in (0, 1, 2, 2000)] == ["0 runs", "1 run", "2 runs", "2,000 runs"]
+    assert counted(1, "strategy", "strategies") == "1 strategy"
+    assert counted(3, "strategy", "strategies") == "3 strategies"
+    assert counted(10**20, "state") == "1e20 states"  # as short_count: no 21 digits

@@ -39,7 +39,7 @@ from rac.cli.common import (
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, Diagnostic, RacError, json_text, sort_key
+from rac.core.diagnostics import CheckError, Diagnostic, RacError, counted, json_text, sort_key
 from rac.core.diagnostics import render_text as render_diagnostics
 from rac.core.numbers import fresh_seed, samples_of
 from rac.core.source import SourceFile
@@ -554,7 +554,8 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     csv_path, png_path = out_dir / "runs.csv", out_dir / "runs.png"
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
-        title = f"{args.file.name}: {args.runs} runs{' under the shield' if args.shield else ''} (seed {seed})"
+        title = (f"{args.file.name}: {counted(args.runs, 'run')}{' under the shield' if args.shield else ''} "
+                 f"(seed {seed})")
         # the pair renamed together at the end: Ctrl-C while plotting keeps the previous run's pair
         write_runs(csv_path, runs.times, texts, values, lambda: plot_series(png_path, runs.times, texts, values,
                                                                             title, exprs))
@@ -562,7 +563,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
         _report(args, unwritable(_written(out_dir, exc), exc))
         return EXIT_USAGE
     under = " under the shield" if args.shield else ""
-    lines = [f"simulated {args.runs} runs of {samples} samples (seed {seed}){under}"]
+    lines = [f"simulated {counted(args.runs, 'run')} of {counted(samples, 'sample')} (seed {seed}){under}"]
     document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "runs": args.runs,
                                    "samples": samples, "seed": seed, "shield": bool(args.shield), "expressions": texts}
     if result.automaton is not None and result.automaton.ending is not None:
@@ -570,7 +571,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
                            "the emitted model, is not applied here")
     if len(values) == 2 and np.ptp(values[1]) == 0:
         below = int(np.any(values[0] < values[1], axis=1).sum())
-        lines.append(f"{below} of {args.runs} runs go below {texts[1]} = {float(values[1].flat[0]):g}")
+        lines.append(f"{below} of {counted(args.runs, 'run')} {'goes' if args.runs == 1 else 'go'} below {texts[1]} = {float(values[1].flat[0]):g}")
         document["runs_below"] = below
     if np.all(values[0] == NO_OBSTACLE):  # mindist() without an obstacle: say so, not "1e9 m"
         assert result.model_data is not None
@@ -583,7 +584,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
         guarded = result.model_data is not None and result.model_data.allow is not None
         who = "the shield or the model's `allow when`" if args.shield and guarded else \
             "the model's `allow when`" if guarded else "the shield"
-        lines.append(f"{left} runs met a state where {who} allowed nothing and continued with every action")
+        lines.append(f"{counted(left, 'run')} met a state where {who} allowed nothing and continued with every action")
     document["notes"], document["wrote"] = notes, [str(csv_path), str(png_path)]
     _print_summary(args, document, [*lines, f"wrote {csv_path}", f"wrote {png_path}"])
     return EXIT_OK

@@ -147,6 +147,11 @@ def short_count(count: int) -> str:
     return f"{count:,}" if abs(count) < 10**16 else short_number(Fraction(count))
 
 
+def counted(count: int, noun: str, plural: str | None = None) -> str:
+    """``count`` and its noun for messages: ``1 run``, ``2,000 runs`` (``plural`` where adding ``s`` is wrong)."""
+    return f"{short_count(count)} {noun if count == 1 else plural or noun + 's'}"
+
+
 def _restored(kind: type[RacError], args: tuple[object, ...], state: dict[str, object]) -> RacError:
     """An exception of rac's rebuilt from its ``args`` and attributes without calling its ``__init__``,
     whose parameters are the failure's parts, not its message (what :meth:`RacError.__reduce__` hands pickle)."""

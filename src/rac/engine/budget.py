@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 
-from rac.core.diagnostics import RacError
+from rac.core.diagnostics import RacError, counted
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
 
 __all__ = ["EPISODE_MEMO_BYTES", "EVALUATION_BYTES_PER_RUN", "EVALUATION_BYTES_PER_SAMPLE",
@@ -244,10 +244,10 @@ class BudgetExceeded(RacError, MemoryError):
         self.sample, self.seconds, self.needed_bytes = sample, seconds, needed_bytes
         when = f"by t = {seconds:g} s (sample {sample})"
         if kind == "states":
-            text = f"{what} has more than {limit:,} states {when}"
+            text = f"{what} has more than {counted(limit, 'state')} {when}"
         else:
             text = (f"{what} would need about {format_bytes(needed_bytes)} {when}, more than the memory "
-                    f"budget of {format_bytes(limit)} (--max-memory); {states:,} states so far")
+                    f"budget of {format_bytes(limit)} (--max-memory); {counted(states, 'state')} so far")
         super().__init__(text)
         #: The states the whole horizon would have at the recent growth (None: not estimated).
         self.projected_states: int | None = None

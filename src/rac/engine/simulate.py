@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rac.core.diagnostics import counted
 from rac.core.numbers import INT32_MAX
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.budget import check_estimate, simulation_bytes
@@ -269,7 +270,8 @@ def simulate(data: ModelData, *, runs: int, horizon_samples: int | None = None, 
     if isinstance(truth_substeps, bool) or not isinstance(truth_substeps, int | np.integer) or truth_substeps < 1:
         raise ValueError(f"truth_substeps must be a positive integer, not {truth_substeps!r}")
     horizon = _horizon(data, horizon_samples)
-    check_estimate(f"simulating {runs:,} runs of {horizon:,} samples", simulation_bytes(runs, horizon, 0), max_bytes,
+    check_estimate(f"simulating {counted(runs, 'run')} of {counted(horizon, 'sample')}",
+                   simulation_bytes(runs, horizon, 0), max_bytes,
                    "lower the runs or the horizon")
     if seed is None:
         entropy = np.random.SeedSequence().entropy

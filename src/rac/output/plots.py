@@ -36,6 +36,7 @@ from matplotlib.patches import Patch
 from matplotlib.text import Text
 from matplotlib.transforms import blended_transform_factory
 
+from rac.core.diagnostics import counted
 from rac.core.files import atomic_write
 from rac.model.native import NO_OBSTACLE
 
@@ -234,7 +235,8 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
     if not finite.any():
         pass  # no run to show: only the threshold and the note below
     elif emphasise:
-        handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5, label=f"{n_runs - n_below} runs staying above"))
+        handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5,
+                              label=f"{counted(n_runs - n_below, 'run')} staying above"))
         if n_below:
             ax.add_collection(LineCollection(segments[below], colors=BELOW_COLOUR, linewidths=1.1,
                                              alpha=max(alpha, 0.6), zorder=3))
@@ -243,9 +245,9 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
             ax.scatter(times[rows, lowest], values[rows, lowest], s=14, color=BELOW_COLOUR, zorder=4,
                        edgecolors="white", linewidths=0.5)
         handles.append(Line2D([], [], color=BELOW_COLOUR, lw=1.5, marker="o", markersize=4,
-                              label=f"{n_below} runs below {threshold_label}"))
+                              label=f"{counted(n_below, 'run')} below {threshold_label}"))
     else:
-        handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5, label=f"{n_runs} runs"))
+        handles.append(Line2D([], [], color=ABOVE_COLOUR, lw=1.5, label=counted(n_runs, "run")))
     if drawn is not None:  # a threshold, drawn within the axis
         ax.axhline(drawn, color=THRESHOLD_COLOUR, linestyle="--", linewidth=1.4, zorder=5)
         handles.append(Line2D([], [], color=THRESHOLD_COLOUR, linestyle="--", lw=1.4,
@@ -274,7 +276,7 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(True, color="#e0e0e0", linewidth=0.6, zorder=0)
-    count = below_summary(values, threshold, threshold_label) if threshold is not None else f"{n_runs} runs"
+    count = below_summary(values, threshold, threshold_label) if threshold is not None else counted(n_runs, "run")
     if not finite.any():
         nothing = f"{missing_label} at any sample" if absent.all() else "no value at any sample"
         ax.text(0.5, 0.75, f"{nothing}: nothing to draw", transform=ax.transAxes, ha="center", va="center",

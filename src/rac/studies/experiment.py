@@ -50,7 +50,7 @@ from typing import IO, Any
 import numpy as np
 
 from rac.compiler import CompileResult
-from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, error, json_text
+from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, counted, error, json_text
 from rac.core.files import atomic_write
 from rac.engine.budget import BudgetExceeded, check_estimate, evaluation_bytes, learning_bytes, out_of_memory
 from rac.ir import query as iq
@@ -317,10 +317,11 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     needed = learning_bytes(episodes=episodes, parallel=parallel, steps=shared.max_steps, runs=count,
                             observations=len(discrete) + len(continuous) + int(observe_time), actions=shared.n_actions)
     try:  # before the shield and the learning: the runs learn together, so their tables add up
-        check_estimate(f"learning {count} runs together", needed, max_bytes,
+        check_estimate(f"learning {counted(count, 'run')} together", needed, max_bytes,
                        f"lower the episodes per run ({episodes:,}, --episodes), the seeds or the combinations")
         # and every strategy's evaluation runs together afterwards: it met the budget only as a MemoryError
-        check_estimate(f"evaluating {count} strategies over {evaluation_runs:,} runs each together",
+        check_estimate(f"evaluating {counted(count, 'strategy', 'strategies')} over "
+                       f"{counted(evaluation_runs, 'run')} each together",
                        evaluation_bytes(runs=count * evaluation_runs, steps=shared.max_steps, samples=horizon),
                        max_bytes, f"lower the evaluation runs ({evaluation_runs:,}, --runs), the seeds or the "
                        "combinations")
@@ -348,7 +349,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
         raise ExperimentError("the ablation learns SS&RA: it needs the safety shield")
     runs += [(f"ablation {i}", seed, shield_table, "automaton", options)
              for i, options in enumerate(variants) for seed in seeds]
-    what = (f"learning {len(runs)} runs together ({', '.join(label for label, _, _ in wanted)}; "
+    what = (f"learning {counted(len(runs), 'run')} together ({', '.join(label for label, _, _ in wanted)}; "
             f"seeds {', '.join(map(str, seeds))})")
     if progress:
         progress(what)
@@ -391,7 +392,8 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     evaluations: list[tuple[Any, float]] = [(None, 0.0)] * len(runs)
     if stopped is None:
         if progress:
-            progress(f"evaluating {len(runs)} strategies over {evaluation_runs} runs each")
+            progress(f"evaluating {counted(len(runs), 'strategy', 'strategies')} over "
+                     f"{counted(evaluation_runs, 'run')} each")
         try:
             evaluations = run_together([Job(evaluation_steps(outcome.strategy, runs=evaluation_runs, shield=table,
                                                              seed=seed, epsilon=EVALUATION_NOISE))
@@ -552,7 +554,7 @@ def render_markdown(report: Report) -> str:
     lines = [
         "| combination | learning time (s) | episodes until the first safe goal | episodes learned | "
         "collisions during learning (episodes) | greedy strategy safe at the goal and to the horizon | "
-        f"success over {_evaluation_runs(report)} runs with {EVALUATION_NOISE:g} random actions | "
+        f"success over {counted(_evaluation_runs(report), 'run')} with {EVALUATION_NOISE:g} random actions | "
         "greedy return | exact optimum under the shield (shortfall) | counterfactual experiences |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]

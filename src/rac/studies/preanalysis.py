@@ -39,7 +39,7 @@ import numpy as np
 
 from rac import ir
 from rac.compiler import CompileResult
-from rac.core.diagnostics import RacError, short_number
+from rac.core.diagnostics import RacError, counted, short_number
 from rac.core.numbers import samples_of
 from rac.engine import storm
 from rac.engine.budget import VALUE_BYTES, TimeExceeded, TimeLimit, check_estimate, out_of_memory
@@ -184,7 +184,7 @@ def _true_distances(result: CompileResult, spec: ir.ModelSpec, runs, data: Model
     truth = runs.truth[:, 0].T.copy()  # (5, n), as the integrator holds it
     out[:, 0] = distance(truth, 0)
     steps = (samples - 1) * m
-    what = f"true distances, {steps:,} steps of {n:,} runs"
+    what = f"true distances, {counted(steps, 'step')} of {counted(n, 'run')}"
     if Heartbeat.active is not None:  # off a terminal, the progress lines name the work and its size
         Heartbeat.active.phase(what)
     with Progress(total=steps, desc=what, unit="steps", enabled=False if quiet else None) as bar:
@@ -261,8 +261,9 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     try:  # (at one step per sample the runs' own estimate, below, is the larger: it speaks)
         if substeps > 1:
             check_estimate(
-                f"measuring the true distances of {runs:,} runs at every CommonRoad time step ({samples * substeps:,} "
-                f"steps per run: {substeps:,} per sensing period, the scenario's timeStepSize being {scenario.dt:g} s)",
+                f"measuring the true distances of {counted(runs, 'run')} at every CommonRoad time step "
+                f"({samples * substeps:,} steps per run: {substeps:,} per sensing period, the scenario's "
+                f"timeStepSize being {scenario.dt:g} s)",
                 _truth_bytes(runs, samples, substeps), max_bytes,
                 "use fewer --runs, a shorter --horizon, or a scenario whose timeStepSize is not that short")
     except MemoryError as exc:
@@ -270,7 +271,7 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
         return row
     # Qa: sensor error, unshielded runs (UPPAAL's SMC semantics: uniform actions).
     try:
-        with _simulating(f"Qa: {runs:,} runs", samples, quiet, limit) as progress:
+        with _simulating(f"Qa: {counted(runs, 'run')}", samples, quiet, limit) as progress:
             plain = simulate(data, runs=runs, horizon_samples=samples, seed=seed, max_bytes=max_bytes,
                              progress=progress)
     except MemoryError as exc:  # the budget's estimate, refused before anything is allocated (or the machine's)
@@ -300,7 +301,7 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
         return row
     limit.check()
     # Fig. 7 under the shield: sensed and true distances.
-    with _simulating(f"Fig. 7: {runs:,} runs under the shield", samples, quiet, limit) as progress:
+    with _simulating(f"Fig. 7: {counted(runs, 'run')} under the shield", samples, quiet, limit) as progress:
         shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at,
                             max_bytes=max_bytes, progress=progress)  # the unshielded runs' estimate passed above
     model = BatchModel(data)
@@ -326,7 +327,8 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
                                     ylabel="true distance to the nearest obstacle (m)",
                                     below_zero=NEGATIVE_DISTANCE_TEXT,
                                     title=f"exponent {spec.exponent}, C1 {float(spec.sense_period):g} s, "
-                                          f"C2 {float(spec.decide_period):g} s: {runs} runs under the shield"))
+                                          f"C2 {float(spec.decide_period):g} s: "
+                                          f"{counted(runs, 'run')} under the shield"))
     return row
 
 
@@ -491,7 +493,7 @@ def render_table(rows: list[Row]) -> str:
         below = str(row["error"]) if "error" in row else "—"  # given up after some answers (a time limit)
         measured = [v for v in row.get("true_min", ()) if v is not None and math.isfinite(v)]
         if "below" in row and not measured:
-            below = f"no obstacle at any sample of the {len(row['true_min'])} runs: no distance to measure"
+            below = f"no obstacle at any sample of the {counted(len(row['true_min']), 'run')}: no distance to measure"
         elif "below" in row:
             interval = row["below_interval"]
             below = (f"{row['below']} of {len(row['true_min'])} (Pr in [{interval[0]:.3f}, {interval[1]:.3f}]); "

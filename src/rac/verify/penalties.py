@@ -33,7 +33,7 @@ from fractions import Fraction
 
 from rac import ir
 from rac.check.analysis.priority import p2_target
-from rac.core.diagnostics import Diagnostic, Note, warning
+from rac.core.diagnostics import Diagnostic, Note, counted, warning
 from rac.engine.budget import BudgetExceeded, TimeExceeded, TimeLimit
 from rac.engine.evaluate import EvaluationError
 from rac.engine.penalties import Unavoidable, choice_penalties, unavoidable
@@ -134,7 +134,7 @@ def _explore(context: Context, horizon: int, budget: int) -> tuple[ProductGraph 
         except BudgetExceeded as exc:
             if exc.kind == "states":
                 limit = "--max-states" if budget < PENALTY_STATES else "the check's own budget"
-                reason = f"by sample {exc.sample} the product has more than {budget:,} states, {limit}"
+                reason = f"by sample {exc.sample} the product has more than {counted(budget, 'state')}, {limit}"
             else:
                 reason = f"{exc}{context.kept_note()}"
             samples = min(samples - 1, exc.sample - 1)

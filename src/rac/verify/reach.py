@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rac.core.diagnostics import counted
 from rac.engine.budget import Budget, BudgetExceeded
 from rac.engine.graph import ExploredGraph
 from rac.engine.witness import (
@@ -158,6 +159,6 @@ class Reacher:
 
 def _searched(found: Found, runs: int) -> str:
     """What the cheap searches tried, for an unknown verdict's message."""
-    return (f"no witness was found by {runs:,} random runs and a beam search ({found.states:,} states"
+    return (f"no witness was found by {counted(runs, 'random run')} and a beam search ({counted(found.states, 'state')}"
             f"{', stopped by its time limit' if found.timed_out else ''}), and the exhaustive exploration "
             "needed to prove that none exists is beyond the budget")
