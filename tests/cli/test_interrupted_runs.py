@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import errno
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -148,6 +149,29 @@ def test_preanalyse_interrupted_shows_the_settings_finished(capsys: pytest.Captu
         assert [s["exponent"] for s in document["settings"]] == [1] and document["interrupted"] is True
     else:
         assert "| 1 | " in out and "| 2 | " not in out
+
+
+@pytest.mark.parametrize("stop", ["interrupt", "full disk"])
+def test_preanalyse_stopped_removes_an_earlier_sweeps_plot(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch, stop: str) -> None:
+    # an earlier run's sweep.png (of its own settings and runs) stayed beside this run's Fig. 7 plots, as if it
+    # were this run's; the plot of a run that finishes replaces it, one that stops before its plot removes it
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    old = tmp_path / "pre" / "sweep.png"
+    old.parent.mkdir()
+    old.write_bytes(b"an earlier sweep")
+    os.utime(old, (1_600_000_000, 1_600_000_000))
+    kept = tmp_path / "pre" / "notes.png"  # not the sweep's: left alone
+    kept.write_bytes(b"mine")
+    os.utime(kept, (1_600_000_000, 1_600_000_000))
+    failure = KeyboardInterrupt() if stop == "interrupt" else OSError(errno.ENOSPC, "No space left on device", "x")
+    _row_failing_on_the_second(monkeypatch, failure)
+    code, _, err = run(capsys, "preanalyse", path, "-q", "--exponent", "1,2,3", "--runs", "2", "--seed", "1",
+                       "-o", tmp_path / "pre")
+    assert code == (EXIT_INTERRUPTED if stop == "interrupt" else EXIT_USAGE)
+    assert not old.exists() and kept.read_bytes() == b"mine"
+    assert f"finished before it (above); removed {old}, an earlier run's plot of other runs" in err
+    assert list((tmp_path / "pre").glob("fig7_e1_*.png"))  # the finished setting's own plot stays
 
 
 @pytest.mark.parametrize("form", ["text", "json"])

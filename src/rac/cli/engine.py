@@ -12,6 +12,7 @@ import dataclasses
 import functools
 import json
 import sys
+import time
 from collections.abc import Callable, Mapping, Sequence
 from fractions import Fraction
 from pathlib import Path
@@ -571,7 +572,8 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
                            "the emitted model, is not applied here")
     if len(values) == 2 and np.ptp(values[1]) == 0:
         below = int(np.any(values[0] < values[1], axis=1).sum())
-        lines.append(f"{below} of {counted(args.runs, 'run')} {'goes' if args.runs == 1 else 'go'} below {texts[1]} = {float(values[1].flat[0]):g}")
+        verb = "goes" if args.runs == 1 else "go"
+        lines.append(f"{below} of {counted(args.runs, 'run')} {verb} below {texts[1]} = {float(values[1].flat[0]):g}")
         document["runs_below"] = below
     if np.all(values[0] == NO_OBSTACLE):  # mindist() without an obstacle: say so, not "1e9 m"
         assert result.model_data is not None
@@ -654,6 +656,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
 
     out_dir = _out_dir(args)
     done: list[dict[str, object]] = []  # each setting's row as it is found: Ctrl-C still shows those
+    started = time.time()
     interrupted = False
     write_failed: Diagnostic | None = None  # E0009 of a plot: the settings finished before it are shown
     try:
@@ -688,17 +691,20 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(render_table(rows))
         if any("plot" in row or "sweep_plot" in row for row in rows):  # no setting answered: no plot, maybe no folder
             print(f"\nplots in {out_dir}")
+    # stopped before the sweep's plot: an earlier sweep's plot in the folder would stand beside this run's Fig. 7
+    # plots as if it were this run's
+    removed = _remove_stale(out_dir / "sweep.png", started) if write_failed is not None or interrupted else ""
     if write_failed is not None:
         if args.format == "text":
             print_diagnostics([write_failed])
         n = len(rows)
         print(f"rac preanalyse: stopped by the error above; {n} setting{'' if n == 1 else 's'} finished before it "
-              "(above)", file=sys.stderr)
+              f"(above){removed}", file=sys.stderr)
         return EXIT_USAGE
     if interrupted:
         n = len(rows)
         print(f"rac preanalyse: {how_stopped()}; {n} setting{'' if n == 1 else 's'} finished before it "
-              f"({'above' if n else 'none'})", file=sys.stderr)
+              f"({'above' if n else 'none'}){removed}", file=sys.stderr)
         return EXIT_INTERRUPTED
     undecided = sum(1 for row in rows if "error" in row)
     if undecided:  # a setting without answers is undecided, and an undecided answer never exits 0
@@ -709,6 +715,18 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
               file=sys.stderr)
         return EXIT_UNDECIDED
     return EXIT_OK
+
+
+def _remove_stale(path: Path, started: float) -> str:
+    """Remove ``path`` when an earlier run wrote it (before ``started``, a ``time.time()``); what to add to the
+    stopped run's message about it ("" when there was none, or it could not be removed)."""
+    try:
+        if path.stat().st_mtime >= started:
+            return ""
+        path.unlink()
+    except OSError:
+        return ""
+    return f"; removed {path}, an earlier run's plot of other runs"
 
 
 @_on_checked_file
