@@ -91,7 +91,8 @@ def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> 
     assert obs.tolist() == np.append(batch.ego[0] / scale, 0.0).astype(np.float32).tolist()
     assert info == {"location": "Normal", "rewards": {"sa": 0.0}, "objective": 0.0, "inputs": {"near": False},
                     "collided": False, "offroad": False, "goal": False, "time": 0.0,
-                    "scenario": tiny.automaton.model.scenario_path, "scale": 1.0}  # type: ignore[union-attr]
+                    "scenario": tiny.automaton.model.scenario_path,  # type: ignore[union-attr]
+                    "planning_problem": 100, "scale": 1.0}
     rng = np.random.default_rng(1)
     before = 0.0
     total, done = 0.0, False
@@ -515,6 +516,7 @@ def test_a_wrapper_around_the_environment_sees_its_time_step(tiny: CompileResult
 
     vector = ScenarioVectorEnv(tiny, num_envs=2, lookahead=None)
     assert vector.dt == 1.0 and vector.get_attr("dt") == (1.0, 1.0)
+    assert vector.reset()[1]["planning_problem"].tolist() == [100, 100]  # as ScenarioEnv's info says it
     with pytest.warns(UserWarning, match=r"time step is 1 s but the automaton samples every 0.5 s"):
         RewardAutomatonVectorWrapper(vector, tiny.automaton, lambda obs, infos: infos["inputs"])  # type: ignore[arg-type]
 
@@ -968,3 +970,37 @@ def test_a_scene_of_a_set_that_rac_check_would_warn_of_is_warned_of(tmp_path: Pa
     with pytest.warns(UserWarning, match=r"the scene .*soon.xml: the goal's time window \[3, 6\] s opens after "
                                          r"horizon=2 ends \(scenario time t = 2 s\)"):
         env.reset(options={"scenario": 1})
+
+
+def test_a_scene_set_chooses_each_files_planning_problem(tmp_path: Path) -> None:
+    # a scene set could not choose a planning problem per file: the template's `planning_problem` applied to every
+    # scene, so a file with several (real datasets number them per file) was a CheckError with no way out
+    from engine_files import TEMPLATE
+    from tiny_scenarios import SECOND_PROBLEM_ID, junction_with_two_problems
+
+    (tmp_path / "junction.xml").write_bytes(junction_with_two_problems())
+    block = ('    model {\n        scenario "junction.xml"\n'
+             '        bind near = mindist() < 3 * collision_distance\n    }')
+    model = tmp_path / "drive.ra"
+    model.write_text(TEMPLATE.format(period="0.5", horizon="2", model=block, queries=""), encoding="utf-8")
+    scene = tmp_path / "junction.xml"
+    with pytest.raises(CheckError, match=r"E0715(.|\n)*a scene of a set chooses its planning problem as a pair"):
+        ScenarioEnv(model, scenarios=[scene])
+    env = ScenarioEnv(model, scenarios=[(scene, 100), (str(scene), np.int64(SECOND_PROBLEM_ID))])
+    assert env.scenarios == (scene, scene) and env.planning_problems == (100, SECOND_PROBLEM_ID)
+    first = env.reset(options={"scenario": 0})
+    second = env.reset(options={"scenario": (str(scene), SECOND_PROBLEM_ID)})
+    assert first[1]["planning_problem"] == 100 and second[1]["planning_problem"] == SECOND_PROBLEM_ID
+    assert first[1]["scenario"] == second[1]["scenario"] == str(scene)
+    assert first[0].tolist() != second[0].tolist()  # two egos: the second drives south from the north arm
+    assert env.reset(options={"scenario": scene})[1]["planning_problem"] == 100  # a path alone: its first scene
+    assert {env.reset(seed=s)[1]["planning_problem"] for s in range(12)} == {100, SECOND_PROBLEM_ID}
+    with pytest.raises(ValueError, match=r"not one of the scenes: .*junction.xml \(planning problem 100\)"):
+        env.reset(options={"scenario": (scene, 5)})
+    with pytest.raises(CheckError, match=r"the scene .*junction.xml \(planning problem 7\) does not check(.|\n)*E0715"):
+        ScenarioEnv(model, scenarios=[(scene, 7)])
+    for wrong in ([(scene, True)], [(scene, -1)], [(scene, 1.5)], [(scene, 100, 1)], [3]):
+        with pytest.raises(TypeError, match="planning problem|CommonRoad file's path"):
+            ScenarioEnv(model, scenarios=wrong)
+    with pytest.raises(TypeError, match="is one scene: write"):
+        ScenarioEnv(model, scenarios=(scene, 100))

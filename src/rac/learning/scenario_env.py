@@ -74,8 +74,27 @@ def _compile(model: str | os.PathLike[str] | CompileResult) -> CompileResult:
     return result
 
 
-def _scene_paths(scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike[str]) -> list[Path]:
-    """The scene files of a set: the paths given, or a folder's ``*.xml`` files in name order."""
+#: A scene of a set as :class:`ScenarioEnv` takes it: a CommonRoad file, or a file and the id of the planning
+#: problem its ego and goal come from (a file with several planning problems, each set's files numbering theirs).
+Scene = str | os.PathLike[str] | tuple[str | os.PathLike[str], int]
+
+
+def _scene_entry(entry: object) -> tuple[Path, int | None]:
+    """One entry of ``scenarios=``: its file and the planning problem asked for (None: the template's choice)."""
+    if isinstance(entry, (str, os.PathLike)):
+        return Path(entry), None
+    if isinstance(entry, tuple) and len(entry) == 2 and isinstance(entry[0], (str, os.PathLike)):
+        problem = entry[1]
+        if isinstance(problem, (int, np.integer)) and not isinstance(problem, (bool, np.bool_)) and problem >= 0:
+            return Path(entry[0]), int(problem)
+        raise TypeError(f"a scene's planning problem must be a whole number >= 0 (an id of the file's "
+                        f"planningProblem), not {problem!r}, in {entry!r}")
+    raise TypeError(f"a scene must be a CommonRoad file's path or a (path, planning problem id) pair, not {entry!r}")
+
+
+def _scene_paths(scenarios: Sequence[Scene] | str | os.PathLike[str]) -> list[tuple[Path, int | None]]:
+    """The scenes of a set, each a file and the planning problem asked for (None: the template's): the
+    entries given, or a folder's ``*.xml`` files in name order."""
     if isinstance(scenarios, (str, os.PathLike)):
         folder = Path(scenarios)
         if not folder.is_dir():
@@ -84,34 +103,47 @@ def _scene_paths(scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike
         paths = sorted(folder.glob("*.xml"))
         if not paths:
             raise RacValueError(f"the folder {folder} holds no .xml scenario")
-        return paths
-    paths = [Path(path) for path in scenarios]
-    if not paths:
+        return [(path, None) for path in paths]
+    if isinstance(scenarios, tuple) and len(scenarios) == 2 and isinstance(scenarios[1], (int, np.integer)):
+        raise TypeError(f"scenarios must be a list of scenes; {scenarios!r} is one scene: write [{scenarios!r}]")
+    entries = [_scene_entry(entry) for entry in scenarios]
+    if not entries:
         raise RacValueError("scenarios is empty: give at least one CommonRoad file")
-    return paths
+    return entries
 
 
-def _compile_scene(model: Path, text: str, scenario: Path) -> CompileResult:
-    """The model file ``model`` (text ``text``) with the scene ``scenario``; errors name the scene.
-    Checked once per process for the same model text and scene file (the sub-environments of a
-    vector environment share it): a changed scene file (size or time) is checked again."""
+def _compile_scene(model: Path, text: str, scenario: Path, planning_problem: int | None = None) -> CompileResult:
+    """The model file ``model`` (text ``text``) with the scene ``scenario`` (and its ``planning_problem``, None:
+    the template's choice); errors name the scene. Checked once per process for the same model text and
+    scene (the sub-environments of a vector environment share it): a changed scene file (size or time) is
+    checked again."""
     try:
         stat = scenario.stat()
         stamp = (stat.st_size, stat.st_mtime_ns)
     except OSError:  # the checker names the missing file
         stamp = (-1, -1)
-    return _checked_scene(str(model), text, str(scenario), stamp)
+    return _checked_scene(str(model), text, str(scenario), stamp, planning_problem)
 
 
 @functools.lru_cache(maxsize=256)
-def _checked_scene(model: str, text: str, scenario: str, stamp: tuple[int, int]) -> CompileResult:
-    result = compile_text(with_model(text, Path(model), Path(scenario)), name=model)
+def _checked_scene(model: str, text: str, scenario: str, stamp: tuple[int, int],
+                   planning_problem: int | None) -> CompileResult:
+    settings = () if planning_problem is None else (("planning_problem", str(planning_problem)),)
+    result = compile_text(with_model(text, Path(model), Path(scenario), settings), name=model)
     if not result.ok or result.automaton is None:
         error = CheckError(result.diagnostics, result.sources)
         # the diagnostics speak of the model file; say which scene of the set broke it
-        error.args = (f"the scene {scenario} does not check with the model block of {model}:\n{error}",)
+        hint = ("\n(a scene of a set chooses its planning problem as a pair in scenarios=: "
+                f"({scenario!r}, ID))" if any(d.code == "E0715" for d in result.diagnostics) else "")
+        error.args = (f"the scene {_scene_name(Path(scenario), planning_problem)} does not check with the model "
+                      f"block of {model}:\n{error}{hint}",)
         raise error
     return result
+
+
+def _scene_name(path: Path, planning_problem: int | None) -> str:
+    """A scene of a set as messages name it: its file, and the planning problem when the set chose one."""
+    return str(path) if planning_problem is None else f"{path} (planning problem {planning_problem})"
 
 
 def _shield(shield: str | os.PathLike[str] | ShieldTable | None, columns: tuple[str, ...],
@@ -210,7 +242,10 @@ class ScenarioEnv(gymnasium.Env):
             ``"relative"`` (default; the ego against its lane, the road, the goal and the nearest
             obstacles) or ``"ego"`` (the sensed ego state and the time, in the scene's coordinates).
         scenarios: a set of scenes instead of the ``model`` block's own: CommonRoad files, or a
-            folder whose ``*.xml`` files are the set. ``model`` must then be a ``.ra`` file; its
+            folder whose ``*.xml`` files are the set. An entry may be a pair ``(path, id)`` choosing the
+            file's planning problem (as the model block's ``planning_problem`` setting, which the other
+            entries take from the template): the same file may come twice with two of its problems.
+            ``model`` must then be a ``.ra`` file; its
             ``model`` block is the template (:func:`rac.lang.edit.with_model`), checked with each scene
             on the scene's first draw (a scene that does not check raises
             :class:`rac.core.diagnostics.CheckError` naming it; one whose ego starts off the road or in a
@@ -245,14 +280,16 @@ class ScenarioEnv(gymnasium.Env):
     (:class:`rac.engine.lookahead.LookaheadSettings`), so the masks, and a masked learner's run at a
     seed, are the same on every machine; its time limit is a guard far above what the nodes take.
 
-    ``info["scenario"]``: the scene's file; ``info["scale"]``: :attr:`reward_scale`. After :meth:`step`,
+    ``info["scenario"]``: the scene's file; ``info["planning_problem"]``: the id of the planning problem its
+    ego and goal come from; ``info["scale"]``: :attr:`reward_scale`. After :meth:`step`,
     ``info["reward_steps"]``: each reward's change over the step (unscaled), as
     :class:`rac.learning.wrappers.RewardAutomatonWrapper` reports it in ``info["rac"]``.
 
     The model is deterministic: with one scene, ``reset(seed=...)`` only seeds :attr:`np_random`
     (for wrappers and agents that draw from it) and every episode starts from the same state. With
     a set, :meth:`reset` draws the scene from :attr:`np_random` (so ``reset(seed=s)`` gives the same
-    scene again), or takes ``options={"scenario": i}`` (an index into :attr:`scenarios` or a path).
+    scene again), or takes ``options={"scenario": i}`` (an index into :attr:`scenarios`, a path, or a
+    ``(path, planning problem id)`` pair).
     """
 
     metadata = {"render_modes": RENDER_MODES}
@@ -262,7 +299,7 @@ class ScenarioEnv(gymnasium.Env):
                  lookahead: LookaheadSettings | int | Literal["auto"] | None = "auto",
                  reward: str | ast.Expr | ie.Expr = "automaton", horizon: float | Fraction | None = None,
                  render_mode: str | None = None, observation: str = "relative",
-                 scenarios: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | None = None,
+                 scenarios: Sequence[Scene] | str | os.PathLike[str] | None = None,
                  scale: Scale = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, not {render_mode!r}")
@@ -273,15 +310,18 @@ class ScenarioEnv(gymnasium.Env):
             if shield is not None:
                 raise RacValueError("a shield table is computed for one scene; with a set of scenes only the runtime "
                                     "shield works: pass lookahead=<depth> instead of shield=")
-            paths = _scene_paths(scenarios)
+            entries = _scene_paths(scenarios)
             self._template = (Path(model), Path(model).read_text(encoding="utf-8"))
-            result = _compile_scene(*self._template, paths[0])
+            result = _compile_scene(*self._template, *entries[0])
         else:
             result = _compile(model)
             spec = result.automaton.model if result.automaton is not None else None
-            paths = [Path(spec.scenario_path)] if spec is not None else []  # none: EpisodeBatch says why
+            entries = [(Path(spec.scenario_path), None)] if spec is not None else []  # none: EpisodeBatch says why
         #: The scene files (one without ``scenarios``: the ``model`` block's).
-        self.scenarios: tuple[Path, ...] = tuple(paths)
+        self.scenarios: tuple[Path, ...] = tuple(path for path, _ in entries)
+        #: The planning problem each scene of :attr:`scenarios` was given as a pair in ``scenarios=``
+        #: (None: the model block's choice; ``info["planning_problem"]`` is the one an episode runs).
+        self.planning_problems: tuple[int | None, ...] = tuple(problem for _, problem in entries)
         self._reward, self._observation_kind = reward, observation
         self._shield_args = (shield, lookahead)
         automaton = result.automaton
@@ -373,22 +413,26 @@ class ScenarioEnv(gymnasium.Env):
             return scene
         if result is None:
             assert self._template is not None
-            result = _compile_scene(*self._template, self.scenarios[index])
+            result = _compile_scene(*self._template, self.scenarios[index], self.planning_problems[index])
         episodes = EpisodeBatch(result, reward=self._reward, horizon_samples=self._samples)
         observation = make_observation(self._observation_kind, episodes)
         if self._scenes:
             first, first_observation, _ = self._scenes[0]
             if (episodes.n_actions != first.n_actions or episodes.horizon_samples != first.horizon_samples
                     or observation.space != first_observation.space):
-                raise RacValueError(f"the scene {self.scenarios[index]} gives {episodes.n_actions} actions, "
+                raise RacValueError(f"the scene {self._name(index)} gives {episodes.n_actions} actions, "
                                     f"{episodes.horizon_samples} samples and {observation.space}; the first scene "
-                                    f"{self.scenarios[0]} gives {first.n_actions}, {first.horizon_samples} and "
+                                    f"{self._name(0)} gives {first.n_actions}, {first.horizon_samples} and "
                                     f"{first_observation.space}: a set's scenes must agree")
         scene = (episodes, observation, self._shields(episodes, *self._shield_args, COLUMNS))
         self._scenes[index] = scene
         self._warn_past_traffic(result, index, episodes.horizon_samples)
         self._warn_unfit_scene(result, index, episodes.horizon_samples)
         return scene
+
+    def _name(self, index: int) -> str:
+        """Scene ``index`` as messages name it."""
+        return _scene_name(self.scenarios[index], self.planning_problems[index])
 
     def _warn_unfit_scene(self, result: CompileResult, index: int, samples: int) -> None:
         """Warn of what ``rac check`` would have said of this scene's episodes and nobody has seen: for a scene
@@ -406,7 +450,7 @@ class ScenarioEnv(gymnasium.Env):
             horizon = None if self._samples is None else samples * Fraction(automaton.period)  # None: the file's
             found += goal_window(automaton, scenario, data, horizon, option="horizon=")
         for diagnostic in found:
-            warnings.warn(f"the scene {self.scenarios[index]}: {diagnostic.message} ({diagnostic.code} in rac check)",
+            warnings.warn(f"the scene {self._name(index)}: {diagnostic.message} ({diagnostic.code} in rac check)",
                           UserWarning, stacklevel=3)
 
     def _warn_past_traffic(self, result: CompileResult, index: int, samples: int) -> None:
@@ -420,7 +464,7 @@ class ScenarioEnv(gymnasium.Env):
         if scenario.outruns_traffic(seconds):
             self._said_traffic = True
             episode_ends = scenario.ego.time + seconds
-            warnings.warn(f"the episodes of {self.scenarios[index]} run past its recorded traffic: its moving "
+            warnings.warn(f"the episodes of {self._name(index)} run past its recorded traffic: its moving "
                           f"obstacles are gone after scenario time t = {scenario.traffic_ends:g} s, an episode ends at "
                           f"t = {episode_ends:g} s, so from then on the road holds no moving obstacle, and the "
                           "shield's masks and the rewards speak of a road without the traffic (W0728 in rac check; "
@@ -497,6 +541,7 @@ class ScenarioEnv(gymnasium.Env):
 
     def _info(self) -> dict[str, Any]:
         episodes = self.episodes
+        scenario = episodes.result.scenario
         inputs = {name: bool(values[0]) if values.dtype == bool else float(values[0])
                   for name, values in episodes.inputs.items()}
         return {"location": self._names[int(episodes.location[0])],
@@ -504,12 +549,14 @@ class ScenarioEnv(gymnasium.Env):
                 "objective": float(episodes.objective[0]), "inputs": inputs, **self._last,
                 "time": self._seconds(episodes.k[0]),
                 "scenario": str(self.scenarios[self._index]),
+                "planning_problem": scenario.planning_problem_id if scenario is not None else None,
                 "scale": self.reward_scale}
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode at the ego's start: of the scene ``options["scenario"]`` (an index into
-        :attr:`scenarios` or one of its paths), else of one drawn from ``np_random`` (with one
+        :attr:`scenarios`, one of its paths, or a ``(path, planning problem id)`` pair of the set), else of
+        one drawn from ``np_random`` (with one
         scene: that one; the seed only seeds ``np_random``, the model is deterministic)."""
         super().reset(seed=seed)
         if not self.reward_replaced:
@@ -542,14 +589,20 @@ class ScenarioEnv(gymnasium.Env):
             if not 0 <= chosen < count:
                 raise RacValueError(f"options['scenario'] = {chosen}: there are {count} scenes (0 .. {count - 1})")
             return int(chosen)
-        if isinstance(chosen, (str, os.PathLike)):
-            wanted = Path(chosen).resolve()
-            for index, path in enumerate(self.scenarios):
-                if path.resolve() == wanted:
-                    return index
-            raise RacValueError(f"options['scenario'] = {os.fspath(chosen)!r} is not one of the scenes: "
-                                f"{', '.join(map(str, self.scenarios))}")
-        raise TypeError(f"options['scenario'] must be an index or a path, not {chosen!r}")
+        if isinstance(chosen, (str, os.PathLike, tuple)):
+            try:
+                path, problem = _scene_entry(chosen)
+            except TypeError:
+                raise TypeError(f"options['scenario'] must be an index, a path or a (path, planning problem id) "
+                                f"pair, not {chosen!r}") from None
+            wanted = path.resolve()
+            for index, (scene, asked) in enumerate(zip(self.scenarios, self.planning_problems, strict=True)):
+                if scene.resolve() == wanted and (problem is None or problem == asked):
+                    return index  # a path alone: its first scene of the set
+            raise RacValueError(f"options['scenario'] = {chosen!r} is not one of the scenes: "
+                                f"{', '.join(self._name(i) for i in range(count))}")
+        raise TypeError(f"options['scenario'] must be an index, a path or a (path, planning problem id) pair, "
+                        f"not {chosen!r}")
 
     def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         """One decision period with action ``action`` (an index into :attr:`action_pairs`)."""

@@ -89,6 +89,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self._single = ScenarioEnv(model, shield=shield, lookahead=lookahead, reward=reward, horizon=horizon,
                                    observation=observation, scale=scale)
         self.episodes = self._single.episodes
+        scenario = self.episodes.result.scenario
+        self._planning_problem = scenario.planning_problem_id if scenario is not None else None
         self.num_envs = int(num_envs)
         #: What the agent observes (:mod:`rac.learning.observation`), read over the whole batch.
         self.observation = self._single.observation
@@ -352,6 +354,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                        **{name: flags.copy() for name, flags in self._last.items()},
                        "time": seconds_at(episodes.k, self._period),
                        "scenario": np.full(self.num_envs, str(self._single.scenarios[0]), dtype=object),
+                       "planning_problem": np.full(self.num_envs, self._planning_problem),  # as SyncVectorEnv stacks it
                        "scale": np.full(self.num_envs, self._single.reward_scale)})
         info.update(masked({"rewards": masked(episodes.rewards), "inputs": masked(inputs)}))
         if shield is not None:
