@@ -38,8 +38,8 @@ from rac.sweep.template import check_template, instantiate
 
 QUERIES = {"Stays": "E[] !collide() && !offroad()", "Reaches": "E<> !collide() && !offroad() && goal()"}
 #: Every key a row has, whatever happened (the interface with the Dask half).
-ROW_KEYS = {"key", "scenario", "scenario_name", "settings", "task", "status", "error", "seconds", "peak_memory",
-            "states", "scenario_size", "verdicts", "diagnostics", "details"}
+ROW_KEYS = {"key", "scenario", "scenario_name", "planning_problem", "settings", "task", "status", "error", "seconds",
+            "peak_memory", "states", "scenario_size", "verdicts", "diagnostics", "details"}
 
 
 @pytest.fixture(scope="module")
@@ -630,3 +630,38 @@ def test_a_verify_task_whose_queries_draw_runs_says_its_seed(tmp_path: Path) -> 
     plain = dataclasses.replace(drawn, template_text=engine_source(tiny, {"Stays": queries["Stays"]},
                                                                    scenario_file="placeholder.xml"))
     assert "seed" not in work.execute(plain)
+
+
+def test_a_file_with_several_planning_problems_is_a_task_per_problem(folder: Path, tmp_path: Path) -> None:
+    # a file with several planning problems was one task, an E0715 error row ("choose one in the model block"),
+    # though a sweep's template cannot choose one for every file: real datasets number them per file
+    from tiny_scenarios import SECOND_PROBLEM_ID, junction_with_two_problems
+
+    from rac.sweep import plan
+    from rac.sweep.report import summarise
+
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    (scenes / "junction.xml").write_bytes(junction_with_two_problems())
+    TINY_SCENARIOS["goal_ahead"]().write(scenes / "goal_ahead.xml")
+    template = folder / "template" / "sweep.ra"
+    planned = plan(template, [str(scenes)], task="check", sets=["exponent=1,2"])
+    assert [(Path(s.scenario).name, s.planning_problem, s.settings) for s in planned.specs] == [
+        ("goal_ahead.xml", None, (("exponent", "1"),)), ("goal_ahead.xml", None, (("exponent", "2"),)),
+        ("junction.xml", 100, (("exponent", "1"),)), ("junction.xml", 100, (("exponent", "2"),)),
+        ("junction.xml", SECOND_PROBLEM_ID, (("exponent", "1"),)),
+        ("junction.xml", SECOND_PROBLEM_ID, (("exponent", "2"),))]
+    assert (planned.scenarios, planned.problems, planned.points) == (2, 3, 2)
+    assert len({s.key() for s in planned.specs}) == 6
+    # a spec without a chosen problem keeps the key it had before the field existed (stored rows are reused)
+    plain = planned.specs[0]
+    assert plain.key() == dataclasses.replace(plain, planning_problem=None).key()
+    assert TaskSpec.from_json(planned.specs[-1].to_json()) == planned.specs[-1]
+    rows = [run_task(dataclasses.replace(s, timeout=120)) for s in planned.specs[2::3]]  # 100 at 1, 101 at 2
+    assert [(r["planning_problem"], r["status"]) for r in rows] == [(100, "ok"), (SECOND_PROBLEM_ID, "ok")], rows
+    assert all("E0715" not in json.dumps(r["diagnostics"]) for r in rows)
+    failed = [{**rows[1], "status": "failed", "error": "x"}]
+    assert summarise(failed, tasks=1).problems == [("failed", "junction (planning problem 101)", "exponent=2", "x")]
+    # the template's (or the grid's) choice applies to every file: no task per problem
+    assert [s.planning_problem for s in plan(template, [str(scenes)], task="check",
+                                             sets=["planning_problem=100"]).specs] == [None, None]

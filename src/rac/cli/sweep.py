@@ -114,7 +114,10 @@ def sweep_command(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     quiet = args.quiet or args.format == "json"
     say = (lambda _: None) if args.quiet else (lambda line: print(f"rac sweep: {line}", file=sys.stderr))
-    say(f"{_count(len(planned.specs), 'task')}: {_count(planned.scenarios, 'scenario')} × "
+    scenes = _count(planned.scenarios, 'scenario')
+    if planned.problems > planned.scenarios:  # files with several planning problems: a task per problem
+        scenes += f" ({_count(planned.problems, 'planning problem')})"
+    say(f"{_count(len(planned.specs), 'task')}: {scenes} × "
         f"{_count(planned.points, 'grid point')}, task {args.task}; outputs in {planned.out}")
     terminated: list[int] = []
     try:

@@ -560,6 +560,18 @@ def _orientation_error(path: str | os.PathLike[str], node, orientation, text: st
                                         f"±{MAX_ORIENTATION:g} rad rac accepts (CommonRoad's are within ±2π)")
 
 
+def planning_problem_ids(data: bytes) -> tuple[int, ...]:
+    """The ids of the planning problems of the CommonRoad file ``data`` (its bytes) in id order, read from its
+    XML alone (no commonroad-io: a sweep plans a task per planning problem of each file before any loads it);
+    ``()`` for bytes that do not parse, or ids that are not whole numbers (:func:`load_scenario` says what is
+    wrong)."""
+    try:
+        root = ElementTree.fromstring(data)
+        return tuple(sorted(int(element.attrib["id"]) for element in root.iter("planningProblem")))
+    except (ElementTree.ParseError, KeyError, ValueError):
+        return ()
+
+
 def _read_bytes(path: str | os.PathLike[str]) -> bytes:
     try:
         if Path(path).exists() and not Path(path).is_dir() and not Path(path).is_file():

@@ -17,11 +17,12 @@ from typing import TYPE_CHECKING, Any
 import rac
 from rac.engine.budget import parse_size
 from rac.lang.parser import parse_expression
+from rac.model.commonroad import planning_problem_ids
 from rac.output.paths import output_folder
 from rac.sweep.grid import grid_points, parse_set, scenario_files
 from rac.sweep.kinds import TASKS
-from rac.sweep.task import OPTIONS, TASK_OPTIONS, TaskSpec, scenario_digest
-from rac.sweep.template import check_template, template_inputs
+from rac.sweep.task import OPTIONS, TASK_OPTIONS, TaskSpec, digest_of, scenario_bytes, scenario_digest
+from rac.sweep.template import check_template, template_inputs, template_settings
 
 if TYPE_CHECKING:
     from rac.sweep.report import Summary
@@ -33,13 +34,15 @@ __all__ = ["Plan", "SweepResult", "default_folder", "execute", "plan", "sweep"]
 @dataclass(frozen=True)
 class Plan:
     """The tasks of one sweep, before any runs: the template, the output folder and one spec per
-    (scenario, grid point), scenarios outermost."""
+    (scenario, grid point), scenarios outermost; a scenario with several planning problems is one scenario per
+    problem (``problems`` counts them all) unless the template or the grid chooses one."""
 
     template: Path
     out: Path
     specs: tuple[TaskSpec, ...]
     scenarios: int
     points: int
+    problems: int = 0  #: the (scenario, planning problem) pairs: ``scenarios`` when no file has several
 
 
 @dataclass
@@ -116,13 +119,32 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
         if problem is not None:
             raise ValueError(f"--task experiment: {problem}")
     given = tuple(sorted((name, str(value)) for name, value in (options or {}).items() if value is not None))
-    digests = {scenario: scenario_digest(scenario) for scenario in files}  # each file read once, not per point
+    # a file with several planning problems is that many scenes (real datasets number them per file): a task
+    # each, unless the template or the grid chooses one for every file
+    chosen = "planning_problem" in template_settings(text, path) or any(
+        name == "planning_problem" for point in points for name, _ in point)
+    scanned = {scenario: _scan(scenario, chosen) for scenario in files}  # each file read once, not per point
+    digests = {scenario: digest for scenario, (digest, _) in scanned.items()}
+    problems = {scenario: ids for scenario, (_, ids) in scanned.items()}
     specs = tuple(TaskSpec(template=str(path), template_text=text, scenario=str(scenario), settings=point,
                            task=task, options=given, timeout=task_timeout, memory=memory,
-                           scenario_digest=digests[scenario])
-                  for scenario in files for point in points)
+                           scenario_digest=digests[scenario], planning_problem=problem)
+                  for scenario in files for problem in problems[scenario] for point in points)
     folder = Path(out) if out is not None else default_folder(Path(template))
-    return Plan(template=path, out=folder, specs=specs, scenarios=len(files), points=len(points))
+    return Plan(template=path, out=folder, specs=specs, scenarios=len(files), points=len(points),
+                problems=sum(map(len, problems.values())))
+
+
+def _scan(scenario: Path, chosen: bool) -> tuple[str, tuple[int | None, ...]]:
+    """From one read of ``scenario``: its key's digest, and the planning problems a task each: every one when
+    it has several and none is ``chosen`` for every file; else ``(None,)``, one task taking the template's
+    choice or the file's only one (or saying why the file cannot be read)."""
+    try:
+        data = scenario_bytes(scenario)
+    except OSError:
+        return scenario_digest(scenario), (None,)
+    ids = () if chosen else planning_problem_ids(data)
+    return digest_of(data), ids if len(ids) > 1 else (None,)
 
 
 def default_folder(template: Path) -> Path:

@@ -38,8 +38,8 @@ VERDICT_PLOT, TIME_PLOT = "verdicts.png", "time_vs_size.png"
 #: a grid of 1,000 points made a PNG 88,000 pixels wide in 20 s; the results hold every point.
 PLOTTED_POINTS = 40
 #: The row's fields, in the table's order (``settings`` and ``verdicts`` become one column per name).
-_FIELDS = ("key", "scenario", "scenario_name", "task", "status", "error", "seconds", "peak_memory", "states",
-           "scenario_size")
+_FIELDS = ("key", "scenario", "scenario_name", "planning_problem", "task", "status", "error", "seconds", "peak_memory",
+           "states", "scenario_size")
 _COLOURS = {"satisfied": "#55a868", "not satisfied": "#c44e52", "unknown": "#8c8c8c", "unsupported": "#ccb974",
             "ok": "#4c72b0", "failed": "#dd8452", "undecided": "#ccb974", "error": "#8172b3", "timeout": "#937860",
             "memory": "#da8bc3"}
@@ -61,7 +61,7 @@ def table(rows: Sequence[Mapping[str, object]]) -> tuple[list[str], list[dict[st
     queries = list(dict.fromkeys(name for row in rows for name in _mapping(row, "verdicts")))
     known = {*_FIELDS, "settings", "verdicts", "diagnostics", "details"}
     extra = list(dict.fromkeys(name for row in rows for name in row if name not in known))  # e.g. wall_seconds
-    columns = [*_FIELDS[:4], "grid_point", *(f"settings.{name}" for name in settings), *_FIELDS[4:], *extra,
+    columns = [*_FIELDS[:5], "grid_point", *(f"settings.{name}" for name in settings), *_FIELDS[5:], *extra,
                *(f"verdicts.{name}" for name in queries), "diagnostics", "details"]
     records = []
     for row in rows:
@@ -186,6 +186,12 @@ def scenario_labels(rows: Sequence[Mapping[str, object]]) -> dict[str, str]:
     return labels
 
 
+def _problem(row: Mapping[str, object]) -> str:
+    """What follows a row's scenario label: the planning problem the sweep chose for it, if it chose one."""
+    problem = row.get("planning_problem")
+    return "" if problem is None else f" (planning problem {problem})"
+
+
 def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int = 0,
               skipped_not_ok: int = 0) -> Summary:
     """The :class:`Summary` of ``rows`` out of ``tasks`` tasks, ``skipped`` of them reused from the store
@@ -203,7 +209,8 @@ def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int 
         percentiles = {"p50": float(np.percentile(seconds, 50)), "p90": float(np.percentile(seconds, 90)),
                        "max": seconds[-1]}
     shown = scenario_labels(rows)
-    problems = [(str(row.get("status")), shown[str(row.get("scenario"))], grid_label(_mapping(row, "settings")),
+    problems = [(str(row.get("status")), shown[str(row.get("scenario"))] + _problem(row),
+                 grid_label(_mapping(row, "settings")),
                  str(row.get("error") or "")) for row in rows if row.get("status") != "ok"]
     order = {status: i for i, status in enumerate(STATUSES)}
     return Summary(tasks=tasks, finished=len(rows), skipped=skipped, not_run=tasks - len(rows),

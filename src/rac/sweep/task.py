@@ -35,7 +35,7 @@ from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
 
 __all__ = ["KILLING_SIGNALS", "NOT_FAILED", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "TASK_OPTIONS", "VERDICTS",
-           "TaskSpec", "memory_error", "run_task", "scenario_digest", "source_digest"]
+           "TaskSpec", "digest_of", "memory_error", "run_task", "scenario_bytes", "scenario_digest", "source_digest"]
 
 #: What a task runs: the command of the same name on one file.
 #: A row's ``status``: "ok" (no errors; every query decided), "failed" (errors in the file, a query
@@ -94,22 +94,30 @@ class TaskSpec:
     #: :func:`scenario_digest` of the scenario, when the caller hashed it already (:func:`rac.sweep.api.plan`
     #: hashes each file once, not once per grid point); None: :meth:`key` reads the file
     scenario_digest: str | None = None
+    #: the id of the scenario's planning problem this task runs (the model block's ``planning_problem``), chosen
+    #: by :func:`rac.sweep.api.plan` for a file with several; None: the template's choice
+    planning_problem: int | None = None
 
     def __post_init__(self) -> None:
         if self.task not in TASKS:
             raise ValueError(f"unknown task `{self.task}`: the tasks are {', '.join(TASKS)}")
 
-    def names(self) -> dict[str, str]:
-        """The row fields that name the task's scenario: its path, and the file's stem."""
-        return {"scenario": self.scenario, "scenario_name": Path(self.scenario).stem}
+    def names(self) -> dict[str, str | int | None]:
+        """The row fields that name the task's scenario: its path, the file's stem, and the planning problem
+        the sweep chose (None: the template's choice)."""
+        return {"scenario": self.scenario, "scenario_name": Path(self.scenario).stem,
+                "planning_problem": self.planning_problem}
 
     def key(self) -> str:
         """16 hex digits of the SHA-256 of the scenario file's bytes, the template's text, the settings,
         the task and its options (settings and options in name order): equal inputs, equal key, in
         any process. A scenario that cannot be read is keyed by its absolute path."""
         scenario = self.scenario_digest or scenario_digest(self.scenario)
-        payload = json.dumps([scenario, self.template_text, sorted(map(list, self.settings)), self.task,
-                              sorted(map(list, self.options))], ensure_ascii=True)
+        inputs: list[object] = [scenario, self.template_text, sorted(map(list, self.settings)), self.task,
+                                sorted(map(list, self.options))]
+        if self.planning_problem is not None:  # only then: the rows stored before it existed keep their keys
+            inputs.append(self.planning_problem)
+        payload = json.dumps(inputs, ensure_ascii=True)
         return hashlib.sha256(payload.encode("ascii")).hexdigest()[:16]
 
     def limits(self) -> dict[str, Any]:
@@ -126,7 +134,8 @@ class TaskSpec:
         """The spec :meth:`to_json` gave."""
         pairs = {name: tuple((str(a), str(b)) for a, b in data.get(name, ())) for name in ("settings", "options")}
         return cls(data["template"], data["template_text"], data["scenario"], pairs["settings"], data["task"],
-                   pairs["options"], data.get("timeout"), data.get("memory"), data.get("scenario_digest"))
+                   pairs["options"], data.get("timeout"), data.get("memory"), data.get("scenario_digest"),
+                   data.get("planning_problem"))
 
 
 def scenario_digest(path: str | os.PathLike[str]) -> str:
@@ -134,11 +143,22 @@ def scenario_digest(path: str | os.PathLike[str]) -> str:
     path when it cannot be read or is no regular file (a FIFO's read would wait for a writer for ever, a
     device's never end; the task's check then says what it is)."""
     try:
-        if not Path(path).is_file():
-            raise OSError(f"not a regular file: {path}")
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        return digest_of(scenario_bytes(path))
     except OSError:
         return "unreadable:" + os.path.abspath(path)
+
+
+def scenario_bytes(path: str | os.PathLike[str]) -> bytes:
+    """The scenario file's bytes; ``OSError`` when it cannot be read or is no regular file (see
+    :func:`scenario_digest`)."""
+    if not Path(path).is_file():
+        raise OSError(f"not a regular file: {path}")
+    return Path(path).read_bytes()
+
+
+def digest_of(data: bytes) -> str:
+    """:func:`scenario_digest` of a readable file whose bytes are ``data``."""
+    return hashlib.sha256(data).hexdigest()
 
 
 @functools.cache
@@ -178,7 +198,8 @@ def run_task(spec: TaskSpec) -> dict[str, object]:
     ``error`` text).
 
     Keys (always present, JSON-serialisable): key, scenario (path), scenario_name (the file's stem),
-    settings (dict name -> value text), task, status (:data:`STATUSES`), error (str or None), retry (bool:
+    planning_problem (the id the sweep chose for a file with several; None: the template's choice), settings
+    (dict name -> value text), task, status (:data:`STATUSES`), error (str or None), retry (bool:
     the task's process was killed from outside, :data:`KILLING_SIGNALS`, so the row is no verdict and a
     resumed sweep runs the task again), task_timeout and task_memory (the limits it ran under,
     :meth:`TaskSpec.limits`), rac_version (the version of rac that ran it: a resumed sweep runs a row of another

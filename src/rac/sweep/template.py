@@ -24,7 +24,8 @@ from rac.lang import ast
 from rac.lang.edit import model_block, parse_file_text, setting_value, with_model
 from rac.lang.parser import ParseFailure, read_source
 
-__all__ = ["SETTING_NAMES", "check_template", "instantiate", "setting_value", "template_inputs"]
+__all__ = ["SETTING_NAMES", "check_template", "instantiate", "setting_value", "template_inputs",
+           "template_settings"]
 
 T = TypeVar("T")
 
@@ -57,6 +58,13 @@ def template_inputs(text: str, path: str | Path) -> list[str]:
     returned it: it parses)."""
     automaton = parse_file_text(text, str(path)).automata[0]
     return [ident.name for decl in automaton.of(ast.InputDecl) for ident in decl.names]
+
+
+def template_settings(text: str, path: str | Path) -> frozenset[str]:
+    """The names of the settings the template's ``model`` block writes (its text as :func:`check_template`
+    returned it: it parses and has the block)."""
+    _, block = model_block(parse_file_text(text, str(path)), str(path))
+    return frozenset(item.name.name for item in block.items if isinstance(item, ast.ModelSetting))
 
 
 def instantiate(template_text: str, template: str | Path, scenario: str | Path,

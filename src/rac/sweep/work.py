@@ -93,7 +93,8 @@ def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
     except OSError as exc:
         raise TaskError(f"cannot read the scenario {scenario}: {exc.strerror or exc}") from None
     try:
-        text = instantiate(spec.template_text, spec.template, scenario, spec.settings)
+        chosen = () if spec.planning_problem is None else (("planning_problem", str(spec.planning_problem)),)
+        text = instantiate(spec.template_text, spec.template, scenario, (*spec.settings, *chosen))
     except ValueError as exc:
         raise TaskError(str(exc)) from None
     # the task's memory limit is the scenario load's budget too: refused before it is read, not killed in it
