@@ -42,7 +42,7 @@ from rac.ir.significands import Unrepresentable
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.data import ModelRangeError
 from rac.verify.context import Context
-from rac.verify.report import count_noun, format_number
+from rac.verify.report import format_number
 
 __all__ = ["PENALTY_STATES", "PenaltyCheck", "check_penalties", "penalised_locations", "render_penalties"]
 
@@ -105,15 +105,15 @@ def check_penalties(context: Context, max_states: int | None = None) -> PenaltyC
     found = unavoidable(graph, penalised, before=before)
     decisions = max(u.decisions for u in found.values())
     counts = {o: int(u.states.size) for o, u in found.items() if u.states.size}
-    reach = (f"up to the horizon ({count_noun(horizon, 'sample')})" if before is None else
-             f"in the first {count_noun(samples, 'sample')} of {horizon} ({reason}: later decisions are not "
+    reach = (f"up to the horizon ({counted(horizon, 'sample')})" if before is None else
+             f"in the first {counted(samples, 'sample')} of {horizon} ({reason}: later decisions are not "
              "checked)")
     names = ", ".join(f"`{o}`" for o in penalised)
     if not counts:
-        message = (f"none: at each of the {count_noun(decisions, 'decision state')} {reach} some allowed action "
+        message = (f"none: at each of the {counted(decisions, 'decision state')} {reach} some allowed action "
                    f"avoids every penalty of {names}")
     else:
-        message = "; ".join(f"every allowed action is penalised (`{o}`) in {count_noun(n, 'decision state')}"
+        message = "; ".join(f"every allowed action is penalised (`{o}`) in {counted(n, 'decision state')}"
                             for o, n in counts.items()) + f" {reach} (W1011)"
     diagnostics = tuple(_warning(context, graph, u, penalised[o]) for o, u in found.items() if u.states.size)
     return PenaltyCheck(True, message, diagnostics, samples=samples, horizon_samples=horizon,
@@ -185,7 +185,7 @@ def _warning(context: Context, graph: ProductGraph, found: Unavoidable, mask: tu
                   "actions": [[float(j), float(t)] for j, t in pairs]}
     return warning(
         "W1011", f"every allowed action is penalised (`{found.objective}`) in "
-        f"{count_noun(int(found.states.size), 'decision state')} from t = {format_number(float(time))} s",
+        f"{counted(int(found.states.size), 'decision state')} from t = {format_number(float(time))} s",
         span, notes=[Note(n) for n in notes], hints=[hint],
         data={"objective": found.objective, "states": int(found.states.size), "first": first_data})
 
@@ -194,5 +194,5 @@ def render_penalties(check: PenaltyCheck) -> str:
     """The lines ``rac verify`` prints after the queries (the W1011 warnings are rendered apart)."""
     lines = ["Checking penalties that no action avoids", f" -- {check.message}"]
     if check.done and check.states:
-        lines.append(f"    {count_noun(check.states, 'state')}, horizon {check.samples} samples")
+        lines.append(f"    {counted(check.states, 'state')}, horizon {check.samples} samples")
     return "\n".join(lines)

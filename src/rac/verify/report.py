@@ -15,6 +15,7 @@ from typing import IO
 
 import numpy as np
 
+from rac.core.diagnostics import counted
 from rac.core.files import atomic_write
 from rac.core.source import Span
 from rac.engine.graph import LABELS
@@ -23,7 +24,7 @@ from rac.ir.vocabulary import EGO_STATE
 from rac.model.native import NEGATIVE_DISTANCE_TEXT
 from rac.verify.status import METHODS, NOT_APPLICABLE, NOT_SATISFIED, SATISFIED, UNKNOWN, UNSUPPORTED, VALUE
 
-__all__ = ["TRACE_FLAGS", "QueryResult", "TraceRow", "count_noun", "format_number", "plot_series", "render_json",
+__all__ = ["TRACE_FLAGS", "QueryResult", "TraceRow", "format_number", "plot_series", "render_json",
            "render_text", "write_csv", "write_runs"]
 
 
@@ -146,11 +147,6 @@ def format_number(value: float) -> str:
     return f"{value:.4g}" if math.isfinite(value) else str(value)
 
 
-def count_noun(n: int, noun: str) -> str:
-    """``n`` with thousands separators and ``noun``, plural unless ``n`` is 1: ``1,024 states``."""
-    return f"{n:,} {noun}{'' if n == 1 else 's'}"
-
-
 def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
     """The results in the layout of UPPAAL's verifyta: ``Verifying`` then `` -- Formula is ...``."""
     lines: list[str] = []
@@ -188,7 +184,7 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
             lines.extend(f"    {line}" for line in more)
         details = []
         if r.states is not None:
-            details.append(count_noun(r.states, "state"))
+            details.append(counted(r.states, "state"))
         if r.horizon_samples is not None:
             details.append(f"horizon {r.horizon_samples} samples")
         details.append(f"{r.seconds:.2f} s")
@@ -205,7 +201,7 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
         if r.trace:
             shown = r.trace if traces else (r.trace[:3] + r.trace[-3:] if len(r.trace) > 6 else r.trace)
             note = "" if traces or len(r.trace) <= 6 else ", first and last 3; --trace shows all"
-            lines.append(f"    trace ({count_noun(len(r.trace), 'state')}{note}):")
+            lines.append(f"    trace ({counted(len(r.trace), 'state')}{note}):")
             for row in shown:
                 lines.append("      " + _trace_row(row))
     return "\n".join(lines)

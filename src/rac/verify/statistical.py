@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rac.core.diagnostics import short_number
+from rac.core.diagnostics import counted, short_number
 from rac.engine import storm
 from rac.engine.budget import format_bytes, runs_within, simulation_bytes
 from rac.engine.evaluate import EvaluationError
@@ -24,7 +24,7 @@ from rac.ir.text import format_checked
 from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.verify.context import Context, UnknownVerdict, left_int32
-from rac.verify.report import QueryResult, count_noun, plot_series, write_runs
+from rac.verify.report import QueryResult, plot_series, write_runs
 from rac.verify.status import NOT_SATISFIED, SATISFIED
 
 if TYPE_CHECKING:
@@ -202,7 +202,7 @@ class StatisticalAnswerer:
                 if ctx.options.plots else None
             files += [str(path) for path in write_runs(ctx.out(f"{base.name}.csv"), runs.times, names, values, plot,
                                                        stale=png)]
-        message = f"{count_noun(n, 'run')} of {samples} samples"
+        message = f"{counted(n, 'run')} of {samples} samples"
         if len(values) == 2 and np.ptp(values[1]) == 0:
             below = int(np.any(values[0] < values[1], axis=1).sum())
             message += f"; {below} of {n} runs go below {names[1]} = {float(values[1].flat[0]):g}"
@@ -259,7 +259,7 @@ class StatisticalAnswerer:
 
         # a long time bound takes minutes per batch (a million samples of 0.1 s: over five): a bar on a
         # terminal, the samples in the heartbeat's line; the query said only its elapsed time before
-        with Progress(total=samples, desc=f"simulating {count_noun(n, 'run')}", unit="samples",
+        with Progress(total=samples, desc=f"simulating {counted(n, 'run')}", unit="samples",
                       enabled=None if ctx.options.bars else False) as bar:
             runs = simulate(ctx.data, runs=n, horizon_samples=samples, seed=seed, policy=ctx.policy(under),
                             progress=simulate_callback(bar, ctx.limit.check), stop_at_overflow=stop_at_overflow,
