@@ -49,8 +49,7 @@ def test_learning_reaches_the_known_optimum(compiled: CompileResult) -> None:
     assert result.optimum["value"] == 4.0 and result.optimum["shortfall"] == 0.0
     # beside it, what exploring can expect (exact, from the same graph: tests/learning/test_optimum.py)
     assert result.optimum["uniform_success"] == 1.0  # every allowed run speeds into the goal region
-    assert ("a uniformly random episode reaches the goal safely with probability 100 % (exact; 1 episodes on "
-            "average until the first)") in result.message
+    assert "every uniformly random episode reaches the goal safely (exact)" in result.message
     assert "fast" in context.learned  # later queries `under fast` find it
 
 
@@ -99,3 +98,38 @@ def test_a_bound_past_the_shields_horizon_is_not_learned(compiled: CompileResult
     with pytest.raises(EvaluationError, match=r"past the horizon the strategy `safe` was computed to \(2 s\)"):
         learn(context, decl(compiled, "Learn").query)
     assert "fast" not in context.learned
+
+
+def test_statistics_under_a_learned_strategy_say_the_value_is_exact(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """Under a learned strategy every run is its one deterministic run: `Pr[<=4;100]` gave [0.9638, 1] and
+    `Pr >= 0.5` "wrong with probability at most 0.05" where the probability is exactly 1; the interval stays
+    (UPPAAL's N runs give it), and the answer says the value is exact."""
+    import json
+
+    from rac.cli.main import main
+
+    queries = {"safe": "strategy safe = control: A[] !collide() && !offroad()",
+               "Learn": "strategy fast = maxE(sa)[<=4]{Tiny.location}->{x}: <> time >= 4 under safe",
+               "P": "Pr[<=4; 100](<> v > 6) under fast", "Never": "Pr[<=4; 20](<> v > 60) under fast",
+               "Test": "Pr[<=4](<> v > 6) >= 0.5 under fast", "E": "E[<=4; 50](max: v) under fast",
+               "Uniform": "Pr[<=4; 30](<> v > 6)"}
+    path = write_engine_file(tmp_path, "goal_ahead", queries)
+    main(["verify", str(path), "--seed", "1", "--format", "json", "--no-plots"])
+    answers = {q["name"]: q for q in json.loads(capsys.readouterr().out)["results"]}
+    one = "every run is the one run of the strategy `fast` (it and the model are deterministic)"
+    assert answers["P"]["interval"][0] < 1 and answers["P"]["message"] == (
+        f"{one}, so the probability is exactly 1; the interval is the one 100 runs give, as UPPAAL's")
+    assert answers["Never"]["message"].startswith(f"{one}, so the probability is exactly 0;")
+    assert answers["Test"]["status"] == "satisfied" and answers["Test"]["message"].endswith(
+        f"; {one}, so the probability is exactly 1 and the verdict holds with no error")
+    expected = answers["E"]["estimate"]
+    assert answers["E"]["message"] == f"{one}, so the value is exactly {expected!r}"
+    assert not answers["Uniform"]["message"]  # random runs: no such claim
+
+
+def test_exploration_when_every_episode_reaches_the_goal() -> None:
+    from rac.learning.optimum import exploration_text
+
+    assert exploration_text(1.0) == "every uniformly random episode reaches the goal safely (exact)"
+    assert "(exact; 2 episodes on average until the first)" in exploration_text(0.5)

@@ -128,6 +128,8 @@ def exploration_text(chance: float) -> str:
     episodes until the first such one on average."""
     if not chance > 0:
         return "no uniformly random episode reaches the goal safely"
+    if chance == 1:  # every episode does: "1 episodes on average" said it as though it were a mean
+        return "every uniformly random episode reaches the goal safely (exact)"
     return (f"a uniformly random episode reaches the goal safely with probability {100 * chance:.3g} % "
             f"(exact; {1 / chance:.3g} episodes on average until the first)")
 

@@ -176,6 +176,8 @@ def render_text(results: list[QueryResult], *, traces: bool = False) -> str:
             half = (r.interval[1] - r.interval[0]) / 2
             lines.append(f" -- ({r.runs} runs) E = {format_number(r.estimate)} ± {format_number(half)} "
                          f"({_confidence(r)} CI)")
+            if r.message:  # what is known beyond the interval (under a learned strategy: the value exactly)
+                lines.append(f"    {r.message}")
         elif r.kind == "simulate" and r.message and r.status not in ("unknown", "unsupported", NOT_APPLICABLE):
             lines.append(f" -- {r.message}")  # what the runs wrote (an undecided status has said its message)
         elif r.kind == "learning" and r.status == "value" and r.message:

@@ -101,6 +101,10 @@ class StatisticalAnswerer:
                 message = (f"the sequential test did not decide within {test.runs:,} runs (its budget): the "
                            f"probability, about {test.successes / test.runs:.4f}, lies too near {theta:g} (within "
                            f"±{ctx.options.delta:g}, where either answer may come)")
+            one = self._one_run(query.under)
+            if one is not None and test.runs:  # every run the same: the probability is exactly 0 or 1
+                message += (f"; {one}, so the probability is exactly {test.successes // test.runs} and the "
+                            "verdict holds with no error")
             return dataclasses.replace(base, status=status, runs=test.runs,
                                        estimate=test.successes / test.runs if test.runs else None,
                                        horizon_samples=samples, seed=seed, message=message)
@@ -114,6 +118,10 @@ class StatisticalAnswerer:
         wider = None if estimate.converged else (
             f"the run budget ({estimate.runs:,} runs) ran out before the interval was ±{ctx.options.epsilon:g} "
             f"wide: it is ±{estimate.half_width:.4f} (--epsilon)")
+        one = self._one_run(query.under)
+        if one is not None:  # the interval is what N runs give (UPPAAL's too); the value itself is known
+            wider = (f"{one}, so the probability is exactly {estimate.estimate:g}; the interval is the one "
+                     f"{counted(estimate.runs, 'run')} give, as UPPAAL's")
         return dataclasses.replace(base, status="value", interval=(estimate.lo, estimate.hi),
                                    estimate=estimate.estimate, runs=estimate.runs, horizon_samples=samples,
                                    seed=seed, confidence=ctx.options.confidence, message=wider,
@@ -171,12 +179,23 @@ class StatisticalAnswerer:
                     f"the {query.aggregate} of `{format_checked(query.expr)}` over a run is {where} (a square root "
                     "of a negative number, a division by zero at some sample), so their mean has no value")
             running.add(extremes)
+            last = float(extremes[-1])
         if n >= 2:
             mean, half = running.interval(ctx.options.confidence)
         else:
             mean, half = running.mean, math.inf
+        one = self._one_run(query.under)
+        # the one run's value itself (shortest repr): the mean of n copies of it may differ in its last bit
+        exactly = None if one is None else f"{one}, so the value is exactly {last!r}"
         return dataclasses.replace(base, status="value", estimate=mean, interval=(mean - half, mean + half), runs=n,
-                                   horizon_samples=samples, seed=seed, confidence=ctx.options.confidence)
+                                   horizon_samples=samples, seed=seed, confidence=ctx.options.confidence,
+                                   message=exactly)
+
+    def _one_run(self, under: str | None) -> str | None:
+        """What makes every run under ``under`` the same, when it is a learned strategy (None otherwise)."""
+        if under is None or under not in self.context.learned:
+            return None
+        return f"every run is the one run of the strategy `{under}` (it and the model are deterministic)"
 
     def simulate(self, query: iq.SimulateQuery, base: QueryResult) -> QueryResult:
         """``simulate[<=T;N]{e...}``: the expressions per run and sample, written to ``OUT/NAME.csv``
