@@ -402,7 +402,7 @@ def test_instantiate_applies_the_scenario_and_the_settings(folder: Path) -> None
 @pytest.mark.parametrize("example", ["paper/model.ra", "left_turn/model.ra", "left_turn/preanalysis.ra"])
 def test_instantiate_keeps_everything_but_the_scenario(example: str) -> None:
     """The shipped files, instantiated with their own scenario and no settings, check to the same
-    automaton: printing the template again loses nothing but its comments."""
+    automaton: the edit changes the scenario item alone."""
     path = Path(__file__).resolve().parents[2] / "examples" / example
     before = compile_file(path)
     assert before.ok and before.automaton is not None and before.automaton.model is not None
