@@ -100,6 +100,9 @@ def test_the_callback_warns_of_a_reward_normaliser() -> None:
         said = [str(w.message) for w in caught if "norm_reward" in str(w.message)]
         if norm_reward:
             assert len(said) == 1 and "clip_reward=10" in said[0] and "priority" in said[0], said
+            # at the script's learn() line, not stable-baselines3's callbacks.py (the warning's first line)
+            (where,) = [w for w in caught if "norm_reward" in str(w.message)]
+            assert where.filename == __file__, where.filename
         else:
             assert said == []
 
