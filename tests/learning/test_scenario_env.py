@@ -1004,3 +1004,26 @@ def test_a_scene_set_chooses_each_files_planning_problem(tmp_path: Path) -> None
             ScenarioEnv(model, scenarios=wrong)
     with pytest.raises(TypeError, match="is one scene: write"):
         ScenarioEnv(model, scenarios=(scene, 100))
+
+
+def test_a_warning_names_the_line_of_the_users_code(tiny: CompileResult) -> None:
+    # gymnasium.make's wrappers stand between the user's reset() and ScenarioEnv's: a fixed stacklevel named a
+    # line of gymnasium's (OrderEnforcing, PassiveEnvChecker), which nobody can act on
+    env = gymnasium.make("rac.gym:rac/Scenario-v0", model=tiny)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env.reset(seed=0, options={"scene": 1})
+    (said,) = [w for w in caught if "ignores 'scene'" in str(w.message)]
+    assert said.filename == __file__, said.filename
+
+
+def test_user_stacklevel_counts_the_frames_inside_the_libraries() -> None:
+    from rac.core.caller import user_stacklevel
+
+    code = "def warn_site():\n    return user_stacklevel()\n"
+    here: dict[str, object] = {"__name__": "test_module", "user_stacklevel": user_stacklevel}
+    library: dict[str, object] = {"__name__": "gymnasium.core", "user_stacklevel": user_stacklevel}
+    exec(code, here)
+    exec(code, library)
+    assert here["warn_site"]() == 1  # type: ignore[operator]  # a user's module: its own frame
+    assert library["warn_site"]() == 2  # type: ignore[operator]  # gymnasium's: the frame above it (this test)

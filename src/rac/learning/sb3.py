@@ -7,7 +7,6 @@ stable-baselines3 is an optional dependency (``pip install 'rac[rl]'``); this mo
 
 from __future__ import annotations
 
-import sys
 import warnings
 from fractions import Fraction
 from typing import Any
@@ -26,6 +25,7 @@ except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("rac.learning.sb3 needs stable-baselines3: pip install 'rac[rl]'") from exc
 
 from rac import ir
+from rac.core.caller import user_stacklevel
 from rac.learning.location_observation import LocationObservation
 from rac.learning.replay import CounterfactualRows
 from rac.learning.scenario_env import ScenarioEnv
@@ -95,7 +95,7 @@ class RacCallback(BaseCallback):
                 "of rac check (no penalty compensated by lower objectives' gains) do not cover what it learns "
                 "from, and a large penalty may count for less than a few steps' gains; scale the automaton's reward "
                 "with scale='proven' (every reward in [-1, 1], the proofs intact) and use "
-                "VecNormalize(norm_reward=False)", UserWarning, stacklevel=_outside_the_libraries())
+                "VecNormalize(norm_reward=False)", UserWarning, stacklevel=user_stacklevel())
         changers = reward_changers(self.training_env)
         if changers and not self._warned_changers:  # learn() called again: said once
             self._warned_changers = True
@@ -106,13 +106,13 @@ class RacCallback(BaseCallback):
                 "the learner's reward is no longer the automaton's up to one positive factor, so the priority proofs "
                 "of rac check (no penalty compensated by lower objectives' gains) do not cover what it learns from; "
                 "scale the automaton's reward with scale='proven' (every reward in [-1, 1], the proofs intact) "
-                "instead", UserWarning, stacklevel=_outside_the_libraries())
+                "instead", UserWarning, stacklevel=user_stacklevel())
         gamma = getattr(self.model, "gamma", None)
         # np.floating too: a numpy float32 gamma (np.float32(0.99)) is no float, and was never checked
         if not self._warned_discount and isinstance(gamma, (float, np.floating)) and 0 < gamma < 1:
             self._warned_discount = True  # learn() called again: said once
             for message in discount_warnings(self.training_env, gamma, type(self.model).__name__):
-                warnings.warn(message, UserWarning, stacklevel=_outside_the_libraries())
+                warnings.warn(message, UserWarning, stacklevel=user_stacklevel())
         buffer = getattr(self.model, "replay_buffer", None)
         stacking = frame_stacker(self.training_env)
         if isinstance(buffer, CounterfactualReplayBuffer) and stacking is not None:
@@ -122,7 +122,7 @@ class RacCallback(BaseCallback):
                     f"CounterfactualReplayBuffer under {stacking}: each counterfactual row replaces the location of "
                     "the newest frame only, the earlier frames still show the real locations, so the rows are no "
                     "transitions the environment could have produced; stack no frames, or use the plain ReplayBuffer",
-                    UserWarning, stacklevel=_outside_the_libraries())
+                    UserWarning, stacklevel=user_stacklevel())
 
     def _on_step(self) -> bool:
         # The logger's table is written when the algorithm says (A2C: every 100 rollouts; DQN: at an
@@ -156,13 +156,13 @@ class RacCallback(BaseCallback):
             warnings.warn(f"RacCallback: {algorithm} hands its callbacks no step infos (sb3-contrib's ARS evaluates "
                           "its candidates with evaluate_policy, without them), so nothing of the reward automaton "
                           "is logged; rac.learning.training_log.TrainingLog logs it from a loop of your own",
-                          UserWarning, stacklevel=_outside_the_libraries())
+                          UserWarning, stacklevel=user_stacklevel())
         else:
             warnings.warn(f"RacCallback: the infos of {self.log.steps} step(s) of {algorithm} carry no reward "
                           "automaton (info['rac'] of rac.learning.wrappers.RewardAutomatonWrapper, or ScenarioEnv's "
                           "reward_steps and shield): only rac/collisions (info['collided'] or info['crashed']) is "
                           "logged; wrap each environment in RewardAutomatonWrapper (or train on ScenarioEnv), with "
-                          "no wrapper between that drops the info", UserWarning, stacklevel=_outside_the_libraries())
+                          "no wrapper between that drops the info", UserWarning, stacklevel=user_stacklevel())
 
     def _write(self) -> None:
         self._logged = self.log.values()
@@ -176,27 +176,9 @@ class RacCallback(BaseCallback):
                 f"{_text_width(self.logger)} characters, which makes {', '.join(sorted(clashing))} the same key "
                 "there (its dump would raise ValueError and end training): they are left out of that table and "
                 "written in full to the logger's other outputs (csv, tensorboard); shorter location or reward "
-                "names in the .ra file put them in the table", UserWarning, stacklevel=_outside_the_libraries())
+                "names in the .ra file put them in the table", UserWarning, stacklevel=user_stacklevel())
         for key, value in self._logged.items():
             self.logger.record(key, value, exclude=("stdout", "log") if key in clashing else None)
-
-
-#: The packages between a training script's ``learn()`` and RacCallback's warnings: a warning names the first
-#: frame outside them (the script's line), not stable-baselines3's callbacks.py.
-_LIBRARIES = ("rac", "stable_baselines3", "sb3_contrib", "gymnasium", "torch")
-
-
-def _outside_the_libraries() -> int:
-    """The ``stacklevel`` for ``warnings.warn`` called by this function's caller that names the first frame
-    outside :data:`_LIBRARIES` (the caller's own frame when every frame is inside them)."""
-    frame = sys._getframe(1)
-    level = 1
-    while frame is not None:
-        module = str(frame.f_globals.get("__name__", ""))
-        if module.split(".")[0] not in _LIBRARIES:
-            return level
-        frame, level = frame.f_back, level + 1  # type: ignore[assignment]
-    return 1
 
 
 def _text_width(logger: Logger) -> int | None:

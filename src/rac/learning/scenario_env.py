@@ -37,6 +37,7 @@ import numpy as np
 
 from rac import ir
 from rac.compiler import CompileResult, compile_file, compile_text
+from rac.core.caller import user_stacklevel
 from rac.core.diagnostics import CheckError, RacValueError
 from rac.core.numbers import samples_of, seconds_at
 from rac.engine.explore import COLUMNS
@@ -346,7 +347,7 @@ class ScenarioEnv(gymnasium.Env):
                 warnings.warn(f"the episode's horizon is {float(seconds):g} s but the automaton's is "
                               f"{float(automaton.horizon):g} s ({automaton.steps} samples): the priority proofs "
                               f"cover runs over a horizon of {float(automaton.horizon):g} s only", UserWarning,
-                              stacklevel=2)
+                              stacklevel=user_stacklevel())
         self._samples = samples
         #: Per scene, once checked: its episodes, observation and shield (:meth:`_scene`).
         self._scenes: dict[int, tuple[EpisodeBatch, Observation, StepShield | None]] = {}
@@ -451,7 +452,7 @@ class ScenarioEnv(gymnasium.Env):
             found += goal_window(automaton, scenario, data, horizon, option="horizon=")
         for diagnostic in found:
             warnings.warn(f"the scene {self._name(index)}: {diagnostic.message} ({diagnostic.code} in rac check)",
-                          UserWarning, stacklevel=3)
+                          UserWarning, stacklevel=user_stacklevel())
 
     def _warn_past_traffic(self, result: CompileResult, index: int, samples: int) -> None:
         """Warn once when this scene's episodes run past its recorded traffic (``rac check``'s W0728 for the
@@ -468,7 +469,8 @@ class ScenarioEnv(gymnasium.Env):
                           f"obstacles are gone after scenario time t = {scenario.traffic_ends:g} s, an episode ends at "
                           f"t = {episode_ends:g} s, so from then on the road holds no moving obstacle, and the "
                           "shield's masks and the rewards speak of a road without the traffic (W0728 in rac check; "
-                          "a shorter horizon= ends the episodes with the traffic)", UserWarning, stacklevel=3)
+                          "a shorter horizon= ends the episodes with the traffic)", UserWarning,
+                          stacklevel=user_stacklevel())
 
     def _shields(self, episodes: EpisodeBatch, shield: str | os.PathLike[str] | ShieldTable | StepShield | None,
                  lookahead: LookaheadSettings | int | Literal["auto"] | None,
@@ -568,7 +570,7 @@ class ScenarioEnv(gymnasium.Env):
             self._said_options = True
             warnings.warn(f"reset(options=...) ignores {', '.join(map(repr, unknown))}: ScenarioEnv reads only "
                           f"{', '.join(map(repr, sorted(RESET_OPTIONS)))} (the scene to start in, else one drawn "
-                          "from np_random)", UserWarning, stacklevel=2)
+                          "from np_random)", UserWarning, stacklevel=user_stacklevel())
         self._index = self._pick((options or {}).get("scenario"))
         self.episodes, self.observation, self._step_shield = self._scene(self._index)
         episodes = self.episodes
@@ -649,12 +651,13 @@ class ScenarioEnv(gymnasium.Env):
         self.timeout_steps += shield["shield_timeout"]
         if shield["shield_clock"]:
             if not self.clock_steps:  # never silently: a reproducible run is what the node budget promises
-                warnings.warn(clock_warning(self._step_shield, time), RuntimeWarning, stacklevel=2)
+                warnings.warn(clock_warning(self._step_shield, time), RuntimeWarning, stacklevel=user_stacklevel())
             self.clock_steps += 1
         self.disallowed_steps += not model_allowed
         if not shield["shield_allowed"]:
             if not self.outside_mask_steps:  # the info key alone went unread: an evaluation loop drops it
-                warnings.warn(outside_mask_warning(int(action), time, shield["shield"]), UserWarning, stacklevel=2)
+                warnings.warn(outside_mask_warning(int(action), time, shield["shield"]), UserWarning,
+                              stacklevel=user_stacklevel())
             self.outside_mask_steps += 1
         info = self._info()
         # each reward's change over the step, unscaled (what a training log averages per objective)

@@ -36,6 +36,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from rac.compiler import CompileResult, compile_file
+from rac.core.caller import user_stacklevel
 from rac.core.diagnostics import RacValueError
 from rac.core.numbers import seconds_at
 from rac.ir import expr as ie
@@ -326,7 +327,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         if clocked and not self.clock_steps:  # never silently: the node budget promises reproducible runs
             first = int(np.flatnonzero(flags["shield_clock"])[0])
             time = float(seconds_at(int(self.episodes.k[first]), self._period))
-            warnings.warn(clock_warning(self._step_shield, time), RuntimeWarning, stacklevel=3)
+            warnings.warn(clock_warning(self._step_shield, time), RuntimeWarning, stacklevel=user_stacklevel())
         self.clock_steps += clocked
         self.disallowed_steps += int((stepping & ~flags["model_allowed"]).sum())
         outside = stepping & ~flags["shield_allowed"]
@@ -334,7 +335,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
             first = int(np.flatnonzero(outside)[0])
             time = float(seconds_at(int(self.episodes.k[first]), self._period))
             warnings.warn(outside_mask_warning(int(actions[first]), time, str(kind[first])), UserWarning,
-                          stacklevel=3)
+                          stacklevel=user_stacklevel())
         self.outside_mask_steps += int(outside.sum())
         info: dict[str, np.ndarray] = {"shield": kind, "shield_until": until, **flags}
         return {**info, **{f"_{key}": stepping.copy() for key in info}}

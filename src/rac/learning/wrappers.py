@@ -48,6 +48,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv, VectorWrapper
 from rac import ir
 from rac.check.analysis.scale import sample_change_bound
 from rac.compiler import compile_file
+from rac.core.caller import user_stacklevel
 from rac.core.diagnostics import RacValueError
 from rac.learning.vector_info import merge_vector_info
 from rac.runtime.batch import BatchRewardAutomaton
@@ -318,12 +319,13 @@ class _Timing:
         tolerance = _tolerance(step)
         if not math.isclose(step, self.period, rel_tol=tolerance):
             warnings.warn(f"the environment's time step is {step:g} s but the automaton samples every "
-                          f"{self.period:g} s (one step is one sample); {cover}", UserWarning, stacklevel=3)
+                          f"{self.period:g} s (one step is one sample); {cover}", UserWarning,
+                          stacklevel=user_stacklevel())
         if episode is not None and self.steps is not None:
             if not math.isclose(episode, horizon, rel_tol=tolerance):
                 warnings.warn(f"the environment's episode lasts {episode:g} s ({episode / step:g} steps of "
                               f"{step:g} s) but the automaton's horizon is {horizon:g} s ({self.steps} samples); "
-                              f"{cover}", UserWarning, stacklevel=3)
+                              f"{cover}", UserWarning, stacklevel=user_stacklevel())
 
 
 class _PastHorizon:
@@ -345,7 +347,7 @@ class _PastHorizon:
         also = " and the proven scale (every reward within [-1, 1])" if self.proven else ""
         warnings.warn(f"an episode has run past the automaton's horizon of {self.steps} samples: the priority "
                       f"proofs{also} cover {self.steps} samples only, and its rewards from here on are not covered; "
-                      f"end the episodes there: {self.advice}", UserWarning, stacklevel=3)
+                      f"end the episodes there: {self.advice}", UserWarning, stacklevel=user_stacklevel())
 
 
 #: How to end a single environment's episodes so the wrapper sees it (the limit inside, or it never
@@ -398,7 +400,7 @@ class CutEpisodes:
                                              "another wrapper outside ends them, ")) -> None:
         self.warned = True
         warnings.warn(f"{what}: the automaton's `at end` clauses were not applied and their returns lack them; "
-                      f"{cause}{self.fix}", UserWarning, stacklevel=4)
+                      f"{cause}{self.fix}", UserWarning, stacklevel=user_stacklevel())
 
     def reset(self) -> None:
         """An episode starts: warn when the last one was cut after as many steps as an earlier one
@@ -539,10 +541,10 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
                           "automaton ends (`episode ends when`); wrap outside it instead: make_vec_env(lambda: "
                           "RewardAutomatonWrapper(gymnasium.make(id), ...), n_envs=n) (make_vec_env's Monitor then "
                           "sits outside), Monitor(RewardAutomatonWrapper(env, ...)), or VecMonitor on the vector "
-                          "environment", UserWarning, stacklevel=2)
+                          "environment", UserWarning, stacklevel=user_stacklevel())
         if _statistics_inside(env, gymnasium.wrappers.RecordEpisodeStatistics):
             warnings.warn(STATISTICS_INSIDE.format(outside="RecordEpisodeStatistics(RewardAutomatonWrapper(env, ...))"),
-                          UserWarning, stacklevel=2)
+                          UserWarning, stacklevel=user_stacklevel())
         self._timing = _Timing(self.automaton, dt)
         self._timing.check(env)
         _replaces_reward_of([env])
@@ -694,7 +696,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
                 _statistics_inside(single, gymnasium.wrappers.RecordEpisodeStatistics) for single in singles):
             warnings.warn(STATISTICS_INSIDE.format(outside="gymnasium.wrappers.vector.RecordEpisodeStatistics("
                                                            "RewardAutomatonVectorWrapper(envs, ...))"),
-                          UserWarning, stacklevel=2)
+                          UserWarning, stacklevel=user_stacklevel())
         if subs:
             _replaces_reward_of(subs)
         elif hasattr(getattr(self._stand_in, "unwrapped", None), REPLACED):
