@@ -78,3 +78,25 @@ def test_a_rate_term_whose_product_overflows_int32_is_e0801() -> None:
     g = generator(text.replace("100000]", "10000]"))
     g.numbers.accruals(g.numbers.inputs(g.n, g.array, g.select), g.n)
     assert g.diagnostics == []
+
+
+def test_a_rate_reading_an_input_gets_whole_values_inside_each_open_piece() -> None:
+    # `pr' == d / 20` at 0.5 s gains d/40 per sample, a whole number of units at a significand that is
+    # a multiple of 40: the points 0, 2.5 and 10 are, the middles of (0, 2.5) and (2.5, 10), 12500 and
+    # 62500, are not. rac chose the middles anyway and refused the rate (E0801), though every piece
+    # holds values that make it whole.
+    text = TINY.replace("pr' == 2", "pr' == d / 20")
+    g = generator(text)
+    inputs = g.numbers.inputs(g.n, g.array, g.select)
+    g.numbers.accruals(inputs, g.n)
+    assert g.diagnostics == []
+    [d] = inputs
+    assert d.values == [0, 12480, 25000, 62480, 100000]
+    assert all(v % 40 == 0 for v in d.values)
+    # each open piece keeps a value inside it, nearest its middle on that grid
+    assert 0 < d.values[1] < 25000 and 25000 < d.values[3] < 100000
+    # a piece too narrow for any multiple keeps its middle, and the rate is refused as before
+    g = generator(text.replace("d < 2.5", "d < 2.5001").replace("d >= 2.5", "d >= 2.5001")
+                  .replace("[0, 10]", "[2.5, 10]").replace("d / 40", "d / 4000"))
+    g.numbers.accruals(g.numbers.inputs(g.n, g.array, g.select), g.n)
+    assert [d.code for d in g.diagnostics] == ["E0801"]

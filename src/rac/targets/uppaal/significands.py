@@ -91,8 +91,9 @@ class Significands:
         result = []
         for item in self.a.numeric_inputs:
             values = []
+            grid = self._grid(item.name)
             for piece in space.pieces[item.name]:
-                value = self._representative(item, piece)
+                value = self._representative(item, piece, grid)
                 if value is None:
                     break  # one diagnostic per input: its first unrepresentable piece
                 values.append(value)
@@ -112,8 +113,19 @@ class Significands:
                 ", ".join(p.describe(item.name) for p in space.pieces[item.name]), selects[item.name]))
         return result
 
-    def _representative(self, item: ir.Input, piece) -> int | None:
-        """The significand the Environment chooses for one piece of a numeric input's range."""
+    def _grid(self, name: str) -> int:
+        """The least whole number whose multiples, as the significand of input ``name``, make every
+        rate that reads it gain whole significand units per sample (``coefficient * period *
+        significand`` whole): the values the Environment prefers inside an open piece."""
+        period = Fraction(self.a.period)
+        return math.lcm(1, *((coef * period).denominator for location in self.a.locations
+                             for rate in location.rates for term, coef in rate.terms if term == name))
+
+    def _representative(self, item: ir.Input, piece, grid: int = 1) -> int | None:
+        """The significand the Environment chooses for one piece of a numeric input's range: inside an
+        open piece the one nearest its middle, on ``grid`` (:meth:`_grid`) where the piece holds such a
+        value, so that the rates reading the input stay whole (any value of the piece is as good for
+        the guards: they cannot tell its values apart)."""
         scale = self.scale
         if piece.is_point or item.kind == "int":
             value = piece.representative(item.kind == "int") * scale
@@ -135,6 +147,10 @@ class Significands:
                        f"(1/{scale})"])
             return None
         middle = (piece.low + piece.high) / 2 * scale
+        on_grid = min(max(round(middle / grid) * grid, math.ceil(Fraction(low, grid)) * grid),
+                      math.floor(Fraction(high, grid)) * grid)
+        if low <= on_grid <= high:
+            return on_grid
         return min(max(round(middle), low), high)
 
     # ------------------------------------------------------------ rates
