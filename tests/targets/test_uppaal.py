@@ -330,6 +330,16 @@ def test_query_constants_round_exactly_on_integers() -> None:
     assert "return 1.0 * iUp + 2.0 * iFlat &gt;= 10000.0;" in emitted(automaton_of(text)).xml
 
 
+def test_one_integer_times_a_constant_compares_the_integer_itself() -> None:
+    # `2147483647 * up > 1` is `up > 1/2147483647`, on the mirror `iUp > 0`; compared as a product it
+    # needed 2147483647 * 2147483647 >= 2**53 and was refused with E0801, though it is exact
+    text = NO_INPUTS[:-2] + ("    query Q1: A[] 2147483647 * up > 1\n    query Q2: E<> 3 * up < 7\n"
+                             "    query Q3: E<> -2147483647 * up >= 2147483647\n"
+                             "    query Q4: E<> 4 * up == 0.0002\n}\n")
+    queries = dict(Parsed(emitted(automaton_of(text)).xml).queries)
+    assert queries == {"Q1": "A[] iUp > 0", "Q2": "E<> iUp < 23334", "Q3": "E<> iUp <= -10000", "Q4": "E<> false"}
+
+
 def test_reserved_names_are_renamed() -> None:
     parsed = Parsed(emitted(automaton_of(EDGE_CASES)).xml)
     assert {"E_", "sum_", "lane", "sa", "pr", "iSa", "iPr"} <= parsed.globals

@@ -360,6 +360,11 @@ class UppaalPrinter(UppaalSyntax):
         if coefficients[0][0] < 0:
             coefficients = [(-c, n) for c, n in coefficients]
             bound, op = -bound, _FLIP[op]
+        if len(coefficients) == 1 and coefficients[0][0] != 1:
+            # one integer times c > 0: compare the integer itself with bound / c, exactly (on the
+            # integers it keeps its truth), rather than a product that may leave int32 or 2**53
+            # (`2147483647 * d > 1` is `d > 0`)
+            bound, coefficients = bound / coefficients[0][0], [(1, coefficients[0][1])]
         result = ie.integer_bound(op, bound)
         if isinstance(result, bool):
             return self.literal(result)
