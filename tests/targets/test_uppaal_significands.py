@@ -100,3 +100,16 @@ def test_a_rate_reading_an_input_gets_whole_values_inside_each_open_piece() -> N
                   .replace("[0, 10]", "[2.5, 10]").replace("d / 40", "d / 4000"))
     g.numbers.accruals(g.numbers.inputs(g.n, g.array, g.select), g.n)
     assert [d.code for d in g.diagnostics] == ["E0801"]
+
+
+def test_a_bound_at_int32_min_is_refused_for_what_it_is() -> None:
+    # -214748.3648 has the significand -2147483648, an int32 (the range check lets a mirror reach it),
+    # but UPPAAL has no literal for it; the note said it "is not a 32-bit integer"
+    g = generator(TINY.replace("[0, 10]", "[-214748.3648, 10]"))
+    g.numbers.inputs(g.n, g.array, g.select)
+    [diagnostic] = g.diagnostics
+    assert diagnostic.code == "E0801" and "the bound -214748.3648 of input `d`" in diagnostic.message
+    [note] = [n.message for n in diagnostic.notes]
+    assert "not a 32-bit integer" not in note
+    assert note == ("its significand -2147483648 is a 32-bit integer, but UPPAAL writes no literal for it: "
+                    "its literals reach 2147483647 in magnitude")

@@ -67,6 +67,9 @@ def int_literal(value: int | Fraction) -> str:
         if value.denominator != 1:
             raise NotRepresentable(f"{value} is not an integer")
         value = value.numerator
+    if value == -INT32_MAX - 1:
+        raise NotRepresentable(f"{value} is a 32-bit integer, but UPPAAL writes no literal for it: its literals "
+                               f"reach {INT32_MAX} in magnitude")
     if abs(value) > INT32_MAX:
         raise NotRepresentable(f"{short_number(Fraction(value))} is beyond the 32-bit integer range (at most "
                                f"{INT32_MAX} in magnitude)")

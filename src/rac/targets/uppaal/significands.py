@@ -100,11 +100,12 @@ class Significands:
             for bound in (item.low, item.high):
                 try:
                     int_literal(bound * self.scale)
-                except NotRepresentable:
+                except NotRepresentable as exc:
                     self.unrepresentable(
                         f"the bound {_decimal(bound)} of input `{item.name}` is not representable as a 32-bit "  # type: ignore[arg-type]
                         f"significand at base {self.base}, exponent {self.exponent}", item.span,
-                        notes=[f"its significand {_decimal(bound * self.scale)} is not a 32-bit integer"],
+                        # -2147483648 is an int32, but not one rac writes (UPPAAL has no literal for it)
+                        notes=[f"its significand {exc}"],
                         hints=["narrow the input's bounds, or lower the exponent of the number representation"])
                     break
             result.append(NumericInput(
