@@ -25,9 +25,11 @@ from test_uppaal import QUERY_WORDS, Parsed, identifiers, is_symbolic
 
 from rac.cli.main import main
 from rac.compiler import compile_file, compile_text
+from rac.engine.product import MirrorArithmetic
 from rac.ir import expr as ie
 from rac.model import build_model_data
 from rac.model.commonroad import load_scenario
+from rac.targets.uppaal.automaton import UppaalError
 from rac.targets.uppaal.declarations import C_PRELUDE, emit_declarations
 from rac.targets.uppaal.model import generate_uppaal_model
 
@@ -414,3 +416,30 @@ def test_sensor_error_sets_thd(tmp_path: Path) -> None:
     spec = compile_file(ra).raise_for_errors().model
     assert spec.sensor_error == Fraction(3, 10)
     assert "const double THD = 0.3;" in generate_uppaal_model(compile_file(ra).raise_for_errors()).xml
+
+
+def test_a_rate_reading_an_input_is_checked_as_the_engine_checks_it(tmp_path: Path) -> None:
+    """In the whole model the Controller computes the inputs (any significand): the automaton-alone
+    Environment's values, one per piece of an input's range, are not part of it. A rate reading
+    `dgoal` was still checked at those values (at exponent 2 the threshold 2 is the significand 200,
+    of which `co' == dgoal / 800` at 0.1 s gains 200/8000: not whole), and the file that `rac verify`
+    runs was refused with E0801."""
+    source = MODEL_RA.read_text(encoding="utf-8").replace(
+        "initial location Normal { sa' == 1;  pr' == 1;  co' == 1 }",
+        "initial location Normal { sa' == 1;  pr' == 1;  co' == dgoal / 800 }").replace(
+        '        scenario "left_turn.xml"', '        scenario "left_turn.xml"\n        exponent 2')
+    assert "dgoal / 800" in source and "exponent 2" in source
+    ra = tmp_path / "model.ra"
+    ra.write_text(source.replace('"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"'), encoding="utf-8")
+    automaton = compile_file(ra).raise_for_errors()
+    MirrorArithmetic(automaton, 100)  # rac's engine runs it: each accrual truncated, as emitted
+    model = generate_uppaal_model(automaton)
+    assert "iCo = iCo + dgoal / 8000" in model.xml
+    assert "dgoal_values" not in model.xml  # no Environment chooses the inputs
+    # the accrual's product stays checked over the input's range: `3*dgoal / 1000` at dgoal = 200000
+    # (the significand 2e9 at exponent 4) computes 6e9 in UPPAAL's 32 bits
+    wide = source.replace("co' == dgoal / 800", "co' == dgoal * 3 / 100").replace("\n        exponent 2", "")
+    wide = wide.replace("real in [0, 500]", "real in [0, 200000]").replace("    priority sa > pr > co", "")
+    ra.write_text(wide.replace('"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"'), encoding="utf-8")
+    with pytest.raises(UppaalError, match=r"E0801: reward rate `co' == 0.03\*dgoal`.* 6000000000, beyond"):
+        generate_uppaal_model(compile_file(ra).raise_for_errors())

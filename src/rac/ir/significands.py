@@ -76,11 +76,14 @@ def unrepresentable(automaton: ir.Automaton, message: str, span: Span | None, no
 
 
 def rate_diagnostic(automaton: ir.Automaton, location: ir.Location, reward: str, rate: ir.Linear,
-                    values: Mapping[str, Sequence[int]] | None = None) -> Diagnostic | None:
+                    values: Mapping[str, Sequence[int]] | None = None,
+                    extremes: Mapping[str, Sequence[int]] | None = None) -> Diagnostic | None:
     """E0801 when the mirror of ``reward`` cannot follow ``rate`` in ``location``: its gain per sample
     is beyond the ``int32`` range, or not a whole number of significand units (``values``: the
     significands each numeric input takes, where the caller knows them; None checks the constant
-    part only). None when the rate is representable."""
+    part only). ``extremes``: significands an input may take (its bounds') at which only the products
+    the accrual computes must stay within int32, where no value is known. None when the rate is
+    representable."""
     base, exponent = representation(automaton)
     scale = base ** exponent
     period = Fraction(automaton.period)
@@ -99,7 +102,8 @@ def rate_diagnostic(automaton: ir.Automaton, location: ir.Location, reward: str,
     # The emitted accrual prints a term as `p*input / q` in int32 arithmetic: the product p * significand
     # is an intermediate value UPPAAL holds in 32 bits, even where the term itself fits.
     worst = None if bad else max(((abs(coef.numerator * v), coef, name, v) for coef, name in terms
-                                  for v in (values or {}).get(name, [])), default=None)
+                                  for v in [*(values or {}).get(name, []), *(extremes or {}).get(name, [])]),
+                                 default=None)
     if worst is not None and worst[0] > INT32_MAX:
         product, coef, name, v = worst
         divided = f" / {coef.denominator}" if coef.denominator != 1 else ""

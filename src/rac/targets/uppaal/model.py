@@ -46,6 +46,7 @@ from rac.targets.uppaal.declarations import DECIDE_EVERY, action_name, declared_
 from rac.targets.uppaal.expr import NotRepresentable, QueryError, double_literal
 from rac.targets.uppaal.layout import Ids, Location, Template, edge, environment
 from rac.targets.uppaal.query import ModelNames, UppaalPrinter, Vocabulary
+from rac.targets.uppaal.significands import NumericInput
 
 __all__ = ["generate_uppaal_model", "model_vocabulary"]
 
@@ -113,6 +114,12 @@ class _ModelGenerator(AutomatonGenerator):
         ]
         return Template(g["timer"], start.id, [start, wait, accrued, reading, deciding, ending, done], transitions,
                          declaration=f"clock {g['t']};", name_x=-300, name_y=-100)
+
+    def _inputs(self) -> list[NumericInput]:
+        """The numeric inputs, without the automaton-alone Environment's values: here the Controller
+        computes them (any significand), so a rate that reads one is checked as rac's engine checks
+        it (its constant part), not at the values of its pieces (E0801 for a file `rac verify` runs)."""
+        return self.numbers.inputs(self.n, self.array, self.select, chosen=False)
 
     def queries(self) -> tuple[iq.QueryDecl, ...]:
         """The file's queries, then the paper's standard ones (:mod:`rac.check.standard`)."""

@@ -81,9 +81,12 @@ class Significands:
         self.diagnostics.append(unrepresentable(self.a, message, self.span(span), notes, hints))
 
     # ------------------------------------------------------------ inputs
-    def inputs(self, names: Names, arrays: dict[str, str], selects: dict[str, str]) -> list[NumericInput]:
+    def inputs(self, names: Names, arrays: dict[str, str], selects: dict[str, str],
+               chosen: bool = True) -> list[NumericInput]:
         """The numeric inputs with the significands the Environment chooses from (``arrays`` and
-        ``selects``: the names of each input's value array and select variable)."""
+        ``selects``: the names of each input's value array and select variable). ``chosen=False``:
+        no Environment chooses them (the whole model's Controller computes them from the bindings),
+        so they have no values, and no piece of their ranges needs a significand."""
         # Imported here: InputSpace needs numpy, which `import rac.targets.uppaal.automaton` does not load.
         from rac.ir.inputs import InputSpace
 
@@ -92,7 +95,7 @@ class Significands:
         for item in self.a.numeric_inputs:
             values = []
             grid = self._grid(item.name)
-            for piece in space.pieces[item.name]:
+            for piece in space.pieces[item.name] if chosen else ():
                 value = self._representative(item, piece, grid)
                 if value is None:
                     break  # one diagnostic per input: its first unrepresentable piece
@@ -159,11 +162,15 @@ class Significands:
         """Per location and reward: (constant, [(coefficient, significand)]) that the mirror gains per sample."""
         period = Fraction(self.a.period)
         values = {i.source: i.values for i in inputs}
+        # the bounds, where no Environment chooses the values (the whole model): the accrual's products
+        # p*input must stay within int32 over the input's range there too
+        extremes = {i.name: [round(bound * self.scale) for bound in (i.low, i.high)]
+                    for i in self.a.numeric_inputs}
         result: list[list[Accrual | None]] = []
         for location in self.a.locations:
             row: list[Accrual | None] = []
             for reward, rate in zip(self.a.rewards, location.rates):
-                problem = rate_diagnostic(self.a, location, reward, rate, values)
+                problem = rate_diagnostic(self.a, location, reward, rate, values, extremes)
                 if problem is not None:
                     self.diagnostics.append(problem)
                     row.append(None)
