@@ -220,3 +220,18 @@ def test_the_naive_weighted_reward_pays_for_ending_early_and_its_fix_does_not() 
     text = (REPO / "examples" / "weighted" / "fixed.ra").read_text(encoding="utf-8")
     short = compile_text(text.replace("const COLLISION = 300", "const COLLISION = 288"), "short.ra")
     assert [d.code for d in short.diagnostics if d.is_error] == ["E1003"]
+
+
+@pytest.mark.parametrize("samples", ["2", "5"])
+def test_the_left_turn_model_holds_for_a_discounting_learner(samples: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """examples/left_turn/model.ra is what docs/python.md trains on: at its former 30 s horizon P2 failed
+    for gamma = 0.99 (the discounted objective reached 85.9 while unsafe, so RacCallback warned), and the
+    horizon ran 20 s past the scenario's 10 s of traffic and goal window (W0728). At 10 s it checks clean
+    and holds discounted, per step of a decision (2 samples) or of 5."""
+    path = str(REPO / "examples" / "left_turn" / "model.ra")
+    assert rac_main(["check", path]) == 0
+    out = capsys.readouterr()
+    assert f"{path}: ok\n" in out.out and "warning[" not in out.out + out.err, out.out + out.err
+    assert rac_main(["check", "--discount", "0.99", "--samples-per-step", samples, path]) == 0
+    out = capsys.readouterr()
+    assert "proved: P2 holds for `sa` under the discount (gamma = 0.99" in out.out, out.out + out.err

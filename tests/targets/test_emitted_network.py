@@ -871,8 +871,8 @@ def left_turn_source(folder: Path) -> Path:
     coarse = (f'scenario "{scenario}"\n'
               "        action jerk in [-2, 2] step 2\n"
               "        action turn in [-0.4, 0.4] step 0.4")
-    assert 'scenario "left_turn.xml"' in text and "horizon 30" in text
-    text = text.replace('scenario "left_turn.xml"', coarse).replace("horizon 30", "horizon 1")
+    assert 'scenario "left_turn.xml"' in text and "horizon 10 " in text
+    text = text.replace('scenario "left_turn.xml"', coarse).replace("horizon 10 ", "horizon 1 ")
     path = folder / "left_turn.ra"
     path.write_text(text, encoding="utf-8")
     return path
