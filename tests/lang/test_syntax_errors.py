@@ -212,3 +212,28 @@ def test_a_word_unlike_any_keyword_gets_no_guess(text: str) -> None:
     """No guess for a word far from every keyword, nor beside the hint showing a declaration's form."""
     diagnostic, _ = diagnose(text)
     assert not [h for h in diagnostic.hints if h.startswith("did you mean")], diagnostic.hints
+
+
+_TIMED = ("automaton A {\n    input d : real in [0, 50]\n    reward r\n    objective r\n    sample every 0.1\n"
+          "    horizon 30\n    initial location L { r' == 1 }\n    edge L -> L when d < 4 do r -= 1\n}\n")
+
+
+@pytest.mark.parametrize(("slip", "found"), [("horizon 30", "horizon 30s"), ("sample every 0.1", "sample every 100ms"),
+                                             ("in [0, 50]", "in [0, 50 m]")])
+def test_a_unit_after_a_number_is_named(slip: str, found: str) -> None:
+    # `horizon 30s` was "unexpected `s`, expected a declaration": the newcomer did not learn that numbers carry no unit
+    diagnostic, _ = diagnose(_TIMED.replace(slip, found))
+    assert diagnostic.code == "E0001"
+    assert any(hint.startswith("numbers carry no unit: times are in seconds") for hint in diagnostic.hints)
+
+
+@pytest.mark.parametrize("slip", ["edge L -> L do r -= 1 when d < 4", "at end do r += 5 when d < 4"])
+def test_a_guard_after_the_updates_is_named(slip: str) -> None:
+    diagnostic, _ = diagnose(_TIMED.replace("edge L -> L when d < 4 do r -= 1", slip))
+    assert diagnostic.message == "unexpected `when`"
+    assert any(hint.startswith("the guard comes before the updates") for hint in diagnostic.hints)
+
+
+def test_no_unit_hint_for_a_name_on_the_next_line() -> None:
+    diagnostic, _ = diagnose(_TIMED.replace("    horizon 30\n", "    horizon 30\n    s\n"))
+    assert not any(hint.startswith("numbers carry no unit") for hint in diagnostic.hints)

@@ -166,6 +166,14 @@ def _misspelt_keyword(found: str, expected: set[str]) -> str | None:
     return close[0] if close else None
 
 
+#: Units a newcomer writes after a number (`horizon 30s`, `sample every 100ms`, `in [0, 50 m]`): numbers carry none.
+_UNITS = {"s", "sec", "secs", "second", "seconds", "ms", "min", "h", "hz", "m", "km", "kmh", "mps", "kph"}
+#: A number at the end of the text before the unexpected token (the unit's number).
+_NUMBER_BEFORE = re.compile(r"(?<![A-Za-z_0-9.])[0-9]+(?:\.[0-9]+)?(?:[eE][-+]?[0-9]+)?[ \t]*$")
+#: A declaration's `do` before the unexpected token, on the same line: `at end do r += 1 when g`.
+_DO_BEFORE = re.compile(r"\bdo\b[^\n]*$")
+
+
 def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: str = "", after: str = "") -> list[str]:
     """Hints for the usual slips; ``before`` is the text before the unexpected token, ``after`` the text from
     it on, ``found_type`` its terminal."""
@@ -195,6 +203,12 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
     if found == ";":  # UPPAAL's declarations end in `;`, rac's do not (a `}` may follow either way)
         hints.append("declarations need no `;` at their end: `;` only separates the flows of a location "
                      "(and a query's bound from its number of runs)")
+    if found.lower() in _UNITS and _NUMBER_BEFORE.search(before):
+        hints.append("numbers carry no unit: times are in seconds (`horizon 30`, `sample every 0.1` for 100 ms), "
+                     "distances in metres, speeds in m/s")
+    if found == "when" and _DO_BEFORE.search(before):
+        hints.append("the guard comes before the updates: `edge A -> B when GUARD do UPDATE, ...`, "
+                     "`at end when GUARD do UPDATE, ...`")
     keyword = None if form else _misspelt_keyword(found, expected)  # the form shows the word already
     if keyword is not None:
         hints.append(f"did you mean `{keyword}`?")
