@@ -799,3 +799,19 @@ def test_an_int_input_bound_to_a_whole_number_does_not_warn() -> None:
     assert "W0726" not in codes(int_bound("time", sample="1"))
     # a real input bound to the same number is what the hint asks for
     assert "W0726" not in codes(int_bound("v").replace("input n : int", "input n : real"))
+
+
+@pytest.mark.parametrize(("guard", "code", "said"), [
+    ("isClose && time > 3", "E0101", "`time`"), ("isClose && v > 3", "E0101", "`v`"),
+    ("mindist() < 3", "E0103", "`mindist()`")])
+def test_the_model_in_a_guard_says_to_read_it_through_an_input(guard: str, code: str, said: str) -> None:
+    """`time`, the ego state and the model's functions exist in queries and bindings; in a guard a
+    newcomer got "unknown name `time`" with no hint, and for `mindist()` "function calls are allowed in
+    queries only", which hid the binding that does it."""
+    text = DRIVING.replace("edge * -> Unsafe        when isClose ", f"edge * -> Unsafe        when {guard} ")
+    assert text != DRIVING
+    found = [d for d in compile_text(text, "t.ra").diagnostics if d.code == code]
+    assert len(found) == 1, found
+    assert list(found[0].hints) == [f"the automaton reads only its inputs: declare an input, compute it from {said} "
+                                    "with a binding of the `model` block (`bind INPUT = ...`) or in your environment, "
+                                    "and read the input here"]

@@ -19,6 +19,7 @@ from typing import ClassVar, NoReturn
 from rac import ir
 from rac.check.queries import type_word
 from rac.check.symbols import Scope, Unresolvable
+from rac.ir.vocabulary import MODEL_FUNCTIONS, MODEL_NAMES
 from rac.lang import ast
 from rac.lang.parser import MAX_EXACT_DIGITS, MAX_MAGNITUDE, MIN_MAGNITUDE
 
@@ -88,7 +89,8 @@ class ExpressionTyper:
             return self._binary(node, ctx)
         if isinstance(node, ast.Call):
             self.scope.error("E0103", f"`{node.func}(...)` is not available in {ctx.what}", node.span,
-                             hints=["function calls are allowed in queries only"])
+                             hints=[_read_through_an_input(f"`{node.func}()`" if node.func in MODEL_FUNCTIONS
+                                                           else f"`{node.func}(...)`")])
             raise Unresolvable
         self.scope.error("E0103", f"`{node.scope}.{node.id}` is not available in {ctx.what}", node.span,
                          hints=["qualified names are allowed in queries only"])
@@ -117,6 +119,10 @@ class ExpressionTyper:
 
     def _name(self, node: ast.Name, ctx: Context) -> Typed:
         symbol = self.scope.symbols.get(node.id)
+        if symbol is None and node.id in MODEL_NAMES:  # `time`, `v`, `max_speed`: the scenario model's
+            self.scope.error("E0101", f"unknown name `{node.id}`", node.span,
+                             hints=[_read_through_an_input(f"`{node.id}`")])
+            raise Unresolvable
         if symbol is None:
             self.scope.unknown(node.id, node.span)
             raise Unresolvable
@@ -274,6 +280,13 @@ def _about(value: Fraction) -> str:
     if mantissa >= 10:  # log10's rounding put an exact power of ten below it: 1.0e-600, not 10.0e-601
         mantissa, whole = mantissa / 10, whole + 1
     return f"{'-' if value < 0 else ''}{mantissa:.1f}e{whole}"
+
+
+def _read_through_an_input(what: str) -> str:
+    """The hint for the scenario model's vocabulary or a function in a guard, rate or update: a newcomer
+    writes `time > 3` or `mindist() < 3` there, and only queries and bindings read the model."""
+    return (f"the automaton reads only its inputs: declare an input, compute it from {what} with a binding of "
+            "the `model` block (`bind INPUT = ...`) or in your environment, and read the input here")
 
 
 def _not(guard: ir.Guard) -> ir.Guard:
