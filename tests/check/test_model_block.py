@@ -815,3 +815,19 @@ def test_the_model_in_a_guard_says_to_read_it_through_an_input(guard: str, code:
     assert list(found[0].hints) == [f"the automaton reads only its inputs: declare an input, compute it from {said} "
                                     "with a binding of the `model` block (`bind INPUT = ...`) or in your environment, "
                                     "and read the input here"]
+
+
+@pytest.mark.parametrize(("where", "old", "new", "name"), [
+    ("binding", "bind isClose = mindist() <", "bind isClose = mindist <", "mindist"),
+    ("query", "query Qe: A[] isClose imply Unsafe", "query Qe: A[] dist_goal > 1", "dist_goal")])
+def test_a_function_without_its_parentheses_is_named(where: str, old: str, new: str, name: str,
+                                                     scenario_folder: Path) -> None:
+    """`bind near = mindist < 3` said "unknown name `mindist`" and listed the ego state and settings:
+    the function was right there, only its `()` missing."""
+    source = (REPO / "examples" / "left_turn" / "model.ra").read_text(encoding="utf-8")
+    assert old in source
+    path = scenario_folder / f"parentheses_{where}.ra"
+    path.write_text(source.replace(old, new), encoding="utf-8")
+    found = [d for d in compile_file(path).diagnostics if d.code == "E0101"]
+    assert len(found) == 1, found
+    assert list(found[0].hints) == [f"`{name}` is a function: write `{name}()`"]

@@ -53,6 +53,12 @@ VOCABULARY_HINT = ("a binding reads the scenario model: its functions, the ego s
                    + ", ".join(f"`{name}`" for name in EGO_STATE) + "), `time`, the model's settings and constants")
 
 
+def _call_it(name: str) -> str | None:
+    """The hint for a function named without its parentheses (`bind near = mindist < 3`), or None."""
+    function = MODEL_FUNCTIONS.get(name) or MATH_FUNCTIONS.get(name)
+    return None if function is None else f"`{name}` is a function: write `{function.signature}`"
+
+
 def type_word(kind: str) -> str:
     return "a boolean" if kind == "bool" else "a number"
 
@@ -176,6 +182,9 @@ class Lowering:
             return "bool", ie.Ref(ie.RefKind.DEADLOCK, "deadlock", "bool", span=node.span)
         if self.s.has_model and node.id in MODEL_NAMES:
             return self._model_name(node.id, node.span)
+        if (call := _call_it(node.id)) is not None:  # `A[] mindist > 3`
+            self.s.error("E0101", f"unknown name `{node.id}`", node.span, hints=[call])
+            return None, None
         self.s.unknown(node.id, node.span)
         return None, None
 
@@ -198,7 +207,7 @@ class Lowering:
         known = [*EGO_STATE, "time", *SETTINGS, *(n for n, s in self.s.symbols.items() if s.kind == "const")]
         close = difflib.get_close_matches(name, known, n=1)
         self.report("E0101", f"unknown name `{name}`", node.span,
-                    hints=[f"did you mean `{close[0]}`?" if close else VOCABULARY_HINT])
+                    hints=[_call_it(name) or (f"did you mean `{close[0]}`?" if close else VOCABULARY_HINT)])
         return None, None
 
     def _qualified(self, node: ast.Qualified) -> Lowered:
