@@ -6,6 +6,7 @@ import re
 from fractions import Fraction
 from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -307,3 +308,23 @@ automaton P {
     for value, ok in ((limit - Fraction(1, 10**4), True), (limit, False)):
         constant = text.replace("param B in [0, 300000]", f"const B = {value.numerator}/{value.denominator}")
         assert compile_text(constant, "p.ra").ok is ok
+
+
+@pytest.mark.parametrize("declaration", ["const B = 2", "param B in [1, 5]"])
+def test_a_constant_used_above_its_declaration_says_where_it_is(declaration: str) -> None:
+    """`const A = B + 1` above `const B = 2` said "unknown name `B`" and nothing else: a newcomer who
+    sees `B` declared three lines down does not learn that the order matters."""
+    text = ("automaton A {\n    input d : real in [0, 10]\n    const A2 = B + 1\n    " + declaration + "\n"
+            "    reward r\n    objective r\n    sample every 1\n    horizon 5\n"
+            "    initial location L { r' == d / A2 }\n}\n")
+    found = [d for d in compile_text(text, "t.ra").diagnostics if d.code == "E0101"]
+    assert len(found) == 1 and found[0].message == "unknown name `B`", found
+    assert [(n.message, n.span.line if n.span else None) for n in found[0].notes] == [("`B` is declared below", 4)]
+    assert list(found[0].hints) == ["a constant may use only the constants declared above it: move this "
+                                    "declaration below `B`'s"]
+    # below it, the same constant is known, and an unknown name elsewhere gets no such note
+    moved = text.replace("    const A2 = B + 1\n", "").replace("reward r\n", "const A2 = B + 1\n    reward r\n")
+    fine = compile_text(moved, "t.ra")
+    assert not [d for d in fine.diagnostics if d.code == "E0101"], fine.diagnostics
+    other = compile_text(moved.replace("r' == d / A2", "r' == d / C"), "t.ra")
+    assert [n.message for d in other.diagnostics if d.code == "E0101" for n in d.notes] == []

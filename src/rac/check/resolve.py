@@ -198,7 +198,24 @@ class Resolver:
         return found
 
     def _declare_all(self) -> None:
+        below = self.scope.declared_below
         for member in self.node.members:
+            names = [member.name] if isinstance(member, ast.ConstDecl) else \
+                member.names if isinstance(member, ast.ParamDecl) else []
+            below.update((name.name, name.span) for name in names if name.name not in below)
+        try:
+            self._declare_in_order()
+        finally:
+            below.clear()
+
+    def _declare_in_order(self) -> None:
+        below = self.scope.declared_below
+        for member in self.node.members:
+            if isinstance(member, ast.ConstDecl):
+                below.pop(member.name.name, None)
+            elif isinstance(member, ast.ParamDecl):
+                for name in member.names:
+                    below.pop(name.name, None)
             if isinstance(member, ast.InputDecl):
                 kind = "bool" if isinstance(member.type, ast.BoolType) else "num"
                 for ident in member.names:

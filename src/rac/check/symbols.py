@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
 
-from rac.core.diagnostics import Diagnostic, RacError, error
+from rac.core.diagnostics import Diagnostic, Note, RacError, error
 from rac.core.source import Span
 from rac.lang import ast
 
@@ -50,11 +50,20 @@ class Scope:
     default_span: Span | None
     settings: dict[str, Fraction] | None = None
     diagnostics: list[Diagnostic] = field(default_factory=list)
+    #: While the constants are evaluated in order: those declared further down, where (a constant may
+    #: use only the ones above it, and "unknown name" alone did not say that the name exists).
+    declared_below: dict[str, Span | None] = field(default_factory=dict)
 
     def error(self, code: str, message: str, span: Span | None, **kw) -> None:
         self.diagnostics.append(error(code, message, span or self.default_span, **kw))
 
     def unknown(self, name: str, span: Span | None, what: str = "name") -> None:
+        if name in self.declared_below:
+            below = Note(f"`{name}` is declared below", self.declared_below[name])
+            self.error("E0101", f"unknown {what} `{name}`", span, notes=[below],
+                       hints=["a constant may use only the constants declared above it: move this declaration "
+                              f"below `{name}`'s"])
+            return
         candidates = difflib.get_close_matches(name, list(self.symbols), n=1)
         hints = [f"did you mean `{candidates[0]}`?"] if candidates else []
         self.error("E0101", f"unknown {what} `{name}`", span, hints=hints)
