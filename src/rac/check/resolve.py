@@ -177,6 +177,15 @@ class Resolver:
         spans.update(self.model_spans)
         return spans
 
+    def _objective_example(self) -> str:
+        """An objective over the file's own rewards, the first weighted most (`sa`, `pr`, `co` of the
+        paper's automaton named rewards that a file of `safe, fast` does not have)."""
+        names = [ident.name for member in self.node.of(ast.RewardDecl) for ident in member.names]
+        if not names:
+            return "objective 10 * sa + 5 * pr + co"
+        terms = [f"{10 ** (len(names) - 1 - k)} * {name}" for k, name in enumerate(names[:-1])]
+        return "objective " + " + ".join([*terms, names[-1]])
+
     def _singletons(self) -> dict[type, ast.Member]:
         words = {ast.SampleDecl: "sample every", ast.HorizonDecl: "horizon",
                  ast.ObjectiveDecl: "objective", ast.PriorityDecl: "priority",
@@ -192,7 +201,7 @@ class Resolver:
                 found[kind] = members[0]
             elif kind not in _OPTIONAL:
                 example = {"sample every": "sample every 0.1", "horizon": "horizon 30",
-                           "objective": "objective 10 * sa + 5 * pr + co"}[word]
+                           "objective": self._objective_example()}[word]
                 self._error("E0105", f"automaton `{self.node.name.name}` has no `{word}` declaration",
                             self.node.name.span, hints=[f"add e.g. `{example}`"])
         return found
