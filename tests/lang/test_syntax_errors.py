@@ -237,3 +237,21 @@ def test_a_guard_after_the_updates_is_named(slip: str) -> None:
 def test_no_unit_hint_for_a_name_on_the_next_line() -> None:
     diagnostic, _ = diagnose(_TIMED.replace("    horizon 30\n", "    horizon 30\n    s\n"))
     assert not any(hint.startswith("numbers carry no unit") for hint in diagnostic.hints)
+
+
+@pytest.mark.parametrize(("old", "new", "hint"), [
+    ("edge L -> L", "edge L => L", "an edge's arrow is `->`: `edge A -> B`"),
+    ("when d < 4", "when d = 4", "equality is written `==`: `d == ...` (`=` assigns a reward after `do`)"),
+    ("objective r", "objective 10r", "a product is written with `*`: `10 * r`")])
+def test_a_first_files_slips_get_their_own_hint(old: str, new: str, hint: str) -> None:
+    """`edge A => B` was told that implication is written `imply`; `when d = 4` and `objective 10r` got
+    no hint at all."""
+    diagnostic, _ = diagnose(_TIMED.replace(old, new))
+    assert diagnostic.code == "E0001"
+    assert hint in diagnostic.hints
+    assert not any("imply" in h for h in diagnostic.hints)
+
+
+def test_logics_arrow_in_a_query_still_says_imply() -> None:
+    diagnostic, _ = diagnose(_TIMED.removesuffix("}\n") + "    query Q: A[] d > 1 => L\n}\n")
+    assert "implication is written `imply`: `a imply b` (or `!a || b`)" in diagnostic.hints

@@ -180,9 +180,15 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
     hints = []
     # `a => b`, `a ==> b`, `a -> b` (logic's and other languages' arrows; `->` is only an edge's): the lexer
     # reads `=` then `>`, `==` then `>`, or `-` then `>`
-    if (found == "=" and after.startswith("=>")) or (found == ">" and before.endswith(("-", "=="))):
-        hints.append("implication is written `imply`: `a imply b` (or `!a || b`)")
     words = {_describe_terminal(t) for t in expected}
+    if found == "=" and after.startswith("=>") and "`->`" in words:  # `edge A => B`: the arrow, not logic's
+        hints.append("an edge's arrow is `->`: `edge A -> B`")
+    elif (found == "=" and after.startswith("=>")) or (found == ">" and before.endswith(("-", "=="))):
+        hints.append("implication is written `imply`: `a imply b` (or `!a || b`)")
+    elif found == "=" and "CMP_OP" in expected:  # `when gap = 5`
+        operand = re.search(r"([A-Za-z_][A-Za-z0-9_]*)\s*$", before)
+        hints.append(f"equality is written `==`: `{operand.group(1) if operand else 'a'} == ...` "
+                     "(`=` assigns a reward after `do`)")
     previous = before.split()[-1] if before.split() else ""
     form = previous in _DECLARATION_FORMS and bool(words & {"`when`", "`ends`"})
     if form:
@@ -206,6 +212,8 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
     if found.lower() in _UNITS and _NUMBER_BEFORE.search(before):
         hints.append("numbers carry no unit: times are in seconds (`horizon 30`, `sample every 0.1` for 100 ms), "
                      "distances in metres, speeds in m/s")
+    elif found_type == "NAME" and (number := _NUMBER_BEFORE.search(before)):  # `objective 10sa + pr`
+        hints.append(f"a product is written with `*`: `{number.group(0).strip()} * {found}`")
     if found == "when" and _DO_BEFORE.search(before):
         hints.append("the guard comes before the updates: `edge A -> B when GUARD do UPDATE, ...`, "
                      "`at end when GUARD do UPDATE, ...`")
