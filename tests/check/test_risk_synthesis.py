@@ -114,3 +114,35 @@ def test_a_parameter_of_one_value_may_be_the_bound_of_the_requirement():
     one = compile_text(driving.replace("BOUND", "param B in [0.5, 0.5]"), "driving.ra")
     assert constant.ok and one.ok, [d.message for d in one.diagnostics]
     assert one.proved[1:] == constant.proved
+
+
+def test_the_checks_shown_under_E0406_are_at_a_value_the_significands_hold() -> None:
+    # no PENALTY meets `require risk <= 0.001`; the checks shown were at 82/3, P2's least, and added E0801 (the
+    # UPPAAL update `(3*safe - 820000) / 3` leaves int32): an error of rac's choice, at no value a user could
+    # write; they are shown at 27.3334, the least above it that the significands hold
+    text = """\
+automaton Follow {
+    input headway : real in [0, 10]
+    input speed   : real in [0, 40]
+    input collide : bool
+    assume collide imply headway < 1
+    param PENALTY in [0, 2000]
+    reward safe, prog, comfort
+    priority safe > prog > comfort
+    objective 10 * safe + 2 * prog + comfort
+    sample every 0.1
+    horizon 20
+    initial location Following { safe' == 1; prog' == speed / 30; comfort' == 1 }
+    location Close             { safe' == -1 }
+    location Crashed           { safe' == -5 }
+    edge * -> Close when headway < 2 && !collide do safe -= PENALTY
+    edge * -> Crashed when collide do safe -= 1000
+    edge Close -> Following when headway >= 2
+    goal when speed > 25
+    collision when collide
+    require risk <= 0.001
+}
+"""
+    result = compile_text(text)
+    assert [d.code for d in result.diagnostics if d.is_error] == ["E0406", "E1001"]
+    assert any("the checks at PENALTY = 27.3334 follow" in str(n) for n in result.diagnostics[0].notes)

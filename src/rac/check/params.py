@@ -176,6 +176,13 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
         # the value whose checks show why: the least the requirements allow (its end is open), else
         # the synthesis' own witness
         shown = allowed[0].low if allowed else result.witness
+        # a value the significands hold exactly when one is as near: the checks at 82/3 showed E0801 (its
+        # denominator in the UPPAAL update), an error of rac's choice of value, not of any the user could write
+        if allowed:
+            shown, _ = _held_exactly(resolve, name, shown, allowed[0])
+        elif not result.empty and result.low is not None and result.high is not None:
+            shown, _ = _held_exactly(resolve, name, shown, Interval(result.low.value, result.high.value,
+                                                                    result.low.open, result.high.open))
         witness = resolve(shown)
         assert witness is not None
         failing = [d for d in analyse_automaton(witness, []) if d.is_error]
@@ -187,7 +194,7 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
         else:
             what = ("no value" if result.empty else
                     f"no least value (the values that pass form {result.interval()})")
-            notes = [*result.cuts, f"the checks at {name} = {short_number(result.witness)} follow"]
+            notes = [*result.cuts, f"the checks at {name} = {short_number(shown)} follow"]
         return None, [error("E0406", f"{what} of parameter `{name}` in [{short_number(parameter.low)}, "
                             f"{short_number(parameter.high)}] passes every check", parameter.span,
                             notes=notes,
