@@ -60,11 +60,13 @@ def table(tiny: CompileResult) -> ShieldTable:
 
 def checked(env: gymnasium.Env) -> list[str]:
     """check_env's warnings, except the one that only says the env was not made with gymnasium.make, and
-    the one of its random actions, which a shield's mask may not allow (true, and tested on its own)."""
+    those of its random actions, which a shield's mask may not allow, and of the states they lead to, which
+    a shield may not cover (true, and tested on their own)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(env)
-    return [str(w.message) for w in caught if "spec" not in str(w.message) and "not in the mask" not in str(w.message)]
+    return [str(w.message) for w in caught if not any(part in str(w.message) for part in (
+        "spec", "not in the mask", "no action was known to be safe"))]
 
 
 # ---------------------------------------------------------------- the gymnasium API
@@ -258,6 +260,28 @@ def test_unseen_states_without_a_runtime_shield(tiny: CompileResult, unseen: str
     assert info["shield"] == "none" and info["no_safe_action"] and info["shield_until"] == pytest.approx(1.0)
     assert env.episodes.k[0] == 4 and env.no_safe_action_steps == 1
     assert env.shield_steps == {"exhaustive": 1, "none": 1}
+
+
+def test_a_mask_past_the_tables_horizon_without_a_runtime_shield_is_warned_of_once(tiny: CompileResult) -> None:
+    # a table for the first second of a 4 s episode, lookahead=None: from 1 s on every mask allowed every action,
+    # and only info['no_safe_action'] said so, which an evaluation loop or SB3's rollout never reads
+    env = ScenarioEnv(tiny, shield=shield_table(tiny, 2, "none"), lookahead=None)
+    for episode in range(2):
+        env.reset()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            done = False
+            while not done:
+                _, _, terminated, truncated, _ = env.step(int(np.flatnonzero(env.action_masks())[0]))
+                done = terminated or truncated
+        said = [str(w.message) for w in caught if "no action was known to be safe" in str(w.message)]
+        if episode == 0:
+            assert len(said) == 1, said
+            assert "t = 1 s" in said[0] and "past the shield table's horizon" in said[0], said
+            assert "lookahead=None" in said[0] and "no_safe_action" in said[0], said
+        else:
+            assert not said  # once
+    assert env.no_safe_action_steps == 6 == env.shield_steps["none"]
 
 
 def test_past_the_exhaustive_horizon_the_masks_are_the_runtime_shields(tiny: CompileResult) -> None:

@@ -108,13 +108,15 @@ def run(code: str) -> subprocess.CompletedProcess[str]:
 
 
 def checked(env: Any) -> list[str]:
-    """check_env's warnings, except those about wrappers and specs (check_env asks for the raw env) and the one
-    of its random actions, which a shield's mask may not allow (true, and tested on its own)."""
+    """check_env's warnings, except those about wrappers and specs (check_env asks for the raw env) and those
+    of its random actions, which a shield's mask may not allow, and of the states they lead to, which a shield may
+    not cover (true, and tested on their own)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(env)
     return [str(w.message) for w in caught if not any(part in str(w.message)
-                                                      for part in ("unwrapped", "spec", "not in the mask"))]
+                                                      for part in ("unwrapped", "spec", "not in the mask",
+                                                                   "no action was known to be safe"))]
 
 
 # ---------------------------------------------------------------- registration
@@ -245,6 +247,28 @@ def test_actions_outside_the_masks_are_warned_of_once_and_counted_by_both(files:
             envs.step(actions)
         assert not [w for w in caught if "not in the mask" in str(w.message)]  # said once
         assert envs.outside_mask_steps == 4  # type: ignore[attr-defined]
+
+
+def test_masks_with_no_guarantee_are_warned_of_once_by_both(files: dict[str, Path], tiny: CompileResult) -> None:
+    # a table for the first second of 4 s episodes and no runtime shield: past it every row of the masks allowed
+    # every action, and only info['no_safe_action'] (gathered away by the training loop) said so
+    data = tiny.model_data
+    assert data is not None
+    short = shield_file.table(safety_shield(explore(data, horizon_samples=2, prune_unsafe=True), "safe"),
+                              n_actions=EpisodeBatch(tiny).n_actions)
+    for sync in (False, True):
+        envs = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["avoidable_obstacle"], shield=short,
+                                  lookahead=None, render_mode="ansi" if sync else None)
+        envs.reset(seed=0)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for _ in range(4):
+                masks = envs.action_masks()  # type: ignore[attr-defined]
+                envs.step(np.array([int(np.flatnonzero(row)[0]) for row in masks]))
+        said = [str(w.message) for w in caught if "no action was known to be safe" in str(w.message)]
+        # SyncVectorEnv: each ScenarioEnv says it once
+        assert len(said) == (2 if sync else 1) and "past the shield table's horizon" in said[0], said
+        assert envs.no_safe_action_steps == 6  # type: ignore[attr-defined]
 
 
 def test_masks_reach_through_stock_vector_wrappers(files: dict[str, Path], table: ShieldTable) -> None:

@@ -52,7 +52,7 @@ from rac.model.checks import goal_window
 from rac.model.sample import MOTION
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Callable, Sequence
 
     from rac.compiler import CompileResult
     from rac.engine.lookahead import LookaheadSettings
@@ -204,6 +204,37 @@ def outside_mask_warning(action: int, time: float, guarantee: str) -> str:
             "outside_mask_steps counts them")
 
 
+def no_safe_action_warning(step_shield: StepShield | None, state: np.ndarray, crashed: bool, timed_out: bool,
+                           seconds: Callable[[int], float]) -> str:
+    """The warning of the first step whose mask carried no guarantee (``info["no_safe_action"]``): the
+    state ``state`` (``k, x, y, v, acc, head, jerk, turn``; ``crashed``: a collision happened before
+    it; ``timed_out``: the runtime shield's search ran out of its budget), why ``step_shield`` knew no
+    safe action there (None: a table with ``unseen="error"`` raised), and what the mask was instead
+    (``seconds``: a sample's time)."""
+    k = int(state[0])
+    table = step_shield.table if step_shield is not None else None
+    runtime = step_shield.runtime if step_shield is not None else None
+    if step_shield is None:
+        why = "the shield table (unseen='error') has no entry for it"
+    elif crashed and step_shield.data.sticky:
+        why = "the run collided earlier (`collision sticky`): no continuation of it is safe"
+    elif runtime is not None:
+        why = (f"the runtime shield (depth {runtime.settings.depth}) found no action that stays safe for even one "
+               "decision" + ("; its search ran out of its budget first" if timed_out else ""))
+    elif table is not None and table.horizon is not None and k >= table.horizon:
+        why = (f"it lies past the shield table's horizon, t = {seconds(table.horizon):g} s (the episodes run to "
+               f"{seconds(step_shield.horizon):g} s), and there is no runtime shield (lookahead=None) to take over "
+               "there: give the environment a lookahead, or a table computed to the episodes' horizon")
+    elif table is not None and not table.knows(state):
+        why = ("the shield table has not seen this state (it holds the states runs under its masks reach) and there "
+               "is no runtime shield (lookahead=None) to take over")
+    else:
+        why = "the shield allows no action here (no run from this state stays safe to its horizon)"
+    return (f"no action was known to be safe at t = {seconds(k):g} s: {why}. The mask there allowed every action of "
+            "the model (an all-False mask would not stop a masked learner), so no guarantee covers such steps; "
+            "info['no_safe_action'] marks them (info['shield'] == 'none'), no_safe_action_steps counts them")
+
+
 #: The keys of ``reset(options=...)`` that :class:`ScenarioEnv` reads (``reset_mask``: gymnasium's vector
 #: environments' own, which they may pass on); another is warned of once.
 RESET_OPTIONS = frozenset({"scenario", "reset_mask"})
@@ -270,12 +301,13 @@ class ScenarioEnv(gymnasium.Env):
     runtime shield's budget ran out: the mask was sound for its depth but may have allowed fewer
     actions), ``shield_clock`` (of those, the time limit stopped the search, not the node budget:
     the mask depended on the machine's speed and load; warned once), ``no_safe_action`` (the shield knew no safe
-    action: the mask allowed every action of the model), ``shield_allowed`` (the action taken
-    was in the mask) and ``model_allowed`` (the action taken was one the model's ``allow when``
-    permits: a learner that ignores the masks can take another, and that step is no step of the
-    model, which no proof covers). Counted since construction: :attr:`shield_steps` (steps per
-    ``shield`` value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`, :attr:`clock_steps`,
-    :attr:`disallowed_steps`, :attr:`outside_mask_steps` (``shield_allowed`` False; the first is warned of).
+    action: the mask allowed every action of the model; the first is warned of, saying why),
+    ``shield_allowed`` (the action taken was in the mask) and ``model_allowed`` (the action taken was
+    one the model's ``allow when`` permits: a learner that ignores the masks can take another, and
+    that step is no step of the model, which no proof covers). Counted since construction:
+    :attr:`shield_steps` (steps per ``shield`` value), :attr:`no_safe_action_steps`, :attr:`timeout_steps`,
+    :attr:`clock_steps`, :attr:`disallowed_steps`, :attr:`outside_mask_steps` (``shield_allowed`` False;
+    the first is warned of).
 
     The runtime shield's default budget is a number of search nodes
     (:class:`rac.engine.lookahead.LookaheadSettings`), so the masks, and a masked learner's run at a
@@ -624,6 +656,12 @@ class ScenarioEnv(gymnasium.Env):
         except UnseenState:  # unseen="error" raises from action_masks(); the step itself goes on
             decision, unseen = None, True
         model_allowed = bool(self.episodes.model_masks()[0][int(action)])
+        lapsed = unseen if decision is None else decision.no_safe_action
+        if lapsed and not self.no_safe_action_steps:  # an all-True mask said nothing else; said of the state left
+            warnings.warn(no_safe_action_warning(self._step_shield if decision is not None else None,
+                                                 self.episodes.state_keys()[0], self._crashed,
+                                                 decision is not None and decision.timed_out, self._seconds),
+                          UserWarning, stacklevel=2)
         before = self.episodes.rewards
         out = self.episodes.step(np.array([int(action)]))
         # terminated: the goal, or the automaton's `episode ends when` (its end clauses already applied)

@@ -41,7 +41,7 @@ from rac.core.diagnostics import RacValueError
 from rac.core.numbers import seconds_at
 from rac.ir import expr as ie
 from rac.lang import ast
-from rac.learning.scenario_env import ScenarioEnv, clock_warning, outside_mask_warning
+from rac.learning.scenario_env import ScenarioEnv, clock_warning, no_safe_action_warning, outside_mask_warning
 from rac.learning.wrappers import Scale, within_proven
 
 if TYPE_CHECKING:
@@ -306,12 +306,14 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         model = self.episodes.model_masks()
         flags["model_allowed"][rows] = model[rows, actions[rows]]
         flags["shield_allowed"][rows] = flags["model_allowed"][rows]  # no shield: the mask was the model's
+        unseen: set[int] = set()  # rows whose table (unseen="error") has no entry for their state
         if self._step_shield is not None:
             for row in rows.tolist():
                 try:
                     decision = self._decision(row)
                 except UnseenState:  # unseen="error" raises from action_masks(); the step itself goes on
                     flags["no_safe_action"][row] = True
+                    unseen.add(row)
                     continue
                 kind[row] = decision.guarantee
                 until[row] = seconds_at(int(decision.until), self._period)
@@ -321,7 +323,15 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                 flags["no_safe_action"][row] = decision.no_safe_action
                 flags["shield_allowed"][row] = bool(decision.mask[int(actions[row])])
         self.shield_steps.update(kind[stepping].tolist())
-        self.no_safe_action_steps += int(flags["no_safe_action"].sum())
+        lapsed = flags["no_safe_action"]
+        if lapsed.any() and not self.no_safe_action_steps:  # as ScenarioEnv: an all-True mask says nothing else
+            first = int(np.flatnonzero(lapsed)[0])
+            warnings.warn(no_safe_action_warning(None if first in unseen else self._step_shield,
+                                                 self.episodes.state_keys()[first], bool(self._crashed[first]),
+                                                 bool(flags["shield_timeout"][first]),
+                                                 lambda k: float(seconds_at(k, self._period))),
+                          UserWarning, stacklevel=3)
+        self.no_safe_action_steps += int(lapsed.sum())
         self.timeout_steps += int(flags["shield_timeout"].sum())
         clocked = int(flags["shield_clock"].sum())
         if clocked and not self.clock_steps:  # never silently: the node budget promises reproducible runs
