@@ -155,3 +155,18 @@ def test_the_step_shields_table_gives_way_within_the_machines_memory(tmp_path: P
     small = shields.step_shield(data, result.automaton.steps, lookahead=runtime)
     assert small.table is None and "memory budget of 4 kB" in (small.reason or ""), small.reason
     assert shields.step_shield(data, result.automaton.steps, lookahead=runtime, max_bytes=None).table is not None
+
+
+@pytest.mark.parametrize("state", [[1], [1, 10, 0], np.array([1.0, 10.5]), np.zeros((1, 1, 2))])
+def test_a_row_that_is_no_state_of_the_table_is_refused(tmp_path: Path, state: object) -> None:
+    # an observation (29 floats, or the "ego" observation's 8 in metres) or the ego's 7 columns without k was
+    # looked up as an unseen state: an empty mask (or all True under unseen="all"), with no word
+    path = shields.save(safety_shield(layered_graph(), "safe"), tmp_path / "s.npz")
+    for table in (shields.load(path), shields.load(path, unseen="all")):
+        with pytest.raises(ValueError, match=r"a row of 2 integers \(k, x"):
+            table.mask(state)
+        with pytest.raises(ValueError, match="state_keys"):
+            table.masks_for(np.array(state, ndmin=2))
+    table = shields.load(path)
+    assert table.mask(np.array([1.0, 10.0])).tolist() == [True, False, False]  # whole floats are significands too
+    assert table.masks_for(np.zeros((0, 2), dtype=np.int32)).shape == (0, 3)

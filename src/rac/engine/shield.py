@@ -97,8 +97,21 @@ class ShieldTable:
         return int(self.masks.shape[1])
 
     def _keys(self, rows: np.ndarray) -> np.ndarray:
-        """``rows`` ``(n, d)`` as the table keys them (see :attr:`forget_every`)."""
-        rows = np.array(rows, dtype=np.int32, ndmin=2)
+        """``rows`` ``(n, d)`` as the table keys them (see :attr:`forget_every`). A row that cannot be a
+        state of the table — another width, or values that are no whole numbers (an observation in
+        metres and seconds) — is a :class:`~rac.core.diagnostics.RacValueError`: looked up as it is, it
+        would be an unseen state, whose mask (empty, or every action) says nothing of the shield."""
+        given = np.asarray(rows)
+        width = given.shape[-1] if given.ndim else 1
+        if given.ndim > 2 or width != len(self.columns) or (
+                np.issubdtype(given.dtype, np.floating) and not np.all(np.mod(given, 1) == 0)):
+            got = (f"{width} values" if width != len(self.columns) or given.ndim > 2
+                   else "values that are not whole numbers")
+            raise RacValueError(f"a state of this shield is a row of {len(self.columns)} integers "
+                                f"({', '.join(self.columns)}: the model's significands, as "
+                                f"rac.learning.episodes.EpisodeBatch.state_keys() gives them; a ScenarioEnv's "
+                                f"env.episodes.state_keys()[0]), not {got}: an observation is no shield state")
+        rows = np.array(given, dtype=np.int32, ndmin=2)
         if self.forget_every > 0 and "k" in self.columns:
             forgotten = rows[:, self.columns.index("k")] % self.forget_every == 0
             for name in ("jerk", "turn"):
