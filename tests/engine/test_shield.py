@@ -64,6 +64,19 @@ def test_a_file_that_is_not_a_shield_is_refused(tmp_path: Path) -> None:
         shields.load(tmp_path / "missing.npz")
 
 
+def test_a_strategy_file_given_as_a_shield_is_named(tmp_path: Path) -> None:
+    # rac verify writes NAME.strategy.npz beside safe.shield.npz; the one for the other said only
+    # "cannot read the shield: 'format is not a file in the archive'"
+    from rac.learning.qlearning import LearnedStrategy
+
+    path = LearnedStrategy(("x",), (), (), "max", np.zeros((1, 1)), np.zeros((1, 2))).save(tmp_path / "s.strategy.npz")
+    with pytest.raises(ValueError, match=r"not a rac shield: a rac strategy \(rac.learning.qlearning.LearnedStrategy"):
+        shields.load(path)
+    np.savez(tmp_path / "arrays.npz", a=np.zeros(2))
+    with pytest.raises(ValueError, match="not a rac shield: arrays a"):
+        shields.load(tmp_path / "arrays.npz")
+
+
 def test_the_table_keeps_its_horizon(tmp_path: Path) -> None:
     """A table knows the sample it was computed to (the graph's last layer by default), through a file;
     a file written before it was recorded loads with None (taken to cover every run)."""

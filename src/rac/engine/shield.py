@@ -296,6 +296,10 @@ def load(path: str | Path, *, unseen: str = "none") -> ShieldTable:
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as data:
+            if "format" not in data.files:  # another .npz: a learned strategy (the same folder holds both), arrays
+                other = ("a rac strategy (rac.learning.qlearning.LearnedStrategy.load reads it)"
+                         if "header" in data.files else f"arrays {', '.join(data.files) or 'none'}")
+                raise RacValueError(f"{path}: not a rac shield: {other}")
             if str(data["format"]) != FORMAT:
                 raise RacValueError(f"{path}: not a rac shield (format {str(data['format'])!r})")
             forget_every = int(data["forget_every"]) if "forget_every" in data.files else 0
