@@ -661,7 +661,7 @@ class ScenarioEnv(gymnasium.Env):
             warnings.warn(no_safe_action_warning(self._step_shield if decision is not None else None,
                                                  self.episodes.state_keys()[0], self._crashed,
                                                  decision is not None and decision.timed_out, self._seconds),
-                          UserWarning, stacklevel=2)
+                          UserWarning, stacklevel=user_stacklevel())
         before = self.episodes.rewards
         out = self.episodes.step(np.array([int(action)]))
         # terminated: the goal, or the automaton's `episode ends when` (its end clauses already applied)

@@ -330,7 +330,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                                                  self.episodes.state_keys()[first], bool(self._crashed[first]),
                                                  bool(flags["shield_timeout"][first]),
                                                  lambda k: float(seconds_at(k, self._period))),
-                          UserWarning, stacklevel=3)
+                          UserWarning, stacklevel=user_stacklevel())
         self.no_safe_action_steps += int(lapsed.sum())
         self.timeout_steps += int(flags["shield_timeout"].sum())
         clocked = int(flags["shield_clock"].sum())
