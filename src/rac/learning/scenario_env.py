@@ -177,6 +177,13 @@ def _lookahead(lookahead: LookaheadSettings | int | Literal["auto"] | None,
     raise TypeError(f"lookahead must be LookaheadSettings, a depth, 'auto' or None, not {lookahead!r}")
 
 
+#: The warning of the first action_masks() of an environment without a shield: a masked learner (MaskablePPO)
+#: asking for masks may believe they keep its runs safe, and nothing else says there is no shield.
+UNSHIELDED_MASKS = ("action_masks() of an environment without a shield: the masks are only the actions the model's "
+                    "`allow when` permits, and nothing keeps the runs safe (info['shield'] is 'none'); give "
+                    "shield=<the table rac verify wrote> or lookahead=<depth> for a shield")
+
+
 def clock_warning(step_shield: StepShield | None, time: float) -> str:
     """The warning of the first step whose runtime shield (of ``step_shield``) the time limit stopped (at
     ``time``, s)."""
@@ -404,6 +411,7 @@ class ScenarioEnv(gymnasium.Env):
         #: the first one is warned of): no guarantee covers them.
         self.outside_mask_steps = 0
         self._said_options = False  # an option reset() does not read was warned of
+        self._said_unshielded = False  # action_masks() without a shield was warned of
         self._decision: ShieldStep | None = None
         self._crashed = False
         self.render_mode = render_mode
@@ -719,6 +727,9 @@ class ScenarioEnv(gymnasium.Env):
             raise RuntimeError("call reset() before action_masks()")
         decision = self.shield_step()
         if decision is None:  # the model's own rule still holds (all of them where it leaves none)
+            if not self._said_unshielded:
+                self._said_unshielded = True
+                warnings.warn(UNSHIELDED_MASKS, UserWarning, stacklevel=user_stacklevel())
             return self.episodes.model_masks()[0].copy()
         return decision.mask.copy()
 

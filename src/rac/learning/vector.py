@@ -41,7 +41,13 @@ from rac.core.diagnostics import RacValueError
 from rac.core.numbers import seconds_at
 from rac.ir import expr as ie
 from rac.lang import ast
-from rac.learning.scenario_env import ScenarioEnv, clock_warning, no_safe_action_warning, outside_mask_warning
+from rac.learning.scenario_env import (
+    UNSHIELDED_MASKS,
+    ScenarioEnv,
+    clock_warning,
+    no_safe_action_warning,
+    outside_mask_warning,
+)
 from rac.learning.wrappers import Scale, within_proven
 
 if TYPE_CHECKING:
@@ -102,6 +108,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self.metadata = {**self.metadata, "render_fps": self._single.metadata["render_fps"]}
         self.render_mode = None
         self._step_shield = self._single.step_shield
+        self._said_unshielded = False  # action_masks() without a shield was warned of
         #: Steps per guarantee of their mask (``info["shield"]``), since construction, over all episodes.
         self.shield_steps: Counter[str] = Counter()
         #: Steps whose state had no action known to be safe (``info["no_safe_action"]``).
@@ -161,6 +168,9 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self._require()
         masks = self.episodes.model_masks()
         masks[self._autoreset] = True
+        if self._step_shield is None and not self._said_unshielded:  # as ScenarioEnv's
+            self._said_unshielded = True
+            warnings.warn(UNSHIELDED_MASKS, UserWarning, stacklevel=user_stacklevel())
         if self._step_shield is not None:
             for row in np.flatnonzero(~self._autoreset).tolist():
                 masks[row] = self._decision(row).mask
