@@ -143,7 +143,9 @@ def test_preanalyse_interrupted_shows_the_settings_finished(capsys: pytest.Captu
     code, out, err = run(capsys, "preanalyse", path, "-q", "--exponent", "1,2,3", "--runs", "2", "--seed", "1",
                          "-o", tmp_path / "pre", "--format", form)
     assert code == EXIT_INTERRUPTED
-    assert "rac preanalyse: interrupted; 1 setting finished before it (above)" in err
+    # under JSON the rows are in the document, not above (it said "above" there too)
+    where = "above" if form == "text" else "in the JSON document"
+    assert f"rac preanalyse: interrupted; 1 setting finished before it ({where})" in err
     if form == "json":
         document = json.loads(out)
         assert [s["exponent"] for s in document["settings"]] == [1] and document["interrupted"] is True
@@ -185,7 +187,8 @@ def test_preanalyse_with_a_full_disk_shows_the_settings_finished(capsys: pytest.
     code, out, err = run(capsys, "preanalyse", path, "-q", "--exponent", "1,2,3", "--runs", "2", "--seed", "1",
                          "-o", tmp_path / "pre", "--format", form)
     assert code == EXIT_USAGE
-    assert "rac preanalyse: stopped by the error above; 1 setting finished before it (above)" in err
+    where = "above" if form == "text" else "in the JSON document"
+    assert f"rac preanalyse: stopped by the error {where}; 1 setting finished before it ({where})" in err
     if form == "json":
         document = json.loads(out)
         assert [s["exponent"] for s in document["settings"]] == [1] and document["error"]["code"] == "E0009"

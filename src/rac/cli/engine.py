@@ -694,17 +694,19 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     # stopped before the sweep's plot: an earlier sweep's plot in the folder would stand beside this run's Fig. 7
     # plots as if it were this run's
     removed = _remove_stale(out_dir / "sweep.png", started) if write_failed is not None or interrupted else ""
+    # under --format json the rows and the error are in the document on standard output, not above
+    where = "above" if args.format == "text" else "in the JSON document"
     if write_failed is not None:
         if args.format == "text":
             print_diagnostics([write_failed])
         n = len(rows)
-        print(f"rac preanalyse: stopped by the error above; {n} setting{'' if n == 1 else 's'} finished before it "
-              f"(above){removed}", file=sys.stderr)
+        print(f"rac preanalyse: stopped by the error {where}; {n} setting{'' if n == 1 else 's'} finished before "
+              f"it ({where}){removed}", file=sys.stderr)
         return EXIT_USAGE
     if interrupted:
         n = len(rows)
         print(f"rac preanalyse: {how_stopped()}; {n} setting{'' if n == 1 else 's'} finished before it "
-              f"({'above' if n else 'none'}){removed}", file=sys.stderr)
+              f"({where if n else 'none'}){removed}", file=sys.stderr)
         return EXIT_INTERRUPTED
     undecided = sum(1 for row in rows if "error" in row)
     if undecided:  # a setting without answers is undecided, and an undecided answer never exits 0
