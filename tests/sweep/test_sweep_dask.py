@@ -1144,3 +1144,37 @@ def test_an_interrupt_outside_the_run_still_prints_the_json_document(world: Path
         assert document["summary"] is None and document["files"] == []
         assert f"results.* not written (run the same command again: the rows of the tasks that ran are stored in " \
                f"{tmp_path / 'out' / 'tasks'})" in captured.err
+
+
+def test_results_cut_short_leave_no_earlier_sweeps_file_beside_them(world: Path, tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """The disk filled at results.json after this sweep's results.parquet was written: the earlier sweep's
+    results.json and plots stayed beside it, two runs' rows read as one. Now they are removed first."""
+    out = tmp_path / "out"
+    planned = plan(world / "sweep.ra", [str(world / "scenarios" / "goal_ahead.xml")], options=OPTIONS, out=out)
+    (spec,) = planned.specs
+    Store(planned.out).put(spec.key(), sweep_helpers.row(spec))
+    for name in ("results.json", "results.csv", "verdicts.png", "time_vs_size.png"):  # an earlier sweep's
+        (out / name).write_text("earlier", encoding="utf-8")
+    from rac.sweep import report
+
+    write_text = report.write_text
+
+    def full_at_json(path: Path, text: str) -> object:
+        if path.name == "results.json":
+            raise OSError(28, "No space left on device", str(path))
+        return write_text(path, text)
+
+    monkeypatch.setattr("rac.sweep.report.write_text", full_at_json)
+    monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+    args = ["sweep", str(world / "sweep.ra"), str(world / "scenarios" / "goal_ahead.xml"), "--horizon", "2",
+            "-o", str(out), "-q"]
+    assert main(args) == EXIT_USAGE
+    assert f"cannot write `{out / 'results.json'}`" in capsys.readouterr().err
+    assert (out / "results.parquet").exists() or (out / "results.csv").exists()  # this sweep's
+    left = sorted(p.name for p in out.iterdir() if p.is_file() and p.read_bytes() == b"earlier")
+    assert left == []  # none of the earlier sweep's files beside this one's
+    monkeypatch.setattr("rac.sweep.report.write_text", write_text)
+    assert main(args) == EXIT_OK  # the same command writes them all
+    assert {p.name for p in out.iterdir()} >= {"results.json", "verdicts.png", "time_vs_size.png"}

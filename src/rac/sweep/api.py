@@ -7,6 +7,7 @@ May import: rac, rac.compiler, core, lang, ir, check, model, runtime, engine, ou
 
 from __future__ import annotations
 
+import contextlib
 import math
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
@@ -217,8 +218,11 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
                                                            skipped_not_ok=outcome.skipped_not_ok))
     if outcome.write_error is not None:  # a row could not be stored: nor could these files, most likely
         result.written = False
+        with contextlib.suppress(OSError):  # an earlier sweep's files are not this one's results: not left as such
+            report.remove_results(plan.out)
         return result
     try:
+        report.remove_results(plan.out)  # a write failing midway leaves none of an earlier sweep's files among these
         files, result.notes = report.write_results(rows, plan.out)
         result.files += files
         result.files += report.write_plots(rows, plan.out)

@@ -30,7 +30,7 @@ from rac.sweep.store import write_text
 from rac.sweep.task import NOT_FAILED, STATUSES, VERDICTS  # STATUSES, VERDICTS: in the order tables and plots show them
 
 __all__ = ["RESULTS_CSV", "RESULTS_JSON", "RESULTS_PARQUET", "Summary", "frame", "grid_label", "render_summary",
-           "scenario_labels", "summarise", "table", "write_plots", "write_results"]
+           "remove_results", "scenario_labels", "summarise", "table", "write_plots", "write_results"]
 
 RESULTS_PARQUET, RESULTS_CSV, RESULTS_JSON = "results.parquet", "results.csv", "results.json"
 VERDICT_PLOT, TIME_PLOT = "verdicts.png", "time_vs_size.png"
@@ -100,6 +100,16 @@ def _parquet_writer() -> Any:
     except ImportError:
         return None
     return pd
+
+
+def remove_results(folder: Path) -> None:
+    """Remove ``results.*`` and the plots an earlier sweep wrote into ``folder``, before this sweep writes its
+    own: a write that fails midway (a full disk, Ctrl-C) then leaves some of this sweep's files and none of the
+    earlier one's, never this sweep's ``results.parquet`` beside an earlier ``results.json`` or plot (the rows
+    of both are in ``tasks/``, and the same command writes these files again). Raises ``OSError`` when a file
+    cannot be removed."""
+    for name in (RESULTS_PARQUET, RESULTS_CSV, RESULTS_JSON, VERDICT_PLOT, TIME_PLOT):
+        (folder / name).unlink(missing_ok=True)
 
 
 def write_results(rows: Sequence[Mapping[str, object]], folder: Path) -> tuple[list[Path], list[str]]:
