@@ -5,7 +5,7 @@ and run as one command (``check``, ``verify``, ``preanalyse`` or ``experiment``)
 :class:`TaskSpec` as JSON on its standard input: a Dask worker is a daemonic process, which cannot
 have ``multiprocessing`` children, but can start a subprocess. The child runs in a process group
 of its own, killed whole when the task passes its ``timeout``; its address space is limited to
-``memory`` bytes (``RLIMIT_AS``, set once the task's modules are imported), so that a task that
+``memory`` bytes more than its imported modules map (``RLIMIT_AS``, set once they are imported), so that a task that
 needs more fails with ``MemoryError`` in the child instead of taking the worker down. The child
 writes its part of the row as JSON on its standard output (anything the task prints goes to its
 standard error) and leaves when its parent does. What the child runs is :mod:`rac.sweep.work`.
