@@ -673,3 +673,17 @@ def test_a_file_with_several_planning_problems_is_a_task_per_problem(folder: Pat
     # the template's (or the grid's) choice applies to every file: no task per problem
     assert [s.planning_problem for s in plan(template, [str(scenes)], task="check",
                                              sets=["planning_problem=100"]).specs] == [None, None]
+
+
+@pytest.mark.parametrize("task", ["preanalyse", "experiment"])
+def test_every_task_keeps_within_the_memory_budget(folder: Path, task: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A preanalyse or experiment task ran without a memory budget (`rac preanalyse` and `rac experiment` have
+    half the memory available): a large model grew past a GB unchecked, or under --task-memory ran into it as an
+    allocation that failed midway. Every task now has the budget of its command (the task's limit, if any), and
+    stops within it, saying how far it got."""
+    from rac.sweep import work
+
+    monkeypatch.setattr(work, "default_max_bytes", lambda: 1000)  # the budget a task without --task-memory has
+    row = work.execute(spec(folder, "goal_ahead.xml", task, options=OPTIONS[task]))
+    assert "more than the memory budget of 1000 B" in str(row["error"]), row
+    assert row["status"] in ("undecided", "failed"), row

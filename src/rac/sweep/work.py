@@ -27,7 +27,7 @@ from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import RacError, Severity
 from rac.core.numbers import MIN_SEED, format_bytes, fresh_seed, samples_of
 from rac.core.resources import ScenarioTooLarge
-from rac.engine.budget import BudgetExceeded
+from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.model.checks import UNUSABLE_SCENARIO
 from rac.sweep.task import OPTIONS
 from rac.sweep.template import instantiate
@@ -111,12 +111,16 @@ def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
     if result.automaton is None or result.automaton.model is None or result.model_data is None:
         raise TaskError("the instantiated template has no scenario model")  # the template has a model block
     row.update(status="ok", error=None)
+    # the memory budget of `rac verify`, `rac preanalyse` and `rac experiment`: the task's limit, else theirs (half
+    # the memory available); preanalyse and experiment ran without one, so a large model grew past a GB unchecked
+    # (or into --task-memory, as an allocation that failed midway, not the estimate that says how far it got)
+    max_bytes = spec.memory if spec.memory is not None else default_max_bytes()
     if spec.task == "verify":
-        _verify(result, options, row)
+        _verify(result, options, row, max_bytes)
     elif spec.task == "preanalyse":
-        _preanalyse(result, options, row)
+        _preanalyse(result, options, row, max_bytes)
     elif spec.task == "experiment":
-        _experiment(result, options, row)
+        _experiment(result, options, row, max_bytes)
     return row
 
 
@@ -177,14 +181,15 @@ def _budget(options: dict[str, Any]) -> dict[str, Any]:
     return {"max_states": options["max_states"]} if "max_states" in options else {}
 
 
-def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int) -> None:
     # numpy, rac.check.analysis, stormpy (via rac.verify.runner): importing rac.sweep.work stays light
     from rac.verify.runner import VerifyOptions, verify
 
     # drawn here when not given, as rac verify draws it, so that the row can say it: a statistical or learning
     # query's verdict that no seed reproduces could not be checked with `rac verify --seed N` on the file
     seed = options["seed"] if "seed" in options else fresh_seed()
-    chosen: dict[str, Any] = {"horizon": options.get("horizon"), "seed": seed, "plots": False, **_budget(options)}
+    chosen: dict[str, Any] = {"horizon": options.get("horizon"), "seed": seed, "plots": False, "max_bytes": max_bytes,
+                              **_budget(options)}
     if "episodes" in options:
         chosen["learn_episodes"] = options["episodes"]
     with tempfile.TemporaryDirectory(prefix="rac-sweep-") as out:  # strategies and CSV files are not kept
@@ -205,13 +210,13 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any])
         row.update(status="undecided", error="not decided: " + "; ".join(undecided))
 
 
-def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int) -> None:
     # numpy, scipy, stormpy (via rac.studies.preanalysis): importing rac.sweep.work stays light
     from rac.studies.preanalysis import SweepError, sweep
 
     try:
         rows = sweep(result, horizon=options.get("horizon"), seed=options.get("seed"),
-                     runs=options.get("runs", 100), quiet=True, **_budget(options))
+                     runs=options.get("runs", 100), quiet=True, max_bytes=max_bytes, **_budget(options))
     except SweepError as exc:
         raise TaskError(str(exc)) from None
     row["details"] = rows
@@ -227,7 +232,7 @@ def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, A
         row.update(status="undecided", error=problems[0])
 
 
-def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, Any]) -> None:
+def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int) -> None:
     # numpy (via rac.studies.experiment): importing rac.sweep.work stays light
     from rac.studies.experiment import ExperimentError, run_experiment, summary
 
@@ -239,7 +244,7 @@ def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, A
                                 evaluation_runs=options.get("runs", 100),
                                 reward_function=options.get("reward_function"),
                                 horizon_samples=_horizon_samples(result, options.get("horizon")),
-                                **_budget(options))
+                                max_bytes=max_bytes, **_budget(options))
     except ExperimentError as exc:
         row.update(status="failed", error=str(exc))
         return
