@@ -329,3 +329,32 @@ def test_the_tuned_value_passes_e0801(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "const PENALTY = 263889 / 2500" in path.read_text(encoding="utf-8")
     assert main(["check", str(path)]) == 0
     assert main(["compile", "--target", "uppaal", str(path), "-o", str(tmp_path / "weight9.xml")]) == 0
+
+
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_horizons_interrupted_keep_the_rows_synthesised(param_file: Path, capsys: pytest.CaptureFixture[str],
+                                                        monkeypatch: pytest.MonkeyPatch, form: str) -> None:
+    """Ctrl-C (or SIGTERM) at the third horizon: under --format json the document was main's bare
+    `{"interrupted": true}`, the two horizons synthesised before it (minutes, at long horizons) dropped."""
+    from rac.cli import tune
+
+    real, calls = tune._synthesised, []
+
+    def stopped_at_the_third(*args: object, **kwargs: object) -> object:
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(tune, "_synthesised", stopped_at_the_third)
+    code = main(["tune", "--horizon", "10,30,60", "--format", form, str(param_file)])
+    out, err = capsys.readouterr()
+    assert code == 130
+    where = "above" if form == "text" else "in the JSON document"
+    assert f"rac tune: interrupted; 2 horizons synthesised before it ({where}; no formula)" in err
+    if form == "json":
+        document = json.loads(out)
+        assert [row["horizon"] for row in document["horizons"]] == ["10", "30"]
+        assert document["interrupted"] is True and document["ok"] is False and document["formulas"] == []
+    else:
+        assert "| 10 | 66 |" in out and "| 30 | 98 |" in out and "(H the horizon in seconds)" not in out

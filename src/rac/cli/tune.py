@@ -24,8 +24,11 @@ from rac.check.analysis.synthesis import Synthesised
 from rac.check.horizon import Fit, at_horizon, fit_line, formula_text
 from rac.cli.common import (
     EXIT_ERRORS,
+    EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_USAGE,
+    how_stopped,
+    interrupts_as_such,
     load_budget,
     locked,
     resource_limit,
@@ -262,20 +265,24 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
         print(f"{path}: the synthesised value of each parameter at each horizon H (seconds)")
         print("| H (s) | " + " | ".join(names) + " | set |")
         print("| --- | " + " | ".join("---" for _ in names) + " | --- |", flush=True)
-    rows = []
-    for k, horizon in enumerate(args.horizon):
-        if text and sys.stderr.isatty():
-            print(f"\rsynthesising at H = {exact_decimal(horizon)} s ({k + 1}/{len(args.horizon)}) ...",
-                  end="", file=sys.stderr, flush=True)
-        result = _synthesised(SourceFile(source.name, at_horizon(source, node, horizon)), args,
-                              f"synthesising at H = {exact_decimal(horizon)} s ({k + 1}/{len(args.horizon)})")
-        row = _Row(horizon, result.synthesis if result.ok else None,
-                   tuple(sorted((d for d in result.diagnostics if d.is_error), key=sort_key)))
-        rows.append(row)
-        if text:
-            if sys.stderr.isatty():
-                print("\r\033[K", end="", file=sys.stderr, flush=True)
-            print(_row_text(row, names), flush=True)
+    rows: list[_Row] = []
+    try:
+        with interrupts_as_such():
+            for k, horizon in enumerate(args.horizon):
+                if text and sys.stderr.isatty():
+                    print(f"\rsynthesising at H = {exact_decimal(horizon)} s ({k + 1}/{len(args.horizon)}) ...",
+                          end="", file=sys.stderr, flush=True)
+                result = _synthesised(SourceFile(source.name, at_horizon(source, node, horizon)), args,
+                                      f"synthesising at H = {exact_decimal(horizon)} s ({k + 1}/{len(args.horizon)})")
+                row = _Row(horizon, result.synthesis if result.ok else None,
+                           tuple(sorted((d for d in result.diagnostics if d.is_error), key=sort_key)))
+                rows.append(row)
+                if text:
+                    if sys.stderr.isatty():
+                        print("\r\033[K", end="", file=sys.stderr, flush=True)
+                    print(_row_text(row, names), flush=True)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the horizons synthesised stand (--format json dropped them)
+        return _horizons_stopped(args, path, rows)
     fits = {name: fit_line([(r.horizon, r.synthesis.value(name)) for r in rows if r.synthesis is not None])
             for name in names}
     # One parameter's synthesised value is the least of its set; several are a chosen point of theirs.
@@ -289,6 +296,22 @@ def _horizons(args: argparse.Namespace, source: SourceFile, node: ast.Automaton)
     for name, fit in fits.items():
         print(_fit_text(name, relation, fit))
     return EXIT_OK if found else EXIT_ERRORS
+
+
+def _horizons_stopped(args: argparse.Namespace, path: Path, rows: list[_Row]) -> int:
+    """``--horizon`` stopped by Ctrl-C or SIGTERM after ``rows``: under ``--format json`` the document with them
+    (``"interrupted": true``, no formula: the horizons left could break any line), as text the rows printed
+    already; exit 130 (SIGTERM: 143, as :func:`rac.cli.main.main` turns it)."""
+    if sys.stderr.isatty():
+        print("\r\033[K", end="", file=sys.stderr, flush=True)
+    if args.format == "json":
+        print(json_text({"file": str(path), "ok": False, "written": None, "horizons": [_row_json(r) for r in rows],
+                         "formulas": [], "interrupted": True}, indent=2))
+    where = "above" if args.format == "text" else "in the JSON document"
+    n = len(rows)
+    print(f"rac tune: {how_stopped()}; {n} horizon{'' if n == 1 else 's'} synthesised before it "
+          f"({where if n else 'none'}; no formula)", file=sys.stderr)
+    return EXIT_INTERRUPTED
 
 
 def _row_text(row: _Row, names: list[str]) -> str:
