@@ -39,7 +39,7 @@ from PIL import Image
 from tiny_scenarios import TINY_SCENARIOS
 
 import rac
-from rac.cli.common import EXIT_ERRORS, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE, output_folder
+from rac.cli.common import EXIT_ERRORS, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNDECIDED, EXIT_USAGE, output_folder
 from rac.cli.main import main
 from rac.cli.sweep import exit_status
 from rac.model.scenes import write_scene
@@ -1178,3 +1178,23 @@ def test_results_cut_short_leave_no_earlier_sweeps_file_beside_them(world: Path,
     monkeypatch.setattr("rac.sweep.report.write_text", write_text)
     assert main(args) == EXIT_OK  # the same command writes them all
     assert {p.name for p in out.iterdir()} >= {"results.json", "verdicts.png", "time_vs_size.png"}
+
+
+def test_ctrl_c_while_the_scenarios_are_read_gives_the_sweeps_json_document(world: Path, tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch,
+                                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """Ctrl-C while the plan read and hashed the scenarios (seconds for thousands of files) gave main's bare
+    document, without the `summary`, `files` and `written` docs/sweep.md promises a script."""
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("rac.cli.sweep.plan", interrupted)
+    code = main(["sweep", str(world / "sweep.ra"), str(world / "scenarios"), "-o", str(tmp_path / "out"),
+                 "--format", "json"])
+    captured = capsys.readouterr()
+    assert code == EXIT_INTERRUPTED
+    document = json.loads(captured.out)
+    assert document["interrupted"] is True and document["exit_code"] == EXIT_INTERRUPTED
+    assert document["summary"] is None and document["files"] == [] and document["written"] is False
+    assert document["out"] == str(tmp_path / "out")
+    assert "no task ran, nothing was written" in captured.err

@@ -23,6 +23,7 @@ from rac.cli.common import (
     EXIT_UNDECIDED,
     EXIT_USAGE,
     as_json,
+    how_stopped,
     output_folder,
     print_diagnostics,
     terminate_as_interrupt,
@@ -101,11 +102,18 @@ def sweep_command(args: argparse.Namespace) -> int:
             return EXIT_USAGE
     options = {"horizon": args.horizon, "seed": args.seed, "max_states": args.max_states, "episodes": args.episodes,
                "runs": args.runs, "reward_function": args.reward_function}
+    out = output_folder(Path(args.template), "sweep", Path(args.out) if args.out else None)
     try:
-        planned = plan(args.template, args.scenarios, sets=args.sets, task=args.task,
-                       out=output_folder(Path(args.template), "sweep", Path(args.out) if args.out else None),
+        planned = plan(args.template, args.scenarios, sets=args.sets, task=args.task, out=out,
                        task_timeout=float(args.task_timeout) if args.task_timeout else None,
                        task_memory=args.task_memory, options={k: v for k, v in options.items() if v is not None})
+    except KeyboardInterrupt:  # while the scenarios are found and read (thousands take a while): no task ran yet
+        status = EXIT_TERMINATED if how_stopped() != "interrupted" else EXIT_INTERRUPTED
+        if args.format == "json":  # the command's document (main's bare one lacked `summary`, `files`, `written`)
+            print(_document(Path(args.template).absolute(), out, status, None, [], interrupted=True, written=False))
+        print(f"rac sweep: {how_stopped()} while the scenarios were read; no task ran, nothing was written",
+              file=sys.stderr)
+        return status
     except OSError as exc:
         print_diagnostics([unreadable(Path(args.template), exc)], {}, as_json(args))
         return EXIT_USAGE
