@@ -1198,3 +1198,22 @@ def test_ctrl_c_while_the_scenarios_are_read_gives_the_sweeps_json_document(worl
     assert document["summary"] is None and document["files"] == [] and document["written"] is False
     assert document["out"] == str(tmp_path / "out")
     assert "no task ran, nothing was written" in captured.err
+
+
+def test_the_tasks_of_a_local_cluster_share_the_machines_memory(client, world: Path) -> None:
+    """Each task's command took half the machine's memory as its budget (rac verify's default), so two workers'
+    tasks side by side could take all of it, four twice it, and the machine swapped before a budget spoke; a local
+    cluster gives each worker its share of the machine, and a task half of its worker's."""
+    from rac.engine.budget import DEFAULT_FRACTION, machine_memory
+    from rac.sweep import work
+    from rac.sweep.task import worker_budget
+
+    workers = list(client.scheduler_info()["workers"])  # type: ignore[attr-defined]
+    budgets = [client.submit(worker_budget, workers=[w], pure=False).result() for w in workers]  # type: ignore[attr-defined]
+    assert budgets == [int(machine_memory() // 2 * DEFAULT_FRACTION)] * 2
+    assert worker_budget() is None  # in this process, no worker: the command's own default
+    # the budget reaches the task's command: a preanalyse task's runs stop within it
+    spec = TaskSpec(str(world / "sweep.ra"), (world / "sweep.ra").read_text(encoding="utf-8"),
+                    str(world / "scenarios" / "goal_ahead.xml"), (), "preanalyse", (("runs", "5"), ("seed", "3")),
+                    budget=1000)
+    assert "more than the memory budget of 1000 B" in json.dumps(work.execute(spec))

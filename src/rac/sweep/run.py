@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import rac
 from rac.core.diagnostics import RacError
+from rac.engine.budget import machine_memory
 from rac.output.progress import Heartbeat, Progress
 from rac.sweep.store import Store
 from rac.sweep.task import NOT_FAILED, run_task, source_digest
@@ -148,8 +149,10 @@ def connect(scheduler: str | None = None, workers: int | None = None, *,
         with _held_signals() as held, warnings.catch_warnings():
             # another cluster holds the dashboard's usual port 8787: Dask takes another and says so
             warnings.filterwarnings("ignore", message=".*already in use.*")
+            # each worker's memory limit its share of the machine: the tasks' budgets are half of it
+            # (rac.sweep.task.worker_budget), so that side by side they stay within the machine together
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                   silence_logs=logging.ERROR)
+                                   silence_logs=logging.ERROR, memory_limit=machine_memory() // n_workers)
         local: Client | None = None
         try:
             for number in held:  # a signal held back while the cluster started: now it can be closed

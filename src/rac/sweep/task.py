@@ -16,6 +16,7 @@ happens becomes its ``status`` and ``error``.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -29,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import rac
-from rac.engine.budget import format_bytes
+from rac.engine.budget import DEFAULT_FRACTION, format_bytes
 from rac.lang.resources import grammar_path, stdlib_dir
 from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
@@ -97,6 +98,10 @@ class TaskSpec:
     #: the id of the scenario's planning problem this task runs (the model block's ``planning_problem``), chosen
     #: by :func:`rac.sweep.api.plan` for a file with several; None: the template's choice
     planning_problem: int | None = None
+    #: the memory budget of the task's command (``rac verify``'s ``--max-memory``) when ``memory`` is None: its
+    #: share of the Dask worker's memory (:func:`worker_budget`; set where the task runs, not part of the key);
+    #: None: the command's own default, half the machine's memory, which tasks side by side would each take
+    budget: int | None = None
 
     def __post_init__(self) -> None:
         if self.task not in TASKS:
@@ -135,7 +140,7 @@ class TaskSpec:
         pairs = {name: tuple((str(a), str(b)) for a, b in data.get(name, ())) for name in ("settings", "options")}
         return cls(data["template"], data["template_text"], data["scenario"], pairs["settings"], data["task"],
                    pairs["options"], data.get("timeout"), data.get("memory"), data.get("scenario_digest"),
-                   data.get("planning_problem"))
+                   data.get("planning_problem"), data.get("budget"))
 
 
 def scenario_digest(path: str | os.PathLike[str]) -> str:
@@ -213,6 +218,8 @@ def run_task(spec: TaskSpec) -> dict[str, object]:
     (the time of the whole task, the child's start included)."""
     start = time.perf_counter()
     row = _row(spec)
+    if spec.memory is None and spec.budget is None:
+        spec = dataclasses.replace(spec, budget=worker_budget())
     try:
         row.update(_in_child(spec))
     except Exception as exc:  # a row, never an exception: the sweep goes on
@@ -221,6 +228,22 @@ def run_task(spec: TaskSpec) -> dict[str, object]:
     if not row["seconds"]:
         row["seconds"] = row["wall_seconds"]
     return row
+
+
+def worker_budget() -> int | None:
+    """The memory budget of a task run by a Dask worker: :data:`~rac.engine.budget.DEFAULT_FRACTION` of the
+    worker's memory limit (a local cluster gives each worker its share of the machine), so that the tasks
+    running side by side stay within the machine's memory together, where each took half of it (two workers:
+    all of it; four: twice it, and the machine swapped before any budget spoke); None outside a worker or
+    for a worker without a limit (the command's own default then)."""
+    try:
+        # distributed: only a task run by a Dask worker asks it; importing rac.sweep.task stays light
+        from distributed import get_worker
+
+        limit = get_worker().memory_manager.memory_limit
+    except (ImportError, ValueError):  # not in a worker (the task runs in this process)
+        return None
+    return int(limit * DEFAULT_FRACTION) if limit else None
 
 
 def _environment() -> dict[str, str]:

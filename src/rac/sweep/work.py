@@ -114,7 +114,7 @@ def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
     # the memory budget of `rac verify`, `rac preanalyse` and `rac experiment`: the task's limit, else theirs (half
     # the memory available); preanalyse and experiment ran without one, so a large model grew past a GB unchecked
     # (or into --task-memory, as an allocation that failed midway, not the estimate that says how far it got)
-    max_bytes = spec.memory if spec.memory is not None else default_max_bytes()
+    max_bytes = spec.memory if spec.memory is not None else spec.budget or default_max_bytes()
     if spec.task == "verify":
         _verify(result, options, row, max_bytes)
     elif spec.task == "preanalyse":
