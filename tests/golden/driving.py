@@ -49,7 +49,15 @@ def _array_hint(raw: object) -> str:
     return f": an array of shape {dims}, not one value (pass obs[i] rather than obs[i:i+1], or value.item())"
 
 
+def _duration(name: str, raw: object) -> ValueError:
+    # numpy's timedelta64 is an Integral to numbers: refused, not read as its count of units (3 ms as 3)
+    return ValueError(f"input {name!r} = {raw!r} is a duration, not a number: give it in the input's "
+                      "unit, e.g. value / np.timedelta64(1, 's') for seconds")
+
+
 def _boolean(name: str, raw: object) -> bool:
+    if type(raw).__name__ == "timedelta64":
+        raise _duration(name, raw)
     if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
         return bool(raw)
     raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False){_array_hint(raw)}")
@@ -58,6 +66,8 @@ def _boolean(name: str, raw: object) -> bool:
 def _number(name: str, raw: object, low: float, high: float) -> float:
     if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
         return 1.0 if raw else 0.0
+    if type(raw).__name__ == "timedelta64":
+        raise _duration(name, raw)
     if not isinstance(raw, numbers.Real):
         raise ValueError(f"input {name!r} = {raw!r} is not a number{_array_hint(raw)}")  # noqa: TRY004
     try:

@@ -439,6 +439,27 @@ def test_a_numpy_scalar_is_not_called_an_array() -> None:
         assert messages[0] == messages[1] == f"input {name!r} = {value!r} {words}"
 
 
+def test_a_duration_is_refused_not_read_as_its_count_of_units() -> None:
+    """numpy registers ``timedelta64`` as an integer, so ``np.timedelta64(3, "ms")`` (a pandas ``diff()`` of
+    times) was read as 3 by the interpreter and the generated module, 3 ms and 3 s alike, and for a boolean
+    input 1 as True, while the batch refused such a column: all refuse it now, saying how to convert it."""
+    durations = [("dgoal", np.timedelta64(3, "ms")), ("dgoal", np.timedelta64(3)), ("isClose", np.timedelta64(1))]
+    for name, value in durations:
+        messages = []
+        for ra in (RewardAutomaton(driving_automaton()), load(generate_python(driving_automaton())).Driving()):
+            for clip in (False, True):
+                ra.reset()
+                with pytest.raises(ValueError) as refused:
+                    ra.step({**inputs(), name: value}, clip=clip)
+                messages.append(str(refused.value))
+                assert ra.samples == 0
+        assert len(set(messages)) == 1
+        assert messages[0].startswith(f"input {name!r} = {value!r} is a duration, not a number")
+    batch = RewardAutomaton(driving_automaton()).batch(2)
+    with pytest.raises(ValueError, match="is a duration"):  # an object column's rows are read one by one
+        batch.step_batch({**inputs(), "dgoal": np.array([np.timedelta64(3, "ms"), 1.0], dtype=object)})
+
+
 def test_an_array_for_one_value_is_refused_saying_so() -> None:
     """``obs[0:1]`` or a 0-d array (numpy's, a torch tensor) where one value goes was refused as
     "input 'dgoal' = array(40.) is not a number", which a number it holds contradicts: the message says it is an

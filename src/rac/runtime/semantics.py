@@ -283,7 +283,9 @@ def check_mapping(inputs: object, names: Sequence[str] = ()) -> None:
 
 def boolean_input(name: str, raw: object) -> bool:
     """A boolean input's value: ``True``/``False`` (Python's or numpy's) or the integers 0 and 1;
-    anything else (``"x"``, ``None``, ``0.5``) is ``ValueError``, not read by its truth."""
+    anything else (``"x"``, ``None``, ``0.5``, a duration) is ``ValueError``, not read by its truth."""
+    if type(raw).__name__ == "timedelta64":
+        raise ValueError(duration_message(name, raw))
     if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
         return bool(raw)
     raise ValueError(f"input {name!r} = {raw!r} is not a boolean (True or False){array_hint(raw)}")
@@ -303,6 +305,14 @@ def array_hint(raw: object) -> str:
     return f": an array of shape {dims}, not one value (pass obs[i] rather than obs[i:i+1], or value.item())"
 
 
+def duration_message(name: str, raw: object) -> str:
+    """The refusal of a numpy ``timedelta64`` (a pandas ``diff()`` of times, a datetime difference): numpy
+    registers it as an integer, so without this it was read as its count of units, 3 for 3 ms and 3 s alike
+    (the batch refused it as a column). The generated module says the same."""
+    return (f"input {name!r} = {raw!r} is a duration, not a number: give it in the input's unit, e.g. "
+            "value / np.timedelta64(1, 's') for seconds")
+
+
 def numpy_scalar(raw: object) -> bool:
     """Whether ``raw`` is a numpy scalar (``np.float64``, ``np.int8``, ``np.str_``, ...), not an array; told by
     its type alone, so that the generated module, which has no numpy, tells it the same way."""
@@ -312,12 +322,15 @@ def numpy_scalar(raw: object) -> bool:
 
 def number_input(name: str, raw: object, low: float = -math.inf, high: float = math.inf) -> float:
     """A numeric input's value as a float: a real number (``int``, ``float``, a ``Fraction``, a numpy
-    number; a boolean, Python's or numpy's, counts 0 or 1); a string, ``None``, a complex number or a
-    sequence is ``ValueError``, so is a number no float holds. A narrower float (numpy's float32 or
+    number; a boolean, Python's or numpy's, counts 0 or 1); a string, ``None``, a complex number, a
+    duration (numpy's ``timedelta64``, an integer to numpy) or a sequence is ``ValueError``,
+    so is a number no float holds. A narrower float (numpy's float32 or
     float16, as environments observe) equal to the bound ``low`` or ``high`` rounded to its precision
     is that bound: MountainCar's ``np.float32(-1.2)`` is -1.2, not -1.2000000476837158."""
     if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
         return 1.0 if raw else 0.0
+    if type(raw).__name__ == "timedelta64":  # numpy makes it an Integral: its count of units, whatever the unit
+        raise ValueError(duration_message(name, raw))
     if not isinstance(raw, numbers.Real):
         raise ValueError(f"input {name!r} = {raw!r} is not a number{array_hint(raw)}")
     try:
