@@ -666,3 +666,26 @@ def test_a_resumed_run_reads_the_held_inputs_it_is_given() -> None:
     assert resumed.step_batch(second).tolist() == [-1.0]
     with pytest.raises(ValueError, match="held must give the inputs the rates read: v missing"):
         resumed.resume(where, rewards, held={"b": first["b"]})
+
+
+def test_a_list_mixing_float32_at_a_bound_with_floats_is_read_as_the_scalar_runtime_reads_it() -> None:
+    """A list ``[np.float32(-1.2), 0.0]`` (per-environment float32 observations and a Python default) was
+    widened to float64 by numpy, so the batch refused the float32 at the bound that ``step`` takes as the
+    bound, telling the user to pass the float32 value itself, which they had; with ``clip=True`` it was
+    clipped and counted. Now such a list is read value by value, as ``step`` reads it."""
+    program = compile_text("automaton M {\n input pos : real in [-1.2, 0.6]\n reward pr\n objective pr\n"
+                           " sample every 1\n horizon 10\n initial location A { pr' == pos }\n}\n",
+                           "m.ra").raise_for_errors()
+    values = [np.float32(-1.2), np.float32(0.6), 0.0]
+    expected = []
+    for value in values:
+        one = RewardAutomaton(program)
+        expected.append(one.step({"pos": value}))
+    for column in (values, tuple(values)):
+        for clip in (False, True):
+            batch = BatchRewardAutomaton(program, 3)
+            assert batch.step_batch({"pos": column}, clip=clip).tolist() == expected
+            if clip:
+                assert batch.clipped == {"pos": 0}
+    with pytest.raises(ValueError, match="is outside"):  # a float32 bound made a Python float is still outside
+        BatchRewardAutomaton(program, 3).step_batch({"pos": [float(np.float32(-1.2)), 0.0, 0.0]})

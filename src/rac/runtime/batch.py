@@ -33,6 +33,7 @@ from rac.runtime.semantics import (
     check_automaton,
     check_mapping,
     clip_inputs,
+    column_array,
     float_atoms,
     float_linear,
     input_specs,
@@ -430,7 +431,7 @@ class BatchRewardAutomaton(AutomatonDescription):
             raise key_error(inputs, self._names)
         out: dict[str, np.ndarray] = {}
         for spec in self._specs:
-            raw = np.asarray(inputs[spec.name])
+            raw = column_array(inputs[spec.name])
             if raw.shape != (n,):
                 if raw.ndim != 0:
                     raise ValueError(f"input {spec.name!r} must have shape ({n},), not {raw.shape}")

@@ -346,6 +346,20 @@ def number_input(name: str, raw: object, low: float = -math.inf, high: float = m
     return value
 
 
+def column_array(raw: object) -> np.ndarray:
+    """A batch input's values as an array: ``np.asarray(raw)``, except for a list or tuple that mixes numpy's
+    narrower floats with wider numbers (``[np.float32(-1.2), 0.0]``), which numpy widens to float64, making the
+    float32 at a bound a value outside it: read as an object column instead, each value by the scalar runtime's
+    rule (:func:`number_input`), as the interpreter reads it (a list of float32 alone stays a float32 array)."""
+    given = np.asarray(raw)
+    if (isinstance(raw, (list, tuple)) and given.dtype.kind == "f" and given.dtype.name not in NARROW_FLOATS
+            and any(type(value).__name__ in NARROW_FLOATS for value in raw)):
+        column = np.empty(len(raw), dtype=object)
+        column[:] = list(raw)
+        return column
+    return given
+
+
 def object_column(spec: InputSpec, raw: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
     """An object column of ``spec``'s values (bool, or float64 for a numeric input), each row read by the
     scalar runtime's rule: np.True_ is a boolean, a Fraction or a float32 at a bound a number, None
@@ -395,7 +409,7 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
             continue
         if scalars:
             continue  # one run's input: validation refuses an array, whatever its value
-        given = np.asarray(raw)
+        given = column_array(raw)
         if rows is not None and given.shape not in ((), np.shape(rows)):
             continue  # a column of another shape (obs[:, i:i+1]): validation names its shape
         array = _numbers(spec, given, rows)
@@ -466,7 +480,7 @@ def clip_rows(specs: Sequence[InputSpec], inputs: Mapping[str, object], n: int,
         raw = inputs[spec.name]
         if type(raw).__name__ in ("bool", "bool_"):
             continue  # left for validation to report
-        given = np.asarray(raw)
+        given = column_array(raw)
         if given.shape not in ((), (n,)):
             continue  # validation names the shape (broadcast_to said numpy's own words)
         array = _numbers(spec, np.broadcast_to(given, (n,)), rows)
