@@ -252,3 +252,35 @@ def test_a_parameter_in_the_bounds_of_another_is_e0407():
     assert result.diagnostics[0].message.endswith(
         "it appears in a declaration the file does not check with at w1 = 1 (a bound, a constant)")
 
+
+
+LOOPHOLE = """automaton W {
+    input crash : bool
+    input done : bool
+    param w1, w2 in [1, 10]
+    reward sa, pr
+    objective w1 * sa + w2 * pr
+    sample every 1
+    horizon 4
+    initial location Go { sa' == 1; pr' == 1 }
+    location Hit { sa' == -1; pr' == 0 }
+    edge Go -> Hit when crash do sa -= 3, pr += 2
+    at end when done do pr += 2
+    episode ends when crash
+    goal when done && !crash
+    collision when crash
+    require ending_early_never_pays
+}
+"""
+
+
+def test_several_weights_under_a_requirement_are_refused_not_claimed():
+    """Ending early at sample 4 gains 2 * w2 - 3 * w1 over the safe run: it pays at (1, 10), a vertex of
+    the box. The weight synthesis cuts with P1 and P2 only, and said "every check holds for all values",
+    each vertex checked; a requirement's set need not be convex, so it is refused."""
+    at_vertex = compile_text(at(LOOPHOLE, {"w1": Fraction(1), "w2": Fraction(10)}), "w.ra")
+    assert "E1003" in [d.code for d in at_vertex.diagnostics]
+    result = compile_text(LOOPHOLE, "w.ra")
+    assert [d.code for d in result.diagnostics] == ["E0407"]
+    assert "under `require ending_early_never_pays`" in result.diagnostics[0].message
+    assert not any(f.check == "synthesis" for f in result.facts)

@@ -81,6 +81,19 @@ def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ..
     def resolve(point: tuple[Fraction, ...]) -> ir.Automaton | None:
         return Resolver(node, dict(zip(names, point))).run()
 
+    low = resolve(tuple(p.low for p in parameters))
+    searched = [] if low is None else [r for r in low.requirements
+                                       if (r.check == "risk" and r.bound is not None) or r.check in LOOPHOLES]
+    if searched:
+        # The polyhedron's cuts are P1's and P2's; a requirement compares two maxima over runs (p*'s
+        # ratio, a loophole's gap), so where it holds need not be convex, nor found by cutting planes:
+        # claiming the region would prove what was never checked.
+        required = ", ".join(f"`{_requirement_text(r)}`" for r in searched)
+        return None, [error("E0407", f"not yet: parameters {listed} cannot be synthesised together under "
+                            f"{required}: where it holds need not be a convex set of weights",
+                            parameters[0].span, notes=[f"the parameters synthesised together: {listed}"],
+                            hints=["synthesise one weight at a time (the others `const`), or write the "
+                                   "values as `const`"])], None
     try:
         region = synthesise_region(resolve, parameters)
     except Unsupported as where:
