@@ -362,3 +362,18 @@ def test_a_bound_is_written_rounded_up(value: Fraction, scale: int) -> None:
     text = upper_text(value)
     shown = Fraction(text.removesuffix("…"))
     assert shown >= value and (text.endswith("…") or shown == value)
+
+
+def test_a_synthesised_parameter_does_not_claim_the_discounted_p2(tmp_path: Path) -> None:
+    """With --discount and a `param`, the synthesis searched P1, P2 and the range only: it said "every
+    check holds for PENALTY in [98, 1000]" beside E0410 refuting the discounted P2 at PENALTY = 98."""
+    text = DRIVING.read_text(encoding="utf-8").replace("const PENALTY = 100", "param PENALTY in [0, 1000]")
+    path = tmp_path / "driving_param.ra"
+    path.write_text(text, encoding="utf-8")
+    result = rac.compile_file(path, discount=Discount(Fraction(99, 100)))
+    assert DISCOUNTED_P2 in [d.code for d in result.diagnostics]
+    (synthesis,) = [f for f in result.facts if f.check == "synthesis"]
+    assert "every check holds" not in synthesis.message
+    assert "every check but P2 of the discounted return holds for PENALTY in [98, 1000]" in synthesis.message
+    plain = compile_text(text, "driving_param.ra")
+    assert "every check holds for PENALTY in [98, 1000]" in plain.facts[0].message
