@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import typing
@@ -156,14 +157,24 @@ def _overlaps(automaton: ir.Automaton, space: InputSpace, location: ir.Location,
 
 
 def distances(automaton: ir.Automaton, space: InputSpace) -> dict[int, int]:
-    """Samples needed to reach each reachable location (breadth-first over edges that can fire)."""
+    """Samples needed to reach each reachable location (breadth-first over edges that can fire).
+
+    An edge that fires only where `episode ends when` holds reaches its target, but no run goes on
+    from there: only a location entered on inputs that let the run continue has its edges followed.
+    """
+    ends = automaton.episode_ends
     distance = {automaton.initial: 0}
+    going_on = {automaton.initial: 0}  # samples needed to be there with the run still going
     queue = deque([automaton.initial])
     while queue:
         here = queue.popleft()
         for edge in automaton.edges[here]:
-            if edge.target not in distance and space.satisfiable(edge.guard):
-                distance[edge.target] = distance[here] + 1
+            if not space.satisfiable(edge.guard):
+                continue
+            distance.setdefault(edge.target, going_on[here] + 1)
+            continues = ends is None or space.satisfiable(ir.BAnd((edge.guard, ir.BNot(ends))))
+            if continues and edge.target not in going_on:
+                going_on[edge.target] = going_on[here] + 1
                 queue.append(edge.target)
     return distance
 
@@ -173,8 +184,13 @@ def _reachability(automaton: ir.Automaton, space: InputSpace) -> list[Diagnostic
     result = []
     for index, location in enumerate(automaton.locations):
         if index not in distance:
+            lead = ("no sequence of edges from the initial location leads here"
+                    if automaton.episode_ends is None or index not in distances(
+                        dataclasses.replace(automaton, episode_ends=None), space)
+                    else "every sequence of edges that leads here passes a sample where `episode ends when` "
+                         "holds, and the run ends there")
             result.append(warning("W0302", f"location `{location.name}` is unreachable", location.span,
-                                  hints=["no sequence of edges from the initial location leads here"]))
+                                  hints=[lead]))
         elif distance[index] > automaton.steps:
             result.append(warning(
                 "W0302", f"location `{location.name}` cannot be reached within the horizon",
