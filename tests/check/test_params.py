@@ -328,3 +328,48 @@ def test_a_constant_used_above_its_declaration_says_where_it_is(declaration: str
     assert not [d for d in fine.diagnostics if d.code == "E0101"], fine.diagnostics
     other = compile_text(moved.replace("r' == d / A2", "r' == d / C"), "t.ra")
     assert [n.message for d in other.diagnostics if d.code == "E0101" for n in d.notes] == []
+
+
+SWITCHING = """automaton Switching {
+    input a : bool
+    input x : real in [0, 2]
+    param P in [-1, 1]
+    reward s, q
+    priority s > q
+    objective s + q
+    sample every 1
+    horizon 3
+    initial location A { q' == 1 }
+    location B { q' == 1 }
+    EDGES
+}
+"""
+
+
+@pytest.mark.parametrize("edges", [
+    # `s -= P` lowers s where P > 0, `s += P` where P < 0: B penalises s at both bounds, not at 0
+    "edge A -> B when a do s -= P\n    edge B -> B when a do s += P",
+    # `s += P * x - P` lowers s somewhere in x for every P but 0
+    "edge A -> B when a do s = s + P * x - P\n    edge B -> A when !a",
+])
+def test_a_location_that_penalises_at_both_bounds_but_not_between_is_refused(edges: str) -> None:
+    """P2 fails at both bounds (B penalises s and q grows there) and holds at P = 0 (B penalises
+    nothing). The synthesis compared the bounds only and said E0406, no value passes."""
+    text = SWITCHING.replace("EDGES", edges)
+
+    def ok_at(value: int) -> bool:
+        return compile_text(text.replace("param P in [-1, 1]", f"const P = {value}"), "s.ra").ok
+
+    assert [ok_at(v) for v in (-1, 0, 1)] == [False, True, False]
+    result = compile_text(text, "s.ra")
+    (refused,) = [d for d in result.diagnostics if d.is_error]
+    assert refused.code == "E0407" and "may change between its bounds" in refused.message
+
+
+def test_one_edge_that_penalises_at_both_bounds_penalises_between() -> None:
+    """`s -= P` lowers s wherever P > 0: with P in [1, 10] the location penalises throughout, and the
+    synthesis goes on."""
+    text = SWITCHING.replace("EDGES", "edge A -> B when a do s -= P\n    edge B -> A when !a").replace(
+        "param P in [-1, 1]", "param P in [1, 10]")
+    result = compile_text(text, "s.ra")
+    assert result.ok and "every check holds for P in [3, 10]" in result.facts[0].message

@@ -178,10 +178,58 @@ def unsupported(low: ir.Automaton, high: ir.Automaton) -> str | None:
     if rewards_move and low.objective != high.objective:
         return "it is both an objective weight and in a rate or an update (the objective would be quadratic in it)"
     for level in p2_levels(low):
-        if p2_target(low, level).watched != p2_target(high, level).watched:
+        watched = p2_target(low, level).watched
+        if watched != p2_target(high, level).watched:
             return (f"whether a location penalises `{low.priority[level]}` changes between its bounds: "
                     "narrow them to one side of that change")
+        # Watched at both bounds only through edges whose change of the reward moves with the parameter
+        # (`s -= P` and `s += P` into one location, or `s -= P * x`): each of them penalises outside an
+        # interval of values, so in between the location may penalise nothing, and the set of values
+        # where the checks hold need not be an interval. Unwatched at both bounds stays unwatched in
+        # between (each edge's least change is concave in the parameter).
+        reward = low.priority[level]
+        fixed = p2_target(_without_moving(low, high, reward), level).watched
+        if any(w and not f and not _one_edge_penalises(low, high, reward, level, here)
+               for here, (w, f) in enumerate(zip(watched, fixed))):
+            return (f"whether a location penalises `{low.priority[level]}` may change between its bounds "
+                    "(edges that lower it for some values of the parameter and not for others): narrow them "
+                    "to values on one side of each change")
     return None
+
+
+def _moving(low: ir.Automaton, high: ir.Automaton, e: ir.Edge, f: ir.Edge, reward: str) -> bool:
+    """Whether the edge (``e`` at the low bound, ``f`` at the high one) changes ``reward`` by an amount
+    that depends on the parameter."""
+    k = low.rewards.index(reward)
+    a, b = _maps(low, e), _maps(high, f)
+    return a.is_translation and b.is_translation and a.offset[k] != b.offset[k]
+
+
+def _without_moving(low: ir.Automaton, high: ir.Automaton, reward: str, keep: ir.Edge | None = None
+                    ) -> ir.Automaton:
+    """``low`` without the updates of the edges whose change of ``reward`` depends on the parameter,
+    except ``keep``."""
+    return dataclasses.replace(low, edges=tuple(
+        tuple(dataclasses.replace(e, updates=()) if e is not keep and _moving(low, high, e, f, reward) else e
+              for e, f in zip(es, fs)) for es, fs in zip(low.edges, high.edges)))
+
+
+def _one_edge_penalises(low: ir.Automaton, high: ir.Automaton, reward: str, level: int, here: int) -> bool:
+    """Whether one edge into location ``here`` lowers ``reward`` at both bounds by an amount whose part in
+    the parameter reads no input (``s -= P``): it then lowers it at every value in between too (where it
+    lowers it is a half-line), so the location penalises throughout."""
+    k = low.rewards.index(reward)
+    for es, fs in zip(low.edges, high.edges):
+        for e, f in zip(es, fs):
+            if e.target != here or not _moving(low, high, e, f, reward):
+                continue
+            if (_maps(high, f).offset[k] - _maps(low, e).offset[k]).variables():
+                continue  # the parameter multiplies an input: where it lowers the reward need not be a half-line
+            at_low = p2_target(_without_moving(low, high, reward, e), level).watched[here]
+            at_high = p2_target(_without_moving(high, low, reward, f), level).watched[here]
+            if at_low and at_high:
+                return True
+    return False
 
 
 def p1_cuts(low: ir.Automaton, high: ir.Automaton, parameter: ir.Parameter, sentences: list[str]) -> list[_Cut]:
