@@ -139,17 +139,12 @@ def parameter_stage(state: Compilation, settings: Settings) -> Compilation:
         return state
     from rac.check.params import synthesise_parameters  # numpy and sympy: a syntax error never needs them
 
-    outcome = synthesise_parameters(state.module.automata[0], state.automaton.parameters)
-    facts = outcome.facts
-    if settings.discount is not None:
-        # The synthesis searches P1, P2, the range and the requirements, not P2 of the discounted
-        # return: "every check holds" over the set would claim a proof the analysis may refute (E0410).
-        but = "every check but P2 of the discounted return holds"
-        facts = tuple(replace(f, message=f"{f.message.replace('every check holds', but, 1)}; P2 of the "
-                                         "discounted return (`--discount`) is checked at that value only")
-                      if f.check == "synthesis" and "every check holds" in f.message else f for f in facts)
+    # the synthesis searches P1, P2, the range and the requirements, not P2 of a discounted return: with
+    # --discount its facts say so, where "every check holds" over the set claimed what E0410 may refute
+    outcome = synthesise_parameters(state.module.automata[0], state.automaton.parameters,
+                                    discounted=settings.discount is not None)
     return replace(state, automaton=outcome.automaton, diagnostics=(*state.diagnostics, *outcome.diagnostics),
-                   facts=(*state.facts, *facts), synthesis=outcome.synthesised)
+                   facts=(*state.facts, *outcome.facts), synthesis=outcome.synthesised)
 
 
 def analysis_stage(state: Compilation, settings: Settings) -> Compilation:

@@ -47,11 +47,15 @@ class ParameterOutcome:
     facts: tuple[Fact, ...]
 
 
-def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, ...]) -> ParameterOutcome:
+def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], *,
+                          discounted: bool = False) -> ParameterOutcome:
     """The automaton at the synthesised values of its parameters (one: the least value; several
     weights: the lexicographically least integer point), with the diagnostics and facts that say
-    what was found (:class:`ParameterOutcome`)."""
+    what was found (:class:`ParameterOutcome`). ``discounted``: the file is also checked for a
+    discounted return (``rac check --discount``), whose P2 the synthesis does not search: the facts
+    say so instead of claiming every check over the set."""
     facts: list[Fact] = []
+    claim = _Claim(discounted)
     place = nonlinear_use(node, {p.name for p in parameters})
     at_low = Resolver(node).run()
     if place is None and at_low is not None and input_space(at_low)[0] is None:
@@ -64,15 +68,33 @@ def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, .
             None, [error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: {how}", span,
                          hints=[f"write `const {name} = ...` instead"])], None)
     elif len(parameters) == 1:
-        found = _synthesised(node, parameters[0], facts)
+        found = _synthesised(node, parameters[0], facts, claim)
     else:
-        found = _synthesised_weights(node, parameters, facts)
+        found = _synthesised_weights(node, parameters, facts, claim)
     automaton, diagnostics, synthesised = found
     return ParameterOutcome(automaton, tuple(diagnostics), synthesised, tuple(facts))
 
 
-def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], facts: list[Fact]
-                         ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
+@dataclass(frozen=True)
+class _Claim:
+    """What a synthesised set is claimed to satisfy: every check, or, for a file checked for a discounted
+    return too, every check but that return's P2 (searched by none of the syntheses, checked at the
+    chosen value only)."""
+
+    discounted: bool
+
+    @property
+    def holds(self) -> str:
+        return "every check but P2 of the discounted return holds" if self.discounted else "every check holds"
+
+    @property
+    def after(self) -> str:
+        """What a sentence ends with."""
+        return "; P2 of the discounted return (`--discount`) is checked at that value only" if self.discounted else ""
+
+
+def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], facts: list[Fact],
+                         claim: _Claim) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
     """Several parameters, weights of the objective: the automaton at the lexicographically least integer
     point of the exact polyhedron where every check holds, or None and why there is none."""
     names = [p.name for p in parameters]
@@ -125,10 +147,10 @@ def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ..
            else f"the lexicographically least values, `{first}` first (no integer point)")
     inequalities = tuple(region.describe())
     if inequalities:
-        sentence = (f"synthesised: every check holds exactly where {' and '.join(inequalities)} ({bounds}); "
-                    f"checked with {chosen}, {how}")
+        sentence = (f"synthesised: {claim.holds} exactly where {' and '.join(inequalities)} ({bounds}); "
+                    f"checked with {chosen}, {how}{claim.after}")
     else:
-        sentence = f"synthesised: every check holds for all values ({bounds}); checked with {chosen}, {how}"
+        sentence = f"synthesised: {claim.holds} for all values ({bounds}); checked with {chosen}, {how}{claim.after}"
     facts.append(Fact("synthesis", sentence))
     shown = ", ".join("(" + ", ".join(exact_text(x) for x in v) + ")" for v in region.vertices[:8])
     more = f" and {len(region.vertices) - 8} more" if len(region.vertices) > 8 else ""
@@ -137,7 +159,7 @@ def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ..
     return resolve(point), [], Synthesised(tuple(zip(names, point)), inequalities, sentence, (vertices,))
 
 
-def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
+def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact], claim: _Claim
                  ) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
     """The automaton at the least value of its parameter for which every check holds (the fact saying
     so goes to ``facts``), or None and why there is none (E0406 and the checks failing at the value
@@ -218,17 +240,17 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
                                                           high_open=result.high.open)
     least, held = _held_exactly(resolve, name, least, top)
     if allowed is not None:
-        sentence = (f"synthesised: every check holds for {name} in {result.interval()}, and {required_text}; "
-                    f"checked with {name} = {short_number(least)}{held}")
+        sentence = (f"synthesised: {claim.holds} for {name} in {result.interval()}, and {required_text}; "
+                    f"checked with {name} = {short_number(least)}{held}{claim.after}")
         inequalities = tuple(_interval_inequality(name, i) for i in allowed)
         facts.append(Fact("synthesis", sentence))
         return resolve(least), [], Synthesised(((name, least),), (" or ".join(inequalities),), sentence)
     if result.whole:
-        sentence = (f"synthesised: every check holds for every value of {name} in {result.interval()}; "
-                    f"checked with {name} = {short_number(least)}{held}")
+        sentence = (f"synthesised: {claim.holds} for every value of {name} in {result.interval()}; "
+                    f"checked with {name} = {short_number(least)}{held}{claim.after}")
     else:
-        sentence = (f"synthesised: {result.describe()} (every check holds for {name} in {result.interval()}); "
-                    f"checked with {name} = {short_number(least)}{held}")
+        sentence = (f"synthesised: {result.describe()} ({claim.holds} for {name} in {result.interval()}); "
+                    f"checked with {name} = {short_number(least)}{held}{claim.after}")
     facts.append(Fact("synthesis", sentence))
     return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
                                            sentence)
