@@ -73,16 +73,18 @@ def test_a_bad_progress_interval_is_said_and_the_default_used(value: str, monkey
 
 @pytest.fixture
 def slow_simulation(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every simulated sample takes 3 ms more, and the heartbeat speaks every millisecond: a long run in brief."""
-    from rac.engine import simulate
+    """Every simulated sample takes 3 ms more, and the heartbeat speaks every millisecond: a long run in brief.
+    The model's sensing step is what every sample does (the truth's integration, slowed before, runs only for
+    expressions that read the truth: `E[..](max: v)` then simulated too fast for the heartbeat, now and then)."""
+    from rac.model.batch import BatchModel
 
-    integrate = simulate.integrate_truth
+    sense = BatchModel.sense
 
-    def slow(*args, **kwargs):
+    def slow(self, *args, **kwargs):
         time.sleep(0.003)
-        return integrate(*args, **kwargs)
+        return sense(self, *args, **kwargs)
 
-    monkeypatch.setattr(simulate, "integrate_truth", slow)
+    monkeypatch.setattr(BatchModel, "sense", slow)
     monkeypatch.setenv("RAC_PROGRESS_INTERVAL", "0.001")
 
 
