@@ -687,3 +687,13 @@ def test_every_task_keeps_within_the_memory_budget(folder: Path, task: str, monk
     row = work.execute(spec(folder, "goal_ahead.xml", task, options=OPTIONS[task]))
     assert "more than the memory budget of 1000 B" in str(row["error"]), row
     assert row["status"] in ("undecided", "failed"), row
+
+
+@pytest.mark.parametrize("memory", [16, 64])
+def test_a_small_task_memory_is_a_memory_row_not_a_numpy_import_error(folder: Path, memory: int) -> None:
+    # numpy (its OpenBLAS), shapely and commonroad-io's reader were first imported under the limit: a task of
+    # --task-memory 16M was an `error` row quoting numpy's "bad install" advice (a shared object it could not
+    # map), one of 64M "the task's process exited with status 1: OpenBLAS error: Memory allocation still failed"
+    row = run_task(spec(folder, "highway.xml", "check", memory=memory * 2**20, timeout=60))
+    assert row["status"] in ("memory", "ok", "failed"), row
+    assert "ImportError" not in str(row["error"]) and "exited with status" not in str(row["error"]), row["error"]

@@ -70,7 +70,7 @@ TASK_OPTIONS: dict[str, tuple[str, ...]] = {
 #: What an error says when the task ran out of memory under its limit (Python, numpy, C++, the loader;
 #: CPython's SystemError "returned NULL without setting an exception" when even the MemoryError failed).
 OUT_OF_MEMORY = ("MemoryError", "Unable to allocate", "Cannot allocate memory", "bad_alloc", "out of memory",
-                  "SystemError")
+                  "SystemError", "failed to map segment from shared object", "Memory allocation still failed")
 #: The signals that end a task's process from outside (the out-of-memory killer's SIGKILL, a shutdown's
 #: SIGTERM): such a death says nothing about the task, so its row is marked ``retry`` and a resumed sweep
 #: runs it again. A crash (SIGSEGV, SIGABRT) is the task's own doing and stays a plain error.

@@ -40,7 +40,11 @@ __all__ = ["execute", "load"]
 
 #: The modules each task needs (the check's, which it imports when it runs, first), imported by
 #: :func:`load` before the memory limit is set.
-CHECK_MODULES = ("rac.check.analysis", "rac.model.checks", "rac.model.commonroad", "rac.model.data")
+CHECK_MODULES = ("rac.check.analysis", "rac.model.checks", "rac.model.commonroad", "rac.model.data",
+                 # what rac's modules import only when they run: numpy (its OpenBLAS), shapely and commonroad-io's
+                 # reader, loaded under --task-memory, failed to map their shared objects and made a task's row a
+                 # numpy "bad install" ImportError or an OpenBLAS exit, not a memory row
+                 "numpy", "shapely", "commonroad.common.file_reader")
 MODULES = {"check": (), "verify": ("rac.verify.runner",), "preanalyse": ("rac.studies.preanalysis",),
            "experiment": ("rac.studies.experiment", "rac.learning.episodes", "rac.learning.lockstep",
                           "rac.learning.qlearning", "rac.learning.runs")}
