@@ -303,8 +303,7 @@ def goal_window(automaton: ir.Automaton, scenario: Scenario, data: ModelData,
             notes=[f"the scenario file is `{spec.scenario_path}`; `goal()` holds only at the samples inside the "
                    "window, and the window lies between two samples"],
             hints=["sample more often (`sample every`), or widen the goal's time interval"])]
-    which, where = ("the horizon", "`horizon`") if horizon is None else (
-        f"{option}{'' if option.endswith('=') else ' '}{_decimal(horizon)}", option)
+    which, where = _horizon_named(horizon, option)
     first = data.goal_low * period  # the window's first sample, in the model's time
     return [warning(
         "W0722", f"the goal's time window {window} opens after {which} ends (scenario time t = "
@@ -314,6 +313,14 @@ def goal_window(automaton: ir.Automaton, scenario: Scenario, data: ModelData,
                "s after it, so every query that asks for the goal is answered for a goal no run can reach in time"],
         hints=[f"lengthen the horizon to at least {_decimal(first)} s ({where}), or choose a planning problem whose "
                "goal window opens within it"])]
+
+
+def _horizon_named(horizon: Fraction | None, option: str) -> tuple[str, str]:
+    """The horizon a warning speaks of, and where it is set: the automaton's (``horizon`` None), or the
+    value of a command's ``option`` (``--horizon 12``, ScenarioEnv's ``horizon=12``)."""
+    if horizon is None:
+        return "the horizon", "`horizon`"
+    return f"{option}{'' if option.endswith('=') else ' '}{_decimal(horizon)}", option
 
 
 def _distance_to_anywhere(spec: ir.ModelSpec, scenario: Scenario) -> list[Diagnostic]:
@@ -353,7 +360,7 @@ def traffic_ends(automaton: ir.Automaton, scenario: Scenario, horizon: Fraction 
     count = f"{len(moving)} moving obstacle{'s are' if len(moving) != 1 else ' is'}"
     left = f" and {len(scenario.obstacles) - len(moving)} static" if len(scenario.obstacles) > len(moving) else ""
     span = automaton.spans.get("model:scenario", spec.span)
-    which, where = ("the horizon", "`horizon`") if horizon is None else (f"--horizon {_decimal(horizon)}", "--horizon")
+    which, where = _horizon_named(horizon, "--horizon")
     return [warning(
         "W0728", f"{which} runs past the recorded traffic of `{spec.scenario}`: its {count} gone after "
         f"scenario time t = {_number(ends)} s, the horizon ends at t = {_number(horizon_ends)} s", span,
