@@ -700,12 +700,12 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         if args.format == "text":
             print_diagnostics([write_failed])
         n = len(rows)
-        print(f"rac preanalyse: stopped by the error {where}; {n} setting{'' if n == 1 else 's'} finished before "
+        print(f"rac preanalyse: stopped by the error {where}; {counted(n, 'setting')} finished before "
               f"it ({where}){removed}", file=sys.stderr)
         return EXIT_USAGE
     if interrupted:
         n = len(rows)
-        print(f"rac preanalyse: {how_stopped()}; {n} setting{'' if n == 1 else 's'} finished before it "
+        print(f"rac preanalyse: {how_stopped()}; {counted(n, 'setting')} finished before it "
               f"({where if n else 'none'}){removed}", file=sys.stderr)
         return EXIT_INTERRUPTED
     undecided = sum(1 for row in rows if "error" in row)

@@ -38,7 +38,7 @@ from rac.cli.common import (
     write_atomically,
 )
 from rac.compiler import CompileResult, compile_source
-from rac.core.diagnostics import Diagnostic, error, json_text, render_text, sort_key
+from rac.core.diagnostics import Diagnostic, counted, error, json_text, render_text, sort_key
 from rac.core.numbers import exact_decimal, exact_text
 from rac.core.resources import ScenarioTooLarge
 from rac.core.source import SourceFile
@@ -309,7 +309,7 @@ def _horizons_stopped(args: argparse.Namespace, path: Path, rows: list[_Row]) ->
                          "formulas": [], "interrupted": True}, indent=2))
     where = "above" if args.format == "text" else "in the JSON document"
     n = len(rows)
-    print(f"rac tune: {how_stopped()}; {n} horizon{'' if n == 1 else 's'} synthesised before it "
+    print(f"rac tune: {how_stopped()}; {counted(n, 'horizon')} synthesised before it "
           f"({where if n else 'none'}; no formula)", file=sys.stderr)
     return EXIT_INTERRUPTED
 

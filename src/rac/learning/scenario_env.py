@@ -49,6 +49,7 @@ from rac.learning.episodes import EpisodeBatch
 from rac.learning.observation import Observation, make_observation
 from rac.learning.wrappers import CutEpisodes, Scale, outside_step_limit, scale_factor, within_proven
 from rac.model.checks import goal_window
+from rac.model.commonroad import with_planning_problem
 from rac.model.sample import MOTION
 
 if TYPE_CHECKING:
@@ -136,15 +137,10 @@ def _checked_scene(model: str, text: str, scenario: str, stamp: tuple[int, int],
         # the diagnostics speak of the model file; say which scene of the set broke it
         hint = ("\n(a scene of a set chooses its planning problem as a pair in scenarios=: "
                 f"({scenario!r}, ID))" if any(d.code == "E0715" for d in result.diagnostics) else "")
-        error.args = (f"the scene {_scene_name(Path(scenario), planning_problem)} does not check with the model "
+        error.args = (f"the scene {with_planning_problem(scenario, planning_problem)} does not check with the model "
                       f"block of {model}:\n{error}{hint}",)
         raise error
     return result
-
-
-def _scene_name(path: Path, planning_problem: int | None) -> str:
-    """A scene of a set as messages name it: its file, and the planning problem when the set chose one."""
-    return str(path) if planning_problem is None else f"{path} (planning problem {planning_problem})"
 
 
 def _shield(shield: str | os.PathLike[str] | ShieldTable | None, columns: tuple[str, ...],
@@ -473,7 +469,7 @@ class ScenarioEnv(gymnasium.Env):
 
     def _name(self, index: int) -> str:
         """Scene ``index`` as messages name it."""
-        return _scene_name(self.scenarios[index], self.planning_problems[index])
+        return with_planning_problem(str(self.scenarios[index]), self.planning_problems[index])
 
     def _warn_unfit_scene(self, result: CompileResult, index: int, samples: int) -> None:
         """Warn of what ``rac check`` would have said of this scene's episodes and nobody has seen: for a scene

@@ -560,6 +560,12 @@ def _orientation_error(path: str | os.PathLike[str], node, orientation, text: st
                                         f"±{MAX_ORIENTATION:g} rad rac accepts (CommonRoad's are within ±2π)")
 
 
+def with_planning_problem(name: str, planning_problem: int | None) -> str:
+    """A scene as messages name it: ``name`` (its file, its label), and the planning problem when one was
+    chosen for it (a scene set's ``(path, id)``, a sweep's task per planning problem)."""
+    return name if planning_problem is None else f"{name} (planning problem {planning_problem})"
+
+
 def planning_problem_ids(data: bytes) -> tuple[int, ...]:
     """The ids of the planning problems of the CommonRoad file ``data`` (its bytes) in id order, read from its
     XML alone (no commonroad-io: a sweep plans a task per planning problem of each file before any loads it);

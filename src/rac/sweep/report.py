@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from rac.core.files import atomic_write
+from rac.model.commonroad import with_planning_problem
 from rac.output.plots import fit_title, new_figure, save_figure
 from rac.sweep.store import write_text
 from rac.sweep.task import NOT_FAILED, STATUSES, VERDICTS  # STATUSES, VERDICTS: in the order tables and plots show them
@@ -196,10 +197,10 @@ def scenario_labels(rows: Sequence[Mapping[str, object]]) -> dict[str, str]:
     return labels
 
 
-def _problem(row: Mapping[str, object]) -> str:
-    """What follows a row's scenario label: the planning problem the sweep chose for it, if it chose one."""
+def _problem(row: Mapping[str, object]) -> int | None:
+    """The planning problem the sweep chose for a row's task (None: the template's choice)."""
     problem = row.get("planning_problem")
-    return "" if problem is None else f" (planning problem {problem})"
+    return problem if isinstance(problem, int) else None
 
 
 def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int = 0,
@@ -219,7 +220,7 @@ def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int 
         percentiles = {"p50": float(np.percentile(seconds, 50)), "p90": float(np.percentile(seconds, 90)),
                        "max": seconds[-1]}
     shown = scenario_labels(rows)
-    problems = [(str(row.get("status")), shown[str(row.get("scenario"))] + _problem(row),
+    problems = [(str(row.get("status")), with_planning_problem(shown[str(row.get("scenario"))], _problem(row)),
                  grid_label(_mapping(row, "settings")),
                  str(row.get("error") or "")) for row in rows if row.get("status") != "ok"]
     order = {status: i for i, status in enumerate(STATUSES)}
