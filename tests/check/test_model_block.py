@@ -831,3 +831,21 @@ def test_a_function_without_its_parentheses_is_named(where: str, old: str, new: 
     found = [d for d in compile_file(path).diagnostics if d.code == "E0101"]
     assert len(found) == 1, found
     assert list(found[0].hints) == [f"`{name}` is a function: write `{name}()`"]
+
+
+@pytest.mark.parametrize(("declaration", "example"), [
+    ("input collide : bool", "bind collide = collide()"),
+    ("input atGoal : bool", "bind atGoal = goal()"),
+    ("input off_road : bool", "bind off_road = offroad()"),
+    ("input dgoal : real in [0, 500]", "bind dgoal = dist_goal()"),
+    ("input mindist : real in [0, 500]", "bind mindist = mindist()"),
+    ("input gap : real in [0, 500]", "bind gap = dist_goal()"),
+    ("input fast : bool", "bind fast = mindist() < 3 * collision_distance"),
+])
+def test_an_unbound_input_named_after_a_model_function_is_shown_that_function(declaration: str,
+                                                                            example: str) -> None:
+    """E0709's example binding is the predicate or distance the input's name says (a user who wrote
+    `input collide` means `collide()`, not a distance comparison), else the usual example."""
+    text = small("").replace("    input prog    : bool\n", f"    input prog    : bool\n    {declaration}\n")
+    diagnostic = only(text, "E0709")
+    assert diagnostic.hints[-1].endswith(f"e.g. `{example}`"), diagnostic.hints

@@ -43,6 +43,7 @@ from rac.ir.vocabulary import (
     ACTIONS,
     MAX_ACTION_PAIRS,
     MAX_ACTION_VALUES,
+    MODEL_FUNCTIONS,
     MODELLING,
     NO_PLANNING_PROBLEM,
     SETTINGS,
@@ -560,12 +561,26 @@ class _ModelResolver:
                 self._check_whole(item, expr, values)
         for item in self.inputs:
             if item.name not in bound and item.name not in suggested:
-                example = "mindist() < 3 * collision_distance" if item.is_bool else "dist_goal()"
+                example = _binding_example(item.name, item.is_bool)
                 self.error("E0709", f"input `{item.name}` has no binding in the `model` block", item.span,
                            notes=[Note("the `model` block", self.block.span)],
                            hints=["with a model, every input is computed from it: add "
                                   f"`bind {item.name} = ...` to the block, e.g. `bind {item.name} = {example}`"])
         return tuple(lowered[i.name] for i in self.inputs if i.name in lowered)
+
+
+def _binding_example(name: str, is_bool: bool) -> str:
+    """An example binding for an unbound input: the model function of its type the input is named
+    after (``collide`` -> ``collide()``, ``atGoal`` -> ``goal()``, ``dgoal`` -> ``dist_goal()``), else
+    the usual one. A user who named an input after a predicate most likely means that predicate."""
+    wanted = "bool" if is_bool else "num"
+    lowered = name.lower().replace("_", "")
+    named = [f for f in MODEL_FUNCTIONS.values() if f.result == wanted and f.name.replace("_", "") in lowered]
+    if not named and not is_bool and "goal" in lowered:
+        named = [MODEL_FUNCTIONS["dist_goal"]]
+    if named:
+        return max(named, key=lambda f: len(f.name)).signature
+    return "mindist() < 3 * collision_distance" if is_bool else "dist_goal()"
 
 
 def _whole(expr: ie.Expr, period: Fraction) -> bool:
