@@ -154,7 +154,8 @@ def test_the_results_are_merged_summarised_and_plotted(swept: tuple[SweepResult,
     text = render_summary(summary)
     assert text.splitlines()[:3] == ["tasks  ok  failed  undecided  skipped  not run",
                                      "    6   3       3          0        0        0",
-                                     "failed: 2 failed, 1 error"]
+                                     "failed: 1 with a query not satisfied, 1 with errors in the file, "
+                                     "1 that rac could not run"]
     assert "error: broken [template settings]: " in text and "failed: highway [template settings]: E0714" in text
     assert exit_status(result.rows) == EXIT_ERRORS  # a query not satisfied, a file with errors
 

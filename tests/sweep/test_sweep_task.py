@@ -697,3 +697,24 @@ def test_a_small_task_memory_is_a_memory_row_not_a_numpy_import_error(folder: Pa
     row = run_task(spec(folder, "highway.xml", "check", memory=memory * 2**20, timeout=60))
     assert row["status"] in ("memory", "ok", "failed"), row
     assert "ImportError" not in str(row["error"]) and "exited with status" not in str(row["error"]), row["error"]
+
+
+def test_the_summary_says_why_tasks_failed() -> None:
+    """The "failed:" line said "2 failed, 1 error": the status alone, repeating the column above and not
+    telling a query not satisfied from a file that does not check. It says why, in a fixed order."""
+    from rac.sweep.report import render_summary, summarise
+
+    def row(status: str, **verdicts: str) -> dict[str, object]:
+        return {"status": status, "scenario": f"s{status}.xml", "settings": {}, "verdicts": verdicts, "error": "x"}
+
+    rows = [row("memory"), row("failed", Q="not satisfied", P="satisfied"), row("failed"), row("timeout"),
+            row("failed", Q="satisfied", P="not satisfied"), row("ok", Q="satisfied"),
+            row("undecided", Q="unknown"), row("error")]
+    summary = summarise(rows, tasks=len(rows))
+    assert summary.failed == 6
+    assert summary.failures == {"not satisfied": 2, "file": 1, "error": 1, "timeout": 1, "memory": 1}
+    assert render_summary(summary).splitlines()[2] == (
+        "failed: 2 with a query not satisfied, 1 with errors in the file, 1 that rac could not run, 1 timed out, "
+        "1 out of memory")
+    assert summarise(rows[5:7], tasks=2).failures == {}
+    assert "failed:" not in render_summary(summarise(rows[5:7], tasks=2))

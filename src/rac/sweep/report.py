@@ -30,8 +30,9 @@ from rac.output.plots import fit_title, new_figure, save_figure
 from rac.sweep.store import write_text
 from rac.sweep.task import NOT_FAILED, STATUSES, VERDICTS  # STATUSES, VERDICTS: in the order tables and plots show them
 
-__all__ = ["RESULTS_CSV", "RESULTS_JSON", "RESULTS_PARQUET", "Summary", "frame", "grid_label", "render_summary",
-           "remove_results", "scenario_labels", "summarise", "table", "write_plots", "write_results"]
+__all__ = ["FAILURE_WORDS", "RESULTS_CSV", "RESULTS_JSON", "RESULTS_PARQUET", "Summary", "failure_kind", "frame",
+           "grid_label", "render_summary", "remove_results", "scenario_labels", "summarise", "table", "write_plots",
+           "write_results"]
 
 RESULTS_PARQUET, RESULTS_CSV, RESULTS_JSON = "results.parquet", "results.csv", "results.json"
 VERDICT_PLOT, TIME_PLOT = "verdicts.png", "time_vs_size.png"
@@ -157,6 +158,8 @@ class Summary:
     problems: list[tuple[str, str, str, str]] = field(default_factory=list)
     #: of the skipped tasks, those whose stored row is not ok: reused as they are, unless --retry-failed
     skipped_not_ok: int = 0
+    #: the tasks not ok nor undecided by why (:func:`failure_kind`), in the order of :data:`FAILURE_WORDS`
+    failures: dict[str, int] = field(default_factory=dict)
 
     @property
     def ok(self) -> int:
@@ -203,11 +206,36 @@ def _problem(row: Mapping[str, object]) -> int | None:
     return problem if isinstance(problem, int) else None
 
 
+#: How the summary's "failed:" line says each kind of failure (:func:`failure_kind`), in its order: the
+#: status "failed" alone would say "2 failed" and not whether a query failed or the file did not check.
+FAILURE_WORDS: dict[str, str] = {
+    "not satisfied": "with a query not satisfied",
+    "file": "with errors in the file",
+    "error": "that rac could not run",
+    "timeout": "timed out",
+    "memory": "out of memory",
+}
+
+
+def failure_kind(row: Mapping[str, object]) -> str | None:
+    """Why a row failed, a key of :data:`FAILURE_WORDS` (None: ok or undecided): a row of status "failed" is
+    "not satisfied" when one of its queries is, else "file" (errors in the file); other statuses are
+    themselves."""
+    status = str(row.get("status"))
+    if status in NOT_FAILED:
+        return None
+    if status == "failed":
+        return "not satisfied" if "not satisfied" in _mapping(row, "verdicts").values() else "file"
+    return status
+
+
 def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int = 0,
               skipped_not_ok: int = 0) -> Summary:
     """The :class:`Summary` of ``rows`` out of ``tasks`` tasks, ``skipped`` of them reused from the store
     (``skipped_not_ok`` of those not ok)."""
     statuses = Counter(str(row.get("status")) for row in rows)
+    kinds = Counter(kind for row in rows if (kind := failure_kind(row)) is not None)
+    failures = {kind: kinds[kind] for kind in sorted(kinds, key=lambda k: (list(FAILURE_WORDS) + [k]).index(k))}
     queries: dict[str, Counter[str]] = {}
     for row in rows:
         for name, verdict in _mapping(row, "verdicts").items():
@@ -228,7 +256,7 @@ def summarise(rows: Sequence[Mapping[str, object]], *, tasks: int, skipped: int 
                    skipped_not_ok=skipped_not_ok,
                    statuses={s: n for s, n in sorted(statuses.items(), key=lambda item: order.get(item[0], 99))},
                    queries={name: {v: counts.get(v, 0) for v in VERDICTS} for name, counts in queries.items()},
-                   seconds=percentiles, problems=problems)
+                   seconds=percentiles, problems=problems, failures=failures)
 
 
 def _aligned(header: Sequence[str], lines: Sequence[Sequence[object]], *, names: bool = True) -> list[str]:
@@ -251,8 +279,8 @@ def render_summary(summary: Summary, *, problems_shown: int = 10) -> str:
                  if summary.skipped_not_ok else "")
         out.append(f"skipped: {summary.skipped} stored by an earlier run (--force runs them again){stale}")
     if summary.failed:
-        out.append("failed: " + ", ".join(f"{n} {status}" for status, n in summary.statuses.items()
-                                          if status not in ("ok", "undecided")))
+        out.append("failed: " + ", ".join(f"{n} {FAILURE_WORDS.get(kind, kind)}"
+                                          for kind, n in summary.failures.items()))
     if summary.queries:
         out.append("")
         out.extend(_aligned(["query", *VERDICTS],
