@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import warnings
 from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
@@ -91,7 +92,12 @@ def test_greedy_ties_masks_and_unseen_keys(tmp_path: Path) -> None:
     masks = np.array([[1, 1, 1, 1], [1, 1, 1, 1], [0, 0, 1, 1], [1, 0, 0, 0]], dtype=bool)
     # the first maximum (ties go to the lowest index), the best allowed one, unseen: lowest allowed
     assert strategy.action(keys, masks).tolist() == [1, 0, 2, 0]
-    assert strategy.action(keys[:1], np.zeros((1, 4), dtype=bool)).tolist() == [1]  # nothing allowed: all
+    # nothing allowed: all, said once per strategy (a caller's empty row no longer lapses unseen)
+    with pytest.warns(UserWarning, match=r"1 of 1 mask rows allowed no action: the strategy chose among every"):
+        assert strategy.action(keys[:1], np.zeros((1, 4), dtype=bool)).tolist() == [1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert strategy.action(keys[:1], np.zeros((1, 4), dtype=bool)).tolist() == [1]  # once only
     cost = dataclasses.replace(strategy, optimise="min")
     assert cost.action(keys[:2]).tolist() == [3, 2]  # minE: the lowest cost, ties to the lowest index
     loaded = LearnedStrategy.load(strategy.save(tmp_path / "s.strategy.npz"))

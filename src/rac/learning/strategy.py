@@ -13,7 +13,8 @@ Q-value per action of the episodes (:class:`rac.learning.episodes.EpisodeBatch`)
   lists (the sample is not added): put ``time`` in the discrete list for a time-dependent strategy.
 - **Choices.** Greedy among the *allowed* actions (the shield's mask at the state key; all
   actions without a shield; all actions where the shield allows nothing, counted as
-  ``fallbacks``). Ties go to the lowest action index, so a strategy is deterministic.
+  ``fallbacks``). Ties go to the lowest action index, so a strategy is deterministic. A caller's
+  mask row that allows nothing gets the greedy action among all, with a warning (once per strategy).
 - **Unseen observations.** A strategy picks the lowest-index allowed action in a state it never
   saw (its Q-values count as 0, and ties go to the lowest index).
 
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from rac.core.caller import user_stacklevel
 from rac.core.diagnostics import RacValueError
 from rac.core.files import atomic_write
 from rac.core.source import SourceFile
@@ -50,8 +53,8 @@ if TYPE_CHECKING:  # imported when a run is replayed (the simulator is not neede
     from rac.model.data import ModelData
 
 __all__ = ["DEFAULT_BIN", "DEFAULT_BINS", "Episodes", "Forwarding", "LearnedStrategy", "StepOutcome", "StrategyRun",
-           "allowed_actions", "check_shield", "default_bin", "derived_bins", "greedy_actions", "key_bytes",
-           "observation_keys", "observed_name", "uniform_allowed"]
+           "allowed_actions", "check_shield", "default_bin", "derived_bins", "empty_mask_warning", "greedy_actions",
+           "key_bytes", "observation_keys", "observed_name", "uniform_allowed"]
 
 FORMAT = "rac-strategy-1"
 #: Default bin widths of continuous observations, by name (a plain name, a model function, or
@@ -240,6 +243,14 @@ def allowed_actions(batch: Episodes, shield: ShieldTable | None) -> tuple[np.nda
     return masks, empty
 
 
+def empty_mask_warning(empty: int, rows: int) -> str:
+    """The warning of :meth:`LearnedStrategy.action` given masks with ``empty`` of ``rows`` rows allowing nothing."""
+    return (f"{empty} of {rows} mask rows allowed no action: the strategy chose among every action there, so no "
+            "mask (no shield's guarantee) covers those choices. rac's own masks never allow nothing (a shield that "
+            "knows no safe action hands out the model's actions, flagged as info['no_safe_action'] or counted as "
+            "fallbacks); pass masks that allow at least one action per row. Warned once per strategy")
+
+
 def check_shield(batch: Episodes, shield: ShieldTable | None) -> None:
     """``ValueError`` unless ``shield`` (if any) has the episodes' actions."""
     if shield is not None and shield.n_actions != batch.n_actions:
@@ -267,6 +278,7 @@ class LearnedStrategy:
         if self.optimise not in ("max", "min"):
             raise ValueError(f"optimise must be 'max' or 'min', not {self.optimise!r}")
         object.__setattr__(self, "_index", {raw: i for i, raw in enumerate(key_bytes(self.keys))})
+        object.__setattr__(self, "_warned_empty", False)  # empty_mask_warning given (once per strategy)
 
     @property
     def n_actions(self) -> int:
@@ -296,15 +308,22 @@ class LearnedStrategy:
 
     def action(self, keys: np.ndarray, masks: np.ndarray | None = None) -> np.ndarray:
         """``(n,)`` the greedy action of every observation key among the allowed ones (``masks``
-        ``(n, P)`` bool; None: all). An unseen key, or a row allowing nothing, gets the lowest-index
-        allowed action (every action, for an empty row)."""
+        ``(n, P)`` bool; None: all). An unseen key gets the lowest-index allowed action. A row
+        allowing nothing gets the greedy action among every action, which no mask constrains: the
+        first such call warns (once per strategy; :func:`empty_mask_warning`)."""
         keys = np.array(keys, dtype=np.float64, ndmin=2)
         rows = self.lookup(keys)
         sign = 1.0 if self.optimise == "max" else -1.0
         utilities = sign * self.values[np.maximum(rows, 0)] if self.n_states else np.zeros((len(rows), self.n_actions))
         utilities[rows < 0] = 0.0
         allowed = np.ones(utilities.shape, dtype=bool) if masks is None else np.array(masks, dtype=bool)
-        allowed[~allowed.any(axis=1)] = True
+        empty = ~allowed.any(axis=1)
+        if empty.any() and not self._warned_empty:  # type: ignore[attr-defined]
+            # once per strategy: rac's own runs never pass such a row (allowed_actions falls back first,
+            # counted as fallbacks), a caller's mask that does would otherwise lose its meaning unseen
+            object.__setattr__(self, "_warned_empty", True)
+            warnings.warn(empty_mask_warning(int(empty.sum()), len(rows)), UserWarning, stacklevel=user_stacklevel())
+        allowed[empty] = True
         return greedy_actions(utilities, allowed)
 
     def act(self, observations: np.ndarray, masks: np.ndarray | None = None) -> np.ndarray:
