@@ -180,7 +180,8 @@ def test_the_time_budget_reports_itself(tmp_path: Path) -> None:
     start = oracle.native.initial_state()
     want, target = oracle.depths(start, 0, 4)
     assert target == 4 and want.max() == 4
-    for settings in (LookaheadSettings(depth=4, seconds=None, nodes=0), LookaheadSettings(depth=4, seconds=0.0)):
+    # the smallest budgets: one node (the first decision period, always searched), a nanosecond
+    for settings in (LookaheadSettings(depth=4, seconds=None, nodes=1), LookaheadSettings(depth=4, seconds=1e-9)):
         got = Lookahead(data, horizon, settings).decide(np.array([0, *start]))
         assert got.timed_out and not got.complete
         assert got.depth >= 1 and (want[got.mask] >= got.depth).all()
@@ -208,9 +209,16 @@ def test_a_held_continuation_stops_at_the_deadline(tmp_path: Path, monkeypatch: 
 
 
 def test_settings_are_checked() -> None:
-    for bad in ({"depth": 0}, {"depth": 1.5}, {"seconds": -1.0}, {"nodes": -1}, {"nodes": 2.5}, {"depth": True}):
+    for bad in ({"depth": 0}, {"depth": 1.5}, {"seconds": -1.0}, {"nodes": -1}, {"nodes": 2.5}, {"depth": True},
+                {"seconds": "1"}, {"seconds": float("nan")}):
         with pytest.raises(ValueError):
             LookaheadSettings(**bad)  # type: ignore[arg-type]
+    # a budget of 0 could not be kept (the first decision period is always searched) and reads like "no
+    # limit": nodes=0 was accepted and gave every state a mask one decision deep
+    with pytest.raises(ValueError, match=r"nodes must be a whole number >= 1 .* or None \(no budget\), not 0"):
+        LookaheadSettings(nodes=0)
+    with pytest.raises(ValueError, match=r"seconds must be a time > 0 .* or None \(no limit\), not 0.0"):
+        LookaheadSettings(seconds=0.0)
     # numpy's integers (a depth swept over np.arange): depth=np.int64(6) was refused as no whole number
     settings = LookaheadSettings(depth=np.int64(6), nodes=np.int32(1000))  # type: ignore[arg-type]
     assert settings == LookaheadSettings(depth=6, nodes=1000) and type(settings.depth) is type(settings.nodes) is int

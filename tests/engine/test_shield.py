@@ -139,8 +139,8 @@ def test_the_step_shield_policy_says_which_budget_stopped_its_searches(tmp_path:
     assert data is not None and result.automaton is not None
     horizon = result.automaton.steps
     summaries = {}
-    for name, settings in {"nodes": LookaheadSettings(depth=4, seconds=None, nodes=0),
-                           "clock": LookaheadSettings(depth=4, seconds=0.0)}.items():
+    for name, settings in {"nodes": LookaheadSettings(depth=4, seconds=None, nodes=1),
+                           "clock": LookaheadSettings(depth=4, seconds=1e-9)}.items():
         policy = shields.StepShieldPolicy(shields.StepShield(data, horizon, lookahead=settings))
         simulate(data, runs=3, horizon_samples=horizon, seed=1, policy=policy)
         assert policy.timed_out > 0

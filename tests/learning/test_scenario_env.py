@@ -401,7 +401,7 @@ def test_after_a_sticky_collision_nothing_is_safe(tmp_path: Path) -> None:
 
 
 def test_the_time_budget_reports_itself_in_info(tiny: CompileResult) -> None:
-    env = ScenarioEnv(tiny, lookahead=LookaheadSettings(depth=4, seconds=None, nodes=0))
+    env = ScenarioEnv(tiny, lookahead=LookaheadSettings(depth=4, seconds=None, nodes=1))
     env.reset()
     _, _, _, _, info = env.step(int(np.flatnonzero(env.action_masks())[0]))
     assert info["shield_timeout"] and info["shield"] == "lookahead 1" and env.timeout_steps == 1

@@ -94,11 +94,15 @@ class LookaheadSettings:
     """How far and how long the runtime shield searches at one decision.
 
     ``depth``: the decisions a safe continuation must cover (>= 1); ``nodes``: a budget of expanded
-    search nodes per decision (default :data:`NODE_BUDGET`; None: unbounded) — the same on every
-    machine, for reproducible runs and tests; ``seconds``: a time limit per decision (default
+    search nodes per decision (>= 1, default :data:`NODE_BUDGET`; None: unbounded) — the same on every
+    machine, for reproducible runs and tests; ``seconds``: a time limit per decision (> 0, default
     :data:`GUARD_SECONDS`, a guard far above what the default nodes take; None: unbounded). Where the
     time limit stops a search, the answer depends on the machine's speed and load, and says so
-    (:attr:`LookaheadMask.clock`); ``nodes=None`` with a small ``seconds`` makes that the rule."""
+    (:attr:`LookaheadMask.clock`); ``nodes=None`` with a small ``seconds`` makes that the rule.
+
+    The first decision period of every action is always searched (one node), whatever the budget:
+    a budget of 0 nodes or 0 seconds could not be kept (and reads like "no limit", which is None), so
+    it is refused; ``nodes=1`` asks for that first period alone."""
 
     depth: int = DEFAULT_DEPTH
     seconds: float | None = DEFAULT_SECONDS
@@ -109,11 +113,16 @@ class LookaheadSettings:
         if not _whole(self.depth) or self.depth < 1:
             raise ValueError(f"depth must be a whole number of decisions >= 1, not {self.depth!r}")
         object.__setattr__(self, "depth", int(self.depth))
-        if self.seconds is not None and not self.seconds >= 0:
-            raise ValueError(f"seconds must be >= 0 or None, not {self.seconds!r}")
+        # 0 is refused: the first decision period (one node) is searched whatever the budget, and 0
+        # reads like "no limit" (None), where it gave every state a mask one decision deep
+        if self.seconds is not None and (not isinstance(self.seconds, numbers.Real) or isinstance(self.seconds, bool)
+                                         or not self.seconds > 0):
+            raise ValueError(f"seconds must be a time > 0 (a limit per decision) or None (no limit), "
+                             f"not {self.seconds!r}")
         if self.nodes is not None:
-            if not _whole(self.nodes) or self.nodes < 0:
-                raise ValueError(f"nodes must be a whole number >= 0 or None, not {self.nodes!r}")
+            if not _whole(self.nodes) or self.nodes < 1:
+                raise ValueError(f"nodes must be a whole number >= 1 (the first decision period of every action "
+                                 f"is one node, always searched) or None (no budget), not {self.nodes!r}")
             object.__setattr__(self, "nodes", int(self.nodes))
 
 
