@@ -3,6 +3,7 @@ buffer built on them (rac.learning.sb3.CounterfactualReplayBuffer; skipped witho
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import gymnasium
@@ -470,3 +471,37 @@ def test_the_callback_warns_of_gymnasiums_frame_stacking_outside_the_location() 
         said = [str(w.message) for w in caught if "under FrameStackObservation" in str(w.message)]
         assert len(said) == (1 if stacked else 0), said
         assert sb3.frame_stacker(envs) == ("FrameStackObservation" if stacked else None)
+
+
+def test_the_callback_refuses_counterfactual_rows_of_a_scenario_environment_before_it_steps(tmp_path: Path) -> None:
+    # rac/Scenario-v0 (ScenarioEnv) with CounterfactualReplayBuffer was refused only when the buffer was given its
+    # first step, after the environment was reset and stepped: RacCallback refuses it at the start of learn(), with
+    # the buffer's words; under RewardAutomatonWrapper (whose infos the buffer reads) it is not refused there
+    pytest.importorskip("stable_baselines3", reason="needs stable-baselines3 (the rl extra)")
+    from engine_files import write_engine_file
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from rac.compiler import compile_file
+    from rac.learning.gym import ScenarioEnv
+    from rac.learning.sb3 import CounterfactualReplayBuffer, RacCallback, scenario_environments
+
+    scene = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries={}))
+    assert scene.automaton is not None
+    stepped: list[Any] = []
+
+    class Counting(gymnasium.Wrapper):  # type: ignore[type-arg]
+        def step(self, action: Any) -> Any:
+            stepped.append(action)
+            return self.env.step(action)
+
+    envs = DummyVecEnv([lambda: Counting(LocationObservation(ScenarioEnv(scene)))])
+    model = DQN("MlpPolicy", envs, learning_starts=1000, buffer_size=1000, seed=0, device="cpu",
+                replay_buffer_class=CounterfactualReplayBuffer, replay_buffer_kwargs={"automaton": scene.automaton})
+    with pytest.raises(ValueError, match=r"training environment carries the automaton's location at its top level, "
+                                         r"as rac's scenario environments .* \(said at the start of learn\(\)"):
+        model.learn(4, callback=RacCallback())
+    assert stepped == []  # refused before the environment took a step (stable-baselines3 resets it first)
+    wrapped = DummyVecEnv([lambda: RewardAutomatonWrapper(ScenarioEnv(scene), scene.automaton, lambda obs, info: {
+        "near": False})])
+    assert scenario_environments(envs) and not scenario_environments(wrapped)

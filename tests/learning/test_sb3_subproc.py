@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import gymnasium
@@ -186,3 +187,29 @@ def test_an_environment_without_an_automaton_ends_no_process() -> None:
         assert len(said) == 1 and "`Follow`" in said[0], said
     finally:
         envs.close()
+
+
+def test_a_scenario_environment_under_counterfactual_rows_is_refused_in_other_processes(tmp_path: Path) -> None:
+    # rac/Scenario-v0 with CounterfactualReplayBuffer was refused only at the first stored step; RacCallback refuses
+    # it at the start of learn(), asking SubprocVecEnv's environments where they live
+    from engine_files import write_engine_file
+
+    from rac.compiler import compile_file
+    from rac.learning.gym import ScenarioEnv
+
+    scene = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries={}))
+    envs = subproc(lambda: LocationObservation(ScenarioEnv(scene)))
+    try:
+        assert sb3.scenario_environments(envs)
+        model = DQN("MlpPolicy", envs, learning_starts=1000, buffer_size=1000, seed=0, device="cpu",
+                    replay_buffer_class=sb3.CounterfactualReplayBuffer,
+                    replay_buffer_kwargs={"automaton": scene.automaton})
+        with pytest.raises(ValueError, match=r"scenario environments .* \(said at the start of learn\(\)"):
+            model.learn(4, callback=sb3.RacCallback())
+    finally:
+        envs.close()
+    plain = subproc(automaton)
+    try:
+        assert not sb3.scenario_environments(plain)
+    finally:
+        plain.close()

@@ -31,7 +31,7 @@ from rac.learning.location_observation import one_hot_index, replace_one_hot
 from rac.learning.vector_info import is_vector_info, split_vector_info
 from rac.learning.wrappers import AutomatonLike, automaton_ir
 
-__all__ = ["CounterfactualRows", "CounterfactualStep"]
+__all__ = ["CounterfactualRows", "CounterfactualStep", "scenario_infos_refused"]
 
 #: The keys of ``info["rac"]`` a counterfactual replay reads (RewardAutomatonWrapper's step info).
 NEEDED = ("inputs", "held", "rewards", "reward_steps", "scale", "location")
@@ -57,6 +57,15 @@ class CounterfactualStep:
 def _column(racs: Sequence[Mapping[str, Any]], key: str) -> dict[str, np.ndarray]:
     """The per-environment values of the mapping ``info["rac"][key]`` as one array per name."""
     return {name: np.array([rac[key][name] for rac in racs]) for name in racs[0][key]}
+
+
+def scenario_infos_refused(what: str) -> str:
+    """Why counterfactual transitions are refused for rac's scenario environments, ``what`` naming the infos
+    (:class:`CounterfactualRows` at a step; :class:`rac.learning.sb3.RacCallback` at the start of ``learn()``)."""
+    return (f"{what} carries the automaton's location at its top level, as rac's scenario environments (ScenarioEnv, "
+            "ScenarioVectorEnv) do: their step is several samples of the automaton, which counterfactual transitions "
+            "from one info do not replay (rac.learning.episodes.EpisodeBatch.counterfactual replays them); these need "
+            "each environment wrapped in rac.learning.wrappers.RewardAutomatonWrapper")
 
 
 class CounterfactualRows:
@@ -88,11 +97,7 @@ class CounterfactualRows:
         for i, info in zip(stepping.tolist(), infos):
             rac = info.get("rac") if isinstance(info, Mapping) else None
             if rac is None and isinstance(info, Mapping) and "location" in info:
-                raise ValueError(f"infos[{i}] carries the automaton's location at its top level, as rac's scenario "
-                                 "environments (ScenarioEnv, ScenarioVectorEnv) do: their step is several samples of "
-                                 "the automaton, which counterfactual transitions from one info do not replay (rac."
-                                 "learning.episodes.EpisodeBatch.counterfactual replays them); these need each "
-                                 "environment wrapped in rac.learning.wrappers.RewardAutomatonWrapper")
+                raise ValueError(scenario_infos_refused(f"infos[{i}]"))
             missing = [key for key in NEEDED if not isinstance(rac, Mapping) or key not in rac]
             if missing or not isinstance(rac, Mapping):
                 raise ValueError(f"infos[{i}] has no info['rac'][{missing[0]!r}]: counterfactual transitions need "

@@ -27,13 +27,13 @@ except ImportError as exc:  # pragma: no cover - depends on the environment
 from rac import ir
 from rac.core.caller import user_stacklevel
 from rac.learning.location_observation import LocationObservation
-from rac.learning.replay import CounterfactualRows
+from rac.learning.replay import CounterfactualRows, scenario_infos_refused
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
 from rac.learning.wrappers import NO_RELABELLING, RewardAutomatonWrapper, wrapper_chain
 
 __all__ = ["CounterfactualReplayBuffer", "RacCallback", "discount_warnings", "frame_stacker", "proof_subjects",
-           "reward_changers", "reward_normaliser", "text_table_clashes"]
+           "reward_changers", "reward_normaliser", "scenario_environments", "text_table_clashes"]
 
 #: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor (a subclass
 #: before its base, ClipReward before TransformReward: a probe names a wrapper by the first it is one of).
@@ -57,7 +57,9 @@ class RacCallback(BaseCallback):
     (:func:`discount_warnings`: rac check's proofs are of the plain return). Refuses (``NotImplementedError``,
     at the start of ``learn()``) stable-baselines3's ``HerReplayBuffer`` on environments in
     ``RewardAutomatonWrapper``, whose ``compute_reward`` is refused: the buffer would first ask for it after
-    ``learning_starts`` steps.
+    ``learning_starts`` steps; and refuses (``ValueError``, at the start of ``learn()``) a
+    :class:`CounterfactualReplayBuffer` on rac's scenario environments (:func:`scenario_environments`), which the
+    buffer itself refuses only when it is first given a step.
 
     Example::
 
@@ -79,6 +81,12 @@ class RacCallback(BaseCallback):
 
     def _init_callback(self) -> None:
         self._per_step = isinstance(self.model, OffPolicyAlgorithm)
+        if isinstance(getattr(self.model, "replay_buffer", None), CounterfactualReplayBuffer) and \
+                scenario_environments(self.training_env):
+            # the buffer sees no environment, only its first step's infos: said before the first step is taken
+            raise ValueError(scenario_infos_refused("each step's info of the training environment")
+                             + " (said at the start of learn(): CounterfactualReplayBuffer sees the infos only when "
+                             "it is given the first step)")
         if isinstance(getattr(self.model, "replay_buffer", None), HerReplayBuffer) and _relabels_with_automaton(
                 self.training_env):
             # the wrapper refuses compute_reward, but HerReplayBuffer first asks for it when it samples, after
@@ -322,6 +330,31 @@ def discount_warnings(venv: Any, gamma: float | np.floating[Any], algorithm: str
     return messages
 
 
+def scenario_environments(venv: Any) -> bool:
+    """Whether an environment of stable-baselines3's vector environment ``venv`` is one of rac's scenario
+    environments (:class:`~rac.learning.scenario_env.ScenarioEnv`, ``rac/Scenario-v0``) with no
+    :class:`~rac.learning.wrappers.RewardAutomatonWrapper` above it: its step infos carry the automaton's location at
+    their top level, and :class:`CounterfactualReplayBuffer` refuses them. A ``DummyVecEnv``'s environments are
+    walked; another vector environment's (``SubprocVecEnv``) are asked with :class:`_Probe`s, which see wrapped
+    environments only (an unwrapped one, not even in ``make_vec_env``'s ``Monitor``, is then refused at its first
+    step, by the buffer)."""
+    base = _wrapper(venv, DummyVecEnv)
+    if isinstance(base, DummyVecEnv):
+        for first in base.envs:
+            for env in wrapper_chain(first):
+                if isinstance(env, RewardAutomatonWrapper):
+                    break
+                if isinstance(env, ScenarioEnv):
+                    return True
+        return False
+    try:  # any of stable-baselines3's VecEnvs answers env_is_wrapped; anything else is no such environment
+        scenario = venv.env_is_wrapped(_AroundScenario)
+        relabelled = venv.env_is_wrapped(_AutomatonAroundScenario)
+    except (AttributeError, TypeError):
+        return False
+    return any(s and not r for s, r in zip(scenario, relabelled, strict=True))
+
+
 def _relabels_with_automaton(venv: Any) -> bool:
     """Whether ``HerReplayBuffer`` would ask :class:`~rac.learning.wrappers.RewardAutomatonWrapper` for
     ``compute_reward`` in stable-baselines3's vector environment ``venv``: a ``DummyVecEnv``'s environments resolve it
@@ -418,6 +451,23 @@ class _AnswersRelabelling(metaclass=_Probe):
                 and _below(env, RewardAutomatonWrapper))
 
 
+class _AroundScenario(metaclass=_Probe):
+    """A wrapper with a :class:`~rac.learning.scenario_env.ScenarioEnv` below it."""
+
+    @classmethod
+    def holds(cls, env: object) -> bool:
+        return _below(env, ScenarioEnv)
+
+
+class _AutomatonAroundScenario(metaclass=_Probe):
+    """rac's :class:`~rac.learning.wrappers.RewardAutomatonWrapper` with a ScenarioEnv below it (its infos are the
+    wrapper's)."""
+
+    @classmethod
+    def holds(cls, env: object) -> bool:
+        return isinstance(env, RewardAutomatonWrapper) and _below(env, ScenarioEnv)
+
+
 class _HasProofSubject(metaclass=_Probe):
     """A wrapper with ``proof_subject`` on it or below it, as ``get_wrapper_attr`` finds it."""
 
@@ -446,7 +496,9 @@ class CounterfactualReplayBuffer(ReplayBuffer):
     are replaced: under ``VecFrameStack`` the earlier frames would show the real locations (the
     buffer cannot see the vector wrappers; :class:`RacCallback` warns of it). Under ``VecNormalize`` an
     ended episode's terminal observation comes back inexact and clipped: its location is taken from the
-    info (:meth:`~rac.learning.replay.CounterfactualRows.terminal_located`).
+    info (:meth:`~rac.learning.replay.CounterfactualRows.terminal_located`). rac's scenario environments
+    (``ScenarioEnv``, ``rac/Scenario-v0``) are refused: :class:`RacCallback` says so at the start of ``learn()``,
+    the buffer itself at the first step it is given (it sees no environment).
 
     Example::
 
