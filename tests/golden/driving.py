@@ -35,9 +35,18 @@ def _mapping(inputs: object, names: tuple[str, ...]) -> None:
         raise _key_error(inputs, names)
 
 
+def _one_value(raw: object) -> object:
+    # a 0-d numpy array (np.where of scalars) is the one value it holds, numpy's scalar of its dtype (a
+    # float32 stays one), as the interpreter reads it; told by its type (this module has no numpy)
+    kind = type(raw)
+    if kind.__name__ == "ndarray" and kind.__module__ == "numpy" and getattr(raw, "shape", None) == ():
+        return raw[()]  # type: ignore[index]
+    return raw
+
+
 def _array_hint(raw: object) -> str:
-    # an array (numpy's, 0-d too, or a torch tensor) is refused with the interpreter's words; a numpy
-    # scalar (np.float64(1.0): shape () as well) is one value, so it gets no hint
+    # an array (numpy's of a dimension or more, or a torch tensor) is refused with the interpreter's words; a
+    # numpy scalar (np.float64(1.0): shape () as well) is one value, so it gets no hint
     shape = getattr(raw, "shape", None)
     numpy_scalar = type(raw).__module__ == "numpy" and type(raw).__name__ != "ndarray"
     if shape is None or not callable(getattr(raw, "item", None)) or numpy_scalar:
@@ -56,6 +65,7 @@ def _duration(name: str, raw: object) -> ValueError:
 
 
 def _boolean(name: str, raw: object) -> bool:
+    raw = _one_value(raw)
     if type(raw).__name__ == "timedelta64":
         raise _duration(name, raw)
     if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
@@ -64,6 +74,7 @@ def _boolean(name: str, raw: object) -> bool:
 
 
 def _number(name: str, raw: object, low: float, high: float) -> float:
+    raw = _one_value(raw)
     if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
         return 1.0 if raw else 0.0
     if type(raw).__name__ == "timedelta64":
@@ -115,7 +126,7 @@ def _clip(inputs: Mapping[str, object],
     for name, low, high in bounds:
         if name not in inputs:
             continue
-        raw = inputs[name]
+        raw = _one_value(inputs[name])
         if not isinstance(raw, numbers.Real) or type(raw).__name__ in ("bool", "bool_"):
             continue
         try:  # a float32 at a bound rounded to float32 is that bound: nothing to clip or count

@@ -166,16 +166,22 @@ def test_inputs_that_return_no_mapping_are_said_so(clip: bool, returned: object)
         vector.step(np.ones(2, dtype=int))
 
 
-def test_a_0d_array_input_is_refused_with_clip_as_without() -> None:
-    # the wrapper clipped an out-of-range 0-d array to a float and took it (one in range was refused), and
-    # without clip its refusal advised clip=True
+def test_a_0d_array_input_is_its_value_with_clip_as_without() -> None:
+    # a 0-d array is the one value it holds, as the runtime reads it (it was refused, as an array of shape ()):
+    # the wrapper treats it as that value, clipped and counted with clip, refused as that value without
     for clip in (False, True):
-        env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(),
-                                     lambda o, i: {"headway": np.array(40.0), "collide": False}, clip=clip)
-        env.reset(seed=0)
-        with pytest.raises(ValueError, match=r"an array of shape \(\), not one value") as raised:
-            env.step(1)
-        assert "clip=True" not in str(raised.value) and env.clipped_total == {}
+        said = []
+        for headway in (np.array(40.0), 40.0):
+            env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(),
+                                         lambda o, i, h=headway: {"headway": h, "collide": False}, clip=clip)
+            env.reset(seed=0)
+            if clip:
+                said.append((env.step(1)[1], env.clipped_total))
+            else:
+                with pytest.raises(ValueError) as raised:
+                    env.step(1)
+                said.append(str(raised.value))
+        assert said[0] == said[1], said
 
 
 def test_a_column_of_the_wrong_shape_is_named_under_clip_too() -> None:

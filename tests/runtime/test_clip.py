@@ -66,14 +66,18 @@ def test_a_masked_batch_names_a_column_of_the_wrong_shape_under_clip() -> None:
 
 
 @pytest.mark.parametrize("dgoal", [3.0, 700.0])
-def test_one_run_refuses_a_0d_array_with_clip_as_without(dgoal: float) -> None:
-    # a 0-d array (np.where(c, a, b) of scalars) is refused as an input value; with clip=True one out of
-    # range was clipped to a float and taken, while one in range was refused
-    ra = RewardAutomaton(driving_automaton())
-    for clip in (False, True):
-        with pytest.raises(ValueError, match=r"input 'dgoal' = array\(.*\) is not a number: an array of shape \(\)"):
-            ra.step(inputs(dgoal=np.array(dgoal)), clip=clip)
-    assert ra.samples == 0 and ra.clipped == {}
+def test_one_run_reads_a_0d_array_as_its_value_with_clip_as_without(dgoal: float) -> None:
+    # a 0-d array (np.where(c, a, b) of scalars) is the one value it holds, as step_batch broadcasts it: it was
+    # refused ("an array of shape ()"), while with clip=True one out of range was clipped to a float and taken
+    ra, twin = RewardAutomaton(driving_automaton()), RewardAutomaton(driving_automaton())
+    assert ra.step(inputs(dgoal=np.array(dgoal)), clip=True) == twin.step(inputs(dgoal=dgoal), clip=True)
+    assert ra.clipped == twin.clipped == {"dgoal": int(dgoal > 500.0)}
+    if dgoal <= 500.0:
+        assert ra.step(inputs(dgoal=np.array(dgoal))) == twin.step(inputs(dgoal=dgoal))
+    else:
+        with pytest.raises(ValueError, match=r"input 'dgoal' = 700.0 is outside"):
+            ra.step(inputs(dgoal=np.array(dgoal)))
+    assert ra.rewards == twin.rewards and ra.location == twin.location
 
 
 def test_clip_inputs_leaves_what_is_not_a_number_to_validation() -> None:

@@ -461,11 +461,11 @@ def test_a_duration_is_refused_not_read_as_its_count_of_units() -> None:
 
 
 def test_an_array_for_one_value_is_refused_saying_so() -> None:
-    """``obs[0:1]`` or a 0-d array (numpy's, a torch tensor) where one value goes was refused as
-    "input 'dgoal' = array(40.) is not a number", which a number it holds contradicts: the message says it is an
+    """``obs[0:1]`` (numpy's, a torch tensor) where one value goes was refused as
+    "input 'dgoal' = array([40.]) is not a number", which a number it holds contradicts: the message says it is an
     array, its shape, and how to pass the value; the interpreter and the generated module say the same."""
-    for name, value, shape in [("dgoal", np.array(40.0), "()"), ("dgoal", np.array([40.0], dtype=np.float32), "(1,)"),
-                               ("isClose", np.array(True), "()")]:
+    for name, value, shape in [("dgoal", np.array([40.0], dtype=np.float32), "(1,)"),
+                               ("isClose", np.array([[True]]), "(1, 1)")]:
         messages = []
         for ra in (RewardAutomaton(driving_automaton()), load(generate_python(driving_automaton())).Driving()):
             hint = re.escape(f": an array of shape {shape}, not one value (pass obs[i] rather than obs[i:i+1], or")
@@ -477,6 +477,29 @@ def test_an_array_for_one_value_is_refused_saying_so() -> None:
                 messages.append(str(error))
             assert ra.samples == 0
         assert messages[0] == messages[1]
+
+
+def test_a_0d_array_is_its_one_value_in_both_runtimes() -> None:
+    """A 0-d numpy array (``np.where(c, a, b)`` of scalars) is one value, and ``step_batch`` broadcasts it as
+    one, but ``step`` refused it ("an array of shape ()"), in the interpreter and the generated module alike:
+    both read it as the value it holds (numpy's scalar of its dtype), with ``clip=True`` too, and give the
+    same reward as for that value."""
+    module = load(generate_python(driving_automaton()))
+    cases = [{"dgoal": np.array(40.0)}, {"isClose": np.array(True), "collide": np.array(0)},
+             {"dgoal": np.array(1.5, dtype=np.float32)}]
+    for given in cases:
+        plain = {name: value[()] for name, value in given.items()}
+        for clip in (False, True):
+            expected = RewardAutomaton(driving_automaton()).step({**inputs(), **plain}, clip=clip)
+            for ra in (RewardAutomaton(driving_automaton()), module.Driving()):
+                assert bits(ra.step({**inputs(), **given}, clip=clip)) == bits(expected), (given, type(ra))
+                assert ra.samples == 1
+    for ra in (RewardAutomaton(driving_automaton()), module.Driving()):  # clipped as its value, and counted
+        ra.step({**inputs(), "dgoal": np.array(700.0)}, clip=True)
+        assert ra.clipped == {"dgoal": 1}
+    one = RewardAutomaton(driving_automaton()).step(inputs(dgoal=40.0))
+    batch = RewardAutomaton(driving_automaton()).batch(2)  # what step_batch has always done with one
+    assert batch.step_batch({**inputs(), "dgoal": np.array(40.0)}).tolist() == [one, one]
 
 
 def test_clip_clips_counts_and_refuses_like_the_interpreter() -> None:

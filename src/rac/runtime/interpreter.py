@@ -290,7 +290,7 @@ class RewardAutomaton(AutomatonDescription):
         once the inputs are read: a call that raises leaves the automaton untouched, its counts too."""
         if not clip:
             return inputs, None
-        # an array (a 0-d one too) is refused as given, not clipped; what is no mapping is refused too
+        # an array (but a 0-d one, its one value) is refused as given, not clipped; what is no mapping is refused too
         return clip_inputs(self._specs, inputs, scalars=True)
 
     def step(self, inputs: Mapping[str, object], *, clip: bool = False) -> float:

@@ -281,9 +281,21 @@ def check_mapping(inputs: object, names: Sequence[str] = ()) -> None:
         raise key_error(inputs, names)
 
 
+def one_value(raw: object) -> object:
+    """``raw``, or for a 0-d numpy array (``np.array(3.0)``, what ``np.where`` of scalars gives) the one value it
+    holds, as numpy's scalar of its dtype (``raw[()]``: a float32 stays a float32). ``step_batch`` broadcasts such an
+    array as a scalar; one run reads it as its value too. Told by its type alone, as the generated module (no
+    numpy) tells it; an array of another shape, a torch tensor, is left to be refused with :func:`array_hint`."""
+    if type(raw).__name__ == "ndarray" and type(raw).__module__ == "numpy" and getattr(raw, "shape", None) == ():
+        return raw[()]  # type: ignore[index]
+    return raw
+
+
 def boolean_input(name: str, raw: object) -> bool:
-    """A boolean input's value: ``True``/``False`` (Python's or numpy's) or the integers 0 and 1;
-    anything else (``"x"``, ``None``, ``0.5``, a duration) is ``ValueError``, not read by its truth."""
+    """A boolean input's value: ``True``/``False`` (Python's or numpy's, a 0-d array of one: :func:`one_value`) or
+    the integers 0 and 1; anything else (``"x"``, ``None``, ``0.5``, a duration) is ``ValueError``, not read by its
+    truth."""
+    raw = one_value(raw)
     if type(raw).__name__ == "timedelta64":
         raise ValueError(duration_message(name, raw))
     if type(raw).__name__ in ("bool", "bool_") or (isinstance(raw, numbers.Integral) and raw in (0, 1)):
@@ -326,7 +338,9 @@ def number_input(name: str, raw: object, low: float = -math.inf, high: float = m
     duration (numpy's ``timedelta64``, an integer to numpy) or a sequence is ``ValueError``,
     so is a number no float holds. A narrower float (numpy's float32 or
     float16, as environments observe) equal to the bound ``low`` or ``high`` rounded to its precision
-    is that bound: MountainCar's ``np.float32(-1.2)`` is -1.2, not -1.2000000476837158."""
+    is that bound: MountainCar's ``np.float32(-1.2)`` is -1.2, not -1.2000000476837158. A 0-d numpy array is
+    read as the value it holds (:func:`one_value`)."""
+    raw = one_value(raw)
     if type(raw).__name__ in ("bool", "bool_"):  # a bool counts 0 or 1, numpy's (np.bool, np.bool_) too
         return 1.0 if raw else 0.0
     if type(raw).__name__ == "timedelta64":  # numpy makes it an Integral: its count of units, whatever the unit
@@ -382,8 +396,9 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
     values of each numeric input were clipped.
 
     Works on scalars and on arrays (a batch's columns; ``rows``: only those are clipped and counted);
-    with ``scalars`` (a runtime reading one value per input) on scalars only: an array (a 0-d one too)
-    or a list is left as it was given, in range or not, for validation to refuse in its own words.
+    with ``scalars`` (a runtime reading one value per input) on scalars only (a 0-d numpy array as the value it
+    holds, :func:`one_value`): another array or a list is left as it was given, in range or not, for validation
+    to refuse in its own words.
     NaN is never clipped (it is no value on either side of a range): ``ValueError`` naming the input.
     What is not a real number, booleans, and an array that does not have ``rows``' shape are left for
     validation to report (it names the input and the shape); what is not a mapping is ``ValueError``.
@@ -394,7 +409,7 @@ def clip_inputs(specs: Sequence[InputSpec], inputs: Mapping[str, object],
     for spec in specs:
         if spec.is_bool or spec.name not in inputs:
             continue
-        raw = inputs[spec.name]
+        raw = one_value(inputs[spec.name]) if scalars else inputs[spec.name]
         if isinstance(raw, numbers.Real) and type(raw).__name__ not in ("bool", "bool_"):
             try:  # a float32 at a bound rounded to float32 is that bound: nothing to clip or count
                 value = number_input(spec.name, raw, spec.low, spec.high)

@@ -70,7 +70,7 @@ RESERVED_NAMES = frozenset({
     # imports and helpers of the template
     "annotations", "math", "numbers", "Mapping",
     "_key_error", "_mapping", "_boolean", "_duration", "_number", "_range_error", "_assume_error", "_array_hint",
-    "_clip",
+    "_clip", "_one_value",
     # builtins called, raised or named in annotations (typing.get_type_hints evaluates those)
     "bool", "float", "int", "str", "bytes", "object", "dict", "tuple", "len", "isinstance", "type", "repr", "sorted",
     "getattr", "min", "max", "callable", "any",
