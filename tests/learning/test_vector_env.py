@@ -332,6 +332,24 @@ def test_masks_of_a_stable_baselines3_vec_env(files: dict[str, Path], table: Shi
         assert action_masks(venv).tolist() == masks.tolist()  # type: ignore[arg-type]
 
 
+def test_masks_of_a_subprocess_vec_env_without_them_are_refused_saying_so() -> None:
+    # action_masks(venv) of SB3's SubprocVecEnv whose environments have no action_masks() ended in EOFError (the
+    # worker died on the AttributeError of env_method) and left the VecEnv broken: it is refused, saying why
+    pytest.importorskip("stable_baselines3", reason="needs stable-baselines3 (the rl extra)")
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    for kind in (SubprocVecEnv, DummyVecEnv):
+        makers = [lambda: gymnasium.make("CartPole-v1")] * 2
+        venv = kind(makers, start_method="fork") if kind is SubprocVecEnv else kind(makers)  # type: ignore[abstract]
+        try:
+            with pytest.raises(AttributeError, match=rf"not every environment of this {kind.__name__} has "
+                                                     r"action_masks\(\): rac's ScenarioEnv"):
+                action_masks(venv)  # type: ignore[arg-type]
+            assert venv.reset().shape == (2, 4)  # the workers live on
+        finally:
+            venv.close()
+
+
 def test_the_action_space_samples_within_the_masks_as_the_module_says(files: dict[str, Path],
                                                                      table: ShieldTable) -> None:
     """The module docstring's loop: ``action_space.sample(mask=tuple(masks.astype(np.int8)))`` draws

@@ -394,7 +394,8 @@ def action_masks(envs: gymnasium.vector.VectorEnv) -> np.ndarray:  # type: ignor
     :meth:`ScenarioSyncVectorEnv.action_masks` (every action allowed for an episode awaiting its
     restart), else a ``SyncVectorEnv`` or ``AsyncVectorEnv``'s ``call("action_masks")`` of its
     ScenarioEnvs, or a stable-baselines3 ``VecEnv``'s ``env_method("action_masks")`` (also under
-    ``VecNormalize`` and SB3's other vector wrappers: their ``unwrapped`` is the ``VecEnv``)."""
+    ``VecNormalize`` and SB3's other vector wrappers: their ``unwrapped`` is the ``VecEnv``), asked
+    ``has_attr("action_masks")`` first (``AttributeError`` when an environment has none)."""
     base = envs.unwrapped
     own = getattr(base, "action_masks", None)
     if callable(own):
@@ -404,6 +405,14 @@ def action_masks(envs: gymnasium.vector.VectorEnv) -> np.ndarray:  # type: ignor
         # stable-baselines3's VecEnv (DummyVecEnv, SubprocVecEnv, under VecNormalize, ...): its env_method, which
         # resolves the name through each environment's wrappers, as sb3-contrib's get_action_masks does
         call = getattr(base, "env_method", None)
+        has_attr = getattr(base, "has_attr", None)
+        # asked first: SubprocVecEnv's env_method of a method an environment lacks kills its worker (an
+        # AttributeError there, EOFError here, and the VecEnv is broken)
+        if callable(call) and callable(has_attr) and not has_attr("action_masks"):
+            raise AttributeError(f"not every environment of this {type(base).__name__} has action_masks(): rac's "
+                                 "ScenarioEnv (rac/Scenario-v0) has one, under any wrappers; an environment without "
+                                 "one has no masks to give (sb3-contrib's ActionMasker wrapper adds a mask function "
+                                 "to one)")
     if not callable(call):
         raise AttributeError(f"{type(base).__name__} has neither action_masks(), call() nor env_method(): not a "
                              "vector environment of ScenarioEnvs")
