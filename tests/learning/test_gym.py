@@ -16,7 +16,8 @@ from rac.targets.python import generate_python
 
 TRACE = [inputs(dgoal=50.0), inputs(comf=False, dgoal=40.0), inputs(is_close=True, dgoal=30.0),
          inputs(is_close=True, collide=True, dgoal=20.0), inputs(prog=False, dgoal=10.0), inputs(dgoal=1.0)]
-INITIAL = {"location": "Normal", "rewards": {"sa": 0.0, "pr": 0.0, "co": 0.0}, "objective": 0.0, "scale": 1.0}
+INITIAL = {"location": "Normal", "rewards": {"sa": 0.0, "pr": 0.0, "co": 0.0}, "objective": 0.0, "scale": 1.0,
+           "proven": False}
 
 
 class Scripted(gymnasium.Env):
@@ -87,8 +88,8 @@ def test_rewards_are_the_automatons_and_end_is_applied(mode: str) -> None:
             reference.end(values)
         assert info["k"] == obs
         assert info["rac"] == {"location": reference.location, "rewards": reference.rewards,
-                               "objective": reference.objective, "env_reward": 7.0, "scale": 1.0, "clipped": {},
-                               "inputs": values, "held": held,
+                               "objective": reference.objective, "env_reward": 7.0, "scale": 1.0, "proven": False,
+                               "clipped": {}, "inputs": values, "held": held,
                                "reward_steps": {k: v - before[k] for k, v in reference.rewards.items()}}
         held = values
     assert run[-1][1] == pytest.approx(run[-1][4]["rac"]["objective"] - run[-2][4]["rac"]["objective"])

@@ -505,3 +505,42 @@ def test_the_callback_refuses_counterfactual_rows_of_a_scenario_environment_befo
     wrapped = DummyVecEnv([lambda: RewardAutomatonWrapper(ScenarioEnv(scene), scene.automaton, lambda obs, info: {
         "near": False})])
     assert scenario_environments(envs) and not scenario_environments(wrapped)
+
+
+STRAY = """automaton Stray {
+    input a : bool
+    reward sa
+    objective sa
+    sample every 0.5
+    horizon 10
+    initial location Go   { sa' == 1 }
+    location Never        { sa' == 40 }
+    edge Never -> Go      when a
+}
+"""
+
+
+def test_counterfactual_rows_keep_the_proven_scales_promise() -> None:
+    # scale="proven" promises every reward in [-1, 1]; its bound is proved over the locations runs reach, and the
+    # counterfactual rows of a location no run reaches (Never: 40 a second) came out at 40 under it, unclamped.
+    # They are clamped, said once; the real rows, and every row without the proven scale, are as they were.
+    import warnings
+
+    stray = compile_text(STRAY, "stray.ra").raise_for_errors()
+    found = {}
+    for scale in ("proven", None):
+        env = LocationObservation(RewardAutomatonWrapper(Blank(), stray, took, scale=scale))
+        rows = CounterfactualRows(stray)
+        obs, _ = env.reset(seed=0)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for _ in range(3):
+                after, reward, terminated, truncated, info = env.step(1)
+                [batch] = rows.step(obs[None], after[None], np.array([terminated or truncated]), [info])
+                obs = after
+        assert info["rac"]["proven"] is (scale == "proven") and reward == (1.0 if scale else 0.5)
+        assert batch.location.tolist() == [1]  # Never
+        found[scale] = (batch.reward.tolist(), [str(w.message) for w in caught if "counterfactual" in str(w.message)])
+    assert found["proven"][0] == [1.0] and found[None] == ([20.0], [])
+    [said] = found["proven"][1]
+    assert "location `Never` got a reward of 40 under scale='proven'" in said and "W0302" in said

@@ -19,6 +19,7 @@ Exact when the observation shows the automaton only through its location, as for
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -26,10 +27,11 @@ from typing import Any
 import numpy as np
 
 from rac import ir
+from rac.core.caller import user_stacklevel
 from rac.learning.counterfactual import Replayer, counterfactual_transitions
 from rac.learning.location_observation import one_hot_index, replace_one_hot
 from rac.learning.vector_info import is_vector_info, split_vector_info
-from rac.learning.wrappers import AutomatonLike, automaton_ir
+from rac.learning.wrappers import AutomatonLike, automaton_ir, within_proven
 
 __all__ = ["CounterfactualRows", "CounterfactualStep", "scenario_infos_refused"]
 
@@ -41,7 +43,8 @@ NEEDED = ("inputs", "held", "rewards", "reward_steps", "scale", "location")
 class CounterfactualStep:
     """``m`` counterfactual transitions (one per environment that took a step) from locations the
     automaton was not in: ``obs`` and ``next_obs`` (``(m, D)``, the location columns replaced), the
-    ``reward`` (``(m,)``, scaled as the wrapper scales), the ``location`` and ``next_location``
+    ``reward`` (``(m,)``, scaled as the wrapper scales; under ``scale="proven"`` within [-1, 1], as the real
+    rewards: :meth:`CounterfactualRows.step`), the ``location`` and ``next_location``
     indices, and the environments they are of (``source``, indices into the step's batch: all ``n``,
     except in gymnasium's vector layout the sub-environments it restarted in this step, whose
     ``obs`` -> ``next_obs`` is no transition)."""
@@ -84,6 +87,7 @@ class CounterfactualRows:
         #: The location names, index ``i`` the one-hot column ``i``.
         self.locations: tuple[str, ...] = program.location_names
         self._index = {name: i for i, name in enumerate(self.locations)}
+        self._warned_beyond = False  # rows clamped to scale='proven''s [-1, 1] were warned of
 
     def _infos(self, infos: Sequence[Mapping[str, Any]] | Mapping[str, Any],
                n: int) -> tuple[list[Mapping[str, Any]], np.ndarray]:
@@ -160,7 +164,9 @@ class CounterfactualRows:
         infos: one dict per environment (stable-baselines3's ``VecEnv``), or gymnasium's vector layout
         (one dict of arrays; gymnasium's default ``NEXT_STEP`` autoreset: a sub-environment restarted
         in this step took no step, and its rows are left out, :attr:`CounterfactualStep.source`). Batch
-        ``k`` starts each environment ``k`` locations after the one it was in."""
+        ``k`` starts each environment ``k`` locations after the one it was in. Under ``scale="proven"``
+        (``info["rac"]["proven"]``) the rows' rewards lie within [-1, 1] as the real ones do; a row from a location
+        no run reaches, which the proven bound does not cover, is clamped to it (warned once)."""
         obs, next_obs = np.asarray(obs), np.asarray(next_obs)
         if obs.ndim != 2 or next_obs.shape != obs.shape:  # one environment's (D,) was read as D environments
             raise ValueError(f"obs and next_obs must be batches (n environments, D columns) of the same shape, not "
@@ -187,6 +193,7 @@ class CounterfactualRows:
         prior = {name: np.array([float(rac["rewards"][name]) - float(rac["reward_steps"][name]) for rac in racs])
                  for name in racs[0]["rewards"]}
         scale = np.array([float(rac["scale"]) for rac in racs])
+        proven = np.array([bool(rac.get("proven", False)) for rac in racs])
         held = _column(racs, "held")
         cf = counterfactual_transitions(self._replayer, inputs, rewards=prior, held=held,
                                         ended=done)
@@ -198,8 +205,32 @@ class CounterfactualRows:
             next_location = cf.next_location[pick]
             batches.append(CounterfactualStep(replace_one_hot(obs, location, count),
                                               replace_one_hot(next_obs, next_location, count),
-                                              cf.reward[pick] / scale, location, next_location, source))
+                                              self._scaled(cf.reward[pick] / scale, proven, location),
+                                              location, next_location, source))
         return batches
+
+    def _scaled(self, reward: np.ndarray, proven: np.ndarray, location: np.ndarray) -> np.ndarray:
+        """The counterfactual rows' rewards divided by the wrappers' scale (``reward``), kept within [-1, 1] where
+        that scale is ``scale="proven"`` (``proven``, per row), as the wrapper keeps the real rewards: a rounding
+        past the bound put back (:func:`rac.learning.wrappers.within_proven`), and a reward further out clamped,
+        which only a row from a location no run reaches can give (the bound is proved over the locations runs
+        reach, rac check's W0302 names the others): warned once, naming the ``location``."""
+        if not proven.any():
+            return reward
+        kept = np.where(proven, within_proven(reward, True), reward)
+        beyond = proven & (np.abs(kept) > 1.0)
+        if beyond.any():
+            if not self._warned_beyond:  # once per builder: every step from that location gives such rows
+                self._warned_beyond = True
+                first = int(np.flatnonzero(beyond)[0])
+                warnings.warn(
+                    f"counterfactual rows from location `{self.locations[int(location[first])]}` got a reward of "
+                    f"{float(kept[first]):g} under scale='proven', past its bound: the bound is proved over the "
+                    "locations a run reaches, and no run reaches this one (rac check warns of it, W0302), so these "
+                    "rows' rewards are clamped to [-1, 1], which the priority proofs do not cover either; said once",
+                    UserWarning, stacklevel=user_stacklevel())
+            kept = np.where(beyond, np.clip(kept, -1.0, 1.0), kept)
+        return kept
 
 
 #: The ``info["rac"]`` keys only a step gives (a reset's snapshot has location, rewards, objective, scale;

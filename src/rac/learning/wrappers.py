@@ -486,7 +486,9 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
             per input are in ``info["rac"]["clipped"]`` (this step) and :attr:`clipped_total`.
         scale: ``None`` (rewards unscaled), ``"proven"`` (divided by the largest change of the
             objective in one step proved from the automaton, so they lie in [-1, 1]), or a positive
-            factor of your own (:func:`scale_factor`). The factor is :attr:`scale`.
+            factor of your own (:func:`scale_factor`). The factor is :attr:`scale` and ``info["rac"]["scale"]``;
+            ``info["rac"]["proven"]`` says it is the proven one (counterfactual rows keep its promise:
+            :class:`rac.learning.replay.CounterfactualRows`).
         dt: the environment's seconds per step, when it does not say itself (:func:`env_timing`).
 
     Timing: a ``UserWarning`` (at construction, and at a reset when the environment's timing is
@@ -564,7 +566,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
 
     def _snapshot(self) -> dict[str, Any]:
         ra = self.automaton
-        return {"location": ra.location, "rewards": dict(ra.rewards), "objective": ra.objective, "scale": self.scale}
+        return {"location": ra.location, "rewards": dict(ra.rewards), "objective": ra.objective, "scale": self.scale,
+                "proven": self._proven}
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
@@ -728,7 +731,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         ra, n = self.automaton, self.num_envs
         infos = dict(infos)
         infos["rac"] = {"location": np.array(ra.location_names(), dtype=object), "rewards": ra.rewards,
-                        "objective": ra.objective, "scale": np.full(n, self.scale), **extra}
+                        "objective": ra.objective, "scale": np.full(n, self.scale), "proven": np.full(n, self._proven),
+                        **extra}
         infos["_rac"] = np.ones(n, dtype=bool)
         return infos
 
