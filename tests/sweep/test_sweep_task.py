@@ -689,6 +689,21 @@ def test_every_task_keeps_within_the_memory_budget(folder: Path, task: str, monk
     assert row["status"] in ("undecided", "failed"), row
 
 
+@pytest.mark.parametrize("task", ["preanalyse", "experiment"])
+def test_a_tasks_budget_refusal_names_the_sweeps_option(folder: Path, task: str,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A task's budget refusal said `(--max-memory)` and `raise --max-memory`, an option `rac sweep` does not have
+    (the engine's words, shared by every command); it names --task-memory, and rac verify's own stay."""
+    from rac.sweep import work
+
+    monkeypatch.setattr(work, "default_max_bytes", lambda: 1000)
+    row = work.execute(spec(folder, "goal_ahead.xml", task, options=OPTIONS[task]))
+    assert "(--task-memory)" in str(row["error"]) and "--max-memory" not in str(row["error"]), row
+    from rac.core.resources import memory_option
+
+    assert memory_option() == "--max-memory"  # the task's option ends with it
+
+
 @pytest.mark.parametrize("memory", [16, 64])
 def test_a_small_task_memory_is_a_memory_row_not_a_numpy_import_error(folder: Path, memory: int) -> None:
     # numpy (its OpenBLAS), shapely and commonroad-io's reader were first imported under the limit: a task of

@@ -21,7 +21,7 @@ from rac import __version__
 from rac.cli.common import size_argument
 from rac.core.numbers import MIN_SEED
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX
-from rac.sweep.kinds import TASKS
+from rac.sweep.kinds import MEMORY_OPTION, TASKS
 
 __all__ = ["COMMANDS", "DEFAULT_TEMPLATE", "MIN_SEED", "TARGETS", "build_parser", "positive_fraction",
            "horizons_argument", "counting", "probability", "seed_argument", "seeds_argument"]
@@ -409,7 +409,7 @@ def _add_sweep(commands: argparse._SubParsersAction) -> None:
     sweep.add_argument("--task-timeout",
                        type=_checked(lambda t: 0 < float(t) < math.inf, "a positive number of seconds"),
                        metavar="S", help="seconds per task; past them the task is a timeout row")
-    sweep.add_argument("--task-memory", type=size_argument, metavar="SIZE",
+    sweep.add_argument(MEMORY_OPTION, type=size_argument, metavar="SIZE",
                        help="memory per task, e.g. 2G; past it the task is a memory row")
     sweep.add_argument("--force", action="store_true", help="run every task again, even those already stored")
     sweep.add_argument("--retry-failed", action="store_true",

@@ -1,5 +1,6 @@
 """What a stage may refuse to spend before it starts: the memory and time of loading a scenario
-(:func:`estimate_load`) and the refusal, :class:`ScenarioTooLarge`.
+(:func:`estimate_load`) and the refusal, :class:`ScenarioTooLarge`; and the option every memory refusal names
+as the one that sets the budget (:func:`memory_option`).
 
 Here, in ``core``, and not beside the loader (:mod:`rac.model.checks`, which uses them): the ``rac``
 command catches :class:`ScenarioTooLarge` around every sub-command, and must not load the model (or
@@ -8,13 +9,40 @@ numpy) to do so.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
+from contextvars import ContextVar
 from dataclasses import dataclass
 
 from rac.core.diagnostics import RacError
 from rac.core.numbers import format_bytes, size_option
 
-__all__ = ["LOAD_BASE_BYTES", "LOAD_BYTES_PER_FILE_BYTE", "LOAD_BYTES_PER_SECOND", "LOAD_NOTICE_BYTES", "LoadEstimate",
-           "ScenarioTooLarge", "estimate_load"]
+__all__ = ["LOAD_BASE_BYTES", "LOAD_BYTES_PER_FILE_BYTE", "LOAD_BYTES_PER_SECOND", "LOAD_NOTICE_BYTES",
+           "MEMORY_OPTION", "LoadEstimate", "ScenarioTooLarge", "estimate_load", "memory_option", "memory_option_named"]
+
+#: The option that sets the memory budget, as the engine commands name it (``rac verify --max-memory``).
+MEMORY_OPTION = "--max-memory"
+#: The option that sets the memory budget of the work running now, as its refusals name it: a context variable,
+#: not an argument, because the budget's errors are raised deep in the explorations, learning and simulation,
+#: which every command shares; ``rac sweep``'s tasks set their own (:func:`memory_option_named`).
+_memory_option: ContextVar[str] = ContextVar("memory_option", default=MEMORY_OPTION)
+
+
+def memory_option() -> str:
+    """The option a refusal names as the one that sets the memory budget: :data:`MEMORY_OPTION`, or the one the
+    caller said with :func:`memory_option_named`."""
+    return _memory_option.get()
+
+
+@contextlib.contextmanager
+def memory_option_named(option: str) -> Iterator[None]:
+    """Within the block, the budget's refusals name ``option`` (e.g. ``rac sweep``'s ``--task-memory``) as what
+    sets the memory budget: a sweep's rows named ``--max-memory``, an option ``rac sweep`` does not have."""
+    token = _memory_option.set(option)
+    try:
+        yield
+    finally:
+        _memory_option.reset(token)
 
 #: A scenario file larger than this is announced before it loads (``check_scenario``'s ``progress``):
 #: at :data:`LOAD_BYTES_PER_SECOND` it takes a few seconds or more.
@@ -55,14 +83,15 @@ def estimate_load(file_bytes: int) -> LoadEstimate:
 
 class ScenarioTooLarge(RacError, MemoryError):
     """A scenario refused before it loads: its :class:`LoadEstimate` ``estimate`` exceeds the memory
-    budget ``limit`` (bytes; ``--max-memory``). A ``MemoryError`` like the engine's budget errors: the
-    file is not at fault, the budget is too small for it; ``rac`` reports it as a resource error."""
+    budget ``limit`` (bytes; ``--max-memory``, :func:`memory_option`). A ``MemoryError`` like the engine's
+    budget errors: the file is not at fault, the budget is too small for it; ``rac`` reports it as a resource error."""
 
     def __init__(self, path: str, estimate: LoadEstimate, limit: int) -> None:
         self.path, self.estimate, self.limit = path, estimate, limit
+        option = memory_option()
         super().__init__(
             f"the scenario {path} ({format_bytes(estimate.file_bytes)}) would need about "
             f"{format_bytes(estimate.peak_bytes)} of memory to load, more than the memory budget of "
-            f"{format_bytes(limit)} (--max-memory); nothing was loaded: give rac more with "
-            f"`--max-memory {size_option(estimate.peak_bytes)}` (on a machine that has it), or use a smaller "
+            f"{format_bytes(limit)} ({option}); nothing was loaded: give rac more with "
+            f"`{option} {size_option(estimate.peak_bytes)}` (on a machine that has it), or use a smaller "
             "scenario")

@@ -1,8 +1,9 @@
 """What an exhaustive exploration may use, and the error that stops it before it uses more.
 
-A :class:`Budget` holds a state limit (``--max-states``) and a memory limit (``--max-memory``,
-default :func:`default_max_bytes`: half the memory available, the machine's or a container's or
-``ulimit -v``'s limit). The explorations check it before each layer is expanded and while a layer
+A :class:`Budget` holds a state limit (``--max-states``) and a memory limit (``--max-memory``, or the option
+:func:`rac.core.resources.memory_option` names: ``rac sweep``'s ``--task-memory``; default
+:func:`default_max_bytes`: half the memory available, the machine's or a container's or ``ulimit -v``'s
+limit). The explorations check it before each layer is expanded and while a layer
 is being merged, so they stop *before* they allocate what exceeds it, with a :class:`BudgetExceeded`
 (a ``MemoryError``) that says, in the user's
 terms, how far the exploration got and what to change.
@@ -35,6 +36,7 @@ from pathlib import Path
 
 from rac.core.diagnostics import RacError, counted
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
+from rac.core.resources import memory_option
 
 __all__ = ["EPISODE_MEMO_BYTES", "EVALUATION_BYTES_PER_RUN", "EVALUATION_BYTES_PER_SAMPLE",
            "EVALUATION_BYTES_PER_STEP", "MEMO_BYTES_PER_STEP", "GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE",
@@ -174,7 +176,7 @@ def out_of_memory(exc: MemoryError, needing: str) -> str:
     belongs to is undecided, the rest stands."""
     what = f" ({exc})" if str(exc) else ""
     return (f"out of memory{what}: {needing} needed more memory than this process may use (the machine's "
-            "memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower --max-memory "
+            f"memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower {memory_option()} "
             "stops the exploration within what the process has and says how far it got")
 
 
@@ -247,7 +249,7 @@ class BudgetExceeded(RacError, MemoryError):
             text = f"{what} has more than {counted(limit, 'state')} {when}"
         else:
             text = (f"{what} would need about {format_bytes(needed_bytes)} {when}, more than the memory "
-                    f"budget of {format_bytes(limit)} (--max-memory); {counted(states, 'state')} so far")
+                    f"budget of {format_bytes(limit)} ({memory_option()}); {counted(states, 'state')} so far")
         super().__init__(text)
         #: The states the whole horizon would have at the recent growth (None: not estimated).
         self.projected_states: int | None = None
@@ -265,9 +267,10 @@ class EstimateExceeded(BudgetExceeded):
     ``what`` would need it, and ``change``: what to change instead of raising the budget."""
 
     def __init__(self, *, what: str, needed_bytes: int, limit: int, change: str) -> None:
+        option = memory_option()
         MemoryError.__init__(self, f"{what} would need about {format_bytes(needed_bytes)}, more than the memory "
-                                   f"budget of {format_bytes(limit)} (--max-memory): {change}, or raise "
-                                   "--max-memory if the machine has that much memory free")
+                                   f"budget of {format_bytes(limit)} ({option}): {change}, or raise "
+                                   f"{option} if the machine has that much memory free")
         self.what, self.kind, self.limit, self.states = what, "memory", limit, 0
         self.sample, self.seconds, self.needed_bytes = 0, 0.0, needed_bytes
         self.projected_states = None

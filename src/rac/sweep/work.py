@@ -26,9 +26,10 @@ from typing import TYPE_CHECKING, Any
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import RacError, Severity
 from rac.core.numbers import MIN_SEED, format_bytes, fresh_seed, samples_of
-from rac.core.resources import ScenarioTooLarge
+from rac.core.resources import ScenarioTooLarge, memory_option_named
 from rac.engine.budget import BudgetExceeded, default_max_bytes
 from rac.model.checks import UNUSABLE_SCENARIO
+from rac.sweep.kinds import MEMORY_OPTION
 from rac.sweep.task import OPTIONS
 from rac.sweep.template import instantiate
 from rac.verify.status import UNDECIDED, VERDICTS
@@ -68,7 +69,8 @@ def execute(spec: TaskSpec) -> dict[str, Any]:
     start = time.perf_counter()
     row: dict[str, Any] = {}
     try:
-        row = _execute(spec, row)
+        with memory_option_named(MEMORY_OPTION):  # the budget's refusals name the sweep's option, not rac verify's
+            row = _execute(spec, row)
     except TaskError as exc:
         row.update(status="error", error=str(exc))
     except BudgetExceeded as exc:  # an estimate, before the memory was used: the budget's words
@@ -77,7 +79,7 @@ def execute(spec: TaskSpec) -> dict[str, Any]:
         row.update(status="memory", error=(
             f"MemoryError: the scenario {exc.path} ({format_bytes(exc.estimate.file_bytes)}) would need about "
             f"{format_bytes(exc.estimate.peak_bytes)} of memory to load, more than the task's limit of "
-            f"{format_bytes(exc.limit)} (--task-memory); nothing was loaded"))
+            f"{format_bytes(exc.limit)} ({MEMORY_OPTION}); nothing was loaded"))
     except MemoryError as exc:
         row.update(status="memory", error=f"MemoryError: {exc}".rstrip(": "))
     except Exception as exc:  # a bug or an unforeseen input: the row says where

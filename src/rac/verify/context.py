@@ -25,6 +25,7 @@ from rac import ir
 from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, RacValueError, short_number
 from rac.core.numbers import samples_of
+from rac.core.resources import memory_option
 from rac.engine import shield, storm
 from rac.engine.budget import BudgetExceeded, TimeLimit, default_max_bytes, format_bytes
 from rac.engine.evaluate import EvaluationError, Evaluator, Frame
@@ -130,7 +131,7 @@ def over_budget(exc: BudgetExceeded) -> str:
     if exc.kind == "states":
         change = "raise --max-states if the machine has the memory"
     else:
-        change = "raise --max-memory only if the machine has that much memory free"
+        change = f"raise {memory_option()} only if the machine has that much memory free"
     return (f"{exc}: shorten the horizon (--horizon), coarsen the model (exponent, action steps, "
             f"decide_period) or {change}")
 
@@ -311,7 +312,7 @@ class Context:
         kept = self._kept_bytes()
         if not kept or self.options.max_bytes is None:
             return ""
-        return (f" ({format_bytes(kept)} of --max-memory {format_bytes(self.options.max_bytes)} holds the model "
+        return (f" ({format_bytes(kept)} of {memory_option()} {format_bytes(self.options.max_bytes)} holds the model "
                 "explored for earlier queries, kept for the later ones; verify this query in a run of its own to "
                 "give it the whole limit)")
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rac.core.diagnostics import counted, short_number
+from rac.core.resources import memory_option
 from rac.engine import storm
 from rac.engine.budget import format_bytes, runs_within, simulation_bytes
 from rac.engine.evaluate import EvaluationError
@@ -210,7 +211,7 @@ class StatisticalAnswerer:
             raise UnknownVerdict(
                 f"simulate keeps every run's trace: {n:,} runs of {samples + 1} samples would need about "
                 f"{format_bytes(simulation_bytes(n, samples, len(query.exprs)))}, more than the memory budget of "
-                f"{self.budget_text()}: ask for at most {fit:,} runs, or raise --max-memory{ctx.kept_note()}")
+                f"{self.budget_text()}: ask for at most {fit:,} runs, or raise {memory_option()}{ctx.kept_note()}")
         runs = self.runs(n, samples, query.under, seed, query.exprs)
         values = ctx.values(runs, query.exprs)
         files: list[str] = []
@@ -252,8 +253,8 @@ class StatisticalAnswerer:
         ctx = self.context
         left = ctx.memory_left()
         if left == ctx.options.max_bytes:
-            return f"{format_bytes(left or 0)} (--max-memory)"
-        return f"{format_bytes(left or 0)} (what --max-memory leaves beside the kept graphs)"
+            return f"{format_bytes(left or 0)} ({memory_option()})"
+        return f"{format_bytes(left or 0)} (what {memory_option()} leaves beside the kept graphs)"
 
     def runs(self, n: int, samples: int, under: str | None, seed: int, read: Sequence[ie.Expr], *,
              stop_at_overflow: bool = False) -> Runs:
