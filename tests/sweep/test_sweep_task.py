@@ -218,6 +218,25 @@ def test_a_task_past_its_timeout_is_a_timeout_row(folder: Path, monkeypatch: pyt
     assert _marked(mark) == [], "the task's process outlived its timeout"
 
 
+def test_a_preanalyse_task_killed_at_its_timeout_keeps_the_answers_found(folder: Path, tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """A preanalyse task killed at its --task-timeout dropped what its setting had found (Qa, in seconds, before an
+    exploration that ran past the timeout): the row said only the timeout. The task keeps its answers as it finds
+    them, and the timeout row holds them, the setting saying why it has no more."""
+    hook = tmp_path / "hook"  # the child's sitecustomize: its exploration runs past any timeout
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text("import time\nimport rac.studies.preanalysis as p\n"
+                                           "p.synthesise = lambda *args, **kw: time.sleep(600)\n", encoding="utf-8")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(hook), os.environ.get("PYTHONPATH", "")]))
+    row = run_task(spec(folder, "goal_ahead.xml", "preanalyse", options=(("runs", "2"), ("seed", "1")), timeout=8))
+    assert row["status"] == "timeout", row
+    said = "ran past the task timeout of 8 s"
+    assert row["error"] == f"{said}; kept the answers found before it (Qa) in its details"
+    [setting] = row["details"]  # type: ignore[misc]
+    assert setting["qa"] is not None and "qb" not in setting and setting["error"] == said
+    assert row["verdicts"] == {} and row["states"] is None
+
+
 def test_the_task_leaves_with_its_worker(folder: Path) -> None:
     """A worker that dies (Dask reruns its task elsewhere) takes its task's process along."""
     mark = f"RAC_SWEEP_WORKER_MARK_{os.getpid()}"

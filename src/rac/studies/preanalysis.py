@@ -213,14 +213,14 @@ def _simulating(what: str, samples: int, quiet: bool, limit: TimeLimit) -> Itera
 
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
          max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None,
-         quiet: bool = True, max_seconds: float | None = None) -> Row:
+         quiet: bool = True, max_seconds: float | None = None, found: Callable[[Row], None] | None = None) -> Row:
     row: Row = {"exponent": spec.exponent, "sense": float(spec.sense_period),
                               "decide": float(spec.decide_period)}
     limit = TimeLimit(max_seconds, what="this setting")
     try:
         return _answer(row, result, spec, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
                        max_bytes=max_bytes, threshold_factor=threshold_factor, out_dir=out_dir, quiet=quiet,
-                       limit=limit)
+                       limit=limit, found=found or (lambda _: None))
     except TimeExceeded as exc:  # the answers found before stay in the row; it is one without all its answers
         row["error"] = f"{exc} (--max-seconds)"
         row["time_limit"] = exc.limit  # what the command counts: the rows given up on time
@@ -230,9 +230,9 @@ def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fract
 
 def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
             max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None,
-            quiet: bool, limit: TimeLimit) -> Row:
+            quiet: bool, limit: TimeLimit, found: Callable[[Row], None]) -> Row:
     """Fill ``row`` with the setting's answers; :class:`TimeExceeded` between its steps once ``limit`` has
-    passed (the answers found so far are in ``row`` then)."""
+    passed (the answers found so far are in ``row`` then). ``found(row)`` after each answer (Qa; Qb-Qd)."""
     scenario = result.scenario
     assert scenario is not None  # sweep() refuses a model without one
     unheld = _unheld(spec)
@@ -280,6 +280,7 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, Ego.X] / data.scale) >= float(spec.sensor_error)
     hits = int(drift.any(axis=1).sum())
     row["qa"] = clopper_pearson(hits, runs)
+    found(row)
     limit.check()
     # Qb-Qd on the explored model (unsafe states end a run): the shield's own graph.
     t0 = time.perf_counter()
@@ -297,6 +298,7 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     row["qd"] = shield.shield_exists
     row["states"] = graph.n_states
     row["seconds"] = time.perf_counter() - t0
+    found(row)
     if not shield.shield_exists:
         return row
     limit.check()
@@ -336,10 +338,13 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
           decides: str | None = None, runs: int = 100, horizon: Fraction | None = None, seed: int | None = None,
           max_states: int = 5_000_000, max_bytes: int | None = None, out_dir: Path | None = None,
           quiet: bool = True, threshold_factor: int = 1, done: list[Row] | None = None,
-          max_seconds: float | None = None) -> list[Row]:
+          max_seconds: float | None = None, partial: Callable[[list[Row], bool], None] | None = None) -> list[Row]:
     """Answer Qa–Qd and the shielded Fig. 7 runs for every setting of the grid; one dict per setting.
     Each setting's dict is also appended to ``done`` (when given) as soon as it is found: after Ctrl-C
-    (``KeyboardInterrupt``) it holds the settings finished before.
+    (``KeyboardInterrupt``) it holds the settings finished before. ``partial`` (when given) is called after each
+    answer with the rows as JSON data, the settings finished and, where the second argument is True, last the one
+    running with its answers so far (a process killed from outside, ``rac sweep``'s task timeout, keeps what the
+    last call had).
 
     ``exponents``, ``senses``, ``decides``: comma-separated lists (None: the file's own value).
     A decision period that is not a whole multiple of the sensing period is skipped with an
@@ -368,6 +373,10 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
         _check_horizon(horizon, axes[1])
     grid = list(itertools.product(*axes))
     rows: list[Row] = []
+
+    def found(row: Row) -> None:  # the running setting's answers so far, after the settings finished
+        if partial is not None:
+            partial([*map(_jsonable, rows), _jsonable({**row, "seed": seed})], True)
     # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
     from rac.output.progress import Heartbeat, Progress
 
@@ -388,7 +397,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                 try:
                     rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
                                      max_bytes=max_bytes, threshold_factor=threshold_factor, out_dir=out_dir,
-                                     quiet=quiet, max_seconds=max_seconds))
+                                     quiet=quiet, max_seconds=max_seconds, found=found))
                 except ModelRangeError as exc:  # a run's sensed value: UPPAAL's model would abort there too
                     rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
                                  "error": f"a sensed value left the int32 range at this exponent: {exc}"})
@@ -402,6 +411,8 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                 rows[-1]["seed"] = seed
             if done is not None:
                 done.append(_jsonable(rows[-1]))
+            if partial is not None:
+                partial([_jsonable(r) for r in rows], False)
             bar.update()
     if out_dir is not None:
         plotted = [r for r in rows if "true_min" in r]

@@ -8,7 +8,9 @@ of its own, killed whole when the task passes its ``timeout``; its address space
 ``memory`` bytes more than its imported modules map (``RLIMIT_AS``, set once they are imported), so that a task that
 needs more fails with ``MemoryError`` in the child instead of taking the worker down. The child
 writes its part of the row as JSON on its standard output (anything the task prints goes to its
-standard error) and leaves when its parent does. What the child runs is :mod:`rac.sweep.work`.
+standard error) and leaves when its parent does. What it has found so far it keeps in a partial file
+(:attr:`TaskSpec.partial`, a ``preanalyse`` task's answers): a task killed at its timeout keeps them in its row.
+What the child runs is :mod:`rac.sweep.work`.
 
 The row (:func:`run_task`'s docstring lists its keys) never carries an exception: whatever
 happens becomes its ``status`` and ``error``.
@@ -24,6 +26,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -35,7 +38,8 @@ from rac.lang.resources import grammar_path, stdlib_dir
 from rac.sweep.kinds import TASKS
 from rac.verify.status import VERDICTS as report_verdicts
 
-__all__ = ["KILLING_SIGNALS", "NOT_FAILED", "OPTIONS", "OUT_OF_MEMORY", "STATUSES", "TASKS", "TASK_OPTIONS", "VERDICTS",
+__all__ = ["KILLING_SIGNALS", "NOT_FAILED", "OPTIONS", "OUT_OF_MEMORY", "PARTIAL_FIELDS", "STATUSES", "TASKS",
+           "TASK_OPTIONS", "VERDICTS",
            "TaskSpec", "digest_of", "memory_error", "run_task", "scenario_bytes", "scenario_digest", "source_digest"]
 
 #: What a task runs: the command of the same name on one file.
@@ -75,6 +79,10 @@ OUT_OF_MEMORY = ("MemoryError", "Unable to allocate", "Cannot allocate memory", 
 #: SIGTERM): such a death says nothing about the task, so its row is marked ``retry`` and a resumed sweep
 #: runs it again. A crash (SIGSEGV, SIGABRT) is the task's own doing and stays a plain error.
 KILLING_SIGNALS = frozenset({signal.SIGKILL, signal.SIGTERM})
+#: What a task's partial file (:attr:`TaskSpec.partial`) may give the row of a task killed at its timeout; besides,
+#: ``kept`` (what it holds, in words) goes into the row's error, and ``running`` (the index in ``details`` of the part
+#: that was running, or null) says which part of the details gets that error.
+PARTIAL_FIELDS = ("details", "verdicts", "states")
 #: The last characters of the child's standard error an error row quotes.
 _STDERR_TAIL = 2000
 
@@ -102,6 +110,9 @@ class TaskSpec:
     #: share of the Dask worker's memory (:func:`worker_budget`; set where the task runs, not part of the key);
     #: None: the command's own default, half the machine's memory, which tasks side by side would each take
     budget: int | None = None
+    #: a file the task keeps what it has found so far in, as part of its row (:data:`PARTIAL_FIELDS`; set by
+    #: :func:`run_task`, not part of the key): the row of a task killed at its timeout keeps it; None: none
+    partial: str | None = None
 
     def __post_init__(self) -> None:
         if self.task not in TASKS:
@@ -140,7 +151,7 @@ class TaskSpec:
         pairs = {name: tuple((str(a), str(b)) for a, b in data.get(name, ())) for name in ("settings", "options")}
         return cls(data["template"], data["template_text"], data["scenario"], pairs["settings"], data["task"],
                    pairs["options"], data.get("timeout"), data.get("memory"), data.get("scenario_digest"),
-                   data.get("planning_problem"), data.get("budget"))
+                   data.get("planning_problem"), data.get("budget"), data.get("partial"))
 
 
 def scenario_digest(path: str | os.PathLike[str]) -> str:
@@ -268,22 +279,24 @@ def _kill(process: subprocess.Popen[bytes]) -> None:
 
 def _in_child(spec: TaskSpec) -> dict[str, Any]:
     """Run ``spec`` in ``python -m rac.sweep.child``; its part of the row."""
-    absolute = TaskSpec(**{**asdict(spec), "template": os.path.abspath(spec.template),
-                           "scenario": os.path.abspath(spec.scenario), "settings": spec.settings,
-                           "options": spec.options})
-    process = subprocess.Popen([sys.executable, "-m", "rac.sweep.child", str(os.getpid())], stdin=subprocess.PIPE,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_environment(),
-                               start_new_session=True)
-    start = time.perf_counter()
-    try:
-        out, err = process.communicate(json.dumps(absolute.to_json()).encode("utf-8"), timeout=spec.timeout)
-    except subprocess.TimeoutExpired:
-        _kill(process)
-        process.communicate()
-        return {"status": "timeout", "error": f"ran past the task timeout of {spec.timeout:g} s",
-                "seconds": time.perf_counter() - start}
-    finally:
-        _kill(process)  # on any exit: nothing of the task outlives it
+    with tempfile.TemporaryDirectory(prefix="rac-task-") as folder:  # the task's partial file, removed with it
+        partial = os.path.join(folder, "partial.json")
+        absolute = TaskSpec(**{**asdict(spec), "template": os.path.abspath(spec.template),
+                               "scenario": os.path.abspath(spec.scenario), "settings": spec.settings,
+                               "options": spec.options, "partial": partial})
+        process = subprocess.Popen([sys.executable, "-m", "rac.sweep.child", str(os.getpid())],
+                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                   env=_environment(), start_new_session=True)
+        start = time.perf_counter()
+        try:
+            out, err = process.communicate(json.dumps(absolute.to_json()).encode("utf-8"), timeout=spec.timeout)
+        except subprocess.TimeoutExpired:
+            _kill(process)
+            process.communicate()
+            return {"status": "timeout", "seconds": time.perf_counter() - start,
+                    **_kept(partial, f"ran past the task timeout of {spec.timeout:g} s")}
+        finally:
+            _kill(process)  # on any exit: nothing of the task outlives it
     seconds = time.perf_counter() - start
     try:
         result: dict[str, Any] = json.loads(out.decode("utf-8"))
@@ -300,6 +313,24 @@ def _in_child(spec: TaskSpec) -> dict[str, Any]:
     killed = code < 0 and -code in KILLING_SIGNALS
     return {"status": "error", "error": f"the task's process {how}" + (f":\n{tail}" if tail else ""),
             "retry": killed, "seconds": seconds}
+
+
+def _kept(partial: str, error: str) -> dict[str, Any]:
+    """The row fields a killed task keeps from its partial file ``partial`` (:data:`PARTIAL_FIELDS`), with
+    ``error`` saying what they are; ``error`` alone when the task had written none (or it cannot be read)."""
+    try:
+        with open(partial, encoding="utf-8") as file:
+            found = json.load(file)
+    except (OSError, ValueError):  # nothing found yet: the file was never written
+        return {"error": error}
+    if not isinstance(found, dict) or not found.get("kept"):
+        return {"error": error}
+    kept = {name: found[name] for name in PARTIAL_FIELDS if name in found}
+    running, details = found.get("running"), kept.get("details")
+    if isinstance(running, int) and isinstance(details, list) and 0 <= running < len(details) \
+            and isinstance(details[running], dict):  # the part cut short says why it has no more answers
+        details[running].setdefault("error", error)
+    return {"error": f"{error}; {found['kept']}", **kept}
 
 
 def memory_error(limit: int, what: str) -> str:

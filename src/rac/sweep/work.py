@@ -15,7 +15,9 @@ Nothing is written but into a temporary folder that is removed (verify's strateg
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import json
 import tempfile
 import time
 import traceback
@@ -25,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 from rac.compiler import CompileResult, compile_text
 from rac.core.diagnostics import RacError, Severity
+from rac.core.files import atomic_write
 from rac.core.numbers import MIN_SEED, format_bytes, fresh_seed, samples_of
 from rac.core.resources import ScenarioTooLarge, memory_option_named
 from rac.engine.budget import BudgetExceeded, default_max_bytes
@@ -124,7 +127,7 @@ def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
     if spec.task == "verify":
         _verify(result, options, row, max_bytes)
     elif spec.task == "preanalyse":
-        _preanalyse(result, options, row, max_bytes)
+        _preanalyse(result, options, row, max_bytes, spec.partial)
     elif spec.task == "experiment":
         _experiment(result, options, row, max_bytes)
     return row
@@ -216,26 +219,46 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any],
         row.update(status="undecided", error="not decided: " + "; ".join(undecided))
 
 
-def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int) -> None:
+def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int,
+                partial_file: str | None) -> None:
     # numpy, scipy, stormpy (via rac.studies.preanalysis): importing rac.sweep.work stays light
     from rac.studies.preanalysis import SweepError, sweep
 
+    def partial(rows: list[dict[str, Any]], running: bool) -> None:  # a task killed at its timeout keeps these
+        if partial_file is None:
+            return
+        found = [name for name in ("Qa", *PREANALYSIS_VERDICTS.values())
+                 if any(r.get(name.lower()) is not None for r in rows)]
+        fields = {**_preanalysis_fields(rows), "running": len(rows) - 1 if running else None,
+                  "kept": f"kept the answers found before it ({', '.join(found)}) in its details" if found else ""}
+        with contextlib.suppress(OSError):  # a full disk loses the partial answers, not the task
+            atomic_write(partial_file, lambda file: file.write(json.dumps(fields).encode("utf-8")))
+
     try:
         rows = sweep(result, horizon=options.get("horizon"), seed=options.get("seed"),
-                     runs=options.get("runs", 100), quiet=True, max_bytes=max_bytes, **_budget(options))
+                     runs=options.get("runs", 100), quiet=True, max_bytes=max_bytes, partial=partial,
+                     **_budget(options))
     except SweepError as exc:
         raise TaskError(str(exc)) from None
-    row["details"] = rows
+    row.update(_preanalysis_fields(rows))
     answered = [r for r in rows if "exponent" in r]
-    if len(answered) == 1:  # the file's own setting: Qb-Qd are its verdicts
-        row["verdicts"] = {query: "satisfied" if answered[0][column] else "not satisfied"
-                           for column, query in PREANALYSIS_VERDICTS.items() if answered[0].get(column) is not None}
-    states = [r["states"] for r in answered if r.get("states") is not None]
-    row["states"] = max(states) if states else None
     problems = [r["error"] for r in answered if r.get("error")]
     if problems:  # a setting without answers (beyond a budget, a period that does not fit) is undecided, as in
         # `rac preanalyse` (exit 4): no answer failed
         row.update(status="undecided", error=problems[0])
+
+
+def _preanalysis_fields(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """A preanalyse task's row fields of the preanalysis ``rows``: details (the rows), verdicts (Qb-Qd of the file's
+    own setting) and states (the most any setting explored)."""
+    fields: dict[str, Any] = {"details": rows}
+    answered = [r for r in rows if "exponent" in r]
+    if len(answered) == 1:  # the file's own setting: Qb-Qd are its verdicts
+        fields["verdicts"] = {query: "satisfied" if answered[0][column] else "not satisfied"
+                              for column, query in PREANALYSIS_VERDICTS.items() if answered[0].get(column) is not None}
+    states = [r["states"] for r in answered if r.get("states") is not None]
+    fields["states"] = max(states) if states else None
+    return fields
 
 
 def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int) -> None:
