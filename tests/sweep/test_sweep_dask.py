@@ -753,6 +753,48 @@ def test_bad_arguments_exit_2_before_any_cluster(world: Path, monkeypatch: pytes
     assert message.format(scenarios=scenarios) in capsys.readouterr().err
 
 
+def test_a_second_sweep_into_a_busy_folder_is_refused_naming_the_first(world: Path, tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """Two sweeps into one output folder at once ran side by side and interleaved their results.* (each removes
+    and rewrites them, from its own rows): the second is refused now, before any cluster starts, saying which
+    folder and which process holds it; the first's folder is left as it was."""
+    out = tmp_path / "out"
+    code = "import sys, time; from pathlib import Path; from rac.sweep.store import holding\n" \
+           "with holding(Path(sys.argv[1])):\n    print('held', flush=True)\n    time.sleep(120)\n"
+    first = subprocess.Popen([sys.executable, "-c", code, str(out)], stdout=subprocess.PIPE, text=True, env=rac_env())
+    try:
+        assert first.stdout is not None and first.stdout.readline() == "held\n"
+        monkeypatch.setattr("rac.sweep.run.connect", no_cluster)
+        scenario = str(world / "scenarios" / "goal_ahead.xml")
+        for form in ("text", "json"):
+            assert main(["sweep", str(world / "sweep.ra"), scenario, "-o", str(out), "-q", "--format", form]) \
+                == EXIT_USAGE
+            said = capsys.readouterr()
+            text = said.err if form == "text" else said.out
+            assert (f"another rac sweep (process {first.pid}) is running into the output folder {out}: two sweeps "
+                    "there at once would interleave their results.*") in text, text
+        assert sorted(p.name for p in out.iterdir()) == [".rac-sweep.lock"]  # nothing of the second one's
+    finally:
+        first.kill()
+        first.wait()
+
+
+def test_a_folder_whose_sweep_was_killed_is_taken_over(tmp_path: Path) -> None:
+    """A sweep killed (SIGKILL, the machine's reboot) leaves its lock file, naming a process that is gone: the next
+    sweep takes the folder, and removes the file when it ends."""
+    from rac.sweep.store import LOCK_FILE, holding
+
+    out = tmp_path / "out"
+    code = "import os, sys; from pathlib import Path; from rac.sweep.store import holding\n" \
+           "with holding(Path(sys.argv[1])):\n    os._exit(9)\n"
+    gone = subprocess.Popen([sys.executable, "-c", code, str(out)], env=rac_env())
+    assert gone.wait(timeout=60) == 9 and (out / LOCK_FILE).read_text().split()[0] == str(gone.pid)
+    with holding(out):
+        assert (out / LOCK_FILE).read_text().split()[0] == str(os.getpid())
+    assert not (out / LOCK_FILE).exists()
+
+
 def test_the_api_takes_any_iterable_of_values_as_a_grid_axis(world: Path) -> None:
     """sets={"exponent": range(1, 3)} (or a numpy array) was refused: its text `range(1, 3)` is no value."""
     import numpy as np

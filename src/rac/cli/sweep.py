@@ -3,9 +3,9 @@
 
 Exit codes (:mod:`rac.cli.common`): 0 every task ok, 1 a task failed (errors in the file, a query not
 satisfied), 2 bad usage (no scenario matched, a bad ``--set``; before any cluster starts) or an output
-folder that cannot be written, 4 none failed but a task could not run (error, timeout, memory) or a verdict
-is unknown, 130 Ctrl-C, 143 SIGTERM (a batch system's time limit, ``kill``): in both, what was done is
-merged first.
+folder that cannot be written or that another sweep is running into, 4 none failed but a task could not run
+(error, timeout, memory) or a verdict is unknown, 130 Ctrl-C, 143 SIGTERM (a batch system's time limit,
+``kill``): in both, what was done is merged first.
 """
 
 from __future__ import annotations
@@ -89,6 +89,7 @@ def sweep_command(args: argparse.Namespace) -> int:
 
     # matplotlib, numpy (via rac.sweep.run): only the command that uses it loads it
     from rac.sweep.run import BadSchedulerAddress
+    from rac.sweep.store import FolderBusy  # matplotlib (via rac.sweep.store): only the command that uses it loads it
 
     if args.workers:
         import dask  # dask: only the command that uses it loads it
@@ -132,6 +133,9 @@ def sweep_command(args: argparse.Namespace) -> int:
         with terminate_as_interrupt() as terminated:
             result = execute(planned, scheduler=args.scheduler, workers=int(args.workers) if args.workers else None,
                              force=args.force, retry_failed=args.retry_failed, quiet=quiet, announce=say)
+    except FolderBusy as exc:  # another sweep into the same folder, before any task ran: nothing was written
+        print_diagnostics([usage_error(str(exc))], {}, as_json(args))
+        return EXIT_USAGE
     except BadSchedulerAddress as exc:  # the address itself, before any connection: bad usage
         where = "--scheduler" if args.scheduler else "Dask's scheduler-address configuration"
         print_diagnostics([usage_error(f"{where}: {exc}")], {}, as_json(args))

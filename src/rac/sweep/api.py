@@ -176,16 +176,28 @@ def execute(plan: Plan, *, scheduler: str | None = None, workers: int | None = N
     merged files were all written: Ctrl-C may come while they are). A file of the output folder that cannot be
     written (a full disk) stops the sweep as Ctrl-C does, ``outcome.write_error`` saying why (the rows stored
     before stand). Raises ``OSError`` when the scheduler cannot be reached or the output folder cannot be
-    created, ``ValueError`` (before anything runs) when ``workers`` is not a whole number of at least 1."""
+    created, ``ValueError`` (before anything runs) when ``workers`` is not a whole number of at least 1, and
+    :class:`rac.sweep.store.FolderBusy` (before anything runs) when another sweep is running into ``plan.out``."""
+    from rac.sweep.store import holding  # matplotlib, numpy (via rac.sweep.store): importing rac.sweep stays light
+
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        # 0 was taken as "one per core", and fewer as a cluster without workers, which waited for ever
+        raise ValueError(f"workers must be a whole number of at least 1, not {workers!r}")
+    # the folder is this sweep's until its results are written: another at once would interleave them
+    with holding(plan.out):
+        return _execute(plan, scheduler=scheduler, workers=workers, force=force, retry_failed=retry_failed,
+                        quiet=quiet, announce=announce)
+
+
+def _execute(plan: Plan, *, scheduler: str | None, workers: int | None, force: bool, retry_failed: bool,
+             quiet: bool, announce: Any) -> SweepResult:
+    """:func:`execute` once the output folder is held."""
     from rac.sweep import report  # matplotlib, numpy (via rac.sweep.report): importing rac.sweep stays light
 
     # matplotlib, numpy, tqdm (via rac.sweep.run): importing rac.sweep stays light
     from rac.sweep.run import Tracker, connect, pending, rows_in_order, run_tasks, workers_of
     from rac.sweep.store import Store  # matplotlib, numpy (via rac.sweep.store): importing rac.sweep stays light
 
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        # 0 was taken as "one per core", and fewer as a cluster without workers, which waited for ever
-        raise ValueError(f"workers must be a whole number of at least 1, not {workers!r}")
     store = Store(plan.out)
     store.folder.mkdir(parents=True, exist_ok=True)  # an unwritable folder fails before the cluster starts
     outcome, todo = pending(plan.specs, store, force=force, retry_failed=retry_failed)

@@ -9,20 +9,96 @@ Example::
     if not store.has(spec.key()):
         store.put(spec.key(), run_task(spec))
     row = store.get(spec.key())
+
+A sweep holds its output folder for its life (:func:`holding`): two sweeps into one folder at once would
+interleave their ``results.*``, so the second is refused (:class:`FolderBusy`), naming the first one's process.
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import json
+import os
+import socket
+from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
+from rac.core.diagnostics import RacError
 from rac.core.files import atomic_write
 
-__all__ = ["TASKS_FOLDER", "Store", "write_text"]
+__all__ = ["LOCK_FILE", "TASKS_FOLDER", "FolderBusy", "Store", "holding", "write_text"]
 
 #: The store's sub-folder of the sweep's output folder.
 TASKS_FOLDER = "tasks"
+#: The lock file of a sweep's output folder (:func:`holding`), holding the running sweep's process id and host.
+LOCK_FILE = ".rac-sweep.lock"
+
+
+class FolderBusy(RacError):
+    """Another sweep holds the output folder ``folder`` (:func:`holding`): its process ``pid`` on ``host``
+    (None: not known yet, it had just taken the folder)."""
+
+    def __init__(self, folder: Path, pid: int | None, host: str | None) -> None:
+        self.folder, self.pid, self.host = folder, pid, host
+        who = "another rac sweep" if pid is None else f"another rac sweep (process {pid}" + (
+            f" on {host})" if host and host != socket.gethostname() else ")")
+        super().__init__(f"{who} is running into the output folder {folder}: two sweeps there at once would "
+                         "interleave their results.*; wait for it to end, or give this one another folder (-o DIR)")
+
+
+def _holder(fd: int) -> tuple[int | None, str | None]:
+    """The process id and host a lock file's holder wrote into it (None, None when it has not yet)."""
+    with contextlib.suppress(OSError, ValueError):
+        pid, _, host = os.pread(fd, 512, 0).decode("utf-8").strip().partition(" ")
+        return int(pid), host or None
+    return None, None
+
+
+@contextlib.contextmanager
+def holding(folder: Path) -> Iterator[None]:
+    """Hold ``folder`` (created if need be) for one sweep while the block runs: an advisory lock (``flock``) on
+    its :data:`LOCK_FILE`, which holds this process's id and host; :class:`FolderBusy` at once when another
+    process holds it. A lock whose holder is gone (killed: the system releases its locks) is taken over; the file
+    is removed at the end. Where the file system has no locks (some network mounts) there is no lock, as for
+    ``rac fmt``'s; ``OSError`` when the folder cannot be created or the file written."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOCK_FILE
+    fd = _lock(path, folder)
+    if fd is None:  # no locks on this file system
+        yield
+        return
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()} {socket.gethostname()}\n".encode(), 0)
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            path.unlink()  # before the lock is released: a sweep that opened this file finds it gone (_lock)
+        os.close(fd)
+
+
+def _lock(path: Path, folder: Path) -> int | None:
+    """The open, locked lock file ``path`` of ``folder``; None where the file system has no locks."""
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            pid, host = _holder(fd)
+            os.close(fd)
+            raise FolderBusy(folder, pid, host) from None
+        except OSError:  # e.g. ENOLCK
+            os.close(fd)
+            return None
+        try:  # the holder before may have removed the file between its open and this lock: lock the one there now
+            current = os.stat(path).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            current = False
+        if current:
+            return fd
+        os.close(fd)
 
 
 def write_text(path: Path, text: str) -> Path:
