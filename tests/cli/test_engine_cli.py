@@ -471,6 +471,44 @@ def test_preanalyse_table_json_and_plots(capsys: pytest.CaptureFixture[str], tmp
         assert len(s["qa"]) == 2 and len(s["true_min"]) == 5 and s["threshold"] == 0.5
         assert Path(s["plot"]).is_file()
     assert report["settings"][-1] == {"sweep_plot": str(out / "sweep.png")}
+    assert "removed" not in report  # the same settings again: every plot drawn again, nothing of before left
+
+
+def test_preanalyse_removes_an_earlier_runs_plots_of_other_settings(capsys: pytest.CaptureFixture[str],
+                                                                   tmp_path: Path) -> None:
+    """A run's Fig. 7 plot is named by its setting: a run of other settings into the same folder left the earlier
+    run's plots beside its own, as if of this run (sweep.png only was replaced). A run removes the plots an
+    earlier one wrote as it starts, and says which it did not draw again; files not named as rac's stay."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    out = tmp_path / "pre"
+    assert main(["preanalyse", str(path), "--exponent", "1,4", "--runs", "2", "--seed", "1", "-q", "-o", str(out)]) == 0
+    mine = ["fig7_e1_c1_0.5_c2_1.png.bak", "fig7_notes.png", "fig7_e1_c1_0.5_c2_1_mine.png", "my_sweep.png"]
+    for name in mine:
+        (out / name).write_bytes(b"mine")
+    capsys.readouterr()
+    for form in ("text", "json"):
+        assert main(["preanalyse", str(path), "--exponent", "4", "--runs", "2", "--seed", "1", "-q", "-o", str(out),
+                     "--format", form]) == 0
+        captured = capsys.readouterr()
+        assert sorted(p.name for p in out.iterdir()) == sorted(["fig7_e4_c1_0.5_c2_1.png", "sweep.png", *mine])
+        if form == "text":
+            assert (f"rac preanalyse: removed {out / 'fig7_e1_c1_0.5_c2_1.png'}, an earlier run's plot of settings or "
+                    "runs this run did not draw\n") in captured.err
+        else:  # nothing left to remove: said by neither
+            assert "removed" not in captured.err and "removed" not in json.loads(captured.out)
+    for name in mine:
+        assert (out / name).read_bytes() == b"mine"
+
+
+@pytest.mark.parametrize("periods", [("0.5", "1"), ("0.05", "0.1"), ("1e-5", "2e-5"), ("1500000", "3000000")])
+def test_the_plots_an_earlier_run_left_are_exactly_those_rac_names(tmp_path: Path, periods: tuple[str, str]) -> None:
+    from rac.studies.preanalysis import earlier_plots
+
+    sense, decide = (float(p) for p in periods)
+    name = f"fig7_e12_c1_{sense:g}_c2_{decide:g}.png"  # as rac.studies.preanalysis names a setting's plot
+    for file in (name, "sweep.png", f"x{name}", f"{name}.tmp", name.replace("_c2_", "_c3_")):
+        (tmp_path / file).write_bytes(b"")
+    assert earlier_plots(tmp_path) == sorted([tmp_path / name, tmp_path / "sweep.png"])
 
 
 def test_preanalyse_reports_a_decide_period_that_is_no_multiple(capsys: pytest.CaptureFixture[str],

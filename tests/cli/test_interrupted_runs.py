@@ -172,7 +172,7 @@ def test_preanalyse_stopped_removes_an_earlier_sweeps_plot(capsys: pytest.Captur
                        "-o", tmp_path / "pre")
     assert code == (EXIT_INTERRUPTED if stop == "interrupt" else EXIT_USAGE)
     assert not old.exists() and kept.read_bytes() == b"mine"
-    assert f"finished before it (above); removed {old}, an earlier run's plot of other runs" in err
+    assert f"rac preanalyse: removed {old}, an earlier run's plot of settings or runs this run did not draw" in err
     assert list((tmp_path / "pre").glob("fig7_e1_*.png"))  # the finished setting's own plot stays
 
 

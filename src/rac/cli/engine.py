@@ -12,7 +12,6 @@ import dataclasses
 import functools
 import json
 import sys
-import time
 from collections.abc import Callable, Mapping, Sequence
 from fractions import Fraction
 from pathlib import Path
@@ -656,7 +655,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
 
     out_dir = _out_dir(args)
     done: list[dict[str, object]] = []  # each setting's row as it is found: Ctrl-C still shows those
-    started = time.time()
+    removed: list[Path] = []  # an earlier run's plots, removed as this one started
     interrupted = False
     write_failed: Diagnostic | None = None  # E0009 of a plot: the settings finished before it are shown
     try:
@@ -665,7 +664,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
                          horizon=args.horizon, seed=args.seed, max_states=args.max_states, out_dir=out_dir,
                          max_bytes=args.max_memory or default_max_bytes(),
                          threshold_factor=args.threshold_factor, max_seconds=args.max_seconds,
-                         quiet=args.quiet or args.format == "json", done=done)
+                         quiet=args.quiet or args.format == "json", done=done, removed=removed)
     except KeyboardInterrupt:  # the settings finished stand (their plots are written): shown, then exit 130
         rows, interrupted = done, True
     except SweepError as exc:
@@ -680,8 +679,12 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         rows, write_failed = done, failed
     if rows:  # a setting ran, so the sweep checked --horizon: past the recorded traffic, its runs end on an empty road
         result = _horizon_warnings(result, args, goal=False)
+    # an earlier run's plots this run did not draw again: said, where they were left beside this run's as if its own
+    gone = [path for path in removed if not path.exists()]
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "settings": rows}
+        if gone:
+            document["removed"] = [str(path) for path in gone]
         if interrupted:
             document["interrupted"] = True
         if write_failed is not None:  # one document: the error in it
@@ -691,9 +694,8 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(render_table(rows))
         if any("plot" in row or "sweep_plot" in row for row in rows):  # no setting answered: no plot, maybe no folder
             print(f"\nplots in {out_dir}")
-    # stopped before the sweep's plot: an earlier sweep's plot in the folder would stand beside this run's Fig. 7
-    # plots as if it were this run's
-    removed = _remove_stale(out_dir / "sweep.png", started) if write_failed is not None or interrupted else ""
+    if gone:
+        print(f"rac preanalyse: removed {_earlier_plots(gone, out_dir)}", file=sys.stderr)
     # under --format json the rows and the error are in the document on standard output, not above
     where = "above" if args.format == "text" else "in the JSON document"
     if write_failed is not None:
@@ -701,12 +703,12 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
             print_diagnostics([write_failed])
         n = len(rows)
         print(f"rac preanalyse: stopped by the error {where}; {counted(n, 'setting')} finished before "
-              f"it ({where}){removed}", file=sys.stderr)
+              f"it ({where})", file=sys.stderr)
         return EXIT_USAGE
     if interrupted:
         n = len(rows)
         print(f"rac preanalyse: {how_stopped()}; {counted(n, 'setting')} finished before it "
-              f"({where if n else 'none'}){removed}", file=sys.stderr)
+              f"({where if n else 'none'})", file=sys.stderr)
         return EXIT_INTERRUPTED
     undecided = sum(1 for row in rows if "error" in row)
     if undecided:  # a setting without answers is undecided, and an undecided answer never exits 0
@@ -719,16 +721,12 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     return EXIT_OK
 
 
-def _remove_stale(path: Path, started: float) -> str:
-    """Remove ``path`` when an earlier run wrote it (before ``started``, a ``time.time()``); what to add to the
-    stopped run's message about it ("" when there was none, or it could not be removed)."""
-    try:
-        if path.stat().st_mtime >= started:
-            return ""
-        path.unlink()
-    except OSError:
-        return ""
-    return f"; removed {path}, an earlier run's plot of other runs"
+def _earlier_plots(gone: list[Path], out_dir: Path) -> str:
+    """What the note on an earlier run's plots removed (``gone``, from ``out_dir``) says after "removed"."""
+    if len(gone) == 1:
+        return f"{gone[0]}, an earlier run's plot of settings or runs this run did not draw"
+    names = ", ".join(path.name for path in gone[:5]) + (f" and {len(gone) - 5} more" if len(gone) > 5 else "")
+    return f"{len(gone)} plots of an earlier run from {out_dir}, of settings or runs this run did not draw: {names}"
 
 
 @_on_checked_file

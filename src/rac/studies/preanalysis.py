@@ -29,6 +29,7 @@ import contextlib
 import dataclasses
 import itertools
 import math
+import re
 import time
 from collections.abc import Callable, Iterator
 from fractions import Fraction
@@ -55,7 +56,7 @@ from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.model.native import NEGATIVE_DISTANCE_TEXT, NO_OBSTACLE
 from rac.model.sample import MOTION, Ego
 
-__all__ = ["Row", "SweepError", "render_table", "sweep"]
+__all__ = ["SWEEP_PLOT", "Row", "SweepError", "earlier_plots", "render_table", "sweep"]
 
 #: One row of the sweep (JSON-shaped: the CLI prints it as JSON and as a table).
 Row = dict[str, Any]
@@ -65,6 +66,26 @@ TRUTH_EXPONENT = 4
 #: The most points a Fig. 7 plot draws per run. A short ``timeStepSize`` gives millions of true
 #: distances per run, which matplotlib draws for many minutes (100 runs of 300,000: over ten).
 PLOT_POINTS = 2000
+#: The sweep's plot of every setting's runs, in the output folder beside the settings' own (:func:`_plot_name`).
+SWEEP_PLOT = "sweep.png"
+#: Exactly the names :func:`_plot_name` gives (``{:g}`` of a positive number: ``0.5``, ``1``, ``1e-05``, ``1.5e+06``).
+_PLOT_FILE = re.compile(r"fig7_e\d+_c1_\d+(\.\d+)?(e[+-]\d+)?_c2_\d+(\.\d+)?(e[+-]\d+)?\.png")
+
+
+def _plot_name(spec: ir.ModelSpec) -> str:
+    """The file name of a setting's Fig. 7 plot: its settings, e.g. ``fig7_e2_c1_0.5_c2_1.png``."""
+    return f"fig7_e{spec.exponent}_c1_{float(spec.sense_period):g}_c2_{float(spec.decide_period):g}.png"
+
+
+def earlier_plots(out_dir: Path) -> list[Path]:
+    """The plots a run of the sweep writes that ``out_dir`` holds (:func:`_plot_name`'s and :data:`SWEEP_PLOT`),
+    in name order; none when it cannot be read."""
+    try:
+        names = sorted(entry.name for entry in out_dir.iterdir())
+    except OSError:
+        return []
+    return [out_dir / name for name in names
+            if (name == SWEEP_PLOT or _PLOT_FILE.fullmatch(name)) and (out_dir / name).is_file()]
 
 
 class SweepError(RacError, ValueError):
@@ -321,7 +342,7 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
         from rac.output.plots import plot_runs
 
         out_dir.mkdir(parents=True, exist_ok=True)
-        name = f"fig7_e{spec.exponent}_c1_{float(spec.sense_period):g}_c2_{float(spec.decide_period):g}.png"
+        name = _plot_name(spec)
         times = np.arange(true.shape[1]) * (data.period / (true.shape[1] - 1) * samples) if samples else np.zeros(1)
         times, drawn = _thinned(times, true)
         row["plot"] = str(plot_runs(times, drawn, out_dir / name, threshold=threshold,
@@ -338,7 +359,8 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
           decides: str | None = None, runs: int = 100, horizon: Fraction | None = None, seed: int | None = None,
           max_states: int = 5_000_000, max_bytes: int | None = None, out_dir: Path | None = None,
           quiet: bool = True, threshold_factor: int = 1, done: list[Row] | None = None,
-          max_seconds: float | None = None, partial: Callable[[list[Row], bool], None] | None = None) -> list[Row]:
+          max_seconds: float | None = None, partial: Callable[[list[Row], bool], None] | None = None,
+          removed: list[Path] | None = None) -> list[Row]:
     """Answer Qa–Qd and the shielded Fig. 7 runs for every setting of the grid; one dict per setting.
     Each setting's dict is also appended to ``done`` (when given) as soon as it is found: after Ctrl-C
     (``KeyboardInterrupt``) it holds the settings finished before. ``partial`` (when given) is called after each
@@ -348,7 +370,10 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
 
     ``exponents``, ``senses``, ``decides``: comma-separated lists (None: the file's own value).
     A decision period that is not a whole multiple of the sensing period is skipped with an
-    ``error`` entry. ``out_dir`` receives one Fig. 7 plot per setting and ``sweep.png``. ``max_seconds``
+    ``error`` entry. ``out_dir`` receives one Fig. 7 plot per setting and ``sweep.png``; the plots an earlier
+    run wrote there (:func:`earlier_plots`) are removed once the arguments are checked, before the first setting
+    runs (they would stand beside this run's as if they were of it), and appended to ``removed`` (when given).
+    ``max_seconds``
     limits each setting's time: past it (checked between its steps, per explored layer and per simulated
     sample) the setting is
     given up, its row keeping the answers found, an ``error`` that says so and ``time_limit`` (the seconds).
@@ -372,6 +397,12 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
     if given:  # as rac verify's --horizon; the file's own horizon is taken as the file has it
         _check_horizon(horizon, axes[1])
     grid = list(itertools.product(*axes))
+    if out_dir is not None:  # an earlier run's plots of other settings (or runs) are no part of this one
+        for path in earlier_plots(out_dir):
+            with contextlib.suppress(OSError):  # one that cannot be removed stays, not said as removed
+                path.unlink()
+                if removed is not None:
+                    removed.append(path)
     rows: list[Row] = []
 
     def found(row: Row) -> None:  # the running setting's answers so far, after the settings finished
@@ -424,7 +455,7 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
             sweep_rows = [{"exponent": r["exponent"], "sense": r["sense"], "decide": r["decide"],
                            "min_distances": list(r["true_min"]), "threshold": r["threshold"],
                            "probability": r["below_interval"]} for r in plotted]
-            path = plot_sweep(sweep_rows, out_dir / "sweep.png", xlabel="smallest true distance of a run (m)",
+            path = plot_sweep(sweep_rows, out_dir / SWEEP_PLOT, xlabel="smallest true distance of a run (m)",
                               threshold_label=_td(threshold_factor), unit="m", below_zero=NEGATIVE_DISTANCE_TEXT,
                               title="pre-analysis: runs under the shield")
             rows.append({"sweep_plot": str(path)})
