@@ -72,3 +72,16 @@ def test_preanalyse_reports_the_row_and_never_exits_0_with_one_unanswered(
     assert rows[6]["error"].startswith("a sensed value left the int32 range at this exponent")
     assert "1 of 2 settings were not answered" in captured.err
     assert Fraction(rows[6]["sense"]) == Fraction(1, 2)
+
+
+def test_preanalyse_answers_what_the_overflow_leaves_answerable(capsys: pytest.CaptureFixture[str],
+                                                                 tmp_path: Path) -> None:
+    """Qa's runs leaving int32 at exponent 6 dropped the whole setting: Qb-Qd went unanswered, though the
+    exploration ends each run at its first unsafe state (off the road at sample 1, before x leaves int32 at sample
+    2) and never overflows. The row now says Qa's overflow and holds Qb-Qd."""
+    path = write_far_road(tmp_path)
+    assert main(["preanalyse", str(path), "--exponent", "6", "--runs", "3", "--seed", "1", "-q", "--format", "json",
+                 "-o", str(tmp_path / "out")]) == 4
+    [row] = [row for row in json.loads(capsys.readouterr().out)["settings"] if "exponent" in row]
+    assert row["error"].startswith("a sensed value left the int32 range at this exponent in Qa's runs: sense(): x = ")
+    assert "qa" not in row and (row["qb"], row["qc"], row["qd"]) == (False, False, False) and row["states"] > 0

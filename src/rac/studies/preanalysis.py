@@ -298,10 +298,13 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     except MemoryError as exc:  # the budget's estimate, refused before anything is allocated (or the machine's)
         row["error"] = _memory_error(exc)
         return row
-    drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, Ego.X] / data.scale) >= float(spec.sensor_error)
-    hits = int(drift.any(axis=1).sum())
-    row["qa"] = clopper_pearson(hits, runs)
-    found(row)
+    except ModelRangeError as exc:  # Qa has no answer; the exploration may: its unsafe states end a run earlier
+        row["error"] = _left_int32(exc, "Qa's runs")
+    else:
+        drift = np.abs(plain.truth[:, :, 0] - plain.states[:, :, Ego.X] / data.scale) >= float(spec.sensor_error)
+        hits = int(drift.any(axis=1).sum())
+        row["qa"] = clopper_pearson(hits, runs)
+        found(row)
     limit.check()
     # Qb-Qd on the explored model (unsafe states end a run): the shield's own graph.
     t0 = time.perf_counter()
@@ -309,6 +312,10 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
         shield, masks = synthesise(data, samples, max_states=max_states, max_bytes=max_bytes, progress=limit.check)
     except MemoryError as exc:  # the budget (it says how far the exploration got), or the machine's memory
         row["error"] = _memory_error(exc)
+        row["seconds"] = time.perf_counter() - t0
+        return row
+    except ModelRangeError as exc:  # Qa's answer, if any, stands
+        row["error"] = "; ".join(filter(None, (row.get("error"), _left_int32(exc, "the exploration of Qb-Qd"))))
         row["seconds"] = time.perf_counter() - t0
         return row
     graph = shield.graph
@@ -324,9 +331,13 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
         return row
     limit.check()
     # Fig. 7 under the shield: sensed and true distances.
-    with _simulating(f"Fig. 7: {counted(runs, 'run')} under the shield", samples, quiet, limit) as progress:
-        shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at,
-                            max_bytes=max_bytes, progress=progress)  # the unshielded runs' estimate passed above
+    try:
+        with _simulating(f"Fig. 7: {counted(runs, 'run')} under the shield", samples, quiet, limit) as progress:
+            shielded = simulate(data, runs=runs, horizon_samples=samples, seed=seed + 1, policy=masks.masks_at,
+                                max_bytes=max_bytes, progress=progress)  # the unshielded runs' estimate passed above
+    except ModelRangeError as exc:  # Qa-Qd stand
+        row["error"] = "; ".join(filter(None, (row.get("error"), _left_int32(exc, "Fig. 7's runs under the shield"))))
+        return row
     model = BatchModel(data)
     sensed = np.stack([model.mindist(shielded.states[:, k], k) for k in range(samples + 1)], axis=1)
     limit.check()
@@ -429,9 +440,9 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                     rows.append(_row(result, variant, runs=runs, horizon=horizon, seed=seed, max_states=max_states,
                                      max_bytes=max_bytes, threshold_factor=threshold_factor, out_dir=out_dir,
                                      quiet=quiet, max_seconds=max_seconds, found=found))
-                except ModelRangeError as exc:  # a run's sensed value: UPPAAL's model would abort there too
+                except ModelRangeError as exc:  # a safety net: each step says where (_answer), keeping the others
                     rows.append({"exponent": int(exponent), "sense": float(sense), "decide": float(decide),
-                                 "error": f"a sensed value left the int32 range at this exponent: {exc}"})
+                                 "error": _left_int32(exc, "this setting")})
                 except MemoryError as exc:
                     if isinstance(exc, RacError):  # a budget's refusal the row does not say: its callers do
                         raise
@@ -460,6 +471,11 @@ def sweep(result: CompileResult, *, exponents: str | None = None, senses: str | 
                               title="pre-analysis: runs under the shield")
             rows.append({"sweep_plot": str(path)})
     return [_jsonable(r) for r in rows]
+
+
+def _left_int32(exc: ModelRangeError, where: str) -> str:
+    """A setting's error for a sensed value that left int32 in ``where`` (UPPAAL's model aborts there too)."""
+    return f"a sensed value left the int32 range at this exponent in {where}: {exc}"
 
 
 def _memory_error(exc: MemoryError) -> str:
