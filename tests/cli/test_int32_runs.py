@@ -38,6 +38,9 @@ def test_a_run_beyond_int32_is_the_models_limit(command: list[str], capsys: pyte
     assert "error[E0015]: a sensed value left the int32 range: sense(): x = 21" in err
     assert "UPPAAL's model aborts there too" in err and "coarser `exponent`" in err
     assert "internal error" not in err
+    # where in the file: the model block's number representation (the E0015 had no place, nor a source line)
+    line = next(n for n, text in enumerate(path.read_text().splitlines(), 1) if text.strip() == "exponent 6")
+    assert f"{path}:{line}:9: error[E0015]" in err and f"{line} |         exponent 6" in err
 
 
 def test_a_probability_decided_before_int32_ends_is_answered(capsys: pytest.CaptureFixture[str],

@@ -144,6 +144,9 @@ def test_a_learning_run_beyond_int32_names_the_binding(tmp_path: Path, capsys: p
     err = capsys.readouterr().err
     assert "error[E0015]: a value of a run left the int32 range: the binding of `d` = " in err
     assert "bound the binding (`fmin(e, 1000)`, `fmax(e, -1000)`)" in err
+    # at the binding's line, shown (the E0015 had no place in the file)
+    line = next(n for n, text in enumerate(path.read_text().splitlines(), 1) if "bind d = " in text)
+    assert f"{path}:{line}:" in err and f"{line} | " in err and "dist_goal() * 100" in err
 
 
 def write_late_car(path: Path) -> None:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from rac.core.diagnostics import Diagnostic, RacError, error, render_json, render_text
 from rac.core.files import written_by_rac
-from rac.core.source import SourceFile
+from rac.core.source import SourceFile, Span
 from rac.engine.budget import default_max_bytes, parse_size
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX, output_folder
 
@@ -144,10 +144,12 @@ def usage_error(message: str, *, notes: Iterable[str] = (), hints: Iterable[str]
     return error("E0014", message, None, notes=notes, hints=hints)
 
 
-def unusable_file(message: str, *, notes: Iterable[str] = (), hints: Iterable[str] = ()) -> Diagnostic:
+def unusable_file(message: str, *, notes: Iterable[str] = (), hints: Iterable[str] = (),
+                  span: Span | None = None) -> Diagnostic:
     """E0015: a file that passes ``rac check`` but that the command cannot run on (no ``model`` block,
-    a run that leaves the int32 range, an experiment without a safe strategy; exit 1)."""
-    return error("E0015", message, None, notes=notes, hints=hints)
+    a run that leaves the int32 range, an experiment without a safe strategy; exit 1); ``span``: the place in
+    the file it is due to (a run's value beyond int32: the `model` block's `exponent`, or the binding)."""
+    return error("E0015", message, span, notes=notes, hints=hints)
 
 
 def resource_limit(message: str, *, hints: Iterable[str] = ()) -> Diagnostic:

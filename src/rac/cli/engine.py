@@ -46,7 +46,7 @@ from rac.core.source import SourceFile
 from rac.engine.budget import BudgetExceeded, default_max_bytes, out_of_memory
 from rac.ir import query as iq
 from rac.lang.parser import ExpressionError
-from rac.model.checks import goal_window, traffic_ends
+from rac.model.checks import goal_window, representation_span, traffic_ends
 from rac.model.data import ModelRangeError
 from rac.model.native import NO_OBSTACLE, NO_OBSTACLE_TEXT
 from rac.model.sample import Ego
@@ -167,18 +167,7 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
             try:
                 return command(args, result)
             except ModelRangeError as exc:  # a run's value, not the file's data (rac check has those)
-                from rac.verify.context import left_int32  # the verdicts' wording (loaded only here)
-
-                sensed = exc.what.startswith("sense()")
-                hints = [] if sensed else ["bound the binding (`fmin(e, 1000)`, `fmax(e, -1000)`) so that its value "
-                                           "keeps a significand"]
-                _report(args, unusable_file(
-                    left_int32(exc),
-                    notes=["UPPAAL's model aborts there too; the run cannot go on" if sensed else
-                           "the emitted model has no int32 for it either (UPPAAL does not document what `fint()` "
-                           "gives beyond int32); the run cannot go on"],
-                    hints=[*hints, "a coarser `exponent` in the model block (`rac preanalyse` compares them) or a "
-                                   f"shorter horizon keeps the {'sensed ' if sensed else ''}values within int32"]))
+                _report(args, _left_int32_diagnostic(result, exc), result.sources)
                 return EXIT_ERRORS
             except RacError as exc:
                 if exc.diagnostic is None:
@@ -188,6 +177,27 @@ def _on_checked_file(command: Callable[[argparse.Namespace, CompileResult], int]
                 return EXIT_ERRORS
 
     return run
+
+
+def _left_int32_diagnostic(result: CompileResult, exc: ModelRangeError, *, notes: Sequence[str] = ()) -> Diagnostic:
+    """E0015 of a run's value beyond int32, pointing into the file: at the binding whose value it is, else at the
+    `model` block's number representation (its `exponent`), whose choice it is; ``notes`` after the reason."""
+    from rac.verify.context import left_int32  # the verdicts' wording (loaded only here)
+
+    automaton = result.automaton
+    assert automaton is not None and automaton.model is not None  # _prepare refused a file without them
+    sensed = exc.what.startswith("sense()")
+    binding = next((b for b in automaton.model.bindings if b.input == exc.binding), None)
+    hints = [] if sensed else ["bound the binding (`fmin(e, 1000)`, `fmax(e, -1000)`) so that its value "
+                               "keeps a significand"]
+    return unusable_file(
+        left_int32(exc),
+        notes=["UPPAAL's model aborts there too; the run cannot go on" if sensed else
+               "the emitted model has no int32 for it either (UPPAAL does not document what `fint()` "
+               "gives beyond int32); the run cannot go on", *notes],
+        hints=[*hints, "a coarser `exponent` in the model block (`rac preanalyse` compares them) or a "
+                       f"shorter horizon keeps the {'sensed ' if sensed else ''}values within int32"],
+        span=binding.span if binding is not None else representation_span(automaton))
 
 
 def _note(args: argparse.Namespace, notes: list[str], text: str) -> None:

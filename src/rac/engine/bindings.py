@@ -81,7 +81,7 @@ class Bindings:
             row = int(np.flatnonzero(bad)[0])
             significand = int(scaled[row]) if math.isfinite(scaled[row]) else None
             raise ModelRangeError(f"the binding of `{name}`", float(value[row]), significand,
-                                  self.evaluator.data.scale)
+                                  self.evaluator.data.scale, binding=name)
         return scaled.astype(np.int64)  # truncation towards zero, like fint()
 
     def read(self, frame: Frame) -> np.ndarray:

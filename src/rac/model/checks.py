@@ -736,6 +736,13 @@ def _written_setting(spec: ir.ModelSpec, spans: dict[str, Span], value: object) 
                  if f"model:{name}" in spans and getattr(spec, name, None) == value), None)
 
 
+def representation_span(automaton: ir.Automaton) -> Span | None:
+    """Where the `model` block chooses its number representation, what a value beyond int32 points at: its
+    `exponent`, else its `base`, else the block itself (both defaults)."""
+    spans, spec = automaton.spans, automaton.model
+    return spans.get("model:exponent", spans.get("model:base", spec.span if spec is not None else None))
+
+
 def _overflow(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, failure) -> Diagnostic:
     """E0713 for a significand that overflows int32, with the largest exponent that fits."""
 
@@ -750,7 +757,7 @@ def _overflow(automaton: ir.Automaton, spec: ir.ModelSpec, scenario, failure) ->
                      "from the ego's start: that count overflows int32", span,
                      notes=[f"the model counts times in sense periods, which must stay within ±{INT32_MAX}"],
                      hints=["use a longer sensing period, or a scenario whose times lie closer to its start"])
-    span = spans.get("model:exponent", spans.get("model:base", spec.span))
+    span = representation_span(automaton)
     limit = Fraction(INT32_MAX, base ** exponent)
     notes: list[Note | str] = [
         f"its significand trunc({shown} · {base}^{exponent}) = {short_number(Fraction(failure.significand))} is "

@@ -68,11 +68,14 @@ class ModelRangeError(RacError, ValueError):
 
     ``what`` names it (e.g. ``"obstacle 3 waypoint 2 x"``), ``value`` is the real value and
     ``significand`` the integer it would need (``None`` when the value is not finite); ``low`` the least
-    value allowed (:data:`INT32_LOW` for what rac writes or reads, ``INT32_MIN`` for a computed mirror).
+    value allowed (:data:`INT32_LOW` for what rac writes or reads, ``INT32_MIN`` for a computed mirror);
+    ``binding`` the input whose ``bind`` it is, when it is a binding's value (a message points at that line).
     """
 
-    def __init__(self, what: str, value: Number, significand: int | None, scale: int, low: int = INT32_LOW) -> None:
+    def __init__(self, what: str, value: Number, significand: int | None, scale: int, low: int = INT32_LOW, *,
+                 binding: str | None = None) -> None:
         self.what = what
+        self.binding = binding
         self.value = value
         self.significand = significand
         self.scale = scale
