@@ -7,6 +7,7 @@ ends at 2145 m; the ego starts at 2140 m at 10 m/s and passes the range within a
 
 from __future__ import annotations
 
+import csv
 import json
 from fractions import Fraction
 from pathlib import Path
@@ -41,6 +42,39 @@ def test_a_run_beyond_int32_is_the_models_limit(command: list[str], capsys: pyte
     # where in the file: the model block's number representation (the E0015 had no place, nor a source line)
     line = next(n for n, text in enumerate(path.read_text().splitlines(), 1) if text.strip() == "exponent 6")
     assert f"{path}:{line}:9: error[E0015]" in err and f"{line} |         exponent 6" in err
+
+
+def test_simulate_keeps_the_runs_an_overflow_leaves(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """One run leaving int32 dropped all of them: `rac simulate --runs 8` wrote nothing, though each run is
+    independent and the others go on to the horizon. Each run now stops at its own overflow (UPPAAL's model aborts
+    there), the files hold every run up to its stop, and the E0015 says which stopped where (exit 1)."""
+    road = StraightRoad(2145.0, EgoStart(2138.0, 1.75, 0.0, 3.0), GoalBox(2143.0, 2145.0, 0.0, 4.0))
+    tiny = straight_road("mixed", road, settings=TinySettings(exponent=6))  # the fast runs pass x = 2147.48 m
+    tiny.write(tmp_path / "mixed.xml")
+    path = tmp_path / "mixed.ra"
+    path.write_text(engine_source(tiny, {}), encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["simulate", str(path), "--runs", "8", "--seed", "1", "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    with (out / "runs.csv").open(encoding="utf-8") as file:
+        rows = [row["run"] for row in csv.DictReader(file)]
+    lengths = [rows.count(str(run)) for run in range(8)]
+    stopped = [run for run in range(8) if lengths[run] < 9]  # samples 0..8 for a run that went on
+    assert 0 < len(stopped) < 8, lengths
+    assert f"{path}:" in err and "error[E0015]: a sensed value left the int32 range: sense(): x = " in err
+    first = f"run {stopped[0]} at sample {lengths[stopped[0]]} (t = {lengths[stopped[0]] / 2:g} s)"
+    assert (f"{len(stopped)} of 8 runs stopped there: {first}") in err
+    assert f"runs.csv and runs.png hold each up to its stop; the other {8 - len(stopped)} runs went on" in err
+    assert (out / "runs.png").is_file()
+
+
+def test_render_draws_the_run_up_to_its_overflow(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = write_far_road(tmp_path)
+    assert main(["render", str(path), "--seed", "1", "-o", str(tmp_path / "out")]) == 1
+    captured = capsys.readouterr()
+    assert "rendered one run: 1 of 8 samples (seed 1)" in captured.out and (tmp_path / "out" / "run.png").is_file()
+    assert "1 of 1 run stopped there: run 0 at sample 2 (t = 1 s); the picture shows the run up to there" \
+        in captured.err
 
 
 def test_a_probability_decided_before_int32_ends_is_answered(capsys: pytest.CaptureFixture[str],

@@ -55,6 +55,7 @@ from rac.verify.status import NOT_SATISFIED, UNDECIDED
 
 if TYPE_CHECKING:
     from rac.engine.graph import ExploredGraph
+    from rac.engine.simulate import Runs
     from rac.verify.report import QueryResult
 
 #: A sub-command: its parsed arguments -> the exit code.
@@ -258,11 +259,34 @@ def _shielded_runs(result: CompileResult, args: argparse.Namespace, samples: int
     # a run of many samples takes minutes (900,000 at 1 ms): a bar on a terminal, the count in the heartbeat
     with Progress(total=samples, desc="simulating", unit="samples",
                   enabled=False if args.quiet or as_json(args) else None) as bar:
+        # a run whose sensed state leaves int32 stops there (UPPAAL's model aborts), the others go on: the caller
+        # shows each up to its stop and says where it stopped (_stopped_runs), where one such run dropped them all
         runs = simulate(result.model_data, runs=n, horizon_samples=samples, seed=seed, policy=policy,
-                        max_bytes=args.max_memory or default_max_bytes(), progress=simulate_callback(bar))
+                        max_bytes=args.max_memory or default_max_bytes(), progress=simulate_callback(bar),
+                        stop_at_overflow=True)
     if isinstance(policy, StepShieldPolicy):  # the guarantee the runs had, said beside them
         _note(args, notes, f"the runs' actions, {policy.summary()}")
     return runs, seed, EXIT_OK
+
+
+def _stopped_runs(result: CompileResult, runs: Runs, shown: str) -> Diagnostic | None:
+    """E0015 of the runs that stopped where their sensed state left int32 (:func:`_left_int32_diagnostic`, of the
+    first to stop), saying which stopped where, then ``shown`` (what the outputs hold of them); None when no run
+    stopped."""
+    overflow = runs.overflow
+    if not runs.overflow_errors or overflow is None:
+        return None
+    stopped = sorted(runs.overflow_errors, key=lambda run: (int(overflow[run]), run))
+
+    def at(run: int) -> str:
+        sample = int(overflow[run])
+        return f"run {run} at sample {sample} (t = {runs.times[sample]:g} s)"
+
+    which = ", ".join(at(run) for run in stopped[:3]) + (f" and {len(stopped) - 3} more" if len(stopped) > 3 else "")
+    others = runs.n_runs - len(stopped)
+    went_on = f"; the other {counted(others, 'run')} went on to the horizon" if others else ""
+    return _left_int32_diagnostic(result, runs.overflow_errors[stopped[0]], notes=[
+        f"{len(stopped)} of {counted(runs.n_runs, 'run')} stopped there: {which}; {shown}{went_on}"])
 
 
 def _no_runs(reason: str, status: int) -> Diagnostic:
@@ -560,6 +584,11 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     except EvaluationError as exc:
         _report(args, usage_error(f"--expr: {exc}"))
         return EXIT_USAGE
+    stopped = _stopped_runs(result, runs, "runs.csv and runs.png hold each up to its stop")
+    if stopped is not None:  # from its stop on a run's states are not the model's: no values there
+        assert runs.overflow is not None
+        after = np.arange(samples + 1)[None, :] >= runs.overflow[:, None]
+        values = [np.where(after, np.nan, column) for column in values]
     out_dir = _out_dir(args)
     csv_path, png_path = out_dir / "runs.csv", out_dir / "runs.png"
     try:
@@ -568,7 +597,7 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
                  f"(seed {seed})")
         # the pair renamed together at the end: Ctrl-C while plotting keeps the previous run's pair
         write_runs(csv_path, runs.times, texts, values, lambda: plot_series(png_path, runs.times, texts, values,
-                                                                            title, exprs))
+                                                                            title, exprs), ends=runs.overflow)
     except OSError as exc:
         _report(args, unwritable(_written(out_dir, exc), exc))
         return EXIT_USAGE
@@ -579,12 +608,13 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     if result.automaton is not None and result.automaton.ending is not None:
         _note(args, notes, "the runs go on to the horizon; the automaton's `episode ends when`, which ends them in "
                            "the emitted model, is not applied here")
-    if len(values) == 2 and np.ptp(values[1]) == 0:
+    if len(values) == 2 and np.nanmax(values[1]) == np.nanmin(values[1]):  # NaN: a stopped run's samples after it
         below = int(np.any(values[0] < values[1], axis=1).sum())
         verb = "goes" if args.runs == 1 else "go"
-        lines.append(f"{below} of {counted(args.runs, 'run')} {verb} below {texts[1]} = {float(values[1].flat[0]):g}")
+        threshold = float(np.nanmax(values[1]))
+        lines.append(f"{below} of {counted(args.runs, 'run')} {verb} below {texts[1]} = {threshold:g}")
         document["runs_below"] = below
-    if np.all(values[0] == NO_OBSTACLE):  # mindist() without an obstacle: say so, not "1e9 m"
+    if np.all((values[0] == NO_OBSTACLE) | np.isnan(values[0])):  # mindist() without an obstacle: not "1e9 m"
         assert result.model_data is not None
         none = "the scenario has none" if result.model_data.obstacle_count == 0 else "none within the horizon"
         _note(args, notes, f"no obstacle at any sample ({none}): `{texts[0]}` reads {NO_OBSTACLE_TEXT}, its value "
@@ -597,8 +627,21 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
             "the model's `allow when`" if guarded else "the shield"
         lines.append(f"{counted(left, 'run')} met a state where {who} allowed nothing and continued with every action")
     document["notes"], document["wrote"] = notes, [str(csv_path), str(png_path)]
-    _print_summary(args, document, [*lines, f"wrote {csv_path}", f"wrote {png_path}"])
-    return EXIT_OK
+    return _summary_and_stop(args, document, [*lines, f"wrote {csv_path}", f"wrote {png_path}"], stopped, result)
+
+
+def _summary_and_stop(args: argparse.Namespace, document: dict[str, object], lines: Sequence[str],
+                      stopped: Diagnostic | None, result: CompileResult) -> int:
+    """The command's summary (:func:`_print_summary`), then the E0015 of its stopped runs (``stopped``: in the JSON
+    document's ``"error"``, one document), and the exit code: 1 when a run stopped, else 0."""
+    if stopped is not None and as_json(args):
+        document["error"] = stopped.to_json()
+    _print_summary(args, document, lines)
+    if stopped is None:
+        return EXIT_OK
+    if not as_json(args):
+        print_diagnostics([stopped], result.sources)
+    return EXIT_ERRORS
 
 
 @_on_checked_file
@@ -621,6 +664,9 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
             _report(args, _no_runs(seed, status))
         return status
     real = runs.sensed_real()[0]
+    stopped = _stopped_runs(result, runs, "the picture shows the run up to there")
+    if stopped is not None and runs.overflow is not None:  # it stopped where its sensed state left int32: drawn so far
+        real = real[:int(runs.overflow[0])]
     trajectory = real[:, [Ego.X, Ego.Y, Ego.HEAD]]
     out_dir = _out_dir(args)
     png, gif = out_dir / "run.png", out_dir / "run.gif" if args.gif else None
@@ -653,9 +699,9 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     wrote = [str(written), *([str(gif)] if gif is not None else [])]
     document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "how": _how(args),
                                    "samples": samples, "seed": seed, "notes": notes, "wrote": wrote}
-    _print_summary(args, document, [f"rendered {_how(args)}: {samples} samples (seed {seed})",
-                                    *(f"wrote {path}" for path in wrote)])
-    return EXIT_OK
+    drawn = f"{samples} samples" if len(real) == samples + 1 else f"{len(real) - 1} of {samples} samples"
+    return _summary_and_stop(args, document, [f"rendered {_how(args)}: {drawn} (seed {seed})",
+                                              *(f"wrote {path}" for path in wrote)], stopped, result)
 
 
 @_on_checked_file

@@ -91,13 +91,16 @@ def write_csv(path: Path, times: np.ndarray, names: list[str], values: list[np.n
 
 
 def write_runs(path: Path, times: np.ndarray, names: list[str], values: list[np.ndarray],
-               plot: Callable[[], Path] | None = None, stale: Path | None = None) -> list[Path]:
+               plot: Callable[[], Path] | None = None, stale: Path | None = None,
+               ends: np.ndarray | None = None) -> list[Path]:
     """:func:`write_csv`, and with ``plot`` (which writes the runs' plot, atomically, and returns its path) the
     CSV and its plot as a pair: the plot is drawn while the CSV's temporary file is open and the two are
     renamed one after the other at the end, so that Ctrl-C or an error while either is made (drawing takes
     a second) leaves the previous pair as it was, never a new CSV beside the plot of another run. Without
     ``plot``, ``stale`` (the plot an earlier run wrote beside the CSV: ``--no-plots``) is removed before the
-    new CSV takes the old one's place, for the same reason. Returns the paths written, the CSV first."""
+    new CSV takes the old one's place, for the same reason. ``ends`` (per run, None: none) is the sample a run
+    stopped at (:attr:`rac.engine.simulate.Runs.overflow`): its rows end before it. Returns the paths written,
+    the CSV first."""
     plotted: list[Path] = []
 
     def write(binary: IO[bytes]) -> None:
@@ -105,7 +108,7 @@ def write_runs(path: Path, times: np.ndarray, names: list[str], values: list[np.
         writer = csv.writer(handle)
         writer.writerow(["run", "time", *names])
         for run in range(values[0].shape[0] if values else 0):
-            for k, t in enumerate(times):
+            for k, t in enumerate(times[:None if ends is None else int(ends[run])]):
                 writer.writerow([run, f"{t:.6g}", *(f"{v[run, k]:.9g}" for v in values)])
         handle.flush()
         handle.detach()  # atomic_write closes the file itself
@@ -129,7 +132,9 @@ def plot_series(path: Path, times: np.ndarray, names: list[str], values: list[np
     # matplotlib (via rac.output.plots): importing rac.verify.report stays light
     from rac.output.plots import plot_runs, quantity_label
 
-    threshold = float(values[1].flat[0]) if len(values) == 2 and np.ptp(values[1]) == 0 else None
+    # NaN: a stopped run's samples after its stop (rac simulate)
+    threshold = float(np.nanmax(values[1])) if len(values) == 2 and np.nanmax(values[1]) == np.nanmin(values[1]) \
+        else None
     units = [ie.unit_of(expr) for expr in exprs] if len(exprs) == len(names) else [None] * len(names)
     # the threshold's own unit; a bare number (`1.5`) is in the unit of what it is compared with
     threshold_unit = (units[1] or units[0] or "") if threshold is not None else ""
