@@ -237,6 +237,28 @@ def test_a_preanalyse_task_killed_at_its_timeout_keeps_the_answers_found(folder:
     assert row["verdicts"] == {} and row["states"] is None
 
 
+def test_a_verify_task_killed_at_its_timeout_keeps_the_verdicts_found(folder: Path, tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A verify task killed at its --task-timeout dropped the verdicts of the queries it had answered before the
+    one that ran past it: the row keeps them now, and says which query was running."""
+    hook = tmp_path / "hook"  # the child's sitecustomize: a simulate query runs past any timeout
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text("import time\nfrom rac.verify.statistical import StatisticalAnswerer\n"
+                                           "StatisticalAnswerer.simulate = lambda *args, **kw: time.sleep(600)\n",
+                                           encoding="utf-8")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(hook), os.environ.get("PYTHONPATH", "")]))
+    template = tmp_path / "two.ra"
+    template.write_text(engine_source(TINY_SCENARIOS["goal_ahead"](), {"Stays": QUERIES["Stays"],
+                                                                       "Sim": "simulate[<=2; 4]{mindist()}"},
+                                      scenario_file="placeholder.xml"), encoding="utf-8")
+    row = run_task(TaskSpec(str(template), template.read_text(encoding="utf-8"),
+                            str(folder / "scenarios" / "goal_ahead.xml"), (), "verify", (("seed", "1"),), timeout=8))
+    assert row["status"] == "timeout", row
+    assert row["error"] == ("ran past the task timeout of 8 s; kept the answers of the queries before it (Stays); "
+                            "it was answering Sim: simulate[<=2;4]{mindist()}"), row["error"]
+    assert row["verdicts"] == {"Stays": "satisfied"} and row["states"] > 0  # type: ignore[operator]
+
+
 def test_the_task_leaves_with_its_worker(folder: Path) -> None:
     """A worker that dies (Dask reruns its task elsewhere) takes its task's process along."""
     mark = f"RAC_SWEEP_WORKER_MARK_{os.getpid()}"

@@ -9,7 +9,8 @@ of its own, killed whole when the task passes its ``timeout``; its address space
 needs more fails with ``MemoryError`` in the child instead of taking the worker down. The child
 writes its part of the row as JSON on its standard output (anything the task prints goes to its
 standard error) and leaves when its parent does. What it has found so far it keeps in a partial file
-(:attr:`TaskSpec.partial`, a ``preanalyse`` task's answers): a task killed at its timeout keeps them in its row.
+(:attr:`TaskSpec.partial`: a ``verify`` task's verdicts, a ``preanalyse`` task's answers): a task killed at its
+timeout keeps them in its row.
 What the child runs is :mod:`rac.sweep.work`.
 
 The row (:func:`run_task`'s docstring lists its keys) never carries an exception: whatever
@@ -82,7 +83,7 @@ KILLING_SIGNALS = frozenset({signal.SIGKILL, signal.SIGTERM})
 #: What a task's partial file (:attr:`TaskSpec.partial`) may give the row of a task killed at its timeout; besides,
 #: ``kept`` (what it holds, in words) goes into the row's error, and ``running`` (the index in ``details`` of the part
 #: that was running, or null) says which part of the details gets that error.
-PARTIAL_FIELDS = ("details", "verdicts", "states")
+PARTIAL_FIELDS = ("details", "verdicts", "states", "seed")
 #: The last characters of the child's standard error an error row quotes.
 _STDERR_TAIL = 2000
 

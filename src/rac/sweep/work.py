@@ -125,7 +125,7 @@ def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
     # (or into --task-memory, as an allocation that failed midway, not the estimate that says how far it got)
     max_bytes = spec.memory if spec.memory is not None else spec.budget or default_max_bytes()
     if spec.task == "verify":
-        _verify(result, options, row, max_bytes)
+        _verify(result, options, row, max_bytes, spec.partial)
     elif spec.task == "preanalyse":
         _preanalyse(result, options, row, max_bytes, spec.partial)
     elif spec.task == "experiment":
@@ -190,9 +190,19 @@ def _budget(options: dict[str, Any]) -> dict[str, Any]:
     return {"max_states": options["max_states"]} if "max_states" in options else {}
 
 
-def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int) -> None:
+def _keep(partial_file: str | None, fields: dict[str, Any]) -> None:
+    """Write ``fields`` (:data:`rac.sweep.task.PARTIAL_FIELDS`, ``kept`` and ``running``) into the task's partial
+    file, if it has one: what a task killed at its timeout keeps."""
+    if partial_file is None:
+        return
+    with contextlib.suppress(OSError):  # a full disk loses the partial answers, not the task
+        atomic_write(partial_file, lambda file: file.write(json.dumps(fields, default=str).encode("utf-8")))
+
+
+def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int,
+            partial_file: str | None) -> None:
     # numpy, rac.check.analysis, stormpy (via rac.verify.runner): importing rac.sweep.work stays light
-    from rac.verify.runner import VerifyOptions, verify
+    from rac.verify.runner import VerifyOptions, run_queries
 
     # drawn here when not given, as rac verify draws it, so that the row can say it: a statistical or learning
     # query's verdict that no seed reproduces could not be checked with `rac verify --seed N` on the file
@@ -201,16 +211,20 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any],
                               **_budget(options)}
     if "episodes" in options:
         chosen["learn_episodes"] = options["episodes"]
+    answered: list[Any] = []  # each query's result as it is found
+
+    def starting(query: str) -> None:  # before each query: the answers so far, which a task killed later keeps
+        names = [r.name for r in answered]
+        kept = f"kept the answers of the queries before it ({', '.join(names)}); it was answering {query}"
+        _keep(partial_file, {**_verify_fields(answered, seed), "kept": kept if names else "", "running": None})
+
     with tempfile.TemporaryDirectory(prefix="rac-sweep-") as out:  # strategies and CSV files are not kept
         try:
-            results = verify(result, VerifyOptions(out_dir=Path(out), **chosen))
+            _, results = run_queries(result, VerifyOptions(out_dir=Path(out), progress=starting, **chosen),
+                                     answered=answered)
         except ValueError as exc:  # the horizon is not a whole number of samples
             raise TaskError(str(exc)) from None
-    row["verdicts"] = {r.name: r.status for r in results if r.status in VERDICTS}
-    if any(r.seed is not None for r in results):  # a query drew runs: `rac verify --seed N` reproduces them
-        row["seed"] = seed
-    states = [r.states for r in results if r.states is not None]
-    row["states"] = max(states) if states else None
+    row.update(_verify_fields(results, seed))
     failed = [r.name for r in results if r.status == "not satisfied"]
     undecided = [f"{r.name} ({r.status}: {r.message})" for r in results if r.status in UNDECIDED]
     if failed:
@@ -219,20 +233,28 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any],
         row.update(status="undecided", error="not decided: " + "; ".join(undecided))
 
 
+def _verify_fields(results: list[Any], seed: int) -> dict[str, Any]:
+    """A verify task's row fields of the query ``results``: verdicts, states (the most any query explored) and,
+    when a query drew runs, the ``seed`` that reproduces them with `rac verify --seed N`."""
+    states = [r.states for r in results if r.states is not None]
+    fields = {"verdicts": {r.name: r.status for r in results if r.status in VERDICTS},
+              "states": max(states) if states else None}
+    if any(r.seed is not None for r in results):
+        fields["seed"] = seed
+    return fields
+
+
 def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int,
                 partial_file: str | None) -> None:
     # numpy, scipy, stormpy (via rac.studies.preanalysis): importing rac.sweep.work stays light
     from rac.studies.preanalysis import SweepError, sweep
 
     def partial(rows: list[dict[str, Any]], running: bool) -> None:  # a task killed at its timeout keeps these
-        if partial_file is None:
-            return
         found = [name for name in ("Qa", *PREANALYSIS_VERDICTS.values())
                  if any(r.get(name.lower()) is not None for r in rows)]
-        fields = {**_preanalysis_fields(rows), "running": len(rows) - 1 if running else None,
-                  "kept": f"kept the answers found before it ({', '.join(found)}) in its details" if found else ""}
-        with contextlib.suppress(OSError):  # a full disk loses the partial answers, not the task
-            atomic_write(partial_file, lambda file: file.write(json.dumps(fields).encode("utf-8")))
+        _keep(partial_file, {**_preanalysis_fields(rows), "running": len(rows) - 1 if running else None,
+                             "kept": f"kept the answers found before it ({', '.join(found)}) in its details"
+                             if found else ""})
 
     try:
         rows = sweep(result, horizon=options.get("horizon"), seed=options.get("seed"),
