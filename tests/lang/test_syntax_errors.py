@@ -255,3 +255,23 @@ def test_a_first_files_slips_get_their_own_hint(old: str, new: str, hint: str) -
 def test_logics_arrow_in_a_query_still_says_imply() -> None:
     diagnostic, _ = diagnose(_TIMED.removesuffix("}\n") + "    query Q: A[] d > 1 => L\n}\n")
     assert "implication is written `imply`: `a imply b` (or `!a || b`)" in diagnostic.hints
+
+
+@pytest.mark.parametrize(("declaration", "name", "value"), [
+    ("input fast : bool = false", "fast", "false"),
+    ("input d : real in [0, 10] = 5  // metres", "d", "5"),
+    ("input a, b : bool = true", "a", "true"),
+    ("input n : int in [0, 3]=2", "n", "2"),
+])
+def test_an_input_with_a_default_value_gets_the_hint(declaration: str, name: str, value: str) -> None:
+    """language.md: inputs get their values from the environment or a binding at every sample, never a default."""
+    diagnostic, _ = diagnose(f"automaton A {{\n  {declaration}\n  reward r\n}}\n")
+    assert (diagnostic.code, diagnostic.message) == ("E0001", "unexpected `=`")
+    assert (diagnostic.span.line, diagnostic.span.column) == (2, declaration.index("=") + 3)
+    hint = next(h for h in diagnostic.hints if h.startswith("an input has no default value"))
+    assert f"`bind {name} = EXPR`" in hint and f"`const {name} = {value}`" in hint
+
+
+def test_no_input_default_hint_elsewhere() -> None:
+    diagnostic, _ = diagnose("automaton A {\n  input fast : bool\n  reward r = 0\n}\n")
+    assert not any("input has no default" in h for h in diagnostic.hints)

@@ -172,11 +172,14 @@ _UNITS = {"s", "sec", "secs", "second", "seconds", "ms", "min", "h", "hz", "m", 
 _NUMBER_BEFORE = re.compile(r"(?<![A-Za-z_0-9.])[0-9]+(?:\.[0-9]+)?(?:[eE][-+]?[0-9]+)?[ \t]*$")
 #: A declaration's `do` before the unexpected token, on the same line: `at end do r += 1 when g`.
 _DO_BEFORE = re.compile(r"\bdo\b[^\n]*$")
+#: A whole input declaration before the unexpected token: `input fast : bool` before `= false`.
+_INPUT_BEFORE = re.compile(r"\binput\s+(?P<names>[A-Za-z_][A-Za-z0-9_]*(?:\s*,\s*[A-Za-z_][A-Za-z0-9_]*)*)\s*:\s*"
+                           r"(?:bool|(?:real|int)(?:\s+in\s*\[[^\]\n]*\])?)\s*$")
 
 
 def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: str = "", after: str = "") -> list[str]:
-    """Hints for the usual slips; ``before`` is the text before the unexpected token, ``after`` the text from
-    it on, ``found_type`` its terminal."""
+    """Hints for the usual slips; ``before`` is the text before the unexpected token, ``after`` the rest of
+    its line from it on, ``found_type`` its terminal."""
     hints = []
     # `a => b`, `a ==> b`, `a -> b` (logic's and other languages' arrows; `->` is only an edge's): the lexer
     # reads `=` then `>`, `==` then `>`, or `-` then `>`
@@ -206,6 +209,12 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
         hints.append("assignments are written `reward = expr` (UPPAAL's `:=` is old syntax)")
     if found in ("{", "}") and "RBRACE" in expected:
         hints.append("check that every `{` has a matching `}`")
+    if found == "=" and (declared := _INPUT_BEFORE.search(before)):  # `input fast : bool = false`
+        name = re.split(r"\s*,\s*", declared["names"])[0]
+        value = re.split(r"//|/\*", after[1:])[0].strip() or "VALUE"
+        hints.append(f"an input has no default value: it gets one at every sample, from the environment "
+                     f"(`ra.step({{\"{name}\": ...}})`) or from a `model` block's binding (`bind {name} = EXPR`); "
+                     f"for a fixed value declare a constant instead: `const {name} = {value}`")
     if found == ";":  # UPPAAL's declarations end in `;`, rac's do not (a `}` may follow either way)
         hints.append("declarations need no `;` at their end: `;` only separates the flows of a location "
                      "(and a query's bound from its number of runs)")
@@ -347,5 +356,5 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
         end = exc.token.end_pos or start + len(exc.token.value)
         return error("E0001", f"unexpected {_token_text(exc.token)}", source.span(start, end), notes=notes,
                      hints=_syntax_hints(str(exc.token.value), expected, source.text[:start], exc.token.type,
-                                         source.text[start:start + 2]))
+                                         source.text[start:].split("\n", 1)[0]))
     return error("E0001", "syntax error", _end_of_text(source))
