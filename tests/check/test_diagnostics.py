@@ -342,12 +342,18 @@ def _guard(expression: str) -> bytes:
     ("!" * 5000 + "!isClose", False),
     ("not " * 5000 + "isClose", False),
     ("-" * 5000 + "1 < 0 || isClose", False),
-    (" && ".join(["isClose"] * 5000), False),
-    (" + ".join(["1"] * 5000) + " > 0 && isClose", False),
     ("!(" * 5000 + "isClose" + ")" * 5000, False),
     ("isClose imply " * 5000 + "isClose", False),
-    (" && ".join(["isClose"] * 100), True),               # 99 operators: within the limit
-    (" && ".join(["isClose"] * 102), False),
+    ("(isClose && " * 101 + "isClose" + ")" * 101, False),  # nested by its parentheses
+    ("-(" * 49 + "1" + ")" * 49 + " - 1" * 50 + " < 0 || isClose", False),  # 49 + 50 + `<` + `||`: 101 levels
+    ("-(" * 48 + "1" + ")" * 48 + " - 1" * 50 + " < 0 || isClose", True),
+    # flat chains of an associative operator are split (rac.lang.ast.fold_chain): not deep, whatever their length
+    (" && ".join(["isClose"] * 5000), True),
+    (" || ".join(["isClose"] * 5000), True),
+    (" + ".join(["1"] * 5000) + " > 0 && isClose", True),
+    (" * ".join(["1"] * 5000) + " > 0 && isClose", True),
+    ("1" + " + 1 - 1" * 2500 + " > 0 && isClose", True),
+    ("1" + " - 1" * 101 + " < 0 || isClose", False),  # `-` does not associate: 101 levels
 ])
 def test_deep_nesting(expression, accepted, tmp_path, capsys, monkeypatch):
     status, output = check_bytes(_guard(expression), tmp_path, capsys, monkeypatch)

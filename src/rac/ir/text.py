@@ -9,7 +9,6 @@ target gives the operator table and prints the comparisons of numeric inputs.
 
 from __future__ import annotations
 
-import functools
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 
@@ -54,10 +53,13 @@ def _atom_ast(atom: ir.BAtom) -> ast.Expr:
 
 
 def _chain(op: str, empty: bool) -> Callable[[tuple[ast.Expr, ...]], ast.Expr]:
-    """``a op b op c``, nested to the left as the parser nests it; ``empty`` without operands."""
+    """``a op b op c``, nested as the parser nests it (:func:`rac.lang.ast.fold_chain`); ``empty`` without
+    operands."""
     def join(operands: tuple[ast.Expr, ...]) -> ast.Expr:
-        return functools.reduce(lambda left, right: ast.Binary(op, left, right), operands) if operands \
-            else ast.BoolLit(empty)
+        if not operands:
+            return ast.BoolLit(empty)
+        return ast.fold_chain(operands, [op] * (len(operands) - 1), lambda o, left, right, flat: ast.Binary(
+            o, left, right, flat=flat), lambda i: not ast.same_level(operands[i], op))
     return join
 
 

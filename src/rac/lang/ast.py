@@ -8,7 +8,9 @@ Surface variants are normalised here: ``and``/``or``/``not`` become
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import TypeVar, Union
@@ -70,6 +72,9 @@ class Binary:
     left: Expr
     right: Expr
     span: Span | None = _span()
+    #: ``right`` is the rest of a long chain that :func:`fold_chain` split (``a + b + c`` written without
+    #: parentheses around ``b + c``), not an operand in parentheses: the formatter prints none.
+    flat: bool = False
 
 
 Expr = Union[Number, BoolLit, Name, Qualified, Call, Unary, Binary]
@@ -77,6 +82,60 @@ Expr = Union[Number, BoolLit, Name, Qualified, Call, Unary, Binary]
 ARITHMETIC_OPS = ("+", "-", "*", "/")
 COMPARISON_OPS = ("<", "<=", ">", ">=", "==", "!=")
 LOGICAL_OPS = ("&&", "||", "imply")
+
+#: A chain of one level's operators (``a + b - c``, ``p && q && r``) of at most this many operands nests to the
+#: left, as it reads; a longer one is split (:func:`fold_chain`).
+CHAIN_BLOCK = 32
+#: The operators a chain may be split at: ``x op (y ...)`` is ``x op y ...`` (exactly; with doubles, up to
+#: rounding), also when the rest mixes in ``-`` after ``+`` or ``/`` after ``*``.
+ASSOCIATIVE_OPS = ("+", "*", "&&", "||")
+
+
+#: The operators of each level a chain is made of.
+_CHAIN_LEVEL = {"+": "sum", "-": "sum", "*": "product", "/": "product", "&&": "and", "||": "or"}
+
+
+def same_level(operand: Expr, op: str) -> bool:
+    """Whether ``operand`` is a chain of ``op``'s level (``(b + c)`` in ``a - (b + c)``): in a chain it stands in
+    parentheses, so a part of the chain cannot start with it (:func:`fold_chain`'s ``starts``)."""
+    return isinstance(operand, Binary) and _CHAIN_LEVEL.get(operand.op, operand.op) == _CHAIN_LEVEL.get(op, op)
+
+
+def fold_chain(operands: Sequence[T], operators: Sequence[str], join: Callable[[str, T, T, bool], T],
+               starts: Callable[[int], bool] | None = None) -> T:
+    """The chain ``x0 op1 x1 op2 x2 ...`` (``operators[i]`` between ``operands[i]`` and ``operands[i + 1]``,
+    all of one level) as binary nodes, each built by ``join(op, left, right, flat)``.
+
+    Up to :data:`CHAIN_BLOCK` operands nest to the left, ``((x0 op1 x1) op2 x2) ...``. A longer chain is split
+    at the operator of :data:`ASSOCIATIVE_OPS` nearest its middle, each side in turn, so that its depth grows
+    with the logarithm of its length: every later stage walks expressions recursively, and a generated sum
+    of 300 terms is not 300 levels of nesting (E0006). ``a - b + c - d`` splits as ``(a - b) + (c - d)``, which
+    is the same value; a chain with no such operator (``a - b - c ...``) nests to the left whatever its length.
+    ``flat`` is true when ``right`` is such a part of two or more operands, which prints without parentheses.
+    ``starts(i)`` says whether such a part may begin with ``operands[i]``: not when that operand is a chain of the
+    same level in parentheses (:func:`same_level`), which printed first in the part would lose them.
+    """
+    splits = [i + 1 for i, op in enumerate(operators)  # operands[i + 1] begins a right part
+              if op in ASSOCIATIVE_OPS and (starts is None or starts(i + 1))]
+
+    def left_fold(low: int, high: int) -> T:
+        result = operands[low]
+        for i in range(low + 1, high):
+            result = join(operators[i - 1], result, operands[i], False)
+        return result
+
+    def fold(low: int, high: int) -> T:  # operands[low:high]; recursion as deep as log2(len / CHAIN_BLOCK)
+        if high - low <= CHAIN_BLOCK:
+            return left_fold(low, high)
+        middle = (low + high) // 2
+        at = bisect.bisect_left(splits, middle)
+        candidates = [splits[j] for j in (at - 1, at) if 0 <= j < len(splits) and low < splits[j] < high]
+        if not candidates:
+            return left_fold(low, high)
+        split = min(candidates, key=lambda i: abs(i - middle))
+        return join(operators[split - 1], fold(low, split), fold(split, high), high - split >= 2)
+
+    return fold(0, len(operands))
 
 
 # ---------------------------------------------------------------- declarations

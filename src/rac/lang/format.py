@@ -110,7 +110,10 @@ class RaPrinter(Printer):
 
     def print_Binary(self, node: ast.Binary) -> Printed:
         self.binary(node.op)  # an unknown operator is reported before its operands
-        return self.infix(node.op, self.print(node.left), self.print(node.right))
+        right = self.print(node.right)
+        if node.flat:  # the rest of a long chain, written without parentheses (ast.fold_chain)
+            right = Printed(right.text, Level.ATOM)
+        return self.infix(node.op, self.print(node.left), right)
 
     def needs_parentheses(self, op: str, operand: Printed, need: int) -> bool:
         """Also ``a || (b && c)``: the grammar needs no parentheses there, but a reader does (C

@@ -85,15 +85,12 @@ class ParseFailure(RacError):
         self.source = source
 
 
-def _fold(items: list, meta_span: Span | None, build) -> ast.Expr:
-    """Left-fold ``a op b op c`` into nested binary nodes."""
-    result = items[0]
-    for i in range(1, len(items), 2):
-        result = build(items[i], result, items[i + 1])
-    return result
-
-
 _CANONICAL_OP = {"and": "&&", "or": "||"}
+
+
+def _operators(items: list) -> list[str]:
+    """The operators of a chain's items ``[x0, op1, x1, ...]`` (tokens), ``and``/``or`` as ``&&``/``||``."""
+    return [_CANONICAL_OP.get(str(op), str(op)) for op in items[1::2]]
 
 
 @v_args(meta=True)
@@ -351,7 +348,10 @@ class _ToAst(Transformer):
         return self._binary(items[1], items[0], items[2])
 
     def or_(self, meta, items):
-        return _fold(items, None, self._binary)
+        operands, operators = items[::2], _operators(items)
+        return ast.fold_chain(operands, operators, lambda op, left, right, flat: ast.Binary(
+            op, left, right, self._join(left, right), flat),
+            lambda i: not ast.same_level(operands[i], operators[i - 1]))
 
     and_ = or_
     sum = or_
@@ -495,8 +495,9 @@ def decode_source(name: str, data: bytes) -> SourceFile:
 
 
 #: Deepest expression accepted: operators nested in one another, each link of a chain like
-#: ``a + b + c`` counting as one level (the AST nests chains to the left). Every later stage
-#: (types, analyses, formatter, targets) walks expressions recursively; this bound keeps
+#: ``a + b + c`` counting as one level as the AST nests it (:func:`rac.lang.ast.fold_chain`: a long chain
+#: of ``+``, ``*``, ``&&`` or ``||`` is split, so it nests about 31 levels plus the logarithm of its length).
+#: Every later stage (types, analyses, formatter, targets) walks expressions recursively; this bound keeps
 #: them far from Python's recursion limit.
 MAX_NESTING = 100
 
@@ -516,11 +517,12 @@ def _nesting_depths(tree: Tree) -> dict[int, int]:
             stack.append((node, True))
             stack.extend((c, False) for c in children)
             continue
-        if node.data in _FOLDED:
-            # ``x0 op x1 op x2`` becomes ((x0 op x1) op x2): x0 sits deepest.
+        if node.data in _FOLDED:  # nested as the AST will be
             operands = [depths[id(c)] if isinstance(c, Tree) else 0 for c in node.children[::2]]
-            links = len(operands) - 1
-            depth = max(d + links - max(0, i - 1) for i, d in enumerate(operands))
+            # an operand that is a chain of the same rule is one in parentheses (ast.same_level)
+            starts = [not (isinstance(c, Tree) and c.data == node.data) for c in node.children[::2]]
+            depth = ast.fold_chain(operands, _operators(node.children),
+                                   lambda op, left, right, flat: max(left, right) + 1, starts.__getitem__)
         else:
             inner = max((depths[id(c)] for c in children), default=0)
             depth = inner + 1 if node.data in _NESTING else inner
@@ -540,8 +542,8 @@ def _check_nesting(tree: Tree, source: SourceFile) -> None:
             raise ParseFailure(error(
                 "E0006", f"expression nested too deeply ({depths[id(node)]} levels; at most {MAX_NESTING})",
                 source.span(node.meta.start_pos, node.meta.end_pos),
-                hints=["simplify the expression; in a chain such as `a && b && c` every operator "
-                       "counts as one level"]))
+                hints=["simplify the expression: each operator nested in another counts as one level (a long "
+                       "chain of `+`, `*`, `&&` or `||` counts as a few: it is split)"]))
         stack.extend(reversed([c for c in node.children if isinstance(c, Tree)]))
 
 
