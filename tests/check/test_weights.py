@@ -3,6 +3,7 @@ holds, and its lexicographically least integer point (issue 14)."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from fractions import Fraction
 from pathlib import Path
@@ -10,7 +11,8 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rac.check.analysis.weights import Region, synthesise_region
+from rac import ir
+from rac.check.analysis.weights import Inequality, Region, synthesise_region
 from rac.check.resolve import Resolver
 from rac.compiler import compile_text
 from rac.lang.parser import parse_text
@@ -284,3 +286,46 @@ def test_several_weights_under_a_requirement_are_refused_not_claimed():
     assert [d.code for d in result.diagnostics] == ["E0407"]
     assert "under `require ending_early_never_pays`" in result.diagnostics[0].message
     assert not any(f.check == "synthesis" for f in result.facts)
+
+
+def test_a_set_of_one_point_is_written_as_its_values():
+    # P1 keeps the weight of `pr` <= 0 in `Bad` and >= 0 in `Worse`: v == 0, and P2 then pins u (the
+    # sentence said `v <= 0 and v >= 0 and u >= -v and u <= -v`)
+    text = """automaton S {
+    input bad : bool
+    input worse : bool
+    param u, v in [-3, 3]
+    reward sa, pr
+    priority sa > pr
+    objective u * sa + v * pr
+    sample every 1
+    horizon 4
+    initial location Ok { sa' == 1; pr' == 1 }
+    location Bad { sa' == -1; pr' == 1 }
+    location Worse { sa' == -1; pr' == -1 }
+    edge * -> Bad when bad && !worse
+    edge * -> Worse when worse
+    edge * -> Ok when !bad && !worse
+}
+"""
+    result = compile_text(text, "s.ra")
+    assert result.ok, [d.message for d in result.diagnostics]
+    assert result.proved[:2] == (
+        "synthesised: every check holds exactly where u == 0 and v == 0 (u, v in [-3, 3]); checked with u = 0, "
+        "v = 0, the lexicographically least integer weights, `u` first",
+        "the set of (u, v) is one point, checked: (0, 0)")
+
+
+def test_opposite_inequalities_are_written_as_an_equation():
+    u, v = (ir.Parameter(n, Fraction(-3), Fraction(3), Fraction(-3)) for n in "uv")
+    half = Fraction(1, 2)
+    rows = (Inequality((Fraction(0), Fraction(1)), Fraction(0)),         # v <= 0
+            Inequality((Fraction(1), Fraction(1)), Fraction(2)),         # u + v <= 2
+            Inequality((Fraction(0), Fraction(-2)), Fraction(0)),        # -2v <= 0: v >= 0
+            Inequality((Fraction(-3), Fraction(0)), Fraction(-1)))       # u >= 1/3
+    segment = Region((u, v), rows, ((Fraction(1, 3), Fraction(0)), (Fraction(2), Fraction(0))), (half, Fraction(0)),
+                     False, (0, 1), (), (half, Fraction(0)))
+    assert segment.describe() == ["v == 0", "u <= -v + 2", "3 * u >= 1"]
+    point = dataclasses.replace(segment, vertices=((Fraction(4, 3), Fraction(0)),))
+    assert point.describe() == ["3 * u == 4", "v == 0"]
+    assert dataclasses.replace(point, inequalities=()).describe() == []  # the box alone: every value in it

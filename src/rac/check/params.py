@@ -154,7 +154,8 @@ def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ..
     facts.append(Fact("synthesis", sentence))
     shown = ", ".join("(" + ", ".join(exact_text(x) for x in v) + ")" for v in region.vertices[:8])
     more = f" and {len(region.vertices) - 8} more" if len(region.vertices) > 8 else ""
-    vertices = f"the set of ({listed}) has {len(region.vertices)} vertices, each checked: {shown}{more}"
+    vertices = (f"the set of ({listed}) is one point, checked: {shown}" if len(region.vertices) == 1 else
+                f"the set of ({listed}) has {len(region.vertices)} vertices, each checked: {shown}{more}")
     facts.append(Fact("synthesis", vertices))
     return resolve(point), [], Synthesised(tuple(zip(names, point)), inequalities, sentence, (vertices,))
 

@@ -87,9 +87,25 @@ class Region:
         return self.point is None
 
     def describe(self) -> list[str]:
-        """The inequalities, each in least integer terms with its leading parameter alone on one side."""
+        """The inequalities, each in least integer terms with its leading parameter alone on one side; two
+        opposite ones (``v <= 0`` and ``v >= 0``) as one equation (``v == 0``), and a set of one point as
+        the parameters' values (``u == 0``, ``v == 0``)."""
         names = [p.name for p in self.parameters]
-        return [_describe(q, names, self.order) for q in self.inequalities]
+        if self.inequalities and len(self.vertices) == 1:
+            (point,) = self.vertices
+            units = [Inequality(tuple(Fraction(j == i) for j in range(len(point))), point[i]) for i in self.order]
+            return [_describe(unit, names, self.order, equation=True) for unit in units]
+        shown: list[str] = []
+        paired: set[int] = set()
+        for k, q in enumerate(self.inequalities):
+            if k in paired:
+                continue
+            opposite = next((j for j in range(k + 1, len(self.inequalities))
+                             if j not in paired and _opposite(q, self.inequalities[j])), None)
+            if opposite is not None:
+                paired.add(opposite)
+            shown.append(_describe(q, names, self.order, equation=opposite is not None))
+        return shown
 
 
 class Unsupported(RacError):
@@ -399,10 +415,18 @@ def _normalised(cut: Inequality) -> Inequality | None:
     return Inequality(tuple(Fraction(x, divisor) for x in whole), cut.bound * scale / divisor)
 
 
-def _describe(cut: Inequality, names: list[str], order: tuple[int, ...] | None = None) -> str:
+def _opposite(a: Inequality, b: Inequality) -> bool:
+    """Whether ``b`` is ``a`` reversed (``v <= 0`` and ``-2 * v <= 0``): together they are an equation."""
+    scale = next((-y / x for x, y in zip(a.coefficients, b.coefficients) if x != 0), None)
+    return (scale is not None and scale > 0 and all(y == -scale * x for x, y in zip(a.coefficients, b.coefficients))
+            and b.bound == -scale * a.bound)
+
+
+def _describe(cut: Inequality, names: list[str], order: tuple[int, ...] | None = None, *,
+              equation: bool = False) -> str:
     """``10 * w1 >= 37 * w2 + 50``: the leading parameter (first in ``order``, else in declaration order)
     alone on the left, with a positive coefficient, the rest on the right, in least integer terms
-    (sympy's ``primitive``)."""
+    (sympy's ``primitive``); with ``equation``, ``==`` for the comparison."""
     # sympy: only when this runs; importing rac.check.analysis.weights stays light
     from sympy import Poly, Rational, symbols
 
@@ -419,7 +443,7 @@ def _describe(cut: Inequality, names: list[str], order: tuple[int, ...] | None =
     left = abs(terms[lead])
     rest = [(-t if not flip else t, names[i]) for i, t in terms.items() if i != lead and t != 0]
     bound = -constant if not flip else constant
-    op = ">=" if flip else "<="
+    op = "==" if equation else ">=" if flip else "<="
     right = _sum_text(rest, bound)
     return f"{_term(left, names[lead])} {op} {right}"
 
