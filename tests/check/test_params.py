@@ -44,6 +44,15 @@ def test_driving_penalty_is_synthesised_exactly():
     assert ("PENALTY", 98) in result.automaton.constants
 
 
+def test_a_set_of_one_value_is_written_as_an_equation():
+    # P2 needs PENALTY >= 98, the declaration allows at most 98 (it said `PENALTY >= 98`, as if more passed)
+    result = compile_text(driving("param PENALTY in [0, 98]"), "driving.ra")
+    assert result.ok, [d.message for d in result.diagnostics]
+    assert result.proved[0] == ("synthesised: PENALTY == 98 (every check holds for PENALTY in [98, 98]); "
+                               "checked with PENALTY = 98")
+    assert result.synthesis is not None and result.synthesis.inequalities == ("PENALTY == 98",)
+
+
 def test_one_less_fails_p2():
     result = compile_text(driving("const PENALTY = 97"), "driving.ra")
     assert codes(result) == ["E0402"]

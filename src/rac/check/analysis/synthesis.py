@@ -113,11 +113,13 @@ class Synthesis:
         return None if self.low is None or self.low.open else self.low.value
 
     def describe(self, exact: bool = False) -> str:
-        """The set as the inequalities the checks add to the declared range: ``P >= 98``, ``2 <= P < 7``
-        (numbers rounded for reading, or ``exact``: ``P < 1431 / 2``)."""
+        """The set as the inequalities the checks add to the declared range: ``P >= 98``, ``2 <= P < 7``,
+        ``P == 98`` for one value (numbers rounded for reading, or ``exact``: ``P < 1431 / 2``)."""
         p = self.parameter
         assert self.low is not None and self.high is not None
         number = exact_text if exact else short_number
+        if self.low.value == self.high.value:  # both ends closed: the set is not empty
+            return f"{p.name} == {number(self.low.value)}"
         low = None if self.low == End(p.low) else self.low
         high = None if self.high == End(p.high) else self.high
         if high is None:
