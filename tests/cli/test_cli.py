@@ -186,6 +186,33 @@ def test_a_required_check_that_cannot_be_made_is_undecided(capsys: pytest.Captur
     assert f"{path}: ok, 1 warning" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("target", ["python", "uppaal"])
+def test_compile_of_an_undecided_file_exits_as_check_does(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                          clean: Path, target: str) -> None:
+    """`rac check` exits 4 on a file whose check stopped at its limit (W0405) or whose required check was not
+    made (W1008); `rac compile` made the same checks and exited 0, as for a file that passed. It writes the
+    code and exits 4, saying why; JSON has "undecided"."""
+    unfinished = REPOSITORY / "tests" / "diagnostics" / "W0405_too_many_samples.ra"
+    required = tmp_path / "req.ra"
+    required.write_text(REQUIRED_NOT_MADE.replace("REQUIRE", "require stalling_never_pays"), encoding="utf-8")
+    output = tmp_path / ("out.py" if target == "python" else "out.xml")
+    for path in (unfinished, required):
+        assert main(["check", str(path)]) == 4
+        output.unlink(missing_ok=True)
+        capsys.readouterr()
+        assert main(["compile", "--target", target, str(path), "-o", str(output)]) == 4
+        err = capsys.readouterr().err
+        assert output.exists() and f"wrote {output}" in err
+        assert f"note: `{path}` is undecided: a check was not made (the warnings above say which)" in err
+        assert main(["compile", "--target", target, "--format", "json", str(path), "-o", str(output)]) == 4
+        summary = json.loads(capsys.readouterr().out)
+        assert summary["ok"] is True and summary["undecided"] is True
+        assert main(["compile", "--target", target, str(path)]) == 4  # to standard output: the same
+        capsys.readouterr()
+    assert main(["compile", "--target", target, "--format", "json", str(clean), "-o", str(output)]) == 0
+    assert json.loads(capsys.readouterr().out)["undecided"] is False
+
+
 def test_check_missing_file_exits_2(tmp_path: Path) -> None:
     missing = tmp_path / "nope.ra"
     done = run_rac("check", missing)

@@ -169,6 +169,21 @@ def _compile(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     if not result.ok or result.automaton is None:
         return EXIT_ERRORS
+    status = _generate(args, result)
+    if status == EXIT_OK and result.undecided:
+        # a check stopped at its limit (W0405) or a required one not made (W1008): the code is written, but
+        # the file is undecided, and exits as `rac check` does on it (4), never as a file that passed (0)
+        if not as_json(args):
+            print(f"note: `{display_text(str(args.file))}` is undecided: a check was not made (the warnings above "
+                  "say which), so the code is written but the exit status is 4, as `rac check` gives",
+                  file=sys.stderr)
+        return EXIT_UNDECIDED
+    return status
+
+
+def _generate(args: argparse.Namespace, result: CompileResult) -> int:
+    """The target's code of the checked ``result`` written (or printed); the exit status."""
+    assert result.automaton is not None, "only a file without errors is compiled"
     outputs = [args.output] if args.output is not None else []
     if args.output is not None:
         try:  # a folder (`-o ./`, `-o /`: no name to derive the .q file from), a FIFO, a device
@@ -216,9 +231,9 @@ def _compile(args: argparse.Namespace) -> int:
 
 def _compiled_json(args: argparse.Namespace, result: CompileResult, written: list[Path], text: str | None) -> str:
     """``rac compile --format json`` after it succeeded: the file, the target, the files written (``-o``),
-    the generated text when it went nowhere else (no ``-o``: it is in the document, not beside it) and
-    the file's diagnostics (its warnings), as ``rac check --format json`` has them."""
-    return json_text({"file": str(args.file), "target": args.target, "ok": True,
+    the generated text when it went nowhere else (no ``-o``: it is in the document, not beside it), whether
+    a check was left undecided and the file's diagnostics (its warnings), as ``rac check --format json`` has them."""
+    return json_text({"file": str(args.file), "target": args.target, "ok": True, "undecided": result.undecided,
                       "written": [str(path) for path in written], "output": text,
                       "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)]}, indent=2)
 
