@@ -10,8 +10,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from rac import ir
+from rac.check.analysis.synthesis import Unresolved, synthesise
 from rac.check.resolve import Resolver
 from rac.compiler import compile_text
+from rac.core.numbers import exact_text
 from rac.lang.parser import parse_text
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -124,6 +127,35 @@ def test_a_parameter_at_whose_bound_the_file_does_not_check_is_e0407():
     result = compile_text(bound, "bound.ra")
     assert codes(result) == ["W0303", "E0407"]  # `d` is unused: the bound is the point
     assert "error[E0205]: empty range [0, -5] for `d`" in result.diagnostics[1].notes[0].message
+
+
+def test_a_parameter_whose_file_does_not_check_one_unit_above_is_searched():
+    # `sa -= 1 + P * 6e307` with P in [0, 1]: a check failing at P = 1 (the int32 range) was measured one unit
+    # above, where the penalty leaves what a double holds (E0011), and `rac check` ended with an internal error
+    # (AssertionError in synthesis._cuts). The other end of the bounds gives the slope as well: the set is the
+    # one of `sa -= 1 + Q` with Q = P * 6e307.
+    scaled = compile_text(SMALL.format(param="param P in [0, 1]", penalty="(1 + P * 6e307)", weight="1"), "s.ra")
+    plain = compile_text(SMALL.format(param="param Q in [0, 6e307]", penalty="(1 + Q)", weight="1"), "p.ra")
+    assert scaled.ok and plain.ok, [d.message for d in (*scaled.diagnostics, *plain.diagnostics)]
+    assert plain.synthesis is not None and plain.synthesis.inequalities == ("9 / 2 <= Q < 715827883 / 10000",)
+    factor = 6 * Fraction(10) ** 307
+    assert scaled.synthesis is not None and scaled.synthesis.inequalities == (
+        f"{exact_text(Fraction(9, 2) / factor)} <= P < {exact_text(Fraction(715827883, 10000) / factor)}",)
+    assert scaled.synthesis.values == (("P", Fraction(9, 2) / factor),)
+
+
+def test_a_value_between_the_bounds_where_the_file_does_not_check_is_a_diagnostic():
+    """Where the file does not check at a value the search tries between its bounds (a coefficient too small for
+    a double there: E0011), the search stops with Unresolved, which rac check reports as E0407 (it asserted)."""
+    node = parse_text(driving("param PENALTY in [0, 1000]"), "driving.ra").automata[0]
+    parameter = ir.Parameter("PENALTY", Fraction(0), Fraction(1000), Fraction(0))
+
+    def resolve(value: Fraction) -> ir.Automaton | None:  # the file checks at the bounds and one unit above them
+        return Resolver(node, {"PENALTY": value}).run() if value in (0, 1, 1000, 1001) else None
+
+    with pytest.raises(Unresolved) as stopped:
+        synthesise(resolve, parameter)
+    assert stopped.value.value == 98  # P2's cut at PENALTY = 0 (test_driving_penalty_is_synthesised_exactly)
 
 
 def test_a_parameter_of_one_value_where_the_search_cannot_go_is_e0406():

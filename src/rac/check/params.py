@@ -23,7 +23,7 @@ from rac.check.analysis import analyse_automaton
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.parametric import LOOPHOLES, loophole_values
 from rac.check.analysis.piecewise import Interval, intersect
-from rac.check.analysis.synthesis import Synthesised, Unfinished, risk_values, synthesise, unsupported
+from rac.check.analysis.synthesis import Synthesised, Unfinished, Unresolved, risk_values, synthesise, unsupported
 from rac.check.analysis.weights import Unsupported, synthesise_region
 from rac.check.resolve import Resolver
 from rac.core.diagnostics import Diagnostic, Fact, Note, error, short_number
@@ -172,7 +172,7 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
 
     low, high = resolve(parameter.low), resolve(parameter.high)
     if low is None or high is None:
-        return None, [_fails_at_bound(node, parameter, parameter.low if low is None else parameter.high)], None
+        return None, [_fails_at(node, parameter, parameter.low if low is None else parameter.high)], None
     reason = unsupported(low, high)
     searched = [r for r in low.requirements if (r.check == "risk" and r.bound is not None) or r.check in LOOPHOLES]
     #: each searched requirement with the values where it holds (in the order the file gives them)
@@ -194,6 +194,8 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
                         values = loopholes[requirement.check]
                     holding.append((requirement, values))
                     allowed = intersect(allowed, values)
+        except Unresolved as where:
+            return None, [_fails_at(node, parameter, where.value)], None
         except Unfinished as stop:
             reason = (f"under {', '.join(f'`{_requirement_text(r)}`' for r in searched)}: {stop.reason}"
                       if allowed is not None else f"the worst-run search stopped: {stop.reason}")
@@ -257,18 +259,20 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
                                            sentence)
 
 
-def _fails_at_bound(node: ast.Automaton, parameter: ir.Parameter, value: Fraction) -> Diagnostic:
+def _fails_at(node: ast.Automaton, parameter: ir.Parameter, value: Fraction) -> Diagnostic:
     """E0407 for a parameter at one of whose bounds the file does not check (``sample every P`` with a
-    horizon that is no whole number of ``P`` there, an input bound ``50 - P`` reversed there): the
-    errors the file has at that value, as notes. The search reads the automaton at both bounds, so
+    horizon that is no whole number of ``P`` there, an input bound ``50 - P`` reversed there), or at a value
+    between them the search reached (a coefficient too small for a double there, E0011): the errors the file
+    has at that value, as notes. The search reads the automaton at both bounds and at the values it tries, so
     there is nothing to search; before this, such a file ended ``rac check`` with an internal error."""
     name = parameter.name
     resolver = Resolver(node, {name: value})
     resolver.run()
     errors = [d for d in resolver.diagnostics if d.is_error]
-    which = "low" if value == parameter.low else "high"
+    which = ("the low end of its bounds" if value == parameter.low else "the high end of its bounds"
+             if value == parameter.high else "a value within its bounds the search tried")
     return error("E0407", f"not yet: parameter `{name}` cannot be synthesised here: the file does not check at "
-                 f"{name} = {short_number(value)}, the {which} end of its bounds",
+                 f"{name} = {short_number(value)}, {which}",
                  parameter.span,
                  notes=[Note(f"at {name} = {short_number(value)}: error[{d.code}]: {d.message}", d.span)
                         for d in errors[:3]],

@@ -33,7 +33,7 @@ from rac.check.analysis.priority import (
     replay,
 )
 from rac.check.analysis.worst import Target, Unfinished, Worst, maximise
-from rac.core.diagnostics import short_number
+from rac.core.diagnostics import RacError, short_number
 from rac.core.numbers import exact_text
 from rac.ir.inputs import InputSpace
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
@@ -317,10 +317,20 @@ def _tighten(low: End, high: End, found: list[_Cut]) -> tuple[End, End]:
     return low, high
 
 
+class Unresolved(RacError):
+    """The file does not check at ``value`` of the parameter, a value within its bounds the search reached
+    (a coefficient there beyond what a double holds, E0011): nothing to search there."""
+
+    def __init__(self, value: Fraction) -> None:
+        super().__init__(f"the file does not check at the value {value}")
+        self.value = value
+
+
 def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences: list[str]) -> list[_Cut]:
     """The oracle at ``value``: a cut from the worst run of every check that fails there."""
     automaton = resolve(value)
-    assert automaton is not None, "the parameter's bounds resolved, so every value between does"
+    if automaton is None:  # the bounds resolved; a value between them need not (E0011 of a tiny coefficient)
+        raise Unresolved(value)
     space, _ = input_space(automaton)
     assert space is not None
     outs = moves(automaton, space)
@@ -331,18 +341,18 @@ def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences:
         if worst is None or not check.violated(worst.value):
             continue
         if other is None:
-            other = resolve(value + 1)
+            other, step = _second(resolve, parameter, value)
         if other is None and parameter.low == parameter.high:
             # `param P in [2, 2]` where the file does not check one unit above (P sets the period there): one
             # value, so no slope is needed: the check fails, and with it the only value
             found.append((True, None, False))
             sentences.append(f"at {parameter.name} = {_num(value)}, {check.what} fails")
             continue
-        assert other is not None, "an affine parameter's file resolves one unit above a value of its bounds"
-        # The same run one unit further: its value is affine in the parameter, so two values fix it.
+        assert other is not None, "the other end of the bounds resolves"
+        # The same run at a second value: its value is affine in the parameter, so two values fix it.
         here = _value(automaton, space, worst, check.target(automaton))
         there = _value(other, space, _transplant(worst, automaton, other), check.target(other))
-        slope = there - here
+        slope = (there - here) / step
         name = parameter.name
         if slope == 0:
             found.append((True, None, False))
@@ -354,6 +364,18 @@ def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences:
         sign = (">" if lower else "<") + ("" if check.strict else "=")
         sentences.append(f"at {name} = {_num(value)}, {check.what} needs {name} {sign} {_num(root)}")
     return found
+
+
+def _second(resolve: Resolve, parameter: ir.Parameter, value: Fraction) -> tuple[ir.Automaton | None, Fraction]:
+    """The automaton at a second value, whose difference from ``value`` (the step, also returned) gives a run's
+    slope: one unit above, or, where the file does not check there (``sa -= P * 1e308`` leaves what a double
+    holds, E0011), the other end of the bounds, where it does (the callers resolved both). None only for a
+    parameter of one value."""
+    other = resolve(value + 1)
+    if other is not None or parameter.low == parameter.high:
+        return other, Fraction(1)
+    step = (parameter.low if value == parameter.high else parameter.high) - value
+    return resolve(value + step), step
 
 
 def _value(automaton: ir.Automaton, space, worst: Worst, target: Target) -> Fraction:
@@ -414,7 +436,8 @@ def risk_values(resolve: Resolve, parameter: ir.Parameter, bound: Fraction) -> l
 
     def incentives(value: Fraction) -> tuple[ir.Automaton, InputSpace, Incentives]:
         automaton = resolve(value)
-        assert automaton is not None, "the parameter's bounds resolved, so every value between does"
+        if automaton is None:  # the bounds resolved; a value between them need not (see _cuts)
+            raise Unresolved(value)
         space, _ = input_space(automaton)
         assert space is not None
         result = analyse(automaton, space)
@@ -428,17 +451,17 @@ def risk_values(resolve: Resolve, parameter: ir.Parameter, bound: Fraction) -> l
             automaton, space, here = incentives(value)
             run = getattr(here, which)
             assert run is not None
-            other = resolve(value + 1)
+            other, step = _second(resolve, parameter, value)
             if other is None and low == high:
                 # one value (`param P in [2, 2]`), where the file need not check one unit above (P sets the
                 # bound of the requirement there): a function on one point needs no slope
                 return run.value, Fraction(0)
-            assert other is not None
+            assert other is not None, "the other end of the bounds resolves"
             other_space, _ = input_space(other)
             assert other_space is not None
             now = _return(automaton, space, run.worst)
             later = _return(other, other_space, _transplant(run.worst, automaton, other))
-            return run.value, later - now
+            return run.value, (later - now) / step
         return at
 
     _, _, at_low = incentives(low)
@@ -469,5 +492,5 @@ def _num(value: Fraction) -> str:
     return short_number(value)
 
 
-__all__ = ["Check", "End", "Synthesised", "Synthesis", "Unfinished", "checks", "risk_values", "synthesise",
-           "unsupported"]
+__all__ = ["Check", "End", "Synthesised", "Synthesis", "Unfinished", "Unresolved", "checks", "risk_values",
+           "synthesise", "unsupported"]
