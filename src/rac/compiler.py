@@ -139,10 +139,10 @@ def parameter_stage(state: Compilation, settings: Settings) -> Compilation:
         return state
     from rac.check.params import synthesise_parameters  # numpy and sympy: a syntax error never needs them
 
-    # the synthesis searches P1, P2, the range and the requirements, not P2 of a discounted return: with
-    # --discount its facts say so, where "every check holds" over the set claimed what E0410 may refute
+    # with --discount, one parameter's synthesis searches P2 of the discounted return too; where it does not
+    # (several weights), its facts say so, where "every check holds" over the set claimed what E0410 may refute
     outcome = synthesise_parameters(state.module.automata[0], state.automaton.parameters,
-                                    discounted=settings.discount is not None)
+                                    discount=settings.discount)
     return replace(state, automaton=outcome.automaton, diagnostics=(*state.diagnostics, *outcome.diagnostics),
                    facts=(*state.facts, *outcome.facts), synthesis=outcome.synthesised)
 

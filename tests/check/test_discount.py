@@ -26,10 +26,13 @@ from rac.check.analysis.discount import (
     discounted_worst,
 )
 from rac.check.analysis.worst import AFTER_END, BEFORE_EDGE, CONTINUE, Target, maximise
+from rac.check.resolve import Resolver
 from rac.cli.main import main
-from rac.compiler import compile_text
+from rac.compiler import compile_source, compile_text
 from rac.core.diagnostics import UNFINISHED
+from rac.core.source import SourceFile
 from rac.ir.inputs import InputSpace
+from rac.lang.parser import parse_text
 
 ROOT = Path(__file__).resolve().parents[2]
 DRIVING = ROOT / "stdlib" / "driving.ra"
@@ -364,16 +367,61 @@ def test_a_bound_is_written_rounded_up(value: Fraction, scale: int) -> None:
     assert shown >= value and (text.endswith("…") or shown == value)
 
 
-def test_a_synthesised_parameter_does_not_claim_the_discounted_p2(tmp_path: Path) -> None:
-    """With --discount and a `param`, the synthesis searched P1, P2 and the range only: it said "every
-    check holds for PENALTY in [98, 1000]" beside E0410 refuting the discounted P2 at PENALTY = 98."""
+def test_a_synthesised_parameter_searches_the_discounted_p2(tmp_path: Path) -> None:
+    """With --discount and a `param`, the synthesis searched P1, P2 and the range only, and its fact said so: the
+    file was checked at PENALTY = 98, where E0410 refutes the discounted P2. A run's discounted value is affine in
+    the penalty too, so the synthesis searches it: the least PENALTY for gamma 0.99 is 357.156…, exactly."""
     text = DRIVING.read_text(encoding="utf-8").replace("const PENALTY = 100", "param PENALTY in [0, 1000]")
     path = tmp_path / "driving_param.ra"
     path.write_text(text, encoding="utf-8")
-    result = rac.compile_file(path, discount=Discount(Fraction(99, 100)))
-    assert DISCOUNTED_P2 in [d.code for d in result.diagnostics]
+    gamma = Discount(Fraction(99, 100))
+    result = rac.compile_file(path, discount=gamma)
+    assert result.ok and DISCOUNTED_P2 not in [d.code for d in result.diagnostics]
     (synthesis,) = [f for f in result.facts if f.check == "synthesis"]
-    assert "every check holds" not in synthesis.message
-    assert "every check but P2 of the discounted return holds for PENALTY in [98, 1000]" in synthesis.message
+    assert synthesis.message.startswith("synthesised: PENALTY >= 357.156… (every check holds for PENALTY in "
+                                        "[357.156…, 1000]); checked with PENALTY = 357.156… (= 357.1558)")
+    assert synthesis.message.endswith("; P2 of the discounted return (`--discount`) is searched too")
+    assert result.synthesis is not None and result.synthesis.value("PENALTY") == Fraction(3571558, 10000)
+    assert any(f.check == "P2-discounted" for f in result.facts)
+    # the set's end is exact: the discounted check holds at it and fails just below
+    (lowest,) = result.synthesis.inequalities
+    end = Fraction(lowest.removeprefix("PENALTY >= ").replace(" ", ""))
+    node = parse_text(text, "driving_param.ra").automata[0]
+    for value, holds in ((end, True), (end - Fraction(1, 10**9), False)):  # (its digits are no literal's)
+        fixed = Resolver(node, {"PENALTY": value}).run()
+        assert fixed is not None and (not check_discounted(fixed, gamma)) is holds
     plain = compile_text(text, "driving_param.ra")
-    assert "every check holds for PENALTY in [98, 1000]" in plain.facts[0].message
+    assert "every check holds for PENALTY in [98, 1000]); checked with PENALTY = 98" in plain.facts[0].message
+
+
+def test_a_synthesis_where_the_discounted_search_does_not_go_says_so() -> None:
+    """An update that scales a reward (`pr = pr / 2`) is beyond the discounted search: the synthesis is that of
+    the other checks, and the fact says the discounted P2 is checked at the value only (W0405 there)."""
+    text = """automaton S {
+    input bad : bool
+    param P in [1, 100]
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 1
+    horizon 5
+    initial location Ok { sa' == 1; pr' == 1 }
+    location Bad { sa' == 0; pr' == 1 }
+    edge * -> Bad when bad do sa = sa - P, pr = pr / 2
+    edge * -> Ok when !bad
+}
+"""
+    result = compile_source(SourceFile("scaling.ra", text), discount=Discount(Fraction(9, 10)))
+    assert [d.code for d in result.diagnostics] == ["W0405"]
+    assert result.proved[0] == ("synthesised: P >= 5.25 (every check but P2 of the discounted return holds for P in "
+                                "[5.25, 100]); checked with P = 5.25; P2 of the discounted return (`--discount`) is "
+                                "checked at that value only")
+
+
+def test_several_weights_do_not_claim_the_discounted_p2() -> None:
+    text = DRIVING.read_text(encoding="utf-8").replace(
+        "objective 10 * sa + 5 * pr + co", "objective w1 * sa + w2 * pr + co").replace(
+        "const PENALTY = 100", "const PENALTY = 100\n    param w1, w2 in [1, 100]")
+    result = compile_source(SourceFile("weights.ra", text), discount=Discount(Fraction(99, 100)))
+    assert "every check but P2 of the discounted return holds exactly where" in result.proved[0]
+    assert result.proved[0].endswith("; P2 of the discounted return (`--discount`) is checked at that value only")

@@ -21,6 +21,7 @@ from typing import get_args
 from rac import ir
 from rac.check.analysis import analyse_automaton
 from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.discount import Discount
 from rac.check.analysis.parametric import LOOPHOLES, loophole_values
 from rac.check.analysis.piecewise import Interval, intersect
 from rac.check.analysis.synthesis import Synthesised, Unfinished, Unresolved, risk_values, synthesise, unsupported
@@ -48,14 +49,15 @@ class ParameterOutcome:
 
 
 def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], *,
-                          discounted: bool = False) -> ParameterOutcome:
+                          discount: Discount | None = None) -> ParameterOutcome:
     """The automaton at the synthesised values of its parameters (one: the least value; several
     weights: the lexicographically least integer point), with the diagnostics and facts that say
-    what was found (:class:`ParameterOutcome`). ``discounted``: the file is also checked for a
-    discounted return (``rac check --discount``), whose P2 the synthesis does not search: the facts
-    say so instead of claiming every check over the set."""
+    what was found (:class:`ParameterOutcome`). ``discount``: the file is also checked for the return
+    discounted by it (``rac check --discount``), whose P2 one parameter's synthesis searches too (where the
+    discounted search goes); several weights' does not, and their facts say so instead of claiming every
+    check over the set."""
     facts: list[Fact] = []
-    claim = _Claim(discounted)
+    claim = _Claim(discount is not None, discount)
     place = nonlinear_use(node, {p.name for p in parameters})
     at_low = Resolver(node).run()
     if place is None and at_low is not None and input_space(at_low)[0] is None:
@@ -78,25 +80,37 @@ def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, .
 @dataclass(frozen=True)
 class _Claim:
     """What a synthesised set is claimed to satisfy: every check, or, for a file checked for a discounted
-    return too, every check but that return's P2 (searched by none of the syntheses, checked at the
-    chosen value only)."""
+    return too (``discounted``), every check but that return's P2 where the synthesis did not search it
+    (``search``: the discount to search, None when it is not searched: several weights, or a discounted
+    search that does not go), which is then checked at the chosen value only."""
 
     discounted: bool
+    search: Discount | None = None
+
+    def unsearched(self) -> _Claim:
+        """The claim when the discounted return's P2 is not searched after all."""
+        return dataclasses.replace(self, search=None)
 
     @property
     def holds(self) -> str:
-        return "every check but P2 of the discounted return holds" if self.discounted else "every check holds"
+        return ("every check but P2 of the discounted return holds" if self.discounted and self.search is None
+                else "every check holds")
 
     @property
     def after(self) -> str:
         """What a sentence ends with."""
-        return "; P2 of the discounted return (`--discount`) is checked at that value only" if self.discounted else ""
+        if not self.discounted:
+            return ""
+        if self.search is None:
+            return "; P2 of the discounted return (`--discount`) is checked at that value only"
+        return "; P2 of the discounted return (`--discount`) is searched too"
 
 
 def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ...], facts: list[Fact],
                          claim: _Claim) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
     """Several parameters, weights of the objective: the automaton at the lexicographically least integer
     point of the exact polyhedron where every check holds, or None and why there is none."""
+    claim = claim.unsearched()  # the polyhedron's oracle searches the plain return only
     names = [p.name for p in parameters]
     listed = ", ".join(names)
 
@@ -180,7 +194,15 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     allowed: list[Interval] | None = None
     if reason is None:
         try:
-            result = synthesise(resolve, parameter)
+            try:
+                result = synthesise(resolve, parameter, claim.search)
+            except Unfinished:
+                if claim.search is None:
+                    raise
+                # the discounted search does not go (an update that scales a reward, a long horizon): the set
+                # of the other checks, and the discounted P2 at its least value only, as the claim then says
+                claim = claim.unsearched()
+                result = synthesise(resolve, parameter)
             if searched and not result.empty:
                 assert result.low is not None and result.high is not None
                 allowed = [Interval(result.low.value, result.high.value, result.low.open, result.high.open)]
@@ -298,8 +320,10 @@ def _held_exactly(resolve: Callable[[Fraction], ir.Automaton | None], name: str,
     rounded = Fraction(math.ceil(least * scale), scale)
     if rounded not in top:
         return least, ""
+    shown = exact_text(least)  # exact where it is short: a discounted search's ends have gamma's powers in them
+    shown = shown if len(shown) <= 40 else short_number(least)
     return rounded, (f" (= {exact_decimal(rounded)}), the least value the significands hold exactly (1/{scale}; at "
-                     f"{name} = {exact_text(least)} the UPPAAL model's integer arithmetic leaves int32, E0801)")
+                     f"{name} = {shown} the UPPAAL model's integer arithmetic leaves int32, E0801)")
 
 
 def _requirement_text(requirement: ir.Requirement) -> str:

@@ -8,6 +8,10 @@ convex and the values where c holds form an interval; so does their intersection
 found from ``lo`` upwards: the oracle's worst run at the candidate gives the affine constraint
 ``J_r(p) <= bound``, the next candidate is the least value satisfying every constraint so far, and the
 search stops when the oracle finds no violation. The upper end is found the same way from ``hi`` down.
+
+With a discount (``rac check --discount``), P2 of the discounted return is one more check per level: a run's
+discounted value weighs each step's change by a power of gamma, fixed by the run, so it is affine in p too,
+and the same oracle (:func:`~rac.check.analysis.discount.discounted_worst`) gives its cuts.
 """
 
 from __future__ import annotations
@@ -19,8 +23,9 @@ from fractions import Fraction
 from functools import partial
 
 from rac import ir
-from rac.check.analysis.affine import Affine, EndOutcome, from_assignments, identity, moves, then
+from rac.check.analysis.affine import Affine, EndOutcome, Moves, from_assignments, identity, moves, then
 from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.discount import Discount, discounted_value, discounted_worst
 from rac.check.analysis.incentives import Incentives, analyse
 from rac.check.analysis.incentives import Unchecked as IncentivesUnchecked
 from rac.check.analysis.piecewise import Interval, convex, intersect
@@ -72,6 +77,20 @@ class Check:
     target: Callable[[ir.Automaton], Target]
     bound: Fraction
     strict: bool
+    #: The learner's discount of a check of the discounted return (its worst value weighs each step's change).
+    discount: Discount | None = None
+
+    def worst(self, automaton: ir.Automaton, outs: Moves, target: Target) -> Worst | None:
+        """The run of the largest value of ``target``, or one past the bound."""
+        if self.discount is not None:
+            return discounted_worst(automaton, outs, target, self.discount)
+        return maximise(automaton, outs, target, run=self.violated)
+
+    def value(self, automaton: ir.Automaton, space: InputSpace, worst: Worst, target: Target) -> Fraction:
+        """The value of ``target`` at the instant the run ``worst`` ends, replayed exactly."""
+        if self.discount is not None:
+            return discounted_value(automaton, space, worst, target, self.discount)
+        return _value(automaton, space, worst, target)
 
     def violated(self, value: Fraction) -> bool:
         return value >= self.bound if self.strict else value > self.bound
@@ -136,10 +155,15 @@ class Synthesis:
                 f"{_num(self.high.value)}{')' if self.high.open else ']'}")
 
 
-def checks(automaton: ir.Automaton) -> list[Check]:
-    """Every check whose outcome depends on the values of rewards: P2 per level and the int32 range."""
+def checks(automaton: ir.Automaton, discount: Discount | None = None) -> list[Check]:
+    """Every check whose outcome depends on the values of rewards: P2 per level (and of the return discounted
+    by ``discount``, when given) and the int32 range."""
     result = [Check(f"P2 for `{automaton.priority[level]}`", partial(p2_target, level=level),
                     Fraction(0), False) for level in p2_levels(automaton)]
+    if discount is not None:
+        result += [Check(f"P2 of the discounted return for `{automaton.priority[level]}`",
+                         partial(p2_target, level=level), Fraction(0), False, discount)
+                   for level in p2_levels(automaton)]
     base, exponent = ((automaton.model.base, automaton.model.exponent) if automaton.model is not None
                       else (DEFAULT_BASE, DEFAULT_EXPONENT))
     factor = Fraction(base) ** exponent
@@ -264,10 +288,11 @@ def p1_cuts(low: ir.Automaton, high: ir.Automaton, parameter: ir.Parameter, sent
     return found
 
 
-def synthesise(resolve: Resolve, parameter: ir.Parameter) -> Synthesis:
-    """The exact set of values of ``parameter`` in its bounds for which every check holds.
+def synthesise(resolve: Resolve, parameter: ir.Parameter, discount: Discount | None = None) -> Synthesis:
+    """The exact set of values of ``parameter`` in its bounds for which every check holds (P2 of the return
+    discounted by ``discount`` too, when given).
 
-    Raises :class:`Unfinished` when the worst-run search stops at its limit.
+    Raises :class:`Unfinished` when the worst-run search stops at its limit (or the discounted one does not go).
     """
     cuts: list[str] = []
     low, high = End(parameter.low), End(parameter.high)
@@ -280,7 +305,7 @@ def synthesise(resolve: Resolve, parameter: ir.Parameter) -> Synthesis:
     # then the upper end from the top down: the set is an interval, so every value between holds.
     for upwards in (True, False):
         while True:
-            found = _cuts(resolve, parameter, low.value if upwards else high.value, cuts)
+            found = _cuts(resolve, parameter, low.value if upwards else high.value, cuts, discount)
             if not found:
                 break
             new_low, new_high = _tighten(low, high, found)
@@ -326,7 +351,8 @@ class Unresolved(RacError):
         self.value = value
 
 
-def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences: list[str]) -> list[_Cut]:
+def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences: list[str],
+          discount: Discount | None = None) -> list[_Cut]:
     """The oracle at ``value``: a cut from the worst run of every check that fails there."""
     automaton = resolve(value)
     if automaton is None:  # the bounds resolved; a value between them need not (E0011 of a tiny coefficient)
@@ -336,8 +362,8 @@ def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences:
     outs = moves(automaton, space)
     other: ir.Automaton | None = None
     found: list[_Cut] = []
-    for check in checks(automaton):
-        worst = maximise(automaton, outs, check.target(automaton), run=check.violated)
+    for check in checks(automaton, discount):
+        worst = check.worst(automaton, outs, check.target(automaton))
         if worst is None or not check.violated(worst.value):
             continue
         if other is None:
@@ -350,8 +376,8 @@ def _cuts(resolve: Resolve, parameter: ir.Parameter, value: Fraction, sentences:
             continue
         assert other is not None, "the other end of the bounds resolves"
         # The same run at a second value: its value is affine in the parameter, so two values fix it.
-        here = _value(automaton, space, worst, check.target(automaton))
-        there = _value(other, space, _transplant(worst, automaton, other), check.target(other))
+        here = check.value(automaton, space, worst, check.target(automaton))
+        there = check.value(other, space, _transplant(worst, automaton, other), check.target(other))
         slope = (there - here) / step
         name = parameter.name
         if slope == 0:
