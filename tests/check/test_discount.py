@@ -418,10 +418,46 @@ def test_a_synthesis_where_the_discounted_search_does_not_go_says_so() -> None:
                                 "checked at that value only")
 
 
-def test_several_weights_do_not_claim_the_discounted_p2() -> None:
-    text = DRIVING.read_text(encoding="utf-8").replace(
-        "objective 10 * sa + 5 * pr + co", "objective w1 * sa + w2 * pr + co").replace(
-        "const PENALTY = 100", "const PENALTY = 100\n    param w1, w2 in [1, 100]")
-    result = compile_source(SourceFile("weights.ra", text), discount=Discount(Fraction(99, 100)))
+def test_several_weights_search_the_discounted_p2() -> None:
+    """Several weights: a run's discounted value is linear in them too (each reward's discounted sum of changes
+    times its weight), so the polyhedron's oracle cuts with the discounted P2 as with P2; every integer point
+    near its boundary is checked with the weights as constants."""
+    def weighted(weights: str) -> str:
+        return DRIVING.read_text(encoding="utf-8").replace("objective 10 * sa + 5 * pr + co", f"objective {weights}"
+                                                           ).replace("const PENALTY = 100", "const PENALTY = 1000")
+    gamma = Discount(Fraction(99, 100))
+    text = weighted("w1 * sa + w2 * pr + co").replace("const PENALTY = 1000",
+                                                       "const PENALTY = 1000\n    param w1, w2 in [1, 100]")
+    result = compile_source(SourceFile("weights.ra", text), discount=gamma)
+    assert result.ok, [d.message for d in result.diagnostics]
+    assert result.proved[0] == (
+        "synthesised: every check holds exactly where w1 >= 0.36134… * w2 + 0.237581… (w1, w2 in [1, 100]); checked "
+        "with w1 = 1, w2 = 1, the lexicographically least integer weights, `w1` first; P2 of the discounted return "
+        "(`--discount`) is searched too")
+    assert result.proved[1].startswith("the set of (w1, w2) has 5 vertices, each checked: (1, 1), (1, 2.10998…), ")
+    plain = compile_text(text, "weights.ra")
+    assert plain.proved[0].startswith("synthesised: every check holds exactly where 97 * w1 >= 13 * w2 + 3 ")
+    for w1, w2 in ((1, 2), (1, 3), (2, 4), (2, 5), (36, 100), (37, 100)):
+        fixed = compile_source(SourceFile("fixed.ra", weighted(f"{w1} * sa + {w2} * pr + co")), discount=gamma)
+        assert fixed.ok is (w1 >= Fraction(36134, 100000) * w2 + Fraction(237581, 1000000)), (w1, w2)
+
+
+def test_several_weights_where_the_discounted_search_does_not_go_say_so() -> None:
+    text = """automaton S {
+    input bad : bool
+    param u, v in [1, 100]
+    reward sa, pr
+    priority sa > pr
+    objective u * sa + v * pr
+    sample every 1
+    horizon 5
+    initial location Ok { sa' == 1; pr' == 1 }
+    location Bad { sa' == 0; pr' == 1 }
+    edge * -> Bad when bad do sa = sa - 20, pr = pr / 2
+    edge * -> Ok when !bad
+}
+"""
+    result = compile_source(SourceFile("scaling.ra", text), discount=Discount(Fraction(9, 10)))
+    assert "W0405" in [d.code for d in result.diagnostics]
     assert "every check but P2 of the discounted return holds exactly where" in result.proved[0]
     assert result.proved[0].endswith("; P2 of the discounted return (`--discount`) is checked at that value only")

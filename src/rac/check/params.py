@@ -53,9 +53,8 @@ def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, .
     """The automaton at the synthesised values of its parameters (one: the least value; several
     weights: the lexicographically least integer point), with the diagnostics and facts that say
     what was found (:class:`ParameterOutcome`). ``discount``: the file is also checked for the return
-    discounted by it (``rac check --discount``), whose P2 one parameter's synthesis searches too (where the
-    discounted search goes); several weights' does not, and their facts say so instead of claiming every
-    check over the set."""
+    discounted by it (``rac check --discount``), whose P2 the synthesis searches too where the discounted
+    search goes; where it does not, the facts say so instead of claiming every check over the set."""
     facts: list[Fact] = []
     claim = _Claim(discount is not None, discount)
     place = nonlinear_use(node, {p.name for p in parameters})
@@ -81,8 +80,8 @@ def synthesise_parameters(node: ast.Automaton, parameters: tuple[ir.Parameter, .
 class _Claim:
     """What a synthesised set is claimed to satisfy: every check, or, for a file checked for a discounted
     return too (``discounted``), every check but that return's P2 where the synthesis did not search it
-    (``search``: the discount to search, None when it is not searched: several weights, or a discounted
-    search that does not go), which is then checked at the chosen value only."""
+    (``search``: the discount to search, None when it is not searched: a discounted search that does not
+    go), which is then checked at the chosen value only."""
 
     discounted: bool
     search: Discount | None = None
@@ -110,7 +109,6 @@ def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ..
                          claim: _Claim) -> tuple[ir.Automaton | None, list[Diagnostic], Synthesised | None]:
     """Several parameters, weights of the objective: the automaton at the lexicographically least integer
     point of the exact polyhedron where every check holds, or None and why there is none."""
-    claim = claim.unsearched()  # the polyhedron's oracle searches the plain return only
     names = [p.name for p in parameters]
     listed = ", ".join(names)
 
@@ -131,7 +129,13 @@ def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ..
                             hints=["synthesise one weight at a time (the others `const`), or write the "
                                    "values as `const`"])], None
     try:
-        region = synthesise_region(resolve, parameters)
+        try:
+            region = synthesise_region(resolve, parameters, claim.search)
+        except Unfinished:
+            if claim.search is None:
+                raise
+            claim = claim.unsearched()  # the discounted search does not go: as in _synthesised
+            region = synthesise_region(resolve, parameters)
     except Unsupported as where:
         name = where.name
         span = next(p.span for p in parameters if p.name == name)
@@ -166,7 +170,7 @@ def _synthesised_weights(node: ast.Automaton, parameters: tuple[ir.Parameter, ..
     else:
         sentence = f"synthesised: {claim.holds} for all values ({bounds}); checked with {chosen}, {how}{claim.after}"
     facts.append(Fact("synthesis", sentence))
-    shown = ", ".join("(" + ", ".join(exact_text(x) for x in v) + ")" for v in region.vertices[:8])
+    shown = ", ".join("(" + ", ".join(_readable(x) for x in v) + ")" for v in region.vertices[:8])
     more = f" and {len(region.vertices) - 8} more" if len(region.vertices) > 8 else ""
     vertices = (f"the set of ({listed}) is one point, checked: {shown}" if len(region.vertices) == 1 else
                 f"the set of ({listed}) has {len(region.vertices)} vertices, each checked: {shown}{more}")
@@ -320,10 +324,15 @@ def _held_exactly(resolve: Callable[[Fraction], ir.Automaton | None], name: str,
     rounded = Fraction(math.ceil(least * scale), scale)
     if rounded not in top:
         return least, ""
-    shown = exact_text(least)  # exact where it is short: a discounted search's ends have gamma's powers in them
-    shown = shown if len(shown) <= 40 else short_number(least)
     return rounded, (f" (= {exact_decimal(rounded)}), the least value the significands hold exactly (1/{scale}; at "
-                     f"{name} = {shown} the UPPAAL model's integer arithmetic leaves int32, E0801)")
+                     f"{name} = {_readable(least)} the UPPAAL model's integer arithmetic leaves int32, E0801)")
+
+
+def _readable(value: Fraction) -> str:
+    """``value`` exactly where that is short (``16 / 7``), else rounded and marked (``357.156…``): the ends and
+    vertices a discounted search finds have gamma's powers in them, hundreds of digits."""
+    text = exact_text(value)
+    return text if len(text) <= 40 else short_number(value)
 
 
 def _requirement_text(requirement: ir.Requirement) -> str:

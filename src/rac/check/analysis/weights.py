@@ -11,6 +11,10 @@ maximum over finitely many runs of a function affine in the weights:
 - P1 holds when each weight stays on the side of 0 where a rate conflict does no harm, a linear
   inequality by itself.
 
+With a discount (``rac check --discount``), P2 of the discounted return adds the inequalities of its worst runs:
+a run's discounted value is ``Σ_r coefficient_r(θ)·D_r`` (+ the constant), ``D_r`` the discounted sum of reward
+r's changes along it, linear in θ as well.
+
 The set is therefore the polyhedron ``{θ in the box : J_r(θ) <= 0 for every run r}``. It is found
 by cutting planes: the lexicographically least point of the current outer polytope (the box and the
 cuts so far) is the candidate, the exact worst-run oracle finds the most violating run there, its
@@ -41,6 +45,7 @@ from fractions import Fraction
 from rac import ir
 from rac.check.analysis.affine import moves
 from rac.check.analysis.behaviour import input_space
+from rac.check.analysis.discount import Discount, discounted_value, discounted_worst
 from rac.check.analysis.priority import p2_levels, p2_target, rate_conflicts, replay
 from rac.check.analysis.worst import Target, Unfinished, maximise
 from rac.core.diagnostics import RacError, short_number
@@ -175,11 +180,13 @@ def _without_objective(automaton: ir.Automaton) -> ir.Automaton:
     return dataclasses.replace(automaton, objective=ir.Linear.constant(Fraction(0)), constants=(), parameters=())
 
 
-def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) -> Region:
-    """The exact polyhedron of parameter values for which P1 and P2 hold (see the module docstring).
+def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...],
+                      discount: Discount | None = None) -> Region:
+    """The exact polyhedron of parameter values for which P1 and P2 hold (see the module docstring), and P2 of
+    the return discounted by ``discount`` when given (a run's discounted value is linear in the weights too).
 
     Raises :class:`Unsupported` (a parameter outside the objective) or :class:`Unfinished` (the
-    worst-run search stopped at its limit).
+    worst-run search stopped at its limit, or the discounted one does not go).
     """
     lows = tuple(p.low for p in parameters)
     weights, base = Weights.measure(resolve, lows)
@@ -188,7 +195,7 @@ def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) 
     box = _box(parameters)
     sentences: list[str] = []
     cuts = _p1(base, weights, sentences)
-    oracle = _Oracle(base, weights, names)
+    oracle = _Oracle(base, weights, names, discount)
     # Phase 1: the lexicographically least candidate, until the oracle finds no violation there.
     candidate = lows
     while True:
@@ -231,14 +238,20 @@ def synthesise_region(resolve: ResolveAt, parameters: tuple[ir.Parameter, ...]) 
 class _Oracle:
     """The exact worst-run search over the automaton with the weights at a point."""
 
-    def __init__(self, automaton: ir.Automaton, weights: Weights, names: list[str]) -> None:
-        self.automaton, self.weights, self.names = automaton, weights, names
+    def __init__(self, automaton: ir.Automaton, weights: Weights, names: list[str],
+                 discount: Discount | None = None) -> None:
+        self.automaton, self.weights, self.names, self.discount = automaton, weights, names, discount
         space, _ = input_space(automaton)
         assert space is not None
         self.space, self.moves = space, moves(automaton, space)
 
     def cuts(self, point: Vector, sentences: list[str]) -> list[Inequality]:
-        """An inequality from the worst run of every P2 level violated at ``point``."""
+        """An inequality from the worst run of every P2 level violated at ``point`` (of the plain return, and of
+        the discounted one with a discount)."""
+        found = self._cuts(point, sentences, None)
+        return found + (self._cuts(point, sentences, self.discount) if self.discount is not None else [])
+
+    def _cuts(self, point: Vector, sentences: list[str], discount: Discount | None) -> list[Inequality]:
         a = self.automaton
         coefficients, constant = self.weights.at(point)
         found = []
@@ -247,10 +260,16 @@ class _Oracle:
             ranked = set(a.priority[level:])
             target = Target(tuple(c if r in ranked else Fraction(0) for r, c in zip(a.rewards, coefficients)),
                             constant if level == 0 else Fraction(0), watched)
-            worst = maximise(a, self.moves, target, run=lambda value: value > 0)
+            worst = (maximise(a, self.moves, target, run=lambda value: value > 0) if discount is None
+                     else discounted_worst(a, self.moves, target, discount))
             if worst is None or worst.value <= 0:
                 continue
-            values, _ = replay(a, self.space, worst)
+            if discount is None:
+                values, _ = replay(a, self.space, worst)  # the rewards at the violating instant
+            else:  # each reward's discounted sum of changes up to it: the discounted value is linear in them
+                units = [tuple(Fraction(j == k) for j in range(len(a.rewards))) for k in range(len(a.rewards))]
+                values = [discounted_value(a, self.space, worst, Target(unit, Fraction(0), watched), discount)
+                          for unit in units]
             # J(θ) = Σ over ranked rewards of coefficient_r(θ)·value_r (+ the constant at level 0) <= 0.
             row = [Fraction(0)] * len(point)
             bound = Fraction(0)
@@ -266,7 +285,8 @@ class _Oracle:
             where = ", ".join(f"{n} = {short_number(x)}" for n, x in zip(self.names, point))
             need = (f"needs {_describe(cut, self.names)}" if any(row)
                     else "fails whatever the parameters are (they do not weigh what it compares)")
-            sentences.append(f"at {where}, P2 for `{a.priority[level]}` {need}")
+            which = "P2" if discount is None else "P2 of the discounted return"
+            sentences.append(f"at {where}, {which} for `{a.priority[level]}` {need}")
         return found
 
 
@@ -438,6 +458,11 @@ def _describe(cut: Inequality, names: list[str], order: tuple[int, ...] | None =
     terms = {i: Fraction(int(primitive.coeff_monomial(x))) for i, x in enumerate(xs)}
     constant = Fraction(int(primitive.coeff_monomial(1)))
     lead = next(i for i in order if terms[i] != 0)
+    if max(len(str(abs(t.numerator))) for t in (*terms.values(), constant)) > 15:
+        # a discounted cut's least integer terms carry gamma's powers (hundreds of digits): the leading
+        # parameter alone, the others' coefficients rounded for reading (`…`), as short_number writes them
+        scale = abs(terms[lead])
+        terms, constant = {i: t / scale for i, t in terms.items()}, constant / scale
     # a·θ_lead + Σ rest + c <= 0  ⇔  sign: θ_lead on the left with a positive coefficient.
     flip = terms[lead] < 0
     left = abs(terms[lead])
