@@ -379,10 +379,13 @@ def test_a_synthesised_parameter_searches_the_discounted_p2(tmp_path: Path) -> N
     assert result.ok and DISCOUNTED_P2 not in [d.code for d in result.diagnostics]
     (synthesis,) = [f for f in result.facts if f.check == "synthesis"]
     assert synthesis.message.startswith("synthesised: PENALTY >= 357.156… (every check holds for PENALTY in "
-                                        "[357.156…, 1000]); checked with PENALTY = 357.156… (= 357.1558)")
+                                        "[357.156…, 1000]); checked with PENALTY = 357.1558, the least value")
     assert synthesis.message.endswith("; P2 of the discounted return (`--discount`) is searched too")
     assert result.synthesis is not None and result.synthesis.value("PENALTY") == Fraction(3571558, 10000)
     assert any(f.check == "P2-discounted" for f in result.facts)
+    # a risk tolerance with gamma's powers in it is rounded once ("p* = 0.139995…"), not "0.139995… ≈ 0.139995…"
+    (risk,) = [f.message for f in result.facts if f.message.startswith("risk tolerance")]
+    assert risk.startswith("risk tolerance p* = 0.139995…; "), risk
     # the set's end is exact: the discounted check holds at it and fails just below
     (lowest,) = result.synthesis.inequalities
     end = Fraction(lowest.removeprefix("PENALTY >= ").replace(" ", ""))

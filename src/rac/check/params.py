@@ -270,16 +270,16 @@ def _synthesised(node: ast.Automaton, parameter: ir.Parameter, facts: list[Fact]
     least, held = _held_exactly(resolve, name, least, top)
     if allowed is not None:
         sentence = (f"synthesised: {claim.holds} for {name} in {result.interval()}, and {required_text}; "
-                    f"checked with {name} = {short_number(least)}{held}{claim.after}")
+                    f"checked with {_value_checked(name, least, held)}{claim.after}")
         inequalities = tuple(_interval_inequality(name, i) for i in allowed)
         facts.append(Fact("synthesis", sentence))
         return resolve(least), [], Synthesised(((name, least),), (" or ".join(inequalities),), sentence)
     if result.whole:
         sentence = (f"synthesised: {claim.holds} for every value of {name} in {result.interval()}; "
-                    f"checked with {name} = {short_number(least)}{held}{claim.after}")
+                    f"checked with {_value_checked(name, least, held)}{claim.after}")
     else:
         sentence = (f"synthesised: {result.describe()} ({claim.holds} for {name} in {result.interval()}); "
-                    f"checked with {name} = {short_number(least)}{held}{claim.after}")
+                    f"checked with {_value_checked(name, least, held)}{claim.after}")
     facts.append(Fact("synthesis", sentence))
     return resolve(least), [], Synthesised(((name, least),), () if result.whole else (result.describe(exact=True),),
                                            sentence)
@@ -324,8 +324,15 @@ def _held_exactly(resolve: Callable[[Fraction], ir.Automaton | None], name: str,
     rounded = Fraction(math.ceil(least * scale), scale)
     if rounded not in top:
         return least, ""
-    return rounded, (f" (= {exact_decimal(rounded)}), the least value the significands hold exactly (1/{scale}; at "
+    return rounded, (f", the least value the significands hold exactly (1/{scale}; at "
                      f"{name} = {_readable(least)} the UPPAAL model's integer arithmetic leaves int32, E0801)")
+
+
+def _value_checked(name: str, least: Fraction, held: str) -> str:
+    """``NAME = value`` of the value the checks were shown at, and ``held`` (why, when it is not the set's
+    least): a value the significands hold is a short decimal, written in full (``357.1558``), where
+    :func:`rac.core.diagnostics.short_number` rounded it to ``357.156…``, which is not the value checked."""
+    return f"{name} = {exact_decimal(least) if held else short_number(least)}{held}"
 
 
 def _readable(value: Fraction) -> str:

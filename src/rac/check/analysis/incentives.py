@@ -584,7 +584,10 @@ def _num(value: Fraction) -> str:
 
 def _p_text(p: Fraction) -> str:
     exact = exact_decimal(p, 10)
-    return exact if exact is not None else f"{_num(p)} ≈ {short_number(p, 6)}"
+    if exact is not None:
+        return exact
+    shown, rounded = _num(p), short_number(p, 6)
+    return shown if shown == rounded else f"{shown} ≈ {rounded}"  # a fraction too long to show is rounded once
 
 
 class _Report:
