@@ -5,6 +5,7 @@ there. ``start_method="fork"`` keeps each run to a second or two."""
 
 from __future__ import annotations
 
+import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -213,3 +214,31 @@ def test_a_scenario_environment_under_counterfactual_rows_is_refused_in_other_pr
         assert not sb3.scenario_environments(plain)
     finally:
         plain.close()
+
+
+def test_a_warning_in_a_forked_worker_names_the_line_that_made_the_workers(tmp_path: Any) -> None:
+    # a warning an environment gives in its SubprocVecEnv process named multiprocessing's process.py
+    # (`self._target(*self._args, **self._kwargs)`): past the worker's launcher, a forked process still holds
+    # the frames of the line that made it, the user's own
+    where = tmp_path / "where.txt"
+
+    def record(message: Any, category: Any, filename: str, lineno: int, *rest: Any) -> None:
+        if "run past the automaton's horizon" in str(message):
+            where.write_text(f"{filename}:{lineno}")
+
+    def past_the_horizon() -> gymnasium.Env[Any, Any]:  # 40 steps of a 30-sample automaton, warned at step 31
+        warnings.simplefilter("always")
+        warnings.showwarning = record  # in the worker: its warnings, written where this test reads them
+        return RewardAutomatonWrapper(TimeLimit(HighwayLike(), 40), follow(), inputs, clip=True)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the timing warning of the construction here
+        line = sys._getframe().f_lineno + 1  # the next one's
+        envs = SubprocVecEnv([past_the_horizon], start_method="fork")
+    try:
+        envs.reset()
+        for _ in range(31):
+            envs.step(np.array([0]))  # slowing down: the gap only grows, no crash ends the episode early
+    finally:
+        envs.close()
+    assert where.read_text() == f"{__file__}:{line}"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import warnings
 from pathlib import Path
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -1051,3 +1052,27 @@ def test_user_stacklevel_counts_the_frames_inside_the_libraries() -> None:
     exec(code, library)
     assert here["warn_site"]() == 1  # type: ignore[operator]  # a user's module: its own frame
     assert library["warn_site"]() == 2  # type: ignore[operator]  # gymnasium's: the frame above it (this test)
+
+
+def test_user_stacklevel_passes_a_worker_process_launcher() -> None:
+    # in a SubprocVecEnv or AsyncVectorEnv worker the first frame outside the libraries was multiprocessing's
+    # (process.py: self._target(*self._args, **self._kwargs)), which every worker's warning named
+    from rac.core.caller import user_stacklevel
+
+    def chain(outer_name: str, outer_file: str, launcher: bool) -> int:
+        """warn_site in rac, called by stable-baselines3's worker, [by multiprocessing,] by an outer frame."""
+        modules = [("rac.learning.wrappers", "def call():\n    return user_stacklevel()\n", "<rac>"),
+                   ("stable_baselines3.common.vec_env.subproc_vec_env", "def call():\n    return inner()\n", "<sb3>")]
+        if launcher:
+            modules.append(("multiprocessing.process", "def call():\n    return inner()\n", "<mp>"))
+        modules.append((outer_name, "def call():\n    return inner()\n", outer_file))
+        inner: Any = None
+        for name, code, filename in modules:  # each calls the one before it, in a module of that name and file
+            namespace: dict[str, Any] = {"__name__": name, "user_stacklevel": user_stacklevel, "inner": inner}
+            exec(compile(code, filename, "exec"), namespace)
+            inner = namespace["call"]
+        return int(inner())
+
+    assert chain("train", __file__, launcher=True) == 4  # forked: the parent's line that made the workers
+    assert chain("__main__", "<string>", launcher=True) == 1  # spawned: its bootstrap, no user's line: rac's
+    assert chain("__main__", "<string>", launcher=False) == 3  # `python -c` code of the user's own is the user's

@@ -4,7 +4,10 @@ A warning of rac's learning environments and callbacks is issued deep inside oth
 (stable-baselines3's ``collect_rollouts``, gymnasium's wrappers around ``gymnasium.make``'s
 environment), so a fixed ``stacklevel`` named a line of theirs, which no user can act on.
 :func:`user_stacklevel` counts the frames to the first one outside :data:`LIBRARIES`: the training
-script's ``learn()`` or its own loop's ``step()``.
+script's ``learn()`` or its own loop's ``step()``. In a worker process (stable-baselines3's ``SubprocVecEnv``,
+gymnasium's ``AsyncVectorEnv``) the frames above the library's worker loop are :data:`LAUNCHERS`'s, which no user
+can act on either: past them a forked worker still holds the parent's frames at the fork, the script's line that
+made the vector environment; a spawned one only its bootstrap (``<string>``), and the warning names rac's own line.
 
 May import: nothing of rac.
 """
@@ -13,19 +16,28 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["LIBRARIES", "user_stacklevel"]
+__all__ = ["LAUNCHERS", "LIBRARIES", "user_stacklevel"]
 
 #: The top-level packages between a training script and rac's warnings.
 LIBRARIES = frozenset({"rac", "stable_baselines3", "sb3_contrib", "gymnasium", "torch", "highway_env"})
 
+#: The standard library's packages that start a worker process and call the library's worker loop in it.
+LAUNCHERS = frozenset({"multiprocessing", "concurrent"})
+
 
 def user_stacklevel() -> int:
     """The ``stacklevel`` for ``warnings.warn`` called by this function's caller that names the first frame
-    outside :data:`LIBRARIES` (the caller's own frame when every frame is inside them)."""
+    outside :data:`LIBRARIES` and :data:`LAUNCHERS` (the caller's own frame when there is none, or when past a
+    launcher it is a spawned process's bootstrap, code without a file)."""
     frame = sys._getframe(1)
     level = 1
+    launched = False
     while frame is not None:
-        if str(frame.f_globals.get("__name__", "")).split(".")[0] not in LIBRARIES:
-            return level
+        package = str(frame.f_globals.get("__name__", "")).split(".")[0]
+        if package in LAUNCHERS:
+            launched = True
+        elif package not in LIBRARIES:
+            # multiprocessing's spawn and forkserver start the worker from `python -c ...`: no line of the user's
+            return 1 if launched and frame.f_code.co_filename.startswith("<") else level
         frame, level = frame.f_back, level + 1  # type: ignore[assignment]
     return 1
