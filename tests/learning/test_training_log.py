@@ -382,9 +382,8 @@ def test_reset_steps_are_no_steps_whatever_the_vector_form() -> None:
     logs["dummy"] = TrainingLog()
     for t in range(12):
         logs["dummy"].add(dummy.step(np.array([actions[t % 7]] * 2))[3])
-    with pytest.warns(UserWarning, match="episode lasts"):
-        vector = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 5)] * 2), follow(),
-                                              vector_inputs, clip=True)
+    vector = RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 5)] * 2), follow(),
+                                          vector_inputs, clip=True)
     for name, env in (("sync", SyncVectorEnv([single] * 2)), ("vector wrapper", vector)):
         env.reset(seed=0)
         logs[name] = TrainingLog()

@@ -294,6 +294,26 @@ def test_timing_warnings_name_both_numbers() -> None:
         RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, dt=0.25)
 
 
+def test_a_shorter_episode_is_no_timing_mismatch_and_a_longer_one_says_what_to_do() -> None:
+    # an episode shorter than the horizon is a shorter run, which every proof covers, yet it warned "the priority
+    # proofs cover runs ... over a horizon of 3 s only" (highway-env's roundabout-v0, 11 s, under a 30 s automaton);
+    # and neither warning said what to do
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=0.1), 20), follow(), inputs)
+        RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(dt=0.1), 20)]), follow(),
+                                     vector_inputs)
+    # steps are samples, whatever the seconds: 2 s of 0.05 s steps are 40 samples, past the 30 of the horizon
+    with pytest.warns(UserWarning) as said:
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=0.05), 40), follow(), inputs)
+    texts = [str(w.message) for w in said]
+    assert any("time step is 0.05 s" in text and "make the two agree" in text for text in texts), texts
+    assert any("lasts 2 s (40 steps of 0.05 s)" in text and "TimeLimit(env, 30)" in text for text in texts), texts
+    with pytest.warns(UserWarning, match=r"lasts 5 s \(50 steps.*SyncVectorEnv\(\[lambda: gymnasium.wrappers.Time"):
+        RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(dt=0.1), 50)]), follow(),
+                                     vector_inputs)
+
+
 def test_inputs_taking_too_few_arguments_are_refused_at_construction() -> None:
     # inputs(obs) was taken, and the first step raised after the environment had stepped
     with pytest.raises(TypeError, match=r"inputs must take \(obs, info\) or \(obs, info, env\), not 1 positional"):

@@ -294,17 +294,19 @@ def _replaces_reward_of(envs: Iterable[object]) -> None:
 
 
 class _Timing:
-    """Warns when the environment's step or episode differs from the automaton's period or horizon:
+    """Warns when the environment's step differs from the automaton's period, or its episode has more steps
+    than the automaton's horizon has samples (a shorter one is a shorter run, which the proofs cover):
     checked at construction and at every reset, and said once per timing the environment has (an
     environment reconfigured between episodes, as highway-env's ``configure()`` then ``reset()``,
     is checked again)."""
 
-    def __init__(self, automaton: object, dt: float | None) -> None:
+    def __init__(self, automaton: object, dt: float | None, advice: str) -> None:
         period, steps = getattr(automaton, "period", None), getattr(automaton, "steps", None)
         self.period = float(period) if isinstance(period, (int, float, Fraction)) else None
         self.steps = steps if isinstance(steps, int) else None
         self.dt = _seconds(dt)
         self.checked: tuple[float, float | None] | None = None  # the timing last checked
+        self.advice = advice.format(steps=self.steps)  # how to end the episodes at the horizon
 
     def check(self, env: object) -> None:
         if self.period is None:
@@ -319,13 +321,19 @@ class _Timing:
         tolerance = _tolerance(step)
         if not math.isclose(step, self.period, rel_tol=tolerance):
             warnings.warn(f"the environment's time step is {step:g} s but the automaton samples every "
-                          f"{self.period:g} s (one step is one sample); {cover}", UserWarning,
+                          f"{self.period:g} s (one step is one sample); {cover}: make the two agree, the "
+                          f"environment's step (highway-env: config policy_frequency {1 / self.period:g}) or the "
+                          f"automaton's `sample every` (then `rac check` proves it again)", UserWarning,
                           stacklevel=user_stacklevel())
+        # a shorter episode is a shorter run, which every proof covers (runs of at most the horizon's samples);
+        # the steps are counted, not the seconds: one step is one sample whatever the environment's time step
         if episode is not None and self.steps is not None:
-            if not math.isclose(episode, horizon, rel_tol=tolerance):
+            steps = episode / step
+            if steps > self.steps and not math.isclose(steps, self.steps, rel_tol=tolerance):
                 warnings.warn(f"the environment's episode lasts {episode:g} s ({episode / step:g} steps of "
                               f"{step:g} s) but the automaton's horizon is {horizon:g} s ({self.steps} samples); "
-                              f"{cover}", UserWarning, stacklevel=user_stacklevel())
+                              f"{cover}: end the episodes at the horizon, {self.advice}", UserWarning,
+                              stacklevel=user_stacklevel())
 
 
 class _PastHorizon:
@@ -494,8 +502,9 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
     Timing: a ``UserWarning`` (at construction, and at a reset when the environment's timing is
     new: it only knows it then, or it was reconfigured) when the environment's step differs from
     the automaton's ``sample every``, or its episode (the shortest of ``spec.max_episode_steps``
-    steps, a ``TimeLimit``'s in the wrapper chain and highway-env's ``duration``) from the
-    automaton's horizon: the priority proofs cover runs of the automaton's period and horizon only.
+    steps, a ``TimeLimit``'s in the wrapper chain and highway-env's ``duration``) has more steps than
+    the automaton's horizon has samples: the priority proofs cover runs of the automaton's period and
+    of at most its horizon only (a shorter episode is a shorter run: covered, not warned of).
     When neither ``dt``, ``env.unwrapped.dt`` nor highway-env's ``policy_frequency`` is there,
     nothing is checked.
 
@@ -547,7 +556,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         if _statistics_inside(env, gymnasium.wrappers.RecordEpisodeStatistics):
             warnings.warn(STATISTICS_INSIDE.format(outside="RecordEpisodeStatistics(RewardAutomatonWrapper(env, ...))"),
                           UserWarning, stacklevel=user_stacklevel())
-        self._timing = _Timing(self.automaton, dt)
+        self._timing = _Timing(self.automaton, dt, SINGLE_LIMIT)
         self._timing.check(env)
         _replaces_reward_of([env])
         self._past = _PastHorizon(self.automaton, scale == "proven", SINGLE_LIMIT)
@@ -689,7 +698,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         self._fresh = np.ones(self.num_envs, dtype=bool)  # rows whose next sample is their episode's first
         #: Sub-environments whose episode the automaton ended while they went on: reset on the next step.
         self._forced = np.zeros(self.num_envs, dtype=bool)
-        self._timing = _Timing(self.automaton, dt)
+        self._timing = _Timing(self.automaton, dt, VECTOR_LIMIT)
         self._stand_in: object | None = None  # an AsyncVectorEnv's first sub-environment, made here for its timing
         self._timing.check(self._first_env())
         subs = getattr(self.env.unwrapped, "envs", None)  # a SyncVectorEnv's sub-environments
