@@ -75,6 +75,8 @@ def test_the_quickstart_trains_through_make_vec_env_and_logs_the_objectives(tmp_
     shares = [float(v) for k, v in logged.items() if k.startswith("location/")]
     assert sum(shares) == pytest.approx(1.0, abs=0.01)
     assert any(k.startswith("shield/lookahead") for k in logged)  # every mask came from the runtime shield
+    # the masks reach predict() the way docs/python.md says (its former env.action_masks() is no VecEnv's method)
+    assert "greedy steps outside the masks: 0" in done.stdout.splitlines(), done.stdout
 
 
 def test_the_template_scene_is_the_first_highway_variant(tmp_path: Path) -> None:
