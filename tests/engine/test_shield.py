@@ -180,6 +180,9 @@ def test_a_row_that_is_no_state_of_the_table_is_refused(tmp_path: Path, state: o
             table.mask(state)
         with pytest.raises(ValueError, match="state_keys"):
             table.masks_for(np.array(state, ndmin=2))
+    # the way to the state through gymnasium.make's wrappers (env.episodes there is an AttributeError)
+    with pytest.raises(ValueError, match=r"a ScenarioEnv's env\.unwrapped\.episodes\.state_keys\(\)\[0\]"):
+        table.mask(state)
     table = shields.load(path)
     assert table.mask(np.array([1.0, 10.0])).tolist() == [True, False, False]  # whole floats are significands too
     assert table.masks_for(np.zeros((0, 2), dtype=np.int32)).shape == (0, 3)

@@ -110,7 +110,8 @@ class ShieldTable:
             raise RacValueError(f"a state of this shield is a row of {len(self.columns)} integers "
                                 f"({', '.join(self.columns)}: the model's significands, as "
                                 f"rac.learning.episodes.EpisodeBatch.state_keys() gives them; a ScenarioEnv's "
-                                f"env.episodes.state_keys()[0]), not {got}: an observation is no shield state")
+                                f"env.unwrapped.episodes.state_keys()[0]), not {got}: an observation is no shield "
+                                "state")
         rows = np.array(given, dtype=np.int32, ndmin=2)
         if self.forget_every > 0 and "k" in self.columns:
             forgotten = rows[:, self.columns.index("k")] % self.forget_every == 0
