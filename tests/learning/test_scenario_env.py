@@ -727,8 +727,10 @@ def test_a_scene_set_draws_from_np_random_and_picks_on_request(highway_set: tupl
         warnings.simplefilter("error")
         env.reset(seed=0, options={"scene": 1})  # said once
         env.reset(options={"scenario": 1, "reset_mask": None})
-    with pytest.raises(ValueError, match="3 scenes"):
+    with pytest.raises(ValueError, match=r"holds 3 scenes, numbered 0 \.\. 2"):
         env.reset(options={"scenario": 3})
+    with pytest.raises(ValueError, match=r"holds 1 scene, numbered 0 \.\. 0"):  # said 'there are 1 scenes'
+        ScenarioEnv(model, scenarios=scenes[:1]).reset(options={"scenario": 1})
     with pytest.raises(ValueError, match="not one of the scenes"):
         env.reset(options={"scenario": "elsewhere.xml"})
     with pytest.raises(ValueError, match="runtime shield"):

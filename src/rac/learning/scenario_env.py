@@ -38,7 +38,7 @@ import numpy as np
 from rac import ir
 from rac.compiler import CompileResult, compile_file, compile_text
 from rac.core.caller import user_stacklevel
-from rac.core.diagnostics import CheckError, RacValueError
+from rac.core.diagnostics import CheckError, RacValueError, counted
 from rac.core.numbers import samples_of, seconds_at
 from rac.engine.explore import COLUMNS
 from rac.engine.lookahead import LookaheadSettings
@@ -625,7 +625,8 @@ class ScenarioEnv(gymnasium.Env):
             return int(self.np_random.integers(count)) if count > 1 else 0
         if isinstance(chosen, (int, np.integer)) and not isinstance(chosen, bool):
             if not 0 <= chosen < count:
-                raise RacValueError(f"options['scenario'] = {chosen}: there are {count} scenes (0 .. {count - 1})")
+                raise RacValueError(f"options['scenario'] = {chosen}: the set holds {counted(count, 'scene')}, "
+                                    f"numbered 0 .. {count - 1}")
             return int(chosen)
         if isinstance(chosen, (str, os.PathLike, tuple)):
             try:
