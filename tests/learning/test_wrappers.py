@@ -314,6 +314,20 @@ def test_a_shorter_episode_is_no_timing_mismatch_and_a_longer_one_says_what_to_d
                                      vector_inputs)
 
 
+def test_gymnasiums_autoreset_is_refused_inside_and_restarts_the_automaton_outside() -> None:
+    # Autoreset inside: the step after an episode's end, a reset, went to the ended automaton, and training ended
+    # at the first episode's end with "inputs(obs, info) raised KeyError" (a reset info) or "the run has ended"
+    from gymnasium.wrappers import Autoreset
+
+    with pytest.raises(ValueError, match=r"Autoreset sits inside.*Autoreset\(RewardAutomatonWrapper\(env, \.\.\.\)\)"):
+        RewardAutomatonWrapper(Autoreset(TimeLimit(HighwayLike(), 5)), follow(), inputs, clip=True)
+    env = Autoreset(RewardAutomatonWrapper(TimeLimit(HighwayLike(), 5), follow(), inputs, clip=True))
+    env.reset(seed=0)
+    steps = [env.step(0) for _ in range(12)]  # two episodes of 5 steps and the reset steps after them
+    assert [step[3] for step in steps] == [False] * 4 + [True] + [False] * 5 + [True, False]
+    assert sum(step[1] for step in steps[6:11]) == pytest.approx(steps[10][4]["rac"]["objective"])  # at end too
+
+
 def test_inputs_taking_too_few_arguments_are_refused_at_construction() -> None:
     # inputs(obs) was taken, and the first step raised after the environment had stepped
     with pytest.raises(TypeError, match=r"inputs must take \(obs, info\) or \(obs, info, env\), not 1 positional"):

@@ -556,6 +556,12 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         if _statistics_inside(env, gymnasium.wrappers.RecordEpisodeStatistics):
             warnings.warn(STATISTICS_INSIDE.format(outside="RecordEpisodeStatistics(RewardAutomatonWrapper(env, ...))"),
                           UserWarning, stacklevel=user_stacklevel())
+        if any(isinstance(wrapper, gymnasium.wrappers.Autoreset) for wrapper in wrapper_chain(env)):
+            # its reset step would be taken as a sample of the run that ended: the inputs read from a reset info,
+            # the automaton stepped after its `at end` (a RuntimeError, or the inputs' KeyError, at that step)
+            raise RacValueError("gymnasium's Autoreset sits inside rac's wrapper: the step after an episode ends "
+                                "would be the next episode's reset, which the automaton cannot take as a sample of "
+                                "the run that ended; put it outside: Autoreset(RewardAutomatonWrapper(env, ...))")
         self._timing = _Timing(self.automaton, dt, SINGLE_LIMIT)
         self._timing.check(env)
         _replaces_reward_of([env])
