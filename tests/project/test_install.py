@@ -81,3 +81,27 @@ def test_install_from_wheel(tmp_path: Path) -> None:
     out = tmp_path / "driving_ra.py"
     run(bin_dir / "rac", "compile", driving, "--target", "python", "-o", out, cwd=tmp_path)
     assert "class Driving" in out.read_text(encoding="utf-8")
+
+
+def test_the_rl_extras_tensorboard_shows_its_logs_beside_numpy_2_and_commonroad() -> None:
+    # the extra pinned tensorboard < 2.17, whose viewer ends at its start beside numpy 2 (`np.string_` was removed,
+    # in its hparams plugin) and without setuptools' pkg_resources (removed in setuptools 82): `tensorboard --logdir`
+    # could not show the logs of configure(folder, ["tensorboard"]) that docs/python.md writes
+    import tomllib
+
+    from packaging.requirements import Requirement
+
+    extra = tomllib.loads((REPOSITORY / "pyproject.toml").read_text(encoding="utf-8"))["project"][
+        "optional-dependencies"]["rl"]
+    wanted = {(requirement := Requirement(text)).name: requirement.specifier for text in extra}
+    tensorboard, setuptools = wanted["tensorboard"], wanted.get("setuptools")
+    assert not tensorboard.contains("2.16.2") and tensorboard.contains("2.17.1") and tensorboard.contains("2.20.0")
+    assert not tensorboard.contains("2.21.0")  # needs protobuf >= 5, which commonroad-io's pin (3.20.2) excludes
+    assert setuptools is not None and not setuptools.contains("82.0.0") and setuptools.contains("81.0.0")
+    installed = importlib.util.find_spec("tensorboard")
+    if installed is not None:  # where the extra is installed as it says: the viewer's imports that failed
+        from importlib.metadata import version
+
+        if tensorboard.contains(version("tensorboard")) and setuptools.contains(version("setuptools")):
+            importlib.import_module("tensorboard.plugins.hparams.metadata")
+            importlib.import_module("tensorboard.default")
