@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 from rac import ir
 from rac.check.resolve import Resolver
+from rac.core.caller import user_stacklevel
 from rac.core.diagnostics import (
     CheckError,
     Diagnostic,
@@ -78,8 +79,8 @@ class CompileResult(ProgramSource):
         if not self.ok or self.automaton is None:
             raise CheckError(self.diagnostics, self.sources)
         text = check_warning_text(self.diagnostics) if warn else None
-        if text is not None:
-            warnings.warn(text, RacCheckWarning, stacklevel=3)
+        if text is not None:  # at the line of the user's that loaded it: rac.load(...), the wrapper given a path
+            warnings.warn(text, RacCheckWarning, stacklevel=user_stacklevel())
         return self.automaton
 
     def checked(self) -> CheckedProgram:

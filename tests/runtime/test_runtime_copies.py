@@ -207,6 +207,22 @@ def test_load_says_the_files_warnings() -> None:
         rac.load(Path(__file__).resolve().parents[2] / "stdlib" / "driving.ra")
 
 
+def test_the_check_warning_names_the_line_that_loaded_the_file() -> None:
+    # a fixed stacklevel named rac.load's caller, but for RewardAutomatonWrapper given a path a line of rac's own
+    # (wrappers.py, in its _load), which no user acts on
+    import gymnasium
+
+    from rac.core.diagnostics import RacCheckWarning
+    from rac.learning.wrappers import RewardAutomatonWrapper
+
+    path = Path(__file__).resolve().parents[1] / "diagnostics" / "W1002_ending_early.ra"
+    with pytest.warns(RacCheckWarning) as loaded:
+        rac.load(path)
+    with pytest.warns(RacCheckWarning) as wrapped:
+        RewardAutomatonWrapper(gymnasium.make("CartPole-v1"), path, lambda obs, info: {})
+    assert [w.filename for w in (*loaded, *wrapped)] == [__file__, __file__]
+
+
 def test_the_type_load_returns_is_public() -> None:
     """``rac.load`` is annotated as returning ``rac.RewardAutomaton`` (a name type checkers see), but the
     name was missing at run time: ``isinstance(ra, rac.RewardAutomaton)`` raised AttributeError."""
