@@ -1033,6 +1033,35 @@ def test_a_scene_set_chooses_each_files_planning_problem(tmp_path: Path) -> None
         ScenarioEnv(model, scenarios=(scene, 100))
 
 
+def test_the_files_warnings_are_said_as_rac_load_says_them(tmp_path: Path) -> None:
+    # rac.load and the wrappers given a path warn of the file's W codes (RacCheckWarning); ScenarioEnv, the way the
+    # docs train, said nothing, so a reward loophole (here W1004: delaying the goal pays) went unseen
+    import shutil
+
+    from rac.core.diagnostics import RacCheckWarning
+    from rac.learning.vector import make_vector_env
+
+    shutil.copy(REPO / "examples" / "deep_rl" / "highway.xml", tmp_path / "highway.xml")
+    text = (REPO / "examples" / "deep_rl" / "driving.ra").read_text(encoding="utf-8")
+    model = tmp_path / "ends.ra"
+    model.write_text(text.replace("    model {", "    episode ends when collide || atGoal\n    goal when atGoal\n\n"
+                                  "    model {", 1), encoding="utf-8")
+    makers = {"path": lambda: ScenarioEnv(model, lookahead=1),
+              "set": lambda: ScenarioEnv(model, lookahead=1, scenarios=[tmp_path / "highway.xml"]),
+              "make": lambda: gymnasium.make("rac.gym:rac/Scenario-v0", model=model, lookahead=1),
+              "make_vec": lambda: make_vector_env(num_envs=2, model=model, lookahead=1, render_mode="rgb_array")}
+    for name, make in makers.items():
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            make()
+        said = [w for w in caught if issubclass(w.category, RacCheckWarning)]
+        assert len(said) == 1, (name, [str(w.message) for w in caught])  # make_vec: once, not per environment
+        assert "W1004 delaying the goal pays" in str(said[0].message) and said[0].filename == __file__, name
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RacCheckWarning)
+        ScenarioEnv(compile_file(model), lookahead=1)  # a CompileResult: its maker has the diagnostics
+
+
 def test_a_warning_names_the_line_of_the_users_code(tiny: CompileResult) -> None:
     # gymnasium.make's wrappers stand between the user's reset() and ScenarioEnv's: a fixed stacklevel named a
     # line of gymnasium's (OrderEnforcing, PassiveEnvChecker), which nobody can act on

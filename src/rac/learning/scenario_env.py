@@ -38,7 +38,7 @@ import numpy as np
 from rac import ir
 from rac.compiler import CompileResult, compile_file, compile_text
 from rac.core.caller import user_stacklevel
-from rac.core.diagnostics import CheckError, RacValueError, counted
+from rac.core.diagnostics import CheckError, RacCheckWarning, RacValueError, check_warning_text, counted
 from rac.core.numbers import samples_of, seconds_at
 from rac.engine.explore import COLUMNS
 from rac.engine.lookahead import LookaheadSettings
@@ -74,6 +74,20 @@ def _compile(model: str | os.PathLike[str] | CompileResult) -> CompileResult:
     if not result.ok or result.automaton is None:
         raise CheckError(result.diagnostics, result.sources)
     return result
+
+
+#: The warnings of ``rac check`` about one scene, which :class:`ScenarioEnv` says of each scene of a set as it is
+#: drawn (W0716, W0722, W0724, W0730) and of every scene's episodes (W0728, for the episodes' own horizon).
+SCENE_WARNINGS = frozenset({"W0716", "W0722", "W0724", "W0728", "W0730"})
+
+
+def warn_file(result: CompileResult, skip: frozenset[str] = frozenset()) -> None:
+    """Say the warnings of a ``.ra`` file given by its path (but those in ``skip``) as one
+    :class:`~rac.core.diagnostics.RacCheckWarning`, as :func:`rac.load` and the wrappers do: a loophole of the
+    reward (W1002 ending early pays, W1004 delaying the goal pays) is no less open in a scenario environment."""
+    text = check_warning_text(d for d in result.diagnostics if d.code not in skip)
+    if text is not None:
+        warnings.warn(text, RacCheckWarning, stacklevel=user_stacklevel())
 
 
 #: A scene of a set as :class:`ScenarioEnv` takes it: a CommonRoad file, or a file and the id of the planning
@@ -349,8 +363,11 @@ class ScenarioEnv(gymnasium.Env):
             entries = _scene_paths(scenarios)
             self._template = (Path(model), Path(model).read_text(encoding="utf-8"))
             result = _compile_scene(*self._template, *entries[0])
+            warn_file(result, SCENE_WARNINGS)  # the automaton's; each scene's own are said as it is drawn
         else:
             result = _compile(model)
+            if isinstance(model, (str, os.PathLike)):  # a CompileResult's maker has its diagnostics
+                warn_file(result, frozenset({"W0728"}))  # said of the episodes' horizon (_warn_past_traffic)
             spec = result.automaton.model if result.automaton is not None else None
             entries = [(Path(spec.scenario_path), None)] if spec is not None else []  # none: EpisodeBatch says why
         #: The scene files (one without ``scenarios``: the ``model`` block's).

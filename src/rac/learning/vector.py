@@ -47,6 +47,7 @@ from rac.learning.scenario_env import (
     clock_warning,
     no_safe_action_warning,
     outside_mask_warning,
+    warn_file,
 )
 from rac.learning.wrappers import Scale, within_proven
 
@@ -454,6 +455,8 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.Vector
     if isinstance(model, (str, os.PathLike)) and kwargs.get("scenarios") is None:
 
         model = compile_file(Path(model))  # ScenarioEnv reports its errors
+        if model.ok:
+            warn_file(model, frozenset({"W0728"}))  # once, as ScenarioEnv given the path would
 
     def single() -> gymnasium.Env:  # type: ignore[type-arg]
         return ScenarioEnv(model, **kwargs)
