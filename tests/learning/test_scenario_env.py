@@ -183,7 +183,8 @@ def test_horizon_in_seconds(tiny: CompileResult) -> None:
         with pytest.raises(ValueError, match="whole number|more than 2,147,483,647"):
             ScenarioEnv(tiny, horizon=bad)
     # the tiny automaton's horizon is 4 s: a longer episode leaves what the priority proofs cover, and says so
-    with pytest.warns(UserWarning, match=r"episode's horizon is 4.5 s but the automaton's is 4 s \(8 samples\)"):
+    with pytest.warns(UserWarning, match=r"episode's horizon is 4.5 s but the automaton's is 4 s \(8 samples\).*"
+                      r"give a horizon= of at most 4 s, or lengthen the file's `horizon`"):  # and what to do
         ScenarioEnv(tiny, horizon=4.5)
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)

@@ -398,8 +398,9 @@ class ScenarioEnv(gymnasium.Env):
             if samples > automaton.steps:  # a shorter episode is a prefix of the runs the checks covered
                 warnings.warn(f"the episode's horizon is {float(seconds):g} s but the automaton's is "
                               f"{float(automaton.horizon):g} s ({automaton.steps} samples): the priority proofs "
-                              f"cover runs over a horizon of {float(automaton.horizon):g} s only", UserWarning,
-                              stacklevel=user_stacklevel())
+                              f"cover runs over a horizon of {float(automaton.horizon):g} s only; give a horizon= "
+                              f"of at most {float(automaton.horizon):g} s, or lengthen the file's `horizon` (rac "
+                              "check then proves it again)", UserWarning, stacklevel=user_stacklevel())
         self._samples = samples
         #: Per scene, once checked: its episodes, observation and shield (:meth:`_scene`).
         self._scenes: dict[int, tuple[EpisodeBatch, Observation, StepShield | None]] = {}
