@@ -242,3 +242,18 @@ def test_a_warning_in_a_forked_worker_names_the_line_that_made_the_workers(tmp_p
     finally:
         envs.close()
     assert where.read_text() == f"{__file__}:{line}"
+
+
+def test_masks_of_environments_without_them_end_no_process() -> None:
+    # rac.learning.vector.action_masks asked a SubprocVecEnv's env_method("action_masks"); a process whose environment
+    # has none ended on the AttributeError, and the parent got a bare EOFError
+    from rac.learning.vector import action_masks
+
+    envs = subproc(automaton)
+    try:
+        envs.reset()
+        with pytest.raises(AttributeError, match=r"no action_masks\(\).*needs masks of its own"):
+            action_masks(envs)  # type: ignore[arg-type]
+        envs.step(np.array([1, 1]))  # the processes live on
+    finally:
+        envs.close()

@@ -384,6 +384,12 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         return info
 
 
+#: Why :func:`action_masks` finds none, and where masks come from.
+NO_MASKS = ("the environments have no action_masks(): the masks are those of rac's scenario environments "
+            "(ScenarioEnv, rac/Scenario-v0: the safety shield's); another environment, RewardAutomatonWrapper's "
+            "included, needs masks of its own (sb3-contrib's ActionMasker)")
+
+
 def action_masks(envs: gymnasium.vector.VectorEnv) -> np.ndarray:  # type: ignore[type-arg]
     """``(num_envs, P)`` bool: the action masks of a vector environment of rac's scenario model, through
     any vector wrappers around it (gymnasium's ``RecordEpisodeStatistics``, rac's
@@ -407,17 +413,18 @@ def action_masks(envs: gymnasium.vector.VectorEnv) -> np.ndarray:  # type: ignor
         # resolves the name through each environment's wrappers, as sb3-contrib's get_action_masks does
         call = getattr(base, "env_method", None)
         has_attr = getattr(base, "has_attr", None)
-        # asked first: SubprocVecEnv's env_method of a method an environment lacks kills its worker (an
-        # AttributeError there, EOFError here, and the VecEnv is broken)
-        if callable(call) and callable(has_attr) and not has_attr("action_masks"):
-            raise AttributeError(f"not every environment of this {type(base).__name__} has action_masks(): rac's "
-                                 "ScenarioEnv (rac/Scenario-v0) has one, under any wrappers; an environment without "
-                                 "one has no masks to give (sb3-contrib's ActionMasker wrapper adds a mask function "
-                                 "to one)")
+        # asked first: a SubprocVecEnv's process asked env_method for a method its environment lacks ends, and the
+        # parent gets EOFError, saying nothing
+        if callable(has_attr) and not has_attr("action_masks"):
+            raise AttributeError(NO_MASKS)
     if not callable(call):
         raise AttributeError(f"{type(base).__name__} has neither action_masks(), call() nor env_method(): not a "
                              "vector environment of ScenarioEnvs")
-    return np.stack([np.asarray(mask, dtype=bool) for mask in call("action_masks")])
+    try:
+        masks = call("action_masks")
+    except AttributeError as exc:  # gymnasium's: "wrapper TimeLimit has no attribute 'action_masks'"
+        raise AttributeError(f"{NO_MASKS} ({exc})") from exc
+    return np.stack([np.asarray(mask, dtype=bool) for mask in masks])
 
 
 def make_vector_env(num_envs: int = 1, **kwargs: Any) -> gymnasium.vector.VectorEnv:  # type: ignore[type-arg]
