@@ -378,3 +378,32 @@ def test_a_meter_runs_alike_in_uppaal_engine_and_python(seed: int, tmp_path: Pat
     alone = build(automaton, tmp_path)
     assert alone is not None
     assert len(alone.compare(seed)) >= 1
+
+
+#: An int input read by a rate `n / 3`: at 1 s a sample gains `n * 10000 / 3` significand units, whole
+#: only for multiples of 3. The Environment gave each run of integers between two compared numbers its
+#: least integer (1, 7), and the target refused the rate (E0801); it now gives the run's least multiple
+#: of 3 (3, 9), so an automaton whose bounds and compared numbers are multiples of 3 is emitted.
+THIRDS = """\
+automaton Thirds {
+    input n : int in [0, 12]
+    input b : bool
+    reward r, s
+    objective r + s
+    sample every 1
+    horizon 6
+    initial location A { r' == n / 3; s' == 1 }
+    location B { r' == 1; s' == -n / 3 }
+    edge A -> B when b && n < 6 do s = s + n / 3
+    edge B -> A when !b
+}
+"""
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_an_int_input_read_in_thirds_runs_alike_in_uppaal_engine_and_python(seed: int, tmp_path: Path) -> None:
+    automaton = compile_text(THIRDS, "thirds.ra").raise_for_errors()
+    alone = build(automaton, tmp_path)
+    assert alone is not None
+    assert sorted({int(v["n"]) for v in alone.valuations.values()}) == [0, 30000, 60000, 90000, 120000]
+    assert len(alone.compare(seed)) == automaton.steps

@@ -113,3 +113,31 @@ def test_a_bound_at_int32_min_is_refused_for_what_it_is() -> None:
     assert "not a 32-bit integer" not in note
     assert note == ("its significand -2147483648 is a 32-bit integer, but UPPAAL writes no literal for it: "
                     "its literals reach 2147483647 in magnitude")
+
+
+def test_an_int_input_in_thirds_gets_multiples_of_three_or_a_refusal_that_says_why() -> None:
+    # `r' == n / 3` at 0.5 s gains n * 10000 / 6 units: whole for multiples of 3. The runs between the
+    # compared numbers got their least integers (1, 7) and the rate was refused, with a hint to enlarge
+    # the exponent, which never makes a third whole.
+    text = ("automaton T {\n    input n : int in [0, 12]\n    input b : bool\n    reward r\n    objective r\n"
+            "    sample every 0.5\n    horizon 2\n    initial location A { r' == n / 3 }\n    location B { r' == 1 }\n"
+            "    edge A -> B when b && n < 6\n}\n")
+    g = generator(text)
+    inputs = g.numbers.inputs(g.n, g.array, g.select)
+    g.numbers.accruals(inputs, g.n)
+    assert g.diagnostics == []
+    [n] = inputs
+    assert n.values == [0, 30000, 60000, 90000, 120000]
+    # the bound 10 is given as it is: no multiple of 3 replaces it, and the message says which value fails
+    g = generator(text.replace("[0, 12]", "[0, 10]"))
+    g.numbers.accruals(g.numbers.inputs(g.n, g.array, g.select), g.n)
+    [diagnostic] = g.diagnostics
+    assert diagnostic.code == "E0801"
+    assert "at `n` = 10 one sample's gain is no whole number of significand units" in diagnostic.message
+    notes = [note.message for note in diagnostic.notes]
+    assert "one sample adds 1.66667… to `r`, 16666.7… significand units" in notes[0]
+    assert notes[1] == "the gain is whole only where `n` is a multiple of 3 (no exponent of base 10 helps: 3 divides " \
+                       "no power of 10)"
+    [hint] = diagnostic.hints
+    assert "larger `exponent`" not in hint
+    assert hint.startswith("give `n` bounds and compared numbers that are multiples of 3") and "`0.3334*n`" in hint

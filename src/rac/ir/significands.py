@@ -119,6 +119,10 @@ def rate_diagnostic(automaton: ir.Automaton, location: ir.Location, reward: str,
                    "rate and sample period whose product has a smaller numerator"])
     if not bad:
         return None
+    offender = next(((coef, name, v) for coef, name in terms for v in (values or {}).get(name, [])
+                     if (coef * v).denominator != 1), None)
+    if offender is not None and const.denominator == 1:
+        return _input_rate_diagnostic(automaton, location, reward, rate, *offender)
     if terms:
         note = (f"one sample adds ({linear_text(rate)}) * {decimal_text(period)} to `{reward}`, which is "
                 "not a whole number of significand units for every value its inputs take")
@@ -127,13 +131,64 @@ def rate_diagnostic(automaton: ir.Automaton, location: ir.Location, reward: str,
         note = (f"one sample adds {decimal_text(rate.const)} * {decimal_text(period)} = {decimal_text(step)} to "
                 f"`{reward}`, that is {decimal_text(step * scale)} significand units (1/{scale} "
                 "each): not a whole number")
+    beyond = _beyond_powers(const.denominator, base)
+    larger = (", or add a `model` block with a larger `exponent`" if beyond == 1
+              else f" (no exponent helps: {beyond} divides no power of the base {base})")
     return unrepresentable(
         automaton,
         f"reward rate `{reward}' == {linear_text(rate)}` in location `{location.name}` is not "
         f"representable in significands at exponent {exponent}", location.span,
         notes=[note],
-        hints=[f"make rate * period a multiple of 1/{scale}, or add a `model` block with a "
-               "larger `exponent`"])
+        hints=[f"make rate * period a multiple of 1/{scale}{larger}"])
+
+
+def _beyond_powers(denominator: int, base: int) -> int:
+    """The factor of ``denominator`` that divides no power of ``base`` (1: a larger exponent makes a
+    number of that denominator whole)."""
+    while (common := math.gcd(denominator, base)) > 1:
+        while denominator % common == 0:
+            denominator //= common
+    return denominator
+
+
+def _input_rate_diagnostic(automaton: ir.Automaton, location: ir.Location, reward: str, rate: ir.Linear,
+                           coef: Fraction, name: str, v: int) -> Diagnostic:
+    """E0801 of a rate whose term ``coef * name`` gains no whole number of significand units at the
+    significand ``v`` the model gives input ``name`` (the automaton alone: its Environment gives each
+    bound, each number its guards compare with, and one value of each piece between them)."""
+    base, exponent = representation(automaton)
+    scale = base ** exponent
+    value = Fraction(v, scale)
+    item = next(i for i in automaton.inputs if i.name == name)
+    # the term gains whole units exactly at the significands that are multiples of q (coef = p/q)
+    q = coef.denominator
+    multiple = Fraction(q, scale)
+    if item.kind == "int":
+        multiple = Fraction(q, math.gcd(q, scale))
+    beyond = _beyond_powers(q, base)
+    larger = beyond == 1
+    # the term is whole for every value the input may take when coefficient * period * (the least
+    # significand step of the input: the scale for an int, 1 for a real) is whole
+    unit = scale if item.kind == "int" else 1
+    period = Fraction(automaton.period)
+    example = Fraction(round(coef * unit), unit) / period
+    whole = (f"(coefficient * period) is a multiple of {decimal_text(Fraction(1, unit))}"
+             + (f" (`{decimal_text(example)}*{name}`)" if example else ""))
+    why = (f"no exponent of base {base} helps: {beyond} divides no power of {base}" if not larger
+           else "a larger exponent of the number representation helps")
+    return unrepresentable(
+        automaton,
+        f"reward rate `{reward}' == {linear_text(rate)}` in location `{location.name}` is not representable in "
+        f"significands at exponent {exponent}: at `{name}` = {decimal_text(value)} one sample's gain is no whole "
+        "number of significand units", location.span,
+        notes=[f"the automaton alone's Environment gives `{name}` its bounds, the numbers its guards compare it "
+               f"with, and one value between each two of them; at `{name}` = {decimal_text(value)} one sample adds "
+               f"{decimal_text(coef * value)} to `{reward}`, {decimal_text(coef * v)} significand units (1/{scale} "
+               "each): the mirror would drift from the reward",
+               f"the gain is whole only where `{name}` is a multiple of {decimal_text(multiple)} ({why})"],
+        hints=[f"give `{name}` bounds and compared numbers that are multiples of {decimal_text(multiple)}, with a "
+               f"multiple between each two of them, or write a coefficient whose gain per sample {whole}"
+               + (", or add a `model` block with a larger `exponent`" if larger else "")])
 
 
 def rate_diagnostics(automaton: ir.Automaton) -> list[Diagnostic]:

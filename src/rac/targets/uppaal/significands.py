@@ -131,7 +131,9 @@ class Significands:
         value, so that the rates reading the input stay whole (any value of the piece is as good for
         the guards: they cannot tell its values apart)."""
         scale = self.scale
-        if piece.is_point or item.kind == "int":
+        if item.kind == "int" and not piece.is_point:
+            return self._whole_representative(piece, grid)
+        if piece.is_point:
             value = piece.representative(item.kind == "int") * scale
             if value.denominator == 1:
                 return value.numerator
@@ -156,6 +158,16 @@ class Significands:
         if low <= on_grid <= high:
             return on_grid
         return min(max(round(middle), low), high)
+
+    def _whole_representative(self, piece, grid: int) -> int:
+        """The significand the Environment chooses for a run of integers ``[low, high]`` of an ``int``
+        input: its least integer, or, where that is off ``grid`` (:meth:`_grid`), the least integer of
+        the run whose significand is on it (``n / 3`` at 1 s gains ``n * 10000 / 3`` units, whole for
+        multiples of 3), else the least integer (the rate is then refused: E0801)."""
+        low, high = int(piece.low), int(piece.high)
+        step = grid // math.gcd(grid, self.scale)  # the integers whose significand is a multiple of grid
+        first = -(-low // step) * step
+        return (first if first <= high else low) * self.scale
 
     # ------------------------------------------------------------ rates
     def accruals(self, inputs: list[NumericInput], names: Names) -> list[list[Accrual | None]]:
