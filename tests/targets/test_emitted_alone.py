@@ -27,7 +27,8 @@ and an int input, updates with rational coefficients over rewards and inputs, ne
 them, guards over partitions of the inputs, ``at end`` clauses, ``episode ends when``, ``assume``),
 at periods whose rates the significands can represent and at other representations than 10^4 (a `model`
 block's base and exponent: 10^2, 10^6, 2^12, 3^5), and the fuzzer's generated programs
-(tests/support/fuzzgen.py: ``*`` edges, constants, several ``at end`` clauses, extreme names).
+(tests/support/fuzzgen.py: ``*`` edges, constants, several ``at end`` clauses, extreme names), and automata
+without inputs (their Environment reads nothing: ``read!`` without a ``select``).
 """
 
 from __future__ import annotations
@@ -83,15 +84,17 @@ class Sample:
 
 def controllable_environment(xml: str) -> str:
     """``xml`` with the Environment's choosing edge (the one with a ``select``) controllable, so that
-    :class:`Network` takes its values from the test's choices instead of enumerating them."""
+    :class:`Network` takes its values from the test's choices instead of enumerating them. An
+    automaton without inputs has no such edge: its Environment's ``read!`` chooses nothing."""
     root = etree.fromstring(xml.encode("utf-8"))
-    found = 0
+    found = reads = 0
     for transition in root.iter("transition"):
         kinds = {label.get("kind"): label.text for label in transition.findall("label")}
+        reads += kinds.get("synchronisation") == "read!"
         if kinds.get("select"):
             transition.set("controllable", "true")
             found += 1
-    assert found == 1, found
+    assert reads == 1 and found <= 1, (reads, found)
     # the declarations in the C subset test_emitted_network's interpreter reads: a bounded integer
     # (`int[0,STEPS] count`, UPPAAL checks its range) and UPPAAL's `int` (32 bits) as int32_t
     declaration = root.find("declaration")
@@ -110,7 +113,10 @@ def truncates(automaton: ir.Automaton, scale: int) -> bool:
     accruals = [mirror_accrual(rate, automaton.period, scale) for loc in automaton.locations for rate in loc.rates]
     updates = [mirror_update(u.value, scale)
                for e in [*automaton.all_edges(), *automaton.end_clauses] for u in e.updates]
-    return any(c.denominator != 1 for _, terms in [*accruals, *updates] for c, _ in terms)
+    # an update's constant truncates too (`r = 1/3` is `iR = 3333`); left out, such an automaton was
+    # compared as exact (found by the automata without inputs)
+    return any(c.denominator != 1 for _, terms in [*accruals, *updates] for c, _ in terms) \
+        or any(const.denominator != 1 for const, _ in updates)
 
 
 class Alone:
@@ -131,10 +137,12 @@ class Alone:
         self.done = {loc for loc, edges in self.net.processes[0].edges.items()
                      if edges and all(e.target == loc and e.sync is None for e in edges)}
         assert len(self.done) == 1, self.done
-        environment = [e for es in self.net.processes[2].edges.values() for e in es if e.selects]
+        environment = [e for es in self.net.processes[2].edges.values() for e in es if e.sync == "read!"]
         assert len(environment) == 1
         edge = environment[0]
+        assert bool(edge.selects) == bool(automaton.inputs), "the Environment selects exactly when there are inputs"
         #: every select tuple the Environment's `assume` guard allows, with the inputs its update writes
+        #: (without inputs, the one empty tuple: nothing to choose)
         self.valuations: dict[tuple[int, ...], dict[str, object]] = {}
         for chosen in itertools.product(*[range(lo, hi + 1) for lo, hi in edge.bounds]):
             if edge.guard is None or edge.guard(*chosen):
@@ -175,7 +183,8 @@ class Alone:
                                   tuple(float(v(self.names.hybrids[r])) for r in self.a.rewards)))
         else:
             raise AssertionError("the network's run did not end")
-        assert state[2] == len(samples), "the Environment chose once per sample"
+        # (without inputs the Environment's read! selects nothing: no choice is taken)
+        assert state[2] == (len(samples) if self.a.inputs else 0), "the Environment chose once per sample"
         return samples, inputs
 
     # ------------------------------------------------------------ the engine
@@ -407,3 +416,67 @@ def test_an_int_input_read_in_thirds_runs_alike_in_uppaal_engine_and_python(seed
     assert alone is not None
     assert sorted({int(v["n"]) for v in alone.valuations.values()}) == [0, 30000, 60000, 90000, 120000]
     assert len(alone.compare(seed)) == automaton.steps
+
+
+# ---------------------------------------------------------------- automata without inputs
+@st.composite
+def inputless(draw: st.DrawFn) -> ir.Automaton:
+    """``automata()`` without its inputs: constant rates, guards that are constants (one edge at most
+    per location, so that the automaton stays deterministic), updates over rewards only."""
+    automaton = draw(automata())
+
+    def rewards_only(linear: ir.Linear) -> ir.Linear:
+        return ir.Linear(linear.const, tuple((n, c) for n, c in linear.terms if n in automaton.rewards))
+
+    def assignments(updates: tuple[ir.Assignment, ...]) -> tuple[ir.Assignment, ...]:
+        return tuple(ir.Assignment(u.reward, rewards_only(u.value)) for u in updates)
+
+    constant = st.sampled_from([ir.TRUE, ir.BConst(False)])
+    locations = tuple(dataclasses.replace(loc, rates=tuple(ir.Linear(r.const) for r in loc.rates))
+                      for loc in automaton.locations)
+    edges = tuple(tuple(ir.Edge(e.source, e.target, draw(constant), assignments(e.updates)) for e in group[:1])
+                  for group in automaton.edges)
+    end_clauses = tuple(ir.EndClause(draw(constant), assignments(c.updates)) for c in automaton.end_clauses)
+    episode_ends = draw(st.one_of(st.none(), st.none(), constant))
+    return dataclasses.replace(automaton, inputs=(), locations=locations, edges=edges, end_clauses=end_clauses,
+                               episode_ends=episode_ends, assumptions=())
+
+
+@settings(max_examples=30, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
+@given(automaton=inputless(), period=st.sampled_from(PERIODS), samples=st.integers(1, 8),
+       representation=st.sampled_from([None, None, (10, 2), (2, 12)]))
+def test_automata_without_inputs_run_alike_in_uppaal_engine_and_python(automaton: ir.Automaton, period: Fraction,
+                                                                     samples: int,
+                                                                     representation: tuple[int, int] | None) -> None:
+    # the harness asserted one Environment edge with a `select`, which an automaton without inputs
+    # does not have: no such automaton was ever run
+    assume(run(shortened(automaton, period, samples, representation), [0]) > 0)
+
+
+#: An automaton that reads nothing: its edges fire every sample (`edge A -> B` has no `when`), an update
+#: reads a reward, and `at end` applies unconditionally.
+CLOCKWORK = """\
+automaton Clockwork {
+    reward up, down
+    objective up - down
+    sample every 0.5
+    horizon 3
+    initial location Tick { up' == 1;  down' == 0 }
+    location Tock         { up' == 0;  down' == 2 }
+    edge Tick -> Tock do down = down + up / 3
+    edge Tock -> Tick do up = up - 1
+    at end do up = 2 * up
+}
+"""
+
+
+def test_an_automaton_without_inputs_runs_alike_in_uppaal_engine_and_python(tmp_path: Path) -> None:
+    automaton = compile_text(CLOCKWORK, "clockwork.ra").raise_for_errors()
+    assert automaton.inputs == ()
+    alone = build(automaton, tmp_path)
+    assert alone is not None
+    assert alone.valuations == {(): {}}
+    samples = alone.compare(0)
+    assert [s.location for s in samples] == ["Tock", "Tick"] * 3
+    assert samples[-1].ended
