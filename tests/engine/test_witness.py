@@ -7,6 +7,8 @@ not, with a message that says where)."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import time
 from fractions import Fraction as F
 from pathlib import Path
 
@@ -19,6 +21,7 @@ from tiny_scenarios import TINY_SCENARIOS
 from rac.engine import storm
 from rac.engine.explore import explore
 from rac.engine.witness import (
+    SAFETY_SECONDS,
     Bounds,
     ReplayMismatch,
     beam_search,
@@ -227,3 +230,33 @@ def test_the_cheap_search_agrees_with_the_exhaustive_answer(name: str, tmp_path:
                         bounds=Bounds(runs=1, width=1))
         if narrow.proves_absence:  # only when a beam of one state is the whole exploration
             assert narrow.graph is not None and narrow.graph.n_states == pruned.n_states
+
+
+def slow_clock(monkeypatch: pytest.MonkeyPatch, step: float) -> None:
+    """A machine so slow that ``step`` seconds pass between two readings of the clock."""
+    readings = itertools.count(0.0, step)
+    monkeypatch.setattr(time, "perf_counter", lambda: next(readings))
+
+
+def test_what_the_search_finds_does_not_depend_on_the_machines_speed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The searches stopped at 20 s of wall clock: on a slow machine the same seed found no witness (then the
+    layered search, or UNKNOWN beyond its budget) where a fast one found it. Their work budget (runs, width,
+    states) decides now; the clock is only a safety net far beyond it."""
+    data, _ = data_and_graph()
+    bounds = Bounds(runs=30, width=40)
+    targets = (fast(data, 10.6), fast(data, 11.5))  # one the beam finds, one nothing reaches
+    quick = [search(data, target, horizon_samples=HORIZON, seed=3, bounds=bounds) for target in targets]
+    slow_clock(monkeypatch, 15.0)  # 15 s between two checks: a dozen layers take 3 minutes
+    slow = [search(data, target, horizon_samples=HORIZON, seed=3, bounds=bounds) for target in targets]
+    assert quick[0].witness is not None and quick[1].witness is None
+    for fast_found, slow_found in zip(quick, slow):
+        assert not fast_found.timed_out and not slow_found.timed_out
+        assert slow_found.states == fast_found.states
+        assert (slow_found.witness is None) == (fast_found.witness is None)
+        if fast_found.witness is not None and slow_found.witness is not None:
+            assert slow_found.witness.search == fast_found.witness.search
+            assert np.array_equal(slow_found.witness.states, fast_found.witness.states)
+    # past the safety net the search stops, and says it was the clock
+    slow_clock(monkeypatch, 2 * SAFETY_SECONDS)
+    cut = search(data, targets[1], horizon_samples=HORIZON, seed=3, bounds=bounds)
+    assert cut.witness is None and cut.timed_out and not cut.proves_absence

@@ -15,11 +15,13 @@ also be safe (the pruned model of :func:`rac.engine.explore.explore`). Three sea
 - :func:`layered_search`: :func:`~rac.engine.explore.explore` of every state, stopping at the first
   layer with a target state — within the exploration's budget.
 
-The first two are bounded (:class:`Bounds`: states and seconds) and never prove that no witness
-exists; an exploration proves it only when it completes (:attr:`ExploredGraph.complete`): a beam that
-never had to drop a state is such an exploration. :func:`replay` runs a witness again with the
-scalar model (:class:`rac.model.native.NativeModel`) before it is reported; a mismatch is a bug in rac
-(:class:`ReplayMismatch`).
+The first two are bounded (:class:`Bounds`: runs, the beam's width and states, a work budget that is
+the same on every machine, so that the same seed finds the same witness anywhere; a time limit far
+beyond that work is only a safety net, and :attr:`Found.timed_out` says when it cut a search) and
+never prove that no witness exists; an exploration proves it only when it completes
+(:attr:`ExploredGraph.complete`): a beam that never had to drop a state is such an exploration.
+:func:`replay` runs a witness again with the scalar model (:class:`rac.model.native.NativeModel`)
+before it is reported; a mismatch is a bug in rac (:class:`ReplayMismatch`).
 
 Example::
 
@@ -47,9 +49,9 @@ from rac.model.native import NativeModel
 from rac.model.sample import ACTION, CRASHED, EGO, GRAPH_EGO, GRAPH_LAYER_ROW, GraphColumn, safe
 from rac.model.sample import labels as sample_labels
 
-__all__ = ["Bounds", "Found", "Predicate", "ReplayMismatch", "Witness", "beam_search", "goal_distance",
-           "layered_search", "random_runs", "replay", "safe_states", "search", "witness_along", "witness_graph",
-           "witness_in"]
+__all__ = ["SAFETY_SECONDS", "Bounds", "Found", "Predicate", "ReplayMismatch", "Witness", "beam_search",
+           "goal_distance", "layered_search", "random_runs", "replay", "safe_states", "search", "witness_along",
+           "witness_graph", "witness_in"]
 
 #: ``predicate(k, rows) -> (n,) bool`` over states of sample ``k``: ``rows`` as
 #: :func:`rac.engine.explore.explore` stores them, without ``k`` (the ego columns; ``crashed`` too under
@@ -62,15 +64,22 @@ Score = Callable[[int, np.ndarray], np.ndarray]
 RUN_BATCH = 1000
 
 
+#: The witness search's safety net (seconds): far beyond what its work budget takes on any machine rac
+#: runs on (its 4 million states take well under a minute), so that the budget, not the speed, ends it.
+SAFETY_SECONDS = 300.0
+
+
 @dataclass(frozen=True)
 class Bounds:
-    """What the cheap witness searches (:func:`search`) may spend: ``runs`` random runs, a beam of
-    ``width`` states per layer, and ``seconds`` in all; each search at most ``max_states`` states.
-    ``runs`` or ``width`` 0 leaves that search out."""
+    """What the cheap witness searches (:func:`search`) may spend: ``runs`` random runs and a beam of
+    ``width`` states per layer, each search at most ``max_states`` states — a budget of work, so that
+    what they find depends on the seed alone. ``safety_seconds`` (None: none) is only a safety net
+    against a machine far slower than expected; where it cuts a search, :attr:`Found.timed_out` says
+    so and the outcome depends on the machine's speed. ``runs`` or ``width`` 0 leaves that search out."""
 
     runs: int = 2000
     width: int = 5000
-    seconds: float = 20.0
+    safety_seconds: float | None = SAFETY_SECONDS
     max_states: int = 2_000_000
 
 
@@ -102,7 +111,8 @@ class Witness:
 class Found:
     """What a search found: the ``witness`` (None: none), the ``states`` it generated, and — for the
     searches that explore — the ``graph`` they built (``graph.complete``: every state was explored,
-    so without a witness none exists); ``timed_out``: stopped by its time bound."""
+    so without a witness none exists); ``timed_out``: stopped by its time limit (the safety net, or a
+    deadline the caller set), not by its work budget."""
 
     witness: Witness | None
     states: int
@@ -298,7 +308,7 @@ def search(data: ModelData, target: Predicate, *, horizon_samples: int, seed: in
            through: Predicate | None = None, prune_unsafe: bool = False, score: Score | None = None) -> Found:
     """The cheap searches in turn — :func:`random_runs`, then :func:`beam_search` — within ``bounds``;
     the first witness found, else the beam's outcome (its graph complete when it never cut a layer)."""
-    deadline = time.perf_counter() + bounds.seconds
+    deadline = None if bounds.safety_seconds is None else time.perf_counter() + bounds.safety_seconds
     per_run = horizon_samples + 1
     runs = min(bounds.runs, max(bounds.max_states // per_run, 1))
     width = min(bounds.width, max(bounds.max_states // per_run, 1))

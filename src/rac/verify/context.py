@@ -106,7 +106,7 @@ class VerifyOptions:
     #: Show a progress bar (on a terminal) while learning, with the running mean return.
     bars: bool = False
     #: What the witness searches before an exhaustive exploration may spend (random runs, the beam's
-    #: width, seconds, states; :class:`rac.engine.witness.Bounds`).
+    #: width, states; a time limit only as a safety net: :class:`rac.engine.witness.Bounds`).
     witness: Bounds = field(default_factory=Bounds)
 
 
@@ -187,6 +187,9 @@ class Context:
         self.deferred: dict[str, Callable[[], tuple[storm.Shield, shield.ShieldTable]]] = {}
         #: The time limit of the query being answered (``--max-seconds``; set per query by the runner).
         self.limit = TimeLimit(None)
+        #: How many witness searches their safety net (:data:`rac.engine.witness.SAFETY_SECONDS`) cut short
+        #: before their work budget was spent: the runner says so in the answers that used one.
+        self.witness_clocked = 0
         #: Why exploring the model failed, by ``prune`` (the budget): said again, not tried again.
         self.graph_failures: dict[bool, str] = {}
         #: The model's (jerk, turn) action pairs; a shield's masks index them.

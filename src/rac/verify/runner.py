@@ -44,7 +44,7 @@ from typing import Any
 from rac import ir
 from rac.check.standard import STANDARD, at_horizon
 from rac.compiler import CompileResult
-from rac.core.diagnostics import RacError
+from rac.core.diagnostics import RacError, counted
 from rac.engine.budget import TimeExceeded, TimeLimit, out_of_memory
 from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
@@ -133,6 +133,7 @@ class Verifier:
         t0 = time.perf_counter()
         self.context.seed_slot = self.seed_slots.get(id(decl))
         clocked = {name: computed.stats.clocked_answers for name, computed in self.context.on_demand.items()}
+        searches_clocked = self.context.witness_clocked
         redefined = _defines(query)
         if redefined is not None and getattr(query, "under", None) != redefined:
             # a strategy defined again replaces the earlier one of that name (whatever its kind)
@@ -169,14 +170,22 @@ class Verifier:
         note = self.context.stopped_note() if result.states is not None else None
         if note is not None and result.status in ("satisfied", "not satisfied"):
             result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
-        for note in self._clock_notes(clocked):
+        for note in self._clock_notes(clocked, self.context.witness_clocked - searches_clocked):
             result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
         return dataclasses.replace(result, seconds=time.perf_counter() - t0)
 
-    def _clock_notes(self, before: dict[str, int]) -> list[str]:
+    def _clock_notes(self, before: dict[str, int], searches: int = 0) -> list[str]:
         """Per on-demand shield that handed out masks its time guard cut while this query ran (``before``:
-        each one's count of such masks before it): that the answer depends on the machine's speed."""
+        each one's count of such masks before it), and for the ``searches`` witness searches their safety
+        net cut short: that the answer depends on the machine's speed."""
         notes = []
+        if searches:
+            net = self.context.options.witness.safety_seconds
+            their = "its" if searches == 1 else "their"
+            notes.append(f"{counted(searches, 'witness search', 'witness searches')} ran into the safety time limit "
+                         f"({net:g} s) before spending {their} work budget, so this answer (its method, its trace, "
+                         "whether it is known) depends on the machine's speed and load and may differ on another "
+                         "run at the same seed")
         for name, computed in self.context.on_demand.items():
             cut = computed.stats.clocked_answers - before.get(name, 0)
             if cut > 0:
