@@ -53,7 +53,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from lxml import etree
 from test_agreement import automata, load_class
-from test_emitted_network import Network
+from test_emitted_network import Network, truncates
 
 from rac import ir
 from rac.compiler import compile_file, compile_text
@@ -61,7 +61,7 @@ from rac.engine.evaluate import EvaluationError
 from rac.engine.product import MirrorArithmetic
 from rac.ir.significands import Unrepresentable
 from rac.model.data import ModelRangeError
-from rac.runtime.semantics import first_sample_reads, mirror_accrual, mirror_update
+from rac.runtime.semantics import first_sample_reads
 from rac.targets.uppaal.automaton import UppaalError, generate_uppaal, vocabulary
 
 COMPILER = shutil.which("cc") or shutil.which("gcc")
@@ -106,17 +106,6 @@ def controllable_environment(xml: str) -> str:
 def validator(folder: Path) -> utap_module.Utap | None:
     located = utap_module.locate()
     return None if located.path is None else utap_module.Utap(located.path, folder)
-
-
-def truncates(automaton: ir.Automaton, scale: int) -> bool:
-    """Whether a mirror may be truncated (then it drifts from reward * scale)."""
-    accruals = [mirror_accrual(rate, automaton.period, scale) for loc in automaton.locations for rate in loc.rates]
-    updates = [mirror_update(u.value, scale)
-               for e in [*automaton.all_edges(), *automaton.end_clauses] for u in e.updates]
-    # an update's constant truncates too (`r = 1/3` is `iR = 3333`); left out, such an automaton was
-    # compared as exact (found by the automata without inputs)
-    return any(c.denominator != 1 for _, terms in [*accruals, *updates] for c, _ in terms) \
-        or any(const.denominator != 1 for const, _ in updates)
 
 
 class Alone:
