@@ -53,6 +53,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from lxml import etree
 from test_agreement import automata, load_class
+from test_emitted_network import CLOCKWORK as CLOCKWORK_MODEL
 from test_emitted_network import Network, truncates
 
 from rac import ir
@@ -443,21 +444,8 @@ def test_automata_without_inputs_run_alike_in_uppaal_engine_and_python(automaton
     assume(run(shortened(automaton, period, samples, representation), [0]) > 0)
 
 
-#: An automaton that reads nothing: its edges fire every sample (`edge A -> B` has no `when`), an update
-#: reads a reward, and `at end` applies unconditionally.
-CLOCKWORK = """\
-automaton Clockwork {
-    reward up, down
-    objective up - down
-    sample every 0.5
-    horizon 3
-    initial location Tick { up' == 1;  down' == 0 }
-    location Tock         { up' == 0;  down' == 2 }
-    edge Tick -> Tock do down = down + up / 3
-    edge Tock -> Tick do up = up - 1
-    at end do up = 2 * up
-}
-"""
+#: test_emitted_network's automaton that reads nothing, alone.
+CLOCKWORK = CLOCKWORK_MODEL.format(block="")
 
 
 def test_an_automaton_without_inputs_runs_alike_in_uppaal_engine_and_python(tmp_path: Path) -> None:

@@ -683,7 +683,9 @@ class Comparison:
                            **{(SAMPLED, i.name): self.inputs[i.name] for i in a.inputs if i.is_bool},
                            **{(SAMPLED, label): g.labels[label] for label in ("collide", "offroad", "goal")}}
         if a.end_clauses:
-            held = np.column_stack([self.inputs[i.name] for i in a.inputs]).astype(np.int64)
+            # (an automaton without inputs holds none: one empty column set per state)
+            held = np.column_stack([self.inputs[i.name] for i in a.inputs]).astype(np.int64) if a.inputs \
+                else np.zeros((g.n_states, 0), dtype=np.int64)
             arithmetic = MirrorArithmetic(a, data.scale)
             for i, clause in enumerate(a.end_clauses):
                 self.conditions[(ENDED, f"at end #{i + 1}")] = arithmetic.guard(clause.guard, held)
@@ -1017,6 +1019,33 @@ def test_a_mirror_truncated_only_by_an_updates_constant_is_compared_as_truncated
     assert "(3*iPen - 3*d + 100) / 3" in scenario.xml
     assert truncates(scenario.automaton, scenario.data.scale)
     assert Comparison(scenario, tmp_path).run_many(seed=3, runs=10) >= 10
+
+
+#: An automaton that reads nothing (tests/targets/test_emitted_alone.py runs it alone): its edges fire every
+#: sample, an update reads a reward, `at end` applies unconditionally; ``{block}``: a model block, or nothing.
+CLOCKWORK = """\
+automaton Clockwork {{
+    reward up, down
+    objective up - down
+    sample every 0.5
+    horizon 3
+    initial location Tick {{ up' == 1;  down' == 0 }}
+    location Tock         {{ up' == 0;  down' == 2 }}
+    edge Tick -> Tock do down = down + up / 3
+    edge Tock -> Tick do up = up - 1
+    at end do up = 2 * up
+{block}}}
+"""
+
+
+def test_an_automaton_without_inputs_runs_alike_in_the_emitted_network_and_the_product(tmp_path: Path) -> None:
+    """A model whose automaton reads no input (no binding): the comparison stacked the held inputs for the
+    `at end` guards and failed on none (numpy: need at least one array), so no such model was compared."""
+    path = tmp_path / "clockwork.ra"
+    path.write_text(CLOCKWORK.format(block=tiny_block(tmp_path, "goal_ahead", ())), encoding="utf-8")
+    scenario = build(path)
+    assert scenario.automaton.inputs == ()
+    assert Comparison(scenario, tmp_path).run_many(seed=2, runs=8) >= 8
 
 
 def test_prev_of_an_action_reads_the_same_start_in_every_order(tmp_path: Path) -> None:
