@@ -54,7 +54,7 @@ from hypothesis import strategies as st
 from lxml import etree
 from test_agreement import automata, load_class
 from test_emitted_network import CLOCKWORK as CLOCKWORK_MODEL
-from test_emitted_network import Network, truncates
+from test_emitted_network import Network, c_compatible, truncates
 
 from rac import ir
 from rac.compiler import compile_file, compile_text
@@ -310,19 +310,6 @@ def test_random_automata_run_alike_in_uppaal_engine_and_python(automaton: ir.Aut
                                                                samples: int, representation: tuple[int, int] | None,
                                                                seeds: list[int]) -> None:
     assume(run(shortened(automaton, period, samples, representation), seeds) > 0)
-
-
-#: C's keywords, which UPPAAL allows as names (the fuzzer's Python names include `float`, `long`...):
-#: a model that uses one is valid UPPAAL, but this test cannot compile it as C.
-C_KEYWORDS = frozenset((
-    "auto break case char const continue default do double else enum extern float for goto if inline int long "
-    "register restrict return short signed sizeof static struct switch typedef union unsigned void volatile while "
-    "_Bool _Complex _Imaginary").split())
-
-
-def c_compatible(automaton: ir.Automaton) -> bool:
-    names = [automaton.name, *automaton.location_names, *automaton.rewards, *(i.name for i in automaton.inputs)]
-    return not C_KEYWORDS.intersection(names)
 
 
 def _checked(program: Any) -> ir.Automaton | None:

@@ -64,14 +64,18 @@ import re
 import shutil
 import subprocess
 import tempfile
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
+import fuzzgen
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+import utap as utap_module
+from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 from lxml import etree
 from test_agreement import automata
@@ -79,6 +83,7 @@ from tiny_scenarios import TINY_SCENARIOS, Block, GoalBox, StraightRoad, TinySet
 
 from rac import ir
 from rac.compiler import compile_file
+from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.explore import action_pairs
 from rac.engine.product import ACCRUED, ENDED, READ, SAMPLED, MirrorArithmetic, ProductGraph, explore_product
@@ -628,12 +633,22 @@ class Scenario:
     graph: ProductGraph
 
 
+def validated(model: Any, folder: Path, name: str) -> str:
+    """The emitted model's XML, validated with UPPAAL's parser (model and queries) when it is available
+    (tests/support/utap.py; without it the comparison still runs)."""
+    located = utap_module.locate()
+    if located.path is not None:  # in a folder of its own: a test may build several models in one folder
+        utap_module.Utap(located.path, Path(tempfile.mkdtemp(prefix="utap-", dir=folder))).validate(
+            model.xml, model.queries, name)
+    return model.xml
+
+
 def build(source: Path, ends: ir.Guard | None = None) -> Scenario:
     """The file's scenario; ``ends``: its automaton with `episode ends when` that condition."""
     result = compile_file(source)
     automaton = dataclasses.replace(result.raise_for_errors(), episode_ends=ends)
     data = result.model_data
-    xml = generate_uppaal_model(automaton, data=data).xml
+    xml = validated(generate_uppaal_model(automaton, data=data), source.parent, source.stem)
     return Scenario(automaton, data, xml, explore_product(data, automaton))
 
 
@@ -1172,11 +1187,12 @@ def test_random_automata_run_alike_in_the_emitted_network_and_the_product(
     automaton = dataclasses.replace(random, name=base.name, inputs=base.inputs, model=base.model, period=base.period,
                                     horizon=base.horizon, queries=(), standard_queries=(), priority=random.rewards)
     try:
-        xml = generate_uppaal_model(automaton, data=data).xml
+        model = generate_uppaal_model(automaton, data=data)
         graph = explore_product(data, automaton)
     except (UppaalError, Unrepresentable, EvaluationError, ModelRangeError):
         assume(False)  # E0801, two edges enabled where the bindings break `assume`, a mirror beyond int32
         return
+    xml = validated(model, folder, "random")
     with tempfile.TemporaryDirectory(dir=folder) as case:
         assert RandomComparison(Scenario(automaton, data, xml, graph), Path(case)).run_many(seed, runs=6) >= 6
 
@@ -1232,3 +1248,77 @@ def test_random_automata_learn_on_the_products_runs(random: ir.Automaton, seed: 
             assert bool(result.ended[0] or result.truncated[0]) == bool(graph.terminal()[node]), where
         assert episodes.done[0]
         assert episodes.clipped == 0
+
+
+# ---------------------------------------------------------------- generated programs in a scenario
+#: C's keywords, which UPPAAL allows as names (the fuzzer's Python names include `float`, `long`...):
+#: a model that uses one is valid UPPAAL, but this test cannot compile it as C.
+C_KEYWORDS = frozenset((
+    "auto break case char const continue default do double else enum extern float for goto if inline int long "
+    "register restrict return short signed sizeof static struct switch typedef union unsigned void volatile while "
+    "_Bool _Complex _Imaginary").split())
+
+
+def c_compatible(automaton: ir.Automaton) -> bool:
+    """Whether no name of ``automaton`` that the emitted model declares is a C keyword."""
+    names = [automaton.name, *automaton.location_names, *automaton.rewards, *(i.name for i in automaton.inputs),
+             *(name for name, _ in automaton.constants), *(p.name for p in automaton.parameters)]
+    return not C_KEYWORDS.intersection(names)
+
+
+#: The names the whole model's harness reads as they are (its channels, the ground truth's template, the
+#: constants it reads from the library): where a .ra name takes one, the target renames its own (`STEPS_`:
+#: valid UPPAAL, and what UPPAAL's parser checks), which the harness does not follow.
+HARNESS_NAMES = frozenset(("accrue", "read", "sense", "decide", "finish", GROUND_TRUTH, "STEPS", "DECIDE_EVERY",
+                           "JERK_VALUES", "TURN_VALUES"))
+
+
+def in_tiny_scene(text: str, folder: Path) -> Path | None:
+    """A generated program with a ``model`` block (fuzzgen: it names the left turn) moved into the tiny
+    scenario avoidable_obstacle over 2 s, with 3 x 3 actions where it keeps the defaults (the product stays
+    small); None without a model block."""
+    if f'scenario "{fuzzgen.SCENARIO}"' not in text:
+        return None
+    tiny = TINY_SCENARIOS["avoidable_obstacle"]()
+    tiny.write(folder)
+    scene = f'scenario "{tiny.name}.xml"'
+    text = re.sub(r"\bhorizon [0-9.]+", "horizon 2", text.replace(f'scenario "{fuzzgen.SCENARIO}"', scene), count=1)
+    for action, line in (("jerk", "action jerk in [-2, 2] step 2"), ("turn", "action turn in [-0.2, 0.2] step 0.2")):
+        if f"action {action}" not in text:
+            text = text.replace(scene, f"{scene}\n    {line}")
+    path = folder / "generated.ra"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large])
+@given(program=fuzzgen.programs(), seed=st.integers(0, 2**16))
+def test_generated_programs_run_alike_in_the_emitted_network_and_the_product(
+        program: Any, seed: int, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The fuzzer's programs (tests/support/fuzzgen.py) ran alone only: their `model` blocks (exponents,
+    decide periods, granularity, `dynamics increments`, `collision sticky`, `offroad_from`, `allow when`,
+    bindings of every kind), `*` edges and constants never met the product. Each valid one with a model
+    block, in a tiny scenario, along random action sequences, as above."""
+    assume(program.kind == "valid")
+    folder = Path(tempfile.mkdtemp(dir=tmp_path_factory.getbasetemp()))
+    path = in_tiny_scene(program.text, folder)
+    assume(path is not None)
+    assert path is not None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = compile_file(path)
+    assume(result.ok)
+    automaton, data = result.raise_for_errors(), result.model_data
+    assume(c_compatible(automaton) and not HARNESS_NAMES.intersection(
+        [*automaton.location_names, *automaton.rewards, *(i.name for i in automaton.inputs),
+         *(name for name, _ in automaton.constants), *(p.name for p in automaton.parameters)]))
+    try:
+        model = generate_uppaal_model(automaton, data=data)
+        graph = explore_product(data, automaton, max_states=300_000)
+    except (UppaalError, Unrepresentable, EvaluationError, ModelRangeError, BudgetExceeded):
+        assume(False)  # E0801, two edges enabled where the bindings break `assume`, beyond int32 or the budget
+        return
+    xml = validated(model, folder, "generated")
+    assert Comparison(Scenario(automaton, data, xml, graph), folder).run_many(seed, runs=3) >= 3
+    event(f"compared ({graph.n_states // 1000 * 1000:,}+ product states)")
