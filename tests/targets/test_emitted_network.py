@@ -1063,6 +1063,23 @@ def test_an_automaton_without_inputs_runs_alike_in_the_emitted_network_and_the_p
     assert Comparison(scenario, tmp_path).run_many(seed=2, runs=8) >= 8
 
 
+@pytest.mark.parametrize(("base", "exponent"), [(2, 6), (16, 3)])
+def test_other_bases_run_alike_in_the_emitted_network_and_the_product(base: int, exponent: int,
+                                                                      tmp_path: Path) -> None:
+    """A `model` block's base other than 10 (every whole model compared so far had base 10): the Meter at
+    base 2 (64 units) and 16 (4096), its turn step 0.25 (whole significands there)."""
+    path = meter_source(tmp_path)
+    text = re.sub(r"base \d+", f"base {base}", path.read_text(encoding="utf-8"))
+    text = re.sub(r"exponent \d+", f"exponent {exponent}", text)
+    path.write_text(re.sub(r"action turn in \[[^\]]*\] step [0-9.]+", "action turn in [-0.25, 0.25] step 0.25", text),
+                    encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # W0725: settings truncated to whole significands at this base
+        scenario = build(path)
+    assert scenario.data.scale == base ** exponent
+    assert Comparison(scenario, tmp_path).run_many(seed=4, runs=20) >= 20
+
+
 def test_prev_of_an_action_reads_the_same_start_in_every_order(tmp_path: Path) -> None:
     """``prev(turn)`` and ``prev(jerk)`` at the first sample. At time 0 the Controller's initial edge
     (``keep_sample()``, which keeps jerk and turn when a binding reads their ``prev``) and the
