@@ -679,6 +679,26 @@ def test_the_witness_search_keeps_within_max_seconds(tmp_path: Path, monkeypatch
     assert seen and all(seconds == Bounds().safety_seconds for seconds in seen)
 
 
+def test_a_slow_machine_answers_as_a_fast_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """15 s between two readings of the clock (a machine far slower than this one): the witness search ran
+    past its 20 s and the answers came from the layered search instead (another method, another trace) or
+    were UNKNOWN beyond its budget. Its work budget decides now: the same answers, found the same way."""
+    queries = {"Reaches": QUERIES["Reaches"], "Stays": QUERIES["Stays"]}
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries))
+
+    def answers() -> dict[str, tuple[object, ...]]:
+        # no random runs: the beam, which reads the clock once per sample, finds them
+        return {r.name: (r.status, r.method, r.states, r.message, r.trace)
+                for r in verify(result, VerifyOptions(seed=3, plots=False, witness=Bounds(runs=0)))}
+
+    steady = answers()
+    assert {name: found[1] for name, found in steady.items()} == {"Reaches": "witness search",
+                                                                  "Stays": "witness search"}
+    readings = itertools.count(0.0, 15.0)
+    monkeypatch.setattr(time, "perf_counter", lambda: next(readings))
+    assert answers() == steady
+
+
 def test_a_witness_search_cut_by_its_safety_net_says_the_answer_depends_on_the_machine(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The witness search's time limit decided what it found, unsaid in the answer. Now its work budget does,
