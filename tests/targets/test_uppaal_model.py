@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import shutil
 import subprocess
@@ -441,5 +442,17 @@ def test_a_rate_reading_an_input_is_checked_as_the_engine_checks_it(tmp_path: Pa
     wide = source.replace("co' == dgoal / 800", "co' == dgoal * 3 / 100").replace("\n        exponent 2", "")
     wide = wide.replace("real in [0, 500]", "real in [0, 200000]").replace("    priority sa > pr > co", "")
     ra.write_text(wide.replace('"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"'), encoding="utf-8")
+    # `rac check` reports it too: it passed the file that `rac compile --target uppaal` then refused, and
+    # `rac verify` ran it (its engine reads only the values a run reaches)
+    result = compile_file(ra)
+    [diagnostic] = [d for d in result.diagnostics if d.code == "E0801"]
+    assert re.search(r"reward rate `co' == 0.03\*dgoal`.* 6000000000, beyond", diagnostic.message)
+    assert result.automaton is None
+    # the target's own check, on the same automaton as the checker would have built it
+    ra.write_text(wide.replace("real in [0, 200000]", "real in [0, 500]").replace(
+        '"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"'), encoding="utf-8")
+    narrow = compile_file(ra).raise_for_errors()
+    widened = dataclasses.replace(narrow, inputs=tuple(
+        dataclasses.replace(item, high=Fraction(200000)) if item.name == "dgoal" else item for item in narrow.inputs))
     with pytest.raises(UppaalError, match=r"E0801: reward rate `co' == 0.03\*dgoal`.* 6000000000, beyond"):
-        generate_uppaal_model(compile_file(ra).raise_for_errors())
+        generate_uppaal_model(widened)

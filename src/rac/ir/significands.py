@@ -25,8 +25,8 @@ from rac.ir import query as iq
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT, SETTINGS, Holding, held_value
 
 __all__ = ["HINT_REPRESENTATION", "Unrepresentable", "common_denominator", "decimal_text", "emitted_sum",
-           "linear_text", "observation_diagnostics", "off_grid", "rate_diagnostic", "rate_diagnostics",
-           "representation", "unrepresentable", "update_diagnostics", "vanishing"]
+           "input_extremes", "linear_text", "observation_diagnostics", "off_grid", "rate_diagnostic",
+           "rate_diagnostics", "representation", "unrepresentable", "update_diagnostics", "vanishing"]
 
 _Name = TypeVar("_Name")
 
@@ -192,15 +192,27 @@ def _input_rate_diagnostic(automaton: ir.Automaton, location: ir.Location, rewar
 
 
 def rate_diagnostics(automaton: ir.Automaton) -> list[Diagnostic]:
-    """E0801 for every rate of ``automaton`` whose constant part has no significand (the checker's
-    check, with a ``model`` block: the inputs' values come from the scenario, known later)."""
+    """E0801 for every rate of ``automaton`` whose constant part has no significand, or whose product
+    ``p*input`` can leave int32 over the input's declared range (the checker's check, with a ``model``
+    block: the inputs' values come from the scenario, known later; the UPPAAL target's whole model
+    checks the same products, :func:`input_extremes`)."""
     found = []
+    extremes = input_extremes(automaton)
     for location in automaton.locations:
         for reward, rate in zip(automaton.rewards, location.rates):
-            diagnostic = rate_diagnostic(automaton, location, reward, rate)
+            diagnostic = rate_diagnostic(automaton, location, reward, rate, extremes=extremes)
             if diagnostic is not None:
                 found.append(diagnostic)
     return found
+
+
+def input_extremes(automaton: ir.Automaton) -> dict[str, list[int]]:
+    """The significands of each bounded numeric input's bounds: where no Environment chooses the inputs
+    (the whole model's Controller computes them), the accruals' products ``p*input`` must stay within
+    int32 over that range (:func:`rate_diagnostic`'s ``extremes``)."""
+    base, exponent = representation(automaton)
+    return {item.name: [round(bound * base ** exponent) for bound in (item.low, item.high)]
+            for item in automaton.numeric_inputs if item.low is not None and item.high is not None}
 
 
 def decimal_text(value: Fraction) -> str:

@@ -19,7 +19,7 @@ from fractions import Fraction
 from rac import ir
 from rac.core.diagnostics import Diagnostic
 from rac.ir.significands import decimal_text as _decimal
-from rac.ir.significands import rate_diagnostic, unrepresentable
+from rac.ir.significands import input_extremes, rate_diagnostic, unrepresentable
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 from rac.runtime.semantics import mirror_accrual
 from rac.targets.uppaal.expr import NotRepresentable, int_literal
@@ -175,9 +175,8 @@ class Significands:
         period = Fraction(self.a.period)
         values = {i.source: i.values for i in inputs}
         # the bounds, where no Environment chooses the values (the whole model): the accrual's products
-        # p*input must stay within int32 over the input's range there too
-        extremes = {i.name: [round(bound * self.scale) for bound in (i.low, i.high)]
-                    for i in self.a.numeric_inputs}
+        # p*input must stay within int32 over the input's range there too (as `rac check` checks them)
+        extremes = input_extremes(self.a)
         result: list[list[Accrual | None]] = []
         for location in self.a.locations:
             row: list[Accrual | None] = []
