@@ -115,12 +115,15 @@ def test_compile_and_verify_refuse_it(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "error[E0801]" in capsys.readouterr().err
 
 
-def test_the_hint_bounds_by_a_value_that_fits(tmp_path: Path) -> None:
-    """An input whose upper bound has no significand itself (1e6 at exponent 4) is not the hint's bound."""
+def test_an_input_bound_without_a_significand_is_refused_before_its_binding(tmp_path: Path) -> None:
+    """An input whose upper bound has no significand itself (1e6 at exponent 4: 1e10). `rac check` checked only
+    its binding (and hinted at another bound, 1000), passing files whose bound `rac compile --target uppaal`
+    then refused; the bound itself is E0801 now, as in the target."""
     path, text = write(tmp_path, "fmin(mindist(), 1000000)")
     path.write_text(text.replace("input d : real in [0, 100]", "input d : real in [0, 1000000]"), encoding="utf-8")
     (diagnostic,) = e0801(path)
-    assert list(diagnostic.hints) == ["bound the distance, e.g. `bind d = fmin(fmin(mindist(), 1000000), 1000)`"]
+    assert diagnostic.message == ("the bound 1000000 of input `d` is not representable as a 32-bit significand at "
+                                  "base 10, exponent 4")
 
 
 def test_a_binding_beyond_int32_in_a_run_leaves_the_verdict_unknown(tmp_path: Path,

@@ -456,3 +456,24 @@ def test_a_rate_reading_an_input_is_checked_as_the_engine_checks_it(tmp_path: Pa
         dataclasses.replace(item, high=Fraction(200000)) if item.name == "dgoal" else item for item in narrow.inputs))
     with pytest.raises(UppaalError, match=r"E0801: reward rate `co' == 0.03\*dgoal`.* 6000000000, beyond"):
         generate_uppaal_model(widened)
+
+
+@pytest.mark.parametrize(("bound", "why"), [
+    ("500000", "its significand 5000000000 is beyond the 32-bit integer range"),
+    ("500.00005", "is not an integer"),
+])
+def test_an_input_bound_without_a_significand_fails_rac_check_as_it_fails_the_target(
+        bound: str, why: str, tmp_path: Path) -> None:
+    """`dgoal` in [0, 500000] at exponent 4 (significand 5e9), or [0, 500.00005]: `rac check` passed the file,
+    `rac compile --target uppaal` refused it (E0801 at the bound) and `rac verify` ran it. With a `model`
+    block rac check reports the bound as the target does."""
+    source = MODEL_RA.read_text(encoding="utf-8").replace("real in [0, 500]", f"real in [0, {bound}]")
+    assert f"[0, {bound}]" in source
+    ra = tmp_path / "model.ra"
+    ra.write_text(source.replace('"left_turn.xml"', f'"{MODEL_RA.parent / "left_turn.xml"}"'), encoding="utf-8")
+    result = compile_file(ra)
+    [diagnostic] = [d for d in result.diagnostics if d.code == "E0801"]
+    assert diagnostic.message == (f"the bound {bound} of input `dgoal` is not representable as a 32-bit significand "
+                                  "at base 10, exponent 4")
+    assert why in diagnostic.notes[0].message
+    assert result.automaton is None  # nothing for the engine or a target to run

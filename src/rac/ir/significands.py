@@ -24,9 +24,10 @@ from rac.ir import expr as ie
 from rac.ir import query as iq
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT, SETTINGS, Holding, held_value
 
-__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "common_denominator", "decimal_text", "emitted_sum",
-           "input_extremes", "linear_text", "observation_diagnostics", "off_grid", "rate_diagnostic",
-           "rate_diagnostics", "representation", "unrepresentable", "update_diagnostics", "vanishing"]
+__all__ = ["HINT_REPRESENTATION", "Unrepresentable", "bound_diagnostic", "common_denominator", "decimal_text",
+           "emitted_sum", "input_extremes", "linear_text", "literal_problem", "observation_diagnostics", "off_grid",
+           "rate_diagnostic", "rate_diagnostics", "representation", "unrepresentable", "update_diagnostics",
+           "vanishing"]
 
 _Name = TypeVar("_Name")
 
@@ -192,11 +193,12 @@ def _input_rate_diagnostic(automaton: ir.Automaton, location: ir.Location, rewar
 
 
 def rate_diagnostics(automaton: ir.Automaton) -> list[Diagnostic]:
-    """E0801 for every rate of ``automaton`` whose constant part has no significand, or whose product
+    """E0801 for every numeric input's bound without a significand (:func:`bound_diagnostic`), and for
+    every rate of ``automaton`` whose constant part has no significand, or whose product
     ``p*input`` can leave int32 over the input's declared range (the checker's check, with a ``model``
     block: the inputs' values come from the scenario, known later; the UPPAAL target's whole model
     checks the same products, :func:`input_extremes`)."""
-    found = []
+    found = [d for d in (bound_diagnostic(automaton, item) for item in automaton.numeric_inputs) if d is not None]
     extremes = input_extremes(automaton)
     for location in automaton.locations:
         for reward, rate in zip(automaton.rewards, location.rates):
@@ -204,6 +206,37 @@ def rate_diagnostics(automaton: ir.Automaton) -> list[Diagnostic]:
             if diagnostic is not None:
                 found.append(diagnostic)
     return found
+
+
+def literal_problem(value: int | Fraction) -> str | None:
+    """Why ``value`` has no UPPAAL integer literal (not an integer, beyond int32, or -2147483648, which
+    is an int32 that UPPAAL writes no literal for), or None (:func:`rac.targets.uppaal.expr.int_literal`)."""
+    if isinstance(value, Fraction):
+        if value.denominator != 1:
+            return f"{value} is not an integer"
+        value = value.numerator
+    if value == -INT32_MAX - 1:
+        return (f"{value} is a 32-bit integer, but UPPAAL writes no literal for it: its literals reach {INT32_MAX} "
+                "in magnitude")
+    if abs(value) > INT32_MAX:
+        return f"{short_number(Fraction(value))} is beyond the 32-bit integer range (at most {INT32_MAX} in magnitude)"
+    return None
+
+
+def bound_diagnostic(automaton: ir.Automaton, item: ir.Input) -> Diagnostic | None:
+    """E0801 when a bound of the numeric input ``item`` has no significand the model can write (the
+    automaton alone's Environment gives the input its bounds; with a ``model`` block `rac check`
+    reports it too, so that the check and the target agree)."""
+    base, exponent = representation(automaton)
+    for bound in (item.low, item.high):
+        problem = None if bound is None else literal_problem(bound * base ** exponent)
+        if bound is not None and problem is not None:
+            return unrepresentable(
+                automaton, f"the bound {decimal_text(bound)} of input `{item.name}` is not representable as a "
+                f"32-bit significand at base {base}, exponent {exponent}", item.span,
+                notes=[f"its significand {problem}"],
+                hints=["narrow the input's bounds, or lower the exponent of the number representation"])
+    return None
 
 
 def input_extremes(automaton: ir.Automaton) -> dict[str, list[int]]:

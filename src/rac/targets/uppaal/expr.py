@@ -28,11 +28,11 @@ from collections.abc import Mapping, Sequence
 from fractions import Fraction
 
 from rac import ir
-from rac.core.diagnostics import RacError, short_number
+from rac.core.diagnostics import RacError
 from rac.core.numbers import INT32_MAX
 from rac.core.printing import C_BINARY, Associativity, Level, Operator, OperatorTable, Printed, Printer, signed_sum
 from rac.ir.expr import integer_bound
-from rac.ir.significands import common_denominator
+from rac.ir.significands import common_denominator, literal_problem
 from rac.ir.text import GuardPrinter
 
 __all__ = [
@@ -62,18 +62,12 @@ class QueryError(RacError, ValueError):
 
 # ---------------------------------------------------------------- literals
 def int_literal(value: int | Fraction) -> str:
-    """An integer literal; :class:`NotRepresentable` when it is not an integer or beyond int32."""
-    if isinstance(value, Fraction):
-        if value.denominator != 1:
-            raise NotRepresentable(f"{value} is not an integer")
-        value = value.numerator
-    if value == -INT32_MAX - 1:
-        raise NotRepresentable(f"{value} is a 32-bit integer, but UPPAAL writes no literal for it: its literals "
-                               f"reach {INT32_MAX} in magnitude")
-    if abs(value) > INT32_MAX:
-        raise NotRepresentable(f"{short_number(Fraction(value))} is beyond the 32-bit integer range (at most "
-                               f"{INT32_MAX} in magnitude)")
-    return str(value)
+    """An integer literal; :class:`NotRepresentable` when it is not an integer or beyond int32
+    (:func:`rac.ir.significands.literal_problem`, which the checker's E0801 reads too)."""
+    problem = literal_problem(value)
+    if problem is not None:
+        raise NotRepresentable(problem)
+    return str(int(value))
 
 
 def double_literal(value: Fraction | float) -> str:

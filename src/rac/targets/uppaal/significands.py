@@ -18,11 +18,11 @@ from fractions import Fraction
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic
+from rac.ir.significands import bound_diagnostic, input_extremes, rate_diagnostic, unrepresentable
 from rac.ir.significands import decimal_text as _decimal
-from rac.ir.significands import input_extremes, rate_diagnostic, unrepresentable
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
 from rac.runtime.semantics import mirror_accrual
-from rac.targets.uppaal.expr import NotRepresentable, int_literal
+from rac.targets.uppaal.expr import int_literal
 from rac.targets.uppaal.names import Names
 
 __all__ = ["Accrual", "NumericInput", "Significands"]
@@ -100,17 +100,9 @@ class Significands:
                 if value is None:
                     break  # one diagnostic per input: its first unrepresentable piece
                 values.append(value)
-            for bound in (item.low, item.high):
-                try:
-                    int_literal(bound * self.scale)
-                except NotRepresentable as exc:
-                    self.unrepresentable(
-                        f"the bound {_decimal(bound)} of input `{item.name}` is not representable as a 32-bit "  # type: ignore[arg-type]
-                        f"significand at base {self.base}, exponent {self.exponent}", item.span,
-                        # -2147483648 is an int32, but not one rac writes (UPPAAL has no literal for it)
-                        notes=[f"its significand {exc}"],
-                        hints=["narrow the input's bounds, or lower the exponent of the number representation"])
-                    break
+            problem = bound_diagnostic(self.a, item)
+            if problem is not None:
+                self.diagnostics.append(problem)
             result.append(NumericInput(
                 item.name, names[item.name], _decimal(item.low), _decimal(item.high),  # type: ignore[arg-type]
                 arrays[item.name], values,
