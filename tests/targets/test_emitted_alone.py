@@ -88,14 +88,16 @@ def controllable_environment(xml: str) -> str:
     :class:`Network` takes its values from the test's choices instead of enumerating them. An
     automaton without inputs has no such edge: its Environment's ``read!`` chooses nothing."""
     root = etree.fromstring(xml.encode("utf-8"))
-    found = reads = 0
-    for transition in root.iter("transition"):
+    found = sends = 0
+    environment = root.findall("template")[-1]  # `system Timer, AUTOMATON, Environment;`
+    for transition in environment.iter("transition"):
         kinds = {label.get("kind"): label.text for label in transition.findall("label")}
-        reads += kinds.get("synchronisation") == "read!"
+        sends += (kinds.get("synchronisation") or "").endswith("!")  # read! (`read_!` where an input is `read`)
         if kinds.get("select"):
             transition.set("controllable", "true")
             found += 1
-    assert reads == 1 and found <= 1, (reads, found)
+    others = [label for template in root.findall("template")[:-1] for label in template.iter("label")]
+    assert sends == 1 and found <= 1 and not any(label.get("kind") == "select" for label in others), (sends, found)
     # the declarations in the C subset test_emitted_network's interpreter reads: a bounded integer
     # (`int[0,STEPS] count`, UPPAAL checks its range) and UPPAAL's `int` (32 bits) as int32_t
     declaration = root.find("declaration")
@@ -127,7 +129,8 @@ class Alone:
         self.done = {loc for loc, edges in self.net.processes[0].edges.items()
                      if edges and all(e.target == loc and e.sync is None for e in edges)}
         assert len(self.done) == 1, self.done
-        environment = [e for es in self.net.processes[2].edges.values() for e in es if e.sync == "read!"]
+        environment = [e for es in self.net.processes[2].edges.values() for e in es
+                       if e.sync is not None and e.sync.endswith("!")]  # its read! (renamed where an input is `read`)
         assert len(environment) == 1
         edge = environment[0]
         assert bool(edge.selects) == bool(automaton.inputs), "the Environment selects exactly when there are inputs"
@@ -444,3 +447,15 @@ def test_an_automaton_without_inputs_runs_alike_in_uppaal_engine_and_python(tmp_
     samples = alone.compare(0)
     assert [s.location for s in samples] == ["Tock", "Tick"] * 3
     assert samples[-1].ended
+
+
+def test_an_input_named_like_the_read_channel_runs_alike(tmp_path: Path) -> None:
+    """An input named `read` makes the emitted channel `read_`: the harness found the Environment's edge by
+    the name `read!` and failed such a model (the generated programs name inputs so)."""
+    text = CLOCKWORK.replace("    reward up, down", "    input read : bool\n    reward up, down")
+    text = text.replace("Tick -> Tock do", "Tick -> Tock when read do")
+    text = text.replace("Tock -> Tick do", "Tock -> Tick when !read do")
+    automaton = compile_text(text, "read.ra").raise_for_errors()
+    alone = build(automaton, tmp_path)
+    assert alone is not None and "read_!" in alone.xml
+    assert all(len(alone.compare(seed)) == automaton.steps for seed in range(3))
