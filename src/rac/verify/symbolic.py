@@ -13,7 +13,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rac import ir
+from rac.core.diagnostics import counted
 from rac.engine import shield, storm
+from rac.engine.allow import action_pairs
 from rac.engine.budget import BudgetExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
@@ -26,6 +28,7 @@ from rac.ir import query as iq
 from rac.ir.text import format_checked
 from rac.ir.vocabulary import EGO_STATE
 from rac.model.batch import batch_model
+from rac.model.data import ModelData
 from rac.model.native import NativeModel
 from rac.verify import compositional
 from rac.verify.context import Context, UnknownVerdict, over_budget, restricted
@@ -407,14 +410,21 @@ class SymbolicAnswerer:
             return dataclasses.replace(base, status=NOT_SATISFIED, method="on demand",
                                        horizon_samples=ctx.horizon_samples,
                                        message=f"no strategy keeps `{goal}` from the start: it is false at the start")
+        nodes = start_nodes(ctx.data)
         search = Lookahead(ctx.data, ctx.horizon_samples,
-                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=START_SECONDS, nodes=None))
+                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=START_SAFETY_SECONDS, nodes=nodes))
         found = search.decide(row)
         proved = found.depth >= found.target and found.depth > 0
         reach = f"t = {found.until * float(at):g} s"
+        # what stopped an incomplete search: its node budget (the same answer on every machine) or, before
+        # that was spent, the safety time limit (then the answer is the machine's, and says so)
+        budget = counted(nodes, "search node")
+        stopped = (f"its safety time limit of {START_SAFETY_SECONDS:g} s before spending its budget of {budget}, "
+                   "so this depends on the machine's speed and load" if found.clock else
+                   f"its budget of {budget}, the same on every machine")
         if not proved and not found.complete:
-            raise UnknownVerdict(f"{too_large}; a search of {START_SECONDS:g} s for a safe run to the horizon "
-                                 f"found none (the longest it proved safe reaches {reach})")
+            raise UnknownVerdict(f"{too_large}; a search for a safe run to the horizon from the start found none "
+                                 f"(the longest it proved safe reaches {reach}; it stopped at {stopped})")
         if not proved:
             return dataclasses.replace(base, status=NOT_SATISFIED, method="on demand",
                                        horizon_samples=ctx.horizon_samples,
@@ -423,10 +433,9 @@ class SymbolicAnswerer:
         computed = on_demand(ctx.data, ctx.horizon_samples)
         ctx.on_demand[query.name] = computed
         allowed = int(found.mask.sum())
-        # a search its time limit stopped proved these and may have missed others: the count is the machine's
+        # a search its budget stopped proved these and may have missed others: the count is a lower bound
         count = (f"{allowed} of {found.mask.size} actions have" if found.complete else
-                 f"at least {allowed} of {found.mask.size} actions (the search stopped at its {START_SECONDS:g} s "
-                 "limit, so the count depends on the machine's speed) have")
+                 f"at least {allowed} of {found.mask.size} actions (the search stopped at {stopped}) have")
         return dataclasses.replace(
             base, status=SATISFIED, method="on demand", horizon_samples=ctx.horizon_samples,
             message=(f"{too_large.split(':')[0]}, so the shield is computed state by state: at the start "
@@ -517,8 +526,23 @@ def _distances_to(automaton: ir.Automaton, targets: np.ndarray) -> np.ndarray:
     return distance
 
 
-#: The time the on-demand shield may search from the start for a safe run to the horizon (Qd's verdict).
-START_SECONDS = 20.0
+#: The work the on-demand shield's search from the start for a safe run to the horizon (Qd's verdict) may
+#: do: successor samples (search nodes x actions x samples per decision), which is what its time follows.
+#: Spent in full it takes 6 s (9 actions every 20 samples, the head-on street) to 15 s (45 actions every 2,
+#: the tutorial road, 1 GB) on the 2-core machine of docs/benchmarks.md, within the 20 s of wall clock it
+#: had before (which gave UNKNOWN on a slow or busy machine where a fast one answered); the benchmark
+#: scenes' and examples' searches need at most 44,000 (the head-on street's 244 nodes). A budget of work
+#: gives the same verdict on every machine.
+START_WORK = 12_000_000
+#: The start search's safety net (seconds), far beyond what :data:`START_WORK` takes: where it stops the
+#: search first, the answer says that it depends on the machine's speed and load.
+START_SAFETY_SECONDS = 300.0
+
+
+def start_nodes(data: ModelData) -> int:
+    """The search nodes :data:`START_WORK` allows the start search over ``data`` (a node expands a state under
+    every action for one decision period; at least 1, the first decision period, always searched)."""
+    return max(1, START_WORK // (len(action_pairs(data)) * int(data.decide_every)))
 
 
 def _is_safety(expr: ie.Expr) -> bool:
