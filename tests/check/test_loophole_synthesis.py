@@ -138,3 +138,18 @@ def test_a_gain_not_affine_in_the_parameter_stops_the_search():
         ("E0407", "not yet: parameter `P` cannot be synthesised here: under `require stalling_never_pays`: a "
                   "sample's gain is not affine in the parameter (it weighs a numeric input whose best value "
                   "changes with it)")]
+
+
+def test_a_midpoint_where_the_file_does_not_check_is_e0407():
+    # The loophole search reads the file at the bounds' midpoint too; where it does not check there (a term
+    # (COLLISION - 499.999999999) * 1e-300, about 1e-309 at 500: E0011) though it does at both bounds, `rac check`
+    # ended with an internal error (AssertionError in parametric._Parametric); it is the E0407 of such a value.
+    path = ROOT / "examples" / "tune" / "highway_collision.ra"
+    text = path.read_text(encoding="utf-8").replace(
+        "do r -= COLLISION ", "do r -= COLLISION + (COLLISION - 499.999999999) * 1e-300 ")
+    result = compile_text(text, path)
+    assert [(d.code, d.message) for d in result.diagnostics] == [
+        ("E0407", "not yet: parameter `COLLISION` cannot be synthesised here: the file does not check at "
+                  "COLLISION = 500, a value within its bounds the search tried")]
+    assert [n.message for n in result.diagnostics[0].notes] == [
+        "at COLLISION = 500: error[E0011]: this computes a number too small for a double (about 1.0e-309)"]

@@ -32,6 +32,7 @@ from rac.check.analysis.affine import moves
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.incentives import Move, Runs, split_guards, unchecked
 from rac.check.analysis.piecewise import Interval, Piecewise, intersect
+from rac.check.analysis.synthesis import Unresolved
 from rac.check.analysis.worst import Unfinished
 
 __all__ = ["LOOPHOLES", "Envelope", "loophole_values", "upper"]
@@ -94,7 +95,8 @@ class _Parametric:
         runs: list[Runs] = []
         for value in (low, middle, high):
             automaton = resolve(value)
-            assert automaton is not None, "the parameter's bounds resolved, so every value between does"
+            if automaton is None:  # the bounds resolved; the midpoint need not (E0011 of a tiny coefficient)
+                raise Unresolved(value)
             space, _ = input_space(automaton)
             if space is None:
                 raise Unfinished("the inputs have too many classes")
@@ -203,7 +205,8 @@ def loophole_values(resolve: Resolve, parameter: ir.Parameter, checks: Iterable[
     """For each loophole check of ``checks`` (names of :data:`LOOPHOLES`), the values of ``parameter``
     in its bounds where it holds, exactly, as :func:`~rac.check.analysis.incentives.analyse` decides it at
     one value (see the module). Raises :class:`~rac.check.analysis.worst.Unfinished` where the method
-    does not apply."""
+    does not apply, and :class:`~rac.check.analysis.synthesis.Unresolved` where the file does not check at the
+    midpoint of the bounds, which it reads (the caller's E0407)."""
     wanted = [c for c in LOOPHOLES if c in set(checks)]
     runs = _Parametric(resolve, parameter)
     whole = [Interval(runs.low, runs.high)]
