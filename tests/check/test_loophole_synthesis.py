@@ -153,3 +153,17 @@ def test_a_midpoint_where_the_file_does_not_check_is_e0407():
                   "COLLISION = 500, a value within its bounds the search tried")]
     assert [n.message for n in result.diagnostics[0].notes] == [
         "at COLLISION = 500: error[E0011]: this computes a number too small for a double (about 1.0e-309)"]
+
+
+def test_a_set_of_one_value_under_a_requirement_is_written_as_an_equation():
+    # COLLISION in [0, 289]: only 289 closes the loophole; the recorded inequality read `289 <= COLLISION <= 289`
+    # where the same set without a `require` is written `COLLISION == 289` (Synthesis.describe)
+    path = ROOT / "examples" / "tune" / "highway_collision.ra"
+    text = path.read_text(encoding="utf-8").replace("param COLLISION in [0, 1000]", "param COLLISION in [0, 289]")
+    result = compile_text(text, path)
+    assert result.ok and result.synthesis is not None, [str(d) for d in result.diagnostics]
+    assert result.synthesis.inequalities == ("COLLISION == 289",)
+    assert result.synthesis.values == (("COLLISION", 289),)
+    # a wider set keeps its two ends
+    wide = compile_text(text.replace("[0, 289]", "[0, 1000]"), path)
+    assert wide.synthesis is not None and wide.synthesis.inequalities == ("289 <= COLLISION <= 1000",)

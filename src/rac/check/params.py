@@ -354,7 +354,10 @@ def _intervals_text(intervals: list[Interval]) -> str:
 
 
 def _interval_inequality(name: str, interval: Interval) -> str:
-    """``a <= NAME <= b`` with exact numbers (the form `rac tune` records)."""
+    """``a <= NAME <= b`` with exact numbers (the form `rac tune` records); ``NAME == a`` for one value, as
+    :meth:`~rac.check.analysis.synthesis.Synthesis.describe` writes it without a `require`."""
+    if interval.low == interval.high:  # not empty, so both ends are closed
+        return f"{name} == {exact_text(interval.low)}"
     return (f"{exact_text(interval.low)} {'<' if interval.low_open else '<='} {name} "
             f"{'<' if interval.high_open else '<='} {exact_text(interval.high)}")
 
