@@ -157,6 +157,44 @@ def test_a_failing_synthesis_leaves_the_file_untouched(tmp_path: Path, capsys: p
     assert path.read_bytes() == before
 
 
+TINY = """automaton Small {
+    input bad : bool
+    param P in [0, 1]
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 1
+    horizon 5
+    initial location Ok { sa' == 1; pr' == 1 }
+    location Bad { sa' == 0; pr' == 1 }
+    edge * -> Bad when bad do sa = sa - (1 + P * 6e307)
+    edge * -> Ok when !bad
+}
+"""
+
+
+@pytest.mark.parametrize("show", [[], ["--print"]])
+def test_a_value_no_ra_number_holds_is_not_written_and_says_so(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                                show: list[str]) -> None:
+    # `sa -= 1 + P * 6e307` checks with P in [0, 1] and synthesises P = 3 / 4e307 = 7.5e-308, below what a `.ra`
+    # number holds: the tuned text (`const P = 3 / 4000...0`, 308 digits) did not parse, and rac tune ended with an
+    # internal error (exit 3). It is E0015 at the declaration, with the value, why, the synthesis and what to do.
+    path = write(tmp_path / "tiny.ra", TINY)
+    assert compile_file(path).ok
+    capsys.readouterr()
+    assert main(["tune", *show, str(path)]) == 1
+    out = capsys.readouterr().out
+    assert ("tiny.ra:3:5: error[E0015]: cannot write `P` back as a constant: its synthesised value, 7.5e-308, is "
+            "below 1e-307 in size, the smallest number other than 0 that a `.ra` file (and a double) holds; nothing "
+            "was written") in out, out
+    assert "= note: synthesised: 7.5e-308 <= P" in out and "`P * 1e-300` where it is used" in out
+    assert path.read_text(encoding="utf-8") == TINY
+    assert main(["tune", *show, "--format", "json", str(path)]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert not report["ok"] and [d["code"] for d in report["diagnostics"]] == ["E0015"]
+    assert path.read_text(encoding="utf-8") == TINY
+
+
 def test_a_file_without_param_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write(tmp_path / "driving.ra", DRIVING)
     capsys.readouterr()

@@ -38,13 +38,13 @@ from rac.cli.common import (
     write_atomically,
 )
 from rac.compiler import CompileResult, compile_source
-from rac.core.diagnostics import Diagnostic, counted, error, json_text, render_text, sort_key
+from rac.core.diagnostics import Diagnostic, counted, error, json_text, render_text, short_number, sort_key
 from rac.core.numbers import exact_decimal, exact_text
 from rac.core.resources import ScenarioTooLarge
 from rac.core.source import SourceFile
 from rac.lang import ast
 from rac.lang.format import format_module
-from rac.lang.parser import ParseFailure, parse_source, parse_text, read_source
+from rac.lang.parser import MAX_DIGITS, ParseFailure, number_problem, parse_source, parse_text, read_source
 from rac.output.progress import Heartbeat, notice
 
 __all__ = ["tune_command", "tuned_text"]
@@ -108,6 +108,9 @@ def _tune(args: argparse.Namespace) -> int:
     if not result.ok or result.synthesis is None:
         return _failed(args, path, result)
     synthesis = result.synthesis
+    refused = _unwritable(node, synthesis)
+    if refused is not None:  # the tuned file would not parse: refused before anything is written
+        return _failed(args, path, CompileResult(None, (*result.diagnostics, refused), result.sources))
     text = tuned_text(source, module, synthesis)
     _confirm(source, text, result)
     written = None
@@ -178,6 +181,32 @@ def tuned_text(source: SourceFile, module: ast.Module, synthesis: Synthesised) -
         if _comments(formatted) == _comments(text):
             return formatted
     return text
+
+
+def _unwritable(node: ast.Automaton, synthesis: Synthesised) -> Diagnostic | None:
+    """E0015 when a synthesised value cannot be written back as a `.ra` number (:func:`tuned_text` writes
+    ``a / b`` exactly, each at most :data:`~rac.lang.parser.MAX_DIGITS` digits): a value below 1e-307 in
+    size (``sa -= P * 6e307`` gives ``P = 7.5e-308``), or one whose exact terms are longer. The file checks
+    with the parameter; written as a constant it would not parse, so rac tune writes nothing."""
+    for name, value in synthesis.values:
+        if all(number_problem(str(abs(part))) is None for part in (value.numerator, value.denominator)):
+            continue
+        size = abs(value)
+        small, large = 0 < size < Fraction(1, 10**307), size > 10**308
+        why = ("below 1e-307 in size, the smallest number other than 0 that a `.ra` file (and a double) holds"
+               if small else "beyond 1e308, the largest number a `.ra` file holds" if large else
+               f"a fraction whose exact numerator or denominator needs more than {MAX_DIGITS} digits")
+        scaled = ("declare it scaled up (its bounds 1e300 times larger, and `{name} * 1e-300` where it is used)"
+                  if small else "declare it scaled down (its bounds 1e300 times smaller, and `{name} * 1e300` "
+                  "where it is used)" if large else "narrow its bounds so that the least value is a shorter number")
+        decl = next((d for d in node.of(ast.ParamDecl) if name in (n.name for n in d.names)), None)
+        return error("E0015", f"cannot write `{name}` back as a constant: its synthesised value, "
+                     f"{short_number(value)}, is {why}; nothing was written",
+                     None if decl is None else decl.span,
+                     notes=[synthesis.sentence],
+                     hints=[f"{scaled.format(name=name)} and run rac tune again, or write `const {name} = ...` "
+                            "with a value of your own in its place"])
+    return None
 
 
 def _replaced(text: str, start: int, end: int, lines: list[str]) -> str:
