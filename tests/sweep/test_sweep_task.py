@@ -745,6 +745,27 @@ def test_a_tasks_budget_refusal_names_the_sweeps_option(folder: Path, task: str,
     assert memory_option() == "--max-memory"  # the task's option ends with it
 
 
+@pytest.mark.parametrize(("memory", "advice"), [(2**30, "raise --task-memory"), (None, "a lower --task-memory")])
+def test_running_out_of_memory_before_the_budget_advises_what_helps_in_a_sweep(
+        folder: Path, monkeypatch: pytest.MonkeyPatch, memory: int | None, advice: str) -> None:
+    """A task that ran out of memory before its budget spoke advised "a lower --task-memory stops the exploration":
+    rac verify's advice, where --max-memory is the budget alone; a sweep's --task-memory is the budget and the task's
+    memory limit (RLIMIT_AS), so lowering it lowers both and stops no sooner. Without --task-memory the advice
+    stands: the option then sets a budget below the machine's memory."""
+    from rac.engine import shield
+    from rac.sweep import work
+
+    def exhausted(*args: object, **kwargs: object) -> object:
+        raise MemoryError("Unable to allocate 80.0 MiB for an array with shape (10485241,) and data type int64")
+
+    monkeypatch.setattr(shield, "synthesise", exhausted)
+    row = work.execute(spec(folder, "goal_ahead.xml", "experiment", options=OPTIONS["experiment"], memory=memory))
+    error = str(row["error"])
+    assert "out of memory (Unable to allocate 80.0 MiB" in error and advice in error, row
+    if memory is not None:
+        assert "a lower --task-memory stops" not in error, row
+
+
 @pytest.mark.parametrize("memory", [16, 64])
 def test_a_small_task_memory_is_a_memory_row_not_a_numpy_import_error(folder: Path, memory: int) -> None:
     # numpy (its OpenBLAS), shapely and commonroad-io's reader were first imported under the limit: a task of

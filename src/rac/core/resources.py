@@ -18,27 +18,37 @@ from rac.core.diagnostics import RacError
 from rac.core.numbers import format_bytes, size_option
 
 __all__ = ["LOAD_BASE_BYTES", "LOAD_BYTES_PER_FILE_BYTE", "LOAD_BYTES_PER_SECOND", "LOAD_NOTICE_BYTES",
-           "MEMORY_OPTION", "LoadEstimate", "ScenarioTooLarge", "estimate_load", "memory_option", "memory_option_named"]
+           "MEMORY_OPTION", "LoadEstimate", "ScenarioTooLarge", "estimate_load", "memory_option",
+           "memory_option_limits", "memory_option_named"]
 
 #: The option that sets the memory budget, as the engine commands name it (``rac verify --max-memory``).
 MEMORY_OPTION = "--max-memory"
 #: The option that sets the memory budget of the work running now, as its refusals name it: a context variable,
 #: not an argument, because the budget's errors are raised deep in the explorations, learning and simulation,
 #: which every command shares; ``rac sweep``'s tasks set their own (:func:`memory_option_named`).
-_memory_option: ContextVar[str] = ContextVar("memory_option", default=MEMORY_OPTION)
+# With it, whether that option is also the process's hard limit (``rac sweep``'s ``--task-memory`` sets RLIMIT_AS).
+_memory_option: ContextVar[tuple[str, bool]] = ContextVar("memory_option", default=(MEMORY_OPTION, False))
 
 
 def memory_option() -> str:
     """The option a refusal names as the one that sets the memory budget: :data:`MEMORY_OPTION`, or the one the
     caller said with :func:`memory_option_named`."""
-    return _memory_option.get()
+    return _memory_option.get()[0]
+
+
+def memory_option_limits() -> bool:
+    """Whether :func:`memory_option` also sets the process's hard memory limit (``rac sweep --task-memory``): then a
+    lower value lowers the limit with the budget, and running out of memory before the budget spoke is not
+    prevented by lowering it (:func:`rac.engine.budget.out_of_memory` advises accordingly)."""
+    return _memory_option.get()[1]
 
 
 @contextlib.contextmanager
-def memory_option_named(option: str) -> Iterator[None]:
+def memory_option_named(option: str, *, limits: bool = False) -> Iterator[None]:
     """Within the block, the budget's refusals name ``option`` (e.g. ``rac sweep``'s ``--task-memory``) as what
-    sets the memory budget: a sweep's rows named ``--max-memory``, an option ``rac sweep`` does not have."""
-    token = _memory_option.set(option)
+    sets the memory budget: a sweep's rows named ``--max-memory``, an option ``rac sweep`` does not have.
+    ``limits``: the option's value is also the process's hard memory limit (:func:`memory_option_limits`)."""
+    token = _memory_option.set((option, limits))
     try:
         yield
     finally:

@@ -36,7 +36,7 @@ from pathlib import Path
 
 from rac.core.diagnostics import RacError, counted
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
-from rac.core.resources import memory_option
+from rac.core.resources import memory_option, memory_option_limits
 
 __all__ = ["EPISODE_MEMO_BYTES", "EVALUATION_BYTES_PER_RUN", "EVALUATION_BYTES_PER_SAMPLE",
            "EVALUATION_BYTES_PER_STEP", "MEMO_BYTES_PER_STEP", "GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE",
@@ -175,8 +175,13 @@ def out_of_memory(exc: MemoryError, needing: str) -> str:
     stopped the work: ``needing`` is what needed it (``"answering it"``, ``"this setting"``); the work it
     belongs to is undecided, the rest stands."""
     what = f" ({exc})" if str(exc) else ""
+    option = memory_option()
+    if memory_option_limits():  # the option is the budget and the limit: lowering it lowers both, stopping no sooner
+        return (f"out of memory{what}: {needing} needed more memory than the task's limit ({option}) before the "
+                f"memory budget's estimate stopped it; {option} sets both the limit and the budget, so a lower one "
+                f"would not stop it sooner: raise {option} if the machine has that much memory free")
     return (f"out of memory{what}: {needing} needed more memory than this process may use (the machine's "
-            f"memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower {memory_option()} "
+            f"memory, or a limit such as `ulimit -v`) before the memory budget stopped it; a lower {option} "
             "stops the exploration within what the process has and says how far it got")
 
 

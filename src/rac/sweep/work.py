@@ -72,7 +72,8 @@ def execute(spec: TaskSpec) -> dict[str, Any]:
     start = time.perf_counter()
     row: dict[str, Any] = {}
     try:
-        with memory_option_named(MEMORY_OPTION):  # the budget's refusals name the sweep's option, not rac verify's
+        # the budget's refusals name the sweep's option, not rac verify's; with --task-memory it is the limit too
+        with memory_option_named(MEMORY_OPTION, limits=spec.memory is not None):
             row = _execute(spec, row)
     except TaskError as exc:
         row.update(status="error", error=str(exc))
