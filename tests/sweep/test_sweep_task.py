@@ -745,6 +745,24 @@ def test_a_tasks_budget_refusal_names_the_sweeps_option(folder: Path, task: str,
     assert memory_option() == "--max-memory"  # the task's option ends with it
 
 
+@pytest.mark.parametrize(("options", "seeds"), [
+    ((("episodes", "20"), ("reward_function", "goal()")), "the seeds (--seed N runs one seed instead of 5)"),
+    ((("episodes", "20"), ("seed", "4"), ("reward_function", "goal()")), None)])
+def test_an_experiment_tasks_budget_refusal_advises_only_what_the_sweep_can_change(
+        folder: Path, monkeypatch: pytest.MonkeyPatch, options: tuple[tuple[str, str], ...], seeds: str | None) -> None:
+    """An experiment task refused by its memory budget advised lowering "the seeds or the combinations", rac
+    experiment's --seeds and --combination: `rac sweep` has neither. It names --seed N (one seed) while the task
+    runs five, nothing about the seeds when it runs one, and never the combinations."""
+    from rac.sweep import work
+
+    monkeypatch.setattr(work, "default_max_bytes", lambda: 1000)
+    row = work.execute(spec(folder, "goal_ahead.xml", "experiment", options=options))
+    error = str(row["error"])
+    assert "more than the memory budget of 1000 B (--task-memory): lower the episodes per run (20, --episodes)" in error
+    assert "combinations" not in error, row
+    assert (seeds in error) if seeds else ("seed" not in error), row
+
+
 @pytest.mark.parametrize(("memory", "advice"), [(2**30, "raise --task-memory"), (None, "a lower --task-memory")])
 def test_running_out_of_memory_before_the_budget_advises_what_helps_in_a_sweep(
         folder: Path, monkeypatch: pytest.MonkeyPatch, memory: int | None, advice: str) -> None:

@@ -247,13 +247,19 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
     return (table if computed.shield_exists else None), time.perf_counter() - t0, computed.graph.n_states, onward
 
 
+def _lower(first: str, fewer_runs: str | None) -> str:
+    """The advice of a budget refusal: lower ``first``, or ``fewer_runs`` (:func:`run_experiment`)."""
+    return f"lower {first}" + (f", {fewer_runs}" if fewer_runs else "")
+
+
 def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4, 5), episodes: int = 500,
                    evaluation_runs: int = 100, reward_function: str | None = None, horizon_samples: int | None = None,
                    parallel: int = 16, max_states: int = 5_000_000, combinations: Sequence[str] | None = None,
                    bins: Sequence[float] | None = None, counterfactuals: bool = True, replay: int = 1,
                    growth: float | None = GROWTH, ablation: bool = False, observe_time: bool = True,
                    max_bytes: int | None = None, memo: bool = True,
-                   progress: Callable[[str], None] | None = None) -> Report:
+                   progress: Callable[[str], None] | None = None,
+                   fewer_runs: str | None = "the seeds or the combinations") -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
     ``bins``: the widths of the continuous observations (default: derived from the model and its
     goal, :func:`rac.learning.strategy.derived_bins`); ``counterfactuals``: the RA combinations learn
@@ -265,7 +271,9 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     memory budget of the shield and the learning (None: none), checked before either starts
     (:func:`rac.engine.budget.learning_bytes` for all runs together); ``memo``: the episodes recall
     the steps taken before (:class:`rac.learning.episodes.EpisodeBatch`'s ``memo``; the same results,
-    benchmarks/learning.py compares the time). Every combination
+    benchmarks/learning.py compares the time); ``fewer_runs``: what else the caller's user may lower to run
+    fewer runs, as the budget's refusals advise it (``rac sweep`` has no option for the combinations; None:
+    nothing else). Every combination
     learns with :data:`LEARNER` and learns to the budget (the greedy strategy kept is the best
     evaluated: its return keeps improving late, after 90 to 490 of 500 episodes on examples/paper).
 
@@ -318,13 +326,12 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                             observations=len(discrete) + len(continuous) + int(observe_time), actions=shared.n_actions)
     try:  # before the shield and the learning: the runs learn together, so their tables add up
         check_estimate(f"learning {counted(count, 'run')} together", needed, max_bytes,
-                       f"lower the episodes per run ({episodes:,}, --episodes), the seeds or the combinations")
+                       _lower(f"the episodes per run ({episodes:,}, --episodes)", fewer_runs))
         # and every strategy's evaluation runs together afterwards: it met the budget only as a MemoryError
         check_estimate(f"evaluating {counted(count, 'strategy', 'strategies')} over "
                        f"{counted(evaluation_runs, 'run')} each together",
                        evaluation_bytes(runs=count * evaluation_runs, steps=shared.max_steps, samples=horizon),
-                       max_bytes, f"lower the evaluation runs ({evaluation_runs:,}, --runs), the seeds or the "
-                       "combinations")
+                       max_bytes, _lower(f"the evaluation runs ({evaluation_runs:,}, --runs)", fewer_runs))
     except BudgetExceeded as exc:
         raise ExperimentError(str(exc), "limit") from None
     # The shield also judges every combination's runs: a run is safe at the goal only if it can stay

@@ -291,8 +291,13 @@ def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, A
     if "seed" in options and "seeds" in options:
         raise TaskError("give the option seeds or seed, not both")
     seeds = options.get("seeds", [options["seed"]] if "seed" in options else [1, 2, 3, 4, 5])
+    # what else the sweep can lower, for the budget's refusals: `rac sweep` has no option for the combinations, and
+    # seeds only as the option seeds (the API's) or --seed N (one seed)
+    fewer_runs = (None if len(seeds) == 1 else f"the seeds (option seeds, {len(seeds)})" if "seeds" in options
+                  else f"the seeds (--seed N runs one seed instead of {len(seeds)})")
     try:
         report = run_experiment(result, seeds=seeds, episodes=options.get("episodes", 500),
+                                fewer_runs=fewer_runs,
                                 evaluation_runs=options.get("runs", 100),
                                 reward_function=options.get("reward_function"),
                                 horizon_samples=_horizon_samples(result, options.get("horizon")),
