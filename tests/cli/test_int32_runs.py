@@ -107,7 +107,10 @@ def test_preanalyse_reports_the_row_and_never_exits_0_with_one_unanswered(
     rows = {row["exponent"]: row for row in json.loads(captured.out)["settings"]}
     assert "error" not in rows[2] and rows[2]["qb"] is False  # centimetres: the car leaves the road, in range
     assert rows[6]["error"].startswith("a sensed value left the int32 range at this exponent")
-    assert "1 of 2 settings were not answered" in captured.err
+    # the overflowing setting keeps Qb-Qd (the exploration ends a run at its first unsafe state): answered in part,
+    # which said "were not answered" as if it had none
+    assert "rac preanalyse: 1 of 2 settings were answered only in part (their rows say why)" in captured.err
+    assert json.loads(captured.out)["answered"] == {"fully": 1, "partly": 1, "not": 0}
     assert Fraction(rows[6]["sense"]) == Fraction(1, 2)
 
 
@@ -122,3 +125,16 @@ def test_preanalyse_answers_what_the_overflow_leaves_answerable(capsys: pytest.C
     [row] = [row for row in json.loads(capsys.readouterr().out)["settings"] if "exponent" in row]
     assert row["error"].startswith("a sensed value left the int32 range at this exponent in Qa's runs: sense(): x = ")
     assert "qa" not in row and (row["qb"], row["qc"], row["qd"]) == (False, False, False) and row["states"] > 0
+
+
+def test_preanalyse_counts_settings_answered_in_part_apart(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """A setting answered in part (Qa's runs left int32, Qb-Qd answered) and one not answered at all (a decision
+    period that is no multiple of the sensing period) were both "not answered": the message, and the JSON,
+    count them apart; exit 4 either way (something left undecided)."""
+    path = write_far_road(tmp_path)
+    assert main(["preanalyse", str(path), "--exponent", "2,6", "--decide", "0.5,0.75", "--runs", "3", "--seed", "1",
+                 "-q", "--format", "json", "-o", str(tmp_path / "out")]) == 4
+    captured = capsys.readouterr()
+    assert captured.err == ("rac preanalyse: 3 of 4 settings were not answered in full (1 in part, 2 not at all) "
+                            "(their rows say why)\n")
+    assert json.loads(captured.out)["answered"] == {"fully": 1, "partly": 1, "not": 2}

@@ -707,7 +707,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
 @_on_checked_file
 def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     # numpy, scipy, stormpy (via rac.studies.preanalysis): only the command that uses it loads it
-    from rac.studies.preanalysis import SweepError, render_table, sweep
+    from rac.studies.preanalysis import SweepError, answered, render_table, sweep
 
     out_dir = _out_dir(args)
     done: list[dict[str, object]] = []  # each setting's row as it is found: Ctrl-C still shows those
@@ -737,8 +737,11 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         result = _horizon_warnings(result, args, goal=False)
     # an earlier run's plots this run did not draw again: said, where they were left beside this run's as if its own
     gone = [path for path in removed if not path.exists()]
+    # how far each setting is answered (not the sweep plot's entry): a row that lost some answers is not "not answered"
+    extent = [answered(row) for row in rows if "exponent" in row]
     if args.format == "json":
-        document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "settings": rows}
+        document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "settings": rows,
+                                       "answered": {how: extent.count(how) for how in ("fully", "partly", "not")}}
         if gone:
             document["removed"] = [str(path) for path in gone]
         if interrupted:
@@ -766,12 +769,17 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         print(f"rac preanalyse: {how_stopped()}; {counted(n, 'setting')} finished before it "
               f"({where if n else 'none'})", file=sys.stderr)
         return EXIT_INTERRUPTED
-    undecided = sum(1 for row in rows if "error" in row)
-    if undecided:  # a setting without answers is undecided, and an undecided answer never exits 0
-        settings = sum(1 for row in rows if "exponent" in row)  # not the sweep plot's entry
+    partly, unanswered = extent.count("partly"), extent.count("not")
+    if partly or unanswered:  # a setting without all its answers is undecided, which never exits 0
         late = sum(1 for row in rows if "time_limit" in row)
         why = f"; {late} given up past --max-seconds {args.max_seconds:g}" if late else ""
-        print(f"rac preanalyse: {undecided} of {settings} settings were not answered (their rows say why{why})",
+        if not partly:
+            how = "were not answered"
+        elif not unanswered:
+            how = "were answered only in part"
+        else:
+            how = f"were not answered in full ({partly} in part, {unanswered} not at all)"
+        print(f"rac preanalyse: {partly + unanswered} of {len(extent)} settings {how} (their rows say why{why})",
               file=sys.stderr)
         return EXIT_UNDECIDED
     return EXIT_OK

@@ -56,10 +56,20 @@ from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.model.native import NEGATIVE_DISTANCE_TEXT, NO_OBSTACLE
 from rac.model.sample import MOTION, Ego
 
-__all__ = ["SWEEP_PLOT", "Row", "SweepError", "earlier_plots", "render_table", "sweep"]
+__all__ = ["ANSWERS", "SWEEP_PLOT", "Row", "SweepError", "answered", "earlier_plots", "render_table", "sweep"]
 
 #: One row of the sweep (JSON-shaped: the CLI prints it as JSON and as a table).
 Row = dict[str, Any]
+#: A setting's answers, by their keys in its row.
+ANSWERS = ("qa", "qb", "qc", "qd")
+
+
+def answered(row: Row) -> str:
+    """How far a setting's ``row`` is answered: ``"fully"`` (no error), ``"partly"`` (an error, and some of
+    :data:`ANSWERS`: e.g. Qa's runs left int32 and Qb-Qd came from the exploration) or ``"not"``."""
+    if "error" not in row:
+        return "fully"
+    return "partly" if any(row.get(key) is not None for key in ANSWERS) else "not"
 
 #: The exponent at which true distances are measured (0.1 mm at base 10).
 TRUTH_EXPONENT = 4
