@@ -530,6 +530,21 @@ def test_preanalyse_reports_a_decide_period_that_is_no_multiple(capsys: pytest.C
                    "error": "the decision period is not a whole multiple of the sensing period"}
 
 
+def test_preanalyse_shows_qa_of_a_setting_whose_exploration_stopped(capsys: pytest.CaptureFixture[str],
+                                                                     tmp_path: Path) -> None:
+    """A setting whose exploration went past --max-states after Qa was answered showed its error alone in the table:
+    Qa's interval, in its row of the JSON, was dropped, and the states read 0. The table shows Qa, "—" for the
+    rest, and the error in the last column."""
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["preanalyse", str(path), "--runs", "2", "--seed", "1", "--max-states", "3", "-q",
+                 "--out", str(tmp_path / "pre")]) == 4
+    captured = capsys.readouterr()
+    assert captured.out.splitlines()[-1] == (
+        "| 2 | 0.5 | 1 | [0.000, 0.842] | — | — | — | — | 0.00 | the model has more than 3 states by t = 0.5 s "
+        "(sample 1) |")
+    assert captured.err == "rac preanalyse: 1 of 1 settings were answered only in part (their rows say why)\n"
+
+
 def test_preanalyse_past_max_seconds_exits_4_and_says_so(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """rac preanalyse had no time limit. --max-seconds gives each setting up past it (here at once: within
     Qa's runs), a row without all its answers: exit 4, and the command says how many rows the limit cut."""

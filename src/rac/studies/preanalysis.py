@@ -532,6 +532,10 @@ def _yes(value: object) -> str:
     return "—" if value is None else ("true" if value else "false")
 
 
+def _count(value: int | None) -> str:
+    return "—" if value is None else f"{value:,}"  # an exploration stopped has no states to show, not 0
+
+
 def _qc(row: Row) -> str:
     """Qc and what it means: safe until the goal only, or safe to the horizon too."""
     if not row.get("qc"):
@@ -553,7 +557,7 @@ def render_table(rows: list[Row]) -> str:
                 notes.append(f"sweep plot: {row['sweep_plot']}")
             continue
         head = f"| {row['exponent']} | {row['sense']:g} | {row['decide']:g} |"
-        if "error" in row and "qb" not in row:
+        if answered(row) == "not":  # Qa answered before the exploration stopped keeps its column
             lines.append(f"{head} {row['error']} | | | | | | |")
             continue
         qa = row.get("qa")
@@ -570,5 +574,5 @@ def render_table(rows: list[Row]) -> str:
                 below += (f" (measured at exponent {row['truth_exponent']}: the scenario overflows int32 at "
                           f"exponent {TRUTH_EXPONENT})")
         lines.append(f"{head} {qa_text} | {_yes(row.get('qb'))} | {_qc(row)} | {_yes(row.get('qd'))} | "
-                     f"{row.get('states', 0):,} | {row.get('seconds', 0):.2f} | {below} |")
+                     f"{_count(row.get('states'))} | {row.get('seconds', 0):.2f} | {below} |")
     return "\n".join(lines + ([""] + notes if notes else []))
