@@ -332,6 +332,53 @@ def test_masks_of_a_stable_baselines3_vec_env(files: dict[str, Path], table: Shi
         assert action_masks(venv).tolist() == masks.tolist()  # type: ignore[arg-type]
 
 
+class SubprocLike:
+    """What stable-baselines3's SubprocVecEnv does here (no SB3 in CI): each environment in a process of its own,
+    whose loop (SB3's ``_worker``) answers ``env_method`` and catches EOFError alone, so that any other error of the
+    method ends the process and the parent's ``recv`` gets EOFError."""
+
+    def __init__(self, make: Any) -> None:
+        import multiprocessing
+
+        context = multiprocessing.get_context("fork")
+        self.remote, work = context.Pipe()
+        self.process = context.Process(target=self.worker, args=(work, make), daemon=True)
+        self.process.start()
+        work.close()
+        self.unwrapped = self
+
+    @staticmethod
+    def worker(remote: Any, make: Any) -> None:
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), 2)  # the traceback SB3's process prints: not in the test's output
+        env = make()
+        while True:
+            try:
+                name = remote.recv()
+                remote.send(env.get_wrapper_attr(name)())
+            except EOFError:
+                break
+
+    def env_method(self, name: str) -> list[Any]:
+        self.remote.send(name)
+        return [self.remote.recv()]
+
+
+def test_masks_of_a_subprocess_vec_env_before_reset_say_what_happened(files: dict[str, Path]) -> None:
+    # action_masks(venv) of SB3's SubprocVecEnv before reset(): ScenarioEnv's "call reset() before action_masks()"
+    # ended the environment's process (SB3's worker ends on any error of env_method) and the parent got a bare
+    # EOFError; rac cannot keep the process alive (masks without a reset would be no guarantee), but says what happened
+    venv = SubprocLike(lambda: gymnasium.make(rac.gym.SCENARIO, model=files["avoidable_obstacle"]))
+    try:
+        with pytest.raises(RuntimeError, match=r"a process of the SubprocLike ended while answering action_masks\(\)"
+                                                r".*call reset\(\) on the vector environment before action_masks"):
+            action_masks(venv)  # type: ignore[arg-type]
+    finally:
+        venv.process.join(30)
+        venv.process.kill()
+
+
 def test_masks_of_a_subprocess_vec_env_without_them_are_refused_saying_so() -> None:
     # action_masks(venv) of SB3's SubprocVecEnv whose environments have no action_masks() ended in EOFError (the
     # worker died on the AttributeError of env_method) and left the VecEnv broken: it is refused, saying why

@@ -385,6 +385,13 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
 
 
 #: Why :func:`action_masks` finds none, and where masks come from.
+#: What :func:`action_masks` says when an environment's process ended while answering (stable-baselines3's
+#: ``SubprocVecEnv``: its worker ends on any exception of ``env_method``, which rac cannot prevent; ``{kind}``: the
+#: VecEnv's class).
+WORKER_ENDED = ("a process of the {kind} ended while answering action_masks(): its environment raised an error, "
+                "printed on standard error above (stable-baselines3's SubprocVecEnv ends a process on any error of "
+                "env_method); most often the environments were not reset yet: call reset() on the vector environment "
+                "before action_masks(). The {kind} cannot be used further: close it and make another")
 NO_MASKS = ("the environments have no action_masks(): the masks are those of rac's scenario environments "
             "(ScenarioEnv, rac/Scenario-v0: the safety shield's); another environment, RewardAutomatonWrapper's "
             "included, needs masks of its own (sb3-contrib's ActionMasker)")
@@ -424,6 +431,10 @@ def action_masks(envs: gymnasium.vector.VectorEnv) -> np.ndarray:  # type: ignor
         masks = call("action_masks")
     except AttributeError as exc:  # gymnasium's: "wrapper TimeLimit has no attribute 'action_masks'"
         raise AttributeError(f"{NO_MASKS} ({exc})") from exc
+    except (EOFError, ConnectionError) as exc:
+        # SubprocVecEnv's process ends on any exception of the method it runs (ScenarioEnv's "call reset() before
+        # action_masks()" most often) and prints it; the parent gets a bare EOFError, which says nothing
+        raise RuntimeError(f"{WORKER_ENDED.format(kind=type(base).__name__)} ({type(exc).__name__})") from exc
     return np.stack([np.asarray(mask, dtype=bool) for mask in masks])
 
 
