@@ -763,6 +763,22 @@ def test_an_experiment_tasks_budget_refusal_advises_only_what_the_sweep_can_chan
     assert (seeds in error) if seeds else ("seed" not in error), row
 
 
+def test_an_experiment_task_stopped_by_its_budget_is_undecided_not_failed(folder: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every ExperimentError made the row "failed" (exit 1, "with errors in the file"): a refusal by the memory
+    budget too, which docs/sweep.md calls an undecided row (as a verify task's budget, exit 4), and a reward function
+    that does not parse, which rac could not run (an error row, as rac experiment's exit 2 for both says)."""
+    from rac.sweep import work
+
+    monkeypatch.setattr(work, "default_max_bytes", lambda: 1000)
+    options = (("seed", "1"), ("episodes", "20"), ("reward_function", "goal()"))
+    row = work.execute(spec(folder, "goal_ahead.xml", "experiment", options=options))
+    assert row["status"] == "undecided" and "more than the memory budget" in str(row["error"]), row
+    monkeypatch.undo()
+    row = work.execute(spec(folder, "goal_ahead.xml", "experiment", options=(("reward_function", "goal() +"),)))
+    assert row["status"] == "error" and str(row["error"]).startswith("--reward-function:"), row
+
+
 @pytest.mark.parametrize(("memory", "advice"), [(2**30, "raise --task-memory"), (None, "a lower --task-memory")])
 def test_running_out_of_memory_before_the_budget_advises_what_helps_in_a_sweep(
         folder: Path, monkeypatch: pytest.MonkeyPatch, memory: int | None, advice: str) -> None:

@@ -303,7 +303,11 @@ def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, A
                                 horizon_samples=_horizon_samples(result, options.get("horizon")),
                                 max_bytes=max_bytes, **_budget(options))
     except ExperimentError as exc:
-        row.update(status="failed", error=str(exc))
+        # whose it is, as rac experiment's exit code says: a budget stops it undecided (as verify's and preanalyse's
+        # tasks, docs/sweep.md), an option the task cannot run with is an error, the scenario's own failure (no safe
+        # strategy from the start) fails it
+        status = {"limit": "undecided", "usage": "error"}.get(exc.kind, "failed")
+        row.update(status=status, error=str(exc))
         return
     row["details"] = summary(report)
     row["states"] = report["shield_states"]
