@@ -818,14 +818,19 @@ def test_the_summary_says_why_tasks_failed() -> None:
     def row(status: str, **verdicts: str) -> dict[str, object]:
         return {"status": status, "scenario": f"s{status}.xml", "settings": {}, "verdicts": verdicts, "error": "x"}
 
-    rows = [row("memory"), row("failed", Q="not satisfied", P="satisfied"), row("failed"), row("timeout"),
+    # an experiment with no safe strategy from the start, on a file that checks (a warning only), was counted "with
+    # errors in the file"
+    unsafe = {**row("failed"), "diagnostics": ["W0728 the horizon runs past the recorded traffic"],
+              "error": "no safe strategy exists from the start: the shielded combinations cannot run"}
+    rows = [row("memory"), row("failed", Q="not satisfied", P="satisfied"),
+            {**row("failed"), "diagnostics": ["E0714 the ego starts at 22 m/s"]}, row("timeout"),
             row("failed", Q="satisfied", P="not satisfied"), row("ok", Q="satisfied"),
-            row("undecided", Q="unknown"), row("error")]
+            row("undecided", Q="unknown"), row("error"), unsafe]
     summary = summarise(rows, tasks=len(rows))
-    assert summary.failed == 6
-    assert summary.failures == {"not satisfied": 2, "file": 1, "error": 1, "timeout": 1, "memory": 1}
+    assert summary.failed == 7
+    assert summary.failures == {"not satisfied": 2, "file": 1, "run": 1, "error": 1, "timeout": 1, "memory": 1}
     assert render_summary(summary).splitlines()[2] == (
-        "failed: 2 with a query not satisfied, 1 with errors in the file, 1 that rac could not run, 1 timed out, "
-        "1 out of memory")
+        "failed: 2 with a query not satisfied, 1 with errors in the file, 1 that failed when run (e.g. an experiment "
+        "with no safe strategy), 1 that rac could not run, 1 timed out, 1 out of memory")
     assert summarise(rows[5:7], tasks=2).failures == {}
     assert "failed:" not in render_summary(summarise(rows[5:7], tasks=2))

@@ -211,6 +211,7 @@ def _problem(row: Mapping[str, object]) -> int | None:
 FAILURE_WORDS: dict[str, str] = {
     "not satisfied": "with a query not satisfied",
     "file": "with errors in the file",
+    "run": "that failed when run (e.g. an experiment with no safe strategy)",
     "error": "that rac could not run",
     "timeout": "timed out",
     "memory": "out of memory",
@@ -219,13 +220,18 @@ FAILURE_WORDS: dict[str, str] = {
 
 def failure_kind(row: Mapping[str, object]) -> str | None:
     """Why a row failed, a key of :data:`FAILURE_WORDS` (None: ok or undecided): a row of status "failed" is
-    "not satisfied" when one of its queries is, else "file" (errors in the file); other statuses are
-    themselves."""
+    "not satisfied" when one of its queries is, "file" when its check found errors (a diagnostic ``E...``), else
+    "run" (the command failed on a file that checks: an experiment with no safe strategy from the start);
+    other statuses are themselves."""
     status = str(row.get("status"))
     if status in NOT_FAILED:
         return None
     if status == "failed":
-        return "not satisfied" if "not satisfied" in _mapping(row, "verdicts").values() else "file"
+        if "not satisfied" in _mapping(row, "verdicts").values():
+            return "not satisfied"
+        diagnostics = row.get("diagnostics")
+        errors = isinstance(diagnostics, (list, tuple)) and any(str(d).startswith("E") for d in diagnostics)
+        return "file" if errors else "run"
     return status
 
 
