@@ -180,6 +180,27 @@ def test_the_verdict_plot_of_a_large_grid_stays_drawable(tmp_path: Path, monkeyp
         assert image.size[0] < 1000
 
 
+def test_the_verdict_plot_counts_a_task_without_verdicts_per_query(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """A preanalyse sweep of four tasks answering Qb-Qd and one whose file failed the check drew a bar of 13 "queries
+    × scenarios": the failed task counted once beside the others' three. It counts once per query (15)."""
+    from rac.sweep import report
+
+    heights: list[float] = []
+    save = report.save_figure
+    monkeypatch.setattr(report, "save_figure", lambda figure, path: heights.extend(
+        patch.get_height() for patch in figure.axes[0].patches) or save(figure, path))
+    answered = {"Qb": "satisfied", "Qc": "satisfied", "Qd": "not satisfied"}
+    rows = [*({"settings": {}, "status": "ok", "verdicts": answered, "seconds": 0.1, "scenario_size": 3}
+              for _ in range(4)),
+            {"settings": {}, "status": "failed", "verdicts": {}, "seconds": 0.1, "scenario_size": 3}]
+    write_plots(rows, tmp_path)
+    assert sorted(heights) == [3, 4, 8]  # task failed: 3 queries; not satisfied: 4; satisfied: 8
+    heights.clear()
+    write_plots([{**row, "verdicts": {}} for row in rows], tmp_path)  # no verdicts at all (experiment): tasks
+    assert sorted(heights) == [1, 4]
+
+
 def test_a_sweep_without_rows_leaves_no_plots_of_an_earlier_one(tmp_path: Path) -> None:
     """A sweep stopped before any row (Ctrl-C at once, nothing stored) wrote empty results.* but left the plots
     of the earlier sweep in the folder, which then showed rows the results did not hold."""

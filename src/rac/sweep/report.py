@@ -306,17 +306,19 @@ def render_summary(summary: Summary, *, problems_shown: int = 10) -> str:
 
 
 # ---------------------------------------------------------------- plots
-def _outcomes(row: Mapping[str, object]) -> list[str]:
-    """What a row adds to the verdict mix: one verdict per query, or its status when it has no verdicts."""
+def _outcomes(row: Mapping[str, object], queries: int) -> list[str]:
+    """What a row adds to the verdict mix: one verdict per query, or its status when it has no verdicts, once per
+    query the other rows answer (``queries``; 1 when none has verdicts), so that a bar stays queries × scenarios."""
     verdicts = _mapping(row, "verdicts")
-    return [str(v) for v in verdicts.values()] if verdicts else [f"task {row.get('status')}"]
+    return [str(v) for v in verdicts.values()] if verdicts else [f"task {row.get('status')}"] * queries
 
 
 def write_plots(rows: Sequence[Mapping[str, object]], folder: Path) -> list[Path]:
     """``verdicts.png`` (the verdict mix per grid point, stacked bars; a task without verdicts counts as
-    its status) and ``time_vs_size.png`` (seconds per task against the scenario's size, lanelets plus
-    obstacles, one colour per status) in ``folder``; without rows none, and those an earlier sweep wrote there
-    are removed (they would show its rows beside this sweep's empty results). Returns the files written."""
+    its status, once per query the other tasks answer) and ``time_vs_size.png`` (seconds per task against the
+    scenario's size, lanelets plus obstacles, one colour per status) in ``folder``; without rows none, and those
+    an earlier sweep wrote there are removed (they would show its rows beside this sweep's empty results).
+    Returns the files written."""
     if not rows:
         for name in (VERDICT_PLOT, TIME_PLOT):
             (folder / name).unlink(missing_ok=True)
@@ -331,10 +333,13 @@ def _plot_verdicts(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
     every = list(dict.fromkeys(grid_label(_mapping(row, "settings")) for row in rows))
     points = every[:PLOTTED_POINTS]
     counts = {point: Counter[str]() for point in points}
+    # a task without verdicts (a file that does not check, a timeout) stands for the queries it did not answer: it
+    # counted once in bars of "queries × scenarios" (a failed preanalyse task 1 beside the others' Qb-Qd 3 each)
+    queries = max((len(_mapping(row, "verdicts")) for row in rows), default=0) or 1
     for row in rows:
         label = grid_label(_mapping(row, "settings"))
         if label in counts:
-            counts[label].update(_outcomes(row))
+            counts[label].update(_outcomes(row, queries))
     known = [*VERDICTS, *(f"task {status}" for status in STATUSES)]
     seen = {outcome for c in counts.values() for outcome in c}
     categories = [c for c in known if c in seen] + sorted(seen - set(known))
