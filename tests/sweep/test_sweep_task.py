@@ -235,6 +235,32 @@ def test_a_preanalyse_task_killed_at_its_timeout_keeps_the_answers_found(folder:
     [setting] = row["details"]  # type: ignore[misc]
     assert setting["qa"] is not None and "qb" not in setting and setting["error"] == said
     assert row["verdicts"] == {} and row["states"] is None
+    assert row["scenario_size"] == 1  # the road's one lanelet: the task's time is drawn against it in time_vs_size.png
+
+
+def test_a_task_killed_at_its_timeout_keeps_its_scenarios_size(folder: Path, tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """A task killed at its --task-timeout had no scenario_size, though its check had loaded the scenario:
+    time_vs_size.png left out exactly the slow tasks ("1 tasks without a size not shown"). An experiment task, which
+    keeps no answers, keeps the size."""
+    from rac.sweep.report import write_plots
+
+    hook = tmp_path / "hook"  # the child's sitecustomize: the shield runs past any timeout
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text("import time\nimport rac.engine.shield as s\n"
+                                           "s.synthesise = lambda *args, **kw: time.sleep(600)\n", encoding="utf-8")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(hook), os.environ.get("PYTHONPATH", "")]))
+    row = run_task(spec(folder, "goal_ahead.xml", "experiment", options=OPTIONS["experiment"], timeout=8))
+    assert row["status"] == "timeout" and row["error"] == "ran past the task timeout of 8 s", row
+    assert row["scenario_size"] == 1, row
+    from rac.sweep import report
+
+    titles: list[str] = []
+    save = report.save_figure
+    monkeypatch.setattr(report, "save_figure", lambda figure, path: titles.append(figure.axes[0].get_title())
+                        or save(figure, path))
+    write_plots([row, {**row, "scenario_size": None}], tmp_path)
+    assert titles[-1] == "task time against scenario size (1 task without a size not shown)"
 
 
 def test_a_verify_task_killed_at_its_timeout_keeps_the_verdicts_found(folder: Path, tmp_path: Path,

@@ -24,6 +24,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rac.core.diagnostics import counted
 from rac.core.files import atomic_write
 from rac.model.commonroad import with_planning_problem
 from rac.output.plots import fit_title, new_figure, save_figure
@@ -386,7 +387,7 @@ def _plot_times(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
     ax.set_ylabel("seconds per task")
     ax.grid(True, color="#e0e0e0", linewidth=0.6)
     missing = len(rows) - len(sized)
-    ax.set_title("task time against scenario size" + (f" ({missing} tasks without a size not shown)"
+    ax.set_title("task time against scenario size" + (f" ({counted(missing, 'task')} without a size not shown)"
                                                       if missing else ""))
     fit_title(figure, ax.title)
     return save_figure(figure, path)

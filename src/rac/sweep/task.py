@@ -83,7 +83,7 @@ KILLING_SIGNALS = frozenset({signal.SIGKILL, signal.SIGTERM})
 #: What a task's partial file (:attr:`TaskSpec.partial`) may give the row of a task killed at its timeout; besides,
 #: ``kept`` (what it holds, in words) goes into the row's error, and ``running`` (the index in ``details`` of the part
 #: that was running, or null) says which part of the details gets that error.
-PARTIAL_FIELDS = ("details", "verdicts", "states", "seed")
+PARTIAL_FIELDS = ("details", "verdicts", "states", "seed", "scenario_size")
 #: The last characters of the child's standard error an error row quotes.
 _STDERR_TAIL = 2000
 
@@ -324,9 +324,11 @@ def _kept(partial: str, error: str) -> dict[str, Any]:
             found = json.load(file)
     except (OSError, ValueError):  # nothing found yet: the file was never written
         return {"error": error}
-    if not isinstance(found, dict) or not found.get("kept"):
+    if not isinstance(found, dict):
         return {"error": error}
     kept = {name: found[name] for name in PARTIAL_FIELDS if name in found}
+    if not found.get("kept"):  # no answers yet: what the task knew of its scenario (its size) alone
+        return {"error": error, **({"scenario_size": kept["scenario_size"]} if "scenario_size" in kept else {})}
     running, details = found.get("running"), kept.get("details")
     if isinstance(running, int) and isinstance(details, list) and 0 <= running < len(details) \
             and isinstance(details[running], dict):  # the part cut short says why it has no more answers

@@ -112,6 +112,8 @@ def _execute(spec: TaskSpec, row: dict[str, Any]) -> dict[str, Any]:
     row["diagnostics"] = [f"{d.code} {d.message}" for d in result.diagnostics
                           if d.severity in (Severity.ERROR, Severity.WARNING)]
     row["scenario_size"] = _size(result)
+    # a task killed at its timeout keeps it too: the slow tasks were the ones missing from time_vs_size.png
+    _keep(spec.partial, {"scenario_size": row["scenario_size"], "kept": ""})
     errors = [d for d in result.diagnostics if d.is_error]
     if errors:
         # a scenario that cannot be loaded or is inconsistent: rac could not run the task ("error", not "failed")
@@ -217,7 +219,8 @@ def _verify(result: CompileResult, options: dict[str, Any], row: dict[str, Any],
     def starting(query: str) -> None:  # before each query: the answers so far, which a task killed later keeps
         names = [r.name for r in answered]
         kept = f"kept the answers of the queries before it ({', '.join(names)}); it was answering {query}"
-        _keep(partial_file, {**_verify_fields(answered, seed), "kept": kept if names else "", "running": None})
+        _keep(partial_file, {**_verify_fields(answered, seed), "kept": kept if names else "", "running": None,
+                             "scenario_size": row.get("scenario_size")})
 
     with tempfile.TemporaryDirectory(prefix="rac-sweep-") as out:  # strategies and CSV files are not kept
         try:
@@ -254,6 +257,7 @@ def _preanalyse(result: CompileResult, options: dict[str, Any], row: dict[str, A
         found = [name for name in ("Qa", *PREANALYSIS_VERDICTS.values())
                  if any(r.get(name.lower()) is not None for r in rows)]
         _keep(partial_file, {**_preanalysis_fields(rows), "running": len(rows) - 1 if running else None,
+                             "scenario_size": row.get("scenario_size"),
                              "kept": f"kept the answers found before it ({', '.join(found)}) in its details"
                              if found else ""})
 
