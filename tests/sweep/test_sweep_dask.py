@@ -180,6 +180,23 @@ def test_the_verdict_plot_of_a_large_grid_stays_drawable(tmp_path: Path, monkeyp
         assert image.size[0] < 1000
 
 
+def test_whole_number_columns_stay_whole_beside_an_empty_cell(tmp_path: Path) -> None:
+    """results.parquet gave a failed task's empty states beside an ok task's 94468 as float64: 94468.0, and
+    peak_memory and scenario_size alike. Those columns are pandas' nullable Int64; seconds stay floats."""
+    pytest.importorskip("pyarrow", reason="Parquet needs pyarrow")
+    from rac.sweep.report import frame, write_results
+
+    rows = [{"scenario": "a.xml", "settings": {}, "task": "experiment", "status": "ok", "seconds": 1.5,
+             "states": 94468, "scenario_size": 6, "peak_memory": 135507968},
+            {"scenario": "b.xml", "settings": {}, "task": "experiment", "status": "failed", "seconds": 0.25,
+             "states": None, "scenario_size": None, "peak_memory": 110960640}]
+    write_results(rows, tmp_path)
+    for data in (pd.read_parquet(tmp_path / "results.parquet"), frame(rows)):
+        assert {str(data[name].dtype) for name in ("states", "scenario_size", "peak_memory")} == {"Int64"}
+        assert data["states"].tolist()[0] == 94468 and data["states"].isna().tolist() == [False, True]
+        assert str(data["seconds"].dtype) == "float64"
+
+
 def test_the_verdict_plot_counts_a_task_without_verdicts_per_query(tmp_path: Path,
                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """A preanalyse sweep of four tasks answering Qb-Qd and one whose file failed the check drew a bar of 13 "queries
