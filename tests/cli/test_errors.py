@@ -219,6 +219,35 @@ def test_an_option_the_command_cannot_use_is_json(args: list[str], message: str,
     assert isinstance(found, list) and message in found[0]["message"]
 
 
+@pytest.mark.parametrize(("args", "message"), [
+    (["check", "--bogus"], "unrecognized arguments: --bogus"),
+    (["compile", "--target", "java"], "argument --target: invalid choice: 'java'"),
+    (["tune", "--horizon", "x"], "argument --horizon"),
+    (["verify", "--max-states", "x"], "argument --max-states: not a whole number: 'x'"),
+    (["simulate", "--runs"], "argument --runs: expected one argument"),
+    (["render", "--shield", "--strategy", "s"], "not allowed with argument --shield"),
+    (["preanalyse", "--max-memory", "lots"], "argument --max-memory: `lots` is not a size"),
+    (["experiment", "--form=json", "--episodes", "0"], "argument --episodes"),
+    (["sweep"], "the following arguments are required: SCENARIOS"),
+])
+def test_a_command_line_the_parser_refuses_is_json_when_it_asks_for_json(
+        args: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac COMMAND --format json` with an unknown option or a bad value: standard output is one JSON array of
+    an E0014, as for the command's other usage errors (it was empty: the usage message was only text on standard
+    error), with the same exit status 2; standard error keeps argparse's usage message."""
+    path = write_engine_file(tmp_path, "goal_ahead", {"Stays": QUERIES["Stays"]})
+    status = main([args[0], str(path), *args[1:], *([] if "--form=json" in args else ["--format", "json"])])
+    out, err = capsys.readouterr()
+    found = json.loads(out)
+    assert status == 2 and codes(found) == ["E0014"]
+    assert isinstance(found, list) and message in found[0]["message"] and found[0]["span"] is None
+    assert f"`rac {args[0]} --help`" in found[0]["hints"][0]
+    assert f"usage: rac {args[0]}" in err and f"rac {args[0]}: error: {found[0]['message']}" in err
+    # without --format json (or with the last --format text) it stays text alone, exit 2 as well
+    assert main([args[0], str(path), *args[1:], "--format", "json", "--format", "text"]) == 2
+    assert capsys.readouterr().out == ""
+
+
 def test_an_output_folder_that_cannot_be_written_is_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", {})
     (tmp_path / "afile").write_text("mine\n", encoding="utf-8")

@@ -15,7 +15,7 @@ import sys
 from collections.abc import Callable, Sequence
 from fractions import Fraction
 from pathlib import Path
-from typing import TypeVar
+from typing import NoReturn, TypeVar
 
 from rac import __version__
 from rac.cli.common import size_argument
@@ -23,8 +23,8 @@ from rac.core.numbers import MIN_SEED
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX
 from rac.sweep.kinds import MEMORY_OPTION, TASKS
 
-__all__ = ["COMMANDS", "DEFAULT_TEMPLATE", "MIN_SEED", "TARGETS", "build_parser", "positive_fraction",
-           "horizons_argument", "counting", "probability", "seed_argument", "seeds_argument"]
+__all__ = ["COMMANDS", "CommandLineError", "DEFAULT_TEMPLATE", "MIN_SEED", "TARGETS", "asks_json", "build_parser",
+           "positive_fraction", "horizons_argument", "counting", "probability", "seed_argument", "seeds_argument"]
 
 T = TypeVar("T")
 
@@ -136,14 +136,49 @@ class _CommandParser(argparse.ArgumentParser):
         self.register("action", "store", _Once)
         #: The values of the :class:`_Once` options given in the parse under way.
         self.given: dict[str, object] = {}
+        #: Whether the command line being parsed asks for ``--format json`` (:func:`asks_json`).
+        self.json_asked = False
 
     def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]  # argparse's overloads
                          namespace: argparse.Namespace | None = None) -> tuple[argparse.Namespace, list[str]]:
         self.given = {}
+        self.json_asked = any(action.dest == "format" for action in self._actions) and asks_json(args or ())
         parsed, extras = super().parse_known_args(args, namespace)
         if extras:
             self.error(f"unrecognized arguments: {' '.join(extras)}")
         return parsed, extras
+
+    def error(self, message: str) -> NoReturn:  # type: ignore[override]  # argparse's exits; this may raise
+        """argparse's usage message and exit 2, or with ``--format json`` on the command line
+        :class:`CommandLineError`: a script that asked for JSON reads one document on standard output
+        whatever went wrong, a mistake in its own command line too."""
+        if self.json_asked:
+            raise CommandLineError(self, message)
+        super().error(message)
+
+
+class CommandLineError(Exception):
+    """A mistake the command line's parser found (an unknown option, a value that is not a number, a missing
+    argument) in a command whose line asks for ``--format json``: :func:`rac.cli.main.main` prints it as an
+    E0014 diagnostic on standard output, and argparse's usage message on standard error (exit 2)."""
+
+    def __init__(self, parser: argparse.ArgumentParser, message: str) -> None:
+        super().__init__(message)
+        self.parser = parser
+        self.message = message
+
+
+def asks_json(args: Sequence[str]) -> bool:
+    """Whether a command line asks for ``--format json`` (``--format=json``, or an abbreviation argparse
+    accepts such as ``--form json``), found before the line is parsed: its own mistakes are then JSON too."""
+    asked = False
+    for i, arg in enumerate(args):
+        if arg == "--":  # what follows is positional
+            break
+        name, equals, value = arg.partition("=")
+        if len(name) > 3 and "--format".startswith(name):
+            asked = (value if equals else args[i + 1] if i + 1 < len(args) else "") == "json"  # the last counts
+    return asked
 
 
 def _argument(convert: Callable[[str], T], kind: str, accepts: Callable[[T], bool], need: str) -> Callable[[str], T]:

@@ -18,7 +18,7 @@ import sys
 from collections.abc import Sequence
 from typing import TextIO
 
-from rac.cli.arguments import COMMANDS, build_parser
+from rac.cli.arguments import COMMANDS, CommandLineError, build_parser
 from rac.cli.common import (
     EXIT_ERRORS,
     EXIT_INTERNAL,
@@ -33,6 +33,7 @@ from rac.cli.common import (
     resource_limit,
     stdout_unwritable,
     terminate_as_interrupt,
+    usage_error,
 )
 from rac.core.diagnostics import RacError, display_text, json_text, render_text
 from rac.core.resources import ScenarioTooLarge
@@ -55,6 +56,8 @@ def _main(argv: Sequence[str] | None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse exits 2 on bad usage, 0 on --help
         return int(exc.code or 0)
+    except CommandLineError as exc:  # bad usage under --format json: the usage as text, the error as JSON too
+        return _command_line_error(exc)
     module, function = COMMANDS[args.command]
     stdout = sys.stdout
     safe = ReaderSafe(stdout)
@@ -97,6 +100,25 @@ def _main(argv: Sequence[str] | None) -> int:
         return _last_document(args, safe, _internal_error(exc), error=exc)
     finally:
         sys.stdout = stdout
+
+
+def _command_line_error(exc: CommandLineError) -> int:
+    """A mistake in a command line that asks for ``--format json``: argparse's usage message on standard error,
+    as without the option, and on standard output the one document a script reads, a JSON array of one E0014
+    (the shape every command gives an error of the whole command). Returns :data:`EXIT_USAGE`."""
+    exc.parser.print_usage(sys.stderr)
+    print(f"{exc.parser.prog}: error: {exc.message}", file=sys.stderr)
+    stdout = sys.stdout
+    sys.stdout = ReaderSafe(stdout)  # a reader that left, a full disk: still exit 2, never a traceback
+    try:
+        print_diagnostics([usage_error(exc.message, hints=[f"`{exc.parser.prog} --help` lists its options and "
+                                                           "the values they take"])], structured=True)
+        sys.stdout.flush()
+    except StdoutError as failure:
+        print(render_text([stdout_unwritable(failure.cause)], {}), file=sys.stderr)
+    finally:
+        sys.stdout = stdout
+    return EXIT_USAGE
 
 
 def _last_document(args: argparse.Namespace, stdout: ReaderSafe, status: int, *, interrupted: bool = False,
