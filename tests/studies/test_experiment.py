@@ -480,3 +480,29 @@ def test_ctrl_c_while_writing_keeps_the_previous_files_and_shows_what_was_learne
         assert document["seeds"] == [2] and document["interrupted"] == "writing"
     else:
         assert "| RF |" in printed
+
+
+def test_json_keeps_the_files_warnings_and_names_the_files_written(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """Regression: `rac experiment --format json` printed results.json alone: the file's warnings, which text prints
+    on standard error and JSON leaves out of it, were nowhere (simulate, render, verify have them in the
+    document's `warnings`), nor the files written (text's `wrote PATH` lines; simulate's `wrote`)."""
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace("    input near : bool", "    input unused : bool\n    input near : bool").replace(
+        "        bind near =", "        bind unused = mindist() < 1\n        bind near ="), encoding="utf-8")
+    out = tmp_path / "out"
+    args = ["experiment", str(path), "--episodes", "4", "--runs", "2", "--reward-function", REWARD_FUNCTION,
+            "--combination", "RF", "--seeds", "1", "--out", str(out), "-q"]
+    assert main(args) == 0
+    assert "warning[W0303]: input `unused` is never used" in capsys.readouterr().err
+    assert main([*args, "--format", "json"]) == 0
+    printed, err = capsys.readouterr()
+    document = json.loads(printed)
+    assert "W0303" not in err
+    assert [(w["code"], w["span"]["line"]) for w in document["warnings"]] == [("W0303", 3)]
+    assert document["wrote"] == [str(out / name) for name in
+                                 ("experiment.md", "results.json", "returns.png", "first_success.png")]
+    # the rest is results.json as written
+    written = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert {k: v for k, v in document.items() if k not in ("warnings", "wrote")} == written

@@ -839,10 +839,13 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
         return EXIT_USAGE if exc.kind in ("usage", "limit") else EXIT_ERRORS
     if report.get("interrupted"):  # the study sees a KeyboardInterrupt either way; which signal it was, the CLI knows
         report = {**report, "stopped_by": stopping_signal()}
+    # the file's warnings bear on the results; JSON drops them from standard error (_load): the document has them
+    warnings = {"warnings": _warnings(result)}
+
     def unwritten(extra: dict[str, object]) -> None:
         """The results that were not written, shown: one JSON document with ``extra`` in it, or the tables."""
         if args.format == "json":
-            print(json_text({**json.loads(results_json(report)), **extra}, indent=1))
+            print(json_text({**json.loads(results_json(report)), **warnings, **extra}, indent=1))
         else:
             print(render_markdown(report))
             if report.get("ablation"):
@@ -867,8 +870,9 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
             print_diagnostics([failed])
         print("rac experiment: the results above were not all written (the error above)", file=sys.stderr)
         return EXIT_USAGE
-    if args.format == "json":
-        print((out_dir / "results.json").read_text(encoding="utf-8"))
+    if args.format == "json":  # results.json, with the file's warnings and the files written, as simulate's `wrote`
+        document = json.loads((out_dir / "results.json").read_text(encoding="utf-8"))
+        print(json_text({**document, **warnings, "wrote": [str(path) for path in files]}, indent=1))
     else:
         print(render_markdown(report))
         print()
