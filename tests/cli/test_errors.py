@@ -290,6 +290,28 @@ def test_sweep_usage_errors_are_json(args: list[str], message: str, tmp_path: Pa
     assert status == 2 and codes(found) == ["E0008"]
 
 
+@pytest.mark.parametrize("form", ["text", "json"])
+def test_a_sweep_template_that_does_not_parse_gives_its_own_diagnostic(
+        form: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Regression: `rac sweep` on a template with a syntax error printed one E0014 whose message held the E0001
+    rendered as text (no code, no span a script could read); it now gives the E0014 and the file's E0001 with its
+    span, as `rac check` reports it, and still exits 2 (nothing ran)."""
+    path = write_engine_file(tmp_path, "goal_ahead", {})
+    path.write_text(path.read_text(encoding="utf-8").replace("reward sa", "reward sa oops("), encoding="utf-8")
+    status = main(["sweep", str(path), str(tmp_path / "goal_ahead.xml"), "--task", "check", "-q", "--format", form,
+                   "-o", str(tmp_path / "sweep")])
+    out, err = capsys.readouterr()
+    assert status == 2
+    if form == "text":
+        assert out == "" and err.startswith(f"error[E0014]: the template {path} does not parse\n")
+        assert f"{path}:5:15: error[E0001]: unexpected `oops`" in err
+        return
+    found = json.loads(out)
+    assert err == "" and codes(found) == ["E0014", "E0001"]
+    assert isinstance(found, list) and found[0]["message"] == f"the template {path} does not parse"
+    assert found[1]["span"]["file"] == str(path) and (found[1]["span"]["line"], found[1]["span"]["column"]) == (5, 15)
+
+
 def test_a_scenario_beyond_max_memory_is_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", {})
     for args in (["check"], ["verify", "-o", str(tmp_path / "out")], ["compile", "--target", "python"]):

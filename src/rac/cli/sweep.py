@@ -33,6 +33,7 @@ from rac.cli.common import (
 )
 from rac.core.diagnostics import Diagnostic, json_text
 from rac.sweep import SweepResult, execute, plan
+from rac.sweep.template import TemplateError
 from rac.verify.status import UNDECIDED
 
 __all__ = ["exit_status", "sweep_command"]
@@ -117,6 +118,9 @@ def sweep_command(args: argparse.Namespace) -> int:
         return status
     except OSError as exc:
         print_diagnostics([unreadable(Path(args.template), exc)], {}, as_json(args))
+        return EXIT_USAGE
+    except TemplateError as exc:  # the template's own error as rac check gives it (its code, its span), not as text
+        print_diagnostics([usage_error(exc.summary), exc.diagnostic], exc.sources, as_json(args))
         return EXIT_USAGE
     except ValueError as exc:
         print_diagnostics([usage_error(str(exc))], {}, as_json(args))

@@ -14,23 +14,33 @@ The names a grid may set are the ``model`` block's settings, whose table the che
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TypeVar
 
 from rac.core.diagnostics import render_text
+from rac.core.source import SourceFile
 from rac.ir.vocabulary import MODELLING, SETTINGS, WORD_SETTINGS
 from rac.lang import ast
 from rac.lang.edit import model_block, parse_file_text, setting_value, with_model
-from rac.lang.parser import ParseFailure, read_source
+from rac.lang.parser import ParseFailure, parse_text, read_source
 
-__all__ = ["SETTING_NAMES", "check_template", "instantiate", "setting_value", "template_inputs",
+__all__ = ["SETTING_NAMES", "TemplateError", "check_template", "instantiate", "setting_value", "template_inputs",
            "template_settings"]
-
-T = TypeVar("T")
 
 #: Every name a ``--set`` may give: the ``model`` block's settings (numbers and words).
 SETTING_NAMES: tuple[str, ...] = (*SETTINGS, *MODELLING, *WORD_SETTINGS)
+
+
+class TemplateError(ValueError):
+    """The template is no ``.ra`` file rac can read, or does not parse: ``summary`` says so of the template,
+    ``diagnostic`` is the file's own (E0001-E0005, with its span, as ``rac check`` reports it) and ``sources``
+    the text it points into; the message has both, rendered as text."""
+
+    def __init__(self, summary: str, failure: ParseFailure) -> None:
+        self.summary = summary
+        self.diagnostic = failure.diagnostic
+        self.sources: dict[str, SourceFile] = {failure.source.name: failure.source} if failure.source else {}
+        super().__init__(f"{summary}:\n{render_text([self.diagnostic], self.sources)}")
 
 
 def check_template(path: str | Path) -> str:
@@ -41,10 +51,11 @@ def check_template(path: str | Path) -> str:
     try:  # Windows line ends as \n: they make no new task key (nor did they before)
         text = read_source(path).text.replace("\r\n", "\n")
     except ParseFailure as failure:  # not UTF-8, NUL bytes, too large: E0004/E0005 as rac check says them
-        shown = failure.source
-        rendered = render_text([failure.diagnostic], {shown.name: shown} if shown is not None else {})
-        raise ValueError(f"the template {path} is not a .ra file rac can read:\n{rendered}") from None
-    module = _template(lambda: parse_file_text(text, str(path)))
+        raise TemplateError(f"the template {path} is not a .ra file rac can read", failure) from None
+    try:
+        module = parse_text(text, str(path))
+    except ParseFailure as failure:  # the syntax error itself, with its span (as rac check reports it)
+        raise TemplateError(f"the template {path} does not parse", failure) from None
     try:
         model_block(module, str(path))
     except ValueError:
@@ -79,10 +90,3 @@ def instantiate(template_text: str, template: str | Path, scenario: str | Path,
     except ValueError as exc:  # its words name what is wrong (the template, a value, the path): said of this task
         raise ValueError(f"cannot instantiate the template {template} with the scenario {scenario}: {exc}") from None
 
-
-def _template(edit: Callable[[], T]) -> T:
-    """``edit()``, its ``ValueError`` said of the template (the file name leads the message)."""
-    try:
-        return edit()
-    except ValueError as exc:
-        raise ValueError(f"the template {exc}") from None
