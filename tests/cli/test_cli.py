@@ -114,6 +114,20 @@ def test_check_json(capsys: pytest.CaptureFixture[str], clean: Path, p2_fails: P
     assert bad["diagnostics"][0]["span"]["line"] >= 1
 
 
+def test_check_json_entries_have_the_same_fields_whatever_the_outcome(capsys: pytest.CaptureFixture[str], clean: Path,
+                                                                      p2_fails: Path, tmp_path: Path) -> None:
+    """Regression: an unreadable file's entry had only `file`, `ok`, `diagnostics` and `proved`: a script reading
+    every entry's `facts` or `undecided` failed on it. Every entry now has the same fields."""
+    missing = tmp_path / "nope.ra"
+    assert main(["check", "--format", "json", str(clean), str(missing), str(p2_fails)]) == 2
+    report = json.loads(capsys.readouterr().out)
+    assert [list(entry) for entry in report] == [["file", "ok", "diagnostics", "proved", "facts", "undecided"]] * 3
+    unread = report[1]
+    assert unread["file"] == str(missing) and unread["ok"] is False and [d["code"] for d in unread["diagnostics"]] == [
+        "E0008"]
+    assert unread["proved"] == [] and unread["facts"] == [] and unread["undecided"] is False
+
+
 def test_check_json_as_a_command(clean: Path) -> None:
     done = run_rac("check", "--format", "json", clean)
     assert done.returncode == 0, done.stderr

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -85,6 +86,15 @@ def check_command(args: argparse.Namespace) -> int:
         return _check_files(args)
 
 
+def _check_entry(path: Path, *, ok: bool, diagnostics: Iterable[Diagnostic] = (), proved: Iterable[str] = (),
+                 facts: Iterable[object] = (), undecided: bool = False, **extra: object) -> dict[str, object]:
+    """One file's entry in ``rac check --format json``'s array: every outcome (checked, unreadable, stopped by
+    Ctrl-C) has the same fields, ``{"file", "ok", "diagnostics", "proved", "facts", "undecided"}``, and ``extra``:
+    a script reads them all without a case for each."""
+    return {"file": str(path), "ok": ok, "diagnostics": [d.to_json() for d in sorted(diagnostics, key=sort_key)],
+            "proved": list(proved), "facts": list(facts), "undecided": undecided, **extra}
+
+
 def _check_files(args: argparse.Namespace) -> int:
     status = EXIT_OK
     undecided = False  # a check stopped at its limit: exit 4 unless something worse happened
@@ -103,14 +113,13 @@ def _check_files(args: argparse.Namespace) -> int:
                 result, failure = read_and_check(path, max_bytes, discount)
         except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the files checked before stay in the one document
             if args.format == "json":
-                report.append({"file": str(path), "ok": False, "diagnostics": [], "proved": [], "facts": [],
-                               "undecided": True, "interrupted": True})
+                report.append(_check_entry(path, ok=False, undecided=True, interrupted=True))
                 print(json_text(report, indent=2))
             raise  # rac.cli.main says how it stopped and exits 130 or 143
         if result is None:
             assert failure is not None
             status = max(status, EXIT_USAGE)
-            report.append({"file": str(path), "ok": False, "diagnostics": [failure.to_json()], "proved": []})
+            report.append(_check_entry(path, ok=False, diagnostics=[failure]))
             if args.format == "text":
                 print(render_text([failure], {}), file=sys.stderr)
             continue
@@ -120,10 +129,8 @@ def _check_files(args: argparse.Namespace) -> int:
             status = max(status, EXIT_ERRORS)
         undecided = undecided or result.undecided
         if args.format == "json":
-            report.append({"file": str(path), "ok": errors == 0,
-                           "diagnostics": [d.to_json() for d in sorted(result.diagnostics, key=sort_key)],
-                           "proved": list(result.proved), "facts": [fact.to_json() for fact in result.facts],
-                           "undecided": result.undecided})
+            report.append(_check_entry(path, ok=errors == 0, diagnostics=result.diagnostics, proved=result.proved,
+                                       facts=[fact.to_json() for fact in result.facts], undecided=result.undecided))
             continue
         if result.diagnostics:
             print(render_text(result.diagnostics, result.sources))
