@@ -125,6 +125,17 @@ def test_p2_fails_at_penalty_90_with_the_expected_counterexample() -> None:
     assert "penalise `sa` by at least 8 more (80 / weight 10)" in text
 
 
+
+@pytest.mark.parametrize(("objective", "said"), [
+    ("-10 * sa + 5 * pr + co", "the objective weighs `sa` by -10, so a penalty on `sa` raises it"),
+    ("0 * sa + 5 * pr + co", "the objective leaves `sa` out (weight 0), so a penalty on `sa` does not lower it")])
+def test_p2_failing_for_a_reward_weighted_zero_or_negative_hints_at_the_weight(objective: str, said: str) -> None:
+    """Found by fuzzing: with `sa` weighted <= 0, E0402 had no hint at all (penalising more cannot help,
+    so the usual "penalise by at least" was left out and nothing said what to do instead)."""
+    result = compiled(driving_text(100, **{"objective 10 * sa + 5 * pr + co": f"objective {objective}"}))
+    (diag,) = [d for d in errors(result, "E0402") if d.data["reward"] == "sa"]
+    assert diag.hints == (f"{said}: give `sa` a positive weight in `objective`",)
+
 RATE_READS_AN_INPUT = """\
 automaton Rates {{
     input c : bool

@@ -341,6 +341,10 @@ def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, le
         hints.append(f"penalise `{reward}` by at least {show_number(worst.value / weight)} more "
                      f"({show_number(worst.value)} / weight {show_number(weight)}), or shrink what lower objectives "
                      "can gain")
+    else:  # a larger penalty cannot help: the objective does not weigh the reward up (a sign slip, a lost term)
+        how = f"weighs `{reward}` by {show_number(weight)}" if weight < 0 else f"leaves `{reward}` out (weight 0)"
+        hints.append(f"the objective {how}, so a penalty on `{reward}` {'raises' if weight < 0 else 'does not lower'} "
+                     f"it: give `{reward}` a positive weight in `objective`")
     strict = "strict " if automaton.strict else ""
     return error(
         "E0402",
