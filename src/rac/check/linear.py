@@ -18,7 +18,7 @@ from typing import ClassVar, NoReturn
 
 from rac import ir
 from rac.check.queries import type_word
-from rac.check.symbols import Scope, Unresolvable
+from rac.check.symbols import DIVISION_BY_ZERO_HINT, Scope, Unresolvable
 from rac.ir.vocabulary import MODEL_FUNCTIONS, MODEL_NAMES
 from rac.lang import ast
 from rac.lang.parser import MAX_EXACT_DIGITS, MAX_MAGNITUDE, MIN_MAGNITUDE
@@ -213,7 +213,7 @@ class ExpressionTyper:
                                  hints=["divide by constants only"])
                 raise Unresolvable
             if right.const == 0:
-                self.scope.error("E0207", "division by zero", node.right.span)
+                self.scope.error("E0207", "division by zero", node.right.span, hints=[DIVISION_BY_ZERO_HINT])
                 raise Unresolvable
             return Num(left.scaled(1 / right.const))
         if op in ast.COMPARISON_OPS:

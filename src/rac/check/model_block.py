@@ -145,7 +145,7 @@ class _ModelResolver:
 
     def _twice(self, what: str, span: Span | None, first: Span | None, verb: str = "set") -> None:
         self.error("E0102", f"{what} is {verb} twice in the `model` block", span,
-                   notes=[Note(f"first {verb} here", first)])
+                   notes=[Note(f"first {verb} here", first)], hints=["keep one and delete the other"])
 
     def _scenario(self) -> ast.ModelScenario | None:
         items = self.block.of(ast.ModelScenario)

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from fractions import Fraction
 
 from rac import ir
-from rac.check.symbols import Scope, Symbol, kind_word
+from rac.check.symbols import DIVISION_BY_ZERO_HINT, Scope, Symbol, kind_word
 from rac.core.diagnostics import CheckError, short_number
 from rac.core.numbers import INT32_MAX
 from rac.core.source import SourceFile, Span
@@ -131,7 +131,7 @@ class Lowering:
             if left is None or right is None:
                 return want, None
             if node.op == "/" and _is_zero(right):  # as in the automaton's own expressions (rac.check.linear)
-                self.report("E0207", "division by zero", node.right.span)
+                self.report("E0207", "division by zero", node.right.span, hints=[DIVISION_BY_ZERO_HINT])
                 return want, None
             return want, ie.Binary(node.op, left, right, node.span)
         (lt, left), (rt, right) = self.walk(node.left), self.walk(node.right)

@@ -20,7 +20,7 @@ from rac.check.linear import CONSTANT, OBJECTIVE, RATE, UPDATE, Bool, Context, E
 from rac.check.model_block import resolve_model
 from rac.check.queries import Lowering, model_settings
 from rac.check.standard import standard_queries
-from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable, kind_word
+from rac.check.symbols import ModelContext, Scope, Symbol, Unresolvable, declare_hint, kind_word
 from rac.core.diagnostics import Diagnostic, Note, short_count, short_number, warning
 from rac.core.source import Span
 from rac.ir import expr as ie
@@ -67,7 +67,8 @@ class Resolver:
         if previous is not None:
             kind = "a parameter" if ident.name in self.parameter_names else kind_word(previous.kind)
             self._error("E0102", f"`{ident.name}` is already declared (as {kind})",
-                        ident.span, notes=[Note("first declared here", previous.span)])
+                        ident.span, notes=[Note("first declared here", previous.span)],
+                        hints=["rename one of the two, or delete the repeated declaration"])
             return False
         self.symbols[ident.name] = symbol
         return True
@@ -196,7 +197,8 @@ class Resolver:
             members = self.node.of(kind)
             for extra in members[1:]:
                 self._error("E0106", f"`{word}` is declared more than once", extra.span,
-                            notes=[Note("first declared here", members[0].span)])
+                            notes=[Note("first declared here", members[0].span)],
+                            hints=[f"an automaton has one `{word}`: keep one and delete the others"])
             if members:
                 found[kind] = members[0]
             elif kind not in _OPTIONAL:
@@ -292,7 +294,9 @@ class Resolver:
         except Unresolvable:
             return None
         if value <= 0:
-            self._error("E0206", f"`{word}` must be positive (found {_num(value)})", expr.span)
+            self._error("E0206", f"`{word}` must be positive (found {_num(value)})", expr.span,
+                        hints=[f"write a positive number of seconds, e.g. `{word} "
+                               f"{'0.1' if word == 'sample every' else '30'}`"])
             return None
         return value
 
@@ -341,7 +345,8 @@ class Resolver:
                     continue
                 if name in rates:
                     self._error("E0209", f"location `{decl.name.name}` gives `{name}` two rates", flow.span,
-                                notes=[Note("first rate here", spans[name])])
+                                notes=[Note("first rate here", spans[name])],
+                                hints=[f"a reward has one rate in a location: keep one `{name}' == ...`"])
                     continue
                 try:
                     rates[name] = self.typer.linear(flow.rate, RATE)
@@ -373,7 +378,8 @@ class Resolver:
         else:
             candidates = difflib.get_close_matches(ident.name, names, n=1)
             self._error("E0101", f"unknown location `{ident.name}`", ident.span,
-                        hints=[f"did you mean `{candidates[0]}`?"] if candidates else [])
+                        hints=[f"did you mean `{candidates[0]}`?"] if candidates else [declare_hint(ident.name,
+                                                                                                  "location")])
         return None
 
     def _updates(self, updates: tuple[ast.Update, ...], rewards: tuple[str, ...]) -> tuple[ir.Assignment, ...]:
@@ -487,7 +493,8 @@ class Resolver:
                             "priorities order rewards", ident.span)
             elif ident.name in seen:
                 self._error("E0102", f"`{ident.name}` appears twice in the priority order", ident.span,
-                            notes=[Note("first here", seen[ident.name])])
+                            notes=[Note("first here", seen[ident.name])],
+                            hints=[f"name each reward once: delete one `{ident.name}`"])
             else:
                 seen[ident.name] = ident.span
         missing = [r for r in rewards if r not in seen]
@@ -524,7 +531,8 @@ class Resolver:
                 continue
             if name in seen:
                 self._error("E0106", f"`require {name}` is declared more than once", decl.span,
-                            notes=[Note("first declared here", seen[name])])
+                            notes=[Note("first declared here", seen[name])],
+                            hints=["keep one and delete the others"])
                 continue
             seen[name] = decl.span
             bound = self._requirement_bound(decl)
@@ -586,7 +594,8 @@ class Resolver:
         for decl in self.node.of(ast.QueryDecl):
             if decl.name.name in names:
                 self._error("E0102", f"query `{decl.name.name}` is declared twice", decl.name.span,
-                            notes=[Note("first declared here", names[decl.name.name])])
+                            notes=[Note("first declared here", names[decl.name.name])],
+                            hints=["rename one of the two queries, or delete one"])
             names[decl.name.name] = decl.name.span
             query = Lowering(self.scope).query(decl, strategies)
             if query is not None:

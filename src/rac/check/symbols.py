@@ -65,9 +65,22 @@ class Scope:
                               f"below `{name}`'s"])
             return
         candidates = difflib.get_close_matches(name, list(self.symbols), n=1)
-        hints = [f"did you mean `{candidates[0]}`?"] if candidates else []
+        hints = [f"did you mean `{candidates[0]}`?"] if candidates else [declare_hint(name, what)]
         self.error("E0101", f"unknown {what} `{name}`", span, hints=hints)
 
+
+
+#: E0207's hint, for the automaton's expressions and the queries' alike.
+DIVISION_BY_ZERO_HINT = "the divisor is 0 here: check the constants it is made of"
+
+
+def declare_hint(name: str, what: str = "name") -> str:
+    """The hint of E0101 for ``name`` (a ``what``: name, reward, location) with no declared name close to it."""
+    if what == "reward":
+        return f"correct the spelling, or declare it: `reward {name}`"
+    if what == "location":
+        return f"correct the spelling, or declare it: `location {name} {{ ... }}`"
+    return "correct the spelling, or declare it in the automaton: an `input`, `const`, `param` or `reward`"
 
 @dataclass
 class ModelContext:

@@ -346,6 +346,9 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
             hints.append(lookalike)
         if not char.isascii() and (char.isalnum() or char == "_"):
             hints.append("names are ASCII identifiers: letters A-Z and a-z, digits and `_`")
+        if not hints:  # a control character or another the language has no use for: only deleting it helps
+            hints.append("delete it" + ("" if char.isprintable() else
+                                        " (an invisible control character, perhaps pasted from another program)"))
         return error("E0002", f"unexpected character `{shown}`", source.span(start, start + 1),
                      notes=notes, hints=hints)
     if at_end:
