@@ -38,6 +38,16 @@ def test_single_ampersand_gets_the_hint() -> None:
     assert "logical and is written `&&` (or `and`)" in diagnostic.hints
 
 
+
+@pytest.mark.parametrize(("char", "hint"), [
+    ("#", "comments start with `//` (to the end of the line) or are written `/* ... */`"),
+    ("@", "`.ra` has no use for `@`: delete it"),
+    ("\v", "delete it: an invisible control character, perhaps pasted from another program")])
+def test_a_character_the_language_has_no_use_for_gets_a_hint(char: str, hint: str) -> None:
+    """Found by fuzzing: `#` (a Python comment), `@` or a control character was an E0002 without a hint."""
+    diagnostic, _ = diagnose(f"automaton A {{ input p : bool {char} comment\n }}")
+    assert diagnostic.code == "E0002" and diagnostic.hints == (hint,)
+
 def test_missing_brace_is_an_unexpected_end_of_file() -> None:
     diagnostic, _ = diagnose("automaton A { input p : bool")
     assert (diagnostic.code, diagnostic.message) == ("E0001", "unexpected end of file")

@@ -290,6 +290,7 @@ _CHARACTER_HINTS = {
     "&": "logical and is written `&&` (or `and`)",
     "|": "logical or is written `||` (or `or`)",
     '"': 'a file name is written in double quotes on one line: `scenario "left_turn.xml"`',
+    "#": "comments start with `//` (to the end of the line) or are written `/* ... */`",
 }
 #: Characters that look like the ASCII a `.ra` file needs, as a copy from a paper, a web page or a word
 #: processor brings them (``≤`` from a PDF, a no-break space from a browser): what to write instead.
@@ -347,8 +348,8 @@ def syntax_error(exc: UnexpectedInput, source: SourceFile, rule: str = MODULE) -
         if not char.isascii() and (char.isalnum() or char == "_"):
             hints.append("names are ASCII identifiers: letters A-Z and a-z, digits and `_`")
         if not hints:  # a control character or another the language has no use for: only deleting it helps
-            hints.append("delete it" + ("" if char.isprintable() else
-                                        " (an invisible control character, perhaps pasted from another program)"))
+            hints.append(f"`.ra` has no use for `{shown}`: delete it" if char.isprintable() else
+                         "delete it: an invisible control character, perhaps pasted from another program")
         return error("E0002", f"unexpected character `{shown}`", source.span(start, start + 1),
                      notes=notes, hints=hints)
     if at_end:
