@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+import errno
+import os
 import re
 from pathlib import Path
 
@@ -143,6 +145,32 @@ def test_a_dangling_link_as_scenario_says_so(tmp_path: Path) -> None:
                                        "which does not exist")
     assert diagnostic.hints == ("restore the file the link points to, or name the scenario file itself",)
 
+
+
+def test_a_scenario_that_is_a_pipe_or_unreadable_gets_a_hint_of_its_own(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Found by fuzzing scenario files: a FIFO and a file without read permission were E0712 with the
+    generic hint about CommonRoad's formats, which sent users to docs/scenario.md for a file that is fine."""
+    os.mkfifo(tmp_path / "left_turn.xml")
+    (diagnostic,) = errors(compile_file(write(tmp_path, source())))
+    assert diagnostic.message.endswith("left_turn.xml: is not a regular file (a pipe or a device?), not a "
+                                       "CommonRoad XML file")
+    assert diagnostic.hints == ("name a CommonRoad XML file saved on disk: rac reads the scenario whole, not from "
+                                "a pipe or a device",)
+    (tmp_path / "left_turn.xml").unlink()
+    (tmp_path / "left_turn.xml").write_bytes(LEFT_TURN.read_bytes())
+    real = Path.read_bytes
+
+    def refused(self: Path) -> bytes:  # chmod 000 stops no root user (CI containers): refuse as EACCES would
+        if self.name == "left_turn.xml":
+            raise PermissionError(errno.EACCES, "Permission denied", str(self))
+        return real(self)
+
+    monkeypatch.setattr(Path, "read_bytes", refused)
+    (diagnostic,) = errors(compile_file(write(tmp_path, source())))
+    assert diagnostic.message.endswith("left_turn.xml: cannot be read (Permission denied)")
+    assert diagnostic.hints == ("make the file readable for you (`chmod +r`, or ask its owner), or copy it next to "
+                                "this `.ra` file",)
 
 def test_missing_scenario_in_a_subfolder_names_the_resolved_path(tmp_path: Path) -> None:
     result = compile_file(write(tmp_path, source("maps/left_turn.xml")))

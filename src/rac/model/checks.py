@@ -689,6 +689,10 @@ def _load_hints(failure, written: str) -> list[str]:
         return ["restore the file the link points to, or name the scenario file itself"]
     if failure.element is None and failure.problem.startswith("is a directory"):
         return ["name the CommonRoad XML file, not its folder"]
+    if failure.element is None and failure.problem.startswith("is not a regular file"):
+        return ["name a CommonRoad XML file saved on disk: rac reads the scenario whole, not from a pipe or a device"]
+    if failure.element is None and failure.problem.startswith("cannot be read ("):  # the file is fine, its access not
+        return ["make the file readable for you (`chmod +r`, or ask its owner), or copy it next to this `.ra` file"]
     if " is not a number" in failure.problem or " is not a whole number" in failure.problem:
         return ["correct that value in the file: CommonRoad's values are plain decimal numbers (3.5, not 3.5s), "
                 "time steps whole ones"]
