@@ -759,11 +759,19 @@ def test_independent_errors_of_one_expression_are_all_reported():
     ("co <= 0", "co / 0 <= 0", "E0207"),                          # in a query
     ("co' == 0 }\n", "co' == 0; sa' == -2 }\n", "E0209"),
     ("horizon 30 ", "horizon\v30 ", "E0002"),                     # a control character
+    ("!isClose && !prog", "!isClose && prog + 1", "E0201"),      # a condition as a number
+    ("query Qe: A[] isClose imply Unsafe", "query Qe: A[] sa", "E0201"),
+    ("query Qe: A[] isClose imply Unsafe", "query Qe: simulate[<=30; -1] { sa }", "E0603"),
+    ("co' == 0 }\n", "Normal' == 0 }\n", "E0103"),                # a flow of a location
+    ("edge * -> Stalled", "edge * -> pr", "E0103"),               # an edge into a reward
+    ("    location Stalled", "    initial location Stalled", "E0104"),
 ])
 def test_every_error_has_a_hint(old, new, code):
     """Mutation fuzzing found errors printed without a hint, where the brief asks for one with every
     error: an unknown name with no close match, a name twice in the priority order or twice as a query,
-    a non-positive horizon or period, a division by zero, two rates of a reward, a control character."""
+    a non-positive horizon or period, a division by zero, two rates of a reward, a control character, a
+    condition where a number goes (and the reverse in a query), a negative run count, a flow of a location,
+    an edge into a reward, two initial locations."""
     from rac.compiler import compile_text
 
     text = DRIVING.read_text(encoding="utf-8")

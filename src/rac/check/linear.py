@@ -113,6 +113,9 @@ class ExpressionTyper:
         if want == "bool":
             shown = node.id if isinstance(node, ast.Name) else "x"
             hints.append(f"a number is not a condition: compare it, e.g. `{shown} < 2`")
+        else:  # a condition where a number goes: `prog + 1`, `10 * isClose`
+            hints.append("a condition is not a number: write a number here, or compare first (`x < 2`) "
+                         "and combine conditions with `&&` and `||`")
         self.scope.error("E0201", f"{where} needs {type_word(want)}, found {type_word(got.kind)}", node.span,
                          hints=hints)
         raise Unresolvable

@@ -440,7 +440,8 @@ class _ModelResolver:
                        hints=["write the lower bound first"])
         elif step <= 0:
             self.error("E0706", f"the step of action `{name}` must be positive (found {_num(step)})",
-                       item.step.span)
+                       item.step.span, hints=["the step is the distance between two values of the action, e.g. "
+                                              "`step 0.5`"])
         elif ((high - low) / step).denominator != 1:
             count = int((high - low) / step)
             self.error("E0706", f"the range {shown} of action `{name}` is not a whole number of steps of "

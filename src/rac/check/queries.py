@@ -327,7 +327,9 @@ class Lowering:
             got, value = self.walk(node)
             if want is not None and got is not None and got != want:
                 self.s.error("E0201", f"this part of the query needs {type_word(want)}, "
-                             f"found {type_word(got)}", node.span)
+                             f"found {type_word(got)}", node.span,
+                             hints=["compare a number to make a condition (`sa <= 0`)" if want == "bool" else
+                                    "write a number here: a condition is not one"])
             if value is None:
                 complete = False
             else:
@@ -350,7 +352,8 @@ class Lowering:
         if (whole and number.denominator != 1) or (positive and number <= 0) or number < 0:
             need = "a positive whole number" if whole and positive else "a whole number >= 0" if whole else (
                 "a positive number" if positive else "a number >= 0")
-            self.s.error("E0603", f"{what} must be {need} (found {short_number(number, 12)})", node.span)
+            self.s.error("E0603", f"{what} must be {need} (found {short_number(number, 12)})", node.span,
+                         hints=[f"write {need} here"])
             return None
         if whole and number > INT32_MAX:  # UPPAAL's queries hold a step bound and a run count as int32
             self.s.error("E0603", f"{what} must be at most {INT32_MAX} (found {short_number(number)})", node.span,

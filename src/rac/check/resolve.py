@@ -341,7 +341,8 @@ class Resolver:
                     continue
                 if symbol.kind != "reward":
                     self._error("E0103", f"`{name}` is {kind_word(symbol.kind)}, not a reward: "
-                                "only rewards have flows", flow.reward.span)
+                                "only rewards have flows", flow.reward.span,
+                                hints=[f"declare the reward (`reward NAME`) and give it the rate, or delete `{name}'`"])
                     continue
                 if name in rates:
                     self._error("E0209", f"location `{decl.name.name}` gives `{name}` two rates", flow.span,
@@ -365,7 +366,8 @@ class Resolver:
                         hints=[f"write `initial location {decls[0].name.name} {{ ... }}`"])
         elif len(initial) > 1:
             self._error("E0104", "more than one `initial` location", decls[initial[1]].span,
-                        notes=[Note("the first initial location", decls[initial[0]].span)])
+                        notes=[Note("the first initial location", decls[initial[0]].span)],
+                        hints=["a run starts in one location: keep `initial` on one of them"])
         return tuple(locations), (initial[0] if initial else 0)
 
     def _location_index(self, ident: ast.Ident) -> int | None:
@@ -374,7 +376,8 @@ class Resolver:
             return names.index(ident.name)
         symbol = self.symbols.get(ident.name)
         if symbol is not None:
-            self._error("E0103", f"`{ident.name}` is {kind_word(symbol.kind)}, not a location", ident.span)
+            self._error("E0103", f"`{ident.name}` is {kind_word(symbol.kind)}, not a location", ident.span,
+                        hints=["an edge goes from a location to a location: name one of the `location`s"])
         else:
             candidates = difflib.get_close_matches(ident.name, names, n=1)
             self._error("E0101", f"unknown location `{ident.name}`", ident.span,
