@@ -765,6 +765,7 @@ def test_independent_errors_of_one_expression_are_all_reported():
     ("co' == 0 }\n", "Normal' == 0 }\n", "E0103"),                # a flow of a location
     ("edge * -> Stalled", "edge * -> pr", "E0103"),               # an edge into a reward
     ("    location Stalled", "    initial location Stalled", "E0104"),
+    ("priority sa > pr > co", "priority sa > pr > PENALTY", "E0103"),  # a constant in the priority order
 ])
 def test_every_error_has_a_hint(old, new, code):
     """Mutation fuzzing found errors printed without a hint, where the brief asks for one with every

@@ -493,7 +493,8 @@ class Resolver:
                 self._unknown(ident.name, ident.span, "reward")
             elif symbol.kind != "reward":
                 self._error("E0103", f"`{ident.name}` is {kind_word(symbol.kind)}, not a reward: "
-                            "priorities order rewards", ident.span)
+                            "priorities order rewards", ident.span,
+                            hints=["name only rewards (`reward NAME`) in `priority`, highest first"])
             elif ident.name in seen:
                 self._error("E0102", f"`{ident.name}` appears twice in the priority order", ident.span,
                             notes=[Note("first here", seen[ident.name])],
