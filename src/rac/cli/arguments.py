@@ -19,6 +19,7 @@ from typing import NoReturn, TypeVar
 
 from rac import __version__
 from rac.cli.common import size_argument
+from rac.core.diagnostics import RacError
 from rac.core.numbers import MIN_SEED
 from rac.output.paths import OUTPUT_CONVENTION, OUTPUT_SUFFIX
 from rac.sweep.kinds import MEMORY_OPTION, TASKS
@@ -157,7 +158,7 @@ class _CommandParser(argparse.ArgumentParser):
         super().error(message)
 
 
-class CommandLineError(Exception):
+class CommandLineError(RacError):
     """A mistake the command line's parser found (an unknown option, a value that is not a number, a missing
     argument) in a command whose line asks for ``--format json``: :func:`rac.cli.main.main` prints it as an
     E0014 diagnostic on standard output, and argparse's usage message on standard error (exit 2)."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from rac.core.diagnostics import render_text
+from rac.core.diagnostics import Diagnostic, RacError, render_text
 from rac.core.source import SourceFile
 from rac.ir.vocabulary import MODELLING, SETTINGS, WORD_SETTINGS
 from rac.lang import ast
@@ -31,10 +31,12 @@ __all__ = ["SETTING_NAMES", "TemplateError", "check_template", "instantiate", "s
 SETTING_NAMES: tuple[str, ...] = (*SETTINGS, *MODELLING, *WORD_SETTINGS)
 
 
-class TemplateError(ValueError):
+class TemplateError(RacError, ValueError):
     """The template is no ``.ra`` file rac can read, or does not parse: ``summary`` says so of the template,
     ``diagnostic`` is the file's own (E0001-E0005, with its span, as ``rac check`` reports it) and ``sources``
     the text it points into; the message has both, rendered as text."""
+
+    diagnostic: Diagnostic  # always set: the file's own error
 
     def __init__(self, summary: str, failure: ParseFailure) -> None:
         self.summary = summary
