@@ -366,7 +366,11 @@ def test_runs_under_the_runtime_shield_do_not_depend_on_the_clock(capsys: pytest
     ("3 *", "`3 *`: the expression is incomplete"),
     ("a b", "`a b`: unexpected `b`"),
     ("x, y", "`x, y`: one expression per --expr (repeat --expr for more)"),
-    ("foo()", "`foo()`: unknown function `foo`"),
+    ("foo()", "`foo()`: unknown function `foo` (did you mean `floor(e)`?)"),
+    ("mindst()", "`mindst()`: unknown function `mindst` (did you mean `mindist()`?)"),
+    ("zzz()", "`zzz()`: unknown function `zzz` (a query may call `collide()`, `offroad()`, `goal()`, `mindist()`, "
+              "`dist_goal()`, `prev(e)`, `fabs(e)`, `abs(e)`, `sqrt(e)`, `fmin(a, b)`, `fmax(a, b)`, `floor(e)`, "
+              "`ceil(e)`, `round(e)`, `trunc(e)`)"),
     ("near", "the input `near` is not known here: it needs the product of the model and the automaton"),
 ])
 def test_simulate_bad_expression_exits_2(capsys: pytest.CaptureFixture[str], tmp_path: Path, expr: str,

@@ -237,6 +237,16 @@ class Lowering:
         return "bool", None
 
     # ------------------------------------------------------------ calls
+    def _unknown_function(self, node: ast.Call) -> None:
+        """E0101 for a call of no function a query has: its hint names the closest function or lists them (a
+        hint to declare it as an input or a constant, as for an unknown name, does not fit a call)."""
+        known = (*(MODEL_FUNCTIONS if self.s.has_model else ()), *QUERY_FUNCTIONS)
+        close = difflib.get_close_matches(node.func, known, n=1)
+        signatures = ", ".join(f"`{FUNCTIONS[name].signature}`" for name in known)
+        self.s.error("E0101", f"unknown function `{node.func}`", node.span,
+                     hints=[f"did you mean `{FUNCTIONS[close[0]].signature}`?" if close else
+                            f"a query may call {signatures}"])
+
     def _query_call(self, node: ast.Call) -> Lowered:
         if node.func in MODEL_FUNCTIONS and self.s.has_model:
             return self._model_call(node)
@@ -245,7 +255,7 @@ class Lowering:
                          "automaton has no model", node.span,
                          hints=["attach a model (a `model` block), or bind the condition to an input"])
         elif node.func not in QUERY_FUNCTIONS:
-            self.s.unknown(node.func, node.span, "function")
+            self._unknown_function(node)
         args = [self._expect(arg, "num") for arg in node.args]
         if node.func not in QUERY_FUNCTIONS:
             return None, None
