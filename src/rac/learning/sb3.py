@@ -247,6 +247,16 @@ def reward_changers(venv: Any) -> list[str]:
         return []
 
 
+def _wraps_before(env: Any, found: type, stop: type) -> bool:
+    """Whether ``env``'s chain of wrappers, walked from the outside in, meets a ``found`` before any ``stop``."""
+    for layer in wrapper_chain(env):
+        if isinstance(layer, stop):
+            return False
+        if isinstance(layer, found):
+            return True
+    return False
+
+
 def frame_stacker(venv: Any) -> str | None:
     """What stacks the location's frames in stable-baselines3's vector environment ``venv``: ``"VecFrameStack"``
     in its chain of vector wrappers, ``"FrameStackObservation"`` where gymnasium's sits outside a
@@ -259,13 +269,8 @@ def frame_stacker(venv: Any) -> str | None:
         return "VecFrameStack"
     base = _wrapper(venv, DummyVecEnv)
     if isinstance(base, DummyVecEnv):
-        for first in base.envs:
-            for env in wrapper_chain(first):
-                if isinstance(env, LocationObservation):
-                    break
-                if isinstance(env, FrameStackObservation):
-                    return "FrameStackObservation"
-        return None
+        stacks = any(_wraps_before(env, FrameStackObservation, LocationObservation) for env in base.envs)
+        return "FrameStackObservation" if stacks else None
     try:  # any of stable-baselines3's VecEnvs answers env_is_wrapped; anything else is no such environment
         located = venv.env_is_wrapped(LocationObservation)
         around = venv.env_is_wrapped(_StacksAroundLocation)
@@ -340,13 +345,7 @@ def scenario_environments(venv: Any) -> bool:
     step, by the buffer)."""
     base = _wrapper(venv, DummyVecEnv)
     if isinstance(base, DummyVecEnv):
-        for first in base.envs:
-            for env in wrapper_chain(first):
-                if isinstance(env, RewardAutomatonWrapper):
-                    break
-                if isinstance(env, ScenarioEnv):
-                    return True
-        return False
+        return any(_wraps_before(env, ScenarioEnv, RewardAutomatonWrapper) for env in base.envs)
     try:  # any of stable-baselines3's VecEnvs answers env_is_wrapped; anything else is no such environment
         scenario = venv.env_is_wrapped(_AroundScenario)
         relabelled = venv.env_is_wrapped(_AutomatonAroundScenario)
