@@ -506,7 +506,7 @@ def _variant(tmp_path: Path, name: str, change) -> Path:
      "planning problem 100's <time> has the interval [100, 0], which ends before it starts"),
     # with both lines: in a file of hundreds of elements the id alone did not say where they are
     ("duplicate_id", lambda t: t.replace('<lanelet id="2">', '<lanelet id="1">', 1),
-     "lanelet 1 has the id of lanelet 1 (lines {} and {}): ids must be unique in a file".format(
+     "two lanelets have the id 1 (lines {} and {}): ids must be unique in a file".format(
          _committed_line('<lanelet id="1">'), _committed_line('<lanelet id="2">'))),
     ("zero_length", lambda t: re.sub(r"<length>4.5</length>", "<length>0.0</length>", t, count=1),
      "dynamic obstacle 51 has a 0 m × 1.8 m shape: an obstacle needs a positive length and width"),

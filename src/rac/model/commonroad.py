@@ -741,6 +741,10 @@ def _check_structure(path: str | os.PathLike[str], root, positions: dict[int, tu
                 # did not say where the two elements are
                 first, line = seen[key][1], positions.get(id(node), (None,))[0]
                 lines = f" (lines {first} and {line})" if first is not None and line is not None else ""
+                if seen[key][0] == here:
+                    # two of one kind: "lanelet 3 has the id of lanelet 3" read as a riddle
+                    raise ScenarioError(path, f"two {_LABELS[node.tag]}s",
+                                        f"have the id {ident}{lines}: ids must be unique in a file")
                 raise ScenarioError(path, here, f"has the id of {seen[key][0]}{lines}: ids must be unique in a file")
             seen[key] = (here, positions.get(id(node), (None,))[0])
     for node in root:
