@@ -122,6 +122,12 @@ def test_learn_rejects_bad_arguments(scenario: Callable[[str], Scenario]) -> Non
         learn(batch, discrete=[], continuous=[X], bins=[1.0, 2.0])
     with pytest.raises(ValueError, match="episodes"):
         learn(batch, discrete=[], continuous=[X], episodes=0)
+    # a switch given as text or a number was taken by its truth: "no" turned it on
+    for name in ("evaluate_in_batch", "counterfactuals", "pessimistic", "random_ties", "replay_best"):
+        with pytest.raises(TypeError, match=f"{name} must be True or False, not 'no'"):
+            learn(batch, discrete=[], continuous=[X], **{name: "no"})
+    with pytest.raises(TypeError, match="counterfactuals must be True or False, not 1"):
+        EpisodeBatch(scenario("goal_ahead").result, horizon_samples=HORIZON, counterfactuals=1)
 
 
 # ---------------------------------------------------------------- learning on the tiny scenarios

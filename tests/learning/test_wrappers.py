@@ -43,6 +43,18 @@ def test_check_env_and_make_from_the_spec() -> None:
     assert [env.step(2)[1] for _ in range(5)] == [remade.step(2)[1] for _ in range(5)]
 
 
+def test_clip_must_be_a_bool() -> None:
+    """clip="yes" (or "no", or 1) was taken by its truth: "no" clipped every input."""
+    for clip in ("yes", "no", 1, None):
+        with pytest.raises(TypeError, match=f"clip must be True or False, not {clip!r}"):
+            RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, clip=clip)
+        with pytest.raises(TypeError, match=f"clip must be True or False, not {clip!r}"):
+            RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30)]), follow(),
+                                         vector_inputs, clip=clip)
+    env = RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, clip=np.True_)  # NumPy's bool is one
+    assert env.reset(seed=1) is not None
+
+
 def test_the_inputs_may_read_the_environment() -> None:
     seen = []
 

@@ -9,6 +9,9 @@ gymnasium's ``AsyncVectorEnv``) the frames above the library's worker loop are :
 can act on either: past them a forked worker still holds the parent's frames at the fork, the script's line that
 made the vector environment; a spawned one only its bootstrap (``<string>``), and the warning names rac's own line.
 
+:func:`require_bool` checks a switch the user's code passes (``clip=``, ``counterfactuals=``): Python takes any
+non-empty text as true, so ``clip="no"`` clipped.
+
 May import: nothing of rac.
 """
 
@@ -16,7 +19,7 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["LAUNCHERS", "LIBRARIES", "user_stacklevel"]
+__all__ = ["LAUNCHERS", "LIBRARIES", "require_bool", "user_stacklevel"]
 
 #: The top-level packages between a training script and rac's warnings.
 LIBRARIES = frozenset({"rac", "stable_baselines3", "sb3_contrib", "gymnasium", "torch", "highway_env"})
@@ -41,3 +44,12 @@ def user_stacklevel() -> int:
             return 1 if launched and frame.f_code.co_filename.startswith("<") else level
         frame, level = frame.f_back, level + 1  # type: ignore[assignment]
     return 1
+
+
+def require_bool(value: object, name: str) -> bool:
+    """``value`` as a bool when it is one (NumPy's ``np.bool_`` too), else a ``TypeError`` naming the argument
+    ``name``: a text or number there (``clip="yes"``, ``clip="no"``, ``clip=0.5``) was taken by its truth."""
+    # np.bool_ (named "bool" in NumPy 2) without importing NumPy here
+    if isinstance(value, bool) or (type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_")):
+        return bool(value)
+    raise TypeError(f"{name} must be True or False, not {value!r}")

@@ -64,6 +64,7 @@ import numpy as np
 from rac import ir
 from rac.check.queries import lower_expression
 from rac.compiler import CompileResult
+from rac.core.caller import require_bool
 from rac.core.diagnostics import RacValueError
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
@@ -439,6 +440,8 @@ class EpisodeBatch:
         #: -> ``(m,)`` bool), e.g. :class:`rac.engine.shield.SafeOnward`: an episode that reaches the
         #: goal where it cannot is ``stranded`` (:class:`StepResult`). None: not judged.
         self.onward = onward
+        for name, value in (("counterfactuals", counterfactuals), ("compiled", compiled), ("memo", memo)):
+            require_bool(value, name)  # "no" was true
         self.evaluator = Evaluator(data, automaton)
         self.compiled = compiled
         self._bindings = _Inputs(self.evaluator, automaton, compiled)

@@ -79,6 +79,7 @@ from typing import Any
 
 import numpy as np
 
+from rac.core.caller import require_bool
 from rac.core.diagnostics import RacValueError
 from rac.engine.budget import check_estimate, learning_bytes
 from rac.engine.shield import ShieldTable
@@ -308,6 +309,9 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
         raise ValueError(f"growth must be a positive number (or None), not {growth!r}")  # NaN, 0: batches of 1
     if not (isinstance(optimism, numbers.Real) and math.isfinite(optimism)):
         raise ValueError(f"optimism must be a finite number, not {optimism!r}")  # NaN or inf in every entry
+    for name, value in (("evaluate_in_batch", evaluate_in_batch), ("counterfactuals", counterfactuals),
+                        ("pessimistic", pessimistic), ("random_ties", random_ties), ("replay_best", replay_best)):
+        require_bool(value, name)  # "no" was true
     if isinstance(replay, bool) or not isinstance(replay, int) or replay < 0:
         raise ValueError(f"replay must be a whole number >= 0, not {replay!r}")
     if not (0.0 < alpha <= 1.0 and 0.0 <= gamma <= 1.0):

@@ -48,7 +48,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv, VectorWrapper
 from rac import ir
 from rac.check.analysis.scale import sample_change_bound
 from rac.compiler import compile_file
-from rac.core.caller import user_stacklevel
+from rac.core.caller import require_bool, user_stacklevel
 from rac.core.diagnostics import RacValueError
 from rac.learning.vector_info import merge_vector_info
 from rac.runtime.batch import BatchRewardAutomaton
@@ -447,7 +447,7 @@ STATISTICS_INSIDE = ("gymnasium's RecordEpisodeStatistics sits inside rac's wrap
 
 
 def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
-    if not clip:
+    if not require_bool(clip, "clip"):  # clip="no" clipped
         return None
     if automaton is None:
         raise RacValueError("clip=True needs the automaton's declared ranges: pass a .ra path, an ir.Automaton "
