@@ -191,6 +191,21 @@ def test_horizon_in_seconds(tiny: CompileResult) -> None:
         ScenarioEnv(tiny, horizon=4)
 
 
+def test_a_horizon_of_no_whole_number_of_decisions_is_said(tiny: CompileResult) -> None:
+    """horizon=1.5 with decisions of 1 s ended every episode with a step of one sample, half the others,
+    without a word: a learner saw a step of another length and its reward summed over fewer samples."""
+    with pytest.warns(UserWarning, match=r"horizon=1.5 s is no whole number of decisions of 1 s: the episode's last "
+                                         r"step is 1 of 2 samples \(0.5 s\), shorter than the others; give a "
+                                         r"multiple of 1 s \(1 or 2 s\)"):
+        env = ScenarioEnv(tiny, horizon=1.5, lookahead=None)
+    env.reset()
+    assert not env.step(4)[3] and env.step(4)[3]  # still taken: two steps, the second of one sample
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        ScenarioEnv(tiny, horizon=2, lookahead=None)  # two whole decisions: nothing to say
+        ScenarioEnv(tiny, lookahead=None)  # the file's own horizon is rac check's to judge
+
+
 def test_a_horizon_of_numpy_numbers_is_taken_and_no_number_refused(tiny: CompileResult) -> None:
     # a horizon from a numpy array (a sweep's settings): np.float32(1.5) raised "argument should be a string or
     # a Rational instance"; True was taken as 1 s, and NaN said "Invalid literal for Fraction: 'nan'"

@@ -408,6 +408,8 @@ class ScenarioEnv(gymnasium.Env):
         self._index = 0
         self._said_traffic = False  # a scene whose episodes run past its traffic was warned of (once)
         self.episodes, self.observation, self._step_shield = self._scene(0, result)
+        if horizon is not None:
+            self._warn_short_last_step()
         #: The exhaustive shield's table (None without one).
         self.shield = self._step_shield.table if self._step_shield is not None else None
         #: Steps per guarantee of their mask (``info["shield"]``), since construction.
@@ -507,6 +509,23 @@ class ScenarioEnv(gymnasium.Env):
         for diagnostic in found:
             warnings.warn(f"the scene {self._name(index)}: {diagnostic.message} ({diagnostic.code} in rac check)",
                           UserWarning, stacklevel=user_stacklevel())
+
+    def _warn_short_last_step(self) -> None:
+        """Warn when ``horizon=`` is no whole number of decision periods: the episode's last step is then
+        shorter than the others (a learner sees one step of another length, its reward summed over fewer
+        samples). Allowed, as a file's own horizon is: the model's runs end there too."""
+        episodes = self.episodes
+        left = episodes.horizon_samples % episodes.decide_every
+        if left:
+            period = Fraction(episodes.automaton.period)
+            decision = period * episodes.decide_every
+            shorter = (episodes.horizon_samples - left) * period
+            warnings.warn(f"horizon={float(episodes.horizon_samples * period):g} s is no whole number of decisions "
+                          f"of {float(decision):g} s: the episode's last step is {left} of "
+                          f"{episodes.decide_every} samples ({float(left * period):g} s), shorter than the others; "
+                          f"give a multiple of {float(decision):g} s ({float(shorter):g} or "
+                          f"{float(shorter + decision):g} s) for steps of one length", UserWarning,
+                          stacklevel=user_stacklevel())
 
     def _warn_past_traffic(self, result: CompileResult, index: int, samples: int) -> None:
         """Warn once when this scene's episodes run past its recorded traffic (``rac check``'s W0728 for the
