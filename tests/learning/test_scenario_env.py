@@ -95,7 +95,7 @@ def test_observation_reward_and_info_follow_the_episode(tiny: CompileResult) -> 
     assert info == {"location": "Normal", "rewards": {"sa": 0.0}, "objective": 0.0, "inputs": {"near": False},
                     "collided": False, "offroad": False, "goal": False, "time": 0.0,
                     "scenario": tiny.automaton.model.scenario_path,  # type: ignore[union-attr]
-                    "planning_problem": 100, "scale": 1.0}
+                    "planning_problem": 100, "scale": 1.0, "proven": False}
     rng = np.random.default_rng(1)
     before = 0.0
     total, done = 0.0, False
@@ -833,9 +833,10 @@ def test_the_proven_scale_keeps_every_reward_within_one(highway_set: tuple[Path,
     rng = np.random.default_rng(0)
     largest = 0.0
     for episode in range(6):
-        plain.reset(seed=episode)
         _, info = scaled.reset(seed=episode)
-        assert info["scale"] == factor
+        # info["proven"], as RewardAutomatonWrapper's info["rac"]["proven"]: a KeyError before
+        assert info["scale"] == factor and info["proven"] is True
+        assert plain.reset(seed=episode)[1]["proven"] is False
         done = False
         while not done:
             action = int(rng.integers(plain.action_space.n))

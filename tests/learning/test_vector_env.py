@@ -642,7 +642,8 @@ def test_the_vector_env_scales_as_scenario_env(near: CompileResult) -> None:
     scaled = ScenarioVectorEnv(near, num_envs=3, scale=4.0)
     plain.reset(seed=0)
     _, info = scaled.reset(seed=0)
-    assert (info["scale"] == 4.0).all()
+    assert (info["scale"] == 4.0).all() and not info["proven"].any()  # one's own factor: not the proven one
+    assert ScenarioVectorEnv(near, num_envs=2, scale="proven").reset(seed=0)[1]["proven"].tolist() == [True, True]
     nonzero = 0
     for step in range(8):
         actions = np.full(3, step % plain.single_action_space.n)

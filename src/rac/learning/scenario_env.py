@@ -286,7 +286,8 @@ class ScenarioEnv(gymnasium.Env):
             largest change of the objective over one step that ``rac check``'s analysis proves,
             :func:`rac.check.analysis.scale.sample_change_bound`: every reward in [-1, 1], and the
             priority proofs still hold, a positive factor) or a positive number of your own (the
-            only choice for a reward expression); the factor is :attr:`reward_scale` and ``info["scale"]``.
+            only choice for a reward expression); the factor is :attr:`reward_scale` and ``info["scale"]``,
+            and ``info["proven"]`` says it is the proven one (as the wrapper's ``info["rac"]["proven"]``).
         observation: what the agent observes, a kind of :mod:`rac.learning.observation`:
             ``"relative"`` (default; the ego against its lane, the road, the goal and the nearest
             obstacles) or ``"ego"`` (the sensed ego state and the time, in the scene's coordinates).
@@ -331,7 +332,8 @@ class ScenarioEnv(gymnasium.Env):
     seed, are the same on every machine; its time limit is a guard far above what the nodes take.
 
     ``info["scenario"]``: the scene's file; ``info["planning_problem"]``: the id of the planning problem its
-    ego and goal come from; ``info["scale"]``: :attr:`reward_scale`. After :meth:`step`,
+    ego and goal come from; ``info["scale"]``: :attr:`reward_scale`; ``info["proven"]``: it is ``scale="proven"``'s
+    bound (:attr:`reward_proven`). After :meth:`step`,
     ``info["reward_steps"]``: each reward's change over the step (unscaled), as
     :class:`rac.learning.wrappers.RewardAutomatonWrapper` reports it in ``info["rac"]``.
 
@@ -625,7 +627,7 @@ class ScenarioEnv(gymnasium.Env):
                 "time": self._seconds(episodes.k[0]),
                 "scenario": str(self.scenarios[self._index]),
                 "planning_problem": scenario.planning_problem_id if scenario is not None else None,
-                "scale": self.reward_scale}
+                "scale": self.reward_scale, "proven": self.reward_proven}
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:

@@ -377,7 +377,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
                        "time": seconds_at(episodes.k, self._period),
                        "scenario": np.full(self.num_envs, str(self._single.scenarios[0]), dtype=object),
                        "planning_problem": np.full(self.num_envs, self._planning_problem),  # as SyncVectorEnv stacks it
-                       "scale": np.full(self.num_envs, self._single.reward_scale)})
+                       "scale": np.full(self.num_envs, self._single.reward_scale),
+                       "proven": np.full(self.num_envs, self._single.reward_proven)})
         info.update(masked({"rewards": masked(episodes.rewards), "inputs": masked(inputs)}))
         if shield is not None:
             info.update(shield)
