@@ -764,6 +764,8 @@ def test_the_cli_on_a_separate_dask_scheduler_and_worker(world: Path, tmp_path: 
     (["{scenarios}/nothing*.xml"], "no scenario file matched `{scenarios}/nothing*.xml`"),
     (["{scenarios}", "--set", "exponnt=1,2"], "unknown setting `exponnt` of the `model` block; did you mean"),
     (["{scenarios}", "--set", "exponent"], "`--set exponent`: write NAME=V1,V2,..."),
+    # every task of exponent 7 failed (exit 1) after the cluster started: no scenario takes it
+    (["{scenarios}", "--set", "exponent=1,7"], "`--set exponent=7`: `exponent` must be a whole number from 1 to 6"),
     (["{scenarios}", "--scheduler", "tcp://127.0.0.1:1", "--workers", "2"], "--workers sizes the local cluster"),
     (["{scenarios}", "--task-memory", "lots"], "`lots` is not a size"),
     # an infinite timeout was stored as `Infinity` in tasks/*.json and results.json, which no JSON reader takes

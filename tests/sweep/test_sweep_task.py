@@ -577,6 +577,8 @@ def test_parse_set_and_grid_points() -> None:
     assert points[-1] == (("exponent", "2"), ("decide_period", "1"), ("dynamics", "increments"))
     assert grid_points([]) == [()]
     assert parse_set(["start_x=-2"]) == [("start_x", ["-2"])]
+    # what only the template can give a value (a constant of its own) is left to each task's check
+    assert parse_set(["exponent=DIGITS", "max_speed=2*TOP"]) == [("exponent", ["DIGITS"]), ("max_speed", ["2*TOP"])]
 
 
 def test_a_value_written_twice_another_way_is_one_grid_point() -> None:
@@ -590,6 +592,13 @@ def test_a_value_written_twice_another_way_is_one_grid_point() -> None:
     ("exponent", "NAME=V1,V2"), ("exponent=", "no value"), ("=1,2", "NAME=V1,V2"), ("exponent=1,,2", "empty"),
     ("exponent=1 2", "exponent"), ("expnent=1", "did you mean `exponent`"), ("scenario=a.xml", "SCENARIOS"),
     ("jerk=1", "action"), ("exponent=1;exponent=2", "exponent"),
+    # a value outside the setting's own range failed every task of it, one failed row per scenario, exit 1:
+    # it is said up front now, in rac check's words (E0702)
+    ("exponent=1,7", r"`--set exponent=7`: `exponent` must be a whole number from 1 to 6 \(found 7\)"),
+    ("exponent=2.5", r"`exponent` must be a whole number from 1 to 6 \(found 2.5\)"),
+    ("max_speed=10,-1", r"`--set max_speed=-1`: `max_speed` must be a number > 0 \(found -1 m/s\)"),
+    ("sense_period=1-1", r"`sense_period` must be a number > 0 \(found 0 s\)"),
+    ("dynamics=fast", r"`dynamics` must be one of the words `integrated`, `increments` \(found `fast`\)"),
 ])
 def test_parse_set_refuses(text: str, message: str) -> None:
     with pytest.raises(ValueError, match=message):

@@ -14,10 +14,14 @@ import glob
 import itertools
 import os
 from collections.abc import Sequence
+from fractions import Fraction
 from pathlib import Path
 
+from rac.check.model_block import allowed
+from rac.core.diagnostics import short_number
 from rac.core.files import GENERATED_MARK, head
-from rac.ir.vocabulary import ACTIONS
+from rac.ir.vocabulary import ACTIONS, MODELLING, SETTINGS, WORD_SETTINGS
+from rac.lang import ast
 from rac.lang.format import format_expr
 from rac.sweep.template import SETTING_NAMES, setting_value
 
@@ -79,12 +83,47 @@ def _setting_name(name: str) -> str:
     raise ValueError(f"`--set {name}=...`: unknown setting `{name}` of the `model` block; {hint}")
 
 
+def _number(expr: ast.Expr) -> Fraction | None:
+    """The exact value of a value written with numbers alone (``7``, ``-2``, ``1/3``); None for anything
+    else (a constant of the template's, which only the task's check can read)."""
+    if isinstance(expr, ast.Number):
+        return expr.value
+    if isinstance(expr, ast.Unary) and expr.op == "-":
+        value = _number(expr.operand)
+        return None if value is None else -value
+    if isinstance(expr, ast.Binary) and expr.op in ("+", "-", "*", "/"):
+        left, right = _number(expr.left), _number(expr.right)
+        if left is None or right is None or (expr.op == "/" and right == 0):
+            return None
+        return {"+": left + right, "-": left - right, "*": left * right}[expr.op] if expr.op != "/" else left / right
+    return None
+
+
+def _refusal(name: str, expr: ast.Expr) -> str | None:
+    """Why every task would refuse the value ``expr`` of ``name`` (rac check's E0702 in its words), or None:
+    a value outside the setting's own range fails on every scenario, so it is said before any task runs.
+    What depends on the scenario or on another setting (``decide_period`` a multiple of ``sense_period``)
+    is left to each task's check."""
+    words = WORD_SETTINGS.get(name)
+    if words is not None:
+        if isinstance(expr, ast.Name) and expr.id in words:
+            return None
+        return f"`{name}` must be one of the words {', '.join(f'`{w}`' for w in words)} (found `{format_expr(expr)}`)"
+    setting = SETTINGS.get(name) or MODELLING.get(name)
+    value = _number(expr)
+    if setting is None or value is None or setting.accepts(value):
+        return None
+    unit = f" {setting.unit}" if setting.unit else ""
+    return f"`{name}` must be {allowed(setting)} (found {short_number(value)}{unit}), as rac check requires (E0702)"
+
+
 def parse_set(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
     """Each ``--set NAME=V1,V2,...`` as ``(NAME, [V1, V2, ...])`` (spaces around names and values
     dropped, a repeated value kept once, also when written another way: ``1`` and ``1.0``).
     ``ValueError`` on bad syntax, a value that is not a number or a word, an unknown setting name, or
-    a setting given twice. Values are checked against the setting's range by each task's ``rac
-    check`` (a value it refuses fails that task)."""
+    a setting given twice, or a value outside the setting's own range (a whole number from 1 to 6 for
+    ``exponent``; a word setting's words). What depends on the scenario or on the other settings is
+    checked by each task's ``rac check`` (a value it refuses fails that task)."""
     result: list[tuple[str, list[str]]] = []
     for text in texts:
         name, equals, values = (part.strip() for part in text.partition("="))
@@ -101,7 +140,11 @@ def parse_set(texts: Sequence[str]) -> list[tuple[str, list[str]]]:
         kept: dict[str, str] = {}  # by the value as the block would print it: `1` and `1.0` are one value
         for part in parts:
             # a number or a word: a typo fails here, not in every task
-            kept.setdefault(format_expr(setting_value(name, part)), part)
+            expr = setting_value(name, part)
+            refusal = _refusal(name, expr)
+            if refusal is not None:  # every task of this value would fail alike: one usage error instead
+                raise ValueError(f"`--set {name}={part}`: {refusal}")
+            kept.setdefault(format_expr(expr), part)
         result.append((name, list(kept.values())))
     return result
 
