@@ -221,7 +221,11 @@ def test_a_shield_beyond_the_state_budget_is_a_resource_limit(tmp_path: Path,
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)
     assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", REWARD_FUNCTION,
                  "--max-states", "10", "--out", str(tmp_path / "o")]) == 2
-    assert "error[E0016]: resource limit: the safety shield cannot be computed" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "error[E0016]: resource limit: the safety shield cannot be computed" in err
+    # and what to raise: it named only what to coarsen ("coarsen the model (actions, decide_period) or shorten the
+    # horizon"), not the option that stopped it
+    assert "or raise --max-states if the machine has the memory" in " ".join(err.split()), err
 
 
 def test_a_shield_out_of_the_process_memory_says_which_limit(tmp_path: Path, capsys: pytest.CaptureFixture[str],

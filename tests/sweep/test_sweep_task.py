@@ -780,6 +780,28 @@ def test_a_tasks_budget_refusal_names_the_sweeps_option(folder: Path, task: str,
     assert memory_option() == "--max-memory"  # the task's option ends with it
 
 
+def test_an_experiment_tasks_shield_refusal_names_what_to_raise(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The shield's budget refusal in an experiment task named --task-memory only as the budget, and advised only
+    "coarsen the model (actions, decide_period) or shorten the horizon", while a verify task's says what to raise
+    (--task-memory, --max-states): it says so now, as rac verify's (verify.context.over_budget)."""
+    from rac.engine import shield
+    from rac.engine.budget import BudgetExceeded
+    from rac.sweep import work
+
+    def refused(*args: object, **kwargs: object) -> object:  # the budget's own refusal, in the task's option
+        raise BudgetExceeded(what="the model", kind="memory", limit=2**20, states=500, sample=4, seconds=0.4,
+                             needed_bytes=2**21)
+
+    monkeypatch.setattr(shield, "synthesise", refused)
+    options = (("seed", "1"), ("episodes", "20"), ("reward_function", "goal()"))
+    row = work.execute(spec(folder, "goal_ahead.xml", "experiment", options=options, memory=2**30))
+    assert row["status"] == "undecided", row
+    assert ("the safety shield cannot be computed: the model would need about 2 MB by t = 0.4 s (sample 4), more "
+            "than the memory budget of 1 MB (--task-memory); 500 states so far: shorten the horizon (--horizon), "
+            "coarsen the model (exponent, action steps, decide_period) or raise --task-memory only if the machine has "
+            "that much memory free") == row["error"], row
+
+
 @pytest.mark.parametrize(("options", "seeds"), [
     ((("episodes", "20"), ("reward_function", "goal()")), "the seeds (--seed N runs one seed instead of 5)"),
     ((("episodes", "20"), ("seed", "4"), ("reward_function", "goal()")), None)])

@@ -52,7 +52,14 @@ import numpy as np
 from rac.compiler import CompileResult
 from rac.core.diagnostics import CheckError, Diagnostic, RacError, RacValueError, counted, error, json_text
 from rac.core.files import atomic_write
-from rac.engine.budget import BudgetExceeded, check_estimate, evaluation_bytes, learning_bytes, out_of_memory
+from rac.engine.budget import (
+    BudgetExceeded,
+    EstimateExceeded,
+    check_estimate,
+    evaluation_bytes,
+    learning_bytes,
+    out_of_memory,
+)
 from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
 
@@ -229,6 +236,7 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
     (:class:`rac.engine.shield.SafeOnward`); ExperimentError when the shield is needed and absent."""
     # stormpy (via rac.engine.shield): importing rac.studies.experiment stays light
     from rac.engine import shield as shields
+    from rac.verify.context import over_budget  # beside it (it imports the shield too): a refusal in the options' words
 
     data = result.model_data
     assert data is not None
@@ -238,6 +246,10 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
     except MemoryError as exc:
         # the budget's own refusal says which limit stopped it; the process's memory running out first (a
         # `ulimit -v`, a container) said only numpy's "Unable to allocate 80.0 MiB", with no limit named
+        if isinstance(exc, BudgetExceeded) and not isinstance(exc, EstimateExceeded):
+            # with what to raise: --max-states, or the memory option of the command (rac sweep's --task-memory);
+            # it named only what to coarsen, the memory option only as the budget
+            raise ExperimentError(f"the safety shield cannot be computed: {over_budget(exc)}", "limit") from None
         why = str(exc) if isinstance(exc, RacError) else out_of_memory(exc, "computing it")
         raise ExperimentError(f"the safety shield cannot be computed: {why}; coarsen the model (actions, "
                               "decide_period) or shorten the horizon", "limit") from None
