@@ -545,7 +545,8 @@ def test_preanalyse_shows_qa_of_a_setting_whose_exploration_stopped(capsys: pyte
     captured = capsys.readouterr()
     assert captured.out.splitlines()[-1] == (
         "| 2 | 0.5 | 1 | [0.000, 0.842] | — | — | — | — | 0.00 | the model has more than 3 states by t = 0.5 s "
-        "(sample 1) |")
+        "(sample 1): shorten the horizon (--horizon), coarsen the model (exponent, action steps, decide_period) or "
+        "raise --max-states if the machine has the memory |")
     assert captured.err == "rac preanalyse: 1 of 1 settings were answered only in part (their rows say why)\n"
 
 

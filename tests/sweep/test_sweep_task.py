@@ -178,6 +178,9 @@ def test_a_preanalyse_setting_beyond_the_state_budget_is_undecided(folder: Path)
                         options=(("runs", "2"), ("seed", "1"), ("max_states", "10")), timeout=60))
     assert row["status"] == "undecided", row
     assert "more than 10 states" in str(row["error"])
+    # and what to change: it said how far it got, not which option to raise
+    assert str(row["error"]).endswith(": shorten the horizon (--horizon), coarsen the model (exponent, action steps, "
+                                      "decide_period) or raise --max-states if the machine has the memory"), row
 
 
 def test_experiment_row_holds_the_summary_table(rows: dict[str, dict[str, object]]) -> None:

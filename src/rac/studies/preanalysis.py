@@ -43,7 +43,15 @@ from rac.compiler import CompileResult
 from rac.core.diagnostics import RacError, counted, short_number
 from rac.core.numbers import samples_of
 from rac.engine import storm
-from rac.engine.budget import VALUE_BYTES, TimeExceeded, TimeLimit, check_estimate, out_of_memory
+from rac.engine.budget import (
+    VALUE_BYTES,
+    BudgetExceeded,
+    EstimateExceeded,
+    TimeExceeded,
+    TimeLimit,
+    check_estimate,
+    out_of_memory,
+)
 from rac.engine.shield import synthesise
 from rac.engine.simulate import Limits, integrate_truth, simulate
 from rac.engine.stats import clopper_pearson
@@ -55,6 +63,7 @@ from rac.model.commonroad import Scenario
 from rac.model.data import ModelData, ModelRangeError, build_model_data
 from rac.model.native import NEGATIVE_DISTANCE_TEXT, NO_OBSTACLE
 from rac.model.sample import MOTION, Ego
+from rac.verify.context import over_budget
 
 __all__ = ["ANSWERS", "SWEEP_PLOT", "Row", "SweepError", "answered", "earlier_plots", "render_table", "sweep"]
 
@@ -489,8 +498,11 @@ def _left_int32(exc: ModelRangeError, where: str) -> str:
 
 
 def _memory_error(exc: MemoryError) -> str:
-    """A setting's error for ``exc``: a budget's own words (:class:`~rac.engine.budget.BudgetExceeded`), or
-    what running out of the machine's memory (or ``ulimit -v``) before the budget said so means."""
+    """A setting's error for ``exc``: a budget's own words (:class:`~rac.engine.budget.BudgetExceeded`) with what
+    to change, as rac verify says it (an estimate's refusal says it itself), or what running out of the machine's
+    memory (or ``ulimit -v``) before the budget said so means."""
+    if isinstance(exc, BudgetExceeded) and not isinstance(exc, EstimateExceeded):
+        return over_budget(exc)  # it said how far it got, not which option to change
     return str(exc) if isinstance(exc, RacError) else out_of_memory(exc, "this setting")
 
 
