@@ -183,6 +183,15 @@ def test_a_preanalyse_setting_beyond_the_state_budget_is_undecided(folder: Path)
                                       "decide_period) or raise --max-states if the machine has the memory"), row
 
 
+def test_an_experiment_row_without_a_safe_strategy_holds_the_shields_states(folder: Path) -> None:
+    """On the narrow road (every state off the road) the experiment stops at "no safe strategy" after computing the
+    shield: the row's states was empty though its size was known; it is the shield's, as an ok row's."""
+    options = (("seed", "1"), ("episodes", "4"), ("runs", "2"), ("reward_function", "goal()"))
+    row = run_task(spec(folder, "narrow_road.xml", "experiment", options=options, timeout=60))
+    assert row["status"] == "failed" and str(row["error"]).startswith("no safe strategy exists from the start"), row
+    assert isinstance(row["states"], int) and row["states"] > 0, row
+
+
 def test_experiment_row_holds_the_summary_table(rows: dict[str, dict[str, object]]) -> None:
     row = rows["experiment"]
     assert row["status"] == "ok", row

@@ -134,9 +134,12 @@ class ExperimentError(RacError, ValueError):
     ``--bins``, ``--reward-function``), ``"limit"`` (beyond ``--max-states`` or the memory budget),
     ``"model"`` (the file: no ``model`` block, no safe strategy, learning that failed)."""
 
-    def __init__(self, message: str, kind: str = "model", diagnostic: Diagnostic | None = None) -> None:
+    def __init__(self, message: str, kind: str = "model", diagnostic: Diagnostic | None = None,
+                 states: int | None = None) -> None:
         super().__init__(message)
         self.kind = kind
+        #: The safety shield's states when it was computed before the experiment stopped (no safe strategy), else None.
+        self.states = states
         if diagnostic is not None:  # the failure points into the file (a query's observation)
             self.diagnostic = diagnostic
 
@@ -254,7 +257,8 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
         raise ExperimentError(f"the safety shield cannot be computed: {why}; coarsen the model (actions, "
                               "decide_period) or shorten the horizon", "limit") from None
     if not computed.shield_exists and needed:
-        raise ExperimentError("no safe strategy exists from the start: the shielded combinations cannot run")
+        raise ExperimentError("no safe strategy exists from the start: the shielded combinations cannot run",
+                              states=computed.graph.n_states)
     onward = shields.SafeOnward(computed, horizon_samples, forget_every=table.forget_every)
     return (table if computed.shield_exists else None), time.perf_counter() - t0, computed.graph.n_states, onward
 

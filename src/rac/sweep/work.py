@@ -7,7 +7,8 @@ instantiated for the task (:func:`rac.sweep.template.instantiate`), checked with
 - ``preanalyse``: :func:`rac.studies.preanalysis.sweep` at the file's own settings (details: its
   rows; verdicts: Qb, Qc and Qd);
 - ``experiment``: :func:`rac.studies.experiment.run_experiment` and its
-  :func:`~rac.studies.experiment.summary` (details: the table's rows; states: the shield's).
+  :func:`~rac.studies.experiment.summary` (details: the table's rows; states: the shield's, also when it allows
+  no safe strategy).
 
 Nothing is written but into a temporary folder that is removed (verify's strategies, CSV files).
 :func:`execute` returns the task's part of the row and never raises.
@@ -312,6 +313,8 @@ def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, A
         # strategy from the start) fails it
         status = {"limit": "undecided", "usage": "error"}.get(exc.kind, "failed")
         row.update(status=status, error=str(exc))
+        if exc.states is not None:  # the shield was computed (no safe strategy): its size, as an ok row's
+            row["states"] = exc.states
         return
     row["details"] = summary(report)
     row["states"] = report["shield_states"]
