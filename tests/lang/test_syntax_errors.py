@@ -285,3 +285,49 @@ def test_an_input_with_a_default_value_gets_the_hint(declaration: str, name: str
 def test_no_input_default_hint_elsewhere() -> None:
     diagnostic, _ = diagnose("automaton A {\n  input fast : bool\n  reward r = 0\n}\n")
     assert not any("input has no default" in h for h in diagnostic.hints)
+
+
+SLIPS = """automaton A {
+    input p, q : bool
+    const K = 5
+    reward sa, pr
+    priority sa > pr
+    objective 10 * sa + pr
+    sample every 0.1
+    horizon 2
+    initial location L { sa' == 1; pr' == 1 }
+    location M { sa' == -1; pr' == 0 }
+    edge * -> M when p do sa -= K
+    edge M -> L when q && !p do sa = sa + 1, pr += 1
+}
+"""
+
+
+@pytest.mark.parametrize(("slip", "written", "hint"), [
+    # the product hint, `1 * pr`, was the only one: the flow after it lacked its `;`
+    ("sa' == 1; pr' == 1 }", "sa' == 1 pr' == 1 }", "a location's flows are separated by `;`: "),
+    ("sa' == -1; pr' == 0", "sa' == -1, pr' == 0", "a location's flows are separated by `;`, not `,`"),
+    ("pr' == 1 }", "pr' == 1", "a `}` is missing before `location`: close the location's `{`"),
+    ("    edge * -> M", "    }\n    edge * -> M", "the automaton was closed before this `edge`: a `}` above closes it"),
+    ("10 * sa + pr", "10 * (sa + pr", "check that every `(` has a matching `)`"),
+    ("edge * -> M", "edge * M", "an edge is written `edge FROM -> TO`, with `->`"),
+    ("when p do sa -= K", "when p sa -= K", "updates follow `do`: `... do sa -= K`"),
+    ("edge * -> M when p", "edge * -> M p", "a guard follows `when`: "),
+    ("do sa = sa + 1", "do sa == sa + 1", "an update assigns with one `=`: `reward = expr`"),
+    ("sa = sa + 1, pr += 1", "sa = sa + 1 pr += 1", "updates are separated by `,`: "),
+    ("reward sa, pr", "reward sa pr", "names are separated by `,`: "),
+    ("input p, q : bool", "input p, q bool", "a type follows `:`: `input NAME : bool`"),
+    ("const K = 5", "const K 5", "a constant is written `const NAME = VALUE`"),
+    ("priority sa > pr", "priority sa >= pr", "the priority order is written with `>` alone"),
+    ("location M { sa' == -1; pr' == 0 }", "location M sa' == -1; pr' == 0", "a location's flows are written in "
+                                                                              "braces"),
+])
+def test_a_missing_separator_or_keyword_gets_a_hint(slip: str, written: str, hint: str) -> None:
+    """E0001 named the token the parser wanted (`expected `;` or `}``) and gave no hint, or a wrong one (a missing
+    `;` between flows got "a product is written with `*`")."""
+    assert slip in SLIPS
+    lark_parser().parse(SLIPS, start=MODULE)  # the file parses as written
+    diagnostic, _ = diagnose(SLIPS.replace(slip, written, 1))
+    assert diagnostic.code == "E0001"
+    assert any(h.startswith(hint) for h in diagnostic.hints), diagnostic.hints
+    assert not any("a product is written" in h for h in diagnostic.hints), diagnostic.hints

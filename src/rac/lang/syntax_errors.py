@@ -221,7 +221,8 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
     if found.lower() in _UNITS and _NUMBER_BEFORE.search(before):
         hints.append("numbers carry no unit: times are in seconds (`horizon 30`, `sample every 0.1` for 100 ms), "
                      "distances in metres, speeds in m/s")
-    elif found_type == "NAME" and (number := _NUMBER_BEFORE.search(before)):  # `objective 10sa + pr`
+    elif found_type == "NAME" and not _STATEMENT_AFTER.match(after) and (number := _NUMBER_BEFORE.search(before)):
+        # `objective 10sa + pr`; not `sa' == 1 pr' == 1` nor `do a += 1 b += 1`, a separator missing (below)
         hints.append(f"a product is written with `*`: `{number.group(0).strip()} * {found}`")
     if found == "when" and _DO_BEFORE.search(before):
         hints.append("the guard comes before the updates: `edge A -> B when GUARD do UPDATE, ...`, "
@@ -234,10 +235,63 @@ def _syntax_hints(found: str, expected: set[str], before: str = "", found_type: 
     uppaal = _uppaal_query_hint(found, before)
     if uppaal is not None:
         hints.append(uppaal)
+    hints.extend(_separator_hints(found, expected, before, found_type, after))
     if found == "<" and not before.strip():  # `rac simulate scenario.xml`: the scenario given for the automaton
         hints.append("this looks like an XML file (a CommonRoad scenario?): rac reads a `.ra` file, whose `model` "
                      "block names the scenario with `scenario \"FILE.xml\"`")
     return hints
+
+
+#: A flow (`pr' == ...`) or an update (`co += 1`) from the unexpected token on: what follows a missing separator.
+_STATEMENT_AFTER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\s*(?:'|[-+]?=(?!=))")
+#: The words that begin a declaration: one met where a `}` or a `)` was due says which of them is missing.
+_DECLARATION_TYPES = {"INPUT", "ASSUME", "CONST", "PARAM", "REWARD", "PRIORITY", "OBJECTIVE", "SAMPLE", "HORIZON",
+                      "INITIAL", "LOCATION", "EDGE", "AT", "EPISODE", "GOAL", "COLLISION", "REQUIRE", "QUERY", "MODEL"}
+
+
+def _separator_hints(found: str, expected: set[str], before: str, found_type: str, after: str) -> list[str]:
+    """Hints for a missing or wrong separator or keyword, where the parser's note names only the token it wanted
+    (`expected `;` or `}``): a flow, an update or a name after another without its `;` or `,`, a `}` or `)` not
+    closed, an edge without `->`, `when` or `do`, a constant without `=`, a location without braces."""
+    words = {_describe_terminal(t) for t in expected}
+    declaration = found in _DECLARATION_WORDS and (found_type in _DECLARATION_TYPES or found_type == "NAME")
+    statement = bool(_STATEMENT_AFTER.match(after))
+    if expected == {"SEMICOLON", "RBRACE"}:  # inside a location's braces
+        if found == ",":
+            return ["a location's flows are separated by `;`, not `,`: `{ sa' == 1; pr' == 0 }`"]
+        if declaration:
+            return [f"a `}}` is missing before `{found}`: close the location's `{{` (check that every `{{` has a "
+                    "matching `}`)"]
+        if statement:
+            return ["a location's flows are separated by `;`: `{ sa' == 1; pr' == 0 }`"]
+    if expected <= {"$END", "AUTOMATON"} and declaration:
+        return [f"the automaton was closed before this `{found}`: a `}}` above closes it too early (check that every "
+                "`{` has a matching `}`)"]
+    if expected == {"RPAR"}:
+        return ["check that every `(` has a matching `)`"]
+    if "`->`" in words and found_type == "NAME":
+        return ["an edge is written `edge FROM -> TO`, with `->`"]
+    if "DO" in expected and found_type == "NAME" and statement and not _DO_BEFORE.search(before):
+        return [f"updates follow `do`: `... do {after.split('//')[0].strip()}`"]
+    if ("WHEN" in expected and "DO" in expected and found not in ("}", ",") and not declaration
+            and _misspelt_keyword(found, expected) is None):  # `whn` has its own hint
+        return ["a guard follows `when`: `edge A -> B when GUARD do UPDATE`"]
+    if found == "=" and before.endswith("=") and _DO_BEFORE.search(before):  # `do sa == sa - 1`
+        return ["an update assigns with one `=`: `reward = expr` (`==` compares, in a guard)"]
+    if expected == {"COLON", "COMMA"}:
+        return ["a type follows `:`: `input NAME : bool`"]
+    if "COMMA" in expected and found_type == "NAME" and not declaration:
+        if statement and _DO_BEFORE.search(before):
+            return ["updates are separated by `,`: `do pr += 100, co += 1`"]
+        if not statement:
+            return ["names are separated by `,`: `reward sa, pr, co`"]
+    if expected == {"EQUAL"} and re.search(r"\bconst\s+[A-Za-z_][A-Za-z0-9_]*\s*$", before):
+        return ["a constant is written `const NAME = VALUE`"]
+    if expected == {"NAME"} and found == "=" and before.rstrip().endswith(">"):
+        return ["the priority order is written with `>` alone: `priority sa > pr > co`"]
+    if expected == {"LBRACE"} and re.search(r"\blocation\s+[A-Za-z_][A-Za-z0-9_]*\s*$", before):
+        return ["a location's flows are written in braces: `location L { sa' == 1; pr' == 0 }`"]
+    return []
 
 
 #: Comments, strings (whose text may hold ``//`` or ``/*``) and an unclosed ``/*``, lexed like the grammar.
