@@ -99,6 +99,27 @@ def test_a_goal_no_shielded_run_reaches_is_said_plainly(report: dict[str, object
         assert "what a learner exploring at epsilon near 1 can expect" not in line
 
 
+def test_a_goal_no_shielded_run_reaches_exits_1_with_the_table_written(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """rac experiment exited 0 on the tiny road whose goal no run the shield allows reaches: a table every shielded
+    row of which must fail read as a measurement. It is written all the same, and the exit status (1) and standard
+    error say why, as for a file without a safe strategy."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", LEARN)
+    out = tmp_path / "out"
+    code = main(["experiment", str(path), "--seeds", "1", "--episodes", "8", "--runs", "2", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "SS&RA", "--out", str(out), "-q"])
+    captured = capsys.readouterr()
+    assert code == 1, captured.err
+    assert "| SS&RA |" in captured.out and (out / "results.json").exists() and (out / "experiment.md").exists()
+    assert captured.err.startswith("rac experiment: no run the shield allows reaches the goal safely within the "
+                                   "horizon (8 samples; exact, over all of them, the optimum of SS&RA): no episode "
+                                   "of SS&RA can succeed, whatever the learner"), captured.err
+    assert captured.err.rstrip().endswith("the results above are written all the same"), captured.err
+    # a reachable goal still exits 0 (test_cli_writes_table_json_and_curves), and so does a table without a shield
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "8", "--runs", "2", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "RF", "--out", str(out), "-q"]) == 0
+
+
 def test_cli_writes_table_json_and_curves(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", LEARN)
     out = tmp_path / "out"

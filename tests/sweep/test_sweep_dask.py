@@ -1158,7 +1158,7 @@ def test_the_cli_runs_an_experiment_with_its_reward_function(world: Path, tmp_pa
     out = tmp_path / "out"
     code = main(["sweep", str(world / "sweep.ra"), str(world / "scenarios" / "goal_ahead.xml"), "--task",
                  "experiment", "--reward-function=-sa", "--episodes", "3", "--runs", "2", "--seed", "1",
-                 "--horizon", "2", "--workers", "1", "-o", str(out), "-q"])
+                 "--workers", "1", "-o", str(out), "-q"])  # the file's horizon: within 2 s no safe run reaches the goal
     assert code == EXIT_OK, capsys.readouterr()
     (row,) = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert row["status"] == "ok" and row["details"]

@@ -192,6 +192,16 @@ def test_an_experiment_row_without_a_safe_strategy_holds_the_shields_states(fold
     assert isinstance(row["states"], int) and row["states"] > 0, row
 
 
+def test_an_experiment_row_whose_goal_no_shielded_run_reaches_fails(folder: Path) -> None:
+    """Behind the obstacle no run the shield allows reaches the goal: the row was "ok", though every shielded row of
+    its table must fail (rac experiment exits 1 on it). It is "failed", with the table kept in its details."""
+    options = (("seed", "1"), ("episodes", "4"), ("runs", "2"), ("reward_function", "goal()"))
+    row = run_task(spec(folder, "avoidable_obstacle.xml", "experiment", options=options, timeout=60))
+    assert row["status"] == "failed", row
+    assert str(row["error"]).startswith("no run the shield allows reaches the goal safely within the horizon"), row
+    assert isinstance(row["details"], list) and len(row["details"]) == 4 and row["states"], row
+
+
 def test_experiment_row_holds_the_summary_table(rows: dict[str, dict[str, object]]) -> None:
     row = rows["experiment"]
     assert row["status"] == "ok", row

@@ -798,6 +798,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     # numpy (via rac.studies.experiment): only the command that uses it loads it
     from rac.studies.experiment import (
         ExperimentError,
+        goal_out_of_reach,
         render_ablation,
         render_markdown,
         results_json,
@@ -882,6 +883,14 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
         for path in files:
             print(f"wrote {path}")
     # Ctrl-C: what was learned is shown and written, and the exit code says it was cut short
-    return EXIT_INTERRUPTED if report.get("interrupted") else EXIT_OK
+    if report.get("interrupted"):
+        return EXIT_INTERRUPTED
+    # a table every row of which must fail is the file's finding, as `no safe strategy` is (exit 1): exit 0 said
+    # the experiment had measured something
+    unreachable = goal_out_of_reach(report)
+    if unreachable is not None:
+        print(f"rac experiment: {unreachable}; the results above are written all the same", file=sys.stderr)
+        return EXIT_ERRORS
+    return EXIT_OK
 
 

@@ -64,8 +64,8 @@ from rac.ir import query as iq
 from rac.learning.episodes import EpisodeBatch, parse_expr
 
 __all__ = ["ABLATION", "COMBINATIONS", "GROWTH", "PAPER_INPUTS", "PAPER_REWARD_FUNCTION", "ExperimentError", "Options",
-           "Report", "default_reward_problem", "default_widths", "render_ablation", "render_markdown", "results_json",
-           "run_experiment", "write_outputs"]
+           "Report", "default_reward_problem", "default_widths", "goal_out_of_reach", "render_ablation",
+           "render_markdown", "results_json", "run_experiment", "write_outputs"]
 
 #: The experiment's report and its summary rows (JSON-shaped: written as JSON and as Markdown).
 Report = dict[str, Any]
@@ -569,6 +569,20 @@ def _shortfall(record: RunRecord) -> float:
 
     assert record.optimum is not None
     return shortfall(record.greedy_return, record.optimum)
+
+
+def goal_out_of_reach(report: Report) -> str | None:
+    """Why no episode of the shielded combinations can succeed, when the exact optimum under the shield found that
+    no run the shield allows reaches the goal safely within the horizon (its ``uniform_success`` is 0, exact over
+    them all); None when some run can, or no optimum says (no shielded combination, one out of reach)."""
+    labels = [label for label, optimum in report.get("optima", {}).items()
+              if "uniform_success" in optimum and not optimum["uniform_success"] > 0]
+    if not labels:
+        return None
+    return (f"no run the shield allows reaches the goal safely within the horizon ({report['horizon_samples']} "
+            f"samples; exact, over all of them, the optimum of {' and '.join(labels)}): no episode of "
+            f"{' or '.join(labels)} can succeed, whatever the learner (a longer horizon, or another goal or scenario, "
+            "may bring the goal within reach)")
 
 
 def render_markdown(report: Report) -> str:

@@ -291,7 +291,7 @@ def _preanalysis_fields(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, Any], max_bytes: int) -> None:
     # numpy (via rac.studies.experiment): importing rac.sweep.work stays light
-    from rac.studies.experiment import ExperimentError, run_experiment, summary
+    from rac.studies.experiment import ExperimentError, goal_out_of_reach, run_experiment, summary
 
     if "seed" in options and "seeds" in options:
         raise TaskError("give the option seeds or seed, not both")
@@ -318,3 +318,6 @@ def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, A
         return
     row["details"] = summary(report)
     row["states"] = report["shield_states"]
+    unreachable = goal_out_of_reach(report)
+    if unreachable is not None:  # every row of the table must fail: as rac experiment's exit 1 says, a failure
+        row.update(status="failed", error=unreachable)
