@@ -264,6 +264,31 @@ def test_a_start_search_its_safety_time_limit_stopped_says_it_depends_on_the_mac
             ) in message, message
 
 
+def test_max_seconds_bounds_the_start_search_and_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--max-seconds`` bounds Qd's search from the start (it had only its work budget and the 300 s safety
+    net): on a clock that reads 15 s later at every look, a limit of 20 s stops it, and the answer names
+    --max-seconds, not the safety net. Without the option the same clock leaves the verdict to the budget."""
+    import time
+    from types import SimpleNamespace
+
+    from rac.engine import budget, lookahead
+
+    path = write_engine_file(tmp_path, "goal_behind_wall", {"safe": QUERIES["safe"]})
+    frozen = time.perf_counter()
+    monkeypatch.setattr(budget, "time", SimpleNamespace(perf_counter=lambda: frozen))  # the query's own clock
+    ticks = iter(range(10**9))
+    monkeypatch.setattr(lookahead, "time", SimpleNamespace(perf_counter=lambda: next(ticks) * 15.0))
+    [limited] = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path / "a", plots=False,
+                                                              max_states=3, max_seconds=20))[1]
+    message = limited.message or ""
+    assert "the time limit of 20 s (--max-seconds) before spending its budget of" in message, message
+    assert limited.status != "satisfied" or "at least" in message, message
+    assert "safety time limit" not in message, message
+    [free] = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path / "b", plots=False,
+                                                           max_states=3))[1]
+    assert free.status == "satisfied" and "at the start 1 of 9 actions have" in (free.message or ""), free.message
+
+
 def test_a_state_asked_twice_at_once_is_counted_once(tmp_path: Path) -> None:
     """``stats.states`` counts distinct states (what a report cites as the shield's reach): runs that
     meet the same state at one sample asked about it together, and it was counted once per run."""

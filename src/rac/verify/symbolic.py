@@ -411,15 +411,24 @@ class SymbolicAnswerer:
                                        horizon_samples=ctx.horizon_samples,
                                        message=f"no strategy keeps `{goal}` from the start: it is false at the start")
         nodes = start_nodes(ctx.data)
+        ctx.limit.check()  # --max-seconds already spent (exploring the model): nothing left to search in
+        # --max-seconds bounds the search too; without it the work budget decides (the same on every machine)
+        # and the safety net only guards against a machine far slower than expected
+        left = ctx.limit.remaining()
+        limited = left is not None and left < START_SAFETY_SECONDS
+        seconds = max(left, 1e-9) if limited and left is not None else START_SAFETY_SECONDS
         search = Lookahead(ctx.data, ctx.horizon_samples,
-                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=START_SAFETY_SECONDS, nodes=nodes))
+                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=seconds, nodes=nodes))
         found = search.decide(row)
         proved = found.depth >= found.target and found.depth > 0
         reach = f"t = {found.until * float(at):g} s"
         # what stopped an incomplete search: its node budget (the same answer on every machine) or, before
-        # that was spent, the safety time limit (then the answer is the machine's, and says so)
+        # that was spent, --max-seconds (the user's limit, named) or the safety time limit (then the answer
+        # is the machine's, and says so)
         budget = counted(nodes, "search node")
-        stopped = (f"its safety time limit of {START_SAFETY_SECONDS:g} s before spending its budget of {budget}, "
+        stopped = (f"the time limit of {ctx.limit.seconds:g} s (--max-seconds) before spending its budget of "
+                   f"{budget}" if found.clock and limited else
+                   f"its safety time limit of {START_SAFETY_SECONDS:g} s before spending its budget of {budget}, "
                    "so this depends on the machine's speed and load" if found.clock else
                    f"its budget of {budget}, the same on every machine")
         if not proved and not found.complete:
