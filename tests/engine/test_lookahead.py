@@ -208,6 +208,37 @@ def test_a_held_continuation_stops_at_the_deadline(tmp_path: Path, monkeypatch: 
     assert got.depth >= 1 and (want[got.mask] >= got.depth).all()
 
 
+def test_the_memory_limit_stops_the_search_before_it_allocates_past_it(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Qd's search from the start held about 1 GB at its work budget's worst (a layer of 45 actions' millions
+    of successors), checked against no memory limit. With ``max_bytes`` the layers it merges stay within the
+    limit by the estimate (:data:`SUCCESSOR_BYTES` a successor), it says that the limit stopped it, and what
+    it allows is still proved; a limit it stays within changes nothing."""
+    from rac.engine import lookahead
+
+    data, horizon = scene("ahead", str(tmp_path))
+    oracle = Oracle(data, horizon)
+    start = np.array([0, *oracle.native.initial_state()])
+    want, _ = oracle.depths(oracle.native.initial_state(), 0, 4)
+    # every layer expanded (the fixed continuations would carry the actions at once)
+    monkeypatch.setattr(Lookahead, "_fixed", lambda self, states, k, held, remaining: np.zeros(states.shape[0],
+                                                                                             dtype=np.int64))
+    merged: list[int] = []
+    distinct = lookahead._distinct_rows
+    monkeypatch.setattr(lookahead, "_distinct_rows", lambda parts: merged.append(sum(p.shape[0] for p in parts))
+                        or distinct(parts))
+    free = Lookahead(data, horizon, LookaheadSettings(depth=4, seconds=None, nodes=None)).decide(start)
+    assert free.complete and not free.memory and max(merged) > 100
+    limit = max(merged) * lookahead.SUCCESSOR_BYTES // 2  # half the largest layer's successors
+    merged.clear()
+    cut = Lookahead(data, horizon, LookaheadSettings(depth=4, seconds=None, nodes=None, max_bytes=limit)).decide(start)
+    assert cut.memory and not cut.complete and not cut.clock
+    assert max(merged) * lookahead.SUCCESSOR_BYTES <= limit
+    assert cut.depth >= 1 and (want[cut.mask] >= cut.depth).all()
+    roomy = Lookahead(data, horizon, LookaheadSettings(depth=4, seconds=None, nodes=None, max_bytes=10**9)).decide
+    assert (answer := roomy(start)).complete and not answer.memory and (answer.depths == free.depths).all()
+
+
 def test_settings_are_checked() -> None:
     for bad in ({"depth": 0}, {"depth": 1.5}, {"seconds": -1.0}, {"nodes": -1}, {"nodes": 2.5}, {"depth": True},
                 {"seconds": "1"}, {"seconds": float("nan")}):
@@ -222,6 +253,9 @@ def test_settings_are_checked() -> None:
     # numpy's integers (a depth swept over np.arange): depth=np.int64(6) was refused as no whole number
     settings = LookaheadSettings(depth=np.int64(6), nodes=np.int32(1000))  # type: ignore[arg-type]
     assert settings == LookaheadSettings(depth=6, nodes=1000) and type(settings.depth) is type(settings.nodes) is int
+    for bad_bytes in (0, -1, 2.5, True):
+        with pytest.raises(ValueError, match="max_bytes must be a whole number of bytes >= 1 or None"):
+            LookaheadSettings(max_bytes=bad_bytes)  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------- the exhaustive shield at its horizon

@@ -17,6 +17,7 @@ from engine_files import QUERIES, write_engine_file
 from rac.compiler import compile_file
 from rac.engine import ondemand
 from rac.engine import shield as shields
+from rac.engine.lookahead import Lookahead
 from rac.engine.ondemand import on_demand
 from rac.engine.simulate import simulate
 from rac.verify.context import VerifyOptions
@@ -287,6 +288,20 @@ def test_max_seconds_bounds_the_start_search_and_says_so(tmp_path: Path, monkeyp
     [free] = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path / "b", plots=False,
                                                            max_states=3))[1]
     assert free.status == "satisfied" and "at the start 1 of 9 actions have" in (free.message or ""), free.message
+
+
+def test_max_memory_bounds_the_start_search_and_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Qd's search from the start was checked against no memory limit (about 1 GB at its work budget's worst):
+    under a --max-memory its next layer would pass, it stops before allocating it and the answer names the
+    option, not the budget of search nodes."""
+    path = write_engine_file(tmp_path, "goal_behind_wall", {"safe": QUERIES["safe"]})
+    monkeypatch.setattr(Lookahead, "_fixed", lambda self, states, k, held, remaining: np.zeros(states.shape[0],
+                                                                                             dtype=np.int64))
+    [result] = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path, plots=False, max_states=3,
+                                                             max_bytes=2000))[1]
+    message = result.message or ""
+    assert result.status == "unknown", message
+    assert "it stopped at the memory budget of 1.95 kB (--max-memory) before spending its budget of" in message, message
 
 
 def test_a_state_asked_twice_at_once_is_counted_once(tmp_path: Path) -> None:

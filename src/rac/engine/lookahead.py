@@ -26,7 +26,9 @@ fewer when none does (then the mask allows the actions that stay safe longest, a
 0 when every action is unsafe within one decision period (the mask is all False: no action is
 known to be safe).
 
-**The budget.** ``nodes`` and ``seconds`` bound the search per decision (:class:`LookaheadSettings`).
+**The budget.** ``nodes`` and ``seconds`` bound the search per decision (:class:`LookaheadSettings`), and
+``max_bytes`` its memory: a layer's successors are estimated (:data:`SUCCESSOR_BYTES`, :data:`LAYER_BYTES`)
+before each chunk of them is computed, so a search stops before it would hold more (:attr:`LookaheadMask.memory`).
 By default the budget is :data:`NODE_BUDGET` search nodes, which gives the same masks on every machine
 (so a training run at a seed is the same anywhere), with a time guard of :data:`GUARD_SECONDS` far
 above what they take.
@@ -69,8 +71,8 @@ from rac.model.batch import BatchModel, batch_model
 from rac.model.data import ModelData
 from rac.model.sample import ACTION, Ego, collides
 
-__all__ = ["DEFAULT_DEPTH", "DEFAULT_SECONDS", "GUARD_SECONDS", "NODE_BUDGET", "Lookahead", "LookaheadMask",
-           "LookaheadSettings"]
+__all__ = ["DEFAULT_DEPTH", "DEFAULT_SECONDS", "GUARD_SECONDS", "LAYER_BYTES", "NODE_BUDGET", "SUCCESSOR_BYTES",
+           "Lookahead", "LookaheadMask", "LookaheadSettings"]
 
 #: The default number of decisions a continuation must survive.
 DEFAULT_DEPTH = 5
@@ -87,6 +89,17 @@ GUARD_SECONDS = 2.0
 DEFAULT_SECONDS = GUARD_SECONDS
 #: How many successor rows one call computes (states of a layer times actions).
 CHUNK_ROWS = 1 << 12
+#: The peak bytes one safe successor of an expanded layer costs until the next layer is merged: its row
+#: (owner and 7 int32 columns) in the chunks, in their concatenation, in the merged copy, and the next
+#: layer's owners (int64) and states split from it. An upper bound: tracemalloc saw 81 B a successor at the start
+#: search's worst (3.5 M successors of a layer, 45 actions), the peak RSS a little more.
+SUCCESSOR_BYTES = 96
+#: The bytes a layer's state costs while it is searched: its owner (int64) and 7 int32 columns, a copy of
+#: both where the carried states leave it, and the per-state results of the fixed continuations.
+LAYER_BYTES = 96
+#: A merged row's columns (owner, then the state's 7) as fields: sorted in place field by field, the
+#: order of ``np.unique(rows, axis=0)``, without its copies.
+_ROW_FIELDS = np.dtype([(f"f{i}", np.int32) for i in range(8)])
 
 
 @dataclass(frozen=True)
@@ -107,6 +120,9 @@ class LookaheadSettings:
     depth: int = DEFAULT_DEPTH
     seconds: float | None = DEFAULT_SECONDS
     nodes: int | None = NODE_BUDGET
+    #: The most bytes the search may hold (None: no limit): a search that would need more stops, what it
+    #: proved standing (:attr:`LookaheadMask.memory`). The default node budget needs a few MB.
+    max_bytes: int | None = None
 
     def __post_init__(self) -> None:
         # numpy's integers are whole numbers too (a depth or budget from a sweep's array): kept as int
@@ -124,6 +140,11 @@ class LookaheadSettings:
                 raise ValueError(f"nodes must be a whole number >= 1 (the first decision period of every action "
                                  f"is one node, always searched) or None (no budget), not {self.nodes!r}")
             object.__setattr__(self, "nodes", int(self.nodes))
+        if self.max_bytes is not None:
+            if not _whole(self.max_bytes) or self.max_bytes < 1:
+                raise ValueError(f"max_bytes must be a whole number of bytes >= 1 or None (no limit), "
+                                 f"not {self.max_bytes!r}")
+            object.__setattr__(self, "max_bytes", int(self.max_bytes))
 
 
 def _whole(value: object) -> bool:
@@ -154,6 +175,8 @@ class LookaheadMask:
     #: The *time* budget stopped the search (not the node budget, nor its end): then the answer depends
     #: on the machine's speed and load, and consumers that promise reproducible answers say so.
     clock: bool = False
+    #: The memory limit (:attr:`LookaheadSettings.max_bytes`) stopped the search before its other budgets.
+    memory: bool = False
 
     @property
     def timed_out(self) -> bool:
@@ -248,6 +271,7 @@ class Lookahead:
         self._deadline = None if self.settings.seconds is None else started + self.settings.seconds
         self._nodes = 0
         self._clock = False
+        self._memory = False
         depths = np.zeros(self.n_actions, dtype=np.int64)
         complete = True
         if not (self.sticky and crashed):
@@ -265,7 +289,8 @@ class Lookahead:
         mask = depths == best if best > 0 else np.zeros(self.n_actions, dtype=bool)
         return LookaheadMask(mask=mask, depths=depths, depth=best, target=target, until=self.sample_after(k, best),
                              complete=complete, nodes=self._nodes, seconds=time.perf_counter() - started,
-                             clock=self._clock and not complete)  # a complete search is exact, whatever the clock
+                             clock=self._clock and not complete,  # a complete search is exact, whatever the clock
+                             memory=self._memory and not complete)
 
     def decisions_left(self, k: int) -> int:
         """The decisions asked for from sample ``k``: the setting's depth, or fewer up to the horizon."""
@@ -286,11 +311,14 @@ class Lookahead:
         """The sample a complete answer at sample ``k`` guarantees safety up to."""
         return self.sample_after(k, self.decisions_left(k))
 
-    def _spend(self, nodes: int = 1) -> None:
-        """Count ``nodes`` expanded states; :class:`_OutOfBudget` when that would exceed the node budget
-        or the time is up."""
+    def _spend(self, nodes: int = 1, needed_bytes: int = 0) -> None:
+        """Count ``nodes`` expanded states; :class:`_OutOfBudget` when that would exceed the node budget,
+        the search would then hold more than ``max_bytes`` (``needed_bytes``: its estimate), or the time is up."""
         settings = self.settings
         if settings.nodes is not None and self._nodes + nodes > settings.nodes:
+            raise _OutOfBudget
+        if settings.max_bytes is not None and needed_bytes > settings.max_bytes:
+            self._memory = True
             raise _OutOfBudget
         if self._deadline is not None and time.perf_counter() >= self._deadline:
             self._clock = True
@@ -328,7 +356,7 @@ class Lookahead:
             reached = np.zeros(owners.size, dtype=np.int64)
             chunk = max(1, CHUNK_ROWS // (1 + len(self._fallbacks)))
             for start in range(0, owners.size, chunk):  # the budget checked before each chunk
-                self._spend()
+                self._spend(needed_bytes=owners.size * LAYER_BYTES)
                 part = slice(start, start + chunk)
                 reached[part] = self._fixed(layer[part], sample, self._action_of(layer[part]), left)
                 np.maximum.at(depths, owners[part], survived + reached[part])
@@ -353,24 +381,27 @@ class Lookahead:
     def _expand(self, owners: np.ndarray, layer: np.ndarray, sample: int) -> tuple[np.ndarray, np.ndarray]:
         """The next layer: every safe successor, one decision period from sample ``sample`` under each
         action, of every state of ``layer``, tagged with its state's owner; equal (owner, state) rows
-        merged. Computed in chunks, the budget checked before each."""
+        merged. Computed in chunks, the budget (nodes, memory, time) checked before each: the memory as the
+        layer held and the successors so far and of the chunk (:data:`LAYER_BYTES`, :data:`SUCCESSOR_BYTES`),
+        so a search stops before it allocates past ``max_bytes``."""
         per = self.n_actions
         chunk = max(1, CHUNK_ROWS // per)
-        next_owners: list[np.ndarray] = []
-        next_states: list[np.ndarray] = []
+        held = owners.size * LAYER_BYTES
+        parts: list[np.ndarray] = []
+        found = 0
         for start in range(0, owners.size, chunk):
             rows = layer[start:start + chunk]
-            self._spend(rows.shape[0])
+            self._spend(rows.shape[0], held + (found + rows.shape[0] * per) * SUCCESSOR_BYTES)
             actions = np.tile(np.arange(per), rows.shape[0])
             ends, safe, _ = self.periods(np.repeat(rows, per, axis=0), sample, actions)
-            next_owners.append(np.repeat(owners[start:start + chunk], per)[safe])
-            next_states.append(ends[safe])
-        owners = np.concatenate(next_owners)
-        states = np.concatenate(next_states)
-        if owners.size == 0:
-            return owners, states
-        merged = np.unique(np.column_stack([owners, states]), axis=0)
-        return merged[:, 0].astype(np.int64), np.ascontiguousarray(merged[:, 1:], dtype=np.int32)
+            # owner and state in one int32 row (owners are action indices): half the bytes of int64 rows
+            part = np.empty((int(safe.sum()), 8), dtype=np.int32)
+            part[:, 0] = np.repeat(owners[start:start + chunk], per)[safe]
+            part[:, 1:] = ends[safe]
+            parts.append(part)
+            found += part.shape[0]
+        merged = _distinct_rows(parts)
+        return merged[:, 0].astype(np.int64), np.ascontiguousarray(merged[:, 1:])
 
     def _fixed(self, states: np.ndarray, k: int, held: np.ndarray, remaining: int) -> np.ndarray:
         """``(n,)``: per row, the most decisions (up to ``remaining``) one of the fixed continuations —
@@ -405,3 +436,19 @@ class Lookahead:
             reached[live[ok]] = decision + 1
             sample = self.period_end(sample)
         return reached.reshape(count, n).max(axis=0)
+
+
+def _distinct_rows(parts: list[np.ndarray]) -> np.ndarray:
+    """The distinct rows of the ``(n, 8)`` int32 arrays ``parts`` (emptied), sorted as ``np.unique(rows,
+    axis=0)`` sorts them: concatenated once and sorted in place, where ``np.unique`` held two more copies
+    (a layer of millions of rows cost about 1 GB at the start search's budget)."""
+    rows = np.concatenate(parts) if parts else np.empty((0, 8), dtype=np.int32)
+    parts.clear()
+    if rows.shape[0] < 2:
+        return rows
+    keys = rows.view(_ROW_FIELDS).reshape(-1)  # the rows themselves, sorted in place
+    keys.sort()
+    distinct = np.empty(keys.size, dtype=bool)
+    distinct[0] = True
+    distinct[1:] = keys[1:] != keys[:-1]
+    return rows[distinct]

@@ -14,9 +14,10 @@ import numpy as np
 
 from rac import ir
 from rac.core.diagnostics import counted
+from rac.core.resources import memory_option
 from rac.engine import shield, storm
 from rac.engine.allow import action_pairs
-from rac.engine.budget import BudgetExceeded
+from rac.engine.budget import BudgetExceeded, format_bytes
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
 from rac.engine.lookahead import Lookahead, LookaheadSettings
@@ -417,16 +418,21 @@ class SymbolicAnswerer:
         left = ctx.limit.remaining()
         limited = left is not None and left < START_SAFETY_SECONDS
         seconds = max(left, 1e-9) if limited and left is not None else START_SAFETY_SECONDS
+        # --max-memory too: at its work budget's worst (a layer of millions of successors) it holds ~0.5 GB
+        memory = ctx.memory_left()
         search = Lookahead(ctx.data, ctx.horizon_samples,
-                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=seconds, nodes=nodes))
+                           LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=seconds, nodes=nodes,
+                                             max_bytes=memory))
         found = search.decide(row)
         proved = found.depth >= found.target and found.depth > 0
         reach = f"t = {found.until * float(at):g} s"
         # what stopped an incomplete search: its node budget (the same answer on every machine) or, before
-        # that was spent, --max-seconds (the user's limit, named) or the safety time limit (then the answer
-        # is the machine's, and says so)
+        # that was spent, the memory budget or --max-seconds (the user's limits, named) or the safety time
+        # limit (then the answer is the machine's, and says so)
         budget = counted(nodes, "search node")
-        stopped = (f"the time limit of {ctx.limit.seconds:g} s (--max-seconds) before spending its budget of "
+        stopped = (f"the memory budget of {format_bytes(memory or 0)} ({memory_option()}) before spending its "
+                   f"budget of {budget}{ctx.kept_note()}" if found.memory else
+                   f"the time limit of {ctx.limit.seconds:g} s (--max-seconds) before spending its budget of "
                    f"{budget}" if found.clock and limited else
                    f"its safety time limit of {START_SAFETY_SECONDS:g} s before spending its budget of {budget}, "
                    "so this depends on the machine's speed and load" if found.clock else
@@ -538,10 +544,10 @@ def _distances_to(automaton: ir.Automaton, targets: np.ndarray) -> np.ndarray:
 #: The work the on-demand shield's search from the start for a safe run to the horizon (Qd's verdict) may
 #: do: successor samples (search nodes x actions x samples per decision), which is what its time follows.
 #: Spent in full it takes 6 s (9 actions every 20 samples, the head-on street) to 15 s (45 actions every 2,
-#: the tutorial road, 1 GB) on the 2-core machine of docs/benchmarks.md, within the 20 s of wall clock it
-#: had before (which gave UNKNOWN on a slow or busy machine where a fast one answered); the benchmark
-#: scenes' and examples' searches need at most 44,000 (the head-on street's 244 nodes). A budget of work
-#: gives the same verdict on every machine.
+#: the tutorial road, 0.4 GB: benchmarks/start_search.py) on the 2-core machine of docs/benchmarks.md,
+#: within the 20 s of wall clock it had before (which gave UNKNOWN on a slow or busy machine where a fast
+#: one answered); the benchmark scenes' and examples' searches need at most 44,000 (the head-on street's
+#: 244 nodes). A budget of work gives the same verdict on every machine.
 START_WORK = 12_000_000
 #: The start search's safety net (seconds), far beyond what :data:`START_WORK` takes: where it stops the
 #: search first, the answer says that it depends on the machine's speed and load.
