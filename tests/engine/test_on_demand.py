@@ -253,7 +253,8 @@ def test_the_start_searchs_verdict_does_not_depend_on_the_clock(tmp_path: Path,
 def test_a_start_search_its_safety_time_limit_stopped_says_it_depends_on_the_machine(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The start search's time limit is only a safety net; where it stops the search before its budget is
-    spent, the verdict (here UNKNOWN) depends on the machine's speed and load, and says so."""
+    spent, the verdict (here UNKNOWN) depends on the machine's speed and load, and says so: in the note the
+    runner adds for every search its safety net cut (witness searches had it; the start search did not count)."""
     from rac.verify import symbolic
 
     monkeypatch.setattr(symbolic, "START_SAFETY_SECONDS", 1e-9)
@@ -261,8 +262,11 @@ def test_a_start_search_its_safety_time_limit_stopped_says_it_depends_on_the_mac
     data = compile_file(tmp_path / "goal_behind_wall.ra").model_data
     assert status == "unknown" and data is not None
     assert ("it stopped at its safety time limit of 1e-09 s before spending its budget of "
-            f"{symbolic.start_nodes(data):,} search nodes, so this depends on the machine's speed and load"
+            f"{symbolic.start_nodes(data):,} search nodes)") in message, message
+    assert ("the search from the start ran into its safety time limit (1e-09 s) before spending its work budget, "
+            "so this answer (its verdict, or its count of actions) depends on the machine's speed and load"
             ) in message, message
+    assert message.count("speed and load") == 1, message
 
 
 def test_max_seconds_bounds_the_start_search_and_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

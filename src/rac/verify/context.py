@@ -190,6 +190,8 @@ class Context:
         #: How many witness searches their safety net (:data:`rac.engine.witness.SAFETY_SECONDS`) cut short
         #: before their work budget was spent: the runner says so in the answers that used one.
         self.witness_clocked = 0
+        #: ... and how many of Qd's searches from the start (:data:`rac.verify.symbolic.START_SAFETY_SECONDS`).
+        self.start_clocked = 0
         #: Why exploring the model failed, by ``prune`` (the budget): said again, not tried again.
         self.graph_failures: dict[bool, str] = {}
         #: The model's (jerk, turn) action pairs; a shield's masks index them.

@@ -50,12 +50,12 @@ from rac.engine.evaluate import EvaluationError
 from rac.ir import query as iq
 from rac.model.data import ModelRangeError
 from rac.model.program import CheckedProgram
+from rac.verify import symbolic
 from rac.verify.context import Context, NotApplicable, UnknownVerdict, VerifyOptions, left_int32
 from rac.verify.learning import LearningAnswerer
 from rac.verify.report import QueryResult, render_json, render_text
 from rac.verify.statistical import StatisticalAnswerer
 from rac.verify.status import NOT_APPLICABLE, NOT_SATISFIED, UNKNOWN, UNSUPPORTED
-from rac.verify.symbolic import SymbolicAnswerer
 
 __all__ = ["QueryResult", "UnknownQuery", "Verifier", "VerifyOptions", "render_json", "render_text", "run_queries",
            "standard_queries", "verify"]
@@ -99,7 +99,7 @@ class Verifier:
         #: Each seeded query's place among the whole file's (by ``id`` of its declaration): its seed
         #: (:meth:`Context.next_seed`); a query not in it draws the next seed in turn.
         self.seed_slots: Mapping[int, int] = seed_slots or {}
-        self.symbolic = SymbolicAnswerer(context)
+        self.symbolic = symbolic.SymbolicAnswerer(context)
         self.statistical = StatisticalAnswerer(context)
         self.learning = LearningAnswerer(context)
         #: The answer to each type of query (called with a query of that type).
@@ -134,6 +134,7 @@ class Verifier:
         self.context.seed_slot = self.seed_slots.get(id(decl))
         clocked = {name: computed.stats.clocked_answers for name, computed in self.context.on_demand.items()}
         searches_clocked = self.context.witness_clocked
+        starts_clocked = self.context.start_clocked
         redefined = _defines(query)
         if redefined is not None and getattr(query, "under", None) != redefined:
             # a strategy defined again replaces the earlier one of that name (whatever its kind)
@@ -170,15 +171,22 @@ class Verifier:
         note = self.context.stopped_note() if result.states is not None else None
         if note is not None and result.status in ("satisfied", "not satisfied"):
             result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
-        for note in self._clock_notes(clocked, self.context.witness_clocked - searches_clocked):
+        for note in self._clock_notes(clocked, self.context.witness_clocked - searches_clocked,
+                                      self.context.start_clocked - starts_clocked):
             result = dataclasses.replace(result, message=f"{result.message}; {note}" if result.message else note)
         return dataclasses.replace(result, seconds=time.perf_counter() - t0)
 
-    def _clock_notes(self, before: dict[str, int], searches: int = 0) -> list[str]:
+    def _clock_notes(self, before: dict[str, int], searches: int = 0, starts: int = 0) -> list[str]:
         """Per on-demand shield that handed out masks its time guard cut while this query ran (``before``:
-        each one's count of such masks before it), and for the ``searches`` witness searches their safety
-        net cut short: that the answer depends on the machine's speed."""
+        each one's count of such masks before it), for the ``searches`` witness searches and the ``starts``
+        searches from the start (Qd beyond the budget) their safety net cut short: that the answer depends on
+        the machine's speed."""
         notes = []
+        if starts:
+            start_net = symbolic.START_SAFETY_SECONDS
+            notes.append(f"the search from the start ran into its safety time limit ({start_net:g} s) before "
+                         "spending its work budget, so this answer (its verdict, or its count of actions) "
+                         "depends on the machine's speed and load and may differ on another run")
         if searches:
             net = self.context.options.witness.safety_seconds
             their = "its" if searches == 1 else "their"

@@ -40,7 +40,7 @@ from rac.verify.status import NOT_SATISFIED, SATISFIED
 if TYPE_CHECKING:  # the product is imported when a query needs it (a sweep task's memory limit is tight)
     from rac.engine.product import ProductGraph
 
-__all__ = ["SymbolicAnswerer"]
+__all__ = ["START_SAFETY_SECONDS", "START_WORK", "SymbolicAnswerer", "start_nodes"]
 
 
 #: What a reachability strategy's result says: decided, and kept under no name (no table to save).
@@ -434,9 +434,11 @@ class SymbolicAnswerer:
                    f"budget of {budget}{ctx.kept_note()}" if found.memory else
                    f"the time limit of {ctx.limit.seconds:g} s (--max-seconds) before spending its budget of "
                    f"{budget}" if found.clock and limited else
-                   f"its safety time limit of {START_SAFETY_SECONDS:g} s before spending its budget of {budget}, "
-                   "so this depends on the machine's speed and load" if found.clock else
+                   f"its safety time limit of {START_SAFETY_SECONDS:g} s before spending its budget of {budget}"
+                   if found.clock else
                    f"its budget of {budget}, the same on every machine")
+        if found.clock and not limited and not found.memory:
+            ctx.start_clocked += 1  # the answer is the machine's: the runner's note says so, as for witness searches
         if not proved and not found.complete:
             raise UnknownVerdict(f"{too_large}; a search for a safe run to the horizon from the start found none "
                                  f"(the longest it proved safe reaches {reach}; it stopped at {stopped})")
