@@ -680,6 +680,19 @@ def test_the_witness_search_keeps_within_max_seconds(tmp_path: Path, monkeypatch
     assert seen and all(seconds == Bounds().safety_seconds for seconds in seen)
 
 
+def test_the_guided_product_search_keeps_within_max_seconds(tmp_path: Path) -> None:
+    """The product search (a beam of up to 2 million states toward where the automaton reaches the query) read
+    no clock: a query over the automaton's names ran it to the end past `--max-seconds` and was answered.
+    It checks the query's limit per sample, as every exploration does."""
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {"Somewhere": QUERIES["Somewhere"]})
+    result = compile_file(path)
+    [free] = verify(result, VerifyOptions(seed=1, plots=False))
+    assert free.status == "satisfied" and free.method == "product search"
+    [limited] = verify(result, VerifyOptions(seed=1, plots=False, max_seconds=1e-9))
+    assert limited.status == "unknown", limited
+    assert (limited.message or "").endswith("past the time limit of 1e-09 s (--max-seconds)"), limited.message
+
+
 def test_a_slow_machine_answers_as_a_fast_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """15 s between two readings of the clock (a machine far slower than this one): the witness search ran
     past its 20 s and the answers came from the layered search instead (another method, another trace) or

@@ -304,7 +304,9 @@ class SymbolicAnswerer:
         branching = max(1, len(ctx.pairs) // max(1, ctx.data.decide_every))
         width = int(np.clip(GUIDED_STATES // (3 * max(1, ctx.horizon_samples) * branching), 8, GUIDED_WIDTH))
         try:
+            # its progress is the query's: --max-seconds checked per sample (TimeExceeded: UNKNOWN), the bar counts
             graph = explore_product(ctx.data, automaton, horizon_samples=ctx.horizon_samples,
+                                    progress=ctx.explore_progress,
                                     max_states=min(ctx.options.max_states, GUIDED_STATES),
                                     max_bytes=ctx.memory_left(), stop_at=stop, beam=(width, score))
         except BudgetExceeded:
