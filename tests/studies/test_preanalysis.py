@@ -197,6 +197,9 @@ def test_the_true_distances_count_their_time_steps_off_a_terminal(tmp_path: Path
     assert steps == list(range(1, 41))  # 8 samples of 5 time steps each
     # the simulations count their samples too (Qa's runs, then Fig. 7's): a long horizon's take minutes
     assert [n for n, unit in beat.counts if unit == "samples"] == [*range(1, 9), *range(1, 9)]
+    # and the exploration of Qb-Qd its states, up to the shield's graph (it counted nothing)
+    states = [n for n, unit in beat.counts if unit == "states"]
+    assert states and states == sorted(states) and states[-1] == row["states"]
 
 
 def test_a_time_step_that_does_not_divide_the_sensing_period_still_measures_at_least_as_often(

@@ -251,6 +251,25 @@ def _simulating(what: str, samples: int, quiet: bool, limit: TimeLimit) -> Itera
         yield simulate_callback(bar, limit.check)
 
 
+@contextlib.contextmanager
+def _exploring(quiet: bool, limit: TimeLimit) -> Iterator[Callable[[int, int, int], None]]:
+    """The ``progress`` of a setting's exploration for Qb-Qd (:func:`rac.engine.shield.synthesise`): a bar of
+    its states (``quiet``: none; off a terminal the heartbeat's count) and ``limit`` checked after each layer.
+    It counted nothing: the longest step of a fine setting showed no bar, and off a terminal the progress
+    lines went on saying Qa's samples."""
+    # tqdm (via rac.output.progress): importing rac.studies.preanalysis stays light
+    from rac.output.progress import Progress, explore_callback
+
+    with Progress(desc="Qb-Qd: exploring", unit="states", enabled=False if quiet else None) as bar:
+        count = explore_callback(bar)
+
+        def progress(layer: int, frontier: int, total: int) -> None:
+            count(layer, frontier, total)
+            limit.check(layer, frontier, total)
+
+        yield progress
+
+
 def _row(result: CompileResult, spec: ir.ModelSpec, *, runs: int, horizon: Fraction, seed: int,
          max_states: int, max_bytes: int | None, threshold_factor: int, out_dir: Path | None,
          quiet: bool = True, max_seconds: float | None = None, found: Callable[[Row], None] | None = None) -> Row:
@@ -328,7 +347,8 @@ def _answer(row: Row, result: CompileResult, spec: ir.ModelSpec, *, runs: int, h
     # Qb-Qd on the explored model (unsafe states end a run): the shield's own graph.
     t0 = time.perf_counter()
     try:
-        shield, masks = synthesise(data, samples, max_states=max_states, max_bytes=max_bytes, progress=limit.check)
+        with _exploring(quiet, limit) as progress:
+            shield, masks = synthesise(data, samples, max_states=max_states, max_bytes=max_bytes, progress=progress)
     except MemoryError as exc:  # the budget (it says how far the exploration got), or the machine's memory
         row["error"] = _memory_error(exc)
         row["seconds"] = time.perf_counter() - t0
