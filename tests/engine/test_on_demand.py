@@ -308,6 +308,24 @@ def test_max_memory_bounds_the_start_search_and_says_so(tmp_path: Path, monkeypa
     assert "it stopped at the memory budget of 1.95 kB (--max-memory) before spending its budget of" in message, message
 
 
+def test_the_start_search_counts_its_nodes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Qd's search from the start runs up to half a minute at its budget's worst; it showed no bar, and off a
+    terminal the progress lines counted nothing while it ran. It counts its search nodes."""
+    from rac.output.progress import Heartbeat
+
+    counts: list[tuple[int, str]] = []
+    monkeypatch.setattr(Heartbeat, "count", lambda self, n, unit, what="": counts.append((n, unit)))
+    monkeypatch.setattr(Lookahead, "_fixed", lambda self, states, k, held, remaining: np.zeros(states.shape[0],
+                                                                                             dtype=np.int64))
+    path = write_engine_file(tmp_path, "goal_behind_wall", {"safe": QUERIES["safe"]})
+    with Heartbeat("rac verify", enabled=False):
+        [result] = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path, plots=False,
+                                                                 max_states=3))[1]
+    assert result.method == "on demand", result.message
+    nodes = [n for n, unit in counts if unit == "search nodes"]
+    assert len(nodes) > 1 and nodes == sorted(nodes) and nodes[0] >= 1, counts
+
+
 def test_a_state_asked_twice_at_once_is_counted_once(tmp_path: Path) -> None:
     """``stats.states`` counts distinct states (what a report cites as the shield's reach): runs that
     meet the same state at one sample asked about it together, and it was counted once per run."""

@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import numbers
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -204,6 +205,7 @@ class Lookahead:
         self.n_actions = int(self.pairs.shape[0])
         self.sticky = bool(data.sticky)
         self._fallbacks = self._fallback_actions()
+        self._progress: Callable[[int], None] | None = None
 
     # ------------------------------------------------------------ the model over decision periods
     def _fallback_actions(self) -> list[int]:
@@ -254,12 +256,15 @@ class Lookahead:
         return np.asarray(~self.guard.masks(states, k).any(axis=1), dtype=bool)
 
     # ------------------------------------------------------------ the search
-    def decide(self, state: np.ndarray, crashed: bool = False) -> LookaheadMask:
+    def decide(self, state: np.ndarray, crashed: bool = False,
+               progress: Callable[[int], None] | None = None) -> LookaheadMask:
         """The mask at ``state``: ``(8,)`` ``k, x, y, v, acc, head, jerk, turn`` (the shield's state row,
         :meth:`rac.learning.episodes.EpisodeBatch.state_keys`), ``k`` a decision sample before the
         horizon. ``crashed``: under ``collision sticky``, a collision happened on the way here
-        (then nothing that follows is safe)."""
+        (then nothing that follows is safe). ``progress(nodes)``: called with the search nodes spent so far
+        as they are spent (a long search's bar)."""
         started = time.perf_counter()
+        self._progress = progress
         row = np.asarray(state, dtype=np.int64).reshape(-1)
         if row.size != 8:
             raise ValueError(f"state must be the 8 values k, x, y, v, acc, head, jerk, turn, not {row.size}")
@@ -324,6 +329,8 @@ class Lookahead:
             self._clock = True
             raise _OutOfBudget
         self._nodes += nodes
+        if self._progress is not None:
+            self._progress(self._nodes)
 
     def _deepen(self, ends: np.ndarray, safe: np.ndarray, actions: np.ndarray, k: int, remaining: int,
                 depths: np.ndarray) -> None:

@@ -425,7 +425,13 @@ class SymbolicAnswerer:
         search = Lookahead(ctx.data, ctx.horizon_samples,
                            LookaheadSettings(depth=ctx.horizon_samples + 1, seconds=seconds, nodes=nodes,
                                              max_bytes=memory))
-        found = search.decide(row)
+        # tqdm (via rac.output.progress): importing rac.verify.symbolic stays light
+        from rac.output.progress import Progress
+
+        # up to half a minute at its budget's worst: a bar on a terminal, the nodes in the heartbeat's line
+        with Progress(total=nodes, desc=f"{query.name}: search from the start", unit="search nodes",
+                      enabled=None if ctx.options.bars else False) as bar:
+            found = search.decide(row, progress=lambda spent: bar.update(spent - bar.n))
         proved = found.depth >= found.target and found.depth > 0
         reach = f"t = {found.until * float(at):g} s"
         # what stopped an incomplete search: its node budget (the same answer on every machine) or, before
