@@ -184,7 +184,7 @@ def test_an_answer_the_shields_time_guard_cut_says_so(tmp_path: Path, monkeypatc
     from rac.verify import symbolic
 
     path = write_engine_file(tmp_path, "goal_behind_wall", UNDER)
-    monkeypatch.setattr(symbolic, "on_demand", lambda data, horizon: on_demand(data, horizon, seconds=1e-9))
+    monkeypatch.setattr(symbolic, "on_demand", lambda data, horizon, **kw: on_demand(data, horizon, seconds=1e-9, **kw))
     monkeypatch.setattr(ondemand.OnDemandShield, "_fixed_proofs",
                         lambda self, egos, k: np.zeros((egos.shape[0], self.n_actions), dtype=bool))
     context, results = run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path, plots=False,
@@ -324,6 +324,39 @@ def test_the_start_search_counts_its_nodes(tmp_path: Path, monkeypatch: pytest.M
     assert result.method == "on demand", result.message
     nodes = [n for n, unit in counts if unit == "search nodes"]
     assert len(nodes) > 1 and nodes == sorted(nodes) and nodes[0] >= 1, counts
+
+
+def test_max_seconds_is_checked_between_the_shields_searches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A query under the on-demand shield checked --max-seconds once per simulated sample, and one sample of
+    thousands of runs may ask the shield for thousands of searches, each up to its 2 s guard: the query's limit
+    is now checked between them. Here a limit that has passed by the first search the shield makes for `Prob`
+    gives it up there (the old code asked the limit only after the sample, once the searches were done)."""
+    from rac.engine.budget import TimeExceeded, TimeLimit
+    from rac.verify import runner
+
+    asking = [False]
+    masks_for = ondemand.OnDemandShield.masks_for
+
+    def watched(self: ondemand.OnDemandShield, states: np.ndarray) -> np.ndarray:
+        asking[0] = True
+        try:
+            return masks_for(self, states)
+        finally:
+            asking[0] = False
+
+    class PassedInSearches(TimeLimit):
+        def check(self, *progress: int) -> None:
+            if asking[0] and self.what == "query Prob":
+                raise TimeExceeded(what=self.what, limit=1.0, seconds=1.5)
+
+    monkeypatch.setattr(ondemand.OnDemandShield, "masks_for", watched)
+    monkeypatch.setattr(runner, "TimeLimit", PassedInSearches)
+    path = write_engine_file(tmp_path, "goal_behind_wall", {"safe": QUERIES["safe"], "Prob": UNDER["Prob"]})
+    found = {r.name: r for r in run_queries(compile_file(path), VerifyOptions(seed=1, out_dir=tmp_path, plots=False,
+                                                                                max_states=3, max_seconds=1.0))[1]}
+    assert found["safe"].status == "satisfied" and found["safe"].method == "on demand"
+    assert found["Prob"].status == "unknown", found["Prob"]
+    assert found["Prob"].message == "query Prob: given up after 1.5 s, past the time limit of 1 s (--max-seconds)"
 
 
 def test_a_state_asked_twice_at_once_is_counted_once(tmp_path: Path) -> None:

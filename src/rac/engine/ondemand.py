@@ -24,6 +24,7 @@ when it is asked for (and keeps it), so simulations and learning use it as they 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -72,6 +73,9 @@ class OnDemandShield(ShieldTable):
     #: The node budget per state (None: none; with no time guard either, every row is searched exactly).
     nodes: int | None = DEFAULT_NODES
     stats: OnDemandStats = field(default_factory=OnDemandStats, compare=False)
+    #: Called before each search of a state and each chunk of fixed continuations (None: nothing): a time
+    #: limit's check, which may raise. One sample of thousands of runs may ask for thousands of searches.
+    check: Callable[[], None] | None = field(default=None, compare=False, repr=False)
     savable: ClassVar[bool] = False  # its rows are computed when asked: a saved file would hold none
 
     def __post_init__(self) -> None:
@@ -107,13 +111,15 @@ class OnDemandShield(ShieldTable):
                 step = max(1, FIXED_PAIRS // self.n_actions)  # rows of n_actions pairs each
                 egos = rows[group, GRAPH_EGO]
                 proved = np.concatenate([self._fixed_proofs(egos[start:start + step], int(k))
-                                         for start in range(0, len(group), step)])
+                                         for start in range(0, len(group), step)])  # _fixed_proofs checks
                 for i, mask in zip(group, proved):
                     if mask.any() and keys[i] not in memo:  # a state asked twice at once is one state
                         memo[keys[i]] = mask
                         self.stats.states += 1
         for i, key in enumerate(keys):
             if key not in memo:
+                if self.check is not None:
+                    self.check()
                 memo[key] = self._searched(rows[i])
         clocked: set[bytes] = self._clocked  # type: ignore[attr-defined]
         if clocked:
@@ -153,6 +159,8 @@ class OnDemandShield(ShieldTable):
         continuation (hold the action, or brake straight on) keeps safe up to the horizon."""
         shield = self.lookahead
         assert shield is not None
+        if self.check is not None:
+            self.check()
         n, count = egos.shape[0], self.n_actions
         actions = np.tile(np.arange(count), n)
         ends, safe, _ = shield.periods(np.repeat(egos.astype(np.int32), count, axis=0), k, actions)
@@ -180,12 +188,13 @@ class OnDemandShield(ShieldTable):
 
 
 def on_demand(data: ModelData, horizon_samples: int, seconds: float | None = DEFAULT_SECONDS,
-              nodes: int | None = DEFAULT_NODES) -> OnDemandShield:
+              nodes: int | None = DEFAULT_NODES, check: Callable[[], None] | None = None) -> OnDemandShield:
     """The on-demand safety shield of ``data`` up to ``horizon_samples``: ``nodes`` search nodes per
-    state (reproducible), ``seconds`` per state as a time guard (None: none; both None: exact)."""
+    state (reproducible), ``seconds`` per state as a time guard (None: none; both None: exact); ``check``
+    before each state's search (:attr:`OnDemandShield.check`)."""
     n_actions = len(action_pairs(data))
     settings = LookaheadSettings(depth=horizon_samples + 1, seconds=seconds, nodes=nodes)
     lookahead = Lookahead(data, horizon_samples, settings)
     return OnDemandShield(COLUMNS, np.zeros((0, len(COLUMNS)), dtype=np.int32), np.zeros((0, n_actions), dtype=bool),
                           horizon=horizon_samples, model=data.digest, lookahead=lookahead, seconds=settings.seconds,
-                          nodes=settings.nodes)
+                          nodes=settings.nodes, check=check)

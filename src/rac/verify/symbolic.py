@@ -455,7 +455,9 @@ class SymbolicAnswerer:
                                        horizon_samples=ctx.horizon_samples,
                                        message=(f"no strategy keeps `{goal}` from the start: the complete search of "
                                                 f"the runs from the start keeps it until {reach} at best"))
-        computed = on_demand(ctx.data, ctx.horizon_samples)
+        # the queries under it ask for states as their runs reach them, thousands in one sample of many runs:
+        # each query's --max-seconds (ctx.limit, set per query) is checked between their searches
+        computed = on_demand(ctx.data, ctx.horizon_samples, check=lambda: ctx.limit.check())
         ctx.on_demand[query.name] = computed
         allowed = int(found.mask.sum())
         # a search its budget stopped proved these and may have missed others: the count is a lower bound
