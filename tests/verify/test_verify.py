@@ -28,7 +28,7 @@ from tiny_scenarios import TINY_SCENARIOS, TinyScenario
 from rac.compiler import CompileResult, compile_file
 from rac.core.diagnostics import CheckError
 from rac.engine import shield
-from rac.engine.budget import runs_within, simulation_bytes
+from rac.engine.budget import TimeExceeded, TimeLimit, runs_within, simulation_bytes
 from rac.engine.explore import action_pairs
 from rac.engine.witness import Bounds
 from rac.model import NativeModel
@@ -691,6 +691,33 @@ def test_the_guided_product_search_keeps_within_max_seconds(tmp_path: Path) -> N
     [limited] = verify(result, VerifyOptions(seed=1, plots=False, max_seconds=1e-9))
     assert limited.status == "unknown", limited
     assert (limited.message or "").endswith("past the time limit of 1e-09 s (--max-seconds)"), limited.message
+
+
+def _limit_passing_in_explorations(query: str) -> type:
+    """A :class:`TimeLimit` that is past only when ``query``'s explorations check it (the per-layer progress
+    ``(layer, frontier, total)``), never between steps or samples: what reads it there is what it reaches."""
+
+    class Passing(TimeLimit):
+        def check(self, *progress: int) -> None:
+            if len(progress) == 3 and self.what == f"query {query}":
+                raise TimeExceeded(what=self.what, limit=1.0, seconds=1.5)
+
+    return Passing
+
+
+def test_the_exact_probability_beside_a_simulation_keeps_within_max_seconds(tmp_path: Path,
+                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """`Pr[<=T](<> p)` also computes its exact value by exploring the model (up to 2 million states) with no
+    look at --max-seconds: past the limit that value is left out, as beyond the memory budget, and the
+    simulated answer stands."""
+    from rac.verify import runner
+
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", {"Prob": QUERIES["Prob"]}))
+    [free] = verify(result, VerifyOptions(seed=1, plots=False))
+    assert free.status == "value" and free.exact is not None
+    monkeypatch.setattr(runner, "TimeLimit", _limit_passing_in_explorations("Prob"))
+    [limited] = verify(result, VerifyOptions(seed=1, plots=False, max_seconds=1.0))
+    assert limited.status == "value" and limited.exact is None and limited.interval == free.interval
 
 
 def test_a_slow_machine_answers_as_a_fast_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -283,7 +283,7 @@ class Context:
     def explore_progress(self, layer: int, frontier: int, total: int) -> None:
         """An exploration's per-layer ``progress``: the query's time limit (:class:`TimeExceeded` past it), then
         the options' callback (the CLI's bar)."""
-        self.limit.check()
+        self.limit.check(layer, frontier, total)
         if self.options.explore_progress is not None:
             self.options.explore_progress(layer, frontier, total)
 

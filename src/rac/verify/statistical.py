@@ -15,7 +15,7 @@ import numpy as np
 from rac.core.diagnostics import counted, short_number
 from rac.core.resources import memory_option
 from rac.engine import storm
-from rac.engine.budget import format_bytes, runs_within, simulation_bytes
+from rac.engine.budget import TimeExceeded, format_bytes, runs_within, simulation_bytes
 from rac.engine.evaluate import EvaluationError
 from rac.engine.explore import explore
 from rac.engine.simulate import simulate
@@ -138,10 +138,11 @@ class StatisticalAnswerer:
             graph = ctx.graphs[False]  # the exhaustive queries' graph: the same model, the same horizon
         else:
             try:
-                # within --max-memory as every exploration (with Storm's share): beyond it the value is left out
-                graph = explore(ctx.data, horizon_samples=samples,
+                # within --max-memory as every exploration (with Storm's share), and --max-seconds (checked per
+                # layer, with the bar): beyond either the value is left out, the simulated answer stands
+                graph = explore(ctx.data, horizon_samples=samples, progress=ctx.explore_progress,
                                 max_states=min(ctx.options.max_states, 2_000_000), max_bytes=ctx.memory_left())
-            except (MemoryError, ModelRangeError):
+            except (MemoryError, ModelRangeError, TimeExceeded):
                 return None
         p = ctx.label(graph, query.expr)
         every = query.path == "[]"
