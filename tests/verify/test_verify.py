@@ -720,6 +720,26 @@ def test_the_exact_probability_beside_a_simulation_keeps_within_max_seconds(tmp_
     assert limited.status == "value" and limited.exact is None and limited.interval == free.interval
 
 
+def test_the_optimum_beside_a_learned_strategy_keeps_within_max_seconds(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The exact optimum reported beside a learned strategy (and emitted by --exact) explored its decision
+    graph with no look at --max-seconds (minutes on a large scene): past the limit it is out of reach, saying
+    so, and the learned strategy stands; under --exact the query is UNKNOWN."""
+    from rac.verify import runner
+
+    queries = {"safe": QUERIES["safe"], "Learn": QUERIES["Learn"]}
+    result = compile_file(write_engine_file(tmp_path, "avoidable_obstacle", queries))
+    monkeypatch.setattr(runner, "TimeLimit", _limit_passing_in_explorations("Learn"))
+    learned = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, max_seconds=1.0))}["Learn"]
+    assert learned.status == "value", learned.message
+    assert ("optimum out of reach (query Learn: given up after 1.5 s, past the time limit of 1 s (--max-seconds))"
+            in (learned.message or "")), learned.message
+    exact = {r.name: r for r in verify(result, VerifyOptions(seed=1, plots=False, max_seconds=1.0, exact=True))}
+    assert exact["Learn"].status == "unknown"
+    assert exact["Learn"].message == ("the exact optimum is out of reach: query Learn: given up after 1.5 s, past the "
+                                      "time limit of 1 s (--max-seconds)")
+
+
 def test_a_slow_machine_answers_as_a_fast_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """15 s between two readings of the clock (a machine far slower than this one): the witness search ran
     past its 20 s and the answers came from the layered search instead (another method, another trace) or

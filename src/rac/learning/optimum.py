@@ -55,7 +55,7 @@ Example::
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -214,14 +214,17 @@ class _Layer:
 
 def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise: str = "max",
           shield: ShieldTable | None = None, max_states: int | None = None, max_bytes: int | None = None,
-          meta: Mapping[str, object] | None = None, project: bool = False) -> Optimum:
+          meta: Mapping[str, object] | None = None, project: bool = False,
+          progress: Callable[[int, int, int], None] | None = None) -> Optimum:
     """The optimum of ``maxE``/``minE`` (``optimise``) of the episodes' return on ``batch`` under
     ``shield`` (see the module docstring). ``objective``: reward each step with the increase of this
     expression (:class:`rac.learning.qlearning.ObjectiveIncrease`, as ``rac verify`` learns); None:
     the batch's own reward. ``batch`` is used up (its episodes are replaced). ``meta``: stored with
     the optimal strategy. :class:`rac.engine.budget.BudgetExceeded` beyond ``max_states`` decision
     states or ``max_bytes``; with ``project``, :class:`rac.engine.budget.ProjectionExceeded` as soon as
-    the layers so far project beyond it (:meth:`rac.engine.budget.Budget.check_projection`)."""
+    the layers so far project beyond it (:meth:`rac.engine.budget.Budget.check_projection`). ``progress(sample,
+    layer states, states)`` after each layer of decision states, as an exploration's (a bar, a time limit's check,
+    which may raise); it changes nothing computed."""
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
     check_shield(batch, shield)
@@ -267,6 +270,8 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
                                         horizon_sample=batch.horizon_samples)
             stored += parent.size * EDGE_BYTES + unique.shape[0] * 8 * (keys.shape[1] + len(exprs))
             budget.check_bytes(stored, states, sample + batch.decide_every)
+            if progress is not None:
+                progress(sample + batch.decide_every, unique.shape[0], states)
         reward = np.asarray(outcome.reward, dtype=np.float64)
         check_finite(reward)  # learning refuses it too; the backward pass would compute on NaN
         layers.append(_Layer(parent, action, reward, target, observed,

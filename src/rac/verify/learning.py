@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rac.engine.budget import BudgetExceeded
+from rac.engine.budget import BudgetExceeded, TimeExceeded
 from rac.engine.evaluate import EvaluationError
 from rac.engine.graph import ExploredGraph
 from rac.engine.simulate import label_runs
@@ -119,11 +119,15 @@ class LearningAnswerer:
         ctx = self.context
         try:
             batch = ctx.episodes("automaton", query.expr, samples)
+            # per layer: the bar, and --max-seconds (past it the optimum is out of reach; under --exact, so
+            # is the answer)
             return solve(batch, objective=query.objective, optimise="max" if query.optimise == "maxE" else "min",
                          shield=table, max_states=ctx.options.max_states, max_bytes=ctx.memory_left(),
-                         meta=meta, project=not ctx.options.exact)
+                         meta=meta, project=not ctx.options.exact, progress=ctx.explore_progress)
         except BudgetExceeded as exc:
             return f"{exc}{ctx.kept_note()}"
+        except TimeExceeded as exc:
+            return f"{exc} (--max-seconds)"
         except (UnknownVerdict, ValueError) as exc:  # a sensed value out of range, bindings breaking `assume`
             return str(exc)
 
