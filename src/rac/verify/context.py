@@ -92,7 +92,8 @@ class VerifyOptions:
     #: Exploration callback ``(layer, frontier, total)`` (the CLI's progress bar).
     explore_progress: Callable[[int, int, int], None] | None = None
     #: Each query is given up (*unknown*) past this many seconds (None: no limit), checked once per explored
-    #: layer, simulated sample and learned batch of episodes; a Storm decision already running ends first.
+    #: layer, simulated sample, learned batch of episodes, search of an on-demand shield and node of Qd's search
+    #: from the start; a Storm decision already running ends first.
     max_seconds: float | None = None
     #: Learning queries (``maxE``/``minE``, :func:`rac.learning.qlearning.learn`): the episode budget,
     #: the episodes stepped together, and the early stop after this many greedy evaluations
