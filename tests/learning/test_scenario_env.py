@@ -690,6 +690,35 @@ def test_the_relative_observation_by_hand(highway_set: tuple[Path, list[Path]]) 
     assert obs[2] > 0 and obs[3] > 0 and obs[4] < 5.25 < obs[5] and obs[8] == pytest.approx(1.5)
 
 
+@pytest.mark.parametrize("gap", ["hole", "crack"])
+def test_the_road_edges_skip_hairline_gaps_between_lanelets(tmp_path: Path, gap: str) -> None:
+    """Real maps leave hairline gaps between neighbouring lanelets (DEU_Muc-3_1_T-1: 20 holes about 3e-5 m
+    wide along its lane dividers, docs/scenario.md; 9 of them one significand wide at exponent 2).
+    `edge_left`/`edge_right` read such a gap as the road's edge: the ego in the middle of three lanes saw
+    the edge at the lane divider, 1.75 m away, not 5.25 m."""
+    from commonroad.scenario.lanelet import Lanelet
+    from commonroad.scenario.scenario import Tag
+
+    from rac.model.scenario_xml import scenario_bytes
+    from rac.model.scenes import build_highway
+
+    scenario, problems = build_highway()
+    middle = scenario.lanelet_network.find_lanelet_by_id(2)
+    right = middle.right_vertices.copy()
+    # the middle lane's right bound one significand (1 cm at exponent 2) off its neighbour's left bound:
+    # between its ends (a hole), or along the whole road (a crack that parts the road in two)
+    right[1:-1 if gap == "hole" else None, 1] += 0.01
+    scenario.remove_lanelet(middle)
+    scenario.add_objects(Lanelet(middle.left_vertices, (middle.left_vertices + right) / 2, right, 2,
+                                 adjacent_left=3, adjacent_left_same_direction=True, adjacent_right=1,
+                                 adjacent_right_same_direction=True))
+    (tmp_path / "highway.xml").write_bytes(scenario_bytes(scenario, problems, tags={Tag.HIGHWAY}, source="gap"))
+    (tmp_path / "drive.ra").write_text(HIGHWAY_MODEL, encoding="utf-8")
+    obs, _ = ScenarioEnv(tmp_path / "drive.ra").reset()
+    # the ego at (30, 5.25) in the middle of the road from y = 0 to 10.5
+    assert obs[4] == pytest.approx(5.25, abs=1e-3) and obs[5] == pytest.approx(5.25, abs=1e-3)
+
+
 def test_the_relative_observation_of_a_goal_of_time_alone(highway_set: tuple[Path, list[Path]],
                                                           tmp_path: Path) -> None:
     """A goal state without a position holds wherever the ego is: no direction to the goal (0, 0),

@@ -29,7 +29,8 @@ col    name            bounds              meaning
                                            centre line
 4      ``edge_left``   0 .. 50 m           from the ego's centre along the lane's left normal to the
                                            first crossing of the road's edge (50: none within 50 m)
-5      ``edge_right``  0 .. 50 m           the same to the right
+5      ``edge_right``  0 .. 50 m           the same to the right (a hairline gap between
+                                           lanelets is road, not its edge: :func:`_road_edges`)
 6      ``goal_ahead``  ±500 m              the goal's centre (``goal_cx, goal_cy``) ahead of the ego
                                            (0 for a goal of time alone, ``goal_anywhere``)
 7      ``goal_left``   ±500 m              ... and left of it
@@ -53,7 +54,7 @@ speeds at the sample are the model's (:meth:`rac.model.batch.BatchModel.obstacle
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import gymnasium
 import numpy as np
@@ -77,6 +78,8 @@ SENSING_RANGE = 100.0
 HEADING_WEIGHT = 2.0
 #: m: the farthest a road edge is looked for.
 EDGE_RANGE = 50.0
+#: m: gaps between lanelets narrower than twice this (or than two significands) are road, not its edge.
+GAP = 1e-3
 #: The ego's columns of ``"relative"``: name, low, high (see the module docstring's table).
 EGO_COLUMNS: tuple[tuple[str, float, float], ...] = (
     ("v", -60.0, 60.0), ("acc", -20.0, 20.0), ("lane_head", -np.pi, np.pi), ("lane_offset", -20.0, 20.0),
@@ -135,7 +138,13 @@ class EgoObservation:
 
 
 def _road_edges(episodes: EpisodeBatch) -> tuple[np.ndarray, np.ndarray]:
-    """The road's boundary (the union of its polygons, ModelData's) as segments: starts, ends ``(E, 2)``."""
+    """The road's boundary (the union of its polygons, ModelData's) as segments: starts, ends ``(E, 2)``.
+
+    Real maps leave hairline gaps between neighbouring lanelets (DEU_Muc-3_1_T-1 has 20 holes about 3e-5 m
+    wide along its lane dividers), and truncating the vertices to significands makes gaps up to one
+    significand wide. A gap's sides are no edge of the road: when closing the union (grown, then shrunk,
+    by :data:`GAP` or one significand, the larger) fills holes or joins parts, its boundary is the road's;
+    otherwise the exact union's is (a road without gaps keeps its boundary bit for bit)."""
     import shapely  # shapely: only when this runs; importing rac.learning.observation stays light
 
     data = episodes.data
@@ -145,7 +154,12 @@ def _road_edges(episodes: EpisodeBatch) -> tuple[np.ndarray, np.ndarray]:
         low, high = data.road_start[p], data.road_start[p + 1]
         points = np.column_stack([data.road_x[low:high], data.road_y[low:high]]) / scale
         polygons.append(shapely.Polygon(points).buffer(0))
-    boundary = shapely.union_all(polygons).boundary
+    road = shapely.union_all(polygons)
+    width = max(GAP, 1.0 / scale)
+    closed = road.buffer(width).buffer(-width)
+    if _holes_and_parts(closed) != _holes_and_parts(road):
+        road = closed
+    boundary = road.boundary
     starts, ends = [], []
     for line in getattr(boundary, "geoms", [boundary]):
         coords = np.asarray(line.coords)
@@ -154,6 +168,12 @@ def _road_edges(episodes: EpisodeBatch) -> tuple[np.ndarray, np.ndarray]:
     if not starts:
         return np.zeros((0, 2)), np.zeros((0, 2))
     return np.concatenate(starts), np.concatenate(ends)
+
+
+def _holes_and_parts(area: Any) -> tuple[int, int]:
+    """A (multi)polygon's holes and parts: closing it changes them only where it fills a gap."""
+    parts = list(getattr(area, "geoms", [area]))
+    return sum(len(part.interiors) for part in parts), len(parts)
 
 
 def _ray_hits(origin: np.ndarray, direction: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
