@@ -108,6 +108,26 @@ def test_a_start_off_the_road_is_not_reported_when_the_start_is_not_checked(
     assert "W0716" not in capsys.readouterr().out
 
 
+@pytest.mark.parametrize(("speed", "offroad_from", "warned"), [(0, 1, True), (10, 1, True), (10, 3, False),
+                                                                (30, 1, False)])
+def test_offroad_from_that_ends_before_the_ego_can_reach_the_road_is_reported(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], speed: int, offroad_from: int, warned: bool) -> None:
+    """W0716's hint, `offroad_from 1`, silenced it on ZAM_Ramp-1_1-T-1, whose ego starts at standstill with
+    its rear 2.25 m before the road: at sample 1 every run was still off the road, so Qd failed ("the longest
+    any run keeps it is until t = 0 s") with no word on why. Now W0716 says so when a corner lies farther
+    from the road than any run can move it by then (here: in 0.1 s at 0 or 10 m/s; 0.3 s or 30 m/s suffice)."""
+    source = ramp_file(tmp_path, f"        start_speed {speed}\n        offroad_from {offroad_from}")
+    assert main(["check", "--format", "json", str(source)]) == 0
+    found = [d for d in json.loads(capsys.readouterr().out)[0]["diagnostics"] if d["code"] == "W0716"]
+    assert bool(found) == warned
+    if warned:
+        assert found[0]["message"] == (f"the ego starts off the road and cannot be on it by sample {offroad_from} "
+                                       f"(`offroad_from {offroad_from}`): its rear-right corner lies 2.25 m outside "
+                                       "every lanelet")
+        assert "`offroad()` holds at sample 1 in every run" in json.dumps(found[0]["notes"])
+        assert found[0]["span"]["line"] > 12  # at the setting
+
+
 # ---------------------------------------------------------------- integer increments
 def test_increments_keep_whole_significands_where_integration_drifts() -> None:
     """The issue's drift: integrated on doubles and truncated, 0.35 + 0.1 rad is 0.44999999999999996

@@ -312,9 +312,8 @@ class NativeModel:
             return False
         return any(self.corners_off(state))
 
-    def corners_off(self, state: State) -> tuple[bool, ...]:
-        """For each corner of :data:`CORNERS`, whether it lies outside every road polygon
-        (:meth:`offroad` is their ``any``)."""
+    def corner_points(self, state: State) -> tuple[tuple[float, float], ...]:
+        """The ego rectangle's corners (x, y) in the order of :data:`CORNERS`, as :meth:`offroad` computes them."""
         scale = self.scale_d
         ex = state.x / scale
         ey = state.y / scale
@@ -323,12 +322,13 @@ class NativeModel:
         s = math.sin(eh)
         hl = self.length_d / 2.0
         hw = self.width_d / 2.0
-        off = []
-        for ca, cb in CORNERS:
-            px = ex + ca * hl * c - cb * hw * s
-            py = ey + ca * hl * s + cb * hw * c
-            off.append(not point_in_polygons(self.road_xd, self.road_yd, self.data.road_start, px, py))
-        return tuple(off)
+        return tuple((ex + ca * hl * c - cb * hw * s, ey + ca * hl * s + cb * hw * c) for ca, cb in CORNERS)
+
+    def corners_off(self, state: State) -> tuple[bool, ...]:
+        """For each corner of :data:`CORNERS`, whether it lies outside every road polygon
+        (:meth:`offroad` is their ``any``)."""
+        return tuple(not point_in_polygons(self.road_xd, self.road_yd, self.data.road_start, px, py)
+                     for px, py in self.corner_points(state))
 
     def goal(self, state: State, k: int) -> bool:
         """``GOAL_LOW <= k <= GOAL_HIGH`` and the ego's centre inside a goal polygon (any position
