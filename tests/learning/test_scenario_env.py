@@ -693,7 +693,7 @@ def test_the_relative_observation_by_hand(highway_set: tuple[Path, list[Path]]) 
 @pytest.mark.parametrize("gap", ["hole", "crack"])
 def test_the_road_edges_skip_hairline_gaps_between_lanelets(tmp_path: Path, gap: str) -> None:
     """Real maps leave hairline gaps between neighbouring lanelets (DEU_Muc-3_1_T-1: 20 holes about 3e-5 m
-    wide along its lane dividers, docs/scenario.md; 9 of them one significand wide at exponent 2).
+    wide along its lane dividers, docs/scenario.md; at exponent 2, 9 holes up to one significand wide).
     `edge_left`/`edge_right` read such a gap as the road's edge: the ego in the middle of three lanes saw
     the edge at the lane divider, 1.75 m away, not 5.25 m."""
     from commonroad.scenario.lanelet import Lanelet
