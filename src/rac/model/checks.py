@@ -521,7 +521,7 @@ def _still_off(automaton: ir.Automaton, spec: ir.ModelSpec, data, model: NativeM
     every run (ZAM_Ramp-1_1-T-1 at standstill with `offroad_from 1`, as W0716's hint suggests, kept
     Qd failing with no word on why). The reach is a bound: the centre at most `max_speed` and at most
     the start speed plus `max_acceleration` at every Euler sub-step, a corner turned by at most the
-    largest turn rate, and a significand lost to truncation per sample and coordinate."""
+    largest turn rate, and a significand lost to truncation per sample, coordinate and heading."""
     samples = data.offroad_from
     seconds = samples * data.period
     steps = seconds / data.unit
@@ -530,7 +530,8 @@ def _still_off(automaton: ir.Automaton, spec: ir.ModelSpec, data, model: NativeM
                  / 2) if steps < 1e9 else speed * seconds
     turn = max((abs(value) for value in data.action("turn").values), default=0) / data.scale
     radius = math.hypot(model.length_d, model.width_d) / 2
-    reach = centre + radius * turn * seconds + 2 * samples / data.scale
+    # truncation: a significand of each coordinate and of the heading per sample
+    reach = centre + radius * (turn * seconds + samples / data.scale) + 2 * samples / data.scale
     state = model.initial_state()
     gaps = [(name, _road_distance(model, data, *point)) for name, point, outside
             in zip(CORNER_NAMES, model.corner_points(state), model.corners_off(state)) if outside]
