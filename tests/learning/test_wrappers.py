@@ -629,6 +629,63 @@ def test_a_partial_reset_resets_those_automata_only() -> None:
         vector.reset(options={"reset_mask": np.array([True, False, True])})
 
 
+class GapVector(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
+    """Gap's vector form, with a reset that ignores options["reset_mask"] and restarts every sub-environment, as
+    gymnasium's own CartPoleVectorEnv (gymnasium.make_vec("CartPole-v1")'s default) does."""
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int) -> None:
+        self.num_envs = num_envs
+        self.single_observation_space = Gap.observation_space
+        self.single_action_space = Gap.action_space
+        self.observation_space = gymnasium.vector.utils.batch_space(Gap.observation_space, num_envs)
+        self.action_space = gymnasium.vector.utils.batch_space(Gap.action_space, num_envs)
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        return np.full((self.num_envs, 1), 5.0, dtype=np.float32), {}
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        off = np.zeros(self.num_envs, dtype=bool)
+        return np.asarray(actions, dtype=np.float32), np.zeros(self.num_envs), off, off, {}
+
+
+def test_a_vector_env_that_ignores_the_reset_mask_is_refused() -> None:
+    # env 0's automaton ends its episode (headway >= 9.5); the next step resets env 0 alone through reset_mask. A
+    # vector environment that ignores the mask restarted env 1 too, whose automaton went on over its new episode,
+    # in silence; it is refused there, and so is a masked reset of the user's
+    vector = RewardAutomatonVectorWrapper(GapVector(2), FOLLOW_ENDS, gap_inputs)
+    vector.reset(seed=0)
+    vector.step(np.array([[9.5], [6.0]], dtype=np.float32))
+    with pytest.raises(ValueError, match="GapVector restarted sub-environments that options.'reset_mask'. did not "
+                                         "select, in the reset the wrapper asks for.*vectorization_mode='sync'"):
+        vector.step(np.array([[5.0], [6.0]], dtype=np.float32))
+    vector.reset(seed=0)
+    vector.step(np.array([[6.0], [7.0]], dtype=np.float32))
+    with pytest.raises(ValueError, match=r"in reset\(options=\{'reset_mask': ...\}\)"):
+        vector.reset(options={"reset_mask": np.array([True, False])})
+    # SyncVectorEnv resets the selected sub-environment alone: the other keeps its observation, and goes on
+    honest = RewardAutomatonVectorWrapper(SyncVectorEnv([Gap, Gap]), FOLLOW_ENDS, gap_inputs)
+    honest.reset(seed=0)
+    honest.step(np.array([[9.5], [6.0]], dtype=np.float32))
+    obs, rewards, *_ = honest.step(np.array([[5.0], [6.0]], dtype=np.float32))
+    assert obs[:, 0].tolist() == [5.0, 6.0] and rewards[0] == 0.0 and honest.automaton.samples.tolist() == [0, 2]
+
+
+def test_gymnasiums_cartpole_vector_env_ignores_the_reset_mask_and_is_refused() -> None:
+    # gymnasium.make_vec("CartPole-v1", num_envs=n) is gymnasium's CartPoleVectorEnv, whose reset restarts every
+    # sub-environment whatever the mask
+    envs = gymnasium.make_vec("CartPole-v1", num_envs=2)
+    ends = dataclasses.replace(follow(), episode_ends=ir.BAtom("headway", "<", Fraction(3)))
+    vector = RewardAutomatonVectorWrapper(envs, ends, lambda obs, infos: {"headway": np.where(obs[:, 0] > 0.01, 1.0,
+                                                                                            5.0), "collide": False})
+    vector.reset(seed=0)
+    with pytest.raises(ValueError, match="CartPoleVectorEnv restarted sub-environments"):
+        for _ in range(100):  # env 0 pushed right until its cart passes 0.01 m: the automaton ends its episode
+            vector.step(np.array([1, 0]))
+
+
 @pytest.mark.parametrize("scale", [None, "proven"])
 def test_an_episode_past_the_horizon_is_said_once(scale: str | None) -> None:
     # an environment without a time step (nothing to compare) and longer episodes than the automaton's

@@ -81,6 +81,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+    #: ``reset(options={"reset_mask": m})`` restarts the selected episodes alone (rac.learning.wrappers.MASKED_RESETS).
+    masked_resets = True
 
     def __init__(self, model: str | os.PathLike[str] | CompileResult, *, num_envs: int = 1,
                  shield: str | os.PathLike[str] | ShieldTable | StepShield | None = None,

@@ -55,8 +55,8 @@ from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
 
-__all__ = ["AutomatonLike", "CutEpisodes", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper", "env_timing",
-           "outside_step_limit", "scale_factor", "within_proven", "wrapper_chain"]
+__all__ = ["MASKED_RESETS", "AutomatonLike", "CutEpisodes", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper",
+           "env_timing", "outside_step_limit", "scale_factor", "within_proven", "wrapper_chain"]
 
 #: ``inputs(obs, info)`` or ``inputs(obs, info, env)``: the automaton's inputs.
 InputFn = Callable[..., Mapping[str, object]]
@@ -446,6 +446,47 @@ STATISTICS_INSIDE = ("gymnasium's RecordEpisodeStatistics sits inside rac's wrap
                      "ends (`episode ends when`); wrap outside instead: {outside}")
 
 
+#: The attribute of a vector environment class that says it resets only the sub-environments ``options["reset_mask"]``
+#: selects (rac's ScenarioVectorEnv sets it True; gymnasium's SyncVectorEnv and AsyncVectorEnv are known without it).
+MASKED_RESETS = "masked_resets"
+
+
+def _honours_reset_mask(env: VectorEnv) -> bool:
+    """Whether ``env``'s vector environment is known to reset only the sub-environments ``options["reset_mask"]``
+    selects (gymnasium >= 1.1): gymnasium's ``SyncVectorEnv`` and ``AsyncVectorEnv``, and one whose
+    :data:`MASKED_RESETS` is True (rac's :class:`~rac.learning.vector.ScenarioVectorEnv`). Others may ignore the
+    option and reset every sub-environment, as gymnasium's own ``CartPoleVectorEnv`` does
+    (``gymnasium.make_vec("CartPole-v1")``'s default)."""
+    base = env.unwrapped
+    return isinstance(base, (gymnasium.vector.SyncVectorEnv, gymnasium.vector.AsyncVectorEnv)) or \
+        getattr(base, MASKED_RESETS, False) is True
+
+
+def _rows_changed(before: Any, after: Any, rows: np.ndarray) -> bool:
+    """Whether the batched observations ``after`` differ from ``before`` in a sub-environment of ``rows`` (a boolean
+    mask): arrays, and ``Dict`` or ``Tuple`` observations of them; False where the two cannot be compared."""
+    if isinstance(before, Mapping) and isinstance(after, Mapping):
+        return any(_rows_changed(before[key], after[key], rows) for key in before if key in after)
+    if isinstance(before, tuple) and isinstance(after, tuple):
+        return len(before) == len(after) and any(_rows_changed(b, a, rows) for b, a in zip(before, after, strict=True))
+    if not isinstance(before, np.ndarray) or not isinstance(after, np.ndarray) or before.shape != after.shape \
+            or before.shape[:1] != rows.shape:
+        return False
+    # a NaN left where it was is no change
+    return not np.array_equal(before[rows], after[rows], equal_nan=before.dtype.kind in "fc")
+
+
+#: What :class:`RewardAutomatonVectorWrapper` says of a vector environment that restarted sub-environments its
+#: ``options["reset_mask"]`` did not select (``{name}``: its class; ``{call}``: who asked for the reset).
+IGNORED_RESET_MASK = (
+    "{name} restarted sub-environments that options['reset_mask'] did not select, in {call}: their observations "
+    "changed, so it ignores the mask and resets every sub-environment, while RewardAutomatonVectorWrapper reset the "
+    "selected automata only: the other sub-environments' episodes started again under automata that go on, and "
+    "their rewards are no longer their episodes'. The wrapper needs a vector environment that resets the selected "
+    "sub-environments alone: gymnasium's SyncVectorEnv or AsyncVectorEnv, e.g. gymnasium.make_vec(id, num_envs=n, "
+    "vectorization_mode='sync'); reset() every sub-environment before the next step")
+
+
 def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
     if not require_bool(clip, "clip"):  # clip="no" clipped
         return None
@@ -675,7 +716,12 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
     sub-environment itself goes on, the wrapper ends its episode as NEXT_STEP would: on the next step,
     after the vector environment has stepped (that step of the old episode is discarded), it resets
     that sub-environment (``reset(options={"reset_mask": ...})``, gymnasium >= 1.1) and returns its
-    reset observation with reward 0, ``terminated`` and ``truncated`` false.
+    reset observation with reward 0, ``terminated`` and ``truncated`` false. A vector environment other than
+    gymnasium's ``SyncVectorEnv`` and ``AsyncVectorEnv`` and rac's ``ScenarioVectorEnv`` may ignore the mask and
+    restart every sub-environment (gymnasium's ``CartPoleVectorEnv`` does): where another sub-environment's
+    observation changes in such a reset (the wrapper's, or ``reset(options={"reset_mask": ...})``), ``RacValueError``
+    (a vector environment class of your own that honours the mask says so with ``masked_resets = True``:
+    :data:`MASKED_RESETS`).
     """
 
     def __init__(self, env: VectorEnv, automaton: str | os.PathLike[str] | ir.Automaton | RewardAutomaton,
@@ -705,6 +751,9 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         #: Sub-environments whose episode the automaton ended while they went on: reset on the next step.
         self._forced = np.zeros(self.num_envs, dtype=bool)
         self._timing = _Timing(self.automaton, dt, VECTOR_LIMIT)
+        # another vector environment's masked resets are checked: the rows not selected must keep their observations
+        self._checked_resets = not _honours_reset_mask(env)
+        self._obs: Any = None  # the last observations, a copy, where masked resets are checked
         self._stand_in: object | None = None  # an AsyncVectorEnv's first sub-environment, made here for its timing
         self._timing.check(self._first_env())
         subs = getattr(self.env.unwrapped, "envs", None)  # a SyncVectorEnv's sub-environments
@@ -742,6 +791,18 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
                 close()
         return self._stand_in
 
+    def _remember(self, obs: Any) -> None:
+        """Keep a copy of the observations the vector environment returned, where its masked resets are checked."""
+        if self._checked_resets:
+            self._obs = copy.deepcopy(obs)
+
+    def _check_kept(self, before: Any, after: Any, reset: np.ndarray, call: str) -> None:
+        """Refuse a vector environment not known to honour ``reset_mask`` (:func:`_honours_reset_mask`) whose reset
+        of the sub-environments ``reset`` changed another's observation: it restarted them all (``RacValueError``;
+        gymnasium's ``CartPoleVectorEnv`` did so in silence, the automata going on over new episodes)."""
+        if self._checked_resets and _rows_changed(before, after, ~reset):
+            raise RacValueError(IGNORED_RESET_MASK.format(name=type(self.env.unwrapped).__name__, call=call))
+
     def _info(self, infos: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
         ra, n = self.automaton, self.num_envs
         infos = dict(infos)
@@ -761,6 +822,9 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         if rows.shape != (self.num_envs,):
             raise ValueError(f"options['reset_mask'] must hold {self.num_envs} booleans, not {rows.shape}")
         obs, infos = self.env.reset(seed=seed, options=options)
+        if mask is not None and self._obs is not None:
+            self._check_kept(self._obs, obs, rows, "reset(options={'reset_mask': ...})")
+        self._remember(obs)
         self._timing.check(self._first_env())
         self.automaton.reset(rows)
         self._fresh[rows] = True
@@ -774,7 +838,10 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         terminated, truncated = np.array(terminated, dtype=bool), np.array(truncated, dtype=bool)
         forced = self._forced
         if forced.any():  # the automaton ended these episodes, the environment did not: the reset step now
+            stepped = copy.deepcopy(obs) if self._checked_resets else obs  # an env may reuse its arrays
             obs, reset_infos = self.env.reset(options={"reset_mask": forced.copy()})
+            self._check_kept(stepped, obs, forced, "the reset the wrapper asks for to end the episodes its "
+                                                   "automaton ended (`episode ends when`)")
             infos = merge_vector_info(infos, reset_infos, forced)  # their info is the reset info, as NEXT_STEP's
             terminated[forced] = truncated[forced] = False
             self._forced = np.zeros(self.num_envs, dtype=bool)
@@ -822,6 +889,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         for name, column in read.items():
             self._last_inputs[name] = np.where(active, column, self._last_inputs.get(name, column))
         self._fresh &= ~active
+        self._remember(obs)
         infos = self._info(infos, {"env_reward": np.asarray(env_rewards, dtype=np.float64), "clipped": clipped,
                                    "reward_steps": steps, "_reward_steps": active.copy(),
                                    "inputs": read, "held": held, "_inputs": active.copy()})
