@@ -156,6 +156,42 @@ def test_the_discount_warning_names_the_gamma_to_the_last_digit() -> None:
     assert "`rac check --discount 0.123456789 FILE` shows the run" in said[0]
 
 
+def test_the_discount_check_says_it_was_not_made_on_a_generated_class() -> None:
+    # the wrapper takes an instance of a generated class, which has no checked automaton: the callback skipped the
+    # discounted P2 check there in silence, where rac.load's automaton got the warning that it fails at gamma 0.9
+    pytest.importorskip("stable_baselines3", reason="the callback needs stable-baselines3 (pip install 'rac[rl]')")
+    import types
+    import warnings
+
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from rac.learning.sb3 import RacCallback, discount_warnings
+    from rac.targets.python import generate_python
+
+    module = types.ModuleType("follow_generated")
+    exec(compile(generate_python(follow()), "<generated>", "exec"), module.__dict__)  # noqa: S102 - the code under test
+    generated = getattr(module, module.__all__[0])
+
+    def clipped(obs: Any, info: dict[str, Any]) -> dict[str, object]:  # a generated class does not clip in the wrapper
+        return {**inputs(obs, info), "headway": min(max(float(obs[0]), 0.0), 10.0)}
+
+    envs = DummyVecEnv([lambda: RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), generated(), clipped)] * 2)
+    said = discount_warnings(envs, 0.9, "PPO")
+    assert len(said) == 1 and "gamma=0.9 per step" in said[0] and "generated class" in said[0], said
+    assert "`rac check --discount 0.9 FILE` checks it" in said[0], said
+    model = PPO("MlpPolicy", envs, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu", gamma=0.9)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model.learn(16, callback=RacCallback())
+    assert [str(w.message) for w in caught if "discounted" in str(w.message)] == said
+    assert discount_warnings(envs, 0.99, "PPO") == [said[0].replace("0.9", "0.99")]  # whatever it is: not checked
+    mixed = DummyVecEnv([lambda: RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), generated(), clipped),
+                         lambda: RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True)])
+    said = discount_warnings(mixed, 0.9, "PPO")  # the generated one, and the checked automaton's failure
+    assert len(said) == 2 and "generated class" in said[0] and "`Follow` fails" in said[1], said
+
+
 def test_the_discount_warning_of_a_check_not_made_promises_no_run() -> None:
     # an automaton whose update scales a reward is not checked under a discount (W0405): there is no run,
     # and the warning said `rac check --discount 0.99 FILE` "shows the run"

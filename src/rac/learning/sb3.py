@@ -292,6 +292,22 @@ def proof_subjects(venv: Any) -> list[tuple[ir.Automaton, int]]:
     ``AttributeError`` (stable-baselines3's worker lets it through), and training with it. Where some have one and
     some not, those in other processes are told apart with a :class:`_Probe`, which sees wrapped environments
     only (an unwrapped environment's automaton is then not found)."""
+    return _distinct(_subjects_found(venv))
+
+
+def _distinct(found: list[tuple[ir.Automaton, int] | None]) -> list[tuple[ir.Automaton, int]]:
+    """The subjects of ``found`` (:func:`_subjects_found`), each once, without the Nones."""
+    subjects: list[tuple[ir.Automaton, int]] = []
+    for subject in found:
+        if subject is not None and not any(subject[1] == n and (subject[0] is a or subject[0] == a)
+                                           for a, n in subjects):
+            subjects.append(subject)
+    return subjects
+
+
+def _subjects_found(venv: Any) -> list[tuple[ir.Automaton, int] | None]:
+    """The ``proof_subject`` of every environment of ``venv`` that has one (:func:`proof_subjects`), None where
+    its automaton has no checked form (an instance of a generated class in ``RewardAutomatonWrapper``)."""
     try:
         # has_attr first: SubprocVecEnv's get_attr of an attribute an environment lacks kills its worker (an
         # AttributeError there, EOFError here); a VecEnv without has_attr (older stable-baselines3) is asked
@@ -305,32 +321,36 @@ def proof_subjects(venv: Any) -> list[tuple[ir.Automaton, int]]:
             found = venv.get_attr("proof_subject", indices) if indices else []
     except (AttributeError, TypeError):  # no VecEnv of SB3's
         return []
-    subjects: list[tuple[ir.Automaton, int]] = []
-    for subject in found:
-        if subject is not None and not any(subject[1] == n and (subject[0] is a or subject[0] == a)
-                                           for a, n in subjects):
-            subjects.append(subject)
-    return subjects
+    return list(found)
 
 
 def discount_warnings(venv: Any, gamma: float | np.floating[Any], algorithm: str = "the learner") -> list[str]:
     """What :class:`RacCallback` warns of, once, when its algorithm discounts (``gamma < 1``): for each
     automaton of :func:`proof_subjects`, P2 of the return discounted by ``gamma`` per step checked
-    (:func:`rac.check.analysis.discount.check_discounted`), and where it fails or is not checked, why."""
+    (:func:`rac.check.analysis.discount.check_discounted`), and where it fails or is not checked, why; and that
+    it is not checked where a wrapper runs an instance of a generated class (no checked automaton to check)."""
     from rac.check.analysis.discount import Discount, check_discounted  # numpy and the analyses: only when asked
 
     text = str(gamma)  # as written, to the last digit (`:g` made 0.9999999 "1", another return to check)
     exact = Fraction(text)  # 0.99 as written: 99/100
     messages = []
-    for automaton, samples in proof_subjects(venv):
-        for found in check_discounted(automaton, Discount(exact, samples)):
+    found = _subjects_found(venv)  # once: a SubprocVecEnv's environments are asked across their pipes
+    if any(subject is None for subject in found):  # a generated class: nothing to check it on
+        messages.append(
+            f"RacCallback: {algorithm} maximises the return discounted by gamma={text} per step, and whether the "
+            "priority order holds for that return is not checked where RewardAutomatonWrapper runs an instance of "
+            "a generated class (rac compile --target python), which carries no checked automaton; rac check proves "
+            f"the order of the plain return only; `rac check --discount {text} FILE` checks it, or give the wrapper "
+            "rac.load(FILE), which RacCallback checks")
+    for automaton, samples in _distinct(found):
+        for said in check_discounted(automaton, Discount(exact, samples)):
             option = f" --samples-per-step {samples}" if samples > 1 else ""
             # a check not made (W0405) has no run to show: the command says why instead
-            what, shows = ("fails", "shows the run") if found.is_error else ("is not checked", "says why")
-            hint = f"; {found.hints[0]}" if found.hints else ""
+            what, shows = ("fails", "shows the run") if said.is_error else ("is not checked", "says why")
+            hint = f"; {said.hints[0]}" if said.hints else ""
             messages.append(
                 f"RacCallback: {algorithm} maximises the return discounted by gamma={text} per step, and the "
-                f"priority order of `{automaton.name}` {what} for that return: {found.message}; rac check proves "
+                f"priority order of `{automaton.name}` {what} for that return: {said.message}; rac check proves "
                 f"the order of the plain return only; `rac check --discount {text}{option} FILE` {shows}{hint}")
     return messages
 
