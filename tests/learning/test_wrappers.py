@@ -14,12 +14,19 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.wrappers import TimeLimit
-from highway_like import HighwayLike, follow, inputs, vector_inputs
+from highway_like import FOLLOW, HighwayLike, follow, inputs, vector_inputs
 
 import rac
 from rac import ir
 from rac.check.analysis.scale import sample_change_bound
-from rac.learning.wrappers import RewardAutomatonVectorWrapper, RewardAutomatonWrapper, env_timing, within_proven
+from rac.compiler import compile_text
+from rac.learning.wrappers import (
+    RewardAutomatonVectorWrapper,
+    RewardAutomatonWrapper,
+    env_timing,
+    highway_steps,
+    within_proven,
+)
 from rac.runtime.interpreter import RewardAutomaton
 
 ENV_ID = "rac-test/HighwayLike-v0"
@@ -414,6 +421,50 @@ def test_highway_env_timing_is_read_from_its_config() -> None:
         limited = Highway()
         limited.spec = gymnasium.envs.registration.EnvSpec("rac-test/Limited-v0", max_episode_steps=steps)  # type: ignore[attr-defined]
         assert env_timing(limited) == (0.2, seconds)
+
+
+class Clocked(HighwayLike):
+    """HighwayLike truncated as highway-env truncates: its clock adds ``1 / policy_frequency`` per step, in floats,
+    and the episode ends once it reaches ``duration``."""
+
+    def __init__(self, frequency: int, duration: float) -> None:
+        super().__init__(dt=1 / frequency)
+        self.config = {"policy_frequency": frequency, "duration": duration}
+        self.time = 0.0
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        self.time = 0.0
+        return super().reset(seed=seed, options=options)
+
+    def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        self.time += 1 / self.config["policy_frequency"]
+        obs, reward, terminated, _, info = super().step(action)
+        return obs, reward, terminated, self.time >= self.config["duration"], info
+
+
+def test_a_highway_env_duration_that_its_clock_reaches_a_step_late_is_counted() -> None:
+    # highway-env at policy_frequency 5 with a duration of 10 s sums 0.2 s 50 times to 9.999999999999996, so its
+    # episodes last 51 steps: one past the 50 samples of an automaton sampled every 0.2 s for 10 s, where the
+    # construction said nothing (10 s of 0.2 s steps) and the proofs stopped a step before the episode did
+    longer = FOLLOW.replace("sample every 0.1", "sample every 0.2").replace("horizon 3", "horizon 10")
+    slower = compile_text(longer.replace("sa = sa - 10", "sa = sa - 100"), "follow.ra").raise_for_errors()
+    env = Clocked(5, 10)
+    env.reset(seed=0)
+    env.gap = 1e9  # no crash before the clock ends it
+    steps = 1
+    while not env.step(1)[3]:
+        steps += 1
+    assert steps == 51 == highway_steps(env.config)
+    assert env_timing(env)[1] == pytest.approx(10.2)
+    with pytest.warns(UserWarning, match=r"lasts 10.2 s \(51 steps of 0.2 s: highway-env ends it once its clock, "
+                                         r"adding 1/5 s a step in floats, reaches the duration of 10 s, which after 50 "
+                                         r"steps it misses by a rounding\) but the automaton's horizon is 10 s"):
+        RewardAutomatonWrapper(Clocked(5, 10), slower, inputs, clip=True)
+    with warnings.catch_warnings():  # 9.9 s: 50 steps, within the horizon, as the clock counts them too
+        warnings.simplefilter("error", UserWarning)
+        RewardAutomatonWrapper(Clocked(5, 9.9), slower, inputs, clip=True)
+    assert highway_steps({"policy_frequency": 1, "duration": 30}) == 30 and highway_steps({"duration": 30}) is None
 
 
 #: Follow whose episode ends when the gap closes below 3 m or opens to 9.5 m (where its end bonus applies).

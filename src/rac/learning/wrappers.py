@@ -56,7 +56,7 @@ from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
 
 __all__ = ["MASKED_RESETS", "AutomatonLike", "CutEpisodes", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper",
-           "env_timing", "outside_step_limit", "scale_factor", "within_proven", "wrapper_chain"]
+           "env_timing", "highway_steps", "outside_step_limit", "scale_factor", "within_proven", "wrapper_chain"]
 
 #: ``inputs(obs, info)`` or ``inputs(obs, info, env)``: the automaton's inputs.
 InputFn = Callable[..., Mapping[str, object]]
@@ -176,8 +176,9 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
     ``1 / config["policy_frequency"]``. The episode: the shortest of ``spec.max_episode_steps`` steps,
     the limit of every ``TimeLimit`` in the wrapper chain (one around an unregistered environment
     has no spec) and highway-env's ``config["duration"]`` (seconds in highway-env: its clock advances by
-    ``1 / policy_frequency`` per step and the episode is truncated at ``time >= duration``), as
-    the episode ends at whichever comes first.
+    ``1 / policy_frequency`` per step and the episode is truncated at ``time >= duration``, which in floats can
+    take a step more than ``duration * policy_frequency``: :func:`highway_steps`), as the episode ends at
+    whichever comes first.
     """
     unwrapped = getattr(env, "unwrapped", env)
     config = getattr(unwrapped, "config", None)
@@ -193,8 +194,26 @@ def env_timing(env: object, dt: float | None = None) -> tuple[float | None, floa
     if step is not None:
         ends.extend(limit * step for limit in _step_limits(env))
     if isinstance(config.get("duration"), (int, float)):
-        ends.append(float(config["duration"]))
+        counted = highway_steps(config)  # the steps highway-env's clock takes to reach it
+        ends.append(counted * step if counted is not None and step is not None else float(config["duration"]))
     return step, min(ends, default=None)
+
+
+def highway_steps(config: Mapping[str, Any]) -> int | None:
+    """The steps after which highway-env's ``config["duration"]`` ends an episode, None without one (or past a
+    million steps, not counted). highway-env adds ``1 / policy_frequency`` to its clock at every step, in floats,
+    and truncates once the clock is ``>= duration``; the sum can fall short of a whole duration by a rounding, and
+    the episode then takes a step more: a duration of 10 s at policy_frequency 5 ends after 51 steps, not 50 (the
+    clock at 9.999999999999996 after 50)."""
+    frequency, duration = config.get("policy_frequency"), config.get("duration")
+    if frequency is None or duration is None or not _positive_real(frequency) or not _positive_real(duration) \
+            or duration * frequency > 1e6:
+        return None
+    tick, clock, steps = 1 / frequency, 0.0, 0
+    while not clock >= duration:  # as highway-env's AbstractEnv.step and _is_truncated count
+        clock += tick
+        steps += 1
+    return steps
 
 
 def _positive_real(value: object) -> bool:
@@ -331,9 +350,22 @@ class _Timing:
             steps = episode / step
             if steps > self.steps and not math.isclose(steps, self.steps, rel_tol=tolerance):
                 warnings.warn(f"the environment's episode lasts {episode:g} s ({episode / step:g} steps of "
-                              f"{step:g} s) but the automaton's horizon is {horizon:g} s ({self.steps} samples); "
-                              f"{cover}: end the episodes at the horizon, {self.advice}", UserWarning,
-                              stacklevel=user_stacklevel())
+                              f"{step:g} s{_late_note(env, round(steps))}) but the automaton's horizon is "
+                              f"{horizon:g} s ({self.steps} samples); {cover}: end the episodes at the horizon, "
+                              f"{self.advice}", UserWarning, stacklevel=user_stacklevel())
+
+
+def _late_note(env: object, steps: int) -> str:
+    """Why an episode of ``steps`` steps ended by highway-env's ``duration`` is a step longer than the duration
+    says (:func:`highway_steps`), or ""."""
+    config = getattr(getattr(env, "unwrapped", env), "config", None)
+    if not isinstance(config, Mapping) or highway_steps(config) != steps:
+        return ""
+    exact = math.ceil(Fraction(config["duration"]) * Fraction(config["policy_frequency"]))  # without the rounding
+    if steps == exact:
+        return ""
+    return (f": highway-env ends it once its clock, adding 1/{config['policy_frequency']:g} s a step in floats, "
+            f"reaches the duration of {config['duration']:g} s, which after {exact} steps it misses by a rounding")
 
 
 class _PastHorizon:
