@@ -134,6 +134,34 @@ def test_a_gymnasium_vector_environments_infos_are_replayed() -> None:
         assert compared > 12 and skipped >= 2
 
 
+def test_gymnasiums_infos_made_a_list_are_replayed_as_the_vector_layout() -> None:
+    # gymnasium's DictInfoToList turns a vector environment's info into a list of dicts, as stable-baselines3 gives
+    # them; a sub-environment restarted in the step (NEXT_STEP) then has its reset info there, without the step's
+    # inputs, and CounterfactualRows refused the whole step at the first restart ("infos[0] has no
+    # info['rac']['inputs']: ... need the step info of RewardAutomatonWrapper"), which the wrapper did give
+    from gymnasium.wrappers.vector import DictInfoToList
+
+    limited = gymnasium.vector.SyncVectorEnv([lambda: gymnasium.wrappers.TimeLimit(HighwayLike(), 4)] * 2)
+    listed = DictInfoToList(LocationVectorObservation(RewardAutomatonVectorWrapper(limited, follow(), vector_inputs,
+                                                                                   clip=True)))
+    limited = gymnasium.vector.SyncVectorEnv([lambda: gymnasium.wrappers.TimeLimit(HighwayLike(), 4)] * 2)
+    layout = LocationVectorObservation(RewardAutomatonVectorWrapper(limited, follow(), vector_inputs, clip=True))
+    rows, reference = CounterfactualRows(follow()), CounterfactualRows(follow())
+    (before, _), (same, _) = listed.reset(seed=0), layout.reset(seed=0)
+    restarts = 0
+    for _ in range(11):
+        after, _, terminated, truncated, infos = listed.step(np.array([2, 0]))
+        again, _, _, _, dicts = layout.step(np.array([2, 0]))
+        assert isinstance(infos, list) and np.array_equal(after, again)
+        [got], [want] = rows.step(before, after, terminated | truncated, infos), \
+            reference.step(same, again, terminated | truncated, dicts)
+        for name in ("obs", "next_obs", "reward", "location", "next_location", "source"):
+            assert np.array_equal(getattr(got, name), getattr(want, name)), name
+        restarts += 2 - got.source.size
+        before, same = after, again
+    assert restarts >= 2
+
+
 def test_an_ended_episodes_terminal_observation_gets_its_location_from_the_info() -> None:
     """stable-baselines3 stores an ended episode's terminal observation as VecNormalize normalised it,
     unnormalised again: a location not seen so far comes back clipped (0.001, not 1). The location is in

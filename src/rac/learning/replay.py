@@ -46,8 +46,8 @@ class CounterfactualStep:
     ``reward`` (``(m,)``, scaled as the wrapper scales; under ``scale="proven"`` within [-1, 1], as the real
     rewards: :meth:`CounterfactualRows.step`), the ``location`` and ``next_location``
     indices, and the environments they are of (``source``, indices into the step's batch: all ``n``,
-    except in gymnasium's vector layout the sub-environments it restarted in this step, whose
-    ``obs`` -> ``next_obs`` is no transition)."""
+    except the sub-environments a gymnasium vector environment restarted in this step, whose
+    ``obs`` -> ``next_obs`` is no transition: in its layout, or in the list ``DictInfoToList`` makes of it)."""
 
     obs: np.ndarray
     next_obs: np.ndarray
@@ -97,6 +97,9 @@ class CounterfactualRows:
             infos, stepping = _split(infos, n)
         elif len(infos) != n:
             raise ValueError(f"infos must hold one dict per environment ({n}), not {len(infos)}")
+        else:  # a list: stable-baselines3's (every environment steps), or gymnasium's through DictInfoToList
+            stepping = np.flatnonzero([not _restarted(info) for info in infos]).astype(np.int64)
+            infos = [infos[i] for i in stepping.tolist()]
         found: list[Mapping[str, Any]] = []
         for i, info in zip(stepping.tolist(), infos):
             rac = info.get("rac") if isinstance(info, Mapping) else None
@@ -163,7 +166,8 @@ class CounterfactualRows:
         ``done`` where the episode ended (the ``at end`` clauses apply), ``infos`` the wrappers' step
         infos: one dict per environment (stable-baselines3's ``VecEnv``), or gymnasium's vector layout
         (one dict of arrays; gymnasium's default ``NEXT_STEP`` autoreset: a sub-environment restarted
-        in this step took no step, and its rows are left out, :attr:`CounterfactualStep.source`). Batch
+        in this step took no step, and its rows are left out, :attr:`CounterfactualStep.source`; so are they
+        from the list gymnasium's ``DictInfoToList`` makes of that dict, their infos reset infos). Batch
         ``k`` starts each environment ``k`` locations after the one it was in. Under ``scale="proven"``
         (``info["rac"]["proven"]``) the rows' rewards lie within [-1, 1] as the real ones do; a row from a location
         no run reaches, which the proven bound does not cover, is clamped to it (warned once)."""
@@ -236,6 +240,8 @@ class CounterfactualRows:
 #: The ``info["rac"]`` keys only a step gives (a reset's snapshot has location, rewards, objective, scale;
 #: RewardAutomatonVectorWrapper's reset rows carry its unmasked columns, held among them, too).
 STEP_ONLY = ("inputs", "reward_steps")
+#: The ``info["rac"]`` keys of every reset's snapshot.
+SNAPSHOT = ("location", "rewards", "objective")
 
 
 def _split(infos: Mapping[str, Any], n: int) -> tuple[list[Mapping[str, Any]], np.ndarray]:
@@ -250,7 +256,14 @@ def _split(infos: Mapping[str, Any], n: int) -> tuple[list[Mapping[str, Any]], n
                          "masks): pass a list of one info dict per environment (as stable-baselines3's VecEnv gives "
                          "them) or a gymnasium vector environment's info, each environment a RewardAutomatonWrapper")
     split = split_vector_info(infos, n)
-    restarted = [isinstance(info.get("rac"), Mapping) and "location" in info["rac"]
-                 and not any(key in info["rac"] for key in STEP_ONLY) for info in split]
-    stepping = np.flatnonzero(~np.array(restarted, dtype=bool).reshape(n))
+    stepping = np.flatnonzero(~np.array([_restarted(info) for info in split], dtype=bool).reshape(n))
     return [split[i] for i in stepping.tolist()], stepping
+
+
+def _restarted(info: object) -> bool:
+    """Whether ``info`` is the reset info of a sub-environment a gymnasium vector environment restarted in this
+    step (its ``info["rac"]`` the reset's snapshot, without :data:`STEP_ONLY`'s keys): no transition. A list of
+    infos has one where gymnasium's ``DictInfoToList`` made it from the vector layout; stable-baselines3's never
+    does (its environments restart within the step that ended them)."""
+    rac = info.get("rac") if isinstance(info, Mapping) else None
+    return isinstance(rac, Mapping) and all(key in rac for key in SNAPSHOT) and not any(key in rac for key in STEP_ONLY)
