@@ -331,3 +331,27 @@ def test_a_missing_separator_or_keyword_gets_a_hint(slip: str, written: str, hin
     assert diagnostic.code == "E0001"
     assert any(h.startswith(hint) for h in diagnostic.hints), diagnostic.hints
     assert not any("a product is written" in h for h in diagnostic.hints), diagnostic.hints
+
+
+def test_a_python_file_read_as_ra_source_says_to_import_it(tmp_path: Path) -> None:
+    # a module written by `rac compile --target python`, given to rac.load or to the wrappers as a path, got the
+    # language's hint for its first line ("comments start with `//`"), which said nothing of what the file is
+    import rac
+    from rac.targets.python import generate_python
+
+    text = "automaton Lane { input off : bool\n reward r\n objective r\n sample every 1\n horizon 3\n" \
+           " initial location L { r' == 1 } }\n"
+    path = tmp_path / "lane_ra.py"
+    path.write_text(generate_python(rac.loads(text).ir), encoding="utf-8")
+    with pytest.raises(rac.CheckError) as caught:
+        rac.load(path)
+    [diagnostic] = caught.value.diagnostics
+    assert diagnostic.code == "E0002" and diagnostic.hints == (
+        "`lane_ra.py` is a Python file, not `.ra` source: rac check, rac.load and the wrappers read the `.ra` file; "
+        "a module written by `rac compile --target python` is imported (`from lane_ra import Lane`), and an instance "
+        "of its class goes to RewardAutomatonWrapper in place of the path",)
+    diagnostic, _ = diagnose("import gymnasium\n", name="train.py")  # a script of one's own: its class unknown
+    assert diagnostic.hints[0].startswith("`train.py` is a Python file") and "(`from train import its class`)" in \
+        diagnostic.hints[0]
+    diagnostic, _ = diagnose("# a comment\n", name="train.ra")  # a .ra file keeps the language's hint
+    assert "Python" not in " ".join(diagnostic.hints)
