@@ -239,6 +239,23 @@ def test_vector_wrapper_follows_each_automaton_through_autoreset() -> None:
     assert restarted and all(row == [1.0, 0.0] for row in restarted)  # a new episode starts in Safe
 
 
+def test_the_vector_observation_reads_infos_made_a_list() -> None:
+    # gymnasium's DictInfoToList turns the vector info into one dict per sub-environment (SB3's layout): the location
+    # observation around it ended at the first reset in "AttributeError: 'list' object has no attribute 'get'"
+    from gymnasium.wrappers.vector import DictInfoToList
+
+    def wrapped() -> RewardAutomatonVectorWrapper:
+        envs = SyncVectorEnv([lambda i=i: gymnasium.wrappers.TimeLimit(HighwayLike(), 5 + i) for i in range(3)])
+        return RewardAutomatonVectorWrapper(envs, follow(), vector_inputs, clip=True)
+
+    outside, inside = LocationVectorObservation(DictInfoToList(wrapped())), LocationVectorObservation(wrapped())
+    (got, listed), (want, _) = outside.reset(seed=1), inside.reset(seed=1)
+    assert isinstance(listed, list) and np.array_equal(got, want)
+    for _ in range(12):  # through the restarts of the NEXT_STEP autoreset, whose infos are reset infos
+        got, want = outside.step(np.full(3, 2))[0], inside.step(np.full(3, 2))[0]
+        assert np.array_equal(got, want)
+
+
 def blank_with_alternate() -> RewardAutomatonWrapper:
     """A sub-environment for a vector environment: Blank under the wrapper (a module function: picklable)."""
     return RewardAutomatonWrapper(Blank(), alternate(), took)

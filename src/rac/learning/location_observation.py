@@ -152,9 +152,12 @@ def _space(space: spaces.Space[Any], layout: str, count: int) -> spaces.Space[An
     return spaces.Dict({OBSERVATION_KEY: space, LOCATION_KEY: location})
 
 
-def _reported(info: Mapping[str, Any], what: str) -> Any:
+def _reported(info: Mapping[str, Any] | Sequence[Mapping[str, Any]], what: str) -> Any:
     """The location(s) in an info: the reward wrappers' ``info["rac"]["location"]``, the scenario
-    environments' ``info["location"]``."""
+    environments' ``info["location"]``; of each sub-environment's info in a list (a vector environment's info made
+    one by gymnasium's ``DictInfoToList``, whose lists have no ``get``)."""
+    if isinstance(info, Sequence) and not isinstance(info, (str, bytes)):
+        return np.array([_reported(one, what) for one in info], dtype=object)
     rac = info.get("rac")
     found = rac.get("location") if isinstance(rac, Mapping) else info.get("location")
     if found is None:
