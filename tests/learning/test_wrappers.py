@@ -680,6 +680,29 @@ def test_a_partial_reset_resets_those_automata_only() -> None:
         vector.reset(options={"reset_mask": np.array([True, False, True])})
 
 
+def test_infos_made_a_list_inside_the_vector_wrapper_are_refused_saying_where_it_goes() -> None:
+    # gymnasium's DictInfoToList inside the vector wrapper handed it a list of dicts: reset ended in "ValueError:
+    # dictionary update sequence element #0 has length 3; 2 is required", naming nothing of either
+    from gymnasium.wrappers.vector import DictInfoToList
+
+    with pytest.raises(ValueError, match=r"DictInfoToList sits inside it: put gymnasium's DictInfoToList outside it, "
+                                         r"DictInfoToList\(RewardAutomatonVectorWrapper\(envs, ...\)\)"):
+        RewardAutomatonVectorWrapper(DictInfoToList(SyncVectorEnv([Gap, Gap])), FOLLOW_ENDS, gap_inputs)
+
+    class Listing(gymnasium.vector.VectorWrapper):  # a vector environment of one's own with SB3's info layout
+        def reset(self, **kwargs: Any) -> tuple[Any, Any]:
+            obs, infos = self.env.reset(**kwargs)
+            return obs, [{} for _ in range(self.num_envs)]
+
+    vector = RewardAutomatonVectorWrapper(Listing(SyncVectorEnv([Gap, Gap])), FOLLOW_ENDS, gap_inputs)
+    with pytest.raises(ValueError, match="the vector environment's reset gave list infos"):
+        vector.reset(seed=0)
+    outside = DictInfoToList(RewardAutomatonVectorWrapper(SyncVectorEnv([Gap, Gap]), FOLLOW_ENDS, gap_inputs))
+    outside.reset(seed=0)
+    infos = outside.step(np.array([[5.0], [9.5]], dtype=np.float32))[4]
+    assert [info["rac"]["location"] for info in infos] == ["Safe", "Safe"]
+
+
 class GapVector(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     """Gap's vector form, with a reset that ignores options["reset_mask"] and restarts every sub-environment, as
     gymnasium's own CartPoleVectorEnv (gymnasium.make_vec("CartPole-v1")'s default) does."""

@@ -508,6 +508,13 @@ def _rows_changed(before: Any, after: Any, rows: np.ndarray) -> bool:
     return not np.array_equal(before[rows], after[rows], equal_nan=before.dtype.kind in "fc")
 
 
+#: Why :class:`RewardAutomatonVectorWrapper` refuses a vector environment whose infos are no dict (``{found}``).
+LISTED_INFOS = ("RewardAutomatonVectorWrapper reads and extends gymnasium's vector info (one dict of arrays, with "
+                "_key masks), and {found}: put gymnasium's DictInfoToList outside it, "
+                "DictInfoToList(RewardAutomatonVectorWrapper(envs, ...)), for a list of one info dict per "
+                "sub-environment")
+
+
 #: What :class:`RewardAutomatonVectorWrapper` says of a vector environment that restarted sub-environments its
 #: ``options["reset_mask"]`` did not select (``{name}``: its class; ``{call}``: who asked for the reset).
 IGNORED_RESET_MASK = (
@@ -763,6 +770,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.NEXT_STEP.value):
             raise RacValueError(f"RewardAutomatonVectorWrapper supports the autoreset mode NEXT_STEP only, not "
                                 f"{mode!r}: make the vector environment with autoreset_mode=AutoresetMode.NEXT_STEP")
+        if any(isinstance(wrapper, gymnasium.wrappers.vector.DictInfoToList) for wrapper in wrapper_chain(env)):
+            raise RacValueError(LISTED_INFOS.format(found="gymnasium's DictInfoToList sits inside it"))
         self._with_env = _takes_env(inputs, "(obs, infos) or (obs, infos, env)")
         program = automaton_ir(automaton)
         if program is None:
@@ -854,6 +863,9 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         if rows.shape != (self.num_envs,):
             raise ValueError(f"options['reset_mask'] must hold {self.num_envs} booleans, not {rows.shape}")
         obs, infos = self.env.reset(seed=seed, options=options)
+        if not isinstance(infos, Mapping):  # said before any automaton is reset
+            raise RacValueError(LISTED_INFOS.format(found=f"the vector environment's reset gave {type(infos).__name__} "
+                                                          "infos"))
         if mask is not None and self._obs is not None:
             self._check_kept(self._obs, obs, rows, "reset(options={'reset_mask': ...})")
         self._remember(obs)
