@@ -739,6 +739,12 @@ def test_a_vector_env_that_ignores_the_reset_mask_is_refused() -> None:
     vector.step(np.array([[6.0], [7.0]], dtype=np.float32))
     with pytest.raises(ValueError, match=r"in reset\(options=\{'reset_mask': ...\}\)"):
         vector.reset(options={"reset_mask": np.array([True, False])})
+    # a class that says it honours the mask (masked_resets = True, as ScenarioVectorEnv) is taken at its word
+    declared = type("Declared", (GapVector,), {"masked_resets": True})
+    trusted = RewardAutomatonVectorWrapper(declared(2), FOLLOW_ENDS, gap_inputs)
+    trusted.reset(seed=0)
+    trusted.step(np.array([[9.5], [6.0]], dtype=np.float32))
+    assert trusted.step(np.array([[5.0], [6.0]], dtype=np.float32))[1][0] == 0.0
     # SyncVectorEnv resets the selected sub-environment alone: the other keeps its observation, and goes on
     honest = RewardAutomatonVectorWrapper(SyncVectorEnv([Gap, Gap]), FOLLOW_ENDS, gap_inputs)
     honest.reset(seed=0)

@@ -523,7 +523,8 @@ IGNORED_RESET_MASK = (
     "selected automata only: the other sub-environments' episodes started again under automata that go on, and "
     "their rewards are no longer their episodes'. The wrapper needs a vector environment that resets the selected "
     "sub-environments alone: gymnasium's SyncVectorEnv or AsyncVectorEnv, e.g. gymnasium.make_vec(id, num_envs=n, "
-    "vectorization_mode='sync'); reset() every sub-environment before the next step")
+    "vectorization_mode='sync'), or a class of your own that does and says so (masked_resets = True); reset() every "
+    "sub-environment before the next step")
 
 
 def _clipping(automaton: ir.Automaton | None, clip: bool) -> tuple[Any, ...] | None:
