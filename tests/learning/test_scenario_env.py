@@ -173,6 +173,19 @@ def test_max_episode_steps_outside_is_said_at_the_first_cut(tiny: CompileResult)
             assert [own.step(4)[3] for _ in range(3)] == [False, False, True]
 
 
+def test_a_reward_wrapper_outside_is_said_at_the_first_reset(tiny: CompileResult) -> None:
+    # gymnasium's ClipReward (or NormalizeReward, TransformReward) around rac/Scenario-v0 in a loop without
+    # stable-baselines3 changed the automaton's reward without a word; under rac's reward wrapper it is that
+    # wrapper's to say (the scenario environment's reward replaced)
+    env = gymnasium.wrappers.ClipReward(gymnasium.make("rac.gym:rac/Scenario-v0", model=tiny), -1.0, 1.0)
+    with pytest.warns(UserWarning, match=r"^gymnasium's ClipReward around the reward automaton's reward"):
+        env.reset(seed=0)
+    with warnings.catch_warnings():  # said once
+        warnings.simplefilter("error", UserWarning)
+        env.reset(seed=1)
+        gymnasium.make("rac.gym:rac/Scenario-v0", model=tiny).reset(seed=0)  # nothing around it: nothing said
+
+
 def test_horizon_in_seconds(tiny: CompileResult) -> None:
     env = ScenarioEnv(tiny, horizon=1.5, observation="ego")
     assert env.episodes.horizon_samples == 3 and env.episodes.max_steps == 2

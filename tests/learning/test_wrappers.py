@@ -703,6 +703,33 @@ def test_infos_made_a_list_inside_the_vector_wrapper_are_refused_saying_where_it
     assert [info["rac"]["location"] for info in infos] == ["Safe", "Safe"]
 
 
+def test_reward_wrappers_outside_are_said_in_a_loop_without_stable_baselines3() -> None:
+    # CleanRL's make_env puts NormalizeReward and a clipping TransformReward around every environment: around the
+    # automaton's reward the learner's reward is no longer the automaton's, and only stable-baselines3's RacCallback
+    # said so; a loop of one's own trained on it without a word
+    from gymnasium.wrappers import NormalizeReward, RecordEpisodeStatistics, TransformReward
+
+    def cleanrl() -> gymnasium.Env[Any, Any]:
+        env = RecordEpisodeStatistics(RewardAutomatonWrapper(TimeLimit(HighwayLike(), 30), follow(), inputs, clip=True))
+        return TransformReward(NormalizeReward(env), lambda reward: float(np.clip(reward, -10, 10)))
+
+    envs = SyncVectorEnv([cleanrl, cleanrl])
+    with pytest.warns(UserWarning, match=r"^gymnasium's NormalizeReward, TransformReward around the reward automaton's "
+                                         r"reward changes every reward the learner sees") as said:
+        envs.reset(seed=0)
+    assert all(w.filename == __file__ for w in said if "NormalizeReward" in str(w.message))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        envs.reset(seed=1)  # said once per environment
+        envs.step(np.ones(2, dtype=int))
+        # inside the automaton's wrapper it changes a reward the automaton's replaces: nothing to say
+        RewardAutomatonWrapper(NormalizeReward(TimeLimit(HighwayLike(), 30)), follow(), inputs, clip=True).reset(seed=0)
+    vector = gymnasium.wrappers.vector.NormalizeReward(RewardAutomatonVectorWrapper(
+        SyncVectorEnv([lambda: TimeLimit(HighwayLike(), 30)] * 2), follow(), vector_inputs, clip=True))
+    with pytest.warns(UserWarning, match=r"^gymnasium's NormalizeReward around the reward automaton's reward"):
+        vector.reset(seed=0)
+
+
 class GapVector(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
     """Gap's vector form, with a reset that ignores options["reset_mask"] and restarts every sub-environment, as
     gymnasium's own CartPoleVectorEnv (gymnasium.make_vec("CartPole-v1")'s default) does."""

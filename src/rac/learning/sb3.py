@@ -30,14 +30,16 @@ from rac.learning.location_observation import LocationObservation
 from rac.learning.replay import CounterfactualRows, scenario_infos_refused
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
-from rac.learning.wrappers import NO_RELABELLING, RewardAutomatonWrapper, wrapper_chain
+from rac.learning.wrappers import (
+    NO_RELABELLING,
+    REWARD_CHANGED,
+    REWARD_CHANGERS,
+    RewardAutomatonWrapper,
+    wrapper_chain,
+)
 
 __all__ = ["CounterfactualReplayBuffer", "RacCallback", "discount_warnings", "frame_stacker", "proof_subjects",
            "reward_changers", "reward_normaliser", "scenario_environments", "text_table_clashes"]
-
-#: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor (a subclass
-#: before its base, ClipReward before TransformReward: a probe names a wrapper by the first it is one of).
-REWARD_CHANGERS = (NormalizeReward, ClipReward, TransformReward)
 
 
 class RacCallback(BaseCallback):
@@ -107,14 +109,9 @@ class RacCallback(BaseCallback):
         changers = reward_changers(self.training_env)
         if changers and not self._warned_changers:  # learn() called again: said once
             self._warned_changers = True
-            warnings.warn(
-                f"gymnasium's {', '.join(changers)} around the reward automaton's reward changes every reward the "
-                "learner sees (NormalizeReward divides it by a running estimate of the returns' spread, which "
-                "changes as training goes on; ClipReward clips it; TransformReward applies a function of its own): "
-                "the learner's reward is no longer the automaton's up to one positive factor, so the priority proofs "
-                "of rac check (no penalty compensated by lower objectives' gains) do not cover what it learns from; "
-                "scale the automaton's reward with scale='proven' (every reward in [-1, 1], the proofs intact) "
-                "instead", UserWarning, stacklevel=user_stacklevel())
+            if not _changers_said(self.training_env):  # the environments said it at learn()'s reset
+                warnings.warn(REWARD_CHANGED.format(names=", ".join(changers)), UserWarning,
+                              stacklevel=user_stacklevel())
         gamma = getattr(self.model, "gamma", None)
         # np.floating too: a numpy float32 gamma (np.float32(0.99)) is no float, and was never checked
         if not self._warned_discount and isinstance(gamma, (float, np.floating)) and 0 < gamma < 1:
@@ -218,6 +215,16 @@ def reward_normaliser(venv: Any) -> VecNormalize | None:
     ``venv`` (each one's ``venv`` the next), or None."""
     found = _wrapper(venv, VecNormalize)
     return found if isinstance(found, VecNormalize) and found.norm_reward else None
+
+
+def _changers_said(venv: Any) -> bool:
+    """Whether an environment of a ``DummyVecEnv`` in ``venv`` has said, at a reset, that gymnasium's reward wrappers
+    outside it change its rewards (:class:`~rac.learning.wrappers.ChangedRewards`); those in other processes
+    (``SubprocVecEnv``) said it there, where the learner's process may not show it, and are not asked."""
+    base = _wrapper(venv, DummyVecEnv)
+    envs = base.envs if isinstance(base, DummyVecEnv) else []
+    return any(getattr(getattr(inner, "changed_rewards", None), "warned", False) is True
+               for env in envs for inner in wrapper_chain(env))
 
 
 def reward_changers(venv: Any) -> list[str]:

@@ -47,7 +47,15 @@ from rac.lang import ast
 from rac.lang.edit import with_model
 from rac.learning.episodes import EpisodeBatch
 from rac.learning.observation import Observation, make_observation
-from rac.learning.wrappers import CutEpisodes, Scale, outside_step_limit, scale_factor, within_proven
+from rac.learning.wrappers import (
+    REWARD_CHANGERS,
+    ChangedRewards,
+    CutEpisodes,
+    Scale,
+    outside_step_limit,
+    scale_factor,
+    within_proven,
+)
 from rac.model.checks import goal_window
 from rac.model.commonroad import with_planning_problem
 from rac.model.sample import MOTION
@@ -429,6 +437,8 @@ class ScenarioEnv(gymnasium.Env):
         #: the first one is warned of): no guarantee covers them.
         self.outside_mask_steps = 0
         self._said_options = False  # an option reset() does not read was warned of
+        #: Says once that gymnasium's reward wrappers outside change every reward (found at a reset they call).
+        self.changed_rewards = ChangedRewards()
         self._said_unshielded = False  # action_masks() without a shield was warned of
         self._decision: ShieldStep | None = None
         self._crashed = False
@@ -640,6 +650,7 @@ class ScenarioEnv(gymnasium.Env):
             self._cut.reset()
             if self.outside_step_limit is None:
                 self.outside_step_limit = outside_step_limit(self)
+            self.changed_rewards.check(self, REWARD_CHANGERS)  # NormalizeReward(ScenarioEnv(...)) in a loop
         unknown = sorted(map(str, set(options or {}) - RESET_OPTIONS))
         if unknown and not self._said_options:  # a typo (`{"scene": 1}`) drew a scene at random without a word
             self._said_options = True

@@ -55,8 +55,9 @@ from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.interpreter import RewardAutomaton
 from rac.runtime.semantics import clip_inputs, clip_rows, input_specs
 
-__all__ = ["MASKED_RESETS", "AutomatonLike", "CutEpisodes", "RewardAutomatonVectorWrapper", "RewardAutomatonWrapper",
-           "env_timing", "highway_steps", "outside_step_limit", "scale_factor", "within_proven", "wrapper_chain"]
+__all__ = ["MASKED_RESETS", "AutomatonLike", "ChangedRewards", "CutEpisodes", "RewardAutomatonVectorWrapper",
+           "RewardAutomatonWrapper", "env_timing", "highway_steps", "outside_reward_changers", "outside_step_limit",
+           "scale_factor", "within_proven", "wrapper_chain"]
 
 #: ``inputs(obs, info)`` or ``inputs(obs, info, env)``: the automaton's inputs.
 InputFn = Callable[..., Mapping[str, object]]
@@ -295,6 +296,69 @@ def outside_step_limit(env: object, frames: int = 12) -> int | None:
             limit = getattr(owner, "_max_episode_steps", None)  # gymnasium keeps it there, with no public name
             return limit if isinstance(limit, int) else None
     return None
+
+
+#: gymnasium's wrappers that change every reward they pass on, not by one fixed positive factor (a subclass before its
+#: base, ClipReward before TransformReward: a wrapper is named by the first it is one of).
+REWARD_CHANGERS = (gymnasium.wrappers.NormalizeReward, gymnasium.wrappers.ClipReward,
+                   gymnasium.wrappers.TransformReward)
+#: Their vector forms (gymnasium.wrappers.vector's ClipReward is a VectorizeTransformReward).
+VECTOR_REWARD_CHANGERS = (gymnasium.wrappers.vector.NormalizeReward, gymnasium.wrappers.vector.ClipReward,
+                          gymnasium.wrappers.vector.TransformReward, gymnasium.wrappers.vector.VectorizeTransformReward)
+#: What a reward changer around the automaton's reward means (``{names}``: the wrappers), said once by the wrapper or
+#: the scenario environment at a reset a changer calls, and by stable-baselines3's RacCallback.
+REWARD_CHANGED = ("gymnasium's {names} around the reward automaton's reward changes every reward the learner sees "
+                  "(NormalizeReward divides it by a running estimate of the returns' spread, which changes as training "
+                  "goes on; ClipReward clips it; TransformReward applies a function of its own): the learner's reward "
+                  "is no longer the automaton's up to one positive factor, so the priority proofs of rac check (no "
+                  "penalty compensated by lower objectives' gains) do not cover what it learns from; scale the "
+                  "automaton's reward with scale='proven' (every reward in [-1, 1], the proofs intact) instead")
+#: The code of the resets through which a reward changer outside calls the environment's (gymnasium's Wrapper and
+#: VectorWrapper pass reset on; the vector NormalizeReward has its own), read by :func:`outside_reward_changers`.
+_RESET_CODE = {gymnasium.Wrapper.reset.__code__, VectorWrapper.reset.__code__,
+               gymnasium.wrappers.vector.NormalizeReward.reset.__code__}
+
+
+def outside_reward_changers(env: object, kinds: tuple[type, ...] = REWARD_CHANGERS, frames: int = 40) -> list[str]:
+    """The names of gymnasium's reward wrappers of ``kinds`` (:data:`REWARD_CHANGERS`, :data:`VECTOR_REWARD_CHANGERS`)
+    outside ``env`` whose ``reset`` is calling ``env``'s now (one of the ``frames`` innermost callers): the wrappers
+    that change every reward ``env`` hands out on its way to the learner. Read from the callers, as
+    :func:`outside_step_limit` reads a ``TimeLimit``: an environment does not know what is put around it, and a
+    training loop of one's own (CleanRL's: ``NormalizeReward`` and a clipping ``TransformReward`` around every
+    environment) has no stable-baselines3 callback to say it."""
+    names: list[str] = []
+    frame = inspect.currentframe()
+    for _ in range(frames):
+        frame = frame.f_back if frame is not None else None
+        if frame is None:
+            break
+        if frame.f_code not in _RESET_CODE:  # only the wrappers' own frames are read
+            continue
+        owner = frame.f_locals.get("self")
+        kind = next((kind for kind in kinds if isinstance(owner, kind)), None)
+        if kind is not None and _inside(owner, env) and kind.__name__ not in names:
+            names.append(kind.__name__)
+    return names
+
+
+class ChangedRewards:
+    """Warns once, at a reset, when gymnasium's reward wrappers outside an environment of rac's change every reward
+    it hands out (:func:`outside_reward_changers`, :data:`REWARD_CHANGED`)."""
+
+    def __init__(self) -> None:
+        #: Said already (stable-baselines3's RacCallback, which says the same of its training environment later in
+        #: ``learn()``, does not say it again of environments in its process that have).
+        self.warned = False
+
+    def check(self, env: object, kinds: tuple[type, ...]) -> None:
+        """Called from ``env``'s ``reset``: warn when a wrapper of ``kinds`` outside it is calling it."""
+        if self.warned:
+            return
+        names = outside_reward_changers(env, kinds)
+        if names:
+            self.warned = True
+            warnings.warn(REWARD_CHANGED.format(names=", ".join(sorted(names))), UserWarning,
+                          stacklevel=user_stacklevel())
 
 
 #: The attribute of an environment whose own reward a rac reward wrapper replaces (ScenarioEnv's
@@ -650,6 +714,8 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         steps = getattr(self.automaton, "steps", None)
         self._cut = CutEpisodes(SINGLE_LIMIT.format(steps=steps if isinstance(steps, int) else "N"))
         self._outside: int | None = None  # the limit of a TimeLimit outside, found at a reset it called
+        #: Says once that gymnasium's reward wrappers outside change every reward (found at a reset they call).
+        self.changed_rewards = ChangedRewards()
         self._last_inputs: dict[str, Any] | None = None  # the inputs the next step's rates read (none at a reset)
 
     @property
@@ -673,6 +739,7 @@ class RewardAutomatonWrapper(gymnasium.Wrapper, RecordConstructorArgs):
         self._cut.reset()
         if self._outside is None:  # TimeLimit(RewardAutomatonWrapper(...), N): said at its first cut
             self._outside = outside_step_limit(self)
+        self.changed_rewards.check(self, REWARD_CHANGERS)
         self.automaton.reset()
         self._last_inputs = None
         info = dict(info)
@@ -814,6 +881,8 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
             if callable(set_attr):
                 set_attr(REPLACED, True)
         self._past = _PastHorizon(self.automaton, scale == "proven", VECTOR_LIMIT)
+        #: Says once that gymnasium's vector reward wrappers outside change every reward (found at a reset they call).
+        self.changed_rewards = ChangedRewards()
 
     def _first_env(self) -> object:
         """The first sub-environment when the vector environment holds them (SyncVectorEnv), for its
@@ -864,6 +933,7 @@ class RewardAutomatonVectorWrapper(VectorWrapper):
         if rows.shape != (self.num_envs,):
             raise ValueError(f"options['reset_mask'] must hold {self.num_envs} booleans, not {rows.shape}")
         obs, infos = self.env.reset(seed=seed, options=options)
+        self.changed_rewards.check(self, VECTOR_REWARD_CHANGERS)
         if not isinstance(infos, Mapping):  # said before any automaton is reset
             raise RacValueError(LISTED_INFOS.format(found=f"the vector environment's reset gave {type(infos).__name__} "
                                                           "infos"))
