@@ -151,6 +151,21 @@ def test_make_masks_through_the_wrappers_and_check_env(files: dict[str, Path], t
     assert checked(env) == [] and checked(env.unwrapped) == []
 
 
+def test_a_vector_reward_wrapper_outside_is_said_at_the_first_reset(files: dict[str, Path]) -> None:
+    # gymnasium's vector NormalizeReward around make_vec's ScenarioVectorEnv in a loop without stable-baselines3
+    # changed the automaton's reward without a word
+    import warnings
+
+    envs = gymnasium.wrappers.vector.NormalizeReward(gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2,
+                                                                        model=files["goal_ahead"]))
+    with pytest.warns(UserWarning, match=r"^gymnasium's NormalizeReward around the reward automaton's reward"):
+        envs.reset(seed=0)
+    with warnings.catch_warnings():  # said once; nothing around: nothing said
+        warnings.simplefilter("error", UserWarning)
+        envs.reset(seed=1)
+        gymnasium.make_vec(rac.gym.SCENARIO, num_envs=2, model=files["goal_ahead"]).reset(seed=0)
+
+
 def test_make_vec_uses_the_native_vector_env(files: dict[str, Path]) -> None:
     envs = gymnasium.make_vec(rac.gym.SCENARIO, num_envs=3, model=files["goal_ahead"])
     assert isinstance(envs, ScenarioVectorEnv) and envs.num_envs == 3

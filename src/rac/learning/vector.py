@@ -49,7 +49,7 @@ from rac.learning.scenario_env import (
     outside_mask_warning,
     warn_file,
 )
-from rac.learning.wrappers import Scale, within_proven
+from rac.learning.wrappers import VECTOR_REWARD_CHANGERS, ChangedRewards, Scale, within_proven
 
 if TYPE_CHECKING:
     from rac.engine.lookahead import LookaheadSettings
@@ -112,6 +112,8 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         self.render_mode = None
         self._step_shield = self._single.step_shield
         self._said_unshielded = False  # action_masks() without a shield was warned of
+        #: Says once that gymnasium's vector reward wrappers outside change every reward (found at a reset they call).
+        self.changed_rewards = ChangedRewards()
         #: Steps per guarantee of their mask (``info["shield"]``), since construction, over all episodes.
         self.shield_steps: Counter[str] = Counter()
         #: Steps whose state had no action known to be safe (``info["no_safe_action"]``).
@@ -222,6 +224,7 @@ class ScenarioVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[type-arg]
         episode's, the info the restarted ones' (what
         :class:`~rac.learning.wrappers.RewardAutomatonVectorWrapper` asks for when its automaton's
         ``episode ends when`` ends an episode this environment goes on with)."""
+        self.changed_rewards.check(self, VECTOR_REWARD_CHANGERS)  # NormalizeReward(make_vec(...)) in a loop
         mask = options.get("reset_mask") if options else None
         if isinstance(seed, Sequence):  # SyncVectorEnv's per-environment seeds: one np_random here
             if len(seed) != self.num_envs:
