@@ -79,7 +79,10 @@ def all_guards(automaton: ir.Automaton) -> list[ir.Guard]:
             *(c.guard for c in automaton.end_clauses), *(g for g in named if g is not None)]
 
 
-def _pieces(item: ir.Input, thresholds: set[Fraction]) -> list[Piece]:
+def pieces_of(item: ir.Input, thresholds: set[Fraction]) -> list[Piece]:
+    """The pieces of numeric input ``item``'s range that comparisons with ``thresholds`` cut it into, in
+    increasing order: each threshold within the range and the intervals between (an ``int`` input's
+    whole values only: a point per whole threshold and the runs of integers between)."""
     assert item.low is not None and item.high is not None
     points = sorted({item.low, item.high} | {t for t in thresholds if item.low < t < item.high})
     if item.kind == "int":
@@ -112,7 +115,7 @@ class InputSpace:
                  for leaf in ir.guard_leaves(guard) if isinstance(leaf, ir.BAtom)}
         self.bools = [i.name for i in automaton.bool_inputs]
         self.numerics = list(automaton.numeric_inputs)
-        self.pieces = {i.name: _pieces(i, {a.threshold for a in atoms if a.input == i.name})
+        self.pieces = {i.name: pieces_of(i, {a.threshold for a in atoms if a.input == i.name})
                        for i in self.numerics}
         self._guards = [*all_guards(automaton), *(extra_guards or [])]
         sizes = [2] * len(self.bools) + [len(self.pieces[i.name]) for i in self.numerics]

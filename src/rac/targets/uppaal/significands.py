@@ -18,6 +18,8 @@ from fractions import Fraction
 
 from rac import ir
 from rac.core.diagnostics import Diagnostic
+from rac.ir import expr as ie
+from rac.ir import query as iq
 from rac.ir.significands import bound_diagnostic, input_extremes, rate_diagnostic, unrepresentable
 from rac.ir.significands import decimal_text as _decimal
 from rac.ir.vocabulary import DEFAULT_BASE, DEFAULT_EXPONENT
@@ -88,26 +90,61 @@ class Significands:
         no Environment chooses them (the whole model's Controller computes them from the bindings),
         so they have no values, and no piece of their ranges needs a significand."""
         # Imported here: InputSpace needs numpy, which `import rac.targets.uppaal.automaton` does not load.
-        from rac.ir.inputs import InputSpace
+        from rac.ir.inputs import InputSpace, all_guards, pieces_of
 
         space = InputSpace(self.a)
+        queried = self._query_thresholds()
         result = []
         for item in self.a.numeric_inputs:
-            values = []
+            values: list[int] = []
+            pieces = space.pieces[item.name]
             grid = self._grid(item.name)
-            for piece in space.pieces[item.name] if chosen else ():
+            for piece in pieces if chosen else ():
                 value = self._representative(item, piece, grid)
                 if value is None:
                     break  # one diagnostic per input: its first unrepresentable piece
                 values.append(value)
+            else:
+                if chosen and queried.get(item.name):
+                    # A query that compares the input with a number of its own tells apart values that
+                    # no guard does (`E<> n == 7`): the Environment offers a value on each side of it too.
+                    # A piece between such cuts without a significand holds no value the model could give.
+                    guards = {leaf.threshold for guard in all_guards(self.a) for leaf in ir.guard_leaves(guard)
+                              if isinstance(leaf, ir.BAtom) and leaf.input == item.name}
+                    pieces = [p for p in pieces_of(item, guards | queried[item.name])
+                              if p.is_point or self._representative(item, p, grid, report=False) is not None]
+                    values = [v for p in pieces if (v := self._representative(item, p, grid)) is not None]
             problem = bound_diagnostic(self.a, item)
             if problem is not None:
                 self.diagnostics.append(problem)
             result.append(NumericInput(
                 item.name, names[item.name], _decimal(item.low), _decimal(item.high),  # type: ignore[arg-type]
                 arrays[item.name], values,
-                ", ".join(p.describe(item.name) for p in space.pieces[item.name]), selects[item.name]))
+                ", ".join(p.describe(item.name) for p in pieces), selects[item.name]))
         return result
+
+    def _query_thresholds(self) -> dict[str, set[Fraction]]:
+        """Per numeric input, the numbers the file's queries compare it with alone (`d < 2`, `2 * d + 1 >= 3`),
+        as the significands the emitted comparison tells apart: a number without a whole significand
+        is compared on the integers around it (docs/uppaal.md, "Queries"), so both of them."""
+        kinds = {item.name: item.kind for item in self.a.numeric_inputs}
+        found: dict[str, set[Fraction]] = {}
+        for decl in self.a.queries:
+            for expr in iq.query_exprs(decl.query):
+                for node in ie.walk(expr):
+                    if not isinstance(node, ie.Compare) or node.linear is None or len(node.linear.terms) != 1:
+                        continue
+                    ((ref, coefficient),) = node.linear.terms
+                    if ref.kind is not ie.RefKind.INPUT or ref.name not in kinds:
+                        continue
+                    threshold = -node.linear.const / coefficient
+                    if kinds[ref.name] == "int":
+                        cuts = {threshold}
+                    else:
+                        scaled = threshold * self.scale
+                        cuts = {Fraction(math.floor(scaled), self.scale), Fraction(math.ceil(scaled), self.scale)}
+                    found.setdefault(ref.name, set()).update(cuts)
+        return found
 
     def _grid(self, name: str) -> int:
         """The least whole number whose multiples, as the significand of input ``name``, make every
@@ -117,11 +154,12 @@ class Significands:
         return math.lcm(1, *((coef * period).denominator for location in self.a.locations
                              for rate in location.rates for term, coef in rate.terms if term == name))
 
-    def _representative(self, item: ir.Input, piece, grid: int = 1) -> int | None:
+    def _representative(self, item: ir.Input, piece, grid: int = 1, report: bool = True) -> int | None:
         """The significand the Environment chooses for one piece of a numeric input's range: inside an
         open piece the one nearest its middle, on ``grid`` (:meth:`_grid`) where the piece holds such a
         value, so that the rates reading the input stay whole (any value of the piece is as good for
-        the guards: they cannot tell its values apart)."""
+        the guards: they cannot tell its values apart). None where it has none (E0801 unless not
+        ``report``)."""
         scale = self.scale
         if item.kind == "int" and not piece.is_point:
             return self._whole_representative(piece, grid)
@@ -137,6 +175,8 @@ class Significands:
             return None
         low = math.floor(piece.low * scale) + 1
         high = math.ceil(piece.high * scale) - 1
+        if low > high and not report:
+            return None
         if low > high:
             self.unrepresentable(
                 f"input `{item.name}` has no representable value in ({_decimal(piece.low)}, {_decimal(piece.high)}) "
