@@ -38,11 +38,10 @@ from rac.check.analysis.affine import Affine, EndOutcome, Moves, Outcome, accrua
 from rac.check.analysis.behaviour import input_space
 from rac.check.analysis.priority import (
     describe_run,
-    end_json,
     p2_levels,
     p2_target,
     replay,
-    run_json,
+    replayable_json,
     show_number,
     trace,
 )
@@ -426,7 +425,8 @@ def _error(automaton: ir.Automaton, prepared: tuple[InputSpace, Moves], worst: W
         data={"property": "P2-discounted", "level": level, "reward": reward, "value": exact_text(worst.value),
               "undiscounted": exact_text(plain), "gamma": exact_text(discount.gamma),
               "samples_per_step": discount.samples_per_step,
-              "run": run_json(automaton, space, worst), "end": end_json(automaton, space, worst)})
+              **replayable_json(automaton, space, worst,
+                                lambda near: discounted_value(automaton, space, near, target, discount) > 0)})
 
 
 def _holds(automaton: ir.Automaton, outs: Moves, discount: Discount) -> bool:

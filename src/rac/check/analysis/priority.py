@@ -355,8 +355,8 @@ def _p2_error(automaton: ir.Automaton, space: InputSpace, outs, worst: Worst, le
         hints=hints,
         data={"property": "P2", "level": level, "reward": reward, "value": str(worst.value),
               "priority": f"{strict}{' > '.join(automaton.priority)}",
-              "run": run_json(automaton, space, worst),
-              "end": end_json(automaton, space, worst),
+              **replayable_json(automaton, space, worst, lambda near: sum(
+                  (w * v for w, v in zip(weights, replay(automaton, space, near)[0])), constant) > 0),
               "values": {r: str(v) for r, v in zip(automaton.rewards, values)}})
 
 
@@ -643,6 +643,67 @@ def _json_inputs(space: InputSpace, cls: int, values: Mapping[str, Fraction]
         else:
             approached[name] = str(value)
     return {k: (v if isinstance(v, bool) else str(v)) for k, v in chosen.items()}, approached
+
+
+def replayable_json(automaton: ir.Automaton, space: InputSpace, worst: Worst,
+                    violates: Callable[[Worst], bool]) -> dict[str, object]:
+    """``run`` (:func:`run_json`) and ``end`` (:func:`end_json`) of a violating ``worst`` run for a
+    diagnostic's data, its inputs a run a user can replay: where the run only approaches an input's value
+    (a supremum: a guard cuts there), that input's value is moved from its class's representative to
+    as near the limit as the run needs to violate (``violates``, on the run replayed exactly): runs
+    close enough to a supremum above the bound violate too, but the representative's need not
+    (docs/checks.md). ``approached`` still names the limits."""
+    run, end = run_json(automaton, space, worst), end_json(automaton, space, worst)
+    near = _near_limits(space, worst, violates)
+    if near is worst:
+        return {"run": run, "end": end}
+    limits = {k: entry["approached"] for entry in run
+              for k in range(int(entry["sample"]), int(entry["last_sample"]) + 1)}  # type: ignore[call-overload]
+    moved = run_json(automaton, space, near)
+    for entry in moved:
+        entry["approached"] = limits.get(int(entry["sample"]), {})  # type: ignore[call-overload]
+    moved_end = end_json(automaton, space, near)
+    if moved_end is not None and end is not None:
+        moved_end["approached"] = end["approached"]
+    return {"run": moved, "end": moved_end}
+
+
+#: How near (a fraction 2**-k of the way from the representative) :func:`_near_limits` tries at most.
+NEAREST = 64
+
+
+def _near_limits(space: InputSpace, worst: Worst, violates: Callable[[Worst], bool]) -> Worst:
+    """``worst`` with each input value it only approaches moved into its class, a fraction 2**-k of the
+    way from the value to the class's representative, for the first k (from 1) at which the run still
+    ``violates``; ``worst`` itself where it approaches nothing (or no k up to :data:`NEAREST` does)."""
+    def approaches(cls: int, values: Mapping[str, Fraction]) -> bool:
+        return any(not space.attains(cls, name, value) for name, value in values.items())
+
+    ends = worst.end is not None and worst.instant in (AFTER_END, MID_END)
+    if not any(approaches(step.outcome.cls, step.inputs) for step in worst.steps) and not (
+            ends and approaches(worst.end.cls, worst.end_inputs)):  # type: ignore[union-attr]
+        return worst
+
+    def moved(cls: int, values: dict[str, Fraction], fraction: Fraction) -> dict[str, Fraction]:
+        inside = space.valuation(cls)
+        return {name: value if space.attains(cls, name, value) else
+                value + fraction * (inside[name] - value)  # type: ignore[operator]
+                for name, value in values.items()}
+
+    for k in range(1, NEAREST + 1):
+        fraction = Fraction(1, 2 ** k)
+        shared: dict[int, dict[str, Fraction]] = {}  # a run repeats its samples' inputs: move each once
+        steps = []
+        for step in worst.steps:
+            key = id(step.inputs)
+            if key not in shared:
+                shared[key] = moved(step.outcome.cls, step.inputs, fraction)
+            steps.append(dataclasses.replace(step, inputs=shared[key]))
+        end_inputs = moved(worst.end.cls, worst.end_inputs, fraction) if ends else worst.end_inputs  # type: ignore[union-attr]
+        near = dataclasses.replace(worst, steps=steps, end_inputs=end_inputs)
+        if violates(near):
+            return near
+    return worst
 
 
 def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[str, object] | None:
