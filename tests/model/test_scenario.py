@@ -133,6 +133,26 @@ def test_the_example_has_a_sensible_road(example: Scenario) -> None:
     assert tuple(start) == pytest.approx((1.75, -8.0)) and tuple(end) == pytest.approx((-8.0, 1.75))
 
 
+def test_the_scenario_picture_labels_its_axes_in_metres(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The left-turn picture's axes had numbers but no labels: a reader could not tell they are metres."""
+    from matplotlib.figure import Figure
+
+    from rac.model.intersection import render_left_turn
+
+    drawn: list[Figure] = []
+    savefig = Figure.savefig
+
+    def keep(figure: Figure, *args: object, **options: object) -> None:
+        drawn.append(figure)
+        savefig(figure, *args, **options)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    render_left_turn(write_left_turn(tmp_path / "x.xml"), tmp_path / "x.png")
+    (ax,) = drawn[0].axes
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("x (m)", "y (m)")
+    assert ax.get_aspect() == 1.0
+
+
 def test_the_committed_example_is_a_fresh_build(example_xml: Path) -> None:
     def stable(data: bytes) -> bytes:  # the date is pinned already; ignore it anyway
         return re.sub(rb'\sdate="[^"]*"', b"", data, count=1)

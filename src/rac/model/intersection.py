@@ -336,6 +336,9 @@ def render_left_turn(xml_path: str | Path, png_path: str | Path) -> Path:
         ax.set_title(f"{scenario.scenario_id}: left turn, t = 0 s (trajectories to {last * scenario.dt:g} s)")
         ax.legend(loc="upper right")
         ax.set_aspect("equal")
+        # MPRenderer leaves the axes unlabelled: say the coordinates are metres, as rac render does
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
         fig.tight_layout()
         # a temporary file, renamed: a full disk halfway leaves the old picture, not half of a new one
         atomic_write(png_path, lambda file: fig.savefig(file, format="png", dpi=110))
