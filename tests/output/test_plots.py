@@ -324,6 +324,23 @@ def test_negative_distances_are_explained(figures: list, tmp_path: Path) -> None
     assert NEGATIVE_DISTANCE_TEXT in legend(figures[2])
 
 
+def test_first_success_in_the_last_episode_is_drawn_inside_the_axes(figures: list, tmp_path: Path) -> None:
+    """A seed first succeeding in the budget's last episode stepped up on the right frame of the axes
+    (x limit = budget): the step and its marker were hidden by the frame, and the legend (lower right)
+    covered what was left of it. The budget is marked too."""
+    plot_first_success({"SS&RA": [60, 60], "RA": [20, None]}, 60, tmp_path / "f.png")
+    (ax,) = figures[0].axes
+    assert ax.get_xlim()[1] > 60
+    steps = {line.get_label(): line for line in ax.get_lines()}
+    ss_ra = steps["SS&RA (2 of 2 seeds)"]
+    assert max(ss_ra.get_xdata()) == 60 and max(ss_ra.get_ydata()) == 1.0
+    legend = ax.get_legend()
+    assert any(text.get_text() == "budget: 60 episodes" for text in legend.get_texts())
+    # the legend (lower right, inside) covered that step: now it is beside the axes
+    figures[0].draw_without_rendering()
+    assert not legend.get_window_extent().overlaps(ax.get_window_extent())
+
+
 def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]
     return line.get_linestyle(), line.get_marker()
 

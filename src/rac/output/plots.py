@@ -485,12 +485,19 @@ def plot_first_success(first: Mapping[str, Sequence[int | None]], budget: int, p
         colour, style, marker = curve_style(index)  # curves often coincide: style and marker tell them apart
         axes.step(xs, ys, where="post", linewidth=2, color=colour, linestyle=style, marker=marker, markersize=6,
                   markerfacecolor="none" if index % 2 else colour, label=f"{label} ({len(reached)} of {seeds} seeds)")
-    axes.set_xlim(0, budget)
+    # a little room past the budget: a seed that first succeeds in the last episode steps up at the budget,
+    # which at the axes' edge was drawn on the frame, its marker cut in half
+    axes.set_xlim(0, budget + max(0.03 * budget, 1.0))
+    axes.axvline(budget, color="#9e9e9e", linestyle=(0, (1, 2)), linewidth=1.0, zorder=0.5)
     axes.set_ylim(-0.02, 1.05)
     axes.set_xlabel("episodes learned")
     axes.set_ylabel("fraction of seeds")
     axes.set_title(title)
     axes.grid(alpha=0.3)
-    axes.legend(loc="lower right")
+    handles, _ = axes.get_legend_handles_labels()
+    handles.append(Line2D([], [], color="#9e9e9e", linestyle=(0, (1, 2)), linewidth=1.0,
+                          label=f"budget: {budget:,} episodes"))
+    # beside the axes: inside, any corner can hide a step (lower right: a seed succeeding near the budget)
+    axes.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=9)
     fit_title(figure, axes.title)
     return save_figure(figure, path)
