@@ -341,6 +341,16 @@ def test_first_success_in_the_last_episode_is_drawn_inside_the_axes(figures: lis
     assert not legend.get_window_extent().overlaps(ax.get_window_extent())
 
 
+def test_learning_curves_say_they_are_smoothed(figures: list, tmp_path: Path) -> None:
+    """returns.png (smooth=10) said only "mean ± sd over seeds": a reader took the 10-episode moving
+    average for the episodes' own returns."""
+    curves = {"RA": np.arange(40.0).reshape(2, 20)}
+    plot_learning_curves(curves, tmp_path / "a.png", title="learning curves", smooth=10)
+    plot_learning_curves(curves, tmp_path / "b.png", title="learning curves")
+    assert figures[0].axes[0].get_title() == "learning curves (10-episode moving average, mean ± sd over seeds)"
+    assert figures[1].axes[0].get_title() == "learning curves (mean ± sd over seeds)"
+
+
 def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]
     return line.get_linestyle(), line.get_marker()
 

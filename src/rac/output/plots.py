@@ -418,7 +418,8 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
     """Learning curves: for each label an array (seeds, episodes), drawn as the mean over seeds with
     a shaded band (mean ± standard deviation, or min to max with ``band="minmax"``). Each curve has
     its own colour, line style and marker (:func:`curve_style`), so a curve on top of another does
-    not hide it; the title ends in what is drawn, e.g. ``"(mean ± sd over seeds)"``.
+    not hide it; the title ends in what is drawn, e.g. ``"(mean ± sd over seeds)"``, and says the
+    moving average when ``smooth`` > 1.
 
     A 1-D array is one seed. ``smooth`` > 1 first takes a trailing moving average over that many
     episodes of each seed. NaN entries (a seed with fewer episodes) are left out of the statistics.
@@ -457,6 +458,8 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
     ax.set_ylabel(ylabel)
     ax.grid(True, color="#e0e0e0", linewidth=0.6)
     spread_name = "mean ± sd over seeds" if band == "std" else "mean, min–max over seeds"
+    if smooth > 1:  # else a reader takes the smoothed curve for the episodes' own values
+        spread_name = f"{smooth}-episode moving average, {spread_name}"
     ax.set_title(f"{title} ({spread_name})" if title else spread_name)
     ax.legend(loc="best", framealpha=0.9)
     fit_title(figure, ax.title)
