@@ -351,6 +351,19 @@ def test_learning_curves_say_they_are_smoothed(figures: list, tmp_path: Path) ->
     assert figures[1].axes[0].get_title() == "learning curves (mean ± sd over seeds)"
 
 
+def test_the_learning_curves_legend_covers_no_band(figures: list, tmp_path: Path) -> None:
+    """returns.png's legend (loc="best") sat on RA's shaded band of seeds: best weighs the mean
+    lines, not the band around them. Here the bands fill every corner of the axes."""
+    episodes = np.arange(60.0)
+    curves = {"SS&RF": np.stack([episodes * 0, episodes * 0 + 10]),
+              "RA": np.stack([-episodes * 100 - 500, -episodes * 100 + 5000])}
+    plot_learning_curves(curves, tmp_path / "a.png")
+    figure = figures[0]
+    figure.draw_without_rendering()
+    ax = figure.axes[0]
+    assert not ax.get_legend().get_window_extent().overlaps(ax.get_window_extent())
+
+
 def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]
     return line.get_linestyle(), line.get_marker()
 

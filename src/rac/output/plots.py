@@ -461,7 +461,8 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
     if smooth > 1:  # else a reader takes the smoothed curve for the episodes' own values
         spread_name = f"{smooth}-episode moving average, {spread_name}"
     ax.set_title(f"{title} ({spread_name})" if title else spread_name)
-    ax.legend(loc="best", framealpha=0.9)
+    # beside the axes: loc="best" weighs the mean lines only, so it settled on a seed band (RA's, returns.png)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=9)
     fit_title(figure, ax.title)
     return save_figure(figure, path)
 
