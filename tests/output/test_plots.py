@@ -364,6 +364,17 @@ def test_the_learning_curves_legend_covers_no_band(figures: list, tmp_path: Path
     assert not ax.get_legend().get_window_extent().overlaps(ax.get_window_extent())
 
 
+def test_a_runs_lowest_point_at_the_horizon_is_drawn_whole(figures: list, tmp_path: Path) -> None:
+    """Fig. 7 of rac preanalyse: runs lowest at their last sample (t = horizon, the x axis' end) had
+    their red marker cut in half by the axes' frame."""
+    times = np.arange(4) * 1.0
+    plot_runs(times, np.array([[5.0, 4.0, 3.0, 0.2], [5.0, 5.0, 5.0, 5.0]]), tmp_path / "a.png", threshold=1.0)
+    ax = figures[0].axes[0]
+    (marks,) = ax.collections[-1:]
+    assert marks.get_offsets().tolist() == [[3.0, 0.2]] and ax.get_xlim()[1] == 3.0
+    assert not marks.get_clip_on()
+
+
 def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]
     return line.get_linestyle(), line.get_marker()
 

@@ -242,8 +242,9 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
                                              alpha=max(alpha, 0.6), zorder=3))
             lowest = np.nanargmin(values[below], axis=1)
             rows = np.flatnonzero(below)
+            # unclipped: a run lowest at its last sample (or first) had half its marker cut off by the frame
             ax.scatter(times[rows, lowest], values[rows, lowest], s=14, color=BELOW_COLOUR, zorder=4,
-                       edgecolors="white", linewidths=0.5)
+                       edgecolors="white", linewidths=0.5, clip_on=False)
         handles.append(Line2D([], [], color=BELOW_COLOUR, lw=1.5, marker="o", markersize=4,
                               label=f"{counted(n_below, 'run')} below {threshold_label}"))
     else:
