@@ -169,6 +169,22 @@ def test_render_trajectory_at_a_time_step(tmp_path: Path) -> None:
     assert _image(png, "PNG").size == (200, 150)
 
 
+def test_render_says_when_no_obstacle_is_in_view(figures: list, tmp_path: Path) -> None:
+    """docs/images/learned_run.png, at t = 14 s: the cars had driven out of the picture, the legend still
+    named "obstacles" and nothing said where they were: the map read as a scenario without traffic."""
+    def note(figure) -> str:  # type: ignore[no-untyped-def]
+        shown = [text.get_text() for text in figure.axes[0].texts if text.get_visible() and text.get_text()]
+        return " ".join(shown)
+
+    render_trajectory(LEFT_TURN, _straight(5), tmp_path / "a.png", time_step=0)   # the cars at their start
+    render_trajectory(LEFT_TURN, _straight(5), tmp_path / "b.png", time_step=95,  # far away, still driving
+                      plot_limits=(-10.0, 10.0, -30.0, 0.0))
+    render_trajectory(LEFT_TURN, _straight(5), tmp_path / "c.png", time_step=400)  # their trajectories ended
+    assert note(figures[0]) == ""
+    assert note(figures[1]) == "no obstacle in view at this instant (3 obstacles outside the picture)"
+    assert note(figures[2]) == "no obstacle at this instant: every obstacle's trajectory has ended"
+
+
 def test_render_error_names_a_damaged_file(tmp_path: Path) -> None:
     damaged = tmp_path / "damaged.xml"
     data = LEFT_TURN.read_bytes()

@@ -32,7 +32,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Polygon
 from PIL import Image
 
-from rac.core.diagnostics import RacError
+from rac.core.diagnostics import RacError, counted
 from rac.core.files import atomic_write
 from rac.model.commonroad import (
     PlanningProblemError,
@@ -225,6 +225,27 @@ class _Scene:
                               label="planning problem's start"))
         return handles
 
+    def obstacles_note(self, time_step: int) -> str:
+        """What to say when the scenario has obstacles but none shows at ``time_step`` in the view (the
+        axes' limits): the legend names them, and a map without any read as a scenario without traffic.
+        "" when one shows or the scenario has none."""
+        (x0, x1), (y0, y1) = self.ax.get_xlim(), self.ax.get_ylim()
+        present = 0
+        for obstacle in self.scenario.obstacles:
+            occupancy = obstacle.occupancy_at_time(time_step)
+            if occupancy is None:  # its trajectory has ended: commonroad-io draws it no more
+                continue
+            present += 1
+            # commonroad-io 2026 returns the shape itself, older versions an Occupancy holding it
+            left, bottom, right, top = getattr(occupancy, "shape", occupancy).shapely_object.bounds
+            if left <= x1 and right >= x0 and bottom <= y1 and top >= y0:
+                return ""
+        if not self.scenario.obstacles:
+            return ""
+        if present:
+            return f"no obstacle in view at this instant ({counted(present, 'obstacle')} outside the picture)"
+        return "no obstacle at this instant: every obstacle's trajectory has ended"
+
     def show_obstacles(self, time_step: int) -> None:
         """Replace the obstacles by those at ``time_step`` (gone ones vanish, as commonroad-io draws them)."""
         renderer = self.renderer
@@ -401,10 +422,14 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
                    *scene.legend_handles(problems)]
         _place_legend(figure, handles)
         ax.set_title("", fontsize=10)
+        note = ax.text(0.01, 0.99, "", transform=ax.transAxes, ha="left", va="top", fontsize=9, zorder=60,
+                       bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "#9e9e9e", "boxstyle": "round"})
         wrap_at: list[int | None] = [None]  # the title's wrap width, fitted once (GIF frames reuse it)
 
         def show(sample: int, step: int) -> None:
             scene.show_obstacles(step)
+            note.set_text(scene.obstacles_note(step))
+            note.set_visible(bool(note.get_text()))
             driven.set_data(ego[: sample + 1, 0], ego[: sample + 1, 1])
             x, y, head = ego[sample]
             body.set_xy(_corners(x, y, head, length, width))
