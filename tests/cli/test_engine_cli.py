@@ -277,6 +277,24 @@ def test_simulate_says_one_run_in_the_singular(capsys: pytest.CaptureFixture[str
     assert out[:2] == ["simulated 1 run of 8 samples (seed 5)", "0 of 1 run goes below 3 * collision_distance = 1.5"]
 
 
+def test_the_simulate_plot_counts_the_runs_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """runs.png of `rac simulate --runs 1 --expr v` was titled "model.ra: 1 run (seed 1): 1 run"."""
+    import rac.output.plots as plots
+
+    titles: list[str] = []
+    monkeypatch.setattr(plots, "save_figure",
+                        lambda figure, path, **options: titles.append(figure.axes[0].get_title()) or Path(path))
+    path = write_engine_file(tmp_path, "avoidable_obstacle", {})
+    for extra in (["--expr", "v"], [], ["--shield"]):
+        assert main(["simulate", str(path), "--runs", "2", "--seed", "5", "-q", *extra, "-o", str(tmp_path)]) == 0
+    capsys.readouterr()
+    assert titles[0] == f"{path.name}, seed 5: 2 runs"
+    assert re.fullmatch(rf"{re.escape(path.name)}, seed 5: \d of 2 runs below 3 \* collision_distance", titles[1])
+    assert titles[2].startswith(f"{path.name}, under the shield, seed 5: ")
+    assert all(title.count("2 runs") == 1 for title in titles)
+
+
 def test_simulate_default_paths_and_expressions(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "avoidable_obstacle", {})
     assert main(["simulate", str(path), "--runs", "2", "--horizon", "1", "--expr", "v", "--expr", "prev(x)",

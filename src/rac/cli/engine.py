@@ -593,8 +593,8 @@ def simulate_command(args: argparse.Namespace, result: CompileResult) -> int:
     csv_path, png_path = out_dir / "runs.csv", out_dir / "runs.png"
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
-        title = (f"{args.file.name}: {counted(args.runs, 'run')}{' under the shield' if args.shield else ''} "
-                 f"(seed {seed})")
+        # no count here: the plot adds it ("3 runs", "2 of 3 runs below ..."), which read "1 run (seed 1): 1 run"
+        title = f"{args.file.name}{', under the shield' if args.shield else ''}, seed {seed}"
         # the pair renamed together at the end: Ctrl-C while plotting keeps the previous run's pair
         write_runs(csv_path, runs.times, texts, values, lambda: plot_series(png_path, runs.times, texts, values,
                                                                             title, exprs), ends=runs.overflow)
