@@ -391,6 +391,18 @@ def test_a_runs_lowest_point_at_the_horizon_is_drawn_whole(figures: list, tmp_pa
     assert not marks.get_clip_on()
 
 
+def test_episode_axes_have_whole_ticks(figures: list, tmp_path: Path) -> None:
+    """A learning curve of one episode had ticks at 0.96, 0.98, 1.00, ... episodes; a budget of 3 at 0.5."""
+    plot_learning_curves({"RA": np.array([[5.0], [6.0]])}, tmp_path / "a.png")
+    plot_first_success({"RA": [1, None]}, 3, tmp_path / "b.png")
+    for figure in figures:
+        figure.draw_without_rendering()
+        ax = figure.axes[0]
+        low, high = ax.get_xlim()
+        ticks = [tick for tick in ax.get_xticks() if low <= tick <= high]
+        assert ticks and all(float(tick).is_integer() for tick in ticks), ticks
+
+
 def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]
     return line.get_linestyle(), line.get_marker()
 

@@ -34,6 +34,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.text import Text
+from matplotlib.ticker import MaxNLocator
 from matplotlib.transforms import blended_transform_factory
 
 from rac.core.diagnostics import counted
@@ -60,6 +61,8 @@ _CYCLE = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860", "#da
 CURVE_STYLES: tuple[tuple[str, ...], tuple[str, ...]] = (("-", "--", "-.", ":"), ("o", "s", "^", "D", "v", "P"))
 #: The region of values below 0 (an overlap, for distances) is tinted with this colour.
 _NEGATIVE_TINT = "#fdeeee"
+#: Ticks of an axis of episodes: matplotlib's default steps, whole numbers only (a short budget got 0.5, 0.96...).
+_EPISODE_TICKS = {"steps": [1, 2, 2.5, 5, 10], "integer": True, "min_n_ticks": 1}
 #: The smallest font size a title is shrunk to before it is wrapped into more lines.
 _SMALLEST_TITLE = 7.0
 
@@ -457,6 +460,7 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
             ax.fill_between(episodes, low, high, color=colour, alpha=0.2, linewidth=0)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
+    ax.xaxis.set_major_locator(MaxNLocator("auto", **_EPISODE_TICKS))
     ax.grid(True, color="#e0e0e0", linewidth=0.6)
     spread_name = "mean ± sd over seeds" if band == "std" else "mean, min–max over seeds"
     if smooth > 1:  # else a reader takes the smoothed curve for the episodes' own values
@@ -495,6 +499,7 @@ def plot_first_success(first: Mapping[str, Sequence[int | None]], budget: int, p
     axes.set_xlim(0, budget + max(0.03 * budget, 1.0))
     axes.axvline(budget, color="#9e9e9e", linestyle=(0, (1, 2)), linewidth=1.0, zorder=0.5)
     axes.set_ylim(-0.02, 1.05)
+    axes.xaxis.set_major_locator(MaxNLocator("auto", **_EPISODE_TICKS))
     axes.set_xlabel("episodes learned")
     axes.set_ylabel("fraction of seeds")
     axes.set_title(title)
