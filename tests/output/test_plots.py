@@ -403,6 +403,13 @@ def test_episode_axes_have_whole_ticks(figures: list, tmp_path: Path) -> None:
         assert ticks and all(float(tick).is_integer() for tick in ticks), ticks
 
 
+def test_first_success_says_one_seed_in_the_singular(figures: list, tmp_path: Path) -> None:
+    """`rac experiment --seeds 1`: the legend read "RA (0 of 1 seeds)"."""
+    plot_first_success({"RA": [None], "RF": [4, None]}, 10, tmp_path / "a.png")
+    texts = [text.get_text() for text in figures[0].axes[0].get_legend().get_texts()]
+    assert texts[:2] == ["RA (0 of 1 seed)", "RF (1 of 2 seeds)"]
+
+
 def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]
     return line.get_linestyle(), line.get_marker()
 

@@ -493,7 +493,8 @@ def plot_first_success(first: Mapping[str, Sequence[int | None]], budget: int, p
         ys = [0, *(i / seeds for i in range(1, len(reached) + 1)), len(reached) / seeds]
         colour, style, marker = curve_style(index)  # curves often coincide: style and marker tell them apart
         axes.step(xs, ys, where="post", linewidth=2, color=colour, linestyle=style, marker=marker, markersize=6,
-                  markerfacecolor="none" if index % 2 else colour, label=f"{label} ({len(reached)} of {seeds} seeds)")
+                  markerfacecolor="none" if index % 2 else colour,
+                  label=f"{label} ({len(reached)} of {counted(seeds, 'seed')})")
     # a little room past the budget: a seed that first succeeds in the last episode steps up at the budget,
     # which at the axes' edge was drawn on the frame, its marker cut in half
     axes.set_xlim(0, budget + max(0.03 * budget, 1.0))
