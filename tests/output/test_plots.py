@@ -9,6 +9,7 @@ from pathlib import Path
 import matplotlib.colors
 import numpy as np
 import pytest
+from matplotlib.collections import PathCollection
 from matplotlib.patches import Patch
 from PIL import Image
 
@@ -408,6 +409,24 @@ def test_first_success_says_one_seed_in_the_singular(figures: list, tmp_path: Pa
     plot_first_success({"RA": [None], "RF": [4, None]}, 10, tmp_path / "a.png")
     texts = [text.get_text() for text in figures[0].axes[0].get_legend().get_texts()]
     assert texts[:2] == ["RA (0 of 1 seed)", "RF (1 of 2 seeds)"]
+
+
+def test_a_run_of_one_sample_is_drawn(figures: list, tmp_path: Path) -> None:
+    """A run with a single value (one sample, or one between two gaps) is no line segment: the runs
+    plot drew nothing for it (and a single instant stood on the left frame). It is a dot now, in the
+    run's colour."""
+    nan = np.nan
+    values = np.array([[4.0, nan, nan, nan], [nan, 3.0, nan, 2.0], [1.0, 0.5, nan, nan]])
+    plot_runs(np.arange(4.0), values, tmp_path / "a.png", threshold=1.0, highlight_below=False)
+    plot_runs(np.array([0.0]), np.array([[3.0], [0.5]]), tmp_path / "b.png", threshold=1.0)
+    def dots(figure) -> list[tuple[float, float]]:  # type: ignore[no-untyped-def]
+        return sorted(tuple(point) for c in figure.axes[0].collections if isinstance(c, PathCollection)
+                      for point in c.get_offsets().tolist())
+
+    assert dots(figures[0]) == [(0.0, 4.0), (1.0, 3.0), (3.0, 2.0)]  # not the two-sample run's
+    assert (0.0, 3.0) in dots(figures[1])
+    low, high = figures[1].axes[0].get_xlim()
+    assert low < 0.0 < high  # the one instant inside the axes, not on its left frame
 
 
 def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]

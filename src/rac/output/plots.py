@@ -235,6 +235,14 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
     ax.add_collection(LineCollection(segments[others], colors=ABOVE_COLOUR, linewidths=0.9, alpha=alpha, zorder=2))
     handles: list[Any] = []
     finite = np.isfinite(values)
+    # a sample without a finite neighbour (a run of one sample, one stopped after its first, a value between
+    # two "no obstacle" gaps) is no line segment: drawn as a dot, else it was not drawn at all
+    padded = np.pad(finite, ((0, 0), (1, 1)))
+    alone = finite & ~padded[:, :-2] & ~padded[:, 2:]
+    for rows, colour in ((others, ABOVE_COLOUR), (~others, BELOW_COLOUR)):
+        dots = alone & rows[:, None]
+        if dots.any():
+            ax.scatter(times[dots], values[dots], s=16, color=colour, zorder=3, linewidths=0, clip_on=False)
     if not finite.any():
         pass  # no run to show: only the threshold and the note below
     elif emphasise:
@@ -276,7 +284,8 @@ def plot_runs(times: np.ndarray, values: np.ndarray, path: str | os.PathLike[str
             handles.append(Patch(facecolor=_NEGATIVE_TINT, edgecolor="#e0b4b4", label=below_zero))
     if np.isfinite(times).any():
         start, end = float(np.nanmin(times)), float(np.nanmax(times))
-        ax.set_xlim(start, end if end > start else start + 1.0)
+        # one instant: centred, not on the left frame where its dots hid behind the spine
+        ax.set_xlim((start, end) if end > start else (start - 0.5, start + 0.5))
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(True, color="#e0e0e0", linewidth=0.6, zorder=0)
