@@ -429,6 +429,14 @@ def test_a_run_of_one_sample_is_drawn(figures: list, tmp_path: Path) -> None:
     assert low < 0.0 < high  # the one instant inside the axes, not on its left frame
 
 
+def test_a_learning_curve_without_values_says_so(figures: list, tmp_path: Path) -> None:
+    """A combination with no episode (all NaN, or none at all) stood in the legend as if drawn."""
+    plot_learning_curves({"RA": np.array([[5.0, 6.0]]), "RF": np.full((2, 2), np.nan),
+                          "SS&RF": np.zeros((1, 0))}, tmp_path / "a.png")
+    texts = [text.get_text() for text in figures[0].axes[0].get_legend().get_texts()]
+    assert texts == ["RA (1 seed)", "RF (2 seeds): no episode to draw", "SS&RF (1 seed): no episode to draw"]
+
+
 def _linestyle_and_marker(line) -> tuple[object, str]:  # type: ignore[no-untyped-def]
     return line.get_linestyle(), line.get_marker()
 

@@ -463,8 +463,11 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
                 low, high = np.nanmin(runs, axis=0), np.nanmax(runs, axis=0)
         colour, style, marker = curve_style(i)
         seeds = runs.shape[0]
+        # a curve with no value (no episode learned) is in the legend but draws nothing: the legend says so
+        empty = "" if np.isfinite(mean).any() else ": no episode to draw"
         ax.plot(episodes, mean, color=colour, linewidth=1.6, linestyle=style, marker=marker, markersize=5,
-                markevery=(i * every // len(curves), every), label=f"{label} ({seeds} seed{'s' * (seeds != 1)})")
+                markevery=(i * every // len(curves), every),
+                label=f"{label} ({seeds} seed{'s' * (seeds != 1)}){empty}")
         if seeds > 1:
             ax.fill_between(episodes, low, high, color=colour, alpha=0.2, linewidth=0)
     ax.set_xlabel(xlabel)
