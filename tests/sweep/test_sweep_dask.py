@@ -218,6 +218,26 @@ def test_the_verdict_plot_counts_a_task_without_verdicts_per_query(tmp_path: Pat
     assert sorted(heights) == [1, 4]
 
 
+def test_the_verdict_bars_differ_by_more_than_colour(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """verdicts.png told satisfied, not satisfied and a failed task apart by green, red and orange alone, which a
+    colour-blind reader cannot: each segment has a hatching of its own now, shown in the legend too."""
+    from rac.sweep import report
+
+    figures: list = []
+    monkeypatch.setattr(report, "save_figure", lambda figure, path: figures.append(figure) or Path(path))
+    rows = [{"settings": {}, "status": status, "verdicts": verdicts, "seconds": 0.1, "scenario_size": 3}
+            for status, verdicts in (("ok", {"Q": "satisfied"}), ("failed", {"Q": "not satisfied"}),
+                                     ("failed", {}), ("error", {}), ("timeout", {}))]
+    write_plots(rows, tmp_path)
+    ax = figures[0].axes[0]
+    labels = [container.get_label() for container in ax.containers]
+    hatches = {label: container[0].get_hatch() or "" for label, container in zip(labels, ax.containers)}
+    assert sorted(hatches) == ["not satisfied", "satisfied", "task error", "task failed", "task timeout"]
+    assert len(set(hatches.values())) == len(hatches), hatches
+    assert [handle.get_hatch() or "" for handle in ax.get_legend().legend_handles] == \
+        [hatches[text.get_text()] for text in ax.get_legend().get_texts()]
+
+
 def test_a_sweep_without_rows_leaves_no_plots_of_an_earlier_one(tmp_path: Path) -> None:
     """A sweep stopped before any row (Ctrl-C at once, nothing stored) wrote empty results.* but left the plots
     of the earlier sweep in the folder, which then showed rows the results did not hold."""

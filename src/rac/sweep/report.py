@@ -46,6 +46,10 @@ _FIELDS = ("key", "scenario", "scenario_name", "planning_problem", "task", "stat
 _COLOURS = {"satisfied": "#55a868", "not satisfied": "#c44e52", "unknown": "#8c8c8c", "unsupported": "#ccb974",
             "ok": "#4c72b0", "failed": "#dd8452", "undecided": "#ccb974", "error": "#8172b3", "timeout": "#937860",
             "memory": "#da8bc3"}
+#: Hatching of the verdict bars' segments beside their colours: red, orange and green look alike to a colour-blind
+#: reader, and the segments stack on one another.
+_HATCHES = {"satisfied": "", "not satisfied": "///", "unknown": "...", "unsupported": "\\\\\\", "ok": "",
+            "failed": "xx", "undecided": "\\\\\\", "error": "oo", "timeout": "--", "memory": "++"}
 
 
 def grid_label(settings: Mapping[str, object]) -> str:
@@ -359,8 +363,9 @@ def _plot_verdicts(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
     bottom = [0] * len(points)
     for category in categories:
         heights = [counts[point][category] for point in points]
+        kind = category.removeprefix("task ")
         ax.bar(range(len(points)), heights, bottom=bottom, label=category, width=0.7,
-               color=_COLOURS.get(category.removeprefix("task "), "#64b5cd"))
+               color=_COLOURS.get(kind, "#64b5cd"), hatch=_HATCHES.get(kind, "||"), edgecolor="white", linewidth=0.5)
         bottom = [b + h for b, h in zip(bottom, heights)]
     ax.set_xticks(range(len(points)), points, rotation=30 if len(points) > 3 else 0, ha="right"
                   if len(points) > 3 else "center", fontsize=8)
