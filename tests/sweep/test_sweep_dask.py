@@ -238,6 +238,22 @@ def test_the_verdict_bars_differ_by_more_than_colour(tmp_path: Path, monkeypatch
         [hatches[text.get_text()] for text in ax.get_legend().get_texts()]
 
 
+def test_the_verdict_legend_lists_the_segments_as_they_stack(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """verdicts.png's legend read satisfied, not satisfied, task failed from the top while the bars stacked them
+    from the bottom: the legend's first entry stood beside the top segment, which was another."""
+    from rac.sweep import report
+
+    figures: list = []
+    monkeypatch.setattr(report, "save_figure", lambda figure, path: figures.append(figure) or Path(path))
+    rows = [{"settings": {}, "status": status, "verdicts": verdicts, "seconds": 0.1, "scenario_size": 3}
+            for status, verdicts in (("ok", {"Q": "satisfied"}), ("failed", {"Q": "not satisfied"}), ("failed", {}))]
+    write_plots(rows, tmp_path)
+    ax = figures[0].axes[0]
+    from_top = sorted(ax.containers, key=lambda bars: -bars[0].get_y())
+    assert [text.get_text() for text in ax.get_legend().get_texts()] == [bars.get_label() for bars in from_top]
+    assert from_top[0].get_label() == "task failed"
+
+
 def test_a_sweep_without_rows_leaves_no_plots_of_an_earlier_one(tmp_path: Path) -> None:
     """A sweep stopped before any row (Ctrl-C at once, nothing stored) wrote empty results.* but left the plots
     of the earlier sweep in the folder, which then showed rows the results did not hold."""

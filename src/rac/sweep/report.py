@@ -371,7 +371,9 @@ def _plot_verdicts(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
                   if len(points) > 3 else "center", fontsize=8)
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
     ax.set_ylabel("queries × scenarios" if any(_mapping(row, "verdicts") for row in rows) else "tasks")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), frameon=False, fontsize=8)
+    handles, labels = ax.get_legend_handles_labels()
+    # top to bottom as the segments stack: the legend listed the bottom segment (satisfied) first, beside the top
+    ax.legend(handles[::-1], labels[::-1], loc="upper left", bbox_to_anchor=(1.0, 1.0), frameon=False, fontsize=8)
     ax.grid(True, axis="y", color="#e0e0e0", linewidth=0.6)
     ax.set_axisbelow(True)
     shown = f"; the first {len(points)} of {len(every)} grid points, results.* hold all" \
