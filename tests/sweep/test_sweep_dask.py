@@ -254,6 +254,23 @@ def test_the_verdict_legend_lists_the_segments_as_they_stack(tmp_path: Path, mon
     assert from_top[0].get_label() == "task failed"
 
 
+def test_the_time_plot_without_sizes_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A sweep whose scenario files all failed to load drew time_vs_size.png as an empty axes from 0 to 1, as if
+    the plot had failed; it says there is nothing to draw now (and draws nothing else)."""
+    from rac.sweep import report
+
+    figures: list = []
+    monkeypatch.setattr(report, "save_figure", lambda figure, path: figures.append(figure) or Path(path))
+    rows = [{"settings": {}, "status": "error", "verdicts": {}, "seconds": 0.1, "scenario_size": None}] * 2
+    sized = [{"settings": {}, "status": "ok", "verdicts": {}, "seconds": 0.1, "scenario_size": 3}]
+    write_plots(rows, tmp_path)
+    write_plots(sized, tmp_path)
+    empty, drawn = figures[1].axes[0], figures[3].axes[0]
+    assert [text.get_text() for text in empty.texts] == ["no task has a scenario size and a time: nothing to draw"]
+    assert "2 tasks without a size not shown" in empty.get_title()
+    assert not drawn.texts and drawn.collections
+
+
 def test_a_sweep_without_rows_leaves_no_plots_of_an_earlier_one(tmp_path: Path) -> None:
     """A sweep stopped before any row (Ctrl-C at once, nothing stored) wrote empty results.* but left the plots
     of the earlier sweep in the folder, which then showed rows the results did not hold."""

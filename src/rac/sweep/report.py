@@ -400,6 +400,9 @@ def _plot_times(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
                        color=_COLOURS.get(status, "#64b5cd"), label=f"{status} ({len(mine)})", linewidths=0)
     if sized:
         ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    else:  # every file failed to load (or no task timed): a blank axes read as a plot that failed to draw
+        ax.text(0.5, 0.5, "no task has a scenario size and a time: nothing to draw", transform=ax.transAxes,
+                ha="center", va="center", fontsize=11, color="#212121")
     ax.set_xlabel("scenario size (lanelets + obstacles)")
     ax.set_ylabel("seconds per task")
     ax.grid(True, color="#e0e0e0", linewidth=0.6)
