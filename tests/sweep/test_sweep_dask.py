@@ -271,6 +271,21 @@ def test_the_time_plot_without_sizes_says_so(tmp_path: Path, monkeypatch: pytest
     assert not drawn.texts and drawn.collections
 
 
+def test_the_time_plot_ticks_sizes_as_whole_numbers(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """time_vs_size.png of scenarios all of one size (3) had size ticks at 2.96, 2.98, 3.00, ..."""
+    from rac.sweep import report
+
+    figures: list = []
+    monkeypatch.setattr(report, "save_figure", lambda figure, path: figures.append(figure) or Path(path))
+    write_plots([{"settings": {}, "status": "ok", "verdicts": {}, "seconds": s, "scenario_size": 3}
+                 for s in (0.1, 0.2)], tmp_path)
+    ax = figures[1].axes[0]
+    figures[1].draw_without_rendering()
+    low, high = ax.get_xlim()
+    ticks = [tick for tick in ax.get_xticks() if low <= tick <= high]
+    assert ticks and all(float(tick).is_integer() for tick in ticks), ticks
+
+
 def test_a_sweep_without_rows_leaves_no_plots_of_an_earlier_one(tmp_path: Path) -> None:
     """A sweep stopped before any row (Ctrl-C at once, nothing stored) wrote empty results.* but left the plots
     of the earlier sweep in the folder, which then showed rows the results did not hold."""

@@ -28,6 +28,7 @@ from typing import Any, Literal
 import matplotlib
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.axis import Axis
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
@@ -44,7 +45,7 @@ from rac.model.native import NO_OBSTACLE
 __all__ = [
     "ABOVE_COLOUR", "BELOW_COLOUR", "CURVE_STYLES", "THRESHOLD_COLOUR", "below_summary", "curve_style",
     "fit_title", "new_figure", "plot_first_success", "plot_learning_curves", "plot_runs", "plot_sweep",
-    "quantity_label", "runs_below", "save_figure", "wrap_text",
+    "quantity_label", "runs_below", "save_figure", "whole_ticks", "wrap_text",
 ]
 
 ABOVE_COLOUR = "#4c72b0"  #: runs / settings that stay at or above the threshold
@@ -61,8 +62,6 @@ _CYCLE = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860", "#da
 CURVE_STYLES: tuple[tuple[str, ...], tuple[str, ...]] = (("-", "--", "-.", ":"), ("o", "s", "^", "D", "v", "P"))
 #: The region of values below 0 (an overlap, for distances) is tinted with this colour.
 _NEGATIVE_TINT = "#fdeeee"
-#: Ticks of an axis of episodes: matplotlib's default steps, whole numbers only (a short budget got 0.5, 0.96...).
-_EPISODE_TICKS = {"steps": [1, 2, 2.5, 5, 10], "integer": True, "min_n_ticks": 1}
 #: The smallest font size a title is shrunk to before it is wrapped into more lines.
 _SMALLEST_TITLE = 7.0
 
@@ -78,6 +77,12 @@ def new_figure(width: float, height: float) -> Figure:
 def save_figure(figure: Figure, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
     """Write ``figure`` as a PNG to ``path`` atomically and return the path."""
     return atomic_write(path, lambda file: figure.savefig(file, format="png", dpi=dpi))
+
+
+def whole_ticks(axis: Axis) -> None:
+    """Ticks at whole numbers only on ``axis`` (an axis of counts: episodes, lanelets), with matplotlib's
+    default steps: its default locator put a short range's ticks at 0.96, 0.98, ..."""
+    axis.set_major_locator(MaxNLocator("auto", steps=[1, 2, 2.5, 5, 10], integer=True, min_n_ticks=1))
 
 
 # ---------------------------------------------------------------- labels
@@ -472,7 +477,7 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
             ax.fill_between(episodes, low, high, color=colour, alpha=0.2, linewidth=0)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.xaxis.set_major_locator(MaxNLocator("auto", **_EPISODE_TICKS))
+    whole_ticks(ax.xaxis)
     ax.grid(True, color="#e0e0e0", linewidth=0.6)
     spread_name = "mean ± sd over seeds" if band == "std" else "mean, min–max over seeds"
     if smooth > 1:  # else a reader takes the smoothed curve for the episodes' own values
@@ -512,7 +517,7 @@ def plot_first_success(first: Mapping[str, Sequence[int | None]], budget: int, p
     axes.set_xlim(0, budget + max(0.03 * budget, 1.0))
     axes.axvline(budget, color="#9e9e9e", linestyle=(0, (1, 2)), linewidth=1.0, zorder=0.5)
     axes.set_ylim(-0.02, 1.05)
-    axes.xaxis.set_major_locator(MaxNLocator("auto", **_EPISODE_TICKS))
+    whole_ticks(axes.xaxis)
     axes.set_xlabel("episodes learned")
     axes.set_ylabel("fraction of seeds")
     axes.set_title(title)

@@ -27,7 +27,7 @@ from typing import Any
 from rac.core.diagnostics import counted
 from rac.core.files import atomic_write
 from rac.model.commonroad import with_planning_problem
-from rac.output.plots import fit_title, new_figure, save_figure
+from rac.output.plots import fit_title, new_figure, save_figure, whole_ticks
 from rac.sweep.store import write_text
 from rac.sweep.task import NOT_FAILED, STATUSES, VERDICTS  # STATUSES, VERDICTS: in the order tables and plots show them
 
@@ -403,6 +403,7 @@ def _plot_times(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
     else:  # every file failed to load (or no task timed): a blank axes read as a plot that failed to draw
         ax.text(0.5, 0.5, "no task has a scenario size and a time: nothing to draw", transform=ax.transAxes,
                 ha="center", va="center", fontsize=11, color="#212121")
+    whole_ticks(ax.xaxis)  # sizes are counts: scenarios all of one size got ticks at 2.96, 2.98, ...
     ax.set_xlabel("scenario size (lanelets + obstacles)")
     ax.set_ylabel("seconds per task")
     ax.grid(True, color="#e0e0e0", linewidth=0.6)
