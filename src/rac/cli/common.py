@@ -127,6 +127,13 @@ def as_json(args: argparse.Namespace) -> bool:
     return getattr(args, "format", None) == "json"
 
 
+def with_ok(document: Mapping[str, object], status: int) -> dict[str, object]:
+    """``document`` with ``"ok"`` added: true exactly when the command exits with ``status`` 0, for every
+    command alike; a command decides its exit status first and prints the document from it, so the two never
+    disagree."""
+    return {**document, "ok": status == EXIT_OK}
+
+
 def print_diagnostics(diagnostics: Iterable[Diagnostic], sources: Mapping[str, SourceFile] | None = None,
                       structured: bool = False) -> None:
     """The one place a command prints diagnostics it does not fold into a document of its own: with

@@ -36,6 +36,7 @@ from rac.cli.common import (
     unusable_file,
     unwritable,
     usage_error,
+    with_ok,
 )
 from rac.cli.files import read_and_check
 from rac.compiler import CompileResult
@@ -430,6 +431,9 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
             _report(args, failed)
             return EXIT_USAGE
         write_failed, stopped = failed, doing[0] if doing else "the queries"
+    # the exit status, decided before the document that carries it as `ok`
+    status = verdict_status(results) if stopped is None else EXIT_USAGE if write_failed is not None \
+        else EXIT_INTERRUPTED
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "seed": seed, "warnings": _warnings(result),
                                        "results": render_json(results),
@@ -438,7 +442,7 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
             document["interrupted"] = stopped
         if write_failed is not None:  # one document: the error in it, not a second one beside it
             document["error"] = write_failed.to_json()
-        print(json_text(document, indent=2))
+        print(json_text(with_ok(document, status), indent=2))
     else:
         if results:
             print(render_text(results, traces=args.trace))
@@ -460,12 +464,11 @@ def verify_command(args: argparse.Namespace, result: CompileResult) -> int:
             if args.format == "text":
                 print_diagnostics([write_failed])
             print(f"rac verify: stopped during {stopped} by the error {where}; {answered}", file=sys.stderr)
-            return EXIT_USAGE
-        print(f"rac verify: {how_stopped()} during {stopped}; {answered}", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    if not results:
+        else:
+            print(f"rac verify: {how_stopped()} during {stopped}; {answered}", file=sys.stderr)
+    elif not results:
         print(f"{args.file}: no queries (add `query NAME: ...` lines, or pass --standard)", file=sys.stderr)
-    return verdict_status(results)
+    return status
 
 
 def verdict_status(results: Sequence[QueryResult]) -> int:
@@ -634,14 +637,13 @@ def _summary_and_stop(args: argparse.Namespace, document: dict[str, object], lin
                       stopped: Diagnostic | None, result: CompileResult) -> int:
     """The command's summary (:func:`_print_summary`), then the E0015 of its stopped runs (``stopped``: in the JSON
     document's ``"error"``, one document), and the exit code: 1 when a run stopped, else 0."""
+    status = EXIT_OK if stopped is None else EXIT_ERRORS
     if stopped is not None and as_json(args):
         document["error"] = stopped.to_json()
-    _print_summary(args, document, lines)
-    if stopped is None:
-        return EXIT_OK
-    if not as_json(args):
+    _print_summary(args, with_ok(document, status), lines)
+    if stopped is not None and not as_json(args):
         print_diagnostics([stopped], result.sources)
-    return EXIT_ERRORS
+    return status
 
 
 @_on_checked_file
@@ -739,6 +741,11 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
     gone = [path for path in removed if not path.exists()]
     # how far each setting is answered (not the sweep plot's entry): a row that lost some answers is not "not answered"
     extent = [answered(row) for row in rows if "exponent" in row]
+    partly, unanswered = extent.count("partly"), extent.count("not")
+    # the exit status, decided before the document that carries it as `ok`; a setting without all its answers
+    # is undecided, which never exits 0
+    status = EXIT_USAGE if write_failed is not None else EXIT_INTERRUPTED if interrupted \
+        else EXIT_UNDECIDED if partly or unanswered else EXIT_OK
     if args.format == "json":
         document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "settings": rows,
                                        "answered": {how: extent.count(how) for how in ("fully", "partly", "not")}}
@@ -748,7 +755,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
             document["interrupted"] = True
         if write_failed is not None:  # one document: the error in it
             document["error"] = write_failed.to_json()
-        print(json_text(document, indent=2, default=str))
+        print(json_text(with_ok(document, status), indent=2, default=str))
     elif rows or not interrupted:
         print(render_table(rows))
         if any("plot" in row or "sweep_plot" in row for row in rows):  # no setting answered: no plot, maybe no folder
@@ -763,14 +770,11 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
         n = len(rows)
         print(f"rac preanalyse: stopped by the error {where}; {counted(n, 'setting')} finished before "
               f"it ({where})", file=sys.stderr)
-        return EXIT_USAGE
-    if interrupted:
+    elif interrupted:
         n = len(rows)
         print(f"rac preanalyse: {how_stopped()}; {counted(n, 'setting')} finished before it "
               f"({where if n else 'none'})", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    partly, unanswered = extent.count("partly"), extent.count("not")
-    if partly or unanswered:  # a setting without all its answers is undecided, which never exits 0
+    elif status == EXIT_UNDECIDED:
         late = sum(1 for row in rows if "time_limit" in row)
         why = f"; {late} given up past --max-seconds {args.max_seconds:g}" if late else ""
         if not partly:
@@ -781,8 +785,7 @@ def preanalyse_command(args: argparse.Namespace, result: CompileResult) -> int:
             how = f"were not answered in full ({partly} in part, {unanswered} not at all)"
         print(f"rac preanalyse: {partly + unanswered} of {len(extent)} settings {how} (their rows say why{why})",
               file=sys.stderr)
-        return EXIT_UNDECIDED
-    return EXIT_OK
+    return status
 
 
 def _earlier_plots(gone: list[Path], out_dir: Path) -> str:
@@ -843,37 +846,45 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
     # the file's warnings bear on the results; JSON drops them from standard error (_load): the document has them
     warnings = {"warnings": _warnings(result)}
 
-    def unwritten(extra: dict[str, object]) -> None:
-        """The results that were not written, shown: one JSON document with ``extra`` in it, or the tables."""
+    def unwritten(extra: dict[str, object], status: int) -> int:
+        """The results that were not written, shown: one JSON document with ``extra`` in it, or the tables;
+        returns ``status``, the exit status the document's ``ok`` says."""
         if args.format == "json":
-            print(json_text({**json.loads(results_json(report)), **warnings, **extra}, indent=1))
+            print(json_text(with_ok({**json.loads(results_json(report)), **warnings, **extra}, status), indent=1))
         else:
             print(render_markdown(report))
             if report.get("ablation"):
                 print()
                 print(render_ablation(report))
+        return status
 
     try:
         files = write_outputs(report, out_dir)
     except KeyboardInterrupt:
         # Ctrl-C or SIGTERM while the files were made (the plots take seconds): none of them changed, and what
         # was learned (minutes to hours) is shown all the same; it was dropped with a bare "rac: interrupted"
-        unwritten({"interrupted": report.get("interrupted") or "writing"})
+        status = unwritten({"interrupted": report.get("interrupted") or "writing"}, EXIT_INTERRUPTED)
         print(f"rac experiment: {how_stopped()} while writing the results above; none of the files in {out_dir} "
               "changed", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return status
     except OSError as exc:
         # a full disk, a folder in the way: what was learned (minutes to hours) is shown all the same, then
         # the error; it was dropped with it
         failed = unwritable(_written(out_dir, exc), exc)
-        unwritten({"error": failed.to_json()})  # with --format json one document: the results and the error
+        # with --format json one document: the results and the error
+        status = unwritten({"error": failed.to_json()}, EXIT_USAGE)
         if args.format != "json":
             print_diagnostics([failed])
         print("rac experiment: the results above were not all written (the error above)", file=sys.stderr)
-        return EXIT_USAGE
+        return status
+    # the exit status, decided before the document that carries it as `ok`. Ctrl-C: what was learned is shown
+    # and written, and the exit code says it was cut short; a table every row of which must fail is the file's
+    # finding, as `no safe strategy` is (exit 1): exit 0 said the experiment had measured something
+    unreachable = None if report.get("interrupted") else goal_out_of_reach(report)
+    status = EXIT_INTERRUPTED if report.get("interrupted") else EXIT_ERRORS if unreachable is not None else EXIT_OK
     if args.format == "json":  # results.json, with the file's warnings and the files written, as simulate's `wrote`
         document = json.loads((out_dir / "results.json").read_text(encoding="utf-8"))
-        print(json_text({**document, **warnings, "wrote": [str(path) for path in files]}, indent=1))
+        print(json_text(with_ok({**document, **warnings, "wrote": [str(path) for path in files]}, status), indent=1))
     else:
         print(render_markdown(report))
         print()
@@ -882,15 +893,8 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
             print()
         for path in files:
             print(f"wrote {path}")
-    # Ctrl-C: what was learned is shown and written, and the exit code says it was cut short
-    if report.get("interrupted"):
-        return EXIT_INTERRUPTED
-    # a table every row of which must fail is the file's finding, as `no safe strategy` is (exit 1): exit 0 said
-    # the experiment had measured something
-    unreachable = goal_out_of_reach(report)
     if unreachable is not None:
         print(f"rac experiment: {unreachable}; the results above are written all the same", file=sys.stderr)
-        return EXIT_ERRORS
-    return EXIT_OK
+    return status
 
 

@@ -34,6 +34,7 @@ from rac.cli.common import (
     stdout_unwritable,
     terminate_as_interrupt,
     usage_error,
+    with_ok,
 )
 from rac.core.diagnostics import RacError, display_text, json_text, render_text
 from rac.core.resources import ScenarioTooLarge
@@ -128,8 +129,9 @@ def _last_document(args: argparse.Namespace, stdout: ReaderSafe, status: int, *,
     "interrupted", "error"}``, so that a script reading it finds one document, as after any other outcome (the
     message stays on standard error). Returns ``status``."""
     if as_json(args) and not stdout.written:
-        document = {"command": args.command, "ok": False, "exit_code": status, "interrupted": interrupted,
-                    "error": None if error is None else f"internal error: {type(error).__name__}: {error}"}
+        document = with_ok({"command": args.command, "exit_code": status, "interrupted": interrupted,
+                            "error": None if error is None else f"internal error: {type(error).__name__}: {error}"},
+                           status)
         with contextlib.suppress(StdoutError):  # nowhere to print it: the message on standard error stands
             print(json_text(document, indent=2))
             stdout.flush()
