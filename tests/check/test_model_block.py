@@ -801,6 +801,44 @@ def test_an_int_input_bound_to_a_whole_number_does_not_warn() -> None:
     assert "W0726" not in codes(int_bound("v").replace("input n : int", "input n : real"))
 
 
+# ---------------------------------------------------------------- a horizon of no whole number of decisions (W0731)
+def at_horizon(items: str, horizon: str, sample: str = "0.1") -> str:
+    """:func:`small` with the model block's ``items`` and ``horizon`` s."""
+    return small(items, sample=sample).replace("    horizon 30\n", f"    horizon {horizon}\n")
+
+
+def test_a_horizon_of_no_whole_number_of_decisions_warns() -> None:
+    """A file's horizon of 30.1 s with decisions of 0.2 s: every engine command's last decision held for 0.1 s,
+    shorter than the others, and rac check said nothing (ScenarioEnv warned of its own `horizon=` only)."""
+    text = at_horizon("", "30.1")
+    diagnostic = only(text, "W0731")
+    assert diagnostic.severity == "warning" and check(text).ok
+    assert diagnostic.message == ("the horizon (30.1 s) is not a whole multiple of `decide_period` (0.2 s): the "
+                                  "last decision is shorter than the others")
+    assert diagnostic.span is not None and diagnostic.span.line == line_of(text, "horizon 30.1")
+    assert diagnostic.notes[1].message == "`decide_period` defaults to 2 × `sense_period` = 0.2 s"
+    assert diagnostic.hints == ("for decisions of one length use `horizon 30` or `horizon 30.2`",)
+    written = only(at_horizon("        decide_period 0.5\n", "30.2"), "W0731")
+    assert "holds for 0.2 s (2 of the 5 sensing periods of a decision)" in written.notes[0].message
+    assert len(written.notes) == 1 and written.hints == (
+        "for decisions of one length use `horizon 30` or `horizon 30.5`, or a `decide_period` that divides the "
+        "horizon",)
+    # a horizon shorter than one decision: the one multiple above it
+    assert only(at_horizon("        decide_period 1\n", "0.5"), "W0731").hints == (
+        "for decisions of one length use `horizon 1`, or a `decide_period` that divides the horizon",)
+
+
+@pytest.mark.parametrize(("items", "horizon", "expected"), [
+    ("", "30", []),  # a whole number of decisions
+    ("        decide_period 0.1\n", "30.1", []),  # a decision at every sample
+    ("        decide_period 0.25\n", "30.1", ["E0703"]),  # the decision period is the error, said once
+    ("", "30.05", ["E0206"]),  # no whole number of samples: the horizon's error, said once
+])
+def test_no_w0731_where_the_decisions_fit_or_another_error_says_it(items: str, horizon: str,
+                                                                   expected: list[str]) -> None:
+    assert [c for c in codes(at_horizon(items, horizon)) if c not in ("W0725", "W0728")] == expected
+
+
 @pytest.mark.parametrize(("guard", "code", "said"), [
     ("isClose && time > 3", "E0101", "`time`"), ("isClose && v > 3", "E0101", "`v`"),
     ("mindist() < 3", "E0103", "`mindist()`")])

@@ -226,6 +226,18 @@ def _int_speed(folder: Path) -> None:
     (folder / "left_turn.xml").write_bytes(_left_turn())
 
 
+#: The automaton of the E0712 example whose horizon, 9.9 s, is no whole number of its 0.2 s decisions (W0731).
+DECISIONS = (HERE / "E0712_missing_scenario.ra").read_text(encoding="utf-8") \
+    .replace("// A model whose scenario file is not next to this one",
+             "// A horizon of no whole number of decisions (decide_period defaults to 0.2 s)") \
+    .replace("    horizon 30\n", "    horizon 9.9\n")
+
+
+def _decisions(folder: Path) -> None:
+    (folder / "W0731_horizon_not_whole_decisions.ra").write_text(DECISIONS, encoding="utf-8")
+    (folder / "left_turn.xml").write_bytes(_left_turn())
+
+
 def _left_turn() -> bytes:
     return (ROOT / "examples" / "left_turn" / "left_turn.xml").read_bytes()
 
@@ -477,6 +489,10 @@ GENERATED: tuple[Case, ...] = (
          "10 m ahead of the ego at the ego's 20 m/s: `mindist()` reads 0.97 m, inside the unsafe distance "
          "`3 * collision_distance` (1.5 m), whatever the ego does:",
          _spawn, ("verify", "{file}")),
+    Case("W0731_horizon_not_whole_decisions", DECISIONS,
+         "`W0731_horizon_not_whole_decisions.ra` is the automaton of the E0712 example with `horizon 9.9`, next to "
+         "its `left_turn.xml` (the scenario of examples/left_turn):",
+         _decisions),
     Case("W0716_start_off_road", None,
          "`W0716_start_off_road.ra` is the automaton of the E0712 example over `ramp.xml` (line 22), next "
          "to it: one lane from x = 0, the ego starting at x = 0, half of it before the road, as in "

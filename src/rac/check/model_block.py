@@ -15,6 +15,7 @@ diagnostic with a span:
   E0710 a binding whose type differs from its input's, E0711 an unknown model function (or a
   known one with the wrong arguments); E0717 an ``allow when`` that is not a condition or reads
   ``prev``; W0726 an ``int`` input bound to a number that need not be whole (bindings cannot round);
+  W0731 a horizon that is no whole multiple of ``decide_period`` (the last decision is shorter);
 * the modelling choices (:data:`MODELLING`, :data:`WORD_SETTINGS`): ``start_*``, ``offroad_from``,
   ``dynamics`` (a word, E0702 for another), and ``allow when`` (:attr:`rac.ir.ModelSpec.allow`);
 * the generic codes where they fit: E0102 an item written twice, E0105 no ``scenario``, E0106
@@ -78,11 +79,12 @@ class _Value:
 
 class _ModelResolver:
     def __init__(self, r: ModelContext, block: ast.ModelDecl, inputs: tuple[ir.Input, ...],
-                 period: Fraction | None):
+                 period: Fraction | None, horizon: Fraction | None):
         self.r = r
         self.block = block
         self.inputs = inputs
         self.period = period
+        self.horizon = horizon
         self.ok = True
         #: Settings whose written value was rejected: checks that compare them are skipped.
         self.rejected: set[str] = set()
@@ -381,6 +383,8 @@ class _ModelResolver:
                        notes=[] if decide.span else [f"`decide_period` defaults to 2 × `sense_period` = "
                                                      f"{_num(decide.value)} s"],
                        hints=["the controller decides at sensing instants only: use " + " or ".join(choices)])
+        elif ratio.denominator == 1 and (sense.span is None or self.period is None or sense.value == self.period):
+            self._check_last_decision(sense, decide)
         substeps = 1 / granularity.value
         if substeps.denominator != 1:
             n = int(substeps)
@@ -388,6 +392,32 @@ class _ModelResolver:
             self.error("E0705", f"`granularity` {_num(granularity.value)} does not divide the sensing period "
                        f"into whole sub-steps (1/G = {_num(substeps)})", granularity.span,
                        hints=["`sense()` takes 1/G Euler sub-steps: use " + " or ".join(choices)])
+
+    def _check_last_decision(self, sense: _Value, decide: _Value) -> None:
+        """W0731 for a horizon that is a whole number of samples but no whole multiple of ``decide_period``:
+        every run ends at the horizon, so its last decision holds for fewer samples than the others (a
+        learner's last step is shorter, its reward summed over fewer samples). Allowed: the model's runs
+        end there too; said, since nothing else does."""
+        horizon, declared = self.horizon, self.r.automaton.of(ast.HorizonDecl)
+        if horizon is None or not declared or (horizon / sense.value).denominator != 1:
+            return  # no horizon, or one of no whole number of samples (E0206)
+        left = horizon % decide.value
+        if left == 0:
+            return
+        below = horizon - left
+        choices = [f"`horizon {_num(h)}`" for h in (below, below + decide.value) if h > 0]
+        samples = int(decide.value / sense.value)
+        notes = [f"a run ends at the horizon, so the controller's last choice holds for {_num(left)} s "
+                 f"({int(left / sense.value)} of the {samples} sensing periods of a decision) in every run of "
+                 "`rac verify`, `simulate`, `render`, `preanalyse` and `experiment`"]
+        if decide.span is None:
+            notes.append(f"`decide_period` defaults to 2 × `sense_period` = {_num(decide.value)} s")
+        self.r.scope.diagnostics.append(warning(
+            "W0731", f"the horizon ({_num(horizon)} s) is not a whole multiple of `decide_period` "
+            f"({_num(decide.value)} s): the last decision is shorter than the others", declared[0].span,
+            notes=notes,
+            hints=[f"for decisions of one length use {' or '.join(choices)}"
+                   + (", or a `decide_period` that divides the horizon" if decide.span is not None else "")]))
 
     def _check_speeds(self, values: dict[str, _Value]) -> None:
         low, high = values["min_speed"], values["max_speed"]
@@ -606,8 +636,10 @@ def _whole(expr: ie.Expr, period: Fraction) -> bool:
     return False
 
 
-def resolve_model(r: ModelContext, inputs: tuple[ir.Input, ...], period: Fraction | None) -> ir.ModelSpec | None:
-    """The automaton's ``model`` block as a :class:`ModelSpec`; None without one or on errors."""
+def resolve_model(r: ModelContext, inputs: tuple[ir.Input, ...], period: Fraction | None,
+                  horizon: Fraction | None = None) -> ir.ModelSpec | None:
+    """The automaton's ``model`` block as a :class:`ModelSpec`; None without one or on errors. ``horizon``
+    (the file's, in seconds) is checked against the decision period (W0731)."""
     blocks = r.automaton.of(ast.ModelDecl)
     if not blocks:
         return None
@@ -615,7 +647,7 @@ def resolve_model(r: ModelContext, inputs: tuple[ir.Input, ...], period: Fractio
         r.scope.error("E0106", "`model` is declared more than once", extra.span,
                  notes=[Note("first declared here", blocks[0].span)],
                  hints=["an automaton has one model: merge the blocks"])
-    resolver = _ModelResolver(r, blocks[0], inputs, period)
+    resolver = _ModelResolver(r, blocks[0], inputs, period, horizon)
     spec = resolver.run()
     for item in blocks[0].of(ast.ModelSetting):  # where each setting is written (the scenario's checks point there)
         if (item.name.name in SETTINGS or item.name.name in MODELLING) and item.span is not None:

@@ -99,7 +99,7 @@ class Resolver:
         rewards = tuple(n.name for d in node.of(ast.RewardDecl) for n in d.names)
         self._index(inputs, rewards)
         context = ModelContext(self.scope, self.node, self.typer.constant, self.model_spans)
-        model = resolve_model(context, inputs, period)
+        model = resolve_model(context, inputs, period, horizon)
         self.scope.settings = model_settings(model) if model is not None else None
         locations, initial = self._locations(rewards)
         edges = self._edges(locations, rewards)
