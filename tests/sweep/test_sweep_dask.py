@@ -555,7 +555,7 @@ def test_results_that_cannot_be_written_leave_the_summary_and_the_rows(world: Pa
            "there, writes results.* and the plots" in captured.err
     assert main([*args, "--format", "json"]) == EXIT_USAGE
     document = json.loads(capsys.readouterr().out)
-    assert document["exit_code"] == EXIT_USAGE and document["written"] is False
+    assert document["exit_code"] == EXIT_USAGE and document["written"] is False and document["ok"] is False
     assert document["summary"]["finished"] == 1 and document["error"]["code"] == "E0009"
 
 
@@ -771,7 +771,7 @@ def test_an_interrupted_json_sweep_says_the_exit_code_it_ends_with(world: Path, 
     captured = capsys.readouterr()
     document = json.loads(captured.out)
     assert code == 130 and document["interrupted"] is True
-    assert document["exit_code"] == code
+    assert document["exit_code"] == code and document["ok"] is False
     assert "with --force the same command runs every task again" in captured.err
     assert "to run only those" not in captured.err
 
@@ -811,6 +811,7 @@ def test_the_cli_on_a_separate_dask_scheduler_and_worker(world: Path, tmp_path: 
         captured = capsys.readouterr()
         report = json.loads(captured.out)
         assert report["summary"]["tasks"] == 2 and report["summary"]["ok"] == 1 and report["exit_code"] == 1
+        assert report["ok"] is False  # true exactly when the exit status is 0, as every command's document
         assert f"(the cluster at {address}, " in captured.err
         rows = by_scenario(json.loads((out / "results.json").read_text(encoding="utf-8")))
         assert {name: (row["status"], row["settings"]) for name, row in rows.items()} == {

@@ -30,6 +30,7 @@ from rac.cli.common import (
     unreadable,
     unwritable,
     usage_error,
+    with_ok,
 )
 from rac.core.diagnostics import Diagnostic, json_text
 from rac.sweep import SweepResult, execute, plan
@@ -65,7 +66,7 @@ def _document(template: Path, out: Path, status: int, summary: Mapping[str, obje
                 "exit_code": status, "summary": summary, "files": [str(f) for f in files], "written": written}
     if error is not None:  # one document: the error in it, not a second one beside it (as rac verify's)
         document["error"] = error.to_json()
-    return json_text(document, indent=2)
+    return json_text(with_ok(document, status), indent=2)
 
 
 def _write_failed(result: SweepResult, out: Path) -> Diagnostic | None:
