@@ -1369,3 +1369,25 @@ def test_the_tasks_of_a_local_cluster_share_the_machines_memory(client, world: P
                     str(world / "scenarios" / "goal_ahead.xml"), (), "preanalyse", (("runs", "5"), ("seed", "3")),
                     budget=1000)
     assert "more than the memory budget of 1000 B" in json.dumps(work.execute(spec))
+
+
+def test_the_time_plot_tells_statuses_apart_without_colour(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """time_vs_size.png told the statuses apart by colour only (ok, failed, timeout look alike to a colour-blind
+    reader) and its legend, placed automatically inside the axes, could cover points: each status has a marker of
+    its own now, shown in the legend, which lies beside the axes."""
+    from rac.sweep import report
+
+    figures: list = []
+    monkeypatch.setattr(report, "save_figure", lambda figure, path: figures.append(figure) or Path(path))
+    rows = [{"settings": {}, "status": status, "verdicts": {}, "seconds": 0.1 * i, "scenario_size": i}
+            for i, status in enumerate(("ok", "failed", "error", "timeout", "memory", "undecided"), start=1)]
+    write_plots(rows, tmp_path)
+    figure = figures[1]
+    ax = figure.axes[0]
+    paths = [collection.get_paths()[0].vertices.round(6).tobytes() for collection in ax.collections]
+    assert len(ax.collections) == 6 and len(set(paths)) == 6  # six statuses, six shapes
+    legend = ax.get_legend()
+    shown = [handle.get_paths()[0].vertices.round(6).tobytes() for handle in legend.legend_handles]
+    assert shown == paths
+    figure.draw_without_rendering()
+    assert not legend.get_window_extent().overlaps(ax.get_window_extent())

@@ -50,6 +50,8 @@ _COLOURS = {"satisfied": "#55a868", "not satisfied": "#c44e52", "unknown": "#8c8
 #: reader, and the segments stack on one another.
 _HATCHES = {"satisfied": "", "not satisfied": "///", "unknown": "...", "unsupported": "\\\\\\", "ok": "",
             "failed": "xx", "undecided": "\\\\\\", "error": "oo", "timeout": "--", "memory": "++"}
+#: Markers of the task statuses in time_vs_size.png beside their colours, for the same reason.
+_MARKERS = {"ok": "o", "failed": "X", "undecided": "D", "error": "s", "timeout": "^", "memory": "v"}
 
 
 def grid_label(settings: Mapping[str, object]) -> str:
@@ -331,8 +333,8 @@ def _outcomes(row: Mapping[str, object], queries: int) -> list[str]:
 def write_plots(rows: Sequence[Mapping[str, object]], folder: Path) -> list[Path]:
     """``verdicts.png`` (the verdict mix per grid point, stacked bars; a task without verdicts counts as
     its status, once per query the other tasks answer) and ``time_vs_size.png`` (seconds per task against the
-    scenario's size, lanelets plus obstacles, one colour per status) in ``folder``; without rows none, and those
-    an earlier sweep wrote there are removed (they would show its rows beside this sweep's empty results).
+    scenario's size, lanelets plus obstacles, one colour and marker per status) in ``folder``; without rows none,
+    and those an earlier sweep wrote there are removed (they would show its rows beside this sweep's empty results).
     Returns the files written."""
     if not rows:
         for name in (VERDICT_PLOT, TIME_PLOT):
@@ -388,7 +390,7 @@ def _number(value: object) -> float:
 
 
 def _plot_times(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
-    figure = new_figure(6.5, 4.4)
+    figure = new_figure(7.3, 4.4)
     ax = figure.add_subplot()
     sized = [row for row in rows if isinstance(row.get("scenario_size"), int) and
              isinstance(row.get("seconds"), int | float)]
@@ -396,10 +398,10 @@ def _plot_times(rows: Sequence[Mapping[str, object]], path: Path) -> Path:
         mine = [row for row in sized if row.get("status") == status]
         if mine:
             ax.scatter([_number(row["scenario_size"]) for row in mine], [_number(row["seconds"]) for row in mine],
-                       s=22, alpha=0.8,
+                       s=26, alpha=0.8, marker=_MARKERS.get(status, "P"),
                        color=_COLOURS.get(status, "#64b5cd"), label=f"{status} ({len(mine)})", linewidths=0)
-    if sized:
-        ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    if sized:  # beside the axes, as in verdicts.png: inside, "best" still covered points of a crowded plot
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), frameon=False, fontsize=8)
     else:  # every file failed to load (or no task timed): a blank axes read as a plot that failed to draw
         ax.text(0.5, 0.5, "no task has a scenario size and a time: nothing to draw", transform=ax.transAxes,
                 ha="center", va="center", fontsize=11, color="#212121")
