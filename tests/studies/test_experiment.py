@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from engine_files import write_engine_file
 from PIL import Image
@@ -205,10 +207,37 @@ def test_the_learning_curves_say_mean_and_sd_once(report: dict[str, object], tmp
     figures = []
     monkeypatch.setattr(plots, "save_figure", lambda figure, path, **options: figures.append(figure) or Path(path))
     write_outputs(report, tmp_path)
-    returns = figures[0].axes[0]
-    assert returns.get_title().count("over seeds") == 1 and "mean ± sd" in returns.get_title()
-    styles = [(line.get_linestyle(), line.get_marker()) for line in returns.get_lines()]
+    title = figures[0].get_suptitle()
+    assert title.count("over seeds") == 1 and "mean ± sd" in title and "10-episode moving average" in title
+    styles = [(line.get_linestyle(), line.get_marker()) for ax in figures[0].axes for line in ax.get_lines()]
     assert len(set(styles)) == len(styles) == 4
+
+
+def test_each_combination_has_its_own_returns_panel(report: dict[str, object], tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """returns.png drew the four combinations on one axes: RA's returns (about -12,000 on examples/paper)
+    squashed SS&RA's and SS&RF's into flat lines near 0. Each combination has a panel of its own now, on a
+    shared episode axis, each with its own value range."""
+    import rac.output.plots as plots
+    from rac.studies.experiment import write_outputs
+
+    figures = []
+    monkeypatch.setattr(plots, "save_figure", lambda figure, path, **options: figures.append(figure) or Path(path))
+    records = report["records"]
+    assert isinstance(records, list)
+    scale = {"RA": -12_000.0, "RF": 50.0, "SS&RA": -300.0, "SS&RF": 1.0}  # returns of very different sizes
+    report = {**report, "records": [dataclasses.replace(r, returns=np.linspace(0, 1, 30) * scale[r.combination])
+                                    for r in records]}
+    write_outputs(report, tmp_path)
+    panels = figures[0].axes
+    assert [ax.get_title(loc="left").split(" (")[0] for ax in panels] == ["SS&RA", "SS&RF", "RA", "RF"]
+    for ax in panels:
+        low, high = ax.get_ylim()
+        (line,) = ax.get_lines()
+        values = line.get_ydata()
+        assert low <= min(values) and max(values) <= high
+        assert high - low < 2 * (max(values) - min(values))  # each panel scaled to its own curve
+        assert ax.get_shared_x_axes().joined(ax, panels[0])
 
 
 def test_the_ablation_learns_every_row(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -430,14 +430,44 @@ def _moving_average(values: np.ndarray, window: int) -> np.ndarray:
     return np.apply_along_axis(lambda row: np.convolve(row, kernel, mode="valid"), 1, padded)
 
 
+def _draw_curve(ax: Axes, index: int, count: int, every: int, label: str, data: np.ndarray, *,
+                band: Literal["std", "minmax"], smooth: int) -> str:
+    """One learning curve on ``ax``: the mean over seeds and its band; returns its legend text."""
+    runs = _moving_average(np.atleast_2d(np.asarray(data, dtype=float)), smooth)
+    episodes = np.arange(1, runs.shape[1] + 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN episode: NaN is what we want drawn
+        mean = np.nanmean(runs, axis=0)
+        if band == "std":
+            spread = np.nanstd(runs, axis=0)
+            low, high = mean - spread, mean + spread
+        else:
+            low, high = np.nanmin(runs, axis=0), np.nanmax(runs, axis=0)
+    colour, style, marker = curve_style(index)
+    seeds = runs.shape[0]
+    # a curve with no value (no episode learned) is in the legend but draws nothing: the legend says so
+    empty = "" if np.isfinite(mean).any() else ": no episode to draw"
+    text = f"{label} ({seeds} seed{'s' * (seeds != 1)}){empty}"
+    ax.plot(episodes, mean, color=colour, linewidth=1.6, linestyle=style, marker=marker, markersize=5,
+            markevery=(index * every // count, every), label=text)
+    if seeds > 1:
+        ax.fill_between(episodes, low, high, color=colour, alpha=0.2, linewidth=0)
+    ax.grid(True, color="#e0e0e0", linewidth=0.6)
+    return text
+
+
 def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLike[str], *, ylabel: str = "return",
                          xlabel: str = "episode", title: str | None = None, band: Literal["std", "minmax"] = "std",
-                         smooth: int = 1) -> Path:
+                         smooth: int = 1, panels: bool = False) -> Path:
     """Learning curves: for each label an array (seeds, episodes), drawn as the mean over seeds with
     a shaded band (mean ± standard deviation, or min to max with ``band="minmax"``). Each curve has
     its own colour, line style and marker (:func:`curve_style`), so a curve on top of another does
     not hide it; the title ends in what is drawn, e.g. ``"(mean ± sd over seeds)"``, and says the
     moving average when ``smooth`` > 1.
+
+    With ``panels`` each label gets its own axes, one below the other, sharing the episode axis but
+    each with its own value range (the panel's title names the label): curves of very different
+    scales (an unshielded learner's returns of -12,000 beside shielded ones near 0) are all readable.
 
     A 1-D array is one seed. ``smooth`` > 1 first takes a trailing moving average over that many
     episodes of each seed. NaN entries (a seed with fewer episodes) are left out of the statistics.
@@ -450,39 +480,33 @@ def plot_learning_curves(curves: Mapping[str, np.ndarray], path: str | os.PathLi
         raise ValueError("plot_learning_curves: no curves to plot")
     if band not in ("std", "minmax"):
         raise ValueError(f"plot_learning_curves: band must be 'std' or 'minmax', not {band!r}")
-    figure = new_figure(7.5, 4.4)
-    ax: Axes = figure.add_subplot()
     # a marker every 1/12 of the longest curve (a short curve gets fewer), each curve's shifted:
     # where curves coincide, every curve's markers still show
     every = max(1, max(np.atleast_2d(np.asarray(data)).shape[1] for data in curves.values()) // 12)
-    for i, (label, data) in enumerate(curves.items()):
-        runs = _moving_average(np.atleast_2d(np.asarray(data, dtype=float)), smooth)
-        episodes = np.arange(1, runs.shape[1] + 1)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN episode: NaN is what we want drawn
-            mean = np.nanmean(runs, axis=0)
-            if band == "std":
-                spread = np.nanstd(runs, axis=0)
-                low, high = mean - spread, mean + spread
-            else:
-                low, high = np.nanmin(runs, axis=0), np.nanmax(runs, axis=0)
-        colour, style, marker = curve_style(i)
-        seeds = runs.shape[0]
-        # a curve with no value (no episode learned) is in the legend but draws nothing: the legend says so
-        empty = "" if np.isfinite(mean).any() else ": no episode to draw"
-        ax.plot(episodes, mean, color=colour, linewidth=1.6, linestyle=style, marker=marker, markersize=5,
-                markevery=(i * every // len(curves), every),
-                label=f"{label} ({seeds} seed{'s' * (seeds != 1)}){empty}")
-        if seeds > 1:
-            ax.fill_between(episodes, low, high, color=colour, alpha=0.2, linewidth=0)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    whole_ticks(ax.xaxis)
-    ax.grid(True, color="#e0e0e0", linewidth=0.6)
     spread_name = "mean ± sd over seeds" if band == "std" else "mean, min–max over seeds"
     if smooth > 1:  # else a reader takes the smoothed curve for the episodes' own values
         spread_name = f"{smooth}-episode moving average, {spread_name}"
-    ax.set_title(f"{title} ({spread_name})" if title else spread_name)
+    heading = f"{title} ({spread_name})" if title else spread_name
+    if panels:
+        figure = new_figure(7.5, 1.2 + 1.9 * len(curves))
+        grid = figure.subplots(len(curves), 1, sharex=True, squeeze=False)[:, 0]
+        for i, (label, data) in enumerate(curves.items()):
+            panel = grid[i]
+            panel.set_title(_draw_curve(panel, i, len(curves), every, label, data, band=band, smooth=smooth),
+                            fontsize=10, loc="left")
+            panel.set_ylabel(ylabel, fontsize=9)
+        grid[-1].set_xlabel(xlabel)
+        whole_ticks(grid[-1].xaxis)  # shared: every panel's
+        fit_title(figure, figure.suptitle(heading))
+        return save_figure(figure, path)
+    figure = new_figure(7.5, 4.4)
+    ax: Axes = figure.add_subplot()
+    for i, (label, data) in enumerate(curves.items()):
+        _draw_curve(ax, i, len(curves), every, label, data, band=band, smooth=smooth)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    whole_ticks(ax.xaxis)
+    ax.set_title(heading)
     # beside the axes: loc="best" weighs the mean lines only, so it settled on a seed band (RA's, returns.png)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=9)
     fit_title(figure, ax.title)

@@ -777,7 +777,7 @@ def write_outputs(report: Report, out_dir: Path) -> list[Path]:
         for r in records:
             firsts.setdefault(r.combination, []).append(r.first_success_episode)
         return [plot_learning_curves(curves("returns"), out_dir / "returns.png", ylabel="episode return",
-                                     title="learning curves", smooth=10),
+                                     title="learning curves", smooth=10, panels=True),
                 plot_first_success(firsts, int(report["episodes"]), out_dir / "first_success.png")]
 
     def nested(k: int) -> list[Path]:
