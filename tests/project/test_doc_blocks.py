@@ -397,6 +397,15 @@ def test_links_reach_their_anchor(page: Path) -> None:
     assert not broken, f"{page.relative_to(REPO)}: broken links:\n" + "\n".join(broken)
 
 
+def test_every_image_is_shown() -> None:
+    """Every picture in docs/images is shown by a page: experiment_returns.png lay there, referenced
+    nowhere, left behind as the figure it showed changed."""
+    shown = " ".join(page.read_text(encoding="utf-8") for page in PAGES)
+    unused = [image.name for image in sorted((REPO / "docs" / "images").iterdir())
+              if f"images/{image.name}" not in shown]
+    assert not unused, f"docs/images holds pictures no page shows: {unused}"
+
+
 #: A dotted name of rac's API in inline code: `rac.check.params.synthesise_parameters`, `rac.load(path)`.
 _API_NAME = re.compile(r"`(rac(?:\.[A-Za-z_]\w*)+)")
 
