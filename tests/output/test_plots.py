@@ -583,3 +583,72 @@ def test_values_near_the_float_limit_are_drawn_clipped_and_judged_as_they_are(tm
     with Image.open(path) as image:
         assert image.format == "PNG"
     assert below_summary(values, -1e305, "t").startswith("1 of 2 runs")
+
+
+def _event_marks(figure) -> dict[str, list]:  # type: ignore[no-untyped-def]
+    """The lines of ``figure``'s map marking the first collision ("X") and off-road sample ("D")."""
+    return {marker: [line for line in figure.axes[0].get_lines() if line.get_marker() == marker]
+            for marker in ("X", "D")}
+
+
+def test_render_marks_where_the_run_first_collides_and_leaves_the_road(figures: list, tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """`rac render` of a run that drove into the wall and off the road drew the path as if nothing had
+    happened there: the first collision and the first off-road sample are marked on the path now, each
+    with its own marker, named with its time in the legend."""
+    from engine_files import write_engine_file
+
+    from rac.cli.main import main
+
+    path = write_engine_file(tmp_path, "goal_behind_wall")  # 8 m/s towards a wall across the road
+    assert main(["render", str(path), "--seed", "1", "-o", str(tmp_path / "out"), "-q"]) == 0
+    capsys.readouterr()
+    (figure,) = figures
+    marks = _event_marks(figure)
+    assert [len(marks["X"]), len(marks["D"])] == [1, 1] and all(line.get_visible() for line in marks["X"] + marks["D"])
+    texts = [text.get_text() for text in figure.legends[0].get_texts()]
+    named = [text for text in texts if text.startswith(("first collision (t = ", "first off-road sample (t = "))]
+    assert len(named) == 2, texts
+    # at the run's own position at that time: the path (a line of the ego's samples, 0.5 s apart) passes there
+    path_line = next(line for line in figure.axes[0].get_lines() if len(line.get_xdata()) == 9)
+    collided_at = float(named[0].split("t = ")[1].split(" s")[0])
+    sample = round(collided_at / 0.5)
+    assert marks["X"][0].get_xydata().tolist() == [path_line.get_xydata()[sample].tolist()]
+
+
+def test_the_marks_appear_from_their_instant_on(figures: list, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The PNG drawn before the collision leaves it unmarked (the legend still names it); the GIF's
+    frames show the mark from the collision's frame on, and the drawing stays deterministic."""
+    render_trajectory(LEFT_TURN, _straight(20), tmp_path / "early.png", time_step=5, collision=12, offroad=3)
+    marks = _event_marks(figures[0])
+    assert [line.get_visible() for line in marks["X"]] == [False] and [m.get_visible() for m in marks["D"]] == [True]
+    texts = [text.get_text() for text in figures[0].legends[0].get_texts()]
+    assert "first collision (t = 1.2 s)" in texts and "first off-road sample (t = 0.3 s)" in texts
+    with pytest.raises(ValueError, match="collision sample 20"):
+        render_trajectory(LEFT_TURN, _straight(20), tmp_path / "x.png", collision=20)
+
+    import rac.output.render as render
+    from rac.output.plots import new_figure
+
+    made: list = []
+    shown: list[bool] = []  # whether the collision's mark is drawn, frame by frame
+    original = Image.fromarray
+
+    def made_figure(*size: float):  # type: ignore[no-untyped-def]
+        made.append(new_figure(*size))
+        return made[-1]
+
+    def frame(*args, **options):  # type: ignore[no-untyped-def]  # each GIF frame is taken from the canvas here
+        shown.append(_event_marks(made[-1])["X"][0].get_visible())
+        return original(*args, **options)
+
+    monkeypatch.setattr(render, "new_figure", made_figure)
+    monkeypatch.setattr(Image, "fromarray", frame)
+    gifs = []
+    for name in ("a", "b"):
+        shown.clear()
+        render_trajectory(LEFT_TURN, _straight(20), tmp_path / f"{name}.png", gif_path=tmp_path / f"{name}.gif",
+                          collision=12, figsize=(4.0, 3.0), dpi=50)
+        gifs.append((tmp_path / f"{name}.gif").read_bytes())
+        assert shown == [sample >= 12 for sample in range(20)]
+    assert gifs[0] == gifs[1]

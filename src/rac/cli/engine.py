@@ -646,8 +646,16 @@ def _summary_and_stop(args: argparse.Namespace, document: dict[str, object], lin
     return status
 
 
+def _first_sample(held: Sequence[bool]) -> int | None:
+    """The first sample at which ``held`` is true; None when it never is."""
+    return next((sample for sample, value in enumerate(held) if value), None)
+
+
 @_on_checked_file
 def render_command(args: argparse.Namespace, result: CompileResult) -> int:
+    # numpy (via rac.engine.simulate): only the command that uses it loads it
+    from rac.engine.simulate import label_runs
+
     # PIL, matplotlib, numpy (via rac.output.render): only the command that uses it loads it
     from rac.output.render import RenderError, render_trajectory
 
@@ -670,6 +678,10 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     if stopped is not None and runs.overflow is not None:  # it stopped where its sensed state left int32: drawn so far
         real = real[:int(runs.overflow[0])]
     trajectory = real[:, [Ego.X, Ego.Y, Ego.HEAD]]
+    assert result.model_data is not None  # _load refused a file without one
+    # where the run first collides and first leaves the road, as collide() and offroad() judge it: marked on the path
+    first = {label: _first_sample(label_runs(result.model_data, runs, label)[0][:len(real)])
+             for label in ("collide", "offroad")}
     out_dir = _out_dir(args)
     png, gif = out_dir / "run.png", out_dir / "run.gif" if args.gif else None
     automaton = result.automaton
@@ -681,7 +693,8 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
                                     planning_problem=spec.planning_problem or None,
                                     sample_period=float(automaton.period),
                                     length=float(spec.length), width=float(spec.width),
-                                    title=f"{args.file.name}, {_short(args)}, seed {seed}")
+                                    title=f"{args.file.name}, {_short(args)}, seed {seed}",
+                                    collision=first["collide"], offroad=first["offroad"])
     except RenderError as exc:
         _report(args, unusable_file(str(exc)))
         return EXIT_ERRORS

@@ -44,7 +44,7 @@ from rac.model.commonroad import (
 )
 from rac.output.plots import fit_title, new_figure, save_figure, wrap_text
 
-__all__ = ["EGO_COLOUR", "RenderError", "SceneFrames", "render_trajectory"]
+__all__ = ["EGO_COLOUR", "EVENT_MARKS", "RenderError", "SceneFrames", "render_trajectory"]
 
 EGO_COLOUR = "#2e7d32"
 #: Metres of scenery kept around the ego's path (and the goal) when no ``plot_limits`` are given.
@@ -53,6 +53,9 @@ MARGIN = 15.0
 LAST_FRAME_MS = 1200
 #: Inches added below the map for the legend's row (the legend lies outside the map, hiding none of it).
 LEGEND_HEIGHT = 0.4
+#: How the first collision and the first off-road sample are marked on the ego's path: colour, marker, legend text.
+EVENT_MARKS = {"collision": ("#c62828", "X", "first collision"),
+               "offroad": ("#ef6c00", "D", "first off-road sample")}
 
 
 class RenderError(RacError):
@@ -345,7 +348,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
                       title: str | None = None, sample_period: float | None = None, length: float = 4.5,
                       width: float = 1.8, max_frames: int = 100, plot_limits: Sequence[float] | None = None,
                       figsize: tuple[float, float] | None = None, dpi: int = 100,
-                      planning_problem: int | None = None) -> Path:
+                      planning_problem: int | None = None, collision: int | None = None,
+                      offroad: int | None = None) -> Path:
     """Draw the CommonRoad scenario in ``scenario_path`` with the ego's trajectory; write the PNG
     (and with ``gif_path`` an animated GIF) and return the PNG's path.
 
@@ -366,6 +370,9 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
     ``width`` default to rac's vehicle (model.md).
     ``planning_problem`` (an id of the file's) draws that problem only and starts at its initial
     time step, as the model does with the `model` block's ``planning_problem``; None: all of them.
+    ``collision`` and ``offroad`` are the samples of the run's first collision and first sample off
+    the road (None: none): each is marked on the path (:data:`EVENT_MARKS`, named with its time in
+    the legend), in the PNG when it lies at or before the drawn instant, in the GIF from its frame on.
 
     Raises :class:`RenderError` naming the file when it is missing or not a readable CommonRoad
     scenario, ``ValueError`` for a malformed trajectory.
@@ -392,6 +399,14 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
     def step_of(sample: int) -> int:
         return start + round(sample * period / dt)
 
+    def time_of(sample: int) -> float:  # the sample's own time: the obstacles' step is only the nearest one
+        return round(start * dt + sample * period, 9)
+
+    events = {kind: sample for kind, sample in (("collision", collision), ("offroad", offroad)) if sample is not None}
+    for kind, sample in events.items():
+        if not 0 <= sample < n_samples:
+            raise ValueError(f"render_trajectory: {kind} sample {sample} is not one of the run's 0..{n_samples - 1}")
+
     limits = tuple(plot_limits) if plot_limits is not None else _limits(ego, _goal_center(problems))
     name = title or str(scenario.scenario_id)
 
@@ -416,10 +431,20 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
         body = Polygon(_corners(x0, y0, head0, length, width), closed=True, facecolor=EGO_COLOUR, edgecolor="black",
                        linewidth=0.8, alpha=0.9, zorder=30)
         ax.add_patch(body)
+        marks: list[tuple[int, Line2D]] = []  # each shown from its sample on
+        named: list[Line2D] = []  # their legend entries, shown whatever the instant drawn
+        for kind, sample in events.items():
+            colour, marker, text = EVENT_MARKS[kind]
+            style: dict[str, Any] = {"linestyle": "", "marker": marker, "color": colour, "markeredgecolor": "white",
+                     "markeredgewidth": 1.2}
+            # above the ego's body (30) and commonroad-io's patches (up to 35): a crash lies under the car
+            (mark,) = ax.plot([ego[sample, 0]], [ego[sample, 1]], markersize=11, zorder=40, clip_on=False, **style)
+            marks.append((sample, mark))
+            named.append(Line2D([], [], markersize=8, label=f"{text} (t = {time_of(sample):g} s)", **style))
         handles = [Line2D([], [], color=EGO_COLOUR, linewidth=1.8, label="ego path"),
                    Line2D([], [], color=EGO_COLOUR, linewidth=1.2, linestyle="--", alpha=0.6, label="ego path ahead"),
                    Patch(facecolor=EGO_COLOUR, edgecolor="black", label=f"ego ({length:g} m × {width:g} m)"),
-                   *scene.legend_handles(problems)]
+                   *named, *scene.legend_handles(problems)]
         _place_legend(figure, handles)
         ax.set_title("", fontsize=10)
         note = ax.text(0.01, 0.99, "", transform=ax.transAxes, ha="left", va="top", fontsize=9, zorder=60,
@@ -433,9 +458,9 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
             driven.set_data(ego[: sample + 1, 0], ego[: sample + 1, 1])
             x, y, head = ego[sample]
             body.set_xy(_corners(x, y, head, length, width))
-            # the sample's own time: the obstacles' step is the nearest one when dt does not divide the period
-            at = round(start * dt + sample * period, 9)
-            text = f"{name}: t = {at:g} s (step {step}, sample {sample + 1} of {n_samples})"
+            for at_sample, mark in marks:
+                mark.set_visible(at_sample <= sample)
+            text = f"{name}: t = {time_of(sample):g} s (step {step}, sample {sample + 1} of {n_samples})"
             ax.title.set_text(text if wrap_at[0] is None else wrap_text(text, wrap_at[0]))
 
         if time_step is None:
