@@ -8,12 +8,15 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from fractions import Fraction as F
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 from rac.ir import Action, ModelSpec
 from rac.model import (
     NO_OBSTACLE,
+    ModelData,
     ModelRangeError,
     NativeModel,
     State,
@@ -81,6 +84,111 @@ def goal_scenario() -> Scenario:
         ego=EgoStart(5.0, 3.5, 0.0, 6.0),
         goal=Goal((rectangle(53.0, 20.0, 60.0, 30.0), rectangle(40.0, 0.0, 45.0, 7.0)), 2.0, 4.5),
     )
+
+
+#: How a divider's two copies differ in :func:`divided_scenario`.
+DIVIDERS = ("noise", "sampled")
+#: DEU_Muc-3_1_T-1's lanelets 1172 and 1178 (left bound, right bound), opposite lanes by the ego's start
+#: whose shared divider the file gives twice, sampled about 1 cm apart along it.
+MUC_1172 = ([(-10.2455, 1.2657), (-0.40761, -1.4423), (9.6058, -4.1986), (19.6192, -6.9548), (29.6327, -9.7111),
+             (39.6461, -12.4673), (49.6645, -15.2249)],
+            [(-11.0451, -1.6233), (-1.2031, -4.3324), (8.8103, -7.0886), (18.8237, -9.8449), (28.8372, -12.6012),
+             (38.8506, -15.3574), (48.8641, -18.1136)])
+MUC_1178 = ([(49.6645, -15.2249), (39.656, -12.47), (29.6425, -9.7138), (19.6291, -6.9575), (9.6157, -4.2013),
+             (-0.39775, -1.445), (-10.2455, 1.2657)],
+            [(50.4649, -12.3361), (40.4515, -9.5799), (30.438, -6.8237), (20.4246, -4.0675), (10.4112, -1.3112),
+             (0.39775, 1.445), (-9.4446, 4.1542)])
+
+
+def divided_scenario(folder: Path, divider: str) -> Scenario:
+    """Two lanelets, 1 and 2 on its left, sharing a divider that the map gives twice, built with
+    commonroad-io as a CommonRoad file and loaded as rac loads one. ``noise``: 3.5 m lanes along x
+    with the divider at y = 3.5, written 3.4999999999 in lanelet 1 and 3.5000000001 in lanelet 2 (float
+    noise; commonroad-io writes 6 decimals, so the file's text is edited). ``sampled``: DEU_Muc-3_1_T-1's
+    lanelets 1172 and 1178 (:data:`MUC_1172`), opposite lanes whose two copies of the divider are sampled
+    about 1 cm apart along it, each point written to 4 decimals."""
+    import re
+
+    import numpy as np
+    from commonroad.scenario.lanelet import Lanelet
+    from commonroad.scenario.scenario import Tag
+
+    from rac.model.commonroad import load_scenario
+    from rac.model.scenario_xml import scenario_bytes
+    from rac.model.scenes import build_highway
+
+    scenario, problems = build_highway()
+    for lanelet in list(scenario.lanelet_network.lanelets):
+        scenario.remove_lanelet(lanelet)
+    if divider == "noise":
+        xs = np.linspace(0.0, 300.0, 7)[:, None]
+        one = (np.hstack([xs, np.full_like(xs, 3.5)]), np.hstack([xs, np.zeros_like(xs)]))
+        two = (np.hstack([xs, np.full_like(xs, 7.0)]), np.hstack([xs, np.full_like(xs, 3.5)]))
+        same = True
+    else:
+        one, two = (tuple(np.array(bound) for bound in lanelet) for lanelet in (MUC_1172, MUC_1178))
+        same = False
+    scenario.add_objects([
+        Lanelet(one[0], (one[0] + one[1]) / 2, one[1], 1, adjacent_left=2, adjacent_left_same_direction=same),
+        Lanelet(two[0], (two[0] + two[1]) / 2, two[1], 2, adjacent_right=1 if same else None,
+                adjacent_right_same_direction=True if same else None, adjacent_left=None if same else 1,
+                adjacent_left_same_direction=None if same else False)])
+    text = scenario_bytes(scenario, problems, tags={Tag.HIGHWAY}, source="divided").decode()
+    if divider == "noise":  # y = 3.5 is lanelet 1's left bound and lanelet 2's right bound, nothing else
+        first, second = text.index('<lanelet id="1">'), text.index('<lanelet id="2">')
+        text = (text[:first] + text[first:second].replace("<y>3.5</y>", "<y>3.4999999999</y>")
+                + text[second:].replace("<y>3.5</y>", "<y>3.5000000001</y>"))
+        assert len(re.findall(r"<y>3\.4999999999</y>", text)) == len(re.findall(r"<y>3\.5000000001</y>", text)) == 7
+    path = folder / f"divided-{divider}.xml"
+    path.write_text(text, encoding="utf-8")
+    return load_scenario(path)
+
+
+def across_the_divider(scenario: Scenario, data: ModelData) -> list[State]:
+    """Ego states at a thousand points along :func:`divided_scenario`'s divider whose corners all lie inside its
+    road, at least 20 cm from its edges and ends; many have a corner close to the divider (changing
+    lanes across it; the centre jitters across by up to 30 cm, differently at each step)."""
+    start, end = scenario.lanes[0].left[0], scenario.lanes[0].left[-1]
+    length = math.dist(start, end)
+    width = math.dist(start, scenario.lanes[0].right[0])  # of each lane
+    ux, uy = (end[0] - start[0]) / length, (end[1] - start[1]) / length
+    heading = math.atan2(uy, ux)
+    model = NativeModel(data)
+    states = []
+    for step in range(1, 1000):
+        jitter = ((step * 0.618034) % 1 - 0.5) * 0.6
+        for offset in (-1.4, -0.9, 0.0, 0.9, 1.4):  # the ego's centre across the divider (m, left +)
+            for turn in (-0.1, 0.0, 0.1):
+                across = offset + jitter
+                x = start[0] + length * step / 1000 * ux - across * uy
+                y = start[1] + length * step / 1000 * uy + across * ux
+                state = State(int(x * data.scale), int(y * data.scale), 10 * data.scale, 0,
+                              int((heading + turn) * data.scale), 0, 0)
+                corners = [((cx - start[0]) * ux + (cy - start[1]) * uy, (cy - start[1]) * ux - (cx - start[0]) * uy)
+                           for cx, cy in model.corner_points(state)]
+                if all(0.2 < a < length - 0.2 and abs(b) < width - 0.2 for a, b in corners):
+                    states.append(state)
+    return states
+
+
+@pytest.mark.parametrize("divider", DIVIDERS)
+def test_a_divider_given_twice_is_no_gap_in_the_road(tmp_path: Path, divider: str) -> None:
+    """DEU_Muc-3_1_T-1 gives each lane divider twice, once per lanelet, sampled 5 mm apart along it and
+    rounded to 4 decimals; truncated to significands the two copies parted, and at exponent 2 the road
+    had nine hairline gaps along its dividers (up to 1 cm wide, 13 to 27 m long, one at the ego's start):
+    a lane change with a corner in one was off the road. Float noise (3.4999999999 for 3.5) truncates
+    apart as well. The model's road now carries both copies' vertices along the divider, one value each."""
+    from rac.model.batch import BatchModel
+
+    scenario = divided_scenario(tmp_path, divider)
+    for exponent in (1, 2, 3):  # the old road failed at each (at 2: 198 and 22 states off it)
+        data = build_model_data(scenario, make_spec(exponent))
+        states = across_the_divider(scenario, data)
+        assert len(states) > 500
+        native = NativeModel(data)
+        off = [state for state in states if native.offroad(state)]
+        assert not off, f"exponent {exponent}: {len(off)} of {len(states)} states inside the road are off it"
+        assert not BatchModel(data).offroad(np.array(states, dtype=np.int64)).any()
 
 
 # ---------------------------------------------------------------- data

@@ -20,7 +20,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_model_native import crossing_scenario, goal_scenario, make_spec, straight_scenario
+from test_model_native import (
+    DIVIDERS,
+    across_the_divider,
+    crossing_scenario,
+    divided_scenario,
+    goal_scenario,
+    make_spec,
+    straight_scenario,
+)
 
 from rac.model import ModelData, NativeModel, State, build_model_data
 from rac.targets.uppaal.declarations import C_PRELUDE, declared_names, emit_declarations
@@ -208,6 +216,26 @@ def test_c_agrees_with_native_on_a_commonroad_scenario(tmp_path):
                            timeout=60).stdout.splitlines()
     assert len(lines) == len(states)
     bad = [(state, k) for (state, k), line in zip(states, lines) if normalise(line) != python_line(model, state, k)]
+    assert not bad, f"{len(bad)} of {len(states)} states differ; first: {bad[0]}"
+
+
+@needs_cc
+@pytest.mark.parametrize("divider", DIVIDERS)
+def test_c_sees_no_gap_along_a_divider_given_twice(tmp_path, divider):
+    """The emitted model reads the road the engine reads: a divider that the map gives twice (float
+    noise, or sampled at other points along it) is no gap in it at exponent 2, where the old road's
+    offroad() held at 198 and 22 of these states (test_a_divider_given_twice_is_no_gap_in_the_road)."""
+    scenario = divided_scenario(tmp_path, divider)
+    data = build_model_data(scenario, make_spec(2))
+    model = NativeModel(data)
+    states = across_the_divider(scenario, data)
+    binary = compile_model(data, tmp_path)
+    stdin = "".join(f"{' '.join(map(str, state))} 0\n" for state in states)
+    lines = subprocess.run([str(binary)], input=stdin, capture_output=True, text=True, check=True,
+                           timeout=60).stdout.splitlines()
+    assert len(lines) == len(states) > 1000
+    assert {line.split()[1] for line in lines} == {"0"}  # offroad() nowhere
+    bad = [state for state, line in zip(states, lines) if normalise(line) != python_line(model, state, 0)]
     assert not bad, f"{len(bad)} of {len(states)} states differ; first: {bad[0]}"
 
 

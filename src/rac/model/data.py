@@ -29,7 +29,7 @@ import dataclasses
 import enum
 import hashlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -37,7 +37,7 @@ from rac.core.diagnostics import RacError
 from rac.core.numbers import INT32_LOW, INT32_MAX
 from rac.ir import ModelSpec
 from rac.ir.expr import Expr
-from rac.model.commonroad import Scenario
+from rac.model.commonroad import Polygon, Scenario
 
 __all__ = [
     "ActionData",
@@ -56,6 +56,21 @@ __all__ = [
 NANOSECOND = Fraction(1, 10**9)
 
 Number = Fraction | int | float
+Point = tuple[float, float]
+
+#: Road vertices of two lanelets closer than this (m) are one point: :func:`_road` gives them one
+#: value, so that they truncate alike (3.4999999999 and 3.5000000001 are 349 and 350 at exponent 2). A
+#: map's float noise is about 1e-9 m and a significand at exponent 5 is 1e-5 m: 1e-6 m joins what
+#: is meant to be one point and moves nothing by an amount the model can tell.
+ROAD_SNAP = 1e-6
+#: A road vertex of one lanelet this close (m) to the inside of another lanelet's edge lies on that
+#: edge: :func:`_road` makes it a vertex of the edge as well. Neighbouring lanelets often sample
+#: their shared divider at different points (DEU_Muc-3_1_T-1: 5 mm apart along it, each rounded to the
+#: file's 4 decimals, so up to 1.5e-4 m off the other's edge); truncated separately, the two edges
+#: part by up to a significand. 1 mm covers maps written to 4 decimals with room to spare and moves an
+#: edge by no more than a tenth of a significand at exponent 2 (the road is the lanelets' union, so a
+#: vertex of an overlapping lanelet inserted alike changes nothing that matters).
+ROAD_JOIN = 1e-3
 
 
 class ModelDataError(RacError, ValueError):
@@ -293,13 +308,112 @@ def _converter(scenario: Scenario, spec: ModelSpec, strict: bool) -> _Converter:
     return _Converter(spec, strict, start.seconds("ego start time", scenario.ego.time))
 
 
+def _snapped(road: Sequence[Polygon]) -> list[list[Point]]:
+    """The road's vertices, each within :data:`ROAD_SNAP` of an earlier polygon's vertex given that
+    vertex's value (the first polygon's, in road order); the rest as they are."""
+    polygons = [list(polygon.points) for polygon in road]
+    # cells of ROAD_SNAP: the earlier vertices within it are in the cell or its 8 neighbours
+    cells: dict[tuple[int, int], list[tuple[int, float, float, Point]]] = {}
+    done: dict[Point, Point] = {}  # each value's outcome: most vertices are another lanelet's exactly
+    for p, points in enumerate(polygons):
+        for v, point in enumerate(points):
+            if point in done:
+                points[v] = done[point]
+                continue
+            x, y = float(point[0]), float(point[1])
+            cx, cy = math.floor(x / ROAD_SNAP), math.floor(y / ROAD_SNAP)
+            twin = next((value for dx in (-1, 0, 1) for dy in (-1, 0, 1)
+                         for q, qx, qy, value in cells.get((cx + dx, cy + dy), ())
+                         if q != p and math.hypot(qx - x, qy - y) <= ROAD_SNAP), None)
+            if twin is None:
+                cells.setdefault((cx, cy), []).append((p, x, y, point))
+            else:
+                points[v] = twin
+            done[point] = points[v]
+    return polygons
+
+
+def _road(conv: Callable[[str, Number], int],
+          road: Sequence[Polygon]) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
+    """The road's polygons in significands, with the edges that neighbouring lanelets share made one.
+
+    Lanelets meet along dividers whose vertices the map gives twice, once per lanelet, and not always
+    alike: a vertex off its twin by float noise truncates to another significand, and a divider sampled
+    at other points along it is another polyline; either way a hairline gap, up to a significand wide,
+    opens between the lanelets, and a corner of the ego in it is off the road. So vertices of different
+    lanelets that are one point get one value before truncation (:func:`_snapped`); then a vertex of
+    another lanelet within :data:`ROAD_JOIN` of the inside of an edge becomes a vertex of that edge
+    too (in order along it, with its own significands), unless its significands lie on the edge's
+    already: both lanelets then carry the same vertices along their divider. Where the significands
+    already agree (every generated scene) the polygons are the vertices' significands, nothing added.
+    """
+    import numpy as np  # numpy: only when the model's data is built; importing rac.model.data stays light
+
+    polygons = _snapped(road)
+    xs, ys, start = _polygons(conv, "road polygon", polygons)
+    flat = [point for points in polygons for point in points]
+    fx = np.array([float(x) for x, _ in flat])
+    fy = np.array([float(y) for _, y in flat])
+    owner = np.repeat(np.arange(len(polygons)), np.diff(start))
+    following = np.arange(1, len(flat) + 1)  # each vertex's next in its polygon, cyclically
+    for low, high in zip(start, start[1:]):
+        if high > low:
+            following[high - 1] = low
+    ex, ey = fx[following] - fx, fy[following] - fy  # edge i runs from vertex i to vertex following[i]
+    length2 = ex * ex + ey * ey
+    order = np.argsort(fx, kind="stable")
+    sorted_x = fx[order]
+    out_x: list[int] = []
+    out_y: list[int] = []
+    out_start = [0]
+    for p in range(len(polygons)):
+        low, high = start[p], start[p + 1]
+        found: dict[int, dict[tuple[int, int], tuple[float, int]]] = {}  # edge -> point -> (along, vertex)
+        if high - low >= 2:
+            box_x, box_y = fx[low:high], fy[low:high]
+            near = order[np.searchsorted(sorted_x, box_x.min() - ROAD_JOIN, "left"):
+                         np.searchsorted(sorted_x, box_x.max() + ROAD_JOIN, "right")]
+            near = near[(owner[near] != p) & (fy[near] >= box_y.min() - ROAD_JOIN)
+                        & (fy[near] <= box_y.max() + ROAD_JOIN)]
+        else:
+            near = order[:0]
+        if near.size:
+            # rows: the polygon's edges; columns: the other polygons' vertices near it
+            e_x, e_y, e_2 = ex[low:high, None], ey[low:high, None], length2[low:high, None]
+            rx, ry = fx[near][None, :] - box_x[:, None], fy[near][None, :] - box_y[:, None]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                along = (rx * e_x + ry * e_y) / e_2
+                off = np.abs(rx * e_y - ry * e_x) / np.sqrt(e_2)
+            hit = (e_2 > 0) & (along > 0) & (along < 1) & (off <= ROAD_JOIN)
+            own = set(zip(xs[low:high], ys[low:high]))
+            for e, c in zip(*np.nonzero(hit)):
+                i, w = low + int(e), int(near[c])
+                j = int(following[i])
+                point = (xs[w], ys[w])
+                if point in own:
+                    continue  # the polygon has it already (at an end of the edge): once is enough
+                # exactly on the truncated edge (integers): the two lanelets' edges agree there already
+                ax, ay, bx, by = xs[j] - xs[i], ys[j] - ys[i], point[0] - xs[i], point[1] - ys[i]
+                if ax * by == ay * bx and 0 <= ax * bx + ay * by <= ax * ax + ay * ay:
+                    continue
+                found.setdefault(i, {})[point] = (float(along[e, c]), w)  # once, however many lanelets share it
+        for i in range(low, high):
+            out_x.append(xs[i])
+            out_y.append(ys[i])
+            for _, w in sorted(found.get(i, {}).values()):  # in order along the edge
+                out_x.append(xs[w])
+                out_y.append(ys[w])
+        out_start.append(len(out_x))
+    return tuple(out_x), tuple(out_y), tuple(out_start)
+
+
 def _polygons(conv: Callable[[str, Number], int], name: str,
-              polygons) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
+              polygons: Iterable[Sequence[Point]]) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
     xs: list[int] = []
     ys: list[int] = []
     start = [0]
-    for p, polygon in enumerate(polygons):
-        for v, (px, py) in enumerate(polygon.points):
+    for p, points in enumerate(polygons):
+        for v, (px, py) in enumerate(points):
             xs.append(conv(f"{name} {p} vertex {v} x", px))
             ys.append(conv(f"{name} {p} vertex {v} y", py))
         start.append(len(xs))
@@ -346,7 +460,7 @@ def _resample(conv: _Converter, times: list[Fraction]) -> _Resampled:
 
 def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
     sig = conv.sig
-    road_x, road_y, road_start = _polygons(sig, "road polygon", scenario.road)
+    road_x, road_y, road_start = _road(sig, scenario.road)
 
     obs_id: list[int] = []
     obs_length: list[int] = []
@@ -405,7 +519,7 @@ def _build(scenario: Scenario, spec: ModelSpec, conv: _Converter) -> ModelData:
 
     ego = scenario.ego
     goal = scenario.goal
-    goal_x, goal_y, goal_start = _polygons(sig, "goal polygon", goal.regions)
+    goal_x, goal_y, goal_start = _polygons(sig, "goal polygon", [region.points for region in goal.regions])
     # Goal.center owns the point dist_goal() measures to (inside the first region)
     center = tuple(exact(c) for c in goal.center) if goal.regions else (Fraction(0), Fraction(0))
 
