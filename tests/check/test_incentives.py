@@ -6,8 +6,12 @@ location partitions the input cells among its edges), compiled by the real front
 `collision` and `episode ends` conditions are random guards set on the IR. The brute force
 (tests/support/reference.py's valuations and sample semantics) simulates every input sequence with
 exact fractions: a run ends at the first sample whose inputs satisfy `episode ends`, else at the
-horizon, and its `at end` clauses read that sample's inputs. Witness runs are replayed by the
-interpreter (rac.runtime.interpreter), which ends a run itself where `episode ends when` holds.
+horizon, and its `at end` clauses read that sample's inputs. Every witness run printed (`--format
+json`: the loopholes' `better` and `worse`, p*'s `witnesses`) is replayed by the interpreter
+(rac.runtime.interpreter, what rac.load gives), which ends a run itself where `episode ends when`
+holds: it must end, reach the goal and collide as it claims, a loophole's pair must show its claim
+(the better run's return above the worse run's), and a run that only approaches a value (a
+supremum) must be near enough its limit to.
 """
 
 from __future__ import annotations
@@ -78,15 +82,16 @@ def conditions(draw, bools: list[str], numeric: bool, threshold: Fraction) -> ir
 
 
 @st.composite
-def cases(draw) -> Case:
+def cases(draw, real: bool = False) -> Case:
+    """``real``: a real input the rates and updates read (its guards cut where runs approach a value)."""
     bools = ["a", "b", "c"][: draw(st.sampled_from([1, 1, 2, 2, 3]))]
-    kind = draw(st.sampled_from([None, None, None, "int", "real"]))
+    kind = "real" if real else draw(st.sampled_from([None, None, None, "int", "real"]))
     # Crashes that cost: `collision when a`, and every sample with `a` goes to the last location with a
     # penalty (else random rewards rarely make R_crash < R_goal, and p* is rarely a probability).
     crashy = draw(st.booleans())
     threshold = Fraction(draw(st.sampled_from([1, 2])))
-    in_rates = kind is not None and draw(st.booleans())
-    in_updates = kind is not None and draw(st.booleans())
+    in_rates = kind is not None and (real or draw(st.booleans()))
+    in_updates = kind is not None and (real or draw(st.booleans()))
     rewards = ["p", "q"][: draw(st.integers(1, 2))]
     n_loc = draw(st.integers(2, 3))
     locs = [f"L{i}" for i in range(n_loc)]
@@ -264,8 +269,8 @@ def oracle(automaton: ir.Automaton, runs: list[BruteRun]) -> Oracle:
 
 # ---------------------------------------------------------------- witnesses
 def check_witness(automaton: ir.Automaton, space: InputSpace, run: Run) -> None:
-    """The run's flags are what it claims, its exact replay gives its value, and (where its inputs lie
-    in their classes) the interpreter, fed them, ends where the run does with the same return."""
+    """The run's flags are what it claims and its exact replay gives its value (the interpreter replays
+    the run as printed: :func:`check_printed_witnesses`)."""
     steps = run.worst.steps
     valuations_ = [space.valuation(step.outcome.cls) for step in steps]
     ends = [holds(automaton.episode_ends, v) for v in valuations_]
@@ -281,30 +286,93 @@ def check_witness(automaton: ir.Automaton, space: InputSpace, run: Run) -> None:
     objective = automaton.objective
     assert objective.const + sum((objective.coefficient(n) * v for n, v in zip(automaton.rewards, values)),
                                  ZERO) == run.value
-    concrete = []
-    for step, valuation in zip(steps, valuations_):
-        x = dict(valuation)
-        for name, value in step.inputs.items():
-            piece = space.piece(step.outcome.cls, name)
-            inside = (piece.low < value < piece.high or (value == piece.low and piece.low_closed)
-                      or (value == piece.high and piece.high_closed))
-            if not inside:
-                return  # a supremum at an open end of the class: not attained by any input
-            x[name] = value
-        concrete.append({n: (v if isinstance(v, bool) else float(v)) for n, v in x.items()})
-    # The runtime ends the run itself where `episode ends when` holds; at the horizon the training loop
-    # passes the last sample's inputs to end(), as the checks assume.
+
+
+def approaches(witness: dict) -> bool:
+    """Whether a printed run only approaches a value somewhere (a supremum: its inputs are near the limit)."""
+    return any(e["approached"] for e in witness["run"]) or bool((witness["end"] or {}).get("approached"))
+
+
+@dataclass
+class Replayed:
+    value: float
+    ended_by: str
+    goal_sample: int | None
+    collided: bool
+    inputs: list[dict[str, object]]  # per sample
+
+
+def replay_json(automaton: ir.Automaton, witness: dict) -> Replayed:
+    """A printed witness run fed to the interpreter sample by sample, as a user replays it with rac.load;
+    at the horizon the training loop passes the end's inputs to end(), as the checks assume."""
+    def exact(inputs: dict) -> dict[str, object]:
+        return {k: v if isinstance(v, bool) else Fraction(v) for k, v in inputs.items()}
+
+    samples = [exact(e["inputs"]) for e in witness["run"] for _ in range(e["sample"], e["last_sample"] + 1)]
+    assert [k for e in witness["run"] for k in range(e["sample"], e["last_sample"] + 1)] == \
+        list(range(1, len(samples) + 1))
     interpreter = RewardAutomaton(automaton)
-    total = 0.0
-    for k, x in enumerate(concrete, start=1):
+    for x in samples:
         assert not interpreter.ended
-        total += interpreter.step(x)
-        assert interpreter.terminated == (k == len(concrete) and run.ended_by == "episode")
-    if run.ended_by == "horizon":
-        total += interpreter.end(concrete[-1])
+        interpreter.step({k: v if isinstance(v, bool) else float(v) for k, v in x.items()})
+    ended_by = "episode" if interpreter.terminated else "horizon"
+    if not interpreter.terminated:
+        assert len(samples) == automaton.steps
+        end = exact(witness["end"]["inputs"])
+        assert end == samples[-1]
+        interpreter.end({k: v if isinstance(v, bool) else float(v) for k, v in end.items()})
     assert interpreter.ended
-    assert math.isclose(interpreter.objective, float(run.value), abs_tol=1e-9)
-    assert math.isclose(total + float(objective.const), float(run.value), abs_tol=1e-9)
+    goals = [k for k, x in enumerate(samples, start=1) if holds(automaton.goal, x)]
+    return Replayed(interpreter.objective, ended_by, goals[0] if goals else None,
+                    any(holds(automaton.collision, x) for x in samples), samples)
+
+
+def check_printed(automaton: ir.Automaton, witness: dict) -> Replayed:
+    """The printed run, replayed, ends, reaches the goal and earns as it says (below its return when it
+    only approaches a value: the return is then a supremum)."""
+    got = replay_json(automaton, witness)
+    assert (got.ended_by, got.goal_sample) == (witness["ended_by"], witness["goal_sample"])
+    claimed = float(Fraction(witness["return"]))
+    if approaches(witness):
+        assert got.value <= claimed + 1e-9, (got.value, witness)
+    else:
+        assert math.isclose(got.value, claimed, abs_tol=1e-9), (got.value, witness)
+    return got
+
+
+def check_printed_witnesses(automaton: ir.Automaton, space: InputSpace, outs) -> None:
+    """Every witness run `rac check` prints for the incentive checks, replayed by the interpreter: p*'s
+    three runs, and each loophole's pair, which must show the loophole's claim."""
+    facts: list[Fact] = []
+    diagnostics = check_incentives(automaton, space, facts, outs)
+    for fact in facts:
+        if fact.check == "risk":
+            witnesses = fact.data["witnesses"]
+            assert isinstance(witnesses, dict)
+            for name, witness in witnesses.items():
+                if witness is not None:
+                    got = check_printed(automaton, witness)
+                    assert got.collided == (name == "crash")
+    for d in diagnostics:
+        if d.code not in ("W1002", "W1004", "W1006"):
+            continue
+        better, worse = d.data["better"], d.data["worse"]
+        b, w = check_printed(automaton, better), check_printed(automaton, worse)
+        if d.code == "W1002":  # the run ends early there without the goal; a safe rest goes on from there
+            k = d.data["sample"]
+            assert (b.ended_by, len(b.inputs)) == ("episode", k) and not holds(automaton.goal, b.inputs[-1])
+            assert b.inputs[:k - 1] == w.inputs[:k - 1] and len(w.inputs) >= k
+            assert not any(holds(automaton.collision, x) for x in w.inputs[k - 1:])
+            assert not (w.ended_by == "episode" and len(w.inputs) == k and not holds(automaton.goal, w.inputs[-1]))
+        elif d.code == "W1004":  # first reaching the goal later pays more, both runs safe
+            assert (b.goal_sample, w.goal_sample) == (d.data["sample"], d.data["other_sample"])
+            assert not b.collided and not w.collided
+        else:  # stalling beats reaching the goal, both runs safe
+            assert (b.goal_sample, w.goal_sample) == (None, d.data["sample"])
+            assert not b.collided and not w.collided
+        # the claim, replayed: the better run earns more, by at least half the gap the returns claim
+        gap = Fraction(better["return"]) - Fraction(worse["return"])
+        assert gap > 0 and b.value - w.value >= float(gap) / 2 - 1e-9, (b.value, w.value, d.data)
 
 
 # ---------------------------------------------------------------- the property
@@ -316,8 +384,10 @@ def test_incentives_agree_with_brute_force(case: Case) -> None:
     assert space is not None and not problems
     if not space.valid.any():
         return
-    found = analyse(automaton, space, moves(automaton, space, split_guards(automaton)))
+    outs = moves(automaton, space, split_guards(automaton))
+    found = analyse(automaton, space, outs)
     assert isinstance(found, Findings)
+    check_printed_witnesses(automaton, space, outs)
     runs = brute_runs(automaton)
     expected = oracle(automaton, runs)
     verdicts = found.verdicts
@@ -536,3 +606,45 @@ def test_json_of_facts_and_diagnostics() -> None:
     delayed = next(item for item in data if item.get("code") == "E1005")["data"]
     assert (delayed["sample"], delayed["other_sample"], delayed["delta"]) == (300, 1, "2392/5")
     assert delayed["better"]["run"][-1]["sample"] == 300 and delayed["better"]["ended_by"] == "episode"
+
+
+@SETTINGS
+@given(cases(real=True))
+def test_every_printed_loophole_replays_its_claim(case: Case) -> None:
+    """As the brute-force property, on programs whose rates and updates read a real input its guards cut:
+    many of their witness runs only approach a value (a supremum), and each must still replay."""
+    automaton = case.automaton
+    space, problems = input_space(automaton)
+    assert space is not None and not problems
+    if space.valid.any():
+        check_printed_witnesses(automaton, space, moves(automaton, space, split_guards(automaton)))
+
+
+STALLING = """automaton Stalling {
+    input x : real in [0, 3]
+    reward p
+    objective p
+    sample every 1
+    horizon 1
+    initial location Drive { p' == 10 * x }
+    location Arrived { p' == 0 }
+    edge Drive -> Arrived when x >= 2 do p = p - 10 * x + 19
+    goal when x >= 2
+}
+"""
+
+
+def test_an_approached_stalling_run_replays_its_claim() -> None:
+    """R_stall = 20 is a supremum, approached as x tends to 2 from below (x = 2 reaches the goal), against
+    a goal run earning 19. The JSON's stalling run once gave x the middle of (0, 2), x = 1, earning 10:
+    replayed, stalling did not beat the goal. x is now near enough 2 that it does, by at least half the
+    gap of 1."""
+    (warning,) = [d for d in compile_text(STALLING, "stalling.ra").diagnostics if d.code == "W1006"]
+    automaton = compile_text(STALLING, "stalling.ra").raise_for_errors()
+    better, worse = warning.data["better"], warning.data["worse"]
+    assert (better["return"], worse["return"]) == ("20", "19")
+    assert better["run"][0]["approached"] == {"x": "2"} and not approaches(worse)
+    stalled, arrived = replay_json(automaton, better), replay_json(automaton, worse)
+    assert (stalled.goal_sample, arrived.goal_sample) == (None, 1)
+    assert arrived.value == 19 and 19.5 <= stalled.value < 20
+    assert 1.95 <= Fraction(better["run"][0]["inputs"]["x"]) < 2

@@ -47,7 +47,7 @@ from rac.check.analysis.affine import (
     sup_weighted,
     then,
 )
-from rac.check.analysis.priority import describe_run, end_json, replay, run_json
+from rac.check.analysis.priority import describe_run, end_json, replay, replayable_runs_json, run_json
 from rac.check.analysis.worst import AFTER_EDGE, AFTER_END, CONTINUE, MAX_SAMPLES, Step, Worst
 from rac.core.diagnostics import INCENTIVES_UNDONE, Diagnostic, Fact, Note, error, short_number, warning
 from rac.core.numbers import exact_decimal
@@ -613,12 +613,32 @@ class _Report:
         listing = ", ".join(f"{r} = {_num(v)}" for r, v in zip(self.automaton.rewards, values))
         return "\n".join([*lines, f"  return {_num(run.value)} ({listing})"])
 
-    def json(self, run: Run | None) -> dict[str, object] | None:
+    def json(self, run: Run | None, samples: dict[str, object] | None = None) -> dict[str, object] | None:
+        """A witness for ``--format json``; ``samples``: its ``run`` and ``end`` when moved to replay
+        (:meth:`pair_json`), else the run's own."""
         if run is None:
             return None
-        return {"return": str(run.value), "ended_by": run.ended_by, "goal_sample": run.goal_sample,
-                "run": run_json(self.automaton, self.space, run.worst),
-                "end": end_json(self.automaton, self.space, run.worst)}
+        if samples is None:
+            samples = {"run": run_json(self.automaton, self.space, run.worst),
+                       "end": end_json(self.automaton, self.space, run.worst)}
+        return {"return": str(run.value), "ended_by": run.ended_by, "goal_sample": run.goal_sample, **samples}
+
+    def returned(self, worst: Worst) -> Fraction:
+        """The return of a witness run, replayed exactly."""
+        values, _ = replay(self.automaton, self.space, worst)
+        objective = self.automaton.objective
+        return objective.const + sum((objective.coefficient(r) * v for r, v in zip(self.automaton.rewards, values)),
+                                     ZERO)
+
+    def pair_json(self, found: Loophole) -> tuple[dict[str, object] | None, dict[str, object] | None]:
+        """The loophole's two runs for ``--format json``, replayable: where a run only approaches a value
+        (a supremum), the value moves towards its limit until the runs, replayed exactly, show the claim
+        by at least half their gap: the better run's return exceeds the worse run's (docs/checks.md)."""
+        gap = found.better.value - found.worse.value
+        better, worse = replayable_runs_json(
+            self.automaton, self.space, [found.better.worst, found.worse.worst],
+            lambda near: self.returned(near[0]) - self.returned(near[1]) >= gap / 2)
+        return self.json(found.better, better), self.json(found.worse, worse)
 
     # ------------------------------------------------------------ p*
     def risk_data(self, found: Incentives) -> dict[str, object]:
@@ -761,7 +781,8 @@ class _Report:
             span = requirement.span
             if declared is not None:
                 notes.insert(0, Note("the condition is declared here", declared))
+        better, worse = self.pair_json(found)
         return make(code, message, span, notes=notes, hints=hints,
                     data={"check": found.check, "delta": str(found.delta), "sample": found.sample,
                           "other_sample": found.other_sample,
-                          "better": self.json(found.better), "worse": self.json(found.worse)})
+                          "better": better, "worse": worse})

@@ -653,8 +653,24 @@ def replayable_json(automaton: ir.Automaton, space: InputSpace, worst: Worst,
     as near the limit as the run needs to violate (``violates``, on the run replayed exactly): runs
     close enough to a supremum above the bound violate too, but the representative's need not
     (docs/checks.md). ``approached`` still names the limits."""
+    (found,) = replayable_runs_json(automaton, space, [worst], lambda near: violates(near[0]))
+    return found
+
+
+def replayable_runs_json(automaton: ir.Automaton, space: InputSpace, worsts: Sequence[Worst],
+                         holds: Callable[[list[Worst]], bool]) -> list[dict[str, object]]:
+    """:func:`replayable_json` of runs a diagnostic compares (an incentive check's pair: the run that
+    ends early and the best continuation, ...): ``run`` and ``end`` of each, their approached values
+    moved alike (by the same fraction, so that a prefix the runs share stays shared) until ``holds``,
+    on the runs replayed exactly, says the diagnostic's claim is true of them."""
+    nears = _near_limits(space, worsts, holds)
+    return [_moved_json(automaton, space, worst, near) for worst, near in zip(worsts, nears)]
+
+
+def _moved_json(automaton: ir.Automaton, space: InputSpace, worst: Worst, near: Worst) -> dict[str, object]:
+    """``run`` and ``end`` of ``near`` (``worst`` with its approached values moved), ``approached``
+    naming the limits ``worst`` approaches."""
     run, end = run_json(automaton, space, worst), end_json(automaton, space, worst)
-    near = _near_limits(space, worst, violates)
     if near is worst:
         return {"run": run, "end": end}
     limits = {k: entry["approached"] for entry in run
@@ -668,42 +684,50 @@ def replayable_json(automaton: ir.Automaton, space: InputSpace, worst: Worst,
     return {"run": moved, "end": moved_end}
 
 
-#: How near (a fraction 2**-k of the way from the representative) :func:`_near_limits` tries at most.
+#: How near (a fraction 2**-k of the way from the representative) :func:`_near_limits` tries at most:
+#: so at most this many exact replays of each run (a loophole's pair: 2 * 64), none where no value is
+#: only approached.
 NEAREST = 64
 
 
-def _near_limits(space: InputSpace, worst: Worst, violates: Callable[[Worst], bool]) -> Worst:
-    """``worst`` with each input value it only approaches moved into its class, a fraction 2**-k of the
-    way from the value to the class's representative, for the first k (from 1) at which the run still
-    ``violates``; ``worst`` itself where it approaches nothing (or no k up to :data:`NEAREST` does)."""
+def _near_limits(space: InputSpace, worsts: Sequence[Worst], holds: Callable[[list[Worst]], bool]) -> list[Worst]:
+    """``worsts`` with each input value they only approach moved into its class, a fraction 2**-k of
+    the way from the value to the class's representative, for the first k (from 1) at which the runs
+    still satisfy ``holds``; ``worsts`` themselves where they approach nothing (or no k up to
+    :data:`NEAREST` does)."""
     def approaches(cls: int, values: Mapping[str, Fraction]) -> bool:
         return any(not space.attains(cls, name, value) for name, value in values.items())
 
-    ends = worst.end is not None and worst.instant in (AFTER_END, MID_END)
-    if not any(approaches(step.outcome.cls, step.inputs) for step in worst.steps) and not (
-            ends and approaches(worst.end.cls, worst.end_inputs)):  # type: ignore[union-attr]
-        return worst
+    def ends(worst: Worst) -> bool:
+        return worst.end is not None and worst.instant in (AFTER_END, MID_END)
 
-    def moved(cls: int, values: dict[str, Fraction], fraction: Fraction) -> dict[str, Fraction]:
-        inside = space.valuation(cls)
-        return {name: value if space.attains(cls, name, value) else
-                value + fraction * (inside[name] - value)  # type: ignore[operator]
-                for name, value in values.items()}
+    if not any(approaches(step.outcome.cls, step.inputs) for worst in worsts for step in worst.steps) and not any(
+            ends(worst) and approaches(worst.end.cls, worst.end_inputs) for worst in worsts):  # type: ignore[union-attr]
+        return list(worsts)
+
+    def moved(cls: int, values: dict[str, Fraction], fraction: Fraction,
+              shared: dict[tuple[int, int], dict[str, Fraction]]) -> dict[str, Fraction]:
+        key = (cls, id(values))  # runs repeat their samples' inputs (and share a prefix's): move each once
+        if key not in shared:
+            inside = space.valuation(cls)
+            shared[key] = {name: value if space.attains(cls, name, value) else
+                           value + fraction * (inside[name] - value)  # type: ignore[operator]
+                           for name, value in values.items()}
+        return shared[key]
 
     for k in range(1, NEAREST + 1):
         fraction = Fraction(1, 2 ** k)
-        shared: dict[int, dict[str, Fraction]] = {}  # a run repeats its samples' inputs: move each once
-        steps = []
-        for step in worst.steps:
-            key = id(step.inputs)
-            if key not in shared:
-                shared[key] = moved(step.outcome.cls, step.inputs, fraction)
-            steps.append(dataclasses.replace(step, inputs=shared[key]))
-        end_inputs = moved(worst.end.cls, worst.end_inputs, fraction) if ends else worst.end_inputs  # type: ignore[union-attr]
-        near = dataclasses.replace(worst, steps=steps, end_inputs=end_inputs)
-        if violates(near):
-            return near
-    return worst
+        shared: dict[tuple[int, int], dict[str, Fraction]] = {}
+        nears = []
+        for worst in worsts:
+            steps = [dataclasses.replace(step, inputs=moved(step.outcome.cls, step.inputs, fraction, shared))
+                     for step in worst.steps]
+            end_inputs = (moved(worst.end.cls, worst.end_inputs, fraction, shared)  # type: ignore[union-attr]
+                          if ends(worst) else worst.end_inputs)
+            nears.append(dataclasses.replace(worst, steps=steps, end_inputs=end_inputs))
+        if holds(nears):
+            return nears
+    return list(worsts)
 
 
 def end_json(automaton: ir.Automaton, space: InputSpace, worst: Worst) -> dict[str, object] | None:
