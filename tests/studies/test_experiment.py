@@ -557,6 +557,7 @@ def test_json_keeps_the_files_warnings_and_names_the_files_written(tmp_path: Pat
     assert [(w["code"], w["span"]["line"]) for w in document["warnings"]] == [("W0303", 3)]
     assert document["wrote"] == [str(out / name) for name in
                                  ("experiment.md", "results.json", "returns.png", "first_success.png")]
+    assert document["ok"] is True  # exit 0 (every command's document has it)
     # the rest is results.json as written
     written = json.loads((out / "results.json").read_text(encoding="utf-8"))
-    assert {k: v for k, v in document.items() if k not in ("warnings", "wrote")} == written
+    assert {k: v for k, v in document.items() if k not in ("warnings", "wrote", "ok")} == written
