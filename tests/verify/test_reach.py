@@ -242,3 +242,19 @@ def test_the_horizon_option_reaches_the_searches(tmp_path: Path) -> None:
     path = write_engine_file(tmp_path, "goal_ahead", {"Reaches": QUERIES["Reaches"]})
     short = answers(compile_file(path), horizon=Fraction(1))["Reaches"]
     assert (short.status, short.method) == ("not satisfied", "exhaustive")  # type: ignore[attr-defined]
+
+
+def test_the_witness_search_keeps_within_max_memory(tmp_path: Path) -> None:
+    """The beam's graph was bounded by its work budget alone (some 150 MB at 2 million states), never by
+    --max-memory: a limit below that was exceeded. Now the beam stops at the limit, the verdict stays
+    unknown, and the message says which limit cut the search (not an error)."""
+    result = compile_file(write_engine_file(tmp_path, "goal_ahead", {"Never": "E<> v >= 99"}))
+    unbounded = answers(result, witness=Bounds(runs=0))["Never"]
+    assert (unbounded.status, unbounded.method) == ("not satisfied", "exhaustive")  # type: ignore[attr-defined]
+    cut = answers(result, witness=Bounds(runs=0), max_bytes=20_000)["Never"]
+    assert cut.status == "unknown"  # type: ignore[attr-defined]
+    assert "a beam search (73 states, cut short by --max-memory)" in cut.message  # type: ignore[attr-defined]
+    context = Context(result, VerifyOptions(seed=1))
+    found = search(context.data, lambda k, rows: rows[:, 0] < -1, horizon_samples=context.horizon_samples, seed=1,
+                   bounds=Bounds(runs=0, max_bytes=20_000))
+    assert found.out_of_memory and found.witness is None and not found.proves_absence and found.states > 0

@@ -40,7 +40,7 @@ import numpy as np
 
 from rac.core.diagnostics import RacError
 from rac.engine.allow import ActionGuard, action_pairs
-from rac.engine.budget import Budget
+from rac.engine.budget import Budget, BudgetExceeded
 from rac.engine.explore import COLUMNS, STICKY_COLUMNS, Progress, explore
 from rac.engine.graph import ExploredGraph
 from rac.model.batch import BatchModel, batch_model
@@ -75,12 +75,16 @@ class Bounds:
     ``width`` states per layer, each search at most ``max_states`` states — a budget of work, so that
     what they find depends on the seed alone. ``safety_seconds`` (None: none) is only a safety net
     against a machine far slower than expected; where it cuts a search, :attr:`Found.timed_out` says
-    so and the outcome depends on the machine's speed. ``runs`` or ``width`` 0 leaves that search out."""
+    so and the outcome depends on the machine's speed. ``runs`` or ``width`` 0 leaves that search out.
+    ``max_bytes`` (None: none) is the memory the beam's graph may take (``--max-memory``): its work
+    budget alone lets it grow to some 150 MB; where the memory cuts it, :attr:`Found.out_of_memory`
+    says so."""
 
     runs: int = 2000
     width: int = 5000
     safety_seconds: float | None = SAFETY_SECONDS
     max_states: int = 2_000_000
+    max_bytes: int | None = None
 
 
 @dataclass(frozen=True)
@@ -112,12 +116,14 @@ class Found:
     """What a search found: the ``witness`` (None: none), the ``states`` it generated, and — for the
     searches that explore — the ``graph`` they built (``graph.complete``: every state was explored,
     so without a witness none exists); ``timed_out``: stopped by its time limit (the safety net, or a
-    deadline the caller set), not by its work budget."""
+    deadline the caller set), not by its work budget; ``out_of_memory``: stopped by its memory limit
+    (:attr:`Bounds.max_bytes`)."""
 
     witness: Witness | None
     states: int
     graph: ExploredGraph | None = None
     timed_out: bool = False
+    out_of_memory: bool = False
 
     @property
     def proves_absence(self) -> bool:
@@ -253,12 +259,12 @@ def witness_along(graph: ExploredGraph, path: list[int], search: str) -> Witness
 
 def beam_search(data: ModelData, target: Predicate, *, horizon_samples: int, width: int, seed: int,
                 through: Predicate | None = None, prune_unsafe: bool = False, score: Score | None = None,
-                deadline: float | None = None) -> Found:
+                deadline: float | None = None, max_bytes: int | None = None) -> Found:
     """A beam search: each layer keeps its ``width`` states of lowest ``score`` (default:
     :func:`goal_distance`; ties broken at random, seeded), the target states first and, with ``through``,
     only states satisfying it; it stops at the first layer with a target state. When no layer had to
     be cut (and none was filtered by ``through``), the graph it returns is the whole exploration
-    (``complete``)."""
+    (``complete``). Past ``max_bytes`` it stops without a witness (:attr:`Found.out_of_memory`)."""
     if through is not None:
         # explore's beam chooses among each new layer's states, never the start's: a start outside ``through``
         # (and not a target) ends every run there, as in random_runs and the replay
@@ -287,9 +293,11 @@ def beam_search(data: ModelData, target: Predicate, *, horizon_samples: int, wid
 
     try:
         graph = explore(data, horizon_samples=horizon_samples, prune_unsafe=prune_unsafe, stop_at=target,
-                        beam=keep, progress=count)
+                        beam=keep, progress=count, max_bytes=max_bytes)
     except _OutOfTime:
         return Found(None, generated[0], timed_out=True)
+    except BudgetExceeded as exc:  # a search that proves nothing: its caller goes on as after any cut search
+        return Found(None, exc.states, out_of_memory=True)
     return Found(witness_in(graph, target, "beam"), graph.n_states, graph)
 
 
@@ -320,8 +328,9 @@ def search(data: ModelData, target: Predicate, *, horizon_samples: int, seed: in
     if found.witness is not None or width <= 0:
         return found
     beam = beam_search(data, target, horizon_samples=horizon_samples, width=width, seed=_seed(seeds[1]),
-                       through=through, prune_unsafe=prune_unsafe, score=score, deadline=deadline)
-    return Found(beam.witness, found.states + beam.states, beam.graph, beam.timed_out)
+                       through=through, prune_unsafe=prune_unsafe, score=score, deadline=deadline,
+                       max_bytes=bounds.max_bytes)
+    return Found(beam.witness, found.states + beam.states, beam.graph, beam.timed_out, beam.out_of_memory)
 
 
 def _seed(sequence: np.random.SeedSequence) -> int:

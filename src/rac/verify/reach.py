@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rac.core.diagnostics import counted
+from rac.core.resources import memory_option
 from rac.engine.budget import Budget, BudgetExceeded
 from rac.engine.graph import ExploredGraph
 from rac.engine.witness import (
@@ -97,7 +98,9 @@ class Reacher:
             return Reached(witness, "exhaustive", cached.n_states, prune, cached)
         try:
             bounds = ctx.options.witness
-            bounds = dataclasses.replace(bounds, max_states=min(bounds.max_states, ctx.options.max_states))
+            # its graph shares --max-memory with the graphs kept for later queries, as any exploration does
+            bounds = dataclasses.replace(bounds, max_states=min(bounds.max_states, ctx.options.max_states),
+                                         max_bytes=ctx.memory_left())
             left = ctx.limit.remaining()  # the search's safety net within --max-seconds
             net = bounds.safety_seconds
             if left is not None and (net is None or left < net):
@@ -164,6 +167,9 @@ class Reacher:
 
 def _searched(found: Found, runs: int) -> str:
     """What the cheap searches tried, for an unknown verdict's message."""
+    cut = ", cut short by a time limit" if found.timed_out else ""
+    if found.out_of_memory:
+        cut = f", cut short by {memory_option()}"
     return (f"no witness was found by {counted(runs, 'random run')} and a beam search ({counted(found.states, 'state')}"
-            f"{', cut short by a time limit' if found.timed_out else ''}), and the exhaustive exploration "
+            f"{cut}), and the exhaustive exploration "
             "needed to prove that none exists is beyond the budget")
