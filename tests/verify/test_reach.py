@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
@@ -34,6 +35,7 @@ from rac.engine.budget import BudgetExceeded
 from rac.engine.explore import explore
 from rac.engine.witness import Bounds, Found, search
 from rac.model.batch import batch_model
+from rac.model.sample import EGO
 from rac.model.scenes import write_scene
 from rac.verify.context import Context, VerifyOptions
 from rac.verify.runner import run_queries
@@ -258,3 +260,29 @@ def test_the_witness_search_keeps_within_max_memory(tmp_path: Path) -> None:
     found = search(context.data, lambda k, rows: rows[:, 0] < -1, horizon_samples=context.horizon_samples, seed=1,
                    bounds=Bounds(runs=0, max_bytes=20_000))
     assert found.out_of_memory and found.witness is None and not found.proves_absence and found.states > 0
+
+
+def test_the_continuation_of_a_witness_honours_the_time_limit(tmp_path: Path) -> None:
+    """Whether a safe run to the goal also stays safe to the horizon is looked for by random runs (two
+    batches of 2,000, about a second) that never read --max-seconds. They now stop at the query's limit,
+    and the note says that the limit, not the runs, left it open."""
+    from rac.engine.budget import TimeLimit
+    from rac.verify.reach import Reacher
+    from rac.verify.symbolic import SymbolicAnswerer
+
+    result = compile_file(write_engine_file(tmp_path, "goal_ahead", {"Qc": QC}))
+    context = Context(result, VerifyOptions(seed=1))
+    goal = batch_model(context.data)
+
+    def target(k: int, rows: np.ndarray) -> np.ndarray:
+        return np.asarray(goal.goal(rows[:, EGO], k), dtype=bool)
+
+    reached = Reacher(context).find(target, prune=True, exhaustive=False)
+    assert reached is not None and reached.witness is not None
+    free = Reacher(context).continues_safely(reached.witness, target)
+    assert free.witness is not None and not free.timed_out
+    context.limit = TimeLimit(1.0, started=time.perf_counter() - 2.0)  # the query's time is up
+    late = Reacher(context).continues_safely(reached.witness, target)
+    assert late.witness is None and late.timed_out and late.states == 0
+    meaning = SymbolicAnswerer(context)._safe_meaning(target, reached.witness)
+    assert "is not known: the random runs that look for one were cut short by --max-seconds" in meaning

@@ -168,7 +168,8 @@ def goal_distance(data: ModelData) -> Score:
 # ---------------------------------------------------------------- random runs
 def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, runs: int, seed: int,
                 through: Predicate | None = None, prune_unsafe: bool = False, deadline: float | None = None,
-                start: tuple[int, np.ndarray] | None = None, via: Predicate | None = None) -> Found:
+                start: tuple[int, np.ndarray] | None = None, via: Predicate | None = None,
+                out_of_time: Callable[[], bool] | None = None) -> Found:
     """Up to ``runs`` random runs (:data:`RUN_BATCH` at a time) until one is a witness.
 
     At each decision a run draws one of its allowed actions uniformly (``allow when``; a run with none
@@ -176,7 +177,9 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
     unsafe state) — after that state was tested against ``target``. ``start`` ``(k, row)`` starts the
     runs there instead of at the ego's start (the witness then starts at ``k``). With ``via`` a run is
     a witness only once one of its states satisfied ``via`` too. ``deadline``: a
-    :func:`time.perf_counter` value after which no new batch is started."""
+    :func:`time.perf_counter` value after which no new batch is started (the searches' safety net);
+    ``out_of_time``: asked once per sample, True stops the runs there (a caller's time limit, which a
+    batch of long runs, a good part of a second, would otherwise overrun). Either sets :attr:`Found.timed_out`."""
     model = batch_model(data)
     guard = ActionGuard(data)
     pairs = action_pairs(data)
@@ -195,6 +198,8 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
         alive = np.arange(n)
         visited = np.zeros(n, dtype=bool) if via is not None else np.ones(n, dtype=bool)
         for k in range(first_k, horizon_samples + 1):
+            if out_of_time is not None and out_of_time():
+                return Found(None, generated, timed_out=True)
             step = k - first_k
             history[alive, step] = rows[alive]
             generated += alive.size

@@ -138,31 +138,38 @@ class Reacher:
         ctx.graphs.setdefault(prune, layered.graph)
         return Reached(None, "exhaustive", layered.graph.n_states, prune, layered.graph)
 
-    def continues_safely(self, witness: Witness, target: Predicate) -> Witness | None:
+    def continues_safely(self, witness: Witness, target: Predicate) -> Found:
         """A run of the pruned model through a ``target`` state that stays safe to the horizon — a
         continuation of ``witness`` (whose last state satisfies ``target``), or else a run from the
-        start — found by random runs and replayed (None: none found, which proves nothing)."""
+        start — found by random runs and replayed (no witness: none found, which proves nothing). The runs
+        stop at the query's time limit (``--max-seconds``; :attr:`Found.timed_out`)."""
         ctx = self.context
         horizon = ctx.horizon_samples
         data = ctx.data
         runs = ctx.options.witness.runs
+        limit = ctx.limit
+
+        def out_of_time() -> bool:
+            return limit.remaining() == 0
 
         def at_end(k: int, rows: np.ndarray) -> np.ndarray:
             return safe_states(data, k, rows) & (k == horizon)
 
-        tail = random_runs(data, at_end, horizon_samples=horizon, runs=runs, seed=ctx.search_seed(),
-                           prune_unsafe=True, start=(witness.samples, witness.last)).witness
-        whole: Witness | None
+        found = random_runs(data, at_end, horizon_samples=horizon, runs=runs, seed=ctx.search_seed(),
+                            prune_unsafe=True, start=(witness.samples, witness.last), out_of_time=out_of_time)
+        tail = found.witness
+        whole: Witness | None = None
         if tail is not None:
             whole = Witness(np.concatenate([witness.states[:-1], tail.states]), witness.columns,
                             np.concatenate([witness.actions, tail.actions]), witness.search)
-        else:
-            whole = random_runs(data, at_end, horizon_samples=horizon, runs=runs, seed=ctx.search_seed(),
-                                prune_unsafe=True, via=target).witness
+        elif not found.timed_out:
+            found = random_runs(data, at_end, horizon_samples=horizon, runs=runs, seed=ctx.search_seed(),
+                                prune_unsafe=True, via=target, out_of_time=out_of_time)
+            whole = found.witness
         if whole is None:
-            return None
+            return Found(None, found.states, timed_out=found.timed_out)
         replay(data, whole, at_end, prune_unsafe=True)
-        return whole
+        return Found(whole, found.states)
 
 
 def _searched(found: Found, runs: int) -> str:

@@ -217,14 +217,18 @@ class SymbolicAnswerer:
         horizon = f"{ctx.horizon_samples * float(ctx.period):g} s"
         complete = ctx.graphs.get(True)
         to_horizon: bool | None
+        why = "random runs found none"
         if complete is not None:
             to_horizon = storm.safe_reach(complete, in_graph(complete, target)).to_horizon
         else:
-            to_horizon = True if self.reacher.continues_safely(witness, target) is not None else None
+            found = self.reacher.continues_safely(witness, target)
+            to_horizon = True if found.witness is not None else None
+            if found.timed_out:
+                why = "the random runs that look for one were cut short by --max-seconds"
         return "a run that stays safe until it gets there exists (the trace); " + (
             f"one of them stays safe to the horizon ({horizon}) too" if to_horizon
             else f"NONE of them stays safe to the horizon ({horizon})" if to_horizon is False
-            else f"whether one of them stays safe to the horizon ({horizon}) is not known: random runs found none "
+            else f"whether one of them stays safe to the horizon ({horizon}) is not known: {why} "
                  "(the complete pruned model would decide it)")
 
     def _decided(self, query: iq.PathQuery, base: QueryResult, graph: ExploredGraph) -> QueryResult:
