@@ -561,3 +561,20 @@ def test_json_keeps_the_files_warnings_and_names_the_files_written(tmp_path: Pat
     # the rest is results.json as written
     written = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert {k: v for k, v in document.items() if k not in ("warnings", "wrote", "ok")} == written
+
+
+def test_the_shields_exploration_counts_its_states(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """rac experiment's shield exploration (minutes on a big scene) showed its phase and no count: no bar on a
+    terminal, and off one the heartbeat's lines said no states and no rate, as rac verify's explorations do."""
+    from rac.output.progress import Heartbeat
+
+    heard: list[tuple[str, object]] = []
+    monkeypatch.setattr(Heartbeat, "phase", lambda self, text: heard.append(("phase", text)))
+    monkeypatch.setattr(Heartbeat, "count", lambda self, n, unit, what="": heard.append((unit, n)))
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    assert main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--runs", "2", "--reward-function",
+                 REWARD_FUNCTION, "--combination", "SS&RA", "--out", str(tmp_path / "out")]) == 0
+    start = heard.index(("phase", "computing the safety shield"))
+    end = next(i for i in range(start + 1, len(heard)) if heard[i][0] == "phase")
+    states = [n for unit, n in heard[start:end] if unit == "states"]
+    assert len(states) > 1 and states == sorted(states) and states[-1] > 1, heard

@@ -838,15 +838,25 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
             _report(args, usage_error(f"--bins: not a list of numbers: {args.bins!r}"))
             return EXIT_USAGE
     out_dir = _out_dir(args)
-    announce = _announcer(args.quiet)
+    shown = _announcer(args.quiet)
+    # the shield's exploration counts its states, as rac verify's do (a bar; off a terminal, the heartbeat)
+    bar, callback = _explore_bar(args.quiet)
+
+    def announce(message: str) -> None:
+        if bar.n:  # the shield's exploration is over: its bar would sit still under the learning's lines
+            bar.close()
+        shown(message)
+
     try:
-        report = run_experiment(result, seeds=seeds, episodes=args.episodes, evaluation_runs=args.runs,
-                                reward_function=args.reward_function,
-                                horizon_samples=_horizon_samples(result, args.horizon) if args.horizon else None,
-                                max_states=args.max_states, combinations=args.combination, bins=bins,
-                                counterfactuals=not args.no_counterfactuals, replay=args.replay,
-                                ablation=args.ablation, observe_time=not args.no_time,
-                                max_bytes=args.max_memory or default_max_bytes(), progress=announce)
+        with bar:
+            report = run_experiment(result, seeds=seeds, episodes=args.episodes, evaluation_runs=args.runs,
+                                    reward_function=args.reward_function,
+                                    horizon_samples=_horizon_samples(result, args.horizon) if args.horizon else None,
+                                    max_states=args.max_states, combinations=args.combination, bins=bins,
+                                    counterfactuals=not args.no_counterfactuals, replay=args.replay,
+                                    ablation=args.ablation, observe_time=not args.no_time,
+                                    max_bytes=args.max_memory or default_max_bytes(), progress=announce,
+                                    explore_progress=callback)
     except ExperimentError as exc:
         # an option to change or a budget, as simulate's; the file's own failure (no safe strategy), with
         # its source line when it points into the file

@@ -233,10 +233,11 @@ def _check_counterfactual_observation(result: CompileResult, ablation: bool) -> 
 
 
 def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed: bool,
-            max_bytes: int | None = None):
+            max_bytes: int | None = None, explore_progress: Callable[[int, int, int], None] | None = None):
     """The safety shield's table (None when ``needed`` is false and no safe strategy exists from the
     start), the seconds it took, its states, and the judge of "safe to the horizon" from a goal state
-    (:class:`rac.engine.shield.SafeOnward`); ExperimentError when the shield is needed and absent."""
+    (:class:`rac.engine.shield.SafeOnward`); ExperimentError when the shield is needed and absent.
+    ``explore_progress``: the exploration's per-layer callback (the states counted so far)."""
     # stormpy (via rac.engine.shield): importing rac.studies.experiment stays light
     from rac.engine import shield as shields
     from rac.verify.context import over_budget  # beside it (it imports the shield too): a refusal in the options' words
@@ -245,7 +246,8 @@ def _shield(result: CompileResult, horizon_samples: int, max_states: int, needed
     assert data is not None
     t0 = time.perf_counter()
     try:
-        computed, table = shields.synthesise(data, horizon_samples, max_states=max_states, max_bytes=max_bytes)
+        computed, table = shields.synthesise(data, horizon_samples, max_states=max_states, max_bytes=max_bytes,
+                                             progress=explore_progress)
     except MemoryError as exc:
         # the budget's own refusal says which limit stopped it; the process's memory running out first (a
         # `ulimit -v`, a container) said only numpy's "Unable to allocate 80.0 MiB", with no limit named
@@ -275,7 +277,8 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
                    growth: float | None = GROWTH, ablation: bool = False, observe_time: bool = True,
                    max_bytes: int | None = None, memo: bool = True,
                    progress: Callable[[str], None] | None = None,
-                   fewer_runs: str | None = "the seeds or the combinations") -> Report:
+                   fewer_runs: str | None = "the seeds or the combinations",
+                   explore_progress: Callable[[int, int, int], None] | None = None) -> Report:
     """Run every combination for every seed; a JSON-ready report (see :func:`render_markdown`).
     ``bins``: the widths of the continuous observations (default: derived from the model and its
     goal, :func:`rac.learning.strategy.derived_bins`); ``counterfactuals``: the RA combinations learn
@@ -289,7 +292,8 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     the steps taken before (:class:`rac.learning.episodes.EpisodeBatch`'s ``memo``; the same results,
     benchmarks/learning.py compares the time); ``fewer_runs``: what else the caller's user may lower to run
     fewer runs, as the budget's refusals advise it (``rac sweep`` has no option for the combinations; None:
-    nothing else). Every combination
+    nothing else); ``explore_progress``: the shield's exploration, layer by layer (``(sample, frontier,
+    states so far)``, as :func:`rac.engine.explore.explore`'s ``progress``; the CLI's bar counts it). Every combination
     learns with :data:`LEARNER` and learns to the budget (the greedy strategy kept is the best
     evaluated: its return keeps improving late, after 90 to 490 of 500 episodes on examples/paper).
 
@@ -355,7 +359,7 @@ def run_experiment(result: CompileResult, *, seeds: Sequence[int] = (1, 2, 3, 4,
     if progress:
         progress("computing the safety shield")
     shield_table, shield_seconds, shield_states, onward = _shield(
-        result, horizon, max_states, any(shielded for _, shielded, _ in wanted), max_bytes)
+        result, horizon, max_states, any(shielded for _, shielded, _ in wanted), max_bytes, explore_progress)
     shared.onward = onward
     # the ablation learns SS&RA: its rows are measured against SS&RA's optimum, also when the table leaves
     # SS&RA out (--combination)
