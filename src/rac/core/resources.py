@@ -57,11 +57,12 @@ def memory_option_named(option: str, *, limits: bool = False) -> Iterator[None]:
 #: A scenario file larger than this is announced before it loads (``check_scenario``'s ``progress``):
 #: at :data:`LOAD_BYTES_PER_SECOND` it takes a few seconds or more.
 LOAD_NOTICE_BYTES = 4 * 2**20
-#: How fast a scenario loads and its model's data is built, per byte of the file: the slowest rate
-#: ``benchmarks/scenario_load.py`` measured (docs/history.md, "Loading a large scenario (issue 22)": 0.38 MB/s
-#: for 500 to 3,000 obstacles, 0.5 MB/s for 2,000 to 10,000 lanelets, on a shared 2-core machine).
-#: For the announced time only.
-LOAD_BYTES_PER_SECOND = 384 * 2**10
+#: How fast a scenario loads and its model's data is built, per byte of the file, for the announced time
+#: only: a little below the slowest rate ``benchmarks/scenario_load.py`` measures (docs/benchmarks.md: 1.66 MB/s
+#: idle; 1.24 MB/s for 10,000 lanelets and 2.0-2.4 MB/s for 400-1,500 obstacles with the 2 cores shared), so
+#: the time said is an upper "about". It was 0.375 MB/s, measured on a loaded machine partly before issue 22's
+#: load was made linear: some 54 s announced for a 20 MB scene of 400 obstacles that loads in 9-16 s.
+LOAD_BYTES_PER_SECOND = 2**20
 #: The peak memory of loading a scenario and building its model's data, beyond what the process held
 #: before, per byte of the file: an upper estimate over what ``benchmarks/scenario_load.py`` measured
 #: (docs/history.md, "Loading a large scenario (issue 22)"): lanelets cost about 43 bytes per file byte, 500
