@@ -286,3 +286,37 @@ def test_the_continuation_of_a_witness_honours_the_time_limit(tmp_path: Path) ->
     assert late.witness is None and late.timed_out and late.states == 0
     meaning = SymbolicAnswerer(context)._safe_meaning(target, reached.witness)
     assert "is not known: the random runs that look for one were cut short by --max-seconds" in meaning
+
+
+def test_random_runs_hold_no_more_runs_at_once_than_max_memory_leaves_room_for(tmp_path: Path) -> None:
+    """The random runs keep a batch's runs whole (1,000 runs x every sample to the horizon): the
+    continuation of a witness, not capped by the searches' 2 million states, would hold 1,000 runs of a
+    300,000-sample horizon (some 12 GB) whatever --max-memory said. A batch now holds what fits; where
+    not one run fits none is made, and the note says so."""
+    from rac.engine.witness import random_runs
+    from rac.verify.reach import Reacher
+    from rac.verify.symbolic import SymbolicAnswerer
+
+    result = compile_file(write_engine_file(tmp_path, "goal_ahead", {"Qc": QC}))
+    context = Context(result, VerifyOptions(seed=1))
+    data, horizon = context.data, context.horizon_samples
+    model = batch_model(data)
+
+    def target(k: int, rows: np.ndarray) -> np.ndarray:
+        return np.asarray(model.goal(rows[:, EGO], k), dtype=bool)
+
+    def never(k: int, rows: np.ndarray) -> np.ndarray:
+        return np.zeros(rows.shape[0], dtype=bool)
+
+    per_run = (horizon + 1) * (7 * 4 + 8)  # goal_ahead's rows: the 7 ego columns
+    whole = random_runs(data, never, horizon_samples=horizon, runs=10, seed=1)
+    small = random_runs(data, never, horizon_samples=horizon, runs=10, seed=1, max_bytes=3 * per_run)
+    assert not whole.out_of_memory and not small.out_of_memory and small.states == whole.states
+    none = random_runs(data, never, horizon_samples=horizon, runs=10, seed=1, max_bytes=per_run - 1)
+    assert none.out_of_memory and none.states == 0 and none.witness is None
+    reached = Reacher(context).find(target, prune=True, exhaustive=False)
+    assert reached is not None and reached.witness is not None
+    context.options = dataclasses.replace(context.options, max_bytes=20)  # not one sample's state and choice
+    assert Reacher(context).continues_safely(reached.witness, target).out_of_memory
+    meaning = SymbolicAnswerer(context)._safe_meaning(target, reached.witness)
+    assert "is not known: not one random run to the horizon fits in --max-memory" in meaning

@@ -76,9 +76,9 @@ class Bounds:
     what they find depends on the seed alone. ``safety_seconds`` (None: none) is only a safety net
     against a machine far slower than expected; where it cuts a search, :attr:`Found.timed_out` says
     so and the outcome depends on the machine's speed. ``runs`` or ``width`` 0 leaves that search out.
-    ``max_bytes`` (None: none) is the memory the beam's graph may take (``--max-memory``): its work
-    budget alone lets it grow to some 150 MB; where the memory cuts it, :attr:`Found.out_of_memory`
-    says so."""
+    ``max_bytes`` (None: none) is the memory the beam's graph, and a batch of random runs, may take
+    (``--max-memory``): the work budget alone lets the beam grow to some 150 MB; where the memory cuts
+    a search, :attr:`Found.out_of_memory` says so."""
 
     runs: int = 2000
     width: int = 5000
@@ -169,7 +169,7 @@ def goal_distance(data: ModelData) -> Score:
 def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, runs: int, seed: int,
                 through: Predicate | None = None, prune_unsafe: bool = False, deadline: float | None = None,
                 start: tuple[int, np.ndarray] | None = None, via: Predicate | None = None,
-                out_of_time: Callable[[], bool] | None = None) -> Found:
+                out_of_time: Callable[[], bool] | None = None, max_bytes: int | None = None) -> Found:
     """Up to ``runs`` random runs (:data:`RUN_BATCH` at a time) until one is a witness.
 
     At each decision a run draws one of its allowed actions uniformly (``allow when``; a run with none
@@ -179,7 +179,10 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
     a witness only once one of its states satisfied ``via`` too. ``deadline``: a
     :func:`time.perf_counter` value after which no new batch is started (the searches' safety net);
     ``out_of_time``: asked once per sample, True stops the runs there (a caller's time limit, which a
-    batch of long runs, a good part of a second, would otherwise overrun). Either sets :attr:`Found.timed_out`."""
+    batch of long runs, a good part of a second, would otherwise overrun). Either sets :attr:`Found.timed_out`.
+    ``max_bytes`` (None: none): a batch's runs are held whole (each state and choice of each run), so a
+    batch holds no more runs than fit in it; where not even one run fits, none is made
+    (:attr:`Found.out_of_memory`)."""
     model = batch_model(data)
     guard = ActionGuard(data)
     pairs = action_pairs(data)
@@ -188,10 +191,16 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
     length = horizon_samples - first_k + 1
     columns = _columns(data)
     generated = done = 0
+    batch = RUN_BATCH
+    if max_bytes is not None:
+        # a run's history (its states, int32) and its choices (int64), for every sample to the horizon
+        batch = min(batch, max_bytes // (length * (len(first) * 4 + 8)))
+        if batch < 1:
+            return Found(None, 0, out_of_memory=True)
     while done < runs:
         if deadline is not None and done and time.perf_counter() > deadline:
             return Found(None, generated, timed_out=True)
-        n = min(RUN_BATCH, runs - done)
+        n = min(batch, runs - done)
         rows = np.repeat(np.asarray(first, dtype=np.int32)[None], n, axis=0)
         history = np.zeros((n, length, rows.shape[1]), dtype=np.int32)
         chosen = np.full((n, max(length - 1, 0)), -1, dtype=np.int64)
@@ -329,13 +338,14 @@ def search(data: ModelData, target: Predicate, *, horizon_samples: int, seed: in
     found = Found(None, 0)
     if runs > 0:
         found = random_runs(data, target, horizon_samples=horizon_samples, runs=runs, seed=_seed(seeds[0]),
-                            through=through, prune_unsafe=prune_unsafe, deadline=deadline)
+                            through=through, prune_unsafe=prune_unsafe, deadline=deadline, max_bytes=bounds.max_bytes)
     if found.witness is not None or width <= 0:
         return found
     beam = beam_search(data, target, horizon_samples=horizon_samples, width=width, seed=_seed(seeds[1]),
                        through=through, prune_unsafe=prune_unsafe, score=score, deadline=deadline,
                        max_bytes=bounds.max_bytes)
-    return Found(beam.witness, found.states + beam.states, beam.graph, beam.timed_out, beam.out_of_memory)
+    return Found(beam.witness, found.states + beam.states, beam.graph, beam.timed_out,
+                 found.out_of_memory or beam.out_of_memory)
 
 
 def _seed(sequence: np.random.SeedSequence) -> int:

@@ -142,7 +142,8 @@ class Reacher:
         """A run of the pruned model through a ``target`` state that stays safe to the horizon — a
         continuation of ``witness`` (whose last state satisfies ``target``), or else a run from the
         start — found by random runs and replayed (no witness: none found, which proves nothing). The runs
-        stop at the query's time limit (``--max-seconds``; :attr:`Found.timed_out`)."""
+        stop at the query's time limit (``--max-seconds``; :attr:`Found.timed_out`), and hold no more runs at
+        once than the memory budget leaves room for (:attr:`Found.out_of_memory` when not one fits)."""
         ctx = self.context
         horizon = ctx.horizon_samples
         data = ctx.data
@@ -156,18 +157,19 @@ class Reacher:
             return safe_states(data, k, rows) & (k == horizon)
 
         found = random_runs(data, at_end, horizon_samples=horizon, runs=runs, seed=ctx.search_seed(),
-                            prune_unsafe=True, start=(witness.samples, witness.last), out_of_time=out_of_time)
+                            prune_unsafe=True, start=(witness.samples, witness.last), out_of_time=out_of_time,
+                            max_bytes=ctx.memory_left())
         tail = found.witness
         whole: Witness | None = None
         if tail is not None:
             whole = Witness(np.concatenate([witness.states[:-1], tail.states]), witness.columns,
                             np.concatenate([witness.actions, tail.actions]), witness.search)
-        elif not found.timed_out:
+        elif not found.timed_out and not found.out_of_memory:
             found = random_runs(data, at_end, horizon_samples=horizon, runs=runs, seed=ctx.search_seed(),
-                                prune_unsafe=True, via=target, out_of_time=out_of_time)
+                                prune_unsafe=True, via=target, out_of_time=out_of_time, max_bytes=ctx.memory_left())
             whole = found.witness
         if whole is None:
-            return Found(None, found.states, timed_out=found.timed_out)
+            return Found(None, found.states, timed_out=found.timed_out, out_of_memory=found.out_of_memory)
         replay(data, whole, at_end, prune_unsafe=True)
         return Found(whole, found.states)
 

@@ -225,6 +225,8 @@ class SymbolicAnswerer:
             to_horizon = True if found.witness is not None else None
             if found.timed_out:
                 why = "the random runs that look for one were cut short by --max-seconds"
+            elif found.out_of_memory:
+                why = f"not one random run to the horizon fits in {memory_option()}"
         return "a run that stays safe until it gets there exists (the trace); " + (
             f"one of them stays safe to the horizon ({horizon}) too" if to_horizon
             else f"NONE of them stays safe to the horizon ({horizon})" if to_horizon is False
