@@ -307,10 +307,21 @@ def test_within_proven_leaves_rewards_past_a_rounding_as_they_are() -> None:
 def test_timing_warnings_name_both_numbers() -> None:
     with pytest.warns(UserWarning, match=r"time step is 0.5 s but the automaton samples every 0.1 s.*priority proofs"):
         RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=0.5), 6), follow(), inputs)
-    with pytest.warns(UserWarning, match=r"episode lasts 5 s \(50 steps of 0.1 s\) but the automaton's horizon is 3 s"):
+    with pytest.warns(UserWarning, match=r"episode has 50 steps \(5 s at 0.1 s a step\) but the automaton's horizon "
+                                         r"has 30 samples \(3 s at 0.1 s a sample\)"):
         RewardAutomatonWrapper(gymnasium.make(ENV_ID, max_episode_steps=50), follow(), inputs)
     with pytest.warns(UserWarning, match="time step is 0.25 s"):
         RewardAutomatonWrapper(gymnasium.make(ENV_ID), follow(), inputs, dt=0.25)
+
+
+def test_an_episode_past_the_horizon_under_another_time_step_says_steps_and_samples() -> None:
+    # 60 steps of 0.05 s against 30 samples of 0.1 s warned "the environment's episode lasts 3 s ... but the
+    # automaton's horizon is 3 s": the seconds agree, what differs is 60 steps against 30 samples
+    with pytest.warns(UserWarning) as said:
+        RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=0.05), 60), follow(), inputs)
+    [text] = [str(w.message) for w in said if "horizon has" in str(w.message)]
+    assert text.startswith("the environment's episode has 60 steps (3 s at 0.05 s a step) but the automaton's "
+                           "horizon has 30 samples (3 s at 0.1 s a sample), and one step is one sample"), text
 
 
 def test_a_shorter_episode_is_no_timing_mismatch_and_a_longer_one_says_what_to_do() -> None:
@@ -327,8 +338,8 @@ def test_a_shorter_episode_is_no_timing_mismatch_and_a_longer_one_says_what_to_d
         RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=0.05), 40), follow(), inputs)
     texts = [str(w.message) for w in said]
     assert any("time step is 0.05 s" in text and "make the two agree" in text for text in texts), texts
-    assert any("lasts 2 s (40 steps of 0.05 s)" in text and "TimeLimit(env, 30)" in text for text in texts), texts
-    with pytest.warns(UserWarning, match=r"lasts 5 s \(50 steps.*SyncVectorEnv\(\[lambda: gymnasium.wrappers.Time"):
+    assert any("has 40 steps (2 s at 0.05 s a step)" in text and "TimeLimit(env, 30)" in text for text in texts), texts
+    with pytest.warns(UserWarning, match=r"has 50 steps \(5 s.*SyncVectorEnv\(\[lambda: gymnasium.wrappers.Time"):
         RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(dt=0.1), 50)]), follow(),
                                      vector_inputs)
 
@@ -375,7 +386,7 @@ def test_a_float32_time_step_equal_to_the_period_is_no_mismatch() -> None:
         RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=np.float32(0.1)), 30), follow(), inputs)  # type: ignore[arg-type]
     with pytest.warns(UserWarning, match="time step is 0.2 s"):
         RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=np.float32(0.2)), 30), follow(), inputs)  # type: ignore[arg-type]
-    with pytest.warns(UserWarning, match=r"episode lasts 3.1 s \(31 steps"):
+    with pytest.warns(UserWarning, match=r"episode has 31 steps \(3.1 s"):
         RewardAutomatonWrapper(TimeLimit(HighwayLike(), 31), follow(), inputs, dt=np.float32(0.1))  # type: ignore[arg-type]
 
 
@@ -386,9 +397,10 @@ def test_a_time_limit_around_an_unregistered_environment_is_checked() -> None:
     assert HighwayLike(dt=0.1).spec is None
     assert env_timing(TimeLimit(HighwayLike(dt=0.1), 50)) == (0.1, 5.0)
     assert env_timing(TimeLimit(TimeLimit(HighwayLike(dt=0.1), 20), 50)) == (0.1, 2.0)  # the first limit reached
-    with pytest.warns(UserWarning, match=r"episode lasts 5 s \(50 steps of 0.1 s\) but the automaton's horizon is 3 s"):
+    with pytest.warns(UserWarning, match=r"episode has 50 steps \(5 s at 0.1 s a step\) but the automaton's horizon "
+                                         r"has 30 samples \(3 s at 0.1 s a sample\)"):
         RewardAutomatonWrapper(TimeLimit(HighwayLike(dt=0.1), 50), follow(), inputs)
-    with pytest.warns(UserWarning, match=r"episode lasts 5 s \(50 steps of 0.1 s\)"):
+    with pytest.warns(UserWarning, match=r"episode has 50 steps \(5 s at 0.1 s a step\)"):
         RewardAutomatonVectorWrapper(SyncVectorEnv([lambda: TimeLimit(HighwayLike(dt=0.1), 50)] * 2), follow(),
                                      vector_inputs)
 
@@ -457,9 +469,10 @@ def test_a_highway_env_duration_that_its_clock_reaches_a_step_late_is_counted() 
         steps += 1
     assert steps == 51 == highway_steps(env.config)
     assert env_timing(env)[1] == pytest.approx(10.2)
-    with pytest.warns(UserWarning, match=r"lasts 10.2 s \(51 steps of 0.2 s: highway-env ends it once its clock, "
+    with pytest.warns(UserWarning, match=r"has 51 steps \(10.2 s at 0.2 s a step: highway-env ends it once its clock, "
                                          r"adding 1/5 s a step in floats, reaches the duration of 10 s, which after 50 "
-                                         r"steps it misses by a rounding\) but the automaton's horizon is 10 s"):
+                                         r"steps it misses by a rounding\) but the automaton's horizon has 50 "
+                                         r"samples \(10 s"):
         RewardAutomatonWrapper(Clocked(5, 10), slower, inputs, clip=True)
     with warnings.catch_warnings():  # 9.9 s: 50 steps, within the horizon, as the clock counts them too
         warnings.simplefilter("error", UserWarning)

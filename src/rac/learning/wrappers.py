@@ -413,10 +413,13 @@ class _Timing:
         if episode is not None and self.steps is not None:
             steps = episode / step
             if steps > self.steps and not math.isclose(steps, self.steps, rel_tol=tolerance):
-                warnings.warn(f"the environment's episode lasts {episode:g} s ({episode / step:g} steps of "
-                              f"{step:g} s{_late_note(env, round(steps))}) but the automaton's horizon is "
-                              f"{horizon:g} s ({self.steps} samples); {cover}: end the episodes at the horizon, "
-                              f"{self.advice}", UserWarning, stacklevel=user_stacklevel())
+                # steps against samples, each with its own period: seconds alone read as a contradiction when
+                # the periods differ ("lasts 3 s ... horizon is 3 s")
+                warnings.warn(f"the environment's episode has {steps:g} steps ({episode:g} s at {step:g} s a "
+                              f"step{_late_note(env, round(steps))}) but the automaton's horizon has {self.steps} "
+                              f"samples ({horizon:g} s at {self.period:g} s a sample), and one step is one sample; "
+                              f"{cover}: end the episodes at the horizon, {self.advice}", UserWarning,
+                              stacklevel=user_stacklevel())
 
 
 def _late_note(env: object, steps: int) -> str:
