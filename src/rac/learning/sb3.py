@@ -218,13 +218,22 @@ def reward_normaliser(venv: Any) -> VecNormalize | None:
 
 
 def _changers_said(venv: Any) -> bool:
-    """Whether an environment of a ``DummyVecEnv`` in ``venv`` has said, at a reset, that gymnasium's reward wrappers
-    outside it change its rewards (:class:`~rac.learning.wrappers.ChangedRewards`); those in other processes
-    (``SubprocVecEnv``) said it there, where the learner's process may not show it, and are not asked."""
+    """Whether an environment of ``venv`` has said, at a reset, that gymnasium's reward wrappers outside it change
+    its rewards (:class:`~rac.learning.wrappers.ChangedRewards`): a ``DummyVecEnv``'s environments are walked,
+    another vector environment's (``SubprocVecEnv``: said in the workers, whose warnings show on the same
+    terminal) are asked with a :class:`_Probe`."""
     base = _wrapper(venv, DummyVecEnv)
-    envs = base.envs if isinstance(base, DummyVecEnv) else []
-    return any(getattr(getattr(inner, "changed_rewards", None), "warned", False) is True
-               for env in envs for inner in wrapper_chain(env))
+    if isinstance(base, DummyVecEnv):
+        return any(_said_changers(inner) for env in base.envs for inner in wrapper_chain(env))
+    try:  # any of stable-baselines3's VecEnvs answers env_is_wrapped; anything else is no such environment
+        return any(venv.env_is_wrapped(_SaidChangers))
+    except (AttributeError, TypeError):
+        return False
+
+
+def _said_changers(env: object) -> bool:
+    """Whether ``env`` (one layer) has said that reward wrappers outside it change its rewards."""
+    return getattr(getattr(env, "changed_rewards", None), "warned", False) is True
 
 
 def reward_changers(venv: Any) -> list[str]:
@@ -457,6 +466,15 @@ class _TransformRewardAround(_AroundAutomaton):
 
 #: One probe per reward changer, as :func:`reward_changers` asks them.
 _AROUND_AUTOMATON = (_NormalizeRewardAround, _ClipRewardAround, _TransformRewardAround)
+
+
+class _SaidChangers(metaclass=_Probe):
+    """A wrapper with an environment of rac's on it or below it that has said reward wrappers outside it change
+    its rewards (the worker's warning, which :class:`RacCallback` does not repeat)."""
+
+    @classmethod
+    def holds(cls, env: object) -> bool:
+        return any(_said_changers(inner) for inner in wrapper_chain(env))
 
 
 class _StacksAroundLocation(metaclass=_Probe):
