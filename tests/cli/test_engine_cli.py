@@ -406,7 +406,8 @@ def test_render_writes_png_and_gif(capsys: pytest.CaptureFixture[str], tmp_path:
     path = write_engine_file(tmp_path, "goal_behind_wall", {})
     png, gif = tmp_path / "pictures" / "run.png", tmp_path / "pictures" / "run.gif"
     assert main(["render", str(path), "--horizon", "1", "--seed", "4", "-o", str(png.parent), "--gif"]) == 0
-    assert capsys.readouterr().out == f"rendered one run: 2 samples (seed 4)\nwrote {png}\nwrote {gif}\n"
+    assert capsys.readouterr().out == ("rendered one run: 2 samples (seed 4)\nthe run: first off-road sample at "
+                                       f"t = 1 s\nwrote {png}\nwrote {gif}\n")
     image_size(png)
     with Image.open(gif) as image:
         assert image.format == "GIF" and image.n_frames == 3  # one frame per sample: t = 0, 0.5, 1
@@ -416,7 +417,8 @@ def test_render_default_path_and_shield(capsys: pytest.CaptureFixture[str], tmp_
     path = write_engine_file(tmp_path, "avoidable_obstacle", {})
     assert main(["render", str(path), "--horizon", "1", "--shield"]) == 0
     out = capsys.readouterr().out
-    assert re.fullmatch(r"rendered one run under the shield: 2 samples \(seed \d+\)\nwrote .*\n", out)
+    assert re.fullmatch(r"rendered one run under the shield: 2 samples \(seed \d+\)\n"
+                        r"the run: no collision, never off the road\nwrote .*\n", out)
     image_size(tmp_path / "avoidable_obstacle.out" / "render" / "run.png")
     narrow = write_engine_file(tmp_path, "narrow_road", {})
     assert main(["render", str(narrow), "--horizon", "1", "--shield"]) == 1

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 import re
 from pathlib import Path
 
@@ -614,6 +615,34 @@ def test_render_marks_where_the_run_first_collides_and_leaves_the_road(figures: 
     collided_at = float(named[0].split("t = ")[1].split(" s")[0])
     sample = round(collided_at / 0.5)
     assert marks["X"][0].get_xydata().tolist() == [path_line.get_xydata()[sample].tolist()]
+
+
+def test_render_says_the_marked_times_in_its_summary_and_json(figures: list, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """The picture marked the first collision and off-road sample with their times, but `rac render`'s
+    printed summary and its `--format json` document said nothing of them: both give the legend's times
+    now (null in the JSON when the run has none)."""
+    from engine_files import write_engine_file
+
+    from rac.cli.main import main
+
+    path = write_engine_file(tmp_path, "goal_behind_wall")  # 8 m/s towards a wall across the road
+    out = str(tmp_path / "out")
+    assert main(["render", str(path), "--seed", "1", "-o", out, "--format", "json", "-q"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    texts = [text.get_text() for text in figures[0].legends[0].get_texts()]
+    assert f"first collision (t = {document['first_collision']:g} s)" in texts, (texts, document)
+    assert f"first off-road sample (t = {document['first_offroad']:g} s)" in texts, (texts, document)
+    assert main(["render", str(path), "--seed", "1", "-o", out]) == 0
+    printed = capsys.readouterr().out
+    assert (f"the run: first collision at t = {document['first_collision']:g} s; first off-road sample at "
+            f"t = {document['first_offroad']:g} s") in printed, printed
+    calm = write_engine_file(tmp_path, "goal_ahead", {})
+    assert main(["render", str(calm), "--seed", "4", "-o", out, "--format", "json", "-q"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    texts = [text.get_text() for text in figures[-1].legends[0].get_texts()]
+    assert "first off-road sample (t = 1 s)" in texts and not any(t.startswith("first collision") for t in texts)
+    assert document["first_collision"] is None and document["first_offroad"] == 1, document  # none: null
 
 
 def test_the_marks_appear_from_their_instant_on(figures: list, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -687,6 +687,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
     automaton = result.automaton
     assert automaton is not None and automaton.model is not None  # _load refused a file without them
     spec = automaton.model
+    marked: dict[str, float] = {}  # the marks' times, as the picture's legend gives them
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         written = render_trajectory(spec.scenario_path, trajectory, png, gif_path=gif,
@@ -694,7 +695,7 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
                                     sample_period=float(automaton.period),
                                     length=float(spec.length), width=float(spec.width),
                                     title=f"{args.file.name}, {_short(args)}, seed {seed}",
-                                    collision=first["collide"], offroad=first["offroad"])
+                                    collision=first["collide"], offroad=first["offroad"], marked=marked)
     except RenderError as exc:
         _report(args, unusable_file(str(exc)))
         return EXIT_ERRORS
@@ -713,9 +714,15 @@ def render_command(args: argparse.Namespace, result: CompileResult) -> int:
                            "moves them on in a straight line between steps: docs/model.md)")
     wrote = [str(written), *([str(gif)] if gif is not None else [])]
     document: dict[str, object] = {"file": str(args.file), "warnings": _warnings(result), "how": _how(args),
-                                   "samples": samples, "seed": seed, "notes": notes, "wrote": wrote}
+                                   "samples": samples, "seed": seed,
+                                   "first_collision": marked.get("collision"), "first_offroad": marked.get("offroad"),
+                                   "notes": notes, "wrote": wrote}
     drawn = f"{samples} samples" if len(real) == samples + 1 else f"{len(real) - 1} of {samples} samples"
-    return _summary_and_stop(args, document, [f"rendered {_how(args)}: {drawn} (seed {seed})",
+    events = [f"{what} at t = {marked[kind]:g} s" for kind, what in (("collision", "first collision"),
+                                                                    ("offroad", "first off-road sample"))
+              if kind in marked]
+    said = "; ".join(events) if events else "no collision, never off the road"
+    return _summary_and_stop(args, document, [f"rendered {_how(args)}: {drawn} (seed {seed})", f"the run: {said}",
                                               *(f"wrote {path}" for path in wrote)], stopped, result)
 
 

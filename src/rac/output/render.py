@@ -349,7 +349,7 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
                       width: float = 1.8, max_frames: int = 100, plot_limits: Sequence[float] | None = None,
                       figsize: tuple[float, float] | None = None, dpi: int = 100,
                       planning_problem: int | None = None, collision: int | None = None,
-                      offroad: int | None = None) -> Path:
+                      offroad: int | None = None, marked: dict[str, float] | None = None) -> Path:
     """Draw the CommonRoad scenario in ``scenario_path`` with the ego's trajectory; write the PNG
     (and with ``gif_path`` an animated GIF) and return the PNG's path.
 
@@ -373,6 +373,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
     ``collision`` and ``offroad`` are the samples of the run's first collision and first sample off
     the road (None: none): each is marked on the path (:data:`EVENT_MARKS`, named with its time in
     the legend), in the PNG when it lies at or before the drawn instant, in the GIF from its frame on.
+    ``marked``, when given, is filled with the time (seconds, as the legend gives it) of each mark,
+    under ``"collision"`` and ``"offroad"``: what a caller says of the picture is what it shows.
 
     Raises :class:`RenderError` naming the file when it is missing or not a readable CommonRoad
     scenario, ``ValueError`` for a malformed trajectory.
@@ -406,6 +408,8 @@ def render_trajectory(scenario_path: str | os.PathLike[str], trajectory: np.ndar
     for kind, sample in events.items():
         if not 0 <= sample < n_samples:
             raise ValueError(f"render_trajectory: {kind} sample {sample} is not one of the run's 0..{n_samples - 1}")
+    if marked is not None:
+        marked.update({kind: time_of(sample) for kind, sample in events.items()})
 
     limits = tuple(plot_limits) if plot_limits is not None else _limits(ego, _goal_center(problems))
     name = title or str(scenario.scenario_id)
