@@ -480,6 +480,24 @@ def test_an_action_outside_the_mask_is_warned_of_once_and_counted(tiny: CompileR
     assert info["shield_allowed"] and inner.outside_mask_steps == outside
 
 
+def test_steps_outside_the_mask_in_a_vector_environment_are_said_once_naming_the_first(tiny: CompileResult) -> None:
+    # each sub-environment of a DummyVecEnv (SyncVectorEnv) said its own first step outside the mask, its text
+    # naming its own action and time, so Python's warnings filter, which drops a repeated text, showed them all
+    table = shield_table(tiny, 8, "none")
+    envs = gymnasium.vector.SyncVectorEnv([lambda: Reversed(ScenarioEnv(tiny, shield=table))] * 3)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        envs.reset(seed=0)
+        chosen = [int(np.flatnonzero(env.get_wrapper_attr("action_masks")())[0]) for env in envs.envs]
+        envs.step(np.array(chosen))
+    said = [str(w.message) for w in caught if "not in the mask" in str(w.message)]
+    assert [env.get_wrapper_attr("outside_mask_steps") for env in envs.envs] == [1, 1, 1]  # each counted
+    assert len(said) == 1 and "t = 0 s" in said[0], said  # the first's action and time kept
+    assert said[0].endswith("(sub-environment 0 of the 3 of a SyncVectorEnv: said once for them all, each counts "
+                            "its own)"), said
+    assert caught[[str(w.message) for w in caught].index(said[0])].filename == __file__  # the line stepping them
+
+
 def test_without_a_shield_the_mask_is_the_models_allow_when(tiny: CompileResult, tmp_path: Path) -> None:
     # `allow when` is part of the model: a mask without any shield still keeps to it (it allowed
     # every action), and a step that takes what it forbids is flagged and counted, never silent

@@ -24,9 +24,11 @@ its first draw; :meth:`ScenarioEnv.reset` draws one from ``np_random``::
 from __future__ import annotations
 
 import functools
+import inspect
 import numbers
 import os
 import warnings
+import weakref
 from collections import Counter
 from fractions import Fraction
 from pathlib import Path
@@ -227,6 +229,29 @@ def outside_mask_warning(action: int, time: float, guarantee: str) -> str:
             "action_masks=, sb3-contrib's evaluate_policy(..., use_masking=False), or an action wrapper that changes "
             "the action after it was chosen from the mask; info['shield_allowed'] marks such steps, "
             "outside_mask_steps counts them")
+
+
+#: The vector environments (SB3's DummyVecEnv, gymnasium's SyncVectorEnv: their ``envs``) stepping ScenarioEnvs in
+#: this process, each with the masks (``info["shield"]``) whose step outside a sub-environment has said: the others
+#: do not say it again (each text names its own action and time, so Python's warnings filter showed every one).
+_SAID_OUTSIDE: weakref.WeakKeyDictionary[object, set[str]] = weakref.WeakKeyDictionary()
+
+
+def _stepping_vector(env: object, frames: int = 12) -> tuple[object, int, int] | None:
+    """The vector environment among the ``frames`` innermost callers whose ``envs`` hold ``env`` (wrapped or not),
+    with ``env``'s index and their number; None when it is stepped on its own."""
+    frame = inspect.currentframe()
+    for _ in range(frames):
+        frame = frame.f_back if frame is not None else None
+        if frame is None:
+            return None
+        owner = frame.f_locals.get("self")
+        envs = getattr(owner, "envs", None)
+        if owner is not env and isinstance(envs, (list, tuple)):
+            index = next((i for i, sub in enumerate(envs) if getattr(sub, "unwrapped", sub) is env), None)
+            if index is not None:
+                return owner, index, len(envs)
+    return None
 
 
 def no_safe_action_warning(step_shield: StepShield | None, state: np.ndarray, crashed: bool, timed_out: bool,
@@ -749,14 +774,31 @@ class ScenarioEnv(gymnasium.Env):
         self.disallowed_steps += not model_allowed
         if not shield["shield_allowed"]:
             if not self.outside_mask_steps:  # the info key alone went unread: an evaluation loop drops it
-                warnings.warn(outside_mask_warning(int(action), time, shield["shield"]), UserWarning,
-                              stacklevel=user_stacklevel())
+                self._warn_outside_mask(int(action), time, shield["shield"])
             self.outside_mask_steps += 1
         info = self._info()
         # each reward's change over the step, unscaled (what a training log averages per objective)
         info["reward_steps"] = {name: value - float(before[name][0]) for name, value in info["rewards"].items()}
         reward = within_proven(float(out.reward[0]) / self.reward_scale, self.reward_proven)
         return self._obs(), reward, terminated, truncated, {**info, **shield}
+
+    def _warn_outside_mask(self, action: int, time: float, guarantee: str) -> None:
+        """Say the first step of this environment outside the mask (:func:`outside_mask_warning`), once per mask's
+        guarantee among the sub-environments of the vector environment stepping it, naming which one it is."""
+        vector = _stepping_vector(self)
+        text = outside_mask_warning(action, time, guarantee)
+        if vector is not None:
+            owner, index, count = vector
+            try:
+                said = _SAID_OUTSIDE.setdefault(owner, set())
+            except TypeError:  # no weak reference to it: said by each
+                said = set()
+            if guarantee in said:
+                return
+            said.add(guarantee)
+            text += (f" (sub-environment {index} of the {count} of a {type(owner).__name__}: said once for them all, "
+                     "each counts its own)")
+        warnings.warn(text, UserWarning, stacklevel=user_stacklevel())
 
     def action_masks(self) -> np.ndarray:
         """``(P,)`` bool: the actions the shield allows in the current state (without a shield, those
