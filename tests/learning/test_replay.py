@@ -535,6 +535,50 @@ def test_the_callback_refuses_counterfactual_rows_of_a_scenario_environment_befo
     assert scenario_environments(envs) and not scenario_environments(wrapped)
 
 
+
+def test_the_callback_refuses_counterfactual_rows_of_normalised_locations_before_it_steps() -> None:
+    # gymnasium's NormalizeObservation outside LocationObservation normalises the location's one-hot vector, which
+    # CounterfactualReplayBuffer replaces: refused only when the buffer was given its first step, after learn() had
+    # stepped the environment; RacCallback refuses it at the start of learn(), with the buffer's words. Inside it
+    # (the location added after) and under VecNormalize (stable-baselines3 stores the unnormalised observations)
+    # the location stays one-hot, and learning goes on
+    pytest.importorskip("stable_baselines3", reason="needs stable-baselines3 (the rl extra)")
+    from gymnasium.wrappers import NormalizeObservation
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from rac.learning.sb3 import CounterfactualReplayBuffer, RacCallback
+
+    stepped: list[Any] = []
+
+    class Counting(gymnasium.Wrapper):  # type: ignore[type-arg]
+        def step(self, action: Any) -> Any:
+            stepped.append(action)
+            return self.env.step(action)
+
+    def model(envs: Any) -> Any:
+        return DQN("MlpPolicy", envs, learning_starts=1000, buffer_size=1000, seed=0, device="cpu",
+                   replay_buffer_class=CounterfactualReplayBuffer, replay_buffer_kwargs={"automaton": alternate()})
+
+    outside = DummyVecEnv([lambda: Counting(NormalizeObservation(LocationObservation(RewardAutomatonWrapper(
+        Blank(), alternate(), took))))])
+    with pytest.raises(ValueError, match=r"not one-hot location vectors .*not normalised.* \(said at the start of "
+                                         r"learn\(\)"):
+        model(outside).learn(4, callback=RacCallback())
+    assert stepped == []  # refused before the environment took a step (stable-baselines3 resets it first)
+    # without the callback, the buffer still refuses it at its first step
+    with pytest.raises(ValueError, match="not one-hot location vectors"):
+        model(outside).learn(4)
+    assert stepped
+    inside = DummyVecEnv([lambda: Counting(LocationObservation(RewardAutomatonWrapper(
+        NormalizeObservation(Blank()), alternate(), took)))])
+    normalised = VecNormalize(DummyVecEnv([lambda: Counting(LocationObservation(RewardAutomatonWrapper(
+        Blank(), alternate(), took)))]), norm_obs=True, norm_reward=False)
+    for envs in (inside, normalised):
+        learner = model(envs)
+        learner.learn(4, callback=RacCallback())
+        assert learner.replay_buffer.size() == 4 * 2  # each step: the real row and the other location's
+
 STRAY = """automaton Stray {
     input a : bool
     reward sa

@@ -234,6 +234,22 @@ def test_a_scenario_environment_under_counterfactual_rows_is_refused_in_other_pr
         plain.close()
 
 
+def test_normalised_locations_under_counterfactual_rows_are_refused_in_other_processes() -> None:
+    # NormalizeObservation outside LocationObservation was refused only at the first stored step; RacCallback refuses
+    # it at the start of learn() from the observations of the reset, wherever the environments live
+    from gymnasium.wrappers import NormalizeObservation
+
+    envs = subproc(lambda: NormalizeObservation(LocationObservation(RewardAutomatonWrapper(Blank(), alternate(),
+                                                                                            took))))
+    try:
+        model = DQN("MlpPolicy", envs, learning_starts=1000, buffer_size=1000, seed=0, device="cpu",
+                    replay_buffer_class=sb3.CounterfactualReplayBuffer, replay_buffer_kwargs={"automaton": alternate()})
+        with pytest.raises(ValueError, match=r"not one-hot location vectors .* \(said at the start of learn\(\)"):
+            model.learn(4, callback=sb3.RacCallback())
+        assert model.num_timesteps == 0 and model.replay_buffer.size() == 0  # before any step
+    finally:
+        envs.close()
+
 def test_a_warning_in_a_forked_worker_names_the_line_that_made_the_workers(tmp_path: Any) -> None:
     # a warning an environment gives in its SubprocVecEnv process named multiprocessing's process.py
     # (`self._target(*self._args, **self._kwargs)`): past the worker's launcher, a forked process still holds

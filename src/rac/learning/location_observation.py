@@ -185,7 +185,9 @@ def one_hot_index(obs: np.ndarray, count: int) -> np.ndarray:
     hot = np.asarray(obs)[:, -count:]
     if not (np.isin(hot, (0, 1)).all() and (hot.sum(axis=1) == 1).all()):
         raise ValueError(f"the observations' last {count} columns are not one-hot location vectors (is the "
-                         "observation LocationObservation's, with layout 'concat', and not normalised?)")
+                         "observation LocationObservation's, with layout 'concat', and not normalised? a normaliser "
+                         "such as gymnasium's NormalizeObservation goes inside LocationObservation, around the "
+                         "environment, so the location is added after it)")
     return np.argmax(hot, axis=1)
 
 

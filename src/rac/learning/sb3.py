@@ -26,7 +26,7 @@ except ImportError as exc:  # pragma: no cover - depends on the environment
 
 from rac import ir
 from rac.core.caller import user_stacklevel
-from rac.learning.location_observation import LocationObservation
+from rac.learning.location_observation import LocationObservation, one_hot_index
 from rac.learning.replay import CounterfactualRows, scenario_infos_refused
 from rac.learning.scenario_env import ScenarioEnv
 from rac.learning.training_log import TrainingLog
@@ -60,8 +60,9 @@ class RacCallback(BaseCallback):
     at the start of ``learn()``) stable-baselines3's ``HerReplayBuffer`` on environments in
     ``RewardAutomatonWrapper``, whose ``compute_reward`` is refused: the buffer would first ask for it after
     ``learning_starts`` steps; and refuses (``ValueError``, at the start of ``learn()``) a
-    :class:`CounterfactualReplayBuffer` on rac's scenario environments (:func:`scenario_environments`), which the
-    buffer itself refuses only when it is first given a step.
+    :class:`CounterfactualReplayBuffer` on rac's scenario environments (:func:`scenario_environments`) or on
+    observations whose location is not a one-hot vector (gymnasium's ``NormalizeObservation`` outside
+    ``LocationObservation``), which the buffer itself refuses only when it is first given a step.
 
     Example::
 
@@ -89,6 +90,9 @@ class RacCallback(BaseCallback):
             raise ValueError(scenario_infos_refused("each step's info of the training environment")
                              + " (said at the start of learn(): CounterfactualReplayBuffer sees the infos only when "
                              "it is given the first step)")
+        counterfactual = getattr(self.model, "replay_buffer", None)
+        if isinstance(counterfactual, CounterfactualReplayBuffer):
+            _check_located(self.model, counterfactual)
         if isinstance(getattr(self.model, "replay_buffer", None), HerReplayBuffer) and _relabels_with_automaton(
                 self.training_env):
             # the wrapper refuses compute_reward, but HerReplayBuffer first asks for it when it samples, after
@@ -184,6 +188,23 @@ class RacCallback(BaseCallback):
                 "names in the .ra file put them in the table", UserWarning, stacklevel=user_stacklevel())
         for key, value in self._logged.items():
             self.logger.record(key, value, exclude=("stdout", "log") if key in clashing else None)
+
+
+def _check_located(model: Any, buffer: CounterfactualReplayBuffer) -> None:
+    """Refuse (``ValueError``) where the observations ``model`` will first store in ``buffer`` do not end in the
+    location's one-hot vector, as the buffer's first step would (gymnasium's ``NormalizeObservation`` outside
+    ``LocationObservation`` normalises it): the same test on the observations of the reset stable-baselines3 made
+    before the callback started, the ones it stores as the first step's ``obs`` (``VecNormalize``'s unnormalised)."""
+    normaliser = model.get_vec_normalize_env()
+    first = normaliser.get_original_obs() if normaliser is not None else getattr(model, "_last_obs", None)
+    if not isinstance(first, np.ndarray) or first.ndim != 2:  # nothing reset yet, or no batch: the buffer says
+        return
+    try:
+        one_hot_index(first, len(buffer.rows.locations))
+    except ValueError as exc:
+        # the buffer sees the observations only when it is given the first step: said before it is taken
+        raise ValueError(f"{exc} (said at the start of learn(): CounterfactualReplayBuffer sees the observations "
+                         "only when it is given the first step)") from None
 
 
 def _text_width(logger: Logger) -> int | None:
@@ -541,8 +562,10 @@ class CounterfactualReplayBuffer(ReplayBuffer):
     buffer cannot see the vector wrappers; :class:`RacCallback` warns of it). Under ``VecNormalize`` an
     ended episode's terminal observation comes back inexact and clipped: its location is taken from the
     info (:meth:`~rac.learning.replay.CounterfactualRows.terminal_located`). rac's scenario environments
-    (``ScenarioEnv``, ``rac/Scenario-v0``) are refused: :class:`RacCallback` says so at the start of ``learn()``,
-    the buffer itself at the first step it is given (it sees no environment).
+    (``ScenarioEnv``, ``rac/Scenario-v0``) are refused, and so are observations whose location columns are no
+    one-hot vector (gymnasium's ``NormalizeObservation`` outside ``LocationObservation``; ``VecNormalize`` is fine,
+    stable-baselines3 gives the buffer the unnormalised observations): :class:`RacCallback` says so at the start of
+    ``learn()``, the buffer itself at the first step it is given (it sees no environment).
 
     Example::
 
