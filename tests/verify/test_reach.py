@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 import time
 from collections.abc import Callable
 from fractions import Fraction
@@ -262,6 +263,42 @@ def test_the_witness_search_keeps_within_max_memory(tmp_path: Path) -> None:
     assert found.out_of_memory and found.witness is None and not found.proves_absence and found.states > 0
 
 
+def test_an_unknown_verdict_counts_the_random_runs_made_not_those_asked_for(tmp_path: Path) -> None:
+    """An unknown verdict's message said "no witness was found by 2,000 random runs" (the option's count)
+    even where --max-memory left room for none, the search's time was up after a batch, or its budget
+    of states left room for two: it now says how many were made, of how many, and what stopped them."""
+    from rac.engine.witness import random_runs
+
+    result = compile_file(write_engine_file(tmp_path, "goal_ahead", {"Never": "E<> v >= 99"}))
+    context = Context(result, VerifyOptions(seed=1))
+    horizon = context.horizon_samples
+    per_run = (horizon + 1) * (7 * 4 + 8)  # a run's states (goal_ahead's 7 ego columns) and choices
+
+    def never(k: int, rows: np.ndarray) -> np.ndarray:
+        return np.zeros(rows.shape[0], dtype=bool)
+
+    assert random_runs(context.data, never, horizon_samples=horizon, runs=10, seed=1, max_bytes=3 * per_run).runs == 10
+    assert random_runs(context.data, never, horizon_samples=horizon, runs=10, seed=1, max_bytes=per_run - 1).runs == 0
+    cut = random_runs(context.data, never, horizon_samples=horizon, runs=10, seed=1, max_bytes=3 * per_run,
+                      deadline=time.perf_counter())  # past after the first batch: no other
+    assert cut.timed_out and cut.runs == 3
+    none = answers(result, max_bytes=per_run - 1)["Never"]
+    assert none.status == "unknown"  # type: ignore[attr-defined]
+    assert "; no random run fitted in --max-memory and a beam search (" in none.message  # type: ignore[attr-defined]
+    assert "random runs" not in none.message  # type: ignore[attr-defined]
+    timed = answers(result, witness=Bounds(safety_seconds=0), max_bytes=30 * per_run)["Never"]
+    assert timed.status == "unknown"  # type: ignore[attr-defined]
+    made = re.search(r"no witness was found by (\d+) of 2,000 random runs \(cut short by a time limit\) and a beam",
+                     timed.message)  # type: ignore[attr-defined]
+    assert made is not None and 0 < int(made[1]) <= 30, timed.message  # type: ignore[attr-defined]
+    capped = answers(result, max_states=20)["Never"]
+    assert capped.status == "unknown"  # type: ignore[attr-defined]
+    assert ("no witness was found by 2 of 2,000 random runs (as many as a budget of 20 states leaves room for) "
+            "and a beam search (") in capped.message  # type: ignore[attr-defined]
+    whole = answers(result, witness=Bounds(runs=30), max_bytes=30 * per_run)["Never"]  # all made: as before
+    assert "no witness was found by 30 random runs and a beam search (" in whole.message  # type: ignore[attr-defined]
+
+
 def test_the_continuation_of_a_witness_honours_the_time_limit(tmp_path: Path) -> None:
     """Whether a safe run to the goal also stays safe to the horizon is looked for by random runs (two
     batches of 2,000, about a second) that never read --max-seconds. They now stop at the query's limit,
@@ -313,7 +350,7 @@ def test_random_runs_hold_no_more_runs_at_once_than_max_memory_leaves_room_for(t
     small = random_runs(data, never, horizon_samples=horizon, runs=10, seed=1, max_bytes=3 * per_run)
     assert not whole.out_of_memory and not small.out_of_memory and small.states == whole.states
     none = random_runs(data, never, horizon_samples=horizon, runs=10, seed=1, max_bytes=per_run - 1)
-    assert none.out_of_memory and none.states == 0 and none.witness is None
+    assert none.out_of_memory and none.states == 0 and none.witness is None and none.runs == 0
     reached = Reacher(context).find(target, prune=True, exhaustive=False)
     assert reached is not None and reached.witness is not None
     context.options = dataclasses.replace(context.options, max_bytes=20)  # not one sample's state and choice

@@ -50,8 +50,8 @@ from rac.model.sample import ACTION, CRASHED, EGO, GRAPH_EGO, GRAPH_LAYER_ROW, G
 from rac.model.sample import labels as sample_labels
 
 __all__ = ["SAFETY_SECONDS", "Bounds", "Found", "Predicate", "ReplayMismatch", "Witness", "beam_search",
-           "goal_distance", "layered_search", "random_runs", "replay", "safe_states", "search", "witness_along",
-           "witness_graph", "witness_in"]
+           "goal_distance", "layered_search", "planned_runs", "random_runs", "replay", "safe_states", "search",
+           "witness_along", "witness_graph", "witness_in"]
 
 #: ``predicate(k, rows) -> (n,) bool`` over states of sample ``k``: ``rows`` as
 #: :func:`rac.engine.explore.explore` stores them, without ``k`` (the ego columns; ``crashed`` too under
@@ -117,13 +117,16 @@ class Found:
     searches that explore — the ``graph`` they built (``graph.complete``: every state was explored,
     so without a witness none exists); ``timed_out``: stopped by its time limit (the safety net, or a
     deadline the caller set), not by its work budget; ``out_of_memory``: stopped by its memory limit
-    (:attr:`Bounds.max_bytes`)."""
+    (:attr:`Bounds.max_bytes`); ``runs``: the random runs :func:`random_runs` started (fewer than asked
+    where a limit or a witness stopped them, none where not one fitted in the memory), 0 for the other
+    searches."""
 
     witness: Witness | None
     states: int
     graph: ExploredGraph | None = None
     timed_out: bool = False
     out_of_memory: bool = False
+    runs: int = 0
 
     @property
     def proves_absence(self) -> bool:
@@ -199,7 +202,7 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
             return Found(None, 0, out_of_memory=True)
     while done < runs:
         if deadline is not None and done and time.perf_counter() > deadline:
-            return Found(None, generated, timed_out=True)
+            return Found(None, generated, timed_out=True, runs=done)
         n = min(batch, runs - done)
         rows = np.repeat(np.asarray(first, dtype=np.int32)[None], n, axis=0)
         history = np.zeros((n, length, rows.shape[1]), dtype=np.int32)
@@ -208,7 +211,7 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
         visited = np.zeros(n, dtype=bool) if via is not None else np.ones(n, dtype=bool)
         for k in range(first_k, horizon_samples + 1):
             if out_of_time is not None and out_of_time():
-                return Found(None, generated, timed_out=True)
+                return Found(None, generated, timed_out=True, runs=done + n)
             step = k - first_k
             history[alive, step] = rows[alive]
             generated += alive.size
@@ -218,7 +221,8 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
             if hit.any():
                 run = int(alive[np.flatnonzero(hit)[0]])
                 states = np.column_stack([np.arange(first_k, k + 1, dtype=np.int32), history[run, :step + 1]])
-                return Found(Witness(states, columns, chosen[run, :step].copy(), "random runs"), generated)
+                witness = Witness(states, columns, chosen[run, :step].copy(), "random runs")
+                return Found(witness, generated, runs=done + n)
             if k == horizon_samples:
                 break
             go = np.ones(alive.size, dtype=bool)
@@ -244,7 +248,7 @@ def random_runs(data: ModelData, target: Predicate, *, horizon_samples: int, run
             else:
                 rows[alive] = moved
         done += n
-    return Found(None, generated)
+    return Found(None, generated, runs=done)
 
 
 # ---------------------------------------------------------------- explorations that stop at a witness
@@ -326,14 +330,20 @@ def layered_search(data: ModelData, target: Predicate, *, horizon_samples: int, 
     return Found(witness_in(graph, target, "breadth-first"), graph.n_states, graph)
 
 
+def planned_runs(bounds: Bounds, horizon_samples: int) -> int:
+    """The random runs :func:`search` makes at most: ``bounds.runs``, no more than its ``max_states``
+    leave room for (each run a state per sample to the horizon), but at least one."""
+    return min(bounds.runs, max(bounds.max_states // (horizon_samples + 1), 1))
+
+
 def search(data: ModelData, target: Predicate, *, horizon_samples: int, seed: int, bounds: Bounds = Bounds(),
            through: Predicate | None = None, prune_unsafe: bool = False, score: Score | None = None) -> Found:
     """The cheap searches in turn — :func:`random_runs`, then :func:`beam_search` — within ``bounds``;
-    the first witness found, else the beam's outcome (its graph complete when it never cut a layer)."""
+    the first witness found, else the beam's outcome (its graph complete when it never cut a layer),
+    with the random runs made (:attr:`Found.runs`)."""
     deadline = None if bounds.safety_seconds is None else time.perf_counter() + bounds.safety_seconds
-    per_run = horizon_samples + 1
-    runs = min(bounds.runs, max(bounds.max_states // per_run, 1))
-    width = min(bounds.width, max(bounds.max_states // per_run, 1))
+    runs = planned_runs(bounds, horizon_samples)
+    width = min(bounds.width, max(bounds.max_states // (horizon_samples + 1), 1))
     seeds = np.random.SeedSequence(seed).spawn(2)
     found = Found(None, 0)
     if runs > 0:
@@ -345,7 +355,7 @@ def search(data: ModelData, target: Predicate, *, horizon_samples: int, seed: in
                        through=through, prune_unsafe=prune_unsafe, score=score, deadline=deadline,
                        max_bytes=bounds.max_bytes)
     return Found(beam.witness, found.states + beam.states, beam.graph, beam.timed_out,
-                 found.out_of_memory or beam.out_of_memory)
+                 found.out_of_memory or beam.out_of_memory, found.runs)
 
 
 def _seed(sequence: np.random.SeedSequence) -> int:

@@ -25,15 +25,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rac.core.diagnostics import counted
+from rac.core.diagnostics import counted, short_count
 from rac.core.resources import memory_option
 from rac.engine.budget import Budget, BudgetExceeded
 from rac.engine.graph import ExploredGraph
 from rac.engine.witness import (
+    Bounds,
     Found,
     Predicate,
     Witness,
     layered_search,
+    planned_runs,
     random_runs,
     replay,
     safe_states,
@@ -127,7 +129,7 @@ class Reacher:
             layered = layered_search(ctx.data, target, horizon_samples=horizon, prune_unsafe=prune, budget=budget,
                                      progress=ctx.explore_progress)
         except BudgetExceeded as exc:
-            raise UnknownVerdict(f"{over_budget(exc)}{ctx.kept_note()}; {_searched(found, ctx.options.witness.runs)}"
+            raise UnknownVerdict(f"{over_budget(exc)}{ctx.kept_note()}; {_searched(found, bounds, horizon)}"
                                  ) from None
         except ModelRangeError as exc:
             raise UnknownVerdict(left_int32(exc)) from None
@@ -159,6 +161,7 @@ class Reacher:
         found = random_runs(data, at_end, horizon_samples=horizon, runs=runs, seed=ctx.search_seed(),
                             prune_unsafe=True, start=(witness.samples, witness.last), out_of_time=out_of_time,
                             max_bytes=ctx.memory_left())
+        made = found.runs
         tail = found.witness
         whole: Witness | None = None
         if tail is not None:
@@ -168,17 +171,28 @@ class Reacher:
             found = random_runs(data, at_end, horizon_samples=horizon, runs=runs, seed=ctx.search_seed(),
                                 prune_unsafe=True, via=target, out_of_time=out_of_time, max_bytes=ctx.memory_left())
             whole = found.witness
+            made += found.runs
         if whole is None:
-            return Found(None, found.states, timed_out=found.timed_out, out_of_memory=found.out_of_memory)
+            return Found(None, found.states, timed_out=found.timed_out, out_of_memory=found.out_of_memory, runs=made)
         replay(data, whole, at_end, prune_unsafe=True)
-        return Found(whole, found.states)
+        return Found(whole, found.states, runs=made)
 
 
-def _searched(found: Found, runs: int) -> str:
-    """What the cheap searches tried, for an unknown verdict's message."""
+def _searched(found: Found, bounds: Bounds, horizon_samples: int) -> str:
+    """What the cheap searches (:func:`~rac.engine.witness.search` within ``bounds``) tried, for an
+    unknown verdict's message: the random runs they made (:attr:`Found.runs`), not those asked for."""
     cut = ", cut short by a time limit" if found.timed_out else ""
     if found.out_of_memory:
         cut = f", cut short by {memory_option()}"
-    return (f"no witness was found by {counted(runs, 'random run')} and a beam search ({counted(found.states, 'state')}"
-            f"{cut}), and the exhaustive exploration "
-            "needed to prove that none exists is beyond the budget")
+    beam = f"a beam search ({counted(found.states, 'state')}{cut})"
+    asked, made = bounds.runs, found.runs
+    planned = planned_runs(bounds, horizon_samples)
+    if made == asked:
+        tried = f"no witness was found by {counted(asked, 'random run')} and {beam}"
+    elif not made:  # random_runs makes none only where not one fits in the memory
+        tried = f"no random run fitted in {memory_option()} and {beam} found no witness"
+    else:
+        why = ("cut short by a time limit" if made < planned
+               else f"as many as a budget of {counted(bounds.max_states, 'state')} leaves room for")
+        tried = f"no witness was found by {short_count(made)} of {counted(asked, 'random run')} ({why}) and {beam}"
+    return f"{tried}, and the exhaustive exploration needed to prove that none exists is beyond the budget"
