@@ -258,16 +258,18 @@ def test_a_simulation_without_obstacles_says_so(tmp_path: Path) -> None:
 
 
 # ---------------------------------------------------------------- what Qc means, everywhere
-def dead_end(folder: Path) -> Path:
+def dead_end(folder: Path, queries: dict[str, str] | None = None) -> Path:
     """A road that ends 3 m after the goal (x in [20, 30]); the ego at 10 m/s cannot stop before
-    the end within the 4 s horizon: a run reaches the goal safely, and every run then leaves the road."""
+    the end within the 4 s horizon: a run reaches the goal safely, and every run then leaves the road.
+    ``queries``: the file's (default Qb, then Qc)."""
     from engine_files import engine_source
     from tiny_scenarios import EgoStart, GoalBox, StraightRoad, straight_road
 
     tiny = straight_road("dead_end", StraightRoad(33.0, EgoStart(10.0, 1.75, 0.0, 10.0), GoalBox(20.0, 30.0)))
     tiny.write(folder / "dead_end.xml")
     path = folder / "dead_end.ra"
-    path.write_text(engine_source(tiny, {"Stays": QUERIES["Stays"], "Reaches": QUERIES["Reaches"]}), encoding="utf-8")
+    queries = queries or {"Stays": QUERIES["Stays"], "Reaches": QUERIES["Reaches"]}
+    path.write_text(engine_source(tiny, queries), encoding="utf-8")
     return path
 
 
@@ -283,6 +285,19 @@ def test_qc_means_the_same_in_verify_and_preanalyse(tmp_path: Path) -> None:
     (row,) = sweep(result, runs=5, seed=1)
     assert (row["qb"], row["qc"], row["qc_horizon"]) == (False, True, False)
     assert "| true (safe until the goal only) |" in render_table([row])
+
+
+def test_qc_left_open_is_decided_by_the_complete_graph_a_later_query_explores(tmp_path: Path) -> None:
+    """Qc before the shield: its witness is found by the search, no random run continues it to the horizon
+    (every run leaves the dead end's road), and the shield's query explores the complete pruned graph
+    afterwards. Qc's "safe to the horizon?" is then decided on that graph, as when it comes first (before:
+    "not known", beside a learning query that proves no shielded run reaches the goal)."""
+    path = dead_end(tmp_path, {"Reaches": QUERIES["Reaches"], "safe": QUERIES["safe"]})
+    answers = {r.name: r for r in run_queries(compile_file(path), VerifyOptions(seed=1, plots=False))[1]}
+    assert answers["Reaches"].status == "satisfied" and answers["Reaches"].method == "witness search"
+    assert answers["Reaches"].message == ("a run that stays safe until it gets there exists (the trace); NONE of "
+                                          "them stays safe to the horizon (4 s) (decided on the complete pruned "
+                                          "model, which a later query explored)")
 
 
 def test_the_experiment_counts_a_goal_only_when_the_run_can_stay_safe_to_the_horizon(tmp_path: Path) -> None:

@@ -238,7 +238,10 @@ def run_queries(result: CompileResult | CheckedProgram, options: VerifyOptions |
     slots = {id(d): k for k, d in enumerate(d for d, _ in decls if isinstance(d.query, SEEDED))}
     if options.only is not None:
         decls = _selected(decls, options.only)
-    return context, Verifier(context, slots).run(decls, answered=answered)
+    verifier = Verifier(context, slots)
+    results = verifier.run(decls, answered=answered)
+    verifier.symbolic.settle(results)
+    return context, results
 
 
 def _selected(decls: list[tuple[iq.QueryDecl, str | None]], only: tuple[str, ...]

@@ -54,6 +54,10 @@ class SymbolicAnswerer:
     def __init__(self, context: Context) -> None:
         self.context = context
         self.reacher = Reacher(context)
+        #: ``E<> p`` answers whose "safe to the horizon too?" was left open (no complete pruned graph yet),
+        #: by query name: the open clause of the message and ``p``, for :meth:`settle` once a later
+        #: query has explored that graph.
+        self.open_horizons: dict[str, tuple[str, Predicate]] = {}
 
     def path(self, query: iq.PathQuery, base: QueryResult) -> QueryResult:
         """``A[] p``, ``E<> p``, ``E[] p``, ``A<> p`` (optionally ``under`` a shield), with a witness or
@@ -153,7 +157,7 @@ class SymbolicAnswerer:
             return dataclasses.replace(base, status="not satisfied", states=found.states,
                                        horizon_samples=ctx.horizon_samples, method=found.method)
         if found.pruned:
-            message = self._safe_meaning(target, found.witness) if _implies_safe(expr) else None
+            message = self._safe_meaning(target, found.witness, base.name) if _implies_safe(expr) else None
         else:  # the pruned model has no such run: every witness passes through an unsafe state
             message = ("the trace passes through unsafe states (a collision does not end a run); NO run that stays "
                        "safe until it gets there exists")
@@ -209,17 +213,17 @@ class SymbolicAnswerer:
                                    horizon_samples=self.context.horizon_samples, message=message, method=found.method,
                                    trace=self.trace_rows(chain, list(range(chain.n_states))))
 
-    def _safe_meaning(self, target: Predicate, witness: Witness) -> str:
-        """What ``E<> p`` found on the pruned model means, for a ``p`` that excludes collisions: whether
-        one of the runs that stay safe until ``p`` stays safe to the horizon too — exactly when the
-        complete pruned graph is at hand, else as far as a continuation of the witness shows it."""
+    def _safe_meaning(self, target: Predicate, witness: Witness, name: str | None = None) -> str:
+        """What ``E<> p`` (query ``name``) found on the pruned model means, for a ``p`` that excludes
+        collisions: whether one of the runs that stay safe until ``p`` stays safe to the horizon too —
+        exactly when the complete pruned graph is at hand, else as far as a continuation of the witness
+        shows it (left open for :meth:`settle` when that shows nothing)."""
         ctx = self.context
-        horizon = f"{ctx.horizon_samples * float(ctx.period):g} s"
         complete = ctx.graphs.get(True)
         to_horizon: bool | None
         why = "random runs found none"
         if complete is not None:
-            to_horizon = storm.safe_reach(complete, in_graph(complete, target)).to_horizon
+            to_horizon = self._to_horizon(complete, target)
         else:
             found = self.reacher.continues_safely(witness, target)
             to_horizon = True if found.witness is not None else None
@@ -227,11 +231,41 @@ class SymbolicAnswerer:
                 why = "the random runs that look for one were cut short by --max-seconds"
             elif found.out_of_memory:
                 why = f"not one random run to the horizon fits in {memory_option()}"
-        return "a run that stays safe until it gets there exists (the trace); " + (
-            f"one of them stays safe to the horizon ({horizon}) too" if to_horizon
-            else f"NONE of them stays safe to the horizon ({horizon})" if to_horizon is False
-            else f"whether one of them stays safe to the horizon ({horizon}) is not known: {why} "
-                 "(the complete pruned model would decide it)")
+        clause = self._horizon_clause(to_horizon, why)
+        if to_horizon is None and name is not None:
+            self.open_horizons[name] = (clause, target)
+        return "a run that stays safe until it gets there exists (the trace); " + clause
+
+    @staticmethod
+    def _to_horizon(complete: ExploredGraph, target: Predicate) -> bool:
+        """Whether a run that stays safe until ``target`` stays safe to the horizon, exact on the
+        ``complete`` pruned graph."""
+        return storm.safe_reach(complete, in_graph(complete, target)).to_horizon
+
+    def _horizon_clause(self, to_horizon: bool | None, why: str = "") -> str:
+        """The part of ``E<> p``'s message that says whether a safe run to ``p`` stays safe to the horizon."""
+        horizon = f"{self.context.horizon_samples * float(self.context.period):g} s"
+        return (f"one of them stays safe to the horizon ({horizon}) too" if to_horizon
+                else f"NONE of them stays safe to the horizon ({horizon})" if to_horizon is False
+                else f"whether one of them stays safe to the horizon ({horizon}) is not known: {why} "
+                     "(the complete pruned model would decide it)")
+
+    def settle(self, results: list[QueryResult]) -> None:
+        """Decide, in place, what :meth:`_safe_meaning` left open once a later query of the run has explored
+        the complete pruned graph (a shield's, ``E[]``'s): the same exact answer as when that graph comes
+        first, so that the run's answers agree (e.g. with a learning query's proof that no shielded run
+        reaches the goal)."""
+        complete = self.context.graphs.get(True)
+        if complete is None or not complete.complete:
+            return
+        for i, result in enumerate(results):
+            opened = self.open_horizons.pop(result.name, None)
+            if opened is None or result.message is None or opened[0] not in result.message:
+                continue
+            clause, target = opened
+            decided = (self._horizon_clause(self._to_horizon(complete, target))
+                       + " (decided on the complete pruned model, which a later query explored)")
+            results[i] = dataclasses.replace(result, message=result.message.replace(clause, decided))
 
     def _decided(self, query: iq.PathQuery, base: QueryResult, graph: ExploredGraph) -> QueryResult:
         """``query`` decided by Storm on ``graph`` (a complete one: a shield's, or the explored model)."""
