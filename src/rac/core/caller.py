@@ -9,6 +9,9 @@ gymnasium's ``AsyncVectorEnv``) the frames above the library's worker loop are :
 can act on either: past them a forked worker still holds the parent's frames at the fork, the script's line that
 made the vector environment; a spawned one only its bootstrap (``<string>``), and the warning names rac's own line.
 
+:func:`callers` walks the frames above a function that reads who is calling it (a ``TimeLimit``'s or a reward
+wrapper's ``reset`` outside an environment, the vector environment stepping it).
+
 :func:`require_bool` checks a switch the user's code passes (``clip=``, ``counterfactuals=``): Python takes any
 non-empty text as true, so ``clip="no"`` clipped.
 
@@ -18,8 +21,10 @@ May import: nothing of rac.
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterator
+from types import FrameType
 
-__all__ = ["LAUNCHERS", "LIBRARIES", "require_bool", "user_stacklevel"]
+__all__ = ["LAUNCHERS", "LIBRARIES", "callers", "require_bool", "user_stacklevel"]
 
 #: The top-level packages between a training script and rac's warnings.
 LIBRARIES = frozenset({"rac", "stable_baselines3", "sb3_contrib", "gymnasium", "torch", "highway_env"})
@@ -44,6 +49,17 @@ def user_stacklevel() -> int:
             return 1 if launched and frame.f_code.co_filename.startswith("<") else level
         frame, level = frame.f_back, level + 1  # type: ignore[assignment]
     return 1
+
+
+def callers(frames: int) -> Iterator[FrameType]:
+    """The ``frames`` innermost frames above the function that iterates this, its caller first (fewer at the
+    stack's top)."""
+    frame = sys._getframe(1).f_back  # sys._getframe(1): the iterating function's (this generator's is 0)
+    for _ in range(frames):
+        if frame is None:
+            return
+        yield frame
+        frame = frame.f_back
 
 
 def require_bool(value: object, name: str) -> bool:

@@ -24,7 +24,6 @@ its first draw; :meth:`ScenarioEnv.reset` draws one from ``np_random``::
 from __future__ import annotations
 
 import functools
-import inspect
 import numbers
 import os
 import warnings
@@ -39,7 +38,7 @@ import numpy as np
 
 from rac import ir
 from rac.compiler import CompileResult, compile_file, compile_text
-from rac.core.caller import user_stacklevel
+from rac.core.caller import callers, user_stacklevel
 from rac.core.diagnostics import CheckError, RacCheckWarning, RacValueError, check_warning_text, counted
 from rac.core.numbers import samples_of, seconds_at
 from rac.engine.explore import COLUMNS
@@ -240,11 +239,7 @@ _SAID_OUTSIDE: weakref.WeakKeyDictionary[object, set[str]] = weakref.WeakKeyDict
 def _stepping_vector(env: object, frames: int = 12) -> tuple[object, int, int] | None:
     """The vector environment among the ``frames`` innermost callers whose ``envs`` hold ``env`` (wrapped or not),
     with ``env``'s index and their number; None when it is stepped on its own."""
-    frame = inspect.currentframe()
-    for _ in range(frames):
-        frame = frame.f_back if frame is not None else None
-        if frame is None:
-            return None
+    for frame in callers(frames):
         owner = frame.f_locals.get("self")
         envs = getattr(owner, "envs", None)
         if owner is not env and isinstance(envs, (list, tuple)):

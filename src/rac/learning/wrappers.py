@@ -48,7 +48,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv, VectorWrapper
 from rac import ir
 from rac.check.analysis.scale import sample_change_bound
 from rac.compiler import compile_file
-from rac.core.caller import require_bool, user_stacklevel
+from rac.core.caller import callers, require_bool, user_stacklevel
 from rac.core.diagnostics import RacValueError
 from rac.learning.vector_info import merge_vector_info
 from rac.runtime.batch import BatchRewardAutomaton
@@ -284,11 +284,7 @@ def outside_step_limit(env: object, frames: int = 12) -> int | None:
     ``gymnasium.make(id, max_episode_steps=N)`` puts that ``TimeLimit`` outside the environment it
     makes, and the spec it gives the environment itself has no limit: the callers are the only
     place the environment can learn that its episodes are cut after N steps, where it cannot see."""
-    frame = inspect.currentframe()
-    for _ in range(frames):
-        frame = frame.f_back if frame is not None else None
-        if frame is None:
-            return None
+    for frame in callers(frames):
         if frame.f_code not in _TIME_LIMIT_CODE:  # only a TimeLimit's own frames are read
             continue
         owner = frame.f_locals.get("self")
@@ -327,11 +323,7 @@ def outside_reward_changers(env: object, kinds: tuple[type, ...] = REWARD_CHANGE
     training loop of one's own (CleanRL's: ``NormalizeReward`` and a clipping ``TransformReward`` around every
     environment) has no stable-baselines3 callback to say it."""
     names: list[str] = []
-    frame = inspect.currentframe()
-    for _ in range(frames):
-        frame = frame.f_back if frame is not None else None
-        if frame is None:
-            break
+    for frame in callers(frames):
         if frame.f_code not in _RESET_CODE:  # only the wrappers' own frames are read
             continue
         owner = frame.f_locals.get("self")
