@@ -481,6 +481,8 @@ class EpisodeBatch:
         self._replayer = Replayer(automaton)
         self._record: list[Sample] = []
         self._before: _State | None = None
+        #: the last step's replay of every episode (:meth:`_replayed`), with the record and state it replays
+        self._replay_kept: tuple[list[Sample], _State, Counterfactuals] | None = None
         self._last_reward = np.zeros(0)
         #: the rows of the last sample and the model functions computed on it (:data:`_OF_THE_STATE`):
         #: the next sample's prev(e) reads them instead of calling the model again
@@ -751,16 +753,9 @@ class EpisodeBatch:
                                 "or rewards")
         where = slice(None) if rows is None else rows
         n = int(now.k[where].shape[0])
-        samples = [Sample({name: values[where] for name, values in s.inputs.items()}, s.active[where],
-                          s.ending[where]) for s in self._record]
-        # the first sample's rates read the inputs held from the sample before the step (its own at an
-        # episode's first sample, k = 0): replayed with none held, they read that first sample's inputs
-        started = before.k[where] > 0
-        held = None if not samples else {
-            name: np.where(started, before.inputs[name][where], values)
-            for name, values in samples[0].inputs.items() if name in before.inputs and values.dtype != bool}
-        cf = self._replayer.replay(samples, n, {name: values[where] for name, values in before.rewards.items()},
-                                   held)
+        whole = self._replayed(before)
+        cf = Counterfactuals(whole.reward[where].copy(), whole.next_location[where].copy(),
+                             {name: values[where].copy() for name, values in whole.rewards.items()})
         if objective is not None:
             expr = self.expression(objective)
             size = cf.n_locations
@@ -780,6 +775,28 @@ class EpisodeBatch:
                                     "locations or rewards are not supported: pass the automaton's objective")
             reward = np.repeat(self._last_reward[where][:, None], cf.n_locations, axis=1)
             return dataclasses.replace(cf, reward=reward)
+        return cf
+
+    def _replayed(self, before: _State) -> Counterfactuals:
+        """The last step replayed from every location for *all* the batch's episodes, computed at the
+        first :meth:`counterfactual` after the step and kept for the others: learners sharing the batch
+        (:mod:`rac.learning.lockstep`) each ask for their own rows, and one replay of every row costs
+        about what one of a few rows does. A row's replay reads that row alone (the automata are
+        stepped elementwise), so its slice of the whole is what replaying its rows alone gives, bit for
+        bit (tests/learning/test_counterfactual.py checks it)."""
+        kept = self._replay_kept
+        if kept is not None and kept[0] is self._record and kept[1] is before:
+            return kept[2]
+        samples = self._record
+        n = int(before.k.shape[0])
+        # the first sample's rates read the inputs held from the sample before the step (its own at an
+        # episode's first sample, k = 0): replayed with none held, they read that first sample's inputs
+        started = before.k > 0
+        held = None if not samples else {
+            name: np.where(started, before.inputs[name], values)
+            for name, values in samples[0].inputs.items() if name in before.inputs and values.dtype != bool}
+        cf = self._replayer.replay(samples, n, before.rewards, held)
+        self._replay_kept = (samples, before, cf)
         return cf
 
     def _recalling(self, memo: _Transitions, pairs: np.ndarray, reward: np.ndarray,
