@@ -13,11 +13,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rac.compiler import compile_file, compile_text
+from rac.learning import counterfactual
 from rac.learning.counterfactual import Replayer, Sample, counterfactual_transitions
 from rac.learning.episodes import EpisodeBatch, parse_expr
 from rac.learning.qlearning import learn, location_column
 from rac.learning.strategy import derived_bins
 from rac.runtime.batch import BatchRewardAutomaton
+from rac.runtime.semantics import input_specs
 
 #: Two locations: A earns 1 per sample, B loses 1; A -> B when p, B -> A when !p (+10 on the way);
 #: at the end in A, +100.
@@ -32,6 +34,22 @@ automaton Tiny {
     location B { r' == -1 }
     edge A -> B when p
     edge B -> A when !p do r = r + 10
+    at end when !p do r = r + 100
+}
+"""
+#: Rates reading a numeric input (held from the sample before), an update reading a reward (not a translation).
+HELD = """
+automaton Held {
+    input p : bool
+    input x : real in [0, 10]
+    reward r
+    objective r
+    sample every 1
+    horizon 10
+    initial location A { r' == x }
+    location B { r' == -2 * x }
+    edge A -> B when p && x > 5 do r = r * 2
+    edge B -> A when !p do r = r + x
     at end when !p do r = r + 100
 }
 """
@@ -268,3 +286,142 @@ def test_run_samples_refuses_what_step_batch_refuses() -> None:
         BatchRewardAutomaton(automaton, 4).run_samples([({"isClose": yes}, yes, no)], repeat=4)
     with pytest.raises(RuntimeError, match="ended"):
         BatchRewardAutomaton(automaton, 4).run_samples([(ok, yes, yes), (ok, yes, no)], repeat=4)
+
+
+def replay_calls(automaton, rng: np.random.Generator, calls: int) -> list[tuple]:
+    """Calls of :meth:`Replayer.replay` whose transitions repeat: each row drawn from a pool of a few
+    transitions (inputs, which samples are taken and ended at, rewards before, held inputs), most of
+    them alike but in one of these; neighbours and the number of rows change from call to call. A sample
+    a transition neither takes nor ends at gets inputs that change (out of range, too: they are not read)."""
+    specs = input_specs(automaton)
+    length = int(rng.integers(1, 5))
+    held = [spec.name for spec in specs if not spec.is_bool]
+
+    def flags() -> tuple[list[bool], list[bool]]:
+        active, ending, done = [], [], False
+        for _ in range(length):
+            takes = not done and rng.random() < 0.85
+            ends = not done and rng.random() < 0.2  # at a sample it takes, or after its last one
+            done |= ends
+            active.append(takes)
+            ending.append(ends)
+        return active, ending
+
+    def inputs() -> list[dict]:
+        out = []
+        for _ in range(length):
+            values = {spec.name: bool(rng.random() < 0.5) if spec.is_bool else float(rng.integers(0, 21)) / 2
+                      for spec in specs}
+            if "collide" in values:  # the paper's `assume collide imply isClose`
+                values["collide"] &= values["isClose"]
+            out.append(values)
+        return out
+
+    def rewards() -> dict:
+        return {name: float(rng.integers(-30, 30)) / 4 for name in automaton.rewards}
+
+    def holding() -> dict:
+        return {name: float(rng.integers(0, 21)) / 2 for name in held}
+
+    base = (inputs(), *flags(), rewards(), holding())
+    pool = [base]
+    for _ in range(5):  # the base but for one thing
+        change = int(rng.integers(-1, 4))
+        if change == -1:  # the inputs of one sample
+            at = int(rng.integers(0, length))
+            pool.append(([*base[0][:at], inputs()[at], *base[0][at + 1:]], *base[1:]))
+        elif change == 0:
+            pool.append((inputs(), *base[1:]))
+        elif change == 1:
+            pool.append((base[0], *flags(), *base[3:]))
+        elif change == 2:
+            pool.append((*base[:3], rewards(), base[4]))
+        else:
+            pool.append((*base[:4], holding()))
+    out = []
+    for _ in range(calls):
+        rows = [pool[i] for i in rng.integers(0, len(pool), int(rng.integers(1, 6)))]
+        samples = []
+        for j in range(length):
+            columns = {}
+            unread = np.array([not (row[1][j] or row[2][j]) for row in rows])
+            for spec in specs:
+                column = np.array([row[0][j][spec.name] for row in rows], dtype=bool if spec.is_bool else float)
+                noise = rng.random(len(rows)) < 0.5 if spec.is_bool else rng.uniform(-100, 100, len(rows))
+                columns[spec.name] = np.where(unread, noise, column)
+            samples.append(Sample(columns, np.array([row[1][j] for row in rows]),
+                                  np.array([row[2][j] for row in rows])))
+        before = {name: np.array([row[3][name] for row in rows]) for name in automaton.rewards}
+        given = None if not held or rng.random() < 0.3 else {name: np.array([row[4][name] for row in rows])
+                                                              for name in held}
+        out.append((samples, len(rows), before, given))
+    return out
+
+
+@pytest.mark.parametrize("source", ["tiny", "held", "paper"])
+def test_a_recalled_replay_is_the_replay(source: str, tiny) -> None:
+    """A Replayer with a memo recalls a transition replayed before (by everything its replay reads)
+    instead of replaying it again: whatever its neighbours then and now, the rows missing padded to a
+    batch size, rates reading held inputs or updates reading rewards, the recalled values must be
+    those of replaying it, bit for bit."""
+    automaton = {"tiny": tiny, "held": compile_text(HELD).raise_for_errors(),
+                 "paper": compile_file(ROOT / "examples" / "paper" / "model.ra").raise_for_errors()}[source]
+    recalled = 0
+
+    @settings(max_examples=40, deadline=None)
+    @given(st.integers(0, 2**32 - 1))
+    def check(seed: int) -> None:
+        nonlocal recalled
+        memo = Replayer(automaton, memo=True)
+        for samples, n, rewards, held in replay_calls(automaton, np.random.default_rng(seed), 6):
+            got = memo.replay(samples, n, rewards, held)
+            want = Replayer(automaton).replay(samples, n, rewards, held)
+            assert counterfactual_bytes(got) == counterfactual_bytes(want)
+        recalled += memo.rows_recalled
+
+    check()
+    assert recalled > 0
+
+
+def test_the_replay_memos_share_one_budget(tiny, monkeypatch: pytest.MonkeyPatch) -> None:
+    """All replayers of a process keep at most REPLAY_MEMO_BYTES together; a full memo starts afresh
+    and the values stay the same; a replayer that is gone hands its bytes back."""
+    import gc
+
+    gc.collect()
+    held = counterfactual._Replays.held_by_all  # memos of earlier tests still alive: counted above them
+    cap = held + 20_000
+    monkeypatch.setattr(counterfactual, "REPLAY_MEMO_BYTES", cap)
+    rng = np.random.default_rng(5)
+    memo = Replayer(tiny, memo=True)
+    seen = []
+    for _ in range(40):
+        n = int(rng.integers(1, 40))
+        samples = [Sample({"p": rng.random(n) < 0.5}, np.ones(n, dtype=bool), np.zeros(n, dtype=bool))
+                   for _ in range(3)]
+        rewards = {"r": rng.integers(0, 40, n).astype(float)}
+        got = memo.replay(samples, n, rewards)
+        assert counterfactual_bytes(got) == counterfactual_bytes(Replayer(tiny).replay(samples, n, rewards))
+        seen.append(counterfactual._Replays.held_by_all - held)
+        assert counterfactual._Replays.held_by_all <= cap
+    assert memo.rows_recalled > 0 and max(seen) > cap - held - 5_000  # it filled up
+    assert any(later < earlier for earlier, later in zip(seen, seen[1:]))  # and started afresh
+    del memo
+    gc.collect()
+    assert counterfactual._Replays.held_by_all == held
+
+
+def test_the_batch_memo_recalls_the_replays_of_steps_taken_again() -> None:
+    """EpisodeBatch(memo=True) replays a step taken again (same episode state, same action) from its
+    replayer's memo: the same counterfactuals as a batch without memo, bit for bit."""
+    result = compile_file(ROOT / "examples" / "paper" / "model.ra")
+    batches = [EpisodeBatch(result, horizon_samples=60, counterfactuals=True, memo=memo) for memo in (True, False)]
+    rng = np.random.default_rng(2)
+    plans = [rng.integers(batches[0].n_actions, size=(3, 4)) for _ in range(2)]
+    for plan in plans * 2:
+        for batch in batches:
+            batch.reset(4)
+        for actions in plan:
+            seen = [counterfactual_bytes((batch.step(actions), batch.counterfactual())[1]) for batch in batches]
+            assert seen[0] == seen[1]
+    assert batches[0]._replayer.rows_recalled >= 12 and batches[1]._replayer.rows_recalled == 0

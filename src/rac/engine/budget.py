@@ -40,8 +40,8 @@ from rac.core.resources import memory_option, memory_option_limits
 
 __all__ = ["EPISODE_MEMO_BYTES", "EVALUATION_BYTES_PER_RUN", "EVALUATION_BYTES_PER_SAMPLE",
            "EVALUATION_BYTES_PER_STEP", "MEMO_BYTES_PER_STEP", "GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE",
-           "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR",
-           "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW", "REPLAY_BYTES_PER_DECISION", "RUN_BYTES_PER_SAMPLE",
+           "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR", "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW",
+           "REPLAY_BYTES_PER_DECISION", "REPLAY_MEMO_BYTES", "RUN_BYTES_PER_SAMPLE",
            "PROJECTION_FROM", "PROJECTION_MARGIN", "SIMULATION_PEAK_FACTOR", "VALUE_BYTES", "Budget", "BudgetExceeded",
            "EstimateExceeded", "ProjectionExceeded", "TimeExceeded", "TimeLimit", "cgroup_limit", "check_estimate",
            "default_max_bytes", "evaluation_bytes", "format_bytes", "learning_bytes", "machine_memory", "out_of_memory",
@@ -84,8 +84,13 @@ LEARNING_BYTES_PER_EPISODE = 2 * (8 + 4 + 8)
 #: to recall them instead of calling the model again (:class:`rac.learning.episodes.EpisodeBatch`'s
 #: memo; then the memos stop growing).
 EPISODE_MEMO_BYTES = 32 * 2**20
-#: A generous estimate of one step kept in that memo (the paper's model: 20 samples, about 0.9 kB).
+#: A generous estimate of one step kept in that memo (the paper's model: 20 samples, about 0.9 kB), and
+#: of its replay from every location in :data:`REPLAY_MEMO_BYTES`'s (about 0.4 kB).
 MEMO_BYTES_PER_STEP = 2048
+#: The most bytes the replayers of counterfactual experiences of one process keep together of the
+#: replays they computed (:class:`rac.learning.counterfactual.Replayer`'s memo; then a replayer's
+#: memo starts afresh).
+REPLAY_MEMO_BYTES = 16 * 2**20
 #: One evaluation run of a learned strategy (:func:`rac.learning.runs.evaluation_steps`: its episode's row of
 #: the batch, its recorded run and their temporaries): a fixed part, a part per decision and one per sample.
 #: Measured as the peak RSS over 20,000 to 80,000 runs (tests' tiny road: 8 samples, 4 decisions, 1.4-1.8 kB;
@@ -212,14 +217,15 @@ def learning_bytes(*, episodes: int, parallel: int, steps: int, observations: in
     and choosing among ``actions``: the Q-table (each decision adds at most one row, the start one more:
     ``1 + episodes * steps`` rows of ``observations + actions`` float64 entries, times
     :data:`QTABLE_COPIES`, and their index), a batch's decisions kept for the replay and the episodes'
-    history; and the batch's memo of the steps taken (at most one per decision, and all memos at most
-    :data:`EPISODE_MEMO_BYTES`). The episodes' own arrays (``parallel`` rows of the model's state) are
+    history; and the batch's memo of the steps taken and of their replays from every location (at most
+    one per decision, and all memos at most :data:`EPISODE_MEMO_BYTES` and :data:`REPLAY_MEMO_BYTES`). The
+    episodes' own arrays (``parallel`` rows of the model's state) are
     small beside these."""
     rows = 1 + episodes * steps
     table = rows * ((observations + actions) * VALUE_BYTES * QTABLE_COPIES + QTABLE_INDEX_BYTES_PER_ROW
                     + observations * VALUE_BYTES)
     replay = (parallel + 1) * steps * (REPLAY_BYTES_PER_DECISION + actions)
-    memo = min(EPISODE_MEMO_BYTES, runs * rows * MEMO_BYTES_PER_STEP)
+    memo = min(EPISODE_MEMO_BYTES + REPLAY_MEMO_BYTES, runs * rows * MEMO_BYTES_PER_STEP)
     return runs * (table + replay + episodes * LEARNING_BYTES_PER_EPISODE) + memo
 
 

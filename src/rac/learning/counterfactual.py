@@ -14,7 +14,8 @@ which PyCRM implements for Python environments.
   increase, ``at end`` bonus included) and the next location per transition and location.
   :meth:`rac.learning.episodes.EpisodeBatch.counterfactual` uses it for the step just taken (a step is
   a decision period of several samples); tabular Q-learning (:mod:`rac.learning.tabular`) then
-  updates the Q-value of the transition's observation in every location.
+  updates the Q-value of the transition's observation in every location. With a memo (the episodes'
+  ``memo``), a transition replayed before is recalled by all its replay reads, bit for bit the same.
 - :func:`counterfactual_transitions` is the same for a deep learner's replay buffer, where one
   environment step is one sample (:class:`rac.learning.wrappers.RewardAutomatonWrapper`): for a
   batch of ``B`` transitions, ``B * L`` counterfactual ones — which transition each comes from, its
@@ -37,13 +38,16 @@ those of the step before it, which input-dependent rates read: required for such
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from rac import ir
+from rac.engine.budget import REPLAY_MEMO_BYTES
 from rac.runtime.batch import BatchRewardAutomaton
+from rac.runtime.semantics import input_specs
 
 __all__ = ["CounterfactualBatch", "Counterfactuals", "Replayer", "Sample", "counterfactual_transitions"]
 
@@ -77,12 +81,27 @@ class Counterfactuals:
 
 class Replayer:
     """Replays transitions of ``automaton`` from every location (see the module docstring); keeps
-    one batch of automata per size, so that replaying costs one automaton step per sample."""
+    one batch of automata per size, so that replaying costs one automaton step per sample.
 
-    def __init__(self, automaton: ir.Automaton) -> None:
+    With ``memo``, a transition's replay is kept by everything it reads (:class:`_Replays`): a
+    transition replayed again (the episodes of a deterministic model repeat most of their steps) is
+    recalled, the same values to the last bit. :attr:`rows_computed` and :attr:`rows_recalled`
+    count the transitions replayed and recalled."""
+
+    def __init__(self, automaton: ir.Automaton, *, memo: bool = False) -> None:
         self.automaton = automaton
         self.n_locations = len(automaton.locations)
         self._batches: dict[int, BatchRewardAutomaton] = {}
+        specs = input_specs(automaton)
+        self._inputs = {spec.name for spec in specs}
+        self._bools = [spec.name for spec in specs if spec.is_bool]
+        self._numbers = [spec.name for spec in specs if not spec.is_bool]
+        #: the inputs the rates read, held from the sample before a transition
+        self._held = sorted({name for location in automaton.locations for rate in location.rates
+                             for name in rate.variables()})
+        self._memo = _Replays(self.n_locations * (2 + len(automaton.rewards))) if memo else None
+        self.rows_computed = 0
+        self.rows_recalled = 0
 
     def replay(self, samples: Sequence[Sample], n: int, rewards: Mapping[str, np.ndarray] | None = None,
                held: Mapping[str, np.ndarray] | None = None) -> Counterfactuals:
@@ -90,6 +109,46 @@ class Replayer:
         starting with the reward values ``rewards`` (name -> ``(n,)``; default 0) in every location
         and the inputs ``held`` from the sample before (name -> ``(n,)``, which input-dependent rates
         read at the first sample; default none, as at a run's first sample)."""
+        memo = self._memo
+        keys = None if memo is None else self._keys(samples, n, rewards, held)
+        if memo is None or keys is None:
+            self.rows_computed += n
+            return self._compute(samples, n, rewards, held)
+        slots = memo.find(keys)
+        found = slots >= 0
+        table = np.empty((n, memo.width))
+        table[found] = memo.store[slots[found]]
+        missing = np.flatnonzero(~found)
+        self.rows_recalled += n - missing.size
+        if missing.size:  # each distinct transition replayed once
+            first: dict[bytes, int] = {}  # key -> its first row
+            inverse = np.fromiter((first.setdefault(keys[row], row) for row in missing.tolist()), dtype=np.int64,
+                                  count=missing.size)
+            rows = np.fromiter(first.values(), dtype=np.int64, count=len(first))  # ascending, as missing
+            self.rows_computed += rows.size
+            # padded to a power of two with rows that take no sample (they change nothing), so that a few
+            # batch sizes serve every count of rows missing
+            size = max(16, 1 << (rows.size - 1).bit_length())
+            take = np.concatenate([rows, np.repeat(rows[:1], size - rows.size)])
+            padded = [Sample({name: column[take] for name, column in sample.inputs.items()},
+                             _padded(sample.active, take, rows.size), _padded(sample.ending, take, rows.size))
+                      for sample in samples]
+            cf = self._compute(padded, size,
+                               None if rewards is None else {name: np.asarray(column, dtype=np.float64)[take]
+                                                             for name, column in rewards.items()},
+                               None if held is None else {name: np.asarray(held[name])[take] for name in self._held})
+            computed = np.concatenate([cf.reward, cf.next_location.astype(np.float64),
+                                       *(cf.rewards[name] for name in self.automaton.rewards)], axis=1)[:rows.size]
+            table[missing] = computed[np.searchsorted(rows, inverse)]
+            memo.add(list(first), computed)
+        width = self.n_locations
+        return Counterfactuals(table[:, :width].copy(), table[:, width:2 * width].astype(np.int64),
+                               {name: table[:, (2 + i) * width:(3 + i) * width].copy()
+                                for i, name in enumerate(self.automaton.rewards)})
+
+    def _compute(self, samples: Sequence[Sample], n: int, rewards: Mapping[str, np.ndarray] | None,
+                 held: Mapping[str, np.ndarray] | None) -> Counterfactuals:
+        """:meth:`replay` on the batch of automata of that size."""
         size = n * self.n_locations
         batch = self._batches.get(size)
         if batch is None:
@@ -104,6 +163,131 @@ class Replayer:
         shape = (n, self.n_locations)
         return Counterfactuals(total.reshape(shape), batch.locations.astype(np.int64).reshape(shape),
                                {name: values.reshape(shape) for name, values in batch.rewards.items()})
+
+    def _keys(self, samples: Sequence[Sample], n: int, rewards: Mapping[str, np.ndarray] | None,
+              held: Mapping[str, np.ndarray] | None) -> list[bytes] | None:
+        """Each transition's key in the memo: the bytes of everything its replay reads — the number of
+        samples, the reward values before it, the held inputs the rates read, and per sample whether it
+        takes it and ends at it and, where it does either, the inputs (a sample it neither takes nor ends
+        at reads none). None (replayed, not kept) for what is not plainly that: other dtypes or shapes
+        (replaying validates them), a reward of -0.0 or not finite (see :class:`_Replays`)."""
+        rewards = rewards or {}
+        if n < 1 or any(name not in self.automaton.rewards for name in rewards):
+            return None
+        floats: list[np.ndarray] = []
+        for name in self.automaton.rewards:
+            value = np.asarray(rewards[name], dtype=np.float64) if name in rewards else np.zeros(n)
+            if value.shape != (n,) or not np.isfinite(value).all() or (np.signbit(value) & (value == 0)).any():
+                return None
+            floats.append(value)
+        held_flag = 0
+        if self._held and held is not None:
+            held_flag = 1
+            for name in self._held:
+                if name not in held:
+                    return None
+                column = np.asarray(held[name])
+                if column.dtype != np.float64 or column.shape != (n,):
+                    return None
+                floats.append(column)
+        bools: list[np.ndarray] = []  # per sample: whether it is taken, ended at, and the boolean inputs
+        numbers: list[np.ndarray] = []
+        for sample in samples:
+            if sample.inputs.keys() != self._inputs:
+                return None
+            bools += [sample.active, sample.ending, *(sample.inputs[name] for name in self._bools)]
+            numbers += [sample.inputs[name] for name in self._numbers]
+        if any(not isinstance(c, np.ndarray) or c.dtype != bool or c.shape != (n,) for c in bools) \
+                or any(not isinstance(c, np.ndarray) or c.dtype != np.float64 or c.shape != (n,) for c in numbers):
+            return None
+        count = len(samples)
+        flags = np.stack(bools).reshape(count, 2 + len(self._bools), n) if count else np.zeros((0, 2, n), bool)
+        reads = flags[:, 0] | flags[:, 1]
+        flags[:, 2:] &= reads[:, None]
+        if numbers:
+            floats += list(np.where(np.repeat(reads, len(self._numbers), axis=0),
+                                    np.stack(numbers), 0.0))
+        header = np.array([count, held_flag], dtype=np.int64).view(np.uint8)
+        parts = [np.broadcast_to(header, (n, header.size))]
+        if floats:
+            parts.append(np.column_stack(floats).view(np.uint8))
+        if count:
+            parts.append(np.packbits(flags.reshape(-1, n).T, axis=1))
+        raw = np.ascontiguousarray(np.concatenate(parts, axis=1)).tobytes()
+        width = len(raw) // n
+        return [raw[start:start + width] for start in range(0, len(raw), width)]
+
+
+def _padded(flags: np.ndarray, take: np.ndarray, rows: int) -> np.ndarray:
+    """``flags[take]`` with the rows from ``rows`` on false (padding: they take no sample)."""
+    out = np.asarray(flags)[take]
+    out[rows:] = False
+    return out
+
+
+class _Replays:
+    """The replays a :class:`Replayer` computed, by their transition's key (:meth:`Replayer._keys`): per
+    transition one row of ``width`` doubles — the reward, the next location and each reward's value
+    after, each per location. A transition's replay reads its key alone, not its neighbours in the
+    batch: the automata are stepped elementwise, and an automaton a sample leaves out (``active``
+    false) is left as it is, but that its rewards gain a zero (the rate times false) when others take
+    the sample. A zero added changes no value but -0.0, and no reward is -0.0: a replay kept starts from
+    rewards that are not (:meth:`Replayer._keys`), and a reward after a sample is a sum whose first
+    operand is not -0.0 (the reward before, or an update's constant: a rational), which in
+    round-to-nearest is -0.0 only when both operands are. So a recalled replay is the replay, bit for
+    bit (tests/learning/test_counterfactual.py compares them).
+
+    All memos of the process keep at most :data:`rac.engine.budget.REPLAY_MEMO_BYTES` together, as
+    :class:`rac.learning.episodes.EpisodeBatch`'s memo of steps shares its budget; a memo that would
+    exceed it starts afresh (only the time changes), and hands its bytes back when it is collected."""
+
+    #: The bytes held by every memo of this process together.
+    held_by_all = 0
+    #: The bytes of one key in the index beside its own (the bytes object and the dictionary's entry).
+    INDEX_BYTES = 150
+
+    def __init__(self, width: int) -> None:
+        self.width = width
+        self.index: dict[bytes, int] = {}
+        self.store = np.zeros((0, width))
+        self.held = [0]  # this memo's bytes, in a list: handed back when the memo is collected
+        weakref.finalize(self, _Replays._release, self.held)
+
+    @staticmethod
+    def _release(held: list[int]) -> None:
+        _Replays.held_by_all -= held[0]
+        held[0] = 0
+
+    def find(self, keys: list[bytes]) -> np.ndarray:
+        """Each key's row in :attr:`store`, -1 for a transition not kept."""
+        index = self.index
+        return np.fromiter((index.get(key, -1) for key in keys), dtype=np.int64, count=len(keys))
+
+    def add(self, keys: list[bytes], rows: np.ndarray) -> None:
+        """Keep the distinct ``keys`` (none kept yet) with their ``rows``, as far as the budget allows."""
+        if not keys:
+            return
+        size, capacity = len(self.index), self.store.shape[0]
+        row_bytes = self.width * 8
+        per_key = self.INDEX_BYTES + len(keys[0])
+        wanted = capacity if size + len(keys) <= capacity else max(2 * capacity, size + len(keys), 64)
+        cost = (wanted - capacity) * row_bytes + len(keys) * per_key
+        if _Replays.held_by_all + cost > REPLAY_MEMO_BYTES:  # start afresh, with these
+            _Replays._release(self.held)
+            self.index, self.store = {}, np.zeros((0, self.width))
+            size = capacity = 0
+            wanted = max(len(keys), 64)
+            cost = wanted * row_bytes + len(keys) * per_key
+            if _Replays.held_by_all + cost > REPLAY_MEMO_BYTES:
+                return
+        if wanted > capacity:
+            grown = np.zeros((wanted, self.width))
+            grown[:size] = self.store[:size]
+            self.store = grown
+        self.store[size:size + len(keys)] = rows
+        self.index.update(zip(keys, range(size, size + len(keys))))
+        _Replays.held_by_all += cost
+        self.held[0] += cost
 
 
 @dataclass(frozen=True, eq=False)

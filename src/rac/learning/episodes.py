@@ -408,7 +408,9 @@ class EpisodeBatch:
         memo: recall the model's part of a step taken before (:class:`_Transitions`; all batches of
             the process keep at most :data:`rac.engine.budget.EPISODE_MEMO_BYTES` together) instead
             of computing it again, where that part is a function of the step's state and pair (the
-            default; the same values). False: every step calls the model.
+            default; the same values), and recall a step's replay from every location
+            (:meth:`counterfactual`) replayed before (:class:`rac.learning.counterfactual.Replayer`'s
+            memo). False: every step calls the model and replays.
 
     Attributes: ``n_actions``, ``action_pairs`` ``(P, 2)`` (jerk, turn significands; action ``a``
     is row ``a``), ``decide_every``, ``horizon_samples``, ``max_steps`` (steps in an episode that
@@ -478,7 +480,7 @@ class EpisodeBatch:
         self._prev: _State | None = None
         #: Record every step's samples, for :meth:`counterfactual` (off: a step records nothing).
         self.counterfactuals = counterfactuals
-        self._replayer = Replayer(automaton)
+        self._replayer = Replayer(automaton, memo=memo)
         self._record: list[Sample] = []
         self._before: _State | None = None
         #: the last step's replay of every episode (:meth:`_replayed`), with the record and state it replays
