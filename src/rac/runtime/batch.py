@@ -692,28 +692,32 @@ class BatchRewardAutomaton(AutomatonDescription):
         code = self._atom_code(x, n_samples * rows).reshape(n_samples, rows)
         if self._assume_table is not None and not (self._assume_table[code] | ~active).all():
             return False
-        bits, n_classes = self._atom_bits, len(self._classes)
+        n_classes, bits = len(self._classes), self._atom_bits
+        # what the samples read, spread over the automata at once (the values np.repeat gives per sample)
+        codes = np.repeat(code.astype(np.intp), repeat, axis=1)
+        masks = np.repeat(active, repeat, axis=1)
+        updated = {name for c in range(1, n_classes) for _, (_, terms) in self._classes[c] for _, name in terms
+                   if name in x}  # the inputs an update reads (the rewards it reads are the batch's)
+        spread = {name: np.repeat(x[name].reshape(n_samples, rows), repeat, axis=1) for name in updated}
+        any_active: Any = active.any(axis=1).tolist()  # per sample (lists: cheaper to read one by one)
+        all_active: Any = active.all(axis=1).tolist()
+        any_ending: Any = ending.any(axis=1).tolist()
         for j in range(n_samples):
-            a = active[j]
-            if a.any():
-                only = None if a.all() else np.repeat(a, repeat)
+            if any_active[j]:
+                only = None if all_active[j] else masks[j]
                 loc = self._loc
-                idx = (loc << bits) | np.repeat(code[j], repeat)
+                idx = (loc << bits) | codes[j]
                 nxt = self._next_table[idx]
                 gain = self._rate_table[:, loc]  # accrual, then the edges' updates, as step_batch
                 self._R += gain if only is None else gain * only
                 if n_classes > 1:
                     cls = self._class_table[idx]
-                    spread: dict[str, np.ndarray] | None = None
                     for c in range(1, n_classes):
                         fired = cls == c if only is None else (cls == c) & only
                         if fired.any():
-                            if spread is None:
-                                spread = {name: np.repeat(values.reshape(n_samples, rows)[j], repeat)
-                                          for name, values in x.items()}
-                            self._apply(self._classes[c], fired, spread)
+                            self._apply(self._classes[c], fired, {name: values[j] for name, values in spread.items()})
                 total += self._advance(nxt, loc, only)
-            if ending[j].any():
+            if any_ending[j]:
                 total += self.end_batch(_spread_inputs(samples[j][0], repeat), mask=np.repeat(ending[j], repeat))
         return True
 
