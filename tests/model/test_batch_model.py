@@ -15,7 +15,7 @@ from test_explore import datasets, random_states
 from rac.engine.evaluate import Evaluator, Frame
 from rac.engine.simulate import Limits, integrate_one, integrate_truth
 from rac.ir import expr as ie
-from rac.model import ModelData, NativeModel, State
+from rac.model import ModelData, NativeModel, State, memo
 from rac.model.batch import BatchModel
 from rac.model.memo import KeyedRows, cos_sin
 
@@ -87,6 +87,27 @@ def test_keyed_rows_answer_as_a_dict_would(batches: list[list[int]], recent: int
         assert not set(rows.keys.tolist()) & set(rows.recent_keys.tolist())
         assert rows.recent_keys.size < recent
     assert sorted(computed) == sorted({k for batch in batches for k in batch})
+
+
+@settings(max_examples=40, deadline=None)
+@given(batches=st.lists(st.lists(st.integers(-3000, 3000), min_size=1, max_size=90), min_size=1, max_size=30),
+       dict_keys=st.integers(1, 200))
+def test_keyed_rows_few_keys_by_the_dictionary_as_by_the_search(batches: list[list[int]], dict_keys: int) -> None:
+    """Few keys are looked up in a dictionary while the table is small, the others searched; the table
+    dropping the dictionary (past DICT_KEYS) and starting afresh (past its limit) change no row."""
+    def compute(keys: np.ndarray) -> np.ndarray:
+        return np.stack([keys * 0.25, keys.astype(np.float64) ** 2], axis=1)
+
+    rows = KeyedRows(2, compute, limit=2 * 1024, recent=7)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(memo, "DICT_KEYS", dict_keys)
+        for batch in batches:
+            keys = np.array(batch, dtype=np.int64)
+            for _ in range(2):  # new keys, then kept ones (by the dictionary when there is one)
+                assert rows(keys).tolist() == [[k * 0.25, float(k) ** 2] for k in batch]
+            if rows.slot_of is not None:
+                assert len(rows.slot_of) == len(rows) <= dict_keys
+                assert all(rows.rows[slot].tolist() == [k * 0.25, float(k) ** 2] for k, slot in rows.slot_of.items())
 
 
 @pytest.mark.parametrize("name, data", DATASETS, ids=lambda value: value if isinstance(value, str) else "")

@@ -319,12 +319,12 @@ class _Transitions:
 
     def recall(self, slots: np.ndarray, j: int) -> _ModelSample:
         """Sample ``j`` of the steps in ``slots``."""
-        records = self.store[slots, j]
-        sampled = _ModelSample(records["ego"].copy(), {name: records[field].copy() for field, name in self.inputs},
-                               {name: records[field].copy() for field, name in self.numeric},
-                               records["collided"].copy(), records["offroad"].copy())
-        sampled.reward = records["reward"].copy() if self.has_reward else None
-        sampled.reached = records["reached"].copy()
+        records = self.store[slots, j]  # a copy (fancy indexing): its fields are views of nothing kept
+        sampled = _ModelSample(records["ego"], {name: records[field] for field, name in self.inputs},
+                               {name: records[field] for field, name in self.numeric},
+                               records["collided"], records["offroad"])
+        sampled.reward = records["reward"] if self.has_reward else None
+        sampled.reached = records["reached"]
         return sampled
 
     def add(self, keys: list[bytes], records: np.ndarray) -> None:
@@ -858,7 +858,10 @@ class EpisodeBatch:
         inputs only): a function of each row's :meth:`_Transitions.keys`, nothing else."""
         now = self._require()[0]
         evaluator = self.evaluator
-        before = now.frame(rows)  # the state at k, before the choice: what prev(e) reads
+        # the state at k, before the choice: what prev(e) reads (a memoisable batch's prev(e) reads the
+        # model alone, :meth:`_memoisable`: no location, reward or input to gather)
+        before = now.frame(rows) if self._transitions is None else \
+            Frame(k=now.k[rows], ego=now.ego[rows], crashed=now.crashed[rows])
         if self._carried is not None:  # computed on these states at the last sample (or the start)
             carried, known = self._carried
             where = np.minimum(np.searchsorted(carried, rows), max(carried.size - 1, 0))

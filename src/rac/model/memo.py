@@ -25,6 +25,11 @@ __all__ = ["KeyedRows", "cos_sin", "distinct_values"]
 MEMO_DOUBLES = 1 << 21
 #: A :class:`KeyedRows`' new keys are merged into its main index once this many have come.
 RECENT_KEYS = 4096
+#: Up to this many keys are looked up one by one in a dictionary (numpy's searches cost more per call
+#: than a few dictionary lookups), while the table holds at most :data:`DICT_KEYS` keys.
+FEW_KEYS = 64
+#: ... beyond this many kept keys the dictionary is dropped (its memory), and every lookup searches.
+DICT_KEYS = 1 << 16
 
 
 def cos_sin(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,6 +93,8 @@ class KeyedRows:
         self.recent_keys = np.zeros(0, dtype=np.int64)  # sorted; none of them in self.keys
         self.recent_slots = np.zeros(0, dtype=np.int64)
         self.rows = np.zeros((64, width), dtype=np.float64)
+        #: key -> its row in self.rows, for :data:`FEW_KEYS` keys at a time (None: beyond DICT_KEYS keys)
+        self.slot_of: dict[int, int] | None = {}
 
     def __len__(self) -> int:
         return int(self.keys.size + self.recent_keys.size)
@@ -100,6 +107,11 @@ class KeyedRows:
 
     def __call__(self, keys: np.ndarray) -> np.ndarray:
         keys = np.asarray(keys, dtype=np.int64)
+        slot_of = self.slot_of
+        if slot_of is not None and keys.ndim == 1 and keys.size <= FEW_KEYS:
+            slots = [slot_of.get(key, -1) for key in keys.tolist()]
+            if -1 not in slots:  # all kept: the same rows as the search finds
+                return self.rows[slots]
         slot, found = self._find(keys)
         if not found.all():
             fresh = np.unique(keys[~found])
@@ -113,6 +125,7 @@ class KeyedRows:
                 fresh, rows = fresh[order], rows[order]
                 self.keys, self.slots = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
                 self.recent_keys, self.recent_slots = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+                self.slot_of = {}
             self._add(fresh, rows)
             slot, found = self._find(keys)
         return self.rows[slot]
@@ -146,6 +159,11 @@ class KeyedRows:
             grown[:count] = self.rows[:count]
             self.rows = grown
         self.rows[count:need] = rows
+        if self.slot_of is not None:
+            if need > DICT_KEYS:
+                self.slot_of = None
+            else:
+                self.slot_of.update(zip(keys.tolist(), range(count, need)))
         where = np.searchsorted(self.recent_keys, keys)
         self.recent_keys = np.insert(self.recent_keys, where, keys)
         self.recent_slots = np.insert(self.recent_slots, where, np.arange(count, need))

@@ -250,6 +250,9 @@ class BatchRewardAutomaton(AutomatonDescription):
         self._assume_checks = [(self._guards.add(check.guard), check) for check in assume_checks(automaton)]
 
         self._objective_form = float_linear(automaton.objective, "objective")
+        #: the objective's constant and (coefficient, reward row) terms, in the form's order (read every sample)
+        self._objective_rows = (self._objective_form[0],
+                                tuple((coef, self._index[name]) for coef, name in self._objective_form[1]))
         zeros = np.zeros((k, 1))
         initial = _eval_np_linear(self._objective_form, lambda r: zeros[self._index[r]], 1)
         self._initial_objective = float(initial[0])
@@ -495,8 +498,15 @@ class BatchRewardAutomaton(AutomatonDescription):
             np.copyto(R[i], _eval_np_linear(form, value, self._n), where=where)
 
     def _objective_now(self) -> np.ndarray:
-        R, index = self._R, self._index
-        return _eval_np_linear(self._objective_form, lambda name: R[index[name]], self._n)
+        # _eval_np_linear's sum (the same operations in the same order), with the rows looked up once
+        const, terms = self._objective_rows
+        if not terms:
+            return np.full(self._n, const)
+        R = self._R
+        acc: Any = const
+        for coef, row in terms:
+            acc = acc + coef * R[row]
+        return acc
 
     def _clip(self, inputs: Mapping[str, object], clip: bool,
               rows: np.ndarray | None) -> tuple[Mapping[str, object], dict[str, int] | None]:
