@@ -12,12 +12,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_explore import datasets, random_states
 
+from rac.core.numbers import INT32_MAX
 from rac.engine.evaluate import Evaluator, Frame
 from rac.engine.simulate import Limits, integrate_one, integrate_truth
 from rac.ir import expr as ie
 from rac.model import ModelData, NativeModel, State, memo
 from rac.model.batch import BatchModel
+from rac.model.data import ModelRangeError
 from rac.model.memo import KeyedRows, cos_sin
+from rac.model.sample import Ego
 
 DATASETS = datasets()
 
@@ -129,6 +132,29 @@ def test_sense_and_mindist_stay_native_as_states_come_in_small_batches(name: str
             assert bits(model.mindist(part, same)) == bits([native.mindist(State(*map(int, row)), int(ks[0]))
                                                             for row in part])
         states, k = np.roll(states, -size, axis=0), np.roll(k, -size)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10**6), size=st.integers(1, 60), far=st.integers(0, 3), column=st.sampled_from([0, 1, 4]))
+def test_sense_of_a_few_rows_is_that_of_many(seed: int, size: int, far: int, column: int) -> None:
+    """sense() of up to 256 rows (x and y moved together) gives what the path of many rows gives for the
+    same rows, bit for bit, and the same error when a value leaves int32 (``far`` rows pushed to its edge)."""
+    data = DATASETS[3][1]
+    model = BatchModel(data)
+    states, _ = random_states(data, size, seed=seed)
+    states[:far, column] = INT32_MAX - data.scale // 2 * (column != 4)
+    states[:far, Ego.V] = data.max_speed
+    states = np.roll(states, seed % size, axis=0)
+    repeat = 300 // size + 1  # each row repeated: more than 256 rows, the same first row out of range
+    try:
+        few = model.sense(states)
+    except ModelRangeError as error:
+        with pytest.raises(ModelRangeError) as many:
+            model.sense(np.repeat(states, repeat, axis=0))
+        assert str(many.value) == str(error)
+        return
+    assert few.tolist() == model.sense(np.repeat(states, repeat, axis=0))[::repeat].tolist()
+    assert few.tolist() == [list(NativeModel(data).sense(State(*map(int, row)))) for row in states]
 
 
 def test_the_speed_rows_on_python_floats_are_the_array_rows() -> None:

@@ -132,15 +132,15 @@ class BatchModel:
         scale = native.scale_d
         m = self.data.substeps
         n = states.shape[0]
+        if n <= _DIRECT_ROWS:
+            return self._sense_few(states)
         # The sub-steps' cos, sin (and last heading) per (head, turn) pair and speeds (and last
         # speed and acceleration) per (v, acc, jerk), kept: a table of rows and each state's row.
-        if n <= _DIRECT_ROWS:
-            heading, pair = self._headings(_pair_keys(states[:, Ego.HEAD], states[:, Ego.TURN])), np.arange(n)
-        else:  # the distinct pairs from the distinct heads and turns (few values: no sorting)
-            heads, head_rank = distinct_values(states[:, Ego.HEAD])
-            turns, turn_rank = distinct_values(states[:, Ego.TURN])
-            pairs, pair = distinct_values(head_rank * len(turns) + turn_rank)
-            heading = self._headings(_pair_keys(heads[pairs // len(turns)], turns[pairs % len(turns)]))
+        # The distinct pairs from the distinct heads and turns (few values: no sorting).
+        heads, head_rank = distinct_values(states[:, Ego.HEAD])
+        turns, turn_rank = distinct_values(states[:, Ego.TURN])
+        pairs, pair = distinct_values(head_rank * len(turns) + turn_rank)
+        heading = self._headings(_pair_keys(heads[pairs // len(turns)], turns[pairs % len(turns)]))
         speeds, speed = self._speed_table(states)
         x, y = (self._moved(states[:, column] / scale, speeds, speed, heading[:, part], pair)
                 for column, part in ((Ego.X, slice(0, m)), (Ego.Y, slice(m, 2 * m))))
@@ -154,6 +154,37 @@ class BatchModel:
             raise ModelRangeError(f"sense(): {what}", float(values[column, row]), None, self.data.scale)
         out = np.empty(states.shape, dtype=np.int32)
         out[:, MOTION] = scaled.T.astype(np.int64)  # truncation toward zero, like int()
+        out[:, ACTION] = states[:, ACTION]
+        return out
+
+    def _sense_few(self, states: np.ndarray) -> np.ndarray:
+        """:meth:`_sense` of up to ``_DIRECT_ROWS`` rows, each looking its kept rows up itself: the same
+        operations on the same doubles, x and y moved together (one running sum along each of their rows)."""
+        native = self.native
+        scale = native.scale_d
+        m = self.data.substeps
+        n = states.shape[0]
+        heading = self._headings(_pair_keys(states[:, Ego.HEAD], states[:, Ego.TURN]))  # (n, 2m + 1)
+        speeds = self._speed_table(states)[0]  # (n, m + 2): every row its own
+        # (n, 2, m + 1): x then y, each its start and the sub-steps' moves v * cos * u, v * sin * u
+        moves = np.empty((n, 2, m + 1), dtype=np.float64)
+        moves[:, 0, 0] = states[:, Ego.X] / scale
+        moves[:, 1, 0] = states[:, Ego.Y] / scale
+        np.multiply(speeds[:, None, :m], heading[:, :2 * m].reshape(n, 2, m), out=moves[:, :, 1:])
+        moves[:, :, 1:] *= self.data.unit
+        values = np.empty((n, 5), dtype=np.float64)  # x, y, v, acc, head
+        values[:, :2] = np.add.accumulate(moves, axis=2)[:, :, m]
+        values[:, 2:4] = speeds[:, m:m + 2]
+        values[:, 4] = heading[:, 2 * m]
+        scaled = values * scale
+        bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))  # also NaN
+        if bad.any():  # the first column with a value out of range, at its first row (as native)
+            column, row = divmod(int(np.argmax(bad.T)), n)
+            what = ("x", "y", "v", "acc", "head")[column]
+            native.significand(what, float(values[row, column]))  # raises the same error as native
+            raise ModelRangeError(f"sense(): {what}", float(values[row, column]), None, self.data.scale)
+        out = np.empty(states.shape, dtype=np.int32)
+        out[:, MOTION] = scaled.astype(np.int64)  # truncation toward zero, like int()
         out[:, ACTION] = states[:, ACTION]
         return out
 
@@ -197,15 +228,10 @@ class BatchModel:
     def _moved(self, start: np.ndarray, speeds: np.ndarray, speed: np.ndarray, trig: np.ndarray,
                pair: np.ndarray) -> np.ndarray:
         """``start`` plus the sub-steps' moves ``v * trig * u`` (``v``: rows ``speed`` of ``speeds``,
-        ``trig``: rows ``pair`` of ``trig``), added in order as the scalar loop adds them."""
+        ``trig``: rows ``pair`` of ``trig``), added in order as the scalar loop adds them (many rows:
+        :meth:`_sense_few` moves a few)."""
         m = self.data.substeps
         u = self.data.unit
-        if start.size <= _DIRECT_ROWS:  # one running sum along each row: start, move 1, ..., move m
-            moves = np.empty((start.size, m + 1), dtype=np.float64)
-            moves[:, 0] = start
-            np.multiply(speeds[speed, :m], trig[pair], out=moves[:, 1:])
-            moves[:, 1:] *= u
-            return np.add.accumulate(moves, axis=1)[:, m]
         steps = np.take(np.ascontiguousarray(speeds[:, :m].T), speed, axis=1)  # (m, n)
         steps *= np.take(np.ascontiguousarray(trig.T), pair, axis=1)
         steps *= u

@@ -109,9 +109,17 @@ class KeyedRows:
         keys = np.asarray(keys, dtype=np.int64)
         slot_of = self.slot_of
         if slot_of is not None and keys.ndim == 1 and keys.size <= FEW_KEYS:
-            slots = [slot_of.get(key, -1) for key in keys.tolist()]
+            listed = keys.tolist()
+            slots = [slot_of.get(key, -1) for key in listed]
             if -1 not in slots:  # all kept: the same rows as the search finds
                 return self.rows[slots]
+            fresh_keys = sorted({key for key, slot in zip(listed, slots) if slot < 0})  # np.unique's
+            if len(self) + len(fresh_keys) <= self.max_rows:  # no fresh start: the new rows added
+                fresh = np.array(fresh_keys, dtype=np.int64)
+                self._add(fresh, np.asarray(self.compute(fresh), dtype=np.float64).reshape(fresh.size, self.width))
+                if self.slot_of is not None:
+                    return self.rows[[self.slot_of[key] for key in listed]]
+                return self.rows[self._find(keys)[0]]
         slot, found = self._find(keys)
         if not found.all():
             fresh = np.unique(keys[~found])
