@@ -496,3 +496,20 @@ def test_compiled_programs_agree_in_a_batch(program: Any, data: st.DataObject) -
                 rows = trial
         for j, ra in enumerate(rows):
             assert _batch_row(batch, j) == _state(ra), (operation, j)
+
+
+@settings(max_examples=100, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(automata(), st.data())
+def test_atom_codes_are_the_atoms_bits(automaton: ir.Automaton, data: st.DataObject) -> None:
+    """The table strategy's index of each row's atoms (packed as the bits of one byte when they are
+    booleans) is ``Σ atom_i << i``, the loop's integer."""
+    rows = data.draw(st.lists(random_values(automaton.assumptions == (LIMITED,)), min_size=1, max_size=40))
+    batch = BatchRewardAutomaton(automaton, len(rows), strategy="table")
+    x = batch._read({name: [row[name] for row in rows] for name in rows[0]}, None)
+    expected = np.zeros(len(rows), dtype=np.int64)
+    for bit, (name, op, threshold) in enumerate(batch._atom_list):
+        truth = x[name] if op is None else op(x[name], threshold)
+        expected |= truth.astype(np.int64) << bit
+    code = batch._atom_code(x, len(rows))
+    assert code.dtype == batch._code_dtype and code.tolist() == expected.tolist()

@@ -83,6 +83,12 @@ class BatchModel:
         self._radii = np.asarray(radii, dtype=np.float64)
         hl = self.native.length_d / 2.0
         hw = self.native.width_d / 2.0
+        el = self.native.length_d
+        ew = self.native.width_d
+        eoff = el / 3.0
+        #: the ego's disc radius, its discs' offsets ``(a - 1) * eoff`` along its heading (3, 1, 1): _mindist
+        self._ego_discs = (math.sqrt((el / 6.0) * (el / 6.0) + (ew / 2.0) * (ew / 2.0)),
+                           np.array([(a - 1) * eoff for a in range(3)])[:, None, None])
         #: (4, 1) each: the corners' ``ca * hl`` and ``cb * hw`` (:meth:`_offroad`, every corner at once)
         self._corners = (np.array([ca * hl for ca, _ in CORNERS])[:, None],
                          np.array([cb * hw for _, cb in CORNERS])[:, None])
@@ -399,12 +405,8 @@ class BatchModel:
             distinct, where = distinct_values(samples)
             discs = np.stack([self._obstacle_discs(sample) for sample in distinct.tolist()], axis=1)  # (2, S, D)
         ec, es = self.cos_sin(states[:, Ego.HEAD])
-        el = native.length_d
-        ew = native.width_d
-        er = math.sqrt((el / 6.0) * (el / 6.0) + (ew / 2.0) * (ew / 2.0))
-        eoff = el / 3.0
+        er, along = self._ego_discs
         # the ego's disc centres ex + (a - 1) * eoff * ec (a = 0, 1, 2) as (3, 1, n): the states last
-        along = np.array([(a - 1) * eoff for a in range(3)])[:, None, None]
         ax = states[:, Ego.X] / scale + along * ec
         ay = states[:, Ego.Y] / scale + along * es
         width = discs.shape[2]

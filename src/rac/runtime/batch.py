@@ -518,9 +518,13 @@ class BatchRewardAutomaton(AutomatonDescription):
 
     def _atom_code(self, x: Mapping[str, np.ndarray], n: int) -> np.ndarray:
         """Each row's guard atoms as the bits of one integer: the index into the edge tables."""
+        truths = [x[name] if op is None else op(x[name], threshold) for name, op, threshold in self._atom_list]
+        if truths and self._code_dtype is np.uint8:
+            stacked = np.stack(truths)
+            if stacked.dtype == bool:  # atom i as bit i of one byte per row: the loop's integers below
+                return np.packbits(stacked, axis=0, bitorder="little").reshape(n)
         code: Any = np.zeros(n, dtype=self._code_dtype)
-        for bit, (name, op, threshold) in enumerate(self._atom_list):
-            truth = x[name] if op is None else op(x[name], threshold)
+        for bit, truth in enumerate(truths):
             code |= np.left_shift(truth.astype(self._code_dtype), bit)
         return code
 
