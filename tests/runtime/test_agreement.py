@@ -502,8 +502,8 @@ def test_compiled_programs_agree_in_a_batch(program: Any, data: st.DataObject) -
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(automata(), st.data())
 def test_atom_codes_are_the_atoms_bits(automaton: ir.Automaton, data: st.DataObject) -> None:
-    """The table strategy's index of each row's atoms (packed as the bits of one byte when they are
-    booleans) is ``Σ atom_i << i``, the loop's integer."""
+    """The table strategy's index of each row's atoms (one product of the atoms with their weights
+    2**i) is ``Σ atom_i << i``, every atom shifted and or-ed in."""
     rows = data.draw(st.lists(random_values(automaton.assumptions == (LIMITED,)), min_size=1, max_size=40))
     batch = BatchRewardAutomaton(automaton, len(rows), strategy="table")
     x = batch._read({name: [row[name] for row in rows] for name in rows[0]}, None)

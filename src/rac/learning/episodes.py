@@ -950,7 +950,7 @@ class EpisodeBatch:
     @staticmethod
     def _sync(now: _State, automata: BatchRewardAutomaton) -> None:
         """The automaton's location and rewards into the current state (copies; frozen ones unchanged)."""
-        now.location = automata.locations.astype(np.int64)
+        now.location = automata.locations.astype(np.int64, copy=False)  # a copy already
         now.rewards = automata.rewards
 
     def __repr__(self) -> str:

@@ -100,6 +100,9 @@ class BatchModel:
         return states
 
     def _samples(self, k: int | np.ndarray, n: int) -> np.ndarray:
+        """``k`` as ``(n,)`` int64 sample indices, not to be written (one sample: a broadcast view)."""
+        if isinstance(k, np.ndarray) and k.shape == (n,) and k.dtype == np.int64:
+            return k  # already one per row (broadcast_to costs more than the rest of a small call)
         return np.broadcast_to(np.asarray(k, dtype=np.int64), (n,))
 
     def _blockwise(self, method: Callable[..., np.ndarray], states: np.ndarray,

@@ -286,6 +286,7 @@ class BatchRewardAutomaton(AutomatonDescription):
                 self._atom_list.append((atom.input, *_np_atom(self._float_atoms(atom))))
         self._atom_bits = a
         self._code_dtype = np.uint8 if a <= 8 else np.uint16
+        self._atom_weights = np.left_shift(1, np.arange(a)).astype(self._code_dtype)  # atom i: bit i
         combos = [{atom: bool(code >> bit & 1) for atom, bit in atoms.items()} for code in range(1 << a)]
         assume = self._ir.assume
         self._assume_table = (None if assume == ir.TRUE
@@ -518,15 +519,11 @@ class BatchRewardAutomaton(AutomatonDescription):
 
     def _atom_code(self, x: Mapping[str, np.ndarray], n: int) -> np.ndarray:
         """Each row's guard atoms as the bits of one integer: the index into the edge tables."""
-        truths = [x[name] if op is None else op(x[name], threshold) for name, op, threshold in self._atom_list]
-        if truths and self._code_dtype is np.uint8:
-            stacked = np.stack(truths)
-            if stacked.dtype == bool:  # atom i as bit i of one byte per row: the loop's integers below
-                return np.packbits(stacked, axis=0, bitorder="little").reshape(n)
-        code: Any = np.zeros(n, dtype=self._code_dtype)
-        for bit, truth in enumerate(truths):
-            code |= np.left_shift(truth.astype(self._code_dtype), bit)
-        return code
+        # Σ atom_i << i as one product with the weights 2**i: integers, exact (no sum exceeds the dtype)
+        bits = np.empty((len(self._atom_list), n), dtype=self._code_dtype)
+        for i, (name, op, threshold) in enumerate(self._atom_list):
+            bits[i] = x[name] if op is None else op(x[name], threshold)  # 0 or 1
+        return self._atom_weights @ bits
 
     def _advance(self, nxt: np.ndarray, loc: np.ndarray, only: np.ndarray | None) -> np.ndarray:
         """The end of a sample (after the accrual and the edges' updates): the next locations, the
