@@ -49,6 +49,25 @@ def test_kept_headings_are_the_c_librarys(name: str, data: ModelData) -> None:
         assert bits(sin) == bits([math.sin(h / float(data.scale)) for h in heads.tolist()])
 
 
+@settings(max_examples=40, deadline=None)
+@given(batches=st.lists(st.lists(st.integers(-700, 700), min_size=1, max_size=12), min_size=1, max_size=12))
+def test_the_last_few_heads_cos_sin_kept_answer_as_computed(batches: list[list[int]]) -> None:
+    """A few heads' cos and sin are kept for the next call with the same heads (mindist() then offroad()
+    of one frame): always the C library's, also when the caller's array changes afterwards."""
+    data = DATASETS[0][1]
+    model = BatchModel(data)
+    heads = np.zeros(0, dtype=np.int64)
+    for batch in batches + batches[::-1]:
+        heads = np.array(batch, dtype=np.int64 if len(batch) % 2 else np.int32)
+        for _ in range(2):
+            cos, sin = model.cos_sin(heads)
+            assert bits(cos) == bits([math.cos(h / float(data.scale)) for h in batch])
+            assert bits(sin) == bits([math.sin(h / float(data.scale)) for h in batch])
+            assert not cos.flags.writeable and not sin.flags.writeable
+        heads += 1  # the caller's array written: the kept heads are a copy
+        assert bits(model.cos_sin(heads)[0]) == bits([math.cos((h + 1) / float(data.scale)) for h in batch])
+
+
 def test_keyed_rows_compute_each_key_once_and_start_afresh_when_full() -> None:
     computed: list[int] = []
 

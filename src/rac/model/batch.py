@@ -45,6 +45,9 @@ SENSE_BLOCK = 1 << 13
 DISC_CELLS = 1 << 16
 #: Up to this many states look their kept rows up one by one; more look up their distinct keys.
 _DIRECT_ROWS = 256
+#: :meth:`BatchModel._sense_few` sums the moves of up to this many rows along each row (one numpy call),
+#: of more rows one sub-step at a time over all rows (m calls, each cheaper than the strided sum's share).
+_RUNNING_ROWS = 32
 #: New keys up to this many are computed on Python floats (numpy costs more per call than per row there).
 _SCALAR_ROWS = 8
 #: (v, acc, jerk) significands in ``(-_FIELD, _FIELD)`` pack into one int64 key (21 bits each).
@@ -71,6 +74,8 @@ class BatchModel:
         self._headings = KeyedRows(2 * m + 1, self._heading_rows)
         #: (v, acc, jerk) -> the sub-steps' speeds (m), then the last speed and acceleration
         self._speeds = KeyedRows(m + 2, self._speed_rows)
+        #: the heads of the last few-row cos_sin() call (a copy) and their cos and sin (read only)
+        self._last_trig: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         #: sample -> the obstacles' disc centres (x then y, 3 per obstacle; NaN: absent)
         self._discs: dict[int, np.ndarray] = {}
         #: sample -> the obstacles' x, y, heading, speed (NaN: absent)
@@ -175,14 +180,25 @@ class BatchModel:
         n = states.shape[0]
         heading = self._headings(_pair_keys(states[:, Ego.HEAD], states[:, Ego.TURN]))  # (n, 2m + 1)
         speeds = self._speed_table(states)[0]  # (n, m + 2): every row its own
-        # (n, 2, m + 1): x then y, each its start and the sub-steps' moves v * cos * u, v * sin * u
-        moves = np.empty((n, 2, m + 1), dtype=np.float64)
-        moves[:, 0, 0] = states[:, Ego.X] / scale
-        moves[:, 1, 0] = states[:, Ego.Y] / scale
-        np.multiply(speeds[:, None, :m], heading[:, :2 * m].reshape(n, 2, m), out=moves[:, :, 1:])
-        moves[:, :, 1:] *= self.data.unit
         values = np.empty((n, 5), dtype=np.float64)  # x, y, v, acc, head
-        values[:, :2] = np.add.accumulate(moves, axis=2)[:, :, m]
+        if n <= _RUNNING_ROWS:  # (n, 2, m + 1): x then y, each its start and the moves v * cos * u, v * sin * u
+            moves = np.empty((n, 2, m + 1), dtype=np.float64)
+            moves[:, 0, 0] = states[:, Ego.X] / scale
+            moves[:, 1, 0] = states[:, Ego.Y] / scale
+            np.multiply(speeds[:, None, :m], heading[:, :2 * m].reshape(n, 2, m), out=moves[:, :, 1:])
+            moves[:, :, 1:] *= self.data.unit
+            values[:, :2] = np.add.accumulate(moves, axis=2)[:, :, m]  # one running sum along each row
+        else:  # the moves as (m, 2, n), added to the starts one sub-step after the other (as _moved)
+            steps = np.empty((m, 2, n), dtype=np.float64)
+            np.multiply(speeds[:, :m].T[:, None, :], heading[:, :2 * m].reshape(n, 2, m).transpose(2, 1, 0),
+                        out=steps)
+            steps *= self.data.unit
+            position = np.empty((2, n), dtype=np.float64)
+            position[0] = states[:, Ego.X] / scale
+            position[1] = states[:, Ego.Y] / scale
+            for step in steps:
+                position += step
+            values[:, :2] = position.T
         values[:, 2:4] = speeds[:, m:m + 2]
         values[:, 4] = heading[:, 2 * m]
         scaled = values * scale
@@ -336,8 +352,15 @@ class BatchModel:
         """``math.cos`` and ``math.sin`` of ``head / SCALE_D`` for integer heading significands."""
         head = np.asarray(head, dtype=np.int64)
         if head.size <= _DIRECT_ROWS:
+            # mindist() and offroad() of one frame ask for the same heads: the last answer is kept
+            last = self._last_trig
+            if last is not None and last[0].shape == head.shape and np.array_equal(last[0], head):
+                return last[1], last[2]
             trig = self._trig(head)
-            return trig[:, 0], trig[:, 1]
+            cos, sin = trig[:, 0], trig[:, 1]
+            cos.flags.writeable = sin.flags.writeable = False  # shared by the callers: read only
+            self._last_trig = (head.copy(), cos, sin)
+            return cos, sin
         trig, inverse = self._trig.table(head)
         return trig[inverse, 0], trig[inverse, 1]
 
@@ -420,9 +443,15 @@ class BatchModel:
                 # the obstacles' disc centres as (1, c, 1) (one sample) or (1, c, n) (each row's)
                 bx = discs[0, :, columns].T[None] if where is None else discs[0][where, columns].T[None]
                 by = discs[1, :, columns].T[None] if where is None else discs[1][where, columns].T[None]
-                dx = ax - bx
-                dy = ay - by
-                d = np.sqrt(dx * dx + dy * dy) - er - self._radii[columns, None]
+                # d = sqrt(dx * dx + dy * dy) - er - radius, each operation in place (the same doubles)
+                d = np.subtract(ax, bx)
+                d *= d
+                dy = np.subtract(ay, by)
+                dy *= dy
+                d += dy
+                np.sqrt(d, out=d)
+                d -= er
+                d -= self._radii[columns, None]
                 # the smallest d (NaN, an absent obstacle, is skipped as the scalar code skips it)
                 np.fmin(best, np.fmin.reduce(d.reshape(-1, n), axis=0), out=best)
         return best
