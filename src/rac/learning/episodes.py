@@ -209,16 +209,17 @@ class _State:
         """Everything but the rewards, one ``(n,)`` or ``(n, 7)`` array after the other."""
         return [self.k, self.ego, self.location, self.crashed, *(self.inputs[name] for name in sorted(self.inputs))]
 
-    def put(self, rows: np.ndarray, other: _State) -> None:
-        """Copy ``other``'s rows ``rows`` into this state."""
-        self.k[rows] = other.k[rows]
-        self.ego[rows] = other.ego[rows]
-        self.crashed[rows] = other.crashed[rows]
-        self.location[rows] = other.location[rows]
+    def put(self, where: np.ndarray, other: _State) -> None:
+        """Copy ``other``'s rows where the ``(n,)`` mask ``where`` holds into this state (one masked copy
+        per column: no gathered temporaries)."""
+        np.copyto(self.k, other.k, where=where)
+        np.copyto(self.ego, other.ego, where=where[:, None])
+        np.copyto(self.crashed, other.crashed, where=where)
+        np.copyto(self.location, other.location, where=where)
         for name, values in self.rewards.items():
-            values[rows] = other.rewards[name][rows]
+            np.copyto(values, other.rewards[name], where=where)
         for name, values in self.inputs.items():
-            values[rows] = other.inputs[name][rows]
+            np.copyto(values, other.inputs[name], where=where)
 
 
 @dataclass
@@ -903,7 +904,7 @@ class EpisodeBatch:
             self.clipped += count
             self.clipped_inputs[name] += count
         # the new sample becomes the current state; the old one prev(e)'s
-        prev.put(rows, now)
+        prev.put(active, now)
         now.k[rows] += 1
         now.ego[rows] = sampled.after
         now.inputs = fed
