@@ -216,3 +216,16 @@ def test_one_run_of_the_truth_is_integrated_as_in_a_batch() -> None:
                                 data.period, 7, limits)
         assert bits(alone[:, 0]) == bits(batch[:, 0]) == bits(batch[:, 1])
         assert bits(integrate_truth(truth, np.array([jerk]), np.array([turn]), data.period, 7, limits)) == bits(alone)
+
+
+@pytest.mark.parametrize("name, data", DATASETS, ids=lambda value: value if isinstance(value, str) else "")
+def test_the_heading_rows_on_python_floats_are_the_array_rows(name: str, data: ModelData) -> None:
+    model = BatchModel(data)
+    rng = np.random.default_rng(5)
+    heads = rng.integers(-7 * data.scale, 7 * data.scale, 300)
+    turns = rng.choice(np.asarray(data.action("turn").values), 300) * rng.choice([1, -1, 3], 300)
+    keys = (heads.astype(np.int64) << 32) | (turns.astype(np.int64) & 0xFFFFFFFF)
+    arrays = model._heading_rows(keys)  # 300 rows: numpy's path
+    scalars = np.array([model._heading_row(key) for key in keys.tolist()])
+    assert bits(arrays) == bits(scalars)
+    assert bits(model._heading_rows(keys[:5])) == bits(scalars[:5])  # a few: on Python floats

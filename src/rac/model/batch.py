@@ -49,7 +49,7 @@ _DIRECT_ROWS = 256
 #: of more rows one sub-step at a time over all rows (m calls, each cheaper than the strided sum's share).
 _RUNNING_ROWS = 32
 #: New keys up to this many are computed on Python floats (numpy costs more per call than per row there).
-_SCALAR_ROWS = 8
+_SCALAR_ROWS = 48
 #: (v, acc, jerk) significands in ``(-_FIELD, _FIELD)`` pack into one int64 key (21 bits each).
 _FIELD = 1 << 20
 
@@ -333,6 +333,8 @@ class BatchModel:
         scale = self.native.scale_d
         m = self.data.substeps
         u = self.data.unit
+        if keys.size <= _SCALAR_ROWS:  # a few new keys: on Python floats, the same operations
+            return np.array([self._heading_row(key) for key in keys.tolist()], dtype=np.float64).reshape(-1, 2 * m + 1)
         low = keys & 0xFFFFFFFF
         head = (keys >> 32) / scale
         turn = np.where(low >= INT32_BOUND, low - 2 * INT32_BOUND, low) / scale  # the low 32 bits as an int32
@@ -342,6 +344,20 @@ class BatchModel:
             angles[:, step] = head
         cos, sin = cos_sin(angles)
         return np.concatenate([cos, sin, head[:, None]], axis=1)
+
+    def _heading_row(self, key: int) -> list[float]:
+        """One row of :meth:`_heading_rows` on Python floats (IEEE doubles, as numpy's; ``math.cos`` and
+        ``math.sin``, as :func:`rac.model.memo.cos_sin`)."""
+        scale = self.native.scale_d
+        u = self.data.unit
+        low = key & 0xFFFFFFFF
+        head = (key >> 32) / scale
+        turn = (low - 2 * INT32_BOUND if low >= INT32_BOUND else low) / scale
+        angles = []
+        for _ in range(self.data.substeps):
+            head = head + turn * u
+            angles.append(head)
+        return [*map(math.cos, angles), *map(math.sin, angles), head]
 
     def _trig_rows(self, heads: np.ndarray) -> np.ndarray:
         """``(n, 2)``: cos and sin of heading significands over the scale (``math.cos``/``math.sin``)."""
