@@ -79,8 +79,9 @@ class KeyedRows:
     keys, so a new key costs its own row, not a copy of the table. New keys go to a small sorted
     index of their own, merged into the main one when it holds ``recent`` (:data:`RECENT_KEYS`): a few new keys at
     a time (an on-demand shield's lookahead adds them thousands of times) cost a copy of the small
-    index, not of the main one. At most about :data:`MEMO_DOUBLES` doubles are kept; beyond, the
-    table starts afresh (only the time changes)."""
+    index, not of the main one. A few keys at a time (:data:`FEW_KEYS`, a sample of a few episodes) are
+    looked up in a dictionary of the keys instead, while the table is small. At most about
+    :data:`MEMO_DOUBLES` doubles are kept; beyond, the table starts afresh (only the time changes)."""
 
     def __init__(self, width: int, compute: Callable[[np.ndarray], np.ndarray], limit: int = MEMO_DOUBLES,
                  recent: int = RECENT_KEYS) -> None:
