@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import math
+import typing
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -211,18 +212,23 @@ def observation_keys(values: np.ndarray, n_discrete: int, bins: Sequence[float] 
 
 def key_bytes(keys: np.ndarray) -> list[bytes]:
     """Each observation key as bytes, for dictionaries of keys (float64, row by row)."""
-    return [row.tobytes() for row in np.ascontiguousarray(keys, dtype=np.float64)]
+    keys = np.ascontiguousarray(keys, dtype=np.float64)
+    if keys.ndim == 2 and keys.shape[1]:  # each row as one opaque item: numpy makes the bytes, not a loop
+        return typing.cast(list[bytes], keys.view(np.dtype((np.void, keys.shape[1] * keys.itemsize))).ravel().tolist())
+    return [row.tobytes() for row in keys]
 
 
 def greedy_actions(utilities: np.ndarray, masks: np.ndarray) -> np.ndarray:
     """The best allowed action per row; ``argmax`` takes the first maximum, so ties go to the lowest index."""
-    return np.argmax(np.where(masks, utilities, -np.inf), axis=1).astype(np.int64)
+    return np.where(masks, utilities, -np.inf).argmax(axis=1).astype(np.int64, copy=False)
 
 
 def uniform_allowed(rng: np.random.Generator, masks: np.ndarray) -> np.ndarray:
     """One allowed action per row, uniformly (every row allows one)."""
-    pick = rng.integers(0, masks.sum(axis=1))
-    return np.argmax(np.cumsum(masks, axis=1) > pick[:, None], axis=1).astype(np.int64)
+    # the ufuncs' and methods' own forms: the functions' dispatch costs more than the work on a few rows
+    counts: np.ndarray = np.add.reduce(masks, axis=1)
+    pick = rng.integers(0, counts)
+    return (masks.cumsum(axis=1) > pick[:, None]).argmax(axis=1).astype(np.int64, copy=False)
 
 
 def allowed_actions(batch: Episodes, shield: ShieldTable | None) -> tuple[np.ndarray, np.ndarray]:

@@ -34,7 +34,8 @@ from rac.learning.strategy import (
     uniform_allowed,
 )
 
-__all__ = ["UNTRIED", "BatchLog", "Frozen", "Learner", "QTable", "Transition", "check_finite", "update"]
+__all__ = ["UNTRIED", "BatchLog", "Frozen", "Learner", "Prepared", "QTable", "Transition", "apply", "check_finite",
+           "prepare", "update"]
 
 #: The pessimistic initial value (:func:`rac.learning.qlearning.learning`'s ``pessimistic``): below
 #: any return a run can have (learning refuses episodes whose return comes within a factor 10 of it),
@@ -67,16 +68,18 @@ class QTable:
 
     def rows(self, keys: np.ndarray, *, create: bool) -> np.ndarray:
         """Each key's row; a new key gets a row of zeros (``create``) or -1."""
-        out = np.empty(keys.shape[0], dtype=np.int64)
-        for i, raw in enumerate(key_bytes(keys)):
-            row = self.index.get(raw)
-            if row is None:
-                if not create:
-                    out[i] = -1
-                    continue
-                row = self._add(keys[i], raw)
-            out[i] = row
-        return out
+        raws = key_bytes(keys)
+        index = self.index
+        if not create:
+            return np.array([index.get(raw, -1) for raw in raws], dtype=np.int64)
+        out = [index.get(raw) for raw in raws]
+        if None in out:  # new keys get rows in the order they come (a key twice: one row)
+            for i, row in enumerate(out):
+                if row is None:
+                    raw = raws[i]
+                    found = index.get(raw)
+                    out[i] = found if found is not None else self._add(keys[i], raw)
+        return np.array(out, dtype=np.int64)
 
     def _add(self, key: np.ndarray, raw: bytes) -> int:
         if self.size == self.keys.shape[0]:  # amortised doubling
@@ -137,39 +140,97 @@ def update(values: np.ndarray, step: Transition, alpha: float, gamma: float, unt
     allowed in the next state. With ``untried`` (:data:`UNTRIED`, pessimistic initial values), an
     entry still at that value takes its target as it is: its first update sets it.
 
-    Vectorised, with the same results to the last bit: when no continuing episode's next row is a
-    row this step updates (with the decision time observed, never), every target can be computed
-    first; the entries updated more than once are then updated in rounds, the k-th occurrence of
-    each in round k, so each sees its earlier occurrences' updates in episode order."""
+    Batched, with the same results to the last bit: when no continuing episode's next row is a row
+    this step updates (with the decision time observed, never), every target can be computed first
+    (the maxima over the next rows at once); the entries are then updated in episode order, an entry
+    that comes again seeing its earlier updates. A step updated again (the backward replay) is
+    worked out once (:func:`prepare`) and applied each time (:func:`apply`)."""
+    if step.active.size == 1:  # one episode (the best episode's replay, a batch of one): no array work
+        _update_in_order(values, step, alpha, gamma, untried)
+        return
+    apply(values, prepare(step, values.shape[1]), alpha, gamma, untried)
+
+
+class Prepared(NamedTuple):
+    """What :func:`update` of one :class:`Transition` works out before reading the table, for a
+    table of ``n_actions`` columns: the ``step``; whether it is updated one episode at a time
+    (``in_order``: one episode, or a continuing episode's next row is a row the step updates); the
+    active episodes' ``reward``; the continuing ones (``going``, positions among the active; None:
+    all), their ``next_rows`` and ``allowed`` actions there; the distinct entries the step updates
+    (``unique``: flat indices ``row * n_actions + action``, in the order they come) and, when an
+    entry comes more than once, each active episode's entry by its place in ``unique`` (``slots``;
+    None: every entry once, in episode order)."""
+
+    step: Transition
+    n_actions: int
+    in_order: bool
+    reward: list[float]
+    going: list[int] | None
+    next_rows: np.ndarray
+    allowed: np.ndarray
+    unique: np.ndarray
+    slots: list[int] | None
+
+
+def prepare(step: Transition, n_actions: int) -> Prepared:
+    """``step``'s update for a table of ``n_actions`` columns, worked out once (:class:`Prepared`)."""
     active = step.active
-    if active.size == 0:
-        return
-    if active.size == 1:  # one episode (the best episode's replay, a batch of one): no array work
-        _update_in_order(values, step, alpha, gamma, untried)
-        return
-    rows, actions = step.rows[active], step.actions[active]
-    going = ~step.ends[active]
-    next_rows = step.next_rows[active][going]
+    if active.size <= 1:  # no array work for one episode (nothing at all for none)
+        nothing = np.zeros(0, dtype=np.int64)
+        return Prepared(step, n_actions, active.size == 1, [], None, nothing, np.zeros((0, n_actions), dtype=bool),
+                        nothing, None)
+    rows = step.rows[active]
+    ends = step.ends[active]
+    going: list[int] | None = None
+    continuing = active
+    if ends.any():
+        where = np.flatnonzero(~ends)
+        going, continuing = where.tolist(), active[where]
+    next_rows = step.next_rows[continuing]
     # a few dozen rows: sets decide it faster than np.isin's sorting
-    if next_rows.size and not set(rows.tolist()).isdisjoint(next_rows.tolist()):
-        _update_in_order(values, step, alpha, gamma, untried)
+    in_order = bool(next_rows.size) and not set(rows.tolist()).isdisjoint(next_rows.tolist())
+    unique = rows * n_actions + step.actions[active]
+    entries = unique.tolist()
+    slots = None
+    if len(set(entries)) < len(entries):
+        place: dict[int, int] = {}
+        slots = [place.setdefault(entry, len(place)) for entry in entries]
+        unique = np.array(list(place), dtype=unique.dtype)
+    return Prepared(step, n_actions, in_order, np.asarray(step.reward[active], dtype=np.float64).tolist(), going,
+                    next_rows, np.asarray(step.next_masks[continuing], dtype=bool), unique, slots)
+
+
+def apply(values: np.ndarray, prepared: Prepared, alpha: float, gamma: float, untried: float | None = None) -> None:
+    """:func:`update` of ``prepared``'s step on ``values`` (a table of its ``n_actions`` columns).
+
+    The few dozen targets and entries of a step are computed on Python floats (IEEE doubles, each
+    operation rounded as numpy rounds it), which costs less than numpy's calls on arrays this small;
+    only the maxima over the next rows are numpy's, and the entries are read and written once."""
+    if prepared.in_order or not values.flags.c_contiguous or values.shape[1] != prepared.n_actions:
+        _update_in_order(values, prepared.step, alpha, gamma, untried)
         return
-    targets = np.array(step.reward[active], dtype=np.float64)
-    if next_rows.size:
-        allowed = step.next_masks[active][going]
-        targets[going] += gamma * np.where(allowed, values[next_rows], -np.inf).max(axis=1)
-    flat = rows * values.shape[1] + actions
-    order = np.argsort(flat, kind="stable")
-    ordered = flat[order]
-    first = np.concatenate(([True], ordered[1:] != ordered[:-1]))
-    rank = np.empty(flat.size, dtype=np.int64)  # each entry's occurrence before this one, in episode order
-    rank[order] = np.arange(flat.size) - np.maximum.accumulate(np.where(first, np.arange(flat.size), 0))
-    for k in range(int(rank.max()) + 1):
-        now = rank == k
-        r, a, t = rows[now], actions[now], targets[now]
-        old = values[r, a]
-        values[r, a] = np.where(old == untried, t, old + alpha * (t - old)) if untried is not None \
-            else old + alpha * (t - old)
+    targets = prepared.reward
+    if not targets:
+        return
+    if prepared.next_rows.size:
+        best = np.maximum.reduce(np.where(prepared.allowed, values[prepared.next_rows], -np.inf), axis=1).tolist()
+        if prepared.going is None:
+            targets = [reward + gamma * value for reward, value in zip(targets, best)]
+        else:
+            targets = targets.copy()
+            for i, value in zip(prepared.going, best):
+                targets[i] = targets[i] + gamma * value
+    entries = values.reshape(-1)  # a view: the table is C-contiguous
+    unique = prepared.unique
+    current = entries[unique].tolist()
+    if prepared.slots is None:  # every entry once
+        entries[unique] = [target if old == untried else old + alpha * (target - old)
+                           for old, target in zip(current, targets)]
+        return
+    for slot, target in zip(prepared.slots, targets):  # an entry again sees its earlier updates, in episode order
+        old = current[slot]
+        current[slot] = target if old == untried else old + alpha * (target - old)
+    entries[unique] = current
 
 
 def _update_in_order(values: np.ndarray, step: Transition, alpha: float, gamma: float,
@@ -256,9 +317,9 @@ class Learner:
         actual = keys[sources, column].astype(np.int64)
         which, location = np.nonzero(np.arange(cf.n_locations)[None, :] != actual[:, None])
         source = sources[which]
-        before = keys[source].copy()
+        before = keys[source]  # a copy (indexed by an array)
         before[:, column] = location
-        after = next_keys[source].copy()
+        after = next_keys[source]
         after[:, column] = cf.next_location[source, location]
         return Transition(np.arange(source.size), self.table.rows(before, create=True), step.actions[source],
                           self.sign * cf.reward[source, location], self.table.rows(after, create=True),
@@ -270,7 +331,7 @@ class Learner:
         if not self.random_ties:
             return greedy_actions(utilities, masks)
         masked = np.where(masks, utilities, -np.inf)
-        return uniform_allowed(self.rng, masks & (masked == masked.max(axis=1, keepdims=True)))
+        return uniform_allowed(self.rng, masks & (masked == np.maximum.reduce(masked, axis=1, keepdims=True)))
 
     def _replay_best(self, own: Sequence[Transition], returns: np.ndarray, good: np.ndarray) -> None:
         """Keep the best of the batch's episodes if it beats the best seen, then replay that one backwards."""
@@ -299,6 +360,8 @@ class Learner:
         backward replay; with ``frozen``, also the greedy episode of that table, in the batch's last
         row, and its run. A generator of steps (:mod:`rac.learning.runs`)."""
         table, rng, shield = self.table, self.rng, self.shield
+        alpha, gamma, untried, sign = self.alpha, self.gamma, self.untried, self.sign
+        n_actions = table.values.shape[1]
         width = n + (frozen is not None)
         batch: Episodes = yield Reset(width)
         recorder = RunRecorder(batch, slice(n, width), 1, len(self.exprs)) if frozen is not None else None
@@ -309,7 +372,7 @@ class Learner:
         fallbacks = empty[:n].astype(np.int64)
         returns = np.zeros(n)
         reached, collided, offroad, stranded = (np.zeros(n, dtype=bool) for _ in range(4))
-        steps: list[Transition] = []  # this batch's transitions, for the backward replay
+        steps: list[Prepared] = []  # this batch's transitions, for the backward replay
         own: list[Transition] = []  # the learning episodes' own (not the counterfactual ones)
         recording = recorder is not None
         for _ in range(batch.max_steps):
@@ -320,39 +383,45 @@ class Learner:
             if not active.any():
                 break
             learning = active[:n]
+            anyone = bool(learning.any())
             actions = np.zeros(width, dtype=np.int64)
-            if learning.any():  # the random numbers are the learning episodes' only
+            if anyone:  # the random numbers are the learning episodes' only
                 explore = rng.random(n) < eps
                 random_actions = uniform_allowed(rng, masks[:n])
-                chosen = np.where(explore, random_actions, self.exploit(table.utilities(rows), masks[:n]))
+                # every learning row has a row of the table (created when observed): its values as they are
+                chosen = np.where(explore, random_actions, self.exploit(table.values[rows], masks[:n]))
                 actions[:n] = np.where(learning, chosen, 0)
-            if frozen is not None and active[n]:
+            greedy_row = frozen is not None and bool(active[n])
+            if greedy_row:
+                assert frozen is not None
                 greedy = table.frozen_utilities(frozen, self.keys(observed[n:]))
                 actions[n] = greedy_actions(greedy, masks[n:])[0]
             outcome: StepOutcome = yield actions
-            if recorder is not None and active[n]:
+            if recorder is not None and greedy_row:
                 recorder.after(active, empty, actions, outcome)
             observed = self.observe(batch)
             next_masks, next_empty = allowed_actions(batch, shield)
-            if learning.any():
+            if anyone:
                 reward = np.asarray(outcome.reward, dtype=np.float64)[:n]
                 check_finite(reward[learning])  # a NaN would poison the table silently
-                ends = (np.asarray(outcome.terminated, dtype=bool) | np.asarray(outcome.truncated, dtype=bool)
-                        | np.asarray(outcome.ended, dtype=bool))[:n]
+                terminated = np.asarray(outcome.terminated, dtype=bool)[:n]
+                ends = terminated | np.asarray(outcome.truncated, dtype=bool)[:n] | np.asarray(outcome.ended,
+                                                                                              dtype=bool)[:n]
                 next_keys = self.keys(observed[:n])
                 next_rows = table.rows(next_keys, create=True)
-                step = Transition(np.flatnonzero(learning), rows, actions[:n], self.sign * reward, next_rows,
+                step = Transition(np.flatnonzero(learning), rows, actions[:n], sign * reward, next_rows,
                                   next_masks[:n], ends)
-                update(table.values, step, self.alpha, self.gamma, self.untried)
-                steps.append(step)
+                prepared = prepare(step, n_actions)
+                apply(table.values, prepared, alpha, gamma, untried)
+                steps.append(prepared)
                 own.append(step)
                 if self.location_column is not None:
-                    counterfactual = self.counterfactual(batch, step, keys, next_keys)
-                    update(table.values, counterfactual, self.alpha, self.gamma, self.untried)
-                    steps.append(counterfactual)
+                    prepared = prepare(self.counterfactual(batch, step, keys, next_keys), n_actions)
+                    apply(table.values, prepared, alpha, gamma, untried)
+                    steps.append(prepared)
                 keys = next_keys
                 returns[learning] += reward[learning]
-                reached |= np.asarray(outcome.terminated, dtype=bool)[:n] & learning
+                reached |= terminated & learning
                 collided |= np.asarray(outcome.collided, dtype=bool)[:n] & learning
                 offroad |= np.asarray(outcome.offroad, dtype=bool)[:n] & learning
                 stranded |= np.asarray(outcome.stranded, dtype=bool)[:n] & learning
@@ -365,11 +434,11 @@ class Learner:
         # Backward replay: the batch's transitions again, last step first, so a reward at the end
         # of an episode reaches its first decision in one sweep instead of one step per visit.
         for _ in range(self.replay):
-            for step in reversed(steps):
-                update(table.values, step, self.alpha, self.gamma, self.untried)
+            for prepared in reversed(steps):
+                apply(table.values, prepared, alpha, gamma, untried)
         if self.replay_best:
-            self._replay_best(own, self.sign * returns, reached & ~collided & ~offroad & ~stranded)
-        if self.untried is not None and (self.sign * returns <= UNTRIED / 10).any():
+            self._replay_best(own, sign * returns, reached & ~collided & ~offroad & ~stranded)
+        if untried is not None and (sign * returns <= UNTRIED / 10).any():
             raise RacValueError(f"a return of {returns.min():g} is too large for the pessimistic initial value "
                                 f"{UNTRIED:g}")
         log = BatchLog(returns, reached, collided, offroad, stranded, fallbacks)
