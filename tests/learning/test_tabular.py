@@ -108,10 +108,11 @@ def test_key_bytes_are_each_rows_bytes(n: int, width: int) -> None:
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.integers(0, 2**32), st.integers(0, 20), st.integers(1, 9))
-def test_uniform_allowed_draws_as_before(seed: int, n: int, n_actions: int) -> None:
-    """The choice and the random numbers drawn are those of the plain form (``sum``, ``cumsum``, ``argmax``)."""
-    masks = np.random.default_rng(seed + 1).random((n, n_actions)) < 0.5
+@given(st.integers(0, 2**32), st.integers(0, 20), st.integers(1, 9), st.sampled_from([0.5, 1.0]))
+def test_uniform_allowed_draws_as_before(seed: int, n: int, n_actions: int, allowed: float) -> None:
+    """The choice and the random numbers drawn are those of the plain form (``sum``, ``cumsum``, ``argmax``),
+    every action allowed (``allowed`` 1) or some."""
+    masks = np.random.default_rng(seed + 1).random((n, n_actions)) < allowed
     masks[np.arange(n), np.random.default_rng(seed + 2).integers(0, n_actions, size=n)] = True
     rng, plain = np.random.default_rng(seed), np.random.default_rng(seed)
     got = uniform_allowed(rng, masks)

@@ -243,7 +243,9 @@ def _step(shared: EpisodeBatch, stepping: list[_Running]) -> None:
     outcome = shared.step(actions)
     after = shared.observe(objectives) if objectives else None
     spent = time.perf_counter() - t0
-    weights = [int(running[run.lane].sum()) for run in stepping]
+    # episodes still running before the step, up to each row: a lane's count is a difference (not a sum per lane)
+    upto = [0, *np.cumsum(running).tolist()]
+    weights = [upto[run.lane.stop] - upto[run.lane.start] for run in stepping]
     total = max(1, sum(weights))
     for run, weight in zip(stepping, weights):
         lane = run.lane

@@ -103,27 +103,38 @@ class RunRecorder:
         self.observed = np.zeros((n, steps_max + 1, width), dtype=np.float64)
         self.actions = np.full((n, steps_max), -1, dtype=np.int64)
         self.rewards = np.zeros((n, steps_max), dtype=np.float64)
-        self.flags = {name: np.zeros(n, dtype=bool) for name in ("reached", "collided", "offroad", "stranded")}
+        self.reached, self.collided, self.offroad, self.stranded = (np.zeros(n, dtype=bool) for _ in range(4))
         self.fallbacks = np.zeros(n, dtype=np.int64)
         self.steps = np.zeros(n, dtype=np.int64)
 
-    def before(self, observed: np.ndarray) -> None:
-        """The recorded rows' state keys and ``observed`` values (every row of the batch) at decision ``j``."""
-        self.states[:, self.j] = self.batch.state_keys()[self.rows]
+    def before(self, observed: np.ndarray, states: np.ndarray | None = None) -> None:
+        """The recorded rows' state keys and ``observed`` values (every row of the batch) at decision
+        ``j``; ``states``: the batch's :meth:`rac.learning.strategy.Episodes.state_keys` now, when the
+        caller has them."""
+        self.states[:, self.j] = (self.batch.state_keys() if states is None else states)[self.rows]
         self.observed[:, self.j] = observed[self.rows]
 
     def after(self, active: np.ndarray, empty: np.ndarray, chosen: np.ndarray, outcome: StepOutcome) -> None:
         """One step of the batch (arrays over every row): which rows were ``active``, had an
         ``empty`` shield mask, the actions ``chosen`` and the step's ``outcome``."""
-        j = self.j
-        live = active[self.rows]
-        self.fallbacks += empty[self.rows] & live
-        self.actions[live, j] = chosen[self.rows][live]
-        self.rewards[live, j] = np.asarray(outcome.reward)[self.rows][live]
-        for name, value in (("reached", outcome.terminated), ("collided", outcome.collided),
-                            ("offroad", outcome.offroad), ("stranded", outcome.stranded)):
-            self.flags[name] |= np.asarray(value, dtype=bool)[self.rows] & live
-        self.steps += live
+        j, rows = self.j, self.rows
+        live = active[rows]
+        flags = ((self.reached, outcome.terminated), (self.collided, outcome.collided),
+                 (self.offroad, outcome.offroad), (self.stranded, outcome.stranded))
+        if live.all():  # every recorded row still runs (learning's greedy episode, always): no row to leave out
+            self.fallbacks += empty[rows]
+            self.actions[:, j] = chosen[rows]
+            self.rewards[:, j] = np.asarray(outcome.reward)[rows]
+            for flag, value in flags:
+                flag |= np.asarray(value, dtype=bool)[rows]
+            self.steps += 1
+        else:
+            self.fallbacks += empty[rows] & live
+            self.actions[live, j] = chosen[rows][live]
+            self.rewards[live, j] = np.asarray(outcome.reward)[rows][live]
+            for flag, value in flags:
+                flag |= np.asarray(value, dtype=bool)[rows] & live
+            self.steps += live
         self.j += 1
 
     def finish(self) -> StrategyRun:
@@ -132,8 +143,7 @@ class RunRecorder:
         self.states[:, j + 1:] = self.states[:, j:j + 1]
         self.observed[:, j + 1:] = self.observed[:, j:j + 1]
         return StrategyRun(self.states, self.observed, self.actions, self.rewards, self.rewards.sum(axis=1),
-                           self.flags["reached"], self.flags["collided"], self.flags["offroad"],
-                           self.flags["stranded"], self.fallbacks,
+                           self.reached, self.collided, self.offroad, self.stranded, self.fallbacks,
                            self.steps, int(self.batch.decide_every), int(self.batch.horizon_samples))
 
 

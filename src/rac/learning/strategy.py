@@ -228,18 +228,23 @@ def uniform_allowed(rng: np.random.Generator, masks: np.ndarray) -> np.ndarray:
     # the ufuncs' and methods' own forms: the functions' dispatch costs more than the work on a few rows
     counts: np.ndarray = np.add.reduce(masks, axis=1)
     pick = rng.integers(0, counts)
+    if masks.all():  # every action allowed (no shield): the pick is the action
+        return pick.astype(np.int64, copy=False)
     return (masks.cumsum(axis=1) > pick[:, None]).argmax(axis=1).astype(np.int64, copy=False)
 
 
-def allowed_actions(batch: Episodes, shield: ShieldTable | None) -> tuple[np.ndarray, np.ndarray]:
+def allowed_actions(batch: Episodes, shield: ShieldTable | None,
+                    keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The allowed actions of every episode — the model's ``allow when`` and the shield's mask —
     and which rows fell back (the shield allowed none of them): to the actions the shield knows to
     stay safe the longest where it knows some (an on-demand shield whose search ran out of time:
-    :meth:`rac.engine.shield.ShieldTable.fallback_for`), else to the model's actions."""
+    :meth:`rac.engine.shield.ShieldTable.fallback_for`), else to the model's actions. ``keys``: the
+    episodes' :meth:`Episodes.state_keys` now, when the caller has them."""
     model = batch.model_masks()
     if shield is None:
         return model, np.zeros(batch.n, dtype=bool)
-    keys = batch.state_keys()
+    if keys is None:
+        keys = batch.state_keys()
     masks = np.array(shield.masks_for(keys), dtype=bool) & model
     empty = np.logical_not(masks.any(axis=1))
     if empty.any():

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
+from itertools import repeat
 from typing import NamedTuple
 
 import numpy as np
@@ -71,8 +73,8 @@ class QTable:
         raws = key_bytes(keys)
         index = self.index
         if not create:
-            return np.array([index.get(raw, -1) for raw in raws], dtype=np.int64)
-        out = [index.get(raw) for raw in raws]
+            return np.array(list(map(index.get, raws, repeat(-1, len(raws)))), dtype=np.int64)
+        out = list(map(index.get, raws))  # map: no Python frame per key
         if None in out:  # new keys get rows in the order they come (a key twice: one row)
             for i, row in enumerate(out):
                 if row is None:
@@ -103,10 +105,10 @@ class QTable:
 
     def frozen_utilities(self, frozen: Frozen, keys: np.ndarray) -> np.ndarray:
         """:meth:`utilities` of ``keys`` in the table as it was when ``frozen``: a key added since is unseen."""
-        rows = self.rows(keys, create=False)
-        rows[rows >= frozen.size] = -1
-        out = frozen.values[np.maximum(rows, 0)] if frozen.size else np.zeros((rows.size, self.values.shape[1]))
-        out[rows < 0] = self.initial
+        out = np.empty((keys.shape[0], self.values.shape[1]))
+        # one key per step (the greedy episode): row by row costs less than numpy's masks
+        for i, row in enumerate(map(self.index.get, key_bytes(keys))):
+            out[i] = frozen.values[row] if row is not None and row < frozen.size else self.initial
         return out
 
 
@@ -240,7 +242,7 @@ def _update_in_order(values: np.ndarray, step: Transition, alpha: float, gamma: 
     for i in step.active:
         target = step.reward[i]
         if not step.ends[i]:
-            target += gamma * np.where(step.next_masks[i], values[step.next_rows[i]], -np.inf).max()
+            target += gamma * np.maximum.reduce(np.where(step.next_masks[i], values[step.next_rows[i]], -np.inf))
         old = values[rows[i], actions[i]]
         values[rows[i], actions[i]] = target if old == untried else old + alpha * (target - old)
 
@@ -300,7 +302,12 @@ class Learner:
         return batch.observe(self.exprs) if self.exprs else np.zeros((batch.n, 0))
 
     def keys(self, observed: np.ndarray) -> np.ndarray:
-        return observation_keys(observed, self.n_discrete, self.widths)
+        return observation_keys(observed, self.n_discrete, self.bin_widths)
+
+    @cached_property
+    def bin_widths(self) -> np.ndarray:
+        """:attr:`widths` as an array (converted once, not at every observation)."""
+        return np.asarray(self.widths, dtype=np.float64)
 
     def counterfactual(self, batch: Episodes, step: Transition, keys: np.ndarray, next_keys: np.ndarray) -> Transition:
         """The counterfactual transitions of ``step`` (the batch's last step, whose learning episodes
@@ -366,9 +373,12 @@ class Learner:
         batch: Episodes = yield Reset(width)
         recorder = RunRecorder(batch, slice(n, width), 1, len(self.exprs)) if frozen is not None else None
         observed = self.observe(batch)
-        keys = self.keys(observed[:n])
+        observed_keys = self.keys(observed)  # every row's key at once: the learning episodes' and the greedy one's
+        keys = observed_keys[:n]
         rows = table.rows(keys, create=True)
-        masks, empty = allowed_actions(batch, shield)
+        # the state keys, read once per state: the shield's masks and the greedy episode's record both need them
+        states = batch.state_keys() if shield is not None else None
+        masks, empty = allowed_actions(batch, shield, states)
         fallbacks = empty[:n].astype(np.int64)
         returns = np.zeros(n)
         reached, collided, offroad, stranded = (np.zeros(n, dtype=bool) for _ in range(4))
@@ -378,7 +388,7 @@ class Learner:
         for _ in range(batch.max_steps):
             active = ~np.asarray(batch.done, dtype=bool)
             if recorder is not None and recording:
-                recorder.before(observed)
+                recorder.before(observed, states)
                 recording = bool(active[n])
             if not active.any():
                 break
@@ -394,20 +404,22 @@ class Learner:
             greedy_row = frozen is not None and bool(active[n])
             if greedy_row:
                 assert frozen is not None
-                greedy = table.frozen_utilities(frozen, self.keys(observed[n:]))
+                greedy = table.frozen_utilities(frozen, observed_keys[n:])
                 actions[n] = greedy_actions(greedy, masks[n:])[0]
             outcome: StepOutcome = yield actions
             if recorder is not None and greedy_row:
                 recorder.after(active, empty, actions, outcome)
             observed = self.observe(batch)
-            next_masks, next_empty = allowed_actions(batch, shield)
+            observed_keys = self.keys(observed)
+            states = batch.state_keys() if shield is not None else None
+            next_masks, next_empty = allowed_actions(batch, shield, states)
             if anyone:
                 reward = np.asarray(outcome.reward, dtype=np.float64)[:n]
                 check_finite(reward[learning])  # a NaN would poison the table silently
                 terminated = np.asarray(outcome.terminated, dtype=bool)[:n]
                 ends = terminated | np.asarray(outcome.truncated, dtype=bool)[:n] | np.asarray(outcome.ended,
                                                                                               dtype=bool)[:n]
-                next_keys = self.keys(observed[:n])
+                next_keys = observed_keys[:n]
                 next_rows = table.rows(next_keys, create=True)
                 step = Transition(np.flatnonzero(learning), rows, actions[:n], sign * reward, next_rows,
                                   next_masks[:n], ends)
@@ -430,7 +442,7 @@ class Learner:
             masks, empty = next_masks, next_empty
         else:
             if recorder is not None and recording:
-                recorder.before(observed)  # the state after the last decision
+                recorder.before(observed, states)  # the state after the last decision
         # Backward replay: the batch's transitions again, last step first, so a reward at the end
         # of an episode reaches its first decision in one sweep instead of one step per visit.
         for _ in range(self.replay):
