@@ -156,22 +156,21 @@ def update(values: np.ndarray, step: Transition, alpha: float, gamma: float, unt
 class Prepared(NamedTuple):
     """What :func:`update` of one :class:`Transition` works out before reading the table, for a
     table of ``n_actions`` columns: the ``step``; whether it is updated one episode at a time
-    (``in_order``: one episode, or a continuing episode's next row is a row the step updates); the
-    active episodes' ``reward``; the continuing ones (``going``, positions among the active; None:
-    all), their ``next_rows`` and ``allowed`` actions there; the distinct entries the step updates
-    (``unique``: flat indices ``row * n_actions + action``, in the order they come) and, when an
-    entry comes more than once, each active episode's entry by its place in ``unique`` (``slots``;
-    None: every entry once, in episode order)."""
+    (``in_order``: one episode, or a continuing episode's next row is a row the step updates); per
+    active episode, in episode order, its ``reward``, its place among the continuing episodes
+    (``nexts``; -1: it ends) and its entry by its place in ``unique`` (``slots``); the continuing
+    episodes' ``next_rows`` and ``allowed`` actions there; the distinct entries the step updates
+    (``unique``: flat indices ``row * n_actions + action``, in the order they come)."""
 
     step: Transition
     n_actions: int
     in_order: bool
     reward: list[float]
-    going: list[int] | None
+    nexts: list[int]
+    slots: Sequence[int]
     next_rows: np.ndarray
     allowed: np.ndarray
     unique: np.ndarray
-    slots: list[int] | None
 
 
 def prepare(step: Transition, n_actions: int) -> Prepared:
@@ -179,27 +178,30 @@ def prepare(step: Transition, n_actions: int) -> Prepared:
     active = step.active
     if active.size <= 1:  # no array work for one episode (nothing at all for none)
         nothing = np.zeros(0, dtype=np.int64)
-        return Prepared(step, n_actions, active.size == 1, [], None, nothing, np.zeros((0, n_actions), dtype=bool),
-                        nothing, None)
+        return Prepared(step, n_actions, active.size == 1, [], [], [], nothing, np.zeros((0, n_actions), dtype=bool),
+                        nothing)
     rows = step.rows[active]
-    ends = step.ends[active]
-    going: list[int] | None = None
+    ends = step.ends[active].tolist()
     continuing = active
-    if ends.any():
-        where = np.flatnonzero(~ends)
-        going, continuing = where.tolist(), active[where]
+    nexts: list[int] = list(range(len(ends)))
+    if True in ends:
+        continuing = active[~step.ends[active]]
+        going = 0
+        for i, end in enumerate(ends):
+            nexts[i] = -1 if end else going
+            going += not end
     next_rows = step.next_rows[continuing]
     # a few dozen rows: sets decide it faster than np.isin's sorting
     in_order = bool(next_rows.size) and not set(rows.tolist()).isdisjoint(next_rows.tolist())
     unique = rows * n_actions + step.actions[active]
     entries = unique.tolist()
-    slots = None
-    if len(set(entries)) < len(entries):
+    slots: Sequence[int] = range(len(entries))
+    if len(set(entries)) < len(entries):  # an entry more than once: each occurrence is an update of one slot
         place: dict[int, int] = {}
         slots = [place.setdefault(entry, len(place)) for entry in entries]
         unique = np.array(list(place), dtype=unique.dtype)
-    return Prepared(step, n_actions, in_order, np.asarray(step.reward[active], dtype=np.float64).tolist(), going,
-                    next_rows, np.asarray(step.next_masks[continuing], dtype=bool), unique, slots)
+    return Prepared(step, n_actions, in_order, np.asarray(step.reward[active], dtype=np.float64).tolist(), nexts,
+                    slots, next_rows, np.asarray(step.next_masks[continuing], dtype=bool), unique)
 
 
 def apply(values: np.ndarray, prepared: Prepared, alpha: float, gamma: float, untried: float | None = None) -> None:
@@ -211,25 +213,17 @@ def apply(values: np.ndarray, prepared: Prepared, alpha: float, gamma: float, un
     if prepared.in_order or not values.flags.c_contiguous or values.shape[1] != prepared.n_actions:
         _update_in_order(values, prepared.step, alpha, gamma, untried)
         return
-    targets = prepared.reward
-    if not targets:
+    if not prepared.reward:
         return
-    if prepared.next_rows.size:
-        best = np.maximum.reduce(np.where(prepared.allowed, values[prepared.next_rows], -np.inf), axis=1).tolist()
-        if prepared.going is None:
-            targets = [reward + gamma * value for reward, value in zip(targets, best)]
-        else:
-            targets = targets.copy()
-            for i, value in zip(prepared.going, best):
-                targets[i] = targets[i] + gamma * value
+    # the step's next rows are none it updates (not in_order): their maxima first
+    best = np.maximum.reduce(np.where(prepared.allowed, values[prepared.next_rows], -np.inf), axis=1).tolist() \
+        if prepared.next_rows.size else []
     entries = values.reshape(-1)  # a view: the table is C-contiguous
     unique = prepared.unique
     current = entries[unique].tolist()
-    if prepared.slots is None:  # every entry once
-        entries[unique] = [target if old == untried else old + alpha * (target - old)
-                           for old, target in zip(current, targets)]
-        return
-    for slot, target in zip(prepared.slots, targets):  # an entry again sees its earlier updates, in episode order
+    # in episode order: an entry that comes again sees its earlier updates
+    for slot, reward, going in zip(prepared.slots, prepared.reward, prepared.nexts):
+        target = reward if going < 0 else reward + gamma * best[going]
         old = current[slot]
         current[slot] = target if old == untried else old + alpha * (target - old)
     entries[unique] = current
