@@ -360,6 +360,37 @@ def test_a_lane_is_some_rows_of_the_shared_batch(scenario: Callable[[str], Scena
         lane.reset(3)
 
 
+
+def test_lanes_read_the_shared_batch_once_per_step(scenario: Callable[[str], Scenario]) -> None:
+    """Under run_together the lanes' readings (observations, state keys, the model's masks) are read
+    once for every row between two steps (Between): each lane gets exactly its rows' own reading, a
+    copy of its own, and a step or a reset makes them read again."""
+    shared = EpisodeBatch(scenario("avoidable_obstacle").result, horizon_samples=HORIZON)
+    exprs = (X, V, LOCATION, parse_expr("prev(x)"), parse_expr("mindist()"))
+    checked: list[int] = []
+
+    def reader(width: int, seed: int) -> Steps[int]:
+        rng = np.random.default_rng(seed)
+        for _ in range(2):  # two rounds: the readings after a reset are the new episodes'
+            lane = yield Reset(width)
+            assert isinstance(lane, Lane)
+            while not lane.done.all():
+                for name, direct in (("observe", shared.observe(exprs, lane.rows)),
+                                     ("state_keys", shared.state_keys(lane.rows)),
+                                     ("model_masks", shared.model_masks(lane.rows))):
+                    args = (list(exprs),) if name == "observe" else ()
+                    first = getattr(lane, name)(*args)
+                    assert first.dtype == direct.dtype and np.array_equal(first, direct, equal_nan=True)
+                    first[...] = 0  # a lane's own copy: the next reading is untouched
+                    assert np.array_equal(getattr(lane, name)(*args), direct, equal_nan=True)
+                checked.append(width)
+                yield rng.integers(0, lane.n_actions, size=width)
+        return width
+
+    results = run_together([Job(reader(width, seed)) for seed, width in enumerate((3, 1, 4))], shared)
+    assert [result for result, _ in results] == [3, 1, 4] and set(checked) == {3, 1, 4}
+
+
 # ---------------------------------------------------------------- rac verify
 VERIFY_QUERIES = {
     "safe": QUERIES["safe"],

@@ -45,7 +45,7 @@ from rac.learning.episodes import EpisodeBatch, Expression, StepResult
 from rac.learning.runs import Reset, Steps, Stop
 from rac.learning.strategy import Forwarding
 
-__all__ = ["Interrupted", "Job", "Lane", "run_together"]
+__all__ = ["Between", "Interrupted", "Job", "Lane", "run_together"]
 
 
 @dataclass
@@ -58,14 +58,57 @@ class Job:
     objective: ie.Expr | None = None
 
 
+class Between:
+    """What lanes read of a shared batch between two of its steps, read once for every row (each lane
+    takes its rows): the observed values of each list of expressions, the state keys and the model's
+    masks. Twenty lanes of a batch then cost one reading, not twenty. :func:`run_together` empties it
+    whenever it resets or steps the batch (:meth:`clear`). The values are those a lane's own reading
+    gives: every quantity is computed row by row."""
+
+    def __init__(self, shared: EpisodeBatch) -> None:
+        self.shared = shared
+        # by the expressions' identities; the tuple kept keeps them alive, so an id names one object
+        self.observed: dict[tuple[int, ...], tuple[tuple[Expression, ...], np.ndarray]] = {}
+        self.keys: np.ndarray | None = None
+        self.masks: np.ndarray | None = None
+
+    def clear(self) -> None:
+        """The batch was reset or stepped: nothing read before holds."""
+        self.observed.clear()
+        self.keys = self.masks = None
+
+    def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
+        """:meth:`rac.learning.episodes.EpisodeBatch.observe` of every row (read only)."""
+        key = tuple(map(id, exprs))
+        found = self.observed.get(key)
+        if found is None:
+            found = self.observed[key] = (tuple(exprs), self.shared.observe(exprs))
+        return found[1]
+
+    def state_keys(self) -> np.ndarray:
+        """:meth:`rac.learning.episodes.EpisodeBatch.state_keys` of every row (read only)."""
+        if self.keys is None:
+            self.keys = self.shared.state_keys()
+        return self.keys
+
+    def model_masks(self) -> np.ndarray:
+        """:meth:`rac.learning.episodes.EpisodeBatch.model_masks` of every row (read only)."""
+        if self.masks is None:
+            self.masks = self.shared.model_masks()
+        return self.masks
+
+
 class Lane(Forwarding):
     """The episodes ``rows`` of a shared batch, as a generator of steps reads them between its steps
-    (:class:`rac.learning.strategy.Episodes`); :func:`run_together` resets and steps them."""
+    (:class:`rac.learning.strategy.Episodes`); :func:`run_together` resets and steps them. With
+    ``between``, what the lane reads is read once for every lane (each reading is its own copy)."""
 
-    def __init__(self, shared: EpisodeBatch, rows: slice, objective: ie.Expr | None = None) -> None:
+    def __init__(self, shared: EpisodeBatch, rows: slice, objective: ie.Expr | None = None,
+                 between: Between | None = None) -> None:
         self.batch = self.shared = shared
         self.rows = rows
         self.objective = objective
+        self.between = between
 
     @property
     def action_pairs(self) -> np.ndarray:
@@ -83,13 +126,19 @@ class Lane(Forwarding):
         raise RuntimeError("a lane is reset by run_together: yield Reset(width)")
 
     def state_keys(self) -> np.ndarray:
-        return self.shared.state_keys(self.rows)
+        if self.between is None:
+            return self.shared.state_keys(self.rows)
+        return self.between.state_keys()[self.rows].copy()
 
     def model_masks(self) -> np.ndarray:
-        return self.shared.model_masks(self.rows)
+        if self.between is None:
+            return self.shared.model_masks(self.rows)
+        return self.between.model_masks()[self.rows].copy()
 
     def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
-        return self.shared.observe(exprs, self.rows)
+        if self.between is None:
+            return self.shared.observe(exprs, self.rows)
+        return self.between.observe(exprs)[self.rows].copy()
 
     def step(self, actions: np.ndarray) -> StepResult:
         raise RuntimeError("a lane is stepped by run_together: yield the actions")
@@ -190,7 +239,7 @@ def run_together(jobs: Sequence[Job], shared: EpisodeBatch, *, interruptible: bo
     running = [_Running(job) for job in jobs]
     with _deferred_interrupts(interruptible) as interrupted:
         try:
-            results = _run(running, shared, interrupted)
+            results = _run(running, shared, Between(shared), interrupted)
         except _Stopping:
             raise Interrupted(_stop(running)) from None
         if interrupted():  # in the last step: every job finished, and the caller is told to stop too
@@ -202,7 +251,8 @@ class _Stopping(RacError):
     """Raised between two steps of :func:`_run` when a Ctrl-C was noted."""
 
 
-def _run(running: list[_Running], shared: EpisodeBatch, interrupted: Callable[[], bool]) -> list[tuple[Any, float]]:
+def _run(running: list[_Running], shared: EpisodeBatch, between: Between,
+         interrupted: Callable[[], bool]) -> list[tuple[Any, float]]:
     for run in running:
         run.send(None)
     while True:
@@ -216,6 +266,7 @@ def _run(running: list[_Running], shared: EpisodeBatch, interrupted: Callable[[]
             widths.append(int(run.request.width))
         t0 = time.perf_counter()
         shared.reset(sum(widths))
+        between.clear()
         spent = time.perf_counter() - t0
         start = 0
         for run, width in zip(live, widths):
@@ -223,14 +274,14 @@ def _run(running: list[_Running], shared: EpisodeBatch, interrupted: Callable[[]
             run.seconds += spent * width / sum(widths)
             start += width
         for run in live:
-            run.send(Lane(shared, run.lane, run.job.objective))
+            run.send(Lane(shared, run.lane, run.job.objective, between))
         while any(run.stepping for run in live):
             if interrupted():
                 raise _Stopping
-            _step(shared, [run for run in live if run.stepping])
+            _step(shared, [run for run in live if run.stepping], between)
 
 
-def _step(shared: EpisodeBatch, stepping: list[_Running]) -> None:
+def _step(shared: EpisodeBatch, stepping: list[_Running], between: Between) -> None:
     """One step of ``shared`` with the actions the ``stepping`` jobs asked for; each is answered with
     its rows' outcome and charged a share of the step by its episodes still running."""
     actions = np.zeros(shared.n, dtype=np.int64)
@@ -241,6 +292,7 @@ def _step(shared: EpisodeBatch, stepping: list[_Running]) -> None:
     t0 = time.perf_counter()
     before = shared.observe(objectives) if objectives else None
     outcome = shared.step(actions)
+    between.clear()
     after = shared.observe(objectives) if objectives else None
     spent = time.perf_counter() - t0
     # episodes still running before the step, up to each row: a lane's count is a difference (not a sum per lane)
