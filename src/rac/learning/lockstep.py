@@ -67,8 +67,7 @@ class Between:
 
     def __init__(self, shared: EpisodeBatch) -> None:
         self.shared = shared
-        # by the expressions' identities; the tuple kept keeps them alive, so an id names one object
-        self.observed: dict[tuple[int, ...], tuple[tuple[Expression, ...], np.ndarray]] = {}
+        self.observed: dict[tuple[Expression, ...], np.ndarray] = {}  # equal expressions: the same values
         self.keys: np.ndarray | None = None
         self.masks: np.ndarray | None = None
 
@@ -77,13 +76,17 @@ class Between:
         self.observed.clear()
         self.keys = self.masks = None
 
-    def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
-        """:meth:`rac.learning.episodes.EpisodeBatch.observe` of every row (read only)."""
-        key = tuple(map(id, exprs))
-        found = self.observed.get(key)
+    def observe(self, exprs: Sequence[Expression]) -> np.ndarray | None:
+        """:meth:`rac.learning.episodes.EpisodeBatch.observe` of every row (read only); None for
+        expressions that cannot be told apart (unhashable: parsed nodes holding lists)."""
+        key = tuple(exprs)
+        try:
+            found = self.observed.get(key)
+        except TypeError:
+            return None
         if found is None:
-            found = self.observed[key] = (tuple(exprs), self.shared.observe(exprs))
-        return found[1]
+            found = self.observed[key] = self.shared.observe(exprs)
+        return found
 
     def state_keys(self) -> np.ndarray:
         """:meth:`rac.learning.episodes.EpisodeBatch.state_keys` of every row (read only)."""
@@ -136,9 +139,10 @@ class Lane(Forwarding):
         return self.between.model_masks()[self.rows].copy()
 
     def observe(self, exprs: Sequence[Expression]) -> np.ndarray:
-        if self.between is None:
+        every = None if self.between is None else self.between.observe(exprs)
+        if every is None:
             return self.shared.observe(exprs, self.rows)
-        return self.between.observe(exprs)[self.rows].copy()
+        return every[self.rows].copy()
 
     def step(self, actions: np.ndarray) -> StepResult:
         raise RuntimeError("a lane is stepped by run_together: yield the actions")
