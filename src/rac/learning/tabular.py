@@ -415,7 +415,7 @@ class Learner:
                                                                                               dtype=bool)[:n]
                 next_keys = observed_keys[:n]
                 next_rows = table.rows(next_keys, create=True)
-                step = Transition(np.flatnonzero(learning), rows, actions[:n], sign * reward, next_rows,
+                step = Transition(learning.nonzero()[0], rows, actions[:n], sign * reward, next_rows,
                                   next_masks[:n], ends)
                 prepared = prepare(step, n_actions)
                 apply(table.values, prepared, alpha, gamma, untried)
