@@ -285,6 +285,12 @@ def _run(running: list[_Running], shared: EpisodeBatch, between: Between,
             _step(shared, [run for run in live if run.stepping], between)
 
 
+def _every(between: Between, exprs: Sequence[ie.Expr]) -> np.ndarray:
+    """``exprs`` observed in every row of the batch, kept in ``between`` where it can."""
+    found = between.observe(exprs)
+    return between.shared.observe(exprs) if found is None else found
+
+
 def _step(shared: EpisodeBatch, stepping: list[_Running], between: Between) -> None:
     """One step of ``shared`` with the actions the ``stepping`` jobs asked for; each is answered with
     its rows' outcome and charged a share of the step by its episodes still running."""
@@ -294,10 +300,11 @@ def _step(shared: EpisodeBatch, stepping: list[_Running], between: Between) -> N
     running = ~shared.done
     objectives = list(dict.fromkeys(run.job.objective for run in stepping if run.job.objective is not None))
     t0 = time.perf_counter()
-    before = shared.observe(objectives) if objectives else None
+    # the objectives after one step are those before the next (kept in between until the batch changes)
+    before = _every(between, objectives) if objectives else None
     outcome = shared.step(actions)
     between.clear()
-    after = shared.observe(objectives) if objectives else None
+    after = _every(between, objectives) if objectives else None
     spent = time.perf_counter() - t0
     # episodes still running before the step, up to each row: a lane's count is a difference (not a sum per lane)
     upto = [0, *np.cumsum(running).tolist()]
