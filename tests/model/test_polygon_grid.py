@@ -146,3 +146,18 @@ def test_many_polygons_skip_the_grid_and_answer_the_same(monkeypatch) -> None:
     px = rng.uniform(min(xs) - 5, max(xs) + 5, 5000)
     py = rng.uniform(min(ys) - 5, max(ys) + 5, 5000)
     assert np.array_equal(with_grid.inside(px, py), without.inside(px, py))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(which=st.integers(0, 2), seed=st.integers(0, 2**32 - 1), n=st.integers(1, 12))
+def test_a_few_points_on_python_floats_answer_as_the_array_test(which: int, seed: int, n: int) -> None:
+    """Polygons.exact_few (a few points, on Python floats) is Polygons.exact bit for bit, and inside()
+    gives the same answers whichever of the two it takes for the points in undecided cells."""
+    polygons = prepared(which)
+    px, py = awkward_points(which, np.random.default_rng(seed), n)
+    px = np.concatenate([px, [np.nan, np.inf, -np.inf]])
+    py = np.concatenate([py, [0.0, np.nan, 1.0]])
+    assert polygons.exact_few(px.tolist(), py.tolist()) == polygons.exact(px, py).tolist()
+    for low in range(0, px.size, 3):  # a few points at a time: inside() takes the scalar test
+        assert polygons.inside(px[low:low + 3], py[low:low + 3]).tolist() == polygons.exact(px[low:low + 3],
+                                                                                           py[low:low + 3]).tolist()

@@ -5,11 +5,12 @@ points get theirs from a grid of cells wholly inside or outside the polygons."""
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
 
-__all__ = ["BOX_CELLS", "GRID_CELLS", "GRID_SIZE", "GRID_POLYGONS", "GRID_WORK", "Polygons"]
+__all__ = ["BOX_CELLS", "FEW_POINTS", "GRID_CELLS", "GRID_SIZE", "GRID_POLYGONS", "GRID_WORK", "Polygons"]
 
 #: :class:`Polygons` matches up to this many (point, polygon) pairs with the polygons' boxes at once.
 BOX_CELLS = 1 << 15
@@ -23,6 +24,9 @@ GRID_SIZE = 2.0 ** -4
 GRID_WORK = 1 << 22
 #: ... and over at most this many polygons (the build handles one at a time, about 0.75 ms each: 0.3 s at most).
 GRID_POLYGONS = 400
+#: Up to this many points run the crossing test on Python floats (:meth:`Polygons.exact_few`): numpy's
+#: calls cost more than a few points' loops over the polygons' boxes and their bands' edges.
+FEW_POINTS = 6
 #: A grid cell's state: no point in it is inside a polygon / every point is / test each point.
 OUTSIDE, INSIDE, EXACT = 0, 1, 2
 
@@ -100,6 +104,12 @@ class Polygons:
         self.table = [np.ascontiguousarray(np.concatenate([np.pad(table[i], ((0, 0), (0, slots - table[i].shape[1])))
                                                            for table in tables]).T)
                       if tables else np.zeros((slots, 0), dtype=bool if i == 4 else np.float64) for i in range(5)]
+        #: per polygon as Python floats (:meth:`exact_few`): its box, its bounds, and per band the used
+        #: slots' (xj - xi, yi, yj - yi, xi)
+        self.few = [(box, bounds.tolist(), [[edge for edge, used in zip(zip(*(column.tolist() for column in band[:4])),
+                                                                        band[4].tolist()) if used]
+                                            for band in zip(*(part for part in table))])
+                    for box, bounds, table in zip(self.boxes.tolist(), polygon_bounds, tables)]
 
     def _build_grid(self, xs: list[float], ys: list[float], start: tuple[int, ...]) -> None:
         """The cell grid of :meth:`inside`: ``cells[row, column]`` is OUTSIDE, INSIDE or EXACT for
@@ -198,8 +208,33 @@ class Polygons:
         found = state == INSIDE
         test = state == EXACT
         if test.any():
-            found[test] = self.exact(px[test], py[test])
+            where = np.flatnonzero(test)
+            if where.size <= FEW_POINTS:  # near an edge, a few points (as a sample of few episodes has)
+                found.reshape(-1)[where] = self.exact_few(px.reshape(-1)[where].tolist(),
+                                                          py.reshape(-1)[where].tolist())
+            else:
+                found[test] = self.exact(px[test], py[test])
         return found
+
+    def exact_few(self, px: list[float], py: list[float]) -> list[bool]:
+        """:meth:`exact` of a few points given as Python floats: the same comparisons and the same
+        operations on the same doubles (``px < (xj - xi) * (py - yi) / (yj - yi) + xi`` per edge of the
+        point's band in each polygon whose box holds it), one point and polygon at a time."""
+        out = []
+        for qx, qy in zip(px, py):
+            hit = False
+            for (x_low, x_high, y_low, y_high), bounds, bands in self.few:
+                if not (y_low <= qy < y_high and x_low <= qx <= x_high):
+                    continue  # NaN fails every comparison, as in exact()
+                odd = False
+                for dx, yi, dy, xi in bands[bisect.bisect_right(bounds, qy) - 1]:
+                    if qx < dx * (qy - yi) / dy + xi:
+                        odd = not odd
+                if odd:
+                    hit = True
+                    break
+            out.append(hit)
+        return out
 
     def exact(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """Whether each point lies inside one of the polygons (bool array like ``px``), by the
