@@ -96,6 +96,15 @@ class Frame:
         """The model functions computed on this frame so far (name -> ``(n,)``, :meth:`Evaluator.function`)."""
         return dict(self._cache)
 
+    def reading(self, inputs: Mapping[str, np.ndarray], location: np.ndarray | None = None,
+                rewards: Mapping[str, np.ndarray] | None = None) -> Frame:
+        """This frame with the automaton's ``inputs`` (and ``location``, ``rewards``) on its states:
+        ``dataclasses.replace`` of those fields (the model functions computed so far shared, as it
+        shares them), without its per-call look at the fields (a sample of a few episodes asks it twice)."""
+        return Frame(self.k, self.ego, self.truth, self.location if location is None else location,
+                     self.rewards if rewards is None else rewards, inputs, self.prev, self.mirrors,
+                     self.significands, self.crashed, self.functions, self._cache)
+
     def keep(self, name: str, values: np.ndarray) -> None:
         """Hand the frame model function ``name``'s values on its states, computed elsewhere (e.g. on
         the same states at the previous sample), so that :meth:`Evaluator.function` does not call the model."""

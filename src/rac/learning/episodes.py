@@ -318,9 +318,13 @@ class _Transitions:
         for field, name in self.numeric:
             records[field][rows, j] = sampled.changes[name]
 
-    def recall(self, slots: np.ndarray, j: int) -> _ModelSample:
-        """Sample ``j`` of the steps in ``slots``."""
-        records = self.store[slots, j]  # a copy (fancy indexing): its fields are views of nothing kept
+    def taken(self, slots: np.ndarray) -> np.ndarray:
+        """The samples of the steps in ``slots``, ``(m, samples)`` records: a copy (fancy indexing), so
+        that a step's samples are gathered once, not once per sample (:meth:`recall` reads its columns)."""
+        return self.store[slots]
+
+    def recall(self, records: np.ndarray) -> _ModelSample:
+        """One sample of some steps from its ``(m,)`` records (a column of :meth:`taken`'s, or rows of it)."""
         sampled = _ModelSample(records["ego"], {name: records[field] for field, name in self.inputs},
                                {name: records[field] for field, name in self.numeric},
                                records["collided"], records["offroad"])
@@ -817,6 +821,7 @@ class EpisodeBatch:
         self.steps_computed += int(misses.size)
         records = np.zeros((misses.size, self.decide_every), dtype=memo.dtype)
         taken = np.zeros(misses.size, dtype=np.int64)
+        recalled = memo.taken(hit_slots)  # every sample of the recalled steps, gathered once
         for j in range(self.decide_every):
             rows = np.flatnonzero(~self.done)
             if rows.size == 0:
@@ -830,8 +835,10 @@ class EpisodeBatch:
                 taken[going] = j + 1
                 parts.append((computing, computed))
             recalling = ~self.done[hits]
-            if recalling.any():
-                parts.append((hits[recalling], memo.recall(hit_slots[recalling], j)))
+            if hits.size and recalling.all():  # a view of the column (nothing writes to `recalled`)
+                parts.append((hits, memo.recall(recalled[:, j])))
+            elif recalling.any():
+                parts.append((hits[recalling], memo.recall(recalled[recalling, j])))
             self._apply(rows, _merged(rows, parts), reward, flags)
             # prev(e)'s model functions are handed on for the computed rows only: a recalled row's are not known
             if computing.size:
@@ -880,7 +887,7 @@ class EpisodeBatch:
         offroad = np.asarray(evaluator.function("offroad", frame), dtype=bool)
         sampled = _ModelSample(after, values, changes, collided, offroad, frame)
         if self._transitions is not None:  # the goal and reward read no location, reward or held input
-            sampled.late(self._after_edge(dataclasses.replace(frame, inputs=values)), self.reward_expr is not None,
+            sampled.late(self._after_edge(frame.reading(values)), self.reward_expr is not None,
                          self.goal is not None)
         return sampled
 
@@ -914,9 +921,8 @@ class EpisodeBatch:
         flags["offroad"][rows] |= sampled.offroad
         if sampled.reached is None:  # the goal or the reward reads the automaton: after its edge
             assert sampled.frame is not None
-            late = self._after_edge(dataclasses.replace(
-                sampled.frame, location=now.location[rows], inputs=sampled.values,
-                rewards={name: values[rows] for name, values in now.rewards.items()}))
+            late = self._after_edge(sampled.frame.reading(
+                sampled.values, now.location[rows], {name: values[rows] for name, values in now.rewards.items()}))
             sampled.late(late, self.reward_expr is not None, self.goal is not None)
         assert sampled.reached is not None
         if self.reward_expr is None:
