@@ -65,7 +65,7 @@ from rac import ir
 from rac.check.queries import lower_expression
 from rac.compiler import CompileResult
 from rac.core.caller import require_bool
-from rac.core.diagnostics import RacValueError
+from rac.core.diagnostics import RacError, RacValueError
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
 from rac.engine.budget import EPISODE_MEMO_BYTES
@@ -245,6 +245,44 @@ class _ModelSample:
             self.reward = np.broadcast_to(np.asarray(values[0], dtype=np.float64), (m,))
         goal = values[-1] if has_goal else np.zeros(m, dtype=bool)
         self.reached = np.broadcast_to(np.asarray(goal if goal.dtype == bool else goal != 0, dtype=bool), (m,))
+
+
+@dataclass
+class _Ahead:
+    """The model's part of the next samples of some episodes (:meth:`EpisodeBatch._ahead`): ``(J, m)``
+    arrays, sample ``j`` of episode ``i`` at ``[j, i]`` (``after`` ``(J, m, 7)``), and the model functions
+    of the state computed on each sample (:data:`_OF_THE_STATE`, what :meth:`EpisodeBatch._carry` hands on)."""
+
+    after: np.ndarray
+    values: dict[str, np.ndarray]
+    changes: dict[str, np.ndarray]
+    collided: np.ndarray
+    offroad: np.ndarray
+    reached: np.ndarray
+    reward: np.ndarray | None
+    known: dict[str, np.ndarray]
+
+    @property
+    def samples(self) -> int:
+        return int(self.after.shape[0])
+
+    def sample(self, j: int, going: np.ndarray) -> _ModelSample:
+        """Sample ``j`` of the episodes ``going`` (a mask over the ``m``): views when all of them go on."""
+        every = bool(going.all())
+
+        def pick(column: np.ndarray) -> np.ndarray:
+            return column[j] if every else column[j][going]
+
+        sampled = _ModelSample(pick(self.after), {name: pick(v) for name, v in self.values.items()},
+                               {name: pick(v) for name, v in self.changes.items()}, pick(self.collided),
+                               pick(self.offroad))
+        sampled.reward = None if self.reward is None else pick(self.reward)
+        sampled.reached = pick(self.reached)
+        return sampled
+
+    def functions(self, j: int, going: np.ndarray) -> dict[str, np.ndarray]:
+        """The model functions of the state on sample ``j`` of the episodes ``going``."""
+        return {name: values[j][going] for name, values in self.known.items()}
 
 
 class _Transitions:
@@ -822,6 +860,9 @@ class EpisodeBatch:
         records = np.zeros((misses.size, self.decide_every), dtype=memo.dtype)
         taken = np.zeros(misses.size, dtype=np.int64)
         recalled = memo.taken(hit_slots)  # every sample of the recalled steps, gathered once
+        ahead = self._ahead(misses, pairs, min(self.decide_every, self.horizon_samples - int(now.k[misses].min()))) \
+            if misses.size else None
+        carry: tuple[int, np.ndarray, np.ndarray] | None = None  # the last sample ahead's rows: _carried
         for j in range(self.decide_every):
             rows = np.flatnonzero(~self.done)
             if rows.size == 0:
@@ -829,8 +870,13 @@ class EpisodeBatch:
             going = ~self.done[misses]
             computing = misses[going]
             parts: list[tuple[np.ndarray, _ModelSample]] = []
+            carry = None
             if computing.size:
-                computed = self._model_sample(computing, pairs)
+                if ahead is not None and j < ahead.samples:
+                    computed = ahead.sample(j, going)
+                    carry = (j, going, computing)
+                else:
+                    computed = self._model_sample(computing, pairs)
                 memo.record(records, going, j, computed)
                 taken[going] = j + 1
                 parts.append((computing, computed))
@@ -841,11 +887,12 @@ class EpisodeBatch:
                 parts.append((hits[recalling], memo.recall(recalled[recalling, j])))
             self._apply(rows, _merged(rows, parts), reward, flags)
             # prev(e)'s model functions are handed on for the computed rows only: a recalled row's are not known
-            if computing.size:
-                assert computed.frame is not None
+            if computing.size and computed.frame is not None:
                 self._carry(computing, computed.frame)
-            else:
+            else:  # (a sample taken ahead hands its functions on below, if it is the last)
                 self._carried = None
+        if carry is not None and ahead is not None:  # the last sample was taken ahead: its functions handed on
+            self._carried = (carry[2], ahead.functions(carry[0], carry[1]))
         if misses.size:  # a step the automaton ended early did not run to its model's end: not kept
             last = records[np.arange(misses.size), np.maximum(taken - 1, 0)]
             whole = (taken == self.decide_every) | ((taken > 0) & last["reached"]) \
@@ -860,6 +907,79 @@ class EpisodeBatch:
         assert sampled.frame is not None
         self._carry(rows, sampled.frame)
 
+    def _carried_on(self, rows: np.ndarray) -> dict[str, np.ndarray]:
+        """The model functions of the state computed at the last sample (or the start) on the episodes
+        ``rows``, when it computed them on all of those rows (:meth:`_carry`); else none."""
+        if self._carried is None:
+            return {}
+        carried, known = self._carried
+        where = np.minimum(np.searchsorted(carried, rows), max(carried.size - 1, 0))
+        if not (carried.size and np.array_equal(carried[where], rows)):
+            return {}
+        return {name: column[where] for name, column in known.items()}
+
+    def _ahead(self, rows: np.ndarray, pairs: np.ndarray, samples: int) -> _Ahead | None:
+        """The model's part of the next ``samples`` samples of the episodes ``rows`` (a memoised batch's,
+        :meth:`_memoisable`), taken together: the ego moves sample by sample (``sense``), then every
+        binding, label, goal and reward expression is read once on all those samples' states (one frame
+        of ``samples * m`` rows) instead of once per sample. Each value is :meth:`_model_sample`'s, bit for
+        bit: the model's functions and the compiled expressions work row by row, and a sample's model
+        part reads its row's state, sample, pair and earlier collisions alone (``crashed``: or-ed along
+        the samples here). Samples past an episode's end are computed but not read; where anything
+        raises (a value beyond int32 there, say), None: the caller takes the samples one by one, which
+        raise where the episode really reaches."""
+        if samples < 1:
+            return None
+        now = self._require()[0]
+        evaluator = self.evaluator
+        m = rows.size
+        egos = np.empty((samples + 1, m, now.ego.shape[1]), dtype=now.ego.dtype)
+        egos[0] = now.ego[rows]  # the state before the choice: what the first sample's prev(e) reads
+        ks = now.k[rows][None, :] + np.arange(samples + 1)[:, None]
+        try:
+            moved = egos[0].copy()
+            moved[:, ACTION] = pairs[rows]
+            for j in range(samples):
+                moved = egos[j + 1] = evaluator.model.sense(moved)
+            k, ego = ks[1:].reshape(-1), egos[1:].reshape(-1, egos.shape[2])
+            mindist = evaluator.function("mindist", Frame(k=k, ego=ego))  # before the frame: collide() so far needs it
+            collided = collides(mindist, self._td).reshape(samples, m)
+            so_far = np.empty((samples, m), dtype=bool)  # collide() so far: before each sample, as now.crashed
+            so_far[0] = now.crashed[rows]
+            np.logical_or(so_far[0], np.logical_or.accumulate(collided[:-1], axis=0), out=so_far[1:])
+            crashed = so_far.reshape(-1)
+            carried = self._carried_on(rows)
+
+            def earlier(name: str) -> np.ndarray:
+                """A model function on the samples' prev states: the last sample's (carried, or computed on
+                it), then the samples' own but the last (computed once for the frame)."""
+                first = carried.get(name)
+                if first is None:
+                    first = evaluator.function(name, Frame(k=ks[0], ego=egos[0], crashed=crashed[:m]))
+                return np.concatenate([first, evaluator.function(name, frame)[:-m]])
+
+            before = Frame(k=ks[:-1].reshape(-1), ego=egos[:-1].reshape(-1, egos.shape[2]), crashed=crashed,
+                           functions=earlier)
+            frame = Frame(k=k, ego=ego, prev=before, crashed=crashed)  # (read by `earlier` when called)
+            frame.keep("mindist", mindist)
+            changes: dict[str, np.ndarray] = {}
+            values = self._bindings.read(frame, changes=changes)
+            offroad = np.asarray(evaluator.function("offroad", frame), dtype=bool)
+            sampled = _ModelSample(ego, values, changes, collided.reshape(-1), offroad, frame)
+            sampled.late(self._after_edge(frame.reading(values)), self.reward_expr is not None, self.goal is not None)
+        except (RacError, ValueError, ArithmeticError):
+            return None
+        assert sampled.reached is not None
+        known = frame.known()
+
+        def split(column: np.ndarray) -> np.ndarray:
+            return column.reshape(samples, m, *column.shape[1:])
+
+        return _Ahead(split(ego), {name: split(v) for name, v in values.items()},
+                      {name: split(v) for name, v in changes.items()}, collided, split(offroad),
+                      split(sampled.reached), None if sampled.reward is None else split(sampled.reward),
+                      {name: split(known[name]) for name in _OF_THE_STATE if name in known})
+
     def _model_sample(self, rows: np.ndarray, pairs: np.ndarray) -> _ModelSample:
         """The model's part of one sample of the episodes ``rows`` (steps 1 and 2 of the module
         docstring, the labels, and the goal and reward expression when they read the model and the
@@ -870,12 +990,8 @@ class EpisodeBatch:
         # model alone, :meth:`_memoisable`: no location, reward or input to gather)
         before = now.frame(rows) if self._transitions is None else \
             Frame(k=now.k[rows], ego=now.ego[rows], crashed=now.crashed[rows])
-        if self._carried is not None:  # computed on these states at the last sample (or the start)
-            carried, known = self._carried
-            where = np.minimum(np.searchsorted(carried, rows), max(carried.size - 1, 0))
-            if carried.size and np.array_equal(carried[where], rows):
-                for name, column in known.items():
-                    before.keep(name, column[where])
+        for name, column in self._carried_on(rows).items():
+            before.keep(name, column)
         moved = now.ego[rows].copy()
         moved[:, ACTION] = pairs[rows]
         after = evaluator.model.sense(moved)
