@@ -88,6 +88,10 @@ GOAL: ie.Expr = ie.call("goal")
 #: The model functions of a state alone (its ego and sample, not the run's history like ``collide()``
 #: under ``collision sticky``): computed on a sample, they are handed on to the next sample's ``prev``.
 _OF_THE_STATE = ("mindist", "offroad", "goal", "dist_goal")
+#: A step's computed samples are taken together (:meth:`EpisodeBatch._ahead`) while they are at most
+#: this many rows (samples times episodes): beyond, one sample's rows are enough to amortise numpy's
+#: calls, and all of them together would hold large temporaries.
+_AHEAD_ROWS = 1 << 17
 
 #: An expression as the engine's entry points take it: text, a parsed node (both checked against
 #: the batch's automaton, :func:`rac.check.queries.lower_expression`) or a checked expression.
@@ -927,8 +931,8 @@ class EpisodeBatch:
         part reads its row's state, sample, pair and earlier collisions alone (``crashed``: or-ed along
         the samples here). Samples past an episode's end are computed but not read; where anything
         raises (a value beyond int32 there, say), None: the caller takes the samples one by one, which
-        raise where the episode really reaches."""
-        if samples < 1:
+        raise where the episode really reaches. None as well beyond :data:`_AHEAD_ROWS` rows."""
+        if samples < 1 or samples * rows.size > _AHEAD_ROWS:
             return None
         now = self._require()[0]
         evaluator = self.evaluator
