@@ -208,7 +208,7 @@ class StrategyEvaluation:
     def interval(self) -> tuple[float, float]:
         """The Clopper-Pearson 95% interval of the success rate (computed when asked: its scipy import
         costs ~0.15 s of CPU, and ``rac experiment`` evaluates 20 strategies without reading it)."""
-        from rac.engine.stats import clopper_pearson
+        from rac.engine.stats import clopper_pearson  # scipy: only when the interval is asked for
 
         return clopper_pearson(self.successes, self.runs)
 
