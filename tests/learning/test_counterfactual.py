@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rac.compiler import compile_file, compile_text
-from rac.learning import counterfactual
+from rac.engine.budget import REPLAY_MEMOS
 from rac.learning.counterfactual import Replayer, Sample, counterfactual_transitions
 from rac.learning.episodes import EpisodeBatch, parse_expr
 from rac.learning.qlearning import learn, location_column
@@ -389,9 +389,9 @@ def test_the_replay_memos_share_one_budget(tiny, monkeypatch: pytest.MonkeyPatch
     import gc
 
     gc.collect()
-    held = counterfactual._Replays.held_by_all  # memos of earlier tests still alive: counted above them
+    held = REPLAY_MEMOS.held  # memos of earlier tests still alive: counted above them
     cap = held + 20_000
-    monkeypatch.setattr(counterfactual, "REPLAY_MEMO_BYTES", cap)
+    monkeypatch.setattr(REPLAY_MEMOS, "cap", cap)
     rng = np.random.default_rng(5)
     memo = Replayer(tiny, memo=True)
     seen = []
@@ -402,13 +402,13 @@ def test_the_replay_memos_share_one_budget(tiny, monkeypatch: pytest.MonkeyPatch
         rewards = {"r": rng.integers(0, 40, n).astype(float)}
         got = memo.replay(samples, n, rewards)
         assert counterfactual_bytes(got) == counterfactual_bytes(Replayer(tiny).replay(samples, n, rewards))
-        seen.append(counterfactual._Replays.held_by_all - held)
-        assert counterfactual._Replays.held_by_all <= cap
+        seen.append(REPLAY_MEMOS.held - held)
+        assert REPLAY_MEMOS.held <= cap
     assert memo.rows_recalled > 0 and max(seen) > cap - held - 5_000  # it filled up
     assert any(later < earlier for earlier, later in zip(seen, seen[1:]))  # and started afresh
     del memo
     gc.collect()
-    assert counterfactual._Replays.held_by_all == held
+    assert REPLAY_MEMOS.held == held
 
 
 def test_the_batch_memo_recalls_the_replays_of_steps_taken_again() -> None:

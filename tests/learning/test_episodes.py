@@ -588,13 +588,13 @@ def test_the_memos_share_one_budget(probe: CompileResult, monkeypatch: pytest.Mo
     values; a batch that is gone hands its bytes back."""
     import gc
 
-    from rac.learning import episodes
+    from rac.engine.budget import EPISODE_MEMOS
 
     gc.collect()
     # batches of earlier tests that are still alive hold their share: the budget is counted above it
-    held = episodes._Transitions.held_by_all
+    held = EPISODE_MEMOS.held
     cap = held + 16_000
-    monkeypatch.setattr(episodes, "EPISODE_MEMO_BYTES", cap)
+    monkeypatch.setattr(EPISODE_MEMOS, "cap", cap)
     rng = np.random.default_rng(3)
     plans = [rng.integers(9, size=6).tolist() for _ in range(6)]
     first = EpisodeBatch(probe, horizon_samples=12)

@@ -30,6 +30,7 @@ import math
 import os
 import re
 import time
+import weakref
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -38,7 +39,8 @@ from rac.core.diagnostics import RacError, counted
 from rac.core.numbers import format_bytes  # re-exported: the budgets' messages and their callers use it
 from rac.core.resources import memory_option, memory_option_limits
 
-__all__ = ["EPISODE_MEMO_BYTES", "EVALUATION_BYTES_PER_RUN", "EVALUATION_BYTES_PER_SAMPLE",
+__all__ = ["EPISODE_MEMOS", "EPISODE_MEMO_BYTES", "REPLAY_MEMOS", "MemoBytes", "MemoShare",
+           "EVALUATION_BYTES_PER_RUN", "EVALUATION_BYTES_PER_SAMPLE",
            "EVALUATION_BYTES_PER_STEP", "MEMO_BYTES_PER_STEP", "GRAPH_BYTES_PER_CHOICE", "GRAPH_BYTES_PER_STATE",
            "LEARNING_BYTES_PER_EPISODE", "PEAK_FACTOR", "QTABLE_COPIES", "QTABLE_INDEX_BYTES_PER_ROW",
            "REPLAY_BYTES_PER_DECISION", "REPLAY_MEMO_BYTES", "RUN_BYTES_PER_SAMPLE",
@@ -111,6 +113,53 @@ PROJECTION_FROM = 1e-3
 DEFAULT_FRACTION = 0.5
 
 _UNITS = {"": 1, "k": 2**10, "m": 2**20, "g": 2**30, "t": 2**40}
+
+
+class MemoBytes:
+    """The bytes the memos of one kind hold together in this process, against :attr:`cap`: an
+    experiment's runs, or a gymnasium environment over a set of scenes, keep many memos, and the cap is
+    for all of them. Each memo charges its bytes to its :class:`MemoShare`, which hands them back when
+    the memo is collected."""
+
+    def __init__(self, cap: int) -> None:
+        self.cap = cap
+        #: the bytes every memo of this kind holds now
+        self.held = 0
+
+    def left(self) -> int:
+        """The bytes the memos may still take (below 0 when a test lowered the cap under them)."""
+        return self.cap - self.held
+
+    def share(self, owner: object) -> MemoShare:
+        """A share for the memo ``owner``: its bytes come back when ``owner`` is collected."""
+        return MemoShare(self, owner)
+
+
+class MemoShare:
+    """One memo's bytes within its :class:`MemoBytes`."""
+
+    def __init__(self, pool: MemoBytes, owner: object) -> None:
+        self.pool = pool
+        #: this memo's bytes
+        self.bytes = 0
+        weakref.finalize(owner, self.release)  # holds this share, never the owner
+
+    def charge(self, size: int) -> None:
+        """``size`` more bytes held by the memo."""
+        self.pool.held += size
+        self.bytes += size
+
+    def release(self) -> None:
+        """Every byte of the memo handed back (it starts afresh, or it is gone)."""
+        self.pool.held -= self.bytes
+        self.bytes = 0
+
+
+#: The steps taken, kept by :class:`rac.learning.episodes.EpisodeBatch`'s memos (at most :data:`EPISODE_MEMO_BYTES`).
+EPISODE_MEMOS = MemoBytes(EPISODE_MEMO_BYTES)
+#: The replays of counterfactual experiences, kept by :class:`rac.learning.counterfactual.Replayer`'s memos
+#: (at most :data:`REPLAY_MEMO_BYTES`).
+REPLAY_MEMOS = MemoBytes(REPLAY_MEMO_BYTES)
 
 
 def physical_memory() -> int:

@@ -38,14 +38,13 @@ those of the step before it, which input-dependent rates read: required for such
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from rac import ir
-from rac.engine.budget import REPLAY_MEMO_BYTES
+from rac.engine.budget import REPLAY_MEMOS
 from rac.runtime.batch import BatchRewardAutomaton
 from rac.runtime.semantics import input_specs
 
@@ -241,8 +240,6 @@ class _Replays:
     :class:`rac.learning.episodes.EpisodeBatch`'s memo of steps shares its budget; a memo that would
     exceed it starts afresh (only the time changes), and hands its bytes back when it is collected."""
 
-    #: The bytes held by every memo of this process together.
-    held_by_all = 0
     #: The bytes of one key in the index beside its own (the bytes object and the dictionary's entry).
     INDEX_BYTES = 150
 
@@ -250,13 +247,8 @@ class _Replays:
         self.width = width
         self.index: dict[bytes, int] = {}
         self.store = np.zeros((0, width))
-        self.held = [0]  # this memo's bytes, in a list: handed back when the memo is collected
-        weakref.finalize(self, _Replays._release, self.held)
-
-    @staticmethod
-    def _release(held: list[int]) -> None:
-        _Replays.held_by_all -= held[0]
-        held[0] = 0
+        #: this memo's bytes within :data:`rac.engine.budget.REPLAY_MEMOS`, handed back when it is collected
+        self.share = REPLAY_MEMOS.share(self)
 
     def find(self, keys: list[bytes]) -> np.ndarray:
         """Each key's row in :attr:`store`, -1 for a transition not kept."""
@@ -272,13 +264,13 @@ class _Replays:
         per_key = self.INDEX_BYTES + len(keys[0])
         wanted = capacity if size + len(keys) <= capacity else max(2 * capacity, size + len(keys), 64)
         cost = (wanted - capacity) * row_bytes + len(keys) * per_key
-        if _Replays.held_by_all + cost > REPLAY_MEMO_BYTES:  # start afresh, with these
-            _Replays._release(self.held)
+        if cost > REPLAY_MEMOS.left():  # start afresh, with these
+            self.share.release()
             self.index, self.store = {}, np.zeros((0, self.width))
             size = capacity = 0
             wanted = max(len(keys), 64)
             cost = wanted * row_bytes + len(keys) * per_key
-            if _Replays.held_by_all + cost > REPLAY_MEMO_BYTES:
+            if cost > REPLAY_MEMOS.left():
                 return
         if wanted > capacity:
             grown = np.zeros((wanted, self.width))
@@ -286,8 +278,7 @@ class _Replays:
             self.store = grown
         self.store[size:size + len(keys)] = rows
         self.index.update(zip(keys, range(size, size + len(keys))))
-        _Replays.held_by_all += cost
-        self.held[0] += cost
+        self.share.charge(cost)
 
 
 @dataclass(frozen=True, eq=False)

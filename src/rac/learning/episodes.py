@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import dataclasses
 import numbers
-import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -68,7 +67,7 @@ from rac.core.caller import require_bool
 from rac.core.diagnostics import RacError, RacValueError
 from rac.engine.allow import ActionGuard, action_pairs
 from rac.engine.bindings import Bindings
-from rac.engine.budget import EPISODE_MEMO_BYTES
+from rac.engine.budget import EPISODE_MEMOS
 from rac.engine.compiled import compile_expressions
 from rac.engine.evaluate import Evaluator, Frame
 from rac.ir import expr as ie
@@ -300,9 +299,6 @@ class _Transitions:
     :data:`rac.engine.budget.EPISODE_MEMO_BYTES` are kept by all memos of the process together (then
     they stop growing; a memo hands its bytes back when its batch is gone)."""
 
-    #: The bytes held by every memo of this process together: they share EPISODE_MEMO_BYTES (a
-    #: gymnasium environment over a set of scenes has one batch per scene).
-    held_by_all = 0
     #: The bytes of one step's key in the index (the key, the slot, the dictionary's entry).
     INDEX_BYTES = 200
 
@@ -319,17 +315,9 @@ class _Transitions:
         self.samples = samples
         self.index: dict[bytes, int] = {}
         self.store = np.zeros((0, samples), dtype=self.dtype)
-        self.held = [0]  # this memo's bytes, in a list: handed back when the memo is collected
-        weakref.finalize(self, _Transitions._release, self.held)
-
-    @staticmethod
-    def _release(held: list[int]) -> None:
-        _Transitions.held_by_all -= held[0]
-        held[0] = 0
-
-    def _charge(self, size: int) -> None:
-        _Transitions.held_by_all += size
-        self.held[0] += size
+        #: this memo's bytes within :data:`rac.engine.budget.EPISODE_MEMOS` (a gymnasium environment
+        #: over a set of scenes has one batch per scene), handed back when the memo is collected
+        self.share = EPISODE_MEMOS.share(self)
 
     @staticmethod
     def keys(k: np.ndarray, ego: np.ndarray, crashed: np.ndarray, pairs: np.ndarray) -> list[bytes]:
@@ -386,22 +374,22 @@ class _Transitions:
         size, capacity = len(self.index), self.store.shape[0]
         row_bytes = self.dtype.itemsize * self.samples
         if size + len(fresh) > capacity:  # amortised doubling, within the bytes left
-            left = EPISODE_MEMO_BYTES - _Transitions.held_by_all - len(fresh) * self.INDEX_BYTES
+            left = EPISODE_MEMOS.left() - len(fresh) * self.INDEX_BYTES
             wanted = min(max(2 * capacity, size + len(fresh), 16), capacity + max(0, left) // row_bytes)
             if wanted > capacity:
                 grown = np.zeros((wanted, self.samples), dtype=self.dtype)
                 grown[:size] = self.store[:size]
                 self.store = grown
-                self._charge((wanted - capacity) * row_bytes)
+                self.share.charge((wanted - capacity) * row_bytes)
         room = min(self.store.shape[0] - size,
-                   max(0, EPISODE_MEMO_BYTES - _Transitions.held_by_all) // self.INDEX_BYTES)
+                   max(0, EPISODE_MEMOS.left()) // self.INDEX_BYTES)
         chosen = list(fresh.items())[:room]
         if not chosen:
             return
         self.store[size:size + len(chosen)] = records[[row for _, row in chosen]]
         for offset, (key, _) in enumerate(chosen):
             self.index[key] = size + offset
-        self._charge(len(chosen) * self.INDEX_BYTES)
+        self.share.charge(len(chosen) * self.INDEX_BYTES)
 
 
 def _merged(rows: np.ndarray, parts: Sequence[tuple[np.ndarray, _ModelSample]]) -> _ModelSample:
@@ -692,7 +680,7 @@ class EpisodeBatch:
     def memo_bytes(self) -> int:
         """The bytes this batch's memo of steps taken holds (0 without one); all memos of the process
         hold at most :data:`rac.engine.budget.EPISODE_MEMO_BYTES` together."""
-        return self._transitions.held[0] if self._transitions is not None else 0
+        return self._transitions.share.bytes if self._transitions is not None else 0
 
     @property
     def location(self) -> np.ndarray:
