@@ -321,8 +321,8 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     exp.add_argument("--seeds", type=seeds_argument, metavar="LIST",
                      help="seeds, e.g. 1,2,3 (default 1..5; --seed N is --seeds N)")
     exp.add_argument("--episodes", type=counting, default=500,
-                     help="episode budget per run (default 500; on examples/paper/model.ra, 1500 brought each of seeds 1-20 "
-                          "within 5 %% of the exact optimum: docs/learning.md)")
+                     help="episode budget per run (default 500; on examples/paper/model.ra, 1500 brought each of "
+                          "seeds 1-20 within 5 %% of the exact optimum: docs/learning.md)")
     exp.add_argument("--runs", type=counting, default=100, help="evaluation runs per strategy (default 100)")
     exp.add_argument("--reward-function", metavar="EXPR",
                      help="per-sample reward of the RF combinations (default: the paper's Eq. 9)")
