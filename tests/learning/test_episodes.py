@@ -544,22 +544,14 @@ def everything(batch: EpisodeBatch, out: StepResult, cf: object) -> list:
             batch.clipped_inputs, plain(dataclasses.astuple(cf)) if cf is not None else None]
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(data=st.data(), reward=st.sampled_from(["automaton", EQ9]), ends=st.booleans())
-def test_the_memo_changes_nothing(probe: CompileResult, data: st.DataObject, reward: str, ends: bool) -> None:
-    """With and without the memo, batches driven alike — steps, restarted rows, selected rows, whole
-    resets, an automaton that ends runs early — show the same values at every step, bit for bit."""
-    program = CheckedProgram(dataclasses.replace(probe.automaton, episode_ends=PROBE_ENDS), probe.model_data) \
-        if ends else probe
-    horizon = data.draw(st.integers(1, 12))
-    batches = [EpisodeBatch(program, reward=reward, horizon_samples=horizon, counterfactuals=True, memo=memo)
-               for memo in (True, False)]
-    n = data.draw(st.integers(1, 4))
-    for batch in batches:
-        batch.reset(n)
-    for _ in range(data.draw(st.integers(1, 16))):
+def drive_alike(data: st.DataObject, batches: list[EpisodeBatch], count: st.SearchStrategy[int], moves: list[str],
+                *, counterfactuals: bool, observed: list[str] | None = None) -> None:
+    """Drive the two ``batches`` alike, ``count`` moves drawn from ``moves`` (``step``, ``reset_rows``,
+    ``select``, ``reset``), and assert that every step shows the same in both (:func:`everything`, with
+    the step's counterfactuals and the ``observed`` expressions)."""
+    for _ in range(data.draw(count)):
         n = batches[0].n
-        move = data.draw(st.sampled_from(["step", "step", "step", "reset_rows", "select", "reset"]))
+        move = data.draw(st.sampled_from(moves))
         if move == "reset":
             width = data.draw(st.integers(1, 4))
             for batch in batches:
@@ -577,8 +569,27 @@ def test_the_memo_changes_nothing(probe: CompileResult, data: st.DataObject, rew
             seen = []
             for batch in batches:
                 out = batch.step(actions)
-                seen.append(everything(batch, out, batch.counterfactual() if reward == "automaton" else None))
+                seen.append(everything(batch, out, batch.counterfactual() if counterfactuals else None))
+                if observed:
+                    seen[-1].append(batch.observe(observed).tolist())
             assert seen[0] == seen[1]
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data(), reward=st.sampled_from(["automaton", EQ9]), ends=st.booleans())
+def test_the_memo_changes_nothing(probe: CompileResult, data: st.DataObject, reward: str, ends: bool) -> None:
+    """With and without the memo, batches driven alike — steps, restarted rows, selected rows, whole
+    resets, an automaton that ends runs early — show the same values at every step, bit for bit."""
+    program = CheckedProgram(dataclasses.replace(probe.automaton, episode_ends=PROBE_ENDS), probe.model_data) \
+        if ends else probe
+    horizon = data.draw(st.integers(1, 12))
+    batches = [EpisodeBatch(program, reward=reward, horizon_samples=horizon, counterfactuals=True, memo=memo)
+               for memo in (True, False)]
+    n = data.draw(st.integers(1, 4))
+    for batch in batches:
+        batch.reset(n)
+    drive_alike(data, batches, st.integers(1, 16), ["step", "step", "step", "reset_rows", "select", "reset"],
+                counterfactuals=reward == "automaton")
     assert batches[0].steps_recalled + batches[0].steps_computed == batches[1].steps_computed
 
 
@@ -654,25 +665,8 @@ def test_samples_taken_ahead_are_the_samples_taken_one_by_one(probe: CompileResu
     n = data.draw(st.integers(1, 5))
     for batch in batches:
         batch.reset(n)
-    for _ in range(data.draw(st.integers(1, 60))):
-        n = batches[0].n
-        move = data.draw(st.sampled_from(["step"] * 8 + ["reset_rows", "select"]))
-        if move == "reset_rows":
-            rows = data.draw(st.lists(st.integers(0, n - 1), max_size=n))
-            for batch in batches:
-                batch.reset_rows(rows)
-        elif move == "select":
-            rows = data.draw(st.lists(st.integers(0, n - 1), min_size=1, max_size=5))
-            for batch in batches:
-                batch.select(rows)
-        else:
-            actions = np.array(data.draw(st.lists(st.integers(0, batches[0].n_actions - 1), min_size=n, max_size=n)))
-            seen = []
-            for batch in batches:
-                out = batch.step(actions)
-                seen.append(everything(batch, out, batch.counterfactual() if reward == "automaton" else None))
-                seen[-1].append(batch.observe(["prev(dist_goal())", "prev(collide())", "collide()"]).tolist())
-            assert seen[0] == seen[1]
+    drive_alike(data, batches, st.integers(1, 60), ["step"] * 8 + ["reset_rows", "select"],
+                counterfactuals=reward == "automaton", observed=["prev(dist_goal())", "prev(collide())", "collide()"])
     assert [batch.steps_computed for batch in batches] == [batches[1].steps_computed] * 2
 
 

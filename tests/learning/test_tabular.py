@@ -7,20 +7,10 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from watkins import in_order_update
 
 from rac.learning.strategy import key_bytes, uniform_allowed
 from rac.learning.tabular import UNTRIED, QTable, Transition, apply, prepare, update
-
-
-def _in_order(values: np.ndarray, step: Transition, alpha: float, gamma: float, untried: float | None) -> None:
-    """The oracle: Watkins' update one episode at a time, in episode order."""
-    for i in step.active:
-        target = step.reward[i]
-        if not step.ends[i]:
-            target += gamma * values[step.next_rows[i]][step.next_masks[i]].max()
-        old = values[step.rows[i], step.actions[i]]
-        values[step.rows[i], step.actions[i]] = target if old == untried else old + alpha * (target - old)
-
 
 #: Table values that tell the arithmetic's paths apart: both zeros, the untried value, fractions.
 VALUES = st.sampled_from([UNTRIED, -3.0, 0.5, 12.25, 0.0, -0.0, 1e-17, -7.3])
@@ -58,11 +48,11 @@ def test_a_prepared_step_applied_again_is_the_one_at_a_time_update(data: st.Data
     expected, got, again = start.copy(), start.copy(), start.copy()
     prepared = []
     for step in steps:
-        _in_order(expected, step, alpha, gamma, untried)
+        in_order_update(expected, step, alpha, gamma, untried)
         prepared.append(prepare(step, n_actions))
         apply(got, prepared[-1], alpha, gamma, untried)
     for step, plan in zip(reversed(steps), reversed(prepared)):
-        _in_order(expected, step, alpha, gamma, untried)
+        in_order_update(expected, step, alpha, gamma, untried)
         apply(got, plan, alpha, gamma, untried)
     # bit for bit: NaN (0 * -inf never comes: every mask allows an action) and the sign of zero included
     assert expected.tobytes() == got.tobytes()

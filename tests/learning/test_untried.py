@@ -11,6 +11,7 @@ import pytest
 from engine_files import write_engine_file
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from watkins import in_order_update
 
 from rac.compiler import compile_file
 from rac.learning.episodes import EpisodeBatch
@@ -76,16 +77,6 @@ def test_optimism_and_pessimism_exclude_each_other(goal_ahead: Path) -> None:
         learn(batch, discrete=["Tiny.location"], continuous=["x"], optimism=5.0, pessimistic=True, seed=1)
 
 
-def _in_order(values: np.ndarray, step: Transition, alpha: float, gamma: float, untried: float | None) -> None:
-    """The oracle: Watkins' update one episode at a time, in episode order."""
-    for i in step.active:
-        target = step.reward[i]
-        if not step.ends[i]:
-            target += gamma * values[step.next_rows[i]][step.next_masks[i]].max()
-        old = values[step.rows[i], step.actions[i]]
-        values[step.rows[i], step.actions[i]] = target if old == untried else old + alpha * (target - old)
-
-
 @settings(max_examples=300, deadline=None)
 @given(st.data())
 def test_the_batched_update_is_the_one_at_a_time_update_to_the_last_bit(data: st.DataObject) -> None:
@@ -107,6 +98,6 @@ def test_the_batched_update_is_the_one_at_a_time_update_to_the_last_bit(data: st
                                         min_size=n_rows * n_actions, max_size=n_rows * n_actions))).reshape(n_rows, -1)
     step = Transition(active, rows, actions, reward, next_rows, masks, ends)
     expected, got = start.copy(), start.copy()
-    _in_order(expected, step, alpha, 1.0, untried)
+    in_order_update(expected, step, alpha, 1.0, untried)
     update(got, step, alpha, 1.0, untried)
     assert np.array_equal(got, expected)
