@@ -17,7 +17,7 @@ import functools
 import operator
 from collections.abc import Callable, Mapping, Sequence
 from fractions import Fraction
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -57,7 +57,12 @@ _NP_OPS: dict[str, Callable[[np.ndarray, float], np.ndarray]] = {
 _TABLE_LIMIT = 1 << 16
 
 
-def _eval_np_linear(form: FloatLinear, values: Callable[[str], np.ndarray], n: int) -> np.ndarray:
+_Term = TypeVar("_Term")
+
+
+def _eval_np_linear(form: tuple[float, tuple[tuple[float, _Term], ...]], values: Callable[[_Term], np.ndarray],
+                    n: int) -> np.ndarray:
+    """``const + Σ coef * values(term)`` over ``n`` rows, left to right (a term: a reward's name, or its row)."""
     const, terms = form
     if not terms:
         return np.full(n, const)
@@ -499,15 +504,8 @@ class BatchRewardAutomaton(AutomatonDescription):
             np.copyto(R[i], _eval_np_linear(form, value, self._n), where=where)
 
     def _objective_now(self) -> np.ndarray:
-        # _eval_np_linear's sum (the same operations in the same order), with the rows looked up once
-        const, terms = self._objective_rows
-        if not terms:
-            return np.full(self._n, const)
-        R = self._R
-        acc: Any = const
-        for coef, row in terms:
-            acc = acc + coef * R[row]
-        return acc
+        # the objective's form with the reward rows looked up once (read every sample)
+        return _eval_np_linear(self._objective_rows, self._R.__getitem__, self._n)
 
     def _clip(self, inputs: Mapping[str, object], clip: bool,
               rows: np.ndarray | None) -> tuple[Mapping[str, object], dict[str, int] | None]:
