@@ -159,15 +159,22 @@ class BatchModel:
         x, y = (self._moved(states[:, column] / scale, speeds, speed, heading[:, part], pair)
                 for column, part in ((Ego.X, slice(0, m)), (Ego.Y, slice(m, 2 * m))))
         values = np.stack([x, y, speeds[speed, m], speeds[speed, m + 1], heading[pair, 2 * m]])  # x, y, v, acc, head
-        scaled = values * scale
+        return self._sensed(states, values)
+
+    def _sensed(self, states: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """The sensed states: ``states``' actions with the motion ``values`` ``(5, n)`` (x, y, v, acc, head,
+        as doubles) as significands, truncated toward zero like ``int()``; native's error for the first
+        value out of the int32 range (its column first, then its row)."""
+        native = self.native
+        scaled = values * native.scale_d
         bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))  # also NaN
         if bad.any():  # the first column with a value out of range, at its first row (as native)
-            column, row = divmod(int(np.argmax(bad)), n)
+            column, row = divmod(int(np.argmax(bad)), states.shape[0])
             what = ("x", "y", "v", "acc", "head")[column]
             native.significand(what, float(values[column, row]))  # raises the same error as native
             raise ModelRangeError(f"sense(): {what}", float(values[column, row]), None, self.data.scale)
         out = np.empty(states.shape, dtype=np.int32)
-        out[:, MOTION] = scaled.T.astype(np.int64)  # truncation toward zero, like int()
+        out[:, MOTION] = scaled.T.astype(np.int64)
         out[:, ACTION] = states[:, ACTION]
         return out
 
@@ -201,17 +208,7 @@ class BatchModel:
             values[:, :2] = position.T
         values[:, 2:4] = speeds[:, m:m + 2]
         values[:, 4] = heading[:, 2 * m]
-        scaled = values * scale
-        bad = ~((scaled > -INT32_BOUND) & (scaled < INT32_BOUND))  # also NaN
-        if bad.any():  # the first column with a value out of range, at its first row (as native)
-            column, row = divmod(int(np.argmax(bad.T)), n)
-            what = ("x", "y", "v", "acc", "head")[column]
-            native.significand(what, float(values[row, column]))  # raises the same error as native
-            raise ModelRangeError(f"sense(): {what}", float(values[row, column]), None, self.data.scale)
-        out = np.empty(states.shape, dtype=np.int32)
-        out[:, MOTION] = scaled.astype(np.int64)  # truncation toward zero, like int()
-        out[:, ACTION] = states[:, ACTION]
-        return out
+        return self._sensed(states, values.T)
 
     def _sense_increments(self, states: np.ndarray) -> np.ndarray:
         """:meth:`NativeModel.sense_increments` of every row, the same operations on int64 and doubles."""
