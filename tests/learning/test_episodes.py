@@ -12,6 +12,7 @@ and the errors.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -690,3 +691,51 @@ def test_collisions_so_far_taken_ahead(paper: CompileResult) -> None:
             assert seen[0] == seen[1]
             collided += sum(seen[0][0][3])
     assert collided > 0
+
+
+def taken_alone(make: Callable[[], EpisodeBatch], n: int, history: list[np.ndarray], action: int,
+                observed: list[str]) -> np.ndarray:
+    """What ``observed`` reads after every episode takes ``action`` next: a batch of its own, driven through
+    ``history`` from the start."""
+    batch = make()
+    batch.reset(n)
+    for actions in history:
+        batch.step(actions)
+    batch.step(np.full(n, action))
+    return batch.observe(observed)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data(), reward=st.sampled_from(["automaton", EQ9]), memo=st.booleans())
+def test_ahead_is_each_action_taken_and_changes_nothing(probe: CompileResult, data: st.DataObject, reward: str,
+                                                        memo: bool) -> None:
+    """``ahead()`` reads, per episode and action, what ``observe()`` reads after that action is taken (each
+    action taken by a batch of its own; NaN for a done episode), and a batch asked it goes on exactly as one
+    never asked: every step's values, counterfactuals and clipped counts, bit for bit."""
+    horizon = data.draw(st.integers(1, 12))
+
+    def make() -> EpisodeBatch:
+        return EpisodeBatch(probe, reward=reward, horizon_samples=horizon, counterfactuals=True, memo=memo)
+
+    observed = ["x", "v", "dist_goal()", "d", "Probe.location", "sa"]
+    asked, twin = make(), make()
+    n = data.draw(st.integers(1, 4))
+    asked.reset(n)
+    twin.reset(n)
+    history: list[np.ndarray] = []
+    for _ in range(data.draw(st.integers(1, 6))):
+        got = asked.ahead(observed)
+        assert got.shape == (n, asked.n_actions, len(observed))
+        done = asked.done.copy()
+        assert np.isnan(got[done]).all()
+        for action in range(asked.n_actions):
+            expected = taken_alone(make, n, history, action, observed)
+            np.testing.assert_array_equal(got[~done, action], expected[~done])
+        assert asked.steps_ahead > 0 or done.all()
+        actions = np.array(data.draw(st.lists(st.integers(0, asked.n_actions - 1), min_size=n, max_size=n)))
+        history.append(actions)
+        seen = [everything(batch, out := batch.step(actions), batch.counterfactual() if reward == "automaton" else None)
+                + [batch.observe(observed).tolist(), out.reward.tolist()] for batch in (asked, twin)]
+        assert seen[0] == seen[1]
+        assert (asked.clipped, asked.steps_recalled + asked.steps_computed) == (
+            twin.clipped, twin.steps_recalled + twin.steps_computed)

@@ -265,7 +265,10 @@ def test_the_greedy_run_in_the_next_batch_is_the_greedy_run_alone(scenario: Call
     assert any(stopped) and not all(stopped)  # both ends of learning are compared
 
 
-def test_runs_learned_together_are_the_runs_learned_alone(scenario: Callable[[str], Scenario]) -> None:
+@pytest.mark.parametrize("steer", [None, "dist_goal()"])
+def test_runs_learned_together_are_the_runs_learned_alone(scenario: Callable[[str], Scenario],
+                                                          steer: str | None) -> None:
+    """Also exploring steered by a lookahead (``steer``), which the lanes read once for every row."""
     item = scenario("avoidable_obstacle")
     shared = EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON)
     objective = parse_expr("x - 100 * sa")
@@ -273,7 +276,7 @@ def test_runs_learned_together_are_the_runs_learned_alone(scenario: Callable[[st
 
     def options(table: shield.ShieldTable | None, seed: int, parallel: int) -> dict[str, object]:
         return dict(discrete=[LOCATION], continuous=[X, V], shield=table, episodes=48, parallel=parallel, seed=seed,
-                    stop_after=2)
+                    stop_after=2, steer=steer)
 
     jobs = [Job(learning(shared, **options(table, seed, parallel)),
                 None if reward is None else shared.expression(reward)) for table, reward, seed, parallel in runs]
@@ -282,6 +285,7 @@ def test_runs_learned_together_are_the_runs_learned_alone(scenario: Callable[[st
         batch = EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON)
         alone = learn(batch if reward is None else ObjectiveIncrease(batch, reward), **options(table, seed, parallel))
         assert same_learning(outcome, alone) and seconds > 0
+    assert (shared.steps_ahead > 0) == (steer is not None)
     evaluations = run_together([Job(evaluation_steps(outcome.strategy, runs=runs_, shield=table, seed=4,
                                                      epsilon=0.3))
                                 for (table, _, _, _), (outcome, _), runs_ in zip(runs, together, (10, 1, 7, 30))],

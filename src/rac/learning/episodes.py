@@ -53,6 +53,7 @@ Example::
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import numbers
 from collections.abc import Callable, Sequence
@@ -530,6 +531,8 @@ class EpisodeBatch:
         #: Episode-steps whose model part was recalled from the memo, and computed (since construction).
         self.steps_recalled = 0
         self.steps_computed = 0
+        #: Episode-steps :meth:`ahead` took to look one decision ahead (recalled or computed; since construction).
+        self.steps_ahead = 0
         # Evaluate the expressions once on the start, so that a name the engine cannot read fails here.
         start = self._start_state(1)
         self._first = start  # one episode's start, read by reset_rows (never written)
@@ -722,6 +725,32 @@ class EpisodeBatch:
         out = np.empty((frame.n, len(exprs)), dtype=np.float64)
         for column, value in enumerate(self._observer(exprs)(frame)):
             out[:, column] = value
+        return out
+
+    def ahead(self, exprs: Sequence[Expression], rows: slice | None = None) -> np.ndarray:
+        """``(n, n_actions, len(exprs))`` float64: each expression one decision later, had the episode
+        taken each action now (as :meth:`observe` would read it after :meth:`step`); NaN for an episode
+        that is done; of the episodes ``rows`` only, if given. The batch is not changed: the steps are
+        taken by a copy of the episodes, one per action (the model's, whether or not ``allow when`` or a
+        shield allows the action), counted in :attr:`steps_ahead`; the memo keeps them, so the step then
+        taken is recalled. For exploration steered by the model (:class:`rac.learning.tabular.Learner`)."""
+        self._require()
+        where = np.arange(self.n)[slice(None) if rows is None else rows]
+        out = np.full((where.size, self.n_actions, len(exprs)), np.nan)
+        going = ~self.done[where]
+        if not going.any():
+            return out
+        live = where[going]
+        # a shallow copy: it shares the model, the compiled expressions and the memo, and select()
+        # gives it its own episodes; what step() changes in place is made its own here
+        probe = copy.copy(self)
+        probe.counterfactuals = False
+        probe.clipped_inputs = dict(self.clipped_inputs)
+        probe._record = []
+        probe.select(np.repeat(live, self.n_actions))
+        probe.step(np.tile(np.arange(self.n_actions), live.size))
+        out[going] = probe.observe(exprs).reshape(live.size, self.n_actions, len(exprs))
+        self.steps_ahead += (probe.steps_recalled + probe.steps_computed) - (self.steps_recalled + self.steps_computed)
         return out
 
     def _observer(self, exprs: Sequence[Expression]) -> Callable[[Frame], list[np.ndarray]]:

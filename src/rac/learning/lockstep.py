@@ -70,10 +70,15 @@ class Between:
         self.observed: dict[tuple[Expression, ...], np.ndarray] = {}  # equal expressions: the same values
         self.keys: np.ndarray | None = None
         self.masks: np.ndarray | None = None
+        self.looked: dict[tuple[Expression, ...], np.ndarray] = {}
+        #: Seconds spent looking ahead for every row (:meth:`ahead`) since :func:`_step` last took them: the
+        #: lane that asked first is not charged them, every lane is, by its episodes running (as a step).
+        self.spent = 0.0
 
     def clear(self) -> None:
         """The batch was reset or stepped: nothing read before holds."""
         self.observed.clear()
+        self.looked.clear()
         self.keys = self.masks = None
 
     def observe(self, exprs: Sequence[Expression]) -> np.ndarray | None:
@@ -86,6 +91,19 @@ class Between:
             return None
         if found is None:
             found = self.observed[key] = self.shared.observe(exprs)
+        return found
+
+    def ahead(self, exprs: Sequence[Expression]) -> np.ndarray | None:
+        """:meth:`rac.learning.episodes.EpisodeBatch.ahead` of every row (read only); None as :meth:`observe`."""
+        key = tuple(exprs)
+        try:
+            found = self.looked.get(key)
+        except TypeError:
+            return None
+        if found is None:
+            t0 = time.perf_counter()
+            found = self.looked[key] = self.shared.ahead(exprs)
+            self.spent += time.perf_counter() - t0
         return found
 
     def state_keys(self) -> np.ndarray:
@@ -142,6 +160,12 @@ class Lane(Forwarding):
         every = None if self.between is None else self.between.observe(exprs)
         if every is None:
             return self.shared.observe(exprs, self.rows)
+        return every[self.rows].copy()
+
+    def ahead(self, exprs: Sequence[Expression]) -> np.ndarray:
+        every = None if self.between is None else self.between.ahead(exprs)
+        if every is None:
+            return self.shared.ahead(exprs, self.rows)
         return every[self.rows].copy()
 
     def step(self, actions: np.ndarray) -> StepResult:
@@ -278,11 +302,18 @@ def _run(running: list[_Running], shared: EpisodeBatch, between: Between,
             run.seconds += spent * width / sum(widths)
             start += width
         for run in live:
-            run.send(Lane(shared, run.lane, run.job.objective, between))
+            _answer(run, Lane(shared, run.lane, run.job.objective, between), between)
         while any(run.stepping for run in live):
             if interrupted():
                 raise _Stopping
             _step(shared, [run for run in live if run.stepping], between)
+
+
+def _answer(run: _Running, reply: Any, between: Between) -> None:
+    """``run.send(reply)``, not charging ``run`` the reads it made for every lane (:attr:`Between.spent`)."""
+    before = between.spent
+    run.send(reply)
+    run.seconds -= between.spent - before
 
 
 def _every(between: Between, exprs: Sequence[ie.Expr]) -> np.ndarray:
@@ -305,7 +336,9 @@ def _step(shared: EpisodeBatch, stepping: list[_Running], between: Between) -> N
     outcome = shared.step(actions)
     between.clear()
     after = _every(between, objectives) if objectives else None
-    spent = time.perf_counter() - t0
+    # with the lookahead made for every row before this step (the lanes' choices read it)
+    spent = time.perf_counter() - t0 + between.spent
+    between.spent = 0.0
     # episodes still running before the step, up to each row: a lane's count is a difference (not a sum per lane)
     upto = [0, *np.cumsum(running).tolist()]
     weights = [upto[run.lane.stop] - upto[run.lane.start] for run in stepping]
@@ -319,6 +352,6 @@ def _step(shared: EpisodeBatch, stepping: list[_Running], between: Between) -> N
             with np.errstate(invalid="ignore"):  # inf - inf: a reward that is not a number, which its job refuses
                 reward = np.where(running[lane], after[lane, column] - before[lane, column], 0.0)
         run.seconds += spent * weight / total
-        run.send(StepResult(reward=reward, terminated=outcome.terminated[lane], truncated=outcome.truncated[lane],
-                            collided=outcome.collided[lane], offroad=outcome.offroad[lane],
-                            stranded=outcome.stranded[lane], ended=outcome.ended[lane]))
+        _answer(run, StepResult(reward=reward, terminated=outcome.terminated[lane], truncated=outcome.truncated[lane],
+                                collided=outcome.collided[lane], offroad=outcome.offroad[lane],
+                                stranded=outcome.stranded[lane], ended=outcome.ended[lane]), between)
