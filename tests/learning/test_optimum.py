@@ -30,6 +30,7 @@ from rac.learning.episodes import EpisodeBatch, Expression, parse_expr
 from rac.learning.optimum import shortfall, solve, why_not_additive
 from rac.learning.qlearning import LearnedStrategy, ObjectiveIncrease, learn
 from rac.learning.strategy import Episodes, allowed_actions
+from rac.learning.tabular import STEERED
 from rac.verify.runner import VerifyOptions, verify
 
 HORIZON = 8  # samples: the tiny scenarios' 4 s at 0.5 s, 4 decisions
@@ -62,10 +63,12 @@ def brute_force(batch: EpisodeBatch, objective: Expression | None, table: shield
     return best, len(complete)
 
 
-def brute_force_chance(batch: EpisodeBatch, table: shield.ShieldTable | None) -> float:
+def brute_force_chance(batch: EpisodeBatch, table: shield.ShieldTable | None, steer: str | None = None) -> float:
     """The probability that an episode choosing uniformly among the allowed actions reaches the goal
     safely: the sum over every allowed action sequence that succeeds of the product of 1 / (the actions
-    allowed) at its decisions, each sequence replayed from the start."""
+    allowed) at its decisions, each sequence replayed from the start. With ``steer``, an episode exploring
+    as the learner's ``steer`` does: a share STEERED of each choice uniform among the allowed actions whose
+    ``steer`` one decision later is least (read by ``batch.ahead``), the rest uniform."""
     prefixes = np.zeros((1, 0), dtype=np.int64)
     chance = np.ones(1)
     total = 0.0
@@ -85,7 +88,12 @@ def brute_force_chance(batch: EpisodeBatch, table: shield.ShieldTable | None) ->
         masks, _ = allowed_actions(batch, table)
         masks[done] = False
         rows, actions = np.nonzero(masks)
-        chance = chance[rows] / masks.sum(axis=1)[rows]
+        share = masks / np.maximum(masks.sum(axis=1, keepdims=True), 1)
+        if steer is not None:
+            values = np.where(masks, batch.ahead([steer])[:, :, 0], np.inf)
+            least = masks & (values == values.min(axis=1, keepdims=True))
+            share = STEERED * least / np.maximum(least.sum(axis=1, keepdims=True), 1) + (1 - STEERED) * share
+        chance = chance[rows] * share[rows, actions]
         prefixes = np.column_stack([prefixes[rows], actions])
     return total
 
@@ -129,7 +137,7 @@ def test_the_backward_pass_is_brute_force(tiny: Callable[..., Compiled], name: s
     expected, sequences = brute_force(EpisodeBatch(result, goal=parse_expr(goal), horizon_samples=HORIZON),
                                       objective_expr, under, optimise)
     best = solve(EpisodeBatch(result, goal=parse_expr(goal), horizon_samples=HORIZON), objective=objective_expr,
-                 optimise=optimise, shield=under)
+                 optimise=optimise, shield=under, steer="dist_goal()")
     assert best.additive and best.why is None
     assert best.value == pytest.approx(expected, rel=1e-12, abs=1e-9)
     assert best.backward == pytest.approx(best.value, rel=1e-12, abs=1e-9)
@@ -140,6 +148,22 @@ def test_the_backward_pass_is_brute_force(tiny: Callable[..., Compiled], name: s
     chance = brute_force_chance(EpisodeBatch(result, goal=parse_expr(goal), horizon_samples=HORIZON), under)
     assert best.uniform_success == pytest.approx(chance, rel=1e-12, abs=1e-15)
     assert best.expected_first == pytest.approx(1 / chance if chance > 0 else float("inf"), rel=1e-12)
+    # and exploring steered towards the goal (--explore goal), each step's least distance read by ahead()
+    steered = brute_force_chance(EpisodeBatch(result, goal=parse_expr(goal), horizon_samples=HORIZON), under,
+                                 "dist_goal()")
+    assert best.steered_success == pytest.approx(steered, rel=1e-12, abs=1e-15)
+
+
+def test_steering_changes_some_chance(tiny: Callable[..., Compiled]) -> None:
+    """The steered chance is not the uniform one under another name: on the goal ahead, heading for the goal
+    changes it."""
+    result, table = tiny("goal_ahead")
+    batch = EpisodeBatch(result, horizon_samples=HORIZON)
+    steered = brute_force_chance(batch, table, "dist_goal()")
+    uniform = brute_force_chance(EpisodeBatch(result, horizon_samples=HORIZON), table)
+    assert steered != pytest.approx(uniform, rel=1e-6)
+    assert solve(EpisodeBatch(result, horizon_samples=HORIZON), shield=table, steer="dist_goal()").steered_success \
+        == pytest.approx(steered, rel=1e-12)
 
 
 def test_a_reset_puts_the_rewards_into_the_state(tiny: Callable[..., Compiled],

@@ -68,7 +68,7 @@ from rac.learning.episodes import EpisodeBatch, Expression
 from rac.learning.qlearning import ObjectiveIncrease
 from rac.learning.runs import run_strategy
 from rac.learning.strategy import Episodes, LearnedStrategy, StrategyRun, allowed_actions, check_shield
-from rac.learning.tabular import check_finite
+from rac.learning.tabular import STEERED, check_finite
 
 __all__ = ["Optimum", "exploration_text", "observed_state", "shortfall", "solve", "why_not_additive"]
 
@@ -101,6 +101,11 @@ class Optimum:
     #: every decision (what ε-greedy learning does at ε = 1, before it has learned anything) reaches
     #: the goal safely (:attr:`rac.learning.strategy.StrategyRun.success`), exact over the same graph.
     uniform_success: float = float("nan")
+    #: The same for an episode exploring as :attr:`rac.learning.tabular.Learner.steer` does with
+    #: :func:`solve`'s ``steer`` (a share :data:`rac.learning.tabular.STEERED` of the choices take the
+    #: allowed action whose ``steer`` is least one decision later, ties uniformly, the others uniform);
+    #: None without ``steer``.
+    steered_success: float | None = None
 
     @property
     def expected_first(self) -> float:
@@ -210,12 +215,13 @@ class _Layer:
     observed: np.ndarray  # (nodes, len(observed_state)): the layer's nodes observed
     safe: np.ndarray  # the step neither collided nor left the road
     arrived: np.ndarray  # the episode ended at the goal, in a state from which it can stay safe
+    toward: np.ndarray | None  # the edge is among its parent's least ``steer`` after it (None: no steer)
 
 
 def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise: str = "max",
           shield: ShieldTable | None = None, max_states: int | None = None, max_bytes: int | None = None,
           meta: Mapping[str, object] | None = None, project: bool = False,
-          progress: Callable[[int, int, int], None] | None = None) -> Optimum:
+          progress: Callable[[int, int, int], None] | None = None, steer: Expression | None = None) -> Optimum:
     """The optimum of ``maxE``/``minE`` (``optimise``) of the episodes' return on ``batch`` under
     ``shield`` (see the module docstring). ``objective``: reward each step with the increase of this
     expression (:class:`rac.learning.qlearning.ObjectiveIncrease`, as ``rac verify`` learns); None:
@@ -224,7 +230,8 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
     states or ``max_bytes``; with ``project``, :class:`rac.engine.budget.ProjectionExceeded` as soon as
     the layers so far project beyond it (:meth:`rac.engine.budget.Budget.check_projection`). ``progress(sample,
     layer states, states)`` after each layer of decision states, as an exploration's (a bar, a time limit's check,
-    which may raise); it changes nothing computed."""
+    which may raise); it changes nothing computed. ``steer``: also the chance of an episode exploring as
+    :attr:`rac.learning.tabular.Learner.steer` does with it (:attr:`Optimum.steered_success`)."""
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
     check_shield(batch, shield)
@@ -234,6 +241,7 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
     scored: Episodes = batch if checked is None else ObjectiveIncrease(batch, checked)
     names = observed_state(batch.automaton)
     exprs = [batch.expression(name) for name in names]
+    steered = None if steer is None else batch.expression(steer)
     budget = Budget(max_states=max_states, max_bytes=max_bytes,
                     what="the decision graph of the shielded episodes", period=float(batch.automaton.period))
     layers: list[_Layer] = []
@@ -272,11 +280,19 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
             budget.check_bytes(stored, states, sample + batch.decide_every)
             if progress is not None:
                 progress(sample + batch.decide_every, unique.shape[0], states)
+        toward = None
+        if steered is not None:  # the learner's lookahead reads the expression after the step, as here
+            after_step = batch.observe([steered])[:, 0]
+            after_step = np.where(np.isnan(after_step), np.inf, after_step)
+            least = np.full(int(parent.max()) + 1, np.inf)
+            np.minimum.at(least, parent, after_step)
+            toward = after_step == least[parent]
         reward = np.asarray(outcome.reward, dtype=np.float64)
         check_finite(reward)  # learning refuses it too; the backward pass would compute on NaN
         layers.append(_Layer(parent, action, reward, target, observed,
                              ~(np.asarray(outcome.collided, dtype=bool) | np.asarray(outcome.offroad, dtype=bool)),
-                             np.asarray(outcome.terminated, dtype=bool) & ~np.asarray(outcome.stranded, dtype=bool)))
+                             np.asarray(outcome.terminated, dtype=bool) & ~np.asarray(outcome.stranded, dtype=bool),
+                             toward))
         if not live.any():
             break
         batch.select(np.flatnonzero(live)[first])
@@ -286,6 +302,7 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
     # Backwards: a node's value is its best edge's reward plus its target's value (0 where the episode ends).
     after = np.zeros(0)
     chance = np.zeros(0)  # per node of the layer after: a uniformly random continuation's chance of success
+    steered_chance = np.zeros(0)  # the same, exploring as the learner's steer does
     best: list[np.ndarray] = []
     q_values: list[np.ndarray] = []
     for layer in reversed(layers):
@@ -293,8 +310,16 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
         nodes = layer.observed.shape[0]
         onward = np.where(layer.target >= 0, chance[np.maximum(layer.target, 0)] if chance.size else 0.0,
                           layer.arrived.astype(np.float64))
-        chance = (np.bincount(layer.parent, weights=np.where(layer.safe, onward, 0.0), minlength=nodes)
-                  / np.maximum(np.bincount(layer.parent, minlength=nodes), 1))
+        counts = np.maximum(np.bincount(layer.parent, minlength=nodes), 1)
+        if layer.toward is not None:
+            ahead = np.where(layer.safe, np.where(layer.target >= 0, steered_chance[np.maximum(layer.target, 0)]
+                                                  if steered_chance.size else 0.0, layer.arrived.astype(np.float64)),
+                             0.0)
+            towards = np.bincount(layer.parent, weights=ahead * layer.toward, minlength=nodes) / np.maximum(
+                np.bincount(layer.parent, weights=layer.toward, minlength=nodes), 1)
+            steered_chance = STEERED * towards + (1 - STEERED) * np.bincount(layer.parent, weights=ahead,
+                                                                             minlength=nodes) / counts
+        chance = np.bincount(layer.parent, weights=np.where(layer.safe, onward, 0.0), minlength=nodes) / counts
         top = np.full(nodes, -np.inf)
         np.maximum.at(top, layer.parent, sign * q)
         hits = np.flatnonzero(sign * q == top[layer.parent])
@@ -311,7 +336,8 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
                               additive=why is None))
     run = run_strategy(scored, strategy, exprs=exprs, shield=shield)
     return Optimum(float(run.returns[0]), float(after[0]), strategy, run, tuple(exprs), states, edges, why is None,
-                   why, optimise, time.perf_counter() - t0, float(chance[0]))
+                   why, optimise, time.perf_counter() - t0, float(chance[0]),
+                   None if steered is None else float(steered_chance[0]))
 
 
 def _strategy(batch: EpisodeBatch, layers: Sequence[_Layer], best: Sequence[np.ndarray],

@@ -276,7 +276,7 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
              evaluate_in_batch: bool = True, counterfactuals: bool = False,
              growth: float | None = None, optimism: float = 0.0, pessimistic: bool = False,
              random_ties: bool = False, max_bytes: int | None = None,
-             replay_best: bool = False) -> Steps[LearningResult]:
+             replay_best: bool = False, steer: Expression | None = None) -> Steps[LearningResult]:
     """Learn a strategy by tabular Q-learning on ``batch`` (see the module docstring for the
     observation, the algorithm and the stopping rule): ``learn(batch, ...)`` learns on ``batch``
     alone; ``learning(batch, ...)`` is the same as a generator of steps (:mod:`rac.learning.runs`),
@@ -294,8 +294,11 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     holds the best return seen after it and the greedy strategy is the best run seen);
     ``random_ties``: learning episodes break greedy ties at random (the greedy strategy keeps the
     lowest index); ``replay_best``: after each batch, the best learning episode seen so far (a safe goal
-    first, then the return) is replayed backwards too; ``max_bytes``: the memory budget (None:
-    none): :class:`rac.engine.budget.EstimateExceeded` before anything is learned when
+    first, then the return) is replayed backwards too; ``steer``: half the exploring choices take the
+    allowed action whose value of this expression one decision later is least (``"dist_goal()"``: towards
+    the goal), looked up in the model (:attr:`rac.learning.tabular.Learner.steer`; None: uniform);
+    ``max_bytes``: the memory budget (None: none): :class:`rac.engine.budget.EstimateExceeded` before anything
+    is learned when
     :func:`rac.engine.budget.learning_bytes` estimates more. The same ``seed`` gives the same result."""
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
@@ -339,7 +342,7 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     table = QTable(len(exprs), batch.n_actions, UNTRIED if pessimistic else optimism)
     learner = Learner(table, exprs, n_discrete, widths, shield, np.random.default_rng(seed), sign, alpha, gamma, replay,
                       location_column(discrete_exprs, continuous_exprs) if counterfactuals else None, random_ties,
-                      replay_best=replay_best)
+                      replay_best=replay_best, steer=None if steer is None else batch.expression(steer))
     schedule = _epsilon_schedule(epsilon, episodes)
     pairs = getattr(batch, "action_pairs", None)
 

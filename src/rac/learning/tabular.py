@@ -36,14 +36,18 @@ from rac.learning.strategy import (
     uniform_allowed,
 )
 
-__all__ = ["UNTRIED", "BatchLog", "Frozen", "Learner", "Prepared", "QTable", "Transition", "apply", "check_finite",
-           "prepare", "update"]
+__all__ = ["STEERED", "UNTRIED", "BatchLog", "Frozen", "Learner", "Prepared", "QTable", "Transition", "apply",
+           "check_finite", "prepare", "update"]
 
 #: The pessimistic initial value (:func:`rac.learning.qlearning.learning`'s ``pessimistic``): below
 #: any return a run can have (learning refuses episodes whose return comes within a factor 10 of it),
 #: so an untried action is never preferred to a tried one, and a tried action whose future is not
 #: known yet (its next state has nothing tried: ``reward + UNTRIED``) ranks below every known one.
 UNTRIED = -1e9
+#: The share of the exploring choices that :attr:`Learner.steer` steers (the others stay uniform): half, so
+#: that every allowed action stays likely to be tried (heading for the goal alone reached it less often
+#: on examples/paper: the way there first waits for the crossing traffic).
+STEERED = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -283,6 +287,12 @@ class Learner:
     #: return) is replayed backwards too, so the greedy strategy keeps following it where later
     #: episodes through the same (binned) observation keys overwrote its values.
     replay_best: bool = False
+    #: Exploration steered by the model (``rac experiment --explore goal``): half the exploring choices
+    #: (by a draw of their own) take the allowed action whose value of this expression one decision
+    #: later is least — ``dist_goal()``, the goal's distance — read by looking ahead in the model
+    #: (:meth:`rac.learning.episodes.EpisodeBatch.ahead`), ties at random; the other half stay uniform
+    #: among the allowed actions. None: every exploring choice is uniform.
+    steer: ie.Expr | None = None
     #: The best learning episode seen: its (safe goal, return in the maximised sense) and transitions.
     best: tuple[tuple[bool, float], list[Transition]] | None = field(default=None, repr=False)
 
@@ -333,6 +343,16 @@ class Learner:
             return greedy_actions(utilities, masks)
         masked = np.where(masks, utilities, -np.inf)
         return uniform_allowed(self.rng, masks & (masked == np.maximum.reduce(masked, axis=1, keepdims=True)))
+
+    def toward(self, batch: Episodes, masks: np.ndarray) -> np.ndarray:
+        """Per learning row (``masks``: its allowed actions), the allowed action whose :attr:`steer` is
+        least one decision later, ties at random (uniformly among the allowed ones of a done episode)."""
+        look = getattr(batch, "ahead", None)
+        if look is None or self.steer is None:
+            raise RacValueError("these episodes cannot look ahead in the model (no ahead()): explore uniformly")
+        values = look([self.steer])[:masks.shape[0], :, 0]
+        values = np.where(masks & ~np.isnan(values), values, np.inf)
+        return uniform_allowed(self.rng, masks & (values == values.min(axis=1, keepdims=True)))
 
     def _replay_best(self, own: Sequence[Transition], returns: np.ndarray, good: np.ndarray) -> None:
         """Keep the best of the batch's episodes if it beats the best seen, then replay that one backwards."""
@@ -392,6 +412,9 @@ class Learner:
             if anyone:  # the random numbers are the learning episodes' only
                 explore = rng.random(n) < eps
                 random_actions = uniform_allowed(rng, masks[:n])
+                if self.steer is not None and (explore & learning).any():  # half the exploring choices, steered
+                    steered = rng.random(n) < STEERED
+                    random_actions = np.where(steered, self.toward(batch, masks[:n]), random_actions)
                 # every learning row has a row of the table (created when observed): its values as they are
                 chosen = np.where(explore, random_actions, self.exploit(table.values[rows], masks[:n]))
                 actions[:n] = np.where(learning, chosen, 0)
