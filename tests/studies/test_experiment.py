@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from engine_files import write_engine_file
 from PIL import Image
+from tiny_scenarios import goal_anywhere
 
 from rac.cli.main import main
 from rac.compiler import compile_file
@@ -578,3 +579,42 @@ def test_the_shields_exploration_counts_its_states(tmp_path: Path, monkeypatch: 
     end = next(i for i in range(start + 1, len(heard)) if heard[i][0] == "phase")
     states = [n for unit, n in heard[start:end] if unit == "states"]
     assert len(states) > 1 and states == sorted(states) and states[-1] > 1, heard
+
+
+def test_explore_goal_steers_every_combination_and_says_so(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """``--explore goal``: the table's notes say how the episodes explored, what such an episode can expect
+    (exact, beside the uniform one) and the model steps the lookahead took; results.json keeps it all."""
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    out = tmp_path / "out"
+    code = main(["experiment", str(path), "--seeds", "1", "--episodes", "16", "--runs", "5", "--reward-function",
+                 REWARD_FUNCTION, "--explore", "goal", "--out", str(out), "-q"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "exploring choices (--explore goal) half towards the goal" in printed
+    assert "an episode exploring as --explore does reaches it safely with probability" in printed
+    assert "to look one decision ahead for the exploring choices (--explore)" in printed
+    data = json.loads((out / "results.json").read_text())
+    assert data["explore"] == "goal" and data["model_steps"]["ahead"] > 0
+    for label in ("SS&RA", "SS&RF"):
+        assert 0 < data["optima"][label]["uniform_success"] < data["optima"][label]["steered_success"] <= 1
+    # the default explores uniformly, and says so; it looks nothing up ahead
+    default = run_experiment(compile_file(path), seeds=(1,), episodes=16, evaluation_runs=5,
+                             reward_function=REWARD_FUNCTION, combinations=["SS&RA"])
+    assert default["explore"] == "uniform" and default["model_steps"]["ahead"] == 0
+    assert "steered_success" not in default["optima"]["SS&RA"]
+    assert "exploring choices uniform among the allowed actions" in render_markdown(default)
+
+
+def test_explore_goal_is_refused_for_a_goal_without_a_position(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """A goal of time alone has no distance to head for (``dist_goal()`` reads 0): refused before anything
+    is computed, as an option to change (exit 2)."""
+    path = write_engine_file(tmp_path, "goal_ahead", LEARN)
+    (tmp_path / "goal_ahead.xml").write_bytes(goal_anywhere())
+    code = main(["experiment", str(path), "--seeds", "1", "--episodes", "4", "--reward-function", REWARD_FUNCTION,
+                 "--explore", "goal", "--out", str(tmp_path / "out"), "-q"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "--explore goal: the goal has no position" in err and "explore uniformly" in err
+    assert not (tmp_path / "out").exists()

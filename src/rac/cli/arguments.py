@@ -334,6 +334,10 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
                           "automaton location's counterfactual)")
     exp.add_argument("--no-time", action="store_true",
                      help="observe only the file's discrete list (default: also the decision time, docs/learning.md)")
+    exp.add_argument("--explore", choices=("uniform", "goal"), default="uniform",
+                     help="how learning episodes explore: uniform among the allowed actions (default), or goal: "
+                          "half the exploring choices take the action nearest the goal one decision later, looked "
+                          "up in the model (every combination alike; docs/learning.md)")
     exp.add_argument("--replay", type=int, default=1, metavar="N",
                      help="backward replays of each batch of episodes (default 1; 0: none)")
     exp.add_argument("--ablation", action="store_true",
@@ -466,6 +470,8 @@ def _add_sweep(commands: argparse._SubParsersAction) -> None:
                        help="preanalyse: simulated runs per setting; experiment: evaluation runs (default 100)")
     sweep.add_argument("--reward-function", metavar="EXPR",
                        help="experiment: the per-sample reward of the RF combinations (default: the paper's Eq. 9)")
+    sweep.add_argument("--explore", choices=("uniform", "goal"),
+                       help="experiment: how learning episodes explore (default uniform; rac experiment --explore)")
     sweep.add_argument("-q", "--quiet", action="store_true", help="no progress, no dashboard address")
     sweep.add_argument("--format", choices=("text", "json"), default="text", help="the summary's format")
 

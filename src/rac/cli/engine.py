@@ -863,7 +863,7 @@ def experiment_command(args: argparse.Namespace, result: CompileResult) -> int:
                                     counterfactuals=not args.no_counterfactuals, replay=args.replay,
                                     ablation=args.ablation, observe_time=not args.no_time,
                                     max_bytes=args.max_memory or default_max_bytes(), progress=announce,
-                                    explore_progress=callback)
+                                    explore_progress=callback, explore=args.explore)
     except ExperimentError as exc:
         # an option to change or a budget, as simulate's; the file's own failure (no safe strategy), with
         # its source line when it points into the file
