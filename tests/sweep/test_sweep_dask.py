@@ -846,6 +846,7 @@ def test_the_cli_on_a_separate_dask_scheduler_and_worker(world: Path, tmp_path: 
     # an option the task would run without, as if it had not been given
     (["{scenarios}", "--runs", "5"], "--task verify does not use the option `runs` (its options: horizon, seed, "
                                      "max_states, episodes)"),
+    (["{scenarios}", "--explore", "goal"], "--task verify does not use the option `explore`"),
     (["{scenarios}", "--task", "check", "--horizon", "2", "--seed", "1"],
      "--task check does not use the options `horizon`, `seed` (its options: none)"),
     # the same: every task failed with "pass --reward-function EXPR" after the cluster started

@@ -202,6 +202,17 @@ def test_an_experiment_row_whose_goal_no_shielded_run_reaches_fails(folder: Path
     assert isinstance(row["details"], list) and len(row["details"]) == 4 and row["states"], row
 
 
+def test_an_experiment_row_explores_as_its_option_says(folder: Path) -> None:
+    """The option explore is rac experiment's --explore: goal steers the exploring choices (the experiment's
+    own tests check how); a value it does not know is refused by the plan, before any task runs."""
+    options = (("seeds", "1"), ("episodes", "8"), ("runs", "2"), ("reward_function", "goal()"), ("explore", "goal"))
+    row = run_task(spec(folder, "goal_ahead.xml", "experiment", options=options, timeout=120))
+    assert row["status"] == "ok", row
+    with pytest.raises(ValueError, match="--explore: one of uniform, goal, not 'best'"):
+        plan(folder / "template" / "sweep.ra", [str(folder / "scenarios" / "goal_ahead.xml")], task="experiment",
+             options={"explore": "best", "reward_function": "goal()"}, out=folder / "plan-out")
+
+
 def test_experiment_row_holds_the_summary_table(rows: dict[str, dict[str, object]]) -> None:
     row = rows["experiment"]
     assert row["status"] == "ok", row

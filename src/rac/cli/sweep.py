@@ -104,7 +104,7 @@ def sweep_command(args: argparse.Namespace) -> int:
                                            "workers")], {}, as_json(args))
             return EXIT_USAGE
     options = {"horizon": args.horizon, "seed": args.seed, "max_states": args.max_states, "episodes": args.episodes,
-               "runs": args.runs, "reward_function": args.reward_function}
+               "runs": args.runs, "reward_function": args.reward_function, "explore": args.explore}
     out = output_folder(Path(args.template), "sweep", Path(args.out) if args.out else None)
     try:
         planned = plan(args.template, args.scenarios, sets=args.sets, task=args.task, out=out,

@@ -84,7 +84,8 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
          options: Mapping[str, object] | None = None) -> Plan:
     """The tasks of a sweep (nothing runs). ``ValueError`` with a message for the user on a bad
     argument (no scenario matched, a bad ``sets``, an unknown task or option, an option the task does not use
-    (:data:`rac.sweep.task.TASK_OPTIONS`), a ``reward_function`` that
+    (:data:`rac.sweep.task.TASK_OPTIONS`), an ``explore`` that is not one of
+    :data:`rac.studies.experiment.EXPLORE`, a ``reward_function`` that
     is not one expression, or none for an ``experiment`` of an automaton without the paper's inputs, a
     template that does not parse or has no ``model`` block); ``OSError`` when the template cannot be read."""
 
@@ -119,6 +120,13 @@ def plan(template: str | Path, scenarios: Sequence[str | Path] | str | Path, *,
         problem = default_reward_problem(template_inputs(text, path))
         if problem is not None:
             raise ValueError(f"--task experiment: {problem}")
+    explore = (options or {}).get("explore")
+    if explore is not None:  # the same for every task: said here, not in an error row each
+        # numpy (via rac.studies.experiment): only an experiment sweep loads it
+        from rac.studies.experiment import EXPLORE
+
+        if explore not in EXPLORE:
+            raise ValueError(f"--explore: one of {', '.join(EXPLORE)}, not {explore!r}")
     given = tuple(sorted((name, str(value)) for name, value in (options or {}).items() if value is not None))
     # a file with several planning problems is that many scenes (real datasets number them per file): a task
     # each, unless the template or the grid chooses one for every file

@@ -63,6 +63,7 @@ OPTIONS: dict[str, str] = {
     "seeds": "experiment: the seeds, e.g. 1,2,3 (default 1..5)",
     "runs": "preanalyse: simulated runs per setting (default 100); experiment: evaluation runs (default 100)",
     "reward_function": "experiment: the reward function of the RF combinations (default: the paper's Eq. 9)",
+    "explore": "experiment: how learning episodes explore, uniform (default) or goal (rac experiment --explore)",
 }
 #: The options each task uses (:mod:`rac.sweep.work`): another is refused by :func:`rac.sweep.api.plan`, where it
 #: was ignored, silently.
@@ -70,7 +71,7 @@ TASK_OPTIONS: dict[str, tuple[str, ...]] = {
     "check": (),
     "verify": ("horizon", "seed", "max_states", "episodes"),
     "preanalyse": ("horizon", "seed", "max_states", "runs"),
-    "experiment": ("horizon", "seed", "max_states", "episodes", "seeds", "runs", "reward_function"),
+    "experiment": ("horizon", "seed", "max_states", "episodes", "seeds", "runs", "reward_function", "explore"),
 }
 #: What an error says when the task ran out of memory under its limit (Python, numpy, C++, the loader;
 #: CPython's SystemError "returned NULL without setting an exception" when even the MemoryError failed).

@@ -173,6 +173,8 @@ def _options(spec: TaskSpec) -> dict[str, Any]:
             options[name] = [_whole("seed", part.strip()) for part in text.split(",")]
         elif name == "reward_function":
             options[name] = text
+        elif name == "explore":  # its values are checked by the plan (rac.sweep.api.plan) and the experiment
+            options[name] = text
         else:
             options[name] = _whole(name, text)
     return options
@@ -305,6 +307,7 @@ def _experiment(result: CompileResult, options: dict[str, Any], row: dict[str, A
                                 fewer_runs=fewer_runs,
                                 evaluation_runs=options.get("runs", 100),
                                 reward_function=options.get("reward_function"),
+                                explore=options.get("explore", "uniform"),
                                 horizon_samples=_horizon_samples(result, options.get("horizon")),
                                 max_bytes=max_bytes, **_budget(options))
     except ExperimentError as exc:
