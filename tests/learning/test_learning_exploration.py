@@ -15,6 +15,7 @@ from rac.core.diagnostics import RacValueError
 from rac.learning.episodes import EpisodeBatch, parse_expr
 from rac.learning.optimum import solve
 from rac.learning.qlearning import learn
+from rac.learning.runs import Ahead, Steps, drive
 from rac.learning.tabular import UNTRIED, Learner, QTable, Transition, update
 
 
@@ -80,8 +81,19 @@ def test_steered_exploration_succeeds_as_often_as_its_exact_chance(tmp_path: Pat
 
 
 def test_steering_needs_episodes_that_look_ahead() -> None:
-    """A stand-in for the episodes without ``ahead()`` cannot steer: said, not an AttributeError."""
-    learner = Learner(QTable(1, 2), (), 0, (), None, np.random.default_rng(0), 1.0, 1.0, 1.0, 1,
-                      steer=parse_expr("dist_goal()"))  # type: ignore[arg-type]
+    """A stand-in for the episodes without ``ahead()`` cannot answer a lookahead: said, not an AttributeError."""
+    def asks() -> Steps[None]:
+        yield Ahead((parse_expr("dist_goal()"),), np.array([0]))
+
     with pytest.raises(RacValueError, match="cannot look ahead"):
-        learner.toward(object(), np.ones((1, 2), dtype=bool))  # type: ignore[arg-type]
+        drive(asks(), object())  # type: ignore[arg-type]
+
+
+def test_the_steered_choice_is_the_least_value_among_the_allowed() -> None:
+    """Ties at random among the least allowed values; an action not allowed never, however small its value; a
+    row of no numbers (a done episode) uniform among its allowed actions."""
+    learner = Learner(QTable(1, 4), (), 0, (), None, np.random.default_rng(0), 1.0, 1.0, 1.0, 1)
+    values = np.array([[3.0, 1.0, 1.0, 0.5], [np.nan] * 4])
+    masks = np.array([[True, True, True, False], [True, False, True, False]])
+    picks = np.array([learner.toward(values, masks) for _ in range(200)])
+    assert set(picks[:, 0]) == {1, 2} and set(picks[:, 1]) == {0, 2}

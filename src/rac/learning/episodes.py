@@ -727,13 +727,14 @@ class EpisodeBatch:
             out[:, column] = value
         return out
 
-    def ahead(self, exprs: Sequence[Expression], rows: slice | None = None) -> np.ndarray:
+    def ahead(self, exprs: Sequence[Expression], rows: slice | np.ndarray | None = None) -> np.ndarray:
         """``(n, n_actions, len(exprs))`` float64: each expression one decision later, had the episode
         taken each action now (as :meth:`observe` would read it after :meth:`step`); NaN for an episode
-        that is done; of the episodes ``rows`` only, if given. The batch is not changed: the steps are
-        taken by a copy of the episodes, one per action (the model's, whether or not ``allow when`` or a
-        shield allows the action), counted in :attr:`steps_ahead`; the memo keeps them, so the step then
-        taken is recalled. For exploration steered by the model (:class:`rac.learning.tabular.Learner`)."""
+        that is done; of the episodes ``rows`` only (a slice or indices), if given. The batch is not
+        changed: the steps are taken by a copy of the episodes, one per action (the model's, whether or
+        not ``allow when`` or a shield allows the action), counted in :attr:`steps_ahead`; the memo keeps
+        them, so the step then taken is recalled. For exploration steered by the model
+        (:class:`rac.learning.tabular.Learner`, :class:`rac.learning.runs.Ahead`)."""
         self._require()
         where = np.arange(self.n)[slice(None) if rows is None else rows]
         out = np.full((where.size, self.n_actions, len(exprs)), np.nan)

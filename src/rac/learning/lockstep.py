@@ -8,8 +8,10 @@ cheapest stepped together. :func:`run_together` takes generators of steps
 batch, in *rounds*: when every generator asks for fresh episodes (:class:`rac.learning.runs.Reset`),
 the batch is reset with all their widths side by side and each generator is sent a :class:`Lane`,
 its own rows; then every step asked for is taken in one step of the batch, each generator getting
-its rows' outcome. A generator whose episodes end before the others' waits for the next round (its
-rows, done, cost nothing). Every episode is stepped row by row, a generator reads and draws
+its rows' outcome. Before a step, the lookahead the generators ask for
+(:class:`rac.learning.runs.Ahead`) is taken once for all the rows they ask, each getting its own
+and charged its share. A generator whose episodes end before the others' waits for the next
+round (its rows, done, cost nothing). Every episode is stepped row by row, a generator reads and draws
 random numbers only for its own rows, so each result is the one the generator has alone
 (:func:`rac.learning.runs.drive`); only the time changes. Each run is charged its own computing
 time plus, for every step of the batch, a share of that step by its episodes still running.
@@ -42,7 +44,7 @@ from rac.core.diagnostics import RacError
 from rac.ir import expr as ie
 from rac.learning.counterfactual import Counterfactuals
 from rac.learning.episodes import EpisodeBatch, Expression, StepResult
-from rac.learning.runs import Reset, Steps, Stop
+from rac.learning.runs import Ahead, Reset, Steps, Stop, look_ahead
 from rac.learning.strategy import Forwarding
 
 __all__ = ["Between", "Interrupted", "Job", "Lane", "run_together"]
@@ -70,15 +72,10 @@ class Between:
         self.observed: dict[tuple[Expression, ...], np.ndarray] = {}  # equal expressions: the same values
         self.keys: np.ndarray | None = None
         self.masks: np.ndarray | None = None
-        self.looked: dict[tuple[Expression, ...], np.ndarray] = {}
-        #: Seconds spent looking ahead for every row (:meth:`ahead`) since :func:`_step` last took them: the
-        #: lane that asked first is not charged them, every lane is, by its episodes running (as a step).
-        self.spent = 0.0
 
     def clear(self) -> None:
         """The batch was reset or stepped: nothing read before holds."""
         self.observed.clear()
-        self.looked.clear()
         self.keys = self.masks = None
 
     def observe(self, exprs: Sequence[Expression]) -> np.ndarray | None:
@@ -91,19 +88,6 @@ class Between:
             return None
         if found is None:
             found = self.observed[key] = self.shared.observe(exprs)
-        return found
-
-    def ahead(self, exprs: Sequence[Expression]) -> np.ndarray | None:
-        """:meth:`rac.learning.episodes.EpisodeBatch.ahead` of every row (read only); None as :meth:`observe`."""
-        key = tuple(exprs)
-        try:
-            found = self.looked.get(key)
-        except TypeError:
-            return None
-        if found is None:
-            t0 = time.perf_counter()
-            found = self.looked[key] = self.shared.ahead(exprs)
-            self.spent += time.perf_counter() - t0
         return found
 
     def state_keys(self) -> np.ndarray:
@@ -160,12 +144,6 @@ class Lane(Forwarding):
         every = None if self.between is None else self.between.observe(exprs)
         if every is None:
             return self.shared.observe(exprs, self.rows)
-        return every[self.rows].copy()
-
-    def ahead(self, exprs: Sequence[Expression]) -> np.ndarray:
-        every = None if self.between is None else self.between.ahead(exprs)
-        if every is None:
-            return self.shared.ahead(exprs, self.rows)
         return every[self.rows].copy()
 
     def step(self, actions: np.ndarray) -> StepResult:
@@ -302,24 +280,46 @@ def _run(running: list[_Running], shared: EpisodeBatch, between: Between,
             run.seconds += spent * width / sum(widths)
             start += width
         for run in live:
-            _answer(run, Lane(shared, run.lane, run.job.objective, between), between)
+            run.send(Lane(shared, run.lane, run.job.objective, between))
         while any(run.stepping for run in live):
             if interrupted():
                 raise _Stopping
+            _look(shared, live)
             _step(shared, [run for run in live if run.stepping], between)
-
-
-def _answer(run: _Running, reply: Any, between: Between) -> None:
-    """``run.send(reply)``, not charging ``run`` the reads it made for every lane (:attr:`Between.spent`)."""
-    before = between.spent
-    run.send(reply)
-    run.seconds -= between.spent - before
 
 
 def _every(between: Between, exprs: Sequence[ie.Expr]) -> np.ndarray:
     """``exprs`` observed in every row of the batch, kept in ``between`` where it can."""
     found = between.observe(exprs)
     return between.shared.observe(exprs) if found is None else found
+
+
+def _look(shared: EpisodeBatch, live: list[_Running]) -> None:
+    """Answer the lookahead requests (:class:`rac.learning.runs.Ahead`): one ``ahead`` of the batch per list of
+    expressions, for every row asked, each requester charged by the rows it asked; until every request is a step."""
+    while True:
+        asking = [run for run in live if isinstance(run.request, Ahead)]
+        if not asking:
+            return
+        groups: dict[Any, list[_Running]] = {}
+        for run in asking:
+            key: Any = tuple(run.request.exprs)
+            try:
+                hash(key)
+            except TypeError:  # expressions that cannot be told apart (parsed nodes holding lists): asked alone
+                key = run
+            groups.setdefault(key, []).append(run)
+        for runs in groups.values():
+            rows = [run.lane.start + np.asarray(run.request.rows, dtype=np.int64) for run in runs]
+            t0 = time.perf_counter()
+            values = look_ahead(shared, runs[0].request.exprs, np.concatenate(rows))
+            spent = time.perf_counter() - t0
+            total = max(1, sum(part.size for part in rows))
+            start = 0
+            for run, part in zip(runs, rows):
+                run.seconds += spent * part.size / total
+                run.send(values[start:start + part.size])
+                start += part.size
 
 
 def _step(shared: EpisodeBatch, stepping: list[_Running], between: Between) -> None:
@@ -336,9 +336,7 @@ def _step(shared: EpisodeBatch, stepping: list[_Running], between: Between) -> N
     outcome = shared.step(actions)
     between.clear()
     after = _every(between, objectives) if objectives else None
-    # with the lookahead made for every row before this step (the lanes' choices read it)
-    spent = time.perf_counter() - t0 + between.spent
-    between.spent = 0.0
+    spent = time.perf_counter() - t0
     # episodes still running before the step, up to each row: a lane's count is a difference (not a sum per lane)
     upto = [0, *np.cumsum(running).tolist()]
     weights = [upto[run.lane.stop] - upto[run.lane.start] for run in stepping]
@@ -352,6 +350,6 @@ def _step(shared: EpisodeBatch, stepping: list[_Running], between: Between) -> N
             with np.errstate(invalid="ignore"):  # inf - inf: a reward that is not a number, which its job refuses
                 reward = np.where(running[lane], after[lane, column] - before[lane, column], 0.0)
         run.seconds += spent * weight / total
-        _answer(run, StepResult(reward=reward, terminated=outcome.terminated[lane], truncated=outcome.truncated[lane],
-                                collided=outcome.collided[lane], offroad=outcome.offroad[lane],
-                                stranded=outcome.stranded[lane], ended=outcome.ended[lane]), between)
+        run.send(StepResult(reward=reward, terminated=outcome.terminated[lane], truncated=outcome.truncated[lane],
+                            collided=outcome.collided[lane], offroad=outcome.offroad[lane],
+                            stranded=outcome.stranded[lane], ended=outcome.ended[lane]))

@@ -7,9 +7,11 @@ S``) and :func:`evaluate` its success rate.
 **Steps as requests (issue 11).** Whatever runs episodes — a rollout, an evaluation, learning
 (:func:`rac.learning.qlearning.learning`) — is written as a generator that *requests* what it
 needs from its episodes instead of calling them: it yields :class:`Reset` (``width`` fresh
-episodes; it is sent the :class:`rac.learning.strategy.Episodes` to read them through) or the
-actions of one step (it is sent the step's outcome). Everything else (observing, the state keys,
-``done``) it reads directly. :func:`drive` answers the requests with one batch of episodes;
+episodes; it is sent the :class:`rac.learning.strategy.Episodes` to read them through), an
+:class:`Ahead` (it is sent what some expressions would read one decision later under each
+action: a lookahead in the model, for steered exploration) or the actions of one step (it is
+sent the step's outcome). Everything else (observing, the state keys, ``done``) it reads
+directly. :func:`drive` answers the requests with one batch of episodes;
 :func:`rac.learning.lockstep.run_together` answers many generators with one shared batch, each
 reading its own rows, so that they pay for a sample together.
 """
@@ -24,7 +26,7 @@ from typing import Any, Concatenate, ParamSpec, TypeVar
 
 import numpy as np
 
-from rac.core.diagnostics import RacError
+from rac.core.diagnostics import RacError, RacValueError
 from rac.engine.shield import ShieldTable
 from rac.learning.episodes import Expression
 from rac.learning.strategy import (
@@ -37,8 +39,8 @@ from rac.learning.strategy import (
     uniform_allowed,
 )
 
-__all__ = ["Request", "Reset", "RunRecorder", "Steps", "Stop", "StrategyEvaluation", "alone", "drive", "evaluate",
-           "evaluation_steps", "rollout", "rollout_steps", "run_strategy"]
+__all__ = ["Ahead", "Request", "Reset", "RunRecorder", "Steps", "Stop", "StrategyEvaluation", "alone", "drive",
+           "evaluate", "evaluation_steps", "look_ahead", "rollout", "rollout_steps", "run_strategy"]
 
 T = TypeVar("T")
 P = ParamSpec("P")
@@ -51,30 +53,53 @@ class Reset:
     width: int
 
 
+@dataclass(frozen=True, eq=False)
+class Ahead:
+    """A request for ``exprs`` one decision later under each action, in the episodes ``rows`` (indices into
+    the requester's episodes): answered with the ``(len(rows), n_actions, len(exprs))`` values of
+    :meth:`rac.learning.episodes.EpisodeBatch.ahead`. As a request, the lookahead of several generators
+    sharing a batch is taken together (:func:`rac.learning.lockstep.run_together`), for the rows they ask."""
+
+    exprs: tuple[Expression, ...]
+    rows: np.ndarray
+
+
 class Stop(RacError):
     """Thrown into a generator of steps to end it now (its caller was interrupted): it returns what it
     has so far if it can (learning: the best strategy it evaluated), or lets this propagate."""
 
 
-#: What a generator of steps yields: a :class:`Reset`, or the ``(n,)`` actions of one step.
-Request = Reset | np.ndarray
-#: A generator of steps returning a ``T``; it is sent an :class:`Episodes` after a :class:`Reset`
-#: and a :class:`StepOutcome` after actions.
+#: What a generator of steps yields: a :class:`Reset`, an :class:`Ahead`, or the ``(n,)`` actions of one step.
+Request = Reset | Ahead | np.ndarray
+#: A generator of steps returning a ``T``; it is sent an :class:`Episodes` after a :class:`Reset`, the
+#: values after an :class:`Ahead` and a :class:`StepOutcome` after actions.
 Steps = Generator[Request, Any, T]
 
 
 def drive(steps: Steps[T], episodes: Episodes) -> T:
-    """Answer every request of ``steps`` with ``episodes`` alone (``reset``, ``step``); its result."""
+    """Answer every request of ``steps`` with ``episodes`` alone (``reset``, ``ahead``, ``step``); its result."""
     try:
         request = next(steps)
         while True:
             if isinstance(request, Reset):
                 episodes.reset(request.width)
                 request = steps.send(episodes)
+            elif isinstance(request, Ahead):
+                request = steps.send(look_ahead(episodes, request.exprs, request.rows))
             else:
                 request = steps.send(episodes.step(request))
     except StopIteration as stop:
         return stop.value
+
+
+def look_ahead(episodes: Episodes, exprs: Sequence[Expression], rows: np.ndarray) -> np.ndarray:
+    """``episodes.ahead(exprs, rows)`` (:meth:`rac.learning.episodes.EpisodeBatch.ahead`); episodes that
+    cannot look ahead (a stand-in without ``ahead``) are said so, not met as an AttributeError."""
+    ahead = getattr(episodes, "ahead", None)
+    if ahead is None:
+        raise RacValueError("these episodes cannot look ahead in the model (no ahead()): explore uniformly")
+    values: np.ndarray = ahead(exprs, rows)
+    return values
 
 
 def alone(steps: Callable[Concatenate[Episodes, P], Steps[T]]) -> Callable[Concatenate[Episodes, P], T]:

@@ -25,7 +25,7 @@ import numpy as np
 from rac.core.diagnostics import RacValueError
 from rac.engine.shield import ShieldTable
 from rac.ir import expr as ie
-from rac.learning.runs import Reset, RunRecorder, Steps, StrategyRun, rollout_steps
+from rac.learning.runs import Ahead, Reset, RunRecorder, Steps, StrategyRun, rollout_steps
 from rac.learning.strategy import (
     Episodes,
     StepOutcome,
@@ -344,13 +344,10 @@ class Learner:
         masked = np.where(masks, utilities, -np.inf)
         return uniform_allowed(self.rng, masks & (masked == np.maximum.reduce(masked, axis=1, keepdims=True)))
 
-    def toward(self, batch: Episodes, masks: np.ndarray) -> np.ndarray:
-        """Per learning row (``masks``: its allowed actions), the allowed action whose :attr:`steer` is
-        least one decision later, ties at random (uniformly among the allowed ones of a done episode)."""
-        look = getattr(batch, "ahead", None)
-        if look is None or self.steer is None:
-            raise RacValueError("these episodes cannot look ahead in the model (no ahead()): explore uniformly")
-        values = look([self.steer])[:masks.shape[0], :, 0]
+    def toward(self, values: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        """Per row (``masks``: its allowed actions; ``values``: :attr:`steer` one decision later under each
+        action, :class:`rac.learning.runs.Ahead`'s answer), the allowed action whose value is least, ties at
+        random (uniformly among the allowed ones where none is a number: a done episode)."""
         values = np.where(masks & ~np.isnan(values), values, np.inf)
         return uniform_allowed(self.rng, masks & (values == values.min(axis=1, keepdims=True)))
 
@@ -412,9 +409,11 @@ class Learner:
             if anyone:  # the random numbers are the learning episodes' only
                 explore = rng.random(n) < eps
                 random_actions = uniform_allowed(rng, masks[:n])
-                if self.steer is not None and (explore & learning).any():  # half the exploring choices, steered
-                    steered = rng.random(n) < STEERED
-                    random_actions = np.where(steered, self.toward(batch, masks[:n]), random_actions)
+                if self.steer is not None:  # a share of the exploring choices, steered by a lookahead
+                    steered = np.flatnonzero((rng.random(n) < STEERED) & explore & learning)
+                    if steered.size:
+                        values = yield Ahead((self.steer,), steered)
+                        random_actions[steered] = self.toward(values[:, :, 0], masks[steered])
                 # every learning row has a row of the table (created when observed): its values as they are
                 chosen = np.where(explore, random_actions, self.exploit(table.values[rows], masks[:n]))
                 actions[:n] = np.where(learning, chosen, 0)
