@@ -13,6 +13,7 @@ automaton gives 0.0 and changes nothing, as ``end`` does on the scalar runtime.
 
 from __future__ import annotations
 
+import copy
 import functools
 import operator
 from collections.abc import Callable, Mapping, Sequence
@@ -123,6 +124,14 @@ class _Guards:
             conjoin=lambda parts: self._step("and", parts),
             disjoin=lambda parts: self._step("or", parts))
         return fold(guard, self._ids)
+
+    def resized(self, n: int) -> _Guards:
+        """The same program over ``n`` rows: its constants at that length (every guard was added when the
+        automaton was built; the steps and their indices are shared)."""
+        twin = copy.copy(self)
+        twin._n = n
+        twin.program = [(kind, np.full(n, bool(arg[0])) if kind == "const" else arg) for kind, arg in self.program]
+        return twin
 
     def evaluate(self, x: Mapping[str, np.ndarray]) -> list[np.ndarray]:
         out: list[np.ndarray] = []
@@ -787,7 +796,13 @@ class BatchRewardAutomaton(AutomatonDescription):
             raise ValueError(f"rows must be a sequence of row indices in [0, {self._n}) (not a mask), not "
                              f"{raw.dtype} values of shape {raw.shape}: {raw.reshape(-1).tolist()[:10]}")
         where = raw.astype(np.intp)
-        twin = BatchRewardAutomaton(self._ir, int(where.size), strategy=self.strategy)
+        # this batch's tables and compiled updates, shared (never changed once built: as __copy__ shares
+        # them), not built again for every take (3 ms each: an exhaustive search or a lookahead takes often)
+        twin = object.__new__(type(self))
+        twin.__dict__.update(self.__dict__)
+        twin._n = int(where.size)
+        twin._guards = self._guards.resized(twin._n)
+        twin.clipped = {}
         twin._loc = self._loc[where].copy()
         twin._R = self._R[:, where].copy()
         twin._samples = self._samples[where].copy()
