@@ -337,7 +337,9 @@ def _add_engine(commands: argparse._SubParsersAction) -> None:
     exp.add_argument("--explore", choices=("uniform", "goal"), default="uniform",
                      help="how learning episodes explore: uniform among the allowed actions (default), or goal: "
                           "half the exploring choices take the action nearest the goal one decision later, looked "
-                          "up in the model (every combination alike; docs/learning.md)")
+                          "up in the model (every combination alike; on examples/paper/model.ra, with --episodes "
+                          "1000, seeds 1-20 reached the goal safely after 11 episodes on average, and each ended "
+                          "within 5 %% of the exact optimum: docs/learning.md)")
     exp.add_argument("--replay", type=int, default=1, metavar="N",
                      help="backward replays of each batch of episodes (default 1; 0: none)")
     exp.add_argument("--ablation", action="store_true",
