@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 from pathlib import Path
@@ -12,10 +13,12 @@ from engine_files import write_engine_file
 from PIL import Image
 from tiny_scenarios import goal_anywhere
 
+from rac.cli.arguments import build_parser
 from rac.cli.main import main
 from rac.compiler import compile_file
 from rac.studies.experiment import (
     COMBINATIONS,
+    EXPLORE,
     ExperimentError,
     render_markdown,
     results_json,
@@ -618,3 +621,13 @@ def test_explore_goal_is_refused_for_a_goal_without_a_position(tmp_path: Path,
     err = capsys.readouterr().err
     assert "--explore goal: the goal has no position" in err and "explore uniformly" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_command_lines_explore_choices_are_the_experiments() -> None:
+    """``rac experiment --explore`` and ``rac sweep --explore`` offer exactly :data:`EXPLORE`'s names (the
+    parser does not import the experiment, which loads numpy)."""
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name in ("experiment", "sweep"):
+        option = next(a for a in commands.choices[name]._actions if "--explore" in a.option_strings)
+        assert tuple(option.choices) == tuple(EXPLORE), name
