@@ -724,13 +724,17 @@ def test_ahead_is_each_action_taken_and_changes_nothing(probe: CompileResult, da
     twin.reset(n)
     history: list[np.ndarray] = []
     for _ in range(data.draw(st.integers(1, 6))):
-        got = asked.ahead(observed)
-        assert got.shape == (n, asked.n_actions, len(observed))
+        some = np.array(data.draw(st.lists(st.booleans(), min_size=n * asked.n_actions,
+                                           max_size=n * asked.n_actions))).reshape(n, asked.n_actions)
+        got, only = asked.ahead(observed), asked.ahead(observed, np.arange(n), some)
+        assert got.shape == only.shape == (n, asked.n_actions, len(observed))
         done = asked.done.copy()
-        assert np.isnan(got[done]).all()
+        assert np.isnan(got[done]).all() and np.isnan(only[~some]).all()
         for action in range(asked.n_actions):
             expected = taken_alone(make, n, history, action, observed)
             np.testing.assert_array_equal(got[~done, action], expected[~done])
+            asked_here = some[:, action] & ~done
+            np.testing.assert_array_equal(only[asked_here, action], expected[asked_here])
         assert asked.steps_ahead > 0 or done.all()
         actions = np.array(data.draw(st.lists(st.integers(0, asked.n_actions - 1), min_size=n, max_size=n)))
         history.append(actions)

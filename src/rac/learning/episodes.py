@@ -727,30 +727,34 @@ class EpisodeBatch:
             out[:, column] = value
         return out
 
-    def ahead(self, exprs: Sequence[Expression], rows: slice | np.ndarray | None = None) -> np.ndarray:
+    def ahead(self, exprs: Sequence[Expression], rows: slice | np.ndarray | None = None,
+              actions: np.ndarray | None = None) -> np.ndarray:
         """``(n, n_actions, len(exprs))`` float64: each expression one decision later, had the episode
         taken each action now (as :meth:`observe` would read it after :meth:`step`); NaN for an episode
         that is done; of the episodes ``rows`` only (a slice or indices), if given. The batch is not
-        changed: the steps are taken by a copy of the episodes, one per action (the model's, whether or
-        not ``allow when`` or a shield allows the action), counted in :attr:`steps_ahead`; the memo keeps
-        them, so the step then taken is recalled. For exploration steered by the model
+        changed: the steps are taken by a copy of the episodes, one per action asked (``actions``: a
+        ``(len(rows), n_actions)`` mask, the others NaN; default every action of the model's, whether or
+        not ``allow when`` or a shield allows it), counted in :attr:`steps_ahead`; the memo keeps them,
+        so the step then taken is recalled. For exploration steered by the model
         (:class:`rac.learning.tabular.Learner`, :class:`rac.learning.runs.Ahead`)."""
         self._require()
         where = np.arange(self.n)[slice(None) if rows is None else rows]
         out = np.full((where.size, self.n_actions, len(exprs)), np.nan)
-        going = ~self.done[where]
-        if not going.any():
+        wanted = np.ones((where.size, self.n_actions), dtype=bool) if actions is None else np.asarray(actions, bool)
+        if wanted.shape != out.shape[:2]:
+            raise ValueError(f"actions must be a ({where.size}, {self.n_actions}) mask, not {wanted.shape}")
+        row, action = np.nonzero(wanted & ~self.done[where][:, None])
+        if row.size == 0:
             return out
-        live = where[going]
         # a shallow copy: it shares the model, the compiled expressions and the memo, and select()
         # gives it its own episodes; what step() changes in place is made its own here
         probe = copy.copy(self)
         probe.counterfactuals = False
         probe.clipped_inputs = dict(self.clipped_inputs)
         probe._record = []
-        probe.select(np.repeat(live, self.n_actions))
-        probe.step(np.tile(np.arange(self.n_actions), live.size))
-        out[going] = probe.observe(exprs).reshape(live.size, self.n_actions, len(exprs))
+        probe.select(where[row])
+        probe.step(action)
+        out[row, action] = probe.observe(exprs)
         self.steps_ahead += (probe.steps_recalled + probe.steps_computed) - (self.steps_recalled + self.steps_computed)
         return out
 

@@ -311,8 +311,10 @@ def _look(shared: EpisodeBatch, live: list[_Running]) -> None:
             groups.setdefault(key, []).append(run)
         for runs in groups.values():
             rows = [run.lane.start + np.asarray(run.request.rows, dtype=np.int64) for run in runs]
+            actions = [np.ones((part.size, shared.n_actions), dtype=bool) if run.request.actions is None
+                       else run.request.actions for run, part in zip(runs, rows)]
             t0 = time.perf_counter()
-            values = look_ahead(shared, runs[0].request.exprs, np.concatenate(rows))
+            values = look_ahead(shared, runs[0].request.exprs, np.concatenate(rows), np.concatenate(actions))
             spent = time.perf_counter() - t0
             total = max(1, sum(part.size for part in rows))
             start = 0

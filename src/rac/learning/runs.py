@@ -56,12 +56,15 @@ class Reset:
 @dataclass(frozen=True, eq=False)
 class Ahead:
     """A request for ``exprs`` one decision later under each action, in the episodes ``rows`` (indices into
-    the requester's episodes): answered with the ``(len(rows), n_actions, len(exprs))`` values of
-    :meth:`rac.learning.episodes.EpisodeBatch.ahead`. As a request, the lookahead of several generators
-    sharing a batch is taken together (:func:`rac.learning.lockstep.run_together`), for the rows they ask."""
+    the requester's episodes), under the ``actions`` of each (a ``(len(rows), n_actions)`` mask; None: all):
+    answered with the ``(len(rows), n_actions, len(exprs))`` values of
+    :meth:`rac.learning.episodes.EpisodeBatch.ahead` (NaN for an action not asked). As a request, the
+    lookahead of several generators sharing a batch is taken together
+    (:func:`rac.learning.lockstep.run_together`), for the rows and actions they ask."""
 
     exprs: tuple[Expression, ...]
     rows: np.ndarray
+    actions: np.ndarray | None = None
 
 
 class Stop(RacError):
@@ -85,20 +88,21 @@ def drive(steps: Steps[T], episodes: Episodes) -> T:
                 episodes.reset(request.width)
                 request = steps.send(episodes)
             elif isinstance(request, Ahead):
-                request = steps.send(look_ahead(episodes, request.exprs, request.rows))
+                request = steps.send(look_ahead(episodes, request.exprs, request.rows, request.actions))
             else:
                 request = steps.send(episodes.step(request))
     except StopIteration as stop:
         return stop.value
 
 
-def look_ahead(episodes: Episodes, exprs: Sequence[Expression], rows: np.ndarray) -> np.ndarray:
-    """``episodes.ahead(exprs, rows)`` (:meth:`rac.learning.episodes.EpisodeBatch.ahead`); episodes that
+def look_ahead(episodes: Episodes, exprs: Sequence[Expression], rows: np.ndarray,
+               actions: np.ndarray | None = None) -> np.ndarray:
+    """``episodes.ahead(exprs, rows, actions)`` (:meth:`rac.learning.episodes.EpisodeBatch.ahead`); episodes that
     cannot look ahead (a stand-in without ``ahead``) are said so, not met as an AttributeError."""
     ahead = getattr(episodes, "ahead", None)
     if ahead is None:
         raise RacValueError("these episodes cannot look ahead in the model (no ahead()): explore uniformly")
-    values: np.ndarray = ahead(exprs, rows)
+    values: np.ndarray = ahead(exprs, rows, actions)
     return values
 
 

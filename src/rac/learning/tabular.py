@@ -412,7 +412,7 @@ class Learner:
                 if self.steer is not None:  # a share of the exploring choices, steered by a lookahead
                     steered = np.flatnonzero((rng.random(n) < STEERED) & explore & learning)
                     if steered.size:
-                        values = yield Ahead((self.steer,), steered)
+                        values = yield Ahead((self.steer,), steered, masks[steered])  # the allowed actions only
                         random_actions[steered] = self.toward(values[:, :, 0], masks[steered])
                 # every learning row has a row of the table (created when observed): its values as they are
                 chosen = np.where(explore, random_actions, self.exploit(table.values[rows], masks[:n]))
