@@ -295,8 +295,9 @@ def test_runs_learned_together_are_the_runs_learned_alone(scenario: Callable[[st
         assert evaluation == evaluate(batch, outcome.strategy, runs=runs_, shield=table, seed=4, epsilon=0.3)
 
 
+@pytest.mark.parametrize("steer", [None, "dist_goal()"])
 def test_ctrl_c_stops_runs_together_after_the_step_with_what_they_learned(
-        scenario: Callable[[str], Scenario]) -> None:
+        scenario: Callable[[str], Scenario], steer: str | None) -> None:
     """With ``interruptible``, Ctrl-C (SIGINT) is noted, not raised halfway into a generator: after the
     step under way every learning run returns the strategy of its last evaluation (the same as the
     uninterrupted run had then), a job finished before keeps its result, a run not evaluated yet and
@@ -314,8 +315,9 @@ def test_ctrl_c_stops_runs_together_after_the_step_with_what_they_learned(
         if len(evaluations) == 3:
             signal.raise_signal(signal.SIGINT)
 
+    # with steer, the runs also wait on lookahead requests between their steps
     options: dict[str, object] = dict(discrete=[LOCATION], continuous=[X, V], shield=item.table, episodes=400,
-                                      parallel=4, seed=5, stop_after=1000)
+                                      parallel=4, seed=5, stop_after=1000, steer=steer)
     full = learn(EpisodeBatch(item.result, reward="automaton", horizon_samples=HORIZON), **options)
     before = signal.getsignal(signal.SIGINT)
     jobs = [Job(learning(shared, **options, progress=ctrl_c_at_the_third)),  # type: ignore[arg-type]
