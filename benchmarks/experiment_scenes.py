@@ -32,6 +32,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import queries  # noqa: E402 - the scenes' files as the query benchmark writes them
 
+from rac.studies.experiment import EXPLORE  # noqa: E402 - the choices of rac experiment --explore
+
 DEFAULT_OUTPUT = HERE / "results" / "experiment_scenes.md"
 SCENES = ("highway", "t_junction", "overtaking")
 #: The overtaking's goal window ends at 12 s (rac.model.scenes.build_overtaking): a longer horizon
@@ -93,7 +95,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="the highway alone, seed 1, 40 episodes")
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT, help="where the markdown table goes")
-    parser.add_argument("--explore", choices=("uniform", "goal"), default="uniform",
+    parser.add_argument("--explore", choices=tuple(EXPLORE), default="uniform",
                         help="rac experiment's --explore (default uniform)")
     args = parser.parse_args()
     scenes = ("highway",) if args.quick else SCENES
