@@ -29,7 +29,9 @@ simulated episodes: the observation is the discrete list then the continuous lis
   so a strategy is deterministic (``random_ties``: a learning episode breaks them at random, so a
   state where nothing was tried yet continues at random rather than always with action 0).
   epsilon decays linearly per episode from ``epsilon[0]`` at the first episode to ``epsilon[1]``
-  at the last of the budget (a float keeps it constant).
+  at the last of the budget (a float keeps it constant). An exploring choice is uniform among the
+  allowed actions, or with ``steer`` half of them take the allowed action whose ``steer`` is least
+  one decision later, looked up in the model (:class:`rac.learning.runs.Ahead`).
 - **The best run replayed** (``replay_best``). After each batch the best learning episode seen so
   far (reaching the goal safely first, then the return) is replayed backwards once more: where
   the continuous observations are binned, a later, worse run through the same key overwrites a
@@ -297,9 +299,9 @@ def learning(batch: Episodes, *, discrete: Sequence[Expression], continuous: Seq
     first, then the return) is replayed backwards too; ``steer``: half the exploring choices take the
     allowed action whose value of this expression one decision later is least (``"dist_goal()"``: towards
     the goal), looked up in the model (:attr:`rac.learning.tabular.Learner.steer`; None: uniform);
-    ``max_bytes``: the memory budget (None: none): :class:`rac.engine.budget.EstimateExceeded` before anything
-    is learned when
-    :func:`rac.engine.budget.learning_bytes` estimates more. The same ``seed`` gives the same result."""
+    ``max_bytes``: the memory budget (None: none): :class:`rac.engine.budget.EstimateExceeded` before
+    anything is learned when :func:`rac.engine.budget.learning_bytes` estimates more. The same ``seed``
+    gives the same result."""
     if optimise not in ("max", "min"):
         raise ValueError(f"optimise must be 'max' or 'min', not {optimise!r}")
     for name, value in (("episodes", episodes), ("parallel", parallel), ("stop_after", stop_after)):
