@@ -262,7 +262,7 @@ def test_a_sample_calls_each_model_function_once(monkeypatch: pytest.MonkeyPatch
         batch.step(rng.integers(0, batch.n_actions, 8))
         samples += int(batch.k.max()) - before
     assert samples > 0
-    # a step's samples are taken ahead together (EpisodeBatch._ahead: every step computes here, the memo
+    # a step's samples are taken together (EpisodeBatch._together: every step computes here, the memo
     # being empty): the ego moves once per sample, every other function is called once per step
     steps = batch.steps_computed // 8
     assert 0 < steps < samples

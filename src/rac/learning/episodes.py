@@ -88,10 +88,10 @@ GOAL: ie.Expr = ie.call("goal")
 #: The model functions of a state alone (its ego and sample, not the run's history like ``collide()``
 #: under ``collision sticky``): computed on a sample, they are handed on to the next sample's ``prev``.
 _OF_THE_STATE = ("mindist", "offroad", "goal", "dist_goal")
-#: A step's computed samples are taken together (:meth:`EpisodeBatch._ahead`) while they are at most
+#: A step's computed samples are taken together (:meth:`EpisodeBatch._together`) while they are at most
 #: this many rows (samples times episodes): beyond, one sample's rows are enough to amortise numpy's
 #: calls, and all of them together would hold large temporaries.
-_AHEAD_ROWS = 1 << 17
+_TOGETHER_ROWS = 1 << 17
 
 #: An expression as the engine's entry points take it: text, a parsed node (both checked against
 #: the batch's automaton, :func:`rac.check.queries.lower_expression`) or a checked expression.
@@ -252,8 +252,8 @@ class _ModelSample:
 
 
 @dataclass
-class _Ahead:
-    """The model's part of the next samples of some episodes (:meth:`EpisodeBatch._ahead`): ``(J, m)``
+class _Together:
+    """The model's part of the next samples of some episodes (:meth:`EpisodeBatch._together`): ``(J, m)``
     arrays, sample ``j`` of episode ``i`` at ``[j, i]`` (``after`` ``(J, m, 7)``), and the model functions
     of the state computed on each sample (:data:`_OF_THE_STATE`, what :meth:`EpisodeBatch._carry` hands on)."""
 
@@ -886,9 +886,10 @@ class EpisodeBatch:
         records = np.zeros((misses.size, self.decide_every), dtype=memo.dtype)
         taken = np.zeros(misses.size, dtype=np.int64)
         recalled = memo.taken(hit_slots)  # every sample of the recalled steps, gathered once
-        ahead = self._ahead(misses, pairs, min(self.decide_every, self.horizon_samples - int(now.k[misses].min()))) \
+        together = self._together(misses, pairs, min(self.decide_every,
+                                                     self.horizon_samples - int(now.k[misses].min()))) \
             if misses.size else None
-        carry: tuple[int, np.ndarray, np.ndarray] | None = None  # the last sample ahead's rows: _carried
+        carry: tuple[int, np.ndarray, np.ndarray] | None = None  # the last sample taken together's rows: _carried
         for j in range(self.decide_every):
             rows = np.flatnonzero(~self.done)
             if rows.size == 0:
@@ -898,8 +899,8 @@ class EpisodeBatch:
             parts: list[tuple[np.ndarray, _ModelSample]] = []
             carry = None
             if computing.size:
-                if ahead is not None and j < ahead.samples:
-                    computed = ahead.sample(j, going)
+                if together is not None and j < together.samples:
+                    computed = together.sample(j, going)
                     carry = (j, going, computing)
                 else:
                     computed = self._model_sample(computing, pairs)
@@ -915,10 +916,10 @@ class EpisodeBatch:
             # prev(e)'s model functions are handed on for the computed rows only: a recalled row's are not known
             if computing.size and computed.frame is not None:
                 self._carry(computing, computed.frame)
-            else:  # (a sample taken ahead hands its functions on below, if it is the last)
+            else:  # (a sample taken together hands its functions on below, if it is the last)
                 self._carried = None
-        if carry is not None and ahead is not None:  # the last sample was taken ahead: its functions handed on
-            self._carried = (carry[2], ahead.functions(carry[0], carry[1]))
+        if carry is not None and together is not None:  # the last sample was taken together: its functions
+            self._carried = (carry[2], together.functions(carry[0], carry[1]))
         if misses.size:  # a step the automaton ended early did not run to its model's end: not kept
             last = records[np.arange(misses.size), np.maximum(taken - 1, 0)]
             whole = (taken == self.decide_every) | ((taken > 0) & last["reached"]) \
@@ -944,7 +945,7 @@ class EpisodeBatch:
             return {}
         return {name: column[where] for name, column in known.items()}
 
-    def _ahead(self, rows: np.ndarray, pairs: np.ndarray, samples: int) -> _Ahead | None:
+    def _together(self, rows: np.ndarray, pairs: np.ndarray, samples: int) -> _Together | None:
         """The model's part of the next ``samples`` samples of the episodes ``rows`` (a memoised batch's,
         :meth:`_memoisable`), taken together: the ego moves sample by sample (``sense``), then every
         binding, label, goal and reward expression is read once on all those samples' states (one frame
@@ -953,8 +954,8 @@ class EpisodeBatch:
         part reads its row's state, sample, pair and earlier collisions alone (``crashed``: or-ed along
         the samples here). Samples past an episode's end are computed but not read; where anything
         raises (a value beyond int32 there, say), None: the caller takes the samples one by one, which
-        raise where the episode really reaches. None as well beyond :data:`_AHEAD_ROWS` rows."""
-        if samples < 1 or samples * rows.size > _AHEAD_ROWS:
+        raise where the episode really reaches. None as well beyond :data:`_TOGETHER_ROWS` rows."""
+        if samples < 1 or samples * rows.size > _TOGETHER_ROWS:
             return None
         now = self._require()[0]
         evaluator = self.evaluator
@@ -1001,7 +1002,7 @@ class EpisodeBatch:
         def split(column: np.ndarray) -> np.ndarray:
             return column.reshape(samples, m, *column.shape[1:])
 
-        return _Ahead(split(ego), {name: split(v) for name, v in values.items()},
+        return _Together(split(ego), {name: split(v) for name, v in values.items()},
                       {name: split(v) for name, v in changes.items()}, collided, split(offroad),
                       split(sampled.reached), None if sampled.reward is None else split(sampled.reward),
                       {name: split(known[name]) for name in _OF_THE_STATE if name in known})

@@ -312,12 +312,12 @@ def solve(batch: EpisodeBatch, *, objective: Expression | None = None, optimise:
                           layer.arrived.astype(np.float64))
         counts = np.maximum(np.bincount(layer.parent, minlength=nodes), 1)
         if layer.toward is not None:
-            ahead = np.where(layer.safe, np.where(layer.target >= 0, steered_chance[np.maximum(layer.target, 0)]
-                                                  if steered_chance.size else 0.0, layer.arrived.astype(np.float64)),
-                             0.0)
-            towards = np.bincount(layer.parent, weights=ahead * layer.toward, minlength=nodes) / np.maximum(
+            edge = np.where(layer.safe, np.where(layer.target >= 0, steered_chance[np.maximum(layer.target, 0)]
+                                                 if steered_chance.size else 0.0, layer.arrived.astype(np.float64)),
+                            0.0)  # per edge: a steered continuation's chance after it
+            towards = np.bincount(layer.parent, weights=edge * layer.toward, minlength=nodes) / np.maximum(
                 np.bincount(layer.parent, weights=layer.toward, minlength=nodes), 1)
-            steered_chance = STEERED * towards + (1 - STEERED) * np.bincount(layer.parent, weights=ahead,
+            steered_chance = STEERED * towards + (1 - STEERED) * np.bincount(layer.parent, weights=edge,
                                                                              minlength=nodes) / counts
         chance = np.bincount(layer.parent, weights=np.where(layer.safe, onward, 0.0), minlength=nodes) / counts
         top = np.full(nodes, -np.inf)

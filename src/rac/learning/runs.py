@@ -148,22 +148,15 @@ class RunRecorder:
         ``empty`` shield mask, the actions ``chosen`` and the step's ``outcome``."""
         j, rows = self.j, self.rows
         live = active[rows]
-        flags = ((self.reached, outcome.terminated), (self.collided, outcome.collided),
-                 (self.offroad, outcome.offroad), (self.stranded, outcome.stranded))
-        if live.all():  # every recorded row still runs (learning's greedy episode, always): no row to leave out
-            self.fallbacks += empty[rows]
-            self.actions[:, j] = chosen[rows]
-            self.rewards[:, j] = np.asarray(outcome.reward)[rows]
-            for flag, value in flags:
-                flag |= np.asarray(value, dtype=bool)[rows]
-            self.steps += 1
-        else:
-            self.fallbacks += empty[rows] & live
-            self.actions[live, j] = chosen[rows][live]
-            self.rewards[live, j] = np.asarray(outcome.reward)[rows][live]
-            for flag, value in flags:
-                flag |= np.asarray(value, dtype=bool)[rows] & live
-            self.steps += live
+        # every recorded row still runs (learning's greedy episode, always): a slice, no row to leave out
+        at = slice(None) if live.all() else live
+        self.fallbacks[at] += empty[rows][at]
+        self.actions[at, j] = chosen[rows][at]
+        self.rewards[at, j] = np.asarray(outcome.reward)[rows][at]
+        for flag, value in ((self.reached, outcome.terminated), (self.collided, outcome.collided),
+                            (self.offroad, outcome.offroad), (self.stranded, outcome.stranded)):
+            flag[at] |= np.asarray(value, dtype=bool)[rows][at]
+        self.steps[at] += 1
         self.j += 1
 
     def finish(self) -> StrategyRun:

@@ -341,15 +341,18 @@ class Learner:
         index or (:attr:`random_ties`) uniformly among the tied ones."""
         if not self.random_ties:
             return greedy_actions(utilities, masks)
-        masked = np.where(masks, utilities, -np.inf)
-        return uniform_allowed(self.rng, masks & (masked == np.maximum.reduce(masked, axis=1, keepdims=True)))
+        return self._at_best(np.where(masks, utilities, -np.inf), masks)
 
     def toward(self, values: np.ndarray, masks: np.ndarray) -> np.ndarray:
         """Per row (``masks``: its allowed actions; ``values``: :attr:`steer` one decision later under each
         action, :class:`rac.learning.runs.Ahead`'s answer), the allowed action whose value is least, ties at
         random (uniformly among the allowed ones where none is a number: a done episode)."""
-        values = np.where(masks & ~np.isnan(values), values, np.inf)
-        return uniform_allowed(self.rng, masks & (values == values.min(axis=1, keepdims=True)))
+        return self._at_best(np.where(masks & ~np.isnan(values), -values, -np.inf), masks)
+
+    def _at_best(self, scores: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        """Per row, an allowed action of the highest ``scores`` (``-inf`` where not allowed), uniformly at
+        random among those tied (among all allowed ones where every score is ``-inf``)."""
+        return uniform_allowed(self.rng, masks & (scores == np.maximum.reduce(scores, axis=1, keepdims=True)))
 
     def _replay_best(self, own: Sequence[Transition], returns: np.ndarray, good: np.ndarray) -> None:
         """Keep the best of the batch's episodes if it beats the best seen, then replay that one backwards."""
